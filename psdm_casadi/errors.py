@@ -1,0 +1,54 @@
+"""Exceptions and warnings shared by every package of psdm-casadi.
+
+Each subclasses a builtin so callers may catch either the specific class or the builtin.
+Messages follow one template: *Owner.field must be constraint; got value. Fix.*
+"""
+
+
+class PSDMError(Exception):
+    """Base class of every error raised on purpose by psdm-casadi."""
+
+
+class ShapeError(PSDMError, ValueError):
+    """An array has the wrong shape or length."""
+
+
+class ParameterError(PSDMError, ValueError):
+    """A value is outside its allowed range or of the wrong kind."""
+
+
+class RobotFileError(ParameterError):
+    """A robot description file (TOML or URDF) is malformed."""
+
+
+class RecordingError(ParameterError):
+    """A recording (CSV/NPZ) is malformed: columns, NaN, time, length."""
+
+
+class ModelFileError(ParameterError):
+    """A saved model file is unreadable, of another format, or of another version."""
+
+
+class NotFittedError(PSDMError, ValueError, AttributeError):
+    """An estimator was used before ``fit``."""
+
+
+class SolverError(PSDMError, RuntimeError):
+    """A numerical solver (Ipopt, a factorisation) failed; the message carries its status."""
+
+    def __init__(self, message, status=None, iterations=None):
+        super().__init__(message)
+        self.status = status
+        self.iterations = iterations
+
+
+class DerivationError(PSDMError, RuntimeError):
+    """The PSDM derivation could not reproduce the oracle to the required accuracy."""
+
+
+class ExcitationWarning(UserWarning):
+    """An excitation trajectory is poorly conditioned or close to a limit."""
+
+
+class SelectionWarning(UserWarning):
+    """A model selection is unstable or a term was kept on weak evidence."""

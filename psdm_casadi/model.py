@@ -1,0 +1,251 @@
+"""PSDMModel: the derived model as data (E, P, base-parameter map) with numpy evaluation and file I/O.
+
+tau_i = y(q, qd, qdd) P[:, :, i] theta, where y_f = prod_h gamma_h^E[h, f] over
+gamma = [q; sin q; cos q; qd; qdd], and functions with no velocity or acceleration factor
+(the gravity functions) are multiplied by the gravity magnitude g.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import ModelFileError, ShapeError
+
+MODEL_FORMAT = "psdm-model"
+MODEL_VERSION = 1
+
+
+@dataclass(frozen=True)
+class PSDMModel:
+    """A derived PSDM model.
+
+    Parameters
+    ----------
+    exponents : array of uint8, shape (5 n_dof, n_functions)
+        E: exponents of [q; sin q; cos q; qd; qdd] in each function (alias of the paper's E).
+    reduction : array, shape (n_functions, n_base, n_dof)
+        P: the reduction matrices, one slice per joint.
+    parameter_map : array, shape (n_base, 11 n_dof)
+        theta = parameter_map @ standard.ravel(), standard being (n_dof, 11) rows of
+        [m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz, Im] (inertia about the link-frame origin).
+    base_names : tuple of str, length n_base
+    standard_names : tuple of str, length 11 n_dof
+    gravity_magnitude : float
+        g [m/s^2] multiplying the gravity functions.
+    revolute : array of bool, shape (n_dof,)
+    robot_name : str
+    metadata : dict
+        Provenance only (seed, seconds, accuracy); never read by algorithms.
+    """
+
+    exponents: np.ndarray
+    reduction: np.ndarray
+    parameter_map: np.ndarray
+    base_names: tuple
+    standard_names: tuple
+    gravity_magnitude: float
+    revolute: np.ndarray
+    robot_name: str = "robot"
+    metadata: dict = field(default_factory=dict, compare=False)
+
+    def __post_init__(self):
+        exponents = np.asarray(self.exponents, dtype=np.uint8)
+        reduction = np.asarray(self.reduction, dtype=float)
+        revolute = np.asarray(self.revolute, dtype=bool)
+        n = revolute.size
+        if exponents.ndim != 2 or exponents.shape[0] != 5 * n:
+            raise ShapeError(f"PSDMModel.exponents must have shape (5*{n}, n_functions); got {exponents.shape}.")
+        p = exponents.shape[1]
+        if reduction.ndim != 3 or reduction.shape[0] != p or reduction.shape[2] != n:
+            raise ShapeError(
+                f"PSDMModel.reduction must have shape ({p}, n_base, {n}); got {reduction.shape}."
+            )
+        l = reduction.shape[1]
+        parameter_map = np.asarray(self.parameter_map, dtype=float)
+        if parameter_map.shape != (l, 11 * n):
+            raise ShapeError(f"PSDMModel.parameter_map must have shape ({l}, {11 * n}); got {parameter_map.shape}.")
+        if len(self.base_names) != l or len(self.standard_names) != 11 * n:
+            raise ShapeError("PSDMModel.base_names/standard_names must match the reduction and parameter map sizes.")
+        for name, value in (("exponents", exponents), ("reduction", reduction),
+                            ("parameter_map", parameter_map), ("revolute", revolute)):
+            value.setflags(write=False)
+            object.__setattr__(self, name, value)
+        object.__setattr__(self, "base_names", tuple(self.base_names))
+        object.__setattr__(self, "standard_names", tuple(self.standard_names))
+
+    # --- sizes and views -------------------------------------------------------------------------
+    @property
+    def n_dof(self) -> int:
+        return self.revolute.size
+
+    @property
+    def n_functions(self) -> int:
+        return self.exponents.shape[1]
+
+    @property
+    def n_base(self) -> int:
+        return self.reduction.shape[1]
+
+    @property
+    def gravity_functions(self) -> np.ndarray:
+        """Boolean (n_functions,): functions with no qd or qdd factor (multiplied by g)."""
+        n = self.n_dof
+        return ~np.any(self.exponents[3 * n:] > 0, axis=0)
+
+    @property
+    def gravity_mask(self) -> np.ndarray:
+        """Boolean (n_base,): base parameters that appear in gravity terms (the paper's theta_b,grav)."""
+        return np.any(self.reduction[self.gravity_functions] != 0, axis=(0, 2))
+
+    @property
+    def n_gravity(self) -> int:
+        return int(self.gravity_mask.sum())
+
+    # --- numeric evaluation ---------------------------------------------------------------------
+    def _states(self, *arrays):
+        out = []
+        single = np.asarray(arrays[0]).ndim == 1
+        for name, x in zip(("q", "qd", "qdd"), arrays):
+            arr = np.atleast_2d(np.asarray(x, dtype=float))
+            if arr.shape[1] != self.n_dof:
+                raise ShapeError(f"{name} must have shape (n_samples, {self.n_dof}) or ({self.n_dof},); got {np.shape(x)}.")
+            out.append(arr)
+        if len({a.shape[0] for a in out}) != 1:
+            raise ShapeError(f"q, qd, qdd must have the same number of samples; got {[a.shape[0] for a in out]}.")
+        return out, single
+
+    def functions(self, q, qd, qdd) -> np.ndarray:
+        """The p functions y(q, qd, qdd), shape (n_samples, n_functions), gravity ones times g."""
+        (q, qd, qdd), _ = self._states(q, qd, qdd)
+        gamma = np.concatenate([q, np.sin(q), np.cos(q), qd, qdd], axis=1)
+        y = np.ones((gamma.shape[0], self.n_functions))
+        for h in range(gamma.shape[1]):
+            for power in (1, 2):
+                cols = self.exponents[h] == power
+                if cols.any():
+                    y[:, cols] *= gamma[:, h:h + 1] ** power
+        y[:, self.gravity_functions] *= self.gravity_magnitude
+        return y
+
+    def regressor(self, q, qd, qdd) -> np.ndarray:
+        """Y(q, qd, qdd), shape (n_samples, n_dof, n_base), or (n_dof, n_base) for one state."""
+        single = np.asarray(q).ndim == 1
+        y = self.functions(q, qd, qdd)
+        out = np.einsum("sf,fli->sil", y, self.reduction)
+        return out[0] if single else out
+
+    def gravity_regressor(self, q) -> np.ndarray:
+        """Y_grav(q): the regressor of the gravity functions only, shape (n_samples, n_dof, n_base)."""
+        q = np.asarray(q, dtype=float)
+        zeros = np.zeros_like(q)
+        return self.regressor(q, zeros, zeros)
+
+    def inverse_dynamics(self, q, qd, qdd, theta) -> np.ndarray:
+        """tau = Y theta, shape (n_samples, n_dof) or (n_dof,)."""
+        theta = self._theta(theta)
+        return self.regressor(q, qd, qdd) @ theta
+
+    def _theta(self, theta):
+        theta = np.asarray(theta, dtype=float).reshape(-1)
+        if theta.size != self.n_base:
+            raise ShapeError(f"theta must have {self.n_base} base parameters; got {theta.size}.")
+        return theta
+
+    def base_parameters(self, standard) -> np.ndarray:
+        """theta from standard parameters, shape (n_dof, 11) or (11 n_dof,)."""
+        standard = np.asarray(standard, dtype=float).reshape(-1)
+        if standard.size != self.parameter_map.shape[1]:
+            raise ShapeError(
+                f"standard parameters must be ({self.n_dof}, 11) [m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz, Im]; "
+                f"got {standard.size} values."
+            )
+        return self.parameter_map @ standard
+
+    # --- presentation ---------------------------------------------------------------------------
+    def equations(self, digits: int = 4) -> str:
+        """The base parameters as sums of standard parameters, like the paper's Table 4.
+
+        Standard parameters are m_i, the first moments m r (``mx``, ``my``, ``mz``), the inertia
+        about the link-frame origin (``Ixx`` ...) and the rotor inertia ``Im``.
+        """
+        lines = []
+        gravity = self.gravity_mask
+        for j, name in enumerate(self.base_names):
+            terms = []
+            for coef, std in zip(self.parameter_map[j], self.standard_names):
+                if abs(coef) < 1e-12:
+                    continue
+                sign = "-" if coef < 0 else "+"
+                magnitude = abs(coef)
+                text = std if abs(magnitude - 1) < 1e-9 else f"{magnitude:.{digits}g}*{std}"
+                terms.append((sign, text))
+            body = " ".join(f"{s} {t}" for s, t in terms).lstrip("+ ").strip() or "0"
+            if body.startswith("- "):
+                body = "-" + body[2:]
+            kind = "gravity" if gravity[j] else "inertial"
+            lines.append(f"{name:>8} [{kind:8}] = {body}")
+        return "\n".join(lines)
+
+    def summary(self) -> dict:
+        return {"robot": self.robot_name, "n_dof": self.n_dof, "p": self.n_functions, "l": self.n_base,
+                "n_gravity": self.n_gravity}
+
+    # --- files ----------------------------------------------------------------------------------
+    def save(self, path, overwrite: bool = False) -> Path:
+        """Write the model to a versioned ``.npz`` file atomically; refuse to overwrite unless asked."""
+        path = Path(path)
+        if path.suffix != ".npz":
+            path = path.with_suffix(path.suffix + ".npz") if path.suffix else path.with_suffix(".npz")
+        if path.exists() and not overwrite:
+            raise FileExistsError(f"{path} exists; pass overwrite=True (or --force) to replace it.")
+        header = {"format": MODEL_FORMAT, "version": MODEL_VERSION, "robot_name": self.robot_name,
+                  "base_names": list(self.base_names), "standard_names": list(self.standard_names),
+                  "gravity_magnitude": self.gravity_magnitude, "metadata": self.metadata}
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
+        try:
+            with os.fdopen(fd, "wb") as handle:
+                np.savez(handle, header=np.array(json.dumps(header)), exponents=self.exponents,
+                         reduction=self.reduction, parameter_map=self.parameter_map, revolute=self.revolute)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+        return path
+
+
+def load_model(path) -> PSDMModel:
+    """Read a model written by ``PSDMModel.save``.
+
+    Raises
+    ------
+    ModelFileError
+        When the file is not a psdm-casadi model or has an unsupported version.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise ModelFileError(f"model file {str(path)!r} does not exist. Check the path or run 'psdm derive -o'.")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            header = json.loads(str(data["header"]))
+            arrays = {k: data[k] for k in ("exponents", "reduction", "parameter_map", "revolute")}
+    except (OSError, ValueError, KeyError) as exc:
+        raise ModelFileError(f"{path.name} is not a psdm-casadi model file ({exc}).") from None
+    if header.get("format") != MODEL_FORMAT:
+        raise ModelFileError(f"{path.name}: format must be {MODEL_FORMAT!r}; got {header.get('format')!r}.")
+    if header.get("version") != MODEL_VERSION:
+        raise ModelFileError(
+            f"{path.name}: model version {header.get('version')} is not supported (this release reads "
+            f"version {MODEL_VERSION}). Derive the model again with this release."
+        )
+    return PSDMModel(exponents=arrays["exponents"], reduction=arrays["reduction"],
+                     parameter_map=arrays["parameter_map"], base_names=tuple(header["base_names"]),
+                     standard_names=tuple(header["standard_names"]),
+                     gravity_magnitude=float(header["gravity_magnitude"]), revolute=arrays["revolute"],
+                     robot_name=header["robot_name"], metadata=header.get("metadata", {}))
