@@ -42,7 +42,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    from . import commands  # the derive command lives in this package
+    from . import commands  # the derive command lives in this package (imported late: it imports cli)
 
     commands.register(subparsers)
     for entry in sorted(entry_points(group="psdm.commands"), key=lambda e: e.name):

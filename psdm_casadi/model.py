@@ -21,7 +21,7 @@ MODEL_FORMAT = "psdm-model"
 MODEL_VERSION = 1
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class PSDMModel:
     """A derived PSDM model.
 
@@ -78,6 +78,17 @@ class PSDMModel:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "base_names", tuple(self.base_names))
         object.__setattr__(self, "standard_names", tuple(self.standard_names))
+
+    def __eq__(self, other) -> bool:
+        """Equal when E, P, the parameter map, names and g are identical (metadata is ignored)."""
+        if not isinstance(other, PSDMModel):
+            return NotImplemented
+        arrays = ("exponents", "reduction", "parameter_map", "revolute")
+        return (all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
+                and self.base_names == other.base_names and self.standard_names == other.standard_names
+                and self.gravity_magnitude == other.gravity_magnitude)
+
+    __hash__ = None
 
     # --- sizes and views -------------------------------------------------------------------------
     @property

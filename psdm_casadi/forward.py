@@ -1,0 +1,51 @@
+"""Forward dynamics on the base parameters: solve D(q) qdd = tau - h by a square-root-free Cholesky (LDL^T).
+
+The factorisation is written out on CasADi SX so it code-generates into straight-line C with no
+branches and no library calls.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+
+def ldl_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
+    """Solve ``matrix x = rhs`` for a symmetric positive definite SX matrix by LDL^T.
+
+    Parameters
+    ----------
+    matrix : casadi.SX, shape (n, n)
+        Only the lower triangle is read.
+    rhs : casadi.SX, shape (n, 1)
+
+    Returns
+    -------
+    casadi.SX, shape (n, 1)
+    """
+    n = matrix.shape[0]
+    lower = [[None] * n for _ in range(n)]
+    diag = [None] * n
+    for j in range(n):
+        d = matrix[j, j]
+        for k in range(j):
+            d = d - lower[j][k] * lower[j][k] * diag[k]
+        diag[j] = d
+        inv_d = 1.0 / d
+        for i in range(j + 1, n):
+            value = matrix[i, j]
+            for k in range(j):
+                value = value - lower[i][k] * lower[j][k] * diag[k]
+            lower[i][j] = value * inv_d
+    y = [None] * n  # L y = rhs
+    for i in range(n):
+        value = rhs[i]
+        for k in range(i):
+            value = value - lower[i][k] * y[k]
+        y[i] = value
+    x = [None] * n  # D L^T x = y
+    for i in reversed(range(n)):
+        value = y[i] / diag[i]
+        for k in range(i + 1, n):
+            value = value - lower[k][i] * x[k]
+        x[i] = value
+    return ca.vertcat(*x)

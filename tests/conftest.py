@@ -1,0 +1,48 @@
+"""Shared fixtures: sample robots, derived models, a seeded rng, and paths to third-party data."""
+
+from __future__ import annotations
+
+import sysconfig
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from psdm_casadi import derive_psdm, load_robot
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = ROOT.parent / "shared"
+REFERENCE_PSDM = SHARED / "reference" / "psdm"
+DATASETS = SHARED / "datasets"
+DENSO_FILE = ROOT / "robots" / "denso_vs6556g.toml"
+
+
+def example_robot_urdf(relative: str) -> Path:
+    """A URDF from the example-robot-data wheel (cmeel prefix), or skip the test."""
+    for base in {sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]}:
+        path = Path(base) / "cmeel.prefix" / "share" / "example-robot-data" / "robots" / relative
+        if path.exists():
+            return path
+    pytest.skip(f"example-robot-data URDF {relative} is not installed")
+
+
+@pytest.fixture
+def rng():
+    return np.random.default_rng(12345)
+
+
+@pytest.fixture(scope="session")
+def denso():
+    return load_robot(DENSO_FILE)
+
+
+@pytest.fixture(scope="session")
+def denso_model(denso):
+    return derive_psdm(denso)
+
+
+@pytest.fixture(scope="session")
+def denso_functions(denso_model):
+    from psdm_casadi.symbolic import build_functions
+
+    return build_functions(denso_model)
