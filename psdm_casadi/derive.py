@@ -15,7 +15,7 @@
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -163,9 +163,11 @@ def _coefficients(sampler, function, joints, robot, rtol):
             grid[:, j] = mesh[axis].ravel()
     values = sampler.evaluate(function, grid)  # (points, n_dof, n_free)
     tensor = values.reshape(*[len(x) for x in nodes], n, values.shape[-1])
-    for axis, j in enumerate(joints):
+    for axis, j in enumerate(joints):  # apply the inverse basis matrix along each grid axis, in place of shape
         inverse = np.linalg.inv(_basis_matrix(bool(robot.revolute[j])))
-        tensor = np.moveaxis(np.tensordot(inverse, tensor, axes=([1], [axis])), 0, axis)
+        shape = tensor.shape
+        blocks = tensor.reshape(int(np.prod(shape[:axis], dtype=int)), shape[axis], -1)
+        tensor = np.einsum("ij,ajb->aib", inverse, blocks).reshape(shape)
     magnitude = np.abs(tensor).reshape(*tensor.shape[:len(joints)], -1).max(axis=-1)
     largest = magnitude.max()
     if largest == 0.0:
@@ -346,4 +348,4 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
         )
     metadata = {"seed": options.seed, "seconds": time.perf_counter() - start,
                 "max_rel_error_vs_pinocchio": error, "n_free_parameters": int(free_basis.shape[1])}
-    return PSDMModel(**{**model.__dict__, "metadata": metadata})
+    return replace(model, metadata=metadata)

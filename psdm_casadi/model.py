@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+import scipy.sparse
 
 from .errors import ModelFileError, ShapeError
 
@@ -76,6 +77,9 @@ class PSDMModel:
                             ("parameter_map", parameter_map), ("revolute", revolute)):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
+        # P as one sparse (n_functions, n_dof * n_base) matrix for fast batch evaluation
+        flat = reduction.transpose(0, 2, 1).reshape(p, n * l)
+        object.__setattr__(self, "_reduction_sparse", scipy.sparse.csr_matrix(flat))
         object.__setattr__(self, "base_names", tuple(self.base_names))
         object.__setattr__(self, "standard_names", tuple(self.standard_names))
 
@@ -148,7 +152,7 @@ class PSDMModel:
         """Y(q, qd, qdd), shape (n_samples, n_dof, n_base), or (n_dof, n_base) for one state."""
         single = np.asarray(q).ndim == 1
         y = self.functions(q, qd, qdd)
-        out = np.einsum("sf,fli->sil", y, self.reduction)
+        out = np.asarray(self._reduction_sparse.T @ y.T).T.reshape(y.shape[0], self.n_dof, self.n_base)
         return out[0] if single else out
 
     def gravity_regressor(self, q) -> np.ndarray:

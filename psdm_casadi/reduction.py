@@ -13,7 +13,7 @@ import numpy as np
 import scipy.linalg
 
 
-def select_independent_rows(rows: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
+def select_independent_rows(rows: np.ndarray, rtol: float = 1e-8, block: int = 512) -> np.ndarray:
     """Indices of the rows that are linearly independent of all earlier rows (greedy, in order).
 
     Parameters
@@ -22,23 +22,31 @@ def select_independent_rows(rows: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
     rtol : float
         A row is independent when its component orthogonal to the earlier selected rows is
         larger than ``rtol`` times its norm.
+    block : int
+        Rows tested together; the result does not depend on it.
     """
-    n_cols = rows.shape[1]
+    norms = np.linalg.norm(rows, axis=1)
+    nonzero = np.nonzero(norms > 0)[0]
+    rows, norms = rows[nonzero], norms[nonzero]
+    n_rows, n_cols = rows.shape
     basis = np.zeros((0, n_cols))
     selected = []
-    for index, row in enumerate(rows):
-        norm = np.linalg.norm(row)
-        if norm == 0.0:
+    start = 0
+    while start < n_rows and len(selected) < n_cols:
+        chunk = rows[start:start + block]
+        residual = chunk - (chunk @ basis.T) @ basis
+        residual = residual - (residual @ basis.T) @ basis  # Gram-Schmidt twice is enough
+        independent = np.linalg.norm(residual, axis=1) > rtol * norms[start:start + block]
+        hits = np.nonzero(independent)[0]
+        if hits.size == 0:
+            start += block
             continue
-        residual = row - basis.T @ (basis @ row)
-        residual = residual - basis.T @ (basis @ residual)  # second pass: Gram-Schmidt twice is enough
-        size = np.linalg.norm(residual)
-        if size > rtol * norm:
-            selected.append(index)
-            basis = np.vstack([basis, residual / size])
-            if len(selected) == n_cols:
-                break
-    return np.array(selected, dtype=int)
+        first = int(hits[0])
+        vector = residual[first]
+        selected.append(start + first)
+        basis = np.vstack([basis, vector / np.linalg.norm(vector)])
+        start += first + 1
+    return nonzero[np.array(selected, dtype=int)]
 
 
 def reduce_to_base_parameters(coefficients: np.ndarray, rtol: float = 1e-8, clean: float = 1e-10):
@@ -66,8 +74,8 @@ def reduce_to_base_parameters(coefficients: np.ndarray, rtol: float = 1e-8, clea
     rows = coefficients.reshape(n_dof * n_functions, n_free)
     selected = select_independent_rows(rows, rtol)
     base_map = rows[selected]
-    solution, *_ = scipy.linalg.lstsq(base_map.T, rows.T, lapack_driver="gelsy")
-    p_flat = solution.T
+    # rows = P base_map with base_map of full row rank: P = rows base_map^+ (one small pseudo-inverse)
+    p_flat = rows @ scipy.linalg.pinv(base_map)
     p_flat[np.abs(p_flat) < clean] = 0.0
     p_flat[selected] = np.eye(len(selected))
     reduction = p_flat.reshape(n_dof, n_functions, len(selected)).transpose(1, 2, 0)

@@ -1,0 +1,296 @@
+"""Extra physics for the virtual robot: small objects that add effects the PSDM model does not contain.
+
+Each term subclasses ``ExtraPhysics`` and overrides one or more hooks:
+
+- ``modify_model(robot, parameters)``: change the rigid-body truth before simulation (payload,
+  gravity tilt, extra rotor inertia);
+- ``torque(t, q, qd, tau_motor)``: a load torque the motors must supply, added to the joint torque
+  balance ``M qdd + h + tau_friction + sum(torque) = tau_motor`` (spring, ripple, coupling, ...);
+- ``measure(t, q, tau)``: a signal-level effect on the recorded joint positions and torques
+  (offset, delay), applied after the simulation and before noise and quantisation.
+
+``describe()`` returns the plain description stored beside a recording as truth. Terms hold
+no mutable state; joints are numbered from 0.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.robot import physical_to_dynamic
+
+
+class ExtraPhysics:
+    """Base class of the extra-physics terms of the virtual robot; every hook defaults to no effect."""
+
+    #: whether ``torque`` is overridden (the simulator skips the call per step otherwise)
+    has_torque = False
+
+    def validate(self, n_dof: int) -> None:
+        """Raise ``ParameterError`` when the term does not fit a robot with ``n_dof`` joints."""
+
+    def modify_model(self, robot, parameters):
+        """Return ``(robot, parameters)`` with the term's change to the rigid-body truth.
+
+        Parameters
+        ----------
+        robot : RobotDescription
+        parameters : array, shape (n_dof, 11)
+            Standard parameters (link-frame dynamic parameters and Im per joint).
+        """
+        return robot, parameters
+
+    def torque(self, t: float, q: np.ndarray, qd: np.ndarray, tau_motor: np.ndarray) -> np.ndarray:
+        """Load torque (n_dof,) [N m] the motors must supply at time ``t`` [s] in state ``(q, qd)``."""
+        return np.zeros_like(q)
+
+    def measure(self, t: np.ndarray, q: np.ndarray, tau: np.ndarray):
+        """Return the recorded ``(q, tau)`` (n_samples, n_dof) given the true ones."""
+        return q, tau
+
+    def describe(self) -> dict:
+        """Plain-data description (JSON-serialisable) for the truth file."""
+        out = {"term": type(self).__name__}
+        for key, value in asdict(self).items():
+            out[key] = np.asarray(value).tolist() if isinstance(value, np.ndarray) else value
+        return out
+
+
+def _check_joint(owner: str, joint, n_dof: int) -> None:
+    if not (isinstance(joint, (int, np.integer)) and 0 <= joint < n_dof):
+        raise ParameterError(f"{owner}.joint must be a joint index 0..{n_dof - 1}; got {joint!r}.")
+
+
+def _check_vector(owner: str, key: str, value, n_dof: int) -> None:
+    arr = np.asarray(value, dtype=float)
+    if arr.shape not in ((), (n_dof,)):
+        raise ParameterError(f"{owner}.{key} must be a number or have shape ({n_dof},); got shape {arr.shape}.")
+
+
+@dataclass(frozen=True)
+class Spring(ExtraPhysics):
+    """A spring on one joint (e.g. a gravity compensator or cable): load torque ``k (q - q0)``.
+
+    Parameters
+    ----------
+    joint : int
+    stiffness : float
+        [N m/rad]
+    q0 : float
+        Rest position [rad].
+    """
+
+    joint: int
+    stiffness: float
+    q0: float = 0.0
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("Spring", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        out[self.joint] = self.stiffness * (q[self.joint] - self.q0)
+        return out
+
+
+@dataclass(frozen=True)
+class TorqueRipple(ExtraPhysics):
+    """Torque ripple periodic in the joint angle (cogging): ``amplitude sin(harmonic q + phase)``."""
+
+    joint: int
+    amplitude: float
+    harmonic: float = 6.0
+    phase: float = 0.0
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("TorqueRipple", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        out[self.joint] = self.amplitude * np.sin(self.harmonic * q[self.joint] + self.phase)
+        return out
+
+
+@dataclass(frozen=True)
+class CoulombAsymmetry(ExtraPhysics):
+    """Extra Coulomb friction in the positive direction only: ``delta (1 + tanh(qd / v)) / 2``."""
+
+    joint: int
+    delta: float
+    smoothing_velocity: float = 1e-3
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("CoulombAsymmetry", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        out[self.joint] = 0.5 * self.delta * (1.0 + np.tanh(qd[self.joint] / self.smoothing_velocity))
+        return out
+
+
+@dataclass(frozen=True)
+class FrictionDrift(ExtraPhysics):
+    """Coulomb friction growing linearly with time (warm-up, wear): ``rate t tanh(qd / v)``."""
+
+    joint: int
+    rate: float
+    smoothing_velocity: float = 1e-3
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("FrictionDrift", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        out[self.joint] = self.rate * t * np.tanh(qd[self.joint] / self.smoothing_velocity)
+        return out
+
+
+@dataclass(frozen=True)
+class LoadDependentFriction(ExtraPhysics):
+    """Friction proportional to the transmitted torque: ``coefficient |tau_motor| tanh(qd / v)``."""
+
+    joint: int
+    coefficient: float
+    smoothing_velocity: float = 1e-3
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("LoadDependentFriction", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        out[self.joint] = self.coefficient * abs(tau_motor[self.joint]) * np.tanh(qd[self.joint] / self.smoothing_velocity)
+        return out
+
+
+@dataclass(frozen=True)
+class JointCoupling(ExtraPhysics):
+    """Viscous coupling between joints (e.g. a wrist differential): load torque ``C qd``, C (n_dof, n_dof)."""
+
+    matrix: np.ndarray
+    has_torque = True
+
+    def validate(self, n_dof):
+        if np.asarray(self.matrix).shape != (n_dof, n_dof):
+            raise ParameterError(
+                f"JointCoupling.matrix must have shape ({n_dof}, {n_dof}); got {np.asarray(self.matrix).shape}."
+            )
+
+    def torque(self, t, q, qd, tau_motor):
+        return np.asarray(self.matrix, dtype=float) @ qd
+
+
+@dataclass(frozen=True)
+class Payload(ExtraPhysics):
+    """A body fixed to the flange (last link frame): point mass by default (paper eqs. 16-17).
+
+    Parameters
+    ----------
+    mass : float
+        [kg]
+    com : array, shape (3,)
+        Centre of mass in the last link frame [m].
+    inertia : array, shape (3, 3), optional
+        Inertia about the centre of mass [kg m^2]; zero (a point mass) by default.
+    """
+
+    mass: float
+    com: tuple = (0.0, 0.0, 0.0)
+    inertia: tuple | None = None
+
+    def validate(self, n_dof):
+        if not (np.isfinite(self.mass) and self.mass >= 0):
+            raise ParameterError(f"Payload.mass must be >= 0 [kg]; got {self.mass!r}.")
+        if np.asarray(self.com, dtype=float).shape != (3,):
+            raise ParameterError(f"Payload.com must have 3 coordinates [m]; got {self.com!r}.")
+        if self.inertia is not None and np.asarray(self.inertia, dtype=float).shape != (3, 3):
+            raise ParameterError(f"Payload.inertia must be a 3x3 matrix [kg m^2] or None; got {self.inertia!r}.")
+
+    def dynamic_parameters(self) -> np.ndarray:
+        """The 10 dynamic parameters of the payload about the last link frame origin."""
+        inertia = np.zeros((3, 3)) if self.inertia is None else np.asarray(self.inertia, dtype=float)
+        return physical_to_dynamic(float(self.mass), np.asarray(self.com, dtype=float), inertia)
+
+    def modify_model(self, robot, parameters):
+        parameters = np.array(parameters, dtype=float)
+        parameters[-1, :10] += self.dynamic_parameters()
+        return robot, parameters
+
+
+@dataclass(frozen=True)
+class GravityTilt(ExtraPhysics):
+    """A base mounted off level: gravity rotated by ``angle`` [rad] about the base ``axis``."""
+
+    angle: float
+    axis: tuple = (1.0, 0.0, 0.0)
+
+    def validate(self, n_dof):
+        axis = np.asarray(self.axis, dtype=float)
+        if axis.shape != (3,) or not np.linalg.norm(axis) > 0:
+            raise ParameterError(f"GravityTilt.axis must be a non-zero 3-vector; got {self.axis!r}.")
+
+    def modify_model(self, robot, parameters):
+        axis = np.asarray(self.axis, dtype=float)
+        axis = axis / np.linalg.norm(axis)
+        k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+        rotation = np.eye(3) + np.sin(self.angle) * k + (1 - np.cos(self.angle)) * k @ k
+        return replace(robot, gravity=rotation @ robot.gravity), parameters
+
+
+@dataclass(frozen=True)
+class ExtraRotorInertia(ExtraPhysics):
+    """Rotor (drive) inertia [kg m^2] added to joints, shape () or (n_dof,): the nominal model lacks it."""
+
+    inertia: object = 0.0
+
+    def validate(self, n_dof):
+        _check_vector("ExtraRotorInertia", "inertia", self.inertia, n_dof)
+
+    def modify_model(self, robot, parameters):
+        parameters = np.array(parameters, dtype=float)
+        parameters[:, 10] += np.asarray(self.inertia, dtype=float)
+        return robot, parameters
+
+
+@dataclass(frozen=True)
+class TorqueOffset(ExtraPhysics):
+    """A constant offset [N m] on the recorded joint torque (current-sensor offset), shape () or (n_dof,)."""
+
+    offset: object = 0.0
+
+    def validate(self, n_dof):
+        _check_vector("TorqueOffset", "offset", self.offset, n_dof)
+
+    def measure(self, t, q, tau):
+        return q, tau + np.asarray(self.offset, dtype=float)
+
+
+@dataclass(frozen=True)
+class SignalDelay(ExtraPhysics):
+    """The recorded torque lags the recorded position by ``samples`` sample periods (a bus delay)."""
+
+    samples: int = 1
+
+    def validate(self, n_dof):
+        if not (isinstance(self.samples, (int, np.integer)) and self.samples >= 0):
+            raise ParameterError(f"SignalDelay.samples must be an integer >= 0; got {self.samples!r}.")
+
+    def measure(self, t, q, tau):
+        if self.samples == 0:
+            return q, tau
+        delayed = np.empty_like(tau)
+        delayed[self.samples:] = tau[:-self.samples]
+        delayed[:self.samples] = tau[0]
+        return q, delayed
+
+
+EXTRA_PHYSICS_TERMS = {cls.__name__: cls for cls in (
+    Spring, TorqueRipple, CoulombAsymmetry, FrictionDrift, LoadDependentFriction, JointCoupling,
+    Payload, GravityTilt, ExtraRotorInertia, TorqueOffset, SignalDelay)}
