@@ -19,7 +19,7 @@ demo: setup
 	$(BIN)/psdm demo --out demo_report
 
 test: setup
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: setup
 	$(BIN)/python benchmarks/derivation.py
