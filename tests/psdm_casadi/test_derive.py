@@ -170,3 +170,17 @@ def test_random_parameters_respect_the_assumptions(denso, rng):
     params = random_standard_parameters(denso, rng)
     assert np.all(params[5, :10] == 0)          # link 6 massless
     assert params[4, 1] == 0                     # m rx5 = 0 because rx5 = 0
+
+
+def test_shipped_scara_file_is_prismatic_and_derives():
+    from psdm_casadi import load_robot
+
+    from ..conftest import ROOT
+
+    robot = load_robot(ROOT / "robots" / "scara.toml")
+    assert [j.kind for j in robot.joints] == ["revolute", "revolute", "prismatic", "revolute"]
+    model = derive_psdm(robot)
+    assert (model.n_functions, model.n_base) == (69, 8)
+    rng = np.random.default_rng(3)
+    assert check_against_oracle(model, robot, rng, n_samples=1000,
+                                parameters=robot.nominal_dynamic_parameters()) < 1e-9
