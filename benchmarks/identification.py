@@ -1,0 +1,177 @@
+"""Whole calibration of the virtual Denso (noise on): the paper's four steps + refinement, compared with the truth.
+
+Usage: python benchmarks/identification.py [--json] [--seed 0] [--no-refine] [--nm-joints 1,4]
+
+Simulates the calibration experiments (identification.virtual_calibration, defaults: 1 kHz, sensor
+noise and quantisation on), runs IdentificationPipeline and compares with the simulation truth:
+Kt, the gravity base parameters (true theta = model.base_parameters(robot.nominal_dynamic_parameters())),
+the LuGre parameters per joint, validation R^2 (Table 3). The peer is the paper's friction method
+(trust-region eq. 20 then Nelder-Mead over a LuGre simulation, ``shooting.paper_friction_fit``) run
+on the same friction data and starting point as the multiple-shooting fit.
+
+Relative errors: ``|estimate - truth| / |truth|`` per parameter; ``gravity_max_rel_err`` is the
+worst over the gravity base parameters, ``gravity_max_scaled_err`` divides by
+``max(|truth|, 0.05 * max|truth|)`` instead (parameters below 5 % of the largest one carry torques
+below the sensor noise of the gravity experiment).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+# this script's name equals the package's: drop its folder from sys.path so that ``import
+# identification`` finds the package, and load the shared ``_common`` helpers by file path
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+
+
+def _load_common():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("_common", _HERE / "_common.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_common = _load_common()
+DENSO_FILE, print_json, print_table = _common.DENSO_FILE, _common.print_json, _common.print_table
+from identification.friction import LUGRE_PARAMETER_NAMES, LuGreParameters, simulate_lugre  # noqa: E402
+from identification.pipeline import IdentificationPipeline, PipelineOptions  # noqa: E402
+from identification.virtual_calibration import VirtualCalibrationOptions, simulate_calibration  # noqa: E402
+from psdm_casadi.cli import progress  # noqa: E402
+from psdm_casadi.derive import derive_psdm  # noqa: E402
+from psdm_casadi.robot import load_robot  # noqa: E402
+
+
+def _rel(estimate, truth):
+    return np.abs(np.asarray(estimate) - truth) / np.abs(truth)
+
+
+def _nelder_mead_comparison(pipeline, truth_lugre, joints):
+    """Shooting vs the paper's Nelder-Mead on the same data and start, per joint."""
+    from identification import shooting
+    from identification.steps import FrictionExperiment
+
+    friction = pipeline.steps_["friction"]
+    rows = []
+    for j in joints:
+        fit = friction.shooting_[j] if friction.shooting_ and friction.shooting_[j] is not None else None
+        if fit is None:
+            continue
+        # rebuild the data the shooting fit saw
+        rec = pipeline.friction_train_[j]
+        tau = friction.measured_friction(FrictionExperiment(j, rec)) - friction.inertia_[j] * rec.qdd[:, j]
+        sl = slice(None, None, int(friction.decimation))
+        t, qd, y = rec.t[sl], rec.qd[sl, j], tau[sl]
+        start = time.perf_counter()
+        base = shooting.paper_friction_fit(t, qd, y, fit.initial)
+        nm_seconds = time.perf_counter() - start
+        valid = pipeline.friction_valid_[j]
+        tau_v = friction.measured_friction(FrictionExperiment(j, valid)) - friction.inertia_[j] * valid.qdd[:, j]
+
+        def r2(p):
+            pred, _ = simulate_lugre(p, valid.t, valid.qd[:, j])
+            return 1 - np.sum((tau_v - pred) ** 2) / np.sum((tau_v - tau_v.mean()) ** 2)
+
+        err_ms = max(fit.parameters.relative_error(truth_lugre[j]).values())
+        err_nm = max(base.parameters.relative_error(truth_lugre[j]).values())
+        rows.append({"joint": j + 1, "shooting_s": fit.seconds, "nelder_mead_s": nm_seconds,
+                     "speedup": nm_seconds / fit.seconds, "shooting_max_err": err_ms, "nm_max_err": err_nm,
+                     "shooting_r2": r2(fit.parameters), "nm_r2": r2(base.parameters),
+                     "nm_evaluations": base.evaluations})
+    return rows
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--no-refine", action="store_true")
+    parser.add_argument("--nm-joints", default="1,2,3,4,5,6", help="joints (1-based) of the Nelder-Mead comparison; "
+                        "'' to skip")
+    args = parser.parse_args(argv)
+    robot = load_robot(DENSO_FILE)
+    start = time.perf_counter()
+    model = derive_psdm(robot, seed=0)
+    t_derive = time.perf_counter() - start
+    data = simulate_calibration(robot, VirtualCalibrationOptions(), np.random.default_rng(args.seed))
+    t_sim = time.perf_counter() - start - t_derive
+    pipeline = IdentificationPipeline(robot, model, PipelineOptions(refine=not args.no_refine)).fit(data)
+    calibration_seconds = time.perf_counter() - start
+    result = pipeline.result_
+
+    kt_true = np.array([d.kt for d in robot.drives])
+    theta_true = model.base_parameters(robot.nominal_dynamic_parameters())
+    mask = model.gravity_mask
+    truth_lugre = [LuGreParameters.from_drive(d) for d in robot.drives]
+    g_true = theta_true[mask]
+    floor = np.maximum(np.abs(g_true), 0.05 * np.abs(g_true).max())
+
+    def lugre_errors(params):
+        return {name: max(p.relative_error(t)[name] for p, t in zip(params, truth_lugre)) for name in LUGRE_PARAMETER_NAMES}
+
+    summary = {}
+    for label, theta, kt, lugre in (("steps", pipeline.step_theta_, pipeline.step_kt_, pipeline.step_lugre_),
+                                    ("final", result.theta, result.kt, result.lugre)):
+        summary[label] = {
+            "kt_max_rel_err": float(_rel(kt, kt_true).max()),
+            "gravity_max_rel_err": float(_rel(theta[mask], g_true).max()),
+            "gravity_max_scaled_err": float((np.abs(theta[mask] - g_true) / floor).max()),
+            "lugre_rel_err": lugre_errors(lugre),
+        }
+    joints = [int(j) - 1 for j in args.nm_joints.split(",") if j.strip()]
+    progress(f"benchmark: Nelder-Mead peer on joints {[j + 1 for j in joints]} ...")
+    nm_rows = _nelder_mead_comparison(pipeline, truth_lugre, joints) if joints else []
+
+    report = result.report
+    rows = []
+    for j in range(robot.n_dof):
+        row = {"joint": j + 1, "kt_err": float(_rel(result.kt[j], kt_true[j]))}
+        for s in report.scores:
+            row[f"{s.step}_R2"] = float(s.r2[j]) if np.isfinite(s.r2[j]) else None
+        for name in LUGRE_PARAMETER_NAMES:
+            row[name] = round(float(pipeline.step_lugre_[j].relative_error(truth_lugre[j])[name]), 4)
+        rows.append(row)
+    speedups = [r["speedup"] for r in nm_rows]
+    payload = {
+        "benchmark": "identification", "robot": robot.name, "seed": args.seed,
+        "kt_max_rel_err": summary["final"]["kt_max_rel_err"],
+        "gravity_max_rel_err": summary["final"]["gravity_max_rel_err"],
+        "gravity_max_scaled_err": summary["final"]["gravity_max_scaled_err"],
+        "lugre_rel_err": summary["steps"]["lugre_rel_err"],
+        "lugre_rel_err_after_refinement": summary["final"]["lugre_rel_err"],
+        "r2_min_friction": report.min_r2("friction"),
+        "r2_min_all": report.min_r2("all"),
+        "speedup_vs_nelder_mead": float(np.min(speedups)) if speedups else None,
+        "speedup_vs_nelder_mead_median": float(np.median(speedups)) if speedups else None,
+        "nelder_mead": nm_rows,
+        "calibration_seconds": calibration_seconds,
+        "derive_seconds": t_derive, "simulation_seconds": t_sim, "timings": pipeline.timings_,
+        "steps_only": summary["steps"],
+        "consistency": result.consistency.to_dict(),
+        "refinement": result.metadata.get("refinement"),
+    }
+    if args.json:
+        print_json(payload)
+    else:
+        print_table(rows, list(rows[0].keys()))
+        print()
+        print(report.to_markdown())
+        print()
+        if nm_rows:
+            print_table(nm_rows, list(nm_rows[0].keys()))
+        for key in ("kt_max_rel_err", "gravity_max_rel_err", "gravity_max_scaled_err", "r2_min_friction", "r2_min_all",
+                    "speedup_vs_nelder_mead", "calibration_seconds"):
+            print(f"{key}: {payload[key]}")
+        print("lugre_rel_err:", {k: round(v, 4) for k, v in payload["lugre_rel_err"].items()})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,342 @@
+"""IdentificationPipeline: the paper's four calibration steps, then a joint Ipopt refinement, into an IdentifiedModel.
+
+Input is :class:`identification.dataset.CalibrationData` (or a data directory, see ``dataset``).
+Each experiment is filtered as in the paper (4 Hz motor and gravity, 40 Hz friction, 15 Hz
+inertial; zero-phase 8th-order Butterworth, central differences), out-and-back experiments are
+folded (forward/backward averaged), everything is split 85/15 into training and validation,
+and the steps run in order, each on the previous steps' estimates:
+
+1. :class:`MotorIdentifier` -> Kt;  2. :class:`GravityIdentifier` -> theta_grav;
+3. :class:`FrictionIdentifier` -> LuGre per joint;  4. :class:`InertialIdentifier` -> theta;
+5. :func:`refine_parameters` (optional) -> all together; then the consistency check and the
+   validation report (Table 3, "all" on the excitation validation part).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from psdm_casadi.cli import progress
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.model import PSDMModel
+from psdm_casadi.robot import RobotDescription
+
+from .consistency import check_consistency
+from .dataset import CalibrationData, load_calibration_data
+from .payload import payload_torque
+from .preprocessing import PreprocessOptions, preprocess
+from .recording import Recording
+from .refinement import RefinementBlock, RefinementOptions, refine_parameters
+from .report import StepScore, ValidationReport, plot_observed_predicted
+from .result import IdentifiedModel
+from .steps import (FrictionExperiment, FrictionIdentifier, GravityIdentifier, InertialIdentifier, MotorExperiment,
+                    MotorIdentifier, fold_out_and_back, friction_torque, regressor_chunked)
+
+__all__ = ["PipelineOptions", "IdentificationPipeline"]
+
+
+@dataclass(frozen=True)
+class PipelineOptions:
+    """Options of :class:`IdentificationPipeline`.
+
+    Parameters
+    ----------
+    motor_cutoff_hz, gravity_cutoff_hz, friction_cutoff_hz, inertial_cutoff_hz : float
+        Butterworth cutoffs [Hz] (paper: 4, 4, 40, 15).
+    split_fraction : float
+        Training share (paper 0.85).
+    n_blocks : int
+        Contiguous blocks of the split of the folded motor and gravity sweeps (``Recording.split``),
+        so their validation part covers the whole sweep rather than its end.
+    gravity_rate_hz, inertial_rate_hz, friction_rate_hz, refinement_rate_hz : float
+        Rates [Hz] the filtered data is decimated to before the regression (the regressor
+        evaluation and the shooting NLP grow with the samples; the filters remove what decimation
+        would alias).
+    refine : bool
+        Run the joint Ipopt refinement after the four steps.
+    refinement : RefinementOptions
+    shooting_options : identification.shooting.ShootingOptions or None
+    consistency_samples : int
+        Random configurations of the mass-matrix check.
+    seed : int
+        Seed of the consistency configurations.
+    quiet : bool
+        No progress lines.
+    """
+
+    motor_cutoff_hz: float = 4.0
+    gravity_cutoff_hz: float = 4.0
+    friction_cutoff_hz: float = 40.0
+    inertial_cutoff_hz: float = 15.0
+    split_fraction: float = 0.85
+    n_blocks: int = 4
+    gravity_rate_hz: float = 50.0
+    inertial_rate_hz: float = 200.0
+    friction_rate_hz: float = 250.0
+    refinement_rate_hz: float = 50.0
+    refine: bool = True
+    refinement: RefinementOptions = RefinementOptions()
+    shooting_options: object = None
+    consistency_samples: int = 200
+    seed: int = 0
+    quiet: bool = False
+
+    def __post_init__(self):
+        for name in ("motor_cutoff_hz", "gravity_cutoff_hz", "friction_cutoff_hz", "inertial_cutoff_hz",
+                     "gravity_rate_hz", "inertial_rate_hz", "friction_rate_hz", "refinement_rate_hz"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"PipelineOptions.{name} must be positive [Hz]; got {value!r}.")
+        if not 0.0 < self.split_fraction < 1.0:
+            raise ParameterError(f"PipelineOptions.split_fraction must be in (0, 1); got {self.split_fraction!r}.")
+
+
+def _decimate(rec: Recording, rate_hz: float) -> Recording:
+    step = max(1, int(round(1.0 / (rec.dt * rate_hz))))
+    return rec if step == 1 else rec._take(slice(None, None, step))
+
+
+class IdentificationPipeline:
+    """The four calibration steps of the paper, a joint refinement, a consistency check and Table 3.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+        Kinematics, joint ranges and gravity (inertia and drives are not used).
+    model : PSDMModel
+        The derived model (``derive_psdm(robot)``).
+    options : PipelineOptions, optional
+
+    Attributes
+    ----------
+    result_ : IdentifiedModel
+    steps_ : dict
+        The fitted step estimators by name (``motor``, ``gravity``, ``friction``, ``inertial``).
+    step_theta_ : array, shape (n_base,)
+        Base parameters after step 4 (before refinement).
+    step_kt_ : array, shape (n_dof,)
+    step_lugre_ : tuple of LuGreParameters
+    friction_train_, friction_valid_ : dict
+        Preprocessed friction recordings by joint (training and validation parts).
+    timings_ : dict
+        Seconds per stage.
+
+    Examples
+    --------
+    >>> pipeline = IdentificationPipeline(robot, derive_psdm(robot)).fit("data/")   # doctest: +SKIP
+    >>> pipeline.result_.report.min_r2("all") > 0.9                                  # doctest: +SKIP
+    True
+    """
+
+    def __init__(self, robot=None, model=None, options=None):
+        self.robot = robot
+        self.model = model
+        self.options = options
+
+    def _validate(self):
+        if not isinstance(self.robot, RobotDescription):
+            raise ParameterError(f"IdentificationPipeline.robot must be a RobotDescription; got {type(self.robot).__name__}.")
+        if not isinstance(self.model, PSDMModel):
+            raise ParameterError(f"IdentificationPipeline.model must be a PSDMModel; got {type(self.model).__name__}. "
+                                 "Use derive_psdm(robot).")
+        if self.model.n_dof != self.robot.n_dof:
+            raise ParameterError(f"IdentificationPipeline.model has n_dof={self.model.n_dof} but the robot has "
+                                 f"{self.robot.n_dof}. Derive the model from this robot.")
+        options = PipelineOptions() if self.options is None else self.options
+        if not isinstance(options, PipelineOptions):
+            raise ParameterError(f"IdentificationPipeline.options must be a PipelineOptions; got {type(options).__name__}.")
+        return options
+
+    def fit(self, data):
+        """Run the calibration on a data directory or :class:`CalibrationData`; return ``self``."""
+        o = self._validate()
+        say = (lambda msg: progress(msg, quiet=o.quiet))
+        if isinstance(data, (str, Path)):
+            data = load_calibration_data(data, self.robot.n_dof)
+        if not isinstance(data, CalibrationData):
+            raise ParameterError(f"IdentificationPipeline.fit data must be a directory or CalibrationData; got "
+                                 f"{type(data).__name__}.")
+        robot, model, n = self.robot, self.model, self.robot.n_dof
+        timings, total = {}, time.perf_counter()
+        tool = data.tool
+
+        def prep(rec, cutoff):
+            return preprocess(rec, PreprocessOptions(cutoff_hz=cutoff, split_fraction=o.split_fraction))
+
+        # step 1: motor
+        start = time.perf_counter()
+        say("identify: step 1/4 motor constants (eqs. 16-17) ...")
+        train, valid = [], []
+        for joint, nominal, loaded in data.motor:
+            a = fold_out_and_back(prep(nominal, o.motor_cutoff_hz))
+            b = fold_out_and_back(prep(loaded, o.motor_cutoff_hz))
+            (a_t, a_v), (b_t, b_v) = a.split(o.split_fraction, o.n_blocks), b.split(o.split_fraction, o.n_blocks)
+            train.append(MotorExperiment(joint, a_t, b_t))
+            valid.append(MotorExperiment(joint, a_v, b_v))
+        motor = MotorIdentifier(robot=robot, payload=data.payload).fit(train)
+        kt = motor.kt_
+        if np.any(~np.isfinite(kt)):
+            missing = [j + 1 for j in range(n) if not np.isfinite(kt[j])]
+            raise ParameterError(f"CalibrationData.motor has no sweep of joints {missing}; record motor_j<k> sweeps "
+                                 "for every joint.")
+        timings["motor"] = time.perf_counter() - start
+        say(f"identify: Kt = {np.array2string(kt, precision=3)} N m/A ({timings['motor']:.1f} s)")
+
+        # step 2: gravity
+        start = time.perf_counter()
+        say("identify: step 2/4 gravity parameters (eq. 18) ...")
+        g_train, g_valid = [], []
+        for rec in data.gravity:
+            folded = _decimate(fold_out_and_back(prep(rec, o.gravity_cutoff_hz)), o.gravity_rate_hz)
+            tr, va = folded.split(o.split_fraction, o.n_blocks)
+            g_train.append(tr)
+            g_valid.append(va)
+        gravity = GravityIdentifier(model=model, kt=kt, robot=robot, tool=tool).fit(g_train)
+        timings["gravity"] = time.perf_counter() - start
+        say(f"identify: {int(model.gravity_mask.sum())} gravity parameters ({timings['gravity']:.1f} s)")
+
+        # step 3: friction
+        start = time.perf_counter()
+        f_train, f_valid = [], []
+        for joint, rec in data.friction:
+            clean = prep(rec, o.friction_cutoff_hz)
+            tr, va = clean.split(o.split_fraction)
+            f_train.append(FrictionExperiment(joint, tr))
+            f_valid.append(FrictionExperiment(joint, va))
+        decimation = max(1, int(round(1.0 / (data.friction[0][1].dt * o.friction_rate_hz))))
+        friction = FrictionIdentifier(model=model, kt=kt, theta=gravity.theta_, robot=robot, tool=tool,
+                                      decimation=decimation, shooting_options=o.shooting_options)
+        lugre = [None] * n
+        friction_fits = []
+        for k, experiment in enumerate(f_train):
+            say(f"identify: step 3/4 friction joint {experiment.joint + 1} ({k + 1}/{len(f_train)}): eq. 20 + "
+                "LuGre multiple shooting (Ipopt) ...")
+            fit = FrictionIdentifier(**friction.get_params()).fit([experiment])
+            lugre[experiment.joint] = fit.lugre_[experiment.joint]
+            friction_fits.append(fit)
+        if any(p is None for p in lugre):
+            missing = [j + 1 for j in range(n) if lugre[j] is None]
+            raise ParameterError(f"CalibrationData.friction has no experiment of joints {missing}; record friction_j<k>.")
+        friction.lugre_ = tuple(lugre)
+        friction.inertia_ = np.nanmax(np.array([f.inertia_ for f in friction_fits]), axis=0)
+        friction.coef_, friction.n_dof_ = np.zeros(0), n
+        friction.shooting_ = tuple(next((f.shooting_[j] for f in friction_fits if f.shooting_[j] is not None), None)
+                                   for j in range(n))
+        friction.seconds_ = np.nansum(np.array([f.seconds_ for f in friction_fits]), axis=0)
+        timings["friction"] = time.perf_counter() - start
+        say(f"identify: friction done ({timings['friction']:.1f} s)")
+
+        # step 4: inertial
+        start = time.perf_counter()
+        say("identify: step 4/4 inertial parameters (eq. 21) ...")
+        e_train, e_valid = [], []
+        for rec in data.excitation:
+            clean = prep(rec, o.inertial_cutoff_hz)
+            tr, va = clean.split(o.split_fraction)
+            e_train.append(tr)
+            e_valid.append(va)
+        decimation = max(1, int(round(1.0 / (data.excitation[0].dt * o.inertial_rate_hz))))
+        inertial = InertialIdentifier(model=model, kt=kt, theta=gravity.theta_, lugre=tuple(lugre), robot=robot,
+                                      tool=tool, decimation=decimation).fit(e_train)
+        theta = inertial.theta_
+        timings["inertial"] = time.perf_counter() - start
+        say(f"identify: {model.n_base} base parameters ({timings['inertial']:.1f} s)")
+        self.step_theta_, self.step_kt_, self.step_lugre_ = theta.copy(), kt.copy(), tuple(lugre)
+
+        # step 5: joint refinement
+        metadata = {}
+        final_theta, final_kt, final_lugre = theta, kt, tuple(lugre)
+        if o.refine:
+            start = time.perf_counter()
+            say("identify: refinement of all parameters together (Ipopt) ...")
+            blocks = self._refinement_blocks(data, o, prep)
+            refined = refine_parameters(model, blocks, theta, kt, lugre, o.refinement, robot.q_min, robot.q_max,
+                                        np.random.default_rng(o.seed))
+            final_theta, final_kt, final_lugre = refined.theta, refined.kt, refined.lugre
+            timings["refinement"] = time.perf_counter() - start
+            metadata["refinement"] = {"status": refined.status, "iterations": refined.iterations,
+                                      "objective_initial": refined.objective_initial,
+                                      "objective_final": refined.objective_final}
+            say(f"identify: refinement {refined.status} in {refined.iterations} iterations, cost "
+                f"{refined.objective_initial:.3g} -> {refined.objective_final:.3g} ({timings['refinement']:.1f} s)")
+
+        # consistency and report
+        consistency = check_consistency(model, final_theta, robot.q_min, robot.q_max, o.consistency_samples,
+                                        np.random.default_rng(o.seed))
+        say(f"identify: mass matrix min eigenvalue {consistency.min_eigenvalue:.3g} over {consistency.n_samples} "
+            f"configurations ({'consistent' if consistency.consistent else 'NOT positive definite'})")
+        scores = [StepScore("motor", *motor.evaluate(valid)), StepScore("gravity", *gravity.evaluate(g_valid)),
+                  StepScore("friction", *friction.evaluate(f_valid)), StepScore("inertial", *inertial.evaluate(e_valid))]
+        all_rmse, all_r2, plot_data = self._score_all(e_valid, final_theta, final_kt, final_lugre, tool)
+        scores.append(StepScore("all", all_rmse, all_r2))
+        report = ValidationReport(tuple(scores), tuple(robot.joint_names))
+        timings["total"] = time.perf_counter() - total
+        metadata["timings"] = timings
+        metadata["friction_seconds"] = friction.seconds_.tolist()
+        self.friction_train_ = {e.joint: e.recording for e in f_train}
+        self.friction_valid_ = {e.joint: e.recording for e in f_valid}
+        self.steps_ = {"motor": motor, "gravity": gravity, "friction": friction, "inertial": inertial}
+        self.timings_ = timings
+        self.plot_data_ = plot_data
+        self.result_ = IdentifiedModel(robot_name=robot.name, model=model, theta=final_theta, kt=final_kt,
+                                       lugre=tuple(final_lugre), report=report, consistency=consistency,
+                                       metadata=metadata)
+        say(f"identify: done in {timings['total']:.1f} s")
+        return self
+
+    def _refinement_blocks(self, data, o, prep):
+        robot, blocks = self.robot, []
+
+        def add(rec, cutoff, payload=None):
+            clean = _decimate(prep(rec, cutoff).split(o.split_fraction)[0], o.refinement_rate_hz)
+            tool = np.zeros_like(clean.q)
+            for load in (payload, data.tool):
+                if load is not None:
+                    tool = tool + payload_torque(robot, load, clean.q, clean.qd, clean.qdd)
+            blocks.append(RefinementBlock(clean, tool))
+
+        for _, nominal, loaded in data.motor:
+            add(nominal, o.motor_cutoff_hz)
+            add(loaded, o.motor_cutoff_hz, data.payload)
+        for rec in data.gravity:
+            add(rec, o.gravity_cutoff_hz)
+        for _, rec in data.friction:
+            add(rec, o.friction_cutoff_hz)
+        for rec in data.excitation:
+            add(rec, o.inertial_cutoff_hz)
+        return blocks
+
+    def _score_all(self, recordings, theta, kt, lugre, tool):
+        """RMSE and R^2 of the full model on the fast validation path (Table 3 "All")."""
+        obs, pred, plot = [], [], None
+        for rec in recordings:
+            observed = rec.joint_torque(kt)
+            predicted = regressor_chunked(self.model, rec.q, rec.qd, rec.qdd) @ theta + \
+                friction_torque(lugre, rec.t, rec.qd)
+            if tool is not None:
+                predicted = predicted + payload_torque(self.robot, tool, rec.q, rec.qd, rec.qdd)
+            obs.append(observed)
+            pred.append(predicted)
+            if plot is None:
+                plot = (rec.t, observed, predicted)
+        obs, pred = np.vstack(obs), np.vstack(pred)
+        from .base import r2, rmse
+
+        n = obs.shape[1]
+        return (np.array([rmse(obs[:, j], pred[:, j]) for j in range(n)]),
+                np.array([r2(obs[:, j], pred[:, j]) for j in range(n)]), plot)
+
+    def plot(self, directory) -> list:
+        """Write observed-vs-predicted plots (the "all" validation path) into ``directory``; return the paths."""
+        from .base import check_is_fitted
+
+        check_is_fitted(self, "result_")
+        t, observed, predicted = self.plot_data_
+        path = plot_observed_predicted(t, observed, predicted, Path(directory) / "validation_all.png",
+                                       title="Full model on the excitation validation path",
+                                       joint_names=list(self.robot.joint_names))
+        return [path]

@@ -1,0 +1,612 @@
+"""The four calibration steps of the paper (section 3) as estimators: motor, gravity, friction, inertial.
+
+Each step is a :class:`identification.base.BaseIdentifier`; it builds its regression rows in
+``_design_matrix`` and inherits weighted least squares, covariance and scores. Inputs are
+preprocessed recordings (``preprocessing.preprocess``: filtered, with qd and qdd). The motor and
+gravity steps take *folded* recordings (:func:`fold_out_and_back`): an experiment that runs out and
+retraces its path is averaged sample by sample with its mirror image, which cancels friction
+(odd in qd) as in the paper.
+
+=========================  =====================  ============================================
+step                       paper                  learned attributes
+=========================  =====================  ============================================
+``MotorIdentifier``        eqs. 16-17             ``kt_`` (n_dof,) [N m/A]
+``GravityIdentifier``      eq. 18                 ``theta_gravity_``, ``theta_`` (n_base,)
+``FrictionIdentifier``     eqs. 19-20 + LuGre     ``lugre_`` (LuGreParameters per joint)
+``InertialIdentifier``     eq. 21                 ``theta_`` (n_base,), all base parameters
+=========================  =====================  ============================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
+from psdm_casadi.model import PSDMModel
+from psdm_casadi.robot import RobotDescription
+
+from .base import BaseIdentifier, Design, LeastSquaresResult, check_is_fitted
+from .extra_physics import Payload
+from .friction import LuGreParameters, simulate_lugre
+from .payload import payload_static_torque, payload_torque
+from .recording import Recording
+
+__all__ = ["MotorExperiment", "FrictionExperiment", "fold_out_and_back", "regressor_chunked",
+           "MotorIdentifier", "GravityIdentifier", "FrictionIdentifier", "InertialIdentifier",
+           "friction_torque", "IDENTIFIERS"]
+
+_CHUNK = 2000  # samples per regressor evaluation (memory: n_functions doubles per sample)
+
+
+# ------------------------------------------------------------------------------------------------
+# inputs
+# ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True, eq=False)
+class MotorExperiment:
+    """One joint's motor calibration (paper 3.1): the same sweep without and with the known mass.
+
+    Parameters
+    ----------
+    joint : int
+        Swept joint, 0-based.
+    nominal : Recording
+        Folded, preprocessed sweep without the calibration mass (currents required).
+    loaded : Recording
+        Folded, preprocessed sweep with the mass, same sample count as ``nominal``.
+    """
+
+    joint: int
+    nominal: Recording
+    loaded: Recording
+
+    def __post_init__(self):
+        for name in ("nominal", "loaded"):
+            if not isinstance(getattr(self, name), Recording):
+                raise ParameterError(f"MotorExperiment.{name} must be a Recording; got {type(getattr(self, name)).__name__}.")
+        if self.nominal.n_samples != self.loaded.n_samples:
+            raise ShapeError(
+                f"MotorExperiment.loaded must have the sample count of nominal ({self.nominal.n_samples}); got "
+                f"{self.loaded.n_samples}. Record both sweeps along the same reference at the same rate."
+            )
+        for name in ("nominal", "loaded"):
+            if getattr(self, name).current is None:
+                raise RecordingError(f"MotorExperiment.{name}.current is missing; Kt needs motor currents. "
+                                     "Record currents i1..in.")
+
+
+@dataclass(frozen=True, eq=False)
+class FrictionExperiment:
+    """One joint's friction experiment (paper 3.3): that joint oscillating, the others held.
+
+    Parameters
+    ----------
+    joint : int
+        Moving joint, 0-based.
+    recording : Recording
+        Preprocessed recording (qd required).
+    """
+
+    joint: int
+    recording: Recording
+
+
+def fold_out_and_back(recording: Recording, tolerance: float = 0.02) -> Recording:
+    """Average an out-and-back experiment with its time mirror: sample k with sample n-1-k.
+
+    The motor and gravity experiments retrace their path, so ``q[k] == q[n-1-k]`` while the velocity
+    changes sign; averaging the torques (or currents) of the pair cancels friction (odd in qd).
+    The result keeps the first half: averaged q, tau and current, and the forward velocity and
+    acceleration (for speed thresholds).
+
+    Parameters
+    ----------
+    recording : Recording
+        Preprocessed (qd present).
+    tolerance : float
+        Largest allowed ``|q[k] - q[n-1-k]|`` [rad or m].
+
+    Returns
+    -------
+    Recording
+        ``n_samples // 2`` samples.
+
+    Raises
+    ------
+    RecordingError
+        When the recording does not retrace its path or has no velocities.
+    """
+    if recording.qd is None:
+        raise RecordingError(f"Recording.qd is missing ({recording.name}); fold_out_and_back needs velocities. "
+                             "Run preprocess(recording) first.")
+    n = recording.n_samples
+    half = n // 2
+    first, mirror = np.arange(half), n - 1 - np.arange(half)
+    gap = np.abs(recording.q[first] - recording.q[mirror]).max()
+    if not gap <= tolerance:
+        raise RecordingError(
+            f"Recording.q must retrace its path (q[k] == q[n-1-k]) to fold it; got a gap of {gap:.3g} "
+            f"({recording.name}), above tolerance {tolerance}. Record the experiment forward and back along "
+            "the same path with symmetric timing."
+        )
+
+    def avg(x):
+        return None if x is None else 0.5 * (x[first] + x[mirror])
+
+    return Recording(t=recording.t[first], q=avg(recording.q), tau=avg(recording.tau), current=avg(recording.current),
+                     qd=recording.qd[first], qdd=None if recording.qdd is None else recording.qdd[first],
+                     name=f"{recording.name} (folded)")
+
+
+def regressor_chunked(model: PSDMModel, q, qd, qdd) -> np.ndarray:
+    """``model.regressor`` evaluated in chunks (bounded memory), shape (n_samples, n_dof, n_base)."""
+    out = np.empty((q.shape[0], model.n_dof, model.n_base))
+    for start in range(0, q.shape[0], _CHUNK):
+        stop = start + _CHUNK
+        out[start:stop] = model.regressor(q[start:stop], qd[start:stop], qdd[start:stop])
+    return out
+
+
+def _check_model(model, owner):
+    if not isinstance(model, PSDMModel):
+        raise ParameterError(f"{owner}.model must be a PSDMModel; got {type(model).__name__}. Use derive_psdm(robot).")
+
+
+def _vector(value, size, owner, field, unit):
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
+        raise ShapeError(f"{owner}.{field} must be {size} finite values [{unit}]; got shape {arr.shape}.")
+    return arr
+
+
+def _recordings(data, owner):
+    items = [data] if isinstance(data, Recording) else list(data)
+    if not items or not all(isinstance(r, Recording) for r in items):
+        raise ParameterError(f"{owner}.fit data must be a Recording or a non-empty sequence of Recordings.")
+    for rec in items:
+        if rec.qd is None or rec.qdd is None:
+            raise RecordingError(f"Recording.qd/qdd are missing ({rec.name}); {owner} needs them. "
+                                 "Run preprocess(recording) first.")
+    return items
+
+
+def _tool_torque(robot, tool, rec, static):
+    if tool is None:
+        return np.zeros_like(rec.q)
+    if robot is None:
+        raise ParameterError("the tool torque needs the robot; pass robot= together with tool=.")
+    if static:
+        return payload_static_torque(robot, tool, rec.q)
+    return payload_torque(robot, tool, rec.q, rec.qd, rec.qdd)
+
+
+# ------------------------------------------------------------------------------------------------
+# step 1: motor constants (eqs. 16-17)
+# ------------------------------------------------------------------------------------------------
+class MotorIdentifier(BaseIdentifier):
+    """Motor torque constants from sweeps with and without a known mass (paper eqs. 16-17).
+
+    For each swept joint j, ``Kt_j (i_w - i_nom)_j = (J(q)^T f_w)_j``: the folded (forward/backward
+    averaged) currents cancel friction, their difference with and without the mass cancels gravity.
+    The estimate regresses the current difference on the load torque (``di = tau_w / Kt``), whose
+    regressor is noise-free, so current noise does not bias Kt; ``Kt = 1 / slope``.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    payload : Payload
+        The calibration mass (mass [kg] and centre of mass in the flange frame [m]).
+    min_speed_fraction : float
+        Rows where the swept joint moves slower than this fraction of its peak speed (speed ramps,
+        turn) are dropped, in (0, 1).
+    min_torque_fraction : float
+        Rows whose load torque is below this fraction of the largest are dropped, in [0, 1).
+
+    Attributes
+    ----------
+    kt_ : array, shape (n_dof,)
+        Torque constants [N m/A]; NaN for joints without an experiment.
+    kt_std_ : array, shape (n_dof,)
+        Standard errors [N m/A].
+    """
+
+    def __init__(self, robot=None, payload=None, min_speed_fraction=0.9, min_torque_fraction=0.05):
+        self.robot = robot
+        self.payload = payload
+        self.min_speed_fraction = min_speed_fraction
+        self.min_torque_fraction = min_torque_fraction
+
+    def _validate(self):
+        if not isinstance(self.robot, RobotDescription):
+            raise ParameterError(f"MotorIdentifier.robot must be a RobotDescription; got {type(self.robot).__name__}.")
+        if not isinstance(self.payload, Payload) or not self.payload.mass > 0:
+            raise ParameterError("MotorIdentifier.payload must be a Payload with mass > 0 [kg]; got "
+                                 f"{self.payload!r}. Pass the calibration mass, e.g. Payload(mass=2.0, com=(0.05, 0, 0.05)).")
+        if not 0.0 < self.min_speed_fraction < 1.0:
+            raise ParameterError(f"MotorIdentifier.min_speed_fraction must be in (0, 1); got {self.min_speed_fraction!r}.")
+        if not 0.0 <= self.min_torque_fraction < 1.0:
+            raise ParameterError(f"MotorIdentifier.min_torque_fraction must be in [0, 1); got {self.min_torque_fraction!r}.")
+
+    def _experiments(self, data):
+        items = [data] if isinstance(data, MotorExperiment) else list(data)
+        if not items or not all(isinstance(e, MotorExperiment) for e in items):
+            raise ParameterError("MotorIdentifier.fit data must be a MotorExperiment or a sequence of them.")
+        n = self.robot.n_dof
+        for e in items:
+            if not (0 <= e.joint < n):
+                raise ParameterError(f"MotorExperiment.joint must be in 0..{n - 1}; got {e.joint!r}.")
+            e.nominal.check_robot(n, self.robot.name)
+        return items
+
+    def _n_dof(self, data):
+        return self.robot.n_dof
+
+    def _design_matrix(self, data) -> Design:
+        self._validate()
+        n = self.robot.n_dof
+        blocks = []
+        for e in self._experiments(data):
+            j = e.joint
+            q = 0.5 * (e.nominal.q + e.loaded.q)
+            d_current = e.loaded.current[:, j] - e.nominal.current[:, j]
+            load = payload_static_torque(self.robot, self.payload, q)[:, j]
+            speed = np.abs(e.nominal.qd[:, j])
+            keep = (speed >= self.min_speed_fraction * speed.max()) & \
+                   (np.abs(load) >= self.min_torque_fraction * np.abs(load).max())
+            if not np.any(np.abs(load) > 0):
+                raise ParameterError(
+                    f"MotorExperiment.joint {j + 1}: the calibration mass gives no torque on this joint in this pose. "
+                    "Choose a pose (and Payload.com) in which the mass loads the joint.")
+            a = np.zeros((q.shape[0], n))
+            a[:, j] = d_current
+            blocks.append(Design(a, load, keep.astype(float), np.full(q.shape[0], j)))
+        design = blocks[0]
+        for b in blocks[1:]:
+            design = design.stack(b)
+        return design
+
+    def _solve(self, design: Design) -> LeastSquaresResult:
+        n = design.matrix.shape[1]
+        kt, var = np.full(n, np.nan), np.full(n, np.nan)
+        sigma2 = 0.0
+        for j in range(n):
+            rows = (design.joint == j) & (design.weights > 0)
+            if not rows.any():
+                continue
+            di, tau = design.matrix[rows, j], design.target[rows]
+            slope = float(tau @ di / (tau @ tau))  # di = slope * tau
+            if not slope > 0:
+                raise ParameterError(
+                    f"MotorIdentifier: the current difference of joint {j + 1} does not grow with the load torque "
+                    f"(slope {slope:.3g}); check the sign of the current, the payload and the pose.")
+            res = di - slope * tau
+            s2 = float(res @ res / max(rows.sum() - 1, 1))
+            kt[j] = 1.0 / slope
+            var[j] = s2 / float(tau @ tau) / slope**4
+            sigma2 += s2
+        cov = np.diag(np.where(np.isnan(var), 0.0, var))
+        return LeastSquaresResult(np.where(np.isnan(kt), 0.0, kt), cov, sigma2, int(np.sum(~np.isnan(kt))), 1.0)
+
+    def _after_fit(self, design):
+        fitted = np.zeros(self.n_dof_, dtype=bool)
+        fitted[np.unique(design.joint[design.weights > 0])] = True
+        self.kt_ = np.where(fitted, self.coef_, np.nan)
+        self.kt_std_ = np.where(fitted, np.sqrt(np.diag(self.covariance_)), np.nan)
+
+
+# ------------------------------------------------------------------------------------------------
+# step 2: gravity (eq. 18)
+# ------------------------------------------------------------------------------------------------
+class GravityIdentifier(BaseIdentifier):
+    """Gravity base parameters from slow out-and-back jogs (paper eq. 18).
+
+    Rows ``(Kt i - tau_tool)_i = Y_grav(q)[i, gravity columns] theta_grav`` on folded recordings;
+    a row of joint i is dropped when that joint moves slower than ``min_speed`` (near a reversal
+    the LuGre pre-sliding state is not symmetric, so folding does not cancel friction there) and
+    joints whose gravity row is identically zero (a massless last link) carry no rows.
+
+    Parameters
+    ----------
+    model : PSDMModel
+    kt : array, shape (n_dof,)
+        Motor constants [N m/A] (from :class:`MotorIdentifier`); unused for recordings with torques.
+    robot : RobotDescription, optional
+        Needed with ``tool``.
+    tool : Payload, optional
+        Known end-effector load present during the experiment (eq. 18's ``J^T f_ee``).
+    min_speed : float
+        [rad/s], >= 0.
+
+    Attributes
+    ----------
+    theta_gravity_ : array, shape (n_gravity,)
+        The gravity base parameters (``model.gravity_mask`` order).
+    theta_ : array, shape (n_base,)
+        ``theta_gravity_`` placed in a full base-parameter vector (zeros elsewhere).
+    """
+
+    def __init__(self, model=None, kt=None, robot=None, tool=None, min_speed=0.05):
+        self.model = model
+        self.kt = kt
+        self.robot = robot
+        self.tool = tool
+        self.min_speed = min_speed
+
+    def _n_dof(self, data):
+        return self.model.n_dof
+
+    def _design_matrix(self, data) -> Design:
+        _check_model(self.model, "GravityIdentifier")
+        n = self.model.n_dof
+        kt = None if self.kt is None else _vector(self.kt, n, "GravityIdentifier", "kt", "N m/A")
+        if not (np.isfinite(self.min_speed) and self.min_speed >= 0):
+            raise ParameterError(f"GravityIdentifier.min_speed must be >= 0 [rad/s]; got {self.min_speed!r}.")
+        mask = self.model.gravity_mask
+        blocks = []
+        for rec in _recordings(data, "GravityIdentifier"):
+            rec.check_robot(n)
+            tau = rec.joint_torque(kt) - _tool_torque(self.robot, self.tool, rec, static=True)
+            y = self.model.gravity_regressor(rec.q)[:, :, mask]  # (N, n, n_grav)
+            active = np.any(np.abs(y) > 0, axis=0).any(axis=1)  # joints with a gravity row
+            weights = (np.abs(rec.qd) >= self.min_speed) & active[None, :]
+            blocks.append(Design(y.reshape(-1, mask.sum()), tau.reshape(-1), weights.reshape(-1).astype(float),
+                                 np.tile(np.arange(n), rec.n_samples)))
+        design = blocks[0]
+        for b in blocks[1:]:
+            design = design.stack(b)
+        return design
+
+    def _after_fit(self, design):
+        self.theta_gravity_ = self.coef_.copy()
+        theta = np.zeros(self.model.n_base)
+        theta[self.model.gravity_mask] = self.coef_
+        self.theta_ = theta
+
+
+# ------------------------------------------------------------------------------------------------
+# step 3: friction (eqs. 19-20, LuGre by multiple shooting)
+# ------------------------------------------------------------------------------------------------
+def friction_torque(lugre, t, qd) -> np.ndarray:
+    """LuGre friction torques [N m] of every joint along measured velocities, shape (n_samples, n_dof)."""
+    qd = np.atleast_2d(np.asarray(qd, dtype=float))
+    out = np.zeros_like(qd)
+    for j, p in enumerate(lugre):
+        if p is not None:
+            out[:, j], _ = simulate_lugre(p, t, qd[:, j])
+    return out
+
+
+def _fit_inertia_high_speed(qd, qdd, tau, threshold):
+    """Eq. 20 with the joint's own inertia: ``tau = J qdd + (fc + fv |qd|^dv) sign qd`` on fast samples."""
+    fast = np.abs(qd) > threshold
+    v, s, a, y = np.abs(qd[fast]), np.sign(qd[fast]), qdd[fast], tau[fast]
+    lin = np.linalg.lstsq(np.column_stack([a, s, v * s]), y, rcond=None)[0]
+    x0 = np.array([lin[0], max(lin[1], 1e-3), max(lin[2], 1e-3), 1.0])
+
+    def residual(x):
+        return x[0] * a + (x[1] + x[2] * v ** x[3]) * s - y
+
+    sol = least_squares(residual, x0, bounds=([-np.inf, 0.0, 0.0, 0.05], [np.inf, np.inf, np.inf, 3.0]),
+                        x_scale="jac", method="trf")
+    return float(sol.x[0])
+
+
+class FrictionIdentifier(BaseIdentifier):
+    """LuGre friction per joint (paper 3.3): eq. 19 isolates friction, eq. 20 starts, multiple shooting finishes.
+
+    For the experiment of joint j, ``tau_fric = Kt_j i_j - (Y_grav theta_grav)_j - tau_tool,j`` (eq. 19).
+    Only joint j moves, so its remaining rigid-body torque is ``M_jj qdd_j`` with a constant ``M_jj``
+    (M_jj does not depend on q_j); with ``inertia="fit"`` that inertia is estimated together with
+    eq. 20 on the fast samples and removed (the paper neglects it, which biases Fc/Fv on a fast
+    experiment). The seven LuGre parameters then come from
+    :func:`identification.shooting.fit_lugre_multiple_shooting` started at
+    :func:`identification.shooting.initial_lugre_guess`.
+
+    Parameters
+    ----------
+    model : PSDMModel
+    kt : array, shape (n_dof,)
+    theta : array, shape (n_base,)
+        Base parameters whose gravity part is used (from :class:`GravityIdentifier`).
+    robot : RobotDescription, optional
+        Needed with ``tool``.
+    tool : Payload, optional
+    inertia : {"fit", "ignore"}
+    decimation : int
+        Keep every ``decimation``-th sample for the shooting NLP (its size grows with the samples), >= 1.
+    high_speed_fraction : float
+        Samples faster than this fraction of the peak speed are "high speed" (eq. 20), in (0, 1).
+    shooting_options : identification.shooting.ShootingOptions, optional
+
+    Attributes
+    ----------
+    lugre_ : tuple of LuGreParameters or None, length n_dof
+    inertia_ : array, shape (n_dof,)
+        Removed joint inertia M_jj [kg m^2] (NaN when not fitted).
+    shooting_ : tuple of ShootingResult or None
+    seconds_ : array, shape (n_dof,)
+        Wall time per joint [s].
+    """
+
+    def __init__(self, model=None, kt=None, theta=None, robot=None, tool=None, inertia="fit", decimation=1,
+                 high_speed_fraction=0.25, shooting_options=None):
+        self.model = model
+        self.kt = kt
+        self.theta = theta
+        self.robot = robot
+        self.tool = tool
+        self.inertia = inertia
+        self.decimation = decimation
+        self.high_speed_fraction = high_speed_fraction
+        self.shooting_options = shooting_options
+
+    def _validate(self):
+        _check_model(self.model, "FrictionIdentifier")
+        if self.inertia not in ("fit", "ignore"):
+            raise ParameterError(f"FrictionIdentifier.inertia must be 'fit' or 'ignore'; got {self.inertia!r}.")
+        if not (isinstance(self.decimation, (int, np.integer)) and self.decimation >= 1):
+            raise ParameterError(f"FrictionIdentifier.decimation must be an integer >= 1; got {self.decimation!r}.")
+        if not 0.0 < self.high_speed_fraction < 1.0:
+            raise ParameterError(
+                f"FrictionIdentifier.high_speed_fraction must be in (0, 1); got {self.high_speed_fraction!r}.")
+
+    def _experiments(self, data):
+        items = [data] if isinstance(data, FrictionExperiment) else list(data)
+        if not items or not all(isinstance(e, FrictionExperiment) for e in items):
+            raise ParameterError("FrictionIdentifier.fit data must be a FrictionExperiment or a sequence of them.")
+        n = self.model.n_dof
+        for e in items:
+            if not (0 <= e.joint < n):
+                raise ParameterError(f"FrictionExperiment.joint must be in 0..{n - 1}; got {e.joint!r}.")
+            _recordings(e.recording, "FrictionIdentifier")
+            e.recording.check_robot(n)
+        return items
+
+    def _n_dof(self, data):
+        return self.model.n_dof
+
+    def measured_friction(self, experiment: FrictionExperiment) -> np.ndarray:
+        """Eq. 19 for the moving joint: ``Kt i - Y_grav theta_grav - tau_tool`` [N m], shape (n_samples,)."""
+        n = self.model.n_dof
+        kt = None if self.kt is None else _vector(self.kt, n, "FrictionIdentifier", "kt", "N m/A")
+        theta = _vector(self.theta, self.model.n_base, "FrictionIdentifier", "theta", "base parameters")
+        rec, j = experiment.recording, experiment.joint
+        gravity = (self.model.gravity_regressor(rec.q)[:, j, :] @ (theta * self.model.gravity_mask))
+        tool = _tool_torque(self.robot, self.tool, rec, static=False)[:, j]
+        return rec.joint_torque(kt)[:, j] - gravity - tool
+
+    def fit(self, data):
+        """Fit LuGre parameters for every joint with an experiment; return ``self``."""
+        from .shooting import ShootingOptions, fit_high_speed, fit_lugre_multiple_shooting, initial_lugre_guess
+
+        import time
+
+        self._validate()
+        options = self.shooting_options if self.shooting_options is not None else ShootingOptions()
+        n = self.model.n_dof
+        lugre, shooting = [None] * n, [None] * n
+        inertia, seconds = np.full(n, np.nan), np.full(n, np.nan)
+        for e in self._experiments(data):
+            start = time.perf_counter()
+            rec, j = e.recording, e.joint
+            tau = self.measured_friction(e)
+            qd, qdd = rec.qd[:, j], rec.qdd[:, j]
+            threshold = self.high_speed_fraction * float(np.max(np.abs(qd)))
+            if self.inertia == "fit":
+                inertia[j] = _fit_inertia_high_speed(qd, qdd, tau, threshold)
+                tau = tau - inertia[j] * qdd
+            sl = slice(None, None, int(self.decimation))
+            t_d, qd_d, tau_d = rec.t[sl], qd[sl], tau[sl]
+            high = fit_high_speed(qd_d, tau_d, threshold=threshold)
+            initial = initial_lugre_guess(t_d, qd_d, tau_d, high)
+            result = fit_lugre_multiple_shooting(t_d, qd_d, tau_d, initial, options)
+            lugre[j], shooting[j] = result.parameters, result
+            seconds[j] = time.perf_counter() - start
+        self.lugre_ = tuple(lugre)
+        self.inertia_ = inertia
+        self.shooting_ = tuple(shooting)
+        self.seconds_ = seconds
+        self.coef_ = np.zeros(0)
+        self.n_dof_ = n
+        return self
+
+    def _design_matrix(self, data) -> Design:
+        check_is_fitted(self, "lugre_")
+        blocks = []
+        for e in self._experiments(data):
+            rec, j = e.recording, e.joint
+            tau = self.measured_friction(e)
+            if self.inertia == "fit" and np.isfinite(self.inertia_[j]):
+                tau = tau - self.inertia_[j] * rec.qdd[:, j]
+            if self.lugre_[j] is None:
+                raise ParameterError(f"FrictionIdentifier has no LuGre model of joint {j + 1}; fit it on that joint first.")
+            pred, _ = simulate_lugre(self.lugre_[j], rec.t, rec.qd[:, j])
+            m = rec.n_samples
+            blocks.append(Design(np.zeros((m, 0)), tau, np.ones(m), np.full(m, j), offset=pred))
+        design = blocks[0]
+        for b in blocks[1:]:
+            design = design.stack(b)
+        return design
+
+
+# ------------------------------------------------------------------------------------------------
+# step 4: inertial (eq. 21)
+# ------------------------------------------------------------------------------------------------
+class InertialIdentifier(BaseIdentifier):
+    """The non-gravity base parameters by least squares on an exciting trajectory (paper eq. 21).
+
+    ``Kt i - Y[:, grav] theta_grav - tau_fric - tau_tool = Y[:, iner] theta_iner``, with friction
+    simulated by LuGre along the measured velocity and the gravity columns of the full regressor
+    (their parameters also carry inertial terms).
+
+    Parameters
+    ----------
+    model : PSDMModel
+    kt : array, shape (n_dof,)
+    theta : array, shape (n_base,)
+        Base parameters whose gravity part is held (from :class:`GravityIdentifier`).
+    lugre : sequence of LuGreParameters, length n_dof
+    robot : RobotDescription, optional
+    tool : Payload, optional
+    decimation : int
+        Keep every ``decimation``-th sample (after filtering), >= 1.
+
+    Attributes
+    ----------
+    theta_ : array, shape (n_base,)
+        All base parameters: the held gravity part and the estimated inertial part.
+    theta_std_ : array, shape (n_base,)
+        Standard errors (zero for the held gravity part).
+    """
+
+    def __init__(self, model=None, kt=None, theta=None, lugre=None, robot=None, tool=None, decimation=1):
+        self.model = model
+        self.kt = kt
+        self.theta = theta
+        self.lugre = lugre
+        self.robot = robot
+        self.tool = tool
+        self.decimation = decimation
+
+    def _n_dof(self, data):
+        return self.model.n_dof
+
+    def _design_matrix(self, data) -> Design:
+        _check_model(self.model, "InertialIdentifier")
+        n, mask = self.model.n_dof, self.model.gravity_mask
+        kt = None if self.kt is None else _vector(self.kt, n, "InertialIdentifier", "kt", "N m/A")
+        theta = _vector(self.theta, self.model.n_base, "InertialIdentifier", "theta", "base parameters")
+        if self.lugre is None or len(self.lugre) != n:
+            raise ParameterError(f"InertialIdentifier.lugre must hold {n} LuGreParameters (one per joint); got "
+                                 f"{None if self.lugre is None else len(self.lugre)}. Fit FrictionIdentifier first.")
+        if not (isinstance(self.decimation, (int, np.integer)) and self.decimation >= 1):
+            raise ParameterError(f"InertialIdentifier.decimation must be an integer >= 1; got {self.decimation!r}.")
+        blocks = []
+        for rec in _recordings(data, "InertialIdentifier"):
+            rec.check_robot(n)
+            friction = friction_torque(self.lugre, rec.t, rec.qd)
+            tau = rec.joint_torque(kt) - friction - _tool_torque(self.robot, self.tool, rec, static=False)
+            sl = slice(None, None, int(self.decimation))
+            y = regressor_chunked(self.model, rec.q[sl], rec.qd[sl], rec.qdd[sl])
+            held = y[:, :, mask] @ theta[mask]
+            m = y.shape[0]
+            blocks.append(Design(y[:, :, ~mask].reshape(-1, int((~mask).sum())), tau[sl].reshape(-1),
+                                 np.ones(m * n), np.tile(np.arange(n), m), offset=held.reshape(-1)))
+        design = blocks[0]
+        for b in blocks[1:]:
+            design = design.stack(b)
+        return design
+
+    def _after_fit(self, design):
+        mask = self.model.gravity_mask
+        theta = np.asarray(self.theta, dtype=float).copy()
+        theta[~mask] = self.coef_
+        std = np.zeros(self.model.n_base)
+        std[~mask] = np.sqrt(np.clip(np.diag(self.covariance_), 0, None))
+        self.theta_ = theta
+        self.theta_std_ = std
+
+
+IDENTIFIERS = (MotorIdentifier, GravityIdentifier, FrictionIdentifier, InertialIdentifier)

@@ -1,0 +1,130 @@
+"""simulate_calibration(): the four calibration experiments of the paper run on the virtual robot.
+
+Produces the :class:`identification.dataset.CalibrationData` the pipeline consumes, kept short so
+simulation plus identification of the Denso fits in a few minutes (defaults at 1 kHz):
+
+- motor: per joint, a 0.5 rad/s sweep over 40 % of the range and back, without and with the mass,
+  in a pose (seeded random search) where the mass loads the swept joint most;
+- gravity: one 60 s out-and-back jog of all joints at about 0.25 rad/s;
+- friction: per joint, ``experiments.friction_reference`` (about 20 s of growing sine-cubed oscillations);
+- excitation: a 30 s sum of sines (``experiments.sine_reference``), the stand-in for trajopt's
+  optimised excitation (identification never imports trajopt).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from psdm_casadi.cli import progress
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.robot import RobotDescription
+
+from . import experiments
+from .dataset import CalibrationData
+from .extra_physics import Payload
+from .payload import payload_static_torque
+from .synthetic import SimulationOptions, simulate_recording
+
+__all__ = ["VirtualCalibrationOptions", "simulate_calibration", "motor_pose"]
+
+
+@dataclass(frozen=True)
+class VirtualCalibrationOptions:
+    """Durations and settings of :func:`simulate_calibration`.
+
+    Parameters
+    ----------
+    payload : Payload
+        Calibration mass of the motor step (its centre of mass off the flange axis loads joint 6).
+    motor_speed : float
+        Sweep speed [rad/s].
+    motor_range_fraction : float
+        Swept share of each joint range.
+    gravity_duration : float
+        [s] of the out-and-back jog.
+    excitation_duration : float
+        [s] of the sum-of-sines trajectory.
+    friction_amplitudes : tuple of float
+        Oscillation amplitudes [rad] of the friction experiment.
+    simulation : SimulationOptions
+        The virtual robot's options (rate, noise; ``payload`` is set per experiment).
+    quiet : bool
+        No progress lines.
+    """
+
+    payload: Payload = Payload(mass=2.0, com=(0.06, 0.04, 0.05))
+    motor_speed: float = 0.5
+    motor_range_fraction: float = 0.4
+    gravity_duration: float = 60.0
+    excitation_duration: float = 30.0
+    friction_amplitudes: tuple = (2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6)
+    simulation: SimulationOptions = SimulationOptions()
+    quiet: bool = False
+
+    def __post_init__(self):
+        for name in ("motor_speed", "motor_range_fraction", "gravity_duration", "excitation_duration"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"VirtualCalibrationOptions.{name} must be positive; got {value!r}.")
+
+
+def motor_pose(robot: RobotDescription, joint: int, payload: Payload, rng: np.random.Generator,
+               n_candidates: int = 48, range_fraction: float = 0.4) -> np.ndarray:
+    """A pose in which the calibration mass loads ``joint`` strongly all along its sweep (seeded search)."""
+    home = experiments.home_pose(robot)
+    lo, hi = robot.q_min, robot.q_max
+    best, best_score = home, -1.0
+    for k in range(n_candidates):
+        pose = home if k == 0 else rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo))
+        _, q = experiments.motor_reference(robot, joint, range_fraction=range_fraction, pose=pose)
+        torque = payload_static_torque(robot, payload, q[:: max(1, q.shape[0] // 40)])[:, joint]
+        score = float(np.sqrt(np.mean(torque**2)) * min(1.0, np.abs(torque).min() / (np.abs(torque).max() + 1e-12) + 0.5))
+        if score > best_score:
+            best, best_score = pose, score
+    return best
+
+
+def simulate_calibration(robot: RobotDescription, options: VirtualCalibrationOptions | None = None,
+                         rng: np.random.Generator | None = None, joints=None) -> CalibrationData:
+    """Simulate the motor, gravity, friction and excitation experiments of the paper on the virtual robot.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+        The true robot (links and drives are the truth).
+    options : VirtualCalibrationOptions, optional
+    rng : numpy.random.Generator, optional
+        Sensor noise and random poses/trajectories; ``default_rng(0)`` when omitted.
+    joints : sequence of int, optional
+        Joints (0-based) given motor and friction experiments; all by default.
+
+    Returns
+    -------
+    CalibrationData
+    """
+    options = VirtualCalibrationOptions() if options is None else options
+    rng = np.random.default_rng(0) if rng is None else rng
+    joints = list(range(robot.n_dof)) if joints is None else list(joints)
+    sim = replace(options.simulation, payload=None)
+    loaded = replace(options.simulation, payload=options.payload)
+
+    def run(name, reference, sim_options):
+        rec, _ = simulate_recording(robot, reference, sim_options, rng)
+        progress(f"simulate: {name}: {rec.duration:.1f} s", quiet=options.quiet)
+        return rec.with_signals(name=name)
+
+    motor = []
+    for j in joints:
+        pose = motor_pose(robot, j, options.payload, rng, range_fraction=options.motor_range_fraction)
+        ref = experiments.motor_reference(robot, j, speed=options.motor_speed,
+                                          range_fraction=options.motor_range_fraction, pose=pose)
+        motor.append((j, run(f"motor_j{j + 1}_nominal", ref, sim), run(f"motor_j{j + 1}_payload", ref, loaded)))
+    gravity = (run("gravity", experiments.gravity_reference(robot, duration=options.gravity_duration, rng=rng), sim),)
+    friction = tuple((j, run(f"friction_j{j + 1}", experiments.friction_reference(
+        robot, j, amplitudes=options.friction_amplitudes), sim)) for j in joints)
+    excitation = (run("excitation", experiments.sine_reference(robot, duration=options.excitation_duration, rng=rng),
+                      sim),)
+    return CalibrationData(payload=options.payload, motor=tuple(motor), gravity=gravity, friction=friction,
+                           excitation=excitation)
