@@ -19,7 +19,12 @@ EXPERIMENTS = ("motor", "gravity", "friction", "sine")
 
 def register(subparsers) -> None:
     """Add the identification subcommands to the ``psdm`` parser."""
+    from .diagnosis.cli import register_diagnose
+    from .identify_cli import register_identify
+
     _add_simulate(subparsers)
+    register_identify(subparsers)
+    register_diagnose(subparsers)
 
 
 def _add_simulate(subparsers) -> None:

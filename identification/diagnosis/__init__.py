@@ -1,0 +1,22 @@
+"""Missing-physics diagnosis: locate where a model misses the recordings, name the effect, add it, show the fit improve.
+
+Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, validation RMSE before/after,
+residual analysis, augmented model). Modules: ``context`` (nominal signals per recording), ``nominal``
+(friction and rigid-body choices), ``candidates`` (the physics library), ``selection`` (forward selection
+on held-out data), ``residual_tests``, ``report``, ``augmented``, ``hidden_effects`` (extra effects for
+the virtual robot), ``cli`` (``psdm diagnose``).
+"""
+
+from .augmented import AugmentedModel
+from .candidates import (ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, BacklashTerm, CandidateLibrary, CandidateTerm,
+                         CouplingTerm, CoulombAsymmetryTerm, DelayTerm, FrictionDriftTerm, GravityTiltTerm,
+                         JointElasticityTerm, LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
+                         TorqueOffsetTerm, TorqueRippleTerm, default_library)
+from .diagnose import DiagnosisOptions, diagnose
+from .report import NO_FINDING, DiagnosisReport, Finding
+
+__all__ = ["AugmentedModel", "ALL_TERMS", "EQUIVALENT_EFFECTS", "TERMS_BY_KEY", "BacklashTerm", "CandidateLibrary",
+           "CandidateTerm", "CouplingTerm", "CoulombAsymmetryTerm", "DelayTerm", "FrictionDriftTerm", "GravityTiltTerm",
+           "JointElasticityTerm", "LoadDependentFrictionTerm", "PayloadTerm", "RotorInertiaTerm", "SpringTerm",
+           "TorqueOffsetTerm", "TorqueRippleTerm", "default_library", "DiagnosisOptions", "diagnose", "NO_FINDING",
+           "DiagnosisReport", "Finding"]

@@ -1,0 +1,102 @@
+"""AugmentedModel: the nominal PSDM model plus the missing physics found by ``diagnose``, buildable as a CasADi Function.
+
+Terms that change base parameters (payload, rotor inertia) are folded into ``theta``; friction and the
+additive terms (spring, offset, ripple, asymmetry, drift, load-dependent friction, coupling) become
+CasADi expressions; signal-level effects (delay, backlash, joint elasticity) and the gravity tilt are
+kept as reported parameters (``signal_corrections``) because they are not a torque of (q, qd, qdd, t).
+``build_function`` returns ``augmented_inverse_dynamics(q, qd, qdd, t) -> tau``, which
+``Function.save`` writes and the code generator can export like any other CasADi Function.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from ..io import atomic_write
+from .nominal import friction_casadi
+
+
+@dataclass(frozen=True, eq=False)
+class AugmentedModel:
+    """Nominal model + found terms. ``theta`` are the base parameters before the terms' changes."""
+
+    model: object
+    theta: np.ndarray
+    friction_kind: str
+    friction_coefficients: np.ndarray
+    friction_vs: np.ndarray
+    friction_dv: np.ndarray
+    terms: tuple
+    coefficients: tuple
+
+    @property
+    def theta_augmented(self) -> np.ndarray:
+        """Base parameters with the payload and rotor-inertia changes folded in."""
+        theta = np.array(self.theta, dtype=float)
+        for term, c in zip(self.terms, self.coefficients):
+            change = term.theta_change(c, np.asarray(self.model.parameter_map))
+            if change is not None:
+                theta = theta + change
+        return theta
+
+    @property
+    def signal_corrections(self) -> dict:
+        """Found terms that are not part of the torque function: label -> physical parameters."""
+        q = ca.SX.sym("q", self.model.n_dof)
+        out = {}
+        for term, c in zip(self.terms, self.coefficients):
+            if term.theta_change(c, np.asarray(self.model.parameter_map)) is None and \
+                    term.casadi_expression(q, q, q, ca.SX.sym("t"), q, c) is None:
+                out[term.label] = term.physical_parameters(c)
+        return out
+
+    def build_function(self) -> ca.Function:
+        """``augmented_inverse_dynamics(q, qd, qdd, t) -> tau`` (CasADi, SX)."""
+        from psdm_casadi.symbolic import build_functions
+
+        n = self.model.n_dof
+        q, qd, qdd = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd"))
+        t = ca.SX.sym("t")
+        fns = build_functions(self.model, self.theta_augmented)
+        tau_rigid = fns.inverse_dynamics(q, qd, qdd)
+        tau = tau_rigid + friction_casadi(self.friction_kind, qd, self.friction_coefficients, self.friction_vs,
+                                          self.friction_dv)
+        nominal = tau
+        for term, c in zip(self.terms, self.coefficients):
+            extra = term.casadi_expression(q, qd, qdd, t, nominal, c)
+            if extra is not None:
+                tau = tau + extra
+        return ca.Function("augmented_inverse_dynamics", [q, qd, qdd, t], [tau], ["q", "qd", "qdd", "t"], ["tau"],
+                           {"cse": True})
+
+    def describe(self) -> dict:
+        return {"format": "psdm-augmented/1", "robot": self.model.robot_name, "theta": self.theta.tolist(),
+                "theta_augmented": self.theta_augmented.tolist(), "base_names": list(self.model.base_names),
+                "friction": {"kind": self.friction_kind, "coefficients": self.friction_coefficients.tolist(),
+                             "vs": self.friction_vs.tolist(), "dv": self.friction_dv.tolist()},
+                "terms": [{"effect": term.key, "label": term.label, "features": term.feature_names(),
+                           "coefficients": np.asarray(c).tolist(), "parameters": term.physical_parameters(c)}
+                          for term, c in zip(self.terms, self.coefficients)],
+                "signal_corrections": self.signal_corrections}
+
+    def save(self, directory, overwrite: bool = False) -> dict:
+        """Write ``augmented_model.json`` (parameters) and ``augmented_inverse_dynamics.casadi`` (Function.save)."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        text = json.dumps(self.describe(), indent=2, default=float)
+        paths = {"augmented_json": atomic_write(directory / "augmented_model.json", lambda h: h.write(text + "\n"),
+                                                overwrite=overwrite)}
+        function = self.build_function()
+        target = directory / "augmented_inverse_dynamics.casadi"
+        if target.exists() and not overwrite:
+            raise FileExistsError(f"{str(target)!r} exists; pass overwrite=True (or --overwrite) to replace it.")
+        tmp = directory / ".augmented_inverse_dynamics.casadi.tmp"
+        function.save(str(tmp))
+        tmp.replace(target)
+        paths["augmented_function"] = target
+        return paths

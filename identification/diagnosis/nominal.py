@@ -1,0 +1,99 @@
+"""The nominal model a diagnosis starts from: the robot file's rigid body (or a re-identified one) plus per-joint friction.
+
+Two rigid-body choices (``DiagnosisOptions.rigid_body``):
+
+- ``"prior"`` (default): the inertial parameters of the robot file are kept; only friction is fitted.
+  Effects that change base parameters (payload, rotor inertia, a tilted base) stay visible as
+  a mismatch against the robot file, which is what a diagnosis is for.
+- ``"identified"``: the PSDM base parameters are fitted together with friction by least squares.
+  Payload, rotor inertia and most of a gravity tilt are then absorbed into the base parameters and
+  are not reported as missing physics.
+
+Friction (``DiagnosisOptions.friction``), per joint and linear in its amplitudes:
+
+- ``"lugre"`` (default): the steady-state LuGre curve of the paper (eq. 14 at zdot = 0),
+  ``fc s + (fs - fc) exp(-(qd/vs)^2) s + fv |qd|^dv s`` with ``s = sign(qd)``, the shape values
+  ``vs`` and ``dv`` from the robot file's drives (``vs = 0.01``, ``dv = 1`` without drives). The
+  bristle dynamics (pre-sliding) are not modelled in the diagnosis.
+- ``"coulomb_viscous"``: ``fc s + fv qd``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError
+
+from .candidates import SMOOTH_VELOCITY
+
+FRICTION_MODELS = ("lugre", "coulomb_viscous")
+RIGID_BODY_CHOICES = ("prior", "identified")
+
+
+def friction_shapes(robot) -> tuple[np.ndarray, np.ndarray]:
+    """Stribeck velocities vs [rad/s] and viscous exponents dv per joint from the robot file."""
+    if robot.drives is None:
+        return np.full(robot.n_dof, 0.01), np.ones(robot.n_dof)
+    return (np.array([d.vs for d in robot.drives], dtype=float), np.array([d.dv for d in robot.drives], dtype=float))
+
+
+def friction_feature_names(kind: str, n_dof: int) -> list:
+    per = ("fc", "fs_minus_fc", "fv") if kind == "lugre" else ("fc", "fv")
+    return [f"{name}_{j + 1}" for j in range(n_dof) for name in per]
+
+
+def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray) -> np.ndarray:
+    """Friction columns (n_samples, n_dof, n_dof * k), joint-major, k = 3 (lugre) or 2."""
+    if kind not in FRICTION_MODELS:
+        raise ParameterError(f"DiagnosisOptions.friction must be one of {FRICTION_MODELS}; got {kind!r}.")
+    n_samples, n = qd.shape
+    s = np.tanh(qd / SMOOTH_VELOCITY)
+    if kind == "lugre":
+        per = [s, np.exp(-(qd / vs) ** 2) * s, np.abs(qd) ** dv * s]
+    else:
+        per = [s, qd]
+    k = len(per)
+    out = np.zeros((n_samples, n, n * k))
+    for j in range(n):
+        for c, values in enumerate(per):
+            out[:, j, j * k + c] = values[:, j]
+    return out
+
+
+def lugre_dynamic_columns(robot, context) -> np.ndarray | None:
+    """Bristle-dynamics part of the robot file's LuGre friction along the recording, one column per joint.
+
+    The LuGre model (paper eqs. 12-14) with the drive parameters of the robot file is simulated on the
+    full-rate velocity; its steady-state curve is subtracted, leaving the pre-sliding and damping
+    transients around reversals. The fit scales each joint's column freely. None without drives.
+    """
+    from ..friction import LuGreParameters, simulate_lugre
+
+    if robot.drives is None:
+        return None
+    n = robot.n_dof
+    out = np.zeros((context.n_samples, n, n))
+    for j, d in enumerate(robot.drives):
+        p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
+        qd = context.full_qd[:, j]
+        tau, _ = simulate_lugre(p, context.full_t, qd, z0=0.0)
+        steady = (p.fc + (p.fs - p.fc) * np.exp(-(qd / p.vs) ** 2)) * np.sign(qd) + p.fv * np.abs(qd) ** p.dv * np.sign(qd)
+        out[:, j, j] = (tau - steady)[context.keep]
+    return out
+
+
+def friction_casadi(kind: str, qd, coefficients, vs, dv):
+    """Friction torque (SX, n_dof) of fitted coefficients (joint-major as ``friction_columns``)."""
+    import casadi as ca
+
+    n = qd.shape[0]
+    out = ca.SX.zeros(n)
+    k = 3 if kind == "lugre" else 2
+    for j in range(n):
+        s = ca.tanh(qd[j] / SMOOTH_VELOCITY)
+        c = coefficients[j * k:(j + 1) * k]
+        if kind == "lugre":
+            out[j] = c[0] * s + c[1] * ca.exp(-(qd[j] / vs[j]) ** 2) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s
+        else:
+            out[j] = c[0] * s + c[1] * qd[j]
+    return out

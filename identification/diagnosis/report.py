@@ -1,0 +1,178 @@
+"""DiagnosisReport: what is missing from the model, where, how big, and how much the fit improves with it.
+
+The report holds the findings (most important first), per-joint validation RMSE and R^2 before and
+after, the residual analysis of the nominal model and the augmented model; it renders as JSON
+(``to_json``), Markdown (``to_markdown``) and plots (``save_plots``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io import atomic_write
+
+NO_FINDING = "no significant missing physics"
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One missing effect: key, joints (0-based), physical parameters, validation RMSE per joint before/after."""
+
+    effect: str
+    label: str
+    joints: tuple
+    parameters: dict
+    coefficients: tuple
+    feature_names: tuple
+    explanation: str
+    signature: str
+    rmse_before: tuple
+    rmse_after: tuple
+    delta_bic: float
+    validation_gain: float
+
+    def to_dict(self) -> dict:
+        return {"effect": self.effect, "label": self.label, "joints": [j + 1 for j in self.joints],
+                "parameters": {k: float(v) for k, v in self.parameters.items()},
+                "rmse_before": list(self.rmse_before), "rmse_after": list(self.rmse_after),
+                "delta_bic": self.delta_bic, "validation_gain": self.validation_gain,
+                "explanation": self.explanation}
+
+    def sentence(self) -> str:
+        j = self.joints[0]
+        joints = ", ".join(str(x + 1) for x in self.joints)
+        params = ", ".join(f"{k} = {v:.4g}" for k, v in self.parameters.items())
+        return (f"joint{'s' if len(self.joints) > 1 else ''} {joints}: {self.signature}; best explained by "
+                f"`{self.effect}` ({self.explanation}), {params}; validation RMSE on joint {j + 1} "
+                f"{self.rmse_before[j]:.3g} -> {self.rmse_after[j]:.3g} N m")
+
+
+@dataclass(frozen=True, eq=False)
+class DiagnosisReport:
+    """Result of ``diagnose``. Joints are 0-based in attributes and 1-based in text and JSON."""
+
+    robot_name: str
+    n_dof: int
+    friction: str
+    rigid_body: str
+    findings: tuple
+    rmse_before: tuple
+    rmse_after: tuple
+    r2_before: tuple
+    r2_after: tuple
+    rmse_train_before: tuple
+    rmse_train_after: tuple
+    residual_findings: tuple
+    candidates_tried: int
+    augmented: object
+    validation_t: np.ndarray
+    validation_q: np.ndarray
+    validation_qd: np.ndarray
+    validation_tau: np.ndarray
+    validation_nominal: np.ndarray
+    validation_final: np.ndarray
+
+    @property
+    def effects(self) -> tuple:
+        return tuple(f.effect for f in self.findings)
+
+    def summary(self) -> str:
+        if not self.findings:
+            return NO_FINDING
+        return "; ".join(f"{f.effect} on joint{'s' if len(f.joints) > 1 else ''} "
+                         f"{', '.join(str(j + 1) for j in f.joints)}" for f in self.findings)
+
+    def to_dict(self) -> dict:
+        return {"robot": self.robot_name, "friction": self.friction, "rigid_body": self.rigid_body,
+                "summary": self.summary(), "findings": [f.to_dict() for f in self.findings],
+                "rmse_before": list(self.rmse_before), "rmse_after": list(self.rmse_after),
+                "r2_before": list(self.r2_before), "r2_after": list(self.r2_after),
+                "rmse_train_before": list(self.rmse_train_before), "rmse_train_after": list(self.rmse_train_after),
+                "candidates_tried": self.candidates_tried,
+                "residual_analysis": [r.to_dict() for r in self.residual_findings]}
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, default=float)
+
+    def to_markdown(self, plots: dict | None = None) -> str:
+        lines = [f"# Missing-physics diagnosis: {self.robot_name}", "",
+                 f"Nominal model: rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
+                 f" + {self.friction} friction fitted on the training recording; {self.candidates_tried} candidate "
+                 "fits judged on the validation recording.", "", "## Findings", ""]
+        if not self.findings:
+            lines.append(f"**{NO_FINDING}**: no candidate term lowered a joint's validation RMSE enough to earn its parameters.")
+        for k, f in enumerate(self.findings, 1):
+            lines.append(f"{k}. {f.sentence()} (validation gain {f.validation_gain:.1%}, dBIC {f.delta_bic:.0f}).")
+        lines += ["", "## Validation per joint", "", "| joint | RMSE before [N m] | RMSE after [N m] | R^2 before | R^2 after |",
+                  "|---|---|---|---|---|"]
+        for j in range(self.n_dof):
+            lines.append(f"| {j + 1} | {self.rmse_before[j]:.4g} | {self.rmse_after[j]:.4g} | "
+                         f"{self.r2_before[j]:.4f} | {self.r2_after[j]:.4f} |")
+        lines += ["", "## Residual analysis of the nominal model (validation)", ""]
+        for j in range(self.n_dof):
+            items = [r for r in self.residual_findings if r.joint == j]
+            lines.append(f"- " + "; ".join(r.text for r in items))
+        if plots:
+            lines += ["", "## Plots", ""]
+            for name, path in plots.items():
+                lines.append(f"![{name}]({Path(path).name})")
+        return "\n".join(lines) + "\n"
+
+    def save_plots(self, directory, overwrite: bool = False) -> dict:
+        """Residual against time, position and velocity, and measured vs model torque before/after; PNG files."""
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        n = self.n_dof
+        t = self.validation_t
+        residual = self.validation_tau - self.validation_nominal
+        after = self.validation_tau - self.validation_final
+        paths = {}
+        fig, axes = plt.subplots(n, 3, figsize=(13, 2.0 * n), squeeze=False)
+        for j in range(n):
+            for c, (x, xl) in enumerate(((t, "t [s]"), (self.validation_q[:, j], f"q{j + 1} [rad]"),
+                                         (self.validation_qd[:, j], f"qd{j + 1} [rad/s]"))):
+                ax = axes[j, c]
+                ax.plot(x, residual[:, j], ".", ms=1, label="nominal")
+                ax.plot(x, after[:, j], ".", ms=1, label="augmented")
+                ax.set_xlabel(xl)
+                ax.set_ylabel(f"res {j + 1} [N m]")
+        axes[0, 0].legend(markerscale=8)
+        fig.tight_layout()
+        paths["residuals"] = self._save(fig, directory / "residuals.png", overwrite)
+        fig, axes = plt.subplots(n, 1, figsize=(10, 1.8 * n), squeeze=False, sharex=True)
+        for j in range(n):
+            ax = axes[j, 0]
+            ax.plot(t, self.validation_tau[:, j], "k", lw=1, label="measured")
+            ax.plot(t, self.validation_nominal[:, j], lw=1, label=f"nominal (RMSE {self.rmse_before[j]:.3g})")
+            ax.plot(t, self.validation_final[:, j], lw=1, label=f"augmented (RMSE {self.rmse_after[j]:.3g})")
+            ax.set_ylabel(f"tau{j + 1} [N m]")
+            ax.legend(fontsize=6, loc="upper right")
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.tight_layout()
+        paths["fit"] = self._save(fig, directory / "fit.png", overwrite)
+        plt.close("all")
+        return paths
+
+    @staticmethod
+    def _save(fig, path: Path, overwrite: bool) -> Path:
+        return atomic_write(path, lambda handle: fig.savefig(handle, dpi=90, format="png"), overwrite=overwrite, mode="wb")
+
+    def save(self, directory, overwrite: bool = False, plots: bool = True) -> dict:
+        """Write report.md, report.json, plots and the augmented model into ``directory``."""
+        directory = Path(directory)
+        directory.mkdir(parents=True, exist_ok=True)
+        paths = self.save_plots(directory, overwrite) if plots else {}
+        text = self.to_markdown(paths)
+        paths["markdown"] = atomic_write(directory / "report.md", lambda h: h.write(text), overwrite=overwrite)
+        js = self.to_json()
+        paths["json"] = atomic_write(directory / "report.json", lambda h: h.write(js + "\n"), overwrite=overwrite)
+        paths.update(self.augmented.save(directory, overwrite=overwrite))
+        return paths

@@ -1,0 +1,231 @@
+"""Model selection: greedy forward selection of candidate terms on top of the nominal model, judged on held-out data.
+
+Every step fits the nominal friction, the terms kept so far and one more candidate jointly by
+weighted least squares on the training recording (each joint's rows weighted by its torque RMS,
+so joints count alike), predicts the validation recording, and keeps the candidate
+that lowers the weighted validation error most, if it earns its parameters:
+
+- the validation RMSE of at least one joint drops by ``min_improvement`` (default 20 %) and by at
+  least ``min_torque_fraction`` (1 %) of the robot's largest joint torque RMS (a floor in N m, so
+  small misfits of the nominal model on weak joints do not count);
+- the weighted validation error of all joints drops;
+- the Bayesian information criterion on the training data drops, counted with the effective
+  number of independent samples of a low-pass filtered signal (2 x cut-off x duration per joint).
+
+Ties (gains within 2 %) go to the candidate with fewer parameters, then to the earlier term of the
+library. Selection stops when no candidate qualifies or ``max_effects`` are kept.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError
+
+
+@dataclass(frozen=True)
+class SelectionStep:
+    """One kept term: its instance, the per-joint validation RMSE before and after adding it, the criterion gains."""
+
+    term: object
+    joints: tuple
+    rmse_before: np.ndarray
+    rmse_after: np.ndarray
+    rmse_train_before: np.ndarray
+    rmse_train_after: np.ndarray
+    delta_bic: float
+    validation_gain: float
+
+
+@dataclass(frozen=True)
+class SelectionResult:
+    """Kept terms with their jointly fitted coefficients, and the fits before and after.
+
+    Attributes
+    ----------
+    steps : tuple of SelectionStep
+    coefficients : tuple of arrays
+        Final coefficients of each kept term (same order as ``steps``).
+    friction_coefficients : array
+    rigid_coefficients : array or None
+        Base parameters when the rigid body was identified.
+    prediction_validation, prediction_train : arrays (n_samples, n_dof)
+        Final model torque.
+    nominal_validation, nominal_train : arrays (n_samples, n_dof)
+        Torque of the nominal model alone.
+    """
+
+    steps: tuple
+    coefficients: tuple
+    friction_coefficients: np.ndarray
+    rigid_coefficients: np.ndarray | None
+    nominal_train: np.ndarray
+    nominal_validation: np.ndarray
+    prediction_train: np.ndarray
+    prediction_validation: np.ndarray
+    candidates_tried: int
+
+
+def _flat(cols, sigma):
+    return (cols / sigma[None, :, None]).reshape(-1, cols.shape[2])
+
+
+def _solve(gram, rhs):
+    d = np.sqrt(np.maximum(np.diag(gram), 1e-300))
+    scaled = gram / np.outer(d, d) + 1e-10 * np.eye(gram.shape[0])
+    try:
+        beta = np.linalg.solve(scaled, rhs / d)
+    except np.linalg.LinAlgError:
+        beta = np.linalg.lstsq(scaled, rhs / d, rcond=None)[0]
+    return beta / d
+
+
+class _Design:
+    """Weighted stacked least squares with fixed base columns; adds candidate columns through the normal equations.
+
+    Candidate columns are usually non-zero on one joint only, so the cross products are summed over the
+    joints where a candidate is non-zero.
+    """
+
+    def __init__(self, base_train, base_val, y_train, y_val, sigma):
+        self.sigma = sigma
+        self.y_train, self.y_val = y_train, y_val
+        self.ytw = y_train / sigma
+        self.yy = float(np.sum(self.ytw**2))
+        self.set_base(base_train, base_val)
+
+    def set_base(self, base_train, base_val):
+        self.base_train, self.base_val = base_train, base_val
+        xt = base_train / self.sigma[None, :, None]
+        self.Xt_j = [np.ascontiguousarray(xt[:, j, :]) for j in range(xt.shape[1])]
+        self.Xv = base_val
+        self.G = sum(x.T @ x for x in self.Xt_j)
+        self.b = sum(x.T @ self.ytw[:, j] for j, x in enumerate(self.Xt_j))
+
+    def fit(self, cand_train=None, cand_val=None, full=False):
+        """Coefficients, weighted train SSE, validation RMSE per joint (and, with ``full``, train RMSE and predictions)."""
+        p = self.G.shape[0]
+        if cand_train is None:
+            gram, rhs = self.G, self.b
+        else:
+            ct = cand_train / self.sigma[None, :, None]
+            rows = np.flatnonzero(np.any(ct != 0, axis=(0, 2)))
+            k = ct.shape[2]
+            cross = np.zeros((p, k))
+            cc = np.zeros((k, k))
+            cy = np.zeros(k)
+            for j in rows:
+                c = ct[:, j, :]
+                cross += self.Xt_j[j].T @ c
+                cc += c.T @ c
+                cy += c.T @ self.ytw[:, j]
+            gram = np.block([[self.G, cross], [cross.T, cc]])
+            rhs = np.concatenate([self.b, cy])
+        beta = _solve(gram, rhs)
+        sse = max(self.yy - 2.0 * beta @ rhs + beta @ gram @ beta, 1e-300)
+        pred_v = self.Xv @ beta[:p]
+        if cand_train is not None:
+            pred_v = pred_v + cand_val @ beta[p:]
+        rmse_v = np.sqrt(np.mean((self.y_val - pred_v) ** 2, axis=0))
+        if not full:
+            return beta, sse, rmse_v
+        pred_t = self.base_train @ beta[:p]
+        if cand_train is not None:
+            pred_t = pred_t + cand_train @ beta[p:]
+        rmse_t = np.sqrt(np.mean((self.y_train - pred_t) ** 2, axis=0))
+        return beta, sse, rmse_t, rmse_v, pred_t, pred_v
+
+
+def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train, y_val, *,
+                   min_improvement=0.2, max_effects=4, effective_samples=None, joint_threshold=0.1,
+                   min_torque_fraction=0.01, progress=None) -> SelectionResult:
+    """Greedy forward selection of candidate term instances (see the module docstring).
+
+    Parameters
+    ----------
+    instances : sequence of CandidateTerm
+        Concrete instances (``CandidateLibrary.expand``).
+    train_ctx, val_ctx : DiagnosisContext
+    base_train, base_val : arrays (n_samples, n_dof, p)
+        Columns of the nominal model's free parameters (friction, and base parameters if identified).
+    y_train, y_val : arrays (n_samples, n_dof)
+        Measured torque minus the fixed part of the nominal model.
+    min_improvement : float
+        Fraction by which one joint's validation RMSE must drop.
+    max_effects : int
+    effective_samples : float, optional
+        Independent samples per joint in the training data (for the BIC); default n_samples.
+    joint_threshold : float
+        Relative validation RMSE reduction above which a joint is named for a robot-wide term.
+    min_torque_fraction : float
+        Least absolute RMSE drop on the improving joint, as a fraction of the largest joint torque RMS
+        of the robot (a floor in N m below which a change is not worth reporting).
+    """
+    if not 0.0 < min_improvement < 1.0:
+        raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
+    if not (isinstance(max_effects, (int, np.integer)) and max_effects >= 0):
+        raise ParameterError(f"DiagnosisOptions.max_effects must be an integer >= 0; got {max_effects!r}.")
+    n_dof = y_train.shape[1]
+    n_eff = float(effective_samples) if effective_samples is not None else float(y_train.shape[0])
+    n_eff_total = n_eff * n_dof
+    # joint weights: torque RMS of each joint on the training data, so joints count alike whatever their size
+    torque_rms = np.sqrt(np.mean(train_ctx.tau**2, axis=0))
+    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    floor = min_torque_fraction * float(np.max(torque_rms))
+    design = _Design(base_train, base_val, y_train, y_val, sigma)
+    _, sse, rmse_t, rmse_v, pred_t0, pred_v0 = design.fit(full=True)
+    nominal_train, nominal_val = pred_t0, pred_v0
+    kept, steps = [], []
+    tried = 0
+    remaining = list(instances)
+    cache = {}
+    while len(kept) < max_effects and remaining:
+        best = []
+        wval0 = float(np.sum(rmse_v**2 / sigma**2))
+        for index, term in enumerate(remaining):
+            ct, cv = term.columns(train_ctx), term.columns(val_ctx)
+            tried += 1
+            beta, sse1, rv1 = design.fit(ct, cv)
+            k = ct.shape[2]
+            rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
+            absolute = (rmse_v - rv1) >= floor
+            wval1 = float(np.sum(rv1**2 / sigma**2))
+            delta_bic = n_eff_total * np.log(sse1 / sse) + k * np.log(n_eff_total)
+            gain = (wval0 - wval1) / wval0
+            if np.any((rel >= min_improvement) & absolute) and wval1 < wval0 and delta_bic < 0:
+                best.append((gain, k, index, term, None, rv1, delta_bic, sse1))
+        if not best:
+            break
+        top = max(b[0] for b in best)
+        near = [b for b in best if b[0] >= top - 0.02 * abs(top)]
+        gain, k, index, term, _, rv1, delta_bic, sse1 = min(near, key=lambda b: (b[1], b[2]))
+        ct, cv = term.columns(train_ctx), term.columns(val_ctx)
+        _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
+        rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
+        if term.joints:
+            joints = term.joints
+        else:
+            order = np.argsort(-rel)
+            joints = tuple(int(j) for j in order if rel[j] >= joint_threshold) or (int(order[0]),)
+        steps.append(SelectionStep(term=term, joints=joints, rmse_before=rmse_v.copy(), rmse_after=rv1.copy(),
+                                   rmse_train_before=rmse_t.copy(), rmse_train_after=rt1.copy(),
+                                   delta_bic=float(delta_bic), validation_gain=float(gain)))
+        if progress is not None:
+            progress(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
+        kept.append(term)
+        cache[term.label] = ct.shape[2]
+        design.set_base(np.concatenate([design.base_train, ct], axis=2), np.concatenate([design.base_val, cv], axis=2))
+        _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
+        remaining = [r for r in remaining if r.label != term.label]
+    beta, _, _, _, pred_t, pred_v = design.fit(full=True)
+    p0 = base_train.shape[2]
+    coefficients, start = [], p0
+    for term in kept:
+        k = cache[term.label]
+        coefficients.append(beta[start:start + k].copy())
+        start += k
+    return SelectionResult(steps=tuple(steps), coefficients=tuple(coefficients), friction_coefficients=beta[:p0].copy(),
+                           rigid_coefficients=None, nominal_train=nominal_train, nominal_validation=nominal_val,
+                           prediction_train=pred_t, prediction_validation=pred_v, candidates_tried=tried)
