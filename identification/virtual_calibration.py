@@ -87,7 +87,8 @@ def motor_pose(robot: RobotDescription, joint: int, payload: Payload, rng: np.ra
 
 
 def simulate_calibration(robot: RobotDescription, options: VirtualCalibrationOptions | None = None,
-                         rng: np.random.Generator | None = None, joints=None) -> CalibrationData:
+                         rng: np.random.Generator | None = None, joints=None, *, excitation=None,
+                         extras=()) -> CalibrationData:
     """Simulate the motor, gravity, friction and excitation experiments of the paper on the virtual robot.
 
     Parameters
@@ -99,6 +100,11 @@ def simulate_calibration(robot: RobotDescription, options: VirtualCalibrationOpt
         Sensor noise and random poses/trajectories; ``default_rng(0)`` when omitted.
     joints : sequence of int, optional
         Joints (0-based) given motor and friction experiments; all by default.
+    excitation : sequence of references, optional
+        References of the excitation experiments (e.g. ``(t, q, qd, qdd)`` arrays sampled from an
+        optimised trajectory); a sum of sines of ``options.excitation_duration`` by default.
+    extras : sequence of ExtraPhysics
+        Physics the virtual robot carries in every experiment and the identification does not model.
 
     Returns
     -------
@@ -111,7 +117,7 @@ def simulate_calibration(robot: RobotDescription, options: VirtualCalibrationOpt
     loaded = replace(options.simulation, payload=options.payload)
 
     def run(name, reference, sim_options):
-        rec, _ = simulate_recording(robot, reference, sim_options, rng)
+        rec, _ = simulate_recording(robot, reference, sim_options, rng, extras=extras)
         progress(f"simulate: {name}: {rec.duration:.1f} s", quiet=options.quiet)
         return rec.with_signals(name=name)
 
@@ -124,7 +130,9 @@ def simulate_calibration(robot: RobotDescription, options: VirtualCalibrationOpt
     gravity = (run("gravity", experiments.gravity_reference(robot, duration=options.gravity_duration, rng=rng), sim),)
     friction = tuple((j, run(f"friction_j{j + 1}", experiments.friction_reference(
         robot, j, amplitudes=options.friction_amplitudes), sim)) for j in joints)
-    excitation = (run("excitation", experiments.sine_reference(robot, duration=options.excitation_duration, rng=rng),
-                      sim),)
+    if excitation is None:
+        excitation = (experiments.sine_reference(robot, duration=options.excitation_duration, rng=rng),)
+    excitation = tuple(run("excitation" if len(excitation) == 1 else f"excitation_{k + 1}", reference, sim)
+                       for k, reference in enumerate(excitation))
     return CalibrationData(payload=options.payload, motor=tuple(motor), gravity=gravity, friction=friction,
                            excitation=excitation)
