@@ -1,0 +1,348 @@
+"""export_c(): write the dynamics Functions as a self-contained C folder (last step of the flow: DynamicsFunctions -> CExport).
+
+The folder holds the CasADi-generated ``<library>.c``/``.h``, a ``Makefile`` and an example
+``main.c`` that calls every function. Functions with a ``theta`` input are exported twice: with
+theta baked in as constants (CasADi folds them, drops the zero products; the fastest flavour,
+named ``<prefix><name>``) and with theta as a runtime input (``<prefix><name>_theta``).
+Compiling is a separate step (``codegen.build``).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from psdm_casadi.errors import ParameterError, ShapeError
+
+# Attributes of a DynamicsFunctions-like object that are exported, in this order.
+EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
+THETA_INPUT = "theta"
+RUNTIME_SUFFIX = "_theta"
+JACOBIAN_SUFFIX = "_jac"
+_EXAMPLE_SEED = 0
+_NON_ARITHMETIC = {getattr(ca, op) for op in ("OP_INPUT", "OP_OUTPUT", "OP_CONST", "OP_PARAMETER", "OP_ASSIGN")
+                   if hasattr(ca, op)}
+_TRIG = {ca.OP_SIN, ca.OP_COS, ca.OP_TAN}
+
+
+@dataclass(frozen=True)
+class OperationCount:
+    """Size of one exported Function.
+
+    Attributes
+    ----------
+    name : str
+        C symbol of the function.
+    n_instructions : int
+        CasADi instructions (inputs, outputs and constants included).
+    n_operations : int
+        Arithmetic and elementary-function instructions only.
+    n_multiplications, n_additions, n_trig : int
+        Multiplications/divisions, additions/subtractions/negations, and sin/cos/tan calls.
+    """
+
+    name: str
+    n_instructions: int
+    n_operations: int
+    n_multiplications: int
+    n_additions: int
+    n_trig: int
+
+
+@dataclass(frozen=True)
+class CExport:
+    """A generated C folder.
+
+    Attributes
+    ----------
+    folder : Path
+    library : str
+        Base name: ``<library>.c``, ``<library>.h``, ``lib<library>.so`` after ``make``.
+    header, source, example, build_file : Path
+        The ``.h``, the ``.c``, the example ``main.c`` and the ``Makefile``.
+    function_names : tuple of str
+        C symbols of the exported functions, in the order they appear in the source.
+    operation_counts : tuple of OperationCount
+        One per exported function, same order.
+    theta_baked : bool
+        Whether the baked-theta flavour was exported.
+    """
+
+    folder: Path
+    library: str
+    header: Path
+    source: Path
+    example: Path
+    build_file: Path
+    function_names: tuple
+    operation_counts: tuple
+    theta_baked: bool
+
+    def __post_init__(self):
+        if len(self.function_names) != len(self.operation_counts):
+            raise ShapeError(
+                f"CExport.operation_counts must have one entry per function ({len(self.function_names)}); "
+                f"got {len(self.operation_counts)}. Build it with export_c."
+            )
+
+    @property
+    def n_instructions(self) -> dict:
+        """``{function name: n_instructions}`` (for reports and JSON)."""
+        return {count.name: count.n_instructions for count in self.operation_counts}
+
+    def operation_count(self, name: str) -> OperationCount:
+        """The OperationCount of one exported function."""
+        for count in self.operation_counts:
+            if count.name == name:
+                return count
+        raise ParameterError(f"CExport.function_names must contain {name!r}; got {list(self.function_names)}.")
+
+
+def count_operations(function: ca.Function, name: str | None = None) -> OperationCount:
+    """Count the instructions of an SX Function by kind.
+
+    Parameters
+    ----------
+    function : casadi.Function
+        An SX Function (an MX one is expanded first).
+    name : str, optional
+        Name to report; defaults to the Function's.
+
+    Returns
+    -------
+    OperationCount
+    """
+    if not function.is_a("SXFunction"):
+        function = function.expand()
+    ids = [function.instruction_id(k) for k in range(function.n_instructions())]
+    mul = sum(op in (ca.OP_MUL, ca.OP_DIV, ca.OP_SQ, ca.OP_TWICE) for op in ids)
+    add = sum(op in (ca.OP_ADD, ca.OP_SUB, ca.OP_NEG) for op in ids)
+    trig = sum(op in _TRIG for op in ids)
+    ops = sum(op not in _NON_ARITHMETIC for op in ids)
+    return OperationCount(name or function.name(), len(ids), ops, mul, add, trig)
+
+
+def _collect(functions) -> list:
+    """The casadi Functions to export, from a Function, a sequence or a DynamicsFunctions-like object."""
+    if isinstance(functions, ca.Function):
+        found = [functions]
+    elif isinstance(functions, (list, tuple)):
+        found = list(functions)
+    else:
+        found = [getattr(functions, attr) for attr in EXPORTED_ATTRIBUTES if getattr(functions, attr, None) is not None]
+    if not found:
+        raise ParameterError(
+            "export_c functions must be a casadi.Function, a non-empty sequence of them, or an object with "
+            f"attributes {EXPORTED_ATTRIBUTES}; got {type(functions).__name__}. Pass build_functions(model)."
+        )
+    out = []
+    for f in found:
+        if not isinstance(f, ca.Function):
+            raise ParameterError(
+                f"export_c functions must contain only casadi.Function objects; got {type(f).__name__}. "
+                "Pass the Functions of build_functions(model)."
+            )
+        out.append(f if f.is_a("SXFunction") else f.expand())
+    names = [f.name() for f in out]
+    duplicates = sorted({n for n in names if names.count(n) > 1})
+    if duplicates:
+        raise ParameterError(f"export_c functions must have distinct names; got duplicates {duplicates}. Rename them.")
+    return out
+
+
+def _symbolic_io(function):
+    inputs = function.sx_in()
+    outputs = function.call(inputs)
+    return inputs, outputs
+
+
+def _rebuild(name, function, inputs, outputs, drop_theta, cse):
+    in_names = function.name_in()
+    keep = [i for i, n in enumerate(in_names) if not (drop_theta and n == THETA_INPUT)]
+    return ca.Function(name, [inputs[i] for i in keep], outputs, [in_names[i] for i in keep],
+                       function.name_out(), {"cse": bool(cse)})
+
+
+def _bake(function, theta, name, cse):
+    """The Function with its theta input replaced by constants, so CasADi folds them."""
+    inputs, _ = _symbolic_io(function)
+    index = function.name_in().index(THETA_INPUT)
+    expected = function.size_in(index)
+    if theta.size != expected[0] * expected[1]:
+        raise ShapeError(
+            f"export_c theta must have {expected[0] * expected[1]} entries to match {function.name()}.theta; "
+            f"got {theta.size}. Pass the base parameters of this model (model.base_parameters(...))."
+        )
+    args = list(inputs)
+    args[index] = ca.DM(theta.reshape(expected, order="F"))
+    outputs = function.call(args)
+    return _rebuild(name, function, inputs, outputs, True, cse)
+
+
+def _jacobian(function, name, cse):
+    """Jacobians of every output with respect to every input except theta: outputs ``d<out>_d<in>``."""
+    inputs, outputs = _symbolic_io(function)
+    in_names, out_names = function.name_in(), function.name_out()
+    jac, jac_names = [], []
+    for o, oname in zip(outputs, out_names):
+        for i, iname in zip(inputs, in_names):
+            if iname == THETA_INPUT:
+                continue
+            jac.append(ca.jacobian(ca.vec(o), i))
+            jac_names.append(f"d{oname}_d{iname}")
+    return ca.Function(name, inputs, jac, in_names, jac_names, {"cse": bool(cse)})
+
+
+def _check_name(value, field_name):
+    if not isinstance(value, str) or not value.replace("_", "a").isalnum() or value[:1].isdigit():
+        raise ParameterError(
+            f"export_c {field_name} must be a C identifier (letters, digits, underscores, not starting with a digit); "
+            f"got {value!r}. Use e.g. 'psdm_'."
+        )
+
+
+def _c_array(name, values):
+    body = ", ".join(repr(float(v)) for v in values) if len(values) else "0.0"
+    return f"static const casadi_real {name}[] = {{{body}}};"
+
+
+def _example_code(functions, theta, rng):
+    """C declarations of the example inputs and the calls of main()."""
+    inputs, calls = [], []
+    for k, f in enumerate(functions):
+        names = []
+        for i in range(f.n_in()):
+            n = f.nnz_in(i)
+            if f.name_in(i) == THETA_INPUT and theta is not None and theta.size == n:
+                values = theta
+            else:
+                values = rng.uniform(-1.0, 1.0, n)
+            var = f"input_{k}_{i}"
+            inputs.append(_c_array(var, values))
+            names.append(var)
+        inputs.append(f"static const casadi_real* const inputs_{k}[] = {{{', '.join(names) or '0'}}};")
+        calls.append(f"  {{ const function_t f = FUNCTION({f.name()}); failures += run(&f, inputs_{k}, timing) != 0; }}")
+    return "\n".join(inputs), "\n".join(calls)
+
+
+def _template(name):
+    return (Path(__file__).parent / "templates" / name).read_text()
+
+
+def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=False, library="psdm_dynamics",
+             prefix="psdm_", cse=True, overwrite=False) -> CExport:
+    """Generate a self-contained C folder for the dynamics Functions.
+
+    Parameters
+    ----------
+    functions : DynamicsFunctions-like, casadi.Function or sequence of casadi.Function
+        With a DynamicsFunctions (``build_functions(model)``) the exported ones are
+        ``inverse_dynamics, forward_dynamics, regressor, mass_matrix``.
+    folder : str or Path
+        Output folder; created if missing.
+    theta : array, shape (n_base,), optional
+        Base parameters to bake in as constants. Without it only the runtime flavour is written.
+    runtime_theta : bool
+        Also export the flavour with theta as a runtime input (``<prefix><name>_theta``).
+    jacobians : bool
+        Also export ``<function>_jac`` with the Jacobians of each output with respect to each
+        non-theta input (``d<out>_d<in>``, each of shape (nnz(out), numel(in))).
+    library : str
+        Base name of the ``.c``/``.h`` files and of the shared library.
+    prefix : str
+        Prefix of every C symbol.
+    cse : bool
+        Let CasADi eliminate common subexpressions (shared products and trig terms).
+    overwrite : bool
+        Allow writing into a non-empty folder (files of the same name are replaced).
+
+    Returns
+    -------
+    CExport
+
+    Raises
+    ------
+    FileExistsError
+        When ``folder`` is not empty and ``overwrite`` is False.
+    ParameterError
+        For a bad ``functions``, ``library`` or ``prefix``.
+    ShapeError
+        When ``theta`` does not match the functions' theta input.
+
+    Examples
+    --------
+    >>> export = export_c(build_functions(model), "out", theta=theta)     # doctest: +SKIP
+    >>> export.n_instructions["psdm_inverse_dynamics"]                    # doctest: +SKIP
+    """
+    _check_name(library, "library")
+    _check_name(prefix + "x", "prefix")
+    sources = _collect(functions)
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise FileExistsError(f"export_c folder {str(folder)!r} is a file. Pass a folder path.")
+    if folder.is_dir() and any(folder.iterdir()) and not overwrite:
+        raise FileExistsError(f"export_c folder {str(folder)!r} is not empty. Pass overwrite=True or another folder.")
+    if theta is not None:
+        theta = np.asarray(theta, dtype=float).ravel()
+        if not np.all(np.isfinite(theta)):
+            raise ParameterError("export_c theta must be finite; got NaN or inf. Pass identified base parameters.")
+    has_theta = [THETA_INPUT in f.name_in() for f in sources]
+    if theta is not None and not any(has_theta):
+        raise ParameterError(
+            "export_c theta must be None when no function has a theta input; got theta with "
+            f"{theta.size} values. Drop theta (these functions already have their parameters compiled in)."
+        )
+    if not runtime_theta and theta is None and any(has_theta):
+        raise ParameterError(
+            "export_c runtime_theta must be True when no theta is given; got runtime_theta=False, theta=None. "
+            "Pass theta to bake it in."
+        )
+
+    exported = []
+    for f, takes_theta in zip(sources, has_theta):
+        name = prefix + f.name()
+        if not takes_theta:
+            inputs, outputs = _symbolic_io(f)
+            exported.append(_rebuild(name, f, inputs, outputs, False, cse))
+            continue
+        if theta is not None:
+            exported.append(_bake(f, theta, name, cse))
+        if runtime_theta:
+            inputs, outputs = _symbolic_io(f)
+            exported.append(_rebuild(name + RUNTIME_SUFFIX, f, inputs, outputs, False, cse))
+    if jacobians:
+        exported += [_jacobian(f, f.name() + JACOBIAN_SUFFIX, cse) for f in list(exported)]
+
+    folder.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=".export-", dir=folder))
+    try:
+        generator = ca.CodeGenerator(f"{library}.c", {"with_header": True})
+        for f in exported:
+            generator.add(f)
+        generator.generate(str(staging) + os.sep)
+        input_code, call_code = _example_code(exported, theta, np.random.default_rng(_EXAMPLE_SEED))
+        main_c = _template("main.c.in").replace("@LIBRARY@", library).replace("@INPUTS@", input_code)
+        (staging / "main.c").write_text(main_c.replace("@CALLS@", call_code))
+        (staging / "Makefile").write_text(_template("Makefile.in").replace("@LIBRARY@", library))
+        for item in (f"{library}.c", f"{library}.h", "main.c", "Makefile"):
+            os.replace(staging / item, folder / item)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+    return CExport(
+        folder=folder,
+        library=library,
+        header=folder / f"{library}.h",
+        source=folder / f"{library}.c",
+        example=folder / "main.c",
+        build_file=folder / "Makefile",
+        function_names=tuple(f.name() for f in exported),
+        operation_counts=tuple(count_operations(f) for f in exported),
+        theta_baked=theta is not None and any(has_theta),
+    )

@@ -1,0 +1,279 @@
+"""A direct CasADi SX Newton-Euler model built from a Pinocchio model: the peer the PSDM export is benchmarked against.
+
+This is the "obvious alternative" a CasADi user would write: the recursive Newton-Euler
+algorithm (rnea) evaluated on SX symbols with the robot's numbers baked in, and forward dynamics
+through the mass matrix (one unit-acceleration rnea pass per column, sharing the kinematics) and
+a symbolic Cholesky solve. It is tested against ``pinocchio.rnea``/``pinocchio.aba``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from psdm_casadi.errors import ParameterError
+
+# Pinocchio joint short names -> (kind, axis) for the 1-DOF joints supported here.
+_AXIS_JOINTS = {
+    "JointModelRX": ("revolute", (1.0, 0.0, 0.0)),
+    "JointModelRY": ("revolute", (0.0, 1.0, 0.0)),
+    "JointModelRZ": ("revolute", (0.0, 0.0, 1.0)),
+    "JointModelPX": ("prismatic", (1.0, 0.0, 0.0)),
+    "JointModelPY": ("prismatic", (0.0, 1.0, 0.0)),
+    "JointModelPZ": ("prismatic", (0.0, 0.0, 1.0)),
+}
+_ZERO_TOLERANCE = 1e-14  # model numbers smaller than this are rounding noise of cos(pi/2); set them to 0
+
+
+@dataclass(frozen=True)
+class RneaFunctions:
+    """SX functions of the direct Newton-Euler peer.
+
+    Attributes
+    ----------
+    inverse_dynamics : casadi.Function
+        ``(q, qd, qdd) -> tau``, each (n_dof,) [rad, rad/s, rad/s^2 -> N m].
+    mass_matrix : casadi.Function
+        ``q -> M``, (n_dof, n_dof) [kg m^2], armature included.
+    forward_dynamics : casadi.Function
+        ``(q, qd, tau) -> qdd`` by Cholesky of M.
+    n_dof : int
+    """
+
+    inverse_dynamics: ca.Function
+    mass_matrix: ca.Function
+    forward_dynamics: ca.Function
+    n_dof: int
+
+
+def _clean(values) -> np.ndarray:
+    arr = np.array(values, dtype=float)
+    arr[np.abs(arr) < _ZERO_TOLERANCE] = 0.0
+    return arr
+
+
+def _joint_kind_axis(jmodel, name):
+    short = jmodel.shortname()
+    if short in _AXIS_JOINTS:
+        return _AXIS_JOINTS[short]
+    if short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
+        kind = "revolute" if "Revolute" in short else "prismatic"
+        return kind, tuple(float(a) for a in np.asarray(jmodel.extract().axis).ravel())
+    raise ParameterError(
+        f"build_rnea_functions model joint {name!r} must be a 1-DOF revolute or prismatic joint; got {short}. "
+        "Lock it (pinocchio.buildReducedModel) or use a URDF with revolute/prismatic joints."
+    )
+
+
+def _cross(a, b):
+    return ca.vertcat(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def _axis_rotation(axis, c, s):
+    """Rotation by an angle about a unit axis, from its cosine and sine (Rodrigues)."""
+    x, y, z = axis
+    t = 1 - c
+    rows = [
+        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+    ]
+    return ca.vertcat(*[ca.horzcat(*row) for row in rows])
+
+
+class _Kinematics:
+    """Per-joint relative placements (R, p) of joint i in its parent, as SX of q."""
+
+    def __init__(self, model, q):
+        self.parents, self.rotations, self.translations, self.kinds, self.axes = [], [], [], [], []
+        for jid in range(1, model.njoints):
+            jmodel = model.joints[jid]
+            kind, axis = _joint_kind_axis(jmodel, model.names[jid])
+            placement = model.jointPlacements[jid]
+            rot0 = ca.SX(ca.DM(_clean(placement.rotation)))
+            p0 = ca.SX(ca.DM(_clean(placement.translation)))
+            qi = q[jmodel.idx_q]
+            axis = _clean(axis)
+            if kind == "revolute":
+                rot = ca.mtimes(rot0, _axis_rotation(axis, ca.cos(qi), ca.sin(qi)))
+                p = p0
+            else:
+                rot = rot0
+                p = p0 + ca.mtimes(rot0, ca.SX(ca.DM(axis))) * qi
+            self.parents.append(model.parents[jid] - 1)
+            self.rotations.append(rot)
+            self.translations.append(p)
+            self.kinds.append(kind)
+            self.axes.append(ca.SX(ca.DM(axis)))
+
+
+def _inertia_apply(mass, com, inertia, w, v):
+    """Spatial inertia (mass, COM, inertia about the COM) times the motion (w, v): returns (force, torque about the origin)."""
+    f = mass * (v - _cross(com, w))
+    n = ca.mtimes(inertia, w) + _cross(com, f)
+    return f, n
+
+
+def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
+    """One rnea pass on the precomputed kinematics: tau for the given qd, qdd and base acceleration."""
+    n = len(kin.parents)
+    zero = ca.SX.zeros(3, 1)
+    w_list, v_list, dw_list, dv_list = [], [], [], []
+    forces, torques = [], []
+    for i in range(n):
+        parent = kin.parents[i]
+        rt = kin.rotations[i].T
+        p = kin.translations[i]
+        if parent < 0:
+            w_p, v_p, dw_p, dv_p = zero, zero, zero, -gravity
+        else:
+            w_p, v_p, dw_p, dv_p = w_list[parent], v_list[parent], dw_list[parent], dv_list[parent]
+        axis = kin.axes[i]
+        revolute = kin.kinds[i] == "revolute"
+        # motion transported into the child frame: w' = R^T w, v' = R^T (v + w x p)
+        w_in = ca.mtimes(rt, w_p)
+        v_in = ca.mtimes(rt, v_p + _cross(w_p, p))
+        dw_in = ca.mtimes(rt, dw_p)
+        dv_in = ca.mtimes(rt, dv_p + _cross(dw_p, p))
+        s_w, s_v = (axis, zero) if revolute else (zero, axis)
+        if with_velocity:
+            w = w_in + s_w * qd[i]
+            v = v_in + s_v * qd[i]
+            # a = a_in + S qdd + v x (S qd)
+            dw = dw_in + s_w * qdd[i] + _cross(w, s_w) * qd[i]
+            dv = dv_in + s_v * qdd[i] + (_cross(w, s_v) + _cross(v, s_w)) * qd[i]
+        else:
+            w, v = zero, zero
+            dw = dw_in + s_w * qdd[i]
+            dv = dv_in + s_v * qdd[i]
+        w_list.append(w)
+        v_list.append(v)
+        dw_list.append(dw)
+        dv_list.append(dv)
+        inertia = model.inertias[i + 1]
+        mass = float(inertia.mass)
+        com = ca.SX(ca.DM(_clean(inertia.lever)))
+        rot_inertia = ca.SX(ca.DM(_clean(inertia.inertia)))  # about the centre of mass
+        f, t = _inertia_apply(mass, com, rot_inertia, dw, dv)
+        if with_velocity:
+            hf, ht = _inertia_apply(mass, com, rot_inertia, w, v)
+            f = f + _cross(w, hf)
+            t = t + _cross(w, ht) + _cross(v, hf)
+        forces.append(f)
+        torques.append(t)
+    tau = [None] * n
+    armature = _clean(model.armature)
+    for i in reversed(range(n)):
+        axis = kin.axes[i]
+        if kin.kinds[i] == "revolute":
+            tau[i] = ca.dot(axis, torques[i])
+        else:
+            tau[i] = ca.dot(axis, forces[i])
+        if armature[i] != 0.0:
+            tau[i] = tau[i] + armature[i] * qdd[i]
+        parent = kin.parents[i]
+        if parent >= 0:
+            rot, p = kin.rotations[i], kin.translations[i]
+            f_p = ca.mtimes(rot, forces[i])
+            forces[parent] = forces[parent] + f_p
+            torques[parent] = torques[parent] + ca.mtimes(rot, torques[i]) + _cross(p, f_p)
+    return ca.vertcat(*tau)
+
+
+def cholesky_solve_sx(matrix, rhs):
+    """Solve ``matrix x = rhs`` for a symmetric positive-definite SX matrix by an explicit LDL^T factorisation.
+
+    Parameters
+    ----------
+    matrix : casadi.SX, shape (n, n)
+    rhs : casadi.SX, shape (n, 1)
+
+    Returns
+    -------
+    casadi.SX, shape (n, 1)
+    """
+    n = matrix.shape[0]
+    low = [[None] * n for _ in range(n)]
+    diag = [None] * n
+    for j in range(n):
+        d = matrix[j, j]
+        for k in range(j):
+            d = d - low[j][k] * low[j][k] * diag[k]
+        diag[j] = d
+        inv_d = 1 / d
+        for i in range(j + 1, n):
+            s = matrix[i, j]
+            for k in range(j):
+                s = s - low[i][k] * low[j][k] * diag[k]
+            low[i][j] = s * inv_d
+    y = [None] * n
+    for i in range(n):
+        s = rhs[i]
+        for k in range(i):
+            s = s - low[i][k] * y[k]
+        y[i] = s
+    x = [None] * n
+    for i in reversed(range(n)):
+        s = y[i] / diag[i]
+        for k in range(i + 1, n):
+            s = s - low[k][i] * x[k]
+        x[i] = s
+    return ca.vertcat(*x)
+
+
+def build_rnea_functions(model, *, cse=True) -> RneaFunctions:
+    """Build SX inverse dynamics, mass matrix and forward dynamics of a Pinocchio model by rnea.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+        Serial or branched model of 1-DOF revolute/prismatic joints (axis-aligned or unaligned);
+        its inertias, armature and gravity are baked in as constants.
+    cse : bool
+        Ask CasADi to eliminate common subexpressions in each Function.
+
+    Returns
+    -------
+    RneaFunctions
+
+    Raises
+    ------
+    ParameterError
+        When a joint is not a 1-DOF revolute or prismatic joint.
+
+    Examples
+    --------
+    >>> peer = build_rnea_functions(oracle.model)        # doctest: +SKIP
+    >>> peer.inverse_dynamics(q, qd, qdd)                # doctest: +SKIP
+    """
+    if model.nq != model.nv:
+        raise ParameterError(
+            f"build_rnea_functions model must have nq == nv; got nq={model.nq}, nv={model.nv}. "
+            "Lock joints with more than one configuration variable."
+        )
+    n = model.nv
+    q, qd, qdd, tau = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
+    kin = _Kinematics(model, q)
+    gravity = ca.SX(ca.DM(_clean(model.gravity.linear)))
+    opts = {"cse": bool(cse)}
+    tau_id = _rnea_pass(model, kin, qd, qdd, gravity, with_velocity=True)
+    zero = ca.SX.zeros(n, 1)
+    unit = np.eye(n)
+    columns = [_rnea_pass(model, kin, zero, ca.SX(ca.DM(unit[:, j])), ca.SX.zeros(3, 1), with_velocity=False)
+               for j in range(n)]
+    # M is symmetric: take the lower triangle of the rnea columns once
+    mass_sym = ca.SX(n, n)
+    for i in range(n):
+        for j in range(i + 1):
+            mass_sym[i, j] = columns[j][i]
+            mass_sym[j, i] = columns[j][i]
+    bias = _rnea_pass(model, kin, qd, zero, gravity, with_velocity=True)
+    qdd_fd = cholesky_solve_sx(mass_sym, tau - bias)
+    return RneaFunctions(
+        inverse_dynamics=ca.Function("inverse_dynamics", [q, qd, qdd], [tau_id], ["q", "qd", "qdd"], ["tau"], opts),
+        mass_matrix=ca.Function("mass_matrix", [q], [mass_sym], ["q"], ["M"], opts),
+        forward_dynamics=ca.Function("forward_dynamics", [q, qd, tau], [qdd_fd], ["q", "qd", "tau"], ["qdd"], opts),
+        n_dof=n,
+    )
