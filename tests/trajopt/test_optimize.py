@@ -160,3 +160,57 @@ def test_unreachable_torque_limit_is_a_clear_error(planar_robot, planar_regresso
     options = ExcitationOptions(**FAST, limits=limits, torque_limits=True)
     with pytest.raises(ParameterError, match="tau_max"):
         optimize_excitation(planar_robot, planar_regressor, options, nominal_parameters=THETA)
+
+
+def test_unidentifiable_columns_are_a_clear_error(planar_robot, planar_regressor):
+    import casadi as ca
+
+    q, qd, qdd = (ca.SX.sym(n, 2) for n in ("q", "qd", "qdd"))
+    y = ca.horzcat(planar_regressor(q, qd, qdd), ca.SX.zeros(2, 1))  # a sixth column that is always zero
+    padded = ca.Function("regressor", [q, qd, qdd], [y])
+    options = ExcitationOptions(**{**FAST, "n_starts": 1}, criterion="logdet", max_iter=5, columns=(0, 1, 5))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExcitationWarning)
+        with pytest.raises(ParameterError, match="columns"):
+            optimize_excitation(planar_robot, padded, options)
+
+
+def test_limit_scale_error():
+    with pytest.raises(ParameterError, match="limit_scale"):
+        ExcitationOptions(limit_scale=0.0)
+
+
+def test_time_limit_stops_ipopt_and_keeps_a_verified_iterate(planar_robot, planar_regressor):
+    options = ExcitationOptions(family="sum_of_sines", duration=4.0, n_samples=40, n_starts=3, max_iter=100000,
+                                time_limit=0.3, quiet=True)
+    with pytest.warns(ExcitationWarning, match="User_Requested_Stop"):
+        traj = optimize_excitation(planar_robot, planar_regressor, options, seed=0)
+    assert traj.status == "User_Requested_Stop" and len(traj.start_conds) == 1
+    ok, *_ = _independent_margins(traj, JointLimits.from_robot(planar_robot))
+    assert ok
+
+
+def test_keep_out_of_another_robot_is_a_shape_error(planar_robot, planar_regressor):
+    import casadi as ca
+
+    from psdm_casadi.errors import ShapeError
+
+    q = ca.SX.sym("q", 3)
+    other = KeepOut(ca.Function("tool_point", [q], [q]), normal=(0, 0, 1))
+    with pytest.raises(ShapeError, match="KeepOut.point"):
+        optimize_excitation(planar_robot, planar_regressor, ExcitationOptions(**FAST), keep_out=other)
+
+
+def test_with_the_derived_psdm_regressor(planar_robot):
+    derive = pytest.importorskip("psdm_casadi.derive")
+    symbolic = pytest.importorskip("psdm_casadi.symbolic")
+    model = derive.derive_psdm(planar_robot, seed=0)
+    regressor = symbolic.build_functions(model).regressor
+    options = ExcitationOptions(**FAST, columns=tuple(np.flatnonzero(~model.gravity_mask)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExcitationWarning)
+        traj = optimize_excitation(planar_robot, regressor, options, seed=0)
+    t = traj.parametrization.default_grid(60)
+    y = model.regressor(*traj.sample(t))[:, :, list(traj.columns)].reshape(-1, len(traj.columns))
+    assert traj.cond == pytest.approx(np.linalg.cond(y), rel=1e-9)
+    assert traj.worst_margin >= 0

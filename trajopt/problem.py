@@ -1,0 +1,291 @@
+"""ExcitationProblem: the Ipopt NLP of eq. 23 built with CasADi (built here, solved in optimize.py).
+
+Decision variables are the parameters of a trajectory family. The objective is a smooth criterion
+(``criteria.py``) of the information matrix ``F = sum_j Ys_j^T Ys_j / N`` accumulated over an
+objective grid by mapping the regressor Function (``Function.map`` with a reduced output, so the
+stacked regressor is never formed in the graph). Joint limits are imposed on every sample of a
+constraint grid, tightened by a small back-off so that they also hold between samples (what is
+grazed between samples is caught by the 10x finer verification in optimize.py); the optional torque
+limit goes through the regressor with nominal base parameters and the optional
+keep-out plane through a forward-kinematics Function.
+
+Ipopt runs with a limited-memory Hessian (the criterion is a Callback with an exact gradient and
+no Hessian; this is also much faster than an exact Hessian through the mapped regressor). For a
+Fourier family every limit is linear in the parameters, so the constraint Jacobian is declared
+constant. The later stages of the sharpness continuation use ``warm_solver``, which restarts from
+the previous primal-dual point with a small barrier parameter.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+
+from psdm_casadi.errors import ParameterError, ShapeError
+
+from .constraints import JointLimits, KeepOut, check_same_dof
+from .criteria import CriterionCallback, build_information_function, check_columns
+from .parametrization import FourierTrajectory
+
+DEFAULT_IPOPT = {
+    "hessian_approximation": "limited-memory",
+    "limited_memory_max_history": 6,
+    "print_level": 0,
+    "sb": "yes",
+    "tol": 1e-4,
+    "acceptable_tol": 1e-3,
+    "acceptable_iter": 5,
+    "mu_strategy": "monotone",
+}
+
+
+WARM_START_IPOPT = {
+    "warm_start_init_point": "yes",
+    "mu_strategy": "monotone",
+    "mu_init": 1e-4,
+    "warm_start_bound_push": 1e-6,
+    "warm_start_mult_bound_push": 1e-6,
+}
+
+
+class IpoptMonitor(ca.Callback):
+    """Ipopt iteration callback that stops the solve once ``deadline`` (a ``time.perf_counter`` value) passes.
+
+    The optimiser sets ``deadline`` before each solve; a stopped solve returns ``User_Requested_Stop``
+    with its current iterate, which is then verified like any other.
+    """
+
+    def __init__(self, name: str, n_x: int, n_g: int, n_p: int):
+        ca.Callback.__init__(self)
+        self._sizes = {"x": n_x, "lam_x": n_x, "g": n_g, "lam_g": n_g, "p": n_p, "lam_p": n_p, "f": 1}
+        self.deadline = float("inf")
+        self.iterations = 0
+        self.construct(name, {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "stop"
+
+    def get_sparsity_in(self, i):
+        return ca.Sparsity.dense(self._sizes.get(ca.nlpsol_out(i), 0), 1)
+
+    def eval(self, arg):
+        self.iterations += 1
+        return [1 if time.perf_counter() > self.deadline else 0]
+
+
+def default_constraint_samples(parametrization, samples_per_period: int = 12, minimum: int = 50) -> int:
+    """Enough constraint samples that the fastest component is sampled ``samples_per_period`` times per period."""
+    cycles = parametrization.duration * parametrization.max_frequency / (2 * np.pi)
+    return int(max(minimum, np.ceil(samples_per_period * cycles)))
+
+
+def build_torque_function(regressor: ca.Function, nominal_parameters) -> ca.Function:
+    """``q, qd, qdd -> tau = Y(q, qd, qdd) theta`` with fixed nominal base parameters ``theta`` (n_base,)."""
+    n_dof, n_base = regressor.size1_out(0), regressor.size2_out(0)
+    theta = np.asarray(nominal_parameters, dtype=float).reshape(-1)
+    if theta.shape != (n_base,) or not np.all(np.isfinite(theta)):
+        raise ShapeError(
+            f"nominal_parameters must be {n_base} finite base parameters (theta); got shape {theta.shape}. "
+            "Pass model.base_parameters(robot.nominal_dynamic_parameters())."
+        )
+    q, qd, qdd = (ca.SX.sym(name, n_dof) for name in ("q", "qd", "qdd"))
+    tau = ca.mtimes(regressor(q, qd, qdd), ca.DM(theta))
+    return ca.Function("torque", [q, qd, qdd], [tau], ["q", "qd", "qdd"], ["tau"])
+
+
+def check_regressor(regressor, n_dof: int) -> None:
+    """The regressor must be a casadi.Function q, qd, qdd -> Y (n_dof x n_base)."""
+    if not isinstance(regressor, ca.Function) or regressor.n_in() != 3 or regressor.n_out() < 1:
+        raise ParameterError(
+            f"regressor must be a casadi.Function (q, qd, qdd) -> Y; got {type(regressor).__name__}. "
+            "Pass build_functions(derive_psdm(robot)).regressor."
+        )
+    sizes = [regressor.numel_in(i) for i in range(3)]
+    if sizes != [n_dof] * 3 or regressor.size1_out(0) != n_dof:
+        raise ShapeError(
+            f"regressor inputs must have n_dof={n_dof} entries and Y {n_dof} rows; got inputs {sizes} and "
+            f"{regressor.size1_out(0)} rows. Derive the model from the same robot."
+        )
+
+
+@dataclass(frozen=True)
+class ExcitationProblem:
+    """A built (not solved) excitation NLP with its bounds and grids.
+
+    Attributes
+    ----------
+    solver : casadi.Function
+        ``nlpsol`` over ``x`` with parameter ``p`` (the sharpness of the ``cond`` surrogate).
+    monitor : IpoptMonitor
+        Iteration callback of both solvers; set ``monitor.deadline`` to stop a solve at a wall time.
+    warm_solver : casadi.Function
+        The same NLP with Ipopt set up to continue from a previous primal-dual solution
+        (``lam_x0``, ``lam_g0``), used for the later stages of the sharpness continuation.
+    lbx, ubx, lbg, ubg : arrays
+        Bounds on the decision vector and on the constraints.
+    t_objective, t_constraint : arrays
+        Objective and constraint grids [s].
+    limits : JointLimits
+        The limits the trajectory must satisfy (before back-off).
+    """
+
+    parametrization: object
+    regressor: ca.Function
+    limits: JointLimits
+    columns: np.ndarray
+    criterion: str
+    solver: ca.Function
+    warm_solver: ca.Function
+    monitor: IpoptMonitor
+    lbx: np.ndarray
+    ubx: np.ndarray
+    lbg: np.ndarray
+    ubg: np.ndarray
+    t_objective: np.ndarray
+    t_constraint: np.ndarray
+    backoff: float
+    torque_function: ca.Function | None = None
+    keep_out: KeepOut | None = None
+    column_scale: np.ndarray | None = None
+    objective_function: ca.Function | None = None
+    _keepalive: tuple = field(default=(), repr=False)
+
+    @property
+    def n_constraint_samples(self) -> int:
+        return self.t_constraint.shape[0]
+
+
+def build_excitation_problem(parametrization, regressor: ca.Function, limits: JointLimits, *, columns=None,
+                             criterion: str = "cond", n_samples: int = 100, n_constraint_samples=None,
+                             backoff: float = 0.02, column_scale=None, torque_function=None, keep_out=None,
+                             max_iter: int = 300, max_wall_time=None, ipopt_options=None) -> ExcitationProblem:
+    """Build the NLP of excitation design (eq. 23 with a smooth criterion); nothing is solved.
+
+    Parameters
+    ----------
+    parametrization : FourierTrajectory or SumOfSinesTrajectory
+    regressor : casadi.Function
+        ``q, qd, qdd -> Y`` (n_dof x n_base).
+    limits : JointLimits
+    columns : array of int or bool mask, optional
+        Regressor columns to excite (default all).
+    criterion : {"cond", "logdet"}
+    n_samples : int
+        Objective grid size.
+    n_constraint_samples : int, optional
+        Constraint grid size (default: 12 samples per period of the fastest component, at least 50; limits
+        grazed between samples are caught by the 10x finer verification and repaired).
+    backoff : float
+        Fraction by which limits are tightened on the constraint grid, in [0, 0.5).
+    column_scale : array, optional
+        Multiplies the selected columns in the objective.
+    torque_function : casadi.Function, optional
+        ``q, qd, qdd -> tau`` with nominal parameters; constrains ``|tau| <= limits.tau_max``.
+    keep_out : KeepOut, optional
+    max_iter : int
+        Ipopt iteration limit.
+    max_wall_time : float, optional
+        Ipopt wall-time limit [s].
+    ipopt_options : dict, optional
+        Raw Ipopt options, passed through unchanged (override the defaults).
+
+    Returns
+    -------
+    ExcitationProblem
+    """
+    n_dof = parametrization.n_dof
+    check_same_dof(limits, n_dof)
+    check_regressor(regressor, n_dof)
+    cols = check_columns(columns, regressor.size2_out(0))
+    if not (isinstance(backoff, (int, float)) and 0 <= backoff < 0.5):
+        raise ParameterError(f"ExcitationOptions.limit_backoff must be in [0, 0.5); got {backoff!r}. Use e.g. 0.02.")
+    if not (isinstance(n_samples, (int, np.integer)) and n_samples * n_dof >= cols.size):
+        raise ParameterError(
+            f"ExcitationOptions.n_samples must be an integer with n_samples * n_dof >= {cols.size} columns; "
+            f"got {n_samples!r}. Use e.g. 100."
+        )
+    if limits.tau_max is not None and torque_function is None:
+        raise ParameterError(
+            "nominal_parameters must be given when JointLimits.tau_max is set (the torque limit goes through the "
+            "model). Pass nominal_parameters=model.base_parameters(robot.nominal_dynamic_parameters())."
+        )
+    if keep_out is not None and keep_out.point.numel_in(0) != n_dof:
+        raise ShapeError(
+            f"KeepOut.point must take q with n_dof={n_dof} entries; got {keep_out.point.numel_in(0)}. "
+            "Build it from the same robot."
+        )
+    if n_constraint_samples is None:
+        n_constraint_samples = default_constraint_samples(parametrization)
+
+    x = ca.MX.sym("x", parametrization.n_parameters)
+    sharpness = ca.MX.sym("p")
+    t_obj = parametrization.default_grid(n_samples)
+    q, qd, qdd = parametrization.symbolic(x, t_obj)
+    info = build_information_function(regressor, cols, column_scale)
+    info_sum = info.map("information_sum", "serial", int(n_samples), [], [0])
+    information = info_sum(q.T, qd.T, qdd.T) / n_samples
+    criterion_fn = CriterionCallback(criterion, cols.size)
+    objective = criterion_fn(information, sharpness)
+
+    tight = limits.shrunk(backoff)
+    t_con = parametrization.default_grid(n_constraint_samples)
+    n_con = t_con.shape[0]
+    qc, qdc, qddc = parametrization.symbolic(x, t_con)
+    blocks = [ca.vec(qc), ca.vec(qdc), ca.vec(qddc)]  # joint-major: all samples of joint 1, then joint 2...
+    lbg = [np.repeat(tight.q_min, n_con), np.repeat(-tight.qd_max, n_con), np.repeat(-tight.qdd_max, n_con)]
+    ubg = [np.repeat(tight.q_max, n_con), np.repeat(tight.qd_max, n_con), np.repeat(tight.qdd_max, n_con)]
+    linear = isinstance(parametrization, FourierTrajectory)  # its q, qd, qdd are linear in x
+    if limits.tau_max is not None:
+        tau = torque_function.map(n_con)(qc.T, qdc.T, qddc.T)  # (n_dof, n_con)
+        blocks.append(ca.vec(tau))
+        lbg.append(np.tile(-tight.tau_max, n_con))
+        ubg.append(np.tile(tight.tau_max, n_con))
+        linear = False
+    if keep_out is not None:
+        points = keep_out.point.map(n_con)(qc.T)  # (3, n_con)
+        blocks.append((ca.mtimes(ca.DM(keep_out.normal).T, points) - keep_out.offset).T)
+        lbg.append(np.full(n_con, keep_out.margin))
+        ubg.append(np.full(n_con, np.inf))
+        linear = False
+    equality = parametrization.equality(x)
+    blocks.append(equality)
+    lbg.append(np.zeros(equality.shape[0]))
+    ubg.append(np.zeros(equality.shape[0]))
+    g = ca.vertcat(*blocks)
+
+    options = dict(DEFAULT_IPOPT)
+    options["max_iter"] = int(max_iter)
+    if max_wall_time is not None:
+        options["max_wall_time"] = float(max_wall_time)
+    if linear:
+        options["jac_c_constant"] = "yes"
+        options["jac_d_constant"] = "yes"
+    options.update(ipopt_options or {})
+    nlp = {"x": x, "p": sharpness, "f": objective, "g": g}
+    monitor = IpoptMonitor("monitor", x.numel(), g.numel(), 1)
+    common = {"print_time": False, "error_on_fail": False, "iteration_callback": monitor}
+    solver = ca.nlpsol("excitation", "ipopt", nlp, {"ipopt": options, **common})
+    warm = {**options, **WARM_START_IPOPT, **(ipopt_options or {})}
+    warm_solver = ca.nlpsol("excitation_warm", "ipopt", nlp, {"ipopt": warm, **common})
+    lbx, ubx = parametrization.bounds(tight.q_min, tight.q_max)
+    objective_function = ca.Function("objective", [x, sharpness], [objective], ["x", "p"], ["f"])
+    return ExcitationProblem(
+        parametrization=parametrization, regressor=regressor, limits=limits, columns=cols, criterion=criterion,
+        solver=solver, warm_solver=warm_solver, monitor=monitor, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg),
+        ubg=np.concatenate(ubg), t_objective=t_obj,
+        t_constraint=t_con, backoff=float(backoff), torque_function=torque_function, keep_out=keep_out,
+        column_scale=None if column_scale is None else np.asarray(column_scale, dtype=float),
+        objective_function=objective_function, _keepalive=(criterion_fn, info, info_sum),
+    )
