@@ -14,6 +14,7 @@ import casadi as ca
 import numpy as np
 
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.forward import ldl_solve
 
 # Pinocchio joint short names -> (kind, axis) for the 1-DOF joints supported here.
 _AXIS_JOINTS = {
@@ -182,45 +183,9 @@ def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
     return ca.vertcat(*tau)
 
 
-def cholesky_solve_sx(matrix, rhs):
-    """Solve ``matrix x = rhs`` for a symmetric positive-definite SX matrix by an explicit LDL^T factorisation.
-
-    Parameters
-    ----------
-    matrix : casadi.SX, shape (n, n)
-    rhs : casadi.SX, shape (n, 1)
-
-    Returns
-    -------
-    casadi.SX, shape (n, 1)
-    """
-    n = matrix.shape[0]
-    low = [[None] * n for _ in range(n)]
-    diag = [None] * n
-    for j in range(n):
-        d = matrix[j, j]
-        for k in range(j):
-            d = d - low[j][k] * low[j][k] * diag[k]
-        diag[j] = d
-        inv_d = 1 / d
-        for i in range(j + 1, n):
-            s = matrix[i, j]
-            for k in range(j):
-                s = s - low[i][k] * low[j][k] * diag[k]
-            low[i][j] = s * inv_d
-    y = [None] * n
-    for i in range(n):
-        s = rhs[i]
-        for k in range(i):
-            s = s - low[i][k] * y[k]
-        y[i] = s
-    x = [None] * n
-    for i in reversed(range(n)):
-        s = y[i] / diag[i]
-        for k in range(i + 1, n):
-            s = s - low[k][i] * x[k]
-        x[i] = s
-    return ca.vertcat(*x)
+# The peer solves D qdd = tau - h with the same square-root-free LDL^T as the PSDM model, so the two
+# forward dynamics differ only in how D and h are computed.
+cholesky_solve_sx = ldl_solve
 
 
 def build_rnea_functions(model, *, cse=True) -> RneaFunctions:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from psdm_casadi.fileio import atomic_write  # noqa: F401  (re-exported for the package)
 from psdm_casadi.errors import RecordingError
 
 from .recording import MIN_SAMPLES, Recording
@@ -213,27 +214,6 @@ def load_recording(path, n_dof: int | None = None) -> Recording:
     if suffix == ".npz":
         return _read_npz(path, n_dof)
     raise RecordingError(f"recording {path.name!r} must end in .csv or .npz; got {path.suffix!r}. Convert it.")
-
-
-def atomic_write(path, write, overwrite: bool = False, mode: str = "w") -> Path:
-    """Write a file through ``write(handle)`` into a temporary file of the same folder, then rename it.
-
-    Raises ``FileExistsError`` when ``path`` exists and ``overwrite`` is false.
-    """
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True (or --overwrite) to replace it.")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, mode) as handle:
-            write(handle)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
 
 
 def save_recording(recording: Recording, path, overwrite: bool = False, comment: str | None = None) -> Path:

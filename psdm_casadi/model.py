@@ -8,8 +8,6 @@ gamma = [q; sin q; cos q; qd; qdd], and functions with no velocity or accelerati
 from __future__ import annotations
 
 import json
-import os
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,6 +15,7 @@ import numpy as np
 import scipy.sparse
 
 from .errors import ModelFileError, ShapeError
+from .fileio import atomic_write
 
 MODEL_FORMAT = "psdm-model"
 MODEL_VERSION = 1
@@ -217,21 +216,13 @@ class PSDMModel:
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_suffix(path.suffix + ".npz") if path.suffix else path.with_suffix(".npz")
-        if path.exists() and not overwrite:
-            raise FileExistsError(f"{path} exists; pass overwrite=True (or --force) to replace it.")
         header = {"format": MODEL_FORMAT, "version": MODEL_VERSION, "robot_name": self.robot_name,
                   "base_names": list(self.base_names), "standard_names": list(self.standard_names),
                   "gravity_magnitude": self.gravity_magnitude, "metadata": self.metadata}
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".npz.tmp")
-        try:
-            with os.fdopen(fd, "wb") as handle:
-                np.savez(handle, header=np.array(json.dumps(header)), exponents=self.exponents,
-                         reduction=self.reduction, parameter_map=self.parameter_map, revolute=self.revolute)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        atomic_write(path, lambda handle: np.savez(handle, header=np.array(json.dumps(header)),
+                                                   exponents=self.exponents, reduction=self.reduction,
+                                                   parameter_map=self.parameter_map, revolute=self.revolute),
+                     overwrite=overwrite, mode="wb")
         return path
 
 

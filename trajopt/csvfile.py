@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from psdm_casadi.errors import ShapeError
+from psdm_casadi.fileio import atomic_write
 
 
 def trajectory_header(n_dof: int) -> list:
@@ -49,17 +48,11 @@ def write_trajectory_csv(path, t, q, qd, qdd, *, comment: str = "", overwrite: b
         raise ShapeError(
             f"q, qd, qdd must all have shape (n_samples={t.shape[0]}, n_dof); got {q.shape}, {qd.shape}, {qdd.shape}."
         )
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as handle:
-            if comment:
-                handle.write(f"# {comment}\n")
-            np.savetxt(handle, np.column_stack([t, q, qd, qdd]), delimiter=",",
-                       header=",".join(trajectory_header(q.shape[1])), comments="", fmt="%.10g")
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    def write(handle):
+        if comment:
+            handle.write(f"# {comment}\n")
+        np.savetxt(handle, np.column_stack([t, q, qd, qdd]), delimiter=",",
+                   header=",".join(trajectory_header(q.shape[1])), comments="", fmt="%.10g")
+
+    atomic_write(path, write, overwrite=overwrite)
     return path
