@@ -16,13 +16,17 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: setup
-	$(BIN)/psdm demo --out demo_report
+	$(BIN)/psdm demo --out demo_report --force
 
 test: setup
 	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: setup
 	$(BIN)/python benchmarks/derivation.py
+	$(BIN)/python benchmarks/dynamics_speed.py --robots denso
+	$(BIN)/python benchmarks/excitation.py
+	$(BIN)/python benchmarks/identification.py
+	$(BIN)/python benchmarks/diagnosis.py
 
 clean:
 	rm -rf $(VENV) demo_report .pytest_cache

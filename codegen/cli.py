@@ -36,6 +36,9 @@ def register(subparsers) -> None:
     p.add_argument("--force", action="store_true", help="write into a non-empty --out folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_codegen)
+    from .demo import register_demo
+
+    register_demo(subparsers)
 
 
 def read_theta(path: Path) -> np.ndarray:

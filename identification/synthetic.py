@@ -52,6 +52,10 @@ class SimulationOptions:
     bandwidth_hz : float
         Bandwidth of the PD loop [Hz]: ``Kp = M_ii w^2``, ``Kd = 2 zeta M_ii w`` with the mass-matrix
         diagonal at the first reference pose.
+    integral_gain : float
+        Integral action of the joint controller as a fraction of the Routh bound's scale:
+        ``Ki = integral_gain * M_ii w^3`` (stable for ``integral_gain < 2 zeta``); it removes the
+        steady tracking error an unmodelled load (a spring, a payload) would leave. 0 gives a PD loop.
     damping_ratio : float
         ``zeta`` of the PD loop.
     feedforward : {"model", "gravity", "none"}
@@ -64,7 +68,10 @@ class SimulationOptions:
     payload : Payload or None
         Known end-effector load (the calibration weight of the motor step); the feed-forward knows it.
     encoder_resolution : float or None
-        Quantisation step of the recorded q [rad or m]; default 2 pi / 2^20.
+        Quantisation step of the recorded q [rad or m]; default ``2 pi / 2^20 / 100`` = 6e-8 rad: a
+        20-bit motor-side encoder behind a 1:100 gearbox, as on industrial arms. The joint-side
+        resolution matters for friction identification: pre-sliding motion spans micro-radians at
+        velocities of about 1e-3 rad/s (see ``experiments.FrictionDesign``).
     current_resolution : float or None
         Quantisation step of the recorded current [A].
     q_noise_std, current_noise_std, tau_noise_std : float
@@ -83,11 +90,12 @@ class SimulationOptions:
     substeps: int = 2
     bandwidth_hz: float = 10.0
     damping_ratio: float = 1.0
+    integral_gain: float = 0.25
     feedforward: str = "model"
     friction_feedforward: bool = True
     friction: bool = True
     payload: Payload | None = None
-    encoder_resolution: float | None = 2.0 * np.pi / 2**20
+    encoder_resolution: float | None = 2.0 * np.pi / 2**20 / 100
     current_resolution: float | None = 1e-3
     q_noise_std: float = 0.0
     current_noise_std: float = 0.005
@@ -97,6 +105,10 @@ class SimulationOptions:
     record_velocity: bool = False
 
     def __post_init__(self):
+        if not (np.isfinite(self.integral_gain) and 0.0 <= self.integral_gain < 2.0 * self.damping_ratio):
+            raise ParameterError(
+                f"SimulationOptions.integral_gain must be in [0, 2 damping_ratio) for a stable loop; "
+                f"got {self.integral_gain!r}. Use 0.25 (or 0 for a PD loop).")
         for key in ("rate", "bandwidth_hz", "damping_ratio"):
             value = getattr(self, key)
             if not (np.isfinite(value) and value > 0):
@@ -321,9 +333,10 @@ def simulate_recording(robot: RobotDescription, reference, options: SimulationOp
     mass = pin.crba(ctrl_model, ctrl_data, q_ref[0]).diagonal().copy()
     omega = 2.0 * np.pi * options.bandwidth_hz
     kp, kd = mass * omega**2, 2.0 * options.damping_ratio * mass * omega
+    ki = options.integral_gain * mass * omega**3
 
     plant = build_pinocchio_model(plant_robot, plant_params)
-    states = _integrate(plant, lugre, t, q_ref, qd_ref, tau_ff, kp, kd, options, extras)
+    states = _integrate(plant, lugre, t, q_ref, qd_ref, tau_ff, (kp, kd, ki), options, extras)
     q, qd, qdd, z, tau_motor, tau_f, tau_x = states
 
     # sensors: signal-level physics, then noise and quantisation
@@ -346,8 +359,9 @@ def simulate_recording(robot: RobotDescription, reference, options: SimulationOp
     return recording, truth
 
 
-def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, kp, kd, options, extras):
-    """The time loop: PD + feed-forward at each sample, ``substeps`` symplectic-Euler steps with exact z steps."""
+def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
+    """The time loop: PID + feed-forward at each sample, ``substeps`` symplectic-Euler steps with exact z steps."""
+    kp, kd, ki = gains
     n_samples, n = q_ref.shape
     data = model.createData()
     aba = pin.aba
@@ -376,8 +390,12 @@ def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, kp, kd, options, extras):
 
     out_q, out_qd, out_qdd = (np.empty((n_samples, n)) for _ in range(3))
     out_z, out_tau, out_tf, out_tx = (np.empty((n_samples, n)) for _ in range(4))
+    error_integral = np.zeros(n)
+    dt = 1.0 / options.rate
     for k in range(n_samples):
-        tau_cmd = tau_ff[k] + kp * (q_ref[k] - q) + kd * (qd_ref[k] - qd)
+        error = q_ref[k] - q
+        tau_cmd = tau_ff[k] + kp * error + kd * (qd_ref[k] - qd) + ki * error_integral
+        error_integral = error_integral + dt * error
         out_q[k], out_qd[k], out_z[k], out_tau[k] = q, qd, z, tau_cmd
         tk = t[k]
         for s in range(substeps):
