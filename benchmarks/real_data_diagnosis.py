@@ -88,13 +88,14 @@ def main(argv=None):
         paths = report.save(Path(args.out) / name, overwrite=args.overwrite)
         results[name] = {**report.to_dict(), "seconds": time.perf_counter() - start, "report": str(paths["markdown"])}
         results[name].pop("residual_analysis")
-        print(f"\n== {name}: {report.summary()}")
+        out = sys.stderr if args.json else sys.stdout  # keep stdout pure JSON with --json
+        print(f"\n== {name}: {report.summary()}", file=out)
         for f in report.findings:
-            print("  - " + f.sentence())
-        print("  validation RMSE before: " + " ".join(f"{x:.3g}" for x in report.rmse_before))
-        print("  validation RMSE after:  " + " ".join(f"{x:.3g}" for x in report.rmse_after))
-        print("  R^2 before: " + " ".join(f"{x:.3f}" for x in report.r2_before))
-        print("  R^2 after:  " + " ".join(f"{x:.3f}" for x in report.r2_after))
+            print("  - " + f.sentence(), file=out)
+        print("  validation RMSE before: " + " ".join(f"{x:.3g}" for x in report.rmse_before), file=out)
+        print("  validation RMSE after:  " + " ".join(f"{x:.3g}" for x in report.rmse_after), file=out)
+        print("  R^2 before: " + " ".join(f"{x:.3f}" for x in report.r2_before), file=out)
+        print("  R^2 after:  " + " ".join(f"{x:.3f}" for x in report.r2_after), file=out)
     if args.json:
         print(json.dumps(results, default=float))
     return 0

@@ -2,8 +2,10 @@
 
 Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, validation RMSE before/after,
 residual analysis, augmented model). Modules: ``context`` (nominal signals per recording), ``nominal``
-(friction and rigid-body choices), ``candidates`` (the physics library), ``selection`` (forward selection
-on held-out data), ``residual_tests``, ``report``, ``augmented``, ``hidden_effects`` (extra effects for
+(friction and rigid-body choices), ``candidates`` (the physics library, with plausibility bounds; ``deflection_terms`` for backlash and
+elasticity),
+``selection`` (forward selection on held-out data), ``refine`` (Ipopt fit of the nonlinear parameters of
+the kept terms), ``residual_tests``, ``report``, ``augmented``, ``hidden_effects`` (extra effects for
 the virtual robot), ``cli`` (``psdm diagnose``).
 """
 

@@ -8,6 +8,9 @@ delay, backlash and joint elasticity enter through their first-order expansion a
 model), ``physical_parameters(coefficients)`` turning fitted coefficients into named physical
 parameters, and where possible ``casadi_expression`` for the augmented model.
 
+The transmission terms (backlash, joint elasticity) live in ``deflection_terms``; fitted parameters are
+checked against physical bounds (``CandidateTerm.implausibility``, constants ``MAX_*`` below).
+
 Sign convention: columns describe torque the motors must supply in addition to the nominal model,
 ``tau_measured = tau_nominal + columns @ coefficients``.
 """
@@ -22,6 +25,13 @@ import numpy as np
 from psdm_casadi.errors import ParameterError
 
 SMOOTH_VELOCITY = 0.02  # [rad/s] width of the smooth sign tanh(qd / v) of the friction-like terms
+
+# plausibility bounds of fitted parameters (``CandidateTerm.implausibility``)
+MAX_LOAD_FRICTION = 0.5   # load-dependent friction coefficient mu (gear efficiency above 50 %)
+MAX_DELAY_S = 0.1         # torque-to-position delay [s]
+MAX_BACKLASH_RAD = 0.05   # total play [rad] (about 3 degrees)
+MAX_DEFLECTION_RAD = 0.05  # joint torsion at the peak torque [rad]
+MAX_PAYLOAD_REACH = 0.5   # distance of a payload's centre of mass from the flange [m]
 
 
 def _rows(context, joint: int, values) -> np.ndarray:
@@ -108,6 +118,19 @@ class CandidateTerm:
     def theta_change(self, coefficients, parameter_map) -> np.ndarray | None:
         """Change of the PSDM base parameters (n_base,) the term amounts to, or None."""
         return None
+
+    def implausibility(self, coefficients, context=None) -> str | None:
+        """Why the fitted coefficients are not physical (the selection then skips the term), or None.
+
+        The default accepts any value; terms with a sign or a range (inertia, friction coefficient,
+        delay, compliance, backlash) override it.
+        """
+        return None
+
+    def interpret(self, coefficients) -> tuple:
+        """``(effect, explanation)`` reported for the fitted coefficients (the payload term reports a negative
+        mass as a last link too heavy in the robot file)."""
+        return self.key, self.explanation
 
 
 def _expr_rows(n_dof: int, joint: int, value):
@@ -210,6 +233,12 @@ class LoadDependentFrictionTerm(CandidateTerm):
     def physical_parameters(self, coefficients):
         return {"coefficient": float(coefficients[0])}
 
+    def implausibility(self, coefficients, context=None):
+        mu = float(coefficients[0])
+        if not 0.0 < mu < MAX_LOAD_FRICTION:
+            return f"friction coefficient mu = {mu:.3g} outside (0, {MAX_LOAD_FRICTION})"
+        return None
+
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         j = self.joint
         return _expr_rows(q.shape[0], j, coefficients[0] * ca.fabs(tau_nominal[j]) * ca.tanh(qd[j] / SMOOTH_VELOCITY))
@@ -217,9 +246,11 @@ class LoadDependentFrictionTerm(CandidateTerm):
 
 @dataclass(frozen=True)
 class FrictionDriftTerm(CandidateTerm):
-    """``friction_drift``: Coulomb friction changing linearly with time (warm-up)."""
+    """``friction_drift``: Coulomb friction changing with time (warm-up): linearly, or with a time constant
+    ``time_constant`` [s] as ``rate T (1 - exp(-t / T))`` once ``refine_fit`` has fitted it."""
 
     joint: int | None = None
+    time_constant: float | None = None
     key = "friction_drift"
     explanation = "Coulomb friction that changes with time as the gear warms up: rate t sign(qd)"
     signature = "friction-like residual growing over the recording"
@@ -231,14 +262,23 @@ class FrictionDriftTerm(CandidateTerm):
     def columns(self, context):
         self._require_joint()
         j = self.joint
-        return _rows(context, j, context.t * _smooth_sign(context.qd[:, j]))
+        return _rows(context, j, self._shape(context.t) * _smooth_sign(context.qd[:, j]))
+
+    def _shape(self, t):
+        if self.time_constant is None:
+            return t
+        big_t = self.time_constant
+        return big_t * (1.0 - (ca.exp(-t / big_t) if isinstance(t, ca.SX) else np.exp(-np.asarray(t) / big_t)))
 
     def physical_parameters(self, coefficients):
-        return {"rate": float(coefficients[0])}
+        out = {"rate": float(coefficients[0])}
+        if self.time_constant is not None:
+            out["time_constant_s"] = float(self.time_constant)
+        return out
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         j = self.joint
-        return _expr_rows(q.shape[0], j, coefficients[0] * t * ca.tanh(qd[j] / SMOOTH_VELOCITY))
+        return _expr_rows(q.shape[0], j, coefficients[0] * self._shape(t) * ca.tanh(qd[j] / SMOOTH_VELOCITY))
 
 
 @dataclass(frozen=True)
@@ -298,6 +338,11 @@ class RotorInertiaTerm(CandidateTerm):
 
     def physical_parameters(self, coefficients):
         return {"inertia": float(coefficients[0])}
+
+    def implausibility(self, coefficients, context=None):
+        if float(coefficients[0]) <= 0.0:
+            return f"drive inertia {float(coefficients[0]):.3g} kg m^2 is not positive"
+        return None
 
     def theta_change(self, coefficients, parameter_map):
         n_dof = parameter_map.shape[1] // 11
@@ -380,6 +425,21 @@ class PayloadTerm(CandidateTerm):
     def theta_change(self, coefficients, parameter_map):
         return self._map(parameter_map) @ np.asarray(coefficients, dtype=float)
 
+    def implausibility(self, coefficients, context=None):
+        m = float(coefficients[0])
+        if abs(m) < 1e-9:
+            return "zero mass"
+        com = np.asarray(coefficients[1:4], dtype=float) / m
+        if np.linalg.norm(com) > MAX_PAYLOAD_REACH:
+            return f"centre of mass {np.linalg.norm(com):.3g} m from the flange (more than {MAX_PAYLOAD_REACH} m)"
+        return None
+
+    def interpret(self, coefficients):
+        if float(coefficients[0]) < 0.0:
+            return ("last_link_mass_excess", "the last link (flange) is lighter than the robot file says: its mass and "
+                    "first moments are too large in the prior (a negative payload of |mass| kg)")
+        return self.key, self.explanation
+
 
 @dataclass(frozen=True)
 class GravityTiltTerm(CandidateTerm):
@@ -423,62 +483,11 @@ class DelayTerm(CandidateTerm):
     def physical_parameters(self, coefficients):
         return {"delay_s": float(coefficients[0])}
 
-
-def _deflection_columns(context, joint, s, sd, sdd):
-    """Torque change when the recorded position of ``joint`` is the true one plus a deflection ``s``:
-    ``-(s dtau/dq_j + sd dtau/dqd_j + sdd M[:, j])`` (first order), shape (n_samples, n_dof, 1)."""
-    out = -(s[:, None] * context.dtau_dq[:, :, joint] + sd[:, None] * context.dtau_dqd[:, :, joint]
-            + sdd[:, None] * context.mass[:, :, joint])
-    return out[:, :, None]
-
-
-@dataclass(frozen=True)
-class BacklashTerm(CandidateTerm):
-    """``backlash``: play of width b in the transmission; the motor-side position leads the link by
-    ``(b/2) sign(tau)``, switching sides where the transmitted torque reverses."""
-
-    joint: int | None = None
-    torque_scale: float = 0.02
-    key = "backlash"
-    explanation = "play (dead zone) in the transmission: motor and link positions differ by b/2, switching side when the torque reverses"
-    signature = "residual concentrated around torque reversals"
-
-    def feature_names(self):
-        self._require_joint()
-        return [f"half_backlash_{self.joint + 1}"]
-
-    def columns(self, context):
-        self._require_joint()
-        j = self.joint
-        scale = max(self.torque_scale * float(np.percentile(np.abs(context.full_tau[:, j]), 95)), 1e-6)
-        s, sd, sdd = context.smooth_transform(j, lambda x: np.tanh(x / scale))
-        return _deflection_columns(context, j, s, sd, sdd)
-
-    def physical_parameters(self, coefficients):
-        return {"backlash_rad": 2.0 * float(coefficients[0])}
-
-
-@dataclass(frozen=True)
-class JointElasticityTerm(CandidateTerm):
-    """``joint_elasticity``: a compliant joint; motor and link angles differ by ``tau / k``."""
-
-    joint: int | None = None
-    key = "joint_elasticity"
-    explanation = "a compliant transmission: the motor angle differs from the link angle by tau / k"
-    signature = "residual follows torque times the position sensitivity and the torque's second derivative"
-
-    def feature_names(self):
-        self._require_joint()
-        return [f"compliance_{self.joint + 1}"]
-
-    def columns(self, context):
-        self._require_joint()
-        j = self.joint
-        return _deflection_columns(context, j, context.tau[:, j], context.tau_rate[:, j], context.tau_accel[:, j])
-
-    def physical_parameters(self, coefficients):
-        c = float(coefficients[0])
-        return {"compliance_rad_per_Nm": c, "stiffness_Nm_per_rad": (1.0 / c) if c > 0 else float("inf")}
+    def implausibility(self, coefficients, context=None):
+        d = float(coefficients[0])
+        if not 0.0 < d < MAX_DELAY_S:
+            return f"delay {d:.3g} s outside (0, {MAX_DELAY_S}) s"
+        return None
 
 
 @dataclass(frozen=True)
@@ -513,6 +522,8 @@ class CandidateLibrary:
     def keys(self) -> tuple:
         return tuple(term.key for term in self.terms)
 
+
+from .deflection_terms import BacklashTerm, JointElasticityTerm  # noqa: E402  (they subclass CandidateTerm)
 
 ALL_TERMS = (TorqueOffsetTerm, SpringTerm, CoulombAsymmetryTerm, LoadDependentFrictionTerm, FrictionDriftTerm,
              TorqueRippleTerm, RotorInertiaTerm, CouplingTerm, PayloadTerm, GravityTiltTerm, DelayTerm,

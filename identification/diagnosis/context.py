@@ -50,6 +50,8 @@ class DiagnosisContext:
         Indices of the decimated samples in the full-rate arrays.
     cutoff_hz : float or None
         Cut-off of the preprocessing filter (re-applied to transformed torque signals).
+    drives : tuple of DriveParameters or None
+        The robot file's drives (LuGre friction of ``friction_shift``).
     name : str
     """
 
@@ -74,6 +76,7 @@ class DiagnosisContext:
     keep: np.ndarray
     cutoff_hz: float | None
     parameter_map: np.ndarray
+    drives: tuple | None = None
     name: str = ""
 
     @property
@@ -84,16 +87,36 @@ class DiagnosisContext:
     def n_dof(self) -> int:
         return int(self.q.shape[1])
 
+    def friction_shift(self, joint: int, shift_rate: np.ndarray) -> np.ndarray | None:
+        """Change of the robot file's LuGre friction of ``joint`` when the true velocity is the recorded one
+        minus ``shift_rate`` (full rate, (n_full,)): ``F(qd_rec) - F(qd_rec - shift_rate)``, decimated (n_samples,);
+        None without drives."""
+        from ..friction import LuGreParameters, simulate_lugre
+
+        if self.drives is None:
+            return None
+        d = self.drives[joint]
+        p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
+        qd = self.full_qd[:, joint]
+        recorded, _ = simulate_lugre(p, self.full_t, qd, z0=0.0)
+        true, _ = simulate_lugre(p, self.full_t, qd - shift_rate, z0=0.0)
+        return (recorded - true)[self.keep]
+
     def smooth_transform(self, joint: int, function) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``s = function(tau_joint)`` at full rate, low-pass filtered like the recording, with its
         first and second time derivatives, all decimated: three arrays (n_samples,)."""
+        s, sd, sdd = self.smooth_transform_full(joint, function)
+        return s[self.keep], sd[self.keep], sdd[self.keep]
+
+    def smooth_transform_full(self, joint: int, function) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """As ``smooth_transform`` at full rate (not decimated)."""
         s = function(self.full_tau[:, joint])
         if self.cutoff_hz is not None:
             rate = 1.0 / float(np.median(np.diff(self.full_t)))
             if self.cutoff_hz < 0.5 * rate:
                 s = zero_phase_filter(s, rate, self.cutoff_hz, 4)
         sd, sdd = central_difference(self.full_t, s)
-        return s[self.keep], sd[self.keep], sdd[self.keep]
+        return s, sd, sdd
 
 
 def _tilt_axes(gravity: np.ndarray) -> np.ndarray:
@@ -182,4 +205,6 @@ def build_context(robot, model, recording: Recording, rate_hz: float = 200.0,
         t=recording.t[keep], q=q, qd=qd, qdd=qdd, tau=tau_full[keep], tau_rate=tau_rate_full[keep],
         tau_accel=tau_accel_full[keep], tau_rigid=tau_rigid, dtau_dq=dq, dtau_dqd=dv, mass=mass,
         regressor=regressor, payload=payload, tilt=tilt, tilt_axes=axes, full_t=recording.t.copy(), full_tau=tau_full, full_qd=recording.qd.copy(), keep=keep,
-        cutoff_hz=cutoff_hz, parameter_map=np.asarray(model.parameter_map), name=recording.name)
+        cutoff_hz=cutoff_hz, parameter_map=np.asarray(model.parameter_map),
+        drives=robot.drives, name=recording.name)
+

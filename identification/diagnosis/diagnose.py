@@ -20,6 +20,7 @@ from .context import build_context
 from .nominal import FRICTION_MODELS, lugre_dynamic_columns, RIGID_BODY_CHOICES, friction_columns, friction_feature_names, friction_shapes
 from .report import DiagnosisReport, Finding
 from .residual_tests import analyse_residuals
+from .refine import refine_fit
 from .selection import forward_select
 
 
@@ -49,6 +50,9 @@ class DiagnosisOptions:
         Filter and differentiate the recordings (off when they already hold filtered qd and qdd).
     torque_constants : tuple or None
         Kt [N m/A] per joint for recordings with currents only (default: the robot file's drives).
+    refine : bool
+        Refit the kept terms with their nonlinear parameters (delay, backlash smoothing, drift time
+        constant) by Ipopt after the linearised selection (``refine.refine_fit``).
     """
 
     friction: str = "lugre"
@@ -61,6 +65,7 @@ class DiagnosisOptions:
     library: CandidateLibrary | None = None
     preprocess: bool = True
     torque_constants: tuple | None = None
+    refine: bool = True
 
     def __post_init__(self):
         if self.friction not in FRICTION_MODELS:
@@ -161,29 +166,44 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     result = forward_select(instances, ctx_t, ctx_v, base_t, base_v, y_t, y_v,
                             min_improvement=options.min_improvement, max_effects=options.max_effects,
                             effective_samples=n_eff, joint_threshold=options.joint_threshold, progress=progress)
+    terms = tuple(step.term for step in result.steps)
+    coefficients_kept, friction_all = result.coefficients, result.friction_coefficients
+    prediction_t, prediction_v = result.prediction_train, result.prediction_validation
+    nonlinear = {}
+    if options.refine and terms:
+        refined = refine_fit(terms, coefficients_kept, friction_all, ctx_t, ctx_v, base_t, base_v, y_t, y_v)
+        if refined is not None and refined.improved:
+            say(f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations")
+            terms, coefficients_kept, friction_all = refined.terms, refined.coefficients, refined.friction_coefficients
+            prediction_t, prediction_v = refined.prediction_train, refined.prediction_validation
+            nonlinear = refined.nonlinear
+        elif refined is not None:
+            say(f"diagnose: Ipopt refinement not used ({refined.status}); keeping the linearised fit")
     fixed_t = ctx_t.tau - y_t
     fixed_v = ctx_v.tau - y_v
     model_nominal_v = fixed_v + result.nominal_validation
-    model_final_v = fixed_v + result.prediction_validation
+    model_final_v = fixed_v + prediction_v
     model_nominal_t = fixed_t + result.nominal_train
-    model_final_t = fixed_t + result.prediction_train
+    model_final_t = fixed_t + prediction_t
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
-    friction = result.friction_coefficients[:n_friction]
+    friction = friction_all[:n_friction]
     theta = (model.base_parameters(robot.nominal_dynamic_parameters()) if options.rigid_body == "prior"
-             else result.friction_coefficients[n_friction + n_dynamic:])
+             else friction_all[n_friction + n_dynamic:])
     findings = []
-    for step, coefficients in zip(result.steps, result.coefficients):
-        term = step.term
+    for step, term, coefficients in zip(result.steps, terms, coefficients_kept):
+        effect, explanation = term.interpret(coefficients)
+        parameters = dict(term.physical_parameters(coefficients))
+        parameters.update(nonlinear.get(term.label, {}))
         findings.append(Finding(
-            effect=term.key, label=term.label, joints=tuple(int(j) for j in step.joints),
-            parameters=term.physical_parameters(coefficients), coefficients=tuple(float(c) for c in coefficients),
-            feature_names=tuple(term.feature_names()), explanation=term.explanation, signature=term.signature,
+            effect=effect, label=term.label, joints=tuple(int(j) for j in step.joints),
+            parameters=parameters, coefficients=tuple(float(c) for c in coefficients),
+            feature_names=tuple(term.feature_names()), explanation=explanation, signature=term.signature,
             rmse_before=tuple(float(x) for x in step.rmse_before), rmse_after=tuple(float(x) for x in step.rmse_after),
             delta_bic=step.delta_bic, validation_gain=step.validation_gain))
     augmented = AugmentedModel(model=model, theta=np.asarray(theta, dtype=float), friction_kind=options.friction,
                                friction_coefficients=np.asarray(friction, dtype=float), friction_vs=vs, friction_dv=dv,
-                               terms=tuple(s.term for s in result.steps), coefficients=result.coefficients)
+                               terms=terms, coefficients=coefficients_kept)
     residual_v = ctx_v.tau - model_nominal_v
     return DiagnosisReport(
         robot_name=robot.name, n_dof=robot.n_dof, friction=options.friction, rigid_body=options.rigid_body,

@@ -6,8 +6,11 @@ so joints count alike), predicts the validation recording, and keeps the candida
 that lowers the weighted validation error most, if it earns its parameters:
 
 - the validation RMSE of at least one joint drops by ``min_improvement`` (default 20 %) and by at
-  least ``min_torque_fraction`` (1 %) of the robot's largest joint torque RMS (a floor in N m, so
-  small misfits of the nominal model on weak joints do not count);
+  least ``min_torque_fraction`` (1.5 %) of that joint's torque RMS and 0.25 % of the robot's largest
+  joint torque RMS (floors in N m, so small misfits of the nominal model that filtering and sampling
+  leave, and noise-level changes on the weakest joints, do not count);
+- the fitted parameters are physically plausible (``CandidateTerm.implausibility``: a positive inertia,
+  a friction coefficient below 0.5, a delay between 0 and 0.1 s, ...);
 - the weighted validation error of all joints drops;
 - the Bayesian information criterion on the training data drops, counted with the effective
   number of independent samples of a low-pass filtered signal (2 x cut-off x duration per joint).
@@ -23,6 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from psdm_casadi.errors import ParameterError
+
+
+ROBOT_FLOOR = 0.0025  # least RMSE drop on any joint as a fraction of the robot's largest joint torque RMS
 
 
 @dataclass(frozen=True)
@@ -140,7 +146,7 @@ class _Design:
 
 def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train, y_val, *,
                    min_improvement=0.2, max_effects=4, effective_samples=None, joint_threshold=0.1,
-                   min_torque_fraction=0.01, progress=None) -> SelectionResult:
+                   min_torque_fraction=0.015, progress=None) -> SelectionResult:
     """Greedy forward selection of candidate term instances (see the module docstring).
 
     Parameters
@@ -160,8 +166,8 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
     joint_threshold : float
         Relative validation RMSE reduction above which a joint is named for a robot-wide term.
     min_torque_fraction : float
-        Least absolute RMSE drop on the improving joint, as a fraction of the largest joint torque RMS
-        of the robot (a floor in N m below which a change is not worth reporting).
+        Least absolute RMSE drop on the improving joint, as a fraction of that joint's torque RMS
+        (a floor in N m below which a change is not worth reporting; default 1.5 %).
     """
     if not 0.0 < min_improvement < 1.0:
         raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
@@ -173,7 +179,9 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
     # joint weights: torque RMS of each joint on the training data, so joints count alike whatever their size
     torque_rms = np.sqrt(np.mean(train_ctx.tau**2, axis=0))
     sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
-    floor = min_torque_fraction * float(np.max(torque_rms))
+    # least RMSE drop per joint in N m: a fraction of that joint's own torque RMS (joints count alike), and
+    # at least ROBOT_FLOOR of the robot's largest joint torque RMS (noise-level changes on the weakest joints)
+    floor = np.maximum(min_torque_fraction * torque_rms, ROBOT_FLOOR * float(np.max(torque_rms)))
     design = _Design(base_train, base_val, y_train, y_val, sigma)
     _, sse, rmse_t, rmse_v, pred_t0, pred_v0 = design.fit(full=True)
     nominal_train, nominal_val = pred_t0, pred_v0
@@ -182,20 +190,30 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
     remaining = list(instances)
     cache = {}
     while len(kept) < max_effects and remaining:
-        best = []
+        best, scored, rejected = [], [], []
         wval0 = float(np.sum(rmse_v**2 / sigma**2))
         for index, term in enumerate(remaining):
             ct, cv = term.columns(train_ctx), term.columns(val_ctx)
             tried += 1
             beta, sse1, rv1 = design.fit(ct, cv)
             k = ct.shape[2]
+            reason = term.implausibility(beta[design.G.shape[0]:], train_ctx)
+            if reason is not None:
+                rejected.append((term.label, reason))
+                continue
             rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
             absolute = (rmse_v - rv1) >= floor
             wval1 = float(np.sum(rv1**2 / sigma**2))
             delta_bic = n_eff_total * np.log(sse1 / sse) + k * np.log(n_eff_total)
             gain = (wval0 - wval1) / wval0
+            scored.append((gain, term.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / torque_rms)), float(delta_bic)))
             if np.any((rel >= min_improvement) & absolute) and wval1 < wval0 and delta_bic < 0:
                 best.append((gain, k, index, term, None, rv1, delta_bic, sse1))
+        if progress is not None:
+            for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
+                progress(f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, drop {a:.2%} of torque RMS, dBIC {b:.0f}")
+            for label, reason in rejected[:5]:
+                progress(f"diagnose:   rejected {label}: {reason}")
         if not best:
             break
         top = max(b[0] for b in best)

@@ -1,0 +1,158 @@
+"""Final fit of the kept terms: the nonlinear parameters by Ipopt (CasADi ``nlpsol``) after the linearised screening.
+
+The selection ranks candidates with columns that are linear in their coefficients (a delay, backlash and
+a warming-up friction enter through first-order or fixed-shape expansions). Once the terms are chosen,
+``refine_fit`` fits the nominal friction, every kept term and the nonlinear parameters of the terms that
+have them jointly, by weighted nonlinear least squares on the training recording (the same joint
+weights as the selection), starting from the linear solution:
+
+- ``delay``: second order in the delay d, ``tau(t) = tau_rec + d tau_rec' + d^2/2 tau_rec''``;
+- ``backlash``: the smoothing torque ``tau_s`` of the flank change, ``s = (b/2) tanh(tau / tau_s)`` with its
+  exact time derivatives from the filtered torque and its rates (the friction part stays the screening
+  column: it needs a LuGre simulation per value);
+- ``friction_drift``: a warm-up time constant T, ``rate T (1 - exp(-t / T)) sign(qd)`` (linear drift as T -> inf).
+
+Terms without nonlinear parameters keep their linear columns. The refined fit replaces the linear one
+only when Ipopt converges and the training error does not grow.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import casadi as ca
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RefinedFit:
+    """Outcome of ``refine_fit``: terms with their nonlinear parameters set, coefficients, predictions, Ipopt status."""
+
+    terms: tuple
+    coefficients: tuple
+    friction_coefficients: np.ndarray
+    prediction_train: np.ndarray
+    prediction_validation: np.ndarray
+    nonlinear: dict
+    status: str
+    iterations: int
+    improved: bool
+
+
+def _contribution(term, context, beta, p):
+    """Extra torque (list of n_dof MX column vectors or None) of ``term`` with coefficients ``beta`` and
+    nonlinear parameters ``p`` on ``context``; None for terms that keep linear columns."""
+    key = term.key
+    n = context.n_dof
+    if key == "delay":
+        d = beta[0]
+        return [-(d * ca.DM(context.tau_rate[:, j]) + 0.5 * d**2 * ca.DM(context.tau_accel[:, j])) for j in range(n)]
+    if key == "backlash":
+        j, h = term.joint, beta[0]
+        ts = ca.exp(p[0])
+        tau, rate, accel = (ca.DM(x[:, j]) for x in (context.tau, context.tau_rate, context.tau_accel))
+        s = ca.tanh(tau / ts)
+        ds = 1 - s**2
+        sd = ds * rate / ts
+        sdd = ds * (accel / ts - 2 * s * (rate / ts) ** 2)
+        out = [-h * (s * ca.DM(context.dtau_dq[:, i, j]) + sd * ca.DM(context.dtau_dqd[:, i, j])
+                     + sdd * ca.DM(context.mass[:, i, j])) for i in range(n)]
+        friction = term.friction_column(context)  # at the screening smoothing torque
+        if friction is not None:
+            out[j] = out[j] + h * ca.DM(friction)
+        return out
+    if key == "friction_drift":
+        j, rate, big_t = term.joint, beta[0], ca.exp(p[0])
+        sign = ca.DM(np.tanh(context.qd[:, j] / 0.02))
+        t = ca.DM(context.t)
+        out = [ca.DM.zeros(context.n_samples) for _ in range(n)]
+        out[j] = rate * big_t * (1 - ca.exp(-t / big_t)) * sign
+        return out
+    return None
+
+
+def _start(term, context, coefficients):
+    """Initial nonlinear parameters (log scale) of a refinable term."""
+    if term.key == "backlash":
+        scale = term.torque_scale * float(np.percentile(np.abs(context.full_tau[:, term.joint]), 95))
+        return [np.log(max(scale, 1e-6))]
+    if term.key == "friction_drift":
+        return [np.log(20.0 * float(context.t[-1] - context.t[0]) + 1.0)]
+    return []
+
+
+def _prediction(terms, n_nl, ctx, base, beta0, betas, ps):
+    n = ctx.n_dof
+    out = [ca.mtimes(ca.DM(base[:, j, :]), beta0) for j in range(n)]
+    for term, b, p in zip(terms, betas, ps):
+        extra = _contribution(term, ctx, b, p)
+        if extra is None:
+            cols = term.columns(ctx)
+            extra = [ca.mtimes(ca.DM(cols[:, j, :]), b) for j in range(n)]
+        out = [o + e for o, e in zip(out, extra)]
+    return out
+
+
+def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, base_train, base_val, y_train, y_val,
+               max_iter: int = 200) -> RefinedFit | None:
+    """Refine the kept terms with Ipopt (see the module docstring); None when no term has nonlinear parameters."""
+    refinable = [t.key in ("delay", "backlash", "friction_drift") for t in terms]
+    if not any(refinable):
+        return None
+    torque_rms = np.sqrt(np.mean(train_ctx.tau**2, axis=0))
+    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    p0 = base_train.shape[2]
+    beta0 = ca.MX.sym("friction", p0)
+    betas, ps, x0 = [], [], [np.asarray(friction_coefficients, dtype=float)]
+    for k, (term, c) in enumerate(zip(terms, coefficients)):
+        betas.append(ca.MX.sym(f"beta{k}", len(c)))
+        x0.append(np.asarray(c, dtype=float))
+    for k, (term, c) in enumerate(zip(terms, coefficients)):
+        start = _start(term, train_ctx, c)
+        ps.append(ca.MX.sym(f"p{k}", len(start)))
+        x0.append(np.asarray(start, dtype=float))
+    pred_t = _prediction(terms, None, train_ctx, base_train, beta0, betas, ps)
+    residual = ca.vertcat(*[(ca.DM(y_train[:, j]) - pred_t[j]) / sigma[j] for j in range(train_ctx.n_dof)])
+    x = ca.vertcat(beta0, *betas, *ps)
+    x0 = np.concatenate(x0)
+    objective = ca.sumsqr(residual)
+    f_obj = ca.Function("objective", [x], [objective])
+    solver = ca.nlpsol("refine", "ipopt", {"x": x, "f": objective},
+                       {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": max_iter, "ipopt.tol": 1e-10})
+    solution = solver(x0=x0)
+    stats = solver.stats()
+    xs = np.asarray(solution["x"]).ravel()
+    before, after = float(f_obj(x0)), float(solution["f"])
+    ok = bool(stats.get("success", False)) and np.all(np.isfinite(xs)) and after <= before
+    if not ok:
+        xs = x0
+    pred_fn_t = ca.Function("pred_t", [x], [ca.horzcat(*pred_t)])
+    pred_v = _prediction(terms, None, val_ctx, base_val, beta0, betas, ps)
+    pred_fn_v = ca.Function("pred_v", [x], [ca.horzcat(*pred_v)])
+    # unpack
+    offset = p0
+    new_coefficients = []
+    for c in coefficients:
+        new_coefficients.append(xs[offset:offset + len(c)].copy())
+        offset += len(c)
+    nonlinear, new_terms = {}, []
+    for term, c in zip(terms, coefficients):
+        m = len(_start(term, train_ctx, c))
+        values = xs[offset:offset + m]
+        offset += m
+        if term.key == "backlash":
+            scale = float(np.exp(values[0]))
+            p95 = float(np.percentile(np.abs(train_ctx.full_tau[:, term.joint]), 95))
+            term = replace(term, torque_scale=scale / max(p95, 1e-12))
+            nonlinear[term.label] = {"torque_scale_Nm": scale}
+        elif term.key == "friction_drift":
+            nonlinear[term.label] = {"time_constant_s": float(np.exp(values[0]))}
+            term = replace(term, time_constant=float(np.exp(values[0])))
+        elif term.key == "delay":
+            nonlinear[term.label] = {"delay_s": float(new_coefficients[len(new_terms)][0])}
+        new_terms.append(term)
+    return RefinedFit(terms=tuple(new_terms), coefficients=tuple(new_coefficients),
+                      friction_coefficients=xs[:p0].copy(),
+                      prediction_train=np.asarray(pred_fn_t(xs)), prediction_validation=np.asarray(pred_fn_v(xs)),
+                      nonlinear=nonlinear, status=str(stats.get("return_status", "")),
+                      iterations=int(stats.get("iter_count", 0)), improved=ok)

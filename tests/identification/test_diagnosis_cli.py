@@ -1,0 +1,48 @@
+"""``psdm diagnose`` end to end: a short synthetic train/validate pair with a hidden spring, written to files."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from identification import extra_physics as xp
+from identification.experiments import sine_reference
+from identification.io import save_recording
+from identification.synthetic import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+
+from tests.conftest import DENSO_FILE
+
+
+def _write_pair(denso, directory, extras):
+    paths = []
+    for k, duration in enumerate((8.0, 4.0)):
+        rng = np.random.default_rng(40 + k)
+        rec, _ = simulate_recording(denso, sine_reference(denso, duration=duration, rng=rng),
+                                    SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
+                                    rng, extras=extras)
+        paths.append(save_recording(rec, directory / f"{'train' if k == 0 else 'validate'}.npz"))
+    return paths
+
+
+def test_cli_diagnose_json_names_the_hidden_spring(denso, tmp_path, capsys):
+    train, validate = _write_pair(denso, tmp_path, [xp.Spring(joint=1, stiffness=40.0, q0=0.1)])
+    code = main(["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate), "--json",
+                 "--max-effects", "2"])
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert {"findings", "rmse_before", "rmse_after"} <= set(out)
+    assert out["findings"][0]["effect"] == "spring" and out["findings"][0]["joints"] == [2]
+    assert out["findings"][0]["parameters"]["k"] == pytest.approx(40.0, rel=0.15)
+    assert len(out["rmse_before"]) == 6
+    assert out["rmse_after"][1] < 0.5 * out["rmse_before"][1]
+
+
+def test_cli_diagnose_bad_option_is_a_one_line_error(denso, tmp_path, capsys):
+    train, validate = _write_pair(denso, tmp_path, [])
+    code = main(["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate),
+                 "--min-improvement", "1.5"])
+    assert code == 2
+    assert "min_improvement" in capsys.readouterr().err

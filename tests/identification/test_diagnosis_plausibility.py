@@ -1,0 +1,84 @@
+"""Plausibility of fitted parameters, the Ipopt refinement of nonlinear terms, and a last link too heavy in the prior."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from identification import extra_physics as xp
+from identification.diagnosis import (DelayTerm, DiagnosisOptions, FrictionDriftTerm, JointElasticityTerm,
+                                      LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
+                                      TorqueOffsetTerm, diagnose)
+from identification.diagnosis.candidates import MAX_DELAY_S, MAX_LOAD_FRICTION
+from identification.experiments import sine_reference
+from identification.synthetic import SimulationOptions, simulate_recording
+from psdm_casadi.robot import LinkInertia
+
+
+def _pair(robot, extras, seed, train_s=10.0, val_s=5.0):
+    out = []
+    for k, duration in enumerate((train_s, val_s)):
+        rng = np.random.default_rng(100 * seed + k)
+        rec, _ = simulate_recording(robot, sine_reference(robot, duration=duration, rng=rng),
+                                    SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
+                                    rng, extras=extras)
+        out.append(rec)
+    return out
+
+
+@pytest.mark.parametrize("term, coefficients, accepted", [
+    (LoadDependentFrictionTerm(joint=0), [0.2], True),
+    (LoadDependentFrictionTerm(joint=0), [MAX_LOAD_FRICTION + 0.4], False),   # mu ~ 1 is not gear friction
+    (LoadDependentFrictionTerm(joint=0), [-0.1], False),
+    (RotorInertiaTerm(joint=0), [0.3], True),
+    (RotorInertiaTerm(joint=0), [-0.3], False),
+    (DelayTerm(), [0.004], True),
+    (DelayTerm(), [-0.004], False),
+    (DelayTerm(), [MAX_DELAY_S * 2], False),
+    (JointElasticityTerm(joint=0), [-1e-4], False),
+    (PayloadTerm(), [2.0, 0.0, 0.0, 0.2], True),
+    (PayloadTerm(), [0.1, 0.0, 0.0, 0.2], False),                             # centre of mass 2 m away
+    (SpringTerm(joint=0), [-40.0, 3.0], True),                                # any sign: no bound
+])
+def test_implausible_parameters_are_named(term, coefficients, accepted):
+    reason = term.implausibility(np.array(coefficients))
+    assert (reason is None) == accepted
+    if not accepted:
+        assert isinstance(reason, str) and reason
+
+
+def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(denso, denso_model):
+    # the robot file says the flange carries 3 kg that the real robot does not have
+    links = list(denso.links)
+    links[-1] = LinkInertia(mass=3.0, com=np.array([0.0, 0.0, 0.05]), inertia=np.eye(3) * 1e-3)
+    prior = denso.with_links(links)
+    train, val = _pair(denso, [], seed=4)
+    lib = PayloadTerm() + TorqueOffsetTerm()
+    report = diagnose(prior, train, val, DiagnosisOptions(library=lib, max_effects=1), model=denso_model)
+    first = report.findings[0]
+    assert first.effect == "last_link_mass_excess" and "lighter" in first.explanation
+    assert first.parameters["mass"] == pytest.approx(-3.0, rel=0.1)
+
+
+def test_delay_is_refined_by_ipopt_and_lowers_the_error(denso, denso_model):
+    train, val = _pair(denso, [xp.SignalDelay(samples=6)], seed=5)
+    messages = []
+    report = diagnose(denso, train, val, DiagnosisOptions(library=DelayTerm() + TorqueOffsetTerm()), model=denso_model,
+                      progress=messages.append)
+    assert report.effects[0] == "delay"
+    assert any("Ipopt" in m and "Solve_Succeeded" in m for m in messages)
+    assert report.findings[0].parameters["delay_s"] == pytest.approx(0.006, abs=0.003)
+    assert np.all(np.array(report.rmse_after)[:3] < 0.7 * np.array(report.rmse_before)[:3])
+
+
+def test_drift_with_a_long_time_constant_tends_to_the_linear_drift():
+    class Ctx:
+        n_samples, n_dof = 50, 2
+        t = np.linspace(0.0, 10.0, 50)
+        qd = np.column_stack([np.sin(t), np.cos(t)])
+    linear = FrictionDriftTerm(joint=1).columns(Ctx)
+    slow = FrictionDriftTerm(joint=1, time_constant=1e6).columns(Ctx)
+    fast = FrictionDriftTerm(joint=1, time_constant=1.0).columns(Ctx)
+    np.testing.assert_allclose(slow, linear, rtol=1e-4, atol=1e-9)
+    # a short time constant saturates at T: the warm-up is over after a few T
+    assert np.max(np.abs(fast)) <= 1.0 + 1e-12 and np.max(np.abs(linear)) > 9.0
