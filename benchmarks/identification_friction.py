@@ -30,10 +30,9 @@ from identification.shooting import (  # noqa: E402
     fit_high_speed,
     fit_lugre_multiple_shooting,
     initial_lugre_guess,
-    paper_friction_fit,
     r2_score,
-    simulate_lugre_ode,
 )
+from identification.friction_baseline import paper_friction_fit, simulate_lugre_ode  # noqa: E402
 from psdm_casadi.robot import load_robot  # noqa: E402
 
 ROBOT = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"

@@ -125,7 +125,11 @@ def _run_simulate(args) -> int:
         runs.append(("gravity", ref, SimulationOptions(**base)))
     elif args.experiment == "friction":
         for j in joints:
-            runs.append((f"friction_j{j + 1}", experiments.friction_reference(robot, j), SimulationOptions(**base)))
+            # as in the virtual calibration: no friction feed-forward (it would kick the joint out of
+            # pre-sliding at every reversal) and at least 4 sub-steps to resolve the bristle dynamics
+            friction_base = {**base, "substeps": max(int(args.substeps), 4), "friction_feedforward": False}
+            runs.append((f"friction_j{j + 1}", experiments.friction_reference(robot, j),
+                         SimulationOptions(**friction_base)))
     else:
         ref = experiments.sine_reference(robot, duration=args.duration or 30.0, rng=rng)
         runs.append(("sine", ref, SimulationOptions(**base)))

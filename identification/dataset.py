@@ -10,6 +10,8 @@ by ``psdm simulate --experiment ...``)::
       motor_j<k>_payload.csv|npz       ... and the same sweep with it (k = 1..n)
       gravity*.csv|npz                 step 2: one or more out-and-back slow jogs
       friction_j<k>.csv|npz            step 3: joint k oscillating, the others held
+      friction_j<k>_validation.csv|npz optional: a second friction experiment of joint k for validation
+                                       (otherwise the last 15 % of friction_j<k> validates)
       excitation*.csv|npz | sine*.csv  step 4: fast exciting trajectory (e.g. trajopt's)
 
 Joints are numbered from 1 in file names and from 0 in the API.
@@ -53,6 +55,9 @@ class CalibrationData:
         Fast exciting trajectories (step 4 and the "All" validation).
     tool : Payload or None
         A known load mounted during every experiment (tau_ee of eq. 15).
+    friction_validation : tuple of (int, Recording)
+        Optional second friction experiment per joint (e.g. the same design at other frequencies),
+        used for validation instead of the last 15 % of the first one.
     """
 
     payload: Payload
@@ -61,8 +66,10 @@ class CalibrationData:
     friction: tuple
     excitation: tuple
     tool: Payload | None = None
+    friction_validation: tuple = ()
 
     def __post_init__(self):
+        object.__setattr__(self, "friction_validation", tuple(self.friction_validation))
         if not isinstance(self.payload, Payload):
             raise ParameterError(f"CalibrationData.payload must be a Payload; got {type(self.payload).__name__}.")
         for name in ("motor", "gravity", "friction", "excitation"):
@@ -135,6 +142,8 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
         motor.append((k - 1, load_recording(path, n_dof), load_recording(partner[0], n_dof)))
     friction = [(int(re.search(r"([0-9]+)$", p.stem).group(1)) - 1, load_recording(p, n_dof))
                 for p in _find(directory, r"friction_j([0-9]+)")]
+    friction_validation = [(int(re.search(r"_j([0-9]+)_", p.stem).group(1)) - 1, load_recording(p, n_dof))
+                           for p in _find(directory, r"friction_j([0-9]+)_validation")]
     gravity = [load_recording(p, n_dof) for p in _find(directory, r"gravity.*")]
     excitation = [load_recording(p, n_dof) for p in _find(directory, r"(excitation|sine).*")]
     for name, items in (("motor_j<k>_nominal", motor), ("gravity", gravity), ("friction_j<k>", friction),
@@ -142,7 +151,7 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
         if not items:
             raise RecordingError(f"{directory}: no {name}.csv|npz recording found. Add it (see identification.dataset).")
     return CalibrationData(payload=payload, motor=tuple(motor), gravity=tuple(gravity), friction=tuple(friction),
-                           excitation=tuple(excitation), tool=tool)
+                           excitation=tuple(excitation), tool=tool, friction_validation=tuple(friction_validation))
 
 
 def save_calibration_data(data: CalibrationData, directory, fmt: str = "npz", overwrite: bool = False) -> Path:
@@ -164,6 +173,8 @@ def save_calibration_data(data: CalibrationData, directory, fmt: str = "npz", ov
         save_recording(rec, directory / (f"gravity.{fmt}" if k == 0 else f"gravity_{k + 1}.{fmt}"), overwrite=overwrite)
     for joint, rec in data.friction:
         save_recording(rec, directory / f"friction_j{joint + 1}.{fmt}", overwrite=overwrite)
+    for joint, rec in data.friction_validation:
+        save_recording(rec, directory / f"friction_j{joint + 1}_validation.{fmt}", overwrite=overwrite)
     for k, rec in enumerate(data.excitation):
         save_recording(rec, directory / (f"excitation.{fmt}" if k == 0 else f"excitation_{k + 1}.{fmt}"),
                        overwrite=overwrite)

@@ -5,11 +5,16 @@ Each function returns ``(t, q)`` sampled densely and smoothly (C2 up to the resa
 
 - ``motor_reference``: one joint swept at constant speed forward and back (run with and without a payload);
 - ``gravity_reference``: all joints jogged slowly and simultaneously, then back along the same path;
-- ``friction_reference``: one joint through sine-cubed oscillations of growing amplitude (pre-sliding to fast);
+- ``friction_reference``: one joint through ``A (1 - cos 2 pi f t)`` segments designed by a
+  :class:`FrictionDesign` (pre-sliding hysteresis, Stribeck region, sliding), each from rest to rest;
+- ``oscillation_reference``: one joint through sine-cubed oscillations of growing amplitude (a short,
+  coarse friction experiment for quick runs);
 - ``sine_reference``: a sum of three sines per joint (eq. 22), a stand-in for an optimised excitation.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -87,21 +92,184 @@ def gravity_reference(robot: RobotDescription, duration: float = 60.0, speed: fl
     return t, q
 
 
-def friction_reference(robot: RobotDescription, joint: int, amplitudes=(2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6),
-                       speed_fraction: float = 0.6, cycles: int = 3, min_period: float = 1.0,
+def _positive_tuple(owner, name, values):
+    values = tuple(float(v) for v in np.atleast_1d(values))
+    if not values or not all(np.isfinite(v) and v > 0 for v in values):
+        raise ParameterError(f"{owner}.{name} must be a non-empty tuple of positive numbers; got {values!r}.")
+    return values
+
+
+@dataclass(frozen=True)
+class FrictionDesign:
+    """Content of one joint's friction experiment (paper 3.3), designed without knowing the friction.
+
+    Three groups of ``q = A (1 - cos 2 pi f t)`` segments of the moving joint, each starting and
+    ending at rest and followed by ``pause`` seconds at rest (the bristles relax to a new rest state):
+
+    1. pre-sliding (``sigma0``, ``sigma1``): amplitudes ``presliding_amplitudes`` [rad] at
+       ``presliding_hz``. Hysteresis loops need amplitudes of 0.3 to 3 break-away displacements
+       ``fc / sigma0`` (about 10-100 urad on the Denso's base joints, 0.2-2 mrad on its wrist); a
+       logarithmic sweep from 5 urad to 5 mrad covers every joint without knowing ``sigma0``.
+    2. Stribeck region (``fs``, ``vs``): peak speeds ``stribeck_speeds`` [rad/s] at ``stribeck_hz``,
+       log-spaced from below the smallest to above the largest plausible ``vs``.
+    3. sliding (``fc``, ``fv``, ``dv``): peak speeds ``sliding_fractions`` of the joint speed limit at
+       ``sliding_hz`` (raised where the joint range or acceleration limit requires).
+
+    The pre-sliding velocities are about 1e-3 rad/s, so the position must be recorded far below
+    1 urad (a motor-side encoder behind the gearbox, see ``SimulationOptions.encoder_resolution``)
+    and the data used at the full rate (see ``PipelineOptions.friction_cutoff_hz``).
+
+    Parameters
+    ----------
+    presliding_amplitudes : tuple of float
+        [rad] (or [m]).
+    presliding_hz : float
+    presliding_periods : int
+    stribeck_speeds : tuple of float
+        Peak speeds [rad/s].
+    stribeck_hz : float
+    stribeck_periods : int
+    sliding_fractions : tuple of float
+        Peak speeds as fractions of ``qd_max``, in (0, 1].
+    sliding_hz : float
+    sliding_periods : int
+    pause : float
+        Rest after each segment [s], >= 0.
+    frequency_scale : float
+        Multiplies every frequency at the same amplitudes (pre-sliding) and peak speeds (others):
+        ``validation()`` uses 1.3 for a second, different experiment.
+
+    Examples
+    --------
+    >>> round(FrictionDesign().duration, 1)
+    26.8
+    """
+
+    presliding_amplitudes: tuple = tuple(np.round(np.logspace(np.log10(5e-6), np.log10(5e-3), 8), 9))
+    presliding_hz: float = 10.0
+    presliding_periods: int = 4
+    stribeck_speeds: tuple = tuple(np.round(np.logspace(np.log10(3e-3), np.log10(0.5), 6), 5))
+    stribeck_hz: float = 1.0
+    stribeck_periods: int = 2
+    sliding_fractions: tuple = (0.1, 0.3, 0.6, 0.9)
+    sliding_hz: float = 0.5
+    sliding_periods: int = 1
+    pause: float = 0.2
+    frequency_scale: float = 1.0
+
+    def __post_init__(self):
+        for name in ("presliding_amplitudes", "stribeck_speeds", "sliding_fractions"):
+            object.__setattr__(self, name, _positive_tuple("FrictionDesign", name, getattr(self, name)))
+        if max(self.sliding_fractions) > 1.0:
+            raise ParameterError(f"FrictionDesign.sliding_fractions must be in (0, 1]; got {self.sliding_fractions!r}.")
+        for name in ("presliding_hz", "stribeck_hz", "sliding_hz", "frequency_scale"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"FrictionDesign.{name} must be positive; got {value!r}.")
+        for name in ("presliding_periods", "stribeck_periods", "sliding_periods"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, np.integer)) and value >= 1):
+                raise ParameterError(f"FrictionDesign.{name} must be an integer >= 1; got {value!r}.")
+        if not (np.isfinite(self.pause) and self.pause >= 0):
+            raise ParameterError(f"FrictionDesign.pause must be >= 0 [s]; got {self.pause!r}.")
+
+    @classmethod
+    def quick(cls) -> "FrictionDesign":
+        """A shorter experiment (13 s): fewer segments per group, for demos and tests."""
+        return cls(presliding_amplitudes=(1e-5, 6e-5, 3e-4, 1.5e-3), presliding_periods=3,
+                   stribeck_speeds=(0.005, 0.03, 0.2), sliding_fractions=(0.2, 0.8))
+
+    def validation(self) -> "FrictionDesign":
+        """The same design at 1.3 times the frequencies: a second experiment for validation."""
+        return replace(self, frequency_scale=1.3 * self.frequency_scale)
+
+    @property
+    def duration(self) -> float:
+        """Length [s] before any frequency raise for range or acceleration limits."""
+        s = self.frequency_scale
+        return (len(self.presliding_amplitudes) * (self.presliding_periods / (s * self.presliding_hz) + self.pause)
+                + len(self.stribeck_speeds) * (self.stribeck_periods / (s * self.stribeck_hz) + self.pause)
+                + len(self.sliding_fractions) * (self.sliding_periods / (s * self.sliding_hz) + self.pause))
+
+    def segments(self, qd_max: float, qdd_max: float, room: float) -> list:
+        """``(amplitude, frequency, periods)`` of every segment for a joint with these limits.
+
+        A segment whose travel ``2 A`` exceeds ``room`` or whose peak acceleration ``A (2 pi f)^2``
+        exceeds ``0.9 qdd_max`` runs at a higher frequency (same peak speed) or, when both bind, at a
+        lower peak speed.
+        """
+        s = self.frequency_scale
+        wanted = [(a, s * self.presliding_hz, self.presliding_periods, None) for a in self.presliding_amplitudes]
+        wanted += [(None, s * self.stribeck_hz, self.stribeck_periods, v) for v in self.stribeck_speeds]
+        wanted += [(None, s * self.sliding_hz, self.sliding_periods, f * qd_max) for f in self.sliding_fractions]
+        out = []
+        for amplitude, frequency, periods, speed in wanted:
+            omega = 2.0 * np.pi * frequency
+            if speed is None:
+                speed = amplitude * omega
+            speed = min(speed, 0.95 * qd_max)
+            omega = max(omega, 2.0 * speed / room)  # travel 2 A = 2 v / w within room
+            accel = 0.9 * qdd_max
+            if speed * omega > accel:  # peak acceleration v w
+                omega = accel / speed
+                if 2.0 * speed / omega > room:
+                    speed = np.sqrt(accel * room / 2.0)
+                    omega = accel / speed
+            out.append((speed / omega, omega / (2.0 * np.pi), periods))
+        return out
+
+
+def friction_reference(robot: RobotDescription, joint: int, design: FrictionDesign | None = None,
                        pose=None) -> tuple[np.ndarray, np.ndarray]:
-    """One joint through oscillations ``A sin^3(w t)`` of growing amplitude (paper 3.3), others held.
+    """One joint through the segments of a :class:`FrictionDesign` (paper 3.3), the others held.
+
+    Each segment ``q = pose + sign A (1 - cos 2 pi f t)`` starts and ends at rest and moves towards the
+    side of the pose with more room; segments are separated by ``design.pause`` seconds at rest.
+
+    Returns
+    -------
+    (t, q) : arrays, shapes (n_samples,) and (n_samples, n_dof)
+    """
+    _check_joint(robot, joint, "friction_reference")
+    design = FrictionDesign() if design is None else design
+    if not isinstance(design, FrictionDesign):
+        raise ParameterError(f"friction_reference design must be a FrictionDesign; got {type(design).__name__}.")
+    pose = home_pose(robot) if pose is None else np.asarray(pose, dtype=float)
+    up, down = robot.q_max[joint] - pose[joint], pose[joint] - robot.q_min[joint]
+    sign, room = (1.0, up) if up >= down else (-1.0, down)
+    pieces, start = [], 0.0
+    for amplitude, frequency, periods in design.segments(robot.qd_max[joint], robot.qdd_max[joint], 0.95 * room):
+        length = periods / frequency
+        tb = np.arange(0.0, length, 1.0 / GRID_HZ)
+        pieces.append((start + tb, sign * amplitude * (1.0 - np.cos(2.0 * np.pi * frequency * tb))))
+        start += length
+        if design.pause > 0:
+            tp = np.arange(0.0, design.pause, 1.0 / GRID_HZ)
+            pieces.append((start + tp, np.zeros_like(tp)))
+            start += design.pause
+    t = np.concatenate([p[0] for p in pieces] + [np.array([start])])
+    x = np.concatenate([p[1] for p in pieces] + [np.array([0.0])])
+    q = np.tile(pose, (t.size, 1))
+    q[:, joint] += x
+    return t, q
+
+
+def oscillation_reference(robot: RobotDescription, joint: int, amplitudes=(2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6),
+                          speed_fraction: float = 0.6, cycles: int = 3, min_period: float = 1.0,
+                          pose=None) -> tuple[np.ndarray, np.ndarray]:
+    """One joint through oscillations ``A sin^3(w t)`` of growing amplitude, others held (a quick friction run).
 
     ``sin^3`` starts and ends each block at rest with zero acceleration, so blocks join smoothly. The
     period of a block is the longer of ``min_period`` and the one reaching ``speed_fraction`` of the
-    joint speed limit.
+    joint speed limit. Coarser than :func:`friction_reference`: it does not resolve ``sigma0``,
+    ``sigma1`` and ``vs`` well.
     """
-    _check_joint(robot, joint, "friction_reference")
+    _check_joint(robot, joint, "oscillation_reference")
     pose = home_pose(robot) if pose is None else np.asarray(pose, dtype=float)
     limit = min(robot.q_max[joint] - pose[joint], pose[joint] - robot.q_min[joint])
     if max(amplitudes) >= limit:
         raise ParameterError(
-            f"friction_reference amplitudes must stay inside the range of joint {joint} ({limit:.3g} from the pose); "
+            f"oscillation_reference amplitudes must stay inside the range of joint {joint} ({limit:.3g} from the pose); "
             f"got {max(amplitudes)}. Lower the largest amplitude."
         )
     pieces, start = [], 0.0

@@ -16,8 +16,8 @@ and returns :class:`identification.friction.LuGreParameters`. The pipeline is
    Hessian of the whole graph scales quadratically here, because the seven parameters couple
    every sample).
 
-:func:`paper_friction_fit` is the paper's method (trust-region eq. 20, then Nelder-Mead over a
-LuGre simulation of the whole data set), kept as the peer in ``benchmarks/identification_friction.py``.
+The paper's method (trust-region eq. 20, then Nelder-Mead over a LuGre simulation of the whole
+data set), the peer of the benchmarks, lives in :mod:`identification.friction_baseline`.
 """
 
 from __future__ import annotations
@@ -27,28 +27,28 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import least_squares, minimize
 
 from psdm_casadi.errors import NotFittedError, ParameterError, SolverError
 from identification.friction import (
-    LUGRE_PARAMETER_NAMES,
-    CoulombViscous,
     LuGreParameters,
     _phi12_casadi,
     _substep_layout,
     check_friction_data,
     simulate_lugre,
 )
+from identification.lugre_start import (  # noqa: F401  (re-exported: stage 1 of the fit)
+    _check_initial,
+    fit_high_speed,
+    initial_lugre_guess,
+    r2_score,
+)
 
 __all__ = [
     "ShootingOptions",
     "ShootingResult",
-    "BaselineResult",
     "fit_high_speed",
     "initial_lugre_guess",
     "fit_lugre_multiple_shooting",
-    "paper_friction_fit",
-    "simulate_lugre_ode",
     "r2_score",
     "LuGreIdentifier",
 ]
@@ -154,187 +154,6 @@ class ShootingResult:
     objective: float
     seconds: float
     solve_seconds: float
-
-
-@dataclass(frozen=True)
-class BaselineResult:
-    """Result of :func:`paper_friction_fit` (the paper's trust-region + Nelder-Mead method).
-
-    Attributes
-    ----------
-    parameters : LuGreParameters
-    initial : LuGreParameters
-    evaluations : int
-        LuGre simulations run by Nelder-Mead.
-    converged : bool
-        Whether Nelder-Mead met its tolerances before its evaluation limit.
-    objective : float
-        Mean squared torque residual [N^2 m^2].
-    seconds : float
-        Wall time of the Nelder-Mead stage [s].
-    """
-
-    parameters: LuGreParameters
-    initial: LuGreParameters
-    evaluations: int
-    converged: bool
-    objective: float
-    seconds: float
-
-
-def r2_score(tau, tau_pred):
-    """Coefficient of determination ``1 - SS_res / SS_tot`` of a torque prediction."""
-    tau = np.asarray(tau, dtype=float)
-    tau_pred = np.asarray(tau_pred, dtype=float)
-    ss_tot = float(np.sum((tau - tau.mean()) ** 2))
-    if ss_tot == 0.0:
-        raise ParameterError("r2_score.tau must vary; got a constant signal. Pass a real friction record.")
-    return 1.0 - float(np.sum((tau - tau_pred) ** 2)) / ss_tot
-
-
-# ------------------------------------------------------------------------------------------------
-# stage 1: high-speed fit (eq. 20) and starting values
-# ------------------------------------------------------------------------------------------------
-def _high_speed_mask(qd, threshold):
-    if threshold is None:
-        threshold = 0.25 * float(np.max(np.abs(qd)))
-    if not (np.isfinite(threshold) and threshold > 0):
-        raise ParameterError(
-            f"fit_high_speed.threshold must be finite and > 0; got {threshold}. Pass a speed well above vs [rad/s]."
-        )
-    mask = np.abs(qd) > threshold
-    if mask.sum() < 10:
-        raise ParameterError(
-            f"fit_high_speed.threshold leaves {int(mask.sum())} samples with |qd| > {threshold:.3g} rad/s; "
-            "need at least 10. Lower it or add fast motion to the experiment."
-        )
-    return mask
-
-
-def fit_high_speed(qd, tau_friction, threshold=None):
-    """Fit the high-speed model of eq. 20, ``(fc + fv |qd|**dv) sign(qd)``, by trust-region least squares.
-
-    Parameters
-    ----------
-    qd : array, shape (n_samples,)
-        Joint velocity [rad/s].
-    tau_friction : array, shape (n_samples,)
-        Friction torque [N m].
-    threshold : float, optional
-        Only samples with ``|qd| > threshold`` [rad/s] are used; default a quarter of ``max |qd|``
-        (pre-sliding and Stribeck effects are negligible there when ``threshold >> vs``).
-
-    Returns
-    -------
-    CoulombViscous
-
-    Raises
-    ------
-    ParameterError, ShapeError
-        Bad arrays or too few fast samples.
-
-    Examples
-    --------
-    >>> qd = np.linspace(-3, 3, 200)
-    >>> fit = fit_high_speed(qd, CoulombViscous(fc=5.0, fv=2.0, dv=0.7).torque(qd))
-    >>> round(fit.fc, 6), round(fit.fv, 6), round(fit.dv, 6)
-    (5.0, 2.0, 0.7)
-    """
-    _, qd, tau = check_friction_data(np.arange(len(np.ravel(qd))), qd, tau_friction, owner="fit_high_speed")
-    mask = _high_speed_mask(qd, threshold)
-    v = np.abs(qd[mask])
-    sgn = np.sign(qd[mask])
-    y = tau[mask]
-    # linear start (dv = 1): y sign = fc + fv |qd|
-    a = np.column_stack([np.ones_like(v), v])
-    fc0, fv0 = np.linalg.lstsq(a, y * sgn, rcond=None)[0]
-    x0 = np.array([max(fc0, 1e-3 * abs(y).mean()), max(fv0, 1e-3 * abs(y).mean() / v.mean()), 1.0])
-    log_v = np.log(v)
-
-    def residual(x):
-        return (x[0] + x[1] * np.exp(x[2] * log_v)) * sgn - y
-
-    def jacobian(x):
-        power = np.exp(x[2] * log_v)
-        return np.column_stack([sgn, power * sgn, x[1] * power * log_v * sgn])
-
-    sol = least_squares(
-        residual, x0, jac=jacobian, bounds=([0.0, 0.0, 0.05], [np.inf, np.inf, 3.0]), method="trf",
-        x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12,
-    )
-    return CoulombViscous(fc=float(sol.x[0]), fv=float(sol.x[1]), dv=float(sol.x[2]))
-
-
-def _sse(parameters, t, qd, tau, substeps=1):
-    pred, _ = simulate_lugre(parameters, t, qd, substeps=substeps)
-    return float(np.mean((pred - tau) ** 2))
-
-
-def _replace(p, **changes):
-    values = p.as_dict()
-    values.update(changes)
-    return LuGreParameters(**values)
-
-
-def initial_lugre_guess(t, qd, tau_friction, high_speed):
-    """Data-driven starting values for the LuGre fit, cheap and deterministic.
-
-    ``fc, fv, dv`` come from ``high_speed`` (eq. 20). ``sigma0`` is the best of a logarithmic grid
-    of break-away displacements ``fc / sigma0`` in [1e-6, 1e-2] rad (one LuGre simulation each);
-    ``fs`` and ``vs`` are fitted to the steady-sliding samples (displacement since the last
-    reversal beyond ten break-away displacements) by least squares on the Stribeck curve; finally
-    ``sigma1`` is picked from a grid ``sigma0 * [1e-5, 1e-2] s``.
-
-    Parameters
-    ----------
-    t, qd, tau_friction : array, shape (n_samples,)
-        Friction experiment [s, rad/s, N m].
-    high_speed : CoulombViscous
-        Result of :func:`fit_high_speed`.
-
-    Returns
-    -------
-    LuGreParameters
-    """
-    t, qd, tau = check_friction_data(t, qd, tau_friction, owner="initial_lugre_guess")
-    if not isinstance(high_speed, CoulombViscous):
-        raise ParameterError(
-            f"initial_lugre_guess.high_speed must be a CoulombViscous; got {type(high_speed).__name__}. "
-            "Pass fit_high_speed(...)."
-        )
-    fc = max(high_speed.fc, 1e-6)
-    fv = max(high_speed.fv, 1e-9)
-    dv = high_speed.dv
-    vmax = float(np.max(np.abs(qd)))
-    guess = LuGreParameters(fc=fc, fs=1.2 * fc, vs=0.01 * vmax, fv=fv, dv=dv, sigma0=fc / 1e-4, sigma1=1e-4 * fc / 1e-4)
-    # sigma0 from a grid of break-away displacements
-    candidates = [_replace(guess, sigma0=fc / xb, sigma1=1e-4 * fc / xb) for xb in np.logspace(-6, -2, 17)]
-    guess = min(candidates, key=lambda p: _sse(p, t, qd, tau))
-    # fs, vs on steady sliding
-    q = np.concatenate([[0.0], np.cumsum(0.5 * (qd[1:] + qd[:-1]) * np.diff(t))])
-    sgn = np.sign(qd)
-    anchor = np.zeros_like(q)
-    last = q[0]
-    for k in range(1, q.size):  # position at the last sign change
-        if sgn[k] != sgn[k - 1]:
-            last = q[k]
-        anchor[k] = last
-    steady = (np.abs(q - anchor) > 10 * guess.fs / guess.sigma0) & (sgn != 0)
-    if steady.sum() > 20:
-        v = np.abs(qd[steady])
-        y = tau[steady] * sgn[steady] - fv * v**dv - fc
-
-        def residual(x):
-            return (np.exp(x[0]) - fc) * np.exp(-((v / np.exp(x[1])) ** 2)) - y
-
-        starts = [np.log([1.2 * fc, vs]) for vs in np.quantile(v, [0.05, 0.2, 0.5])]
-        best = min((least_squares(residual, x0, method="trf") for x0 in starts), key=lambda s: s.cost)
-        fs, vs = np.exp(best.x)
-        if np.isfinite(fs) and np.isfinite(vs) and vs > 0:
-            guess = _replace(guess, fs=float(fs), vs=float(min(vs, vmax)))
-    # sigma1 grid
-    candidates = [_replace(guess, sigma1=guess.sigma0 * r) for r in np.logspace(-5, -2, 7)]
-    return min(candidates, key=lambda p: _sse(p, t, qd, tau))
 
 
 # ------------------------------------------------------------------------------------------------
@@ -479,19 +298,6 @@ def _build_nlp(t, qd, tau, p0, s_scale, substeps, mse_scale, interval):
     return {"x": x, "f": f, "g": g}, hess_lag, n_nodes
 
 
-def _check_initial(initial, owner):
-    if not isinstance(initial, LuGreParameters):
-        raise ParameterError(
-            f"{owner}.initial must be a LuGreParameters; got {type(initial).__name__}. "
-            "Pass initial_lugre_guess(...) or LuGreParameters(...)."
-        )
-    for name in ("fv", "sigma1"):
-        if getattr(initial, name) <= 0:
-            raise ParameterError(
-                f"{owner}.initial.{name} must be > 0 for the log-scaled fit; got 0. Pass a small positive guess."
-            )
-
-
 def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None):
     """Fit all seven LuGre parameters by multiple shooting, solved by Ipopt with exact derivatives.
 
@@ -582,122 +388,6 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None):
         objective=float(np.mean((tau_fit - tau) ** 2)),
         seconds=time.perf_counter() - start,
         solve_seconds=solve_seconds,
-    )
-
-
-# ------------------------------------------------------------------------------------------------
-# the paper's method (peer for the benchmark)
-# ------------------------------------------------------------------------------------------------
-_FREE_SETS = {
-    "presliding": ("fs", "vs", "sigma0", "sigma1"),
-    "all": LUGRE_PARAMETER_NAMES,
-}
-
-
-def simulate_lugre_ode(parameters, t, qd, rtol=1e-6):
-    """LuGre torque from a general-purpose stiff ODE solver (scipy LSODA), as a Matlab ``ode15s`` cost would.
-
-    The velocity is interpolated linearly; the step is capped at one sample period. Slower than
-    :func:`identification.friction.simulate_lugre` by two orders of magnitude; it reproduces the
-    paper's "simulate the LuGre equations" cost for the baseline timing.
-
-    Returns
-    -------
-    tau : ndarray, shape (n_samples,)
-        Friction torque [N m].
-    """
-    from scipy.integrate import solve_ivp
-
-    p = parameters
-    t, qd = check_friction_data(t, qd, owner="simulate_lugre_ode")
-
-    def rhs(time_, z):
-        v = np.interp(time_, t, qd)
-        g = p.fc + (p.fs - p.fc) * np.exp(-((v / p.vs) ** 2))
-        return v - p.sigma0 * abs(v) * z / g
-
-    sol = solve_ivp(rhs, (t[0], t[-1]), [0.0], method="LSODA", t_eval=t, rtol=rtol, atol=1e-12,
-                    max_step=float(np.min(np.diff(t))))
-    if not sol.success:
-        raise SolverError(f"simulate_lugre_ode: LSODA failed: {sol.message}", status=str(sol.status))
-    from identification.friction import lugre_torque
-
-    return lugre_torque(p, qd, p.sigma0 * sol.y[0])
-
-
-def paper_friction_fit(t, qd, tau_friction, initial, free="presliding", max_evaluations=None, substeps=1,
-                       simulator="exponential"):
-    """The paper's LuGre fit: Nelder-Mead over a LuGre simulation of the whole record (section 3.3).
-
-    Starting from ``initial`` (whose ``fc, fv, dv`` come from the trust-region fit of eq. 20),
-    scipy's Nelder-Mead -- the counterpart of Matlab's ``fminsearch`` -- minimises the sum of
-    squared errors between the measured torque and :func:`simulate_lugre` over the parameters in
-    ``free``, with ``fminsearch``'s defaults: a 5 % initial simplex, ``TolFun = 1e-4`` on the sum of
-    squares, ``TolX = 1e-4`` and ``200 * n_free`` evaluations. The simplex works on
-    ``log(p / initial)`` (positive parameters; ``TolX`` is then relative, which lets it stop
-    earlier than on the raw values, where ``sigma0 ~ 1e5`` never meets an absolute 1e-4).
-
-    Parameters
-    ----------
-    t, qd, tau_friction : array, shape (n_samples,)
-        Friction experiment [s, rad/s, N m].
-    initial : LuGreParameters
-        Starting point, ``fv`` and ``sigma1`` > 0.
-    free : {"presliding", "all"}
-        ``"presliding"`` fits ``fs, vs, sigma0, sigma1`` (the paper); ``"all"`` all seven.
-    max_evaluations : int, optional
-        Simulation budget; default ``200 * n_free``.
-    substeps : int
-        Integrator sub-steps per sample of the simulation.
-    simulator : {"exponential", "ode"}
-        The cost's LuGre simulation: our stiff-safe :func:`simulate_lugre` (fast) or the generic
-        stiff ODE solver :func:`simulate_lugre_ode` (the paper's setting, ~100x slower).
-
-    Returns
-    -------
-    BaselineResult
-    """
-    t, qd, tau = check_friction_data(t, qd, tau_friction, owner="paper_friction_fit")
-    _check_initial(initial, "paper_friction_fit")
-    if free not in _FREE_SETS:
-        raise ParameterError(f"paper_friction_fit.free must be one of {sorted(_FREE_SETS)}; got {free!r}.")
-    names = _FREE_SETS[free]
-    if simulator not in ("exponential", "ode"):
-        raise ParameterError(
-            f"paper_friction_fit.simulator must be 'exponential' or 'ode'; got {simulator!r}. Pass 'exponential'."
-        )
-    if max_evaluations is None:
-        max_evaluations = 200 * len(names)
-    if not (isinstance(max_evaluations, (int, np.integer)) and max_evaluations >= 1):
-        raise ParameterError(f"paper_friction_fit.max_evaluations must be an integer >= 1; got {max_evaluations!r}.")
-    index = [LUGRE_PARAMETER_NAMES.index(name) for name in names]
-    p0 = initial.as_array()
-
-    def parameters_of(x):
-        values = p0.copy()
-        values[index] = p0[index] * np.exp(x)
-        return LuGreParameters.from_array(values)
-
-    def cost(x):
-        if not np.all(np.abs(x) < 20):
-            return np.inf
-        if simulator == "ode":
-            return float(np.sum((simulate_lugre_ode(parameters_of(x), t, qd) - tau) ** 2))
-        return tau.size * _sse(parameters_of(x), t, qd, tau, substeps)
-
-    start = time.perf_counter()
-    sol = minimize(
-        cost, np.zeros(len(names)), method="Nelder-Mead",
-        options={"maxfev": int(max_evaluations), "maxiter": int(max_evaluations), "xatol": 1e-4, "fatol": 1e-4},
-    )
-    seconds = time.perf_counter() - start
-    return BaselineResult(
-        parameters=parameters_of(sol.x),
-        initial=initial,
-        evaluations=int(sol.nfev),
-        converged=bool(sol.success),
-        objective=float(sol.fun) / tau.size,
-        seconds=seconds,
     )
 
 

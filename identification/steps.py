@@ -12,7 +12,7 @@ step                       paper                  learned attributes
 =========================  =====================  ============================================
 ``MotorIdentifier``        eqs. 16-17             ``kt_`` (n_dof,) [N m/A]
 ``GravityIdentifier``      eq. 18                 ``theta_gravity_``, ``theta_`` (n_base,)
-``FrictionIdentifier``     eqs. 19-20 + LuGre     ``lugre_`` (LuGreParameters per joint)
+``FrictionIdentifier``     eqs. 19-20 + LuGre     ``lugre_`` (LuGreParameters per joint; in ``friction_step``)
 ``InertialIdentifier``     eq. 21                 ``theta_`` (n_base,), all base parameters
 =========================  =====================  ============================================
 """
@@ -22,16 +22,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
 from psdm_casadi.model import PSDMModel
 from psdm_casadi.robot import RobotDescription
 
-from .base import BaseIdentifier, Design, LeastSquaresResult, check_is_fitted
+from ._step_inputs import check_model as _check_model
+from ._step_inputs import recordings as _recordings
+from ._step_inputs import tool_torque as _tool_torque
+from ._step_inputs import vector as _vector
+from .base import BaseIdentifier, Design, LeastSquaresResult
 from .extra_physics import Payload
-from .friction import LuGreParameters, simulate_lugre
-from .payload import payload_static_torque, payload_torque
+from .friction_step import FrictionExperiment, FrictionIdentifier, friction_torque  # noqa: F401 (re-exported)
+from .payload import payload_static_torque
 from .recording import Recording
 
 __all__ = ["MotorExperiment", "FrictionExperiment", "fold_out_and_back", "regressor_chunked",
@@ -75,22 +78,6 @@ class MotorExperiment:
             if getattr(self, name).current is None:
                 raise RecordingError(f"MotorExperiment.{name}.current is missing; Kt needs motor currents. "
                                      "Record currents i1..in.")
-
-
-@dataclass(frozen=True, eq=False)
-class FrictionExperiment:
-    """One joint's friction experiment (paper 3.3): that joint oscillating, the others held.
-
-    Parameters
-    ----------
-    joint : int
-        Moving joint, 0-based.
-    recording : Recording
-        Preprocessed recording (qd required).
-    """
-
-    joint: int
-    recording: Recording
 
 
 def fold_out_and_back(recording: Recording, tolerance: float = 0.02) -> Recording:
@@ -147,39 +134,6 @@ def regressor_chunked(model: PSDMModel, q, qd, qdd) -> np.ndarray:
         stop = start + _CHUNK
         out[start:stop] = model.regressor(q[start:stop], qd[start:stop], qdd[start:stop])
     return out
-
-
-def _check_model(model, owner):
-    if not isinstance(model, PSDMModel):
-        raise ParameterError(f"{owner}.model must be a PSDMModel; got {type(model).__name__}. Use derive_psdm(robot).")
-
-
-def _vector(value, size, owner, field, unit):
-    arr = np.asarray(value, dtype=float).reshape(-1)
-    if arr.shape != (size,) or not np.all(np.isfinite(arr)):
-        raise ShapeError(f"{owner}.{field} must be {size} finite values [{unit}]; got shape {arr.shape}.")
-    return arr
-
-
-def _recordings(data, owner):
-    items = [data] if isinstance(data, Recording) else list(data)
-    if not items or not all(isinstance(r, Recording) for r in items):
-        raise ParameterError(f"{owner}.fit data must be a Recording or a non-empty sequence of Recordings.")
-    for rec in items:
-        if rec.qd is None or rec.qdd is None:
-            raise RecordingError(f"Recording.qd/qdd are missing ({rec.name}); {owner} needs them. "
-                                 "Run preprocess(recording) first.")
-    return items
-
-
-def _tool_torque(robot, tool, rec, static):
-    if tool is None:
-        return np.zeros_like(rec.q)
-    if robot is None:
-        raise ParameterError("the tool torque needs the robot; pass robot= together with tool=.")
-    if static:
-        return payload_static_torque(robot, tool, rec.q)
-    return payload_torque(robot, tool, rec.q, rec.qd, rec.qdd)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -318,6 +272,15 @@ class GravityIdentifier(BaseIdentifier):
         Known end-effector load present during the experiment (eq. 18's ``J^T f_ee``).
     min_speed : float
         [rad/s], >= 0.
+    theta : array, shape (n_base,), optional
+        A full base-parameter estimate (e.g. from :class:`InertialIdentifier`) whose non-gravity
+        torques ``(Y(q, qd, qdd) - Y_grav(q)) theta`` (inertial and Coriolis, which eq. 18 neglects)
+        are removed from the jog's torque first; needs qdd in the recordings.
+    joint_weighting : {"relative", "none"}
+        ``"relative"`` (default) weights the rows of joint i by ``1 / mean(tau_i^2)``, so every joint
+        counts by its relative error: errors proportional to the torque (a Kt error, 0.5 % of the
+        base joint's tens of N m) then do not leak into the small wrist parameters (on the virtual
+        Denso a 0.5 % Kt error of joint 1 moved them by 10-35 % unweighted). ``"none"``: eq. 18 as is.
 
     Attributes
     ----------
@@ -327,12 +290,15 @@ class GravityIdentifier(BaseIdentifier):
         ``theta_gravity_`` placed in a full base-parameter vector (zeros elsewhere).
     """
 
-    def __init__(self, model=None, kt=None, robot=None, tool=None, min_speed=0.05):
+    def __init__(self, model=None, kt=None, robot=None, tool=None, min_speed=0.05, theta=None,
+                 joint_weighting="relative"):
         self.model = model
         self.kt = kt
         self.robot = robot
         self.tool = tool
         self.min_speed = min_speed
+        self.theta = theta
+        self.joint_weighting = joint_weighting
 
     def _n_dof(self, data):
         return self.model.n_dof
@@ -343,19 +309,34 @@ class GravityIdentifier(BaseIdentifier):
         kt = None if self.kt is None else _vector(self.kt, n, "GravityIdentifier", "kt", "N m/A")
         if not (np.isfinite(self.min_speed) and self.min_speed >= 0):
             raise ParameterError(f"GravityIdentifier.min_speed must be >= 0 [rad/s]; got {self.min_speed!r}.")
+        if self.joint_weighting not in ("relative", "none"):
+            raise ParameterError(f"GravityIdentifier.joint_weighting must be 'relative' or 'none'; got "
+                                 f"{self.joint_weighting!r}.")
         mask = self.model.gravity_mask
         blocks = []
         for rec in _recordings(data, "GravityIdentifier"):
             rec.check_robot(n)
             tau = rec.joint_torque(kt) - _tool_torque(self.robot, self.tool, rec, static=True)
-            y = self.model.gravity_regressor(rec.q)[:, :, mask]  # (N, n, n_grav)
+            y_all = self.model.gravity_regressor(rec.q)
+            if self.theta is not None:
+                theta = _vector(self.theta, self.model.n_base, "GravityIdentifier", "theta", "base parameters")
+                tau = tau - (regressor_chunked(self.model, rec.q, rec.qd, rec.qdd) - y_all) @ theta
+            y = y_all[:, :, mask]  # (N, n, n_grav)
             active = np.any(np.abs(y) > 0, axis=0).any(axis=1)  # joints with a gravity row
-            weights = (np.abs(rec.qd) >= self.min_speed) & active[None, :]
-            blocks.append(Design(y.reshape(-1, mask.sum()), tau.reshape(-1), weights.reshape(-1).astype(float),
+            weights = ((np.abs(rec.qd) >= self.min_speed) & active[None, :]).astype(float)
+            blocks.append(Design(y.reshape(-1, mask.sum()), tau.reshape(-1), weights.reshape(-1),
                                  np.tile(np.arange(n), rec.n_samples)))
         design = blocks[0]
         for b in blocks[1:]:
             design = design.stack(b)
+        if self.joint_weighting == "relative":
+            scale = np.ones(n)
+            for j in range(n):
+                rows = (design.joint == j) & (design.weights > 0)
+                if rows.any():
+                    scale[j] = max(float(np.mean(design.target[rows] ** 2)), 1e-12)
+            design = Design(design.matrix, design.target, design.weights / scale[design.joint], design.joint,
+                            offset=design.offset)
         return design
 
     def _after_fit(self, design):
@@ -363,172 +344,6 @@ class GravityIdentifier(BaseIdentifier):
         theta = np.zeros(self.model.n_base)
         theta[self.model.gravity_mask] = self.coef_
         self.theta_ = theta
-
-
-# ------------------------------------------------------------------------------------------------
-# step 3: friction (eqs. 19-20, LuGre by multiple shooting)
-# ------------------------------------------------------------------------------------------------
-def friction_torque(lugre, t, qd) -> np.ndarray:
-    """LuGre friction torques [N m] of every joint along measured velocities, shape (n_samples, n_dof)."""
-    qd = np.atleast_2d(np.asarray(qd, dtype=float))
-    out = np.zeros_like(qd)
-    for j, p in enumerate(lugre):
-        if p is not None:
-            out[:, j], _ = simulate_lugre(p, t, qd[:, j])
-    return out
-
-
-def _fit_inertia_high_speed(qd, qdd, tau, threshold):
-    """Eq. 20 with the joint's own inertia: ``tau = J qdd + (fc + fv |qd|^dv) sign qd`` on fast samples."""
-    fast = np.abs(qd) > threshold
-    v, s, a, y = np.abs(qd[fast]), np.sign(qd[fast]), qdd[fast], tau[fast]
-    lin = np.linalg.lstsq(np.column_stack([a, s, v * s]), y, rcond=None)[0]
-    x0 = np.array([lin[0], max(lin[1], 1e-3), max(lin[2], 1e-3), 1.0])
-
-    def residual(x):
-        return x[0] * a + (x[1] + x[2] * v ** x[3]) * s - y
-
-    sol = least_squares(residual, x0, bounds=([-np.inf, 0.0, 0.0, 0.05], [np.inf, np.inf, np.inf, 3.0]),
-                        x_scale="jac", method="trf")
-    return float(sol.x[0])
-
-
-class FrictionIdentifier(BaseIdentifier):
-    """LuGre friction per joint (paper 3.3): eq. 19 isolates friction, eq. 20 starts, multiple shooting finishes.
-
-    For the experiment of joint j, ``tau_fric = Kt_j i_j - (Y_grav theta_grav)_j - tau_tool,j`` (eq. 19).
-    Only joint j moves, so its remaining rigid-body torque is ``M_jj qdd_j`` with a constant ``M_jj``
-    (M_jj does not depend on q_j); with ``inertia="fit"`` that inertia is estimated together with
-    eq. 20 on the fast samples and removed (the paper neglects it, which biases Fc/Fv on a fast
-    experiment). The seven LuGre parameters then come from
-    :func:`identification.shooting.fit_lugre_multiple_shooting` started at
-    :func:`identification.shooting.initial_lugre_guess`.
-
-    Parameters
-    ----------
-    model : PSDMModel
-    kt : array, shape (n_dof,)
-    theta : array, shape (n_base,)
-        Base parameters whose gravity part is used (from :class:`GravityIdentifier`).
-    robot : RobotDescription, optional
-        Needed with ``tool``.
-    tool : Payload, optional
-    inertia : {"fit", "ignore"}
-    decimation : int
-        Keep every ``decimation``-th sample for the shooting NLP (its size grows with the samples), >= 1.
-    high_speed_fraction : float
-        Samples faster than this fraction of the peak speed are "high speed" (eq. 20), in (0, 1).
-    shooting_options : identification.shooting.ShootingOptions, optional
-
-    Attributes
-    ----------
-    lugre_ : tuple of LuGreParameters or None, length n_dof
-    inertia_ : array, shape (n_dof,)
-        Removed joint inertia M_jj [kg m^2] (NaN when not fitted).
-    shooting_ : tuple of ShootingResult or None
-    seconds_ : array, shape (n_dof,)
-        Wall time per joint [s].
-    """
-
-    def __init__(self, model=None, kt=None, theta=None, robot=None, tool=None, inertia="fit", decimation=1,
-                 high_speed_fraction=0.25, shooting_options=None):
-        self.model = model
-        self.kt = kt
-        self.theta = theta
-        self.robot = robot
-        self.tool = tool
-        self.inertia = inertia
-        self.decimation = decimation
-        self.high_speed_fraction = high_speed_fraction
-        self.shooting_options = shooting_options
-
-    def _validate(self):
-        _check_model(self.model, "FrictionIdentifier")
-        if self.inertia not in ("fit", "ignore"):
-            raise ParameterError(f"FrictionIdentifier.inertia must be 'fit' or 'ignore'; got {self.inertia!r}.")
-        if not (isinstance(self.decimation, (int, np.integer)) and self.decimation >= 1):
-            raise ParameterError(f"FrictionIdentifier.decimation must be an integer >= 1; got {self.decimation!r}.")
-        if not 0.0 < self.high_speed_fraction < 1.0:
-            raise ParameterError(
-                f"FrictionIdentifier.high_speed_fraction must be in (0, 1); got {self.high_speed_fraction!r}.")
-
-    def _experiments(self, data):
-        items = [data] if isinstance(data, FrictionExperiment) else list(data)
-        if not items or not all(isinstance(e, FrictionExperiment) for e in items):
-            raise ParameterError("FrictionIdentifier.fit data must be a FrictionExperiment or a sequence of them.")
-        n = self.model.n_dof
-        for e in items:
-            if not (0 <= e.joint < n):
-                raise ParameterError(f"FrictionExperiment.joint must be in 0..{n - 1}; got {e.joint!r}.")
-            _recordings(e.recording, "FrictionIdentifier")
-            e.recording.check_robot(n)
-        return items
-
-    def _n_dof(self, data):
-        return self.model.n_dof
-
-    def measured_friction(self, experiment: FrictionExperiment) -> np.ndarray:
-        """Eq. 19 for the moving joint: ``Kt i - Y_grav theta_grav - tau_tool`` [N m], shape (n_samples,)."""
-        n = self.model.n_dof
-        kt = None if self.kt is None else _vector(self.kt, n, "FrictionIdentifier", "kt", "N m/A")
-        theta = _vector(self.theta, self.model.n_base, "FrictionIdentifier", "theta", "base parameters")
-        rec, j = experiment.recording, experiment.joint
-        gravity = (self.model.gravity_regressor(rec.q)[:, j, :] @ (theta * self.model.gravity_mask))
-        tool = _tool_torque(self.robot, self.tool, rec, static=False)[:, j]
-        return rec.joint_torque(kt)[:, j] - gravity - tool
-
-    def fit(self, data):
-        """Fit LuGre parameters for every joint with an experiment; return ``self``."""
-        from .shooting import ShootingOptions, fit_high_speed, fit_lugre_multiple_shooting, initial_lugre_guess
-
-        import time
-
-        self._validate()
-        options = self.shooting_options if self.shooting_options is not None else ShootingOptions()
-        n = self.model.n_dof
-        lugre, shooting = [None] * n, [None] * n
-        inertia, seconds = np.full(n, np.nan), np.full(n, np.nan)
-        for e in self._experiments(data):
-            start = time.perf_counter()
-            rec, j = e.recording, e.joint
-            tau = self.measured_friction(e)
-            qd, qdd = rec.qd[:, j], rec.qdd[:, j]
-            threshold = self.high_speed_fraction * float(np.max(np.abs(qd)))
-            if self.inertia == "fit":
-                inertia[j] = _fit_inertia_high_speed(qd, qdd, tau, threshold)
-                tau = tau - inertia[j] * qdd
-            sl = slice(None, None, int(self.decimation))
-            t_d, qd_d, tau_d = rec.t[sl], qd[sl], tau[sl]
-            high = fit_high_speed(qd_d, tau_d, threshold=threshold)
-            initial = initial_lugre_guess(t_d, qd_d, tau_d, high)
-            result = fit_lugre_multiple_shooting(t_d, qd_d, tau_d, initial, options)
-            lugre[j], shooting[j] = result.parameters, result
-            seconds[j] = time.perf_counter() - start
-        self.lugre_ = tuple(lugre)
-        self.inertia_ = inertia
-        self.shooting_ = tuple(shooting)
-        self.seconds_ = seconds
-        self.coef_ = np.zeros(0)
-        self.n_dof_ = n
-        return self
-
-    def _design_matrix(self, data) -> Design:
-        check_is_fitted(self, "lugre_")
-        blocks = []
-        for e in self._experiments(data):
-            rec, j = e.recording, e.joint
-            tau = self.measured_friction(e)
-            if self.inertia == "fit" and np.isfinite(self.inertia_[j]):
-                tau = tau - self.inertia_[j] * rec.qdd[:, j]
-            if self.lugre_[j] is None:
-                raise ParameterError(f"FrictionIdentifier has no LuGre model of joint {j + 1}; fit it on that joint first.")
-            pred, _ = simulate_lugre(self.lugre_[j], rec.t, rec.qd[:, j])
-            m = rec.n_samples
-            blocks.append(Design(np.zeros((m, 0)), tau, np.ones(m), np.full(m, j), offset=pred))
-        design = blocks[0]
-        for b in blocks[1:]:
-            design = design.stack(b)
-        return design
 
 
 # ------------------------------------------------------------------------------------------------

@@ -21,11 +21,14 @@ def _rec(n_dof, name, seed=0):
 def test_calibration_data_round_trip(tmp_path):
     data = CalibrationData(payload=Payload(mass=1.5, com=(0.1, 0.0, 0.0)),
                            motor=((0, _rec(2, "a"), _rec(2, "b", 1)),), gravity=(_rec(2, "g"),),
-                           friction=((1, _rec(2, "f"),),), excitation=(_rec(2, "e"),))
+                           friction=((1, _rec(2, "f"),),), excitation=(_rec(2, "e"),),
+                           friction_validation=((1, _rec(2, "fv", 2)),))
     save_calibration_data(data, tmp_path)
     back = load_calibration_data(tmp_path, n_dof=2)
     assert back.payload == data.payload
     assert back.motor[0][0] == 0 and back.friction[0][0] == 1
+    assert len(back.friction) == 1 and back.friction_validation[0][0] == 1
+    np.testing.assert_allclose(back.friction_validation[0][1].q, data.friction_validation[0][1].q)
     np.testing.assert_allclose(back.motor[0][2].current, data.motor[0][2].current)
     with pytest.raises(FileExistsError):
         save_calibration_data(data, tmp_path)
@@ -52,10 +55,24 @@ def test_pipeline_option_and_input_errors(denso, denso_model):
         PipelineOptions(split_fraction=1.2)
     with pytest.raises(ParameterError, match="friction_rate_hz"):
         PipelineOptions(friction_rate_hz=0.0)
+    with pytest.raises(ParameterError, match="friction_cutoff_hz"):
+        PipelineOptions(friction_cutoff_hz=-40.0)
+    with pytest.raises(ParameterError, match="gravity_inertia"):
+        PipelineOptions(gravity_inertia="cad")
+    assert PipelineOptions().friction_cutoff_hz is None  # friction data are used unfiltered at 1 kHz
     with pytest.raises(ParameterError, match="model"):
         IdentificationPipeline(denso, None).fit("x")
     with pytest.raises(ParameterError, match="CalibrationData"):
         IdentificationPipeline(denso, denso_model).fit(42)
+
+
+def test_virtual_calibration_options_errors():
+    from identification.virtual_calibration import VirtualCalibrationOptions
+
+    with pytest.raises(ParameterError, match="friction_design"):
+        VirtualCalibrationOptions(friction_design=(1e-3, 0.1))
+    with pytest.raises(ParameterError, match="gravity_speed"):
+        VirtualCalibrationOptions(gravity_speed=0.0)
 
 
 def test_identify_command_is_registered():
@@ -73,15 +90,20 @@ def test_full_pipeline_on_virtual_denso(denso, denso_model, tmp_path):
     from identification.synthetic import SimulationOptions
     from identification.virtual_calibration import VirtualCalibrationOptions, simulate_calibration
 
+    from identification.experiments import FrictionDesign
+
     options = VirtualCalibrationOptions(gravity_duration=30.0, excitation_duration=20.0, quiet=True,
+                                        friction_design=FrictionDesign.quick(),
                                         simulation=SimulationOptions(encoder_resolution=None, current_resolution=None,
                                                                      current_noise_std=0.0))
     data = simulate_calibration(denso, options, np.random.default_rng(0))
-    pipeline = IdentificationPipeline(denso, denso_model, PipelineOptions(friction_rate_hz=100.0, quiet=True)).fit(data)
+    assert len(data.friction_validation) == denso.n_dof
+    pipeline = IdentificationPipeline(denso, denso_model, PipelineOptions(quiet=True)).fit(data)
     result = pipeline.result_
     kt = np.array([d.kt for d in denso.drives])
     assert np.abs(result.kt / kt - 1).max() < 0.01
     assert result.report.min_r2("all") > 0.98
     assert result.consistency.consistent
+    assert result.report.min_r2("friction") > 0.98
     back = load_identified(result.save(tmp_path / "out"))
     np.testing.assert_array_equal(back.theta, result.theta)

@@ -10,9 +10,9 @@ from identification.shooting import (
     fit_high_speed,
     fit_lugre_multiple_shooting,
     initial_lugre_guess,
-    paper_friction_fit,
     r2_score,
 )
+from identification.friction_baseline import paper_friction_fit, simulate_lugre_ode
 from psdm_casadi.errors import NotFittedError, ParameterError, ShapeError, SolverError
 
 from .friction_signal import denso_truth, sine_series, synthetic_record
@@ -137,6 +137,20 @@ def test_bad_inputs_name_the_field():
         initial_lugre_guess(t, qd, tau, truth)
     with pytest.raises(ParameterError, match="free"):
         paper_friction_fit(t, qd, tau, truth, free="some")
+    with pytest.raises(ParameterError, match="simulator"):
+        paper_friction_fit(t, qd, tau, truth, simulator="rk4")
+    with pytest.raises(ParameterError, match="max_evaluations"):
+        paper_friction_fit(t, qd, tau, truth, max_evaluations=0)
+
+
+def test_ode_simulator_of_the_baseline_matches_the_exponential_integrator():
+    """The paper's cost (LSODA) and our integrator simulate the same LuGre model (independent schemes)."""
+    truth, qd_max = denso_truth(3)
+    t, qd = sine_series(truth, qd_max, frequency_scale=4.0)
+    keep = t < 2.0
+    reference, _ = simulate_lugre(truth, t[keep], qd[keep], substeps=32)
+    ode = simulate_lugre_ode(truth, t[keep], qd[keep])
+    assert np.sqrt(np.mean((ode - reference) ** 2)) < 1e-2 * np.sqrt(np.mean(reference**2))
 
 
 def test_paper_baseline_improves_on_its_start():

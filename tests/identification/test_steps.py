@@ -113,6 +113,40 @@ def test_gravity_recovers_parameters(denso_model, gravity_recording, truth):
     assert fit.theta_[~mask].tolist() == [0.0] * int((~mask).sum())
 
 
+def test_friction_held_set_points_are_averaged(denso_model, truth):
+    """A set-point held over the next sample: the torque at t_k is the mean of set-points k-1 and k."""
+    theta, _, _ = truth
+    t = np.arange(0.0, 0.01, 1e-3)
+    q = np.zeros((t.size, 6))
+    current = np.zeros((t.size, 6))
+    current[:, 2] = np.arange(t.size) % 2  # 0, 1, 0, 1, ...
+    rec = Recording(t=t, q=q, current=current, qd=q.copy(), qdd=q.copy(), name="held")
+    kt = np.full(6, 2.0)
+    gravity = denso_model.gravity_regressor(q)[:, 2, :] @ (theta * denso_model.gravity_mask)
+    held = FrictionIdentifier(model=denso_model, kt=kt, theta=theta).measured_friction(FrictionExperiment(2, rec))
+    instant = FrictionIdentifier(model=denso_model, kt=kt, theta=theta, held_torque=False).measured_friction(
+        FrictionExperiment(2, rec))
+    np.testing.assert_allclose(instant + gravity, 2.0 * current[:, 2], atol=1e-12)
+    np.testing.assert_allclose(held[1:] + gravity[1:], 1.0, atol=1e-12)
+
+
+def test_gravity_removes_inertial_torques_with_a_given_model(denso, denso_model, truth):
+    """A fast out-and-back jog (inertial torques not negligible): eq. 18 alone is biased, removing
+    ``(Y - Y_grav) theta`` of the true model recovers the gravity parameters (Pinocchio RNEA data)."""
+    theta, _, _ = truth
+    t, q, qd = _out_and_back(denso, np.random.default_rng(5), n=801, duration=4.0)
+    qdd = np.gradient(qd, t, axis=0)
+    tau = PinocchioOracle(denso).rnea(q, qd, qdd) + 3.0 * np.sign(qd)
+    folded = fold_out_and_back(Recording(t=t, q=q, tau=tau, qd=qd, qdd=qdd, name="fast jog"))
+    mask = denso_model.gravity_mask
+    plain = GravityIdentifier(model=denso_model, min_speed=0.0).fit(folded)
+    removed = GravityIdentifier(model=denso_model, min_speed=0.0, theta=theta).fit(folded)
+    assert np.abs(plain.theta_gravity_ - theta[mask]).max() > 1e-3
+    np.testing.assert_allclose(removed.theta_gravity_, theta[mask], rtol=1e-6, atol=1e-8)
+    with pytest.raises(ShapeError, match="theta"):
+        GravityIdentifier(model=denso_model, theta=np.ones(3)).fit(folded)
+
+
 def test_inertial_recovers_parameters(denso_model, excitation, truth):
     theta, _, lugre = truth
     start = theta * denso_model.gravity_mask
@@ -126,7 +160,7 @@ def test_friction_inertia_and_coulomb_viscous(denso, denso_model, truth):
     """Joint 5 alone: eq. 19 removes gravity, the fitted inertia removes M_55 qdd, LuGre follows."""
     theta, _, lugre = truth
     j = 4
-    t, q = experiments.friction_reference(denso, j, amplitudes=(1e-3, 0.05, 0.5), cycles=2)
+    t, q = experiments.oscillation_reference(denso, j, amplitudes=(1e-3, 0.05, 0.5), cycles=2)
     t_s = np.arange(0.0, t[-1], 2e-3)
     from scipy.interpolate import CubicSpline
 
@@ -136,7 +170,8 @@ def test_friction_inertia_and_coulomb_viscous(denso, denso_model, truth):
     tau = PinocchioOracle(denso).rnea(q, qd, qdd)
     tau[:, j] += fr
     rec = Recording(t=t_s, q=q, tau=tau, qd=qd, qdd=qdd, name="friction")
-    fit = FrictionIdentifier(model=denso_model, theta=theta).fit(FrictionExperiment(j, rec))
+    # torques at the sample instants (not held set-points)
+    fit = FrictionIdentifier(model=denso_model, theta=theta, held_torque=False).fit(FrictionExperiment(j, rec))
     m_jj = PinocchioOracle(denso).crba(q[0])[j, j]
     assert fit.inertia_[j] == pytest.approx(m_jj, rel=0.05)
     err = fit.lugre_[j].relative_error(lugre[j])

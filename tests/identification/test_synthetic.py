@@ -212,14 +212,61 @@ def test_write_recording_with_truth(denso, tmp_path):
 
 
 def test_experiment_references_respect_limits(denso):
-    for t, q in (experiments.motor_reference(denso, 1), experiments.friction_reference(denso, 5),
-                 experiments.gravity_reference(denso, duration=20.0), experiments.sine_reference(denso, duration=10.0)):
+    friction = [experiments.friction_reference(denso, j) for j in range(denso.n_dof)]
+    for t, q in (experiments.motor_reference(denso, 1), experiments.oscillation_reference(denso, 5),
+                 experiments.gravity_reference(denso, duration=20.0), experiments.sine_reference(denso, duration=10.0),
+                 *friction):
         assert np.all(np.diff(t) > 0)
         assert np.all(q >= denso.q_min - 1e-9) and np.all(q <= denso.q_max + 1e-9)
         qd = np.gradient(q, t, axis=0)
         assert np.all(np.abs(qd).max(axis=0) <= denso.qd_max)
+    for j, (t, q) in enumerate(friction):
+        qdd = np.gradient(np.gradient(q[:, j], t), t)
+        assert np.abs(qdd).max() <= denso.qdd_max[j]
     t, q = experiments.gravity_reference(denso, duration=20.0)
     np.testing.assert_allclose(q, q[::-1], atol=1e-2)  # back along the same path
+
+
+def test_friction_design_content(denso):
+    """Segments rest to rest; pre-sliding amplitudes and Stribeck speeds as designed; validation at 1.3x."""
+    design = experiments.FrictionDesign()
+    assert design.presliding_amplitudes[0] == pytest.approx(5e-6) and design.presliding_amplitudes[-1] == pytest.approx(5e-3)
+    t, q = experiments.friction_reference(denso, 0, design)
+    assert t[-1] == pytest.approx(design.duration, rel=0.05)
+    x = q[:, 0] - q[0, 0]
+    first = t < design.presliding_periods / design.presliding_hz
+    assert np.ptp(x[first]) == pytest.approx(2 * design.presliding_amplitudes[0], rel=1e-3)
+    qd = np.gradient(x, t)
+    peak = np.abs(qd[first]).max()  # rest to rest: q = A (1 - cos), zero speed at both ends
+    assert abs(x[0]) < 1e-12 and abs(qd[0]) < 0.1 * peak and abs(x[-1]) < 1e-9 and abs(qd[-1]) < 1e-6
+    tv, _ = experiments.friction_reference(denso, 0, design.validation())
+    assert tv[-1] < t[-1]
+    segments = design.validation().segments(denso.qd_max[0], denso.qdd_max[0], 2.0)
+    assert segments[0][1] == pytest.approx(13.0)
+    assert experiments.FrictionDesign.quick().duration < 0.6 * design.duration
+
+
+@pytest.mark.parametrize("kwargs, field", [
+    (dict(presliding_amplitudes=()), "presliding_amplitudes"), (dict(stribeck_speeds=(0.1, -1.0)), "stribeck_speeds"),
+    (dict(sliding_fractions=(0.5, 1.5)), "sliding_fractions"), (dict(presliding_hz=0.0), "presliding_hz"),
+    (dict(sliding_periods=0), "sliding_periods"), (dict(pause=-1.0), "pause"),
+])
+def test_friction_design_errors(kwargs, field):
+    with pytest.raises(ParameterError, match=field):
+        experiments.FrictionDesign(**kwargs)
+
+
+def test_friction_reference_errors(denso):
+    with pytest.raises(ParameterError, match="design"):
+        experiments.friction_reference(denso, 0, design=(1e-3,))
+    with pytest.raises(ParameterError, match="joint"):
+        experiments.friction_reference(denso, 9)
+
+
+def test_default_encoder_resolves_presliding():
+    """A 20-bit motor encoder behind a 1:100 gear: far below the 5 urad pre-sliding amplitudes."""
+    assert SimulationOptions().encoder_resolution == pytest.approx(2 * np.pi / 2**20 / 100)
+    assert SimulationOptions().encoder_resolution < 0.02 * experiments.FrictionDesign().presliding_amplitudes[0]
 
 
 def test_exact_z_step_matches_stiff_ode_solver(denso):
