@@ -1,7 +1,7 @@
 """Benchmark: LuGre friction identification, our multiple shooting vs the paper's Nelder-Mead.
 
 For every joint of the virtual Denso (robots/denso_vs6556g.toml, paper Table 2 friction) a
-friction experiment (:func:`friction_experiment`) is simulated with a fine-step LuGre reference
+friction experiment (:func:`identification.experiments.tuned_friction_signal`) is simulated with a fine-step LuGre reference
 (32 sub-steps per sample) plus white torque noise. Both methods start from the same eq. 20
 trust-region fit and the same data-driven initial guess; we report parameter relative errors,
 R^2 on a separate validation experiment, wall time and the speed-up.
@@ -25,6 +25,7 @@ _HERE = Path(__file__).resolve().parent
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 from identification.friction import LUGRE_PARAMETER_NAMES, LuGreParameters, simulate_lugre  # noqa: E402
+from identification.experiments import tuned_friction_signal  # noqa: E402
 from identification.shooting import (  # noqa: E402
     ShootingOptions,
     fit_high_speed,
@@ -39,45 +40,13 @@ ROBOT = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
 TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
 
 
-def friction_experiment(parameters, qd_max, rate=1000.0, frequency_scale=1.0, pause=0.2):
-    """One joint's friction experiment: a series of ``q = A (1 - cos(2 pi f t))`` segments.
-
-    Segments start and end at rest (``qd`` continuous), separated by ``pause`` seconds of rest.
-
-    * pre-sliding: amplitudes 0.3, 0.7, 1.5, 3 times the break-away displacement ``fc / sigma0``
-      at 10 Hz, 4 periods each (hysteresis loops; ``sigma0`` and ``sigma1``);
-    * Stribeck region: peak speeds 0.5, 1, 2, 4 times ``vs`` at 1 Hz, 2 periods (``fs``, ``vs``);
-    * sliding: peak speeds 0.1, 0.3, 0.6, 0.9 of ``qd_max`` at 0.5 Hz, 1 period (``fc, fv, dv``).
-
-    Returns ``t, q, qd`` (n_samples,) [s, rad, rad/s].
-    """
-    xb = parameters.fc / parameters.sigma0
-    segments = [(k * xb, 10.0 * frequency_scale, 4) for k in (0.3, 0.7, 1.5, 3.0)]
-    segments += [(v * parameters.vs / (2 * np.pi * frequency_scale), frequency_scale, 2) for v in (0.5, 1, 2, 4)]
-    f_slide = 0.5 * frequency_scale
-    segments += [(v * qd_max / (2 * np.pi * f_slide), f_slide, 1) for v in (0.1, 0.3, 0.6, 0.9)]
-    starts, total = [], 0.0
-    for amplitude, frequency, periods in segments:
-        starts.append(total)
-        total += periods / frequency + pause
-    t = np.arange(0.0, total, 1.0 / rate)
-    q = np.zeros_like(t)
-    qd = np.zeros_like(t)
-    for start, (amplitude, frequency, periods) in zip(starts, segments):
-        omega = 2 * np.pi * frequency
-        m = (t >= start) & (t <= start + periods / frequency)
-        q[m] = amplitude * (1 - np.cos(omega * (t[m] - start)))
-        qd[m] = amplitude * omega * np.sin(omega * (t[m] - start))
-    return t, q, qd
-
-
 def run_joint(robot, joint, noise, free, rng, substeps=1, interval=10, nm_simulator="exponential"):
     truth = LuGreParameters.from_drive(robot.drives[joint])
-    t, _, qd = friction_experiment(truth, robot.qd_max[joint])
+    t, _, qd = tuned_friction_signal(truth, robot.qd_max[joint])
     tau_true, _ = simulate_lugre(truth, t, qd, substeps=32)
     sigma = noise * truth.fc
     tau = tau_true + sigma * rng.standard_normal(t.size)
-    tv, _, qdv = friction_experiment(truth, robot.qd_max[joint], frequency_scale=1.3)
+    tv, _, qdv = tuned_friction_signal(truth, robot.qd_max[joint], frequency_scale=1.3)
     tau_v, _ = simulate_lugre(truth, tv, qdv, substeps=32)
     tau_v = tau_v + sigma * rng.standard_normal(tv.size)
 

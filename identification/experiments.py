@@ -307,3 +307,38 @@ def sine_reference(robot: RobotDescription, duration: float = 30.0, rng: np.rand
         x = (scale * weight * np.sin(np.outer(t, omega) + phase)).sum(axis=1)
         q[:, j] = centre[j] + fade * (x - x[0])
     return t, q
+
+
+def tuned_friction_signal(parameters, qd_max, rate=1000.0, frequency_scale=1.0, pause=0.2):
+    """A friction experiment tuned with the LuGre parameters known (for testing and benchmarking the fit).
+
+    The blind design the calibration uses is ``FrictionDesign``; this one places its segments at
+    multiples of the true ``fc / sigma0``, ``vs`` and ``qd_max``: a series of ``q = A (1 - cos(2 pi f t))``.
+
+    Segments start and end at rest (``qd`` continuous), separated by ``pause`` seconds of rest.
+
+    * pre-sliding: amplitudes 0.3, 0.7, 1.5, 3 times the break-away displacement ``fc / sigma0``
+      at 10 Hz, 4 periods each (hysteresis loops; ``sigma0`` and ``sigma1``);
+    * Stribeck region: peak speeds 0.5, 1, 2, 4 times ``vs`` at 1 Hz, 2 periods (``fs``, ``vs``);
+    * sliding: peak speeds 0.1, 0.3, 0.6, 0.9 of ``qd_max`` at 0.5 Hz, 1 period (``fc, fv, dv``).
+
+    Returns ``t, q, qd`` (n_samples,) [s, rad, rad/s].
+    """
+    xb = parameters.fc / parameters.sigma0
+    segments = [(k * xb, 10.0 * frequency_scale, 4) for k in (0.3, 0.7, 1.5, 3.0)]
+    segments += [(v * parameters.vs / (2 * np.pi * frequency_scale), frequency_scale, 2) for v in (0.5, 1, 2, 4)]
+    f_slide = 0.5 * frequency_scale
+    segments += [(v * qd_max / (2 * np.pi * f_slide), f_slide, 1) for v in (0.1, 0.3, 0.6, 0.9)]
+    starts, total = [], 0.0
+    for amplitude, frequency, periods in segments:
+        starts.append(total)
+        total += periods / frequency + pause
+    t = np.arange(0.0, total, 1.0 / rate)
+    q = np.zeros_like(t)
+    qd = np.zeros_like(t)
+    for start, (amplitude, frequency, periods) in zip(starts, segments):
+        omega = 2 * np.pi * frequency
+        m = (t >= start) & (t <= start + periods / frequency)
+        q[m] = amplitude * (1 - np.cos(omega * (t[m] - start)))
+        qd[m] = amplitude * omega * np.sin(omega * (t[m] - start))
+    return t, q, qd
