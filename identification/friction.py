@@ -298,14 +298,22 @@ def check_friction_data(t, qd, tau=None, owner="friction data"):
     return tuple(out.values())
 
 
-def _phi12(x):
-    """phi1(x) = (1 - e^-x)/x and phi2(x) = (x - 1 + e^-x)/x^2, accurate for all x >= 0 (numpy)."""
+def _phi12_with(x, where, expm1):
+    """phi1(x) = (1 - e^-x)/x and phi2(x) = (x - 1 + e^-x)/x^2, accurate for all x >= 0.
+
+    ``where`` and ``expm1`` are numpy's or CasADi's, so both evaluations share one formula.
+    """
     small = x < _SERIES_LIMIT
-    xs = np.where(small, 1.0, x)
-    em1 = np.expm1(-xs)
-    phi1 = np.where(small, 1 - x / 2 + x * x / 6 - x**3 / 24, -em1 / xs)
-    phi2 = np.where(small, 0.5 - x / 6 + x * x / 24 - x**3 / 120, (xs + em1) / (xs * xs))
+    xs = where(small, 1.0, x)
+    em1 = expm1(-xs)
+    phi1 = where(small, 1 - x / 2 + x * x / 6 - x**3 / 24, -em1 / xs)
+    phi2 = where(small, 0.5 - x / 6 + x * x / 24 - x**3 / 120, (xs + em1) / (xs * xs))
     return phi1, phi2
+
+
+def _phi12(x):
+    """phi1, phi2 on numpy arrays."""
+    return _phi12_with(x, np.where, np.expm1)
 
 
 @dataclass(frozen=True)
@@ -479,12 +487,8 @@ def _run_recursion(decay, gain, s0):
 # symbolic pieces (CasADi)
 # ------------------------------------------------------------------------------------------------
 def _phi12_casadi(x):
-    small = x < _SERIES_LIMIT
-    xs = ca.if_else(small, 1.0, x)
-    em1 = ca.expm1(-xs)
-    phi1 = ca.if_else(small, 1 - x / 2 + x * x / 6 - x**3 / 24, -em1 / xs)
-    phi2 = ca.if_else(small, 0.5 - x / 6 + x * x / 24 - x**3 / 120, (xs + em1) / (xs * xs))
-    return phi1, phi2
+    """phi1, phi2 as CasADi expressions."""
+    return _phi12_with(x, ca.if_else, ca.expm1)
 
 
 @dataclass(frozen=True)

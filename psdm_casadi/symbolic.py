@@ -183,6 +183,19 @@ def _torques(model, terms, weights, qd, qdd, include=None):
     return ca.vertcat(*taus)
 
 
+def _regressor_sum(model: PSDMModel, y: list, rows: np.ndarray) -> ca.SX:
+    """Y[i, k] = sum_f y_f P[f, k, i] over the selected functions, skipping zero entries of P."""
+    out = ca.SX.zeros(model.n_dof, model.n_base)
+    for i in range(model.n_dof):
+        functions, columns = np.nonzero(model.reduction[:, :, i] * rows[:, None])
+        entries = defaultdict(lambda: 0)
+        for f, k in zip(functions, columns):
+            entries[int(k)] = entries[int(k)] + float(model.reduction[f, k, i]) * y[int(f)]
+        for k, value in entries.items():
+            out[i, k] = value
+    return out
+
+
 def build_functions(model: PSDMModel, theta=None) -> DynamicsFunctions:
     """Build the CasADi functions of a PSDM model.
 
@@ -221,23 +234,8 @@ def build_functions(model: PSDMModel, theta=None) -> DynamicsFunctions:
     for f in range(model.n_functions):
         trig = terms.product(tuple(terms.digits[f]))
         y.append(factors[f] if trig is None else factors[f] * trig)
-    regressor = ca.SX.zeros(n, l)
-    for i in range(n):
-        rows, cols = np.nonzero(model.reduction[:, :, i])
-        entries = defaultdict(lambda: 0)
-        for f, k in zip(rows, cols):
-            entries[int(k)] = entries[int(k)] + float(model.reduction[f, k, i]) * y[int(f)]
-        for k, value in entries.items():
-            regressor[i, k] = value
-    gravity_rows = model.gravity_functions
-    gravity_regressor = ca.SX.zeros(n, l)
-    for i in range(n):
-        rows, cols = np.nonzero(model.reduction[:, :, i] * gravity_rows[:, None])
-        entries = defaultdict(lambda: 0)
-        for f, k in zip(rows, cols):
-            entries[int(k)] = entries[int(k)] + float(model.reduction[f, k, i]) * y[int(f)]
-        for k, value in entries.items():
-            gravity_regressor[i, k] = value
+    regressor = _regressor_sum(model, y, np.ones(model.n_functions, dtype=bool))
+    gravity_regressor = _regressor_sum(model, y, model.gravity_functions)
 
     weights = _weights(model, theta_values)
     tau = _torques(model, terms, weights, qd, qdd)

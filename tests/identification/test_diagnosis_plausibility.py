@@ -10,20 +10,11 @@ from identification.diagnosis import (DelayTerm, DiagnosisOptions, FrictionDrift
                                       LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
                                       TorqueOffsetTerm, diagnose)
 from identification.diagnosis.candidates import MAX_DELAY_S, MAX_LOAD_FRICTION
-from identification.experiments import sine_reference
-from identification.synthetic import SimulationOptions, simulate_recording
+
+from .diagnosis_data import recording_pair
 from psdm_casadi.robot import LinkInertia
 
 
-def _pair(robot, extras, seed, train_s=10.0, val_s=5.0):
-    out = []
-    for k, duration in enumerate((train_s, val_s)):
-        rng = np.random.default_rng(100 * seed + k)
-        rec, _ = simulate_recording(robot, sine_reference(robot, duration=duration, rng=rng),
-                                    SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
-                                    rng, extras=extras)
-        out.append(rec)
-    return out
 
 
 @pytest.mark.parametrize("term, coefficients, accepted", [
@@ -52,7 +43,7 @@ def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(dens
     links = list(denso.links)
     links[-1] = LinkInertia(mass=3.0, com=np.array([0.0, 0.0, 0.05]), inertia=np.eye(3) * 1e-3)
     prior = denso.with_links(links)
-    train, val = _pair(denso, [], seed=4)
+    train, val = recording_pair(denso, [], seed=4)
     lib = PayloadTerm() + TorqueOffsetTerm()
     report = diagnose(prior, train, val, DiagnosisOptions(library=lib, max_effects=1), model=denso_model)
     first = report.findings[0]
@@ -61,7 +52,7 @@ def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(dens
 
 
 def test_delay_is_refined_by_ipopt_and_lowers_the_error(denso, denso_model):
-    train, val = _pair(denso, [xp.SignalDelay(samples=6)], seed=5)
+    train, val = recording_pair(denso, [xp.SignalDelay(samples=6)], seed=5)
     messages = []
     report = diagnose(denso, train, val, DiagnosisOptions(library=DelayTerm() + TorqueOffsetTerm()), model=denso_model,
                       progress=messages.append)

@@ -11,28 +11,19 @@ from identification import extra_physics as xp
 from identification.diagnosis import (NO_FINDING, DiagnosisOptions, SpringTerm, TorqueOffsetTerm, TorqueRippleTerm,
                                       diagnose)
 from identification.diagnosis.hidden_effects import Backlash, JointElasticity
-from identification.experiments import sine_reference
 from identification.recording import Recording
-from identification.synthetic import SimulationOptions, simulate_recording
+
+from .diagnosis_data import recording_pair
 from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
 
 
-def _pair(robot, extras, seed, train_s=10.0, val_s=5.0):
-    out = []
-    for k, duration in enumerate((train_s, val_s)):
-        rng = np.random.default_rng(100 * seed + k)
-        rec, _ = simulate_recording(robot, sine_reference(robot, duration=duration, rng=rng),
-                                    SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
-                                    rng, extras=extras)
-        out.append(rec)
-    return out
 
 
 LIB = SpringTerm() + TorqueOffsetTerm() + TorqueRippleTerm(harmonics=(4, 8))
 
 
 def test_hidden_spring_is_found_with_its_stiffness(denso, denso_model):
-    train, val = _pair(denso, [xp.Spring(joint=1, stiffness=35.0, q0=0.15)], seed=1)
+    train, val = recording_pair(denso, [xp.Spring(joint=1, stiffness=35.0, q0=0.15)], seed=1)
     report = diagnose(denso, train, val, DiagnosisOptions(library=LIB), model=denso_model)
     first = report.findings[0]
     assert first.effect == "spring" and first.joints == (1,)
@@ -44,14 +35,14 @@ def test_hidden_spring_is_found_with_its_stiffness(denso, denso_model):
 def test_hidden_offset_is_found(denso, denso_model):
     offset = np.zeros(6)
     offset[2] = -2.5
-    train, val = _pair(denso, [xp.TorqueOffset(offset=tuple(offset))], seed=2)
+    train, val = recording_pair(denso, [xp.TorqueOffset(offset=tuple(offset))], seed=2)
     report = diagnose(denso, train, val, DiagnosisOptions(library=LIB), model=denso_model)
     assert report.effects[0] == "torque_offset" and report.findings[0].joints == (2,)
     assert report.findings[0].parameters["offset"] == pytest.approx(-2.5, abs=0.25)
 
 
 def test_clean_recording_gives_no_finding_and_same_seed_same_result(denso, denso_model):
-    train, val = _pair(denso, [], seed=3)
+    train, val = recording_pair(denso, [], seed=3)
     a = diagnose(denso, train, val, DiagnosisOptions(), model=denso_model)
     b = diagnose(denso, train, val, DiagnosisOptions(), model=denso_model)
     assert a.findings == () and a.summary() == NO_FINDING
@@ -61,7 +52,7 @@ def test_clean_recording_gives_no_finding_and_same_seed_same_result(denso, denso
 
 
 def test_report_and_augmented_model_files(denso, denso_model, tmp_path):
-    train, val = _pair(denso, [xp.Spring(joint=1, stiffness=35.0, q0=0.15)], seed=1)
+    train, val = recording_pair(denso, [xp.Spring(joint=1, stiffness=35.0, q0=0.15)], seed=1)
     report = diagnose(denso, train, val, DiagnosisOptions(library=LIB), model=denso_model)
     paths = report.save(tmp_path, plots=False)
     assert "spring" in paths["markdown"].read_text()
