@@ -8,6 +8,10 @@ times, on the same 10^6 pre-generated random states (median of repeats):
 - PSDM regressor Y vs ``pinocchio::computeJointTorqueRegressor``,
 - PSDM inverse/forward dynamics vs a CasADi SX rnea model code-generated the same way.
 
+"PSDM" is the exported recursive form (``psdm_casadi.recursive``); the paper's sum form
+(``psdm_casadi.symbolic``) is timed beside it when the model has at most 5000 functions. Both are
+exported by ``codegen.export_c`` with the inlined sin/cos, like the CasADi peer.
+
 Targets (issue 3): id >= 8x, fd >= 6x, regressor >= 10x faster than Pinocchio; faster than the
 CasADi rnea in both. Usage::
 
@@ -29,7 +33,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 
-from codegen.speed import cmeel_prefix, find_prerequisites, measure_speed  # noqa: E402
+from codegen.speed import SPEED_ROWS, SUM_FORM_MAX_FUNCTIONS, cmeel_prefix, find_prerequisites, measure_speed  # noqa: E402
 from psdm_casadi.errors import SolverError  # noqa: E402
 from psdm_casadi.robot import from_urdf, load_robot  # noqa: E402
 
@@ -52,25 +56,28 @@ def robots():
     }
 
 
+def _us(ns: dict, key) -> float:
+    return ns[key] / 1e3 if key and key in ns else float("nan")
+
+
 def print_table(results) -> None:
-    rows = [("inverse dynamics", "psdm_id", "pinocchio_rnea", "casadi_rnea_id"),
-            ("forward dynamics", "psdm_fd", "pinocchio_aba", "casadi_rnea_fd"),
-            ("regressor Y", "psdm_regressor", "pinocchio_regressor", None)]
-    for key, r in results.items():
+    for r in results.values():
         ns = r["ns"]
-        print(f"\n{r['robot']} (n_dof={r['n_dof']}, {r['n_samples']} random states, median of {r['repeats']})")
-        print(f"{'function':18s} {'PSDM [us]':>10s} {'Pinocchio [us]':>15s} {'CasADi rnea [us]':>17s} "
-              f"{'vs Pinocchio':>13s} {'vs CasADi rnea':>15s}")
-        for label, ours, pin_key, peer_key in rows:
-            mine = ns[ours] / 1e3 if ns[ours] > 0 else float("nan")
-            pin_t = ns[pin_key] / 1e3
-            peer_t = ns[peer_key] / 1e3 if peer_key else float("nan")
-            print(f"{label:18s} {mine:10.3f} {pin_t:15.3f} {peer_t:17.3f} {pin_t / mine:12.1f}x "
-                  f"{(peer_t / mine if peer_key else float('nan')):14.2f}x")
+        print(f"\n{r['robot']} (n_dof={r['n_dof']}, p={r['n_functions']}, l={r['n_base']}; {r['n_samples']} random "
+              f"states, median of {r['repeats']}; times in us)")
+        print(f"{'function':18s} {'PSDM':>8s} {'PSDM sum':>9s} {'Pinocchio':>10s} {'CasADi NE':>10s} "
+              f"{'vs Pinocchio':>13s} {'vs CasADi NE':>13s} {'sum vs Pinocchio':>17s}")
+        for label, suffix, pin_key, peer_key in SPEED_ROWS:
+            ours, summed = _us(ns, f"psdm_{suffix}"), _us(ns, f"psdm_sum_{suffix}")
+            pin_t, peer_t = _us(ns, pin_key), _us(ns, peer_key)
+            print(f"{label:18s} {ours:8.3f} {summed:9.3f} {pin_t:10.3f} {peer_t:10.3f} {pin_t / ours:12.1f}x "
+                  f"{peer_t / ours:12.2f}x {pin_t / summed:16.1f}x")
         ops = {**r.get("n_operations", {}), **r["casadi_rnea_n_operations"]}
         print("arithmetic operations: " + ", ".join(f"{k}={v}" for k, v in ops.items()))
         errors = ", ".join(f"{k}={v:.1e}" for k, v in r["max_abs_error"].items())
         print(f"max |error| vs Pinocchio on 1000 states: {errors}")
+    print("\nPSDM: the exported recursive form (Newton-Euler on the base parameters' sparse standard preimage); "
+          "PSDM sum: the paper's pseudo-symbolic sum (not timed when p > %d)." % SUM_FORM_MAX_FUNCTIONS)
 
 
 def main(argv=None) -> int:

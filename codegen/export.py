@@ -10,6 +10,7 @@ Compiling is a separate step (``codegen.build``).
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -18,7 +19,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.errors import ParameterError, ShapeError
+from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
 EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
@@ -231,12 +232,75 @@ def _example_code(functions, theta, rng):
     return "\n".join(inputs), "\n".join(calls)
 
 
+_MATH_INCLUDE = "#include <math.h>\n"
+_LIBM_TRIG_CALL = re.compile(r"(?<![A-Za-z0-9_])(sin|cos)\(")
+_FUNCTION_START = re.compile(r"^static int casadi_f\d+\(.*\{$")
+_DECLARATION = re.compile(r"^  (const )?casadi_(real|int)\b")
+_INPUT_LOAD = re.compile(r"^  (a\d+)=arg\[(\d+)\]\? arg\[\2\]\[(\d+)\] : 0;$")
+_TRIG_OF_VARIABLE = re.compile(r"^  (a\d+)=psdm_(sin|cos)\((a\d+)\);$")
+_ASSIGNMENT = re.compile(r"^  (a\d+)=")
+
+
+def _hoist_input_trig(lines: list) -> list:
+    """In one generated function, compute the sin/cos of input entries together at the top (psdm_sincos_n).
+
+    CasADi writes straight-line code: ``aK=arg[i]? arg[i][m] : 0;`` loads an input entry and
+    ``aJ=psdm_sin(aK);`` uses it. Following which variable holds which entry (until it is assigned
+    again), every such call becomes a read of the precomputed ``psdm_s``/``psdm_c`` arrays.
+    """
+    holds, angles, out = {}, [], []
+    for line in lines:
+        trig = _TRIG_OF_VARIABLE.match(line)
+        if trig and trig.group(3) in holds:
+            entry = holds[trig.group(3)]
+            if entry not in angles:
+                angles.append(entry)
+            line = f"  {trig.group(1)}=psdm_{trig.group(2)[0]}[{angles.index(entry)}];"
+        load = _INPUT_LOAD.match(line)
+        assigned = _ASSIGNMENT.match(line)
+        if assigned:
+            holds.pop(assigned.group(1), None)
+        if load:
+            holds[load.group(1)] = (int(load.group(2)), int(load.group(3)))
+        out.append(line)
+    if not angles:
+        return lines
+    body_start = 1
+    while body_start < len(out) and _DECLARATION.match(out[body_start]):
+        body_start += 1
+    k = len(angles)
+    setup = [f"  casadi_real psdm_x[{k}], psdm_s[{k}], psdm_c[{k}];"]
+    setup += [f"  psdm_x[{index}]=arg[{i}]? arg[{i}][{m}] : 0;" for index, (i, m) in enumerate(angles)]
+    setup.append(f"  psdm_sincos_n(psdm_x, psdm_s, psdm_c, {k});")
+    return out[:body_start] + setup + out[body_start:]
+
+
+def _inline_trig(source: Path) -> None:
+    """Make a generated C file use the inlined sin/cos (psdm_sincos_n for input angles, psdm_sin/psdm_cos else)."""
+    text = source.read_text()
+    if _MATH_INCLUDE not in text:
+        raise SolverError(f"CasADi's generated {source.name} has no '#include <math.h>'; export with fast_trig=False.")
+    lines, out, function = _LIBM_TRIG_CALL.sub(r"psdm_\1(", text).split("\n"), [], None
+    for line in lines:
+        if function is None and _FUNCTION_START.match(line):
+            function = [line]
+        elif function is not None:
+            function.append(line)
+            if line == "}":
+                out += _hoist_input_trig(function)
+                function = None
+        else:
+            out.append(line)
+    head, _, tail = "\n".join(out).partition(_MATH_INCLUDE)
+    source.write_text(head + _MATH_INCLUDE + _template("fast_trig.c.in") + tail)
+
+
 def _template(name):
     return (Path(__file__).parent / "templates" / name).read_text()
 
 
 def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=False, library="psdm_dynamics",
-             prefix="psdm_", cse=True, overwrite=False) -> CExport:
+             prefix="psdm_", cse=True, fast_trig=True, overwrite=False) -> CExport:
     """Generate a self-contained C folder for the dynamics Functions.
 
     Parameters
@@ -259,6 +323,10 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         Prefix of every C symbol.
     cse : bool
         Let CasADi eliminate common subexpressions (shared products and trig terms).
+    fast_trig : bool
+        Replace libm's ``sin``/``cos`` in the generated code by inlined ones (``psdm_sin``/``psdm_cos``:
+        Cody-Waite reduction and minimax polynomials, within a few ulp of libm; libm beyond
+        ``|x| >= 1e5``). Calling libm costs most of the time of a small robot's inverse dynamics.
     overwrite : bool
         Allow writing into a non-empty folder (files of the same name are replaced).
 
@@ -326,6 +394,8 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         for f in exported:
             generator.add(f)
         generator.generate(str(staging) + os.sep)
+        if fast_trig:
+            _inline_trig(staging / f"{library}.c")
         input_code, call_code = _example_code(exported, theta, np.random.default_rng(_EXAMPLE_SEED))
         main_c = _template("main.c.in").replace("@LIBRARY@", library).replace("@INPUTS@", input_code)
         (staging / "main.c").write_text(main_c.replace("@CALLS@", call_code))

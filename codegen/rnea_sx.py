@@ -13,19 +13,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
 from psdm_casadi.forward import ldl_solve
-
-# Pinocchio joint short names -> (kind, axis) for the 1-DOF joints supported here.
-_AXIS_JOINTS = {
-    "JointModelRX": ("revolute", (1.0, 0.0, 0.0)),
-    "JointModelRY": ("revolute", (0.0, 1.0, 0.0)),
-    "JointModelRZ": ("revolute", (0.0, 0.0, 1.0)),
-    "JointModelPX": ("prismatic", (1.0, 0.0, 0.0)),
-    "JointModelPY": ("prismatic", (0.0, 1.0, 0.0)),
-    "JointModelPZ": ("prismatic", (0.0, 0.0, 1.0)),
-}
-_ZERO_TOLERANCE = 1e-14  # model numbers smaller than this are rounding noise of cos(pi/2); set them to 0
+from psdm_casadi.kinematics_sx import clean as _clean
+from psdm_casadi.kinematics_sx import cross as _cross
+from psdm_casadi.kinematics_sx import joint_chain
 
 
 @dataclass(frozen=True)
@@ -47,67 +38,6 @@ class RneaFunctions:
     mass_matrix: ca.Function
     forward_dynamics: ca.Function
     n_dof: int
-
-
-def _clean(values) -> np.ndarray:
-    arr = np.array(values, dtype=float)
-    arr[np.abs(arr) < _ZERO_TOLERANCE] = 0.0
-    return arr
-
-
-def _joint_kind_axis(jmodel, name):
-    short = jmodel.shortname()
-    if short in _AXIS_JOINTS:
-        return _AXIS_JOINTS[short]
-    if short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-        kind = "revolute" if "Revolute" in short else "prismatic"
-        return kind, tuple(float(a) for a in np.asarray(jmodel.extract().axis).ravel())
-    raise ParameterError(
-        f"build_rnea_functions model joint {name!r} must be a 1-DOF revolute or prismatic joint; got {short}. "
-        "Lock it (pinocchio.buildReducedModel) or use a URDF with revolute/prismatic joints."
-    )
-
-
-def _cross(a, b):
-    return ca.vertcat(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
-
-
-def _axis_rotation(axis, c, s):
-    """Rotation by an angle about a unit axis, from its cosine and sine (Rodrigues)."""
-    x, y, z = axis
-    t = 1 - c
-    rows = [
-        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
-        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
-        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
-    ]
-    return ca.vertcat(*[ca.horzcat(*row) for row in rows])
-
-
-class _Kinematics:
-    """Per-joint relative placements (R, p) of joint i in its parent, as SX of q."""
-
-    def __init__(self, model, q):
-        self.parents, self.rotations, self.translations, self.kinds, self.axes = [], [], [], [], []
-        for jid in range(1, model.njoints):
-            jmodel = model.joints[jid]
-            kind, axis = _joint_kind_axis(jmodel, model.names[jid])
-            placement = model.jointPlacements[jid]
-            rot0 = ca.SX(ca.DM(_clean(placement.rotation)))
-            p0 = ca.SX(ca.DM(_clean(placement.translation)))
-            qi = q[jmodel.idx_q]
-            axis = _clean(axis)
-            if kind == "revolute":
-                rot = ca.mtimes(rot0, _axis_rotation(axis, ca.cos(qi), ca.sin(qi)))
-                p = p0
-            else:
-                rot = rot0
-                p = p0 + ca.mtimes(rot0, ca.SX(ca.DM(axis))) * qi
-            self.parents.append(model.parents[jid] - 1)
-            self.rotations.append(rot)
-            self.translations.append(p)
-            self.kinds.append(kind)
-            self.axes.append(ca.SX(ca.DM(axis)))
 
 
 def _inertia_apply(mass, com, inertia, w, v):
@@ -132,7 +62,7 @@ def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
         else:
             w_p, v_p, dw_p, dv_p = w_list[parent], v_list[parent], dw_list[parent], dv_list[parent]
         axis = kin.axes[i]
-        revolute = kin.kinds[i] == "revolute"
+        revolute = kin.revolute[i]
         # motion transported into the child frame: w' = R^T w, v' = R^T (v + w x p)
         w_in = ca.mtimes(rt, w_p)
         v_in = ca.mtimes(rt, v_p + _cross(w_p, p))
@@ -168,7 +98,7 @@ def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
     armature = _clean(model.armature)
     for i in reversed(range(n)):
         axis = kin.axes[i]
-        if kin.kinds[i] == "revolute":
+        if kin.revolute[i]:
             tau[i] = ca.dot(axis, torques[i])
         else:
             tau[i] = ca.dot(axis, forces[i])
@@ -213,14 +143,9 @@ def build_rnea_functions(model, *, cse=True) -> RneaFunctions:
     >>> peer = build_rnea_functions(oracle.model)        # doctest: +SKIP
     >>> peer.inverse_dynamics(q, qd, qdd)                # doctest: +SKIP
     """
-    if model.nq != model.nv:
-        raise ParameterError(
-            f"build_rnea_functions model must have nq == nv; got nq={model.nq}, nv={model.nv}. "
-            "Lock joints with more than one configuration variable."
-        )
     n = model.nv
     q, qd, qdd, tau = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
-    kin = _Kinematics(model, q)
+    kin = joint_chain(model, q, caller="build_rnea_functions")
     gravity = ca.SX(ca.DM(_clean(model.gravity.linear)))
     opts = {"cse": bool(cse)}
     tau_id = _rnea_pass(model, kin, qd, qdd, gravity, with_velocity=True)

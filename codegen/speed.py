@@ -16,6 +16,7 @@ import json
 import subprocess
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -94,19 +95,61 @@ def _cpp_joint(model, jid) -> str:
     ])
 
 
-def psdm_functions(robot, theta=None):
-    """PSDM Functions of the robot and the base parameters to bake in (nominal ones by default)."""
+# (label, our key suffix, Pinocchio key, CasADi Newton-Euler key) of the rows of every speed table.
+SPEED_ROWS = (("inverse dynamics", "id", "pinocchio_rnea", "casadi_rnea_id"),
+              ("forward dynamics", "fd", "pinocchio_aba", "casadi_rnea_fd"),
+              ("regressor Y", "regressor", "pinocchio_regressor", None))
+
+# The sum form (the paper's pseudo-symbolic sum) is timed too when the model is small enough to compile
+# in seconds; the Panda's 29639 functions take about 20 minutes at -O3.
+SUM_FORM_MAX_FUNCTIONS = 5000
+
+
+@dataclass(frozen=True)
+class _Variant:
+    """One PSDM export timed by the harness: JSON keys ``<key>_id``, ``<key>_fd``, ``<key>_regressor``."""
+
+    key: str
+    functions: object
+    label: str
+
+
+def psdm_variants(robot, *, sum_form=None) -> tuple:
+    """(variants, model, theta): the recursive form and, if small enough or asked, the sum form.
+
+    theta are the robot's nominal base parameters (baked into every variant).
+    """
     from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.recursive import build_recursive_functions
     from psdm_casadi.symbolic import build_functions
 
     model = derive_psdm(robot)
-    if theta is None:
-        theta = model.base_parameters(robot.nominal_dynamic_parameters())
-    return build_functions(model), np.asarray(theta, dtype=float).ravel()
+    variants = [_Variant("psdm", build_recursive_functions(model, robot), "recursive form")]
+    if sum_form is None:
+        sum_form = model.n_functions <= SUM_FORM_MAX_FUNCTIONS
+    if sum_form:
+        variants.append(_Variant("psdm_sum", build_functions(model), "sum form (paper)"))
+    return tuple(variants), model
+
+
+def _variant_block(variant, n_base, theta) -> str:
+    """C++ lines timing one exported variant (library ``<key>_dyn``, symbols ``<key>_*``)."""
+    k = variant.key
+    return "\n".join([
+        "  {",
+        f"    static const double theta[] = {{{_cpp_numbers(theta)}}};",
+        f"    CasadiCall id = CASADI_CALL({k}_inverse_dynamics, n);",
+        f"    CasadiCall fd = CASADI_CALL({k}_forward_dynamics, n);",
+        f"    CasadiCall y = CASADI_CALL({k}_regressor, n * {n_base});",
+        f"    record(\"{k}_id\", time_id(id), id_error(id));",
+        f"    record(\"{k}_fd\", time_fd(fd), fd_error(fd));",
+        f"    record(\"{k}_regressor\", time_id(y), regressor_error(y, theta, {n_base}));",
+        "  }",
+    ])
 
 
 def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, repeats: int = 5, log=None,
-                  key: str | None = None) -> dict:
+                  key: str | None = None, sum_form: bool | None = None) -> dict:
     """Export, generate, compile and run the harness of one robot; returns its timings and ratios.
 
     Parameters
@@ -116,11 +159,23 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
     workdir : Path
         Build folder (created).
     theta : array, optional
-        Base parameters baked into the PSDM functions; the robot's nominal ones by default.
+        Base parameters baked into the PSDM functions; the robot's nominal ones by default (the
+        Pinocchio model always has the nominal inertia, so other values fail the agreement check).
     n_samples, repeats : int
         Random states per repeat, and repeats (the median is reported).
     log : callable, optional
         Progress messages.
+    key : str, optional
+        Name of the robot in the messages.
+    sum_form : bool, optional
+        Also time the sum form; by default when the model has at most SUM_FORM_MAX_FUNCTIONS functions.
+
+    Returns
+    -------
+    dict
+        ``ns`` (median time per call), ``max_abs_error`` against Pinocchio on 1000 states, the five
+        ratios of issue 3 for the recursive form (``*_speedup_*``), the same for the sum form under
+        ``sum_form`` when timed, and operation counts.
 
     Raises
     ------
@@ -138,24 +193,28 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
     peer = build_rnea_functions(pin_model)
     peer_export = export_c([peer.inverse_dynamics, peer.forward_dynamics], workdir, library="rnea_dyn",
                            prefix="rnea_", overwrite=True)
-    functions, theta = psdm_functions(robot, theta)
-    psdm_export = None
-    if functions is not None:
-        psdm_export = export_c([functions.inverse_dynamics, functions.forward_dynamics, functions.regressor], workdir,
-                               theta=theta, runtime_theta=False, library="psdm_dyn", prefix="psdm_", overwrite=True)
-    log(f"{key}: exported in {time.perf_counter() - t0:.1f} s")
+    variants, model = psdm_variants(robot, sum_form=sum_form)
+    if theta is None:
+        theta = model.base_parameters(robot.nominal_dynamic_parameters())
+    theta = np.asarray(theta, dtype=float).ravel()
+    exports = {}
+    for variant in variants:
+        functions = variant.functions
+        exports[variant.key] = export_c(
+            [functions.inverse_dynamics, functions.forward_dynamics, functions.regressor], workdir, theta=theta,
+            runtime_theta=False, library=f"{variant.key}_dyn", prefix=f"{variant.key}_", overwrite=True)
+    log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)})")
     joints = "\n".join(_cpp_joint(pin_model, jid) for jid in range(1, pin_model.njoints))
-    template = TEMPLATE.read_text()
-    n_base = theta.size if theta is not None else 1
-    source = (template.replace("@ROBOT@", robot.name).replace("@N_DOF@", str(n)).replace("@JOINTS@", joints)
+    source = (TEMPLATE.read_text().replace("@ROBOT@", robot.name).replace("@N_DOF@", str(n))
+              .replace("@JOINTS@", joints)
               .replace("@ARMATURE@", _cpp_numbers(pin_model.armature))
               .replace("@GRAVITY@", _cpp_numbers(pin_model.gravity.linear))
-              .replace("@HAVE_PSDM@", "1" if psdm_export else "0").replace("@N_BASE@", str(n_base))
-              .replace("@THETA@", _cpp_numbers(theta) if theta is not None else "0.0"))
+              .replace("@INCLUDES@", "\n".join(f'#include "{v.key}_dyn.h"' for v in variants))
+              .replace("@VARIANTS@", "\n".join(_variant_block(v, theta.size, theta) for v in variants)))
     (workdir / "bench.cpp").write_text(source)
     t0 = time.perf_counter()
     objects = []
-    for lib in ("rnea_dyn", "psdm_dyn") if psdm_export else ("rnea_dyn",):
+    for lib in ["rnea_dyn"] + [f"{v.key}_dyn" for v in variants]:
         _run(["cc", *OPT_FLAGS, "-c", f"{lib}.c", "-o", f"{lib}.o"], workdir)
         objects.append(f"{lib}.o")
     _run(["c++", *OPT_FLAGS, "-std=c++17", *PINOCCHIO_DEFINES, f"-I{eigen}", f"-I{include}", "-w",
@@ -163,25 +222,26 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
     log(f"{key}: compiled in {time.perf_counter() - t0:.1f} s; running {n_samples} states x {repeats} repeats")
     out = _run(["./bench", str(n_samples), str(repeats)], workdir)
     result = json.loads(out.strip().splitlines()[-1])
-    ns = result["ns"]
-    result["robot"] = robot.name
-    result["n_dof"] = n
-    if psdm_export:
-        result["n_base"] = int(theta.size)
-        result["n_instructions"] = psdm_export.n_instructions
-        result["n_operations"] = {c.name: c.n_operations for c in psdm_export.operation_counts}
-        result.update({
-            "id_speedup_vs_pinocchio": ns["pinocchio_rnea"] / ns["psdm_id"],
-            "fd_speedup_vs_pinocchio": ns["pinocchio_aba"] / ns["psdm_fd"],
-            "regressor_speedup_vs_pinocchio": ns["pinocchio_regressor"] / ns["psdm_regressor"],
-            "id_speedup_vs_casadi_rnea": ns["casadi_rnea_id"] / ns["psdm_id"],
-            "fd_speedup_vs_casadi_rnea": ns["casadi_rnea_fd"] / ns["psdm_fd"],
-        })
-    else:
-        result.update({key_: None for key_ in TARGETS})
+    result.update(robot=robot.name, n_dof=n, n_base=int(theta.size), n_functions=int(model.n_functions))
+    result.update(speedups(result["ns"], "psdm"))
+    if "psdm_sum" in exports:
+        result["sum_form"] = speedups(result["ns"], "psdm_sum")
+    result["n_operations"] = {c.name: c.n_operations for e in exports.values() for c in e.operation_counts}
+    result["n_instructions"] = {name: count for e in exports.values() for name, count in e.n_instructions.items()}
     result["casadi_rnea_n_instructions"] = peer_export.n_instructions
     result["casadi_rnea_n_operations"] = {c.name: c.n_operations for c in peer_export.operation_counts}
     return result
+
+
+def speedups(ns: dict, key: str) -> dict:
+    """The five ratios of issue 3 (peer time / our time) for the variant ``key`` of a harness result."""
+    return {
+        "id_speedup_vs_pinocchio": ns["pinocchio_rnea"] / ns[f"{key}_id"],
+        "fd_speedup_vs_pinocchio": ns["pinocchio_aba"] / ns[f"{key}_fd"],
+        "regressor_speedup_vs_pinocchio": ns["pinocchio_regressor"] / ns[f"{key}_regressor"],
+        "id_speedup_vs_casadi_rnea": ns["casadi_rnea_id"] / ns[f"{key}_id"],
+        "fd_speedup_vs_casadi_rnea": ns["casadi_rnea_fd"] / ns[f"{key}_fd"],
+    }
 
 
 def _run(command, cwd) -> str:
@@ -199,13 +259,16 @@ def main(argv=None) -> int:
     parser.add_argument("--samples", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--theta", type=Path, help=".npy file of base parameters to bake in")
+    parser.add_argument("--sum-form", choices=("auto", "yes", "no"), default="auto",
+                        help=f"also time the paper's sum form (auto: models of at most {SUM_FORM_MAX_FUNCTIONS} functions)")
     args = parser.parse_args(argv)
     from psdm_casadi.robot import load_robot
 
     theta = np.load(args.theta) if args.theta else None
     try:
         result = measure_speed(load_robot(args.robot), args.workdir, theta=theta, n_samples=args.samples,
-                               repeats=args.repeats, log=lambda m: print(m, file=sys.stderr, flush=True))
+                               repeats=args.repeats, log=lambda m: print(m, file=sys.stderr, flush=True),
+                               sum_form={"auto": None, "yes": True, "no": False}[args.sum_form])
     except SolverError as exc:
         print(json.dumps({"error": str(exc)}))
         return 3

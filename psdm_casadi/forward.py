@@ -23,18 +23,22 @@ def ldl_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
     casadi.SX, shape (n, 1)
     """
     n = matrix.shape[0]
+    # scaled[i][k] = L_ik d_k is the off-diagonal value before the division by d_k: keeping it makes
+    # every update term one product instead of two.
     lower = [[None] * n for _ in range(n)]
+    scaled = [[None] * n for _ in range(n)]
     diag = [None] * n
     for j in range(n):
         d = matrix[j, j]
         for k in range(j):
-            d = d - lower[j][k] * lower[j][k] * diag[k]
+            d = d - lower[j][k] * scaled[j][k]
         diag[j] = d
         inv_d = 1.0 / d
         for i in range(j + 1, n):
             value = matrix[i, j]
             for k in range(j):
-                value = value - lower[i][k] * lower[j][k] * diag[k]
+                value = value - lower[i][k] * scaled[j][k]
+            scaled[i][j] = value
             lower[i][j] = value * inv_d
     y = [None] * n  # L y = rhs
     for i in range(n):

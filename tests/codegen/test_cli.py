@@ -75,3 +75,23 @@ def test_codegen_compile_and_load(tmp_path, capsys, denso, denso_model, rng):
     q, qd, qdd = rng.uniform(-2, 2, (3, denso.n_dof))
     tau = np.array(inverse(q, qd, qdd), dtype=float).ravel()
     np.testing.assert_allclose(tau, PinocchioOracle(denso).rnea(q, qd, qdd), rtol=1e-9, atol=1e-9)
+
+
+def test_codegen_forms_of_a_saved_model(tmp_path, capsys, denso, denso_model):
+    """A model file exports the sum form alone, the recursive form with --robot (a much smaller graph)."""
+    model_file = denso_model.save(tmp_path / "denso.npz")
+    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    np.save(tmp_path / "theta.npy", theta)
+    runs = {}
+    for form, extra in (("sum", []), ("recursive", ["--robot", str(DENSO_FILE)])):
+        out = tmp_path / form
+        assert main(["codegen", str(model_file), "--out", str(out), "--theta", str(tmp_path / "theta.npy"),
+                     "--json", *extra]) == 0
+        runs[form] = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+        assert runs[form]["form"] == form
+    assert runs["recursive"]["n_instructions"]["psdm_inverse_dynamics"] < \
+        runs["sum"]["n_instructions"]["psdm_inverse_dynamics"] / 4
+    code = main(["codegen", str(model_file), "--out", str(tmp_path / "none"), "--form", "recursive"])
+    assert code == 2 and "--robot ROBOT_FILE" in capsys.readouterr().err
+    code = main(["codegen", str(DENSO_FILE), "--out", str(tmp_path / "twice"), "--robot", str(DENSO_FILE)])
+    assert code == 2 and "Drop --robot" in capsys.readouterr().err

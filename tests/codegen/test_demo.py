@@ -22,7 +22,7 @@ def test_quick_demo_finds_the_hidden_spring_and_writes_the_report(quick_report):
     assert spring and spring[0]["joints"] == [4]
     joint = 3
     assert summary["diagnosis"]["rmse_after"][joint] < 0.5 * summary["diagnosis"]["rmse_before"][joint]
-    assert summary["codegen"]["c_vs_casadi_max_abs"] < 1e-9
+    assert summary["codegen"]["c_vs_python_max_abs"] < 1e-9
     report = (quick_report.folder / "report.md").read_text()
     for heading in ("Derived model", "Excitation", "Table 3", "Diagnosis", "C code"):
         assert heading in report

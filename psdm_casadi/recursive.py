@@ -1,0 +1,115 @@
+"""build_recursive_functions(): the PSDM model's CasADi functions evaluated by a Newton-Euler recursion (the fast form).
+
+Same outputs as ``build_functions`` (the pseudo-symbolic sum of the paper) and equal to it to
+rounding, for every theta_b: torques are Y(q, qd, qdd) theta_b computed as the Newton-Euler
+recursion on the sparse standard-parameter preimage ``T theta_b`` (``psdm_casadi.preimage``). The
+reduction to base parameters shows up as the standard parameters the preimage sets to zero, which
+CasADi folds away; the kinematics are shared by every function. The regressor is the exact
+Jacobian of that linear map. This form needs the robot's kinematics, not only E and P, and is the
+one to export when speed matters (see ``benchmarks/dynamics_speed.py``).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from .errors import ShapeError
+from .forward import ldl_solve
+from .kinematics_sx import joint_chain
+from .model import PSDMModel
+from .newton_euler import newton_euler
+from .oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
+from .preimage import StandardPreimage, standard_preimage
+from .robot import RobotDescription
+from .symbolic import DynamicsFunctions
+
+
+def _linear_parameters(preimage: StandardPreimage, theta) -> list:
+    """Per joint 11 SX entries of T theta, summed over the nonzeros of T only."""
+    values = []
+    for row in range(preimage.matrix.shape[0]):
+        entry = ca.SX(0)
+        for k in np.flatnonzero(preimage.matrix[row]):
+            entry = entry + float(preimage.matrix[row, k]) * theta[int(k)]
+        values.append(entry)
+    return [values[N_PARAMETERS_PER_JOINT * i:N_PARAMETERS_PER_JOINT * (i + 1)] for i in range(preimage.n_dof)]
+
+
+def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=None, *,
+                              preimage: StandardPreimage | None = None) -> DynamicsFunctions:
+    """Build the CasADi functions of a PSDM model by Newton-Euler on its standard-parameter preimage.
+
+    Parameters
+    ----------
+    model : PSDMModel
+    robot : RobotDescription
+        The robot the model was derived from.
+    theta : array, shape (n_base,), optional
+        Numeric base parameters to compile in; the functions then have no ``theta`` input.
+    preimage : StandardPreimage, optional
+        Reuse one computed by ``standard_preimage(model, robot)``.
+
+    Returns
+    -------
+    DynamicsFunctions
+        Same names, inputs and outputs as ``build_functions(model, theta)``.
+
+    Raises
+    ------
+    DerivationError
+        When the model was not derived from this robot.
+    ShapeError
+        When theta does not have n_base entries.
+    """
+    preimage = preimage or standard_preimage(model, robot)
+    n, l = model.n_dof, model.n_base
+    q, qd, qdd, tau_in = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
+    theta_sym = ca.SX.sym("theta", l)
+    kinematics = build_pinocchio_model(robot, np.zeros((n, N_PARAMETERS_PER_JOINT)))  # placements only
+    chain = joint_chain(kinematics, q, caller="build_recursive_functions")
+    base_acceleration = ca.DM(-np.asarray(robot.gravity, dtype=float))
+    no_gravity = ca.DM.zeros(3, 1)
+    zero = ca.SX.zeros(n, 1)
+
+    # The regressor is the Jacobian of the (linear) torques in theta; dense, like build_functions' one.
+    symbolic_parameters = _linear_parameters(preimage, theta_sym)
+    tau_symbolic = newton_euler(chain, symbolic_parameters, qd, qdd, base_acceleration)
+    gravity_symbolic = newton_euler(chain, symbolic_parameters, zero, zero, base_acceleration, with_velocity=False)
+    regressor = ca.densify(ca.jacobian(tau_symbolic, theta_sym))
+    gravity_regressor = ca.densify(ca.jacobian(gravity_symbolic, theta_sym))
+
+    if theta is None:
+        parameters, theta_inputs, theta_names, baked = symbolic_parameters, [theta_sym], ["theta"], None
+    else:
+        baked = np.asarray(theta, dtype=float).reshape(-1)
+        if baked.size != l:
+            raise ShapeError(f"theta must have {l} base parameters; got {baked.size}.")
+        parameters = [[float(v) for v in row] for row in preimage.standard_parameters(baked)]
+        theta_inputs, theta_names = [], []
+
+    tau = newton_euler(chain, parameters, qd, qdd, base_acceleration)
+    gravity = newton_euler(chain, parameters, zero, zero, base_acceleration, with_velocity=False)
+    bias = newton_euler(chain, parameters, qd, zero, base_acceleration)
+    mass = ca.SX.zeros(n, n)
+    for k in range(n):
+        column = newton_euler(chain, parameters, zero, ca.SX(ca.DM(np.eye(n)[k])), no_gravity, with_velocity=False)
+        for i in range(k, n):
+            mass[i, k] = column[i]
+            mass[k, i] = column[i]
+    qdd_forward = ldl_solve(mass, tau_in - bias)
+
+    def function(name, inputs, input_names, output, output_name):
+        return ca.Function(name, inputs + theta_inputs, [output], input_names + theta_names, [output_name],
+                           {"cse": True})
+
+    return DynamicsFunctions(
+        regressor=ca.Function("regressor", [q, qd, qdd], [regressor], ["q", "qd", "qdd"], ["Y"], {"cse": True}),
+        gravity_regressor=ca.Function("gravity_regressor", [q], [gravity_regressor], ["q"], ["Y_grav"], {"cse": True}),
+        inverse_dynamics=function("inverse_dynamics", [q, qd, qdd], ["q", "qd", "qdd"], tau, "tau"),
+        mass_matrix=function("mass_matrix", [q], ["q"], mass, "D"),
+        bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
+        gravity=function("gravity", [q], ["q"], gravity, "G"),
+        forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], qdd_forward, "qdd"),
+        n_dof=n, n_base=l, theta=baked,
+    )
