@@ -132,19 +132,27 @@ def psdm_variants(robot, *, sum_form=None) -> tuple:
     return tuple(variants), model
 
 
-def _variant_block(variant, n_base, theta) -> str:
-    """C++ lines timing one exported variant (library ``<key>_dyn``, symbols ``<key>_*``)."""
+def _variant_setup(variant, n_base, theta) -> str:
+    """C++ lines declaring one exported variant's calls (library ``<key>_dyn``) and checking them."""
     k = variant.key
     return "\n".join([
-        "  {",
-        f"    static const double theta[] = {{{_cpp_numbers(theta)}}};",
-        f"    CasadiCall id = CASADI_CALL({k}_inverse_dynamics, n);",
-        f"    CasadiCall fd = CASADI_CALL({k}_forward_dynamics, n);",
-        f"    CasadiCall y = CASADI_CALL({k}_regressor, n * {n_base});",
-        f"    record(\"{k}_id\", time_id(id), id_error(id));",
-        f"    record(\"{k}_fd\", time_fd(fd), fd_error(fd));",
-        f"    record(\"{k}_regressor\", time_id(y), regressor_error(y, theta, {n_base}));",
-        "  }",
+        f"  static const double {k}_theta[] = {{{_cpp_numbers(theta)}}};",
+        f"  CasadiCall {k}_id = CASADI_CALL({k}_inverse_dynamics, n);",
+        f"  CasadiCall {k}_fd = CASADI_CALL({k}_forward_dynamics, n);",
+        f"  CasadiCall {k}_y = CASADI_CALL({k}_regressor, n * {n_base});",
+        f"  errors[\"{k}_id\"] = id_error({k}_id);",
+        f"  errors[\"{k}_fd\"] = fd_error({k}_fd);",
+        f"  errors[\"{k}_regressor\"] = regressor_error({k}_y, {k}_theta, {n_base});",
+    ])
+
+
+def _variant_timing(variant) -> str:
+    """C++ lines timing one variant in a round: JSON keys ``<key>_id``, ``<key>_fd``, ``<key>_regressor``."""
+    k = variant.key
+    return "\n".join([
+        f"    rounds[\"{k}_id\"].push_back(time_id({k}_id));",
+        f"    rounds[\"{k}_fd\"].push_back(time_fd({k}_fd));",
+        f"    rounds[\"{k}_regressor\"].push_back(time_id({k}_y));",
     ])
 
 
@@ -210,7 +218,8 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
               .replace("@ARMATURE@", _cpp_numbers(pin_model.armature))
               .replace("@GRAVITY@", _cpp_numbers(pin_model.gravity.linear))
               .replace("@INCLUDES@", "\n".join(f'#include "{v.key}_dyn.h"' for v in variants))
-              .replace("@VARIANTS@", "\n".join(_variant_block(v, theta.size, theta) for v in variants)))
+              .replace("@VARIANT_SETUP@", "\n".join(_variant_setup(v, theta.size, theta) for v in variants))
+              .replace("@VARIANT_TIMING@", "\n".join(_variant_timing(v) for v in variants)))
     (workdir / "bench.cpp").write_text(source)
     t0 = time.perf_counter()
     objects = []

@@ -27,13 +27,13 @@ def ldl_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
     # every update term one product instead of two.
     lower = [[None] * n for _ in range(n)]
     scaled = [[None] * n for _ in range(n)]
-    diag = [None] * n
+    inv_diag = [None] * n  # 1 / d_j: n divisions in all, the solves below only multiply
     for j in range(n):
         d = matrix[j, j]
         for k in range(j):
             d = d - lower[j][k] * scaled[j][k]
-        diag[j] = d
         inv_d = 1.0 / d
+        inv_diag[j] = inv_d
         for i in range(j + 1, n):
             value = matrix[i, j]
             for k in range(j):
@@ -48,7 +48,7 @@ def ldl_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
         y[i] = value
     x = [None] * n  # D L^T x = y
     for i in reversed(range(n)):
-        value = y[i] / diag[i]
+        value = y[i] * inv_diag[i]
         for k in range(i + 1, n):
             value = value - lower[k][i] * x[k]
         x[i] = value

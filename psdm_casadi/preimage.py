@@ -18,6 +18,7 @@ import pinocchio as pin
 from .errors import DerivationError, ShapeError
 from .model import PSDMModel
 from .oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, build_pinocchio_model, link_to_joint_frame_maps
+from .reduction import select_independent_rows
 from .robot import RobotDescription
 
 # Names of the 11 joint-frame parameters, and the order in which the selection prefers them (lower
@@ -71,31 +72,18 @@ def _joint_frame_parameter_map(model: PSDMModel, robot: RobotDescription) -> np.
     for i, joint_from_link in enumerate(link_to_joint_frame_maps(robot)):
         block = slice(N_PARAMETERS_PER_JOINT * i, N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS)
         link_from_joint[block, block] = np.linalg.inv(joint_from_link)
-        link_from_joint[N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS] = 0.0
         link_from_joint[N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS] = 1.0
     k_joint = model.parameter_map @ link_from_joint
     k_joint[np.abs(k_joint) < 1e-12 * max(np.abs(k_joint).max(), 1.0)] = 0.0
     return k_joint
 
 
-def _select_columns(k_joint: np.ndarray, n_dof: int) -> list:
+def _select_columns(k_joint: np.ndarray) -> list:
     """Greedy independent columns of K_joint in order of preference (cheap kinds first, distal joints first)."""
-    order = sorted(range(k_joint.shape[1]),
-                   key=lambda c: (_PREFERENCE[JOINT_PARAMETER_NAMES[c % N_PARAMETERS_PER_JOINT]],
-                                  -(c // N_PARAMETERS_PER_JOINT)))
-    chosen, basis = [], np.zeros((k_joint.shape[0], 0))
-    scale = max(np.abs(k_joint).max(), 1.0)
-    for c in order:
-        column = k_joint[:, c]
-        if not np.any(column):
-            continue
-        residual = column - basis @ np.linalg.lstsq(basis, column, rcond=None)[0] if basis.shape[1] else column
-        if np.linalg.norm(residual) > 1e-9 * scale:
-            chosen.append(c)
-            basis = np.column_stack([basis, column])
-            if len(chosen) == k_joint.shape[0]:
-                break
-    return chosen
+    order = np.array(sorted(range(k_joint.shape[1]),
+                            key=lambda c: (_PREFERENCE[JOINT_PARAMETER_NAMES[c % N_PARAMETERS_PER_JOINT]],
+                                           -(c // N_PARAMETERS_PER_JOINT))))
+    return [int(c) for c in order[select_independent_rows(k_joint[:, order].T, rtol=1e-9)]]
 
 
 def _regressor_error(model: PSDMModel, robot: RobotDescription, matrix: np.ndarray, rng) -> float:
@@ -144,7 +132,7 @@ def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 
         )
     rng = np.random.default_rng(seed)
     k_joint = _joint_frame_parameter_map(model, robot)
-    support = _select_columns(k_joint, robot.n_dof)
+    support = _select_columns(k_joint)
     matrix = np.zeros((k_joint.shape[1], model.n_base))
     if len(support) == model.n_base:
         matrix[support] = np.linalg.inv(k_joint[:, support])
