@@ -14,7 +14,7 @@ import numpy as np
 
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.symbolic import build_functions
+from psdm_casadi.recursive import build_recursive_functions
 
 ROBOT_FILE = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
 
@@ -23,7 +23,7 @@ def solve(n_intervals: int = 30, duration: float = 1.5):
     robot = load_robot(ROBOT_FILE)
     model = derive_psdm(robot)
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
-    dynamics = build_functions(model, theta=theta)  # parameters compiled in: smallest graph
+    dynamics = build_recursive_functions(model, robot, theta)  # recursive form, parameters compiled in
 
     n = robot.n_dof
     start = np.array([0.0, 0.3, 0.2, 0.0, 0.4, 0.0])

@@ -15,7 +15,7 @@ import numpy as np
 
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.symbolic import build_functions
+from psdm_casadi.recursive import build_recursive_functions
 
 ROBOT_FILE = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
 # rad/s: width of the smooth sign in the friction model. Friction slopes near zero speed then reach
@@ -82,7 +82,7 @@ def run(n_steps=15):
     robot = load_robot(ROBOT_FILE)
     model = derive_psdm(robot)
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
-    dynamics = build_functions(model, theta=theta)
+    dynamics = build_recursive_functions(model, robot, theta)  # the recursive form: the smallest graph
     opti, xs, us, x0, refs, horizon, dt = build_controller(robot, dynamics)
     plant = PinocchioOracle(robot)
     n = robot.n_dof
