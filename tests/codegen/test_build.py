@@ -165,3 +165,31 @@ def test_build_library_rejects_non_export(tmp_path):
     library = CompiledLibrary(path=tmp_path, functions=())
     with pytest.raises(ParameterError, match="functions"):
         library.function("psdm_regressor")
+
+
+@pytest.mark.needs_cc
+@needs_cc
+def test_recursive_form_round_trip_equals_the_sum_model(tmp_path, denso, denso_model, rng):
+    """The default export (recursive form, inlined sin/cos) compiled, against the paper's sum Y theta."""
+    from psdm_casadi.recursive import build_recursive_functions
+
+    functions = build_recursive_functions(denso_model, denso)
+    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    export = export_c(functions, tmp_path, theta=theta)
+    library = build_library(export, flags=FAST)
+    for _ in range(3):
+        q, qd, qdd = rng.uniform(-np.pi, np.pi, (3, denso.n_dof))
+        tau = rng.uniform(-20, 20, denso.n_dof)
+        other = rng.normal(size=denso_model.n_base)  # any theta, not only physical ones
+        reference = denso_model.inverse_dynamics(q, qd, qdd, theta)
+        np.testing.assert_allclose(_flat(library.function("psdm_inverse_dynamics")(q, qd, qdd)), reference,
+                                   rtol=1e-12, atol=1e-11)
+        np.testing.assert_allclose(_flat(library.function("psdm_inverse_dynamics_theta")(q, qd, qdd, other)),
+                                   denso_model.inverse_dynamics(q, qd, qdd, other), rtol=1e-12, atol=1e-11)
+        np.testing.assert_allclose(np.array(library.function("psdm_regressor")(q, qd, qdd)),
+                                   denso_model.regressor(q, qd, qdd), rtol=1e-12, atol=1e-12)
+        mass = np.array(library.function("psdm_mass_matrix")(q))
+        np.testing.assert_allclose(mass, np.array(functions.mass_matrix(q, theta)), rtol=1e-12, atol=1e-12)
+        qdd_fd = _flat(library.function("psdm_forward_dynamics")(q, qd, tau))
+        np.testing.assert_allclose(mass @ qdd_fd + denso_model.inverse_dynamics(q, qd, 0 * qd, theta), tau,
+                                   rtol=1e-10, atol=1e-10)
