@@ -239,6 +239,8 @@ _DECLARATION = re.compile(r"^  (const )?casadi_(real|int)\b")
 _INPUT_LOAD = re.compile(r"^  (a\d+)=arg\[(\d+)\]\? arg\[\2\]\[(\d+)\] : 0;$")
 _TRIG_OF_VARIABLE = re.compile(r"^  (a\d+)=psdm_(sin|cos)\((a\d+)\);$")
 _ASSIGNMENT = re.compile(r"^  (a\d+)=")
+# Statements of CasADi's straight-line SX code other than assignments: outputs, return, end.
+_OTHER_STATEMENT = re.compile(r"^(  if \(res\[\d+\]!=0\) res\[\d+\]\[\d+\]=a\d+;|  return 0;|}|)$")
 
 
 def _hoist_input_trig(lines: list) -> list:
@@ -249,6 +251,11 @@ def _hoist_input_trig(lines: list) -> list:
     again), every such call becomes a read of the precomputed ``psdm_s``/``psdm_c`` arrays.
     """
     holds, angles, out = {}, [], []
+    body_start = 1
+    while body_start < len(lines) and _DECLARATION.match(lines[body_start]):
+        body_start += 1
+    if any(not (_ASSIGNMENT.match(line) or _OTHER_STATEMENT.match(line)) for line in lines[body_start:]):
+        return lines  # not the plain form this rewrite understands: keep the per-call psdm_sin/psdm_cos
     for line in lines:
         trig = _TRIG_OF_VARIABLE.match(line)
         if trig and trig.group(3) in holds:
@@ -265,9 +272,6 @@ def _hoist_input_trig(lines: list) -> list:
         out.append(line)
     if not angles:
         return lines
-    body_start = 1
-    while body_start < len(out) and _DECLARATION.match(out[body_start]):
-        body_start += 1
     k = len(angles)
     setup = [f"  casadi_real psdm_x[{k}], psdm_s[{k}], psdm_c[{k}];"]
     setup += [f"  psdm_x[{index}]=arg[{i}]? arg[{i}][{m}] : 0;" for index, (i, m) in enumerate(angles)]

@@ -102,3 +102,26 @@ def test_hoisted_trig_compiles_and_matches(tmp_path):
     compiled = library.function("psdm_f")
     for x in ([0.3, -2.0, 7.5], [1e6, 0.1, -3.0], [-1e-9, 250.0, np.pi / 2]):
         np.testing.assert_allclose(np.array(compiled(x)).ravel(), np.array(f(x)).ravel(), rtol=0, atol=1e-15)
+
+
+def test_hoisting_follows_reassigned_variables_and_skips_unknown_code():
+    from codegen.export import _hoist_input_trig
+
+    lines = ["static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {",
+             "  casadi_real a0, a1, a2;",
+             "  a0=arg[0]? arg[0][3] : 0;",
+             "  a1=psdm_sin(a0);",
+             "  a0=(a0*a1);",              # a0 no longer holds q[3]
+             "  a2=psdm_cos(a0);",
+             "  a0=arg[1]? arg[1][0] : 0;",
+             "  a0=psdm_cos(a0);",         # argument read before the assignment
+             "  if (res[0]!=0) res[0][0]=a2;",
+             "  return 0;",
+             "}"]
+    out = _hoist_input_trig(lines)
+    assert "  psdm_sincos_n(psdm_x, psdm_s, psdm_c, 2);" in out
+    assert "  psdm_x[0]=arg[0]? arg[0][3] : 0;" in out and "  psdm_x[1]=arg[1]? arg[1][0] : 0;" in out
+    assert "  a1=psdm_s[0];" in out and "  a2=psdm_cos(a0);" in out and "  a0=psdm_c[1];" in out
+    assert out.index("  casadi_real a0, a1, a2;") < out.index("  psdm_sincos_n(psdm_x, psdm_s, psdm_c, 2);")
+    unknown = lines[:-2] + ["  for (i=0; i<3; ++i) w[i]=a0;"] + lines[-2:]
+    assert _hoist_input_trig(unknown) == unknown
