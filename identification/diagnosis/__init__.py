@@ -4,7 +4,8 @@ Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, va
 residual analysis, augmented model). Modules: ``context`` (nominal signals per recording), ``nominal``
 (friction and rigid-body choices), ``candidates`` (the physics library, with plausibility bounds; ``deflection_terms`` for backlash and
 elasticity),
-``selection`` (forward selection on held-out data), ``refine`` (Ipopt fit of the nonlinear parameters of
+``selection`` (forward selection on held-out data), ``signal_fit`` (exact fit of the kept delay, backlash
+and joint elasticity by variable projection), ``refine`` (Ipopt fit of the nonlinear parameters of
 the kept terms), ``residual_tests``, ``report``, ``augmented``, ``hidden_effects`` (extra effects for
 the virtual robot), ``cli`` (``psdm diagnose``).
 """

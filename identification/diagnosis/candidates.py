@@ -11,6 +11,10 @@ parameters, and where possible ``casadi_expression`` for the augmented model.
 The transmission terms (backlash, joint elasticity) live in ``deflection_terms``; fitted parameters are
 checked against physical bounds (``CandidateTerm.implausibility``, constants ``MAX_*`` below).
 
+Friction-like columns take the sign of the velocity from ``DiagnosisContext.friction_sign`` (with a
+LuGre prior: the exact sign at full rate filtered like the recording, as the measured torque is);
+their CasADi expressions use the smooth sign ``tanh(qd / SMOOTH_VELOCITY)``.
+
 Sign convention: columns describe torque the motors must supply in addition to the nominal model,
 ``tau_measured = tau_nominal + columns @ coefficients``.
 """
@@ -42,10 +46,6 @@ def _rows(context, joint: int, values) -> np.ndarray:
     out = np.zeros((context.n_samples, context.n_dof, values.shape[1]))
     out[:, joint, :] = values
     return out
-
-
-def _smooth_sign(x, scale=SMOOTH_VELOCITY):
-    return np.tanh(np.asarray(x) / scale)
 
 
 class CandidateTerm:
@@ -203,7 +203,7 @@ class CoulombAsymmetryTerm(CandidateTerm):
 
     def columns(self, context):
         self._require_joint()
-        return _rows(context, self.joint, 0.5 * (1.0 + _smooth_sign(context.qd[:, self.joint])))
+        return _rows(context, self.joint, 0.5 * (1.0 + context.friction_sign(self.joint)))
 
     def physical_parameters(self, coefficients):
         return {"delta": float(coefficients[0])}
@@ -228,7 +228,7 @@ class LoadDependentFrictionTerm(CandidateTerm):
     def columns(self, context):
         self._require_joint()
         j = self.joint
-        return _rows(context, j, np.abs(context.tau[:, j]) * _smooth_sign(context.qd[:, j]))
+        return _rows(context, j, context.friction_sign(j, np.abs(context.full_tau[:, j])))
 
     def physical_parameters(self, coefficients):
         return {"coefficient": float(coefficients[0])}
@@ -262,7 +262,7 @@ class FrictionDriftTerm(CandidateTerm):
     def columns(self, context):
         self._require_joint()
         j = self.joint
-        return _rows(context, j, self._shape(context.t) * _smooth_sign(context.qd[:, j]))
+        return _rows(context, j, context.friction_sign(j, self._shape(context.full_t)))
 
     def _shape(self, t):
         if self.time_constant is None:
@@ -482,6 +482,11 @@ class DelayTerm(CandidateTerm):
 
     def physical_parameters(self, coefficients):
         return {"delay_s": float(coefficients[0])}
+
+    def exact_contribution(self, context, delay: float) -> np.ndarray:
+        """Torque (n_samples, n_dof) a delay of ``delay`` [s] adds to the model, not linearised:
+        ``tau_rec(t) - tau_rec(t + d)`` (``DiagnosisContext.delayed_torque_difference``)."""
+        return context.delayed_torque_difference(delay)
 
     def implausibility(self, coefficients, context=None):
         d = float(coefficients[0])

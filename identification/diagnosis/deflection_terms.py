@@ -4,6 +4,12 @@ Both make the recorded (motor-side) joint position differ from the link position
 ``s(t)``; the nominal model evaluated on the recorded signals then misses the rigid-body torque change
 ``-(s dtau/dq + sd dtau/dqd + sdd M)`` (first order) and the friction change of a shifted velocity
 (``DiagnosisContext.friction_shift``, a LuGre simulation of the robot file's friction).
+
+``columns`` are the screening form, linear in one coefficient (the friction change linearised at a
+nominal size); ``exact_contribution`` is the torque at given physical parameters with the friction
+change simulated exactly, fitted by ``signal_fit``. The backlash flank is a function of the unfiltered
+measured torque, filtered afterwards like the recording: near a torque reversal the raw torque crosses
+zero many times (noise, the drive's ringing), and the flank of the filtered torque is far too sharp.
 """
 
 from __future__ import annotations
@@ -12,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..preprocessing import central_difference
 from .candidates import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, CandidateTerm
 
 
@@ -42,8 +49,7 @@ class BacklashTerm(CandidateTerm):
     def columns(self, context):
         self._require_joint()
         j = self.joint
-        scale = max(self.torque_scale * float(np.percentile(np.abs(context.full_tau[:, j]), 95)), 1e-6)
-        s, sd, sdd = context.smooth_transform_full(j, lambda x: np.tanh(x / scale))
+        s, sd, sdd = self._flank(context, 1.0, self.torque_scale_nm(context))
         keep = context.keep
         out = _deflection_columns(context, j, s[keep], sd[keep], sdd[keep])
         friction = self.friction_column(context, sd)
@@ -57,11 +63,35 @@ class BacklashTerm(CandidateTerm):
         the robot file's LuGre friction at a nominal half-width h0 = 0.1 deg, divided by h0."""
         j = self.joint
         if sd_full is None:
-            scale = max(self.torque_scale * float(np.percentile(np.abs(context.full_tau[:, j]), 95)), 1e-6)
-            _, sd_full, _ = context.smooth_transform_full(j, lambda x: np.tanh(x / scale))
+            _, sd_full, _ = self._flank(context, 1.0, self.torque_scale_nm(context))
         h0 = np.radians(0.1)
         shift = context.friction_shift(j, h0 * sd_full)
         return None if shift is None else -shift / h0
+
+    def torque_scale_nm(self, context) -> float:
+        """The smoothing torque [N m]: ``torque_scale`` times the 95th percentile of the joint's |torque|."""
+        return max(self.torque_scale * float(np.percentile(np.abs(context.full_tau[:, self.joint]), 95)), 1e-6)
+
+    def _flank(self, context, half_width, scale):
+        """Deflection ``s = h tanh(tau / tau_s)`` of the unfiltered measured torque (the sensor saw the flank
+        change of the raw signal), filtered like the recording, with its time derivatives, at full rate."""
+        s = context.lowpass_full(half_width * np.tanh(context.raw_torque[:, self.joint] / scale))
+        sd, sdd = central_difference(context.full_t, s)
+        return s, sd, sdd
+
+    def exact_contribution(self, context, half_width: float, torque_scale_nm: float) -> np.ndarray:
+        """Torque (n_samples, n_dof) a play of half-width ``half_width`` [rad] with flank smoothing
+        ``torque_scale_nm`` [N m] adds to the nominal model: the rigid-body part to first order in the
+        (small) deflection, the friction part exactly (a LuGre simulation at the link velocity
+        ``qd_rec - sd``, not linearised: the deflection rate flips the velocity's sign near reversals)."""
+        j = self.joint
+        s, sd, sdd = self._flank(context, half_width, torque_scale_nm)
+        keep = context.keep
+        out = _deflection_columns(context, j, s[keep], sd[keep], sdd[keep])[:, :, 0]
+        shift = context.friction_shift(j, sd)
+        if shift is not None:
+            out[:, j] -= shift
+        return out
 
     def physical_parameters(self, coefficients):
         return {"backlash_rad": 2.0 * float(coefficients[0])}
@@ -99,6 +129,18 @@ class JointElasticityTerm(CandidateTerm):
         shift = context.friction_shift(j, c0 * rate)
         if shift is not None:
             out[:, j, 0] -= shift / c0
+        return out
+
+    def exact_contribution(self, context, compliance: float) -> np.ndarray:
+        """Torque (n_samples, n_dof) a compliance ``compliance`` [rad/(N m)] adds to the nominal model: the
+        rigid-body part (linear in it) and the friction part exactly (a LuGre simulation at the link
+        velocity ``qd_rec - c dtau/dt``, which moves the friction's sign changes)."""
+        j, c = self.joint, float(compliance)
+        out = c * _deflection_columns(context, j, context.tau[:, j], context.tau_rate[:, j], context.tau_accel[:, j])[:, :, 0]
+        rate = np.gradient(context.full_tau[:, j], context.full_t)
+        shift = context.friction_shift(j, c * rate)
+        if shift is not None:
+            out[:, j] -= shift
         return out
 
     def physical_parameters(self, coefficients):

@@ -17,7 +17,7 @@ from ..preprocessing import PreprocessOptions, preprocess
 from .augmented import AugmentedModel
 from .candidates import CandidateLibrary, default_library
 from .context import build_context
-from .nominal import FRICTION_MODELS, lugre_dynamic_columns, RIGID_BODY_CHOICES, friction_columns, friction_feature_names, friction_shapes
+from .nominal import FRICTION_MODELS, RIGID_BODY_CHOICES, filtered_friction_columns, friction_feature_names, friction_shapes
 from .report import DiagnosisReport, Finding
 from .residual_tests import analyse_residuals
 from .refine import refine_fit
@@ -51,8 +51,9 @@ class DiagnosisOptions:
     torque_constants : tuple or None
         Kt [N m/A] per joint for recordings with currents only (default: the robot file's drives).
     refine : bool
-        Refit the kept terms with their nonlinear parameters (delay, backlash smoothing, drift time
-        constant) by Ipopt after the linearised selection (``refine.refine_fit``).
+        Refit the kept terms with their nonlinear parameters after the linearised selection: delay,
+        backlash (width and flank smoothing) and joint elasticity exactly by variable projection
+        (``signal_fit``), then the drift time constant by Ipopt (``refine.refine_fit``).
     """
 
     friction: str = "lugre"
@@ -136,21 +137,22 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     kt = options.torque_constants
     if kt is None and robot.drives is not None:
         kt = tuple(d.kt for d in robot.drives)
+    raw_train, raw_validation = train, validation
     if options.preprocess:
         pre = PreprocessOptions(cutoff_hz=options.cutoff_hz)
         train, validation = preprocess(train, pre), preprocess(validation, pre)
+    else:
+        raw_train = raw_validation = None
     say("diagnose: evaluating the nominal model ...")
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
     need_y = options.rigid_body == "identified"
-    ctx_t = build_context(robot, model, train, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y)
-    ctx_v = build_context(robot, model, validation, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y)
+    ctx_t = build_context(robot, model, train, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y,
+                          raw=raw_train)
+    ctx_v = build_context(robot, model, validation, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y,
+                          raw=raw_validation)
     vs, dv = friction_shapes(robot)
-    base_t = friction_columns(options.friction, ctx_t.qd, vs, dv)
-    base_v = friction_columns(options.friction, ctx_v.qd, vs, dv)
-    if options.friction == "lugre":
-        dyn_t, dyn_v = lugre_dynamic_columns(robot, ctx_t), lugre_dynamic_columns(robot, ctx_v)
-        if dyn_t is not None:
-            base_t, base_v = np.concatenate([base_t, dyn_t], axis=2), np.concatenate([base_v, dyn_v], axis=2)
+    base_t = filtered_friction_columns(robot, options.friction, ctx_t)
+    base_v = filtered_friction_columns(robot, options.friction, ctx_v)
     if options.rigid_body == "prior":
         y_t, y_v = ctx_t.tau - ctx_t.tau_rigid, ctx_v.tau - ctx_v.tau_rigid
     else:

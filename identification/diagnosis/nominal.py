@@ -42,12 +42,15 @@ def friction_feature_names(kind: str, n_dof: int) -> list:
     return [f"{name}_{j + 1}" for j in range(n_dof) for name in per]
 
 
-def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray) -> np.ndarray:
-    """Friction columns (n_samples, n_dof, n_dof * k), joint-major, k = 3 (lugre) or 2."""
+def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray, sign=None) -> np.ndarray:
+    """Friction columns (n_samples, n_dof, n_dof * k), joint-major, k = 3 (lugre) or 2.
+
+    ``sign`` (n_samples, n_dof) is the velocity sign to use; default the smooth ``tanh(qd / SMOOTH_VELOCITY)``.
+    """
     if kind not in FRICTION_MODELS:
         raise ParameterError(f"DiagnosisOptions.friction must be one of {FRICTION_MODELS}; got {kind!r}.")
     n_samples, n = qd.shape
-    s = np.tanh(qd / SMOOTH_VELOCITY)
+    s = np.tanh(qd / SMOOTH_VELOCITY) if sign is None else sign
     if kind == "lugre":
         per = [s, np.exp(-(qd / vs) ** 2) * s, np.abs(qd) ** dv * s]
     else:
@@ -60,26 +63,53 @@ def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray) 
     return out
 
 
+def filtered_friction_columns(robot, kind: str, context) -> np.ndarray:
+    """The nominal friction columns of a recording as the measured torque sees them, (n_samples, n_dof, p).
+
+    With a LuGre prior (``context.filtered_friction``, the robot file's drives) the columns
+    (``friction_columns`` with the exact velocity sign) and, for ``"lugre"``, the bristle-dynamics columns
+    (``lugre_dynamic_columns``) are evaluated at full rate on the recorded velocity and low-pass filtered
+    like the recording before decimation (``DiagnosisContext.lowpass``): the recorded torque holds the
+    filtered friction steps, not sharp ones at the filtered velocity's zero. Without a prior the smooth-sign
+    columns of the filtered velocity are used (see ``context``).
+    """
+    vs, dv = friction_shapes(robot)
+    dynamic = kind == "lugre" and robot.drives is not None
+    if not context.filtered_friction:
+        out = friction_columns(kind, context.qd, vs, dv)
+        return np.concatenate([out, lugre_dynamic_columns(robot, context)], axis=2) if dynamic else out
+    qd = context.full_qd
+    full = friction_columns(kind, qd, vs, dv, sign=np.sign(qd))
+    if dynamic:
+        full = np.concatenate([full, _lugre_dynamic_full(robot, context)], axis=2)
+    return context.lowpass(full)
+
+
+def _lugre_dynamic_full(robot, context) -> np.ndarray:
+    from ..friction import LuGreParameters, simulate_lugre
+
+    n = robot.n_dof
+    out = np.zeros((context.full_t.size, n, n))
+    for j, d in enumerate(robot.drives):
+        p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
+        qd = context.full_qd[:, j]
+        tau, _ = simulate_lugre(p, context.full_t, qd, z0=0.0)
+        steady = (p.fc + (p.fs - p.fc) * np.exp(-(qd / p.vs) ** 2)) * np.sign(qd) + p.fv * np.abs(qd) ** p.dv * np.sign(qd)
+        out[:, j, j] = tau - steady
+    return out
+
+
 def lugre_dynamic_columns(robot, context) -> np.ndarray | None:
     """Bristle-dynamics part of the robot file's LuGre friction along the recording, one column per joint.
 
     The LuGre model (paper eqs. 12-14) with the drive parameters of the robot file is simulated on the
     full-rate velocity; its steady-state curve is subtracted, leaving the pre-sliding and damping
     transients around reversals. The fit scales each joint's column freely. None without drives.
+    (Unfiltered; ``filtered_friction_columns`` filters them like the recording.)
     """
-    from ..friction import LuGreParameters, simulate_lugre
-
     if robot.drives is None:
         return None
-    n = robot.n_dof
-    out = np.zeros((context.n_samples, n, n))
-    for j, d in enumerate(robot.drives):
-        p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
-        qd = context.full_qd[:, j]
-        tau, _ = simulate_lugre(p, context.full_t, qd, z0=0.0)
-        steady = (p.fc + (p.fs - p.fc) * np.exp(-(qd / p.vs) ** 2)) * np.sign(qd) + p.fv * np.abs(qd) ** p.dv * np.sign(qd)
-        out[:, j, j] = (tau - steady)[context.keep]
-    return out
+    return _lugre_dynamic_full(robot, context)[context.keep]
 
 
 def friction_casadi(kind: str, qd, coefficients, vs, dv):

@@ -6,10 +6,11 @@ a warming-up friction enter through first-order or fixed-shape expansions). Once
 have them jointly, by weighted nonlinear least squares on the training recording (the same joint
 weights as the selection), starting from the linear solution:
 
-- ``delay``: second order in the delay d, ``tau(t) = tau_rec + d tau_rec' + d^2/2 tau_rec''``;
-- ``backlash``: the smoothing torque ``tau_s`` of the flank change, ``s = (b/2) tanh(tau / tau_s)`` with its
-  exact time derivatives from the filtered torque and its rates (the friction part stays the screening
-  column: it needs a LuGre simulation per value);
+- ``delay``, ``backlash`` and ``joint_elasticity``: fitted exactly first (``signal_fit.fit_signal_terms``, variable projection:
+  an interpolated delayed torque, a filtered flank of play or a torsion with its exact friction change) and held
+  at those values here, as fixed torques. A kept backlash or joint elasticity is also refitted as the
+  other one on the same joint, and the better exact fit is kept (``signal_fit.resolve_deflection``:
+  their screening columns are alike);
 - ``friction_drift``: a warm-up time constant T, ``rate T (1 - exp(-t / T)) sign(qd)`` (linear drift as T -> inf).
 
 Terms without nonlinear parameters keep their linear columns. The refined fit replaces the linear one
@@ -22,6 +23,8 @@ from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
+
+from .signal_fit import SIGNAL_KEYS, exact_contribution, fit_signal_terms, resolve_deflection
 
 
 @dataclass(frozen=True)
@@ -39,31 +42,18 @@ class RefinedFit:
     improved: bool
 
 
-def _contribution(term, context, beta, p):
+def _contribution(term, context, beta, p, fixed):
     """Extra torque (list of n_dof MX column vectors or None) of ``term`` with coefficients ``beta`` and
-    nonlinear parameters ``p`` on ``context``; None for terms that keep linear columns."""
+    nonlinear parameters ``p`` on ``context``; None for terms that keep linear columns. ``fixed`` maps the
+    labels of the exactly fitted signal-level terms to their parameters (their torque is a constant here)."""
     key = term.key
     n = context.n_dof
-    if key == "delay":
-        d = beta[0]
-        return [-(d * ca.DM(context.tau_rate[:, j]) + 0.5 * d**2 * ca.DM(context.tau_accel[:, j])) for j in range(n)]
-    if key == "backlash":
-        j, h = term.joint, beta[0]
-        ts = ca.exp(p[0])
-        tau, rate, accel = (ca.DM(x[:, j]) for x in (context.tau, context.tau_rate, context.tau_accel))
-        s = ca.tanh(tau / ts)
-        ds = 1 - s**2
-        sd = ds * rate / ts
-        sdd = ds * (accel / ts - 2 * s * (rate / ts) ** 2)
-        out = [-h * (s * ca.DM(context.dtau_dq[:, i, j]) + sd * ca.DM(context.dtau_dqd[:, i, j])
-                     + sdd * ca.DM(context.mass[:, i, j])) for i in range(n)]
-        friction = term.friction_column(context)  # at the screening smoothing torque
-        if friction is not None:
-            out[j] = out[j] + h * ca.DM(friction)
-        return out
+    if term.label in fixed:
+        extra = exact_contribution(term, context, fixed[term.label])
+        return [ca.DM(extra[:, j]) for j in range(n)]
     if key == "friction_drift":
         j, rate, big_t = term.joint, beta[0], ca.exp(p[0])
-        sign = ca.DM(np.tanh(context.qd[:, j] / 0.02))
+        sign = ca.DM(context.friction_sign(j))  # as the measured torque sees it (the time shape varies slowly)
         t = ca.DM(context.t)
         out = [ca.DM.zeros(context.n_samples) for _ in range(n)]
         out[j] = rate * big_t * (1 - ca.exp(-t / big_t)) * sign
@@ -73,19 +63,16 @@ def _contribution(term, context, beta, p):
 
 def _start(term, context, coefficients):
     """Initial nonlinear parameters (log scale) of a refinable term."""
-    if term.key == "backlash":
-        scale = term.torque_scale * float(np.percentile(np.abs(context.full_tau[:, term.joint]), 95))
-        return [np.log(max(scale, 1e-6))]
     if term.key == "friction_drift":
         return [np.log(20.0 * float(context.t[-1] - context.t[0]) + 1.0)]
     return []
 
 
-def _prediction(terms, n_nl, ctx, base, beta0, betas, ps):
+def _prediction(terms, fixed, ctx, base, beta0, betas, ps):
     n = ctx.n_dof
     out = [ca.mtimes(ca.DM(base[:, j, :]), beta0) for j in range(n)]
     for term, b, p in zip(terms, betas, ps):
-        extra = _contribution(term, ctx, b, p)
+        extra = _contribution(term, ctx, b, p, fixed)
         if extra is None:
             cols = term.columns(ctx)
             extra = [ca.mtimes(ca.DM(cols[:, j, :]), b) for j in range(n)]
@@ -96,22 +83,36 @@ def _prediction(terms, n_nl, ctx, base, beta0, betas, ps):
 def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, base_train, base_val, y_train, y_val,
                max_iter: int = 200) -> RefinedFit | None:
     """Refine the kept terms with Ipopt (see the module docstring); None when no term has nonlinear parameters."""
-    refinable = [t.key in ("delay", "backlash", "friction_drift") for t in terms]
+    refinable = [t.key in SIGNAL_KEYS + ("friction_drift",) for t in terms]
     if not any(refinable):
         return None
     torque_rms = np.sqrt(np.mean(train_ctx.tau**2, axis=0))
     sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    signal = fit_signal_terms(terms, coefficients, train_ctx, base_train, y_train, sigma)
+    terms, coefficients, signal = resolve_deflection(terms, coefficients, signal, train_ctx, base_train, y_train, sigma)
+    fixed = {} if signal is None else signal.parameters
     p0 = base_train.shape[2]
     beta0 = ca.MX.sym("friction", p0)
     betas, ps, x0 = [], [], [np.asarray(friction_coefficients, dtype=float)]
+    lbx, ubx = [np.full(p0, -np.inf)], [np.full(p0, np.inf)]
     for k, (term, c) in enumerate(zip(terms, coefficients)):
         betas.append(ca.MX.sym(f"beta{k}", len(c)))
-        x0.append(np.asarray(c, dtype=float))
+        c = np.asarray(c, dtype=float)
+        if term.label in fixed:  # held at the exact fit (its torque is a constant in this problem)
+            c = np.array(fixed[term.label][:len(c)], dtype=float)
+            lbx.append(c.copy())
+            ubx.append(c.copy())
+        else:
+            lbx.append(np.full(len(c), -np.inf))
+            ubx.append(np.full(len(c), np.inf))
+        x0.append(c)
     for k, (term, c) in enumerate(zip(terms, coefficients)):
         start = _start(term, train_ctx, c)
         ps.append(ca.MX.sym(f"p{k}", len(start)))
         x0.append(np.asarray(start, dtype=float))
-    pred_t = _prediction(terms, None, train_ctx, base_train, beta0, betas, ps)
+        lbx.append(np.full(len(start), -np.inf))
+        ubx.append(np.full(len(start), np.inf))
+    pred_t = _prediction(terms, fixed, train_ctx, base_train, beta0, betas, ps)
     residual = ca.vertcat(*[(ca.DM(y_train[:, j]) - pred_t[j]) / sigma[j] for j in range(train_ctx.n_dof)])
     x = ca.vertcat(beta0, *betas, *ps)
     x0 = np.concatenate(x0)
@@ -119,7 +120,7 @@ def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, b
     f_obj = ca.Function("objective", [x], [objective])
     solver = ca.nlpsol("refine", "ipopt", {"x": x, "f": objective},
                        {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": max_iter, "ipopt.tol": 1e-10})
-    solution = solver(x0=x0)
+    solution = solver(x0=x0, lbx=np.concatenate(lbx), ubx=np.concatenate(ubx))
     stats = solver.stats()
     xs = np.asarray(solution["x"]).ravel()
     before, after = float(f_obj(x0)), float(solution["f"])
@@ -127,7 +128,7 @@ def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, b
     if not ok:
         xs = x0
     pred_fn_t = ca.Function("pred_t", [x], [ca.horzcat(*pred_t)])
-    pred_v = _prediction(terms, None, val_ctx, base_val, beta0, betas, ps)
+    pred_v = _prediction(terms, fixed, val_ctx, base_val, beta0, betas, ps)
     pred_fn_v = ca.Function("pred_v", [x], [ca.horzcat(*pred_v)])
     # unpack
     offset = p0
@@ -140,8 +141,8 @@ def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, b
         m = len(_start(term, train_ctx, c))
         values = xs[offset:offset + m]
         offset += m
-        if term.key == "backlash":
-            scale = float(np.exp(values[0]))
+        if term.key == "backlash" and term.label in fixed:
+            scale = float(fixed[term.label][1])
             p95 = float(np.percentile(np.abs(train_ctx.full_tau[:, term.joint]), 95))
             term = replace(term, torque_scale=scale / max(p95, 1e-12))
             nonlinear[term.label] = {"torque_scale_Nm": scale}

@@ -115,7 +115,7 @@ class DiagnosisReport:
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):
             items = [r for r in self.residual_findings if r.joint == j]
-            lines.append(f"- " + "; ".join(r.text for r in items))
+            lines.append("- " + "; ".join(r.text for r in items))
         if plots:
             lines += ["", "## Plots", ""]
             for name, path in plots.items():

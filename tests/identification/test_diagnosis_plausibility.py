@@ -63,10 +63,14 @@ def test_delay_is_refined_by_ipopt_and_lowers_the_error(denso, denso_model):
 
 
 def test_drift_with_a_long_time_constant_tends_to_the_linear_drift():
-    class Ctx:
+    class Ctx:  # full rate = grid, exact sign
         n_samples, n_dof = 50, 2
-        t = np.linspace(0.0, 10.0, 50)
+        t = full_t = np.linspace(0.0, 10.0, 50)
         qd = np.column_stack([np.sin(t), np.cos(t)])
+
+        @classmethod
+        def friction_sign(cls, joint, factor):
+            return factor * np.sign(cls.qd[:, joint])
     linear = FrictionDriftTerm(joint=1).columns(Ctx)
     slow = FrictionDriftTerm(joint=1, time_constant=1e6).columns(Ctx)
     fast = FrictionDriftTerm(joint=1, time_constant=1.0).columns(Ctx)
