@@ -30,7 +30,6 @@ from psdm_casadi.errors import ParameterError, RecordingError
 
 from .extra_physics import Payload
 from .io import atomic_write, load_recording, save_recording
-from .recording import Recording
 
 __all__ = ["CalibrationData", "load_calibration_data", "save_calibration_data", "read_payload"]
 

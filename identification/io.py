@@ -7,9 +7,7 @@ currents ``i1..in`` [A]. CSV lines starting with ``#`` are comments. Time steps 
 
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np

@@ -118,7 +118,8 @@ def initial_lugre_guess(t, qd, tau_friction, high_speed):
     ``fc, fv, dv`` come from ``high_speed`` (eq. 20). ``sigma0`` is the best of a logarithmic grid
     of break-away displacements ``fc / sigma0`` in [1e-6, 1e-2] rad (one LuGre simulation each);
     ``fs`` and ``vs`` are fitted to the steady-sliding samples (displacement since the last
-    reversal beyond ten break-away displacements) by least squares on the Stribeck curve; finally
+    reversal beyond ten break-away displacements) by least squares on the Stribeck curve, and that
+    ``vs`` is kept unless a logarithmic grid ``max|qd| * [1e-4, 0.1]`` simulates better; finally
     ``sigma1`` is picked from a grid ``sigma0 * [1e-5, 1e-2] s``.
 
     Parameters
@@ -168,6 +169,10 @@ def initial_lugre_guess(t, qd, tau_friction, high_speed):
         fs, vs = np.exp(best.x)
         if np.isfinite(fs) and np.isfinite(vs) and vs > 0:
             guess = _replace(guess, fs=float(fs), vs=float(min(vs, vmax)))
+    # vs checked by simulation on a logarithmic grid: with fs close to fc (the Denso's joint 6 has fs < fc)
+    # the fit above is ill-conditioned, and a vs 70-100 times too large trapped the NLP in a local minimum
+    candidates = [guess] + [_replace(guess, vs=float(v)) for v in vmax * np.logspace(-4, -1, 7)]
+    guess = min(candidates, key=lambda p: _sse(p, t, qd, tau))
     # sigma1 grid
     candidates = [_replace(guess, sigma1=guess.sigma0 * r) for r in np.logspace(-5, -2, 7)]
     return min(candidates, key=lambda p: _sse(p, t, qd, tau))

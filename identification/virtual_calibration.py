@@ -4,18 +4,22 @@ Produces the :class:`identification.dataset.CalibrationData` the pipeline consum
 simulation plus identification of the Denso fits in a few minutes (defaults at 1 kHz):
 
 - motor: per joint, a 0.25 rad/s sweep over 40 % of the range and back, without and with the mass,
-  in a pose (seeded random search) where the mass loads the swept joint most (slow: eq. 16 is
-  static, and at 0.5 rad/s the neglected dynamics biased Kt of joint 1 by 0.5 %, at 0.25 rad/s 0.1 %);
+  in a pose (seeded random search) where the mass loads the swept joint most (slow: with eq. 16's
+  static load the mass's velocity terms biased Kt of joint 1 by 0.1 % at this speed;
+  ``MotorIdentifier(load="dynamic")``, the default, removes them);
 - gravity: one 120 s out-and-back jog of all joints at about 0.15 rad/s (long and slow: the smallest
   gravity parameters of the Denso carry torques of a few hundredths of a N m);
-- friction: per joint, ``experiments.friction_reference`` of a ``FrictionDesign`` (27 s: pre-sliding,
+- friction: per joint, ``experiments.friction_reference`` of a ``FrictionDesign`` (28 s: pre-sliding, break-away,
   Stribeck and sliding segments) and a second run of the design at 1.3 times its frequencies for
   validation; the joint controller has no friction feed-forward here (the robot being calibrated
   does not know its friction, and a steady-state friction feed-forward switches by 2 Fs at every
   reversal of the reference, which would throw the joint out of the pre-sliding regime) and the
   virtual robot integrates with at least 4 sub-steps per sample (with the default 2 the stick-slip
   of the light wrist joints in the Stribeck segments is under-resolved, and the simulated friction
-  departs from the LuGre equations by 0.15 N m, which biased vs by 27 % on joint 5);
+  departs from the LuGre equations by 0.15 N m, which biased vs by 27 % on joint 5) by the
+  second-order leapfrog scheme (``SimulationOptions.integrator``; with symplectic Euler the recorded
+  commands are off by half a sub-step against the positions, which biased sigma1 of joints 1-3 by
+  70-170 %);
 - excitation: a 30 s sum of sines (``experiments.sine_reference``), the stand-in for trajopt's
   optimised excitation (identification never imports trajopt).
 """
@@ -59,7 +63,7 @@ class VirtualCalibrationOptions:
     excitation_duration : float
         [s] of the sum-of-sines trajectory.
     friction_design : FrictionDesign
-        Content of each joint's friction experiment (``FrictionDesign.quick()`` for a 13 s version).
+        Content of each joint's friction experiment (``FrictionDesign.quick()`` for a 14 s version).
     friction_amplitudes : tuple of float or None
         When given, the friction experiment is instead a short run of growing sine-cubed
         oscillations of these amplitudes [rad] (``experiments.oscillation_reference``; quick, but
@@ -155,7 +159,8 @@ def simulate_calibration(robot: RobotDescription, options: VirtualCalibrationOpt
                                                                 speed=options.gravity_speed, rng=rng), sim),)
     # the controller does not know the friction yet; 4 sub-steps resolve the stick-slip of the light wrist
     # joints in the Stribeck segments (with 2 the simulated friction departs from the LuGre ODE by 0.15 N m)
-    still = replace(sim, friction_feedforward=False, substeps=max(int(sim.substeps), 4))
+    # leapfrog: the held commands enter the second difference of q as in continuous time (synthetic docstring)
+    still = replace(sim, friction_feedforward=False, substeps=max(int(sim.substeps), 4), integrator="leapfrog")
     friction, friction_validation = [], []
     for j in joints:
         if options.friction_amplitudes is not None:

@@ -31,3 +31,67 @@ def synthetic_record(joint, rng=None, noise=0.0, frequency_scale=2.0, substeps=3
     if noise:
         tau = tau + noise * truth.fc * rng.standard_normal(t.size)
     return truth, t, qd, tau
+
+
+def ringing_joint_record(parameters, inertia, rng=None, current_noise=0.0, rate=1000.0, substeps=16,
+                         amplitudes=(2e-3, 5e-3), hz=10.0, periods=6, sliding=(0.3, 1.5)):
+    """A single joint (``inertia`` [kg m^2], LuGre ``parameters``) under a held PD command: ``t, q, tau``.
+
+    An independent fine-step plant (leapfrog, exact bristle steps, ``substeps`` per sample): the
+    PD command (10 Hz, critically damped) is computed at each sample and held over the sample
+    period, as a robot reporting its current set-points records it. The reference is
+    ``A (1 - cos 2 pi f t)`` break-away segments (the joint sticks and rings on the bristles at
+    every reversal) then two slow ``sliding`` strokes (peak speeds [rad/s]) for eq. 20.
+    """
+    pieces, start = [], 0.0
+    for a in amplitudes:
+        tb = np.arange(0.0, periods / hz, 1.0 / rate)
+        pieces.append((start + tb, a * (1.0 - np.cos(2.0 * np.pi * hz * tb))))
+        start += periods / hz
+    for v in sliding:
+        w = 2.0 * np.pi * 0.5
+        tb = np.arange(0.0, 2.0, 1.0 / rate)
+        pieces.append((start + tb, (v / w) * (1.0 - np.cos(w * tb))))
+        start += 2.0
+    t = np.concatenate([p[0] for p in pieces])
+    ref = np.concatenate([p[1] for p in pieces])
+    p = parameters
+    kp, kd = inertia * (2 * np.pi * 10.0) ** 2, 2.0 * inertia * 2 * np.pi * 10.0
+    h = 1.0 / (rate * substeps)
+
+    def g(v):
+        return p.fc + (p.fs - p.fc) * np.exp(-((v / p.vs) ** 2))
+
+    def z_step(s, v, dt):  # s = sigma0 z, exact for constant v
+        rest = g(v) * np.sign(v)
+        return rest + (s - rest) * np.exp(-p.sigma0 * abs(v) * dt / g(v))
+
+    q = qd = s = 0.0
+    q_out, u_out = np.empty(t.size), np.empty(t.size)
+    ref_d = np.gradient(ref, t)
+    for k in range(t.size):
+        u = kp * (ref[k] - q) + kd * (ref_d[k] - qd)
+        q_out[k], u_out[k] = q, u
+        for _ in range(substeps):
+            q += 0.5 * h * qd
+            s = z_step(s, qd, 0.5 * h)
+            friction = s + p.sigma1 * (qd - abs(qd) * s / g(qd)) + p.fv * abs(qd) ** p.dv * np.sign(qd)
+            qd += h * (u - friction) / inertia
+            s = z_step(s, qd, 0.5 * h)
+            q += 0.5 * h * qd
+    if current_noise:
+        u_out = u_out + current_noise * rng.standard_normal(t.size)
+    return t, q_out, u_out
+
+
+def measured_friction(t, q, tau, inertia):
+    """Eq. 19 as the friction step forms it: held commands averaged, minus ``inertia`` times the central qdd."""
+    dt = t[1] - t[0]
+    y = np.empty_like(tau)
+    y[1:] = 0.5 * (tau[1:] + tau[:-1])
+    y[0] = tau[0]
+    qdd = np.empty_like(q)
+    qdd[1:-1] = (q[2:] - 2 * q[1:-1] + q[:-2]) / dt**2
+    qdd[0], qdd[-1] = qdd[1], qdd[-2]
+    qd = np.gradient(q, t)
+    return qd, y - inertia * qdd

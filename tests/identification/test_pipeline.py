@@ -59,11 +59,29 @@ def test_pipeline_option_and_input_errors(denso, denso_model):
         PipelineOptions(friction_cutoff_hz=-40.0)
     with pytest.raises(ParameterError, match="gravity_inertia"):
         PipelineOptions(gravity_inertia="cad")
+    with pytest.raises(ParameterError, match="gravity_friction"):
+        PipelineOptions(gravity_friction="lugre")
+    with pytest.raises(ParameterError, match="friction_coupling"):
+        PipelineOptions(friction_coupling="identified")
     assert PipelineOptions().friction_cutoff_hz is None  # friction data are used unfiltered at 1 kHz
     with pytest.raises(ParameterError, match="model"):
         IdentificationPipeline(denso, None).fit("x")
     with pytest.raises(ParameterError, match="CalibrationData"):
         IdentificationPipeline(denso, denso_model).fit(42)
+
+
+def test_identified_friction_is_removed_from_torques_or_currents():
+    """The second gravity pass subtracts the LuGre torque from tau, or torque / Kt from the currents."""
+    from identification.pipeline import _without_torque
+
+    t = np.linspace(0.0, 1.0, 11)
+    q = np.zeros((11, 2))
+    torque = np.outer(np.sin(t), [2.0, -1.0])
+    kt = np.array([4.0, 0.5])
+    with_current = _without_torque(Recording(t=t, q=q, current=np.ones((11, 2)), name="c"), torque, kt)
+    np.testing.assert_allclose(with_current.joint_torque(kt), kt * 1.0 - torque)
+    with_tau = _without_torque(Recording(t=t, q=q, tau=np.ones((11, 2)), name="t"), torque, kt)
+    np.testing.assert_allclose(with_tau.tau, 1.0 - torque)
 
 
 def test_virtual_calibration_options_errors():
@@ -105,5 +123,6 @@ def test_full_pipeline_on_virtual_denso(denso, denso_model, tmp_path):
     assert result.report.min_r2("all") > 0.98
     assert result.consistency.consistent
     assert result.report.min_r2("friction") > 0.98
+    assert "gravity_friction" in pipeline.timings_  # step 2 again without the identified friction
     back = load_identified(result.save(tmp_path / "out"))
     np.testing.assert_array_equal(back.theta, result.theta)

@@ -15,7 +15,7 @@ from identification.shooting import (
 from identification.friction_baseline import paper_friction_fit, simulate_lugre_ode
 from psdm_casadi.errors import NotFittedError, ParameterError, ShapeError, SolverError
 
-from .friction_signal import denso_truth, sine_series, synthetic_record
+from .friction_signal import denso_truth, measured_friction, ringing_joint_record, sine_series, synthetic_record
 
 ISSUE_TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
 
@@ -178,3 +178,64 @@ def test_estimator_contract():
     assert est.score(t, qd, tau) > 0.999
     assert r2_score(tau, est.predict(t, qd)) == pytest.approx(est.score(t, qd, tau))
     assert LuGreIdentifier(initial=truth).fit(t, qd, tau).params_ == est.params_  # deterministic
+
+
+# ------------------------------------------------------------------------------------------------
+# the central-difference measurement model (identification.friction_measurement)
+# ------------------------------------------------------------------------------------------------
+def test_measured_model_equals_brute_force_triangle_average():
+    """Closed-form L/R means against a fine numerical average of the friction along piecewise-linear q."""
+    from identification.friction_measurement import simulate_lugre_measured
+
+    truth, _ = denso_truth(0)
+    t = np.arange(40) * 1e-3
+    rng = np.random.default_rng(0)
+    q = np.cumsum(rng.normal(0.0, 4e-5, t.size)) + np.where(t > 0.02, 1e-3 * (t - 0.02) / 1e-3, 0.0) * 0.05
+    y, s = simulate_lugre_measured(truth, t, q, s0=2.0)
+    p, m = truth, 4000
+    u = (np.arange(m) + 0.5) / m  # midpoints of the fine grid within one interval
+    means_left, means_right, state = [], [], 2.0
+    for k in range(t.size - 1):
+        v = (q[k + 1] - q[k]) / 1e-3
+        gv = p.fc + (p.fs - p.fc) * np.exp(-((v / p.vs) ** 2))
+        rest = gv * np.sign(v)
+        sk = rest + (state - rest) * np.exp(-p.sigma0 * abs(v) * 1e-3 * u / gv)
+        f = sk + p.sigma1 * (v - abs(v) * sk / gv) + p.fv * abs(v) ** p.dv * np.sign(v)
+        means_left.append(np.mean((1 - u) * f))
+        means_right.append(np.mean(u * f))
+        state = rest + (state - rest) * np.exp(-p.sigma0 * abs(v) * 1e-3 / gv)
+        assert s[k + 1] == pytest.approx(state, rel=1e-9, abs=1e-9)
+    expected = np.array(means_right[:-1]) + np.array(means_left[1:])
+    np.testing.assert_allclose(y[1:-1], expected, rtol=1e-6, atol=1e-6 * np.abs(expected).max())
+
+
+@pytest.fixture(scope="module")
+def ringing_record():
+    """Denso joint 1 friction on a 1.13 kg m^2 joint under a held command: it rings at ~80 Hz after each stick."""
+    truth, _ = denso_truth(0)
+    t, q, tau = ringing_joint_record(truth, 1.13, np.random.default_rng(5), current_noise=0.05)
+    qd, y = measured_friction(t, q, tau, 1.13)
+    return truth, t, q, qd, y
+
+
+def test_central_difference_measurement_recovers_sigma1_of_a_ringing_joint(ringing_record):
+    """Comparing y with the friction at the samples biases sigma1 by ~85 %; modelling the measurement does not."""
+    truth, t, q, qd, y = ringing_record
+    initial = initial_lugre_guess(t, qd, y, fit_high_speed(qd, y))
+    exact = fit_lugre_multiple_shooting(t, qd, y, initial, ShootingOptions(measurement="central-difference"), q=q)
+    errors = exact.parameters.relative_error(truth)
+    assert all(errors[k] <= ISSUE_TOLERANCE[k] for k in ISSUE_TOLERANCE), errors
+    assert errors["sigma1"] < 0.12
+    sampled = fit_lugre_multiple_shooting(t, qd, y, initial, ShootingOptions(measurement="sample"))
+    assert sampled.parameters.relative_error(truth)["sigma1"] > 0.5  # the failure this model fixes
+    assert exact.tau.shape == t.shape and np.sqrt(exact.objective) < 0.1
+
+
+def test_measurement_option_errors(ringing_record):
+    truth, t, q, qd, y = ringing_record
+    with pytest.raises(ParameterError, match="measurement"):
+        ShootingOptions(measurement="midpoint")
+    with pytest.raises(ParameterError, match="q"):
+        fit_lugre_multiple_shooting(t, qd, y, truth, ShootingOptions(measurement="central-difference"))
+    with pytest.raises(ShapeError, match="q"):
+        fit_lugre_multiple_shooting(t, qd, y, truth, ShootingOptions(measurement="central-difference"), q=q[:-1])

@@ -105,6 +105,59 @@ def test_motor_recovers_kt_noise_free(denso, motor_experiments, truth):
         assert rmse[j] < 0.05 * np.abs(observed[joint == j]).max()  # 4 Hz filter edges on a short sweep
 
 
+def test_motor_dynamic_load_removes_the_velocity_bias(denso, motor_experiments, truth):
+    """At 0.8 rad/s the mass's velocity terms survive folding: the static load (eq. 16) is biased, the dynamic is not."""
+    _, kt, _ = truth
+    dynamic = MotorIdentifier(robot=denso, payload=PAYLOAD).fit(motor_experiments)
+    static = MotorIdentifier(robot=denso, payload=PAYLOAD, load="static").fit(motor_experiments)
+    err_dynamic = np.abs(dynamic.kt_[[1, 4]] / kt[[1, 4]] - 1)
+    err_static = np.abs(static.kt_[[1, 4]] / kt[[1, 4]] - 1)
+    assert err_dynamic.max() < 2e-4 and err_static.max() > 3 * err_dynamic.max()
+    with pytest.raises(ParameterError, match="load"):
+        MotorIdentifier(robot=denso, payload=PAYLOAD, load="inertial").fit(motor_experiments)
+
+
+def test_friction_coupling_torque_matches_pinocchio(denso, denso_model, truth):
+    """sum_k M_jk(q) qdd_k of the held joints, from the regressor with a given theta, equals Pinocchio's crba row."""
+    import pinocchio as pin
+
+    from identification.friction_step import _coupling_torque
+    from psdm_casadi.oracle import build_pinocchio_model
+
+    theta, _, _ = truth
+    rng = np.random.default_rng(2)
+    t = np.arange(0.0, 0.4, 1e-3)
+    q = np.tile(rng.uniform(0.5 * denso.q_min, 0.5 * denso.q_max), (t.size, 1))
+    q[:, 1] += 0.3 * np.sin(2 * np.pi * t)  # the moving joint changes M_1k for k < 1
+    qdd = rng.normal(0.0, 1.0, q.shape)
+    rec = Recording(t=t, q=q, tau=np.zeros_like(q), qd=np.zeros_like(q), qdd=qdd, name="coupling")
+    model = build_pinocchio_model(denso, denso.nominal_dynamic_parameters())
+    data = model.createData()
+    expected = np.empty(t.size)
+    for k in range(t.size):
+        m = pin.crba(model, data, q[k])
+        m = np.triu(m) + np.triu(m, 1).T
+        expected[k] = m[1] @ qdd[k] - m[1, 1] * qdd[k, 1]
+    got = _coupling_torque(denso_model, theta, rec, 1)
+    np.testing.assert_allclose(got, expected, atol=2e-4 * np.abs(expected).max())
+    fit = FrictionIdentifier(model=denso_model, kt=None, theta=theta, coupling_theta=theta)
+    plain = FrictionIdentifier(model=denso_model, kt=None, theta=theta)
+    np.testing.assert_allclose(plain.measured_friction(FrictionExperiment(1, rec)) - fit.measured_friction(
+        FrictionExperiment(1, rec)), got, atol=1e-12)
+
+
+def test_friction_central_difference_needs_full_rate(denso_model, truth):
+    from identification.shooting import ShootingOptions
+
+    theta, kt, _ = truth
+    rec = Recording(t=np.arange(0.0, 0.05, 1e-3), q=np.zeros((50, 6)), current=np.zeros((50, 6)),
+                    qd=np.zeros((50, 6)), qdd=np.zeros((50, 6)), name="x")
+    options = ShootingOptions(measurement="central-difference")
+    with pytest.raises(ParameterError, match="decimation"):
+        FrictionIdentifier(model=denso_model, kt=kt, theta=theta, decimation=2, shooting_options=options).fit(
+            FrictionExperiment(0, rec))
+
+
 def test_gravity_recovers_parameters(denso_model, gravity_recording, truth):
     theta, _, _ = truth
     fit = GravityIdentifier(model=denso_model, kt=None, min_speed=0.0).fit(gravity_recording)
