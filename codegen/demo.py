@@ -120,7 +120,6 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
     from identification.extra_physics import Spring
     from identification.pipeline import IdentificationPipeline, PipelineOptions
-    from identification.report import plot_observed_predicted
     from identification.virtual_calibration import VirtualCalibrationOptions, simulate_calibration
     from trajopt.optimize import ExcitationOptions, optimize_excitation
     from trajopt.plot import plot_trajectory
@@ -200,7 +199,7 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
     report = diagnose(robot, train, validation, DiagnosisOptions(rigid_body="identified"), model=model,
                       progress=None if options.quiet else (lambda m: _step(options, m)))
     timings["diagnose"] = time.perf_counter() - start
-    diagnosis_files = report.save(staging / "diagnosis", plots=True)
+    report.save(staging / "diagnosis", plots=True)
     found = [f.to_dict() for f in report.findings]
     summary["diagnosis"] = {"hidden": {"effect": "spring", "joint": options.spring_joint + 1,
                                        "stiffness": options.spring_stiffness, "rest": options.spring_rest},

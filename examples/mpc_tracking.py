@@ -85,7 +85,6 @@ def run(n_steps=15):
     dynamics = build_recursive_functions(model, robot, theta)  # the recursive form: the smallest graph
     opti, xs, us, x0, refs, horizon, dt = build_controller(robot, dynamics)
     plant = PinocchioOracle(robot)
-    n = robot.n_dof
     q, qd = reference(0.0)
     opti.set_initial(xs, np.array([np.concatenate(reference(k * dt)) for k in range(horizon + 1)]).T)
     # warm start the torques with the model's inverse dynamics of the reference (plus friction)
