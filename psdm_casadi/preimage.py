@@ -27,6 +27,7 @@ JOINT_PARAMETER_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz
 _PREFERENCE = {"Im": 0, "Izz": 0, "Ixx": 1, "Ixy": 1, "Ixz": 1, "Iyz": 1, "mx": 2, "my": 2, "Iyy": 3, "mz": 4, "m": 5}
 _CHECK_STATES = 40
 _CHECK_RTOL = 1e-9
+_SNAP_RTOL = 1e-13
 
 
 @dataclass(frozen=True)
@@ -105,6 +106,18 @@ def _regressor_error(model: PSDMModel, robot: RobotDescription, matrix: np.ndarr
     return worst
 
 
+def _snap_halves(matrix: np.ndarray) -> np.ndarray:
+    """Entries within rounding error of a multiple of 1/2 set to it exactly.
+
+    The inverse of K_joint[:, S] carries a few units of roundoff on entries that are exactly 1, -1 or 1/2
+    (sums of inertias, parallel-axis terms); as 1.0000000000000002 each costs the recursion a product.
+    """
+    halves = np.round(2.0 * matrix) / 2.0
+    close = np.abs(matrix - halves) <= _SNAP_RTOL * np.maximum(np.abs(matrix), 1.0)
+    return np.where(close, halves, matrix)
+
+
+
 def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 0) -> StandardPreimage:
     """The sparse joint-frame preimage of a model's base parameters, checked against Pinocchio.
 
@@ -135,12 +148,12 @@ def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 
     support = _select_columns(k_joint)
     matrix = np.zeros((k_joint.shape[1], model.n_base))
     if len(support) == model.n_base:
-        matrix[support] = np.linalg.inv(k_joint[:, support])
+        matrix[support] = _snap_halves(np.linalg.inv(k_joint[:, support]))
         error = _regressor_error(model, robot, matrix, rng)
     else:
         error = np.inf
     if not error <= _CHECK_RTOL:  # assumptions not aligned with coordinates: the dense minimum-norm preimage
-        matrix = np.linalg.pinv(k_joint)
+        matrix = _snap_halves(np.linalg.pinv(k_joint))
         support = [int(r) for r in np.flatnonzero(np.abs(matrix).max(axis=1) > 0)]
         error = _regressor_error(model, robot, matrix, rng)
     if not error <= _CHECK_RTOL:
@@ -151,3 +164,4 @@ def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 
         )
     matrix[np.abs(matrix) < 1e-13 * np.abs(matrix).max()] = 0.0
     return StandardPreimage(matrix=matrix, support=tuple(int(s) for s in support), max_rel_error=float(error))
+

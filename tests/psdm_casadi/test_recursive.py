@@ -51,6 +51,16 @@ def test_preimage_keeps_one_standard_parameter_per_base_parameter(denso, denso_m
         preimage.standard_parameters(theta[:-1])
 
 
+def test_preimage_coefficients_near_halves_are_exact(denso, denso_model):
+    """Sums of inertias give coefficients 1, -1 and 1/2; the inverse carries roundoff on them
+    (1.0000000000000002), which would cost the generated code a product each."""
+    matrix = standard_preimage(denso_model, denso).matrix
+    halves = np.round(2.0 * matrix) / 2.0
+    near = np.abs(matrix - halves) < 1e-12
+    assert near.sum() >= denso_model.n_base  # at least one unit coefficient per base parameter
+    assert np.array_equal(matrix[near], halves[near])
+
+
 def test_recursive_equals_sum_form_for_any_theta(denso_model, denso_recursive, rng):
     """Runtime theta: every function agrees with the sum form for arbitrary (non-physical) base parameters."""
     sums = build_functions(denso_model)
