@@ -330,7 +330,7 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
     fast_trig : bool
         Replace libm's ``sin``/``cos`` in the generated code by inlined ones (``psdm_sin``/``psdm_cos``:
         Cody-Waite reduction and minimax polynomials, within a few ulp of libm; libm beyond
-        ``|x| >= 1e5``). Calling libm costs most of the time of a small robot's inverse dynamics.
+        ``|x| >= 2^17``). Calling libm costs most of the time of a small robot's inverse dynamics.
     overwrite : bool
         Allow writing into a non-empty folder (files of the same name are replaced).
 
