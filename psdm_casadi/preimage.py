@@ -117,7 +117,6 @@ def _snap_halves(matrix: np.ndarray) -> np.ndarray:
     return np.where(close, halves, matrix)
 
 
-
 def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 0) -> StandardPreimage:
     """The sparse joint-frame preimage of a model's base parameters, checked against Pinocchio.
 
@@ -164,4 +163,3 @@ def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 
         )
     matrix[np.abs(matrix) < 1e-13 * np.abs(matrix).max()] = 0.0
     return StandardPreimage(matrix=matrix, support=tuple(int(s) for s in support), max_rel_error=float(error))
-
