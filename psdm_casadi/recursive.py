@@ -14,15 +14,13 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from .errors import ShapeError
-from .forward import ldl_solve
 from .kinematics_sx import joint_chain
 from .model import PSDMModel
 from .newton_euler import newton_euler
 from .oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
 from .preimage import StandardPreimage, standard_preimage
 from .robot import RobotDescription
-from .symbolic import DynamicsFunctions
+from .symbolic import DynamicsFunctions, assemble_functions, baked_theta
 
 
 def _linear_parameters(preimage: StandardPreimage, theta) -> list:
@@ -82,34 +80,15 @@ def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=N
     if theta is None:
         parameters, theta_inputs, theta_names, baked = symbolic_parameters, [theta_sym], ["theta"], None
     else:
-        baked = np.asarray(theta, dtype=float).reshape(-1)
-        if baked.size != l:
-            raise ShapeError(f"theta must have {l} base parameters; got {baked.size}.")
+        baked = baked_theta(theta, l)
         parameters = [[float(v) for v in row] for row in preimage.standard_parameters(baked)]
         theta_inputs, theta_names = [], []
 
     tau = newton_euler(chain, parameters, qd, qdd, base_acceleration)
     gravity = newton_euler(chain, parameters, zero, zero, base_acceleration, with_velocity=False)
     bias = newton_euler(chain, parameters, qd, zero, base_acceleration)
-    mass = ca.SX.zeros(n, n)
-    for k in range(n):
-        column = newton_euler(chain, parameters, zero, ca.SX(ca.DM(np.eye(n)[k])), no_gravity, with_velocity=False)
-        for i in range(k, n):
-            mass[i, k] = column[i]
-            mass[k, i] = column[i]
-    qdd_forward = ldl_solve(mass, tau_in - bias)
-
-    def function(name, inputs, input_names, output, output_name):
-        return ca.Function(name, inputs + theta_inputs, [output], input_names + theta_names, [output_name],
-                           {"cse": True})
-
-    return DynamicsFunctions(
-        regressor=ca.Function("regressor", [q, qd, qdd], [regressor], ["q", "qd", "qdd"], ["Y"], {"cse": True}),
-        gravity_regressor=ca.Function("gravity_regressor", [q], [gravity_regressor], ["q"], ["Y_grav"], {"cse": True}),
-        inverse_dynamics=function("inverse_dynamics", [q, qd, qdd], ["q", "qd", "qdd"], tau, "tau"),
-        mass_matrix=function("mass_matrix", [q], ["q"], mass, "D"),
-        bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
-        gravity=function("gravity", [q], ["q"], gravity, "G"),
-        forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], qdd_forward, "qdd"),
-        n_dof=n, n_base=l, theta=baked,
-    )
+    columns = [newton_euler(chain, parameters, zero, ca.SX(ca.DM(np.eye(n)[k])), no_gravity, with_velocity=False)
+               for k in range(n)]
+    return assemble_functions((q, qd, qdd, tau_in), theta_inputs, theta_names, regressor=regressor,
+                              gravity_regressor=gravity_regressor, tau=tau, bias=bias, gravity=gravity,
+                              mass_columns=columns, theta=baked)

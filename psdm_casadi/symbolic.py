@@ -65,6 +65,46 @@ class DynamicsFunctions:
                 self.gravity, self.forward_dynamics]
 
 
+def baked_theta(theta, n_base: int) -> np.ndarray:
+    """Numeric base parameters to compile in, as a flat float array of length ``n_base``."""
+    baked = np.asarray(theta, dtype=float).reshape(-1)
+    if baked.size != n_base:
+        raise ShapeError(f"theta must have {n_base} base parameters; got {baked.size}.")
+    return baked
+
+
+def assemble_functions(symbols, theta_inputs: list, theta_names: list, *, regressor, gravity_regressor, tau, bias,
+                       gravity, mass_columns, theta) -> DynamicsFunctions:
+    """The named CasADi Functions of one model's expressions (shared by both forms of the model).
+
+    ``symbols`` is ``(q, qd, qdd, tau_in)``; ``mass_columns[k]`` is column k of the mass matrix, whose
+    entries from k down fill the lower triangle, mirrored; forward dynamics solve it by LDL^T.
+    """
+    q, qd, qdd, tau_in = symbols
+    n = q.numel()
+    mass = ca.SX.zeros(n, n)
+    for k, column in enumerate(mass_columns):
+        for i in range(k, n):
+            mass[i, k] = column[i]
+            mass[k, i] = column[i]
+    qdd_forward = ldl_solve(mass, tau_in - bias)
+
+    def function(name, inputs, input_names, output, output_name):
+        return ca.Function(name, inputs + theta_inputs, [output], input_names + theta_names, [output_name],
+                           {"cse": True})
+
+    return DynamicsFunctions(
+        regressor=ca.Function("regressor", [q, qd, qdd], [regressor], ["q", "qd", "qdd"], ["Y"], {"cse": True}),
+        gravity_regressor=ca.Function("gravity_regressor", [q], [gravity_regressor], ["q"], ["Y_grav"], {"cse": True}),
+        inverse_dynamics=function("inverse_dynamics", [q, qd, qdd], ["q", "qd", "qdd"], tau, "tau"),
+        mass_matrix=function("mass_matrix", [q], ["q"], mass, "D"),
+        bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
+        gravity=function("gravity", [q], ["q"], gravity, "G"),
+        forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], qdd_forward, "qdd"),
+        n_dof=n, n_base=regressor.size2(), theta=theta,
+    )
+
+
 class _Terms:
     """Shared SX building blocks: per-joint basis values and factored trig polynomials."""
 
@@ -221,9 +261,7 @@ def build_functions(model: PSDMModel, theta=None) -> DynamicsFunctions:
         theta_values, theta_inputs, theta_names = [theta_sym[k] for k in range(l)], [theta_sym], ["theta"]
         baked = None
     else:
-        baked = np.asarray(theta, dtype=float).reshape(-1)
-        if baked.size != l:
-            raise ShapeError(f"theta must have {l} base parameters; got {baked.size}.")
+        baked = baked_theta(theta, l)
         theta_values, theta_inputs, theta_names = list(baked), [], []
 
     terms = _Terms(model, q)
@@ -244,24 +282,6 @@ def build_functions(model: PSDMModel, theta=None) -> DynamicsFunctions:
     # Mass matrix column k: the qdd_k terms with qdd = e_k; fill the lower triangle, mirror it.
     columns = [ca.substitute(_torques(model, terms, weights, qd, qdd, include={"qdd"}), qdd,
                              ca.DM(np.eye(n)[k])) for k in range(n)]
-    mass = ca.SX.zeros(n, n)
-    for k in range(n):
-        for i in range(k, n):
-            mass[i, k] = columns[k][i]
-            mass[k, i] = columns[k][i]
-    qdd_forward = ldl_solve(mass, tau_in - bias)
-
-    def function(name, inputs, input_names, output, output_name):
-        return ca.Function(name, inputs + theta_inputs, [output], input_names + theta_names, [output_name],
-                           {"cse": True})
-
-    return DynamicsFunctions(
-        regressor=ca.Function("regressor", [q, qd, qdd], [regressor], ["q", "qd", "qdd"], ["Y"], {"cse": True}),
-        gravity_regressor=ca.Function("gravity_regressor", [q], [gravity_regressor], ["q"], ["Y_grav"], {"cse": True}),
-        inverse_dynamics=function("inverse_dynamics", [q, qd, qdd], ["q", "qd", "qdd"], tau, "tau"),
-        mass_matrix=function("mass_matrix", [q], ["q"], mass, "D"),
-        bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
-        gravity=function("gravity", [q], ["q"], gravity, "G"),
-        forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], qdd_forward, "qdd"),
-        n_dof=n, n_base=l, theta=baked,
-    )
+    return assemble_functions((q, qd, qdd, tau_in), theta_inputs, theta_names, regressor=regressor,
+                              gravity_regressor=gravity_regressor, tau=tau, bias=bias, gravity=gravity,
+                              mass_columns=columns, theta=baked)
