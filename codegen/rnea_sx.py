@@ -13,10 +13,11 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.forward import ldl_solve
+from psdm_casadi.forward import ldl_solve, symmetric_from_columns
 from psdm_casadi.kinematics_sx import clean as _clean
 from psdm_casadi.kinematics_sx import cross as _cross
 from psdm_casadi.kinematics_sx import joint_chain
+from psdm_casadi.newton_euler import backward_pass
 
 
 @dataclass(frozen=True)
@@ -94,23 +95,7 @@ def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
             t = t + _cross(w, ht) + _cross(v, hf)
         forces.append(f)
         torques.append(t)
-    tau = [None] * n
-    armature = _clean(model.armature)
-    for i in reversed(range(n)):
-        axis = kin.axes[i]
-        if kin.revolute[i]:
-            tau[i] = ca.dot(axis, torques[i])
-        else:
-            tau[i] = ca.dot(axis, forces[i])
-        if armature[i] != 0.0:
-            tau[i] = tau[i] + armature[i] * qdd[i]
-        parent = kin.parents[i]
-        if parent >= 0:
-            rot, p = kin.rotations[i], kin.translations[i]
-            f_p = ca.mtimes(rot, forces[i])
-            forces[parent] = forces[parent] + f_p
-            torques[parent] = torques[parent] + ca.mtimes(rot, torques[i]) + _cross(p, f_p)
-    return ca.vertcat(*tau)
+    return backward_pass(kin, list(zip(forces, torques)), qdd, [float(a) for a in _clean(model.armature)])
 
 
 # The peer solves D qdd = tau - h with the same square-root-free LDL^T as the PSDM model, so the two
@@ -153,12 +138,7 @@ def build_rnea_functions(model, *, cse=True) -> RneaFunctions:
     unit = np.eye(n)
     columns = [_rnea_pass(model, kin, zero, ca.SX(ca.DM(unit[:, j])), ca.SX.zeros(3, 1), with_velocity=False)
                for j in range(n)]
-    # M is symmetric: take the lower triangle of the rnea columns once
-    mass_sym = ca.SX(n, n)
-    for i in range(n):
-        for j in range(i + 1):
-            mass_sym[i, j] = columns[j][i]
-            mass_sym[j, i] = columns[j][i]
+    mass_sym = symmetric_from_columns(columns)  # M is symmetric: the lower triangle of the columns once
     bias = _rnea_pass(model, kin, qd, zero, gravity, with_velocity=True)
     qdd_fd = cholesky_solve_sx(mass_sym, tau - bias)
     return RneaFunctions(

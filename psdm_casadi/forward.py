@@ -9,6 +9,17 @@ from __future__ import annotations
 import casadi as ca
 
 
+def symmetric_from_columns(columns) -> ca.SX:
+    """The symmetric matrix whose column k holds ``columns[k]`` from row k down (the rest mirrored)."""
+    n = len(columns)
+    matrix = ca.SX(n, n)
+    for k, column in enumerate(columns):
+        for i in range(k, n):
+            matrix[i, k] = column[i]
+            matrix[k, i] = column[i]
+    return matrix
+
+
 def ldl_solve(matrix: ca.SX, rhs: ca.SX) -> ca.SX:
     """Solve ``matrix x = rhs`` for a symmetric positive definite SX matrix by LDL^T.
 

@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 
 from .errors import ShapeError
-from .forward import ldl_solve
+from .forward import ldl_solve, symmetric_from_columns
 from .model import PSDMModel
 
 
@@ -81,12 +81,7 @@ def assemble_functions(symbols, theta_inputs: list, theta_names: list, *, regres
     entries from k down fill the lower triangle, mirrored; forward dynamics solve it by LDL^T.
     """
     q, qd, qdd, tau_in = symbols
-    n = q.numel()
-    mass = ca.SX.zeros(n, n)
-    for k, column in enumerate(mass_columns):
-        for i in range(k, n):
-            mass[i, k] = column[i]
-            mass[k, i] = column[i]
+    mass = symmetric_from_columns(mass_columns)
     qdd_forward = ldl_solve(mass, tau_in - bias)
 
     def function(name, inputs, input_names, output, output_name):
@@ -101,7 +96,7 @@ def assemble_functions(symbols, theta_inputs: list, theta_names: list, *, regres
         bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
         gravity=function("gravity", [q], ["q"], gravity, "G"),
         forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], qdd_forward, "qdd"),
-        n_dof=n, n_base=regressor.size2(), theta=theta,
+        n_dof=q.numel(), n_base=regressor.size2(), theta=theta,
     )
 
 
