@@ -491,6 +491,24 @@ def _phi12_casadi(x):
     return _phi12_with(x, ca.if_else, ca.expm1)
 
 
+def _shooting_interval_functions(name, log_p, w, w_next, steps, data, continuity, cost):
+    """The Function pair of one multiple-shooting interval of a LuGre fit (shared by both measurement models).
+
+    ``name(log_p, w, w_next, steps, data) -> (continuity, cost)`` and
+    ``name_hessian(log_p, w, steps, data, lam_f, lam) -> (36,)``: the upper triangle of the 8 x 8 Hessian
+    of ``lam_f * cost + lam * continuity`` over ``(log_p, w)`` (continuity is linear in ``w_next``).
+    """
+    lam_f = ca.SX.sym("lam_f")
+    lam = ca.SX.sym("lam")
+    z = ca.vertcat(log_p, w)
+    hess = ca.hessian(lam_f * cost + lam * continuity, z)[0]
+    triu = ca.vertcat(*[hess[i, j] for i, j in zip(*np.triu_indices(8))])
+    return (
+        ca.Function(name, [log_p, w, w_next, steps, data], [continuity, cost]),
+        ca.Function(f"{name}_hessian", [log_p, w, steps, data, lam_f, lam], [triu]),
+    )
+
+
 @dataclass(frozen=True)
 class LuGreExpressions:
     """CasADi Functions of the LuGre model of one joint, for NLPs and MPC.

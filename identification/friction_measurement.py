@@ -29,7 +29,7 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError
 
-from .friction import _phi12, _phi12_casadi
+from .friction import _phi12, _phi12_casadi, _shooting_interval_functions
 
 __all__ = ["simulate_lugre_measured", "interval_velocities", "measurement_weights", "build_measured_interval",
            "measured_layout"]
@@ -131,8 +131,6 @@ def build_measured_interval(p0, s_scale, length):
     w_next = ca.SX.sym("w_next")
     steps = ca.SX.sym("steps", 4, length + 1)
     data = ca.SX.sym("data", 4, length)
-    lam_f = ca.SX.sym("lam_f")
-    lam = ca.SX.sym("lam")
     s = s_scale * w
     cost = 0
     right_prev, con = None, None
@@ -146,13 +144,7 @@ def build_measured_interval(p0, s_scale, length):
         if i == length - 1:
             con = s_next / s_scale - w_next
         right_prev, s = right, s_next
-    z = ca.vertcat(log_p, w)
-    hess = ca.hessian(lam_f * cost + lam * con, z)[0]
-    triu = ca.vertcat(*[hess[i, j] for i, j in zip(*np.triu_indices(8))])
-    return (
-        ca.Function("measured_interval", [log_p, w, w_next, steps, data], [con, cost]),
-        ca.Function("measured_interval_hessian", [log_p, w, steps, data, lam_f, lam], [triu]),
-    )
+    return _shooting_interval_functions("measured_interval", log_p, w, w_next, steps, data, con, cost)
 
 
 def measured_layout(t, q, tau, n_nodes, length, mse_scale):

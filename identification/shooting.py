@@ -35,6 +35,7 @@ from psdm_casadi.errors import NotFittedError, ParameterError, SolverError
 from identification.friction import (
     LuGreParameters,
     _phi12_casadi,
+    _shooting_interval_functions,
     _substep_layout,
     check_friction_data,
     simulate_lugre,
@@ -201,8 +202,6 @@ def _interval_functions(p0, s_scale, substeps, parts, length):
     data = ca.SX.sym("data", 5, length)
     per_step = 4 * substeps * parts
     steps = ca.SX.sym("steps", per_step, length)
-    lam_f = ca.SX.sym("lam_f")
-    lam = ca.SX.sym("lam")
 
     s = s_scale * w
     cost = 0
@@ -218,15 +217,7 @@ def _interval_functions(p0, s_scale, substeps, parts, length):
             x = 0.5 * sigma0 * h * (ca.fabs(qa) / g_a + ca.fabs(qb) / g_b)
             phi1, phi2 = _phi12_casadi(x)
             s = ca.exp(-x) * s + x * (phi1 * sign * g_a + phi2 * sign * (g_b - g_a))
-    con = s / s_scale - w_next
-
-    z = ca.vertcat(log_p, w)
-    hess = ca.hessian(lam_f * cost + lam * con, z)[0]
-    triu = ca.vertcat(*[hess[i, j] for i, j in zip(*np.triu_indices(8))])
-    return (
-        ca.Function("interval", [log_p, w, w_next, steps, data], [con, cost]),
-        ca.Function("interval_hessian", [log_p, w, steps, data, lam_f, lam], [triu]),
-    )
+    return _shooting_interval_functions("interval", log_p, w, w_next, steps, data, s / s_scale - w_next, cost)
 
 
 def _scatter(n_nodes, block_node):
