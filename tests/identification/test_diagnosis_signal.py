@@ -37,12 +37,17 @@ def test_clean_nominal_model_leaves_only_a_noise_level_residual(denso, denso_mod
     assert max(report.rmse_train_before) < 0.1
 
 
+def _deflection_report(denso, denso_model, hidden, seed):
+    """Diagnosis of a recording with ``hidden`` among the deflection terms of its joint."""
+    train, val = recording_pair(denso, [hidden], seed=seed)
+    library = _deflection(hidden.joint)
+    return diagnose(denso, train, val, DiagnosisOptions(library=library, max_effects=1), model=denso_model)
+
+
 def test_backlash_is_found_with_its_width_and_the_error_drops(denso, denso_model):
-    train, val = recording_pair(denso, [], seed=6)
+    clean, _ = recording_pair(denso, [], seed=6)
     width = np.radians(0.4)
-    hidden = Backlash(joint=1, width=width, torque_scale=0.02 * _tau_rms(train, 1))
-    train, val = recording_pair(denso, [hidden], seed=6)
-    report = diagnose(denso, train, val, DiagnosisOptions(library=_deflection(1), max_effects=1), model=denso_model)
+    report = _deflection_report(denso, denso_model, Backlash(joint=1, width=width, torque_scale=0.02 * _tau_rms(clean, 1)), 6)
     first = report.findings[0]
     assert first.effect == "backlash" and first.joints == (1,)
     assert first.parameters["backlash_rad"] == pytest.approx(width, rel=0.1)
@@ -50,10 +55,9 @@ def test_backlash_is_found_with_its_width_and_the_error_drops(denso, denso_model
 
 
 def test_joint_elasticity_is_not_read_as_backlash(denso, denso_model):
-    train, val = recording_pair(denso, [], seed=7)
-    stiffness = _tau_rms(train, 2) / np.radians(0.2)  # torsion 0.2 deg at the RMS torque
-    train, val = recording_pair(denso, [JointElasticity(joint=2, stiffness=stiffness)], seed=7)
-    report = diagnose(denso, train, val, DiagnosisOptions(library=_deflection(2), max_effects=1), model=denso_model)
+    clean, _ = recording_pair(denso, [], seed=7)
+    stiffness = _tau_rms(clean, 2) / np.radians(0.2)  # torsion 0.2 deg at the RMS torque
+    report = _deflection_report(denso, denso_model, JointElasticity(joint=2, stiffness=stiffness), 7)
     first = report.findings[0]
     assert first.effect == "joint_elasticity" and first.joints == (2,)
     assert first.parameters["stiffness_Nm_per_rad"] == pytest.approx(stiffness, rel=0.1)
