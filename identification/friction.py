@@ -245,7 +245,7 @@ class Stribeck:
 # ------------------------------------------------------------------------------------------------
 # numeric simulation
 # ------------------------------------------------------------------------------------------------
-def check_friction_data(t, qd, tau=None, owner="friction data"):
+def check_friction_data(t, qd, tau=None, owner="friction data", signal="qd"):
     """Validate friction-experiment arrays and return them as float 1-D arrays.
 
     Parameters
@@ -258,6 +258,8 @@ def check_friction_data(t, qd, tau=None, owner="friction data"):
         Friction torque [N m], finite.
     owner : str
         Name used in error messages.
+    signal : str
+        Name of the second array in error messages (``"q"`` when positions are passed).
 
     Returns
     -------
@@ -271,7 +273,7 @@ def check_friction_data(t, qd, tau=None, owner="friction data"):
     ParameterError
         NaN/inf values or time not strictly increasing.
     """
-    arrays = {"t": t, "qd": qd} if tau is None else {"t": t, "qd": qd, "tau": tau}
+    arrays = {"t": t, signal: qd} if tau is None else {"t": t, signal: qd, "tau": tau}
     out = {}
     for name, value in arrays.items():
         value = np.asarray(value, dtype=float)

@@ -27,9 +27,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.errors import ParameterError, ShapeError
-
-from .friction import _phi12, _phi12_casadi, _shooting_interval_functions
+from .friction import _phi12, _phi12_casadi, _shooting_interval_functions, check_friction_data
 
 __all__ = ["simulate_lugre_measured", "interval_velocities", "measurement_weights", "build_measured_interval",
            "measured_layout"]
@@ -37,12 +35,7 @@ __all__ = ["simulate_lugre_measured", "interval_velocities", "measurement_weight
 
 def interval_velocities(t, q, owner="interval_velocities") -> tuple[np.ndarray, np.ndarray]:
     """Sample-interval lengths ``T[i]`` [s] and mean velocities ``(q[i+1] - q[i]) / T[i]``, shapes (n - 1,)."""
-    t = np.asarray(t, dtype=float)
-    q = np.asarray(q, dtype=float)
-    if q.shape != t.shape:
-        raise ShapeError(f"{owner}.q must have the shape of t {t.shape}; got {q.shape}. Pass one joint's positions.")
-    if not np.all(np.isfinite(q)):
-        raise ParameterError(f"{owner}.q must be finite; got NaN/inf. Remove or interpolate them.")
+    t, q = check_friction_data(t, q, owner=owner, signal="q")
     h = np.diff(t)
     return h, np.diff(q) / h
 

@@ -375,7 +375,7 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
         if q is None:
             raise ParameterError("fit_lugre_multiple_shooting.q is required by ShootingOptions.measurement="
                                  "'central-difference'; pass the joint's recorded positions or use 'sample'.")
-        _, q, _ = check_friction_data(t, q, tau, owner="fit_lugre_multiple_shooting")
+        _, q, _ = check_friction_data(t, q, tau, owner="fit_lugre_multiple_shooting", signal="q")
         if t.size < 4:
             raise ParameterError(f"fit_lugre_multiple_shooting.t must hold at least 4 samples with "
                                  f"measurement='central-difference'; got {t.size}.")

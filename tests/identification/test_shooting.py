@@ -237,5 +237,17 @@ def test_measurement_option_errors(ringing_record):
         ShootingOptions(measurement="midpoint")
     with pytest.raises(ParameterError, match="q"):
         fit_lugre_multiple_shooting(t, qd, y, truth, ShootingOptions(measurement="central-difference"))
-    with pytest.raises(ShapeError, match="q"):
+    with pytest.raises(ShapeError, match=r"fit_lugre_multiple_shooting\.q must have the length of t"):
         fit_lugre_multiple_shooting(t, qd, y, truth, ShootingOptions(measurement="central-difference"), q=q[:-1])
+
+
+def test_measured_simulation_refuses_bad_positions_and_times(ringing_record):
+    from identification.friction_measurement import simulate_lugre_measured
+
+    truth, t, q, _, _ = ringing_record
+    bad = q.copy()
+    bad[5] = np.nan
+    with pytest.raises(ParameterError, match=r"simulate_lugre_measured\.q must be finite"):
+        simulate_lugre_measured(truth, t, bad)
+    with pytest.raises(ParameterError, match=r"simulate_lugre_measured\.t must be strictly increasing"):
+        simulate_lugre_measured(truth, t[::-1], q)
