@@ -115,6 +115,11 @@ def test_motor_dynamic_load_removes_the_velocity_bias(denso, motor_experiments, 
     assert err_dynamic.max() < 2e-4 and err_static.max() > 3 * err_dynamic.max()
     with pytest.raises(ParameterError, match="load"):
         MotorIdentifier(robot=denso, payload=PAYLOAD, load="inertial").fit(motor_experiments)
+    first = motor_experiments[0]
+    no_rates = MotorExperiment(first.joint, first.nominal.with_signals(qd=None, qdd=None),
+                               first.loaded.with_signals(qd=None, qdd=None))
+    with pytest.raises(ParameterError, match="load='dynamic' needs qd and qdd in the sweeps of joint 2"):
+        MotorIdentifier(robot=denso, payload=PAYLOAD).fit([no_rates])
 
 
 def test_friction_coupling_torque_matches_pinocchio(denso, denso_model, truth):
@@ -144,6 +149,8 @@ def test_friction_coupling_torque_matches_pinocchio(denso, denso_model, truth):
     plain = FrictionIdentifier(model=denso_model, kt=None, theta=theta)
     np.testing.assert_allclose(plain.measured_friction(FrictionExperiment(1, rec)) - fit.measured_friction(
         FrictionExperiment(1, rec)), got, atol=1e-12)
+    with pytest.raises(ParameterError, match="coupling_theta needs qdd"):
+        fit.measured_friction(FrictionExperiment(1, rec.with_signals(qdd=None)))
 
 
 def test_friction_central_difference_needs_full_rate(denso_model, truth):
