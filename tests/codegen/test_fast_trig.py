@@ -125,3 +125,14 @@ def test_hoisting_follows_reassigned_variables_and_skips_unknown_code():
     assert out.index("  casadi_real a0, a1, a2;") < out.index("  psdm_sincos_n(psdm_x, psdm_s, psdm_c, 2);")
     unknown = lines[:-2] + ["  for (i=0; i<3; ++i) w[i]=a0;"] + lines[-2:]
     assert _hoist_input_trig(unknown) == unknown
+
+
+def test_inlining_refuses_code_without_the_math_include(tmp_path):
+    from codegen.export import _inline_trig
+    from psdm_casadi.errors import SolverError
+
+    source = tmp_path / "odd.c"
+    source.write_text("double f(double x) { return x; }\n")
+    with pytest.raises(SolverError, match="odd.c has no '#include <math.h>'; export with fast_trig=False"):
+        _inline_trig(source)
+    assert source.read_text() == "double f(double x) { return x; }\n"  # left as it was
