@@ -7,6 +7,13 @@ acceleration dw and the linear acceleration of each frame origin; the matrix U =
 of each frame is built once and used both for the next frame's acceleration and for the link's
 force (Khalil and Kleinfinger's customised Newton-Euler). With numeric parameters CasADi folds
 every zero, so only the parameters a base-parameter preimage keeps cost anything.
+
+The link wrench has two equal forms: the matrix form (``link_wrench``: m dv + U m r and
+I dw + m r x dv + w x I w, fewest operations for numeric parameters) and the per-parameter form
+(``link_wrench_per_parameter``: the sum of each parameter times the wrench of that parameter alone,
+computed once per link). The regressor is the Jacobian in the parameters; in the per-parameter
+form each of its entries is one short dot product with a vector shared by every joint below the
+link (about 10 % fewer operations for the Panda's regressor than differentiating the matrix form).
 """
 
 from __future__ import annotations
@@ -20,6 +27,8 @@ from .kinematics_sx import JointChain, cross
 # Index of each quantity in a joint's 11 standard parameters.
 MASS, FIRST_MOMENT, INERTIA, ROTOR_INERTIA = 0, slice(1, 4), slice(4, 10), 10
 _ZERO3 = ca.SX.zeros(3, 1)
+# (row, column) of each inertia parameter (Ixx, Ixy, Iyy, Ixz, Iyz, Izz) in the symmetric matrix.
+_INERTIA_ENTRIES = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
 
 
 @dataclass(frozen=True)
@@ -96,6 +105,31 @@ def link_wrench(motion: LinkMotion, link) -> tuple:
     return force, moment
 
 
+def _unit_inertia_moment(motion: LinkMotion, row: int, column: int):
+    """The moment B dw + w x (B w) of a unit inertia parameter, B the symmetric unit matrix at (row, column)."""
+    w, dw = motion.w, motion.dw
+    b_dw, b_w = [ca.SX(0)] * 3, [ca.SX(0)] * 3
+    b_dw[row], b_w[row] = dw[column], w[column]
+    if row != column:
+        b_dw[column], b_w[column] = dw[row], w[row]
+    return ca.vertcat(*b_dw) + cross(w, ca.vertcat(*b_w))
+
+
+def link_wrench_per_parameter(motion: LinkMotion, link) -> tuple:
+    """``link_wrench`` written as the sum over the nonzero parameters of parameter times unit-parameter wrench."""
+    force, moment = _ZERO3, _ZERO3
+    if not ca.SX(link[MASS]).is_zero():
+        force = force + link[MASS] * motion.dv
+    for axis, value in enumerate(link[FIRST_MOMENT]):
+        if not ca.SX(value).is_zero():
+            force = force + value * motion.u[:, axis]
+            moment = moment + value * cross(ca.SX(ca.DM.eye(3)[:, axis]), motion.dv)
+    for (row, column), value in zip(_INERTIA_ENTRIES, link[INERTIA]):
+        if not ca.SX(value).is_zero():
+            moment = moment + value * _unit_inertia_moment(motion, row, column)
+    return force, moment
+
+
 def backward_pass(chain: JointChain, wrenches: list, qdd, rotor_inertia) -> ca.SX:
     """Joint torques from the link wrenches (tip to base), plus rotor inertia times qdd."""
     forces, moments = [w[0] for w in wrenches], [w[1] for w in wrenches]
@@ -112,7 +146,8 @@ def backward_pass(chain: JointChain, wrenches: list, qdd, rotor_inertia) -> ca.S
     return ca.vertcat(*tau)
 
 
-def newton_euler(chain: JointChain, parameters, qd, qdd, base_acceleration, with_velocity: bool = True) -> ca.SX:
+def newton_euler(chain: JointChain, parameters, qd, qdd, base_acceleration, with_velocity: bool = True,
+                 per_parameter: bool = False) -> ca.SX:
     """Joint torques of a chain by Newton-Euler, linear in the standard parameters.
 
     Parameters
@@ -126,11 +161,15 @@ def newton_euler(chain: JointChain, parameters, qd, qdd, base_acceleration, with
     base_acceleration : casadi.SX or DM, shape (3, 1)
     with_velocity : bool
         False treats qd as zero: the velocity terms are skipped.
+    per_parameter : bool
+        Use the per-parameter link wrench (``link_wrench_per_parameter``): for symbolic parameters whose
+        Jacobian is wanted (the regressor).
 
     Returns
     -------
     casadi.SX, shape (n_dof, 1)
     """
     motions = forward_pass(chain, qd, qdd, base_acceleration, with_velocity)
-    wrenches = [link_wrench(motion, link) for motion, link in zip(motions, parameters)]
+    wrench = link_wrench_per_parameter if per_parameter else link_wrench
+    wrenches = [wrench(motion, link) for motion, link in zip(motions, parameters)]
     return backward_pass(chain, wrenches, qdd, [link[ROTOR_INERTIA] for link in parameters])

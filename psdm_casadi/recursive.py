@@ -72,8 +72,9 @@ def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=N
 
     # The regressor is the Jacobian of the (linear) torques in theta; dense, like build_functions' one.
     symbolic_parameters = _linear_parameters(preimage, theta_sym)
-    tau_symbolic = newton_euler(chain, symbolic_parameters, qd, qdd, base_acceleration)
-    gravity_symbolic = newton_euler(chain, symbolic_parameters, zero, zero, base_acceleration, with_velocity=False)
+    tau_symbolic = newton_euler(chain, symbolic_parameters, qd, qdd, base_acceleration, per_parameter=True)
+    gravity_symbolic = newton_euler(chain, symbolic_parameters, zero, zero, base_acceleration, with_velocity=False,
+                                    per_parameter=True)
     regressor = ca.densify(ca.jacobian(tau_symbolic, theta_sym))
     gravity_regressor = ca.densify(ca.jacobian(gravity_symbolic, theta_sym))
 

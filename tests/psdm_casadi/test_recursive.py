@@ -99,9 +99,12 @@ def test_recursive_matches_pinocchio_on_other_robots(make, rng):
     standard = random_standard_parameters(robot, rng)
     oracle = PinocchioOracle(robot, standard)
     fns = build_recursive_functions(model, robot, model.base_parameters(standard))
+    theta = model.base_parameters(standard)
     q, qd, qdd = _states(rng, robot.n_dof, 5)
     for k in range(5):
-        assert _rel(_value(fns.inverse_dynamics, q[k], qd[k], qdd[k]), oracle.rnea(q[k], qd[k], qdd[k])) < 1e-11
+        tau = oracle.rnea(q[k], qd[k], qdd[k])
+        assert _rel(_value(fns.inverse_dynamics, q[k], qd[k], qdd[k]), tau) < 1e-11
+        assert _rel(_value(fns.regressor, q[k], qd[k], qdd[k]) @ theta, tau) < 1e-11
 
 
 def test_recursive_matches_pinocchio_on_a_urdf(rng):
