@@ -35,3 +35,20 @@ def test_benchmark_reports_required_keys_and_agrees_with_pinocchio():
     # the harness checks every implementation against Pinocchio on the same states
     for key, error in denso["max_abs_error"].items():
         assert error < 1e-9, key
+    assert report["targets_met"] == (not report["targets_missed"]) == (run.returncode == 0)
+
+
+def test_missed_targets_name_each_robot_and_ratio_below_its_target():
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    try:
+        from dynamics_speed import TARGETS, missed_targets
+    finally:
+        sys.path.remove(str(ROOT / "benchmarks"))
+    met = {name: target * 1.01 for name, target in TARGETS.items()}
+    short = {**met, "regressor_speedup_vs_pinocchio": 0.95 * TARGETS["regressor_speedup_vs_pinocchio"],
+             "fd_speedup_vs_casadi_rnea": None}
+    assert missed_targets({"denso": met}) == []
+    missed = missed_targets({"denso": met, "panda": short})
+    assert len(missed) == 2 and all(m.startswith("panda ") for m in missed)
+    assert any("regressor_speedup_vs_pinocchio 9.50 < 10" in m for m in missed)
+    assert any("fd_speedup_vs_casadi_rnea nan" in m for m in missed)
