@@ -27,8 +27,6 @@ from .kinematics_sx import JointChain, cross
 # Index of each quantity in a joint's 11 standard parameters.
 MASS, FIRST_MOMENT, INERTIA, ROTOR_INERTIA = 0, slice(1, 4), slice(4, 10), 10
 _ZERO3 = ca.SX.zeros(3, 1)
-# (row, column) of each inertia parameter (Ixx, Ixy, Iyy, Ixz, Iyz, Izz) in the symmetric matrix.
-_INERTIA_ENTRIES = ((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2))
 
 
 @dataclass(frozen=True)
@@ -105,14 +103,10 @@ def link_wrench(motion: LinkMotion, link) -> tuple:
     return force, moment
 
 
-def _unit_inertia_moment(motion: LinkMotion, row: int, column: int):
-    """The moment B dw + w x (B w) of a unit inertia parameter, B the symmetric unit matrix at (row, column)."""
-    w, dw = motion.w, motion.dw
-    b_dw, b_w = [ca.SX(0)] * 3, [ca.SX(0)] * 3
-    b_dw[row], b_w[row] = dw[column], w[column]
-    if row != column:
-        b_dw[column], b_w[column] = dw[row], w[row]
-    return ca.vertcat(*b_dw) + cross(w, ca.vertcat(*b_w))
+def _unit_inertia_moment(motion: LinkMotion, index: int):
+    """The moment B dw + w x (B w) of the unit inertia parameter ``index`` (0-5, Ixx ... Izz); CasADi folds B's zeros."""
+    unit = _inertia_matrix([1.0 if k == index else 0.0 for k in range(6)])
+    return ca.mtimes(unit, motion.dw) + cross(motion.w, ca.mtimes(unit, motion.w))
 
 
 def link_wrench_per_parameter(motion: LinkMotion, link) -> tuple:
@@ -124,9 +118,9 @@ def link_wrench_per_parameter(motion: LinkMotion, link) -> tuple:
         if not ca.SX(value).is_zero():
             force = force + value * motion.u[:, axis]
             moment = moment + value * cross(ca.SX(ca.DM.eye(3)[:, axis]), motion.dv)
-    for (row, column), value in zip(_INERTIA_ENTRIES, link[INERTIA]):
+    for index, value in enumerate(link[INERTIA]):
         if not ca.SX(value).is_zero():
-            moment = moment + value * _unit_inertia_moment(motion, row, column)
+            moment = moment + value * _unit_inertia_moment(motion, index)
     return force, moment
 
 

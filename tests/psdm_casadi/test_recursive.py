@@ -98,8 +98,8 @@ def test_recursive_matches_pinocchio_on_other_robots(make, rng):
     model = derive_psdm(robot)
     standard = random_standard_parameters(robot, rng)
     oracle = PinocchioOracle(robot, standard)
-    fns = build_recursive_functions(model, robot, model.base_parameters(standard))
     theta = model.base_parameters(standard)
+    fns = build_recursive_functions(model, robot, theta)
     q, qd, qdd = _states(rng, robot.n_dof, 5)
     for k in range(5):
         tau = oracle.rnea(q[k], qd[k], qdd[k])
