@@ -21,6 +21,8 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
+from .lane_regressor import lane_kernel, splice, splice_header
+
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
 EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
 THETA_INPUT = "theta"
@@ -303,8 +305,28 @@ def _template(name):
     return (Path(__file__).parent / "templates" / name).read_text()
 
 
+def _lane_kernel(sources, structure, lanes, name):
+    """The vectorised regressor to splice in, or None (no structure, no regressor, lanes off, or not smaller)."""
+    if lanes not in ("auto", True, False):
+        raise ParameterError(f"export_c lanes must be 'auto', True or False; got {lanes!r}.")
+    regressors = [f for f in sources if f.name() == "regressor"]
+    if not lanes or structure is None or not regressors:
+        return None
+    n_rows, n_columns = structure.chain.n_dof, structure.preimage.shape[1]
+    if regressors[0].size_out(0) != (n_rows, n_columns):
+        raise ParameterError(
+            f"export_c regressor_structure describes a {n_rows}x{n_columns} regressor but the regressor Function "
+            f"returns {regressors[0].size_out(0)}. Pass the structure of the same build_recursive_functions call.")
+    kernel = lane_kernel(structure, name)
+    lane_operations = count_operations(kernel.parts).n_operations + kernel.n_vector_operations
+    if lanes == "auto" and lane_operations >= count_operations(regressors[0]).n_operations:
+        return None
+    return kernel
+
+
 def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=False, library="psdm_dynamics",
-             prefix="psdm_", cse=True, fast_trig=True, overwrite=False) -> CExport:
+             prefix="psdm_", cse=True, fast_trig=True, lanes="auto", regressor_structure=None,
+             overwrite=False) -> CExport:
     """Generate a self-contained C folder for the dynamics Functions.
 
     Parameters
@@ -331,6 +353,15 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         Replace libm's ``sin``/``cos`` in the generated code by inlined ones (``psdm_sin``/``psdm_cos``:
         Cody-Waite reduction and minimax polynomials, within a few ulp of libm; libm beyond
         ``|x| >= 2^17``). Calling libm costs most of the time of a small robot's inverse dynamics.
+    lanes : {"auto", True, False}
+        Write the regressor with its joint rows in vector lanes (``codegen.lane_regressor``) when its
+        structure is known: ``regressor_structure``, or that of a DynamicsFunctions built by
+        ``build_recursive_functions``. ``"auto"`` does so when the vector code plus its scalar parts
+        have fewer operations than CasADi's scalar regressor (true of the 7-DOF Panda, about 15 % faster;
+        not of the Denso, whose scalar regressor is already small). CasADi's scalar code stays in the
+        file as the fallback (compilers without vector extensions, or ``-DPSDM_NO_LANES``).
+    regressor_structure : psdm_casadi.recursive.RegressorStructure, optional
+        The structure of the exported ``regressor`` Function, when ``functions`` is a list.
     overwrite : bool
         Allow writing into a non-empty folder (files of the same name are replaced).
 
@@ -376,6 +407,11 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
             "Pass theta to bake it in."
         )
 
+    if regressor_structure is None:
+        regressor_structure = getattr(functions, "regressor_structure", None)
+    lane_name = prefix + "regressor"
+    kernel = _lane_kernel(sources, regressor_structure, lanes, lane_name)
+
     exported = []
     for f, takes_theta in zip(sources, has_theta):
         name = prefix + f.name()
@@ -397,9 +433,15 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         generator = ca.CodeGenerator(f"{library}.c", {"with_header": True})
         for f in exported:
             generator.add(f)
+        if kernel is not None:
+            generator.add(kernel.parts)
         generator.generate(str(staging) + os.sep)
         if fast_trig:
             _inline_trig(staging / f"{library}.c")
+        if kernel is not None:
+            source, header = staging / f"{library}.c", staging / f"{library}.h"
+            source.write_text(splice(source.read_text(), kernel, lane_name))
+            header.write_text(splice_header(header.read_text(), lane_name))
         input_code, call_code = _example_code(exported, theta, np.random.default_rng(_EXAMPLE_SEED))
         main_c = _template("main.c.in").replace("@LIBRARY@", library).replace("@INPUTS@", input_code)
         (staging / "main.c").write_text(main_c.replace("@CALLS@", call_code))

@@ -210,7 +210,8 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
         functions = variant.functions
         exports[variant.key] = export_c(
             [functions.inverse_dynamics, functions.forward_dynamics, functions.regressor], workdir, theta=theta,
-            runtime_theta=False, library=f"{variant.key}_dyn", prefix=f"{variant.key}_", overwrite=True)
+            runtime_theta=False, library=f"{variant.key}_dyn", prefix=f"{variant.key}_", overwrite=True,
+            regressor_structure=functions.regressor_structure)
     log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)})")
     joints = "\n".join(_cpp_joint(pin_model, jid) for jid in range(1, pin_model.njoints))
     source = (TEMPLATE.read_text().replace("@ROBOT@", robot.name).replace("@N_DOF@", str(n))

@@ -109,18 +109,25 @@ def _unit_inertia_moment(motion: LinkMotion, index: int):
     return ca.mtimes(unit, motion.dw) + cross(motion.w, ca.mtimes(unit, motion.w))
 
 
+def unit_parameter_wrench(motion: LinkMotion, kind: int) -> tuple:
+    """(force, moment) of a link whose standard parameter ``kind`` (0-9: m, m r, inertia) is 1 and the others 0."""
+    if kind == MASS:
+        return motion.dv, _ZERO3
+    if kind < INERTIA.start:
+        axis = kind - FIRST_MOMENT.start
+        return motion.u[:, axis], cross(ca.SX(ca.DM.eye(3)[:, axis]), motion.dv)
+    if kind < INERTIA.stop:
+        return _ZERO3, _unit_inertia_moment(motion, kind - INERTIA.start)
+    raise ValueError(f"unit_parameter_wrench kind must be 0-9 (m, m r, inertia); got {kind}")
+
+
 def link_wrench_per_parameter(motion: LinkMotion, link) -> tuple:
     """``link_wrench`` written as the sum over the nonzero parameters of parameter times unit-parameter wrench."""
     force, moment = _ZERO3, _ZERO3
-    if not ca.SX(link[MASS]).is_zero():
-        force = force + link[MASS] * motion.dv
-    for axis, value in enumerate(link[FIRST_MOMENT]):
+    for kind, value in enumerate(link[:INERTIA.stop]):
         if not ca.SX(value).is_zero():
-            force = force + value * motion.u[:, axis]
-            moment = moment + value * cross(ca.SX(ca.DM.eye(3)[:, axis]), motion.dv)
-    for index, value in enumerate(link[INERTIA]):
-        if not ca.SX(value).is_zero():
-            moment = moment + value * _unit_inertia_moment(motion, index)
+            unit_force, unit_moment = unit_parameter_wrench(motion, kind)
+            force, moment = force + value * unit_force, moment + value * unit_moment
     return force, moment
 
 

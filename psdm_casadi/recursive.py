@@ -11,16 +11,54 @@ one to export when speed matters (see ``benchmarks/dynamics_speed.py``).
 
 from __future__ import annotations
 
+import dataclasses
+from dataclasses import dataclass
+
 import casadi as ca
 import numpy as np
 
-from .kinematics_sx import joint_chain
+from .kinematics_sx import JointChain, joint_chain
 from .model import PSDMModel
-from .newton_euler import newton_euler
+from .newton_euler import ROTOR_INERTIA, forward_pass, newton_euler, unit_parameter_wrench
 from .oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
 from .preimage import StandardPreimage, standard_preimage
 from .robot import RobotDescription
 from .symbolic import DynamicsFunctions, assemble_functions, baked_theta
+
+
+@dataclass(frozen=True)
+class RegressorStructure:
+    """The regressor of the recursive form as its pieces, for code generators that vectorise it.
+
+    Column c of Y is ``sum_r preimage[r, c] y_r``. For a link parameter r (kind ``r % 11`` below 10) of
+    joint frame j = ``r // 11``, ``y_r[i] = a_ij . moment_r + b_ij . force_r`` for the ancestors i of j
+    (j included) and 0 elsewhere, where (a_ij, b_ij) is joint i's unit motion (angular, linear) expressed
+    at frame j and (force_r, moment_r) is ``unit_wrenches[r]``. For a rotor inertia r, ``y_r = qdd[j] e_j``.
+
+    Attributes
+    ----------
+    inputs : tuple of casadi.SX
+        The symbols (q, qd, qdd) every SX here depends on.
+    chain : JointChain
+    unit_wrenches : dict
+        Row r of the preimage (link parameters only) -> (force, moment), SX (3, 1) each.
+    preimage : numpy.ndarray, shape (11 n_dof, n_base)
+    """
+
+    inputs: tuple
+    chain: JointChain
+    unit_wrenches: dict
+    preimage: np.ndarray
+
+
+def _regressor_structure(chain, inputs, preimage: StandardPreimage, base_acceleration) -> RegressorStructure:
+    motions = forward_pass(chain, inputs[1], inputs[2], base_acceleration)
+    wrenches = {}
+    for row in preimage.support:
+        joint, kind = divmod(row, N_PARAMETERS_PER_JOINT)
+        if kind != ROTOR_INERTIA:
+            wrenches[row] = unit_parameter_wrench(motions[joint], kind)
+    return RegressorStructure(inputs=tuple(inputs), chain=chain, unit_wrenches=wrenches, preimage=preimage.matrix)
 
 
 def _linear_parameters(preimage: StandardPreimage, theta) -> list:
@@ -90,6 +128,8 @@ def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=N
     bias = newton_euler(chain, parameters, qd, zero, base_acceleration)
     columns = [newton_euler(chain, parameters, zero, ca.SX(ca.DM(np.eye(n)[k])), no_gravity, with_velocity=False)
                for k in range(n)]
-    return assemble_functions((q, qd, qdd, tau_in), theta_inputs, theta_names, regressor=regressor,
-                              gravity_regressor=gravity_regressor, tau=tau, bias=bias, gravity=gravity,
-                              mass_columns=columns, theta=baked)
+    functions = assemble_functions((q, qd, qdd, tau_in), theta_inputs, theta_names, regressor=regressor,
+                                   gravity_regressor=gravity_regressor, tau=tau, bias=bias, gravity=gravity,
+                                   mass_columns=columns, theta=baked)
+    structure = _regressor_structure(chain, (q, qd, qdd), preimage, base_acceleration)
+    return dataclasses.replace(functions, regressor_structure=structure)

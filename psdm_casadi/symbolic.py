@@ -46,6 +46,9 @@ class DynamicsFunctions:
     n_dof, n_base : int
     theta : numpy.ndarray or None
         The compiled-in base parameters, if any.
+    regressor_structure : psdm_casadi.recursive.RegressorStructure or None
+        The regressor's pieces (joint chain, unit-parameter wrenches, preimage) when built by the
+        recursive form; ``codegen.export_c`` writes a vectorised regressor from them.
     """
 
     regressor: ca.Function
@@ -58,6 +61,7 @@ class DynamicsFunctions:
     n_dof: int
     n_base: int
     theta: np.ndarray | None = None
+    regressor_structure: object | None = None
 
     def all(self) -> list:
         """All functions, regressor first."""
