@@ -1,8 +1,8 @@
 """The regressor Y(q, qd, qdd) as vectorised C: joint rows in SIMD lanes, four at a time.
 
-CasADi's generated regressor is scalar code, and on a 7-DOF arm its time is bound by the number of
-floating-point multiplications. Written from a ``RegressorStructure`` instead, most of the work runs
-four joint rows per instruction:
+CasADi's generated regressor is scalar code, and on a 7-DOF arm its time is bound by instruction
+throughput, not latency (two states evaluated in one call take as long per state as one). Written
+from a ``RegressorStructure`` instead, most of the work runs four joint rows per instruction:
 
 - a CasADi function (``<name>_parts``, scalar) computes the forward pass and the distinct scalars the
   rest needs: the entries of each joint rotation and the unit-parameter wrench of every kept standard
