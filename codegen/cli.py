@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -133,13 +134,19 @@ def _run_codegen(args) -> int:
         compile_shared([export.source], out / f"lib{export.library}.so", flags=("-O3", "-march=native"))
         compiled = True
     if args.json:
+        lanes = export.lane_regressor
         print_json({"out": str(out), "form": form, "functions": list(export.function_names),
-                    "n_instructions": export.n_instructions, "compiled": compiled})
+                    "n_instructions": export.n_instructions, "compiled": compiled,
+                    "lane_regressor": None if lanes is None else dataclasses.asdict(lanes)})
     else:
         print(f"wrote {export.source.name}, {export.header.name}, Makefile and main.c to {out} ({form} form)")
         print(f"{'function':40s} {'instructions':>12s} {'operations':>10s} {'trig':>5s}")
         for count in export.operation_counts:
             print(f"{count.name:40s} {count.n_instructions:12d} {count.n_operations:10d} {count.n_trig:5d}")
+        if export.lane_regressor is not None:
+            lanes = export.lane_regressor
+            print(f"{lanes.name} runs four joint rows per vector instruction: {lanes.n_scalar_operations} scalar "
+                  f"+ {lanes.n_vector_operations} vector operations (-DPSDM_NO_LANES: CasADi's scalar code above)")
         if not export.theta_baked:
             print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")
     return 0

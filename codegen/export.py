@@ -21,7 +21,7 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
-from .lane_regressor import lane_kernel, splice, splice_header
+from .lane_regressor import LaneCount, lane_kernel, splice, splice_header
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
 EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
@@ -75,6 +75,8 @@ class CExport:
         One per exported function, same order.
     theta_baked : bool
         Whether the baked-theta flavour was exported.
+    lane_regressor : LaneCount or None
+        Size of the vectorised regressor when it was written (``lanes``), else None.
     """
 
     folder: Path
@@ -86,6 +88,7 @@ class CExport:
     function_names: tuple
     operation_counts: tuple
     theta_baked: bool
+    lane_regressor: LaneCount | None = None
 
     def __post_init__(self):
         if len(self.function_names) != len(self.operation_counts):
@@ -305,23 +308,26 @@ def _template(name):
     return (Path(__file__).parent / "templates" / name).read_text()
 
 
-def _lane_kernel(sources, structure, lanes, name):
-    """The vectorised regressor to splice in, or None (no structure, no regressor, lanes off, or not smaller)."""
+def _lane_kernel(sources, structure, lanes, name) -> tuple:
+    """(LaneKernel, LaneCount) of the vectorised regressor to splice in, or (None, None): no structure,
+    no regressor, lanes off, or (``"auto"``) not fewer operations than CasADi's scalar regressor."""
     if lanes not in ("auto", True, False):
         raise ParameterError(f"export_c lanes must be 'auto', True or False; got {lanes!r}.")
     regressors = [f for f in sources if f.name() == "regressor"]
     if not lanes or structure is None or not regressors:
-        return None
+        return None, None
     n_rows, n_columns = structure.chain.n_dof, structure.preimage.shape[1]
     if regressors[0].size_out(0) != (n_rows, n_columns):
         raise ParameterError(
             f"export_c regressor_structure describes a {n_rows}x{n_columns} regressor but the regressor Function "
             f"returns {regressors[0].size_out(0)}. Pass the structure of the same build_recursive_functions call.")
     kernel = lane_kernel(structure, name)
-    lane_operations = count_operations(kernel.parts).n_operations + kernel.n_vector_operations
-    if lanes == "auto" and lane_operations >= count_operations(regressors[0]).n_operations:
-        return None
-    return kernel
+    count = LaneCount(name=name, n_scalars=kernel.n_scalars, n_vector_operations=kernel.n_vector_operations,
+                      n_scalar_operations=count_operations(kernel.parts).n_operations)
+    if lanes == "auto" and (count.n_scalar_operations + count.n_vector_operations
+                            >= count_operations(regressors[0]).n_operations):
+        return None, None
+    return kernel, count
 
 
 def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=False, library="psdm_dynamics",
@@ -410,7 +416,7 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
     if regressor_structure is None:
         regressor_structure = getattr(functions, "regressor_structure", None)
     lane_name = prefix + "regressor"
-    kernel = _lane_kernel(sources, regressor_structure, lanes, lane_name)
+    kernel, lane_count = _lane_kernel(sources, regressor_structure, lanes, lane_name)
 
     exported = []
     for f, takes_theta in zip(sources, has_theta):
@@ -461,4 +467,5 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         function_names=tuple(f.name() for f in exported),
         operation_counts=tuple(count_operations(f) for f in exported),
         theta_baked=theta is not None and any(has_theta),
+        lane_regressor=lane_count,
     )

@@ -56,6 +56,28 @@ class LaneKernel:
     n_vector_operations: int
 
 
+@dataclass(frozen=True)
+class LaneCount:
+    """Size of an exported vectorised regressor (``CExport.lane_regressor``).
+
+    Attributes
+    ----------
+    name : str
+        C symbol of the regressor.
+    n_scalars : int
+        Scalars computed by ``<name>_parts`` and read by the vector code.
+    n_scalar_operations : int
+        Arithmetic operations of ``<name>_parts``.
+    n_vector_operations : int
+        Operations of the vector code, each on four lanes.
+    """
+
+    name: str
+    n_scalars: int
+    n_scalar_operations: int
+    n_vector_operations: int
+
+
 class _Scalars:
     """The distinct non-constant SX scalars the vector code reads, as ``P[k]``; constants become literals."""
 

@@ -26,6 +26,7 @@ def test_codegen_denso_json(tmp_path, capsys, denso, denso_model):
     assert report["n_instructions"]["psdm_inverse_dynamics"] < report["n_instructions"]["psdm_inverse_dynamics_theta"]
     assert (out / "psdm_dynamics.c").exists() and (out / "main.c").exists() and (out / "Makefile").exists()
     assert "psdm_regressor" in report["functions"]
+    assert report["lane_regressor"] is None  # the Denso's scalar regressor is smaller than the vector one
 
 
 def test_codegen_refuses_non_empty_out(tmp_path, capsys):

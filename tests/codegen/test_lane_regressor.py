@@ -111,8 +111,8 @@ def test_auto_lanes_follow_the_operation_counts(denso, denso_model, tmp_path):
         assert kernel.n_scalars == kernel.parts.nnz_out(0)
         fewer = (count_operations(kernel.parts).n_operations + kernel.n_vector_operations
                  < count_operations(functions.regressor).n_operations)
-        source = export_c(functions, tmp_path / robot.name.replace(" ", "_")).source.read_text()
-        assert ("psdm_regressor_lanes" in source) == fewer
+        export = export_c(functions, tmp_path / robot.name.replace(" ", "_"))
+        assert ("psdm_regressor_lanes" in export.source.read_text()) == fewer == (export.lane_regressor is not None)
     with pytest.raises(ParameterError, match="lanes"):
         export_c(functions, tmp_path / "bad", lanes="yes")
 
@@ -128,6 +128,9 @@ def test_panda_gets_the_vector_regressor_and_it_is_exact(tmp_path, rng):
     export = export_c([functions.regressor], tmp_path, regressor_structure=functions.regressor_structure)
     library = build_library(export, build_dir=tmp_path / "build", flags=FAST)
     assert _lanes_enabled(library) == 1
+    lanes = export.lane_regressor
+    assert lanes.name == "psdm_regressor" and lanes.n_scalars > 0
+    assert lanes.n_scalar_operations + lanes.n_vector_operations < export.operation_count("psdm_regressor").n_operations
     oracle = PinocchioOracle(robot)
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
     for _ in range(3):
