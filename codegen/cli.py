@@ -145,7 +145,7 @@ def _run_codegen(args) -> int:
             print(f"{count.name:40s} {count.n_instructions:12d} {count.n_operations:10d} {count.n_trig:5d}")
         if export.lane_regressor is not None:
             lanes = export.lane_regressor
-            print(f"{lanes.name} runs four joint rows per vector instruction: {lanes.n_scalar_operations} scalar "
+            print(f"{lanes.name} runs four joint rows per vector instruction: {lanes.parts.n_operations} scalar "
                   f"+ {lanes.n_vector_operations} vector operations (-DPSDM_NO_LANES: CasADi's scalar code above)")
         if not export.theta_baked:
             print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")

@@ -22,6 +22,7 @@ import numpy as np
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
 from .lane_regressor import LaneCount, lane_kernel, splice, splice_header
+from .operation_count import OperationCount, count_operations
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
 EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
@@ -29,33 +30,6 @@ THETA_INPUT = "theta"
 RUNTIME_SUFFIX = "_theta"
 JACOBIAN_SUFFIX = "_jac"
 _EXAMPLE_SEED = 0
-_NON_ARITHMETIC = {getattr(ca, op) for op in ("OP_INPUT", "OP_OUTPUT", "OP_CONST", "OP_PARAMETER", "OP_ASSIGN")
-                   if hasattr(ca, op)}
-_TRIG = {ca.OP_SIN, ca.OP_COS, ca.OP_TAN}
-
-
-@dataclass(frozen=True)
-class OperationCount:
-    """Size of one exported Function.
-
-    Attributes
-    ----------
-    name : str
-        C symbol of the function.
-    n_instructions : int
-        CasADi instructions (inputs, outputs and constants included).
-    n_operations : int
-        Arithmetic and elementary-function instructions only.
-    n_multiplications, n_additions, n_trig : int
-        Multiplications/divisions, additions/subtractions/negations, and sin/cos/tan calls.
-    """
-
-    name: str
-    n_instructions: int
-    n_operations: int
-    n_multiplications: int
-    n_additions: int
-    n_trig: int
 
 
 @dataclass(frozen=True)
@@ -108,30 +82,6 @@ class CExport:
             if count.name == name:
                 return count
         raise ParameterError(f"CExport.function_names must contain {name!r}; got {list(self.function_names)}.")
-
-
-def count_operations(function: ca.Function, name: str | None = None) -> OperationCount:
-    """Count the instructions of an SX Function by kind.
-
-    Parameters
-    ----------
-    function : casadi.Function
-        An SX Function (an MX one is expanded first).
-    name : str, optional
-        Name to report; defaults to the Function's.
-
-    Returns
-    -------
-    OperationCount
-    """
-    if not function.is_a("SXFunction"):
-        function = function.expand()
-    ids = [function.instruction_id(k) for k in range(function.n_instructions())]
-    mul = sum(op in (ca.OP_MUL, ca.OP_DIV, ca.OP_SQ, ca.OP_TWICE) for op in ids)
-    add = sum(op in (ca.OP_ADD, ca.OP_SUB, ca.OP_NEG) for op in ids)
-    trig = sum(op in _TRIG for op in ids)
-    ops = sum(op not in _NON_ARITHMETIC for op in ids)
-    return OperationCount(name or function.name(), len(ids), ops, mul, add, trig)
 
 
 def _collect(functions) -> list:
@@ -308,26 +258,23 @@ def _template(name):
     return (Path(__file__).parent / "templates" / name).read_text()
 
 
-def _lane_kernel(sources, structure, lanes, name) -> tuple:
-    """(LaneKernel, LaneCount) of the vectorised regressor to splice in, or (None, None): no structure,
-    no regressor, lanes off, or (``"auto"``) not fewer operations than CasADi's scalar regressor."""
+def _lane_kernel(sources, structure, lanes, name):
+    """The LaneKernel of the regressor to splice in, or None: no structure, no regressor, lanes off, or
+    (``"auto"``) not fewer operations than CasADi's scalar regressor."""
     if lanes not in ("auto", True, False):
         raise ParameterError(f"export_c lanes must be 'auto', True or False; got {lanes!r}.")
     regressors = [f for f in sources if f.name() == "regressor"]
     if not lanes or structure is None or not regressors:
-        return None, None
+        return None
     n_rows, n_columns = structure.chain.n_dof, structure.preimage.shape[1]
     if regressors[0].size_out(0) != (n_rows, n_columns):
         raise ParameterError(
             f"export_c regressor_structure describes a {n_rows}x{n_columns} regressor but the regressor Function "
             f"returns {regressors[0].size_out(0)}. Pass the structure of the same build_recursive_functions call.")
     kernel = lane_kernel(structure, name)
-    count = LaneCount(name=name, n_scalars=kernel.n_scalars, n_vector_operations=kernel.n_vector_operations,
-                      n_scalar_operations=count_operations(kernel.parts).n_operations)
-    if lanes == "auto" and (count.n_scalar_operations + count.n_vector_operations
-                            >= count_operations(regressors[0]).n_operations):
-        return None, None
-    return kernel, count
+    if lanes == "auto" and kernel.count.n_operations >= count_operations(regressors[0]).n_operations:
+        return None
+    return kernel
 
 
 def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=False, library="psdm_dynamics",
@@ -416,7 +363,7 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
     if regressor_structure is None:
         regressor_structure = getattr(functions, "regressor_structure", None)
     lane_name = prefix + "regressor"
-    kernel, lane_count = _lane_kernel(sources, regressor_structure, lanes, lane_name)
+    kernel = _lane_kernel(sources, regressor_structure, lanes, lane_name)
 
     exported = []
     for f, takes_theta in zip(sources, has_theta):
@@ -467,5 +414,5 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         function_names=tuple(f.name() for f in exported),
         operation_counts=tuple(count_operations(f) for f in exported),
         theta_baked=theta is not None and any(has_theta),
-        lane_regressor=lane_count,
+        lane_regressor=None if kernel is None else kernel.count,
     )

@@ -26,12 +26,41 @@ import numpy as np
 from psdm_casadi.errors import SolverError
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
 
+from .operation_count import OperationCount, count_operations
+
 # Four doubles, one AVX2 register; eight (AVX-512) and two lanes measured slower on the 7-DOF Panda.
 LANES = 4
 _ROTOR = N_PARAMETERS_PER_JOINT - 1
 # (component of a, component of p, sign) of each component of the cross product a x p.
 _CROSS = (((1, 2, 1.0), (2, 1, -1.0)), ((2, 0, 1.0), (0, 2, -1.0)), ((0, 1, 1.0), (1, 0, -1.0)))
 _GUARD = "PSDM_LANES"
+
+
+@dataclass(frozen=True)
+class LaneCount:
+    """Size of a vectorised regressor (``CExport.lane_regressor``): its scalar parts and its vector code.
+
+    Attributes
+    ----------
+    name : str
+        C symbol of the regressor.
+    n_scalars : int
+        Scalars computed by ``<name>_parts`` and read by the vector code.
+    parts : OperationCount
+        Of ``<name>_parts``.
+    n_vector_operations : int
+        Multiplications, additions and negations written in the vector code (each on four lanes).
+    """
+
+    name: str
+    n_scalars: int
+    parts: OperationCount
+    n_vector_operations: int
+
+    @property
+    def n_operations(self) -> int:
+        """Scalar plus vector operations: what ``export_c(lanes="auto")`` compares with the scalar regressor."""
+        return self.parts.n_operations + self.n_vector_operations
 
 
 @dataclass(frozen=True)
@@ -44,38 +73,12 @@ class LaneKernel:
         (q, qd, qdd) -> the scalars the vector code reads; exported as ``<name>_parts``.
     source : str
         C code of ``static int <name>_lanes(const casadi_real** arg, casadi_real** res)``.
-    n_scalars : int
-        Number of outputs of ``parts``.
-    n_vector_operations : int
-        Multiplications, additions and negations written in the vector code (each on four lanes).
+    count : LaneCount
     """
 
     parts: ca.Function
     source: str
-    n_scalars: int
-    n_vector_operations: int
-
-
-@dataclass(frozen=True)
-class LaneCount:
-    """Size of an exported vectorised regressor (``CExport.lane_regressor``).
-
-    Attributes
-    ----------
-    name : str
-        C symbol of the regressor.
-    n_scalars : int
-        Scalars computed by ``<name>_parts`` and read by the vector code.
-    n_scalar_operations : int
-        Arithmetic operations of ``<name>_parts``.
-    n_vector_operations : int
-        Operations of the vector code, each on four lanes.
-    """
-
-    name: str
-    n_scalars: int
-    n_scalar_operations: int
-    n_vector_operations: int
+    count: LaneCount
 
 
 class _Scalars:
@@ -227,9 +230,10 @@ def lane_kernel(structure, name: str) -> LaneKernel:
         "  if (!Y) return 0;",
         f"  if ({name}_parts(arg, parts_res, 0, 0, 0)) return 1;",
     ]
-    n_operations = sum(line.count(" * ") + line.count(" + ") + line.count("(-") for line in code)
-    return LaneKernel(parts=parts, source="\n".join(head + code + ["  return 0;", "}", ""]),
-                      n_scalars=len(scalars.values), n_vector_operations=n_operations)
+    n_vector_operations = sum(line.count(" * ") + line.count(" + ") + line.count("(-") for line in code)
+    count = LaneCount(name=name, n_scalars=len(scalars.values), parts=count_operations(parts),
+                      n_vector_operations=n_vector_operations)
+    return LaneKernel(parts=parts, source="\n".join(head + code + ["  return 0;", "}", ""]), count=count)
 
 
 def splice(source_text: str, kernel: LaneKernel, name: str) -> str:

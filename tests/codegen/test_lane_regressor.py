@@ -108,9 +108,9 @@ def test_auto_lanes_follow_the_operation_counts(denso, denso_model, tmp_path):
         model = model or derive_psdm(robot)
         functions = build_recursive_functions(model, robot)
         kernel = lane_kernel(functions.regressor_structure, "psdm_regressor")
-        assert kernel.n_scalars == kernel.parts.nnz_out(0)
-        fewer = (count_operations(kernel.parts).n_operations + kernel.n_vector_operations
-                 < count_operations(functions.regressor).n_operations)
+        assert kernel.count.n_scalars == kernel.parts.nnz_out(0)
+        assert kernel.count.parts == count_operations(kernel.parts)
+        fewer = kernel.count.n_operations < count_operations(functions.regressor).n_operations
         export = export_c(functions, tmp_path / robot.name.replace(" ", "_"))
         assert ("psdm_regressor_lanes" in export.source.read_text()) == fewer == (export.lane_regressor is not None)
     with pytest.raises(ParameterError, match="lanes"):
@@ -130,7 +130,7 @@ def test_panda_gets_the_vector_regressor_and_it_is_exact(tmp_path, rng):
     assert _lanes_enabled(library) == 1
     lanes = export.lane_regressor
     assert lanes.name == "psdm_regressor" and lanes.n_scalars > 0
-    assert lanes.n_scalar_operations + lanes.n_vector_operations < export.operation_count("psdm_regressor").n_operations
+    assert lanes.n_operations < export.operation_count("psdm_regressor").n_operations
     oracle = PinocchioOracle(robot)
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
     for _ in range(3):
