@@ -32,7 +32,7 @@ from scipy.optimize import differential_evolution
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.errors import ExcitationWarning
 from psdm_casadi.robot import from_urdf, load_robot
-from psdm_casadi.symbolic import build_functions
+from psdm_casadi.recursive import build_recursive_functions
 from trajopt.constraints import JointLimits, fine_grid, limit_margins, scale_into_limits, verify_limits
 from trajopt.criteria import condition_number, stack_regressor
 from trajopt.optimize import ExcitationOptions, optimize_excitation, random_feasible_parameters
@@ -54,7 +54,7 @@ def load(name):
 def run_robot(name, args, log):
     robot = load(name)
     model = derive_psdm(robot, seed=0)
-    regressor = build_functions(model).regressor
+    regressor = build_recursive_functions(model, robot).regressor
     columns = tuple(int(c) for c in np.flatnonzero(~model.gravity_mask))
     options = ExcitationOptions(duration=args.duration, harmonics=args.harmonics, n_starts=args.starts,
                                 columns=columns, time_limit=args.time_limit, quiet=args.json)

@@ -91,7 +91,7 @@ def _check_outputs(args, *paths) -> None:
 
 def _run_excite(args) -> int:
     from psdm_casadi.derive import derive_psdm
-    from psdm_casadi.symbolic import build_functions
+    from psdm_casadi.recursive import build_recursive_functions
 
     from .optimize import ExcitationOptions, optimize_excitation
     from .plot import plot_trajectory
@@ -108,7 +108,7 @@ def _run_excite(args) -> int:
     options.build_parametrization(robot.n_dof)
     progress(f"excite: deriving the model of {robot.name} ...")
     model = derive_psdm(robot, seed=args.seed)
-    functions = build_functions(model)
+    functions = build_recursive_functions(model, robot)  # equal to the sum form, far fewer operations
     if args.columns == "inertial":
         columns = tuple(int(c) for c in np.flatnonzero(~model.gravity_mask))
         if not columns:

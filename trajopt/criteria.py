@@ -206,7 +206,7 @@ def build_information_function(regressor: ca.Function, columns=None, column_scal
     Parameters
     ----------
     regressor : casadi.Function
-        ``q, qd, qdd -> Y`` (n_dof x n_base), e.g. ``build_functions(model).regressor``.
+        ``q, qd, qdd -> Y`` (n_dof x n_base), e.g. ``build_recursive_functions(model, robot).regressor``.
     columns : array of int or bool mask, optional
         Columns of Y to excite; default all.
     column_scale : array, shape (n_columns,), optional

@@ -265,7 +265,7 @@ def optimize_excitation(robot, regressor, options: ExcitationOptions | None = No
     robot : RobotDescription
         Supplies n_dof and limits (unless ``options.limits``).
     regressor : casadi.Function
-        ``q, qd, qdd -> Y`` (n_dof x n_base), e.g. ``build_functions(model).regressor``.
+        ``q, qd, qdd -> Y`` (n_dof x n_base), e.g. ``build_recursive_functions(model, robot).regressor``.
     options : ExcitationOptions, optional
     seed : int, optional
         Seed of the random starts (default 0); ignored when ``rng`` is given.

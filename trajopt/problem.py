@@ -110,7 +110,7 @@ def check_regressor(regressor, n_dof: int) -> None:
     if not isinstance(regressor, ca.Function) or regressor.n_in() != 3 or regressor.n_out() < 1:
         raise ParameterError(
             f"regressor must be a casadi.Function (q, qd, qdd) -> Y; got {type(regressor).__name__}. "
-            "Pass build_functions(derive_psdm(robot)).regressor."
+            "Pass build_recursive_functions(derive_psdm(robot), robot).regressor."
         )
     sizes = [regressor.numel_in(i) for i in range(3)]
     if sizes != [n_dof] * 3 or regressor.size1_out(0) != n_dof:
