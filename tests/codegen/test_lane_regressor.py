@@ -139,3 +139,26 @@ def test_panda_gets_the_vector_regressor_and_it_is_exact(tmp_path, rng):
         reference = model.regressor(q, qd, qdd)
         np.testing.assert_allclose(y, reference, rtol=1e-12, atol=1e-12 * np.abs(reference).max())
         np.testing.assert_allclose(y @ theta, oracle.rnea(q, qd, qdd), rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.slow
+@pytest.mark.needs_cc
+@needs_cc
+def test_branching_tree_gets_an_exact_vector_regressor(tmp_path, rng):
+    """The Panda with its two finger joints free: both children of joint 7, nine rows in three lane blocks.
+
+    Slow (the derivation of the nine-joint tree takes about 100 s)."""
+    robot = from_urdf(example_robot_urdf("panda_description/urdf/panda.urdf"))
+    model = derive_psdm(robot)
+    functions = build_recursive_functions(model, robot)
+    assert functions.regressor_structure.chain.parents[-2:] == (6, 6)
+    export = export_c([functions.regressor], tmp_path, regressor_structure=functions.regressor_structure, lanes=True)
+    library = build_library(export, build_dir=tmp_path / "build", flags=FAST)
+    oracle = PinocchioOracle(robot)
+    theta = model.base_parameters(robot.nominal_dynamic_parameters())
+    for _ in range(3):
+        q, qd, qdd = rng.uniform(-1, 1, (3, robot.n_dof))
+        y = np.array(library.function("psdm_regressor")(q, qd, qdd))
+        reference = model.regressor(q, qd, qdd)
+        np.testing.assert_allclose(y, reference, rtol=1e-12, atol=1e-12 * np.abs(reference).max())
+        np.testing.assert_allclose(y @ theta, oracle.rnea(q, qd, qdd), rtol=1e-9, atol=1e-9)
