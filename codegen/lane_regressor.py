@@ -24,13 +24,13 @@ import casadi as ca
 import numpy as np
 
 from psdm_casadi.errors import SolverError
+from psdm_casadi.newton_euler import ROTOR_INERTIA
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
 
 from .operation_count import OperationCount, count_operations
 
 # Four doubles, one AVX2 register; eight (AVX-512) and two lanes measured slower on the 7-DOF Panda.
 LANES = 4
-_ROTOR = N_PARAMETERS_PER_JOINT - 1
 # (component of a, component of p, sign) of each component of the cross product a x p.
 _CROSS = (((1, 2, 1.0), (2, 1, -1.0)), ((2, 0, 1.0), (0, 2, -1.0)), ((0, 1, 1.0), (1, 0, -1.0)))
 _GUARD = "PSDM_LANES"
@@ -158,7 +158,7 @@ def _dot_code(structure, blocks, scalars) -> list:
     code = []
     for row in np.flatnonzero(np.any(np.asarray(structure.preimage) != 0, axis=1)):
         joint, kind = divmod(int(row), N_PARAMETERS_PER_JOINT)
-        if kind == _ROTOR:
+        if kind == ROTOR_INERTIA:
             continue
         if row not in structure.unit_wrenches:
             raise SolverError(f"lane_kernel: the structure has no unit wrench for preimage row {row}; rebuild it.")
@@ -189,7 +189,7 @@ def _column_code(structure, blocks, scalars) -> list:
             for row in np.flatnonzero(preimage[:, column]):
                 joint, kind = divmod(int(row), N_PARAMETERS_PER_JOINT)
                 coefficient = float(preimage[row, column])
-                if kind == _ROTOR:  # rotor inertia: qdd_j on row j only
+                if kind == ROTOR_INERTIA:  # rotor inertia: qdd_j on row j only
                     if joint // LANES == block:
                         terms.append(f"lane{joint % LANES} * ({coefficient!r} * {scalars.ref(qdd[joint])})")
                 elif block in blocks[joint]:
