@@ -162,3 +162,19 @@ def test_branching_tree_gets_an_exact_vector_regressor(tmp_path, rng):
         reference = model.regressor(q, qd, qdd)
         np.testing.assert_allclose(y, reference, rtol=1e-12, atol=1e-12 * np.abs(reference).max())
         np.testing.assert_allclose(y @ theta, oracle.rnea(q, qd, qdd), rtol=1e-9, atol=1e-9)
+
+
+def test_bad_structure_or_generated_code_names_the_fix(denso, denso_model):
+    import dataclasses
+
+    from codegen.lane_regressor import splice, splice_header
+    from psdm_casadi.errors import SolverError
+
+    structure = build_recursive_functions(denso_model, denso).regressor_structure
+    with pytest.raises(SolverError, match="no unit wrench for preimage row"):
+        lane_kernel(dataclasses.replace(structure, unit_wrenches={}), "psdm_regressor")
+    kernel = lane_kernel(structure, "psdm_regressor")
+    with pytest.raises(SolverError, match="no wrapper for psdm_regressor; export with lanes=False"):
+        splice("int main(void) { return 0; }\n", kernel, "psdm_regressor")
+    with pytest.raises(SolverError, match='no extern "C" block; export with lanes=False'):
+        splice_header("int psdm_regressor(void);\n", "psdm_regressor")

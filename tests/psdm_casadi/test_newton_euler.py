@@ -63,3 +63,14 @@ def test_per_parameter_form_gives_a_smaller_regressor_and_the_same_torques(denso
         state = [rng.uniform(-3, 3, n) for _ in range(3)]
         per_parameter, matrix = (np.array(regressors[key](*state)) for key in (True, False))
         assert np.abs(per_parameter - matrix).max() <= 1e-12 * np.abs(matrix).max()
+
+
+def test_unit_parameter_wrench_refuses_the_rotor_and_beyond():
+    from psdm_casadi.newton_euler import unit_parameter_wrench
+
+    motion = _motion([0.1, 0.2, 0.3], [1.0, 0.0, 0.0], [0.0, 0.0, 9.81])
+    force, moment = unit_parameter_wrench(motion, 0)  # mass: force dv, no moment
+    np.testing.assert_allclose(np.array(ca.DM(force)).ravel(), [0.0, 0.0, 9.81])
+    assert np.all(np.array(ca.DM(moment)) == 0)
+    with pytest.raises(ValueError, match="kind must be 0-9"):
+        unit_parameter_wrench(motion, 10)
