@@ -25,7 +25,7 @@ bench: setup
 	$(BIN)/python benchmarks/derivation.py
 	$(BIN)/python benchmarks/dynamics_speed.py --robots denso
 	$(BIN)/python benchmarks/excitation.py
-	$(BIN)/python benchmarks/identification.py
+	$(BIN)/python benchmarks/calibration.py
 	$(BIN)/python benchmarks/diagnosis.py
 
 clean:

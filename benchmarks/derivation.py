@@ -9,7 +9,7 @@ import argparse
 import sys
 import time
 
-from _common import DENSO_FILE, load_panda, print_json, print_table
+from bench_support import DENSO_FILE, load_panda, print_json, print_table
 
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.samples import kr6, scara, two_link

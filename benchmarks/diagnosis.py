@@ -30,22 +30,13 @@ from pathlib import Path
 
 import numpy as np
 
-# benchmarks/identification.py would shadow the identification package: drop this folder from the path
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-import importlib.util  # noqa: E402
-
-_spec = importlib.util.spec_from_file_location("_bench_common", _HERE / "_common.py")
-_common = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_common)
-DENSO_FILE, load_panda, print_table = _common.DENSO_FILE, _common.load_panda, _common.print_table
-
-from identification import extra_physics as xp  # noqa: E402
-from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose  # noqa: E402
-from identification.diagnosis.hidden_effects import Backlash, JointElasticity  # noqa: E402
-from identification.synthetic import SimulationOptions, simulate_recording  # noqa: E402
-from psdm_casadi.derive import derive_psdm  # noqa: E402
-from psdm_casadi.robot import DriveParameters, load_robot  # noqa: E402
+from bench_support import DENSO_FILE, load_panda, print_table
+from identification.virtual import effects as xp
+from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose
+from identification.virtual.transmission_effects import Backlash, JointElasticity
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.derive import derive_psdm
+from psdm_casadi.robot import DriveParameters, load_robot
 
 TRAIN_S, VALIDATE_S = 24.0, 12.0
 TAU_NOISE = 0.1  # N m
@@ -103,7 +94,7 @@ class Scale:
 def reference_scale(robot, reference, duration):
     from scipy.interpolate import CubicSpline
 
-    from identification._lugre_sim import LuGreArrays, steady_state_friction
+    from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
     from psdm_casadi.oracle import PinocchioOracle
 
     t, q = reference

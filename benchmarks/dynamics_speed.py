@@ -30,12 +30,13 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 REPO = Path(__file__).resolve().parents[1]
 
-from codegen.speed import SPEED_ROWS, SUM_FORM_MAX_FUNCTIONS, cmeel_prefix, find_prerequisites, measure_speed  # noqa: E402
-from psdm_casadi.errors import SolverError  # noqa: E402
-from psdm_casadi.robot import from_urdf, load_robot  # noqa: E402
+from codegen.peers.speed import SPEED_ROWS, SUM_FORM_MAX_FUNCTIONS, cmeel_prefix, find_prerequisites, measure_speed
+from psdm_casadi.errors import SolverError
+from psdm_casadi.robot import from_urdf, load_robot
 
 TARGETS = {
     "id_speedup_vs_pinocchio": 8.0,
@@ -51,7 +52,7 @@ def robots():
     """The benchmark robots by short name: the Denso VS-6556G and the 7-DOF Panda (fingers locked)."""
     panda = cmeel_prefix() / "share" / "example-robot-data" / "robots" / "panda_description" / "urdf" / "panda.urdf"
     return {
-        "denso": lambda: load_robot(REPO / "robots" / "denso_vs6556g.toml"),
+        "denso": lambda: load_robot(BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"),
         "panda": lambda: from_urdf(panda, locked_joints=PANDA_LOCKED, name="panda"),
     }
 

@@ -37,6 +37,7 @@ from trajopt.constraints import JointLimits, fine_grid, limit_margins, scale_int
 from trajopt.criteria import condition_number, stack_regressor
 from trajopt.optimize import ExcitationOptions, optimize_excitation, random_feasible_parameters
 from trajopt.problem import default_constraint_samples
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 PANDA = (Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages" /
@@ -45,7 +46,7 @@ PANDA = (Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.versio
 
 def load(name):
     if name == "denso":
-        return load_robot(ROOT / "robots" / "denso_vs6556g.toml")
+        return load_robot(BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml")
     if name == "panda":
         return from_urdf(PANDA, locked_joints=["panda_finger_joint1", "panda_finger_joint2"])
     raise SystemExit(f"unknown robot {name!r}; use denso or panda")

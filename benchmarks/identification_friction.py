@@ -1,7 +1,7 @@
 """Benchmark: LuGre friction identification, our multiple shooting vs the paper's Nelder-Mead.
 
 For every joint of the virtual Denso (robots/denso_vs6556g.toml, paper Table 2 friction) a
-friction experiment (:func:`identification.experiments.tuned_friction_signal`) is simulated with a fine-step LuGre reference
+friction experiment (:func:`identification.virtual.experiments.tuned_friction_signal`) is simulated with a fine-step LuGre reference
 (32 sub-steps per sample) plus white torque noise. Both methods start from the same eq. 20
 trust-region fit and the same data-driven initial guess; we report parameter relative errors,
 R^2 on a separate validation experiment, wall time and the speed-up.
@@ -18,25 +18,21 @@ import time
 from pathlib import Path
 
 import numpy as np
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
-# benchmarks/identification.py would shadow the package (the editable install's finder runs after
-# the path finder), so this folder must not be on sys.path at all
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-
-from identification.friction import LUGRE_PARAMETER_NAMES, LuGreParameters, simulate_lugre  # noqa: E402
-from identification.experiments import tuned_friction_signal  # noqa: E402
-from identification.shooting import (  # noqa: E402
+from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters, simulate_lugre
+from identification.virtual.experiments import tuned_friction_signal
+from identification.friction.shooting import (
     ShootingOptions,
     fit_high_speed,
     fit_lugre_multiple_shooting,
     initial_lugre_guess,
     r2_score,
 )
-from identification.friction_baseline import paper_friction_fit, simulate_lugre_ode  # noqa: E402
-from psdm_casadi.robot import load_robot  # noqa: E402
+from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
+from psdm_casadi.robot import load_robot
 
-ROBOT = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
+ROBOT = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
 
 

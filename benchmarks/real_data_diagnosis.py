@@ -18,19 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-# benchmarks/identification.py would shadow the identification package: drop this folder from the path
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-import importlib.util  # noqa: E402
-
-_spec = importlib.util.spec_from_file_location("_bench_common", _HERE / "_common.py")
-_common = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_common)
-ROOT, load_panda = _common.ROOT, _common.load_panda
-
-from identification.diagnosis import DiagnosisOptions, diagnose  # noqa: E402
-from identification.recording import Recording  # noqa: E402
-from psdm_casadi.robot import load_robot  # noqa: E402
+from bench_support import ROOT, load_panda
+from identification.diagnosis import DiagnosisOptions, diagnose
+from identification.data.recording import Recording
+from psdm_casadi.robot import load_robot
 
 DATASETS = ROOT.parent / "shared" / "datasets"
 TX40 = DATASETS / "staubli_tx40_figaroh"

@@ -13,12 +13,13 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from identification import experiments
-from identification.synthetic import SimulationOptions, simulate_recording
+from identification.virtual import experiments
+from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
-ROBOT = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
+ROBOT = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 
 
 def main():

@@ -1,10 +1,14 @@
-"""codegen: export the dynamics Functions as C (export_c -> CExport), compile and load them back (build_library)."""
+"""codegen: export the dynamics Functions as C (export_c -> CExport), compile and load them back (build_library).
 
-from .build import CompiledLibrary, build_library, compile_shared, find_compiler
-from .export import CExport, OperationCount, count_operations, export_c
-from .rnea_sx import RneaFunctions, build_rnea_functions
+``export`` (C sources from CasADi Functions, with inlined sin/cos), ``lane_regressor`` (the regressor
+with joint rows in SIMD lanes), ``operation_count``, ``build`` (compile and load), ``templates``; the
+peers the speed benchmark compares against live in ``codegen.peers``.
+"""
+
+from codegen.build import CompiledLibrary, build_library, compile_shared, find_compiler
+from codegen.export import CExport, OperationCount, count_operations, export_c
 
 __all__ = [
-    "CExport", "CompiledLibrary", "OperationCount", "RneaFunctions", "build_library", "build_rnea_functions",
-    "compile_shared", "count_operations", "export_c", "find_compiler",
+    "CExport", "CompiledLibrary", "OperationCount", "build_library", "compile_shared", "count_operations", "export_c",
+    "find_compiler",
 ]

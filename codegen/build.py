@@ -18,7 +18,7 @@ import casadi as ca
 
 from psdm_casadi.errors import ParameterError, SolverError
 
-from .export import CExport
+from codegen.export import CExport
 
 DEFAULT_FLAGS = ("-O2",)
 _COMPILERS = ("cc", "gcc", "clang")

@@ -21,8 +21,8 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
-from .lane_regressor import LaneCount, lane_kernel, splice, splice_header
-from .operation_count import OperationCount, count_operations
+from codegen.lane_regressor import LaneCount, lane_kernel, splice, splice_header
+from codegen.operation_count import OperationCount, count_operations
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
 EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")

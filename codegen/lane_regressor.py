@@ -27,7 +27,7 @@ from psdm_casadi.errors import SolverError
 from psdm_casadi.newton_euler import ROTOR_INERTIA
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
 
-from .operation_count import OperationCount, count_operations
+from codegen.operation_count import OperationCount, count_operations
 
 # Four doubles, one AVX2 register; eight (AVX-512) and two lanes measured slower on the 7-DOF Panda.
 LANES = 4

@@ -15,8 +15,9 @@ import numpy as np
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
-ROBOT_FILE = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
+ROBOT_FILE = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 
 
 def solve(n_intervals: int = 30, duration: float = 1.5):

@@ -16,8 +16,9 @@ import numpy as np
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
-ROBOT_FILE = Path(__file__).resolve().parents[1] / "robots" / "denso_vs6556g.toml"
+ROBOT_FILE = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 # rad/s: width of the smooth sign in the friction model. Friction slopes near zero speed then reach
 # about 10 N m s/rad on the 0.03 kg m^2 wrist: eigenvalues near -340 1/s, so RK4 needs dt <= ~8 ms.
 SMOOTHING = 0.2

@@ -20,13 +20,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
-from .errors import DerivationError, ParameterError
-from .model import PSDMModel
-from .oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, PinocchioOracle, _kinematic_model, \
+from psdm_casadi.errors import DerivationError, ParameterError
+from psdm_casadi.model import PSDMModel
+from psdm_casadi.oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, PinocchioOracle, _kinematic_model, \
     link_to_joint_frame_maps, standard_parameter_names
-from .reduction import reduce_to_base_parameters
-from .robot import RobotDescription
-from .sampling import free_parameter_basis, random_standard_parameters, random_states
+from psdm_casadi.reduction import reduce_to_base_parameters
+from psdm_casadi.robot import RobotDescription
+from psdm_casadi.sampling import free_parameter_basis, random_standard_parameters, random_states
 
 REVOLUTE_NODES = 2.0 * np.pi * np.arange(5) / 5.0 + 0.1
 PRISMATIC_NODES = np.array([-1.0, 0.0, 1.0])
@@ -296,7 +296,7 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
     Examples
     --------
     >>> from psdm_casadi import load_robot, derive_psdm      # doctest: +SKIP
-    >>> model = derive_psdm(load_robot("robots/denso_vs6556g.toml"))
+    >>> model = derive_psdm(load_robot("denso_vs6556g"))
     >>> model.n_functions, model.n_base, model.n_gravity
     (1318, 32, 9)
     """

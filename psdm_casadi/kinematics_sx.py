@@ -1,7 +1,7 @@
 """Joint placements of a Pinocchio model as CasADi SX of q: the kinematic half of every Newton-Euler graph.
 
 Shared by the recursive evaluation of PSDM models (``psdm_casadi.recursive``) and the direct
-Newton-Euler peer of the speed benchmark (``codegen.rnea_sx``). Numbers of the model that are
+Newton-Euler peer of the speed benchmark (``codegen.peers.rnea_sx``). Numbers of the model that are
 rounding noise of cos(pi/2) are set to exactly 0 so that CasADi folds the products away.
 """
 
@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .errors import ParameterError
+from psdm_casadi.errors import ParameterError
 
 # Pinocchio joint short names -> (kind, axis) for the 1-DOF joints supported here.
 _AXIS_JOINTS = {

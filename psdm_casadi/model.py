@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse
 
-from .errors import ModelFileError, ShapeError
-from .fileio import atomic_write
+from psdm_casadi.errors import ModelFileError, ShapeError
+from psdm_casadi.fileio import atomic_write
 
 MODEL_FORMAT = "psdm-model"
 MODEL_VERSION = 1

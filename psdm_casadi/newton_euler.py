@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-from .kinematics_sx import JointChain, cross
+from psdm_casadi.kinematics_sx import JointChain, cross
 
 # Index of each quantity in a joint's 11 standard parameters.
 MASS, FIRST_MOMENT, INERTIA, ROTOR_INERTIA = 0, slice(1, 4), slice(4, 10), 10

@@ -11,8 +11,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .errors import RobotFileError, ShapeError
-from .robot import RobotDescription
+from psdm_casadi.errors import RobotFileError, ShapeError
+from psdm_casadi.robot import RobotDescription
 
 N_LINK_PARAMETERS = 10  # m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (Pinocchio order, about the frame origin)
 N_PARAMETERS_PER_JOINT = 11  # ... plus the rotor inertia Im

@@ -17,13 +17,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .kinematics_sx import JointChain, joint_chain
-from .model import PSDMModel
-from .newton_euler import ROTOR_INERTIA, forward_pass, newton_euler, unit_parameter_wrench
-from .oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
-from .preimage import StandardPreimage, standard_preimage
-from .robot import RobotDescription
-from .symbolic import DynamicsFunctions, assemble_functions, baked_theta
+from psdm_casadi.kinematics_sx import JointChain, joint_chain
+from psdm_casadi.model import PSDMModel
+from psdm_casadi.newton_euler import ROTOR_INERTIA, forward_pass, newton_euler, unit_parameter_wrench
+from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
+from psdm_casadi.preimage import StandardPreimage, standard_preimage
+from psdm_casadi.robot import RobotDescription
+from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions, baked_theta
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import RobotFileError
+from psdm_casadi.errors import RobotFileError
 
 ROBOT_FORMAT = "psdm-robot/1"
 JOINT_KINDS = ("revolute", "prismatic")
@@ -410,12 +410,34 @@ _ASSUMPTION_KEYS = {"drive_inertia", "massless_links", "zero_parameters"}
 _URDF_KEYS = {"path", "locked_joints", "limits"}
 
 
+#: The robot files that ship with the package, found by name (``load_robot("denso_vs6556g")``).
+BUILTIN_ROBOTS_DIR = Path(__file__).resolve().parent / "robots"
+
+
+def builtin_robot_names() -> list[str]:
+    """Names of the built-in robot files, for ``load_robot(name)`` and ``psdm ... NAME``."""
+    return sorted(p.stem for p in BUILTIN_ROBOTS_DIR.glob("*.toml"))
+
+
+def resolve_robot_path(path) -> Path:
+    """The file a robot argument names: an existing path, or the name of a built-in robot."""
+    candidate = Path(path)
+    if candidate.exists():
+        return candidate
+    if candidate.parent == Path(".") and candidate.stem in builtin_robot_names() and candidate.suffix in ("", ".toml"):
+        return BUILTIN_ROBOTS_DIR / f"{candidate.stem}.toml"
+    raise RobotFileError(
+        f"robot file {str(path)!r} does not exist. Check the path, or name a built-in robot: "
+        f"{', '.join(builtin_robot_names())}.")
+
+
 def load_robot(path) -> RobotDescription:
-    """Read a robot file: ``.toml`` (DH rows) or ``.urdf`` (through Pinocchio).
+    """Read a robot file: ``.toml`` (DH rows) or ``.urdf`` (through Pinocchio), or a built-in robot by name.
 
     Parameters
     ----------
     path : str or Path
+        A file, or the name of a built-in robot (:func:`builtin_robot_names`).
 
     Returns
     -------
@@ -426,9 +448,7 @@ def load_robot(path) -> RobotDescription:
     RobotFileError
         Naming the field, the row and the fix, for every malformed entry.
     """
-    path = Path(path)
-    if not path.exists():
-        raise RobotFileError(f"robot file {str(path)!r} does not exist. Check the path.")
+    path = resolve_robot_path(path)
     if path.suffix.lower() == ".urdf":
         return from_urdf(path)
     if path.suffix.lower() != ".toml":
@@ -588,7 +608,7 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
         When Pinocchio cannot parse the file, a locked joint is unknown, or a joint is neither
         revolute nor prismatic with one degree of freedom.
     """
-    from .oracle import load_urdf_model  # Pinocchio is imported lazily
+    from psdm_casadi.oracle import load_urdf_model  # Pinocchio is imported lazily
 
     path = Path(path)
     model = load_urdf_model(path, locked_joints)

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .robot import GRAVITY_STANDARD, RobotDescription, from_dh
+from psdm_casadi.robot import GRAVITY_STANDARD, RobotDescription, from_dh
 
 
 def _gravity(up) -> np.ndarray:

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .oracle import N_PARAMETERS_PER_JOINT
-from .robot import PHYSICAL_PARAMETER_NAMES, RobotDescription, _parse_parameter_name, physical_to_dynamic
+from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
+from psdm_casadi.robot import PHYSICAL_PARAMETER_NAMES, RobotDescription, _parse_parameter_name, physical_to_dynamic
 
 
 def random_states(robot: RobotDescription, n_samples: int, rng: np.random.Generator):

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from .errors import ShapeError
-from .forward import ldl_solve, symmetric_from_columns
-from .model import PSDMModel
+from psdm_casadi.errors import ShapeError
+from psdm_casadi.forward import ldl_solve, symmetric_from_columns
+from psdm_casadi.model import PSDMModel
 
 
 @dataclass(frozen=True)

@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 
 from psdm_casadi import derive_psdm, load_robot
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = ROOT.parent / "shared"
 REFERENCE_PSDM = SHARED / "reference" / "psdm"
 DATASETS = SHARED / "datasets"
-DENSO_FILE = ROOT / "robots" / "denso_vs6556g.toml"
+DENSO_FILE = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 
 
 def example_robot_urdf(relative: str) -> Path:

@@ -4,13 +4,13 @@ Flow: ``DynamicsFunctions.regressor`` -> ``optimize_excitation`` -> ``Excitation
 to_csv), plus ``motor_experiment``, ``gravity_experiment``, ``friction_experiment``.
 """
 
-from .constraints import JointLimits, KeepOut, build_dh_point_function, limit_margins, verify_limits
-from .criteria import condition_number, stack_regressor
-from .experiments import ExperimentTrajectory, friction_experiment, gravity_experiment, motor_experiment
-from .optimize import ExcitationOptions, ExcitationTrajectory, optimize_excitation, random_feasible_parameters
-from .parametrization import FourierTrajectory, SumOfSinesTrajectory
-from .plot import plot_trajectory
-from .problem import ExcitationProblem, build_excitation_problem
+from trajopt.constraints import JointLimits, KeepOut, build_dh_point_function, limit_margins, verify_limits
+from trajopt.criteria import condition_number, stack_regressor
+from trajopt.experiments import ExperimentTrajectory, friction_experiment, gravity_experiment, motor_experiment
+from trajopt.optimize import ExcitationOptions, ExcitationTrajectory, optimize_excitation, random_feasible_parameters
+from trajopt.parametrization import FourierTrajectory, SumOfSinesTrajectory
+from trajopt.plot import plot_trajectory
+from trajopt.problem import ExcitationProblem, build_excitation_problem
 
 __all__ = [
     "ExcitationOptions", "ExcitationProblem", "ExcitationTrajectory", "ExperimentTrajectory", "FourierTrajectory",

@@ -19,8 +19,8 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError
 
-from .constraints import JointLimits, check_same_dof, describe_violation, limit_margins, worst_margin
-from .csvfile import write_trajectory_csv
+from trajopt.constraints import JointLimits, check_same_dof, describe_violation, limit_margins, worst_margin
+from trajopt.csvfile import write_trajectory_csv
 
 
 @dataclass(frozen=True)
@@ -85,7 +85,7 @@ class SineSegment:
 
     def evaluate(self, tau) -> tuple:
         tau = np.asarray(tau, dtype=float)
-        from .parametrization import _smoothstep
+        from trajopt.parametrization import _smoothstep
 
         ramp = 2 * math.pi / self.frequency
         s1, d1, dd1 = _smoothstep(tau / ramp)

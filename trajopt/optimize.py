@@ -19,12 +19,12 @@ import numpy as np
 from psdm_casadi.cli import progress
 from psdm_casadi.errors import ExcitationWarning, ParameterError, SolverError
 
-from .constraints import (JointLimits, KeepOut, check_same_dof, describe_violation, fine_grid, scale_into_limits,
+from trajopt.constraints import (JointLimits, KeepOut, check_same_dof, describe_violation, fine_grid, scale_into_limits,
                           verify_limits)
-from .csvfile import write_trajectory_csv
-from .criteria import CRITERIA, check_columns, condition_number, nominal_column_scale, stack_regressor
-from .parametrization import FourierTrajectory, SumOfSinesTrajectory
-from .problem import build_excitation_problem, build_torque_function, check_regressor
+from trajopt.csvfile import write_trajectory_csv
+from trajopt.criteria import CRITERIA, check_columns, condition_number, nominal_column_scale, stack_regressor
+from trajopt.parametrization import FourierTrajectory, SumOfSinesTrajectory
+from trajopt.problem import build_excitation_problem, build_torque_function, check_regressor
 
 FAMILIES = ("fourier", "sum_of_sines")
 _ACCEPTED = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded", "User_Requested_Stop",

@@ -26,9 +26,9 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError
 
-from .constraints import JointLimits, KeepOut, check_same_dof
-from .criteria import CriterionCallback, build_information_function, check_columns
-from .parametrization import FourierTrajectory
+from trajopt.constraints import JointLimits, KeepOut, check_same_dof
+from trajopt.criteria import CriterionCallback, build_information_function, check_columns
+from trajopt.parametrization import FourierTrajectory
 
 DEFAULT_IPOPT = {
     "hessian_approximation": "limited-memory",

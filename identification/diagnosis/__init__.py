@@ -2,21 +2,20 @@
 
 Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, validation RMSE before/after,
 residual analysis, augmented model). Modules: ``context`` (nominal signals per recording), ``nominal``
-(friction and rigid-body choices), ``candidates`` (the physics library, with plausibility bounds; ``deflection_terms`` for backlash and
-elasticity),
-``selection`` (forward selection on held-out data), ``signal_fit`` (exact fit of the kept delay, backlash
-and joint elasticity by variable projection), ``refine`` (Ipopt fit of the nonlinear parameters of
-the kept terms), ``residual_tests``, ``report``, ``augmented``, ``hidden_effects`` (extra effects for
-the virtual robot), ``cli`` (``psdm diagnose``).
+(friction and rigid-body choices), ``candidates`` (the physics library, with plausibility bounds;
+``deflection_terms`` for backlash and elasticity), ``selection`` (forward selection on held-out data),
+``signal_fit`` (exact fit of the kept delay, backlash and joint elasticity by variable projection),
+``refine`` (Ipopt fit of the nonlinear parameters of the kept terms), ``residual_tests``, ``report``,
+``augmented``. The command is ``psdm diagnose`` (``psdm_casadi.cli.diagnose``).
 """
 
-from .augmented import AugmentedModel
-from .candidates import (ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, BacklashTerm, CandidateLibrary, CandidateTerm,
+from identification.diagnosis.augmented import AugmentedModel
+from identification.diagnosis.candidates import (ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, BacklashTerm, CandidateLibrary, CandidateTerm,
                          CouplingTerm, CoulombAsymmetryTerm, DelayTerm, FrictionDriftTerm, GravityTiltTerm,
                          JointElasticityTerm, LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
                          TorqueOffsetTerm, TorqueRippleTerm, default_library)
-from .diagnose import DiagnosisOptions, diagnose
-from .report import NO_FINDING, DiagnosisReport, Finding
+from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+from identification.diagnosis.report import NO_FINDING, DiagnosisReport, Finding
 
 __all__ = ["AugmentedModel", "ALL_TERMS", "EQUIVALENT_EFFECTS", "TERMS_BY_KEY", "BacklashTerm", "CandidateLibrary",
            "CandidateTerm", "CouplingTerm", "CoulombAsymmetryTerm", "DelayTerm", "FrictionDriftTerm", "GravityTiltTerm",

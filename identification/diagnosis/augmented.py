@@ -17,8 +17,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from ..io import atomic_write
-from .nominal import friction_casadi
+from identification.data.io import atomic_write
+from identification.diagnosis.nominal import friction_casadi
 
 
 @dataclass(frozen=True, eq=False)

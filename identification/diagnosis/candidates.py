@@ -528,7 +528,7 @@ class CandidateLibrary:
         return tuple(term.key for term in self.terms)
 
 
-from .deflection_terms import BacklashTerm, JointElasticityTerm  # noqa: E402  (they subclass CandidateTerm)
+from identification.diagnosis.deflection_terms import BacklashTerm, JointElasticityTerm  # noqa: E402  (they subclass CandidateTerm)
 
 ALL_TERMS = (TorqueOffsetTerm, SpringTerm, CoulombAsymmetryTerm, LoadDependentFrictionTerm, FrictionDriftTerm,
              TorqueRippleTerm, RotorInertiaTerm, CouplingTerm, PayloadTerm, GravityTiltTerm, DelayTerm,

@@ -29,8 +29,8 @@ import pinocchio as pin
 from psdm_casadi.errors import ParameterError, RecordingError
 from psdm_casadi.oracle import build_pinocchio_model
 
-from ..preprocessing import PreprocessOptions, central_difference, zero_phase_filter
-from ..recording import Recording
+from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
+from identification.data.recording import Recording
 
 FILTER_ORDER = PreprocessOptions().order  # the order ``diagnose`` preprocesses the recordings with
 
@@ -143,7 +143,7 @@ class DiagnosisContext:
 
         With ``filtered_friction`` the exact sign at full rate, multiplied and filtered like the recording;
         otherwise ``factor * tanh(qd / SMOOTH_VELOCITY)`` on the grid (see the module docstring)."""
-        from .candidates import SMOOTH_VELOCITY
+        from identification.diagnosis.candidates import SMOOTH_VELOCITY
 
         if self.filtered_friction:
             sign = np.sign(self.full_qd[:, joint])
@@ -155,7 +155,7 @@ class DiagnosisContext:
         """Change of the robot file's LuGre friction of ``joint`` when the true velocity is the recorded one
         minus ``shift_rate`` (full rate, (n_full,)): ``F(qd_rec) - F(qd_rec - shift_rate)``, decimated (n_samples,);
         None without drives."""
-        from ..friction import LuGreParameters, simulate_lugre
+        from identification.friction.models import LuGreParameters, simulate_lugre
 
         if self.drives is None:
             return None

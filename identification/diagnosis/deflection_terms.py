@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..preprocessing import central_difference
-from .candidates import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, CandidateTerm
+from identification.data.preprocessing import central_difference
+from identification.diagnosis.candidates import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, CandidateTerm
 
 
 def _deflection_columns(context, joint, s, sd, sdd):

@@ -13,15 +13,15 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError
 
-from ..preprocessing import PreprocessOptions, preprocess
-from .augmented import AugmentedModel
-from .candidates import CandidateLibrary, default_library
-from .context import build_context
-from .nominal import FRICTION_MODELS, RIGID_BODY_CHOICES, filtered_friction_columns, friction_feature_names, friction_shapes
-from .report import DiagnosisReport, Finding
-from .residual_tests import analyse_residuals
-from .refine import refine_fit
-from .selection import forward_select
+from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.diagnosis.augmented import AugmentedModel
+from identification.diagnosis.candidates import CandidateLibrary, default_library
+from identification.diagnosis.context import build_context
+from identification.diagnosis.nominal import FRICTION_MODELS, RIGID_BODY_CHOICES, filtered_friction_columns, friction_feature_names, friction_shapes
+from identification.diagnosis.report import DiagnosisReport, Finding
+from identification.diagnosis.residual_tests import analyse_residuals
+from identification.diagnosis.refine import refine_fit
+from identification.diagnosis.selection import forward_select
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from .signal_fit import SIGNAL_KEYS, exact_contribution, fit_signal_terms, resolve_deflection
+from identification.diagnosis.signal_fit import SIGNAL_KEYS, exact_contribution, fit_signal_terms, resolve_deflection
 
 
 @dataclass(frozen=True)

@@ -162,7 +162,7 @@ def resolve_deflection(terms, coefficients, fit, context, base, y, sigma):
 
     Returns ``(terms, coefficients, fit)`` (tuples and the ``SignalFit`` of the kept choice).
     """
-    from .deflection_terms import BacklashTerm, JointElasticityTerm
+    from identification.diagnosis.deflection_terms import BacklashTerm, JointElasticityTerm
 
     terms, coefficients = tuple(terms), tuple(coefficients)
     for k, term in enumerate(terms):

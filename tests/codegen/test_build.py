@@ -10,7 +10,7 @@ import pytest
 
 from codegen.build import CompiledLibrary, build_library, find_compiler
 from codegen.export import export_c
-from codegen.rnea_sx import build_rnea_functions
+from codegen.peers.rnea_sx import build_rnea_functions
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.oracle import build_pinocchio_model
 from tests.codegen._toy import THETA, random_inputs, toy_functions

@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from codegen.cli import read_theta
+from psdm_casadi.cli.codegen import read_theta
 from psdm_casadi.cli import main
 from psdm_casadi.errors import ParameterError
 from tests.conftest import DENSO_FILE

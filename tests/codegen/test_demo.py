@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from codegen.demo import DemoOptions, run_demo
+from psdm_casadi.demo import DemoOptions, run_demo
 from psdm_casadi.cli import main
 
 

@@ -4,7 +4,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from codegen.rnea_sx import build_rnea_functions, cholesky_solve_sx
+from codegen.peers.rnea_sx import build_rnea_functions, cholesky_solve_sx
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import build_pinocchio_model
 from psdm_casadi.robot import from_urdf

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from identification.experiments import sine_reference
-from identification.synthetic import SimulationOptions, simulate_recording
+from identification.virtual.experiments import sine_reference
+from identification.virtual.simulation import SimulationOptions, simulate_recording
 
 
 def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):

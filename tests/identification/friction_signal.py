@@ -4,11 +4,12 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.experiments import tuned_friction_signal
-from identification.friction import LuGreParameters, simulate_lugre
+from identification.virtual.experiments import tuned_friction_signal
+from identification.friction.models import LuGreParameters, simulate_lugre
 from psdm_casadi.robot import load_robot
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
-DENSO = Path(__file__).resolve().parents[2] / "robots" / "denso_vs6556g.toml"
+DENSO = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 
 
 def denso_truth(joint):

@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from identification.io import load_recording
+from identification.data.io import load_recording
 from psdm_casadi.cli import main
 from tests.conftest import DENSO_FILE
 

@@ -9,9 +9,9 @@ import pytest
 from identification.diagnosis import (ALL_TERMS, CandidateLibrary, SpringTerm, TorqueOffsetTerm, TorqueRippleTerm,
                                       default_library)
 from identification.diagnosis.context import build_context
-from identification.experiments import sine_reference
-from identification.preprocessing import PreprocessOptions, preprocess
-from identification.synthetic import SimulationOptions, simulate_recording
+from identification.virtual.experiments import sine_reference
+from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
 
 
@@ -90,7 +90,7 @@ def test_friction_columns_are_filtered_like_the_recording(context):
     friction-like columns are the full-rate sign filtered like the recording, which differs from the sign of the
     filtered velocity around reversals."""
     from identification.diagnosis import CoulombAsymmetryTerm
-    from identification.preprocessing import zero_phase_filter
+    from identification.data.preprocessing import zero_phase_filter
 
     j = 1
     col = CoulombAsymmetryTerm(joint=j).columns(context)[:, j, 0]

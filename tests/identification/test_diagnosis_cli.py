@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from identification import extra_physics as xp
-from identification.experiments import sine_reference
-from identification.io import save_recording
-from identification.synthetic import SimulationOptions, simulate_recording
+from identification.virtual import effects as xp
+from identification.virtual.experiments import sine_reference
+from identification.data.io import save_recording
+from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 
 from tests.conftest import DENSO_FILE

@@ -5,13 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification import extra_physics as xp
+from identification.virtual import effects as xp
 from identification.diagnosis import (DelayTerm, DiagnosisOptions, FrictionDriftTerm, JointElasticityTerm,
                                       LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
                                       TorqueOffsetTerm, diagnose)
 from identification.diagnosis.candidates import MAX_DELAY_S, MAX_LOAD_FRICTION
 
-from .diagnosis_data import recording_pair
+from tests.identification.diagnosis_data import recording_pair
 from psdm_casadi.robot import LinkInertia
 
 

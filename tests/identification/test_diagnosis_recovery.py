@@ -7,13 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from identification import extra_physics as xp
+from identification.virtual import effects as xp
 from identification.diagnosis import (NO_FINDING, DiagnosisOptions, SpringTerm, TorqueOffsetTerm, TorqueRippleTerm,
                                       diagnose)
-from identification.diagnosis.hidden_effects import Backlash, JointElasticity
-from identification.recording import Recording
+from identification.virtual.transmission_effects import Backlash, JointElasticity
+from identification.data.recording import Recording
 
-from .diagnosis_data import recording_pair
+from tests.identification.diagnosis_data import recording_pair
 from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
 
 

@@ -6,12 +6,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification import extra_physics as xp
+from identification.virtual import effects as xp
 from identification.diagnosis import (BacklashTerm, CandidateLibrary, DelayTerm, DiagnosisOptions, GravityTiltTerm, JointElasticityTerm,
                                       SpringTerm, TorqueOffsetTerm, diagnose)
-from identification.diagnosis.hidden_effects import Backlash, JointElasticity
+from identification.virtual.transmission_effects import Backlash, JointElasticity
 
-from .diagnosis_data import recording_pair
+from tests.identification.diagnosis_data import recording_pair
 
 
 

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from identification.friction import (
+from identification.friction.models import (
     LUGRE_PARAMETER_NAMES,
     CoulombViscous,
     LuGreParameters,
@@ -19,7 +19,7 @@ from identification.friction import (
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.robot import DriveParameters
 
-from .friction_signal import denso_truth, sine_series
+from tests.identification.friction_signal import denso_truth, sine_series
 
 TRUTH = dict(fc=9.593, fs=12.51, vs=0.0144, fv=23.67, dv=0.6091, sigma0=288499.0, sigma1=22.79)
 

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from identification.io import load_recording, save_recording
-from identification.recording import Recording
+from identification.data.io import load_recording, save_recording
+from identification.data.recording import Recording
 from psdm_casadi.errors import RecordingError
 
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification.dataset import CalibrationData, load_calibration_data, save_calibration_data
-from identification.extra_physics import Payload
-from identification.pipeline import IdentificationPipeline, PipelineOptions
-from identification.recording import Recording
+from identification.data.dataset import CalibrationData, load_calibration_data, save_calibration_data
+from identification.virtual.effects import Payload
+from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
+from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 
@@ -72,7 +72,7 @@ def test_pipeline_option_and_input_errors(denso, denso_model):
 
 def test_identified_friction_is_removed_from_torques_or_currents():
     """The second gravity pass subtracts the LuGre torque from tau, or torque / Kt from the currents."""
-    from identification.pipeline import _without_torque
+    from identification.calibration.pipeline import _without_torque
 
     t = np.linspace(0.0, 1.0, 11)
     q = np.zeros((11, 2))
@@ -85,7 +85,7 @@ def test_identified_friction_is_removed_from_torques_or_currents():
 
 
 def test_virtual_calibration_options_errors():
-    from identification.virtual_calibration import VirtualCalibrationOptions
+    from identification.virtual.calibration import VirtualCalibrationOptions
 
     with pytest.raises(ParameterError, match="friction_design"):
         VirtualCalibrationOptions(friction_design=(1e-3, 0.1))
@@ -104,11 +104,11 @@ def test_identify_command_is_registered():
 @pytest.mark.slow
 def test_full_pipeline_on_virtual_denso(denso, denso_model, tmp_path):
     """Noise-free short calibration: Kt within 1 %, all R^2 >= 0.98, consistent mass matrix, saved model loads."""
-    from identification.result import load_identified
-    from identification.synthetic import SimulationOptions
-    from identification.virtual_calibration import VirtualCalibrationOptions, simulate_calibration
+    from identification.calibration.result import load_identified
+    from identification.virtual.simulation import SimulationOptions
+    from identification.virtual.calibration import VirtualCalibrationOptions, simulate_calibration
 
-    from identification.experiments import FrictionDesign
+    from identification.virtual.experiments import FrictionDesign
 
     options = VirtualCalibrationOptions(gravity_duration=30.0, excitation_duration=20.0, quiet=True,
                                         friction_design=FrictionDesign.quick(),

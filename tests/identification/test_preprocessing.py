@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from identification.preprocessing import (PreprocessOptions, central_difference, preprocess, resample_uniform,
+from identification.data.preprocessing import (PreprocessOptions, central_difference, preprocess, resample_uniform,
                                           zero_phase_filter)
-from identification.recording import Recording
+from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 W = 2 * np.pi * 0.7

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from identification.recording import Recording
+from identification.data.recording import Recording
 from psdm_casadi.errors import RecordingError, ShapeError
 
 

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification.consistency import check_consistency, mass_matrices
-from identification.friction import LuGreParameters
-from identification.recording import Recording
-from identification.refinement import RefinementBlock, RefinementOptions, refine_parameters
+from identification.calibration.consistency import check_consistency, mass_matrices
+from identification.friction.models import LuGreParameters
+from identification.data.recording import Recording
+from identification.calibration.refinement import RefinementBlock, RefinementOptions, refine_parameters
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import PinocchioOracle
 

@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-from identification.consistency import check_consistency
-from identification.friction import LuGreParameters
-from identification.report import StepScore, ValidationReport, plot_observed_predicted
-from identification.result import IdentifiedModel, load_identified
+from identification.calibration.consistency import check_consistency
+from identification.friction.models import LuGreParameters
+from identification.calibration.report import StepScore, ValidationReport, plot_observed_predicted
+from identification.calibration.result import IdentifiedModel, load_identified
 from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
 
 

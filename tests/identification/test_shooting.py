@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from identification.friction import CoulombViscous, LuGreParameters, simulate_lugre
-from identification.shooting import (
+from identification.friction.models import CoulombViscous, LuGreParameters, simulate_lugre
+from identification.friction.shooting import (
     LuGreIdentifier,
     ShootingOptions,
     fit_high_speed,
@@ -12,10 +12,10 @@ from identification.shooting import (
     initial_lugre_guess,
     r2_score,
 )
-from identification.friction_baseline import paper_friction_fit, simulate_lugre_ode
+from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
 from psdm_casadi.errors import NotFittedError, ParameterError, ShapeError, SolverError
 
-from .friction_signal import denso_truth, measured_friction, ringing_joint_record, sine_series, synthetic_record
+from tests.identification.friction_signal import denso_truth, measured_friction, ringing_joint_record, sine_series, synthetic_record
 
 ISSUE_TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
 
@@ -181,11 +181,11 @@ def test_estimator_contract():
 
 
 # ------------------------------------------------------------------------------------------------
-# the central-difference measurement model (identification.friction_measurement)
+# the central-difference measurement model (identification.friction.models.measurement)
 # ------------------------------------------------------------------------------------------------
 def test_measured_model_equals_brute_force_triangle_average():
     """Closed-form L/R means against a fine numerical average of the friction along piecewise-linear q."""
-    from identification.friction_measurement import simulate_lugre_measured
+    from identification.friction.measurement import simulate_lugre_measured
 
     truth, _ = denso_truth(0)
     t = np.arange(40) * 1e-3
@@ -245,7 +245,7 @@ def test_measurement_option_errors(ringing_record):
 
 
 def test_measured_simulation_refuses_bad_positions_and_times(ringing_record):
-    from identification.friction_measurement import simulate_lugre_measured
+    from identification.friction.measurement import simulate_lugre_measured
 
     truth, t, q, _, _ = ringing_record
     bad = q.copy()

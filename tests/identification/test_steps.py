@@ -7,16 +7,16 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from identification import experiments
-from identification.base import Design, weighted_least_squares
-from identification.extra_physics import Payload
-from identification.friction import LuGreParameters, simulate_lugre
-from identification.payload import payload_static_torque, payload_torque
-from identification.preprocessing import PreprocessOptions, preprocess
-from identification.recording import Recording
-from identification.steps import (FrictionExperiment, FrictionIdentifier, GravityIdentifier, InertialIdentifier,
+from identification.virtual import experiments
+from identification.calibration.estimator import Design, weighted_least_squares
+from identification.virtual.effects import Payload
+from identification.friction.models import LuGreParameters, simulate_lugre
+from identification.calibration.payload import payload_static_torque, payload_torque
+from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.data.recording import Recording
+from identification.calibration.steps import (FrictionExperiment, FrictionIdentifier, GravityIdentifier, InertialIdentifier,
                                   MotorExperiment, MotorIdentifier, fold_out_and_back)
-from identification.synthetic import SimulationOptions, simulate_recording
+from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import NotFittedError, ParameterError, RecordingError, ShapeError
 from psdm_casadi.oracle import PinocchioOracle
 
@@ -47,7 +47,7 @@ def motor_experiments(denso):
     out = []
     for j in (1, 4):
         rng = np.random.default_rng(j)
-        from identification.virtual_calibration import motor_pose
+        from identification.virtual.calibration import motor_pose
 
         pose = motor_pose(denso, j, PAYLOAD, rng, n_candidates=8, range_fraction=0.15)
         ref = experiments.motor_reference(denso, j, speed=0.8, range_fraction=0.15, pose=pose)
@@ -126,7 +126,7 @@ def test_friction_coupling_torque_matches_pinocchio(denso, denso_model, truth):
     """sum_k M_jk(q) qdd_k of the held joints, from the regressor with a given theta, equals Pinocchio's crba row."""
     import pinocchio as pin
 
-    from identification.friction_step import _coupling_torque
+    from identification.calibration.friction_step import _coupling_torque
     from psdm_casadi.oracle import build_pinocchio_model
 
     theta, _, _ = truth
@@ -154,7 +154,7 @@ def test_friction_coupling_torque_matches_pinocchio(denso, denso_model, truth):
 
 
 def test_friction_central_difference_needs_full_rate(denso_model, truth):
-    from identification.shooting import ShootingOptions
+    from identification.friction.shooting import ShootingOptions
 
     theta, kt, _ = truth
     rec = Recording(t=np.arange(0.0, 0.05, 1e-3), q=np.zeros((50, 6)), current=np.zeros((50, 6)),

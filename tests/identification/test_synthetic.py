@@ -7,11 +7,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from identification import experiments
-from identification.extra_physics import (GravityTilt, JointCoupling, Payload, SignalDelay, Spring, TorqueOffset,
+from identification.virtual import experiments
+from identification.virtual.effects import (GravityTilt, JointCoupling, Payload, SignalDelay, Spring, TorqueOffset,
                                           TorqueRipple)
-from identification.io import load_recording
-from identification.synthetic import SimulationOptions, read_truth, simulate_recording, write_recording
+from identification.data.io import load_recording
+from identification.virtual.simulation import SimulationOptions, read_truth, simulate_recording, write_recording
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import PinocchioOracle
 
@@ -277,7 +277,7 @@ def test_default_encoder_resolves_presliding():
 def test_exact_z_step_matches_stiff_ode_solver(denso):
     from scipy.integrate import solve_ivp
 
-    from identification._lugre_sim import LuGreArrays, friction_torque, z_rate, z_step
+    from identification.virtual.lugre_exact import LuGreArrays, friction_torque, z_rate, z_step
 
     p = LuGreArrays.from_drives(denso.drives)
     qd = np.array([0.01, -0.2, 0.5, -1.0, 0.05, 2.0])

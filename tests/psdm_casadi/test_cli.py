@@ -5,7 +5,7 @@ import pytest
 from psdm_casadi import load_model
 from psdm_casadi.cli import main
 
-from ..conftest import DENSO_FILE
+from tests.conftest import DENSO_FILE
 
 
 def test_derive_json(capsys):

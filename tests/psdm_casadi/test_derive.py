@@ -9,7 +9,8 @@ from psdm_casadi.errors import ParameterError
 from psdm_casadi.samples import kr6, scara, two_link
 from psdm_casadi.sampling import random_standard_parameters
 
-from ..conftest import REFERENCE_PSDM, example_robot_urdf
+from tests.conftest import REFERENCE_PSDM, example_robot_urdf
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 
 @pytest.mark.parametrize("robot, p, l", [
@@ -175,9 +176,9 @@ def test_random_parameters_respect_the_assumptions(denso, rng):
 def test_shipped_scara_file_is_prismatic_and_derives():
     from psdm_casadi import load_robot
 
-    from ..conftest import ROOT
+    from tests.conftest import ROOT
 
-    robot = load_robot(ROOT / "robots" / "scara.toml")
+    robot = load_robot(BUILTIN_ROBOTS_DIR / "scara.toml")
     assert [j.kind for j in robot.joints] == ["revolute", "revolute", "prismatic", "revolute"]
     model = derive_psdm(robot)
     assert (model.n_functions, model.n_base) == (69, 8)

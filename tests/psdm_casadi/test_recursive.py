@@ -120,7 +120,7 @@ def test_recursive_matches_pinocchio_on_a_urdf(rng):
 
 def test_recursive_graph_is_smaller_than_the_sum_and_the_plain_newton_euler(denso, denso_model):
     from codegen.export import count_operations
-    from codegen.rnea_sx import build_rnea_functions
+    from codegen.peers.rnea_sx import build_rnea_functions
 
     theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
     recursive = build_recursive_functions(denso_model, denso, theta)

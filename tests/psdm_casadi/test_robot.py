@@ -7,7 +7,7 @@ from psdm_casadi import load_robot
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.robot import LinkInertia, from_dh, physical_to_dynamic
 
-from ..conftest import DENSO_FILE, example_robot_urdf
+from tests.conftest import DENSO_FILE, example_robot_urdf
 
 GOOD_JOINT = 'a = 0.1\nalpha = "pi/2"\nd = 0.0\ntheta = 0.0\n'
 

@@ -8,7 +8,7 @@ from trajopt.constraints import (JointLimits, KeepOut, build_dh_point_function, 
                                  verify_limits)
 from trajopt.parametrization import FourierTrajectory, SumOfSinesTrajectory
 
-from .conftest import A1
+from tests.trajopt.conftest import A1
 
 
 def _limits():

@@ -8,7 +8,7 @@ from psdm_casadi.errors import ParameterError, ShapeError
 from trajopt.criteria import (CriterionCallback, build_information_function, check_columns, condition_number,
                               criterion_gradient, criterion_value, stack_regressor)
 
-from .conftest import planar_regressor_numpy
+from tests.trajopt.conftest import planar_regressor_numpy
 
 
 def _spd(rng, n=5, spread=3.0):

@@ -11,7 +11,7 @@ from trajopt.constraints import JointLimits, KeepOut, build_dh_point_function
 from trajopt.criteria import condition_number, stack_regressor
 from trajopt.optimize import ExcitationOptions, optimize_excitation, random_feasible_parameters
 
-from .conftest import PLANAR_GRAVITY_MASK, planar_regressor_numpy
+from tests.trajopt.conftest import PLANAR_GRAVITY_MASK, planar_regressor_numpy
 
 FAST = dict(duration=4.0, harmonics=3, n_samples=60, n_starts=2, quiet=True)
 THETA = np.array([1.2, 0.3, 0.15, 2.0, 0.5])

@@ -9,7 +9,7 @@ from psdm_casadi import cli
 from trajopt.experiments import motor_experiment
 from trajopt.plot import plot_trajectory
 
-DENSO = "robots/denso_vs6556g.toml"
+DENSO = "denso_vs6556g"
 
 
 def test_plot_writes_png(planar_robot, tmp_path):
@@ -23,7 +23,7 @@ def test_plot_writes_png(planar_robot, tmp_path):
 def test_experiment_command(tmp_path, capsys):
     from pathlib import Path
 
-    robot = Path(__file__).resolve().parents[2] / DENSO
+    robot = DENSO
     out = tmp_path / "motor.csv"
     code = cli.main(["experiment", "motor", str(robot), "--joint", "2", "--out", str(out), "--json"])
     assert code == 0
@@ -38,7 +38,7 @@ def test_experiment_command(tmp_path, capsys):
 def test_experiment_command_bad_joint(tmp_path, capsys):
     from pathlib import Path
 
-    robot = Path(__file__).resolve().parents[2] / DENSO
+    robot = DENSO
     code = cli.main(["experiment", "friction", str(robot), "--out", str(tmp_path / "f.csv")])
     assert code == 2 and "--joint" in capsys.readouterr().err
 
@@ -46,7 +46,7 @@ def test_experiment_command_bad_joint(tmp_path, capsys):
 def test_excite_command_bad_limit_scale(tmp_path, capsys):
     from pathlib import Path
 
-    robot = Path(__file__).resolve().parents[2] / DENSO
+    robot = DENSO
     code = cli.main(["excite", str(robot), "--limit-scale", "0", "--out", str(tmp_path / "x.csv")])
     assert code == 2 and "scale" in capsys.readouterr().err
 
@@ -55,7 +55,7 @@ def test_excite_command_bad_limit_scale(tmp_path, capsys):
 def test_excite_command_denso(tmp_path, capsys):
     from pathlib import Path
 
-    robot = Path(__file__).resolve().parents[2] / DENSO
+    robot = DENSO
     out = tmp_path / "traj.csv"
     code = cli.main(["excite", str(robot), "--duration", "10", "--harmonics", "5", "--out", str(out),
                      "--plot", str(tmp_path / "t.png"), "--starts", "1", "--json"])

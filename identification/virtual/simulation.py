@@ -1,0 +1,518 @@
+"""The virtual robot: simulate_recording() turns a reference trajectory into a Recording with known truth.
+
+The simulator is independent of the PSDM model: rigid-body dynamics come from Pinocchio's ``aba``
+on the robot's nominal (true) inertia, friction from the LuGre model (paper eqs. 12-14) with the
+robot's drive parameters, motor currents from ``tau = Kt i`` (eq. 11). A joint controller
+(feed-forward with the true rigid-body model plus steady-state friction, and PD feedback) tracks
+the reference at the sample rate; its torque command is held over each sample period (zero-order
+hold), which is what a robot that reports current set-points records.
+
+Integration: each sample period is cut into ``substeps`` steps of semi-implicit (symplectic) Euler
+for the rigid body; the stiff LuGre state z is advanced by the exact solution of eq. 12 over the
+step with the velocity held at its new value, which is stable for any bristle stiffness and keeps
+``z`` tracking ``q`` in the pre-sliding regime. The joint torque recorded at sample k is the command
+applied from t_k, so it balances the acceleration at t_k exactly.
+
+``SimulationOptions.integrator="leapfrog"`` uses the second-order Stormer-Verlet splitting instead
+(half drift of q and z, kick, half drift). Symplectic Euler kicks at the start of each sub-step, so
+the second difference of the recorded q weights the held commands of samples k-1 and k by
+``(S - 1) / 2S`` and ``(S + 1) / 2S`` (S sub-steps; 0.375/0.625 for S = 4) instead of the 1/2 and
+1/2 of continuous time: a timing error of half a sub-step that the friction identification sees
+as a phase error of the bristle ringing of heavy joints (it biased sigma1 of the Denso's base
+joints by 70-170 %). Leapfrog kicks at the sub-step centres, which restores 1/2 and 1/2.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+from scipy.interpolate import CubicSpline
+
+from psdm_casadi.errors import ParameterError, ShapeError
+from psdm_casadi.oracle import build_pinocchio_model
+from psdm_casadi.robot import DriveParameters, RobotDescription
+
+from identification.virtual.lugre_exact import FRICTION_FIELDS, LuGreArrays, steady_state_friction
+from identification.virtual.effects import ExtraPhysics, Payload
+from identification.data.io import atomic_write, save_recording
+from identification.data.recording import Recording
+
+TRUTH_FORMAT = "psdm-truth/1"
+FEEDFORWARDS = ("model", "gravity", "none")
+INTEGRATORS = ("symplectic-euler", "leapfrog")
+
+
+@dataclass(frozen=True)
+class SimulationOptions:
+    """Options of the virtual robot.
+
+    Parameters
+    ----------
+    rate : float
+        Sample and control rate [Hz] (default 1 kHz).
+    duration : float or None
+        Simulated time [s]; defaults to the span of an array reference (required for a callable one).
+    substeps : int
+        Integration steps per sample period (rigid body and LuGre state).
+    integrator : {"symplectic-euler", "leapfrog"}
+        Scheme of each sub-step (module docstring): first-order symplectic Euler (default) or
+        second-order leapfrog, whose recorded torques and positions obey the continuous-time relation
+        ``J (q[k+1] - 2 q[k] + q[k-1]) / T^2 = (tau[k-1] + tau[k]) / 2 - <friction>`` of a held command
+        (use it for friction experiments; ``qdd``/``tau_friction`` of the truth are then taken at the
+        middle of the first sub-step).
+    bandwidth_hz : float
+        Bandwidth of the PD loop [Hz]: ``Kp = M_ii w^2``, ``Kd = 2 zeta M_ii w`` with the mass-matrix
+        diagonal at the first reference pose.
+    integral_gain : float
+        Integral action of the joint controller as a fraction of the Routh bound's scale:
+        ``Ki = integral_gain * M_ii w^3`` (stable for ``integral_gain < 2 zeta``); it removes the
+        steady tracking error an unmodelled load (a spring, a payload) would leave. 0 gives a PD loop.
+    damping_ratio : float
+        ``zeta`` of the PD loop.
+    feedforward : {"model", "gravity", "none"}
+        ``"model"``: rigid-body inverse dynamics of the reference (true model, known payload);
+        ``"gravity"``: gravity only; ``"none"``: PD only.
+    friction_feedforward : bool
+        Add the steady-state friction of the reference velocity to the command.
+    friction : bool
+        Simulate LuGre friction (off: a frictionless robot).
+    payload : Payload or None
+        Known end-effector load (the calibration weight of the motor step); the feed-forward knows it.
+    encoder_resolution : float or None
+        Quantisation step of the recorded q [rad or m]; default ``2 pi / 2^20 / 100`` = 6e-8 rad: a
+        20-bit motor-side encoder behind a 1:100 gearbox, as on industrial arms. The joint-side
+        resolution matters for friction identification: pre-sliding motion spans micro-radians at
+        velocities of about 1e-3 rad/s (see ``experiments.FrictionDesign``).
+    current_resolution : float or None
+        Quantisation step of the recorded current [A].
+    q_noise_std, current_noise_std, tau_noise_std : float
+        Standard deviation of white noise on the recorded q [rad], current [A], tau [N m].
+    record_current, record_tau, record_velocity : bool
+        Which signals the recording carries (velocity: the true qd, as from a tachometer).
+
+    Raises
+    ------
+    ParameterError
+        Naming the field and the fix.
+    """
+
+    rate: float = 1000.0
+    duration: float | None = None
+    substeps: int = 2
+    integrator: str = "symplectic-euler"
+    bandwidth_hz: float = 10.0
+    damping_ratio: float = 1.0
+    integral_gain: float = 0.25
+    feedforward: str = "model"
+    friction_feedforward: bool = True
+    friction: bool = True
+    payload: Payload | None = None
+    encoder_resolution: float | None = 2.0 * np.pi / 2**20 / 100
+    current_resolution: float | None = 1e-3
+    q_noise_std: float = 0.0
+    current_noise_std: float = 0.005
+    tau_noise_std: float = 0.0
+    record_current: bool = True
+    record_tau: bool = False
+    record_velocity: bool = False
+
+    def __post_init__(self):
+        if not (np.isfinite(self.integral_gain) and 0.0 <= self.integral_gain < 2.0 * self.damping_ratio):
+            raise ParameterError(
+                f"SimulationOptions.integral_gain must be in [0, 2 damping_ratio) for a stable loop; "
+                f"got {self.integral_gain!r}. Use 0.25 (or 0 for a PD loop).")
+        for key in ("rate", "bandwidth_hz", "damping_ratio"):
+            value = getattr(self, key)
+            if not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"SimulationOptions.{key} must be positive; got {value!r}.")
+        if self.duration is not None and not (np.isfinite(self.duration) and self.duration > 0):
+            raise ParameterError(f"SimulationOptions.duration must be positive [s] or None; got {self.duration!r}.")
+        if not (isinstance(self.substeps, (int, np.integer)) and self.substeps >= 1):
+            raise ParameterError(f"SimulationOptions.substeps must be an integer >= 1; got {self.substeps!r}.")
+        if self.integrator not in INTEGRATORS:
+            raise ParameterError(f"SimulationOptions.integrator must be one of {INTEGRATORS}; got {self.integrator!r}. "
+                                 "Pass 'leapfrog' for friction experiments.")
+        if self.feedforward not in FEEDFORWARDS:
+            raise ParameterError(f"SimulationOptions.feedforward must be one of {FEEDFORWARDS}; got {self.feedforward!r}.")
+        for key in ("encoder_resolution", "current_resolution"):
+            value = getattr(self, key)
+            if value is not None and not (np.isfinite(value) and value > 0):
+                raise ParameterError(f"SimulationOptions.{key} must be positive or None (no quantisation); got {value!r}.")
+        for key in ("q_noise_std", "current_noise_std", "tau_noise_std"):
+            value = getattr(self, key)
+            if not (np.isfinite(value) and value >= 0):
+                raise ParameterError(f"SimulationOptions.{key} must be >= 0; got {value!r}.")
+        if not (self.record_current or self.record_tau):
+            raise ParameterError("SimulationOptions.record_current and record_tau are both False; record at least one.")
+        if self.payload is not None and not isinstance(self.payload, Payload):
+            raise ParameterError(f"SimulationOptions.payload must be a Payload or None; got {type(self.payload).__name__}.")
+
+
+@dataclass(frozen=True, eq=False)
+class SimulationTruth:
+    """What the virtual robot really was and did: parameters and noise-free state trajectories.
+
+    Attributes
+    ----------
+    robot_name : str
+    standard_parameters : array, shape (n_dof, 11)
+        True rigid-body parameters of the robot (without payload and extra physics).
+    kt : array, shape (n_dof,)
+        True motor torque constants [N m/A].
+    friction : array, shape (n_dof, 7)
+        True LuGre parameters, columns ``fc, fs, vs, fv, dv, sigma0, sigma1``.
+    gravity : array, shape (3,)
+        Gravity used in the simulation [m/s^2] (after any extra physics).
+    payload : Payload or None
+        Known end-effector load.
+    extras : tuple of ExtraPhysics
+        Hidden extra physics.
+    options : SimulationOptions
+    t, q, qd, qdd, z, tau_motor, tau_friction, tau_extra : arrays
+        True trajectories at the samples, (n_samples,) or (n_samples, n_dof).
+    """
+
+    robot_name: str
+    standard_parameters: np.ndarray
+    kt: np.ndarray
+    friction: np.ndarray
+    gravity: np.ndarray
+    payload: Payload | None
+    extras: tuple
+    options: SimulationOptions
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    z: np.ndarray
+    tau_motor: np.ndarray
+    tau_friction: np.ndarray
+    tau_extra: np.ndarray
+
+    def describe(self) -> dict:
+        """The JSON-serialisable parameter part of the truth."""
+        opts = {k: (v.describe() if isinstance(v, ExtraPhysics) else v) for k, v in vars(self.options).items()}
+        return {
+            "format": TRUTH_FORMAT,
+            "robot": self.robot_name,
+            "kt": self.kt.tolist(),
+            "friction_fields": list(FRICTION_FIELDS),
+            "friction": self.friction.tolist(),
+            "standard_parameter_layout": "per joint: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (link frame origin), Im",
+            "standard_parameters": self.standard_parameters.tolist(),
+            "gravity": self.gravity.tolist(),
+            "payload": None if self.payload is None else self.payload.describe(),
+            "extras": [e.describe() for e in self.extras],
+            "options": opts,
+        }
+
+
+def _drives(robot: RobotDescription) -> tuple:
+    if robot.drives is None:
+        raise ParameterError(
+            f"RobotDescription.drives is empty for {robot.name!r}; the virtual robot needs Kt and LuGre values. "
+            "Add one [[drive]] table per joint."
+        )
+    return robot.drives
+
+
+def _sample_reference(reference, t: np.ndarray, n_dof: int):
+    """Reference (q, qd, qdd) at times t, each (n_samples, n_dof)."""
+    if isinstance(reference, Recording):
+        reference = (reference.t, reference.q) + (() if reference.qd is None else (reference.qd,)) + \
+            (() if reference.qdd is None else (reference.qdd,))
+    if callable(reference):
+        out = reference(t)
+        if not (isinstance(out, tuple) and len(out) == 3):
+            raise ParameterError("simulate_recording reference(t) must return a tuple (q, qd, qdd); got "
+                                 f"{type(out).__name__}. Return three (n_samples, n_dof) arrays.")
+        arrays = [np.asarray(a, dtype=float) for a in out]
+    else:
+        if not (isinstance(reference, (tuple, list)) and 2 <= len(reference) <= 4):
+            raise ParameterError(
+                "simulate_recording reference must be a callable t -> (q, qd, qdd), a Recording, or a tuple "
+                f"(t, q[, qd[, qdd]]) of arrays; got {type(reference).__name__}."
+            )
+        t_ref = np.asarray(reference[0], dtype=float)
+        parts = [np.asarray(a, dtype=float) for a in reference[1:]]
+        spline = CubicSpline(t_ref, parts[0], axis=0)
+        arrays = [spline(t)]
+        arrays.append(CubicSpline(t_ref, parts[1], axis=0)(t) if len(parts) > 1 else spline(t, 1))
+        if len(parts) > 2:
+            arrays.append(CubicSpline(t_ref, parts[2], axis=0)(t))
+        elif len(parts) > 1:
+            arrays.append(CubicSpline(t_ref, parts[1], axis=0)(t, 1))
+        else:
+            arrays.append(spline(t, 2))
+    for name, arr in zip(("q", "qd", "qdd"), arrays):
+        if arr.shape != (t.shape[0], n_dof):
+            hint = f" Pass {name}.T." if arr.shape == (n_dof, t.shape[0]) else ""
+            raise ShapeError(
+                f"simulate_recording reference {name} must have shape (n_samples, {n_dof}) to match "
+                f"RobotDescription.n_dof={n_dof}; got {arr.shape}.{hint}"
+            )
+        if not np.all(np.isfinite(arr)):
+            raise ParameterError(f"simulate_recording reference {name} must be finite; got NaN/inf. Fix the trajectory.")
+    return arrays
+
+
+def _reference_span(reference):
+    if isinstance(reference, Recording):
+        return float(reference.t[0]), reference.duration
+    if isinstance(reference, (tuple, list)) and len(reference) >= 2:
+        t_ref = np.asarray(reference[0], dtype=float)
+        if t_ref.ndim != 1 or t_ref.shape[0] < 2 or np.any(np.diff(t_ref) <= 0):
+            raise ParameterError("simulate_recording reference t must be a strictly increasing 1-D array of >= 2 times.")
+        return float(t_ref[0]), float(t_ref[-1] - t_ref[0])
+    return 0.0, None
+
+
+def _quantise(x, step):
+    return x if step is None else np.round(x / step) * step
+
+
+def simulate_recording(robot: RobotDescription, reference, options: SimulationOptions | None = None,
+                       rng: np.random.Generator | None = None, extras=()) -> tuple[Recording, SimulationTruth]:
+    """Simulate the virtual robot tracking a reference and return what its sensors record, with the truth.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+        The true robot: its nominal links, rotor inertia and drives are the simulation truth
+        (use ``robot.with_links`` or ``dataclasses.replace(robot, drives=...)`` for another truth).
+    reference : callable or tuple or Recording
+        ``reference(t) -> (q, qd, qdd)`` evaluated on the array of sample times (each (n_samples, n_dof)),
+        or a tuple ``(t, q[, qd[, qdd]])`` of arrays (missing derivatives from a cubic spline), or a Recording.
+    options : SimulationOptions, optional
+    rng : numpy.random.Generator, optional
+        Source of sensor noise; ``np.random.default_rng(0)`` when omitted.
+    extras : sequence of ExtraPhysics
+        Hidden extra physics (see ``extra_physics``).
+
+    Returns
+    -------
+    (Recording, SimulationTruth)
+
+    Raises
+    ------
+    ParameterError
+        For a robot without drives or inertia, a bad reference or a bad option.
+    ShapeError
+        When the reference arrays do not have one column per joint.
+
+    Examples
+    --------
+    >>> rec, truth = simulate_recording(robot, (t, q), SimulationOptions(), np.random.default_rng(0))  # doctest: +SKIP
+    """
+    options = SimulationOptions() if options is None else options
+    rng = np.random.default_rng(0) if rng is None else rng
+    extras = tuple(extras)
+    n = robot.n_dof
+    drives = _drives(robot)
+    for term in extras:
+        if not isinstance(term, ExtraPhysics):
+            raise ParameterError(f"simulate_recording extras must be ExtraPhysics terms; got {type(term).__name__}.")
+        term.validate(n)
+    if options.payload is not None:
+        options.payload.validate(n)
+    standard = robot.nominal_dynamic_parameters()
+
+    # the controller's model: truth plus the known payload; the plant adds the hidden extras
+    ctrl_robot, ctrl_params = robot, standard
+    if options.payload is not None:
+        ctrl_robot, ctrl_params = options.payload.modify_model(robot, standard)
+    plant_robot, plant_params = ctrl_robot, ctrl_params
+    for term in extras:
+        plant_robot, plant_params = term.modify_model(plant_robot, plant_params)
+
+    t0, span = _reference_span(reference)
+    duration = options.duration if options.duration is not None else span
+    if duration is None:
+        raise ParameterError("SimulationOptions.duration is None and the reference is a callable; set duration [s].")
+    n_samples = int(np.floor(duration * options.rate + 1e-9)) + 1
+    t = t0 + np.arange(n_samples) / options.rate
+    q_ref, qd_ref, qdd_ref = _sample_reference(reference, t, n)
+
+    lugre = LuGreArrays.from_drives(drives)
+    kt = np.array([d.kt for d in drives])
+    ctrl_model = build_pinocchio_model(ctrl_robot, ctrl_params)
+    ctrl_data = ctrl_model.createData()
+    if options.feedforward == "model":
+        tau_ff = np.array([pin.rnea(ctrl_model, ctrl_data, a, b, c) for a, b, c in zip(q_ref, qd_ref, qdd_ref)])
+    elif options.feedforward == "gravity":
+        tau_ff = np.array([pin.computeGeneralizedGravity(ctrl_model, ctrl_data, a) for a in q_ref])
+    else:
+        tau_ff = np.zeros_like(q_ref)
+    if options.friction and options.friction_feedforward:
+        tau_ff = tau_ff + steady_state_friction(qd_ref, lugre)
+    mass = pin.crba(ctrl_model, ctrl_data, q_ref[0]).diagonal().copy()
+    omega = 2.0 * np.pi * options.bandwidth_hz
+    kp, kd = mass * omega**2, 2.0 * options.damping_ratio * mass * omega
+    ki = options.integral_gain * mass * omega**3
+
+    plant = build_pinocchio_model(plant_robot, plant_params)
+    states = _integrate(plant, lugre, t, q_ref, qd_ref, tau_ff, (kp, kd, ki), options, extras)
+    q, qd, qdd, z, tau_motor, tau_f, tau_x = states
+
+    # sensors: signal-level physics, then noise and quantisation
+    q_meas, tau_meas = q, tau_motor
+    for term in extras:
+        q_meas, tau_meas = term.measure(t, q_meas, tau_meas)
+    q_rec = _quantise(q_meas + options.q_noise_std * rng.standard_normal(q.shape), options.encoder_resolution)
+    current = tau_rec = None
+    if options.record_current:
+        current = _quantise(tau_meas / kt + options.current_noise_std * rng.standard_normal(q.shape),
+                            options.current_resolution)
+    if options.record_tau:
+        tau_rec = tau_meas + options.tau_noise_std * rng.standard_normal(q.shape)
+    recording = Recording(t=t, q=q_rec, tau=tau_rec, current=current,
+                          qd=qd.copy() if options.record_velocity else None, name=f"virtual {robot.name}")
+    truth = SimulationTruth(
+        robot_name=robot.name, standard_parameters=standard, kt=kt, friction=lugre.as_table(),
+        gravity=np.asarray(plant_robot.gravity, dtype=float).copy(), payload=options.payload, extras=extras,
+        options=options, t=t, q=q, qd=qd, qdd=qdd, z=z, tau_motor=tau_motor, tau_friction=tau_f, tau_extra=tau_x)
+    return recording, truth
+
+
+def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
+    """The time loop: PID + feed-forward at each sample, ``substeps`` symplectic-Euler or leapfrog steps, exact z steps."""
+    kp, kd, ki = gains
+    n_samples, n = q_ref.shape
+    data = model.createData()
+    aba = pin.aba
+    substeps = int(options.substeps)
+    h = 1.0 / (options.rate * substeps)
+    friction = bool(options.friction)
+    torque_terms = [e for e in extras if e.has_torque]
+    # numpy ops on length-n arrays cost about 0.5 us; scalar operands and comparisons cost twice that,
+    # so every constant below is a length-n array
+    fc, dfs = lugre.fc.copy(), lugre.fs - lugre.fc
+    inv_vs, inv_s0 = 1.0 / lugre.vs, 1.0 / lugre.sigma0
+    s0, s1, fv, dv = lugre.sigma0, lugre.sigma1, lugre.fv, lugre.dv
+    h_vec, minus_h = np.full(n, h), np.full(n, -h)
+    leapfrog = options.integrator == "leapfrog"
+    half_h, minus_half_h = 0.5 * h_vec, 0.5 * minus_h
+
+    q = q_ref[0].copy()
+    qd = qd_ref[0].copy()
+    # friction quantities at the current velocity: rate = |qd| / g(qd), visc = Fv |qd|^dv sign(qd)
+    a, sg = np.abs(qd), np.sign(qd)
+    x = qd * inv_vs
+    g = (fc + dfs * np.exp(-(x * x))) * inv_s0
+    rate = a / g
+    visc = fv * a**dv * sg
+    z = g * sg if friction else np.zeros(n)
+    zero = np.zeros(n)
+    tau_x = zero
+
+    out_q, out_qd, out_qdd = (np.empty((n_samples, n)) for _ in range(3))
+    out_z, out_tau, out_tf, out_tx = (np.empty((n_samples, n)) for _ in range(4))
+    error_integral = np.zeros(n)
+    dt = 1.0 / options.rate
+    for k in range(n_samples):
+        error = q_ref[k] - q
+        tau_cmd = tau_ff[k] + kp * error + kd * (qd_ref[k] - qd) + ki * error_integral
+        error_integral = error_integral + dt * error
+        out_q[k], out_qd[k], out_z[k], out_tau[k] = q, qd, z, tau_cmd
+        tk = t[k]
+        for s in range(substeps):
+            if leapfrog:
+                # half drift of q and z at the current velocity; the kick below acts at the sub-step centre
+                q = q + half_h * qd
+                if friction:
+                    rest = g * sg
+                    z = rest + (z - rest) * np.exp(minus_half_h * rate)
+            if friction:
+                tau_f = s0 * z + s1 * (qd - rate * z) + visc      # eq. 14 with zdot of eq. 12
+                net = tau_cmd - tau_f
+            else:
+                tau_f, net = zero, tau_cmd
+            if torque_terms:
+                tau_x = sum(e.torque(tk + (s + 0.5 * leapfrog) * h, q, qd, tau_cmd) for e in torque_terms)
+                net = net - tau_x
+            qdd = aba(model, data, q, qd, net)
+            if s == 0:
+                out_qdd[k], out_tf[k], out_tx[k] = qdd, tau_f, tau_x
+            qd = qd + h_vec * qdd
+            if friction:
+                a, sg = np.abs(qd), np.sign(qd)
+                x = qd * inv_vs
+                g = (fc + dfs * np.exp(-(x * x))) * inv_s0
+                rate = a / g
+                visc = fv * a**dv * sg
+                rest = g * sg
+                z = rest + (z - rest) * np.exp((minus_half_h if leapfrog else minus_h) * rate)  # exact z step
+            q = q + (half_h if leapfrog else h_vec) * qd
+    return out_q, out_qd, out_qdd, out_z, out_tau, out_tf, out_tx
+
+
+def write_recording(recording: Recording, truth: SimulationTruth, directory, name: str = "recording",
+                    fmt: str = "csv", overwrite: bool = False) -> dict:
+    """Write a simulated recording and its truth beside it, atomically.
+
+    Files: ``<name>.<fmt>`` (the recording), ``<name>.truth.json`` (parameters, options, extras) and
+    ``<name>.truth.npz`` (noise-free state trajectories t, q, qd, qdd, z, tau_motor, tau_friction, tau_extra).
+
+    Parameters
+    ----------
+    recording : Recording
+    truth : SimulationTruth
+    directory : str or Path
+        Created when missing.
+    name : str
+    fmt : {"csv", "npz"}
+    overwrite : bool
+        Replace existing files; otherwise an existing file raises ``FileExistsError`` before anything is written.
+
+    Returns
+    -------
+    dict
+        Paths of the written files under keys ``recording``, ``truth``, ``states``.
+    """
+    if fmt not in ("csv", "npz"):
+        raise ParameterError(f"write_recording fmt must be 'csv' or 'npz'; got {fmt!r}.")
+    directory = Path(directory)
+    paths = {"recording": directory / f"{name}.{fmt}", "truth": directory / f"{name}.truth.json",
+             "states": directory / f"{name}.truth.npz"}
+    if not overwrite:
+        for path in paths.values():
+            if path.exists():
+                raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True (or --overwrite) to replace it.")
+    save_recording(recording, paths["recording"], overwrite=overwrite,
+                   comment=f"virtual robot {truth.robot_name}; truth in {paths['truth'].name}")
+    text = json.dumps(truth.describe(), indent=2, default=_json_default)
+    atomic_write(paths["truth"], lambda handle: handle.write(text + "\n"), overwrite=overwrite)
+    states = {key: getattr(truth, key) for key in ("t", "q", "qd", "qdd", "z", "tau_motor", "tau_friction", "tau_extra")}
+    atomic_write(paths["states"], lambda handle: np.savez(handle, **states), overwrite=overwrite, mode="wb")
+    return paths
+
+
+def _json_default(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, ExtraPhysics):
+        return value.describe()
+    return str(value)
+
+
+def read_truth(path) -> dict:
+    """Read a ``<name>.truth.json`` file written by ``write_recording`` (plain data)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"truth file {str(path)!r} does not exist. Check the path.")
+    data = json.loads(path.read_text())
+    if data.get("format") != TRUTH_FORMAT:
+        raise ParameterError(f"{path.name}: format must be {TRUTH_FORMAT!r}; got {data.get('format')!r}.")
+    return data
+
+
+def drives_from_truth(truth: dict) -> tuple:
+    """The true DriveParameters per joint from a truth dictionary (``read_truth``)."""
+    return tuple(DriveParameters(kt=kt, **dict(zip(truth["friction_fields"], row)))
+                 for kt, row in zip(truth["kt"], truth["friction"]))

@@ -1,0 +1,149 @@
+"""The ``psdm codegen`` subcommand: robot or model file -> exported C folder (optionally compiled)."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError, ShapeError
+
+from codegen.export import export_c
+
+ROBOT_SUFFIXES = (".toml", ".urdf")
+FORMS = ("recursive", "sum")
+
+
+def register(subparsers) -> None:
+    """Add the ``codegen`` subcommand to the ``psdm`` parser."""
+    p = subparsers.add_parser(
+        "codegen",
+        help="export inverse/forward dynamics, regressor and mass matrix as C code",
+        description=(
+            "Export the PSDM dynamics of a robot (.toml/.urdf, derived first) or of a saved model (.npz) as a "
+            "self-contained C folder: <library>.c/.h, Makefile and an example main.c. Functions taking theta are "
+            "exported with theta baked in (from --theta, else the robot's nominal base parameters) and with "
+            "theta as a runtime input (suffix _theta). The default recursive form evaluates the model by Newton-Euler "
+            "on a sparse standard-parameter preimage of theta (needs the kinematics: a robot file, or --robot with a "
+            "model); --form sum writes the paper's pseudo-symbolic sum."
+        ),
+    )
+    p.add_argument("source", metavar="ROBOT_OR_MODEL", help="robot file (.toml, .urdf) or saved model (.npz)")
+    p.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --force)")
+    p.add_argument("--theta", type=Path, default=None,
+                   help="base parameters to bake in: .npy, .csv or whitespace-separated text with n_base values")
+    p.add_argument("--form", choices=FORMS, default=None,
+                   help="recursive (Newton-Euler on the base parameters, fastest; default when the kinematics are known) "
+                        "or sum (the paper's pseudo-symbolic sum; default for a model file without --robot)")
+    p.add_argument("--robot", type=Path, default=None,
+                   help="robot file (.toml, .urdf) a saved model was derived from; enables the recursive form")
+    p.add_argument("--jacobians", action="store_true", help="also export the Jacobians (<function>_jac)")
+    p.add_argument("--libm-trig", action="store_true",
+                   help="call libm's sin/cos instead of the inlined psdm_sin/psdm_cos (within a few ulp of libm)")
+    p.add_argument("--library", default="psdm_dynamics", help="base name of the .c/.h files (default psdm_dynamics)")
+    p.add_argument("--compile", action="store_true",
+                   help="also compile lib<library>.so into --out with the system C compiler (-O3 -march=native)")
+    p.add_argument("--force", action="store_true", help="write into a non-empty --out folder")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=_run_codegen)
+
+
+def read_theta(path: Path) -> np.ndarray:
+    """Base parameters from a .npy, .csv or text file, as a flat float array."""
+    path = Path(path)
+    if not path.exists():
+        raise ParameterError(f"codegen --theta must name an existing file; got {str(path)!r}. Check the path.")
+    try:
+        if path.suffix.lower() == ".npy":
+            values = np.load(path, allow_pickle=False)
+        else:
+            delimiter = "," if path.suffix.lower() == ".csv" else None
+            values = np.loadtxt(path, delimiter=delimiter, ndmin=1)
+    except (OSError, ValueError) as exc:
+        raise ParameterError(
+            f"codegen --theta must be a .npy, .csv or text file of numbers; could not read {path.name} ({exc}). "
+            "Write it with numpy.save or numpy.savetxt."
+        ) from None
+    return np.asarray(values, dtype=float).ravel()
+
+
+def _load_source(path: Path, robot_path: Path | None):
+    """(PSDMModel, RobotDescription or None, nominal theta or None) from a robot file or a saved model."""
+    from psdm_casadi.cli.output import progress
+    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.model import load_model
+    from psdm_casadi.robot import load_robot
+
+    if path.suffix.lower() in ROBOT_SUFFIXES:
+        if robot_path is not None:
+            raise ParameterError(
+                f"codegen --robot is only for a saved model; got the robot file {path.name} as the source. Drop --robot."
+            )
+        robot = load_robot(path)
+        progress(f"deriving the PSDM model of {robot.name} ...")
+        model = derive_psdm(robot)
+        nominal = model.base_parameters(robot.nominal_dynamic_parameters()) if robot.has_inertia else None
+        return model, robot, nominal
+    robot = load_robot(robot_path) if robot_path is not None else None
+    return load_model(path), robot, None
+
+
+def build_export_functions(model, robot, form: str | None):
+    """The DynamicsFunctions to export in the requested form (recursive when the robot is known)."""
+    from psdm_casadi.recursive import build_recursive_functions
+    from psdm_casadi.symbolic import build_functions
+
+    form = form or ("recursive" if robot is not None else "sum")
+    if form == "recursive":
+        if robot is None:
+            raise ParameterError(
+                "codegen --form recursive needs the robot's kinematics; got a model file without --robot. "
+                "Pass --robot ROBOT_FILE (the file the model was derived from) or --form sum."
+            )
+        return build_recursive_functions(model, robot), form
+    return build_functions(model), form
+
+
+def _run_codegen(args) -> int:
+    from psdm_casadi.cli.output import print_json, progress
+
+    out = Path(args.out)
+    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not args.force:
+        raise FileExistsError(f"codegen --out {str(out)!r} exists and is not empty. Pass --force or another folder.")
+    model, robot, theta = _load_source(Path(args.source), args.robot)
+    if args.theta is not None:
+        theta = read_theta(args.theta)
+    if theta is not None and theta.size != model.n_base:
+        raise ShapeError(
+            f"codegen --theta must have {model.n_base} values (the model's n_base); got {theta.size}. "
+            "Pass the base parameters of this model."
+        )
+    progress("building the CasADi functions ...")
+    functions, form = build_export_functions(model, robot, args.form)
+    export = export_c(functions, out, theta=theta, jacobians=args.jacobians, library=args.library,
+                      fast_trig=not args.libm_trig, overwrite=args.force)
+    compiled = False
+    if args.compile:
+        from codegen.build import compile_shared
+
+        progress(f"compiling lib{export.library}.so ...")
+        compile_shared([export.source], out / f"lib{export.library}.so", flags=("-O3", "-march=native"))
+        compiled = True
+    if args.json:
+        lanes = export.lane_regressor
+        print_json({"out": str(out), "form": form, "functions": list(export.function_names),
+                    "n_instructions": export.n_instructions, "compiled": compiled,
+                    "lane_regressor": None if lanes is None else dataclasses.asdict(lanes)})
+    else:
+        print(f"wrote {export.source.name}, {export.header.name}, Makefile and main.c to {out} ({form} form)")
+        print(f"{'function':40s} {'instructions':>12s} {'operations':>10s} {'trig':>5s}")
+        for count in export.operation_counts:
+            print(f"{count.name:40s} {count.n_instructions:12d} {count.n_operations:10d} {count.n_trig:5d}")
+        if export.lane_regressor is not None:
+            lanes = export.lane_regressor
+            print(f"{lanes.name} runs four joint rows per vector instruction: {lanes.parts.n_operations} scalar "
+                  f"+ {lanes.n_vector_operations} vector operations (-DPSDM_NO_LANES: CasADi's scalar code above)")
+        if not export.theta_baked:
+            print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")
+    return 0

@@ -1,0 +1,47 @@
+"""The ``psdm derive`` subcommand."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.derive import DeriveOptions, derive_psdm
+from psdm_casadi.robot import load_robot
+
+
+def register(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "derive", help="derive the PSDM model of a robot file (.toml DH or .urdf)",
+        description="Derive the minimal regressor model tau = Y(q, qd, qdd) theta of a robot, check it "
+                    "against Pinocchio's rnea on random states, and optionally write it to a model file.")
+    parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
+    parser.add_argument("-o", "--output", help="write the model to this .npz file")
+    parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the random checks (default 0)")
+    parser.add_argument("--equations", action="store_true", help="print the base parameters as equations")
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(handler=run_derive)
+
+
+def run_derive(args) -> int:
+    robot = load_robot(args.robot)
+    if args.output and Path(args.output).exists() and not args.force:
+        raise FileExistsError(f"{args.output} exists; pass --force to overwrite it.")
+    progress(f"deriving {robot.name} ({robot.n_dof} joints) ...", quiet=args.json)
+    start = time.perf_counter()
+    model = derive_psdm(robot, DeriveOptions(seed=args.seed))
+    seconds = time.perf_counter() - start
+    if args.output:
+        path = model.save(args.output, overwrite=args.force)
+        progress(f"model written to {path}", quiet=args.json)
+    error = model.metadata["max_rel_error_vs_pinocchio"]
+    if args.json:
+        print_json({"p": model.n_functions, "l": model.n_base, "n_gravity": model.n_gravity,
+                    "seconds": round(seconds, 4), "max_rel_error_vs_pinocchio": error})
+    else:
+        print(f"{robot.name}: p = {model.n_functions} functions, l = {model.n_base} base parameters "
+              f"({model.n_gravity} gravity), {seconds:.2f} s, max relative error vs Pinocchio {error:.2e}")
+        if args.equations:
+            print(model.equations())
+    return EXIT_OK if error <= 1e-9 else EXIT_CHECK_FAILED

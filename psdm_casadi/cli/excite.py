@@ -1,0 +1,163 @@
+"""The ``psdm excite`` and ``psdm experiment`` subcommands ."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from psdm_casadi.cli.output import EXIT_OK, print_json, progress
+from psdm_casadi.errors import ParameterError
+
+
+def register(subparsers) -> None:
+    """Add ``excite`` and ``experiment`` to the ``psdm`` command."""
+    p = subparsers.add_parser(
+        "excite", help="optimise an excitation trajectory (min cond of the stacked regressor) under joint limits",
+        description="Design a periodic Fourier (or the paper's sum-of-sines) excitation trajectory minimising the "
+                    "condition number of the stacked PSDM regressor with Ipopt, subject to position, velocity and "
+                    "acceleration limits (and optionally torque limits) on a dense grid, verified on a 10x finer "
+                    "grid. Writes a CSV with t, q, qd, qdd columns and optionally a plot.")
+    _robot_arguments(p)
+    p.add_argument("--duration", type=float, default=10.0, help="period / length of the trajectory [s] (10)")
+    p.add_argument("--harmonics", type=int, default=5, help="Fourier harmonics per joint (5)")
+    p.add_argument("--family", choices=("fourier", "sum_of_sines"), default="fourier",
+                   help="trajectory family (fourier: periodic; sum_of_sines: the paper's eq. 22)")
+    p.add_argument("--terms", type=int, default=3, help="sines per joint for --family sum_of_sines (3)")
+    p.add_argument("--columns", choices=("inertial", "all"), default="inertial",
+                   help="regressor columns to excite: inertial (not identified by the gravity step, as in the "
+                        "paper) or all (default inertial)")
+    p.add_argument("--criterion", choices=("cond", "logdet"), default="cond",
+                   help="smooth condition-number surrogate or D-optimal log-det (default cond)")
+    p.add_argument("--starts", type=int, default=3, help="random starts of Ipopt (3)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random starts (0)")
+    p.add_argument("--samples", type=int, default=100, help="objective grid size (100)")
+    p.add_argument("--rest-to-rest", action="store_true", help="start and end at zero velocity and acceleration")
+    p.add_argument("--limit-scale", type=float, default=1.0, help="use this fraction of the robot's limits (1.0)")
+    p.add_argument("--torque-limits", action="store_true", help="also keep |tau| <= tau_max with the nominal model")
+    p.add_argument("--time-limit", type=float, default=None, help="start no new Ipopt start after this many seconds")
+    p.add_argument("--max-iter", type=int, default=300, help="Ipopt iterations per solve (300)")
+    p.add_argument("--out", default="excitation.csv", help="output CSV (t, q1.., qd1.., qdd1..) (excitation.csv)")
+    p.add_argument("--rate", type=float, default=100.0, help="CSV sampling rate [Hz] (100)")
+    p.add_argument("--periods", type=int, default=1, help="periods written to the CSV (Fourier only) (1)")
+    p.add_argument("--plot", default=None, help="also save a PNG of q/qd/qdd per joint with the limits")
+    p.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    p.add_argument("--json", action="store_true", help="print one JSON object: cond, worst_limit_margin, seconds")
+    p.set_defaults(handler=_run_excite)
+
+    e = subparsers.add_parser(
+        "experiment", help="trajectories of the motor, gravity and friction calibration experiments",
+        description="Write the paper's calibration experiments as trajectories within the joint limits: motor "
+                    "(constant-velocity sweep of one joint forward and back), gravity (slow jog of the joints "
+                    "through their ranges and back), friction (one joint, sines from pre-sliding amplitudes to "
+                    "near the speed limit).")
+    e.add_argument("kind", choices=("motor", "gravity", "friction"))
+    _robot_arguments(e)
+    e.add_argument("--joint", type=int, action="append", default=None,
+                   help="1-based joint (motor, friction: exactly one; gravity: repeat, default all)")
+    e.add_argument("--speed-fraction", type=float, default=None, help="fraction of the velocity limit")
+    e.add_argument("--seed", type=int, default=0, help="seed of the gravity waypoints (0)")
+    e.add_argument("--out", default=None, help="output CSV (default KIND_experiment.csv)")
+    e.add_argument("--rate", type=float, default=100.0, help="CSV sampling rate [Hz] (100)")
+    e.add_argument("--plot", default=None, help="also save a PNG with the limits")
+    e.add_argument("--overwrite", action="store_true", help="replace existing output files")
+    e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.set_defaults(handler=_run_experiment)
+
+
+def _robot_arguments(parser) -> None:
+    parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
+    parser.add_argument("--lock", action="append", default=[], metavar="JOINT",
+                        help="URDF joint to lock at zero (repeat), e.g. the gripper fingers")
+
+
+def _load_robot(args):
+    from psdm_casadi.robot import from_urdf, load_robot
+
+    if Path(args.robot).suffix.lower() == ".urdf" and args.lock:
+        return from_urdf(args.robot, locked_joints=tuple(args.lock))
+    if args.lock:
+        raise ParameterError(f"--lock applies to URDF robots only; got {args.robot!r}. Remove --lock.")
+    return load_robot(args.robot)
+
+
+def _check_outputs(args, *paths) -> None:
+    for path in paths:
+        if path and Path(path).exists() and not args.overwrite:
+            raise FileExistsError(f"{path} exists; pass --overwrite to replace it.")
+
+
+def _run_excite(args) -> int:
+    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.recursive import build_recursive_functions
+
+    from trajopt.optimize import ExcitationOptions, optimize_excitation
+    from trajopt.plot import plot_trajectory
+
+    _check_outputs(args, args.out, args.plot)
+    robot = _load_robot(args)
+    started = time.perf_counter()
+    options = ExcitationOptions(
+        family=args.family, duration=args.duration, harmonics=args.harmonics, n_terms=args.terms,
+        rest_to_rest=args.rest_to_rest, criterion=args.criterion, n_samples=args.samples,
+        limit_scale=args.limit_scale, torque_limits=args.torque_limits, n_starts=args.starts,
+        max_iter=args.max_iter, time_limit=args.time_limit)
+    options.build_limits(robot)  # bad limits fail here, before the derivation
+    options.build_parametrization(robot.n_dof)
+    progress(f"excite: deriving the model of {robot.name} ...")
+    model = derive_psdm(robot, seed=args.seed)
+    functions = build_recursive_functions(model, robot)  # equal to the sum form, far fewer operations
+    if args.columns == "inertial":
+        columns = tuple(int(c) for c in np.flatnonzero(~model.gravity_mask))
+        if not columns:
+            raise ParameterError("--columns inertial selects no column: every base parameter is a gravity one. "
+                                 "Use --columns all.")
+        options = replace(options, columns=columns)
+    nominal = None
+    if args.torque_limits:
+        nominal = model.base_parameters(robot.nominal_dynamic_parameters())
+    trajectory = optimize_excitation(robot, functions.regressor, options, seed=args.seed,
+                                     nominal_parameters=nominal)
+    trajectory.to_csv(args.out, rate=args.rate, periods=args.periods, overwrite=args.overwrite)
+    if args.plot:
+        plot_trajectory(trajectory, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
+    seconds = time.perf_counter() - started
+    if args.json:
+        print_json({"cond": trajectory.cond, "worst_limit_margin": trajectory.worst_margin,
+                    "seconds": round(seconds, 3), "optimize_seconds": round(trajectory.seconds, 3),
+                    "columns": len(trajectory.columns), "status": trajectory.status, "out": str(args.out)})
+    else:
+        print(f"{robot.name}: cond = {trajectory.cond:.4g} on {len(trajectory.columns)} columns, worst limit margin "
+              f"{trajectory.worst_margin:.3g} ({trajectory.worst_limit}), {seconds:.1f} s; wrote {args.out}"
+              + (f" and {args.plot}" if args.plot else ""))
+    return EXIT_OK
+
+
+def _run_experiment(args) -> int:
+    from trajopt.experiments import friction_experiment, gravity_experiment, motor_experiment
+    from trajopt.plot import plot_trajectory
+
+    out = args.out or f"{args.kind}_experiment.csv"
+    _check_outputs(args, out, args.plot)
+    robot = _load_robot(args)
+    extra = {} if args.speed_fraction is None else {"speed_fraction": args.speed_fraction}
+    if args.kind == "gravity":
+        experiment = gravity_experiment(robot, joints=args.joint, seed=args.seed, **extra)
+    else:
+        if not args.joint or len(args.joint) != 1:
+            raise ParameterError(f"--joint must be given exactly once for the {args.kind} experiment; "
+                                 f"got {args.joint}. Pass e.g. --joint 2.")
+        make = motor_experiment if args.kind == "motor" else friction_experiment
+        experiment = make(robot, args.joint[0], **extra)
+    experiment.to_csv(out, rate=args.rate, overwrite=args.overwrite)
+    if args.plot:
+        plot_trajectory(experiment, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
+    if args.json:
+        print_json({"kind": args.kind, "duration": experiment.duration, "worst_limit_margin": experiment.worst_margin,
+                    "joints": list(experiment.joints), "out": out})
+    else:
+        print(f"{args.kind} experiment: {experiment.duration:.1f} s, joints {list(experiment.joints)}, worst limit "
+              f"margin {experiment.worst_margin:.3g}; wrote {out}")
+    return EXIT_OK

@@ -1,0 +1,48 @@
+"""What every ``psdm`` subcommand shares: exit codes, the ``--json`` printer and the log handler.
+
+Library code reports progress through :mod:`logging` (one logger per module); the command line
+decides what reaches the terminal: progress lines at INFO on stderr, so that stdout stays
+machine-readable, fewer with ``--quiet`` or ``--json``, more with ``--verbose``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+
+EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+
+#: The packages whose loggers the command line shows.
+LOGGED_PACKAGES = ("psdm_casadi", "trajopt", "identification", "codegen")
+
+_HANDLER_NAME = "psdm-cli"
+
+
+def print_json(payload) -> None:
+    """Print one JSON object on stdout (the ``--json`` contract of every subcommand)."""
+    print(json.dumps(payload, sort_keys=False, default=float))
+
+
+def progress(message: str, *, quiet: bool = False) -> None:
+    """A progress line of a command, through the command-line logger (shown on stderr at INFO)."""
+    if not quiet:
+        logging.getLogger("psdm_casadi.cli").info(message)
+
+
+def configure_logging(level: int) -> None:
+    """Send the project's log records of ``level`` and above to the current stderr, as plain lines.
+
+    Called once per command; a handler installed by an earlier call (tests run many commands in one
+    process) is replaced, so that every line appears once and on the stderr of the current call.
+    """
+    handler = logging.StreamHandler(sys.stderr)
+    handler.set_name(_HANDLER_NAME)
+    handler.setFormatter(logging.Formatter("%(message)s"))
+    for name in LOGGED_PACKAGES:
+        logger = logging.getLogger(name)
+        for old in [h for h in logger.handlers if h.get_name() == _HANDLER_NAME]:
+            logger.removeHandler(old)
+        logger.addHandler(handler)
+        logger.setLevel(level)
+        logger.propagate = False

@@ -1,0 +1,144 @@
+"""The ``psdm simulate`` subcommand: run the virtual robot along a reference or a calibration experiment."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from psdm_casadi.cli.output import print_json, progress
+from psdm_casadi.errors import ParameterError
+
+EXPERIMENTS = ("motor", "gravity", "friction", "sine")
+
+
+def register(subparsers) -> None:
+    """Add ``psdm simulate`` to the ``psdm`` parser."""
+    _add_simulate(subparsers)
+
+
+def _add_simulate(subparsers) -> None:
+    p = subparsers.add_parser(
+        "simulate",
+        help="simulate the virtual robot and write recordings with their true parameters",
+        description=(
+            "Run the virtual robot (Pinocchio rigid body, LuGre friction, motor constants, PD + feed-forward "
+            "controller, sensor noise and quantisation) along a reference and write <name>.csv recordings with "
+            "<name>.truth.json / .truth.npz beside them. The reference is a CSV file (columns t,q1..qn[,qd..,qdd..]) "
+            "or one of the paper's calibration experiments."
+        ),
+    )
+    p.add_argument("robot", help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--reference", help="CSV with columns t,q1..qn and optional qd1..,qdd1..")
+    source.add_argument("--experiment", choices=EXPERIMENTS, help="a calibration experiment of the paper (section 3)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default: the reference's)")
+    p.add_argument("--rate", type=float, default=1000.0, help="sample and control rate [Hz] (default 1000)")
+    p.add_argument("--substeps", type=int, default=2, help="integration steps per sample (default 2)")
+    p.add_argument("--joints", default=None, help="comma-separated 1-based joints for motor/friction (default all)")
+    p.add_argument("--payload", type=float, default=2.0, help="calibration mass of the motor experiment [kg]")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and random experiments")
+    p.add_argument("--no-noise", action="store_true", help="no sensor noise and no quantisation")
+    p.add_argument("--tau", action="store_true", help="also record joint torques tau1..taun")
+    p.add_argument("--format", choices=("csv", "npz"), default="csv")
+    p.add_argument("--overwrite", action="store_true", help="replace existing files")
+    p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    p.set_defaults(handler=_run_simulate)
+
+
+def _read_reference(path: str, n_dof: int):
+    from identification.data.io import _COLUMN  # column grammar shared with the recording reader
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"reference {str(path)!r} does not exist. Check the path.")
+    with open(path) as handle:
+        lines = [ln for ln in handle if ln.strip() and not ln.lstrip().startswith("#")]
+    if not lines:
+        raise ParameterError(f"{path.name}: empty reference; expected a header t,q1..q{n_dof}.")
+    header = [h.strip() for h in lines[0].split(",")]
+    for name in header:
+        if name != "t" and not (_COLUMN.match(name) and name.startswith("q")):
+            raise ParameterError(f"{path.name}: column {name!r} is not a reference column (t, q1.., qd1.., qdd1..). Remove it.")
+    try:
+        data = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
+    except ValueError:
+        raise ParameterError(f"{path.name}: a row holds a non-number or a wrong field count. Fix the file.") from None
+    if data.ndim != 2 or data.shape[0] < 2:
+        raise ParameterError(f"{path.name}: the reference needs at least 2 rows; got {data.shape[0] if data.ndim == 2 else 0}.")
+    cols = {name: data[:, k] for k, name in enumerate(header)}
+    if "t" not in cols:
+        raise ParameterError(f"{path.name}: column t is missing. Add the time column.")
+    parts = [cols["t"]]
+    for prefix in ("q", "qd", "qdd"):
+        names = [f"{prefix}{j + 1}" for j in range(n_dof)]
+        present = [n for n in names if n in cols]
+        if not present:
+            if prefix == "q":
+                raise ParameterError(f"{path.name}: columns q1..q{n_dof} are missing. Add joint positions.")
+            break
+        if len(present) != n_dof:
+            missing = next(n for n in names if n not in cols)
+            raise ParameterError(f"{path.name}: column {missing} is missing; the robot has n_dof={n_dof}. Add it.")
+        parts.append(np.column_stack([cols[n] for n in names]))
+    return tuple(parts)
+
+
+def _run_simulate(args) -> int:
+    from psdm_casadi.robot import load_robot
+
+    from identification.virtual import experiments
+    from identification.virtual.effects import Payload
+    from identification.virtual.simulation import SimulationOptions, simulate_recording, write_recording
+
+    robot = load_robot(args.robot)
+    n = robot.n_dof
+    rng = np.random.default_rng(args.seed)
+    joints = list(range(n)) if args.joints is None else [int(j) - 1 for j in args.joints.split(",")]
+    for j in joints:
+        if not 0 <= j < n:
+            raise ParameterError(f"--joints must hold joint numbers 1..{n}; got {j + 1}.")
+    base = dict(rate=args.rate, substeps=args.substeps, record_tau=args.tau)
+    if args.no_noise:
+        base.update(encoder_resolution=None, current_resolution=None, current_noise_std=0.0)
+    runs = []  # (name, reference, options)
+    if args.reference:
+        runs.append(("reference", _read_reference(args.reference, n), SimulationOptions(duration=args.duration, **base)))
+    elif args.experiment == "motor":
+        payload = Payload(mass=args.payload)
+        for j in joints:
+            ref = experiments.motor_reference(robot, j)
+            runs.append((f"motor_j{j + 1}_nominal", ref, SimulationOptions(**base)))
+            runs.append((f"motor_j{j + 1}_payload", ref, SimulationOptions(payload=payload, **base)))
+    elif args.experiment == "gravity":
+        ref = experiments.gravity_reference(robot, duration=args.duration or 60.0, rng=rng)
+        runs.append(("gravity", ref, SimulationOptions(**base)))
+    elif args.experiment == "friction":
+        for j in joints:
+            # as in the virtual calibration: no friction feed-forward (it would kick the joint out of
+            # pre-sliding at every reversal) and at least 4 sub-steps to resolve the bristle dynamics
+            friction_base = {**base, "substeps": max(int(args.substeps), 4), "friction_feedforward": False}
+            runs.append((f"friction_j{j + 1}", experiments.friction_reference(robot, j),
+                         SimulationOptions(**friction_base)))
+    else:
+        ref = experiments.sine_reference(robot, duration=args.duration or 30.0, rng=rng)
+        runs.append(("sine", ref, SimulationOptions(**base)))
+
+    written, simulated, wall = [], 0.0, 0.0
+    for name, ref, options in runs:
+        progress(f"simulate: {name} ...", quiet=args.json)
+        start = time.perf_counter()
+        recording, truth = simulate_recording(robot, ref, options, rng)
+        elapsed = time.perf_counter() - start
+        paths = write_recording(recording, truth, args.out, name=name, fmt=args.format, overwrite=args.overwrite)
+        simulated += recording.duration
+        wall += elapsed
+        written.append({"name": name, "samples": recording.n_samples, "duration_s": recording.duration,
+                        "seconds": elapsed, **{k: str(v) for k, v in paths.items()}})
+        progress(f"simulate: {name}: {recording.duration:.1f} s of robot time in {elapsed:.1f} s "
+                 f"({recording.duration / elapsed:.0f}x real time) -> {paths['recording']}", quiet=args.json)
+    if args.json:
+        print_json({"command": "simulate", "robot": robot.name, "out": str(args.out), "recordings": written,
+                    "simulated_s": simulated, "wall_s": wall, "real_time_factor": simulated / max(wall, 1e-9)})
+    return 0
