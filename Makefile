@@ -19,6 +19,8 @@ demo: setup
 	$(BIN)/psdm demo --out demo_report --force
 
 test: setup
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: setup

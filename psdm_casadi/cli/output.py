@@ -30,13 +30,44 @@ def progress(message: str, *, quiet: bool = False) -> None:
         logging.getLogger("psdm_casadi.cli").info(message)
 
 
+class ProgressHandler(logging.StreamHandler):
+    """Log lines on stderr; a record with ``extra={"progress": (done, total)}`` draws a bar on a terminal.
+
+    On a terminal the bar is redrawn in place (``\r``) until the next plain line; elsewhere (a file,
+    a pipe, CI) every record is one plain line, so logs stay readable.
+    """
+
+    width = 24
+
+    def __init__(self, stream=None):
+        super().__init__(stream)
+        self._bar_open = False
+
+    def emit(self, record: logging.LogRecord) -> None:
+        done_total = getattr(record, "progress", None)
+        if done_total is None or not self.stream.isatty():
+            if self._bar_open:
+                self.stream.write("\n")
+                self._bar_open = False
+            super().emit(record)
+            return
+        done, total = done_total
+        filled = int(self.width * done / total) if total else self.width
+        bar = "#" * filled + "-" * (self.width - filled)
+        self.stream.write(f"\r[{bar}] {done}/{total} {self.format(record)}\033[K")
+        self.stream.flush()
+        self._bar_open = done < total
+        if not self._bar_open:
+            self.stream.write("\n")
+
+
 def configure_logging(level: int) -> None:
     """Send the project's log records of ``level`` and above to the current stderr, as plain lines.
 
     Called once per command; a handler installed by an earlier call (tests run many commands in one
     process) is replaced, so that every line appears once and on the stderr of the current call.
     """
-    handler = logging.StreamHandler(sys.stderr)
+    handler = ProgressHandler(sys.stderr)
     handler.set_name(_HANDLER_NAME)
     handler.setFormatter(logging.Formatter("%(message)s"))
     for name in LOGGED_PACKAGES:
