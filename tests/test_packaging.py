@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -42,7 +43,11 @@ def _dependency_lines() -> str:
 def installed(tmp_path_factory):
     """A fresh venv with the project's wheel installed, and an empty working folder."""
     base = tmp_path_factory.mktemp("wheel")
-    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(base / "dist"), str(ROOT)], base)
+    # build from a copy: setuptools keeps a build/ folder whose stale modules would ship in the wheel
+    source = base / "source"
+    shutil.copytree(ROOT, source, ignore=shutil.ignore_patterns(".git", ".venv", "build", "*.egg-info", "__pycache__",
+                                                                 ".pytest_cache", ".ruff_cache", "demo_report"))
+    _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(base / "dist"), str(source)], base)
     wheels = sorted((base / "dist").glob("psdm_casadi-*.whl"))
     assert len(wheels) == 1
     venv.EnvBuilder(with_pip=False).create(base / "venv")
