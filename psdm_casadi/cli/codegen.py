@@ -73,9 +73,9 @@ def _load_source(path: Path, robot_path: Path | None):
     from psdm_casadi.cli.output import progress
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
-    from psdm_casadi.robot import load_robot
+    from psdm_casadi.robot import builtin_robot_names, load_robot
 
-    if path.suffix.lower() in ROBOT_SUFFIXES:
+    if path.suffix.lower() in ROBOT_SUFFIXES or (not path.exists() and str(path) in builtin_robot_names()):
         if robot_path is not None:
             raise ParameterError(
                 f"codegen --robot is only for a saved model; got the robot file {path.name} as the source. Drop --robot."

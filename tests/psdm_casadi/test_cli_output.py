@@ -3,6 +3,8 @@
 import io
 import logging
 
+import pytest
+
 from psdm_casadi.cli import main
 from psdm_casadi.cli.output import ProgressHandler
 
@@ -40,3 +42,18 @@ def test_quiet_hides_progress_lines_and_verbose_is_accepted(capsys):
     assert "deriving" not in capsys.readouterr().err
     assert main(["--verbose", "derive", "scara"]) == 0
     assert "deriving" in capsys.readouterr().err
+
+
+def test_built_in_robots_are_found_by_name_by_every_command(tmp_path, capsys):
+    from psdm_casadi.errors import RobotFileError
+    from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, load_robot
+
+    by_name, by_path = load_robot("scara"), load_robot(BUILTIN_ROBOTS_DIR / "scara.toml")
+    assert (by_name.name, by_name.n_dof) == (by_path.name, by_path.n_dof) == ("SCARA RRPR", 4)
+    with pytest.raises(RobotFileError, match="name a built-in robot: denso_vs6556g, scara"):
+        load_robot("no_such_robot")
+    assert main(["codegen", "scara", "--out", str(tmp_path / "c"), "--json"]) == 0
+    assert (tmp_path / "c" / "psdm_dynamics.c").exists()
+    capsys.readouterr()
+    assert main(["derive", "no_such_robot"]) == 2
+    assert "built-in robot" in capsys.readouterr().err
