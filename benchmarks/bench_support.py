@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import logging
 import sysconfig
 from pathlib import Path
+from psdm_casadi.cli.output import configure_logging
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -44,3 +46,8 @@ def _fmt(value) -> str:
 
 def print_json(payload) -> None:
     print(json.dumps(payload, default=float))
+
+
+def show_progress() -> None:
+    """Show the libraries' progress log lines on stderr, as the ``psdm`` command does."""
+    configure_logging(logging.INFO)

@@ -10,7 +10,7 @@ the LuGre parameters per joint, validation R^2 (Table 3). ``calibration_seconds`
 simulation and identification together (progress lines on stderr).
 
 The peer is the paper's friction method (trust-region eq. 20, then Nelder-Mead over a LuGre
-simulation of the whole record, ``identification.friction.models.baseline.paper_friction_fit``) on the same
+simulation of the whole record, ``identification.friction.baseline.paper_friction_fit``) on the same
 friction data and starting point as our multiple-shooting fit, timed against the shooting fit
 (both without the shared eq. 20 fit and initial guess):
 
@@ -41,9 +41,11 @@ from pathlib import Path
 import numpy as np
 
 from bench_support import DENSO_FILE, print_json, print_table
-from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters, simulate_lugre
+from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
+from identification.friction.simulation import simulate_lugre
 from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-from identification.virtual.calibration import VirtualCalibrationOptions, simulate_calibration
+from identification.virtual.calibration import simulate_calibration
+from trajopt.calibration_plan import CalibrationPlan
 from psdm_casadi.cli import progress
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.robot import load_robot
@@ -117,7 +119,7 @@ def main(argv=None) -> int:
     model = derive_psdm(robot, seed=0)
     t_derive = time.perf_counter() - start
     progress(f"benchmark: derived the model in {t_derive:.1f} s; simulating the calibration experiments ...")
-    data = simulate_calibration(robot, VirtualCalibrationOptions(), np.random.default_rng(args.seed))
+    data = simulate_calibration(robot, CalibrationPlan(), rng=np.random.default_rng(args.seed))
     t_sim = time.perf_counter() - start - t_derive
     pipeline = IdentificationPipeline(robot, model, PipelineOptions(refine=not args.no_refine)).fit(data)
     calibration_seconds = time.perf_counter() - start

@@ -56,7 +56,7 @@ def panda_with_drives(panda):
 def exciting_reference(robot, duration, rng):
     """Sum of three sines per joint (0.1-0.6 Hz) about a centre with room on both sides, within half the limits.
 
-    Unlike ``sine_reference`` (centred at zero), the centre is zero clipped to the middle half of each
+    Unlike ``sine_experiment`` (centred at zero), the centre is zero clipped to the middle half of each
     joint's range, so joints whose range does not contain zero well inside (Panda joints 4 and 6) move too.
     """
     t = np.arange(0.0, duration + 1e-3, 2e-3)

@@ -1,7 +1,7 @@
 """Benchmark: LuGre friction identification, our multiple shooting vs the paper's Nelder-Mead.
 
 For every joint of the virtual Denso (robots/denso_vs6556g.toml, paper Table 2 friction) a
-friction experiment (:func:`identification.virtual.experiments.tuned_friction_signal`) is simulated with a fine-step LuGre reference
+friction experiment (``trajopt.friction_design.tuned_friction_signal``) is simulated with a fine-step LuGre reference
 (32 sub-steps per sample) plus white torque noise. Both methods start from the same eq. 20
 trust-region fit and the same data-driven initial guess; we report parameter relative errors,
 R^2 on a separate validation experiment, wall time and the speed-up.
@@ -20,15 +20,12 @@ from pathlib import Path
 import numpy as np
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
-from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters, simulate_lugre
-from identification.virtual.experiments import tuned_friction_signal
-from identification.friction.shooting import (
-    ShootingOptions,
-    fit_high_speed,
-    fit_lugre_multiple_shooting,
-    initial_lugre_guess,
-    r2_score,
-)
+from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
+from identification.friction.simulation import simulate_lugre
+from trajopt.friction_design import tuned_friction_signal
+from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
+from identification.friction.start import fit_high_speed, initial_lugre_guess
+from identification.metrics import r2
 from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
 from psdm_casadi.robot import load_robot
 
@@ -70,7 +67,7 @@ def run_joint(robot, joint, noise, free, rng, substeps=1, interval=10, nm_simula
         rows[name] = {
             "parameters": params.as_dict(),
             "relative_error": params.relative_error(truth),
-            "validation_r2": r2_score(tau_v, pred),
+            "validation_r2": r2(tau_v, pred),
             "seconds": seconds,
             "cpu_seconds": cpu_seconds,
             "within_tolerance": all(params.relative_error(truth)[k] <= TOLERANCE[k] for k in LUGRE_PARAMETER_NAMES),

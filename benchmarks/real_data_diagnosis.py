@@ -74,8 +74,7 @@ def main(argv=None):
         start = time.perf_counter()
         robot, rec = loader()
         train, validation = split(rec)
-        report = diagnose(robot, train, validation, DiagnosisOptions(cutoff_hz=args.cutoff, max_effects=6),
-                          progress=lambda m: print(f"{name}: {m}", file=sys.stderr, flush=True))
+        report = diagnose(robot, train, validation, DiagnosisOptions(cutoff_hz=args.cutoff, max_effects=6))
         paths = report.save(Path(args.out) / name, overwrite=args.overwrite)
         results[name] = {**report.to_dict(), "seconds": time.perf_counter() - start, "report": str(paths["markdown"])}
         results[name].pop("residual_analysis")

@@ -13,11 +13,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from identification.virtual import experiments
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+from trajopt.experiments import sine_experiment
 
 ROBOT = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 
@@ -28,7 +28,7 @@ def main():
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     robot = load_robot(ROBOT)
-    reference = experiments.sine_reference(robot, duration=args.duration)
+    reference = sine_experiment(robot, duration=args.duration).reference()
     rows = []
     oracle = PinocchioOracle(robot)
     q = np.zeros(robot.n_dof)

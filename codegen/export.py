@@ -310,9 +310,9 @@ def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=Fal
         Write the regressor with its joint rows in vector lanes (``codegen.lane_regressor``) when its
         structure is known: ``regressor_structure``, or that of a DynamicsFunctions built by
         ``build_recursive_functions``. ``"auto"`` does so when the vector code plus its scalar parts
-        have fewer operations than CasADi's scalar regressor (true of the 7-DOF Panda, about 15 % faster;
-        not of the Denso, whose scalar regressor is already small). CasADi's scalar code stays in the
-        file as the fallback (compilers without vector extensions, or ``-DPSDM_NO_LANES``).
+        have fewer operations than CasADi's scalar regressor (a small scalar regressor stays scalar).
+        CasADi's scalar code stays in the file as the fallback (compilers without vector extensions, or
+        ``-DPSDM_NO_LANES``).
     regressor_structure : psdm_casadi.recursive.RegressorStructure, optional
         The structure of the exported ``regressor`` Function, when ``functions`` is a list.
     overwrite : bool

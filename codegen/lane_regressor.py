@@ -29,7 +29,7 @@ from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
 
 from codegen.operation_count import OperationCount, count_operations
 
-# Four doubles, one AVX2 register; eight (AVX-512) and two lanes measured slower on the 7-DOF Panda.
+# Four doubles, one AVX2 register (the lane widths compared are in the README's results).
 LANES = 4
 # (component of a, component of p, sign) of each component of the cross product a x p.
 _CROSS = (((1, 2, 1.0), (2, 1, -1.0)), ((2, 0, 1.0), (0, 2, -1.0)), ((0, 1, 1.0), (1, 0, -1.0)))

@@ -8,7 +8,6 @@ integrated with small steps. The script asserts that the tracking error stays sm
 Run: python examples/mpc_tracking.py
 """
 
-from pathlib import Path
 
 import casadi as ca
 import numpy as np

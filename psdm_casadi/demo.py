@@ -4,15 +4,14 @@ derive -> optimise excitation -> simulate the calibration experiments on a virtu
 carries a hidden cable-harness spring on joint 4 -> identify in the paper's four steps ->
 diagnose the hidden effect and refit with it -> export and compile C -> report folder.
 
-This is the one module that sees every package: it lives in ``codegen`` (the last stage of the
-flow) and imports ``trajopt`` inside ``run_demo`` only, so no library module depends on it.
+With the command line, this is the one module that composes every package (each step imports the
+package it needs); no library module imports it.
 """
 
 from __future__ import annotations
 
 import json
-import os
-import shutil
+import logging
 import subprocess
 import sys
 import time
@@ -21,12 +20,13 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi import derive_psdm, load_robot
-from psdm_casadi.cli.output import progress
-from psdm_casadi.recursive import build_recursive_functions
-
 from codegen.peers.speed import SPEED_ROWS
+from psdm_casadi import derive_psdm, load_robot
+from psdm_casadi.fileio import OutputFolder
+from psdm_casadi.recursive import build_recursive_functions
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+
+logger = logging.getLogger(__name__)
 
 DENSO_FILE = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 REPORT_FORMAT = "psdm-demo-report/1"
@@ -98,147 +98,187 @@ class DemoResult:
     summary: dict = field(default_factory=dict)
 
 
-def _step(options, message):
-    progress(f"[demo] {message}", quiet=options.quiet)
+#: Everything the demo writes into its report folder (``--force`` replaces these and nothing else).
+REPORT_ENTRIES = ("report.md", "speed.md", "summary.json", "excitation.png", "c_code", "diagnosis", "speed")
+
+
+@dataclass
+class _DemoRun:
+    """The state one demo run passes from step to step: where it writes, its random stream, what it measured."""
+
+    options: DemoOptions
+    stage: Path
+    rng: np.random.Generator
+    summary: dict
+    timings: dict = field(default_factory=dict)
+
+    def say(self, message: str) -> None:
+        if not self.options.quiet:
+            logger.info("[demo] %s", message)
+
+    def timed(self, name: str, start: float) -> float:
+        self.timings[name] = time.perf_counter() - start
+        return self.timings[name]
 
 
 def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = False) -> DemoResult:
     """Run the whole story and write the report folder.
 
+    The report is built in a staging folder beside ``out_dir`` and moved into place at the end; an
+    interrupted or failed run leaves ``out_dir`` as it was (:class:`psdm_casadi.fileio.OutputFolder`).
+
     Parameters
     ----------
     out_dir : str or Path
-        Report folder; must not exist (or be empty) unless ``overwrite``.
+        Report folder: new, empty, or (with ``overwrite``) one that holds only a previous demo report.
     options : DemoOptions, optional
     overwrite : bool
-        Replace an existing report folder.
+        Replace the files of an earlier demo report in ``out_dir``.
 
     Returns
     -------
     DemoResult
+
+    Raises
+    ------
+    FileExistsError
+        Before any work, when ``out_dir`` may not be written (see ``OutputFolder.check``).
     """
-    from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
-    from identification.virtual.effects import Spring
-    from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-    from identification.virtual.calibration import VirtualCalibrationOptions, simulate_calibration
+    options = DemoOptions() if options is None else options
+    folder = OutputFolder(out_dir, REPORT_ENTRIES)
+    folder.check(force=overwrite)
+    start_all = time.perf_counter()
+    with folder.staging() as stage:
+        run = _DemoRun(options, stage, np.random.default_rng(options.seed), {"format": REPORT_FORMAT,
+                                                                             "seed": options.seed})
+        robot, model = _derive(run)
+        speed_job = _start_speed_job(options, stage / "speed")
+        excitation = _excite(run, robot, model)
+        data = _simulate(run, robot, excitation)
+        identified = _identify(run, robot, model, data)
+        report = _diagnose(run, robot, model, data, excitation)
+        _export(run, robot, model, identified.theta, speed_job)
+        run.timed("total", start_all)
+        run.summary["seconds"] = {k: round(v, 2) for k, v in run.timings.items()}
+        (stage / "report.md").write_text(_markdown(robot, model, excitation, identified.report.to_markdown(), report,
+                                                   run.summary))
+        (stage / "speed.md").write_text(_speed_markdown(run.summary))
+        (stage / "summary.json").write_text(json.dumps(run.summary, indent=2, default=float))
+    run.say(f"report written to {folder.target}/report.md ({run.timings['total']:.0f} s in all)")
+    return DemoResult(folder=folder.target, summary=run.summary)
+
+
+def _derive(run: _DemoRun):
+    start = time.perf_counter()
+    robot = load_robot(run.options.robot_file)
+    model = derive_psdm(robot)
+    seconds = run.timed("derive", start)
+    run.say(f"derived {robot.name}: p = {model.n_functions}, l = {model.n_base}, {model.n_gravity} gravity "
+            f"parameters ({seconds:.1f} s)")
+    run.summary["model"] = {"p": model.n_functions, "l": model.n_base, "n_gravity": model.n_gravity,
+                            "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"]}
+    return robot, model
+
+
+def _excite(run: _DemoRun, robot, model):
+    """An excitation of the inertial columns, optimised over the recursive form's regressor (the smaller graph)."""
     from trajopt.optimize import ExcitationOptions, optimize_excitation
     from trajopt.plot import plot_trajectory
 
-    from codegen.build import build_library
-    from codegen.export import export_c
-
-    options = DemoOptions() if options is None else options
-    out = Path(out_dir)
-    if out.exists() and any(out.iterdir()):
-        if not overwrite:
-            raise FileExistsError(f"{out} exists and is not empty; pass --force to replace it.")
-        shutil.rmtree(out)
-    staging = out.with_name(out.name + ".partial")
-    if staging.exists():
-        shutil.rmtree(staging)
-    staging.mkdir(parents=True)
-    rng = np.random.default_rng(options.seed)
-    timings, summary = {}, {"format": REPORT_FORMAT, "seed": options.seed}
-    start_all = time.perf_counter()
-
-    # 1. derive
+    o = run.options
     start = time.perf_counter()
-    robot = load_robot(options.robot_file)
-    model = derive_psdm(robot)
-    functions = build_recursive_functions(model, robot)  # the sum form's regressor is 9x larger
-    timings["derive"] = time.perf_counter() - start
-    _step(options, f"derived {robot.name}: p = {model.n_functions}, l = {model.n_base}, "
-                   f"{model.n_gravity} gravity parameters ({timings['derive']:.1f} s)")
-    speed_job = _start_speed_job(options, staging / "speed")
-    summary["model"] = {"p": model.n_functions, "l": model.n_base, "n_gravity": model.n_gravity,
-                        "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"]}
-
-    # 2. excitation on the inertial columns
-    start = time.perf_counter()
+    functions = build_recursive_functions(model, robot)
     excitation = optimize_excitation(
         robot, functions.regressor,
-        ExcitationOptions(duration=options.excitation_duration, harmonics=options.excitation_harmonics,
-                          columns=tuple(np.nonzero(~model.gravity_mask)[0]), n_starts=options.excitation_starts,
-                          quiet=options.quiet),
-        seed=options.seed)
-    timings["excite"] = time.perf_counter() - start
-    plot_trajectory(excitation, staging / "excitation.png", title="optimised excitation (inertial columns)")
-    _step(options, f"excitation: cond = {excitation.cond:.3g}, worst limit margin = {excitation.worst_margin:.3g} "
-                   f"({timings['excite']:.1f} s)")
-    summary["excitation"] = {"cond": excitation.cond, "worst_limit_margin": excitation.worst_margin}
+        ExcitationOptions(duration=o.excitation_duration, harmonics=o.excitation_harmonics,
+                          columns=tuple(np.nonzero(~model.gravity_mask)[0]), n_starts=o.excitation_starts,
+                          quiet=o.quiet),
+        seed=o.seed)
+    seconds = run.timed("excite", start)
+    plot_trajectory(excitation, run.stage / "excitation.png", title="optimised excitation (inertial columns)")
+    run.say(f"excitation: cond = {excitation.cond:.3g}, worst limit margin = {excitation.worst_margin:.3g} "
+            f"({seconds:.1f} s)")
+    run.summary["excitation"] = {"cond": excitation.cond, "worst_limit_margin": excitation.worst_margin}
+    return excitation
 
-    # 3. the virtual robot carries a spring the model does not know about
-    hidden = Spring(joint=options.spring_joint, stiffness=options.spring_stiffness, q0=options.spring_rest)
-    t = excitation.time_grid(1000.0, periods=options.excitation_repeats)
+
+def _simulate(run: _DemoRun, robot, excitation):
+    """The calibration experiments on the virtual robot, which carries a spring the model does not know about."""
+    from identification.virtual.calibration import VirtualCalibrationOptions, simulate_calibration
+    from identification.virtual.effects import Spring
+    from trajopt.calibration_plan import CalibrationPlan
+
+    o = run.options
+    hidden = Spring(joint=o.spring_joint, stiffness=o.spring_stiffness, q0=o.spring_rest)
+    t = excitation.time_grid(1000.0, periods=o.excitation_repeats)
     q, qd, qdd = excitation.sample(t)
     start = time.perf_counter()
     data = simulate_calibration(
-        robot, VirtualCalibrationOptions(gravity_duration=options.gravity_duration,
-                                         friction_amplitudes=tuple(options.friction_amplitudes), quiet=options.quiet),
-        rng=rng, excitation=((t, q, qd, qdd),), extras=(hidden,))
-    timings["simulate"] = time.perf_counter() - start
-    _step(options, f"simulated the calibration experiments ({timings['simulate']:.1f} s)")
+        robot, CalibrationPlan(gravity_duration=o.gravity_duration, friction_amplitudes=tuple(o.friction_amplitudes)),
+        VirtualCalibrationOptions(quiet=o.quiet), rng=run.rng, excitation=((t, q, qd, qdd),), extras=(hidden,))
+    run.say(f"simulated the calibration experiments ({run.timed('simulate', start):.1f} s)")
+    return data
 
-    # 4. identification, the paper's four steps
+
+def _identify(run: _DemoRun, robot, model, data):
+    """The paper's four identification steps (and the joint refinement unless --quick)."""
+    from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
+
+    o = run.options
     start = time.perf_counter()
-    pipeline = IdentificationPipeline(robot, model, PipelineOptions(refine=options.refine, seed=options.seed,
-                                                                    quiet=options.quiet)).fit(data)
-    identified = pipeline.result_
-    timings["identify"] = time.perf_counter() - start
-    table3 = identified.report.to_markdown()
-    _step(options, f"identified (min R^2 'All' = {identified.report.min_r2('all'):.3f}, {timings['identify']:.1f} s)")
-    summary["identification"] = {"r2_min_all": identified.report.min_r2("all"),
-                                 "kt": list(identified.kt)}
+    identified = IdentificationPipeline(robot, model, PipelineOptions(refine=o.refine, seed=o.seed,
+                                                                      quiet=o.quiet)).fit(data).result_
+    seconds = run.timed("identify", start)
+    run.say(f"identified (min R^2 'All' = {identified.report.min_r2('all'):.3f}, {seconds:.1f} s)")
+    run.summary["identification"] = {"r2_min_all": identified.report.min_r2("all"), "kt": list(identified.kt)}
+    return identified
 
-    # 5. diagnose on the excitation: first period trains, last validates
+
+def _diagnose(run: _DemoRun, robot, model, data, excitation):
+    """Missing physics on the excitation recording: the first period trains, the last validates."""
+    from identification.diagnosis import DiagnosisOptions, diagnose
+
+    o = run.options
     start = time.perf_counter()
     recording = data.excitation[0]
     period = excitation.duration
     train = recording.time_slice(0.0, period)
-    validation = recording.time_slice((options.excitation_repeats - 1) * period, np.inf)
-    report = diagnose(robot, train, validation, DiagnosisOptions(rigid_body="identified"), model=model,
-                      progress=None if options.quiet else (lambda m: _step(options, m)))
-    timings["diagnose"] = time.perf_counter() - start
-    report.save(staging / "diagnosis", plots=True)
-    found = [f.to_dict() for f in report.findings]
-    summary["diagnosis"] = {"hidden": {"effect": "spring", "joint": options.spring_joint + 1,
-                                       "stiffness": options.spring_stiffness, "rest": options.spring_rest},
-                            "findings": found,
-                            "rmse_before": list(map(float, report.rmse_before)),
-                            "rmse_after": list(map(float, report.rmse_after))}
-    _step(options, "diagnosis: " + report.summary().splitlines()[0])
+    validation = recording.time_slice((o.excitation_repeats - 1) * period, np.inf)
+    report = diagnose(robot, train, validation, DiagnosisOptions(rigid_body="identified"), model=model)
+    run.timed("diagnose", start)
+    report.save(run.stage / "diagnosis", plots=True)
+    run.summary["diagnosis"] = {
+        "hidden": {"effect": "spring", "joint": o.spring_joint + 1, "stiffness": o.spring_stiffness,
+                   "rest": o.spring_rest},
+        "findings": [f.to_dict() for f in report.findings],
+        "rmse_before": list(map(float, report.rmse_before)),
+        "rmse_after": list(map(float, report.rmse_after))}
+    run.say("diagnosis: " + report.summary().splitlines()[0])
+    return report
 
-    # 6. export and compile C of the identified model
+
+def _export(run: _DemoRun, robot, model, theta, speed_job) -> None:
+    """C code of the identified model, compiled and checked against the PSDM sum; then the speed run's result."""
+    from codegen.build import build_library
+    from codegen.export import export_c
+
     start = time.perf_counter()
-    theta = identified.theta
     baked = build_recursive_functions(model, robot, theta)  # the fast form; the sum form checks it below
-    export = export_c(baked, staging / "c_code", runtime_theta=False, library="denso_dynamics")
-    library = build_library(export, build_dir=staging / "c_code" / "build", flags=tuple(options.compile_flags))
+    export = export_c(baked, run.stage / "c_code", runtime_theta=False, library="denso_dynamics")
+    library = build_library(export, build_dir=run.stage / "c_code" / "build", flags=tuple(run.options.compile_flags))
     inverse = library.function(export.function_names[0])
-    q_check, qd_check, qdd_check = rng.uniform(-1, 1, size=(3, robot.n_dof))
+    q_check, qd_check, qdd_check = run.rng.uniform(-1, 1, size=(3, robot.n_dof))
     c_tau = np.array(inverse(q_check, qd_check, qdd_check)).ravel()
     py_tau = model.inverse_dynamics(q_check, qd_check, qdd_check, theta)
-    timings["codegen"] = time.perf_counter() - start
-    _step(options, f"C code of the identified model compiled ({timings['codegen']:.1f} s); waiting for the speed run")
+    run.say(f"C code of the identified model compiled ({run.timed('codegen', start):.1f} s); waiting for the "
+            "speed run")
     start = time.perf_counter()
     speed = _finish_speed_job(speed_job)
-    timings["speed"] = time.perf_counter() - start
-    summary["codegen"] = {"functions": list(export.function_names),
-                          "c_vs_python_max_abs": float(np.abs(c_tau - py_tau).max()),
-                          "n_instructions": export.n_instructions, "speed": speed}
-    _step(options, "speed: " + _speed_sentence(speed))
-
-    # 7. report
-    timings["total"] = time.perf_counter() - start_all
-    summary["seconds"] = {k: round(v, 2) for k, v in timings.items()}
-    (staging / "report.md").write_text(_markdown(robot, model, excitation, table3, report, summary))
-    (staging / "speed.md").write_text(_speed_markdown(summary))
-    (staging / "summary.json").write_text(json.dumps(summary, indent=2, default=float))
-    if out.exists():  # an empty folder the user made for us
-        out.rmdir()
-    os.replace(staging, out)
-    _step(options, f"report written to {out}/report.md ({timings['total']:.0f} s in all)")
-    return DemoResult(folder=out, summary=summary)
+    run.timed("speed", start)
+    run.summary["codegen"] = {"functions": list(export.function_names),
+                              "c_vs_python_max_abs": float(np.abs(c_tau - py_tau).max()),
+                              "n_instructions": export.n_instructions, "speed": speed}
+    run.say("speed: " + _speed_sentence(speed))
 
 
 def _start_speed_job(options, workdir):
@@ -344,7 +384,9 @@ def register(subparsers) -> None:
     parser.add_argument("--out", default="demo_report", help="report folder (default demo_report)")
     parser.add_argument("--quick", action="store_true", help="short experiments, no refinement, no speed run")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    parser.add_argument("--force", action="store_true", help="replace an existing report folder")
+    parser.add_argument("--force", action="store_true",
+                        help="replace the files of an earlier demo report in --out (a folder that holds anything "
+                             "else is refused)")
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.set_defaults(handler=_run_demo_command)
 

@@ -20,12 +20,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
+from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import DerivationError, ParameterError
 from psdm_casadi.model import PSDMModel
-from psdm_casadi.oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, PinocchioOracle, _kinematic_model, \
+from psdm_casadi.oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, PinocchioOracle, build_kinematic_model, \
     link_to_joint_frame_maps, standard_parameter_names
 from psdm_casadi.reduction import reduce_to_base_parameters
-from psdm_casadi.robot import RobotDescription
 from psdm_casadi.sampling import free_parameter_basis, random_standard_parameters, random_states
 
 REVOLUTE_NODES = 2.0 * np.pi * np.arange(5) / 5.0 + 0.1
@@ -81,7 +81,7 @@ class _RegressorSampler:
     def __init__(self, robot: RobotDescription, free_basis: np.ndarray):
         n = robot.n_dof
         self.n = n
-        kinematic, _ = _kinematic_model(robot)
+        kinematic, _ = build_kinematic_model(robot)
         self.model_still = kinematic.copy()
         self.model_still.gravity.linear = np.zeros(3)
         self.model_gravity = kinematic.copy()

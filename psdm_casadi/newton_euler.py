@@ -13,7 +13,8 @@ I dw + m r x dv + w x I w, fewest operations for numeric parameters) and the per
 (``link_wrench_per_parameter``: the sum of each parameter times the wrench of that parameter alone,
 computed once per link). The regressor is the Jacobian in the parameters; in the per-parameter
 form each of its entries is one short dot product with a vector shared by every joint below the
-link (about 10 % fewer operations for the Panda's regressor than differentiating the matrix form).
+link, which is why the regressor is built from that form rather than by differentiating the matrix
+form.
 """
 
 from __future__ import annotations

@@ -11,8 +11,9 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from psdm_casadi.errors import RobotFileError, ShapeError
-from psdm_casadi.robot import RobotDescription
+from psdm_casadi.description import RobotDescription
+from psdm_casadi.errors import ShapeError
+from psdm_casadi.urdf import load_urdf_model
 
 N_LINK_PARAMETERS = 10  # m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (Pinocchio order, about the frame origin)
 N_PARAMETERS_PER_JOINT = 11  # ... plus the rotor inertia Im
@@ -42,27 +43,22 @@ def dh_transform(convention: str, a: float, alpha: float, d: float, theta: float
     return rot("x", alpha) * trans("x", a) * rot("z", theta) * trans("z", d)
 
 
-def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
-    """Parse a URDF with Pinocchio and lock the named joints at zero."""
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with its own text
-        raise RobotFileError(f"{Path(path).name}: Pinocchio could not read the URDF ({exc}). Fix the file.") from None
-    if locked_joints:
-        ids = []
-        for name in locked_joints:
-            if not model.existJointName(name):
-                raise RobotFileError(
-                    f"{Path(path).name}: urdf.locked_joints names {name!r}, which is not a joint of the URDF; "
-                    f"joints are {list(model.names)[1:]}."
-                )
-            ids.append(model.getJointId(name))
-        model = pin.buildReducedModel(model, ids, pin.neutral(model))
-    return model
+def build_kinematic_model(robot: RobotDescription) -> tuple[pin.Model, list]:
+    """The robot's kinematic chain as a Pinocchio model with zero inertia (the derivation samples it).
 
+    Parameters
+    ----------
+    robot : RobotDescription
+        DH rows, or a URDF when ``robot.urdf_path`` is set.
 
-def _kinematic_model(robot: RobotDescription) -> tuple[pin.Model, list]:
-    """A Pinocchio model with no inertia, and per joint the placement of the link frame in the joint frame."""
+    Returns
+    -------
+    model : pinocchio.Model
+        One joint per degree of freedom, every inertia zero.
+    link_placements : list of pinocchio.SE3, length n_dof
+        Per joint, the placement of the link frame (where the robot's inertial parameters are
+        given) in the joint frame: the DH row for the standard convention, identity otherwise.
+    """
     if robot.urdf_path is not None:
         model = load_urdf_model(Path(robot.urdf_path), robot.locked_joints)
         for jid in range(1, model.njoints):
@@ -91,7 +87,7 @@ def link_to_joint_frame_maps(robot: RobotDescription) -> np.ndarray:
     The dynamic parameters (m, m r, I about the origin) transform linearly under a rigid placement;
     the map is recovered column by column from Pinocchio's ``Inertia.se3Action``.
     """
-    _, placements = _kinematic_model(robot)
+    _, placements = build_kinematic_model(robot)
     base = np.array([1.0, 0, 0, 0, 1.0, 0, 1.0, 0, 0, 1.0])
     maps = np.empty((robot.n_dof, N_LINK_PARAMETERS, N_LINK_PARAMETERS))
     for i, placement in enumerate(placements):
@@ -128,7 +124,7 @@ def build_pinocchio_model(robot: RobotDescription, parameters=None) -> pin.Model
             f"parameters must have shape ({robot.n_dof}, {N_PARAMETERS_PER_JOINT}) (10 link parameters + Im per joint); "
             f"got {params.shape}."
         )
-    model, _ = _kinematic_model(robot)
+    model, _ = build_kinematic_model(robot)
     maps = link_to_joint_frame_maps(robot)
     for i in range(robot.n_dof):
         joint_frame = maps[i] @ params[i, :N_LINK_PARAMETERS]

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import DerivationError, ShapeError
 from psdm_casadi.model import PSDMModel
 from psdm_casadi.oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, build_pinocchio_model, link_to_joint_frame_maps
 from psdm_casadi.reduction import select_independent_rows
-from psdm_casadi.robot import RobotDescription
 
 # Names of the 11 joint-frame parameters, and the order in which the selection prefers them (lower
 # first): a rotor or zz inertia adds one product per use, a mass a whole force.

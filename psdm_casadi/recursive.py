@@ -17,12 +17,12 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from psdm_casadi.description import RobotDescription
 from psdm_casadi.kinematics_sx import JointChain, joint_chain
 from psdm_casadi.model import PSDMModel
 from psdm_casadi.newton_euler import ROTOR_INERTIA, forward_pass, newton_euler, unit_parameter_wrench
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
 from psdm_casadi.preimage import StandardPreimage, standard_preimage
-from psdm_casadi.robot import RobotDescription
 from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions, baked_theta
 
 

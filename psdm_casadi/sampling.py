@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from psdm_casadi.description import (PHYSICAL_PARAMETER_NAMES, RobotDescription, parse_parameter_name,
+                                     physical_to_dynamic)
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
-from psdm_casadi.robot import PHYSICAL_PARAMETER_NAMES, RobotDescription, _parse_parameter_name, physical_to_dynamic
 
 
 def random_states(robot: RobotDescription, n_samples: int, rng: np.random.Generator):
@@ -26,7 +27,7 @@ def zero_parameter_mask(robot: RobotDescription) -> np.ndarray:
     for link in robot.massless_links:
         mask[link - 1, :] = True
     for name in robot.zero_parameters:
-        base, link = _parse_parameter_name(name, robot.n_dof)
+        base, link = parse_parameter_name(name, robot.n_dof)
         mask[link - 1, PHYSICAL_PARAMETER_NAMES.index(base)] = True
     return mask
 

@@ -1,367 +1,480 @@
-"""Calibration experiments of the paper's sections 3.1-3.3 as trajectories inside the joint limits.
+"""Calibration experiments of the paper (sections 3.1-3.3) as trajectories a robot, real or virtual, runs.
 
-* ``motor_experiment`` (3.1): one joint sweeps its range at constant velocity forward and back,
-  the others hold a pose.
-* ``gravity_experiment`` (3.2): every joint jogs slowly and simultaneously through seeded random
-  waypoints spanning the ranges, then the same path is run backwards (so friction averages out).
-* ``friction_experiment`` (3.3): one joint runs a series of windowed sines whose amplitudes grow from
-  the pre-sliding regime to near the speed limit.
+Each design is a dense, smooth path of knots ``(t, q)`` (500 per second) that a cubic spline
+interpolates to the positions, velocities and accelerations a controller tracks; the virtual robot
+(``identification.virtual``) is handed the same knots, so what a user records is what the
+identification was validated on.
 
-Each returns an ``ExperimentTrajectory`` whose limits were verified on a dense grid.
+- ``motor_experiment`` (3.1): one joint swept at constant speed over part of its range and back,
+  the others held (run with and without the calibration mass; ``choose_motor_pose`` picks the pose);
+- ``gravity_experiment`` (3.2): the joints jogged slowly and together, then back along the same path;
+- ``friction_experiment`` (3.3): one joint through the segments of a
+  :class:`~trajopt.friction_design.FrictionDesign` (pre-sliding, break-away, Stribeck, sliding);
+- ``oscillation_experiment``: one joint through sine-cubed oscillations of growing amplitude (a short,
+  coarse friction experiment for quick runs);
+- ``sine_experiment``: a sum of sines per joint (eq. 22), a stand-in for an optimised excitation.
+
+Joints are 0-based here; user-facing text and file columns number them from 1.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+import warnings
+from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
+from scipy.interpolate import CubicSpline
 
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ExcitationWarning, ParameterError, ShapeError
 
 from trajopt.constraints import JointLimits, check_same_dof, describe_violation, limit_margins, worst_margin
 from trajopt.csvfile import write_trajectory_csv
+from trajopt.friction_design import FrictionDesign
+
+__all__ = ["GRID_HZ", "ExperimentTrajectory", "home_pose", "motor_experiment", "choose_motor_pose",
+           "gravity_experiment", "friction_experiment", "oscillation_experiment", "sine_experiment"]
+
+GRID_HZ = 500.0  # knots per second of every design
+VERIFY_HZ = 1000.0  # grid of the limit check
 
 
-@dataclass(frozen=True)
-class MoveSegment:
-    """Synchronised straight-line move ``start -> end`` with a trapezoidal time scaling.
-
-    ``q(t) = start + s(t) (end - start)``, ``s`` rising from 0 to 1 with constant ``s'' = +-accel``
-    phases around a constant-velocity cruise ``s' = speed``; a hold when ``start == end``.
-    """
-
-    start: np.ndarray
-    end: np.ndarray
-    speed: float  # 1/s, cruise rate of s
-    accel: float  # 1/s^2
-    duration: float
-
-    def evaluate(self, tau) -> tuple:
-        tau = np.asarray(tau, dtype=float)
-        delta = self.end - self.start
-        if not np.any(delta) or self.speed == 0:
-            zeros = np.zeros((tau.size, self.start.size))
-            return self.start[None, :] + zeros, zeros.copy(), zeros.copy()
-        ta = self.speed / self.accel
-        T = self.duration
-        s = np.where(tau < ta, 0.5 * self.accel * tau**2,
-                     np.where(tau <= T - ta, 0.5 * self.accel * ta**2 + self.speed * (tau - ta),
-                              1.0 - 0.5 * self.accel * (T - tau) ** 2))
-        sd = np.where(tau < ta, self.accel * tau, np.where(tau <= T - ta, self.speed, self.accel * (T - tau)))
-        sdd = np.where(tau < ta, self.accel, np.where(tau <= T - ta, 0.0, -self.accel))
-        return (self.start[None, :] + s[:, None] * delta[None, :], sd[:, None] * delta[None, :],
-                sdd[:, None] * delta[None, :])
-
-
-def _move(start, end, qd_limit, qdd_limit) -> MoveSegment:
-    """A synchronised move whose fastest joint uses at most ``qd_limit``/``qdd_limit`` (per joint arrays)."""
-    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    delta = np.abs(end - start)
-    moving = delta > 0
-    if not np.any(moving):
-        return MoveSegment(start, end, 0.0, 1.0, 0.0)
-    speed = float(np.min(qd_limit[moving] / delta[moving]))
-    accel = float(np.min(qdd_limit[moving] / delta[moving]))
-    if speed**2 / accel > 1.0:  # triangular profile: never reaches the cruise speed
-        speed = math.sqrt(accel)
-    duration = 1.0 / speed + speed / accel
-    return MoveSegment(start, end, speed, accel, duration)
-
-
-@dataclass(frozen=True)
-class SineSegment:
-    """One joint runs ``center + h(t) A sin(w t)`` for whole cycles; ``h`` ramps in and out over one cycle each."""
-
-    center: np.ndarray
-    joint: int
-    amplitude: float
-    frequency: float  # rad/s
-    cycles: int
-
-    @property
-    def duration(self) -> float:
-        return 2 * math.pi * self.cycles / self.frequency
-
-    def evaluate(self, tau) -> tuple:
-        tau = np.asarray(tau, dtype=float)
-        from trajopt.parametrization import _smoothstep
-
-        ramp = 2 * math.pi / self.frequency
-        s1, d1, dd1 = _smoothstep(tau / ramp)
-        s2, d2, dd2 = _smoothstep((self.duration - tau) / ramp)
-        h = s1 * s2
-        dh = d1 / ramp * s2 - s1 * d2 / ramp
-        ddh = dd1 / ramp**2 * s2 - 2 * d1 * d2 / ramp**2 + s1 * dd2 / ramp**2
-        w, a = self.frequency, self.amplitude
-        sin, cos = np.sin(w * tau), np.cos(w * tau)
-        x, xd, xdd = a * sin, a * w * cos, -a * w**2 * sin
-        q = np.repeat(self.center[None, :], tau.size, axis=0)
-        qd, qdd = np.zeros_like(q), np.zeros_like(q)
-        q[:, self.joint] += h * x
-        qd[:, self.joint] = dh * x + h * xd
-        qdd[:, self.joint] = ddh * x + 2 * dh * xd + h * xdd
-        return q, qd, qdd
-
-
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ExperimentTrajectory:
-    """A calibration experiment: a sequence of segments, verified inside ``limits``.
+    """A calibration experiment: knots of a smooth path and the joint limits it was checked against.
 
     Attributes
     ----------
     name : str
-        "motor", "gravity" or "friction".
-    segments : tuple of MoveSegment or SineSegment
+        "motor", "gravity", "friction" or "sine".
+    t : array, shape (n_knots,)
+        Knot times [s], strictly increasing from 0.
+    q : array, shape (n_knots, n_dof)
+        Positions at the knots [rad or m]; ``sample`` interpolates them with a not-a-knot cubic spline.
     limits : JointLimits
     joints : tuple of int
-        1-based joints the experiment identifies.
+        0-based joints the experiment moves or identifies.
     worst_margin : float
-        Smallest relative margin to a limit on a 1 kHz grid (>= 0).
+        Smallest relative margin to a limit on a 1 kHz grid; negative when the path leaves a limit.
     """
 
     name: str
-    segments: tuple
+    t: np.ndarray
+    q: np.ndarray
     limits: JointLimits
     joints: tuple
     worst_margin: float = float("nan")
 
+    def __post_init__(self):
+        t = np.array(self.t, dtype=float)
+        q = np.array(self.q, dtype=float)
+        if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or np.any(np.diff(t) <= 0):
+            raise ParameterError("ExperimentTrajectory.t must be strictly increasing knot times from 0 [s]; got "
+                                 f"{t.size} values starting at {t[:1].tolist()}.")
+        if q.shape != (t.size, self.limits.n_dof):
+            raise ShapeError(f"ExperimentTrajectory.q must have shape (n_knots, n_dof) = ({t.size}, "
+                             f"{self.limits.n_dof}); got {q.shape}.")
+        t.setflags(write=False)
+        q.setflags(write=False)
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "q", q)
+        object.__setattr__(self, "joints", tuple(int(j) for j in self.joints))
+
     @property
     def duration(self) -> float:
-        return float(sum(seg.duration for seg in self.segments))
+        """Length [s]."""
+        return float(self.t[-1])
 
     @property
     def n_dof(self) -> int:
         return self.limits.n_dof
 
+    def reference(self) -> tuple:
+        """The knots ``(t, q)`` as plain arrays: what the virtual robot interpolates and tracks."""
+        return self.t, self.q
+
     def sample(self, t) -> tuple:
-        """q, qd, qdd at times ``t`` in [0, duration] [s], arrays (n_samples, n_dof)."""
+        """q, qd, qdd at times ``t`` in [0, duration] [s], arrays (n_samples, n_dof), from the spline of the knots."""
         t = np.asarray(t, dtype=float).reshape(-1)
-        q, qd, qdd = (np.zeros((t.size, self.n_dof)) for _ in range(3))
-        starts = np.cumsum([0.0] + [seg.duration for seg in self.segments])
-        index = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.segments) - 1)
-        for k, seg in enumerate(self.segments):
-            mask = index == k
-            if np.any(mask):
-                q[mask], qd[mask], qdd[mask] = seg.evaluate(np.clip(t[mask] - starts[k], 0.0, seg.duration))
-        return q, qd, qdd
+        spline = CubicSpline(self.t, self.q, axis=0)
+        return spline(t), spline(t, 1), spline(t, 2)
 
     def time_grid(self, rate: float) -> np.ndarray:
+        """Sample times ``0, 1/rate, ...`` up to the duration [s]."""
         if not (isinstance(rate, (int, float)) and rate > 0):
             raise ParameterError(f"ExperimentTrajectory rate must be a positive sampling rate [Hz]; got {rate!r}.")
-        return np.arange(int(math.floor(self.duration * rate + 1e-9)) + 1) / float(rate)
+        return np.arange(int(np.floor(self.duration * rate + 1e-9)) + 1) / float(rate)
 
     def to_csv(self, path, rate: float = 100.0, *, overwrite: bool = False):
         """Write ``t, q, qd, qdd`` sampled at ``rate`` Hz (atomic; FileExistsError unless ``overwrite``)."""
         t = self.time_grid(rate)
-        comment = f"{self.name} experiment, joints {list(self.joints)}, worst_limit_margin={self.worst_margin:.6g}"
+        comment = (f"{self.name} experiment, joints {[j + 1 for j in self.joints]}, "
+                   f"worst_limit_margin={self.worst_margin:.6g}")
         return write_trajectory_csv(path, t, *self.sample(t), comment=comment, overwrite=overwrite)
 
 
-def _verified(name, segments, limits, joints) -> ExperimentTrajectory:
-    draft = ExperimentTrajectory(name, tuple(segments), limits, tuple(joints))
-    t = draft.time_grid(1000.0)
-    margins = limit_margins(limits, *draft.sample(t))
-    worst = worst_margin(margins)
-    if worst < -1e-9:
-        raise ParameterError(
-            f"{name}_experiment leaves the limits ({describe_violation(margins)}); lower speed_fraction or "
-            "range_fraction."
-        )
-    return ExperimentTrajectory(name, tuple(segments), limits, tuple(joints), worst)
-
-
-def _fraction(owner, field, value):
-    if not (isinstance(value, (int, float)) and 0 < value <= 1):
-        raise ParameterError(f"{owner}.{field} must be in (0, 1]; got {value!r}. Use e.g. 0.5.")
-    return float(value)
-
-
-def _joint_index(owner, joint, n_dof) -> int:
-    if isinstance(joint, bool) or not isinstance(joint, (int, np.integer)) or not 1 <= joint <= n_dof:
-        raise ParameterError(f"{owner}.joint must be a 1-based joint number in 1..{n_dof}; got {joint!r}.")
-    return int(joint) - 1
-
-
-def _limits_and_pose(robot, limits, pose, owner):
+def _verified(name, t, q, robot, joints, limits) -> ExperimentTrajectory:
+    """The experiment with its worst limit margin; an ``ExcitationWarning`` when the path leaves a limit."""
     limits = JointLimits.from_robot(robot) if limits is None else limits
     check_same_dof(limits, robot.n_dof)
-    pose = limits.center if pose is None else np.asarray(pose, dtype=float).reshape(-1)
-    if pose.shape != (robot.n_dof,) or np.any(pose < limits.q_min) or np.any(pose > limits.q_max):
-        raise ParameterError(
-            f"{owner}.pose must be {robot.n_dof} joint positions inside [q_min, q_max]; got {pose.tolist()}. "
-            "Leave it None for the centre of the ranges."
-        )
-    return limits, pose
+    draft = ExperimentTrajectory(name, t, q, limits, joints)
+    margins = limit_margins(limits, *draft.sample(draft.time_grid(VERIFY_HZ)))
+    worst = worst_margin(margins)
+    if worst < -1e-9:
+        warnings.warn(f"the {name} experiment leaves the joint limits: {describe_violation(margins)}. Check it "
+                      "before running it on a robot.", ExcitationWarning, stacklevel=3)
+    return replace(draft, worst_margin=worst)
 
 
-def motor_experiment(robot, joint: int, *, pose=None, speed_fraction: float = 0.2, accel_fraction: float = 0.3,
-                     range_fraction: float = 0.9, sweeps: int = 1, limits: JointLimits | None = None
-                     ) -> ExperimentTrajectory:
-    """Section 3.1: sweep one joint through its range at constant velocity, forward and back.
+def home_pose(robot) -> np.ndarray:
+    """Zero clipped into the joint ranges: the pose of the joints an experiment does not move."""
+    return np.clip(np.zeros(robot.n_dof), robot.q_min, robot.q_max)
+
+
+def _check_joint(robot, joint, owner) -> int:
+    if isinstance(joint, bool) or not (isinstance(joint, (int, np.integer)) and 0 <= joint < robot.n_dof):
+        raise ParameterError(f"{owner}.joint must be a 0-based joint index 0..{robot.n_dof - 1}; got {joint!r}.")
+    return int(joint)
+
+
+def _check_positive(owner, **values):
+    for name, value in values.items():
+        if isinstance(value, bool) or not (isinstance(value, (int, float, np.number)) and np.isfinite(value)
+                                           and value > 0):
+            raise ParameterError(f"{owner}.{name} must be a positive number; got {value!r}.")
+
+
+def _check_fraction(owner, name, value):
+    _check_positive(owner, **{name: value})
+    if value > 1:
+        raise ParameterError(f"{owner}.{name} must be in (0, 1]; got {value!r}. Use e.g. 0.5.")
+
+
+def _pose(robot, pose, owner) -> np.ndarray:
+    if pose is None:
+        return home_pose(robot)
+    pose = np.asarray(pose, dtype=float)
+    if pose.shape != (robot.n_dof,) or np.any(pose < robot.q_min) or np.any(pose > robot.q_max):
+        raise ParameterError(f"{owner}.pose must be {robot.n_dof} joint positions inside [q_min, q_max]; got "
+                             f"{pose.tolist()}. Leave it None for zero clipped into the ranges.")
+    return pose
+
+
+def _out_and_back(duration: float, ramp: float) -> tuple[np.ndarray, np.ndarray]:
+    """Times and a path parameter s(t) that runs at unit speed to s_max and back, with cosine speed ramps."""
+    t = np.arange(0.0, duration + 0.5 / GRID_HZ, 1.0 / GRID_HZ)
+    half = duration / 2.0
+    v = np.ones_like(t)
+    up = t < ramp
+    v[up] = 0.5 * (1.0 - np.cos(np.pi * t[up] / ramp))
+    turn = np.abs(t - half) < ramp
+    v[turn] = np.cos(np.pi * (t[turn] - (half - ramp)) / (2.0 * ramp))
+    # a knot exactly at half + ramp keeps v = 1 (a one-knot blip in the turn); kept: the validated data use it
+    v[t > half + ramp] = -1.0
+    down = t > duration - ramp
+    v[down] = -0.5 * (1.0 - np.cos(np.pi * (duration - t[down]) / ramp))
+    return t, cumulative_trapezoid(v, t, initial=0.0)
+
+
+def _motor_path(robot, joint, speed, range_fraction, ramp, pose):
+    lo, hi = robot.q_min[joint], robot.q_max[joint]
+    centre, half_range = 0.5 * (lo + hi), 0.5 * range_fraction * (hi - lo)
+    duration = 2.0 * (2.0 * half_range / speed + ramp)
+    t, s = _out_and_back(duration, ramp)
+    q = np.tile(pose, (t.size, 1))
+    q[:, joint] = centre - half_range + speed * s
+    return t, q
+
+
+def motor_experiment(robot, joint: int, *, speed: float = 0.25, range_fraction: float = 0.4, ramp: float = 0.5,
+                     pose=None, limits: JointLimits | None = None) -> ExperimentTrajectory:
+    """Section 3.1: sweep one joint at constant speed over part of its range and back, the others held.
+
+    The sweep is slow so that the velocity terms of the calibration mass stay small against its
+    static load, and it runs forward and back so that friction cancels in the average.
 
     Parameters
     ----------
     robot : RobotDescription
     joint : int
-        1-based joint to sweep.
-    pose : array, shape (n_dof,), optional
-        Pose of the other joints (default: centre of the ranges); chosen so the calibration mass
-        loads the swept joint.
-    speed_fraction, accel_fraction : float
-        Cruise velocity and acceleration as fractions of the limits (low, to keep inertia negligible).
+        0-based joint to sweep.
+    speed : float
+        Sweep speed [rad/s].
     range_fraction : float
-        Fraction of the joint range swept, about its centre.
-    sweeps : int
-        Forward-and-back repetitions.
+        Share of the joint range swept, about its centre, in (0, 1].
+    ramp : float
+        Length of the cosine speed ramps at the ends and the turn [s].
+    pose : array, shape (n_dof,), optional
+        Pose of the other joints; default ``home_pose(robot)``. ``choose_motor_pose`` finds one in
+        which the calibration mass loads the swept joint.
     limits : JointLimits, optional
-        Default: the robot's.
+        Limits to check against; default the robot's.
 
     Returns
     -------
     ExperimentTrajectory
+
+    Raises
+    ------
+    ParameterError
+        For a bad joint, speed, fraction, ramp or pose.
+
+    Examples
+    --------
+    >>> experiment = motor_experiment(robot, 1)  # doctest: +SKIP
+    >>> experiment.to_csv("motor_j2.csv", rate=1000.0)  # doctest: +SKIP
     """
     owner = "motor_experiment"
-    i = _joint_index(owner, joint, robot.n_dof)
-    limits, pose = _limits_and_pose(robot, limits, pose, owner)
-    speed, accel, span = (_fraction(owner, f, v) for f, v in (("speed_fraction", speed_fraction),
-                                                              ("accel_fraction", accel_fraction),
-                                                              ("range_fraction", range_fraction)))
-    if isinstance(sweeps, bool) or not isinstance(sweeps, int) or sweeps < 1:
-        raise ParameterError(f"{owner}.sweeps must be an integer >= 1; got {sweeps!r}.")
-    low, high = pose.copy(), pose.copy()
-    low[i] = limits.center[i] - span * limits.half_range[i]
-    high[i] = limits.center[i] + span * limits.half_range[i]
-    qd_lim, qdd_lim = speed * limits.qd_max, accel * limits.qdd_max
-    segments = [_move(pose, low, qd_lim, qdd_lim)]
-    for _ in range(sweeps):
-        segments += [_move(low, high, qd_lim, qdd_lim), _move(high, low, qd_lim, qdd_lim)]
-    segments.append(_move(low, pose, qd_lim, qdd_lim))
-    return _verified("motor", segments, limits, (joint,))
+    joint = _check_joint(robot, joint, owner)
+    _check_positive(owner, speed=speed, ramp=ramp)
+    _check_fraction(owner, "range_fraction", range_fraction)
+    t, q = _motor_path(robot, joint, speed, range_fraction, ramp, _pose(robot, pose, owner))
+    return _verified("motor", t, q, robot, (joint,), limits)
 
 
-def gravity_experiment(robot, joints=None, *, n_waypoints: int = 12, speed_fraction: float = 0.1,
-                       accel_fraction: float = 0.2, range_fraction: float = 0.9, pose=None,
-                       limits: JointLimits | None = None, seed: int | None = 0,
-                       rng: np.random.Generator | None = None) -> ExperimentTrajectory:
-    """Section 3.2: jog the chosen joints slowly and together through random waypoints, then back along the same path.
+def choose_motor_pose(robot, joint: int, load_torque, rng: np.random.Generator, *, n_candidates: int = 48,
+                      range_fraction: float = 0.4) -> np.ndarray:
+    """A pose in which the calibration mass loads ``joint`` strongly all along its sweep (seeded random search).
 
-    Parameters
-    ----------
-    robot : RobotDescription
-    joints : sequence of int, optional
-        1-based joints that move (default: all); the others hold ``pose``. The paper ran joints
-        1-3 and 4-5 separately.
-    n_waypoints : int
-        Seeded random waypoints; each joint alternates between the lower and upper part of its range
-        (40-100 % of the way to each end), so every move crosses the range and the joints' speeds
-        stay within a factor of about 2.5 of the slowest joint's cruise speed.
-    speed_fraction, accel_fraction, range_fraction : float
-        Slow cruise speed, acceleration and swept range as fractions of the limits.
-    seed : int, optional
-    rng : numpy.random.Generator, optional
-
-    Returns
-    -------
-    ExperimentTrajectory
-        Duration is twice the forward path (forward then reversed).
-    """
-    owner = "gravity_experiment"
-    limits, pose = _limits_and_pose(robot, limits, pose, owner)
-    joints = tuple(range(1, robot.n_dof + 1)) if joints is None else tuple(joints)
-    index = [_joint_index(owner, j, robot.n_dof) for j in joints]
-    speed, accel, span = (_fraction(owner, f, v) for f, v in (("speed_fraction", speed_fraction),
-                                                              ("accel_fraction", accel_fraction),
-                                                              ("range_fraction", range_fraction)))
-    if isinstance(n_waypoints, bool) or not isinstance(n_waypoints, int) or n_waypoints < 2:
-        raise ParameterError(f"{owner}.n_waypoints must be an integer >= 2; got {n_waypoints!r}.")
-    generator = rng if rng is not None else np.random.default_rng(seed)
-    waypoints = [pose]
-    first_side = np.where(generator.random(len(index)) < 0.5, 1.0, -1.0)  # each joint alternates from here
-    for k in range(n_waypoints):
-        point = pose.copy()
-        fraction = generator.uniform(0.4, 1.0, len(index)) * first_side * (-1.0) ** k
-        point[index] = limits.center[index] + span * fraction * limits.half_range[index]
-        waypoints.append(point)
-    waypoints.append(pose)
-    qd_lim, qdd_lim = speed * limits.qd_max, accel * limits.qdd_max
-    forward = [_move(a, b, qd_lim, qdd_lim) for a, b in zip(waypoints[:-1], waypoints[1:])]
-    backward = [_move(b, a, qd_lim, qdd_lim) for a, b in reversed(list(zip(waypoints[:-1], waypoints[1:])))]
-    return _verified("gravity", forward + backward, limits, joints)
-
-
-def friction_experiment(robot, joint: int, *, amplitudes=None, peak_speeds=None, n_levels: int = 8,
-                        amplitude_min: float | None = None, speed_fraction: float = 0.9, accel_fraction: float = 0.8,
-                        range_fraction: float = 0.8, frequency_max: float = 4 * math.pi, cycles: int = 4, pose=None,
-                        limits: JointLimits | None = None) -> ExperimentTrajectory:
-    """Section 3.3: one joint runs sines from pre-sliding amplitudes up to near its speed limit.
+    Candidates are the home pose and ``n_candidates - 1`` random poses in the middle 60 % of the
+    ranges; each is scored by the RMS of the mass's static torque on the joint along the sweep,
+    discounted when that torque nearly vanishes somewhere on the sweep.
 
     Parameters
     ----------
     robot : RobotDescription
     joint : int
-        1-based joint.
-    amplitudes : sequence of float, optional
-        Amplitudes [rad]; default ``n_levels`` geometric steps from ``amplitude_min`` to the
-        largest amplitude that fits ``range_fraction`` of the range.
-    peak_speeds : sequence of float, optional
-        Peak velocity of each level [rad/s]; default geometric up to ``speed_fraction * qd_max``.
-        Each level's frequency is ``peak_speed / amplitude``, lowered if the acceleration limit
-        demands it.
-    amplitude_min : float, optional
-        Smallest amplitude [rad]; default ``3 fc / sigma0`` of the joint's drive (a few times the
-        LuGre pre-sliding deflection) or 1e-4 rad without drive data.
-    frequency_max : float
-        Highest sine frequency [rad/s] (default 2 Hz), which bounds the small-amplitude levels.
-    cycles : int
-        Full cycles per level (one ramps in, one ramps out).
+        0-based joint to sweep.
+    load_torque : callable
+        ``load_torque(q) -> tau``: joint torques [N m] of the calibration mass held against gravity,
+        arrays (n_samples, n_dof) (e.g. ``identification.calibration.payload.payload_static_torque``
+        with the robot and mass bound).
+    rng : numpy.random.Generator
+        Source of the candidate poses.
+    n_candidates : int
+        Poses tried, >= 1.
+    range_fraction : float
+        Share of the joint range the sweep covers (as in ``motor_experiment``).
+
+    Returns
+    -------
+    array, shape (n_dof,)
+    """
+    owner = "choose_motor_pose"
+    joint = _check_joint(robot, joint, owner)
+    _check_fraction(owner, "range_fraction", range_fraction)
+    if isinstance(n_candidates, bool) or not (isinstance(n_candidates, (int, np.integer)) and n_candidates >= 1):
+        raise ParameterError(f"{owner}.n_candidates must be an integer >= 1; got {n_candidates!r}.")
+    home = home_pose(robot)
+    lo, hi = robot.q_min, robot.q_max
+    best, best_score = home, -1.0
+    for k in range(n_candidates):
+        pose = home if k == 0 else rng.uniform(lo + 0.2 * (hi - lo), hi - 0.2 * (hi - lo))
+        # scored on about 40 poses of a 0.3 rad/s sweep: the sampling the validated poses were chosen on
+        _, q = _motor_path(robot, joint, 0.3, range_fraction, 0.5, pose)
+        torque = np.asarray(load_torque(q[:: max(1, q.shape[0] // 40)]))[:, joint]
+        evenness = min(1.0, np.abs(torque).min() / (np.abs(torque).max() + 1e-12) + 0.5)
+        score = float(np.sqrt(np.mean(torque**2)) * evenness)
+        if score > best_score:
+            best, best_score = pose, score
+    return best
+
+
+def gravity_experiment(robot, *, duration: float = 120.0, speed: float = 0.15, range_fraction: float = 0.8,
+                       joints=None, ramp: float = 0.5, rng: np.random.Generator | None = None,
+                       limits: JointLimits | None = None) -> ExperimentTrajectory:
+    """Section 3.2: jog the joints together at about ``speed`` through their ranges, then back along the same path.
+
+    Each joint follows a rounded triangle wave with its own (random) period, so the poses cover the
+    workspace; the second half retraces the first backwards, so forward and reverse currents can
+    be averaged and friction cancels. The jog is long and slow: the smallest gravity parameters
+    carry torques comparable to the sensor noise.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    duration : float
+        Length of the out-and-back jog [s].
+    speed : float
+        Approximate joint speed [rad/s].
+    range_fraction : float
+        Share of each joint range covered, in (0, 1].
+    joints : sequence of int, optional
+        0-based joints that move (default all); the others hold the home pose.
+    ramp : float
+        Length of the cosine speed ramps [s].
+    rng : numpy.random.Generator, optional
+        Source of the periods; ``default_rng(0)`` when omitted.
+    limits : JointLimits, optional
+
+    Returns
+    -------
+    ExperimentTrajectory
+    """
+    owner = "gravity_experiment"
+    _check_positive(owner, duration=duration, speed=speed, ramp=ramp)
+    _check_fraction(owner, "range_fraction", range_fraction)
+    rng = np.random.default_rng(0) if rng is None else rng
+    joints = tuple(range(robot.n_dof)) if joints is None else tuple(_check_joint(robot, j, owner) for j in joints)
+    pose = home_pose(robot)
+    t, s = _out_and_back(duration, ramp)
+    q = np.tile(pose, (t.size, 1))
+    for j in joints:
+        lo, hi = robot.q_min[j], robot.q_max[j]
+        centre, amplitude = 0.5 * (lo + hi), 0.5 * range_fraction * (hi - lo)
+        omega = speed * (0.8 + 0.4 * rng.random()) * np.pi / (2.0 * amplitude)
+        phase = np.arcsin(np.clip((pose[j] - centre) / amplitude, -0.99, 0.99))
+        q[:, j] = centre + amplitude * (2.0 / np.pi) * np.arcsin(0.98 * np.sin(omega * s + phase))
+    return _verified("gravity", t, q, robot, joints, limits)
+
+
+def _segments_path(pieces, start, pose, joint):
+    """Knots of segments ``(t, x)`` of one joint's offset from ``pose``, closed at rest at ``start``."""
+    t = np.concatenate([p[0] for p in pieces] + [np.array([start])])
+    x = np.concatenate([p[1] for p in pieces] + [np.array([0.0])])
+    q = np.tile(pose, (t.size, 1))
+    q[:, joint] += x
+    return t, q
+
+
+def friction_experiment(robot, joint: int, design: FrictionDesign | None = None, *, pose=None,
+                        limits: JointLimits | None = None) -> ExperimentTrajectory:
+    """Section 3.3: one joint through the segments of a :class:`FrictionDesign`, the others held.
+
+    Each segment ``q = pose + sign A (1 - cos 2 pi f t)`` starts and ends at rest and moves towards the
+    side of the pose with more room; segments are separated by ``design.pause`` seconds at rest.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    joint : int
+        0-based joint.
+    design : FrictionDesign, optional
+        Default ``FrictionDesign()``; ``design.validation()`` gives the second, validation run.
+    pose : array, shape (n_dof,), optional
+        Default ``home_pose(robot)``.
+    limits : JointLimits, optional
 
     Returns
     -------
     ExperimentTrajectory
     """
     owner = "friction_experiment"
-    i = _joint_index(owner, joint, robot.n_dof)
-    limits, pose = _limits_and_pose(robot, limits, pose, owner)
-    speed, accel, span = (_fraction(owner, f, v) for f, v in (("speed_fraction", speed_fraction),
-                                                              ("accel_fraction", accel_fraction),
-                                                              ("range_fraction", range_fraction)))
-    if not (isinstance(frequency_max, (int, float)) and frequency_max > 0):
-        raise ParameterError(f"{owner}.frequency_max must be a positive frequency [rad/s]; got {frequency_max!r}.")
-    if isinstance(cycles, bool) or not isinstance(cycles, int) or cycles < 2:
-        raise ParameterError(f"{owner}.cycles must be an integer >= 2 (one ramps in, one out); got {cycles!r}.")
-    room = span * min(pose[i] - limits.q_min[i], limits.q_max[i] - pose[i])
-    if amplitudes is None:
-        if amplitude_min is None:
-            drive = robot.drives[i] if robot.drives is not None else None
-            amplitude_min = 3 * drive.fc / drive.sigma0 if drive is not None and drive.sigma0 > 0 else 1e-4
-        if not (0 < amplitude_min < room):
-            raise ParameterError(
-                f"{owner}.amplitude_min must be in (0, {room:.4g}) rad for joint {joint}; got {amplitude_min!r}."
-            )
-        amplitudes = np.geomspace(amplitude_min, room, n_levels)
-    amplitudes = np.asarray(amplitudes, dtype=float).reshape(-1)
-    if amplitudes.size == 0 or np.any(amplitudes <= 0) or np.any(amplitudes > room + 1e-12):
+    joint = _check_joint(robot, joint, owner)
+    design = FrictionDesign() if design is None else design
+    if not isinstance(design, FrictionDesign):
+        raise ParameterError(f"{owner}.design must be a FrictionDesign; got {type(design).__name__}.")
+    pose = _pose(robot, pose, owner)
+    up, down = robot.q_max[joint] - pose[joint], pose[joint] - robot.q_min[joint]
+    sign, room = (1.0, up) if up >= down else (-1.0, down)
+    pieces, start = [], 0.0
+    for amplitude, frequency, periods in design.segments(robot.qd_max[joint], robot.qdd_max[joint], 0.95 * room):
+        length = periods / frequency
+        tb = np.arange(0.0, length, 1.0 / GRID_HZ)
+        pieces.append((start + tb, sign * amplitude * (1.0 - np.cos(2.0 * np.pi * frequency * tb))))
+        start += length
+        if design.pause > 0:
+            tp = np.arange(0.0, design.pause, 1.0 / GRID_HZ)
+            pieces.append((start + tp, np.zeros_like(tp)))
+            start += design.pause
+    t, q = _segments_path(pieces, start, pose, joint)
+    return _verified("friction", t, q, robot, (joint,), limits)
+
+
+def oscillation_experiment(robot, joint: int, *, amplitudes=(2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6),
+                           speed_fraction: float = 0.6, cycles: int = 3, min_period: float = 1.0, pose=None,
+                           limits: JointLimits | None = None) -> ExperimentTrajectory:
+    """One joint through oscillations ``A sin^3(w t)`` of growing amplitude, others held (a quick friction run).
+
+    ``sin^3`` starts and ends each block at rest with zero acceleration, so blocks join smoothly. The
+    period of a block is the longer of ``min_period`` and the one reaching ``speed_fraction`` of the
+    joint speed limit. Coarser than :func:`friction_experiment`: it does not resolve ``sigma0``,
+    ``sigma1`` and ``vs`` well, and its large amplitudes may exceed the acceleration limit.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    joint : int
+        0-based joint.
+    amplitudes : sequence of float
+        [rad], each inside the range about the pose.
+    speed_fraction : float
+        Peak speed of a block as a fraction of the speed limit, in (0, 1].
+    cycles : int
+        Periods per block.
+    min_period : float
+        [s]
+    pose : array, shape (n_dof,), optional
+    limits : JointLimits, optional
+
+    Returns
+    -------
+    ExperimentTrajectory
+    """
+    owner = "oscillation_experiment"
+    joint = _check_joint(robot, joint, owner)
+    _check_fraction(owner, "speed_fraction", speed_fraction)
+    _check_positive(owner, cycles=cycles, min_period=min_period)
+    pose = _pose(robot, pose, owner)
+    limit = min(robot.q_max[joint] - pose[joint], pose[joint] - robot.q_min[joint])
+    if len(amplitudes) == 0 or min(amplitudes) <= 0 or max(amplitudes) >= limit:
         raise ParameterError(
-            f"{owner}.amplitudes must be positive and at most {room:.4g} rad (range_fraction of the room about the "
-            f"pose); got {amplitudes.tolist()}."
+            f"{owner}.amplitudes must be positive and inside the range of joint {joint + 1} ({limit:.3g} from the "
+            f"pose); got {list(amplitudes)}. Lower the largest amplitude."
         )
-    v_max, a_max = speed * limits.qd_max[i], accel * limits.qdd_max[i]
-    if peak_speeds is None:
-        peak_speeds = np.geomspace(v_max / 50, v_max, amplitudes.size)
-    peak_speeds = np.asarray(peak_speeds, dtype=float).reshape(-1)
-    if peak_speeds.shape != amplitudes.shape or np.any(peak_speeds <= 0):
-        raise ParameterError(
-            f"{owner}.peak_speeds must be {amplitudes.size} positive speeds [rad/s], one per amplitude; "
-            f"got {peak_speeds.tolist()}."
-        )
-    segments = []
-    for amp, v in zip(amplitudes, np.minimum(peak_speeds, v_max)):
-        w = min(v / amp, math.sqrt(a_max / amp), frequency_max)
-        segment = SineSegment(pose.copy(), i, float(amp), float(w), cycles)
-        _, qd, qdd = segment.evaluate(np.linspace(0, segment.duration, 400 * cycles))
-        usage = max(np.abs(qd[:, i]).max() / limits.qd_max[i], np.abs(qdd[:, i]).max() / limits.qdd_max[i])
-        if usage > 0.99:  # the window's derivative adds a little; slow this level down
-            segment = SineSegment(pose.copy(), i, float(amp), float(w * 0.99 / usage), cycles)
-        segments.append(segment)
-    return _verified("friction", segments, limits, (joint,))
+    pieces, start = [], 0.0
+    for amplitude in amplitudes:
+        # peak speed of A sin^3(w t) is about 1.15 A w
+        omega = min(2.0 * np.pi / min_period, speed_fraction * robot.qd_max[joint] / (1.155 * amplitude))
+        period = 2.0 * np.pi / omega
+        tb = np.arange(0.0, cycles * period, 1.0 / GRID_HZ)
+        pieces.append((start + tb, amplitude * np.sin(omega * tb) ** 3))
+        start += cycles * period
+    t, q = _segments_path(pieces, start, pose, joint)
+    return _verified("friction", t, q, robot, (joint,), limits)
+
+
+def sine_experiment(robot, *, duration: float = 30.0, rng: np.random.Generator | None = None, n_sines: int = 3,
+                    fraction: float = 0.5, limits: JointLimits | None = None) -> ExperimentTrajectory:
+    """A sum of ``n_sines`` sines per joint (eq. 22) with random frequencies and phases, a stand-in excitation.
+
+    Scaled into ``fraction`` of the position, speed and acceleration limits about the home pose;
+    it starts and ends with a one-second cosine fade. ``trajopt.optimize_excitation`` designs a
+    better-conditioned excitation; this one needs no model.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    duration : float
+        [s]
+    rng : numpy.random.Generator, optional
+        Source of frequencies, phases and weights; ``default_rng(0)`` when omitted.
+    n_sines : int
+        Sines per joint.
+    fraction : float
+        Share of each limit used, in (0, 1].
+    limits : JointLimits, optional
+
+    Returns
+    -------
+    ExperimentTrajectory
+    """
+    owner = "sine_experiment"
+    _check_positive(owner, duration=duration, n_sines=n_sines)
+    _check_fraction(owner, "fraction", fraction)
+    rng = np.random.default_rng(0) if rng is None else rng
+    t = np.arange(0.0, duration + 0.5 / GRID_HZ, 1.0 / GRID_HZ)
+    fade = np.minimum(1.0, np.minimum(t, duration - t) / 1.0)
+    fade = 0.5 * (1.0 - np.cos(np.pi * fade))
+    centre = home_pose(robot)
+    q = np.tile(centre, (t.size, 1))
+    for j in range(robot.n_dof):
+        omega = 2.0 * np.pi * rng.uniform(0.05, 0.5, n_sines)
+        phase = rng.uniform(0.0, 2.0 * np.pi, n_sines)
+        weight = rng.uniform(0.5, 1.0, n_sines)
+        room = min(robot.q_max[j] - centre[j], centre[j] - robot.q_min[j])
+        scale = fraction * min(room / weight.sum(), robot.qd_max[j] / (weight * omega).sum(),
+                               robot.qdd_max[j] / (weight * omega**2).sum())
+        x = (scale * weight * np.sin(np.outer(t, omega) + phase)).sum(axis=1)
+        q[:, j] = centre[j] + fade * (x - x[0])
+    return _verified("sine", t, q, robot, tuple(range(robot.n_dof)), limits)

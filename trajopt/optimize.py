@@ -8,6 +8,7 @@ oscillation if a limit is grazed between samples); the best true condition numbe
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 import warnings
@@ -16,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli import progress
 from psdm_casadi.errors import ExcitationWarning, ParameterError, SolverError
 
 from trajopt.constraints import (JointLimits, KeepOut, check_same_dof, describe_violation, fine_grid, scale_into_limits,
@@ -30,6 +30,8 @@ FAMILIES = ("fourier", "sum_of_sines")
 _ACCEPTED = ("Solve_Succeeded", "Solved_To_Acceptable_Level", "Maximum_Iterations_Exceeded", "User_Requested_Stop",
              "Maximum_WallTime_Exceeded", "Maximum_CpuTime_Exceeded", "Search_Direction_Becomes_Too_Small")
 _CONVERGED = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -85,7 +87,8 @@ class ExcitationOptions:
     ipopt_options : dict, optional
         Raw Ipopt options passed through unchanged.
     quiet : bool
-        Suppress progress lines on stderr.
+        Log no progress lines (they go to this module's logger at INFO; the ``psdm`` command shows them
+        on stderr).
     """
 
     family: str = "fourier"
@@ -297,6 +300,54 @@ def optimize_excitation(robot, regressor, options: ExcitationOptions | None = No
     if not isinstance(options, ExcitationOptions):
         raise ParameterError(f"options must be ExcitationOptions; got {type(options).__name__}.")
     generator = _rng(seed, rng)
+    limits, parametrization, columns, torque_function = _checked_inputs(robot, regressor, options, nominal_parameters)
+    tight = limits.shrunk(options.limit_backoff)
+    starts = [random_feasible_parameters(parametrization, tight, generator, fine_grid(parametrization, 200, 1),
+                                         options.start_fill) for _ in range(options.n_starts)]
+    column_scale = None
+    if options.column_scaling:
+        t_obj = parametrization.default_grid(options.n_samples)
+        column_scale = nominal_column_scale(regressor, *parametrization.evaluate(t_obj, starts[0]), columns)
+    _report(options, f"excite: building the NLP ({parametrization.__class__.__name__}, "
+                     f"{parametrization.n_parameters} parameters, {columns.size} columns, {options.n_samples} samples)")
+    problem = build_excitation_problem(
+        parametrization, regressor, limits, columns=columns, criterion=options.criterion,
+        n_samples=options.n_samples, n_constraint_samples=options.n_constraint_samples,
+        backoff=options.limit_backoff, column_scale=column_scale, torque_function=torque_function,
+        keep_out=keep_out, max_iter=options.max_iter, ipopt_options=options.ipopt_options)
+    search = _run_starts(problem, starts, options, started)
+    if search.best is None and search.rank_deficient:
+        raise ParameterError(
+            "ExcitationOptions.columns must be identifiable: the stacked regressor of the selected columns is rank "
+            "deficient on every start (a column is zero or a combination of others along any trajectory). Select "
+            "base-parameter columns only, e.g. ~model.gravity_mask, or None for all."
+        )
+    if search.best is None:
+        _raise_failure(search.statuses, problem.limits)
+    if search.status not in _CONVERGED:
+        warnings.warn(f"optimize_excitation: the best start stopped with Ipopt status {search.status}; its limits are "
+                      "verified but the criterion may improve with a larger max_iter or time_limit.",
+                      ExcitationWarning, stacklevel=2)
+    cond_scaled = None
+    if column_scale is not None:
+        y = stack_regressor(regressor, *parametrization.evaluate(problem.t_objective, search.best), columns)
+        cond_scaled = condition_number(y * column_scale)
+    seconds = time.perf_counter() - started
+    return ExcitationTrajectory(
+        parametrization=parametrization, parameters=search.best, cond=search.cond,
+        worst_margin=search.margins["worst"], worst_limit=describe_violation(search.margins), seconds=seconds,
+        columns=tuple(int(c) for c in columns), limits=problem.limits, cond_scaled=cond_scaled, status=search.status,
+        start_conds=search.start_conds)
+
+
+def _report(options: ExcitationOptions, message: str) -> None:
+    """A progress line on this module's logger, unless ``options.quiet``."""
+    if not options.quiet:
+        logger.info(message)
+
+
+def _checked_inputs(robot, regressor, options: ExcitationOptions, nominal_parameters) -> tuple:
+    """Validate the inputs of ``optimize_excitation``: (limits, parametrization, columns, torque function or None)."""
     n_dof = robot.n_dof
     check_regressor(regressor, n_dof)
     limits = options.build_limits(robot)
@@ -311,89 +362,84 @@ def optimize_excitation(robot, regressor, options: ExcitationOptions | None = No
                 "Pass nominal_parameters=model.base_parameters(robot.nominal_dynamic_parameters())."
             )
         torque_function = build_torque_function(regressor, nominal_parameters)
-    say = (lambda msg: progress(msg, quiet=options.quiet))
+    return limits, parametrization, columns, torque_function
 
-    tight = limits.shrunk(options.limit_backoff)
-    t_obj = parametrization.default_grid(options.n_samples)
-    starts = [random_feasible_parameters(parametrization, tight, generator, fine_grid(parametrization, 200, 1),
-                                         options.start_fill) for _ in range(options.n_starts)]
-    column_scale = None
-    if options.column_scaling:
-        column_scale = nominal_column_scale(regressor, *parametrization.evaluate(t_obj, starts[0]), columns)
-    say(f"excite: building the NLP ({parametrization.__class__.__name__}, {parametrization.n_parameters} "
-        f"parameters, {columns.size} columns, {options.n_samples} samples)")
-    problem = build_excitation_problem(
-        parametrization, regressor, limits, columns=columns, criterion=options.criterion,
-        n_samples=options.n_samples, n_constraint_samples=options.n_constraint_samples,
-        backoff=options.limit_backoff, column_scale=column_scale, torque_function=torque_function,
-        keep_out=keep_out, max_iter=options.max_iter, ipopt_options=options.ipopt_options)
+
+@dataclass(frozen=True)
+class _Search:
+    """Outcome of the multi-start search: the best verified start (None if none) and every start's record."""
+
+    best: np.ndarray | None
+    cond: float
+    margins: dict | None
+    status: str
+    statuses: tuple
+    start_conds: tuple
+    rank_deficient: bool
+
+
+def _solve_stages(problem, x0, sharpness, options: ExcitationOptions, started: float, label: str) -> tuple:
+    """Ipopt on one start through the sharpness continuation, each stage warm-started from the last.
+
+    Returns (x, Ipopt status, total iterations); x is the last accepted iterate.
+    """
+    x, status, iterations, multipliers = np.asarray(x0, dtype=float), "", 0, {}
+    for stage, p in enumerate(sharpness):
+        if stage > 0 and options.time_limit is not None and time.perf_counter() - started > options.time_limit:
+            break
+        solver = problem.solver if stage == 0 else problem.warm_solver
+        if options.time_limit is not None:
+            problem.monitor.deadline = started + options.time_limit
+        solution = solver(lbx=problem.lbx, ubx=problem.ubx, lbg=problem.lbg, ubg=problem.ubg, p=p, x0=x,
+                          **multipliers)
+        stats = solver.stats()
+        status, iterations = stats.get("return_status", "unknown"), iterations + int(stats.get("iter_count", 0))
+        _report(options, f"excite: start {label}, stage {stage + 1}/{len(sharpness)} (p={p:g}): "
+                         f"criterion {float(solution['f']):.4g}, {status}, {int(stats.get('iter_count', 0))} "
+                         f"iterations, {time.perf_counter() - started:.1f} s")
+        if status not in _ACCEPTED:
+            break
+        x = np.asarray(solution["x"], dtype=float).reshape(-1)
+        multipliers = {"lam_x0": solution["lam_x"], "lam_g0": solution["lam_g"]}
+    return x, status, iterations
+
+
+def _run_starts(problem, starts, options: ExcitationOptions, started: float) -> _Search:
+    """Solve every start (until the time limit), verify it on the fine grid and keep the best true ``cond``."""
+    parametrization, columns = problem.parametrization, problem.columns
     sharpness = options.sharpness if options.criterion == "cond" else (options.sharpness[-1],)
-
-    best, best_cond, statuses, start_conds, rank_deficient = None, math.inf, [], [], False
+    best, best_cond, best_margins, best_status = None, math.inf, None, ""
+    statuses, start_conds, rank_deficient = [], [], False
     for k, x0 in enumerate(starts):
+        label = f"{k + 1}/{len(starts)}"
         elapsed = time.perf_counter() - started
         if options.time_limit is not None and elapsed > options.time_limit and best is not None:
-            say(f"excite: time limit reached after {k} starts")
+            _report(options, f"excite: time limit reached after {k} starts")
             break
-        x, status, iterations, multipliers = np.asarray(x0, dtype=float), "", 0, {}
-        for stage, p in enumerate(sharpness):
-            if stage > 0 and options.time_limit is not None and time.perf_counter() - started > options.time_limit:
-                break
-            solver = problem.solver if stage == 0 else problem.warm_solver
-            if options.time_limit is not None:
-                problem.monitor.deadline = started + options.time_limit
-            solution = solver(lbx=problem.lbx, ubx=problem.ubx, lbg=problem.lbg, ubg=problem.ubg, p=p, x0=x,
-                              **multipliers)
-            stats = solver.stats()
-            status, iterations = stats.get("return_status", "unknown"), iterations + int(stats.get("iter_count", 0))
-            say(f"excite: start {k + 1}/{len(starts)}, stage {stage + 1}/{len(sharpness)} (p={p:g}): "
-                f"criterion {float(solution['f']):.4g}, {status}, {int(stats.get('iter_count', 0))} iterations, "
-                f"{time.perf_counter() - started:.1f} s")
-            if status not in _ACCEPTED:
-                break
-            x = np.asarray(solution["x"], dtype=float).reshape(-1)
-            multipliers = {"lam_x0": solution["lam_x"], "lam_g0": solution["lam_g"]}
+        x, status, iterations = _solve_stages(problem, x0, sharpness, options, started, label)
         statuses.append((status, iterations))
         if status not in _ACCEPTED:
             start_conds.append(math.inf)
-            say(f"excite: start {k + 1}/{len(starts)} failed ({status}, {iterations} iterations)")
+            _report(options, f"excite: start {label} failed ({status}, {iterations} iterations)")
             continue
         x, margins = _verified(problem, x)
         if margins["worst"] < 0:
             start_conds.append(math.inf)
-            say(f"excite: start {k + 1}/{len(starts)} discarded: {describe_violation(margins)} after repair")
+            _report(options, f"excite: start {label} discarded: {describe_violation(margins)} after repair")
             continue
-        cond = condition_number(stack_regressor(regressor, *parametrization.evaluate(t_obj, x), columns))
+        cond = condition_number(stack_regressor(problem.regressor, *parametrization.evaluate(problem.t_objective, x),
+                                                columns))
         start_conds.append(cond)
         if not math.isfinite(cond):
             rank_deficient = True
-            say(f"excite: start {k + 1}/{len(starts)}: the stacked regressor is rank deficient")
+            _report(options, f"excite: start {label}: the stacked regressor is rank deficient")
             continue
-        say(f"excite: start {k + 1}/{len(starts)}: cond {cond:.4g}, worst margin {margins['worst']:.3g} "
-            f"({status}, {iterations} iterations, {time.perf_counter() - started:.1f} s)")
+        _report(options, f"excite: start {label}: cond {cond:.4g}, worst margin {margins['worst']:.3g} "
+                         f"({status}, {iterations} iterations, {time.perf_counter() - started:.1f} s)")
         if cond < best_cond:
             best, best_cond, best_margins, best_status = x, cond, margins, status
-    if best is None and rank_deficient:
-        raise ParameterError(
-            "ExcitationOptions.columns must be identifiable: the stacked regressor of the selected columns is rank "
-            "deficient on every start (a column is zero or a combination of others along any trajectory). Select "
-            "base-parameter columns only, e.g. ~model.gravity_mask, or None for all."
-        )
-    if best is None:
-        _raise_failure(statuses, limits)
-    if best_status not in _CONVERGED:
-        warnings.warn(f"optimize_excitation: the best start stopped with Ipopt status {best_status}; its limits are "
-                      "verified but the criterion may improve with a larger max_iter or time_limit.",
-                      ExcitationWarning, stacklevel=2)
-    cond_scaled = None
-    if column_scale is not None:
-        y = stack_regressor(regressor, *parametrization.evaluate(t_obj, best), columns) * column_scale
-        cond_scaled = condition_number(y)
-    seconds = time.perf_counter() - started
-    return ExcitationTrajectory(
-        parametrization=parametrization, parameters=best, cond=best_cond, worst_margin=best_margins["worst"],
-        worst_limit=describe_violation(best_margins), seconds=seconds, columns=tuple(int(c) for c in columns),
-        limits=limits, cond_scaled=cond_scaled, status=best_status, start_conds=tuple(start_conds))
+    return _Search(best=best, cond=best_cond, margins=best_margins, status=best_status, statuses=tuple(statuses),
+                   start_conds=tuple(start_conds), rank_deficient=rank_deficient)
 
 
 def _verified(problem, x) -> tuple:

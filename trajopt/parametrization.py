@@ -34,8 +34,22 @@ def _times(t) -> np.ndarray:
     return times
 
 
-def _smoothstep(u):
-    """Quintic ramp 0->1 on [0, 1] with zero first and second derivative at both ends; and derivatives."""
+def smoothstep(u):
+    """Quintic ramp 0->1 on [0, 1] with zero first and second derivatives at both ends, and its derivatives.
+
+    ``s(u) = u^3 (10 - 15 u + 6 u^2)`` with ``u`` clipped to [0, 1]; it fades a trajectory in and
+    out so that it starts and ends at rest.
+
+    Parameters
+    ----------
+    u : array
+        Normalised time [-].
+
+    Returns
+    -------
+    s, ds, dds : arrays, shape of ``u``
+        The ramp and its first and second derivatives with respect to ``u``.
+    """
     u = np.clip(u, 0.0, 1.0)
     s = u**3 * (10 - 15 * u + 6 * u**2)
     ds = 30 * u**2 * (1 - u) ** 2
@@ -337,8 +351,8 @@ class SumOfSinesTrajectory:
         if not self.rest_to_rest:
             return np.ones_like(t), np.zeros_like(t), np.zeros_like(t)
         ramp = self.duration / 10 if self.ramp is None else self.ramp
-        s1, ds1, dds1 = _smoothstep(t / ramp)
-        s2, ds2, dds2 = _smoothstep((self.duration - t) / ramp)
+        s1, ds1, dds1 = smoothstep(t / ramp)
+        s2, ds2, dds2 = smoothstep((self.duration - t) / ramp)
         ds1, dds1 = ds1 / ramp, dds1 / ramp**2
         ds2, dds2 = -ds2 / ramp, dds2 / ramp**2
         return s1 * s2, ds1 * s2 + s1 * ds2, dds1 * s2 + 2 * ds1 * ds2 + s1 * dds2

@@ -205,6 +205,36 @@ def build_excitation_problem(parametrization, regressor: ca.Function, limits: Jo
     -------
     ExcitationProblem
     """
+    cols = _checked_problem_inputs(parametrization, regressor, limits, columns, n_samples, backoff, torque_function,
+                                   keep_out)
+    if n_constraint_samples is None:
+        n_constraint_samples = default_constraint_samples(parametrization)
+
+    x = ca.MX.sym("x", parametrization.n_parameters)
+    sharpness = ca.MX.sym("p")
+    t_obj = parametrization.default_grid(n_samples)
+    objective, keepalive = _objective(parametrization, regressor, x, sharpness, t_obj, cols, criterion, column_scale)
+    tight = limits.shrunk(backoff)
+    t_con = parametrization.default_grid(n_constraint_samples)
+    g, lbg, ubg, linear = _constraints(parametrization, x, t_con, tight, torque_function, keep_out)
+
+    nlp = {"x": x, "p": sharpness, "f": objective, "g": g}
+    monitor = IpoptMonitor("monitor", x.numel(), g.numel(), 1)
+    solver, warm_solver = _ipopt_solvers(nlp, monitor, linear, max_iter, max_wall_time, ipopt_options)
+    lbx, ubx = parametrization.bounds(tight.q_min, tight.q_max)
+    objective_function = ca.Function("objective", [x, sharpness], [objective], ["x", "p"], ["f"])
+    return ExcitationProblem(
+        parametrization=parametrization, regressor=regressor, limits=limits, columns=cols, criterion=criterion,
+        solver=solver, warm_solver=warm_solver, monitor=monitor, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
+        t_objective=t_obj, t_constraint=t_con, backoff=float(backoff), torque_function=torque_function,
+        keep_out=keep_out, column_scale=None if column_scale is None else np.asarray(column_scale, dtype=float),
+        objective_function=objective_function, _keepalive=keepalive,
+    )
+
+
+def _checked_problem_inputs(parametrization, regressor, limits, columns, n_samples, backoff, torque_function,
+                            keep_out) -> np.ndarray:
+    """Validate the inputs of ``build_excitation_problem``; the selected columns as indices."""
     n_dof = parametrization.n_dof
     check_same_dof(limits, n_dof)
     check_regressor(regressor, n_dof)
@@ -226,28 +256,33 @@ def build_excitation_problem(parametrization, regressor: ca.Function, limits: Jo
             f"KeepOut.point must take q with n_dof={n_dof} entries; got {keep_out.point.numel_in(0)}. "
             "Build it from the same robot."
         )
-    if n_constraint_samples is None:
-        n_constraint_samples = default_constraint_samples(parametrization)
+    return cols
 
-    x = ca.MX.sym("x", parametrization.n_parameters)
-    sharpness = ca.MX.sym("p")
-    t_obj = parametrization.default_grid(n_samples)
+
+def _objective(parametrization, regressor, x, sharpness, t_obj, cols, criterion, column_scale) -> tuple:
+    """The criterion of the mean information matrix over the objective grid, and the objects it needs alive.
+
+    The regressor Function is mapped with a reduced (summed) output, so the stacked regressor is
+    never formed in the graph.
+    """
+    n_samples = t_obj.shape[0]
     q, qd, qdd = parametrization.symbolic(x, t_obj)
     info = build_information_function(regressor, cols, column_scale)
     info_sum = info.map("information_sum", "serial", int(n_samples), [], [0])
     information = info_sum(q.T, qd.T, qdd.T) / n_samples
     criterion_fn = CriterionCallback(criterion, cols.size)
-    objective = criterion_fn(information, sharpness)
+    return criterion_fn(information, sharpness), (criterion_fn, info, info_sum)
 
-    tight = limits.shrunk(backoff)
-    t_con = parametrization.default_grid(n_constraint_samples)
+
+def _constraints(parametrization, x, t_con, tight: JointLimits, torque_function, keep_out) -> tuple:
+    """Limits on every constraint sample, the family's equalities: (g, lbg, ubg, whether g is linear in x)."""
     n_con = t_con.shape[0]
     qc, qdc, qddc = parametrization.symbolic(x, t_con)
     blocks = [ca.vec(qc), ca.vec(qdc), ca.vec(qddc)]  # joint-major: all samples of joint 1, then joint 2...
     lbg = [np.repeat(tight.q_min, n_con), np.repeat(-tight.qd_max, n_con), np.repeat(-tight.qdd_max, n_con)]
     ubg = [np.repeat(tight.q_max, n_con), np.repeat(tight.qd_max, n_con), np.repeat(tight.qdd_max, n_con)]
     linear = isinstance(parametrization, FourierTrajectory)  # its q, qd, qdd are linear in x
-    if limits.tau_max is not None:
+    if tight.tau_max is not None:
         tau = torque_function.map(n_con)(qc.T, qdc.T, qddc.T)  # (n_dof, n_con)
         blocks.append(ca.vec(tau))
         lbg.append(np.tile(-tight.tau_max, n_con))
@@ -263,8 +298,11 @@ def build_excitation_problem(parametrization, regressor: ca.Function, limits: Jo
     blocks.append(equality)
     lbg.append(np.zeros(equality.shape[0]))
     ubg.append(np.zeros(equality.shape[0]))
-    g = ca.vertcat(*blocks)
+    return ca.vertcat(*blocks), np.concatenate(lbg), np.concatenate(ubg), linear
 
+
+def _ipopt_solvers(nlp: dict, monitor: IpoptMonitor, linear: bool, max_iter, max_wall_time, ipopt_options) -> tuple:
+    """The cold-start and warm-start Ipopt solvers of the NLP; raw ``ipopt_options`` override the defaults."""
     options = dict(DEFAULT_IPOPT)
     options["max_iter"] = int(max_iter)
     if max_wall_time is not None:
@@ -273,19 +311,8 @@ def build_excitation_problem(parametrization, regressor: ca.Function, limits: Jo
         options["jac_c_constant"] = "yes"
         options["jac_d_constant"] = "yes"
     options.update(ipopt_options or {})
-    nlp = {"x": x, "p": sharpness, "f": objective, "g": g}
-    monitor = IpoptMonitor("monitor", x.numel(), g.numel(), 1)
     common = {"print_time": False, "error_on_fail": False, "iteration_callback": monitor}
     solver = ca.nlpsol("excitation", "ipopt", nlp, {"ipopt": options, **common})
     warm = {**options, **WARM_START_IPOPT, **(ipopt_options or {})}
     warm_solver = ca.nlpsol("excitation_warm", "ipopt", nlp, {"ipopt": warm, **common})
-    lbx, ubx = parametrization.bounds(tight.q_min, tight.q_max)
-    objective_function = ca.Function("objective", [x, sharpness], [objective], ["x", "p"], ["f"])
-    return ExcitationProblem(
-        parametrization=parametrization, regressor=regressor, limits=limits, columns=cols, criterion=criterion,
-        solver=solver, warm_solver=warm_solver, monitor=monitor, lbx=lbx, ubx=ubx, lbg=np.concatenate(lbg),
-        ubg=np.concatenate(ubg), t_objective=t_obj,
-        t_constraint=t_con, backoff=float(backoff), torque_function=torque_function, keep_out=keep_out,
-        column_scale=None if column_scale is None else np.asarray(column_scale, dtype=float),
-        objective_function=objective_function, _keepalive=(criterion_fn, info, info_sum),
-    )
+    return solver, warm_solver

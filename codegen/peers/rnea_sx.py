@@ -14,9 +14,7 @@ import casadi as ca
 import numpy as np
 
 from psdm_casadi.forward import ldl_solve, symmetric_from_columns
-from psdm_casadi.kinematics_sx import clean as _clean
-from psdm_casadi.kinematics_sx import cross as _cross
-from psdm_casadi.kinematics_sx import joint_chain
+from psdm_casadi.kinematics_sx import clean, cross, joint_chain
 from psdm_casadi.newton_euler import backward_pass
 
 
@@ -43,8 +41,8 @@ class RneaFunctions:
 
 def _inertia_apply(mass, com, inertia, w, v):
     """Spatial inertia (mass, COM, inertia about the COM) times the motion (w, v): returns (force, torque about the origin)."""
-    f = mass * (v - _cross(com, w))
-    n = ca.mtimes(inertia, w) + _cross(com, f)
+    f = mass * (v - cross(com, w))
+    n = ca.mtimes(inertia, w) + cross(com, f)
     return f, n
 
 
@@ -66,16 +64,16 @@ def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
         revolute = kin.revolute[i]
         # motion transported into the child frame: w' = R^T w, v' = R^T (v + w x p)
         w_in = ca.mtimes(rt, w_p)
-        v_in = ca.mtimes(rt, v_p + _cross(w_p, p))
+        v_in = ca.mtimes(rt, v_p + cross(w_p, p))
         dw_in = ca.mtimes(rt, dw_p)
-        dv_in = ca.mtimes(rt, dv_p + _cross(dw_p, p))
+        dv_in = ca.mtimes(rt, dv_p + cross(dw_p, p))
         s_w, s_v = (axis, zero) if revolute else (zero, axis)
         if with_velocity:
             w = w_in + s_w * qd[i]
             v = v_in + s_v * qd[i]
             # a = a_in + S qdd + v x (S qd)
-            dw = dw_in + s_w * qdd[i] + _cross(w, s_w) * qd[i]
-            dv = dv_in + s_v * qdd[i] + (_cross(w, s_v) + _cross(v, s_w)) * qd[i]
+            dw = dw_in + s_w * qdd[i] + cross(w, s_w) * qd[i]
+            dv = dv_in + s_v * qdd[i] + (cross(w, s_v) + cross(v, s_w)) * qd[i]
         else:
             w, v = zero, zero
             dw = dw_in + s_w * qdd[i]
@@ -86,16 +84,16 @@ def _rnea_pass(model, kin, qd, qdd, gravity, with_velocity):
         dv_list.append(dv)
         inertia = model.inertias[i + 1]
         mass = float(inertia.mass)
-        com = ca.SX(ca.DM(_clean(inertia.lever)))
-        rot_inertia = ca.SX(ca.DM(_clean(inertia.inertia)))  # about the centre of mass
+        com = ca.SX(ca.DM(clean(inertia.lever)))
+        rot_inertia = ca.SX(ca.DM(clean(inertia.inertia)))  # about the centre of mass
         f, t = _inertia_apply(mass, com, rot_inertia, dw, dv)
         if with_velocity:
             hf, ht = _inertia_apply(mass, com, rot_inertia, w, v)
-            f = f + _cross(w, hf)
-            t = t + _cross(w, ht) + _cross(v, hf)
+            f = f + cross(w, hf)
+            t = t + cross(w, ht) + cross(v, hf)
         forces.append(f)
         torques.append(t)
-    return backward_pass(kin, list(zip(forces, torques)), qdd, [float(a) for a in _clean(model.armature)])
+    return backward_pass(kin, list(zip(forces, torques)), qdd, [float(a) for a in clean(model.armature)])
 
 
 # The peer solves D qdd = tau - h with the same square-root-free LDL^T as the PSDM model, so the two
@@ -131,7 +129,7 @@ def build_rnea_functions(model, *, cse=True) -> RneaFunctions:
     n = model.nv
     q, qd, qdd, tau = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
     kin = joint_chain(model, q, caller="build_rnea_functions")
-    gravity = ca.SX(ca.DM(_clean(model.gravity.linear)))
+    gravity = ca.SX(ca.DM(clean(model.gravity.linear)))
     opts = {"cse": bool(cse)}
     tau_id = _rnea_pass(model, kin, qd, qdd, gravity, with_velocity=True)
     zero = ca.SX.zeros(n, 1)

@@ -100,8 +100,8 @@ SPEED_ROWS = (("inverse dynamics", "id", "pinocchio_rnea", "casadi_rnea_id"),
               ("forward dynamics", "fd", "pinocchio_aba", "casadi_rnea_fd"),
               ("regressor Y", "regressor", "pinocchio_regressor", None))
 
-# The sum form (the paper's pseudo-symbolic sum) is timed too when the model is small enough to compile
-# in seconds; the Panda's 29639 functions take about 20 minutes at -O3.
+# The sum form (the paper's pseudo-symbolic sum) is timed too when the model has few enough functions to
+# compile quickly; a large sum form (the Panda's) would dominate the benchmark's compile time.
 SUM_FORM_MAX_FUNCTIONS = 5000
 
 

@@ -1,12 +1,13 @@
 """Missing-physics diagnosis: locate where a model misses the recordings, name the effect, add it, show the fit improve.
 
 Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, validation RMSE before/after,
-residual analysis, augmented model). Modules: ``context`` (nominal signals per recording), ``nominal``
-(friction and rigid-body choices), ``candidates`` (the physics library, with plausibility bounds;
-``deflection_terms`` for backlash and elasticity), ``selection`` (forward selection on held-out data),
-``signal_fit`` (exact fit of the kept delay, backlash and joint elasticity by variable projection),
-``refine`` (Ipopt fit of the nonlinear parameters of the kept terms), ``residual_tests``, ``report``,
-``augmented``. The command is ``psdm diagnose`` (``psdm_casadi.cli.diagnose``).
+residual analysis, augmented model). Modules, in the order ``diagnose`` uses them: ``context`` (nominal
+signals per recording), ``nominal`` (friction and rigid-body choices), ``candidates/`` (the physics
+library, one module per family of effects, with plausibility bounds), ``selection`` (forward selection
+on held-out data), ``signal_fit`` (exact fit of the kept delay, backlash and joint elasticity by variable
+projection), ``refine`` (Ipopt fit of the nonlinear parameters of the kept terms), ``residual_tests``,
+``report``, ``augmented``; ``diagnose`` runs the steps. Progress is logged (loggers under
+``identification.diagnosis``). The command is ``psdm diagnose`` (``psdm_casadi.cli.diagnose``).
 """
 
 from identification.diagnosis.augmented import AugmentedModel

@@ -12,11 +12,11 @@ With a LuGre friction prior (the robot file's drives, ``filtered_friction``), co
 the velocity are built at full rate with the exact sign and low-pass filtered like the recording
 (``DiagnosisContext.lowpass``) before decimation: the measured torque is the filtered true torque,
 whose friction steps are smeared over the filter's impulse response, and a sharp column evaluated on
-the filtered velocity leaves that smear as a residual (20 x the sensor noise on the virtual Denso).
+the filtered velocity leaves that smear as a residual far above the sensor noise.
 Without a prior the smooth sign ``tanh(qd / SMOOTH_VELOCITY)`` of the filtered velocity is kept: its
 width stands in for the unknown pre-sliding, and filtered low-speed columns of a guessed shape turn
-into pulses at every reversal that trade against inertia (on the Staubli TX40 a Stribeck amplitude of
--1000 N m, validation RMSE of joint 6 1.6 -> 25 N m).
+into pulses at every reversal that trade against inertia (unphysical friction amplitudes that do not
+carry over to the validation recording).
 """
 
 from __future__ import annotations
@@ -31,6 +31,7 @@ from psdm_casadi.oracle import build_pinocchio_model
 
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
+from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 
 FILTER_ORDER = PreprocessOptions().order  # the order ``diagnose`` preprocesses the recordings with
 
@@ -143,8 +144,6 @@ class DiagnosisContext:
 
         With ``filtered_friction`` the exact sign at full rate, multiplied and filtered like the recording;
         otherwise ``factor * tanh(qd / SMOOTH_VELOCITY)`` on the grid (see the module docstring)."""
-        from identification.diagnosis.candidates import SMOOTH_VELOCITY
-
         if self.filtered_friction:
             sign = np.sign(self.full_qd[:, joint])
             return self.lowpass(sign if factor is None else sign * factor)
@@ -155,7 +154,8 @@ class DiagnosisContext:
         """Change of the robot file's LuGre friction of ``joint`` when the true velocity is the recorded one
         minus ``shift_rate`` (full rate, (n_full,)): ``F(qd_rec) - F(qd_rec - shift_rate)``, decimated (n_samples,);
         None without drives."""
-        from identification.friction.models import LuGreParameters, simulate_lugre
+        from identification.friction.models import LuGreParameters
+        from identification.friction.simulation import simulate_lugre
 
         if self.drives is None:
             return None

@@ -2,11 +2,14 @@
 
 RobotDescription + training/validation Recordings -> DiagnosisReport (with the augmented model). The
 diagnoser sees only the robot file (kinematics, nominal inertia, drive friction shapes) and the
-recordings.
+recordings. The steps, each a function below: ``prepare_problem`` (preprocess, nominal signals, the
+nominal model's columns), ``select_terms`` (``selection.forward_select``), ``refine_terms``
+(``refine.refine_fit``), ``build_report``. Progress is logged at INFO (logger ``identification.diagnosis``).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,12 +19,16 @@ from psdm_casadi.errors import ParameterError
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates import CandidateLibrary, default_library
-from identification.diagnosis.context import build_context
-from identification.diagnosis.nominal import FRICTION_MODELS, RIGID_BODY_CHOICES, filtered_friction_columns, friction_feature_names, friction_shapes
+from identification.diagnosis.context import DiagnosisContext, build_context
+from identification.diagnosis.nominal import (FRICTION_MODELS, RIGID_BODY_CHOICES, filtered_friction_columns,
+                                              friction_feature_names, friction_shapes)
+from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
-from identification.diagnosis.refine import refine_fit
-from identification.diagnosis.selection import forward_select
+from identification.diagnosis.selection import SelectionResult, forward_select
+from identification.metrics import r2, rmse
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -86,13 +93,42 @@ class DiagnosisOptions:
                                  "Combine terms with +, e.g. SpringTerm() + TorqueOffsetTerm().")
 
 
-def _r2(measured, predicted):
-    ss = np.sum((measured - measured.mean(axis=0)) ** 2, axis=0)
-    return 1.0 - np.sum((measured - predicted) ** 2, axis=0) / np.maximum(ss, 1e-300)
+@dataclass(frozen=True, eq=False)
+class DiagnosisProblem:
+    """The least-squares problem the selection and the refinement share, on training (``_t``) and validation (``_v``).
+
+    Attributes
+    ----------
+    ctx_t, ctx_v : DiagnosisContext
+        The preprocessed recordings with the nominal model's signals.
+    base_t, base_v : arrays (n_samples, n_dof, p)
+        Columns of the nominal model's free parameters (friction, and base parameters if identified).
+    y_t, y_v : arrays (n_samples, n_dof)
+        Measured torque minus the fixed part of the nominal model (the robot file's rigid body for
+        ``rigid_body="prior"``, nothing otherwise).
+    """
+
+    ctx_t: DiagnosisContext
+    ctx_v: DiagnosisContext
+    base_t: np.ndarray
+    base_v: np.ndarray
+    y_t: np.ndarray
+    y_v: np.ndarray
 
 
-def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, model=None,
-             progress=None) -> DiagnosisReport:
+@dataclass(frozen=True, eq=False)
+class FinalFit:
+    """The kept terms with their final coefficients and predictions (refined, or the selection's linear fit)."""
+
+    terms: tuple
+    coefficients: tuple
+    friction_coefficients: np.ndarray
+    prediction_t: np.ndarray
+    prediction_v: np.ndarray
+    nonlinear: dict
+
+
+def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, model=None) -> DiagnosisReport:
     """Find the physics a nominal model leaves out of the recordings, and show the fit with it.
 
     Parameters
@@ -105,8 +141,6 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     options : DiagnosisOptions, optional
     model : PSDMModel, optional
         ``derive_psdm(robot)``, derived when omitted.
-    progress : callable, optional
-        Called with progress messages.
 
     Returns
     -------
@@ -127,13 +161,21 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
-    say = progress or (lambda message: None)
     train.check_robot(robot.n_dof, robot.name)
     validation.check_robot(robot.n_dof, robot.name)
     if model is None:
         from psdm_casadi.derive import derive_psdm
-        say("diagnose: deriving the PSDM model ...")
+
+        logger.info("diagnose: deriving the PSDM model ...")
         model = derive_psdm(robot)
+    problem = prepare_problem(robot, model, train, validation, options)
+    selection = select_terms(robot, problem, options)
+    final = refine_terms(problem, selection, options)
+    return build_report(robot, model, problem, selection, final, options)
+
+
+def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
+    """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares."""
     kt = options.torque_constants
     if kt is None and robot.drives is not None:
         kt = tuple(d.kt for d in robot.drives)
@@ -143,14 +185,13 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
         train, validation = preprocess(train, pre), preprocess(validation, pre)
     else:
         raw_train = raw_validation = None
-    say("diagnose: evaluating the nominal model ...")
+    logger.info("diagnose: evaluating the nominal model ...")
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
     need_y = options.rigid_body == "identified"
     ctx_t = build_context(robot, model, train, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y,
                           raw=raw_train)
     ctx_v = build_context(robot, model, validation, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y,
                           raw=raw_validation)
-    vs, dv = friction_shapes(robot)
     base_t = filtered_friction_columns(robot, options.friction, ctx_t)
     base_v = filtered_friction_columns(robot, options.friction, ctx_v)
     if options.rigid_body == "prior":
@@ -159,63 +200,93 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
         base_t = np.concatenate([base_t, ctx_t.regressor], axis=2)
         base_v = np.concatenate([base_v, ctx_v.regressor], axis=2)
         y_t, y_v = ctx_t.tau, ctx_v.tau
+    return DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v)
+
+
+def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
+    """Forward selection of the library's terms, the BIC counted with the filter's effective sample count."""
     library = options.library if options.library is not None else default_library()
     instances = library.expand(robot.n_dof)
+    ctx_t = problem.ctx_t
     n_eff = None
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
-    say(f"diagnose: selecting among {len(instances)} candidate terms ...")
-    result = forward_select(instances, ctx_t, ctx_v, base_t, base_v, y_t, y_v,
-                            min_improvement=options.min_improvement, max_effects=options.max_effects,
-                            effective_samples=n_eff, joint_threshold=options.joint_threshold, progress=progress)
-    terms = tuple(step.term for step in result.steps)
-    coefficients_kept, friction_all = result.coefficients, result.friction_coefficients
-    prediction_t, prediction_v = result.prediction_train, result.prediction_validation
-    nonlinear = {}
-    if options.refine and terms:
-        refined = refine_fit(terms, coefficients_kept, friction_all, ctx_t, ctx_v, base_t, base_v, y_t, y_v)
-        if refined is not None and refined.improved:
-            say(f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations")
-            terms, coefficients_kept, friction_all = refined.terms, refined.coefficients, refined.friction_coefficients
-            prediction_t, prediction_v = refined.prediction_train, refined.prediction_validation
-            nonlinear = refined.nonlinear
-        elif refined is not None:
-            say(f"diagnose: Ipopt refinement not used ({refined.status}); keeping the linearised fit")
-    fixed_t = ctx_t.tau - y_t
-    fixed_v = ctx_v.tau - y_v
-    model_nominal_v = fixed_v + result.nominal_validation
-    model_final_v = fixed_v + prediction_v
-    model_nominal_t = fixed_t + result.nominal_train
-    model_final_t = fixed_t + prediction_t
-    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
-    n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
-    friction = friction_all[:n_friction]
-    theta = (model.base_parameters(robot.nominal_dynamic_parameters()) if options.rigid_body == "prior"
-             else friction_all[n_friction + n_dynamic:])
+    logger.info(f"diagnose: selecting among {len(instances)} candidate terms ...")
+    return forward_select(instances, ctx_t, problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v,
+                          min_improvement=options.min_improvement, max_effects=options.max_effects,
+                          effective_samples=n_eff, joint_threshold=options.joint_threshold)
+
+
+def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options: DiagnosisOptions) -> FinalFit:
+    """Refit the kept terms with their nonlinear parameters; the linear fit stays when that does not improve it."""
+    linear = FinalFit(terms=tuple(step.term for step in selection.steps), coefficients=selection.coefficients,
+                      friction_coefficients=selection.friction_coefficients,
+                      prediction_t=selection.prediction_train, prediction_v=selection.prediction_validation,
+                      nonlinear={})
+    if not (options.refine and linear.terms):
+        return linear
+    refined = refine_fit(linear.terms, linear.coefficients, linear.friction_coefficients, problem.ctx_t, problem.ctx_v,
+                         problem.base_t, problem.base_v, problem.y_t, problem.y_v)
+    if refined is None:
+        return linear
+    if not refined.improved:
+        logger.info(f"diagnose: Ipopt refinement not used ({refined.status}); keeping the linearised fit")
+        return linear
+    logger.info(f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations")
+    return FinalFit(terms=refined.terms, coefficients=refined.coefficients,
+                    friction_coefficients=refined.friction_coefficients, prediction_t=refined.prediction_train,
+                    prediction_v=refined.prediction_validation, nonlinear=refined.nonlinear)
+
+
+def build_report(robot, model, problem: DiagnosisProblem, selection: SelectionResult, final: FinalFit,
+                 options: DiagnosisOptions) -> DiagnosisReport:
+    """The findings, the augmented model and the per-joint errors of the nominal and the final model."""
+    ctx_t, ctx_v = problem.ctx_t, problem.ctx_v
+    fixed_t = ctx_t.tau - problem.y_t
+    fixed_v = ctx_v.tau - problem.y_v
+    model_nominal_v = fixed_v + selection.nominal_validation
+    model_final_v = fixed_v + final.prediction_v
+    model_nominal_t = fixed_t + selection.nominal_train
+    model_final_t = fixed_t + final.prediction_t
+    residual_v = ctx_v.tau - model_nominal_v
+    return DiagnosisReport(
+        robot_name=robot.name, n_dof=robot.n_dof, friction=options.friction, rigid_body=options.rigid_body,
+        findings=_findings(selection, final),
+        rmse_before=tuple(rmse(ctx_v.tau, model_nominal_v).tolist()),
+        rmse_after=tuple(rmse(ctx_v.tau, model_final_v).tolist()),
+        r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()), r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
+        rmse_train_before=tuple(rmse(ctx_t.tau, model_nominal_t).tolist()),
+        rmse_train_after=tuple(rmse(ctx_t.tau, model_final_t).tolist()),
+        residual_findings=analyse_residuals(ctx_v, residual_v),
+        candidates_tried=selection.candidates_tried, augmented=_augmented_model(robot, model, final, options),
+        validation_t=ctx_v.t, validation_q=ctx_v.q, validation_qd=ctx_v.qd, validation_tau=ctx_v.tau,
+        validation_nominal=model_nominal_v, validation_final=model_final_v)
+
+
+def _findings(selection: SelectionResult, final: FinalFit) -> tuple:
+    """One ``Finding`` per kept term, in the order the selection kept them."""
     findings = []
-    for step, term, coefficients in zip(result.steps, terms, coefficients_kept):
+    for step, term, coefficients in zip(selection.steps, final.terms, final.coefficients):
         effect, explanation = term.interpret(coefficients)
         parameters = dict(term.physical_parameters(coefficients))
-        parameters.update(nonlinear.get(term.label, {}))
+        parameters.update(final.nonlinear.get(term.label, {}))
         findings.append(Finding(
             effect=effect, label=term.label, joints=tuple(int(j) for j in step.joints),
             parameters=parameters, coefficients=tuple(float(c) for c in coefficients),
             feature_names=tuple(term.feature_names()), explanation=explanation, signature=term.signature,
             rmse_before=tuple(float(x) for x in step.rmse_before), rmse_after=tuple(float(x) for x in step.rmse_after),
             delta_bic=step.delta_bic, validation_gain=step.validation_gain))
-    augmented = AugmentedModel(model=model, theta=np.asarray(theta, dtype=float), friction_kind=options.friction,
-                               friction_coefficients=np.asarray(friction, dtype=float), friction_vs=vs, friction_dv=dv,
-                               terms=terms, coefficients=coefficients_kept)
-    residual_v = ctx_v.tau - model_nominal_v
-    return DiagnosisReport(
-        robot_name=robot.name, n_dof=robot.n_dof, friction=options.friction, rigid_body=options.rigid_body,
-        findings=tuple(findings),
-        rmse_before=tuple(np.sqrt(np.mean(residual_v**2, axis=0)).tolist()),
-        rmse_after=tuple(np.sqrt(np.mean((ctx_v.tau - model_final_v) ** 2, axis=0)).tolist()),
-        r2_before=tuple(_r2(ctx_v.tau, model_nominal_v).tolist()), r2_after=tuple(_r2(ctx_v.tau, model_final_v).tolist()),
-        rmse_train_before=tuple(np.sqrt(np.mean((ctx_t.tau - model_nominal_t) ** 2, axis=0)).tolist()),
-        rmse_train_after=tuple(np.sqrt(np.mean((ctx_t.tau - model_final_t) ** 2, axis=0)).tolist()),
-        residual_findings=analyse_residuals(ctx_v, residual_v),
-        candidates_tried=result.candidates_tried, augmented=augmented,
-        validation_t=ctx_v.t, validation_q=ctx_v.q, validation_qd=ctx_v.qd, validation_tau=ctx_v.tau,
-        validation_nominal=model_nominal_v, validation_final=model_final_v)
+    return tuple(findings)
+
+
+def _augmented_model(robot, model, final: FinalFit, options: DiagnosisOptions) -> AugmentedModel:
+    """The nominal model (the robot file's or the identified base parameters, fitted friction) plus the kept terms."""
+    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
+    n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
+    friction_all = final.friction_coefficients
+    theta = (model.base_parameters(robot.nominal_dynamic_parameters()) if options.rigid_body == "prior"
+             else friction_all[n_friction + n_dynamic:])
+    vs, dv = friction_shapes(robot)
+    return AugmentedModel(model=model, theta=np.asarray(theta, dtype=float), friction_kind=options.friction,
+                          friction_coefficients=np.asarray(friction_all[:n_friction], dtype=float),
+                          friction_vs=vs, friction_dv=dv, terms=final.terms, coefficients=final.coefficients)

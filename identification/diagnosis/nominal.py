@@ -24,7 +24,7 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError
 
-from identification.diagnosis.candidates import SMOOTH_VELOCITY
+from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 
 FRICTION_MODELS = ("lugre", "coulomb_viscous")
 RIGID_BODY_CHOICES = ("prior", "identified")
@@ -86,7 +86,8 @@ def filtered_friction_columns(robot, kind: str, context) -> np.ndarray:
 
 
 def _lugre_dynamic_full(robot, context) -> np.ndarray:
-    from identification.friction.models import LuGreParameters, simulate_lugre
+    from identification.friction.models import LuGreParameters
+    from identification.friction.simulation import simulate_lugre
 
     n = robot.n_dof
     out = np.zeros((context.full_t.size, n, n))

@@ -25,6 +25,7 @@ import casadi as ca
 import numpy as np
 
 from identification.diagnosis.signal_fit import SIGNAL_KEYS, exact_contribution, fit_signal_terms, resolve_deflection
+from identification.metrics import rms
 
 
 @dataclass(frozen=True)
@@ -86,7 +87,7 @@ def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, b
     refinable = [t.key in SIGNAL_KEYS + ("friction_drift",) for t in terms]
     if not any(refinable):
         return None
-    torque_rms = np.sqrt(np.mean(train_ctx.tau**2, axis=0))
+    torque_rms = rms(train_ctx.tau)
     sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
     signal = fit_signal_terms(terms, coefficients, train_ctx, base_train, y_train, sigma)
     terms, coefficients, signal = resolve_deflection(terms, coefficients, signal, train_ctx, base_train, y_train, sigma)

@@ -14,6 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from identification.metrics import rms
+
 
 @dataclass(frozen=True)
 class ResidualFinding:
@@ -69,8 +71,9 @@ def dominant_frequency(t, residual) -> tuple[float, float]:
     return float(freq[k]), float(power[band].sum() / power[1:].sum())
 
 
-def _rms(x):
-    return float(np.sqrt(np.mean(x**2))) if x.size else 0.0
+def _rms(x) -> float:
+    """RMS of a slice of the residual, 0 for an empty slice (a regime the recording never visits)."""
+    return float(rms(x)) if x.size else 0.0
 
 
 def analyse_residuals(context, residual, n_windows: int = 8) -> tuple:

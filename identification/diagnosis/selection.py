@@ -6,11 +6,10 @@ so joints count alike), predicts the validation recording, and keeps the candida
 that lowers the weighted validation error most, if it earns its parameters:
 
 - the validation RMSE of at least one joint drops by ``min_improvement`` (default 20 %) and by at
-  least ``min_torque_fraction`` (0.4 %) of that joint's torque RMS and 0.04 % of the robot's largest
-  joint torque RMS (floors in N m, so small misfits of the nominal model that filtering and sampling
-  leave, and noise-level changes on the weakest joints, do not count; with friction columns filtered
-  like the recording that misfit is 0.1-1.3 % of the torque RMS on the virtual Denso, and a 1.5-4 degree
-  base tilt lowers the loaded joints' error by only about 1 % of their torque RMS);
+  least ``min_torque_fraction`` (default 0.4 %) of that joint's torque RMS and ``ROBOT_FLOOR`` of the
+  robot's largest joint torque RMS (floors in N m, so the small misfits of the nominal model that
+  filtering and sampling leave, and noise-level changes on the weakest joints, do not count, while
+  effects that are small against the torque of loaded joints, such as a slightly tilted base, still do);
 - the fitted parameters are physically plausible (``CandidateTerm.implausibility``: a positive inertia,
   a friction coefficient below 0.5, a delay between 0 and 0.1 s, ...);
 - the weighted validation error of all joints drops;
@@ -18,17 +17,22 @@ that lowers the weighted validation error most, if it earns its parameters:
   number of independent samples of a low-pass filtered signal (2 x cut-off x duration per joint).
 
 Ties (gains within 2 %) go to the candidate with fewer parameters, then to the earlier term of the
-library. Selection stops when no candidate qualifies or ``max_effects`` are kept.
+library. Selection stops when no candidate qualifies or ``max_effects`` are kept. Each round's best
+candidates, the rejected ones and the kept term are logged at INFO (logger ``identification.diagnosis.selection``).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
 
 from psdm_casadi.errors import ParameterError
 
+from identification.metrics import rms, rmse
+
+logger = logging.getLogger(__name__)
 
 ROBOT_FLOOR = 0.0004  # least RMSE drop on any joint as a fraction of the robot's largest joint torque RMS
 
@@ -136,19 +140,74 @@ class _Design:
         pred_v = self.Xv @ beta[:p]
         if cand_train is not None:
             pred_v = pred_v + cand_val @ beta[p:]
-        rmse_v = np.sqrt(np.mean((self.y_val - pred_v) ** 2, axis=0))
+        rmse_v = rmse(self.y_val, pred_v)
         if not full:
             return beta, sse, rmse_v
         pred_t = self.base_train @ beta[:p]
         if cand_train is not None:
             pred_t = pred_t + cand_train @ beta[p:]
-        rmse_t = np.sqrt(np.mean((self.y_train - pred_t) ** 2, axis=0))
+        rmse_t = rmse(self.y_train, pred_t)
         return beta, sse, rmse_t, rmse_v, pred_t, pred_v
+
+
+@dataclass(frozen=True)
+class _Limits:
+    """What a candidate must achieve (see the module docstring): joint weights, floors, the BIC sample count."""
+
+    sigma: np.ndarray
+    torque_rms: np.ndarray
+    floor: np.ndarray
+    min_improvement: float
+    n_eff_total: float
+
+
+def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
+    """Fit each remaining candidate with the kept terms; the qualifying ones as ``(gain, k, index, term, rmse_v, dBIC)``."""
+    qualified, scored, rejected = [], [], []
+    wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
+    for index, term in enumerate(remaining):
+        ct, cv = term.columns(train_ctx), term.columns(val_ctx)
+        beta, sse1, rv1 = design.fit(ct, cv)
+        k = ct.shape[2]
+        reason = term.implausibility(beta[design.G.shape[0]:], train_ctx)
+        if reason is not None:
+            rejected.append((term.label, reason))
+            continue
+        rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
+        absolute = (rmse_v - rv1) >= limits.floor
+        wval1 = float(np.sum(rv1**2 / limits.sigma**2))
+        delta_bic = limits.n_eff_total * np.log(sse1 / sse) + k * np.log(limits.n_eff_total)
+        gain = (wval0 - wval1) / wval0
+        scored.append((gain, term.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / limits.torque_rms)),
+                       float(delta_bic)))
+        if np.any((rel >= limits.min_improvement) & absolute) and wval1 < wval0 and delta_bic < 0:
+            qualified.append((gain, k, index, term, rv1, delta_bic))
+    for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
+        logger.info(f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, drop {a:.2%} of torque RMS, dBIC {b:.0f}")
+    for label, reason in rejected[:5]:
+        logger.info(f"diagnose:   rejected {label}: {reason}")
+    return qualified
+
+
+def _choose(qualified):
+    """The best qualifying candidate; gains within 2 % of the best tie, and ties go to fewer parameters, then the earlier term."""
+    top = max(q[0] for q in qualified)
+    near = [q for q in qualified if q[0] >= top - 0.02 * abs(top)]
+    return min(near, key=lambda q: (q[1], q[2]))
+
+
+def _named_joints(term, rmse_before, rmse_after, joint_threshold) -> tuple:
+    """The joints a kept term acts on: its own, or for a robot-wide term those it improves by ``joint_threshold``."""
+    if term.joints:
+        return term.joints
+    rel = 1.0 - rmse_after / np.maximum(rmse_before, 1e-300)
+    order = np.argsort(-rel)
+    return tuple(int(j) for j in order if rel[j] >= joint_threshold) or (int(order[0]),)
 
 
 def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train, y_val, *,
                    min_improvement=0.2, max_effects=4, effective_samples=None, joint_threshold=0.1,
-                   min_torque_fraction=0.004, progress=None) -> SelectionResult:
+                   min_torque_fraction=0.004) -> SelectionResult:
     """Greedy forward selection of candidate term instances (see the module docstring).
 
     Parameters
@@ -175,77 +234,40 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
         raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
     if not (isinstance(max_effects, (int, np.integer)) and max_effects >= 0):
         raise ParameterError(f"DiagnosisOptions.max_effects must be an integer >= 0; got {max_effects!r}.")
-    n_dof = y_train.shape[1]
     n_eff = float(effective_samples) if effective_samples is not None else float(y_train.shape[0])
-    n_eff_total = n_eff * n_dof
     # joint weights: torque RMS of each joint on the training data, so joints count alike whatever their size
-    torque_rms = np.sqrt(np.mean(train_ctx.tau**2, axis=0))
+    torque_rms = rms(train_ctx.tau)
     sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
     # least RMSE drop per joint in N m: a fraction of that joint's own torque RMS (joints count alike), and
     # at least ROBOT_FLOOR of the robot's largest joint torque RMS (noise-level changes on the weakest joints)
     floor = np.maximum(min_torque_fraction * torque_rms, ROBOT_FLOOR * float(np.max(torque_rms)))
+    limits = _Limits(sigma=sigma, torque_rms=torque_rms, floor=floor, min_improvement=min_improvement,
+                     n_eff_total=n_eff * y_train.shape[1])
     design = _Design(base_train, base_val, y_train, y_val, sigma)
-    _, sse, rmse_t, rmse_v, pred_t0, pred_v0 = design.fit(full=True)
-    nominal_train, nominal_val = pred_t0, pred_v0
-    kept, steps = [], []
-    tried = 0
-    remaining = list(instances)
-    cache = {}
+    _, sse, rmse_t, rmse_v, nominal_train, nominal_val = design.fit(full=True)
+    kept, steps, sizes, tried, remaining = [], [], [], 0, list(instances)
     while len(kept) < max_effects and remaining:
-        best, scored, rejected = [], [], []
-        wval0 = float(np.sum(rmse_v**2 / sigma**2))
-        for index, term in enumerate(remaining):
-            ct, cv = term.columns(train_ctx), term.columns(val_ctx)
-            tried += 1
-            beta, sse1, rv1 = design.fit(ct, cv)
-            k = ct.shape[2]
-            reason = term.implausibility(beta[design.G.shape[0]:], train_ctx)
-            if reason is not None:
-                rejected.append((term.label, reason))
-                continue
-            rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
-            absolute = (rmse_v - rv1) >= floor
-            wval1 = float(np.sum(rv1**2 / sigma**2))
-            delta_bic = n_eff_total * np.log(sse1 / sse) + k * np.log(n_eff_total)
-            gain = (wval0 - wval1) / wval0
-            scored.append((gain, term.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / torque_rms)), float(delta_bic)))
-            if np.any((rel >= min_improvement) & absolute) and wval1 < wval0 and delta_bic < 0:
-                best.append((gain, k, index, term, None, rv1, delta_bic, sse1))
-        if progress is not None:
-            for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
-                progress(f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, drop {a:.2%} of torque RMS, dBIC {b:.0f}")
-            for label, reason in rejected[:5]:
-                progress(f"diagnose:   rejected {label}: {reason}")
-        if not best:
+        qualified = _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits)
+        tried += len(remaining)
+        if not qualified:
             break
-        top = max(b[0] for b in best)
-        near = [b for b in best if b[0] >= top - 0.02 * abs(top)]
-        gain, k, index, term, _, rv1, delta_bic, sse1 = min(near, key=lambda b: (b[1], b[2]))
+        gain, _, _, term, _, delta_bic = _choose(qualified)
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
-        rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
-        if term.joints:
-            joints = term.joints
-        else:
-            order = np.argsort(-rel)
-            joints = tuple(int(j) for j in order if rel[j] >= joint_threshold) or (int(order[0]),)
-        steps.append(SelectionStep(term=term, joints=joints, rmse_before=rmse_v.copy(), rmse_after=rv1.copy(),
+        steps.append(SelectionStep(term=term, joints=_named_joints(term, rmse_v, rv1, joint_threshold),
+                                   rmse_before=rmse_v.copy(), rmse_after=rv1.copy(),
                                    rmse_train_before=rmse_t.copy(), rmse_train_after=rt1.copy(),
                                    delta_bic=float(delta_bic), validation_gain=float(gain)))
-        if progress is not None:
-            progress(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
+        logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
         kept.append(term)
-        cache[term.label] = ct.shape[2]
+        sizes.append(ct.shape[2])
         design.set_base(np.concatenate([design.base_train, ct], axis=2), np.concatenate([design.base_val, cv], axis=2))
         _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
         remaining = [r for r in remaining if r.label != term.label]
     beta, _, _, _, pred_t, pred_v = design.fit(full=True)
     p0 = base_train.shape[2]
-    coefficients, start = [], p0
-    for term in kept:
-        k = cache[term.label]
-        coefficients.append(beta[start:start + k].copy())
-        start += k
+    bounds = np.cumsum([p0] + sizes)
+    coefficients = [beta[start:stop].copy() for start, stop in zip(bounds[:-1], bounds[1:])]
     return SelectionResult(steps=tuple(steps), coefficients=tuple(coefficients), friction_coefficients=beta[:p0].copy(),
                            rigid_coefficients=None, nominal_train=nominal_train, nominal_validation=nominal_val,
                            prediction_train=pred_t, prediction_validation=pred_v, candidates_tried=tried)

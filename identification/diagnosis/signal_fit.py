@@ -17,7 +17,7 @@ least squares at every trial (variable projection), on the training recording:
 A robot-wide term (the delay) is refitted once with each joint weighted by its remaining residual
 instead of its torque RMS (maximum likelihood with one noise level per joint): the nominal friction
 misfit of a light wrist joint is a large fraction of its torque and would otherwise pull the shared
-delay (by 1-2 ms on the virtual Denso).
+delay away from the value the accurate joints agree on.
 """
 
 from __future__ import annotations
@@ -26,6 +26,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import minimize
+
+from identification.diagnosis.candidates.deflection import BacklashTerm, JointElasticityTerm
+from identification.metrics import rms
 
 SIGNAL_KEYS = ("delay", "backlash", "joint_elasticity")
 BACKLASH_MARGIN = 0.05  # backlash must fit 5 % better than joint elasticity of the same joint (it has one more parameter)
@@ -137,7 +140,7 @@ def fit_signal_terms(terms, coefficients, context, base, y, sigma, max_evaluatio
         # relative to their torque: weight each joint by its remaining residual (maximum likelihood with a
         # variance per joint), so the joints where the model is accurate set the shared parameter
         r = residual(v, sigma, projector(sigma)).reshape(y.shape) * sigma
-        weights = np.maximum(np.sqrt(np.mean(r**2, axis=0)), 1e-3 * sigma)
+        weights = np.maximum(rms(r), 1e-3 * sigma)
         v, _, _ = solve(v, weights, max_evaluations // 2, ladder=False)
         r = residual(v, sigma, projector(sigma))
         sse_end = float(r @ r)
@@ -162,8 +165,6 @@ def resolve_deflection(terms, coefficients, fit, context, base, y, sigma):
 
     Returns ``(terms, coefficients, fit)`` (tuples and the ``SignalFit`` of the kept choice).
     """
-    from identification.diagnosis.deflection_terms import BacklashTerm, JointElasticityTerm
-
     terms, coefficients = tuple(terms), tuple(coefficients)
     for k, term in enumerate(terms):
         if fit is None or term.key not in ("backlash", "joint_elasticity"):
@@ -181,7 +182,7 @@ def resolve_deflection(terms, coefficients, fit, context, base, y, sigma):
         # its second parameter must earn a clearly smaller error
         backlash_fit, elastic_fit = (fit, alternative) if term.key == "backlash" else (alternative, fit)
         label = BacklashTerm(joint=term.joint).label
-        flank = backlash_fit.parameters[label][1] / max(float(np.sqrt(np.mean(context.tau[:, term.joint] ** 2))), 1e-12)
+        flank = backlash_fit.parameters[label][1] / max(rms(context.tau[:, term.joint]), 1e-12)
         # a play is crossed near zero torque: a flank spread over the working torque is a (stiffening) compliance
         keep_backlash = backlash_fit.sse < (1.0 - BACKLASH_MARGIN) * elastic_fit.sse and flank < BACKLASH_MAX_FLANK
         if keep_backlash != (term.key == "backlash"):

@@ -2,10 +2,10 @@
 
 The peer of our multiple shooting (:mod:`identification.friction.shooting`) in
 ``benchmarks/calibration.py`` and ``benchmarks/identification_friction.py``: the same data and
-starting point (:mod:`identification.friction.models.start`), scipy's Nelder-Mead in place of Matlab's
+starting point (:mod:`identification.friction.start`), scipy's Nelder-Mead in place of Matlab's
 ``fminsearch``, and as the cost's simulator either a general stiff ODE solver (scipy LSODA,
 :func:`simulate_lugre_ode`, the paper's setting) or our exponential integrator
-(:func:`identification.friction.models.simulate_lugre`, fast).
+(:func:`identification.friction.simulation.simulate_lugre`).
 """
 
 from __future__ import annotations
@@ -19,14 +19,10 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize
 
+from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters, check_friction_data
+from identification.friction.simulation import lugre_torque, simulated_mse
+from identification.friction.start import check_initial
 from psdm_casadi.errors import ParameterError, SolverError
-from identification.friction.models import (
-    LUGRE_PARAMETER_NAMES,
-    LuGreParameters,
-    check_friction_data,
-    lugre_torque,
-)
-from identification.friction.start import _check_initial, _sse
 
 __all__ = ["BaselineResult", "paper_friction_fit", "simulate_lugre_ode"]
 
@@ -68,8 +64,9 @@ def simulate_lugre_ode(parameters, t, qd, rtol=1e-6):
 
     The velocity is interpolated linearly between samples; the step is capped at one sample
     period; the bristle state starts at zero. The right-hand side is scalar Python (``math``), the
-    cheapest form for scipy's solvers. Slower than :func:`identification.friction.models.simulate_lugre`
-    by two orders of magnitude; it reproduces the paper's "simulate the LuGre equations" cost.
+    cheapest form for scipy's solvers. Much slower than
+    :func:`identification.friction.simulation.simulate_lugre`; it reproduces the paper's "simulate
+    the LuGre equations" cost.
 
     Parameters
     ----------
@@ -117,7 +114,8 @@ def paper_friction_fit(t, qd, tau_friction, initial, free="presliding", max_eval
 
     Starting from ``initial`` (whose ``fc, fv, dv`` come from the trust-region fit of eq. 20),
     scipy's Nelder-Mead -- the counterpart of Matlab's ``fminsearch`` -- minimises the sum of
-    squared errors between the measured torque and :func:`simulate_lugre` over the parameters in
+    squared errors between the measured torque and
+    :func:`identification.friction.simulation.simulate_lugre` over the parameters in
     ``free``, with ``fminsearch``'s defaults: a 5 % initial simplex, ``TolFun = 1e-4`` on the sum of
     squares, ``TolX = 1e-4`` and ``200 * n_free`` evaluations. The simplex works on
     ``log(p / initial)`` (positive parameters; ``TolX`` is then relative, which lets it stop
@@ -136,15 +134,16 @@ def paper_friction_fit(t, qd, tau_friction, initial, free="presliding", max_eval
     substeps : int
         Integrator sub-steps per sample of the simulation.
     simulator : {"exponential", "ode"}
-        The cost's LuGre simulation: our stiff-safe :func:`simulate_lugre` (fast) or the generic
-        stiff ODE solver :func:`simulate_lugre_ode` (the paper's setting, ~100x slower).
+        The cost's LuGre simulation: our stiff-safe
+        :func:`identification.friction.simulation.simulate_lugre` or the generic stiff ODE solver
+        :func:`simulate_lugre_ode` (the paper's setting, much slower).
 
     Returns
     -------
     BaselineResult
     """
     t, qd, tau = check_friction_data(t, qd, tau_friction, owner="paper_friction_fit")
-    _check_initial(initial, "paper_friction_fit")
+    check_initial(initial, "paper_friction_fit")
     if free not in _FREE_SETS:
         raise ParameterError(f"paper_friction_fit.free must be one of {sorted(_FREE_SETS)}; got {free!r}.")
     names = _FREE_SETS[free]
@@ -169,7 +168,7 @@ def paper_friction_fit(t, qd, tau_friction, initial, free="presliding", max_eval
             return np.inf
         if simulator == "ode":
             return float(np.sum((simulate_lugre_ode(parameters_of(x), t, qd) - tau) ** 2))
-        return tau.size * _sse(parameters_of(x), t, qd, tau, substeps)
+        return tau.size * simulated_mse(parameters_of(x), t, qd, tau, substeps)
 
     start = time.perf_counter()
     sol = minimize(

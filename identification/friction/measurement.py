@@ -1,13 +1,13 @@
 """LuGre friction as the friction step measures it: held commands and central differences of the encoder.
 
-Part of step 3 (:mod:`identification.calibration.friction_step`, :mod:`identification.friction.shooting`). The friction
-torque of eq. 19 is formed from held current set-points and the central second difference of the
-recorded position, ``y[k] = (tau[k-1] + tau[k]) / 2 - J (q[k+1] - 2 q[k] + q[k-1]) / T^2``. For a
-command held over each sample period this equals, exactly, the friction averaged over
-``[t[k-1], t[k+1]]`` with the triangular weight ``1 - |t - t[k]| / T``: ``y`` is not the friction at
-``t[k]``. On heavy joints the bristles ring at tens of hertz after every stick (the Denso's base
-joints at about 80 Hz), and at 1 kHz comparing that average with the friction at the sample, along
-a velocity interpolated between central differences, biased sigma1 by 50-170 %.
+Part of step 3 (:mod:`identification.calibration.friction_step`,
+:mod:`identification.friction.shooting`). The friction torque of eq. 19 is formed from held current
+set-points and the central second difference of the recorded position,
+``y[k] = (tau[k-1] + tau[k]) / 2 - J (q[k+1] - 2 q[k] + q[k-1]) / T^2``. For a command held over
+each sample period this equals, exactly, the friction averaged over ``[t[k-1], t[k+1]]`` with the
+triangular weight ``1 - |t - t[k]| / T``: ``y`` is not the friction at ``t[k]``. On heavy joints the
+bristles ring at tens of hertz after every stick, and comparing that average with the friction at
+the sample, along a velocity interpolated between central differences, biases sigma1.
 
 This module's model of ``y`` (``ShootingOptions.measurement="central-difference"``):
 
@@ -17,7 +17,7 @@ This module's model of ``y`` (``ShootingOptions.measurement="central-difference"
   and ``x = sigma0 |v| T[i] / Fss(v)`` (``Fss = fc + (fs - fc) exp(-(v/vs)^2)``);
 - the friction of eq. 14 on that interval is ``a s(u) + b`` with ``a = 1 - sigma1 |v| / Fss(v)`` and
   ``b = sigma1 v + fv |v|^dv sign(v)``; its weighted means ``L = int (1-u) f du`` and
-  ``R = int u f du`` follow from ``phi1``/``phi2`` of :mod:`identification.friction.models`:
+  ``R = int u f du`` follow from ``phi1``/``phi2`` of :mod:`identification.friction.lugre_step`:
   ``L = a (r/2 + (s[i] - r) phi2(x)) + b/2``, ``R = a (r/2 + (s[i] - r) (phi1(x) - phi2(x))) + b/2``;
 - ``y[k] = (2 / (T[k-1] + T[k])) (T[k-1] R[k-1] + T[k] L[k])`` (``R[k-1] + L[k]`` on a uniform grid).
 """
@@ -27,7 +27,9 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from identification.friction.models import _phi12, _phi12_casadi, _shooting_interval_functions, check_friction_data
+from identification.friction.lugre_step import phi_function_expressions, phi_functions
+from identification.friction.models import check_friction_data
+from identification.friction.shooting_nlp import build_shooting_interval
 
 __all__ = ["simulate_lugre_measured", "interval_velocities", "measurement_weights", "build_measured_interval",
            "measured_layout"]
@@ -97,7 +99,7 @@ def simulate_lugre_measured(parameters, t, q, s0=0.0) -> tuple[np.ndarray, np.nd
     s[0] = float(s0)
     for i in range(h.size):
         s[i + 1] = rest[i] + (s[i] - rest[i]) * decay[i]
-    _, left, right = _interval_means(p, s[:-1], h, v, np.exp, _phi12, np.abs, sign, power)
+    _, left, right = _interval_means(p, s[:-1], h, v, np.exp, phi_functions, np.abs, sign, power)
     alpha, beta = measurement_weights(h)
     y = np.empty(t.size)
     y[1:-1] = alpha * right[:-1] + beta * left[1:]
@@ -114,9 +116,9 @@ def build_measured_interval(p0, s_scale, length):
     ``steps`` holds per sample interval ``[T, v, sign(v), log|v|]`` (log 0 where v = 0), ``data`` per
     measurement ``[y, weight, alpha, beta]`` (weight 0 pads).
 
-    Returns ``interval(log_p, w, w_next, steps, data) -> (continuity, cost)`` and
-    ``hessian(log_p, w, steps, data, lam_f, lam) -> (36,)``, the upper triangle of the 8 x 8 Hessian
-    of ``lam_f * cost + lam * continuity`` over ``(log_p, w)``, as in :mod:`identification.friction.shooting`.
+    Returns the pair ``interval(log_p, w, w_next, steps, data) -> (continuity, cost)`` and
+    ``hessian(log_p, w, steps, data, lam_f, lam) -> (36,)`` of
+    :func:`identification.friction.shooting_nlp.build_shooting_interval`.
     """
     log_p = ca.SX.sym("log_p", 7)
     p = [float(p0[i]) * ca.exp(log_p[i]) for i in range(7)]
@@ -129,7 +131,7 @@ def build_measured_interval(p0, s_scale, length):
     right_prev, con = None, None
     for i in range(length + 1):
         h, v, sign, log_speed = (steps[r, i] for r in range(4))
-        s_next, left, right = _interval_means(p, s, h, v, ca.exp, _phi12_casadi, ca.fabs, sign,
+        s_next, left, right = _interval_means(p, s, h, v, ca.exp, phi_function_expressions, ca.fabs, sign,
                                               ca.exp(p[4] * log_speed))
         if right_prev is not None:
             y, weight, alpha, beta = (data[r, i - 1] for r in range(4))
@@ -137,7 +139,7 @@ def build_measured_interval(p0, s_scale, length):
         if i == length - 1:
             con = s_next / s_scale - w_next
         right_prev, s = right, s_next
-    return _shooting_interval_functions("measured_interval", log_p, w, w_next, steps, data, con, cost)
+    return build_shooting_interval("measured_interval", log_p, w, w_next, steps, data, con, cost)
 
 
 def measured_layout(t, q, tau, n_nodes, length, mse_scale):

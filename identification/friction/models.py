@@ -1,61 +1,31 @@
-"""Joint friction models (Coulomb-viscous, Stribeck, LuGre), numeric and symbolic (paper eqs. 12-14, 20).
+"""Joint friction models: LuGre, Coulomb-viscous and Stribeck parameters (paper eqs. 12-14, 20).
 
-Sits between a friction experiment (plain ``t, qd, tau_friction`` arrays, paper eq. 19) and
-:mod:`identification.friction.shooting`, which fits :class:`LuGreParameters` to such data.
-
-The LuGre model of one joint (Canudas de Wit et al. 1995; paper eqs. 12-14)::
+The values a friction experiment (plain ``t, qd, tau_friction`` arrays, paper eq. 19) is fitted
+to, and the check of those arrays. The LuGre model of one joint (Canudas de Wit et al. 1995;
+paper eqs. 12-14)::
 
     g(qd)   = fc + (fs - fc) * exp(-(qd / vs)**2)                 Stribeck curve      (13, times sigma0)
     zdot    = qd - sigma0 * |qd| / g(qd) * z                      bristle deflection  (12)
     tau     = sigma0 * z + sigma1 * zdot + fv * |qd|**dv * sign(qd)                   (14)
 
-is stiff: the relaxation rate ``a = sigma0 |qd| / g`` reaches 1e5 1/s on the Denso, so an explicit
-step at 1 kHz diverges. The numeric simulation and the shooting NLP share one discretisation.
-With the bristle force ``s = sigma0 z`` [N m] (of the order of the Coulomb torque, so well
-scaled) eq. 12 reads ``sdot = -a(t) (s - y(t))`` with the quasi-steady force
-``y = sign(qd) g(qd)``. Over a step of length h with ``qd`` linear and of one sign (steps are
-split at zero crossings of the data), ``a`` is frozen at its trapezoidal mean and ``y`` is taken
-linear, and this linear ODE is integrated exactly (an exponential integrator)::
-
-    x      = h (a[k] + a[k+1]) / 2
-    s[k+1] = exp(-x) s[k] + x (phi1(x) y[k] + phi2(x) (y[k+1] - y[k]))
-
-with ``phi1(x) = (1 - exp(-x)) / x`` and ``phi2(x) = (x - 1 + exp(-x)) / x**2``. The scheme is
-unconditionally stable, second order, reproduces steady sliding exactly (so the Stribeck curve is
-the steady state of the discrete model) and is the trapezoidal rule in pre-sliding. At 1 kHz on
-the Denso its torque error is about 1e-3 of the signal (tests/identification/test_friction.py).
+Its discretisation is :mod:`identification.friction.lugre_step`, its numeric simulation
+:mod:`identification.friction.simulation` and its CasADi form
+:mod:`identification.friction.expressions`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import casadi as ca
 import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.robot import DriveParameters
 
-__all__ = [
-    "LUGRE_PARAMETER_NAMES",
-    "LuGreParameters",
-    "CoulombViscous",
-    "Stribeck",
-    "lugre_step_coefficients",
-    "simulate_lugre",
-    "lugre_torque",
-    "check_friction_data",
-    "LuGreExpressions",
-    "build_lugre_expressions",
-    "lugre_zdot_expression",
-    "lugre_torque_expression",
-    "lugre_step_expression",
-]
+__all__ = ["LUGRE_PARAMETER_NAMES", "LuGreParameters", "CoulombViscous", "Stribeck", "check_friction_data"]
 
 LUGRE_PARAMETER_NAMES = ("fc", "fs", "vs", "fv", "dv", "sigma0", "sigma1")
 """Order of the seven LuGre parameters in every array form (paper Table 2 column order)."""
-
-_SERIES_LIMIT = 1e-3  # below this x = h * rate, phi1 and phi2 use their Taylor series
 
 
 def _check_positive(owner, name, value, allow_zero=False):
@@ -242,9 +212,6 @@ class Stribeck:
         return (self.breakaway(qd) + self.fv * np.abs(qd) ** self.dv) * np.sign(qd)
 
 
-# ------------------------------------------------------------------------------------------------
-# numeric simulation
-# ------------------------------------------------------------------------------------------------
 def check_friction_data(t, qd, tau=None, owner="friction data", signal="qd"):
     """Validate friction-experiment arrays and return them as float 1-D arrays.
 
@@ -298,315 +265,3 @@ def check_friction_data(t, qd, tau=None, owner="friction data", signal="qd"):
             f"{owner}.t must be strictly increasing; got a non-increasing step. Sort or deduplicate it."
         )
     return tuple(out.values())
-
-
-def _phi12_with(x, where, expm1):
-    """phi1(x) = (1 - e^-x)/x and phi2(x) = (x - 1 + e^-x)/x^2, accurate for all x >= 0.
-
-    ``where`` and ``expm1`` are numpy's or CasADi's, so both evaluations share one formula.
-    """
-    small = x < _SERIES_LIMIT
-    xs = where(small, 1.0, x)
-    em1 = expm1(-xs)
-    phi1 = where(small, 1 - x / 2 + x * x / 6 - x**3 / 24, -em1 / xs)
-    phi2 = where(small, 0.5 - x / 6 + x * x / 24 - x**3 / 120, (xs + em1) / (xs * xs))
-    return phi1, phi2
-
-
-def _phi12(x):
-    """phi1, phi2 on numpy arrays."""
-    return _phi12_with(x, np.where, np.expm1)
-
-
-@dataclass(frozen=True)
-class _SubstepLayout:
-    """Data-only description of the integration sub-steps of a sampled velocity signal.
-
-    Each sample interval k is split into ``substeps`` equal steps, and an interval in which the
-    velocity changes sign is first split at its (linearly interpolated) zero crossing, so that the
-    sign of ``qd`` is constant on every sub-step. ``first`` holds the sub-steps before the crossing
-    (the whole interval when there is none), ``second`` those after it, for crossing intervals only.
-    """
-
-    h: np.ndarray  # (2, substeps, n_intervals) step lengths; second part zero where no crossing
-    qd_a: np.ndarray  # velocity at the start of each sub-step
-    qd_b: np.ndarray  # velocity at its end
-    sign: np.ndarray  # sign of qd on the sub-step (-1, 0, 1)
-    crossing: np.ndarray  # (n_intervals,) bool
-
-
-def _substep_layout(t, qd, substeps):
-    h = np.diff(t)
-    q0 = qd[:-1]
-    q1 = qd[1:]
-    crossing = q0 * q1 < 0
-    frac = np.ones_like(h)
-    frac[crossing] = q0[crossing] / (q0[crossing] - q1[crossing])
-    shape = (2, substeps, h.size)
-    f0 = np.empty(shape)
-    f1 = np.empty(shape)
-    j = np.arange(substeps)[:, None]
-    f0[0] = frac * j / substeps
-    f1[0] = frac * (j + 1) / substeps
-    f0[1] = frac + (1 - frac) * j / substeps
-    f1[1] = frac + (1 - frac) * (j + 1) / substeps
-    qd_a = q0 + (q1 - q0) * f0
-    qd_b = q0 + (q1 - q0) * f1
-    # exact zeros at the crossing (no round-off sign flips)
-    qd_b[0, -1, crossing] = 0.0
-    qd_a[1, 0, crossing] = 0.0
-    step = h * (f1 - f0)
-    step[1, :, ~crossing] = 0.0
-    sign = np.sign(qd_a + qd_b)
-    return _SubstepLayout(step, qd_a, qd_b, sign, crossing)
-
-
-def _step_maps(p, h, qd_a, qd_b, sign):
-    """Linear map ``s_end = decay s_start + gain`` of one sub-step (numpy; see module docstring)."""
-    g_a = p.fc + (p.fs - p.fc) * np.exp(-((qd_a / p.vs) ** 2))
-    g_b = p.fc + (p.fs - p.fc) * np.exp(-((qd_b / p.vs) ** 2))
-    x = 0.5 * h * p.sigma0 * (np.abs(qd_a) / g_a + np.abs(qd_b) / g_b)
-    phi1, phi2 = _phi12(x)
-    y_a = sign * g_a
-    y_b = sign * g_b
-    return np.exp(-x), x * (phi1 * y_a + phi2 * (y_b - y_a))
-
-
-def lugre_step_coefficients(parameters, h, qd_start, qd_end):
-    """Coefficients of one exponential-integrator step of the bristle force ``s = sigma0 z``.
-
-    ``s_end = decay * s_start + gain``, for ``qd`` linear over the step and of one sign (see the
-    module docstring; :func:`simulate_lugre` splits steps at zero crossings before calling this).
-
-    Parameters
-    ----------
-    parameters : LuGreParameters
-    h : float or array
-        Step length [s], >= 0.
-    qd_start, qd_end : array
-        Velocity at the start and end of each step [rad/s], of equal sign or zero.
-
-    Returns
-    -------
-    decay, gain : ndarray
-        ``decay`` in (0, 1], ``gain`` [N m].
-    """
-    qd_start = np.asarray(qd_start, dtype=float)
-    qd_end = np.asarray(qd_end, dtype=float)
-    return _step_maps(parameters, h, qd_start, qd_end, np.sign(qd_start + qd_end))
-
-
-def lugre_torque(parameters, qd, s):
-    """LuGre friction torque (eq. 14) [N m] from velocity ``qd`` and bristle force ``s = sigma0 z`` [N m]."""
-    p = parameters
-    qd = np.asarray(qd, dtype=float)
-    g = p.fc + (p.fs - p.fc) * np.exp(-((qd / p.vs) ** 2))
-    zdot = qd - np.abs(qd) * s / g
-    return s + p.sigma1 * zdot + p.fv * np.abs(qd) ** p.dv * np.sign(qd)
-
-
-def simulate_lugre(parameters, t, qd, z0=0.0, substeps=1):
-    """Simulate the LuGre model along a sampled velocity signal (stiff-safe, any sigma0).
-
-    The velocity is taken as linear between samples. Each sample interval is split at a zero
-    crossing of ``qd`` and into ``substeps`` exponential-integrator steps (module docstring);
-    their linear maps are composed, so the sequential loop costs one multiply-add per sample
-    whatever ``substeps``.
-
-    Parameters
-    ----------
-    parameters : LuGreParameters
-    t : array, shape (n_samples,)
-        Strictly increasing times [s].
-    qd : array, shape (n_samples,)
-        Joint velocity [rad/s].
-    z0 : float
-        Bristle deflection at ``t[0]`` [rad].
-    substeps : int
-        Integration steps per sample interval, >= 1. The scheme is second order; one step is
-        accurate to about 1e-3 of the torque at 1 kHz on the Denso (see the tests), 32 or more give
-        a reference solution.
-
-    Returns
-    -------
-    tau : ndarray, shape (n_samples,)
-        Friction torque [N m] (eq. 14).
-    z : ndarray, shape (n_samples,)
-        Bristle deflection [rad].
-
-    Raises
-    ------
-    ParameterError, ShapeError
-        Bad parameters or arrays; the message names the field.
-
-    Examples
-    --------
-    >>> p = LuGreParameters(fc=1.0, fs=1.5, vs=0.01, fv=0.5, dv=1.0, sigma0=1e5, sigma1=10.0)
-    >>> t = np.arange(0.0, 1.0, 1e-3)
-    >>> tau, z = simulate_lugre(p, t, np.full_like(t, 0.2))
-    >>> round(float(tau[-1]), 6)  # steady sliding: fc + fv * 0.2
-    1.1
-    """
-    if not isinstance(parameters, LuGreParameters):
-        raise ParameterError(
-            f"simulate_lugre.parameters must be a LuGreParameters; got {type(parameters).__name__}. "
-            "Build one with LuGreParameters(...)."
-        )
-    t, qd = check_friction_data(t, qd, owner="simulate_lugre")
-    if not (isinstance(substeps, (int, np.integer)) and not isinstance(substeps, bool) and substeps >= 1):
-        raise ParameterError(f"simulate_lugre.substeps must be an integer >= 1; got {substeps!r}. Pass e.g. 1 or 8.")
-    if not np.isfinite(z0):
-        raise ParameterError(f"simulate_lugre.z0 must be finite; got {z0}. Pass 0.0 for a relaxed bristle.")
-    decay, gain = _interval_maps(parameters, _substep_layout(t, qd, int(substeps)))
-    s = _run_recursion(decay, gain, parameters.sigma0 * float(z0))
-    return lugre_torque(parameters, qd, s), s / parameters.sigma0
-
-
-def _interval_maps(parameters, layout):
-    """Per-sample-interval linear maps ``s[k+1] = decay[k] s[k] + gain[k]`` (sub-steps composed)."""
-    decay = np.ones(layout.h.shape[-1])
-    gain = np.zeros_like(decay)
-    for part in range(2):
-        for j in range(layout.h.shape[1]):
-            d_j, g_j = _step_maps(
-                parameters, layout.h[part, j], layout.qd_a[part, j], layout.qd_b[part, j], layout.sign[part, j]
-            )
-            decay, gain = d_j * decay, d_j * gain + g_j
-    return decay, gain
-
-
-def _run_recursion(decay, gain, s0):
-    """Evaluate the first-order linear recursion sequentially (plain floats are fastest here)."""
-    s = [s0]
-    value = s0
-    for d, g in zip(decay.tolist(), gain.tolist()):
-        value = d * value + g
-        s.append(value)
-    return np.asarray(s)
-
-
-# ------------------------------------------------------------------------------------------------
-# symbolic pieces (CasADi)
-# ------------------------------------------------------------------------------------------------
-def _phi12_casadi(x):
-    """phi1, phi2 as CasADi expressions."""
-    return _phi12_with(x, ca.if_else, ca.expm1)
-
-
-def _shooting_interval_functions(name, log_p, w, w_next, steps, data, continuity, cost):
-    """The Function pair of one multiple-shooting interval of a LuGre fit (shared by both measurement models).
-
-    ``name(log_p, w, w_next, steps, data) -> (continuity, cost)`` and
-    ``name_hessian(log_p, w, steps, data, lam_f, lam) -> (36,)``: the upper triangle of the 8 x 8 Hessian
-    of ``lam_f * cost + lam * continuity`` over ``(log_p, w)`` (continuity is linear in ``w_next``).
-    """
-    lam_f = ca.SX.sym("lam_f")
-    lam = ca.SX.sym("lam")
-    z = ca.vertcat(log_p, w)
-    hess = ca.hessian(lam_f * cost + lam * continuity, z)[0]
-    triu = ca.vertcat(*[hess[i, j] for i, j in zip(*np.triu_indices(8))])
-    return (
-        ca.Function(name, [log_p, w, w_next, steps, data], [continuity, cost]),
-        ca.Function(f"{name}_hessian", [log_p, w, steps, data, lam_f, lam], [triu]),
-    )
-
-
-@dataclass(frozen=True)
-class LuGreExpressions:
-    """CasADi Functions of the LuGre model of one joint, for NLPs and MPC.
-
-    Attributes
-    ----------
-    zdot : casadi.Function
-        ``(z, qd, p) -> zdot`` [rad/s], eq. 12; ``p`` is the (7,) parameter vector.
-    torque : casadi.Function
-        ``(z, qd, p) -> tau`` [N m], eq. 14.
-    step : casadi.Function
-        ``(s, qd_start, qd_end, h, p) -> s_next``: one exponential-integrator step of the bristle
-        force ``s = sigma0 z`` [N m] (module docstring); ``qd_start`` and ``qd_end`` of one sign.
-    """
-
-    zdot: ca.Function
-    torque: ca.Function
-    step: ca.Function
-
-
-def build_lugre_expressions(symbol=ca.SX):
-    """Build the CasADi LuGre Functions (eq. 12, eq. 14 and the discrete step), parameters symbolic.
-
-    Parameters
-    ----------
-    symbol : {casadi.SX, casadi.MX}
-        Symbol class of the Functions' bodies.
-
-    Returns
-    -------
-    LuGreExpressions
-
-    Examples
-    --------
-    >>> f = build_lugre_expressions()
-    >>> p = [1.0, 1.5, 0.01, 0.5, 1.0, 1e5, 10.0]
-    >>> round(float(f.torque(1e-5, 0.2, p)), 6)   # steady sliding: z = g/sigma0
-    1.1
-    """
-    if symbol not in (ca.SX, ca.MX):
-        raise ParameterError(
-            f"build_lugre_expressions.symbol must be casadi.SX or casadi.MX; got {symbol!r}. Pass casadi.SX."
-        )
-    z = symbol.sym("z")
-    s = symbol.sym("s")
-    qd = symbol.sym("qd")
-    qd0 = symbol.sym("qd_start")
-    qd1 = symbol.sym("qd_end")
-    h = symbol.sym("h")
-    p = symbol.sym("p", 7)
-    zdot_expr = lugre_zdot_expression(z, qd, p)
-    tau_expr = lugre_torque_expression(z, qd, p)
-    s_next = lugre_step_expression(s, qd0, qd1, h, p)
-    return LuGreExpressions(
-        zdot=ca.Function("zdot", [z, qd, p], [zdot_expr], ["z", "qd", "p"], ["zdot"]),
-        torque=ca.Function("torque", [z, qd, p], [tau_expr], ["z", "qd", "p"], ["tau"]),
-        step=ca.Function("step", [s, qd0, qd1, h, p], [s_next], ["s", "qd_start", "qd_end", "h", "p"], ["s_next"]),
-    )
-
-
-def _unpack(p):
-    return [p[i] for i in range(7)]
-
-
-def _stribeck_g(qd, fc, fs, vs):
-    return fc + (fs - fc) * ca.exp(-((qd / vs) ** 2))
-
-
-def lugre_zdot_expression(z, qd, p):
-    """Symbolic eq. 12: ``zdot = qd - sigma0 |qd| z / g(qd)``; ``p`` in :data:`LUGRE_PARAMETER_NAMES` order."""
-    fc, fs, vs, _, _, sigma0, _ = _unpack(p)
-    return qd - sigma0 * ca.fabs(qd) * z / _stribeck_g(qd, fc, fs, vs)
-
-
-def lugre_torque_expression(z, qd, p):
-    """Symbolic eq. 14: ``sigma0 z + sigma1 zdot + fv |qd|**dv sign(qd)``."""
-    _, _, _, fv, dv, sigma0, sigma1 = _unpack(p)
-    viscous = ca.if_else(qd == 0, 0.0, fv * ca.exp(dv * ca.log(ca.fabs(qd) + (qd == 0))) * ca.sign(qd))
-    return sigma0 * z + sigma1 * lugre_zdot_expression(z, qd, p) + viscous
-
-
-def lugre_step_expression(s, qd_start, qd_end, h, p, sign=None):
-    """Symbolic exponential-integrator step of the bristle force ``s = sigma0 z`` (module docstring).
-
-    ``qd_start`` and ``qd_end`` must not differ in sign (split the step at the zero crossing);
-    ``sign`` defaults to ``sign(qd_start + qd_end)``.
-    """
-    fc, fs, vs, _, _, sigma0, _ = _unpack(p)
-    if sign is None:
-        sign = ca.sign(qd_start + qd_end)
-    g_a = _stribeck_g(qd_start, fc, fs, vs)
-    g_b = _stribeck_g(qd_end, fc, fs, vs)
-    x = 0.5 * h * sigma0 * (ca.fabs(qd_start) / g_a + ca.fabs(qd_end) / g_b)
-    phi1, phi2 = _phi12_casadi(x)
-    y_a = sign * g_a
-    y_b = sign * g_b
-    return ca.exp(-x) * s + x * (phi1 * y_a + phi2 * (y_b - y_a))
-
-

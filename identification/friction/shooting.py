@@ -1,26 +1,24 @@
-"""LuGre friction identification: high-speed fit (eq. 20) and the multiple-shooting NLP solved by Ipopt.
+"""The multiple-shooting LuGre fit of one joint's friction experiment, solved by Ipopt (our NLP).
 
-Takes one joint's friction experiment as plain arrays (``t, qd, tau_friction``, paper eq. 19)
-and returns :class:`identification.friction.models.LuGreParameters`. The pipeline is
+Takes one joint's friction experiment as plain arrays (``t, qd, tau_friction``, paper eq. 19) and
+a starting point from :mod:`identification.friction.start` (stage 1: eq. 20 and a data-driven
+guess), and returns :class:`identification.friction.models.LuGreParameters`.
 
-1. :func:`fit_high_speed` -- eq. 20 on samples with ``|qd| >> vs`` (scipy trust-region least squares);
-2. :func:`initial_lugre_guess` -- cheap data-driven starting values for ``fs, vs, sigma0, sigma1``;
-3. :func:`fit_lugre_multiple_shooting` -- all seven parameters at once: the bristle force at the
-   shooting nodes (every ``ShootingOptions.interval``-th sample) is a decision variable, each
-   interval is integrated sample by sample with the exponential integrator of
-   :mod:`identification.friction.models` (stiff-safe at any ``sigma0``), continuity is an equality
-   constraint, parameters are optimised as logarithms of their ratio to the initial guess
-   (positive and well scaled), and Ipopt gets exact first and second derivatives from CasADi.
-   The NLP is built from one small SX Function per interval, mapped over the intervals; its
-   exact Lagrangian Hessian is assembled from per-interval 8 x 8 blocks (CasADi's generic
-   Hessian of the whole graph scales quadratically here, because the seven parameters couple
-   every sample). With ``ShootingOptions(measurement="central-difference")`` each interval
-   carries instead the measurement model of :mod:`identification.friction.models.measurement`
-   (bristles driven by the encoder's displacement, torque averaged as held commands and central
-   differences measure it).
+:func:`fit_lugre_multiple_shooting` fits all seven parameters at once: the bristle force at the
+shooting nodes (every ``ShootingOptions.interval``-th sample) is a decision variable, each interval
+is integrated sample by sample with the exponential integrator of
+:mod:`identification.friction.lugre_step` (stiff-safe at any ``sigma0``), continuity is an equality
+constraint, parameters are optimised as logarithms of their ratio to the initial guess (positive
+and well scaled), and Ipopt gets exact first and second derivatives from CasADi. The NLP is built
+from one small SX Function per interval and assembled by :mod:`identification.friction.shooting_nlp`.
+With ``ShootingOptions(measurement="central-difference")`` each interval carries instead the
+measurement model of :mod:`identification.friction.measurement` (bristles driven by the encoder's
+displacement, torque averaged as held commands and central differences measure it).
 
-The paper's method (trust-region eq. 20, then Nelder-Mead over a LuGre simulation of the whole
-data set), the peer of the benchmarks, lives in :mod:`identification.friction.models.baseline`.
+The pipeline's friction step (:class:`identification.calibration.friction_step.FrictionIdentifier`)
+runs this fit per joint. The paper's method (trust-region eq. 20, then Nelder-Mead over a LuGre
+simulation of the whole data set), the peer of the benchmarks, lives in
+:mod:`identification.friction.baseline`.
 """
 
 from __future__ import annotations
@@ -31,32 +29,15 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.errors import NotFittedError, ParameterError, SolverError
-from identification.friction.models import (
-    LuGreParameters,
-    _phi12_casadi,
-    _shooting_interval_functions,
-    _substep_layout,
-    check_friction_data,
-    simulate_lugre,
-)
+from identification.friction.lugre_step import phi_function_expressions, substep_layout
 from identification.friction.measurement import build_measured_interval, measured_layout, simulate_lugre_measured
-from identification.friction.start import (  # noqa: F401  (re-exported: stage 1 of the fit)
-    _check_initial,
-    fit_high_speed,
-    initial_lugre_guess,
-    r2_score,
-)
+from identification.friction.models import LuGreParameters, check_friction_data
+from identification.friction.shooting_nlp import assemble_shooting_nlp, build_shooting_interval
+from identification.friction.simulation import simulate_lugre
+from identification.friction.start import check_initial
+from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = [
-    "ShootingOptions",
-    "ShootingResult",
-    "fit_high_speed",
-    "initial_lugre_guess",
-    "fit_lugre_multiple_shooting",
-    "r2_score",
-    "LuGreIdentifier",
-]
+__all__ = ["ShootingOptions", "ShootingResult", "fit_lugre_multiple_shooting"]
 
 _SUCCESS = ("Solve_Succeeded", "Solved_To_Acceptable_Level")
 MEASUREMENTS = ("sample", "central-difference")
@@ -95,10 +76,9 @@ class ShootingOptions:
         along the velocity interpolated linearly between samples. ``"central-difference"``: the
         friction averaged as a torque measured from held commands and the central second
         difference of the encoder sees it, along the encoder's displacement between samples
-        (:mod:`identification.friction.models.measurement`; needs ``q``; exact on each sample interval, so
-        ``substeps`` is not used). The friction step uses it at
-        full rate: on the virtual Denso it takes the sigma1 error of the base joints from 50-170 %
-        to about 10 %.
+        (:mod:`identification.friction.measurement`; needs ``q``; exact on each sample interval, so
+        ``substeps`` is not used). The friction step uses it at full rate: on joints that ring on
+        their bristles after a stick, ``"sample"`` biases sigma1.
     """
 
     interval: int = 10
@@ -177,7 +157,7 @@ class ShootingResult:
 
 
 # ------------------------------------------------------------------------------------------------
-# stage 2: multiple shooting
+# the NLP of the friction at the samples (measurement="sample")
 # ------------------------------------------------------------------------------------------------
 def _interval_functions(p0, s_scale, substeps, parts, length):
     """SX Functions of one shooting interval of ``length`` samples, and its exact Hessian block.
@@ -188,11 +168,8 @@ def _interval_functions(p0, s_scale, substeps, parts, length):
     holds, per sample interval, ``4 * substeps * parts`` values ``h, qd_a, qd_b, sign`` (``parts`` = 2
     where some step is split at a zero crossing of the velocity, else 1; padding steps have h = 0).
 
-    Returns ``interval(log_p, w, w_next, steps, data) -> (continuity, cost)`` with the continuity
-    defect ``s_end / s_scale - w_next`` and ``cost = sum weight * residual**2``, and
-    ``hessian(log_p, w, steps, data, lam_f, lam) -> (36,)``: the upper triangle of the 8 x 8
-    Hessian of ``lam_f * cost + lam * continuity`` over ``(log_p, w)`` (continuity is linear in
-    ``w_next``, which therefore has no second derivatives).
+    Returns the pair of :func:`identification.friction.shooting_nlp.build_shooting_interval`, with
+    the continuity defect ``s_end / s_scale - w_next`` and ``cost = sum weight * residual**2``.
     """
     log_p = ca.SX.sym("log_p", 7)
     p = [float(p0[i]) * ca.exp(log_p[i]) for i in range(7)]
@@ -215,37 +192,13 @@ def _interval_functions(p0, s_scale, substeps, parts, length):
             g_a = fc + (fs - fc) * ca.exp(-((qa / vs) ** 2))
             g_b = fc + (fs - fc) * ca.exp(-((qb / vs) ** 2))
             x = 0.5 * sigma0 * h * (ca.fabs(qa) / g_a + ca.fabs(qb) / g_b)
-            phi1, phi2 = _phi12_casadi(x)
+            phi1, phi2 = phi_function_expressions(x)
             s = ca.exp(-x) * s + x * (phi1 * sign * g_a + phi2 * sign * (g_b - g_a))
-    return _shooting_interval_functions("interval", log_p, w, w_next, steps, data, s / s_scale - w_next, cost)
-
-
-def _scatter(n_nodes, block_node):
-    """Sparse map from stacked upper-triangular 8x8 blocks to the upper triangle of the NLP Hessian.
-
-    Block b covers variables ``(0..6, 7 + block_node[b])``. Returns the target sparsity and the
-    (nnz x 36 n_blocks) 0/1 matrix that sums block entries into its nonzeros (column-major order).
-    """
-    import scipy.sparse as sps
-
-    ti, tj = np.triu_indices(8)
-    k = np.asarray(block_node)[:, None]
-    rows = np.where(ti == 7, 7 + k, ti[None, :])
-    cols = np.where(tj == 7, 7 + k, tj[None, :])
-    n_var = 7 + n_nodes
-    lin = (cols.astype(np.int64) * n_var + rows).ravel()  # column-major linear index, row <= col
-    unique, position = np.unique(lin, return_inverse=True)
-    scatter = sps.csc_matrix((np.ones(lin.size), (position, np.arange(lin.size))), shape=(unique.size, lin.size))
-    sparsity = ca.Sparsity.triplet(n_var, n_var, (unique % n_var).tolist(), (unique // n_var).tolist())
-    matrix = ca.DM(
-        ca.Sparsity(scatter.shape[0], scatter.shape[1], scatter.indptr.tolist(), scatter.indices.tolist()),
-        scatter.data,
-    )
-    return sparsity, matrix
+    return build_shooting_interval("interval", log_p, w, w_next, steps, data, s / s_scale - w_next, cost)
 
 
 def _build_nlp(t, qd, tau, p0, s_scale, substeps, mse_scale, interval):
-    """Assemble f, g and the exact Lagrangian Hessian of the multiple-shooting NLP.
+    """The NLP of the friction at the samples: ``nlp, hess_lag, n_nodes`` (see ``shooting_nlp``).
 
     Variables: ``log_p`` (7) then the scaled bristle force at the nodes, samples ``0, M, 2M, ...``.
     """
@@ -253,7 +206,7 @@ def _build_nlp(t, qd, tau, p0, s_scale, substeps, mse_scale, interval):
     m = interval
     n_nodes = (n - 1) // m + 1
     padded = n_nodes * m
-    layout = _substep_layout(t, qd, substeps)
+    layout = substep_layout(t, qd, substeps)
     # per-sample data, padded with zero-weight samples
     moving = qd != 0
     data = np.zeros((5, padded))
@@ -280,62 +233,29 @@ def _build_nlp(t, qd, tau, p0, s_scale, substeps, mse_scale, interval):
         # a mapped Function takes its r x m matrix inputs side by side: interval-major columns
         samples = (nodes[:, None] * m + np.arange(m)[None, :]).ravel()
         groups.append((nodes, fun, hess, steps[: half * parts, samples], data[:, samples]))
-    return _assemble_nlp(n_nodes, groups)
+    return (*assemble_shooting_nlp(n_nodes, groups), n_nodes)
 
 
 def _build_measured_nlp(t, q, tau, p0, s_scale, mse_scale, interval):
-    """The NLP of the central-difference measurement model (:mod:`identification.friction.models.measurement`)."""
+    """The NLP of the central-difference measurement model (:mod:`identification.friction.measurement`)."""
     n_nodes = (t.size - 1) // interval + 1
     fun, hess = build_measured_interval(p0, s_scale, interval)
     steps, data = measured_layout(t, q, tau, n_nodes, interval, mse_scale)
-    return _assemble_nlp(n_nodes, [(np.arange(n_nodes), fun, hess, steps, data)])
+    return (*assemble_shooting_nlp(n_nodes, [(np.arange(n_nodes), fun, hess, steps, data)]), n_nodes)
 
 
-def _assemble_nlp(n_nodes, groups):
-    """f, g and the exact Lagrangian Hessian from mapped interval Functions.
-
-    ``groups`` holds ``(nodes, interval, hessian, steps, data)``: the intervals starting at ``nodes``
-    share one Function pair and take their ``steps``/``data`` columns side by side.
-    """
-    x = ca.MX.sym("x", 7 + n_nodes)
-    log_p = x[:7]
-    w = x[7:].T
-    w_next = ca.horzcat(w[:, 1:], ca.MX.zeros(1, 1))  # the last interval has no successor
-    lam_f = ca.MX.sym("lam_f")
-    lam_g = ca.MX.sym("lam_g", n_nodes - 1)
-    lam = ca.horzcat(lam_g.T, ca.MX.zeros(1, 1))
-    cons, costs, hessians, order = [], [], [], []
-    for nodes, fun, hess, steps, data in groups:
-        cols = nodes.tolist()
-        step_in, data_in = ca.DM(steps), ca.DM(data)
-        con, cost = fun.map(nodes.size)(log_p, w[:, cols], w_next[:, cols], step_in, data_in)
-        cons.append(con)
-        costs.append(cost)
-        hessians.append(hess.map(nodes.size)(log_p, w[:, cols], step_in, data_in, lam_f, lam[:, cols]))
-        order.append(nodes)
-    order = np.concatenate(order)
-    permutation = np.argsort(order, kind="stable")
-    con_all = ca.horzcat(*cons)[:, permutation.tolist()]
-    f = ca.sum2(ca.horzcat(*costs))
-    g = con_all[:, : n_nodes - 1].T
-    sparsity, scatter = _scatter(n_nodes, order)
-    hess = ca.MX(sparsity, ca.mtimes(scatter, ca.vertcat(*[ca.vec(h) for h in hessians])))
-    p_sym = ca.MX.sym("p", 0)
-    hess_lag = ca.Function(
-        "nlp_hess_l", [x, p_sym, lam_f, lam_g], [hess], ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"]
-    )
-    return {"x": x, "f": f, "g": g}, hess_lag, n_nodes
-
-
+# ------------------------------------------------------------------------------------------------
+# the fit
+# ------------------------------------------------------------------------------------------------
 def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=None):
     """Fit all seven LuGre parameters by multiple shooting, solved by Ipopt with exact derivatives.
 
     Decision variables are ``log(p / initial)`` for the seven parameters and the bristle force
     ``s = sigma0 z`` (scaled by ``initial.fs``) at every shooting node. On each interval the
-    exponential integrator of :mod:`identification.friction.models` carries ``s`` from sample to sample;
-    its end must equal the next node (continuity). The objective is the mean squared torque
-    residual of eq. 14 at every sample (with ``measurement="central-difference"``: of the
-    measurement model of :mod:`identification.friction.models.measurement` at the interior samples, the
+    exponential integrator of :mod:`identification.friction.lugre_step` carries ``s`` from sample
+    to sample; its end must equal the next node (continuity). The objective is the mean squared
+    torque residual of eq. 14 at every sample (with ``measurement="central-difference"``: of the
+    measurement model of :mod:`identification.friction.measurement` at the interior samples, the
     bristle force following the positions ``q``).
 
     Parameters
@@ -347,7 +267,8 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
     tau_friction : array, shape (n_samples,)
         Measured friction torque [N m] (eq. 19).
     initial : LuGreParameters
-        Starting point (e.g. :func:`initial_lugre_guess`); ``fv`` and ``sigma1`` must be > 0.
+        Starting point (e.g. :func:`identification.friction.start.initial_lugre_guess`); ``fv`` and
+        ``sigma1`` must be > 0.
     options : ShootingOptions, optional
     q : array, shape (n_samples,), optional
         Recorded joint positions [rad]; required by ``options.measurement="central-difference"``.
@@ -362,16 +283,54 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
         Ipopt did not converge; ``status`` and ``iterations`` are attached.
     ParameterError, ShapeError
         Bad arrays or options.
+
+    Examples
+    --------
+    >>> from identification.friction.start import fit_high_speed, initial_lugre_guess
+    >>> initial = initial_lugre_guess(t, qd, tau, fit_high_speed(qd, tau))   # doctest: +SKIP
+    >>> fit_lugre_multiple_shooting(t, qd, tau, initial).parameters          # doctest: +SKIP
     """
+    t, qd, tau, q, options = _checked_inputs(t, qd, tau_friction, initial, options, q)
+    measured = options.measurement == "central-difference"
+    start = time.perf_counter()
+    n = t.size
+    p0 = initial.as_array()
+    s_scale = max(initial.fs, initial.fc)
+    # starting trajectory: simulate the initial guess; its error scales the objective to O(1)
+    tau_init, z_init = _simulate(initial, t, qd, q, options)
+    inner = slice(1, n - 1) if measured else slice(None)
+    mse_scale = max(float(np.mean((tau_init - tau)[inner] ** 2)), 1e-12 * float(np.mean(tau**2)), 1e-300)
+    if measured:
+        nlp, hess_lag, n_nodes = _build_measured_nlp(t, q, tau, p0, s_scale, mse_scale, options.interval)
+    else:
+        nlp, hess_lag, n_nodes = _build_nlp(t, qd, tau, p0, s_scale, options.substeps, mse_scale, options.interval)
+    w0 = np.concatenate([np.zeros(7), initial.sigma0 * z_init[:: options.interval] / s_scale])
+    x_opt, status, iterations, solve_seconds = _solve(nlp, hess_lag, w0, n_nodes, options)
+    parameters = LuGreParameters.from_array(p0 * np.exp(x_opt[:7]))
+    tau_fit, z = _simulate(parameters, t, qd, q, options, s0=x_opt[7] * s_scale)
+    return ShootingResult(
+        parameters=parameters,
+        initial=initial,
+        z=z,
+        tau=tau_fit,
+        status=status,
+        iterations=iterations,
+        objective=float(np.mean((tau_fit - tau)[inner] ** 2)),
+        seconds=time.perf_counter() - start,
+        solve_seconds=solve_seconds,
+    )
+
+
+def _checked_inputs(t, qd, tau_friction, initial, options, q):
+    """Validate the arguments of :func:`fit_lugre_multiple_shooting`; return ``t, qd, tau, q, options``."""
     t, qd, tau = check_friction_data(t, qd, tau_friction, owner="fit_lugre_multiple_shooting")
-    _check_initial(initial, "fit_lugre_multiple_shooting")
+    check_initial(initial, "fit_lugre_multiple_shooting")
     options = ShootingOptions() if options is None else options
     if not isinstance(options, ShootingOptions):
         raise ParameterError(
             f"fit_lugre_multiple_shooting.options must be a ShootingOptions; got {type(options).__name__}."
         )
-    measured = options.measurement == "central-difference"
-    if measured:
+    if options.measurement == "central-difference":
         if q is None:
             raise ParameterError("fit_lugre_multiple_shooting.q is required by ShootingOptions.measurement="
                                  "'central-difference'; pass the joint's recorded positions or use 'sample'.")
@@ -379,23 +338,19 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
         if t.size < 4:
             raise ParameterError(f"fit_lugre_multiple_shooting.t must hold at least 4 samples with "
                                  f"measurement='central-difference'; got {t.size}.")
-    start = time.perf_counter()
-    n = t.size
-    p0 = initial.as_array()
-    s_scale = max(initial.fs, initial.fc)
-    # starting trajectory: simulate the initial guess; its error scales the objective to O(1)
-    if measured:
-        tau_init, s_init = simulate_lugre_measured(initial, t, q)
-        z_init = s_init / initial.sigma0
-        inner = slice(1, n - 1)
-    else:
-        tau_init, z_init = simulate_lugre(initial, t, qd, substeps=options.substeps)
-        inner = slice(None)
-    mse_scale = max(float(np.mean((tau_init - tau)[inner] ** 2)), 1e-12 * float(np.mean(tau**2)), 1e-300)
-    if measured:
-        nlp, hess_lag, n_nodes = _build_measured_nlp(t, q, tau, p0, s_scale, mse_scale, options.interval)
-    else:
-        nlp, hess_lag, n_nodes = _build_nlp(t, qd, tau, p0, s_scale, options.substeps, mse_scale, options.interval)
+    return t, qd, tau, q, options
+
+
+def _simulate(parameters, t, qd, q, options, s0=0.0):
+    """Torque and bristle deflection ``z`` of the fit's model from bristle force ``s0`` [N m] at ``t[0]``."""
+    if options.measurement == "central-difference":
+        tau, s = simulate_lugre_measured(parameters, t, q, s0=s0)
+        return tau, s / parameters.sigma0
+    return simulate_lugre(parameters, t, qd, z0=s0 / parameters.sigma0, substeps=options.substeps)
+
+
+def _solve(nlp, hess_lag, w0, n_nodes, options):
+    """Solve the shooting NLP with Ipopt from ``w0``; return ``x_opt, status, iterations, solve_seconds``."""
     ipopt = {
         "max_iter": int(options.max_iter),
         "tol": float(options.tol),
@@ -408,7 +363,6 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
     if options.hessian == "exact":
         solver_options["hess_lag"] = hess_lag
     solver = ca.nlpsol("lugre_shooting", "ipopt", nlp, solver_options)
-    w0 = np.concatenate([np.zeros(7), initial.sigma0 * z_init[:: options.interval] / s_scale])
     bound = np.log(options.parameter_range)
     lbx = np.concatenate([np.full(7, -bound), np.full(n_nodes, -np.inf)])
     ubx = np.concatenate([np.full(7, bound), np.full(n_nodes, np.inf)])
@@ -426,97 +380,4 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
             status=status,
             iterations=iterations,
         )
-    x_opt = np.asarray(sol["x"]).ravel()
-    parameters = LuGreParameters.from_array(p0 * np.exp(x_opt[:7]))
-    if measured:
-        tau_fit, s_fit = simulate_lugre_measured(parameters, t, q, s0=x_opt[7] * s_scale)
-        z = s_fit / parameters.sigma0
-    else:
-        tau_fit, z = simulate_lugre(parameters, t, qd, z0=x_opt[7] * s_scale / parameters.sigma0,
-                                    substeps=options.substeps)
-    return ShootingResult(
-        parameters=parameters,
-        initial=initial,
-        z=z,
-        tau=tau_fit,
-        status=status,
-        iterations=iterations,
-        objective=float(np.mean((tau_fit - tau)[inner] ** 2)),
-        seconds=time.perf_counter() - start,
-        solve_seconds=solve_seconds,
-    )
-
-
-# ------------------------------------------------------------------------------------------------
-# estimator
-# ------------------------------------------------------------------------------------------------
-class LuGreIdentifier:
-    """scikit-learn-style LuGre friction identifier for one joint (paper section 3.3, our NLP).
-
-    ``fit`` runs :func:`fit_high_speed` (eq. 20), :func:`initial_lugre_guess` (unless ``initial``
-    is given) and :func:`fit_lugre_multiple_shooting`.
-
-    Parameters
-    ----------
-    high_speed_threshold : float, optional
-        Speed [rad/s] above which eq. 20 is fitted; default a quarter of ``max |qd|``.
-    options : ShootingOptions, optional
-        Options of the multiple-shooting NLP.
-    initial : LuGreParameters, optional
-        Starting point of the NLP; default from the data.
-    substeps : int
-        Integrator sub-steps per sample used by :meth:`predict`.
-
-    Attributes
-    ----------
-    params_ : LuGreParameters
-        Identified parameters.
-    high_speed_ : CoulombViscous
-        The eq. 20 fit.
-    initial_ : LuGreParameters
-        The NLP's starting point.
-    result_ : ShootingResult
-        Full NLP result (z trajectory, Ipopt status, seconds).
-
-    Examples
-    --------
-    >>> est = LuGreIdentifier()          # doctest: +SKIP
-    >>> est.fit(t, qd, tau).params_      # doctest: +SKIP
-    """
-
-    def __init__(self, high_speed_threshold=None, options=None, initial=None, substeps=1):
-        self.high_speed_threshold = high_speed_threshold
-        self.options = options
-        self.initial = initial
-        self.substeps = substeps
-
-    def fit(self, t, qd, tau_friction):
-        """Identify the seven LuGre parameters from one joint's friction record; returns ``self``."""
-        t, qd, tau = check_friction_data(t, qd, tau_friction, owner="LuGreIdentifier.fit")
-        self.high_speed_ = fit_high_speed(qd, tau, self.high_speed_threshold)
-        if self.initial is None:
-            self.initial_ = initial_lugre_guess(t, qd, tau, self.high_speed_)
-        else:
-            _check_initial(self.initial, "LuGreIdentifier")
-            self.initial_ = self.initial
-        self.result_ = fit_lugre_multiple_shooting(t, qd, tau, self.initial_, self.options)
-        self.params_ = self.result_.parameters
-        return self
-
-    def _check_is_fitted(self):
-        if not hasattr(self, "params_"):
-            raise NotFittedError(
-                "LuGreIdentifier.params_ must be set by fit; got an unfitted estimator. Call fit(t, qd, tau) first."
-            )
-
-    def predict(self, t, qd, z0=0.0):
-        """Friction torque [N m], shape (n_samples,), simulated along ``qd`` from bristle state ``z0``."""
-        self._check_is_fitted()
-        tau, _ = simulate_lugre(self.params_, t, qd, z0=z0, substeps=self.substeps)
-        return tau
-
-    def score(self, t, qd, tau_friction):
-        """Coefficient of determination R^2 of :meth:`predict` against ``tau_friction``."""
-        self._check_is_fitted()
-        t, qd, tau = check_friction_data(t, qd, tau_friction, owner="LuGreIdentifier.score")
-        return r2_score(tau, self.predict(t, qd))
+    return np.asarray(sol["x"]).ravel(), status, iterations, solve_seconds

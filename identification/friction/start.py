@@ -1,9 +1,10 @@
 """Starting values of the LuGre fit: the high-speed model of eq. 20 and a data-driven initial guess.
 
 Stage 1 of :mod:`identification.friction.shooting` (and of the paper's method in
-:mod:`identification.friction.models.baseline`): plain arrays ``t, qd, tau_friction`` of one joint's
+:mod:`identification.friction.baseline`): plain arrays ``t, qd, tau_friction`` of one joint's
 friction experiment (paper eq. 19) in, :class:`identification.friction.models.CoulombViscous` and
-:class:`identification.friction.models.LuGreParameters` out.
+:class:`identification.friction.models.LuGreParameters` out; :func:`check_initial` is the check
+both fits apply to a starting point.
 """
 
 from __future__ import annotations
@@ -11,26 +12,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import least_squares
 
+from identification.friction.models import CoulombViscous, LuGreParameters, check_friction_data
+from identification.friction.simulation import simulated_mse
 from psdm_casadi.errors import ParameterError
-from identification.friction.models import CoulombViscous, LuGreParameters, check_friction_data, simulate_lugre
 
-__all__ = ["fit_high_speed", "initial_lugre_guess", "r2_score"]
-
-
-def r2_score(tau, tau_pred):
-    """Coefficient of determination ``1 - SS_res / SS_tot`` of a torque prediction."""
-    tau = np.asarray(tau, dtype=float)
-    tau_pred = np.asarray(tau_pred, dtype=float)
-    ss_tot = float(np.sum((tau - tau.mean()) ** 2))
-    if ss_tot == 0.0:
-        raise ParameterError("r2_score.tau must vary; got a constant signal. Pass a real friction record.")
-    return 1.0 - float(np.sum((tau - tau_pred) ** 2)) / ss_tot
+__all__ = ["fit_high_speed", "initial_lugre_guess", "check_initial"]
 
 
-
-# ------------------------------------------------------------------------------------------------
-# stage 1: high-speed fit (eq. 20) and starting values
-# ------------------------------------------------------------------------------------------------
 def _high_speed_mask(qd, threshold):
     if threshold is None:
         threshold = 0.25 * float(np.max(np.abs(qd)))
@@ -101,11 +89,6 @@ def fit_high_speed(qd, tau_friction, threshold=None):
     return CoulombViscous(fc=float(sol.x[0]), fv=float(sol.x[1]), dv=float(sol.x[2]))
 
 
-def _sse(parameters, t, qd, tau, substeps=1):
-    pred, _ = simulate_lugre(parameters, t, qd, substeps=substeps)
-    return float(np.mean((pred - tau) ** 2))
-
-
 def _replace(p, **changes):
     values = p.as_dict()
     values.update(changes)
@@ -146,7 +129,7 @@ def initial_lugre_guess(t, qd, tau_friction, high_speed):
     guess = LuGreParameters(fc=fc, fs=1.2 * fc, vs=0.01 * vmax, fv=fv, dv=dv, sigma0=fc / 1e-4, sigma1=1e-4 * fc / 1e-4)
     # sigma0 from a grid of break-away displacements
     candidates = [_replace(guess, sigma0=fc / xb, sigma1=1e-4 * fc / xb) for xb in np.logspace(-6, -2, 17)]
-    guess = min(candidates, key=lambda p: _sse(p, t, qd, tau))
+    guess = min(candidates, key=lambda p: simulated_mse(p, t, qd, tau))
     # fs, vs on steady sliding
     q = np.concatenate([[0.0], np.cumsum(0.5 * (qd[1:] + qd[:-1]) * np.diff(t))])
     sgn = np.sign(qd)
@@ -170,15 +153,29 @@ def initial_lugre_guess(t, qd, tau_friction, high_speed):
         if np.isfinite(fs) and np.isfinite(vs) and vs > 0:
             guess = _replace(guess, fs=float(fs), vs=float(min(vs, vmax)))
     # vs checked by simulation on a logarithmic grid: with fs close to fc (the Denso's joint 6 has fs < fc)
-    # the fit above is ill-conditioned, and a vs 70-100 times too large trapped the NLP in a local minimum
+    # the fit above is ill-conditioned, and a vs far too large can trap the NLP in a local minimum
     candidates = [guess] + [_replace(guess, vs=float(v)) for v in vmax * np.logspace(-4, -1, 7)]
-    guess = min(candidates, key=lambda p: _sse(p, t, qd, tau))
+    guess = min(candidates, key=lambda p: simulated_mse(p, t, qd, tau))
     # sigma1 grid
     candidates = [_replace(guess, sigma1=guess.sigma0 * r) for r in np.logspace(-5, -2, 7)]
-    return min(candidates, key=lambda p: _sse(p, t, qd, tau))
+    return min(candidates, key=lambda p: simulated_mse(p, t, qd, tau))
 
 
-def _check_initial(initial, owner):
+def check_initial(initial, owner):
+    """Check a starting point of the log-scaled LuGre fits; ``owner`` names the caller in the messages.
+
+    Parameters
+    ----------
+    initial : LuGreParameters
+        Starting point; ``fv`` and ``sigma1`` must be > 0 (the fits optimise ``log(p / initial)``).
+    owner : str
+        Name of the calling function, for the error message.
+
+    Raises
+    ------
+    ParameterError
+        ``initial`` is not a LuGreParameters, or ``fv`` or ``sigma1`` is zero.
+    """
     if not isinstance(initial, LuGreParameters):
         raise ParameterError(
             f"{owner}.initial must be a LuGreParameters; got {type(initial).__name__}. "

@@ -20,7 +20,8 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from psdm_casadi.errors import ParameterError
-from psdm_casadi.robot import physical_to_dynamic
+
+from identification.data.payload import Payload as KnownPayload
 
 
 class ExtraPhysics:
@@ -188,35 +189,12 @@ class JointCoupling(ExtraPhysics):
 
 
 @dataclass(frozen=True)
-class Payload(ExtraPhysics):
-    """A body fixed to the flange (last link frame): point mass by default (paper eqs. 16-17).
+class Payload(KnownPayload, ExtraPhysics):
+    """A known body fixed to the flange (:class:`identification.data.payload.Payload`) as a virtual-robot effect.
 
-    Parameters
-    ----------
-    mass : float
-        [kg]
-    com : array, shape (3,)
-        Centre of mass in the last link frame [m].
-    inertia : array, shape (3, 3), optional
-        Inertia about the centre of mass [kg m^2]; zero (a point mass) by default.
+    Same fields and validation as the data value; the effect adds its dynamic parameters to the
+    last link of the rigid-body truth.
     """
-
-    mass: float
-    com: tuple = (0.0, 0.0, 0.0)
-    inertia: tuple | None = None
-
-    def validate(self, n_dof):
-        if not (np.isfinite(self.mass) and self.mass >= 0):
-            raise ParameterError(f"Payload.mass must be >= 0 [kg]; got {self.mass!r}.")
-        if np.asarray(self.com, dtype=float).shape != (3,):
-            raise ParameterError(f"Payload.com must have 3 coordinates [m]; got {self.com!r}.")
-        if self.inertia is not None and np.asarray(self.inertia, dtype=float).shape != (3, 3):
-            raise ParameterError(f"Payload.inertia must be a 3x3 matrix [kg m^2] or None; got {self.inertia!r}.")
-
-    def dynamic_parameters(self) -> np.ndarray:
-        """The 10 dynamic parameters of the payload about the last link frame origin."""
-        inertia = np.zeros((3, 3)) if self.inertia is None else np.asarray(self.inertia, dtype=float)
-        return physical_to_dynamic(float(self.mass), np.asarray(self.com, dtype=float), inertia)
 
     def modify_model(self, robot, parameters):
         parameters = np.array(parameters, dtype=float)

@@ -18,15 +18,15 @@ applied from t_k, so it balances the acceleration at t_k exactly.
 the second difference of the recorded q weights the held commands of samples k-1 and k by
 ``(S - 1) / 2S`` and ``(S + 1) / 2S`` (S sub-steps; 0.375/0.625 for S = 4) instead of the 1/2 and
 1/2 of continuous time: a timing error of half a sub-step that the friction identification sees
-as a phase error of the bristle ringing of heavy joints (it biased sigma1 of the Denso's base
-joints by 70-170 %). Leapfrog kicks at the sub-step centres, which restores 1/2 and 1/2.
+as a phase error of the bristle ringing of heavy joints (it biases sigma1). Leapfrog kicks at the
+sub-step centres, which restores 1/2 and 1/2.
+
+The truth of a run and its files are in :mod:`identification.virtual.truth`.
 """
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -34,14 +34,15 @@ from scipy.interpolate import CubicSpline
 
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import build_pinocchio_model
-from psdm_casadi.robot import DriveParameters, RobotDescription
+from psdm_casadi.robot import RobotDescription
 
-from identification.virtual.lugre_exact import FRICTION_FIELDS, LuGreArrays, steady_state_friction
-from identification.virtual.effects import ExtraPhysics, Payload
-from identification.data.io import atomic_write, save_recording
 from identification.data.recording import Recording
+from identification.virtual.effects import ExtraPhysics, Payload
+from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
+from identification.virtual.truth import SimulationTruth
 
-TRUTH_FORMAT = "psdm-truth/1"
+__all__ = ["SimulationOptions", "simulate_recording"]
+
 FEEDFORWARDS = ("model", "gravity", "none")
 INTEGRATORS = ("symplectic-euler", "leapfrog")
 
@@ -86,7 +87,7 @@ class SimulationOptions:
         Quantisation step of the recorded q [rad or m]; default ``2 pi / 2^20 / 100`` = 6e-8 rad: a
         20-bit motor-side encoder behind a 1:100 gearbox, as on industrial arms. The joint-side
         resolution matters for friction identification: pre-sliding motion spans micro-radians at
-        velocities of about 1e-3 rad/s (see ``experiments.FrictionDesign``).
+        velocities of about 1e-3 rad/s (see ``trajopt.friction_design.FrictionDesign``).
     current_resolution : float or None
         Quantisation step of the recorded current [A].
     q_noise_std, current_noise_std, tau_noise_std : float
@@ -150,65 +151,6 @@ class SimulationOptions:
             raise ParameterError("SimulationOptions.record_current and record_tau are both False; record at least one.")
         if self.payload is not None and not isinstance(self.payload, Payload):
             raise ParameterError(f"SimulationOptions.payload must be a Payload or None; got {type(self.payload).__name__}.")
-
-
-@dataclass(frozen=True, eq=False)
-class SimulationTruth:
-    """What the virtual robot really was and did: parameters and noise-free state trajectories.
-
-    Attributes
-    ----------
-    robot_name : str
-    standard_parameters : array, shape (n_dof, 11)
-        True rigid-body parameters of the robot (without payload and extra physics).
-    kt : array, shape (n_dof,)
-        True motor torque constants [N m/A].
-    friction : array, shape (n_dof, 7)
-        True LuGre parameters, columns ``fc, fs, vs, fv, dv, sigma0, sigma1``.
-    gravity : array, shape (3,)
-        Gravity used in the simulation [m/s^2] (after any extra physics).
-    payload : Payload or None
-        Known end-effector load.
-    extras : tuple of ExtraPhysics
-        Hidden extra physics.
-    options : SimulationOptions
-    t, q, qd, qdd, z, tau_motor, tau_friction, tau_extra : arrays
-        True trajectories at the samples, (n_samples,) or (n_samples, n_dof).
-    """
-
-    robot_name: str
-    standard_parameters: np.ndarray
-    kt: np.ndarray
-    friction: np.ndarray
-    gravity: np.ndarray
-    payload: Payload | None
-    extras: tuple
-    options: SimulationOptions
-    t: np.ndarray
-    q: np.ndarray
-    qd: np.ndarray
-    qdd: np.ndarray
-    z: np.ndarray
-    tau_motor: np.ndarray
-    tau_friction: np.ndarray
-    tau_extra: np.ndarray
-
-    def describe(self) -> dict:
-        """The JSON-serialisable parameter part of the truth."""
-        opts = {k: (v.describe() if isinstance(v, ExtraPhysics) else v) for k, v in vars(self.options).items()}
-        return {
-            "format": TRUTH_FORMAT,
-            "robot": self.robot_name,
-            "kt": self.kt.tolist(),
-            "friction_fields": list(FRICTION_FIELDS),
-            "friction": self.friction.tolist(),
-            "standard_parameter_layout": "per joint: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (link frame origin), Im",
-            "standard_parameters": self.standard_parameters.tolist(),
-            "gravity": self.gravity.tolist(),
-            "payload": None if self.payload is None else self.payload.describe(),
-            "extras": [e.describe() for e in self.extras],
-            "options": opts,
-        }
 
 
 def _drives(robot: RobotDescription) -> tuple:
@@ -388,8 +330,8 @@ def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
     h = 1.0 / (options.rate * substeps)
     friction = bool(options.friction)
     torque_terms = [e for e in extras if e.has_torque]
-    # numpy ops on length-n arrays cost about 0.5 us; scalar operands and comparisons cost twice that,
-    # so every constant below is a length-n array
+    # this loop runs per sub-step: numpy is slower with a Python scalar operand than with an array of the
+    # same length, so every constant below is a length-n array
     fc, dfs = lugre.fc.copy(), lugre.fs - lugre.fc
     inv_vs, inv_s0 = 1.0 / lugre.vs, 1.0 / lugre.sigma0
     s0, s1, fv, dv = lugre.sigma0, lugre.sigma1, lugre.fv, lugre.dv
@@ -448,71 +390,3 @@ def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
                 z = rest + (z - rest) * np.exp((minus_half_h if leapfrog else minus_h) * rate)  # exact z step
             q = q + (half_h if leapfrog else h_vec) * qd
     return out_q, out_qd, out_qdd, out_z, out_tau, out_tf, out_tx
-
-
-def write_recording(recording: Recording, truth: SimulationTruth, directory, name: str = "recording",
-                    fmt: str = "csv", overwrite: bool = False) -> dict:
-    """Write a simulated recording and its truth beside it, atomically.
-
-    Files: ``<name>.<fmt>`` (the recording), ``<name>.truth.json`` (parameters, options, extras) and
-    ``<name>.truth.npz`` (noise-free state trajectories t, q, qd, qdd, z, tau_motor, tau_friction, tau_extra).
-
-    Parameters
-    ----------
-    recording : Recording
-    truth : SimulationTruth
-    directory : str or Path
-        Created when missing.
-    name : str
-    fmt : {"csv", "npz"}
-    overwrite : bool
-        Replace existing files; otherwise an existing file raises ``FileExistsError`` before anything is written.
-
-    Returns
-    -------
-    dict
-        Paths of the written files under keys ``recording``, ``truth``, ``states``.
-    """
-    if fmt not in ("csv", "npz"):
-        raise ParameterError(f"write_recording fmt must be 'csv' or 'npz'; got {fmt!r}.")
-    directory = Path(directory)
-    paths = {"recording": directory / f"{name}.{fmt}", "truth": directory / f"{name}.truth.json",
-             "states": directory / f"{name}.truth.npz"}
-    if not overwrite:
-        for path in paths.values():
-            if path.exists():
-                raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True (or --overwrite) to replace it.")
-    save_recording(recording, paths["recording"], overwrite=overwrite,
-                   comment=f"virtual robot {truth.robot_name}; truth in {paths['truth'].name}")
-    text = json.dumps(truth.describe(), indent=2, default=_json_default)
-    atomic_write(paths["truth"], lambda handle: handle.write(text + "\n"), overwrite=overwrite)
-    states = {key: getattr(truth, key) for key in ("t", "q", "qd", "qdd", "z", "tau_motor", "tau_friction", "tau_extra")}
-    atomic_write(paths["states"], lambda handle: np.savez(handle, **states), overwrite=overwrite, mode="wb")
-    return paths
-
-
-def _json_default(value):
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, ExtraPhysics):
-        return value.describe()
-    return str(value)
-
-
-def read_truth(path) -> dict:
-    """Read a ``<name>.truth.json`` file written by ``write_recording`` (plain data)."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"truth file {str(path)!r} does not exist. Check the path.")
-    data = json.loads(path.read_text())
-    if data.get("format") != TRUTH_FORMAT:
-        raise ParameterError(f"{path.name}: format must be {TRUTH_FORMAT!r}; got {data.get('format')!r}.")
-    return data
-
-
-def drives_from_truth(truth: dict) -> tuple:
-    """The true DriveParameters per joint from a truth dictionary (``read_truth``)."""
-    return tuple(DriveParameters(kt=kt, **dict(zip(truth["friction_fields"], row)))
-                 for kt, row in zip(truth["kt"], truth["friction"]))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from psdm_casadi.cli.output import print_json, progress
+from psdm_casadi.cli.output import print_json
 
 
 def register(subparsers) -> None:
@@ -45,8 +45,8 @@ def _run_diagnose(args) -> int:
     validation = load_recording(args.validate, robot.n_dof)
     options = DiagnosisOptions(friction=args.friction, rigid_body=args.rigid_body, cutoff_hz=args.cutoff,
                                min_improvement=args.min_improvement, max_effects=args.max_effects)
-    say = None if args.json else progress
-    report = diagnose(robot, train, validation, options, progress=say)
+    # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
+    report = diagnose(robot, train, validation, options)
     paths = report.save(args.out, overwrite=args.overwrite) if args.out else {}
     if args.json:
         payload = report.to_dict()

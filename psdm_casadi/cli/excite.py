@@ -49,16 +49,23 @@ def register(subparsers) -> None:
 
     e = subparsers.add_parser(
         "experiment", help="trajectories of the motor, gravity and friction calibration experiments",
-        description="Write the paper's calibration experiments as trajectories within the joint limits: motor "
-                    "(constant-velocity sweep of one joint forward and back), gravity (slow jog of the joints "
-                    "through their ranges and back), friction (one joint, sines from pre-sliding amplitudes to "
-                    "near the speed limit).")
+        description="Write the paper's calibration experiments, the designs the identification is validated on "
+                    "with the virtual robot: motor (constant-speed sweep of one joint forward and back, run with "
+                    "and without the calibration mass), gravity (slow jog of the joints through their ranges and "
+                    "back along the same path), friction (one joint from rest to rest through pre-sliding, "
+                    "break-away, Stribeck and sliding segments). The worst limit margin is reported; a negative "
+                    "one names the limit the path leaves.")
     e.add_argument("kind", choices=("motor", "gravity", "friction"))
     _robot_arguments(e)
     e.add_argument("--joint", type=int, action="append", default=None,
                    help="1-based joint (motor, friction: exactly one; gravity: repeat, default all)")
-    e.add_argument("--speed-fraction", type=float, default=None, help="fraction of the velocity limit")
-    e.add_argument("--seed", type=int, default=0, help="seed of the gravity waypoints (0)")
+    e.add_argument("--speed", type=float, default=None,
+                   help="sweep (motor, default 0.25) or jog (gravity, default 0.15) speed [rad/s]")
+    e.add_argument("--duration", type=float, default=None, help="length of the gravity jog [s] (120)")
+    e.add_argument("--quick", action="store_true", help="friction: the shorter design (FrictionDesign.quick)")
+    e.add_argument("--validation", action="store_true",
+                   help="friction: the second, validation run (the design at 1.3 times its frequencies)")
+    e.add_argument("--seed", type=int, default=0, help="seed of the gravity jog's periods (0)")
     e.add_argument("--out", default=None, help="output CSV (default KIND_experiment.csv)")
     e.add_argument("--rate", type=float, default=100.0, help="CSV sampling rate [Hz] (100)")
     e.add_argument("--plot", default=None, help="also save a PNG with the limits")
@@ -137,27 +144,41 @@ def _run_excite(args) -> int:
 
 def _run_experiment(args) -> int:
     from trajopt.experiments import friction_experiment, gravity_experiment, motor_experiment
+    from trajopt.friction_design import FrictionDesign
     from trajopt.plot import plot_trajectory
 
     out = args.out or f"{args.kind}_experiment.csv"
     _check_outputs(args, out, args.plot)
     robot = _load_robot(args)
-    extra = {} if args.speed_fraction is None else {"speed_fraction": args.speed_fraction}
+    extra = {} if args.speed is None else {"speed": args.speed}
+    if args.kind != "gravity" and (not args.joint or len(args.joint) != 1):
+        raise ParameterError(f"--joint must be given exactly once for the {args.kind} experiment; "
+                             f"got {args.joint}. Pass e.g. --joint 2.")
+    joints = None if args.joint is None else [_joint_index(j, robot.n_dof) for j in args.joint]
     if args.kind == "gravity":
-        experiment = gravity_experiment(robot, joints=args.joint, seed=args.seed, **extra)
+        if args.duration is not None:
+            extra["duration"] = args.duration
+        experiment = gravity_experiment(robot, joints=joints, rng=np.random.default_rng(args.seed), **extra)
+    elif args.kind == "motor":
+        experiment = motor_experiment(robot, joints[0], **extra)
     else:
-        if not args.joint or len(args.joint) != 1:
-            raise ParameterError(f"--joint must be given exactly once for the {args.kind} experiment; "
-                                 f"got {args.joint}. Pass e.g. --joint 2.")
-        make = motor_experiment if args.kind == "motor" else friction_experiment
-        experiment = make(robot, args.joint[0], **extra)
+        design = FrictionDesign.quick() if args.quick else FrictionDesign()
+        experiment = friction_experiment(robot, joints[0], design.validation() if args.validation else design)
     experiment.to_csv(out, rate=args.rate, overwrite=args.overwrite)
     if args.plot:
         plot_trajectory(experiment, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
+    numbers = [j + 1 for j in experiment.joints]
     if args.json:
         print_json({"kind": args.kind, "duration": experiment.duration, "worst_limit_margin": experiment.worst_margin,
-                    "joints": list(experiment.joints), "out": out})
+                    "joints": numbers, "out": out})
     else:
-        print(f"{args.kind} experiment: {experiment.duration:.1f} s, joints {list(experiment.joints)}, worst limit "
+        print(f"{args.kind} experiment: {experiment.duration:.1f} s, joints {numbers}, worst limit "
               f"margin {experiment.worst_margin:.3g}; wrote {out}")
     return EXIT_OK
+
+
+def _joint_index(number: int, n_dof: int) -> int:
+    """0-based index of a 1-based ``--joint`` number."""
+    if not 1 <= number <= n_dof:
+        raise ParameterError(f"--joint must be a joint number 1..{n_dof}; got {number}.")
+    return number - 1

@@ -38,12 +38,12 @@ def _run_identify(args) -> int:
     from psdm_casadi.robot import load_robot
 
     from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-    from identification.calibration.result import _FILES
+    from identification.calibration.result import RESULT_FILES
 
     robot = load_robot(args.robot)
     out = Path(args.out)
     if not args.overwrite:
-        for name in _FILES:
+        for name in RESULT_FILES:
             if (out / name).exists():
                 raise FileExistsError(f"{str(out / name)!r} exists; pass --overwrite to replace it.")
     if args.model:

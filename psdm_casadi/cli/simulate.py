@@ -32,9 +32,12 @@ def _add_simulate(subparsers) -> None:
     p.add_argument("robot", help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables")
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--reference", help="CSV with columns t,q1..qn and optional qd1..,qdd1..")
-    source.add_argument("--experiment", choices=EXPERIMENTS, help="a calibration experiment of the paper (section 3)")
+    source.add_argument("--experiment", choices=EXPERIMENTS,
+                        help="a calibration experiment of the paper (section 3), as `psdm experiment` writes it")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--duration", type=float, default=None, help="simulated time [s] (default: the reference's)")
+    p.add_argument("--duration", type=float, default=None,
+                   help="simulated time [s] of --reference, or length of the gravity and sine experiments "
+                        "(default: the reference's, the experiment's)")
     p.add_argument("--rate", type=float, default=1000.0, help="sample and control rate [Hz] (default 1000)")
     p.add_argument("--substeps", type=int, default=2, help="integration steps per sample (default 2)")
     p.add_argument("--joints", default=None, help="comma-separated 1-based joints for motor/friction (default all)")
@@ -49,7 +52,9 @@ def _add_simulate(subparsers) -> None:
 
 
 def _read_reference(path: str, n_dof: int):
-    from identification.data.io import _COLUMN  # column grammar shared with the recording reader
+    """``(t, q[, qd[, qdd]])`` from a trajectory CSV as ``psdm excite`` and ``psdm experiment`` write it."""
+    from trajopt.csvfile import trajectory_header
+
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"reference {str(path)!r} does not exist. Check the path.")
@@ -58,9 +63,11 @@ def _read_reference(path: str, n_dof: int):
     if not lines:
         raise ParameterError(f"{path.name}: empty reference; expected a header t,q1..q{n_dof}.")
     header = [h.strip() for h in lines[0].split(",")]
+    known = set(trajectory_header(n_dof))
     for name in header:
-        if name != "t" and not (_COLUMN.match(name) and name.startswith("q")):
-            raise ParameterError(f"{path.name}: column {name!r} is not a reference column (t, q1.., qd1.., qdd1..). Remove it.")
+        if name not in known:
+            raise ParameterError(f"{path.name}: column {name!r} is not a reference column of a {n_dof}-joint robot "
+                                 f"(t, q1..q{n_dof}, qd1.., qdd1..). Remove it.")
     try:
         data = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
     except ValueError:
@@ -85,12 +92,38 @@ def _read_reference(path: str, n_dof: int):
     return tuple(parts)
 
 
+def _experiment_runs(args, robot, joints, rng, base):
+    """``(name, reference, SimulationOptions)`` of the chosen calibration experiment (trajopt's designs)."""
+    from identification.virtual.calibration import friction_simulation_options
+    from identification.virtual.effects import Payload
+    from identification.virtual.simulation import SimulationOptions
+    from trajopt.experiments import friction_experiment, gravity_experiment, motor_experiment, sine_experiment
+
+    length = {} if args.duration is None else {"duration": args.duration}
+    if args.experiment == "motor":
+        loaded = SimulationOptions(payload=Payload(mass=args.payload), **base)
+        runs = []
+        for j in joints:
+            ref = motor_experiment(robot, j).reference()
+            runs += [(f"motor_j{j + 1}_nominal", ref, SimulationOptions(**base)),
+                     (f"motor_j{j + 1}_payload", ref, loaded)]
+        return runs
+    if args.experiment == "gravity":
+        experiment = gravity_experiment(robot, rng=rng, **length)
+        return [("gravity", experiment.reference(), SimulationOptions(**base))]
+    if args.experiment == "friction":
+        # as in the virtual calibration: no friction feed-forward, fine leapfrog steps
+        still = friction_simulation_options(SimulationOptions(**base))
+        return [(f"friction_j{j + 1}", friction_experiment(robot, j).reference(), still) for j in joints]
+    experiment = sine_experiment(robot, rng=rng, **length)
+    return [("sine", experiment.reference(), SimulationOptions(**base))]
+
+
 def _run_simulate(args) -> int:
     from psdm_casadi.robot import load_robot
 
-    from identification.virtual import experiments
-    from identification.virtual.effects import Payload
-    from identification.virtual.simulation import SimulationOptions, simulate_recording, write_recording
+    from identification.virtual.simulation import SimulationOptions, simulate_recording
+    from identification.virtual.truth import write_recording
 
     robot = load_robot(args.robot)
     n = robot.n_dof
@@ -102,28 +135,10 @@ def _run_simulate(args) -> int:
     base = dict(rate=args.rate, substeps=args.substeps, record_tau=args.tau)
     if args.no_noise:
         base.update(encoder_resolution=None, current_resolution=None, current_noise_std=0.0)
-    runs = []  # (name, reference, options)
     if args.reference:
-        runs.append(("reference", _read_reference(args.reference, n), SimulationOptions(duration=args.duration, **base)))
-    elif args.experiment == "motor":
-        payload = Payload(mass=args.payload)
-        for j in joints:
-            ref = experiments.motor_reference(robot, j)
-            runs.append((f"motor_j{j + 1}_nominal", ref, SimulationOptions(**base)))
-            runs.append((f"motor_j{j + 1}_payload", ref, SimulationOptions(payload=payload, **base)))
-    elif args.experiment == "gravity":
-        ref = experiments.gravity_reference(robot, duration=args.duration or 60.0, rng=rng)
-        runs.append(("gravity", ref, SimulationOptions(**base)))
-    elif args.experiment == "friction":
-        for j in joints:
-            # as in the virtual calibration: no friction feed-forward (it would kick the joint out of
-            # pre-sliding at every reversal) and at least 4 sub-steps to resolve the bristle dynamics
-            friction_base = {**base, "substeps": max(int(args.substeps), 4), "friction_feedforward": False}
-            runs.append((f"friction_j{j + 1}", experiments.friction_reference(robot, j),
-                         SimulationOptions(**friction_base)))
+        runs = [("reference", _read_reference(args.reference, n), SimulationOptions(duration=args.duration, **base))]
     else:
-        ref = experiments.sine_reference(robot, duration=args.duration or 30.0, rng=rng)
-        runs.append(("sine", ref, SimulationOptions(**base)))
+        runs = _experiment_runs(args, robot, joints, rng, base)
 
     written, simulated, wall = [], 0.0, 0.0
     for name, ref, options in runs:

@@ -1,13 +1,11 @@
 """Friction-experiment signals and synthetic LuGre data for the friction tests (known truth)."""
 
-from pathlib import Path
-
 import numpy as np
 
-from identification.virtual.experiments import tuned_friction_signal
-from identification.friction.models import LuGreParameters, simulate_lugre
-from psdm_casadi.robot import load_robot
-from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+from identification.friction.models import LuGreParameters
+from identification.friction.simulation import simulate_lugre
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, load_robot
+from trajopt.friction_design import tuned_friction_signal
 
 DENSO = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 

@@ -9,7 +9,7 @@ import pytest
 from identification.diagnosis import (ALL_TERMS, CandidateLibrary, SpringTerm, TorqueOffsetTerm, TorqueRippleTerm,
                                       default_library)
 from identification.diagnosis.context import build_context
-from identification.virtual.experiments import sine_reference
+from trajopt.experiments import sine_experiment
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
@@ -20,7 +20,7 @@ def context(request):
     denso = request.getfixturevalue("denso")
     model = request.getfixturevalue("denso_model")
     rng = np.random.default_rng(3)
-    rec, _ = simulate_recording(denso, sine_reference(denso, duration=3.0, rng=rng),
+    rec, _ = simulate_recording(denso, sine_experiment(denso, duration=3.0, rng=rng).reference(),
                                 SimulationOptions(record_tau=True, record_current=False), rng)
     return build_context(denso, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
 
@@ -137,7 +137,7 @@ def test_without_a_friction_prior_the_smooth_sign_of_the_filtered_velocity_is_ke
 
     bare = dataclasses.replace(denso, drives=None)
     rng = np.random.default_rng(3)
-    rec, _ = simulate_recording(denso, sine_reference(denso, duration=3.0, rng=rng),
+    rec, _ = simulate_recording(denso, sine_experiment(denso, duration=3.0, rng=rng).reference(),
                                 SimulationOptions(record_tau=True, record_current=False), rng)
     ctx = build_context(bare, denso_model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
     assert not ctx.filtered_friction

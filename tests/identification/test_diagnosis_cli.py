@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from identification.virtual import effects as xp
-from identification.virtual.experiments import sine_reference
+from trajopt.experiments import sine_experiment
 from identification.data.io import save_recording
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
@@ -20,7 +20,7 @@ def _write_pair(denso, directory, extras):
     paths = []
     for k, duration in enumerate((8.0, 4.0)):
         rng = np.random.default_rng(40 + k)
-        rec, _ = simulate_recording(denso, sine_reference(denso, duration=duration, rng=rng),
+        rec, _ = simulate_recording(denso, sine_experiment(denso, duration=duration, rng=rng).reference(),
                                     SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
                                     rng, extras=extras)
         paths.append(save_recording(rec, directory / f"{'train' if k == 0 else 'validate'}.npz"))

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import logging
+
 import numpy as np
 import pytest
 
@@ -51,11 +53,33 @@ def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(dens
     assert first.parameters["mass"] == pytest.approx(-3.0, rel=0.1)
 
 
-def test_delay_is_refined_by_ipopt_and_lowers_the_error(denso, denso_model):
+class _Collect(logging.Handler):
+    def __init__(self):
+        super().__init__()
+        self.messages = []
+
+    def emit(self, record):
+        self.messages.append(record.getMessage())
+
+
+@pytest.fixture
+def diagnosis_log():
+    """The INFO lines of the diagnosis loggers during the test (kept from any handler a CLI test installed)."""
+    logger = logging.getLogger("identification.diagnosis")
+    handler, level, propagate = _Collect(), logger.level, logger.propagate
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+    logger.propagate = False
+    yield handler.messages
+    logger.removeHandler(handler)
+    logger.setLevel(level)
+    logger.propagate = propagate
+
+
+def test_delay_is_refined_by_ipopt_and_lowers_the_error(denso, denso_model, diagnosis_log):
     train, val = recording_pair(denso, [xp.SignalDelay(samples=6)], seed=5)
-    messages = []
-    report = diagnose(denso, train, val, DiagnosisOptions(library=DelayTerm() + TorqueOffsetTerm()), model=denso_model,
-                      progress=messages.append)
+    report = diagnose(denso, train, val, DiagnosisOptions(library=DelayTerm() + TorqueOffsetTerm()), model=denso_model)
+    messages = diagnosis_log
     assert report.effects[0] == "delay"
     assert any("Ipopt" in m and "Solve_Succeeded" in m for m in messages)
     assert report.findings[0].parameters["delay_s"] == pytest.approx(0.006, abs=0.003)

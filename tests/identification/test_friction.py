@@ -1,24 +1,25 @@
 """Friction models: LuGre numeric simulation against independent references, CasADi against numpy."""
 
+import math
+
 import casadi as ca
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+from identification.friction.expressions import build_lugre_expressions
+from identification.friction.lugre_step import lugre_step_coefficients, phi_function_expressions, phi_functions
 from identification.friction.models import (
     LUGRE_PARAMETER_NAMES,
     CoulombViscous,
     LuGreParameters,
     Stribeck,
-    build_lugre_expressions,
     check_friction_data,
-    lugre_step_coefficients,
-    lugre_torque,
-    simulate_lugre,
 )
+from identification.friction.simulation import lugre_torque, simulate_lugre, simulated_mse
+from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.robot import DriveParameters
-
 from tests.identification.friction_signal import denso_truth, sine_series
 
 TRUTH = dict(fc=9.593, fs=12.51, vs=0.0144, fv=23.67, dv=0.6091, sigma0=288499.0, sigma1=22.79)
@@ -107,8 +108,7 @@ def test_simulation_matches_stiff_ode_solver():
     z_ref = _reference_solution(p, qd_fun, t)
     tau_ref = lugre_torque(p, qd, p.sigma0 * z_ref)
     tau, z = simulate_lugre(p, t, qd)  # one step per 1 ms sample
-    scale = np.sqrt(np.mean(tau_ref**2))
-    assert np.sqrt(np.mean((tau - tau_ref) ** 2)) < 2e-3 * scale
+    assert rmse(tau, tau_ref) < 2e-3 * rms(tau_ref)
     assert np.max(np.abs(z - z_ref)) < 5e-3 * np.max(np.abs(z_ref))
 
 
@@ -116,10 +116,10 @@ def test_simulation_converges_at_second_order():
     p, qd_max = denso_truth(0)
     t, qd = sine_series(p, qd_max, frequency_scale=4.0)
     ref, _ = simulate_lugre(p, t, qd, substeps=128)
-    errors = [np.sqrt(np.mean((simulate_lugre(p, t, qd, substeps=m)[0] - ref) ** 2)) for m in (1, 2, 4)]
+    errors = [rmse(simulate_lugre(p, t, qd, substeps=m)[0], ref) for m in (1, 2, 4)]
     ratios = np.array(errors[:-1]) / np.array(errors[1:])
     assert np.all(ratios > 3.0), errors  # 4 for a second-order scheme
-    assert errors[0] < 1e-2 * np.sqrt(np.mean(ref**2))  # 4x faster than the benchmark experiment
+    assert errors[0] < 1e-2 * rms(ref)  # on a signal 4x faster than the benchmark experiment's
 
 
 def test_stiff_case_stays_bounded():
@@ -155,6 +155,36 @@ def test_inputs_are_not_mutated():
     before = qd.copy()
     simulate_lugre(p, t, qd)
     np.testing.assert_array_equal(qd, before)
+
+
+def test_simulated_mse_is_the_mean_squared_simulation_error():
+    p = LuGreParameters(**TRUTH)
+    t = np.arange(200) * 1e-3
+    qd = 0.3 * np.sin(2 * np.pi * 4 * t)
+    tau = simulate_lugre(p, t, qd)[0] + 0.1
+    assert simulated_mse(p, t, qd, tau) == pytest.approx(0.01, rel=1e-12)
+    assert simulated_mse(p, t, qd, tau, substeps=4) == np.mean((simulate_lugre(p, t, qd, substeps=4)[0] - tau) ** 2)
+
+
+# -- the exponential integrator ---------------------------------------------------------------------
+def _phi_reference(x, offset):
+    """phi1 (offset 1) or phi2 (offset 2) as the power series sum (-x)^k / (k + offset)!, x <= 1."""
+    return sum((-x) ** k / math.factorial(k + offset) for k in range(30))
+
+
+def test_phi_functions_numpy_and_casadi_agree_across_the_series_limit():
+    x = np.concatenate([[0.0], np.logspace(-8, 2, 41), [1e-3 * (1 - 1e-12), 1e-3 * (1 + 1e-12)]])
+    phi1, phi2 = phi_functions(x)
+    small = x <= 1.0
+    np.testing.assert_allclose(phi1[small], _phi_reference(x[small], 1), rtol=1e-12)
+    np.testing.assert_allclose(phi2[small], _phi_reference(x[small], 2), rtol=1e-11)
+    big = x[~small]
+    np.testing.assert_allclose(phi1[~small], (1 - np.exp(-big)) / big, rtol=1e-14)
+    np.testing.assert_allclose(phi2[~small], (big - 1 + np.exp(-big)) / big**2, rtol=1e-14)
+    sym = ca.SX.sym("x")
+    f = ca.Function("phi", [sym], list(phi_function_expressions(sym)))
+    for value, a, b in zip(x, phi1, phi2):
+        assert float(f(value)[0]) == pytest.approx(a, rel=1e-15) and float(f(value)[1]) == pytest.approx(b, rel=1e-15)
 
 
 # -- CasADi pieces --------------------------------------------------------------------------------

@@ -1,21 +1,22 @@
-"""LuGre identification: eq. 20 fit, multiple-shooting NLP, the paper's Nelder-Mead peer, estimator."""
+"""LuGre identification: eq. 20 fit, start values, multiple-shooting NLP, the paper's Nelder-Mead peer."""
 
 import numpy as np
 import pytest
 
-from identification.friction.models import CoulombViscous, LuGreParameters, simulate_lugre
-from identification.friction.shooting import (
-    LuGreIdentifier,
-    ShootingOptions,
-    fit_high_speed,
-    fit_lugre_multiple_shooting,
-    initial_lugre_guess,
-    r2_score,
-)
 from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
-from psdm_casadi.errors import NotFittedError, ParameterError, ShapeError, SolverError
-
-from tests.identification.friction_signal import denso_truth, measured_friction, ringing_joint_record, sine_series, synthetic_record
+from identification.friction.models import CoulombViscous, LuGreParameters
+from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
+from identification.friction.simulation import simulate_lugre
+from identification.friction.start import check_initial, fit_high_speed, initial_lugre_guess
+from identification.metrics import r2, rms, rmse
+from psdm_casadi.errors import ParameterError, ShapeError, SolverError
+from tests.identification.friction_signal import (
+    denso_truth,
+    measured_friction,
+    ringing_joint_record,
+    sine_series,
+    synthetic_record,
+)
 
 ISSUE_TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
 
@@ -23,6 +24,12 @@ ISSUE_TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "
 @pytest.fixture
 def rng():
     return np.random.default_rng(7)
+
+
+def fit_from_data(t, qd, tau, options=None):
+    """The friction step's three stages on one record: eq. 20, the data-driven guess, the shooting fit."""
+    initial = initial_lugre_guess(t, qd, tau, fit_high_speed(qd, tau))
+    return fit_lugre_multiple_shooting(t, qd, tau, initial, options)
 
 
 def test_high_speed_fit_recovers_eq20(rng):
@@ -62,8 +69,7 @@ def test_interval_length_does_not_change_the_optimum():
 def test_fine_step_truth_recovered_from_data_driven_start():
     """Truth simulated with 32 sub-steps (an independent discretisation), start from the data."""
     truth, t, qd, tau = synthetic_record(3)
-    est = LuGreIdentifier().fit(t, qd, tau)
-    errors = est.params_.relative_error(truth)
+    errors = fit_from_data(t, qd, tau).parameters.relative_error(truth)
     assert all(errors[name] < 0.01 for name in ("fc", "fs", "vs", "fv", "dv", "sigma0")), errors
     assert errors["sigma1"] < 0.05, errors
 
@@ -73,20 +79,19 @@ def test_fine_step_truth_recovered_from_data_driven_start():
 def test_noisy_recovery_every_joint(joint):
     rng = np.random.default_rng(joint)
     truth, t, qd, tau = synthetic_record(joint, rng, noise=0.02, frequency_scale=1.0)
-    est = LuGreIdentifier(options=ShootingOptions(substeps=2)).fit(t, qd, tau)
-    errors = est.params_.relative_error(truth)
+    errors = fit_from_data(t, qd, tau, ShootingOptions(substeps=2)).parameters.relative_error(truth)
     assert all(errors[k] <= ISSUE_TOLERANCE[k] for k in errors), errors
 
 
 def test_noisy_recovery_within_issue_tolerances(rng):
     truth, t, qd, tau = synthetic_record(3, rng, noise=0.02)
-    est = LuGreIdentifier().fit(t, qd, tau)
-    errors = est.params_.relative_error(truth)
+    fitted = fit_from_data(t, qd, tau).parameters
+    errors = fitted.relative_error(truth)
     assert all(errors[k] <= ISSUE_TOLERANCE[k] for k in errors), errors
     # validation on a different experiment, noise included (paper Table 3 metric)
     tv, qdv = sine_series(truth, denso_truth(3)[1], frequency_scale=2.6)
     tau_v = simulate_lugre(truth, tv, qdv, substeps=32)[0] + 0.02 * truth.fc * rng.standard_normal(tv.size)
-    assert est.score(tv, qdv, tau_v) >= 0.99
+    assert r2(tau_v, simulate_lugre(fitted, tv, qdv)[0]) >= 0.99
 
 
 def test_solver_failure_raises_with_status():
@@ -131,6 +136,11 @@ def test_bad_inputs_name_the_field():
     zero_damping = LuGreParameters(**dict(truth.as_dict(), sigma1=0.0))
     with pytest.raises(ParameterError, match="initial.sigma1"):
         fit_lugre_multiple_shooting(t, qd, tau, zero_damping)
+    with pytest.raises(ParameterError, match=r"paper_friction_fit\.initial\.sigma1"):
+        paper_friction_fit(t, qd, tau, zero_damping)
+    zero_viscous = LuGreParameters(**dict(truth.as_dict(), fv=0.0))
+    with pytest.raises(ParameterError, match=r"owner\.initial\.fv must be > 0"):
+        check_initial(zero_viscous, "owner")
     with pytest.raises(ParameterError, match="options"):
         fit_lugre_multiple_shooting(t, qd, tau, truth, options={"max_iter": 3})
     with pytest.raises(ParameterError, match="high_speed"):
@@ -150,7 +160,7 @@ def test_ode_simulator_of_the_baseline_matches_the_exponential_integrator():
     keep = t < 2.0
     reference, _ = simulate_lugre(truth, t[keep], qd[keep], substeps=32)
     ode = simulate_lugre_ode(truth, t[keep], qd[keep])
-    assert np.sqrt(np.mean((ode - reference) ** 2)) < 1e-2 * np.sqrt(np.mean(reference**2))
+    assert rmse(ode, reference) < 1e-2 * rms(reference)
 
 
 def test_paper_baseline_improves_on_its_start():
@@ -163,25 +173,21 @@ def test_paper_baseline_improves_on_its_start():
     assert result.parameters.fc == start.fc  # the paper keeps eq. 20's fc, fv, dv
 
 
-def test_estimator_contract():
+def test_fit_leaves_its_inputs_alone_and_is_deterministic():
     truth, t, qd, tau = synthetic_record(3, frequency_scale=4.0)
-    est = LuGreIdentifier(initial=truth)
-    with pytest.raises(NotFittedError, match="params_"):
-        est.predict(t, qd)
-    with pytest.raises(NotFittedError, match="params_"):
-        est.score(t, qd, tau)
-    qd_before, tau_before = qd.copy(), tau.copy()
-    assert est.fit(t, qd, tau) is est
+    t_before, qd_before, tau_before = t.copy(), qd.copy(), tau.copy()
+    result = fit_lugre_multiple_shooting(t, qd, tau, truth)
+    np.testing.assert_array_equal(t, t_before)
     np.testing.assert_array_equal(qd, qd_before)
     np.testing.assert_array_equal(tau, tau_before)
-    assert est.predict(t, qd).shape == t.shape
-    assert est.score(t, qd, tau) > 0.999
-    assert r2_score(tau, est.predict(t, qd)) == pytest.approx(est.score(t, qd, tau))
-    assert LuGreIdentifier(initial=truth).fit(t, qd, tau).params_ == est.params_  # deterministic
+    assert result.initial is truth
+    assert result.tau.shape == result.z.shape == t.shape
+    assert r2(tau, simulate_lugre(result.parameters, t, qd)[0]) > 0.999  # from a relaxed bristle
+    assert fit_lugre_multiple_shooting(t, qd, tau, truth).parameters == result.parameters
 
 
 # ------------------------------------------------------------------------------------------------
-# the central-difference measurement model (identification.friction.models.measurement)
+# the central-difference measurement model (identification.friction.measurement)
 # ------------------------------------------------------------------------------------------------
 def test_measured_model_equals_brute_force_triangle_average():
     """Closed-form L/R means against a fine numerical average of the friction along piecewise-linear q."""
@@ -219,7 +225,7 @@ def ringing_record():
 
 
 def test_central_difference_measurement_recovers_sigma1_of_a_ringing_joint(ringing_record):
-    """Comparing y with the friction at the samples biases sigma1 by ~85 %; modelling the measurement does not."""
+    """Comparing y with the friction at the samples biases sigma1; modelling the measurement does not."""
     truth, t, q, qd, y = ringing_record
     initial = initial_lugre_guess(t, qd, y, fit_high_speed(qd, y))
     exact = fit_lugre_multiple_shooting(t, qd, y, initial, ShootingOptions(measurement="central-difference"), q=q)

@@ -7,11 +7,11 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from identification.virtual import experiments
 from identification.virtual.effects import (GravityTilt, JointCoupling, Payload, SignalDelay, Spring, TorqueOffset,
                                           TorqueRipple)
 from identification.data.io import load_recording
-from identification.virtual.simulation import SimulationOptions, read_truth, simulate_recording, write_recording
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from identification.virtual.truth import read_truth, write_recording
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import PinocchioOracle
 
@@ -212,66 +212,70 @@ def test_write_recording_with_truth(denso, tmp_path):
         write_recording(rec, truth, tmp_path / "out", name="run")
 
 
-def test_experiment_references_respect_limits(denso):
-    friction = [experiments.friction_reference(denso, j) for j in range(denso.n_dof)]
-    for t, q in (experiments.motor_reference(denso, 1), experiments.oscillation_reference(denso, 5),
-                 experiments.gravity_reference(denso, duration=20.0), experiments.sine_reference(denso, duration=10.0),
-                 *friction):
-        assert np.all(np.diff(t) > 0)
-        assert np.all(q >= denso.q_min - 1e-9) and np.all(q <= denso.q_max + 1e-9)
-        qd = np.gradient(q, t, axis=0)
-        assert np.all(np.abs(qd).max(axis=0) <= denso.qd_max)
-    for j, (t, q) in enumerate(friction):
-        qdd = np.gradient(np.gradient(q[:, j], t), t)
-        assert np.abs(qdd).max() <= denso.qdd_max[j]
-    t, q = experiments.gravity_reference(denso, duration=20.0)
-    np.testing.assert_allclose(q, q[::-1], atol=1e-2)  # back along the same path
+class _Design:
+    """A minimal CalibrationDesign: short references of plain arrays, recording how it was called."""
+
+    def __init__(self, n_dof):
+        self.t = np.linspace(0.0, 0.2, 101)
+        self.q = np.zeros((self.t.size, n_dof))
+        self.calls = []
+
+    def _ref(self, joint=None, scale=0.01):
+        q = self.q.copy()
+        if joint is not None:
+            q[:, joint] = scale * np.sin(2 * np.pi * 5 * self.t)
+        return self.t, q
+
+    def motor_reference(self, robot, joint, load_torque, rng):
+        self.calls.append(("motor", joint, load_torque(self.q[:2]).shape))
+        return self._ref(joint)
+
+    def gravity_reference(self, robot, rng):
+        self.calls.append(("gravity",))
+        return self._ref()
+
+    def friction_reference(self, robot, joint):
+        self.calls.append(("friction", joint))
+        return self._ref(joint, 1e-4)
+
+    def friction_validation_reference(self, robot, joint):
+        return None if joint == 1 else self._ref(joint, 2e-4)
+
+    def excitation_references(self, robot, rng):
+        return (self._ref(), self._ref(0))
 
 
-def test_friction_design_content(denso):
-    """Segments rest to rest; pre-sliding amplitudes and Stribeck speeds as designed; validation at 1.3x."""
-    design = experiments.FrictionDesign()
-    assert design.presliding_amplitudes[0] == pytest.approx(5e-6) and design.presliding_amplitudes[-1] == pytest.approx(5e-3)
-    t, q = experiments.friction_reference(denso, 0, design)
-    pose = experiments.home_pose(denso)
-    room = 0.95 * max(denso.q_max[0] - pose[0], pose[0] - denso.q_min[0])
-    segments = design.segments(denso.qd_max[0], denso.qdd_max[0], room)
-    assert t[-1] == pytest.approx(sum(n / f + design.pause for _, f, n in segments), abs=2e-3)
-    assert t[-1] == pytest.approx(design.duration, rel=0.12)  # the base joint's acceleration limit slows a segment
-    x = q[:, 0] - q[0, 0]
-    first = t < design.presliding_periods / design.presliding_hz
-    assert np.ptp(x[first]) == pytest.approx(2 * design.presliding_amplitudes[0], rel=1e-3)
-    qd = np.gradient(x, t)
-    peak = np.abs(qd[first]).max()  # rest to rest: q = A (1 - cos), zero speed at both ends
-    assert abs(x[0]) < 1e-12 and abs(qd[0]) < 0.1 * peak and abs(x[-1]) < 1e-9 and abs(qd[-1]) < 1e-6
-    tv, _ = experiments.friction_reference(denso, 0, design.validation())
-    assert tv[-1] < t[-1]
-    segments = design.validation().segments(denso.qd_max[0], denso.qdd_max[0], 2.0)
-    assert segments[0][1] == pytest.approx(13.0)
-    assert experiments.FrictionDesign.quick().duration < 0.6 * design.duration
+def test_simulate_calibration_runs_the_designs_references(denso, caplog):
+    """The virtual robot runs what the plan hands it, in order, friction experiments without friction feed-forward."""
+    import logging
 
+    from identification.virtual.calibration import (VirtualCalibrationOptions, friction_simulation_options,
+                                                    simulate_calibration)
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(presliding_amplitudes=()), "presliding_amplitudes"), (dict(stribeck_speeds=(0.1, -1.0)), "stribeck_speeds"),
-    (dict(sliding_fractions=(0.5, 1.5)), "sliding_fractions"), (dict(presliding_hz=0.0), "presliding_hz"),
-    (dict(sliding_periods=0), "sliding_periods"), (dict(pause=-1.0), "pause"),
-])
-def test_friction_design_errors(kwargs, field):
-    with pytest.raises(ParameterError, match=field):
-        experiments.FrictionDesign(**kwargs)
-
-
-def test_friction_reference_errors(denso):
-    with pytest.raises(ParameterError, match="design"):
-        experiments.friction_reference(denso, 0, design=(1e-3,))
-    with pytest.raises(ParameterError, match="joint"):
-        experiments.friction_reference(denso, 9)
+    design = _Design(denso.n_dof)
+    with caplog.at_level(logging.INFO, logger="identification.virtual.calibration"):
+        data = simulate_calibration(denso, design, VirtualCalibrationOptions(), np.random.default_rng(0), joints=[0, 1])
+    assert design.calls == [("motor", 0, (2, 6)), ("motor", 1, (2, 6)), ("gravity",), ("friction", 0), ("friction", 1)]
+    assert [j for j, *_ in data.motor] == [0, 1] and data.motor[1][1].name == "motor_j2_nominal"
+    assert [j for j, _ in data.friction_validation] == [0]
+    assert [r.name for r in data.excitation] == ["excitation_1", "excitation_2"]
+    assert data.friction[0][1].n_samples == 201 and "simulate: gravity" in caplog.text
+    still = friction_simulation_options(SimulationOptions(substeps=2))
+    assert not still.friction_feedforward and still.substeps == 4 and still.integrator == "leapfrog"
+    caplog.clear()
+    with caplog.at_level(logging.INFO, logger="identification.virtual.calibration"):
+        simulate_calibration(denso, _Design(6), VirtualCalibrationOptions(quiet=True), joints=[0])
+    assert caplog.text == ""
+    with pytest.raises(ParameterError, match="payload"):
+        VirtualCalibrationOptions(payload=2.0)
 
 
 def test_default_encoder_resolves_presliding():
-    """A 20-bit motor encoder behind a 1:100 gear: far below the 5 urad pre-sliding amplitudes."""
+    """A 20-bit motor encoder behind a 1:100 gear: far below the friction design's 5 urad pre-sliding amplitudes."""
+    from trajopt.friction_design import FrictionDesign
+
     assert SimulationOptions().encoder_resolution == pytest.approx(2 * np.pi / 2**20 / 100)
-    assert SimulationOptions().encoder_resolution < 0.02 * experiments.FrictionDesign().presliding_amplitudes[0]
+    assert SimulationOptions().encoder_resolution < 0.02 * FrictionDesign().presliding_amplitudes[0]
 
 
 def test_exact_z_step_matches_stiff_ode_solver(denso):

@@ -176,7 +176,6 @@ def test_random_parameters_respect_the_assumptions(denso, rng):
 def test_shipped_scara_file_is_prismatic_and_derives():
     from psdm_casadi import load_robot
 
-    from tests.conftest import ROOT
 
     robot = load_robot(BUILTIN_ROBOTS_DIR / "scara.toml")
     assert [j.kind for j in robot.joints] == ["revolute", "revolute", "prismatic", "revolute"]

@@ -119,3 +119,22 @@ def load_robot_from_urdf(path, locked):
 
 def test_denso_file_is_the_shipped_one():
     assert DENSO_FILE.exists()
+
+
+def test_robot_is_the_one_import_path_of_each_concept_home():
+    from psdm_casadi import description, robot, robot_file, urdf
+
+    assert robot.RobotDescription is description.RobotDescription
+    assert robot.load_robot is robot_file.load_robot
+    assert robot.BUILTIN_ROBOTS_DIR == robot_file.BUILTIN_ROBOTS_DIR
+    assert robot.from_urdf is urdf.from_urdf
+    assert all(hasattr(robot, name) for name in robot.__all__)
+
+
+def test_parse_parameter_name():
+    from psdm_casadi.description import parse_parameter_name
+
+    assert parse_parameter_name("Ixz4", 6) == ("Ixz", 4)
+    assert parse_parameter_name("m1", 2) == ("m", 1)
+    with pytest.raises(RobotFileError, match="zero_parameters entry 'rx7'"):
+        parse_parameter_name("rx7", 6)

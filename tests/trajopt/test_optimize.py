@@ -214,3 +214,16 @@ def test_with_the_derived_psdm_regressor(planar_robot):
     y = model.regressor(*traj.sample(t))[:, :, list(traj.columns)].reshape(-1, len(traj.columns))
     assert traj.cond == pytest.approx(np.linalg.cond(y), rel=1e-9)
     assert traj.worst_margin >= 0
+
+
+def test_progress_goes_to_the_module_logger_and_quiet_silences_it(planar_robot, planar_regressor, caplog):
+    base = dict(FAST, n_starts=1, max_iter=5, sharpness=(8.0,))
+    with warnings.catch_warnings(), caplog.at_level("INFO", logger="trajopt.optimize"):
+        warnings.simplefilter("ignore", ExcitationWarning)
+        optimize_excitation(planar_robot, planar_regressor, ExcitationOptions(**{**base, "quiet": False}), seed=0)
+        loud = [r for r in caplog.records if r.name == "trajopt.optimize"]
+        caplog.clear()
+        optimize_excitation(planar_robot, planar_regressor, ExcitationOptions(**base), seed=0)
+        quiet = [r for r in caplog.records if r.name == "trajopt.optimize"]
+    assert loud and all(r.levelname == "INFO" and r.getMessage().startswith("excite: ") for r in loud)
+    assert quiet == []

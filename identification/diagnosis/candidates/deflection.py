@@ -19,7 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.data.preprocessing import central_difference
-from identification.diagnosis.candidates import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, CandidateTerm
+from identification.diagnosis.candidates.base import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, CandidateTerm
+from identification.metrics import rms
 
 
 def _deflection_columns(context, joint, s, sd, sdd):
@@ -123,8 +124,7 @@ class JointElasticityTerm(CandidateTerm):
         # friction: the recorded velocity leads by c dtau/dt, which moves the friction's sign changes; not
         # linear in c, so the column is the finite change at a nominal compliance c0 (torsion of 0.2 deg
         # at the joint's RMS torque), divided by c0
-        rms = float(np.sqrt(np.mean(context.full_tau[:, j] ** 2)))
-        c0 = np.radians(0.2) / max(rms, 1e-9)
+        c0 = np.radians(0.2) / max(rms(context.full_tau[:, j]), 1e-9)
         rate = np.gradient(context.full_tau[:, j], context.full_t)
         shift = context.friction_shift(j, c0 * rate)
         if shift is not None:

@@ -1,0 +1,168 @@
+"""The candidate-term interface and its composition: ``CandidateTerm``, ``CandidateLibrary`` and the shared bounds.
+
+Every family module (``torque``, ``friction``, ``inertial``, ``delay``, ``deflection``) subclasses
+``CandidateTerm``; ``+`` composes terms into a ``CandidateLibrary`` like the candidate functions of
+pysindy. Fitted parameters are checked against the physical bounds ``MAX_*`` below
+(``CandidateTerm.implausibility``). Sign convention: columns describe torque the motors must supply in
+addition to the nominal model, ``tau_measured = tau_nominal + columns @ coefficients``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import casadi as ca
+import numpy as np
+
+from psdm_casadi.errors import ParameterError
+
+SMOOTH_VELOCITY = 0.02  # [rad/s] width of the smooth sign tanh(qd / v) of the friction-like terms
+
+# plausibility bounds of fitted parameters (``CandidateTerm.implausibility``)
+MAX_LOAD_FRICTION = 0.5   # load-dependent friction coefficient mu (gear efficiency above 50 %)
+MAX_DELAY_S = 0.1         # torque-to-position delay [s]
+MAX_BACKLASH_RAD = 0.05   # total play [rad] (about 3 degrees)
+MAX_DEFLECTION_RAD = 0.05  # joint torsion at the peak torque [rad]
+MAX_PAYLOAD_REACH = 0.5   # distance of a payload's centre of mass from the flange [m]
+
+
+def joint_columns(context, joint: int, values) -> np.ndarray:
+    """Columns (n_samples, n_dof, k) with ``values`` (n_samples, k) on joint ``joint`` and zero elsewhere."""
+    values = np.asarray(values, dtype=float)
+    if values.ndim == 1:
+        values = values[:, None]
+    out = np.zeros((context.n_samples, context.n_dof, values.shape[1]))
+    out[:, joint, :] = values
+    return out
+
+
+def joint_expression(n_dof: int, joint: int, value):
+    """Torque (SX, n_dof) with ``value`` on joint ``joint`` and zero elsewhere (the CasADi form of ``joint_columns``)."""
+    out = ca.SX.zeros(n_dof)
+    out[joint] = value
+    return out
+
+
+class CandidateTerm:
+    """Base class of candidate physics terms.
+
+    A term built without a joint stands for one instance per joint (``expand``); every concrete
+    instance provides ``feature_names()`` and ``columns(context)``, an array (n_samples, n_dof,
+    n_features) that enters the least-squares fit linearly (nonlinear effects such as a delay, backlash
+    and joint elasticity enter through their first-order expansion around the nominal model),
+    ``physical_parameters(coefficients)`` turning fitted coefficients into named physical parameters,
+    and where possible ``casadi_expression`` for the augmented model.
+
+    Class attributes
+    ----------------
+    key : str
+        The effect's name in reports and JSON (``spring``, ``payload``, ...).
+    explanation : str
+        The physics in plain language.
+    signature : str
+        How the effect shows in the residual (used in reports; the fit ranks candidates by it numerically).
+    per_joint : bool
+        Whether ``expand`` makes one instance per joint.
+    """
+
+    key = ""
+    explanation = ""
+    signature = ""
+    per_joint = True
+
+    joint: int | None = None
+
+    # --- composition --------------------------------------------------------------------------
+    def __add__(self, other):
+        return CandidateLibrary((self,)) + other
+
+    def expand(self, n_dof: int) -> tuple:
+        """Concrete instances for a robot with ``n_dof`` joints."""
+        if not self.per_joint:
+            return (self,)
+        if self.joint is not None:
+            if not (isinstance(self.joint, (int, np.integer)) and 0 <= self.joint < n_dof):
+                raise ParameterError(f"{type(self).__name__}.joint must be a joint index 0..{n_dof - 1}; got {self.joint!r}.")
+            return (self,)
+        return tuple(replace(self, joint=j) for j in range(n_dof))
+
+    @property
+    def joints(self) -> tuple:
+        """Joints (0-based) the term acts on; empty for robot-wide terms until fitted."""
+        return () if self.joint is None else (int(self.joint),)
+
+    @property
+    def label(self) -> str:
+        """Short unique label of the instance, e.g. ``spring[j2]``."""
+        return self.key if self.joint is None else f"{self.key}[j{self.joint + 1}]"
+
+    def _require_joint(self):
+        if self.joint is None:
+            raise ParameterError(f"{type(self).__name__}.joint is None; call expand(n_dof) to get one term per joint.")
+
+    # --- interface ----------------------------------------------------------------------------
+    def feature_names(self) -> list:
+        raise NotImplementedError
+
+    def columns(self, context) -> np.ndarray:
+        """Columns (n_samples, n_dof, n_features) on a ``DiagnosisContext``."""
+        raise NotImplementedError
+
+    def physical_parameters(self, coefficients) -> dict:
+        """Named physical parameters (floats) from the fitted coefficients (n_features,)."""
+        return {name: float(c) for name, c in zip(self.feature_names(), coefficients)}
+
+    def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        """Extra torque (SX, n_dof) of the term, or None when it is a signal correction (delay, backlash,
+        elasticity) or a change of the base parameters (see ``theta_change``)."""
+        return None
+
+    def theta_change(self, coefficients, parameter_map) -> np.ndarray | None:
+        """Change of the PSDM base parameters (n_base,) the term amounts to, or None."""
+        return None
+
+    def implausibility(self, coefficients, context=None) -> str | None:
+        """Why the fitted coefficients are not physical (the selection then skips the term), or None.
+
+        The default accepts any value; terms with a sign or a range (inertia, friction coefficient,
+        delay, compliance, backlash) override it.
+        """
+        return None
+
+    def interpret(self, coefficients) -> tuple:
+        """``(effect, explanation)`` reported for the fitted coefficients (the payload term reports a negative
+        mass as a last link too heavy in the robot file)."""
+        return self.key, self.explanation
+
+
+@dataclass(frozen=True)
+class CandidateLibrary:
+    """An ordered set of candidate terms; ``+`` appends terms or libraries."""
+
+    terms: tuple = field(default_factory=tuple)
+
+    def __post_init__(self):
+        for term in self.terms:
+            if not isinstance(term, CandidateTerm):
+                raise ParameterError(f"CandidateLibrary.terms must hold CandidateTerm objects; got {type(term).__name__}.")
+
+    def __add__(self, other):
+        if isinstance(other, CandidateLibrary):
+            return CandidateLibrary(self.terms + other.terms)
+        if isinstance(other, CandidateTerm):
+            return CandidateLibrary(self.terms + (other,))
+        return NotImplemented
+
+    def __len__(self):
+        return len(self.terms)
+
+    def __iter__(self):
+        return iter(self.terms)
+
+    def expand(self, n_dof: int) -> tuple:
+        """All concrete instances for a robot with ``n_dof`` joints."""
+        return tuple(inst for term in self.terms for inst in term.expand(n_dof))
+
+    @property
+    def keys(self) -> tuple:
+        return tuple(term.key for term in self.terms)

@@ -1,0 +1,109 @@
+"""Friction-like candidate terms: Coulomb asymmetry, load-dependent friction and friction drifting with time.
+
+Their columns take the sign of the velocity from ``DiagnosisContext.friction_sign`` (with a LuGre
+prior: the exact sign at full rate filtered like the recording, as the measured torque is); their
+CasADi expressions use the smooth sign ``tanh(qd / SMOOTH_VELOCITY)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from identification.diagnosis.candidates.base import (MAX_LOAD_FRICTION, SMOOTH_VELOCITY, CandidateTerm, joint_columns,
+                                                      joint_expression)
+
+
+@dataclass(frozen=True)
+class CoulombAsymmetryTerm(CandidateTerm):
+    """``coulomb_asymmetry``: extra Coulomb friction in the positive direction only."""
+
+    joint: int | None = None
+    key = "coulomb_asymmetry"
+    explanation = "Coulomb friction that differs between positive and negative motion"
+    signature = "residual is a step between the two velocity signs"
+
+    def feature_names(self):
+        self._require_joint()
+        return [f"delta_fc_{self.joint + 1}"]
+
+    def columns(self, context):
+        self._require_joint()
+        return joint_columns(context, self.joint, 0.5 * (1.0 + context.friction_sign(self.joint)))
+
+    def physical_parameters(self, coefficients):
+        return {"delta": float(coefficients[0])}
+
+    def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        return joint_expression(q.shape[0], self.joint, 0.5 * coefficients[0] * (1 + ca.tanh(qd[self.joint] / SMOOTH_VELOCITY)))
+
+
+@dataclass(frozen=True)
+class LoadDependentFrictionTerm(CandidateTerm):
+    """``load_dependent_friction``: friction proportional to the transmitted torque ``mu |tau| sign(qd)``."""
+
+    joint: int | None = None
+    key = "load_dependent_friction"
+    explanation = "friction that grows with the transmitted load, mu |tau| sign(qd) (gear tooth friction)"
+    signature = "friction-like residual whose size follows the torque magnitude"
+
+    def feature_names(self):
+        self._require_joint()
+        return [f"mu_{self.joint + 1}"]
+
+    def columns(self, context):
+        self._require_joint()
+        j = self.joint
+        return joint_columns(context, j, context.friction_sign(j, np.abs(context.full_tau[:, j])))
+
+    def physical_parameters(self, coefficients):
+        return {"coefficient": float(coefficients[0])}
+
+    def implausibility(self, coefficients, context=None):
+        mu = float(coefficients[0])
+        if not 0.0 < mu < MAX_LOAD_FRICTION:
+            return f"friction coefficient mu = {mu:.3g} outside (0, {MAX_LOAD_FRICTION})"
+        return None
+
+    def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        j = self.joint
+        return joint_expression(q.shape[0], j, coefficients[0] * ca.fabs(tau_nominal[j]) * ca.tanh(qd[j] / SMOOTH_VELOCITY))
+
+
+@dataclass(frozen=True)
+class FrictionDriftTerm(CandidateTerm):
+    """``friction_drift``: Coulomb friction changing with time (warm-up): linearly, or with a time constant
+    ``time_constant`` [s] as ``rate T (1 - exp(-t / T))`` once ``refine_fit`` has fitted it."""
+
+    joint: int | None = None
+    time_constant: float | None = None
+    key = "friction_drift"
+    explanation = "Coulomb friction that changes with time as the gear warms up: rate t sign(qd)"
+    signature = "friction-like residual growing over the recording"
+
+    def feature_names(self):
+        self._require_joint()
+        return [f"drift_{self.joint + 1}"]
+
+    def columns(self, context):
+        self._require_joint()
+        j = self.joint
+        return joint_columns(context, j, context.friction_sign(j, self._shape(context.full_t)))
+
+    def _shape(self, t):
+        if self.time_constant is None:
+            return t
+        big_t = self.time_constant
+        return big_t * (1.0 - (ca.exp(-t / big_t) if isinstance(t, ca.SX) else np.exp(-np.asarray(t) / big_t)))
+
+    def physical_parameters(self, coefficients):
+        out = {"rate": float(coefficients[0])}
+        if self.time_constant is not None:
+            out["time_constant_s"] = float(self.time_constant)
+        return out
+
+    def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        j = self.joint
+        return joint_expression(q.shape[0], j, coefficients[0] * self._shape(t) * ca.tanh(qd[j] / SMOOTH_VELOCITY))

@@ -1,0 +1,334 @@
+"""RobotDescription and its parts: kinematics, limits and modelling assumptions of a serial arm.
+
+The first value of the flow. Everything downstream (the oracle, the derivation, excitation limits,
+the virtual robot) reads only this value; ``psdm_casadi.robot`` builds it from DH rows, a robot file
+or a URDF.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from psdm_casadi.errors import RobotFileError
+
+JOINT_KINDS = ("revolute", "prismatic")
+CONVENTIONS = ("standard", "modified")
+
+# Names of the per-link inertial quantities that a robot file may force to zero. They refer to the
+# physical parameters of the paper's X (eq. 2): COM position r in the link frame, inertia about the COM.
+PHYSICAL_PARAMETER_NAMES = ("m", "rx", "ry", "rz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
+GRAVITY_STANDARD = 9.806132  # m/s^2, the value the published Denso model uses
+
+
+@dataclass(frozen=True)
+class Joint:
+    """One joint with its DH row and limits.
+
+    Parameters
+    ----------
+    name : str
+    kind : {"revolute", "prismatic"}
+    a, alpha, d, theta : float
+        DH row [m, rad, m, rad]; ``theta`` (revolute) or ``d`` (prismatic) is the offset added to q.
+    q_min, q_max : float
+        Position limits [rad or m].
+    qd_max, qdd_max, tau_max : float
+        Symmetric velocity [rad/s or m/s], acceleration [rad/s^2 or m/s^2] and effort [N m or N] limits.
+    """
+
+    name: str
+    kind: str = "revolute"
+    a: float = 0.0
+    alpha: float = 0.0
+    d: float = 0.0
+    theta: float = 0.0
+    q_min: float = -math.pi
+    q_max: float = math.pi
+    qd_max: float = 2.0
+    qdd_max: float = 10.0
+    tau_max: float = math.inf
+
+    def __post_init__(self):
+        where = f"Joint {self.name!r}"
+        if self.kind not in JOINT_KINDS:
+            raise RobotFileError(
+                f"{where}.type must be one of {JOINT_KINDS}; got {self.kind!r}. "
+                "Write type = \"revolute\" or type = \"prismatic\"."
+            )
+        for key in ("a", "alpha", "d", "theta", "q_min", "q_max", "qd_max", "qdd_max", "tau_max"):
+            value = getattr(self, key)
+            if not isinstance(value, (int, float)) or math.isnan(value):
+                raise RobotFileError(f"{where}.{key} must be a number; got {value!r}.")
+        if not self.q_min < self.q_max:
+            raise RobotFileError(
+                f"{where}.q_min must be below q_max; got q_min={self.q_min}, q_max={self.q_max}. Swap them."
+            )
+        for key in ("qd_max", "qdd_max", "tau_max"):
+            if getattr(self, key) <= 0:
+                raise RobotFileError(
+                    f"{where}.{key} must be positive; got {getattr(self, key)}. "
+                    "Give the magnitude of the symmetric limit."
+                )
+
+    @property
+    def is_revolute(self) -> bool:
+        return self.kind == "revolute"
+
+
+@dataclass(frozen=True)
+class LinkInertia:
+    """Physical inertial parameters of one link, in the link frame (the paper's X row).
+
+    Parameters
+    ----------
+    mass : float
+        [kg]
+    com : array, shape (3,)
+        Centre of mass in the link frame [m].
+    inertia : array, shape (3, 3)
+        Inertia tensor about the centre of mass, in the link frame [kg m^2].
+    """
+
+    mass: float = 0.0
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+
+    def __post_init__(self):
+        com = np.asarray(self.com, dtype=float).reshape(3)
+        inertia = np.asarray(self.inertia, dtype=float)
+        if inertia.shape == (6,):  # [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
+            ixx, iyy, izz, ixy, ixz, iyz = inertia
+            inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        if inertia.shape != (3, 3):
+            raise RobotFileError(
+                f"LinkInertia.inertia must be 3x3 or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]; got shape {inertia.shape}."
+            )
+        if self.mass < 0:
+            raise RobotFileError(f"LinkInertia.mass must be >= 0; got {self.mass}.")
+        object.__setattr__(self, "com", com)
+        object.__setattr__(self, "inertia", 0.5 * (inertia + inertia.T))
+
+    def dynamic_parameters(self) -> np.ndarray:
+        """The 10 parameters linear in the dynamics, about the link-frame origin.
+
+        Returns
+        -------
+        array, shape (10,)
+            [m, m rx, m ry, m rz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz] with the inertia about the
+            frame origin (Pinocchio's ``toDynamicParameters`` order).
+        """
+        return physical_to_dynamic(self.mass, self.com, self.inertia)
+
+
+def physical_to_dynamic(mass: float, com, inertia_com) -> np.ndarray:
+    """Map (m, r, I about COM) to the linear parameters (m, m r, I about the origin), Pinocchio order."""
+    r = np.asarray(com, dtype=float)
+    inertia_origin = np.asarray(inertia_com, dtype=float) + mass * (r @ r * np.eye(3) - np.outer(r, r))
+    i = inertia_origin
+    return np.array([mass, *(mass * r), i[0, 0], i[0, 1], i[1, 1], i[0, 2], i[1, 2], i[2, 2]])
+
+
+@dataclass(frozen=True)
+class DriveParameters:
+    """Nominal drive model of one joint: motor constant and LuGre friction (paper eqs. 11-14, Table 2).
+
+    Units: kt [N m/A], fc, fs [N m], vs [rad/s], fv [N m s/rad], dv [-], sigma0 [N m/rad], sigma1 [N m s/rad].
+    """
+
+    kt: float = 1.0
+    fc: float = 0.0
+    fs: float = 0.0
+    vs: float = 0.01
+    fv: float = 0.0
+    dv: float = 1.0
+    sigma0: float = 1e4
+    sigma1: float = 10.0
+
+    def __post_init__(self):
+        for key in ("kt", "vs", "dv", "sigma0"):
+            if not getattr(self, key) > 0:
+                raise RobotFileError(f"DriveParameters.{key} must be positive; got {getattr(self, key)}.")
+        for key in ("fc", "fs", "fv", "sigma1"):
+            if getattr(self, key) < 0:
+                raise RobotFileError(f"DriveParameters.{key} must be >= 0; got {getattr(self, key)}.")
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """Kinematics, limits, nominal inertia and modelling assumptions of a serial robot.
+
+    Parameters
+    ----------
+    name : str
+    joints : tuple of Joint
+    convention : {"standard", "modified"}
+        DH convention of the joint rows; ignored when ``urdf_path`` is set.
+    gravity : array, shape (3,)
+        Acceleration of gravity in the base frame [m/s^2] (e.g. ``[0, 0, -9.81]`` for a z-up base).
+    drive_inertia : tuple of bool, length n_dof
+        Whether a rotor inertia ``Im_i * qdd_i`` is part of the model on each joint.
+    massless_links : tuple of int
+        1-based indices of links whose 10 inertial parameters are all zero.
+    zero_parameters : tuple of str
+        Physical parameters forced to zero, named like ``"rx5"`` or ``"Ixz4"`` (COM frame, 1-based link).
+    links : tuple of LinkInertia or None
+        Nominal inertial parameters (simulation truth, nominal model), one per link.
+    rotor_inertia : array, shape (n_dof,)
+        Nominal rotor inertias [kg m^2], reflected to the joint.
+    drives : tuple of DriveParameters or None
+        Nominal motor constants and friction.
+    urdf_path : str or None
+        When set, kinematics and nominal inertia come from this URDF through Pinocchio.
+    locked_joints : tuple of str
+        URDF joints fixed at zero (grippers).
+    """
+
+    name: str
+    joints: tuple
+    convention: str = "standard"
+    gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -GRAVITY_STANDARD]))
+    drive_inertia: tuple = ()
+    massless_links: tuple = ()
+    zero_parameters: tuple = ()
+    links: tuple | None = None
+    rotor_inertia: np.ndarray | None = None
+    drives: tuple | None = None
+    urdf_path: str | None = None
+    locked_joints: tuple = ()
+
+    def __post_init__(self):
+        n = len(self.joints)
+        if n == 0:
+            raise RobotFileError("RobotDescription.joints must hold at least one joint; got none. Add [[joint]] tables.")
+        if self.convention not in CONVENTIONS:
+            raise RobotFileError(
+                f"RobotDescription.convention must be one of {CONVENTIONS}; got {self.convention!r}."
+            )
+        gravity = np.asarray(self.gravity, dtype=float).reshape(-1)
+        if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
+            raise RobotFileError(f"RobotDescription.gravity must be 3 finite numbers [m/s^2]; got {self.gravity!r}.")
+        object.__setattr__(self, "gravity", gravity)
+        drive_inertia = tuple(bool(x) for x in self.drive_inertia) if self.drive_inertia else (False,) * n
+        if len(drive_inertia) != n:
+            raise RobotFileError(
+                f"RobotDescription.drive_inertia must have one flag per joint ({n}); got {len(drive_inertia)}. "
+                "Write drive_inertia = true, false, or a list of n booleans."
+            )
+        object.__setattr__(self, "drive_inertia", drive_inertia)
+        for link in self.massless_links:
+            if not (isinstance(link, int) and 1 <= link <= n):
+                raise RobotFileError(
+                    f"RobotDescription.massless_links must hold link numbers 1..{n}; got {link!r}."
+                )
+        for name in self.zero_parameters:
+            parse_parameter_name(name, n)
+        if self.links is not None and len(self.links) != n:
+            raise RobotFileError(f"RobotDescription.links must have {n} entries (one per link); got {len(self.links)}.")
+        if self.drives is not None and len(self.drives) != n:
+            raise RobotFileError(f"RobotDescription.drives must have {n} entries (one per joint); got {len(self.drives)}.")
+        rotor = np.zeros(n) if self.rotor_inertia is None else np.asarray(self.rotor_inertia, dtype=float).reshape(-1)
+        if rotor.shape != (n,) or np.any(rotor < 0):
+            raise RobotFileError(
+                f"RobotDescription.rotor_inertia must be {n} non-negative numbers [kg m^2]; got {self.rotor_inertia!r}."
+            )
+        object.__setattr__(self, "rotor_inertia", rotor)
+        object.__setattr__(self, "joints", tuple(self.joints))
+        object.__setattr__(self, "massless_links", tuple(self.massless_links))
+        object.__setattr__(self, "zero_parameters", tuple(self.zero_parameters))
+        object.__setattr__(self, "locked_joints", tuple(self.locked_joints))
+
+    # --- convenience views -------------------------------------------------------------------
+    @property
+    def n_dof(self) -> int:
+        return len(self.joints)
+
+    @property
+    def joint_names(self) -> tuple:
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def revolute(self) -> np.ndarray:
+        return np.array([j.is_revolute for j in self.joints])
+
+    @property
+    def q_min(self) -> np.ndarray:
+        return np.array([j.q_min for j in self.joints])
+
+    @property
+    def q_max(self) -> np.ndarray:
+        return np.array([j.q_max for j in self.joints])
+
+    @property
+    def qd_max(self) -> np.ndarray:
+        return np.array([j.qd_max for j in self.joints])
+
+    @property
+    def qdd_max(self) -> np.ndarray:
+        return np.array([j.qdd_max for j in self.joints])
+
+    @property
+    def tau_max(self) -> np.ndarray:
+        return np.array([j.tau_max for j in self.joints])
+
+    @property
+    def gravity_magnitude(self) -> float:
+        return float(np.linalg.norm(self.gravity))
+
+    @property
+    def has_inertia(self) -> bool:
+        return self.links is not None
+
+    def nominal_dynamic_parameters(self) -> np.ndarray:
+        """Nominal standard parameters, shape (n_dof, 11): the 10 of ``LinkInertia.dynamic_parameters`` plus Im.
+
+        Raises
+        ------
+        RobotFileError
+            When the robot carries no nominal inertia (no ``[[link]]`` tables).
+        """
+        if self.links is None:
+            raise RobotFileError(
+                f"RobotDescription.links is empty for {self.name!r}; nominal inertia is needed here. "
+                "Add one [[link]] table per joint with mass, com and inertia."
+            )
+        rows = [np.append(link.dynamic_parameters(), im) for link, im in zip(self.links, self.rotor_inertia)]
+        return np.array(rows)
+
+    def with_links(self, links, rotor_inertia=None) -> "RobotDescription":
+        """A copy with other nominal inertial parameters (e.g. a perturbed truth for simulation)."""
+        return replace(self, links=tuple(links),
+                       rotor_inertia=self.rotor_inertia if rotor_inertia is None else rotor_inertia)
+
+
+def parse_parameter_name(name: str, n_dof: int) -> tuple:
+    """Split a physical parameter name such as ``"Ixz4"`` into its quantity and 1-based link number.
+
+    Parameters
+    ----------
+    name : str
+        One of ``PHYSICAL_PARAMETER_NAMES`` followed by a link number, e.g. ``"rx5"`` or ``"Ixz4"``.
+    n_dof : int
+        Number of links; the link number must be in 1..n_dof.
+
+    Returns
+    -------
+    (str, int)
+        The quantity (``"Ixz"``) and the link number (4).
+
+    Raises
+    ------
+    RobotFileError
+        When ``name`` is not such a name, naming the fix.
+    """
+    for base in sorted(PHYSICAL_PARAMETER_NAMES, key=len, reverse=True):
+        if isinstance(name, str) and name.startswith(base) and name[len(base):].isdigit():
+            link = int(name[len(base):])
+            if 1 <= link <= n_dof:
+                return base, link
+    raise RobotFileError(
+        f"assumptions.zero_parameters entry {name!r} is not a parameter name; expected one of "
+        f"{', '.join(PHYSICAL_PARAMETER_NAMES)} followed by a link number 1..{n_dof}, e.g. 'rx5' or 'Ixz4'."
+    )
