@@ -169,8 +169,7 @@ def _out_and_back(duration: float, ramp: float) -> tuple[np.ndarray, np.ndarray]
     v[up] = 0.5 * (1.0 - np.cos(np.pi * t[up] / ramp))
     turn = np.abs(t - half) < ramp
     v[turn] = np.cos(np.pi * (t[turn] - (half - ramp)) / (2.0 * ramp))
-    # a knot exactly at half + ramp keeps v = 1 (a one-knot blip in the turn); kept: the validated data use it
-    v[t > half + ramp] = -1.0
+    v[t >= half + ramp] = -1.0  # the turn ends at -1: a knot exactly at half + ramp belongs to the way back
     down = t > duration - ramp
     v[down] = -0.5 * (1.0 - np.cos(np.pi * (duration - t[down]) / ramp))
     return t, cumulative_trapezoid(v, t, initial=0.0)

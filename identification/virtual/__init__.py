@@ -1,8 +1,9 @@
 """The virtual robot: recordings simulated with known truth, for tests, benchmarks and the demo.
 
 ``simulation`` (Pinocchio rigid body, LuGre friction, drives, controller, sensor noise),
-``lugre_exact`` (the exact LuGre step it integrates with), ``effects`` and
-``transmission_effects`` (hidden physics to conceal in a recording), ``experiments`` (reference
-motions of the calibration experiments) and ``calibration`` (the four experiments simulated into
-a calibration data set). Estimators never import this package.
+``lugre_exact`` (the exact LuGre step it integrates with), ``truth`` (the true parameters of a run,
+written beside its recording), ``effects`` and ``transmission_effects`` (hidden physics to conceal
+in a recording) and ``calibration`` (the paper's four experiments simulated into a calibration data
+set, along reference motions it is given: their designer is ``trajopt``). Estimators never import
+this package.
 """

@@ -88,6 +88,17 @@ def test_experiments_respect_limits(denso):
         assert np.abs(qdd).max() <= denso.qdd_max[j]
 
 
+def test_out_and_back_experiments_keep_every_limit_through_the_turn(denso, planar_robot):
+    # round durations put a knot exactly at the end of the turn, where a wrong speed sign would spike qdd
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ExcitationWarning)
+        experiments = [gravity_experiment(denso), gravity_experiment(denso, duration=20.0),
+                       *(motor_experiment(denso, j) for j in range(denso.n_dof)),
+                       *(motor_experiment(planar_robot, j) for j in range(planar_robot.n_dof))]
+    for exp in experiments:
+        assert exp.worst_margin >= 0, exp.name
+
+
 def test_leaving_a_limit_warns(planar_robot):
     tight = JointLimits(q_min=[-2.0, -2.5], q_max=[2.0, 2.5], qd_max=[2.0, 0.1], qdd_max=[6.0, 8.0])
     with pytest.warns(ExcitationWarning, match="qd on joint 2"):
