@@ -6,6 +6,7 @@ import json
 import logging
 import sysconfig
 from pathlib import Path
+
 from psdm_casadi.cli.output import configure_logging
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 

@@ -36,20 +36,19 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-
 from bench_support import DENSO_FILE, print_json, print_table
+
+from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
 from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
 from identification.friction.simulation import simulate_lugre
-from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
+from identification.metrics import r2
 from identification.virtual.calibration import simulate_calibration
-from trajopt.calibration_plan import CalibrationPlan
 from psdm_casadi.cli import progress
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.robot import load_robot
-
+from trajopt.calibration_plan import CalibrationPlan
 
 TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
 R2_TOLERANCE = 1e-3  # R^2 differences below this (Table 3 prints two decimals) count as equal
@@ -61,8 +60,8 @@ def _rel(estimate, truth):
 
 def _nelder_mead_comparison(pipeline, truth_lugre, joints, simulator="exponential"):
     """Shooting vs the paper's Nelder-Mead on the same data and start, per joint."""
-    from identification.friction.baseline import paper_friction_fit
     from identification.calibration.steps import FrictionExperiment
+    from identification.friction.baseline import paper_friction_fit
 
     friction = pipeline.steps_["friction"]
     rows = []
@@ -77,30 +76,46 @@ def _nelder_mead_comparison(pipeline, truth_lugre, joints, simulator="exponentia
         t, qd, y = rec.t[sl], rec.qd[sl, j], tau[sl]
         progress(f"benchmark: Nelder-Mead ({simulator} simulator) on joint {j + 1}, {t.size} samples ...")
         start, cpu = time.perf_counter(), time.process_time()
-        base = paper_friction_fit(t, qd, y, fit.initial, substeps=friction.shooting_options.substeps,
-                                  simulator=simulator)
+        base = paper_friction_fit(
+            t, qd, y, fit.initial, substeps=friction.shooting_options.substeps, simulator=simulator
+        )
         nm_seconds, nm_cpu = time.perf_counter() - start, time.process_time() - cpu
         valid = pipeline.friction_valid_[j]
         tau_v = friction.measured_friction(FrictionExperiment(j, valid)) - friction.inertia_[j] * valid.qdd[:, j]
 
-        def r2(p):
-            pred, _ = simulate_lugre(p, valid.t, valid.qd[:, j], substeps=friction.shooting_options.substeps)
-            return 1 - np.sum((tau_v - pred) ** 2) / np.sum((tau_v - tau_v.mean()) ** 2)
+        substeps = friction.shooting_options.substeps
+        shooting_r2, nm_r2 = (
+            r2(tau_v, simulate_lugre(p, valid.t, valid.qd[:, j], substeps=substeps)[0])
+            for p in (fit.parameters, base.parameters)
+        )
 
         errors_ms = fit.parameters.relative_error(truth_lugre[j])
         errors_nm = base.parameters.relative_error(truth_lugre[j])
         err_ms, err_nm = max(errors_ms.values()), max(errors_nm.values())
-        rows.append({"joint": j + 1, "simulator": simulator, "shooting_s": fit.seconds, "nelder_mead_s": nm_seconds,
-                     "nelder_mead_cpu_s": nm_cpu, "speedup": nm_seconds / fit.seconds,
-                     "shooting_max_err": err_ms, "nm_max_err": err_nm,
-                     "shooting_r2": r2(fit.parameters), "nm_r2": r2(base.parameters),
-                     "nm_evaluations": base.evaluations, "nm_converged": base.converged,
-                     "shooting_within_tolerance": all(errors_ms[k] <= TOLERANCE[k] for k in TOLERANCE),
-                     "nm_within_tolerance": all(errors_nm[k] <= TOLERANCE[k] for k in TOLERANCE),
-                     "shooting_sigma1_err": errors_ms["sigma1"], "nm_sigma1_err": errors_nm["sigma1"]})
+        rows.append(
+            {
+                "joint": j + 1,
+                "simulator": simulator,
+                "shooting_s": fit.seconds,
+                "nelder_mead_s": nm_seconds,
+                "nelder_mead_cpu_s": nm_cpu,
+                "speedup": nm_seconds / fit.seconds,
+                "shooting_max_err": err_ms,
+                "nm_max_err": err_nm,
+                "shooting_r2": shooting_r2,
+                "nm_r2": nm_r2,
+                "nm_evaluations": base.evaluations,
+                "nm_converged": base.converged,
+                "shooting_within_tolerance": all(errors_ms[k] <= TOLERANCE[k] for k in TOLERANCE),
+                "nm_within_tolerance": all(errors_nm[k] <= TOLERANCE[k] for k in TOLERANCE),
+                "shooting_sigma1_err": errors_ms["sigma1"],
+                "nm_sigma1_err": errors_nm["sigma1"],
+            }
+        )
         row = rows[-1]
-        row["shooting_not_worse"] = bool(row["shooting_max_err"] <= row["nm_max_err"]
-                                         and row["shooting_r2"] >= row["nm_r2"] - R2_TOLERANCE)
+        row["shooting_not_worse"] = bool(
+            row["shooting_max_err"] <= row["nm_max_err"] and row["shooting_r2"] >= row["nm_r2"] - R2_TOLERANCE
+        )
     return rows
 
 
@@ -109,10 +124,17 @@ def main(argv=None) -> int:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-refine", action="store_true")
-    parser.add_argument("--nm-joints", default="1,2,3,4,5,6", help="joints (1-based) of the Nelder-Mead comparison "
-                        "with the fast simulator; '' to skip")
-    parser.add_argument("--nm-ode-joints", default="6", help="joints (1-based) of the Nelder-Mead comparison with "
-                        "the paper's ODE-solver simulation (about 10-20 minutes per joint); '' to skip")
+    parser.add_argument(
+        "--nm-joints",
+        default="1,2,3,4,5,6",
+        help="joints (1-based) of the Nelder-Mead comparison with the fast simulator; '' to skip",
+    )
+    parser.add_argument(
+        "--nm-ode-joints",
+        default="6",
+        help="joints (1-based) of the Nelder-Mead comparison with "
+        "the paper's ODE-solver simulation (about 10-20 minutes per joint); '' to skip",
+    )
     args = parser.parse_args(argv)
     robot = load_robot(DENSO_FILE)
     start = time.perf_counter()
@@ -133,11 +155,15 @@ def main(argv=None) -> int:
     floor = np.maximum(np.abs(g_true), 0.05 * np.abs(g_true).max())
 
     def lugre_errors(params):
-        return {name: max(p.relative_error(t)[name] for p, t in zip(params, truth_lugre)) for name in LUGRE_PARAMETER_NAMES}
+        return {
+            name: max(p.relative_error(t)[name] for p, t in zip(params, truth_lugre)) for name in LUGRE_PARAMETER_NAMES
+        }
 
     summary = {}
-    for label, theta, kt, lugre in (("steps", pipeline.step_theta_, pipeline.step_kt_, pipeline.step_lugre_),
-                                    ("final", result.theta, result.kt, result.lugre)):
+    for label, theta, kt, lugre in (
+        ("steps", pipeline.step_theta_, pipeline.step_kt_, pipeline.step_lugre_),
+        ("final", result.theta, result.kt, result.lugre),
+    ):
         summary[label] = {
             "kt_max_rel_err": float(_rel(kt, kt_true).max()),
             "gravity_max_rel_err": float(_rel(theta[mask], g_true).max()),
@@ -162,7 +188,9 @@ def main(argv=None) -> int:
     speedups = [r["speedup"] for r in nm_rows]
     ode_speedups = [r["speedup"] for r in nm_ode_rows]
     payload = {
-        "benchmark": "identification", "robot": robot.name, "seed": args.seed,
+        "benchmark": "identification",
+        "robot": robot.name,
+        "seed": args.seed,
         "kt_max_rel_err": summary["final"]["kt_max_rel_err"],
         "gravity_max_rel_err": summary["final"]["gravity_max_rel_err"],
         "gravity_max_scaled_err": summary["final"]["gravity_max_scaled_err"],
@@ -176,18 +204,32 @@ def main(argv=None) -> int:
         "speedup_vs_nelder_mead_fast_simulator": float(np.min(speedups)) if speedups else None,
         "speedup_vs_nelder_mead_fast_simulator_median": float(np.median(speedups)) if speedups else None,
         "shooting_not_worse": all(r["shooting_not_worse"] for r in nm_rows + nm_ode_rows),
-        "shooting_not_worse_per_joint": [{"joint": r["joint"], "simulator": r["simulator"],
-                                          "shooting_max_err": r["shooting_max_err"], "nm_max_err": r["nm_max_err"],
-                                          "shooting_r2": r["shooting_r2"], "nm_r2": r["nm_r2"],
-                                          "not_worse": r["shooting_not_worse"]} for r in nm_rows + nm_ode_rows],
-        "lugre_rel_err_per_joint": [{name: float(p.relative_error(t)[name]) for name in LUGRE_PARAMETER_NAMES}
-                                    for p, t in zip(pipeline.step_lugre_, truth_lugre)],
+        "shooting_not_worse_per_joint": [
+            {
+                "joint": r["joint"],
+                "simulator": r["simulator"],
+                "shooting_max_err": r["shooting_max_err"],
+                "nm_max_err": r["nm_max_err"],
+                "shooting_r2": r["shooting_r2"],
+                "nm_r2": r["nm_r2"],
+                "not_worse": r["shooting_not_worse"],
+            }
+            for r in nm_rows + nm_ode_rows
+        ],
+        "lugre_rel_err_per_joint": [
+            {name: float(p.relative_error(t)[name]) for name in LUGRE_PARAMETER_NAMES}
+            for p, t in zip(pipeline.step_lugre_, truth_lugre)
+        ],
         "r2_per_joint": {s.step: [float(x) for x in s.r2] for s in report.scores},
-        "joints_within_tolerance": {"shooting": [r["joint"] for r in nm_rows if r["shooting_within_tolerance"]],
-                                    "nelder_mead": [r["joint"] for r in nm_rows if r["nm_within_tolerance"]]},
+        "joints_within_tolerance": {
+            "shooting": [r["joint"] for r in nm_rows if r["shooting_within_tolerance"]],
+            "nelder_mead": [r["joint"] for r in nm_rows if r["nm_within_tolerance"]],
+        },
         "nelder_mead": nm_rows + nm_ode_rows,
         "calibration_seconds": calibration_seconds,
-        "derive_seconds": t_derive, "simulation_seconds": t_sim, "timings": pipeline.timings_,
+        "derive_seconds": t_derive,
+        "simulation_seconds": t_sim,
+        "timings": pipeline.timings_,
         "steps_only": summary["steps"],
         "consistency": result.consistency.to_dict(),
         "refinement": result.metadata.get("refinement"),
@@ -201,17 +243,28 @@ def main(argv=None) -> int:
         print()
         if nm_rows or nm_ode_rows:
             print_table(nm_rows + nm_ode_rows, list((nm_rows + nm_ode_rows)[0].keys()))
-        for key in ("kt_max_rel_err", "gravity_max_rel_err", "gravity_max_scaled_err", "r2_min_friction", "r2_min_all",
-                    "speedup_vs_nelder_mead", "nelder_mead_ode_joints", "speedup_vs_nelder_mead_fast_simulator",
-                    "shooting_not_worse", "calibration_seconds"):
+        for key in (
+            "kt_max_rel_err",
+            "gravity_max_rel_err",
+            "gravity_max_scaled_err",
+            "r2_min_friction",
+            "r2_min_all",
+            "speedup_vs_nelder_mead",
+            "nelder_mead_ode_joints",
+            "speedup_vs_nelder_mead_fast_simulator",
+            "shooting_not_worse",
+            "calibration_seconds",
+        ):
             print(f"{key}: {payload[key]}")
         print("lugre_rel_err:", {k: round(v, 4) for k, v in payload["lugre_rel_err"].items()})
         print("gravity_rel_err:", payload["gravity_rel_err"])
         print("joints_within_tolerance:", payload["joints_within_tolerance"])
         for r in payload["shooting_not_worse_per_joint"]:
-            print(f"joint {r['joint']} ({r['simulator']} Nelder-Mead): max parameter error {r['shooting_max_err']:.3f} "
-                  f"(shooting) vs {r['nm_max_err']:.3f}, validation R^2 {r['shooting_r2']:.4f} vs {r['nm_r2']:.4f}: "
-                  f"{'not worse' if r['not_worse'] else 'WORSE'}")
+            print(
+                f"joint {r['joint']} ({r['simulator']} Nelder-Mead): max parameter error {r['shooting_max_err']:.3f} "
+                f"(shooting) vs {r['nm_max_err']:.3f}, validation R^2 {r['shooting_r2']:.4f} vs {r['nm_r2']:.4f}: "
+                f"{'not worse' if r['not_worse'] else 'WORSE'}"
+            )
     return 0
 
 

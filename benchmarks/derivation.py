@@ -15,8 +15,13 @@ from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.samples import kr6, scara, two_link
 
 TARGETS = {"Denso VS-6556G": 1.0, "panda": 10.0}
-PUBLISHED = {"two-link planar (m, rx, Izz)": (10, 4), "two-link planar": (18, 6), "SCARA": (69, 8),
-             "KUKA KR6 Agilus": (6086, 36), "Denso VS-6556G": (1318, 32)}
+PUBLISHED = {
+    "two-link planar (m, rx, Izz)": (10, 4),
+    "two-link planar": (18, 6),
+    "SCARA": (69, 8),
+    "KUKA KR6 Agilus": (6086, 36),
+    "Denso VS-6556G": (1318, 32),
+}
 
 
 def main(argv=None) -> int:
@@ -33,11 +38,18 @@ def main(argv=None) -> int:
             model = derive_psdm(robot)
             times.append(time.perf_counter() - start)
         seconds = sorted(times)[len(times) // 2]
-        row = {"robot": robot.name, "n_dof": robot.n_dof, "p": model.n_functions, "l": model.n_base,
-               "n_gravity": model.n_gravity, "seconds": seconds,
-               "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"]}
+        row = {
+            "robot": robot.name,
+            "n_dof": robot.n_dof,
+            "p": model.n_functions,
+            "l": model.n_base,
+            "n_gravity": model.n_gravity,
+            "seconds": seconds,
+            "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"],
+        }
         if robot.name in PUBLISHED:
-            row["published_p_l"] = "%d/%d" % PUBLISHED[robot.name]
+            published_p, published_l = PUBLISHED[robot.name]
+            row["published_p_l"] = f"{published_p:d}/{published_l:d}"
             ok &= (model.n_functions, model.n_base) == PUBLISHED[robot.name]
         if robot.name in TARGETS:
             row["target_s"] = TARGETS[robot.name]
@@ -47,8 +59,20 @@ def main(argv=None) -> int:
     if args.json:
         print_json({"robots": rows, "all_targets_met": ok})
     else:
-        print_table(rows, ["robot", "n_dof", "p", "l", "n_gravity", "published_p_l", "seconds", "target_s",
-                           "max_rel_error_vs_pinocchio"])
+        print_table(
+            rows,
+            [
+                "robot",
+                "n_dof",
+                "p",
+                "l",
+                "n_gravity",
+                "published_p_l",
+                "seconds",
+                "target_s",
+                "max_rel_error_vs_pinocchio",
+            ],
+        )
         print("all targets met" if ok else "SOME TARGETS MISSED")
     return 0 if ok else 1
 

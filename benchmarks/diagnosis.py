@@ -26,15 +26,14 @@ import dataclasses
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-
 from bench_support import DENSO_FILE, load_panda, print_table
-from identification.virtual import effects as xp
+
 from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose
-from identification.virtual.transmission_effects import Backlash, JointElasticity
+from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
+from identification.virtual.transmission_effects import Backlash, JointElasticity
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.robot import DriveParameters, load_robot
 
@@ -43,11 +42,13 @@ TAU_NOISE = 0.1  # N m
 
 
 def panda_with_drives(panda):
-    """The Panda with plausible drives (joint-torque sensing: kt = 1), LuGre friction (Gaz et al. sizes) and armature."""
+    """The Panda with plausible drives (joint-torque sensing: kt = 1), LuGre friction (Gaz et al. sizes) and
+    armature."""
     fc = [0.55, 0.85, 0.65, 1.2, 0.8, 0.3, 0.55]
     fv = [0.6, 0.6, 0.5, 0.5, 0.3, 0.3, 0.2]
-    drives = tuple(DriveParameters(kt=1.0, fc=c, fs=1.2 * c, vs=0.05, fv=v, dv=1.0, sigma0=5e3, sigma1=1.0)
-                   for c, v in zip(fc, fv))
+    drives = tuple(
+        DriveParameters(kt=1.0, fc=c, fs=1.2 * c, vs=0.05, fv=v, dv=1.0, sigma0=5e3, sigma1=1.0) for c, v in zip(fc, fv)
+    )
     # reflected motor inertia (armature) about 0.05 kg m^2 per joint: without it the light wrist links make the
     # explicit integration of the stiff LuGre friction unstable
     return dataclasses.replace(panda, drives=drives, rotor_inertia=np.full(7, 0.05))
@@ -70,8 +71,9 @@ def exciting_reference(robot, duration, rng):
         phase = rng.uniform(0.0, 2.0 * np.pi, 3)
         weight = rng.uniform(0.5, 1.0, 3)
         room = min(robot.q_max[j] - centre[j], centre[j] - robot.q_min[j])
-        scale = 0.5 * min(room / weight.sum(), robot.qd_max[j] / (weight * omega).sum(),
-                          robot.qdd_max[j] / (weight * omega**2).sum())
+        scale = 0.5 * min(
+            room / weight.sum(), robot.qd_max[j] / (weight * omega).sum(), robot.qdd_max[j] / (weight * omega**2).sum()
+        )
         x = (scale * weight * np.sin(np.outer(t, omega) + phase)).sum(axis=1)
         q[:, j] = centre[j] + fade * (x - x[0])
     return t, q
@@ -79,7 +81,8 @@ def exciting_reference(robot, duration, rng):
 
 @dataclasses.dataclass(frozen=True)
 class Scale:
-    """Size of the motion and of the nominal torque per joint along the reference (effect sizes are drawn relative to it)."""
+    """Size of the motion and of the nominal torque per joint along the reference (effect sizes are drawn relative to
+    it)."""
 
     tau_rms: np.ndarray
     q_mean: np.ndarray
@@ -104,8 +107,16 @@ def reference_scale(robot, reference, duration):
     tau = oracle.rnea(q, qd, qdd) + steady_state_friction(qd, LuGreArrays.from_drives(robot.drives))
     mass = np.mean([m.diagonal() for m in oracle.crba(q[::250])], axis=0)
     rms = lambda x: np.sqrt(np.mean(x**2, axis=0))  # noqa: E731
-    return Scale(tau_rms=rms(tau), q_mean=q.mean(axis=0), q_std=q.std(axis=0), qd_rms=rms(qd), qdd_rms=rms(qdd),
-                 mass_diag=mass, abs_tau_std=np.std(np.abs(tau), axis=0), duration=duration)
+    return Scale(
+        tau_rms=rms(tau),
+        q_mean=q.mean(axis=0),
+        q_std=q.std(axis=0),
+        qd_rms=rms(qd),
+        qdd_rms=rms(qdd),
+        mass_diag=mass,
+        abs_tau_std=np.std(np.abs(tau), axis=0),
+        duration=duration,
+    )
 
 
 # relative size of an additive effect: its RMS over the joint's nominal torque RMS
@@ -164,8 +175,14 @@ def _drift(robot, rng, joints, sc):
 def _ripple(robot, rng, joints, sc):
     j = int(rng.choice(joints))
     a, h = np.sqrt(2.0) * _rel(rng) * sc.tau_rms[j], int(rng.integers(3, 13))
-    return [("torque_ripple", j, xp.TorqueRipple(joint=j, amplitude=a, harmonic=float(h), phase=_u(rng, 0, 6.28)),
-             {"amplitude": a, "harmonic": float(h)})]
+    return [
+        (
+            "torque_ripple",
+            j,
+            xp.TorqueRipple(joint=j, amplitude=a, harmonic=float(h), phase=_u(rng, 0, 6.28)),
+            {"amplitude": a, "harmonic": float(h)},
+        )
+    ]
 
 
 def _rotor(robot, rng, joints, sc):
@@ -219,21 +236,48 @@ def _elastic(robot, rng, joints, sc):
     return [("joint_elasticity", j, JointElasticity(joint=j, stiffness=k), {"stiffness_Nm_per_rad": k})]
 
 
-MAKERS = {"spring": _spring, "torque_offset": _offset, "coulomb_asymmetry": _asym, "load_dependent_friction": _load,
-          "friction_drift": _drift, "torque_ripple": _ripple, "rotor_inertia": _rotor, "coupling": _coupling,
-          "payload": _payload, "gravity_tilt": _tilt, "delay": _delay, "backlash": _backlash,
-          "joint_elasticity": _elastic}
+MAKERS = {
+    "spring": _spring,
+    "torque_offset": _offset,
+    "coulomb_asymmetry": _asym,
+    "load_dependent_friction": _load,
+    "friction_drift": _drift,
+    "torque_ripple": _ripple,
+    "rotor_inertia": _rotor,
+    "coupling": _coupling,
+    "payload": _payload,
+    "gravity_tilt": _tilt,
+    "delay": _delay,
+    "backlash": _backlash,
+    "joint_elasticity": _elastic,
+}
 
 # (robot, effects); joints drawn among the robot's loaded axes (torque RMS above 20 x the sensor noise)
 SCENARIOS = [
-    ("denso", ("spring",)), ("denso", ("torque_offset",)), ("denso", ("coulomb_asymmetry",)),
-    ("denso", ("load_dependent_friction",)), ("denso", ("friction_drift",)), ("denso", ("torque_ripple",)),
-    ("denso", ("rotor_inertia",)), ("denso", ("coupling",)), ("denso", ("payload",)), ("denso", ("gravity_tilt",)),
-    ("denso", ("delay",)), ("denso", ("backlash",)), ("denso", ("joint_elasticity",)),
-    ("panda", ("spring",)), ("panda", ("torque_ripple",)), ("panda", ("coupling",)), ("panda", ("payload",)),
-    ("panda", ("rotor_inertia",)), ("panda", ("load_dependent_friction",)),
-    ("denso", ("spring", "torque_ripple")), ("panda", ("torque_offset", "friction_drift")),
-    ("denso", ()), ("panda", ()), ("denso", ()),
+    ("denso", ("spring",)),
+    ("denso", ("torque_offset",)),
+    ("denso", ("coulomb_asymmetry",)),
+    ("denso", ("load_dependent_friction",)),
+    ("denso", ("friction_drift",)),
+    ("denso", ("torque_ripple",)),
+    ("denso", ("rotor_inertia",)),
+    ("denso", ("coupling",)),
+    ("denso", ("payload",)),
+    ("denso", ("gravity_tilt",)),
+    ("denso", ("delay",)),
+    ("denso", ("backlash",)),
+    ("denso", ("joint_elasticity",)),
+    ("panda", ("spring",)),
+    ("panda", ("torque_ripple",)),
+    ("panda", ("coupling",)),
+    ("panda", ("payload",)),
+    ("panda", ("rotor_inertia",)),
+    ("panda", ("load_dependent_friction",)),
+    ("denso", ("spring", "torque_ripple")),
+    ("panda", ("torque_offset", "friction_drift")),
+    ("denso", ()),
+    ("panda", ()),
+    ("denso", ()),
 ]
 QUICK = [0, 1, 5, 8, 10, 13, 21]
 
@@ -290,12 +334,19 @@ def run(seeds, quick=False, verbose=True, only=None):
             found = report.findings
             clean = not truth
             correct = (not found) if clean else _correct(found, truth)
-            row = {"seed": seed, "robot": robot_key, "hidden": "+".join(effects) or "(clean)",
-                   "joint": ",".join(str(x[1] + 1) for x in truth if x[1] is not None) or "-",
-                   "found": report.summary(), "correct": bool(correct), "false_alarm": bool(clean and found),
-                   "extra_findings": int(sum(not _matches(f, truth) for f in found)),
-                   "first_correct": bool(clean and not found) or bool(found and _matches(found[0], truth)),
-                   "sim_s": sim_s, "diag_s": diag_s}
+            row = {
+                "seed": seed,
+                "robot": robot_key,
+                "hidden": "+".join(effects) or "(clean)",
+                "joint": ",".join(str(x[1] + 1) for x in truth if x[1] is not None) or "-",
+                "found": report.summary(),
+                "correct": bool(correct),
+                "false_alarm": bool(clean and found),
+                "extra_findings": int(sum(not _matches(f, truth) for f in found)),
+                "first_correct": bool(clean and not found) or bool(found and _matches(found[0], truth)),
+                "sim_s": sim_s,
+                "diag_s": diag_s,
+            }
             if truth:
                 key, joint, _, true_params = truth[0]
                 hit = next((f for f in found if f.effect in (key,) + EQUIVALENT_EFFECTS.get(key, ())), None)
@@ -313,8 +364,12 @@ def run(seeds, quick=False, verbose=True, only=None):
                 row["estimated"] = {k: float(v) for k, v in hit.parameters.items()} if hit else {}
             rows.append(row)
             if verbose:
-                print(f"seed {seed} {robot_key:5s} {row['hidden']:32s} -> {row['found']}  "
-                      f"[{'ok' if correct else 'WRONG'}] ({sim_s:.0f}+{diag_s:.0f} s)", file=sys.stderr, flush=True)
+                print(
+                    f"seed {seed} {robot_key:5s} {row['hidden']:32s} -> {row['found']}  "
+                    f"[{'ok' if correct else 'WRONG'}] ({sim_s:.0f}+{diag_s:.0f} s)",
+                    file=sys.stderr,
+                    flush=True,
+                )
     effect_rows = [r for r in rows if r["hidden"] != "(clean)"]
     summary = {
         "scenarios": rows,
@@ -324,13 +379,18 @@ def run(seeds, quick=False, verbose=True, only=None):
         "false_alarms": int(sum(r["false_alarm"] for r in rows)),
         "first_finding_correct_fraction": float(np.mean([r["first_correct"] for r in rows])),
         "scenarios_with_extra_findings": int(sum(r["extra_findings"] > 0 for r in rows)),
-        "per_seed": {int(s): {"correct_fraction": float(np.mean([r["correct"] for r in rows if r["seed"] == s])),
-                              "false_alarms": int(sum(r["false_alarm"] for r in rows if r["seed"] == s)),
-                              "median_rmse_reduction": float(np.median([r["rmse_reduction"] for r in effect_rows
-                                                                        if r["seed"] == s]))}
-                     for s in seeds},
+        "per_seed": {
+            int(s): {
+                "correct_fraction": float(np.mean([r["correct"] for r in rows if r["seed"] == s])),
+                "false_alarms": int(sum(r["false_alarm"] for r in rows if r["seed"] == s)),
+                "median_rmse_reduction": float(np.median([r["rmse_reduction"] for r in effect_rows if r["seed"] == s])),
+            }
+            for s in seeds
+        },
         "median_rmse_reduction": float(np.median([r["rmse_reduction"] for r in effect_rows])) if effect_rows else None,
-        "fraction_rmse_halved": float(np.mean([r["rmse_reduction"] >= 0.5 for r in effect_rows])) if effect_rows else None,
+        "fraction_rmse_halved": float(np.mean([r["rmse_reduction"] >= 0.5 for r in effect_rows]))
+        if effect_rows
+        else None,
         "seeds": list(seeds),
     }
     return summary
@@ -347,15 +407,33 @@ def main(argv=None):
     if args.json:
         print(json.dumps(summary, default=float))
     else:
-        print_table(summary["scenarios"], ["seed", "robot", "hidden", "joint", "found", "correct", "param_error",
-                                           "rmse_before", "rmse_after", "rmse_reduction"])
-        print(f"\ncorrect {summary['correct_fraction']:.0%} (first finding {summary['first_finding_correct_fraction']:.0%}), "
-              f"false alarms {summary['false_alarms']}, median RMSE reduction {summary['median_rmse_reduction']:.0%}, "
-              f"RMSE halved in {summary['fraction_rmse_halved']:.0%}, extra findings in "
-              f"{summary['scenarios_with_extra_findings']} scenarios")
+        print_table(
+            summary["scenarios"],
+            [
+                "seed",
+                "robot",
+                "hidden",
+                "joint",
+                "found",
+                "correct",
+                "param_error",
+                "rmse_before",
+                "rmse_after",
+                "rmse_reduction",
+            ],
+        )
+        print(
+            f"\ncorrect {summary['correct_fraction']:.0%} "
+            f"(first finding {summary['first_finding_correct_fraction']:.0%}), "
+            f"false alarms {summary['false_alarms']}, median RMSE reduction {summary['median_rmse_reduction']:.0%}, "
+            f"RMSE halved in {summary['fraction_rmse_halved']:.0%}, extra findings in "
+            f"{summary['scenarios_with_extra_findings']} scenarios"
+        )
         for s, v in summary["per_seed"].items():
-            print(f"seed {s}: correct {v['correct_fraction']:.0%}, false alarms {v['false_alarms']}, "
-                  f"median RMSE reduction {v['median_rmse_reduction']:.0%}")
+            print(
+                f"seed {s}: correct {v['correct_fraction']:.0%}, false alarms {v['false_alarms']}, "
+                f"median RMSE reduction {v['median_rmse_reduction']:.0%}"
+            )
     return 0
 
 

@@ -30,13 +30,12 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
-from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
-
-REPO = Path(__file__).resolve().parents[1]
 
 from codegen.peers.speed import SPEED_ROWS, SUM_FORM_MAX_FUNCTIONS, cmeel_prefix, find_prerequisites, measure_speed
 from psdm_casadi.errors import SolverError
-from psdm_casadi.robot import from_urdf, load_robot
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, from_urdf, load_robot
+
+REPO = Path(__file__).resolve().parents[1]
 
 TARGETS = {
     "id_speedup_vs_pinocchio": 8.0,
@@ -64,21 +63,29 @@ def _us(ns: dict, key) -> float:
 def print_table(results) -> None:
     for r in results.values():
         ns = r["ns"]
-        print(f"\n{r['robot']} (n_dof={r['n_dof']}, p={r['n_functions']}, l={r['n_base']}; {r['n_samples']} random "
-              f"states, median of {r['repeats']}; times in us)")
-        print(f"{'function':18s} {'PSDM':>8s} {'PSDM sum':>9s} {'Pinocchio':>10s} {'CasADi NE':>10s} "
-              f"{'vs Pinocchio':>13s} {'vs CasADi NE':>13s} {'sum vs Pinocchio':>17s}")
+        print(
+            f"\n{r['robot']} (n_dof={r['n_dof']}, p={r['n_functions']}, l={r['n_base']}; {r['n_samples']} random "
+            f"states, median of {r['repeats']}; times in us)"
+        )
+        print(
+            f"{'function':18s} {'PSDM':>8s} {'PSDM sum':>9s} {'Pinocchio':>10s} {'CasADi NE':>10s} "
+            f"{'vs Pinocchio':>13s} {'vs CasADi NE':>13s} {'sum vs Pinocchio':>17s}"
+        )
         for label, suffix, pin_key, peer_key in SPEED_ROWS:
             ours, summed = _us(ns, f"psdm_{suffix}"), _us(ns, f"psdm_sum_{suffix}")
             pin_t, peer_t = _us(ns, pin_key), _us(ns, peer_key)
-            print(f"{label:18s} {ours:8.3f} {summed:9.3f} {pin_t:10.3f} {peer_t:10.3f} {pin_t / ours:12.1f}x "
-                  f"{peer_t / ours:12.2f}x {pin_t / summed:16.1f}x")
+            print(
+                f"{label:18s} {ours:8.3f} {summed:9.3f} {pin_t:10.3f} {peer_t:10.3f} {pin_t / ours:12.1f}x "
+                f"{peer_t / ours:12.2f}x {pin_t / summed:16.1f}x"
+            )
         ops = {**r.get("n_operations", {}), **r["casadi_rnea_n_operations"]}
         print("arithmetic operations: " + ", ".join(f"{k}={v}" for k, v in ops.items()))
         errors = ", ".join(f"{k}={v:.1e}" for k, v in r["max_abs_error"].items())
         print(f"max |error| vs Pinocchio on 1000 states: {errors}")
-    print("\nPSDM: the exported recursive form (Newton-Euler on the base parameters' sparse standard preimage); "
-          "PSDM sum: the paper's pseudo-symbolic sum (not timed when p > %d)." % SUM_FORM_MAX_FUNCTIONS)
+    print(
+        "\nPSDM: the exported recursive form (Newton-Euler on the base parameters' sparse standard preimage); "
+        f"PSDM sum: the paper's pseudo-symbolic sum (not timed when p > {SUM_FORM_MAX_FUNCTIONS:d})."
+    )
 
 
 def main(argv=None) -> int:
@@ -102,8 +109,9 @@ def main(argv=None) -> int:
     try:
         for key in args.robots:
             robot = robots()[key]()
-            results[key] = measure_speed(robot, base / key, n_samples=args.samples, repeats=args.repeats, log=log,
-                                         key=key)
+            results[key] = measure_speed(
+                robot, base / key, n_samples=args.samples, repeats=args.repeats, log=log, key=key
+            )
     finally:
         if args.keep is None:
             shutil.rmtree(base, ignore_errors=True)
@@ -118,7 +126,8 @@ def main(argv=None) -> int:
 
 
 def missed_targets(results) -> list:
-    """``["panda regressor_speedup_vs_pinocchio 9.50 < 10", ...]``: every robot's ratio below its target (or missing)."""
+    """``["panda regressor_speedup_vs_pinocchio 9.50 < 10", ...]``: every robot's ratio below its target (or
+    missing)."""
     missed = []
     for key, r in results.items():
         for name, target in TARGETS.items():

@@ -31,17 +31,27 @@ from scipy.optimize import differential_evolution
 
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.errors import ExcitationWarning
-from psdm_casadi.robot import from_urdf, load_robot
 from psdm_casadi.recursive import build_recursive_functions
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, from_urdf, load_robot
 from trajopt.constraints import JointLimits, fine_grid, limit_margins, scale_into_limits, verify_limits
 from trajopt.criteria import condition_number, stack_regressor
 from trajopt.optimize import ExcitationOptions, optimize_excitation, random_feasible_parameters
 from trajopt.problem import default_constraint_samples
-from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 ROOT = Path(__file__).resolve().parents[1]
-PANDA = (Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages" /
-         "cmeel.prefix" / "share" / "example-robot-data" / "robots" / "panda_description" / "urdf" / "panda.urdf")
+PANDA = (
+    Path(sys.prefix)
+    / "lib"
+    / f"python{sys.version_info.major}.{sys.version_info.minor}"
+    / "site-packages"
+    / "cmeel.prefix"
+    / "share"
+    / "example-robot-data"
+    / "robots"
+    / "panda_description"
+    / "urdf"
+    / "panda.urdf"
+)
 
 
 def load(name):
@@ -57,8 +67,14 @@ def run_robot(name, args, log):
     model = derive_psdm(robot, seed=0)
     regressor = build_recursive_functions(model, robot).regressor
     columns = tuple(int(c) for c in np.flatnonzero(~model.gravity_mask))
-    options = ExcitationOptions(duration=args.duration, harmonics=args.harmonics, n_starts=args.starts,
-                                columns=columns, time_limit=args.time_limit, quiet=args.json)
+    options = ExcitationOptions(
+        duration=args.duration,
+        harmonics=args.harmonics,
+        n_starts=args.starts,
+        columns=columns,
+        time_limit=args.time_limit,
+        quiet=args.json,
+    )
     limits = JointLimits.from_robot(robot)
 
     # --- ours ---
@@ -115,9 +131,17 @@ def run_robot(name, args, log):
         state["evaluations"] += 1
         return time.perf_counter() - start > budget
 
-    de = differential_evolution(penalised if args.de_mode == "penalty" else repaired, bounds, seed=args.seed,
-                                maxiter=100000, popsize=args.de_popsize,
-                                polish=False, tol=0, callback=stop, init="latinhypercube")
+    de = differential_evolution(
+        penalised if args.de_mode == "penalty" else repaired,
+        bounds,
+        seed=args.seed,
+        maxiter=100000,
+        popsize=args.de_popsize,
+        polish=False,
+        tol=0,
+        callback=stop,
+        init="latinhypercube",
+    )
     de_seconds = time.perf_counter() - start
     x_de = de.x if args.de_mode == "penalty" else scale_into_limits(par, de.x, limits, t_con, fill=1.0 - args.backoff)
     x_de = scale_into_limits(par, x_de, limits, t_fine, fill=1.0 - 1e-9)  # the same final repair ours gets
@@ -126,12 +150,21 @@ def run_robot(name, args, log):
 
     worst = min(verified(ours.parameters), verified(x_de))
     return {
-        "robot": robot.name, "n_columns": len(columns), "de_mode": args.de_mode, "cond_ours": ours.cond,
+        "robot": robot.name,
+        "n_columns": len(columns),
+        "de_mode": args.de_mode,
+        "cond_ours": ours.cond,
         "cond_de": cond_de,
-        "cond_random_best": min(random_conds), "worst_limit_margin": ours.worst_margin,
-        "worst_limit_margin_all": worst, "seconds": ours.seconds, "seconds_de": de_seconds,
-        "seconds_random": random_seconds, "de_evaluations": int(de.nfev), "n_random_feasible": len(random_conds),
-        "ratio_de_over_ours": cond_de / ours.cond, "ratio_random_over_ours": min(random_conds) / ours.cond,
+        "cond_random_best": min(random_conds),
+        "worst_limit_margin": ours.worst_margin,
+        "worst_limit_margin_all": worst,
+        "seconds": ours.seconds,
+        "seconds_de": de_seconds,
+        "seconds_random": random_seconds,
+        "de_evaluations": int(de.nfev),
+        "n_random_feasible": len(random_conds),
+        "ratio_de_over_ours": cond_de / ours.cond,
+        "ratio_random_over_ours": min(random_conds) / ours.cond,
         "start_conds": list(ours.start_conds),
     }
 
@@ -148,28 +181,43 @@ def main(argv=None) -> int:
     parser.add_argument("--de-factor", type=float, default=5.0)
     parser.add_argument("--de-popsize", type=int, default=15)
     parser.add_argument("--n-random", type=int, default=100)
-    parser.add_argument("--de-mode", choices=("penalty", "repair"), default="penalty",
-                        help="DE handles limits by a penalty (the paper's GA) or by scaling each candidate into them")
+    parser.add_argument(
+        "--de-mode",
+        choices=("penalty", "repair"),
+        default="penalty",
+        help="DE handles limits by a penalty (the paper's GA) or by scaling each candidate into them",
+    )
     parser.add_argument("--backoff", type=float, default=0.02, help="limit back-off of DE's repair decoding")
     args = parser.parse_args(argv)
-    log = (lambda msg: print(msg, file=sys.stderr, flush=True))
+
+    def log(msg):
+        print(msg, file=sys.stderr, flush=True)
+
     results = {name: run_robot(name, args, log) for name in args.robots}
-    checks = {name: {"beats_de": r["cond_ours"] < r["cond_de"],
-                     "3x_better_than_random": r["ratio_random_over_ours"] >= 3,
-                     "limits_hold": r["worst_limit_margin_all"] >= 0,
-                     "within_60s": r["seconds"] <= 60 if name == "denso" else True}
-              for name, r in results.items()}
+    checks = {
+        name: {
+            "beats_de": r["cond_ours"] < r["cond_de"],
+            "3x_better_than_random": r["ratio_random_over_ours"] >= 3,
+            "limits_hold": r["worst_limit_margin_all"] >= 0,
+            "within_60s": r["seconds"] <= 60 if name == "denso" else True,
+        }
+        for name, r in results.items()
+    }
     if args.json:
         print(json.dumps({"results": results, "checks": checks}, default=float))
     else:
-        head = f"{'robot':8} {'cols':>4} {'cond ours':>10} {'cond DE(5x)':>12} {'best random':>12} {'rand/ours':>9} " \
-               f"{'margin':>8} {'ours s':>7} {'DE s':>7}"
+        head = (
+            f"{'robot':8} {'cols':>4} {'cond ours':>10} {'cond DE(5x)':>12} {'best random':>12} {'rand/ours':>9} "
+            f"{'margin':>8} {'ours s':>7} {'DE s':>7}"
+        )
         print(head)
         for name, r in results.items():
-            print(f"{name:8} {r['n_columns']:4d} {r['cond_ours']:10.4g} {r['cond_de']:12.4g} "
-                  f"{r['cond_random_best']:12.4g} "
-                  f"{r['ratio_random_over_ours']:9.2f} {r['worst_limit_margin']:8.3g} {r['seconds']:7.1f} "
-                  f"{r['seconds_de']:7.1f}")
+            print(
+                f"{name:8} {r['n_columns']:4d} {r['cond_ours']:10.4g} {r['cond_de']:12.4g} "
+                f"{r['cond_random_best']:12.4g} "
+                f"{r['ratio_random_over_ours']:9.2f} {r['worst_limit_margin']:8.3g} {r['seconds']:7.1f} "
+                f"{r['seconds_de']:7.1f}"
+            )
         print("checks:", json.dumps(checks))
     return 0 if all(all(c.values()) for c in checks.values()) else 1
 

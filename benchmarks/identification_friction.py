@@ -15,19 +15,17 @@ import argparse
 import json
 import sys
 import time
-from pathlib import Path
 
 import numpy as np
-from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
+from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
 from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
-from identification.friction.simulation import simulate_lugre
-from trajopt.friction_design import tuned_friction_signal
 from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
+from identification.friction.simulation import simulate_lugre
 from identification.friction.start import fit_high_speed, initial_lugre_guess
 from identification.metrics import r2
-from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
-from psdm_casadi.robot import load_robot
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, load_robot
+from trajopt.friction_design import tuned_friction_signal
 
 ROBOT = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 TOLERANCE = {"fc": 0.05, "fs": 0.05, "fv": 0.05, "vs": 0.10, "dv": 0.10, "sigma0": 0.25, "sigma1": 0.25}
@@ -98,8 +96,12 @@ def main(argv=None):
     parser.add_argument("--free", choices=["presliding", "all"], default="presliding")
     parser.add_argument("--substeps", type=int, default=1)
     parser.add_argument("--interval", type=int, default=10)
-    parser.add_argument("--nm-simulator", choices=["exponential", "ode"], default="exponential",
-                        help="LuGre simulation inside the Nelder-Mead cost ('ode' is the paper's, minutes per joint)")
+    parser.add_argument(
+        "--nm-simulator",
+        choices=["exponential", "ode"],
+        default="exponential",
+        help="LuGre simulation inside the Nelder-Mead cost ('ode' is the paper's, minutes per joint)",
+    )
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
@@ -114,14 +116,17 @@ def main(argv=None):
         print()
         return 0
     head = "joint method      " + " ".join(f"{n:>7}" for n in LUGRE_PARAMETER_NAMES) + "   R2_val  wall[s]  cpu[s]  ok"
-    print(f"relative parameter errors [%], noise std {args.noise:g} fc, Nelder-Mead over {args.free}"
-          f" with the {args.nm_simulator} simulator; tolerances fc fs fv 5 %, vs dv 10 %, sigma0 sigma1 25 %")
+    print(
+        f"relative parameter errors [%], noise std {args.noise:g} fc, Nelder-Mead over {args.free}"
+        f" with the {args.nm_simulator} simulator; tolerances fc fs fv 5 %, vs dv 10 %, sigma0 sigma1 25 %"
+    )
     print(head)
     for r in results:
         for name in ("shooting", "nelder_mead"):
             e = r[name]["relative_error"]
             print(
-                f"{r['joint']:>5} {name:<11} " + " ".join(f"{100 * e[n]:7.2f}" for n in LUGRE_PARAMETER_NAMES)
+                f"{r['joint']:>5} {name:<11} "
+                + " ".join(f"{100 * e[n]:7.2f}" for n in LUGRE_PARAMETER_NAMES)
                 + f"  {r[name]['validation_r2']:.5f} {r[name]['seconds']:8.2f} {r[name]['cpu_seconds']:7.2f}"
                 + f"  {'yes' if r[name]['within_tolerance'] else 'NO'}"
             )

@@ -17,10 +17,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-
 from bench_support import ROOT, load_panda
-from identification.diagnosis import DiagnosisOptions, diagnose
+
 from identification.data.recording import Recording
+from identification.diagnosis import DiagnosisOptions, diagnose
 from psdm_casadi.robot import load_robot
 
 DATASETS = ROOT.parent / "shared" / "datasets"

@@ -8,15 +8,13 @@ with no controller, friction or bookkeeping.
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.robot import load_robot
-from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, load_robot
 from trajopt.experiments import sine_experiment
 
 ROBOT = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
@@ -41,16 +39,26 @@ def main():
         start = time.perf_counter()
         simulate_recording(robot, reference, SimulationOptions(substeps=substeps), np.random.default_rng(0))
         wall = time.perf_counter() - start
-        rows.append({"substeps": substeps, "simulated_s": args.duration, "wall_s": wall,
-                     "real_time_factor": args.duration / wall, "aba_only_wall_s": floor, "ratio_vs_aba_only": wall / floor})
+        rows.append(
+            {
+                "substeps": substeps,
+                "simulated_s": args.duration,
+                "wall_s": wall,
+                "real_time_factor": args.duration / wall,
+                "aba_only_wall_s": floor,
+                "ratio_vs_aba_only": wall / floor,
+            }
+        )
     if args.json:
         print(json.dumps({"benchmark": "virtual_robot_speed", "robot": robot.name, "rate_hz": 1000, "rows": rows}))
         return
     print(f"virtual robot, {robot.name}, 1 kHz, {args.duration:g} s of robot time")
     print(f"{'substeps':>8} {'wall [s]':>9} {'x real time':>12} {'aba-only [s]':>13} {'ratio':>6}")
     for r in rows:
-        print(f"{r['substeps']:>8} {r['wall_s']:>9.2f} {r['real_time_factor']:>12.1f} {r['aba_only_wall_s']:>13.2f} "
-              f"{r['ratio_vs_aba_only']:>6.1f}")
+        print(
+            f"{r['substeps']:>8} {r['wall_s']:>9.2f} {r['real_time_factor']:>12.1f} {r['aba_only_wall_s']:>13.2f} "
+            f"{r['ratio_vs_aba_only']:>6.1f}"
+        )
 
 
 if __name__ == "__main__":

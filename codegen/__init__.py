@@ -9,6 +9,12 @@ from codegen.build import CompiledLibrary, build_library, compile_shared, find_c
 from codegen.export import CExport, OperationCount, count_operations, export_c
 
 __all__ = [
-    "CExport", "CompiledLibrary", "OperationCount", "build_library", "compile_shared", "count_operations", "export_c",
+    "CExport",
+    "CompiledLibrary",
+    "OperationCount",
+    "build_library",
+    "compile_shared",
+    "count_operations",
+    "export_c",
     "find_compiler",
 ]

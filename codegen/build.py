@@ -16,9 +16,8 @@ from pathlib import Path
 
 import casadi as ca
 
-from psdm_casadi.errors import ParameterError, SolverError
-
 from codegen.export import CExport
+from psdm_casadi.errors import ParameterError, SolverError
 
 DEFAULT_FLAGS = ("-O2",)
 _COMPILERS = ("cc", "gcc", "clang")
@@ -131,7 +130,9 @@ def build_library(export: CExport, *, build_dir=None, compiler=None, flags=DEFAU
     >>> lib.function("psdm_inverse_dynamics")(q, qd, qdd)          # doctest: +SKIP
     """
     if not isinstance(export, CExport):
-        raise ParameterError(f"build_library export must be a CExport; got {type(export).__name__}. Pass export_c(...).")
+        raise ParameterError(
+            f"build_library export must be a CExport; got {type(export).__name__}. Pass export_c(...)."
+        )
     if not export.source.exists():
         raise ParameterError(
             f"build_library export.source must exist; got missing {str(export.source)!r}. Run export_c again."

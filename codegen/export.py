@@ -1,4 +1,5 @@
-"""export_c(): write the dynamics Functions as a self-contained C folder (last step of the flow: DynamicsFunctions -> CExport).
+"""export_c(): write the dynamics Functions as a self-contained C folder (last step of the flow:
+DynamicsFunctions -> CExport).
 
 The folder holds the CasADi-generated ``<library>.c``/``.h``, a ``Makefile`` and an example
 ``main.c`` that calls every function. Functions with a ``theta`` input are exported twice: with
@@ -19,10 +20,9 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.errors import ParameterError, ShapeError, SolverError
-
 from codegen.lane_regressor import LaneCount, lane_kernel, splice, splice_header
 from codegen.operation_count import OperationCount, count_operations
+from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
 EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
@@ -121,8 +121,9 @@ def _symbolic_io(function):
 def _rebuild(name, function, inputs, outputs, drop_theta, cse):
     in_names = function.name_in()
     keep = [i for i, n in enumerate(in_names) if not (drop_theta and n == THETA_INPUT)]
-    return ca.Function(name, [inputs[i] for i in keep], outputs, [in_names[i] for i in keep],
-                       function.name_out(), {"cse": bool(cse)})
+    return ca.Function(
+        name, [inputs[i] for i in keep], outputs, [in_names[i] for i in keep], function.name_out(), {"cse": bool(cse)}
+    )
 
 
 def _bake(function, theta, name, cse):
@@ -183,7 +184,9 @@ def _example_code(functions, theta, rng):
             inputs.append(_c_array(var, values))
             names.append(var)
         inputs.append(f"static const casadi_real* const inputs_{k}[] = {{{', '.join(names) or '0'}}};")
-        calls.append(f"  {{ const function_t f = FUNCTION({f.name()}); failures += run(&f, inputs_{k}, timing) != 0; }}")
+        calls.append(
+            f"  {{ const function_t f = FUNCTION({f.name()}); failures += run(&f, inputs_{k}, timing) != 0; }}"
+        )
     return "\n".join(inputs), "\n".join(calls)
 
 
@@ -270,16 +273,29 @@ def _lane_kernel(sources, structure, lanes, name):
     if regressors[0].size_out(0) != (n_rows, n_columns):
         raise ParameterError(
             f"export_c regressor_structure describes a {n_rows}x{n_columns} regressor but the regressor Function "
-            f"returns {regressors[0].size_out(0)}. Pass the structure of the same build_recursive_functions call.")
+            f"returns {regressors[0].size_out(0)}. Pass the structure of the same build_recursive_functions call."
+        )
     kernel = lane_kernel(structure, name)
     if lanes == "auto" and kernel.count.n_operations >= count_operations(regressors[0]).n_operations:
         return None
     return kernel
 
 
-def export_c(functions, folder, *, theta=None, runtime_theta=True, jacobians=False, library="psdm_dynamics",
-             prefix="psdm_", cse=True, fast_trig=True, lanes="auto", regressor_structure=None,
-             overwrite=False) -> CExport:
+def export_c(
+    functions,
+    folder,
+    *,
+    theta=None,
+    runtime_theta=True,
+    jacobians=False,
+    library="psdm_dynamics",
+    prefix="psdm_",
+    cse=True,
+    fast_trig=True,
+    lanes="auto",
+    regressor_structure=None,
+    overwrite=False,
+) -> CExport:
     """Generate a self-contained C folder for the dynamics Functions.
 
     Parameters

@@ -23,11 +23,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from codegen.operation_count import OperationCount, count_operations
 from psdm_casadi.errors import SolverError
 from psdm_casadi.newton_euler import ROTOR_INERTIA
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
-
-from codegen.operation_count import OperationCount, count_operations
 
 # Four doubles, one AVX2 register (the lane widths compared are in the README's results).
 LANES = 4
@@ -126,8 +125,9 @@ def _motion_code(chain, blocks, scalars) -> list:
         parent, rotation, shift = chain.parents[j], chain.rotations[j], chain.translations[j]
         for block in blocks[j]:
             if parent < 0 or block not in blocks[parent]:
-                code += [f"  v4 {_vector('a', j, d, block)} = zero, {_vector('b', j, d, block)} = zero;"
-                         for d in range(3)]
+                code += [
+                    f"  v4 {_vector('a', j, d, block)} = zero, {_vector('b', j, d, block)} = zero;" for d in range(3)
+                ]
             else:
                 for d in range(3):  # t = b_parent + a_parent x p, then a = R^T a_parent, b = R^T t
                     terms = [_vector("b", parent, d, block)]
@@ -148,8 +148,10 @@ def _motion_code(chain, blocks, scalars) -> list:
             if j // LANES == block:  # joint j's own row: its axis
                 axis = np.asarray(ca.DM(chain.axes[j])).ravel()
                 target = "a" if chain.revolute[j] else "b"
-                code += [f"  {_vector(target, j, d, block)}[{j % LANES}] += {float(axis[d])!r};"
-                         for d in np.flatnonzero(axis)]
+                code += [
+                    f"  {_vector(target, j, d, block)}[{j % LANES}] += {float(axis[d])!r};"
+                    for d in np.flatnonzero(axis)
+                ]
     return code
 
 
@@ -194,11 +196,14 @@ def _column_code(structure, blocks, scalars) -> list:
                         terms.append(f"lane{joint % LANES} * ({coefficient!r} * {scalars.ref(qdd[joint])})")
                 elif block in blocks[joint]:
                     y = f"y{row}_{block}"
-                    terms.append(y if coefficient == 1.0 else f"(-{y})" if coefficient == -1.0
-                                 else f"{y} * {coefficient!r}")
+                    terms.append(
+                        y if coefficient == 1.0 else f"(-{y})" if coefficient == -1.0 else f"{y} * {coefficient!r}"
+                    )
             offset = column * n + LANES * block
-            code.append(f"  {{ const v4 column = {_sum(terms)}; memcpy(Y + {offset}, &column, "
-                        f"{min(LANES, n * n_base - offset)} * sizeof(casadi_real)); }}")
+            code.append(
+                f"  {{ const v4 column = {_sum(terms)}; memcpy(Y + {offset}, &column, "
+                f"{min(LANES, n * n_base - offset)} * sizeof(casadi_real)); }}"
+            )
     return code
 
 
@@ -214,10 +219,19 @@ def lane_kernel(structure, name: str) -> LaneKernel:
     chain = structure.chain
     blocks = {j: sorted({i // LANES for i in _ancestors(chain.parents, j)}) for j in range(chain.n_dof)}
     scalars = _Scalars()
-    code = (_motion_code(chain, blocks, scalars) + _dot_code(structure, blocks, scalars)
-            + _column_code(structure, blocks, scalars))
-    parts = ca.Function(f"{name}_parts", list(structure.inputs), [ca.vertcat(*scalars.values)],
-                        ["q", "qd", "qdd"], ["scalars"], {"cse": True})
+    code = (
+        _motion_code(chain, blocks, scalars)
+        + _dot_code(structure, blocks, scalars)
+        + _column_code(structure, blocks, scalars)
+    )
+    parts = ca.Function(
+        f"{name}_parts",
+        list(structure.inputs),
+        [ca.vertcat(*scalars.values)],
+        ["q", "qd", "qdd"],
+        ["scalars"],
+        {"cse": True},
+    )
     head = [
         f"/* {name}: Y with the joint rows in vector lanes (codegen.lane_regressor); scalars from {name}_parts. */",
         f"static int {name}_lanes(const casadi_real** arg, casadi_real** res) {{",
@@ -231,8 +245,9 @@ def lane_kernel(structure, name: str) -> LaneKernel:
         f"  if ({name}_parts(arg, parts_res, 0, 0, 0)) return 1;",
     ]
     n_vector_operations = sum(line.count(" * ") + line.count(" + ") + line.count("(-") for line in code)
-    count = LaneCount(name=name, n_scalars=len(scalars.values), parts=count_operations(parts),
-                      n_vector_operations=n_vector_operations)
+    count = LaneCount(
+        name=name, n_scalars=len(scalars.values), parts=count_operations(parts), n_vector_operations=n_vector_operations
+    )
     return LaneKernel(parts=parts, source="\n".join(head + code + ["  return 0;", "}", ""]), count=count)
 
 
@@ -244,28 +259,42 @@ def splice(source_text: str, kernel: LaneKernel, name: str) -> str:
     """
     wrapper = re.compile(
         r"(CASADI_SYMBOL_EXPORT int " + re.escape(name) + r"\(const casadi_real\*\* arg, casadi_real\*\* res, "
-        r"casadi_int\* iw, casadi_real\* w, int mem\)\{\n)(  return (casadi_f\d+)\(arg, res, iw, w, mem\);\n)(\})")
+        r"casadi_int\* iw, casadi_real\* w, int mem\)\{\n)(  return (casadi_f\d+)\(arg, res, iw, w, mem\);\n)(\})"
+    )
     match = wrapper.search(source_text)
     if match is None:
         raise SolverError(f"CasADi's generated code has no wrapper for {name}; export with lanes=False.")
-    guard = (f"#if !defined(PSDM_NO_LANES) && (defined(__GNUC__) || defined(__clang__))\n#define {_GUARD}\n"
-             "#include <string.h>\n"
-             f"int {name}_parts(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);\n"
-             f"{kernel.source}#endif\n\n")
-    body = (f"#ifdef {_GUARD}\n  (void)iw; (void)w; (void)mem; (void){match.group(3)};\n"
-            f"  return {name}_lanes(arg, res);\n#else\n"
-            f"{match.group(2)}#endif\n")
-    marker = (f"\n\n/* 1 when {name} runs the vector code, 0 when CasADi's scalar code. */\n"
-              f"CASADI_SYMBOL_EXPORT int {name}_lanes_enabled(void) {{\n#ifdef {_GUARD}\n  return 1;\n#else\n"
-              "  return 0;\n#endif\n}")
-    return (source_text[:match.start()] + guard + match.group(1) + body + match.group(4) + marker
-            + source_text[match.end():])
+    guard = (
+        f"#if !defined(PSDM_NO_LANES) && (defined(__GNUC__) || defined(__clang__))\n#define {_GUARD}\n"
+        "#include <string.h>\n"
+        f"int {name}_parts(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem);\n"
+        f"{kernel.source}#endif\n\n"
+    )
+    body = (
+        f"#ifdef {_GUARD}\n  (void)iw; (void)w; (void)mem; (void){match.group(3)};\n"
+        f"  return {name}_lanes(arg, res);\n#else\n"
+        f"{match.group(2)}#endif\n"
+    )
+    marker = (
+        f"\n\n/* 1 when {name} runs the vector code, 0 when CasADi's scalar code. */\n"
+        f"CASADI_SYMBOL_EXPORT int {name}_lanes_enabled(void) {{\n#ifdef {_GUARD}\n  return 1;\n#else\n"
+        "  return 0;\n#endif\n}"
+    )
+    return (
+        source_text[: match.start()]
+        + guard
+        + match.group(1)
+        + body
+        + match.group(4)
+        + marker
+        + source_text[match.end() :]
+    )
 
 
 def splice_header(header_text: str, name: str) -> str:
     """The generated header with the prototype of ``<name>_lanes_enabled``."""
     closing = '#ifdef __cplusplus\n} /* extern "C" */'
     if closing not in header_text:
-        raise SolverError("CasADi's generated header has no extern \"C\" block; export with lanes=False.")
+        raise SolverError('CasADi\'s generated header has no extern "C" block; export with lanes=False.')
     head, _, tail = header_text.rpartition(closing)
     return f"{head}int {name}_lanes_enabled(void);\n{closing}{tail}"

@@ -6,8 +6,9 @@ from dataclasses import dataclass
 
 import casadi as ca
 
-_NON_ARITHMETIC = {getattr(ca, op) for op in ("OP_INPUT", "OP_OUTPUT", "OP_CONST", "OP_PARAMETER", "OP_ASSIGN")
-                   if hasattr(ca, op)}
+_NON_ARITHMETIC = {
+    getattr(ca, op) for op in ("OP_INPUT", "OP_OUTPUT", "OP_CONST", "OP_PARAMETER", "OP_ASSIGN") if hasattr(ca, op)
+}
 _TRIG = {ca.OP_SIN, ca.OP_COS, ca.OP_TAN}
 
 

@@ -7,7 +7,6 @@ derivatives. The result is checked against Pinocchio's rnea at the end.
 Run: python examples/min_torque_motion.py
 """
 
-
 import casadi as ca
 import numpy as np
 

@@ -8,7 +8,6 @@ integrated with small steps. The script asserts that the tracking error stays sm
 Run: python examples/mpc_tracking.py
 """
 
-
 import casadi as ca
 import numpy as np
 
@@ -28,18 +27,21 @@ def friction_casadi(robot, qd):
     out = []
     for j, drive in enumerate(robot.drives):
         v = qd[j]
-        coulomb = (drive.fc + (drive.fs - drive.fc) * ca.exp(-(v / drive.vs) ** 2)) * ca.tanh(v / SMOOTHING)
-        viscous = drive.fv * v * (v ** 2 + SMOOTHING ** 2) ** ((drive.dv - 1) / 2)
+        coulomb = (drive.fc + (drive.fs - drive.fc) * ca.exp(-((v / drive.vs) ** 2))) * ca.tanh(v / SMOOTHING)
+        viscous = drive.fv * v * (v**2 + SMOOTHING**2) ** ((drive.dv - 1) / 2)
         out.append(coulomb + viscous)
     return ca.vertcat(*out)
 
 
 def friction_numpy(robot, qd):
-    fc = np.array([d.fc for d in robot.drives]); fs = np.array([d.fs for d in robot.drives])
-    vs = np.array([d.vs for d in robot.drives]); fv = np.array([d.fv for d in robot.drives])
+    fc = np.array([d.fc for d in robot.drives])
+    fs = np.array([d.fs for d in robot.drives])
+    vs = np.array([d.vs for d in robot.drives])
+    fv = np.array([d.fv for d in robot.drives])
     dv = np.array([d.dv for d in robot.drives])
-    return ((fc + (fs - fc) * np.exp(-(qd / vs) ** 2)) * np.tanh(qd / SMOOTHING)
-            + fv * qd * (qd ** 2 + SMOOTHING ** 2) ** ((dv - 1) / 2))
+    return (fc + (fs - fc) * np.exp(-((qd / vs) ** 2))) * np.tanh(qd / SMOOTHING) + fv * qd * (
+        qd**2 + SMOOTHING**2
+    ) ** ((dv - 1) / 2)
 
 
 def reference(t):
@@ -58,7 +60,10 @@ def build_controller(robot, dynamics, horizon=10, dt=0.005):
         q, qd = state[:n], state[n:]
         return ca.vertcat(qd, dynamics.forward_dynamics(q, qd, torque - friction_casadi(robot, qd)))
 
-    k1 = rhs(x, u); k2 = rhs(x + dt / 2 * k1, u); k3 = rhs(x + dt / 2 * k2, u); k4 = rhs(x + dt * k3, u)
+    k1 = rhs(x, u)
+    k2 = rhs(x + dt / 2 * k1, u)
+    k3 = rhs(x + dt / 2 * k2, u)
+    k4 = rhs(x + dt * k3, u)
     step = ca.Function("step", [x, u], [x + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)])
 
     opti = ca.Opti()
@@ -72,9 +77,11 @@ def build_controller(robot, dynamics, horizon=10, dt=0.005):
         cost += 1e-4 * ca.sumsqr(us[:, k] / robot.tau_max)
     opti.subject_to(xs[:, 0] == x0)
     opti.minimize(cost)
-    opti.solver("ipopt", {"print_time": False},
-                {"print_level": 0, "sb": "yes", "max_iter": 15, "tol": 1e-6,
-                 "hessian_approximation": "limited-memory"})
+    opti.solver(
+        "ipopt",
+        {"print_time": False},
+        {"print_level": 0, "sb": "yes", "max_iter": 15, "tol": 1e-6, "hessian_approximation": "limited-memory"},
+    )
     return opti, xs, us, x0, refs, horizon, dt
 
 

@@ -21,6 +21,14 @@ from identification.data.recording import Recording
 from identification.diagnosis import DiagnosisOptions, DiagnosisReport, diagnose
 
 __all__ = [
-    "DiagnosisOptions", "DiagnosisReport", "IdentificationPipeline", "IdentifiedModel", "PipelineOptions", "Recording",
-    "diagnose", "load_identified", "load_recording", "save_recording",
+    "DiagnosisOptions",
+    "DiagnosisReport",
+    "IdentificationPipeline",
+    "IdentifiedModel",
+    "PipelineOptions",
+    "Recording",
+    "diagnose",
+    "load_identified",
+    "load_recording",
+    "save_recording",
 ]

@@ -5,6 +5,15 @@ from psdm_casadi.model import PSDMModel, load_model
 from psdm_casadi.robot import DriveParameters, Joint, LinkInertia, RobotDescription, from_dh, from_urdf, load_robot
 
 __all__ = [
-    "DeriveOptions", "DriveParameters", "Joint", "LinkInertia", "PSDMModel", "RobotDescription",
-    "derive_psdm", "from_dh", "from_urdf", "load_model", "load_robot",
+    "DeriveOptions",
+    "DriveParameters",
+    "Joint",
+    "LinkInertia",
+    "PSDMModel",
+    "RobotDescription",
+    "derive_psdm",
+    "from_dh",
+    "from_urdf",
+    "load_model",
+    "load_robot",
 ]

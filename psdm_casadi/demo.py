@@ -82,11 +82,19 @@ class DemoOptions:
     refine: bool = True
 
     @classmethod
-    def quick(cls, **changes) -> "DemoOptions":
+    def quick(cls, **changes) -> DemoOptions:
         """A sub-minute version: short experiments, one excitation start, no refinement."""
-        base = cls(excitation_duration=6.0, excitation_harmonics=3, excitation_starts=1, excitation_repeats=2,
-                   gravity_duration=16.0, friction_amplitudes=(1e-3, 0.03, 0.3), compile_flags=("-O1",),
-                   speed_states=0, refine=False)
+        base = cls(
+            excitation_duration=6.0,
+            excitation_harmonics=3,
+            excitation_starts=1,
+            excitation_repeats=2,
+            gravity_duration=16.0,
+            friction_amplitudes=(1e-3, 0.03, 0.3),
+            compile_flags=("-O1",),
+            speed_states=0,
+            refine=False,
+        )
         return replace(base, **changes)
 
 
@@ -149,8 +157,9 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
     folder.check(force=overwrite)
     start_all = time.perf_counter()
     with folder.staging() as stage:
-        run = _DemoRun(options, stage, np.random.default_rng(options.seed), {"format": REPORT_FORMAT,
-                                                                             "seed": options.seed})
+        run = _DemoRun(
+            options, stage, np.random.default_rng(options.seed), {"format": REPORT_FORMAT, "seed": options.seed}
+        )
         robot, model = _derive(run)
         speed_job = _start_speed_job(options, stage / "speed")
         excitation = _excite(run, robot, model)
@@ -160,8 +169,9 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
         _export(run, robot, model, identified.theta, speed_job)
         run.timed("total", start_all)
         run.summary["seconds"] = {k: round(v, 2) for k, v in run.timings.items()}
-        (stage / "report.md").write_text(_markdown(robot, model, excitation, identified.report.to_markdown(), report,
-                                                   run.summary))
+        (stage / "report.md").write_text(
+            _markdown(robot, model, excitation, identified.report.to_markdown(), report, run.summary)
+        )
         (stage / "speed.md").write_text(_speed_markdown(run.summary))
         (stage / "summary.json").write_text(json.dumps(run.summary, indent=2, default=float))
     run.say(f"report written to {folder.target}/report.md ({run.timings['total']:.0f} s in all)")
@@ -173,10 +183,16 @@ def _derive(run: _DemoRun):
     robot = load_robot(run.options.robot_file)
     model = derive_psdm(robot)
     seconds = run.timed("derive", start)
-    run.say(f"derived {robot.name}: p = {model.n_functions}, l = {model.n_base}, {model.n_gravity} gravity "
-            f"parameters ({seconds:.1f} s)")
-    run.summary["model"] = {"p": model.n_functions, "l": model.n_base, "n_gravity": model.n_gravity,
-                            "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"]}
+    run.say(
+        f"derived {robot.name}: p = {model.n_functions}, l = {model.n_base}, {model.n_gravity} gravity "
+        f"parameters ({seconds:.1f} s)"
+    )
+    run.summary["model"] = {
+        "p": model.n_functions,
+        "l": model.n_base,
+        "n_gravity": model.n_gravity,
+        "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"],
+    }
     return robot, model
 
 
@@ -189,15 +205,23 @@ def _excite(run: _DemoRun, robot, model):
     start = time.perf_counter()
     functions = build_recursive_functions(model, robot)
     excitation = optimize_excitation(
-        robot, functions.regressor,
-        ExcitationOptions(duration=o.excitation_duration, harmonics=o.excitation_harmonics,
-                          columns=tuple(np.nonzero(~model.gravity_mask)[0]), n_starts=o.excitation_starts,
-                          quiet=o.quiet),
-        seed=o.seed)
+        robot,
+        functions.regressor,
+        ExcitationOptions(
+            duration=o.excitation_duration,
+            harmonics=o.excitation_harmonics,
+            columns=tuple(np.nonzero(~model.gravity_mask)[0]),
+            n_starts=o.excitation_starts,
+            quiet=o.quiet,
+        ),
+        seed=o.seed,
+    )
     seconds = run.timed("excite", start)
     plot_trajectory(excitation, run.stage / "excitation.png", title="optimised excitation (inertial columns)")
-    run.say(f"excitation: cond = {excitation.cond:.3g}, worst limit margin = {excitation.worst_margin:.3g} "
-            f"({seconds:.1f} s)")
+    run.say(
+        f"excitation: cond = {excitation.cond:.3g}, worst limit margin = {excitation.worst_margin:.3g} "
+        f"({seconds:.1f} s)"
+    )
     run.summary["excitation"] = {"cond": excitation.cond, "worst_limit_margin": excitation.worst_margin}
     return excitation
 
@@ -214,8 +238,13 @@ def _simulate(run: _DemoRun, robot, excitation):
     q, qd, qdd = excitation.sample(t)
     start = time.perf_counter()
     data = simulate_calibration(
-        robot, CalibrationPlan(gravity_duration=o.gravity_duration, friction_amplitudes=tuple(o.friction_amplitudes)),
-        VirtualCalibrationOptions(quiet=o.quiet), rng=run.rng, excitation=((t, q, qd, qdd),), extras=(hidden,))
+        robot,
+        CalibrationPlan(gravity_duration=o.gravity_duration, friction_amplitudes=tuple(o.friction_amplitudes)),
+        VirtualCalibrationOptions(quiet=o.quiet),
+        rng=run.rng,
+        excitation=((t, q, qd, qdd),),
+        extras=(hidden,),
+    )
     run.say(f"simulated the calibration experiments ({run.timed('simulate', start):.1f} s)")
     return data
 
@@ -226,8 +255,11 @@ def _identify(run: _DemoRun, robot, model, data):
 
     o = run.options
     start = time.perf_counter()
-    identified = IdentificationPipeline(robot, model, PipelineOptions(refine=o.refine, seed=o.seed,
-                                                                      quiet=o.quiet)).fit(data).result_
+    identified = (
+        IdentificationPipeline(robot, model, PipelineOptions(refine=o.refine, seed=o.seed, quiet=o.quiet))
+        .fit(data)
+        .result_
+    )
     seconds = run.timed("identify", start)
     run.say(f"identified (min R^2 'All' = {identified.report.min_r2('all'):.3f}, {seconds:.1f} s)")
     run.summary["identification"] = {"r2_min_all": identified.report.min_r2("all"), "kt": list(identified.kt)}
@@ -248,11 +280,16 @@ def _diagnose(run: _DemoRun, robot, model, data, excitation):
     run.timed("diagnose", start)
     report.save(run.stage / "diagnosis", plots=True)
     run.summary["diagnosis"] = {
-        "hidden": {"effect": "spring", "joint": o.spring_joint + 1, "stiffness": o.spring_stiffness,
-                   "rest": o.spring_rest},
+        "hidden": {
+            "effect": "spring",
+            "joint": o.spring_joint + 1,
+            "stiffness": o.spring_stiffness,
+            "rest": o.spring_rest,
+        },
         "findings": [f.to_dict() for f in report.findings],
         "rmse_before": list(map(float, report.rmse_before)),
-        "rmse_after": list(map(float, report.rmse_after))}
+        "rmse_after": list(map(float, report.rmse_after)),
+    }
     run.say("diagnosis: " + report.summary().splitlines()[0])
     return report
 
@@ -270,14 +307,16 @@ def _export(run: _DemoRun, robot, model, theta, speed_job) -> None:
     q_check, qd_check, qdd_check = run.rng.uniform(-1, 1, size=(3, robot.n_dof))
     c_tau = np.array(inverse(q_check, qd_check, qdd_check)).ravel()
     py_tau = model.inverse_dynamics(q_check, qd_check, qdd_check, theta)
-    run.say(f"C code of the identified model compiled ({run.timed('codegen', start):.1f} s); waiting for the "
-            "speed run")
+    run.say(f"C code of the identified model compiled ({run.timed('codegen', start):.1f} s); waiting for the speed run")
     start = time.perf_counter()
     speed = _finish_speed_job(speed_job)
     run.timed("speed", start)
-    run.summary["codegen"] = {"functions": list(export.function_names),
-                              "c_vs_python_max_abs": float(np.abs(c_tau - py_tau).max()),
-                              "n_instructions": export.n_instructions, "speed": speed}
+    run.summary["codegen"] = {
+        "functions": list(export.function_names),
+        "c_vs_python_max_abs": float(np.abs(c_tau - py_tau).max()),
+        "n_instructions": export.n_instructions,
+        "speed": speed,
+    }
     run.say("speed: " + _speed_sentence(speed))
 
 
@@ -286,8 +325,20 @@ def _start_speed_job(options, workdir):
     if options.speed_states <= 0:
         return None
     workdir.mkdir(parents=True, exist_ok=True)
-    command = [sys.executable, "-m", "codegen.peers.speed", str(options.robot_file), "--workdir", str(workdir),
-               "--samples", str(options.speed_states), "--repeats", "3", "--sum-form", "no"]
+    command = [
+        sys.executable,
+        "-m",
+        "codegen.peers.speed",
+        str(options.robot_file),
+        "--workdir",
+        str(workdir),
+        "--samples",
+        str(options.speed_states),
+        "--repeats",
+        "3",
+        "--sum-form",
+        "no",
+    ]
     log = open(workdir / "speed.log", "w")
     return subprocess.Popen(command, stdout=subprocess.PIPE, stderr=log, text=True), log
 
@@ -313,80 +364,113 @@ def _finish_speed_job(job, timeout=900.0) -> dict:
 def _speed_sentence(speed: dict) -> str:
     if "ns" not in speed:
         return speed.get("skipped") or speed.get("error", "not measured")
-    return (f"inverse dynamics {speed['id_speedup_vs_pinocchio']:.2f}x Pinocchio rnea, forward dynamics "
-            f"{speed['fd_speedup_vs_pinocchio']:.2f}x aba, regressor {speed['regressor_speedup_vs_pinocchio']:.2f}x")
+    return (
+        f"inverse dynamics {speed['id_speedup_vs_pinocchio']:.2f}x Pinocchio rnea, forward dynamics "
+        f"{speed['fd_speedup_vs_pinocchio']:.2f}x aba, regressor {speed['regressor_speedup_vs_pinocchio']:.2f}x"
+    )
 
 
 def _speed_table(speed: dict) -> str:
     if "ns" not in speed:
         return "C speed: " + _speed_sentence(speed)
     ns = speed["ns"]
-    lines = [f"C speed, one C++ process, {speed['n_samples']} random states, median of {speed['repeats']} "
-             "(PSDM in the recursive form with the robot file's nominal parameters baked in; -O3 -march=native):", "",
-             "| function | PSDM [us] | Pinocchio [us] | CasADi Newton-Euler [us] | PSDM speed-up vs Pinocchio |",
-             "|---|---|---|---|---|"]
+    lines = [
+        f"C speed, one C++ process, {speed['n_samples']} random states, median of {speed['repeats']} "
+        "(PSDM in the recursive form with the robot file's nominal parameters baked in; -O3 -march=native):",
+        "",
+        "| function | PSDM [us] | Pinocchio [us] | CasADi Newton-Euler [us] | PSDM speed-up vs Pinocchio |",
+        "|---|---|---|---|---|",
+    ]
     for label, suffix, pin_key, peer in SPEED_ROWS:
         ours = f"psdm_{suffix}"
         peer_text = f"{ns[peer] / 1e3:.3f}" if peer else "-"
-        lines.append(f"| {label} | {ns[ours] / 1e3:.3f} | {ns[pin_key] / 1e3:.3f} | {peer_text} | "
-                     f"{ns[pin_key] / ns[ours]:.2f}x |")
+        lines.append(
+            f"| {label} | {ns[ours] / 1e3:.3f} | {ns[pin_key] / 1e3:.3f} | {peer_text} | "
+            f"{ns[pin_key] / ns[ours]:.2f}x |"
+        )
     return "\n".join(lines)
 
 
 def _markdown(robot, model, excitation, table3, diagnosis, summary) -> str:
     codegen = summary["codegen"]
     lines = [
-        f"# psdm demo: {robot.name} (virtual robot, seed {summary['seed']})", "",
-        "## 1. Derived model", "",
+        f"# psdm demo: {robot.name} (virtual robot, seed {summary['seed']})",
+        "",
+        "## 1. Derived model",
+        "",
         f"p = {model.n_functions} functions, l = {model.n_base} base parameters, {model.n_gravity} of them gravity "
         f"parameters (the paper: 1318, 32, 9). Max relative error against Pinocchio's rnea: "
-        f"{summary['model']['max_rel_error_vs_pinocchio']:.1e}.", "",
-        "## 2. Excitation", "",
+        f"{summary['model']['max_rel_error_vs_pinocchio']:.1e}.",
+        "",
+        "## 2. Excitation",
+        "",
         f"Fourier series, {excitation.duration:g} s period, inertial columns: condition number "
-        f"{excitation.cond:.3g}; worst limit margin on a 10x finer grid {excitation.worst_margin:.3g}.", "",
-        "![excitation](excitation.png)", "",
-        "## 3. Identification (the paper's Table 3)", "", table3, "",
-        "## 4. Diagnosis of missing physics", "",
+        f"{excitation.cond:.3g}; worst limit margin on a 10x finer grid {excitation.worst_margin:.3g}.",
+        "",
+        "![excitation](excitation.png)",
+        "",
+        "## 3. Identification (the paper's Table 3)",
+        "",
+        table3,
+        "",
+        "## 4. Diagnosis of missing physics",
+        "",
         f"The virtual robot carries a hidden spring on joint {summary['diagnosis']['hidden']['joint']} "
-        f"(k = {summary['diagnosis']['hidden']['stiffness']} N m/rad, rest {summary['diagnosis']['hidden']['rest']} rad), "
-        "a stand-in for a cable harness; the identification does not model it.", "",
-        diagnosis.to_markdown(), "",
-        "## 5. C code", "",
+        f"(k = {summary['diagnosis']['hidden']['stiffness']} N m/rad, "
+        f"rest {summary['diagnosis']['hidden']['rest']} rad), "
+        "a stand-in for a cable harness; the identification does not model it.",
+        "",
+        diagnosis.to_markdown(),
+        "",
+        "## 5. C code",
+        "",
         f"Exported {', '.join(codegen['functions'])} in the recursive form (Newton-Euler on the identified base "
         "parameters); the compiled inverse dynamics equals the PSDM sum Y(q, qd, qdd) theta to "
-        f"{codegen['c_vs_python_max_abs']:.1e} N m.", "",
+        f"{codegen['c_vs_python_max_abs']:.1e} N m.",
+        "",
         "Measured speed against Pinocchio and the step timings: [speed.md](speed.md) (measurements vary from "
-        "run to run, so they live outside this file, which is identical for a given seed).", "",
+        "run to run, so they live outside this file, which is identical for a given seed).",
+        "",
     ]
     return "\n".join(lines)
 
 
 def _speed_markdown(summary) -> str:
     seconds = summary["seconds"]
-    return "\n".join([
-        "# Speed and timings of this demo run", "",
-        _speed_table(summary["codegen"]["speed"]), "",
-        "## Step timings [s]", "",
-        "| " + " | ".join(seconds) + " |",
-        "|" + "---|" * len(seconds),
-        "| " + " | ".join(f"{v:.1f}" for v in seconds.values()) + " |", "",
-    ])
+    return "\n".join(
+        [
+            "# Speed and timings of this demo run",
+            "",
+            _speed_table(summary["codegen"]["speed"]),
+            "",
+            "## Step timings [s]",
+            "",
+            "| " + " | ".join(seconds) + " |",
+            "|" + "---|" * len(seconds),
+            "| " + " | ".join(f"{v:.1f}" for v in seconds.values()) + " |",
+            "",
+        ]
+    )
 
 
 def register(subparsers) -> None:
     """Add ``psdm demo`` to the command line."""
     parser = subparsers.add_parser(
-        "demo", help="the whole story on the built-in virtual Denso, with a report folder",
+        "demo",
+        help="the whole story on the built-in virtual Denso, with a report folder",
         description="Derive the Denso model, optimise an excitation, simulate the calibration experiments on "
-                    "a virtual robot that hides a cable-harness spring on joint 4, identify it in the paper's "
-                    "four steps, diagnose the hidden spring and refit, export and compile C, and write a "
-                    "Markdown report with plots. About 5 minutes; --quick takes under a minute.")
+        "a virtual robot that hides a cable-harness spring on joint 4, identify it in the paper's "
+        "four steps, diagnose the hidden spring and refit, export and compile C, and write a "
+        "Markdown report with plots. About 5 minutes; --quick takes under a minute.",
+    )
     parser.add_argument("--out", default="demo_report", help="report folder (default demo_report)")
     parser.add_argument("--quick", action="store_true", help="short experiments, no refinement, no speed run")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    parser.add_argument("--force", action="store_true",
-                        help="replace the files of an earlier demo report in --out (a folder that holds anything "
-                             "else is refused)")
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the files of an earlier demo report in --out (a folder that holds anything else is refused)",
+    )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.set_defaults(handler=_run_demo_command)
 
@@ -398,6 +482,8 @@ def _run_demo_command(args) -> int:
         print(json.dumps(result.summary, default=float))
     else:
         print(f"report: {result.folder / 'report.md'}")
-    found = any(f["effect"] == "spring" and options.spring_joint + 1 in f["joints"]
-                for f in result.summary["diagnosis"]["findings"])
+    found = any(
+        f["effect"] == "spring" and options.spring_joint + 1 in f["joints"]
+        for f in result.summary["diagnosis"]["findings"]
+    )
     return 0 if found else 1

@@ -23,8 +23,14 @@ import pinocchio as pin
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import DerivationError, ParameterError
 from psdm_casadi.model import PSDMModel
-from psdm_casadi.oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, PinocchioOracle, build_kinematic_model, \
-    link_to_joint_frame_maps, standard_parameter_names
+from psdm_casadi.oracle import (
+    N_LINK_PARAMETERS,
+    N_PARAMETERS_PER_JOINT,
+    PinocchioOracle,
+    build_kinematic_model,
+    link_to_joint_frame_maps,
+    standard_parameter_names,
+)
 from psdm_casadi.reduction import reduce_to_base_parameters
 from psdm_casadi.sampling import free_parameter_basis, random_standard_parameters, random_states
 
@@ -94,7 +100,7 @@ class _RegressorSampler:
         lift = np.zeros((N_LINK_PARAMETERS * n, N_PARAMETERS_PER_JOINT * n))
         drive_rows = np.zeros((n, N_PARAMETERS_PER_JOINT * n))
         for i in range(n):
-            lift[10 * i:10 * i + 10, 11 * i:11 * i + 10] = maps[i]
+            lift[10 * i : 10 * i + 10, 11 * i : 11 * i + 10] = maps[i]
             drive_rows[i, 11 * i + 10] = 1.0
         self.lift = lift @ free_basis
         self.drive = drive_rows @ free_basis  # tau_i += Im_i * qdd_i
@@ -168,7 +174,7 @@ def _coefficients(sampler, function, joints, robot, rtol):
         shape = tensor.shape
         blocks = tensor.reshape(int(np.prod(shape[:axis], dtype=int)), shape[axis], -1)
         tensor = np.einsum("ij,ajb->aib", inverse, blocks).reshape(shape)
-    magnitude = np.abs(tensor).reshape(*tensor.shape[:len(joints)], -1).max(axis=-1)
+    magnitude = np.abs(tensor).reshape(*tensor.shape[: len(joints)], -1).max(axis=-1)
     largest = magnitude.max()
     if largest == 0.0:
         return {}
@@ -194,7 +200,7 @@ def _derivative(terms: dict, joint: int, revolute: bool, row: int) -> dict:
     out = {}
     for digits, coef in terms.items():
         for digit, factor in table[digits[joint]]:
-            moved = digits[:joint] + (digit,) + digits[joint + 1:]
+            moved = digits[:joint] + (digit,) + digits[joint + 1 :]
             out[moved] = out.get(moved, 0.0) + factor * coef[row]
     return out
 
@@ -223,8 +229,7 @@ def _velocity_coefficients(coefficients_of: dict, robot: RobotDescription, rtol:
                 if digits not in out:
                     out[digits] = np.zeros((n, vector.shape[0]))
                 out[digits][row] += factor * vector
-        return {d: np.where(np.abs(c) > rtol * scale, c, 0.0) for d, c in out.items()
-                if np.abs(c).max() > rtol * scale}
+        return {d: np.where(np.abs(c) > rtol * scale, c, 0.0) for d, c in out.items() if np.abs(c).max() > rtol * scale}
 
     result = {}
     for k in range(n):
@@ -260,8 +265,9 @@ def _exponent_column(function, digits, revolute) -> np.ndarray:
     return column
 
 
-def check_against_oracle(model: PSDMModel, robot: RobotDescription, rng: np.random.Generator,
-                         n_samples: int = 200, parameters=None) -> float:
+def check_against_oracle(
+    model: PSDMModel, robot: RobotDescription, rng: np.random.Generator, n_samples: int = 200, parameters=None
+) -> float:
     """Largest relative error of the model's torque against Pinocchio's rnea (max |error| / max |tau|).
 
     Parameters are random admissible ones unless given, shape (n_dof, 11).
@@ -334,10 +340,14 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
     parameter_map = base_map @ free_basis.T
     parameter_map[np.abs(parameter_map) < 1e-12 * np.abs(parameter_map).max()] = 0.0
     model = PSDMModel(
-        exponents=exponents, reduction=reduction, parameter_map=parameter_map,
+        exponents=exponents,
+        reduction=reduction,
+        parameter_map=parameter_map,
         base_names=tuple(f"theta{j + 1}" for j in range(reduction.shape[1])),
-        standard_names=tuple(standard_parameter_names(n)), gravity_magnitude=robot.gravity_magnitude,
-        revolute=robot.revolute, robot_name=robot.name,
+        standard_names=tuple(standard_parameter_names(n)),
+        gravity_magnitude=robot.gravity_magnitude,
+        revolute=robot.revolute,
+        robot_name=robot.name,
     )
     error = check_against_oracle(model, robot, rng, options.n_check)
     if not error <= options.tolerance:
@@ -346,6 +356,10 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
             f"DeriveOptions.tolerance={options.tolerance:g}. The robot may violate the PSDM structure "
             "(e.g. a joint that is neither revolute nor prismatic)."
         )
-    metadata = {"seed": options.seed, "seconds": time.perf_counter() - start,
-                "max_rel_error_vs_pinocchio": error, "n_free_parameters": int(free_basis.shape[1])}
+    metadata = {
+        "seed": options.seed,
+        "seconds": time.perf_counter() - start,
+        "max_rel_error_vs_pinocchio": error,
+        "n_free_parameters": int(free_basis.shape[1]),
+    }
     return replace(model, metadata=metadata)

@@ -56,7 +56,7 @@ class Joint:
         if self.kind not in JOINT_KINDS:
             raise RobotFileError(
                 f"{where}.type must be one of {JOINT_KINDS}; got {self.kind!r}. "
-                "Write type = \"revolute\" or type = \"prismatic\"."
+                'Write type = "revolute" or type = "prismatic".'
             )
         for key in ("a", "alpha", "d", "theta", "q_min", "q_max", "qd_max", "qdd_max", "tau_max"):
             value = getattr(self, key)
@@ -202,11 +202,11 @@ class RobotDescription:
     def __post_init__(self):
         n = len(self.joints)
         if n == 0:
-            raise RobotFileError("RobotDescription.joints must hold at least one joint; got none. Add [[joint]] tables.")
-        if self.convention not in CONVENTIONS:
             raise RobotFileError(
-                f"RobotDescription.convention must be one of {CONVENTIONS}; got {self.convention!r}."
+                "RobotDescription.joints must hold at least one joint; got none. Add [[joint]] tables."
             )
+        if self.convention not in CONVENTIONS:
+            raise RobotFileError(f"RobotDescription.convention must be one of {CONVENTIONS}; got {self.convention!r}.")
         gravity = np.asarray(self.gravity, dtype=float).reshape(-1)
         if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
             raise RobotFileError(f"RobotDescription.gravity must be 3 finite numbers [m/s^2]; got {self.gravity!r}.")
@@ -220,15 +220,15 @@ class RobotDescription:
         object.__setattr__(self, "drive_inertia", drive_inertia)
         for link in self.massless_links:
             if not (isinstance(link, int) and 1 <= link <= n):
-                raise RobotFileError(
-                    f"RobotDescription.massless_links must hold link numbers 1..{n}; got {link!r}."
-                )
+                raise RobotFileError(f"RobotDescription.massless_links must hold link numbers 1..{n}; got {link!r}.")
         for name in self.zero_parameters:
             parse_parameter_name(name, n)
         if self.links is not None and len(self.links) != n:
             raise RobotFileError(f"RobotDescription.links must have {n} entries (one per link); got {len(self.links)}.")
         if self.drives is not None and len(self.drives) != n:
-            raise RobotFileError(f"RobotDescription.drives must have {n} entries (one per joint); got {len(self.drives)}.")
+            raise RobotFileError(
+                f"RobotDescription.drives must have {n} entries (one per joint); got {len(self.drives)}."
+            )
         rotor = np.zeros(n) if self.rotor_inertia is None else np.asarray(self.rotor_inertia, dtype=float).reshape(-1)
         if rotor.shape != (n,) or np.any(rotor < 0):
             raise RobotFileError(
@@ -297,10 +297,11 @@ class RobotDescription:
         rows = [np.append(link.dynamic_parameters(), im) for link, im in zip(self.links, self.rotor_inertia)]
         return np.array(rows)
 
-    def with_links(self, links, rotor_inertia=None) -> "RobotDescription":
+    def with_links(self, links, rotor_inertia=None) -> RobotDescription:
         """A copy with other nominal inertial parameters (e.g. a perturbed truth for simulation)."""
-        return replace(self, links=tuple(links),
-                       rotor_inertia=self.rotor_inertia if rotor_inertia is None else rotor_inertia)
+        return replace(
+            self, links=tuple(links), rotor_inertia=self.rotor_inertia if rotor_inertia is None else rotor_inertia
+        )
 
 
 def parse_parameter_name(name: str, n_dof: int) -> tuple:
@@ -324,8 +325,8 @@ def parse_parameter_name(name: str, n_dof: int) -> tuple:
         When ``name`` is not such a name, naming the fix.
     """
     for base in sorted(PHYSICAL_PARAMETER_NAMES, key=len, reverse=True):
-        if isinstance(name, str) and name.startswith(base) and name[len(base):].isdigit():
-            link = int(name[len(base):])
+        if isinstance(name, str) and name.startswith(base) and name[len(base) :].isdigit():
+            link = int(name[len(base) :])
             if 1 <= link <= n_dof:
                 return base, link
     raise RobotFileError(

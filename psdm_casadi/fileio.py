@@ -61,21 +61,26 @@ class OutputFolder:
         target = self.target
         resolved = target.expanduser().resolve()
         if resolved in (Path.cwd().resolve(), Path.home().resolve()) or resolved == Path(resolved.anchor):
-            raise FileExistsError(f"--out {str(target)!r} is the working, home or root folder; name a new folder, "
-                                  "e.g. --out report.")
+            raise FileExistsError(
+                f"--out {str(target)!r} is the working, home or root folder; name a new folder, e.g. --out report."
+            )
         if target.exists() and not target.is_dir():
             raise FileExistsError(f"--out {str(target)!r} is a file; name a folder (new, or one this tool wrote).")
         existing = sorted(p.name for p in target.iterdir()) if target.is_dir() else []
         if not existing:
             return
         if not force:
-            raise FileExistsError(f"--out {str(target)!r} exists and is not empty; pass {self.option} to replace "
-                                  "the files this tool wrote there, or name a new folder.")
+            raise FileExistsError(
+                f"--out {str(target)!r} exists and is not empty; pass {self.option} to replace "
+                "the files this tool wrote there, or name a new folder."
+            )
         foreign = [name for name in existing if name not in self.names]
         if foreign:
             shown = ", ".join(foreign[:5]) + (" ..." if len(foreign) > 5 else "")
-            raise FileExistsError(f"--out {str(target)!r} holds files this tool did not write ({shown}); "
-                                  f"{self.option} replaces only its own outputs. Name a new folder.")
+            raise FileExistsError(
+                f"--out {str(target)!r} holds files this tool did not write ({shown}); "
+                f"{self.option} replaces only its own outputs. Name a new folder."
+            )
 
     def staging(self):
         """Context manager: a fresh staging folder; removed on error or interrupt, committed on success."""

@@ -63,17 +63,19 @@ class PSDMModel:
             raise ShapeError(f"PSDMModel.exponents must have shape (5*{n}, n_functions); got {exponents.shape}.")
         p = exponents.shape[1]
         if reduction.ndim != 3 or reduction.shape[0] != p or reduction.shape[2] != n:
-            raise ShapeError(
-                f"PSDMModel.reduction must have shape ({p}, n_base, {n}); got {reduction.shape}."
-            )
+            raise ShapeError(f"PSDMModel.reduction must have shape ({p}, n_base, {n}); got {reduction.shape}.")
         l = reduction.shape[1]
         parameter_map = np.asarray(self.parameter_map, dtype=float)
         if parameter_map.shape != (l, 11 * n):
             raise ShapeError(f"PSDMModel.parameter_map must have shape ({l}, {11 * n}); got {parameter_map.shape}.")
         if len(self.base_names) != l or len(self.standard_names) != 11 * n:
             raise ShapeError("PSDMModel.base_names/standard_names must match the reduction and parameter map sizes.")
-        for name, value in (("exponents", exponents), ("reduction", reduction),
-                            ("parameter_map", parameter_map), ("revolute", revolute)):
+        for name, value in (
+            ("exponents", exponents),
+            ("reduction", reduction),
+            ("parameter_map", parameter_map),
+            ("revolute", revolute),
+        ):
             value.setflags(write=False)
             object.__setattr__(self, name, value)
         # P as one sparse (n_functions, n_dof * n_base) matrix for fast batch evaluation
@@ -87,9 +89,12 @@ class PSDMModel:
         if not isinstance(other, PSDMModel):
             return NotImplemented
         arrays = ("exponents", "reduction", "parameter_map", "revolute")
-        return (all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
-                and self.base_names == other.base_names and self.standard_names == other.standard_names
-                and self.gravity_magnitude == other.gravity_magnitude)
+        return (
+            all(np.array_equal(getattr(self, a), getattr(other, a)) for a in arrays)
+            and self.base_names == other.base_names
+            and self.standard_names == other.standard_names
+            and self.gravity_magnitude == other.gravity_magnitude
+        )
 
     __hash__ = None
 
@@ -110,7 +115,7 @@ class PSDMModel:
     def gravity_functions(self) -> np.ndarray:
         """Boolean (n_functions,): functions with no qd or qdd factor (multiplied by g)."""
         n = self.n_dof
-        return ~np.any(self.exponents[3 * n:] > 0, axis=0)
+        return ~np.any(self.exponents[3 * n :] > 0, axis=0)
 
     @property
     def gravity_mask(self) -> np.ndarray:
@@ -128,7 +133,9 @@ class PSDMModel:
         for name, x in zip(("q", "qd", "qdd"), arrays):
             arr = np.atleast_2d(np.asarray(x, dtype=float))
             if arr.shape[1] != self.n_dof:
-                raise ShapeError(f"{name} must have shape (n_samples, {self.n_dof}) or ({self.n_dof},); got {np.shape(x)}.")
+                raise ShapeError(
+                    f"{name} must have shape (n_samples, {self.n_dof}) or ({self.n_dof},); got {np.shape(x)}."
+                )
             out.append(arr)
         if len({a.shape[0] for a in out}) != 1:
             raise ShapeError(f"q, qd, qdd must have the same number of samples; got {[a.shape[0] for a in out]}.")
@@ -143,7 +150,7 @@ class PSDMModel:
             for power in (1, 2):
                 cols = self.exponents[h] == power
                 if cols.any():
-                    y[:, cols] *= gamma[:, h:h + 1] ** power
+                    y[:, cols] *= gamma[:, h : h + 1] ** power
         y[:, self.gravity_functions] *= self.gravity_magnitude
         return y
 
@@ -207,8 +214,13 @@ class PSDMModel:
         return "\n".join(lines)
 
     def summary(self) -> dict:
-        return {"robot": self.robot_name, "n_dof": self.n_dof, "p": self.n_functions, "l": self.n_base,
-                "n_gravity": self.n_gravity}
+        return {
+            "robot": self.robot_name,
+            "n_dof": self.n_dof,
+            "p": self.n_functions,
+            "l": self.n_base,
+            "n_gravity": self.n_gravity,
+        }
 
     # --- files ----------------------------------------------------------------------------------
     def save(self, path, overwrite: bool = False) -> Path:
@@ -216,13 +228,28 @@ class PSDMModel:
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_suffix(path.suffix + ".npz") if path.suffix else path.with_suffix(".npz")
-        header = {"format": MODEL_FORMAT, "version": MODEL_VERSION, "robot_name": self.robot_name,
-                  "base_names": list(self.base_names), "standard_names": list(self.standard_names),
-                  "gravity_magnitude": self.gravity_magnitude, "metadata": self.metadata}
-        atomic_write(path, lambda handle: np.savez(handle, header=np.array(json.dumps(header)),
-                                                   exponents=self.exponents, reduction=self.reduction,
-                                                   parameter_map=self.parameter_map, revolute=self.revolute),
-                     overwrite=overwrite, mode="wb")
+        header = {
+            "format": MODEL_FORMAT,
+            "version": MODEL_VERSION,
+            "robot_name": self.robot_name,
+            "base_names": list(self.base_names),
+            "standard_names": list(self.standard_names),
+            "gravity_magnitude": self.gravity_magnitude,
+            "metadata": self.metadata,
+        }
+        atomic_write(
+            path,
+            lambda handle: np.savez(
+                handle,
+                header=np.array(json.dumps(header)),
+                exponents=self.exponents,
+                reduction=self.reduction,
+                parameter_map=self.parameter_map,
+                revolute=self.revolute,
+            ),
+            overwrite=overwrite,
+            mode="wb",
+        )
         return path
 
 
@@ -250,8 +277,14 @@ def load_model(path) -> PSDMModel:
             f"{path.name}: model version {header.get('version')} is not supported (this release reads "
             f"version {MODEL_VERSION}). Derive the model again with this release."
         )
-    return PSDMModel(exponents=arrays["exponents"], reduction=arrays["reduction"],
-                     parameter_map=arrays["parameter_map"], base_names=tuple(header["base_names"]),
-                     standard_names=tuple(header["standard_names"]),
-                     gravity_magnitude=float(header["gravity_magnitude"]), revolute=arrays["revolute"],
-                     robot_name=header["robot_name"], metadata=header.get("metadata", {}))
+    return PSDMModel(
+        exponents=arrays["exponents"],
+        reduction=arrays["reduction"],
+        parameter_map=arrays["parameter_map"],
+        base_names=tuple(header["base_names"]),
+        standard_names=tuple(header["standard_names"]),
+        gravity_magnitude=float(header["gravity_magnitude"]),
+        revolute=arrays["revolute"],
+        robot_name=header["robot_name"],
+        metadata=header.get("metadata", {}),
+    )

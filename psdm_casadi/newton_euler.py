@@ -1,4 +1,5 @@
-"""Newton-Euler recursion on SX, linear in the standard inertial parameters: how the recursive form evaluates Y(q, qd, qdd) theta.
+"""Newton-Euler recursion on SX, linear in the standard inertial parameters: how the recursive form evaluates
+Y(q, qd, qdd) theta.
 
 The link parameters are the Pinocchio dynamic parameters of each joint frame (m, m r, inertia about
 the frame origin) plus the rotor inertia, so a link with zero mass but a first moment is fine and
@@ -100,12 +101,15 @@ def link_wrench(motion: LinkMotion, link) -> tuple:
     first_moment = ca.vertcat(*link[FIRST_MOMENT])
     inertia = _inertia_matrix(link[INERTIA])
     force = link[MASS] * motion.dv + ca.mtimes(motion.u, first_moment)
-    moment = ca.mtimes(inertia, motion.dw) + cross(first_moment, motion.dv) + cross(motion.w, ca.mtimes(inertia, motion.w))
+    moment = (
+        ca.mtimes(inertia, motion.dw) + cross(first_moment, motion.dv) + cross(motion.w, ca.mtimes(inertia, motion.w))
+    )
     return force, moment
 
 
 def _unit_inertia_moment(motion: LinkMotion, index: int):
-    """The moment B dw + w x (B w) of the unit inertia parameter ``index`` (0-5, Ixx ... Izz); CasADi folds B's zeros."""
+    """The moment B dw + w x (B w) of the unit inertia parameter ``index`` (0-5, Ixx ... Izz); CasADi folds B's
+    zeros."""
     unit = _inertia_matrix([1.0 if k == index else 0.0 for k in range(6)])
     return ca.mtimes(unit, motion.dw) + cross(motion.w, ca.mtimes(unit, motion.w))
 
@@ -125,7 +129,7 @@ def unit_parameter_wrench(motion: LinkMotion, kind: int) -> tuple:
 def link_wrench_per_parameter(motion: LinkMotion, link) -> tuple:
     """``link_wrench`` written as the sum over the nonzero parameters of parameter times unit-parameter wrench."""
     force, moment = _ZERO3, _ZERO3
-    for kind, value in enumerate(link[:INERTIA.stop]):
+    for kind, value in enumerate(link[: INERTIA.stop]):
         if not ca.SX(value).is_zero():
             unit_force, unit_moment = unit_parameter_wrench(motion, kind)
             force, moment = force + value * unit_force, moment + value * unit_moment
@@ -148,8 +152,9 @@ def backward_pass(chain: JointChain, wrenches: list, qdd, rotor_inertia) -> ca.S
     return ca.vertcat(*tau)
 
 
-def newton_euler(chain: JointChain, parameters, qd, qdd, base_acceleration, with_velocity: bool = True,
-                 per_parameter: bool = False) -> ca.SX:
+def newton_euler(
+    chain: JointChain, parameters, qd, qdd, base_acceleration, with_velocity: bool = True, per_parameter: bool = False
+) -> ca.SX:
     """Joint torques of a chain by Newton-Euler, linear in the standard parameters.
 
     Parameters

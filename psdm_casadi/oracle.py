@@ -27,6 +27,7 @@ def standard_parameter_names(n_dof: int) -> list:
 
 def dh_transform(convention: str, a: float, alpha: float, d: float, theta: float) -> pin.SE3:
     """The constant DH placement of one row (standard: Rz Tz Tx Rx; modified: Rx Tx Rz Tz)."""
+
     def rot(axis, angle):
         c, s = np.cos(angle), np.sin(angle)
         if axis == "z":
@@ -121,7 +122,8 @@ def build_pinocchio_model(robot: RobotDescription, parameters=None) -> pin.Model
     params = robot.nominal_dynamic_parameters() if parameters is None else np.asarray(parameters, dtype=float)
     if params.shape != (robot.n_dof, N_PARAMETERS_PER_JOINT):
         raise ShapeError(
-            f"parameters must have shape ({robot.n_dof}, {N_PARAMETERS_PER_JOINT}) (10 link parameters + Im per joint); "
+            f"parameters must have shape ({robot.n_dof}, {N_PARAMETERS_PER_JOINT}) "
+            "(10 link parameters + Im per joint); "
             f"got {params.shape}."
         )
     model, _ = build_kinematic_model(robot)

@@ -18,7 +18,12 @@ import pinocchio as pin
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import DerivationError, ShapeError
 from psdm_casadi.model import PSDMModel
-from psdm_casadi.oracle import N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT, build_pinocchio_model, link_to_joint_frame_maps
+from psdm_casadi.oracle import (
+    N_LINK_PARAMETERS,
+    N_PARAMETERS_PER_JOINT,
+    build_pinocchio_model,
+    link_to_joint_frame_maps,
+)
 from psdm_casadi.reduction import select_independent_rows
 
 # Names of the 11 joint-frame parameters, and the order in which the selection prefers them (lower
@@ -62,8 +67,10 @@ class StandardPreimage:
 
     def support_names(self) -> list:
         """``["Izz5", "mx2", ...]``: the kept standard parameters, 1-based joint numbers."""
-        return [f"{JOINT_PARAMETER_NAMES[r % N_PARAMETERS_PER_JOINT]}{r // N_PARAMETERS_PER_JOINT + 1}"
-                for r in self.support]
+        return [
+            f"{JOINT_PARAMETER_NAMES[r % N_PARAMETERS_PER_JOINT]}{r // N_PARAMETERS_PER_JOINT + 1}"
+            for r in self.support
+        ]
 
 
 def _joint_frame_parameter_map(model: PSDMModel, robot: RobotDescription) -> np.ndarray:
@@ -73,7 +80,9 @@ def _joint_frame_parameter_map(model: PSDMModel, robot: RobotDescription) -> np.
     for i, joint_from_link in enumerate(link_to_joint_frame_maps(robot)):
         block = slice(N_PARAMETERS_PER_JOINT * i, N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS)
         link_from_joint[block, block] = np.linalg.inv(joint_from_link)
-        link_from_joint[N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS] = 1.0
+        link_from_joint[
+            N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS, N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS
+        ] = 1.0
     k_joint = model.parameter_map @ link_from_joint
     k_joint[np.abs(k_joint) < 1e-12 * max(np.abs(k_joint).max(), 1.0)] = 0.0
     return k_joint
@@ -81,9 +90,15 @@ def _joint_frame_parameter_map(model: PSDMModel, robot: RobotDescription) -> np.
 
 def _select_columns(k_joint: np.ndarray) -> list:
     """Greedy independent columns of K_joint in order of preference (cheap kinds first, distal joints first)."""
-    order = np.array(sorted(range(k_joint.shape[1]),
-                            key=lambda c: (_PREFERENCE[JOINT_PARAMETER_NAMES[c % N_PARAMETERS_PER_JOINT]],
-                                           -(c // N_PARAMETERS_PER_JOINT))))
+    order = np.array(
+        sorted(
+            range(k_joint.shape[1]),
+            key=lambda c: (
+                _PREFERENCE[JOINT_PARAMETER_NAMES[c % N_PARAMETERS_PER_JOINT]],
+                -(c // N_PARAMETERS_PER_JOINT),
+            ),
+        )
+    )
     return [int(c) for c in order[select_independent_rows(k_joint[:, order].T, rtol=1e-9)]]
 
 
@@ -98,8 +113,9 @@ def _regressor_error(model: PSDMModel, robot: RobotDescription, matrix: np.ndarr
         link_columns = pin.computeJointTorqueRegressor(pin_model, data, q, qd, qdd)
         full = np.zeros((n, N_PARAMETERS_PER_JOINT * n))
         for i in range(n):
-            full[:, N_PARAMETERS_PER_JOINT * i:N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS] = \
-                link_columns[:, N_LINK_PARAMETERS * i:N_LINK_PARAMETERS * (i + 1)]
+            full[:, N_PARAMETERS_PER_JOINT * i : N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS] = link_columns[
+                :, N_LINK_PARAMETERS * i : N_LINK_PARAMETERS * (i + 1)
+            ]
             full[i, N_PARAMETERS_PER_JOINT * i + N_LINK_PARAMETERS] = qdd[i]
         ours = model.regressor(q, qd, qdd)
         worst = max(worst, np.abs(full @ matrix - ours).max() / max(np.abs(ours).max(), 1e-300))

@@ -69,11 +69,12 @@ def _linear_parameters(preimage: StandardPreimage, theta) -> list:
         for k in np.flatnonzero(preimage.matrix[row]):
             entry = entry + float(preimage.matrix[row, k]) * theta[int(k)]
         values.append(entry)
-    return [values[N_PARAMETERS_PER_JOINT * i:N_PARAMETERS_PER_JOINT * (i + 1)] for i in range(preimage.n_dof)]
+    return [values[N_PARAMETERS_PER_JOINT * i : N_PARAMETERS_PER_JOINT * (i + 1)] for i in range(preimage.n_dof)]
 
 
-def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=None, *,
-                              preimage: StandardPreimage | None = None) -> DynamicsFunctions:
+def build_recursive_functions(
+    model: PSDMModel, robot: RobotDescription, theta=None, *, preimage: StandardPreimage | None = None
+) -> DynamicsFunctions:
     """Build the CasADi functions of a PSDM model by Newton-Euler on its standard-parameter preimage.
 
     Parameters
@@ -111,8 +112,9 @@ def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=N
     # The regressor is the Jacobian of the (linear) torques in theta; dense, like build_functions' one.
     symbolic_parameters = _linear_parameters(preimage, theta_sym)
     tau_symbolic = newton_euler(chain, symbolic_parameters, qd, qdd, base_acceleration, per_parameter=True)
-    gravity_symbolic = newton_euler(chain, symbolic_parameters, zero, zero, base_acceleration, with_velocity=False,
-                                    per_parameter=True)
+    gravity_symbolic = newton_euler(
+        chain, symbolic_parameters, zero, zero, base_acceleration, with_velocity=False, per_parameter=True
+    )
     regressor = ca.densify(ca.jacobian(tau_symbolic, theta_sym))
     gravity_regressor = ca.densify(ca.jacobian(gravity_symbolic, theta_sym))
 
@@ -126,10 +128,21 @@ def build_recursive_functions(model: PSDMModel, robot: RobotDescription, theta=N
     tau = newton_euler(chain, parameters, qd, qdd, base_acceleration)
     gravity = newton_euler(chain, parameters, zero, zero, base_acceleration, with_velocity=False)
     bias = newton_euler(chain, parameters, qd, zero, base_acceleration)
-    columns = [newton_euler(chain, parameters, zero, ca.SX(ca.DM(np.eye(n)[k])), no_gravity, with_velocity=False)
-               for k in range(n)]
-    functions = assemble_functions((q, qd, qdd, tau_in), theta_inputs, theta_names, regressor=regressor,
-                                   gravity_regressor=gravity_regressor, tau=tau, bias=bias, gravity=gravity,
-                                   mass_columns=columns, theta=baked)
+    columns = [
+        newton_euler(chain, parameters, zero, ca.SX(ca.DM(np.eye(n)[k])), no_gravity, with_velocity=False)
+        for k in range(n)
+    ]
+    functions = assemble_functions(
+        (q, qd, qdd, tau_in),
+        theta_inputs,
+        theta_names,
+        regressor=regressor,
+        gravity_regressor=gravity_regressor,
+        tau=tau,
+        bias=bias,
+        gravity=gravity,
+        mass_columns=columns,
+        theta=baked,
+    )
     structure = _regressor_structure(chain, (q, qd, qdd), preimage, base_acceleration)
     return dataclasses.replace(functions, regressor_structure=structure)

@@ -33,10 +33,10 @@ def select_independent_rows(rows: np.ndarray, rtol: float = 1e-8, block: int = 5
     selected = []
     start = 0
     while start < n_rows and len(selected) < n_cols:
-        chunk = rows[start:start + block]
+        chunk = rows[start : start + block]
         residual = chunk - (chunk @ basis.T) @ basis
         residual = residual - (residual @ basis.T) @ basis  # Gram-Schmidt twice is enough
-        independent = np.linalg.norm(residual, axis=1) > rtol * norms[start:start + block]
+        independent = np.linalg.norm(residual, axis=1) > rtol * norms[start : start + block]
         hits = np.nonzero(independent)[0]
         if hits.size == 0:
             start += block

@@ -10,25 +10,65 @@ from __future__ import annotations
 
 import numpy as np
 
-from psdm_casadi.description import (CONVENTIONS, GRAVITY_STANDARD, JOINT_KINDS, PHYSICAL_PARAMETER_NAMES,
-                                     DriveParameters, Joint, LinkInertia, RobotDescription, parse_parameter_name,
-                                     physical_to_dynamic)
+from psdm_casadi.description import (
+    CONVENTIONS,
+    GRAVITY_STANDARD,
+    JOINT_KINDS,
+    PHYSICAL_PARAMETER_NAMES,
+    DriveParameters,
+    Joint,
+    LinkInertia,
+    RobotDescription,
+    parse_parameter_name,
+    physical_to_dynamic,
+)
 from psdm_casadi.errors import RobotFileError
-from psdm_casadi.robot_file import (BUILTIN_ROBOTS_DIR, ROBOT_FORMAT, builtin_robot_names, load_robot,
-                                    resolve_robot_path, robot_from_mapping)
+from psdm_casadi.robot_file import (
+    BUILTIN_ROBOTS_DIR,
+    ROBOT_FORMAT,
+    builtin_robot_names,
+    load_robot,
+    resolve_robot_path,
+    robot_from_mapping,
+)
 from psdm_casadi.urdf import from_urdf
 
 __all__ = [
-    "BUILTIN_ROBOTS_DIR", "CONVENTIONS", "GRAVITY_STANDARD", "JOINT_KINDS", "PHYSICAL_PARAMETER_NAMES", "ROBOT_FORMAT",
-    "DriveParameters", "Joint", "LinkInertia", "RobotDescription", "builtin_robot_names", "from_dh", "from_urdf",
-    "load_robot", "parse_parameter_name", "physical_to_dynamic", "resolve_robot_path",
+    "BUILTIN_ROBOTS_DIR",
+    "CONVENTIONS",
+    "GRAVITY_STANDARD",
+    "JOINT_KINDS",
+    "PHYSICAL_PARAMETER_NAMES",
+    "ROBOT_FORMAT",
+    "DriveParameters",
+    "Joint",
+    "LinkInertia",
+    "RobotDescription",
+    "builtin_robot_names",
+    "from_dh",
+    "from_urdf",
+    "load_robot",
+    "parse_parameter_name",
+    "physical_to_dynamic",
+    "resolve_robot_path",
     "robot_from_mapping",
 ]
 
 
-def from_dh(rows, *, convention="standard", kinds=None, gravity=(0.0, 0.0, -GRAVITY_STANDARD), name="robot",
-            drive_inertia=(), massless_links=(), zero_parameters=(), links=None, rotor_inertia=None,
-            limits=None) -> RobotDescription:
+def from_dh(
+    rows,
+    *,
+    convention="standard",
+    kinds=None,
+    gravity=(0.0, 0.0, -GRAVITY_STANDARD),
+    name="robot",
+    drive_inertia=(),
+    massless_links=(),
+    zero_parameters=(),
+    links=None,
+    rotor_inertia=None,
+    limits=None,
+) -> RobotDescription:
     """Build a RobotDescription from DH rows ``(a, alpha, d, theta)``.
 
     Parameters
@@ -62,6 +102,14 @@ def from_dh(rows, *, convention="standard", kinds=None, gravity=(0.0, 0.0, -GRAV
         if kind == "prismatic":
             lim = {"q_min": -0.5, "q_max": 0.5, **lim}
         joints.append(Joint(name=f"joint{i + 1}", kind=kind, a=a, alpha=alpha, d=d, theta=theta, **lim))
-    return RobotDescription(name=name, joints=tuple(joints), convention=convention, gravity=np.asarray(gravity),
-                            drive_inertia=tuple(drive_inertia), massless_links=tuple(massless_links),
-                            zero_parameters=tuple(zero_parameters), links=links, rotor_inertia=rotor_inertia)
+    return RobotDescription(
+        name=name,
+        joints=tuple(joints),
+        convention=convention,
+        gravity=np.asarray(gravity),
+        drive_inertia=tuple(drive_inertia),
+        massless_links=tuple(massless_links),
+        zero_parameters=tuple(zero_parameters),
+        links=links,
+        rotor_inertia=rotor_inertia,
+    )

@@ -10,14 +10,21 @@ from __future__ import annotations
 import ast
 import math
 import operator
-import tomllib
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
-from psdm_casadi.description import (CONVENTIONS, GRAVITY_STANDARD, JOINT_KINDS, DriveParameters, Joint, LinkInertia,
-                                     RobotDescription)
+from psdm_casadi.description import (
+    CONVENTIONS,
+    GRAVITY_STANDARD,
+    JOINT_KINDS,
+    DriveParameters,
+    Joint,
+    LinkInertia,
+    RobotDescription,
+)
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.urdf import from_urdf
 
@@ -37,9 +44,7 @@ def _number(value, where: str) -> float:
             return float(_eval_expression(ast.parse(value, mode="eval").body))
         except (SyntaxError, ValueError, ZeroDivisionError):
             pass
-    raise RobotFileError(
-        f"{where} must be a number or an expression of numbers and pi such as \"-pi/2\"; got {value!r}."
-    )
+    raise RobotFileError(f'{where} must be a number or an expression of numbers and pi such as "-pi/2"; got {value!r}.')
 
 
 def _eval_expression(node):
@@ -95,7 +100,8 @@ def resolve_robot_path(path) -> Path:
         return BUILTIN_ROBOTS_DIR / f"{candidate.stem}.toml"
     raise RobotFileError(
         f"robot file {str(path)!r} does not exist. Check the path, or name a built-in robot: "
-        f"{', '.join(builtin_robot_names())}.")
+        f"{', '.join(builtin_robot_names())}."
+    )
 
 
 def load_robot(path) -> RobotDescription:
@@ -133,7 +139,9 @@ def robot_from_mapping(data: dict, source: Path | None = None) -> RobotDescripti
     _check_keys(data, _TOP_KEYS, where)
     fmt = data.get("format", ROBOT_FORMAT)
     if fmt != ROBOT_FORMAT:
-        raise RobotFileError(f"{where}: format must be {ROBOT_FORMAT!r}; got {fmt!r}. Convert the file or fix the line.")
+        raise RobotFileError(
+            f"{where}: format must be {ROBOT_FORMAT!r}; got {fmt!r}. Convert the file or fix the line."
+        )
     assumptions = data.get("assumptions", {})
     if not isinstance(assumptions, dict):
         raise RobotFileError(f"{where}: assumptions must be a table [assumptions].")
@@ -153,9 +161,7 @@ def robot_from_mapping(data: dict, source: Path | None = None) -> RobotDescripti
         kwargs = {k: _number(table[k], f"{jwhere}.{k}") for k in _JOINT_KEYS - {"name", "type"} if k in table}
         kind = table.get("type", "revolute")
         if kind not in JOINT_KINDS:
-            raise RobotFileError(
-                f"{jwhere}.type must be \"revolute\" or \"prismatic\"; got {kind!r}. Fix the joint type."
-            )
+            raise RobotFileError(f'{jwhere}.type must be "revolute" or "prismatic"; got {kind!r}. Fix the joint type.')
         try:
             joints.append(Joint(name=str(table.get("name", f"joint{i + 1}")), kind=kind, **kwargs))
         except RobotFileError as exc:
@@ -180,7 +186,7 @@ def robot_from_mapping(data: dict, source: Path | None = None) -> RobotDescripti
 
 def _convention(value, where):
     if value not in CONVENTIONS:
-        raise RobotFileError(f"{where}: convention must be \"standard\" or \"modified\"; got {value!r}.")
+        raise RobotFileError(f'{where}: convention must be "standard" or "modified"; got {value!r}.')
     return value
 
 
@@ -250,6 +256,9 @@ def _robot_from_urdf_table(data, assumptions, source, where):
     gravity = _vector(list(data["gravity"]), 3, "gravity") if "gravity" in data else None
     robot = from_urdf(urdf, locked_joints=table.get("locked_joints", []), gravity=gravity, name=data.get("name"))
     drive = _drive_flags(assumptions.get("drive_inertia", False), robot.n_dof, where)
-    return replace(robot, drive_inertia=drive,
-                   massless_links=_massless(assumptions.get("massless_links", []), robot.n_dof, where),
-                   zero_parameters=tuple(assumptions.get("zero_parameters", [])))
+    return replace(
+        robot,
+        drive_inertia=drive,
+        massless_links=_massless(assumptions.get("massless_links", []), robot.n_dof, where),
+        zero_parameters=tuple(assumptions.get("zero_parameters", [])),
+    )

@@ -7,8 +7,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from psdm_casadi.description import (PHYSICAL_PARAMETER_NAMES, RobotDescription, parse_parameter_name,
-                                     physical_to_dynamic)
+from psdm_casadi.description import (
+    PHYSICAL_PARAMETER_NAMES,
+    RobotDescription,
+    parse_parameter_name,
+    physical_to_dynamic,
+)
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT
 
 

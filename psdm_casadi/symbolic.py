@@ -65,8 +65,15 @@ class DynamicsFunctions:
 
     def all(self) -> list:
         """All functions, regressor first."""
-        return [self.regressor, self.gravity_regressor, self.inverse_dynamics, self.mass_matrix, self.bias,
-                self.gravity, self.forward_dynamics]
+        return [
+            self.regressor,
+            self.gravity_regressor,
+            self.inverse_dynamics,
+            self.mass_matrix,
+            self.bias,
+            self.gravity,
+            self.forward_dynamics,
+        ]
 
 
 def baked_theta(theta, n_base: int) -> np.ndarray:
@@ -77,8 +84,19 @@ def baked_theta(theta, n_base: int) -> np.ndarray:
     return baked
 
 
-def assemble_functions(symbols, theta_inputs: list, theta_names: list, *, regressor, gravity_regressor, tau, bias,
-                       gravity, mass_columns, theta) -> DynamicsFunctions:
+def assemble_functions(
+    symbols,
+    theta_inputs: list,
+    theta_names: list,
+    *,
+    regressor,
+    gravity_regressor,
+    tau,
+    bias,
+    gravity,
+    mass_columns,
+    theta,
+) -> DynamicsFunctions:
     """The named CasADi Functions of one model's expressions (shared by both forms of the model).
 
     ``symbols`` is ``(q, qd, qdd, tau_in)``; ``mass_columns[k]`` is column k of the mass matrix, whose
@@ -89,8 +107,9 @@ def assemble_functions(symbols, theta_inputs: list, theta_names: list, *, regres
     qdd_forward = ldl_solve(mass, tau_in - bias)
 
     def function(name, inputs, input_names, output, output_name):
-        return ca.Function(name, inputs + theta_inputs, [output], input_names + theta_names, [output_name],
-                           {"cse": True})
+        return ca.Function(
+            name, inputs + theta_inputs, [output], input_names + theta_names, [output_name], {"cse": True}
+        )
 
     return DynamicsFunctions(
         regressor=ca.Function("regressor", [q, qd, qdd], [regressor], ["q", "qd", "qdd"], ["Y"], {"cse": True}),
@@ -100,7 +119,9 @@ def assemble_functions(symbols, theta_inputs: list, theta_names: list, *, regres
         bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
         gravity=function("gravity", [q], ["q"], gravity, "G"),
         forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], qdd_forward, "qdd"),
-        n_dof=q.numel(), n_base=regressor.size2(), theta=theta,
+        n_dof=q.numel(),
+        n_base=regressor.size2(),
+        theta=theta,
     )
 
 
@@ -122,8 +143,16 @@ class _Terms:
         for j in range(n):
             if model.revolute[j]:
                 s_pow, c_pow = exps[n + j], exps[2 * n + j]
-                self.digits[:, j] = np.select([(s_pow == 1) & (c_pow == 0), (s_pow == 0) & (c_pow == 1),
-                                               (s_pow == 1) & (c_pow == 1), (c_pow == 2)], [1, 2, 3, 4], 0)
+                self.digits[:, j] = np.select(
+                    [
+                        (s_pow == 1) & (c_pow == 0),
+                        (s_pow == 0) & (c_pow == 1),
+                        (s_pow == 1) & (c_pow == 1),
+                        (c_pow == 2),
+                    ],
+                    [1, 2, 3, 4],
+                    0,
+                )
             else:
                 self.digits[:, j] = exps[j]
         self._products = {(): None}
@@ -166,7 +195,7 @@ class _Terms:
 def _acceleration_factor(model: PSDMModel, qd, qdd, gravity_on: bool = True):
     """The acceleration function of each model function (g, qdd_k, qd_k^2 or qd_j qd_k) as SX."""
     n = model.n_dof
-    vel, acc = model.exponents[3 * n:4 * n], model.exponents[4 * n:]
+    vel, acc = model.exponents[3 * n : 4 * n], model.exponents[4 * n :]
     factors, keys = [], []
     for f in range(model.n_functions):
         kk = np.nonzero(acc[:, f])[0]
@@ -279,8 +308,19 @@ def build_functions(model: PSDMModel, theta=None) -> DynamicsFunctions:
     gravity = _torques(model, terms, weights, qd, qdd, include={"g"})
     bias = _torques(model, terms, weights, qd, qdd, include={"g", "qd2", "qdqd"})
     # Mass matrix column k: the qdd_k terms with qdd = e_k; fill the lower triangle, mirror it.
-    columns = [ca.substitute(_torques(model, terms, weights, qd, qdd, include={"qdd"}), qdd,
-                             ca.DM(np.eye(n)[k])) for k in range(n)]
-    return assemble_functions((q, qd, qdd, tau_in), theta_inputs, theta_names, regressor=regressor,
-                              gravity_regressor=gravity_regressor, tau=tau, bias=bias, gravity=gravity,
-                              mass_columns=columns, theta=baked)
+    columns = [
+        ca.substitute(_torques(model, terms, weights, qd, qdd, include={"qdd"}), qdd, ca.DM(np.eye(n)[k]))
+        for k in range(n)
+    ]
+    return assemble_functions(
+        (q, qd, qdd, tau_in),
+        theta_inputs,
+        theta_names,
+        regressor=regressor,
+        gravity_regressor=gravity_regressor,
+        tau=tau,
+        bias=bias,
+        gravity=gravity,
+        mass_columns=columns,
+        theta=baked,
+    )

@@ -97,12 +97,28 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
             q_min, q_max = -math.pi, math.pi
         qd_max = float(model.velocityLimit[idx]) if model.velocityLimit[idx] > 0 else 2.0
         tau_max = float(model.effortLimit[idx]) if model.effortLimit[idx] > 0 else math.inf
-        joints.append(Joint(name=model.names[jid], kind=kind, q_min=q_min, q_max=q_max,
-                            qd_max=min(qd_max, 1e3), qdd_max=10.0, tau_max=tau_max))
+        joints.append(
+            Joint(
+                name=model.names[jid],
+                kind=kind,
+                q_min=q_min,
+                q_max=q_max,
+                qd_max=min(qd_max, 1e3),
+                qdd_max=10.0,
+                tau_max=tau_max,
+            )
+        )
         inertia = model.inertias[jid]
-        links.append(LinkInertia(mass=float(inertia.mass), com=np.array(inertia.lever),
-                                 inertia=np.array(inertia.inertia)))
+        links.append(
+            LinkInertia(mass=float(inertia.mass), com=np.array(inertia.lever), inertia=np.array(inertia.inertia))
+        )
     g = np.array([0.0, 0.0, -GRAVITY_STANDARD]) if gravity is None else gravity
-    return RobotDescription(name=name or path.stem, joints=tuple(joints), convention="standard", gravity=g,
-                            links=tuple(links), urdf_path=str(path.resolve()),
-                            locked_joints=tuple(locked_joints))
+    return RobotDescription(
+        name=name or path.stem,
+        joints=tuple(joints),
+        convention="standard",
+        gravity=g,
+        links=tuple(links),
+        urdf_path=str(path.resolve()),
+        locked_joints=tuple(locked_joints),
+    )

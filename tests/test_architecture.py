@@ -22,10 +22,18 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("psdm_casadi", "trajopt", "identification", "codegen")
 COMPOSERS = ("psdm_casadi.cli", "psdm_casadi.demo")
-ESTIMATORS = ("identification.data", "identification.friction", "identification.calibration",
-              "identification.diagnosis", "identification.metrics")
-ALLOWED = {"trajopt": ("trajopt", "psdm_casadi"), "identification": ("identification", "psdm_casadi"),
-           "codegen": ("codegen", "identification", "psdm_casadi")}
+ESTIMATORS = (
+    "identification.data",
+    "identification.friction",
+    "identification.calibration",
+    "identification.diagnosis",
+    "identification.metrics",
+)
+ALLOWED = {
+    "trajopt": ("trajopt", "psdm_casadi"),
+    "identification": ("identification", "psdm_casadi"),
+    "codegen": ("codegen", "identification", "psdm_casadi"),
+}
 MAX_MODULE_LINES = 500
 MAX_FUNCTION_LINES = 80
 
@@ -39,8 +47,7 @@ def _module_name(path: Path) -> str:
 
 def _sources(*folders):
     for folder in folders:
-        for path in sorted((ROOT / folder).rglob("*.py")):
-            yield path
+        yield from sorted((ROOT / folder).rglob("*.py"))
 
 
 LIBRARY = {_module_name(p): p for p in _sources(*PACKAGES)}
@@ -82,7 +89,7 @@ def _violations_of_layers():
     bad = []
     for module, path in LIBRARY.items():
         top = module.split(".")[0]
-        for target, names, line in _imports(path):
+        for target, _names, line in _imports(path):
             target_top = target.split(".")[0]
             if target_top not in PACKAGES:
                 continue
@@ -176,8 +183,11 @@ def test_modules_and_functions_stay_small(module):
     for node in ast.walk(ast.parse(text)):
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             body = node.body
-            has_doc = isinstance(body[0], ast.Expr) and isinstance(getattr(body[0], "value", None), ast.Constant) \
+            has_doc = (
+                isinstance(body[0], ast.Expr)
+                and isinstance(getattr(body[0], "value", None), ast.Constant)
                 and isinstance(body[0].value.value, str)
+            )
             start = (body[1].lineno if len(body) > 1 else node.end_lineno + 1) if has_doc else body[0].lineno
             lines = node.end_lineno - start + 1
             if lines > MAX_FUNCTION_LINES:

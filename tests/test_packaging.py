@@ -45,18 +45,25 @@ def installed(tmp_path_factory):
     base = tmp_path_factory.mktemp("wheel")
     # build from a copy: setuptools keeps a build/ folder whose stale modules would ship in the wheel
     source = base / "source"
-    shutil.copytree(ROOT, source, ignore=shutil.ignore_patterns(".git", ".venv", "build", "*.egg-info", "__pycache__",
-                                                                 ".pytest_cache", ".ruff_cache", "demo_report"))
+    shutil.copytree(
+        ROOT,
+        source,
+        ignore=shutil.ignore_patterns(
+            ".git", ".venv", "build", "*.egg-info", "__pycache__", ".pytest_cache", ".ruff_cache", "demo_report"
+        ),
+    )
     _run([sys.executable, "-m", "pip", "wheel", "--no-deps", "--quiet", "-w", str(base / "dist"), str(source)], base)
     wheels = sorted((base / "dist").glob("psdm_casadi-*.whl"))
     assert len(wheels) == 1
     venv.EnvBuilder(with_pip=False).create(base / "venv")
     python = base / "venv" / "bin" / "python"
-    site = Path(_run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], base)
-                .stdout.strip())
+    site = Path(
+        _run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], base).stdout.strip()
+    )
     (site / "test_dependencies.pth").write_text(_dependency_lines())
-    _run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", "--quiet", str(wheels[0])],
-         base)
+    _run(
+        [sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", "--quiet", str(wheels[0])], base
+    )
     work = base / "empty"
     work.mkdir()
     return python, work
@@ -64,9 +71,11 @@ def installed(tmp_path_factory):
 
 def test_the_wheel_carries_the_robots_and_templates_and_not_the_checkout(installed):
     python, work = installed
-    probe = ("import json, psdm_casadi, codegen, psdm_casadi.robot as r;"
-             "print(json.dumps({'package': psdm_casadi.__file__, 'robots': r.builtin_robot_names(),"
-             "'template': (__import__('pathlib').Path(codegen.__file__).parent / 'templates').is_dir()}))")
+    probe = (
+        "import json, psdm_casadi, codegen, psdm_casadi.robot as r;"
+        "print(json.dumps({'package': psdm_casadi.__file__, 'robots': r.builtin_robot_names(),"
+        "'template': (__import__('pathlib').Path(codegen.__file__).parent / 'templates').is_dir()}))"
+    )
     found = json.loads(_run([str(python), "-c", probe], work).stdout)
     assert not Path(found["package"]).resolve().is_relative_to(ROOT)
     assert {"denso_vs6556g", "scara"} <= set(found["robots"])

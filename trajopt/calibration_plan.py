@@ -14,9 +14,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from psdm_casadi.errors import ParameterError
-
-from trajopt.experiments import (choose_motor_pose, friction_experiment, gravity_experiment, motor_experiment,
-                                 oscillation_experiment, sine_experiment)
+from trajopt.experiments import (
+    choose_motor_pose,
+    friction_experiment,
+    gravity_experiment,
+    motor_experiment,
+    oscillation_experiment,
+    sine_experiment,
+)
 from trajopt.friction_design import FrictionDesign
 
 __all__ = ["CalibrationPlan"]
@@ -75,20 +80,24 @@ class CalibrationPlan:
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"CalibrationPlan.{name} must be positive; got {value!r}.")
         if not isinstance(self.friction_design, FrictionDesign):
-            raise ParameterError("CalibrationPlan.friction_design must be a FrictionDesign; got "
-                                 f"{type(self.friction_design).__name__}.")
+            raise ParameterError(
+                f"CalibrationPlan.friction_design must be a FrictionDesign; got {type(self.friction_design).__name__}."
+            )
         if self.friction_amplitudes is not None:
             amplitudes = tuple(float(a) for a in np.atleast_1d(self.friction_amplitudes))
             if not amplitudes or not all(np.isfinite(a) and a > 0 for a in amplitudes):
-                raise ParameterError("CalibrationPlan.friction_amplitudes must be positive amplitudes [rad] or None; "
-                                     f"got {self.friction_amplitudes!r}.")
+                raise ParameterError(
+                    "CalibrationPlan.friction_amplitudes must be positive amplitudes [rad] or None; "
+                    f"got {self.friction_amplitudes!r}."
+                )
             object.__setattr__(self, "friction_amplitudes", amplitudes)
 
     def motor_reference(self, robot, joint: int, load_torque, rng: np.random.Generator) -> tuple:
         """Knots ``(t, q)`` of joint ``joint``'s motor sweep in a pose the calibration mass loads (``load_torque``)."""
         pose = choose_motor_pose(robot, joint, load_torque, rng, range_fraction=self.motor_range_fraction)
-        return motor_experiment(robot, joint, speed=self.motor_speed, range_fraction=self.motor_range_fraction,
-                                pose=pose).reference()
+        return motor_experiment(
+            robot, joint, speed=self.motor_speed, range_fraction=self.motor_range_fraction, pose=pose
+        ).reference()
 
     def gravity_reference(self, robot, rng: np.random.Generator) -> tuple:
         """Knots ``(t, q)`` of the gravity jog of all joints."""

@@ -98,7 +98,7 @@ class JointLimits:
         return 0.5 * (self.q_max - self.q_min)
 
     @classmethod
-    def from_robot(cls, robot, *, torque: bool = False, scale: float = 1.0) -> "JointLimits":
+    def from_robot(cls, robot, *, torque: bool = False, scale: float = 1.0) -> JointLimits:
         """Limits of a RobotDescription, optionally with the torque limits and a common scale.
 
         Parameters
@@ -114,15 +114,25 @@ class JointLimits:
             raise ParameterError(f"JointLimits.from_robot scale must be in (0, 1]; got {scale!r}. Use e.g. 0.9.")
         center, half = 0.5 * (robot.q_min + robot.q_max), 0.5 * (robot.q_max - robot.q_min)
         tau = robot.tau_max * scale if torque else None
-        return cls(q_min=center - scale * half, q_max=center + scale * half, qd_max=robot.qd_max * scale,
-                   qdd_max=robot.qdd_max * scale, tau_max=tau)
+        return cls(
+            q_min=center - scale * half,
+            q_max=center + scale * half,
+            qd_max=robot.qd_max * scale,
+            qdd_max=robot.qdd_max * scale,
+            tau_max=tau,
+        )
 
-    def shrunk(self, backoff: float) -> "JointLimits":
+    def shrunk(self, backoff: float) -> JointLimits:
         """Limits tightened by the fraction ``backoff`` (positions about the centre of their range)."""
         factor = 1.0 - backoff
         tau = None if self.tau_max is None else self.tau_max * factor
-        return JointLimits(q_min=self.center - factor * self.half_range, q_max=self.center + factor * self.half_range,
-                           qd_max=self.qd_max * factor, qdd_max=self.qdd_max * factor, tau_max=tau)
+        return JointLimits(
+            q_min=self.center - factor * self.half_range,
+            q_max=self.center + factor * self.half_range,
+            qd_max=self.qd_max * factor,
+            qdd_max=self.qdd_max * factor,
+            tau_max=tau,
+        )
 
 
 @dataclass(frozen=True)
@@ -157,7 +167,8 @@ class KeepOut:
         normal = np.asarray(self.normal, dtype=float).reshape(-1)
         if normal.shape != (3,) or not np.all(np.isfinite(normal)) or np.linalg.norm(normal) == 0:
             raise ParameterError(
-                f"KeepOut.normal must be a non-zero 3-vector; got {self.normal!r}. Use e.g. (0, 0, 1).")
+                f"KeepOut.normal must be a non-zero 3-vector; got {self.normal!r}. Use e.g. (0, 0, 1)."
+            )
         object.__setattr__(self, "normal", normal / np.linalg.norm(normal))
         object.__setattr__(self, "offset", float(self.offset))
         if not (isinstance(self.margin, (int, float)) and self.margin >= 0):
@@ -261,8 +272,9 @@ def fine_grid(parametrization, n_samples: int, factor: int = 10) -> np.ndarray:
     return parametrization.default_grid(max(int(n_samples), 2) * factor)
 
 
-def verify_limits(parametrization, x, limits: JointLimits, n_samples: int, *, torque_function=None,
-                  keep_out=None, factor: int = 10) -> dict:
+def verify_limits(
+    parametrization, x, limits: JointLimits, n_samples: int, *, torque_function=None, keep_out=None, factor: int = 10
+) -> dict:
     """Margins of trajectory ``x`` on a grid ``factor`` times finer than the ``n_samples`` constraint grid.
 
     Parameters
@@ -329,11 +341,13 @@ def scale_into_limits(parametrization, x, limits: JointLimits, t, *, fill: float
     dq = q - offsets[None, :]
     room = np.minimum(limits.q_max - offsets, offsets - limits.q_min)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratios = np.vstack([
-            np.abs(dq).max(axis=0) / room,
-            np.abs(qd).max(axis=0) / limits.qd_max,
-            np.abs(qdd).max(axis=0) / limits.qdd_max,
-        ])
+        ratios = np.vstack(
+            [
+                np.abs(dq).max(axis=0) / room,
+                np.abs(qd).max(axis=0) / limits.qd_max,
+                np.abs(qdd).max(axis=0) / limits.qdd_max,
+            ]
+        )
     usage = np.nanmax(np.where(np.isfinite(ratios), ratios, np.inf), axis=0)
     scales = np.where(usage > fill, fill / np.maximum(usage, 1e-300), 1.0)
     return parametrization.scale_joints(x, scales)
@@ -355,5 +369,15 @@ def check_same_dof(limits: JointLimits, n_dof: int) -> None:
         )
 
 
-__all__ = ["JointLimits", "KeepOut", "build_dh_point_function", "limit_margins", "worst_margin", "verify_limits",
-           "scale_into_limits", "fine_grid", "evaluate_mapped", "describe_violation"]
+__all__ = [
+    "JointLimits",
+    "KeepOut",
+    "build_dh_point_function",
+    "limit_margins",
+    "worst_margin",
+    "verify_limits",
+    "scale_into_limits",
+    "fine_grid",
+    "evaluate_mapped",
+    "describe_violation",
+]

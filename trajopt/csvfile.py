@@ -48,11 +48,18 @@ def write_trajectory_csv(path, t, q, qd, qdd, *, comment: str = "", overwrite: b
         raise ShapeError(
             f"q, qd, qdd must all have shape (n_samples={t.shape[0]}, n_dof); got {q.shape}, {qd.shape}, {qdd.shape}."
         )
+
     def write(handle):
         if comment:
             handle.write(f"# {comment}\n")
-        np.savetxt(handle, np.column_stack([t, q, qd, qdd]), delimiter=",",
-                   header=",".join(trajectory_header(q.shape[1])), comments="", fmt="%.10g")
+        np.savetxt(
+            handle,
+            np.column_stack([t, q, qd, qdd]),
+            delimiter=",",
+            header=",".join(trajectory_header(q.shape[1])),
+            comments="",
+            fmt="%.10g",
+        )
 
     atomic_write(path, write, overwrite=overwrite)
     return path

@@ -19,111 +19,27 @@ Joints are 0-based here; user-facing text and file columns number them from 1.
 
 from __future__ import annotations
 
-import warnings
-from dataclasses import dataclass, replace
-
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
-from scipy.interpolate import CubicSpline
 
-from psdm_casadi.errors import ExcitationWarning, ParameterError, ShapeError
-
-from trajopt.constraints import JointLimits, check_same_dof, describe_violation, limit_margins, worst_margin
-from trajopt.csvfile import write_trajectory_csv
+from psdm_casadi.errors import ParameterError
+from trajopt.constraints import JointLimits
+from trajopt.experiment_trajectory import ExperimentTrajectory, verify_experiment
 from trajopt.friction_design import FrictionDesign
 
-__all__ = ["GRID_HZ", "ExperimentTrajectory", "home_pose", "motor_experiment", "choose_motor_pose",
-           "gravity_experiment", "friction_experiment", "oscillation_experiment", "sine_experiment"]
+__all__ = [
+    "GRID_HZ",
+    "ExperimentTrajectory",
+    "home_pose",
+    "motor_experiment",
+    "choose_motor_pose",
+    "gravity_experiment",
+    "friction_experiment",
+    "oscillation_experiment",
+    "sine_experiment",
+]
 
 GRID_HZ = 500.0  # knots per second of every design
-VERIFY_HZ = 1000.0  # grid of the limit check
-
-
-@dataclass(frozen=True, eq=False)
-class ExperimentTrajectory:
-    """A calibration experiment: knots of a smooth path and the joint limits it was checked against.
-
-    Attributes
-    ----------
-    name : str
-        "motor", "gravity", "friction" or "sine".
-    t : array, shape (n_knots,)
-        Knot times [s], strictly increasing from 0.
-    q : array, shape (n_knots, n_dof)
-        Positions at the knots [rad or m]; ``sample`` interpolates them with a not-a-knot cubic spline.
-    limits : JointLimits
-    joints : tuple of int
-        0-based joints the experiment moves or identifies.
-    worst_margin : float
-        Smallest relative margin to a limit on a 1 kHz grid; negative when the path leaves a limit.
-    """
-
-    name: str
-    t: np.ndarray
-    q: np.ndarray
-    limits: JointLimits
-    joints: tuple
-    worst_margin: float = float("nan")
-
-    def __post_init__(self):
-        t = np.array(self.t, dtype=float)
-        q = np.array(self.q, dtype=float)
-        if t.ndim != 1 or t.size < 2 or t[0] != 0.0 or np.any(np.diff(t) <= 0):
-            raise ParameterError("ExperimentTrajectory.t must be strictly increasing knot times from 0 [s]; got "
-                                 f"{t.size} values starting at {t[:1].tolist()}.")
-        if q.shape != (t.size, self.limits.n_dof):
-            raise ShapeError(f"ExperimentTrajectory.q must have shape (n_knots, n_dof) = ({t.size}, "
-                             f"{self.limits.n_dof}); got {q.shape}.")
-        t.setflags(write=False)
-        q.setflags(write=False)
-        object.__setattr__(self, "t", t)
-        object.__setattr__(self, "q", q)
-        object.__setattr__(self, "joints", tuple(int(j) for j in self.joints))
-
-    @property
-    def duration(self) -> float:
-        """Length [s]."""
-        return float(self.t[-1])
-
-    @property
-    def n_dof(self) -> int:
-        return self.limits.n_dof
-
-    def reference(self) -> tuple:
-        """The knots ``(t, q)`` as plain arrays: what the virtual robot interpolates and tracks."""
-        return self.t, self.q
-
-    def sample(self, t) -> tuple:
-        """q, qd, qdd at times ``t`` in [0, duration] [s], arrays (n_samples, n_dof), from the spline of the knots."""
-        t = np.asarray(t, dtype=float).reshape(-1)
-        spline = CubicSpline(self.t, self.q, axis=0)
-        return spline(t), spline(t, 1), spline(t, 2)
-
-    def time_grid(self, rate: float) -> np.ndarray:
-        """Sample times ``0, 1/rate, ...`` up to the duration [s]."""
-        if not (isinstance(rate, (int, float)) and rate > 0):
-            raise ParameterError(f"ExperimentTrajectory rate must be a positive sampling rate [Hz]; got {rate!r}.")
-        return np.arange(int(np.floor(self.duration * rate + 1e-9)) + 1) / float(rate)
-
-    def to_csv(self, path, rate: float = 100.0, *, overwrite: bool = False):
-        """Write ``t, q, qd, qdd`` sampled at ``rate`` Hz (atomic; FileExistsError unless ``overwrite``)."""
-        t = self.time_grid(rate)
-        comment = (f"{self.name} experiment, joints {[j + 1 for j in self.joints]}, "
-                   f"worst_limit_margin={self.worst_margin:.6g}")
-        return write_trajectory_csv(path, t, *self.sample(t), comment=comment, overwrite=overwrite)
-
-
-def _verified(name, t, q, robot, joints, limits) -> ExperimentTrajectory:
-    """The experiment with its worst limit margin; an ``ExcitationWarning`` when the path leaves a limit."""
-    limits = JointLimits.from_robot(robot) if limits is None else limits
-    check_same_dof(limits, robot.n_dof)
-    draft = ExperimentTrajectory(name, t, q, limits, joints)
-    margins = limit_margins(limits, *draft.sample(draft.time_grid(VERIFY_HZ)))
-    worst = worst_margin(margins)
-    if worst < -1e-9:
-        warnings.warn(f"the {name} experiment leaves the joint limits: {describe_violation(margins)}. Check it "
-                      "before running it on a robot.", ExcitationWarning, stacklevel=3)
-    return replace(draft, worst_margin=worst)
 
 
 def home_pose(robot) -> np.ndarray:
@@ -139,8 +55,9 @@ def _check_joint(robot, joint, owner) -> int:
 
 def _check_positive(owner, **values):
     for name, value in values.items():
-        if isinstance(value, bool) or not (isinstance(value, (int, float, np.number)) and np.isfinite(value)
-                                           and value > 0):
+        if isinstance(value, bool) or not (
+            isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0
+        ):
             raise ParameterError(f"{owner}.{name} must be a positive number; got {value!r}.")
 
 
@@ -155,8 +72,10 @@ def _pose(robot, pose, owner) -> np.ndarray:
         return home_pose(robot)
     pose = np.asarray(pose, dtype=float)
     if pose.shape != (robot.n_dof,) or np.any(pose < robot.q_min) or np.any(pose > robot.q_max):
-        raise ParameterError(f"{owner}.pose must be {robot.n_dof} joint positions inside [q_min, q_max]; got "
-                             f"{pose.tolist()}. Leave it None for zero clipped into the ranges.")
+        raise ParameterError(
+            f"{owner}.pose must be {robot.n_dof} joint positions inside [q_min, q_max]; got "
+            f"{pose.tolist()}. Leave it None for zero clipped into the ranges."
+        )
     return pose
 
 
@@ -185,8 +104,16 @@ def _motor_path(robot, joint, speed, range_fraction, ramp, pose):
     return t, q
 
 
-def motor_experiment(robot, joint: int, *, speed: float = 0.25, range_fraction: float = 0.4, ramp: float = 0.5,
-                     pose=None, limits: JointLimits | None = None) -> ExperimentTrajectory:
+def motor_experiment(
+    robot,
+    joint: int,
+    *,
+    speed: float = 0.25,
+    range_fraction: float = 0.4,
+    ramp: float = 0.5,
+    pose=None,
+    limits: JointLimits | None = None,
+) -> ExperimentTrajectory:
     """Section 3.1: sweep one joint at constant speed over part of its range and back, the others held.
 
     The sweep is slow so that the velocity terms of the calibration mass stay small against its
@@ -228,11 +155,12 @@ def motor_experiment(robot, joint: int, *, speed: float = 0.25, range_fraction: 
     _check_positive(owner, speed=speed, ramp=ramp)
     _check_fraction(owner, "range_fraction", range_fraction)
     t, q = _motor_path(robot, joint, speed, range_fraction, ramp, _pose(robot, pose, owner))
-    return _verified("motor", t, q, robot, (joint,), limits)
+    return verify_experiment("motor", t, q, robot, (joint,), limits)
 
 
-def choose_motor_pose(robot, joint: int, load_torque, rng: np.random.Generator, *, n_candidates: int = 48,
-                      range_fraction: float = 0.4) -> np.ndarray:
+def choose_motor_pose(
+    robot, joint: int, load_torque, rng: np.random.Generator, *, n_candidates: int = 48, range_fraction: float = 0.4
+) -> np.ndarray:
     """A pose in which the calibration mass loads ``joint`` strongly all along its sweep (seeded random search).
 
     Candidates are the home pose and ``n_candidates - 1`` random poses in the middle 60 % of the
@@ -279,9 +207,17 @@ def choose_motor_pose(robot, joint: int, load_torque, rng: np.random.Generator, 
     return best
 
 
-def gravity_experiment(robot, *, duration: float = 120.0, speed: float = 0.15, range_fraction: float = 0.8,
-                       joints=None, ramp: float = 0.5, rng: np.random.Generator | None = None,
-                       limits: JointLimits | None = None) -> ExperimentTrajectory:
+def gravity_experiment(
+    robot,
+    *,
+    duration: float = 120.0,
+    speed: float = 0.15,
+    range_fraction: float = 0.8,
+    joints=None,
+    ramp: float = 0.5,
+    rng: np.random.Generator | None = None,
+    limits: JointLimits | None = None,
+) -> ExperimentTrajectory:
     """Section 3.2: jog the joints together at about ``speed`` through their ranges, then back along the same path.
 
     Each joint follows a rounded triangle wave with its own (random) period, so the poses cover the
@@ -324,7 +260,7 @@ def gravity_experiment(robot, *, duration: float = 120.0, speed: float = 0.15, r
         omega = speed * (0.8 + 0.4 * rng.random()) * np.pi / (2.0 * amplitude)
         phase = np.arcsin(np.clip((pose[j] - centre) / amplitude, -0.99, 0.99))
         q[:, j] = centre + amplitude * (2.0 / np.pi) * np.arcsin(0.98 * np.sin(omega * s + phase))
-    return _verified("gravity", t, q, robot, joints, limits)
+    return verify_experiment("gravity", t, q, robot, joints, limits)
 
 
 def _segments_path(pieces, start, pose, joint):
@@ -336,8 +272,9 @@ def _segments_path(pieces, start, pose, joint):
     return t, q
 
 
-def friction_experiment(robot, joint: int, design: FrictionDesign | None = None, *, pose=None,
-                        limits: JointLimits | None = None) -> ExperimentTrajectory:
+def friction_experiment(
+    robot, joint: int, design: FrictionDesign | None = None, *, pose=None, limits: JointLimits | None = None
+) -> ExperimentTrajectory:
     """Section 3.3: one joint through the segments of a :class:`FrictionDesign`, the others held.
 
     Each segment ``q = pose + sign A (1 - cos 2 pi f t)`` starts and ends at rest and moves towards the
@@ -377,12 +314,20 @@ def friction_experiment(robot, joint: int, design: FrictionDesign | None = None,
             pieces.append((start + tp, np.zeros_like(tp)))
             start += design.pause
     t, q = _segments_path(pieces, start, pose, joint)
-    return _verified("friction", t, q, robot, (joint,), limits)
+    return verify_experiment("friction", t, q, robot, (joint,), limits)
 
 
-def oscillation_experiment(robot, joint: int, *, amplitudes=(2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6),
-                           speed_fraction: float = 0.6, cycles: int = 3, min_period: float = 1.0, pose=None,
-                           limits: JointLimits | None = None) -> ExperimentTrajectory:
+def oscillation_experiment(
+    robot,
+    joint: int,
+    *,
+    amplitudes=(2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6),
+    speed_fraction: float = 0.6,
+    cycles: int = 3,
+    min_period: float = 1.0,
+    pose=None,
+    limits: JointLimits | None = None,
+) -> ExperimentTrajectory:
     """One joint through oscillations ``A sin^3(w t)`` of growing amplitude, others held (a quick friction run).
 
     ``sin^3`` starts and ends each block at rest with zero acceleration, so blocks join smoothly. The
@@ -430,11 +375,18 @@ def oscillation_experiment(robot, joint: int, *, amplitudes=(2e-4, 1e-3, 5e-3, 0
         pieces.append((start + tb, amplitude * np.sin(omega * tb) ** 3))
         start += cycles * period
     t, q = _segments_path(pieces, start, pose, joint)
-    return _verified("friction", t, q, robot, (joint,), limits)
+    return verify_experiment("friction", t, q, robot, (joint,), limits)
 
 
-def sine_experiment(robot, *, duration: float = 30.0, rng: np.random.Generator | None = None, n_sines: int = 3,
-                    fraction: float = 0.5, limits: JointLimits | None = None) -> ExperimentTrajectory:
+def sine_experiment(
+    robot,
+    *,
+    duration: float = 30.0,
+    rng: np.random.Generator | None = None,
+    n_sines: int = 3,
+    fraction: float = 0.5,
+    limits: JointLimits | None = None,
+) -> ExperimentTrajectory:
     """A sum of ``n_sines`` sines per joint (eq. 22) with random frequencies and phases, a stand-in excitation.
 
     Scaled into ``fraction`` of the position, speed and acceleration limits about the home pose;
@@ -472,8 +424,9 @@ def sine_experiment(robot, *, duration: float = 30.0, rng: np.random.Generator |
         phase = rng.uniform(0.0, 2.0 * np.pi, n_sines)
         weight = rng.uniform(0.5, 1.0, n_sines)
         room = min(robot.q_max[j] - centre[j], centre[j] - robot.q_min[j])
-        scale = fraction * min(room / weight.sum(), robot.qd_max[j] / (weight * omega).sum(),
-                               robot.qdd_max[j] / (weight * omega**2).sum())
+        scale = fraction * min(
+            room / weight.sum(), robot.qd_max[j] / (weight * omega).sum(), robot.qdd_max[j] / (weight * omega**2).sum()
+        )
         x = (scale * weight * np.sin(np.outer(t, omega) + phase)).sum(axis=1)
         q[:, j] = centre[j] + fade * (x - x[0])
-    return _verified("sine", t, q, robot, tuple(range(robot.n_dof)), limits)
+    return verify_experiment("sine", t, q, robot, tuple(range(robot.n_dof)), limits)

@@ -126,9 +126,14 @@ class FrictionDesign:
     @classmethod
     def quick(cls) -> FrictionDesign:
         """A shorter experiment (about half as long): fewer segments per group, for demos and tests."""
-        return cls(presliding_amplitudes=(1e-5, 6e-5, 3e-4, 1.5e-3), presliding_periods=3,
-                   breakaway_amplitudes=(2e-3,), breakaway_periods=4,
-                   stribeck_speeds=(0.005, 0.03, 0.2), sliding_fractions=(0.2, 0.8))
+        return cls(
+            presliding_amplitudes=(1e-5, 6e-5, 3e-4, 1.5e-3),
+            presliding_periods=3,
+            breakaway_amplitudes=(2e-3,),
+            breakaway_periods=4,
+            stribeck_speeds=(0.005, 0.03, 0.2),
+            sliding_fractions=(0.2, 0.8),
+        )
 
     def validation(self) -> FrictionDesign:
         """The same design at 1.3 times the frequencies: a second experiment for validation."""
@@ -138,10 +143,12 @@ class FrictionDesign:
     def duration(self) -> float:
         """Length [s] before any frequency raise for range or acceleration limits."""
         s = self.frequency_scale
-        return (len(self.presliding_amplitudes) * (self.presliding_periods / (s * self.presliding_hz) + self.pause)
-                + len(self.breakaway_amplitudes) * (self.breakaway_periods / (s * self.breakaway_hz) + self.pause)
-                + len(self.stribeck_speeds) * (self.stribeck_periods / (s * self.stribeck_hz) + self.pause)
-                + len(self.sliding_fractions) * (self.sliding_periods / (s * self.sliding_hz) + self.pause))
+        return (
+            len(self.presliding_amplitudes) * (self.presliding_periods / (s * self.presliding_hz) + self.pause)
+            + len(self.breakaway_amplitudes) * (self.breakaway_periods / (s * self.breakaway_hz) + self.pause)
+            + len(self.stribeck_speeds) * (self.stribeck_periods / (s * self.stribeck_hz) + self.pause)
+            + len(self.sliding_fractions) * (self.sliding_periods / (s * self.sliding_hz) + self.pause)
+        )
 
     def segments(self, qd_max: float, qdd_max: float, room: float) -> list:
         """``(amplitude, frequency, periods)`` of every segment for a joint with these limits.

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 
 
-def plot_trajectory(trajectory, path, *, rate: float = 100.0, title: str | None = None,
-                    overwrite: bool = False) -> Path:
+def plot_trajectory(
+    trajectory, path, *, rate: float = 100.0, title: str | None = None, overwrite: bool = False
+) -> Path:
     """Save a PNG with one row per joint and columns q, qd, qdd; limits as dashed red lines.
 
     Parameters
@@ -59,8 +60,11 @@ def plot_trajectory(trajectory, path, *, rate: float = 100.0, title: str | None 
     if title is None:
         cond = getattr(trajectory, "cond", None)
         margin = getattr(trajectory, "worst_margin", np.nan)
-        title = (f"cond = {cond:.4g}, worst limit margin = {margin:.3g}" if cond is not None
-                 else f"{getattr(trajectory, 'name', 'trajectory')} experiment, worst limit margin = {margin:.3g}")
+        title = (
+            f"cond = {cond:.4g}, worst limit margin = {margin:.3g}"
+            if cond is not None
+            else f"{getattr(trajectory, 'name', 'trajectory')} experiment, worst limit margin = {margin:.3g}"
+        )
     fig.suptitle(title)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -25,7 +25,6 @@ import casadi as ca
 import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError
-
 from trajopt.constraints import JointLimits, KeepOut, check_same_dof
 from trajopt.criteria import CriterionCallback, build_information_function, check_columns
 from trajopt.parametrization import FourierTrajectory
@@ -167,10 +166,23 @@ class ExcitationProblem:
         return self.t_constraint.shape[0]
 
 
-def build_excitation_problem(parametrization, regressor: ca.Function, limits: JointLimits, *, columns=None,
-                             criterion: str = "cond", n_samples: int = 100, n_constraint_samples=None,
-                             backoff: float = 0.02, column_scale=None, torque_function=None, keep_out=None,
-                             max_iter: int = 300, max_wall_time=None, ipopt_options=None) -> ExcitationProblem:
+def build_excitation_problem(
+    parametrization,
+    regressor: ca.Function,
+    limits: JointLimits,
+    *,
+    columns=None,
+    criterion: str = "cond",
+    n_samples: int = 100,
+    n_constraint_samples=None,
+    backoff: float = 0.02,
+    column_scale=None,
+    torque_function=None,
+    keep_out=None,
+    max_iter: int = 300,
+    max_wall_time=None,
+    ipopt_options=None,
+) -> ExcitationProblem:
     """Build the NLP of excitation design (eq. 23 with a smooth criterion); nothing is solved.
 
     Parameters
@@ -205,8 +217,9 @@ def build_excitation_problem(parametrization, regressor: ca.Function, limits: Jo
     -------
     ExcitationProblem
     """
-    cols = _checked_problem_inputs(parametrization, regressor, limits, columns, n_samples, backoff, torque_function,
-                                   keep_out)
+    cols = _checked_problem_inputs(
+        parametrization, regressor, limits, columns, n_samples, backoff, torque_function, keep_out
+    )
     if n_constraint_samples is None:
         n_constraint_samples = default_constraint_samples(parametrization)
 
@@ -224,16 +237,32 @@ def build_excitation_problem(parametrization, regressor: ca.Function, limits: Jo
     lbx, ubx = parametrization.bounds(tight.q_min, tight.q_max)
     objective_function = ca.Function("objective", [x, sharpness], [objective], ["x", "p"], ["f"])
     return ExcitationProblem(
-        parametrization=parametrization, regressor=regressor, limits=limits, columns=cols, criterion=criterion,
-        solver=solver, warm_solver=warm_solver, monitor=monitor, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg,
-        t_objective=t_obj, t_constraint=t_con, backoff=float(backoff), torque_function=torque_function,
-        keep_out=keep_out, column_scale=None if column_scale is None else np.asarray(column_scale, dtype=float),
-        objective_function=objective_function, _keepalive=keepalive,
+        parametrization=parametrization,
+        regressor=regressor,
+        limits=limits,
+        columns=cols,
+        criterion=criterion,
+        solver=solver,
+        warm_solver=warm_solver,
+        monitor=monitor,
+        lbx=lbx,
+        ubx=ubx,
+        lbg=lbg,
+        ubg=ubg,
+        t_objective=t_obj,
+        t_constraint=t_con,
+        backoff=float(backoff),
+        torque_function=torque_function,
+        keep_out=keep_out,
+        column_scale=None if column_scale is None else np.asarray(column_scale, dtype=float),
+        objective_function=objective_function,
+        _keepalive=keepalive,
     )
 
 
-def _checked_problem_inputs(parametrization, regressor, limits, columns, n_samples, backoff, torque_function,
-                            keep_out) -> np.ndarray:
+def _checked_problem_inputs(
+    parametrization, regressor, limits, columns, n_samples, backoff, torque_function, keep_out
+) -> np.ndarray:
     """Validate the inputs of ``build_excitation_problem``; the selected columns as indices."""
     n_dof = parametrization.n_dof
     check_same_dof(limits, n_dof)

@@ -40,7 +40,8 @@ class RneaFunctions:
 
 
 def _inertia_apply(mass, com, inertia, w, v):
-    """Spatial inertia (mass, COM, inertia about the COM) times the motion (w, v): returns (force, torque about the origin)."""
+    """Spatial inertia (mass, COM, inertia about the COM) times the motion (w, v): returns (force, torque about the
+    origin)."""
     f = mass * (v - cross(com, w))
     n = ca.mtimes(inertia, w) + cross(com, f)
     return f, n
@@ -134,8 +135,9 @@ def build_rnea_functions(model, *, cse=True) -> RneaFunctions:
     tau_id = _rnea_pass(model, kin, qd, qdd, gravity, with_velocity=True)
     zero = ca.SX.zeros(n, 1)
     unit = np.eye(n)
-    columns = [_rnea_pass(model, kin, zero, ca.SX(ca.DM(unit[:, j])), ca.SX.zeros(3, 1), with_velocity=False)
-               for j in range(n)]
+    columns = [
+        _rnea_pass(model, kin, zero, ca.SX(ca.DM(unit[:, j])), ca.SX.zeros(3, 1), with_velocity=False) for j in range(n)
+    ]
     mass_sym = symmetric_from_columns(columns)  # M is symmetric: the lower triangle of the columns once
     bias = _rnea_pass(model, kin, qd, zero, gravity, with_velocity=True)
     qdd_fd = cholesky_solve_sx(mass_sym, tau - bias)

@@ -21,11 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.errors import SolverError
-from psdm_casadi.oracle import build_pinocchio_model
-
 from codegen.export import export_c
 from codegen.peers.rnea_sx import build_rnea_functions
+from psdm_casadi.errors import SolverError
+from psdm_casadi.oracle import build_pinocchio_model
 
 TEMPLATE = Path(__file__).resolve().parent / "templates" / "dynamics_bench.cpp.in"
 
@@ -48,7 +47,13 @@ def cmeel_prefix() -> Path:
         candidate = parent / "cmeel.prefix"
         if candidate.is_dir():
             return candidate
-    return Path(sys.prefix) / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages" / "cmeel.prefix"
+    return (
+        Path(sys.prefix)
+        / "lib"
+        / f"python{sys.version_info.major}.{sys.version_info.minor}"
+        / "site-packages"
+        / "cmeel.prefix"
+    )
 
 
 def find_prerequisites() -> tuple:
@@ -58,9 +63,13 @@ def find_prerequisites() -> tuple:
     include = cmeel_prefix() / "include"
     eigen = next((d for d in (include / "eigen3", *SYSTEM_EIGEN_DIRS) if (d / "Eigen" / "Core").exists()), None)
     if eigen is None:
-        raise SolverError("Eigen headers not found; install them: pip install cmeel-eigen (or apt-get install libeigen3-dev).")
+        raise SolverError(
+            "Eigen headers not found; install them: pip install cmeel-eigen (or apt-get install libeigen3-dev)."
+        )
     if not (include / "pinocchio" / "algorithm" / "rnea.hpp").exists() or not (include / "boost" / "mpl").is_dir():
-        raise SolverError(f"Pinocchio/Boost headers not found under {include}; install the 'pin' wheel (pip install pin).")
+        raise SolverError(
+            f"Pinocchio/Boost headers not found under {include}; install the 'pin' wheel (pip install pin)."
+        )
     for tool in ("cc", "c++"):
         if shutil.which(tool) is None:
             raise SolverError(f"no '{tool}' compiler on PATH; install one (apt-get install -y g++).")
@@ -84,21 +93,25 @@ def _cpp_joint(model, jid) -> str:
     placement = model.jointPlacements[jid]
     inertia = model.inertias[jid]
     # Eigen's comma initialiser fills row by row
-    return "\n".join([
-        f"  rotation << {_cpp_numbers(placement.rotation)};",
-        f"  translation << {_cpp_numbers(placement.translation)};",
-        f"  jid = model.addJoint({model.parents[jid]}, {joint}, pinocchio::SE3(rotation, translation), "
-        f"\"{model.names[jid]}\");",
-        f"  lever << {_cpp_numbers(inertia.lever)};",
-        f"  inertia << {_cpp_numbers(inertia.inertia)};",
-        f"  model.inertias[jid] = pinocchio::Inertia({float(inertia.mass)!r}, lever, inertia);",
-    ])
+    return "\n".join(
+        [
+            f"  rotation << {_cpp_numbers(placement.rotation)};",
+            f"  translation << {_cpp_numbers(placement.translation)};",
+            f"  jid = model.addJoint({model.parents[jid]}, {joint}, pinocchio::SE3(rotation, translation), "
+            f'"{model.names[jid]}");',
+            f"  lever << {_cpp_numbers(inertia.lever)};",
+            f"  inertia << {_cpp_numbers(inertia.inertia)};",
+            f"  model.inertias[jid] = pinocchio::Inertia({float(inertia.mass)!r}, lever, inertia);",
+        ]
+    )
 
 
 # (label, our key suffix, Pinocchio key, CasADi Newton-Euler key) of the rows of every speed table.
-SPEED_ROWS = (("inverse dynamics", "id", "pinocchio_rnea", "casadi_rnea_id"),
-              ("forward dynamics", "fd", "pinocchio_aba", "casadi_rnea_fd"),
-              ("regressor Y", "regressor", "pinocchio_regressor", None))
+SPEED_ROWS = (
+    ("inverse dynamics", "id", "pinocchio_rnea", "casadi_rnea_id"),
+    ("forward dynamics", "fd", "pinocchio_aba", "casadi_rnea_fd"),
+    ("regressor Y", "regressor", "pinocchio_regressor", None),
+)
 
 # The sum form (the paper's pseudo-symbolic sum) is timed too when the model has few enough functions to
 # compile quickly; a large sum form (the Panda's) would dominate the benchmark's compile time.
@@ -135,29 +148,42 @@ def psdm_variants(robot, *, sum_form=None) -> tuple:
 def _variant_setup(variant, n_base, theta) -> str:
     """C++ lines declaring one exported variant's calls (library ``<key>_dyn``) and checking them."""
     k = variant.key
-    return "\n".join([
-        f"  static const double {k}_theta[] = {{{_cpp_numbers(theta)}}};",
-        f"  CasadiCall {k}_id = CASADI_CALL({k}_inverse_dynamics, n);",
-        f"  CasadiCall {k}_fd = CASADI_CALL({k}_forward_dynamics, n);",
-        f"  CasadiCall {k}_y = CASADI_CALL({k}_regressor, n * {n_base});",
-        f"  errors[\"{k}_id\"] = id_error({k}_id);",
-        f"  errors[\"{k}_fd\"] = fd_error({k}_fd);",
-        f"  errors[\"{k}_regressor\"] = regressor_error({k}_y, {k}_theta, {n_base});",
-    ])
+    return "\n".join(
+        [
+            f"  static const double {k}_theta[] = {{{_cpp_numbers(theta)}}};",
+            f"  CasadiCall {k}_id = CASADI_CALL({k}_inverse_dynamics, n);",
+            f"  CasadiCall {k}_fd = CASADI_CALL({k}_forward_dynamics, n);",
+            f"  CasadiCall {k}_y = CASADI_CALL({k}_regressor, n * {n_base});",
+            f'  errors["{k}_id"] = id_error({k}_id);',
+            f'  errors["{k}_fd"] = fd_error({k}_fd);',
+            f'  errors["{k}_regressor"] = regressor_error({k}_y, {k}_theta, {n_base});',
+        ]
+    )
 
 
 def _variant_timing(variant) -> str:
     """C++ lines timing one variant in a round: JSON keys ``<key>_id``, ``<key>_fd``, ``<key>_regressor``."""
     k = variant.key
-    return "\n".join([
-        f"    rounds[\"{k}_id\"].push_back(time_id({k}_id));",
-        f"    rounds[\"{k}_fd\"].push_back(time_fd({k}_fd));",
-        f"    rounds[\"{k}_regressor\"].push_back(time_id({k}_y));",
-    ])
+    return "\n".join(
+        [
+            f'    rounds["{k}_id"].push_back(time_id({k}_id));',
+            f'    rounds["{k}_fd"].push_back(time_fd({k}_fd));',
+            f'    rounds["{k}_regressor"].push_back(time_id({k}_y));',
+        ]
+    )
 
 
-def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, repeats: int = 5, log=None,
-                  key: str | None = None, sum_form: bool | None = None) -> dict:
+def measure_speed(
+    robot,
+    workdir,
+    *,
+    theta=None,
+    n_samples: int = 1_000_000,
+    repeats: int = 5,
+    log=None,
+    key: str | None = None,
+    sum_form: bool | None = None,
+) -> dict:
     """Export, generate, compile and run the harness of one robot; returns its timings and ratios.
 
     Parameters
@@ -199,8 +225,9 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
     workdir.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     peer = build_rnea_functions(pin_model)
-    peer_export = export_c([peer.inverse_dynamics, peer.forward_dynamics], workdir, library="rnea_dyn",
-                           prefix="rnea_", overwrite=True)
+    peer_export = export_c(
+        [peer.inverse_dynamics, peer.forward_dynamics], workdir, library="rnea_dyn", prefix="rnea_", overwrite=True
+    )
     variants, model = psdm_variants(robot, sum_form=sum_form)
     if theta is None:
         theta = model.base_parameters(robot.nominal_dynamic_parameters())
@@ -209,26 +236,51 @@ def measure_speed(robot, workdir, *, theta=None, n_samples: int = 1_000_000, rep
     for variant in variants:
         functions = variant.functions
         exports[variant.key] = export_c(
-            [functions.inverse_dynamics, functions.forward_dynamics, functions.regressor], workdir, theta=theta,
-            runtime_theta=False, library=f"{variant.key}_dyn", prefix=f"{variant.key}_", overwrite=True,
-            regressor_structure=functions.regressor_structure)
+            [functions.inverse_dynamics, functions.forward_dynamics, functions.regressor],
+            workdir,
+            theta=theta,
+            runtime_theta=False,
+            library=f"{variant.key}_dyn",
+            prefix=f"{variant.key}_",
+            overwrite=True,
+            regressor_structure=functions.regressor_structure,
+        )
     log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)})")
     joints = "\n".join(_cpp_joint(pin_model, jid) for jid in range(1, pin_model.njoints))
-    source = (TEMPLATE.read_text().replace("@ROBOT@", robot.name).replace("@N_DOF@", str(n))
-              .replace("@JOINTS@", joints)
-              .replace("@ARMATURE@", _cpp_numbers(pin_model.armature))
-              .replace("@GRAVITY@", _cpp_numbers(pin_model.gravity.linear))
-              .replace("@INCLUDES@", "\n".join(f'#include "{v.key}_dyn.h"' for v in variants))
-              .replace("@VARIANT_SETUP@", "\n".join(_variant_setup(v, theta.size, theta) for v in variants))
-              .replace("@VARIANT_TIMING@", "\n".join(_variant_timing(v) for v in variants)))
+    source = (
+        TEMPLATE.read_text()
+        .replace("@ROBOT@", robot.name)
+        .replace("@N_DOF@", str(n))
+        .replace("@JOINTS@", joints)
+        .replace("@ARMATURE@", _cpp_numbers(pin_model.armature))
+        .replace("@GRAVITY@", _cpp_numbers(pin_model.gravity.linear))
+        .replace("@INCLUDES@", "\n".join(f'#include "{v.key}_dyn.h"' for v in variants))
+        .replace("@VARIANT_SETUP@", "\n".join(_variant_setup(v, theta.size, theta) for v in variants))
+        .replace("@VARIANT_TIMING@", "\n".join(_variant_timing(v) for v in variants))
+    )
     (workdir / "bench.cpp").write_text(source)
     t0 = time.perf_counter()
     objects = []
     for lib in ["rnea_dyn"] + [f"{v.key}_dyn" for v in variants]:
         _run(["cc", *OPT_FLAGS, "-c", f"{lib}.c", "-o", f"{lib}.o"], workdir)
         objects.append(f"{lib}.o")
-    _run(["c++", *OPT_FLAGS, "-std=c++17", *PINOCCHIO_DEFINES, f"-I{eigen}", f"-I{include}", "-w",
-          "bench.cpp", *objects, "-o", "bench", "-lm"], workdir)
+    _run(
+        [
+            "c++",
+            *OPT_FLAGS,
+            "-std=c++17",
+            *PINOCCHIO_DEFINES,
+            f"-I{eigen}",
+            f"-I{include}",
+            "-w",
+            "bench.cpp",
+            *objects,
+            "-o",
+            "bench",
+            "-lm",
+        ],
+        workdir,
+    )
     log(f"{key}: compiled in {time.perf_counter() - t0:.1f} s; running {n_samples} states x {repeats} repeats")
     out = _run(["./bench", str(n_samples), str(repeats)], workdir)
     result = json.loads(out.strip().splitlines()[-1])
@@ -269,16 +321,26 @@ def main(argv=None) -> int:
     parser.add_argument("--samples", type=int, default=200_000)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--theta", type=Path, help=".npy file of base parameters to bake in")
-    parser.add_argument("--sum-form", choices=("auto", "yes", "no"), default="auto",
-                        help=f"also time the paper's sum form (auto: models of at most {SUM_FORM_MAX_FUNCTIONS} functions)")
+    parser.add_argument(
+        "--sum-form",
+        choices=("auto", "yes", "no"),
+        default="auto",
+        help=f"also time the paper's sum form (auto: models of at most {SUM_FORM_MAX_FUNCTIONS} functions)",
+    )
     args = parser.parse_args(argv)
     from psdm_casadi.robot import load_robot
 
     theta = np.load(args.theta) if args.theta else None
     try:
-        result = measure_speed(load_robot(args.robot), args.workdir, theta=theta, n_samples=args.samples,
-                               repeats=args.repeats, log=lambda m: print(m, file=sys.stderr, flush=True),
-                               sum_form={"auto": None, "yes": True, "no": False}[args.sum_form])
+        result = measure_speed(
+            load_robot(args.robot),
+            args.workdir,
+            theta=theta,
+            n_samples=args.samples,
+            repeats=args.repeats,
+            log=lambda m: print(m, file=sys.stderr, flush=True),
+            sum_form={"auto": None, "yes": True, "no": False}[args.sum_form],
+        )
     except SolverError as exc:
         print(json.dumps({"error": str(exc)}))
         return 3

@@ -46,14 +46,24 @@ class ConsistencyReport:
         return self.n_violations == 0
 
     def to_dict(self) -> dict:
-        return {"consistent": self.consistent, "min_eigenvalue": self.min_eigenvalue,
-                "worst_q": self.worst_q.tolist(), "n_samples": self.n_samples,
-                "n_violations": self.n_violations, "tolerance": self.tolerance}
+        return {
+            "consistent": self.consistent,
+            "min_eigenvalue": self.min_eigenvalue,
+            "worst_q": self.worst_q.tolist(),
+            "n_samples": self.n_samples,
+            "n_violations": self.n_violations,
+            "tolerance": self.tolerance,
+        }
 
     @classmethod
-    def from_dict(cls, data: dict) -> "ConsistencyReport":
-        return cls(float(data["min_eigenvalue"]), np.asarray(data["worst_q"], dtype=float), int(data["n_samples"]),
-                   int(data["n_violations"]), float(data["tolerance"]))
+    def from_dict(cls, data: dict) -> ConsistencyReport:
+        return cls(
+            float(data["min_eigenvalue"]),
+            np.asarray(data["worst_q"], dtype=float),
+            int(data["n_samples"]),
+            int(data["n_violations"]),
+            float(data["tolerance"]),
+        )
 
 
 def mass_matrices(model: PSDMModel, theta, q) -> np.ndarray:
@@ -71,8 +81,15 @@ def mass_matrices(model: PSDMModel, theta, q) -> np.ndarray:
     return 0.5 * (out + out.transpose(0, 2, 1))
 
 
-def check_consistency(model: PSDMModel, theta, q_min, q_max, n_samples: int = 200,
-                      rng: np.random.Generator | None = None, tolerance: float = 0.0) -> ConsistencyReport:
+def check_consistency(
+    model: PSDMModel,
+    theta,
+    q_min,
+    q_max,
+    n_samples: int = 200,
+    rng: np.random.Generator | None = None,
+    tolerance: float = 0.0,
+) -> ConsistencyReport:
     """Smallest eigenvalue of the mass matrix over random configurations in ``[q_min, q_max]``.
 
     Parameters
@@ -109,4 +126,6 @@ def check_consistency(model: PSDMModel, theta, q_min, q_max, n_samples: int = 20
     q = rng.uniform(np.asarray(q_min, dtype=float), np.asarray(q_max, dtype=float), (n_samples, model.n_dof))
     eig = np.linalg.eigvalsh(mass_matrices(model, theta, q))[:, 0]
     k = int(np.argmin(eig))
-    return ConsistencyReport(float(eig[k]), q[k].copy(), int(n_samples), int(np.sum(eig <= tolerance)), float(tolerance))
+    return ConsistencyReport(
+        float(eig[k]), q[k].copy(), int(n_samples), int(np.sum(eig <= tolerance)), float(tolerance)
+    )

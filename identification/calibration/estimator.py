@@ -1,22 +1,36 @@
-"""BaseIdentifier: the least-squares machinery shared by the identification steps (weighting, covariance, scores).
+"""The estimator bases of the calibration steps: what every step shares, and the least squares of the linear ones.
 
-Every step of the paper's calibration (``steps.py``) is a linear regression ``b = A x`` on rows
-built from recordings; a step only overrides ``_design_matrix`` (and ``_solve`` when its estimate
-is not plain weighted least squares). The estimators follow scikit-learn: ``__init__`` stores
-hyper-parameters, ``fit`` sets attributes ending in ``_`` and returns ``self``, ``predict`` and
-``score`` call :func:`check_is_fitted` first.
+:class:`BaseIdentifier` holds what every step estimator shares: its hyper-parameters
+(``get_params``, the ``_validate`` hook), :func:`check_is_fitted` and the scores (``predict``,
+``evaluate``, ``score``) on the rows a fitted step explains. :class:`LeastSquaresIdentifier` adds
+the weighted least squares of the steps that are a linear regression ``b = A x`` on rows built
+from recordings (motor, gravity, inertial): such a step overrides ``_design_matrix`` (and
+``_solve`` when its estimate is not plain weighted least squares). The friction step is not
+linear and derives from :class:`BaseIdentifier` alone.
+
+The estimators follow scikit-learn: ``__init__`` stores hyper-parameters, ``fit`` sets attributes
+ending in ``_`` and returns ``self``, ``predict`` and ``score`` call :func:`check_is_fitted` first.
 """
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
 
+from identification.metrics import r2, rmse
 from psdm_casadi.errors import NotFittedError, ParameterError, ShapeError
 
-__all__ = ["Design", "LeastSquaresResult", "BaseIdentifier", "check_is_fitted", "weighted_least_squares",
-           "rmse_r2", "r2", "rmse"]
+__all__ = [
+    "Design",
+    "LeastSquaresResult",
+    "BaseIdentifier",
+    "LeastSquaresIdentifier",
+    "check_is_fitted",
+    "weighted_least_squares",
+    "rmse_r2",
+]
 
 
 @dataclass(frozen=True, eq=False)
@@ -74,11 +88,21 @@ class Design:
         """``A x + offset`` for coefficients ``x``."""
         return self.matrix @ np.asarray(coefficients, dtype=float) + self.offset
 
-    def stack(self, other: "Design") -> "Design":
+    def stack(self, other: Design) -> Design:
         """Rows of ``self`` followed by rows of ``other`` (same columns)."""
-        return Design(np.vstack([self.matrix, other.matrix]), np.concatenate([self.target, other.target]),
-                      np.concatenate([self.weights, other.weights]), np.concatenate([self.joint, other.joint]),
-                      np.concatenate([self.offset, other.offset]))
+        return Design.concatenate([self, other])
+
+    @staticmethod
+    def concatenate(designs) -> Design:
+        """The rows of every design in ``designs`` (same columns), in order."""
+        designs = list(designs)
+        return Design(
+            np.vstack([d.matrix for d in designs]),
+            np.concatenate([d.target for d in designs]),
+            np.concatenate([d.weights for d in designs]),
+            np.concatenate([d.joint for d in designs]),
+            np.concatenate([d.offset for d in designs]),
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -170,26 +194,20 @@ def weighted_least_squares(matrix, target, weights=None, offset=None) -> LeastSq
     return LeastSquaresResult(x, covariance, sigma2, int(rank), condition)
 
 
-def rmse(observed, predicted) -> float:
-    """Root mean squared error [units of the data]."""
-    e = np.asarray(observed, dtype=float) - np.asarray(predicted, dtype=float)
-    return float(np.sqrt(np.mean(e * e))) if e.size else float("nan")
-
-
-def r2(observed, predicted) -> float:
-    """Coefficient of determination ``1 - SS_res / SS_tot`` (NaN for a constant or empty signal)."""
-    y = np.asarray(observed, dtype=float)
-    p = np.asarray(predicted, dtype=float)
-    if y.size == 0:
-        return float("nan")
-    ss_tot = float(np.sum((y - y.mean()) ** 2))
-    if ss_tot <= 1e-300:
-        return float("nan")
-    return 1.0 - float(np.sum((y - p) ** 2)) / ss_tot
-
-
 def rmse_r2(observed, predicted, joint, n_dof: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-joint RMSE and R^2 of rows labelled by ``joint``; NaN for joints without rows."""
+    """Per-joint RMSE and R^2 (:mod:`identification.metrics`) of rows labelled by ``joint``; NaN without rows.
+
+    Parameters
+    ----------
+    observed, predicted : array, shape (n_rows,)
+    joint : array of int, shape (n_rows,)
+        Joint (0-based) of each row.
+    n_dof : int
+
+    Returns
+    -------
+    (array, array), each shape (n_dof,)
+    """
     joint = np.asarray(joint, dtype=int)
     out_rmse, out_r2 = np.full(n_dof, np.nan), np.full(n_dof, np.nan)
     for j in range(n_dof):
@@ -210,16 +228,62 @@ def check_is_fitted(estimator, attribute: str = "coef_") -> None:
     """
     if not hasattr(estimator, attribute):
         name = type(estimator).__name__
-        raise NotFittedError(f"{name}.{attribute} must exist, but {name} is not fitted; got an unfitted estimator. "
-                             "Call fit(...) first.")
+        raise NotFittedError(
+            f"{name}.{attribute} must exist, but {name} is not fitted; got an unfitted estimator. Call fit(...) first."
+        )
 
 
 class BaseIdentifier:
-    """Shared machinery of the identification steps: weighted least squares, covariance and scores.
+    """What every calibration step shares: hyper-parameters, the fitted check and the scores.
+
+    A subclass stores its keyword hyper-parameters in ``__init__``, checks them in ``_validate``,
+    sets ``n_dof_`` and its learned attributes in ``fit`` (``_fitted_attribute`` names the one
+    :func:`check_is_fitted` looks for) and returns, in ``_scored_rows(data)``, the observed and
+    predicted torques of the rows it explains; ``predict``, ``evaluate``, ``observed_predicted``
+    and ``score`` are built on them.
+    """
+
+    _fitted_attribute = "coef_"
+
+    def _validate(self) -> None:
+        """Hook: raise :class:`ParameterError` for a bad hyper-parameter."""
+
+    def _scored_rows(self, data):  # pragma: no cover - abstract
+        """``(observed, predicted, joint)`` of the rows of ``data`` the fitted step explains."""
+        raise NotImplementedError
+
+    def get_params(self) -> dict:
+        """The hyper-parameters given to ``__init__``."""
+        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
+        return {name: getattr(self, name) for name in names}
+
+    def observed_predicted(self, data):
+        """``(observed, predicted, joint)`` rows of ``data`` (those with weight > 0), for plots."""
+        check_is_fitted(self, self._fitted_attribute)
+        return self._scored_rows(data)
+
+    def predict(self, data) -> np.ndarray:
+        """Predicted torques [N m] of the rows of ``data`` (weight > 0), shape (n_rows,)."""
+        return self.observed_predicted(data)[1]
+
+    def evaluate(self, data) -> tuple[np.ndarray, np.ndarray]:
+        """Per-joint RMSE [N m] and R^2 on ``data`` (rows with weight > 0), each shape (n_dof,)."""
+        observed, predicted, joint = self.observed_predicted(data)
+        return rmse_r2(observed, predicted, joint, self.n_dof_)
+
+    def score(self, data) -> float:
+        """Mean over joints of the R^2 on ``data`` (joints without a defined R^2 are skipped)."""
+        _, scores = self.evaluate(data)
+        return float(np.nanmean(scores))
+
+
+class LeastSquaresIdentifier(BaseIdentifier):
+    """A calibration step that is a weighted linear regression ``b ~ A x + offset`` (motor, gravity, inertial).
 
     Subclasses implement ``_design_matrix(data) -> Design`` and ``_n_dof(data)``; ``fit`` solves
     the weighted least squares (override ``_solve`` for another estimator) and sets ``coef_``,
-    ``covariance_``, ``sigma2_``, ``condition_``, ``n_rows_``.
+    ``covariance_``, ``sigma2_``, ``condition_``, ``n_rows_`` and ``n_dof_``; ``_after_fit``
+    derives the step's named attributes from them.
 
     Attributes
     ----------
@@ -229,6 +293,7 @@ class BaseIdentifier:
     sigma2_ : float
     condition_ : float
     n_rows_ : int
+    n_dof_ : int
     """
 
     def fit(self, data):
@@ -256,36 +321,7 @@ class BaseIdentifier:
     def _n_dof(self, data) -> int:  # pragma: no cover - abstract
         raise NotImplementedError
 
-    def predict(self, data) -> np.ndarray:
-        """Predicted torques [N m] of the rows of ``data`` (weight > 0), shape (n_rows,)."""
-        check_is_fitted(self)
-        design = self._design_matrix(data)
-        keep = design.weights > 0
-        return design.predicted(self.coef_)[keep]
-
-    def evaluate(self, data) -> tuple[np.ndarray, np.ndarray]:
-        """Per-joint RMSE [N m] and R^2 on ``data`` (rows with weight > 0), each shape (n_dof,)."""
-        check_is_fitted(self)
-        design = self._design_matrix(data)
-        keep = design.weights > 0
-        return rmse_r2(design.target[keep], design.predicted(self.coef_)[keep], design.joint[keep],
-                       self._n_dof(data))
-
-    def observed_predicted(self, data):
-        """``(observed, predicted, joint)`` rows of ``data`` with weight > 0, for plots."""
-        check_is_fitted(self)
+    def _scored_rows(self, data):
         design = self._design_matrix(data)
         keep = design.weights > 0
         return design.target[keep], design.predicted(self.coef_)[keep], design.joint[keep]
-
-    def score(self, data) -> float:
-        """Mean over joints of the R^2 on ``data`` (joints without a defined R^2 are skipped)."""
-        _, scores = self.evaluate(data)
-        return float(np.nanmean(scores))
-
-    def get_params(self) -> dict:
-        """The hyper-parameters given to ``__init__``."""
-        import inspect
-
-        names = [p for p in inspect.signature(type(self).__init__).parameters if p != "self"]
-        return {name: getattr(self, name) for name in names}

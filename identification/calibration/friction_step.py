@@ -1,26 +1,33 @@
-"""Step 3 of the calibration (paper 3.3): friction per joint, eq. 19 isolates it, eq. 20 starts, multiple shooting fits LuGre.
+"""Step 3 of the calibration (paper 3.3): friction per joint.
+
+Eq. 19 isolates it, eq. 20 gives the start values, multiple shooting fits LuGre.
 
 :class:`FrictionIdentifier` is one of the four step estimators of :mod:`identification.calibration.steps`
-(re-exported there); :func:`friction_torque` simulates the identified LuGre models along measured
-velocities for the other steps.
+(re-exported there); it is not a linear regression, so it derives from
+:class:`identification.calibration.estimator.BaseIdentifier` alone. :func:`friction_torque`
+simulates the identified LuGre models along measured velocities for the other steps.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from identification.calibration.estimator import BaseIdentifier
+from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
+from identification.data.recording import Recording
+from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
+from identification.friction.simulation import simulate_lugre
+from identification.friction.start import fit_high_speed, initial_lugre_guess
 from psdm_casadi.errors import ParameterError
 
-from identification.calibration.inputs import check_model, recordings, tool_torque, vector
-from identification.calibration.estimator import BaseIdentifier, Design, check_is_fitted
-from identification.friction.models import simulate_lugre
-from identification.data.recording import Recording
-
 __all__ = ["FrictionExperiment", "FrictionIdentifier", "friction_torque"]
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -59,8 +66,9 @@ def _fit_inertia_high_speed(qd, qdd, tau, threshold):
     def residual(x):
         return x[0] * a + (x[1] + x[2] * v ** x[3]) * s - y
 
-    sol = least_squares(residual, x0, bounds=([-np.inf, 0.0, 0.0, 0.05], [np.inf, np.inf, np.inf, 3.0]),
-                        x_scale="jac", method="trf")
+    sol = least_squares(
+        residual, x0, bounds=([-np.inf, 0.0, 0.0, 0.05], [np.inf, np.inf, np.inf, 3.0]), x_scale="jac", method="trf"
+    )
     return float(sol.x[0])
 
 
@@ -68,9 +76,9 @@ def _coupling_torque(model, theta, rec, joint, every=20):
     """``sum_k M_jk(q) qdd_k`` over the other joints k [N m], shape (n_samples,).
 
     ``M_jk`` comes from the regressor, ``(Y(q, 0, e_k) - Y(q, 0, 0))[j] theta``, on every
-    ``every``-th sample and is interpolated in between (the pose changes slowly; the full regressor
-    at 1 kHz would cost seconds per joint). Velocity terms are left out: the moving joint's own
-    velocity exerts no torque on itself, and the held joints barely move.
+    ``every``-th sample and is interpolated in between (the pose changes slowly, and the full
+    regressor at every sample of a 1 kHz record is costly). Velocity terms are left out: the moving
+    joint's own velocity exerts no torque on itself, and the held joints barely move.
     """
     n = model.n_dof
     pick = np.unique(np.append(np.arange(0, rec.n_samples, every), rec.n_samples - 1))
@@ -123,13 +131,15 @@ class FrictionIdentifier(BaseIdentifier):
         acceleration then jumps at every sample, and the central-difference ``qdd[k]`` is the mean of
         its values just before and after ``t[k]``, which the mean of the set-points ``k-1`` and ``k``
         balances; with ``False`` the set-point ``k`` alone is used, which leaves ``M_jj / 2`` times the
-        jump in the measured friction (0.02-0.09 N m rms on the virtual Denso, enough to bias sigma1
-        by 100-400 %). Use ``False`` for currents measured at the sample instants.
+        jump in the measured friction, a torque that biases the damping sigma1. Use ``False`` for
+        currents measured at the sample instants.
     coupling_theta : array, shape (n_base,), optional
         Base parameters (e.g. the robot's nominal CAD values) whose coupling torques on the moving
         joint j, ``sum_{k != j} M_jk(q) qdd_k`` (the held joints' accelerations), are removed from the
-        measured friction. The held joints ring with the moving one whenever it sticks (on the
-        Denso ``M_23 = 0.55 kg m^2``: 0.08 N m rms on joint 2, which biased its sigma1 by 150 %).
+        measured friction. The held joints ring with the moving one whenever it sticks, and through
+        a large off-diagonal inertia that torque biases the moving joint's sigma1.
+    verbose : bool
+        Log a progress line per joint at INFO (at DEBUG otherwise); each joint is an Ipopt solve.
 
     Attributes
     ----------
@@ -139,10 +149,26 @@ class FrictionIdentifier(BaseIdentifier):
     shooting_ : tuple of ShootingResult or None
     seconds_ : array, shape (n_dof,)
         Wall time per joint [s].
+    n_dof_ : int
     """
 
-    def __init__(self, model=None, kt=None, theta=None, robot=None, tool=None, inertia="fit", decimation=1,
-                 high_speed_fraction=0.25, shooting_options=None, held_torque=True, coupling_theta=None):
+    _fitted_attribute = "lugre_"
+
+    def __init__(
+        self,
+        model=None,
+        kt=None,
+        theta=None,
+        robot=None,
+        tool=None,
+        inertia="fit",
+        decimation=1,
+        high_speed_fraction=0.25,
+        shooting_options=None,
+        held_torque=True,
+        coupling_theta=None,
+        verbose=False,
+    ):
         self.model = model
         self.kt = kt
         self.theta = theta
@@ -154,6 +180,7 @@ class FrictionIdentifier(BaseIdentifier):
         self.shooting_options = shooting_options
         self.held_torque = held_torque
         self.coupling_theta = coupling_theta
+        self.verbose = verbose
 
     def _validate(self):
         check_model(self.model, "FrictionIdentifier")
@@ -162,30 +189,28 @@ class FrictionIdentifier(BaseIdentifier):
         if not (isinstance(self.decimation, (int, np.integer)) and self.decimation >= 1):
             raise ParameterError(f"FrictionIdentifier.decimation must be an integer >= 1; got {self.decimation!r}.")
         options = self.shooting_options
-        if options is not None and getattr(options, "measurement", "sample") == "central-difference" and \
-                (self.decimation != 1 or not self.held_torque):
+        if (
+            options is not None
+            and getattr(options, "measurement", "sample") == "central-difference"
+            and (self.decimation != 1 or not self.held_torque)
+        ):
             raise ParameterError(
                 "FrictionIdentifier.shooting_options.measurement='central-difference' models held commands and the "
                 f"central differences of the recorded rate; got decimation={self.decimation!r}, "
-                f"held_torque={self.held_torque!r}. Use decimation=1 and held_torque=True, or measurement='sample'.")
+                f"held_torque={self.held_torque!r}. Use decimation=1 and held_torque=True, or measurement='sample'."
+            )
         if not 0.0 < self.high_speed_fraction < 1.0:
             raise ParameterError(
-                f"FrictionIdentifier.high_speed_fraction must be in (0, 1); got {self.high_speed_fraction!r}.")
+                f"FrictionIdentifier.high_speed_fraction must be in (0, 1); got {self.high_speed_fraction!r}."
+            )
 
     def _experiments(self, data):
-        items = [data] if isinstance(data, FrictionExperiment) else list(data)
-        if not items or not all(isinstance(e, FrictionExperiment) for e in items):
-            raise ParameterError("FrictionIdentifier.fit data must be a FrictionExperiment or a sequence of them.")
         n = self.model.n_dof
+        items = experiments(data, FrictionExperiment, "FrictionIdentifier", n)
         for e in items:
-            if not (0 <= e.joint < n):
-                raise ParameterError(f"FrictionExperiment.joint must be in 0..{n - 1}; got {e.joint!r}.")
             recordings(e.recording, "FrictionIdentifier")
             e.recording.check_robot(n)
         return items
-
-    def _n_dof(self, data):
-        return self.model.n_dof
 
     def measured_friction(self, experiment: FrictionExperiment) -> np.ndarray:
         """Eq. 19 for the moving joint: ``Kt i - Y_grav theta_grav - tau_tool`` [N m], shape (n_samples,).
@@ -197,31 +222,39 @@ class FrictionIdentifier(BaseIdentifier):
         kt = None if self.kt is None else vector(self.kt, n, "FrictionIdentifier", "kt", "N m/A")
         theta = vector(self.theta, self.model.n_base, "FrictionIdentifier", "theta", "base parameters")
         rec, j = experiment.recording, experiment.joint
-        gravity = (self.model.gravity_regressor(rec.q)[:, j, :] @ (theta * self.model.gravity_mask))
+        gravity = self.model.gravity_regressor(rec.q)[:, j, :] @ (theta * self.model.gravity_mask)
         tool = tool_torque(self.robot, self.tool, rec, static=False)[:, j]
         torque = rec.joint_torque(kt)[:, j]
         if self.held_torque:
             torque = np.concatenate([torque[:1], 0.5 * (torque[1:] + torque[:-1])])
         torque = torque - gravity - tool
         if self.coupling_theta is not None:
-            theta_c = vector(self.coupling_theta, self.model.n_base, "FrictionIdentifier", "coupling_theta",
-                             "base parameters")
+            theta_c = vector(
+                self.coupling_theta, self.model.n_base, "FrictionIdentifier", "coupling_theta", "base parameters"
+            )
             if rec.qdd is None:
-                raise ParameterError("FrictionIdentifier.coupling_theta needs qdd in the friction recordings; "
-                                     "preprocess them first.")
+                raise ParameterError(
+                    "FrictionIdentifier.coupling_theta needs qdd in the friction recordings; preprocess them first."
+                )
             torque = torque - _coupling_torque(self.model, theta_c, rec, j)
         return torque
 
     def fit(self, data):
         """Fit LuGre parameters for every joint with an experiment; return ``self``."""
-        from identification.friction.shooting import ShootingOptions, fit_high_speed, fit_lugre_multiple_shooting, initial_lugre_guess
-
         self._validate()
         options = self.shooting_options if self.shooting_options is not None else ShootingOptions()
         n = self.model.n_dof
         lugre, shooting = [None] * n, [None] * n
         inertia, seconds = np.full(n, np.nan), np.full(n, np.nan)
-        for e in self._experiments(data):
+        items = self._experiments(data)
+        log = logger.info if self.verbose else logger.debug
+        for k, e in enumerate(items):
+            log(
+                "friction joint %d (%d/%d): eq. 20 + LuGre multiple shooting (Ipopt) ...",
+                e.joint + 1,
+                k + 1,
+                len(items),
+            )
             start = time.perf_counter()
             rec, j = e.recording, e.joint
             tau = self.measured_friction(e)
@@ -241,24 +274,23 @@ class FrictionIdentifier(BaseIdentifier):
         self.inertia_ = inertia
         self.shooting_ = tuple(shooting)
         self.seconds_ = seconds
-        self.coef_ = np.zeros(0)
         self.n_dof_ = n
         return self
 
-    def _design_matrix(self, data) -> Design:
-        check_is_fitted(self, "lugre_")
-        blocks = []
+    def _scored_rows(self, data):
+        """Measured friction (eq. 19, the fitted inertia removed) and the LuGre simulation along ``qd``, per sample."""
+        observed, predicted, joint = [], [], []
         for e in self._experiments(data):
             rec, j = e.recording, e.joint
             tau = self.measured_friction(e)
             if self.inertia == "fit" and np.isfinite(self.inertia_[j]):
                 tau = tau - self.inertia_[j] * rec.qdd[:, j]
             if self.lugre_[j] is None:
-                raise ParameterError(f"FrictionIdentifier has no LuGre model of joint {j + 1}; fit it on that joint first.")
+                raise ParameterError(
+                    f"FrictionIdentifier has no LuGre model of joint {j + 1}; fit it on that joint first."
+                )
             pred, _ = simulate_lugre(self.lugre_[j], rec.t, rec.qd[:, j])
-            m = rec.n_samples
-            blocks.append(Design(np.zeros((m, 0)), tau, np.ones(m), np.full(m, j), offset=pred))
-        design = blocks[0]
-        for b in blocks[1:]:
-            design = design.stack(b)
-        return design
+            observed.append(tau)
+            predicted.append(pred)
+            joint.append(np.full(rec.n_samples, j))
+        return np.concatenate(observed), np.concatenate(predicted), np.concatenate(joint)

@@ -1,6 +1,6 @@
 """End-effector torques of a known load (paper eqs. 16-17): the tau_ee term of every calibration step.
 
-The load is an :class:`identification.virtual.effects.Payload` fixed to the flange (the last link
+The load is an :class:`identification.data.payload.Payload` fixed to the flange (the last link
 frame). :func:`payload_static_torque` is the paper's ``J(q)^T f_w`` with the wrench of eq. 17
 (flange Jacobian from Pinocchio); :func:`payload_torque` adds the load's inertial torques by the
 RNEA of a robot whose only body is the load (used where the robot moves fast).
@@ -11,11 +11,10 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from identification.data.payload import Payload
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import build_pinocchio_model, dh_transform
 from psdm_casadi.robot import RobotDescription
-
-from identification.virtual.effects import Payload
 
 __all__ = ["flange_placement", "payload_static_torque", "payload_torque"]
 
@@ -24,12 +23,15 @@ def _check(robot, payload, q, owner):
     if not isinstance(robot, RobotDescription):
         raise ParameterError(f"{owner}.robot must be a RobotDescription; got {type(robot).__name__}. Use load_robot().")
     if not isinstance(payload, Payload):
-        raise ParameterError(f"{owner}.payload must be a Payload; got {type(payload).__name__}. Pass Payload(mass=...).")
+        raise ParameterError(
+            f"{owner}.payload must be a Payload; got {type(payload).__name__}. Pass Payload(mass=...)."
+        )
     payload.validate(robot.n_dof)
     q = np.atleast_2d(np.asarray(q, dtype=float))
     if q.shape[1] != robot.n_dof:
-        raise ShapeError(f"{owner}.q must have shape (n_samples, {robot.n_dof}) to match RobotDescription.n_dof; "
-                         f"got {q.shape}.")
+        raise ShapeError(
+            f"{owner}.q must have shape (n_samples, {robot.n_dof}) to match RobotDescription.n_dof; got {q.shape}."
+        )
     return q
 
 
@@ -102,7 +104,9 @@ def payload_torque(robot: RobotDescription, payload: Payload, q, qd, qdd) -> np.
     qd = np.atleast_2d(np.asarray(qd, dtype=float))
     qdd = np.atleast_2d(np.asarray(qdd, dtype=float))
     if qd.shape != q.shape or qdd.shape != q.shape:
-        raise ShapeError(f"payload_torque.qd and qdd must have the shape of q {q.shape}; got {qd.shape} and {qdd.shape}.")
+        raise ShapeError(
+            f"payload_torque.qd and qdd must have the shape of q {q.shape}; got {qd.shape} and {qdd.shape}."
+        )
     model = _payload_only_model(robot, payload)
     data = model.createData()
     return np.array([pin.rnea(model, data, a, b, c) for a, b, c in zip(q, qd, qdd)])

@@ -12,8 +12,8 @@ Friction model (documented choice): the steady-state LuGre (Stribeck) curve
 ``vs, sigma0, sigma1`` held at the multiple-shooting values. Rows in the pre-sliding regime (joint
 displacement since its last reversal below ``presliding_factor * fs / sigma0``, or ``|qd|`` below
 ``min_speed``) are dropped, since there the bristle state is not at steady state. This is a smooth
-least-squares problem with no state variables, so Ipopt converges in tens of iterations from
-the step estimates; the LuGre dynamics (z states) are left to the shooting step where they are
+least-squares problem with no state variables, so Ipopt converges quickly from the step
+estimates; the LuGre dynamics (z states) are left to the shooting step where they are
 observable. The payload rows of the motor step fix the scale shared by Kt and the other parameters.
 
 With ``consistency="constrain"``, D(q_k, theta) = L_k L_k^T + eps I is imposed at sampled
@@ -29,13 +29,13 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from identification.calibration.consistency import mass_matrices
+from identification.calibration.steps import regressor_chunked
+from identification.data.recording import Recording
+from identification.friction.models import LuGreParameters
+from identification.metrics import rms
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 from psdm_casadi.model import PSDMModel
-
-from identification.calibration.consistency import mass_matrices
-from identification.friction.models import LuGreParameters
-from identification.data.recording import Recording
-from identification.calibration.steps import regressor_chunked
 
 __all__ = ["RefinementOptions", "RefinementBlock", "RefinementResult", "refine_parameters", "steady_mask"]
 
@@ -51,10 +51,9 @@ class RefinementOptions:
     refine_kt, refine_friction, refine_gravity : bool
         Free the motor constants / the friction parameters ``fc, fs, fv, dv`` / the gravity base
         parameters (else held at the step estimates). All are held by default: each comes from its
-        dedicated experiment, and the refinement's rows carry the errors of its simpler models. On
-        the virtual Denso freeing Kt let model errors of the other rows pull all Kt by about 3 %;
-        freeing friction moved fs by 5-12 % (the steady-state curve does not see the bristle
-        dynamics), and freeing gravity moved the small gravity parameters by up to 24 %.
+        dedicated experiment, and the refinement's rows carry the errors of its simpler models. Freed,
+        Kt absorbs model errors of the other rows, the friction's fs absorbs the bristle dynamics
+        the steady-state curve does not see, and the small gravity parameters absorb both.
     consistency : {"none", "constrain"}
         ``"constrain"`` imposes a positive-definite mass matrix at ``n_consistency`` configurations.
     n_consistency : int
@@ -87,7 +86,9 @@ class RefinementOptions:
 
     def __post_init__(self):
         if self.consistency not in ("none", "constrain"):
-            raise ParameterError(f"RefinementOptions.consistency must be 'none' or 'constrain'; got {self.consistency!r}.")
+            raise ParameterError(
+                f"RefinementOptions.consistency must be 'none' or 'constrain'; got {self.consistency!r}."
+            )
         for name in ("n_consistency", "max_iter"):
             value = getattr(self, name)
             if not (isinstance(value, (int, np.integer)) and value >= 1):
@@ -152,7 +153,8 @@ class RefinementResult:
 
 
 def steady_mask(t, qd, lugre: LuGreParameters, factor: float, min_speed: float) -> np.ndarray:
-    """Rows whose joint slid further than ``factor * fs / sigma0`` since its last reversal and moves faster than ``min_speed``."""
+    """Rows whose joint slid further than ``factor * fs / sigma0`` since its last reversal and moves faster than
+    ``min_speed``."""
     q = np.concatenate([[0.0], np.cumsum(0.5 * (qd[1:] + qd[:-1]) * np.diff(t))])
     sign = np.sign(qd)
     change = np.concatenate([[True], sign[1:] != sign[:-1]])
@@ -161,8 +163,41 @@ def steady_mask(t, qd, lugre: LuGreParameters, factor: float, min_speed: float) 
     return (travelled > factor * lugre.fs / lugre.sigma0) & (np.abs(qd) > min_speed)
 
 
-def refine_parameters(model: PSDMModel, blocks, theta, kt, lugre, options: RefinementOptions | None = None,
-                      q_min=None, q_max=None, rng: np.random.Generator | None = None) -> RefinementResult:
+@dataclass(frozen=True, eq=False)
+class _JointRows:
+    """The rows of one joint over all blocks: regressor, current, direct torque, tool torque, qd and steady weight."""
+
+    y: np.ndarray
+    current: np.ndarray
+    direct: np.ndarray
+    tool: np.ndarray
+    qd: np.ndarray
+    weight: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class _Variables:
+    """The scaled decision variables and the parameters they give (module docstring of the scaling)."""
+
+    theta: ca.MX
+    kt: ca.MX
+    friction: ca.MX
+    theta_expr: ca.MX
+    kt_expr: object
+    theta_scale: np.ndarray
+
+
+def refine_parameters(
+    model: PSDMModel,
+    blocks,
+    theta,
+    kt,
+    lugre,
+    options: RefinementOptions | None = None,
+    q_min=None,
+    q_max=None,
+    rng: np.random.Generator | None = None,
+) -> RefinementResult:
     """Refine base parameters, motor constants and friction together by Ipopt (module docstring).
 
     Parameters
@@ -191,6 +226,32 @@ def refine_parameters(model: PSDMModel, blocks, theta, kt, lugre, options: Refin
         When Ipopt fails (status and iterations attached).
     """
     options = RefinementOptions() if options is None else options
+    blocks, theta0, kt0, lugre = _check_inputs(model, blocks, theta, kt, lugre)
+    start = time.perf_counter()
+    rows = _joint_rows(model, blocks, lugre, options)
+    variables = _variables(model, theta0, kt0, options)
+    objective = _objective(rows, variables, kt0, lugre, options)
+    x = ca.vertcat(variables.theta, variables.kt, variables.friction)
+    g, extra, extra0 = [], [], []
+    if options.consistency == "constrain":
+        g, extra, extra0 = _consistency_constraints(model, variables.theta_expr, theta0, options, q_min, q_max, rng)
+        x = ca.vertcat(x, *extra)
+    x0 = np.concatenate([np.zeros(model.n_base + 5 * model.n_dof)] + extra0)
+    xo, f0, f_final, status, iterations = _solve(model, x, objective, g, x0, options)
+    theta_new, kt_new, new_lugre = _parameters(xo, variables.theta_scale, theta0, kt0, lugre, options)
+    return RefinementResult(
+        theta=theta_new,
+        kt=kt_new,
+        lugre=new_lugre,
+        status=status,
+        iterations=iterations,
+        objective_initial=f0,
+        objective_final=f_final,
+        seconds=time.perf_counter() - start,
+    )
+
+
+def _check_inputs(model, blocks, theta, kt, lugre):
     if not isinstance(model, PSDMModel):
         raise ParameterError(f"refine_parameters.model must be a PSDMModel; got {type(model).__name__}.")
     blocks = list(blocks)
@@ -204,10 +265,13 @@ def refine_parameters(model: PSDMModel, blocks, theta, kt, lugre, options: Refin
     lugre = tuple(lugre)
     if len(lugre) != n or not all(isinstance(p, LuGreParameters) for p in lugre):
         raise ParameterError(f"refine_parameters.lugre must hold {n} LuGreParameters; fit the friction step first.")
-    start = time.perf_counter()
+    return blocks, theta0, kt0, lugre
 
-    # data per joint: Y rows, current, direct torque, tool, qd, weights
-    per_joint = {key: [[] for _ in range(n)] for key in ("y", "i", "d", "tool", "qd", "w")}
+
+def _joint_rows(model, blocks, lugre, options) -> list:
+    """Per joint, the rows of every block stacked (steady weight from :func:`steady_mask`)."""
+    n = model.n_dof
+    parts = [[] for _ in range(n)]
     for block in blocks:
         rec = block.recording
         y = regressor_chunked(model, rec.q, rec.qd, rec.qdd)
@@ -215,95 +279,132 @@ def refine_parameters(model: PSDMModel, blocks, theta, kt, lugre, options: Refin
         direct = rec.tau if rec.current is None else np.zeros_like(rec.q)
         for j in range(n):
             w = steady_mask(rec.t, rec.qd[:, j], lugre[j], options.presliding_factor, options.min_speed)
-            for key, value in (("y", y[:, j, :]), ("i", current[:, j]), ("d", direct[:, j]),
-                               ("tool", block.tool_torque[:, j]), ("qd", rec.qd[:, j]), ("w", w.astype(float))):
-                per_joint[key][j].append(value)
-    data = {key: [np.concatenate(v) if key != "y" else np.vstack(v) for v in values]
-            for key, values in per_joint.items()}
+            parts[j].append(
+                (y[:, j, :], current[:, j], direct[:, j], block.tool_torque[:, j], rec.qd[:, j], w.astype(float))
+            )
+    return [
+        _JointRows(np.vstack([p[0] for p in joint]), *(np.concatenate([p[k] for p in joint]) for k in range(1, 6)))
+        for joint in parts
+    ]
 
-    # decision variables, scaled: theta = theta0 + s_theta x, kt = kt0 (1 + x), friction = p0 exp(x)
+
+def _variables(model, theta0, kt0, options) -> _Variables:
+    """Scaled variables: theta = theta0 + s_theta x, kt = kt0 (1 + x), friction = p0 exp(x)."""
+    n, l = model.n_dof, model.n_base
     s_theta = np.maximum(np.abs(theta0), 1e-2 * max(np.abs(theta0).max(), 1e-9))
     x_theta = ca.MX.sym("x_theta", l)
     x_kt = ca.MX.sym("x_kt", n)
     x_fr = ca.MX.sym("x_friction", 4 * n)  # fc, fs, fv, dv per joint
     theta_expr = ca.DM(theta0) + ca.DM(s_theta) * x_theta
     kt_expr = ca.DM(kt0) * (1 + x_kt) if options.refine_kt else ca.DM(kt0)
+    return _Variables(x_theta, x_kt, x_fr, theta_expr, kt_expr, s_theta)
+
+
+def _objective(rows, variables, kt0, lugre, options):
+    """Normalised mean squared torque error over the steady rows of every joint."""
+    n = len(rows)
     objective = 0
     for j in range(n):
         p = lugre[j]
         if options.refine_friction:
-            fc, fs, fv, dv = (v0 * ca.exp(x_fr[4 * j + k]) for k, v0 in enumerate((p.fc, p.fs, p.fv, p.dv)))
+            fc, fs, fv, dv = (
+                v0 * ca.exp(variables.friction[4 * j + k]) for k, v0 in enumerate((p.fc, p.fs, p.fv, p.dv))
+            )
         else:
             fc, fs, fv, dv = p.fc, p.fs, p.fv, p.dv
-        qd = data["qd"][j]
-        w = data["w"][j]
-        keep = w > 0
+        r = rows[j]
+        keep = r.weight > 0
         if not keep.any():
             continue
-        qd_k = qd[keep]
+        qd_k = r.qd[keep]
         log_v = ca.DM(np.log(np.abs(qd_k)))
         sgn = ca.DM(np.sign(qd_k))
         stribeck = (fc + (fs - fc) * ca.exp(-ca.DM((qd_k / p.vs) ** 2)) + fv * ca.exp(dv * log_v)) * sgn
-        measured = kt_expr[j] * ca.DM(data["i"][j][keep]) + ca.DM(data["d"][j][keep])
-        predicted = ca.mtimes(ca.DM(data["y"][j][keep]), theta_expr) + ca.DM(data["tool"][j][keep]) + stribeck
+        measured = variables.kt_expr[j] * ca.DM(r.current[keep]) + ca.DM(r.direct[keep])
+        predicted = ca.mtimes(ca.DM(r.y[keep]), variables.theta_expr) + ca.DM(r.tool[keep]) + stribeck
         residual = measured - predicted
-        observed = kt0[j] * data["i"][j][keep] + data["d"][j][keep]
-        scale = max(float(np.sqrt(np.mean(observed**2))), 1e-6)
+        observed = kt0[j] * r.current[keep] + r.direct[keep]
+        scale = max(float(rms(observed)), 1e-6)
         objective = objective + ca.sumsqr(residual) / (keep.sum() * scale**2 * n)
-    x = ca.vertcat(x_theta, x_kt, x_fr)
-    g, lbg, ubg, extra, extra0 = [], [], [], [], []
-    if options.consistency == "constrain":
-        rng = np.random.default_rng(0) if rng is None else rng
-        if q_min is None or q_max is None:
-            raise ParameterError("refine_parameters needs q_min and q_max with consistency='constrain'.")
-        qs = rng.uniform(np.asarray(q_min, float), np.asarray(q_max, float), (options.n_consistency, n))
-        # D(q, theta) is linear in theta: D = sum_k theta_k D_k(q)
-        basis = np.stack([mass_matrices(model, np.eye(l)[k], qs) for k in range(l)], axis=-1)  # (m, n, n, l)
-        tril = np.tril_indices(n)
-        for m in range(qs.shape[0]):
-            lvars = ca.MX.sym(f"L{m}", len(tril[0]))
-            lmat = ca.MX.zeros(n, n)
-            for k, (r, c) in enumerate(zip(*tril)):
-                lmat[int(r), int(c)] = lvars[k]
-            d_theta = sum(ca.DM(basis[m, :, :, k]) * theta_expr[k] for k in range(l) if np.any(basis[m, :, :, k]))
-            diff = d_theta - ca.mtimes(lmat, lmat.T) - options.eps * ca.DM.eye(n)
-            g.append(ca.vertcat(*[diff[int(r), int(c)] for r, c in zip(*tril)]))
-            extra.append(lvars)
-            d0 = mass_matrices(model, theta0, qs[m:m + 1])[0] - options.eps * np.eye(n)
-            w_eig, v_eig = np.linalg.eigh(d0)
-            l0 = np.linalg.cholesky(v_eig @ np.diag(np.maximum(w_eig, 1e-6)) @ v_eig.T)
-            extra0.append(l0[tril])
-        x = ca.vertcat(x, *extra)
-        lbg = ubg = 0.0
-    x0 = np.concatenate([np.zeros(l + 5 * n)] + extra0)
+    return objective
+
+
+def _consistency_constraints(model, theta_expr, theta0, options, q_min, q_max, rng):
+    """D(q_k, theta) = L_k L_k^T + eps I at sampled q_k: constraints, Cholesky variables and their start values."""
+    n, l = model.n_dof, model.n_base
+    rng = np.random.default_rng(0) if rng is None else rng
+    if q_min is None or q_max is None:
+        raise ParameterError("refine_parameters needs q_min and q_max with consistency='constrain'.")
+    qs = rng.uniform(np.asarray(q_min, float), np.asarray(q_max, float), (options.n_consistency, n))
+    # D(q, theta) is linear in theta: D = sum_k theta_k D_k(q)
+    basis = np.stack([mass_matrices(model, np.eye(l)[k], qs) for k in range(l)], axis=-1)  # (m, n, n, l)
+    tril = np.tril_indices(n)
+    g, extra, extra0 = [], [], []
+    for m in range(qs.shape[0]):
+        lvars = ca.MX.sym(f"L{m}", len(tril[0]))
+        lmat = ca.MX.zeros(n, n)
+        for k, (r, c) in enumerate(zip(*tril)):
+            lmat[int(r), int(c)] = lvars[k]
+        d_theta = sum(ca.DM(basis[m, :, :, k]) * theta_expr[k] for k in range(l) if np.any(basis[m, :, :, k]))
+        diff = d_theta - ca.mtimes(lmat, lmat.T) - options.eps * ca.DM.eye(n)
+        g.append(ca.vertcat(*[diff[int(r), int(c)] for r, c in zip(*tril)]))
+        extra.append(lvars)
+        d0 = mass_matrices(model, theta0, qs[m : m + 1])[0] - options.eps * np.eye(n)
+        w_eig, v_eig = np.linalg.eigh(d0)
+        l0 = np.linalg.cholesky(v_eig @ np.diag(np.maximum(w_eig, 1e-6)) @ v_eig.T)
+        extra0.append(l0[tril])
+    return g, extra, extra0
+
+
+def _bounds(model, size, options):
+    """Variable bounds: Kt within 50 %, friction within exp(+-3), held parameters fixed at their start."""
+    n, l = model.n_dof, model.n_base
+    bound = np.full(size, np.inf)
+    lbx, ubx = -bound, bound.copy()
+    lbx[l : l + n], ubx[l : l + n] = -0.5, 0.5
+    lbx[l + n : l + 5 * n], ubx[l + n : l + 5 * n] = -3.0, 3.0
+    if not options.refine_kt:
+        lbx[l : l + n] = ubx[l : l + n] = 0.0
+    if not options.refine_friction:
+        lbx[l + n : l + 5 * n] = ubx[l + n : l + 5 * n] = 0.0
+    if not options.refine_gravity:
+        lbx[:l][model.gravity_mask] = ubx[:l][model.gravity_mask] = 0.0
+    return lbx, ubx
+
+
+def _solve(model, x, objective, g, x0, options):
+    """Ipopt from ``x0``: the solution, the objective before and after, status and iterations."""
     nlp = {"x": x, "f": objective, "g": ca.vertcat(*g) if g else ca.MX(0, 1)}
-    ipopt = {"max_iter": int(options.max_iter), "tol": float(options.tol), "print_level": int(options.print_level),
-             "sb": "yes"}
+    ipopt = {
+        "max_iter": int(options.max_iter),
+        "tol": float(options.tol),
+        "print_level": int(options.print_level),
+        "sb": "yes",
+    }
     ipopt.update(options.ipopt_options)
     solver = ca.nlpsol("refinement", "ipopt", nlp, {"ipopt": ipopt, "print_time": False})
     f0 = float(ca.Function("f0", [x], [objective])(x0))
-    bound = np.full(x0.size, np.inf)
-    lbx, ubx = -bound, bound.copy()
-    lbx[l:l + n], ubx[l:l + n] = -0.5, 0.5
-    lbx[l + n:l + 5 * n], ubx[l + n:l + 5 * n] = -3.0, 3.0
-    if not options.refine_kt:
-        lbx[l:l + n] = ubx[l:l + n] = 0.0
-    if not options.refine_friction:
-        lbx[l + n:l + 5 * n] = ubx[l + n:l + 5 * n] = 0.0
-    if not options.refine_gravity:
-        lbx[:l][model.gravity_mask] = ubx[:l][model.gravity_mask] = 0.0
-    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=lbg if g else [], ubg=ubg if g else [])
+    lbx, ubx = _bounds(model, x0.size, options)
+    sol = solver(x0=x0, lbx=lbx, ubx=ubx, lbg=0.0 if g else [], ubg=0.0 if g else [])
     stats = solver.stats()
     status = str(stats.get("return_status", "unknown"))
     iterations = int(stats.get("iter_count", -1))
     if status not in _SUCCESS:
-        raise SolverError(f"refine_parameters: Ipopt returned status {status} after {iterations} iterations. "
-                          "Check the step estimates or raise RefinementOptions.max_iter.", status=status,
-                          iterations=iterations)
-    xo = np.asarray(sol["x"]).ravel()
+        raise SolverError(
+            f"refine_parameters: Ipopt returned status {status} after {iterations} iterations. "
+            "Check the step estimates or raise RefinementOptions.max_iter.",
+            status=status,
+            iterations=iterations,
+        )
+    return np.asarray(sol["x"]).ravel(), f0, float(sol["f"]), status, iterations
+
+
+def _parameters(xo, s_theta, theta0, kt0, lugre, options):
+    """Base parameters, Kt and LuGre of the scaled solution ``xo``."""
+    n, l = kt0.size, theta0.size
     theta_new = theta0 + s_theta * xo[:l]
-    kt_new = kt0 * (1 + xo[l:l + n]) if options.refine_kt else kt0.copy()
-    fr = xo[l + n:l + 5 * n].reshape(n, 4)
+    kt_new = kt0 * (1 + xo[l : l + n]) if options.refine_kt else kt0.copy()
+    fr = xo[l + n : l + 5 * n].reshape(n, 4)
     new_lugre = []
     for j, p in enumerate(lugre):
         if options.refine_friction:
@@ -311,5 +412,4 @@ def refine_parameters(model: PSDMModel, blocks, theta, kt, lugre, options: Refin
             new_lugre.append(LuGreParameters(fc=fc, fs=fs, vs=p.vs, fv=fv, dv=dv, sigma0=p.sigma0, sigma1=p.sigma1))
         else:
             new_lugre.append(p)
-    return RefinementResult(theta=theta_new, kt=kt_new, lugre=tuple(new_lugre), status=status, iterations=iterations,
-                            objective_initial=f0, objective_final=float(sol["f"]), seconds=time.perf_counter() - start)
+    return theta_new, kt_new, tuple(new_lugre)

@@ -81,15 +81,17 @@ class ValidationReport:
                 cells += [cell(s.rmse[j], 3), cell(s.r2[j], 3)]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
         lines.append("")
-        lines.append("RMSE in N m on the validation parts (15 %); \"all\" is the full model on the fast excitation path.")
+        lines.append('RMSE in N m on the validation parts (15 %); "all" is the full model on the fast excitation path.')
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        return {"joint_names": list(self.joint_names),
-                "steps": {s.step: {"rmse": _nan_list(s.rmse), "r2": _nan_list(s.r2)} for s in self.scores}}
+        return {
+            "joint_names": list(self.joint_names),
+            "steps": {s.step: {"rmse": _nan_list(s.rmse), "r2": _nan_list(s.r2)} for s in self.scores},
+        }
 
     @classmethod
-    def from_dict(cls, data: dict) -> "ValidationReport":
+    def from_dict(cls, data: dict) -> ValidationReport:
         scores = tuple(StepScore(step, _from_list(v["rmse"]), _from_list(v["r2"])) for step, v in data["steps"].items())
         return cls(scores=scores, joint_names=tuple(data["joint_names"]))
 

@@ -13,19 +13,19 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.consistency import ConsistencyReport
+from identification.calibration.report import ValidationReport
+from identification.data.io import atomic_write
+from identification.friction.models import LuGreParameters
 from psdm_casadi.errors import ModelFileError, ShapeError
 from psdm_casadi.model import PSDMModel, load_model
 
-from identification.calibration.consistency import ConsistencyReport
-from identification.friction.models import LuGreParameters
-from identification.data.io import atomic_write
-from identification.calibration.report import ValidationReport
-
-__all__ = ["IdentifiedModel", "load_identified", "RESULT_FORMAT", "RESULT_VERSION"]
+__all__ = ["IdentifiedModel", "load_identified", "RESULT_FORMAT", "RESULT_VERSION", "RESULT_FILES"]
 
 RESULT_FORMAT = "psdm-identified"
 RESULT_VERSION = 1
-_FILES = ("identified.json", "parameters.npz", "model.npz")
+#: The files of a saved IdentifiedModel, inside its directory.
+RESULT_FILES = ("identified.json", "parameters.npz", "model.npz")
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,23 +93,32 @@ class IdentifiedModel:
         """
         directory = Path(directory)
         if not overwrite:
-            for name in _FILES:
+            for name in RESULT_FILES:
                 if (directory / name).exists():
-                    raise FileExistsError(f"{str(directory / name)!r} exists; pass overwrite=True (or --overwrite) "
-                                          "to replace it.")
+                    raise FileExistsError(
+                        f"{str(directory / name)!r} exists; pass overwrite=True (or --overwrite) to replace it."
+                    )
         directory.mkdir(parents=True, exist_ok=True)
         header = {
-            "format": RESULT_FORMAT, "version": RESULT_VERSION, "robot_name": self.robot_name,
-            "base_names": list(self.model.base_names), "theta": self.theta.tolist(), "kt": self.kt.tolist(),
-            "lugre": [p.as_dict() for p in self.lugre], "report": self.report.to_dict(),
+            "format": RESULT_FORMAT,
+            "version": RESULT_VERSION,
+            "robot_name": self.robot_name,
+            "base_names": list(self.model.base_names),
+            "theta": self.theta.tolist(),
+            "kt": self.kt.tolist(),
+            "lugre": [p.as_dict() for p in self.lugre],
+            "report": self.report.to_dict(),
             "consistency": None if self.consistency is None else self.consistency.to_dict(),
             "metadata": self.metadata,
         }
         text = json.dumps(header, indent=2, default=_json_default)
         self.model.save(directory / "model.npz", overwrite=overwrite)
-        atomic_write(directory / "parameters.npz", lambda h: np.savez(h, theta=self.theta, kt=self.kt,
-                                                                        lugre=np.array([p.as_array() for p in self.lugre])),
-                     overwrite=overwrite, mode="wb")
+        atomic_write(
+            directory / "parameters.npz",
+            lambda h: np.savez(h, theta=self.theta, kt=self.kt, lugre=np.array([p.as_array() for p in self.lugre])),
+            overwrite=overwrite,
+            mode="wb",
+        )
         atomic_write(directory / "identified.json", lambda h: h.write(text + "\n"), overwrite=overwrite)
         return directory
 
@@ -131,10 +140,12 @@ def load_identified(directory) -> IdentifiedModel:
         Missing files, another format or an unsupported version.
     """
     directory = Path(directory)
-    for name in _FILES:
+    for name in RESULT_FILES:
         if not (directory / name).exists():
-            raise ModelFileError(f"{str(directory / name)!r} is missing; is {str(directory)!r} an identified model "
-                                 "written by IdentifiedModel.save / psdm identify?")
+            raise ModelFileError(
+                f"{str(directory / name)!r} is missing; is {str(directory)!r} an identified model "
+                "written by IdentifiedModel.save / psdm identify?"
+            )
     try:
         header = json.loads((directory / "identified.json").read_text())
     except ValueError as exc:
@@ -142,17 +153,23 @@ def load_identified(directory) -> IdentifiedModel:
     if header.get("format") != RESULT_FORMAT:
         raise ModelFileError(f"identified.json format must be {RESULT_FORMAT!r}; got {header.get('format')!r}.")
     if header.get("version") != RESULT_VERSION:
-        raise ModelFileError(f"identified.json version {header.get('version')} is not supported (this release reads "
-                             f"version {RESULT_VERSION}). Identify again with this release.")
+        raise ModelFileError(
+            f"identified.json version {header.get('version')} is not supported (this release reads "
+            f"version {RESULT_VERSION}). Identify again with this release."
+        )
     with np.load(directory / "parameters.npz", allow_pickle=False) as arrays:
         theta, kt = arrays["theta"], arrays["kt"]
     consistency = header.get("consistency")
     return IdentifiedModel(
-        robot_name=header["robot_name"], model=load_model(directory / "model.npz"), theta=theta, kt=kt,
+        robot_name=header["robot_name"],
+        model=load_model(directory / "model.npz"),
+        theta=theta,
+        kt=kt,
         lugre=tuple(LuGreParameters(**p) for p in header["lugre"]),
         report=ValidationReport.from_dict(header["report"]),
         consistency=None if consistency is None else ConsistencyReport.from_dict(consistency),
-        metadata=header.get("metadata", {}))
+        metadata=header.get("metadata", {}),
+    )
 
 
 # ``IdentifiedModel.load(directory)``: the documented alias of load_identified

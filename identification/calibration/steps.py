@@ -1,7 +1,9 @@
 """The four calibration steps of the paper (section 3) as estimators: motor, gravity, friction, inertial.
 
-Each step is a :class:`identification.calibration.estimator.BaseIdentifier`; it builds its regression rows in
-``_design_matrix`` and inherits weighted least squares, covariance and scores. Inputs are
+The motor, gravity and inertial steps are linear regressions, each a
+:class:`identification.calibration.estimator.LeastSquaresIdentifier`: it builds its rows in
+``_design_matrix`` and inherits weighted least squares, covariance and scores; the friction step
+(``friction_step``) fits LuGre by multiple shooting on the shared base alone. Inputs are
 preprocessed recordings (``preprocessing.preprocess``: filtered, with qd and qdd). The motor and
 gravity steps take *folded* recordings (:func:`fold_out_and_back`): an experiment that runs out and
 retraces its path is averaged sample by sample with its mirror image, which cancels friction
@@ -23,23 +25,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.estimator import Design, LeastSquaresIdentifier, LeastSquaresResult
+from identification.calibration.friction_step import FrictionExperiment, FrictionIdentifier, friction_torque  # noqa: F401 (re-exported)
+from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
+from identification.calibration.payload import payload_static_torque, payload_torque
+from identification.data.payload import Payload
+from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
 from psdm_casadi.model import PSDMModel
 from psdm_casadi.robot import RobotDescription
 
-from identification.calibration.inputs import check_model as _check_model
-from identification.calibration.inputs import recordings as _recordings
-from identification.calibration.inputs import tool_torque as _tool_torque
-from identification.calibration.inputs import vector as _vector
-from identification.calibration.estimator import BaseIdentifier, Design, LeastSquaresResult
-from identification.virtual.effects import Payload
-from identification.calibration.friction_step import FrictionExperiment, FrictionIdentifier, friction_torque  # noqa: F401 (re-exported)
-from identification.calibration.payload import payload_static_torque, payload_torque
-from identification.data.recording import Recording
-
-__all__ = ["MotorExperiment", "FrictionExperiment", "fold_out_and_back", "regressor_chunked",
-           "MotorIdentifier", "GravityIdentifier", "FrictionIdentifier", "InertialIdentifier",
-           "friction_torque", "IDENTIFIERS"]
+__all__ = [
+    "MotorExperiment",
+    "FrictionExperiment",
+    "fold_out_and_back",
+    "regressor_chunked",
+    "MotorIdentifier",
+    "GravityIdentifier",
+    "FrictionIdentifier",
+    "InertialIdentifier",
+    "friction_torque",
+    "IDENTIFIERS",
+]
 
 _CHUNK = 2000  # samples per regressor evaluation (memory: n_functions doubles per sample)
 
@@ -68,7 +75,9 @@ class MotorExperiment:
     def __post_init__(self):
         for name in ("nominal", "loaded"):
             if not isinstance(getattr(self, name), Recording):
-                raise ParameterError(f"MotorExperiment.{name} must be a Recording; got {type(getattr(self, name)).__name__}.")
+                raise ParameterError(
+                    f"MotorExperiment.{name} must be a Recording; got {type(getattr(self, name)).__name__}."
+                )
         if self.nominal.n_samples != self.loaded.n_samples:
             raise ShapeError(
                 f"MotorExperiment.loaded must have the sample count of nominal ({self.nominal.n_samples}); got "
@@ -76,8 +85,9 @@ class MotorExperiment:
             )
         for name in ("nominal", "loaded"):
             if getattr(self, name).current is None:
-                raise RecordingError(f"MotorExperiment.{name}.current is missing; Kt needs motor currents. "
-                                     "Record currents i1..in.")
+                raise RecordingError(
+                    f"MotorExperiment.{name}.current is missing; Kt needs motor currents. Record currents i1..in."
+                )
 
 
 def fold_out_and_back(recording: Recording, tolerance: float = 0.02) -> Recording:
@@ -106,8 +116,10 @@ def fold_out_and_back(recording: Recording, tolerance: float = 0.02) -> Recordin
         When the recording does not retrace its path or has no velocities.
     """
     if recording.qd is None:
-        raise RecordingError(f"Recording.qd is missing ({recording.name}); fold_out_and_back needs velocities. "
-                             "Run preprocess(recording) first.")
+        raise RecordingError(
+            f"Recording.qd is missing ({recording.name}); fold_out_and_back needs velocities. "
+            "Run preprocess(recording) first."
+        )
     n = recording.n_samples
     half = n // 2
     first, mirror = np.arange(half), n - 1 - np.arange(half)
@@ -122,9 +134,15 @@ def fold_out_and_back(recording: Recording, tolerance: float = 0.02) -> Recordin
     def avg(x):
         return None if x is None else 0.5 * (x[first] + x[mirror])
 
-    return Recording(t=recording.t[first], q=avg(recording.q), tau=avg(recording.tau), current=avg(recording.current),
-                     qd=recording.qd[first], qdd=None if recording.qdd is None else recording.qdd[first],
-                     name=f"{recording.name} (folded)")
+    return Recording(
+        t=recording.t[first],
+        q=avg(recording.q),
+        tau=avg(recording.tau),
+        current=avg(recording.current),
+        qd=recording.qd[first],
+        qdd=None if recording.qdd is None else recording.qdd[first],
+        name=f"{recording.name} (folded)",
+    )
 
 
 def regressor_chunked(model: PSDMModel, q, qd, qdd) -> np.ndarray:
@@ -139,7 +157,7 @@ def regressor_chunked(model: PSDMModel, q, qd, qdd) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------
 # step 1: motor constants (eqs. 16-17)
 # ------------------------------------------------------------------------------------------------
-class MotorIdentifier(BaseIdentifier):
+class MotorIdentifier(LeastSquaresIdentifier):
     """Motor torque constants from sweeps with and without a known mass (paper eqs. 16-17).
 
     For each swept joint j, ``Kt_j (i_w - i_nom)_j = (J(q)^T f_w)_j``: the folded (forward/backward
@@ -160,10 +178,9 @@ class MotorIdentifier(BaseIdentifier):
     load : {"dynamic", "static"}
         Load torque of the mass: ``"dynamic"`` (default) its full rigid-body torque along the folded
         sweep, ``payload_torque(q, qd, qdd)`` (needs qd and qdd), or ``"static"``, its gravity torque
-        alone (eq. 16). Folding keeps the terms even in the velocity, and on the virtual Denso
-        (gravity along the base x axis) the mass's velocity terms biased Kt of joint 1 by 0.11 % at
-        0.25 rad/s with ``"static"`` (4e-6 with ``"dynamic"``); that error then moved the smallest
-        gravity parameter by 1.5 %.
+        alone (eq. 16). Folding keeps the mass's torques that are even in the velocity (centripetal
+        and Coriolis), which the static load leaves in the current difference as a Kt bias; the
+        gravity step inherits that bias through Kt.
 
     Attributes
     ----------
@@ -184,24 +201,25 @@ class MotorIdentifier(BaseIdentifier):
         if not isinstance(self.robot, RobotDescription):
             raise ParameterError(f"MotorIdentifier.robot must be a RobotDescription; got {type(self.robot).__name__}.")
         if not isinstance(self.payload, Payload) or not self.payload.mass > 0:
-            raise ParameterError("MotorIdentifier.payload must be a Payload with mass > 0 [kg]; got "
-                                 f"{self.payload!r}. Pass the calibration mass, e.g. Payload(mass=2.0, com=(0.05, 0, 0.05)).")
+            raise ParameterError(
+                "MotorIdentifier.payload must be a Payload with mass > 0 [kg]; got "
+                f"{self.payload!r}. Pass the calibration mass, e.g. Payload(mass=2.0, com=(0.05, 0, 0.05))."
+            )
         if not 0.0 < self.min_speed_fraction < 1.0:
-            raise ParameterError(f"MotorIdentifier.min_speed_fraction must be in (0, 1); got {self.min_speed_fraction!r}.")
+            raise ParameterError(
+                f"MotorIdentifier.min_speed_fraction must be in (0, 1); got {self.min_speed_fraction!r}."
+            )
         if self.load not in ("dynamic", "static"):
             raise ParameterError(f"MotorIdentifier.load must be 'dynamic' or 'static'; got {self.load!r}.")
         if not 0.0 <= self.min_torque_fraction < 1.0:
-            raise ParameterError(f"MotorIdentifier.min_torque_fraction must be in [0, 1); got {self.min_torque_fraction!r}.")
+            raise ParameterError(
+                f"MotorIdentifier.min_torque_fraction must be in [0, 1); got {self.min_torque_fraction!r}."
+            )
 
     def _experiments(self, data):
-        items = [data] if isinstance(data, MotorExperiment) else list(data)
-        if not items or not all(isinstance(e, MotorExperiment) for e in items):
-            raise ParameterError("MotorIdentifier.fit data must be a MotorExperiment or a sequence of them.")
-        n = self.robot.n_dof
+        items = experiments(data, MotorExperiment, "MotorIdentifier", self.robot.n_dof)
         for e in items:
-            if not (0 <= e.joint < n):
-                raise ParameterError(f"MotorExperiment.joint must be in 0..{n - 1}; got {e.joint!r}.")
-            e.nominal.check_robot(n, self.robot.name)
+            e.nominal.check_robot(self.robot.n_dof, self.robot.name)
         return items
 
     def _n_dof(self, data):
@@ -217,26 +235,27 @@ class MotorIdentifier(BaseIdentifier):
             d_current = e.loaded.current[:, j] - e.nominal.current[:, j]
             if self.load == "dynamic":
                 if any(r.qd is None or r.qdd is None for r in (e.nominal, e.loaded)):
-                    raise ParameterError(f"MotorIdentifier.load='dynamic' needs qd and qdd in the sweeps of joint {j + 1}; "
-                                         "preprocess them first or pass load='static'.")
+                    raise ParameterError(
+                        f"MotorIdentifier.load='dynamic' needs qd and qdd in the sweeps of joint {j + 1}; "
+                        "preprocess them first or pass load='static'."
+                    )
                 qd, qdd = 0.5 * (e.nominal.qd + e.loaded.qd), 0.5 * (e.nominal.qdd + e.loaded.qdd)
                 load = payload_torque(self.robot, self.payload, q, qd, qdd)[:, j]
             else:
                 load = payload_static_torque(self.robot, self.payload, q)[:, j]
             speed = np.abs(e.nominal.qd[:, j])
-            keep = (speed >= self.min_speed_fraction * speed.max()) & \
-                   (np.abs(load) >= self.min_torque_fraction * np.abs(load).max())
+            keep = (speed >= self.min_speed_fraction * speed.max()) & (
+                np.abs(load) >= self.min_torque_fraction * np.abs(load).max()
+            )
             if not np.any(np.abs(load) > 0):
                 raise ParameterError(
                     f"MotorExperiment.joint {j + 1}: the calibration mass gives no torque on this joint in this pose. "
-                    "Choose a pose (and Payload.com) in which the mass loads the joint.")
+                    "Choose a pose (and Payload.com) in which the mass loads the joint."
+                )
             a = np.zeros((q.shape[0], n))
             a[:, j] = d_current
             blocks.append(Design(a, load, keep.astype(float), np.full(q.shape[0], j)))
-        design = blocks[0]
-        for b in blocks[1:]:
-            design = design.stack(b)
-        return design
+        return Design.concatenate(blocks)
 
     def _solve(self, design: Design) -> LeastSquaresResult:
         n = design.matrix.shape[1]
@@ -251,7 +270,8 @@ class MotorIdentifier(BaseIdentifier):
             if not slope > 0:
                 raise ParameterError(
                     f"MotorIdentifier: the current difference of joint {j + 1} does not grow with the load torque "
-                    f"(slope {slope:.3g}); check the sign of the current, the payload and the pose.")
+                    f"(slope {slope:.3g}); check the sign of the current, the payload and the pose."
+                )
             res = di - slope * tau
             s2 = float(res @ res / max(rows.sum() - 1, 1))
             kt[j] = 1.0 / slope
@@ -270,7 +290,7 @@ class MotorIdentifier(BaseIdentifier):
 # ------------------------------------------------------------------------------------------------
 # step 2: gravity (eq. 18)
 # ------------------------------------------------------------------------------------------------
-class GravityIdentifier(BaseIdentifier):
+class GravityIdentifier(LeastSquaresIdentifier):
     """Gravity base parameters from slow out-and-back jogs (paper eq. 18).
 
     Rows ``(Kt i - tau_tool)_i = Y_grav(q)[i, gravity columns] theta_grav`` on folded recordings;
@@ -295,9 +315,9 @@ class GravityIdentifier(BaseIdentifier):
         are removed from the jog's torque first; needs qdd in the recordings.
     joint_weighting : {"relative", "none"}
         ``"relative"`` (default) weights the rows of joint i by ``1 / mean(tau_i^2)``, so every joint
-        counts by its relative error: errors proportional to the torque (a Kt error, 0.5 % of the
-        base joint's tens of N m) then do not leak into the small wrist parameters (on the virtual
-        Denso a 0.5 % Kt error of joint 1 moved them by 10-35 % unweighted). ``"none"``: eq. 18 as is.
+        counts by its relative error: errors proportional to the torque (a small Kt error of a base
+        joint carrying tens of N m) then do not leak into the small wrist parameters, which they
+        move markedly unweighted. ``"none"``: eq. 18 as is.
 
     Attributes
     ----------
@@ -307,8 +327,9 @@ class GravityIdentifier(BaseIdentifier):
         ``theta_gravity_`` placed in a full base-parameter vector (zeros elsewhere).
     """
 
-    def __init__(self, model=None, kt=None, robot=None, tool=None, min_speed=0.05, theta=None,
-                 joint_weighting="relative"):
+    def __init__(
+        self, model=None, kt=None, robot=None, tool=None, min_speed=0.05, theta=None, joint_weighting="relative"
+    ):
         self.model = model
         self.kt = kt
         self.robot = robot
@@ -320,40 +341,53 @@ class GravityIdentifier(BaseIdentifier):
     def _n_dof(self, data):
         return self.model.n_dof
 
-    def _design_matrix(self, data) -> Design:
-        _check_model(self.model, "GravityIdentifier")
-        n = self.model.n_dof
-        kt = None if self.kt is None else _vector(self.kt, n, "GravityIdentifier", "kt", "N m/A")
+    def _validate(self):
+        check_model(self.model, "GravityIdentifier")
         if not (np.isfinite(self.min_speed) and self.min_speed >= 0):
             raise ParameterError(f"GravityIdentifier.min_speed must be >= 0 [rad/s]; got {self.min_speed!r}.")
         if self.joint_weighting not in ("relative", "none"):
-            raise ParameterError(f"GravityIdentifier.joint_weighting must be 'relative' or 'none'; got "
-                                 f"{self.joint_weighting!r}.")
+            raise ParameterError(
+                f"GravityIdentifier.joint_weighting must be 'relative' or 'none'; got {self.joint_weighting!r}."
+            )
+
+    def _design_matrix(self, data) -> Design:
+        self._validate()
+        n = self.model.n_dof
+        kt = None if self.kt is None else vector(self.kt, n, "GravityIdentifier", "kt", "N m/A")
+        theta = (
+            None
+            if self.theta is None
+            else vector(self.theta, self.model.n_base, "GravityIdentifier", "theta", "base parameters")
+        )
         mask = self.model.gravity_mask
         blocks = []
-        for rec in _recordings(data, "GravityIdentifier"):
+        for rec in recordings(data, "GravityIdentifier"):
             rec.check_robot(n)
-            tau = rec.joint_torque(kt) - _tool_torque(self.robot, self.tool, rec, static=True)
+            tau = rec.joint_torque(kt) - tool_torque(self.robot, self.tool, rec, static=True)
             y_all = self.model.gravity_regressor(rec.q)
-            if self.theta is not None:
-                theta = _vector(self.theta, self.model.n_base, "GravityIdentifier", "theta", "base parameters")
+            if theta is not None:
                 tau = tau - (regressor_chunked(self.model, rec.q, rec.qd, rec.qdd) - y_all) @ theta
             y = y_all[:, :, mask]  # (N, n, n_grav)
             active = np.any(np.abs(y) > 0, axis=0).any(axis=1)  # joints with a gravity row
             weights = ((np.abs(rec.qd) >= self.min_speed) & active[None, :]).astype(float)
-            blocks.append(Design(y.reshape(-1, mask.sum()), tau.reshape(-1), weights.reshape(-1),
-                                 np.tile(np.arange(n), rec.n_samples)))
-        design = blocks[0]
-        for b in blocks[1:]:
-            design = design.stack(b)
+            blocks.append(
+                Design(
+                    y.reshape(-1, mask.sum()),
+                    tau.reshape(-1),
+                    weights.reshape(-1),
+                    np.tile(np.arange(n), rec.n_samples),
+                )
+            )
+        design = Design.concatenate(blocks)
         if self.joint_weighting == "relative":
             scale = np.ones(n)
             for j in range(n):
                 rows = (design.joint == j) & (design.weights > 0)
                 if rows.any():
                     scale[j] = max(float(np.mean(design.target[rows] ** 2)), 1e-12)
-            design = Design(design.matrix, design.target, design.weights / scale[design.joint], design.joint,
-                            offset=design.offset)
+            design = Design(
+                design.matrix, design.target, design.weights / scale[design.joint], design.joint, offset=design.offset
+            )
         return design
 
     def _after_fit(self, design):
@@ -366,7 +400,7 @@ class GravityIdentifier(BaseIdentifier):
 # ------------------------------------------------------------------------------------------------
 # step 4: inertial (eq. 21)
 # ------------------------------------------------------------------------------------------------
-class InertialIdentifier(BaseIdentifier):
+class InertialIdentifier(LeastSquaresIdentifier):
     """The non-gravity base parameters by least squares on an exciting trajectory (paper eq. 21).
 
     ``Kt i - Y[:, grav] theta_grav - tau_fric - tau_tool = Y[:, iner] theta_iner``, with friction
@@ -405,31 +439,41 @@ class InertialIdentifier(BaseIdentifier):
     def _n_dof(self, data):
         return self.model.n_dof
 
-    def _design_matrix(self, data) -> Design:
-        _check_model(self.model, "InertialIdentifier")
-        n, mask = self.model.n_dof, self.model.gravity_mask
-        kt = None if self.kt is None else _vector(self.kt, n, "InertialIdentifier", "kt", "N m/A")
-        theta = _vector(self.theta, self.model.n_base, "InertialIdentifier", "theta", "base parameters")
+    def _validate(self):
+        check_model(self.model, "InertialIdentifier")
+        n = self.model.n_dof
         if self.lugre is None or len(self.lugre) != n:
-            raise ParameterError(f"InertialIdentifier.lugre must hold {n} LuGreParameters (one per joint); got "
-                                 f"{None if self.lugre is None else len(self.lugre)}. Fit FrictionIdentifier first.")
+            raise ParameterError(
+                f"InertialIdentifier.lugre must hold {n} LuGreParameters (one per joint); got "
+                f"{None if self.lugre is None else len(self.lugre)}. Fit FrictionIdentifier first."
+            )
         if not (isinstance(self.decimation, (int, np.integer)) and self.decimation >= 1):
             raise ParameterError(f"InertialIdentifier.decimation must be an integer >= 1; got {self.decimation!r}.")
+
+    def _design_matrix(self, data) -> Design:
+        self._validate()
+        n, mask = self.model.n_dof, self.model.gravity_mask
+        kt = None if self.kt is None else vector(self.kt, n, "InertialIdentifier", "kt", "N m/A")
+        theta = vector(self.theta, self.model.n_base, "InertialIdentifier", "theta", "base parameters")
         blocks = []
-        for rec in _recordings(data, "InertialIdentifier"):
+        for rec in recordings(data, "InertialIdentifier"):
             rec.check_robot(n)
             friction = friction_torque(self.lugre, rec.t, rec.qd)
-            tau = rec.joint_torque(kt) - friction - _tool_torque(self.robot, self.tool, rec, static=False)
+            tau = rec.joint_torque(kt) - friction - tool_torque(self.robot, self.tool, rec, static=False)
             sl = slice(None, None, int(self.decimation))
             y = regressor_chunked(self.model, rec.q[sl], rec.qd[sl], rec.qdd[sl])
             held = y[:, :, mask] @ theta[mask]
             m = y.shape[0]
-            blocks.append(Design(y[:, :, ~mask].reshape(-1, int((~mask).sum())), tau[sl].reshape(-1),
-                                 np.ones(m * n), np.tile(np.arange(n), m), offset=held.reshape(-1)))
-        design = blocks[0]
-        for b in blocks[1:]:
-            design = design.stack(b)
-        return design
+            blocks.append(
+                Design(
+                    y[:, :, ~mask].reshape(-1, int((~mask).sum())),
+                    tau[sl].reshape(-1),
+                    np.ones(m * n),
+                    np.tile(np.arange(n), m),
+                    offset=held.reshape(-1),
+                )
+            )
+        return Design.concatenate(blocks)
 
     def _after_fit(self, design):
         mask = self.model.gravity_mask

@@ -19,17 +19,13 @@ Joints are numbered from 1 in file names and from 0 in the API.
 
 from __future__ import annotations
 
-import json
 import re
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
-from psdm_casadi.errors import ParameterError, RecordingError
-
-from identification.virtual.effects import Payload
 from identification.data.io import atomic_write, load_recording, save_recording
+from identification.data.payload import Payload, payload_json, read_payload
+from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["CalibrationData", "load_calibration_data", "save_calibration_data", "read_payload"]
 
@@ -43,7 +39,7 @@ class CalibrationData:
     Parameters
     ----------
     payload : Payload
-        The known calibration mass of the motor step.
+        The known calibration mass of the motor step (:mod:`identification.data.payload`).
     motor : tuple of (int, Recording, Recording)
         Per swept joint (0-based): the sweep without and with the mass.
     gravity : tuple of Recording
@@ -74,24 +70,14 @@ class CalibrationData:
         for name in ("motor", "gravity", "friction", "excitation"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
             if not getattr(self, name):
-                raise RecordingError(f"CalibrationData.{name} must hold at least one experiment; got none. "
-                                     f"Record the {name} experiment (see identification.data.dataset).")
+                raise RecordingError(
+                    f"CalibrationData.{name} must hold at least one experiment; got none. "
+                    f"Record the {name} experiment (see identification.data.dataset)."
+                )
 
     @property
     def n_dof(self) -> int:
         return self.gravity[0].n_dof
-
-
-def read_payload(path) -> Payload:
-    """Read ``{"mass": .., "com": [..], "inertia": [[..]]}`` into a Payload."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-        return Payload(mass=float(data["mass"]), com=tuple(float(c) for c in data.get("com", (0.0, 0.0, 0.0))),
-                       inertia=None if data.get("inertia") is None else tuple(map(tuple, data["inertia"])))
-    except (KeyError, TypeError, ValueError) as exc:
-        raise ParameterError(f"{path.name}: must hold {{'mass': kg, 'com': [x, y, z]}}; got an invalid file ({exc}). "
-                             "Fix the file.") from None
 
 
 def _find(directory: Path, pattern: str):
@@ -128,8 +114,10 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
         raise FileNotFoundError(f"data directory {str(directory)!r} does not exist. Check the --data path.")
     payload_path = directory / "payload.json"
     if not payload_path.exists():
-        raise FileNotFoundError(f"{payload_path} is missing: the motor step needs the calibration mass. "
-                                'Write {"mass": 2.0, "com": [0.05, 0.0, 0.05]} there.')
+        raise FileNotFoundError(
+            f"{payload_path} is missing: the motor step needs the calibration mass. "
+            'Write {"mass": 2.0, "com": [0.05, 0.0, 0.05]} there.'
+        )
     payload = read_payload(payload_path)
     tool = read_payload(directory / "tool.json") if (directory / "tool.json").exists() else None
     motor = []
@@ -137,31 +125,45 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
         k = int(re.search(r"_j([0-9]+)_", path.stem).group(1))
         partner = [p for p in (directory / f"motor_j{k}_payload{s}" for s in _SUFFIXES) if p.exists()]
         if not partner:
-            raise RecordingError(f"{path.name} has no partner motor_j{k}_payload.csv|npz; record the sweep with the mass.")
+            raise RecordingError(
+                f"{path.name} has no partner motor_j{k}_payload.csv|npz; record the sweep with the mass."
+            )
         motor.append((k - 1, load_recording(path, n_dof), load_recording(partner[0], n_dof)))
-    friction = [(int(re.search(r"([0-9]+)$", p.stem).group(1)) - 1, load_recording(p, n_dof))
-                for p in _find(directory, r"friction_j([0-9]+)")]
-    friction_validation = [(int(re.search(r"_j([0-9]+)_", p.stem).group(1)) - 1, load_recording(p, n_dof))
-                           for p in _find(directory, r"friction_j([0-9]+)_validation")]
+    friction = [
+        (int(re.search(r"([0-9]+)$", p.stem).group(1)) - 1, load_recording(p, n_dof))
+        for p in _find(directory, r"friction_j([0-9]+)")
+    ]
+    friction_validation = [
+        (int(re.search(r"_j([0-9]+)_", p.stem).group(1)) - 1, load_recording(p, n_dof))
+        for p in _find(directory, r"friction_j([0-9]+)_validation")
+    ]
     gravity = [load_recording(p, n_dof) for p in _find(directory, r"gravity.*")]
     excitation = [load_recording(p, n_dof) for p in _find(directory, r"(excitation|sine).*")]
-    for name, items in (("motor_j<k>_nominal", motor), ("gravity", gravity), ("friction_j<k>", friction),
-                        ("excitation", excitation)):
+    for name, items in (
+        ("motor_j<k>_nominal", motor),
+        ("gravity", gravity),
+        ("friction_j<k>", friction),
+        ("excitation", excitation),
+    ):
         if not items:
-            raise RecordingError(f"{directory}: no {name}.csv|npz recording found. Add it (see identification.data.dataset).")
-    return CalibrationData(payload=payload, motor=tuple(motor), gravity=tuple(gravity), friction=tuple(friction),
-                           excitation=tuple(excitation), tool=tool, friction_validation=tuple(friction_validation))
+            raise RecordingError(
+                f"{directory}: no {name}.csv|npz recording found. Add it (see identification.data.dataset)."
+            )
+    return CalibrationData(
+        payload=payload,
+        motor=tuple(motor),
+        gravity=tuple(gravity),
+        friction=tuple(friction),
+        excitation=tuple(excitation),
+        tool=tool,
+        friction_validation=tuple(friction_validation),
+    )
 
 
 def save_calibration_data(data: CalibrationData, directory, fmt: str = "npz", overwrite: bool = False) -> Path:
     """Write ``data`` in the directory layout of the module docstring (atomic files)."""
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
-
-    def payload_json(p):
-        return json.dumps({"mass": p.mass, "com": list(p.com),
-                           "inertia": None if p.inertia is None else np.asarray(p.inertia).tolist()})
-
     atomic_write(directory / "payload.json", lambda h: h.write(payload_json(data.payload) + "\n"), overwrite=overwrite)
     if data.tool is not None:
         atomic_write(directory / "tool.json", lambda h: h.write(payload_json(data.tool) + "\n"), overwrite=overwrite)
@@ -175,6 +177,7 @@ def save_calibration_data(data: CalibrationData, directory, fmt: str = "npz", ov
     for joint, rec in data.friction_validation:
         save_recording(rec, directory / f"friction_j{joint + 1}_validation.{fmt}", overwrite=overwrite)
     for k, rec in enumerate(data.excitation):
-        save_recording(rec, directory / (f"excitation.{fmt}" if k == 0 else f"excitation_{k + 1}.{fmt}"),
-                       overwrite=overwrite)
+        save_recording(
+            rec, directory / (f"excitation.{fmt}" if k == 0 else f"excitation_{k + 1}.{fmt}"), overwrite=overwrite
+        )
     return directory

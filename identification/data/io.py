@@ -12,10 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.fileio import atomic_write  # noqa: F401  (re-exported for the package)
-from psdm_casadi.errors import RecordingError
-
 from identification.data.recording import MIN_SAMPLES, Recording
+from psdm_casadi.errors import RecordingError
+from psdm_casadi.fileio import atomic_write  # noqa: F401  (re-exported for the package)
 
 # signal -> column prefix, in the order columns are written
 COLUMN_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "current": "i"}
@@ -61,8 +60,10 @@ def _assemble(columns: dict, source: str, n_dof: int | None, lines=None) -> Reco
         )
     n = n_found
     if not groups["tau"] and not groups["current"]:
-        raise RecordingError(f"{source}: columns tau1..tau{n} and i1..i{n} are both missing. "
-                             f"Add joint torques tau1..tau{n} [N m] or motor currents i1..i{n} [A].")
+        raise RecordingError(
+            f"{source}: columns tau1..tau{n} and i1..i{n} are both missing. "
+            f"Add joint torques tau1..tau{n} [N m] or motor currents i1..i{n} [A]."
+        )
     arrays = {}
     for signal, found in groups.items():
         if not found:
@@ -76,7 +77,9 @@ def _assemble(columns: dict, source: str, n_dof: int | None, lines=None) -> Reco
                 )
         for j in range(1, n + 1):
             if j not in found:
-                raise RecordingError(f"{source}: column {prefix}{j} is missing ({prefix}1..{prefix}{n} expected). Add it.")
+                raise RecordingError(
+                    f"{source}: column {prefix}{j} is missing ({prefix}1..{prefix}{n} expected). Add it."
+                )
         arrays[signal] = np.column_stack([found[j] for j in range(1, n + 1)])
     t = np.asarray(columns["t"], dtype=float)
     if t.shape[0] < MIN_SAMPLES:
@@ -91,7 +94,8 @@ def _assemble(columns: dict, source: str, n_dof: int | None, lines=None) -> Reco
             row = int(np.argmax(bad))
             at = f"line {lines[row]}" if lines is not None else f"row {row}"
             raise RecordingError(
-                f"{source}: column {name} holds {float(values[row])!r} at {at}. Remove or interpolate non-finite samples."
+                f"{source}: column {name} holds {float(values[row])!r} at {at}. "
+                "Remove or interpolate non-finite samples."
             )
     steps = np.diff(t)
     if np.any(steps <= 0):
@@ -107,7 +111,7 @@ def _assemble(columns: dict, source: str, n_dof: int | None, lines=None) -> Reco
 def _read_csv(path: Path, n_dof: int | None) -> Recording:
     source = path.name
     header, rows, lines = None, [], []
-    with open(path, "r", encoding="utf-8") as handle:
+    with open(path, encoding="utf-8") as handle:
         for number, line in enumerate(handle, start=1):
             text = line.strip()
             if not text or text.startswith("#"):
@@ -171,7 +175,9 @@ def _read_npz(path: Path, n_dof: int | None) -> Recording:
     if len(set(lengths.values())) > 1:
         n_t = lengths.get("t", max(lengths.values()))
         bad = next(name for name, n in lengths.items() if n != n_t)
-        raise RecordingError(f"{source}: column {bad} has {lengths[bad]} samples but t has {n_t}. Make all columns equal length.")
+        raise RecordingError(
+            f"{source}: column {bad} has {lengths[bad]} samples but t has {n_t}. Make all columns equal length."
+        )
     return _assemble(columns, source, n_dof)
 
 
@@ -242,9 +248,12 @@ def save_recording(recording: Recording, path, overwrite: bool = False, comment:
     path = Path(path)
     suffix = path.suffix.lower()
     names = recording_columns(recording)
-    blocks = [recording.t[:, None]] + [getattr(recording, s) for s in COLUMN_PREFIXES if getattr(recording, s) is not None]
+    blocks = [recording.t[:, None]] + [
+        getattr(recording, s) for s in COLUMN_PREFIXES if getattr(recording, s) is not None
+    ]
     data = np.hstack(blocks)
     if suffix == ".csv":
+
         def write(handle):
             handle.write(FORMAT_COMMENT + "\n")
             if comment:
@@ -252,9 +261,12 @@ def save_recording(recording: Recording, path, overwrite: bool = False, comment:
                     handle.write(f"# {line}\n")
             handle.write(",".join(names) + "\n")
             np.savetxt(handle, data, delimiter=",", fmt="%.17g")
+
         return atomic_write(path, write, overwrite)
     if suffix == ".npz":
+
         def write(handle):
             np.savez(handle, **{name: data[:, k] for k, name in enumerate(names)})
+
         return atomic_write(path, write, overwrite, mode="wb")
     raise RecordingError(f"save_recording path {path.name!r} must end in .csv or .npz; got {path.suffix!r}.")

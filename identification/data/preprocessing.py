@@ -17,9 +17,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.signal import butter, sosfiltfilt
 
-from psdm_casadi.errors import ParameterError, RecordingError
-
 from identification.data.recording import Recording
+from psdm_casadi.errors import ParameterError, RecordingError
 
 DIFFERENTIATIONS = ("central", "none")
 
@@ -64,14 +63,17 @@ class PreprocessOptions:
                 f"PreprocessOptions.cutoff_hz must be a positive frequency [Hz] or None; got {self.cutoff_hz!r}."
             )
         if not (isinstance(self.order, (int, np.integer)) and 1 <= self.order <= 20):
-            raise ParameterError(f"PreprocessOptions.order must be an integer in 1..20; got {self.order!r}. Use 8 as in the paper.")
+            raise ParameterError(
+                f"PreprocessOptions.order must be an integer in 1..20; got {self.order!r}. Use 8 as in the paper."
+            )
         if self.differentiation not in DIFFERENTIATIONS:
             raise ParameterError(
                 f"PreprocessOptions.differentiation must be one of {DIFFERENTIATIONS}; got {self.differentiation!r}."
             )
         if not 0.0 < self.split_fraction < 1.0:
             raise ParameterError(
-                f"PreprocessOptions.split_fraction must be in (0, 1); got {self.split_fraction!r}. Use 0.85 as in the paper."
+                f"PreprocessOptions.split_fraction must be in (0, 1); got {self.split_fraction!r}. "
+                "Use 0.85 as in the paper."
             )
         if not self.uniform_rtol >= 0:
             raise ParameterError(f"PreprocessOptions.uniform_rtol must be >= 0; got {self.uniform_rtol!r}.")

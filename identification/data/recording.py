@@ -180,7 +180,7 @@ class Recording:
             )
         return self.current * kt
 
-    def check_robot(self, n_dof: int, robot_name: str = "RobotDescription") -> "Recording":
+    def check_robot(self, n_dof: int, robot_name: str = "RobotDescription") -> Recording:
         """Check the recording has one column per joint of a robot; return it unchanged.
 
         Raises
@@ -197,34 +197,44 @@ class Recording:
         return self
 
     # --- derived recordings -------------------------------------------------------------------
-    def with_signals(self, *, t=_KEEP, q=_KEEP, tau=_KEEP, current=_KEEP, qd=_KEEP, qdd=_KEEP, name=_KEEP) -> "Recording":
+    def with_signals(self, *, t=_KEEP, q=_KEEP, tau=_KEEP, current=_KEEP, qd=_KEEP, qdd=_KEEP, name=_KEEP) -> Recording:
         """A copy with some signals replaced (pass ``None`` to drop an optional one)."""
-        changes = {key: value for key, value in
-                   dict(t=t, q=q, tau=tau, current=current, qd=qd, qdd=qdd, name=name).items()
-                   if value is not _KEEP}
+        changes = {
+            key: value
+            for key, value in dict(t=t, q=q, tau=tau, current=current, qd=qd, qdd=qdd, name=name).items()
+            if value is not _KEEP
+        }
         return replace(self, **changes)
 
-    def with_tau(self, tau) -> "Recording":
+    def with_tau(self, tau) -> Recording:
         """A copy with joint torques ``tau`` (n_samples, n_dof) [N m]."""
         return self.with_signals(tau=tau)
 
-    def slice(self, start: int | None = None, stop: int | None = None) -> "Recording":
+    def slice(self, start: int | None = None, stop: int | None = None) -> Recording:
         """Samples ``start:stop`` (Python slice semantics) as a new recording."""
         index = slice(start, stop)
         return self._take(index)
 
-    def time_slice(self, t_start: float = -np.inf, t_stop: float = np.inf) -> "Recording":
+    def time_slice(self, t_start: float = -np.inf, t_stop: float = np.inf) -> Recording:
         """Samples with ``t_start <= t < t_stop`` as a new recording."""
         mask = (self.t >= t_start) & (self.t < t_stop)
         return self._take(np.flatnonzero(mask))
 
-    def _take(self, index) -> "Recording":
+    def _take(self, index) -> Recording:
         def pick(a):
             return None if a is None else a[index]
-        return Recording(t=self.t[index], q=self.q[index], tau=pick(self.tau), current=pick(self.current),
-                         qd=pick(self.qd), qdd=pick(self.qdd), name=self.name)
 
-    def split(self, fraction: float = 0.85, n_blocks: int = 1) -> tuple["Recording", "Recording"]:
+        return Recording(
+            t=self.t[index],
+            q=self.q[index],
+            tau=pick(self.tau),
+            current=pick(self.current),
+            qd=pick(self.qd),
+            qdd=pick(self.qdd),
+            name=self.name,
+        )
+
+    def split(self, fraction: float = 0.85, n_blocks: int = 1) -> tuple[Recording, Recording]:
         """Training and validation parts in contiguous blocks (paper: 85/15 %).
 
         The recording is cut into ``n_blocks`` equal contiguous blocks; the first ``fraction`` of each
@@ -275,6 +285,7 @@ def _check_finite(key: str, arr: np.ndarray, where: str) -> None:
         row = int(index[0])
         column = key if arr.ndim == 1 else f"{key}{int(index[1]) + 1}"
         raise RecordingError(
-            f"Recording.{key} must be finite; got {float(arr[tuple(index)])!r} in column {column} at sample {row}{where}. "
+            f"Recording.{key} must be finite; got {float(arr[tuple(index)])!r} in column {column} "
+            f"at sample {row}{where}. "
             "Remove or interpolate the bad samples."
         )

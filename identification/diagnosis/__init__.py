@@ -11,15 +11,54 @@ projection), ``refine`` (Ipopt fit of the nonlinear parameters of the kept terms
 """
 
 from identification.diagnosis.augmented import AugmentedModel
-from identification.diagnosis.candidates import (ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, BacklashTerm, CandidateLibrary, CandidateTerm,
-                         CouplingTerm, CoulombAsymmetryTerm, DelayTerm, FrictionDriftTerm, GravityTiltTerm,
-                         JointElasticityTerm, LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
-                         TorqueOffsetTerm, TorqueRippleTerm, default_library)
+from identification.diagnosis.candidates import (
+    ALL_TERMS,
+    EQUIVALENT_EFFECTS,
+    TERMS_BY_KEY,
+    BacklashTerm,
+    CandidateLibrary,
+    CandidateTerm,
+    CoulombAsymmetryTerm,
+    CouplingTerm,
+    DelayTerm,
+    FrictionDriftTerm,
+    GravityTiltTerm,
+    JointElasticityTerm,
+    LoadDependentFrictionTerm,
+    PayloadTerm,
+    RotorInertiaTerm,
+    SpringTerm,
+    TorqueOffsetTerm,
+    TorqueRippleTerm,
+    default_library,
+)
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.report import NO_FINDING, DiagnosisReport, Finding
 
-__all__ = ["AugmentedModel", "ALL_TERMS", "EQUIVALENT_EFFECTS", "TERMS_BY_KEY", "BacklashTerm", "CandidateLibrary",
-           "CandidateTerm", "CouplingTerm", "CoulombAsymmetryTerm", "DelayTerm", "FrictionDriftTerm", "GravityTiltTerm",
-           "JointElasticityTerm", "LoadDependentFrictionTerm", "PayloadTerm", "RotorInertiaTerm", "SpringTerm",
-           "TorqueOffsetTerm", "TorqueRippleTerm", "default_library", "DiagnosisOptions", "diagnose", "NO_FINDING",
-           "DiagnosisReport", "Finding"]
+__all__ = [
+    "AugmentedModel",
+    "ALL_TERMS",
+    "EQUIVALENT_EFFECTS",
+    "TERMS_BY_KEY",
+    "BacklashTerm",
+    "CandidateLibrary",
+    "CandidateTerm",
+    "CouplingTerm",
+    "CoulombAsymmetryTerm",
+    "DelayTerm",
+    "FrictionDriftTerm",
+    "GravityTiltTerm",
+    "JointElasticityTerm",
+    "LoadDependentFrictionTerm",
+    "PayloadTerm",
+    "RotorInertiaTerm",
+    "SpringTerm",
+    "TorqueOffsetTerm",
+    "TorqueRippleTerm",
+    "default_library",
+    "DiagnosisOptions",
+    "diagnose",
+    "NO_FINDING",
+    "DiagnosisReport",
+    "Finding",
+]

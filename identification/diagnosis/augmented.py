@@ -1,4 +1,5 @@
-"""AugmentedModel: the nominal PSDM model plus the missing physics found by ``diagnose``, buildable as a CasADi Function.
+"""AugmentedModel: the nominal PSDM model plus the missing physics found by ``diagnose``, buildable as a CasADi
+Function.
 
 Terms that change base parameters (payload, rotor inertia) are folded into ``theta``; friction and the
 additive terms (spring, offset, ripple, asymmetry, drift, load-dependent friction, coupling) become
@@ -50,8 +51,10 @@ class AugmentedModel:
         q = ca.SX.sym("q", self.model.n_dof)
         out = {}
         for term, c in zip(self.terms, self.coefficients):
-            if term.theta_change(c, np.asarray(self.model.parameter_map)) is None and \
-                    term.casadi_expression(q, q, q, ca.SX.sym("t"), q, c) is None:
+            if (
+                term.theta_change(c, np.asarray(self.model.parameter_map)) is None
+                and term.casadi_expression(q, q, q, ca.SX.sym("t"), q, c) is None
+            ):
                 out[term.label] = term.physical_parameters(c)
         return out
 
@@ -64,33 +67,54 @@ class AugmentedModel:
         t = ca.SX.sym("t")
         fns = build_functions(self.model, self.theta_augmented)
         tau_rigid = fns.inverse_dynamics(q, qd, qdd)
-        tau = tau_rigid + friction_casadi(self.friction_kind, qd, self.friction_coefficients, self.friction_vs,
-                                          self.friction_dv)
+        tau = tau_rigid + friction_casadi(
+            self.friction_kind, qd, self.friction_coefficients, self.friction_vs, self.friction_dv
+        )
         nominal = tau
         for term, c in zip(self.terms, self.coefficients):
             extra = term.casadi_expression(q, qd, qdd, t, nominal, c)
             if extra is not None:
                 tau = tau + extra
-        return ca.Function("augmented_inverse_dynamics", [q, qd, qdd, t], [tau], ["q", "qd", "qdd", "t"], ["tau"],
-                           {"cse": True})
+        return ca.Function(
+            "augmented_inverse_dynamics", [q, qd, qdd, t], [tau], ["q", "qd", "qdd", "t"], ["tau"], {"cse": True}
+        )
 
     def describe(self) -> dict:
-        return {"format": "psdm-augmented/1", "robot": self.model.robot_name, "theta": self.theta.tolist(),
-                "theta_augmented": self.theta_augmented.tolist(), "base_names": list(self.model.base_names),
-                "friction": {"kind": self.friction_kind, "coefficients": self.friction_coefficients.tolist(),
-                             "vs": self.friction_vs.tolist(), "dv": self.friction_dv.tolist()},
-                "terms": [{"effect": term.key, "label": term.label, "features": term.feature_names(),
-                           "coefficients": np.asarray(c).tolist(), "parameters": term.physical_parameters(c)}
-                          for term, c in zip(self.terms, self.coefficients)],
-                "signal_corrections": self.signal_corrections}
+        return {
+            "format": "psdm-augmented/1",
+            "robot": self.model.robot_name,
+            "theta": self.theta.tolist(),
+            "theta_augmented": self.theta_augmented.tolist(),
+            "base_names": list(self.model.base_names),
+            "friction": {
+                "kind": self.friction_kind,
+                "coefficients": self.friction_coefficients.tolist(),
+                "vs": self.friction_vs.tolist(),
+                "dv": self.friction_dv.tolist(),
+            },
+            "terms": [
+                {
+                    "effect": term.key,
+                    "label": term.label,
+                    "features": term.feature_names(),
+                    "coefficients": np.asarray(c).tolist(),
+                    "parameters": term.physical_parameters(c),
+                }
+                for term, c in zip(self.terms, self.coefficients)
+            ],
+            "signal_corrections": self.signal_corrections,
+        }
 
     def save(self, directory, overwrite: bool = False) -> dict:
         """Write ``augmented_model.json`` (parameters) and ``augmented_inverse_dynamics.casadi`` (Function.save)."""
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         text = json.dumps(self.describe(), indent=2, default=float)
-        paths = {"augmented_json": atomic_write(directory / "augmented_model.json", lambda h: h.write(text + "\n"),
-                                                overwrite=overwrite)}
+        paths = {
+            "augmented_json": atomic_write(
+                directory / "augmented_model.json", lambda h: h.write(text + "\n"), overwrite=overwrite
+            )
+        }
         function = self.build_function()
         target = directory / "augmented_inverse_dynamics.casadi"
         if target.exists() and not overwrite:

@@ -26,12 +26,11 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from psdm_casadi.errors import ParameterError, RecordingError
-from psdm_casadi.oracle import build_pinocchio_model
-
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from psdm_casadi.errors import ParameterError, RecordingError
+from psdm_casadi.oracle import build_pinocchio_model
 
 FILTER_ORDER = PreprocessOptions().order  # the order ``diagnose`` preprocesses the recordings with
 
@@ -176,9 +175,87 @@ def _tilt_axes(gravity: np.ndarray) -> np.ndarray:
     return np.vstack([a1, a2])
 
 
-def build_context(robot, model, recording: Recording, rate_hz: float = 200.0,
-                  cutoff_hz: float | None = 15.0, torque_constants=None, with_regressor: bool = False,
-                  raw: Recording | None = None, filtered_friction: bool | None = None) -> DiagnosisContext:
+def _decimated_indices(recording: Recording, rate_hz: float) -> np.ndarray:
+    """Indices of the samples of a ``rate_hz`` grid, without the ends where the zero-phase filter and the
+    differences are least reliable (5 % of the grid, at most 0.2 s each)."""
+    step = max(1, int(round(1.0 / (rate_hz * recording.dt))))
+    keep = np.arange(0, recording.n_samples, step)
+    margin = min(keep.size // 20, int(round(0.2 / (recording.dt * step))))
+    return keep[margin : keep.size - margin] if margin > 0 else keep
+
+
+def _rigid_body_signals(pmodel, q, qd, qdd) -> tuple:
+    """Nominal rigid-body torque (n_samples, n_dof), its Jacobians with respect to q and qd and the mass
+    matrix (each (n_samples, n_dof, n_dof)), from Pinocchio's ``computeRNEADerivatives``."""
+    data = pmodel.createData()
+    m, n = q.shape
+    tau_rigid = np.empty((m, n))
+    dq, dv, mass = (np.empty((m, n, n)) for _ in range(3))
+    for k in range(m):
+        pin.computeRNEADerivatives(pmodel, data, q[k], qd[k], qdd[k])
+        dq[k], dv[k] = data.dtau_dq, data.dtau_dv
+        mm = np.triu(data.M)
+        mass[k] = mm + np.triu(mm, 1).T
+        tau_rigid[k] = pin.rnea(pmodel, data, q[k], qd[k], qdd[k])
+    return tau_rigid, dq, dv, mass
+
+
+def _tilted_gravity_torque(pmodel, gravity: np.ndarray, q) -> tuple:
+    """The two tilt axes normal to gravity (2, 3) and the gravity torque of a gravity tilted by 1 rad about each
+    (linearised), (n_samples, n_dof, 2)."""
+    axes = _tilt_axes(gravity)
+    tilt = np.empty((q.shape[0], q.shape[1], 2))
+    for a, axis in enumerate(axes):
+        tilted = pmodel.copy()
+        tilted.gravity.linear = np.cross(axis, gravity)
+        tdata = tilted.createData()
+        tilt[:, :, a] = [pin.computeGeneralizedGravity(tilted, tdata, x) for x in q]
+    return axes, tilt
+
+
+def _payload_torque(robot, q, qd, qdd, tau_rigid) -> np.ndarray:
+    """Torque per unit mass and first moments (m, mx, my, mz) added to the last link, (n_samples, n_dof, 4).
+
+    RNEA is linear in them: differences of RNEA with the nominal parameters, with a unit mass added to the
+    last link (which keeps every perturbed inertia valid) and with a unit first moment added to that."""
+    standard = np.array(robot.nominal_dynamic_parameters(), dtype=float)
+    reference = standard.copy()
+    reference[-1, 0] += 1.0
+    payload = np.empty((q.shape[0], q.shape[1], 4))
+
+    def rnea_all(params):
+        pm = build_pinocchio_model(robot, params)
+        pd_ = pm.createData()
+        return np.array([pin.rnea(pm, pd_, a, b, c) for a, b, c in zip(q, qd, qdd)])
+
+    tau_ref = rnea_all(reference)
+    payload[:, :, 0] = tau_ref - tau_rigid
+    for c in (1, 2, 3):
+        shifted = reference.copy()
+        shifted[-1, c] += 1.0
+        payload[:, :, c] = rnea_all(shifted) - tau_ref
+    return payload
+
+
+def _raw_torque(raw: Recording, recording: Recording, tau_full, torque_constants) -> np.ndarray:
+    """The torque of ``raw`` (before preprocessing) on the time grid of ``recording`` (n_full, n_dof)."""
+    source = raw.joint_torque(torque_constants)
+    if source.shape == tau_full.shape and np.allclose(raw.t, recording.t):
+        return source.copy()
+    return np.column_stack([np.interp(recording.t, raw.t, source[:, j]) for j in range(tau_full.shape[1])])
+
+
+def build_context(
+    robot,
+    model,
+    recording: Recording,
+    rate_hz: float = 200.0,
+    cutoff_hz: float | None = 15.0,
+    torque_constants=None,
+    with_regressor: bool = False,
+    raw: Recording | None = None,
+    filtered_friction: bool | None = None,
+) -> DiagnosisContext:
     """Evaluate the nominal model's signals on a preprocessed recording.
 
     Parameters
@@ -212,59 +289,39 @@ def build_context(robot, model, recording: Recording, rate_hz: float = 200.0,
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise ParameterError(f"DiagnosisOptions.rate_hz must be positive [Hz]; got {rate_hz!r}.")
     tau_full = recording.joint_torque(torque_constants)
-    step = max(1, int(round(1.0 / (rate_hz * recording.dt))))
-    keep = np.arange(0, recording.n_samples, step)
-    # drop the ends where the zero-phase filter and differences are least reliable
-    margin = min(keep.size // 20, int(round(0.2 / (recording.dt * step))))
-    keep = keep[margin:keep.size - margin] if margin > 0 else keep
+    keep = _decimated_indices(recording, rate_hz)
     tau_rate_full, tau_accel_full = central_difference(recording.t, tau_full)
     q, qd, qdd = recording.q[keep], recording.qd[keep], recording.qdd[keep]
     pmodel = build_pinocchio_model(robot)
-    data = pmodel.createData()
-    n, m = robot.n_dof, keep.size
-    tau_rigid = np.empty((m, n))
-    dq, dv, mass = (np.empty((m, n, n)) for _ in range(3))
-    for k in range(m):
-        pin.computeRNEADerivatives(pmodel, data, q[k], qd[k], qdd[k])
-        dq[k], dv[k] = data.dtau_dq, data.dtau_dv
-        mm = np.triu(data.M)
-        mass[k] = mm + np.triu(mm, 1).T
-        tau_rigid[k] = pin.rnea(pmodel, data, q[k], qd[k], qdd[k])
-    gravity = np.asarray(robot.gravity, dtype=float)
-    axes = _tilt_axes(gravity)
-    tilt = np.empty((m, n, 2))
-    for a, axis in enumerate(axes):
-        tilted = pmodel.copy()
-        tilted.gravity.linear = np.cross(axis, gravity)
-        tdata = tilted.createData()
-        tilt[:, :, a] = [pin.computeGeneralizedGravity(tilted, tdata, x) for x in q]
+    tau_rigid, dq, dv, mass = _rigid_body_signals(pmodel, q, qd, qdd)
+    axes, tilt = _tilted_gravity_torque(pmodel, np.asarray(robot.gravity, dtype=float), q)
     regressor = model.regressor(q, qd, qdd) if with_regressor else None
-    standard = np.array(robot.nominal_dynamic_parameters(), dtype=float)
-    reference = standard.copy()
-    reference[-1, 0] += 1.0  # a unit mass keeps every perturbed inertia valid
-    payload = np.empty((m, n, 4))
-
-    def rnea_all(params):
-        pm = build_pinocchio_model(robot, params)
-        pd_ = pm.createData()
-        return np.array([pin.rnea(pm, pd_, a, b, c) for a, b, c in zip(q, qd, qdd)])
-
-    tau_ref = rnea_all(reference)
-    payload[:, :, 0] = tau_ref - tau_rigid
-    for c in (1, 2, 3):
-        shifted = reference.copy()
-        shifted[-1, c] += 1.0
-        payload[:, :, c] = rnea_all(shifted) - tau_ref
-    tau_raw = None
-    if raw is not None:
-        source = raw.joint_torque(torque_constants)
-        tau_raw = (source.copy() if source.shape == tau_full.shape and np.allclose(raw.t, recording.t) else
-                   np.column_stack([np.interp(recording.t, raw.t, source[:, j]) for j in range(n)]))
+    payload = _payload_torque(robot, q, qd, qdd, tau_rigid)
+    tau_raw = None if raw is None else _raw_torque(raw, recording, tau_full, torque_constants)
     return DiagnosisContext(
-        t=recording.t[keep], q=q, qd=qd, qdd=qdd, tau=tau_full[keep], tau_rate=tau_rate_full[keep],
-        tau_accel=tau_accel_full[keep], tau_rigid=tau_rigid, dtau_dq=dq, dtau_dqd=dv, mass=mass,
-        regressor=regressor, payload=payload, tilt=tilt, tilt_axes=axes, full_t=recording.t.copy(), full_tau=tau_full, full_qd=recording.qd.copy(), keep=keep,
-        cutoff_hz=cutoff_hz, parameter_map=np.asarray(model.parameter_map),
-        drives=robot.drives, name=recording.name, full_tau_raw=tau_raw,
-        filtered_friction=(robot.drives is not None) if filtered_friction is None else bool(filtered_friction))
-
+        t=recording.t[keep],
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        tau=tau_full[keep],
+        tau_rate=tau_rate_full[keep],
+        tau_accel=tau_accel_full[keep],
+        tau_rigid=tau_rigid,
+        dtau_dq=dq,
+        dtau_dqd=dv,
+        mass=mass,
+        regressor=regressor,
+        payload=payload,
+        tilt=tilt,
+        tilt_axes=axes,
+        full_t=recording.t.copy(),
+        full_tau=tau_full,
+        full_qd=recording.qd.copy(),
+        keep=keep,
+        cutoff_hz=cutoff_hz,
+        parameter_map=np.asarray(model.parameter_map),
+        drives=robot.drives,
+        name=recording.name,
+        full_tau_raw=tau_raw,
+        filtered_friction=(robot.drives is not None) if filtered_friction is None else bool(filtered_friction),
+    )

@@ -14,19 +14,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates import CandidateLibrary, default_library
 from identification.diagnosis.context import DiagnosisContext, build_context
-from identification.diagnosis.nominal import (FRICTION_MODELS, RIGID_BODY_CHOICES, filtered_friction_columns,
-                                              friction_feature_names, friction_shapes)
+from identification.diagnosis.nominal import (
+    FRICTION_MODELS,
+    RIGID_BODY_CHOICES,
+    filtered_friction_columns,
+    friction_feature_names,
+    friction_shapes,
+)
 from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
 from identification.diagnosis.selection import SelectionResult, forward_select
 from identification.metrics import r2, rmse
+from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
 
@@ -79,9 +83,13 @@ class DiagnosisOptions:
         if self.friction not in FRICTION_MODELS:
             raise ParameterError(f"DiagnosisOptions.friction must be one of {FRICTION_MODELS}; got {self.friction!r}.")
         if self.rigid_body not in RIGID_BODY_CHOICES:
-            raise ParameterError(f"DiagnosisOptions.rigid_body must be one of {RIGID_BODY_CHOICES}; got {self.rigid_body!r}.")
+            raise ParameterError(
+                f"DiagnosisOptions.rigid_body must be one of {RIGID_BODY_CHOICES}; got {self.rigid_body!r}."
+            )
         if not 0.0 < self.min_improvement < 1.0:
-            raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {self.min_improvement!r}. Use 0.2.")
+            raise ParameterError(
+                f"DiagnosisOptions.min_improvement must be in (0, 1); got {self.min_improvement!r}. Use 0.2."
+            )
         if not (isinstance(self.max_effects, (int, np.integer)) and self.max_effects >= 0):
             raise ParameterError(f"DiagnosisOptions.max_effects must be an integer >= 0; got {self.max_effects!r}.")
         if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
@@ -89,8 +97,10 @@ class DiagnosisOptions:
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
             raise ParameterError(f"DiagnosisOptions.cutoff_hz must be positive [Hz] or None; got {self.cutoff_hz!r}.")
         if self.library is not None and not isinstance(self.library, CandidateLibrary):
-            raise ParameterError(f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
-                                 "Combine terms with +, e.g. SpringTerm() + TorqueOffsetTerm().")
+            raise ParameterError(
+                f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
+                "Combine terms with +, e.g. SpringTerm() + TorqueOffsetTerm()."
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,10 +198,12 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
     logger.info("diagnose: evaluating the nominal model ...")
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
     need_y = options.rigid_body == "identified"
-    ctx_t = build_context(robot, model, train, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y,
-                          raw=raw_train)
-    ctx_v = build_context(robot, model, validation, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y,
-                          raw=raw_validation)
+    ctx_t = build_context(
+        robot, model, train, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y, raw=raw_train
+    )
+    ctx_v = build_context(
+        robot, model, validation, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y, raw=raw_validation
+    )
     base_t = filtered_friction_columns(robot, options.friction, ctx_t)
     base_v = filtered_friction_columns(robot, options.friction, ctx_v)
     if options.rigid_body == "prior":
@@ -212,34 +224,65 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
     logger.info(f"diagnose: selecting among {len(instances)} candidate terms ...")
-    return forward_select(instances, ctx_t, problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v,
-                          min_improvement=options.min_improvement, max_effects=options.max_effects,
-                          effective_samples=n_eff, joint_threshold=options.joint_threshold)
+    return forward_select(
+        instances,
+        ctx_t,
+        problem.ctx_v,
+        problem.base_t,
+        problem.base_v,
+        problem.y_t,
+        problem.y_v,
+        min_improvement=options.min_improvement,
+        max_effects=options.max_effects,
+        effective_samples=n_eff,
+        joint_threshold=options.joint_threshold,
+    )
 
 
 def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options: DiagnosisOptions) -> FinalFit:
     """Refit the kept terms with their nonlinear parameters; the linear fit stays when that does not improve it."""
-    linear = FinalFit(terms=tuple(step.term for step in selection.steps), coefficients=selection.coefficients,
-                      friction_coefficients=selection.friction_coefficients,
-                      prediction_t=selection.prediction_train, prediction_v=selection.prediction_validation,
-                      nonlinear={})
+    linear = FinalFit(
+        terms=tuple(step.term for step in selection.steps),
+        coefficients=selection.coefficients,
+        friction_coefficients=selection.friction_coefficients,
+        prediction_t=selection.prediction_train,
+        prediction_v=selection.prediction_validation,
+        nonlinear={},
+    )
     if not (options.refine and linear.terms):
         return linear
-    refined = refine_fit(linear.terms, linear.coefficients, linear.friction_coefficients, problem.ctx_t, problem.ctx_v,
-                         problem.base_t, problem.base_v, problem.y_t, problem.y_v)
+    refined = refine_fit(
+        linear.terms,
+        linear.coefficients,
+        linear.friction_coefficients,
+        problem.ctx_t,
+        problem.ctx_v,
+        problem.base_t,
+        problem.base_v,
+        problem.y_t,
+        problem.y_v,
+    )
     if refined is None:
         return linear
     if not refined.improved:
         logger.info(f"diagnose: Ipopt refinement not used ({refined.status}); keeping the linearised fit")
         return linear
-    logger.info(f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations")
-    return FinalFit(terms=refined.terms, coefficients=refined.coefficients,
-                    friction_coefficients=refined.friction_coefficients, prediction_t=refined.prediction_train,
-                    prediction_v=refined.prediction_validation, nonlinear=refined.nonlinear)
+    logger.info(
+        f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations"
+    )
+    return FinalFit(
+        terms=refined.terms,
+        coefficients=refined.coefficients,
+        friction_coefficients=refined.friction_coefficients,
+        prediction_t=refined.prediction_train,
+        prediction_v=refined.prediction_validation,
+        nonlinear=refined.nonlinear,
+    )
 
 
-def build_report(robot, model, problem: DiagnosisProblem, selection: SelectionResult, final: FinalFit,
-                 options: DiagnosisOptions) -> DiagnosisReport:
+def build_report(
+    robot, model, problem: DiagnosisProblem, selection: SelectionResult, final: FinalFit, options: DiagnosisOptions
+) -> DiagnosisReport:
     """The findings, the augmented model and the per-joint errors of the nominal and the final model."""
     ctx_t, ctx_v = problem.ctx_t, problem.ctx_v
     fixed_t = ctx_t.tau - problem.y_t
@@ -250,17 +293,27 @@ def build_report(robot, model, problem: DiagnosisProblem, selection: SelectionRe
     model_final_t = fixed_t + final.prediction_t
     residual_v = ctx_v.tau - model_nominal_v
     return DiagnosisReport(
-        robot_name=robot.name, n_dof=robot.n_dof, friction=options.friction, rigid_body=options.rigid_body,
+        robot_name=robot.name,
+        n_dof=robot.n_dof,
+        friction=options.friction,
+        rigid_body=options.rigid_body,
         findings=_findings(selection, final),
         rmse_before=tuple(rmse(ctx_v.tau, model_nominal_v).tolist()),
         rmse_after=tuple(rmse(ctx_v.tau, model_final_v).tolist()),
-        r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()), r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
+        r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()),
+        r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
         rmse_train_before=tuple(rmse(ctx_t.tau, model_nominal_t).tolist()),
         rmse_train_after=tuple(rmse(ctx_t.tau, model_final_t).tolist()),
         residual_findings=analyse_residuals(ctx_v, residual_v),
-        candidates_tried=selection.candidates_tried, augmented=_augmented_model(robot, model, final, options),
-        validation_t=ctx_v.t, validation_q=ctx_v.q, validation_qd=ctx_v.qd, validation_tau=ctx_v.tau,
-        validation_nominal=model_nominal_v, validation_final=model_final_v)
+        candidates_tried=selection.candidates_tried,
+        augmented=_augmented_model(robot, model, final, options),
+        validation_t=ctx_v.t,
+        validation_q=ctx_v.q,
+        validation_qd=ctx_v.qd,
+        validation_tau=ctx_v.tau,
+        validation_nominal=model_nominal_v,
+        validation_final=model_final_v,
+    )
 
 
 def _findings(selection: SelectionResult, final: FinalFit) -> tuple:
@@ -270,12 +323,22 @@ def _findings(selection: SelectionResult, final: FinalFit) -> tuple:
         effect, explanation = term.interpret(coefficients)
         parameters = dict(term.physical_parameters(coefficients))
         parameters.update(final.nonlinear.get(term.label, {}))
-        findings.append(Finding(
-            effect=effect, label=term.label, joints=tuple(int(j) for j in step.joints),
-            parameters=parameters, coefficients=tuple(float(c) for c in coefficients),
-            feature_names=tuple(term.feature_names()), explanation=explanation, signature=term.signature,
-            rmse_before=tuple(float(x) for x in step.rmse_before), rmse_after=tuple(float(x) for x in step.rmse_after),
-            delta_bic=step.delta_bic, validation_gain=step.validation_gain))
+        findings.append(
+            Finding(
+                effect=effect,
+                label=term.label,
+                joints=tuple(int(j) for j in step.joints),
+                parameters=parameters,
+                coefficients=tuple(float(c) for c in coefficients),
+                feature_names=tuple(term.feature_names()),
+                explanation=explanation,
+                signature=term.signature,
+                rmse_before=tuple(float(x) for x in step.rmse_before),
+                rmse_after=tuple(float(x) for x in step.rmse_after),
+                delta_bic=step.delta_bic,
+                validation_gain=step.validation_gain,
+            )
+        )
     return tuple(findings)
 
 
@@ -284,9 +347,19 @@ def _augmented_model(robot, model, final: FinalFit, options: DiagnosisOptions) -
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
     friction_all = final.friction_coefficients
-    theta = (model.base_parameters(robot.nominal_dynamic_parameters()) if options.rigid_body == "prior"
-             else friction_all[n_friction + n_dynamic:])
+    theta = (
+        model.base_parameters(robot.nominal_dynamic_parameters())
+        if options.rigid_body == "prior"
+        else friction_all[n_friction + n_dynamic :]
+    )
     vs, dv = friction_shapes(robot)
-    return AugmentedModel(model=model, theta=np.asarray(theta, dtype=float), friction_kind=options.friction,
-                          friction_coefficients=np.asarray(friction_all[:n_friction], dtype=float),
-                          friction_vs=vs, friction_dv=dv, terms=final.terms, coefficients=final.coefficients)
+    return AugmentedModel(
+        model=model,
+        theta=np.asarray(theta, dtype=float),
+        friction_kind=options.friction,
+        friction_coefficients=np.asarray(friction_all[:n_friction], dtype=float),
+        friction_vs=vs,
+        friction_dv=dv,
+        terms=final.terms,
+        coefficients=final.coefficients,
+    )

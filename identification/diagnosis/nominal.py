@@ -1,4 +1,5 @@
-"""The nominal model a diagnosis starts from: the robot file's rigid body (or a re-identified one) plus per-joint friction.
+"""The nominal model a diagnosis starts from: the robot file's rigid body (or a re-identified one) plus per-joint
+friction.
 
 Two rigid-body choices (``DiagnosisOptions.rigid_body``):
 
@@ -22,9 +23,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from psdm_casadi.errors import ParameterError
 
 FRICTION_MODELS = ("lugre", "coulomb_viscous")
 RIGID_BODY_CHOICES = ("prior", "identified")
@@ -52,7 +52,7 @@ def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray, 
     n_samples, n = qd.shape
     s = np.tanh(qd / SMOOTH_VELOCITY) if sign is None else sign
     if kind == "lugre":
-        per = [s, np.exp(-(qd / vs) ** 2) * s, np.abs(qd) ** dv * s]
+        per = [s, np.exp(-((qd / vs) ** 2)) * s, np.abs(qd) ** dv * s]
     else:
         per = [s, qd]
     k = len(per)
@@ -95,7 +95,9 @@ def _lugre_dynamic_full(robot, context) -> np.ndarray:
         p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
         qd = context.full_qd[:, j]
         tau, _ = simulate_lugre(p, context.full_t, qd, z0=0.0)
-        steady = (p.fc + (p.fs - p.fc) * np.exp(-(qd / p.vs) ** 2)) * np.sign(qd) + p.fv * np.abs(qd) ** p.dv * np.sign(qd)
+        steady = (p.fc + (p.fs - p.fc) * np.exp(-((qd / p.vs) ** 2))) * np.sign(qd) + p.fv * np.abs(
+            qd
+        ) ** p.dv * np.sign(qd)
         out[:, j, j] = tau - steady
     return out
 
@@ -122,9 +124,9 @@ def friction_casadi(kind: str, qd, coefficients, vs, dv):
     k = 3 if kind == "lugre" else 2
     for j in range(n):
         s = ca.tanh(qd[j] / SMOOTH_VELOCITY)
-        c = coefficients[j * k:(j + 1) * k]
+        c = coefficients[j * k : (j + 1) * k]
         if kind == "lugre":
-            out[j] = c[0] * s + c[1] * ca.exp(-(qd[j] / vs[j]) ** 2) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s
+            out[j] = c[0] * s + c[1] * ca.exp(-((qd[j] / vs[j]) ** 2)) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s
         else:
             out[j] = c[0] * s + c[1] * qd[j]
     return out

@@ -6,9 +6,9 @@ a warming-up friction enter through first-order or fixed-shape expansions). Once
 have them jointly, by weighted nonlinear least squares on the training recording (the same joint
 weights as the selection), starting from the linear solution:
 
-- ``delay``, ``backlash`` and ``joint_elasticity``: fitted exactly first (``signal_fit.fit_signal_terms``, variable projection:
-  an interpolated delayed torque, a filtered flank of play or a torsion with its exact friction change) and held
-  at those values here, as fixed torques. A kept backlash or joint elasticity is also refitted as the
+- ``delay``, ``backlash`` and ``joint_elasticity``: fitted exactly first (``signal_fit.fit_signal_terms``, variable
+  projection: an interpolated delayed torque, a filtered flank of play or a torsion with its exact friction change)
+  and held at those values here, as fixed torques. A kept backlash or joint elasticity is also refitted as the
   other one on the same joint, and the better exact fit is kept (``signal_fit.resolve_deflection``:
   their screening columns are alike);
 - ``friction_drift``: a warm-up time constant T, ``rate T (1 - exp(-t / T)) sign(qd)`` (linear drift as T -> inf).
@@ -81,8 +81,98 @@ def _prediction(terms, fixed, ctx, base, beta0, betas, ps):
     return out
 
 
-def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, base_train, base_val, y_train, y_val,
-               max_iter: int = 200) -> RefinedFit | None:
+def _unknowns(p0, terms, coefficients, friction_coefficients, fixed, context) -> tuple:
+    """Symbols of the unknowns (``p0`` nominal friction coefficients ``beta0``, per-term coefficients ``betas``
+    and nonlinear parameters ``ps``) with their start ``x0`` and bounds ``lbx``, ``ubx`` (exactly fitted terms
+    held fixed)."""
+    beta0 = ca.MX.sym("friction", p0)
+    betas, ps, x0 = [], [], [np.asarray(friction_coefficients, dtype=float)]
+    lbx, ubx = [np.full(p0, -np.inf)], [np.full(p0, np.inf)]
+    for k, (term, c) in enumerate(zip(terms, coefficients)):
+        betas.append(ca.MX.sym(f"beta{k}", len(c)))
+        c = np.asarray(c, dtype=float)
+        if term.label in fixed:  # held at the exact fit (its torque is a constant in this problem)
+            c = np.array(fixed[term.label][: len(c)], dtype=float)
+            lbx.append(c.copy())
+            ubx.append(c.copy())
+        else:
+            lbx.append(np.full(len(c), -np.inf))
+            ubx.append(np.full(len(c), np.inf))
+        x0.append(c)
+    for k, (term, c) in enumerate(zip(terms, coefficients)):
+        start = _start(term, context, c)
+        ps.append(ca.MX.sym(f"p{k}", len(start)))
+        x0.append(np.asarray(start, dtype=float))
+        lbx.append(np.full(len(start), -np.inf))
+        ubx.append(np.full(len(start), np.inf))
+    return beta0, betas, ps, np.concatenate(x0), np.concatenate(lbx), np.concatenate(ubx)
+
+
+def _solve(x, objective, x0, lbx, ubx, max_iter) -> tuple:
+    """Minimise ``objective`` over ``x`` with Ipopt from ``x0``: (solution, Ipopt stats, improved); the solution
+    is ``x0`` unless Ipopt converged to finite values without raising the objective."""
+    f_obj = ca.Function("objective", [x], [objective])
+    solver = ca.nlpsol(
+        "refine",
+        "ipopt",
+        {"x": x, "f": objective},
+        {
+            "ipopt.print_level": 0,
+            "ipopt.sb": "yes",
+            "print_time": False,
+            "ipopt.max_iter": max_iter,
+            "ipopt.tol": 1e-10,
+        },
+    )
+    solution = solver(x0=x0, lbx=lbx, ubx=ubx)
+    stats = solver.stats()
+    xs = np.asarray(solution["x"]).ravel()
+    before, after = float(f_obj(x0)), float(solution["f"])
+    ok = bool(stats.get("success", False)) and np.all(np.isfinite(xs)) and after <= before
+    if not ok:
+        xs = x0
+    return xs, stats, ok
+
+
+def _unpack(xs, p0, terms, coefficients, fixed, context) -> tuple:
+    """Split the solution ``xs`` into (terms with their nonlinear parameters set, coefficients per term,
+    nonlinear parameters by label in physical units); the first ``p0`` entries are the nominal friction."""
+    offset = p0
+    new_coefficients = []
+    for c in coefficients:
+        new_coefficients.append(xs[offset : offset + len(c)].copy())
+        offset += len(c)
+    nonlinear, new_terms = {}, []
+    for term, c in zip(terms, coefficients):
+        m = len(_start(term, context, c))
+        values = xs[offset : offset + m]
+        offset += m
+        if term.key == "backlash" and term.label in fixed:
+            scale = float(fixed[term.label][1])
+            p95 = float(np.percentile(np.abs(context.full_tau[:, term.joint]), 95))
+            term = replace(term, torque_scale=scale / max(p95, 1e-12))
+            nonlinear[term.label] = {"torque_scale_Nm": scale}
+        elif term.key == "friction_drift":
+            nonlinear[term.label] = {"time_constant_s": float(np.exp(values[0]))}
+            term = replace(term, time_constant=float(np.exp(values[0])))
+        elif term.key == "delay":
+            nonlinear[term.label] = {"delay_s": float(new_coefficients[len(new_terms)][0])}
+        new_terms.append(term)
+    return tuple(new_terms), tuple(new_coefficients), nonlinear
+
+
+def refine_fit(
+    terms,
+    coefficients,
+    friction_coefficients,
+    train_ctx,
+    val_ctx,
+    base_train,
+    base_val,
+    y_train,
+    y_val,
+    max_iter: int = 200,
+) -> RefinedFit | None:
     """Refine the kept terms with Ipopt (see the module docstring); None when no term has nonlinear parameters."""
     refinable = [t.key in SIGNAL_KEYS + ("friction_drift",) for t in terms]
     if not any(refinable):
@@ -93,68 +183,23 @@ def refine_fit(terms, coefficients, friction_coefficients, train_ctx, val_ctx, b
     terms, coefficients, signal = resolve_deflection(terms, coefficients, signal, train_ctx, base_train, y_train, sigma)
     fixed = {} if signal is None else signal.parameters
     p0 = base_train.shape[2]
-    beta0 = ca.MX.sym("friction", p0)
-    betas, ps, x0 = [], [], [np.asarray(friction_coefficients, dtype=float)]
-    lbx, ubx = [np.full(p0, -np.inf)], [np.full(p0, np.inf)]
-    for k, (term, c) in enumerate(zip(terms, coefficients)):
-        betas.append(ca.MX.sym(f"beta{k}", len(c)))
-        c = np.asarray(c, dtype=float)
-        if term.label in fixed:  # held at the exact fit (its torque is a constant in this problem)
-            c = np.array(fixed[term.label][:len(c)], dtype=float)
-            lbx.append(c.copy())
-            ubx.append(c.copy())
-        else:
-            lbx.append(np.full(len(c), -np.inf))
-            ubx.append(np.full(len(c), np.inf))
-        x0.append(c)
-    for k, (term, c) in enumerate(zip(terms, coefficients)):
-        start = _start(term, train_ctx, c)
-        ps.append(ca.MX.sym(f"p{k}", len(start)))
-        x0.append(np.asarray(start, dtype=float))
-        lbx.append(np.full(len(start), -np.inf))
-        ubx.append(np.full(len(start), np.inf))
+    beta0, betas, ps, x0, lbx, ubx = _unknowns(p0, terms, coefficients, friction_coefficients, fixed, train_ctx)
     pred_t = _prediction(terms, fixed, train_ctx, base_train, beta0, betas, ps)
     residual = ca.vertcat(*[(ca.DM(y_train[:, j]) - pred_t[j]) / sigma[j] for j in range(train_ctx.n_dof)])
     x = ca.vertcat(beta0, *betas, *ps)
-    x0 = np.concatenate(x0)
-    objective = ca.sumsqr(residual)
-    f_obj = ca.Function("objective", [x], [objective])
-    solver = ca.nlpsol("refine", "ipopt", {"x": x, "f": objective},
-                       {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.max_iter": max_iter, "ipopt.tol": 1e-10})
-    solution = solver(x0=x0, lbx=np.concatenate(lbx), ubx=np.concatenate(ubx))
-    stats = solver.stats()
-    xs = np.asarray(solution["x"]).ravel()
-    before, after = float(f_obj(x0)), float(solution["f"])
-    ok = bool(stats.get("success", False)) and np.all(np.isfinite(xs)) and after <= before
-    if not ok:
-        xs = x0
+    xs, stats, ok = _solve(x, ca.sumsqr(residual), x0, lbx, ubx, max_iter)
     pred_fn_t = ca.Function("pred_t", [x], [ca.horzcat(*pred_t)])
     pred_v = _prediction(terms, fixed, val_ctx, base_val, beta0, betas, ps)
     pred_fn_v = ca.Function("pred_v", [x], [ca.horzcat(*pred_v)])
-    # unpack
-    offset = p0
-    new_coefficients = []
-    for c in coefficients:
-        new_coefficients.append(xs[offset:offset + len(c)].copy())
-        offset += len(c)
-    nonlinear, new_terms = {}, []
-    for term, c in zip(terms, coefficients):
-        m = len(_start(term, train_ctx, c))
-        values = xs[offset:offset + m]
-        offset += m
-        if term.key == "backlash" and term.label in fixed:
-            scale = float(fixed[term.label][1])
-            p95 = float(np.percentile(np.abs(train_ctx.full_tau[:, term.joint]), 95))
-            term = replace(term, torque_scale=scale / max(p95, 1e-12))
-            nonlinear[term.label] = {"torque_scale_Nm": scale}
-        elif term.key == "friction_drift":
-            nonlinear[term.label] = {"time_constant_s": float(np.exp(values[0]))}
-            term = replace(term, time_constant=float(np.exp(values[0])))
-        elif term.key == "delay":
-            nonlinear[term.label] = {"delay_s": float(new_coefficients[len(new_terms)][0])}
-        new_terms.append(term)
-    return RefinedFit(terms=tuple(new_terms), coefficients=tuple(new_coefficients),
-                      friction_coefficients=xs[:p0].copy(),
-                      prediction_train=np.asarray(pred_fn_t(xs)), prediction_validation=np.asarray(pred_fn_v(xs)),
-                      nonlinear=nonlinear, status=str(stats.get("return_status", "")),
-                      iterations=int(stats.get("iter_count", 0)), improved=ok)
+    new_terms, new_coefficients, nonlinear = _unpack(xs, p0, terms, coefficients, fixed, train_ctx)
+    return RefinedFit(
+        terms=new_terms,
+        coefficients=new_coefficients,
+        friction_coefficients=xs[:p0].copy(),
+        prediction_train=np.asarray(pred_fn_t(xs)),
+        prediction_validation=np.asarray(pred_fn_v(xs)),
+        nonlinear=nonlinear,
+        status=str(stats.get("return_status", "")),
+        iterations=int(stats.get("iter_count", 0)),
+        improved=ok,
+    )

@@ -36,19 +36,27 @@ class Finding:
     validation_gain: float
 
     def to_dict(self) -> dict:
-        return {"effect": self.effect, "label": self.label, "joints": [j + 1 for j in self.joints],
-                "parameters": {k: float(v) for k, v in self.parameters.items()},
-                "rmse_before": list(self.rmse_before), "rmse_after": list(self.rmse_after),
-                "delta_bic": self.delta_bic, "validation_gain": self.validation_gain,
-                "explanation": self.explanation}
+        return {
+            "effect": self.effect,
+            "label": self.label,
+            "joints": [j + 1 for j in self.joints],
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "rmse_before": list(self.rmse_before),
+            "rmse_after": list(self.rmse_after),
+            "delta_bic": self.delta_bic,
+            "validation_gain": self.validation_gain,
+            "explanation": self.explanation,
+        }
 
     def sentence(self) -> str:
         j = self.joints[0]
         joints = ", ".join(str(x + 1) for x in self.joints)
         params = ", ".join(f"{k} = {v:.4g}" for k, v in self.parameters.items())
-        return (f"joint{'s' if len(self.joints) > 1 else ''} {joints}: {self.signature}; best explained by "
-                f"`{self.effect}` ({self.explanation}), {params}; validation RMSE on joint {j + 1} "
-                f"{self.rmse_before[j]:.3g} -> {self.rmse_after[j]:.3g} N m")
+        return (
+            f"joint{'s' if len(self.joints) > 1 else ''} {joints}: {self.signature}; best explained by "
+            f"`{self.effect}` ({self.explanation}), {params}; validation RMSE on joint {j + 1} "
+            f"{self.rmse_before[j]:.3g} -> {self.rmse_after[j]:.3g} N m"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,35 +91,60 @@ class DiagnosisReport:
     def summary(self) -> str:
         if not self.findings:
             return NO_FINDING
-        return "; ".join(f"{f.effect} on joint{'s' if len(f.joints) > 1 else ''} "
-                         f"{', '.join(str(j + 1) for j in f.joints)}" for f in self.findings)
+        return "; ".join(
+            f"{f.effect} on joint{'s' if len(f.joints) > 1 else ''} {', '.join(str(j + 1) for j in f.joints)}"
+            for f in self.findings
+        )
 
     def to_dict(self) -> dict:
-        return {"robot": self.robot_name, "friction": self.friction, "rigid_body": self.rigid_body,
-                "summary": self.summary(), "findings": [f.to_dict() for f in self.findings],
-                "rmse_before": list(self.rmse_before), "rmse_after": list(self.rmse_after),
-                "r2_before": list(self.r2_before), "r2_after": list(self.r2_after),
-                "rmse_train_before": list(self.rmse_train_before), "rmse_train_after": list(self.rmse_train_after),
-                "candidates_tried": self.candidates_tried,
-                "residual_analysis": [r.to_dict() for r in self.residual_findings]}
+        return {
+            "robot": self.robot_name,
+            "friction": self.friction,
+            "rigid_body": self.rigid_body,
+            "summary": self.summary(),
+            "findings": [f.to_dict() for f in self.findings],
+            "rmse_before": list(self.rmse_before),
+            "rmse_after": list(self.rmse_after),
+            "r2_before": list(self.r2_before),
+            "r2_after": list(self.r2_after),
+            "rmse_train_before": list(self.rmse_train_before),
+            "rmse_train_after": list(self.rmse_train_after),
+            "candidates_tried": self.candidates_tried,
+            "residual_analysis": [r.to_dict() for r in self.residual_findings],
+        }
 
     def to_json(self) -> str:
         return json.dumps(self.to_dict(), indent=2, default=float)
 
     def to_markdown(self, plots: dict | None = None) -> str:
-        lines = [f"# Missing-physics diagnosis: {self.robot_name}", "",
-                 f"Nominal model: rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
-                 f" + {self.friction} friction fitted on the training recording; {self.candidates_tried} candidate "
-                 "fits judged on the validation recording.", "", "## Findings", ""]
+        lines = [
+            f"# Missing-physics diagnosis: {self.robot_name}",
+            "",
+            f"Nominal model: rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
+            f" + {self.friction} friction fitted on the training recording; {self.candidates_tried} candidate "
+            "fits judged on the validation recording.",
+            "",
+            "## Findings",
+            "",
+        ]
         if not self.findings:
-            lines.append(f"**{NO_FINDING}**: no candidate term lowered a joint's validation RMSE enough to earn its parameters.")
+            lines.append(
+                f"**{NO_FINDING}**: no candidate term lowered a joint's validation RMSE enough to earn its parameters."
+            )
         for k, f in enumerate(self.findings, 1):
             lines.append(f"{k}. {f.sentence()} (validation gain {f.validation_gain:.1%}, dBIC {f.delta_bic:.0f}).")
-        lines += ["", "## Validation per joint", "", "| joint | RMSE before [N m] | RMSE after [N m] | R^2 before | R^2 after |",
-                  "|---|---|---|---|---|"]
+        lines += [
+            "",
+            "## Validation per joint",
+            "",
+            "| joint | RMSE before [N m] | RMSE after [N m] | R^2 before | R^2 after |",
+            "|---|---|---|---|---|",
+        ]
         for j in range(self.n_dof):
-            lines.append(f"| {j + 1} | {self.rmse_before[j]:.4g} | {self.rmse_after[j]:.4g} | "
-                         f"{self.r2_before[j]:.4f} | {self.r2_after[j]:.4f} |")
+            lines.append(
+                f"| {j + 1} | {self.rmse_before[j]:.4g} | {self.rmse_after[j]:.4g} | "
+                f"{self.r2_before[j]:.4f} | {self.r2_after[j]:.4f} |"
+            )
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):
             items = [r for r in self.residual_findings if r.joint == j]
@@ -125,6 +158,7 @@ class DiagnosisReport:
     def save_plots(self, directory, overwrite: bool = False) -> dict:
         """Residual against time, position and velocity, and measured vs model torque before/after; PNG files."""
         import matplotlib
+
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
@@ -137,8 +171,13 @@ class DiagnosisReport:
         paths = {}
         fig, axes = plt.subplots(n, 3, figsize=(13, 2.0 * n), squeeze=False)
         for j in range(n):
-            for c, (x, xl) in enumerate(((t, "t [s]"), (self.validation_q[:, j], f"q{j + 1} [rad]"),
-                                         (self.validation_qd[:, j], f"qd{j + 1} [rad/s]"))):
+            for c, (x, xl) in enumerate(
+                (
+                    (t, "t [s]"),
+                    (self.validation_q[:, j], f"q{j + 1} [rad]"),
+                    (self.validation_qd[:, j], f"qd{j + 1} [rad/s]"),
+                )
+            ):
                 ax = axes[j, c]
                 ax.plot(x, residual[:, j], ".", ms=1, label="nominal")
                 ax.plot(x, after[:, j], ".", ms=1, label="augmented")
@@ -163,7 +202,9 @@ class DiagnosisReport:
 
     @staticmethod
     def _save(fig, path: Path, overwrite: bool) -> Path:
-        return atomic_write(path, lambda handle: fig.savefig(handle, dpi=90, format="png"), overwrite=overwrite, mode="wb")
+        return atomic_write(
+            path, lambda handle: fig.savefig(handle, dpi=90, format="png"), overwrite=overwrite, mode="wb"
+        )
 
     def save(self, directory, overwrite: bool = False, plots: bool = True) -> dict:
         """Write report.md, report.json, plots and the augmented model into ``directory``."""

@@ -52,7 +52,7 @@ def cross_correlation(residual, signal, max_lag: int = 50) -> tuple[float, int]:
     best, lag_best = 0.0, 0
     n = r.size
     for lag in range(-max_lag, max_lag + 1, max(1, max_lag // 10)):
-        c = float(r[max(0, lag):n + min(0, lag)] @ s[max(0, -lag):n - max(0, lag)]) / norm
+        c = float(r[max(0, lag) : n + min(0, lag)] @ s[max(0, -lag) : n - max(0, lag)]) / norm
         if abs(c) > abs(best):
             best, lag_best = c, lag
     return best, lag_best
@@ -90,44 +90,105 @@ def analyse_residuals(context, residual, n_windows: int = 8) -> tuple:
     tuple of ResidualFinding
     """
     out = []
-    t = context.t
     for j in range(context.n_dof):
-        r = residual[:, j]
-        total = _rms(r)
-        out.append(ResidualFinding(j, "rms", total, f"joint {j + 1}: residual RMS {total:.3g} N m, mean {np.mean(r):+.3g} N m"))
-        if total <= 0:
-            continue
-        windows = np.array_split(np.arange(r.size), n_windows)
-        rms_w = np.array([_rms(r[w]) for w in windows])
-        k = int(np.argmax(rms_w))
-        out.append(ResidualFinding(j, "worst_window", float(rms_w[k] / total),
-                                   f"joint {j + 1}: largest error in t = {t[windows[k][0]]:.1f}..{t[windows[k][-1]]:.1f} s "
-                                   f"(RMS {rms_w[k]:.3g} N m, {rms_w[k] / total:.2f}x the overall RMS)"))
-        qd, q, qdd, tau = context.qd[:, j], context.q[:, j], context.qdd[:, j], context.tau[:, j]
-        pos, neg = r[qd > 0], r[qd < 0]
-        out.append(ResidualFinding(j, "velocity_sign", float(np.mean(pos) - np.mean(neg)) if pos.size and neg.size else 0.0,
-                                   f"joint {j + 1}: mean residual {np.mean(pos) if pos.size else 0:+.3g} N m for qd > 0, "
-                                   f"{np.mean(neg) if neg.size else 0:+.3g} N m for qd < 0"))
-        slow = np.abs(qd) < 0.1 * np.max(np.abs(qd))
-        out.append(ResidualFinding(j, "near_reversal", _rms(r[slow]) / total,
-                                   f"joint {j + 1}: RMS near velocity reversals (|qd| < 10 % of max) "
-                                   f"{_rms(r[slow]):.3g} N m vs {_rms(r[~slow]):.3g} N m elsewhere"))
-        for name, signal in (("position", q), ("acceleration", qdd), ("load", np.abs(tau)), ("speed", np.abs(qd))):
-            edges = np.quantile(signal, [1 / 3, 2 / 3])
-            bins = [r[signal <= edges[0]], r[(signal > edges[0]) & (signal <= edges[1])], r[signal > edges[1]]]
-            rms_b = [_rms(b) for b in bins]
-            out.append(ResidualFinding(j, f"{name}_terciles", max(rms_b) / max(min(rms_b), 1e-12),
-                                       f"joint {j + 1}: RMS by {name} tercile (low/mid/high) "
-                                       + " / ".join(f"{v:.3g}" for v in rms_b) + " N m"))
-        qstat, pvalue = ljung_box(r)
-        out.append(ResidualFinding(j, "ljung_box_p", pvalue,
-                                   f"joint {j + 1}: Ljung-Box Q = {qstat:.3g} over 20 lags, p = {pvalue:.3g} "
-                                   f"({'white' if pvalue > 0.05 else 'not white'})"))
-        for name, signal in (("q", q), ("qd", qd), ("qdd", qdd), ("tau", tau)):
-            c, lag = cross_correlation(r, signal)
-            out.append(ResidualFinding(j, f"xcorr_{name}", c,
-                                       f"joint {j + 1}: correlation with {name}{j + 1} {c:+.2f} at lag {lag} samples"))
-        f, share = dominant_frequency(t, r)
-        out.append(ResidualFinding(j, "dominant_frequency_hz", f,
-                                   f"joint {j + 1}: spectral peak at {f:.3g} Hz holding {share:.0%} of the power"))
+        out.extend(_joint_findings(context, j, residual[:, j], n_windows))
     return tuple(out)
+
+
+def _joint_findings(context, j: int, r, n_windows: int) -> list:
+    """The findings of joint ``j`` with residual ``r`` (n_samples,): its RMS, then (unless it is zero) where in
+    time, in which regime and in which signal the error lives."""
+    total = _rms(r)
+    out = [ResidualFinding(j, "rms", total, f"joint {j + 1}: residual RMS {total:.3g} N m, mean {np.mean(r):+.3g} N m")]
+    if total <= 0:
+        return out
+    out.append(_worst_window(context.t, j, r, total, n_windows))
+    out.extend(_regime_findings(context, j, r, total))
+    out.extend(_signal_findings(context, j, r))
+    return out
+
+
+def _worst_window(t, j: int, r, total: float, n_windows: int) -> ResidualFinding:
+    """The time window (of ``n_windows`` equal ones) with the largest RMS, relative to the overall RMS."""
+    windows = np.array_split(np.arange(r.size), n_windows)
+    rms_w = np.array([_rms(r[w]) for w in windows])
+    k = int(np.argmax(rms_w))
+    return ResidualFinding(
+        j,
+        "worst_window",
+        float(rms_w[k] / total),
+        f"joint {j + 1}: largest error in t = {t[windows[k][0]]:.1f}..{t[windows[k][-1]]:.1f} s "
+        f"(RMS {rms_w[k]:.3g} N m, {rms_w[k] / total:.2f}x the overall RMS)",
+    )
+
+
+def _regime_findings(context, j: int, r, total: float) -> list:
+    """The residual by regime: velocity sign, near reversals, and terciles of position, acceleration, load, speed."""
+    qd, q, qdd, tau = context.qd[:, j], context.q[:, j], context.qdd[:, j], context.tau[:, j]
+    pos, neg = r[qd > 0], r[qd < 0]
+    out = [
+        ResidualFinding(
+            j,
+            "velocity_sign",
+            float(np.mean(pos) - np.mean(neg)) if pos.size and neg.size else 0.0,
+            f"joint {j + 1}: mean residual {np.mean(pos) if pos.size else 0:+.3g} N m for qd > 0, "
+            f"{np.mean(neg) if neg.size else 0:+.3g} N m for qd < 0",
+        )
+    ]
+    slow = np.abs(qd) < 0.1 * np.max(np.abs(qd))
+    out.append(
+        ResidualFinding(
+            j,
+            "near_reversal",
+            _rms(r[slow]) / total,
+            f"joint {j + 1}: RMS near velocity reversals (|qd| < 10 % of max) "
+            f"{_rms(r[slow]):.3g} N m vs {_rms(r[~slow]):.3g} N m elsewhere",
+        )
+    )
+    for name, signal in (("position", q), ("acceleration", qdd), ("load", np.abs(tau)), ("speed", np.abs(qd))):
+        edges = np.quantile(signal, [1 / 3, 2 / 3])
+        bins = [r[signal <= edges[0]], r[(signal > edges[0]) & (signal <= edges[1])], r[signal > edges[1]]]
+        rms_b = [_rms(b) for b in bins]
+        out.append(
+            ResidualFinding(
+                j,
+                f"{name}_terciles",
+                max(rms_b) / max(min(rms_b), 1e-12),
+                f"joint {j + 1}: RMS by {name} tercile (low/mid/high) "
+                + " / ".join(f"{v:.3g}" for v in rms_b)
+                + " N m",
+            )
+        )
+    return out
+
+
+def _signal_findings(context, j: int, r) -> list:
+    """The residual as a signal: whiteness (Ljung-Box), correlation with q, qd, qdd, tau, and its spectral peak."""
+    qd, q, qdd, tau = context.qd[:, j], context.q[:, j], context.qdd[:, j], context.tau[:, j]
+    qstat, pvalue = ljung_box(r)
+    out = [
+        ResidualFinding(
+            j,
+            "ljung_box_p",
+            pvalue,
+            f"joint {j + 1}: Ljung-Box Q = {qstat:.3g} over 20 lags, p = {pvalue:.3g} "
+            f"({'white' if pvalue > 0.05 else 'not white'})",
+        )
+    ]
+    for name, signal in (("q", q), ("qd", qd), ("qdd", qdd), ("tau", tau)):
+        c, lag = cross_correlation(r, signal)
+        out.append(
+            ResidualFinding(
+                j, f"xcorr_{name}", c, f"joint {j + 1}: correlation with {name}{j + 1} {c:+.2f} at lag {lag} samples"
+            )
+        )
+    f, share = dominant_frequency(context.t, r)
+    out.append(
+        ResidualFinding(
+            j,
+            "dominant_frequency_hz",
+            f,
+            f"joint {j + 1}: spectral peak at {f:.3g} Hz holding {share:.0%} of the power",
+        )
+    )
+    return out

@@ -28,9 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-
 from identification.metrics import rms, rmse
+from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
 
@@ -117,7 +116,8 @@ class _Design:
         self.b = sum(x.T @ self.ytw[:, j] for j, x in enumerate(self.Xt_j))
 
     def fit(self, cand_train=None, cand_val=None, full=False):
-        """Coefficients, weighted train SSE, validation RMSE per joint (and, with ``full``, train RMSE and predictions)."""
+        """Coefficients, weighted train SSE, validation RMSE per joint (and, with ``full``, train RMSE and
+        predictions)."""
         p = self.G.shape[0]
         if cand_train is None:
             gram, rhs = self.G, self.b
@@ -162,14 +162,15 @@ class _Limits:
 
 
 def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
-    """Fit each remaining candidate with the kept terms; the qualifying ones as ``(gain, k, index, term, rmse_v, dBIC)``."""
+    """Fit each remaining candidate with the kept terms; the qualifying ones as
+    ``(gain, k, index, term, rmse_v, dBIC)``."""
     qualified, scored, rejected = [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
     for index, term in enumerate(remaining):
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         beta, sse1, rv1 = design.fit(ct, cv)
         k = ct.shape[2]
-        reason = term.implausibility(beta[design.G.shape[0]:], train_ctx)
+        reason = term.implausibility(beta[design.G.shape[0] :], train_ctx)
         if reason is not None:
             rejected.append((term.label, reason))
             continue
@@ -178,19 +179,24 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
         wval1 = float(np.sum(rv1**2 / limits.sigma**2))
         delta_bic = limits.n_eff_total * np.log(sse1 / sse) + k * np.log(limits.n_eff_total)
         gain = (wval0 - wval1) / wval0
-        scored.append((gain, term.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / limits.torque_rms)),
-                       float(delta_bic)))
+        scored.append(
+            (gain, term.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / limits.torque_rms)), float(delta_bic))
+        )
         if np.any((rel >= limits.min_improvement) & absolute) and wval1 < wval0 and delta_bic < 0:
             qualified.append((gain, k, index, term, rv1, delta_bic))
     for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
-        logger.info(f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, drop {a:.2%} of torque RMS, dBIC {b:.0f}")
+        logger.info(
+            f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, "
+            f"drop {a:.2%} of torque RMS, dBIC {b:.0f}"
+        )
     for label, reason in rejected[:5]:
         logger.info(f"diagnose:   rejected {label}: {reason}")
     return qualified
 
 
 def _choose(qualified):
-    """The best qualifying candidate; gains within 2 % of the best tie, and ties go to fewer parameters, then the earlier term."""
+    """The best qualifying candidate; gains within 2 % of the best tie, and ties go to fewer parameters, then the
+    earlier term."""
     top = max(q[0] for q in qualified)
     near = [q for q in qualified if q[0] >= top - 0.02 * abs(top)]
     return min(near, key=lambda q: (q[1], q[2]))
@@ -205,9 +211,21 @@ def _named_joints(term, rmse_before, rmse_after, joint_threshold) -> tuple:
     return tuple(int(j) for j in order if rel[j] >= joint_threshold) or (int(order[0]),)
 
 
-def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train, y_val, *,
-                   min_improvement=0.2, max_effects=4, effective_samples=None, joint_threshold=0.1,
-                   min_torque_fraction=0.004) -> SelectionResult:
+def forward_select(
+    instances,
+    train_ctx,
+    val_ctx,
+    base_train,
+    base_val,
+    y_train,
+    y_val,
+    *,
+    min_improvement=0.2,
+    max_effects=4,
+    effective_samples=None,
+    joint_threshold=0.1,
+    min_torque_fraction=0.004,
+) -> SelectionResult:
     """Greedy forward selection of candidate term instances (see the module docstring).
 
     Parameters
@@ -241,8 +259,13 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
     # least RMSE drop per joint in N m: a fraction of that joint's own torque RMS (joints count alike), and
     # at least ROBOT_FLOOR of the robot's largest joint torque RMS (noise-level changes on the weakest joints)
     floor = np.maximum(min_torque_fraction * torque_rms, ROBOT_FLOOR * float(np.max(torque_rms)))
-    limits = _Limits(sigma=sigma, torque_rms=torque_rms, floor=floor, min_improvement=min_improvement,
-                     n_eff_total=n_eff * y_train.shape[1])
+    limits = _Limits(
+        sigma=sigma,
+        torque_rms=torque_rms,
+        floor=floor,
+        min_improvement=min_improvement,
+        n_eff_total=n_eff * y_train.shape[1],
+    )
     design = _Design(base_train, base_val, y_train, y_val, sigma)
     _, sse, rmse_t, rmse_v, nominal_train, nominal_val = design.fit(full=True)
     kept, steps, sizes, tried, remaining = [], [], [], 0, list(instances)
@@ -254,10 +277,18 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
         gain, _, _, term, _, delta_bic = _choose(qualified)
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
-        steps.append(SelectionStep(term=term, joints=_named_joints(term, rmse_v, rv1, joint_threshold),
-                                   rmse_before=rmse_v.copy(), rmse_after=rv1.copy(),
-                                   rmse_train_before=rmse_t.copy(), rmse_train_after=rt1.copy(),
-                                   delta_bic=float(delta_bic), validation_gain=float(gain)))
+        steps.append(
+            SelectionStep(
+                term=term,
+                joints=_named_joints(term, rmse_v, rv1, joint_threshold),
+                rmse_before=rmse_v.copy(),
+                rmse_after=rv1.copy(),
+                rmse_train_before=rmse_t.copy(),
+                rmse_train_after=rt1.copy(),
+                delta_bic=float(delta_bic),
+                validation_gain=float(gain),
+            )
+        )
         logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
         kept.append(term)
         sizes.append(ct.shape[2])
@@ -268,6 +299,14 @@ def forward_select(instances, train_ctx, val_ctx, base_train, base_val, y_train,
     p0 = base_train.shape[2]
     bounds = np.cumsum([p0] + sizes)
     coefficients = [beta[start:stop].copy() for start, stop in zip(bounds[:-1], bounds[1:])]
-    return SelectionResult(steps=tuple(steps), coefficients=tuple(coefficients), friction_coefficients=beta[:p0].copy(),
-                           rigid_coefficients=None, nominal_train=nominal_train, nominal_validation=nominal_val,
-                           prediction_train=pred_t, prediction_validation=pred_v, candidates_tried=tried)
+    return SelectionResult(
+        steps=tuple(steps),
+        coefficients=tuple(coefficients),
+        friction_coefficients=beta[:p0].copy(),
+        rigid_coefficients=None,
+        nominal_train=nominal_train,
+        nominal_validation=nominal_val,
+        prediction_train=pred_t,
+        prediction_validation=pred_v,
+        candidates_tried=tried,
+    )

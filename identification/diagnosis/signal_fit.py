@@ -1,4 +1,5 @@
-"""Exact fit of the signal-level terms (delay, backlash, joint elasticity) by variable projection, ahead of ``refine_fit``.
+"""Exact fit of the signal-level terms (delay, backlash, joint elasticity) by variable projection, ahead of
+``refine_fit``.
 
 The selection screens a delay and a backlash through columns linear in one coefficient (a first-order
 expansion in the delay, in the play at a fixed flank smoothing). Their exact torques are not linear
@@ -31,14 +32,17 @@ from identification.diagnosis.candidates.deflection import BacklashTerm, JointEl
 from identification.metrics import rms
 
 SIGNAL_KEYS = ("delay", "backlash", "joint_elasticity")
-BACKLASH_MARGIN = 0.05  # backlash must fit 5 % better than joint elasticity of the same joint (it has one more parameter)
+BACKLASH_MARGIN = (
+    0.05  # backlash must fit 5 % better than joint elasticity of the same joint (it has one more parameter)
+)
 BACKLASH_MAX_FLANK = 0.1  # and change flank within 10 % of the joint's torque RMS (tau_s / RMS)
 
 
 @dataclass(frozen=True)
 class SignalFit:
     """Fitted parameters of the signal-level terms: ``parameters[label]`` is ``(d,)`` for a delay and
-    ``(h, tau_s)`` for backlash, ``(c,)`` for joint elasticity; ``sse_start``/``sse`` the weighted training error at the start and the end."""
+    ``(h, tau_s)`` for backlash, ``(c,)`` for joint elasticity; ``sse_start``/``sse`` the weighted training error at
+    the start and the end."""
 
     parameters: dict
     sse_start: float
@@ -94,7 +98,7 @@ def fit_signal_terms(terms, coefficients, context, base, y, sigma, max_evaluatio
     def unpack(v):
         out, i = [], 0
         for n in sizes:
-            out.append(np.exp(v[i:i + n]))
+            out.append(np.exp(v[i : i + n]))
             i += n
         return out
 
@@ -128,8 +132,12 @@ def fit_signal_terms(terms, coefficients, context, base, y, sigma, max_evaluatio
                         candidates.append(v)
         values = [sse(v) for v in candidates]
         best = candidates[int(np.argmin(values))]
-        result = minimize(sse, best, method="Nelder-Mead",
-                          options={"maxfev": evaluations, "xatol": 1e-3, "fatol": 1e-10 * max(values[0], 1e-300)})
+        result = minimize(
+            sse,
+            best,
+            method="Nelder-Mead",
+            options={"maxfev": evaluations, "xatol": 1e-3, "fatol": 1e-10 * max(values[0], 1e-300)},
+        )
         if result.fun <= min(values):
             return result.x, values[0], float(result.fun)
         return best, values[0], min(values)
@@ -172,9 +180,9 @@ def resolve_deflection(terms, coefficients, fit, context, base, y, sigma):
         other = (JointElasticityTerm if term.key == "backlash" else BacklashTerm)(joint=term.joint)
         if other.label in {t.label for t in terms}:
             continue
-        swapped = terms[:k] + (other,) + terms[k + 1:]
+        swapped = terms[:k] + (other,) + terms[k + 1 :]
         start = np.array([_linear_coefficient(other, context, base, y, sigma)])
-        swapped_coefficients = coefficients[:k] + (start,) + coefficients[k + 1:]
+        swapped_coefficients = coefficients[:k] + (start,) + coefficients[k + 1 :]
         alternative = fit_signal_terms(swapped, swapped_coefficients, context, base, y, sigma)
         if alternative is None:
             continue

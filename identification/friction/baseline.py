@@ -101,15 +101,17 @@ def simulate_lugre_ode(parameters, t, qd, rtol=1e-6):
         g = fc + dfs * exp(-x * x)
         return [v - sigma0 * abs(v) * z[0] / g]
 
-    sol = solve_ivp(rhs, (t[0], t[-1]), [0.0], method="LSODA", t_eval=t, rtol=rtol, atol=1e-12,
-                    max_step=float(np.min(np.diff(t))))
+    sol = solve_ivp(
+        rhs, (t[0], t[-1]), [0.0], method="LSODA", t_eval=t, rtol=rtol, atol=1e-12, max_step=float(np.min(np.diff(t)))
+    )
     if not sol.success:
         raise SolverError(f"simulate_lugre_ode: LSODA failed: {sol.message}", status=str(sol.status))
     return lugre_torque(p, qd, p.sigma0 * sol.y[0])
 
 
-def paper_friction_fit(t, qd, tau_friction, initial, free="presliding", max_evaluations=None, substeps=1,
-                       simulator="exponential"):
+def paper_friction_fit(
+    t, qd, tau_friction, initial, free="presliding", max_evaluations=None, substeps=1, simulator="exponential"
+):
     """The paper's LuGre fit: Nelder-Mead over a LuGre simulation of the whole record (section 3.3).
 
     Starting from ``initial`` (whose ``fc, fv, dv`` come from the trust-region fit of eq. 20),
@@ -172,7 +174,9 @@ def paper_friction_fit(t, qd, tau_friction, initial, free="presliding", max_eval
 
     start = time.perf_counter()
     sol = minimize(
-        cost, np.zeros(len(names)), method="Nelder-Mead",
+        cost,
+        np.zeros(len(names)),
+        method="Nelder-Mead",
         options={"maxfev": int(max_evaluations), "maxiter": int(max_evaluations), "xatol": 1e-4, "fatol": 1e-4},
     )
     seconds = time.perf_counter() - start

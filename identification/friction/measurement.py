@@ -31,8 +31,13 @@ from identification.friction.lugre_step import phi_function_expressions, phi_fun
 from identification.friction.models import check_friction_data
 from identification.friction.shooting_nlp import build_shooting_interval
 
-__all__ = ["simulate_lugre_measured", "interval_velocities", "measurement_weights", "build_measured_interval",
-           "measured_layout"]
+__all__ = [
+    "simulate_lugre_measured",
+    "interval_velocities",
+    "measurement_weights",
+    "build_measured_interval",
+    "measured_layout",
+]
 
 
 def interval_velocities(t, q, owner="interval_velocities") -> tuple[np.ndarray, np.ndarray]:
@@ -131,8 +136,9 @@ def build_measured_interval(p0, s_scale, length):
     right_prev, con = None, None
     for i in range(length + 1):
         h, v, sign, log_speed = (steps[r, i] for r in range(4))
-        s_next, left, right = _interval_means(p, s, h, v, ca.exp, phi_function_expressions, ca.fabs, sign,
-                                              ca.exp(p[4] * log_speed))
+        s_next, left, right = _interval_means(
+            p, s, h, v, ca.exp, phi_function_expressions, ca.fabs, sign, ca.exp(p[4] * log_speed)
+        )
         if right_prev is not None:
             y, weight, alpha, beta = (data[r, i - 1] for r in range(4))
             cost = cost + weight * (alpha * right_prev + beta * left - y) ** 2

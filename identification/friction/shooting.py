@@ -94,8 +94,10 @@ class ShootingOptions:
 
     def __post_init__(self):
         if self.measurement not in MEASUREMENTS:
-            raise ParameterError(f"ShootingOptions.measurement must be one of {MEASUREMENTS}; got "
-                                 f"{self.measurement!r}. Pass 'central-difference' with positions q.")
+            raise ParameterError(
+                f"ShootingOptions.measurement must be one of {MEASUREMENTS}; got "
+                f"{self.measurement!r}. Pass 'central-difference' with positions q."
+            )
         for name in ("interval", "substeps", "max_iter"):
             value = getattr(self, name)
             if not (isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= 1):
@@ -332,12 +334,16 @@ def _checked_inputs(t, qd, tau_friction, initial, options, q):
         )
     if options.measurement == "central-difference":
         if q is None:
-            raise ParameterError("fit_lugre_multiple_shooting.q is required by ShootingOptions.measurement="
-                                 "'central-difference'; pass the joint's recorded positions or use 'sample'.")
+            raise ParameterError(
+                "fit_lugre_multiple_shooting.q is required by ShootingOptions.measurement="
+                "'central-difference'; pass the joint's recorded positions or use 'sample'."
+            )
         _, q, _ = check_friction_data(t, q, tau, owner="fit_lugre_multiple_shooting", signal="q")
         if t.size < 4:
-            raise ParameterError(f"fit_lugre_multiple_shooting.t must hold at least 4 samples with "
-                                 f"measurement='central-difference'; got {t.size}.")
+            raise ParameterError(
+                f"fit_lugre_multiple_shooting.t must hold at least 4 samples with "
+                f"measurement='central-difference'; got {t.size}."
+            )
     return t, qd, tau, q, options
 
 

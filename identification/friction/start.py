@@ -83,8 +83,15 @@ def fit_high_speed(qd, tau_friction, threshold=None):
         return np.column_stack([sgn, power * sgn, x[1] * power * log_v * sgn])
 
     sol = least_squares(
-        residual, x0, jac=jacobian, bounds=([0.0, 0.0, 0.05], [np.inf, np.inf, 3.0]), method="trf",
-        x_scale="jac", xtol=1e-12, ftol=1e-12, gtol=1e-12,
+        residual,
+        x0,
+        jac=jacobian,
+        bounds=([0.0, 0.0, 0.05], [np.inf, np.inf, 3.0]),
+        method="trf",
+        x_scale="jac",
+        xtol=1e-12,
+        ftol=1e-12,
+        gtol=1e-12,
     )
     return CoulombViscous(fc=float(sol.x[0]), fv=float(sol.x[1]), dv=float(sol.x[2]))
 

@@ -26,13 +26,12 @@ from typing import Protocol
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-from psdm_casadi.robot import RobotDescription
-
 from identification.calibration.payload import payload_static_torque
 from identification.data.dataset import CalibrationData
 from identification.virtual.effects import Payload
 from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.robot import RobotDescription
 
 __all__ = ["CalibrationDesign", "VirtualCalibrationOptions", "friction_simulation_options", "simulate_calibration"]
 
@@ -88,11 +87,14 @@ class VirtualCalibrationOptions:
 
     def __post_init__(self):
         if not isinstance(self.payload, Payload):
-            raise ParameterError("VirtualCalibrationOptions.payload must be a Payload; got "
-                                 f"{type(self.payload).__name__}.")
+            raise ParameterError(
+                f"VirtualCalibrationOptions.payload must be a Payload; got {type(self.payload).__name__}."
+            )
         if not isinstance(self.simulation, SimulationOptions):
-            raise ParameterError("VirtualCalibrationOptions.simulation must be a SimulationOptions; got "
-                                 f"{type(self.simulation).__name__}.")
+            raise ParameterError(
+                "VirtualCalibrationOptions.simulation must be a SimulationOptions; got "
+                f"{type(self.simulation).__name__}."
+            )
 
 
 def friction_simulation_options(options: SimulationOptions) -> SimulationOptions:
@@ -107,9 +109,16 @@ def friction_simulation_options(options: SimulationOptions) -> SimulationOptions
     return replace(options, friction_feedforward=False, substeps=max(int(options.substeps), 4), integrator="leapfrog")
 
 
-def simulate_calibration(robot: RobotDescription, design: CalibrationDesign,
-                         options: VirtualCalibrationOptions | None = None, rng: np.random.Generator | None = None,
-                         joints=None, *, excitation=None, extras=()) -> CalibrationData:
+def simulate_calibration(
+    robot: RobotDescription,
+    design: CalibrationDesign,
+    options: VirtualCalibrationOptions | None = None,
+    rng: np.random.Generator | None = None,
+    joints=None,
+    *,
+    excitation=None,
+    extras=(),
+) -> CalibrationData:
     """Simulate the motor, gravity, friction and excitation experiments of a plan on the virtual robot.
 
     Parameters
@@ -165,7 +174,15 @@ def simulate_calibration(robot: RobotDescription, design: CalibrationDesign,
             friction_validation.append((j, run(f"friction_j{j + 1}_validation", ref, still)))
     if excitation is None:
         excitation = design.excitation_references(robot, rng)
-    excitation = tuple(run("excitation" if len(excitation) == 1 else f"excitation_{k + 1}", reference, sim)
-                       for k, reference in enumerate(excitation))
-    return CalibrationData(payload=options.payload, motor=tuple(motor), gravity=gravity, friction=tuple(friction),
-                           excitation=excitation, friction_validation=tuple(friction_validation))
+    excitation = tuple(
+        run("excitation" if len(excitation) == 1 else f"excitation_{k + 1}", reference, sim)
+        for k, reference in enumerate(excitation)
+    )
+    return CalibrationData(
+        payload=options.payload,
+        motor=tuple(motor),
+        gravity=gravity,
+        friction=tuple(friction),
+        excitation=excitation,
+        friction_validation=tuple(friction_validation),
+    )

@@ -19,9 +19,8 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-
 from identification.data.payload import Payload as KnownPayload
+from psdm_casadi.errors import ParameterError
 
 
 class ExtraPhysics:
@@ -167,7 +166,9 @@ class LoadDependentFriction(ExtraPhysics):
 
     def torque(self, t, q, qd, tau_motor):
         out = np.zeros_like(q)
-        out[self.joint] = self.coefficient * abs(tau_motor[self.joint]) * np.tanh(qd[self.joint] / self.smoothing_velocity)
+        out[self.joint] = (
+            self.coefficient * abs(tau_motor[self.joint]) * np.tanh(qd[self.joint] / self.smoothing_velocity)
+        )
         return out
 
 
@@ -264,11 +265,24 @@ class SignalDelay(ExtraPhysics):
         if self.samples == 0:
             return q, tau
         delayed = np.empty_like(tau)
-        delayed[self.samples:] = tau[:-self.samples]
-        delayed[:self.samples] = tau[0]
+        delayed[self.samples :] = tau[: -self.samples]
+        delayed[: self.samples] = tau[0]
         return q, delayed
 
 
-EXTRA_PHYSICS_TERMS = {cls.__name__: cls for cls in (
-    Spring, TorqueRipple, CoulombAsymmetry, FrictionDrift, LoadDependentFriction, JointCoupling,
-    Payload, GravityTilt, ExtraRotorInertia, TorqueOffset, SignalDelay)}
+EXTRA_PHYSICS_TERMS = {
+    cls.__name__: cls
+    for cls in (
+        Spring,
+        TorqueRipple,
+        CoulombAsymmetry,
+        FrictionDrift,
+        LoadDependentFriction,
+        JointCoupling,
+        Payload,
+        GravityTilt,
+        ExtraRotorInertia,
+        TorqueOffset,
+        SignalDelay,
+    )
+}

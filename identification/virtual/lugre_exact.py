@@ -26,7 +26,7 @@ class LuGreArrays:
     sigma1: np.ndarray
 
     @classmethod
-    def from_drives(cls, drives) -> "LuGreArrays":
+    def from_drives(cls, drives) -> LuGreArrays:
         return cls(**{key: np.array([float(getattr(d, key)) for d in drives]) for key in FRICTION_FIELDS})
 
     def as_table(self) -> np.ndarray:
@@ -36,7 +36,7 @@ class LuGreArrays:
 
 def stribeck_g(qd, p: LuGreArrays) -> np.ndarray:
     """g(qd) of eq. 13: (Fc + (Fs - Fc) exp(-(qd/vs)^2)) / sigma0 [rad]."""
-    return (p.fc + (p.fs - p.fc) * np.exp(-(qd / p.vs) ** 2)) / p.sigma0
+    return (p.fc + (p.fs - p.fc) * np.exp(-((qd / p.vs) ** 2))) / p.sigma0
 
 
 def z_rate(z, qd, p: LuGreArrays) -> np.ndarray:

@@ -32,14 +32,13 @@ import numpy as np
 import pinocchio as pin
 from scipy.interpolate import CubicSpline
 
-from psdm_casadi.errors import ParameterError, ShapeError
-from psdm_casadi.oracle import build_pinocchio_model
-from psdm_casadi.robot import RobotDescription
-
 from identification.data.recording import Recording
 from identification.virtual.effects import ExtraPhysics, Payload
 from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
 from identification.virtual.truth import SimulationTruth
+from psdm_casadi.errors import ParameterError, ShapeError
+from psdm_casadi.oracle import build_pinocchio_model
+from psdm_casadi.robot import RobotDescription
 
 __all__ = ["SimulationOptions", "simulate_recording"]
 
@@ -125,7 +124,8 @@ class SimulationOptions:
         if not (np.isfinite(self.integral_gain) and 0.0 <= self.integral_gain < 2.0 * self.damping_ratio):
             raise ParameterError(
                 f"SimulationOptions.integral_gain must be in [0, 2 damping_ratio) for a stable loop; "
-                f"got {self.integral_gain!r}. Use 0.25 (or 0 for a PD loop).")
+                f"got {self.integral_gain!r}. Use 0.25 (or 0 for a PD loop)."
+            )
         for key in ("rate", "bandwidth_hz", "damping_ratio"):
             value = getattr(self, key)
             if not (np.isfinite(value) and value > 0):
@@ -135,14 +135,20 @@ class SimulationOptions:
         if not (isinstance(self.substeps, (int, np.integer)) and self.substeps >= 1):
             raise ParameterError(f"SimulationOptions.substeps must be an integer >= 1; got {self.substeps!r}.")
         if self.integrator not in INTEGRATORS:
-            raise ParameterError(f"SimulationOptions.integrator must be one of {INTEGRATORS}; got {self.integrator!r}. "
-                                 "Pass 'leapfrog' for friction experiments.")
+            raise ParameterError(
+                f"SimulationOptions.integrator must be one of {INTEGRATORS}; got {self.integrator!r}. "
+                "Pass 'leapfrog' for friction experiments."
+            )
         if self.feedforward not in FEEDFORWARDS:
-            raise ParameterError(f"SimulationOptions.feedforward must be one of {FEEDFORWARDS}; got {self.feedforward!r}.")
+            raise ParameterError(
+                f"SimulationOptions.feedforward must be one of {FEEDFORWARDS}; got {self.feedforward!r}."
+            )
         for key in ("encoder_resolution", "current_resolution"):
             value = getattr(self, key)
             if value is not None and not (np.isfinite(value) and value > 0):
-                raise ParameterError(f"SimulationOptions.{key} must be positive or None (no quantisation); got {value!r}.")
+                raise ParameterError(
+                    f"SimulationOptions.{key} must be positive or None (no quantisation); got {value!r}."
+                )
         for key in ("q_noise_std", "current_noise_std", "tau_noise_std"):
             value = getattr(self, key)
             if not (np.isfinite(value) and value >= 0):
@@ -150,7 +156,9 @@ class SimulationOptions:
         if not (self.record_current or self.record_tau):
             raise ParameterError("SimulationOptions.record_current and record_tau are both False; record at least one.")
         if self.payload is not None and not isinstance(self.payload, Payload):
-            raise ParameterError(f"SimulationOptions.payload must be a Payload or None; got {type(self.payload).__name__}.")
+            raise ParameterError(
+                f"SimulationOptions.payload must be a Payload or None; got {type(self.payload).__name__}."
+            )
 
 
 def _drives(robot: RobotDescription) -> tuple:
@@ -165,13 +173,18 @@ def _drives(robot: RobotDescription) -> tuple:
 def _sample_reference(reference, t: np.ndarray, n_dof: int):
     """Reference (q, qd, qdd) at times t, each (n_samples, n_dof)."""
     if isinstance(reference, Recording):
-        reference = (reference.t, reference.q) + (() if reference.qd is None else (reference.qd,)) + \
-            (() if reference.qdd is None else (reference.qdd,))
+        reference = (
+            (reference.t, reference.q)
+            + (() if reference.qd is None else (reference.qd,))
+            + (() if reference.qdd is None else (reference.qdd,))
+        )
     if callable(reference):
         out = reference(t)
         if not (isinstance(out, tuple) and len(out) == 3):
-            raise ParameterError("simulate_recording reference(t) must return a tuple (q, qd, qdd); got "
-                                 f"{type(out).__name__}. Return three (n_samples, n_dof) arrays.")
+            raise ParameterError(
+                "simulate_recording reference(t) must return a tuple (q, qd, qdd); got "
+                f"{type(out).__name__}. Return three (n_samples, n_dof) arrays."
+            )
         arrays = [np.asarray(a, dtype=float) for a in out]
     else:
         if not (isinstance(reference, (tuple, list)) and 2 <= len(reference) <= 4):
@@ -198,7 +211,9 @@ def _sample_reference(reference, t: np.ndarray, n_dof: int):
                 f"RobotDescription.n_dof={n_dof}; got {arr.shape}.{hint}"
             )
         if not np.all(np.isfinite(arr)):
-            raise ParameterError(f"simulate_recording reference {name} must be finite; got NaN/inf. Fix the trajectory.")
+            raise ParameterError(
+                f"simulate_recording reference {name} must be finite; got NaN/inf. Fix the trajectory."
+            )
     return arrays
 
 
@@ -208,7 +223,9 @@ def _reference_span(reference):
     if isinstance(reference, (tuple, list)) and len(reference) >= 2:
         t_ref = np.asarray(reference[0], dtype=float)
         if t_ref.ndim != 1 or t_ref.shape[0] < 2 or np.any(np.diff(t_ref) <= 0):
-            raise ParameterError("simulate_recording reference t must be a strictly increasing 1-D array of >= 2 times.")
+            raise ParameterError(
+                "simulate_recording reference t must be a strictly increasing 1-D array of >= 2 times."
+            )
         return float(t_ref[0]), float(t_ref[-1] - t_ref[0])
     return 0.0, None
 
@@ -217,8 +234,93 @@ def _quantise(x, step):
     return x if step is None else np.round(x / step) * step
 
 
-def simulate_recording(robot: RobotDescription, reference, options: SimulationOptions | None = None,
-                       rng: np.random.Generator | None = None, extras=()) -> tuple[Recording, SimulationTruth]:
+def _checked_drives_and_extras(robot: RobotDescription, options: SimulationOptions, extras: tuple) -> tuple:
+    """The robot's drives, once the extra physics and the payload are checked against its joints."""
+    n = robot.n_dof
+    drives = _drives(robot)
+    for term in extras:
+        if not isinstance(term, ExtraPhysics):
+            raise ParameterError(f"simulate_recording extras must be ExtraPhysics terms; got {type(term).__name__}.")
+        term.validate(n)
+    if options.payload is not None:
+        options.payload.validate(n)
+    return drives
+
+
+def _controller_and_plant(robot: RobotDescription, standard, options: SimulationOptions, extras: tuple) -> tuple:
+    """(robot, parameters) of the controller's model, the truth plus the known payload, and of the plant, which
+    adds the hidden extras: ``(ctrl_robot, ctrl_params, plant_robot, plant_params)``."""
+    ctrl_robot, ctrl_params = robot, standard
+    if options.payload is not None:
+        ctrl_robot, ctrl_params = options.payload.modify_model(robot, standard)
+    plant_robot, plant_params = ctrl_robot, ctrl_params
+    for term in extras:
+        plant_robot, plant_params = term.modify_model(plant_robot, plant_params)
+    return ctrl_robot, ctrl_params, plant_robot, plant_params
+
+
+def _sample_times(reference, options: SimulationOptions) -> np.ndarray:
+    """Sample times at ``options.rate`` over ``options.duration`` (default: the reference's span) from its start."""
+    t0, span = _reference_span(reference)
+    duration = options.duration if options.duration is not None else span
+    if duration is None:
+        raise ParameterError("SimulationOptions.duration is None and the reference is a callable; set duration [s].")
+    n_samples = int(np.floor(duration * options.rate + 1e-9)) + 1
+    return t0 + np.arange(n_samples) / options.rate
+
+
+def _feedforward(model, data, q_ref, qd_ref, qdd_ref, lugre, options: SimulationOptions) -> np.ndarray:
+    """Feed-forward torque of the reference (n_samples, n_dof): ``options.feedforward`` plus steady friction."""
+    if options.feedforward == "model":
+        tau_ff = np.array([pin.rnea(model, data, a, b, c) for a, b, c in zip(q_ref, qd_ref, qdd_ref)])
+    elif options.feedforward == "gravity":
+        tau_ff = np.array([pin.computeGeneralizedGravity(model, data, a) for a in q_ref])
+    else:
+        tau_ff = np.zeros_like(q_ref)
+    if options.friction and options.friction_feedforward:
+        tau_ff = tau_ff + steady_state_friction(qd_ref, lugre)
+    return tau_ff
+
+
+def _pid_gains(model, data, q0, options: SimulationOptions) -> tuple:
+    """``(kp, kd, ki)`` per joint from the bandwidth and the mass-matrix diagonal at the pose ``q0``."""
+    mass = pin.crba(model, data, q0).diagonal().copy()
+    omega = 2.0 * np.pi * options.bandwidth_hz
+    kp, kd = mass * omega**2, 2.0 * options.damping_ratio * mass * omega
+    ki = options.integral_gain * mass * omega**3
+    return kp, kd, ki
+
+
+def _sensor_recording(robot_name, t, q, qd, tau_motor, kt, options: SimulationOptions, extras: tuple, rng) -> Recording:
+    """What the sensors record: signal-level physics of the extras, then noise and quantisation."""
+    q_meas, tau_meas = q, tau_motor
+    for term in extras:
+        q_meas, tau_meas = term.measure(t, q_meas, tau_meas)
+    q_rec = _quantise(q_meas + options.q_noise_std * rng.standard_normal(q.shape), options.encoder_resolution)
+    current = tau_rec = None
+    if options.record_current:
+        current = _quantise(
+            tau_meas / kt + options.current_noise_std * rng.standard_normal(q.shape), options.current_resolution
+        )
+    if options.record_tau:
+        tau_rec = tau_meas + options.tau_noise_std * rng.standard_normal(q.shape)
+    return Recording(
+        t=t,
+        q=q_rec,
+        tau=tau_rec,
+        current=current,
+        qd=qd.copy() if options.record_velocity else None,
+        name=f"virtual {robot_name}",
+    )
+
+
+def simulate_recording(
+    robot: RobotDescription,
+    reference,
+    options: SimulationOptions | None = None,
+    rng: np.random.Generator | None = None,
+    extras=(),
+) -> tuple[Recording, SimulationTruth]:
     """Simulate the virtual robot tracking a reference and return what its sensors record, with the truth.
 
     Parameters
@@ -253,75 +355,47 @@ def simulate_recording(robot: RobotDescription, reference, options: SimulationOp
     options = SimulationOptions() if options is None else options
     rng = np.random.default_rng(0) if rng is None else rng
     extras = tuple(extras)
-    n = robot.n_dof
-    drives = _drives(robot)
-    for term in extras:
-        if not isinstance(term, ExtraPhysics):
-            raise ParameterError(f"simulate_recording extras must be ExtraPhysics terms; got {type(term).__name__}.")
-        term.validate(n)
-    if options.payload is not None:
-        options.payload.validate(n)
+    drives = _checked_drives_and_extras(robot, options, extras)
     standard = robot.nominal_dynamic_parameters()
-
-    # the controller's model: truth plus the known payload; the plant adds the hidden extras
-    ctrl_robot, ctrl_params = robot, standard
-    if options.payload is not None:
-        ctrl_robot, ctrl_params = options.payload.modify_model(robot, standard)
-    plant_robot, plant_params = ctrl_robot, ctrl_params
-    for term in extras:
-        plant_robot, plant_params = term.modify_model(plant_robot, plant_params)
-
-    t0, span = _reference_span(reference)
-    duration = options.duration if options.duration is not None else span
-    if duration is None:
-        raise ParameterError("SimulationOptions.duration is None and the reference is a callable; set duration [s].")
-    n_samples = int(np.floor(duration * options.rate + 1e-9)) + 1
-    t = t0 + np.arange(n_samples) / options.rate
-    q_ref, qd_ref, qdd_ref = _sample_reference(reference, t, n)
+    ctrl_robot, ctrl_params, plant_robot, plant_params = _controller_and_plant(robot, standard, options, extras)
+    t = _sample_times(reference, options)
+    q_ref, qd_ref, qdd_ref = _sample_reference(reference, t, robot.n_dof)
 
     lugre = LuGreArrays.from_drives(drives)
     kt = np.array([d.kt for d in drives])
     ctrl_model = build_pinocchio_model(ctrl_robot, ctrl_params)
     ctrl_data = ctrl_model.createData()
-    if options.feedforward == "model":
-        tau_ff = np.array([pin.rnea(ctrl_model, ctrl_data, a, b, c) for a, b, c in zip(q_ref, qd_ref, qdd_ref)])
-    elif options.feedforward == "gravity":
-        tau_ff = np.array([pin.computeGeneralizedGravity(ctrl_model, ctrl_data, a) for a in q_ref])
-    else:
-        tau_ff = np.zeros_like(q_ref)
-    if options.friction and options.friction_feedforward:
-        tau_ff = tau_ff + steady_state_friction(qd_ref, lugre)
-    mass = pin.crba(ctrl_model, ctrl_data, q_ref[0]).diagonal().copy()
-    omega = 2.0 * np.pi * options.bandwidth_hz
-    kp, kd = mass * omega**2, 2.0 * options.damping_ratio * mass * omega
-    ki = options.integral_gain * mass * omega**3
+    tau_ff = _feedforward(ctrl_model, ctrl_data, q_ref, qd_ref, qdd_ref, lugre, options)
+    gains = _pid_gains(ctrl_model, ctrl_data, q_ref[0], options)
 
     plant = build_pinocchio_model(plant_robot, plant_params)
-    states = _integrate(plant, lugre, t, q_ref, qd_ref, tau_ff, (kp, kd, ki), options, extras)
+    states = _integrate(plant, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras)
     q, qd, qdd, z, tau_motor, tau_f, tau_x = states
-
-    # sensors: signal-level physics, then noise and quantisation
-    q_meas, tau_meas = q, tau_motor
-    for term in extras:
-        q_meas, tau_meas = term.measure(t, q_meas, tau_meas)
-    q_rec = _quantise(q_meas + options.q_noise_std * rng.standard_normal(q.shape), options.encoder_resolution)
-    current = tau_rec = None
-    if options.record_current:
-        current = _quantise(tau_meas / kt + options.current_noise_std * rng.standard_normal(q.shape),
-                            options.current_resolution)
-    if options.record_tau:
-        tau_rec = tau_meas + options.tau_noise_std * rng.standard_normal(q.shape)
-    recording = Recording(t=t, q=q_rec, tau=tau_rec, current=current,
-                          qd=qd.copy() if options.record_velocity else None, name=f"virtual {robot.name}")
+    recording = _sensor_recording(robot.name, t, q, qd, tau_motor, kt, options, extras, rng)
     truth = SimulationTruth(
-        robot_name=robot.name, standard_parameters=standard, kt=kt, friction=lugre.as_table(),
-        gravity=np.asarray(plant_robot.gravity, dtype=float).copy(), payload=options.payload, extras=extras,
-        options=options, t=t, q=q, qd=qd, qdd=qdd, z=z, tau_motor=tau_motor, tau_friction=tau_f, tau_extra=tau_x)
+        robot_name=robot.name,
+        standard_parameters=standard,
+        kt=kt,
+        friction=lugre.as_table(),
+        gravity=np.asarray(plant_robot.gravity, dtype=float).copy(),
+        payload=options.payload,
+        extras=extras,
+        options=options,
+        t=t,
+        q=q,
+        qd=qd,
+        qdd=qdd,
+        z=z,
+        tau_motor=tau_motor,
+        tau_friction=tau_f,
+        tau_extra=tau_x,
+    )
     return recording, truth
 
 
 def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
-    """The time loop: PID + feed-forward at each sample, ``substeps`` symplectic-Euler or leapfrog steps, exact z steps."""
+    """The time loop: PID + feed-forward at each sample, ``substeps`` symplectic-Euler or leapfrog steps, exact z
+    steps."""
     kp, kd, ki = gains
     n_samples, n = q_ref.shape
     data = model.createData()
@@ -369,7 +443,7 @@ def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
                     rest = g * sg
                     z = rest + (z - rest) * np.exp(minus_half_h * rate)
             if friction:
-                tau_f = s0 * z + s1 * (qd - rate * z) + visc      # eq. 14 with zdot of eq. 12
+                tau_f = s0 * z + s1 * (qd - rate * z) + visc  # eq. 14 with zdot of eq. 12
                 net = tau_cmd - tau_f
             else:
                 tau_f, net = zero, tau_cmd

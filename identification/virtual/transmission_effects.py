@@ -16,9 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-
 from identification.virtual.effects import ExtraPhysics
+from psdm_casadi.errors import ParameterError
 
 
 def _check_joint(owner, joint, n_dof):
@@ -28,7 +27,8 @@ def _check_joint(owner, joint, n_dof):
 
 @dataclass(frozen=True)
 class Backlash(ExtraPhysics):
-    """Play of total width ``width`` [rad] in the transmission of ``joint``; ``torque_scale`` [N m] smooths the flank change."""
+    """Play of total width ``width`` [rad] in the transmission of ``joint``; ``torque_scale`` [N m] smooths the flank
+    change."""
 
     joint: int
     width: float

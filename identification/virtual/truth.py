@@ -13,13 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
-from psdm_casadi.robot import DriveParameters
-
 from identification.data.io import atomic_write, save_recording
 from identification.data.recording import Recording
 from identification.virtual.effects import ExtraPhysics, Payload
 from identification.virtual.lugre_exact import FRICTION_FIELDS
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.robot import DriveParameters
 
 __all__ = ["TRUTH_FORMAT", "SimulationTruth", "write_recording", "read_truth", "drives_from_truth"]
 
@@ -77,8 +76,9 @@ class SimulationTruth:
             "kt": self.kt.tolist(),
             "friction_fields": list(FRICTION_FIELDS),
             "friction": self.friction.tolist(),
-            "standard_parameter_layout":
-                "per joint: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (link frame origin), Im",
+            "standard_parameter_layout": (
+                "per joint: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (link frame origin), Im"
+            ),
             "standard_parameters": self.standard_parameters.tolist(),
             "gravity": self.gravity.tolist(),
             "payload": None if self.payload is None else self.payload.describe(),
@@ -87,8 +87,14 @@ class SimulationTruth:
         }
 
 
-def write_recording(recording: Recording, truth: SimulationTruth, directory, name: str = "recording",
-                    fmt: str = "csv", overwrite: bool = False) -> dict:
+def write_recording(
+    recording: Recording,
+    truth: SimulationTruth,
+    directory,
+    name: str = "recording",
+    fmt: str = "csv",
+    overwrite: bool = False,
+) -> dict:
     """Write a simulated recording and its truth beside it, atomically.
 
     Files: ``<name>.<fmt>`` (the recording), ``<name>.truth.json`` (parameters, options, extras) and
@@ -113,14 +119,21 @@ def write_recording(recording: Recording, truth: SimulationTruth, directory, nam
     if fmt not in ("csv", "npz"):
         raise ParameterError(f"write_recording fmt must be 'csv' or 'npz'; got {fmt!r}.")
     directory = Path(directory)
-    paths = {"recording": directory / f"{name}.{fmt}", "truth": directory / f"{name}.truth.json",
-             "states": directory / f"{name}.truth.npz"}
+    paths = {
+        "recording": directory / f"{name}.{fmt}",
+        "truth": directory / f"{name}.truth.json",
+        "states": directory / f"{name}.truth.npz",
+    }
     if not overwrite:
         for path in paths.values():
             if path.exists():
                 raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True (or --overwrite) to replace it.")
-    save_recording(recording, paths["recording"], overwrite=overwrite,
-                   comment=f"virtual robot {truth.robot_name}; truth in {paths['truth'].name}")
+    save_recording(
+        recording,
+        paths["recording"],
+        overwrite=overwrite,
+        comment=f"virtual robot {truth.robot_name}; truth in {paths['truth'].name}",
+    )
     text = json.dumps(truth.describe(), indent=2, default=_json_default)
     atomic_write(paths["truth"], lambda handle: handle.write(text + "\n"), overwrite=overwrite)
     keys = ("t", "q", "qd", "qdd", "z", "tau_motor", "tau_friction", "tau_extra")
@@ -152,5 +165,7 @@ def read_truth(path) -> dict:
 
 def drives_from_truth(truth: dict) -> tuple:
     """The true DriveParameters per joint from a truth dictionary (``read_truth``)."""
-    return tuple(DriveParameters(kt=kt, **dict(zip(truth["friction_fields"], row)))
-                 for kt, row in zip(truth["kt"], truth["friction"]))
+    return tuple(
+        DriveParameters(kt=kt, **dict(zip(truth["friction_fields"], row)))
+        for kt, row in zip(truth["kt"], truth["friction"])
+    )

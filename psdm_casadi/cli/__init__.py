@@ -16,12 +16,29 @@ import argparse
 import logging
 import sys
 
-from psdm_casadi.cli.output import (EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_SOLVER,
-                                    configure_logging, print_json, progress)
+from psdm_casadi.cli.output import (
+    EXIT_BAD_INPUT,
+    EXIT_CHECK_FAILED,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_SOLVER,
+    configure_logging,
+    print_json,
+    progress,
+)
 from psdm_casadi.errors import PSDMError, SolverError
 
-__all__ = ["EXIT_BAD_INPUT", "EXIT_CHECK_FAILED", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_SOLVER", "build_parser",
-           "main", "print_json", "progress"]
+__all__ = [
+    "EXIT_BAD_INPUT",
+    "EXIT_CHECK_FAILED",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_SOLVER",
+    "build_parser",
+    "main",
+    "print_json",
+    "progress",
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

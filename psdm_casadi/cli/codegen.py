@@ -7,9 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError, ShapeError
-
 from codegen.export import export_c
+from psdm_casadi.errors import ParameterError, ShapeError
 
 ROBOT_SUFFIXES = (".toml", ".urdf")
 FORMS = ("recursive", "sum")
@@ -31,19 +30,37 @@ def register(subparsers) -> None:
     )
     p.add_argument("source", metavar="ROBOT_OR_MODEL", help="robot file (.toml, .urdf) or saved model (.npz)")
     p.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --force)")
-    p.add_argument("--theta", type=Path, default=None,
-                   help="base parameters to bake in: .npy, .csv or whitespace-separated text with n_base values")
-    p.add_argument("--form", choices=FORMS, default=None,
-                   help="recursive (Newton-Euler on the base parameters, fastest; default when the kinematics are known) "
-                        "or sum (the paper's pseudo-symbolic sum; default for a model file without --robot)")
-    p.add_argument("--robot", type=Path, default=None,
-                   help="robot file (.toml, .urdf) a saved model was derived from; enables the recursive form")
+    p.add_argument(
+        "--theta",
+        type=Path,
+        default=None,
+        help="base parameters to bake in: .npy, .csv or whitespace-separated text with n_base values",
+    )
+    p.add_argument(
+        "--form",
+        choices=FORMS,
+        default=None,
+        help="recursive (Newton-Euler on the base parameters, fastest; default when the kinematics are known) "
+        "or sum (the paper's pseudo-symbolic sum; default for a model file without --robot)",
+    )
+    p.add_argument(
+        "--robot",
+        type=Path,
+        default=None,
+        help="robot file (.toml, .urdf) a saved model was derived from; enables the recursive form",
+    )
     p.add_argument("--jacobians", action="store_true", help="also export the Jacobians (<function>_jac)")
-    p.add_argument("--libm-trig", action="store_true",
-                   help="call libm's sin/cos instead of the inlined psdm_sin/psdm_cos (within a few ulp of libm)")
+    p.add_argument(
+        "--libm-trig",
+        action="store_true",
+        help="call libm's sin/cos instead of the inlined psdm_sin/psdm_cos (within a few ulp of libm)",
+    )
     p.add_argument("--library", default="psdm_dynamics", help="base name of the .c/.h files (default psdm_dynamics)")
-    p.add_argument("--compile", action="store_true",
-                   help="also compile lib<library>.so into --out with the system C compiler (-O3 -march=native)")
+    p.add_argument(
+        "--compile",
+        action="store_true",
+        help="also compile lib<library>.so into --out with the system C compiler (-O3 -march=native)",
+    )
     p.add_argument("--force", action="store_true", help="write into a non-empty --out folder")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_codegen)
@@ -78,7 +95,8 @@ def _load_source(path: Path, robot_path: Path | None):
     if path.suffix.lower() in ROBOT_SUFFIXES or (not path.exists() and str(path) in builtin_robot_names()):
         if robot_path is not None:
             raise ParameterError(
-                f"codegen --robot is only for a saved model; got the robot file {path.name} as the source. Drop --robot."
+                f"codegen --robot is only for a saved model; got the robot file {path.name} as the source. "
+                "Drop --robot."
             )
         robot = load_robot(path)
         progress(f"deriving the PSDM model of {robot.name} ...")
@@ -121,8 +139,15 @@ def _run_codegen(args) -> int:
         )
     progress("building the CasADi functions ...")
     functions, form = build_export_functions(model, robot, args.form)
-    export = export_c(functions, out, theta=theta, jacobians=args.jacobians, library=args.library,
-                      fast_trig=not args.libm_trig, overwrite=args.force)
+    export = export_c(
+        functions,
+        out,
+        theta=theta,
+        jacobians=args.jacobians,
+        library=args.library,
+        fast_trig=not args.libm_trig,
+        overwrite=args.force,
+    )
     compiled = False
     if args.compile:
         from codegen.build import compile_shared
@@ -132,9 +157,16 @@ def _run_codegen(args) -> int:
         compiled = True
     if args.json:
         lanes = export.lane_regressor
-        print_json({"out": str(out), "form": form, "functions": list(export.function_names),
-                    "n_instructions": export.n_instructions, "compiled": compiled,
-                    "lane_regressor": None if lanes is None else dataclasses.asdict(lanes)})
+        print_json(
+            {
+                "out": str(out),
+                "form": form,
+                "functions": list(export.function_names),
+                "n_instructions": export.n_instructions,
+                "compiled": compiled,
+                "lane_regressor": None if lanes is None else dataclasses.asdict(lanes),
+            }
+        )
     else:
         print(f"wrote {export.source.name}, {export.header.name}, Makefile and main.c to {out} ({form} form)")
         print(f"{'function':40s} {'instructions':>12s} {'operations':>10s} {'trig':>5s}")
@@ -142,8 +174,10 @@ def _run_codegen(args) -> int:
             print(f"{count.name:40s} {count.n_instructions:12d} {count.n_operations:10d} {count.n_trig:5d}")
         if export.lane_regressor is not None:
             lanes = export.lane_regressor
-            print(f"{lanes.name} runs four joint rows per vector instruction: {lanes.parts.n_operations} scalar "
-                  f"+ {lanes.n_vector_operations} vector operations (-DPSDM_NO_LANES: CasADi's scalar code above)")
+            print(
+                f"{lanes.name} runs four joint rows per vector instruction: {lanes.parts.n_operations} scalar "
+                f"+ {lanes.n_vector_operations} vector operations (-DPSDM_NO_LANES: CasADi's scalar code above)"
+            )
         if not export.theta_baked:
             print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")
     return 0

@@ -12,9 +12,11 @@ from psdm_casadi.robot import load_robot
 
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
-        "derive", help="derive the PSDM model of a robot file (.toml DH or .urdf)",
+        "derive",
+        help="derive the PSDM model of a robot file (.toml DH or .urdf)",
         description="Derive the minimal regressor model tau = Y(q, qd, qdd) theta of a robot, check it "
-                    "against Pinocchio's rnea on random states, and optionally write it to a model file.")
+        "against Pinocchio's rnea on random states, and optionally write it to a model file.",
+    )
     parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
     parser.add_argument("-o", "--output", help="write the model to this .npz file")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
@@ -37,11 +39,20 @@ def run_derive(args) -> int:
         progress(f"model written to {path}", quiet=args.json)
     error = model.metadata["max_rel_error_vs_pinocchio"]
     if args.json:
-        print_json({"p": model.n_functions, "l": model.n_base, "n_gravity": model.n_gravity,
-                    "seconds": round(seconds, 4), "max_rel_error_vs_pinocchio": error})
+        print_json(
+            {
+                "p": model.n_functions,
+                "l": model.n_base,
+                "n_gravity": model.n_gravity,
+                "seconds": round(seconds, 4),
+                "max_rel_error_vs_pinocchio": error,
+            }
+        )
     else:
-        print(f"{robot.name}: p = {model.n_functions} functions, l = {model.n_base} base parameters "
-              f"({model.n_gravity} gravity), {seconds:.2f} s, max relative error vs Pinocchio {error:.2e}")
+        print(
+            f"{robot.name}: p = {model.n_functions} functions, l = {model.n_base} base parameters "
+            f"({model.n_gravity} gravity), {seconds:.2f} s, max relative error vs Pinocchio {error:.2e}"
+        )
         if args.equations:
             print(model.equations())
     return EXIT_OK if error <= 1e-9 else EXIT_CHECK_FAILED

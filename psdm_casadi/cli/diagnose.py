@@ -1,4 +1,6 @@
-"""The ``psdm diagnose`` subcommand: nominal model from a training recording, missing physics on training and validation."""
+"""The ``psdm diagnose`` subcommand: nominal model from a training recording, missing physics on training and
+validation.
+"""
 
 from __future__ import annotations
 
@@ -19,14 +21,26 @@ def register(subparsers) -> None:
     p.add_argument("robot", help="robot file (.toml or .urdf)")
     p.add_argument("--train", required=True, help="training recording (.csv or .npz)")
     p.add_argument("--validate", required=True, help="validation recording (.csv or .npz)")
-    p.add_argument("--friction", choices=("lugre", "coulomb_viscous"), default="lugre",
-                   help="nominal friction: steady-state LuGre with the robot file's shape (+ its bristle dynamics "
-                        "when the file has drives), or Coulomb + viscous")
-    p.add_argument("--rigid-body", choices=("prior", "identified"), default="prior",
-                   help="keep the robot file's inertia (default) or identify the base parameters too")
+    p.add_argument(
+        "--friction",
+        choices=("lugre", "coulomb_viscous"),
+        default="lugre",
+        help="nominal friction: steady-state LuGre with the robot file's shape (+ its bristle dynamics "
+        "when the file has drives), or Coulomb + viscous",
+    )
+    p.add_argument(
+        "--rigid-body",
+        choices=("prior", "identified"),
+        default="prior",
+        help="keep the robot file's inertia (default) or identify the base parameters too",
+    )
     p.add_argument("--cutoff", type=float, default=15.0, help="low-pass cut-off of the preprocessing [Hz]")
-    p.add_argument("--min-improvement", type=float, default=0.2,
-                   help="validation RMSE reduction a joint must show for a term to be kept (default 0.2)")
+    p.add_argument(
+        "--min-improvement",
+        type=float,
+        default=0.2,
+        help="validation RMSE reduction a joint must show for a term to be kept (default 0.2)",
+    )
     p.add_argument("--max-effects", type=int, default=4, help="most effects reported (default 4)")
     p.add_argument("--out", default=None, help="folder for report.md, report.json, plots and the augmented model")
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
@@ -35,16 +49,20 @@ def register(subparsers) -> None:
 
 
 def _run_diagnose(args) -> int:
-    from psdm_casadi.robot import load_robot
-
     from identification.data.io import load_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+    from psdm_casadi.robot import load_robot
 
     robot = load_robot(args.robot)
     train = load_recording(args.train, robot.n_dof)
     validation = load_recording(args.validate, robot.n_dof)
-    options = DiagnosisOptions(friction=args.friction, rigid_body=args.rigid_body, cutoff_hz=args.cutoff,
-                               min_improvement=args.min_improvement, max_effects=args.max_effects)
+    options = DiagnosisOptions(
+        friction=args.friction,
+        rigid_body=args.rigid_body,
+        cutoff_hz=args.cutoff,
+        min_improvement=args.min_improvement,
+        max_effects=args.max_effects,
+    )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     report = diagnose(robot, train, validation, options)
     paths = report.save(args.out, overwrite=args.overwrite) if args.out else {}

@@ -1,4 +1,4 @@
-"""The ``psdm excite`` and ``psdm experiment`` subcommands ."""
+"""The ``psdm excite`` and ``psdm experiment`` subcommands."""
 
 from __future__ import annotations
 
@@ -14,23 +14,43 @@ from psdm_casadi.errors import ParameterError
 
 def register(subparsers) -> None:
     """Add ``excite`` and ``experiment`` to the ``psdm`` command."""
+    _register_excite(subparsers)
+    _register_experiment(subparsers)
+
+
+def _register_excite(subparsers) -> None:
+    """The ``psdm excite`` parser: the excitation options, the CSV and the plot."""
     p = subparsers.add_parser(
-        "excite", help="optimise an excitation trajectory (min cond of the stacked regressor) under joint limits",
+        "excite",
+        help="optimise an excitation trajectory (min cond of the stacked regressor) under joint limits",
         description="Design a periodic Fourier (or the paper's sum-of-sines) excitation trajectory minimising the "
-                    "condition number of the stacked PSDM regressor with Ipopt, subject to position, velocity and "
-                    "acceleration limits (and optionally torque limits) on a dense grid, verified on a 10x finer "
-                    "grid. Writes a CSV with t, q, qd, qdd columns and optionally a plot.")
+        "condition number of the stacked PSDM regressor with Ipopt, subject to position, velocity and "
+        "acceleration limits (and optionally torque limits) on a dense grid, verified on a 10x finer "
+        "grid. Writes a CSV with t, q, qd, qdd columns and optionally a plot.",
+    )
     _robot_arguments(p)
     p.add_argument("--duration", type=float, default=10.0, help="period / length of the trajectory [s] (10)")
     p.add_argument("--harmonics", type=int, default=5, help="Fourier harmonics per joint (5)")
-    p.add_argument("--family", choices=("fourier", "sum_of_sines"), default="fourier",
-                   help="trajectory family (fourier: periodic; sum_of_sines: the paper's eq. 22)")
+    p.add_argument(
+        "--family",
+        choices=("fourier", "sum_of_sines"),
+        default="fourier",
+        help="trajectory family (fourier: periodic; sum_of_sines: the paper's eq. 22)",
+    )
     p.add_argument("--terms", type=int, default=3, help="sines per joint for --family sum_of_sines (3)")
-    p.add_argument("--columns", choices=("inertial", "all"), default="inertial",
-                   help="regressor columns to excite: inertial (not identified by the gravity step, as in the "
-                        "paper) or all (default inertial)")
-    p.add_argument("--criterion", choices=("cond", "logdet"), default="cond",
-                   help="smooth condition-number surrogate or D-optimal log-det (default cond)")
+    p.add_argument(
+        "--columns",
+        choices=("inertial", "all"),
+        default="inertial",
+        help="regressor columns to excite: inertial (not identified by the gravity step, as in the "
+        "paper) or all (default inertial)",
+    )
+    p.add_argument(
+        "--criterion",
+        choices=("cond", "logdet"),
+        default="cond",
+        help="smooth condition-number surrogate or D-optimal log-det (default cond)",
+    )
     p.add_argument("--starts", type=int, default=3, help="random starts of Ipopt (3)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random starts (0)")
     p.add_argument("--samples", type=int, default=100, help="objective grid size (100)")
@@ -47,24 +67,41 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object: cond, worst_limit_margin, seconds")
     p.set_defaults(handler=_run_excite)
 
+
+def _register_experiment(subparsers) -> None:
+    """The ``psdm experiment`` parser: the kind of calibration experiment, its joints and settings, the CSV."""
     e = subparsers.add_parser(
-        "experiment", help="trajectories of the motor, gravity and friction calibration experiments",
+        "experiment",
+        help="trajectories of the motor, gravity and friction calibration experiments",
         description="Write the paper's calibration experiments, the designs the identification is validated on "
-                    "with the virtual robot: motor (constant-speed sweep of one joint forward and back, run with "
-                    "and without the calibration mass), gravity (slow jog of the joints through their ranges and "
-                    "back along the same path), friction (one joint from rest to rest through pre-sliding, "
-                    "break-away, Stribeck and sliding segments). The worst limit margin is reported; a negative "
-                    "one names the limit the path leaves.")
+        "with the virtual robot: motor (constant-speed sweep of one joint forward and back, run with "
+        "and without the calibration mass), gravity (slow jog of the joints through their ranges and "
+        "back along the same path), friction (one joint from rest to rest through pre-sliding, "
+        "break-away, Stribeck and sliding segments). The worst limit margin is reported; a negative "
+        "one names the limit the path leaves.",
+    )
     e.add_argument("kind", choices=("motor", "gravity", "friction"))
     _robot_arguments(e)
-    e.add_argument("--joint", type=int, action="append", default=None,
-                   help="1-based joint (motor, friction: exactly one; gravity: repeat, default all)")
-    e.add_argument("--speed", type=float, default=None,
-                   help="sweep (motor, default 0.25) or jog (gravity, default 0.15) speed [rad/s]")
+    e.add_argument(
+        "--joint",
+        type=int,
+        action="append",
+        default=None,
+        help="1-based joint (motor, friction: exactly one; gravity: repeat, default all)",
+    )
+    e.add_argument(
+        "--speed",
+        type=float,
+        default=None,
+        help="sweep (motor, default 0.25) or jog (gravity, default 0.15) speed [rad/s]",
+    )
     e.add_argument("--duration", type=float, default=None, help="length of the gravity jog [s] (120)")
     e.add_argument("--quick", action="store_true", help="friction: the shorter design (FrictionDesign.quick)")
-    e.add_argument("--validation", action="store_true",
-                   help="friction: the second, validation run (the design at 1.3 times its frequencies)")
+    e.add_argument(
+        "--validation",
+        action="store_true",
+        help="friction: the second, validation run (the design at 1.3 times its frequencies)",
+    )
     e.add_argument("--seed", type=int, default=0, help="seed of the gravity jog's periods (0)")
     e.add_argument("--out", default=None, help="output CSV (default KIND_experiment.csv)")
     e.add_argument("--rate", type=float, default=100.0, help="CSV sampling rate [Hz] (100)")
@@ -76,8 +113,13 @@ def register(subparsers) -> None:
 
 def _robot_arguments(parser) -> None:
     parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
-    parser.add_argument("--lock", action="append", default=[], metavar="JOINT",
-                        help="URDF joint to lock at zero (repeat), e.g. the gripper fingers")
+    parser.add_argument(
+        "--lock",
+        action="append",
+        default=[],
+        metavar="JOINT",
+        help="URDF joint to lock at zero (repeat), e.g. the gripper fingers",
+    )
 
 
 def _load_robot(args):
@@ -99,7 +141,6 @@ def _check_outputs(args, *paths) -> None:
 def _run_excite(args) -> int:
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.recursive import build_recursive_functions
-
     from trajopt.optimize import ExcitationOptions, optimize_excitation
     from trajopt.plot import plot_trajectory
 
@@ -107,10 +148,19 @@ def _run_excite(args) -> int:
     robot = _load_robot(args)
     started = time.perf_counter()
     options = ExcitationOptions(
-        family=args.family, duration=args.duration, harmonics=args.harmonics, n_terms=args.terms,
-        rest_to_rest=args.rest_to_rest, criterion=args.criterion, n_samples=args.samples,
-        limit_scale=args.limit_scale, torque_limits=args.torque_limits, n_starts=args.starts,
-        max_iter=args.max_iter, time_limit=args.time_limit)
+        family=args.family,
+        duration=args.duration,
+        harmonics=args.harmonics,
+        n_terms=args.terms,
+        rest_to_rest=args.rest_to_rest,
+        criterion=args.criterion,
+        n_samples=args.samples,
+        limit_scale=args.limit_scale,
+        torque_limits=args.torque_limits,
+        n_starts=args.starts,
+        max_iter=args.max_iter,
+        time_limit=args.time_limit,
+    )
     options.build_limits(robot)  # bad limits fail here, before the derivation
     options.build_parametrization(robot.n_dof)
     progress(f"excite: deriving the model of {robot.name} ...")
@@ -119,26 +169,36 @@ def _run_excite(args) -> int:
     if args.columns == "inertial":
         columns = tuple(int(c) for c in np.flatnonzero(~model.gravity_mask))
         if not columns:
-            raise ParameterError("--columns inertial selects no column: every base parameter is a gravity one. "
-                                 "Use --columns all.")
+            raise ParameterError(
+                "--columns inertial selects no column: every base parameter is a gravity one. Use --columns all."
+            )
         options = replace(options, columns=columns)
     nominal = None
     if args.torque_limits:
         nominal = model.base_parameters(robot.nominal_dynamic_parameters())
-    trajectory = optimize_excitation(robot, functions.regressor, options, seed=args.seed,
-                                     nominal_parameters=nominal)
+    trajectory = optimize_excitation(robot, functions.regressor, options, seed=args.seed, nominal_parameters=nominal)
     trajectory.to_csv(args.out, rate=args.rate, periods=args.periods, overwrite=args.overwrite)
     if args.plot:
         plot_trajectory(trajectory, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
     seconds = time.perf_counter() - started
     if args.json:
-        print_json({"cond": trajectory.cond, "worst_limit_margin": trajectory.worst_margin,
-                    "seconds": round(seconds, 3), "optimize_seconds": round(trajectory.seconds, 3),
-                    "columns": len(trajectory.columns), "status": trajectory.status, "out": str(args.out)})
+        print_json(
+            {
+                "cond": trajectory.cond,
+                "worst_limit_margin": trajectory.worst_margin,
+                "seconds": round(seconds, 3),
+                "optimize_seconds": round(trajectory.seconds, 3),
+                "columns": len(trajectory.columns),
+                "status": trajectory.status,
+                "out": str(args.out),
+            }
+        )
     else:
-        print(f"{robot.name}: cond = {trajectory.cond:.4g} on {len(trajectory.columns)} columns, worst limit margin "
-              f"{trajectory.worst_margin:.3g} ({trajectory.worst_limit}), {seconds:.1f} s; wrote {args.out}"
-              + (f" and {args.plot}" if args.plot else ""))
+        print(
+            f"{robot.name}: cond = {trajectory.cond:.4g} on {len(trajectory.columns)} columns, worst limit margin "
+            f"{trajectory.worst_margin:.3g} ({trajectory.worst_limit}), {seconds:.1f} s; wrote {args.out}"
+            + (f" and {args.plot}" if args.plot else "")
+        )
     return EXIT_OK
 
 
@@ -152,8 +212,9 @@ def _run_experiment(args) -> int:
     robot = _load_robot(args)
     extra = {} if args.speed is None else {"speed": args.speed}
     if args.kind != "gravity" and (not args.joint or len(args.joint) != 1):
-        raise ParameterError(f"--joint must be given exactly once for the {args.kind} experiment; "
-                             f"got {args.joint}. Pass e.g. --joint 2.")
+        raise ParameterError(
+            f"--joint must be given exactly once for the {args.kind} experiment; got {args.joint}. Pass e.g. --joint 2."
+        )
     joints = None if args.joint is None else [_joint_index(j, robot.n_dof) for j in args.joint]
     if args.kind == "gravity":
         if args.duration is not None:
@@ -169,11 +230,20 @@ def _run_experiment(args) -> int:
         plot_trajectory(experiment, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
     numbers = [j + 1 for j in experiment.joints]
     if args.json:
-        print_json({"kind": args.kind, "duration": experiment.duration, "worst_limit_margin": experiment.worst_margin,
-                    "joints": numbers, "out": out})
+        print_json(
+            {
+                "kind": args.kind,
+                "duration": experiment.duration,
+                "worst_limit_margin": experiment.worst_margin,
+                "joints": numbers,
+                "out": out,
+            }
+        )
     else:
-        print(f"{args.kind} experiment: {experiment.duration:.1f} s, joints {numbers}, worst limit "
-              f"margin {experiment.worst_margin:.3g}; wrote {out}")
+        print(
+            f"{args.kind} experiment: {experiment.duration:.1f} s, joints {numbers}, worst limit "
+            f"margin {experiment.worst_margin:.3g}; wrote {out}"
+        )
     return EXIT_OK
 
 

@@ -33,12 +33,11 @@ def register(subparsers) -> None:
 
 
 def _run_identify(args) -> int:
+    from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
+    from identification.calibration.result import RESULT_FILES
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
     from psdm_casadi.robot import load_robot
-
-    from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-    from identification.calibration.result import RESULT_FILES
 
     robot = load_robot(args.robot)
     out = Path(args.out)
@@ -58,10 +57,21 @@ def _run_identify(args) -> int:
     (out / "report.md").write_text(result.report.to_markdown() + "\n")
     plots = [str(p) for p in pipeline.plot(out)] if args.plots else []
     if args.json:
-        print_json({"command": "identify", "robot": robot.name, "out": str(out), "kt": result.kt.tolist(),
-                    "theta": result.theta.tolist(), "base_names": list(model.base_names),
-                    "lugre": [p.as_dict() for p in result.lugre], "report": result.report.to_dict(),
-                    "consistency": result.consistency.to_dict(), "timings": pipeline.timings_, "plots": plots})
+        print_json(
+            {
+                "command": "identify",
+                "robot": robot.name,
+                "out": str(out),
+                "kt": result.kt.tolist(),
+                "theta": result.theta.tolist(),
+                "base_names": list(model.base_names),
+                "lugre": [p.as_dict() for p in result.lugre],
+                "report": result.report.to_dict(),
+                "consistency": result.consistency.to_dict(),
+                "timings": pipeline.timings_,
+                "plots": plots,
+            }
+        )
     else:
         print(result.report.to_markdown())
         print(f"identified model written to {out}")

@@ -32,12 +32,19 @@ def _add_simulate(subparsers) -> None:
     p.add_argument("robot", help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables")
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--reference", help="CSV with columns t,q1..qn and optional qd1..,qdd1..")
-    source.add_argument("--experiment", choices=EXPERIMENTS,
-                        help="a calibration experiment of the paper (section 3), as `psdm experiment` writes it")
+    source.add_argument(
+        "--experiment",
+        choices=EXPERIMENTS,
+        help="a calibration experiment of the paper (section 3), as `psdm experiment` writes it",
+    )
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--duration", type=float, default=None,
-                   help="simulated time [s] of --reference, or length of the gravity and sine experiments "
-                        "(default: the reference's, the experiment's)")
+    p.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="simulated time [s] of --reference, or length of the gravity and sine experiments "
+        "(default: the reference's, the experiment's)",
+    )
     p.add_argument("--rate", type=float, default=1000.0, help="sample and control rate [Hz] (default 1000)")
     p.add_argument("--substeps", type=int, default=2, help="integration steps per sample (default 2)")
     p.add_argument("--joints", default=None, help="comma-separated 1-based joints for motor/friction (default all)")
@@ -66,14 +73,18 @@ def _read_reference(path: str, n_dof: int):
     known = set(trajectory_header(n_dof))
     for name in header:
         if name not in known:
-            raise ParameterError(f"{path.name}: column {name!r} is not a reference column of a {n_dof}-joint robot "
-                                 f"(t, q1..q{n_dof}, qd1.., qdd1..). Remove it.")
+            raise ParameterError(
+                f"{path.name}: column {name!r} is not a reference column of a {n_dof}-joint robot "
+                f"(t, q1..q{n_dof}, qd1.., qdd1..). Remove it."
+            )
     try:
         data = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
     except ValueError:
         raise ParameterError(f"{path.name}: a row holds a non-number or a wrong field count. Fix the file.") from None
     if data.ndim != 2 or data.shape[0] < 2:
-        raise ParameterError(f"{path.name}: the reference needs at least 2 rows; got {data.shape[0] if data.ndim == 2 else 0}.")
+        raise ParameterError(
+            f"{path.name}: the reference needs at least 2 rows; got {data.shape[0] if data.ndim == 2 else 0}."
+        )
     cols = {name: data[:, k] for k, name in enumerate(header)}
     if "t" not in cols:
         raise ParameterError(f"{path.name}: column t is missing. Add the time column.")
@@ -105,8 +116,10 @@ def _experiment_runs(args, robot, joints, rng, base):
         runs = []
         for j in joints:
             ref = motor_experiment(robot, j).reference()
-            runs += [(f"motor_j{j + 1}_nominal", ref, SimulationOptions(**base)),
-                     (f"motor_j{j + 1}_payload", ref, loaded)]
+            runs += [
+                (f"motor_j{j + 1}_nominal", ref, SimulationOptions(**base)),
+                (f"motor_j{j + 1}_payload", ref, loaded),
+            ]
         return runs
     if args.experiment == "gravity":
         experiment = gravity_experiment(robot, rng=rng, **length)
@@ -120,10 +133,9 @@ def _experiment_runs(args, robot, joints, rng, base):
 
 
 def _run_simulate(args) -> int:
-    from psdm_casadi.robot import load_robot
-
     from identification.virtual.simulation import SimulationOptions, simulate_recording
     from identification.virtual.truth import write_recording
+    from psdm_casadi.robot import load_robot
 
     robot = load_robot(args.robot)
     n = robot.n_dof
@@ -149,11 +161,30 @@ def _run_simulate(args) -> int:
         paths = write_recording(recording, truth, args.out, name=name, fmt=args.format, overwrite=args.overwrite)
         simulated += recording.duration
         wall += elapsed
-        written.append({"name": name, "samples": recording.n_samples, "duration_s": recording.duration,
-                        "seconds": elapsed, **{k: str(v) for k, v in paths.items()}})
-        progress(f"simulate: {name}: {recording.duration:.1f} s of robot time in {elapsed:.1f} s "
-                 f"({recording.duration / elapsed:.0f}x real time) -> {paths['recording']}", quiet=args.json)
+        written.append(
+            {
+                "name": name,
+                "samples": recording.n_samples,
+                "duration_s": recording.duration,
+                "seconds": elapsed,
+                **{k: str(v) for k, v in paths.items()},
+            }
+        )
+        progress(
+            f"simulate: {name}: {recording.duration:.1f} s of robot time in {elapsed:.1f} s "
+            f"({recording.duration / elapsed:.0f}x real time) -> {paths['recording']}",
+            quiet=args.json,
+        )
     if args.json:
-        print_json({"command": "simulate", "robot": robot.name, "out": str(args.out), "recordings": written,
-                    "simulated_s": simulated, "wall_s": wall, "real_time_factor": simulated / max(wall, 1e-9)})
+        print_json(
+            {
+                "command": "simulate",
+                "robot": robot.name,
+                "out": str(args.out),
+                "recordings": written,
+                "simulated_s": simulated,
+                "wall_s": wall,
+                "real_time_factor": simulated / max(wall, 1e-9),
+            }
+        )
     return 0

@@ -9,8 +9,13 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-REQUIRED = ("id_speedup_vs_pinocchio", "fd_speedup_vs_pinocchio", "regressor_speedup_vs_pinocchio",
-            "id_speedup_vs_casadi_rnea", "fd_speedup_vs_casadi_rnea")
+REQUIRED = (
+    "id_speedup_vs_pinocchio",
+    "fd_speedup_vs_pinocchio",
+    "regressor_speedup_vs_pinocchio",
+    "id_speedup_vs_casadi_rnea",
+    "fd_speedup_vs_casadi_rnea",
+)
 
 
 @pytest.mark.slow
@@ -23,9 +28,22 @@ def test_benchmark_reports_required_keys_and_agrees_with_pinocchio():
         find_prerequisites()
     except SolverError as exc:
         pytest.skip(str(exc))
-    run = subprocess.run([sys.executable, str(ROOT / "benchmarks" / "dynamics_speed.py"), "--robots", "denso",
-                          "--samples", "2000", "--repeats", "1", "--json"], capture_output=True, text=True,
-                         timeout=1200)
+    run = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "benchmarks" / "dynamics_speed.py"),
+            "--robots",
+            "denso",
+            "--samples",
+            "2000",
+            "--repeats",
+            "1",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=1200,
+    )
     assert run.returncode in (0, 1), run.stderr
     report = json.loads(run.stdout.strip().splitlines()[-1])
     denso = report["robots"]["denso"]
@@ -45,8 +63,11 @@ def test_missed_targets_name_each_robot_and_ratio_below_its_target():
     spec.loader.exec_module(bench)
     TARGETS, missed_targets = bench.TARGETS, bench.missed_targets
     met = {name: target * 1.01 for name, target in TARGETS.items()}
-    short = {**met, "regressor_speedup_vs_pinocchio": 0.95 * TARGETS["regressor_speedup_vs_pinocchio"],
-             "fd_speedup_vs_casadi_rnea": None}
+    short = {
+        **met,
+        "regressor_speedup_vs_pinocchio": 0.95 * TARGETS["regressor_speedup_vs_pinocchio"],
+        "fd_speedup_vs_casadi_rnea": None,
+    }
     assert missed_targets({"denso": met}) == []
     missed = missed_targets({"denso": met, "panda": short})
     assert len(missed) == 2 and all(m.startswith("panda ") for m in missed)

@@ -40,7 +40,7 @@ def _reference(toy, name):
         jac = [ca.jacobian(ca.vec(o), i) for o in outs for i, n in zip(ins, source.name_in()) if n != "theta"]
         source = ca.Function("ref", ins, jac, source.name_in(), [f"j{k}" for k in range(len(jac))])
     if "theta" in source.name_in() and not runtime:
-        return source, lambda inputs: [*inputs[:source.name_in().index("theta")], THETA]
+        return source, lambda inputs: [*inputs[: source.name_in().index("theta")], THETA]
     return source, lambda inputs: inputs
 
 
@@ -182,14 +182,24 @@ def test_recursive_form_round_trip_equals_the_sum_model(tmp_path, denso, denso_m
         tau = rng.uniform(-20, 20, denso.n_dof)
         other = rng.normal(size=denso_model.n_base)  # any theta, not only physical ones
         reference = denso_model.inverse_dynamics(q, qd, qdd, theta)
-        np.testing.assert_allclose(_flat(library.function("psdm_inverse_dynamics")(q, qd, qdd)), reference,
-                                   rtol=1e-12, atol=1e-11)
-        np.testing.assert_allclose(_flat(library.function("psdm_inverse_dynamics_theta")(q, qd, qdd, other)),
-                                   denso_model.inverse_dynamics(q, qd, qdd, other), rtol=1e-12, atol=1e-11)
-        np.testing.assert_allclose(np.array(library.function("psdm_regressor")(q, qd, qdd)),
-                                   denso_model.regressor(q, qd, qdd), rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(
+            _flat(library.function("psdm_inverse_dynamics")(q, qd, qdd)), reference, rtol=1e-12, atol=1e-11
+        )
+        np.testing.assert_allclose(
+            _flat(library.function("psdm_inverse_dynamics_theta")(q, qd, qdd, other)),
+            denso_model.inverse_dynamics(q, qd, qdd, other),
+            rtol=1e-12,
+            atol=1e-11,
+        )
+        np.testing.assert_allclose(
+            np.array(library.function("psdm_regressor")(q, qd, qdd)),
+            denso_model.regressor(q, qd, qdd),
+            rtol=1e-12,
+            atol=1e-12,
+        )
         mass = np.array(library.function("psdm_mass_matrix")(q))
         np.testing.assert_allclose(mass, np.array(functions.mass_matrix(q, theta)), rtol=1e-12, atol=1e-12)
         qdd_fd = _flat(library.function("psdm_forward_dynamics")(q, qd, tau))
-        np.testing.assert_allclose(mass @ qdd_fd + denso_model.inverse_dynamics(q, qd, 0 * qd, theta), tau,
-                                   rtol=1e-10, atol=1e-10)
+        np.testing.assert_allclose(
+            mass @ qdd_fd + denso_model.inverse_dynamics(q, qd, 0 * qd, theta), tau, rtol=1e-10, atol=1e-10
+        )

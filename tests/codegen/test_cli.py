@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from psdm_casadi.cli.codegen import read_theta
 from psdm_casadi.cli import main
+from psdm_casadi.cli.codegen import read_theta
 from psdm_casadi.errors import ParameterError
 from tests.conftest import DENSO_FILE
 
@@ -86,12 +86,27 @@ def test_codegen_forms_of_a_saved_model(tmp_path, capsys, denso, denso_model):
     runs = {}
     for form, extra in (("sum", []), ("recursive", ["--robot", str(DENSO_FILE)])):
         out = tmp_path / form
-        assert main(["codegen", str(model_file), "--out", str(out), "--theta", str(tmp_path / "theta.npy"),
-                     "--json", *extra]) == 0
+        assert (
+            main(
+                [
+                    "codegen",
+                    str(model_file),
+                    "--out",
+                    str(out),
+                    "--theta",
+                    str(tmp_path / "theta.npy"),
+                    "--json",
+                    *extra,
+                ]
+            )
+            == 0
+        )
         runs[form] = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
         assert runs[form]["form"] == form
-    assert runs["recursive"]["n_instructions"]["psdm_inverse_dynamics"] < \
-        runs["sum"]["n_instructions"]["psdm_inverse_dynamics"] / 4
+    assert (
+        runs["recursive"]["n_instructions"]["psdm_inverse_dynamics"]
+        < runs["sum"]["n_instructions"]["psdm_inverse_dynamics"] / 4
+    )
     code = main(["codegen", str(model_file), "--out", str(tmp_path / "none"), "--form", "recursive"])
     assert code == 2 and "--robot ROBOT_FILE" in capsys.readouterr().err
     code = main(["codegen", str(DENSO_FILE), "--out", str(tmp_path / "twice"), "--robot", str(DENSO_FILE)])

@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from psdm_casadi.demo import DemoOptions, run_demo
 from psdm_casadi.cli import main
+from psdm_casadi.demo import DemoOptions, run_demo
 
 
 @pytest.fixture(scope="module")

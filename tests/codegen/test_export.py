@@ -15,8 +15,11 @@ def test_export_writes_self_contained_folder(tmp_path):
     for path in (export.header, export.source, export.example, export.build_file):
         assert path.exists() and path.stat().st_size > 0
     assert export.function_names == (
-        "psdm_inverse_dynamics", "psdm_inverse_dynamics_theta",
-        "psdm_forward_dynamics", "psdm_forward_dynamics_theta", "psdm_regressor",
+        "psdm_inverse_dynamics",
+        "psdm_inverse_dynamics_theta",
+        "psdm_forward_dynamics",
+        "psdm_forward_dynamics_theta",
+        "psdm_regressor",
     )
     header = export.header.read_text()
     example = export.example.read_text()

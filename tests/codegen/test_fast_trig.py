@@ -22,12 +22,16 @@ def fast_trig(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("fast_trig")
     source = folder / "trig.c"
-    source.write_text("#include <math.h>\n" + _template(TEMPLATE_NAME) + """
+    source.write_text(
+        "#include <math.h>\n"
+        + _template(TEMPLATE_NAME)
+        + """
 void evaluate(const double* x, double* s, double* c, int n) {
   for (int i = 0; i < n; ++i) { s[i] = psdm_sin(x[i]); c[i] = psdm_cos(x[i]); }
 }
 void evaluate_n(const double* x, double* s, double* c, int n) { psdm_sincos_n(x, s, c, n); }
-""")
+"""
+    )
     library = ctypes.CDLL(str(compile_shared([source], folder / "libtrig.so", flags=("-O2",))))
     pointer = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
     library.evaluate.argtypes = library.evaluate_n.argtypes = [pointer, pointer, pointer, ctypes.c_int]
@@ -50,13 +54,16 @@ void evaluate_n(const double* x, double* s, double* c, int n) { psdm_sincos_n(x,
 def test_fast_sin_cos_within_a_few_ulp_of_numpy(fast_trig):
     rng = np.random.default_rng(0)
     quadrant_edges = np.pi / 4 * np.arange(-400, 401)
-    x = np.concatenate([
-        rng.uniform(-np.pi, np.pi, 200_000),            # joint angles
-        rng.uniform(-1e4, 1e4, 50_000),                 # many turns of a continuous joint
-        np.nextafter(quadrant_edges, np.inf), np.nextafter(quadrant_edges, -np.inf),  # reduction boundaries
-        np.pi / 2 * np.arange(-1000, 1001),             # near the zeros of sin and cos
-        [0.0, -0.0, 1e-300, -1e-300, 99_999.9, np.nextafter(2.0**17, 0.0)],  # up to the libm limit 2^17
-    ])
+    x = np.concatenate(
+        [
+            rng.uniform(-np.pi, np.pi, 200_000),  # joint angles
+            rng.uniform(-1e4, 1e4, 50_000),  # many turns of a continuous joint
+            np.nextafter(quadrant_edges, np.inf),
+            np.nextafter(quadrant_edges, -np.inf),  # reduction boundaries
+            np.pi / 2 * np.arange(-1000, 1001),  # near the zeros of sin and cos
+            [0.0, -0.0, 1e-300, -1e-300, 99_999.9, np.nextafter(2.0**17, 0.0)],  # up to the libm limit 2^17
+        ]
+    )
     s, c = fast_trig(x)
     # absolute error: a few ulp of 1 (the functions are bounded by 1)
     assert np.abs(s - np.sin(x)).max() <= 4 * np.finfo(float).eps
@@ -68,7 +75,7 @@ def test_fast_sin_cos_within_a_few_ulp_of_numpy(fast_trig):
 @pytest.mark.needs_cc
 @needs_cc
 def test_fast_sin_cos_hand_large_and_non_finite_arguments_to_libm(fast_trig):
-    x = np.array([2.0**17, -2.0**17, 3.7e7, -1e300, np.inf, -np.inf, np.nan])
+    x = np.array([2.0**17, -(2.0**17), 3.7e7, -1e300, np.inf, -np.inf, np.nan])
     s, c = fast_trig(x)
     finite = np.isfinite(x)
     np.testing.assert_allclose(s[finite], np.sin(x[finite]), rtol=0, atol=4 * np.finfo(float).eps)
@@ -107,17 +114,19 @@ def test_hoisted_trig_compiles_and_matches(tmp_path):
 def test_hoisting_follows_reassigned_variables_and_skips_unknown_code():
     from codegen.export import _hoist_input_trig
 
-    lines = ["static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {",
-             "  casadi_real a0, a1, a2;",
-             "  a0=arg[0]? arg[0][3] : 0;",
-             "  a1=psdm_sin(a0);",
-             "  a0=(a0*a1);",              # a0 no longer holds q[3]
-             "  a2=psdm_cos(a0);",
-             "  a0=arg[1]? arg[1][0] : 0;",
-             "  a0=psdm_cos(a0);",         # argument read before the assignment
-             "  if (res[0]!=0) res[0][0]=a2;",
-             "  return 0;",
-             "}"]
+    lines = [
+        "static int casadi_f0(const casadi_real** arg, casadi_real** res, casadi_int* iw, casadi_real* w, int mem) {",
+        "  casadi_real a0, a1, a2;",
+        "  a0=arg[0]? arg[0][3] : 0;",
+        "  a1=psdm_sin(a0);",
+        "  a0=(a0*a1);",  # a0 no longer holds q[3]
+        "  a2=psdm_cos(a0);",
+        "  a0=arg[1]? arg[1][0] : 0;",
+        "  a0=psdm_cos(a0);",  # argument read before the assignment
+        "  if (res[0]!=0) res[0][0]=a2;",
+        "  return 0;",
+        "}",
+    ]
     out = _hoist_input_trig(lines)
     assert "  psdm_sincos_n(psdm_x, psdm_s, psdm_c, 2);" in out
     assert "  psdm_x[0]=arg[0]? arg[0][3] : 0;" in out and "  psdm_x[1]=arg[1]? arg[1][0] : 0;" in out

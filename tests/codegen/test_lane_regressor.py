@@ -15,8 +15,8 @@ from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
 from psdm_casadi.robot import from_dh, from_urdf
-from psdm_casadi.sampling import random_standard_parameters
 from psdm_casadi.samples import kr6, scara
+from psdm_casadi.sampling import random_standard_parameters
 from tests.conftest import example_robot_urdf
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
@@ -26,8 +26,16 @@ FAST = ("-O1",)
 def five_dof():
     """The first five KR6 joints: two lane blocks, the second holding one row (spare lanes run on)."""
     pi = math.pi
-    return from_dh([(0.025, -pi / 2, 0.183, 0), (-0.315, 0, 0, 0), (-0.035, pi / 2, 0, 0),
-                    (0, -pi / 2, 0.365, 0), (0, pi / 2, 0, 0)], name="KR6 first five joints")
+    return from_dh(
+        [
+            (0.025, -pi / 2, 0.183, 0),
+            (-0.315, 0, 0, 0),
+            (-0.035, pi / 2, 0, 0),
+            (0, -pi / 2, 0.365, 0),
+            (0, pi / 2, 0, 0),
+        ],
+        name="KR6 first five joints",
+    )
 
 
 def _compiled(robot, folder, flags):
@@ -69,8 +77,12 @@ def test_scalar_fallback_gives_the_same_regressor(tmp_path, rng):
     assert (_lanes_enabled(vector), _lanes_enabled(scalar)) == (1, 0)
     for _ in range(3):
         q, qd, qdd = rng.uniform(-2, 2, (3, robot.n_dof))
-        np.testing.assert_allclose(np.array(vector.function("psdm_regressor")(q, qd, qdd)),
-                                   np.array(scalar.function("psdm_regressor")(q, qd, qdd)), rtol=1e-12, atol=1e-13)
+        np.testing.assert_allclose(
+            np.array(vector.function("psdm_regressor")(q, qd, qdd)),
+            np.array(scalar.function("psdm_regressor")(q, qd, qdd)),
+            rtol=1e-12,
+            atol=1e-13,
+        )
 
 
 @pytest.mark.needs_cc
@@ -86,8 +98,8 @@ def test_missing_inputs_are_zeros_and_a_missing_output_is_skipped(tmp_path, rng)
     args = (Pointer * 3)(q.ctypes.data_as(Pointer), None, qdd.ctypes.data_as(Pointer))
     assert call(args, (Pointer * 1)(out.ctypes.data_as(Pointer)), None, None, 0) == 0
     expected = model.regressor(q, np.zeros(n), qdd)
-    np.testing.assert_allclose(out[:n * l].reshape(l, n).T, expected, rtol=1e-12, atol=1e-12)
-    assert np.all(out[n * l:] == 7.0)  # nothing written past Y
+    np.testing.assert_allclose(out[: n * l].reshape(l, n).T, expected, rtol=1e-12, atol=1e-12)
+    assert np.all(out[n * l :] == 7.0)  # nothing written past Y
     assert call(args, (Pointer * 1)(None), None, None, 0) == 0
 
 
@@ -121,8 +133,10 @@ def test_auto_lanes_follow_the_operation_counts(denso, denso_model, tmp_path):
 @needs_cc
 def test_panda_gets_the_vector_regressor_and_it_is_exact(tmp_path, rng):
     """7 joints: two lane blocks with a spare lane; 'auto' picks the vector code (fewer operations)."""
-    robot = from_urdf(example_robot_urdf("panda_description/urdf/panda.urdf"),
-                      locked_joints=["panda_finger_joint1", "panda_finger_joint2"])
+    robot = from_urdf(
+        example_robot_urdf("panda_description/urdf/panda.urdf"),
+        locked_joints=["panda_finger_joint1", "panda_finger_joint2"],
+    )
     model = derive_psdm(robot)
     functions = build_recursive_functions(model, robot)
     export = export_c([functions.regressor], tmp_path, regressor_structure=functions.regressor_structure)

@@ -1,5 +1,6 @@
 """The direct CasADi SX Newton-Euler peer against Pinocchio's rnea, crba and aba."""
 
+import casadi as ca
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -9,8 +10,6 @@ from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import build_pinocchio_model
 from psdm_casadi.robot import from_urdf
 from tests.conftest import example_robot_urdf
-
-import casadi as ca
 
 
 def _compare(model, rng, n_states=5):
@@ -38,8 +37,10 @@ def test_rnea_sx_matches_pinocchio_denso(denso, rng):
 
 
 def test_rnea_sx_matches_pinocchio_panda(rng):
-    robot = from_urdf(example_robot_urdf("panda_description/urdf/panda.urdf"),
-                      locked_joints=["panda_finger_joint1", "panda_finger_joint2"])
+    robot = from_urdf(
+        example_robot_urdf("panda_description/urdf/panda.urdf"),
+        locked_joints=["panda_finger_joint1", "panda_finger_joint2"],
+    )
     _compare(build_pinocchio_model(robot), rng)
 
 
@@ -47,8 +48,12 @@ def test_rnea_sx_unaligned_and_prismatic_joints(rng):
     """A branch-free chain mixing RX, PY, revolute-unaligned and prismatic-unaligned joints."""
     model = pin.Model()
     axis = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
-    joints = [pin.JointModelRX(), pin.JointModelPY(), pin.JointModelRevoluteUnaligned(axis),
-              pin.JointModelPrismaticUnaligned(axis[::-1].copy())]
+    joints = [
+        pin.JointModelRX(),
+        pin.JointModelPY(),
+        pin.JointModelRevoluteUnaligned(axis),
+        pin.JointModelPrismaticUnaligned(axis[::-1].copy()),
+    ]
     parent = 0
     for k, joint in enumerate(joints):
         placement = pin.SE3(pin.rpy.rpyToMatrix(*rng.uniform(-1, 1, 3)), rng.uniform(-0.3, 0.3, 3))

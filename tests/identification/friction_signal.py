@@ -32,8 +32,18 @@ def synthetic_record(joint, rng=None, noise=0.0, frequency_scale=2.0, substeps=3
     return truth, t, qd, tau
 
 
-def ringing_joint_record(parameters, inertia, rng=None, current_noise=0.0, rate=1000.0, substeps=16,
-                         amplitudes=(2e-3, 5e-3), hz=10.0, periods=6, sliding=(0.3, 1.5)):
+def ringing_joint_record(
+    parameters,
+    inertia,
+    rng=None,
+    current_noise=0.0,
+    rate=1000.0,
+    substeps=16,
+    amplitudes=(2e-3, 5e-3),
+    hz=10.0,
+    periods=6,
+    sliding=(0.3, 1.5),
+):
     """A single joint (``inertia`` [kg m^2], LuGre ``parameters``) under a held PD command: ``t, q, tau``.
 
     An independent fine-step plant (leapfrog, exact bristle steps, ``substeps`` per sample): the

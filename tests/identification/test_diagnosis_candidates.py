@@ -6,13 +6,19 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from identification.diagnosis import (ALL_TERMS, CandidateLibrary, SpringTerm, TorqueOffsetTerm, TorqueRippleTerm,
-                                      default_library)
-from identification.diagnosis.context import build_context
-from trajopt.experiments import sine_experiment
 from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.diagnosis import (
+    ALL_TERMS,
+    CandidateLibrary,
+    SpringTerm,
+    TorqueOffsetTerm,
+    TorqueRippleTerm,
+    default_library,
+)
+from identification.diagnosis.context import build_context
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
+from trajopt.experiments import sine_experiment
 
 
 @pytest.fixture(scope="module")
@@ -20,8 +26,12 @@ def context(request):
     denso = request.getfixturevalue("denso")
     model = request.getfixturevalue("denso_model")
     rng = np.random.default_rng(3)
-    rec, _ = simulate_recording(denso, sine_experiment(denso, duration=3.0, rng=rng).reference(),
-                                SimulationOptions(record_tau=True, record_current=False), rng)
+    rec, _ = simulate_recording(
+        denso,
+        sine_experiment(denso, duration=3.0, rng=rng).reference(),
+        SimulationOptions(record_tau=True, record_current=False),
+        rng,
+    )
     return build_context(denso, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
 
 
@@ -51,7 +61,8 @@ def test_names_match_columns_and_inputs_unmutated(context, index):
 
 @pytest.mark.parametrize("index", range(len(ALL_TERMS)), ids=[cls.key for cls in ALL_TERMS])
 def test_casadi_expression_matches_columns(context, index):
-    """Where a term has a CasADi expression, it equals columns @ coefficients (except load friction, which uses the model torque)."""
+    """Where a term has a CasADi expression, it equals columns @ coefficients (except load friction, which uses the
+    model torque)."""
     term = _instances(context.n_dof)[index]
     n = context.n_dof
     q, qd, qdd, tau = (ca.SX.sym(s, n) for s in ("q", "qd", "qdd", "tau"))
@@ -80,22 +91,26 @@ def _settled_samples(context, joint, window_s=0.3):
     """Samples whose velocity keeps one sign, above 0.2 rad/s, for ``window_s`` either side (at most 5)."""
     sign = np.sign(context.full_qd[:, joint]) * (np.abs(context.full_qd[:, joint]) > 0.2)
     half = int(round(window_s / float(np.median(np.diff(context.full_t)))))
-    out = [k for k, i in enumerate(context.keep)
-           if i - half >= 0 and i + half < sign.size and abs(sign[i - half:i + half + 1].sum()) == 2 * half + 1]
-    return out[::max(1, len(out) // 5)][:5]
+    out = [
+        k
+        for k, i in enumerate(context.keep)
+        if i - half >= 0 and i + half < sign.size and abs(sign[i - half : i + half + 1].sum()) == 2 * half + 1
+    ]
+    return out[:: max(1, len(out) // 5)][:5]
 
 
 def test_friction_columns_are_filtered_like_the_recording(context):
     """The recorded torque holds the filtered friction step, not a sharp one at the filtered velocity's zero: the
     friction-like columns are the full-rate sign filtered like the recording, which differs from the sign of the
     filtered velocity around reversals."""
-    from identification.diagnosis import CoulombAsymmetryTerm
     from identification.data.preprocessing import zero_phase_filter
+    from identification.diagnosis import CoulombAsymmetryTerm
 
     j = 1
     col = CoulombAsymmetryTerm(joint=j).columns(context)[:, j, 0]
-    expected = zero_phase_filter(0.5 * (1.0 + np.sign(context.full_qd[:, j])), 1.0 / float(np.median(np.diff(context.full_t))),
-                                 15.0, 8)[context.keep]
+    expected = zero_phase_filter(
+        0.5 * (1.0 + np.sign(context.full_qd[:, j])), 1.0 / float(np.median(np.diff(context.full_t))), 15.0, 8
+    )[context.keep]
     np.testing.assert_allclose(col, expected, atol=1e-12)
     sharp = 0.5 * (1.0 + np.sign(context.qd[:, j]))
     assert np.max(np.abs(col - sharp)) > 0.2  # a reversal is smeared over the filter's response
@@ -106,16 +121,36 @@ def test_library_composes_and_expands():
     assert isinstance(lib, CandidateLibrary)
     assert lib.keys == ("spring", "torque_offset", "torque_ripple")
     labels = [t.label for t in lib.expand(2)]
-    assert labels == ["spring[j1]", "spring[j2]", "torque_offset[j1]", "torque_offset[j2]",
-                      "torque_ripple[j1,h=3]", "torque_ripple[j1,h=6]", "torque_ripple[j2,h=3]", "torque_ripple[j2,h=6]"]
+    assert labels == [
+        "spring[j1]",
+        "spring[j2]",
+        "torque_offset[j1]",
+        "torque_offset[j2]",
+        "torque_ripple[j1,h=3]",
+        "torque_ripple[j1,h=6]",
+        "torque_ripple[j2,h=3]",
+        "torque_ripple[j2,h=6]",
+    ]
     assert len(set(t.label for t in default_library().expand(6))) == len(default_library().expand(6))
 
 
 def test_required_keys_present():
     keys = set(default_library().keys)
-    assert {"spring", "payload", "coulomb_asymmetry", "load_dependent_friction", "friction_drift", "torque_ripple",
-            "backlash", "joint_elasticity", "delay", "torque_offset", "rotor_inertia", "gravity_tilt",
-            "coupling"} <= keys
+    assert {
+        "spring",
+        "payload",
+        "coulomb_asymmetry",
+        "load_dependent_friction",
+        "friction_drift",
+        "torque_ripple",
+        "backlash",
+        "joint_elasticity",
+        "delay",
+        "torque_offset",
+        "rotor_inertia",
+        "gravity_tilt",
+        "coupling",
+    } <= keys
 
 
 def test_bad_joint_and_library_errors():
@@ -137,10 +172,16 @@ def test_without_a_friction_prior_the_smooth_sign_of_the_filtered_velocity_is_ke
 
     bare = dataclasses.replace(denso, drives=None)
     rng = np.random.default_rng(3)
-    rec, _ = simulate_recording(denso, sine_experiment(denso, duration=3.0, rng=rng).reference(),
-                                SimulationOptions(record_tau=True, record_current=False), rng)
+    rec, _ = simulate_recording(
+        denso,
+        sine_experiment(denso, duration=3.0, rng=rng).reference(),
+        SimulationOptions(record_tau=True, record_current=False),
+        rng,
+    )
     ctx = build_context(bare, denso_model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
     assert not ctx.filtered_friction
     vs, dv = friction_shapes(bare)
-    np.testing.assert_array_equal(filtered_friction_columns(bare, "lugre", ctx), friction_columns("lugre", ctx.qd, vs, dv))
+    np.testing.assert_array_equal(
+        filtered_friction_columns(bare, "lugre", ctx), friction_columns("lugre", ctx.qd, vs, dv)
+    )
     np.testing.assert_allclose(ctx.friction_sign(2), np.tanh(ctx.qd[:, 2] / SMOOTH_VELOCITY))

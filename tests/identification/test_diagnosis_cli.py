@@ -7,30 +7,44 @@ import json
 import numpy as np
 import pytest
 
-from identification.virtual import effects as xp
-from trajopt.experiments import sine_experiment
 from identification.data.io import save_recording
+from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
-
 from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
 
 
 def _write_pair(denso, directory, extras):
     paths = []
     for k, duration in enumerate((8.0, 4.0)):
         rng = np.random.default_rng(40 + k)
-        rec, _ = simulate_recording(denso, sine_experiment(denso, duration=duration, rng=rng).reference(),
-                                    SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
-                                    rng, extras=extras)
+        rec, _ = simulate_recording(
+            denso,
+            sine_experiment(denso, duration=duration, rng=rng).reference(),
+            SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
+            rng,
+            extras=extras,
+        )
         paths.append(save_recording(rec, directory / f"{'train' if k == 0 else 'validate'}.npz"))
     return paths
 
 
 def test_cli_diagnose_json_names_the_hidden_spring(denso, tmp_path, capsys):
     train, validate = _write_pair(denso, tmp_path, [xp.Spring(joint=1, stiffness=40.0, q0=0.1)])
-    code = main(["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate), "--json",
-                 "--max-effects", "2"])
+    code = main(
+        [
+            "diagnose",
+            str(DENSO_FILE),
+            "--train",
+            str(train),
+            "--validate",
+            str(validate),
+            "--json",
+            "--max-effects",
+            "2",
+        ]
+    )
     assert code == 0
     out = json.loads(capsys.readouterr().out)
     assert {"findings", "rmse_before", "rmse_after"} <= set(out)
@@ -42,7 +56,8 @@ def test_cli_diagnose_json_names_the_hidden_spring(denso, tmp_path, capsys):
 
 def test_cli_diagnose_bad_option_is_a_one_line_error(denso, tmp_path, capsys):
     train, validate = _write_pair(denso, tmp_path, [])
-    code = main(["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate),
-                 "--min-improvement", "1.5"])
+    code = main(
+        ["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate), "--min-improvement", "1.5"]
+    )
     assert code == 2
     assert "min_improvement" in capsys.readouterr().err

@@ -1,4 +1,6 @@
-"""Plausibility of fitted parameters, the Ipopt refinement of nonlinear terms, and a last link too heavy in the prior."""
+"""Plausibility of fitted parameters, the Ipopt refinement of nonlinear terms, and a last link too heavy in the
+prior.
+"""
 
 from __future__ import annotations
 
@@ -7,32 +9,41 @@ import logging
 import numpy as np
 import pytest
 
-from identification.virtual import effects as xp
-from identification.diagnosis import (DelayTerm, DiagnosisOptions, FrictionDriftTerm, JointElasticityTerm,
-                                      LoadDependentFrictionTerm, PayloadTerm, RotorInertiaTerm, SpringTerm,
-                                      TorqueOffsetTerm, diagnose)
+from identification.diagnosis import (
+    DelayTerm,
+    DiagnosisOptions,
+    FrictionDriftTerm,
+    JointElasticityTerm,
+    LoadDependentFrictionTerm,
+    PayloadTerm,
+    RotorInertiaTerm,
+    SpringTerm,
+    TorqueOffsetTerm,
+    diagnose,
+)
 from identification.diagnosis.candidates import MAX_DELAY_S, MAX_LOAD_FRICTION
-
-from tests.identification.diagnosis_data import recording_pair
+from identification.virtual import effects as xp
 from psdm_casadi.robot import LinkInertia
+from tests.identification.diagnosis_data import recording_pair
 
 
-
-
-@pytest.mark.parametrize("term, coefficients, accepted", [
-    (LoadDependentFrictionTerm(joint=0), [0.2], True),
-    (LoadDependentFrictionTerm(joint=0), [MAX_LOAD_FRICTION + 0.4], False),   # mu ~ 1 is not gear friction
-    (LoadDependentFrictionTerm(joint=0), [-0.1], False),
-    (RotorInertiaTerm(joint=0), [0.3], True),
-    (RotorInertiaTerm(joint=0), [-0.3], False),
-    (DelayTerm(), [0.004], True),
-    (DelayTerm(), [-0.004], False),
-    (DelayTerm(), [MAX_DELAY_S * 2], False),
-    (JointElasticityTerm(joint=0), [-1e-4], False),
-    (PayloadTerm(), [2.0, 0.0, 0.0, 0.2], True),
-    (PayloadTerm(), [0.1, 0.0, 0.0, 0.2], False),                             # centre of mass 2 m away
-    (SpringTerm(joint=0), [-40.0, 3.0], True),                                # any sign: no bound
-])
+@pytest.mark.parametrize(
+    "term, coefficients, accepted",
+    [
+        (LoadDependentFrictionTerm(joint=0), [0.2], True),
+        (LoadDependentFrictionTerm(joint=0), [MAX_LOAD_FRICTION + 0.4], False),  # mu ~ 1 is not gear friction
+        (LoadDependentFrictionTerm(joint=0), [-0.1], False),
+        (RotorInertiaTerm(joint=0), [0.3], True),
+        (RotorInertiaTerm(joint=0), [-0.3], False),
+        (DelayTerm(), [0.004], True),
+        (DelayTerm(), [-0.004], False),
+        (DelayTerm(), [MAX_DELAY_S * 2], False),
+        (JointElasticityTerm(joint=0), [-1e-4], False),
+        (PayloadTerm(), [2.0, 0.0, 0.0, 0.2], True),
+        (PayloadTerm(), [0.1, 0.0, 0.0, 0.2], False),  # centre of mass 2 m away
+        (SpringTerm(joint=0), [-40.0, 3.0], True),  # any sign: no bound
+    ],
+)
 def test_implausible_parameters_are_named(term, coefficients, accepted):
     reason = term.implausibility(np.array(coefficients))
     assert (reason is None) == accepted
@@ -95,6 +106,7 @@ def test_drift_with_a_long_time_constant_tends_to_the_linear_drift():
         @classmethod
         def friction_sign(cls, joint, factor):
             return factor * np.sign(cls.qd[:, joint])
+
     linear = FrictionDriftTerm(joint=1).columns(Ctx)
     slow = FrictionDriftTerm(joint=1, time_constant=1e6).columns(Ctx)
     fast = FrictionDriftTerm(joint=1, time_constant=1.0).columns(Ctx)

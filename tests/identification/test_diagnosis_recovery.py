@@ -7,17 +7,19 @@ import json
 import numpy as np
 import pytest
 
-from identification.virtual import effects as xp
-from identification.diagnosis import (NO_FINDING, DiagnosisOptions, SpringTerm, TorqueOffsetTerm, TorqueRippleTerm,
-                                      diagnose)
-from identification.virtual.transmission_effects import Backlash, JointElasticity
 from identification.data.recording import Recording
-
-from tests.identification.diagnosis_data import recording_pair
+from identification.diagnosis import (
+    NO_FINDING,
+    DiagnosisOptions,
+    SpringTerm,
+    TorqueOffsetTerm,
+    TorqueRippleTerm,
+    diagnose,
+)
+from identification.virtual import effects as xp
+from identification.virtual.transmission_effects import Backlash, JointElasticity
 from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
-
-
-
+from tests.identification.diagnosis_data import recording_pair
 
 LIB = SpringTerm() + TorqueOffsetTerm() + TorqueRippleTerm(harmonics=(4, 8))
 
@@ -57,12 +59,14 @@ def test_report_and_augmented_model_files(denso, denso_model, tmp_path):
     paths = report.save(tmp_path, plots=False)
     assert "spring" in paths["markdown"].read_text()
     import casadi as ca
+
     f = ca.Function.load(str(paths["augmented_function"]))
     q = np.full(6, 0.3)
     tau = np.array(f(q, np.zeros(6), np.zeros(6), 0.0)).ravel()
     spring = report.findings[0].parameters
     # the augmented function minus the nominal rigid body equals spring + friction at rest (zero with qd = 0)
     from psdm_casadi.oracle import PinocchioOracle
+
     tau_rigid = PinocchioOracle(denso).rnea(q, np.zeros(6), np.zeros(6))
     assert tau[1] - tau_rigid[1] == pytest.approx(spring["k"] * (0.3 - spring["q0"]), rel=1e-6)
     with pytest.raises(FileExistsError, match="overwrite"):

@@ -6,13 +6,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from identification.diagnosis import (
+    BacklashTerm,
+    CandidateLibrary,
+    DelayTerm,
+    DiagnosisOptions,
+    GravityTiltTerm,
+    JointElasticityTerm,
+    SpringTerm,
+    TorqueOffsetTerm,
+    diagnose,
+)
 from identification.virtual import effects as xp
-from identification.diagnosis import (BacklashTerm, CandidateLibrary, DelayTerm, DiagnosisOptions, GravityTiltTerm, JointElasticityTerm,
-                                      SpringTerm, TorqueOffsetTerm, diagnose)
 from identification.virtual.transmission_effects import Backlash, JointElasticity
-
 from tests.identification.diagnosis_data import recording_pair
-
 
 
 def _deflection(joint):
@@ -33,7 +40,9 @@ def test_clean_nominal_model_leaves_only_a_noise_level_residual(denso, denso_mod
     0.1 N m sensor noise on every joint (it was 0.3-0.8 N m with sharp friction columns on the benchmark's
     Denso, 20 x more than with filtered ones)."""
     train, val = recording_pair(denso, [], seed=3)
-    report = diagnose(denso, train, val, DiagnosisOptions(library=CandidateLibrary((TorqueOffsetTerm(),))), model=denso_model)
+    report = diagnose(
+        denso, train, val, DiagnosisOptions(library=CandidateLibrary((TorqueOffsetTerm(),))), model=denso_model
+    )
     assert max(report.rmse_train_before) < 0.1
 
 
@@ -47,7 +56,9 @@ def _deflection_report(denso, denso_model, hidden, seed):
 def test_backlash_is_found_with_its_width_and_the_error_drops(denso, denso_model):
     clean, _ = recording_pair(denso, [], seed=6)
     width = np.radians(0.4)
-    report = _deflection_report(denso, denso_model, Backlash(joint=1, width=width, torque_scale=0.02 * _tau_rms(clean, 1)), 6)
+    report = _deflection_report(
+        denso, denso_model, Backlash(joint=1, width=width, torque_scale=0.02 * _tau_rms(clean, 1)), 6
+    )
     first = report.findings[0]
     assert first.effect == "backlash" and first.joints == (1,)
     assert first.parameters["backlash_rad"] == pytest.approx(width, rel=0.1)

@@ -29,8 +29,13 @@ def test_csv_with_comments_and_uneven_steps(tmp_path):
 def test_round_trip(tmp_path, suffix):
     rng = np.random.default_rng(1)
     t = np.cumsum(rng.uniform(0.5e-3, 1.5e-3, 50))
-    rec = Recording(t=t, q=rng.normal(size=(50, 3)), tau=rng.normal(size=(50, 3)),
-                    current=rng.normal(size=(50, 3)), qd=rng.normal(size=(50, 3)))
+    rec = Recording(
+        t=t,
+        q=rng.normal(size=(50, 3)),
+        tau=rng.normal(size=(50, 3)),
+        current=rng.normal(size=(50, 3)),
+        qd=rng.normal(size=(50, 3)),
+    )
     path = save_recording(rec, tmp_path / f"r.{suffix}")
     back = load_recording(path, n_dof=3)
     for key in ("t", "q", "tau", "current", "qd"):
@@ -48,23 +53,26 @@ def test_save_refuses_overwrite_and_is_atomic(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["out.csv", "rec.csv"]  # no temporary left
 
 
-@pytest.mark.parametrize("text, column", [
-    ("q1,tau1\n0,1\n1,2\n2,3\n", "column t is missing"),
-    ("t,q2,tau1,tau2\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column q1 is missing"),
-    ("t,q1,q3,tau1,tau2,tau3\n0,0,0,0,0,0\n1,0,0,0,0,0\n2,0,0,0,0,0\n", "column q2 is missing"),
-    ("t,q1,q2,tau1\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column tau2 is missing"),
-    ("t,q1,q1,tau1\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column q1 appears twice"),
-    ("t,q1\n0,0\n1,0\n2,0\n", "columns tau1.* and i1.* are both missing"),
-    ("t,q1,tau1,foo\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column 'foo'"),
-    ("t,q1,tau1,tau2\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column tau2 has no matching q2"),
-    ("t,q1,tau1\n0,0,0\n1,nan,0\n2,0,0\n", "column q1 holds nan at line 3"),
-    ("t,q1,tau1\n0,0,0\n1,0,inf\n2,0,0\n", "column tau1 holds inf at line 3"),
-    ("t,q1,tau1\n0,0,0\n1,0,abc\n2,0,0\n", "column tau1 holds 'abc' at line 3"),
-    ("t,q1,tau1\n0,0,0\n1,0,0\n1,0,0\n", "column t must be strictly increasing.*line 4"),
-    ("t,q1,tau1\n0,0,0\n1,0,0\n", "2 samples"),
-    ("t,q1,tau1\n0,0,0\n1,0\n2,0,0\n", "line 3 has 2 fields"),
-    ("# only comments\n", "no header"),
-])
+@pytest.mark.parametrize(
+    "text, column",
+    [
+        ("q1,tau1\n0,1\n1,2\n2,3\n", "column t is missing"),
+        ("t,q2,tau1,tau2\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column q1 is missing"),
+        ("t,q1,q3,tau1,tau2,tau3\n0,0,0,0,0,0\n1,0,0,0,0,0\n2,0,0,0,0,0\n", "column q2 is missing"),
+        ("t,q1,q2,tau1\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column tau2 is missing"),
+        ("t,q1,q1,tau1\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column q1 appears twice"),
+        ("t,q1\n0,0\n1,0\n2,0\n", "columns tau1.* and i1.* are both missing"),
+        ("t,q1,tau1,foo\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column 'foo'"),
+        ("t,q1,tau1,tau2\n0,0,0,0\n1,0,0,0\n2,0,0,0\n", "column tau2 has no matching q2"),
+        ("t,q1,tau1\n0,0,0\n1,nan,0\n2,0,0\n", "column q1 holds nan at line 3"),
+        ("t,q1,tau1\n0,0,0\n1,0,inf\n2,0,0\n", "column tau1 holds inf at line 3"),
+        ("t,q1,tau1\n0,0,0\n1,0,abc\n2,0,0\n", "column tau1 holds 'abc' at line 3"),
+        ("t,q1,tau1\n0,0,0\n1,0,0\n1,0,0\n", "column t must be strictly increasing.*line 4"),
+        ("t,q1,tau1\n0,0,0\n1,0,0\n", "2 samples"),
+        ("t,q1,tau1\n0,0,0\n1,0\n2,0,0\n", "line 3 has 2 fields"),
+        ("# only comments\n", "no header"),
+    ],
+)
 def test_bad_csv(tmp_path, text, column):
     with pytest.raises(RecordingError, match=column):
         load_recording(write(tmp_path, text))

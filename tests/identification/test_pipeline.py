@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from identification.data.dataset import CalibrationData, load_calibration_data, save_calibration_data
-from identification.virtual.effects import Payload
 from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
+from identification.data.dataset import CalibrationData, load_calibration_data, save_calibration_data
+from identification.data.payload import Payload
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
@@ -19,10 +19,19 @@ def _rec(n_dof, name, seed=0):
 
 
 def test_calibration_data_round_trip(tmp_path):
-    data = CalibrationData(payload=Payload(mass=1.5, com=(0.1, 0.0, 0.0)),
-                           motor=((0, _rec(2, "a"), _rec(2, "b", 1)),), gravity=(_rec(2, "g"),),
-                           friction=((1, _rec(2, "f"),),), excitation=(_rec(2, "e"),),
-                           friction_validation=((1, _rec(2, "fv", 2)),))
+    data = CalibrationData(
+        payload=Payload(mass=1.5, com=(0.1, 0.0, 0.0)),
+        motor=((0, _rec(2, "a"), _rec(2, "b", 1)),),
+        gravity=(_rec(2, "g"),),
+        friction=(
+            (
+                1,
+                _rec(2, "f"),
+            ),
+        ),
+        excitation=(_rec(2, "e"),),
+        friction_validation=((1, _rec(2, "fv", 2)),),
+    )
     save_calibration_data(data, tmp_path)
     back = load_calibration_data(tmp_path, n_dof=2)
     assert back.payload == data.payload
@@ -46,8 +55,13 @@ def test_data_directory_errors(tmp_path):
     with pytest.raises(ParameterError, match="mass"):
         load_calibration_data(tmp_path)
     with pytest.raises(RecordingError, match="gravity"):
-        CalibrationData(payload=Payload(mass=1.0), motor=((0, _rec(2, "a"), _rec(2, "b")),), gravity=(),
-                        friction=((0, _rec(2, "f")),), excitation=(_rec(2, "e"),))
+        CalibrationData(
+            payload=Payload(mass=1.0),
+            motor=((0, _rec(2, "a"), _rec(2, "b")),),
+            gravity=(),
+            friction=((0, _rec(2, "f")),),
+            excitation=(_rec(2, "e"),),
+        )
 
 
 def test_pipeline_option_and_input_errors(denso, denso_model):
@@ -72,25 +86,25 @@ def test_pipeline_option_and_input_errors(denso, denso_model):
 
 def test_identified_friction_is_removed_from_torques_or_currents():
     """The second gravity pass subtracts the LuGre torque from tau, or torque / Kt from the currents."""
-    from identification.calibration.pipeline import _without_torque
+    from identification.calibration.preparation import without_torque
 
     t = np.linspace(0.0, 1.0, 11)
     q = np.zeros((11, 2))
     torque = np.outer(np.sin(t), [2.0, -1.0])
     kt = np.array([4.0, 0.5])
-    with_current = _without_torque(Recording(t=t, q=q, current=np.ones((11, 2)), name="c"), torque, kt)
+    with_current = without_torque(Recording(t=t, q=q, current=np.ones((11, 2)), name="c"), torque, kt)
     np.testing.assert_allclose(with_current.joint_torque(kt), kt * 1.0 - torque)
-    with_tau = _without_torque(Recording(t=t, q=q, tau=np.ones((11, 2)), name="t"), torque, kt)
+    with_tau = without_torque(Recording(t=t, q=q, tau=np.ones((11, 2)), name="t"), torque, kt)
     np.testing.assert_allclose(with_tau.tau, 1.0 - torque)
 
 
 def test_virtual_calibration_options_errors():
-    from identification.virtual.calibration import VirtualCalibrationOptions
+    from trajopt.calibration_plan import CalibrationPlan
 
     with pytest.raises(ParameterError, match="friction_design"):
-        VirtualCalibrationOptions(friction_design=(1e-3, 0.1))
+        CalibrationPlan(friction_design=(1e-3, 0.1))
     with pytest.raises(ParameterError, match="gravity_speed"):
-        VirtualCalibrationOptions(gravity_speed=0.0)
+        CalibrationPlan(gravity_speed=0.0)
 
 
 def test_identify_command_is_registered():
@@ -105,16 +119,17 @@ def test_identify_command_is_registered():
 def test_full_pipeline_on_virtual_denso(denso, denso_model, tmp_path):
     """Noise-free short calibration: Kt within 1 %, all R^2 >= 0.98, consistent mass matrix, saved model loads."""
     from identification.calibration.result import load_identified
-    from identification.virtual.simulation import SimulationOptions
     from identification.virtual.calibration import VirtualCalibrationOptions, simulate_calibration
+    from identification.virtual.simulation import SimulationOptions
+    from trajopt.calibration_plan import CalibrationPlan
+    from trajopt.friction_design import FrictionDesign
 
-    from identification.virtual.experiments import FrictionDesign
-
-    options = VirtualCalibrationOptions(gravity_duration=30.0, excitation_duration=20.0, quiet=True,
-                                        friction_design=FrictionDesign.quick(),
-                                        simulation=SimulationOptions(encoder_resolution=None, current_resolution=None,
-                                                                     current_noise_std=0.0))
-    data = simulate_calibration(denso, options, np.random.default_rng(0))
+    plan = CalibrationPlan(gravity_duration=30.0, excitation_duration=20.0, friction_design=FrictionDesign.quick())
+    options = VirtualCalibrationOptions(
+        quiet=True,
+        simulation=SimulationOptions(encoder_resolution=None, current_resolution=None, current_noise_std=0.0),
+    )
+    data = simulate_calibration(denso, plan, options, np.random.default_rng(0))
     assert len(data.friction_validation) == denso.n_dof
     pipeline = IdentificationPipeline(denso, denso_model, PipelineOptions(quiet=True)).fit(data)
     result = pipeline.result_

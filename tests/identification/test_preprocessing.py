@@ -3,8 +3,13 @@
 import numpy as np
 import pytest
 
-from identification.data.preprocessing import (PreprocessOptions, central_difference, preprocess, resample_uniform,
-                                          zero_phase_filter)
+from identification.data.preprocessing import (
+    PreprocessOptions,
+    central_difference,
+    preprocess,
+    resample_uniform,
+    zero_phase_filter,
+)
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
@@ -18,7 +23,7 @@ def sine_recording(t):
 
 def analytic(t):
     qd = np.column_stack([W * np.cos(W * t), -W * np.sin(2 * W * t)])
-    qdd = np.column_stack([-W**2 * np.sin(W * t), -2 * W**2 * np.cos(2 * W * t)])
+    qdd = np.column_stack([-(W**2) * np.sin(W * t), -2 * W**2 * np.cos(2 * W * t)])
     return qd, qdd
 
 
@@ -101,13 +106,16 @@ def test_split_after_preprocess():
     assert train.n_samples == 1700 and val.n_samples == 300 and train.qd is not None
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(cutoff_hz=-1.0), "cutoff_hz"),
-    (dict(order=0), "order"),
-    (dict(differentiation="spline"), "differentiation"),
-    (dict(split_fraction=1.0), "split_fraction"),
-    (dict(uniform_rtol=-1.0), "uniform_rtol"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(cutoff_hz=-1.0), "cutoff_hz"),
+        (dict(order=0), "order"),
+        (dict(differentiation="spline"), "differentiation"),
+        (dict(split_fraction=1.0), "split_fraction"),
+        (dict(uniform_rtol=-1.0), "uniform_rtol"),
+    ],
+)
 def test_bad_options(kwargs, field):
     with pytest.raises(ParameterError, match=f"PreprocessOptions.{field}"):
         PreprocessOptions(**kwargs)

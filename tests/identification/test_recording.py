@@ -38,7 +38,9 @@ def test_transposed_tau_names_fix():
 
 def test_check_robot_message():
     rec = make(n=6, n_dof=4)
-    with pytest.raises(ShapeError, match=r"Recording.q must have shape \(n_samples, 6\) to match RobotDescription.n_dof=6"):
+    with pytest.raises(
+        ShapeError, match=r"Recording.q must have shape \(n_samples, 6\) to match RobotDescription.n_dof=6"
+    ):
         rec.check_robot(6)
     assert rec.check_robot(4) is rec
 
@@ -126,5 +128,5 @@ def test_with_tau_and_uniformity():
     assert rec.is_uniform()
     new = rec.with_tau(np.zeros_like(rec.q))
     assert np.all(new.tau == 0) and not np.all(rec.tau == 0)
-    uneven = rec.with_signals(t=rec.t ** 2 + rec.t)
+    uneven = rec.with_signals(t=rec.t**2 + rec.t)
     assert not uneven.is_uniform()

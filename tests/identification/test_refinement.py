@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from identification.calibration.consistency import check_consistency, mass_matrices
-from identification.friction.models import LuGreParameters
-from identification.data.recording import Recording
 from identification.calibration.refinement import RefinementBlock, RefinementOptions, refine_parameters
+from identification.data.recording import Recording
+from identification.friction.models import LuGreParameters
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import PinocchioOracle
 
@@ -56,14 +56,21 @@ def test_refinement_recovers_perturbed_parameters(denso, denso_model):
     start_theta = theta * (1 + 0.05 * rng.standard_normal(theta.size))
     start_lugre = tuple(LuGreParameters(**{**p.as_dict(), "fc": 1.1 * p.fc, "fv": 0.9 * p.fv}) for p in lugre)
     kt = np.ones(denso.n_dof)
-    result = refine_parameters(denso_model, blocks, start_theta, kt, start_lugre,
-                               RefinementOptions(min_speed=0.05, refine_friction=True, refine_gravity=True))
+    result = refine_parameters(
+        denso_model,
+        blocks,
+        start_theta,
+        kt,
+        start_lugre,
+        RefinementOptions(min_speed=0.05, refine_friction=True, refine_gravity=True),
+    )
     assert result.status == "Solve_Succeeded"
     assert result.objective_final < 1e-8 * max(result.objective_initial, 1.0)
     for p, t in zip(result.lugre, lugre):
         assert p.fc == pytest.approx(t.fc, rel=1e-3) and p.fv == pytest.approx(t.fv, rel=1e-3)
-    predicted = [denso_model.inverse_dynamics(b.recording.q, b.recording.qd, b.recording.qdd, result.theta)
-                 for b in blocks]
+    predicted = [
+        denso_model.inverse_dynamics(b.recording.q, b.recording.qd, b.recording.qdd, result.theta) for b in blocks
+    ]
     expected = [denso_model.inverse_dynamics(b.recording.q, b.recording.qd, b.recording.qdd, theta) for b in blocks]
     np.testing.assert_allclose(np.vstack(predicted), np.vstack(expected), atol=1e-4)
 
@@ -75,8 +82,9 @@ def test_refinement_holds_gravity_friction_and_kt_by_default(denso, denso_model)
     blocks = [_synthetic_block(denso, lugre, s) for s in (1, 2)]
     mask = denso_model.gravity_mask
     start_theta = theta * np.where(mask, 1.0, 1 + 0.05 * np.random.default_rng(3).standard_normal(theta.size))
-    result = refine_parameters(denso_model, blocks, start_theta, np.ones(denso.n_dof), lugre,
-                               RefinementOptions(min_speed=0.05))
+    result = refine_parameters(
+        denso_model, blocks, start_theta, np.ones(denso.n_dof), lugre, RefinementOptions(min_speed=0.05)
+    )
     np.testing.assert_array_equal(result.theta[mask], start_theta[mask])
     assert result.lugre == lugre and np.all(result.kt == 1.0)
     np.testing.assert_allclose(result.theta[~mask], theta[~mask], rtol=1e-3, atol=1e-5)

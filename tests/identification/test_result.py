@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from identification.calibration.consistency import check_consistency
-from identification.friction.models import LuGreParameters
 from identification.calibration.report import StepScore, ValidationReport, plot_observed_predicted
 from identification.calibration.result import IdentifiedModel, load_identified
+from identification.friction.models import LuGreParameters
 from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
 
 
@@ -18,14 +18,23 @@ from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
 def identified(denso, denso_model):
     theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
     n = denso.n_dof
-    report = ValidationReport((StepScore("motor", np.ones(n), np.full(n, 0.99)),
-                               StepScore("all", np.arange(n, dtype=float), np.r_[np.full(n - 1, 0.98), np.nan])),
-                              tuple(denso.joint_names))
-    return IdentifiedModel(robot_name=denso.name, model=denso_model, theta=theta,
-                           kt=[d.kt for d in denso.drives],
-                           lugre=tuple(LuGreParameters.from_drive(d) for d in denso.drives), report=report,
-                           consistency=check_consistency(denso_model, theta, denso.q_min, denso.q_max, n_samples=10),
-                           metadata={"note": "test"})
+    report = ValidationReport(
+        (
+            StepScore("motor", np.ones(n), np.full(n, 0.99)),
+            StepScore("all", np.arange(n, dtype=float), np.r_[np.full(n - 1, 0.98), np.nan]),
+        ),
+        tuple(denso.joint_names),
+    )
+    return IdentifiedModel(
+        robot_name=denso.name,
+        model=denso_model,
+        theta=theta,
+        kt=[d.kt for d in denso.drives],
+        lugre=tuple(LuGreParameters.from_drive(d) for d in denso.drives),
+        report=report,
+        consistency=check_consistency(denso_model, theta, denso.q_min, denso.q_max, n_samples=10),
+        metadata={"note": "test"},
+    )
 
 
 def test_save_load_round_trip(identified, tmp_path):

@@ -246,8 +246,9 @@ def test_measurement_option_errors(ringing_record):
     with pytest.raises(ShapeError, match=r"fit_lugre_multiple_shooting\.q must have the length of t"):
         fit_lugre_multiple_shooting(t, qd, y, truth, ShootingOptions(measurement="central-difference"), q=q[:-1])
     with pytest.raises(ParameterError, match="at least 4 samples with measurement='central-difference'"):
-        fit_lugre_multiple_shooting(t[:3], qd[:3], y[:3], truth, ShootingOptions(measurement="central-difference"),
-                                    q=q[:3])
+        fit_lugre_multiple_shooting(
+            t[:3], qd[:3], y[:3], truth, ShootingOptions(measurement="central-difference"), q=q[:3]
+        )
 
 
 def test_measured_simulation_refuses_bad_positions_and_times(ringing_record):

@@ -7,18 +7,26 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from identification.virtual import experiments
 from identification.calibration.estimator import Design, weighted_least_squares
-from identification.virtual.effects import Payload
-from identification.friction.models import LuGreParameters, simulate_lugre
 from identification.calibration.payload import payload_static_torque, payload_torque
+from identification.calibration.steps import (
+    FrictionExperiment,
+    FrictionIdentifier,
+    GravityIdentifier,
+    InertialIdentifier,
+    MotorExperiment,
+    MotorIdentifier,
+    fold_out_and_back,
+)
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
-from identification.calibration.steps import (FrictionExperiment, FrictionIdentifier, GravityIdentifier, InertialIdentifier,
-                                  MotorExperiment, MotorIdentifier, fold_out_and_back)
+from identification.friction.models import LuGreParameters
+from identification.friction.simulation import simulate_lugre
+from identification.virtual.effects import Payload
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import NotFittedError, ParameterError, RecordingError, ShapeError
 from psdm_casadi.oracle import PinocchioOracle
+from trajopt import experiments
 
 PAYLOAD = Payload(mass=2.0, com=(0.06, 0.04, 0.05))
 NOISE_FREE = SimulationOptions(encoder_resolution=None, current_resolution=None, current_noise_std=0.0)
@@ -47,14 +55,18 @@ def motor_experiments(denso):
     out = []
     for j in (1, 4):
         rng = np.random.default_rng(j)
-        from identification.virtual.calibration import motor_pose
+        from trajopt.experiments import choose_motor_pose
 
-        pose = motor_pose(denso, j, PAYLOAD, rng, n_candidates=8, range_fraction=0.15)
-        ref = experiments.motor_reference(denso, j, speed=0.8, range_fraction=0.15, pose=pose)
+        pose = choose_motor_pose(
+            denso, j, lambda q: payload_static_torque(denso, PAYLOAD, q), rng, n_candidates=8, range_fraction=0.15
+        )
+        ref = experiments.motor_experiment(denso, j, speed=0.8, range_fraction=0.15, pose=pose).reference()
         po = PreprocessOptions(cutoff_hz=4.0)
         nominal, _ = simulate_recording(denso, ref, NOISE_FREE)
         loaded, _ = simulate_recording(denso, ref, replace(NOISE_FREE, payload=PAYLOAD))
-        out.append(MotorExperiment(j, fold_out_and_back(preprocess(nominal, po)), fold_out_and_back(preprocess(loaded, po))))
+        out.append(
+            MotorExperiment(j, fold_out_and_back(preprocess(nominal, po)), fold_out_and_back(preprocess(loaded, po)))
+        )
     return out
 
 
@@ -106,7 +118,7 @@ def test_motor_recovers_kt_noise_free(denso, motor_experiments, truth):
 
 
 def test_motor_dynamic_load_removes_the_velocity_bias(denso, motor_experiments, truth):
-    """At 0.8 rad/s the mass's velocity terms survive folding: the static load (eq. 16) is biased, the dynamic is not."""
+    """At 0.8 rad/s the mass's velocity terms survive folding: the static load (eq. 16) is biased, not the dynamic."""
     _, kt, _ = truth
     dynamic = MotorIdentifier(robot=denso, payload=PAYLOAD).fit(motor_experiments)
     static = MotorIdentifier(robot=denso, payload=PAYLOAD, load="static").fit(motor_experiments)
@@ -116,8 +128,9 @@ def test_motor_dynamic_load_removes_the_velocity_bias(denso, motor_experiments, 
     with pytest.raises(ParameterError, match="load"):
         MotorIdentifier(robot=denso, payload=PAYLOAD, load="inertial").fit(motor_experiments)
     first = motor_experiments[0]
-    no_rates = MotorExperiment(first.joint, first.nominal.with_signals(qd=None, qdd=None),
-                               first.loaded.with_signals(qd=None, qdd=None))
+    no_rates = MotorExperiment(
+        first.joint, first.nominal.with_signals(qd=None, qdd=None), first.loaded.with_signals(qd=None, qdd=None)
+    )
     with pytest.raises(ParameterError, match="load='dynamic' needs qd and qdd in the sweeps of joint 2"):
         MotorIdentifier(robot=denso, payload=PAYLOAD).fit([no_rates])
 
@@ -147,8 +160,11 @@ def test_friction_coupling_torque_matches_pinocchio(denso, denso_model, truth):
     np.testing.assert_allclose(got, expected, atol=2e-4 * np.abs(expected).max())
     fit = FrictionIdentifier(model=denso_model, kt=None, theta=theta, coupling_theta=theta)
     plain = FrictionIdentifier(model=denso_model, kt=None, theta=theta)
-    np.testing.assert_allclose(plain.measured_friction(FrictionExperiment(1, rec)) - fit.measured_friction(
-        FrictionExperiment(1, rec)), got, atol=1e-12)
+    np.testing.assert_allclose(
+        plain.measured_friction(FrictionExperiment(1, rec)) - fit.measured_friction(FrictionExperiment(1, rec)),
+        got,
+        atol=1e-12,
+    )
     with pytest.raises(ParameterError, match="coupling_theta needs qdd"):
         fit.measured_friction(FrictionExperiment(1, rec.with_signals(qdd=None)))
 
@@ -157,12 +173,19 @@ def test_friction_central_difference_needs_full_rate(denso_model, truth):
     from identification.friction.shooting import ShootingOptions
 
     theta, kt, _ = truth
-    rec = Recording(t=np.arange(0.0, 0.05, 1e-3), q=np.zeros((50, 6)), current=np.zeros((50, 6)),
-                    qd=np.zeros((50, 6)), qdd=np.zeros((50, 6)), name="x")
+    rec = Recording(
+        t=np.arange(0.0, 0.05, 1e-3),
+        q=np.zeros((50, 6)),
+        current=np.zeros((50, 6)),
+        qd=np.zeros((50, 6)),
+        qdd=np.zeros((50, 6)),
+        name="x",
+    )
     options = ShootingOptions(measurement="central-difference")
     with pytest.raises(ParameterError, match="decimation"):
         FrictionIdentifier(model=denso_model, kt=kt, theta=theta, decimation=2, shooting_options=options).fit(
-            FrictionExperiment(0, rec))
+            FrictionExperiment(0, rec)
+        )
 
 
 def test_gravity_recovers_parameters(denso_model, gravity_recording, truth):
@@ -185,7 +208,8 @@ def test_friction_held_set_points_are_averaged(denso_model, truth):
     gravity = denso_model.gravity_regressor(q)[:, 2, :] @ (theta * denso_model.gravity_mask)
     held = FrictionIdentifier(model=denso_model, kt=kt, theta=theta).measured_friction(FrictionExperiment(2, rec))
     instant = FrictionIdentifier(model=denso_model, kt=kt, theta=theta, held_torque=False).measured_friction(
-        FrictionExperiment(2, rec))
+        FrictionExperiment(2, rec)
+    )
     np.testing.assert_allclose(instant + gravity, 2.0 * current[:, 2], atol=1e-12)
     np.testing.assert_allclose(held[1:] + gravity[1:], 1.0, atol=1e-12)
 
@@ -220,7 +244,7 @@ def test_friction_inertia_and_coulomb_viscous(denso, denso_model, truth):
     """Joint 5 alone: eq. 19 removes gravity, the fitted inertia removes M_55 qdd, LuGre follows."""
     theta, _, lugre = truth
     j = 4
-    t, q = experiments.oscillation_reference(denso, j, amplitudes=(1e-3, 0.05, 0.5), cycles=2)
+    t, q = experiments.oscillation_experiment(denso, j, amplitudes=(1e-3, 0.05, 0.5), cycles=2).reference()
     t_s = np.arange(0.0, t[-1], 2e-3)
     from scipy.interpolate import CubicSpline
 
@@ -246,19 +270,23 @@ def _cases(denso, denso_model, truth, motor_experiments, gravity_recording, exci
     return [
         (MotorIdentifier(robot=denso, payload=PAYLOAD), motor_experiments, "kt_"),
         (GravityIdentifier(model=denso_model), gravity_recording, "theta_"),
-        (InertialIdentifier(model=denso_model, theta=theta * denso_model.gravity_mask, lugre=lugre), excitation,
-         "theta_"),
+        (
+            InertialIdentifier(model=denso_model, theta=theta * denso_model.gravity_mask, lugre=lugre),
+            excitation,
+            "theta_",
+        ),
     ]
 
 
 def test_contract(denso, denso_model, truth, motor_experiments, gravity_recording, excitation):
-    for estimator, data, attribute in _cases(denso, denso_model, truth, motor_experiments, gravity_recording, excitation):
+    for estimator, data, attribute in _cases(
+        denso, denso_model, truth, motor_experiments, gravity_recording, excitation
+    ):
         with pytest.raises(NotFittedError, match="fit"):
             estimator.predict(data)
         with pytest.raises(NotFittedError):
             estimator.score(data)
-        snapshot = [np.array(r.q) for r in (data if isinstance(data, list) else [data])
-                    if isinstance(r, Recording)]
+        snapshot = [np.array(r.q) for r in (data if isinstance(data, list) else [data]) if isinstance(r, Recording)]
         assert estimator.fit(data) is estimator
         first = np.array(getattr(estimator, attribute))
         again = type(estimator)(**estimator.get_params()).fit(data)

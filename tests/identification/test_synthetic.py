@@ -7,9 +7,16 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from identification.virtual.effects import (GravityTilt, JointCoupling, Payload, SignalDelay, Spring, TorqueOffset,
-                                          TorqueRipple)
 from identification.data.io import load_recording
+from identification.virtual.effects import (
+    GravityTilt,
+    JointCoupling,
+    Payload,
+    SignalDelay,
+    Spring,
+    TorqueOffset,
+    TorqueRipple,
+)
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from identification.virtual.truth import read_truth, write_recording
 from psdm_casadi.errors import ParameterError, ShapeError
@@ -64,7 +71,7 @@ def test_lugre_steady_state_at_constant_velocity(denso):
     _, truth = simulate_recording(denso, ramp, SimulationOptions(duration=0.5, **CLEAN))
     d = denso.drives
     fc, fs, vs, fv, dv = (np.array([getattr(x, k) for x in d]) for k in ("fc", "fs", "vs", "fv", "dv"))
-    expected = (fc + (fs - fc) * np.exp(-(v / vs) ** 2)) * np.sign(v) + fv * np.abs(v) ** dv * np.sign(v)
+    expected = (fc + (fs - fc) * np.exp(-((v / vs) ** 2))) * np.sign(v) + fv * np.abs(v) ** dv * np.sign(v)
     np.testing.assert_allclose(truth.qd[-1], v, rtol=1e-3)
     np.testing.assert_allclose(truth.tau_friction[-1], expected, rtol=2e-3)
 
@@ -100,8 +107,9 @@ def test_same_seed_same_recording(denso):
 
 def test_spring_shows_up_as_k_q_minus_q0(denso):
     spring = Spring(joint=1, stiffness=80.0, q0=0.1)
-    rec, truth = simulate_recording(denso, sines, SimulationOptions(duration=0.5, friction=False, **CLEAN),
-                                    extras=[spring])
+    rec, truth = simulate_recording(
+        denso, sines, SimulationOptions(duration=0.5, friction=False, **CLEAN), extras=[spring]
+    )
     extra = rec.tau - PinocchioOracle(denso).rnea(truth.q, truth.qd, truth.qdd)
     expected = np.zeros_like(extra)
     expected[:, 1] = 80.0 * (truth.q[:, 1] - 0.1)
@@ -110,8 +118,9 @@ def test_spring_shows_up_as_k_q_minus_q0(denso):
 
 def test_torque_ripple_and_coupling(denso):
     terms = [TorqueRipple(joint=2, amplitude=1.5, harmonic=4.0), JointCoupling(matrix=0.5 * np.eye(6)[::-1])]
-    rec, truth = simulate_recording(denso, sines, SimulationOptions(duration=0.3, friction=False, **CLEAN),
-                                    extras=terms)
+    rec, truth = simulate_recording(
+        denso, sines, SimulationOptions(duration=0.3, friction=False, **CLEAN), extras=terms
+    )
     extra = rec.tau - PinocchioOracle(denso).rnea(truth.q, truth.qd, truth.qdd)
     expected = 0.5 * truth.qd[:, ::-1]
     expected[:, 2] += 1.5 * np.sin(4.0 * truth.q[:, 2])
@@ -121,14 +130,19 @@ def test_torque_ripple_and_coupling(denso):
 
 def test_torque_offset_and_delay_are_signal_level(denso):
     offset = np.arange(6.0)
-    rec, truth = simulate_recording(denso, sines, SimulationOptions(duration=0.2, **CLEAN),
-                                    extras=[TorqueOffset(offset=offset), SignalDelay(samples=3)])
+    rec, truth = simulate_recording(
+        denso,
+        sines,
+        SimulationOptions(duration=0.2, **CLEAN),
+        extras=[TorqueOffset(offset=offset), SignalDelay(samples=3)],
+    )
     np.testing.assert_allclose(rec.tau[3:], truth.tau_motor[:-3] + offset, atol=1e-12)
     np.testing.assert_allclose(rec.q, truth.q)
 
 
 def test_payload_torque_is_jacobian_transpose_of_weight(denso):
     """Paper eq. 16-17: a point mass at the flange adds J(q)^T f_w to the static torque."""
+
     def hold(t):
         q = np.tile([0.3, -0.4, 0.5, 0.2, 0.6, 0.1], (len(t), 1))
         return q, np.zeros_like(q), np.zeros_like(q)
@@ -151,8 +165,9 @@ def test_payload_torque_is_jacobian_transpose_of_weight(denso):
 
 
 def test_gravity_tilt_rotates_gravity(denso):
-    _, truth = simulate_recording(denso, sines, SimulationOptions(duration=0.05, **CLEAN),
-                                  extras=[GravityTilt(angle=0.02, axis=(0, 0, 1))])
+    _, truth = simulate_recording(
+        denso, sines, SimulationOptions(duration=0.05, **CLEAN), extras=[GravityTilt(angle=0.02, axis=(0, 0, 1))]
+    )
     assert np.isclose(np.linalg.norm(truth.gravity), np.linalg.norm(denso.gravity))
     assert np.isclose(np.arccos(truth.gravity @ denso.gravity / np.linalg.norm(denso.gravity) ** 2), 0.02)
 
@@ -170,23 +185,37 @@ def test_array_reference_and_shape_errors(denso):
         simulate_recording(denso, 3.0, SimulationOptions(duration=1.0))
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(rate=0.0), "rate"), (dict(substeps=0), "substeps"), (dict(duration=-1.0), "duration"),
-    (dict(integrator="rk4"), "integrator"),
-    (dict(feedforward="pid"), "feedforward"), (dict(encoder_resolution=0.0), "encoder_resolution"),
-    (dict(current_noise_std=-1.0), "current_noise_std"), (dict(record_current=False), "record_current"),
-    (dict(payload=2.0), "payload"), (dict(bandwidth_hz=-1.0), "bandwidth_hz"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(rate=0.0), "rate"),
+        (dict(substeps=0), "substeps"),
+        (dict(duration=-1.0), "duration"),
+        (dict(integrator="rk4"), "integrator"),
+        (dict(feedforward="pid"), "feedforward"),
+        (dict(encoder_resolution=0.0), "encoder_resolution"),
+        (dict(current_noise_std=-1.0), "current_noise_std"),
+        (dict(record_current=False), "record_current"),
+        (dict(payload=2.0), "payload"),
+        (dict(bandwidth_hz=-1.0), "bandwidth_hz"),
+    ],
+)
 def test_bad_options(kwargs, field):
     with pytest.raises(ParameterError, match=f"SimulationOptions.{field}"):
         SimulationOptions(**kwargs)
 
 
-@pytest.mark.parametrize("term, field", [
-    (Spring(joint=6, stiffness=1.0), "Spring.joint"), (TorqueOffset(offset=[1.0, 2.0]), "TorqueOffset.offset"),
-    (Payload(mass=-1.0), "Payload.mass"), (SignalDelay(samples=-1), "SignalDelay.samples"),
-    (JointCoupling(matrix=np.eye(2)), "JointCoupling.matrix"), (GravityTilt(angle=0.1, axis=(0, 0, 0)), "GravityTilt.axis"),
-])
+@pytest.mark.parametrize(
+    "term, field",
+    [
+        (Spring(joint=6, stiffness=1.0), "Spring.joint"),
+        (TorqueOffset(offset=[1.0, 2.0]), "TorqueOffset.offset"),
+        (Payload(mass=-1.0), "Payload.mass"),
+        (SignalDelay(samples=-1), "SignalDelay.samples"),
+        (JointCoupling(matrix=np.eye(2)), "JointCoupling.matrix"),
+        (GravityTilt(angle=0.1, axis=(0, 0, 0)), "GravityTilt.axis"),
+    ],
+)
 def test_bad_extras(denso, term, field):
     with pytest.raises(ParameterError, match=field):
         simulate_recording(denso, sines, SimulationOptions(duration=0.01), extras=[term])
@@ -249,8 +278,11 @@ def test_simulate_calibration_runs_the_designs_references(denso, caplog):
     """The virtual robot runs what the plan hands it, in order, friction experiments without friction feed-forward."""
     import logging
 
-    from identification.virtual.calibration import (VirtualCalibrationOptions, friction_simulation_options,
-                                                    simulate_calibration)
+    from identification.virtual.calibration import (
+        VirtualCalibrationOptions,
+        friction_simulation_options,
+        simulate_calibration,
+    )
 
     design = _Design(denso.n_dof)
     with caplog.at_level(logging.INFO, logger="identification.virtual.calibration"):
@@ -290,8 +322,10 @@ def test_exact_z_step_matches_stiff_ode_solver(denso):
     np.testing.assert_allclose(z_step(z0, qd, 1e-3, p), sol.y[:, -1], rtol=1e-6, atol=1e-12)
     # at rest state the torque is the steady-state friction
     z_rest = z_step(z0, qd, 10.0, p)
-    np.testing.assert_allclose(friction_torque(z_rest, qd, p),
-                               (p.fc + (p.fs - p.fc) * np.exp(-(qd / p.vs) ** 2) + p.fv * np.abs(qd) ** p.dv) * np.sign(qd))
+    np.testing.assert_allclose(
+        friction_torque(z_rest, qd, p),
+        (p.fc + (p.fs - p.fc) * np.exp(-((qd / p.vs) ** 2)) + p.fv * np.abs(qd) ** p.dv) * np.sign(qd),
+    )
 
 
 def test_leapfrog_held_command_obeys_continuous_time_relation(denso):

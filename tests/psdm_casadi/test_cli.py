@@ -4,7 +4,6 @@ import pytest
 
 from psdm_casadi import load_model
 from psdm_casadi.cli import main
-
 from tests.conftest import DENSO_FILE
 
 

@@ -6,19 +6,22 @@ import pytest
 from psdm_casadi import DeriveOptions, derive_psdm, from_urdf
 from psdm_casadi.derive import check_against_oracle
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 from psdm_casadi.samples import kr6, scara, two_link
 from psdm_casadi.sampling import random_standard_parameters
-
 from tests.conftest import REFERENCE_PSDM, example_robot_urdf
-from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
 
 
-@pytest.mark.parametrize("robot, p, l", [
-    (two_link(reduced=True), 10, 4),
-    (two_link(), 18, 6),
-    (scara(), 69, 8),
-    (kr6(), 6086, 36),
-], ids=["two-link-reduced", "two-link", "scara", "kr6"])
+@pytest.mark.parametrize(
+    "robot, p, l",
+    [
+        (two_link(reduced=True), 10, 4),
+        (two_link(), 18, 6),
+        (scara(), 69, 8),
+        (kr6(), 6086, 36),
+    ],
+    ids=["two-link-reduced", "two-link", "scara", "kr6"],
+)
 def test_published_counts(robot, p, l):
     model = derive_psdm(robot)
     assert (model.n_functions, model.n_base) == (p, l)
@@ -29,8 +32,8 @@ def test_denso_counts(denso_model):
     assert (denso_model.n_functions, denso_model.n_base, denso_model.n_gravity) == (1318, 32, 9)
     # the composition published with the model: 47 gravity, 313 qdd, 348 qd^2, 610 qd_i qd_j functions
     n = 6
-    acc = denso_model.exponents[4 * n:].sum(axis=0)
-    vel = denso_model.exponents[3 * n:4 * n]
+    acc = denso_model.exponents[4 * n :].sum(axis=0)
+    vel = denso_model.exponents[3 * n : 4 * n]
     assert int(denso_model.gravity_functions.sum()) == 47
     assert int((acc == 1).sum()) == 313
     assert int((vel == 2).any(axis=0).sum()) == 348
@@ -77,9 +80,15 @@ def _published_model(standard_names):
     exponents, reduction, theta = _reference()
     from psdm_casadi.model import PSDMModel
 
-    model = PSDMModel(exponents=exponents, reduction=reduction, parameter_map=np.zeros((32, 66)),
-                      base_names=[f"t{i}" for i in range(32)], standard_names=standard_names,
-                      gravity_magnitude=9.806132, revolute=np.ones(6, bool))
+    model = PSDMModel(
+        exponents=exponents,
+        reduction=reduction,
+        parameter_map=np.zeros((32, 66)),
+        base_names=[f"t{i}" for i in range(32)],
+        standard_names=standard_names,
+        gravity_magnitude=9.806132,
+        revolute=np.ones(6, bool),
+    )
     return model, theta
 
 
@@ -110,8 +119,7 @@ def test_urdf_robots_match_rnea_on_1000_states(urdf_robot_and_model, rng):
     robot, model = urdf_robot_and_model
     assert check_against_oracle(model, robot, rng, n_samples=1000) < 1e-9
     # and with the URDF's own inertial parameters
-    assert check_against_oracle(model, robot, rng, n_samples=200,
-                                parameters=robot.nominal_dynamic_parameters()) < 1e-9
+    assert check_against_oracle(model, robot, rng, n_samples=200, parameters=robot.nominal_dynamic_parameters()) < 1e-9
 
 
 @pytest.mark.parametrize("make", [scara, kr6], ids=["scara", "kr6"])
@@ -123,8 +131,10 @@ def test_dh_robots_match_rnea_on_1000_states(make, rng):
 
 def test_denso_matches_rnea_on_1000_states(denso, denso_model, rng):
     assert check_against_oracle(denso_model, denso, rng, n_samples=1000) < 1e-9
-    assert check_against_oracle(denso_model, denso, rng, n_samples=200,
-                                parameters=denso.nominal_dynamic_parameters()) < 1e-9
+    assert (
+        check_against_oracle(denso_model, denso, rng, n_samples=200, parameters=denso.nominal_dynamic_parameters())
+        < 1e-9
+    )
 
 
 def test_derivation_is_deterministic_byte_for_byte(denso, denso_model):
@@ -169,18 +179,16 @@ def test_options_are_validated():
 
 def test_random_parameters_respect_the_assumptions(denso, rng):
     params = random_standard_parameters(denso, rng)
-    assert np.all(params[5, :10] == 0)          # link 6 massless
-    assert params[4, 1] == 0                     # m rx5 = 0 because rx5 = 0
+    assert np.all(params[5, :10] == 0)  # link 6 massless
+    assert params[4, 1] == 0  # m rx5 = 0 because rx5 = 0
 
 
 def test_shipped_scara_file_is_prismatic_and_derives():
     from psdm_casadi import load_robot
-
 
     robot = load_robot(BUILTIN_ROBOTS_DIR / "scara.toml")
     assert [j.kind for j in robot.joints] == ["revolute", "revolute", "prismatic", "revolute"]
     model = derive_psdm(robot)
     assert (model.n_functions, model.n_base) == (69, 8)
     rng = np.random.default_rng(3)
-    assert check_against_oracle(model, robot, rng, n_samples=1000,
-                                parameters=robot.nominal_dynamic_parameters()) < 1e-9
+    assert check_against_oracle(model, robot, rng, n_samples=1000, parameters=robot.nominal_dynamic_parameters()) < 1e-9

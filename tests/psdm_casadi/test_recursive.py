@@ -42,7 +42,9 @@ def test_preimage_keeps_one_standard_parameter_per_base_parameter(denso, denso_m
     assert len(preimage.support) == denso_model.n_base
     assert preimage.max_rel_error < 1e-12
     # the reduction removes every mass and z first moment of the Denso (Khalil's grouping)
-    assert not any(name.startswith(("m", "mz")) and not name.startswith(("mx", "my")) for name in preimage.support_names())
+    assert not any(
+        name.startswith(("m", "mz")) and not name.startswith(("mx", "my")) for name in preimage.support_names()
+    )
     theta = np.random.default_rng(0).normal(size=denso_model.n_base)
     standard = preimage.standard_parameters(theta)
     assert standard.shape == (denso.n_dof, 11)
@@ -70,8 +72,10 @@ def test_recursive_equals_sum_form_for_any_theta(denso_model, denso_recursive, r
         state = (q[k], qd[k], qdd[k])
         assert _rel(_value(denso_recursive.regressor, *state), _value(sums.regressor, *state)) < 1e-12
         assert _rel(_value(denso_recursive.gravity_regressor, q[k]), _value(sums.gravity_regressor, q[k])) < 1e-12
-        assert _rel(_value(denso_recursive.inverse_dynamics, *state, theta),
-                    denso_model.inverse_dynamics(*state, theta)) < 1e-12
+        assert (
+            _rel(_value(denso_recursive.inverse_dynamics, *state, theta), denso_model.inverse_dynamics(*state, theta))
+            < 1e-12
+        )
         assert _rel(_value(denso_recursive.mass_matrix, q[k], theta), _value(sums.mass_matrix, q[k], theta)) < 1e-12
         assert _rel(_value(denso_recursive.bias, q[k], qd[k], theta), _value(sums.bias, q[k], qd[k], theta)) < 1e-12
         assert _rel(_value(denso_recursive.gravity, q[k], theta), _value(sums.gravity, q[k], theta)) < 1e-12
@@ -126,8 +130,10 @@ def test_recursive_graph_is_smaller_than_the_sum_and_the_plain_newton_euler(dens
     recursive = build_recursive_functions(denso_model, denso, theta)
     sums = build_functions(denso_model, theta)
     peer = build_rnea_functions(PinocchioOracle(denso).model)
-    ops = {name: count_operations(getattr(fns, name)).n_operations
-           for fns, name in ((recursive, "inverse_dynamics"), (recursive, "forward_dynamics"))}
+    ops = {
+        name: count_operations(getattr(fns, name)).n_operations
+        for fns, name in ((recursive, "inverse_dynamics"), (recursive, "forward_dynamics"))
+    }
     assert ops["inverse_dynamics"] < 0.75 * count_operations(peer.inverse_dynamics).n_operations
     assert ops["inverse_dynamics"] < 0.25 * count_operations(sums.inverse_dynamics).n_operations
     assert ops["forward_dynamics"] < 0.75 * count_operations(peer.forward_dynamics).n_operations

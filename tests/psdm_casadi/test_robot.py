@@ -6,7 +6,6 @@ import pytest
 from psdm_casadi import load_robot
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.robot import LinkInertia, from_dh, physical_to_dynamic
-
 from tests.conftest import DENSO_FILE, example_robot_urdf
 
 GOOD_JOINT = 'a = 0.1\nalpha = "pi/2"\nd = 0.0\ntheta = 0.0\n'
@@ -36,26 +35,32 @@ def test_expressions_with_pi_are_read(tmp_path):
     assert robot.joints[0].alpha == pytest.approx(math.pi / 2)
 
 
-@pytest.mark.parametrize("text, match", [
-    ("[[joint]]\na = 0.1\nalpha = 0\nd = 0\n", r"joint\[1\]\.theta is missing"),
-    ("[[joint]]\n" + GOOD_JOINT + 'type = "spherical"\n', r"joint\[1\]\.type must be"),
-    ("[[joint]]\n" + GOOD_JOINT + "q_min = 1.0\nq_max = -1.0\n", r"joint\[1\].*q_min must be below q_max"),
-    ("[[joint]]\n" + GOOD_JOINT + "qd_max = 0\n", r"joint\[1\].*qd_max must be positive"),
-    ("[[joint]]\n" + GOOD_JOINT + 'alpha2 = 1\n', r"joint\[1\] has unknown key.*alpha2"),
-    ('[[joint]]\na = "pi/"\nalpha = 0\nd = 0\ntheta = 0\n', r"joint\[1\]\.a must be a number"),
-    ('convention = "craig"\n[[joint]]\n' + GOOD_JOINT, r"convention must be"),
-    ("gravity = [0, 0]\n[[joint]]\n" + GOOD_JOINT, r"gravity must be a list of 3"),
-    ("[assumptions]\nzero_parameters = ['rq1']\n[[joint]]\n" + GOOD_JOINT, r"zero_parameters entry 'rq1'"),
-    ("[assumptions]\nmassless_links = [3]\n[[joint]]\n" + GOOD_JOINT, r"massless_links must be a list of link numbers"),
-    ("[assumptions]\ndrive_inertia = [true, false]\n[[joint]]\n" + GOOD_JOINT, r"drive_inertia must be"),
-    ("[[joint]]\n" + GOOD_JOINT + "[[link]]\nmass = 1\n[[link]]\nmass = 2\n", r"exactly 1 \[\[link\]\]"),
-    ("[[joint]]\n" + GOOD_JOINT + "[[link]]\nmass = -1\n", r"link\[1\].*mass must be >= 0"),
-    ("[[joint]]\n" + GOOD_JOINT + "[[link]]\ninertia = [1, 2]\n", r"link\[1\]\.inertia"),
-    ("[[joint]]\n" + GOOD_JOINT + "[[drive]]\nkt = -1\n", r"drive\[1\].*kt must be positive"),
-    ('format = "psdm-robot/9"\n[[joint]]\n' + GOOD_JOINT, r"format must be"),
-    ("name = 'x'\n", r"at least one \[\[joint\]\]"),
-    ("[[joint]\n", r"not valid TOML"),
-])
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("[[joint]]\na = 0.1\nalpha = 0\nd = 0\n", r"joint\[1\]\.theta is missing"),
+        ("[[joint]]\n" + GOOD_JOINT + 'type = "spherical"\n', r"joint\[1\]\.type must be"),
+        ("[[joint]]\n" + GOOD_JOINT + "q_min = 1.0\nq_max = -1.0\n", r"joint\[1\].*q_min must be below q_max"),
+        ("[[joint]]\n" + GOOD_JOINT + "qd_max = 0\n", r"joint\[1\].*qd_max must be positive"),
+        ("[[joint]]\n" + GOOD_JOINT + "alpha2 = 1\n", r"joint\[1\] has unknown key.*alpha2"),
+        ('[[joint]]\na = "pi/"\nalpha = 0\nd = 0\ntheta = 0\n', r"joint\[1\]\.a must be a number"),
+        ('convention = "craig"\n[[joint]]\n' + GOOD_JOINT, r"convention must be"),
+        ("gravity = [0, 0]\n[[joint]]\n" + GOOD_JOINT, r"gravity must be a list of 3"),
+        ("[assumptions]\nzero_parameters = ['rq1']\n[[joint]]\n" + GOOD_JOINT, r"zero_parameters entry 'rq1'"),
+        (
+            "[assumptions]\nmassless_links = [3]\n[[joint]]\n" + GOOD_JOINT,
+            r"massless_links must be a list of link numbers",
+        ),
+        ("[assumptions]\ndrive_inertia = [true, false]\n[[joint]]\n" + GOOD_JOINT, r"drive_inertia must be"),
+        ("[[joint]]\n" + GOOD_JOINT + "[[link]]\nmass = 1\n[[link]]\nmass = 2\n", r"exactly 1 \[\[link\]\]"),
+        ("[[joint]]\n" + GOOD_JOINT + "[[link]]\nmass = -1\n", r"link\[1\].*mass must be >= 0"),
+        ("[[joint]]\n" + GOOD_JOINT + "[[link]]\ninertia = [1, 2]\n", r"link\[1\]\.inertia"),
+        ("[[joint]]\n" + GOOD_JOINT + "[[drive]]\nkt = -1\n", r"drive\[1\].*kt must be positive"),
+        ('format = "psdm-robot/9"\n[[joint]]\n' + GOOD_JOINT, r"format must be"),
+        ("name = 'x'\n", r"at least one \[\[joint\]\]"),
+        ("[[joint]\n", r"not valid TOML"),
+    ],
+)
 def test_malformed_files_name_the_field(tmp_path, text, match):
     with pytest.raises(RobotFileError, match=match):
         load_robot(write(tmp_path, text))
@@ -94,9 +99,12 @@ def test_urdf_panda_loads_with_locked_gripper_and_limits():
 
 def test_urdf_from_toml_wrapper(tmp_path):
     path = example_robot_urdf("panda_description/urdf/panda.urdf")
-    toml = write(tmp_path, f'name = "panda"\n[urdf]\npath = "{path}"\n'
-                           'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
-                           "[assumptions]\ndrive_inertia = true\n")
+    toml = write(
+        tmp_path,
+        f'name = "panda"\n[urdf]\npath = "{path}"\n'
+        'locked_joints = ["panda_finger_joint1", "panda_finger_joint2"]\n'
+        "[assumptions]\ndrive_inertia = true\n",
+    )
     robot = load_robot(toml)
     assert robot.n_dof == 7 and robot.drive_inertia == (True,) * 7 and robot.name == "panda"
 

@@ -32,8 +32,12 @@ def test_regressor_matches_numpy_model(denso, denso_model, denso_functions, rng)
     q, qd, qdd = random_states(denso, 5, rng)
     numeric = denso_model.regressor(q, qd, qdd)
     for k in range(5):
-        assert np.allclose(np.array(denso_functions.regressor(q[k], qd[k], qdd[k])), numeric[k], rtol=1e-12,
-                           atol=1e-12 * np.abs(numeric).max())
+        assert np.allclose(
+            np.array(denso_functions.regressor(q[k], qd[k], qdd[k])),
+            numeric[k],
+            rtol=1e-12,
+            atol=1e-12 * np.abs(numeric).max(),
+        )
     grav = np.array(denso_functions.gravity_regressor(q[0]))
     assert np.allclose(grav, denso_model.gravity_regressor(q[:1])[0], atol=1e-12)
 
@@ -58,8 +62,9 @@ def test_forward_dynamics_matches_aba_and_inverts_inverse(denso, denso_functions
     for a, b, c, t in zip(q, qd, qdd, tau):
         qdd_ours = np.array(denso_functions.forward_dynamics(a, b, t, theta)).ravel()
         assert np.allclose(qdd_ours, oracle.aba(a, b, t), rtol=1e-9, atol=1e-9)
-        round_trip = np.array(denso_functions.forward_dynamics(a, b, denso_functions.inverse_dynamics(a, b, c, theta),
-                                                               theta)).ravel()
+        round_trip = np.array(
+            denso_functions.forward_dynamics(a, b, denso_functions.inverse_dynamics(a, b, c, theta), theta)
+        ).ravel()
         assert np.allclose(round_trip, c, atol=1e-9)
 
 
@@ -70,10 +75,16 @@ def test_jacobian_from_casadi_matches_finite_differences(denso, denso_functions,
     jac = ca.Function("j", [q_sym], [ca.jacobian(denso_functions.inverse_dynamics(q_sym, qd, qdd, theta), q_sym)])
     analytic = np.array(jac(q))
     step = 1e-6
-    numeric = np.column_stack([
-        (np.array(denso_functions.inverse_dynamics(q + step * e, qd, qdd, theta)).ravel()
-         - np.array(denso_functions.inverse_dynamics(q - step * e, qd, qdd, theta)).ravel()) / (2 * step)
-        for e in np.eye(6)])
+    numeric = np.column_stack(
+        [
+            (
+                np.array(denso_functions.inverse_dynamics(q + step * e, qd, qdd, theta)).ravel()
+                - np.array(denso_functions.inverse_dynamics(q - step * e, qd, qdd, theta)).ravel()
+            )
+            / (2 * step)
+            for e in np.eye(6)
+        ]
+    )
     assert np.allclose(analytic, numeric, rtol=1e-6, atol=1e-6 * np.abs(numeric).max())
 
 
@@ -92,8 +103,12 @@ def test_baked_theta_gives_the_same_functions_without_the_input(denso_model, den
     baked = build_functions(denso_model, theta=theta)
     assert baked.inverse_dynamics.n_in() == 3 and baked.forward_dynamics.name_in() == ["q", "qd", "tau"]
     q, qd, qdd = rng.uniform(-1, 1, size=(3, 6))
-    assert np.allclose(np.array(baked.inverse_dynamics(q, qd, qdd)),
-                       np.array(denso_functions.inverse_dynamics(q, qd, qdd, theta)), rtol=1e-13, atol=1e-12)
+    assert np.allclose(
+        np.array(baked.inverse_dynamics(q, qd, qdd)),
+        np.array(denso_functions.inverse_dynamics(q, qd, qdd, theta)),
+        rtol=1e-13,
+        atol=1e-12,
+    )
     assert baked.inverse_dynamics.n_instructions() < denso_functions.inverse_dynamics.n_instructions()
     with pytest.raises(ShapeError, match="theta must have 32"):
         build_functions(denso_model, theta=np.zeros(3))
@@ -103,7 +118,14 @@ def test_functions_are_named(denso_functions):
     assert denso_functions.inverse_dynamics.name_in() == ["q", "qd", "qdd", "theta"]
     assert denso_functions.inverse_dynamics.name_out() == ["tau"]
     assert [f.name() for f in denso_functions.all()] == [
-        "regressor", "gravity_regressor", "inverse_dynamics", "mass_matrix", "bias", "gravity", "forward_dynamics"]
+        "regressor",
+        "gravity_regressor",
+        "inverse_dynamics",
+        "mass_matrix",
+        "bias",
+        "gravity",
+        "forward_dynamics",
+    ]
 
 
 def test_prismatic_robot_functions_match_pinocchio(rng):
@@ -119,6 +141,7 @@ def test_prismatic_robot_functions_match_pinocchio(rng):
     functions = build_functions(model)
     q, qd, qdd = random_states(robot, 5, rng)
     for a, b, c in zip(q, qd, qdd):
-        assert np.allclose(np.array(functions.inverse_dynamics(a, b, c, theta)).ravel(), oracle.rnea(a, b, c),
-                           atol=1e-10)
+        assert np.allclose(
+            np.array(functions.inverse_dynamics(a, b, c, theta)).ravel(), oracle.rnea(a, b, c), atol=1e-10
+        )
         assert np.allclose(np.array(functions.mass_matrix(a, theta)), oracle.crba(a), atol=1e-10)

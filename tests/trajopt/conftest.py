@@ -53,10 +53,11 @@ def planar_regressor():
 
 @pytest.fixture(scope="session")
 def planar_robot():
-    limits = [dict(q_min=-2.0, q_max=2.0, qd_max=2.0, qdd_max=6.0, tau_max=50.0),
-              dict(q_min=-2.5, q_max=2.5, qd_max=3.0, qdd_max=8.0, tau_max=20.0)]
-    return from_dh([(A1, 0.0, 0.0, 0.0), (0.4, 0.0, 0.0, 0.0)], gravity=(0.0, -G, 0.0), name="planar2r",
-                   limits=limits)
+    limits = [
+        dict(q_min=-2.0, q_max=2.0, qd_max=2.0, qdd_max=6.0, tau_max=50.0),
+        dict(q_min=-2.5, q_max=2.5, qd_max=3.0, qdd_max=8.0, tau_max=20.0),
+    ]
+    return from_dh([(A1, 0.0, 0.0, 0.0), (0.4, 0.0, 0.0, 0.0)], gravity=(0.0, -G, 0.0), name="planar2r", limits=limits)
 
 
 @pytest.fixture

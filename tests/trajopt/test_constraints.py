@@ -4,21 +4,31 @@ import numpy as np
 import pytest
 
 from psdm_casadi.errors import ParameterError, ShapeError
-from trajopt.constraints import (JointLimits, KeepOut, build_dh_point_function, limit_margins, scale_into_limits,
-                                 verify_limits)
-from trajopt.parametrization import FourierTrajectory, SumOfSinesTrajectory
-
 from tests.trajopt.conftest import A1
+from trajopt.constraints import (
+    JointLimits,
+    KeepOut,
+    build_dh_point_function,
+    limit_margins,
+    scale_into_limits,
+    verify_limits,
+)
+from trajopt.parametrization import FourierTrajectory, SumOfSinesTrajectory
 
 
 def _limits():
     return JointLimits(q_min=[-1.0, -2.0], q_max=[1.0, 0.0], qd_max=[2.0, 3.0], qdd_max=[5.0, 6.0])
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(qd_max=[0.0, 1.0]), "qd_max"), (dict(qdd_max=[1.0, -1.0]), "qdd_max"),
-    (dict(q_min=[1.0, -1.0]), "q_min"), (dict(tau_max=[1.0, 0.0]), "tau_max"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(qd_max=[0.0, 1.0]), "qd_max"),
+        (dict(qdd_max=[1.0, -1.0]), "qdd_max"),
+        (dict(q_min=[1.0, -1.0]), "q_min"),
+        (dict(tau_max=[1.0, 0.0]), "tau_max"),
+    ],
+)
 def test_limit_errors_name_field(kwargs, field):
     base = dict(q_min=[-1.0, -1.0], q_max=[1.0, 1.0], qd_max=[1.0, 1.0], qdd_max=[1.0, 1.0])
     with pytest.raises(ParameterError, match=field):
@@ -53,8 +63,13 @@ def test_margins_known_values():
     assert m["joint"]["qd"] == 2
 
 
-@pytest.mark.parametrize("family", [FourierTrajectory(n_dof=2, n_harmonics=4, period=3.0),
-                                    SumOfSinesTrajectory(n_dof=2, duration=3.0, frequency_max=6.0)])
+@pytest.mark.parametrize(
+    "family",
+    [
+        FourierTrajectory(n_dof=2, n_harmonics=4, period=3.0),
+        SumOfSinesTrajectory(n_dof=2, duration=3.0, frequency_max=6.0),
+    ],
+)
 def test_scale_into_limits_gives_feasible_trajectory(family, rng):
     limits = _limits()
     x = family.random_parameters(rng, [3.0, 3.0]) * 10  # far outside, offsets too

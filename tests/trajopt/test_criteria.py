@@ -5,10 +5,16 @@ import numpy as np
 import pytest
 
 from psdm_casadi.errors import ParameterError, ShapeError
-from trajopt.criteria import (CriterionCallback, build_information_function, check_columns, condition_number,
-                              criterion_gradient, criterion_value, stack_regressor)
-
 from tests.trajopt.conftest import planar_regressor_numpy
+from trajopt.criteria import (
+    CriterionCallback,
+    build_information_function,
+    check_columns,
+    condition_number,
+    criterion_gradient,
+    criterion_value,
+    stack_regressor,
+)
 
 
 def _spd(rng, n=5, spread=3.0):
@@ -33,8 +39,9 @@ def test_stack_regressor_matches_analytic(planar_regressor, rng):
     q, qd, qdd = (rng.standard_normal((7, 2)) for _ in range(3))
     expected = planar_regressor_numpy(q, qd, qdd)
     np.testing.assert_allclose(stack_regressor(planar_regressor, q, qd, qdd), expected.reshape(14, 5), atol=1e-12)
-    np.testing.assert_allclose(stack_regressor(planar_regressor, q, qd, qdd, columns=[0, 2]),
-                               expected[:, :, [0, 2]].reshape(14, 2), atol=1e-12)
+    np.testing.assert_allclose(
+        stack_regressor(planar_regressor, q, qd, qdd, columns=[0, 2]), expected[:, :, [0, 2]].reshape(14, 2), atol=1e-12
+    )
 
 
 def test_information_function_is_gram_of_columns(planar_regressor, rng):
@@ -96,5 +103,6 @@ def test_stack_regressor_matches_psdm_model_numpy(planar_robot, rng):
     q, qd, qdd = (rng.standard_normal((9, 2)) for _ in range(3))
     columns = np.flatnonzero(~model.gravity_mask)
     expected = model.regressor(q, qd, qdd)[:, :, columns].reshape(-1, columns.size)
-    np.testing.assert_allclose(stack_regressor(regressor, q, qd, qdd, ~model.gravity_mask), expected,
-                               rtol=1e-10, atol=1e-10)
+    np.testing.assert_allclose(
+        stack_regressor(regressor, q, qd, qdd, ~model.gravity_mask), expected, rtol=1e-10, atol=1e-10
+    )

@@ -9,8 +9,16 @@ import pytest
 from psdm_casadi.errors import ExcitationWarning, ParameterError, ShapeError
 from trajopt.calibration_plan import CalibrationPlan
 from trajopt.constraints import JointLimits
-from trajopt.experiments import (ExperimentTrajectory, choose_motor_pose, friction_experiment, gravity_experiment,
-                                 home_pose, motor_experiment, oscillation_experiment, sine_experiment)
+from trajopt.experiments import (
+    ExperimentTrajectory,
+    choose_motor_pose,
+    friction_experiment,
+    gravity_experiment,
+    home_pose,
+    motor_experiment,
+    oscillation_experiment,
+    sine_experiment,
+)
 from trajopt.friction_design import FrictionDesign, tuned_friction_signal
 
 
@@ -59,8 +67,9 @@ def test_choose_motor_pose_loads_the_swept_joint(denso):
     assert pose.shape == (denso.n_dof,)
     same = choose_motor_pose(denso, 2, load_torque, np.random.default_rng(0), n_candidates=5)
     np.testing.assert_array_equal(pose, same)
-    np.testing.assert_array_equal(choose_motor_pose(denso, 2, load_torque, np.random.default_rng(0), n_candidates=1),
-                                  home_pose(denso))
+    np.testing.assert_array_equal(
+        choose_motor_pose(denso, 2, load_torque, np.random.default_rng(0), n_candidates=1), home_pose(denso)
+    )
 
 
 def test_gravity_path_is_run_back_exactly(denso):
@@ -76,8 +85,11 @@ def test_gravity_path_is_run_back_exactly(denso):
 
 def test_experiments_respect_limits(denso):
     friction = [friction_experiment(denso, j).reference() for j in range(denso.n_dof)]
-    others = (motor_experiment(denso, 1), oscillation_experiment(denso, 5, amplitudes=(1e-3, 0.05)),
-              sine_experiment(denso, duration=10.0))
+    others = (
+        motor_experiment(denso, 1),
+        oscillation_experiment(denso, 5, amplitudes=(1e-3, 0.05)),
+        sine_experiment(denso, duration=10.0),
+    )
     for t, q in (*(e.reference() for e in others), *friction):
         assert np.all(np.diff(t) > 0)
         assert np.all(q >= denso.q_min - 1e-9) and np.all(q <= denso.q_max + 1e-9)
@@ -92,9 +104,12 @@ def test_out_and_back_experiments_keep_every_limit_through_the_turn(denso, plana
     # round durations put a knot exactly at the end of the turn, where a wrong speed sign would spike qdd
     with warnings.catch_warnings():
         warnings.simplefilter("error", ExcitationWarning)
-        experiments = [gravity_experiment(denso), gravity_experiment(denso, duration=20.0),
-                       *(motor_experiment(denso, j) for j in range(denso.n_dof)),
-                       *(motor_experiment(planar_robot, j) for j in range(planar_robot.n_dof))]
+        experiments = [
+            gravity_experiment(denso),
+            gravity_experiment(denso, duration=20.0),
+            *(motor_experiment(denso, j) for j in range(denso.n_dof)),
+            *(motor_experiment(planar_robot, j) for j in range(planar_robot.n_dof)),
+        ]
     for exp in experiments:
         assert exp.worst_margin >= 0, exp.name
 
@@ -176,34 +191,38 @@ def test_plan_hands_out_the_experiments_knots(denso):
     np.testing.assert_array_equal(q, exp.q)
     tv, _ = plan.friction_validation_reference(denso, 3)
     assert tv[-1] < t[-1]
-    (te, qe), = plan.excitation_references(denso, np.random.default_rng(1))
+    ((te, qe),) = plan.excitation_references(denso, np.random.default_rng(1))
     np.testing.assert_array_equal(qe, sine_experiment(denso, duration=5.0, rng=np.random.default_rng(1)).q)
     quick = CalibrationPlan(friction_amplitudes=(1e-3, 0.05))
     assert quick.friction_validation_reference(denso, 0) is None
-    np.testing.assert_array_equal(quick.friction_reference(denso, 0)[1],
-                                  oscillation_experiment(denso, 0, amplitudes=(1e-3, 0.05)).q)
+    np.testing.assert_array_equal(
+        quick.friction_reference(denso, 0)[1], oscillation_experiment(denso, 0, amplitudes=(1e-3, 0.05)).q
+    )
 
 
-@pytest.mark.parametrize("call, field", [
-    (lambda r: motor_experiment(r, 2), "joint"),
-    (lambda r: motor_experiment(r, -1), "joint"),
-    (lambda r: motor_experiment(r, True), "joint"),
-    (lambda r: motor_experiment(r, 1, speed=0.0), "speed"),
-    (lambda r: motor_experiment(r, 1, range_fraction=1.5), "range_fraction"),
-    (lambda r: motor_experiment(r, 1, pose=[5.0, 0.0]), "pose"),
-    (lambda r: gravity_experiment(r, duration=-1.0), "duration"),
-    (lambda r: gravity_experiment(r, joints=[3]), "joint"),
-    (lambda r: friction_experiment(r, 0, design=(1e-3,)), "design"),
-    (lambda r: friction_experiment(r, 9), "joint"),
-    (lambda r: oscillation_experiment(r, 0, amplitudes=[10.0]), "amplitudes"),
-    (lambda r: sine_experiment(r, fraction=2.0), "fraction"),
-    (lambda r: choose_motor_pose(r, 0, None, np.random.default_rng(0), n_candidates=0), "n_candidates"),
-    (lambda r: CalibrationPlan(friction_design=(1e-3, 0.1)), "friction_design"),
-    (lambda r: CalibrationPlan(gravity_speed=0.0), "gravity_speed"),
-    (lambda r: CalibrationPlan(friction_amplitudes=(0.1, -1.0)), "friction_amplitudes"),
-    (lambda r: ExperimentTrajectory("motor", [0.0, 1.0], np.zeros((2, 3)), JointLimits.from_robot(r), (0,)), "q"),
-    (lambda r: ExperimentTrajectory("motor", [0.5, 1.0], np.zeros((2, 2)), JointLimits.from_robot(r), (0,)), "t"),
-])
+@pytest.mark.parametrize(
+    "call, field",
+    [
+        (lambda r: motor_experiment(r, 2), "joint"),
+        (lambda r: motor_experiment(r, -1), "joint"),
+        (lambda r: motor_experiment(r, True), "joint"),
+        (lambda r: motor_experiment(r, 1, speed=0.0), "speed"),
+        (lambda r: motor_experiment(r, 1, range_fraction=1.5), "range_fraction"),
+        (lambda r: motor_experiment(r, 1, pose=[5.0, 0.0]), "pose"),
+        (lambda r: gravity_experiment(r, duration=-1.0), "duration"),
+        (lambda r: gravity_experiment(r, joints=[3]), "joint"),
+        (lambda r: friction_experiment(r, 0, design=(1e-3,)), "design"),
+        (lambda r: friction_experiment(r, 9), "joint"),
+        (lambda r: oscillation_experiment(r, 0, amplitudes=[10.0]), "amplitudes"),
+        (lambda r: sine_experiment(r, fraction=2.0), "fraction"),
+        (lambda r: choose_motor_pose(r, 0, None, np.random.default_rng(0), n_candidates=0), "n_candidates"),
+        (lambda r: CalibrationPlan(friction_design=(1e-3, 0.1)), "friction_design"),
+        (lambda r: CalibrationPlan(gravity_speed=0.0), "gravity_speed"),
+        (lambda r: CalibrationPlan(friction_amplitudes=(0.1, -1.0)), "friction_amplitudes"),
+        (lambda r: ExperimentTrajectory("motor", [0.0, 1.0], np.zeros((2, 3)), JointLimits.from_robot(r), (0,)), "q"),
+        (lambda r: ExperimentTrajectory("motor", [0.5, 1.0], np.zeros((2, 2)), JointLimits.from_robot(r), (0,)), "t"),
+    ],
+)
 def test_experiment_errors(planar_robot, call, field):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExcitationWarning)
@@ -211,11 +230,17 @@ def test_experiment_errors(planar_robot, call, field):
             call(planar_robot)
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(presliding_amplitudes=()), "presliding_amplitudes"), (dict(stribeck_speeds=(0.1, -1.0)), "stribeck_speeds"),
-    (dict(sliding_fractions=(0.5, 1.5)), "sliding_fractions"), (dict(presliding_hz=0.0), "presliding_hz"),
-    (dict(sliding_periods=0), "sliding_periods"), (dict(pause=-1.0), "pause"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(presliding_amplitudes=()), "presliding_amplitudes"),
+        (dict(stribeck_speeds=(0.1, -1.0)), "stribeck_speeds"),
+        (dict(sliding_fractions=(0.5, 1.5)), "sliding_fractions"),
+        (dict(presliding_hz=0.0), "presliding_hz"),
+        (dict(sliding_periods=0), "sliding_periods"),
+        (dict(pause=-1.0), "pause"),
+    ],
+)
 def test_friction_design_errors(kwargs, field):
     with pytest.raises(ParameterError, match=field):
         FrictionDesign(**kwargs)

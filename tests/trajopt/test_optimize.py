@@ -7,11 +7,10 @@ import numpy as np
 import pytest
 
 from psdm_casadi.errors import ExcitationWarning, ParameterError
+from tests.trajopt.conftest import PLANAR_GRAVITY_MASK, planar_regressor_numpy
 from trajopt.constraints import JointLimits, KeepOut, build_dh_point_function
 from trajopt.criteria import condition_number, stack_regressor
 from trajopt.optimize import ExcitationOptions, optimize_excitation, random_feasible_parameters
-
-from tests.trajopt.conftest import PLANAR_GRAVITY_MASK, planar_regressor_numpy
 
 FAST = dict(duration=4.0, harmonics=3, n_samples=60, n_starts=2, quiet=True)
 THETA = np.array([1.2, 0.3, 0.15, 2.0, 0.5])
@@ -41,8 +40,9 @@ def test_beats_random_feasible_trajectories(planar_result, planar_robot, planar_
     conds = []
     for _ in range(30):
         x = random_feasible_parameters(traj.parametrization, limits, rng, traj.parametrization.default_grid(600), 1.0)
-        conds.append(condition_number(stack_regressor(planar_regressor, *traj.parametrization.evaluate(grid, x),
-                                                      traj.columns)))
+        conds.append(
+            condition_number(stack_regressor(planar_regressor, *traj.parametrization.evaluate(grid, x), traj.columns))
+        )
     assert traj.cond < min(conds) / 1.5
 
 
@@ -119,8 +119,16 @@ def test_rest_to_rest(planar_robot, planar_regressor):
 
 
 def test_sum_of_sines_family_respects_limits(planar_robot, planar_regressor):
-    options = ExcitationOptions(family="sum_of_sines", duration=4.0, n_terms=2, n_samples=40, n_starts=1,
-                                max_iter=15, sharpness=(8.0,), quiet=True)
+    options = ExcitationOptions(
+        family="sum_of_sines",
+        duration=4.0,
+        n_terms=2,
+        n_samples=40,
+        n_starts=1,
+        max_iter=15,
+        sharpness=(8.0,),
+        quiet=True,
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ExcitationWarning)
         traj = optimize_excitation(planar_robot, planar_regressor, options, seed=0)
@@ -134,10 +142,17 @@ def test_zero_velocity_limit_is_a_clear_error(planar_robot, planar_regressor):
         optimize_excitation(planar_robot, planar_regressor, ExcitationOptions(limits=limits))
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(family="spline"), "family"), (dict(criterion="aopt"), "criterion"), (dict(n_starts=0), "n_starts"),
-    (dict(duration=-1.0), "duration"), (dict(sharpness=()), "sharpness"), (dict(start_fill=2.0), "start_fill"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(family="spline"), "family"),
+        (dict(criterion="aopt"), "criterion"),
+        (dict(n_starts=0), "n_starts"),
+        (dict(duration=-1.0), "duration"),
+        (dict(sharpness=()), "sharpness"),
+        (dict(start_fill=2.0), "start_fill"),
+    ],
+)
 def test_option_errors(kwargs, field):
     with pytest.raises(ParameterError, match=field):
         ExcitationOptions(**kwargs)
@@ -181,8 +196,9 @@ def test_limit_scale_error():
 
 
 def test_time_limit_stops_ipopt_and_keeps_a_verified_iterate(planar_robot, planar_regressor):
-    options = ExcitationOptions(family="sum_of_sines", duration=4.0, n_samples=40, n_starts=3, max_iter=100000,
-                                time_limit=0.3, quiet=True)
+    options = ExcitationOptions(
+        family="sum_of_sines", duration=4.0, n_samples=40, n_starts=3, max_iter=100000, time_limit=0.3, quiet=True
+    )
     with pytest.warns(ExcitationWarning, match="User_Requested_Stop"):
         traj = optimize_excitation(planar_robot, planar_regressor, options, seed=0)
     assert traj.status == "User_Requested_Stop" and len(traj.start_conds) == 1

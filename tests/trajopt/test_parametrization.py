@@ -97,20 +97,29 @@ def test_scale_joints_scales_motion_exactly(rng):
         np.testing.assert_allclose(qdd2, qdd * scales, atol=1e-12)
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(n_dof=0), "n_dof"), (dict(n_dof=2, n_harmonics=0), "n_harmonics"),
-    (dict(n_dof=2, period=-1.0), "period"), (dict(n_dof=2, period=float("nan")), "period"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(n_dof=0), "n_dof"),
+        (dict(n_dof=2, n_harmonics=0), "n_harmonics"),
+        (dict(n_dof=2, period=-1.0), "period"),
+        (dict(n_dof=2, period=float("nan")), "period"),
+    ],
+)
 def test_fourier_errors(kwargs, field):
     with pytest.raises(ParameterError, match=field):
         FourierTrajectory(**kwargs)
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    (dict(n_dof=2, n_terms=0), "n_terms"), (dict(n_dof=2, duration=0.0), "duration"),
-    (dict(n_dof=2, frequency_min=2.0, frequency_max=1.0), "frequency_min"),
-    (dict(n_dof=2, duration=4.0, ramp=3.0), "ramp"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        (dict(n_dof=2, n_terms=0), "n_terms"),
+        (dict(n_dof=2, duration=0.0), "duration"),
+        (dict(n_dof=2, frequency_min=2.0, frequency_max=1.0), "frequency_min"),
+        (dict(n_dof=2, duration=4.0, ramp=3.0), "ramp"),
+    ],
+)
 def test_sum_of_sines_errors(kwargs, field):
     with pytest.raises(ParameterError, match=field):
         SumOfSinesTrajectory(**kwargs)

@@ -53,8 +53,23 @@ def test_excite_command_denso(tmp_path, capsys):
 
     robot = DENSO
     out = tmp_path / "traj.csv"
-    code = cli.main(["excite", str(robot), "--duration", "10", "--harmonics", "5", "--out", str(out),
-                     "--plot", str(tmp_path / "t.png"), "--starts", "1", "--json"])
+    code = cli.main(
+        [
+            "excite",
+            str(robot),
+            "--duration",
+            "10",
+            "--harmonics",
+            "5",
+            "--out",
+            str(out),
+            "--plot",
+            str(tmp_path / "t.png"),
+            "--starts",
+            "1",
+            "--json",
+        ]
+    )
     assert code == 0
     payload = json.loads(capsys.readouterr().out)
     assert payload["worst_limit_margin"] >= 0 and 1 <= payload["cond"] < 10

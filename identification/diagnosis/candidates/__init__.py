@@ -13,20 +13,55 @@ feature libraries of pysindy; one module per family of effects:
 - ``library``: ``ALL_TERMS``, ``TERMS_BY_KEY``, ``EQUIVALENT_EFFECTS`` and ``default_library``.
 """
 
-from identification.diagnosis.candidates.base import (MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, MAX_DELAY_S,
-                                                      MAX_LOAD_FRICTION, MAX_PAYLOAD_REACH, SMOOTH_VELOCITY,
-                                                      CandidateLibrary, CandidateTerm, joint_columns, joint_expression)
+from identification.diagnosis.candidates.base import (
+    MAX_BACKLASH_RAD,
+    MAX_DEFLECTION_RAD,
+    MAX_DELAY_S,
+    MAX_LOAD_FRICTION,
+    MAX_PAYLOAD_REACH,
+    SMOOTH_VELOCITY,
+    CandidateLibrary,
+    CandidateTerm,
+    joint_columns,
+    joint_expression,
+)
 from identification.diagnosis.candidates.deflection import BacklashTerm, JointElasticityTerm
 from identification.diagnosis.candidates.delay import DelayTerm
-from identification.diagnosis.candidates.friction import (CoulombAsymmetryTerm, FrictionDriftTerm,
-                                                          LoadDependentFrictionTerm)
+from identification.diagnosis.candidates.friction import (
+    CoulombAsymmetryTerm,
+    FrictionDriftTerm,
+    LoadDependentFrictionTerm,
+)
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
 from identification.diagnosis.candidates.library import ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, default_library
 from identification.diagnosis.candidates.torque import SpringTerm, TorqueOffsetTerm, TorqueRippleTerm
 
-__all__ = ["MAX_BACKLASH_RAD", "MAX_DEFLECTION_RAD", "MAX_DELAY_S", "MAX_LOAD_FRICTION", "MAX_PAYLOAD_REACH",
-           "SMOOTH_VELOCITY", "CandidateLibrary", "CandidateTerm", "joint_columns", "joint_expression",
-           "BacklashTerm", "JointElasticityTerm", "DelayTerm", "CoulombAsymmetryTerm", "FrictionDriftTerm",
-           "LoadDependentFrictionTerm", "CouplingTerm", "GravityTiltTerm", "PayloadTerm", "RotorInertiaTerm",
-           "ALL_TERMS", "EQUIVALENT_EFFECTS", "TERMS_BY_KEY", "default_library", "SpringTerm", "TorqueOffsetTerm",
-           "TorqueRippleTerm"]
+__all__ = [
+    "MAX_BACKLASH_RAD",
+    "MAX_DEFLECTION_RAD",
+    "MAX_DELAY_S",
+    "MAX_LOAD_FRICTION",
+    "MAX_PAYLOAD_REACH",
+    "SMOOTH_VELOCITY",
+    "CandidateLibrary",
+    "CandidateTerm",
+    "joint_columns",
+    "joint_expression",
+    "BacklashTerm",
+    "JointElasticityTerm",
+    "DelayTerm",
+    "CoulombAsymmetryTerm",
+    "FrictionDriftTerm",
+    "LoadDependentFrictionTerm",
+    "CouplingTerm",
+    "GravityTiltTerm",
+    "PayloadTerm",
+    "RotorInertiaTerm",
+    "ALL_TERMS",
+    "EQUIVALENT_EFFECTS",
+    "TERMS_BY_KEY",
+    "default_library",
+    "SpringTerm",
+    "TorqueOffsetTerm",
+    "TorqueRippleTerm",
+]

@@ -19,11 +19,11 @@ from psdm_casadi.errors import ParameterError
 SMOOTH_VELOCITY = 0.02  # [rad/s] width of the smooth sign tanh(qd / v) of the friction-like terms
 
 # plausibility bounds of fitted parameters (``CandidateTerm.implausibility``)
-MAX_LOAD_FRICTION = 0.5   # load-dependent friction coefficient mu (gear efficiency above 50 %)
-MAX_DELAY_S = 0.1         # torque-to-position delay [s]
-MAX_BACKLASH_RAD = 0.05   # total play [rad] (about 3 degrees)
+MAX_LOAD_FRICTION = 0.5  # load-dependent friction coefficient mu (gear efficiency above 50 %)
+MAX_DELAY_S = 0.1  # torque-to-position delay [s]
+MAX_BACKLASH_RAD = 0.05  # total play [rad] (about 3 degrees)
 MAX_DEFLECTION_RAD = 0.05  # joint torsion at the peak torque [rad]
-MAX_PAYLOAD_REACH = 0.5   # distance of a payload's centre of mass from the flange [m]
+MAX_PAYLOAD_REACH = 0.5  # distance of a payload's centre of mass from the flange [m]
 
 
 def joint_columns(context, joint: int, values) -> np.ndarray:
@@ -37,7 +37,8 @@ def joint_columns(context, joint: int, values) -> np.ndarray:
 
 
 def joint_expression(n_dof: int, joint: int, value):
-    """Torque (SX, n_dof) with ``value`` on joint ``joint`` and zero elsewhere (the CasADi form of ``joint_columns``)."""
+    """Torque (SX, n_dof) with ``value`` on joint ``joint`` and zero elsewhere (the CasADi form of
+    ``joint_columns``)."""
     out = ca.SX.zeros(n_dof)
     out[joint] = value
     return out
@@ -82,7 +83,9 @@ class CandidateTerm:
             return (self,)
         if self.joint is not None:
             if not (isinstance(self.joint, (int, np.integer)) and 0 <= self.joint < n_dof):
-                raise ParameterError(f"{type(self).__name__}.joint must be a joint index 0..{n_dof - 1}; got {self.joint!r}.")
+                raise ParameterError(
+                    f"{type(self).__name__}.joint must be a joint index 0..{n_dof - 1}; got {self.joint!r}."
+                )
             return (self,)
         return tuple(replace(self, joint=j) for j in range(n_dof))
 
@@ -144,7 +147,9 @@ class CandidateLibrary:
     def __post_init__(self):
         for term in self.terms:
             if not isinstance(term, CandidateTerm):
-                raise ParameterError(f"CandidateLibrary.terms must hold CandidateTerm objects; got {type(term).__name__}.")
+                raise ParameterError(
+                    f"CandidateLibrary.terms must hold CandidateTerm objects; got {type(term).__name__}."
+                )
 
     def __add__(self, other):
         if isinstance(other, CandidateLibrary):

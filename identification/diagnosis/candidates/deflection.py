@@ -27,8 +27,11 @@ def _deflection_columns(context, joint, s, sd, sdd):
     """Rigid-body torque change when the recorded position of ``joint`` is the true one plus a deflection ``s``:
     ``-(s dtau/dq_j + sd dtau/dqd_j + sdd M[:, j])`` (first order), shape (n_samples, n_dof, 1). The friction
     part (the velocity signal is shifted too) is added by the terms through ``DiagnosisContext.friction_shift``."""
-    out = -(s[:, None] * context.dtau_dq[:, :, joint] + sd[:, None] * context.dtau_dqd[:, :, joint]
-            + sdd[:, None] * context.mass[:, :, joint])
+    out = -(
+        s[:, None] * context.dtau_dq[:, :, joint]
+        + sd[:, None] * context.dtau_dqd[:, :, joint]
+        + sdd[:, None] * context.mass[:, :, joint]
+    )
     return out[:, :, None]
 
 
@@ -40,7 +43,10 @@ class BacklashTerm(CandidateTerm):
     joint: int | None = None
     torque_scale: float = 0.02
     key = "backlash"
-    explanation = "play (dead zone) in the transmission: motor and link positions differ by b/2, switching side when the torque reverses"
+    explanation = (
+        "play (dead zone) in the transmission: motor and link positions differ by b/2, "
+        "switching side when the torque reverses"
+    )
     signature = "residual concentrated around torque reversals"
 
     def feature_names(self):
@@ -136,7 +142,12 @@ class JointElasticityTerm(CandidateTerm):
         rigid-body part (linear in it) and the friction part exactly (a LuGre simulation at the link
         velocity ``qd_rec - c dtau/dt``, which moves the friction's sign changes)."""
         j, c = self.joint, float(compliance)
-        out = c * _deflection_columns(context, j, context.tau[:, j], context.tau_rate[:, j], context.tau_accel[:, j])[:, :, 0]
+        out = (
+            c
+            * _deflection_columns(context, j, context.tau[:, j], context.tau_rate[:, j], context.tau_accel[:, j])[
+                :, :, 0
+            ]
+        )
         rate = np.gradient(context.full_tau[:, j], context.full_t)
         shift = context.friction_shift(j, c * rate)
         if shift is not None:

@@ -12,8 +12,13 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from identification.diagnosis.candidates.base import (MAX_LOAD_FRICTION, SMOOTH_VELOCITY, CandidateTerm, joint_columns,
-                                                      joint_expression)
+from identification.diagnosis.candidates.base import (
+    MAX_LOAD_FRICTION,
+    SMOOTH_VELOCITY,
+    CandidateTerm,
+    joint_columns,
+    joint_expression,
+)
 
 
 @dataclass(frozen=True)
@@ -37,7 +42,9 @@ class CoulombAsymmetryTerm(CandidateTerm):
         return {"delta": float(coefficients[0])}
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
-        return joint_expression(q.shape[0], self.joint, 0.5 * coefficients[0] * (1 + ca.tanh(qd[self.joint] / SMOOTH_VELOCITY)))
+        return joint_expression(
+            q.shape[0], self.joint, 0.5 * coefficients[0] * (1 + ca.tanh(qd[self.joint] / SMOOTH_VELOCITY))
+        )
 
 
 @dataclass(frozen=True)
@@ -69,7 +76,9 @@ class LoadDependentFrictionTerm(CandidateTerm):
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         j = self.joint
-        return joint_expression(q.shape[0], j, coefficients[0] * ca.fabs(tau_nominal[j]) * ca.tanh(qd[j] / SMOOTH_VELOCITY))
+        return joint_expression(
+            q.shape[0], j, coefficients[0] * ca.fabs(tau_nominal[j]) * ca.tanh(qd[j] / SMOOTH_VELOCITY)
+        )
 
 
 @dataclass(frozen=True)

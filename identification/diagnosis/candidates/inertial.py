@@ -80,7 +80,11 @@ class CouplingTerm(CandidateTerm):
         return joint_columns(context, self.joint, np.column_stack([context.qd[:, k], context.qdd[:, k]]))
 
     def physical_parameters(self, coefficients):
-        return {"viscous": float(coefficients[0]), "inertia": float(coefficients[1]), "source_joint": float(self.source + 1)}
+        return {
+            "viscous": float(coefficients[0]),
+            "inertia": float(coefficients[1]),
+            "source_joint": float(self.source + 1),
+        }
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         k = self.source
@@ -106,7 +110,7 @@ class PayloadTerm(CandidateTerm):
 
     def _map(self, parameter_map):
         n_dof = parameter_map.shape[1] // 11
-        return parameter_map[:, 11 * (n_dof - 1):11 * (n_dof - 1) + 4]
+        return parameter_map[:, 11 * (n_dof - 1) : 11 * (n_dof - 1) + 4]
 
     def columns(self, context):
         return context.payload
@@ -130,8 +134,11 @@ class PayloadTerm(CandidateTerm):
 
     def interpret(self, coefficients):
         if float(coefficients[0]) < 0.0:
-            return ("last_link_mass_excess", "the last link (flange) is lighter than the robot file says: its mass and "
-                    "first moments are too large in the prior (a negative payload of |mass| kg)")
+            return (
+                "last_link_mass_excess",
+                "the last link (flange) is lighter than the robot file says: its mass and "
+                "first moments are too large in the prior (a negative payload of |mass| kg)",
+            )
         return self.key, self.explanation
 
 

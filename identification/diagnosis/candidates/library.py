@@ -6,14 +6,29 @@ from __future__ import annotations
 from identification.diagnosis.candidates.base import CandidateLibrary
 from identification.diagnosis.candidates.deflection import BacklashTerm, JointElasticityTerm
 from identification.diagnosis.candidates.delay import DelayTerm
-from identification.diagnosis.candidates.friction import (CoulombAsymmetryTerm, FrictionDriftTerm,
-                                                          LoadDependentFrictionTerm)
+from identification.diagnosis.candidates.friction import (
+    CoulombAsymmetryTerm,
+    FrictionDriftTerm,
+    LoadDependentFrictionTerm,
+)
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
 from identification.diagnosis.candidates.torque import SpringTerm, TorqueOffsetTerm, TorqueRippleTerm
 
-ALL_TERMS = (TorqueOffsetTerm, SpringTerm, CoulombAsymmetryTerm, LoadDependentFrictionTerm, FrictionDriftTerm,
-             TorqueRippleTerm, RotorInertiaTerm, CouplingTerm, PayloadTerm, GravityTiltTerm, DelayTerm,
-             BacklashTerm, JointElasticityTerm)
+ALL_TERMS = (
+    TorqueOffsetTerm,
+    SpringTerm,
+    CoulombAsymmetryTerm,
+    LoadDependentFrictionTerm,
+    FrictionDriftTerm,
+    TorqueRippleTerm,
+    RotorInertiaTerm,
+    CouplingTerm,
+    PayloadTerm,
+    GravityTiltTerm,
+    DelayTerm,
+    BacklashTerm,
+    JointElasticityTerm,
+)
 TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS}
 
 

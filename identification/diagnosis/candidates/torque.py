@@ -28,7 +28,9 @@ class SpringTerm(CandidateTerm):
 
     def columns(self, context):
         self._require_joint()
-        return joint_columns(context, self.joint, np.column_stack([context.q[:, self.joint], np.ones(context.n_samples)]))
+        return joint_columns(
+            context, self.joint, np.column_stack([context.q[:, self.joint], np.ones(context.n_samples)])
+        )
 
     def physical_parameters(self, coefficients):
         k, c = (float(x) for x in coefficients)
@@ -60,7 +62,6 @@ class TorqueOffsetTerm(CandidateTerm):
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         return joint_expression(q.shape[0], self.joint, coefficients[0] + 0 * q[self.joint])
-
 
 
 @dataclass(frozen=True)
