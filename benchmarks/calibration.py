@@ -60,7 +60,7 @@ def _rel(estimate, truth):
 
 def _nelder_mead_comparison(pipeline, truth_lugre, joints, simulator="exponential"):
     """Shooting vs the paper's Nelder-Mead on the same data and start, per joint."""
-    from identification.calibration.steps import FrictionExperiment
+    from identification.calibration.friction_step import FrictionExperiment
     from identification.friction.baseline import paper_friction_fit
 
     friction = pipeline.steps_["friction"]

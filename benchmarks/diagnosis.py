@@ -31,6 +31,7 @@ import numpy as np
 from bench_support import DENSO_FILE, load_panda, print_table
 
 from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose
+from identification.metrics import rms
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from identification.virtual.transmission_effects import Backlash, JointElasticity
@@ -106,7 +107,6 @@ def reference_scale(robot, reference, duration):
     oracle = PinocchioOracle(robot)
     tau = oracle.rnea(q, qd, qdd) + steady_state_friction(qd, LuGreArrays.from_drives(robot.drives))
     mass = np.mean([m.diagonal() for m in oracle.crba(q[::250])], axis=0)
-    rms = lambda x: np.sqrt(np.mean(x**2, axis=0))  # noqa: E731
     return Scale(
         tau_rms=rms(tau),
         q_mean=q.mean(axis=0),

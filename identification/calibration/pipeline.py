@@ -52,6 +52,7 @@ import numpy as np
 
 from identification.calibration.consistency import check_consistency
 from identification.calibration.estimator import check_is_fitted
+from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.payload import payload_torque
 from identification.calibration.pipeline_options import PipelineOptions
 from identification.calibration.preparation import (
@@ -65,14 +66,7 @@ from identification.calibration.preparation import (
 from identification.calibration.refinement import refine_parameters
 from identification.calibration.report import StepScore, ValidationReport, plot_observed_predicted
 from identification.calibration.result import IdentifiedModel
-from identification.calibration.steps import (
-    FrictionIdentifier,
-    GravityIdentifier,
-    InertialIdentifier,
-    MotorIdentifier,
-    friction_torque,
-    regressor_chunked,
-)
+from identification.calibration.steps import GravityIdentifier, InertialIdentifier, MotorIdentifier, regressor_chunked
 from identification.data.dataset import CalibrationData, load_calibration_data
 from identification.friction.shooting import ShootingOptions
 from identification.metrics import r2, rmse

@@ -15,9 +15,9 @@ import numpy as np
 
 from identification.calibration.consistency import ConsistencyReport
 from identification.calibration.report import ValidationReport
-from identification.data.io import atomic_write
 from identification.friction.models import LuGreParameters
 from psdm_casadi.errors import ModelFileError, ShapeError
+from psdm_casadi.fileio import atomic_write
 from psdm_casadi.model import PSDMModel, load_model
 
 __all__ = ["IdentifiedModel", "load_identified", "RESULT_FORMAT", "RESULT_VERSION", "RESULT_FILES"]
@@ -77,7 +77,8 @@ class IdentifiedModel:
 
     def predict_torque(self, t, q, qd, qdd) -> np.ndarray:
         """Joint torques [N m]: ``Y theta`` plus LuGre friction simulated along ``qd``; shape (n_samples, n_dof)."""
-        from identification.calibration.steps import friction_torque, regressor_chunked
+        from identification.calibration.friction_step import friction_torque
+        from identification.calibration.steps import regressor_chunked
 
         q, qd, qdd = (np.atleast_2d(np.asarray(a, dtype=float)) for a in (q, qd, qdd))
         return regressor_chunked(self.model, q, qd, qdd) @ self.theta + friction_torque(self.lugre, t, qd)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.estimator import Design, LeastSquaresIdentifier, LeastSquaresResult
-from identification.calibration.friction_step import FrictionExperiment, FrictionIdentifier, friction_torque  # noqa: F401 (re-exported)
+from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
 from identification.calibration.payload import payload_static_torque, payload_torque
 from identification.data.payload import Payload
@@ -37,14 +37,11 @@ from psdm_casadi.robot import RobotDescription
 
 __all__ = [
     "MotorExperiment",
-    "FrictionExperiment",
     "fold_out_and_back",
     "regressor_chunked",
     "MotorIdentifier",
     "GravityIdentifier",
-    "FrictionIdentifier",
     "InertialIdentifier",
-    "friction_torque",
     "IDENTIFIERS",
 ]
 

@@ -23,9 +23,10 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from identification.data.io import atomic_write, load_recording, save_recording
+from identification.data.io import load_recording, save_recording
 from identification.data.payload import Payload, payload_json, read_payload
 from psdm_casadi.errors import ParameterError, RecordingError
+from psdm_casadi.fileio import atomic_write
 
 __all__ = ["CalibrationData", "load_calibration_data", "save_calibration_data", "read_payload"]
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from identification.data.recording import MIN_SAMPLES, Recording
 from psdm_casadi.errors import RecordingError
-from psdm_casadi.fileio import atomic_write  # noqa: F401  (re-exported for the package)
+from psdm_casadi.fileio import atomic_write
 
 # signal -> column prefix, in the order columns are written
 COLUMN_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "current": "i"}

@@ -18,8 +18,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from identification.data.io import atomic_write
 from identification.diagnosis.nominal import friction_casadi
+from psdm_casadi.fileio import atomic_write
 
 
 @dataclass(frozen=True, eq=False)

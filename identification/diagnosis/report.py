@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.data.io import atomic_write
+from psdm_casadi.fileio import atomic_write
 
 NO_FINDING = "no significant missing physics"
 

@@ -13,11 +13,12 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.data.io import atomic_write, save_recording
+from identification.data.io import save_recording
 from identification.data.recording import Recording
 from identification.virtual.effects import ExtraPhysics, Payload
 from identification.virtual.lugre_exact import FRICTION_FIELDS
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.fileio import atomic_write
 from psdm_casadi.robot import DriveParameters
 
 __all__ = ["TRUTH_FORMAT", "SimulationTruth", "write_recording", "read_truth", "drives_from_truth"]

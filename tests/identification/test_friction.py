@@ -103,7 +103,10 @@ def test_simulation_matches_stiff_ode_solver():
     f, amp = 5.0, 3.0 * p.fc / p.sigma0  # hysteresis loops crossing into sliding
     w = 2 * np.pi * f
     t = np.arange(0.0, 0.6, 1e-3)
-    qd_fun = lambda time: amp * w * np.sin(w * time) + 0.02 * np.sin(2 * np.pi * 3 * time)  # noqa: E731
+
+    def qd_fun(time):
+        return amp * w * np.sin(w * time) + 0.02 * np.sin(2 * np.pi * 3 * time)
+
     qd = np.array([qd_fun(x) for x in t])
     z_ref = _reference_solution(p, qd_fun, t)
     tau_ref = lugre_torque(p, qd, p.sigma0 * z_ref)

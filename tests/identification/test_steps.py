@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 from identification.calibration.estimator import Design, weighted_least_squares
+from identification.calibration.friction_step import FrictionExperiment, FrictionIdentifier
 from identification.calibration.payload import payload_static_torque, payload_torque
 from identification.calibration.steps import (
-    FrictionExperiment,
-    FrictionIdentifier,
     GravityIdentifier,
     InertialIdentifier,
     MotorExperiment,
