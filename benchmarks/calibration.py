@@ -38,7 +38,7 @@ import sys
 import time
 
 import numpy as np
-from bench_support import DENSO_FILE, print_json, print_table
+from bench_support import DENSO_FILE, print_json, print_table, show_progress
 
 from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
 from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
@@ -136,6 +136,7 @@ def main(argv=None) -> int:
         "the paper's ODE-solver simulation (about 10-20 minutes per joint); '' to skip",
     )
     args = parser.parse_args(argv)
+    show_progress()
     robot = load_robot(DENSO_FILE)
     start = time.perf_counter()
     model = derive_psdm(robot, seed=0)

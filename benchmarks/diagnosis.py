@@ -28,7 +28,7 @@ import sys
 import time
 
 import numpy as np
-from bench_support import DENSO_FILE, load_panda, print_table
+from bench_support import DENSO_FILE, load_panda, print_table, show_progress
 
 from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose
 from identification.metrics import rms
@@ -403,6 +403,7 @@ def main(argv=None):
     parser.add_argument("--only", type=int, nargs="+", default=None, help="scenario indices to run")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     args = parser.parse_args(argv)
+    show_progress()
     summary = run(args.seeds, quick=args.quick, only=args.only)
     if args.json:
         print(json.dumps(summary, default=float))

@@ -27,6 +27,7 @@ import warnings
 from pathlib import Path
 
 import numpy as np
+from bench_support import show_progress
 from scipy.optimize import differential_evolution
 
 from psdm_casadi.derive import derive_psdm
@@ -189,6 +190,7 @@ def main(argv=None) -> int:
     )
     parser.add_argument("--backoff", type=float, default=0.02, help="limit back-off of DE's repair decoding")
     args = parser.parse_args(argv)
+    show_progress()
 
     def log(msg):
         print(msg, file=sys.stderr, flush=True)

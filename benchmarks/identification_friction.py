@@ -17,6 +17,7 @@ import sys
 import time
 
 import numpy as np
+from bench_support import show_progress
 
 from identification.friction.baseline import paper_friction_fit, simulate_lugre_ode
 from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
@@ -105,6 +106,7 @@ def main(argv=None):
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
+    show_progress()
     robot = load_robot(ROBOT)
     rng = np.random.default_rng(args.seed)
     results = [

@@ -17,7 +17,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_support import ROOT, load_panda
+from bench_support import ROOT, load_panda, show_progress
 
 from identification.data.recording import Recording
 from identification.diagnosis import DiagnosisOptions, diagnose
@@ -65,6 +65,7 @@ def main(argv=None):
     parser.add_argument("--overwrite", action="store_true")
     parser.add_argument("--cutoff", type=float, default=10.0, help="low-pass cut-off [Hz] (default 10)")
     args = parser.parse_args(argv)
+    show_progress()
     results = {}
     for name, folder, loader in (("staubli_tx40", TX40, load_tx40), ("panda_gaz2019", PANDA, load_panda_real)):
         if not folder.exists():

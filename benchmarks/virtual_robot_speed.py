@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pinocchio as pin
+from bench_support import show_progress
 
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import PinocchioOracle
@@ -25,6 +26,7 @@ def main():
     parser.add_argument("--duration", type=float, default=10.0)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
+    show_progress()
     robot = load_robot(ROBOT)
     reference = sine_experiment(robot, duration=args.duration).reference()
     rows = []
