@@ -1,0 +1,144 @@
+"""Ordinary recordings made ready for identification: filtered, differentiated, decimated, as normal equations.
+
+Most users calibrate from one or a few exciting trajectories with joint torques (or motor currents
+and torque constants), not from the paper's four experiments. This module turns such recordings
+into what a linear fit needs, with memory that does not grow with the recording's length:
+
+- :func:`choose_filter` picks the low-pass cutoff and the decimation from the sampling rate (the
+  choice is stated in the result): an 8th-order zero-phase Butterworth at ``min(10 Hz, rate / 10)``
+  keeps the joint motion of excitation trajectories (a few Hz at most) and removes the noise that
+  differentiating twice would amplify; after it, samples are kept at about ten times the cutoff.
+- :func:`prepare_recording` applies it to q and the torque alike (so both see the same phase and
+  gain), differentiates q by central differences and drops one filter settling time at each end.
+- :class:`NormalEquations` accumulates, per joint, ``A_j^T A_j``, ``A_j^T y_j`` and ``y_j^T y_j``
+  of the rows ``tau_j = A_j x`` in chunks of samples: the regressor of an hour at 1 kHz is never held.
+
+The columns ``A`` are the PSDM base-parameter regressor followed by the drive columns of
+:func:`drive_columns` (Coulomb and viscous friction, optional offset, and the drive inertia of the
+joints whose model has none).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
+from identification.data.recording import Recording
+from psdm_casadi.errors import ParameterError, RecordingError
+
+__all__ = ["DRIVE_TERMS", "NormalEquations", "choose_filter", "drive_column_names", "drive_columns",
+           "prepare_recording"]  # fmt: skip
+
+#: The drive terms a joint may carry, in column order: Coulomb, viscous, torque offset, drive inertia.
+DRIVE_TERMS = ("fc", "fv", "offset", "Ia")
+
+
+MAX_CUTOFF_HZ = 10.0
+CHUNK_SAMPLES = 4000
+
+
+def choose_filter(rate_hz: float, cutoff_hz: float | None = None) -> tuple[float, int]:
+    """(cutoff [Hz], decimation step) for a sampling rate: ``min(10 Hz, rate/10)``, samples at ~10x cutoff."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise RecordingError(f"the sampling rate must be positive [Hz]; got {rate_hz!r}. Check the time column.")
+    cutoff = min(MAX_CUTOFF_HZ, rate_hz / 10.0) if cutoff_hz is None else float(cutoff_hz)
+    if not (0 < cutoff < rate_hz / 2):
+        raise ParameterError(
+            f"cutoff_hz must be in (0, {rate_hz / 2:g}) Hz (below Nyquist for {rate_hz:g} Hz); got {cutoff!r}."
+        )
+    return cutoff, max(1, int(rate_hz // (10.0 * cutoff)))
+
+
+def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = None) -> tuple[Recording, float, int]:
+    """Filter q and the joint torque alike, differentiate, trim the filter's settling, decimate.
+
+    Returns the prepared recording (``tau`` is the joint torque, ``kt * current`` when only currents
+    were recorded), the cutoff [Hz] and the decimation step used.
+    """
+    rec = recording if recording.is_uniform(1e-6) else resample_uniform(recording)
+    rate = 1.0 / rec.dt
+    cutoff, step = choose_filter(rate, cutoff_hz)
+    tau = rec.joint_torque(kt)
+    q = zero_phase_filter(rec.q, rate, cutoff)
+    tau = zero_phase_filter(tau, rate, cutoff)
+    qd, qdd = central_difference(rec.t, q)
+    edge = int(np.ceil(rate / cutoff))
+    keep = slice(edge, rec.n_samples - edge, step)
+    if len(range(*keep.indices(rec.n_samples))) < 3:
+        raise RecordingError(
+            f"{rec.name or 'recording'}: {rec.duration:.3g} s is too short to filter at {cutoff:g} Hz and keep "
+            f"samples; record at least {4 * edge / rate:.2g} s."
+        )
+    prepared = Recording(t=rec.t[keep], q=q[keep], tau=tau[keep], qd=qd[keep], qdd=qdd[keep], name=rec.name)
+    return prepared, cutoff, step
+
+
+def drive_column_names(n_dof: int, terms: tuple, inertia_joints) -> list:
+    """Labels of the drive columns, e.g. ``fc1, fv1, fc2, ...``, then ``Ia<j>`` for ``inertia_joints``."""
+    names = [f"{term}{j + 1}" for j in range(n_dof) for term in terms if term != "Ia"]
+    return names + [f"Ia{j + 1}" for j in inertia_joints]
+
+
+def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float) -> np.ndarray:
+    """Drive columns (n_samples, n_dof, k): per joint its friction terms, then the listed drive inertias.
+
+    The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)``.
+    """
+    n_samples, n_dof = qd.shape
+    per_joint = [term for term in terms if term != "Ia"]
+    k = len(per_joint) * n_dof + len(inertia_joints)
+    out = np.zeros((n_samples, n_dof, k))
+    values = {"fc": np.tanh(qd / coulomb_velocity), "fv": qd, "offset": np.ones_like(qd)}
+    for j in range(n_dof):
+        for c, term in enumerate(per_joint):
+            out[:, j, j * len(per_joint) + c] = values[term][:, j]
+    for c, j in enumerate(inertia_joints):
+        out[:, j, len(per_joint) * n_dof + c] = qdd[:, j]
+    return out
+
+
+@dataclass
+class NormalEquations:
+    """Per-joint sums of a linear model's rows: ``gram[j] = A_j^T A_j``, ``moment[j] = A_j^T y_j``, ``y_j^T y_j``."""
+
+    n_dof: int
+    n_columns: int
+    gram: np.ndarray = field(init=False)
+    moment: np.ndarray = field(init=False)
+    energy: np.ndarray = field(init=False)
+    count: np.ndarray = field(init=False)
+
+    def __post_init__(self):
+        self.gram = np.zeros((self.n_dof, self.n_columns, self.n_columns))
+        self.moment = np.zeros((self.n_dof, self.n_columns))
+        self.energy = np.zeros(self.n_dof)
+        self.count = np.zeros(self.n_dof, dtype=int)
+
+    def add(self, columns: np.ndarray, tau: np.ndarray) -> None:
+        """Add rows: ``columns`` (n_samples, n_dof, n_columns), ``tau`` (n_samples, n_dof)."""
+        self.gram += np.einsum("snc,snd->ncd", columns, columns)
+        self.moment += np.einsum("snc,sn->nc", columns, tau)
+        self.energy += np.einsum("sn,sn->n", tau, tau)
+        self.count += tau.shape[0]
+
+    def add_recording(self, model, recording: Recording, terms: tuple, inertia_joints, coulomb_velocity) -> None:
+        """Add a prepared recording's rows: the base-parameter regressor and the drive columns, in chunks."""
+        for start in range(0, recording.n_samples, CHUNK_SAMPLES):
+            sl = slice(start, start + CHUNK_SAMPLES)
+            q, qd, qdd = recording.q[sl], recording.qd[sl], recording.qdd[sl]
+            columns = np.concatenate(
+                [model.regressor(q, qd, qdd), drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity)], axis=2
+            )
+            self.add(columns, recording.tau[sl])
+
+    def weighted(self, weights) -> tuple[np.ndarray, np.ndarray, float]:
+        """``(A^T W A, A^T W y, y^T W y)`` with one weight per joint (``1 / sigma_j^2``)."""
+        w = np.asarray(weights, dtype=float)
+        return (np.einsum("n,ncd->cd", w, self.gram), np.einsum("n,nc->c", w, self.moment), float(w @ self.energy))
+
+    def residual_sum(self, x) -> np.ndarray:
+        """Per joint ``||A_j x - y_j||^2`` of a parameter vector ``x``."""
+        x = np.asarray(x, dtype=float)
+        return np.einsum("c,ncd,d->n", x, self.gram, x) - 2 * self.moment @ x + self.energy

@@ -1,0 +1,422 @@
+"""Identification from a few exciting trajectories: weighted least squares, then a physically consistent fit.
+
+The everyday route (FIGAROH's and BIRDy's): recordings of joint torques (or currents with known
+torque constants) along exciting trajectories, in :func:`identify_trajectories`:
+
+1. each recording is filtered, differentiated and decimated (``trajectory_data``), and its rows
+   ``tau = Y(q, qd, qdd) theta + D(qd, qdd) f`` are summed into per-joint normal equations: the
+   base parameters ``theta`` and the drive parameters ``f`` (Coulomb, viscous, optional offset,
+   and the drive inertia of joints whose model has none);
+2. ordinary least squares with each joint's rows scaled by its torque RMS gives residual variances
+   ``sigma_j^2``; weighted least squares with weights ``1 / sigma_j^2`` gives the unconstrained
+   estimate, its covariance (standard deviations, relative sigma in percent) and the condition
+   number of the weighted regressor (columns scaled to unit norm);
+3. unless ``consistency=False``, Ipopt minimises the same weighted residual over standard
+   parameters in the log-Cholesky chart (``pseudo_inertia``), so every link has a positive-definite
+   pseudo-inertia, with friction and drive inertias bounded below by zero, and a small pull
+   (``prior_weight``) towards the robot file's parameters that only settles what the data cannot
+   see. The base parameters are computed from the standard ones.
+
+The unconstrained estimate is kept beside the consistent one, so a report can show what the
+constraint cost on the data.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from identification.calibration.pseudo_inertia import (
+    LINK_PARAMETER_COUNT,
+    link_from_log_cholesky,
+    link_from_pseudo_inertia,
+    log_cholesky_from_link,
+    pseudo_inertia,
+    pseudo_inertia_eigenvalues,
+)
+from identification.calibration.trajectory_data import (
+    DRIVE_TERMS,
+    NormalEquations,
+    drive_column_names,
+    drive_columns,
+    prepare_recording,
+)
+from psdm_casadi.errors import ParameterError, SolverError
+
+__all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predict_torque"]
+
+logger = logging.getLogger(__name__)
+
+ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
+# When the data ask for an inconsistent link, the optimum lies on the boundary of the chart, at
+# infinity in its log-diagonal: the objective then creeps down without its gradient vanishing.
+# Ipopt stops when the objective has stopped changing (acceptable_obj_change_tol, relative).
+IPOPT_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-9,
+                 "ipopt.acceptable_tol": 1e-2, "ipopt.acceptable_obj_change_tol": 1e-9,
+                 "ipopt.acceptable_iter": 10, "ipopt.max_iter": 2000}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class TrajectoryOptions:
+    """Options of :func:`identify_trajectories`.
+
+    Parameters
+    ----------
+    friction : tuple of str
+        Drive terms per joint among ``("fc", "fv", "offset")``: Coulomb, viscous, a constant torque offset.
+    coulomb_velocity : float
+        [rad/s] The Coulomb term is ``fc tanh(qd / coulomb_velocity)``: a sign smoothed over the
+        velocities where real joints pass from sticking to sliding (a few hundredths of a rad/s).
+    drive_inertia : bool
+        Identify a drive (rotor, armature) inertia per joint, ``Ia qdd``: inside the base parameters for
+        the joints whose model has one, as a column of its own for the others.
+    consistency : bool
+        Solve for physically consistent standard parameters (default); False keeps the weighted least
+        squares estimate alone (reported as not checked for consistency).
+    margin : float
+        [kg m^2] by which every identified pseudo-inertia stays positive definite (its smallest
+        eigenvalue is at least this).
+    prior_weight : float
+        Weight of the pull towards the robot file's standard parameters, relative to one weighted
+        squared residual per sample: small, so that it decides only what the data leaves free.
+    cutoff_hz : float or None
+        Low-pass cutoff [Hz]; None chooses ``min(10 Hz, rate / 10)`` per recording.
+    kt : array or None
+        Torque constants [N m/A] per joint for recordings of currents (default: the robot's drives).
+    """
+
+    friction: tuple = ("fc", "fv")
+    coulomb_velocity: float = 0.05
+    drive_inertia: bool = True
+    consistency: bool = True
+    margin: float = 1e-6
+    prior_weight: float = 1e-4
+    cutoff_hz: float | None = None
+    kt: tuple | None = None
+
+    def __post_init__(self):
+        unknown = [t for t in self.friction if t not in DRIVE_TERMS[:3]]
+        if unknown or len(set(self.friction)) != len(self.friction):
+            raise ParameterError(
+                f"TrajectoryOptions.friction must hold distinct terms of {DRIVE_TERMS[:3]}; got {self.friction!r}."
+            )
+        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
+            raise ParameterError(
+                f"TrajectoryOptions.coulomb_velocity must be > 0 [rad/s]; got {self.coulomb_velocity!r}."
+            )
+        if not (np.isfinite(self.margin) and self.margin > 0):
+            raise ParameterError(f"TrajectoryOptions.margin must be > 0 [kg m^2]; got {self.margin!r}.")
+        if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0):
+            raise ParameterError(f"TrajectoryOptions.prior_weight must be >= 0; got {self.prior_weight!r}.")
+
+
+@dataclass(frozen=True)
+class TrajectoryFit:
+    """What :func:`identify_trajectories` found. Arrays are per joint (``n_dof``) unless said otherwise.
+
+    Attributes
+    ----------
+    standard : array, shape (n_dof, 11)
+        Standard parameters (10 per link, then the drive inertia ``Ia``), consistent when ``consistent``.
+    theta : array, shape (n_base,)
+        Base parameters of ``standard``.
+    drive : array, shape (n_drive,)
+        Drive parameters, labelled by ``drive_names`` (``fc1``, ``fv1``, ..., ``Ia<j>``).
+    theta_ols, drive_ols, theta_std, drive_std : arrays
+        The weighted least-squares estimate and its standard deviations.
+    sigma : array
+        Residual standard deviation [N m] per joint (the weights are ``1 / sigma^2``).
+    condition_number : float
+        Of the weighted regressor with unit-norm columns.
+    min_pseudo_inertia_eigenvalue : float
+        Over the links of ``standard`` (positive when consistent).
+    """
+
+    standard: np.ndarray
+    theta: np.ndarray
+    drive: np.ndarray
+    drive_names: tuple
+    inertia_joints: tuple
+    friction_terms: tuple
+    coulomb_velocity: float
+    theta_ols: np.ndarray
+    drive_ols: np.ndarray
+    theta_std: np.ndarray
+    drive_std: np.ndarray
+    sigma: np.ndarray
+    condition_number: float
+    consistent: bool
+    checked: bool
+    min_pseudo_inertia_eigenvalue: float
+    cutoff_hz: tuple
+    decimation: tuple
+    n_samples: int
+    solver_status: str
+    seconds: float
+
+    @property
+    def relative_sigma_percent(self) -> np.ndarray:
+        """100 * sigma / |estimate| of the base then drive parameters of the least-squares estimate."""
+        x = np.concatenate([self.theta_ols, self.drive_ols])
+        s = np.concatenate([self.theta_std, self.drive_std])
+        with np.errstate(divide="ignore"):
+            return 100.0 * s / np.abs(x)
+
+
+def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) -> np.ndarray:
+    """Joint torques [N m] of the identified model (or of its least-squares estimate), (n_samples, n_dof)."""
+    theta, drive = (fit.theta_ols, fit.drive_ols) if ols else (fit.theta, fit.drive)
+    q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity)
+    return model.inverse_dynamics(q, qd, qdd, theta) + columns @ drive
+
+
+def identify_trajectories(robot, model, recordings, options: TrajectoryOptions | None = None) -> TrajectoryFit:
+    """Identify base, standard and drive parameters from exciting recordings (module docstring).
+
+    Parameters
+    ----------
+    robot : RobotDescription
+        Kinematics, and the prior standard parameters when it has links.
+    model : PSDMModel
+        ``derive_psdm(robot)``.
+    recordings : sequence of Recording
+        Raw recordings with ``tau``, or ``current`` and torque constants.
+    options : TrajectoryOptions, optional
+
+    Returns
+    -------
+    TrajectoryFit
+
+    Raises
+    ------
+    ParameterError, RecordingError
+        For recordings that do not match the robot, or too short to filter.
+    SolverError
+        When Ipopt does not converge on the consistent fit.
+    """
+    options = TrajectoryOptions() if options is None else options
+    start = time.perf_counter()
+    recordings = list(recordings)
+    if not recordings:
+        raise ParameterError("identify_trajectories needs at least one recording; got none. Pass --data FILE.")
+    kt = _torque_constants(robot, options, recordings)
+    inertia_joints = _separate_inertia_joints(model, robot) if options.drive_inertia else ()
+    names = drive_column_names(robot.n_dof, options.friction, inertia_joints)
+    equations = NormalEquations(robot.n_dof, model.n_base + len(names))
+    cutoffs, steps, prepared = [], [], []
+    for rec in recordings:
+        rec.check_robot(robot.n_dof, robot.name)
+        ready, cutoff, step = prepare_recording(rec, kt, options.cutoff_hz)
+        cutoffs.append(cutoff)
+        steps.append(step)
+        prepared.append(ready)
+        equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity)
+    logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
+                ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
+    sigma, x_ols, inverse, condition = _weighted_least_squares(equations)
+    correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints) for rec in prepared]
+    covariance = _sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
+    if options.consistency:
+        standard, drive, status = _consistent_fit(robot, model, equations, sigma, names, options)
+        standard[:, ROTOR] = _drive_inertias(standard, drive, names)
+        free = [i for i in range(robot.n_dof) if _link_is_free(model, i)]
+        eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
+        theta = model.base_parameters(standard)
+    else:  # base parameters only: no standard parameters are identified, none are made up
+        standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
+        drive, status, eigen, theta = x_ols[model.n_base :], "not solved", float("nan"), x_ols[: model.n_base]
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    return TrajectoryFit(
+        standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
+        inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
+        coulomb_velocity=options.coulomb_velocity,
+        theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base :], theta_std=std[: model.n_base],
+        drive_std=std[model.n_base :], sigma=sigma, condition_number=condition,
+        consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
+        min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
+        n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
+    )  # fmt: skip
+
+
+def _torque_constants(robot, options, recordings):
+    if all(rec.tau is not None for rec in recordings):
+        return None
+    if options.kt is not None:
+        return np.asarray(options.kt, dtype=float)
+    if robot.drives is None:
+        raise ParameterError(
+            f"recordings of currents need torque constants; {robot.name} has no [[drive]] tables. "
+            "Add kt to the robot file's drives, or record joint torques."
+        )
+    return np.array([d.kt for d in robot.drives], dtype=float)
+
+
+def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
+    """Joints whose drive inertia needs a column of its own: not in the base parameters, and not confounded.
+
+    A drive inertia ``Ia_j qdd_j`` is kept as a column only where it is independent of the base
+    regressor on random states (the first joint's, about a vertical axis, adds to its link's Izz
+    and is identified inside that base parameter).
+    """
+    rotor_columns = model.parameter_map[:, ROTOR :: LINK_PARAMETER_COUNT + 1]
+    candidates = [j for j in range(robot.n_dof) if not np.any(rotor_columns[:, j])]
+    if not candidates:
+        return []
+    rng = np.random.default_rng(seed)
+    n_states = 4 * (model.n_base + robot.n_dof)
+    q = rng.uniform(robot.q_min, robot.q_max, size=(n_states, robot.n_dof))
+    qd, qdd = rng.normal(size=(2, n_states, robot.n_dof))
+    stacked = model.regressor(q, qd, qdd).reshape(-1, model.n_base)
+    kept = []
+    for j in candidates:
+        column = np.zeros((n_states, robot.n_dof))
+        column[:, j] = qdd[:, j]
+        trial = np.column_stack([stacked, column.reshape(-1)])
+        if np.linalg.matrix_rank(trial, tol=1e-9 * np.abs(trial).max() * trial.shape[0]) > np.linalg.matrix_rank(
+            stacked, tol=1e-9 * np.abs(trial).max() * trial.shape[0]
+        ):
+            kept.append(j)
+            stacked = trial
+    return kept
+
+
+def _solve_scaled(gram, moment):
+    """Least squares from normal equations with unit-diagonal scaling; (x, inverse of gram, condition)."""
+    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
+    scaled = gram / np.outer(scale, scale)
+    values = np.linalg.eigvalsh(scaled)
+    condition = float(np.sqrt(values[-1] / values[0])) if values[0] > 0 else float("inf")
+    inverse = np.linalg.pinv(scaled, rcond=1e-12, hermitian=True) / np.outer(scale, scale)
+    return inverse @ moment, inverse, condition
+
+
+def _weighted_least_squares(equations: NormalEquations):
+    """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and covariance."""
+    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
+    first, _, _ = _solve_scaled(*equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
+    dof = np.maximum(equations.count - equations.n_columns / equations.n_dof, 1.0)
+    sigma = np.sqrt(np.maximum(equations.residual_sum(first), 0.0) / dof)
+    sigma = np.maximum(sigma, 1e-9 * np.maximum(rms, 1e-12))
+    gram, moment, _ = equations.weighted(1.0 / sigma**2)
+    x, inverse, condition = _solve_scaled(gram, moment)
+    return sigma, x, inverse, condition
+
+
+def _correlation_time(model, recording, x, options, inertia_joints, max_lag: int = 50) -> np.ndarray:
+    """Per joint, the integrated autocorrelation time of the residual (1 for white residuals).
+
+    Filtered residuals are correlated over several samples; counting them as independent would make
+    the standard deviations too small. ``1 + 2 sum_k (1 - k/(L+1)) rho_k`` (Bartlett weights, ``L`` lags)
+    is the factor by which the variance of a mean grows, used per joint in :func:`_sandwich_covariance`.
+    """
+    residual = np.concatenate(
+        [
+            recording.tau[sl]
+            - np.concatenate(
+                [model.regressor(recording.q[sl], recording.qd[sl], recording.qdd[sl]),
+                 drive_columns(recording.qd[sl], recording.qdd[sl], options.friction, inertia_joints,
+                               options.coulomb_velocity)], axis=2,
+            ) @ x
+            for sl in (slice(s, s + 4000) for s in range(0, recording.n_samples, 4000))
+        ]
+    )  # fmt: skip
+    residual = residual - residual.mean(axis=0)
+    lags = min(max_lag, residual.shape[0] // 4)
+    variance = np.maximum(np.einsum("sn,sn->n", residual, residual), 1e-300)
+    factor = np.ones(residual.shape[1])
+    for k in range(1, lags + 1):
+        rho = np.einsum("sn,sn->n", residual[:-k], residual[k:]) / variance
+        factor += 2.0 * (1.0 - k / (lags + 1)) * rho
+    return np.maximum(factor, 1.0)
+
+
+def _sandwich_covariance(equations, sigma, inverse, correlation) -> np.ndarray:
+    """Covariance of the weighted estimate with each joint's residual variance grown by its correlation time."""
+    middle, _, _ = equations.weighted(correlation / sigma**2)
+    return inverse @ middle @ inverse
+
+
+def _prior_standard(robot, model):
+    if robot.links is not None:
+        return robot.nominal_dynamic_parameters()
+    standard = np.zeros((robot.n_dof, LINK_PARAMETER_COUNT + 1))
+    standard[:, 0] = 1.0  # a unit mass at the frame origin with a small inertia: a consistent start
+    standard[:, [4, 6, 9]] = 0.01
+    return standard
+
+
+def _link_is_free(model, link: int) -> bool:
+    block = model.parameter_map[:, link * (LINK_PARAMETER_COUNT + 1) : link * (LINK_PARAMETER_COUNT + 1) + 10]
+    return bool(np.any(block))
+
+
+def _consistent_fit(robot, model, equations, sigma, names, options):
+    """Ipopt over log-Cholesky links, drive inertias and friction (module docstring, step 3)."""
+    n = robot.n_dof
+    prior = _prior_standard(robot, model)
+    links = [i for i in range(n) if _link_is_free(model, i)]
+    phi = ca.SX.sym("phi", LINK_PARAMETER_COUNT * len(links))
+    rotor = ca.SX.sym("rotor", n)
+    drive = ca.SX.sym("drive", len(names))
+    rows = []
+    for i in range(n):
+        k = _index(links, i)
+        link = None if k is None else link_from_log_cholesky(phi[k * 10 : k * 10 + 10], margin=options.margin)
+        rows.append(ca.vertcat(link if link is not None else ca.DM(prior[i, :10]), rotor[i]))
+    standard = ca.vertcat(*rows)
+    x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive)
+    gram, moment, energy = equations.weighted(1.0 / sigma**2)
+    count = float(equations.count.sum())
+    residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
+    scale = _prior_scale(prior)
+    pull = options.prior_weight * ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
+    variables = ca.vertcat(phi, rotor, drive)
+    start = np.concatenate([*(_chart_start(prior[i, :10], options.margin) for i in links),
+                            np.maximum(prior[:, ROTOR], 0.0), np.zeros(len(names))])  # fmt: skip
+    lower = np.concatenate([np.full(phi.numel(), -np.inf), np.zeros(n), _drive_lower_bounds(names)])
+    solver = ca.nlpsol("consistent_fit", "ipopt", {"x": variables, "f": residual + pull},
+                       IPOPT_OPTIONS)  # fmt: skip
+    solution = solver(x0=start, lbx=lower, ubx=np.full(lower.size, np.inf))
+    status = solver.stats()["return_status"]
+    if not solver.stats()["success"]:
+        raise SolverError(f"the consistent fit did not converge ({status}); try --no-consistency to see the "
+                          "unconstrained estimate, or record a better-exciting trajectory.", status=status)  # fmt: skip
+    values = np.asarray(ca.Function("standard", [variables], [standard])(solution["x"])).reshape(n, -1)
+    return values, np.asarray(solution["x"]).reshape(-1)[-len(names) :] if names else np.zeros(0), status
+
+
+def _chart_start(link, margin):
+    """Chart coordinates of a prior link with the margin taken off (projected if inconsistent)."""
+    shifted = link_from_pseudo_inertia(pseudo_inertia(link) - margin * np.eye(4))
+    return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
+
+
+def _index(items, value):
+    return items.index(value) if value in items else None
+
+
+def _prior_scale(prior):
+    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor)."""
+    mass = np.maximum(np.abs(prior[:, :1]), 0.1)
+    moment = np.maximum(np.abs(prior[:, 1:4]), 0.01 * mass)
+    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass)
+    rotor = np.maximum(np.abs(prior[:, ROTOR:]), 1e-3)
+    return np.concatenate([mass, moment, inertia, rotor], axis=1)
+
+
+def _drive_lower_bounds(names):
+    return np.array([-np.inf if name.startswith("offset") else 0.0 for name in names])
+
+
+def _drive_inertias(standard, drive, names):
+    """The drive inertia of every joint: from the standard parameters or from its own column."""
+    out = standard[:, ROTOR].copy()
+    for name, value in zip(names, drive):
+        if name.startswith("Ia"):
+            out[int(name[2:]) - 1] = value
+    return out

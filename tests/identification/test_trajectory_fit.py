@@ -1,0 +1,122 @@
+"""Identification from exciting trajectories: the consistency chart, the normal equations, known truth, real data."""
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from identification.calibration.pseudo_inertia import (
+    link_from_log_cholesky,
+    link_from_pseudo_inertia,
+    log_cholesky_from_link,
+    pseudo_inertia,
+    pseudo_inertia_eigenvalues,
+)
+from identification.calibration.trajectory_data import NormalEquations, choose_filter, drive_columns
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.description import physical_to_dynamic
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.oracle import PinocchioOracle
+from trajopt.experiments import sine_experiment
+
+
+def _box_link(mass, com, sides):
+    """Standard parameters of a solid box (an independent, textbook consistent body)."""
+    a, b, c = sides
+    inertia = mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+    return physical_to_dynamic(mass, com, inertia)
+
+
+def test_the_chart_covers_consistent_links_and_only_them():
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        link = _box_link(rng.uniform(0.1, 5), rng.normal(size=3) * 0.2, rng.uniform(0.01, 0.5, size=3))
+        assert pseudo_inertia_eigenvalues(np.append(link, 0.0)[None])[0] > 0
+        np.testing.assert_allclose(link_from_pseudo_inertia(pseudo_inertia(link)), link, rtol=1e-12, atol=1e-14)
+        np.testing.assert_allclose(link_from_log_cholesky(log_cholesky_from_link(link)), link, rtol=1e-10,
+                                   atol=1e-13)  # fmt: skip
+        phi = rng.normal(size=10)  # any point of the chart is a consistent link ...
+        assert np.linalg.eigvalsh(pseudo_inertia(link_from_log_cholesky(phi)))[0] > 0
+        symbol = ca.SX.sym("phi", 10)  # ... and the CasADi form is the same function
+        casadi_link = ca.Function("link", [symbol], [link_from_log_cholesky(symbol, margin=1e-3)])(phi)
+        np.testing.assert_allclose(np.asarray(casadi_link).ravel(), link_from_log_cholesky(phi, margin=1e-3),
+                                   rtol=1e-12)  # fmt: skip
+    # a body whose principal moments break the triangle inequality (Izz > Ixx + Iyy) is not consistent,
+    # although its mass and inertia matrix are positive
+    impossible = physical_to_dynamic(1.0, np.zeros(3), np.diag([0.1, 0.1, 0.3]))
+    assert pseudo_inertia_eigenvalues(np.append(impossible, 0.0)[None])[0] < 0
+    with pytest.raises(ParameterError, match="positive-definite pseudo-inertia"):
+        log_cholesky_from_link(impossible)
+    assert np.linalg.eigvalsh(pseudo_inertia(link_from_log_cholesky(log_cholesky_from_link(impossible, 1e-4))))[0] > 0
+
+
+def test_normal_equations_in_chunks_equal_the_stacked_least_squares():
+    rng = np.random.default_rng(1)
+    columns, tau = rng.normal(size=(500, 3, 4)), rng.normal(size=(500, 3))
+    whole, parts = NormalEquations(3, 4), NormalEquations(3, 4)
+    whole.add(columns, tau)
+    for sl in (slice(0, 123), slice(123, 400), slice(400, 500)):
+        parts.add(columns[sl], tau[sl])
+    np.testing.assert_allclose(parts.gram, whole.gram, rtol=1e-12)
+    weights = np.array([1.0, 4.0, 0.25])
+    gram, moment, _ = parts.weighted(weights)
+    stacked = (columns * np.sqrt(weights)[None, :, None]).reshape(-1, 4)
+    target = (tau * np.sqrt(weights)).reshape(-1)
+    np.testing.assert_allclose(np.linalg.solve(gram, moment), np.linalg.lstsq(stacked, target, rcond=None)[0],
+                               rtol=1e-10)  # fmt: skip
+    x = rng.normal(size=4)
+    np.testing.assert_allclose(parts.residual_sum(x), ((columns @ x - tau) ** 2).sum(axis=0), rtol=1e-10)
+
+
+def test_filter_choice_follows_the_sampling_rate():
+    assert choose_filter(1000.0) == (10.0, 10)
+    assert choose_filter(5000.0) == (10.0, 50)
+    assert choose_filter(50.0) == (5.0, 1)
+    with pytest.raises(ParameterError, match="cutoff_hz must be in"):
+        choose_filter(100.0, cutoff_hz=60.0)
+    qd = np.array([[-1.0, 0.0], [1.0, 2.0]])
+    cols = drive_columns(qd, np.ones_like(qd), ("fc", "fv"), (1,), coulomb_velocity=0.05)
+    assert cols.shape == (2, 2, 5) and cols[1, 1, 3] == 2.0 and cols[0, 1, 4] == 1.0 and cols[0, 0, 0] < -0.99
+
+
+@pytest.fixture(scope="module")
+def denso_fit(denso, denso_model):
+    """The virtual Denso (rigid body and drive inertia, no friction) along one 20 s sine trajectory."""
+    rng = np.random.default_rng(3)
+    reference = sine_experiment(denso, duration=20.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    recording, _ = simulate_recording(denso, reference, options, rng)
+    return identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+
+
+def test_known_truth_lies_within_three_reported_sigma(denso, denso_model, denso_fit):
+    truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    z = (denso_fit.theta_ols - truth) / denso_fit.theta_std
+    assert np.abs(z).max() < 3.0, np.round(z, 2)
+    assert np.abs((denso_fit.theta - truth) / denso_fit.theta_std).max() < 3.0
+    assert denso_fit.condition_number < 100 and np.all(denso_fit.relative_sigma_percent[: denso_model.n_base] > 0)
+    # no friction was simulated: the bounded friction estimates stay small against the torque noise
+    assert np.all(denso_fit.drive >= 0) and np.abs(denso_fit.drive).max() < 0.05
+
+
+def test_the_identified_model_is_consistent_and_predicts_what_it_reports(denso, denso_model, denso_fit):
+    assert denso_fit.consistent and denso_fit.min_pseudo_inertia_eigenvalue >= 1e-6 * (1 - 1e-6)
+    oracle = PinocchioOracle(denso, denso_fit.standard)
+    rng = np.random.default_rng(0)
+    q = rng.uniform(denso.q_min, denso.q_max, size=(500, denso.n_dof))
+    assert min(np.linalg.eigvalsh(m)[0] for m in oracle.crba(q)) > 0
+    qd, qdd = rng.normal(size=(2, 50, denso.n_dof))
+    # the reported torque is Pinocchio's rigid body of the standard parameters plus the drive terms
+    drive = drive_columns(qd, qdd, denso_fit.friction_terms, denso_fit.inertia_joints, denso_fit.coulomb_velocity)
+    expected = oracle.rnea(q[:50], qd, qdd) + drive @ denso_fit.drive
+    np.testing.assert_allclose(predict_torque(denso_model, denso_fit, q[:50], qd, qdd), expected, rtol=1e-9, atol=1e-9)
+
+
+def test_without_consistency_no_standard_parameters_are_reported(denso, denso_model):
+    rng = np.random.default_rng(4)
+    reference = sine_experiment(denso, duration=8.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    recording, _ = simulate_recording(denso, reference, options, rng)
+    fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(consistency=False))
+    assert not fit.consistent and not fit.checked and np.all(np.isnan(fit.standard))
+    np.testing.assert_array_equal(fit.theta, fit.theta_ols)
