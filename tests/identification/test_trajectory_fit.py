@@ -120,3 +120,49 @@ def test_without_consistency_no_standard_parameters_are_reported(denso, denso_mo
     fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(consistency=False))
     assert not fit.consistent and not fit.checked and np.all(np.isnan(fit.standard))
     np.testing.assert_array_equal(fit.theta, fit.theta_ols)
+
+
+def test_the_calibrated_model_file_round_trips_and_predicts_the_fit(tmp_path, denso, denso_model, denso_fit):
+    from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
+    from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+
+    written = CalibratedModel.from_fit(
+        denso, denso_model, denso_fit, robot_source=BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
+    )
+    path = written.save(tmp_path / "denso.json")
+    loaded = load_calibrated_model(path)
+    assert loaded.document["standard"]["names"][:3] == ["m1", "mx1", "my1"] and loaded.consistent
+    assert loaded.document["drive"]["names"][:2] == ["fc1", "fv1"]
+    robot = loaded.load_robot(cache_dir=tmp_path / "cache")
+    assert robot.joint_names == denso.joint_names
+    rng = np.random.default_rng(5)
+    q, qd, qdd = rng.normal(size=(3, 20, denso.n_dof))
+    expected = predict_torque(denso_model, denso_fit, q, qd, qdd)
+    np.testing.assert_allclose(loaded.predict(denso_model, q, qd, qdd), expected, rtol=1e-12, atol=1e-12)
+    with pytest.raises(FileExistsError):
+        written.save(path)
+
+
+def test_an_inconsistent_model_is_written_only_when_asked_and_then_marked(tmp_path, denso, denso_model, denso_fit):
+    import dataclasses
+    import json
+
+    from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
+    from psdm_casadi.errors import ModelFileError
+    from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+
+    bad = dataclasses.replace(denso_fit, consistent=False, min_pseudo_inertia_eigenvalue=-0.5)
+    model_file = CalibratedModel.from_fit(
+        denso, denso_model, bad, robot_source=BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
+    )
+    with pytest.raises(ModelFileError, match="allow-inconsistent"):
+        model_file.save(tmp_path / "bad.json")
+    assert not (tmp_path / "bad.json").exists()
+    model_file.save(tmp_path / "bad.json", allow_inconsistent=True)
+    assert load_calibrated_model(tmp_path / "bad.json").document["standard"]["consistent"] is False
+    (tmp_path / "other.json").write_text(json.dumps({"format": "something else"}))
+    with pytest.raises(ModelFileError, match="format must be"):
+        load_calibrated_model(tmp_path / "other.json")
+    (tmp_path / "broken.json").write_text("{")
+    with pytest.raises(ModelFileError, match="not a calibrated-model file"):
+        load_calibrated_model(tmp_path / "broken.json")

@@ -1,0 +1,218 @@
+"""The calibrated-model file: one versioned JSON document that every command can read.
+
+It holds everything needed to use an identification without the recordings or the checkout:
+
+- ``robot``: the robot file's text (and, for a URDF robot, the URDF's text) with the locked joints,
+  so the kinematics are rebuilt exactly (:meth:`CalibratedModel.load_robot`);
+- ``standard``: labelled standard parameters per link (``m1, mx1, ..., Izz1, Ia1``), whether they are
+  physically consistent and the smallest pseudo-inertia eigenvalue;
+- ``base``: the base parameters with their least-squares estimate, standard deviations and relative
+  sigma in percent;
+- ``drive``: the labelled drive parameters (``fc1, fv1, offset1, ..., Ia<j>``) with their standard
+  deviations and the friction model's shape;
+- ``identification``: filter, decimation, samples, weights, condition number, solver status;
+- ``provenance``: when, which version, which recordings (name, samples, SHA-256);
+- ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
+- ``findings``: the terms diagnosis added (empty until a diagnosis is applied).
+
+A model whose standard parameters are not consistent is written only when the caller says so
+(``allow_inconsistent``), and then says so in ``standard.consistent``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from identification.calibration.trajectory_data import drive_columns
+from identification.calibration.trajectory_fit import TrajectoryFit
+from psdm_casadi.errors import ModelFileError
+from psdm_casadi.fileio import atomic_write
+from psdm_casadi.oracle import LINK_PARAMETER_NAMES
+
+__all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "load_calibrated_model",
+           "recording_provenance", "standard_parameter_labels"]  # fmt: skip
+
+CALIBRATED_FORMAT = "psdm-calibrated-model"
+CALIBRATED_VERSION = 1
+
+
+def standard_parameter_labels(n_dof: int) -> list:
+    """``m1, mx1, my1, mz1, Ixx1, Ixy1, Iyy1, Ixz1, Iyz1, Izz1, Ia1, m2, ...``."""
+    return [f"{name}{j + 1}" for j in range(n_dof) for name in (*LINK_PARAMETER_NAMES, "Ia")]
+
+
+def recording_provenance(recording, source=None) -> dict:
+    """Name, samples, duration and (for a file) the SHA-256 of a recording, for the provenance block."""
+    entry = {"name": recording.name, "n_samples": int(recording.n_samples), "duration_s": float(recording.duration)}
+    if source is not None and Path(source).is_file():
+        entry["sha256"] = hashlib.sha256(Path(source).read_bytes()).hexdigest()
+    return entry
+
+
+def _floats(values) -> list:
+    return [None if not np.isfinite(v) else float(v) for v in np.asarray(values, dtype=float).reshape(-1)]
+
+
+def _array(values) -> np.ndarray:
+    return np.array([np.nan if v is None else v for v in values], dtype=float)
+
+
+@dataclass(frozen=True)
+class CalibratedModel:
+    """A calibrated model as read from (or about to be written to) its file; see the module docstring."""
+
+    document: dict = field(repr=False)
+
+    # --- building and writing --------------------------------------------------------------------
+    @classmethod
+    def from_fit(cls, robot, model, fit: TrajectoryFit, *, robot_source, recordings=(), validation=None):
+        """The document of a :class:`TrajectoryFit` of ``robot`` (``robot_source`` is its file or built-in name)."""
+        n = robot.n_dof
+        relative = fit.relative_sigma_percent
+        document = {
+            "format": CALIBRATED_FORMAT,
+            "version": CALIBRATED_VERSION,
+            "robot": _robot_block(robot, robot_source),
+            "standard": {"names": standard_parameter_labels(n), "values": _floats(fit.standard),
+                         "consistent": bool(fit.consistent), "checked": bool(fit.checked),
+                         "min_pseudo_inertia_eigenvalue": _floats([fit.min_pseudo_inertia_eigenvalue])[0]},
+            "base": {"names": [f"theta{k + 1}" for k in range(model.n_base)], "values": _floats(fit.theta),
+                     "ols": _floats(fit.theta_ols), "std": _floats(fit.theta_std),
+                     "relative_sigma_percent": _floats(relative[: model.n_base]),
+                     "equations": model.equations().splitlines()},
+            "drive": {"names": list(fit.drive_names), "values": _floats(fit.drive), "ols": _floats(fit.drive_ols),
+                      "std": _floats(fit.drive_std), "relative_sigma_percent": _floats(relative[model.n_base :]),
+                      "friction_terms": list(fit.friction_terms), "coulomb_velocity": fit.coulomb_velocity,
+                      "inertia_joints": [j + 1 for j in fit.inertia_joints]},
+            "identification": {"cutoff_hz": list(fit.cutoff_hz), "decimation": list(fit.decimation),
+                               "n_samples": fit.n_samples, "sigma": _floats(fit.sigma),
+                               "condition_number": float(fit.condition_number), "solver_status": fit.solver_status,
+                               "seconds": round(fit.seconds, 3)},
+            "provenance": {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                           "psdm_casadi_version": _version(), "recordings": list(recordings)},
+            "validation": validation or {},
+            "findings": [],
+        }  # fmt: skip
+        return cls(document)
+
+    def save(self, path, *, overwrite: bool = False, allow_inconsistent: bool = False) -> Path:
+        """Write the file atomically; an inconsistent model needs ``allow_inconsistent`` (and says so)."""
+        if not self.consistent and not allow_inconsistent:
+            raise ModelFileError(
+                f"the calibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
+                f"{self.document['standard']['min_pseudo_inertia_eigenvalue']}); it was not written to {path}. "
+                "Pass --allow-inconsistent to write it marked as such."
+            )
+        text = json.dumps(self.document, indent=1, allow_nan=False)
+        return atomic_write(path, lambda handle: handle.write(text + "\n"), overwrite)
+
+    # --- reading -----------------------------------------------------------------------------------
+    @property
+    def consistent(self) -> bool:
+        return bool(self.document["standard"]["consistent"])
+
+    @property
+    def n_dof(self) -> int:
+        return len(self.document["robot"]["joint_names"])
+
+    @property
+    def standard(self) -> np.ndarray:
+        """Standard parameters, shape (n_dof, 11): the 10 of each link, then its drive inertia."""
+        return _array(self.document["standard"]["values"]).reshape(self.n_dof, -1)
+
+    @property
+    def theta(self) -> np.ndarray:
+        return _array(self.document["base"]["values"])
+
+    @property
+    def drive(self) -> np.ndarray:
+        return _array(self.document["drive"]["values"])
+
+    def load_robot(self, cache_dir=None):
+        """The robot description the model was identified for, rebuilt from the texts in the file."""
+        from psdm_casadi.robot import load_robot
+
+        block = self.document["robot"]
+        folder = Path(cache_dir or _cache_root()) / block["sha256"][:16]
+        folder.mkdir(parents=True, exist_ok=True)
+        for name, text in block["files"].items():
+            target = folder / name
+            if not target.exists() or target.read_text() != text:
+                atomic_write(target, lambda handle, text=text: handle.write(text), overwrite=True)
+        robot = load_robot(folder / block["main_file"])
+        if block["locked_joints"]:
+            from psdm_casadi.robot import from_urdf
+
+            robot = from_urdf(folder / block["main_file"], locked_joints=tuple(block["locked_joints"]))
+        return robot
+
+    def predict(self, model, q, qd, qdd) -> np.ndarray:
+        """Joint torques [N m] of the calibrated model: rigid body of ``theta`` plus the drive terms."""
+        drive = self.document["drive"]
+        q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
+        inertia_joints = tuple(j - 1 for j in drive["inertia_joints"])
+        columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, drive["coulomb_velocity"])
+        return model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
+
+
+def _robot_block(robot, robot_source) -> dict:
+    from psdm_casadi.robot import resolve_robot_path
+
+    main = resolve_robot_path(robot_source)
+    files = {main.name: main.read_text()}
+    if robot.urdf_path is not None and Path(robot.urdf_path).name != main.name:
+        files[Path(robot.urdf_path).name] = Path(robot.urdf_path).read_text()
+    digest = hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()
+    locked = list(robot.locked_joints) if main.suffix.lower() == ".urdf" else []
+    return {"name": robot.name, "joint_names": list(robot.joint_names), "main_file": main.name, "files": files,
+            "locked_joints": locked, "sha256": digest}  # fmt: skip
+
+
+def _cache_root() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "psdm-casadi" / "robots"
+
+
+def _version() -> str:
+    try:
+        from importlib.metadata import version
+
+        return version("psdm-casadi")
+    except Exception:  # not installed (a plain checkout): say so rather than guess
+        return "unknown"
+
+
+def load_calibrated_model(path) -> CalibratedModel:
+    """Read a calibrated-model file, checking its format and version.
+
+    Raises
+    ------
+    ModelFileError
+        Naming the file and what is wrong (not JSON, another format, a newer version, missing blocks).
+    """
+    path = Path(path)
+    try:
+        document = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ModelFileError(f"model file {str(path)!r} does not exist. Check the path.") from None
+    except (UnicodeDecodeError, json.JSONDecodeError, IsADirectoryError) as exc:
+        raise ModelFileError(f"{path.name}: not a calibrated-model file ({exc}). Pass the .json that "
+                             "'psdm identify' wrote.") from None  # fmt: skip
+    if not isinstance(document, dict) or document.get("format") != CALIBRATED_FORMAT:
+        raise ModelFileError(f"{path.name}: format must be {CALIBRATED_FORMAT!r}; got "
+                             f"{document.get('format') if isinstance(document, dict) else type(document).__name__!r}. "
+                             "Pass the .json that 'psdm identify' wrote.")  # fmt: skip
+    if document.get("version") != CALIBRATED_VERSION:
+        raise ModelFileError(f"{path.name}: version must be {CALIBRATED_VERSION}; got {document.get('version')!r}. "
+                             "Re-run 'psdm identify' with this version of psdm-casadi.")  # fmt: skip
+    missing = [k for k in ("robot", "standard", "base", "drive", "identification") if k not in document]
+    if missing:
+        raise ModelFileError(f"{path.name}: the blocks {missing} are missing. Re-run 'psdm identify'.")
+    return CalibratedModel(document)
