@@ -29,6 +29,7 @@ bench: setup
 	$(BIN)/python benchmarks/excitation.py
 	$(BIN)/python benchmarks/calibration.py
 	$(BIN)/python benchmarks/diagnosis.py
+	$(BIN)/python benchmarks/real_identification.py
 
 clean:
 	rm -rf $(VENV) demo_report .pytest_cache

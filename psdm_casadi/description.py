@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.values import float_array, format_value, inertia_violation, is_real_number
 
 JOINT_KINDS = ("revolute", "prismatic")
 CONVENTIONS = ("standard", "modified")
@@ -21,6 +22,17 @@ CONVENTIONS = ("standard", "modified")
 # physical parameters of the paper's X (eq. 2): COM position r in the link frame, inertia about the COM.
 PHYSICAL_PARAMETER_NAMES = ("m", "rx", "ry", "rz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 GRAVITY_STANDARD = 9.806132  # m/s^2, the value the published Denso model uses
+_JOINT_UNITS = {
+    "a": "m",
+    "alpha": "rad",
+    "d": "m",
+    "theta": "rad",
+    "q_min": "rad or m",
+    "q_max": "rad or m",
+    "qd_max": "rad/s or m/s",
+    "qdd_max": "rad/s^2 or m/s^2",
+    "tau_max": "N m or N",
+}
 
 
 @dataclass(frozen=True)
@@ -37,6 +49,13 @@ class Joint:
         Position limits [rad or m].
     qd_max, qdd_max, tau_max : float
         Symmetric velocity [rad/s or m/s], acceleration [rad/s^2 or m/s^2] and effort [N m or N] limits.
+        Every value must be finite except ``tau_max``, whose default ``inf`` means no torque limit.
+
+    Raises
+    ------
+    RobotFileError
+        For an unknown kind, an empty name, a NaN or infinite value, ``q_min >= q_max`` or a
+        limit that is not positive.
     """
 
     name: str
@@ -52,24 +71,36 @@ class Joint:
     tau_max: float = math.inf
 
     def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise RobotFileError(
+                f"Joint.name must be a non-empty string; got {format_value(self.name)}. Name the joint."
+            )
         where = f"Joint {self.name!r}"
         if self.kind not in JOINT_KINDS:
             raise RobotFileError(
-                f"{where}.type must be one of {JOINT_KINDS}; got {self.kind!r}. "
+                f"{where}.type must be one of {JOINT_KINDS}; got {format_value(self.kind)}. "
                 'Write type = "revolute" or type = "prismatic".'
             )
-        for key in ("a", "alpha", "d", "theta", "q_min", "q_max", "qd_max", "qdd_max", "tau_max"):
+        for key, unit in _JOINT_UNITS.items():
             value = getattr(self, key)
-            if not isinstance(value, (int, float)) or math.isnan(value):
-                raise RobotFileError(f"{where}.{key} must be a number; got {value!r}.")
+            if not is_real_number(value) or math.isnan(value):
+                raise RobotFileError(
+                    f"{where}.{key} must be a number [{unit}]; got {format_value(value)}. Fix the value."
+                )
+            if math.isinf(value) and not (key == "tau_max" and value > 0):  # tau_max = inf: no torque limit
+                raise RobotFileError(
+                    f"{where}.{key} must be finite [{unit}]; got {format_value(value)}. Give a finite value"
+                    + (" or leave tau_max out for a joint without a torque limit." if key == "tau_max" else ".")
+                )
         if not self.q_min < self.q_max:
             raise RobotFileError(
-                f"{where}.q_min must be below q_max; got q_min={self.q_min}, q_max={self.q_max}. Swap them."
+                f"{where}.q_min must be below q_max; got q_min={format_value(self.q_min)}, "
+                f"q_max={format_value(self.q_max)}. Swap them."
             )
         for key in ("qd_max", "qdd_max", "tau_max"):
             if getattr(self, key) <= 0:
                 raise RobotFileError(
-                    f"{where}.{key} must be positive; got {getattr(self, key)}. "
+                    f"{where}.{key} must be positive; got {format_value(getattr(self, key))}. "
                     "Give the magnitude of the symmetric limit."
                 )
 
@@ -89,7 +120,14 @@ class LinkInertia:
     com : array, shape (3,)
         Centre of mass in the link frame [m].
     inertia : array, shape (3, 3)
-        Inertia tensor about the centre of mass, in the link frame [kg m^2].
+        Inertia tensor about the centre of mass, in the link frame [kg m^2] (or the six values
+        ``[Ixx, Iyy, Izz, Ixy, Ixz, Iyz]``).
+
+    Raises
+    ------
+    RobotFileError
+        For a negative or non-finite mass, a non-finite centre of mass, or an inertia that is not
+        finite, positive semi-definite and within the triangle inequality (:func:`inertia_violation`).
     """
 
     mass: float = 0.0
@@ -97,8 +135,15 @@ class LinkInertia:
     inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
 
     def __post_init__(self):
-        com = np.asarray(self.com, dtype=float).reshape(3)
-        inertia = np.asarray(self.inertia, dtype=float)
+        if not is_real_number(self.mass) or not math.isfinite(self.mass) or self.mass < 0:
+            raise RobotFileError(
+                f"LinkInertia.mass must be a finite number >= 0 [kg]; got {format_value(self.mass)}. "
+                "Give the mass in kg."
+            )
+        com = float_array(self.com, "LinkInertia.com", "3 numbers [m]")
+        if com.size != 3 or not np.all(np.isfinite(com)):
+            raise RobotFileError(f"LinkInertia.com must be 3 finite numbers [m]; got {format_value(com)}.")
+        inertia = float_array(self.inertia, "LinkInertia.inertia", "a 3x3 matrix [kg m^2]")
         if inertia.shape == (6,):  # [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]
             ixx, iyy, izz, ixy, ixz, iyz = inertia
             inertia = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
@@ -106,10 +151,18 @@ class LinkInertia:
             raise RobotFileError(
                 f"LinkInertia.inertia must be 3x3 or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz]; got shape {inertia.shape}."
             )
-        if self.mass < 0:
-            raise RobotFileError(f"LinkInertia.mass must be >= 0; got {self.mass}.")
-        object.__setattr__(self, "com", com)
-        object.__setattr__(self, "inertia", 0.5 * (inertia + inertia.T))
+        if not np.all(np.isfinite(inertia)):
+            raise RobotFileError(f"LinkInertia.inertia must be finite [kg m^2]; got {format_value(inertia)}.")
+        inertia = 0.5 * (inertia + inertia.T)
+        problem = inertia_violation(inertia)
+        if problem:
+            raise RobotFileError(
+                f"LinkInertia.inertia {problem}. Give the inertia about the centre of mass in kg m^2 "
+                "(check the signs of Ixy, Ixz, Iyz and that no moment is too large)."
+            )
+        object.__setattr__(self, "mass", float(self.mass))
+        object.__setattr__(self, "com", com.reshape(3))
+        object.__setattr__(self, "inertia", inertia)
 
     def dynamic_parameters(self) -> np.ndarray:
         """The 10 parameters linear in the dynamics, about the link-frame origin.
@@ -148,12 +201,20 @@ class DriveParameters:
     sigma1: float = 10.0
 
     def __post_init__(self):
+        for key in ("kt", "fc", "fs", "vs", "fv", "dv", "sigma0", "sigma1"):
+            value = getattr(self, key)
+            if not is_real_number(value) or not math.isfinite(value):
+                raise RobotFileError(f"DriveParameters.{key} must be a finite number; got {format_value(value)}.")
         for key in ("kt", "vs", "dv", "sigma0"):
             if not getattr(self, key) > 0:
-                raise RobotFileError(f"DriveParameters.{key} must be positive; got {getattr(self, key)}.")
+                raise RobotFileError(
+                    f"DriveParameters.{key} must be positive; got {format_value(getattr(self, key))}. Fix the value."
+                )
         for key in ("fc", "fs", "fv", "sigma1"):
             if getattr(self, key) < 0:
-                raise RobotFileError(f"DriveParameters.{key} must be >= 0; got {getattr(self, key)}.")
+                raise RobotFileError(
+                    f"DriveParameters.{key} must be >= 0; got {format_value(getattr(self, key))}. Fix the sign."
+                )
 
 
 @dataclass(frozen=True)
@@ -184,6 +245,8 @@ class RobotDescription:
         When set, kinematics and nominal inertia come from this URDF through Pinocchio.
     locked_joints : tuple of str
         URDF joints fixed at zero (grippers).
+    source : str or None
+        The robot file (TOML or URDF) the description was read from, for messages; not compared.
     """
 
     name: str
@@ -198,18 +261,28 @@ class RobotDescription:
     drives: tuple | None = None
     urdf_path: str | None = None
     locked_joints: tuple = ()
+    source: str | None = field(default=None, compare=False)
 
     def __post_init__(self):
-        n = len(self.joints)
+        joints = tuple(self.joints)
+        n = len(joints)
+        if not isinstance(self.name, str):
+            raise RobotFileError(f"RobotDescription.name must be a string; got {format_value(self.name)}.")
         if n == 0:
             raise RobotFileError(
                 "RobotDescription.joints must hold at least one joint; got none. Add [[joint]] tables."
             )
+        _check_joints(joints)
         if self.convention not in CONVENTIONS:
-            raise RobotFileError(f"RobotDescription.convention must be one of {CONVENTIONS}; got {self.convention!r}.")
-        gravity = np.asarray(self.gravity, dtype=float).reshape(-1)
+            raise RobotFileError(
+                f"RobotDescription.convention must be one of {CONVENTIONS}; got {format_value(self.convention)}."
+            )
+        gravity = float_array(self.gravity, "RobotDescription.gravity", "3 numbers [m/s^2]").reshape(-1)
         if gravity.shape != (3,) or not np.all(np.isfinite(gravity)):
-            raise RobotFileError(f"RobotDescription.gravity must be 3 finite numbers [m/s^2]; got {self.gravity!r}.")
+            raise RobotFileError(
+                f"RobotDescription.gravity must be 3 finite numbers [m/s^2]; got {format_value(gravity)}. "
+                "Write gravity = [gx, gy, gz] in the base frame."
+            )
         object.__setattr__(self, "gravity", gravity)
         drive_inertia = tuple(bool(x) for x in self.drive_inertia) if self.drive_inertia else (False,) * n
         if len(drive_inertia) != n:
@@ -219,23 +292,22 @@ class RobotDescription:
             )
         object.__setattr__(self, "drive_inertia", drive_inertia)
         for link in self.massless_links:
-            if not (isinstance(link, int) and 1 <= link <= n):
-                raise RobotFileError(f"RobotDescription.massless_links must hold link numbers 1..{n}; got {link!r}.")
+            if not (isinstance(link, int) and not isinstance(link, bool) and 1 <= link <= n):
+                raise RobotFileError(
+                    f"RobotDescription.massless_links must hold link numbers 1..{n}; got {format_value(link)}."
+                )
         for name in self.zero_parameters:
             parse_parameter_name(name, n)
-        if self.links is not None and len(self.links) != n:
-            raise RobotFileError(f"RobotDescription.links must have {n} entries (one per link); got {len(self.links)}.")
-        if self.drives is not None and len(self.drives) != n:
+        _check_parts(self.links, LinkInertia, "links", "one per link", n)
+        _check_parts(self.drives, DriveParameters, "drives", "one per joint", n)
+        rotor = np.zeros(n) if self.rotor_inertia is None else self.rotor_inertia
+        rotor = float_array(rotor, "RobotDescription.rotor_inertia", f"{n} numbers [kg m^2]").reshape(-1)
+        if rotor.shape != (n,) or not np.all(np.isfinite(rotor)) or np.any(rotor < 0):
             raise RobotFileError(
-                f"RobotDescription.drives must have {n} entries (one per joint); got {len(self.drives)}."
-            )
-        rotor = np.zeros(n) if self.rotor_inertia is None else np.asarray(self.rotor_inertia, dtype=float).reshape(-1)
-        if rotor.shape != (n,) or np.any(rotor < 0):
-            raise RobotFileError(
-                f"RobotDescription.rotor_inertia must be {n} non-negative numbers [kg m^2]; got {self.rotor_inertia!r}."
+                f"RobotDescription.rotor_inertia must be {n} finite numbers >= 0 [kg m^2]; got {format_value(rotor)}."
             )
         object.__setattr__(self, "rotor_inertia", rotor)
-        object.__setattr__(self, "joints", tuple(self.joints))
+        object.__setattr__(self, "joints", joints)
         object.__setattr__(self, "massless_links", tuple(self.massless_links))
         object.__setattr__(self, "zero_parameters", tuple(self.zero_parameters))
         object.__setattr__(self, "locked_joints", tuple(self.locked_joints))
@@ -330,6 +402,33 @@ def parse_parameter_name(name: str, n_dof: int) -> tuple:
             if 1 <= link <= n_dof:
                 return base, link
     raise RobotFileError(
-        f"assumptions.zero_parameters entry {name!r} is not a parameter name; expected one of "
+        f"assumptions.zero_parameters entry {format_value(name)} is not a parameter name; expected one of "
         f"{', '.join(PHYSICAL_PARAMETER_NAMES)} followed by a link number 1..{n_dof}, e.g. 'rx5' or 'Ixz4'."
     )
+
+
+def _check_joints(joints) -> None:
+    seen = {}
+    for i, joint in enumerate(joints):
+        if not isinstance(joint, Joint):
+            raise RobotFileError(
+                f"RobotDescription.joints[{i}] must be a Joint; got {type(joint).__name__}. Build it with Joint(...)."
+            )
+        if joint.name in seen:
+            raise RobotFileError(
+                f"RobotDescription.joints must have distinct names; got {joint.name!r} for joints "
+                f"{seen[joint.name] + 1} and {i + 1}. Rename one of them."
+            )
+        seen[joint.name] = i
+
+
+def _check_parts(parts, kind, field_name, per, n) -> None:
+    if parts is None:
+        return
+    if len(parts) != n:
+        raise RobotFileError(f"RobotDescription.{field_name} must have {n} entries ({per}); got {len(parts)}.")
+    for i, part in enumerate(parts):
+        if not isinstance(part, kind):
+            raise RobotFileError(
+                f"RobotDescription.{field_name}[{i}] must be a {kind.__name__}; got {type(part).__name__}."
+            )

@@ -25,6 +25,19 @@ class RecordingError(ParameterError):
     """A recording (CSV/NPZ) is malformed: columns, NaN, time, length."""
 
 
+class InsufficientExcitationError(RecordingError):
+    """A recording does not excite what is identified from it: a joint barely moves, or the regressor is singular.
+
+    ``joints`` (0-based) names the joints that did not move enough or whose parameters are not excited,
+    ``columns`` the regressor columns (parameter names) that are not excited.
+    """
+
+    def __init__(self, message, joints=(), columns=()):
+        super().__init__(message)
+        self.joints = tuple(int(j) for j in joints)
+        self.columns = tuple(str(c) for c in columns)
+
+
 class ModelFileError(ParameterError):
     """A saved model file is unreadable, of another format, or of another version."""
 

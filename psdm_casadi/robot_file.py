@@ -1,8 +1,11 @@
 """Robot files: the ``psdm-robot/1`` TOML reader (DH rows or a URDF reference) and the built-in robots.
 
 ``load_robot`` turns a file, or the name of a robot shipped in ``psdm_casadi/robots``, into a
-RobotDescription. Every malformed entry raises a RobotFileError naming the table, the row and the
-fix; numbers may be written as small expressions of ``pi`` (``"-pi/2"``).
+RobotDescription. Every malformed entry raises a RobotFileError naming the file, the table, the row
+and the fix: unreadable or non-text files, a value of the wrong kind, NaN or infinite numbers,
+unphysical inertia, duplicate joint names. Numbers may be written as small expressions of ``pi``
+(``"-pi/2"``). A robot file with a ``[urdf]`` table takes its joints and inertia from the URDF and
+may override the URDF's limits per joint (``[urdf.limits.<joint>]``) and add ``[[drive]]`` tables.
 """
 
 from __future__ import annotations
@@ -10,6 +13,7 @@ from __future__ import annotations
 import ast
 import math
 import operator
+from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
 
@@ -26,25 +30,38 @@ from psdm_casadi.description import (
     RobotDescription,
 )
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.text_file import read_text_file
 from psdm_casadi.urdf import from_urdf
+from psdm_casadi.values import format_value, is_real_number
 
 ROBOT_FORMAT = "psdm-robot/1"
 
 _NUMBER_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
+_MAX_EXPRESSION = 200  # characters of a number written as an expression
 
 
-def _number(value, where: str) -> float:
-    """A float from a TOML number or a small expression like ``"-pi/2"``."""
-    if isinstance(value, bool):
-        raise RobotFileError(f"{where} must be a number; got {value!r}.")
-    if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, str):
+def _number(value, where: str, fix: str = "Give a finite value.") -> float:
+    """A finite float from a TOML number or a small expression like ``"-pi/2"``."""
+    number = None
+    if is_real_number(value):
         try:
-            return float(_eval_expression(ast.parse(value, mode="eval").body))
-        except (SyntaxError, ValueError, ZeroDivisionError):
-            pass
-    raise RobotFileError(f'{where} must be a number or an expression of numbers and pi such as "-pi/2"; got {value!r}.')
+            number = float(value)
+        except OverflowError:  # an integer beyond the float range
+            number = math.inf if value > 0 else -math.inf
+    elif isinstance(value, str) and len(value) <= _MAX_EXPRESSION:
+        try:
+            number = float(_eval_expression(ast.parse(value, mode="eval").body))
+        except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, RecursionError):
+            number = None
+    if number is None:
+        raise RobotFileError(
+            f'{where} must be a number or an expression of numbers and pi such as "-pi/2"; '
+            f"got {format_value(value)}. Fix the value."
+        )
+    if not math.isfinite(number):
+        shown = f"{value!r} (= {number!r})" if isinstance(value, str) else format_value(number)
+        raise RobotFileError(f"{where} must be a finite number; got {shown}. {fix}")
+    return number
 
 
 def _eval_expression(node):
@@ -62,24 +79,63 @@ def _eval_expression(node):
 
 def _vector(value, length, where):
     if not isinstance(value, list) or len(value) != length:
-        raise RobotFileError(f"{where} must be a list of {length} numbers; got {value!r}.")
+        raise RobotFileError(f"{where} must be a list of {length} numbers; got {format_value(value)}. Fix the list.")
     return np.array([_number(v, f"{where}[{k}]") for k, v in enumerate(value)])
 
 
+def _table(value, where: str, example: str) -> dict:
+    if not isinstance(value, dict):
+        raise RobotFileError(f"{where} must be a table; got {format_value(value)}. Write it as {example}.")
+    return value
+
+
+def _tables(value, n, where: str, header: str, per: str) -> list:
+    """An array of n tables (``[[link]]`` ...), checked for its length and the kind of each entry."""
+    if not isinstance(value, list) or len(value) != n:
+        got = f"{len(value)} tables" if isinstance(value, list) else format_value(value)
+        raise RobotFileError(f"{where}: needs exactly {n} {header} tables ({per}) or none; got {got}.")
+    for i, table in enumerate(value):
+        _table(table, f"{where} {header[2:-2]}[{i + 1}]", f"a {header} table")
+    return value
+
+
+def _string(value, where: str) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise RobotFileError(f'{where} must be a non-empty string; got {format_value(value)}. Write it in "quotes".')
+    return value
+
+
+def _strings(value, where: str) -> tuple:
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise RobotFileError(f'{where} must be a list of strings; got {format_value(value)}. Write ["a", "b"].')
+    return tuple(value)
+
+
 def _check_keys(table: dict, allowed: set, where: str):
-    unknown = sorted(set(table) - allowed)
+    unknown = sorted(str(key) for key in set(table) - allowed)
     if unknown:
         raise RobotFileError(
             f"{where} has unknown key(s) {unknown}; allowed keys are {sorted(allowed)}. Check the spelling."
         )
 
 
-_JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta", "q_min", "q_max", "qd_max", "qdd_max", "tau_max"}
+@contextmanager
+def _within(where: str):
+    """Prefix the file and row to the errors of the value classes (Joint, LinkInertia, ...)."""
+    try:
+        yield
+    except RobotFileError as exc:
+        raise RobotFileError(f"{where}: {exc}") from None
+
+
+_LIMIT_KEYS = {"q_min", "q_max", "qd_max", "qdd_max", "tau_max"}
+_JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta"} | _LIMIT_KEYS
 _LINK_KEYS = {"mass", "com", "inertia", "rotor_inertia"}
 _DRIVE_KEYS = {"kt", "fc", "fs", "vs", "fv", "dv", "sigma0", "sigma1"}
 _TOP_KEYS = {"format", "name", "convention", "gravity", "joint", "link", "drive", "assumptions", "urdf", "description"}
 _ASSUMPTION_KEYS = {"drive_inertia", "massless_links", "zero_parameters"}
 _URDF_KEYS = {"path", "locked_joints", "limits"}
+_TAU_MAX_FIX = "Give the limit in N m (N for a prismatic joint), or leave tau_max out for no torque limit."
 
 
 #: The robot files that ship with the package, found by name (``load_robot("denso_vs6556g")``).
@@ -94,18 +150,22 @@ def builtin_robot_names() -> list[str]:
 def resolve_robot_path(path) -> Path:
     """The file a robot argument names: an existing path, or the name of a built-in robot."""
     candidate = Path(path)
-    if candidate.exists():
+    try:
+        exists = candidate.exists()
+    except (OSError, ValueError):  # a name with a NUL byte, or too long for the file system
+        exists = False
+    if exists:
         return candidate
     if candidate.parent == Path(".") and candidate.stem in builtin_robot_names() and candidate.suffix in ("", ".toml"):
         return BUILTIN_ROBOTS_DIR / f"{candidate.stem}.toml"
     raise RobotFileError(
-        f"robot file {str(path)!r} does not exist. Check the path, or name a built-in robot: "
+        f"robot file {format_value(str(path))} does not exist. Check the path, or name a built-in robot: "
         f"{', '.join(builtin_robot_names())}."
     )
 
 
 def load_robot(path) -> RobotDescription:
-    """Read a robot file: ``.toml`` (DH rows) or ``.urdf`` (through Pinocchio), or a built-in robot by name.
+    """Read a robot file: ``.toml`` (DH rows or a ``[urdf]`` table) or ``.urdf``, or a built-in robot by name.
 
     Parameters
     ----------
@@ -119,74 +179,118 @@ def load_robot(path) -> RobotDescription:
     Raises
     ------
     RobotFileError
-        Naming the field, the row and the fix, for every malformed entry.
+        Naming the file, the field, the row and the fix, for a file that cannot be read as text and
+        for every malformed entry.
     """
     path = resolve_robot_path(path)
-    if path.suffix.lower() == ".urdf":
+    suffix = path.suffix.lower()
+    if suffix == ".urdf":
         return from_urdf(path)
-    if path.suffix.lower() != ".toml":
-        raise RobotFileError(f"robot file {str(path)!r} must end in .toml or .urdf; got {path.suffix!r}.")
+    if suffix != ".toml":
+        raise RobotFileError(
+            f"robot file {path.name!r} must end in .toml or .urdf; got {suffix!r}. Rename it or convert it."
+        )
+    text = read_text_file(path, what="robot file")
     try:
-        data = tomllib.loads(path.read_text())
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise RobotFileError(f"{path.name}: not valid TOML ({exc}). Fix the syntax at that line.") from None
+        raise RobotFileError(f"{path.name} must be valid TOML; got {exc}. Fix the syntax at that line.") from None
+    except RecursionError:
+        raise RobotFileError(
+            f"{path.name} must be valid TOML; got arrays or tables nested too deeply. Fix the syntax."
+        ) from None
     return robot_from_mapping(data, source=path)
 
 
 def robot_from_mapping(data: dict, source: Path | None = None) -> RobotDescription:
-    """Build a RobotDescription from the parsed contents of a robot TOML file."""
+    """Build a RobotDescription from the parsed contents of a robot TOML file.
+
+    Raises
+    ------
+    RobotFileError
+        Naming the file (``source``), the table, the row and the fix, for every malformed entry.
+    """
     where = source.name if source is not None else "robot file"
+    _table(data, where, "a TOML document")
     _check_keys(data, _TOP_KEYS, where)
     fmt = data.get("format", ROBOT_FORMAT)
     if fmt != ROBOT_FORMAT:
         raise RobotFileError(
-            f"{where}: format must be {ROBOT_FORMAT!r}; got {fmt!r}. Convert the file or fix the line."
+            f"{where}: format must be {ROBOT_FORMAT!r}; got {format_value(fmt)}. Convert the file or fix the line."
         )
-    assumptions = data.get("assumptions", {})
-    if not isinstance(assumptions, dict):
-        raise RobotFileError(f"{where}: assumptions must be a table [assumptions].")
+    assumptions = _table(data.get("assumptions", {}), f"{where} [assumptions]", "an [assumptions] table")
     _check_keys(assumptions, _ASSUMPTION_KEYS, f"{where} [assumptions]")
     if "urdf" in data:
         return _robot_from_urdf_table(data, assumptions, source, where)
     joint_tables = data.get("joint")
     if not isinstance(joint_tables, list) or not joint_tables:
         raise RobotFileError(f"{where}: needs at least one [[joint]] table with a DH row (a, alpha, d, theta).")
-    joints = []
-    for i, table in enumerate(joint_tables):
+    joints = _joints_from_tables(joint_tables, where)
+    n = len(joints)
+    gravity = _vector(data.get("gravity", [0, 0, -GRAVITY_STANDARD]), 3, f"{where} gravity")
+    links, rotor = _links_from_tables(data.get("link"), n, where)
+    drives = _drives_from_tables(data.get("drive"), n, where)
+    name = _string(data["name"], f"{where} name") if "name" in data else (source.stem if source else "robot")
+    convention = _convention(data.get("convention", "standard"), where)
+    assumed = _assumed(assumptions, n, where)
+    with _within(where):
+        return RobotDescription(
+            name=name,
+            joints=tuple(joints),
+            convention=convention,
+            gravity=gravity,
+            links=links,
+            rotor_inertia=rotor,
+            drives=drives,
+            source=None if source is None else str(source),
+            **assumed,
+        )
+
+
+def _assumed(assumptions: dict, n: int, where: str) -> dict:
+    """The RobotDescription fields of the ``[assumptions]`` table."""
+    return {
+        "drive_inertia": _drive_flags(assumptions.get("drive_inertia", False), n, where),
+        "massless_links": _massless(assumptions.get("massless_links", []), n, where),
+        "zero_parameters": _strings(assumptions.get("zero_parameters", []), f"{where} [assumptions].zero_parameters"),
+    }
+
+
+def _joints_from_tables(tables, where) -> list:
+    joints, rows = [], {}
+    for i, table in enumerate(tables):
         jwhere = f"{where} joint[{i + 1}]"
-        _check_keys(table, _JOINT_KEYS, jwhere)
+        _check_keys(_table(table, jwhere, "a [[joint]] table"), _JOINT_KEYS, jwhere)
         for key in ("a", "alpha", "d", "theta"):
             if key not in table:
                 raise RobotFileError(f"{jwhere}.{key} is missing. Add {key} = <number> to the DH row (0 if absent).")
-        kwargs = {k: _number(table[k], f"{jwhere}.{k}") for k in _JOINT_KEYS - {"name", "type"} if k in table}
+        kwargs = {
+            k: _number(table[k], f"{jwhere}.{k}", _TAU_MAX_FIX if k == "tau_max" else "Give a finite value.")
+            for k in sorted(_JOINT_KEYS - {"name", "type"})
+            if k in table
+        }
         kind = table.get("type", "revolute")
         if kind not in JOINT_KINDS:
-            raise RobotFileError(f'{jwhere}.type must be "revolute" or "prismatic"; got {kind!r}. Fix the joint type.')
-        try:
-            joints.append(Joint(name=str(table.get("name", f"joint{i + 1}")), kind=kind, **kwargs))
-        except RobotFileError as exc:
-            raise RobotFileError(f"{jwhere}: {exc}") from None
-    n = len(joints)
-    gravity = _vector(data.get("gravity", [0, 0, -GRAVITY_STANDARD]), 3, f"{where}: gravity")
-    links, rotor = _links_from_tables(data.get("link"), n, where)
-    drives = _drives_from_tables(data.get("drive"), n, where)
-    return RobotDescription(
-        name=str(data.get("name", source.stem if source else "robot")),
-        joints=tuple(joints),
-        convention=_convention(data.get("convention", "standard"), where),
-        gravity=gravity,
-        drive_inertia=_drive_flags(assumptions.get("drive_inertia", False), n, where),
-        massless_links=_massless(assumptions.get("massless_links", []), n, where),
-        zero_parameters=tuple(assumptions.get("zero_parameters", [])),
-        links=links,
-        rotor_inertia=rotor,
-        drives=drives,
-    )
+            raise RobotFileError(
+                f'{jwhere}.type must be "revolute" or "prismatic"; got {format_value(kind)}. Fix the joint type.'
+            )
+        name = _string(table["name"], f"{jwhere}.name") if "name" in table else f"joint{i + 1}"
+        if name in rows:
+            raise RobotFileError(
+                f"{jwhere}.name must differ from the other joints' names; got {name!r}, the name of "
+                f"joint[{rows[name] + 1}] too. Rename one of them."
+            )
+        rows[name] = i
+        with _within(jwhere):
+            joints.append(Joint(name=name, kind=kind, **kwargs))
+    return joints
 
 
 def _convention(value, where):
     if value not in CONVENTIONS:
-        raise RobotFileError(f'{where}: convention must be "standard" or "modified"; got {value!r}.')
+        raise RobotFileError(
+            f'{where}: convention must be "standard" or "modified"; got {format_value(value)}. Fix the line.'
+        )
     return value
 
 
@@ -196,14 +300,18 @@ def _drive_flags(value, n, where):
     if isinstance(value, list) and len(value) == n and all(isinstance(v, bool) for v in value):
         return tuple(value)
     raise RobotFileError(
-        f"{where} [assumptions].drive_inertia must be true, false or a list of {n} booleans; got {value!r}."
+        f"{where} [assumptions].drive_inertia must be true, false or a list of {n} booleans; "
+        f"got {format_value(value)}. Fix the line."
     )
 
 
 def _massless(value, n, where):
-    if not isinstance(value, list) or not all(isinstance(v, int) and 1 <= v <= n for v in value):
+    if not isinstance(value, list) or not all(
+        isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= n for v in value
+    ):
         raise RobotFileError(
-            f"{where} [assumptions].massless_links must be a list of link numbers 1..{n}; got {value!r}."
+            f"{where} [assumptions].massless_links must be a list of link numbers 1..{n}; "
+            f"got {format_value(value)}. Fix the list."
         )
     return tuple(value)
 
@@ -211,54 +319,85 @@ def _massless(value, n, where):
 def _links_from_tables(tables, n, where):
     if tables is None:
         return None, None
-    if not isinstance(tables, list) or len(tables) != n:
-        count = len(tables) if isinstance(tables, list) else tables
-        raise RobotFileError(f"{where}: needs exactly {n} [[link]] tables (one per joint) or none; got {count}.")
     links, rotor = [], []
-    for i, table in enumerate(tables):
+    for i, table in enumerate(_tables(tables, n, where, "[[link]]", "one per joint")):
         lwhere = f"{where} link[{i + 1}]"
         _check_keys(table, _LINK_KEYS, lwhere)
-        mass = _number(table.get("mass", 0.0), f"{lwhere}.mass")
+        mass = _number(table.get("mass", 0.0), f"{lwhere}.mass", "Give the mass in kg.")
+        if mass < 0:
+            raise RobotFileError(f"{lwhere}.mass must be >= 0 [kg]; got {format_value(mass)}. Give the mass in kg.")
         com = _vector(table.get("com", [0, 0, 0]), 3, f"{lwhere}.com")
         inertia = _vector(table.get("inertia", [0] * 6), 6, f"{lwhere}.inertia ([Ixx, Iyy, Izz, Ixy, Ixz, Iyz])")
-        try:
+        with _within(lwhere):
             links.append(LinkInertia(mass=mass, com=com, inertia=inertia))
-        except RobotFileError as exc:
-            raise RobotFileError(f"{lwhere}: {exc}") from None
-        rotor.append(_number(table.get("rotor_inertia", 0.0), f"{lwhere}.rotor_inertia"))
+        rotor.append(_number(table.get("rotor_inertia", 0.0), f"{lwhere}.rotor_inertia", "Give it in kg m^2."))
+        if rotor[-1] < 0:
+            raise RobotFileError(
+                f"{lwhere}.rotor_inertia must be >= 0 [kg m^2]; got {format_value(rotor[-1])}. Fix the sign."
+            )
     return tuple(links), np.array(rotor)
 
 
 def _drives_from_tables(tables, n, where):
     if tables is None:
         return None
-    if not isinstance(tables, list) or len(tables) != n:
-        raise RobotFileError(f"{where}: needs exactly {n} [[drive]] tables (one per joint) or none.")
     drives = []
-    for i, table in enumerate(tables):
+    for i, table in enumerate(_tables(tables, n, where, "[[drive]]", "one per joint")):
         dwhere = f"{where} drive[{i + 1}]"
         _check_keys(table, _DRIVE_KEYS, dwhere)
-        try:
-            drives.append(DriveParameters(**{k: _number(v, f"{dwhere}.{k}") for k, v in table.items()}))
-        except RobotFileError as exc:
-            raise RobotFileError(f"{dwhere}: {exc}") from None
+        values = {k: _number(v, f"{dwhere}.{k}") for k, v in table.items()}
+        with _within(dwhere):
+            drives.append(DriveParameters(**values))
     return tuple(drives)
 
 
 def _robot_from_urdf_table(data, assumptions, source, where):
-    table = data["urdf"]
+    table = _table(data["urdf"], f"{where} [urdf]", '[urdf] with path = "robot.urdf"')
     _check_keys(table, _URDF_KEYS, f"{where} [urdf]")
+    for key, text in (("joint", "[[joint]] tables"), ("link", "[[link]] tables"), ("convention", "a convention")):
+        if key in data:
+            raise RobotFileError(
+                f"{where}: a robot with a [urdf] table must take its joints and inertia from the URDF; got {text} "
+                "as well. Remove them (override joint limits in [urdf.limits.<joint name>])."
+            )
     if "path" not in table:
         raise RobotFileError(f"{where} [urdf].path is missing. Give the URDF path relative to the robot file.")
-    urdf = Path(table["path"])
+    urdf = Path(_string(table["path"], f"{where} [urdf].path"))
     if not urdf.is_absolute() and source is not None:
         urdf = source.parent / urdf
-    gravity = _vector(list(data["gravity"]), 3, "gravity") if "gravity" in data else None
-    robot = from_urdf(urdf, locked_joints=table.get("locked_joints", []), gravity=gravity, name=data.get("name"))
-    drive = _drive_flags(assumptions.get("drive_inertia", False), robot.n_dof, where)
-    return replace(
-        robot,
-        drive_inertia=drive,
-        massless_links=_massless(assumptions.get("massless_links", []), robot.n_dof, where),
-        zero_parameters=tuple(assumptions.get("zero_parameters", [])),
-    )
+    if not urdf.exists():
+        raise RobotFileError(
+            f"{where} [urdf].path must name an existing URDF; got {table['path']!r} ({urdf} does not exist). "
+            "Check the path (relative to the robot file)."
+        )
+    locked = _strings(table.get("locked_joints", []), f"{where} [urdf].locked_joints")
+    gravity = _vector(data["gravity"], 3, f"{where} gravity") if "gravity" in data else None
+    name = _string(data["name"], f"{where} name") if "name" in data else None
+    with _within(f"{where} [urdf].path"):
+        robot = from_urdf(urdf, locked_joints=locked, gravity=gravity, name=name)
+    n = robot.n_dof
+    joints = _urdf_limits(robot.joints, table.get("limits", {}), where)
+    drives = _drives_from_tables(data.get("drive"), n, where)
+    assumed = _assumed(assumptions, n, where)
+    with _within(where):
+        return replace(robot, joints=joints, drives=drives, source=None if source is None else str(source), **assumed)
+
+
+def _urdf_limits(joints: tuple, limits, where) -> tuple:
+    """The URDF's joints with the limits of ``[urdf.limits.<joint name>]`` tables in place of the file's."""
+    names = [joint.name for joint in joints]
+    joints = list(joints)
+    for name, values in _table(limits, f"{where} [urdf].limits", "[urdf.limits.<joint name>] tables").items():
+        lwhere = f"{where} [urdf.limits.{name}]"
+        if name not in names:
+            raise RobotFileError(
+                f"{lwhere} must name a joint of the URDF; got {name!r}. Joints are {names}; check the spelling."
+            )
+        _check_keys(_table(values, lwhere, f"[urdf.limits.{name}] with qdd_max = ..."), _LIMIT_KEYS, lwhere)
+        changes = {
+            k: _number(v, f"{lwhere}.{k}", _TAU_MAX_FIX if k == "tau_max" else "Give a finite value.")
+            for k, v in values.items()
+        }
+        with _within(lwhere):
+            joints[names.index(name)] = replace(joints[names.index(name)], **changes)
+    return tuple(joints)

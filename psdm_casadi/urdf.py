@@ -3,11 +3,21 @@
 The one place that parses URDF files. The robot-file reader (``robot_file``) calls ``from_urdf``
 for ``.urdf`` files and ``[urdf]`` tables; the oracle calls ``load_urdf_model`` to rebuild the
 kinematics of a robot that came from a URDF.
+
+Pinocchio's URDF parser (urdfdom, C++) prints its complaints on the process's stderr and, for some
+malformed values (``mass="nan"``), skips the element and returns a model anyway. The parser's
+output is therefore captured at the file-descriptor level: an ``Error:`` from it turns into a
+RobotFileError naming the file (with the parser's own words), anything else goes to ``logging``.
 """
 
 from __future__ import annotations
 
+import logging
 import math
+import os
+import sys
+import tempfile
+from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +25,71 @@ import pinocchio as pin
 
 from psdm_casadi.description import GRAVITY_STANDARD, Joint, LinkInertia, RobotDescription
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.text_file import read_text_file
+from psdm_casadi.values import format_value
+
+logger = logging.getLogger(__name__)
+
+
+@contextmanager
+def captured_stderr():
+    """Redirect file descriptor 2 (C and C++ ``stderr``) to a temporary file; yield a list that receives its lines.
+
+    Examples
+    --------
+    >>> with captured_stderr() as lines:            # doctest: +SKIP
+    ...     model = pin.buildModelFromUrdf("robot.urdf")
+    """
+    lines: list[str] = []
+    for stream in (sys.stderr, sys.__stderr__):
+        if stream is not None:
+            stream.flush()
+    try:
+        saved = os.dup(2)
+    except OSError:  # no stderr to protect (a daemon with fd 2 closed)
+        yield lines
+        return
+    try:
+        with tempfile.TemporaryFile() as sink:
+            os.dup2(sink.fileno(), 2)
+            try:
+                yield lines
+            finally:
+                os.dup2(saved, 2)
+                sink.seek(0)
+                lines.extend(sink.read().decode("utf-8", "replace").splitlines())
+    finally:
+        os.close(saved)
+
+
+def _parser_errors(lines: list) -> list:
+    """The messages of urdfdom's ``Error:`` lines (without its ``at line N in file.cpp`` trailers)."""
+    errors = []
+    for line in lines:
+        text = line.strip()
+        if text.startswith("Error:"):
+            errors.append(" ".join(text[len("Error:") :].split()))
+        elif text and not text.startswith("at line "):
+            logger.debug("URDF parser: %s", text)
+    return errors
+
+
+def _parse_urdf(path: Path) -> pin.Model:
+    """Pinocchio's model of a URDF file, with the parser's stderr captured and its errors raised."""
+    read_text_file(path, what="URDF", decode=False)
+    failure = None
+    with captured_stderr() as lines:
+        try:
+            model = pin.buildModelFromUrdf(str(path))
+        except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with its own text
+            failure = str(exc)
+    errors = _parser_errors(lines)
+    if failure is not None or errors:
+        detail = "; ".join(errors[:3]) or failure
+        raise RobotFileError(
+            f"URDF {path.name!r} must be a valid URDF; Pinocchio could not read the URDF ({detail}). Fix the file."
+        )
+    return model
 
 
 def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
@@ -37,17 +112,15 @@ def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
     RobotFileError
         When Pinocchio cannot parse the file or a locked joint is not a joint of it.
     """
-    try:
-        model = pin.buildModelFromUrdf(str(path))
-    except Exception as exc:  # Pinocchio raises ValueError/RuntimeError with its own text
-        raise RobotFileError(f"{Path(path).name}: Pinocchio could not read the URDF ({exc}). Fix the file.") from None
+    path = Path(path)
+    model = _parse_urdf(path)
     if locked_joints:
         ids = []
         for name in locked_joints:
             if not model.existJointName(name):
                 raise RobotFileError(
-                    f"{Path(path).name}: urdf.locked_joints names {name!r}, which is not a joint of the URDF; "
-                    f"joints are {list(model.names)[1:]}."
+                    f"{path.name}: urdf.locked_joints names {name!r}, which is not a joint of the URDF; "
+                    f"joints are {list(model.names)[1:]}. Check the spelling."
                 )
             ids.append(model.getJointId(name))
         model = pin.buildReducedModel(model, ids, pin.neutral(model))
@@ -76,41 +149,35 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
     Raises
     ------
     RobotFileError
-        When Pinocchio cannot parse the file, a locked joint is unknown, or a joint is neither
-        revolute nor prismatic with one degree of freedom.
+        When the file is not a readable URDF (the parser's errors are quoted), a locked joint is
+        unknown, a joint is neither revolute nor prismatic with one degree of freedom, its
+        limits are swapped, or a link's mass or inertia is not physical (negative mass, an inertia
+        that is not positive semi-definite or violates the triangle inequality).
+
+    Notes
+    -----
+    A joint without position limits (lower = upper, the URDF default) gets ``[-pi, pi]``; one
+    without a velocity limit 2 rad/s; one without an effort limit no torque limit. URDF has no
+    acceleration limits: ``qdd_max`` is 10 (override it in a robot file's ``[urdf.limits.<joint>]``).
     """
     path = Path(path)
     model = load_urdf_model(path, locked_joints)
     joints, links = [], []
     for jid in range(1, model.njoints):
-        jmodel = model.joints[jid]
-        shortname = jmodel.shortname()
-        if jmodel.nq != 1 or jmodel.nv != 1:
-            raise RobotFileError(
-                f"{path.name}: joint {model.names[jid]!r} has type {shortname} with nq={jmodel.nq}; "
-                "only 1-DOF revolute or prismatic joints are supported. Lock it or make it revolute with limits."
+        where = f"{path.name} joint {model.names[jid]!r}"
+        try:
+            joints.append(_joint(model, jid))
+            inertia = model.inertias[jid]
+            links.append(
+                LinkInertia(mass=float(inertia.mass), com=np.array(inertia.lever), inertia=np.array(inertia.inertia))
             )
-        kind = "prismatic" if "Prismatic" in shortname or shortname.startswith("JointModelP") else "revolute"
-        idx = jmodel.idx_q
-        q_min, q_max = float(model.lowerPositionLimit[idx]), float(model.upperPositionLimit[idx])
-        if not (np.isfinite(q_min) and np.isfinite(q_max) and q_min < q_max):
-            q_min, q_max = -math.pi, math.pi
-        qd_max = float(model.velocityLimit[idx]) if model.velocityLimit[idx] > 0 else 2.0
-        tau_max = float(model.effortLimit[idx]) if model.effortLimit[idx] > 0 else math.inf
-        joints.append(
-            Joint(
-                name=model.names[jid],
-                kind=kind,
-                q_min=q_min,
-                q_max=q_max,
-                qd_max=min(qd_max, 1e3),
-                qdd_max=10.0,
-                tau_max=tau_max,
-            )
-        )
-        inertia = model.inertias[jid]
-        links.append(
-            LinkInertia(mass=float(inertia.mass), com=np.array(inertia.lever), inertia=np.array(inertia.inertia))
+        except RobotFileError as exc:
+            body = _body_names(model, jid)
+            raise RobotFileError(f"{where} (link {body}): {exc}") from None
+    if not joints:
+        raise RobotFileError(
+            f"{path.name} must hold at least one revolute or prismatic joint; got none (only fixed or floating "
+            "joints, or every joint locked). Check the file and the locked joints."
         )
     g = np.array([0.0, 0.0, -GRAVITY_STANDARD]) if gravity is None else gravity
     return RobotDescription(
@@ -121,4 +188,43 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
         links=tuple(links),
         urdf_path=str(path.resolve()),
         locked_joints=tuple(locked_joints),
+        source=str(path),
     )
+
+
+def _joint(model: pin.Model, jid: int) -> Joint:
+    """The Joint of Pinocchio joint ``jid``: kind and the URDF's limits (defaults where the URDF has none)."""
+    jmodel = model.joints[jid]
+    shortname = jmodel.shortname()
+    if jmodel.nq != 1 or jmodel.nv != 1:
+        raise RobotFileError(
+            f"the joint must have one degree of freedom (revolute or prismatic); got type {shortname} with "
+            f"nq={jmodel.nq}. Lock it or make it revolute with limits."
+        )
+    kind = "prismatic" if "Prismatic" in shortname or shortname.startswith("JointModelP") else "revolute"
+    idx = jmodel.idx_q
+    q_min, q_max = float(model.lowerPositionLimit[idx]), float(model.upperPositionLimit[idx])
+    if q_min > q_max:
+        raise RobotFileError(
+            f"<limit> lower must be below upper; got lower={format_value(q_min)}, upper={format_value(q_max)}. "
+            "Swap them."
+        )
+    if not (np.isfinite(q_min) and np.isfinite(q_max) and q_min < q_max):
+        q_min, q_max = -math.pi, math.pi
+    qd_max = float(model.velocityLimit[idx]) if model.velocityLimit[idx] > 0 else 2.0
+    tau_max = float(model.effortLimit[idx]) if model.effortLimit[idx] > 0 else math.inf
+    return Joint(
+        name=model.names[jid],
+        kind=kind,
+        q_min=q_min,
+        q_max=q_max,
+        qd_max=min(qd_max, 1e3),
+        qdd_max=10.0,
+        tau_max=tau_max,
+    )
+
+
+def _body_names(model: pin.Model, jid: int) -> str:
+    """The URDF links whose inertia Pinocchio lumped onto joint ``jid`` (its child and fixed descendants)."""
+    names = [f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == jid]
+    return ", ".join(repr(n) for n in names) or "?"

@@ -10,8 +10,11 @@ from __future__ import annotations
 
 import logging
 import math
+import signal
+import threading
 import time
 import warnings
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -231,7 +234,7 @@ def _solve_stages(problem, x0, sharpness, options: ExcitationOptions, started: f
         solver = problem.solver if stage == 0 else problem.warm_solver
         if options.time_limit is not None:
             problem.monitor.deadline = started + options.time_limit
-        solution = solver(lbx=problem.lbx, ubx=problem.ubx, lbg=problem.lbg, ubg=problem.ubg, p=p, x0=x, **multipliers)
+        solution = _solve_interruptibly(solver, problem, label, p=p, x0=x, **multipliers)
         stats = solver.stats()
         status, iterations = stats.get("return_status", "unknown"), iterations + int(stats.get("iter_count", 0))
         _report(
@@ -245,6 +248,49 @@ def _solve_stages(problem, x0, sharpness, options: ExcitationOptions, started: f
         x = np.asarray(solution["x"], dtype=float).reshape(-1)
         multipliers = {"lam_x0": solution["lam_x"], "lam_g0": solution["lam_g"]}
     return x, status, iterations
+
+
+@contextmanager
+def _interrupts_recorded(monitor):
+    """A list that receives the SIGINTs of the block, each of which asks the running Ipopt solve to stop.
+
+    The handler raises nothing: a KeyboardInterrupt raised inside CasADi's Python callbacks would be
+    printed there as a traceback and turned into a solver failure. It moves the iteration monitor's
+    deadline to the past instead, so Ipopt stops at its next iteration, and the caller raises.
+    """
+    received = []
+    previous = signal.getsignal(signal.SIGINT)
+    if threading.current_thread() is not threading.main_thread() or previous in (signal.SIG_IGN, None):
+        yield received
+        return
+
+    def record(signum, frame):
+        received.append(signum)
+        monitor.deadline = -math.inf
+
+    signal.signal(signal.SIGINT, record)
+    try:
+        yield received
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _solve_interruptibly(solver, problem, label: str, **arguments):
+    """One Ipopt solve; a Ctrl-C during it raises KeyboardInterrupt (the user asked to stop, not this start)."""
+    deadline = problem.monitor.deadline
+    with _interrupts_recorded(problem.monitor) as interrupts:
+        try:
+            solution = solver(lbx=problem.lbx, ubx=problem.ubx, lbg=problem.lbg, ubg=problem.ubg, **arguments)
+        except Exception:
+            if interrupts:
+                raise KeyboardInterrupt(f"excite: start {label} interrupted") from None
+            raise
+    status = solver.stats().get("return_status", "unknown")
+    # User_Requested_Stop before the deadline of the time limit: Ipopt's own handling of SIGINT
+    own_stop = status == "User_Requested_Stop" and time.perf_counter() < deadline
+    if interrupts or own_stop:
+        raise KeyboardInterrupt(f"excite: start {label} interrupted (Ipopt status {status})")
+    return solution
 
 
 def _run_starts(problem, starts, options: ExcitationOptions, started: float) -> _Search:

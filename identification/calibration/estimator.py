@@ -280,10 +280,10 @@ class BaseIdentifier:
 class LeastSquaresIdentifier(BaseIdentifier):
     """A calibration step that is a weighted linear regression ``b ~ A x + offset`` (motor, gravity, inertial).
 
-    Subclasses implement ``_design_matrix(data) -> Design`` and ``_n_dof(data)``; ``fit`` solves
-    the weighted least squares (override ``_solve`` for another estimator) and sets ``coef_``,
-    ``covariance_``, ``sigma2_``, ``condition_``, ``n_rows_`` and ``n_dof_``; ``_after_fit``
-    derives the step's named attributes from them.
+    Subclasses implement ``_design_matrix(data) -> Design`` and ``_n_dof(data)``; ``fit`` checks the
+    excitation (``_check_excitation``), solves the weighted least squares (override ``_solve`` for
+    another estimator) and sets ``coef_``, ``covariance_``, ``sigma2_``, ``condition_``, ``n_rows_``
+    and ``n_dof_``; ``_after_fit`` derives the step's named attributes from them.
 
     Attributes
     ----------
@@ -299,6 +299,7 @@ class LeastSquaresIdentifier(BaseIdentifier):
     def fit(self, data):
         """Fit the step on ``data`` (see the subclass) and return ``self``."""
         design = self._design_matrix(data)
+        self._check_excitation(data, design)
         result = self._solve(design)
         self.coef_ = np.asarray(result.coefficients, dtype=float)
         self.covariance_ = result.covariance
@@ -311,6 +312,10 @@ class LeastSquaresIdentifier(BaseIdentifier):
 
     def _after_fit(self, design: Design) -> None:
         """Hook: derive named attributes from ``coef_``."""
+
+    def _check_excitation(self, data, design: Design) -> None:
+        """Hook: raise :class:`~psdm_casadi.errors.InsufficientExcitationError` when ``data`` does not excite the
+        step's parameters (:mod:`identification.calibration.excitation`); called by ``fit`` before the solve."""
 
     def _solve(self, design: Design) -> LeastSquaresResult:
         return weighted_least_squares(design.matrix, design.target, design.weights, design.offset)

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from identification.calibration.estimator import BaseIdentifier
+from identification.calibration.excitation import check_friction_experiment, thresholds_of
 from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
 from identification.data.recording import Recording
 from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
@@ -140,6 +141,11 @@ class FrictionIdentifier(BaseIdentifier):
         a large off-diagonal inertia that torque biases the moving joint's sigma1.
     verbose : bool
         Log a progress line per joint at INFO (at DEBUG otherwise); each joint is an Ipopt solve.
+    excitation : ExcitationThresholds, optional
+        Thresholds of the excitation check (:mod:`identification.data.excitation_check`; default
+        ``ExcitationThresholds()``): ``fit`` refuses an experiment whose joint does not move or does not
+        slide in both directions above the Stribeck range (``min_sliding_fraction`` of ``robot.qd_max``
+        when ``robot`` is given).
 
     Attributes
     ----------
@@ -168,6 +174,7 @@ class FrictionIdentifier(BaseIdentifier):
         held_torque=True,
         coupling_theta=None,
         verbose=False,
+        excitation=None,
     ):
         self.model = model
         self.kt = kt
@@ -181,6 +188,7 @@ class FrictionIdentifier(BaseIdentifier):
         self.held_torque = held_torque
         self.coupling_theta = coupling_theta
         self.verbose = verbose
+        self.excitation = excitation
 
     def _validate(self):
         check_model(self.model, "FrictionIdentifier")
@@ -247,6 +255,9 @@ class FrictionIdentifier(BaseIdentifier):
         lugre, shooting = [None] * n, [None] * n
         inertia, seconds = np.full(n, np.nan), np.full(n, np.nan)
         items = self._experiments(data)
+        thresholds = thresholds_of("FrictionIdentifier", self.excitation)
+        for e in items:
+            check_friction_experiment(e, self.robot, thresholds)
         log = logger.info if self.verbose else logger.debug
         for k, e in enumerate(items):
             log(

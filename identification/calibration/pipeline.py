@@ -14,6 +14,10 @@ named steps in order, each on the previous steps' estimates, passed explicitly:
 5. refinement: :func:`refine_parameters` (optional) -> all together; then the consistency check
    and the validation report (Table 3, "all" on the excitation validation part).
 
+Before step 1 every raw recording is checked for motion (:mod:`identification.calibration.excitation`),
+and each step checks its own data and regressor: a recording in which what is identified does not move
+is refused with the joints to move and the experiment to record (``PipelineOptions.excitation``).
+
 Friction data (documented choice): used unfiltered at the recorded rate (1 kHz), with central
 differences, by default (``friction_cutoff_hz=None``). The paper's 40 Hz filter leaves 10 Hz
 pre-sliding loops intact (the squared 8th-order response is 1 - 2e-10 at 10 Hz) but smears the
@@ -52,6 +56,7 @@ import numpy as np
 
 from identification.calibration.consistency import check_consistency
 from identification.calibration.estimator import check_is_fitted
+from identification.calibration.excitation import check_calibration_data
 from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.payload import payload_torque
 from identification.calibration.pipeline_options import PipelineOptions
@@ -180,6 +185,7 @@ class IdentificationPipeline:
         """Run the calibration on a data directory or :class:`CalibrationData`; return ``self``."""
         options = self._validate()
         data = self._calibration_data(data)
+        check_calibration_data(self.robot, self.model, data, options.excitation)
         stages, total = _Stages(options.quiet), time.perf_counter()
         motor, motor_data = self._motor_step(data, options, stages)
         kt = motor.kt_
@@ -235,7 +241,9 @@ class IdentificationPipeline:
         """Step 1 (eqs. 16-17): the torque constants from the sweeps without and with the calibration mass."""
         with stages.stage("motor", "identify: step 1/4 motor constants (eqs. 16-17) ..."):
             split = motor_split(data, options)
-            motor = MotorIdentifier(robot=self.robot, payload=data.payload).fit(split.train)
+            motor = MotorIdentifier(robot=self.robot, payload=data.payload, excitation=options.excitation).fit(
+                split.train
+            )
         kt = motor.kt_
         if np.any(~np.isfinite(kt)):
             missing = [j + 1 for j in range(self.robot.n_dof) if not np.isfinite(kt[j])]
@@ -250,9 +258,9 @@ class IdentificationPipeline:
         with stages.stage("gravity", "identify: step 2/4 gravity parameters (eq. 18) ..."):
             split = gravity_split(data, options)
             theta = self._nominal_theta() if options.gravity_inertia == "nominal" else None
-            gravity = GravityIdentifier(model=self.model, kt=kt, robot=self.robot, tool=data.tool, theta=theta).fit(
-                split.train
-            )
+            gravity = GravityIdentifier(
+                model=self.model, kt=kt, robot=self.robot, tool=data.tool, theta=theta, excitation=options.excitation
+            ).fit(split.train)
         stages.say(f"identify: {int(self.model.gravity_mask.sum())} gravity parameters {stages.took('gravity')}")
         return gravity, split
 
@@ -280,6 +288,7 @@ class IdentificationPipeline:
                 held_torque=options.held_torque,
                 coupling_theta=coupling,
                 verbose=not options.quiet,
+                excitation=options.excitation,
             ).fit(split.train)
         if any(p is None for p in friction.lugre_):
             missing = [j + 1 for j in range(self.robot.n_dof) if friction.lugre_[j] is None]
@@ -311,6 +320,7 @@ class IdentificationPipeline:
                 robot=self.robot,
                 tool=data.tool,
                 decimation=step,
+                excitation=options.excitation,
             ).fit(split.train)
         stages.say(f"identify: {self.model.n_base} base parameters {stages.took('inertial')}")
         return inertial, split
@@ -340,6 +350,7 @@ class IdentificationPipeline:
                 self.robot.q_min,
                 self.robot.q_max,
                 np.random.default_rng(options.seed),
+                excitation=options.excitation,
             )
         stages.say(
             f"identify: refinement {refined.status} in {refined.iterations} iterations, cost "

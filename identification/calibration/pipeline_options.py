@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.refinement import RefinementOptions
+from identification.data.excitation_check import ExcitationThresholds
 from psdm_casadi.errors import ParameterError
 
 __all__ = ["PipelineOptions"]
@@ -64,6 +65,10 @@ class PipelineOptions:
         Seed of the consistency configurations.
     quiet : bool
         No progress lines (they go to the module's logger at INFO otherwise).
+    excitation : ExcitationThresholds
+        Thresholds of the excitation checks (:mod:`identification.calibration.excitation`): every raw
+        recording before step 1, then every step's data and regressor, are refused when what the step
+        identifies does not move (defaults and their reasons in ``ExcitationThresholds``).
     """
 
     motor_cutoff_hz: float = 4.0
@@ -86,6 +91,7 @@ class PipelineOptions:
     consistency_samples: int = 200
     seed: int = 0
     quiet: bool = False
+    excitation: ExcitationThresholds = ExcitationThresholds()
 
     def __post_init__(self):
         for name in (
@@ -103,6 +109,11 @@ class PipelineOptions:
                 continue
             if not (np.isfinite(value) and value > 0):
                 raise ParameterError(f"PipelineOptions.{name} must be positive [Hz]; got {value!r}.")
+        if not isinstance(self.excitation, ExcitationThresholds):
+            raise ParameterError(
+                f"PipelineOptions.excitation must be an ExcitationThresholds; got {type(self.excitation).__name__}. "
+                "Pass ExcitationThresholds(...)."
+            )
         if not 0.0 < self.split_fraction < 1.0:
             raise ParameterError(f"PipelineOptions.split_fraction must be in (0, 1); got {self.split_fraction!r}.")
         if self.gravity_friction not in ("identified", "folded"):

@@ -4,7 +4,7 @@ Used by :class:`identification.calibration.pipeline.IdentificationPipeline`; eve
 its :class:`~identification.calibration.pipeline.PipelineOptions` (cutoffs, rates, split). Each
 experiment is filtered as in the paper (zero-phase 8th-order Butterworth, central differences;
 ``preprocessing.preprocess``), out-and-back experiments are folded (forward/backward averaged,
-:func:`identification.calibration.steps.fold_out_and_back`), and everything is split into training
+:func:`identification.calibration.out_and_back.fold_out_and_back`), and everything is split into training
 and validation parts (``Recording.split``; a joint's second friction experiment, when recorded,
 validates its friction instead).
 """
@@ -16,9 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.friction_step import FrictionExperiment, friction_torque
+from identification.calibration.out_and_back import MotorExperiment, fold_out_and_back
 from identification.calibration.payload import payload_torque
 from identification.calibration.refinement import RefinementBlock
-from identification.calibration.steps import MotorExperiment, fold_out_and_back
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
 

@@ -30,8 +30,10 @@ import casadi as ca
 import numpy as np
 
 from identification.calibration.consistency import mass_matrices
+from identification.calibration.excitation import EXCITATION_FIX, thresholds_of
 from identification.calibration.steps import regressor_chunked
 from identification.data.recording import Recording
+from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.friction.models import LuGreParameters
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
@@ -197,6 +199,7 @@ def refine_parameters(
     q_min=None,
     q_max=None,
     rng: np.random.Generator | None = None,
+    excitation=None,
 ) -> RefinementResult:
     """Refine base parameters, motor constants and friction together by Ipopt (module docstring).
 
@@ -215,6 +218,10 @@ def refine_parameters(
         Joint ranges for the consistency constraint.
     rng : numpy.random.Generator, optional
         Configurations of the consistency constraint.
+    excitation : ExcitationThresholds, optional
+        ``max_condition`` bounds the condition number of the freed base parameters' (and Kt's) columns
+        over the steady rows, weighted as in the objective and scaled to unit norm (default
+        ``ExcitationThresholds()``); the friction parameters are bounded near the step values instead.
 
     Returns
     -------
@@ -224,11 +231,14 @@ def refine_parameters(
     ------
     SolverError
         When Ipopt fails (status and iterations attached).
+    InsufficientExcitationError
+        When the rows do not excite a freed parameter (rank-deficient or ill-conditioned columns).
     """
     options = RefinementOptions() if options is None else options
     blocks, theta0, kt0, lugre = _check_inputs(model, blocks, theta, kt, lugre)
     start = time.perf_counter()
     rows = _joint_rows(model, blocks, lugre, options)
+    _check_excited(model, rows, kt0, options, thresholds_of("refine_parameters", excitation))
     variables = _variables(model, theta0, kt0, options)
     objective = _objective(rows, variables, kt0, lugre, options)
     x = ca.vertcat(variables.theta, variables.kt, variables.friction)
@@ -286,6 +296,40 @@ def _joint_rows(model, blocks, lugre, options) -> list:
         _JointRows(np.vstack([p[0] for p in joint]), *(np.concatenate([p[k] for p in joint]) for k in range(1, 6)))
         for joint in parts
     ]
+
+
+def _check_excited(model, rows, kt0, options, thresholds) -> None:
+    """The freed linear parameters' columns (base parameters, and Kt when freed) over the steady rows, weighted as
+    the objective weights them, must be excited. The friction parameters are left out: they stay within
+    ``exp(+-3)`` of the step values (``_bounds``), so an unexcited one keeps its value instead of running off."""
+    n = model.n_dof
+    free = ~model.gravity_mask | bool(options.refine_gravity)
+    n_free = int(free.sum())
+    kt_free = [j for j in range(n) if options.refine_kt and np.any(rows[j].current != 0)]
+    names = [name for name, f in zip(model.base_names, free) if f] + [f"kt{j + 1}" for j in kt_free]
+    column_joints = [o for o, f in zip(base_parameter_joints(model), free) if f] + [(j,) for j in kt_free]
+    parts, weights = [], []
+    for j, r in enumerate(rows):
+        keep = r.weight > 0
+        if not keep.any():
+            continue
+        block = np.zeros((int(keep.sum()), len(names)))
+        block[:, :n_free] = r.y[keep][:, free]
+        if j in kt_free:
+            block[:, n_free + kt_free.index(j)] = r.current[keep]
+        scale = max(float(rms(kt0[j] * r.current[keep] + r.direct[keep])), 1e-6)
+        parts.append(block)
+        weights.append(np.full(block.shape[0], 1.0 / (block.shape[0] * scale**2)))
+    check_regressor(
+        np.vstack(parts) if parts else np.zeros((0, len(names))),
+        np.concatenate(weights) if weights else np.zeros(0),
+        names=names,
+        column_joints=column_joints,
+        owner="refine_parameters",
+        source="the training parts of every experiment",
+        fix=EXCITATION_FIX,
+        max_condition=thresholds.max_condition,
+    )
 
 
 def _variables(model, theta0, kt0, options) -> _Variables:

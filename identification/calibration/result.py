@@ -17,7 +17,7 @@ from identification.calibration.consistency import ConsistencyReport
 from identification.calibration.report import ValidationReport
 from identification.friction.models import LuGreParameters
 from psdm_casadi.errors import ModelFileError, ShapeError
-from psdm_casadi.fileio import atomic_write
+from psdm_casadi.fileio import OutputFolder, atomic_write
 from psdm_casadi.model import PSDMModel, load_model
 
 __all__ = ["IdentifiedModel", "load_identified", "RESULT_FORMAT", "RESULT_VERSION", "RESULT_FILES"]
@@ -87,6 +87,9 @@ class IdentifiedModel:
     def save(self, directory, overwrite: bool = False) -> Path:
         """Write the model into ``directory`` (created); refuse existing files unless ``overwrite``.
 
+        The three files are written into a staging folder and moved into ``directory`` together: an
+        error or an interrupt leaves the directory as it was. Other files of the directory are kept.
+
         Raises
         ------
         FileExistsError
@@ -99,11 +102,11 @@ class IdentifiedModel:
                     raise FileExistsError(
                         f"{str(directory / name)!r} exists; pass overwrite=True (or --overwrite) to replace it."
                     )
-        directory.mkdir(parents=True, exist_ok=True)
         header = {
             "format": RESULT_FORMAT,
             "version": RESULT_VERSION,
             "robot_name": self.robot_name,
+            "consistent": None if self.consistency is None else self.consistency.consistent,
             "base_names": list(self.model.base_names),
             "theta": self.theta.tolist(),
             "kt": self.kt.tolist(),
@@ -113,14 +116,11 @@ class IdentifiedModel:
             "metadata": self.metadata,
         }
         text = json.dumps(header, indent=2, default=_json_default)
-        self.model.save(directory / "model.npz", overwrite=overwrite)
-        atomic_write(
-            directory / "parameters.npz",
-            lambda h: np.savez(h, theta=self.theta, kt=self.kt, lugre=np.array([p.as_array() for p in self.lugre])),
-            overwrite=overwrite,
-            mode="wb",
-        )
-        atomic_write(directory / "identified.json", lambda h: h.write(text + "\n"), overwrite=overwrite)
+        arrays = {"theta": self.theta, "kt": self.kt, "lugre": np.array([p.as_array() for p in self.lugre])}
+        with OutputFolder(directory, RESULT_FILES, shared=True).staging() as stage:
+            self.model.save(stage / "model.npz")
+            atomic_write(stage / "parameters.npz", lambda h: np.savez(h, **arrays), mode="wb")
+            atomic_write(stage / "identified.json", lambda h: h.write(text + "\n"))
         return directory
 
 

@@ -21,17 +21,21 @@ step                       paper                  learned attributes
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from identification.calibration.estimator import Design, LeastSquaresIdentifier, LeastSquaresResult
+from identification.calibration.excitation import (
+    check_gravity_design,
+    check_inertial_design,
+    check_motor_experiments,
+    thresholds_of,
+)
 from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
+from identification.calibration.out_and_back import MotorExperiment, fold_out_and_back
 from identification.calibration.payload import payload_static_torque, payload_torque
 from identification.data.payload import Payload
-from identification.data.recording import Recording
-from psdm_casadi.errors import ParameterError, RecordingError, ShapeError
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.model import PSDMModel
 from psdm_casadi.robot import RobotDescription
 
@@ -46,100 +50,6 @@ __all__ = [
 ]
 
 _CHUNK = 2000  # samples per regressor evaluation (memory: n_functions doubles per sample)
-
-
-# ------------------------------------------------------------------------------------------------
-# inputs
-# ------------------------------------------------------------------------------------------------
-@dataclass(frozen=True, eq=False)
-class MotorExperiment:
-    """One joint's motor calibration (paper 3.1): the same sweep without and with the known mass.
-
-    Parameters
-    ----------
-    joint : int
-        Swept joint, 0-based.
-    nominal : Recording
-        Folded, preprocessed sweep without the calibration mass (currents required).
-    loaded : Recording
-        Folded, preprocessed sweep with the mass, same sample count as ``nominal``.
-    """
-
-    joint: int
-    nominal: Recording
-    loaded: Recording
-
-    def __post_init__(self):
-        for name in ("nominal", "loaded"):
-            if not isinstance(getattr(self, name), Recording):
-                raise ParameterError(
-                    f"MotorExperiment.{name} must be a Recording; got {type(getattr(self, name)).__name__}."
-                )
-        if self.nominal.n_samples != self.loaded.n_samples:
-            raise ShapeError(
-                f"MotorExperiment.loaded must have the sample count of nominal ({self.nominal.n_samples}); got "
-                f"{self.loaded.n_samples}. Record both sweeps along the same reference at the same rate."
-            )
-        for name in ("nominal", "loaded"):
-            if getattr(self, name).current is None:
-                raise RecordingError(
-                    f"MotorExperiment.{name}.current is missing; Kt needs motor currents. Record currents i1..in."
-                )
-
-
-def fold_out_and_back(recording: Recording, tolerance: float = 0.02) -> Recording:
-    """Average an out-and-back experiment with its time mirror: sample k with sample n-1-k.
-
-    The motor and gravity experiments retrace their path, so ``q[k] == q[n-1-k]`` while the velocity
-    changes sign; averaging the torques (or currents) of the pair cancels friction (odd in qd).
-    The result keeps the first half: averaged q, tau and current, and the forward velocity and
-    acceleration (for speed thresholds).
-
-    Parameters
-    ----------
-    recording : Recording
-        Preprocessed (qd present).
-    tolerance : float
-        Largest allowed ``|q[k] - q[n-1-k]|`` [rad or m].
-
-    Returns
-    -------
-    Recording
-        ``n_samples // 2`` samples.
-
-    Raises
-    ------
-    RecordingError
-        When the recording does not retrace its path or has no velocities.
-    """
-    if recording.qd is None:
-        raise RecordingError(
-            f"Recording.qd is missing ({recording.name}); fold_out_and_back needs velocities. "
-            "Run preprocess(recording) first."
-        )
-    n = recording.n_samples
-    half = n // 2
-    first, mirror = np.arange(half), n - 1 - np.arange(half)
-    gap = np.abs(recording.q[first] - recording.q[mirror]).max()
-    if not gap <= tolerance:
-        raise RecordingError(
-            f"Recording.q must retrace its path (q[k] == q[n-1-k]) to fold it; got a gap of {gap:.3g} "
-            f"({recording.name}), above tolerance {tolerance}. Record the experiment forward and back along "
-            "the same path with symmetric timing."
-        )
-
-    def avg(x):
-        return None if x is None else 0.5 * (x[first] + x[mirror])
-
-    return Recording(
-        t=recording.t[first],
-        q=avg(recording.q),
-        tau=avg(recording.tau),
-        current=avg(recording.current),
-        qd=recording.qd[first],
-        qdd=None if recording.qdd is None else recording.qdd[first],
-        name=f"{recording.name} (folded)",
-    )
 
 
 def regressor_chunked(model: PSDMModel, q, qd, qdd) -> np.ndarray:
@@ -178,6 +88,9 @@ class MotorIdentifier(LeastSquaresIdentifier):
         alone (eq. 16). Folding keeps the mass's torques that are even in the velocity (centripetal
         and Coriolis), which the static load leaves in the current difference as a Kt bias; the
         gravity step inherits that bias through Kt.
+    excitation : ExcitationThresholds, optional
+        Thresholds of the excitation check (:mod:`identification.data.excitation_check`; default
+        ``ExcitationThresholds()``): ``fit`` refuses sweeps whose joint does not move.
 
     Attributes
     ----------
@@ -187,12 +100,21 @@ class MotorIdentifier(LeastSquaresIdentifier):
         Standard errors [N m/A].
     """
 
-    def __init__(self, robot=None, payload=None, min_speed_fraction=0.9, min_torque_fraction=0.05, load="dynamic"):
+    def __init__(
+        self,
+        robot=None,
+        payload=None,
+        min_speed_fraction=0.9,
+        min_torque_fraction=0.05,
+        load="dynamic",
+        excitation=None,
+    ):
         self.robot = robot
         self.payload = payload
         self.min_speed_fraction = min_speed_fraction
         self.min_torque_fraction = min_torque_fraction
         self.load = load
+        self.excitation = excitation
 
     def _validate(self):
         if not isinstance(self.robot, RobotDescription):
@@ -218,6 +140,10 @@ class MotorIdentifier(LeastSquaresIdentifier):
         for e in items:
             e.nominal.check_robot(self.robot.n_dof, self.robot.name)
         return items
+
+    def _check_excitation(self, data, design):
+        thresholds = thresholds_of("MotorIdentifier", self.excitation)
+        check_motor_experiments(self._experiments(data), self.robot, thresholds)
 
     def _n_dof(self, data):
         return self.robot.n_dof
@@ -315,6 +241,9 @@ class GravityIdentifier(LeastSquaresIdentifier):
         counts by its relative error: errors proportional to the torque (a small Kt error of a base
         joint carrying tens of N m) then do not leak into the small wrist parameters, which they
         move markedly unweighted. ``"none"``: eq. 18 as is.
+    excitation : ExcitationThresholds, optional
+        Thresholds of the excitation check (default ``ExcitationThresholds()``): ``fit`` refuses jogs in
+        which a joint with a gravity torque does not move, and a rank-deficient or ill-conditioned regressor.
 
     Attributes
     ----------
@@ -325,7 +254,15 @@ class GravityIdentifier(LeastSquaresIdentifier):
     """
 
     def __init__(
-        self, model=None, kt=None, robot=None, tool=None, min_speed=0.05, theta=None, joint_weighting="relative"
+        self,
+        model=None,
+        kt=None,
+        robot=None,
+        tool=None,
+        min_speed=0.05,
+        theta=None,
+        joint_weighting="relative",
+        excitation=None,
     ):
         self.model = model
         self.kt = kt
@@ -334,6 +271,7 @@ class GravityIdentifier(LeastSquaresIdentifier):
         self.min_speed = min_speed
         self.theta = theta
         self.joint_weighting = joint_weighting
+        self.excitation = excitation
 
     def _n_dof(self, data):
         return self.model.n_dof
@@ -387,6 +325,10 @@ class GravityIdentifier(LeastSquaresIdentifier):
             )
         return design
 
+    def _check_excitation(self, data, design):
+        thresholds = thresholds_of("GravityIdentifier", self.excitation)
+        check_gravity_design(self.model, recordings(data, "GravityIdentifier"), design, self.robot, thresholds)
+
     def _after_fit(self, design):
         self.theta_gravity_ = self.coef_.copy()
         theta = np.zeros(self.model.n_base)
@@ -415,6 +357,9 @@ class InertialIdentifier(LeastSquaresIdentifier):
     tool : Payload, optional
     decimation : int
         Keep every ``decimation``-th sample (after filtering), >= 1.
+    excitation : ExcitationThresholds, optional
+        Thresholds of the excitation check (default ``ExcitationThresholds()``): ``fit`` refuses recordings
+        in which a joint does not move, and a rank-deficient or ill-conditioned regressor.
 
     Attributes
     ----------
@@ -424,7 +369,9 @@ class InertialIdentifier(LeastSquaresIdentifier):
         Standard errors (zero for the held gravity part).
     """
 
-    def __init__(self, model=None, kt=None, theta=None, lugre=None, robot=None, tool=None, decimation=1):
+    def __init__(
+        self, model=None, kt=None, theta=None, lugre=None, robot=None, tool=None, decimation=1, excitation=None
+    ):
         self.model = model
         self.kt = kt
         self.theta = theta
@@ -432,6 +379,7 @@ class InertialIdentifier(LeastSquaresIdentifier):
         self.robot = robot
         self.tool = tool
         self.decimation = decimation
+        self.excitation = excitation
 
     def _n_dof(self, data):
         return self.model.n_dof
@@ -471,6 +419,10 @@ class InertialIdentifier(LeastSquaresIdentifier):
                 )
             )
         return Design.concatenate(blocks)
+
+    def _check_excitation(self, data, design):
+        thresholds = thresholds_of("InertialIdentifier", self.excitation)
+        check_inertial_design(self.model, recordings(data, "InertialIdentifier"), design, self.robot, thresholds)
 
     def _after_fit(self, design):
         mask = self.model.gravity_mask

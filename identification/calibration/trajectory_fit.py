@@ -24,6 +24,7 @@ constraint cost on the data.
 from __future__ import annotations
 
 import logging
+import re
 import time
 from dataclasses import dataclass
 
@@ -45,6 +46,8 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     prepare_recording,
 )
+from identification.data.excitation_check import check_joint_motion
+from identification.data.regressor_check import base_parameter_joints, check_regressor
 from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predict_torque"]
@@ -52,6 +55,8 @@ __all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predi
 logger = logging.getLogger(__name__)
 
 ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
+MOTION_FIX = "record a trajectory that moves {joints} over more of its range and speed ('psdm excite' designs one)"
+COLUMN_FIX = "record a trajectory that excites {joints} better ('psdm excite' designs one), or add recordings"
 # When the data ask for an inconsistent link, the optimum lies on the boundary of the chart, at
 # infinity in its log-diagonal: the objective then creeps down without its gradient vanishing.
 # Ipopt stops when the objective has stopped changing (acceptable_obj_change_tol, relative).
@@ -211,6 +216,8 @@ def identify_trajectories(robot, model, recordings, options: TrajectoryOptions |
     cutoffs, steps, prepared = [], [], []
     for rec in recordings:
         rec.check_robot(robot.n_dof, robot.name)
+        check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
+                           fix=MOTION_FIX)  # fmt: skip
         ready, cutoff, step = prepare_recording(rec, kt, options.cutoff_hz)
         cutoffs.append(cutoff)
         steps.append(step)
@@ -218,6 +225,7 @@ def identify_trajectories(robot, model, recordings, options: TrajectoryOptions |
         equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
+    _check_columns(robot, model, equations, names, recordings)
     sigma, x_ols, inverse, condition = _weighted_least_squares(equations)
     correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints) for rec in prepared]
     covariance = _sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
@@ -241,6 +249,23 @@ def identify_trajectories(robot, model, recordings, options: TrajectoryOptions |
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
         n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
     )  # fmt: skip
+
+
+def _check_columns(robot, model, equations, names, recordings) -> None:
+    """Refuse recordings whose (torque-RMS weighted) regressor is rank deficient or too ill-conditioned.
+
+    The check sees the regressor through a square root ``R`` of its normal matrix (``R^T R = A^T W A``),
+    which has the same singular values and directions as the stacked rows.
+    """
+    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
+    gram, _, _ = equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)
+    values, vectors = np.linalg.eigh(gram)
+    root = np.sqrt(np.clip(values, 0.0, None))[:, None] * vectors.T
+    base_names = [f"theta{k + 1}" for k in range(model.n_base)]
+    drive_joints = [(int(re.search(r"\d+$", name).group()) - 1,) for name in names]  # fc3 -> joint 2
+    check_regressor(root, names=base_names + list(names), owner="identify", robot=robot,
+                    source=", ".join(r.name or "recording" for r in recordings), fix=COLUMN_FIX,
+                    column_joints=list(base_parameter_joints(model)) + drive_joints)  # fmt: skip
 
 
 def _torque_constants(robot, options, recordings):
@@ -386,8 +411,9 @@ def _consistent_fit(robot, model, equations, sigma, names, options):
     if not solver.stats()["success"]:
         raise SolverError(f"the consistent fit did not converge ({status}); try --no-consistency to see the "
                           "unconstrained estimate, or record a better-exciting trajectory.", status=status)  # fmt: skip
-    values = np.asarray(ca.Function("standard", [variables], [standard])(solution["x"])).reshape(n, -1)
-    return values, np.asarray(solution["x"]).reshape(-1)[-len(names) :] if names else np.zeros(0), status
+    x_opt = np.maximum(np.asarray(solution["x"]).reshape(-1), lower)  # Ipopt may end a hair outside a bound
+    values = np.asarray(ca.Function("standard", [variables], [standard])(x_opt)).reshape(n, -1)
+    return values, x_opt[-len(names) :] if names else np.zeros(0), status
 
 
 def _chart_start(link, margin):

@@ -83,11 +83,48 @@ class CalibrationData:
 
 def _find(directory: Path, pattern: str):
     regex = re.compile(pattern)
-    found = []
-    for path in sorted(directory.iterdir()):
-        if path.suffix.lower() in _SUFFIXES and not path.name.endswith(".truth.npz") and regex.fullmatch(path.stem):
-            found.append(path)
-    return found
+    try:
+        paths = sorted(directory.iterdir())
+    except OSError as exc:
+        raise RecordingError(
+            f"data directory {str(directory)!r} cannot be listed ({exc.strerror or exc}). Check its permissions."
+        ) from None
+    return [
+        path
+        for path in paths
+        if path.suffix.lower() in _SUFFIXES and not path.name.endswith(".truth.npz") and regex.fullmatch(path.stem)
+    ]
+
+
+def _joint(path: Path, n_dof: int | None) -> int:
+    """The 0-based joint of a file named ``..._j<k>...`` (k counted from 1), refusing k = 0 or k > n_dof."""
+    k = int(re.search(r"_j([0-9]+)", path.stem).group(1))
+    if k < 1:
+        first = path.name.replace("_j0", "_j1", 1)
+        raise RecordingError(
+            f"{path.name}: the joint number in a file name must be 1 or more (joints are numbered from 1 in file "
+            f"names); got j{k}. Rename the files so that the first joint is {first}, the second _j2, and so on."
+        )
+    if n_dof is not None and k > n_dof:
+        raise RecordingError(
+            f"{path.name}: the joint number in a file name must be 1..{n_dof} (the robot has {n_dof} joints, "
+            f"numbered from 1); got j{k}. Rename or remove the file."
+        )
+    return k - 1
+
+
+def _one_per_joint(paths: list, n_dof: int | None) -> list:
+    """``(joint, path)`` per file, refusing two files of one joint (``friction_j1.csv`` and ``friction_j1.npz``)."""
+    seen = {}
+    for path in paths:
+        joint = _joint(path, n_dof)
+        if joint in seen:
+            raise RecordingError(
+                f"{seen[joint].name} and {path.name} are both joint {joint + 1}'s recording of one experiment. "
+                "Keep one of them."
+            )
+        seen[joint] = path
+    return list(seen.items())
 
 
 def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationData:
@@ -108,9 +145,15 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
     FileNotFoundError
         When the directory or payload.json is missing.
     RecordingError
-        When an experiment has no file or a motor sweep lacks its partner.
+        When ``directory`` is a file, an experiment has no file, a motor sweep lacks its partner, a
+        file name's joint number is 0 or above ``n_dof``, or a recording is refused by ``load_recording``.
     """
     directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        raise RecordingError(
+            f"data directory {str(directory)!r} is a file, not a folder. Pass the folder that holds payload.json "
+            "and the recordings (--data)."
+        )
     if not directory.is_dir():
         raise FileNotFoundError(f"data directory {str(directory)!r} does not exist. Check the --data path.")
     payload_path = directory / "payload.json"
@@ -122,8 +165,8 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
     payload = read_payload(payload_path)
     tool = read_payload(directory / "tool.json") if (directory / "tool.json").exists() else None
     motor = []
-    for path in _find(directory, r"motor_j([0-9]+)_nominal"):
-        k = int(re.search(r"_j([0-9]+)_", path.stem).group(1))
+    for joint, path in _one_per_joint(_find(directory, r"motor_j([0-9]+)_nominal"), n_dof):
+        k = joint + 1
         partner = [p for p in (directory / f"motor_j{k}_payload{s}" for s in _SUFFIXES) if p.exists()]
         if not partner:
             raise RecordingError(
@@ -131,12 +174,11 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
             )
         motor.append((k - 1, load_recording(path, n_dof), load_recording(partner[0], n_dof)))
     friction = [
-        (int(re.search(r"([0-9]+)$", p.stem).group(1)) - 1, load_recording(p, n_dof))
-        for p in _find(directory, r"friction_j([0-9]+)")
+        (joint, load_recording(p, n_dof)) for joint, p in _one_per_joint(_find(directory, r"friction_j([0-9]+)"), n_dof)
     ]
     friction_validation = [
-        (int(re.search(r"_j([0-9]+)_", p.stem).group(1)) - 1, load_recording(p, n_dof))
-        for p in _find(directory, r"friction_j([0-9]+)_validation")
+        (joint, load_recording(p, n_dof))
+        for joint, p in _one_per_joint(_find(directory, r"friction_j([0-9]+)_validation"), n_dof)
     ]
     gravity = [load_recording(p, n_dof) for p in _find(directory, r"gravity.*")]
     excitation = [load_recording(p, n_dof) for p in _find(directory, r"(excitation|sine).*")]

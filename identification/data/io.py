@@ -3,6 +3,8 @@
 Column names (CSV header or NPZ keys): ``t`` [s], ``q1..qn`` [rad or m], optional ``qd1..qdn``
 [rad/s] and ``qdd1..qddn`` [rad/s^2], and joint torques ``tau1..taun`` [N m] and/or motor
 currents ``i1..in`` [A]. CSV lines starting with ``#`` are comments. Time steps may be uneven.
+The reader of each format (``csvfile``, ``npzfile``) gives a checked ``ColumnTable``; this module
+makes its columns the signals of a ``Recording``.
 """
 
 from __future__ import annotations
@@ -12,7 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.data.csvfile import read_csv_table
+from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
+from identification.data.table import ColumnTable
 from psdm_casadi.errors import RecordingError
 from psdm_casadi.fileio import atomic_write
 
@@ -32,42 +37,57 @@ def recording_columns(recording: Recording) -> list:
     return names
 
 
-def _assemble(columns: dict, source: str, n_dof: int | None, lines=None) -> Recording:
-    """Build a Recording from a name -> 1-D array mapping, refusing bad columns with a fix."""
-    if "t" not in columns:
-        raise RecordingError(f"{source}: column t is missing. Add a time column named 't' [s].")
+def _signal(table: ColumnTable, names: list) -> np.ndarray:
+    """The columns ``names`` side by side, as a new read-only array that ``Recording`` keeps without copying."""
+    index = [table.names.index(name) for name in names]
+    if table.data.flags.c_contiguous:
+        out = np.take(table.data, index, axis=1)  # a new C-ordered array in one pass
+    else:
+        out = np.empty((table.n_samples, len(names)))
+        for k, j in enumerate(index):
+            out[:, k] = table.data[:, j]
+    out.setflags(write=False)
+    return out
+
+
+def _group(table: ColumnTable) -> dict:
+    """signal -> {joint number: column name}, refusing a name that is not a recording column."""
     groups = {signal: {} for signal in COLUMN_PREFIXES}
-    for name, values in columns.items():
+    for name in table.names:
         if name == "t":
             continue
         match = _COLUMN.match(name)
         if not match:
-            raise RecordingError(
-                f"{source}: column {name!r} is not a recording column; expected t, q1..qn, qd1..qdn, qdd1..qddn, "
-                "tau1..taun or i1..in. Rename or remove it."
+            bytes_hint = (
+                " (it holds bytes that are not UTF-8: write the header in plain ASCII)" if "\ufffd" in name else ""
             )
-        groups[_PREFIX_TO_SIGNAL[match.group(1)]][int(match.group(2))] = values
+            raise RecordingError(
+                f"{table.source}: column {name!r} is not a recording column{bytes_hint}; expected t, q1..qn, "
+                "qd1..qdn, qdd1..qddn, tau1..taun or i1..in. Rename or remove it."
+            )
+        groups[_PREFIX_TO_SIGNAL[match.group(1)]][int(match.group(2))] = name
+    return groups
+
+
+def _check_joints(source: str, groups: dict, n_dof: int | None) -> int:
+    """The joint count the q columns give, after checking every signal has exactly the columns 1..n."""
     if not groups["q"]:
         raise RecordingError(f"{source}: column q1 is missing. Add joint positions q1..qn [rad or m].")
-    n_found = max(groups["q"])
-    for j in range(1, n_found + 1):
+    n = max(groups["q"])
+    for j in range(1, n + 1):
         if j not in groups["q"]:
-            raise RecordingError(f"{source}: column q{j} is missing (q1..q{n_found} expected). Add it.")
-    if n_dof is not None and n_found != n_dof:
+            raise RecordingError(f"{source}: column q{j} is missing (q1..q{n} expected). Add it.")
+    if n_dof is not None and n != n_dof:
         raise RecordingError(
-            f"{source}: columns q1..q{n_found} give {n_found} joints but the robot has n_dof={n_dof}. "
+            f"{source}: columns q1..q{n} give {n} joints but the robot has n_dof={n_dof}. "
             f"Record q1..q{n_dof} (one column per joint) or load with the matching robot."
         )
-    n = n_found
     if not groups["tau"] and not groups["current"]:
         raise RecordingError(
             f"{source}: columns tau1..tau{n} and i1..i{n} are both missing. "
             f"Add joint torques tau1..tau{n} [N m] or motor currents i1..i{n} [A]."
         )
-    arrays = {}
     for signal, found in groups.items():
-        if not found:
-            continue
         prefix = COLUMN_PREFIXES[signal]
         for j in sorted(found):
             if j > n:
@@ -76,113 +96,102 @@ def _assemble(columns: dict, source: str, n_dof: int | None, lines=None) -> Reco
                     f"Remove {prefix}{j} or add q{j}."
                 )
         for j in range(1, n + 1):
-            if j not in found:
+            if found and j not in found:
                 raise RecordingError(
                     f"{source}: column {prefix}{j} is missing ({prefix}1..{prefix}{n} expected). Add it."
                 )
-        arrays[signal] = np.column_stack([found[j] for j in range(1, n + 1)])
-    t = np.asarray(columns["t"], dtype=float)
-    if t.shape[0] < MIN_SAMPLES:
+    return n
+
+
+def time_column(table: ColumnTable) -> np.ndarray:
+    """The table's column ``t`` [s] as a new read-only array, after checking that it strictly increases.
+
+    Raises
+    ------
+    RecordingError
+        When the column is missing, or a time stamp repeats or goes back (naming its line and the fix).
+    """
+    if "t" not in table.names:
+        raise RecordingError(f"{table.source}: column t is missing. Add a time column named 't' [s].")
+    t = _signal(table, ["t"])[:, 0].copy()
+    t.setflags(write=False)
+    back = np.flatnonzero(t[1:] <= t[:-1])
+    if back.size:
+        row = int(back[0]) + 1
         raise RecordingError(
-            f"{source}: {t.shape[0]} samples; a recording needs at least {MIN_SAMPLES}. Record a longer experiment."
+            f"{table.source}: column t must be strictly increasing; got t={float(t[row])!r} at {table.locate(row)} "
+            f"after t={float(t[row - 1])!r}. Sort the samples and drop repeated time stamps."
         )
-    # name the column, the row (and the file line) of the first bad value
-    for name, values in columns.items():
-        values = np.asarray(values, dtype=float)
-        bad = ~np.isfinite(values)
-        if np.any(bad):
-            row = int(np.argmax(bad))
-            at = f"line {lines[row]}" if lines is not None else f"row {row}"
-            raise RecordingError(
-                f"{source}: column {name} holds {float(values[row])!r} at {at}. "
-                "Remove or interpolate non-finite samples."
-            )
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        row = int(np.argmax(steps <= 0)) + 1
-        at = f"line {lines[row]}" if lines is not None else f"row {row}"
+    return t
+
+
+def recording_from_table(table: ColumnTable, n_dof: int | None = None) -> Recording:
+    """The Recording of a table's columns (``t``, ``q1..qn``, ...), refusing bad columns and time with a fix.
+
+    Raises
+    ------
+    RecordingError
+        Naming the file, the column and the fix: missing, unknown or unmatched columns, a joint count
+        other than ``n_dof``, too few samples, time that does not strictly increase (with its line).
+    """
+    source = table.source
+    if "t" not in table.names:
+        raise RecordingError(f"{source}: column t is missing. Add a time column named 't' [s].")
+    groups = _group(table)
+    n = _check_joints(source, groups, n_dof)
+    if table.n_samples < MIN_SAMPLES:
         raise RecordingError(
-            f"{source}: column t must be strictly increasing; got t={t[row]!r} at {at} after t={t[row - 1]!r}. "
-            "Sort the samples and drop repeated time stamps."
+            f"{source}: {table.n_samples} sample{'' if table.n_samples == 1 else 's'}; a recording needs at least "
+            f"{MIN_SAMPLES}. Record a longer experiment."
         )
+    t = time_column(table)
+    arrays = {signal: _signal(table, [found[j] for j in range(1, n + 1)]) for signal, found in groups.items() if found}
     return Recording(t=t, name=source, **arrays)
 
 
-def _read_csv(path: Path, n_dof: int | None) -> Recording:
-    source = path.name
-    header, rows, lines = None, [], []
-    with open(path, encoding="utf-8") as handle:
-        for number, line in enumerate(handle, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = [f.strip() for f in text.split(",")]
-            if header is None:
-                header = fields
-                header_line = number
-                continue
-            if len(fields) != len(header):
-                raise RecordingError(
-                    f"{source}: line {number} has {len(fields)} fields but the header (line {header_line}) has "
-                    f"{len(header)}. Fix that line."
-                )
-            try:
-                rows.append([float(f) for f in fields])
-            except ValueError:
-                bad = next(i for i, f in enumerate(fields) if not _is_float(f))
-                raise RecordingError(
-                    f"{source}: column {header[bad]} holds {fields[bad]!r} at line {number}, which is not a number. "
-                    "Fix or remove that line."
-                ) from None
-            lines.append(number)
-    if header is None:
-        raise RecordingError(f"{source}: no header row found. Start the file with a header such as t,q1,...,tau1,...")
-    seen = set()
-    for name in header:
-        if name in seen:
-            raise RecordingError(f"{source}: column {name} appears twice in the header. Rename or remove one.")
-        seen.add(name)
-    data = np.array(rows, dtype=float).reshape(len(rows), len(header))
-    columns = {name: data[:, k] for k, name in enumerate(header)}
-    return _assemble(columns, source, n_dof, lines)
+def read_table(path) -> ColumnTable:
+    """The named columns of a CSV or NPZ file (by its suffix), checked but not yet a Recording.
 
+    Parameters
+    ----------
+    path : str or Path
 
-def _is_float(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+    Returns
+    -------
+    ColumnTable
 
-
-def _read_npz(path: Path, n_dof: int | None) -> Recording:
-    source = path.name
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise RecordingError(f"{source}: not a readable NPZ archive ({exc}). Save it with numpy.savez.") from None
-    columns = {}
-    with archive:
-        for name in archive.files:
-            value = np.asarray(archive[name])
-            if value.ndim != 1:
-                raise RecordingError(
-                    f"{source}: array {name!r} has shape {value.shape}; every key must be one 1-D column "
-                    "(t, q1, ..., tau1, ...). Save one array per column."
-                )
-            columns[name] = value
-    lengths = {name: v.shape[0] for name, v in columns.items()}
-    if len(set(lengths.values())) > 1:
-        n_t = lengths.get("t", max(lengths.values()))
-        bad = next(name for name, n in lengths.items() if n != n_t)
+    Raises
+    ------
+    FileNotFoundError
+        When nothing exists at ``path``.
+    RecordingError
+        When ``path`` is a folder or not a regular file, cannot be read, has another suffix than
+        ``.csv``/``.npz``, or its content is refused by the reader (see ``csvfile``, ``npzfile``).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"recording {str(path)!r} does not exist. Check the path.")
+    if path.is_dir():
         raise RecordingError(
-            f"{source}: column {bad} has {lengths[bad]} samples but t has {n_t}. Make all columns equal length."
+            f"recording {str(path)!r} is a folder, not a file. Pass one .csv or .npz recording inside it."
         )
-    return _assemble(columns, source, n_dof)
+    if not path.is_file():
+        raise RecordingError(
+            f"recording {str(path)!r} is not a regular file (a pipe or device?). Save the recording to a file first."
+        )
+    suffix = path.suffix.lower()
+    if suffix == ".csv":
+        return read_csv_table(path)
+    if suffix == ".npz":
+        return read_npz_table(path)
+    raise RecordingError(f"recording {path.name!r} must end in .csv or .npz; got {path.suffix!r}. Convert it.")
 
 
 def load_recording(path, n_dof: int | None = None) -> Recording:
     """Read a recording from a CSV (header row, ``#`` comments) or NPZ file.
+
+    CSV text is parsed by numpy's C parser (``csvfile``); comma, semicolon, tab or blank separated,
+    with or without a UTF-8 byte-order mark. NPZ archives are read without unpickling (``npzfile``).
 
     Parameters
     ----------
@@ -200,8 +209,9 @@ def load_recording(path, n_dof: int | None = None) -> Recording:
     FileNotFoundError
         When the file does not exist.
     RecordingError
-        Naming the column and the fix: missing, duplicated or unknown columns, non-numbers, NaN/inf,
-        non-increasing time, too few samples, joint count not matching ``n_dof``.
+        Naming the file, the column and the fix: a folder, binary or compressed data, missing,
+        duplicated or unknown columns, non-numbers (with line and column), NaN/inf or implausibly large
+        values, non-increasing time, too few samples, joint count not matching ``n_dof``.
 
     Examples
     --------
@@ -209,15 +219,7 @@ def load_recording(path, n_dof: int | None = None) -> Recording:
     >>> rec.q.shape
     (20000, 6)
     """
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"recording {str(path)!r} does not exist. Check the path.")
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return _read_csv(path, n_dof)
-    if suffix == ".npz":
-        return _read_npz(path, n_dof)
-    raise RecordingError(f"recording {path.name!r} must end in .csv or .npz; got {path.suffix!r}. Convert it.")
+    return recording_from_table(read_table(path), n_dof)
 
 
 def save_recording(recording: Recording, path, overwrite: bool = False, comment: str | None = None) -> Path:

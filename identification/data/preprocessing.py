@@ -194,17 +194,46 @@ def preprocess(recording: Recording, options: PreprocessOptions | None = None) -
         raise ParameterError(f"preprocess options must be a PreprocessOptions; got {type(options).__name__}.")
     rec = recording
     changes = {}
-    if options.cutoff_hz is not None:
-        if not rec.is_uniform(options.uniform_rtol):
-            rec = resample_uniform(rec)
-        rate = 1.0 / rec.dt
-        for key in ("q", "tau", "current", "qd", "qdd"):
-            value = getattr(rec, key)
-            if value is not None:
-                changes[key] = zero_phase_filter(value, rate, options.cutoff_hz, options.order)
-    if options.differentiation == "central":
-        q = changes.get("q", rec.q)
-        changes["qd"], changes["qdd"] = central_difference(rec.t, q)
+    # overflow (huge values, tiny time steps) is reported by _check_overflow, naming the signal, not as warnings
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        if options.cutoff_hz is not None:
+            if not rec.is_uniform(options.uniform_rtol):
+                rec = resample_uniform(rec)
+            rate = 1.0 / rec.dt
+            for key in ("q", "tau", "current", "qd", "qdd"):
+                value = getattr(rec, key)
+                if value is not None:
+                    changes[key] = _filter(rec.name, value, rate, options)
+        if options.differentiation == "central":
+            q = changes.get("q", rec.q)
+            changes["qd"], changes["qdd"] = central_difference(rec.t, q)
+    _check_overflow(rec, changes)
     if not changes:
         return rec
     return rec.with_signals(**changes)
+
+
+def _filter(source: str, value: np.ndarray, rate: float, options: PreprocessOptions) -> np.ndarray:
+    """``zero_phase_filter`` whose refusals (too short, cutoff above Nyquist) name the recording."""
+    try:
+        return zero_phase_filter(value, rate, options.cutoff_hz, options.order)
+    except (RecordingError, ParameterError) as exc:
+        if not source:
+            raise
+        raise type(exc)(f"{source}: {exc}") from None
+
+
+def _check_overflow(recording: Recording, changes: dict) -> None:
+    """Refuse a filtered or differentiated signal that overflowed, naming the recording, the column and the cause."""
+    for key, value in changes.items():
+        columns = np.reshape(value, (len(value), -1))
+        bad = ~np.isfinite(columns)
+        if not np.any(bad):
+            continue
+        row, column = (int(i) for i in np.argwhere(bad)[0])
+        source = recording.name or "the recording"
+        raise RecordingError(
+            f"preprocess of {source}: Recording.{key} must be finite; got {float(columns[row, column])!r} "
+            f"in column {key}{column + 1} at sample {row} (smallest time step {np.diff(recording.t).min():.3g} s, "
+            f"largest |q| {np.abs(recording.q).max():.3g}). Check the units of t [s] and of the signals (SI)."
+        )

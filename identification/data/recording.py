@@ -19,6 +19,14 @@ _KEEP = object()  # sentinel of ``Recording.with_signals``: keep the current val
 
 
 def _frozen(array) -> np.ndarray:
+    """A read-only float array nobody else can write: a copy, unless ``array`` already is one.
+
+    An array that owns its data and is already read-only (another Recording's, or one a reader made
+    for this Recording) is kept as is: a 2.5 M-sample recording is then held once, not twice.
+    """
+    if isinstance(array, np.ndarray) and array.dtype == np.float64 and array.base is None:
+        if not array.flags.writeable:
+            return array
     out = np.array(array, dtype=float, copy=True)
     out.setflags(write=False)
     return out

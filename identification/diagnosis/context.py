@@ -166,6 +166,13 @@ class DiagnosisContext:
         return self.lowpass(recorded - true)
 
 
+def check_preprocessed(recording: Recording) -> Recording:
+    """Raise :class:`RecordingError` unless ``recording`` holds qd and qdd (is preprocessed); return it."""
+    if recording.qd is None or recording.qdd is None:
+        raise RecordingError(f"Recording.qd and qdd are missing ({recording.name}); run preprocess(recording) first.")
+    return recording
+
+
 def _tilt_axes(gravity: np.ndarray) -> np.ndarray:
     g = gravity / np.linalg.norm(gravity)
     helper = np.eye(3)[int(np.argmin(np.abs(g)))]
@@ -284,8 +291,7 @@ def build_context(
         When the recording has no qd/qdd (not preprocessed) or the wrong number of joints.
     """
     recording.check_robot(robot.n_dof, robot.name)
-    if recording.qd is None or recording.qdd is None:
-        raise RecordingError(f"Recording.qd and qdd are missing ({recording.name}); run preprocess(recording) first.")
+    check_preprocessed(recording)
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise ParameterError(f"DiagnosisOptions.rate_hz must be positive [Hz]; got {rate_hz!r}.")
     tau_full = recording.joint_torque(torque_constants)

@@ -14,10 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.data.excitation_check import ExcitationThresholds, check_joint_motion
 from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates import CandidateLibrary, default_library
-from identification.diagnosis.context import DiagnosisContext, build_context
+from identification.diagnosis.context import DiagnosisContext, build_context, check_preprocessed
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
     RIGID_BODY_CHOICES,
@@ -29,10 +31,15 @@ from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
 from identification.diagnosis.selection import SelectionResult, forward_select
-from identification.metrics import r2, rmse
+from identification.metrics import r2, rms, rmse
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
+
+RECORD_FIX = (
+    "Record training and validation runs that move {joints} over a large part of the range, with speed and "
+    "acceleration (psdm excite, or psdm simulate --experiment sine)."
+)
 
 
 @dataclass(frozen=True)
@@ -65,6 +72,11 @@ class DiagnosisOptions:
         Refit the kept terms with their nonlinear parameters after the linearised selection: delay,
         backlash (width and flank smoothing) and joint elasticity exactly by variable projection
         (``signal_fit``), then the drift time constant by Ipopt (``refine.refine_fit``).
+    excitation : ExcitationThresholds or None
+        Thresholds of the excitation checks run before any fit (default ``ExcitationThresholds()``): every
+        joint must move in both recordings (range and speed, :func:`check_joint_motion`), and the columns
+        of the nominal model's free parameters must be well conditioned on the training recording
+        (:func:`check_regressor`). A still or dithering joint otherwise gives noise-fitted "findings".
     """
 
     friction: str = "lugre"
@@ -78,6 +90,7 @@ class DiagnosisOptions:
     preprocess: bool = True
     torque_constants: tuple | None = None
     refine: bool = True
+    excitation: ExcitationThresholds | None = None
 
     def __post_init__(self):
         if self.friction not in FRICTION_MODELS:
@@ -96,6 +109,11 @@ class DiagnosisOptions:
             raise ParameterError(f"DiagnosisOptions.rate_hz must be positive [Hz]; got {self.rate_hz!r}.")
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
             raise ParameterError(f"DiagnosisOptions.cutoff_hz must be positive [Hz] or None; got {self.cutoff_hz!r}.")
+        if self.excitation is not None and not isinstance(self.excitation, ExcitationThresholds):
+            raise ParameterError(
+                f"DiagnosisOptions.excitation must be an ExcitationThresholds or None; got "
+                f"{type(self.excitation).__name__}. Pass ExcitationThresholds(...)."
+            )
         if self.library is not None and not isinstance(self.library, CandidateLibrary):
             raise ParameterError(
                 f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
@@ -160,6 +178,9 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     ------
     ShapeError, RecordingError
         When a recording does not match the robot or is too short.
+    InsufficientExcitationError
+        When a joint does not move enough in a recording, or the nominal model's columns are not excited
+        (before any candidate is tried).
     ParameterError
         For bad options.
 
@@ -173,6 +194,7 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
     train.check_robot(robot.n_dof, robot.name)
     validation.check_robot(robot.n_dof, robot.name)
+    check_motion(robot, train, validation, options)
     if model is None:
         from psdm_casadi.derive import derive_psdm
 
@@ -182,6 +204,55 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     selection = select_terms(robot, problem, options)
     final = refine_terms(problem, selection, options)
     return build_report(robot, model, problem, selection, final, options)
+
+
+def check_motion(robot, train, validation, options: DiagnosisOptions) -> None:
+    """Every joint moves in the training and the validation recording (``DiagnosisOptions.excitation``).
+
+    Recordings given preprocessed (``options.preprocess=False``) must hold qd and qdd first.
+    """
+    for role, rec in (("training", train), ("validation", validation)):
+        if not options.preprocess:
+            check_preprocessed(rec)
+        check_joint_motion(
+            rec,
+            range(robot.n_dof),
+            robot=robot,
+            purpose=f"the diagnosis ({role} recording)",
+            fix=RECORD_FIX,
+            thresholds=options.excitation,
+        )
+
+
+def check_nominal_columns(robot, model, problem: DiagnosisProblem, options: DiagnosisOptions) -> None:
+    """The nominal model's free columns on the training recording, each joint weighted by its torque RMS as the
+    selection weights it, must have full rank and a bounded condition number (``check_regressor``)."""
+    n = robot.n_dof
+    names = friction_feature_names(options.friction, n)
+    per = len(names) // n
+    joints = [(k // per,) for k in range(len(names))]
+    if options.friction == "lugre" and robot.drives is not None:  # the bristle dynamics of the LuGre prior
+        names += [f"lugre_dynamics_{j + 1}" for j in range(n)]
+        joints += [(j,) for j in range(n)]
+    if options.rigid_body == "identified":
+        names += list(model.base_names)
+        joints += list(base_parameter_joints(model))
+    torque_rms = rms(problem.ctx_t.tau)
+    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    weights = np.tile(1.0 / sigma**2, problem.ctx_t.n_samples)
+    thresholds = options.excitation if options.excitation is not None else ExcitationThresholds()
+    check_regressor(
+        problem.base_t.reshape(-1, problem.base_t.shape[2]),
+        weights,
+        names=names,
+        column_joints=joints,
+        owner="diagnose",
+        source=f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction"
+        + (" and base parameters)" if options.rigid_body == "identified" else ")"),
+        fix=RECORD_FIX,
+        max_condition=thresholds.max_condition,
+        robot=robot,
+    )
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
@@ -212,7 +283,9 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
         base_t = np.concatenate([base_t, ctx_t.regressor], axis=2)
         base_v = np.concatenate([base_v, ctx_v.regressor], axis=2)
         y_t, y_v = ctx_t.tau, ctx_v.tau
-    return DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v)
+    problem = DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v)
+    check_nominal_columns(robot, model, problem, options)
+    return problem
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:

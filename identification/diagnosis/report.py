@@ -8,14 +8,23 @@ after, the residual analysis of the nominal model and the augmented model; it re
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.fileio import atomic_write
+from psdm_casadi.fileio import OutputFolder, atomic_write, markdown_escape
 
 NO_FINDING = "no significant missing physics"
+#: The files ``DiagnosisReport.save`` writes (the plots only with ``plots=True``).
+REPORT_FILES = (
+    "report.md",
+    "report.json",
+    "residuals.png",
+    "fit.png",
+    "augmented_model.json",
+    "augmented_inverse_dynamics.casadi",
+)
 
 
 @dataclass(frozen=True)
@@ -207,13 +216,24 @@ class DiagnosisReport:
         )
 
     def save(self, directory, overwrite: bool = False, plots: bool = True) -> dict:
-        """Write report.md, report.json, plots and the augmented model into ``directory``."""
+        """Write report.md, report.json, plots and the augmented model into ``directory``; return their paths.
+
+        Existing files are refused before anything is written (unless ``overwrite``); the files are written
+        into a staging folder and moved into ``directory`` together, so that an error or an interrupt leaves
+        the directory as it was. The robot name is escaped in report.md.
+        """
         directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        paths = self.save_plots(directory, overwrite) if plots else {}
-        text = self.to_markdown(paths)
-        paths["markdown"] = atomic_write(directory / "report.md", lambda h: h.write(text), overwrite=overwrite)
-        js = self.to_json()
-        paths["json"] = atomic_write(directory / "report.json", lambda h: h.write(js + "\n"), overwrite=overwrite)
-        paths.update(self.augmented.save(directory, overwrite=overwrite))
-        return paths
+        names = [name for name in REPORT_FILES if plots or not name.endswith(".png")]
+        existing = [name for name in names if (directory / name).exists()]
+        if existing and not overwrite:
+            raise FileExistsError(
+                f"{str(directory / existing[0])!r} exists; pass overwrite=True (or --overwrite) to replace it."
+            )
+        with OutputFolder(directory, names, shared=True).staging() as stage:
+            paths = self.save_plots(stage) if plots else {}
+            text = replace(self, robot_name=markdown_escape(self.robot_name)).to_markdown(paths)
+            paths["markdown"] = atomic_write(stage / "report.md", lambda h: h.write(text))
+            js = self.to_json()
+            paths["json"] = atomic_write(stage / "report.json", lambda h: h.write(js + "\n"))
+            paths.update(self.augmented.save(stage))
+        return {key: directory / Path(path).name for key, path in paths.items()}

@@ -19,10 +19,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError, ShapeError
+from psdm_casadi.errors import InsufficientExcitationError, ParameterError, ShapeError
 from psdm_casadi.robot import DriveParameters
 
-__all__ = ["LUGRE_PARAMETER_NAMES", "LuGreParameters", "CoulombViscous", "Stribeck", "check_friction_data"]
+__all__ = [
+    "LUGRE_PARAMETER_NAMES",
+    "LuGreParameters",
+    "CoulombViscous",
+    "Stribeck",
+    "check_friction_data",
+    "check_slides_both_ways",
+]
 
 LUGRE_PARAMETER_NAMES = ("fc", "fs", "vs", "fv", "dv", "sigma0", "sigma1")
 """Order of the seven LuGre parameters in every array form (paper Table 2 column order)."""
@@ -265,3 +272,47 @@ def check_friction_data(t, qd, tau=None, owner="friction data", signal="qd"):
             f"{owner}.t must be strictly increasing; got a non-increasing step. Sort or deduplicate it."
         )
     return tuple(out.values())
+
+
+def _longest_run(flags: np.ndarray) -> int:
+    padded = np.concatenate([[False], flags, [False]]).astype(np.int8)
+    edges = np.flatnonzero(np.diff(padded))
+    return int(np.max(edges[1::2] - edges[::2])) if edges.size else 0
+
+
+def check_slides_both_ways(qd, owner="friction data", fraction=0.25, min_samples=10):
+    """Raise unless the joint slides in both directions: ``min_samples`` consecutive samples faster than
+    ``fraction * max|qd|``, once with ``qd > 0`` and once with ``qd < 0``.
+
+    A LuGre fit needs sliding strokes of both signs (Coulomb friction is odd in qd; one sign alone does not
+    separate it from a torque offset), and strokes are runs of samples: the velocity of a joint that stands
+    still (encoder noise, quantisation) changes sign from sample to sample and never forms a run of ten.
+
+    Parameters
+    ----------
+    qd : array, shape (n_samples,)
+        Joint velocity [rad/s], sampled in time order.
+    owner : str
+        Name used in error messages.
+    fraction : float
+        Share of the peak speed a sliding sample exceeds (0.25: the high-speed samples of eq. 20).
+    min_samples : int
+        Least run length [samples].
+
+    Raises
+    ------
+    InsufficientExcitationError
+        Naming the missing direction(s) and the fix.
+    """
+    qd = np.asarray(qd, dtype=float).reshape(-1)
+    peak = float(np.max(np.abs(qd))) if qd.size else 0.0
+    threshold = fraction * peak
+    runs = {"positive": _longest_run(qd > threshold), "negative": _longest_run(qd < -threshold)}
+    if peak > 0 and all(run >= min_samples for run in runs.values()):
+        return
+    raise InsufficientExcitationError(
+        f"{owner}.qd must slide in both directions ({min_samples} consecutive samples faster than {fraction:g} of "
+        f"the peak speed {peak:.3g} rad/s each way); got runs of {runs['positive']} positive and "
+        f"{runs['negative']} negative samples. Record the joint oscillating in both directions up to sliding speeds "
+        "well above its Stribeck velocity (a still or dithering joint gives noise)."
+    )

@@ -31,7 +31,7 @@ import numpy as np
 
 from identification.friction.lugre_step import phi_function_expressions, substep_layout
 from identification.friction.measurement import build_measured_interval, measured_layout, simulate_lugre_measured
-from identification.friction.models import LuGreParameters, check_friction_data
+from identification.friction.models import LuGreParameters, check_friction_data, check_slides_both_ways
 from identification.friction.shooting_nlp import assemble_shooting_nlp, build_shooting_interval
 from identification.friction.simulation import simulate_lugre
 from identification.friction.start import check_initial
@@ -285,6 +285,8 @@ def fit_lugre_multiple_shooting(t, qd, tau_friction, initial, options=None, q=No
         Ipopt did not converge; ``status`` and ``iterations`` are attached.
     ParameterError, ShapeError
         Bad arrays or options.
+    InsufficientExcitationError
+        When ``qd`` does not slide in both directions (``models.check_slides_both_ways``).
 
     Examples
     --------
@@ -344,6 +346,7 @@ def _checked_inputs(t, qd, tau_friction, initial, options, q):
                 f"fit_lugre_multiple_shooting.t must hold at least 4 samples with "
                 f"measurement='central-difference'; got {t.size}."
             )
+    check_slides_both_ways(qd, owner="fit_lugre_multiple_shooting")
     return t, qd, tau, q, options
 
 

@@ -14,7 +14,7 @@ from scipy.optimize import least_squares
 
 from identification.friction.models import CoulombViscous, LuGreParameters, check_friction_data
 from identification.friction.simulation import simulated_mse
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import InsufficientExcitationError, ParameterError
 
 __all__ = ["fit_high_speed", "initial_lugre_guess", "check_initial"]
 
@@ -31,6 +31,13 @@ def _high_speed_mask(qd, threshold):
         raise ParameterError(
             f"fit_high_speed.threshold leaves {int(mask.sum())} samples with |qd| > {threshold:.3g} rad/s; "
             "need at least 10. Lower it or add fast motion to the experiment."
+        )
+    counts = (int(np.sum(qd > threshold)), int(np.sum(qd < -threshold)))
+    if min(counts) < 5:
+        raise InsufficientExcitationError(
+            f"fit_high_speed.qd must exceed the threshold {threshold:.3g} rad/s in both directions (at least 5 "
+            f"samples each: eq. 20 is odd in qd, one sign alone does not separate fc from a torque offset); got "
+            f"{counts[0]} positive and {counts[1]} negative. Record the joint sliding fast both ways."
         )
     return mask
 
@@ -56,6 +63,8 @@ def fit_high_speed(qd, tau_friction, threshold=None):
     ------
     ParameterError, ShapeError
         Bad arrays or too few fast samples.
+    InsufficientExcitationError
+        Fewer than 5 fast samples in one of the two directions.
 
     Examples
     --------

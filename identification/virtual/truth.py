@@ -18,7 +18,7 @@ from identification.data.recording import Recording
 from identification.virtual.effects import ExtraPhysics, Payload
 from identification.virtual.lugre_exact import FRICTION_FIELDS
 from psdm_casadi.errors import ParameterError
-from psdm_casadi.fileio import atomic_write
+from psdm_casadi.fileio import OutputFolder, atomic_write
 from psdm_casadi.robot import DriveParameters
 
 __all__ = ["TRUTH_FORMAT", "SimulationTruth", "write_recording", "read_truth", "drives_from_truth"]
@@ -111,6 +111,8 @@ def write_recording(
     fmt : {"csv", "npz"}
     overwrite : bool
         Replace existing files; otherwise an existing file raises ``FileExistsError`` before anything is written.
+        The files are written into a staging folder and moved into ``directory`` together, so that an error or
+        an interrupt leaves none of them.
 
     Returns
     -------
@@ -129,17 +131,18 @@ def write_recording(
         for path in paths.values():
             if path.exists():
                 raise FileExistsError(f"{str(path)!r} exists; pass overwrite=True (or --overwrite) to replace it.")
-    save_recording(
-        recording,
-        paths["recording"],
-        overwrite=overwrite,
-        comment=f"virtual robot {truth.robot_name}; truth in {paths['truth'].name}",
-    )
     text = json.dumps(truth.describe(), indent=2, default=_json_default)
-    atomic_write(paths["truth"], lambda handle: handle.write(text + "\n"), overwrite=overwrite)
     keys = ("t", "q", "qd", "qdd", "z", "tau_motor", "tau_friction", "tau_extra")
     states = {key: getattr(truth, key) for key in keys}
-    atomic_write(paths["states"], lambda handle: np.savez(handle, **states), overwrite=overwrite, mode="wb")
+    # the three files appear together or not at all (an error or Ctrl-C leaves none of them)
+    with OutputFolder(directory, [p.name for p in paths.values()], shared=True).staging() as stage:
+        save_recording(
+            recording,
+            stage / paths["recording"].name,
+            comment=f"virtual robot {truth.robot_name}; truth in {paths['truth'].name}",
+        )
+        atomic_write(stage / paths["truth"].name, lambda handle: handle.write(text + "\n"))
+        atomic_write(stage / paths["states"].name, lambda handle: np.savez(handle, **states), mode="wb")
     return paths
 
 

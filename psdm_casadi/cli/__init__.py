@@ -16,6 +16,8 @@ import argparse
 import logging
 import sys
 
+from psdm_casadi.cli.checks import check_seed
+from psdm_casadi.cli.interrupts import InterruptGuard
 from psdm_casadi.cli.output import (
     EXIT_BAD_INPUT,
     EXIT_CHECK_FAILED,
@@ -44,7 +46,7 @@ __all__ = [
 def build_parser() -> argparse.ArgumentParser:
     """The ``psdm`` parser with every subcommand."""
     from psdm_casadi import demo
-    from psdm_casadi.cli import codegen, derive, diagnose, excite, identify, simulate
+    from psdm_casadi.cli import codegen, derive, diagnose, excite, identify, simulate, validate
 
     parser = argparse.ArgumentParser(
         prog="psdm",
@@ -59,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     verbosity.add_argument("-q", "--quiet", action="store_true", help="no progress lines, only warnings and errors")
     verbosity.add_argument("-v", "--verbose", action="store_true", help="more detail on what each step does")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (derive, excite, simulate, identify, diagnose, codegen, demo):
+    for module in (derive, excite, simulate, identify, validate, diagnose, codegen, demo):
         module.register(subparsers)
     return parser
 
@@ -71,27 +73,41 @@ def _log_level(args) -> int:
 
 
 def main(argv=None) -> int:
+    """Run ``psdm`` on ``argv``; return the exit code (a usage error returns 2 after argparse's message)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help exits 0 through argparse; a usage error returns its code
+        if exc.code in (0, None):
+            raise
+        return int(exc.code) if isinstance(exc.code, int) else EXIT_BAD_INPUT
     if not getattr(args, "handler", None):
         parser.print_help()
         return EXIT_BAD_INPUT
     configure_logging(_log_level(args))
     try:
-        return int(args.handler(args) or 0)
-    except SolverError as exc:
-        if args.debug:
-            raise
-        print(f"psdm {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_SOLVER
-    except (PSDMError, FileNotFoundError, FileExistsError) as exc:
-        if args.debug:
-            raise
-        print(f"psdm {args.command}: error: {exc}", file=sys.stderr)
-        return EXIT_BAD_INPUT
+        with InterruptGuard():
+            check_seed(getattr(args, "seed", None))
+            return int(args.handler(args) or 0)
     except KeyboardInterrupt:
-        print("psdm: interrupted", file=sys.stderr)
+        print(f"psdm {args.command}: interrupted; no output was written or changed", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except SolverError as exc:
+        return _report(args, exc, EXIT_SOLVER)
+    except (PSDMError, OSError) as exc:
+        return _report(args, exc, EXIT_BAD_INPUT)
+
+
+def _report(args, exc: Exception, code: int) -> int:
+    """Print an error of a command in one line (``--debug``: raise it with its traceback)."""
+    if args.debug:
+        raise exc
+    message = str(exc)
+    if isinstance(exc, OSError) and exc.strerror and message.startswith("["):  # [Errno 13] ...: name the file
+        where = f" {str(exc.filename)!r}" if exc.filename else ""
+        message = f"{exc.strerror}:{where}. Check the file and folder options (--out, --data, ...)."
+    print(f"psdm {args.command}: error: {message}", file=sys.stderr)
+    return code
 
 
 if __name__ == "__main__":

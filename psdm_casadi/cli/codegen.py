@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from codegen.export import export_c
+from psdm_casadi.cli.checks import output_folder
 from psdm_casadi.errors import ParameterError, ShapeError
 
 ROBOT_SUFFIXES = (".toml", ".urdf")
@@ -29,7 +30,7 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("source", metavar="ROBOT_OR_MODEL", help="robot file (.toml, .urdf) or saved model (.npz)")
-    p.add_argument("--out", required=True, type=Path, help="output folder (must be empty unless --force)")
+    p.add_argument("--out", required=True, type=Path, help="output folder (new or empty unless --force)")
     p.add_argument(
         "--theta",
         type=Path,
@@ -61,7 +62,11 @@ def register(subparsers) -> None:
         action="store_true",
         help="also compile lib<library>.so into --out with the system C compiler (-O3 -march=native)",
     )
-    p.add_argument("--force", action="store_true", help="write into a non-empty --out folder")
+    p.add_argument(
+        "--force",
+        action="store_true",
+        help="replace the files of an earlier export in --out (a folder that holds anything else is refused)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_codegen)
 
@@ -123,12 +128,30 @@ def build_export_functions(model, robot, form: str | None):
     return build_functions(model), form
 
 
-def _run_codegen(args) -> int:
-    from psdm_casadi.cli.output import print_json, progress
+def output_names(library: str) -> tuple:
+    """What ``psdm codegen`` writes into --out (and what its Makefile builds there), for ``--force``."""
+    return (f"{library}.c", f"{library}.h", "main.c", "Makefile", f"lib{library}.so", "example")
 
-    out = Path(args.out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())) and not args.force:
-        raise FileExistsError(f"codegen --out {str(out)!r} exists and is not empty. Pass --force or another folder.")
+
+def _check_options(args):
+    """--library, --theta and --out, before the derivation; returns the checked output folder."""
+    library = args.library
+    plain_name = library.replace("_", "a")
+    if not (plain_name.isascii() and plain_name.isalnum()) or library[0].isdigit():
+        raise ParameterError(
+            "codegen --library must be a C identifier (letters, digits, underscores, not starting with a digit); "
+            f"got {library!r}. Pass e.g. --library robot_dynamics."
+        )
+    if args.theta is not None and not Path(args.theta).is_file():
+        raise ParameterError(f"codegen --theta must name an existing file; got {str(args.theta)!r}. Check the path.")
+    return output_folder(args.out, output_names(library), args.force, force_option="--force")
+
+
+def _run_codegen(args) -> int:
+    from psdm_casadi.cli.output import progress
+
+    folder = _check_options(args)
+    out = folder.target
     model, robot, theta = _load_source(Path(args.source), args.robot)
     if args.theta is not None:
         theta = read_theta(args.theta)
@@ -139,22 +162,28 @@ def _run_codegen(args) -> int:
         )
     progress("building the CasADi functions ...")
     functions, form = build_export_functions(model, robot, args.form)
-    export = export_c(
-        functions,
-        out,
-        theta=theta,
-        jacobians=args.jacobians,
-        library=args.library,
-        fast_trig=not args.libm_trig,
-        overwrite=args.force,
-    )
-    compiled = False
-    if args.compile:
-        from codegen.build import compile_shared
+    with folder.staging() as stage:
+        export = export_c(
+            functions,
+            stage,
+            theta=theta,
+            jacobians=args.jacobians,
+            library=args.library,
+            fast_trig=not args.libm_trig,
+        )
+        if args.compile:
+            from codegen.build import compile_shared
 
-        progress(f"compiling lib{export.library}.so ...")
-        compile_shared([export.source], out / f"lib{export.library}.so", flags=("-O3", "-march=native"))
-        compiled = True
+            progress(f"compiling lib{export.library}.so ...")
+            compile_shared([export.source], stage / f"lib{export.library}.so", flags=("-O3", "-march=native"))
+    _print_export(args, out, export, form)
+    return 0
+
+
+def _print_export(args, out: Path, export, form: str) -> None:
+    from psdm_casadi.cli.output import print_json
+
+    compiled = bool(args.compile)
     if args.json:
         lanes = export.lane_regressor
         print_json(
@@ -180,4 +209,3 @@ def _run_codegen(args) -> int:
             )
         if not export.theta_baked:
             print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")
-    return 0

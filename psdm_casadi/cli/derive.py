@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+from psdm_casadi.cli.checks import output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.derive import DeriveOptions, derive_psdm
 from psdm_casadi.robot import load_robot
@@ -18,7 +19,7 @@ def register(subparsers) -> None:
         "against Pinocchio's rnea on random states, and optionally write it to a model file.",
     )
     parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
-    parser.add_argument("-o", "--output", help="write the model to this .npz file")
+    parser.add_argument("-o", "--output", help="write the model to this .npz file (.npz is appended when missing)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random checks (default 0)")
     parser.add_argument("--equations", action="store_true", help="print the base parameters as equations")
@@ -26,16 +27,22 @@ def register(subparsers) -> None:
     parser.set_defaults(handler=run_derive)
 
 
+def model_path(output: str) -> Path:
+    """The file ``PSDMModel.save`` writes for ``-o OUTPUT`` (``.npz`` appended when missing)."""
+    path = Path(output).expanduser()
+    return path if path.suffix == ".npz" else path.with_name(path.name + ".npz")
+
+
 def run_derive(args) -> int:
+    if args.output:
+        output_file(model_path(args.output), "-o/--output", args.force, "--force")
     robot = load_robot(args.robot)
-    if args.output and Path(args.output).exists() and not args.force:
-        raise FileExistsError(f"{args.output} exists; pass --force to overwrite it.")
     progress(f"deriving {robot.name} ({robot.n_dof} joints) ...", quiet=args.json)
     start = time.perf_counter()
     model = derive_psdm(robot, DeriveOptions(seed=args.seed))
     seconds = time.perf_counter() - start
     if args.output:
-        path = model.save(args.output, overwrite=args.force)
+        path = model.save(model_path(args.output), overwrite=args.force)
         progress(f"model written to {path}", quiet=args.json)
     error = model.metadata["max_rel_error_vs_pinocchio"]
     if args.json:

@@ -4,6 +4,9 @@ validation.
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from psdm_casadi.cli.checks import output_folder
 from psdm_casadi.cli.output import print_json
 
 
@@ -53,6 +56,7 @@ def _run_diagnose(args) -> int:
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
     from psdm_casadi.robot import load_robot
 
+    folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
     robot = load_robot(args.robot)
     train = load_recording(args.train, robot.n_dof)
     validation = load_recording(args.validate, robot.n_dof)
@@ -65,7 +69,10 @@ def _run_diagnose(args) -> int:
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     report = diagnose(robot, train, validation, options)
-    paths = report.save(args.out, overwrite=args.overwrite) if args.out else {}
+    paths = {}
+    if folder is not None:
+        with folder.staging() as stage:
+            paths = {key: folder.target / Path(p).name for key, p in report.save(stage).items()}
     if args.json:
         payload = report.to_dict()
         payload["command"] = "diagnose"
@@ -74,3 +81,10 @@ def _run_diagnose(args) -> int:
     else:
         print(report.to_markdown(paths))
     return 0
+
+
+def _out_folder(args):
+    """The checked --out folder (None without --out): new, or one holding an earlier diagnosis with --overwrite."""
+    from identification.diagnosis.report import REPORT_FILES
+
+    return None if args.out is None else output_folder(args.out, REPORT_FILES, args.overwrite)

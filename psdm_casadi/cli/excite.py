@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
+from psdm_casadi.cli.checks import check_count, check_positive, check_samples, output_file, plain, staged
 from psdm_casadi.cli.output import EXIT_OK, print_json, progress
 from psdm_casadi.errors import ParameterError
 
@@ -132,10 +134,38 @@ def _load_robot(args):
     return load_robot(args.robot)
 
 
-def _check_outputs(args, *paths) -> None:
-    for path in paths:
-        if path and Path(path).exists() and not args.overwrite:
-            raise FileExistsError(f"{path} exists; pass --overwrite to replace it.")
+def _check_excite(args) -> None:
+    """The options of ``psdm excite``, before any work (the CSV is written only after the optimisation)."""
+    check_positive(args.duration, "--duration", "Pass the period in seconds, e.g. --duration 10.", " of seconds")
+    for option, value, example in (
+        ("--harmonics", args.harmonics, 5),
+        ("--terms", args.terms, 3),
+        ("--starts", args.starts, 3),
+        ("--samples", args.samples, 100),
+        ("--max-iter", args.max_iter, 300),
+        ("--periods", args.periods, 1),
+    ):
+        check_count(value, option, f"Pass e.g. {option} {example}.")
+    if not (math.isfinite(args.limit_scale) and 0 < args.limit_scale <= 1):
+        raise ParameterError(
+            f"--limit-scale must be in (0, 1] (a fraction of the robot's limits); got {plain(args.limit_scale)}. "
+            "Pass e.g. --limit-scale 0.9."
+        )
+    check_positive(args.time_limit, "--time-limit", "Pass e.g. --time-limit 60, or leave it out.", " of seconds")
+    check_positive(args.rate, "--rate", "Pass e.g. --rate 100.", " [Hz]")
+    if args.periods > 1 and args.family != "fourier":
+        raise ParameterError(
+            f"--periods must be 1 for --family {args.family} (not periodic); got {args.periods}. "
+            "Drop --periods or use --family fourier."
+        )
+    check_samples(args.duration * args.periods, args.rate, "--rate", "in the CSV", "Lower --rate or --periods.")
+
+
+def _outputs(args, csv: str):
+    """The checked outputs of a trajectory command: (CSV, plot or None); both refused before any work."""
+    if args.plot is not None and Path(args.plot).expanduser().absolute() == Path(csv).expanduser().absolute():
+        raise ParameterError(f"--plot must name another file than --out; got {args.plot!r} for both. Rename one.")
+    return output_file(csv, "--out", args.overwrite), output_file(args.plot, "--plot", args.overwrite)
 
 
 def _run_excite(args) -> int:
@@ -144,7 +174,8 @@ def _run_excite(args) -> int:
     from trajopt.optimize import ExcitationOptions, optimize_excitation
     from trajopt.plot import plot_trajectory
 
-    _check_outputs(args, args.out, args.plot)
+    _check_excite(args)
+    outputs = _outputs(args, args.out)
     robot = _load_robot(args)
     started = time.perf_counter()
     options = ExcitationOptions(
@@ -177,9 +208,10 @@ def _run_excite(args) -> int:
     if args.torque_limits:
         nominal = model.base_parameters(robot.nominal_dynamic_parameters())
     trajectory = optimize_excitation(robot, functions.regressor, options, seed=args.seed, nominal_parameters=nominal)
-    trajectory.to_csv(args.out, rate=args.rate, periods=args.periods, overwrite=args.overwrite)
-    if args.plot:
-        plot_trajectory(trajectory, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
+    with staged(*outputs) as (csv, plot):
+        trajectory.to_csv(csv, rate=args.rate, periods=args.periods, overwrite=True)
+        if plot is not None:
+            plot_trajectory(trajectory, plot, rate=max(args.rate, 50.0), overwrite=True)
     seconds = time.perf_counter() - started
     if args.json:
         print_json(
@@ -202,19 +234,29 @@ def _run_excite(args) -> int:
     return EXIT_OK
 
 
+def _check_experiment(args) -> None:
+    """The options of ``psdm experiment``, before any work."""
+    check_positive(args.speed, "--speed", "Pass e.g. --speed 0.25.", " [rad/s]")
+    check_positive(args.duration, "--duration", "Pass seconds, e.g. --duration 120.", " of seconds")
+    check_positive(args.rate, "--rate", "Pass e.g. --rate 100.", " [Hz]")
+    if args.kind != "gravity" and (not args.joint or len(args.joint) != 1):
+        raise ParameterError(
+            f"--joint must be given exactly once for the {args.kind} experiment; got {args.joint}. Pass e.g. --joint 2."
+        )
+    if args.kind == "gravity" and args.duration is not None:
+        check_samples(args.duration, args.rate, "--duration", "in the CSV", "Shorten --duration or lower --rate.")
+
+
 def _run_experiment(args) -> int:
     from trajopt.experiments import friction_experiment, gravity_experiment, motor_experiment
     from trajopt.friction_design import FrictionDesign
     from trajopt.plot import plot_trajectory
 
     out = args.out or f"{args.kind}_experiment.csv"
-    _check_outputs(args, out, args.plot)
+    _check_experiment(args)
+    outputs = _outputs(args, out)
     robot = _load_robot(args)
     extra = {} if args.speed is None else {"speed": args.speed}
-    if args.kind != "gravity" and (not args.joint or len(args.joint) != 1):
-        raise ParameterError(
-            f"--joint must be given exactly once for the {args.kind} experiment; got {args.joint}. Pass e.g. --joint 2."
-        )
     joints = None if args.joint is None else [_joint_index(j, robot.n_dof) for j in args.joint]
     if args.kind == "gravity":
         if args.duration is not None:
@@ -225,9 +267,11 @@ def _run_experiment(args) -> int:
     else:
         design = FrictionDesign.quick() if args.quick else FrictionDesign()
         experiment = friction_experiment(robot, joints[0], design.validation() if args.validation else design)
-    experiment.to_csv(out, rate=args.rate, overwrite=args.overwrite)
-    if args.plot:
-        plot_trajectory(experiment, args.plot, rate=max(args.rate, 50.0), overwrite=args.overwrite)
+    check_samples(experiment.duration, args.rate, "--rate", "in the CSV", "Lower --rate.")
+    with staged(*outputs) as (csv, plot):
+        experiment.to_csv(csv, rate=args.rate, overwrite=True)
+        if plot is not None:
+            plot_trajectory(experiment, plot, rate=max(args.rate, 50.0), overwrite=True)
     numbers = [j + 1 for j in experiment.joints]
     if args.json:
         print_json(
@@ -250,5 +294,8 @@ def _run_experiment(args) -> int:
 def _joint_index(number: int, n_dof: int) -> int:
     """0-based index of a 1-based ``--joint`` number."""
     if not 1 <= number <= n_dof:
-        raise ParameterError(f"--joint must be a joint number 1..{n_dof}; got {number}.")
+        raise ParameterError(
+            f"--joint must be a joint number 1..{n_dof} (the robot has {n_dof} joints); got {number}. "
+            f"Pass e.g. --joint {n_dof}."
+        )
     return number - 1

@@ -1,78 +1,185 @@
-"""The ``psdm identify`` subcommand: run the calibration pipeline on a data directory and save the model."""
+"""The ``psdm identify`` subcommand: a calibrated model from exciting recordings, or the paper's four steps.
+
+Recording files (``--data A.csv B.csv``) take the everyday route of ``identify_recordings``; a folder
+of the paper's calibration experiments (``--data DIR``) runs the four-step pipeline. ``--protocol``
+makes the choice explicit.
+"""
 
 from __future__ import annotations
 
+import sys
+from dataclasses import replace
 from pathlib import Path
 
-from psdm_casadi.cli.output import print_json, progress
+from psdm_casadi.cli import identify_recordings
+from psdm_casadi.cli.checks import output_folder
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.fileio import atomic_write, markdown_escape
 
-__all__ = ["register"]
+__all__ = ["register", "REPORT_FILES"]
+
+#: What ``psdm identify`` writes besides the model files (``--overwrite`` replaces these and nothing else).
+REPORT_FILES = ("report.md", "validation_all.png")
 
 
 def register(subparsers) -> None:
     """Add ``identify`` to the ``psdm`` parser."""
     p = subparsers.add_parser(
         "identify",
-        help="identify Kt, gravity, LuGre friction and inertial parameters from calibration recordings",
+        help="identify a calibrated model from exciting recordings (or the paper's four calibration steps)",
         description=(
-            "Run the paper's four calibration steps (motor, gravity, friction, inertial), a joint Ipopt "
-            "refinement and a mass-matrix consistency check on a data directory (payload.json, "
-            "motor_j<k>_nominal/_payload, gravity, friction_j<k>, excitation recordings; see "
-            "identification.data.dataset), then write the identified model and its validation report (Table 3)."
+            "Recordings (--data A.csv [B.csv ...], joint torques or currents; columns t, q1..qn, tau1..taun or "
+            "current1..currentn): filter them (cutoff min(10 Hz, rate/10), stated), fit base parameters, Coulomb "
+            "and viscous friction and drive inertias by weighted least squares, then physically consistent "
+            "standard parameters (positive-definite pseudo-inertias), validate on --validate recordings, and "
+            "write one calibrated-model file (--out model.json). A folder (--data DIR, or --protocol four-step) "
+            "runs the paper's four calibration steps (motor, gravity, friction, inertial) on its experiments "
+            "(payload.json, motor_j<k>_nominal/_payload, gravity, friction_j<k>, excitation) into --out DIR. "
+            "A model that is not physically consistent is not saved (exit 1) unless --allow-inconsistent."
         ),
     )
-    p.add_argument("robot", help="robot file (.toml or .urdf)")
-    p.add_argument("--data", required=True, help="data directory")
-    p.add_argument("--out", required=True, help="output directory of the identified model")
+    p.add_argument("robot", help="robot file (.toml or .urdf) or built-in robot name")
+    p.add_argument("--data", required=True, nargs="+", help="recordings (.csv, .npz), or one data directory")
+    p.add_argument(
+        "--protocol",
+        choices=("auto", "recordings", "four-step"),
+        default="auto",
+        help="recordings (exciting trajectories) or four-step (the paper's experiments in a folder); "
+        "auto: four-step for one folder, recordings otherwise",
+    )
+    p.add_argument("--out", required=True, help="calibrated-model file (.json), or a folder for the four-step route")
     p.add_argument("--model", default=None, help="derived PSDM model (.npz from 'psdm derive'); derived when omitted")
     p.add_argument("--no-refine", action="store_true", help="skip the joint refinement")
     p.add_argument("--plots", action="store_true", help="also write observed-vs-predicted plots (PNG)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing identified model")
+    p.add_argument("--overwrite", action="store_true", help="replace the files of an earlier identification in --out")
+    p.add_argument(
+        "--allow-inconsistent",
+        action="store_true",
+        help="save a model that fails the consistency check (mass matrix not positive definite), marked as such",
+    )
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
+    identify_recordings.add_arguments(p)
     p.set_defaults(handler=_run_identify)
+
+
+def _protocol(args) -> str:
+    for path in args.data:
+        if not Path(path).exists():
+            raise FileNotFoundError(
+                f"--data {path!r} does not exist. Check the path: pass recording files (.csv, .npz), or the folder "
+                "of the paper's experiments that 'psdm simulate --out' wrote."
+            )
+    folders = [Path(path).is_dir() for path in args.data]
+    protocol = args.protocol
+    if protocol == "auto":
+        protocol = "four-step" if len(args.data) == 1 and folders[0] else "recordings"
+    if protocol == "four-step" and not (len(args.data) == 1 and folders[0]):
+        raise FileNotFoundError(
+            f"--protocol four-step needs one --data folder of the paper's experiments; got {list(args.data)}. "
+            "Pass the folder 'psdm simulate --out' wrote, or recording files without --protocol four-step."
+        )
+    if protocol == "recordings" and any(folders):
+        folder = args.data[folders.index(True)]
+        raise FileNotFoundError(
+            f"--data {folder!r} is a folder; the recordings route takes recording files (.csv, .npz). "
+            "Name the files, or pass --protocol four-step for a folder of the paper's experiments."
+        )
+    return protocol
+
+
+def _check_inputs(args):
+    """--data and --model must exist and --out must be writable, before the derivation and the fit."""
+    from identification.calibration.result import RESULT_FILES
+
+    data = Path(args.data[0])
+    if len(args.data) != 1 or not data.is_dir():
+        raise FileNotFoundError(
+            f"--data {args.data[0]!r} is not a folder of recordings. Check the path (see 'psdm simulate --out')."
+        )
+    if args.model is not None and not Path(args.model).is_file():
+        raise FileNotFoundError(f"--model {args.model!r} does not exist. Check the path, or leave --model out.")
+    return output_folder(args.out, RESULT_FILES + REPORT_FILES, args.overwrite)
 
 
 def _run_identify(args) -> int:
     from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-    from identification.calibration.result import RESULT_FILES
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
     from psdm_casadi.robot import load_robot
 
+    if _protocol(args) == "recordings":
+        return identify_recordings.run(args)
+    folder = _check_inputs(args)
     robot = load_robot(args.robot)
-    out = Path(args.out)
-    if not args.overwrite:
-        for name in RESULT_FILES:
-            if (out / name).exists():
-                raise FileExistsError(f"{str(out / name)!r} exists; pass --overwrite to replace it.")
     if args.model:
         model = load_model(args.model)
     else:
         progress("identify: deriving the PSDM model ...", quiet=args.json)
         model = derive_psdm(robot)
     options = PipelineOptions(refine=not args.no_refine, quiet=args.json)
-    pipeline = IdentificationPipeline(robot, model, options).fit(args.data)
+    pipeline = IdentificationPipeline(robot, model, options).fit(args.data[0])
     result = pipeline.result_
-    result.save(out, overwrite=args.overwrite)
-    (out / "report.md").write_text(result.report.to_markdown() + "\n")
-    plots = [str(p) for p in pipeline.plot(out)] if args.plots else []
+    consistent = result.consistency is None or result.consistency.consistent
+    if not consistent and not args.allow_inconsistent:
+        print(
+            f"psdm identify: error: the identified model is not physically consistent: {_inconsistency(result)}. "
+            f"Nothing was written to {args.out!r}. Check the recordings (excitation, payload), or pass "
+            "--allow-inconsistent to save it marked as inconsistent.",
+            file=sys.stderr,
+        )
+        return EXIT_CHECK_FAILED
+    if not consistent:
+        result = replace(result, metadata={**result.metadata, "inconsistent": _inconsistency(result)})
+        print(f"psdm identify: warning: saving an INCONSISTENT model: {_inconsistency(result)}", file=sys.stderr)
+    with folder.staging() as stage:
+        result.save(stage)
+        text = _report_markdown(robot, result)
+        atomic_write(stage / "report.md", lambda handle: handle.write(text))
+        plots = [folder.target / Path(p).name for p in pipeline.plot(stage)] if args.plots else []
+    _print_summary(args, robot, model, result, pipeline, plots)
+    return EXIT_OK
+
+
+def _inconsistency(result) -> str:
+    """One sentence on the failed consistency check."""
+    c = result.consistency
+    return (
+        f"the mass matrix is not positive definite at {c.n_violations} of {c.n_samples} configurations "
+        f"(smallest eigenvalue {c.min_eigenvalue:.4g} kg m^2)"
+    )
+
+
+def _report_markdown(robot, result) -> str:
+    """report.md: the robot, a loud line when the model is inconsistent, and the validation table (names escaped)."""
+    lines = [f"# Identified model: {markdown_escape(robot.name)}", ""]
+    if "inconsistent" in result.metadata:
+        lines += [
+            f"**WARNING: INCONSISTENT MODEL: {result.metadata['inconsistent']}. It was saved only because of "
+            "--allow-inconsistent; do not use it to simulate or control the robot.**",
+            "",
+        ]
+    table = replace(result.report, joint_names=tuple(markdown_escape(n) for n in result.report.joint_names))
+    return "\n".join(lines) + table.to_markdown() + "\n"
+
+
+def _print_summary(args, robot, model, result, pipeline, plots) -> None:
     if args.json:
         print_json(
             {
                 "command": "identify",
                 "robot": robot.name,
-                "out": str(out),
+                "out": str(args.out),
                 "kt": result.kt.tolist(),
                 "theta": result.theta.tolist(),
                 "base_names": list(model.base_names),
                 "lugre": [p.as_dict() for p in result.lugre],
                 "report": result.report.to_dict(),
-                "consistency": result.consistency.to_dict(),
+                "consistency": result.consistency.to_dict() if result.consistency is not None else None,
+                "inconsistent": "inconsistent" in result.metadata,
                 "timings": pipeline.timings_,
-                "plots": plots,
+                "plots": [str(p) for p in plots],
             }
         )
     else:
         print(result.report.to_markdown())
-        print(f"identified model written to {out}")
-    return 0
+        print(f"identified model written to {args.out}")

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from psdm_casadi.cli.checks import check_count, check_positive, check_samples, output_folder, parse_joints
 from psdm_casadi.cli.output import print_json, progress
 from psdm_casadi.errors import ParameterError
 
@@ -59,47 +60,37 @@ def _add_simulate(subparsers) -> None:
 
 
 def _read_reference(path: str, n_dof: int):
-    """``(t, q[, qd[, qdd]])`` from a trajectory CSV as ``psdm excite`` and ``psdm experiment`` write it."""
+    """``(t, q[, qd[, qdd]])`` from a trajectory CSV as ``psdm excite`` and ``psdm experiment`` write it.
+
+    The file goes through the recordings' reader (encodings, delimiters, values and time are checked
+    there, naming the line and the fix); only the column set differs: a reference has no torques.
+    """
+    from identification.data.io import read_table, time_column
     from trajopt.csvfile import trajectory_header
 
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"reference {str(path)!r} does not exist. Check the path.")
-    with open(path) as handle:
-        lines = [ln for ln in handle if ln.strip() and not ln.lstrip().startswith("#")]
-    if not lines:
-        raise ParameterError(f"{path.name}: empty reference; expected a header t,q1..q{n_dof}.")
-    header = [h.strip() for h in lines[0].split(",")]
+    table = read_table(path)
     known = set(trajectory_header(n_dof))
-    for name in header:
+    for name in table.names:
         if name not in known:
             raise ParameterError(
-                f"{path.name}: column {name!r} is not a reference column of a {n_dof}-joint robot "
+                f"{table.source}: column {name!r} is not a reference column of a {n_dof}-joint robot "
                 f"(t, q1..q{n_dof}, qd1.., qdd1..). Remove it."
             )
-    try:
-        data = np.array([[float(x) for x in ln.split(",")] for ln in lines[1:]], dtype=float)
-    except ValueError:
-        raise ParameterError(f"{path.name}: a row holds a non-number or a wrong field count. Fix the file.") from None
-    if data.ndim != 2 or data.shape[0] < 2:
-        raise ParameterError(
-            f"{path.name}: the reference needs at least 2 rows; got {data.shape[0] if data.ndim == 2 else 0}."
-        )
-    cols = {name: data[:, k] for k, name in enumerate(header)}
-    if "t" not in cols:
-        raise ParameterError(f"{path.name}: column t is missing. Add the time column.")
-    parts = [cols["t"]]
+    if table.n_samples < 2:
+        raise ParameterError(f"{table.source}: the reference needs at least 2 rows; got {table.n_samples}.")
+    columns = {name: table.data[:, k] for k, name in enumerate(table.names)}
+    parts = [time_column(table)]
     for prefix in ("q", "qd", "qdd"):
         names = [f"{prefix}{j + 1}" for j in range(n_dof)]
-        present = [n for n in names if n in cols]
+        present = [n for n in names if n in columns]
         if not present:
             if prefix == "q":
-                raise ParameterError(f"{path.name}: columns q1..q{n_dof} are missing. Add joint positions.")
+                raise ParameterError(f"{table.source}: columns q1..q{n_dof} are missing. Add joint positions.")
             break
         if len(present) != n_dof:
-            missing = next(n for n in names if n not in cols)
-            raise ParameterError(f"{path.name}: column {missing} is missing; the robot has n_dof={n_dof}. Add it.")
-        parts.append(np.column_stack([cols[n] for n in names]))
+            missing = next(n for n in names if n not in columns)
+            raise ParameterError(f"{table.source}: column {missing} is missing; the robot has n_dof={n_dof}. Add it.")
+        parts.append(np.column_stack([columns[n] for n in names]))
     return tuple(parts)
 
 
@@ -132,18 +123,41 @@ def _experiment_runs(args, robot, joints, rng, base):
     return [("sine", experiment.reference(), SimulationOptions(**base))]
 
 
+def _check_simulate(args) -> None:
+    """The options of ``psdm simulate`` that need no robot, before any work."""
+    check_positive(args.duration, "--duration", "Pass seconds, e.g. --duration 10.", " of seconds")
+    check_positive(args.rate, "--rate", "Pass e.g. --rate 1000.", " [Hz]")
+    check_count(args.substeps, "--substeps", "Pass e.g. --substeps 2.")
+    check_positive(args.payload, "--payload", "Pass the calibration mass in kg, e.g. --payload 2.", " [kg]")
+    if args.duration is not None:
+        fix = "Shorten --duration or lower --rate."
+        check_samples(args.duration, args.rate, "--duration", "per simulated recording", fix)
+
+
+def _check_lengths(runs, rate: float) -> None:
+    """Every run must stay within the sample bound (the length of a reference or an experiment included)."""
+    for name, reference, options in runs:
+        t = reference[0]
+        duration = options.duration if options.duration is not None else float(t[-1] - t[0])
+        fix = "Lower --rate, or shorten --duration or the reference."
+        check_samples(duration, rate, "--rate", f"in the recording {name}", fix)
+
+
+def _recording_names(runs, fmt: str) -> list:
+    """The files ``write_recording`` writes for the runs (a recording and its two truth files each)."""
+    return [f"{name}{suffix}" for name, _, _ in runs for suffix in (f".{fmt}", ".truth.json", ".truth.npz")]
+
+
 def _run_simulate(args) -> int:
-    from identification.virtual.simulation import SimulationOptions, simulate_recording
-    from identification.virtual.truth import write_recording
+    from identification.virtual.simulation import SimulationOptions
     from psdm_casadi.robot import load_robot
 
+    _check_simulate(args)
+    output_folder(args.out, (), args.overwrite, shared=True)  # a file or an unwritable folder: refused first
     robot = load_robot(args.robot)
     n = robot.n_dof
     rng = np.random.default_rng(args.seed)
-    joints = list(range(n)) if args.joints is None else [int(j) - 1 for j in args.joints.split(",")]
-    for j in joints:
-        if not 0 <= j < n:
-            raise ParameterError(f"--joints must hold joint numbers 1..{n}; got {j + 1}.")
+    joints = parse_joints(args.joints, n)
     base = dict(rate=args.rate, substeps=args.substeps, record_tau=args.tau)
     if args.no_noise:
         base.update(encoder_resolution=None, current_resolution=None, current_noise_std=0.0)
@@ -151,30 +165,13 @@ def _run_simulate(args) -> int:
         runs = [("reference", _read_reference(args.reference, n), SimulationOptions(duration=args.duration, **base))]
     else:
         runs = _experiment_runs(args, robot, joints, rng, base)
-
-    written, simulated, wall = [], 0.0, 0.0
-    for name, ref, options in runs:
-        progress(f"simulate: {name} ...", quiet=args.json)
-        start = time.perf_counter()
-        recording, truth = simulate_recording(robot, ref, options, rng)
-        elapsed = time.perf_counter() - start
-        paths = write_recording(recording, truth, args.out, name=name, fmt=args.format, overwrite=args.overwrite)
-        simulated += recording.duration
-        wall += elapsed
-        written.append(
-            {
-                "name": name,
-                "samples": recording.n_samples,
-                "duration_s": recording.duration,
-                "seconds": elapsed,
-                **{k: str(v) for k, v in paths.items()},
-            }
-        )
-        progress(
-            f"simulate: {name}: {recording.duration:.1f} s of robot time in {elapsed:.1f} s "
-            f"({recording.duration / elapsed:.0f}x real time) -> {paths['recording']}",
-            quiet=args.json,
-        )
+    _check_lengths(runs, args.rate)
+    folder = output_folder(args.out, _recording_names(runs, args.format), args.overwrite, shared=True)
+    with folder.staging() as stage:
+        written, simulated, wall = _simulate_runs(args, robot, runs, rng, stage)
+    for entry in written:
+        for key in ("recording", "truth", "states"):
+            entry[key] = str(folder.target / Path(entry[key]).name)
     if args.json:
         print_json(
             {
@@ -188,3 +185,34 @@ def _run_simulate(args) -> int:
             }
         )
     return 0
+
+
+def _simulate_runs(args, robot, runs, rng, stage: Path) -> tuple:
+    """Simulate every run into ``stage``: (summaries, simulated seconds, wall seconds)."""
+    from identification.virtual.simulation import simulate_recording
+    from identification.virtual.truth import write_recording
+
+    written, simulated, wall = [], 0.0, 0.0
+    for name, ref, options in runs:
+        progress(f"simulate: {name} ...", quiet=args.json)
+        start = time.perf_counter()
+        recording, truth = simulate_recording(robot, ref, options, rng)
+        elapsed = time.perf_counter() - start
+        paths = write_recording(recording, truth, stage, name=name, fmt=args.format)
+        simulated += recording.duration
+        wall += elapsed
+        written.append(
+            {
+                "name": name,
+                "samples": recording.n_samples,
+                "duration_s": recording.duration,
+                "seconds": elapsed,
+                **{k: str(v) for k, v in paths.items()},
+            }
+        )
+        progress(
+            f"simulate: {name}: {recording.duration:.1f} s of robot time in {elapsed:.1f} s "
+            f"({recording.duration / elapsed:.0f}x real time) -> {Path(args.out) / paths['recording'].name}",
+            quiet=args.json,
+        )
+    return written, simulated, wall

@@ -1,5 +1,7 @@
 """Preprocessing: central differences against analytic derivatives, zero-phase filtering, uneven grids."""
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -134,3 +136,30 @@ def test_too_short_for_filter():
 def test_options_type_checked():
     with pytest.raises(ParameterError, match="PreprocessOptions"):
         preprocess(sine_recording(np.arange(0, 1, 1e-3)), {"cutoff_hz": 4.0})
+
+
+@pytest.mark.parametrize(
+    "t, scale",
+    [
+        (
+            np.arange(50) * 1e-3,
+            1e307,
+        ),  # values so large that their differences overflow
+        (np.arange(50) * 1e-300, 1.0),  # steps so small that dividing by them overflows
+    ],
+)
+def test_overflow_in_differentiation_is_refused_without_warnings(t, scale):
+    rec = Recording(t=t, q=scale * np.sin(np.arange(50.0))[:, None], tau=np.zeros((50, 1)), name="huge.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no RuntimeWarning: overflow ... before the message
+        with pytest.raises(RecordingError, match=r"preprocess of huge.csv: Recording.qd must be finite.*units"):
+            preprocess(rec, PreprocessOptions(cutoff_hz=None))
+
+
+def test_filter_refusals_name_the_recording():
+    short = sine_recording(np.arange(0, 0.02, 1e-3)).with_signals(name="friction_j1.csv")
+    with pytest.raises(RecordingError, match=r"^friction_j1.csv: Recording.t holds 20 samples"):
+        preprocess(short, PreprocessOptions(cutoff_hz=4.0))
+    slow = sine_recording(np.arange(0, 1, 0.01)).with_signals(name="slow.csv")
+    with pytest.raises(ParameterError, match=r"^slow.csv: PreprocessOptions.cutoff_hz must be below the Nyquist"):
+        preprocess(slow, PreprocessOptions(cutoff_hz=60.0))

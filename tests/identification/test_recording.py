@@ -130,3 +130,14 @@ def test_with_tau_and_uniformity():
     assert np.all(new.tau == 0) and not np.all(rec.tau == 0)
     uneven = rec.with_signals(t=rec.t**2 + rec.t)
     assert not uneven.is_uniform()
+
+
+def test_read_only_arrays_that_own_their_data_are_kept_not_copied():
+    q = np.zeros((10, 2))
+    q.setflags(write=False)
+    rec = Recording(t=np.arange(10.0), q=q, current=np.ones((10, 2)))
+    assert rec.q is q  # nobody can write it: sharing it is safe and saves a copy
+    again = rec.with_signals(name="again")
+    assert again.q is rec.q and again.current is rec.current
+    view = rec.q[:, :1]  # a view is copied: its base could be made writable elsewhere
+    assert Recording(t=rec.t, q=view, tau=view).q is not view

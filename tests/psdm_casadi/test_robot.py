@@ -58,7 +58,7 @@ def test_expressions_with_pi_are_read(tmp_path):
         ("[[joint]]\n" + GOOD_JOINT + "[[drive]]\nkt = -1\n", r"drive\[1\].*kt must be positive"),
         ('format = "psdm-robot/9"\n[[joint]]\n' + GOOD_JOINT, r"format must be"),
         ("name = 'x'\n", r"at least one \[\[joint\]\]"),
-        ("[[joint]\n", r"not valid TOML"),
+        ("[[joint]\n", r"must be valid TOML"),
     ],
 )
 def test_malformed_files_name_the_field(tmp_path, text, match):

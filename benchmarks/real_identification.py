@@ -1,0 +1,404 @@
+"""Identification from ordinary recordings on real data: our consistent fit against OLS, the URDF and Gaz et al.
+
+For each real recording in ../shared/datasets (Staubli TX40 from FIGAROH, Franka Panda from Gaz et
+al. 2019; read at run time, never copied; a robot whose data are absent is skipped), the first 70 %
+trains and the last 30 % validates (loaders and split of ``real_data_diagnosis``):
+
+- derive the PSDM model and ``identify_trajectories`` with Coulomb, viscous and offset friction;
+- prepare the validation part with ``prepare_recording`` (the fit's filter, differentiation and
+  decimation) and compare, per joint, validation RMSE [N m] and R^2 of (a) our consistent fit,
+  (b) the unconstrained weighted least-squares estimate on the same columns, (c) the robot file's
+  URDF/CAD inertias by Pinocchio's rnea (no friction) and (d) for the Panda, the published
+  identified model of Gaz et al. (RA-L 2019), ``tau = M(q) ddq + C(q, dq) dq + g(q) + tau_f(dq)``
+  on the same prepared samples;
+- check consistency: the smallest mass-matrix eigenvalue of our model on random configurations
+  within the joint limits and the smallest pseudo-inertia eigenvalue.
+
+The published model is the authors' generated C++ in ../shared/reference/panda_gaz2019_model, compiled
+with a shim of ours into a shared library in a cache folder outside the repository
+(``~/.cache/psdm-casadi/gaz2019/<hash of sources, shim, flags and compiler>``, or ``--build-dir``)
+and loaded with ctypes. The first build takes minutes (CoriolisMatrix.cpp is 2.5 MB, compiled at -O1).
+
+Targets: consistent (both eigenvalues > 0); our validation RMSE within 10 % of OLS on every joint;
+on the Panda, below the published model on every joint; derive + identify under 60 s per robot.
+Usage::
+
+    python benchmarks/real_identification.py [--robots tx40 panda] [--build-dir DIR] [--jobs 2]
+        [--configurations 10000] [--seed 0] [--json]
+
+Exit code 0 when every target is met, 1 otherwise, 2 when no dataset is found or an option is wrong.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import contextlib
+import ctypes
+import hashlib
+import json
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from bench_support import ROOT, print_table, show_progress
+from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
+
+from identification.calibration.trajectory_data import prepare_recording
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
+from identification.metrics import r2, rmse
+from psdm_casadi import derive_psdm
+from psdm_casadi.oracle import PinocchioOracle
+
+GAZ_MODEL = ROOT.parent / "shared" / "reference" / "panda_gaz2019_model"
+GAZ_SOURCES = ("CoriolisMatrix.cpp", "MassMatrix.cpp", "GravityVector.cpp", "FrictionTorque.cpp")  # longest first
+GAZ_FLAGS = ("-std=c++14", "-O1", "-fPIC", "-DNDEBUG")
+SHIM_FLAGS = ("-std=c++14", "-O2", "-fPIC", "-DNDEBUG")
+SHIM_NAME = "gaz2019_shim.cpp"
+LIBRARY_NAME = "libgaz2019.so"
+BUILD_INFO = "build.json"
+COMPILE_TIMEOUT_S = 3600.0
+ROBOTS = {"tx40": (TX40, load_tx40), "panda": (PANDA, load_panda_real)}
+OPTIONS = TrajectoryOptions(friction=("fc", "fv", "offset"))
+OLS_TOLERANCE = 1.10  # ours may be at most 10 % above OLS on a joint
+MAX_SECONDS = 60.0
+TARGETS = {
+    "consistent": "min mass-matrix eigenvalue > 0 and min pseudo-inertia eigenvalue > 0",
+    "rmse_vs_ols": f"validation RMSE of ours <= {OLS_TOLERANCE:g} x OLS on every joint",
+    "rmse_vs_published": "Panda: validation RMSE of ours < the published model (Gaz et al. 2019) on every joint",
+    "seconds": f"derive + identify < {MAX_SECONDS:g} s per robot",
+}
+
+# Our own code: evaluates the published functions for n samples stored row by row, (n, 7) in C order.
+SHIM_SOURCE = """\
+// psdm-casadi benchmark shim: tau = M(q) ddq + C(q, dq) dq + g(q) + tau_f(dq) of Gaz et al.'s Panda model.
+#include "franka_model.h"
+
+extern "C" int gaz2019_n_dof(void) { return NUMBER_OF_JOINTS; }
+
+extern "C" void gaz2019_inverse_dynamics(long n, const double *q, const double *dq, const double *ddq,
+                                         double *tau) {
+    for (long k = 0; k < n; ++k) {
+        const Eigen::Vector7d qk = Eigen::Map<const Eigen::Vector7d>(q + NUMBER_OF_JOINTS * k);
+        const Eigen::Vector7d dqk = Eigen::Map<const Eigen::Vector7d>(dq + NUMBER_OF_JOINTS * k);
+        const Eigen::Vector7d ddqk = Eigen::Map<const Eigen::Vector7d>(ddq + NUMBER_OF_JOINTS * k);
+        const Eigen::Vector7d out = MassMatrix(qk) * ddqk + CoriolisMatrix(qk, dqk) * dqk + GravityVector(qk)
+                                    + Friction(dqk);
+        Eigen::Map<Eigen::Vector7d>(tau + NUMBER_OF_JOINTS * k) = out;
+    }
+}
+"""
+
+
+class BuildError(RuntimeError):
+    """The published model could not be compiled or loaded; the message says why."""
+
+
+def default_build_dir() -> Path:
+    """``$XDG_CACHE_HOME/psdm-casadi/gaz2019`` (``~/.cache/...`` by default): outside the repository."""
+    cache = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(cache) / "psdm-casadi" / "gaz2019"
+
+
+def find_eigen() -> Path:
+    """Eigen's include folder: the cmeel-eigen wheel's (cmeel.prefix/include/eigen3), else the system's."""
+    paths = sysconfig.get_paths()
+    bases = [Path(paths[key]) / "cmeel.prefix" / "include" / "eigen3" for key in ("purelib", "platlib")]
+    for folder in (*bases, Path("/usr/include/eigen3"), Path("/usr/local/include/eigen3")):
+        if (folder / "Eigen" / "Core").exists():
+            return folder
+    raise BuildError(
+        "Eigen headers not found (cmeel.prefix/include/eigen3 or /usr/include/eigen3); pip install cmeel-eigen"
+    )
+
+
+def find_compiler() -> str:
+    compiler = os.environ.get("CXX") or "c++"
+    path = shutil.which(compiler)
+    if path is None:
+        raise BuildError(f"no C++ compiler '{compiler}' on PATH (set CXX or apt-get install g++)")
+    return path
+
+
+def build_key(compiler: str) -> str:
+    """Hash of the published sources and header, the shim, the flags and the compiler's version."""
+    digest = hashlib.sha256()
+    for path in [GAZ_MODEL / "include" / "franka_model.h", *(GAZ_MODEL / "src" / name for name in GAZ_SOURCES)]:
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    version = subprocess.run([compiler, "--version"], capture_output=True, text=True, check=False).stdout
+    digest.update("\0".join([SHIM_SOURCE, *GAZ_FLAGS, *SHIM_FLAGS, version]).encode())
+    return digest.hexdigest()[:16]
+
+
+def _compile(command: list, name: str) -> float:
+    start = time.perf_counter()
+    try:
+        done = subprocess.run(command, capture_output=True, text=True, timeout=COMPILE_TIMEOUT_S, check=False)
+    except subprocess.TimeoutExpired as exc:
+        raise BuildError(f"compiling {name} did not finish in {COMPILE_TIMEOUT_S:g} s") from exc
+    if done.returncode != 0:
+        tail = " | ".join((done.stderr or done.stdout).strip().splitlines()[-6:])
+        raise BuildError(f"{Path(command[0]).name} failed on {name} (exit {done.returncode}): {tail}")
+    return time.perf_counter() - start
+
+
+def build_published_model(build_dir: Path, jobs: int, log) -> dict:
+    """Compile the published model and the shim into a shared library, cached by :func:`build_key`.
+
+    Returns ``{"library": path, "seconds": wall time of this call, "cached": bool, "build_seconds": wall time
+    of the build that made the library, "compile_seconds": {file: s}}`` (the last two from the build's
+    ``build.json`` when cached; None if it has none).
+    Raises BuildError with the reason when a file is absent or the compiler fails.
+    """
+    start = time.perf_counter()
+    missing = [p for p in (GAZ_MODEL / "include" / "franka_model.h", *(GAZ_MODEL / "src" / n for n in GAZ_SOURCES))
+               if not p.exists()]  # fmt: skip
+    if missing:
+        raise BuildError(f"published model sources absent: {', '.join(str(p) for p in missing)}")
+    compiler, eigen = find_compiler(), find_eigen()
+    target = build_dir / build_key(compiler)
+    library = target / LIBRARY_NAME
+    if library.exists():
+        info = json.loads((target / BUILD_INFO).read_text()) if (target / BUILD_INFO).exists() else {}
+        return {"library": library, "seconds": time.perf_counter() - start, "cached": True,
+                "build_seconds": info.get("build_seconds"), "compile_seconds": info.get("compile_seconds")}  # fmt: skip
+    build_dir.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f"{target.name}.", dir=build_dir))  # renamed to target when complete
+    try:
+        (work / SHIM_NAME).write_text(SHIM_SOURCE)
+        includes = [f"-I{GAZ_MODEL / 'include'}", f"-I{eigen}"]
+        units = [(name, GAZ_MODEL / "src" / name, GAZ_FLAGS) for name in GAZ_SOURCES]
+        units.append((SHIM_NAME, work / SHIM_NAME, SHIM_FLAGS))
+        log(f"building the published Panda model with {Path(compiler).name} on {jobs} cores into {target} ...")
+        with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
+            commands = {name: [compiler, *flags, *includes, "-c", str(src), "-o", str(work / f"{name}.o")]
+                        for name, src, flags in units}  # fmt: skip
+            futures = {name: pool.submit(_compile, command, name) for name, command in commands.items()}
+            times = {name: future.result() for name, future in futures.items()}
+        objects = [str(work / f"{name}.o") for name, _, _ in units]
+        _compile([compiler, "-shared", "-o", str(work / LIBRARY_NAME), *objects], LIBRARY_NAME)
+        for obj in objects:
+            Path(obj).unlink()
+        seconds = time.perf_counter() - start
+        info = {"build_seconds": seconds, "compile_seconds": times, "compiler": compiler, "jobs": jobs}
+        (work / BUILD_INFO).write_text(json.dumps(info, indent=1))
+        try:
+            work.rename(target)
+        except OSError:  # another run finished the same build first
+            if not library.exists():
+                raise
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+    return {"library": library, "seconds": seconds, "cached": False, "build_seconds": seconds, "compile_seconds": times}
+
+
+class PublishedModel:
+    """Gaz et al.'s identified Panda model from the shared library of :func:`build_published_model`."""
+
+    def __init__(self, library: Path):
+        try:
+            self._lib = ctypes.CDLL(str(library))
+        except OSError as exc:
+            raise BuildError(f"cannot load {library}: {exc}") from exc
+        array = np.ctypeslib.ndpointer(dtype=np.float64, ndim=2, flags="C_CONTIGUOUS")
+        self._lib.gaz2019_inverse_dynamics.argtypes = [ctypes.c_long, array, array, array, array]
+        self._lib.gaz2019_inverse_dynamics.restype = None
+        self.n_dof = int(self._lib.gaz2019_n_dof())
+
+    def inverse_dynamics(self, q, qd, qdd) -> np.ndarray:
+        """Joint torques [N m], (n_samples, 7), of states (n_samples, 7) each."""
+        q, qd, qdd = (np.ascontiguousarray(x, dtype=np.float64) for x in (q, qd, qdd))
+        if not q.shape == qd.shape == qdd.shape or q.ndim != 2 or q.shape[1] != self.n_dof:
+            raise ValueError(f"q, qd, qdd must all have shape (n_samples, {self.n_dof}); got {q.shape}.")
+        tau = np.empty_like(q)
+        self._lib.gaz2019_inverse_dynamics(q.shape[0], q, qd, qdd, tau)
+        return tau
+
+
+def min_mass_eigenvalue(robot, standard, n_configurations: int, rng) -> float:
+    """Smallest eigenvalue of M(q) (Pinocchio crba with ``standard``) over random q within the joint limits."""
+    low = np.where(np.isfinite(robot.q_min), robot.q_min, -np.pi)
+    high = np.where(np.isfinite(robot.q_max), robot.q_max, np.pi)
+    q = rng.uniform(low, high, size=(n_configurations, robot.n_dof))
+    return float(np.linalg.eigvalsh(PinocchioOracle(robot, standard).crba(q)).min())
+
+
+def evaluate_robot(key: str, loader, published, args) -> dict:
+    """Identify on the training part and compare the predictions on the prepared validation part."""
+    robot, recording = loader()
+    train, validation = split(recording)
+    start = time.perf_counter()
+    model = derive_psdm(robot)
+    derived = time.perf_counter()
+    fit = identify_trajectories(robot, model, [train], OPTIONS)
+    seconds = time.perf_counter() - start
+    ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0])
+    q, qd, qdd, tau = ready.q, ready.qd, ready.qdd, ready.tau
+    predictions = {
+        "": predict_torque(model, fit, q, qd, qdd),
+        "_ols": predict_torque(model, fit, q, qd, qdd, ols=True),
+        "_prior": PinocchioOracle(robot).rnea(q, qd, qdd),
+    }
+    if published is not None:
+        predictions["_published"] = published.inverse_dynamics(q, qd, qdd)
+    result = {"robot": robot.name, "n_dof": robot.n_dof}
+    for suffix, tau_hat in predictions.items():
+        result[f"rmse{suffix}"] = np.asarray(rmse(tau, tau_hat)).tolist()
+        result[f"r2{suffix}"] = np.asarray(r2(tau, tau_hat)).tolist()
+    rng = np.random.default_rng(args.seed)
+    result.update(
+        min_mass_eigenvalue=min_mass_eigenvalue(robot, fit.standard, args.configurations, rng),
+        mass_configurations=args.configurations,
+        min_pseudo_inertia_eigenvalue=float(fit.min_pseudo_inertia_eigenvalue),
+        condition_number=float(fit.condition_number),
+        seconds=seconds,
+        derive_seconds=derived - start,
+        identify_seconds=seconds - (derived - start),
+        solver_status=fit.solver_status,
+        n_base=model.n_base,
+        n_train_samples=fit.n_samples,
+        n_validation_samples=ready.n_samples,
+        cutoff_hz=cutoff,
+        decimation=step,
+        drive=dict(zip(fit.drive_names, fit.drive.tolist())),
+    )
+    return result
+
+
+def missed_targets(results: dict) -> list:
+    """One sentence per missed target, e.g. ``"panda rmse_vs_ols: joint 4 0.250 > 1.1 x 0.221"``."""
+    missed = []
+    for key, r in results.items():
+        if r.get("skipped"):
+            continue
+        mass, pseudo = r["min_mass_eigenvalue"], r["min_pseudo_inertia_eigenvalue"]
+        if not (mass > 0 and pseudo > 0):
+            missed.append(
+                f"{key} consistent: min mass eigenvalue {mass:.3g}, min pseudo-inertia eigenvalue {pseudo:.3g}"
+            )
+        for j, (ours, ols) in enumerate(zip(r["rmse"], r["rmse_ols"])):
+            if not ours <= OLS_TOLERANCE * ols:
+                missed.append(f"{key} rmse_vs_ols: joint {j + 1} {ours:.3g} > {OLS_TOLERANCE:g} x {ols:.3g} N m")
+        if key == "panda":
+            if r.get("rmse_published") is None:
+                missed.append(f"panda rmse_vs_published: published model not evaluated ({r.get('published_error')})")
+            else:
+                for j, (ours, theirs) in enumerate(zip(r["rmse"], r["rmse_published"])):
+                    if not ours < theirs:
+                        missed.append(f"panda rmse_vs_published: joint {j + 1} {ours:.3g} >= {theirs:.3g} N m")
+        if not r["seconds"] < MAX_SECONDS:
+            missed.append(f"{key} seconds: {r['seconds']:.1f} >= {MAX_SECONDS:g}")
+    return missed
+
+
+def print_robot(key: str, r: dict) -> None:
+    if r.get("skipped"):
+        print(f"\n{key}: skipped ({r['reason']})")
+        return
+    print(
+        f"\n{key} ({r['robot']}, {r['n_dof']} joints, {r['n_base']} base parameters): validation RMSE [N m] and R^2 "
+        f"on the last 30 % ({r['n_validation_samples']} samples after a {r['cutoff_hz']:g} Hz filter, "
+        f"decimation {r['decimation']}; trained on {r['n_train_samples']})"
+    )
+    names = {"": "ours", "_ols": "OLS", "_prior": "prior", "_published": "published"}
+    rows = []
+    for j in range(r["n_dof"]):
+        row = {"joint": j + 1}
+        for suffix, label in names.items():
+            values = r.get(f"rmse{suffix}")
+            row[label] = values[j] if values is not None else "-"
+            values = r.get(f"r2{suffix}")
+            row[f"R2 {label}"] = values[j] if values is not None else "-"
+        rows.append(row)
+    print_table(rows, ["joint", *names.values(), *(f"R2 {label}" for label in names.values())])
+    print(
+        f"min mass eigenvalue {r['min_mass_eigenvalue']:.4g} kg m^2 ({r['mass_configurations']} random "
+        f"configurations), min pseudo-inertia eigenvalue {r['min_pseudo_inertia_eigenvalue']:.3g}, condition "
+        f"number {r['condition_number']:.3g}, derive {r['derive_seconds']:.1f} s + identify "
+        f"{r['identify_seconds']:.1f} s = {r['seconds']:.1f} s ({r['solver_status']})"
+    )
+    if key == "panda":
+        if r.get("rmse_published") is None:
+            print(f"published model (Gaz et al. 2019): not evaluated: {r['published_error']}")
+        else:
+            built = r["published_original_build_seconds"]
+            files = r["published_compile_seconds"] or {}
+            detail = ", ".join(f"{name} {seconds:.0f} s" for name, seconds in files.items())
+            when = (
+                f"cached (looked up in {r['published_build_seconds']:.2f} s); " if r["published_build_cached"] else ""
+            )
+            took = "unknown" if built is None else f"{built:.1f} s"
+            print(f"published model (Gaz et al. 2019): {when}build took {took}" + (f" ({detail})" if detail else ""))
+    print("prior: the URDF's inertias by Pinocchio rnea, no friction; OLS: the weighted least squares on our columns")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=list(ROBOTS))
+    parser.add_argument("--build-dir", type=Path, default=None,
+                        help="cache folder of the published model's build (outside the repository; "
+                             "default ~/.cache/psdm-casadi/gaz2019)")  # fmt: skip
+    parser.add_argument("--jobs", type=int, default=2, help="compiler processes for the published model (default 2)")
+    parser.add_argument("--configurations", type=int, default=10_000, help="random q for the mass eigenvalue")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    args = parser.parse_args(argv)
+    show_progress()
+    build_dir = (args.build_dir or default_build_dir()).expanduser().resolve()
+    if build_dir == ROOT or ROOT in build_dir.parents:
+        print(f"--build-dir must be outside the repository {ROOT}; got {build_dir}", file=sys.stderr)
+        return 2
+    if args.jobs < 1 or args.configurations < 1:
+        print("--jobs and --configurations must be >= 1", file=sys.stderr)
+        return 2
+
+    def log(message):
+        print(message, file=sys.stderr, flush=True)
+
+    results = {}
+    for key in args.robots:
+        folder, loader = ROBOTS[key]
+        if not folder.exists():
+            log(f"{key}: data absent in {folder}; skipped")
+            results[key] = {"skipped": True, "reason": f"data absent in {folder}"}
+            continue
+        published, extra = None, {}
+        if key == "panda":  # built before the timed identification, so that it does not share the cores
+            try:
+                build = build_published_model(build_dir, args.jobs, log)
+                published = PublishedModel(build["library"])
+                extra = {"published_build_seconds": build["seconds"], "published_build_cached": build["cached"],
+                         "published_original_build_seconds": build["build_seconds"],
+                         "published_compile_seconds": build["compile_seconds"], "published_error": None}  # fmt: skip
+                log(f"published model: {'cached' if build['cached'] else 'built'} in {build['seconds']:.1f} s "
+                    f"({build['library']})")  # fmt: skip
+            except BuildError as exc:
+                log(f"published model unavailable: {exc}")
+                extra = {"rmse_published": None, "r2_published": None, "published_error": str(exc)}
+        results[key] = {**evaluate_robot(key, loader, published, args), **extra}
+    if all(r.get("skipped") for r in results.values()):
+        log("no dataset found under " + str(TX40.parent))
+        return 2
+    missed = missed_targets(results)
+    with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):  # stdout is pure JSON with --json
+        for key, r in results.items():
+            print_robot(key, r)
+        print("\ntargets:")
+        for name, text in TARGETS.items():
+            failed = [m for m in missed if m.split(" ", 2)[1].rstrip(":") == name]
+            print(f"  [{'MISSED' if failed else 'met'}] {text}" + "".join(f"\n      {m}" for m in failed))
+        print("all met" if not missed else f"NOT met: {len(missed)} target check(s) missed")
+    if args.json:
+        payload = {"robots": results, "targets": TARGETS, "targets_met": not missed, "targets_missed": missed}
+        print(json.dumps(payload, default=float))
+    return 0 if not missed else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,102 @@
+"""ColumnTable: the named numeric columns of a recording file, checked, before ``io`` makes them a Recording.
+
+The readers (``csvfile`` for CSV text, ``npzfile`` for NPZ archives) return one; it holds one float64
+array ``(n_samples, n_columns)`` and knows how to name a row of it in the file (``line 12`` of a CSV,
+``row 11`` of an NPZ), so every message points at the sample to fix.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from psdm_casadi.errors import RecordingError
+
+# No joint signal in SI units comes near this (positions in rad or m, torques in N m, currents in A,
+# times in s); values beyond it are a unit or export error and overflow once differentiated.
+MAX_MAGNITUDE = 1e12
+
+
+def row_label(row: int) -> str:
+    """How a sample is named when the file has no line numbers (NPZ): ``row k``, 0-based."""
+    return f"row {row}"
+
+
+@dataclass(frozen=True, eq=False)
+class ColumnTable:
+    """Named columns of numbers read from one recording file.
+
+    Parameters
+    ----------
+    source : str
+        The file name, used in every message.
+    names : tuple of str
+        Column names in file order; unique and non-empty.
+    data : array, shape (n_samples, n_columns)
+        The values [SI units], finite and within ``±MAX_MAGNITUDE``; a read-only float64 array is kept
+        as is, anything else is copied.
+    locate : callable, optional
+        ``locate(row)`` names sample ``row`` in the file, e.g. ``"line 12"``; ``row 11`` by default.
+
+    Raises
+    ------
+    RecordingError
+        Naming the file, the column, the place and the fix: empty or repeated names, a value that is
+        NaN, infinite or beyond ``±MAX_MAGNITUDE``.
+    """
+
+    source: str
+    names: tuple
+    data: np.ndarray
+    locate: Callable[[int], str] = field(default=row_label)
+
+    def __post_init__(self):
+        names = tuple(str(name) for name in self.names)
+        object.__setattr__(self, "names", names)
+        data = np.asarray(self.data, dtype=float)
+        if data.ndim != 2 or data.shape[1] != len(names):
+            raise RecordingError(
+                f"{self.source}: ColumnTable.data must have shape (n_samples, {len(names)}) for the columns "
+                f"{', '.join(names)}; got {data.shape}. Give one value per column in every row."
+            )
+        seen = set()
+        for k, name in enumerate(names):
+            if not name:
+                raise RecordingError(f"{self.source}: column {k + 1} has no name. Name it (t, q1, ...) or remove it.")
+            if name in seen:
+                raise RecordingError(f"{self.source}: column {name} appears twice in the header. Rename or remove one.")
+            seen.add(name)
+        if data.flags.writeable:  # the caller's array stays theirs; a reader hands over a read-only one
+            data = data.copy()
+            data.setflags(write=False)
+        object.__setattr__(self, "data", data)
+        if data.shape[0]:
+            # one pass each over the whole array; min and max are NaN where a NaN is, which fails both tests
+            good = (data.min(axis=0) >= -MAX_MAGNITUDE) & (data.max(axis=0) <= MAX_MAGNITUDE)
+            for k in np.flatnonzero(~good):
+                self._refuse_values(names[k], data[:, k])
+
+    def _refuse_values(self, name: str, values: np.ndarray) -> None:
+        """Refuse the first NaN, infinite or implausibly large value of a column, naming where it is."""
+        row = int(np.argmax(~(np.abs(values) <= MAX_MAGNITUDE)))
+        value = float(values[row])
+        where = self.locate(row)
+        if not np.isfinite(value):
+            raise RecordingError(
+                f"{self.source}: column {name} holds {value!r} at {where}. Remove or interpolate non-finite samples."
+            )
+        raise RecordingError(
+            f"{self.source}: column {name} holds {value!r} at {where}; values beyond ±{MAX_MAGNITUDE:g} are not "
+            "joint signals in SI units and overflow when differentiated. Check the units "
+            "(t [s], q [rad or m], tau [N m], i [A]) and the export."
+        )
+
+    @property
+    def n_samples(self) -> int:
+        return int(self.data.shape[0])
+
+    def column(self, name: str) -> np.ndarray:
+        """The values of column ``name``, shape (n_samples,) (a read-only view)."""
+        return self.data[:, self.names.index(name)]

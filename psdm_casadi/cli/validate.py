@@ -1,0 +1,97 @@
+"""The ``psdm validate`` subcommand: a calibrated model against recordings, per-joint RMSE and R^2, plots."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from psdm_casadi.cli.output import EXIT_OK, print_json, progress
+
+
+def register(subparsers) -> None:
+    """Add ``validate`` to the ``psdm`` parser."""
+    p = subparsers.add_parser(
+        "validate",
+        help="compare a calibrated model with recordings: per-joint RMSE and R^2, and plots",
+        description=(
+            "Read a calibrated-model file written by 'psdm identify', prepare each recording as the identification "
+            "did (the same low-pass cutoff, central differences), and report per joint the RMSE [N m] and R^2 of "
+            "the model's torque against the recorded one."
+        ),
+    )
+    p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
+    p.add_argument("recordings", nargs="+", help="recordings (.csv or .npz) with joint torques")
+    p.add_argument("--plots", type=Path, default=None, help="folder for one plot per recording (must not exist)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=_run_validate)
+
+
+def _run_validate(args) -> int:
+    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.trajectory_data import prepare_recording
+    from identification.data.io import load_recording
+    from identification.metrics import r2, rmse
+    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.fileio import OutputFolder
+
+    calibrated = load_calibrated_model(args.model)
+    robot = calibrated.load_robot()
+    recordings = [load_recording(path, robot.n_dof) for path in args.recordings]
+    plots = None
+    if args.plots is not None:
+        plots = OutputFolder(args.plots, [f"{Path(p).stem}.png" for p in args.recordings], option="--plots")
+        plots.check(force=False)
+    progress(f"validate: deriving the model of {robot.name} ...")
+    model = derive_psdm(robot)
+    cutoff = calibrated.document["identification"]["cutoff_hz"][0]
+    rows = []
+    for path, recording in zip(args.recordings, recordings):
+        prepared, _, _ = prepare_recording(recording, _torque_constants(robot, recording), cutoff)
+        predicted = calibrated.predict(model, prepared.q, prepared.qd, prepared.qdd)
+        rows.append({"recording": str(path), "rmse": np.atleast_1d(rmse(prepared.tau, predicted)).tolist(),
+                     "r2": np.atleast_1d(r2(prepared.tau, predicted)).tolist(), "prepared": prepared,
+                     "predicted": predicted})  # fmt: skip
+    if plots is not None:
+        with plots.staging() as stage:
+            for row in rows:
+                _plot(stage / f"{Path(row['recording']).stem}.png", row, robot.joint_names)
+    if args.json:
+        print_json({"command": "validate", "model": str(args.model), "consistent": calibrated.consistent,
+                    "recordings": [{k: row[k] for k in ("recording", "rmse", "r2")} for row in rows]})  # fmt: skip
+    else:
+        for row in rows:
+            print(f"{row['recording']}:")
+            print("  joint  " + " ".join(f"{name[:10]:>10}" for name in robot.joint_names))
+            print("  RMSE   " + " ".join(f"{v:10.4g}" for v in row["rmse"]))
+            print("  R^2    " + " ".join(f"{v:10.4f}" for v in row["r2"]))
+        if not calibrated.consistent:
+            print("warning: this model is NOT physically consistent (written with --allow-inconsistent)")
+    return EXIT_OK
+
+
+def _torque_constants(robot, recording):
+    if recording.tau is not None or robot.drives is None:
+        return None
+    return np.array([d.kt for d in robot.drives], dtype=float)
+
+
+def _plot(path, row, joint_names) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    prepared, predicted = row["prepared"], row["predicted"]
+    n = prepared.n_dof
+    fig, axes = plt.subplots(n, 1, figsize=(9, 1.8 * n), sharex=True, squeeze=False)
+    for j, ax in enumerate(axes[:, 0]):
+        ax.plot(prepared.t, prepared.tau[:, j], lw=0.8, label="recorded")
+        ax.plot(prepared.t, predicted[:, j], lw=0.8, label="model")
+        ax.set_ylabel(f"{joint_names[j]} [N m]", fontsize=7)
+        ax.set_title(f"RMSE {row['rmse'][j]:.3g}, R^2 {row['r2'][j]:.3f}", fontsize=7, loc="right")
+    axes[0, 0].legend(fontsize=7)
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

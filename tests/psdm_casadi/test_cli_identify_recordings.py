@@ -1,0 +1,74 @@
+"""``psdm identify`` on exciting recordings, ``psdm validate`` on its file: the everyday route end to end."""
+
+import json
+
+import numpy as np
+import pytest
+
+from identification.data.io import save_recording
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from trajopt.experiments import sine_experiment
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory, denso):
+    folder = tmp_path_factory.mktemp("recordings")
+    for k, name in enumerate(("train.csv", "valid.csv")):
+        rng = np.random.default_rng(10 + k)
+        reference = sine_experiment(denso, duration=12.0, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1)
+        recording, _ = simulate_recording(denso, reference, options, rng)
+        save_recording(recording, folder / name)
+    return folder
+
+
+def test_identify_writes_a_consistent_model_that_validate_reproduces(recordings, tmp_path, capsys):
+    out = tmp_path / "model.json"
+    argv = ["identify", "denso_vs6556g", "--data", str(recordings / "train.csv")]
+    assert main([*argv, "--validate", str(recordings / "valid.csv"), "--out", str(out), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["consistent"] and summary["min_mass_eigenvalue"] > 0 and summary["min_pseudo_inertia_eigenvalue"] > 0
+    assert summary["cutoff_hz"] == [10.0] and set(summary["drive"]) >= {"fc1", "fv6"}
+    reported = summary["validation"][0]
+    assert min(reported["r2"]) > 0.98
+    assert main(["validate", str(out), str(recordings / "valid.csv"), "--json"]) == 0
+    validated = json.loads(capsys.readouterr().out)["recordings"][0]
+    np.testing.assert_allclose(
+        validated["rmse"], reported["rmse"], rtol=1e-9
+    )  # what the report claims, the file computes
+    assert main([*argv, "--out", str(out)]) == 2  # an existing model is not replaced without --overwrite
+    assert "--overwrite" in capsys.readouterr().err
+
+
+def test_without_consistency_the_file_says_it_was_not_checked(recordings, tmp_path, capsys):
+    out = tmp_path / "model.json"
+    argv = ["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out), "--no-consistency"]
+    assert main(argv) == 0
+    assert "NOT checked" in capsys.readouterr().err
+    document = json.loads(out.read_text())
+    assert document["standard"]["consistent"] is False and document["standard"]["checked"] is False
+    assert main(["validate", str(out), str(recordings / "valid.csv")]) == 0
+    assert "NOT physically consistent" in capsys.readouterr().out
+
+
+def test_a_folder_and_files_pick_their_protocol_or_say_which_to_pass(recordings, tmp_path, capsys):
+    argv = ["identify", "denso_vs6556g", "--out", str(tmp_path / "m.json")]
+    assert main([*argv, "--data", str(recordings), "--protocol", "recordings"]) == 2
+    assert "--protocol four-step" in capsys.readouterr().err
+    assert main([*argv, "--data", str(recordings / "train.csv"), "--protocol", "four-step"]) == 2
+    assert "one --data folder" in capsys.readouterr().err
+    assert not (tmp_path / "m.json").exists()
+
+
+def test_a_recording_with_a_still_joint_is_refused_naming_it(recordings, tmp_path, capsys):
+    from identification.data.io import load_recording
+
+    recording = load_recording(recordings / "train.csv")
+    q = recording.q.copy()
+    q[:, 2] = q[0, 2]  # joint 3 held still
+    save_recording(recording.with_signals(q=q), tmp_path / "still.csv")
+    out = tmp_path / "m.json"
+    assert main(["identify", "denso_vs6556g", "--data", str(tmp_path / "still.csv"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "still.csv" in err and "J3" in err and "psdm excite" in err and not out.exists()
