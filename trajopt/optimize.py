@@ -184,10 +184,11 @@ def optimize_excitation(
     )
 
 
-def _report(options: ExcitationOptions, message: str) -> None:
-    """A progress line on this module's logger, unless ``options.quiet``."""
+def _report(options: ExcitationOptions, message: str, progress: tuple | None = None) -> None:
+    """A progress line on this module's logger, unless ``options.quiet``; ``progress`` is (done, total) starts,
+    which the command line draws as a bar on a terminal."""
     if not options.quiet:
-        logger.info(message)
+        logger.info(message, extra=None if progress is None else {"progress": progress})
 
 
 def _checked_inputs(robot, regressor, options: ExcitationOptions, nominal_parameters) -> tuple:
@@ -309,12 +310,16 @@ def _run_starts(problem, starts, options: ExcitationOptions, started: float) -> 
         statuses.append((status, iterations))
         if status not in _ACCEPTED:
             start_conds.append(math.inf)
-            _report(options, f"excite: start {label} failed ({status}, {iterations} iterations)")
+            _report(options, f"excite: start {label} failed ({status}, {iterations} iterations)", (k + 1, len(starts)))
             continue
         x, margins = _verified(problem, x)
         if margins["worst"] < 0:
             start_conds.append(math.inf)
-            _report(options, f"excite: start {label} discarded: {describe_violation(margins)} after repair")
+            _report(
+                options,
+                f"excite: start {label} discarded: {describe_violation(margins)} after repair",
+                (k + 1, len(starts)),
+            )
             continue
         cond = condition_number(
             stack_regressor(problem.regressor, *parametrization.evaluate(problem.t_objective, x), columns)
@@ -322,12 +327,13 @@ def _run_starts(problem, starts, options: ExcitationOptions, started: float) -> 
         start_conds.append(cond)
         if not math.isfinite(cond):
             rank_deficient = True
-            _report(options, f"excite: start {label}: the stacked regressor is rank deficient")
+            _report(options, f"excite: start {label}: the stacked regressor is rank deficient", (k + 1, len(starts)))
             continue
         _report(
             options,
             f"excite: start {label}: cond {cond:.4g}, worst margin {margins['worst']:.3g} "
             f"({status}, {iterations} iterations, {time.perf_counter() - started:.1f} s)",
+            (k + 1, len(starts)),
         )
         if cond < best_cond:
             best, best_cond, best_margins, best_status = x, cond, margins, status

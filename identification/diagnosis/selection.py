@@ -167,6 +167,7 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
     qualified, scored, rejected = [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
     for index, term in enumerate(remaining):
+        logger.debug("diagnose:   screening %s", term.label, extra={"progress": (index + 1, len(remaining))})
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         beta, sse1, rv1 = design.fit(ct, cv)
         k = ct.shape[2]

@@ -243,3 +243,5 @@ def test_progress_goes_to_the_module_logger_and_quiet_silences_it(planar_robot, 
         quiet = [r for r in caplog.records if r.name == "trajopt.optimize"]
     assert loud and all(r.levelname == "INFO" and r.getMessage().startswith("excite: ") for r in loud)
     assert quiet == []
+    # the line that ends a start carries (done, total) for the command line's progress bar
+    assert [r.progress for r in loud if hasattr(r, "progress")] == [(1, 1)]
