@@ -74,12 +74,13 @@ def test_the_wheel_carries_the_robots_and_templates_and_not_the_checkout(install
     probe = (
         "import json, psdm_casadi, codegen, psdm_casadi.robot as r;"
         "print(json.dumps({'package': psdm_casadi.__file__, 'robots': r.builtin_robot_names(),"
-        "'template': (__import__('pathlib').Path(codegen.__file__).parent / 'templates').is_dir()}))"
+        "'template': (__import__('pathlib').Path(codegen.__file__).parent / 'templates').is_dir(),"
+        "'peer_template': __import__('codegen.peers.speed', fromlist=['TEMPLATE']).TEMPLATE.is_file()}))"
     )
     found = json.loads(_run([str(python), "-c", probe], work).stdout)
     assert not Path(found["package"]).resolve().is_relative_to(ROOT)
     assert {"denso_vs6556g", "scara"} <= set(found["robots"])
-    assert found["template"]
+    assert found["template"] and found["peer_template"]
 
 
 @pytest.mark.needs_cc

@@ -73,3 +73,9 @@ def test_missed_targets_name_each_robot_and_ratio_below_its_target():
     assert len(missed) == 2 and all(m.startswith("panda ") for m in missed)
     assert any("regressor_speedup_vs_pinocchio 9.50 < 10" in m for m in missed)
     assert any("fd_speedup_vs_casadi_rnea nan" in m for m in missed)
+
+
+def test_the_speed_harness_finds_its_template():
+    from codegen.peers.speed import TEMPLATE
+
+    assert TEMPLATE.is_file() and "int main" in TEMPLATE.read_text()
