@@ -23,6 +23,7 @@ positive definiteness; D is linear in theta).
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -33,11 +34,13 @@ from identification.calibration.consistency import mass_matrices
 from identification.calibration.excitation import EXCITATION_FIX, thresholds_of
 from identification.calibration.steps import regressor_chunked
 from identification.data.recording import Recording
-from identification.data.regressor_check import base_parameter_joints, check_regressor
+from identification.data.regressor_check import ZERO_COLUMN, base_parameter_joints, check_regressor
 from identification.friction.models import LuGreParameters
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 from psdm_casadi.model import PSDMModel
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["RefinementOptions", "RefinementBlock", "RefinementResult", "refine_parameters", "steady_mask"]
 
@@ -320,11 +323,23 @@ def _check_excited(model, rows, kt0, options, thresholds) -> None:
         scale = max(float(rms(kt0[j] * r.current[keep] + r.direct[keep])), 1e-6)
         parts.append(block)
         weights.append(np.full(block.shape[0], 1.0 / (block.shape[0] * scale**2)))
+    matrix = np.vstack(parts) if parts else np.zeros((0, len(names)))
+    w = np.concatenate(weights) if weights else np.zeros(0)
+    # a column the refinement's rows do not touch cannot move its objective: that parameter keeps the value
+    # its step identified (and checked); only the columns the rows do touch must be excited
+    if matrix.size:
+        norms = np.sqrt(w @ matrix**2)
+        touched = norms > ZERO_COLUMN * float(norms.max(initial=0.0))
+    else:  # no rows at all: the check below says so
+        touched = np.ones(len(names), dtype=bool)
+    if not touched.all():
+        held = [name for name, keep in zip(names, touched) if not keep]
+        logger.info("refine: %s not in the refinement's rows; kept at the values of their steps", ", ".join(held))
     check_regressor(
-        np.vstack(parts) if parts else np.zeros((0, len(names))),
-        np.concatenate(weights) if weights else np.zeros(0),
-        names=names,
-        column_joints=column_joints,
+        matrix[:, touched],
+        w,
+        names=[name for name, keep in zip(names, touched) if keep],
+        column_joints=[joints for joints, keep in zip(column_joints, touched) if keep],
         owner="refine_parameters",
         source="the training parts of every experiment",
         fix=EXCITATION_FIX,

@@ -102,3 +102,22 @@ def test_refinement_errors(denso, denso_model):
         refine_parameters(denso_model, [block], theta, np.ones(6), lugre[:2])
     with pytest.raises(ParameterError, match="consistency"):
         RefinementOptions(consistency="maybe")
+
+
+def test_a_parameter_the_refinement_rows_do_not_touch_is_held_not_refused(caplog):
+    from identification.calibration import refinement
+
+    class _Model:
+        n_dof, gravity_mask, base_names = 1, np.array([False, False]), ("theta1", "theta2")
+        parameter_map = np.ones((2, 11))
+
+    class _Rows:
+        weight = np.ones(50)
+        y = np.column_stack([np.sin(np.linspace(0, 6, 50)), np.zeros(50)])  # theta2 never appears
+        current = np.zeros(50)
+        direct = np.ones(50)
+
+    options = refinement.RefinementOptions(refine_kt=False)
+    with caplog.at_level("INFO", logger="identification.calibration.refinement"):
+        refinement._check_excited(_Model(), [_Rows()], np.ones(1), options, refinement.thresholds_of("t", None))
+    assert "theta2 not in the refinement's rows" in caplog.text
