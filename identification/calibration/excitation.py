@@ -100,19 +100,8 @@ def check_gravity_design(model, recordings, design, robot, thresholds: Excitatio
         check_joint_motion(
             rec, joints, robot=robot, purpose="the gravity step (eq. 18)", fix=GRAVITY_FIX, thresholds=thresholds
         )
-    mask = model.gravity_mask
-    owners = base_parameter_joints(model)
-    check_regressor(
-        design.matrix,
-        design.weights,
-        names=[name for name, keep in zip(model.base_names, mask) if keep],
-        column_joints=[j for j, keep in zip(owners, mask) if keep],
-        owner="GravityIdentifier",
-        source=_sources(recordings),
-        fix=GRAVITY_FIX,
-        max_condition=thresholds.max_condition,
-        robot=robot,
-    )
+    _check_base_columns(model, model.gravity_mask, design, recordings, "GravityIdentifier", GRAVITY_FIX, thresholds,
+                        robot)  # fmt: skip
 
 
 def check_friction_experiment(experiment, robot, thresholds: ExcitationThresholds) -> None:
@@ -134,16 +123,21 @@ def check_inertial_design(model, recordings, design, robot, thresholds: Excitati
             fix=EXCITATION_FIX,
             thresholds=thresholds,
         )
-    mask = ~model.gravity_mask
+    _check_base_columns(model, ~model.gravity_mask, design, recordings, "InertialIdentifier", EXCITATION_FIX,
+                        thresholds, robot)  # fmt: skip
+
+
+def _check_base_columns(model, mask, design, recordings, owner, fix, thresholds, robot) -> None:
+    """The weighted regressor of the base parameters ``mask`` selects must be excited (``check_regressor``)."""
     owners = base_parameter_joints(model)
     check_regressor(
         design.matrix,
         design.weights,
         names=[name for name, keep in zip(model.base_names, mask) if keep],
         column_joints=[j for j, keep in zip(owners, mask) if keep],
-        owner="InertialIdentifier",
+        owner=owner,
         source=_sources(recordings),
-        fix=EXCITATION_FIX,
+        fix=fix,
         max_condition=thresholds.max_condition,
         robot=robot,
     )
