@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -52,7 +53,13 @@ all-revolute DH robots: 6 joints 0.4 GiB and 2 s, 7 joints 1.6 GiB and 11 s, 8 j
 about 90 s; 9 joints would need about 52 GiB and 12 joints about 11 TiB (and beyond about 27
 joints the array sizes overflow 64-bit integers). Larger robots are refused before anything is
 allocated: lock joints (a URDF's ``[urdf].locked_joints``) or derive sub-chains.
+
+The check counts grid points, 5 per revolute and 3 per prismatic joint, and accepts up to
+:data:`MAX_GRID_POINTS` (twice the eight-revolute grid): a Panda with its two prismatic fingers
+free (7 revolute + 2 prismatic joints, 703,125 points) is derived, nine revolute joints are not.
 """
+
+MAX_GRID_POINTS = 2 * 5**MAX_DOF
 
 
 @dataclass(frozen=True)
@@ -299,8 +306,13 @@ def derivation_memory_bytes(n_dof: int) -> int:
     return 4 * 5**n_dof * n_dof * N_PARAMETERS_PER_JOINT * n_dof * 8
 
 
+def derivation_grid_points(robot: RobotDescription) -> int:
+    """Points of the largest sampling grid: 5 per revolute and 3 per prismatic joint (see :data:`MAX_DOF`)."""
+    return math.prod(len(REVOLUTE_NODES) if joint.is_revolute else len(PRISMATIC_NODES) for joint in robot.joints)
+
+
 def check_derivation_size(robot: RobotDescription) -> None:
-    """Refuse, before any allocation, a robot with more than :data:`MAX_DOF` joints.
+    """Refuse, before any allocation, a robot whose sampling grid passes :data:`MAX_GRID_POINTS`.
 
     Raises
     ------
@@ -309,12 +321,15 @@ def check_derivation_size(robot: RobotDescription) -> None:
     """
     n = robot.n_dof
     origin = f" (robot file {Path(robot.source).name})" if robot.source else ""
-    if n > MAX_DOF:
+    points = derivation_grid_points(robot)
+    if points > MAX_GRID_POINTS:
+        memory = 4 * points * n * N_PARAMETERS_PER_JOINT * n * 8
         raise ParameterError(
-            f"RobotDescription.n_dof must be at most {MAX_DOF} for derive_psdm (its sampling grid grows as 5^n); "
-            f"got {n} joints in {robot.name!r}{origin}, which would need about "
-            f"{derivation_memory_bytes(n) / 2**30:.3g} GiB. "
-            f"Lock joints (e.g. [urdf].locked_joints) to bring the robot to {MAX_DOF} joints or fewer."
+            f"RobotDescription.n_dof must be at most {MAX_DOF} for derive_psdm when the joints are revolute (its "
+            f"sampling grid has 5 points per revolute and 3 per prismatic joint, at most {MAX_GRID_POINTS}); "
+            f"got {n} joints in {robot.name!r}{origin}: {points} points, which would need about "
+            f"{memory / 2**30:.3g} GiB. Lock joints (e.g. [urdf].locked_joints) to bring the robot to "
+            f"{MAX_DOF} revolute joints or fewer."
         )
 
 

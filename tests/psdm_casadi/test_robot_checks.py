@@ -11,7 +11,13 @@ import pytest
 
 from identification.data.payload import Payload, read_payload
 from psdm_casadi import load_robot
-from psdm_casadi.derive import MAX_DOF, check_derivation_size, derivation_memory_bytes, derive_psdm
+from psdm_casadi.derive import (
+    MAX_DOF,
+    check_derivation_size,
+    derivation_grid_points,
+    derivation_memory_bytes,
+    derive_psdm,
+)
 from psdm_casadi.errors import ParameterError, RobotFileError
 from psdm_casadi.robot import DriveParameters, Joint, LinkInertia, RobotDescription, from_dh, from_urdf
 from psdm_casadi.text_file import read_text_file
@@ -316,6 +322,15 @@ def test_derive_refuses_too_many_joints_quickly(n_dof):
 def test_the_largest_supported_robot_passes_the_size_check():
     check_derivation_size(from_dh([(0.1, math.pi / 2, 0.0, 0.0)] * MAX_DOF))
     assert derivation_memory_bytes(MAX_DOF) < 16 * 2**30 < derivation_memory_bytes(MAX_DOF + 1)
+    with pytest.raises(ParameterError, match="1953125 points"):
+        check_derivation_size(from_dh([(0.1, math.pi / 2, 0.0, 0.0)] * (MAX_DOF + 1)))
+
+
+def test_prismatic_joints_count_by_their_smaller_grid():
+    # the Panda with both fingers free: 7 revolute and 2 prismatic joints, derived by the slow lane test
+    panda = from_urdf(example_robot_urdf("panda_description/urdf/panda.urdf"))
+    assert panda.n_dof == 9 and derivation_grid_points(panda) == 5**7 * 3**2
+    check_derivation_size(panda)
 
 
 # --- payload.json -----------------------------------------------------------------------------------
