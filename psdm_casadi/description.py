@@ -8,6 +8,7 @@ or a URDF.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -243,8 +244,9 @@ class RobotDescription:
         Nominal motor constants and friction.
     urdf_path : str or None
         When set, kinematics and nominal inertia come from this URDF through Pinocchio.
-    locked_joints : tuple of str
-        URDF joints fixed at zero (grippers).
+    locked_joints : tuple of (str, float)
+        URDF joints fixed at a position [rad or m] (grippers), as ``(name, value)`` pairs; a bare name
+        locks at zero, and a mapping ``{name: value}`` is accepted too (see :func:`locked_positions`).
     source : str or None
         The robot file (TOML or URDF) the description was read from, for messages; not compared.
     """
@@ -310,7 +312,7 @@ class RobotDescription:
         object.__setattr__(self, "joints", joints)
         object.__setattr__(self, "massless_links", tuple(self.massless_links))
         object.__setattr__(self, "zero_parameters", tuple(self.zero_parameters))
-        object.__setattr__(self, "locked_joints", tuple(self.locked_joints))
+        object.__setattr__(self, "locked_joints", locked_positions(self.locked_joints))
 
     # --- convenience views -------------------------------------------------------------------
     @property
@@ -405,6 +407,55 @@ def parse_parameter_name(name: str, n_dof: int) -> tuple:
         f"assumptions.zero_parameters entry {format_value(name)} is not a parameter name; expected one of "
         f"{', '.join(PHYSICAL_PARAMETER_NAMES)} followed by a link number 1..{n_dof}, e.g. 'rx5' or 'Ixz4'."
     )
+
+
+def locked_positions(locked) -> tuple:
+    """Joints to lock as ``((name, value), ...)``: from names (locked at 0), ``(name, value)`` pairs or a mapping.
+
+    Parameters
+    ----------
+    locked : sequence of str or (str, float), or mapping str -> float
+        Joint names with their fixed positions [rad or m]; a bare name means 0.
+
+    Returns
+    -------
+    tuple of (str, float)
+        In the given order, each name once.
+
+    Raises
+    ------
+    RobotFileError
+        For an empty name, a value that is not a finite number, or a joint named twice.
+
+    Examples
+    --------
+    >>> locked_positions(["finger", ("elbow", 0.5)])
+    (('finger', 0.0), ('elbow', 0.5))
+    """
+    items = locked.items() if isinstance(locked, Mapping) else locked
+    pairs, seen = [], set()
+    for item in items:
+        if isinstance(item, str):
+            name, value = item, 0.0
+        elif isinstance(item, (tuple, list)) and len(item) == 2:
+            name, value = item
+        else:
+            name, value = None, None
+        if not isinstance(name, str) or not name.strip():
+            raise RobotFileError(
+                f"locked_joints entries must be joint names or (name, value) pairs; got {format_value(item)}. "
+                'Write e.g. ["gripper_joint"] or [["elbow_joint", 0.5]].'
+            )
+        if not is_real_number(value) or not math.isfinite(value):
+            raise RobotFileError(
+                f"locked joint {name!r} must be locked at a finite number [rad or m]; got {format_value(value)}. "
+                "Give its position, e.g. 0.02."
+            )
+        if name in seen:
+            raise RobotFileError(f"locked_joints names {name!r} twice. Lock each joint once.")
+        seen.add(name)
+        pairs.append((name, float(value)))
+    return tuple(pairs)
 
 
 def _check_joints(joints) -> None:

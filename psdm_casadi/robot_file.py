@@ -28,6 +28,7 @@ from psdm_casadi.description import (
     Joint,
     LinkInertia,
     RobotDescription,
+    locked_positions,
 )
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.text_file import read_text_file
@@ -164,13 +165,17 @@ def resolve_robot_path(path) -> Path:
     )
 
 
-def load_robot(path) -> RobotDescription:
+def load_robot(path, locked_joints=()) -> RobotDescription:
     """Read a robot file: ``.toml`` (DH rows or a ``[urdf]`` table) or ``.urdf``, or a built-in robot by name.
 
     Parameters
     ----------
     path : str or Path
         A file, or the name of a built-in robot (:func:`builtin_robot_names`).
+    locked_joints : sequence of str or (str, float), or mapping str -> float
+        Further joints to fix at a position [rad or m] (a bare name: 0), for robots read from a URDF
+        (``.urdf``, or a ``[urdf]`` table, whose own ``locked_joints`` they join; a value given here
+        replaces the file's for the same joint). Robots of DH rows cannot lock joints.
 
     Returns
     -------
@@ -179,13 +184,13 @@ def load_robot(path) -> RobotDescription:
     Raises
     ------
     RobotFileError
-        Naming the file, the field, the row and the fix, for a file that cannot be read as text and
-        for every malformed entry.
+        Naming the file, the field, the row and the fix, for a file that cannot be read as text,
+        for every malformed entry, and for joints locked on a robot of DH rows.
     """
     path = resolve_robot_path(path)
     suffix = path.suffix.lower()
     if suffix == ".urdf":
-        return from_urdf(path)
+        return from_urdf(path, locked_joints=locked_joints)
     if suffix != ".toml":
         raise RobotFileError(
             f"robot file {path.name!r} must end in .toml or .urdf; got {suffix!r}. Rename it or convert it."
@@ -199,11 +204,11 @@ def load_robot(path) -> RobotDescription:
         raise RobotFileError(
             f"{path.name} must be valid TOML; got arrays or tables nested too deeply. Fix the syntax."
         ) from None
-    return robot_from_mapping(data, source=path)
+    return robot_from_mapping(data, source=path, locked_joints=locked_joints)
 
 
-def robot_from_mapping(data: dict, source: Path | None = None) -> RobotDescription:
-    """Build a RobotDescription from the parsed contents of a robot TOML file.
+def robot_from_mapping(data: dict, source: Path | None = None, locked_joints=()) -> RobotDescription:
+    """Build a RobotDescription from the parsed contents of a robot TOML file (``locked_joints`` as in ``load_robot``).
 
     Raises
     ------
@@ -220,8 +225,14 @@ def robot_from_mapping(data: dict, source: Path | None = None) -> RobotDescripti
         )
     assumptions = _table(data.get("assumptions", {}), f"{where} [assumptions]", "an [assumptions] table")
     _check_keys(assumptions, _ASSUMPTION_KEYS, f"{where} [assumptions]")
+    extra_locks = locked_positions(locked_joints)
     if "urdf" in data:
-        return _robot_from_urdf_table(data, assumptions, source, where)
+        return _robot_from_urdf_table(data, assumptions, source, where, extra_locks)
+    if extra_locks:
+        raise RobotFileError(
+            f"{where}: joints can be locked only on a robot read from a URDF; this robot has DH rows (got a lock "
+            f"of {extra_locks[0][0]!r}). Remove the lock, or describe the robot by a URDF ([urdf] table)."
+        )
     joint_tables = data.get("joint")
     if not isinstance(joint_tables, list) or not joint_tables:
         raise RobotFileError(f"{where}: needs at least one [[joint]] table with a DH row (a, alpha, d, theta).")
@@ -351,7 +362,7 @@ def _drives_from_tables(tables, n, where):
     return tuple(drives)
 
 
-def _robot_from_urdf_table(data, assumptions, source, where):
+def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     table = _table(data["urdf"], f"{where} [urdf]", '[urdf] with path = "robot.urdf"')
     _check_keys(table, _URDF_KEYS, f"{where} [urdf]")
     for key, text in (("joint", "[[joint]] tables"), ("link", "[[link]] tables"), ("convention", "a convention")):
@@ -371,6 +382,7 @@ def _robot_from_urdf_table(data, assumptions, source, where):
             "Check the path (relative to the robot file)."
         )
     locked = _strings(table.get("locked_joints", []), f"{where} [urdf].locked_joints")
+    locked = tuple({**dict(locked_positions(locked)), **dict(extra_locks)}.items())
     gravity = _vector(data["gravity"], 3, f"{where} gravity") if "gravity" in data else None
     name = _string(data["name"], f"{where} name") if "name" in data else None
     with _within(f"{where} [urdf].path"):

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from psdm_casadi.description import GRAVITY_STANDARD, Joint, LinkInertia, RobotDescription
+from psdm_casadi.description import GRAVITY_STANDARD, Joint, LinkInertia, RobotDescription, locked_positions
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.values import format_value
@@ -93,38 +93,64 @@ def _parse_urdf(path: Path) -> pin.Model:
 
 
 def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
-    """Parse a URDF with Pinocchio and lock the named joints at zero.
+    """Parse a URDF with Pinocchio and lock the named joints at their given positions.
 
     Parameters
     ----------
     path : str or Path
         URDF file; meshes are not needed.
-    locked_joints : sequence of str
-        Joints fixed at zero (e.g. gripper fingers).
+    locked_joints : sequence of str or (str, float), or mapping str -> float
+        Joints fixed at a position [rad or m] (e.g. gripper fingers); a bare name locks at zero.
 
     Returns
     -------
     pinocchio.Model
-        With the inertias and limits of the file.
+        With the inertias and limits of the file; a locked joint's link is fixed to its parent at the
+        given position (Pinocchio's ``buildReducedModel`` about that reference configuration).
 
     Raises
     ------
     RobotFileError
-        When Pinocchio cannot parse the file or a locked joint is not a joint of it.
+        When Pinocchio cannot parse the file, a locked joint is not a joint of it, or a lock value lies
+        outside the joint's limits or is nonzero for a joint with more than one degree of freedom.
     """
     path = Path(path)
     model = _parse_urdf(path)
-    if locked_joints:
+    locked = locked_positions(locked_joints)
+    if locked:
+        reference = pin.neutral(model)
         ids = []
-        for name in locked_joints:
+        for name, value in locked:
             if not model.existJointName(name):
                 raise RobotFileError(
                     f"{path.name}: urdf.locked_joints names {name!r}, which is not a joint of the URDF; "
                     f"joints are {list(model.names)[1:]}. Check the spelling."
                 )
             ids.append(model.getJointId(name))
-        model = pin.buildReducedModel(model, ids, pin.neutral(model))
+            _set_locked_position(path, model, ids[-1], value, reference)
+        model = pin.buildReducedModel(model, ids, reference)
     return model
+
+
+def _set_locked_position(path: Path, model: pin.Model, jid: int, value: float, reference: np.ndarray) -> None:
+    """Write a locked joint's position ``value`` [rad or m] into the reference configuration, within its limits."""
+    jmodel, name = model.joints[jid], model.names[jid]
+    idx = jmodel.idx_q
+    if jmodel.nq == 1:
+        low, high = float(model.lowerPositionLimit[idx]), float(model.upperPositionLimit[idx])
+        if np.isfinite(low) and np.isfinite(high) and low < high and not low <= value <= high:
+            raise RobotFileError(
+                f"{path.name}: locked joint {name!r} must be locked within its limits [{format_value(low)}, "
+                f"{format_value(high)}]; got {format_value(value)}. Give a position within them (rad or m)."
+            )
+        reference[idx] = value
+    elif jmodel.nq == 2 and jmodel.nv == 1:  # a continuous joint: (cos, sin) of its angle
+        reference[idx : idx + 2] = math.cos(value), math.sin(value)
+    elif value != 0.0:
+        raise RobotFileError(
+            f"{path.name}: locked joint {name!r} has {jmodel.nv} degrees of freedom ({jmodel.shortname()}); it "
+            f"can be locked only at its neutral configuration (0); got {format_value(value)}. Lock it at 0."
+        )
 
 
 def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescription:
@@ -134,8 +160,8 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
     ----------
     path : str or Path
         URDF file; meshes are not needed.
-    locked_joints : sequence of str
-        Joints fixed at zero (e.g. gripper fingers).
+    locked_joints : sequence of str or (str, float), or mapping str -> float
+        Joints fixed at a position [rad or m] (e.g. gripper fingers); a bare name locks at zero.
     gravity : array, shape (3,), optional
         Gravity acceleration in the base frame [m/s^2]; default ``[0, 0, -9.806132]``.
     name : str, optional
@@ -150,9 +176,10 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
     ------
     RobotFileError
         When the file is not a readable URDF (the parser's errors are quoted), a locked joint is
-        unknown, a joint is neither revolute nor prismatic with one degree of freedom, its
-        limits are swapped, or a link's mass or inertia is not physical (negative mass, an inertia
-        that is not positive semi-definite or violates the triangle inequality).
+        unknown or locked outside its limits, a joint is neither revolute nor prismatic with one
+        degree of freedom, its limits are swapped, or a link's mass or inertia is not physical
+        (negative mass, an inertia that is not positive semi-definite or violates the triangle
+        inequality).
 
     Notes
     -----
@@ -187,7 +214,7 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
         gravity=g,
         links=tuple(links),
         urdf_path=str(path.resolve()),
-        locked_joints=tuple(locked_joints),
+        locked_joints=locked_positions(locked_joints),
         source=str(path),
     )
 

@@ -147,11 +147,9 @@ class CalibratedModel:
             if not target.exists() or target.read_text() != text:
                 atomic_write(target, lambda handle, text=text: handle.write(text), overwrite=True)
         robot = load_robot(folder / block["main_file"])
-        if block["locked_joints"]:
-            from psdm_casadi.robot import from_urdf
-
-            robot = from_urdf(folder / block["main_file"], locked_joints=tuple(block["locked_joints"]))
-        return robot
+        stored = [_lock(entry) for entry in block["locked_joints"]]
+        extra = [lock for lock in stored if lock not in robot.locked_joints]  # the command line's, not the file's
+        return load_robot(folder / block["main_file"], locked_joints=tuple(extra)) if extra else robot
 
     def predict(self, model, q, qd, qdd) -> np.ndarray:
         """Joint torques [N m] of the calibrated model: rigid body of ``theta`` plus the drive terms."""
@@ -170,9 +168,17 @@ def _robot_block(robot, robot_source) -> dict:
     if robot.urdf_path is not None and Path(robot.urdf_path).name != main.name:
         files[Path(robot.urdf_path).name] = Path(robot.urdf_path).read_text()
     digest = hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()
-    locked = list(robot.locked_joints) if main.suffix.lower() == ".urdf" else []
+    locked = [list(_lock(entry)) for entry in robot.locked_joints] if robot.urdf_path is not None else []
     return {"name": robot.name, "joint_names": list(robot.joint_names), "main_file": main.name, "files": files,
             "locked_joints": locked, "sha256": digest}  # fmt: skip
+
+
+def _lock(entry) -> tuple:
+    """A locked joint as ``(name, value)``; a bare name (older files) is locked at 0."""
+    if isinstance(entry, str):
+        return (entry, 0.0)
+    name, value = entry
+    return (str(name), float(value))
 
 
 def _cache_root() -> Path:

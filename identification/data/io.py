@@ -1,10 +1,11 @@
-"""Reading and writing recordings (CSV with a header row, or NPZ), the entry of measured data into the flow.
+"""Reading and writing recordings (CSV, NPZ; read also MATLAB and ROS 2 bags), the entry of measured data into the flow.
 
-Column names (CSV header or NPZ keys): ``t`` [s], ``q1..qn`` [rad or m], optional ``qd1..qdn``
-[rad/s] and ``qdd1..qddn`` [rad/s^2], and joint torques ``tau1..taun`` [N m] and/or motor
-currents ``i1..in`` [A]. CSV lines starting with ``#`` are comments. Time steps may be uneven.
-The reader of each format (``csvfile``, ``npzfile``) gives a checked ``ColumnTable``; this module
-makes its columns the signals of a ``Recording``.
+Column names (CSV header, NPZ keys, MATLAB variables): ``t`` [s], ``q1..qn`` [rad or m], optional
+``qd1..qdn`` [rad/s] and ``qdd1..qddn`` [rad/s^2], and joint torques ``tau1..taun`` [N m] and/or
+motor currents ``i1..in`` [A]. CSV lines starting with ``#`` are comments. Time steps may be uneven.
+The reader of each format (``csvfile``, ``npzfile``, ``matfile`` with its matrix layout, ``rosbag``
+for the JointState messages of a bag folder or ``.mcap`` file) gives a checked ``ColumnTable``; this
+module makes its columns the signals of a ``Recording``.
 """
 
 from __future__ import annotations
@@ -15,8 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from identification.data.csvfile import read_csv_table
+from identification.data.matfile import read_mat_table
 from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
+from identification.data.rosbag import is_rosbag, read_rosbag_table
 from identification.data.table import ColumnTable
 from psdm_casadi.errors import RecordingError
 from psdm_casadi.fileio import atomic_write
@@ -149,12 +152,19 @@ def recording_from_table(table: ColumnTable, n_dof: int | None = None) -> Record
     return Recording(t=t, name=source, **arrays)
 
 
-def read_table(path) -> ColumnTable:
-    """The named columns of a CSV or NPZ file (by its suffix), checked but not yet a Recording.
+def read_table(path, joint_names=None, topic: str | None = None) -> ColumnTable:
+    """The named columns of a recording (CSV, NPZ, MAT by the suffix; a ROS 2 bag), checked but not yet a Recording.
 
     Parameters
     ----------
     path : str or Path
+        A ``.csv``, ``.npz`` or ``.mat`` file, a ROS 2 bag folder (with ``metadata.yaml``) or a
+        ``.mcap``/``.db3`` bag file.
+    joint_names : sequence of str, optional
+        The robot's joint names (``RobotDescription.joint_names``): the order of a bag's joints.
+        Files with numbered columns ignore it.
+    topic : str, optional
+        The JointState topic of a bag (default: its only one); other files ignore it.
 
     Returns
     -------
@@ -165,40 +175,54 @@ def read_table(path) -> ColumnTable:
     FileNotFoundError
         When nothing exists at ``path``.
     RecordingError
-        When ``path`` is a folder or not a regular file, cannot be read, has another suffix than
-        ``.csv``/``.npz``, or its content is refused by the reader (see ``csvfile``, ``npzfile``).
+        When ``path`` is a folder that is not a bag or not a regular file, cannot be read, has another
+        suffix, or its content is refused by the reader (see ``csvfile``, ``npzfile``, ``matfile``,
+        ``rosbag``).
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"recording {str(path)!r} does not exist. Check the path.")
+    if is_rosbag(path):
+        return read_rosbag_table(path, topic=topic, joint_names=joint_names)
     if path.is_dir():
         raise RecordingError(
-            f"recording {str(path)!r} is a folder, not a file. Pass one .csv or .npz recording inside it."
+            f"recording {str(path)!r} is a folder, not a file or a ROS 2 bag (no metadata.yaml in it). Pass one .csv, "
+            ".npz or .mat recording inside it, or a bag folder."
         )
     if not path.is_file():
         raise RecordingError(
             f"recording {str(path)!r} is not a regular file (a pipe or device?). Save the recording to a file first."
         )
-    suffix = path.suffix.lower()
-    if suffix == ".csv":
-        return read_csv_table(path)
-    if suffix == ".npz":
-        return read_npz_table(path)
-    raise RecordingError(f"recording {path.name!r} must end in .csv or .npz; got {path.suffix!r}. Convert it.")
+    readers = {".csv": read_csv_table, ".npz": read_npz_table, ".mat": read_mat_table}
+    reader = readers.get(path.suffix.lower())
+    if reader is None:
+        raise RecordingError(
+            f"recording {path.name!r} must end in .csv or .npz (named columns), .mat (MATLAB) or .mcap/.db3 (a ROS 2 "
+            f"bag), or be a bag folder; got {path.suffix!r}. Convert it."
+        )
+    return reader(path)
 
 
-def load_recording(path, n_dof: int | None = None) -> Recording:
-    """Read a recording from a CSV (header row, ``#`` comments) or NPZ file.
+def load_recording(path, n_dof: int | None = None, joint_names=None, topic: str | None = None) -> Recording:
+    """Read a recording from a CSV (header row, ``#`` comments), NPZ or MATLAB file, or a ROS 2 bag.
 
     CSV text is parsed by numpy's C parser (``csvfile``); comma, semicolon, tab or blank separated,
     with or without a UTF-8 byte-order mark. NPZ archives are read without unpickling (``npzfile``).
+    MATLAB files hold one vector per column or the matrices ``t, q, tau`` (``matfile``). A bag's
+    ``sensor_msgs/msg/JointState`` messages give ``t``, ``q``, ``qd`` and ``tau`` (``rosbag``).
 
     Parameters
     ----------
     path : str or Path
-        A ``.csv`` or ``.npz`` file with the columns described in the module docstring.
+        A ``.csv``, ``.npz`` or ``.mat`` file with the columns described in the module docstring,
+        or a ROS 2 bag (a folder with ``metadata.yaml``, or a ``.mcap``/``.db3`` file).
     n_dof : int, optional
         Number of joints of the robot; when given, the file must have exactly ``q1..q{n_dof}``.
+    joint_names : sequence of str, optional
+        The robot's joint names in its order (``RobotDescription.joint_names``): a bag's joints are
+        matched to them by name. Without it a bag keeps its own order; other formats ignore it.
+    topic : str, optional
+        A bag's JointState topic (default: its only one); other formats ignore it.
 
     Returns
     -------
@@ -209,17 +233,20 @@ def load_recording(path, n_dof: int | None = None) -> Recording:
     FileNotFoundError
         When the file does not exist.
     RecordingError
-        Naming the file, the column and the fix: a folder, binary or compressed data, missing,
-        duplicated or unknown columns, non-numbers (with line and column), NaN/inf or implausibly large
-        values, non-increasing time, too few samples, joint count not matching ``n_dof``.
+        Naming the file, the column and the fix: a folder that is not a bag, binary or compressed
+        data, missing, duplicated or unknown columns, non-numbers (with line and column), NaN/inf or
+        implausibly large values, non-increasing time, too few samples, joint count not matching
+        ``n_dof``; for a bag, a missing or ambiguous JointState topic or joints not matching
+        ``joint_names``; for MATLAB, a v7.3 file without h5py or a transposed matrix.
 
     Examples
     --------
     >>> rec = load_recording("friction_j1.csv", n_dof=6)       # doctest: +SKIP
     >>> rec.q.shape
     (20000, 6)
+    >>> rec = load_recording("run1.mcap", robot.n_dof, robot.joint_names)   # doctest: +SKIP
     """
-    return recording_from_table(read_table(path), n_dof)
+    return recording_from_table(read_table(path, joint_names, topic), n_dof)
 
 
 def save_recording(recording: Recording, path, overwrite: bool = False, comment: str | None = None) -> Path:

@@ -27,6 +27,7 @@ from psdm_casadi.cli.output import (
     configure_logging,
     print_json,
     progress,
+    remove_logging,
 )
 from psdm_casadi.errors import PSDMError, SolverError
 
@@ -46,7 +47,7 @@ __all__ = [
 def build_parser() -> argparse.ArgumentParser:
     """The ``psdm`` parser with every subcommand."""
     from psdm_casadi import demo
-    from psdm_casadi.cli import codegen, derive, diagnose, excite, identify, simulate, validate
+    from psdm_casadi.cli import codegen, derive, diagnose, excite, export_urdf, identify, simulate, validate
 
     parser = argparse.ArgumentParser(
         prog="psdm",
@@ -61,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     verbosity.add_argument("-q", "--quiet", action="store_true", help="no progress lines, only warnings and errors")
     verbosity.add_argument("-v", "--verbose", action="store_true", help="more detail on what each step does")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (derive, excite, simulate, identify, validate, diagnose, codegen, demo):
+    for module in (derive, excite, simulate, identify, validate, diagnose, codegen, export_urdf, demo):
         module.register(subparsers)
     return parser
 
@@ -96,6 +97,8 @@ def main(argv=None) -> int:
         return _report(args, exc, EXIT_SOLVER)
     except (PSDMError, OSError) as exc:
         return _report(args, exc, EXIT_BAD_INPUT)
+    finally:  # the command's stderr may close after it (tests run many commands in one process)
+        remove_logging()
 
 
 def _report(args, exc: Exception, code: int) -> int:

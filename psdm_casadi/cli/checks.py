@@ -1,5 +1,8 @@
 """Checks of ``psdm`` options, run by every command before any work: one line naming the option and the fix.
 
+Every command that loads a robot takes it through :func:`add_robot_argument` and
+:func:`load_robot_argument`, so ``--lock JOINT[=VALUE]`` reads and is refused the same everywhere.
+
 Values are printed as plain numbers (``0``, ``-1``, ``1e+09``), never as numpy reprs. The outputs of a
 command are checked here too (:func:`output_file`, :func:`output_folder`) and written through
 :func:`staged`, so that a refusal, a failure or Ctrl-C leaves no partial file.
@@ -16,16 +19,30 @@ from psdm_casadi.fileio import OutputFile, OutputFolder
 
 __all__ = [
     "MAX_SAMPLES",
+    "ROBOT_HELP",
+    "add_lock_argument",
+    "add_robot_argument",
+    "add_topic_argument",
     "check_count",
     "check_positive",
     "check_samples",
     "check_seed",
+    "load_locked_robot",
+    "load_robot_argument",
     "output_file",
     "output_folder",
     "parse_joints",
+    "parse_locks",
     "plain",
     "staged",
 ]
+
+#: The help of every command's robot argument.
+ROBOT_HELP = "robot file (.toml with DH rows or a [urdf] table, or .urdf) or the name of a built-in robot"
+_LOCK_HELP = (
+    "fix JOINT at VALUE [rad or m] (default 0); the model keeps the other joints. Repeat for several, e.g. "
+    "--lock panda_finger_joint1=0.02 (robots read from a URDF only)"
+)
 
 #: Most samples a command writes or simulates per recording (memory and time stay within a workstation's).
 MAX_SAMPLES = 2_000_000
@@ -118,3 +135,84 @@ def staged(*outputs):
     """
     with ExitStack() as stack:
         yield [None if output is None else stack.enter_context(output.staging()) for output in outputs]
+
+
+def add_lock_argument(parser) -> None:
+    """``--lock JOINT[=VALUE]`` (repeatable) for a command that loads a robot; read by :func:`load_robot_argument`."""
+    parser.add_argument("--lock", action="append", default=[], metavar="JOINT[=VALUE]", help=_LOCK_HELP)
+
+
+def add_robot_argument(parser, help: str = ROBOT_HELP) -> None:
+    """The positional ``robot`` argument and ``--lock``, the same on every command that loads a robot."""
+    parser.add_argument("robot", help=help)
+    add_lock_argument(parser)
+
+
+def add_topic_argument(parser) -> None:
+    """``--topic``: the JointState topic of ROS 2 bag recordings (default: a bag's only one)."""
+    parser.add_argument(
+        "--topic",
+        default=None,
+        help="sensor_msgs/msg/JointState topic of ROS 2 bag recordings (default: the bag's only one)",
+    )
+
+
+def parse_locks(items) -> dict:
+    """``{joint name: value}`` from ``--lock`` items ``NAME`` or ``NAME=VALUE`` (VALUE [rad or m], default 0)."""
+    locks = {}
+    for item in items or ():
+        name, sep, text = str(item).partition("=")
+        name = name.strip()
+        if not name:
+            raise ParameterError(f"--lock must be JOINT or JOINT=VALUE; got {item!r}. Pass e.g. --lock wrist=0.5.")
+        try:
+            value = float(text) if sep else 0.0
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value):
+            raise ParameterError(
+                f"--lock {name} must be locked at a finite number [rad or m]; got {text.strip()!r}. "
+                f"Pass e.g. --lock {name}=0.5, or --lock {name} for 0."
+            )
+        if name in locks:
+            raise ParameterError(f"--lock names {name!r} twice. Lock each joint once.")
+        locks[name] = value
+    return locks
+
+
+def load_locked_robot(path, items):
+    """The robot of ``path`` (a file or a built-in name) with the ``--lock`` items ``items`` applied.
+
+    Raises
+    ------
+    ParameterError
+        For a malformed item, a joint the robot does not have (naming its joints), or a lock on a robot
+        of DH rows (which cannot lock joints).
+    RobotFileError
+        For a bad robot file, or a value outside the joint's limits.
+    """
+    from psdm_casadi.robot import load_robot
+
+    locks = parse_locks(items)
+    robot = load_robot(path)
+    if not locks:
+        return robot
+    if robot.urdf_path is None:
+        raise ParameterError(
+            f"--lock applies to robots read from a URDF (a .urdf file, or a robot file with a [urdf] table); "
+            f"{robot.name!r} is described by DH rows. Remove --lock, or describe the robot by a URDF."
+        )
+    already = [name for name, _ in robot.locked_joints]
+    for name in locks:
+        if name not in robot.joint_names and name not in already:
+            raise ParameterError(
+                f"--lock {name} must name a joint of {robot.name!r}; its joints are {', '.join(robot.joint_names)}"
+                + (f" (the robot file locks {', '.join(already)})" if already else "")
+                + ". Check the spelling."
+            )
+    return load_robot(path, locked_joints=locks)
+
+
+def load_robot_argument(args, path=None):
+    """The robot of a command: ``path`` (default ``args.robot``) with the command's ``--lock`` options."""
+    return load_locked_robot(args.robot if path is None else path, getattr(args, "lock", ()))

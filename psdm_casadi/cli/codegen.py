@@ -1,17 +1,20 @@
-"""The ``psdm codegen`` subcommand: robot or model file -> exported C folder (optionally compiled)."""
+"""The ``psdm codegen`` subcommand: robot, model or calibrated-model file -> exported C folder (optionally compiled)."""
 
 from __future__ import annotations
 
 import dataclasses
+import sys
 from pathlib import Path
 
 import numpy as np
 
 from codegen.export import export_c
-from psdm_casadi.cli.checks import output_folder
+from psdm_casadi.cli.checks import add_lock_argument, load_locked_robot, output_folder
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK
 from psdm_casadi.errors import ParameterError, ShapeError
 
 ROBOT_SUFFIXES = (".toml", ".urdf")
+CALIBRATED_SUFFIX = ".json"
 FORMS = ("recursive", "sum")
 
 
@@ -26,10 +29,18 @@ def register(subparsers) -> None:
             "exported with theta baked in (from --theta, else the robot's nominal base parameters) and with "
             "theta as a runtime input (suffix _theta). The default recursive form evaluates the model by Newton-Euler "
             "on a sparse standard-parameter preimage of theta (needs the kinematics: a robot file, or --robot with a "
-            "model); --form sum writes the paper's pseudo-symbolic sum."
+            "model); --form sum writes the paper's pseudo-symbolic sum. A calibrated model (.json, written by "
+            "'psdm identify') exports the full torque it reports: the rigid body of its base parameters plus its "
+            "drive terms (friction, offsets, drive inertias), every parameter compiled in; its regressor is the rigid "
+            "body's. A calibrated model that is not physically consistent is refused (exit 1) unless "
+            "--allow-inconsistent."
         ),
     )
-    p.add_argument("source", metavar="ROBOT_OR_MODEL", help="robot file (.toml, .urdf) or saved model (.npz)")
+    p.add_argument(
+        "source",
+        metavar="ROBOT_OR_MODEL",
+        help="robot file (.toml, .urdf), saved model (.npz) or calibrated model (.json, from 'psdm identify')",
+    )
     p.add_argument("--out", required=True, type=Path, help="output folder (new or empty unless --force)")
     p.add_argument(
         "--theta",
@@ -50,6 +61,12 @@ def register(subparsers) -> None:
         default=None,
         help="robot file (.toml, .urdf) a saved model was derived from; enables the recursive form",
     )
+    p.add_argument(
+        "--allow-inconsistent",
+        action="store_true",
+        help="export a calibrated model that is not physically consistent (or was not checked); the files say so",
+    )
+    add_lock_argument(p)
     p.add_argument("--jacobians", action="store_true", help="also export the Jacobians (<function>_jac)")
     p.add_argument(
         "--libm-trig",
@@ -90,12 +107,12 @@ def read_theta(path: Path) -> np.ndarray:
     return np.asarray(values, dtype=float).ravel()
 
 
-def _load_source(path: Path, robot_path: Path | None):
+def _load_source(path: Path, robot_path: Path | None, locks=()):
     """(PSDMModel, RobotDescription or None, nominal theta or None) from a robot file or a saved model."""
     from psdm_casadi.cli.output import progress
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
-    from psdm_casadi.robot import builtin_robot_names, load_robot
+    from psdm_casadi.robot import builtin_robot_names
 
     if path.suffix.lower() in ROBOT_SUFFIXES or (not path.exists() and str(path) in builtin_robot_names()):
         if robot_path is not None:
@@ -103,12 +120,17 @@ def _load_source(path: Path, robot_path: Path | None):
                 f"codegen --robot is only for a saved model; got the robot file {path.name} as the source. "
                 "Drop --robot."
             )
-        robot = load_robot(path)
+        robot = load_locked_robot(path, locks)
         progress(f"deriving the PSDM model of {robot.name} ...")
         model = derive_psdm(robot)
         nominal = model.base_parameters(robot.nominal_dynamic_parameters()) if robot.has_inertia else None
         return model, robot, nominal
-    robot = load_robot(robot_path) if robot_path is not None else None
+    if locks and robot_path is None:
+        raise ParameterError(
+            f"codegen --lock applies to a robot; got the saved model {path.name} without --robot. Pass the robot the "
+            "model was derived from (--robot ROBOT --lock ...), or drop --lock."
+        )
+    robot = load_locked_robot(robot_path, locks) if robot_path is not None else None
     return load_model(path), robot, None
 
 
@@ -147,12 +169,49 @@ def _check_options(args):
     return output_folder(args.out, output_names(library), args.force, force_option="--force")
 
 
-def _run_codegen(args) -> int:
+def _calibrated_functions(args, path: Path, out: Path):
+    """(Functions, form, header note) of a calibrated-model file, or None when the consistency gate refuses it."""
+    from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
+    from identification.calibration.calibrated_model import load_calibrated_model
+    from psdm_casadi.cli.output import progress
+    from psdm_casadi.derive import derive_psdm
+
+    given = (("--theta", args.theta), ("--robot", args.robot), ("--lock", getattr(args, "lock", None) or None))
+    extra = [option for option, value in given if value is not None]
+    if extra:
+        raise ParameterError(
+            f"codegen {' and '.join(extra)} must not be given with a calibrated model; got {path.name}, which holds "
+            f"its robot and parameters. Drop {' and '.join(extra)}."
+        )
+    calibrated = load_calibrated_model(path)
+    problem = consistency_problem(calibrated)
+    if problem is not None and not args.allow_inconsistent:
+        print(
+            f"psdm codegen: error: {problem}. Nothing was written to {str(out)!r}. Identify it again from "
+            "better-exciting recordings, or pass --allow-inconsistent to export it anyway.",
+            file=sys.stderr,
+        )
+        return None
+    if problem is not None:
+        print(f"psdm codegen: warning: exporting it although {problem}", file=sys.stderr)
+    robot = calibrated.load_robot()
+    progress(f"deriving the PSDM model of {robot.name} ...")
+    model = derive_psdm(robot)
+    progress("building the CasADi functions (rigid body + drive terms) ...")
+    form = args.form or "recursive"
+    functions = build_calibrated_functions(calibrated, model, robot, form=form, allow_inconsistent=True)
+    return functions, form, header_note(calibrated, source_name=path.name)
+
+
+def _export_functions(args, out: Path):
+    """(Functions, form, theta to bake, header note or None) of the source, or None when refused."""
     from psdm_casadi.cli.output import progress
 
-    folder = _check_options(args)
-    out = folder.target
-    model, robot, theta = _load_source(Path(args.source), args.robot)
+    source = Path(args.source)
+    if source.suffix.lower() == CALIBRATED_SUFFIX:
+        built = _calibrated_functions(args, source, out)
+        return None if built is None else (built[0], built[1], None, built[2])
+    model, robot, theta = _load_source(source, args.robot, args.lock)
     if args.theta is not None:
         theta = read_theta(args.theta)
     if theta is not None and theta.size != model.n_base:
@@ -162,6 +221,18 @@ def _run_codegen(args) -> int:
         )
     progress("building the CasADi functions ...")
     functions, form = build_export_functions(model, robot, args.form)
+    return functions, form, theta, None
+
+
+def _run_codegen(args) -> int:
+    from psdm_casadi.cli.output import progress
+
+    folder = _check_options(args)
+    out = folder.target
+    built = _export_functions(args, out)
+    if built is None:
+        return EXIT_CHECK_FAILED
+    functions, form, theta, note = built
     with folder.staging() as stage:
         export = export_c(
             functions,
@@ -171,16 +242,20 @@ def _run_codegen(args) -> int:
             library=args.library,
             fast_trig=not args.libm_trig,
         )
+        if note is not None:
+            from codegen.calibrated import add_header_note
+
+            add_header_note(export, note)
         if args.compile:
             from codegen.build import compile_shared
 
             progress(f"compiling lib{export.library}.so ...")
             compile_shared([export.source], stage / f"lib{export.library}.so", flags=("-O3", "-march=native"))
-    _print_export(args, out, export, form)
-    return 0
+    _print_export(args, out, export, form, calibrated=note is not None)
+    return EXIT_OK
 
 
-def _print_export(args, out: Path, export, form: str) -> None:
+def _print_export(args, out: Path, export, form: str, calibrated: bool = False) -> None:
     from psdm_casadi.cli.output import print_json
 
     compiled = bool(args.compile)
@@ -190,6 +265,7 @@ def _print_export(args, out: Path, export, form: str) -> None:
             {
                 "out": str(out),
                 "form": form,
+                "calibrated": calibrated,
                 "functions": list(export.function_names),
                 "n_instructions": export.n_instructions,
                 "compiled": compiled,
@@ -198,6 +274,11 @@ def _print_export(args, out: Path, export, form: str) -> None:
         )
     else:
         print(f"wrote {export.source.name}, {export.header.name}, Makefile and main.c to {out} ({form} form)")
+        if calibrated:
+            print(
+                "calibrated model: inverse/forward dynamics and mass matrix include its drive terms (friction, "
+                "offsets, drive inertias); the regressor is the rigid body's (see the header comment)"
+            )
         print(f"{'function':40s} {'instructions':>12s} {'operations':>10s} {'trig':>5s}")
         for count in export.operation_counts:
             print(f"{count.name:40s} {count.n_instructions:12d} {count.n_operations:10d} {count.n_trig:5d}")
@@ -207,5 +288,5 @@ def _print_export(args, out: Path, export, form: str) -> None:
                 f"{lanes.name} runs four joint rows per vector instruction: {lanes.parts.n_operations} scalar "
                 f"+ {lanes.n_vector_operations} vector operations (-DPSDM_NO_LANES: CasADi's scalar code above)"
             )
-        if not export.theta_baked:
+        if not export.theta_baked and not calibrated:
             print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")

@@ -5,10 +5,9 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from psdm_casadi.cli.checks import output_file
+from psdm_casadi.cli.checks import add_robot_argument, load_robot_argument, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.derive import DeriveOptions, derive_psdm
-from psdm_casadi.robot import load_robot
 
 
 def register(subparsers) -> None:
@@ -18,7 +17,7 @@ def register(subparsers) -> None:
         description="Derive the minimal regressor model tau = Y(q, qd, qdd) theta of a robot, check it "
         "against Pinocchio's rnea on random states, and optionally write it to a model file.",
     )
-    parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
+    add_robot_argument(parser)
     parser.add_argument("-o", "--output", help="write the model to this .npz file (.npz is appended when missing)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random checks (default 0)")
@@ -36,7 +35,7 @@ def model_path(output: str) -> Path:
 def run_derive(args) -> int:
     if args.output:
         output_file(model_path(args.output), "-o/--output", args.force, "--force")
-    robot = load_robot(args.robot)
+    robot = load_robot_argument(args)
     progress(f"deriving {robot.name} ({robot.n_dof} joints) ...", quiet=args.json)
     start = time.perf_counter()
     model = derive_psdm(robot, DeriveOptions(seed=args.seed))

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psdm_casadi.cli.checks import output_folder
+from psdm_casadi.cli.checks import add_robot_argument, add_topic_argument, load_robot_argument, output_folder
 from psdm_casadi.cli.output import print_json
 
 
@@ -21,9 +21,10 @@ def register(subparsers) -> None:
             "their parameters, and report them most important first with per-joint validation RMSE before/after."
         ),
     )
-    p.add_argument("robot", help="robot file (.toml or .urdf)")
-    p.add_argument("--train", required=True, help="training recording (.csv or .npz)")
-    p.add_argument("--validate", required=True, help="validation recording (.csv or .npz)")
+    add_robot_argument(p)
+    p.add_argument("--train", required=True, help="training recording (.csv, .npz, .mat, or a ROS 2 bag)")
+    p.add_argument("--validate", required=True, help="validation recording (.csv, .npz, .mat, or a ROS 2 bag)")
+    add_topic_argument(p)
     p.add_argument(
         "--friction",
         choices=("lugre", "coulomb_viscous"),
@@ -54,12 +55,11 @@ def register(subparsers) -> None:
 def _run_diagnose(args) -> int:
     from identification.data.io import load_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
-    from psdm_casadi.robot import load_robot
 
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
-    robot = load_robot(args.robot)
-    train = load_recording(args.train, robot.n_dof)
-    validation = load_recording(args.validate, robot.n_dof)
+    robot = load_robot_argument(args)
+    train = load_recording(args.train, robot.n_dof, robot.joint_names, args.topic)
+    validation = load_recording(args.validate, robot.n_dof, robot.joint_names, args.topic)
     options = DiagnosisOptions(
         friction=args.friction,
         rigid_body=args.rigid_body,

@@ -9,7 +9,16 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import check_count, check_positive, check_samples, output_file, plain, staged
+from psdm_casadi.cli.checks import (
+    add_robot_argument,
+    check_count,
+    check_positive,
+    check_samples,
+    load_robot_argument,
+    output_file,
+    plain,
+    staged,
+)
 from psdm_casadi.cli.output import EXIT_OK, print_json, progress
 from psdm_casadi.errors import ParameterError
 
@@ -30,7 +39,7 @@ def _register_excite(subparsers) -> None:
         "acceleration limits (and optionally torque limits) on a dense grid, verified on a 10x finer "
         "grid. Writes a CSV with t, q, qd, qdd columns and optionally a plot.",
     )
-    _robot_arguments(p)
+    add_robot_argument(p)
     p.add_argument("--duration", type=float, default=10.0, help="period / length of the trajectory [s] (10)")
     p.add_argument("--harmonics", type=int, default=5, help="Fourier harmonics per joint (5)")
     p.add_argument(
@@ -83,7 +92,7 @@ def _register_experiment(subparsers) -> None:
         "one names the limit the path leaves.",
     )
     e.add_argument("kind", choices=("motor", "gravity", "friction"))
-    _robot_arguments(e)
+    add_robot_argument(e)
     e.add_argument(
         "--joint",
         type=int,
@@ -111,27 +120,6 @@ def _register_experiment(subparsers) -> None:
     e.add_argument("--overwrite", action="store_true", help="replace existing output files")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.set_defaults(handler=_run_experiment)
-
-
-def _robot_arguments(parser) -> None:
-    parser.add_argument("robot", help="robot file: .toml with DH rows, or .urdf")
-    parser.add_argument(
-        "--lock",
-        action="append",
-        default=[],
-        metavar="JOINT",
-        help="URDF joint to lock at zero (repeat), e.g. the gripper fingers",
-    )
-
-
-def _load_robot(args):
-    from psdm_casadi.robot import from_urdf, load_robot
-
-    if Path(args.robot).suffix.lower() == ".urdf" and args.lock:
-        return from_urdf(args.robot, locked_joints=tuple(args.lock))
-    if args.lock:
-        raise ParameterError(f"--lock applies to URDF robots only; got {args.robot!r}. Remove --lock.")
-    return load_robot(args.robot)
 
 
 def _check_excite(args) -> None:
@@ -176,7 +164,7 @@ def _run_excite(args) -> int:
 
     _check_excite(args)
     outputs = _outputs(args, args.out)
-    robot = _load_robot(args)
+    robot = load_robot_argument(args)
     started = time.perf_counter()
     options = ExcitationOptions(
         family=args.family,
@@ -255,7 +243,7 @@ def _run_experiment(args) -> int:
     out = args.out or f"{args.kind}_experiment.csv"
     _check_experiment(args)
     outputs = _outputs(args, out)
-    robot = _load_robot(args)
+    robot = load_robot_argument(args)
     extra = {} if args.speed is None else {"speed": args.speed}
     joints = None if args.joint is None else [_joint_index(j, robot.n_dof) for j in args.joint]
     if args.kind == "gravity":

@@ -12,7 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from psdm_casadi.cli import identify_recordings
-from psdm_casadi.cli.checks import output_folder
+from psdm_casadi.cli.checks import add_robot_argument, load_robot_argument, output_folder
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.fileio import atomic_write, markdown_escape
 
@@ -29,7 +29,7 @@ def register(subparsers) -> None:
         help="identify a calibrated model from exciting recordings (or the paper's four calibration steps)",
         description=(
             "Recordings (--data A.csv [B.csv ...], joint torques or currents; columns t, q1..qn, tau1..taun or "
-            "current1..currentn): filter them (cutoff min(10 Hz, rate/10), stated), fit base parameters, Coulomb "
+            "i1..in): filter them (cutoff min(10 Hz, rate/10), stated), fit base parameters, Coulomb "
             "and viscous friction and drive inertias by weighted least squares, then physically consistent "
             "standard parameters (positive-definite pseudo-inertias), validate on --validate recordings, and "
             "write one calibrated-model file (--out model.json). A folder (--data DIR, or --protocol four-step) "
@@ -38,8 +38,10 @@ def register(subparsers) -> None:
             "A model that is not physically consistent is not saved (exit 1) unless --allow-inconsistent."
         ),
     )
-    p.add_argument("robot", help="robot file (.toml or .urdf) or built-in robot name")
-    p.add_argument("--data", required=True, nargs="+", help="recordings (.csv, .npz), or one data directory")
+    add_robot_argument(p)
+    p.add_argument(
+        "--data", required=True, nargs="+", help="recordings (.csv, .npz, .mat, ROS 2 bags), or one data directory"
+    )
     p.add_argument(
         "--protocol",
         choices=("auto", "recordings", "four-step"),
@@ -63,13 +65,15 @@ def register(subparsers) -> None:
 
 
 def _protocol(args) -> str:
+    from identification.data.rosbag import is_rosbag
+
     for path in args.data:
         if not Path(path).exists():
             raise FileNotFoundError(
                 f"--data {path!r} does not exist. Check the path: pass recording files (.csv, .npz), or the folder "
                 "of the paper's experiments that 'psdm simulate --out' wrote."
             )
-    folders = [Path(path).is_dir() for path in args.data]
+    folders = [Path(path).is_dir() and not is_rosbag(path) for path in args.data]  # a bag folder is one recording
     protocol = args.protocol
     if protocol == "auto":
         protocol = "four-step" if len(args.data) == 1 and folders[0] else "recordings"
@@ -105,12 +109,11 @@ def _run_identify(args) -> int:
     from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
-    from psdm_casadi.robot import load_robot
 
     if _protocol(args) == "recordings":
         return identify_recordings.run(args)
     folder = _check_inputs(args)
-    robot = load_robot(args.robot)
+    robot = load_robot_argument(args)
     if args.model:
         model = load_model(args.model)
     else:

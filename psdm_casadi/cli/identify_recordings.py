@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from psdm_casadi.cli.checks import output_file
+from psdm_casadi.cli.checks import add_topic_argument, load_robot_argument, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 
 MASS_CHECK_CONFIGURATIONS = 2000
@@ -31,6 +31,7 @@ def add_arguments(p) -> None:
         help="keep the unconstrained weighted least-squares estimate (base parameters only), marked as not checked",
     )
     p.add_argument("--cutoff", type=float, default=None, help="low-pass cutoff [Hz] (default: min(10, rate/10))")
+    add_topic_argument(p)
 
 
 def run(args) -> int:
@@ -39,12 +40,11 @@ def run(args) -> int:
     from identification.data.io import load_recording
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
-    from psdm_casadi.robot import load_robot
 
     out = output_file(args.out, "--out", args.overwrite)
-    robot = load_robot(args.robot)
-    recordings = [load_recording(path, robot.n_dof) for path in args.data]
-    validation = [load_recording(path, robot.n_dof) for path in args.validate]
+    robot = load_robot_argument(args)
+    recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.data]
+    validation = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.validate]
     friction = ("fc", "fv", "offset") if args.offset else ("fc", "fv")
     options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
                                 consistency=not args.no_consistency, cutoff_hz=args.cutoff)  # fmt: skip

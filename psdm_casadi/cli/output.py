@@ -44,6 +44,12 @@ class ProgressHandler(logging.StreamHandler):
         self._bar_open = False
 
     def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self._draw(record)
+        except Exception:  # a closed or broken stream: logging's own error report, never the caller's failure
+            self.handleError(record)
+
+    def _draw(self, record: logging.LogRecord) -> None:
         done_total = getattr(record, "progress", None)
         if done_total is None or not self.stream.isatty():
             if self._bar_open:
@@ -59,6 +65,16 @@ class ProgressHandler(logging.StreamHandler):
         self._bar_open = done < total
         if not self._bar_open:
             self.stream.write("\n")
+
+
+def remove_logging() -> None:
+    """Remove the handler :func:`configure_logging` installed; the packages' records propagate again."""
+    for name in LOGGED_PACKAGES:
+        logger = logging.getLogger(name)
+        for old in [h for h in logger.handlers if h.get_name() == _HANDLER_NAME]:
+            logger.removeHandler(old)
+        logger.setLevel(logging.NOTSET)
+        logger.propagate = True
 
 
 def configure_logging(level: int) -> None:

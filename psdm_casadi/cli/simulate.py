@@ -7,7 +7,15 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import check_count, check_positive, check_samples, output_folder, parse_joints
+from psdm_casadi.cli.checks import (
+    add_robot_argument,
+    check_count,
+    check_positive,
+    check_samples,
+    load_robot_argument,
+    output_folder,
+    parse_joints,
+)
 from psdm_casadi.cli.output import print_json, progress
 from psdm_casadi.errors import ParameterError
 
@@ -30,7 +38,7 @@ def _add_simulate(subparsers) -> None:
             "or one of the paper's calibration experiments."
         ),
     )
-    p.add_argument("robot", help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables")
+    add_robot_argument(p, help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables, or a built-in name")
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--reference", help="CSV with columns t,q1..qn and optional qd1..,qdd1..")
     source.add_argument(
@@ -150,11 +158,10 @@ def _recording_names(runs, fmt: str) -> list:
 
 def _run_simulate(args) -> int:
     from identification.virtual.simulation import SimulationOptions
-    from psdm_casadi.robot import load_robot
 
     _check_simulate(args)
     output_folder(args.out, (), args.overwrite, shared=True)  # a file or an unwritable folder: refused first
-    robot = load_robot(args.robot)
+    robot = load_robot_argument(args)
     n = robot.n_dof
     rng = np.random.default_rng(args.seed)
     joints = parse_joints(args.joints, n)

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
+from psdm_casadi.cli.checks import add_topic_argument
 from psdm_casadi.cli.output import EXIT_OK, print_json, progress
 
 
@@ -21,7 +22,8 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
-    p.add_argument("recordings", nargs="+", help="recordings (.csv or .npz) with joint torques")
+    p.add_argument("recordings", nargs="+", help="recordings (.csv, .npz, .mat, or ROS 2 bags) with joint torques")
+    add_topic_argument(p)
     p.add_argument("--plots", type=Path, default=None, help="folder for one plot per recording (must not exist)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_validate)
@@ -37,7 +39,7 @@ def _run_validate(args) -> int:
 
     calibrated = load_calibrated_model(args.model)
     robot = calibrated.load_robot()
-    recordings = [load_recording(path, robot.n_dof) for path in args.recordings]
+    recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.recordings]
     plots = None
     if args.plots is not None:
         plots = OutputFolder(args.plots, [f"{Path(p).stem}.png" for p in args.recordings], option="--plots")

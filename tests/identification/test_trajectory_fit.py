@@ -166,3 +166,15 @@ def test_an_inconsistent_model_is_written_only_when_asked_and_then_marked(tmp_pa
     (tmp_path / "broken.json").write_text("{")
     with pytest.raises(ModelFileError, match="not a calibrated-model file"):
         load_calibrated_model(tmp_path / "broken.json")
+
+
+def test_a_locked_urdf_robot_is_rebuilt_with_its_locks(tmp_path):
+    from identification.calibration.calibrated_model import CalibratedModel, _robot_block
+    from psdm_casadi.robot import load_robot
+    from tests.conftest import example_robot_urdf
+
+    urdf = example_robot_urdf("ur_description/urdf/ur5_robot.urdf")
+    robot = load_robot(urdf, locked_joints=(("elbow_joint", 0.7),))
+    rebuilt = CalibratedModel({"robot": _robot_block(robot, urdf)}).load_robot(cache_dir=tmp_path)
+    assert rebuilt.joint_names == robot.joint_names and rebuilt.n_dof == 5
+    assert dict(rebuilt.locked_joints)["elbow_joint"] == pytest.approx(0.7)

@@ -57,3 +57,14 @@ def test_built_in_robots_are_found_by_name_by_every_command(tmp_path, capsys):
     capsys.readouterr()
     assert main(["derive", "no_such_robot"]) == 2
     assert "built-in robot" in capsys.readouterr().err
+
+
+def test_library_logging_after_a_command_does_not_write_to_its_closed_stderr(caplog):
+    stream = io.StringIO()
+    logger = _logger(stream)
+    stream.close()
+    logger.info("after the command", extra={"progress": (1, 2)})  # handled by logging, not raised
+    assert main(["derive", "scara"]) == 0
+    with caplog.at_level("INFO", logger="psdm_casadi.cli"):
+        logging.getLogger("psdm_casadi.cli").info("library line")
+    assert "library line" in caplog.text  # the command's handler is gone, records propagate again

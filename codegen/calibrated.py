@@ -1,0 +1,297 @@
+"""build_calibrated_functions(): a calibrated model's full torque as CasADi Functions (calibrated model -> export_c).
+
+A calibrated-model file (``psdm identify --out model.json``) reports the torque
+``CalibratedModel.predict``: the rigid body of its base parameters plus the drive terms of each joint j
+
+    tau_j = [D(q) qdd + h(q, qd)]_j + fc_j tanh(qd_j / v) + fv_j qd_j + offset_j + Ia_j qdd_j
+
+(only the terms the file lists; ``Ia_j`` for the joints whose rigid-body model has no drive inertia).
+The Functions built here compute exactly that, so the exported C equals what the report shows:
+
+- ``inverse_dynamics`` is the rigid body (recursive or sum form, theta baked in) plus the drive terms;
+- ``mass_matrix`` is ``D(q) + diag(Ia)``: the drive inertias multiply qdd, so they belong to the mass matrix;
+- ``bias`` is ``h(q, qd)`` plus friction and offsets (everything that does not multiply qdd), and
+  ``gravity`` is the torque that holds the robot still at q (``bias(q, 0)``: gravity plus the offsets);
+- ``forward_dynamics`` solves ``mass_matrix qdd = tau - bias``, the inverse of ``inverse_dynamics``;
+- ``regressor`` and ``gravity_regressor`` stay the rigid body's base-parameter regressor
+  (``Y theta`` omits the drive terms).
+
+Every parameter is compiled in: the Functions have no ``theta`` input.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import casadi as ca
+import numpy as np
+
+from codegen.export import CExport
+from identification.calibration.trajectory_data import drive_column_names
+from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
+from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions
+
+__all__ = [
+    "FORMS",
+    "add_drive_terms",
+    "add_header_note",
+    "build_calibrated_functions",
+    "consistency_problem",
+    "drive_bias",
+    "drive_inertia",
+    "header_note",
+]
+
+#: The forms of the rigid body: Newton-Euler on the base parameters (fastest) or the paper's sum.
+FORMS = ("recursive", "sum")
+
+
+def consistency_problem(calibrated) -> str | None:
+    """None for a physically consistent calibrated model, else one sentence naming the failed check.
+
+    Parameters
+    ----------
+    calibrated : identification.calibration.calibrated_model.CalibratedModel
+
+    Returns
+    -------
+    str or None
+        Names the smallest pseudo-inertia eigenvalue [kg m^2] (and the smallest mass-matrix
+        eigenvalue when the file's validation block holds one), or says that the model was not checked.
+    """
+    if calibrated.consistent:
+        return None
+    standard = calibrated.document["standard"]
+    if not standard.get("checked", True):
+        return (
+            "the calibrated model was not checked for physical consistency (identified with --no-consistency: "
+            "unconstrained base parameters, its mass matrix may be indefinite)"
+        )
+    sentence = (
+        "the calibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
+        f"{_number(standard.get('min_pseudo_inertia_eigenvalue'))}"
+    )
+    mass = (calibrated.document.get("validation") or {}).get("min_mass_eigenvalue")
+    if mass is not None:
+        sentence += f", smallest mass-matrix eigenvalue {_number(mass)}"
+    return sentence + ")"
+
+
+def _number(value) -> str:
+    return "unknown" if value is None else f"{float(value):.3g}"
+
+
+def _drive_block(calibrated) -> tuple[dict, tuple, tuple, float]:
+    """({name: value}, friction terms, 0-based inertia joints, Coulomb velocity) of the file's drive block, checked."""
+    drive = calibrated.document["drive"]
+    terms = tuple(drive["friction_terms"])
+    inertia_joints = tuple(int(j) - 1 for j in drive["inertia_joints"])
+    names = list(drive["names"])
+    values = calibrated.drive
+    expected = drive_column_names(calibrated.n_dof, terms, inertia_joints)
+    if names != expected or values.size != len(names):
+        raise ModelFileError(
+            f"calibrated model drive.names must be {expected} with one value each (from friction_terms {list(terms)} "
+            f"and inertia_joints {list(drive['inertia_joints'])}); got {names} with {values.size} values. "
+            "Re-run 'psdm identify'."
+        )
+    if not np.all(np.isfinite(values)):
+        raise ModelFileError(
+            f"calibrated model drive.values must be finite; got {dict(zip(names, values.tolist()))}. "
+            "Re-run 'psdm identify'."
+        )
+    velocity = float(drive["coulomb_velocity"]) if "fc" in terms else 1.0
+    if not velocity > 0:
+        raise ModelFileError(f"calibrated model drive.coulomb_velocity must be positive [rad/s]; got {velocity!r}.")
+    return dict(zip(names, values.tolist())), terms, inertia_joints, velocity
+
+
+def drive_bias(calibrated, qd):
+    """Friction and offsets of the calibrated model's drives, ``fc tanh(qd / v) + fv qd + offset``, per joint.
+
+    Parameters
+    ----------
+    calibrated : CalibratedModel
+    qd : casadi.SX, shape (n_dof, 1)
+        Joint velocities [rad/s or m/s].
+
+    Returns
+    -------
+    casadi.SX, shape (n_dof, 1)
+        [N m or N]; the same terms as ``identification.calibration.trajectory_data.drive_columns``.
+    """
+    values, terms, _, velocity = _drive_block(calibrated)
+    entries = []
+    for j in range(calibrated.n_dof):
+        entry = ca.SX(0)
+        if "fc" in terms:
+            entry = entry + values[f"fc{j + 1}"] * ca.tanh(qd[j] / velocity)
+        if "fv" in terms:
+            entry = entry + values[f"fv{j + 1}"] * qd[j]
+        if "offset" in terms:
+            entry = entry + values[f"offset{j + 1}"]
+        entries.append(entry)
+    return ca.vertcat(*entries)
+
+
+def drive_inertia(calibrated) -> np.ndarray:
+    """Drive inertias ``Ia_j`` [kg m^2] the file lists outside the base parameters, per joint (0 elsewhere)."""
+    values, _, inertia_joints, _ = _drive_block(calibrated)
+    inertia = np.zeros(calibrated.n_dof)
+    for j in inertia_joints:
+        inertia[j] = values[f"Ia{j + 1}"]
+    return inertia
+
+
+def add_drive_terms(rigid: DynamicsFunctions, calibrated) -> DynamicsFunctions:
+    """The Functions of ``rigid`` (theta baked in) with the calibrated model's drive terms added (module docstring).
+
+    Raises
+    ------
+    ParameterError
+        When ``rigid`` still has a ``theta`` input (build it with numeric theta).
+    ShapeError
+        When ``rigid`` and ``calibrated`` have different numbers of joints.
+    """
+    if rigid.theta is None:
+        raise ParameterError(
+            "add_drive_terms rigid must have its base parameters compiled in; got Functions with a theta input. "
+            "Build them with theta=calibrated.theta."
+        )
+    if rigid.n_dof != calibrated.n_dof:
+        raise ShapeError(
+            f"add_drive_terms rigid.n_dof must be the calibrated model's n_dof={calibrated.n_dof}; got {rigid.n_dof}. "
+            "Build the Functions of the robot in the file (calibrated.load_robot())."
+        )
+    n = rigid.n_dof
+    q, qd, qdd, tau_in = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
+    friction = drive_bias(calibrated, qd)
+    offsets = drive_bias(calibrated, ca.SX.zeros(n, 1))
+    inertia = drive_inertia(calibrated)
+    rigid_mass = rigid.mass_matrix(q)
+    columns = [rigid_mass[:, k] + (ca.DM(np.eye(n)[k] * inertia[k]) if inertia[k] else 0) for k in range(n)]
+    inertia_torque = ca.vertcat(*[inertia[j] * qdd[j] if inertia[j] else ca.SX(0) for j in range(n)])
+    functions = assemble_functions(
+        (q, qd, qdd, tau_in),
+        [],
+        [],
+        regressor=rigid.regressor(q, qd, qdd),
+        gravity_regressor=rigid.gravity_regressor(q),
+        tau=rigid.inverse_dynamics(q, qd, qdd) + friction + inertia_torque,
+        bias=rigid.bias(q, qd) + friction,
+        gravity=rigid.gravity(q) + offsets,
+        mass_columns=columns,
+        theta=rigid.theta,
+    )
+    return dataclasses.replace(functions, regressor_structure=rigid.regressor_structure)
+
+
+def build_calibrated_functions(
+    calibrated, model, robot, *, form: str = "recursive", allow_inconsistent: bool = False
+) -> DynamicsFunctions:
+    """The CasADi Functions of a calibrated model's full torque: rigid body plus drive terms, all compiled in.
+
+    Parameters
+    ----------
+    calibrated : identification.calibration.calibrated_model.CalibratedModel
+        From ``load_calibrated_model("model.json")``.
+    model : PSDMModel
+        The model of the file's robot (``derive_psdm(calibrated.load_robot())``).
+    robot : RobotDescription
+        ``calibrated.load_robot()``; the recursive form needs its kinematics.
+    form : {"recursive", "sum"}
+        The rigid body by Newton-Euler on the base parameters (fastest) or as the paper's sum.
+    allow_inconsistent : bool
+        Build the Functions of a model that is not physically consistent (or was not checked).
+
+    Returns
+    -------
+    DynamicsFunctions
+        Without ``theta`` input; ``theta`` holds the compiled-in base parameters. ``regressor`` is the
+        rigid body's.
+
+    Raises
+    ------
+    ParameterError
+        For an inconsistent model without ``allow_inconsistent`` (the message names the eigenvalue),
+        or an unknown ``form``.
+    ShapeError
+        When the file's base parameters do not match the model's n_base.
+    ModelFileError
+        When the file's drive block is malformed.
+
+    Examples
+    --------
+    >>> calibrated = load_calibrated_model("model.json")                      # doctest: +SKIP
+    >>> robot = calibrated.load_robot(); model = derive_psdm(robot)           # doctest: +SKIP
+    >>> fns = build_calibrated_functions(calibrated, model, robot)            # doctest: +SKIP
+    >>> fns.inverse_dynamics(q, qd, qdd)   # == calibrated.predict(model, q, qd, qdd)  # doctest: +SKIP
+    """
+    from psdm_casadi.recursive import build_recursive_functions
+    from psdm_casadi.symbolic import build_functions
+
+    if form not in FORMS:
+        raise ParameterError(f"build_calibrated_functions form must be one of {FORMS}; got {form!r}.")
+    problem = consistency_problem(calibrated)
+    if problem is not None and not allow_inconsistent:
+        raise ParameterError(f"build_calibrated_functions: {problem}. Pass allow_inconsistent=True to build it anyway.")
+    theta = calibrated.theta
+    if theta.size != model.n_base or not np.all(np.isfinite(theta)):
+        raise ShapeError(
+            f"calibrated model base.values must be {model.n_base} finite numbers (the model's n_base); got "
+            f"{theta.size} values. Pass the model derived from the file's robot (derive_psdm(calibrated.load_robot()))."
+        )
+    rigid = build_recursive_functions(model, robot, theta) if form == "recursive" else build_functions(model, theta)
+    return add_drive_terms(rigid, calibrated)
+
+
+def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = None) -> str:
+    """The C comment that says what an export of a calibrated model computes (see ``add_header_note``)."""
+    document = calibrated.document
+    values, terms, inertia_joints, velocity = _drive_block(calibrated)
+    per_joint = " + ".join(_term_text(term, velocity) for term in terms) or "none"
+    inertia = f" + Ia_j qdd_j (joints {', '.join(str(j + 1) for j in inertia_joints)})" if inertia_joints else ""
+    problem = consistency_problem(calibrated)
+    state = "physically consistent" if problem is None else f"WARNING: {problem}; exported with --allow-inconsistent"
+    origin = f" from {source_name}" if source_name else ""
+    lines = [
+        f"Calibrated model of {document['robot']['name']}{origin} "
+        f"(created {document.get('provenance', {}).get('created', 'unknown')}).",
+        f"{state}.",
+        f"{prefix}inverse_dynamics(q, qd, qdd) is the full feed-forward torque the calibration reports",
+        "(CalibratedModel.predict, 'psdm validate'): the rigid body of the identified base parameters (compiled in)",
+        f"plus the drive terms of each joint j: {per_joint}{inertia}.",
+        f"{prefix}mass_matrix is D(q){' + diag(Ia)' if inertia else ''}; {prefix}forward_dynamics solves "
+        "mass_matrix(q) qdd = tau - h(q, qd) - friction - offsets, the inverse of inverse_dynamics.",
+        f"{prefix}regressor is the RIGID BODY's base-parameter regressor only: Y theta omits the drive terms.",
+        "Drive parameters:",
+    ]
+    for j in range(calibrated.n_dof):
+        names = [f"{term}{j + 1}" for term in terms] + ([f"Ia{j + 1}"] if j in inertia_joints else [])
+        if names:
+            lines.append("  " + ", ".join(f"{name} = {values[name]:.17g}" for name in names))
+    return "/* " + "\n * ".join(_wrap(lines)) + "\n */\n"
+
+
+def _term_text(term: str, velocity: float) -> str:
+    return {"fc": f"fc_j tanh(qd_j / {velocity!r})", "fv": "fv_j qd_j", "offset": "offset_j"}[term]
+
+
+def _wrap(lines: list, width: int = 110) -> list:
+    out = []
+    for line in lines:
+        words, current = line.split(" "), ""
+        for word in words:
+            if current and len(current) + 1 + len(word) > width:
+                out.append(current)
+                current = "  " + word
+            else:
+                current = f"{current} {word}" if current else word
+        out.append(current)
+    return out
+
+
+def add_header_note(export: CExport, note: str) -> None:
+    """Put ``note`` (a C comment) at the top of an export's ``.h`` and ``.c`` files."""
+    for path in (export.header, export.source):
+        path.write_text(note + path.read_text())
