@@ -100,9 +100,19 @@ def central_difference(t, x) -> tuple[np.ndarray, np.ndarray]:
     x = np.asarray(x, dtype=float)
     if t.shape[0] < 3:
         raise RecordingError(f"central_difference needs at least 3 samples; got {t.shape[0]}.")
-    first = np.gradient(x, t, axis=0, edge_order=2)
-    h1 = (t[1:-1] - t[:-2]).reshape((-1,) + (1,) * (x.ndim - 1))
-    h2 = (t[2:] - t[1:-1]).reshape(h1.shape)
+    if x.ndim == 1:
+        return _central_difference_1d(t, x)
+    # one column at a time: the temporaries stay one column long (the values are those of the whole array)
+    first, second = np.empty(x.shape), np.empty(x.shape)
+    flat_first, flat_second = first.reshape(x.shape[0], -1), second.reshape(x.shape[0], -1)
+    for c, column in enumerate(x.reshape(x.shape[0], -1).T):
+        flat_first[:, c], flat_second[:, c] = _central_difference_1d(t, column)
+    return first, second
+
+
+def _central_difference_1d(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    first = np.gradient(x, t, edge_order=2)
+    h1, h2 = t[1:-1] - t[:-2], t[2:] - t[1:-1]
     second = np.empty_like(x)
     second[1:-1] = 2.0 * (h1 * x[2:] - (h1 + h2) * x[1:-1] + h2 * x[:-2]) / (h1 * h2 * (h1 + h2))
     second[0], second[-1] = second[1], second[-2]
@@ -124,6 +134,8 @@ def zero_phase_filter(x, sample_rate_hz: float, cutoff_hz: float, order: int = 8
     Returns
     -------
     array, shaped like ``x``
+        A new array; the columns of a multi-column ``x`` are filtered one at a time (same values, a
+        one-column temporary memory).
 
     Raises
     ------
@@ -146,7 +158,15 @@ def zero_phase_filter(x, sample_rate_hz: float, cutoff_hz: float, order: int = 8
             f"Recording.t holds {x.shape[0]} samples; a zero-phase filter of order {order} needs more than {padlen}. "
             "Record longer or lower PreprocessOptions.order."
         )
-    return sosfiltfilt(sos, x, axis=0)
+    if x.ndim == 1:
+        return sosfiltfilt(sos, x)
+    # one column at a time into one array: the filter's padded temporaries stay one column long (the values are
+    # those of filtering the whole array)
+    out = np.empty(x.shape)
+    flat = out.reshape(x.shape[0], -1)
+    for c, column in enumerate(x.reshape(x.shape[0], -1).T):
+        flat[:, c] = sosfiltfilt(sos, column)
+    return out
 
 
 def resample_uniform(recording: Recording) -> Recording:
@@ -210,6 +230,8 @@ def preprocess(recording: Recording, options: PreprocessOptions | None = None) -
     _check_overflow(rec, changes)
     if not changes:
         return rec
+    for value in changes.values():  # fresh arrays: read-only, the Recording keeps them without a copy
+        value.setflags(write=False)
     return rec.with_signals(**changes)
 
 

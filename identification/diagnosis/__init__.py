@@ -2,11 +2,12 @@
 
 Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, validation RMSE before/after,
 residual analysis, augmented model). Modules, in the order ``diagnose`` uses them: ``context`` (nominal
-signals per recording), ``nominal`` (friction and rigid-body choices), ``candidates/`` (the physics
-library, one module per family of effects, with plausibility bounds), ``selection`` (forward selection
-on held-out data), ``signal_fit`` (exact fit of the kept delay, backlash and joint elasticity by variable
-projection), ``refine`` (Ipopt fit of the nonlinear parameters of the kept terms), ``residual_tests``,
-``report``, ``augmented``; ``diagnose`` runs the steps. Progress is logged (loggers under
+signals per recording), ``nominal`` (friction and rigid-body choices), ``columns`` (the fit's columns
+stored per joint, used in chunks of rows), ``candidates/`` (the physics library, one module per family of
+effects, with plausibility bounds), ``selection`` (forward selection on held-out data), ``signal_fit``
+(exact fit of the kept delay, backlash and joint elasticity by variable projection), ``refine`` (Ipopt fit
+of the nonlinear parameters of the kept terms), ``residual_tests``, ``report``, ``augmented``; ``diagnose``
+runs the steps. Progress is logged (loggers under
 ``identification.diagnosis``). The command is ``psdm diagnose`` (``psdm_casadi.cli.diagnose``).
 """
 

@@ -8,6 +8,13 @@ The expensive matrices are evaluated on a decimated grid (``rate_hz``, default 2
 that are differentiated (torque derivatives for delay, elasticity, backlash) are differentiated at
 full rate first and then decimated.
 
+Long recordings: the grid holds at most ``max_samples`` samples (``DiagnosisOptions.max_samples``; a
+longer recording gets a coarser grid, logged, with a warning below ``MIN_GRID_PER_CUTOFF`` samples per
+period of the cut-off), so the grid's matrices (about 1.5 kB per sample for 6 joints) do not grow with
+the recording. The full-rate signals (time, filtered torque and velocity, raw torque) are the
+recordings' own read-only arrays, not copies; the torque derivatives are taken one joint at a time;
+the robot file's LuGre friction is simulated in pieces of ``LUGRE_CHUNK`` samples (``simulate_friction``).
+
 With a LuGre friction prior (the robot file's drives, ``filtered_friction``), columns with the sign of
 the velocity are built at full rate with the exact sign and low-pass filtered like the recording
 (``DiagnosisContext.lowpass``) before decimation: the measured torque is the filtered true torque,
@@ -21,6 +28,7 @@ carry over to the validation recording).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,10 +37,15 @@ import pinocchio as pin
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from identification.diagnosis.columns import row_chunks
 from psdm_casadi.errors import ParameterError, RecordingError
 from psdm_casadi.oracle import build_pinocchio_model
 
+logger = logging.getLogger(__name__)
+
 FILTER_ORDER = PreprocessOptions().order  # the order ``diagnose`` preprocesses the recordings with
+LUGRE_CHUNK = 50_000  # samples per call of the LuGre simulator (``simulate_friction``)
+MIN_GRID_PER_CUTOFF = 4.0  # a grid coarser than this many samples per cut-off period is reported (``build_context``)
 
 
 @dataclass(frozen=True, eq=False)
@@ -153,17 +166,39 @@ class DiagnosisContext:
         """Change of the robot file's LuGre friction of ``joint`` when the true velocity is the recorded one
         minus ``shift_rate`` (full rate, (n_full,)): ``F(qd_rec) - F(qd_rec - shift_rate)``, decimated (n_samples,);
         None without drives."""
-        from identification.friction.models import LuGreParameters
-        from identification.friction.simulation import simulate_lugre
-
         if self.drives is None:
             return None
-        d = self.drives[joint]
-        p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
+        p = lugre_parameters(self.drives[joint])
         qd = self.full_qd[:, joint]
-        recorded, _ = simulate_lugre(p, self.full_t, qd, z0=0.0)
-        true, _ = simulate_lugre(p, self.full_t, qd - shift_rate, z0=0.0)
+        recorded = simulate_friction(p, self.full_t, qd)
+        true = simulate_friction(p, self.full_t, qd - shift_rate)
         return self.lowpass(recorded - true)
+
+
+def lugre_parameters(drive):
+    """The LuGre friction (``LuGreParameters``) of a robot file's drive (a Stribeck torque of at least 1e-9 N m)."""
+    from identification.friction.models import LuGreParameters
+
+    d = drive
+    return LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
+
+
+def simulate_friction(parameters, t: np.ndarray, qd: np.ndarray) -> np.ndarray:
+    """LuGre friction torque (n_full,) [N m] along ``qd`` from a relaxed bristle (``simulate_lugre``, z0 = 0).
+
+    A recording longer than ``LUGRE_CHUNK`` samples is simulated in pieces, each starting from the bristle
+    deflection the previous one ended with: the same recursion, several times faster on an hour of samples
+    (the simulator's temporaries then stay in the processor's cache)."""
+    from identification.friction.simulation import simulate_lugre
+
+    if t.size <= LUGRE_CHUNK + 1:
+        return simulate_lugre(parameters, t, qd, z0=0.0)[0]
+    out, z0, start = np.empty(t.size), 0.0, 0
+    while start < t.size - 1:
+        stop = min(t.size, start + LUGRE_CHUNK + 1)
+        out[start:stop], z = simulate_lugre(parameters, t[start:stop], qd[start:stop], z0=z0)
+        z0, start = float(z[-1]), stop - 1
+    return out
 
 
 def check_preprocessed(recording: Recording) -> Recording:
@@ -182,13 +217,35 @@ def _tilt_axes(gravity: np.ndarray) -> np.ndarray:
     return np.vstack([a1, a2])
 
 
-def _decimated_indices(recording: Recording, rate_hz: float) -> np.ndarray:
-    """Indices of the samples of a ``rate_hz`` grid, without the ends where the zero-phase filter and the
-    differences are least reliable (5 % of the grid, at most 0.2 s each)."""
+def _decimated_indices(recording: Recording, rate_hz: float, max_samples: int | None = None) -> np.ndarray:
+    """Indices of the samples of a ``rate_hz`` grid (coarser when it would hold more than ``max_samples``
+    samples), without the ends where the zero-phase filter and the differences are least reliable (5 % of the
+    grid, at most 0.2 s each)."""
     step = max(1, int(round(1.0 / (rate_hz * recording.dt))))
+    if max_samples is not None:
+        step = max(step, -(-recording.n_samples // int(max_samples)))
     keep = np.arange(0, recording.n_samples, step)
     margin = min(keep.size // 20, int(round(0.2 / (recording.dt * step))))
     return keep[margin : keep.size - margin] if margin > 0 else keep
+
+
+def _grid(recording: Recording, rate_hz: float, max_samples: int | None, cutoff_hz: float | None) -> np.ndarray:
+    """``_decimated_indices``, logging a grid that ``max_samples`` made coarser than ``rate_hz``."""
+    keep = _decimated_indices(recording, rate_hz, max_samples)
+    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz).size:
+        return keep
+    grid_hz = 1.0 / (recording.dt * float(keep[1] - keep[0]))
+    source = recording.name or "the recording"
+    logger.info(
+        f"diagnose: {source} ({recording.duration:.0f} s) on a {grid_hz:.3g} Hz grid of {keep.size} samples "
+        f"(DiagnosisOptions.max_samples={max_samples})"
+    )
+    if cutoff_hz is not None and grid_hz < MIN_GRID_PER_CUTOFF * cutoff_hz:
+        logger.warning(
+            f"diagnose: the {grid_hz:.3g} Hz grid of {source} has fewer than {MIN_GRID_PER_CUTOFF:g} samples per "
+            f"period of the {cutoff_hz:g} Hz cut-off: raise DiagnosisOptions.max_samples or lower the cut-off"
+        )
+    return keep
 
 
 def _rigid_body_signals(pmodel, q, qd, qdd) -> tuple:
@@ -197,14 +254,13 @@ def _rigid_body_signals(pmodel, q, qd, qdd) -> tuple:
     data = pmodel.createData()
     m, n = q.shape
     tau_rigid = np.empty((m, n))
-    dq, dv, mass = (np.empty((m, n, n)) for _ in range(3))
+    dq, dv, upper = (np.empty((m, n, n)) for _ in range(3))
     for k in range(m):
         pin.computeRNEADerivatives(pmodel, data, q[k], qd[k], qdd[k])
-        dq[k], dv[k] = data.dtau_dq, data.dtau_dv
-        mm = np.triu(data.M)
-        mass[k] = mm + np.triu(mm, 1).T
+        dq[k], dv[k], upper[k] = data.dtau_dq, data.dtau_dv, data.M
         tau_rigid[k] = pin.rnea(pmodel, data, q[k], qd[k], qdd[k])
-    return tau_rigid, dq, dv, mass
+    upper = np.triu(upper)  # Pinocchio fills the upper triangle of M
+    return tau_rigid, dq, dv, upper + np.triu(upper, 1).transpose(0, 2, 1)
 
 
 def _tilted_gravity_torque(pmodel, gravity: np.ndarray, q) -> tuple:
@@ -244,12 +300,35 @@ def _payload_torque(robot, q, qd, qdd, tau_rigid) -> np.ndarray:
     return payload
 
 
+def _joint_torque(recording: Recording, torque_constants) -> np.ndarray:
+    """``recording.joint_torque(torque_constants)``, the recorded torque itself when that is what it copies (a
+    Recording's arrays are read-only: an hour at 1 kHz is then held once)."""
+    if recording.tau is not None and (torque_constants is None or recording.current is None):
+        return recording.tau
+    return recording.joint_torque(torque_constants)
+
+
 def _raw_torque(raw: Recording, recording: Recording, tau_full, torque_constants) -> np.ndarray:
     """The torque of ``raw`` (before preprocessing) on the time grid of ``recording`` (n_full, n_dof)."""
-    source = raw.joint_torque(torque_constants)
+    source = _joint_torque(raw, torque_constants)
     if source.shape == tau_full.shape and np.allclose(raw.t, recording.t):
-        return source.copy()
+        return source
     return np.column_stack([np.interp(recording.t, raw.t, source[:, j]) for j in range(tau_full.shape[1])])
+
+
+def _torque_derivatives(t, tau_full, keep) -> tuple:
+    """First and second time derivatives of the torque at full rate (central differences), on the grid ``keep``;
+    one joint at a time, so the full-rate temporaries stay one column long."""
+    rate, accel = (np.empty((keep.size, tau_full.shape[1])) for _ in range(2))
+    for j in range(tau_full.shape[1]):
+        first, second = central_difference(t, tau_full[:, j])
+        rate[:, j], accel[:, j] = first[keep], second[keep]
+    return rate, accel
+
+
+def _regressor(model, q, qd, qdd) -> np.ndarray:
+    """The PSDM regressor (n_samples, n_dof, n_base), evaluated in chunks of rows (``CHUNK_ROWS``)."""
+    return np.concatenate([model.regressor(q[rows], qd[rows], qdd[rows]) for rows in row_chunks(q.shape[0])])
 
 
 def build_context(
@@ -262,6 +341,7 @@ def build_context(
     with_regressor: bool = False,
     raw: Recording | None = None,
     filtered_friction: bool | None = None,
+    max_samples: int | None = None,
 ) -> DiagnosisContext:
     """Evaluate the nominal model's signals on a preprocessed recording.
 
@@ -284,6 +364,9 @@ def build_context(
         time grid, is ``DiagnosisContext.full_tau_raw``).
     filtered_friction : bool, optional
         ``DiagnosisContext.filtered_friction``; default: whether the robot file has drives (a LuGre prior).
+    max_samples : int, optional
+        Most samples of the grid: a longer recording gets a coarser grid (``DiagnosisOptions.max_samples``);
+        default no bound.
 
     Raises
     ------
@@ -294,14 +377,19 @@ def build_context(
     check_preprocessed(recording)
     if not (np.isfinite(rate_hz) and rate_hz > 0):
         raise ParameterError(f"DiagnosisOptions.rate_hz must be positive [Hz]; got {rate_hz!r}.")
-    tau_full = recording.joint_torque(torque_constants)
-    keep = _decimated_indices(recording, rate_hz)
-    tau_rate_full, tau_accel_full = central_difference(recording.t, tau_full)
+    if max_samples is not None and not (isinstance(max_samples, (int, np.integer)) and max_samples >= 3):
+        raise ParameterError(
+            f"build_context.max_samples must be an integer >= 3 or None; got {max_samples!r}. "
+            "Use DiagnosisOptions().max_samples."
+        )
+    tau_full = _joint_torque(recording, torque_constants)
+    keep = _grid(recording, rate_hz, max_samples, cutoff_hz)
+    tau_rate, tau_accel = _torque_derivatives(recording.t, tau_full, keep)
     q, qd, qdd = recording.q[keep], recording.qd[keep], recording.qdd[keep]
     pmodel = build_pinocchio_model(robot)
     tau_rigid, dq, dv, mass = _rigid_body_signals(pmodel, q, qd, qdd)
     axes, tilt = _tilted_gravity_torque(pmodel, np.asarray(robot.gravity, dtype=float), q)
-    regressor = model.regressor(q, qd, qdd) if with_regressor else None
+    regressor = _regressor(model, q, qd, qdd) if with_regressor else None
     payload = _payload_torque(robot, q, qd, qdd, tau_rigid)
     tau_raw = None if raw is None else _raw_torque(raw, recording, tau_full, torque_constants)
     return DiagnosisContext(
@@ -310,8 +398,8 @@ def build_context(
         qd=qd,
         qdd=qdd,
         tau=tau_full[keep],
-        tau_rate=tau_rate_full[keep],
-        tau_accel=tau_accel_full[keep],
+        tau_rate=tau_rate,
+        tau_accel=tau_accel,
         tau_rigid=tau_rigid,
         dtau_dq=dq,
         dtau_dqd=dv,
@@ -320,9 +408,9 @@ def build_context(
         payload=payload,
         tilt=tilt,
         tilt_axes=axes,
-        full_t=recording.t.copy(),
+        full_t=recording.t,
         full_tau=tau_full,
-        full_qd=recording.qd.copy(),
+        full_qd=recording.qd,
         keep=keep,
         cutoff_hz=cutoff_hz,
         parameter_map=np.asarray(model.parameter_map),

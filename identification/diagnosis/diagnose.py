@@ -19,11 +19,12 @@ from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates import CandidateLibrary, default_library
+from identification.diagnosis.columns import BlockColumns, row_chunks
 from identification.diagnosis.context import DiagnosisContext, build_context, check_preprocessed
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
     RIGID_BODY_CHOICES,
-    filtered_friction_columns,
+    friction_blocks,
     friction_feature_names,
     friction_shapes,
 )
@@ -77,6 +78,14 @@ class DiagnosisOptions:
         joint must move in both recordings (range and speed, :func:`check_joint_motion`), and the columns
         of the nominal model's free parameters must be well conditioned on the training recording
         (:func:`check_regressor`). A still or dithering joint otherwise gives noise-fitted "findings".
+    max_samples : int
+        Most samples of a recording's decimated grid: a recording longer than ``max_samples / rate_hz``
+        (20.8 minutes at the defaults) gets a coarser grid, so the memory and time of the fit are bounded by
+        this rather than by the recording's length (about 1.5 kB per sample for 6 joints). A 60-minute
+        recording is fitted on a 66.7 Hz grid, 4.4 samples per period of the 15 Hz cut-off: the zero-phase
+        filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with fewer
+        than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
+        ``rate_hz`` grid (and the results they always had).
     """
 
     friction: str = "lugre"
@@ -91,6 +100,7 @@ class DiagnosisOptions:
     torque_constants: tuple | None = None
     refine: bool = True
     excitation: ExcitationThresholds | None = None
+    max_samples: int = 250_000
 
     def __post_init__(self):
         if self.friction not in FRICTION_MODELS:
@@ -107,6 +117,12 @@ class DiagnosisOptions:
             raise ParameterError(f"DiagnosisOptions.max_effects must be an integer >= 0; got {self.max_effects!r}.")
         if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise ParameterError(f"DiagnosisOptions.rate_hz must be positive [Hz]; got {self.rate_hz!r}.")
+        if isinstance(self.max_samples, bool) or not (
+            isinstance(self.max_samples, (int, np.integer)) and self.max_samples >= 1000
+        ):
+            raise ParameterError(
+                f"DiagnosisOptions.max_samples must be an integer >= 1000; got {self.max_samples!r}. Use 250000."
+            )
         if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
             raise ParameterError(f"DiagnosisOptions.cutoff_hz must be positive [Hz] or None; got {self.cutoff_hz!r}.")
         if self.excitation is not None and not isinstance(self.excitation, ExcitationThresholds):
@@ -129,8 +145,9 @@ class DiagnosisProblem:
     ----------
     ctx_t, ctx_v : DiagnosisContext
         The preprocessed recordings with the nominal model's signals.
-    base_t, base_v : arrays (n_samples, n_dof, p)
-        Columns of the nominal model's free parameters (friction, and base parameters if identified).
+    base_t, base_v : BlockColumns
+        Columns (n_samples, n_dof, p) of the nominal model's free parameters (friction, and base parameters if
+        identified), stored per joint.
     y_t, y_v : arrays (n_samples, n_dof)
         Measured torque minus the fixed part of the nominal model (the robot file's rigid body for
         ``rigid_body="prior"``, nothing otherwise).
@@ -138,8 +155,8 @@ class DiagnosisProblem:
 
     ctx_t: DiagnosisContext
     ctx_v: DiagnosisContext
-    base_t: np.ndarray
-    base_v: np.ndarray
+    base_t: BlockColumns
+    base_v: BlockColumns
     y_t: np.ndarray
     y_v: np.ndarray
 
@@ -239,10 +256,16 @@ def check_nominal_columns(robot, model, problem: DiagnosisProblem, options: Diag
         joints += list(base_parameter_joints(model))
     torque_rms = rms(problem.ctx_t.tau)
     sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
-    weights = np.tile(1.0 / sigma**2, problem.ctx_t.n_samples)
     thresholds = options.excitation if options.excitation is not None else ExcitationThresholds()
+    if len(row_chunks(problem.base_t.n_samples)) == 1:
+        matrix, weights = (
+            problem.base_t.dense().reshape(-1, problem.base_t.n_columns),
+            np.tile(1.0 / sigma**2, problem.ctx_t.n_samples),
+        )
+    else:  # the same singular values and column norms, from a chunked QR of the weighted rows
+        matrix, weights = problem.base_t.weighted_r(sigma), None
     check_regressor(
-        problem.base_t.reshape(-1, problem.base_t.shape[2]),
+        matrix,
         weights,
         names=names,
         column_joints=joints,
@@ -260,32 +283,40 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
     kt = options.torque_constants
     if kt is None and robot.drives is not None:
         kt = tuple(d.kt for d in robot.drives)
-    raw_train, raw_validation = train, validation
-    if options.preprocess:
-        pre = PreprocessOptions(cutoff_hz=options.cutoff_hz)
-        train, validation = preprocess(train, pre), preprocess(validation, pre)
-    else:
-        raw_train = raw_validation = None
-    logger.info("diagnose: evaluating the nominal model ...")
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
-    need_y = options.rigid_body == "identified"
-    ctx_t = build_context(
-        robot, model, train, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y, raw=raw_train
-    )
-    ctx_v = build_context(
-        robot, model, validation, options.rate_hz, options.cutoff_hz, kt_arr, with_regressor=need_y, raw=raw_validation
-    )
-    base_t = filtered_friction_columns(robot, options.friction, ctx_t)
-    base_v = filtered_friction_columns(robot, options.friction, ctx_v)
+    logger.info("diagnose: evaluating the nominal model ...")
+    ctx_t = _context(robot, model, train, options, kt_arr)
+    ctx_v = _context(robot, model, validation, options, kt_arr)
+    base_t = friction_blocks(robot, options.friction, ctx_t)
+    base_v = friction_blocks(robot, options.friction, ctx_v)
     if options.rigid_body == "prior":
         y_t, y_v = ctx_t.tau - ctx_t.tau_rigid, ctx_v.tau - ctx_v.tau_rigid
     else:
-        base_t = np.concatenate([base_t, ctx_t.regressor], axis=2)
-        base_v = np.concatenate([base_v, ctx_v.regressor], axis=2)
+        base_t = base_t.concatenate(BlockColumns.from_dense(ctx_t.regressor))
+        base_v = base_v.concatenate(BlockColumns.from_dense(ctx_v.regressor))
         y_t, y_v = ctx_t.tau, ctx_v.tau
     problem = DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v)
     check_nominal_columns(robot, model, problem, options)
     return problem
+
+
+def _context(robot, model, recording, options: DiagnosisOptions, kt) -> DiagnosisContext:
+    """The recording preprocessed (unless ``options.preprocess`` is off) and its ``DiagnosisContext``; the full-rate
+    position and acceleration of the preprocessed recording are released on return (only the grid keeps them)."""
+    raw = recording if options.preprocess else None
+    if options.preprocess:
+        recording = preprocess(recording, PreprocessOptions(cutoff_hz=options.cutoff_hz))
+    return build_context(
+        robot,
+        model,
+        recording,
+        options.rate_hz,
+        options.cutoff_hz,
+        kt,
+        with_regressor=options.rigid_body == "identified",
+        raw=raw,
+        max_samples=options.max_samples,
+    )
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:

@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from identification.diagnosis.columns import BlockColumns
+from identification.diagnosis.context import lugre_parameters, simulate_friction
 from psdm_casadi.errors import ParameterError
 
 FRICTION_MODELS = ("lugre", "coulomb_viscous")
@@ -71,35 +73,59 @@ def filtered_friction_columns(robot, kind: str, context) -> np.ndarray:
     (``lugre_dynamic_columns``) are evaluated at full rate on the recorded velocity and low-pass filtered
     like the recording before decimation (``DiagnosisContext.lowpass``): the recorded torque holds the
     filtered friction steps, not sharp ones at the filtered velocity's zero. Without a prior the smooth-sign
-    columns of the filtered velocity are used (see ``context``).
+    columns of the filtered velocity are used (see ``context``). The dense form of ``friction_blocks``.
     """
+    return friction_blocks(robot, kind, context).dense()
+
+
+def friction_blocks(robot, kind: str, context) -> BlockColumns:
+    """``filtered_friction_columns`` as ``BlockColumns``, built one column at a time: each full-rate column of a
+    joint (n_full,) is filtered and decimated before the next, never the whole (n_full, n_dof, p)."""
     vs, dv = friction_shapes(robot)
+    n = robot.n_dof
     dynamic = kind == "lugre" and robot.drives is not None
     if not context.filtered_friction:
         out = friction_columns(kind, context.qd, vs, dv)
-        return np.concatenate([out, lugre_dynamic_columns(robot, context)], axis=2) if dynamic else out
-    qd = context.full_qd
-    full = friction_columns(kind, qd, vs, dv, sign=np.sign(qd))
+        if dynamic:
+            out = np.concatenate([out, lugre_dynamic_columns(robot, context)], axis=2)
+        return BlockColumns.from_dense(out)
+    k = 3 if kind == "lugre" else 2
+    index, values = [], []
+    for j in range(n):
+        index.append(np.arange(j * k, (j + 1) * k).tolist() + ([n * k + j] if dynamic else []))
+        block = np.empty((context.n_samples, len(index[-1])))
+        for c, column in enumerate(_joint_friction_columns(robot, kind, context, j, dynamic)):
+            block[:, c] = context.lowpass(column)  # one full-rate column at a time
+        values.append(block)
+    return BlockColumns(n * k + (n if dynamic else 0), tuple(index), tuple(values))
+
+
+def _joint_friction_columns(robot, kind: str, context, j: int, dynamic: bool):
+    """The full-rate friction columns of joint ``j`` (n_full,) with the exact velocity sign, one after the other
+    in the order of ``friction_columns``, then its bristle-dynamics column when ``dynamic``."""
+    vs, dv = friction_shapes(robot)
+    qd = context.full_qd[:, j]
+    sign = np.sign(qd)
+    yield sign
+    if kind == "lugre":
+        yield np.exp(-((qd / vs[j]) ** 2)) * sign
+        yield np.abs(qd) ** dv[j] * sign
+    else:
+        yield qd
     if dynamic:
-        full = np.concatenate([full, _lugre_dynamic_full(robot, context)], axis=2)
-    return context.lowpass(full)
+        yield _lugre_dynamic_full(robot, context, j)
 
 
-def _lugre_dynamic_full(robot, context) -> np.ndarray:
-    from identification.friction.models import LuGreParameters
-    from identification.friction.simulation import simulate_lugre
-
-    n = robot.n_dof
-    out = np.zeros((context.full_t.size, n, n))
-    for j, d in enumerate(robot.drives):
-        p = LuGreParameters(fc=d.fc, fs=max(d.fs, 1e-9), vs=d.vs, fv=d.fv, dv=d.dv, sigma0=d.sigma0, sigma1=d.sigma1)
-        qd = context.full_qd[:, j]
-        tau, _ = simulate_lugre(p, context.full_t, qd, z0=0.0)
-        steady = (p.fc + (p.fs - p.fc) * np.exp(-((qd / p.vs) ** 2))) * np.sign(qd) + p.fv * np.abs(
-            qd
-        ) ** p.dv * np.sign(qd)
-        out[:, j, j] = tau - steady
-    return out
+def _lugre_dynamic_full(robot, context, j: int) -> np.ndarray:
+    """Bristle-dynamics part of joint ``j``'s LuGre friction at full rate (n_full,): the simulated friction minus
+    its steady-state curve."""
+    p = lugre_parameters(robot.drives[j])
+    qd = context.full_qd[:, j]
+    tau = simulate_friction(p, context.full_t, qd)
+    steady = (p.fc + (p.fs - p.fc) * np.exp(-((qd / p.vs) ** 2))) * np.sign(qd) + p.fv * np.abs(qd) ** p.dv * np.sign(
+        qd
+    )
+    return tau - steady
 
 
 def lugre_dynamic_columns(robot, context) -> np.ndarray | None:
@@ -112,7 +138,11 @@ def lugre_dynamic_columns(robot, context) -> np.ndarray | None:
     """
     if robot.drives is None:
         return None
-    return _lugre_dynamic_full(robot, context)[context.keep]
+    n = robot.n_dof
+    out = np.zeros((context.n_samples, n, n))
+    for j in range(n):
+        out[:, j, j] = _lugre_dynamic_full(robot, context, j)[context.keep]
+    return out
 
 
 def friction_casadi(kind: str, qd, coefficients, vs, dv):

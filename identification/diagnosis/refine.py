@@ -24,6 +24,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
+from identification.diagnosis.columns import as_dense
 from identification.diagnosis.signal_fit import SIGNAL_KEYS, exact_contribution, fit_signal_terms, resolve_deflection
 from identification.metrics import rms
 
@@ -177,6 +178,7 @@ def refine_fit(
     refinable = [t.key in SIGNAL_KEYS + ("friction_drift",) for t in terms]
     if not any(refinable):
         return None
+    base_train, base_val = as_dense(base_train), as_dense(base_val)
     torque_rms = rms(train_ctx.tau)
     sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
     signal = fit_signal_terms(terms, coefficients, train_ctx, base_train, y_train, sigma)

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.diagnosis.columns import BlockColumns, as_blocks, row_chunks
 from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
 
@@ -79,10 +80,6 @@ class SelectionResult:
     candidates_tried: int
 
 
-def _flat(cols, sigma):
-    return (cols / sigma[None, :, None]).reshape(-1, cols.shape[2])
-
-
 def _solve(gram, rhs):
     d = np.sqrt(np.maximum(np.diag(gram), 1e-300))
     scaled = gram / np.outer(d, d) + 1e-10 * np.eye(gram.shape[0])
@@ -96,6 +93,8 @@ def _solve(gram, rhs):
 class _Design:
     """Weighted stacked least squares with fixed base columns; adds candidate columns through the normal equations.
 
+    The base columns are ``BlockColumns``; their normal equations, and a candidate's cross products with them,
+    are summed over chunks of rows (``columns.row_chunks``), so a long recording never has its dense base held.
     Candidate columns are usually non-zero on one joint only, so the cross products are summed over the
     joints where a candidate is non-zero.
     """
@@ -107,13 +106,27 @@ class _Design:
         self.yy = float(np.sum(self.ytw**2))
         self.set_base(base_train, base_val)
 
-    def set_base(self, base_train, base_val):
+    def set_base(self, base_train: BlockColumns, base_val: BlockColumns):
         self.base_train, self.base_val = base_train, base_val
-        xt = base_train / self.sigma[None, :, None]
-        self.Xt_j = [np.ascontiguousarray(xt[:, j, :]) for j in range(xt.shape[1])]
-        self.Xv = base_val
-        self.G = sum(x.T @ x for x in self.Xt_j)
-        self.b = sum(x.T @ self.ytw[:, j] for j, x in enumerate(self.Xt_j))
+        self.G, self.b = 0, 0
+        for rows in row_chunks(base_train.n_samples):
+            xs = [base_train.joint(j, rows, self.sigma[j]) for j in range(base_train.n_dof)]
+            self.G = self.G + sum(x.T @ x for x in xs)
+            self.b = self.b + sum(x.T @ self.ytw[rows, j] for j, x in enumerate(xs))
+
+    def _cross(self, ct):
+        """Cross products of the weighted candidate columns ``ct`` (n_samples, n_dof, k) with the base, with
+        themselves and with the weighted torque."""
+        p, k = self.G.shape[0], ct.shape[2]
+        joints = np.flatnonzero(np.any(ct != 0, axis=(0, 2)))
+        cross, cc, cy = np.zeros((p, k)), np.zeros((k, k)), np.zeros(k)
+        for rows in row_chunks(ct.shape[0]):
+            for j in joints:
+                c = ct[rows, j, :]
+                cross += self.base_train.joint(j, rows, self.sigma[j]).T @ c
+                cc += c.T @ c
+                cy += c.T @ self.ytw[rows, j]
+        return cross, cc, cy
 
     def fit(self, cand_train=None, cand_val=None, full=False):
         """Coefficients, weighted train SSE, validation RMSE per joint (and, with ``full``, train RMSE and
@@ -122,28 +135,18 @@ class _Design:
         if cand_train is None:
             gram, rhs = self.G, self.b
         else:
-            ct = cand_train / self.sigma[None, :, None]
-            rows = np.flatnonzero(np.any(ct != 0, axis=(0, 2)))
-            k = ct.shape[2]
-            cross = np.zeros((p, k))
-            cc = np.zeros((k, k))
-            cy = np.zeros(k)
-            for j in rows:
-                c = ct[:, j, :]
-                cross += self.Xt_j[j].T @ c
-                cc += c.T @ c
-                cy += c.T @ self.ytw[:, j]
+            cross, cc, cy = self._cross(cand_train / self.sigma[None, :, None])
             gram = np.block([[self.G, cross], [cross.T, cc]])
             rhs = np.concatenate([self.b, cy])
         beta = _solve(gram, rhs)
         sse = max(self.yy - 2.0 * beta @ rhs + beta @ gram @ beta, 1e-300)
-        pred_v = self.Xv @ beta[:p]
+        pred_v = self.base_val.predict(beta[:p])
         if cand_train is not None:
             pred_v = pred_v + cand_val @ beta[p:]
         rmse_v = rmse(self.y_val, pred_v)
         if not full:
             return beta, sse, rmse_v
-        pred_t = self.base_train @ beta[:p]
+        pred_t = self.base_train.predict(beta[:p])
         if cand_train is not None:
             pred_t = pred_t + cand_train @ beta[p:]
         rmse_t = rmse(self.y_train, pred_t)
@@ -234,7 +237,7 @@ def forward_select(
     instances : sequence of CandidateTerm
         Concrete instances (``CandidateLibrary.expand``).
     train_ctx, val_ctx : DiagnosisContext
-    base_train, base_val : arrays (n_samples, n_dof, p)
+    base_train, base_val : BlockColumns or arrays (n_samples, n_dof, p)
         Columns of the nominal model's free parameters (friction, and base parameters if identified).
     y_train, y_val : arrays (n_samples, n_dof)
         Measured torque minus the fixed part of the nominal model.
@@ -267,7 +270,7 @@ def forward_select(
         min_improvement=min_improvement,
         n_eff_total=n_eff * y_train.shape[1],
     )
-    design = _Design(base_train, base_val, y_train, y_val, sigma)
+    design = _Design(as_blocks(base_train), as_blocks(base_val), y_train, y_val, sigma)
     _, sse, rmse_t, rmse_v, nominal_train, nominal_val = design.fit(full=True)
     kept, steps, sizes, tried, remaining = [], [], [], 0, list(instances)
     while len(kept) < max_effects and remaining:
@@ -293,7 +296,10 @@ def forward_select(
         logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
         kept.append(term)
         sizes.append(ct.shape[2])
-        design.set_base(np.concatenate([design.base_train, ct], axis=2), np.concatenate([design.base_val, cv], axis=2))
+        design.set_base(
+            design.base_train.concatenate(BlockColumns.from_dense(ct)),
+            design.base_val.concatenate(BlockColumns.from_dense(cv)),
+        )
         _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
         remaining = [r for r in remaining if r.label != term.label]
     beta, _, _, _, pred_t, pred_v = design.fit(full=True)
