@@ -27,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from codegen.export import CExport
-from identification.calibration.trajectory_data import drive_column_names
+from identification.calibration.trajectory_data import drive_column_names, friction_term
 from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
 from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions
 
@@ -124,12 +124,9 @@ def drive_bias(calibrated, qd):
     entries = []
     for j in range(calibrated.n_dof):
         entry = ca.SX(0)
-        if "fc" in terms:
-            entry = entry + values[f"fc{j + 1}"] * ca.tanh(qd[j] / velocity)
-        if "fv" in terms:
-            entry = entry + values[f"fv{j + 1}"] * qd[j]
-        if "offset" in terms:
-            entry = entry + values[f"offset{j + 1}"]
+        for term in terms:
+            if term != "Ia":
+                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], velocity)
         entries.append(entry)
     return ca.vertcat(*entries)
 

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import casadi as ca
 import numpy as np
 
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
@@ -29,7 +30,7 @@ from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["DRIVE_TERMS", "NormalEquations", "choose_filter", "drive_column_names", "drive_columns",
-           "prepare_recording"]  # fmt: skip
+           "friction_term", "prepare_recording"]  # fmt: skip
 
 #: The drive terms a joint may carry, in column order: Coulomb, viscous, torque offset, drive inertia.
 DRIVE_TERMS = ("fc", "fv", "offset", "Ia")
@@ -81,6 +82,21 @@ def drive_column_names(n_dof: int, terms: tuple, inertia_joints) -> list:
     return names + [f"Ia{j + 1}" for j in inertia_joints]
 
 
+def friction_term(term: str, qd, coulomb_velocity: float):
+    """The column of one friction term at velocities ``qd`` (numbers, arrays or CasADi expressions alike).
+
+    ``fc``: the smooth sign ``tanh(qd / coulomb_velocity)``; ``fv``: ``qd``; ``offset``: 1. The one
+    definition the fit (:func:`drive_columns`) and the exported code (``codegen.calibrated``) share.
+    """
+    if term == "fc":
+        return (ca.tanh if isinstance(qd, (ca.SX, ca.MX)) else np.tanh)(qd / coulomb_velocity)
+    if term == "fv":
+        return qd
+    if term == "offset":
+        return 1.0 + 0.0 * qd
+    raise ParameterError(f"friction_term.term must be one of {DRIVE_TERMS[:3]}; got {term!r}.")
+
+
 def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float) -> np.ndarray:
     """Drive columns (n_samples, n_dof, k): per joint its friction terms, then the listed drive inertias.
 
@@ -90,10 +106,8 @@ def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float
     per_joint = [term for term in terms if term != "Ia"]
     k = len(per_joint) * n_dof + len(inertia_joints)
     out = np.zeros((n_samples, n_dof, k))
-    values = {"fc": np.tanh(qd / coulomb_velocity), "fv": qd, "offset": np.ones_like(qd)}
-    for j in range(n_dof):
-        for c, term in enumerate(per_joint):
-            out[:, j, j * len(per_joint) + c] = values[term][:, j]
+    for c, term in enumerate(per_joint):
+        out[:, range(n_dof), [j * len(per_joint) + c for j in range(n_dof)]] = friction_term(term, qd, coulomb_velocity)
     for c, j in enumerate(inertia_joints):
         out[:, j, len(per_joint) * n_dof + c] = qdd[:, j]
     return out

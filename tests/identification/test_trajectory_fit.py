@@ -178,3 +178,15 @@ def test_a_locked_urdf_robot_is_rebuilt_with_its_locks(tmp_path):
     rebuilt = CalibratedModel({"robot": _robot_block(robot, urdf)}).load_robot(cache_dir=tmp_path)
     assert rebuilt.joint_names == robot.joint_names and rebuilt.n_dof == 5
     assert dict(rebuilt.locked_joints)["elbow_joint"] == pytest.approx(0.7)
+
+
+def test_one_friction_term_definition_serves_numbers_and_casadi():
+    from identification.calibration.trajectory_data import friction_term
+
+    qd = np.linspace(-0.2, 0.2, 7)
+    symbol = ca.SX.sym("qd")
+    for term in ("fc", "fv", "offset"):
+        function = ca.Function("f", [symbol], [friction_term(term, symbol, 0.05)])
+        np.testing.assert_allclose([float(function(v)) for v in qd], friction_term(term, qd, 0.05), rtol=1e-15)
+    with pytest.raises(ParameterError, match="friction_term.term must be one of"):
+        friction_term("stribeck", qd, 0.05)
