@@ -24,6 +24,7 @@ test: setup
 	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: setup
+	$(BIN)/python -m pip install --quiet -e '.[bench]'
 	$(BIN)/python benchmarks/derivation.py
 	$(BIN)/python benchmarks/dynamics_speed.py --robots denso
 	$(BIN)/python benchmarks/excitation.py

@@ -14,9 +14,22 @@ torque RMS exceeds 20 x the sensor noise. A scenario counts as correct when a fi
 effect (or an effect the data cannot tell apart from it, see ``EQUIVALENT_EFFECTS``) on the right
 joint; clean scenarios must give no finding. ``first_finding_correct_fraction`` (the first finding is a
 hidden effect) and ``scenarios_with_extra_findings`` (a finding that matches no hidden effect) are
-reported beside it.
+reported beside it; ``kept_findings_raising_rmse`` counts kept findings with a named joint whose validation RMSE
+rose (at the finding's step or in the final fit; target 0).
 
-    python benchmarks/diagnosis.py [--seeds 0 1 2] [--json] [--quick]
+The widened suite (issue 16): effects outside the library (position-dependent friction, a Stribeck hump wider
+than the drive's, a cam-shaped counterbalance; found when an unnamed sparse finding on the joint halves its
+RMSE, ``outside_library_fraction``), a warm-up drift on the most loaded joint (wrong when named load-dependent
+friction), load-dependent friction on the most loaded base joint, and a heavy industrial-class arm
+(``heavy_arm``: rotor inertia dominating, 250 Hz, 10 s training and 10 s validation, CAD inertias 10-20 % off in
+the truth) with a nonlinear counterbalance plus a 100-200 kg payload, or clean. ``two_effect_fraction`` is the
+share of two-effect scenarios with both effects found; ``heavy_arm_fraction`` that of the heavy arm's scenarios.
+
+    python benchmarks/diagnosis.py [--seeds 0 1 2] [--json] [--quick] [--loop]
+
+``--loop`` adds ``loop_parameter_errors`` (Kt, gravity and inertial errors of the four-step calibration with
+an effect present during the whole calibration, before and after the diagnosis loop;
+``benchmarks/calibration_loop.py``, which runs them alone too).
 """
 
 from __future__ import annotations
@@ -29,6 +42,8 @@ import time
 
 import numpy as np
 from bench_support import DENSO_FILE, load_panda, print_table, show_progress
+from exported_findings import check_exported
+from heavy_arm import cad_error, heavy_industrial_arm
 
 from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose
 from identification.metrics import rms
@@ -236,6 +251,54 @@ def _elastic(robot, rng, joints, sc):
     return [("joint_elasticity", j, JointElasticity(joint=j, stiffness=k), {"stiffness_Nm_per_rad": k})]
 
 
+def _posfric(robot, rng, joints, sc):
+    j = int(rng.choice(joints))
+    a, h = np.sqrt(2.0) * _rel(rng) * sc.tau_rms[j], float(rng.integers(1, 4))
+    effect = xp.PositionDependentFriction(joint=j, amplitude=a, harmonic=h, phase=_u(rng, 0, 6.28))
+    return [("position_dependent_friction", j, effect, {"amplitude": a, "harmonic": h})]
+
+
+def _hump(robot, rng, joints, sc):
+    j = int(rng.choice(joints))
+    height, width = 2.0 * _rel(rng) * sc.tau_rms[j], _u(rng, 0.08, 0.3)
+    effect = xp.StribeckHump(joint=j, height=height, velocity=width)
+    return [("stribeck_hump", j, effect, {"height": height, "velocity": width})]
+
+
+def _cam(robot, rng, joints, sc):
+    j = int(rng.choice([x for x in joints if x in (1, 2)] or joints))  # a counterbalanced shoulder or elbow
+    a = np.sqrt(2.0) * _rel(rng) * sc.tau_rms[j]
+    effect = xp.CamCounterbalance(joint=j, amplitude=a, q0=sc.q_mean[j] + _u(rng, -0.3, 0.3))
+    return [("cam_counterbalance", j, effect, {"amplitude": a})]
+
+
+def _warmup(robot, rng, joints, sc):
+    """Warm-up drift on the heaviest-loaded joint (where it must not be named load-dependent friction)."""
+    j = int(np.argmax(sc.tau_rms))
+    rate = 2.0 * _rel(rng) * sc.tau_rms[j] / sc.duration
+    return [("friction_drift", j, xp.FrictionDrift(joint=j, rate=rate), {"rate": rate})]
+
+
+def _load_base(robot, rng, joints, sc):
+    """Load-dependent friction on the heaviest-loaded base joint."""
+    j = int(np.argmax(sc.tau_rms))
+    mu = _u(rng, 0.1, 0.3)
+    return [("load_dependent_friction", j, xp.LoadDependentFriction(joint=j, coefficient=mu), {"coefficient": mu})]
+
+
+def _heavy_payload(robot, rng, joints, sc):
+    m = _u(rng, 100.0, 200.0)
+    com = (0.0, 0.0, _u(rng, 0.1, 0.3))
+    return [("payload", None, xp.Payload(mass=m, com=com), {"mass": m, "com_z": com[2]})]
+
+
+def _heavy_counterbalance(robot, rng, joints, sc):
+    """A nonlinear (cam) counterbalance on the shoulder (joint 2) of the heavy arm: 20-40 % of its torque RMS."""
+    a = np.sqrt(2.0) * _u(rng, 0.2, 0.4) * sc.tau_rms[1]
+    effect = xp.CamCounterbalance(joint=1, amplitude=a, q0=sc.q_mean[1] + _u(rng, -0.3, 0.3), lobe=0.3)
+    return [("cam_counterbalance", 1, effect, {"amplitude": a})]
+
+
 MAKERS = {
     "spring": _spring,
     "torque_offset": _offset,
@@ -250,6 +313,23 @@ MAKERS = {
     "delay": _delay,
     "backlash": _backlash,
     "joint_elasticity": _elastic,
+    "position_dependent_friction": _posfric,
+    "stribeck_hump": _hump,
+    "cam_counterbalance": _cam,
+    "warmup_drift": _warmup,
+    "base_load_friction": _load_base,
+    "heavy_payload": _heavy_payload,
+    "heavy_counterbalance": _heavy_counterbalance,
+}
+# hidden effects outside the library: found when an unnamed (sparse) finding on the joint halves its RMSE
+OUTSIDE_LIBRARY = ("position_dependent_friction", "stribeck_hump", "cam_counterbalance")
+# names a finding may carry for an effect (the library's indistinguishable pairs, and the unnamed effect for those
+# outside the library; a cam counterbalance may also show as a spring)
+ACCEPTED = {
+    **EQUIVALENT_EFFECTS,
+    "position_dependent_friction": ("unnamed_effect",),
+    "stribeck_hump": ("unnamed_effect",),
+    "cam_counterbalance": ("unnamed_effect", "spring"),
 }
 
 # (robot, effects); joints drawn among the robot's loaded axes (torque RMS above 20 x the sensor noise)
@@ -278,22 +358,61 @@ SCENARIOS = [
     ("denso", ()),
     ("panda", ()),
     ("denso", ()),
+    ("denso", ("position_dependent_friction",)),
+    ("denso", ("stribeck_hump",)),
+    ("denso", ("cam_counterbalance",)),
+    ("panda", ("position_dependent_friction",)),
+    ("denso", ("warmup_drift",)),
+    ("denso", ("base_load_friction",)),
+    ("heavy", ("heavy_counterbalance", "heavy_payload")),
+    ("heavy", ("heavy_counterbalance", "heavy_payload")),
+    ("heavy", ()),
 ]
-QUICK = [0, 1, 5, 8, 10, 13, 21]
+QUICK = [0, 1, 5, 8, 10, 13, 21, 24, 25, 26, 28, 29, 30, 32]
+# the heavy industrial arm: 250 Hz, 10 s training and 10 s validation, CAD inertias 10-20 % off in the truth,
+# torque noise scaled to its torque (``heavy_arm``)
+HEAVY = {"train_s": 10.0, "validate_s": 10.0, "rate": 250.0, "noise": 2.0}
 
 
-def simulate_pair(robot, extras, reference, seed):
+def simulate_pair(robot, extras, reference, seed, train_s=TRAIN_S, noise=TAU_NOISE, rate=None):
     """Training and validation recordings of the virtual robot with hidden ``extras``."""
-    opts = dict(record_tau=True, record_current=False, tau_noise_std=TAU_NOISE)
+    opts = dict(record_tau=True, record_current=False, tau_noise_std=noise)
+    if rate is not None:
+        opts["rate"] = rate
     rng = np.random.default_rng(1000 * seed + 7)
     rec, _ = simulate_recording(robot, reference, SimulationOptions(**opts), rng, extras=extras)
     # one experiment, validated on its last part (a drift continues in time)
-    return rec.time_slice(-np.inf, TRAIN_S), rec.time_slice(TRAIN_S, np.inf)
+    return rec.time_slice(-np.inf, train_s), rec.time_slice(train_s, np.inf)
+
+
+def _load(key):
+    """Robot and model of a scenario's robot key."""
+    robot = {"denso": lambda: load_robot(DENSO_FILE), "panda": lambda: panda_with_drives(load_panda())}.get(
+        key, heavy_industrial_arm
+    )()
+    return robot, derive_psdm(robot)
+
+
+def _scenario(robot_key, robot, effects, rng, seed):
+    """``(truth, train, validation)`` of a scenario: the hidden effects drawn and the recordings simulated (the
+    heavy arm with its CAD-off truth, at its rate and durations)."""
+    heavy = robot_key == "heavy"
+    train_s, validate_s = (HEAVY["train_s"], HEAVY["validate_s"]) if heavy else (TRAIN_S, VALIDATE_S)
+    noise = HEAVY["noise"] if heavy else TAU_NOISE
+    reference = exciting_reference(robot, train_s + validate_s, rng)
+    scale = reference_scale(robot, reference, train_s + validate_s)
+    loaded = tuple(int(j) for j in np.flatnonzero(scale.tau_rms > 20 * noise))
+    truth = [item for key in effects for item in MAKERS[key](robot, rng, loaded, scale)]
+    simulated = cad_error(robot, rng) if heavy else robot
+    train, val = simulate_pair(
+        simulated, [x[2] for x in truth], reference, seed, train_s, noise, HEAVY["rate"] if heavy else None
+    )
+    return truth, train, val
 
 
 def _matches(finding, truth_effects):
     for key, joint, _, _ in truth_effects:
-        if finding.effect in (key,) + EQUIVALENT_EFFECTS.get(key, ()) and (joint is None or joint in finding.joints):
+        if finding.effect in (key,) + ACCEPTED.get(key, ()) and (joint is None or joint in finding.joints):
             return True
     return False
 
@@ -302,31 +421,45 @@ def _correct(found, truth_effects):
     """Right effect (or an indistinguishable one) on the right joint for every hidden effect."""
     ok = []
     for key, joint, _, _ in truth_effects:
-        names = (key,) + EQUIVALENT_EFFECTS.get(key, ())
+        names = (key,) + ACCEPTED.get(key, ())
         hit = [f for f in found if f.effect in names and (joint is None or joint in f.joints)]
         ok.append(bool(hit))
-    return all(ok)
+    drift = any(key == "friction_drift" for key, _, _, _ in truth_effects)
+    confused = drift and any(f.effect == "load_dependent_friction" for f in found)  # warm-up is not load friction
+    return all(ok) and not confused
+
+
+def _outside_found(report, truth_effects):
+    """An unnamed finding on the joint of each outside-library effect, and that joint's RMSE at least halved."""
+    outside = [(key, joint) for key, joint, _, _ in truth_effects if key in OUTSIDE_LIBRARY]
+    return bool(outside) and all(
+        any(f.effect == "unnamed_effect" and joint in f.joints for f in report.findings)
+        and report.rmse_after[joint] <= 0.5 * report.rmse_before[joint]
+        for _, joint in outside
+    )
+
+
+def _kept_raising_rmse(report):
+    """Kept findings with a named joint whose validation RMSE rose, at the finding's step or in the final fit."""
+    return sum(
+        any(f.rmse_after[j] > f.rmse_before[j] or report.rmse_after[j] > report.rmse_before[j] for j in f.joints)
+        for f in report.findings
+    )
 
 
 def run(seeds, quick=False, verbose=True, only=None):
-    robots = {"denso": load_robot(DENSO_FILE)}
-    models = {"denso": derive_psdm(robots["denso"])}
+    robots, models = {}, {}
     rows = []
     chosen = only if only is not None else (QUICK if quick else range(len(SCENARIOS)))
     for seed in seeds:
         for index in chosen:
             robot_key, effects = SCENARIOS[index]
             if robot_key not in robots:
-                robots[robot_key] = panda_with_drives(load_panda())
-                models[robot_key] = derive_psdm(robots[robot_key])
+                robots[robot_key], models[robot_key] = _load(robot_key)
             robot, model = robots[robot_key], models[robot_key]
             rng = np.random.default_rng(10_000 * seed + index)
-            reference = exciting_reference(robot, TRAIN_S + VALIDATE_S, rng)
-            scale = reference_scale(robot, reference, TRAIN_S + VALIDATE_S)
-            loaded = tuple(int(j) for j in np.flatnonzero(scale.tau_rms > 20 * TAU_NOISE))
-            truth = [item for key in effects for item in MAKERS[key](robot, rng, loaded, scale)]
             start = time.perf_counter()
-            train, val = simulate_pair(robot, [x[2] for x in truth], reference, 100 * seed + index)
+            truth, train, val = _scenario(robot_key, robot, effects, rng, 100 * seed + index)
             sim_s = time.perf_counter() - start
             start = time.perf_counter()
             report = diagnose(robot, train, val, DiagnosisOptions(), model=model)
@@ -344,12 +477,16 @@ def run(seeds, quick=False, verbose=True, only=None):
                 "false_alarm": bool(clean and found),
                 "extra_findings": int(sum(not _matches(f, truth) for f in found)),
                 "first_correct": bool(clean and not found) or bool(found and _matches(found[0], truth)),
+                "kept_raising_rmse": _kept_raising_rmse(report),
+                "n_effects": len(effects),
+                "outside_library": any(x[0] in OUTSIDE_LIBRARY for x in truth),
+                "outside_found": _outside_found(report, truth),
                 "sim_s": sim_s,
                 "diag_s": diag_s,
             }
             if truth:
                 key, joint, _, true_params = truth[0]
-                hit = next((f for f in found if f.effect in (key,) + EQUIVALENT_EFFECTS.get(key, ())), None)
+                hit = next((f for f in found if f.effect in (key,) + ACCEPTED.get(key, ())), None)
                 j = joint if joint is not None else (hit.joints[0] if hit else int(np.argmax(report.rmse_before)))
                 row["rmse_before"] = report.rmse_before[j]
                 row["rmse_after"] = report.rmse_after[j]
@@ -362,6 +499,7 @@ def run(seeds, quick=False, verbose=True, only=None):
                 row["param_error"] = max(errs) if errs else None
                 row["true"] = {k: float(v) for k, v in true_params.items()}
                 row["estimated"] = {k: float(v) for k, v in hit.parameters.items()} if hit else {}
+            row.update(check_exported(robot, model, robot.source, train, val, report))  # exported equals reported
             rows.append(row)
             if verbose:
                 print(
@@ -379,6 +517,7 @@ def run(seeds, quick=False, verbose=True, only=None):
         "false_alarms": int(sum(r["false_alarm"] for r in rows)),
         "first_finding_correct_fraction": float(np.mean([r["first_correct"] for r in rows])),
         "scenarios_with_extra_findings": int(sum(r["extra_findings"] > 0 for r in rows)),
+        "kept_findings_raising_rmse": int(sum(r["kept_raising_rmse"] for r in rows)),
         "per_seed": {
             int(s): {
                 "correct_fraction": float(np.mean([r["correct"] for r in rows if r["seed"] == s])),
@@ -391,9 +530,30 @@ def run(seeds, quick=False, verbose=True, only=None):
         "fraction_rmse_halved": float(np.mean([r["rmse_reduction"] >= 0.5 for r in effect_rows]))
         if effect_rows
         else None,
+        "exported_equals_reported": bool(all(r["exported_equals_reported"] for r in rows)),
+        **_suite_fractions(rows),
         "seeds": list(seeds),
     }
     return summary
+
+
+def _percent(value):
+    return "-" if value is None else f"{value:.0%}"
+
+
+def _fraction(rows):
+    return float(np.mean([r["correct"] for r in rows])) if rows else None
+
+
+def _suite_fractions(rows) -> dict:
+    """The widened suite's fractions (issue 16): two-effect scenarios with both effects found, outside-library
+    scenarios with an unnamed finding halving the joint's RMSE, and the heavy arm's scenarios."""
+    outside = [r for r in rows if r["outside_library"]]
+    return {
+        "two_effect_fraction": _fraction([r for r in rows if r["n_effects"] == 2]),
+        "outside_library_fraction": float(np.mean([r["outside_found"] for r in outside])) if outside else None,
+        "heavy_arm_fraction": _fraction([r for r in rows if r["robot"] == "heavy"]),
+    }
 
 
 def main(argv=None):
@@ -402,9 +562,18 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true", help="a subset of 7 scenarios")
     parser.add_argument("--only", type=int, nargs="+", default=None, help="scenario indices to run")
     parser.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    parser.add_argument(
+        "--loop",
+        action="store_true",
+        help="also the calibration-loop scenarios (benchmarks/calibration_loop.py, minutes): loop_parameter_errors",
+    )
     args = parser.parse_args(argv)
     show_progress()
     summary = run(args.seeds, quick=args.quick, only=args.only)
+    if args.loop:
+        from calibration_loop import loop_parameter_errors
+
+        summary["loop_parameter_errors"] = loop_parameter_errors(args.seeds[0])
     if args.json:
         print(json.dumps(summary, default=float))
     else:
@@ -429,6 +598,15 @@ def main(argv=None):
             f"false alarms {summary['false_alarms']}, median RMSE reduction {summary['median_rmse_reduction']:.0%}, "
             f"RMSE halved in {summary['fraction_rmse_halved']:.0%}, extra findings in "
             f"{summary['scenarios_with_extra_findings']} scenarios"
+        )
+        print(
+            "two-effect scenarios with both effects: {}, outside-library scenarios with an unnamed finding halving the "
+            "joint's RMSE: {}, heavy-arm scenarios correct: {}".format(
+                *(
+                    _percent(summary[k])
+                    for k in ("two_effect_fraction", "outside_library_fraction", "heavy_arm_fraction")
+                )
+            )
         )
         for s, v in summary["per_seed"].items():
             print(

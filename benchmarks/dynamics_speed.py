@@ -6,19 +6,27 @@ times, on the same 10^6 pre-generated random states (median of repeats):
 - PSDM inverse dynamics (theta baked in) vs ``pinocchio::rnea``,
 - PSDM forward dynamics vs ``pinocchio::aba``,
 - PSDM regressor Y vs ``pinocchio::computeJointTorqueRegressor``,
-- PSDM inverse/forward dynamics vs a CasADi SX rnea model code-generated the same way.
+- PSDM inverse/forward dynamics vs a CasADi SX rnea model code-generated the same way,
+- the same three vs Pinocchio's own code generation with CppADCodeGen (``codegen.peers.cppadcg``),
+- the exported PSDM derivatives (``codegen.derivatives``: tau and d(tau)/d(q, qd, qdd); qdd and
+  d(qdd)/d(q, qd, tau)) vs ``pinocchio::computeRNEADerivatives`` / ``computeABADerivatives`` and vs the
+  fastest CppADCodeGen route (the Jacobian of the generated rnea/aba, or the generated analytical
+  derivatives).
 
 "PSDM" is the exported recursive form (``psdm_casadi.recursive``); the paper's sum form
 (``psdm_casadi.symbolic``) is timed beside it when the model has at most 5000 functions. Both are
 exported by ``codegen.export_c`` with the inlined sin/cos, like the CasADi peer.
 
-Targets (issue 3): id >= 8x, fd >= 6x, regressor >= 10x faster than Pinocchio; faster than the
-CasADi rnea in both. Usage::
+Targets (issues 3 and 18): id >= 8x, fd >= 6x, regressor >= 10x faster than Pinocchio; faster than the
+CasADi rnea in both; each >= 2x faster than CppADCodeGen; derivatives >= 5x faster than Pinocchio's
+analytical ones and >= 2x faster than CppADCodeGen's. When the CppADCodeGen peer cannot be built, its ratios
+are null and ``cppadcg_error`` says why. Usage::
 
     python benchmarks/dynamics_speed.py [--robots denso panda] [--samples 1000000] [--repeats 5] [--json]
 
 Needs a C/C++ compiler, Eigen (``pip install cmeel-eigen`` or Debian's ``libeigen3-dev``) and the Pinocchio/Boost
-headers of the ``pin`` wheel (cmeel prefix). Exit code 0 when every target is met, 1 otherwise,
+headers of the ``pin`` wheel (cmeel prefix); the CppADCodeGen peer needs the ``cmeel-cppad`` and
+``cmeel-cppadcodegen`` wheels (``pip install -e '.[bench]'``). Exit code 0 when every target is met, 1 otherwise,
 2 when a prerequisite is missing.
 """
 
@@ -31,6 +39,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from codegen.peers.batch_speed import measure_batch_speed
 from codegen.peers.speed import SPEED_ROWS, SUM_FORM_MAX_FUNCTIONS, cmeel_prefix, find_prerequisites, measure_speed
 from psdm_casadi.errors import SolverError
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, from_urdf, load_robot
@@ -43,7 +52,33 @@ TARGETS = {
     "regressor_speedup_vs_pinocchio": 10.0,
     "id_speedup_vs_casadi_rnea": 1.0,
     "fd_speedup_vs_casadi_rnea": 1.0,
+    "id_speedup_vs_cppadcg": 2.0,
+    "fd_speedup_vs_cppadcg": 2.0,
+    "regressor_speedup_vs_cppadcg": 2.0,
+    "id_derivatives_speedup_vs_pinocchio": 5.0,
+    "fd_derivatives_speedup_vs_pinocchio": 5.0,
+    "id_derivatives_speedup_vs_cppadcg": 2.0,
+    "fd_derivatives_speedup_vs_cppadcg": 2.0,
+    "batch_speedup_vs_best_cpu_peer": 2.0,
 }
+# (label, our key, Pinocchio key, CppADCodeGen keys) of the table against the strongest peers.
+PEER_ROWS = (
+    ("inverse dynamics", "psdm_id", "pinocchio_rnea", ("cppadcg_rnea",)),
+    ("forward dynamics", "psdm_fd", "pinocchio_aba", ("cppadcg_aba",)),
+    ("regressor Y", "psdm_regressor", "pinocchio_regressor", ("cppadcg_regressor",)),
+    (
+        "ID derivatives",
+        "psdm_id_derivatives",
+        "pinocchio_rnea_derivatives",
+        ("cppadcg_rnea_jacobian", "cppadcg_rnea_derivatives"),
+    ),
+    (
+        "FD derivatives",
+        "psdm_fd_derivatives",
+        "pinocchio_aba_derivatives",
+        ("cppadcg_aba_jacobian", "cppadcg_aba_derivatives"),
+    ),
+)
 PANDA_LOCKED = ("panda_finger_joint1", "panda_finger_joint2")
 
 
@@ -80,12 +115,40 @@ def print_table(results) -> None:
             )
         ops = {**r.get("n_operations", {}), **r["casadi_rnea_n_operations"]}
         print("arithmetic operations: " + ", ".join(f"{k}={v}" for k, v in ops.items()))
+        print_peer_table(r)
         errors = ", ".join(f"{k}={v:.1e}" for k, v in r["max_abs_error"].items())
         print(f"max |error| vs Pinocchio on 1000 states: {errors}")
     print(
         "\nPSDM: the exported recursive form (Newton-Euler on the base parameters' sparse standard preimage); "
         f"PSDM sum: the paper's pseudo-symbolic sum (not timed when p > {SUM_FORM_MAX_FUNCTIONS:d})."
     )
+
+
+def print_peer_table(r) -> None:
+    """Per call and derivatives against Pinocchio and its CppADCodeGen code (the fastest of its routes)."""
+    ns = r["ns"]
+    print(
+        f"\n{'against the strongest peers':28s} {'PSDM':>8s} {'Pinocchio':>10s} {'CppADCodeGen':>13s} "
+        f"{'vs Pinocchio':>13s} {'vs CppADCodeGen':>16s}  CppADCodeGen route"
+    )
+    for label, ours_key, pin_key, cg_keys in PEER_ROWS:
+        ours, pin_t = _us(ns, ours_key), _us(ns, pin_key)
+        timed = [k for k in cg_keys if k in ns]
+        cg_key = min(timed, key=lambda k: ns[k]) if timed else None
+        cg_t = _us(ns, cg_key)
+        print(
+            f"{label:28s} {ours:8.3f} {pin_t:10.3f} {cg_t:13.3f} {pin_t / ours:12.1f}x {cg_t / ours:15.2f}x  "
+            f"{cg_key or 'not built'}"
+        )
+    if r.get("casadi_pinocchio_error"):
+        print(f"Pinocchio on CasADi SX peer {r['casadi_pinocchio_error']}")
+    if r.get("cppadcg_error"):
+        print(f"CppADCodeGen peer not built: {r['cppadcg_error']}")
+    else:
+        print(
+            "CppADCodeGen times, all routes: "
+            + ", ".join(f"{k}={v / 1e3:.3f}" for k, v in ns.items() if "cppadcg" in k)
+        )
 
 
 def main(argv=None) -> int:
@@ -110,7 +173,16 @@ def main(argv=None) -> int:
         for key in args.robots:
             robot = robots()[key]()
             results[key] = measure_speed(
-                robot, base / key, n_samples=args.samples, repeats=args.repeats, log=log, key=key
+                robot,
+                base / key,
+                n_samples=args.samples,
+                repeats=args.repeats,
+                log=log,
+                key=key,
+                cppadcg_cache=base / "cppadcg_generator",
+            )
+            results[key].update(  # issue 18, item 3: batches of states (reuses the CppADCodeGen generator)
+                measure_batch_speed(robot, base / f"{key}_batch", cppadcg_cache=base / "cppadcg_generator", log=log)
             )
     finally:
         if args.keep is None:
@@ -120,6 +192,10 @@ def main(argv=None) -> int:
         print(json.dumps({"robots": results, "targets": TARGETS, "targets_met": not missed, "targets_missed": missed}))
     else:
         print_table(results)
+        from batch_speed import print_batch_table  # beside this script
+
+        for key, r in results.items():
+            print_batch_table(key, r)
         print("\ntargets: " + ", ".join(f"{k} >= {v:g}" for k, v in TARGETS.items()))
         print("all met" if not missed else "NOT met: " + "; ".join(missed))
     return 0 if not missed else 1

@@ -27,6 +27,7 @@ import casadi as ca
 import numpy as np
 
 from codegen.export import CExport
+from identification.calibration.findings import term_values
 from identification.calibration.trajectory_data import drive_column_names, friction_term
 from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
 from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions
@@ -34,12 +35,14 @@ from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions
 __all__ = [
     "FORMS",
     "add_drive_terms",
+    "add_finding_terms",
     "add_header_note",
     "build_calibrated_functions",
     "consistency_problem",
     "drive_bias",
     "drive_inertia",
     "header_note",
+    "stribeck_velocity",
 ]
 
 #: The forms of the rigid body: Newton-Euler on the base parameters (fastest) or the paper's sum.
@@ -121,14 +124,30 @@ def drive_bias(calibrated, qd):
         [N m or N]; the same terms as ``identification.calibration.trajectory_data.drive_columns``.
     """
     values, terms, _, velocity = _drive_block(calibrated)
+    stribeck = stribeck_velocity(calibrated)
     entries = []
     for j in range(calibrated.n_dof):
         entry = ca.SX(0)
+        vs = None if stribeck is None else float(stribeck[j])
         for term in terms:
             if term != "Ia":
-                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], velocity)
+                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], velocity, vs)
         entries.append(entry)
     return ca.vertcat(*entries)
+
+
+def stribeck_velocity(calibrated) -> np.ndarray | None:
+    """The Stribeck velocities [rad/s] per joint of a Stribeck-shaped model (``fs`` terms), else None."""
+    drive = calibrated.document["drive"]
+    if "fs" not in drive["friction_terms"]:
+        return None
+    vs = np.array([np.nan if v is None else v for v in drive.get("stribeck_velocity") or []], dtype=float)
+    if vs.shape != (calibrated.n_dof,) or not np.all(np.isfinite(vs) & (vs > 0)):
+        raise ModelFileError(
+            f"calibrated model drive.stribeck_velocity must be {calibrated.n_dof} positive numbers [rad/s] (the "
+            f"friction terms hold 'fs'); got {drive.get('stribeck_velocity')!r}. Re-run 'psdm identify'."
+        )
+    return vs
 
 
 def drive_inertia(calibrated) -> np.ndarray:
@@ -239,7 +258,62 @@ def build_calibrated_functions(
             f"{theta.size} values. Pass the model derived from the file's robot (derive_psdm(calibrated.load_robot()))."
         )
     rigid = build_recursive_functions(model, robot, theta) if form == "recursive" else build_functions(model, theta)
-    return add_drive_terms(rigid, calibrated)
+    return add_finding_terms(add_drive_terms(rigid, calibrated), calibrated)
+
+
+def _finding_torques(calibrated, q, qd, qdd):
+    """(torque of the findings without load dependence, [(joint, mu, smooth sign)] of the load-dependent ones)."""
+    n = calibrated.n_dof
+    extra, load = ca.SX.zeros(n, 1), []
+    for term, values in calibrated.torque_findings:
+        if term.load_dependent:
+            load.append((term.joint, float(values[0]), ca.tanh(qd[term.joint] / term.velocity)))
+            continue
+        torque = sum(float(c) * v for c, v in zip(values, term_values(term, q, qd, qdd)) if c != 0.0)
+        extra[term.joint] = extra[term.joint] + torque
+    return extra, load
+
+
+def add_finding_terms(functions: DynamicsFunctions, calibrated) -> DynamicsFunctions:
+    """The Functions with the calibrated model's torque-type findings added (``CalibratedModel.predict``).
+
+    The findings' torque joins ``inverse_dynamics``; its acceleration part (a rotor inertia, a coupling's
+    ``qdd_k``) joins ``mass_matrix`` (which a coupling makes non-symmetric); ``bias`` is
+    ``inverse_dynamics(q, qd, 0)`` and ``gravity`` ``inverse_dynamics(q, 0, 0)``. A load-dependent friction
+    ``mu |tau_b| tanh(qd / v)`` is inverted exactly in ``forward_dynamics``: ``tau = tau_b (1 + mu s sign(tau_b))``
+    with ``|mu s| < 1`` gives ``tau_b = tau / (1 + mu s sign(tau))``, then ``mass_matrix qdd = tau_b - bias_b``.
+    Without torque findings the Functions are returned unchanged.
+    """
+    if not calibrated.torque_findings:
+        return functions
+    n = functions.n_dof
+    q, qd, qdd, tau_in = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
+    extra, load = _finding_torques(calibrated, q, qd, qdd)
+    tau_b = functions.inverse_dynamics(q, qd, qdd) + extra
+    factor = ca.SX.ones(n, 1)  # tau = tau_b * factor(sign tau_b), per joint
+    factor_tau = ca.SX.ones(n, 1)
+    for j, mu, sign in load:
+        factor[j] += mu * sign * ca.sign(tau_b[j])
+        factor_tau[j] += mu * sign * ca.sign(tau_in[j])
+    tau = tau_b * factor
+    zero = ca.SX.zeros(n, 1)
+    mass = functions.mass_matrix(q) + ca.jacobian(extra, qdd)
+    bias_b = ca.substitute(tau_b, qdd, zero)
+    bias = ca.substitute(tau, qdd, zero)
+    gravity = ca.substitute(bias, qd, zero)
+    forward = ca.solve(mass, tau_in / factor_tau - bias_b)
+
+    def function(name, inputs, names, output, output_name):
+        return ca.Function(name, inputs, [output], names, [output_name], {"cse": True})
+
+    return dataclasses.replace(
+        functions,
+        inverse_dynamics=function("inverse_dynamics", [q, qd, qdd], ["q", "qd", "qdd"], tau, "tau"),
+        mass_matrix=function("mass_matrix", [q], ["q"], mass, "D"),
+        bias=function("bias", [q, qd], ["q", "qd"], bias, "h"),
+        gravity=function("gravity", [q], ["q"], gravity, "G"),
+        forward_dynamics=function("forward_dynamics", [q, qd, tau_in], ["q", "qd", "tau"], forward, "qdd"),
+    )
 
 
 def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = None) -> str:
@@ -247,6 +321,7 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
     document = calibrated.document
     values, terms, inertia_joints, velocity = _drive_block(calibrated)
     per_joint = " + ".join(_term_text(term, velocity) for term in terms) or "none"
+    stribeck = stribeck_velocity(calibrated)
     inertia = f" + Ia_j qdd_j (joints {', '.join(str(j + 1) for j in inertia_joints)})" if inertia_joints else ""
     problem = consistency_problem(calibrated)
     state = "physically consistent" if problem is None else f"WARNING: {problem}; exported with --allow-inconsistent"
@@ -266,12 +341,34 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
     for j in range(calibrated.n_dof):
         names = [f"{term}{j + 1}" for term in terms] + ([f"Ia{j + 1}"] if j in inertia_joints else [])
         if names:
-            lines.append("  " + ", ".join(f"{name} = {values[name]:.17g}" for name in names))
+            vs = [] if stribeck is None else [f"vs{j + 1} = {stribeck[j]:.17g}"]
+            lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs))
+    lines += _findings_lines(calibrated)
     return "/* " + "\n * ".join(_wrap(lines)) + "\n */\n"
 
 
+def _findings_lines(calibrated) -> list:
+    """Header lines naming the findings: the torque terms compiled in, the others and why they are not."""
+    entries = calibrated.document.get("findings") or []
+    if not entries:
+        return []
+    lines = ["Findings of the diagnosis (psdm diagnose MODEL --apply), part of inverse_dynamics when torque-type:"]
+    for entry in entries:
+        if entry["kind"] == "torque":
+            pairs = zip(entry["feature_names"], entry["coefficients"])
+            text = ", ".join(f"{n} = {'absorbed' if c is None else format(c, '.17g')}" for n, c in pairs)
+            lines.append(f"  {entry['label']}: {text}")
+        else:
+            lines.append(f"  {entry['label']} ({entry['kind']}): not in this code; {entry.get('applied', '')}")
+    if calibrated.corrections:
+        lines.append(f"Measurement corrections (apply to recorded signals, not here): {calibrated.corrections}")
+    return lines
+
+
 def _term_text(term: str, velocity: float) -> str:
-    return {"fc": f"fc_j tanh(qd_j / {velocity!r})", "fv": "fv_j qd_j", "offset": "offset_j"}[term]
+    stribeck = f"exp(-(qd_j / vs_j)^2) tanh(qd_j / {velocity!r})"
+    return {"fc": f"fc_j tanh(qd_j / {velocity!r})", "fv": "fv_j qd_j", "offset": "offset_j",
+            "fs": f"(fs_j - fc_j) {stribeck}"}[term]  # fmt: skip
 
 
 def _wrap(lines: list, width: int = 110) -> list:

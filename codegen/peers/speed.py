@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from codegen.derivatives import build_derivative_functions
 from codegen.export import export_c
 from codegen.peers.rnea_sx import build_rnea_functions
 from psdm_casadi.errors import SolverError
@@ -173,6 +174,57 @@ def _variant_timing(variant) -> str:
     )
 
 
+def _cppadcg_peer(pin_model, workdir: Path, cache: Path, log, key: str) -> dict:
+    """Generate and compile Pinocchio's CppADCodeGen code of one robot for the harness.
+
+    Returns ``{"objects": [...], "declarations", "setup", "timing"}``, or ``{"error": reason}`` when the peer
+    cannot be built here (the benchmark reports the reason and null ratios rather than dropping it).
+    """
+    from codegen.peers import cppadcg
+
+    eigen, include = find_prerequisites()
+    try:
+        generator = cppadcg.build_generator(cache, eigen, include, PINOCCHIO_DEFINES, log)
+        t0 = time.perf_counter()
+        sources = cppadcg.generate_sources(generator, pin_model, workdir / "cppadcg")
+        objects = []
+        for source in sources:
+            obj = source.with_suffix(".o")
+            _run(["cc", *OPT_FLAGS, "-w", "-c", str(source), "-o", str(obj)], workdir)
+            objects.append(str(obj))
+    except SolverError as exc:
+        log(f"{key}: CppADCodeGen peer not built: {exc}")
+        return {"error": str(exc)}
+    log(f"{key}: CppADCodeGen code generated and compiled in {time.perf_counter() - t0:.0f} s")
+    declarations, setup, timing = cppadcg.harness_code(10 * (pin_model.njoints - 1))
+    return {"objects": objects, "declarations": declarations, "setup": setup, "timing": timing}
+
+
+def _export_derivatives(variant, workdir: Path, theta):
+    """(DerivativeFunctions, CExport) of a variant's inverse/forward dynamics derivatives, library ``psdm_deriv``."""
+    derivatives = build_derivative_functions(variant.functions, regressor=False)
+    export = export_c(
+        derivatives.all(),
+        workdir,
+        theta=theta,
+        runtime_theta=False,
+        library="psdm_deriv",
+        prefix="psdm_",
+        overwrite=True,
+    )
+    return derivatives, export
+
+
+def _compile_harness(workdir: Path, libraries, extra_objects, eigen, include) -> None:
+    """Compile the exported C libraries and link them with bench.cpp (and the CppADCodeGen objects)."""
+    objects = []
+    for lib in libraries:
+        _run(["cc", *OPT_FLAGS, "-c", f"{lib}.c", "-o", f"{lib}.o"], workdir)
+        objects.append(f"{lib}.o")
+    command = ["c++", *OPT_FLAGS, "-std=c++17", *PINOCCHIO_DEFINES, f"-I{eigen}", f"-I{include}", "-w", "bench.cpp"]
+    _run([*command, *objects, *extra_objects, "-o", "bench", "-lm"], workdir)
+
+
 def measure_speed(
     robot,
     workdir,
@@ -183,6 +235,8 @@ def measure_speed(
     log=None,
     key: str | None = None,
     sum_form: bool | None = None,
+    cppadcg_cache=None,
+    cppadcg: bool = True,
 ) -> dict:
     """Export, generate, compile and run the harness of one robot; returns its timings and ratios.
 
@@ -203,6 +257,11 @@ def measure_speed(
         Name of the robot in the messages.
     sum_form : bool, optional
         Also time the sum form; by default when the model has at most SUM_FORM_MAX_FUNCTIONS functions.
+    cppadcg_cache : Path, optional
+        Folder where the CppADCodeGen generator is compiled once and reused (default: ``workdir``).
+    cppadcg : bool
+        Build and time the CppADCodeGen peer (minutes of compilation); when False its ratios are None with
+        the reason "not requested".
 
     Returns
     -------
@@ -245,7 +304,8 @@ def measure_speed(
             overwrite=True,
             regressor_structure=functions.regressor_structure,
         )
-    log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)})")
+    derivatives, derivatives_export = _export_derivatives(variants[0], workdir, theta)
+    log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)}, derivatives)")
     joints = "\n".join(_cpp_joint(pin_model, jid) for jid in range(1, pin_model.njoints))
     source = (
         TEMPLATE.read_text()
@@ -258,37 +318,33 @@ def measure_speed(
         .replace("@VARIANT_SETUP@", "\n".join(_variant_setup(v, theta.size, theta) for v in variants))
         .replace("@VARIANT_TIMING@", "\n".join(_variant_timing(v) for v in variants))
     )
+    if cppadcg:
+        cppadcg = _cppadcg_peer(pin_model, workdir, Path(cppadcg_cache or workdir), log, key)
+    else:
+        cppadcg = {"error": "not requested (--no-cppadcg)"}
+    for part in ("declarations", "setup", "timing"):
+        source = source.replace(f"@CPPADCG_{part.upper()}@", cppadcg.get(part, ""))
     (workdir / "bench.cpp").write_text(source)
     t0 = time.perf_counter()
-    objects = []
-    for lib in ["rnea_dyn"] + [f"{v.key}_dyn" for v in variants]:
-        _run(["cc", *OPT_FLAGS, "-c", f"{lib}.c", "-o", f"{lib}.o"], workdir)
-        objects.append(f"{lib}.o")
-    _run(
-        [
-            "c++",
-            *OPT_FLAGS,
-            "-std=c++17",
-            *PINOCCHIO_DEFINES,
-            f"-I{eigen}",
-            f"-I{include}",
-            "-w",
-            "bench.cpp",
-            *objects,
-            "-o",
-            "bench",
-            "-lm",
-        ],
-        workdir,
-    )
+    libraries = ["rnea_dyn", "psdm_deriv"] + [f"{v.key}_dyn" for v in variants]
+    _compile_harness(workdir, libraries, cppadcg.get("objects", []), eigen, include)
     log(f"{key}: compiled in {time.perf_counter() - t0:.1f} s; running {n_samples} states x {repeats} repeats")
     out = _run(["./bench", str(n_samples), str(repeats)], workdir)
     result = json.loads(out.strip().splitlines()[-1])
     result.update(robot=robot.name, n_dof=n, n_base=int(theta.size), n_functions=int(model.n_functions))
     result.update(speedups(result["ns"], "psdm"))
+    result.update(derivative_speedups(result["ns"]))
+    result.update(cppadcg_speedups(result["ns"], cppadcg.get("error")))
+    result.update(
+        id_speedup_vs_casadi_pinocchio=None,
+        fd_speedup_vs_casadi_pinocchio=None,
+        casadi_pinocchio_error=CASADI_PINOCCHIO_ERROR,
+    )
     if "psdm_sum" in exports:
         result["sum_form"] = speedups(result["ns"], "psdm_sum")
     result["n_operations"] = {c.name: c.n_operations for e in exports.values() for c in e.operation_counts}
+    result["n_operations"].update({c.name: c.n_operations for c in derivatives_export.operation_counts})
+    result["fd_derivatives_form"] = derivatives.forward_form
     result["n_instructions"] = {name: count for e in exports.values() for name, count in e.n_instructions.items()}
     result["casadi_rnea_n_instructions"] = peer_export.n_instructions
     result["casadi_rnea_n_operations"] = {c.name: c.n_operations for c in peer_export.operation_counts}
@@ -304,6 +360,40 @@ def speedups(ns: dict, key: str) -> dict:
         "id_speedup_vs_casadi_rnea": ns["casadi_rnea_id"] / ns[f"{key}_id"],
         "fd_speedup_vs_casadi_rnea": ns["casadi_rnea_fd"] / ns[f"{key}_fd"],
     }
+
+
+def derivative_speedups(ns: dict) -> dict:
+    """Pinocchio's analytical derivatives' time / the exported PSDM derivatives' time."""
+    return {
+        "id_derivatives_speedup_vs_pinocchio": ns["pinocchio_rnea_derivatives"] / ns["psdm_id_derivatives"],
+        "fd_derivatives_speedup_vs_pinocchio": ns["pinocchio_aba_derivatives"] / ns["psdm_fd_derivatives"],
+    }
+
+
+# Pinocchio templated on CasADi's SX (pinocchio/autodiff/casadi.hpp) and generated by CasADi: not built by this
+# harness; the JSON says so (null ratios and this reason) rather than dropping the peer.
+CASADI_PINOCCHIO_ERROR = (
+    "not built: the pin wheel ships no CasADi bindings (no pinocchio.casadi module), and compiling Pinocchio's "
+    "C++ templated on casadi::SX against the casadi wheel's libcasadi is not implemented in this harness; the "
+    "CasADi SX Newton-Euler peer (casadi_rnea_*) is the CasADi-generated Newton-Euler code timed instead"
+)
+
+# (JSON ratio, our key, CppADCodeGen keys: the ratio is against the fastest of them).
+CPPADCG_RATIOS = (
+    ("id_speedup_vs_cppadcg", "psdm_id", ("cppadcg_rnea",)),
+    ("fd_speedup_vs_cppadcg", "psdm_fd", ("cppadcg_aba",)),
+    ("regressor_speedup_vs_cppadcg", "psdm_regressor", ("cppadcg_regressor",)),
+    ("id_derivatives_speedup_vs_cppadcg", "psdm_id_derivatives", ("cppadcg_rnea_jacobian", "cppadcg_rnea_derivatives")),
+    ("fd_derivatives_speedup_vs_cppadcg", "psdm_fd_derivatives", ("cppadcg_aba_jacobian", "cppadcg_aba_derivatives")),
+)
+
+
+def cppadcg_speedups(ns: dict, error: str | None) -> dict:
+    """Ratios against Pinocchio's CppADCodeGen code (its fastest route per quantity); None with ``cppadcg_error``
+    when that peer was not built."""
+    if error is not None:
+        return {**{name: None for name, _, _ in CPPADCG_RATIOS}, "cppadcg_error": error}
+    return {name: min(ns[p] for p in peers) / ns[ours] for name, ours, peers in CPPADCG_RATIOS}
 
 
 def _run(command, cwd) -> str:
@@ -327,6 +417,7 @@ def main(argv=None) -> int:
         default="auto",
         help=f"also time the paper's sum form (auto: models of at most {SUM_FORM_MAX_FUNCTIONS} functions)",
     )
+    parser.add_argument("--no-cppadcg", action="store_true", help="skip the CppADCodeGen peer (minutes of compilation)")
     args = parser.parse_args(argv)
     from psdm_casadi.robot import load_robot
 
@@ -340,6 +431,7 @@ def main(argv=None) -> int:
             repeats=args.repeats,
             log=lambda m: print(m, file=sys.stderr, flush=True),
             sum_form={"auto": None, "yes": True, "no": False}[args.sum_form],
+            cppadcg=not args.no_cppadcg,
         )
     except SolverError as exc:
         print(json.dumps({"error": str(exc)}))

@@ -13,7 +13,16 @@ It holds everything needed to use an identification without the recordings or th
 - ``identification``: filter, decimation, samples, weights, condition number, solver status;
 - ``provenance``: when, which version, which recordings (name, samples, SHA-256);
 - ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
-- ``findings``: the terms diagnosis added (empty until a diagnosis is applied).
+- ``findings``: the terms diagnosis added (empty until a diagnosis is applied with
+  ``psdm diagnose MODEL --apply NEW``): per finding its effect, label, kind (``findings.FINDING_KINDS``),
+  joints, the term that rebuilds its columns, feature names, coefficients and standard deviations from the
+  joint recalibration, physical parameters and the diagnosis' own numbers;
+- ``corrections`` (version 2): the measurement corrections of the ``signal`` findings (a torque delay),
+  applied by ``psdm validate`` as by the recalibration (``findings.correct_recording``);
+- ``recalibration`` (version 2): the calibration before and after the findings (validation RMSE,
+  consistency, the parameters that moved).
+
+Version 1 files (no findings) are read as they were.
 
 A model whose standard parameters are not consistent is written only when the caller says so
 (``allow_inconsistent``), and then says so in ``standard.consistent``.
@@ -30,17 +39,19 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.findings import FindingTerm, term_values
 from identification.calibration.trajectory_data import drive_columns
 from identification.calibration.trajectory_fit import TrajectoryFit
-from psdm_casadi.errors import ModelFileError
+from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
-__all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "load_calibrated_model",
+__all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "load_calibrated_model",
            "recording_provenance", "standard_parameter_labels"]  # fmt: skip
 
 CALIBRATED_FORMAT = "psdm-calibrated-model"
-CALIBRATED_VERSION = 1
+CALIBRATED_VERSION = 2
+READABLE_VERSIONS = (1, 2)
 
 
 def standard_parameter_labels(n_dof: int) -> list:
@@ -90,6 +101,9 @@ class CalibratedModel:
             "drive": {"names": list(fit.drive_names), "values": _floats(fit.drive), "ols": _floats(fit.drive_ols),
                       "std": _floats(fit.drive_std), "relative_sigma_percent": _floats(relative[model.n_base :]),
                       "friction_terms": list(fit.friction_terms), "coulomb_velocity": fit.coulomb_velocity,
+                      "friction_shape": "stribeck" if "fs" in fit.friction_terms else "coulomb-viscous",
+                      "stribeck_velocity": list(fit.stribeck_velocity),
+                      "stribeck_velocity_std": _floats(fit.stribeck_velocity_std),
                       "inertia_joints": [j + 1 for j in fit.inertia_joints]},
             "identification": {"cutoff_hz": list(fit.cutoff_hz), "decimation": list(fit.decimation),
                                "n_samples": fit.n_samples, "sigma": _floats(fit.sigma),
@@ -135,10 +149,8 @@ class CalibratedModel:
     def drive(self) -> np.ndarray:
         return _array(self.document["drive"]["values"])
 
-    def load_robot(self, cache_dir=None):
-        """The robot description the model was identified for, rebuilt from the texts in the file."""
-        from psdm_casadi.robot import load_robot
-
+    def robot_file(self, cache_dir=None) -> Path:
+        """The robot file's text written into the robot cache (with its URDF), as a path to load or copy."""
         block = self.document["robot"]
         folder = Path(cache_dir or _cache_root()) / block["sha256"][:16]
         folder.mkdir(parents=True, exist_ok=True)
@@ -146,18 +158,95 @@ class CalibratedModel:
             target = folder / name
             if not target.exists() or target.read_text() != text:
                 atomic_write(target, lambda handle, text=text: handle.write(text), overwrite=True)
+        return folder / block["main_file"]
+
+    def load_robot(self, cache_dir=None):
+        """The robot description the model was identified for, rebuilt from the texts in the file."""
+        from psdm_casadi.robot import load_robot
+
+        block = self.document["robot"]
+        folder = self.robot_file(cache_dir).parent
         robot = load_robot(folder / block["main_file"])
         stored = [_lock(entry) for entry in block["locked_joints"]]
         extra = [lock for lock in stored if lock not in robot.locked_joints]  # the command line's, not the file's
         return load_robot(folder / block["main_file"], locked_joints=tuple(extra)) if extra else robot
 
+    @property
+    def corrections(self) -> dict:
+        """Measurement corrections of the signal-type findings (``{"delay": {"delay_s": d}}``), empty if none."""
+        return dict(self.document.get("corrections") or {})
+
+    @property
+    def torque_findings(self) -> list:
+        """``(FindingTerm, coefficients)`` of every torque-type finding; a feature left out of the fit counts 0."""
+        out = []
+        for entry in self.document.get("findings") or []:
+            if entry.get("kind") == "torque":
+                term = FindingTerm.from_dict(entry.get("term") or {})
+                values = np.array([0.0 if v is None else v for v in entry.get("coefficients") or ()], dtype=float)
+                if values.size != len(term.feature_names()) or not np.all(np.isfinite(values)):
+                    raise ModelFileError(
+                        f"calibrated model findings[{entry.get('label')!r}].coefficients must be "
+                        f"{len(term.feature_names())} finite numbers (or null for an absorbed feature), one per "
+                        f"feature {term.feature_names()}; got {entry.get('coefficients')!r}. Re-run "
+                        "'psdm diagnose MODEL --apply'."
+                    )
+                out.append((term, values))
+        return out
+
     def predict(self, model, q, qd, qdd) -> np.ndarray:
-        """Joint torques [N m] of the calibrated model: rigid body of ``theta`` plus the drive terms."""
+        """Joint torques [N m] of the calibrated model: rigid body of ``theta``, drive terms and findings.
+
+        The load-dependent friction of a finding is proportional to the model's own torque without it.
+        """
         drive = self.document["drive"]
         q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
         inertia_joints = tuple(j - 1 for j in drive["inertia_joints"])
-        columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, drive["coulomb_velocity"])
-        return model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
+        stribeck = drive.get("stribeck_velocity") or None  # the Stribeck shape's vs per joint [rad/s]
+        columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, drive["coulomb_velocity"],
+                                None if stribeck is None else np.asarray(stribeck, dtype=float))  # fmt: skip
+        tau = model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
+        findings = self.torque_findings
+        for term, values in findings:
+            if not term.load_dependent:
+                tau[:, term.joint] += sum(c * v for c, v in zip(values, term_values(term, q, qd, qdd)))
+        base = tau.copy()
+        for term, values in findings:
+            if term.load_dependent:
+                tau[:, term.joint] += values[0] * term_values(term, q, qd, qdd, base)[0]
+        return tau
+
+
+def calibrated_robot(calibrated: CalibratedModel, robot):
+    """``robot`` with the calibrated standard parameters as its nominal inertia: the nominal model a diagnosis of a
+    calibrated model starts from (``psdm diagnose MODEL``). Links the data cannot see keep the robot file's values.
+
+    Raises
+    ------
+    ParameterError
+        For a model identified with --no-consistency (it holds base parameters only).
+    """
+    import pinocchio as pin
+
+    from psdm_casadi.description import LinkInertia
+
+    standard = calibrated.standard
+    if not calibrated.document["standard"].get("checked", True) or not np.all(np.isfinite(standard)):
+        raise ParameterError(
+            "diagnose MODEL needs the standard parameters of a consistent fit; the file holds base parameters only "
+            "(identified with --no-consistency). Identify it again without --no-consistency."
+        )
+    prior = robot.links
+    links = []
+    for i in range(robot.n_dof):
+        if standard[i, 0] > 1e-9:
+            inertia = pin.Inertia.FromDynamicParameters(standard[i, :10])
+            links.append(
+                LinkInertia(mass=float(inertia.mass), com=np.array(inertia.lever), inertia=np.array(inertia.inertia))
+            )
+        else:
+            links.append(prior[i] if prior is not None else LinkInertia())
+    return robot.with_links(links, rotor_inertia=np.maximum(standard[:, 10], 0.0))
 
 
 def _robot_block(robot, robot_source) -> dict:
@@ -215,9 +304,10 @@ def load_calibrated_model(path) -> CalibratedModel:
         raise ModelFileError(f"{path.name}: format must be {CALIBRATED_FORMAT!r}; got "
                              f"{document.get('format') if isinstance(document, dict) else type(document).__name__!r}. "
                              "Pass the .json that 'psdm identify' wrote.")  # fmt: skip
-    if document.get("version") != CALIBRATED_VERSION:
-        raise ModelFileError(f"{path.name}: version must be {CALIBRATED_VERSION}; got {document.get('version')!r}. "
-                             "Re-run 'psdm identify' with this version of psdm-casadi.")  # fmt: skip
+    if document.get("version") not in READABLE_VERSIONS:
+        raise ModelFileError(f"{path.name}: version must be one of {READABLE_VERSIONS}; got "
+                             f"{document.get('version')!r}. Re-run 'psdm identify' with this version of "
+                             "psdm-casadi.")  # fmt: skip
     missing = [k for k in ("robot", "standard", "base", "drive", "identification") if k not in document]
     if missing:
         raise ModelFileError(f"{path.name}: the blocks {missing} are missing. Re-run 'psdm identify'.")

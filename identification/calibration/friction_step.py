@@ -19,6 +19,7 @@ from scipy.optimize import least_squares
 
 from identification.calibration.estimator import BaseIdentifier
 from identification.calibration.excitation import check_friction_experiment, thresholds_of
+from identification.calibration.extra_terms import extra_torque
 from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
 from identification.data.recording import Recording
 from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
@@ -146,6 +147,9 @@ class FrictionIdentifier(BaseIdentifier):
         ``ExcitationThresholds()``): ``fit`` refuses an experiment whose joint does not move or does not
         slide in both directions above the Stribeck range (``min_sliding_fraction`` of ``robot.qd_max``
         when ``robot`` is given).
+    extra_terms : ExtraTerms, optional
+        Fitted known additive torques (e.g. a spring from the gravity step,
+        :mod:`identification.calibration.extra_terms`), removed from the measured friction like the gravity.
 
     Attributes
     ----------
@@ -175,6 +179,7 @@ class FrictionIdentifier(BaseIdentifier):
         coupling_theta=None,
         verbose=False,
         excitation=None,
+        extra_terms=None,
     ):
         self.model = model
         self.kt = kt
@@ -189,6 +194,7 @@ class FrictionIdentifier(BaseIdentifier):
         self.coupling_theta = coupling_theta
         self.verbose = verbose
         self.excitation = excitation
+        self.extra_terms = extra_terms
 
     def _validate(self):
         check_model(self.model, "FrictionIdentifier")
@@ -235,7 +241,7 @@ class FrictionIdentifier(BaseIdentifier):
         torque = rec.joint_torque(kt)[:, j]
         if self.held_torque:
             torque = np.concatenate([torque[:1], 0.5 * (torque[1:] + torque[:-1])])
-        torque = torque - gravity - tool
+        torque = torque - gravity - tool - extra_torque(self.extra_terms, rec)[:, j]
         if self.coupling_theta is not None:
             theta_c = vector(
                 self.coupling_theta, self.model.n_base, "FrictionIdentifier", "coupling_theta", "base parameters"

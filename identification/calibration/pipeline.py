@@ -14,6 +14,13 @@ named steps in order, each on the previous steps' estimates, passed explicitly:
 5. refinement: :func:`refine_parameters` (optional) -> all together; then the consistency check
    and the validation report (Table 3, "all" on the excitation validation part).
 
+Known extra torques (``extra_terms``, e.g. the spring a diagnosis found; :mod:`identification.calibration.extra_terms`):
+the gravity step fits their columns beside the gravity parameters, the friction step removes the
+torque so fitted, the inertial step fits them again beside the inertial parameters (those are the
+values reported, with their sigma), and the refinement and Table 3 hold them. Step 1 needs no
+column: a torque of the joint state is the same on the sweeps with and without the mass along the
+same path and cancels in their difference, like gravity.
+
 Before step 1 every raw recording is checked for motion (:mod:`identification.calibration.excitation`),
 and each step checks its own data and regressor: a recording in which what is identified does not move
 is refused with the joints to move and the experiment to record (``PipelineOptions.excitation``).
@@ -57,6 +64,8 @@ import numpy as np
 from identification.calibration.consistency import check_consistency
 from identification.calibration.estimator import check_is_fitted
 from identification.calibration.excitation import check_calibration_data
+from identification.calibration.extra_passes import alternate_extra_terms, refit_friction
+from identification.calibration.extra_terms import ExtraTerms, extra_torque
 from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.payload import payload_torque
 from identification.calibration.pipeline_options import PipelineOptions
@@ -117,6 +126,9 @@ class IdentificationPipeline:
     model : PSDMModel
         The derived model (``derive_psdm(robot)``).
     options : PipelineOptions, optional
+    extra_terms : ExtraTerms or sequence of CandidateTerm, optional
+        Known additive torques fitted in every step (module docstring), e.g.
+        ``ExtraTerms.from_diagnosis(report)`` or ``(SpringTerm(joint=3),)``.
 
     Attributes
     ----------
@@ -139,10 +151,25 @@ class IdentificationPipeline:
     True
     """
 
-    def __init__(self, robot=None, model=None, options=None):
+    def __init__(self, robot=None, model=None, options=None, extra_terms=None):
         self.robot = robot
         self.model = model
         self.options = options
+        self.extra_terms = extra_terms
+
+    def _extra_terms(self):
+        """``extra_terms`` as an unfitted :class:`ExtraTerms` (None without terms), its joints checked."""
+        if self.extra_terms is None:
+            return None
+        terms = self.extra_terms.terms if isinstance(self.extra_terms, ExtraTerms) else tuple(self.extra_terms)
+        for term in terms:
+            bad = [j + 1 for j in getattr(term, "joints", ()) if not 0 <= j < self.robot.n_dof]
+            if bad:
+                raise ParameterError(
+                    f"IdentificationPipeline.extra_terms: {term.label} acts on joint {bad[0]}, but the robot has "
+                    f"{self.robot.n_dof} joints. Pass terms of this robot."
+                )
+        return ExtraTerms(terms)
 
     def _validate(self):
         if not isinstance(self.robot, RobotDescription):
@@ -186,22 +213,28 @@ class IdentificationPipeline:
         options = self._validate()
         data = self._calibration_data(data)
         check_calibration_data(self.robot, self.model, data, options.excitation)
+        extra = self._extra_terms()
         stages, total = _Stages(options.quiet), time.perf_counter()
         motor, motor_data = self._motor_step(data, options, stages)
         kt = motor.kt_
-        gravity, gravity_data = self._gravity_step(data, options, kt, stages)
-        friction, friction_data = self._friction_step(data, options, kt, gravity.theta_, stages)
+        gravity, gravity_data = self._gravity_step(data, options, kt, stages, extra)
+        friction, friction_data = self._friction_step(data, options, kt, gravity, stages)
         lugre = friction.lugre_
         if options.gravity_friction == "identified":
             gravity, gravity_data = self._gravity_without_friction_step(data, options, gravity, kt, lugre, stages)
-        inertial, excitation = self._inertial_step(data, options, kt, gravity.theta_, lugre, stages)
+        inertial, excitation = self._inertial_step(data, options, kt, gravity.theta_, lugre, stages, extra)
         if options.gravity_inertia == "identified":
             gravity, inertial = self._second_pass_step(gravity, inertial, gravity_data.train, excitation.train, stages)
-        theta = inertial.theta_
+        if extra is not None:
+            gravity, gravity_data, friction, inertial = self._extra_terms_step(
+                data, options, (gravity, gravity_data), (friction, friction_data), (inertial, excitation), stages
+            )
+            lugre = friction.lugre_
+        theta, extra = inertial.theta_, inertial.extra_terms_
         self.step_theta_, self.step_kt_, self.step_lugre_ = theta.copy(), kt.copy(), tuple(lugre)
         metadata = {}
         if options.refine:
-            refined = self._refinement_step(data, options, theta, kt, lugre, stages)
+            refined = self._refinement_step(data, options, theta, kt, lugre, stages, extra)
             theta, kt, lugre = refined.theta, refined.kt, refined.lugre
             metadata["refinement"] = {
                 "status": refined.status,
@@ -216,7 +249,7 @@ class IdentificationPipeline:
             ("friction", friction, friction_data),
             ("inertial", inertial, excitation),
         )
-        report, self.plot_data_ = self._report_step(fitted, excitation.valid, theta, kt, lugre, data.tool)
+        report, self.plot_data_ = self._report_step(fitted, excitation.valid, theta, kt, lugre, data.tool, extra)
         stages.timings["total"] = time.perf_counter() - total
         metadata["timings"] = stages.timings
         metadata["friction_seconds"] = friction.seconds_.tolist()
@@ -233,6 +266,7 @@ class IdentificationPipeline:
             report=report,
             consistency=consistency,
             metadata=metadata,
+            extra_terms=extra,
         )
         stages.say(f"identify: done in {stages.timings['total']:.1f} s")
         return self
@@ -253,18 +287,24 @@ class IdentificationPipeline:
         stages.say(f"identify: Kt = {np.array2string(kt, precision=3)} N m/A {stages.took('motor')}")
         return motor, split
 
-    def _gravity_step(self, data, options, kt, stages):
+    def _gravity_step(self, data, options, kt, stages, extra):
         """Step 2 (eq. 18): the gravity parameters from the folded jogs, their inertial torques removed (options)."""
         with stages.stage("gravity", "identify: step 2/4 gravity parameters (eq. 18) ..."):
             split = gravity_split(data, options)
             theta = self._nominal_theta() if options.gravity_inertia == "nominal" else None
             gravity = GravityIdentifier(
-                model=self.model, kt=kt, robot=self.robot, tool=data.tool, theta=theta, excitation=options.excitation
+                model=self.model,
+                kt=kt,
+                robot=self.robot,
+                tool=data.tool,
+                theta=theta,
+                excitation=options.excitation,
+                extra_terms=extra,
             ).fit(split.train)
         stages.say(f"identify: {int(self.model.gravity_mask.sum())} gravity parameters {stages.took('gravity')}")
         return gravity, split
 
-    def _friction_step(self, data, options, kt, theta, stages):
+    def _friction_step(self, data, options, kt, gravity, stages):
         """Step 3 (eqs. 19-20, LuGre by multiple shooting): friction per joint on its experiment."""
         with stages.stage(
             "friction", "identify: step 3/4 friction per joint: eq. 20 + LuGre multiple shooting (Ipopt) ..."
@@ -280,7 +320,7 @@ class IdentificationPipeline:
             friction = FrictionIdentifier(
                 model=self.model,
                 kt=kt,
-                theta=theta,
+                theta=gravity.theta_,
                 robot=self.robot,
                 tool=data.tool,
                 decimation=step,
@@ -289,6 +329,7 @@ class IdentificationPipeline:
                 coupling_theta=coupling,
                 verbose=not options.quiet,
                 excitation=options.excitation,
+                extra_terms=gravity.extra_terms_,
             ).fit(split.train)
         if any(p is None for p in friction.lugre_):
             missing = [j + 1 for j in range(self.robot.n_dof) if friction.lugre_[j] is None]
@@ -307,7 +348,7 @@ class IdentificationPipeline:
         stages.say(f"identify: gravity parameters moved by up to {change:.3g} {stages.took('gravity_friction')}")
         return again, split
 
-    def _inertial_step(self, data, options, kt, theta, lugre, stages):
+    def _inertial_step(self, data, options, kt, theta, lugre, stages, extra):
         """Step 4 (eq. 21): the remaining base parameters on the exciting trajectories."""
         with stages.stage("inertial", "identify: step 4/4 inertial parameters (eq. 21) ..."):
             split = excitation_split(data, options)
@@ -321,6 +362,7 @@ class IdentificationPipeline:
                 tool=data.tool,
                 decimation=step,
                 excitation=options.excitation,
+                extra_terms=extra,
             ).fit(split.train)
         stages.say(f"identify: {self.model.n_base} base parameters {stages.took('inertial')}")
         return inertial, split
@@ -336,10 +378,36 @@ class IdentificationPipeline:
         stages.say(f"identify: gravity parameters moved by up to {change:.3g} {stages.took('second_pass')}")
         return again, inertial
 
-    def _refinement_step(self, data, options, theta, kt, lugre, stages):
-        """All parameters together by Ipopt on the training parts of every experiment."""
+    def _extra_terms_step(self, data, options, gravity_fit, friction_fit, inertial_fit, stages):
+        """The extra terms settled between the steps: ``(gravity, gravity_split, friction, inertial)`` again.
+
+        The slow jog moves the joints over a small range, where a spring ``k q + c`` is nearly collinear
+        with the gravity torques; the excitation separates them. So the gravity step runs again with the
+        terms held at the inertial step's estimate, then the inertial step, until the terms settle; then
+        the friction of the terms' joints is fitted again without their torque (the first friction
+        fit removed the gravity step's estimate), and the alternation runs once more on that friction.
+        """
+        (gravity, gravity_data), (friction, friction_data), (inertial, excitation) = (
+            gravity_fit,
+            friction_fit,
+            inertial_fit,
+        )
+        with stages.stage("extra_terms", "identify: gravity, friction and inertial again with the extra terms ..."):
+            gravity, inertial = alternate_extra_terms(gravity, inertial, gravity_data.train, excitation.train)
+            friction = refit_friction(friction, friction_data.train, inertial.extra_terms_, gravity.theta_)
+            if options.gravity_friction == "identified":
+                gravity_data = gravity_split(data, options, lugre=friction.lugre_, kt=inertial.kt)
+            inertial = InertialIdentifier(**dict(inertial.get_params(), lugre=tuple(friction.lugre_)))
+            gravity, inertial = alternate_extra_terms(gravity, inertial, gravity_data.train, excitation.train)
+        extra = inertial.extra_terms_
+        values = ", ".join(f"{name} = {value:.4g}" for name, value in zip(extra.feature_names, extra.coefficients))
+        stages.say(f"identify: extra terms {values} {stages.took('extra_terms')}")
+        return gravity, gravity_data, friction, inertial
+
+    def _refinement_step(self, data, options, theta, kt, lugre, stages, extra):
+        """All parameters together by Ipopt on the training parts of every experiment (extra terms held)."""
         with stages.stage("refinement", "identify: refinement of all parameters together (Ipopt) ..."):
-            blocks = refinement_blocks(self.robot, data, options)
+            blocks = refinement_blocks(self.robot, data, options, extra)
             refined = refine_parameters(
                 self.model,
                 blocks,
@@ -375,20 +443,22 @@ class IdentificationPipeline:
         )
         return consistency
 
-    def _report_step(self, fitted, excitation, theta, kt, lugre, tool):
+    def _report_step(self, fitted, excitation, theta, kt, lugre, tool, extra):
         """Table 3: every step on its validation part, and the full model ("all") on the excitation's."""
         scores = [StepScore(name, *step.evaluate(split.valid)) for name, step, split in fitted]
-        all_rmse, all_r2, plot_data = self._score_all(excitation, theta, kt, lugre, tool)
+        all_rmse, all_r2, plot_data = self._score_all(excitation, theta, kt, lugre, tool, extra)
         scores.append(StepScore("all", all_rmse, all_r2))
         return ValidationReport(tuple(scores), tuple(self.robot.joint_names)), plot_data
 
-    def _score_all(self, recordings, theta, kt, lugre, tool):
+    def _score_all(self, recordings, theta, kt, lugre, tool, extra):
         """RMSE and R^2 per joint of the full model on the fast validation path (Table 3 "All"), and plot data."""
         obs, pred, plot = [], [], None
         for rec in recordings:
             observed = rec.joint_torque(kt)
-            predicted = regressor_chunked(self.model, rec.q, rec.qd, rec.qdd) @ theta + friction_torque(
-                lugre, rec.t, rec.qd
+            predicted = (
+                regressor_chunked(self.model, rec.q, rec.qd, rec.qdd) @ theta
+                + friction_torque(lugre, rec.t, rec.qd)
+                + extra_torque(extra, rec)
             )
             if tool is not None:
                 predicted = predicted + payload_torque(self.robot, tool, rec.q, rec.qd, rec.qdd)

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.extra_terms import extra_torque
 from identification.calibration.friction_step import FrictionExperiment, friction_torque
 from identification.calibration.out_and_back import MotorExperiment, fold_out_and_back
 from identification.calibration.payload import payload_torque
@@ -22,7 +23,11 @@ from identification.calibration.refinement import RefinementBlock
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
 
+EDGE_PERIODS = 3.0  # filter periods (1 / cutoff) trimmed at both ends of an exciting recording (trim_filter_edges)
+
 __all__ = [
+    "EDGE_PERIODS",
+    "trim_filter_edges",
     "Split",
     "prepare",
     "decimation_step",
@@ -132,23 +137,43 @@ def friction_split(data, options) -> Split:
     return Split(train, valid)
 
 
+def trim_filter_edges(rec: Recording, cutoff_hz) -> Recording:
+    """``rec`` without its first and last ``EDGE_PERIODS / cutoff_hz`` seconds (unchanged when unfiltered).
+
+    An exciting trajectory is recorded in motion from its first sample to its last; the zero-phase
+    filter's start-up transient at both ends then corrupts the differentiated qdd there (and the
+    torque), which no model predicts: left in, it dominates the validation part, the recording's end.
+    """
+    if cutoff_hz is None:
+        return rec
+    edge = EDGE_PERIODS / float(cutoff_hz)
+    return rec.time_slice(rec.t[0] + edge, rec.t[-1] - edge + 0.5 * rec.dt)
+
+
 def excitation_split(data, options) -> Split:
-    """Step 4: the exciting trajectories filtered at the inertial cutoff."""
+    """Step 4: the exciting trajectories filtered at the inertial cutoff, the filter's edges trimmed."""
     train, valid = [], []
     for rec in data.excitation:
-        tr, va = prepare(rec, options.inertial_cutoff_hz, options).split(options.split_fraction)
+        clean = trim_filter_edges(prepare(rec, options.inertial_cutoff_hz, options), options.inertial_cutoff_hz)
+        tr, va = clean.split(options.split_fraction)
         train.append(tr)
         valid.append(va)
     return Split(train, valid)
 
 
-def refinement_blocks(robot, data, options) -> list:
-    """The training parts of every experiment, decimated, with their known tool torques (the mass of step 1 too)."""
+def refinement_blocks(robot, data, options, extra_terms=None) -> list:
+    """The training parts of every experiment, decimated, with their known tool torques (the mass of step 1 too).
+
+    Fitted ``extra_terms`` (:class:`~identification.calibration.extra_terms.ExtraTerms`) count as known
+    torques too: the refinement holds them.
+    """
     blocks = []
 
-    def add(rec, cutoff, payload=None):
-        clean = decimate(prepare(rec, cutoff, options).split(options.split_fraction)[0], options.refinement_rate_hz)
-        tool = np.zeros_like(clean.q)
+    def add(rec, cutoff, payload=None, trim=False):
+        clean = prepare(rec, cutoff, options)
+        clean = trim_filter_edges(clean, cutoff) if trim else clean
+        clean = decimate(clean.split(options.split_fraction)[0], options.refinement_rate_hz)
+        tool = extra_torque(extra_terms, clean)
         for load in (payload, data.tool):
             if load is not None:
                 tool = tool + payload_torque(robot, load, clean.q, clean.qd, clean.qdd)
@@ -162,5 +187,5 @@ def refinement_blocks(robot, data, options) -> list:
     for _, rec in data.friction:
         add(rec, options.friction_cutoff_hz)
     for rec in data.excitation:
-        add(rec, options.inertial_cutoff_hz)
+        add(rec, options.inertial_cutoff_hz, trim=True)
     return blocks

@@ -30,6 +30,13 @@ from identification.calibration.excitation import (
     check_motor_experiments,
     thresholds_of,
 )
+from identification.calibration.extra_terms import (
+    extra_torque,
+    fitted_extra,
+    holds_extra,
+    unfitted,
+    with_extra_columns,
+)
 from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.inputs import check_model, experiments, recordings, tool_torque, vector
 from identification.calibration.out_and_back import MotorExperiment, fold_out_and_back
@@ -78,8 +85,10 @@ class MotorIdentifier(LeastSquaresIdentifier):
     payload : Payload
         The calibration mass (mass [kg] and centre of mass in the flange frame [m]).
     min_speed_fraction : float
-        Rows where the swept joint moves slower than this fraction of its peak speed (speed ramps,
-        turn) are dropped, in (0, 1).
+        Rows where the swept joint moves slower than this fraction of its sweep speed (speed ramps,
+        turn) are dropped, in (0, 1). The sweep speed is the 90th percentile of ``|qd|``, not its
+        maximum: a start-up transient (a joint pulled by an unmodelled spring before the controller
+        settles) would otherwise set it and leave only the transient's rows.
     min_torque_fraction : float
         Rows whose load torque is below this fraction of the largest are dropped, in [0, 1).
     load : {"dynamic", "static"}
@@ -167,7 +176,7 @@ class MotorIdentifier(LeastSquaresIdentifier):
             else:
                 load = payload_static_torque(self.robot, self.payload, q)[:, j]
             speed = np.abs(e.nominal.qd[:, j])
-            keep = (speed >= self.min_speed_fraction * speed.max()) & (
+            keep = (speed >= self.min_speed_fraction * np.percentile(speed, 90.0)) & (
                 np.abs(load) >= self.min_torque_fraction * np.abs(load).max()
             )
             if not np.any(np.abs(load) > 0):
@@ -244,6 +253,11 @@ class GravityIdentifier(LeastSquaresIdentifier):
     excitation : ExcitationThresholds, optional
         Thresholds of the excitation check (default ``ExcitationThresholds()``): ``fit`` refuses jogs in
         which a joint with a gravity torque does not move, and a rank-deficient or ill-conditioned regressor.
+    extra_terms : ExtraTerms, optional
+        Known additive torques (a diagnosis finding, :mod:`identification.calibration.extra_terms`) whose
+        columns are fitted beside the gravity parameters (a spring ``k (q - q0) = k q - k q0`` adds the
+        columns ``q_j`` and ``1`` on its joint's rows); fitted ones (with coefficients) are held: their
+        torque is removed instead.
 
     Attributes
     ----------
@@ -251,6 +265,8 @@ class GravityIdentifier(LeastSquaresIdentifier):
         The gravity base parameters (``model.gravity_mask`` order).
     theta_ : array, shape (n_base,)
         ``theta_gravity_`` placed in a full base-parameter vector (zeros elsewhere).
+    extra_terms_ : ExtraTerms or None
+        ``extra_terms`` with the fitted coefficients and their standard errors.
     """
 
     def __init__(
@@ -263,6 +279,7 @@ class GravityIdentifier(LeastSquaresIdentifier):
         theta=None,
         joint_weighting="relative",
         excitation=None,
+        extra_terms=None,
     ):
         self.model = model
         self.kt = kt
@@ -272,6 +289,7 @@ class GravityIdentifier(LeastSquaresIdentifier):
         self.theta = theta
         self.joint_weighting = joint_weighting
         self.excitation = excitation
+        self.extra_terms = extra_terms
 
     def _n_dof(self, data):
         return self.model.n_dof
@@ -305,9 +323,11 @@ class GravityIdentifier(LeastSquaresIdentifier):
             y = y_all[:, :, mask]  # (N, n, n_grav)
             active = np.any(np.abs(y) > 0, axis=0).any(axis=1)  # joints with a gravity row
             weights = ((np.abs(rec.qd) >= self.min_speed) & active[None, :]).astype(float)
+            y = with_extra_columns(y, None if holds_extra(self.extra_terms) else self.extra_terms, rec)
+            tau = tau - (extra_torque(self.extra_terms, rec) if holds_extra(self.extra_terms) else 0.0)
             blocks.append(
                 Design(
-                    y.reshape(-1, mask.sum()),
+                    y.reshape(y.shape[0] * n, -1),
                     tau.reshape(-1),
                     weights.reshape(-1),
                     np.tile(np.arange(n), rec.n_samples),
@@ -327,13 +347,17 @@ class GravityIdentifier(LeastSquaresIdentifier):
 
     def _check_excitation(self, data, design):
         thresholds = thresholds_of("GravityIdentifier", self.excitation)
-        check_gravity_design(self.model, recordings(data, "GravityIdentifier"), design, self.robot, thresholds)
+        base = _base_columns(design, int(self.model.gravity_mask.sum()))
+        check_gravity_design(self.model, recordings(data, "GravityIdentifier"), base, self.robot, thresholds)
 
     def _after_fit(self, design):
-        self.theta_gravity_ = self.coef_.copy()
+        n_grav = int(self.model.gravity_mask.sum())
+        self.theta_gravity_ = self.coef_[:n_grav].copy()
         theta = np.zeros(self.model.n_base)
-        theta[self.model.gravity_mask] = self.coef_
+        theta[self.model.gravity_mask] = self.theta_gravity_
         self.theta_ = theta
+        held = self.extra_terms if holds_extra(self.extra_terms) else None
+        self.extra_terms_ = held or fitted_extra(self.extra_terms, self.coef_, self.covariance_, n_grav)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -360,6 +384,9 @@ class InertialIdentifier(LeastSquaresIdentifier):
     excitation : ExcitationThresholds, optional
         Thresholds of the excitation check (default ``ExcitationThresholds()``): ``fit`` refuses recordings
         in which a joint does not move, and a rank-deficient or ill-conditioned regressor.
+    extra_terms : ExtraTerms, optional
+        Known additive torques whose columns are fitted beside the inertial parameters (their gravity-step
+        values are start values only).
 
     Attributes
     ----------
@@ -367,10 +394,21 @@ class InertialIdentifier(LeastSquaresIdentifier):
         All base parameters: the held gravity part and the estimated inertial part.
     theta_std_ : array, shape (n_base,)
         Standard errors (zero for the held gravity part).
+    extra_terms_ : ExtraTerms or None
+        ``extra_terms`` with the coefficients fitted on the excitation and their standard errors.
     """
 
     def __init__(
-        self, model=None, kt=None, theta=None, lugre=None, robot=None, tool=None, decimation=1, excitation=None
+        self,
+        model=None,
+        kt=None,
+        theta=None,
+        lugre=None,
+        robot=None,
+        tool=None,
+        decimation=1,
+        excitation=None,
+        extra_terms=None,
     ):
         self.model = model
         self.kt = kt
@@ -380,6 +418,7 @@ class InertialIdentifier(LeastSquaresIdentifier):
         self.tool = tool
         self.decimation = decimation
         self.excitation = excitation
+        self.extra_terms = extra_terms
 
     def _n_dof(self, data):
         return self.model.n_dof
@@ -409,9 +448,10 @@ class InertialIdentifier(LeastSquaresIdentifier):
             y = regressor_chunked(self.model, rec.q[sl], rec.qd[sl], rec.qdd[sl])
             held = y[:, :, mask] @ theta[mask]
             m = y.shape[0]
+            columns = with_extra_columns(y[:, :, ~mask], unfitted(self.extra_terms), rec, int(self.decimation))
             blocks.append(
                 Design(
-                    y[:, :, ~mask].reshape(-1, int((~mask).sum())),
+                    columns.reshape(m * n, -1),
                     tau[sl].reshape(-1),
                     np.ones(m * n),
                     np.tile(np.arange(n), m),
@@ -422,16 +462,26 @@ class InertialIdentifier(LeastSquaresIdentifier):
 
     def _check_excitation(self, data, design):
         thresholds = thresholds_of("InertialIdentifier", self.excitation)
-        check_inertial_design(self.model, recordings(data, "InertialIdentifier"), design, self.robot, thresholds)
+        base = _base_columns(design, int((~self.model.gravity_mask).sum()))
+        check_inertial_design(self.model, recordings(data, "InertialIdentifier"), base, self.robot, thresholds)
 
     def _after_fit(self, design):
         mask = self.model.gravity_mask
+        n_iner = int((~mask).sum())
         theta = np.asarray(self.theta, dtype=float).copy()
-        theta[~mask] = self.coef_
+        theta[~mask] = self.coef_[:n_iner]
         std = np.zeros(self.model.n_base)
-        std[~mask] = np.sqrt(np.clip(np.diag(self.covariance_), 0, None))
+        std[~mask] = np.sqrt(np.clip(np.diag(self.covariance_)[:n_iner], 0, None))
         self.theta_ = theta
         self.theta_std_ = std
+        self.extra_terms_ = fitted_extra(self.extra_terms, self.coef_, self.covariance_, n_iner)
+
+
+def _base_columns(design: Design, n_columns: int) -> Design:
+    """``design`` restricted to its first ``n_columns`` columns (the base parameters, for the excitation check)."""
+    if design.matrix.shape[1] == n_columns:
+        return design
+    return Design(design.matrix[:, :n_columns], design.target, design.weights, design.joint, offset=design.offset)
 
 
 IDENTIFIERS = (MotorIdentifier, GravityIdentifier, FrictionIdentifier, InertialIdentifier)

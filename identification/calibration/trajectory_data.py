@@ -14,8 +14,8 @@ into what a linear fit needs, with memory that does not grow with the recording'
   of the rows ``tau_j = A_j x`` in chunks of samples: the regressor of an hour at 1 kHz is never held.
 
 The columns ``A`` are the PSDM base-parameter regressor followed by the drive columns of
-:func:`drive_columns` (Coulomb and viscous friction, optional offset, and the drive inertia of the
-joints whose model has none).
+:func:`drive_columns` (Coulomb and viscous friction, optional Stribeck static friction and offset,
+and the drive inertia of the joints whose model has none).
 """
 
 from __future__ import annotations
@@ -25,18 +25,23 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from identification.data.excitation_check import check_joint_motion
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["DRIVE_TERMS", "NormalEquations", "choose_filter", "drive_column_names", "drive_columns",
-           "friction_term", "prepare_recording"]  # fmt: skip
+__all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_names",
+           "drive_columns", "friction_term", "prepare_recording", "prepare_recordings",
+           "stribeck_derivative"]  # fmt: skip
 
-#: The drive terms a joint may carry, in column order: Coulomb, viscous, torque offset, drive inertia.
-DRIVE_TERMS = ("fc", "fv", "offset", "Ia")
+#: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
+FRICTION_TERMS = ("fc", "fs", "fv", "offset")
+#: The drive terms: the friction terms, then the drive inertia.
+DRIVE_TERMS = (*FRICTION_TERMS, "Ia")
 
 
 MAX_CUTOFF_HZ = 10.0
+MOTION_FIX = "record a trajectory that moves {joints} over more of its range and speed ('psdm excite' designs one)"
 CHUNK_SAMPLES = 4000
 
 
@@ -76,38 +81,81 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
     return prepared, cutoff, step
 
 
+def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = None) -> tuple:
+    """(cutoffs, decimation steps, prepared recordings): each recording checked against ``robot``, then prepared.
+
+    Raises
+    ------
+    RecordingError
+        For a recording of another robot, or one in which a joint barely moves (naming it and the fix).
+    """
+    cutoffs, steps, prepared = [], [], []
+    for rec in recordings:
+        rec.check_robot(robot.n_dof, robot.name)
+        check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
+                           fix=MOTION_FIX)  # fmt: skip
+        ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz)
+        cutoffs.append(cutoff)
+        steps.append(step)
+        prepared.append(ready)
+    return cutoffs, steps, prepared
+
+
 def drive_column_names(n_dof: int, terms: tuple, inertia_joints) -> list:
     """Labels of the drive columns, e.g. ``fc1, fv1, fc2, ...``, then ``Ia<j>`` for ``inertia_joints``."""
     names = [f"{term}{j + 1}" for j in range(n_dof) for term in terms if term != "Ia"]
     return names + [f"Ia{j + 1}" for j in inertia_joints]
 
 
-def friction_term(term: str, qd, coulomb_velocity: float):
+def _is_symbolic(*values) -> bool:
+    return any(isinstance(v, (ca.SX, ca.MX)) for v in values)
+
+
+def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None):
     """The column of one friction term at velocities ``qd`` (numbers, arrays or CasADi expressions alike).
 
-    ``fc``: the smooth sign ``tanh(qd / coulomb_velocity)``; ``fv``: ``qd``; ``offset``: 1. The one
-    definition the fit (:func:`drive_columns`) and the exported code (``codegen.calibrated``) share.
+    ``fc``: the smooth sign ``s = tanh(qd / coulomb_velocity)``; ``fv``: ``qd``; ``offset``: 1. With a
+    Stribeck velocity ``vs`` (the Stribeck shape), the friction ``(fc + (fs - fc) g) s + fv qd`` with
+    ``g = exp(-(qd / vs)^2)`` is linear in ``fc`` and ``fs``: ``fc`` has the column ``(1 - g) s`` and
+    ``fs`` the column ``g s``. The one definition the fit (:func:`drive_columns`), the calibrated
+    model's ``predict`` and the exported code (``codegen.calibrated``) share.
     """
-    if term == "fc":
-        return (ca.tanh if isinstance(qd, (ca.SX, ca.MX)) else np.tanh)(qd / coulomb_velocity)
+    if term in ("fc", "fs"):
+        symbolic = _is_symbolic(qd, stribeck_velocity)
+        sign = (ca.tanh if symbolic else np.tanh)(qd / coulomb_velocity)
+        if stribeck_velocity is None:
+            if term == "fs":
+                raise ParameterError("friction_term: the term 'fs' needs stribeck_velocity [rad/s]; got None.")
+            return sign
+        bump = (ca.exp if symbolic else np.exp)(-((qd / stribeck_velocity) ** 2))
+        return sign * (bump if term == "fs" else 1.0 - bump)
     if term == "fv":
         return qd
     if term == "offset":
         return 1.0 + 0.0 * qd
-    raise ParameterError(f"friction_term.term must be one of {DRIVE_TERMS[:3]}; got {term!r}.")
+    raise ParameterError(f"friction_term.term must be one of {FRICTION_TERMS}; got {term!r}.")
 
 
-def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float) -> np.ndarray:
+def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
+    """``d/d vs`` of the Stribeck column ``g s`` (:func:`friction_term`): ``g s 2 qd^2 / vs^3``, numpy."""
+    vs = np.asarray(stribeck_velocity, dtype=float)
+    return friction_term("fs", qd, coulomb_velocity, vs) * 2.0 * qd**2 / vs**3
+
+
+def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float, stribeck_velocity=None):
     """Drive columns (n_samples, n_dof, k): per joint its friction terms, then the listed drive inertias.
 
-    The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)``.
+    The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)``; with ``stribeck_velocity``
+    (n_dof,) [rad/s] the Coulomb and static columns are the Stribeck shape's (:func:`friction_term`).
     """
     n_samples, n_dof = qd.shape
     per_joint = [term for term in terms if term != "Ia"]
     k = len(per_joint) * n_dof + len(inertia_joints)
     out = np.zeros((n_samples, n_dof, k))
+    vs = None if stribeck_velocity is None or "fs" not in terms else np.asarray(stribeck_velocity, dtype=float)
     for c, term in enumerate(per_joint):
-        out[:, range(n_dof), [j * len(per_joint) + c for j in range(n_dof)]] = friction_term(term, qd, coulomb_velocity)
+        column = friction_term(term, qd, coulomb_velocity, vs)
+        out[:, range(n_dof), [j * len(per_joint) + c for j in range(n_dof)]] = column
     for c, j in enumerate(inertia_joints):
         out[:, j, len(per_joint) * n_dof + c] = qdd[:, j]
     return out
@@ -132,20 +180,34 @@ class NormalEquations:
 
     def add(self, columns: np.ndarray, tau: np.ndarray) -> None:
         """Add rows: ``columns`` (n_samples, n_dof, n_columns), ``tau`` (n_samples, n_dof)."""
-        self.gram += np.einsum("snc,snd->ncd", columns, columns)
-        self.moment += np.einsum("snc,sn->nc", columns, tau)
+        per_joint = np.ascontiguousarray(columns.transpose(1, 0, 2))  # (n_dof, n_samples, n_columns): BLAS products
+        self.gram += np.matmul(per_joint.transpose(0, 2, 1), per_joint)
+        self.moment += np.einsum("nsc,ns->nc", per_joint, tau.T)
         self.energy += np.einsum("sn,sn->n", tau, tau)
         self.count += tau.shape[0]
 
-    def add_recording(self, model, recording: Recording, terms: tuple, inertia_joints, coulomb_velocity) -> None:
-        """Add a prepared recording's rows: the base-parameter regressor and the drive columns, in chunks."""
+    def add_recording(
+        self, model, recording: Recording, terms: tuple, inertia_joints, coulomb_velocity, extra=None, stribeck=None
+    ) -> None:
+        """Add a prepared recording's rows: the base-parameter regressor, the drive columns and the ``extra``
+        columns (an object with ``columns(q, qd, qdd)``, e.g. ``findings.FindingColumns``), in chunks."""
         for start in range(0, recording.n_samples, CHUNK_SAMPLES):
             sl = slice(start, start + CHUNK_SAMPLES)
             q, qd, qdd = recording.q[sl], recording.qd[sl], recording.qdd[sl]
-            columns = np.concatenate(
-                [model.regressor(q, qd, qdd), drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity)], axis=2
-            )
-            self.add(columns, recording.tau[sl])
+            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, stribeck)
+            blocks = [model.regressor(q, qd, qdd), drive]
+            if extra is not None:
+                blocks.append(extra.columns(q, qd, qdd))
+            self.add(np.concatenate(blocks, axis=2), recording.tau[sl])
+
+    def subset(self, columns) -> NormalEquations:
+        """The normal equations of the listed columns only (same rows)."""
+        columns = np.asarray(columns, dtype=int)
+        out = NormalEquations(self.n_dof, columns.size)
+        out.gram = self.gram[:, columns][:, :, columns].copy()
+        out.moment = self.moment[:, columns].copy()
+        out.energy, out.count = self.energy.copy(), self.count.copy()
+        return out
 
     def weighted(self, weights) -> tuple[np.ndarray, np.ndarray, float]:
         """``(A^T W A, A^T W y, y^T W y)`` with one weight per joint (``1 / sigma_j^2``)."""

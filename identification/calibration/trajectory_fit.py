@@ -6,7 +6,8 @@ torque constants) along exciting trajectories, in :func:`identify_trajectories`:
 1. each recording is filtered, differentiated and decimated (``trajectory_data``), and its rows
    ``tau = Y(q, qd, qdd) theta + D(qd, qdd) f`` are summed into per-joint normal equations: the
    base parameters ``theta`` and the drive parameters ``f`` (Coulomb, viscous, optional offset,
-   and the drive inertia of joints whose model has none);
+   and the drive inertia of joints whose model has none). With the Stribeck shape (``"fs"``) each
+   joint's Stribeck velocity is found first (``stribeck``) and then held: ``f`` stays linear;
 2. ordinary least squares with each joint's rows scaled by its torque RMS gives residual variances
    ``sigma_j^2``; weighted least squares with weights ``1 / sigma_j^2`` gives the unconstrained
    estimate, its covariance (standard deviations, relative sigma in percent) and the condition
@@ -15,7 +16,10 @@ torque constants) along exciting trajectories, in :func:`identify_trajectories`:
    parameters in the log-Cholesky chart (``pseudo_inertia``), so every link has a positive-definite
    pseudo-inertia, with friction and drive inertias bounded below by zero, and a small pull
    (``prior_weight``) towards the robot file's parameters that only settles what the data cannot
-   see. The base parameters are computed from the standard ones.
+   see. It is solved twice: the second time each joint's weight is ``1 / sigma_j^2`` of the first
+   consistent fit's own residual (two-step feasible GLS: where the constraint keeps a joint from
+   the least-squares fit, its residual, and so its noise estimate, is larger). The base parameters
+   are computed from the standard ones.
 
 The unconstrained estimate is kept beside the consistent one, so a report can show what the
 constraint cost on the data.
@@ -39,23 +43,22 @@ from identification.calibration.pseudo_inertia import (
     pseudo_inertia,
     pseudo_inertia_eigenvalues,
 )
+from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
 from identification.calibration.trajectory_data import (
-    DRIVE_TERMS,
+    FRICTION_TERMS,
     NormalEquations,
     drive_column_names,
     drive_columns,
-    prepare_recording,
+    prepare_recordings,
 )
-from identification.data.excitation_check import check_joint_motion
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predict_torque"]
+__all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predict_torque", "separate_inertia_joints"]
 
 logger = logging.getLogger(__name__)
 
 ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
-MOTION_FIX = "record a trajectory that moves {joints} over more of its range and speed ('psdm excite' designs one)"
 COLUMN_FIX = "record a trajectory that excites {joints} better ('psdm excite' designs one), or add recordings"
 # When the data ask for an inconsistent link, the optimum lies on the boundary of the chart, at
 # infinity in its log-diagonal: the objective then creeps down without its gradient vanishing.
@@ -72,7 +75,8 @@ class TrajectoryOptions:
     Parameters
     ----------
     friction : tuple of str
-        Drive terms per joint among ``("fc", "fv", "offset")``: Coulomb, viscous, a constant torque offset.
+        Drive terms per joint among ``("fc", "fs", "fv", "offset")``: Coulomb, static (the Stribeck shape,
+        with ``fc``), viscous, a constant torque offset.
     coulomb_velocity : float
         [rad/s] The Coulomb term is ``fc tanh(qd / coulomb_velocity)``: a sign smoothed over the
         velocities where real joints pass from sticking to sliding (a few hundredths of a rad/s).
@@ -92,6 +96,9 @@ class TrajectoryOptions:
         Low-pass cutoff [Hz]; None chooses ``min(10 Hz, rate / 10)`` per recording.
     kt : array or None
         Torque constants [N m/A] per joint for recordings of currents (default: the robot's drives).
+    stribeck_velocity : float
+        [rad/s] Where the Gauss-Newton search of each joint's Stribeck velocity starts when a grid
+        (``stribeck.STRIBECK_GRID``) does not find a better start; used only with ``"fs"``.
     """
 
     friction: tuple = ("fc", "fv")
@@ -102,12 +109,21 @@ class TrajectoryOptions:
     prior_weight: float = 1e-4
     cutoff_hz: float | None = None
     kt: tuple | None = None
+    stribeck_velocity: float = 0.1
 
     def __post_init__(self):
-        unknown = [t for t in self.friction if t not in DRIVE_TERMS[:3]]
+        unknown = [t for t in self.friction if t not in FRICTION_TERMS]
         if unknown or len(set(self.friction)) != len(self.friction):
             raise ParameterError(
-                f"TrajectoryOptions.friction must hold distinct terms of {DRIVE_TERMS[:3]}; got {self.friction!r}."
+                f"TrajectoryOptions.friction must hold distinct terms of {FRICTION_TERMS}; got {self.friction!r}."
+            )
+        if "fs" in self.friction and "fc" not in self.friction:
+            raise ParameterError(
+                f"TrajectoryOptions.friction must hold 'fc' with 'fs' (the Stribeck shape); got {self.friction!r}."
+            )
+        if not (np.isfinite(self.stribeck_velocity) and self.stribeck_velocity > 0):
+            raise ParameterError(
+                f"TrajectoryOptions.stribeck_velocity must be > 0 [rad/s]; got {self.stribeck_velocity!r}."
             )
         if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
             raise ParameterError(
@@ -134,11 +150,13 @@ class TrajectoryFit:
     theta_ols, drive_ols, theta_std, drive_std : arrays
         The weighted least-squares estimate and its standard deviations.
     sigma : array
-        Residual standard deviation [N m] per joint (the weights are ``1 / sigma^2``).
+        Residual standard deviation [N m] per joint of the least-squares fit (its weights are ``1 / sigma^2``).
     condition_number : float
         Of the weighted regressor with unit-norm columns.
     min_pseudo_inertia_eigenvalue : float
         Over the links of ``standard`` (positive when consistent).
+    stribeck_velocity, stribeck_velocity_std : tuple
+        [rad/s] Per joint, for the Stribeck shape (``"fs"`` in ``friction_terms``); empty otherwise.
     """
 
     standard: np.ndarray
@@ -162,6 +180,8 @@ class TrajectoryFit:
     n_samples: int
     solver_status: str
     seconds: float
+    stribeck_velocity: tuple = ()
+    stribeck_velocity_std: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -176,11 +196,14 @@ def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) 
     """Joint torques [N m] of the identified model (or of its least-squares estimate), (n_samples, n_dof)."""
     theta, drive = (fit.theta_ols, fit.drive_ols) if ols else (fit.theta, fit.drive)
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity)
+    stribeck = np.asarray(fit.stribeck_velocity, dtype=float) if fit.stribeck_velocity else None
+    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, stribeck)
     return model.inverse_dynamics(q, qd, qdd, theta) + columns @ drive
 
 
-def identify_trajectories(robot, model, recordings, options: TrajectoryOptions | None = None) -> TrajectoryFit:
+def identify_trajectories(
+    robot, model, recordings, options: TrajectoryOptions | None = None, extra=None
+) -> TrajectoryFit:
     """Identify base, standard and drive parameters from exciting recordings (module docstring).
 
     Parameters
@@ -192,6 +215,9 @@ def identify_trajectories(robot, model, recordings, options: TrajectoryOptions |
     recordings : sequence of Recording
         Raw recordings with ``tau``, or ``current`` and torque constants.
     options : TrajectoryOptions, optional
+    extra : findings.FindingColumns, optional
+        Extra linear columns fitted jointly (the torque-type findings of a diagnosis, ``recalibrate``); their
+        coefficients follow the drive parameters in ``TrajectoryFit.drive`` (labelled by ``extra.names``).
 
     Returns
     -------
@@ -212,33 +238,37 @@ def identify_trajectories(robot, model, recordings, options: TrajectoryOptions |
     kt = _torque_constants(robot, options, recordings)
     inertia_joints = _separate_inertia_joints(model, robot) if options.drive_inertia else ()
     names = drive_column_names(robot.n_dof, options.friction, inertia_joints)
-    equations = NormalEquations(robot.n_dof, model.n_base + len(names))
-    cutoffs, steps, prepared = [], [], []
-    for rec in recordings:
-        rec.check_robot(robot.n_dof, robot.name)
-        check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
-                           fix=MOTION_FIX)  # fmt: skip
-        ready, cutoff, step = prepare_recording(rec, kt, options.cutoff_hz)
-        cutoffs.append(cutoff)
-        steps.append(step)
-        prepared.append(ready)
-        equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity)
+    lower = _drive_lower_bounds(names)
+    if extra is not None:
+        names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
+    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    vs, columns = None, extra
+    if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
+        vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, extra)
+        columns = StribeckColumns(options.coulomb_velocity, vs, extra)
+    n_fit = model.n_base + len(names)
+    equations = NormalEquations(robot.n_dof, n_fit + (0 if vs is None else robot.n_dof))
+    for ready in prepared:
+        equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity, columns, vs)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
-    _check_columns(robot, model, equations, names, recordings)
+    _check_columns(robot, model, equations.subset(range(n_fit)), names, recordings)
     sigma, x_ols, inverse, condition = _weighted_least_squares(equations)
-    correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints) for rec in prepared]
+    correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
+                   for rec in prepared]  # fmt: skip
     covariance = _sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
+    x_ols, std, equations = x_ols[:n_fit], std[:n_fit], equations.subset(range(n_fit))
     if options.consistency:
-        standard, drive, status = _consistent_fit(robot, model, equations, sigma, names, options)
-        standard[:, ROTOR] = _drive_inertias(standard, drive, names)
+        standard, drive, status = _consistent_fit(robot, model, equations, sigma, names, options, lower)
+        standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         free = [i for i in range(robot.n_dof) if _link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)
     else:  # base parameters only: no standard parameters are identified, none are made up
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base :], "not solved", float("nan"), x_ols[: model.n_base]
-    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     return TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
         inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
@@ -248,6 +278,7 @@ def identify_trajectories(robot, model, recordings, options: TrajectoryOptions |
         consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
         n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
+        stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
     )  # fmt: skip
 
 
@@ -281,6 +312,11 @@ def _torque_constants(robot, options, recordings):
     return np.array([d.kt for d in robot.drives], dtype=float)
 
 
+def separate_inertia_joints(model, robot) -> list:
+    """Joints whose drive inertia the fit identifies as a column of its own (``Ia<j>``), 0-based."""
+    return _separate_inertia_joints(model, robot)
+
+
 def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
     """Joints whose drive inertia needs a column of its own: not in the base parameters, and not confounded.
 
@@ -310,6 +346,13 @@ def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
     return kept
 
 
+def _residual_sigma(equations, x) -> np.ndarray:
+    """Per joint, the residual standard deviation [N m] of the parameters ``x`` (never below 1e-9 x torque RMS)."""
+    dof = np.maximum(equations.count - equations.n_columns / equations.n_dof, 1.0)
+    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
+    return np.maximum(np.sqrt(np.maximum(equations.residual_sum(x), 0.0) / dof), 1e-9 * np.maximum(rms, 1e-12))
+
+
 def _solve_scaled(gram, moment):
     """Least squares from normal equations with unit-diagonal scaling; (x, inverse of gram, condition)."""
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
@@ -324,15 +367,13 @@ def _weighted_least_squares(equations: NormalEquations):
     """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and covariance."""
     rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
     first, _, _ = _solve_scaled(*equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
-    dof = np.maximum(equations.count - equations.n_columns / equations.n_dof, 1.0)
-    sigma = np.sqrt(np.maximum(equations.residual_sum(first), 0.0) / dof)
-    sigma = np.maximum(sigma, 1e-9 * np.maximum(rms, 1e-12))
+    sigma = _residual_sigma(equations, first)
     gram, moment, _ = equations.weighted(1.0 / sigma**2)
     x, inverse, condition = _solve_scaled(gram, moment)
     return sigma, x, inverse, condition
 
 
-def _correlation_time(model, recording, x, options, inertia_joints, max_lag: int = 50) -> np.ndarray:
+def _correlation_time(model, recording, x, options, inertia_joints, extra=None, max_lag: int = 50, *, stribeck=None):
     """Per joint, the integrated autocorrelation time of the residual (1 for white residuals).
 
     Filtered residuals are correlated over several samples; counting them as independent would make
@@ -345,7 +386,9 @@ def _correlation_time(model, recording, x, options, inertia_joints, max_lag: int
             - np.concatenate(
                 [model.regressor(recording.q[sl], recording.qd[sl], recording.qdd[sl]),
                  drive_columns(recording.qd[sl], recording.qdd[sl], options.friction, inertia_joints,
-                               options.coulomb_velocity)], axis=2,
+                               options.coulomb_velocity, stribeck),
+                 *([] if extra is None else [extra.columns(recording.q[sl], recording.qd[sl], recording.qdd[sl])])],
+                axis=2,
             ) @ x
             for sl in (slice(s, s + 4000) for s in range(0, recording.n_samples, 4000))
         ]
@@ -380,7 +423,7 @@ def _link_is_free(model, link: int) -> bool:
     return bool(np.any(block))
 
 
-def _consistent_fit(robot, model, equations, sigma, names, options):
+def _consistent_fit(robot, model, equations, sigma, names, options, drive_lower=None):
     """Ipopt over log-Cholesky links, drive inertias and friction (module docstring, step 3)."""
     n = robot.n_dof
     prior = _prior_standard(robot, model)
@@ -390,29 +433,33 @@ def _consistent_fit(robot, model, equations, sigma, names, options):
     drive = ca.SX.sym("drive", len(names))
     rows = []
     for i in range(n):
-        k = _index(links, i)
+        k = links.index(i) if i in links else None
         link = None if k is None else link_from_log_cholesky(phi[k * 10 : k * 10 + 10], margin=options.margin)
         rows.append(ca.vertcat(link if link is not None else ca.DM(prior[i, :10]), rotor[i]))
     standard = ca.vertcat(*rows)
     x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive)
-    gram, moment, energy = equations.weighted(1.0 / sigma**2)
     count = float(equations.count.sum())
-    residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
     scale = _prior_scale(prior)
     pull = options.prior_weight * ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
     variables = ca.vertcat(phi, rotor, drive)
     start = np.concatenate([*(_chart_start(prior[i, :10], options.margin) for i in links),
                             np.maximum(prior[:, ROTOR], 0.0), np.zeros(len(names))])  # fmt: skip
-    lower = np.concatenate([np.full(phi.numel(), -np.inf), np.zeros(n), _drive_lower_bounds(names)])
-    solver = ca.nlpsol("consistent_fit", "ipopt", {"x": variables, "f": residual + pull},
-                       IPOPT_OPTIONS)  # fmt: skip
-    solution = solver(x0=start, lbx=lower, ubx=np.full(lower.size, np.inf))
-    status = solver.stats()["return_status"]
-    if not solver.stats()["success"]:
-        raise SolverError(f"the consistent fit did not converge ({status}); try --no-consistency to see the "
-                          "unconstrained estimate, or record a better-exciting trajectory.", status=status)  # fmt: skip
-    x_opt = np.maximum(np.asarray(solution["x"]).reshape(-1), lower)  # Ipopt may end a hair outside a bound
-    values = np.asarray(ca.Function("standard", [variables], [standard])(x_opt)).reshape(n, -1)
+    drive_lower = _drive_lower_bounds(names) if drive_lower is None else drive_lower
+    lower = np.concatenate([np.full(phi.numel(), -np.inf), np.zeros(n), drive_lower])
+    evaluate = ca.Function("standard", [variables], [standard, x])
+    x_opt, w = start, 1.0 / sigma**2
+    for _ in range(2):  # then once more weighted by the consistent fit's own residuals (module docstring)
+        gram, moment, energy = equations.weighted(w)
+        residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
+        solver = ca.nlpsol("consistent_fit", "ipopt", {"x": variables, "f": residual + pull}, IPOPT_OPTIONS)
+        solution = solver(x0=x_opt, lbx=lower, ubx=np.full(lower.size, np.inf))
+        status = solver.stats()["return_status"]
+        if not solver.stats()["success"]:
+            fix = "try --no-consistency to see the unconstrained estimate, or record a better-exciting trajectory."
+            raise SolverError(f"the consistent fit did not converge ({status}); {fix}", status=status)
+        x_opt = np.maximum(np.asarray(solution["x"]).reshape(-1), lower)  # Ipopt may end a hair outside a bound
+        w = 1.0 / _residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
+    values = np.asarray(evaluate(x_opt)[0]).reshape(n, -1)
     return values, x_opt[-len(names) :] if names else np.zeros(0), status
 
 
@@ -420,10 +467,6 @@ def _chart_start(link, margin):
     """Chart coordinates of a prior link with the margin taken off (projected if inconsistent)."""
     shifted = link_from_pseudo_inertia(pseudo_inertia(link) - margin * np.eye(4))
     return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
-
-
-def _index(items, value):
-    return items.index(value) if value in items else None
 
 
 def _prior_scale(prior):
@@ -439,9 +482,9 @@ def _drive_lower_bounds(names):
     return np.array([-np.inf if name.startswith("offset") else 0.0 for name in names])
 
 
-def _drive_inertias(standard, drive, names):
-    """The drive inertia of every joint: from the standard parameters or from its own column."""
-    out = standard[:, ROTOR].copy()
+def _drive_inertias(model, standard, drive, names):
+    """The drive inertia of every joint: in the model's standard parameters, from its own column, else 0."""
+    out = np.where(np.any(model.parameter_map[:, ROTOR :: ROTOR + 1], axis=0), standard[:, ROTOR], 0.0)
     for name, value in zip(names, drive):
         if name.startswith("Ia"):
             out[int(name[2:]) - 1] = value

@@ -4,9 +4,11 @@ Recording(s) + RobotDescription -> ``diagnose`` -> DiagnosisReport (findings, va
 residual analysis, augmented model). Modules, in the order ``diagnose`` uses them: ``context`` (nominal
 signals per recording), ``nominal`` (friction and rigid-body choices), ``columns`` (the fit's columns
 stored per joint, used in chunks of rows), ``candidates/`` (the physics library, one module per family of
-effects, with plausibility bounds), ``selection`` (forward selection on held-out data), ``signal_fit``
+effects, with plausibility bounds), ``design`` (the weighted least squares), ``selection`` (forward selection
+on held-out data, spring shapes by BIC, a backward check), ``signal_fit``
 (exact fit of the kept delay, backlash and joint elasticity by variable projection), ``refine`` (Ipopt fit
-of the nonlinear parameters of the kept terms), ``residual_tests``, ``report``, ``augmented``; ``diagnose``
+of the nonlinear parameters of the kept terms), ``residual_tests``, ``joint_changes`` (why a joint fits worse),
+``confounding`` (what the nominal parameters absorb), ``report``, ``augmented``; ``diagnose``
 runs the steps. Progress is logged (loggers under
 ``identification.diagnosis``). The command is ``psdm diagnose`` (``psdm_casadi.cli.diagnose``).
 """

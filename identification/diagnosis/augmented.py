@@ -1,7 +1,9 @@
 """AugmentedModel: the nominal PSDM model plus the missing physics found by ``diagnose``, buildable as a CasADi
 Function.
 
-Terms that change base parameters (payload, rotor inertia) are folded into ``theta``; friction and the
+Terms that change base parameters (payload, rotor inertia) are folded into ``theta`` (a rotor inertia the
+base parameters have no place for, as on a URDF robot without drive inertias, is a torque ``Im qdd_j``
+instead, never dropped); friction and the
 additive terms (spring, offset, ripple, asymmetry, drift, load-dependent friction, coupling) become
 CasADi expressions; signal-level effects (delay, backlash, joint elasticity) and the gravity tilt are
 kept as reported parameters (``signal_corrections``) because they are not a torque of (q, qd, qdd, t).
@@ -18,6 +20,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from identification.diagnosis.candidates import joint_expression
 from identification.diagnosis.nominal import friction_casadi
 from psdm_casadi.fileio import atomic_write
 
@@ -45,6 +48,13 @@ class AugmentedModel:
                 theta = theta + change
         return theta
 
+    def outside_theta(self, term, coefficients) -> bool:
+        """Whether a rotor-inertia term has no place in the base parameters (its theta change is zero)."""
+        if term.key != "rotor_inertia":
+            return False
+        change = term.theta_change(coefficients, np.asarray(self.model.parameter_map))
+        return change is not None and not np.any(change) and float(coefficients[0]) != 0.0
+
     @property
     def signal_corrections(self) -> dict:
         """Found terms that are not part of the torque function: label -> physical parameters."""
@@ -54,6 +64,7 @@ class AugmentedModel:
             if (
                 term.theta_change(c, np.asarray(self.model.parameter_map)) is None
                 and term.casadi_expression(q, q, q, ca.SX.sym("t"), q, c) is None
+                and not self.outside_theta(term, c)
             ):
                 out[term.label] = term.physical_parameters(c)
         return out
@@ -73,6 +84,8 @@ class AugmentedModel:
         nominal = tau
         for term, c in zip(self.terms, self.coefficients):
             extra = term.casadi_expression(q, qd, qdd, t, nominal, c)
+            if extra is None and self.outside_theta(term, c):
+                extra = joint_expression(n, term.joint, float(c[0]) * qdd[term.joint])
             if extra is not None:
                 tau = tau + extra
         return ca.Function(

@@ -10,17 +10,19 @@ nominal model's columns), ``select_terms`` (``selection.forward_select``), ``ref
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from identification.data.excitation_check import ExcitationThresholds, check_joint_motion
+from identification.data.excitation_check import ExcitationThresholds
 from identification.data.preprocessing import PreprocessOptions, preprocess
-from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates import CandidateLibrary, default_library
-from identification.diagnosis.columns import BlockColumns, row_chunks
-from identification.diagnosis.context import DiagnosisContext, build_context, check_preprocessed
+from identification.diagnosis.columns import BlockColumns
+from identification.diagnosis.confounding import confounding_of
+from identification.diagnosis.context import DiagnosisContext, build_context
+from identification.diagnosis.joint_changes import explain_joint_changes
+from identification.diagnosis.motion_checks import check_motion, check_nominal_columns
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
     RIGID_BODY_CHOICES,
@@ -31,16 +33,18 @@ from identification.diagnosis.nominal import (
 from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
+from identification.diagnosis.rigid_body_choice import (
+    inertial_note,
+    moved_parameters,
+    prior_wins,
+    recalibration_parts,
+)
 from identification.diagnosis.selection import SelectionResult, forward_select
+from identification.diagnosis.sparse_terms import look_beyond_library
 from identification.metrics import r2, rms, rmse
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
-
-RECORD_FIX = (
-    "Record training and validation runs that move {joints} over a large part of the range, with speed and "
-    "acceleration (psdm excite, or psdm simulate --experiment sine)."
-)
 
 
 @dataclass(frozen=True)
@@ -51,8 +55,11 @@ class DiagnosisOptions:
     ----------
     friction : {"lugre", "coulomb_viscous"}
         Nominal friction (see ``nominal``).
-    rigid_body : {"prior", "identified"}
-        Keep the robot file's inertia (default) or identify the base parameters too.
+    rigid_body : {"auto", "prior", "identified"}
+        Keep the robot file's inertia, identify the base parameters too, or (default) decide from the data: a
+        payload- or inertia-type finding of the prior model must beat a full rigid-body recalibration on the
+        validation recording, otherwise the rigid body is identified and the report says the robot file's
+        inertial parameters are off (``rigid_body_choice``).
     cutoff_hz : float or None
         Zero-phase low-pass cut-off of the preprocessing [Hz].
     rate_hz : float
@@ -86,10 +93,15 @@ class DiagnosisOptions:
         filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with fewer
         than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
         ``rate_hz`` grid (and the results they always had).
+    sparse : bool
+        Look beyond the library: propose a sparse symbolic term (``sparse_terms``) for a joint whose residual
+        stays structured after the library's terms, reported as an unnamed effect with its formula.
+    sparse_min_gain : float
+        Validation RMSE reduction (fraction) of its joint a sparse term must show to be kept.
     """
 
     friction: str = "lugre"
-    rigid_body: str = "prior"
+    rigid_body: str = "auto"
     cutoff_hz: float | None = 15.0
     rate_hz: float = 200.0
     min_improvement: float = 0.2
@@ -101,8 +113,14 @@ class DiagnosisOptions:
     refine: bool = True
     excitation: ExcitationThresholds | None = None
     max_samples: int = 250_000
+    sparse: bool = True
+    sparse_min_gain: float = 0.3
 
     def __post_init__(self):
+        if not 0.0 < self.sparse_min_gain < 1.0:
+            raise ParameterError(
+                f"DiagnosisOptions.sparse_min_gain must be in (0, 1); got {self.sparse_min_gain!r}. Use 0.3."
+            )
         if self.friction not in FRICTION_MODELS:
             raise ParameterError(f"DiagnosisOptions.friction must be one of {FRICTION_MODELS}; got {self.friction!r}.")
         if self.rigid_body not in RIGID_BODY_CHOICES:
@@ -220,62 +238,38 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     problem = prepare_problem(robot, model, train, validation, options)
     selection = select_terms(robot, problem, options)
     final = refine_terms(problem, selection, options)
-    return build_report(robot, model, problem, selection, final, options)
+    notes = ()
+    if options.rigid_body == "auto":
+        problem, selection, final, options, notes = settle_rigid_body(robot, model, problem, selection, final, options)
+    final, unnamed = look_beyond_library(problem, final, options)
+    report = build_report(robot, model, problem, selection, final, options, unnamed)
+    return replace(report, rigid_body_notes=notes) if notes else report
 
 
-def check_motion(robot, train, validation, options: DiagnosisOptions) -> None:
-    """Every joint moves in the training and the validation recording (``DiagnosisOptions.excitation``).
-
-    Recordings given preprocessed (``options.preprocess=False``) must hold qd and qdd first.
-    """
-    for role, rec in (("training", train), ("validation", validation)):
-        if not options.preprocess:
-            check_preprocessed(rec)
-        check_joint_motion(
-            rec,
-            range(robot.n_dof),
-            robot=robot,
-            purpose=f"the diagnosis ({role} recording)",
-            fix=RECORD_FIX,
-            thresholds=options.excitation,
-        )
-
-
-def check_nominal_columns(robot, model, problem: DiagnosisProblem, options: DiagnosisOptions) -> None:
-    """The nominal model's free columns on the training recording, each joint weighted by its torque RMS as the
-    selection weights it, must have full rank and a bounded condition number (``check_regressor``)."""
+def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final: FinalFit, options) -> tuple:
+    """``rigid_body="auto"`` (``rigid_body_choice``): ``(problem, selection, final, options, notes)`` of the prior
+    fit, or of the identified rigid body when that diagnosis predicts the validation recording better."""
+    prior = replace(options, rigid_body="prior")
+    if not selection.steps:
+        return problem, selection, final, prior, ()
+    logger.info("diagnose: findings with the robot file's inertia; diagnosing with a recalibrated rigid body too ...")
+    identified = replace(options, rigid_body="identified")
+    recal = DiagnosisProblem(**recalibration_parts(problem, model))
+    selection_i = select_terms(robot, recal, identified)
+    final_i = refine_terms(recal, selection_i, identified)
+    weights = 1.0 / np.maximum(rms(problem.ctx_v.tau), 1e-9)
+    rmse_prior, rmse_recal = rmse(problem.y_v, final.prediction_v), rmse(recal.y_v, final_i.prediction_v)
+    rmse_nominal = rmse(problem.y_v, selection.nominal_validation)
+    found, found_i = (tuple(f.effect for f in _findings(x, y)) for x, y in ((selection, final), (selection_i, final_i)))
+    if prior_wins(rmse_nominal, rmse_prior, rmse_recal, weights, found, found_i):
+        return problem, selection, final, prior, ()
+    effects = sorted(set(found) - set(found_i))
+    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
+    n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
+    moved = moved_parameters(model, robot, final_i.friction_coefficients[n_friction:])
     n = robot.n_dof
-    names = friction_feature_names(options.friction, n)
-    per = len(names) // n
-    joints = [(k // per,) for k in range(len(names))]
-    if options.friction == "lugre" and robot.drives is not None:  # the bristle dynamics of the LuGre prior
-        names += [f"lugre_dynamics_{j + 1}" for j in range(n)]
-        joints += [(j,) for j in range(n)]
-    if options.rigid_body == "identified":
-        names += list(model.base_names)
-        joints += list(base_parameter_joints(model))
-    torque_rms = rms(problem.ctx_t.tau)
-    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
-    thresholds = options.excitation if options.excitation is not None else ExcitationThresholds()
-    if len(row_chunks(problem.base_t.n_samples)) == 1:
-        matrix, weights = (
-            problem.base_t.dense().reshape(-1, problem.base_t.n_columns),
-            np.tile(1.0 / sigma**2, problem.ctx_t.n_samples),
-        )
-    else:  # the same singular values and column norms, from a chunked QR of the weighted rows
-        matrix, weights = problem.base_t.weighted_r(sigma), None
-    check_regressor(
-        matrix,
-        weights,
-        names=names,
-        column_joints=joints,
-        owner="diagnose",
-        source=f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction"
-        + (" and base parameters)" if options.rigid_body == "identified" else ")"),
-        fix=RECORD_FIX,
-        max_condition=thresholds.max_condition,
-        robot=robot,
-    )
+    note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
+    return recal, selection_i, final_i, identified, (note,)
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
@@ -289,7 +283,7 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
     ctx_v = _context(robot, model, validation, options, kt_arr)
     base_t = friction_blocks(robot, options.friction, ctx_t)
     base_v = friction_blocks(robot, options.friction, ctx_v)
-    if options.rigid_body == "prior":
+    if options.rigid_body != "identified":
         y_t, y_v = ctx_t.tau - ctx_t.tau_rigid, ctx_v.tau - ctx_v.tau_rigid
     else:
         base_t = base_t.concatenate(BlockColumns.from_dense(ctx_t.regressor))
@@ -385,7 +379,13 @@ def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options:
 
 
 def build_report(
-    robot, model, problem: DiagnosisProblem, selection: SelectionResult, final: FinalFit, options: DiagnosisOptions
+    robot,
+    model,
+    problem: DiagnosisProblem,
+    selection: SelectionResult,
+    final: FinalFit,
+    options: DiagnosisOptions,
+    unnamed: tuple = (),
 ) -> DiagnosisReport:
     """The findings, the augmented model and the per-joint errors of the nominal and the final model."""
     ctx_t, ctx_v = problem.ctx_t, problem.ctx_v
@@ -396,14 +396,16 @@ def build_report(
     model_nominal_t = fixed_t + selection.nominal_train
     model_final_t = fixed_t + final.prediction_t
     residual_v = ctx_v.tau - model_nominal_v
+    findings = _findings(selection, final) + tuple(unnamed)
+    rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
     return DiagnosisReport(
         robot_name=robot.name,
         n_dof=robot.n_dof,
         friction=options.friction,
         rigid_body=options.rigid_body,
-        findings=_findings(selection, final),
-        rmse_before=tuple(rmse(ctx_v.tau, model_nominal_v).tolist()),
-        rmse_after=tuple(rmse(ctx_v.tau, model_final_v).tolist()),
+        findings=findings,
+        rmse_before=tuple(rmse_before.tolist()),
+        rmse_after=tuple(rmse_after.tolist()),
         r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()),
         r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
         rmse_train_before=tuple(rmse(ctx_t.tau, model_nominal_t).tolist()),
@@ -417,6 +419,9 @@ def build_report(
         validation_tau=ctx_v.tau,
         validation_nominal=model_nominal_v,
         validation_final=model_final_v,
+        joint_notes=explain_joint_changes(rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear)),
+        confounding=confounding_of(robot, model, problem, final, len(selection.steps), options),
+        dropped=selection.dropped,
     )
 
 
@@ -441,6 +446,7 @@ def _findings(selection: SelectionResult, final: FinalFit) -> tuple:
                 rmse_after=tuple(float(x) for x in step.rmse_after),
                 delta_bic=step.delta_bic,
                 validation_gain=step.validation_gain,
+                shape_note=step.shape_note,
             )
         )
     return tuple(findings)

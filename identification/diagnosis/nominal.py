@@ -1,9 +1,11 @@
 """The nominal model a diagnosis starts from: the robot file's rigid body (or a re-identified one) plus per-joint
 friction.
 
-Two rigid-body choices (``DiagnosisOptions.rigid_body``):
+Rigid-body choices (``DiagnosisOptions.rigid_body``): ``"auto"`` (default) starts from the prior and switches to the
+identified rigid body when a full recalibration beats a payload- or inertia-type finding (``rigid_body_choice``);
+the two underlying ones:
 
-- ``"prior"`` (default): the inertial parameters of the robot file are kept; only friction is fitted.
+- ``"prior"``: the inertial parameters of the robot file are kept; only friction is fitted.
   Effects that change base parameters (payload, rotor inertia, a tilted base) stay visible as
   a mismatch against the robot file, which is what a diagnosis is for.
 - ``"identified"``: the PSDM base parameters are fitted together with friction by least squares.
@@ -29,7 +31,7 @@ from identification.diagnosis.context import lugre_parameters, simulate_friction
 from psdm_casadi.errors import ParameterError
 
 FRICTION_MODELS = ("lugre", "coulomb_viscous")
-RIGID_BODY_CHOICES = ("prior", "identified")
+RIGID_BODY_CHOICES = ("auto", "prior", "identified")
 
 
 def friction_shapes(robot) -> tuple[np.ndarray, np.ndarray]:

@@ -2,7 +2,10 @@
 
 The report holds the findings (most important first), per-joint validation RMSE and R^2 before and
 after, the residual analysis of the nominal model and the augmented model; it renders as JSON
-(``to_json``), Markdown (``to_markdown``) and plots (``save_plots``).
+(``to_json``), Markdown (``to_markdown``) and plots (``save_plots``). Every gain it prints is computed by
+``rmse_change`` from the RMSE pair printed beside it; a joint whose RMSE rises gets a sentence saying why
+(``joint_notes``), and effects the nominal parameters absorb are listed with the parameters and the fraction
+(``confounding``). Terms with a shape in the joint angle (a spring's polynomial) are plotted against the angle.
 """
 
 from __future__ import annotations
@@ -24,7 +27,16 @@ REPORT_FILES = (
     "fit.png",
     "augmented_model.json",
     "augmented_inverse_dynamics.casadi",
+    "torque_vs_angle.png",
+    "unnamed_effects.png",
 )
+
+
+def rmse_change(before: float, after: float) -> tuple:
+    """``(gain, text)`` of a validation RMSE pair [N m]: gain ``1 - after / before`` and the text
+    ``"before -> after N m (gain g %)"`` printed with it (one function, so the gain always matches the pair)."""
+    gain = 1.0 - float(after) / max(float(before), 1e-300)
+    return gain, f"{float(before):.3g} -> {float(after):.3g} N m (gain {gain:.1%})"
 
 
 @dataclass(frozen=True)
@@ -43,6 +55,13 @@ class Finding:
     rmse_after: tuple
     delta_bic: float
     validation_gain: float
+    notes: tuple = ()
+    shape_note: str = ""
+
+    def joint_gain(self, joint: int | None = None) -> float:
+        """Validation gain on ``joint`` (default the first named one), from the pair the sentence prints."""
+        j = self.joints[0] if joint is None else joint
+        return rmse_change(self.rmse_before[j], self.rmse_after[j])[0]
 
     def to_dict(self) -> dict:
         return {
@@ -54,7 +73,10 @@ class Finding:
             "rmse_after": list(self.rmse_after),
             "delta_bic": self.delta_bic,
             "validation_gain": self.validation_gain,
+            "joint_gain": self.joint_gain(),
             "explanation": self.explanation,
+            "notes": list(self.notes),
+            "shape_note": self.shape_note,
         }
 
     def sentence(self) -> str:
@@ -64,7 +86,7 @@ class Finding:
         return (
             f"joint{'s' if len(self.joints) > 1 else ''} {joints}: {self.signature}; best explained by "
             f"`{self.effect}` ({self.explanation}), {params}; validation RMSE on joint {j + 1} "
-            f"{self.rmse_before[j]:.3g} -> {self.rmse_after[j]:.3g} N m"
+            f"{rmse_change(self.rmse_before[j], self.rmse_after[j])[1]}"
         )
 
 
@@ -92,6 +114,10 @@ class DiagnosisReport:
     validation_tau: np.ndarray
     validation_nominal: np.ndarray
     validation_final: np.ndarray
+    joint_notes: tuple = ()
+    confounding: tuple = ()
+    dropped: tuple = ()
+    rigid_body_notes: tuple = ()  # ``rigid_body="auto"``: why the rigid body was identified (``rigid_body_choice``)
 
     @property
     def effects(self) -> tuple:
@@ -120,6 +146,10 @@ class DiagnosisReport:
             "rmse_train_after": list(self.rmse_train_after),
             "candidates_tried": self.candidates_tried,
             "residual_analysis": [r.to_dict() for r in self.residual_findings],
+            "joint_notes": list(self.joint_notes),
+            "confounding": [c.to_dict() for c in self.confounding],
+            "dropped": list(self.dropped),
+            "rigid_body_notes": list(self.rigid_body_notes),
         }
 
     def to_json(self) -> str:
@@ -141,7 +171,9 @@ class DiagnosisReport:
                 f"**{NO_FINDING}**: no candidate term lowered a joint's validation RMSE enough to earn its parameters."
             )
         for k, f in enumerate(self.findings, 1):
-            lines.append(f"{k}. {f.sentence()} (validation gain {f.validation_gain:.1%}, dBIC {f.delta_bic:.0f}).")
+            lines.append(f"{k}. {f.sentence()} (dBIC {f.delta_bic:.0f}).")
+            lines += [f"   - {note}" for note in f.notes + ((f.shape_note,) if f.shape_note else ())]
+        lines += self._notes_markdown()
         lines += [
             "",
             "## Validation per joint",
@@ -163,6 +195,34 @@ class DiagnosisReport:
             for name, path in plots.items():
                 lines.append(f"![{name}]({Path(path).name})")
         return "\n".join(lines) + "\n"
+
+    def _notes_markdown(self) -> list:
+        """The sections on joints whose RMSE rose, terms the backward check dropped, and confounding."""
+        lines = (
+            ["", "## Rigid body", ""] + [f"- {text}" for text in self.rigid_body_notes] if self.rigid_body_notes else []
+        )
+        if self.joint_notes or self.dropped:
+            lines += ["", "## Why some joints fit worse", ""] if self.joint_notes else ["", "## Notes", ""]
+            lines += [f"- {text}" for text in self.joint_notes + self.dropped]
+        if self.confounding:
+            lines += [
+                "",
+                "## Confounding: effects the nominal parameters absorb",
+                "",
+                "Share of each effect's torque (training recording, joint-weighted) that a change of the nominal "
+                "model's own parameters reproduces, and the parameters that take most of it. Such an effect is "
+                "absorbed by those parameters on these recordings rather than reported as missing physics:",
+                "",
+            ]
+            lines += [f"- {c.sentence()}." for c in self.confounding if c.kept]
+            by_effect = {}
+            for c in self.confounding:
+                if not c.kept:
+                    by_effect.setdefault(c.effect, []).append(c)
+            for effect, items in by_effect.items():
+                parts = [f"{c.label} {c.fraction:.0%} ({c.parameters_text()})" for c in items]
+                lines.append(f"- `{effect}`: " + "; ".join(parts) + ".")
+        return lines
 
     def save_plots(self, directory, overwrite: bool = False) -> dict:
         """Residual against time, position and velocity, and measured vs model torque before/after; PNG files."""
@@ -206,8 +266,47 @@ class DiagnosisReport:
         axes[-1, 0].set_xlabel("t [s]")
         fig.tight_layout()
         paths["fit"] = self._save(fig, directory / "fit.png", overwrite)
+        shaped = self._shaped_terms()
+        if shaped:
+            paths["torque_vs_angle"] = self._plot_shapes(plt, shaped, directory / "torque_vs_angle.png", overwrite)
+        unnamed = [f for f in self.findings if f.effect == "unnamed_effect"]
+        if unnamed:  # the sparse terms beyond the library (``sparse_terms``)
+            from identification.diagnosis.unnamed_plot import plot_unnamed_effects
+
+            figure = plot_unnamed_effects(plt, self, unnamed)
+            paths["unnamed_effects"] = self._save(figure, directory / "unnamed_effects.png", overwrite)
         plt.close("all")
         return paths
+
+    def _shaped_terms(self) -> list:
+        """``(finding, term, coefficients)`` of the findings whose term is a torque of its joint's angle."""
+        augmented = getattr(self.augmented, "terms", ())
+        by_label = {t.label: (t, c) for t, c in zip(augmented, getattr(self.augmented, "coefficients", ()))}
+        out = []
+        for f in self.findings:
+            term, c = by_label.get(f.label, (None, None))
+            if term is not None and hasattr(term, "torque_of_angle"):
+                out.append((f, term, c))
+        return out
+
+    def _plot_shapes(self, plt, shaped, path: Path, overwrite: bool) -> Path:
+        """The identified torque against the joint angle over the recorded range, over the nominal model's
+        validation residual of that joint."""
+        fig, axes = plt.subplots(1, len(shaped), figsize=(5.0 * len(shaped), 3.6), squeeze=False)
+        for ax, (finding, term, c) in zip(axes[0], shaped):
+            j = term.joint
+            q = self.validation_q[:, j]
+            lo, hi = term.q_range if getattr(term, "q_range", None) else (float(np.min(q)), float(np.max(q)))
+            grid = np.linspace(min(lo, float(np.min(q))), max(hi, float(np.max(q))), 200)
+            residual = self.validation_tau[:, j] - self.validation_nominal[:, j]
+            ax.plot(q, residual - np.mean(residual), ".", ms=1, color="0.6", label="nominal residual (centred)")
+            shape = term.torque_of_angle(grid, c)
+            ax.plot(grid, shape - np.mean(term.torque_of_angle(q, c)), lw=2, label=finding.label)
+            ax.set_xlabel(f"q{j + 1} [rad]")
+            ax.set_ylabel(f"tau{j + 1} [N m]")
+            ax.legend(fontsize=7, markerscale=6)
+        fig.tight_layout()
+        return self._save(fig, path, overwrite)
 
     @staticmethod
     def _save(fig, path: Path, overwrite: bool) -> Path:

@@ -12,9 +12,20 @@ that lowers the weighted validation error most, if it earns its parameters:
   effects that are small against the torque of loaded joints, such as a slightly tilted base, still do);
 - the fitted parameters are physically plausible (``CandidateTerm.implausibility``: a positive inertia,
   a friction coefficient below 0.5, a delay between 0 and 0.1 s, ...);
+- the validation RMSE of every joint the term acts on and names drops, and for a per-joint term the 20 % drop
+  above is on its own joint (a term on joint 3 that helps joint 2 through a shared parameter while joint 3 gets
+  worse is not kept);
 - the weighted validation error of all joints drops;
 - the Bayesian information criterion on the training data drops, counted with the effective
   number of independent samples of a low-pass filtered signal (2 x cut-off x duration per joint).
+
+A term with shape variants (``CandidateTerm.shape_variants``: a spring as a polynomial of order 1 to 3 in the
+joint angle) is screened in the variant with the lowest BIC on the training data, unless that variant's weighted
+validation error is above the simplest one's (then the simplest is screened).
+
+After the forward pass a backward check refits the kept terms without each one in turn: a term that no longer
+lowers the validation RMSE of every joint it names (a later term took its part) is dropped and the check repeats
+(``SelectionResult.dropped`` says which and why).
 
 Ties (gains within 2 %) go to the candidate with fewer parameters, then to the earlier term of the
 library. Selection stops when no candidate qualifies or ``max_effects`` are kept. Each round's best
@@ -28,13 +39,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.diagnosis.columns import BlockColumns, as_blocks, row_chunks
-from identification.metrics import rms, rmse
+from identification.diagnosis.columns import BlockColumns, as_blocks
+from identification.diagnosis.design import WeightedDesign, joint_weights
+from identification.metrics import rms
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
 
 ROBOT_FLOOR = 0.0004  # least RMSE drop on any joint as a fraction of the robot's largest joint torque RMS
+PRUNE_TOLERANCE = 1e-6  # a kept term must lower its joints' validation RMSE by more than this fraction (``_prune``)
 
 
 @dataclass(frozen=True)
@@ -49,6 +62,7 @@ class SelectionStep:
     rmse_train_after: np.ndarray
     delta_bic: float
     validation_gain: float
+    shape_note: str = ""
 
 
 @dataclass(frozen=True)
@@ -67,6 +81,9 @@ class SelectionResult:
         Final model torque.
     nominal_validation, nominal_train : arrays (n_samples, n_dof)
         Torque of the nominal model alone.
+    candidates_tried : int
+    dropped : tuple of str
+        Sentences naming the terms the backward check removed, and why.
     """
 
     steps: tuple
@@ -78,79 +95,7 @@ class SelectionResult:
     prediction_train: np.ndarray
     prediction_validation: np.ndarray
     candidates_tried: int
-
-
-def _solve(gram, rhs):
-    d = np.sqrt(np.maximum(np.diag(gram), 1e-300))
-    scaled = gram / np.outer(d, d) + 1e-10 * np.eye(gram.shape[0])
-    try:
-        beta = np.linalg.solve(scaled, rhs / d)
-    except np.linalg.LinAlgError:
-        beta = np.linalg.lstsq(scaled, rhs / d, rcond=None)[0]
-    return beta / d
-
-
-class _Design:
-    """Weighted stacked least squares with fixed base columns; adds candidate columns through the normal equations.
-
-    The base columns are ``BlockColumns``; their normal equations, and a candidate's cross products with them,
-    are summed over chunks of rows (``columns.row_chunks``), so a long recording never has its dense base held.
-    Candidate columns are usually non-zero on one joint only, so the cross products are summed over the
-    joints where a candidate is non-zero.
-    """
-
-    def __init__(self, base_train, base_val, y_train, y_val, sigma):
-        self.sigma = sigma
-        self.y_train, self.y_val = y_train, y_val
-        self.ytw = y_train / sigma
-        self.yy = float(np.sum(self.ytw**2))
-        self.set_base(base_train, base_val)
-
-    def set_base(self, base_train: BlockColumns, base_val: BlockColumns):
-        self.base_train, self.base_val = base_train, base_val
-        self.G, self.b = 0, 0
-        for rows in row_chunks(base_train.n_samples):
-            xs = [base_train.joint(j, rows, self.sigma[j]) for j in range(base_train.n_dof)]
-            self.G = self.G + sum(x.T @ x for x in xs)
-            self.b = self.b + sum(x.T @ self.ytw[rows, j] for j, x in enumerate(xs))
-
-    def _cross(self, ct):
-        """Cross products of the weighted candidate columns ``ct`` (n_samples, n_dof, k) with the base, with
-        themselves and with the weighted torque."""
-        p, k = self.G.shape[0], ct.shape[2]
-        joints = np.flatnonzero(np.any(ct != 0, axis=(0, 2)))
-        cross, cc, cy = np.zeros((p, k)), np.zeros((k, k)), np.zeros(k)
-        for rows in row_chunks(ct.shape[0]):
-            for j in joints:
-                c = ct[rows, j, :]
-                cross += self.base_train.joint(j, rows, self.sigma[j]).T @ c
-                cc += c.T @ c
-                cy += c.T @ self.ytw[rows, j]
-        return cross, cc, cy
-
-    def fit(self, cand_train=None, cand_val=None, full=False):
-        """Coefficients, weighted train SSE, validation RMSE per joint (and, with ``full``, train RMSE and
-        predictions)."""
-        p = self.G.shape[0]
-        if cand_train is None:
-            gram, rhs = self.G, self.b
-        else:
-            cross, cc, cy = self._cross(cand_train / self.sigma[None, :, None])
-            gram = np.block([[self.G, cross], [cross.T, cc]])
-            rhs = np.concatenate([self.b, cy])
-        beta = _solve(gram, rhs)
-        sse = max(self.yy - 2.0 * beta @ rhs + beta @ gram @ beta, 1e-300)
-        pred_v = self.base_val.predict(beta[:p])
-        if cand_train is not None:
-            pred_v = pred_v + cand_val @ beta[p:]
-        rmse_v = rmse(self.y_val, pred_v)
-        if not full:
-            return beta, sse, rmse_v
-        pred_t = self.base_train.predict(beta[:p])
-        if cand_train is not None:
-            pred_t = pred_t + cand_train @ beta[p:]
-        rmse_t = rmse(self.y_train, pred_t)
-        return beta, sse, rmse_t, rmse_v, pred_t, pred_v
+    dropped: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -164,30 +109,74 @@ class _Limits:
     n_eff_total: float
 
 
+def acting_joints(term, ct) -> tuple:
+    """The joints a per-joint term names and acts on (its columns are non-zero there); empty for robot-wide terms
+    (they name the joints they improve, ``_named_joints``)."""
+    return tuple(int(j) for j in term.joints if np.any(ct[:, j, :] != 0))
+
+
+def _shape_fits(design, term, train_ctx, val_ctx, sse, limits) -> list:
+    """Fit each shape variant of ``term`` with the kept terms: ``(variant, ct, cv, k, reason, rv1, sse1, dBIC)``."""
+    p = design.G.shape[0]
+    out = []
+    for variant in term.shape_variants(train_ctx):
+        ct, cv = variant.columns(train_ctx), variant.columns(val_ctx)
+        beta, sse1, rv1 = design.fit(ct, cv)
+        k = ct.shape[2]
+        reason = variant.implausibility(beta[p:], train_ctx)
+        delta_bic = limits.n_eff_total * np.log(sse1 / sse) + k * np.log(limits.n_eff_total)
+        out.append((variant, ct, cv, k, reason, rv1, sse1, float(delta_bic)))
+    return out
+
+
+def _pick_shape(fits, sigma) -> tuple:
+    """The variant screened: the lowest training BIC among the plausible ones, unless its weighted validation error
+    is above the simplest plausible variant's; ``(fit or None, note)``."""
+    plausible = [f for f in fits if f[4] is None]
+    if not plausible:
+        return None, fits[0][4]
+    if len(fits) == 1:
+        return plausible[0], ""
+    best = min(plausible, key=lambda f: f[7])
+    simplest = plausible[0]
+
+    def wval(f):
+        return float(np.sum(f[5] ** 2 / sigma**2))
+
+    note = "; ".join(f"{f[0].label}: dBIC {f[7]:.0f}, weighted validation error {wval(f):.4g}" for f in plausible)
+    if best is not simplest and wval(best) > wval(simplest):
+        return simplest, f"{simplest[0].label} kept: the lowest-BIC shape did not carry over to validation ({note})"
+    return best, f"{best[0].label} chosen by BIC on the training data, checked on validation ({note})"
+
+
 def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
-    """Fit each remaining candidate with the kept terms; the qualifying ones as
-    ``(gain, k, index, term, rmse_v, dBIC)``."""
+    """Fit each remaining candidate (in its chosen shape) with the kept terms; the qualifying ones as
+    ``(gain, k, index, term, rmse_v, dBIC, shape_note)``."""
     qualified, scored, rejected = [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
     for index, term in enumerate(remaining):
         logger.debug("diagnose:   screening %s", term.label, extra={"progress": (index + 1, len(remaining))})
-        ct, cv = term.columns(train_ctx), term.columns(val_ctx)
-        beta, sse1, rv1 = design.fit(ct, cv)
-        k = ct.shape[2]
-        reason = term.implausibility(beta[design.G.shape[0] :], train_ctx)
-        if reason is not None:
-            rejected.append((term.label, reason))
+        chosen, note = _pick_shape(_shape_fits(design, term, train_ctx, val_ctx, sse, limits), limits.sigma)
+        if chosen is None:
+            rejected.append((term.label, note))
             continue
+        variant, ct, _, k, _, rv1, _, delta_bic = chosen
         rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
         absolute = (rmse_v - rv1) >= limits.floor
         wval1 = float(np.sum(rv1**2 / limits.sigma**2))
-        delta_bic = limits.n_eff_total * np.log(sse1 / sse) + k * np.log(limits.n_eff_total)
         gain = (wval0 - wval1) / wval0
         scored.append(
-            (gain, term.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / limits.torque_rms)), float(delta_bic))
+            (gain, variant.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / limits.torque_rms)), delta_bic)
         )
-        if np.any((rel >= limits.min_improvement) & absolute) and wval1 < wval0 and delta_bic < 0:
-            qualified.append((gain, k, index, term, rv1, delta_bic))
+        own = acting_joints(variant, ct)
+        if own and not np.all(rv1[list(own)] < rmse_v[list(own)]):
+            rejected.append((variant.label, f"raises the validation RMSE of its joint {own[0] + 1}"))
+            continue
+        improving = (rel >= limits.min_improvement) & absolute
+        if own:  # a per-joint term earns its place on its own joint, not through a shared parameter elsewhere
+            improving = improving[list(own)]
+        if np.any(improving) and wval1 < wval0 and delta_bic < 0:
+            qualified.append((gain, k, index, variant, rv1, delta_bic, note))
     for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
         logger.info(
             f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, "
@@ -215,6 +204,43 @@ def _named_joints(term, rmse_before, rmse_after, joint_threshold) -> tuple:
     return tuple(int(j) for j in order if rel[j] >= joint_threshold) or (int(order[0]),)
 
 
+def _design_with(nominal, columns, y_train, y_val, sigma) -> WeightedDesign:
+    """A design whose base is the nominal columns followed by the kept terms' ``columns`` ((ct, cv) pairs)."""
+    base_t, base_v = nominal
+    for ct, cv in columns:
+        base_t = base_t.concatenate(BlockColumns.from_dense(ct))
+        base_v = base_v.concatenate(BlockColumns.from_dense(cv))
+    return WeightedDesign(base_t, base_v, y_train, y_val, sigma)
+
+
+def _prune(nominal, kept, y_train, y_val, sigma) -> tuple:
+    """Backward check of the kept terms ``[(step, ct, cv), ...]``: drop, one at a time, a term whose removal does
+    not raise the validation RMSE of every joint it names; ``(kept, sentences on the dropped)``."""
+    dropped = []
+    while len(kept) > 1:
+        _, _, rv_full = _design_with(nominal, [(ct, cv) for _, ct, cv in kept], y_train, y_val, sigma).fit()
+        worst = None
+        for i, (step, ct, _) in enumerate(kept):
+            others = [(c, v) for k, (_, c, v) in enumerate(kept) if k != i]
+            _, _, rv_without = _design_with(nominal, others, y_train, y_val, sigma).fit()
+            joints = list(acting_joints(step.term, ct) or step.joints)
+            ratio = float(np.max(rv_full[joints] / np.maximum(rv_without[joints], 1e-300)))
+            if ratio >= 1.0 - PRUNE_TOLERANCE and (worst is None or ratio > worst[1]):
+                worst = (i, ratio, joints)
+        if worst is None:
+            break
+        i, ratio, joints = worst
+        label = kept[i][0].term.label
+        sentence = (
+            f"{label} dropped: with the other kept terms it no longer lowers the validation RMSE of joint "
+            f"{', '.join(str(j + 1) for j in joints)} (ratio {ratio:.3f} with/without it)"
+        )
+        logger.info(f"diagnose: {sentence}")
+        dropped.append(sentence)
+        kept = kept[:i] + kept[i + 1 :]
+    return kept, tuple(dropped)
+
+
 def forward_select(
     instances,
     train_ctx,
@@ -230,7 +256,7 @@ def forward_select(
     joint_threshold=0.1,
     min_torque_fraction=0.004,
 ) -> SelectionResult:
-    """Greedy forward selection of candidate term instances (see the module docstring).
+    """Greedy forward selection of candidate term instances, then a backward check (see the module docstring).
 
     Parameters
     ----------
@@ -259,7 +285,7 @@ def forward_select(
     n_eff = float(effective_samples) if effective_samples is not None else float(y_train.shape[0])
     # joint weights: torque RMS of each joint on the training data, so joints count alike whatever their size
     torque_rms = rms(train_ctx.tau)
-    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    sigma = joint_weights(train_ctx.tau)
     # least RMSE drop per joint in N m: a fraction of that joint's own torque RMS (joints count alike), and
     # at least ROBOT_FLOOR of the robot's largest joint torque RMS (noise-level changes on the weakest joints)
     floor = np.maximum(min_torque_fraction * torque_rms, ROBOT_FLOOR * float(np.max(torque_rms)))
@@ -270,44 +296,18 @@ def forward_select(
         min_improvement=min_improvement,
         n_eff_total=n_eff * y_train.shape[1],
     )
-    design = _Design(as_blocks(base_train), as_blocks(base_val), y_train, y_val, sigma)
-    _, sse, rmse_t, rmse_v, nominal_train, nominal_val = design.fit(full=True)
-    kept, steps, sizes, tried, remaining = [], [], [], 0, list(instances)
-    while len(kept) < max_effects and remaining:
-        qualified = _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits)
-        tried += len(remaining)
-        if not qualified:
-            break
-        gain, _, _, term, _, delta_bic = _choose(qualified)
-        ct, cv = term.columns(train_ctx), term.columns(val_ctx)
-        _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
-        steps.append(
-            SelectionStep(
-                term=term,
-                joints=_named_joints(term, rmse_v, rv1, joint_threshold),
-                rmse_before=rmse_v.copy(),
-                rmse_after=rv1.copy(),
-                rmse_train_before=rmse_t.copy(),
-                rmse_train_after=rt1.copy(),
-                delta_bic=float(delta_bic),
-                validation_gain=float(gain),
-            )
-        )
-        logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
-        kept.append(term)
-        sizes.append(ct.shape[2])
-        design.set_base(
-            design.base_train.concatenate(BlockColumns.from_dense(ct)),
-            design.base_val.concatenate(BlockColumns.from_dense(cv)),
-        )
-        _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
-        remaining = [r for r in remaining if r.label != term.label]
+    nominal = (as_blocks(base_train), as_blocks(base_val))
+    design = WeightedDesign(*nominal, y_train, y_val, sigma)
+    _, _, _, _, nominal_train, nominal_val = design.fit(full=True)
+    kept, tried = _forward(design, list(instances), train_ctx, val_ctx, limits, max_effects, joint_threshold)
+    kept, dropped = _prune(nominal, kept, y_train, y_val, sigma)
+    design = _design_with(nominal, [(ct, cv) for _, ct, cv in kept], y_train, y_val, sigma)
     beta, _, _, _, pred_t, pred_v = design.fit(full=True)
-    p0 = base_train.shape[2]
-    bounds = np.cumsum([p0] + sizes)
+    p0 = nominal[0].n_columns
+    bounds = np.cumsum([p0] + [ct.shape[2] for _, ct, _ in kept])
     coefficients = [beta[start:stop].copy() for start, stop in zip(bounds[:-1], bounds[1:])]
     return SelectionResult(
-        steps=tuple(steps),
+        steps=tuple(step for step, _, _ in kept),
         coefficients=tuple(coefficients),
         friction_coefficients=beta[:p0].copy(),
         rigid_coefficients=None,
@@ -316,4 +316,41 @@ def forward_select(
         prediction_train=pred_t,
         prediction_validation=pred_v,
         candidates_tried=tried,
+        dropped=dropped,
     )
+
+
+def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_threshold) -> tuple:
+    """The forward pass: ``([(step, ct, cv), ...], candidates tried)``; ``design`` grows with each kept term."""
+    _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
+    kept, tried = [], 0
+    while len(kept) < max_effects and remaining:
+        qualified = _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits)
+        tried += len(remaining)
+        if not qualified:
+            break
+        gain, _, index, term, _, delta_bic, note = _choose(qualified)
+        ct, cv = term.columns(train_ctx), term.columns(val_ctx)
+        _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
+        step = SelectionStep(
+            term=term,
+            joints=_named_joints(term, rmse_v, rv1, joint_threshold),
+            rmse_before=rmse_v.copy(),
+            rmse_after=rv1.copy(),
+            rmse_train_before=rmse_t.copy(),
+            rmse_train_after=rt1.copy(),
+            delta_bic=float(delta_bic),
+            validation_gain=float(gain),
+            shape_note=note,
+        )
+        logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
+        if note:
+            logger.info(f"diagnose:   shape: {note}")
+        kept.append((step, ct, cv))
+        design.set_base(
+            design.base_train.concatenate(BlockColumns.from_dense(ct)),
+            design.base_val.concatenate(BlockColumns.from_dense(cv)),
+        )
+        _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
+        remaining = remaining[:index] + remaining[index + 1 :]
+    return kept, tried

@@ -270,6 +270,72 @@ class SignalDelay(ExtraPhysics):
         return q, delayed
 
 
+@dataclass(frozen=True)
+class PositionDependentFriction(ExtraPhysics):
+    """Coulomb friction that varies along the joint's travel (a tight spot of a gear or bearing):
+    ``amplitude sin(harmonic q + phase) tanh(qd / v)``. Outside the diagnosis library (issue 16)."""
+
+    joint: int
+    amplitude: float
+    harmonic: float = 1.0
+    phase: float = 0.0
+    smoothing_velocity: float = 1e-3
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("PositionDependentFriction", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        j = self.joint
+        out[j] = self.amplitude * np.sin(self.harmonic * q[j] + self.phase) * np.tanh(qd[j] / self.smoothing_velocity)
+        return out
+
+
+@dataclass(frozen=True)
+class StribeckHump(ExtraPhysics):
+    """A low-speed friction hump wider than the drive's Stribeck curve (a grease or seal effect):
+    ``height exp(-(qd / velocity)^2) tanh(qd / v)``. Outside the diagnosis library (issue 16)."""
+
+    joint: int
+    height: float
+    velocity: float = 0.2
+    smoothing_velocity: float = 1e-3
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("StribeckHump", self.joint, n_dof)
+        if not (np.isfinite(self.velocity) and self.velocity > 0):
+            raise ParameterError(f"StribeckHump.velocity must be positive [rad/s]; got {self.velocity!r}.")
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        j = self.joint
+        out[j] = self.height * np.exp(-((qd[j] / self.velocity) ** 2)) * np.tanh(qd[j] / self.smoothing_velocity)
+        return out
+
+
+@dataclass(frozen=True)
+class CamCounterbalance(ExtraPhysics):
+    """A counterbalance acting through a cam: ``amplitude sin(q - q0) (1 + lobe cos(2 (q - q0)))``, a torque
+    that is neither linear in the angle (a spring) nor a single sine (gravity). Outside the diagnosis library."""
+
+    joint: int
+    amplitude: float
+    q0: float = 0.0
+    lobe: float = 0.5
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("CamCounterbalance", self.joint, n_dof)
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        x = q[self.joint] - self.q0
+        out[self.joint] = self.amplitude * np.sin(x) * (1.0 + self.lobe * np.cos(2.0 * x))
+        return out
+
+
 EXTRA_PHYSICS_TERMS = {
     cls.__name__: cls
     for cls in (
@@ -284,5 +350,8 @@ EXTRA_PHYSICS_TERMS = {
         ExtraRotorInertia,
         TorqueOffset,
         SignalDelay,
+        PositionDependentFriction,
+        StribeckHump,
+        CamCounterbalance,
     )
 }

@@ -31,9 +31,11 @@ def register(subparsers) -> None:
             "on a sparse standard-parameter preimage of theta (needs the kinematics: a robot file, or --robot with a "
             "model); --form sum writes the paper's pseudo-symbolic sum. A calibrated model (.json, written by "
             "'psdm identify') exports the full torque it reports: the rigid body of its base parameters plus its "
-            "drive terms (friction, offsets, drive inertias), every parameter compiled in; its regressor is the rigid "
-            "body's. A calibrated model that is not physically consistent is refused (exit 1) unless "
-            "--allow-inconsistent."
+            "drive terms (friction, offsets, drive inertias) and the torque-type findings of 'psdm diagnose MODEL "
+            "--apply' (spring, offset, ripple, coupling, asymmetry, rotor inertia, load-dependent friction), every "
+            "parameter compiled in; its regressor is the rigid body's. Measurement corrections (delay, elasticity, "
+            "backlash) are not a torque and are not exported: 'psdm validate' applies them to recordings. A "
+            "calibrated model that is not physically consistent is refused (exit 1) unless --allow-inconsistent."
         ),
     )
     p.add_argument(
@@ -68,6 +70,18 @@ def register(subparsers) -> None:
     )
     add_lock_argument(p)
     p.add_argument("--jacobians", action="store_true", help="also export the Jacobians (<function>_jac)")
+    p.add_argument(
+        "--batch",
+        action="store_true",
+        help="also write <library>_batch.c/.h: inverse/forward dynamics and regressor for N states per call "
+        "(<name>_batch, vectorised across states, OpenMP threads; theta baked in)",
+    )
+    p.add_argument(
+        "--derivatives",
+        action="store_true",
+        help="also export inverse_dynamics_derivatives (tau, dtau/d(q, qd, qdd)), forward_dynamics_derivatives "
+        "(qdd, dqdd/d(q, qd, tau)) and regressor_derivatives (dvec(Y)/d(q, qd, qdd)), written for speed",
+    )
     p.add_argument(
         "--libm-trig",
         action="store_true",
@@ -152,7 +166,8 @@ def build_export_functions(model, robot, form: str | None):
 
 def output_names(library: str) -> tuple:
     """What ``psdm codegen`` writes into --out (and what its Makefile builds there), for ``--force``."""
-    return (f"{library}.c", f"{library}.h", "main.c", "Makefile", f"lib{library}.so", "example")
+    batch = (f"{library}_batch.c", f"{library}_batch.h")
+    return (f"{library}.c", f"{library}.h", *batch, "main.c", "Makefile", f"lib{library}.so", "example")
 
 
 def _check_options(args):
@@ -233,8 +248,11 @@ def _run_codegen(args) -> int:
     if built is None:
         return EXIT_CHECK_FAILED
     functions, form, theta, note = built
+    exporter = export_c
+    if getattr(args, "derivatives", False):
+        from codegen.derivatives import export_derivatives as exporter
     with folder.staging() as stage:
-        export = export_c(
+        export = exporter(
             functions,
             stage,
             theta=theta,
@@ -246,16 +264,23 @@ def _run_codegen(args) -> int:
             from codegen.calibrated import add_header_note
 
             add_header_note(export, note)
+        batch = None
+        if getattr(args, "batch", False):
+            from codegen.batch import add_batch
+
+            progress("writing the batch functions (N states per call) ...")
+            batch = add_batch(export, functions)
         if args.compile:
             from codegen.build import compile_shared
 
             progress(f"compiling lib{export.library}.so ...")
-            compile_shared([export.source], stage / f"lib{export.library}.so", flags=("-O3", "-march=native"))
-    _print_export(args, out, export, form, calibrated=note is not None)
+            sources, openmp = ([export.source], ()) if batch is None else ([export.source, batch.source], ("-fopenmp",))
+            compile_shared(sources, stage / f"lib{export.library}.so", flags=("-O3", "-march=native", *openmp))
+    _print_export(args, out, export, form, calibrated=note is not None, batch=batch)
     return EXIT_OK
 
 
-def _print_export(args, out: Path, export, form: str, calibrated: bool = False) -> None:
+def _print_export(args, out: Path, export, form: str, calibrated: bool = False, batch=None) -> None:
     from psdm_casadi.cli.output import print_json
 
     compiled = bool(args.compile)
@@ -270,6 +295,7 @@ def _print_export(args, out: Path, export, form: str, calibrated: bool = False) 
                 "n_instructions": export.n_instructions,
                 "compiled": compiled,
                 "lane_regressor": None if lanes is None else dataclasses.asdict(lanes),
+                "batch_functions": None if batch is None else list(batch.function_names),
             }
         )
     else:
@@ -277,7 +303,8 @@ def _print_export(args, out: Path, export, form: str, calibrated: bool = False) 
         if calibrated:
             print(
                 "calibrated model: inverse/forward dynamics and mass matrix include its drive terms (friction, "
-                "offsets, drive inertias); the regressor is the rigid body's (see the header comment)"
+                "offsets, drive inertias) and torque-type findings; the regressor is the rigid body's (see the "
+                "header comment)"
             )
         print(f"{'function':40s} {'instructions':>12s} {'operations':>10s} {'trig':>5s}")
         for count in export.operation_counts:
@@ -290,3 +317,8 @@ def _print_export(args, out: Path, export, form: str, calibrated: bool = False) 
             )
         if not export.theta_baked and not calibrated:
             print("theta not baked in (no --theta and no nominal inertia): only the runtime-theta flavour was written")
+        if batch is not None:
+            print(
+                f"wrote {batch.source.name} and {batch.header.name}: {', '.join(batch.function_names)} "
+                f"({batch.lane_width} states per vector instruction, OpenMP threads)"
+            )

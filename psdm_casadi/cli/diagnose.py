@@ -1,5 +1,5 @@
 """The ``psdm diagnose`` subcommand: nominal model from a training recording, missing physics on training and
-validation.
+validation; with a calibrated model and ``--apply NEW.json``, the findings identified jointly with it.
 """
 
 from __future__ import annotations
@@ -7,7 +7,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from psdm_casadi.cli.checks import add_robot_argument, add_topic_argument, load_robot_argument, output_folder
-from psdm_casadi.cli.output import print_json
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json
+from psdm_casadi.errors import ParameterError
 
 
 def register(subparsers) -> None:
@@ -18,25 +19,40 @@ def register(subparsers) -> None:
         description=(
             "Identify the nominal model (the robot file's rigid body + friction) on the training recording, fit "
             "candidate physics terms jointly with it, keep those that lower the validation error enough to earn "
-            "their parameters, and report them most important first with per-joint validation RMSE before/after."
+            "their parameters, and report them most important first with per-joint validation RMSE before/after. "
+            "Given a calibrated model (.json from 'psdm identify') instead of a robot, the nominal model is the "
+            "file's: its kinematics, identified inertia (rigid body fixed) and Coulomb + viscous friction; "
+            "--apply NEW.json then identifies the model again on --train with the findings' terms fitted jointly "
+            "(signal findings such as a delay correct the recordings), judges it on --validate as 'psdm validate' "
+            "does, shows the calibration before and after, and writes the calibrated model with its findings."
         ),
     )
-    add_robot_argument(p)
+    add_robot_argument(
+        p, help="robot file (.toml, .urdf), built-in robot name, or calibrated model (.json from 'psdm identify')"
+    )
     p.add_argument("--train", required=True, help="training recording (.csv, .npz, .mat, or a ROS 2 bag)")
     p.add_argument("--validate", required=True, help="validation recording (.csv, .npz, .mat, or a ROS 2 bag)")
     add_topic_argument(p)
     p.add_argument(
         "--friction",
         choices=("lugre", "coulomb_viscous"),
-        default="lugre",
+        default=None,
         help="nominal friction: steady-state LuGre with the robot file's shape (+ its bristle dynamics "
-        "when the file has drives), or Coulomb + viscous",
+        "when the file has drives; the default for a robot), or Coulomb + viscous (the default for a calibrated "
+        "model)",
     )
     p.add_argument(
         "--rigid-body",
-        choices=("prior", "identified"),
-        default="prior",
-        help="keep the robot file's inertia (default) or identify the base parameters too",
+        choices=("auto", "prior", "identified"),
+        default="auto",
+        help="auto (default): a payload or inertia finding must beat a full rigid-body recalibration on the "
+        "validation recording, otherwise the base parameters are identified and the report says the robot file's "
+        "inertial parameters are off; prior: keep the robot file's inertia; identified: identify them too",
+    )
+    p.add_argument(
+        "--no-sparse",
+        action="store_true",
+        help="do not look beyond the library (no sparse symbolic term for a residual that stays structured)",
     )
     p.add_argument("--cutoff", type=float, default=15.0, help="low-pass cut-off of the preprocessing [Hz]")
     p.add_argument(
@@ -47,7 +63,18 @@ def register(subparsers) -> None:
     )
     p.add_argument("--max-effects", type=int, default=4, help="most effects reported (default 4)")
     p.add_argument("--out", default=None, help="folder for report.md, report.json, plots and the augmented model")
-    p.add_argument("--overwrite", action="store_true", help="replace existing files in --out")
+    p.add_argument(
+        "--apply",
+        default=None,
+        metavar="NEW_MODEL.json",
+        help="with a calibrated model: identify it again with the findings and write the new calibrated model here",
+    )
+    p.add_argument(
+        "--allow-inconsistent",
+        action="store_true",
+        help="with --apply: write the new model even if it is not physically consistent (marked as such)",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace existing files in --out (and --apply)")
     p.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
     p.set_defaults(handler=_run_diagnose)
 
@@ -57,18 +84,29 @@ def _run_diagnose(args) -> int:
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
-    robot = load_robot_argument(args)
+    calibrated, apply_out = _calibrated_source(args)
+    model = robot_file = None
+    if calibrated is not None:
+        from identification.calibration.calibrated_model import calibrated_robot
+        from psdm_casadi.derive import derive_psdm
+
+        robot_file = calibrated.load_robot()
+        model = derive_psdm(robot_file)
+        robot = calibrated_robot(calibrated, robot_file)
+    else:
+        robot = load_robot_argument(args)
     train = load_recording(args.train, robot.n_dof, robot.joint_names, args.topic)
     validation = load_recording(args.validate, robot.n_dof, robot.joint_names, args.topic)
     options = DiagnosisOptions(
-        friction=args.friction,
+        friction=args.friction or ("coulomb_viscous" if calibrated is not None else "lugre"),
         rigid_body=args.rigid_body,
         cutoff_hz=args.cutoff,
         min_improvement=args.min_improvement,
         max_effects=args.max_effects,
+        sparse=not args.no_sparse,
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
-    report = diagnose(robot, train, validation, options)
+    report = diagnose(robot, train, validation, options, model=model)
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -77,10 +115,106 @@ def _run_diagnose(args) -> int:
         payload = report.to_dict()
         payload["command"] = "diagnose"
         payload["files"] = {k: str(v) for k, v in paths.items()}
-        print_json(payload)
+        if apply_out is None:
+            print_json(payload)
     else:
         print(report.to_markdown(paths))
+    if apply_out is None:
+        return 0
+    return _apply(
+        args, calibrated, robot_file, model, report, (train, validation), apply_out, payload if args.json else None
+    )
+
+
+def _calibrated_source(args):
+    """(CalibratedModel or None, checked --apply output or None): a .json source is a calibrated model."""
+    from identification.calibration.calibrated_model import load_calibrated_model
+    from psdm_casadi.cli.checks import output_file
+
+    if not str(args.robot).lower().endswith(".json"):
+        if args.apply is not None:
+            raise ParameterError(
+                f"diagnose --apply needs a calibrated model (.json from 'psdm identify') as its first argument; got "
+                f"{args.robot!r}. Identify the robot first: psdm identify ROBOT --data A.csv --out model.json."
+            )
+        return None, None
+    if getattr(args, "lock", None):
+        raise ParameterError(
+            f"diagnose --lock must not be given with a calibrated model; got {args.robot!r}, which holds its locked "
+            "joints. Drop --lock."
+        )
+    calibrated = load_calibrated_model(args.robot)
+    return calibrated, output_file(args.apply, "--apply", args.overwrite)
+
+
+def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> int:
+    """Recalibrate with the findings, gate on consistency, write the new model, show before and after."""
+    import sys
+
+    from identification.calibration.recalibrate import consistency_failure, recalibrate
+
+    if not report.findings:
+        print(f"psdm diagnose: nothing to apply: no finding; {args.apply!r} was not written.", file=sys.stderr)
+        if payload is not None:
+            print_json(payload)
+        return 0
+    result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None)
+    problem = consistency_failure(result)
+    if problem is not None and not args.allow_inconsistent:
+        print(
+            f"psdm diagnose: error: {problem}. Nothing was written to {args.apply!r}. Pass --allow-inconsistent "
+            "to write it marked as such.",
+            file=sys.stderr,
+        )
+        return EXIT_CHECK_FAILED
+    with out.staging() as stage:
+        result.after.save(stage, overwrite=True, allow_inconsistent=True)
+    if payload is not None:
+        payload["recalibration"] = dict(result.after.document["recalibration"], model=str(args.apply))
+        print_json(payload)
+    else:
+        print(recalibration_markdown(result, robot.joint_names, args.apply))
     return 0
+
+
+def recalibration_markdown(result, joint_names, path) -> str:
+    """The calibration before and after the findings: per-joint validation RMSE, consistency, moved parameters."""
+    block = result.after.document["recalibration"]
+    lines = [
+        "",
+        "## Recalibration with the findings",
+        "",
+        "| | " + " | ".join(joint_names) + " |",
+        "|---" * (len(joint_names) + 1) + "|",
+        "| validation RMSE before [N m] | " + " | ".join(f"{v:.4g}" for v in result.rmse_before) + " |",
+        "| validation RMSE after [N m] | " + " | ".join(f"{v:.4g}" for v in result.rmse_after) + " |",
+        "",
+    ]
+    for key in ("before", "after"):
+        state = block[key]
+        lines.append(
+            f"- consistency {key}: {'consistent' if state['consistent'] else 'NOT consistent'} (smallest "
+            f"pseudo-inertia eigenvalue {state['min_pseudo_inertia_eigenvalue']})"
+        )
+    lines.append(f"- smallest mass-matrix eigenvalue after: {result.min_mass_eigenvalue:.4g}")
+    moved = block["moved_parameters"]
+    lines.append(f"- parameters that moved by more than 3 sigma: {len(moved) or 'none'}")
+    lines += [f"  - {m['name']}: {m['before']:.5g} -> {m['after']:.5g} ({m['sigmas']:.1f} sigma)" for m in moved]
+    for d in block.get("dropped_findings") or []:
+        with_it, without = d["validation_rmse_with"], d["validation_rmse_without"]
+        pairs = "; ".join(f"joint {j}: {a:.4g} -> {b:.4g}" for j, b, a in zip(d["joints"], with_it, without))
+        lines.append(f"- dropped {d['label']}: {d['reason']} (validation RMSE [N m] without -> with it: {pairs}); "
+                     "the model was refitted without it")  # fmt: skip
+    for entry in result.after.document["findings"]:
+        parameters = ", ".join(f"{k} = {v:.4g}" for k, v in entry["parameters"].items())
+        absorbed = f"; absorbed: {', '.join(entry['absorbed'])}" if entry.get("absorbed") else ""
+        note = "" if entry["kind"] == "torque" else "; " + entry["applied"]
+        lines.append(f"- {entry['label']} ({entry['kind']}): {parameters}{absorbed}{note}")
+        if "validation_rmse_without" in entry:
+            lines.append("  " + _contribution(entry))
+
+    lines.append(f"\ncalibrated model with findings written to {path}")
+    return "\n".join(lines)
 
 
 def _out_folder(args):
@@ -88,3 +222,15 @@ def _out_folder(args):
     from identification.diagnosis.report import REPORT_FILES
 
     return None if args.out is None else output_folder(args.out, REPORT_FILES, args.overwrite)
+
+
+def _contribution(entry) -> str:
+    """What a finding contributes on its joints: the validation RMSE with it and with it taken out (no refit)."""
+    joints = entry["joints"] or list(range(1, len(entry["validation_rmse_after"]) + 1))
+    parts = [
+        f"joint {j}: {entry['validation_rmse_without'][j - 1]:.4g} -> {entry['validation_rmse_after'][j - 1]:.4g}"
+        for j in joints
+    ]
+    helps = any(entry["validation_rmse_after"][j - 1] < entry["validation_rmse_without"][j - 1] for j in joints)
+    verdict = "" if helps else " (it does NOT lower the validation error of its joints: consider dropping it)"
+    return "validation RMSE [N m] without -> with it: " + "; ".join(parts) + verdict

@@ -15,15 +15,24 @@ import sys
 import numpy as np
 
 from psdm_casadi.cli.checks import add_topic_argument, load_robot_argument, output_file
-from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.cli.output import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 
 MASS_CHECK_CONFIGURATIONS = 2000
+FRICTION_SHAPES = ("coulomb-viscous", "stribeck", "lugre")
 
 
 def add_arguments(p) -> None:
     """The options of the recordings route (the folder route shares ``--data``, ``--out`` and the rest)."""
     p.add_argument("--validate", nargs="+", default=(), help="held-out recordings for the validation report")
     p.add_argument("--offset", action="store_true", help="also identify a constant torque offset per joint")
+    p.add_argument(
+        "--friction",
+        choices=FRICTION_SHAPES,
+        default="coulomb-viscous",
+        help="friction shape per joint: fc tanh(qd/eps) + fv qd (default); stribeck: (fc + (fs - fc) "
+        "exp(-(qd/vs)^2)) tanh(qd/eps) + fv qd, with fs and vs fitted (a --cutoff well above the motion's "
+        "frequencies keeps the sharp low-velocity friction the filter would smear); lugre: not in this route yet",
+    )
     p.add_argument("--no-drive-inertia", action="store_true", help="do not identify drive (rotor) inertias")
     p.add_argument(
         "--no-consistency",
@@ -41,11 +50,17 @@ def run(args) -> int:
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
 
+    if args.friction == "lugre":
+        print("psdm identify: error: --friction lugre is not available on recordings yet (the LuGre shooting fit "
+              "needs the paper's friction experiments). Pass --friction stribeck, or run --protocol four-step on "
+              "a data folder, which identifies LuGre friction.", file=sys.stderr)  # fmt: skip
+        return EXIT_BAD_INPUT
     out = output_file(args.out, "--out", args.overwrite)
     robot = load_robot_argument(args)
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.data]
     validation = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.validate]
-    friction = ("fc", "fv", "offset") if args.offset else ("fc", "fv")
+    friction = ("fc", "fs", "fv") if args.friction == "stribeck" else ("fc", "fv")
+    friction = (*friction, "offset") if args.offset else friction
     options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
                                 consistency=not args.no_consistency, cutoff_hz=args.cutoff)  # fmt: skip
     if args.model:
@@ -54,6 +69,8 @@ def run(args) -> int:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_psdm(robot)
     fit = identify_trajectories(robot, model, recordings, options)
+    for warning in _negative_drive_inertias(fit):
+        print(warning, file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report = _validation(robot, model, fit, validation, args.validate)
     report["min_mass_eigenvalue"] = mass_eigenvalue
@@ -76,6 +93,24 @@ def run(args) -> int:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
     _print(args, robot, model, fit, report, calibrated)
     return EXIT_OK
+
+
+def _negative_drive_inertias(fit, z: float = 3.0) -> list:
+    """Warnings for drive-inertia columns whose unconstrained estimate is below zero by more than ``z`` sigma.
+
+    A rotor inertia cannot be negative; the consistent fit holds it at zero and the joint's fit pays for
+    it. The usual cause is a torque signal without the rotors in it: a link-side joint torque sensor.
+    """
+    out = []
+    for name, value, std in zip(fit.drive_names, fit.drive_ols, fit.drive_std):
+        if name.startswith("Ia") and value < -z * std:
+            out.append(
+                f"psdm identify: warning: the data ask for a negative drive inertia on joint {name[2:]} "
+                f"(unconstrained {name} = {value:.3g} +- {std:.2g} kg m^2); the consistent fit holds it at 0, "
+                "which costs fit on that joint. Torques measured on the link side of the gearbox (joint torque "
+                "sensors: Franka Panda, KUKA iiwa) hold no rotor inertia: pass --no-drive-inertia."
+            )
+    return out
 
 
 def _min_mass_eigenvalue(robot, fit, seed: int = 0) -> float:
@@ -121,6 +156,9 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
                     "min_mass_eigenvalue": report["min_mass_eigenvalue"], "condition_number": fit.condition_number,
                     "cutoff_hz": list(fit.cutoff_hz), "theta": fit.theta.tolist(), "theta_std": fit.theta_std.tolist(),
                     "drive": dict(zip(fit.drive_names, fit.drive.tolist())), "validation": report["recordings"],
+                    "drive_std": dict(zip(fit.drive_names, fit.drive_std.tolist())),
+                    "stribeck_velocity": list(fit.stribeck_velocity),
+                    "stribeck_velocity_std": list(fit.stribeck_velocity_std),
                     "seconds": fit.seconds})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -135,6 +173,8 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
         print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {relative[k]:8.1f}")
     for k, name in enumerate(fit.drive_names):
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
+    for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
+        print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
     for entry in report["recordings"]:
         print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
         for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):

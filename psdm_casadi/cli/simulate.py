@@ -1,4 +1,10 @@
-"""The ``psdm simulate`` subcommand: run the virtual robot along a reference or a calibration experiment."""
+"""The ``psdm simulate`` subcommand: run the virtual robot, or a calibrated model, along a reference or an experiment.
+
+With a robot file, the virtual robot (rigid body, LuGre friction, drives, controller, sensors) tracks
+the reference. With a calibrated-model file (``psdm identify --out model.json``), the recording holds
+the reference's states and the model's own torques (``identification.calibration.model_simulation``):
+what the identified robot would record if the model were exact.
+"""
 
 from __future__ import annotations
 
@@ -20,6 +26,8 @@ from psdm_casadi.cli.output import print_json, progress
 from psdm_casadi.errors import ParameterError
 
 EXPERIMENTS = ("motor", "gravity", "friction", "sine")
+MODEL_EXPERIMENTS = ("gravity", "friction", "sine")  # the motor experiment's payload needs the virtual robot
+CALIBRATED_SUFFIX = ".json"
 
 
 def register(subparsers) -> None:
@@ -35,10 +43,16 @@ def _add_simulate(subparsers) -> None:
             "Run the virtual robot (Pinocchio rigid body, LuGre friction, motor constants, PD + feed-forward "
             "controller, sensor noise and quantisation) along a reference and write <name>.csv recordings with "
             "<name>.truth.json / .truth.npz beside them. The reference is a CSV file (columns t,q1..qn[,qd..,qdd..]) "
-            "or one of the paper's calibration experiments."
+            "or one of the paper's calibration experiments. With a calibrated model (.json from 'psdm identify') "
+            "instead of a robot, write <name>.csv with the reference's states (t, q, qd, qdd) and the model's "
+            "torques tau1..taun (its identified parameters, friction and findings), plus --tau-noise."
         ),
     )
-    add_robot_argument(p, help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables, or a built-in name")
+    add_robot_argument(
+        p,
+        help="robot file (.toml or .urdf) with [[link]] and [[drive]] tables, a built-in name, or a calibrated "
+        "model (.json from 'psdm identify')",
+    )
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--reference", help="CSV with columns t,q1..qn and optional qd1..,qdd1..")
     source.add_argument(
@@ -60,6 +74,12 @@ def _add_simulate(subparsers) -> None:
     p.add_argument("--payload", type=float, default=2.0, help="calibration mass of the motor experiment [kg]")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and random experiments")
     p.add_argument("--no-noise", action="store_true", help="no sensor noise and no quantisation")
+    p.add_argument(
+        "--tau-noise",
+        type=float,
+        default=0.0,
+        help="calibrated model only: standard deviation [N m] of Gaussian noise on the torques (default 0: exact)",
+    )
     p.add_argument("--tau", action="store_true", help="also record joint torques tau1..taun")
     p.add_argument("--format", choices=("csv", "npz"), default="csv")
     p.add_argument("--overwrite", action="store_true", help="replace existing files")
@@ -160,6 +180,8 @@ def _run_simulate(args) -> int:
     from identification.virtual.simulation import SimulationOptions
 
     _check_simulate(args)
+    if str(args.robot).lower().endswith(CALIBRATED_SUFFIX):
+        return _run_model(args)
     output_folder(args.out, (), args.overwrite, shared=True)  # a file or an unwritable folder: refused first
     robot = load_robot_argument(args)
     n = robot.n_dof
@@ -223,3 +245,70 @@ def _simulate_runs(args, robot, runs, rng, stage: Path) -> tuple:
             quiet=args.json,
         )
     return written, simulated, wall
+
+
+def _run_model(args) -> int:
+    """``psdm simulate MODEL.json``: the calibrated model's torques along the reference (module docstring)."""
+    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.model_simulation import simulate_calibrated
+    from identification.data.io import save_recording
+    from psdm_casadi.derive import derive_psdm
+
+    if not (np.isfinite(args.tau_noise) and args.tau_noise >= 0):
+        raise ParameterError(f"--tau-noise must be >= 0 [N m]; got {args.tau_noise!r}. Pass e.g. --tau-noise 0.1.")
+    if getattr(args, "lock", None):
+        raise ParameterError(
+            f"--lock must not be given with a calibrated model; got {args.lock}, but {Path(args.robot).name} holds "
+            "its robot's locked joints. Drop --lock, or identify a model with the joints locked."
+        )
+    if args.experiment == "motor":
+        raise ParameterError(
+            f"--experiment motor needs the virtual robot (its payload runs); with a calibrated model pass one of "
+            f"{', '.join(MODEL_EXPERIMENTS)} or --reference FILE."
+        )
+    output_folder(args.out, (), args.overwrite, shared=True)
+    calibrated = load_calibrated_model(args.robot)
+    robot = calibrated.load_robot()
+    rng = np.random.default_rng(args.seed)
+    if args.reference:
+        name, reference = "reference", _read_reference(args.reference, robot.n_dof)
+    else:
+        name, reference = args.experiment, _model_experiment(args, robot, rng)
+    span = float(reference[0][-1] - reference[0][0]) if isinstance(reference, tuple) else reference.duration
+    fix = "Lower --rate, or shorten --duration or the reference."
+    check_samples(args.duration or span, args.rate, "--rate", f"in the recording {name}", fix)
+    folder = output_folder(args.out, [f"{name}.{args.format}"], args.overwrite, shared=True)
+    progress(f"simulate: deriving the PSDM model of {robot.name} ...", quiet=args.json)
+    model = derive_psdm(robot)
+    start = time.perf_counter()
+    recording = simulate_calibrated(calibrated, model, reference, rate=args.rate, duration=args.duration,
+                                    tau_noise_std=args.tau_noise, rng=rng, name=name)  # fmt: skip
+    with folder.staging() as stage:
+        comment = (
+            f"psdm simulate {Path(args.robot).name}: the calibrated model's torques, noise std {args.tau_noise:g} N m"
+        )
+        save_recording(recording, stage / f"{name}.{args.format}", comment=comment)
+    elapsed = time.perf_counter() - start
+    target = folder.target / f"{name}.{args.format}"
+    progress(f"simulate: {name}: {recording.duration:.1f} s of the calibrated model -> {target}", quiet=args.json)
+    if args.json:
+        print_json({"command": "simulate", "model": str(args.robot), "robot": robot.name, "out": str(args.out),
+                    "recordings": [{"name": name, "samples": recording.n_samples, "duration_s": recording.duration,
+                                    "seconds": elapsed, "recording": str(target)}],
+                    "tau_noise_std": args.tau_noise})  # fmt: skip
+    return 0
+
+
+def _model_experiment(args, robot, rng):
+    """The experiment's trajectory (it has ``sample(t)``) for a calibrated model's robot."""
+    from trajopt.experiments import friction_experiment, gravity_experiment, sine_experiment
+
+    length = {} if args.duration is None else {"duration": args.duration}
+    if args.experiment == "gravity":
+        return gravity_experiment(robot, rng=rng, **length)
+    if args.experiment == "friction":
+        joints = parse_joints(args.joints, robot.n_dof)
+        if len(joints) != 1:
+            raise ParameterError("--experiment friction with a calibrated model needs one joint; pass --joints J.")
+        return friction_experiment(robot, joints[0])
+    return sine_experiment(robot, rng=rng, **length)

@@ -18,7 +18,9 @@ def register(subparsers) -> None:
         description=(
             "Read a calibrated-model file written by 'psdm identify', prepare each recording as the identification "
             "did (the same low-pass cutoff, central differences), and report per joint the RMSE [N m] and R^2 of "
-            "the model's torque against the recorded one."
+            "the model's torque against the recorded one. The model's torque includes its torque-type findings "
+            "(psdm diagnose MODEL --apply); its measurement corrections (a torque delay, an encoder before a "
+            "compliant joint or a play) are applied to the recordings first, as the recalibration did."
         ),
     )
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
@@ -31,9 +33,8 @@ def register(subparsers) -> None:
 
 def _run_validate(args) -> int:
     from identification.calibration.calibrated_model import load_calibrated_model
-    from identification.calibration.trajectory_data import prepare_recording
+    from identification.calibration.recalibrate import validation_rmse
     from identification.data.io import load_recording
-    from identification.metrics import r2, rmse
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.fileio import OutputFolder
 
@@ -46,14 +47,13 @@ def _run_validate(args) -> int:
         plots.check(force=False)
     progress(f"validate: deriving the model of {robot.name} ...")
     model = derive_psdm(robot)
-    cutoff = calibrated.document["identification"]["cutoff_hz"][0]
     rows = []
     for path, recording in zip(args.recordings, recordings):
-        prepared, _, _ = prepare_recording(recording, _torque_constants(robot, recording), cutoff)
-        predicted = calibrated.predict(model, prepared.q, prepared.qd, prepared.qdd)
-        rows.append({"recording": str(path), "rmse": np.atleast_1d(rmse(prepared.tau, predicted)).tolist(),
-                     "r2": np.atleast_1d(r2(prepared.tau, predicted)).tolist(), "prepared": prepared,
-                     "predicted": predicted})  # fmt: skip
+        error, r2, prepared, predicted = validation_rmse(
+            calibrated, model, recording, _torque_constants(robot, recording)
+        )
+        rows.append({"recording": str(path), "rmse": np.atleast_1d(error).tolist(), "r2": np.atleast_1d(r2).tolist(),
+                     "prepared": prepared, "predicted": predicted})  # fmt: skip
     if plots is not None:
         with plots.staging() as stage:
             for row in rows:

@@ -58,10 +58,24 @@ def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(dens
     prior = denso.with_links(links)
     train, val = recording_pair(denso, [], seed=4)
     lib = PayloadTerm() + TorqueOffsetTerm()
-    report = diagnose(prior, train, val, DiagnosisOptions(library=lib, max_effects=1), model=denso_model)
+    options = DiagnosisOptions(library=lib, max_effects=1, rigid_body="prior")
+    report = diagnose(prior, train, val, options, model=denso_model)
     first = report.findings[0]
     assert first.effect == "last_link_mass_excess" and "lighter" in first.explanation
     assert first.parameters["mass"] == pytest.approx(-3.0, rel=0.1)
+
+
+def test_a_wrong_prior_mass_is_not_reported_as_missing_physics_by_default(denso, denso_model):
+    # the same too-heavy flange: the default ``rigid_body="auto"`` recalibrates the rigid body, which
+    # explains the data without any term, so the report blames the robot file instead of naming physics
+    links = list(denso.links)
+    links[-1] = LinkInertia(mass=3.0, com=np.array([0.0, 0.0, 0.05]), inertia=np.eye(3) * 1e-3)
+    prior = denso.with_links(links)
+    train, val = recording_pair(denso, [], seed=4)
+    lib = PayloadTerm() + TorqueOffsetTerm()
+    report = diagnose(prior, train, val, DiagnosisOptions(library=lib, max_effects=1), model=denso_model)
+    assert report.findings == ()
+    assert any("inertial parameters are off" in note for note in report.rigid_body_notes)
 
 
 class _Collect(logging.Handler):

@@ -9,7 +9,7 @@ addition to the nominal model, ``tau_measured = tau_nominal + columns @ coeffici
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -42,6 +42,21 @@ def joint_expression(n_dof: int, joint: int, value):
     out = ca.SX.zeros(n_dof)
     out[joint] = value
     return out
+
+
+def _jsonable(value):
+    """``value`` as JSON types: numpy scalars as numbers, tuples as lists, dataclasses as dicts of their fields."""
+    if is_dataclass(value):
+        return {f.name: _jsonable(getattr(value, f.name)) for f in fields(value)}
+    if isinstance(value, (tuple, list)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value)
+    return value
 
 
 class CandidateTerm:
@@ -103,6 +118,13 @@ class CandidateTerm:
         if self.joint is None:
             raise ParameterError(f"{type(self).__name__}.joint is None; call expand(n_dof) to get one term per joint.")
 
+    # --- serialisation --------------------------------------------------------------------------
+    def spec(self) -> dict:
+        """A small JSON-ready description of the instance: ``{"key": ..., field: value, ...}`` with every dataclass
+        field (joint indices 0-based, tuples as lists, nested dataclasses as dicts); ``term_spec.term_from_spec``
+        rebuilds the same term from it, so a model file stores a term by its definition, not by a label."""
+        return {"key": self.key, **{f.name: _jsonable(getattr(self, f.name)) for f in fields(self)}}
+
     # --- interface ----------------------------------------------------------------------------
     def feature_names(self) -> list:
         raise NotImplementedError
@@ -119,6 +141,11 @@ class CandidateTerm:
         """Extra torque (SX, n_dof) of the term, or None when it is a signal correction (delay, backlash,
         elasticity) or a change of the base parameters (see ``theta_change``)."""
         return None
+
+    def shape_variants(self, context) -> tuple:
+        """Alternative shapes of the term to choose from by an information criterion (the selection screens the
+        one with the lowest BIC on the training ``context``), simplest first; ``(self,)`` by default."""
+        return (self,)
 
     def theta_change(self, coefficients, parameter_map) -> np.ndarray | None:
         """Change of the PSDM base parameters (n_base,) the term amounts to, or None."""

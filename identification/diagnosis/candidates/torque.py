@@ -1,4 +1,5 @@
-"""Candidate torques of position or of nothing at all: a spring, a torque offset, a position-periodic ripple.
+"""Candidate torques of position or of nothing at all: a spring (linear or a low-order polynomial), a torque offset,
+a position-periodic ripple.
 
 Each acts on one joint and is an additive torque of (q, t) in the augmented model.
 """
@@ -11,33 +12,145 @@ import casadi as ca
 import numpy as np
 
 from identification.diagnosis.candidates.base import CandidateTerm, joint_columns, joint_expression
+from psdm_casadi.errors import ParameterError
+
+MAX_ORDER = 3  # highest polynomial order of a spring's shape
 
 
 @dataclass(frozen=True)
 class SpringTerm(CandidateTerm):
-    """``spring``: elastic torque ``k (q - q0)`` on one joint (gravity compensator, cable, hose)."""
+    """``spring``: elastic torque of the joint angle on one joint (gravity compensator, counterbalance, cable, hose).
+
+    Order 1 is the linear spring ``k (q - q0)`` (columns ``q, 1``); order n > 1 a polynomial
+    ``sum_i k_i (q - centre)^i + c`` about the middle of the training range, the shape of a nonlinear
+    counterbalance or a cam. ``shape_variants`` offers orders 1 to ``max_order`` to the selection, which keeps
+    the one with the lowest BIC on the training data if it carries over to validation.
+
+    Parameters
+    ----------
+    joint : int or None
+    order : int
+        Polynomial order (1 to 3).
+    max_order : int
+        Highest order ``shape_variants`` offers (1 keeps the linear spring only).
+    centre : float
+        Angle the polynomial is expanded about [rad] (order > 1).
+    q_range : tuple (q_min, q_max) or None
+        The training recording's range of the joint [rad]: the stiffness is reported over it.
+    """
 
     joint: int | None = None
+    order: int = 1
+    max_order: int = 3
+    centre: float = 0.0
+    q_range: tuple | None = None
     key = "spring"
     explanation = "a position-dependent elastic torque k (q - q0) on the joint (spring balancer, cables)"
     signature = "residual follows joint position, not velocity"
 
+    def __post_init__(self):
+        for name in ("order", "max_order"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, np.integer)) and 1 <= value <= MAX_ORDER):
+                raise ParameterError(f"SpringTerm.{name} must be an integer 1..{MAX_ORDER}; got {value!r}.")
+
+    @property
+    def label(self):
+        base = CandidateTerm.label.fget(self)
+        return base if self.order == 1 or self.joint is None else f"{base[:-1]},order={self.order}]"
+
+    def shape_variants(self, context):
+        self._require_joint()
+        q = context.q[:, self.joint]
+        lo, hi = float(np.min(q)), float(np.max(q))
+        linear = replace(self, order=1, centre=0.0, q_range=(lo, hi))
+        top = min(self.max_order, MAX_ORDER)
+        return (linear,) + tuple(
+            replace(self, order=o, centre=0.5 * (lo + hi), q_range=(lo, hi)) for o in range(2, top + 1)
+        )
+
     def feature_names(self):
         self._require_joint()
-        return [f"k_q{self.joint + 1}", f"c_{self.joint + 1}"]
+        j = self.joint + 1
+        if self.order == 1:
+            return [f"k_q{j}", f"c_{j}"]
+        return [f"k{i}_q{j}" for i in range(1, self.order + 1)] + [f"c_{j}"]
+
+    def _powers(self, q):
+        if self.order == 1:
+            return [q]
+        x = q - self.centre
+        return [x**i for i in range(1, self.order + 1)]
 
     def columns(self, context):
         self._require_joint()
-        return joint_columns(
-            context, self.joint, np.column_stack([context.q[:, self.joint], np.ones(context.n_samples)])
-        )
+        q = context.q[:, self.joint]
+        return joint_columns(context, self.joint, np.column_stack(self._powers(q) + [np.ones(context.n_samples)]))
+
+    def torque_of_angle(self, q, coefficients) -> np.ndarray:
+        """The term's torque [N m] at joint angles ``q`` (array, rad) with fitted ``coefficients``."""
+        q = np.asarray(q, dtype=float)
+        c = np.asarray(coefficients, dtype=float)
+        return sum(a * p for a, p in zip(c[:-1], self._powers(q))) + c[-1]
+
+    def stiffness_range(self, coefficients) -> tuple:
+        """Least and largest local stiffness d(torque)/dq [N m/rad] over the training range (``q_range``; the
+        coefficient itself for the linear spring)."""
+        c = np.asarray(coefficients, dtype=float)
+        if self.order == 1 or self.q_range is None:
+            return float(c[0]), float(c[0])
+        x = np.linspace(self.q_range[0], self.q_range[1], 101) - self.centre
+        slope = sum(i * c[i - 1] * x ** (i - 1) for i in range(1, self.order + 1))
+        return float(np.min(slope)), float(np.max(slope))
+
+    def _secant(self, coefficients) -> float:
+        """Mean stiffness over the training range [N m/rad] (the slope of the linear spring)."""
+        if self.order == 1 or self.q_range is None:
+            return float(coefficients[0])
+        lo, hi = self.q_range
+        ends = self.torque_of_angle(np.array([lo, hi]), coefficients)
+        return float((ends[1] - ends[0]) / max(hi - lo, 1e-12))
 
     def physical_parameters(self, coefficients):
-        k, c = (float(x) for x in coefficients)
-        return {"k": k, "q0": (-c / k) if k != 0 else 0.0}
+        if self.order == 1:
+            k, c = (float(x) for x in coefficients)
+            return {"k": k, "q0": (-c / k) if k != 0 else 0.0}
+        low, high = self.stiffness_range(coefficients)
+        out = {"k": self._secant(coefficients), "order": float(self.order), "centre": float(self.centre)}
+        out.update({"stiffness_min": low, "stiffness_max": high})
+        out.update({f"k{i}": float(coefficients[i - 1]) for i in range(1, self.order + 1)})
+        out["offset"] = float(coefficients[-1])
+        return out
+
+    def interpret(self, coefficients):
+        """The effect reported; a negative stiffness is said aloud: it is not a spring (a spring pulls the joint back
+        to its rest angle, a negative stiffness pushes it away)."""
+        k = self._secant(coefficients)
+        low, high = self.stiffness_range(coefficients)
+        if k < 0.0:
+            return self.key, (
+                f"negative stiffness: not a spring (k = {k:.3g} N m/rad: the torque pushes the joint away from its "
+                "rest angle instead of pulling it back); a position-dependent torque such as a gravity or mass "
+                "error of the robot file, or a counterbalance acting the wrong way"
+            )
+        if self.order == 1:
+            return self.key, self.explanation
+        shape = (
+            f"a polynomial of order {self.order} in the joint angle (nonlinear counterbalance, cam or gas spring), "
+            f"stiffness {low:.3g} to {high:.3g} N m/rad over the recorded range"
+        )
+        if low < 0.0 < high:
+            shape += "; the stiffness changes sign over the range, so it is not a single spring"
+        return self.key, "a position-dependent elastic torque: " + shape
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
-        return joint_expression(q.shape[0], self.joint, coefficients[0] * q[self.joint] + coefficients[1])
+        if self.order == 1:
+            return joint_expression(q.shape[0], self.joint, coefficients[0] * q[self.joint] + coefficients[1])
+        x = q[self.joint] - self.centre
+        value = coefficients[-1] + 0 * x
+        for i in range(1, self.order + 1):
+            value = value + coefficients[i - 1] * x**i
+        return joint_expression(q.shape[0], self.joint, value)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,81 @@
+"""What a finding of a recalibrated model is worth on the validation recording.
+
+The validation RMSE of a calibrated model as ``psdm validate`` computes it (``validation_rmse``), the model with
+one finding taken out and nothing refitted (``without_entry``), and the findings that do not lower the validation
+RMSE where they act (``unhelpful_findings``), which ``recalibrate`` drops (issue 16: a finding is kept only if it
+lowers the validation RMSE of every joint it names).
+"""
+
+from __future__ import annotations
+
+import copy
+
+import numpy as np
+
+from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.findings import correct_recording
+from identification.calibration.trajectory_data import prepare_recording
+from identification.metrics import r2, rmse
+
+__all__ = ["unhelpful_findings", "validation_rmse", "without_entry"]
+
+
+def validation_rmse(calibrated: CalibratedModel, model, recording, kt=None) -> tuple:
+    """(RMSE, R^2, prepared recording, prediction) of a calibrated model on a raw recording, as ``psdm validate``.
+
+    The model's measurement corrections are applied to the raw recording, which is then prepared with the
+    identification's cutoff.
+    """
+    cutoff = calibrated.document["identification"]["cutoff_hz"][0]
+    prepared, _, _ = prepare_recording(correct_recording(recording, calibrated.corrections, kt), kt, cutoff)
+    predicted = calibrated.predict(model, prepared.q, prepared.qd, prepared.qdd)
+    return rmse(prepared.tau, predicted), r2(prepared.tau, predicted), prepared, predicted
+
+
+def _judged(entry: dict, with_it, without) -> bool:
+    """Whether taking a finding out raises the validation RMSE where it acts: the joint a torque finding acts on
+    (a coupling names its source joint too), each joint a joint-level correction names, and the overall
+    validation error (sum of squares over the named joints) for a robot-wide correction (a delay)."""
+    joints = entry["joints"] or list(range(1, len(with_it) + 1))
+    if entry["kind"] == "torque":
+        joints = [int(entry["term"]["joint"])]
+    elif entry["effect"] == "delay":
+        index = [j - 1 for j in joints]
+        return float(np.sum(without[index] ** 2)) > float(np.sum(with_it[index] ** 2))
+    return all(without[j - 1] > with_it[j - 1] for j in joints)
+
+
+def unhelpful_findings(after: CalibratedModel, model, validation, kt) -> list:
+    """The torque and signal findings whose removal (no refit) does not raise the validation RMSE where they act
+    (``_judged``), with the RMSE pair that shows it. A torque finding whose features were all absorbed by the fit's
+    other columns contributes nothing by construction and is kept (reported as absorbed), not judged."""
+    with_it = np.mean([validation_rmse(after, model, r, kt)[0] for r in validation], axis=0)
+    out = []
+    for entry in after.document["findings"]:
+        if entry["kind"] not in ("torque", "signal"):
+            continue
+        if entry["kind"] == "torque" and all(c is None for c in entry["coefficients"]):
+            continue
+        without = np.mean([validation_rmse(without_entry(after, entry), model, r, kt)[0] for r in validation], axis=0)
+        if _judged(entry, with_it, without):
+            continue
+        joints = entry["joints"] or list(range(1, len(with_it) + 1))
+        out.append(
+            {
+                "label": entry["label"],
+                "effect": entry["effect"],
+                "joints": list(joints),
+                "validation_rmse_with": [float(with_it[j - 1]) for j in joints],
+                "validation_rmse_without": [float(without[j - 1]) for j in joints],
+                "reason": "taking it out does not raise the validation RMSE where it acts",
+            }
+        )
+    return out
+
+
+def without_entry(calibrated: CalibratedModel, entry: dict) -> CalibratedModel:
+    """The model with one finding's torque (or correction) taken out and nothing refitted: what it contributes."""
+    document = copy.deepcopy(calibrated.document)
+    document["findings"] = [e for e in document["findings"] if e["label"] != entry["label"]]
+    document["corrections"] = {k: v for k, v in (document.get("corrections") or {}).items() if k != entry["label"]}
+    return CalibratedModel(document)

@@ -1,0 +1,455 @@
+"""recalibrate(): a diagnosis' findings added to a calibrated model, identified jointly with it.
+
+calibrated model + DiagnosisReport + recordings -> calibrated model with findings (version 2).
+
+A missing effect corrupts the identification it hides in: a spring on a joint is absorbed into the
+gravity parameters and the friction, a missing drive inertia into the link inertias. Adding the finding
+afterwards, with the corrupted parameters kept, leaves them wrong. So the recordings-route fit
+(``trajectory_fit.identify_trajectories``) is run again on the training recording with one more linear
+column per feature of every torque-type finding (``findings.FindingColumns``), all fitted jointly
+and with their standard deviations from the same covariance; the ``signal`` findings correct the
+recordings first (``findings.correct_recording``), the ``rigid_body`` ones (a payload) are taken up by the
+re-identified rigid body. A feature the other columns already span (a spring's constant beside a
+drive offset, a rotor inertia the fit already identifies) is left out and reported as absorbed.
+Load-dependent friction is linear in its coefficient once the torque it multiplies is fixed: the fit
+uses the previous model's torque, then the new model's (two passes).
+
+The result is judged on the validation recording as ``psdm validate`` judges it (the same preparation,
+``CalibratedModel.predict``), before and after, so the file's numbers are what its exported code gives.
+A finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no
+refit) does not raise them is dropped, listed with its RMSE pair in the ``recalibration`` block
+(``dropped_findings``), and the model is refitted without it (a finding whose every feature the fit's other
+columns already span contributes nothing by construction; it is kept and reported as absorbed).
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import logging
+
+import numpy as np
+
+from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+from identification.calibration.finding_value import unhelpful_findings, validation_rmse, without_entry
+from identification.calibration.findings import (
+    SPEC_EFFECTS,
+    FindingColumns,
+    FindingTerm,
+    correct_recording,
+    filled_entries,
+    finding_kind,
+)
+from identification.calibration.pseudo_inertia import pseudo_inertia_eigenvalues
+from identification.calibration.trajectory_data import NormalEquations, drive_column_names, prepare_recording
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
+from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.oracle import LINK_PARAMETER_NAMES
+
+__all__ = [
+    "Recalibration",
+    "consistency_failure",
+    "min_mass_eigenvalue",
+    "recalibrate",
+    "validation_rmse",
+]
+
+logger = logging.getLogger(__name__)
+
+#: A feature whose column keeps less than this fraction of its norm after projection on the others is absorbed.
+ABSORBED = 1e-8
+MASS_CHECK_CONFIGURATIONS = 2000
+#: Rounds of dropping the findings that do not help and refitting (a refit can make another one useless).
+MAX_DROP_ROUNDS = 3
+
+
+@dataclasses.dataclass(frozen=True, eq=False)
+class Recalibration:
+    """The calibrated model before and after the findings, with what changed.
+
+    Attributes
+    ----------
+    before, after : CalibratedModel
+    rmse_before, rmse_after : array (n_dof,)
+        Validation RMSE [N m] of each model as ``psdm validate`` computes it.
+    moved : list of dict
+        The base and drive parameters that moved by more than 3 standard deviations (of the new fit).
+    min_mass_eigenvalue : float
+        Smallest mass-matrix eigenvalue of the new standard parameters over random configurations.
+    """
+
+    before: CalibratedModel
+    after: CalibratedModel
+    rmse_before: np.ndarray
+    rmse_after: np.ndarray
+    moved: list
+    min_mass_eigenvalue: float
+
+
+def _pairs(report):
+    """(Finding, candidate term or None, coefficients) of a diagnosis report, matched by label, in report order."""
+    augmented = report.augmented
+    terms = {} if augmented is None else {t.label: (t, c) for t, c in zip(augmented.terms, augmented.coefficients)}
+    return [(f, *terms.get(f.label, (None, tuple(f.coefficients)))) for f in report.findings]
+
+
+def _finding_terms(calibrated: CalibratedModel, report) -> tuple:
+    """(torque FindingTerms, corrections, entries of every finding) from the report, merged with the file's own."""
+    velocity = float(calibrated.document["drive"].get("coulomb_velocity") or 0.05)
+    existing = [entry for entry in calibrated.document.get("findings") or []]
+    terms = [term for term, _ in calibrated.torque_findings]
+    corrections = calibrated.corrections
+    entries = [copy.deepcopy(entry) for entry in existing]
+    labels = {entry["label"] for entry in existing}
+    for finding, candidate, coefficients in _pairs(report):
+        if finding.label in labels:
+            continue
+        kind = finding_kind(finding.effect) if candidate is not None else "reported"
+        entry = {
+            "effect": finding.effect,
+            "label": finding.label,
+            "kind": kind,
+            "joints": [j + 1 for j in finding.joints],
+            "diagnosis": {
+                "feature_names": list(finding.feature_names),
+                "coefficients": [float(c) for c in coefficients],
+                "parameters": {k: float(v) for k, v in finding.parameters.items()},
+                "rmse_before": list(finding.rmse_before),
+                "rmse_after": list(finding.rmse_after),
+            },
+        }
+        if kind == "torque":
+            term = FindingTerm(
+                effect=candidate.key,
+                joint=int(candidate.joint),
+                source=getattr(candidate, "source", None),
+                harmonic=getattr(candidate, "harmonic", None),
+                velocity=velocity,
+                spec=candidate.spec() if candidate.key in SPEC_EFFECTS else None,
+            )
+            entry["term"] = term.to_dict()
+            terms.append(term)
+        elif kind == "signal":
+            corrections[finding.label] = _correction(finding, candidate)
+        entries.append(entry)
+    return terms, corrections, entries
+
+
+def _correction(finding, candidate) -> dict:
+    """The ``corrections`` entry of a signal finding (``findings.correct_recording``)."""
+    entry = {"effect": finding.effect, **{k: float(v) for k, v in finding.parameters.items()}}
+    if candidate.joint is not None:
+        entry["joint"] = int(candidate.joint) + 1
+    if finding.effect == "joint_elasticity" and "compliance_rad_per_Nm" not in entry:
+        entry["compliance_rad_per_Nm"] = 1.0 / entry["stiffness_Nm_per_rad"]
+    if finding.effect == "backlash" and "torque_scale_Nm" not in entry:
+        raise ParameterError(
+            f"recalibrate: the backlash finding {finding.label} has no flank torque scale (torque_scale_Nm); run the "
+            "diagnosis with its refinement on (DiagnosisOptions.refine=True)."
+        )
+    return entry
+
+
+def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, stribeck=None) -> tuple:
+    """Which finding features the fit's other columns (and earlier features) do not span, on the training data
+    (a Stribeck friction shape with the velocities ``stribeck`` of the model the diagnosis started from)."""
+    inertia = list(_inertia_joints(model, robot, options))
+    names = drive_column_names(robot.n_dof, options.friction, inertia)
+    n_extra = len(columns.all_names)
+    equations = NormalEquations(robot.n_dof, model.n_base + len(names) + n_extra)
+    for recording in recordings:
+        ready, _, _ = prepare_recording(recording, _kt(robot, recordings), options.cutoff_hz)
+        equations.add_recording(
+            model,
+            ready,
+            options.friction,
+            inertia,
+            options.coulomb_velocity,
+            FindingColumns(columns.terms, columns.reference),
+            stribeck=stribeck,
+        )
+    rms_tau = np.sqrt(equations.energy / np.maximum(equations.count, 1))
+    gram, _, _ = equations.weighted(1.0 / np.maximum(rms_tau, 1e-12) ** 2)
+    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
+    gram = gram / np.outer(scale, scale)
+    kept = list(range(model.n_base + len(names)))
+    keep = []
+    for k in range(gram.shape[0] - n_extra, gram.shape[0]):
+        block = gram[np.ix_(kept, kept)]
+        projected = gram[k, kept] @ np.linalg.pinv(block, rcond=1e-12, hermitian=True) @ gram[kept, k]
+        independent = bool(gram[k, k] - projected > ABSORBED * gram[k, k])
+        keep.append(independent)
+        if independent:
+            kept.append(k)
+    return tuple(keep)
+
+
+def _inertia_joints(model, robot, options):
+    return separate_inertia_joints(model, robot) if options.drive_inertia else ()
+
+
+def _kt(robot, recordings):
+    if all(r.tau is not None for r in recordings) or robot.drives is None:
+        return None
+    return np.array([d.kt for d in robot.drives], dtype=float)
+
+
+def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
+    """The recordings-route options the file was identified with."""
+    document = calibrated.document
+    drive, identification = document["drive"], document["identification"]
+    return TrajectoryOptions(
+        friction=tuple(drive["friction_terms"]),
+        coulomb_velocity=float(drive["coulomb_velocity"]),
+        drive_inertia=bool(identification.get("drive_inertia", True)),
+        consistency=bool(document["standard"].get("checked", True)),
+        cutoff_hz=float(identification["cutoff_hz"][0]),
+    )
+
+
+def _split_fit(fit, n_drive: int):
+    """The fit with only its drive parameters, and (values, ols, std) of the finding features after them."""
+    extra = (fit.drive[n_drive:], fit.drive_ols[n_drive:], fit.drive_std[n_drive:])
+    plain = dataclasses.replace(
+        fit,
+        drive=fit.drive[:n_drive],
+        drive_ols=fit.drive_ols[:n_drive],
+        drive_std=fit.drive_std[:n_drive],
+        drive_names=fit.drive_names[:n_drive],
+    )
+    return plain, extra
+
+
+def _fit(robot, model, recordings, options, terms, reference, stribeck=None):
+    """One joint fit with the finding columns; returns (fit, columns)."""
+    columns = FindingColumns(tuple(terms), reference)
+    if terms:
+        keep = _absorbed_mask(robot, model, recordings, options, columns, stribeck)
+        columns = dataclasses.replace(columns, keep=keep)
+    return identify_trajectories(robot, model, recordings, options, columns if terms else None), columns
+
+
+def recalibrate(
+    calibrated: CalibratedModel, robot, model, report, train, validation, *, robot_source=None
+) -> Recalibration:
+    """Identify ``calibrated`` again from ``train`` with the findings of ``report``; judge it on ``validation``.
+
+    Parameters
+    ----------
+    calibrated : CalibratedModel
+        The model the diagnosis started from.
+    robot, model : RobotDescription, PSDMModel
+        ``calibrated.load_robot()`` and its derived model.
+    report : DiagnosisReport
+        Of ``diagnose`` run with the calibrated model as the nominal one.
+    train, validation : Recording or sequence of Recording
+        Raw recordings (as given to the diagnosis).
+    robot_source : path, optional
+        Robot file written into the new model (default: the file's own copy).
+
+    Returns
+    -------
+    Recalibration
+
+    Raises
+    ------
+    ParameterError
+        When the report has no finding to apply.
+    """
+    if not report.findings:
+        raise ParameterError(
+            "recalibrate report.findings is empty: the diagnosis found nothing to apply. "
+            "Use the calibrated model as it is."
+        )
+    train = [train] if not isinstance(train, (list, tuple)) else list(train)
+    validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
+    terms, corrections, entries = _finding_terms(calibrated, report)
+    kt = _kt(robot, validation)
+    after, fit, terms, entries = _robust_fit(
+        calibrated, robot, model, train, (terms, corrections, entries), robot_source
+    )
+    dropped = []
+    for _ in range(MAX_DROP_ROUNDS):  # a finding is kept only if it lowers the validation RMSE where it acts
+        unhelpful = unhelpful_findings(after, model, validation, kt)
+        if not unhelpful:
+            break
+        dropped += unhelpful
+        labels = {d["label"] for d in unhelpful}
+        logger.info("recalibrate: dropped findings that do not help on validation: %s; refitting", sorted(labels))
+        terms = [t for t in terms if t.label not in labels]
+        corrections = {k: v for k, v in corrections.items() if k not in labels}
+        entries = [e for e in entries if e["label"] not in labels]
+        after, fit = _joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
+    rmse_before = np.mean([validation_rmse(calibrated, model, r, kt)[0] for r in validation], axis=0)
+    scores = [validation_rmse(after, model, r, kt) for r in validation]
+    mass = min_mass_eigenvalue(robot, fit.standard) if fit.checked else float("nan")
+    moved = _moved(calibrated, after)
+    document = after.document
+    document["validation"] = {
+        "recordings": [
+            {"recording": r.name, "rmse": _list(s[0]), "r2": _list(s[1])} for r, s in zip(validation, scores)
+        ],
+        "min_mass_eigenvalue": None if not np.isfinite(mass) else mass,
+    }
+    rmse_after = np.mean([s[0] for s in scores], axis=0)
+    document["recalibration"] = {
+        "before": {
+            "validation_rmse": _list(rmse_before),
+            "consistent": calibrated.consistent,
+            "min_pseudo_inertia_eigenvalue": calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"],
+        },
+        "after": {
+            "validation_rmse": _list(rmse_after),
+            "consistent": after.consistent,
+            "min_pseudo_inertia_eigenvalue": document["standard"]["min_pseudo_inertia_eigenvalue"],
+        },
+        "moved_parameters": moved,
+        "dropped_findings": dropped,
+    }
+    for entry in document["findings"]:
+        entry["validation_rmse_before"], entry["validation_rmse_after"] = _list(rmse_before), _list(rmse_after)
+        if entry["kind"] in ("torque", "signal"):
+            without = without_entry(after, entry)
+            entry["validation_rmse_without"] = _list(
+                np.mean([validation_rmse(without, model, r, kt)[0] for r in validation], axis=0)
+            )
+    return Recalibration(
+        before=calibrated,
+        after=after,
+        rmse_before=rmse_before,
+        rmse_after=rmse_after,
+        moved=moved,
+        min_mass_eigenvalue=mass,
+    )
+
+
+def _joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:
+    """(new CalibratedModel, fit) of the recordings-route fit on ``train`` with ``findings`` = (torque terms,
+    corrections, entries): the signal findings correct the recordings, the torque ones add columns."""
+    terms, corrections, entries = findings
+    options = _options(calibrated)
+    corrected = [correct_recording(r, corrections, _kt(robot, train)) for r in train]
+    stribeck = calibrated.document["drive"].get("stribeck_velocity") or None
+    stribeck = None if stribeck is None or "fs" not in options.friction else np.asarray(stribeck, dtype=float)
+    fit, columns = _fit(robot, model, corrected, options, terms, _reference(calibrated, model), stribeck)
+    if any(term.load_dependent for term in terms):  # second pass: the load of the new model itself
+        interim = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source)
+        fit, columns = _fit(robot, model, corrected, options, terms, _reference(interim, model), stribeck)
+    after = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source)
+    after.document["provenance"]["recalibrated_on"] = [recording_provenance(r) for r in train]
+    return after, fit
+
+
+def _robust_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:
+    """``_joint_fit``, and when the consistent fit does not converge with unnamed (sparse) terms among the
+    findings, the fit without them, which are then reported only (with the reason): (after, fit, terms, entries)."""
+    terms, corrections, entries = findings
+    try:
+        return (*_joint_fit(calibrated, robot, model, train, findings, robot_source), terms, entries)
+    except SolverError as exc:
+        unnamed = {term.label for term in terms if term.effect == "unnamed_effect"}
+        if not unnamed:
+            raise
+        logger.info("recalibrate: the joint fit with %s did not converge (%s); reported only", sorted(unnamed), exc)
+    terms = [term for term in terms if term.label not in unnamed]
+    entries = [copy.deepcopy(e) for e in entries]
+    for entry in entries:
+        if entry["label"] in unnamed:
+            entry.pop("term", None)
+            entry["kind"] = "reported"
+            entry["applied"] = "reported only: the consistent joint fit did not converge with its columns"
+    after, fit = _joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
+    return after, fit, terms, entries
+
+
+def _reference(calibrated: CalibratedModel, model):
+    """The torque a load-dependent friction multiplies: the model's own, without load-dependent terms."""
+
+    def torque(q, qd, qdd):
+        document = copy.deepcopy(calibrated.document)
+        document["findings"] = [
+            e for e in document.get("findings") or [] if e.get("term", {}).get("effect") != "load_dependent_friction"
+        ]
+        return CalibratedModel(document).predict(model, q, qd, qdd)
+
+    return torque
+
+
+def _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source) -> CalibratedModel:
+    """The new calibrated model of a joint fit (findings filled, corrections, provenance kept)."""
+    n_drive = len(fit.drive_names) - len(columns.names) if terms else len(fit.drive_names)
+    plain, extra = _split_fit(fit, n_drive)
+    source = robot_source or _robot_copy(calibrated)
+    new = CalibratedModel.from_fit(
+        robot,
+        model,
+        plain,
+        robot_source=source,
+        recordings=calibrated.document.get("provenance", {}).get("recordings", []),
+    )
+    document = new.document
+    document["robot"] = copy.deepcopy(calibrated.document["robot"])
+    document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia
+    document["findings"] = filled_entries(entries, terms, columns, extra)
+    document["corrections"] = corrections
+    return CalibratedModel(document)
+
+
+def _robot_copy(calibrated: CalibratedModel):
+    """The path of the file's robot text (written to the robot cache, as ``load_robot`` does)."""
+    return calibrated.robot_file()
+
+
+def _moved(before: CalibratedModel, after: CalibratedModel) -> list:
+    """Base and drive parameters whose change exceeds 3 standard deviations of the new estimate."""
+    out = []
+    for block in ("base", "drive"):
+        old, new = before.document[block], after.document[block]
+        for name, a, b, s in zip(new["names"], _values(old, new["names"]), new["values"], new["std"]):
+            if a is None or b is None:
+                continue
+            sigma = s if s is not None and s > 0 else float("inf")
+            if abs(b - a) > 3.0 * sigma:
+                out.append({"name": name, "before": a, "after": b, "std": s, "sigmas": abs(b - a) / sigma})
+    return out
+
+
+def _values(block: dict, names: list) -> list:
+    lookup = dict(zip(block["names"], block["values"]))
+    return [lookup.get(name) for name in names]
+
+
+def min_mass_eigenvalue(robot, standard, seed: int = 0) -> float:
+    """Smallest eigenvalue of the mass matrix of ``standard`` over random configurations within the limits."""
+    from psdm_casadi.oracle import PinocchioOracle
+
+    oracle = PinocchioOracle(robot, standard)
+    q = np.random.default_rng(seed).uniform(robot.q_min, robot.q_max, size=(MASS_CHECK_CONFIGURATIONS, robot.n_dof))
+    return float(min(np.linalg.eigvalsh(m)[0] for m in oracle.crba(q)))
+
+
+def consistency_failure(recalibration: Recalibration) -> str | None:
+    """None for a consistent recalibrated model, else a sentence naming the eigenvalue and the parameters to blame."""
+    after = recalibration.after
+    standard = after.document["standard"]
+    if not standard.get("checked", True):
+        return "the recalibrated model was not checked for physical consistency (identified with --no-consistency)"
+    mass = recalibration.min_mass_eigenvalue
+    if after.consistent and not (np.isfinite(mass) and mass <= 0):
+        return None
+    values = after.standard
+    eigen = pseudo_inertia_eigenvalues(values) if np.all(np.isfinite(values[:, :10])) else np.full(len(values), -1.0)
+    bad = [i for i in np.argsort(eigen) if eigen[i] <= 0] or [int(np.argmin(eigen))]
+    blamed = "; ".join(
+        f"link {i + 1} ({', '.join(f'{n}{i + 1}' for n in LINK_PARAMETER_NAMES)}, pseudo-inertia "
+        f"eigenvalue {eigen[i]:.3g})"
+        for i in bad
+    )
+    return (
+        f"the recalibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
+        f"{standard['min_pseudo_inertia_eigenvalue']}, smallest mass-matrix eigenvalue {mass:.3g}): {blamed}"
+    )
+
+
+def _list(values) -> list:
+    return [float(v) for v in np.atleast_1d(values)]

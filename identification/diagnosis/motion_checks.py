@@ -1,0 +1,73 @@
+"""Checks run before any fit of ``diagnose``: every joint moves in both recordings, and the nominal model's free columns
+are well conditioned on the training recording (a still or dithering joint otherwise gives noise-fitted findings)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from identification.data.excitation_check import ExcitationThresholds, check_joint_motion
+from identification.data.regressor_check import base_parameter_joints, check_regressor
+from identification.diagnosis.columns import row_chunks
+from identification.diagnosis.context import check_preprocessed
+from identification.diagnosis.nominal import friction_feature_names
+from identification.metrics import rms
+
+RECORD_FIX = (
+    "Record training and validation runs that move {joints} over a large part of the range, with speed and "
+    "acceleration (psdm excite, or psdm simulate --experiment sine)."
+)
+
+
+def check_motion(robot, train, validation, options) -> None:
+    """Every joint moves in the training and the validation recording (``DiagnosisOptions.excitation``).
+
+    Recordings given preprocessed (``options.preprocess=False``) must hold qd and qdd first.
+    """
+    for role, rec in (("training", train), ("validation", validation)):
+        if not options.preprocess:
+            check_preprocessed(rec)
+        check_joint_motion(
+            rec,
+            range(robot.n_dof),
+            robot=robot,
+            purpose=f"the diagnosis ({role} recording)",
+            fix=RECORD_FIX,
+            thresholds=options.excitation,
+        )
+
+
+def check_nominal_columns(robot, model, problem, options) -> None:
+    """The nominal model's free columns on the training recording, each joint weighted by its torque RMS as the
+    selection weights it, must have full rank and a bounded condition number (``check_regressor``)."""
+    n = robot.n_dof
+    names = friction_feature_names(options.friction, n)
+    per = len(names) // n
+    joints = [(k // per,) for k in range(len(names))]
+    if options.friction == "lugre" and robot.drives is not None:  # the bristle dynamics of the LuGre prior
+        names += [f"lugre_dynamics_{j + 1}" for j in range(n)]
+        joints += [(j,) for j in range(n)]
+    if options.rigid_body == "identified":
+        names += list(model.base_names)
+        joints += list(base_parameter_joints(model))
+    torque_rms = rms(problem.ctx_t.tau)
+    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    thresholds = options.excitation if options.excitation is not None else ExcitationThresholds()
+    if len(row_chunks(problem.base_t.n_samples)) == 1:
+        matrix, weights = (
+            problem.base_t.dense().reshape(-1, problem.base_t.n_columns),
+            np.tile(1.0 / sigma**2, problem.ctx_t.n_samples),
+        )
+    else:  # the same singular values and column norms, from a chunked QR of the weighted rows
+        matrix, weights = problem.base_t.weighted_r(sigma), None
+    check_regressor(
+        matrix,
+        weights,
+        names=names,
+        column_joints=joints,
+        owner="diagnose",
+        source=f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction"
+        + (" and base parameters)" if options.rigid_body == "identified" else ")"),
+        fix=RECORD_FIX,
+        max_condition=thresholds.max_condition,
+        robot=robot,
+    )

@@ -1,0 +1,51 @@
+"""The batch speed harness (codegen.peers.batch_speed): its ratios and its generated Pinocchio model."""
+
+import re
+
+import pytest
+
+from codegen.peers.batch_speed import GPU_ANCHOR_STATES_PER_S, TEMPLATE, batch_ratios, cpp_model_code
+from psdm_casadi.oracle import build_pinocchio_model
+
+
+def test_batch_ratios_are_per_core_against_the_best_peer_and_the_gpu_anchor():
+    rates = {
+        "psdm_batch_id_t1": 30e6,
+        "psdm_batch_id_t2": 55e6,
+        "psdm_batch_fd_t1": 20e6,
+        "psdm_batch_regressor_t1": 8e6,
+        "pinocchio_rnea_parallel_t1": 3e6,
+        "pinocchio_aba_parallel_t1": 2e6,
+        "pinocchio_regressor_loop_t1": 1e6,
+    }
+    ratios = batch_ratios(rates, threads=2)
+    assert ratios["batch_states_per_s_per_core"] == 30e6 and ratios["batch_states_per_s_all_cores"] == 55e6
+    assert ratios["batch_speedup_vs_best_cpu_peer"] == pytest.approx(10.0)
+    assert ratios["batch_best_cpu_peer"] == "pinocchio_rnea_parallel"
+    assert ratios["batch_vs_gpu_anchor_per_core"] == pytest.approx(30e6 / GPU_ANCHOR_STATES_PER_S)
+    assert ratios["batch_fd_speedup_vs_best_cpu_peer"] == pytest.approx(10.0)
+    assert ratios["batch_regressor_speedup_vs_best_cpu_peer"] == pytest.approx(8.0)
+    # with CppADCodeGen timed, the faster of the two peers is the reference
+    with_cppadcg = batch_ratios({**rates, "cppadcg_rnea_loop_t1": 6e6, "cppadcg_aba_loop_t1": 1e6}, threads=2)
+    assert with_cppadcg["batch_best_cpu_peer"] == "cppadcg_rnea_loop"
+    assert with_cppadcg["batch_speedup_vs_best_cpu_peer"] == pytest.approx(5.0)
+    assert with_cppadcg["batch_fd_speedup_vs_best_cpu_peer"] == pytest.approx(10.0)
+
+
+def test_harness_model_code_adds_every_joint(denso):
+    pin_model = build_pinocchio_model(denso)
+    code = cpp_model_code(pin_model)
+    assert code.count("model.addJoint(") == pin_model.njoints - 1
+    assert code.count("pinocchio::Inertia(") == pin_model.njoints - 1
+    placeholders = set(re.findall(r"@[A-Z_]+@", TEMPLATE.read_text()))
+    assert placeholders == {
+        "@ROBOT@",
+        "@LIBRARY@",
+        "@LIBRARY_PREFIX@",
+        "@N_DOF@",
+        "@N_BASE@",
+        "@THETA@",
+        "@JOINTS@",
+        "@ARMATURE@",
+        "@GRAVITY@",
+    }

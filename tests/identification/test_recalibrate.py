@@ -1,0 +1,169 @@
+"""The discovery loop: psdm diagnose MODEL --apply NEW re-identifies a calibrated model with its findings.
+
+The end-to-end test hides a spring on joint 2 of the virtual Denso: the calibration without it puts the
+spring into the gravity parameters; the diagnosis of the calibrated model finds it, and the recalibration
+with it gives gravity torques close to the truth (Pinocchio on the robot file's inertia, which the
+simulation used). The other tests check the consistency gate's message, the command line's refusals and
+that a rotor inertia a URDF-like model has no base parameter for stays in the diagnosis' saved function.
+"""
+
+import dataclasses
+import json
+from types import SimpleNamespace
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from identification.calibration.calibrated_model import CalibratedModel, calibrated_robot, load_calibrated_model
+from identification.calibration.findings import correct_recording
+from identification.calibration.recalibrate import consistency_failure
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import save_recording
+from identification.data.recording import Recording
+from identification.diagnosis.augmented import AugmentedModel
+from identification.diagnosis.candidates import RotorInertiaTerm
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from identification.virtual.transmission_effects import Backlash, JointElasticity
+from psdm_casadi.cli import main
+from psdm_casadi.derive import derive_psdm
+from psdm_casadi.oracle import PinocchioOracle
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
+
+SPRING_K, SPRING_Q0 = 40.0, 0.2
+
+
+@pytest.fixture(autouse=True)
+def _robot_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+
+
+def test_consistency_failure_names_the_eigenvalue_and_the_links_parameters():
+    standard = np.tile([1.0, 0, 0, 0, 0.1, 0, 0.1, 0, 0, 0.1, 0.0], (2, 1))
+    standard[1, 4] = -0.3  # link 2: a negative moment of inertia
+    document = {"robot": {"joint_names": ["a", "b"]},
+                "standard": {"values": standard.ravel().tolist(), "consistent": False, "checked": True,
+                             "min_pseudo_inertia_eigenvalue": -0.2}}  # fmt: skip
+    message = consistency_failure(SimpleNamespace(after=CalibratedModel(document), min_mass_eigenvalue=-0.1))
+    assert "smallest pseudo-inertia eigenvalue -0.2" in message and "mass-matrix eigenvalue -0.1" in message
+    assert "link 2 (m2, mx2" in message and "link 1" not in message
+    document["standard"].update(consistent=True, min_pseudo_inertia_eigenvalue=0.01)
+    document["standard"]["values"] = np.tile(standard[0], 2).tolist()
+    assert consistency_failure(SimpleNamespace(after=CalibratedModel(document), min_mass_eigenvalue=0.5)) is None
+
+
+@pytest.mark.parametrize(
+    "effect, correction",
+    [
+        (xp.SignalDelay(samples=7), {"delay": {"effect": "delay", "delay_s": 7e-3}}),
+        (JointElasticity(joint=1, stiffness=400.0),
+         {"joint_elasticity[j2]": {"effect": "joint_elasticity", "joint": 2, "compliance_rad_per_Nm": 1 / 400.0}}),
+        (Backlash(joint=2, width=0.01, torque_scale=0.3),
+         {"backlash[j3]": {"effect": "backlash", "joint": 3, "backlash_rad": 0.01, "torque_scale_Nm": 0.3}}),
+    ],
+)  # fmt: skip
+def test_measurement_corrections_undo_what_the_virtual_robot_measures(effect, correction):
+    t = np.arange(0.0, 2.0, 1e-3)
+    q = np.column_stack([np.sin(2 * t + k) for k in range(3)])
+    tau = np.column_stack([5 * np.cos(3 * t + k) for k in range(3)])
+    q_rec, tau_rec = effect.measure(t, q, tau)
+    corrected = correct_recording(Recording(t=t, q=q_rec, tau=tau_rec), correction)
+    inside = slice(0, t.size - 10)  # a delay holds the last recorded samples
+    np.testing.assert_allclose(corrected.q[inside], q[inside], atol=1e-12)
+    np.testing.assert_allclose(corrected.tau[inside], tau[inside], atol=1e-9)
+    assert not np.allclose(q_rec, q) or not np.allclose(tau_rec, tau)  # the effect was there to undo
+
+
+def test_apply_needs_a_calibrated_model_and_a_model_brings_its_locks(capsys, tmp_path):
+    argv = ["--train", "a.csv", "--validate", "b.csv"]
+    assert main(["diagnose", str(DENSO_FILE), *argv, "--apply", str(tmp_path / "new.json")]) == 2
+    assert "diagnose --apply needs a calibrated model" in capsys.readouterr().err
+    assert main(["diagnose", str(tmp_path / "model.json"), *argv, "--lock", "J6"]) == 2
+    assert "Drop --lock" in capsys.readouterr().err
+    assert main(["diagnose", str(tmp_path / "missing.json"), *argv]) == 2
+    assert "missing.json" in capsys.readouterr().err and not (tmp_path / "new.json").exists()
+
+
+def test_a_rotor_inertia_outside_the_base_parameters_stays_in_the_saved_function(denso, rng):
+    """A robot without drive inertias in its model (as a URDF robot): the term is a torque, not a theta change."""
+    robot = dataclasses.replace(denso, drive_inertia=(False,) * denso.n_dof)
+    model = derive_psdm(robot)
+    assert not np.any(model.parameter_map[:, 10::11])
+    term, inertia = RotorInertiaTerm(joint=2), 0.3
+    common = dict(model=model, theta=model.base_parameters(robot.nominal_dynamic_parameters()),
+                  friction_kind="coulomb_viscous", friction_coefficients=np.zeros(2 * robot.n_dof),
+                  friction_vs=np.full(robot.n_dof, 0.05), friction_dv=np.ones(robot.n_dof))  # fmt: skip
+    with_term = AugmentedModel(terms=(term,), coefficients=(np.array([inertia]),), **common)
+    without = AugmentedModel(terms=(), coefficients=(), **common)
+    assert with_term.signal_corrections == {}
+    q, qd, qdd = rng.uniform(-1, 1, (3, robot.n_dof))
+    function = with_term.build_function()
+    assert isinstance(function, ca.Function)
+    difference = np.array(function(q, qd, qdd, 0.0) - without.build_function()(q, qd, qdd, 0.0))
+    np.testing.assert_allclose(difference.ravel(), inertia * qdd * (np.arange(robot.n_dof) == 2), atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def spring_loop(tmp_path_factory, denso, denso_model):
+    """A training and a validation recording with a hidden spring, and the model identified without it."""
+    folder = tmp_path_factory.mktemp("loop")
+    recordings = []
+    for k, name in enumerate(("train.csv", "valid.csv")):
+        rng = np.random.default_rng(30 + k)
+        reference = sine_experiment(denso, duration=10.0, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=500.0)
+        extras = [xp.Spring(joint=1, stiffness=SPRING_K, q0=SPRING_Q0)]
+        recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
+        save_recording(recording, folder / name)
+        recordings.append(recording)
+    fit = identify_trajectories(denso, denso_model, recordings[:1], TrajectoryOptions())
+    CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE).save(folder / "model.json")
+    return folder
+
+
+def _gravity_error(calibrated, denso, denso_model, rng) -> np.ndarray:
+    """RMS over random configurations of the model's gravity torque minus the truth's (Pinocchio), per joint."""
+    q = rng.uniform(denso.q_min, denso.q_max, (300, denso.n_dof))
+    zero = np.zeros_like(q)
+    error = denso_model.inverse_dynamics(q, zero, zero, calibrated.theta) - PinocchioOracle(denso).rnea(q, zero, zero)
+    return np.sqrt(np.mean(error**2, axis=0))
+
+
+@pytest.mark.slow
+def test_diagnose_apply_finds_the_spring_and_restores_the_rigid_body(spring_loop, denso, denso_model, capsys, rng):
+    folder = spring_loop
+    argv = ["diagnose", str(folder / "model.json"), "--train", str(folder / "train.csv"), "--validate",
+            str(folder / "valid.csv"), "--apply", str(folder / "new.json")]  # fmt: skip
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "## Recalibration with the findings" in out and "validation RMSE after" in out
+    assert "validation RMSE [N m] without -> with it: joint 2:" in out
+    before, after = load_calibrated_model(folder / "model.json"), load_calibrated_model(folder / "new.json")
+    assert after.document["version"] == 2 and before.document["findings"] == []
+    spring = next(e for e in after.document["findings"] if e["label"] == "spring[j2]")
+    assert spring["parameters"]["k"] == pytest.approx(SPRING_K, abs=3 * spring["std"][0] + 0.05 * SPRING_K)
+    # the spring was in the gravity parameters of joint 2; with it modelled, they are right again
+    error_before = _gravity_error(before, denso, denso_model, rng)[1]
+    error_after = _gravity_error(after, denso, denso_model, rng)[1]
+    assert error_after < 0.25 * error_before, (error_before, error_after)
+    block = after.document["recalibration"]
+    assert block["after"]["validation_rmse"][1] < 0.5 * block["before"]["validation_rmse"][1]
+    assert any(m["name"].startswith("theta") for m in block["moved_parameters"])
+    assert main(["validate", str(folder / "new.json"), str(folder / "valid.csv"), "--json"]) == 0
+    validated = json.loads(capsys.readouterr().out)["recordings"][0]["rmse"]
+    np.testing.assert_allclose(validated, after.document["validation"]["recordings"][0]["rmse"], rtol=1e-12)
+    assert main(argv) == 2  # the new model is not overwritten without --overwrite
+    assert "--overwrite" in capsys.readouterr().err
+
+
+def test_the_nominal_robot_of_a_calibrated_model_is_its_identified_rigid_body(spring_loop, denso, denso_model, rng):
+    """``psdm diagnose MODEL`` starts from the file's inertia: Pinocchio on it gives the model's rigid-body torque."""
+    calibrated = load_calibrated_model(spring_loop / "model.json")
+    nominal = calibrated_robot(calibrated, calibrated.load_robot())
+    q, qd, qdd = rng.uniform(-1.5, 1.5, (3, 50, denso.n_dof))
+    expected = denso_model.inverse_dynamics(q, qd, qdd, calibrated.theta)
+    np.testing.assert_allclose(PinocchioOracle(nominal).rnea(q, qd, qdd), expected, atol=1e-9 * np.abs(expected).max())
+    prior = PinocchioOracle(denso).rnea(q, qd, qdd)
+    assert np.abs(prior - expected).max() > 1.0  # the spring moved the identified inertia away from the robot file

@@ -1,0 +1,129 @@
+"""The MPC's discrete model: RK4 on a forward dynamics, its Jacobian chained stage by stage, and FD derivatives.
+
+``trajopt.mpc`` builds its NLP from these: the RK4 step (the exact-Hessian path inlines it into one
+SX graph), the stage functions ``(x, u) -> x_next`` and ``(x, u) -> (x_next, d x_next / d(x, u))``
+(the Gauss-Newton path), and optionally the forward dynamics' derivatives through the inverse dynamics.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from psdm_casadi.forward import ldl_solve
+
+
+def build_step_function(forward_dynamics: ca.Function, n_dof: int, dt: float, rk4_steps: int = 1, friction=None):
+    """RK4 discretisation ``(x, u) -> x_next`` of ``qdd = forward_dynamics(q, qd, tau - friction(qd))``.
+
+    The graph is MX (so that any CasADi Function, also a callback, can be the dynamics); it is
+    expanded to SX when the dynamics allow it, which is what the solvers evaluate fastest.
+    """
+    x, u = ca.MX.sym("x", 2 * n_dof), ca.MX.sym("u", n_dof)
+
+    def rhs(state):
+        q, qd = state[:n_dof], state[n_dof:]
+        tau = u if friction is None else u - friction(qd)
+        return ca.vertcat(qd, forward_dynamics(q, qd, tau))
+
+    h = dt / rk4_steps
+    state = x
+    for _ in range(rk4_steps):
+        k1 = rhs(state)
+        k2 = rhs(state + h / 2 * k1)
+        k3 = rhs(state + h / 2 * k2)
+        k4 = rhs(state + h * k3)
+        state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    step = ca.Function("step", [x, u], [state], ["x", "u"], ["x_next"])
+    try:
+        return step.expand()
+    except RuntimeError:  # a callback or external without an SX form stays MX
+        return step
+
+
+def build_forward_dynamics_jacobian(forward_dynamics, inverse_dynamics, mass_matrix) -> ca.Function:
+    """``(q, qd, tau) -> (d qdd/d q, d qdd/d qd, d qdd/d tau)`` through the inverse dynamics.
+
+    Differentiating ``ID(q, qd, FD(q, qd, tau)) = tau`` gives ``d qdd/d(q, qd) = -M^-1 d ID/d(q, qd)``
+    at ``qdd = FD`` and ``d qdd/d tau = M^-1``: one Jacobian of the (cheap) inverse dynamics and one
+    LDL^T factorisation of M, instead of AD through the factorisation inside the forward dynamics.
+
+    Parameters
+    ----------
+    forward_dynamics, inverse_dynamics, mass_matrix : casadi.Function
+        SX functions ``(q, qd, tau) -> qdd``, ``(q, qd, qdd) -> tau`` and ``q -> M`` of one model.
+
+    Returns
+    -------
+    casadi.Function
+        SX, for ``build_mpc(..., forward_dynamics_jacobian=...)``.
+    """
+    n = forward_dynamics.size1_in(0)
+    q, qd, tau, qdd = (ca.SX.sym(name, n) for name in ("q", "qd", "tau", "qdd"))
+    torque = inverse_dynamics(q, qd, qdd)
+    acceleration = forward_dynamics(q, qd, tau)
+    rhs = ca.substitute(ca.horzcat(-ca.jacobian(torque, q), -ca.jacobian(torque, qd)), qdd, acceleration)
+    rhs = ca.horzcat(rhs, ca.SX.eye(n))
+    solved = ca.horzcat(*[ldl_solve(mass_matrix(q), rhs[:, k]) for k in range(3 * n)])
+    return ca.Function(
+        "forward_dynamics_jacobian",
+        [q, qd, tau],
+        [solved[:, :n], solved[:, n : 2 * n], solved[:, 2 * n :]],
+        ["q", "qd", "tau"],
+        ["dqdd_dq", "dqdd_dqd", "dqdd_dtau"],
+        {"cse": True},
+    )
+
+
+def expanded(function: ca.Function) -> ca.Function:
+    """The SX form of an MX function when it has one: the fastest to evaluate and to compile."""
+    if not function.is_a("MXFunction"):
+        return function
+    try:
+        return function.expand()
+    except RuntimeError:  # holds a call without an SX form (an external, a callback)
+        return function
+
+
+def stage_functions(forward_dynamics, n, dt, rk4_steps, friction, fd_jacobian=None):
+    """The RK4 stage model ``(x, u) -> x_next`` and ``(x, u) -> (x_next, d x_next / d(x, u))``.
+
+    The continuous right-hand side and its Jacobian are two small functions (compiled with the NLP's
+    functions when jit); the RK4 sensitivities are chained from them in MX, dk = J(s) [ds; E] at each
+    stage point s, so the code to compile holds the right-hand side's Jacobian once, not four times.
+    """
+    symbol = ca.SX if forward_dynamics.is_a("SXFunction") else ca.MX
+    x, u = symbol.sym("x", 2 * n), symbol.sym("u", n)
+    tau = u if friction is None else u - friction(x[n:])
+    rhs_expr = ca.vertcat(x[n:], forward_dynamics(x[:n], x[n:], tau))
+    rhs = ca.Function("rhs", [x, u], [rhs_expr], ["x", "u"], ["xdot"])
+    if fd_jacobian is None:
+        jac_expr = ca.jacobian(rhs_expr, ca.vertcat(x, u))
+    else:  # the given derivatives, chained through the friction: d tau / d qd = -d tau_f / d qd
+        d_q, d_qd, d_tau = fd_jacobian(x[:n], x[n:], tau)
+        if friction is not None:
+            v = ca.SX.sym("qd", n)
+            slope = ca.Function("friction_slope", [v], [ca.jacobian(friction(v), v)])
+            d_qd = d_qd - ca.mtimes(d_tau, slope(x[n:]))
+        top = ca.horzcat(symbol(n, n), symbol.eye(n), symbol(n, n))
+        jac_expr = ca.vertcat(top, ca.horzcat(d_q, d_qd, d_tau))
+    rhs_jac = ca.Function("rhs_jacobian", [x, u], [rhs_expr, jac_expr], ["x", "u"], ["xdot", "jac"])
+    xm, um = ca.MX.sym("x", 2 * n), ca.MX.sym("u", n)
+    select_u = ca.DM(np.hstack([np.zeros((n, 2 * n)), np.eye(n)]))
+    h = dt / rk4_steps
+    state, sens, state_only = xm, ca.MX(ca.DM(np.hstack([np.eye(2 * n), np.zeros((2 * n, n))]))), xm
+    for _ in range(rk4_steps):
+        slopes, slope_sens, plain = [], [], []
+        for c in (0.0, 0.5, 0.5, 1.0):
+            point = state if not slopes else state + c * h * slopes[-1]
+            point_sens = sens if not slopes else sens + c * h * slope_sens[-1]
+            value, jac = rhs_jac(point, um)
+            slopes.append(value)
+            slope_sens.append(ca.mtimes(jac, ca.vertcat(point_sens, select_u)))
+            plain.append(rhs(state_only if not plain else state_only + c * h * plain[-1], um))
+        state = state + h / 6 * (slopes[0] + 2 * slopes[1] + 2 * slopes[2] + slopes[3])
+        sens = sens + h / 6 * (slope_sens[0] + 2 * slope_sens[1] + 2 * slope_sens[2] + slope_sens[3])
+        state_only = state_only + h / 6 * (plain[0] + 2 * plain[1] + 2 * plain[2] + plain[3])
+    model = ca.Function("model", [xm, um], [state_only], ["x", "u"], ["x_next"])
+    model_jacobian = ca.Function("model_jacobian", [xm, um], [state, sens], ["x", "u"], ["x_next", "jac_x_next_xu"])
+    return model, model_jacobian
