@@ -93,3 +93,7 @@ def test_installed_psdm_runs_the_quick_demo_from_an_empty_folder(installed):
     summary = json.loads((work / "report" / "summary.json").read_text())
     assert any(f["effect"] == "spring" and f["joints"] == [4] for f in summary["diagnosis"]["findings"])
     assert (work / "report" / "report.md").stat().st_size > 0
+    # the loop closed: recalibrated with the spring, consistent, Kt within 1 % of the virtual truth, better fit
+    assert summary["final_model_consistent"] is True
+    assert max(summary["recalibration"]["kt_rel_err"]) < 0.01
+    assert summary["final_min_r2_all"] > summary["identification"]["r2_min_all"]

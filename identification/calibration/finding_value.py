@@ -15,9 +15,10 @@ import numpy as np
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.findings import correct_recording
 from identification.calibration.trajectory_data import prepare_recording
+from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from identification.metrics import r2, rmse
 
-__all__ = ["unhelpful_findings", "validation_rmse", "without_entry"]
+__all__ = ["implausibility", "unhelpful_findings", "validation_rmse", "without_entry"]
 
 
 def validation_rmse(calibrated: CalibratedModel, model, recording, kt=None) -> tuple:
@@ -45,10 +46,34 @@ def _judged(entry: dict, with_it, without) -> bool:
     return all(without[j - 1] > with_it[j - 1] for j in joints)
 
 
+def implausibility(entry: dict) -> str | None:
+    """Why a refitted finding's coefficients are physically meaningless, or None: a load-dependent friction
+    coefficient outside (0, MAX_LOAD_FRICTION) (a gear efficiency below 50 %, or friction that falls with the
+    load), a negative rotor inertia. The diagnosis applies the same bounds when it selects the finding; the joint
+    refit with the rigid body can move the coefficient out of them."""
+    values = [c for c in entry.get("coefficients") or [] if c is not None]
+    if entry.get("kind") != "torque" or not values:
+        return None
+    if entry["effect"] == "load_dependent_friction" and not 0.0 < values[0] < MAX_LOAD_FRICTION:
+        return f"refitted friction coefficient mu = {values[0]:.3g} outside (0, {MAX_LOAD_FRICTION})"
+    if entry["effect"] == "rotor_inertia" and values[0] < 0.0:
+        return f"refitted rotor inertia {values[0]:.3g} kg m^2 is negative"
+    return None
+
+
 def unhelpful_findings(after: CalibratedModel, model, validation, kt) -> list:
-    """The torque and signal findings whose removal (no refit) does not raise the validation RMSE where they act
-    (``_judged``), with the RMSE pair that shows it. A torque finding whose features were all absorbed by the fit's
-    other columns contributes nothing by construction and is kept (reported as absorbed), not judged."""
+    """The torque and signal findings whose refitted coefficients are physically meaningless (``implausibility``)
+    or whose removal (no refit) does not raise the validation RMSE where they act (``_judged``), with the RMSE pair
+    that shows it. A torque finding whose features were all absorbed by the fit's other columns contributes
+    nothing by construction and is kept (reported as absorbed), not judged. Implausible findings are returned
+    alone when there are any: the others are judged again once those are gone."""
+    implausible = [
+        {"label": e["label"], "effect": e["effect"], "joints": list(e["joints"] or []), "reason": implausibility(e)}
+        for e in after.document["findings"]
+        if implausibility(e) is not None
+    ]
+    if implausible:
+        return implausible
     with_it = np.mean([validation_rmse(after, model, r, kt)[0] for r in validation], axis=0)
     out = []
     for entry in after.document["findings"]:

@@ -201,6 +201,9 @@ def recalibration_markdown(result, joint_names, path) -> str:
     lines.append(f"- parameters that moved by more than 3 sigma: {len(moved) or 'none'}")
     lines += [f"  - {m['name']}: {m['before']:.5g} -> {m['after']:.5g} ({m['sigmas']:.1f} sigma)" for m in moved]
     for d in block.get("dropped_findings") or []:
+        if "validation_rmse_with" not in d:  # physically meaningless coefficients: no RMSE pair to show
+            lines.append(f"- dropped {d['label']}: {d['reason']}; the model was refitted without it")
+            continue
         with_it, without = d["validation_rmse_with"], d["validation_rmse_without"]
         pairs = "; ".join(f"joint {j}: {a:.4g} -> {b:.4g}" for j, b, a in zip(d["joints"], with_it, without))
         lines.append(f"- dropped {d['label']}: {d['reason']} (validation RMSE [N m] without -> with it: {pairs}); "

@@ -105,7 +105,7 @@ def test_gravity_and_inertial_steps_recover_the_parameters_with_a_known_spring(d
     # jog's small range makes k q + c nearly collinear with the wrist's gravity torques), not accuracy
     assert hidden[0] > 30 * max(clean[0], 0.01) and hidden[1] > 5 * clean[1], errors
     assert known[0] <= 6 * max(clean[0], 0.01) and known[0] < hidden[0] / 10, errors
-    assert known[1] <= 1.2 * clean[1] + 0.02, errors
+    assert known[1] <= 2 * clean[1], errors  # issue 16: after the loop within twice the clean-data errors
 
 
 def test_extra_terms_take_torques_of_the_joint_state_only(denso, denso_model):

@@ -170,3 +170,18 @@ def test_identified_model_with_a_polynomial_spring_and_an_unnamed_term_saves_and
     plain_ff = plain.build_feedforward(denso)
     ref = np.array([plain_ff(*x).full().ravel() for x in zip(q, qd, qdd)])
     np.testing.assert_allclose(got - ref, difference, atol=1e-9)
+
+
+def test_refitted_findings_with_meaningless_coefficients_are_named():
+    from identification.calibration.finding_value import implausibility
+
+    def entry(effect, value, kind="torque"):
+        return {"label": f"{effect}[j5]", "effect": effect, "kind": kind, "joints": [5], "coefficients": [value]}
+
+    assert "mu = 1.22" in implausibility(entry("load_dependent_friction", 1.22))
+    assert "mu = -0.1" in implausibility(entry("load_dependent_friction", -0.1))
+    assert implausibility(entry("load_dependent_friction", 0.2)) is None
+    assert "negative" in implausibility(entry("rotor_inertia", -0.01))
+    assert implausibility(entry("rotor_inertia", 0.01)) is None
+    assert implausibility(entry("load_dependent_friction", None)) is None  # absorbed: nothing to judge
+    assert implausibility(entry("delay", -5.0, kind="signal")) is None
