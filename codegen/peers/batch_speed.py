@@ -16,14 +16,13 @@ prints the table; ``benchmarks/dynamics_speed.py`` merges the figures into its J
 from __future__ import annotations
 
 import json
-import os
-import subprocess
 import time
 from pathlib import Path
 
 import numpy as np
 
 from codegen.batch import export_batch
+from codegen.peers.harness import cpp_model_code, cpp_numbers, run_command
 from codegen.peers.speed import OPT_FLAGS, PINOCCHIO_DEFINES, find_prerequisites
 from psdm_casadi.errors import SolverError
 from psdm_casadi.oracle import build_pinocchio_model
@@ -42,45 +41,6 @@ MAX_THREADS = 32
 # CPU-second of the process, which spinning idle threads would inflate (for every implementation alike),
 # and on a shared machine spinning threads slow the all-threads figures.
 HARNESS_ENV = {"OMP_WAIT_POLICY": "PASSIVE"}
-
-
-def _numbers(values) -> str:
-    return ", ".join(repr(float(v)) for v in np.asarray(values, dtype=float).ravel())
-
-
-def cpp_model_code(pin_model) -> str:
-    """C++ lines adding every joint of a Python pin.Model (revolute or prismatic) with its placement and inertia."""
-    lines = []
-    for jid in range(1, pin_model.njoints):
-        joint = pin_model.joints[jid]
-        short = joint.shortname()
-        if short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-            built = f"pinocchio::{short}(Eigen::Vector3d({_numbers(joint.extract().axis)}))"
-        elif short[:-1] in ("JointModelR", "JointModelP") and short[-1] in "XYZ":
-            built = f"pinocchio::{short}()"
-        else:
-            raise SolverError(f"batch_speed: joint type {short} is not supported by the harness; use revolute joints.")
-        placement, inertia = pin_model.jointPlacements[jid], pin_model.inertias[jid]
-        lines += [
-            f"  rotation << {_numbers(placement.rotation)};",  # Eigen's comma initialiser fills row by row
-            f"  translation << {_numbers(placement.translation)};",
-            f"  jid = model.addJoint({pin_model.parents[jid]}, {built}, pinocchio::SE3(rotation, translation), "
-            f'"{pin_model.names[jid]}");',
-            f"  lever << {_numbers(inertia.lever)};",
-            f"  inertia << {_numbers(inertia.inertia)};",
-            f"  model.inertias[jid] = pinocchio::Inertia({float(inertia.mass)!r}, lever, inertia);",
-        ]
-    return "\n".join(lines)
-
-
-def _run(command, cwd, env=None) -> str:
-    proc = subprocess.run(
-        command, cwd=cwd, capture_output=True, text=True, env=None if env is None else {**os.environ, **env}
-    )
-    if proc.returncode != 0:
-        tail = "\n".join(proc.stderr.strip().splitlines()[-20:])
-        raise SolverError(f"`{' '.join(command)}` failed ({proc.returncode}):\n{tail}")
-    return proc.stdout
 
 
 # Per quantity, the CPU peers of the batch table: (our key, peers timed as <peer>_t<threads>).
@@ -129,7 +89,7 @@ def _cppadcg_objects(pin_model, workdir: Path, cache: Path, eigen, include, log)
             text = source.read_text()
             if not any(f"int {name}(" in text for name in ("cppadcg_rnea_forward_zero", "cppadcg_aba_forward_zero")):
                 continue
-            _run(["cc", *OPT_FLAGS, "-w", "-c", str(source), "-o", str(source.with_suffix(".o"))], workdir)
+            run_command(["cc", *OPT_FLAGS, "-w", "-c", str(source), "-o", str(source.with_suffix(".o"))], workdir)
             objects.append(str(source.with_suffix(".o")))
     except SolverError as exc:
         return [], str(exc)
@@ -141,18 +101,18 @@ def _compile_harness(workdir: Path, export, peer_objects, cppadcg_error, eigen, 
     them, and saying why, when that link fails). Returns the CppADCodeGen error or None."""
     ours = []
     for c_file in (export.single.source, export.source):
-        _run(["cc", *OPT_FLAGS, "-fopenmp", "-c", c_file.name, "-o", f"{c_file.stem}.o"], workdir)
+        run_command(["cc", *OPT_FLAGS, "-fopenmp", "-c", c_file.name, "-o", f"{c_file.stem}.o"], workdir)
         ours.append(f"{c_file.stem}.o")
     flags = [*OPT_FLAGS, "-std=c++17", "-fopenmp", *PINOCCHIO_DEFINES, f"-I{eigen}", f"-I{include}", "-w"]
     if cppadcg_error is None:
         try:
-            _run(
+            run_command(
                 ["c++", *flags, "-DPSDM_CPPADCG", "batch_bench.cpp", *ours, *peer_objects, "-o", "batch_bench"], workdir
             )
             return None
         except SolverError as exc:
             cppadcg_error = f"the harness did not link with CppADCodeGen's code: {exc}"
-    _run(["c++", *flags, "batch_bench.cpp", *ours, "-o", "batch_bench"], workdir)
+    run_command(["c++", *flags, "batch_bench.cpp", *ours, "-o", "batch_bench"], workdir)
     return cppadcg_error
 
 
@@ -227,10 +187,10 @@ def measure_batch_speed(
         .replace("@LIBRARY@", export.library)
         .replace("@N_DOF@", str(pin_model.nv))
         .replace("@N_BASE@", str(theta.size))
-        .replace("@THETA@", _numbers(theta))
+        .replace("@THETA@", cpp_numbers(theta))
         .replace("@JOINTS@", cpp_model_code(pin_model))
-        .replace("@ARMATURE@", _numbers(pin_model.armature))
-        .replace("@GRAVITY@", _numbers(pin_model.gravity.linear))
+        .replace("@ARMATURE@", cpp_numbers(pin_model.armature))
+        .replace("@GRAVITY@", cpp_numbers(pin_model.gravity.linear))
     )
     (workdir / "batch_bench.cpp").write_text(source)
     t0 = time.perf_counter()
@@ -240,7 +200,9 @@ def measure_batch_speed(
         peer_objects, cppadcg_error = _cppadcg_objects(pin_model, workdir, cache, eigen, include, log)
     cppadcg_error = _compile_harness(workdir, export, peer_objects, cppadcg_error, eigen, include)
     log(f"{robot.name}: compiled in {time.perf_counter() - t0:.1f} s; {n_batches} x {batch} states x {repeats}")
-    out = _run(["./batch_bench", str(batch), str(n_batches), str(repeats), str(threads or 0)], workdir, HARNESS_ENV)
+    out = run_command(
+        ["./batch_bench", str(batch), str(n_batches), str(repeats), str(threads or 0)], workdir, HARNESS_ENV
+    )
     harness = json.loads(out.strip().splitlines()[-1])
     harness.pop("sink", None)
     harness.update(state_lanes=list(export.state_lanes), lane_width=export.lane_width, cppadcg_error=cppadcg_error)

@@ -11,12 +11,12 @@ indirection). Needs the ``cmeel-cppad`` and ``cmeel-cppadcodegen`` wheels (the `
 from __future__ import annotations
 
 import hashlib
-import subprocess
 import time
 from pathlib import Path
 
 import numpy as np
 
+from codegen.peers.harness import run_command
 from psdm_casadi.errors import SolverError
 
 GENERATOR_SOURCE = Path(__file__).resolve().parent / "templates" / "cppadcg_gen.cpp"
@@ -65,7 +65,7 @@ def build_generator(cache: Path, eigen: Path, include: Path, defines, log) -> Pa
     t0 = time.perf_counter()
     partial = exe.with_suffix(".partial")
     command = ["c++", *GENERATOR_FLAGS, "-std=c++17", *defines, f"-I{eigen}", f"-I{include}", "-w"]
-    _run([*command, str(GENERATOR_SOURCE), "-o", str(partial), "-ldl"], cache)
+    run_command([*command, str(GENERATOR_SOURCE), "-o", str(partial), "-ldl"], cache)
     partial.replace(exe)
     log(f"CppADCodeGen generator compiled in {time.perf_counter() - t0:.0f} s")
     return exe
@@ -98,7 +98,7 @@ def generate_sources(generator: Path, pin_model, folder: Path) -> list:
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     write_model_file(pin_model, folder / "model.txt")
-    _run([str(generator), "model.txt", "."], folder)
+    run_command([str(generator), "model.txt", "."], folder)
     sources = sorted(folder.glob("*.c"))
     if not sources:
         raise SolverError(f"the CppADCodeGen generator wrote no C file into {folder}")
@@ -207,11 +207,3 @@ def harness_code(n_regressor: int) -> tuple:
         packed = "QVT" if name.startswith("aba") else "QVA"
         timing.append(f'    rounds["{key}"].push_back(time_cppadcg(cppadcg_{name}_{kind}_call, {packed}));')
     return "\n".join(declarations), "\n".join(setup), "\n".join(timing)
-
-
-def _run(command, cwd) -> str:
-    proc = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        tail = "\n".join(proc.stderr.strip().splitlines()[-20:])
-        raise SolverError(f"`{' '.join(command)}` failed ({proc.returncode}):\n{tail}")
-    return proc.stdout

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -23,6 +22,7 @@ import numpy as np
 
 from codegen.derivatives import build_derivative_functions
 from codegen.export import export_c
+from codegen.peers.harness import cpp_model_code, cpp_numbers, run_command
 from codegen.peers.rnea_sx import build_rnea_functions
 from psdm_casadi.errors import SolverError
 from psdm_casadi.oracle import build_pinocchio_model
@@ -77,36 +77,6 @@ def find_prerequisites() -> tuple:
     return eigen, include
 
 
-def _cpp_numbers(values) -> str:
-    return ", ".join(repr(float(v)) for v in np.asarray(values, dtype=float).ravel())
-
-
-def _cpp_joint(model, jid) -> str:
-    """C++ lines adding joint ``jid`` of a Python pin.Model with its placement and inertia."""
-    jmodel = model.joints[jid]
-    short = jmodel.shortname()
-    if short in ("JointModelRevoluteUnaligned", "JointModelPrismaticUnaligned"):
-        joint = f"pinocchio::{short}(Eigen::Vector3d({_cpp_numbers(jmodel.extract().axis)}))"
-    elif short in ("JointModelRX", "JointModelRY", "JointModelRZ", "JointModelPX", "JointModelPY", "JointModelPZ"):
-        joint = f"pinocchio::{short}()"
-    else:
-        raise SolverError(f"joint type {short} is not supported by the speed harness")
-    placement = model.jointPlacements[jid]
-    inertia = model.inertias[jid]
-    # Eigen's comma initialiser fills row by row
-    return "\n".join(
-        [
-            f"  rotation << {_cpp_numbers(placement.rotation)};",
-            f"  translation << {_cpp_numbers(placement.translation)};",
-            f"  jid = model.addJoint({model.parents[jid]}, {joint}, pinocchio::SE3(rotation, translation), "
-            f'"{model.names[jid]}");',
-            f"  lever << {_cpp_numbers(inertia.lever)};",
-            f"  inertia << {_cpp_numbers(inertia.inertia)};",
-            f"  model.inertias[jid] = pinocchio::Inertia({float(inertia.mass)!r}, lever, inertia);",
-        ]
-    )
-
-
 # (label, our key suffix, Pinocchio key, CasADi Newton-Euler key) of the rows of every speed table.
 SPEED_ROWS = (
     ("inverse dynamics", "id", "pinocchio_rnea", "casadi_rnea_id"),
@@ -151,7 +121,7 @@ def _variant_setup(variant, n_base, theta) -> str:
     k = variant.key
     return "\n".join(
         [
-            f"  static const double {k}_theta[] = {{{_cpp_numbers(theta)}}};",
+            f"  static const double {k}_theta[] = {{{cpp_numbers(theta)}}};",
             f"  CasadiCall {k}_id = CASADI_CALL({k}_inverse_dynamics, n);",
             f"  CasadiCall {k}_fd = CASADI_CALL({k}_forward_dynamics, n);",
             f"  CasadiCall {k}_y = CASADI_CALL({k}_regressor, n * {n_base});",
@@ -190,7 +160,7 @@ def _cppadcg_peer(pin_model, workdir: Path, cache: Path, log, key: str) -> dict:
         objects = []
         for source in sources:
             obj = source.with_suffix(".o")
-            _run(["cc", *OPT_FLAGS, "-w", "-c", str(source), "-o", str(obj)], workdir)
+            run_command(["cc", *OPT_FLAGS, "-w", "-c", str(source), "-o", str(obj)], workdir)
             objects.append(str(obj))
     except SolverError as exc:
         log(f"{key}: CppADCodeGen peer not built: {exc}")
@@ -219,10 +189,10 @@ def _compile_harness(workdir: Path, libraries, extra_objects, eigen, include) ->
     """Compile the exported C libraries and link them with bench.cpp (and the CppADCodeGen objects)."""
     objects = []
     for lib in libraries:
-        _run(["cc", *OPT_FLAGS, "-c", f"{lib}.c", "-o", f"{lib}.o"], workdir)
+        run_command(["cc", *OPT_FLAGS, "-c", f"{lib}.c", "-o", f"{lib}.o"], workdir)
         objects.append(f"{lib}.o")
     command = ["c++", *OPT_FLAGS, "-std=c++17", *PINOCCHIO_DEFINES, f"-I{eigen}", f"-I{include}", "-w", "bench.cpp"]
-    _run([*command, *objects, *extra_objects, "-o", "bench", "-lm"], workdir)
+    run_command([*command, *objects, *extra_objects, "-o", "bench", "-lm"], workdir)
 
 
 def measure_speed(
@@ -306,14 +276,14 @@ def measure_speed(
         )
     derivatives, derivatives_export = _export_derivatives(variants[0], workdir, theta)
     log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)}, derivatives)")
-    joints = "\n".join(_cpp_joint(pin_model, jid) for jid in range(1, pin_model.njoints))
+    joints = cpp_model_code(pin_model)
     source = (
         TEMPLATE.read_text()
         .replace("@ROBOT@", robot.name)
         .replace("@N_DOF@", str(n))
         .replace("@JOINTS@", joints)
-        .replace("@ARMATURE@", _cpp_numbers(pin_model.armature))
-        .replace("@GRAVITY@", _cpp_numbers(pin_model.gravity.linear))
+        .replace("@ARMATURE@", cpp_numbers(pin_model.armature))
+        .replace("@GRAVITY@", cpp_numbers(pin_model.gravity.linear))
         .replace("@INCLUDES@", "\n".join(f'#include "{v.key}_dyn.h"' for v in variants))
         .replace("@VARIANT_SETUP@", "\n".join(_variant_setup(v, theta.size, theta) for v in variants))
         .replace("@VARIANT_TIMING@", "\n".join(_variant_timing(v) for v in variants))
@@ -329,7 +299,7 @@ def measure_speed(
     libraries = ["rnea_dyn", "psdm_deriv"] + [f"{v.key}_dyn" for v in variants]
     _compile_harness(workdir, libraries, cppadcg.get("objects", []), eigen, include)
     log(f"{key}: compiled in {time.perf_counter() - t0:.1f} s; running {n_samples} states x {repeats} repeats")
-    out = _run(["./bench", str(n_samples), str(repeats)], workdir)
+    out = run_command(["./bench", str(n_samples), str(repeats)], workdir)
     result = json.loads(out.strip().splitlines()[-1])
     result.update(robot=robot.name, n_dof=n, n_base=int(theta.size), n_functions=int(model.n_functions))
     result.update(speedups(result["ns"], "psdm"))
@@ -394,14 +364,6 @@ def cppadcg_speedups(ns: dict, error: str | None) -> dict:
     if error is not None:
         return {**{name: None for name, _, _ in CPPADCG_RATIOS}, "cppadcg_error": error}
     return {name: min(ns[p] for p in peers) / ns[ours] for name, ours, peers in CPPADCG_RATIOS}
-
-
-def _run(command, cwd) -> str:
-    proc = subprocess.run(command, cwd=cwd, capture_output=True, text=True)
-    if proc.returncode != 0:
-        tail = "\n".join(proc.stderr.strip().splitlines()[-20:])
-        raise SolverError(f"`{' '.join(command)}` failed ({proc.returncode}):\n{tail}")
-    return proc.stdout
 
 
 def main(argv=None) -> int:

@@ -4,7 +4,8 @@ import re
 
 import pytest
 
-from codegen.peers.batch_speed import GPU_ANCHOR_STATES_PER_S, TEMPLATE, batch_ratios, cpp_model_code
+from codegen.peers.batch_speed import GPU_ANCHOR_STATES_PER_S, TEMPLATE, batch_ratios
+from codegen.peers.harness import cpp_model_code
 from psdm_casadi.oracle import build_pinocchio_model
 
 
