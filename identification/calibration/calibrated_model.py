@@ -252,6 +252,12 @@ def calibrated_robot(calibrated: CalibratedModel, robot):
 def _robot_block(robot, robot_source) -> dict:
     from psdm_casadi.robot import resolve_robot_path
 
+    if robot_source is None:
+        raise ParameterError(
+            f"robot_source is None for robot {robot.name!r}: the calibrated-model file stores the robot file's text "
+            "so every command can rebuild the kinematics; pass the robot file's path (or a built-in name), or write "
+            "a robot built in Python to a robot file first."
+        )
     main = resolve_robot_path(robot_source)
     files = {main.name: main.read_text()}
     if robot.urdf_path is not None and Path(robot.urdf_path).name != main.name:

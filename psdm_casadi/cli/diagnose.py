@@ -6,7 +6,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psdm_casadi.cli.checks import add_robot_argument, add_topic_argument, load_robot_argument, output_folder
+from psdm_casadi.cli.checks import (
+    add_robot_argument,
+    add_topic_argument,
+    check_count,
+    check_positive,
+    load_robot_argument,
+    output_folder,
+)
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json
 from psdm_casadi.errors import ParameterError
 
@@ -62,6 +69,13 @@ def register(subparsers) -> None:
         help="validation RMSE reduction a joint must show for a term to be kept (default 0.2)",
     )
     p.add_argument("--max-effects", type=int, default=4, help="most effects reported (default 4)")
+    p.add_argument(
+        "--max-samples",
+        type=int,
+        default=250_000,
+        help="most samples of a recording's diagnosis grid (default 250000: up to 21 minutes at the 200 Hz grid; "
+        "longer recordings are decimated further, which bounds memory and time)",
+    )
     p.add_argument("--out", default=None, help="folder for report.md, report.json, plots and the augmented model")
     p.add_argument(
         "--apply",
@@ -83,6 +97,9 @@ def _run_diagnose(args) -> int:
     from identification.data.io import load_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
+    check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
+    check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
+    check_positive(args.cutoff, "--cutoff", "Use --cutoff 15 (the default).", " [Hz]")
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
     calibrated, apply_out = _calibrated_source(args)
     model = robot_file = None
@@ -103,6 +120,7 @@ def _run_diagnose(args) -> int:
         cutoff_hz=args.cutoff,
         min_improvement=args.min_improvement,
         max_effects=args.max_effects,
+        max_samples=args.max_samples,
         sparse=not args.no_sparse,
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``

@@ -98,6 +98,21 @@ CASES = [
         files={"data/payload.json": "{}"},
     ),
     BadInput(
+        "diagnose --max-samples 10",
+        ("diagnose", DENSO, "--train", "a.csv", "--validate", "b.csv", "--max-samples", "10"),
+        ("--max-samples", "got 10", "--max-samples 250000"),
+    ),
+    BadInput(
+        "diagnose --max-effects -1",
+        ("diagnose", DENSO, "--train", "a.csv", "--validate", "b.csv", "--max-effects", "-1"),
+        ("--max-effects", "got -1", "--max-effects 4"),
+    ),
+    BadInput(
+        "diagnose --cutoff 0",
+        ("diagnose", DENSO, "--train", "a.csv", "--validate", "b.csv", "--cutoff", "0"),
+        ("--cutoff", "got 0", "--cutoff 15"),
+    ),
+    BadInput(
         "diagnose --train missing",
         ("diagnose", DENSO, "--train", "a.csv", "--validate", "b.csv"),
         ("a.csv", "does not exist", "check the path"),

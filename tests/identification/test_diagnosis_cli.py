@@ -61,3 +61,22 @@ def test_cli_diagnose_bad_option_is_a_one_line_error(denso, tmp_path, capsys):
     )
     assert code == 2
     assert "min_improvement" in capsys.readouterr().err
+
+
+def test_cli_diagnose_max_samples_reaches_the_diagnosis(denso, tmp_path, monkeypatch, capsys):
+    import importlib
+
+    diagnose_module = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
+    train, validate = _write_pair(denso, tmp_path, [])
+    seen = []
+    real = diagnose_module.diagnose
+
+    def spy(robot, train_rec, validation, options, model=None):
+        seen.append(options.max_samples)
+        return real(robot, train_rec, validation, options, model=model)
+
+    monkeypatch.setattr(diagnose_module, "diagnose", spy)
+    args = ["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate), "--json"]
+    assert main([*args, "--max-samples", "1200", "--max-effects", "0", "--no-sparse"]) == 0
+    assert seen == [1200]
+    assert json.loads(capsys.readouterr().out)["findings"] == []

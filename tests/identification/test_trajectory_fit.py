@@ -143,6 +143,13 @@ def test_the_calibrated_model_file_round_trips_and_predicts_the_fit(tmp_path, de
         written.save(path)
 
 
+def test_a_model_file_needs_the_robot_file(denso, denso_model, denso_fit):
+    from identification.calibration.calibrated_model import CalibratedModel
+
+    with pytest.raises(ParameterError, match="robot_source is None.*robot file"):
+        CalibratedModel.from_fit(denso, denso_model, denso_fit, robot_source=None)
+
+
 def test_an_inconsistent_model_is_written_only_when_asked_and_then_marked(tmp_path, denso, denso_model, denso_fit):
     import dataclasses
     import json
