@@ -344,13 +344,17 @@ def _robust_fit(calibrated, robot, model, train, findings, robot_source) -> tupl
     """``_joint_fit``, and when the consistent fit does not converge with unnamed (sparse) terms among the
     findings, the fit without them, which are then reported only (with the reason): (after, fit, terms, entries)."""
     terms, corrections, entries = findings
+    unnamed = {term.label for term in terms if term.effect == "unnamed_effect"}
     try:
-        return (*_joint_fit(calibrated, robot, model, train, findings, robot_source), terms, entries)
+        after, fit = _joint_fit(calibrated, robot, model, train, findings, robot_source)
+        if not unnamed or fit.solver_status != "Maximum_Iterations_Exceeded":
+            return after, fit, terms, entries
+        reason = fit.solver_status
     except SolverError as exc:
-        unnamed = {term.label for term in terms if term.effect == "unnamed_effect"}
         if not unnamed:
             raise
-        logger.info("recalibrate: the joint fit with %s did not converge (%s); reported only", sorted(unnamed), exc)
+        reason = str(exc)
+    logger.info("recalibrate: the joint fit with %s did not converge (%s); reported only", sorted(unnamed), reason)
     terms = [term for term in terms if term.label not in unnamed]
     entries = [copy.deepcopy(e) for e in entries]
     for entry in entries:

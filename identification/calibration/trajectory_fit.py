@@ -454,7 +454,14 @@ def _consistent_fit(robot, model, equations, sigma, names, options, drive_lower=
         solver = ca.nlpsol("consistent_fit", "ipopt", {"x": variables, "f": residual + pull}, IPOPT_OPTIONS)
         solution = solver(x0=x_opt, lbx=lower, ubx=np.full(lower.size, np.inf))
         status = solver.stats()["return_status"]
-        if not solver.stats()["success"]:
+        if status == "Maximum_Iterations_Exceeded":  # every iterate of the chart is consistent: keep it, marked
+            logger.warning(
+                "identify: the consistent fit stopped at Ipopt's iteration cap (%s) with the objective still "
+                "creeping towards the boundary of physical consistency; the model is consistent but not proven "
+                "optimal (solver_status says so). Compare its validation RMSE with --no-consistency.",
+                IPOPT_OPTIONS["ipopt.max_iter"],
+            )
+        elif not solver.stats()["success"]:
             fix = "try --no-consistency to see the unconstrained estimate, or record a better-exciting trajectory."
             raise SolverError(f"the consistent fit did not converge ({status}); {fix}", status=status)
         x_opt = np.maximum(np.asarray(solution["x"]).reshape(-1), lower)  # Ipopt may end a hair outside a bound

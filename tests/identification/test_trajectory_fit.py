@@ -197,3 +197,18 @@ def test_one_friction_term_definition_serves_numbers_and_casadi():
         np.testing.assert_allclose([float(function(v)) for v in qd], friction_term(term, qd, 0.05), rtol=1e-15)
     with pytest.raises(ParameterError, match="friction_term.term must be one of"):
         friction_term("stribeck", qd, 0.05)
+
+
+def test_a_fit_stopped_at_the_iteration_cap_is_kept_consistent_and_marked(denso, denso_model, monkeypatch, caplog):
+    import identification.calibration.trajectory_fit as trajectory_fit
+
+    rng = np.random.default_rng(3)
+    reference = sine_experiment(denso, duration=6.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    recording, _ = simulate_recording(denso, reference, options, rng)
+    monkeypatch.setitem(trajectory_fit.IPOPT_OPTIONS, "ipopt.max_iter", 2)
+    with caplog.at_level("WARNING", logger="identification.calibration.trajectory_fit"):
+        fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+    assert fit.solver_status == "Maximum_Iterations_Exceeded"
+    assert "iteration cap" in caplog.text and "not proven optimal" in caplog.text
+    assert fit.consistent and fit.min_pseudo_inertia_eigenvalue > 0  # every iterate of the chart is consistent
