@@ -14,6 +14,7 @@ import numpy as np
 from psdm_casadi.description import RobotDescription
 from trajopt.joint_friction import friction_torque
 from trajopt.mpc import MPCController
+from trajopt.mpc_model import rk4
 
 
 def build_pinocchio_plant(robot: RobotDescription, *, friction=True):
@@ -134,11 +135,4 @@ def _integrate(plant, x, tau, dt, substeps, n):
     def rhs(state):
         return np.concatenate([state[n:], plant(state[:n], state[n:], tau)])
 
-    h = dt / substeps
-    for _ in range(substeps):
-        k1 = rhs(x)
-        k2 = rhs(x + h / 2 * k1)
-        k3 = rhs(x + h / 2 * k2)
-        k4 = rhs(x + h * k3)
-        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    return x
+    return rk4(rhs, x, dt, substeps)

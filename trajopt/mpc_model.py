@@ -13,6 +13,19 @@ import numpy as np
 from psdm_casadi.forward import ldl_solve
 
 
+def rk4(rhs, x, dt: float, steps: int):
+    """``steps`` classical Runge-Kutta steps of ``x' = rhs(x)`` over ``dt``: numpy arrays and CasADi symbols alike
+    (the controller's discrete model and the closed loop's plant integrate the same way)."""
+    h = dt / steps
+    for _ in range(steps):
+        k1 = rhs(x)
+        k2 = rhs(x + h / 2 * k1)
+        k3 = rhs(x + h / 2 * k2)
+        k4 = rhs(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    return x
+
+
 def build_step_function(forward_dynamics: ca.Function, n_dof: int, dt: float, rk4_steps: int = 1, friction=None):
     """RK4 discretisation ``(x, u) -> x_next`` of ``qdd = forward_dynamics(q, qd, tau - friction(qd))``.
 
@@ -26,15 +39,7 @@ def build_step_function(forward_dynamics: ca.Function, n_dof: int, dt: float, rk
         tau = u if friction is None else u - friction(qd)
         return ca.vertcat(qd, forward_dynamics(q, qd, tau))
 
-    h = dt / rk4_steps
-    state = x
-    for _ in range(rk4_steps):
-        k1 = rhs(state)
-        k2 = rhs(state + h / 2 * k1)
-        k3 = rhs(state + h / 2 * k2)
-        k4 = rhs(state + h * k3)
-        state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-    step = ca.Function("step", [x, u], [state], ["x", "u"], ["x_next"])
+    step = ca.Function("step", [x, u], [rk4(rhs, x, dt, rk4_steps)], ["x", "u"], ["x_next"])
     try:
         return step.expand()
     except RuntimeError:  # a callback or external without an SX form stays MX
