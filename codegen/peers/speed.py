@@ -289,22 +289,22 @@ def measure_speed(
         .replace("@VARIANT_TIMING@", "\n".join(_variant_timing(v) for v in variants))
     )
     if cppadcg:
-        cppadcg = _cppadcg_peer(pin_model, workdir, Path(cppadcg_cache or workdir), log, key)
+        cppadcg_peer = _cppadcg_peer(pin_model, workdir, Path(cppadcg_cache or workdir), log, key)
     else:
-        cppadcg = {"error": "not requested (--no-cppadcg)"}
+        cppadcg_peer = {"error": "not requested (--no-cppadcg)"}
     for part in ("declarations", "setup", "timing"):
-        source = source.replace(f"@CPPADCG_{part.upper()}@", cppadcg.get(part, ""))
+        source = source.replace(f"@CPPADCG_{part.upper()}@", cppadcg_peer.get(part, ""))
     (workdir / "bench.cpp").write_text(source)
     t0 = time.perf_counter()
     libraries = ["rnea_dyn", "psdm_deriv"] + [f"{v.key}_dyn" for v in variants]
-    _compile_harness(workdir, libraries, cppadcg.get("objects", []), eigen, include)
+    _compile_harness(workdir, libraries, cppadcg_peer.get("objects", []), eigen, include)
     log(f"{key}: compiled in {time.perf_counter() - t0:.1f} s; running {n_samples} states x {repeats} repeats")
     out = run_command(["./bench", str(n_samples), str(repeats)], workdir)
     result = json.loads(out.strip().splitlines()[-1])
     result.update(robot=robot.name, n_dof=n, n_base=int(theta.size), n_functions=int(model.n_functions))
     result.update(speedups(result["ns"], "psdm"))
     result.update(derivative_speedups(result["ns"]))
-    result.update(cppadcg_speedups(result["ns"], cppadcg.get("error")))
+    result.update(cppadcg_speedups(result["ns"], cppadcg_peer.get("error")))
     result.update(
         id_speedup_vs_casadi_pinocchio=None,
         fd_speedup_vs_casadi_pinocchio=None,

@@ -67,10 +67,11 @@ def unhelpful_findings(after: CalibratedModel, model, validation, kt) -> list:
     that shows it. A torque finding whose features were all absorbed by the fit's other columns contributes
     nothing by construction and is kept (reported as absorbed), not judged. Implausible findings are returned
     alone when there are any: the others are judged again once those are gone."""
+    reasons = [(e, implausibility(e)) for e in after.document["findings"]]
     implausible = [
-        {"label": e["label"], "effect": e["effect"], "joints": list(e["joints"] or []), "reason": implausibility(e)}
-        for e in after.document["findings"]
-        if implausibility(e) is not None
+        {"label": e["label"], "effect": e["effect"], "joints": list(e["joints"] or []), "reason": reason}
+        for e, reason in reasons
+        if reason is not None
     ]
     if implausible:
         return implausible
