@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from codegen.batch import export_batch
+from codegen.peers import cppadcg as cppadcg_code
 from codegen.peers.harness import cpp_model_code, cpp_numbers, run_command
 from codegen.peers.speed import OPT_FLAGS, PINOCCHIO_DEFINES, find_prerequisites
 from psdm_casadi.errors import SolverError
@@ -80,14 +81,12 @@ def batch_ratios(rates: dict, threads: int) -> dict:
 
 def _cppadcg_objects(pin_model, workdir: Path, cache: Path, eigen, include, log) -> tuple:
     """(object files, None) of Pinocchio's CppADCodeGen code of one robot, or ([], reason) when it cannot be built."""
-    from codegen.peers import cppadcg
-
     try:
-        generator = cppadcg.build_generator(cache, eigen, include, PINOCCHIO_DEFINES, log)
+        generator = cppadcg_code.build_generator(cache, eigen, include, PINOCCHIO_DEFINES, log)
         objects = []
-        for source in cppadcg.generate_sources(generator, pin_model, workdir / "cppadcg"):
-            text = source.read_text()
-            if not any(f"int {name}(" in text for name in ("cppadcg_rnea_forward_zero", "cppadcg_aba_forward_zero")):
+        wanted = {f"{cppadcg_code.c_function(name)}.c" for name in ("rnea", "aba")}
+        for source in cppadcg_code.generate_sources(generator, pin_model, workdir / "cppadcg"):
+            if source.name not in wanted:
                 continue
             run_command(["cc", *OPT_FLAGS, "-w", "-c", str(source), "-o", str(source.with_suffix(".o"))], workdir)
             objects.append(str(source.with_suffix(".o")))
@@ -191,6 +190,8 @@ def measure_batch_speed(
         .replace("@JOINTS@", cpp_model_code(pin_model))
         .replace("@ARMATURE@", cpp_numbers(pin_model.armature))
         .replace("@GRAVITY@", cpp_numbers(pin_model.gravity.linear))
+        .replace("@CPPADCG_RNEA@", cppadcg_code.c_function("rnea"))
+        .replace("@CPPADCG_ABA@", cppadcg_code.c_function("aba"))
     )
     (workdir / "batch_bench.cpp").write_text(source)
     t0 = time.perf_counter()
