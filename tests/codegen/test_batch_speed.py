@@ -49,4 +49,6 @@ def test_harness_model_code_adds_every_joint(denso):
         "@JOINTS@",
         "@ARMATURE@",
         "@GRAVITY@",
+        "@CPPADCG_RNEA@",
+        "@CPPADCG_ABA@",
     }
