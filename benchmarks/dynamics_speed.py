@@ -1,7 +1,8 @@
 """Speed of the exported PSDM C code against Pinocchio and a direct CasADi SX Newton-Euler model.
 
 For each robot, one C++ program (one process) is generated and compiled with -O3 -march=native. It
-times, on the same 10^6 pre-generated random states (median of repeats):
+times (thread CPU time, so that other processes on a shared machine do not count), on the same 10^6
+pre-generated random states (median of repeats):
 
 - PSDM inverse dynamics (theta baked in) vs ``pinocchio::rnea``,
 - PSDM forward dynamics vs ``pinocchio::aba``,
@@ -9,9 +10,9 @@ times, on the same 10^6 pre-generated random states (median of repeats):
 - PSDM inverse/forward dynamics vs a CasADi SX rnea model code-generated the same way,
 - the same three vs Pinocchio's own code generation with CppADCodeGen (``codegen.peers.cppadcg``),
 - the exported PSDM derivatives (``codegen.derivatives``: tau and d(tau)/d(q, qd, qdd); qdd and
-  d(qdd)/d(q, qd, tau)) vs ``pinocchio::computeRNEADerivatives`` / ``computeABADerivatives`` and vs the
-  fastest CppADCodeGen route (the Jacobian of the generated rnea/aba, or the generated analytical
-  derivatives).
+  d(qdd)/d(q, qd, tau); the rows' reverse sweeps in vector lanes, ``codegen.lane_derivatives``) vs
+  ``pinocchio::computeRNEADerivatives`` / ``computeABADerivatives`` and vs the fastest CppADCodeGen route
+  (the Jacobian of the generated rnea/aba, or the generated analytical derivatives).
 
 "PSDM" is the exported recursive form (``psdm_casadi.recursive``); the paper's sum form
 (``psdm_casadi.symbolic``) is timed beside it when the model has at most 5000 functions. Both are
@@ -100,7 +101,7 @@ def print_table(results) -> None:
         ns = r["ns"]
         print(
             f"\n{r['robot']} (n_dof={r['n_dof']}, p={r['n_functions']}, l={r['n_base']}; {r['n_samples']} random "
-            f"states, median of {r['repeats']}; times in us)"
+            f"states, median of {r['repeats']}; thread CPU time in us)"
         )
         print(
             f"{'function':18s} {'PSDM':>8s} {'PSDM sum':>9s} {'Pinocchio':>10s} {'CasADi NE':>10s} "
@@ -115,6 +116,12 @@ def print_table(results) -> None:
             )
         ops = {**r.get("n_operations", {}), **r["casadi_rnea_n_operations"]}
         print("arithmetic operations: " + ", ".join(f"{k}={v}" for k, v in ops.items()))
+        lanes = r.get("lane_operations", {})
+        if lanes:
+            print(
+                "derivatives in vector lanes (scalar + vector instructions): "
+                + ", ".join(f"{k}={v['scalar']}+{v['vector']}" for k, v in lanes.items())
+            )
         print_peer_table(r)
         errors = ", ".join(f"{k}={v:.1e}" for k, v in r["max_abs_error"].items())
         print(f"max |error| vs Pinocchio on 1000 states: {errors}")

@@ -17,6 +17,13 @@ partial derivatives (cheap on the recursive form) followed by solves with one LD
 D = d(ID)/d(qdd), which also gives qdd. ``"auto"`` builds both and keeps the one with fewer arithmetic
 operations (the structured one only if it reproduces the given forward dynamics at a random state). Every
 Jacobian is taken in CasADi's forward and in its reverse mode, and the smaller graph is kept.
+
+Each of the first two also has a *sweep* Function with one more input, ``seed`` (n_dof), returning the value
+and seed^T times each Jacobian: the reverse sweep of one row when the seed is a unit vector. For the forward
+dynamics, seed^T d(qdd)/d(q, qd) = -(D^-1 seed)^T d(ID)/d(q, qd), one sweep of the inverse dynamics with the
+seed D^-1 seed. ``export_derivatives`` writes the sweeps as vector code with the rows in SIMD lanes
+(``codegen.lane_derivatives``): the values they read are computed once, and one vector instruction does the
+work of several rows' sweeps. CasADi's scalar code stays in the file as the fallback (``-DPSDM_NO_LANES``).
 """
 
 from __future__ import annotations
@@ -27,6 +34,7 @@ import casadi as ca
 import numpy as np
 
 from codegen.export import CExport, export_c
+from codegen.lane_derivatives import lane_jacobian
 from codegen.operation_count import count_operations
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.forward import ldl_solve
@@ -34,6 +42,7 @@ from psdm_casadi.forward import ldl_solve
 FORMS = ("auto", "structured", "direct")
 AD_WEIGHTS = (0.0, 1.0)  # CasADi's forward and reverse mode
 THETA = "theta"
+SWEEP_SUFFIX = "_sweep"
 
 
 @dataclass(frozen=True)
@@ -45,12 +54,16 @@ class DerivativeFunctions:
     inverse_dynamics_derivatives, forward_dynamics_derivatives, regressor_derivatives : casadi.Function or None
     forward_form : str or None
         The form of the forward-dynamics derivatives that was kept (``"structured"`` or ``"direct"``).
+    sweeps : tuple of casadi.Function
+        ``<name>_sweep(..., seed) -> value, seed^T J...`` of the inverse and forward dynamics derivatives
+        (the forward one only when it reproduces the given forward dynamics), for the vectorised export.
     """
 
     inverse_dynamics_derivatives: ca.Function | None
     forward_dynamics_derivatives: ca.Function | None
     regressor_derivatives: ca.Function | None
     forward_form: str | None = None
+    sweeps: tuple = ()
 
     def all(self) -> list:
         """The Functions that were built, in export order."""
@@ -113,6 +126,46 @@ def _inverse_derivatives(inverse):
     return _fewest_operations(build)
 
 
+def _inverse_sweep(inverse):
+    """(q, qd, qdd[, theta], seed) -> tau, seed^T d(tau)/d(q, qd, qdd): one reverse sweep."""
+    q, qd, qdd = inverse.sx_in()[:3]
+    extra, extra_names = _extra_inputs(inverse, 3)
+    seed = ca.SX.sym("seed", q.numel())
+    tau = inverse.call([q, qd, qdd, *extra])[0]
+    row = ca.vertsplit(ca.jtimes(tau, ca.vertcat(q, qd, qdd), seed, True), q.numel())
+    return ca.Function(
+        "inverse_dynamics_derivatives" + SWEEP_SUFFIX,
+        [q, qd, qdd, *extra, seed],
+        [ca.densify(x) for x in (tau, *row)],
+        ["q", "qd", "qdd", *extra_names, "seed"],
+        ["tau", "dtau_dq", "dtau_dqd", "dtau_dqdd"],
+        {"cse": True},
+    )
+
+
+def _forward_sweep(forward, inverse):
+    """(q, qd, tau[, theta], seed) -> qdd, seed^T d(qdd)/d(q, qd, tau), from one LDL^T of D = d(ID)/d(qdd):
+    with u = D^-1 seed, seed^T d(qdd)/d(q, qd) = -u^T d(ID)/d(q, qd) at qdd and seed^T d(qdd)/d(tau) = u^T."""
+    q, qd, tau = forward.sx_in()[:3]
+    extra, extra_names = _extra_inputs(forward, 3)
+    n = q.numel()
+    seed, acceleration = ca.SX.sym("seed", n), ca.SX.sym("acceleration", n)
+    tau_of_acceleration = inverse.call([q, qd, acceleration, *extra])[0]
+    mass = ca.jacobian(tau_of_acceleration, acceleration)  # the inverse dynamics are linear in the acceleration
+    qdd = ldl_solve(mass, tau - inverse.call([q, qd, ca.SX.zeros(n), *extra])[0])
+    solved = ldl_solve(mass, seed)
+    row = ca.jtimes(tau_of_acceleration, ca.vertcat(q, qd), solved, True)
+    row = ca.vertsplit(-ca.substitute(row, acceleration, qdd), n)
+    return ca.Function(
+        "forward_dynamics_derivatives" + SWEEP_SUFFIX,
+        [q, qd, tau, *extra, seed],
+        [ca.densify(x) for x in (qdd, *row, solved)],
+        ["q", "qd", "tau", *extra_names, "seed"],
+        ["qdd", "dqdd_dq", "dqdd_dqd", "dqdd_dtau"],
+        {"cse": True},
+    )
+
+
 def _solve_columns(matrix, rhs):
     """matrix^-1 rhs column by column with the LDL^T of psdm_casadi.forward (CSE shares the factorisation)."""
     return ca.horzcat(*[ldl_solve(matrix, rhs[:, k]) for k in range(rhs.size2())])
@@ -163,12 +216,14 @@ def _forward_direct(forward):
 
 
 def _inverts(forward, structured, rng_seed=0) -> bool:
-    """Whether the structured form's qdd equals the given forward dynamics at a random state (it assumes the
-    forward dynamics invert the inverse dynamics, as every DynamicsFunctions built here does)."""
+    """Whether the qdd of a form built from the inverse dynamics (structured, or the sweep: its seed is set to
+    zero) equals the given forward dynamics at a random state (they need not invert each other: a model may add
+    terms to one only)."""
     rng = np.random.default_rng(rng_seed)
     args = [rng.uniform(-1.0, 1.0, forward.size_in(i)) for i in range(forward.n_in())]
     want = np.array(forward.call(args)[0]).ravel()
-    got = np.array(structured.call(args)[0]).ravel()
+    seeds = [np.zeros(structured.size_in(i)) for i in range(len(args), structured.n_in())]
+    got = np.array(structured.call(args + seeds)[0]).ravel()
     return bool(np.allclose(got, want, rtol=1e-8, atol=1e-8 * max(1.0, np.abs(want).max())))
 
 
@@ -213,8 +268,11 @@ def build_derivative_functions(functions, *, form: str = "auto", regressor: bool
             f"{type(functions).__name__} without one. Pass build_recursive_functions(model, robot)."
         )
     forward = _source(functions, "forward_dynamics")
-    forward_derivatives, forward_form = None, None
+    forward_derivatives, forward_form, sweeps = None, None, [_inverse_sweep(inverse)]
     if forward is not None:
+        sweep = _forward_sweep(forward, inverse)
+        if _inverts(forward, sweep):
+            sweeps.append(sweep)
         candidates = {}
         if form in ("auto", "structured"):
             candidates["structured"] = _forward_structured(forward, inverse)
@@ -230,11 +288,51 @@ def build_derivative_functions(functions, *, form: str = "auto", regressor: bool
         forward_dynamics_derivatives=forward_derivatives,
         regressor_derivatives=None if source_regressor is None else _regressor_derivatives(source_regressor),
         forward_form=forward_form,
+        sweeps=tuple(sweeps),
     )
+
+
+def lane_kernels(derivatives: DerivativeFunctions, theta=None, *, prefix: str = "psdm_", fast_trig: bool = True):
+    """The vector code of every sweep of ``derivatives``, for ``export_c(kernels=...)``.
+
+    Parameters
+    ----------
+    derivatives : DerivativeFunctions
+    theta : array, optional
+        Base parameters baked into the exported functions; sweeps with a theta input get no vector code
+        without it (their runtime-theta flavour keeps CasADi's scalar code).
+    prefix : str
+        Prefix of the exported C symbols (``export_c``'s).
+    fast_trig : bool
+        As for ``export_c``.
+
+    Returns
+    -------
+    list of LaneJacobian
+        One per sweep the lane writer translates, named ``<prefix><derivative function>``.
+    """
+    kernels = []
+    for sweep in derivatives.sweeps:
+        inputs, names = sweep.sx_in(), sweep.name_in()
+        if THETA in names:
+            index = names.index(THETA)
+            if theta is None or np.size(theta) != sweep.numel_in(index):
+                continue  # no baked flavour, or a theta export_c refuses with its own message
+            args = [ca.DM(np.asarray(theta, dtype=float).reshape(sweep.size_in(index), order="F")) if i == index else x
+                    for i, x in enumerate(inputs)]  # fmt: skip
+            sweep = ca.Function(sweep.name(), inputs[:index] + inputs[index + 1 :], sweep.call(args), {"cse": True})
+        name = prefix + sweep.name().removesuffix(SWEEP_SUFFIX)
+        kernel = lane_jacobian(sweep, name, sweep.n_in() - 1, sweep.size_in(0)[0], fast_trig=fast_trig)
+        if kernel is not None:
+            kernels.append(kernel)
+    return kernels
 
 
 def export_derivatives(functions, folder, *, form: str = "auto", regressor: bool = True, **options) -> CExport:
     """Export the dynamics and their derivatives into one C folder (``export_c`` plus the derivative Functions).
+
+    With theta baked in, the inverse and forward dynamics derivatives run their rows' reverse sweeps in vector
+    lanes (``lane_kernels``); ``-DPSDM_NO_LANES`` compiles CasADi's scalar code instead.
 
     Parameters
     ----------
@@ -257,4 +355,10 @@ def export_derivatives(functions, folder, *, form: str = "auto", regressor: bool
     derivatives = build_derivative_functions(functions, form=form, regressor=regressor)
     dynamics = [getattr(functions, a) for a in EXPORTED_ATTRIBUTES if getattr(functions, a, None) is not None]
     options.setdefault("regressor_structure", getattr(functions, "regressor_structure", None))
-    return export_c([*dynamics, *derivatives.all()], folder, **options)
+    kernels = lane_kernels(
+        derivatives,
+        options.get("theta"),
+        prefix=options.get("prefix", "psdm_"),
+        fast_trig=options.get("fast_trig", True),
+    )
+    return export_c([*dynamics, *derivatives.all()], folder, kernels=kernels, **options)

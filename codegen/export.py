@@ -281,6 +281,13 @@ def _lane_kernel(sources, structure, lanes, name):
     return kernel
 
 
+def _splice_kernels(source: Path, header: Path, kernels) -> None:
+    """Splice each (vector code, C symbol) beside CasADi's scalar code of that symbol (``lane_regressor.splice``)."""
+    for kernel, name in kernels:
+        source.write_text(splice(source.read_text(), kernel, name))
+        header.write_text(splice_header(header.read_text(), name))
+
+
 def export_c(
     functions,
     folder,
@@ -294,6 +301,7 @@ def export_c(
     fast_trig=True,
     lanes="auto",
     regressor_structure=None,
+    kernels=(),
     overwrite=False,
 ) -> CExport:
     """Generate a self-contained C folder for the dynamics Functions.
@@ -331,6 +339,9 @@ def export_c(
         ``-DPSDM_NO_LANES``).
     regressor_structure : psdm_casadi.recursive.RegressorStructure, optional
         The structure of the exported ``regressor`` Function, when ``functions`` is a list.
+    kernels : sequence of codegen.lane_derivatives.LaneJacobian
+        Vector code of exported functions (``codegen.derivatives.lane_kernels``), spliced beside CasADi's
+        scalar code like the regressor's (not when ``lanes`` is False).
     overwrite : bool
         Allow writing into a non-empty folder (files of the same name are replaced).
 
@@ -407,10 +418,8 @@ def export_c(
         generator.generate(str(staging) + os.sep)
         if fast_trig:
             _inline_trig(staging / f"{library}.c")
-        if kernel is not None:
-            source, header = staging / f"{library}.c", staging / f"{library}.h"
-            source.write_text(splice(source.read_text(), kernel, lane_name))
-            header.write_text(splice_header(header.read_text(), lane_name))
+        spliced = ([(kernel, lane_name)] if kernel is not None else []) + [(k, k.name) for k in kernels if lanes]
+        _splice_kernels(staging / f"{library}.c", staging / f"{library}.h", spliced)
         input_code, call_code = _example_code(exported, theta, np.random.default_rng(_EXAMPLE_SEED))
         main_c = _template("main.c.in").replace("@LIBRARY@", library).replace("@INPUTS@", input_code)
         (staging / "main.c").write_text(main_c.replace("@CALLS@", call_code))

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from codegen.derivatives import build_derivative_functions
+from codegen.derivatives import build_derivative_functions, lane_kernels
 from codegen.export import export_c
 from codegen.peers.harness import cpp_model_code, cpp_numbers, run_command
 from codegen.peers.rnea_sx import build_rnea_functions
@@ -171,8 +171,10 @@ def _cppadcg_peer(pin_model, workdir: Path, cache: Path, log, key: str) -> dict:
 
 
 def _export_derivatives(variant, workdir: Path, theta):
-    """(DerivativeFunctions, CExport) of a variant's inverse/forward dynamics derivatives, library ``psdm_deriv``."""
+    """(DerivativeFunctions, CExport, vector kernels) of a variant's inverse/forward dynamics derivatives, library
+    ``psdm_deriv``."""
     derivatives = build_derivative_functions(variant.functions, regressor=False)
+    kernels = lane_kernels(derivatives, theta, prefix="psdm_")  # the rows' reverse sweeps in vector lanes
     export = export_c(
         derivatives.all(),
         workdir,
@@ -181,8 +183,9 @@ def _export_derivatives(variant, workdir: Path, theta):
         library="psdm_deriv",
         prefix="psdm_",
         overwrite=True,
+        kernels=kernels,
     )
-    return derivatives, export
+    return derivatives, export, kernels
 
 
 def _compile_harness(workdir: Path, libraries, extra_objects, eigen, include) -> None:
@@ -274,7 +277,7 @@ def measure_speed(
             overwrite=True,
             regressor_structure=functions.regressor_structure,
         )
-    derivatives, derivatives_export = _export_derivatives(variants[0], workdir, theta)
+    derivatives, derivatives_export, kernels = _export_derivatives(variants[0], workdir, theta)
     log(f"{key}: exported in {time.perf_counter() - t0:.1f} s ({', '.join(v.label for v in variants)}, derivatives)")
     joints = cpp_model_code(pin_model)
     source = (
@@ -315,6 +318,9 @@ def measure_speed(
     result["n_operations"] = {c.name: c.n_operations for e in exports.values() for c in e.operation_counts}
     result["n_operations"].update({c.name: c.n_operations for c in derivatives_export.operation_counts})
     result["fd_derivatives_form"] = derivatives.forward_form
+    result["lane_operations"] = {  # what the derivatives run: scalar part once, vector instructions for all rows
+        k.name: {"scalar": k.n_scalar_operations, "vector": k.n_vector_operations} for k in kernels
+    }
     result["n_instructions"] = {name: count for e in exports.values() for name, count in e.n_instructions.items()}
     result["casadi_rnea_n_instructions"] = peer_export.n_instructions
     result["casadi_rnea_n_operations"] = {c.name: c.n_operations for c in peer_export.operation_counts}

@@ -1,17 +1,22 @@
-"""Exported derivatives: equal to finite differences of Pinocchio (Denso, Panda), compiled C equals CasADi."""
+"""Exported derivatives: equal to finite differences of Pinocchio (Denso, Panda), compiled C (scalar and vector
+lanes) equals CasADi."""
 
+import ctypes
 import shutil
 
+import casadi as ca
 import numpy as np
 import pinocchio as pin
 import pytest
 
 from codegen.build import build_library
 from codegen.derivatives import build_derivative_functions, export_derivatives
+from codegen.export import export_c
+from codegen.lane_derivatives import lane_jacobian
 from codegen.operation_count import count_operations
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.oracle import build_pinocchio_model
 from psdm_casadi.recursive import build_recursive_functions
 from psdm_casadi.robot import from_urdf
@@ -170,3 +175,105 @@ def test_cli_derivatives_flag(tmp_path, capsys):
     for name in ("inverse_dynamics_derivatives", "forward_dynamics_derivatives", "regressor_derivatives"):
         assert f"int psdm_{name}(const casadi_real** arg" in header
     assert "psdm_forward_dynamics_derivatives" in capsys.readouterr().out
+
+
+def test_sweeps_give_the_rows_of_the_derivatives(denso, denso_model, rng):
+    """seed = e_i gives row i of every Jacobian, equal to finite differences of Pinocchio's rnea and aba."""
+    functions = build_recursive_functions(denso_model, denso)
+    derivatives = build_derivative_functions(functions, regressor=False)
+    assert [s.name() for s in derivatives.sweeps] == [
+        "inverse_dynamics_derivatives_sweep",
+        "forward_dynamics_derivatives_sweep",
+    ]
+    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    pm = build_pinocchio_model(denso)
+    data, n = pm.createData(), pm.nv
+    references = (lambda *a: pin.rnea(pm, data, *a), lambda *a: pin.aba(pm, data, *a))
+    args = (rng.uniform(-np.pi, np.pi, n), rng.uniform(-2, 2, n), rng.uniform(-10, 10, n))
+    for sweep, reference in zip(derivatives.sweeps, references, strict=True):
+        rows = [sweep(*args, theta, np.eye(n)[i]) for i in range(n)]
+        _assert_close(rows[0][0], reference(*args)[:, None])
+        for block, want in enumerate(_partials(reference, args), start=1):
+            _assert_close(np.hstack([row[block] for row in rows]).T, want)
+
+
+def test_lane_writer_keeps_scalar_code_for_what_it_cannot_translate():
+    x, seed = ca.SX.sym("x", 2), ca.SX.sym("seed", 2)
+    value = ca.vertcat(ca.sin(x[0]) * x[1], x[0] * x[1])
+    plain = ca.Function("f", [x, seed], [value, ca.jtimes(value, x, seed, True)])
+    assert lane_jacobian(plain, "f", 1, 2) is not None
+    seed_in_sin = ca.Function("g", [x, seed], [value, ca.sin(seed) * x])
+    assert lane_jacobian(seed_in_sin, "g", 1, 2) is None
+    with pytest.raises(ParameterError, match="width must be 2, 4 or 8"):
+        lane_jacobian(plain, "f", 1, 2, width=3)
+    sparse = ca.Function("h", [x, seed], [value, ca.vertcat(seed[0] * x[0], ca.SX(1, 1))])
+    with pytest.raises(ParameterError, match="outputs must be dense"):
+        lane_jacobian(sparse, "h", 1, 2)
+
+
+def _compiled_against_pinocchio(robot, model, folder, rng):
+    """Export with theta baked in, compile with and without the vector lanes; both against CasADi and
+    finite differences of Pinocchio's rnea and aba."""
+    functions = build_recursive_functions(model, robot)
+    theta = model.base_parameters(robot.nominal_dynamic_parameters())
+    export = export_derivatives(functions, folder / "out", theta=theta, regressor=False, runtime_theta=False)
+    reference = build_derivative_functions(functions, regressor=False)
+    pm = build_pinocchio_model(robot)
+    data, n = pm.createData(), pm.nv
+    oracles = {"inverse": lambda *a: pin.rnea(pm, data, *a), "forward": lambda *a: pin.aba(pm, data, *a)}
+    for lanes, flags in ((1, ("-O1",)), (0, ("-O1", "-DPSDM_NO_LANES"))):
+        library = build_library(export, build_dir=folder / f"build{lanes}", flags=flags)
+        for kind, oracle in oracles.items():
+            name = f"psdm_{kind}_dynamics_derivatives"
+            assert getattr(ctypes.CDLL(str(library.path)), f"{name}_lanes_enabled")() == lanes
+            args = (rng.uniform(-np.pi, np.pi, n), rng.uniform(-2, 2, n), rng.uniform(-10, 10, n))
+            got = library.function(name)(*args)
+            _assert_equal(got, getattr(reference, f"{kind}_dynamics_derivatives")(*args, theta))
+            _assert_close(got[0], oracle(*args)[:, None])
+            for block, want in zip(got[1:], _partials(oracle, args), strict=True):
+                _assert_close(block, want)
+
+
+@pytest.mark.needs_cc
+@needs_cc
+def test_compiled_lanes_equal_pinocchio_denso(tmp_path, denso, denso_model, rng):
+    _compiled_against_pinocchio(denso, denso_model, tmp_path, rng)
+
+
+@pytest.mark.needs_cc
+@needs_cc
+@pytest.mark.slow
+def test_compiled_lanes_equal_pinocchio_panda(tmp_path, rng):
+    robot = from_urdf(
+        example_robot_urdf("panda_description/urdf/panda.urdf"),
+        locked_joints=["panda_finger_joint1", "panda_finger_joint2"],
+    )
+    _compiled_against_pinocchio(robot, derive_psdm(robot), tmp_path, rng)
+
+
+@pytest.mark.needs_cc
+@needs_cc
+def test_compiled_lanes_of_elementary_functions_equal_casadi(tmp_path, rng):
+    """The lane writer's C for every instruction it translates (friction-like tanh, sign, |x|, ...) equals
+    CasADi, with a seed-independent part and rows in two sweeps of width 2."""
+    x, seed = ca.SX.sym("x", 3), ca.SX.sym("seed", 3)
+    value = ca.vertcat(
+        ca.tanh(x[0] / 0.1) + ca.fabs(x[1]) * ca.sign(x[0]) + ca.exp(x[1]) + ca.sqrt(x[0] ** 2 + 1),
+        ca.atan2(x[0], x[1]) + x[0] ** 3 * ca.log(x[1] ** 2 + 1) + ca.fmin(x[0], x[2]) + ca.fmax(x[1], x[2]),
+        ca.sin(x[0]) * ca.cos(x[2]) + ca.atan(x[2]) / (x[1] ** 2 + 2) - (x[2] ** 2 + 1) ** x[1],
+    )
+    jacobian = ca.Function("toy", [x], [value, ca.densify(ca.jacobian(value, x))], ["x"], ["value", "jacobian"])
+    sweep = ca.Function("toy_sweep", [x, seed], [value, ca.densify(ca.jtimes(value, x, seed, True))], {"cse": True})
+    kernel = lane_jacobian(sweep, "psdm_toy", 1, 3, width=2)
+    assert kernel is not None and kernel.n_vector_operations > 0
+    export = export_c(jacobian, tmp_path / "out", kernels=[kernel])
+    library = build_library(export, build_dir=tmp_path / "build")
+    assert ctypes.CDLL(str(library.path)).psdm_toy_lanes_enabled() == 1
+    for _ in range(3):
+        point = rng.uniform(0.2, 2.0, 3) * rng.choice([-1.0, 1.0], 3)
+        _assert_equal(library.function("psdm_toy")(point), jacobian(point))
+
+
+def test_export_with_a_theta_of_the_wrong_size_is_refused(tmp_path, denso, denso_model):
+    with pytest.raises(ShapeError, match="theta must have 32 entries"):
+        export_derivatives(build_recursive_functions(denso_model, denso), tmp_path, theta=np.ones(5), regressor=False)
