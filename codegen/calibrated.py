@@ -26,6 +26,7 @@ import dataclasses
 import casadi as ca
 import numpy as np
 
+from codegen.calibrated_lugre import lugre_note
 from codegen.export import CExport
 from identification.calibration.findings import term_values
 from identification.calibration.trajectory_data import drive_column_names, friction_term
@@ -343,7 +344,7 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
         if names:
             vs = [] if stribeck is None else [f"vs{j + 1} = {stribeck[j]:.17g}"]
             lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs))
-    lines += _findings_lines(calibrated)
+    lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated)
     return "/* " + "\n * ".join(_wrap(lines)) + "\n */\n"
 
 

@@ -20,9 +20,15 @@ It holds everything needed to use an identification without the recordings or th
 - ``corrections`` (version 2): the measurement corrections of the ``signal`` findings (a torque delay),
   applied by ``psdm validate`` as by the recalibration (``findings.correct_recording``);
 - ``recalibration`` (version 2): the calibration before and after the findings (validation RMSE,
-  consistency, the parameters that moved).
+  consistency, the parameters that moved);
+- ``drive.lugre`` (version 3, ``friction_shape`` ``"lugre"``): the seven LuGre parameters per joint with their
+  standard deviations and whether ``sigma0`` was identifiable (``lugre_recordings``); the drive columns then
+  hold only the drive inertias and offsets, and the friction is the LuGre model carried along the series
+  (``predict`` needs the sample times).
 
-Version 1 files (no findings) are read as they were.
+Version 1 files (no findings) are read as they were. A model without LuGre friction is still written as
+version 2 (older readers read it); one with LuGre friction is version 3, which older readers refuse rather
+than predict it without its friction.
 
 A model whose standard parameters are not consistent is written only when the caller says so
 (``allow_inconsistent``), and then says so in ``standard.consistent``.
@@ -30,6 +36,7 @@ A model whose standard parameters are not consistent is written only when the ca
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -46,12 +53,13 @@ from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
-__all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "load_calibrated_model",
-           "recording_provenance", "standard_parameter_labels"]  # fmt: skip
+__all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "friction_drives",
+           "load_calibrated_model", "recording_provenance", "standard_parameter_labels"]  # fmt: skip
 
 CALIBRATED_FORMAT = "psdm-calibrated-model"
 CALIBRATED_VERSION = 2
-READABLE_VERSIONS = (1, 2)
+LUGRE_VERSION = 3  # the version of a file whose friction is LuGre (drive.lugre)
+READABLE_VERSIONS = (1, 2, 3)
 
 
 def standard_parameter_labels(n_dof: int) -> list:
@@ -83,8 +91,16 @@ class CalibratedModel:
 
     # --- building and writing --------------------------------------------------------------------
     @classmethod
-    def from_fit(cls, robot, model, fit: TrajectoryFit, *, robot_source, recordings=(), validation=None):
-        """The document of a :class:`TrajectoryFit` of ``robot`` (``robot_source`` is its file or built-in name)."""
+    def from_fit(cls, robot, model, fit: TrajectoryFit, *, robot_source, recordings=(), validation=None, lugre=None):
+        """The document of a :class:`TrajectoryFit` of ``robot`` (``robot_source`` is its file or built-in name).
+
+        With ``lugre`` (a ``lugre_recordings.LuGreFit``), ``fit`` is the Stribeck fit: its friction columns are
+        replaced by the LuGre block (version 3).
+        """
+        if lugre is not None:
+            from identification.calibration.lugre_recordings import without_friction
+
+            fit = without_friction(fit)
         n = robot.n_dof
         relative = fit.relative_sigma_percent
         document = {
@@ -114,6 +130,10 @@ class CalibratedModel:
             "validation": validation or {},
             "findings": [],
         }  # fmt: skip
+        if lugre is not None:
+            document["version"] = LUGRE_VERSION
+            document["drive"]["friction_shape"] = "lugre"
+            document["drive"]["lugre"] = _lugre_block(lugre)
         return cls(document)
 
     def save(self, path, *, overwrite: bool = False, allow_inconsistent: bool = False) -> Path:
@@ -194,11 +214,37 @@ class CalibratedModel:
                 out.append((term, values))
         return out
 
-    def predict(self, model, q, qd, qdd) -> np.ndarray:
+    @property
+    def lugre_parameters(self) -> tuple | None:
+        """The LuGre parameters of each joint (``LuGreParameters``) of a LuGre model, else None."""
+        block = self.document["drive"].get("lugre")
+        if not block:
+            return None
+        from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
+
+        try:
+            return tuple(LuGreParameters(**{name: block[name][j] for name in LUGRE_PARAMETER_NAMES})
+                         for j in range(self.n_dof))  # fmt: skip
+        except (KeyError, IndexError, TypeError, ParameterError) as exc:
+            raise ModelFileError(
+                f"calibrated model drive.lugre must hold {self.n_dof} valid values for each of "
+                f"{list(LUGRE_PARAMETER_NAMES)}; got an error ({exc}). Re-run 'psdm identify --friction lugre'."
+            ) from None
+
+    def predict(self, model, q, qd, qdd, t=None, bristle=None) -> np.ndarray:
         """Joint torques [N m] of the calibrated model: rigid body of ``theta``, drive terms and findings.
 
-        The load-dependent friction of a finding is proportional to the model's own torque without it.
+        The load-dependent friction of a finding is proportional to the model's own torque without it. The
+        friction of a LuGre model carries its bristle state along the series (``lugre_recordings.lugre_friction``):
+        it needs the sample times ``t`` [s], shape (n_samples,), and the rows in time order; ``bristle`` [N m],
+        shape (n_dof,), is its bristle force ``sigma0 z`` at ``t[0]`` (default relaxed, 0).
         """
+        lugre = self.lugre_parameters
+        if lugre is not None and t is None:
+            raise ParameterError(
+                "CalibratedModel.predict t must be the sample times [s] for a LuGre model (its friction carries "
+                "the bristle state along the series); got None. Pass t=recording.t."
+            )
         drive = self.document["drive"]
         q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
         inertia_joints = tuple(j - 1 for j in drive["inertia_joints"])
@@ -206,6 +252,10 @@ class CalibratedModel:
         columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, drive["coulomb_velocity"],
                                 None if stribeck is None else np.asarray(stribeck, dtype=float))  # fmt: skip
         tau = model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
+        if lugre is not None:
+            from identification.calibration.lugre_recordings import lugre_friction
+
+            tau = tau + lugre_friction(lugre, np.asarray(t, dtype=float), qd, bristle)
         findings = self.torque_findings
         for term, values in findings:
             if not term.load_dependent:
@@ -246,7 +296,48 @@ def calibrated_robot(calibrated: CalibratedModel, robot):
             )
         else:
             links.append(prior[i] if prior is not None else LinkInertia())
-    return robot.with_links(links, rotor_inertia=np.maximum(standard[:, 10], 0.0))
+    out = robot.with_links(links, rotor_inertia=np.maximum(standard[:, 10], 0.0))
+    drives = friction_drives(calibrated, robot)
+    return out if drives is None else dataclasses.replace(out, drives=drives)
+
+
+def friction_drives(calibrated: CalibratedModel, robot) -> tuple | None:
+    """Drives carrying the calibrated model's own friction shape, for a nominal model built from it; None for
+    Coulomb + viscous (the robot file's drives are kept).
+
+    Stribeck: ``fc, fs, vs, fv`` of the file (``dv = 1``; the bristle values are the robot file's and unused by
+    the ``"stribeck"`` diagnosis). LuGre: the seven identified parameters. The torque constants are the robot
+    file's (1 N m/A when it has no drives: the model was then identified from joint torques).
+    """
+    from psdm_casadi.robot import DriveParameters
+
+    shape = calibrated.document["drive"].get("friction_shape")
+    if shape not in ("stribeck", "lugre"):
+        return None
+    base = robot.drives or tuple(DriveParameters() for _ in range(robot.n_dof))
+    lugre = calibrated.lugre_parameters
+    if lugre is not None:
+        return tuple(dataclasses.replace(d, **p.as_dict()) for d, p in zip(base, lugre))
+    values = dict(zip(calibrated.document["drive"]["names"], calibrated.drive))
+    vs = calibrated.document["drive"]["stribeck_velocity"]
+    return tuple(
+        dataclasses.replace(d, fc=max(values[f"fc{j + 1}"], 0.0), fs=max(values[f"fs{j + 1}"], 0.0), vs=float(vs[j]),
+                            fv=max(values[f"fv{j + 1}"], 0.0), dv=1.0)
+        for j, d in enumerate(base)
+    )  # fmt: skip
+
+
+def _lugre_block(lugre) -> dict:
+    """The ``drive.lugre`` block: per parameter a list over joints, with standard deviations and identifiability."""
+    from identification.friction.models import LUGRE_PARAMETER_NAMES
+
+    table = lugre.table()
+    block = {name: _floats(table[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
+    block["std"] = {name: _floats(lugre.std[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
+    block.update(sigma0_identifiable=list(lugre.identifiable), rmse_friction=_floats(lugre.rmse),
+                 rmse_friction_stribeck=_floats(lugre.rmse_stribeck), solver_status=list(lugre.status),
+                 start="steady state of the first sample's velocity")  # fmt: skip
+    return block
 
 
 def _robot_block(robot, robot_source) -> dict:

@@ -83,7 +83,8 @@ def simulate_calibrated(
     Returns
     -------
     Recording
-        ``t``, ``q``, ``qd``, ``qdd`` of the reference and ``tau = calibrated.predict(model, q, qd, qdd)`` (+ noise).
+        ``t``, ``q``, ``qd``, ``qdd`` of the reference and ``tau = calibrated.predict(model, q, qd, qdd, t=t)``
+        (+ noise).
 
     Raises
     ------
@@ -113,7 +114,7 @@ def simulate_calibrated(
             f"simulate_calibrated reference q must have shape (n_samples, {calibrated.n_dof}) to match the model's "
             f"n_dof={calibrated.n_dof}; got {q.shape}. Pass a reference of this robot's joints."
         )
-    tau = calibrated.predict(model, q, qd, qdd)
+    tau = calibrated.predict(model, q, qd, qdd, t=t)  # a LuGre model carries its bristle state along t
     if tau_noise_std > 0:
         tau = tau + rng.normal(scale=tau_noise_std, size=tau.shape)
     return Recording(t=t, q=q, qd=qd, qdd=qdd, tau=tau, name=name)

@@ -30,6 +30,13 @@ convention: joint, then row; modified: row, then joint), so that link ``link<i>`
 limits from the robot file (a joint without a torque limit gets ``effort="0"``, which
 ``psdm_casadi.urdf.from_urdf`` reads back as none; URDF has no acceleration limits).
 
+**Friction shapes URDF cannot hold.** ``<dynamics>`` has Coulomb friction and viscous damping only. For a
+Stribeck model (``--friction stribeck``) and a LuGre model (``--friction lugre``) the file gets the honest
+part: ``friction = fc``, the sliding level the friction settles at beyond a few ``vs``, and ``damping = fv``;
+the static hump (``fs``, ``vs``) and the LuGre bristle dynamics (``sigma0``, ``sigma1``) are left out, their
+values written in a comment on each joint, and :func:`friction_not_representable` gives the warning
+``psdm export-urdf`` prints. (Writing ``fs`` instead, or a blend, would be wrong at every sliding speed.)
+
 **Drives.** The model's Coulomb term is ``fc tanh(qd / v)`` (``v`` in the header comment); a torque
 offset and the drive inertia have no URDF field and are written as comments on their joint. The
 drive inertia ``Ia`` reflected to the joint is Pinocchio's ``model.armature``: Pinocchio's URDF
@@ -53,6 +60,7 @@ from xml.parsers.expat import ExpatError
 import numpy as np
 import pinocchio as pin
 
+from identification.calibration.urdf_friction import friction_left_out, friction_not_representable
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.oracle import dh_transform, inertia_from_dynamic_parameters
@@ -198,17 +206,23 @@ def _inertial(document, parameters, where: str):
 
 
 def _drive_terms(calibrated) -> dict:
-    """``{"fc": array, "fv": array, "offset": array}`` per joint (zeros for terms the model lacks)."""
+    """``{"fc": array, "fv": array, "offset": array}`` per joint (zeros for terms the model lacks; a LuGre
+    model's fc and fv from its LuGre block)."""
     drive = calibrated.document["drive"]
     values = dict(zip(drive["names"], calibrated.drive))
     n = calibrated.n_dof
-    return {term: np.array([values.get(f"{term}{j + 1}", 0.0) for j in range(n)]) for term in ("fc", "fv", "offset")}
+    out = {term: np.array([values.get(f"{term}{j + 1}", 0.0) for j in range(n)]) for term in ("fc", "fv", "offset")}
+    lugre = calibrated.lugre_parameters
+    if lugre is not None:
+        out["fc"], out["fv"] = np.array([p.fc for p in lugre]), np.array([p.fv for p in lugre])
+    return out
 
 
 def _joint_notes(calibrated, robot) -> list:
     """Per joint, the comment on what URDF cannot hold: the drive inertia and a torque offset."""
     armature = urdf_armature(calibrated, robot)
     offsets = _drive_terms(calibrated)["offset"]
+    left_out = friction_left_out(calibrated)
     notes = []
     for j, joint in enumerate(robot.joints):
         inertia_unit, force_unit = ("kg m^2", "N m") if joint.is_revolute else ("kg", "N")
@@ -216,6 +230,8 @@ def _joint_notes(calibrated, robot) -> list:
                 "a URDF field and not read by Pinocchio's URDF parser: set model.armature")  # fmt: skip
         if "offset" in calibrated.document["drive"]["friction_terms"]:
             text += f"; constant torque offset {_num(offsets[j])} {force_unit} (not a URDF field)"
+        if left_out is not None:
+            text += f"; friction not representable in URDF (left out): {left_out[j]}"
         notes.append(text)
     return notes
 
@@ -233,7 +249,8 @@ def _header(document, calibrated, robot, world: bool, indent: str):
         f"{block['min_pseudo_inertia_eigenvalue']}). Each moving link's <inertial> is the whole rigid body the "
         "model attaches to its joint (links merged into it have mass 0), in the link frame about its centre of mass.",
         f"Friction: <dynamics friction> is fc, the model's Coulomb term fc tanh(qd / {drive['coulomb_velocity']} "
-        "rad/s); damping is fv (viscous).",
+        "rad/s); damping is fv (viscous)."
+        + (f" WARNING: {left_out}." if (left_out := friction_not_representable(calibrated)) else ""),
         "Drive inertias (armature) are in a comment on each joint: URDF has no field for them and Pinocchio's URDF "
         "parser does not read one; set model.armature.",
         f"Gravity: {_num(gravity)} m/s^2 along -z of the root link"

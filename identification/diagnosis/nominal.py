@@ -19,6 +19,8 @@ Friction (``DiagnosisOptions.friction``), per joint and linear in its amplitudes
   ``vs`` and ``dv`` from the robot file's drives (``vs = 0.01``, ``dv = 1`` without drives). The
   bristle dynamics (pre-sliding) are not modelled in the diagnosis.
 - ``"coulomb_viscous"``: ``fc s + fv qd``.
+- ``"stribeck"``: the steady-state curve of ``"lugre"`` alone (no bristle-dynamics columns), the shape of a
+  calibrated model identified with ``--friction stribeck`` (its ``vs`` in the drives ``calibrated_robot`` builds).
 """
 
 from __future__ import annotations
@@ -30,7 +32,8 @@ from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import lugre_parameters, simulate_friction
 from psdm_casadi.errors import ParameterError
 
-FRICTION_MODELS = ("lugre", "coulomb_viscous")
+FRICTION_MODELS = ("lugre", "coulomb_viscous", "stribeck")
+STRIBECK_SHAPED = ("lugre", "stribeck")  # three columns per joint: fc, (fs - fc) exp(-(qd/vs)^2), fv
 RIGID_BODY_CHOICES = ("auto", "prior", "identified")
 
 
@@ -42,7 +45,7 @@ def friction_shapes(robot) -> tuple[np.ndarray, np.ndarray]:
 
 
 def friction_feature_names(kind: str, n_dof: int) -> list:
-    per = ("fc", "fs_minus_fc", "fv") if kind == "lugre" else ("fc", "fv")
+    per = ("fc", "fs_minus_fc", "fv") if kind in STRIBECK_SHAPED else ("fc", "fv")
     return [f"{name}_{j + 1}" for j in range(n_dof) for name in per]
 
 
@@ -55,7 +58,7 @@ def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray, 
         raise ParameterError(f"DiagnosisOptions.friction must be one of {FRICTION_MODELS}; got {kind!r}.")
     n_samples, n = qd.shape
     s = np.tanh(qd / SMOOTH_VELOCITY) if sign is None else sign
-    if kind == "lugre":
+    if kind in STRIBECK_SHAPED:
         per = [s, np.exp(-((qd / vs) ** 2)) * s, np.abs(qd) ** dv * s]
     else:
         per = [s, qd]
@@ -91,7 +94,7 @@ def friction_blocks(robot, kind: str, context) -> BlockColumns:
         if dynamic:
             out = np.concatenate([out, lugre_dynamic_columns(robot, context)], axis=2)
         return BlockColumns.from_dense(out)
-    k = 3 if kind == "lugre" else 2
+    k = 3 if kind in STRIBECK_SHAPED else 2
     index, values = [], []
     for j in range(n):
         index.append(np.arange(j * k, (j + 1) * k).tolist() + ([n * k + j] if dynamic else []))
@@ -109,7 +112,7 @@ def _joint_friction_columns(robot, kind: str, context, j: int, dynamic: bool):
     qd = context.full_qd[:, j]
     sign = np.sign(qd)
     yield sign
-    if kind == "lugre":
+    if kind in STRIBECK_SHAPED:
         yield np.exp(-((qd / vs[j]) ** 2)) * sign
         yield np.abs(qd) ** dv[j] * sign
     else:
@@ -153,11 +156,11 @@ def friction_casadi(kind: str, qd, coefficients, vs, dv):
 
     n = qd.shape[0]
     out = ca.SX.zeros(n)
-    k = 3 if kind == "lugre" else 2
+    k = 3 if kind in STRIBECK_SHAPED else 2
     for j in range(n):
         s = ca.tanh(qd[j] / SMOOTH_VELOCITY)
         c = coefficients[j * k : (j + 1) * k]
-        if kind == "lugre":
+        if kind in STRIBECK_SHAPED:
             out[j] = c[0] * s + c[1] * ca.exp(-((qd[j] / vs[j]) ** 2)) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s
         else:
             out[j] = c[0] * s + c[1] * qd[j]

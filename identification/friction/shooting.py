@@ -31,7 +31,12 @@ import numpy as np
 
 from identification.friction.lugre_step import phi_function_expressions, substep_layout
 from identification.friction.measurement import build_measured_interval, measured_layout, simulate_lugre_measured
-from identification.friction.models import LuGreParameters, check_friction_data, check_slides_both_ways
+from identification.friction.models import (
+    LUGRE_PARAMETER_NAMES,
+    LuGreParameters,
+    check_friction_data,
+    check_slides_both_ways,
+)
 from identification.friction.shooting_nlp import assemble_shooting_nlp, build_shooting_interval
 from identification.friction.simulation import simulate_lugre
 from identification.friction.start import check_initial
@@ -79,6 +84,9 @@ class ShootingOptions:
         (:mod:`identification.friction.measurement`; needs ``q``; exact on each sample interval, so
         ``substeps`` is not used). The friction step uses it at full rate: on joints that ring on
         their bristles after a stick, ``"sample"`` biases sigma1.
+    fixed : tuple of str
+        Parameters (of ``LUGRE_PARAMETER_NAMES``) held at their initial value, e.g. ``("dv",)`` for
+        linear viscous friction (the recordings route, whose viscous term is linear).
     """
 
     interval: int = 10
@@ -91,8 +99,14 @@ class ShootingOptions:
     print_level: int = 0
     ipopt_options: dict = field(default_factory=dict)
     measurement: str = "sample"
+    fixed: tuple = ()
 
     def __post_init__(self):
+        unknown = [name for name in self.fixed if name not in LUGRE_PARAMETER_NAMES]
+        if unknown:
+            raise ParameterError(
+                f"ShootingOptions.fixed must name parameters of {LUGRE_PARAMETER_NAMES}; got {unknown!r}."
+            )
         if self.measurement not in MEASUREMENTS:
             raise ParameterError(
                 f"ShootingOptions.measurement must be one of {MEASUREMENTS}; got "
@@ -373,8 +387,9 @@ def _solve(nlp, hess_lag, w0, n_nodes, options):
         solver_options["hess_lag"] = hess_lag
     solver = ca.nlpsol("lugre_shooting", "ipopt", nlp, solver_options)
     bound = np.log(options.parameter_range)
-    lbx = np.concatenate([np.full(7, -bound), np.full(n_nodes, -np.inf)])
-    ubx = np.concatenate([np.full(7, bound), np.full(n_nodes, np.inf)])
+    held = np.isin(LUGRE_PARAMETER_NAMES, options.fixed)
+    lbx = np.concatenate([np.where(held, 0.0, -bound), np.full(n_nodes, -np.inf)])
+    ubx = np.concatenate([np.where(held, 0.0, bound), np.full(n_nodes, np.inf)])
     solve_start = time.perf_counter()
     sol = solver(x0=w0, lbx=lbx, ubx=ubx, lbg=0, ubg=0)
     solve_seconds = time.perf_counter() - solve_start

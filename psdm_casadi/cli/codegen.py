@@ -167,7 +167,8 @@ def build_export_functions(model, robot, form: str | None):
 def output_names(library: str) -> tuple:
     """What ``psdm codegen`` writes into --out (and what its Makefile builds there), for ``--force``."""
     batch = (f"{library}_batch.c", f"{library}_batch.h")
-    return (f"{library}.c", f"{library}.h", *batch, "main.c", "Makefile", f"lib{library}.so", "example")
+    lugre = (f"{library}_lugre.c", f"{library}_lugre.h")  # a LuGre model's bristle step (codegen.calibrated_lugre)
+    return (f"{library}.c", f"{library}.h", *batch, *lugre, "main.c", "Makefile", f"lib{library}.so", "example")
 
 
 def _check_options(args):
@@ -260,10 +261,14 @@ def _run_codegen(args) -> int:
             library=args.library,
             fast_trig=not args.libm_trig,
         )
+        lugre_source = None
         if note is not None:
             from codegen.calibrated import add_header_note
+            from codegen.calibrated_lugre import add_lugre_step
+            from identification.calibration.calibrated_model import load_calibrated_model
 
             add_header_note(export, note)
+            lugre_source = add_lugre_step(export, load_calibrated_model(args.source), note)  # None unless LuGre
         batch = None
         if getattr(args, "batch", False):
             from codegen.batch import add_batch
@@ -275,8 +280,12 @@ def _run_codegen(args) -> int:
 
             progress(f"compiling lib{export.library}.so ...")
             sources, openmp = ([export.source], ()) if batch is None else ([export.source, batch.source], ("-fopenmp",))
+            sources += [lugre_source] if lugre_source is not None else []
             compile_shared(sources, stage / f"lib{export.library}.so", flags=("-O3", "-march=native", *openmp))
     _print_export(args, out, export, form, calibrated=note is not None, batch=batch)
+    if lugre_source is not None:
+        progress(f"LuGre friction: NOT in inverse_dynamics; {lugre_source.name} has psdm_lugre_step(s, qd_prev, "
+                 "qd, dt) -> (s_next, tau_friction), the bristle step to carry (see its header)")  # fmt: skip
     return EXIT_OK
 
 

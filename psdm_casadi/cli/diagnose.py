@@ -28,7 +28,8 @@ def register(subparsers) -> None:
             "candidate physics terms jointly with it, keep those that lower the validation error enough to earn "
             "their parameters, and report them most important first with per-joint validation RMSE before/after. "
             "Given a calibrated model (.json from 'psdm identify') instead of a robot, the nominal model is the "
-            "file's: its kinematics, identified inertia (rigid body fixed) and Coulomb + viscous friction; "
+            "file's: its kinematics, identified inertia (rigid body fixed) and its friction shape (Coulomb + "
+            "viscous, Stribeck with its vs, or LuGre with its bristle dynamics; amplitudes refitted); "
             "--apply NEW.json then identifies the model again on --train with the findings' terms fitted jointly "
             "(signal findings such as a delay correct the recordings), judges it on --validate as 'psdm validate' "
             "does, shows the calibration before and after, and writes the calibrated model with its findings."
@@ -42,11 +43,12 @@ def register(subparsers) -> None:
     add_topic_argument(p)
     p.add_argument(
         "--friction",
-        choices=("lugre", "coulomb_viscous"),
+        choices=("lugre", "coulomb_viscous", "stribeck"),
         default=None,
         help="nominal friction: steady-state LuGre with the robot file's shape (+ its bristle dynamics "
-        "when the file has drives; the default for a robot), or Coulomb + viscous (the default for a calibrated "
-        "model)",
+        "when the file has drives; the default for a robot), Coulomb + viscous, or the steady-state curve alone "
+        "(stribeck). A calibrated model's default is its own shape: coulomb_viscous, stribeck (its vs), or lugre "
+        "(its identified parameters, bristle dynamics included)",
     )
     p.add_argument(
         "--rigid-body",
@@ -115,7 +117,7 @@ def _run_diagnose(args) -> int:
     train = load_recording(args.train, robot.n_dof, robot.joint_names, args.topic)
     validation = load_recording(args.validate, robot.n_dof, robot.joint_names, args.topic)
     options = DiagnosisOptions(
-        friction=args.friction or ("coulomb_viscous" if calibrated is not None else "lugre"),
+        friction=args.friction or (_own_friction(calibrated) if calibrated is not None else "lugre"),
         rigid_body=args.rigid_body,
         cutoff_hz=args.cutoff,
         min_improvement=args.min_improvement,
@@ -144,6 +146,12 @@ def _run_diagnose(args) -> int:
     )
 
 
+def _own_friction(calibrated) -> str:
+    """The diagnosis' friction kind of a calibrated model's own shape (its drives carry vs or the LuGre values)."""
+    shape = calibrated.document["drive"].get("friction_shape", "coulomb-viscous")
+    return {"stribeck": "stribeck", "lugre": "lugre"}.get(shape, "coulomb_viscous")
+
+
 def _calibrated_source(args):
     """(CalibratedModel or None, checked --apply output or None): a .json source is a calibrated model."""
     from identification.calibration.calibrated_model import load_calibrated_model
@@ -162,6 +170,11 @@ def _calibrated_source(args):
             "joints. Drop --lock."
         )
     calibrated = load_calibrated_model(args.robot)
+    if args.apply is not None and calibrated.lugre_parameters is not None:
+        raise ParameterError(
+            f"diagnose --apply does not recalibrate a model with LuGre friction yet; got {args.robot!r}. Diagnose it "
+            "without --apply, or identify it with --friction stribeck to apply findings."
+        )
     return calibrated, output_file(args.apply, "--apply", args.overwrite)
 
 

@@ -45,7 +45,7 @@ def register(subparsers) -> None:
 
 def _run_export_urdf(args) -> int:
     from identification.calibration.calibrated_model import load_calibrated_model
-    from identification.calibration.urdf_export import render_urdf
+    from identification.calibration.urdf_export import friction_not_representable, render_urdf
 
     out = output_file(args.out, "OUT", args.overwrite)
     calibrated = load_calibrated_model(args.model)
@@ -64,6 +64,9 @@ def _run_export_urdf(args) -> int:
     text = render_urdf(calibrated, robot)
     if not calibrated.consistent:
         print("psdm export-urdf: warning: writing an INCONSISTENT model (marked in the file)", file=sys.stderr)
+    left_out = friction_not_representable(calibrated)
+    if left_out is not None:
+        print(f"psdm export-urdf: warning: {left_out}", file=sys.stderr)
     with out.staging() as stage:
         stage.write_text(text)
     source = "urdf" if robot.urdf_path is not None else "dh"

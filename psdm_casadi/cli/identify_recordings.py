@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 from psdm_casadi.cli.checks import add_topic_argument, load_robot_argument, output_file
-from psdm_casadi.cli.output import EXIT_BAD_INPUT, EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 
 MASS_CHECK_CONFIGURATIONS = 2000
 FRICTION_SHAPES = ("coulomb-viscous", "stribeck", "lugre")
@@ -31,7 +31,11 @@ def add_arguments(p) -> None:
         default="coulomb-viscous",
         help="friction shape per joint: fc tanh(qd/eps) + fv qd (default); stribeck: (fc + (fs - fc) "
         "exp(-(qd/vs)^2)) tanh(qd/eps) + fv qd, with fs and vs fitted (a --cutoff well above the motion's "
-        "frequencies keeps the sharp low-velocity friction the filter would smear); lugre: not in this route yet",
+        "frequencies keeps the sharp low-velocity friction the filter would smear); lugre: the Stribeck fit, then "
+        "all seven LuGre parameters per joint (fc, fs, vs, fv with dv = 1, bristle stiffness sigma0 and damping "
+        "sigma1) by multiple shooting along the recorded series (the friction left after the rigid body and drive "
+        "terms); sigma0 is reported as not identifiable where the motion never dwells at low speed. Predict, "
+        "validate, simulate and the exported C carry the bristle state along the series",
     )
     p.add_argument("--no-drive-inertia", action="store_true", help="do not identify drive (rotor) inertias")
     p.add_argument(
@@ -50,16 +54,13 @@ def run(args) -> int:
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
 
-    if args.friction == "lugre":
-        print("psdm identify: error: --friction lugre is not available on recordings yet (the LuGre shooting fit "
-              "needs the paper's friction experiments). Pass --friction stribeck, or run --protocol four-step on "
-              "a data folder, which identifies LuGre friction.", file=sys.stderr)  # fmt: skip
-        return EXIT_BAD_INPUT
     out = output_file(args.out, "--out", args.overwrite)
     robot = load_robot_argument(args)
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.data]
     validation = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.validate]
-    friction = ("fc", "fs", "fv") if args.friction == "stribeck" else ("fc", "fv")
+    if args.friction == "lugre":
+        _check_reversals(recordings, args.data)
+    friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")
     friction = (*friction, "offset") if args.offset else friction
     options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
                                 consistency=not args.no_consistency, cutoff_hz=args.cutoff)  # fmt: skip
@@ -68,16 +69,21 @@ def run(args) -> int:
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_psdm(robot)
-    fit = identify_trajectories(robot, model, recordings, options)
-    for warning in _negative_drive_inertias(fit):
+    if args.friction == "lugre":
+        fit, lugre, start = _fit_lugre(robot, model, recordings, options)
+    else:
+        fit = start = identify_trajectories(robot, model, recordings, options)
+        lugre = None
+    for warning in _negative_drive_inertias(start):
         print(warning, file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
-    report = _validation(robot, model, fit, validation, args.validate)
-    report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated = CalibratedModel.from_fit(
-        robot, model, fit, robot_source=args.robot,
-        recordings=[recording_provenance(r, p) for r, p in zip(recordings, args.data)], validation=report,
+        robot, model, fit, robot_source=args.robot, lugre=lugre,
+        recordings=[recording_provenance(r, p) for r, p in zip(recordings, args.data)],
     )  # fmt: skip
+    report = _validation(robot, model, start, validation, args.validate, calibrated)
+    report["min_mass_eigenvalue"] = mass_eigenvalue
+    calibrated.document["validation"] = report
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "
@@ -93,6 +99,39 @@ def run(args) -> int:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
     _print(args, robot, model, fit, report, calibrated)
     return EXIT_OK
+
+
+def _check_reversals(recordings, paths) -> None:
+    """Refuse, before any work, a recording in which a joint does not slide both ways: LuGre friction is fitted
+    along the reversals (``friction.models.check_slides_both_ways`` on the velocity of the recorded positions)."""
+    from identification.friction.models import check_slides_both_ways
+    from psdm_casadi.errors import InsufficientExcitationError
+
+    for recording, path in zip(recordings, paths):
+        qd = np.gradient(recording.q, recording.t, axis=0)
+        for j in range(recording.n_dof):
+            try:
+                check_slides_both_ways(qd[:, j], owner=f"{path} joint {j + 1}")
+            except InsufficientExcitationError as exc:
+                raise InsufficientExcitationError(
+                    f"--friction lugre: {exc} LuGre friction is fitted along the reversals of every joint; or "
+                    "pass --friction stribeck."
+                ) from None
+
+
+def _fit_lugre(robot, model, recordings, options):
+    """(final fit, LuGre fit, Stribeck fit) of ``lugre_identify``, its warnings printed."""
+    import warnings
+
+    from identification.calibration.lugre_identify import identify_lugre_trajectories
+    from identification.calibration.lugre_recordings import LuGreWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", LuGreWarning)
+        result = identify_lugre_trajectories(robot, model, recordings, options)
+    for warning in caught:
+        print(f"psdm identify: warning: {warning.message}", file=sys.stderr)
+    return result.fit, result.lugre, result.stribeck
 
 
 def _negative_drive_inertias(fit, z: float = 3.0) -> list:
@@ -122,21 +161,26 @@ def _min_mass_eigenvalue(robot, fit, seed: int = 0) -> float:
     return float(min(np.linalg.eigvalsh(m)[0] for m in oracle.crba(q)))
 
 
-def _validation(robot, model, fit, recordings, paths) -> dict:
-    """Per-joint RMSE [N m] and R^2 on each held-out recording: ours, the unconstrained fit, the prior."""
-    from identification.calibration.trajectory_data import prepare_recording
+def _validation(robot, model, fit, recordings, paths, calibrated) -> dict:
+    """Per-joint RMSE [N m] and R^2 on each held-out recording: ours, the unconstrained fit, the prior.
+
+    Ours is the calibrated model's own prediction (``CalibratedModel.predict``, as ``psdm validate``); for a
+    LuGre model the unconstrained fit is the Stribeck one it started from.
+    """
+    from identification.calibration.finding_value import validation_rmse
     from identification.calibration.trajectory_fit import predict_torque
-    from identification.metrics import r2, rmse
+    from identification.metrics import rmse
     from psdm_casadi.oracle import PinocchioOracle
 
     out = {"recordings": []}
     prior = PinocchioOracle(robot) if robot.links is not None else None
     for path, recording in zip(paths, recordings):
         kt = None if recording.tau is not None else np.array([d.kt for d in robot.drives or ()], dtype=float)
-        prepared, _, _ = prepare_recording(recording, kt if kt is not None and kt.size else None, fit.cutoff_hz[0])
+        kt = kt if kt is not None and kt.size else None
+        error, r2, prepared, _ = validation_rmse(calibrated, model, recording, kt)
         x = (prepared.q, prepared.qd, prepared.qdd)
-        ours, ols = predict_torque(model, fit, *x), predict_torque(model, fit, *x, ols=True)
-        entry = {"recording": str(path), "rmse": _list(rmse(prepared.tau, ours)), "r2": _list(r2(prepared.tau, ours)),
+        ols = predict_torque(model, fit, *x, ols=True)
+        entry = {"recording": str(path), "rmse": _list(error), "r2": _list(r2),
                  "rmse_ols": _list(rmse(prepared.tau, ols))}  # fmt: skip
         if prior is not None:
             entry["rmse_prior"] = _list(rmse(prepared.tau, prior.rnea(*x)))
@@ -146,6 +190,24 @@ def _validation(robot, model, fit, recordings, paths) -> dict:
 
 def _list(values) -> list:
     return [float(v) for v in np.atleast_1d(values)]
+
+
+def _print_lugre(block) -> None:
+    """The LuGre parameters per joint with their standard deviations (the steady state above is the start)."""
+    if not block:
+        return
+    from identification.friction.models import LUGRE_PARAMETER_NAMES
+
+    print("\nLuGre friction (fitted along the series; the Stribeck values above are its start), value +- sigma:")
+    print("joint " + " ".join(f"{name:>20}" for name in LUGRE_PARAMETER_NAMES))
+    for j, identifiable in enumerate(block["sigma0_identifiable"]):
+        cells = [f"{block[n][j]:10.4g} +- {_sigma(block['std'][n][j]):<6}" for n in LUGRE_PARAMETER_NAMES]
+        note = "" if identifiable else "  (sigma0 not identifiable)"
+        print(f"{j + 1:<5} " + " ".join(f"{c:>20}" for c in cells) + note)
+
+
+def _sigma(value) -> str:
+    return "inf" if value is None else f"{value:.2g}"
 
 
 def _print(args, robot, model, fit, report, calibrated) -> None:
@@ -159,7 +221,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
                     "drive_std": dict(zip(fit.drive_names, fit.drive_std.tolist())),
                     "stribeck_velocity": list(fit.stribeck_velocity),
                     "stribeck_velocity_std": list(fit.stribeck_velocity_std),
-                    "seconds": fit.seconds})  # fmt: skip
+                    "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
           f"(decimation {', '.join(map(str, fit.decimation))}); condition number of the weighted regressor "
@@ -175,6 +237,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
     for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
         print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
+    _print_lugre(calibrated.document["drive"].get("lugre"))
     for entry in report["recordings"]:
         print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
         for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):

@@ -20,7 +20,9 @@ def register(subparsers) -> None:
             "did (the same low-pass cutoff, central differences), and report per joint the RMSE [N m] and R^2 of "
             "the model's torque against the recorded one. The model's torque includes its torque-type findings "
             "(psdm diagnose MODEL --apply); its measurement corrections (a torque delay, an encoder before a "
-            "compliant joint or a play) are applied to the recordings first, as the recalibration did."
+            "compliant joint or a play) are applied to the recordings first, as the recalibration did. A model with "
+            "LuGre friction (identify --friction lugre) carries its bristle state along each recording: relaxed at "
+            "the recording's start, carried over the samples the filter trims."
         ),
     )
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")

@@ -122,6 +122,14 @@ def _identify(name, expect, file, q, current=None):
 
 FIX_RECORD = "psdm excite"
 
+
+def _ramp_on(joint):
+    """Every joint on its sines but ``joint``, which moves one way only (a ramp): no reversal to fit LuGre on."""
+    q = _moving()
+    q[:, joint] = HOME[joint] + 0.1 * SPAN[joint] * _t() / _t()[-1]
+    return q
+
+
 CASES = [
     # psdm diagnose: every joint must move in the training and the validation recording
     _diagnose("diagnose: motionless training", _still(), _moving(1), ("A.csv", "joint 1", "joint 6", FIX_RECORD)),
@@ -136,6 +144,13 @@ CASES = [
         _still() + 2e-6 * np.random.default_rng(5).standard_normal((_t().size, N)),
         _moving(1),
         ("A.csv", "joint 4", FIX_RECORD),
+    ),
+    # psdm identify --friction lugre on recordings: every joint must reverse, refused before any fit
+    BadInput(
+        "identify --friction lugre: joint 2 never reverses",
+        ("identify", "denso_vs6556g", "--data", "A.csv", "--friction", "lugre", "--out", "m.json"),
+        ("A.csv joint 2", "both directions", "--friction stribeck"),
+        files={"A.csv": _csv(_ramp_on(1))},
     ),
     # psdm identify: refused before step 1, the experiment named
     _identify("identify: motionless excitation", ("excitation.csv", "joint 1", FIX_RECORD), "excitation.csv", _still()),

@@ -210,5 +210,4 @@ def test_identify_with_the_stribeck_shape_writes_it_and_validate_reproduces_it(c
     assert main(["validate", str(out), str(sim / "valid" / "sine.csv"), "--json"]) == 0
     validated = json.loads(capsys.readouterr().out)["recordings"][0]["rmse"]
     np.testing.assert_allclose(validated, summary["validation"][0]["rmse"], rtol=1e-9)
-    assert main([*argv[:-2], "--friction", "lugre", "--out", str(tmp_path / "lugre.json")]) == 2
-    assert "--friction lugre is not available on recordings" in capsys.readouterr().err
+    # --friction lugre on recordings is built now: tests/identification/test_lugre_recordings.py
