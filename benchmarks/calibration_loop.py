@@ -6,6 +6,10 @@ whole calibration, runs the four steps (``IdentificationPipeline``, no refinemen
 excitation recording (first period trains, last validates), and runs the four steps again with the
 diagnosis' torque-type findings as known terms (``ExtraTerms.from_diagnosis``). The same plan without
 the effect gives the clean-data errors the target is measured against (after within 2x clean).
+The known terms are estimated on the excitation with every base parameter free and held in the
+gravity step (``identification.calibration.extra_passes``); their own standard error still moves
+the gravity parameters a term is nearly collinear with on the jog, so the after-errors of one seed
+scatter about that floor, while the clean errors of one seed scatter about theirs.
 
 Errors against the simulation truth (the robot file): ``kt`` the worst relative Kt error; ``gravity``
 and ``inertial`` the worst base-parameter error scaled by max(|truth|, 5 % of the largest parameter

@@ -10,24 +10,41 @@ of 100-200 kg at the flange changes their torque by a large fraction.
 ``cad_error`` returns the same robot with every link's mass, centre of mass and inertia off by 10-20 % (a
 random sign per quantity, drawn with a seed), the way CAD values are off from a real arm: the simulation uses
 the perturbed robot as the truth and the diagnosis the unperturbed robot file.
+
+The arm is written to a robot file (``write_robot_file``, in a temporary folder removed at exit) and read back, so
+its calibrated models can be stored (a model file keeps the robot file's text) and exported.
 """
 
 from __future__ import annotations
 
+import atexit
 import dataclasses
+import shutil
+import tempfile
+from pathlib import Path
 
 import numpy as np
 from bench_support import DENSO_FILE
 
 from psdm_casadi.robot import LinkInertia, load_robot
+from psdm_casadi.robot_writer import write_robot_file
 
 LENGTH = 3.2  # length scale over the Denso VS-6556G
 MASS = 45.0  # mass scale
 SPEED = 0.4  # speed and acceleration limits relative to the Denso's
 
 
-def heavy_industrial_arm():
-    """The scaled Denso (see the module docstring), named ``heavy industrial arm``."""
+def heavy_industrial_arm(folder=None):
+    """The scaled Denso (see the module docstring), named ``heavy industrial arm``, read back from the robot file
+    ``heavy_industrial_arm.toml`` written in ``folder`` (default: a temporary folder removed at exit)."""
+    if folder is None:
+        folder = tempfile.mkdtemp(prefix="psdm-heavy-arm-")
+        atexit.register(shutil.rmtree, folder, True)
+    path = write_robot_file(_scaled_denso(), Path(folder) / "heavy_industrial_arm.toml", overwrite=True)
+    return load_robot(path)
+
+
+def _scaled_denso():
     denso = load_robot(DENSO_FILE)
     inertia_scale, torque_scale = MASS * LENGTH**2, MASS * LENGTH
     joints = tuple(

@@ -14,6 +14,7 @@ import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.findings import correct_recording
+from identification.calibration.lugre_recordings import bristle_force_at
 from identification.calibration.trajectory_data import prepare_recording
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from identification.metrics import r2, rmse
@@ -25,11 +26,15 @@ def validation_rmse(calibrated: CalibratedModel, model, recording, kt=None) -> t
     """(RMSE, R^2, prepared recording, prediction) of a calibrated model on a raw recording, as ``psdm validate``.
 
     The model's measurement corrections are applied to the raw recording, which is then prepared with the
-    identification's cutoff.
+    identification's cutoff. A LuGre model's bristle state starts relaxed at the raw recording's start and is
+    carried over the samples the filter trims (``lugre_recordings.bristle_force_at``).
     """
     cutoff = calibrated.document["identification"]["cutoff_hz"][0]
     prepared, _, _ = prepare_recording(correct_recording(recording, calibrated.corrections, kt), kt, cutoff)
-    predicted = calibrated.predict(model, prepared.q, prepared.qd, prepared.qdd)
+    bristle = None
+    if calibrated.lugre_parameters is not None:  # LuGre: the bristle state carried from the raw start
+        bristle = bristle_force_at(calibrated.lugre_parameters, recording, cutoff, prepared.t[0])
+    predicted = calibrated.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle)
     return rmse(prepared.tau, predicted), r2(prepared.tau, predicted), prepared, predicted
 
 

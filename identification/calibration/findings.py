@@ -10,9 +10,9 @@ A finding of the diagnosis becomes one :class:`FindingTerm`, of one of four kind
   ``[1]``, position ripple ``[sin(h q_j), cos(h q_j)]``, coupling ``[qd_k, qdd_k]`` on joint j, Coulomb
   asymmetry ``[(1 + tanh(qd_j / v)) / 2]``, rotor inertia ``[qdd_j]`` and load-dependent friction
   ``[|tau_j| tanh(qd_j / v)]``, where ``tau`` is the model's own torque without the load-dependent
-  terms (never the measurement, so the model predicts); a spring of any order and an unnamed effect (a sparse
-  formula of the joint state) are stored by their candidate term's spec (``CandidateTerm.spec``) and their
-  columns are that term's own (``term_from_spec``), the ones the diagnosis fitted;
+  terms (never the measurement, so the model predicts); a spring of any order, a gas spring's lever law and an
+  unnamed effect (a sparse formula of the joint state) are stored by their candidate term's spec
+  (``CandidateTerm.spec``) and their columns are that term's own (``term_from_spec``), the ones the diagnosis fitted;
 - ``rigid_body``: a payload (or a last link lighter than the file says): a change of the standard
   parameters, absorbed by the recalibrated rigid body;
 - ``signal``: a delay of the torque signal behind the motion, and an encoder that reads the motor side of
@@ -60,8 +60,10 @@ TORQUE_EFFECTS = (
     "rotor_inertia",
     "load_dependent_friction",
     "unnamed_effect",
+    "gas_spring",
 )
-SPEC_EFFECTS = ("spring", "unnamed_effect")  # torque findings whose columns are their candidate term's (a spec)
+# torque findings whose columns are their candidate term's (a spec): a spring of any order or a gas spring's lever law
+SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring")
 RIGID_BODY_EFFECTS = ("payload", "last_link_mass_excess")
 SIGNAL_EFFECTS = ("delay", "joint_elasticity", "backlash")
 FINDING_KINDS = ("torque", "rigid_body", "signal", "reported")

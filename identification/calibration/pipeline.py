@@ -16,8 +16,10 @@ named steps in order, each on the previous steps' estimates, passed explicitly:
 
 Known extra torques (``extra_terms``, e.g. the spring a diagnosis found; :mod:`identification.calibration.extra_terms`):
 the gravity step fits their columns beside the gravity parameters, the friction step removes the
-torque so fitted, the inertial step fits them again beside the inertial parameters (those are the
-values reported, with their sigma), and the refinement and Table 3 hold them. Step 1 needs no
+torque so fitted, the inertial step fits them again beside the inertial parameters; then the terms
+are estimated on the excitation with every base parameter free and held in the gravity step, and the
+inertial step runs on that gravity (its values are the ones reported, with their sigma;
+``extra_passes``); the refinement and Table 3 hold them. Step 1 needs no
 column: a torque of the joint state is the same on the sweeps with and without the mass along the
 same path and cancels in their difference, like gravity.
 
@@ -64,7 +66,7 @@ import numpy as np
 from identification.calibration.consistency import check_consistency
 from identification.calibration.estimator import check_is_fitted
 from identification.calibration.excitation import check_calibration_data
-from identification.calibration.extra_passes import alternate_extra_terms, refit_friction
+from identification.calibration.extra_passes import refit_friction, settle_extra_terms
 from identification.calibration.extra_terms import ExtraTerms, extra_torque
 from identification.calibration.friction_step import FrictionIdentifier, friction_torque
 from identification.calibration.payload import payload_torque
@@ -382,10 +384,11 @@ class IdentificationPipeline:
         """The extra terms settled between the steps: ``(gravity, gravity_split, friction, inertial)`` again.
 
         The slow jog moves the joints over a small range, where a spring ``k q + c`` is nearly collinear
-        with the gravity torques; the excitation separates them. So the gravity step runs again with the
-        terms held at the inertial step's estimate, then the inertial step, until the terms settle; then
-        the friction of the terms' joints is fitted again without their torque (the first friction
-        fit removed the gravity step's estimate), and the alternation runs once more on that friction.
+        with the gravity torques; the excitation separates them. So the terms are fitted on the excitation
+        with every base parameter free, the gravity step runs again with them held, then the inertial step
+        (``settle_extra_terms``); then the friction of the terms' joints is fitted again without their
+        torque (the first friction fit removed the gravity step's estimate), and the terms are settled
+        once more on that friction.
         """
         (gravity, gravity_data), (friction, friction_data), (inertial, excitation) = (
             gravity_fit,
@@ -393,12 +396,12 @@ class IdentificationPipeline:
             inertial_fit,
         )
         with stages.stage("extra_terms", "identify: gravity, friction and inertial again with the extra terms ..."):
-            gravity, inertial = alternate_extra_terms(gravity, inertial, gravity_data.train, excitation.train)
+            gravity, inertial = settle_extra_terms(gravity, inertial, gravity_data.train, excitation.train)
             friction = refit_friction(friction, friction_data.train, inertial.extra_terms_, gravity.theta_)
             if options.gravity_friction == "identified":
                 gravity_data = gravity_split(data, options, lugre=friction.lugre_, kt=inertial.kt)
             inertial = InertialIdentifier(**dict(inertial.get_params(), lugre=tuple(friction.lugre_)))
-            gravity, inertial = alternate_extra_terms(gravity, inertial, gravity_data.train, excitation.train)
+            gravity, inertial = settle_extra_terms(gravity, inertial, gravity_data.train, excitation.train)
         extra = inertial.extra_terms_
         values = ", ".join(f"{name} = {value:.4g}" for name, value in zip(extra.feature_names, extra.coefficients))
         stages.say(f"identify: extra terms {values} {stages.took('extra_terms')}")

@@ -10,7 +10,7 @@ full rate first and then decimated.
 
 Long recordings: the grid holds at most ``max_samples`` samples (``DiagnosisOptions.max_samples``; a
 longer recording gets a coarser grid, logged, with a warning below ``MIN_GRID_PER_CUTOFF`` samples per
-period of the cut-off), so the grid's matrices (about 1.5 kB per sample for 6 joints) do not grow with
+period of the cut-off), so the grid's matrices (about 1.8 kB per sample for 6 joints) do not grow with
 the recording. The full-rate signals (time, filtered torque and velocity, raw torque) are the
 recordings' own read-only arrays, not copies; the torque derivatives are taken one joint at a time;
 the robot file's LuGre friction is simulated in pieces of ``LUGRE_CHUNK`` samples (``simulate_friction``).
@@ -64,8 +64,9 @@ class DiagnosisContext:
         Jacobians of the nominal rigid-body torque and the mass matrix.
     regressor : array (n_samples, n_dof, n_base) or None
         PSDM regressor Y(q, qd, qdd) (only when requested: it is slow for 7 joints).
-    payload : array (n_samples, n_dof, 4)
-        Torque per unit mass and first moments (m, mx, my, mz) added to the last link (RNEA is linear in them).
+    payload : array (n_samples, n_dof, 10)
+        Torque per unit mass, first moment and inertia about the link frame origin added to the last link (m, mx,
+        my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz, Pinocchio's order; RNEA is linear in them).
     tilt : array (n_samples, n_dof, 2)
         Gravity torque of a gravity tilted by 1 rad about two axes normal to gravity (linearised).
     tilt_axes : array (2, 3)
@@ -277,14 +278,16 @@ def _tilted_gravity_torque(pmodel, gravity: np.ndarray, q) -> tuple:
 
 
 def _payload_torque(robot, q, qd, qdd, tau_rigid) -> np.ndarray:
-    """Torque per unit mass and first moments (m, mx, my, mz) added to the last link, (n_samples, n_dof, 4).
+    """Torque per unit of each of the 10 dynamic parameters added to the last link (m, mx, my, mz, then the inertia
+    about the link frame origin in Pinocchio's order), (n_samples, n_dof, 10).
 
     RNEA is linear in them: differences of RNEA with the nominal parameters, with a unit mass added to the
-    last link (which keeps every perturbed inertia valid) and with a unit first moment added to that."""
+    last link (a reference that keeps every perturbed body usable) and with a unit first moment or inertia
+    entry added to that."""
     standard = np.array(robot.nominal_dynamic_parameters(), dtype=float)
     reference = standard.copy()
     reference[-1, 0] += 1.0
-    payload = np.empty((q.shape[0], q.shape[1], 4))
+    payload = np.empty((q.shape[0], q.shape[1], 10))
 
     def rnea_all(params):
         pm = build_pinocchio_model(robot, params)
@@ -293,7 +296,7 @@ def _payload_torque(robot, q, qd, qdd, tau_rigid) -> np.ndarray:
 
     tau_ref = rnea_all(reference)
     payload[:, :, 0] = tau_ref - tau_rigid
-    for c in (1, 2, 3):
+    for c in range(1, 10):
         shifted = reference.copy()
         shifted[-1, c] += 1.0
         payload[:, :, c] = rnea_all(shifted) - tau_ref

@@ -17,6 +17,7 @@ import numpy as np
 from identification.data.excitation_check import ExcitationThresholds
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.augmented import AugmentedModel
+from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.confounding import confounding_of
@@ -34,13 +35,13 @@ from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
 from identification.diagnosis.rigid_body_choice import (
+    drop_stand_ins,
     inertial_note,
     moved_parameters,
     prior_wins,
     recalibration_parts,
 )
 from identification.diagnosis.selection import SelectionResult, forward_select
-from identification.diagnosis.sparse_terms import look_beyond_library
 from identification.metrics import r2, rms, rmse
 from psdm_casadi.errors import ParameterError
 
@@ -53,7 +54,7 @@ class DiagnosisOptions:
 
     Parameters
     ----------
-    friction : {"lugre", "coulomb_viscous"}
+    friction : {"lugre", "coulomb_viscous", "stribeck"}
         Nominal friction (see ``nominal``).
     rigid_body : {"auto", "prior", "identified"}
         Keep the robot file's inertia, identify the base parameters too, or (default) decide from the data: a
@@ -241,7 +242,7 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     notes = ()
     if options.rigid_body == "auto":
         problem, selection, final, options, notes = settle_rigid_body(robot, model, problem, selection, final, options)
-    final, unnamed = look_beyond_library(problem, final, options)
+    selection, final, unnamed = look_beyond_library(problem, selection, final, options)
     report = build_report(robot, model, problem, selection, final, options, unnamed)
     return replace(report, rigid_body_notes=notes) if notes else report
 
@@ -262,7 +263,17 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     rmse_nominal = rmse(problem.y_v, selection.nominal_validation)
     found, found_i = (tuple(f.effect for f in _findings(x, y)) for x, y in ((selection, final), (selection_i, final_i)))
     if prior_wins(rmse_nominal, rmse_prior, rmse_recal, weights, found, found_i):
-        return problem, selection, final, prior, ()
+
+        def reselect(instances):  # the prior diagnosis on fewer candidates (``drop_stand_ins``)
+            again = replace(prior, library=CandidateLibrary(tuple(instances)))
+            chosen = select_terms(robot, problem, again)
+            return chosen, refine_terms(problem, chosen, again)
+
+        library = (options.library or default_library()).expand(robot.n_dof)
+        fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal)
+        for note in fit[2]:
+            logger.info(f"diagnose: {note}")
+        return problem, fit[0], fit[1], prior, fit[2]
     effects = sorted(set(found) - set(found_i))
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0

@@ -11,6 +11,11 @@ thus has to beat a full recalibration; so has a friction-type finding that only 
 inertia. Otherwise the identified diagnosis is reported, with a note that the robot file's inertial
 parameters are off, listing the base parameters that moved most (``moved_parameters``). A clean recording
 with a right prior gives no finding and costs no recalibration.
+
+When the prior wins with an inertial finding, the robot file's inertia is in question, so its other findings
+are judged against the recalibrated rigid body too (``stand_ins``): one that the diagnosis with the rigid body
+identified does not need, on joints the recalibrated model predicts about as well, only stands in for the wrong
+prior; it is not reported and the prior diagnosis is repeated without it (``drop_stand_ins``, with a note).
 """
 
 from __future__ import annotations
@@ -20,11 +25,14 @@ from dataclasses import replace
 import numpy as np
 
 from identification.diagnosis.columns import BlockColumns, row_chunks
+from identification.metrics import rmse
 
 INERTIAL_TERMS = ("payload", "rotor_inertia")  # term keys (the payload term also reports last_link_mass_excess)
 AUTO_TOLERANCE = 0.1  # the prior model with the finding may be this much (fraction) worse than the recalibration
 MIN_SHARE = 0.95  # or its findings remove this share of the error the recalibration removes
 N_MOVED = 5  # base parameters listed in the note
+STAND_IN_MARGIN = 0.2  # a prior finding stands where the recalibration needs none if it predicts this much better
+STAND_IN_PASSES = 2  # rounds of dropping stand-ins and selecting again
 
 
 def with_regressor(context, model):
@@ -58,8 +66,9 @@ def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(),
     It is when its error is clearly lower (by ``AUTO_TOLERANCE``); or within ``AUTO_TOLERANCE`` of the
     recalibrated one's with no more findings (findings that only stand in for wrong inertia are extra ones);
     or when its findings remove at least ``MIN_SHARE`` of the error that the recalibration removes from the prior
-    nominal model (``rmse_nominal``): a large payload leaves a small residual of its own rotational inertia, which
-    the point-mass payload term does not model, while wrong CAD inertia is only partly mimicked by findings. The
+    nominal model (``rmse_nominal``): a payload close to a point mass leaves a small residual of its inertia about
+    the flange (its body fit, ``PayloadTerm(inertia=True)``, is inconsistent at the noise level, so the point-mass
+    shape is kept), while wrong CAD inertia is only partly mimicked by findings. The
     share rule does not apply to a last link lighter than the file says (``last_link_mass_excess``): that is the
     file's inertia being off, not missing physics."""
     nominal, prior, recalibrated = (
@@ -72,6 +81,74 @@ def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(),
     if "last_link_mass_excess" in effects:
         return False
     return nominal > recalibrated and (nominal - prior) >= MIN_SHARE * (nominal - recalibrated)
+
+
+def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated) -> tuple:
+    """The non-inertial findings of the prior model that only stand in for its wrong inertia, when the prior wins:
+    ``(joints, keys)``, the joints of the per-joint ones and the effect keys of the robot-wide ones.
+
+    Only when the prior model kept an inertial finding (a payload, a rotor inertia: the robot file's inertia is then
+    in question) are its other findings judged against the recalibrated rigid body: a finding stands if the
+    diagnosis with the rigid body identified also keeps a finding on one of its joints, or if the prior model with
+    its findings predicts one of its joints' validation recording better than the recalibrated one by
+    ``STAND_IN_MARGIN`` (a robot-wide finding, such as a base tilt, needs the same effect kept with the rigid body
+    identified). Otherwise it only mimics the wrong prior (CAD inertia 10-20 % off leaves a torque that a
+    spring, an offset or a base tilt fits in part). ``rmse_*`` are the per-joint validation RMSE of the two fits
+    (``prior_wins``)."""
+    if not any(step.term.key in INERTIAL_TERMS for step in selection.steps):
+        return (), ()
+    supported = {int(j) for step in selection_identified.steps for j in (step.term.joints or step.joints)}
+    supported_keys = {step.term.key for step in selection_identified.steps}
+    joints, keys = set(), set()
+    for step in selection.steps:
+        named = [int(j) for j in (step.term.joints or step.joints)]
+        # a robot-wide term (a base tilt, a delay) is supported by the same effect, a per-joint one by any on its joint
+        found = step.term.key in supported_keys if not step.term.joints else any(j in supported for j in named)
+        better = any(rmse_prior[j] <= (1.0 - STAND_IN_MARGIN) * rmse_recalibrated[j] for j in named)
+        if step.term.key in INERTIAL_TERMS or found or better:
+            continue
+        if step.term.joints:
+            joints.update(named)
+        else:
+            keys.add(step.term.key)
+    return tuple(sorted(joints)), tuple(sorted(keys))
+
+
+def without_stand_ins(instances, joints, keys=()) -> tuple:
+    """The candidate ``instances`` without the non-inertial per-joint ones on ``joints`` and the robot-wide ones of
+    effect ``keys`` (``stand_ins``)."""
+    return tuple(
+        term
+        for term in instances
+        if term.key in INERTIAL_TERMS or not (set(term.joints) & set(joints) or (not term.joints and term.key in keys))
+    )
+
+
+def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation, rmse_recalibrated) -> tuple:
+    """The prior fit without the findings that stand in for its wrong inertia (``stand_ins``): ``(selection, final,
+    notes)``. ``reselect(instances)`` runs the prior diagnosis's selection and final fit on the candidate
+    ``instances``; ``fit`` is its ``(selection, final)`` on all of them. Up to ``STAND_IN_PASSES`` rounds, since a
+    new selection may take another stand-in."""
+    selection, final = fit
+    notes = []
+    for _ in range(STAND_IN_PASSES):
+        rmse_prior = rmse(y_validation, final.prediction_v)
+        joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated)
+        if not (joints or keys):
+            break
+        kept = set(without_stand_ins([step.term for step in selection.steps], joints, keys))
+        labels = [step.term.label for step in selection.steps if step.term not in kept]
+        named = sorted({j for step in selection.steps if step.term not in kept for j in step.joints})
+        pairs = "; ".join(f"joint {j + 1}: {rmse_prior[j]:.4g} with them, {rmse_recalibrated[j]:.4g}" for j in named)
+        notes.append(
+            f"{', '.join(f'`{x}`' for x in labels)} not reported as missing physics: the prior model needed an "
+            "inertial finding (the robot file's inertia is in question), and with the rigid body identified the "
+            f"diagnosis needs no finding there and predicts those joints about as well (validation RMSE {pairs} "
+            "recalibrated), so they stand in for the robot file's inertia; the diagnosis was repeated without them."
+        )
+        instances = without_stand_ins(instances, joints, keys)
+        selection, final = reselect(instances)
+    return selection, final, tuple(notes)
 
 
 def moved_parameters(model, robot, theta_identified, count: int = N_MOVED) -> list:

@@ -20,15 +20,17 @@ that lowers the weighted validation error most, if it earns its parameters:
   number of independent samples of a low-pass filtered signal (2 x cut-off x duration per joint).
 
 A term with shape variants (``CandidateTerm.shape_variants``: a spring as a polynomial of order 1 to 3 in the
-joint angle) is screened in the variant with the lowest BIC on the training data, unless that variant's weighted
-validation error is above the simplest one's (then the simplest is screened).
+joint angle, or a gas-spring lever law whose geometry is fitted by variable projection on the current training
+fit, ``JointScore``, and counted in the BIC) is screened in the variant with the lowest BIC on the training data,
+unless that variant's weighted validation error is above the simplest one's (then the simplest is screened).
 
 After the forward pass a backward check refits the kept terms without each one in turn: a term that no longer
 lowers the validation RMSE of every joint it names (a later term took its part) is dropped and the check repeats
 (``SelectionResult.dropped`` says which and why).
 
-Ties (gains within 2 %) go to the candidate with fewer parameters, then to the earlier term of the
-library. Selection stops when no candidate qualifies or ``max_effects`` are kept. Each round's best
+Ties (gains within 2 % that leave at most ``TIE_REMAINING`` times the best one's remaining error: a gain of
+97.9 % leaves 20 times the error of one of 99.9 %) go to the candidate with fewer parameters, then to the earlier
+term of the library. Selection stops when no candidate qualifies or ``max_effects`` are kept. Each round's best
 candidates, the rejected ones and the kept term are logged at INFO (logger ``identification.diagnosis.selection``).
 """
 
@@ -40,13 +42,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.diagnosis.columns import BlockColumns, as_blocks
-from identification.diagnosis.design import WeightedDesign, joint_weights
+from identification.diagnosis.design import WeightedDesign, joint_weights, solve_scaled
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
 
 ROBOT_FLOOR = 0.0004  # least RMSE drop on any joint as a fraction of the robot's largest joint torque RMS
+SCORE_ROWS = 2000  # training rows a ``JointScore`` sums over
+TIE_REMAINING = 1.5  # a tie in gain must leave at most this times the best candidate's remaining validation error
 PRUNE_TOLERANCE = 1e-6  # a kept term must lower its joints' validation RMSE by more than this fraction (``_prune``)
 
 
@@ -115,14 +119,51 @@ def acting_joints(term, ct) -> tuple:
     return tuple(int(j) for j in term.joints if np.any(ct[:, j, :] != 0))
 
 
-def _shape_fits(design, term, train_ctx, val_ctx, sse, limits) -> list:
-    """Fit each shape variant of ``term`` with the kept terms: ``(variant, ct, cv, k, reason, rv1, sse1, dBIC)``."""
+class JointScore:
+    """``score(joint, values)``: the weighted training SSE of ``design``'s current fit with columns ``values``
+    (len(rows), k) on the training rows ``rows`` added on joint ``joint``, by the normal equations of the base (no
+    refit of the base columns).
+
+    With ``e`` the joint's weighted residual, ``B`` its weighted base rows and ``C`` the weighted columns, the SSE
+    drops by ``g^T S^+ g`` with ``g = C^T e`` and ``S = C^T C - (B^T C)^T G^-1 (B^T C)``: the variable projection a
+    term with shape parameters (a gas spring's geometry) is fitted by. The sums run over at most ``SCORE_ROWS``
+    evenly spaced rows, scaled to the whole recording (the signals are low-pass filtered, so this loses little),
+    cheap enough for a grid of starts; the design then fits the chosen shape on every row."""
+
+    def __init__(self, design, sse: float):
+        self.design, self.sse = design, float(sse)
+        n = design.y_train.shape[0]
+        self.rows = np.unique(np.linspace(0, n - 1, min(n, SCORE_ROWS)).astype(int))
+        self.scale = n / self.rows.size
+        self.beta = solve_scaled(design.G, design.b)
+        self._joints = {}
+
+    def _joint(self, j: int) -> tuple:
+        if j not in self._joints:
+            d = self.design
+            rows = d.base_train.joint(j, slice(None), d.sigma[j])[self.rows]
+            self._joints[j] = (rows, d.ytw[self.rows, j] - rows @ self.beta)
+        return self._joints[j]
+
+    def __call__(self, joint: int, values) -> float:
+        rows, e = self._joint(int(joint))
+        c = np.asarray(values, dtype=float).reshape(rows.shape[0], -1) / self.design.sigma[joint]
+        bc = self.scale * (rows.T @ c)
+        s = self.scale * (c.T @ c) - bc.T @ solve_scaled(self.design.G, bc)
+        g = self.scale * (c.T @ e)
+        return max(self.sse - float(g @ np.linalg.lstsq(s, g, rcond=1e-12)[0]), 1e-300)
+
+
+def _shape_fits(design, term, train_ctx, val_ctx, sse, limits, score=None) -> list:
+    """Fit each shape variant of ``term`` with the kept terms: ``(variant, ct, cv, k, reason, rv1, sse1, dBIC)``;
+    ``k`` counts a variant's shape parameters fitted through ``score`` (a ``JointScore``) too (a gas spring's
+    geometry)."""
     p = design.G.shape[0]
     out = []
-    for variant in term.shape_variants(train_ctx):
+    for variant in term.shape_variants(train_ctx, score):
         ct, cv = variant.columns(train_ctx), variant.columns(val_ctx)
         beta, sse1, rv1 = design.fit(ct, cv)
-        k = ct.shape[2]
+        k = ct.shape[2] + variant.n_shape_parameters
         reason = variant.implausibility(beta[p:], train_ctx)
         delta_bic = limits.n_eff_total * np.log(sse1 / sse) + k * np.log(limits.n_eff_total)
         out.append((variant, ct, cv, k, reason, rv1, sse1, float(delta_bic)))
@@ -152,11 +193,13 @@ def _pick_shape(fits, sigma) -> tuple:
 def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
     """Fit each remaining candidate (in its chosen shape) with the kept terms; the qualifying ones as
     ``(gain, k, index, term, rmse_v, dBIC, shape_note)``."""
+    score = JointScore(design, sse)
     qualified, scored, rejected = [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
     for index, term in enumerate(remaining):
         logger.debug("diagnose:   screening %s", term.label, extra={"progress": (index + 1, len(remaining))})
-        chosen, note = _pick_shape(_shape_fits(design, term, train_ctx, val_ctx, sse, limits), limits.sigma)
+        fits = _shape_fits(design, term, train_ctx, val_ctx, sse, limits, score)
+        chosen, note = _pick_shape(fits, limits.sigma)
         if chosen is None:
             rejected.append((term.label, note))
             continue
@@ -188,10 +231,11 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
 
 
 def _choose(qualified):
-    """The best qualifying candidate; gains within 2 % of the best tie, and ties go to fewer parameters, then the
-    earlier term."""
+    """The best qualifying candidate; gains within 2 % of the best that leave at most ``TIE_REMAINING`` times its
+    remaining error tie, and ties go to fewer parameters, then the earlier term."""
     top = max(q[0] for q in qualified)
-    near = [q for q in qualified if q[0] >= top - 0.02 * abs(top)]
+    left = max(1.0 - top, 1e-12)
+    near = [q for q in qualified if q[0] >= top - 0.02 * abs(top) and 1.0 - q[0] <= TIE_REMAINING * left]
     return min(near, key=lambda q: (q[1], q[2]))
 
 

@@ -25,7 +25,8 @@ def _field_value(cls, name: str, value):
     if cls is SparseTerm and name == "features":
         return tuple(
             SparseFeature(position=(str(f["position"][0]), int(f["position"][1])), velocity=str(f["velocity"]),
-                          width=float(f.get("width", 0.0)))
+                          width=float(f.get("width", 0.0)), lobe_centre=float(f.get("lobe_centre", 0.0)),
+                          lobe_width=float(f.get("lobe_width", 0.0)))
             for f in value
         )  # fmt: skip
     if isinstance(value, list):

@@ -336,6 +336,76 @@ class CamCounterbalance(ExtraPhysics):
         return out
 
 
+@dataclass(frozen=True)
+class GasSpringCounterbalance(ExtraPhysics):
+    """A gas-spring counterbalance: a strut of length ``l`` between a point at ``a`` [m] from the joint axis on the
+    previous link and one at ``b`` [m] on the moving link, the two levers aligned at ``q = q0``.
+
+    With ``x = q - q0`` the strut is ``l = sqrt(a^2 + b^2 - 2 a b cos x)`` long and pushes with ``F(l) = F0 + k (l0
+    - l)`` [N] (a preload ``F0`` at length ``l0``, stiffness ``k`` [N/m] as the gas is compressed), giving the joint
+    the torque ``F(l) a b sin(x) / l`` that opens the angle between the levers; the motors supply its opposite.
+    """
+
+    joint: int
+    a: float
+    b: float
+    q0: float
+    preload: float
+    length0: float
+    stiffness: float = 0.0
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("GasSpringCounterbalance", self.joint, n_dof)
+        for key in ("a", "b", "length0"):
+            if not getattr(self, key) > 0:
+                raise ParameterError(f"GasSpringCounterbalance.{key} must be > 0 [m]; got {getattr(self, key)!r}.")
+        if abs(self.a - self.b) < 1e-6:
+            raise ParameterError("GasSpringCounterbalance.a and .b must differ (the strut would reach length 0).")
+        if self.preload < 0:
+            raise ParameterError(f"GasSpringCounterbalance.preload must be >= 0 [N]; got {self.preload!r}.")
+
+    def strut_torque(self, q_joint):
+        """The torque [N m] the strut gives the joint at angles ``q_joint`` (array, rad)."""
+        x = np.asarray(q_joint, dtype=float) - self.q0
+        length = np.sqrt(self.a**2 + self.b**2 - 2.0 * self.a * self.b * np.cos(x))
+        force = self.preload + self.stiffness * (self.length0 - length)
+        return force * self.a * self.b * np.sin(x) / length
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        out[self.joint] = -self.strut_torque(q[self.joint])
+        return out
+
+
+@dataclass(frozen=True)
+class LobedCam(ExtraPhysics):
+    """A spring-loaded follower on a cam with a single lobe (a counterbalance or detent that acts over part of the
+    travel only): load torque ``amplitude u exp((1 - u^2) / 2)``, ``u = (q - q0) / width``.
+
+    The follower's preloaded spring stores ``E(q) ~ exp(-u^2 / 2)`` as it rides over the lobe, so the torque is
+    ``-dE/dq`` up to scale: restoring about ``q0``, largest (``amplitude`` [N m]) at ``q0 +- width`` [rad] and fading
+    beyond. Over a travel of several ``width`` it is neither a low-order polynomial (a spring) nor a single
+    harmonic of the angle (ripple, gravity): outside the diagnosis library (issue 16)."""
+
+    joint: int
+    amplitude: float
+    q0: float = 0.0
+    width: float = 0.3
+    has_torque = True
+
+    def validate(self, n_dof):
+        _check_joint("LobedCam", self.joint, n_dof)
+        if not (np.isfinite(self.width) and self.width > 0):
+            raise ParameterError(f"LobedCam.width must be positive [rad]; got {self.width!r}.")
+
+    def torque(self, t, q, qd, tau_motor):
+        out = np.zeros_like(q)
+        u = (q[self.joint] - self.q0) / self.width
+        out[self.joint] = self.amplitude * u * np.exp(0.5 * (1.0 - u * u))
+        return out
+
+
 EXTRA_PHYSICS_TERMS = {
     cls.__name__: cls
     for cls in (
@@ -353,5 +423,7 @@ EXTRA_PHYSICS_TERMS = {
         PositionDependentFriction,
         StribeckHump,
         CamCounterbalance,
+        GasSpringCounterbalance,
+        LobedCam,
     )
 }

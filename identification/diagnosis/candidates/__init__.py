@@ -6,6 +6,7 @@ feature libraries of pysindy; one module per family of effects:
 - ``base``: ``CandidateTerm`` (the interface), ``CandidateLibrary``, the smooth-sign width and the
   plausibility bounds ``MAX_*`` of fitted parameters;
 - ``torque``: spring, torque offset, torque ripple (torques of position);
+- ``gas_spring``: the gas-spring lever law, a spring shape offered beside the polynomial ones;
 - ``friction``: Coulomb asymmetry, load-dependent friction, friction drift (friction-like columns);
 - ``inertial``: rotor inertia, joint coupling, payload, gravity tilt (rigid-body and mounting effects);
 - ``delay``: a delay between the torque and the motion signals;
@@ -32,6 +33,7 @@ from identification.diagnosis.candidates.friction import (
     FrictionDriftTerm,
     LoadDependentFrictionTerm,
 )
+from identification.diagnosis.candidates.gas_spring import GasSpringTerm
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
 from identification.diagnosis.candidates.library import ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, default_library
 from identification.diagnosis.candidates.torque import SpringTerm, TorqueOffsetTerm, TorqueRippleTerm
@@ -53,6 +55,7 @@ __all__ = [
     "CoulombAsymmetryTerm",
     "FrictionDriftTerm",
     "LoadDependentFrictionTerm",
+    "GasSpringTerm",
     "CouplingTerm",
     "GravityTiltTerm",
     "PayloadTerm",

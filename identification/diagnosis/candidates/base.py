@@ -142,9 +142,16 @@ class CandidateTerm:
         elasticity) or a change of the base parameters (see ``theta_change``)."""
         return None
 
-    def shape_variants(self, context) -> tuple:
+    #: parameters of a shape variant fitted beyond its linear coefficients (a gas spring's geometry), counted in the
+    #: BIC the selection compares shapes by
+    n_shape_parameters = 0
+
+    def shape_variants(self, context, score=None) -> tuple:
         """Alternative shapes of the term to choose from by an information criterion (the selection screens the
-        one with the lowest BIC on the training ``context``), simplest first; ``(self,)`` by default."""
+        one with the lowest BIC on the training ``context``), simplest first; ``(self,)`` by default.
+        ``score(joint, values)``, when given, is the weighted training SSE of the current model with columns
+        ``values`` (on the training rows ``score.rows``, k) added on a joint, for shapes whose nonlinear parameters
+        are fitted by it (``n_shape_parameters``)."""
         return (self,)
 
     def theta_change(self, coefficients, parameter_map) -> np.ndarray | None:

@@ -1,4 +1,5 @@
-"""Inertial and gravitational candidate terms: rotor inertia, joint coupling, a payload and a tilted base.
+"""Inertial and gravitational candidate terms: rotor inertia, joint coupling, a payload (a point mass or a body
+with its own inertia) and a tilted base.
 
 Rotor inertia and payload amount to a change of the PSDM base parameters (``theta_change``); coupling is
 an additive torque; the gravity tilt is reported as a correction of the mounting.
@@ -11,6 +12,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.diagnosis.candidates.base import MAX_PAYLOAD_REACH, CandidateTerm, joint_columns, joint_expression
+from psdm_casadi.values import inertia_violation
+
+INERTIA_ORDER = ("Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")  # a payload body's inertia entries, Pinocchio's order
+#: a fitted payload body's inertia about its centre of mass may miss consistency by this fraction of the largest
+#: moment about the flange (what the data determine; a point mass's own inertia is zero up to the noise)
+INERTIA_RTOL = 0.05
 
 
 @dataclass(frozen=True)
@@ -93,32 +100,56 @@ class CouplingTerm(CandidateTerm):
 
 @dataclass(frozen=True)
 class PayloadTerm(CandidateTerm):
-    """``payload``: an unmodelled point mass on the flange: mass m and centre of mass r in the last link frame.
+    """``payload``: an unmodelled body on the flange, as a point mass or as a rigid body with its own inertia.
 
-    Its columns are the rigid-body torque per unit mass and first moment added to the last link (RNEA is
-    linear in them), i.e. exactly the base-parameter change of a payload (paper eqs. 16-17, folded into
-    theta through the parameter map in the augmented model); the payload's own rotational inertia is neglected.
+    Its columns are the rigid-body torque per unit of each dynamic parameter added to the last link (RNEA is
+    linear in them), i.e. exactly the base-parameter change of a payload (paper eqs. 16-17, folded into theta
+    through the parameter map in the augmented model). ``inertia=False``: mass m and first moments m r (a point
+    mass; its rotational inertia, own and about the flange, is neglected). ``inertia=True``: the 10 parameters
+    of a body in the last link frame, m, m r and the inertia about the frame origin (Pinocchio's order), as a
+    large tool or bar needs; its fit must be a physically consistent body (positive mass, inertia about the
+    centre of mass positive semi-definite with the triangle inequality, ``implausibility``). The library's term
+    offers both shapes (``shape_variants``) and the selection keeps the body only where the data support it
+    (BIC on training, checked on validation).
     """
 
+    inertia: bool = False
     key = "payload"
     explanation = "an unmodelled end-effector load: mass m with centre of mass r in the flange frame"
     signature = "gravity- and inertia-shaped residual on several joints, largest near the base"
     per_joint = False
 
+    @property
+    def label(self):
+        return "payload[inertia]" if self.inertia else self.key
+
     def feature_names(self):
-        return ["payload_m", "payload_mx", "payload_my", "payload_mz"]
+        names = ["payload_m", "payload_mx", "payload_my", "payload_mz"]
+        return names + [f"payload_{c}" for c in INERTIA_ORDER] if self.inertia else names
+
+    def _n(self) -> int:
+        return 10 if self.inertia else 4
 
     def _map(self, parameter_map):
         n_dof = parameter_map.shape[1] // 11
-        return parameter_map[:, 11 * (n_dof - 1) : 11 * (n_dof - 1) + 4]
+        return parameter_map[:, 11 * (n_dof - 1) : 11 * (n_dof - 1) + self._n()]
 
     def columns(self, context):
-        return context.payload
+        return context.payload[:, :, : self._n()]
+
+    def shape_variants(self, context, residual=None):
+        return (self,) if self.inertia else (self, replace(self, inertia=True))
 
     def physical_parameters(self, coefficients):
-        m = float(coefficients[0])
-        com = (np.asarray(coefficients[1:4], dtype=float) / m) if abs(m) > 1e-9 else np.zeros(3)
-        return {"mass": m, "com_x": float(com[0]), "com_y": float(com[1]), "com_z": float(com[2])}
+        c = np.asarray(coefficients, dtype=float)
+        m = float(c[0])
+        com = (c[1:4] / m) if abs(m) > 1e-9 else np.zeros(3)
+        out = {"mass": m, "com_x": float(com[0]), "com_y": float(com[1]), "com_z": float(com[2])}
+        if self.inertia:
+            about_com = payload_inertia_about_com(c)
+            for (a, b), name in zip(((0, 0), (0, 1), (1, 1), (0, 2), (1, 2), (2, 2)), INERTIA_ORDER):
+                out[f"{name}_com"] = float(about_com[a, b])
+        return out
 
     def theta_change(self, coefficients, parameter_map):
         return self._map(parameter_map) @ np.asarray(coefficients, dtype=float)
@@ -130,6 +161,13 @@ class PayloadTerm(CandidateTerm):
         com = np.asarray(coefficients[1:4], dtype=float) / m
         if np.linalg.norm(com) > MAX_PAYLOAD_REACH:
             return f"centre of mass {np.linalg.norm(com):.3g} m from the flange (more than {MAX_PAYLOAD_REACH} m)"
+        if self.inertia:
+            if m < 0.0:
+                return f"a body of negative mass {m:.3g} kg"
+            scale = float(np.abs(np.linalg.eigvalsh(_origin_inertia(coefficients))).max())
+            problem = inertia_violation(payload_inertia_about_com(coefficients), rtol=0.0, atol=INERTIA_RTOL * scale)
+            if problem:
+                return f"not a consistent body: its inertia about the centre of mass {problem}"
         return None
 
     def interpret(self, coefficients):
@@ -139,7 +177,24 @@ class PayloadTerm(CandidateTerm):
                 "the last link (flange) is lighter than the robot file says: its mass and "
                 "first moments are too large in the prior (a negative payload of |mass| kg)",
             )
+        if self.inertia:
+            return self.key, "an unmodelled end-effector load: a body of mass m, centre of mass r and its own inertia"
         return self.key, self.explanation
+
+
+def payload_inertia_about_com(coefficients) -> np.ndarray:
+    """The 3x3 inertia about the centre of mass [kg m^2] of a payload's 10 dynamic parameters (m, m r, the inertia
+    about the flange origin in Pinocchio's order): the origin inertia less the parallel-axis term
+    m (|r|^2 1 - r r^T)."""
+    c = np.asarray(coefficients, dtype=float)
+    m, first = float(c[0]), c[1:4]
+    return _origin_inertia(c) - (first @ first * np.eye(3) - np.outer(first, first)) / m
+
+
+def _origin_inertia(coefficients) -> np.ndarray:
+    """The 3x3 inertia about the flange origin of a payload's 10 dynamic parameters."""
+    xx, xy, yy, xz, yz, zz = np.asarray(coefficients, dtype=float)[4:10]
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from identification.diagnosis.candidates.friction import (
     FrictionDriftTerm,
     LoadDependentFrictionTerm,
 )
+from identification.diagnosis.candidates.gas_spring import GasSpringTerm
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
 from identification.diagnosis.candidates.torque import SpringTerm, TorqueOffsetTerm, TorqueRippleTerm
 
@@ -29,7 +30,8 @@ ALL_TERMS = (
     BacklashTerm,
     JointElasticityTerm,
 )
-TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS}
+# every term a spec may name: the library's, and the shapes a term offers as variants (a spring's gas-spring law)
+TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm,)}
 
 
 def default_library() -> CandidateLibrary:

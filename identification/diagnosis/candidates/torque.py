@@ -12,9 +12,11 @@ import casadi as ca
 import numpy as np
 
 from identification.diagnosis.candidates.base import CandidateTerm, joint_columns, joint_expression
+from identification.diagnosis.candidates.gas_spring import GasSpringTerm, fit_geometry
 from psdm_casadi.errors import ParameterError
 
 MAX_ORDER = 3  # highest polynomial order of a spring's shape
+LEVER_LAW_MIN_DROP = 0.01  # lever law offered where the highest-order polynomial lowers the training SSE this much
 
 
 @dataclass(frozen=True)
@@ -23,8 +25,10 @@ class SpringTerm(CandidateTerm):
 
     Order 1 is the linear spring ``k (q - q0)`` (columns ``q, 1``); order n > 1 a polynomial
     ``sum_i k_i (q - centre)^i + c`` about the middle of the training range, the shape of a nonlinear
-    counterbalance or a cam. ``shape_variants`` offers orders 1 to ``max_order`` to the selection, which keeps
-    the one with the lowest BIC on the training data if it carries over to validation.
+    counterbalance or a cam. ``shape_variants`` offers orders 1 to ``max_order`` to the selection, and with
+    ``lever_law`` and the selection's ``score`` a gas-spring lever law (``GasSpringTerm``, its geometry fitted by
+    variable projection); the selection keeps the shape with the lowest BIC on the training data if it carries over to
+    validation.
 
     Parameters
     ----------
@@ -37,6 +41,8 @@ class SpringTerm(CandidateTerm):
         Angle the polynomial is expanded about [rad] (order > 1).
     q_range : tuple (q_min, q_max) or None
         The training recording's range of the joint [rad]: the stiffness is reported over it.
+    lever_law : bool
+        Whether ``shape_variants`` also offers the gas-spring lever law (given the residual).
     """
 
     joint: int | None = None
@@ -44,6 +50,7 @@ class SpringTerm(CandidateTerm):
     max_order: int = 3
     centre: float = 0.0
     q_range: tuple | None = None
+    lever_law: bool = True
     key = "spring"
     explanation = "a position-dependent elastic torque k (q - q0) on the joint (spring balancer, cables)"
     signature = "residual follows joint position, not velocity"
@@ -59,15 +66,24 @@ class SpringTerm(CandidateTerm):
         base = CandidateTerm.label.fget(self)
         return base if self.order == 1 or self.joint is None else f"{base[:-1]},order={self.order}]"
 
-    def shape_variants(self, context):
+    def shape_variants(self, context, score=None):
         self._require_joint()
         q = context.q[:, self.joint]
         lo, hi = float(np.min(q)), float(np.max(q))
         linear = replace(self, order=1, centre=0.0, q_range=(lo, hi))
         top = min(self.max_order, MAX_ORDER)
-        return (linear,) + tuple(
+        variants = (linear,) + tuple(
             replace(self, order=o, centre=0.5 * (lo + hi), q_range=(lo, hi)) for o in range(2, top + 1)
         )
+        if not self.lever_law or score is None or hi - lo <= 0.0:
+            return variants
+        # the geometry search costs a grid of fits: only where a position-dependent torque is there to shape
+        q = q[score.rows]
+        cubic = np.column_stack(variants[-1]._powers(q) + [np.ones_like(q)])
+        if score(self.joint, cubic) > (1.0 - LEVER_LAW_MIN_DROP) * score.sse:
+            return variants
+        ratio, q0 = fit_geometry(q, lambda values: score(self.joint, values))
+        return variants + (GasSpringTerm(joint=self.joint, ratio=ratio, q0=q0, q_range=(lo, hi)),)
 
     def feature_names(self):
         self._require_joint()

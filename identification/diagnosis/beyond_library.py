@@ -1,0 +1,168 @@
+"""Beyond the library, in the diagnosis: sparse terms (``sparse_fit``) added to the final fit as unnamed effects.
+
+Two places where the named library falls short are looked at, after the selection and refinement:
+
+- a joint whose residual stays structured gets a sparse term when it explains enough of it
+  (``propose_sparse_terms``);
+- a joint on which the selection kept two or more shapes of the angle alone (springs, ripples) is a joint where
+  the library composes a shape it has no name for (four ripples standing in for a cam lobe): those terms are taken
+  out and a sparse term is fitted in their place, which replaces them when it predicts the joint's validation
+  recording as well (within ``VALIDATION_SLACK``) with fewer coefficients. The report says which terms it replaced.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+
+from identification.diagnosis.nominal import friction_feature_names
+from identification.diagnosis.report import Finding
+from identification.diagnosis.sparse_fit import (
+    MIN_TORQUE_FRACTION,
+    VALIDATION_SLACK,
+    fit_sparse_term,
+    propose_sparse_terms,
+)
+from identification.metrics import rms, rmse
+
+logger = logging.getLogger(__name__)
+
+SHAPE_KEYS = ("torque_ripple", "spring")  # library terms that are a torque of one joint's angle alone
+
+
+def look_beyond_library(problem, selection, final, options) -> tuple:
+    """``(selection, final, unnamed)``: the selection and final fit (``diagnose.FinalFit``) of a ``DiagnosisProblem``
+    with composite shapes replaced (module docstring) and the sparse terms of ``propose_sparse_terms`` added (one per
+    joint whose residual they explain, ``DiagnosisOptions.sparse_min_gain``), and the unnamed ``Finding`` values."""
+    if not options.sparse:
+        return selection, final, ()
+    logger.info("diagnose: looking beyond the library (sparse regression of the residual) ...")
+    n_friction = _friction_column_count(problem, options)
+    nuisance, columns = [], []
+    for j in range(problem.ctx_t.n_dof):
+        mask = problem.base_t.index[j] < n_friction
+        columns.append(problem.base_t.index[j][mask])
+        nuisance.append((problem.base_t.values[j][:, mask], problem.base_v.values[j][:, mask]))
+    selection, final, replacing = _replace_composite_shapes(problem, selection, final, nuisance, options)
+    residual_t, residual_v = problem.y_t - final.prediction_t, problem.y_v - final.prediction_v
+    proposals = propose_sparse_terms(
+        problem.ctx_t, problem.ctx_v, residual_t, residual_v, options.sparse_min_gain, nuisance
+    )
+    done = {p.term.joint for p in replacing}
+    proposals = replacing + tuple(p for p in proposals if p.term.joint not in done)
+    if not proposals:
+        return selection, final, ()
+    final, findings = _add_proposals(problem, final, proposals, columns)
+    return selection, final, findings
+
+
+def _add_proposals(problem, final, proposals, columns) -> tuple:
+    """``(final, findings)``: the final fit with the proposals' terms added, and one ``Finding`` per proposal."""
+    prediction_t, prediction_v = final.prediction_t.copy(), final.prediction_v.copy()
+    current = rmse(problem.y_v, final.prediction_v)
+    findings = []
+    friction = np.array(final.friction_coefficients, dtype=float)
+    for p in proposals:
+        j = p.term.joint
+        friction[columns[j]] += p.nuisance
+        prediction_t[:, j] += p.prediction_t
+        prediction_v[:, j] += p.prediction_v
+        before = current.copy()
+        before[j] = p.rmse_before
+        after = before.copy()
+        after[j] = p.rmse_after
+        effect, explanation = p.term.interpret(p.coefficients)
+        findings.append(
+            Finding(
+                effect=effect,
+                label=p.term.label,
+                joints=(j,),
+                parameters=dict(zip(p.term.feature_names(), (float(c) for c in p.coefficients))),
+                coefficients=tuple(float(c) for c in p.coefficients),
+                feature_names=tuple(p.term.feature_names()),
+                explanation=f"{explanation}; residual Ljung-Box p = {p.ljung_box_p:.2g}, largest correlation "
+                f"with the joint's state {p.state_correlation:.2f}",
+                signature=p.term.signature,
+                rmse_before=tuple(float(x) for x in before),
+                rmse_after=tuple(float(x) for x in after),
+                delta_bic=p.delta_bic,
+                validation_gain=p.validation_gain,
+            )
+        )
+    final = replace(
+        final,
+        terms=final.terms + tuple(p.term for p in proposals),
+        coefficients=final.coefficients + tuple(np.asarray(p.coefficients) for p in proposals),
+        friction_coefficients=friction,
+        prediction_t=prediction_t,
+        prediction_v=prediction_v,
+    )
+    return final, tuple(findings)
+
+
+def _replace_composite_shapes(problem, selection, final, nuisance, options) -> tuple:
+    """``(selection, final, proposals)``: on each joint where the selection kept two or more ``SHAPE_KEYS`` terms, a
+    sparse term fitted in their place; it replaces them (they leave the selection and the final fit, and
+    ``selection.dropped`` says so) when it passes ``propose_sparse_terms``'s bar on the residual without them and
+    predicts the joint's validation recording as well as they do with fewer coefficients."""
+    proposals = []
+    for j in range(problem.ctx_t.n_dof):
+        n_steps = len(selection.steps)
+        shapes = [
+            k for k in range(n_steps) if final.terms[k].key in SHAPE_KEYS and tuple(final.terms[k].joints) == (j,)
+        ]
+        if len(shapes) < 2:
+            continue
+        parts_t = sum(final.terms[k].columns(problem.ctx_t)[:, j, :] @ final.coefficients[k] for k in shapes)
+        parts_v = sum(final.terms[k].columns(problem.ctx_v)[:, j, :] @ final.coefficients[k] for k in shapes)
+        without_t = problem.y_t[:, j] - final.prediction_t[:, j] + parts_t
+        without_v = problem.y_v[:, j] - final.prediction_v[:, j] + parts_v
+        p = fit_sparse_term(problem.ctx_t, problem.ctx_v, j, without_t, without_v, *nuisance[j])
+        n_library = sum(np.size(final.coefficients[k]) for k in shapes)
+        library = float(rms(problem.y_v[:, j] - final.prediction_v[:, j]))
+        floor = MIN_TORQUE_FRACTION * float(rms(problem.ctx_t.tau[:, j]))
+        if (
+            p is None
+            or len(p.coefficients) >= n_library
+            or p.rmse_after > (1.0 + VALIDATION_SLACK) * library
+            or p.validation_gain < options.sparse_min_gain
+            or p.rmse_before - p.rmse_after < floor
+        ):
+            continue
+        labels = ", ".join(final.terms[k].label for k in shapes)
+        sentence = (
+            f"{labels} replaced by {p.term.label}: one sparse term predicts joint {j + 1}'s validation recording "
+            f"at least as well (validation RMSE {p.rmse_after:.4g} N m against {library:.4g} N m with the named "
+            f"terms) with {len(p.coefficients)} coefficient(s) instead of {n_library}: several named shapes stood in "
+            "for one the library has no name for."
+        )
+        logger.info(f"diagnose: {sentence}")
+        keep = [k for k in range(len(final.terms)) if k not in shapes]
+        prediction_t, prediction_v = final.prediction_t.copy(), final.prediction_v.copy()
+        prediction_t[:, j] -= parts_t
+        prediction_v[:, j] -= parts_v
+        final = replace(
+            final,
+            terms=tuple(final.terms[k] for k in keep),
+            coefficients=tuple(final.coefficients[k] for k in keep),
+            prediction_t=prediction_t,
+            prediction_v=prediction_v,
+        )
+        steps = [k for k in keep if k < n_steps]
+        selection = replace(
+            selection,
+            steps=tuple(selection.steps[k] for k in steps),
+            coefficients=tuple(selection.coefficients[k] for k in steps),
+            dropped=selection.dropped + (sentence,),
+        )
+        proposals.append(p)
+    return selection, final, tuple(proposals)
+
+
+def _friction_column_count(problem, options) -> int:
+    """Number of nominal friction columns (the first columns of ``problem.base_t``; rigid-body ones follow)."""
+    n = problem.ctx_t.n_dof
+    dynamic = options.friction == "lugre" and problem.ctx_t.drives is not None
+    return len(friction_feature_names(options.friction, n)) + (n if dynamic else 0)
