@@ -133,13 +133,12 @@ def _inverse_sweep(inverse):
     seed = ca.SX.sym("seed", q.numel())
     tau = inverse.call([q, qd, qdd, *extra])[0]
     row = ca.vertsplit(ca.jtimes(tau, ca.vertcat(q, qd, qdd), seed, True), q.numel())
-    return ca.Function(
+    return _function(
         "inverse_dynamics_derivatives" + SWEEP_SUFFIX,
         [q, qd, qdd, *extra, seed],
-        [ca.densify(x) for x in (tau, *row)],
         ["q", "qd", "qdd", *extra_names, "seed"],
+        [tau, *row],
         ["tau", "dtau_dq", "dtau_dqd", "dtau_dqdd"],
-        {"cse": True},
     )
 
 
@@ -156,13 +155,12 @@ def _forward_sweep(forward, inverse):
     solved = ldl_solve(mass, seed)
     row = ca.jtimes(tau_of_acceleration, ca.vertcat(q, qd), solved, True)
     row = ca.vertsplit(-ca.substitute(row, acceleration, qdd), n)
-    return ca.Function(
+    return _function(
         "forward_dynamics_derivatives" + SWEEP_SUFFIX,
         [q, qd, tau, *extra, seed],
-        [ca.densify(x) for x in (qdd, *row, solved)],
         ["q", "qd", "tau", *extra_names, "seed"],
+        [qdd, *row, solved],
         ["qdd", "dqdd_dq", "dqdd_dqd", "dqdd_dtau"],
-        {"cse": True},
     )
 
 
