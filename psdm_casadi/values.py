@@ -11,12 +11,18 @@ import numpy as np
 
 from psdm_casadi.errors import RobotFileError
 
-__all__ = ["float_array", "format_value", "inertia_violation", "is_real_number"]
+__all__ = ["exact_text", "float_array", "format_value", "inertia_violation", "is_real_number"]
 
 
 def is_real_number(value) -> bool:
     """True for an int or float (numpy scalars included) that is not a bool; NaN and inf count as numbers."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, (bool, np.bool_))
+
+
+def exact_text(value) -> str:
+    """A float as the shortest text that reads back to the same double (``0.0`` for ``-0.0``), for files a
+    reader must reproduce exactly (URDF out)."""
+    return repr(float(value) + 0.0)
 
 
 def format_value(value, limit: int = 80) -> str:

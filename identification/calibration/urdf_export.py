@@ -64,6 +64,7 @@ from identification.calibration.urdf_friction import friction_left_out, friction
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.oracle import dh_transform, inertia_from_dynamic_parameters
+from psdm_casadi.values import exact_text
 
 __all__ = ["export_urdf", "render_urdf", "urdf_armature"]
 
@@ -159,13 +160,8 @@ def urdf_armature(calibrated, robot) -> np.ndarray:
 
 
 # --- numbers and elements ----------------------------------------------------------------------------
-def _num(value) -> str:
-    """A float as the shortest text that reads back to the same double."""
-    return repr(float(value) + 0.0)  # + 0.0: no "-0.0"
-
-
 def _nums(values) -> str:
-    return " ".join(_num(v) for v in values)
+    return " ".join(exact_text(v) for v in values)
 
 
 def _comment(document, text: str):
@@ -200,8 +196,8 @@ def _inertial(document, parameters, where: str):
               ("iyy", i[1, 1]), ("iyz", i[1, 2]), ("izz", i[2, 2])]  # fmt: skip
     return _element(document, "inertial", children=[
         _element(document, "origin", [("xyz", _nums(inertia.lever)), ("rpy", "0 0 0")]),
-        _element(document, "mass", [("value", _num(inertia.mass))]),
-        _element(document, "inertia", [(k, _num(v)) for k, v in tensor]),
+        _element(document, "mass", [("value", exact_text(inertia.mass))]),
+        _element(document, "inertia", [(k, exact_text(v)) for k, v in tensor]),
     ])  # fmt: skip
 
 
@@ -226,10 +222,12 @@ def _joint_notes(calibrated, robot) -> list:
     notes = []
     for j, joint in enumerate(robot.joints):
         inertia_unit, force_unit = ("kg m^2", "N m") if joint.is_revolute else ("kg", "N")
-        text = (f"psdm: drive inertia (armature, reflected to the joint) Ia = {_num(armature[j])} {inertia_unit}; not "
-                "a URDF field and not read by Pinocchio's URDF parser: set model.armature")  # fmt: skip
+        text = (
+            f"psdm: drive inertia (armature, reflected to the joint) Ia = {exact_text(armature[j])} {inertia_unit}; "
+            "not a URDF field and not read by Pinocchio's URDF parser: set model.armature"
+        )
         if "offset" in calibrated.document["drive"]["friction_terms"]:
-            text += f"; constant torque offset {_num(offsets[j])} {force_unit} (not a URDF field)"
+            text += f"; constant torque offset {exact_text(offsets[j])} {force_unit} (not a URDF field)"
         if left_out is not None:
             text += f"; friction not representable in URDF (left out): {left_out[j]}"
         notes.append(text)
@@ -253,12 +251,12 @@ def _header(document, calibrated, robot, world: bool, indent: str):
         + (f" WARNING: {left_out}." if (left_out := friction_not_representable(calibrated)) else ""),
         "Drive inertias (armature) are in a comment on each joint: URDF has no field for them and Pinocchio's URDF "
         "parser does not read one; set model.armature.",
-        f"Gravity: {_num(gravity)} m/s^2 along -z of the root link"
+        f"Gravity: {exact_text(gravity)} m/s^2 along -z of the root link"
         + (" 'world' (added: the robot's base frame has gravity " + _nums(robot.gravity) + ")" if world else "")
         + "; set model.gravity (Pinocchio's default is 9.81).",
     ]
     if robot.locked_joints:
-        locked = ", ".join(f"{name} at {_num(value)}" for name, value in _locked(robot))
+        locked = ", ".join(f"{name} at {exact_text(value)}" for name, value in _locked(robot))
         lines.append(f"Locked joints (lock them there when loading, e.g. pinocchio.buildReducedModel): {locked}.")
     wrapped = [row for line in lines for row in textwrap.wrap(" ".join(line.replace("--", "- -").split()), 100)]
     return document.createComment(indent + "  " + (indent + "  ").join(wrapped) + indent)
@@ -290,7 +288,9 @@ def _world(document, placement: pin.SE3, root: str, name: str) -> list:
 
 
 def _dynamics(document, terms: dict, j: int):
-    return _element(document, "dynamics", [("damping", _num(terms["fv"][j])), ("friction", _num(terms["fc"][j]))])
+    return _element(
+        document, "dynamics", [("damping", exact_text(terms["fv"][j])), ("friction", exact_text(terms["fc"][j]))]
+    )
 
 
 # --- DH robots -----------------------------------------------------------------------------------------
@@ -317,7 +317,7 @@ def _dh_urdf(calibrated, robot):
             pieces = [fixed, between, moving]
         moving.appendChild(_dynamics(document, terms, j))
         unit = "rad/s^2" if joint.is_revolute else "m/s^2"
-        note = notes[j] + f"; acceleration limit {_num(joint.qdd_max)} {unit} (not a URDF field)"
+        note = notes[j] + f"; acceleration limit {exact_text(joint.qdd_max)} {unit} (not a URDF field)"
         if not np.isfinite(joint.tau_max):
             note += "; no torque limit (effort 0)"
         pieces.insert(pieces.index(moving), _comment(document, note))
@@ -333,10 +333,10 @@ def _dh_urdf(calibrated, robot):
 def _dh_moving(document, joint, parent: str, child: str):
     """The revolute or prismatic joint about z of its parent link, with the robot file's limits."""
     limit = [
-        ("lower", _num(joint.q_min)),
-        ("upper", _num(joint.q_max)),
-        ("effort", _num(joint.tau_max) if np.isfinite(joint.tau_max) else "0"),
-        ("velocity", _num(joint.qd_max)),
+        ("lower", exact_text(joint.q_min)),
+        ("upper", exact_text(joint.q_max)),
+        ("effort", exact_text(joint.tau_max) if np.isfinite(joint.tau_max) else "0"),
+        ("velocity", exact_text(joint.qd_max)),
     ]
     return _element(document, "joint", [("name", joint.name), ("type", joint.kind)], [
         _origin(document, pin.SE3.Identity()),

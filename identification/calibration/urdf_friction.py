@@ -7,12 +7,9 @@ the warning ``psdm export-urdf`` prints.
 
 from __future__ import annotations
 
+from psdm_casadi.values import exact_text
+
 __all__ = ["friction_left_out", "friction_not_representable"]
-
-
-def _number(value) -> str:
-    """A float as the shortest text that reads back to the same double."""
-    return repr(float(value) + 0.0)
 
 
 def friction_left_out(calibrated) -> list | None:
@@ -20,13 +17,14 @@ def friction_left_out(calibrated) -> list | None:
     lugre = calibrated.lugre_parameters
     if lugre is not None:
         names = ("fs", "vs", "sigma0", "sigma1")
-        return [", ".join(f"{name} = {_number(getattr(p, name))}" for name in names) for p in lugre]
+        return [", ".join(f"{name} = {exact_text(getattr(p, name))}" for name in names) for p in lugre]
     drive = calibrated.document["drive"]
     if "fs" not in drive["friction_terms"]:
         return None
     values = dict(zip(drive["names"], calibrated.drive))
     return [
-        f"fs = {_number(values[f'fs{j + 1}'])}, vs = {_number(v)}" for j, v in enumerate(drive["stribeck_velocity"])
+        f"fs = {exact_text(values[f'fs{j + 1}'])}, vs = {exact_text(v)}"
+        for j, v in enumerate(drive["stribeck_velocity"])
     ]
 
 
