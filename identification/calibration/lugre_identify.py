@@ -10,9 +10,13 @@ The recordings route with ``--friction lugre`` (``lugre_recordings`` fits the fr
    the bristles' hysteresis) biases the rigid body it is fitted with, and this removes the bias;
 4. the LuGre fit again from step 2's parameters on the friction step 3 leaves.
 
-Steps 3 and 4 are repeated ``rounds - 1`` times in all. The LuGre friction taken out of a raw recording is
-evaluated at its full rate on the velocity of its positions filtered as the identification filters them
-(``trajectory_data.prepare_recording``), so the filter then sees it as it sees the recorded torque.
+Steps 3 and 4 are repeated ``rounds - 1`` times in all. With ``extra`` columns (the torque findings of a
+diagnosis, ``recalibrate``) every linear fit holds them beside the rigid body, and every LuGre fit sees the
+friction they leave: a spring the first identification put into gravity and friction is taken out of both.
+
+The LuGre friction taken out of a raw recording is evaluated at its full rate on the velocity of its positions
+filtered as the identification filters them (``trajectory_data.prepare_recording``), so the filter then sees it
+as it sees the recorded torque.
 """
 
 from __future__ import annotations
@@ -41,7 +45,8 @@ class LuGreIdentification:
     Attributes
     ----------
     fit : TrajectoryFit
-        The last linear fit: rigid body, drive inertias and offsets (no friction columns).
+        The last linear fit: rigid body, drive inertias and offsets (no friction columns), then the coefficients
+        of the ``extra`` columns when there are any.
     lugre : lugre_recordings.LuGreFit
         The LuGre friction of every joint, fitted on the friction ``fit`` leaves.
     stribeck : TrajectoryFit
@@ -66,7 +71,7 @@ def _without_friction_torque(recordings, parameters, kt, cutoff_hz) -> list:
     return out
 
 
-def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOptions, rounds: int = 2):
+def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOptions, rounds: int = 2, extra=None):
     """Rigid body, drive terms and LuGre friction of exciting recordings (module docstring).
 
     Parameters
@@ -79,6 +84,9 @@ def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOpt
         Its ``friction`` holds ``fc``, ``fs``, ``fv`` (optionally ``offset``).
     rounds : int
         Passes of the LuGre fit, >= 1 (each after the first follows a linear refit without friction columns).
+    extra : findings.FindingColumns, optional
+        Extra linear columns fitted jointly in every linear fit (module docstring); their coefficients follow the
+        drive parameters in ``fit.drive``, as in ``trajectory_fit.identify_trajectories``.
 
     Returns
     -------
@@ -100,13 +108,13 @@ def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOpt
     kt = None
     if not all(r.tau is not None for r in recordings):
         kt = np.asarray(options.kt if options.kt is not None else [d.kt for d in robot.drives], dtype=float)
-    stribeck = identify_trajectories(robot, model, recordings, options)
+    stribeck = identify_trajectories(robot, model, recordings, options, extra)
     _, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
-    fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, prepared, warn=rounds == 1)
+    fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, prepared, warn=rounds == 1, extra=extra)
     plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)
     for k in range(1, rounds):
         corrected = _without_friction_torque(recordings, lugre.parameters, kt, options.cutoff_hz)
-        fit = identify_trajectories(robot, model, corrected, plain)
-        lugre = fit_lugre_recordings(model, fit, prepared, initial=lugre.parameters, warn=k == rounds - 1)
+        fit = identify_trajectories(robot, model, corrected, plain, extra)
+        lugre = fit_lugre_recordings(model, fit, prepared, initial=lugre.parameters, warn=k == rounds - 1, extra=extra)
         logger.info("identify: LuGre round %d: friction RMSE %s N m", k + 1, np.round(lugre.rmse, 4))
     return LuGreIdentification(fit=fit, lugre=lugre, stribeck=stribeck)

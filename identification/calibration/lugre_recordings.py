@@ -4,11 +4,12 @@
 inertias and the Stribeck steady state exactly as ``--friction stribeck`` does
 (``trajectory_fit.identify_trajectories``). The friction torque left in the data,
 ``tau - Y theta - Ia qdd - offset`` (the rigid body and drive terms of that fit, every friction
-term taken out), is then fitted per joint by the multiple-shooting LuGre fit of the friction
-experiments (:func:`identification.friction.shooting.fit_lugre_multiple_shooting`: bristle state
-at the nodes, the exponential integrator of :mod:`identification.friction.lugre_step` between
-them), started from the Stribeck fit's ``fc, fs, vs, fv`` with ``dv = 1`` and from ``sigma0`` and
-``sigma1`` chosen on grids by simulation (as ``friction.start`` does for the friction experiments).
+term taken out; in a recalibration the findings' torques too, ``split_findings``), is then fitted per
+joint by the multiple-shooting LuGre fit of the friction experiments
+(:func:`identification.friction.shooting.fit_lugre_multiple_shooting`: bristle state at the nodes, the
+exponential integrator of :mod:`identification.friction.lugre_step` between them), started from the
+Stribeck fit's ``fc, fs, vs, fv`` with ``dv = 1`` and from ``sigma0`` and ``sigma1`` chosen on grids by
+simulation (as ``friction.start`` does for the friction experiments).
 
 All seven parameters are refitted, not only ``sigma0`` and ``sigma1``: the Stribeck shape of the
 linear fit rounds the Coulomb step with ``tanh(qd / eps)``, so near zero speed its ``fs`` and ``vs``
@@ -54,8 +55,7 @@ from psdm_casadi.errors import InsufficientExcitationError, ParameterError, Shap
 
 __all__ = ["IDENTIFIABLE_RELATIVE_SIGMA", "LuGreFit", "LuGreWarning", "fit_lugre_recordings", "friction_residual",
            "lugre_friction", "lugre_std", "bristle_force_at", "presliding_time", "sigma0_identifiable",
-           "unidentifiable_message",
-           "without_friction"]  # fmt: skip
+           "split_findings", "unidentifiable_message", "without_friction"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -171,14 +171,31 @@ def without_friction(fit):
     )  # fmt: skip
 
 
-def friction_residual(model, fit, prepared) -> np.ndarray:
+def split_findings(fit, n_findings: int) -> tuple:
+    """The ``TrajectoryFit`` with only its drive parameters, and (values, ols, std) of the ``n_findings`` finding
+    features fitted after them (``trajectory_fit.identify_trajectories`` with ``extra`` columns)."""
+    n_drive = len(fit.drive_names) - int(n_findings)
+    extra = (fit.drive[n_drive:], fit.drive_ols[n_drive:], fit.drive_std[n_drive:])
+    plain = dataclasses.replace(
+        fit, drive=fit.drive[:n_drive], drive_ols=fit.drive_ols[:n_drive], drive_std=fit.drive_std[:n_drive],
+        drive_names=fit.drive_names[:n_drive],
+    )  # fmt: skip
+    return plain, extra
+
+
+def friction_residual(model, fit, prepared, extra=None) -> np.ndarray:
     """``tau - Y theta - Ia qdd - offset`` of a prepared recording: the friction left by the linear fit's other terms.
 
     ``fit`` is a ``TrajectoryFit`` of the Stribeck shape; its friction terms (``fc``, ``fs``, ``fv``) are taken out.
+    With ``extra`` (``findings.FindingColumns``, the torque findings the fit holds after its drive parameters) the
+    findings' torque is taken out too.
     """
     from identification.calibration.trajectory_fit import predict_torque
 
-    return prepared.tau - predict_torque(model, without_friction(fit), prepared.q, prepared.qd, prepared.qdd)
+    q, qd, qdd = prepared.q, prepared.qd, prepared.qdd
+    plain, (values, _, _) = split_findings(fit, 0 if extra is None else len(extra.names))
+    residual = prepared.tau - predict_torque(model, without_friction(plain), q, qd, qdd)
+    return residual - extra.columns(q, qd, qdd) @ values if values.size else residual
 
 
 def _chained(prepared, residuals) -> tuple:
@@ -284,7 +301,7 @@ def lugre_std(parameters: LuGreParameters, t, qd, tau, fixed=(), s0: float = 0.0
 
 
 def fit_lugre_recordings(
-    model, fit, prepared, options: ShootingOptions | None = None, initial=None, *, warn: bool = True
+    model, fit, prepared, options: ShootingOptions | None = None, initial=None, *, warn: bool = True, extra=None
 ) -> LuGreFit:
     """Fit the LuGre friction of every joint to the friction residual of prepared recordings (module docstring).
 
@@ -303,6 +320,8 @@ def fit_lugre_recordings(
         state and grids of ``sigma0`` and ``sigma1``.
     warn : bool
         Emit a :class:`LuGreWarning` per joint whose ``sigma0`` the data do not determine.
+    extra : findings.FindingColumns, optional
+        The finding columns ``fit`` was identified with (``recalibrate``): their torque is taken out too.
 
     Returns
     -------
@@ -326,7 +345,7 @@ def fit_lugre_recordings(
             f"starts from); got {fit.friction_terms!r}. Identify with TrajectoryOptions(friction=('fc', 'fs', 'fv'))."
         )
     options = ShootingOptions(accept_acceptable=True, fixed=("dv",)) if options is None else options
-    t, qd, residual = _chained(prepared, [friction_residual(model, fit, r) for r in prepared])
+    t, qd, residual = _chained(prepared, [friction_residual(model, fit, r, extra) for r in prepared])
     parameters, std, status, rmse, rmse_stribeck = [], [], [], [], []
     for j in range(qd.shape[1]):
         if initial is None:

@@ -14,6 +14,14 @@ drive offset, a rotor inertia the fit already identifies) is left out and report
 Load-dependent friction is linear in its coefficient once the torque it multiplies is fixed: the fit
 uses the previous model's torque, then the new model's (two passes).
 
+A model with LuGre friction (file version 3) is identified again as ``psdm identify --friction lugre`` does
+(``lugre_identify.identify_lugre_trajectories``: the Stribeck fit, the LuGre fit of the friction it leaves, the
+rigid body again with that friction taken out, the LuGre fit again) with the finding columns in every linear
+fit, so the new file holds the LuGre friction and the findings. Two kinds of finding are refused for it (not
+supported yet): signal findings (measurement corrections; the validation carries the bristle state along the
+uncorrected recording) and load-dependent friction (a multiple of the model's own torque, whose LuGre part the
+exported ``psdm_inverse_dynamics`` does not hold, so the file and its exported code would differ).
+
 The result is judged on the validation recording as ``psdm validate`` judges it (the same preparation,
 ``CalibratedModel.predict``), before and after, so the file's numbers are what its exported code gives.
 A finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no
@@ -40,9 +48,12 @@ from identification.calibration.findings import (
     filled_entries,
     finding_kind,
 )
+from identification.calibration.lugre_identify import identify_lugre_trajectories
+from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.pseudo_inertia import pseudo_inertia_eigenvalues
 from identification.calibration.trajectory_data import NormalEquations, drive_column_names, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
+from identification.friction.models import LUGRE_PARAMETER_NAMES
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
@@ -150,6 +161,21 @@ def _correction(finding, candidate) -> dict:
     return entry
 
 
+def _check_lugre_findings(calibrated: CalibratedModel, terms, corrections) -> None:
+    """Refuse the findings a LuGre model cannot hold yet (module docstring), naming them and the way out."""
+    if calibrated.lugre_parameters is None:
+        return
+    refused = sorted(corrections) + sorted(t.label for t in terms if t.load_dependent)
+    if refused:
+        raise ParameterError(
+            f"recalibrate: a model with LuGre friction (drive.lugre) does not take the findings {refused} yet: "
+            "signal findings (measurement corrections) and load-dependent friction (a multiple of the model's own "
+            "torque, whose LuGre part the exported psdm_inverse_dynamics does not hold) are not supported for LuGre "
+            "models. Identify the robot with --friction stribeck and apply the findings to that model, or use this "
+            "diagnosis without --apply."
+        )
+
+
 def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, stribeck=None) -> tuple:
     """Which finding features the fit's other columns (and earlier features) do not span, on the training data
     (a Stribeck friction shape with the velocities ``stribeck`` of the model the diagnosis started from)."""
@@ -195,11 +221,14 @@ def _kt(robot, recordings):
 
 
 def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
-    """The recordings-route options the file was identified with."""
+    """The recordings-route options the file was identified with (for LuGre: of the Stribeck fit it starts from)."""
     document = calibrated.document
     drive, identification = document["drive"], document["identification"]
+    friction = tuple(drive["friction_terms"])
+    if calibrated.lugre_parameters is not None:
+        friction = ("fc", "fs", "fv", *(term for term in friction if term == "offset"))
     return TrajectoryOptions(
-        friction=tuple(drive["friction_terms"]),
+        friction=friction,
         coulomb_velocity=float(drive["coulomb_velocity"]),
         drive_inertia=bool(identification.get("drive_inertia", True)),
         consistency=bool(document["standard"].get("checked", True)),
@@ -207,26 +236,18 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
     )
 
 
-def _split_fit(fit, n_drive: int):
-    """The fit with only its drive parameters, and (values, ols, std) of the finding features after them."""
-    extra = (fit.drive[n_drive:], fit.drive_ols[n_drive:], fit.drive_std[n_drive:])
-    plain = dataclasses.replace(
-        fit,
-        drive=fit.drive[:n_drive],
-        drive_ols=fit.drive_ols[:n_drive],
-        drive_std=fit.drive_std[:n_drive],
-        drive_names=fit.drive_names[:n_drive],
-    )
-    return plain, extra
-
-
-def _fit(robot, model, recordings, options, terms, reference, stribeck=None):
-    """One joint fit with the finding columns; returns (fit, columns)."""
+def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lugre=False):
+    """One joint fit with the finding columns, of the LuGre identification with ``lugre``; returns (fit, columns,
+    ``lugre_recordings.LuGreFit`` or None). A feature is left out when it is absorbed beside the Stribeck shape."""
     columns = FindingColumns(tuple(terms), reference)
     if terms:
         keep = _absorbed_mask(robot, model, recordings, options, columns, stribeck)
         columns = dataclasses.replace(columns, keep=keep)
-    return identify_trajectories(robot, model, recordings, options, columns if terms else None), columns
+    extra = columns if terms else None
+    if lugre:
+        result = identify_lugre_trajectories(robot, model, recordings, options, extra=extra)
+        return result.fit, columns, result.lugre
+    return identify_trajectories(robot, model, recordings, options, extra), columns, None
 
 
 def recalibrate(
@@ -264,6 +285,7 @@ def recalibrate(
     train = [train] if not isinstance(train, (list, tuple)) else list(train)
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
     terms, corrections, entries = _finding_terms(calibrated, report)
+    _check_lugre_findings(calibrated, terms, corrections)
     kt = _kt(robot, validation)
     after, fit, terms, entries = _robust_fit(
         calibrated, robot, model, train, (terms, corrections, entries), robot_source
@@ -329,13 +351,16 @@ def _joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple
     terms, corrections, entries = findings
     options = _options(calibrated)
     corrected = [correct_recording(r, corrections, _kt(robot, train)) for r in train]
+    own = calibrated.lugre_parameters
     stribeck = calibrated.document["drive"].get("stribeck_velocity") or None
+    stribeck = [p.vs for p in own] if own is not None else stribeck  # LuGre: its own Stribeck velocities
     stribeck = None if stribeck is None or "fs" not in options.friction else np.asarray(stribeck, dtype=float)
-    fit, columns = _fit(robot, model, corrected, options, terms, _reference(calibrated, model), stribeck)
+    common = (robot, model, corrected, options, terms)
+    fit, columns, lugre = _fit(*common, _reference(calibrated, model), stribeck, own is not None)
     if any(term.load_dependent for term in terms):  # second pass: the load of the new model itself
-        interim = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source)
-        fit, columns = _fit(robot, model, corrected, options, terms, _reference(interim, model), stribeck)
-    after = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source)
+        interim = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
+        fit, columns, lugre = _fit(*common, _reference(interim, model), stribeck, own is not None)
+    after = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
     after.document["provenance"]["recalibrated_on"] = [recording_provenance(r) for r in train]
     return after, fit
 
@@ -379,10 +404,12 @@ def _reference(calibrated: CalibratedModel, model):
     return torque
 
 
-def _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source) -> CalibratedModel:
-    """The new calibrated model of a joint fit (findings filled, corrections, provenance kept)."""
-    n_drive = len(fit.drive_names) - len(columns.names) if terms else len(fit.drive_names)
-    plain, extra = _split_fit(fit, n_drive)
+def _document(
+    calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre=None
+) -> CalibratedModel:
+    """The new calibrated model of a joint fit (findings filled, corrections, provenance kept; with ``lugre``, a
+    ``lugre_recordings.LuGreFit``, a version 3 file with that friction)."""
+    plain, extra = split_findings(fit, len(columns.names) if terms else 0)
     source = robot_source or _robot_copy(calibrated)
     new = CalibratedModel.from_fit(
         robot,
@@ -390,6 +417,7 @@ def _document(calibrated, robot, model, fit, columns, terms, entries, correction
         plain,
         robot_source=source,
         recordings=calibrated.document.get("provenance", {}).get("recordings", []),
+        lugre=lugre,
     )
     document = new.document
     document["robot"] = copy.deepcopy(calibrated.document["robot"])
@@ -405,10 +433,16 @@ def _robot_copy(calibrated: CalibratedModel):
 
 
 def _moved(before: CalibratedModel, after: CalibratedModel) -> list:
-    """Base and drive parameters whose change exceeds 3 standard deviations of the new estimate."""
+    """Base, drive (and LuGre) parameters whose change exceeds 3 standard deviations of the new estimate."""
     out = []
-    for block in ("base", "drive"):
-        old, new = before.document[block], after.document[block]
+    blocks = [before.document[b] for b in ("base", "drive")], [after.document[b] for b in ("base", "drive")]
+    if before.lugre_parameters is not None and after.lugre_parameters is not None:  # LuGre: p1, p2, ... per joint
+        for document, listed in zip((before.document, after.document), blocks):
+            lugre = document["drive"]["lugre"]
+            names = [f"{n}{j + 1}" for n in LUGRE_PARAMETER_NAMES for j in range(before.n_dof)]
+            values, std = ([v for n in LUGRE_PARAMETER_NAMES for v in part[n]] for part in (lugre, lugre["std"]))
+            listed.append({"names": names, "values": values, "std": std})
+    for old, new in zip(*blocks):
         for name, a, b, s in zip(new["names"], _values(old, new["names"]), new["values"], new["std"]):
             if a is None or b is None:
                 continue

@@ -31,8 +31,10 @@ def register(subparsers) -> None:
             "file's: its kinematics, identified inertia (rigid body fixed) and its friction shape (Coulomb + "
             "viscous, Stribeck with its vs, or LuGre with its bristle dynamics; amplitudes refitted); "
             "--apply NEW.json then identifies the model again on --train with the findings' terms fitted jointly "
-            "(signal findings such as a delay correct the recordings), judges it on --validate as 'psdm validate' "
-            "does, shows the calibration before and after, and writes the calibrated model with its findings."
+            "(signal findings such as a delay correct the recordings; a LuGre model is identified again as 'psdm "
+            "identify --friction lugre' does, and takes torque findings only), judges it on --validate as "
+            "'psdm validate' does, shows the calibration before and after, and writes the calibrated model with its "
+            "findings."
         ),
     )
     add_robot_argument(
@@ -170,18 +172,15 @@ def _calibrated_source(args):
             "joints. Drop --lock."
         )
     calibrated = load_calibrated_model(args.robot)
-    if args.apply is not None and calibrated.lugre_parameters is not None:
-        raise ParameterError(
-            f"diagnose --apply does not recalibrate a model with LuGre friction yet; got {args.robot!r}. Diagnose it "
-            "without --apply, or identify it with --friction stribeck to apply findings."
-        )
     return calibrated, output_file(args.apply, "--apply", args.overwrite)
 
 
 def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> int:
     """Recalibrate with the findings, gate on consistency, write the new model, show before and after."""
     import sys
+    import warnings
 
+    from identification.calibration.lugre_recordings import LuGreWarning
     from identification.calibration.recalibrate import consistency_failure, recalibrate
 
     if not report.findings:
@@ -189,7 +188,17 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> 
         if payload is not None:
             print_json(payload)
         return 0
-    result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None)
+    try:
+        with warnings.catch_warnings(record=True) as caught:  # a LuGre model's refit says what it cannot determine
+            warnings.simplefilter("always", LuGreWarning)
+            result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None)
+    except ParameterError as exc:  # name the input: the model the findings were to be applied to
+        raise ParameterError(f"diagnose {args.robot!r} --apply: {exc} Nothing was written to {args.apply!r}.") from None
+    for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, LuGreWarning)):
+        print(f"psdm diagnose: warning: {message}", file=sys.stderr)
+    for w in caught:  # the others as they were
+        if not issubclass(w.category, LuGreWarning):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     problem = consistency_failure(result)
     if problem is not None and not args.allow_inconsistent:
         print(

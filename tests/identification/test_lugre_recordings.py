@@ -12,7 +12,6 @@ shape on the same data, and that the compiled C carried along the validation rec
 import json
 import shutil
 
-import casadi as ca
 import numpy as np
 import pytest
 
@@ -66,6 +65,22 @@ def test_the_series_and_the_exported_step_are_the_friction_package_s_simulation(
     crossings = int(np.sum(qd[1:] * qd[:-1] < 0))
     assert crossings > 10  # the split at zero crossings is exercised
     np.testing.assert_allclose(np.array(carried), series, rtol=1e-10, atol=1e-12 * np.abs(series).max())
+
+
+def test_a_long_series_is_simulated_in_pieces_with_the_result_of_one_pass():
+    """``simulate_lugre`` cuts a long series into pieces (the bristle state carried): the same torque and state as
+    one pass over the whole series, with a piece boundary on a zero crossing too; a bad piece size is refused."""
+    t, qd = _velocity(rate=1000.0, duration=60.0)
+    p = PARAMETERS[0]
+    crossing = int(np.flatnonzero(qd[1:, 0] * qd[:-1, 0] < 0)[3])
+    one_pass = simulate_lugre(p, t, qd[:, 0], z0=3e-4, substeps=2, chunk=t.size)
+    for chunk in (997, crossing, 50_000):
+        pieces = simulate_lugre(p, t, qd[:, 0], z0=3e-4, substeps=2, chunk=chunk)
+        for a, b in zip(pieces, one_pass):
+            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12 * np.abs(b).max())
+    assert t.size > 50_000 + 1  # several pieces of every size
+    with pytest.raises(ParameterError, match="simulate_lugre.chunk must be an integer >= 1"):
+        simulate_lugre(p, t, qd[:, 0], chunk=0)
 
 
 def test_predict_of_a_lugre_model_needs_the_sample_times(denso_model):
@@ -151,35 +166,12 @@ def test_identify_lugre_lowers_the_validation_rmse_of_stribeck(identified, capsy
 def test_the_exported_c_carried_along_the_recording_reproduces_validate(identified, capsys, tmp_path):
     """C only: the step carried from a relaxed bristle at the raw start, plus inverse_dynamics, at the samples
     ``psdm validate`` keeps; its RMSE equals the one ``psdm validate`` prints to 1e-9 relative."""
-    from identification.calibration.calibrated_model import load_calibrated_model
-    from identification.calibration.trajectory_data import choose_filter, prepare_recording
-    from identification.data.io import load_recording
-    from identification.data.preprocessing import central_difference, zero_phase_filter
-    from psdm_casadi.cli import main
+    from tests.identification.lugre_recordings_data import exported_c_rmse
 
     _, valid, paths = identified
     reported = _validate(capsys, paths["lugre"], valid)
-    out = tmp_path / "c"
-    assert main(["codegen", str(paths["lugre"]), "--out", str(out), "--compile"]) == 0
-    header = (out / "psdm_dynamics_lugre.h").read_text()
+    rmse_c, header = exported_c_rmse(paths["lugre"], valid, tmp_path / "c")
     assert "NOT in psdm_inverse_dynamics" in header and "psdm_lugre_step" in header
-    library = str(out / "libpsdm_dynamics.so")
-    inverse, step = (ca.external(name, library) for name in ("psdm_inverse_dynamics", "psdm_lugre_step"))
-    calibrated = load_calibrated_model(paths["lugre"])
-    recording = load_recording(valid, 6)
-    cutoff = calibrated.document["identification"]["cutoff_hz"][0]
-    prepared, _, _ = prepare_recording(recording, None, cutoff)
-    rate = 1.0 / recording.dt
-    qd, _ = central_difference(recording.t, zero_phase_filter(recording.q, rate, choose_filter(rate, cutoff)[0]))
-    s, friction = np.zeros(6), [np.zeros(6)]
-    for k in range(1, recording.n_samples):
-        s_next, tau = step(s, qd[k - 1], qd[k], recording.t[k] - recording.t[k - 1])
-        s, _ = np.array(s_next).ravel(), friction.append(np.array(tau).ravel())
-    keep = np.searchsorted(recording.t, prepared.t)
-    np.testing.assert_array_equal(recording.t[keep], prepared.t)
-    rigid = np.array(inverse.map(prepared.n_samples)(prepared.q.T, prepared.qd.T, prepared.qdd.T)).T
-    tau_c = rigid + np.array(friction)[keep]
-    rmse_c = np.sqrt(np.mean((prepared.tau - tau_c) ** 2, axis=0))
     np.testing.assert_allclose(rmse_c, reported, rtol=1e-9)
 
 
