@@ -13,7 +13,7 @@ longer recording gets a coarser grid, logged, with a warning below ``MIN_GRID_PE
 period of the cut-off), so the grid's matrices (about 1.8 kB per sample for 6 joints) do not grow with
 the recording. The full-rate signals (time, filtered torque and velocity, raw torque) are the
 recordings' own read-only arrays, not copies; the torque derivatives are taken one joint at a time;
-the robot file's LuGre friction is simulated in pieces of ``LUGRE_CHUNK`` samples (``simulate_friction``).
+the robot file's LuGre friction is simulated in pieces (``simulate_friction``, ``simulation.LUGRE_CHUNK``).
 
 With a LuGre friction prior (the robot file's drives, ``filtered_friction``), columns with the sign of
 the velocity are built at full rate with the exact sign and low-pass filtered like the recording
@@ -44,7 +44,6 @@ from psdm_casadi.oracle import build_pinocchio_model
 logger = logging.getLogger(__name__)
 
 FILTER_ORDER = PreprocessOptions().order  # the order ``diagnose`` preprocesses the recordings with
-LUGRE_CHUNK = 50_000  # samples per call of the LuGre simulator (``simulate_friction``)
 MIN_GRID_PER_CUTOFF = 4.0  # a grid coarser than this many samples per cut-off period is reported (``build_context``)
 
 
@@ -187,19 +186,11 @@ def lugre_parameters(drive):
 def simulate_friction(parameters, t: np.ndarray, qd: np.ndarray) -> np.ndarray:
     """LuGre friction torque (n_full,) [N m] along ``qd`` from a relaxed bristle (``simulate_lugre``, z0 = 0).
 
-    A recording longer than ``LUGRE_CHUNK`` samples is simulated in pieces, each starting from the bristle
-    deflection the previous one ended with: the same recursion, several times faster on an hour of samples
-    (the simulator's temporaries then stay in the processor's cache)."""
+    A recording longer than ``simulation.LUGRE_CHUNK`` samples is simulated in pieces by ``simulate_lugre`` itself
+    (the bristle state carried across them), which keeps the simulator's temporaries in the processor's cache."""
     from identification.friction.simulation import simulate_lugre
 
-    if t.size <= LUGRE_CHUNK + 1:
-        return simulate_lugre(parameters, t, qd, z0=0.0)[0]
-    out, z0, start = np.empty(t.size), 0.0, 0
-    while start < t.size - 1:
-        stop = min(t.size, start + LUGRE_CHUNK + 1)
-        out[start:stop], z = simulate_lugre(parameters, t[start:stop], qd[start:stop], z0=z0)
-        z0, start = float(z[-1]), stop - 1
-    return out
+    return simulate_lugre(parameters, t, qd, z0=0.0)[0]
 
 
 def check_preprocessed(recording: Recording) -> Recording:

@@ -4,6 +4,10 @@ Turns :class:`identification.friction.models.LuGreParameters` and a velocity rec
 friction torque, with the exponential integrator of :mod:`identification.friction.lugre_step`
 (the discretisation the shooting fit uses). The start values (:mod:`identification.friction.start`),
 the fits and the calibration steps simulate friction through :func:`simulate_lugre`.
+
+A long series is simulated in pieces of ``LUGRE_CHUNK`` samples, each starting from the bristle force the
+previous one ended with: the same recursion (the interval maps are local to each sample interval), several
+times faster on an hour of samples because the simulator's temporaries then stay in the processor's cache.
 """
 
 from __future__ import annotations
@@ -14,7 +18,10 @@ from identification.friction.lugre_step import sample_interval_maps, substep_lay
 from identification.friction.models import LuGreParameters, check_friction_data
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["lugre_torque", "simulate_lugre", "simulated_mse"]
+__all__ = ["LUGRE_CHUNK", "lugre_torque", "simulate_lugre", "simulated_mse"]
+
+#: Sample intervals per piece of a long series (module docstring).
+LUGRE_CHUNK = 50_000
 
 
 def lugre_torque(parameters, qd, s):
@@ -26,7 +33,7 @@ def lugre_torque(parameters, qd, s):
     return s + p.sigma1 * zdot + p.fv * np.abs(qd) ** p.dv * np.sign(qd)
 
 
-def simulate_lugre(parameters, t, qd, z0=0.0, substeps=1):
+def simulate_lugre(parameters, t, qd, z0=0.0, substeps=1, *, chunk=None):
     """Simulate the LuGre model along a sampled velocity signal (stiff-safe, any sigma0).
 
     The velocity is taken as linear between samples. Each sample interval is split at a zero
@@ -47,6 +54,9 @@ def simulate_lugre(parameters, t, qd, z0=0.0, substeps=1):
         Integration steps per sample interval, >= 1. The scheme is second order; one step suffices
         at 1 kHz (tests/identification/test_friction.py checks it against a stiff ODE solver), 32 or
         more give a reference solution.
+    chunk : int, optional
+        Sample intervals per piece of a long series (module docstring), >= 1; default ``LUGRE_CHUNK``. The
+        result does not depend on it.
 
     Returns
     -------
@@ -78,9 +88,19 @@ def simulate_lugre(parameters, t, qd, z0=0.0, substeps=1):
         raise ParameterError(f"simulate_lugre.substeps must be an integer >= 1; got {substeps!r}. Pass e.g. 1 or 8.")
     if not np.isfinite(z0):
         raise ParameterError(f"simulate_lugre.z0 must be finite; got {z0}. Pass 0.0 for a relaxed bristle.")
-    decay, gain = sample_interval_maps(parameters, substep_layout(t, qd, int(substeps)))
-    s = _run_recursion(decay, gain, parameters.sigma0 * float(z0))
-    return lugre_torque(parameters, qd, s), s / parameters.sigma0
+    chunk = LUGRE_CHUNK if chunk is None else chunk
+    if not (isinstance(chunk, (int, np.integer)) and not isinstance(chunk, bool) and chunk >= 1):
+        raise ParameterError(f"simulate_lugre.chunk must be an integer >= 1; got {chunk!r}. Pass e.g. 50000.")
+    s, tau = np.empty(t.size), np.empty(t.size)
+    s[0], start = parameters.sigma0 * float(z0), 0
+    while start < t.size - 1:  # pieces of ``chunk`` intervals, each from the bristle force the last one ended with
+        stop = min(t.size, start + int(chunk) + 1)
+        piece = substep_layout(t[start:stop], qd[start:stop], int(substeps))
+        decay, gain = sample_interval_maps(parameters, piece)
+        s[start:stop] = _run_recursion(decay, gain, s[start])
+        tau[start:stop] = lugre_torque(parameters, qd[start:stop], s[start:stop])
+        start = stop - 1
+    return tau, s / parameters.sigma0
 
 
 def _run_recursion(decay, gain, s0):

@@ -13,11 +13,11 @@ from scipy.signal import butter, sosfiltfilt
 from identification.data.preprocessing import PreprocessOptions, central_difference, preprocess, zero_phase_filter
 from identification.diagnosis import DiagnosisOptions, SpringTerm, TorqueOffsetTerm, diagnose
 from identification.diagnosis import columns as columns_module
-from identification.diagnosis import context as context_module
 from identification.diagnosis.columns import BlockColumns, row_chunks
 from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
 from identification.diagnosis.nominal import friction_blocks, friction_columns, friction_shapes
 from identification.diagnosis.selection import forward_select
+from identification.friction import simulation as simulation_module
 from identification.virtual import effects as xp
 from psdm_casadi.errors import ParameterError, ShapeError
 from tests.identification.diagnosis_data import recording_pair
@@ -85,8 +85,9 @@ def test_chunked_lugre_simulation_matches_one_call(denso, contexts, monkeypatch)
     ctx = contexts[0]
     p = lugre_parameters(denso.drives[2])
     whole = simulate_friction(p, ctx.full_t, ctx.full_qd[:, 2])
-    monkeypatch.setattr(context_module, "LUGRE_CHUNK", 997)
+    monkeypatch.setattr(simulation_module, "LUGRE_CHUNK", 997)  # the simulator's own pieces (simulate_lugre)
     chunked = simulate_friction(p, ctx.full_t, ctx.full_qd[:, 2])
+    assert ctx.full_t.size > 3 * 997
     np.testing.assert_allclose(chunked, whole, rtol=1e-12, atol=1e-12 * np.max(np.abs(whole)))
 
 
