@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds, check_joint_motion, check_sliding
+from identification.data.plausibility import check_plausible_recording
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 from psdm_casadi.errors import ParameterError
 
@@ -155,12 +156,21 @@ def check_calibration_data(robot, model, data, thresholds: ExcitationThresholds 
     Motor sweeps: the swept joint; gravity jogs: the joints with a gravity torque; friction experiments
     (and their validation runs): the joint, sliding both ways; excitations: every joint.
 
+    Every recording must first be plausible for ``robot`` (``plausibility.check_plausible_recording``: positions
+    near the limits, speeds below them, time in seconds).
+
     Raises
     ------
+    RecordingError
+        For a recording in the wrong units (degrees, milliseconds) or of other joints, naming it and the column.
     InsufficientExcitationError
         For the first recording that fails, naming it, the joints and what to record instead.
     """
     thresholds = thresholds_of("PipelineOptions", thresholds)
+    motor = [rec for _, nominal, loaded in data.motor for rec in (nominal, loaded)]
+    friction = [rec for _, rec in tuple(data.friction) + tuple(data.friction_validation)]
+    for rec in (*motor, *data.gravity, *friction, *data.excitation):
+        check_plausible_recording(rec, robot)
     for joint, nominal, loaded in data.motor:
         for rec in (nominal, loaded):
             check_joint_motion(

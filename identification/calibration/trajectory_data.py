@@ -26,6 +26,7 @@ import casadi as ca
 import numpy as np
 
 from identification.data.excitation_check import check_joint_motion
+from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
@@ -87,11 +88,13 @@ def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = Non
     Raises
     ------
     RecordingError
-        For a recording of another robot, or one in which a joint barely moves (naming it and the fix).
+        For a recording of another robot, one in the wrong units (``plausibility.check_plausible_recording``), or
+        one in which a joint barely moves (naming it and the fix).
     """
     cutoffs, steps, prepared = [], [], []
     for rec in recordings:
         rec.check_robot(robot.n_dof, robot.name)
+        check_plausible_recording(rec, robot)
         check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
                            fix=MOTION_FIX)  # fmt: skip
         ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz)
@@ -163,7 +166,8 @@ def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float
 
 @dataclass
 class NormalEquations:
-    """Per-joint sums of a linear model's rows: ``gram[j] = A_j^T A_j``, ``moment[j] = A_j^T y_j``, ``y_j^T y_j``."""
+    """Per-joint sums of a linear model's rows: ``gram[j] = A_j^T A_j``, ``moment[j] = A_j^T y_j``, ``y_j^T y_j``
+    (``energy``), the row count and ``sum(y_j)`` (``total``)."""
 
     n_dof: int
     n_columns: int
@@ -171,12 +175,14 @@ class NormalEquations:
     moment: np.ndarray = field(init=False)
     energy: np.ndarray = field(init=False)
     count: np.ndarray = field(init=False)
+    total: np.ndarray = field(init=False)
 
     def __post_init__(self):
         self.gram = np.zeros((self.n_dof, self.n_columns, self.n_columns))
         self.moment = np.zeros((self.n_dof, self.n_columns))
         self.energy = np.zeros(self.n_dof)
         self.count = np.zeros(self.n_dof, dtype=int)
+        self.total = np.zeros(self.n_dof)
 
     def add(self, columns: np.ndarray, tau: np.ndarray) -> None:
         """Add rows: ``columns`` (n_samples, n_dof, n_columns), ``tau`` (n_samples, n_dof)."""
@@ -185,6 +191,7 @@ class NormalEquations:
         self.moment += np.einsum("nsc,ns->nc", per_joint, tau.T)
         self.energy += np.einsum("sn,sn->n", tau, tau)
         self.count += tau.shape[0]
+        self.total += tau.sum(axis=0)
 
     def add_recording(
         self, model, recording: Recording, terms: tuple, inertia_joints, coulomb_velocity, extra=None, stribeck=None
@@ -206,7 +213,7 @@ class NormalEquations:
         out = NormalEquations(self.n_dof, columns.size)
         out.gram = self.gram[:, columns][:, :, columns].copy()
         out.moment = self.moment[:, columns].copy()
-        out.energy, out.count = self.energy.copy(), self.count.copy()
+        out.energy, out.count, out.total = self.energy.copy(), self.count.copy(), self.total.copy()
         return out
 
     def weighted(self, weights) -> tuple[np.ndarray, np.ndarray, float]:
@@ -218,3 +225,8 @@ class NormalEquations:
         """Per joint ``||A_j x - y_j||^2`` of a parameter vector ``x``."""
         x = np.asarray(x, dtype=float)
         return np.einsum("c,ncd,d->n", x, self.gram, x) - 2 * self.moment @ x + self.energy
+
+    def r2(self, x) -> np.ndarray:
+        """Per joint, the coefficient of determination of the parameters ``x`` on the rows (1 - residual / variance)."""
+        variance = self.energy - self.total**2 / np.maximum(self.count, 1)
+        return 1.0 - self.residual_sum(x) / np.maximum(variance, 1e-300)

@@ -28,9 +28,8 @@ constraint cost on the data.
 from __future__ import annotations
 
 import logging
-import re
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -44,6 +43,7 @@ from identification.calibration.pseudo_inertia import (
     pseudo_inertia_eigenvalues,
 )
 from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
+from identification.calibration.trajectory_checks import check_columns, check_offset_reversals, fit_warnings
 from identification.calibration.trajectory_data import (
     FRICTION_TERMS,
     NormalEquations,
@@ -51,7 +51,6 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     prepare_recordings,
 )
-from identification.data.regressor_check import base_parameter_joints, check_regressor
 from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predict_torque", "separate_inertia_joints"]
@@ -59,7 +58,6 @@ __all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predi
 logger = logging.getLogger(__name__)
 
 ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
-COLUMN_FIX = "record a trajectory that excites {joints} better ('psdm excite' designs one), or add recordings"
 # When the data ask for an inconsistent link, the optimum lies on the boundary of the chart, at
 # infinity in its log-diagonal: the objective then creeps down without its gradient vanishing.
 # Ipopt stops when the objective has stopped changing (acceptable_obj_change_tol, relative).
@@ -157,6 +155,12 @@ class TrajectoryFit:
         Over the links of ``standard`` (positive when consistent).
     stribeck_velocity, stribeck_velocity_std : tuple
         [rad/s] Per joint, for the Stribeck shape (``"fs"`` in ``friction_terms``); empty otherwise.
+    training_r2, training_r2_ols : tuple
+        Per joint, R^2 of the identified model (and of the least-squares estimate) on the recordings it was fitted to.
+    warnings : tuple of str
+        What looks like a wrong recording (``trajectory_checks.fit_warnings``): a joint the model does not explain
+        on its own data, a friction or drive inertia the data want negative by many sigma, link masses an order of
+        magnitude from the robot file's.
     """
 
     standard: np.ndarray
@@ -182,6 +186,9 @@ class TrajectoryFit:
     seconds: float
     stribeck_velocity: tuple = ()
     stribeck_velocity_std: tuple = ()
+    training_r2: tuple = ()
+    training_r2_ols: tuple = ()
+    warnings: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -226,7 +233,10 @@ def identify_trajectories(
     Raises
     ------
     ParameterError, RecordingError
-        For recordings that do not match the robot, or too short to filter.
+        For recordings that do not match the robot, in the wrong units (``plausibility``), or too short to filter.
+    InsufficientExcitationError
+        For recordings that do not excite the parameters (``trajectory_checks``), e.g. a torque offset on a joint
+        that never reverses.
     SolverError
         When Ipopt does not converge on the consistent fit.
     """
@@ -242,6 +252,7 @@ def identify_trajectories(
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity)
     vs, columns = None, extra
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
         vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, extra)
@@ -252,7 +263,7 @@ def identify_trajectories(
         equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity, columns, vs)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
-    _check_columns(robot, model, equations.subset(range(n_fit)), names, recordings)
+    check_columns(robot, model, equations.subset(range(n_fit)), names, recordings)
     sigma, x_ols, inverse, condition = _weighted_least_squares(equations)
     correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
                    for rec in prepared]  # fmt: skip
@@ -269,7 +280,7 @@ def identify_trajectories(
     else:  # base parameters only: no standard parameters are identified, none are made up
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base :], "not solved", float("nan"), x_ols[: model.n_base]
-    return TrajectoryFit(
+    fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
         inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
         coulomb_velocity=options.coulomb_velocity,
@@ -279,24 +290,10 @@ def identify_trajectories(
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
         n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
+        training_r2=tuple(equations.r2(np.concatenate([theta, drive])).tolist()),
+        training_r2_ols=tuple(equations.r2(x_ols).tolist()),
     )  # fmt: skip
-
-
-def _check_columns(robot, model, equations, names, recordings) -> None:
-    """Refuse recordings whose (torque-RMS weighted) regressor is rank deficient or too ill-conditioned.
-
-    The check sees the regressor through a square root ``R`` of its normal matrix (``R^T R = A^T W A``),
-    which has the same singular values and directions as the stacked rows.
-    """
-    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
-    gram, _, _ = equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)
-    values, vectors = np.linalg.eigh(gram)
-    root = np.sqrt(np.clip(values, 0.0, None))[:, None] * vectors.T
-    base_names = [f"theta{k + 1}" for k in range(model.n_base)]
-    drive_joints = [(int(re.search(r"\d+$", name).group()) - 1,) for name in names]  # fc3 -> joint 2
-    check_regressor(root, names=base_names + list(names), owner="identify", robot=robot,
-                    source=", ".join(r.name or "recording" for r in recordings), fix=COLUMN_FIX,
-                    column_joints=list(base_parameter_joints(model)) + drive_joints)  # fmt: skip
+    return replace(fit, warnings=fit_warnings(robot, fit))
 
 
 def _torque_constants(robot, options, recordings):

@@ -13,7 +13,8 @@ Three checks, each on the data a step actually fits (the third in :mod:`identifi
 - :func:`check_joint_motion`: the joints a step identifies must move over a range and at a speed
   (thresholds relative to the joint's limits and to the encoder resolution, :class:`ExcitationThresholds`);
 - :func:`check_sliding`: the moving joint of a friction experiment must slide in both directions at
-  speeds above the Stribeck range, for long enough to be motion rather than noise;
+  speeds above the Stribeck range, for long enough to be motion rather than noise (and
+  :func:`check_reversals`, its counterpart on exciting trajectories: a share of the samples each way);
 - :func:`~identification.data.regressor_check.check_regressor`: the weighted, column-scaled regressor of
   the parameters being identified must have full rank and a condition number below a bound; otherwise
   the error names the columns that span its weak directions and the joints that would excite them.
@@ -38,6 +39,7 @@ __all__ = [
     "estimate_resolution",
     "check_joint_motion",
     "check_sliding",
+    "check_reversals",
     "joint_label",
     "joint_labels",
     "format_fix",
@@ -372,3 +374,54 @@ def check_sliding(recording: Recording, joint: int, *, robot=None, fix: str, thr
             joints=[joint],
         )
     return speed
+
+
+def check_reversals(recordings, joints, *, speed: float, min_fraction: float, robot=None, purpose: str, fix: str):
+    """Raise unless every joint of ``joints`` moves faster than ``speed`` both ways on ``min_fraction`` of the samples.
+
+    The samples of all ``recordings`` are pooled (a fit pools their rows): a joint that reverses in one of
+    them passes. Velocities are the recordings' ``qd`` (prepared recordings), or central differences of ``q``.
+
+    Parameters
+    ----------
+    recordings : sequence of Recording
+    joints : sequence of int
+        Joints (0-based) whose friction must be told apart from a constant (a torque offset).
+    speed : float
+        [rad/s] A sample counts for a direction when the joint moves faster than this that way.
+    min_fraction : float
+        Least share of the pooled samples in each direction.
+    robot : RobotDescription, optional
+        Joint names for the message.
+    purpose : str
+        Why both directions are needed, e.g. ``"to tell Coulomb friction from a torque offset"``.
+    fix : str
+        What to do instead (``{joints}`` and ``{k}`` are replaced by the failing joints' labels and numbers).
+
+    Raises
+    ------
+    InsufficientExcitationError
+        Naming the recordings, every failing joint with its share of samples each way and its velocity range, and
+        ``fix``.
+    """
+    recordings = list(recordings)
+    qd = np.concatenate([r.qd if r.qd is not None else np.gradient(r.q, r.t, axis=0) for r in recordings])
+    failing, details = [], []
+    for j in sorted({int(j) for j in joints}):
+        shares = (float(np.mean(qd[:, j] > speed)), float(np.mean(qd[:, j] < -speed)))
+        if min(shares) < min_fraction:
+            failing.append(j)
+            details.append(
+                f"{joint_label(j, robot)}: {100 * shares[0]:.3g} % of the samples positive, {100 * shares[1]:.3g} % "
+                f"negative (qd{j + 1} from {qd[:, j].min():.3g} to {qd[:, j].max():.3g} rad/s)"
+            )
+    if failing:
+        source = ", ".join(dict.fromkeys(r.name or "a recording" for r in recordings))
+        raise InsufficientExcitationError(
+            f"Recording {source}: {joint_labels(failing, robot)} must move both ways {purpose} (faster than "
+            f"{speed:.3g} rad/s on at least {100 * min_fraction:.3g} % of the samples each way); got "
+            + "; ".join(details)
+            + ". "
+            + format_fix(fix, failing, robot),
+            joints=failing,
+        )

@@ -299,3 +299,35 @@ def save_recording(recording: Recording, path, overwrite: bool = False, comment:
 
         return atomic_write(path, write, overwrite, mode="wb")
     raise RecordingError(f"save_recording path {path.name!r} must end in .csv or .npz; got {path.suffix!r}.")
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    """The same file or folder (links resolved), or two files with the same bytes."""
+    try:
+        if a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b)):
+            return True
+        if not (a.is_file() and b.is_file()) or a.stat().st_size != b.stat().st_size:
+            return False
+        with a.open("rb") as fa, b.open("rb") as fb:
+            while True:
+                block = fa.read(1 << 20)
+                if block != fb.read(1 << 20):
+                    return False
+                if not block:
+                    return True
+    except OSError:
+        return False
+
+
+def not_held_out(training, validation, option: str = "--data") -> list:
+    """A warning (str) per validation recording that is also a training one: one file (or bag) named twice,
+    through a link, or a byte-identical copy. Its validation is not held out: it measures the fit on the data
+    it was fitted to, and says nothing about how the model predicts new motion. ``option`` names the training
+    recordings' option in the message."""
+    return [
+        f"--validate {b} is the same recording as {option} {a}: the validation is then NOT held out (it measures "
+        "the fit on its own data, not the prediction of new motion). Validate on another recording."
+        for a in training
+        for b in validation
+        if _same_file(Path(str(a)), Path(str(b)))
+    ]

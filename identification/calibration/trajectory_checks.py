@@ -1,0 +1,162 @@
+"""Checks around the fit of exciting trajectories: refuse what cannot be identified, flag what looks like bad data.
+
+Before the fit (:func:`~identification.calibration.trajectory_fit.identify_trajectories` calls them):
+
+- :func:`check_columns`: the weighted regressor has full rank and a bounded condition number
+  (``regressor_check``);
+- :func:`check_offset_reversals`: with a torque offset per joint, every joint must move both ways. A
+  joint that moves one way only has a Coulomb column ``tanh(qd / eps)`` that is a constant, like the
+  offset's: the two cancel (thousands of N m each) and the model predicts nonsense elsewhere.
+
+After it, :func:`fit_warnings` lists what a correct recording does not produce: a joint whose torque
+the model does not explain on its own training data (R^2 below one half: a torque of another joint, or
+of the wrong sign where the unconstrained fit does explain it), a friction or drive
+inertia that the data want negative by many standard deviations (held at its bound of zero by the
+consistent fit: a torque of the wrong sign, or of another joint), and link masses an order of magnitude
+away from the robot file's (torques in another unit, a wrong torque constant). These are warnings, not
+refusals: the model may still be what the data say, and the user decides.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from identification.data.excitation_check import check_reversals, joint_label
+from identification.data.regressor_check import base_parameter_joints, check_regressor
+
+__all__ = ["COLUMN_FIX", "check_columns", "check_offset_reversals", "fit_warnings"]
+
+COLUMN_FIX = "record a trajectory that excites {joints} better ('psdm excite' designs one), or add recordings"
+REVERSAL_FIX = (
+    "Record a trajectory on which {joints} reverses ('psdm excite' designs one), or identify without the torque "
+    "offset (drop --offset)."
+)
+#: Least share of the samples in each direction for Coulomb friction and an offset to be told apart.
+MIN_REVERSAL_FRACTION = 0.02
+#: Standard deviations below zero from which a friction's unconstrained estimate is flagged (drive inertias: 3).
+FRICTION_Z = 5.0
+DRIVE_INERTIA_Z = 3.0
+#: Identified link mass over (or under) the robot file's by this factor is flagged.
+MASS_RATIO = 10.0
+#: A joint whose torque the identified model explains less than this share of (R^2 on its own data) is flagged.
+MIN_TRAINING_R2 = 0.5
+
+
+def check_columns(robot, model, equations, names, recordings) -> None:
+    """Refuse recordings whose (torque-RMS weighted) regressor is rank deficient or too ill-conditioned.
+
+    The check sees the regressor through a square root ``R`` of its normal matrix (``R^T R = A^T W A``),
+    which has the same singular values and directions as the stacked rows.
+    """
+    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
+    gram, _, _ = equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)
+    values, vectors = np.linalg.eigh(gram)
+    root = np.sqrt(np.clip(values, 0.0, None))[:, None] * vectors.T
+    base_names = [f"theta{k + 1}" for k in range(model.n_base)]
+    drive_joints = [(int(re.search(r"\d+$", name).group()) - 1,) for name in names]  # fc3 -> joint 2
+    check_regressor(root, names=base_names + list(names), owner="identify", robot=robot,
+                    source=", ".join(r.name or "recording" for r in recordings), fix=COLUMN_FIX,
+                    column_joints=list(base_parameter_joints(model)) + drive_joints)  # fmt: skip
+
+
+def check_offset_reversals(robot, prepared, friction, coulomb_velocity: float) -> None:
+    """With ``"offset"`` and ``"fc"`` in ``friction``, every joint moves faster than ``coulomb_velocity`` both ways
+    on at least ``MIN_REVERSAL_FRACTION`` of the prepared samples (``excitation_check.check_reversals``).
+
+    Raises
+    ------
+    InsufficientExcitationError
+        Naming the recordings, the joints that move one way only and the fix (record reversals, or drop the offset).
+    """
+    if "offset" not in friction or "fc" not in friction:
+        return
+    check_reversals(prepared, range(robot.n_dof), speed=coulomb_velocity, min_fraction=MIN_REVERSAL_FRACTION,
+                    robot=robot, purpose="to tell its Coulomb friction (fc) from its torque offset (offset)",
+                    fix=REVERSAL_FIX)  # fmt: skip
+
+
+def _negative_terms(fit) -> dict:
+    """Per joint (0-based), the friction terms whose unconstrained estimate is below zero by FRICTION_Z sigma."""
+    out = {}
+    for name, value, std in zip(fit.drive_names, fit.drive_ols, fit.drive_std):
+        match = re.fullmatch(r"(fc|fs|fv)(\d+)", name)
+        if match and value < -FRICTION_Z * std:
+            unit = "N m s/rad" if match.group(1) == "fv" else "N m"
+            term = f"{name} = {value:.3g} +- {std:.2g} {unit}, {-value / std:.0f} sigma below 0"
+            out.setdefault(int(match.group(2)) - 1, []).append(term)
+    return out
+
+
+def _friction_warnings(robot, fit) -> list:
+    held = "the consistent fit holds it at 0" if fit.checked else "the unconstrained model keeps it negative"
+    return [
+        f"{joint_label(j, robot)}: the data want a negative friction ({'; '.join(terms)}); {held}. "
+        f"Torque sign or joint mapping wrong? Check the sign of tau{j + 1} (or i{j + 1}) and that it is the torque "
+        f"of {joint_label(j, robot)}."
+        for j, terms in sorted(_negative_terms(fit).items())
+    ]
+
+
+def _drive_inertia_warnings(fit) -> list:
+    """A rotor inertia cannot be negative: the usual cause is a torque signal without the rotors in it."""
+    return [
+        f"the data ask for a negative drive inertia on joint {name[2:]} (unconstrained {name} = {value:.3g} +- "
+        f"{std:.2g} kg m^2); the consistent fit holds it at 0, which costs fit on that joint. Torques measured on "
+        "the link side of the gearbox (joint torque sensors: Franka Panda, KUKA iiwa) hold no rotor inertia: pass "
+        "--no-drive-inertia."
+        for name, value, std in zip(fit.drive_names, fit.drive_ols, fit.drive_std)
+        if name.startswith("Ia") and value < -DRIVE_INERTIA_Z * std
+    ]
+
+
+def _mass_warnings(robot, fit) -> list:
+    if robot.links is None or not fit.checked:
+        return []
+    prior = np.array([link.mass for link in robot.links], dtype=float)
+    mass = np.asarray(fit.standard, dtype=float)[:, 0]
+    out = []
+    for j, (m, m0) in enumerate(zip(mass, prior)):
+        if m0 > 0 and np.isfinite(m) and not (m0 / MASS_RATIO <= m <= m0 * MASS_RATIO):
+            out.append(
+                f"link {j + 1} ({joint_label(j, robot)}): identified mass {m:.3g} kg, {m / m0:.3g} times the robot "
+                f"file's {m0:.3g} kg. Torques in another unit (N m expected; mN m?), a wrong torque constant kt, or "
+                "another robot's file?"
+            )
+    return out
+
+
+def _fit_quality_warnings(robot, fit) -> list:
+    """Joints whose torque the identified model does not explain on the very recordings it was fitted to."""
+    out = []
+    for j, (r2, r2_ols) in enumerate(zip(fit.training_r2, fit.training_r2_ols)):
+        if r2 >= MIN_TRAINING_R2:
+            continue
+        label, k = joint_label(j, robot), j + 1
+        if r2_ols >= MIN_TRAINING_R2:
+            cause = (
+                f"the unconstrained fit explains {r2_ols:.0%}: the data ask for an unphysical model. Torque sign or "
+                f"joint mapping wrong? Check the sign of tau{k} (or i{k}) and its joint"
+            )
+        else:
+            cause = (
+                f"the unconstrained fit only {max(r2_ols, 0.0):.0%}: tau{k} does not look like the torque of {label}. "
+                "Joint mapping wrong (columns swapped)? Check the column order, the units and the robot file"
+            )
+        share = f"only {r2:.0%}" if r2 > 0 else "none"
+        out.append(
+            f"{label}: the identified model explains {share} of the variance of tau{k} on the recordings it was "
+            f"fitted to (R^2 = {r2:.3g}), {cause}."
+        )
+    return out
+
+
+def fit_warnings(robot, fit) -> tuple:
+    """Warnings (str) on a ``TrajectoryFit`` of ``robot`` that point at a wrong recording (module docstring)."""
+    return tuple(
+        _fit_quality_warnings(robot, fit)
+        + _friction_warnings(robot, fit)
+        + _drive_inertia_warnings(fit)
+        + _mass_warnings(robot, fit)
+    )
