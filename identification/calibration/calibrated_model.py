@@ -46,8 +46,8 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.calibration.findings import FindingTerm, term_values
-from identification.calibration.trajectory_data import drive_columns
+from identification.calibration.findings import FindingTerm, correct_recording, term_values
+from identification.calibration.trajectory_data import drive_columns, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
@@ -231,6 +231,26 @@ class CalibratedModel:
                 f"{list(LUGRE_PARAMETER_NAMES)}; got an error ({exc}). Re-run 'psdm identify --friction lugre'."
             ) from None
 
+    def predict_recording(self, model, recording, kt=None) -> tuple:
+        """(prepared recording, predicted joint torques [N m]) of the model on a raw recording, as ``psdm validate``.
+
+        The one path from a raw recording to the model's torque: the model's measurement corrections first
+        (``findings.correct_recording``), then the identification's preparation (its cutoff). A LuGre model's bristle
+        state starts relaxed at the raw start and is carried over the samples the filter trims along the corrected
+        recording (``lugre_recordings.bristle_force_at``): the friction sees the corrected velocity, as in the fit.
+        ``kt`` [N m/A], shape (n_dof,), converts a recording of currents.
+        """
+        cutoff = self.document["identification"]["cutoff_hz"][0]
+        corrected = correct_recording(recording, self.corrections, kt)
+        prepared, _, _ = prepare_recording(corrected, kt, cutoff)
+        bristle = None
+        if self.lugre_parameters is not None:
+            from identification.calibration.lugre_recordings import bristle_force_at
+
+            bristle = bristle_force_at(self.lugre_parameters, corrected, cutoff, prepared.t[0])
+        predicted = self.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle)
+        return prepared, predicted
+
     def predict(self, model, q, qd, qdd, t=None, bristle=None) -> np.ndarray:
         """Joint torques [N m] of the calibrated model: rigid body of ``theta``, drive terms and findings.
 
@@ -382,12 +402,18 @@ def _version() -> str:
 
 
 def load_calibrated_model(path) -> CalibratedModel:
-    """Read a calibrated-model file, checking its format and version.
+    """Read a calibrated-model file, checking its format, version and contents (``model_file_check``).
+
+    Every field must parse (finite numbers of the right length, booleans, drive names and values one to one),
+    the robot texts must match ``robot.sha256``, the base parameters must be those of the standard block under
+    the model derived from the file's robot, and a file that claims ``consistent`` must pass the check again.
 
     Raises
     ------
     ModelFileError
-        Naming the file and what is wrong (not JSON, another format, a newer version, missing blocks).
+        Naming the file, the field and the fix (not JSON, another format, a newer version, missing blocks, a
+        field that does not parse, an edited robot text, base and standard parameters that disagree, a false
+        consistency claim).
     """
     path = Path(path)
     try:
@@ -408,4 +434,11 @@ def load_calibrated_model(path) -> CalibratedModel:
     missing = [k for k in ("robot", "standard", "base", "drive", "identification") if k not in document]
     if missing:
         raise ModelFileError(f"{path.name}: the blocks {missing} are missing. Re-run 'psdm identify'.")
-    return CalibratedModel(document)
+    from identification.calibration.model_file_check import check_against_model, check_document
+    from psdm_casadi.derive import derive_psdm
+
+    check_document(document, path.name)  # every field parses, the robot text matches its hash
+    calibrated = CalibratedModel(document)
+    calibrated.lugre_parameters, calibrated.torque_findings  # noqa: B018  (raise here, not in the command)
+    check_against_model(calibrated, derive_psdm(calibrated.load_robot()), path.name)  # base == standard's, claims
+    return calibrated

@@ -13,9 +13,6 @@ import copy
 import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel
-from identification.calibration.findings import correct_recording
-from identification.calibration.lugre_recordings import bristle_force_at
-from identification.calibration.trajectory_data import prepare_recording
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from identification.metrics import r2, rmse
 
@@ -25,16 +22,11 @@ __all__ = ["implausibility", "unhelpful_findings", "validation_rmse", "without_e
 def validation_rmse(calibrated: CalibratedModel, model, recording, kt=None) -> tuple:
     """(RMSE, R^2, prepared recording, prediction) of a calibrated model on a raw recording, as ``psdm validate``.
 
-    The model's measurement corrections are applied to the raw recording, which is then prepared with the
-    identification's cutoff. A LuGre model's bristle state starts relaxed at the raw recording's start and is
-    carried over the samples the filter trims (``lugre_recordings.bristle_force_at``).
+    The prediction is ``CalibratedModel.predict_recording``'s: the model's measurement corrections applied to the
+    raw recording, then the identification's preparation; a LuGre model's bristle state carried from the raw start
+    along the corrected recording.
     """
-    cutoff = calibrated.document["identification"]["cutoff_hz"][0]
-    prepared, _, _ = prepare_recording(correct_recording(recording, calibrated.corrections, kt), kt, cutoff)
-    bristle = None
-    if calibrated.lugre_parameters is not None:  # LuGre: the bristle state carried from the raw start
-        bristle = bristle_force_at(calibrated.lugre_parameters, recording, cutoff, prepared.t[0])
-    predicted = calibrated.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle)
+    prepared, predicted = calibrated.predict_recording(model, recording, kt)
     return rmse(prepared.tau, predicted), r2(prepared.tau, predicted), prepared, predicted
 
 

@@ -17,14 +17,15 @@ uses the previous model's torque, then the new model's (two passes).
 A model with LuGre friction (file version 3) is identified again as ``psdm identify --friction lugre`` does
 (``lugre_identify.identify_lugre_trajectories``: the Stribeck fit, the LuGre fit of the friction it leaves, the
 rigid body again with that friction taken out, the LuGre fit again) with the finding columns in every linear
-fit, so the new file holds the LuGre friction and the findings. Two kinds of finding are refused for it (not
-supported yet): signal findings (measurement corrections; the validation carries the bristle state along the
-uncorrected recording) and load-dependent friction (a multiple of the model's own torque, whose LuGre part the
-exported ``psdm_inverse_dynamics`` does not hold, so the file and its exported code would differ).
+fit, so the new file holds the LuGre friction and the findings. Its signal findings correct the recordings the
+LuGre friction is fitted on and judged on alike (``CalibratedModel.predict_recording``: the bristle state carried
+along the corrected recording). Load-dependent friction is refused for it (a multiple of the model's own torque,
+whose LuGre part the exported ``psdm_inverse_dynamics`` does not hold, so the file and its exported code would
+differ).
 
-The result is judged on the validation recording as ``psdm validate`` judges it (the same preparation,
-``CalibratedModel.predict``), before and after, so the file's numbers are what its exported code gives.
-A finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no
+The result is judged on the validation recording as ``psdm validate`` judges it (the same corrections and
+preparation, ``CalibratedModel.predict_recording``), before and after, so the file's numbers are what its exported
+code gives. A finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no
 refit) does not raise them is dropped, listed with its RMSE pair in the ``recalibration`` block
 (``dropped_findings``), and the model is refitted without it (a finding whose every feature the fit's other
 columns already span contributes nothing by construction; it is kept and reported as absorbed).
@@ -161,18 +162,17 @@ def _correction(finding, candidate) -> dict:
     return entry
 
 
-def _check_lugre_findings(calibrated: CalibratedModel, terms, corrections) -> None:
-    """Refuse the findings a LuGre model cannot hold yet (module docstring), naming them and the way out."""
+def _check_lugre_findings(calibrated: CalibratedModel, terms) -> None:
+    """Refuse the findings a LuGre model cannot hold (module docstring), naming them and the way out."""
     if calibrated.lugre_parameters is None:
         return
-    refused = sorted(corrections) + sorted(t.label for t in terms if t.load_dependent)
+    refused = sorted(t.label for t in terms if t.load_dependent)
     if refused:
         raise ParameterError(
-            f"recalibrate: a model with LuGre friction (drive.lugre) does not take the findings {refused} yet: "
-            "signal findings (measurement corrections) and load-dependent friction (a multiple of the model's own "
-            "torque, whose LuGre part the exported psdm_inverse_dynamics does not hold) are not supported for LuGre "
-            "models. Identify the robot with --friction stribeck and apply the findings to that model, or use this "
-            "diagnosis without --apply."
+            f"recalibrate: a model with LuGre friction (drive.lugre) does not take the findings {refused}: "
+            "load-dependent friction (a multiple of the model's own torque, whose LuGre part the exported "
+            "psdm_inverse_dynamics does not hold) is not supported for LuGre models. Identify the robot with "
+            "--friction stribeck and apply the findings to that model, or use this diagnosis without --apply."
         )
 
 
@@ -285,7 +285,7 @@ def recalibrate(
     train = [train] if not isinstance(train, (list, tuple)) else list(train)
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
     terms, corrections, entries = _finding_terms(calibrated, report)
-    _check_lugre_findings(calibrated, terms, corrections)
+    _check_lugre_findings(calibrated, terms)
     kt = _kt(robot, validation)
     after, fit, terms, entries = _robust_fit(
         calibrated, robot, model, train, (terms, corrections, entries), robot_source

@@ -37,6 +37,10 @@ the static hump (``fs``, ``vs``) and the LuGre bristle dynamics (``sigma0``, ``s
 values written in a comment on each joint, and :func:`friction_not_representable` gives the warning
 ``psdm export-urdf`` prints. (Writing ``fs`` instead, or a blend, would be wrong at every sliding speed.)
 
+**Findings** of ``psdm diagnose MODEL --apply`` (torque terms such as a spring, measurement corrections such
+as a joint elasticity) have no URDF element either: each is named with its parameters in a comment on its
+joint, the header warns (``urdf_findings``), and ``psdm export-urdf`` prints the warning.
+
 **Drives.** The model's Coulomb term is ``fc tanh(qd / v)`` (``v`` in the header comment); a torque
 offset and the drive inertia have no URDF field and are written as comments on their joint. The
 drive inertia ``Ia`` reflected to the joint is Pinocchio's ``model.armature``: Pinocchio's URDF
@@ -60,6 +64,7 @@ from xml.parsers.expat import ExpatError
 import numpy as np
 import pinocchio as pin
 
+from identification.calibration.urdf_findings import findings_left_out, findings_not_representable
 from identification.calibration.urdf_friction import friction_left_out, friction_not_representable
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.fileio import atomic_write
@@ -219,6 +224,7 @@ def _joint_notes(calibrated, robot) -> list:
     armature = urdf_armature(calibrated, robot)
     offsets = _drive_terms(calibrated)["offset"]
     left_out = friction_left_out(calibrated)
+    findings, _ = findings_left_out(calibrated)
     notes = []
     for j, joint in enumerate(robot.joints):
         inertia_unit, force_unit = ("kg m^2", "N m") if joint.is_revolute else ("kg", "N")
@@ -230,6 +236,7 @@ def _joint_notes(calibrated, robot) -> list:
             text += f"; constant torque offset {exact_text(offsets[j])} {force_unit} (not a URDF field)"
         if left_out is not None:
             text += f"; friction not representable in URDF (left out): {left_out[j]}"
+        text += "".join(f"; finding {finding}" for finding in findings.get(j, ()))
         notes.append(text)
     return notes
 
@@ -255,6 +262,9 @@ def _header(document, calibrated, robot, world: bool, indent: str):
         + (" 'world' (added: the robot's base frame has gravity " + _nums(robot.gravity) + ")" if world else "")
         + "; set model.gravity (Pinocchio's default is 9.81).",
     ]
+    if (findings := findings_not_representable(calibrated)) is not None:
+        lines.append(f"Findings: WARNING: {findings}.")
+        lines += [f"Finding {text}." for text in findings_left_out(calibrated)[1]]  # on no joint (a delay)
     if robot.locked_joints:
         locked = ", ".join(f"{name} at {exact_text(value)}" for name, value in _locked(robot))
         lines.append(f"Locked joints (lock them there when loading, e.g. pinocchio.buildReducedModel): {locked}.")

@@ -5,9 +5,19 @@ identify --friction lugre`` puts the spring into the gravity parameters and into
 of that model finds the spring, and the recalibration with it (the LuGre identification again, the spring's
 columns in every linear fit) recovers the spring, the LuGre truth of every joint and the validation error, in a
 version 3 file whose compiled C (inverse dynamics with the spring, plus the LuGre step) gives the reported
-validation RMSE. The fast test checks the refusal of the findings the LuGre model cannot carry yet.
+validation RMSE.
+
+The same robot with a hidden torque-sensor delay instead, and the delay given to ``psdm diagnose --apply`` by a
+stand-in of the diagnosis (``_stand_in_diagnosis``): run on the LuGre model identified from the delayed torque, the
+diagnosis does not report the delay (that model has taken up most of it; the delay candidate is fitted negative and
+rejected, joint elasticities are reported instead), so what is tested here is the recalibration's signal path from
+the finding on: the LuGre friction fitted on the corrected recordings, the judgement with the bristle state carried
+along them, as ``psdm validate`` does. A load-dependent friction finding, which the LuGre model cannot carry, is
+refused by the recalibration and by ``psdm diagnose --apply`` (exit 2, nothing written).
 """
 
+import copy
+import importlib
 import json
 import re
 import shutil
@@ -23,9 +33,11 @@ from identification.diagnosis.report import Finding
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from identification.virtual import effects as xp
 from psdm_casadi.errors import ParameterError
-from tests.identification.lugre_recordings_data import TRUTH
+from tests.identification.lugre_recordings_data import RATE, TRUTH
 
 SPRING_K, SPRING_Q0 = 40.0, 0.2
+#: The hidden torque-sensor delay [samples at RATE] of the delay loop, and its stated tolerance (one sample).
+DELAY_SAMPLES, DELAY_TOLERANCE_S = 6, 1.0 / RATE
 #: Stated tolerances of the recovered spring: stiffness (relative, beside 3 of its sigma) and rest position [rad].
 SPRING_K_TOLERANCE, SPRING_Q0_TOLERANCE = 0.05, 0.02
 #: Stated tolerances (relative) of the LuGre parameters after the recalibration, as for the identification alone
@@ -105,6 +117,101 @@ def test_the_exported_c_of_the_recalibrated_lugre_model_gives_the_reported_rmse(
     np.testing.assert_allclose(rmse_c, after.document["recalibration"]["after"]["validation_rmse"], rtol=1e-9)
 
 
+@pytest.fixture(scope="module")
+def delay_loop(denso, tmp_path_factory):
+    """``psdm identify --friction lugre`` on the recordings whose torque lags by ``DELAY_SAMPLES``, then ``psdm
+    diagnose MODEL --apply`` with a stand-in diagnosis that reports that delay (module docstring: why a stand-in)."""
+    from psdm_casadi.cli import main
+    from tests.conftest import DENSO_FILE
+    from tests.identification.lugre_recordings_data import CUTOFF, write_lugre_recordings
+
+    folder = tmp_path_factory.mktemp("lugre_delay")
+    train, valid = write_lugre_recordings(denso, folder, extras=[xp.SignalDelay(samples=DELAY_SAMPLES)])
+    argv = ["identify", str(DENSO_FILE), "--data", str(train), "--friction", "lugre", "--cutoff", str(CUTOFF),
+            "--out", str(folder / "model.json")]  # fmt: skip
+    assert main(argv) == 0
+    argv = ["diagnose", str(folder / "model.json"), "--train", str(train), "--validate", str(valid), "--cutoff",
+            str(CUTOFF), "--apply", str(folder / "new.json")]  # fmt: skip
+    with pytest.MonkeyPatch.context() as patch:
+        _stand_in_diagnosis(patch, DelayTerm(), {"delay_s": DELAY_SAMPLES / RATE})
+        assert main(argv) == 0
+    return folder, valid
+
+
+@pytest.mark.slow
+def test_apply_of_a_delay_to_a_lugre_model_refits_the_friction_and_validates_as_psdm_validate(delay_loop, capsys):
+    """The delay is kept (it lowers the validation RMSE of every joint), the LuGre friction fitted on the corrected
+    recordings is the truth again where the delayed torque had corrupted it, and ``psdm validate NEW valid.csv``
+    (the correction applied, the bristle state carried along the corrected recording) gives the file's RMSE."""
+    from psdm_casadi.cli import main
+
+    folder, valid = delay_loop
+    before, after = load_calibrated_model(folder / "model.json"), load_calibrated_model(folder / "new.json")
+    assert after.document["version"] == 3 and after.lugre_parameters is not None
+    assert list(after.corrections.values()) == [{"effect": "delay", "delay_s": DELAY_SAMPLES / RATE}]
+    entry = next(e for e in after.document["findings"] if e["effect"] == "delay")
+    assert entry["kind"] == "signal"
+    block = after.document["recalibration"]
+    assert block["dropped_findings"] == [], block["dropped_findings"]
+    joints = [j - 1 for j in entry["joints"]] or list(range(after.n_dof))
+    rmse_before, rmse_after = (np.array(block[k]["validation_rmse"])[joints] for k in ("before", "after"))
+    assert np.all(rmse_after < rmse_before), (rmse_before, rmse_after)
+    assert np.all(np.array(entry["validation_rmse_without"])[joints] > rmse_after)
+    assert any(np.any(e > TOLERANCE[name]) for name, e in _lugre_errors(before).items())
+    for name, error in _lugre_errors(after).items():
+        assert np.all(error < TOLERANCE[name]), (name, np.round(error, 3))
+    capsys.readouterr()
+    assert main(["validate", str(folder / "new.json"), str(valid), "--json"]) == 0
+    validated = json.loads(capsys.readouterr().out)["recordings"][0]["rmse"]
+    np.testing.assert_allclose(validated, block["after"]["validation_rmse"], rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_a_lugre_models_bristle_state_is_carried_along_the_corrected_positions(delay_loop, denso_model):
+    """An encoder before a compliant joint: the model with that correction on the raw recording predicts what the
+    model without corrections predicts on the recording corrected beforehand (the friction sees the corrected
+    velocity from the raw start on), and the bristle state there differs from the raw positions' one."""
+    from identification.calibration.findings import correct_recording
+    from identification.calibration.lugre_recordings import bristle_force_at
+    from identification.data.io import load_recording
+
+    folder, valid = delay_loop
+    document = copy.deepcopy(load_calibrated_model(folder / "new.json").document)
+    document["corrections"]["elasticity"] = {"effect": "joint_elasticity", "joint": 2, "compliance_rad_per_Nm": 2e-3}
+    corrected_model = CalibratedModel(document)
+    plain = CalibratedModel({**copy.deepcopy(document), "corrections": {}})
+    recording = load_recording(valid, 6)
+    corrected = correct_recording(recording, corrected_model.corrections)
+    prepared, predicted = corrected_model.predict_recording(denso_model, recording)
+    prepared_ref, reference = plain.predict_recording(denso_model, corrected)
+    np.testing.assert_array_equal(prepared.t, prepared_ref.t)
+    np.testing.assert_allclose(predicted, reference, rtol=0.0, atol=1e-12)
+    cutoff = document["identification"]["cutoff_hz"][0]
+    lugre = corrected_model.lugre_parameters
+    carried = [bristle_force_at(lugre, r, cutoff, prepared.t[0])[1] for r in (corrected, recording)]
+    assert abs(carried[0] - carried[1]) > 0.01 * lugre[1].fc, carried  # the check above can see the difference
+
+
+@pytest.mark.slow
+def test_diagnose_apply_refuses_load_dependent_friction_on_a_lugre_model(delay_loop, monkeypatch, capsys):
+    """``psdm diagnose LUGRE.json --apply NEW.json`` with a load-dependent friction finding (the report given by a
+    stand-in of the diagnosis): exit 2, one line naming the model file and the fix, no traceback, nothing written."""
+    from psdm_casadi.cli import main
+
+    folder, valid = delay_loop
+    candidate = LoadDependentFrictionTerm(joint=1)
+    _stand_in_diagnosis(monkeypatch, candidate, {"coefficient": 0.02})
+    out = folder / "refused.json"
+    argv = ["diagnose", str(folder / "model.json"), "--train", str(valid), "--validate", str(valid), "--apply",
+            str(out)]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 2
+    error = capsys.readouterr().err
+    assert str(folder / "model.json") in error and candidate.label in error, error
+    assert "--friction stribeck" in error and "Nothing was written" in error, error
+    assert "Traceback" not in error and not out.exists()
+
+
 def _lugre_document() -> CalibratedModel:
     """The parts of a LuGre model file the recalibration reads before it fits (two joints)."""
     lugre = {name: [1.0, 1.0] for name in LUGRE_PARAMETER_NAMES}
@@ -112,22 +219,30 @@ def _lugre_document() -> CalibratedModel:
                             "drive": {"lugre": lugre, "coulomb_velocity": 0.05}})  # fmt: skip
 
 
-@pytest.mark.parametrize(
-    "candidate, parameters",
-    [(DelayTerm(), {"delay_s": 0.004}), (LoadDependentFrictionTerm(joint=1), {"coefficient": 0.02})],
-)
-def test_apply_to_a_lugre_model_refuses_the_findings_it_cannot_carry(candidate, parameters):
-    """A measurement correction and a load-dependent friction (a multiple of the model's own torque, whose LuGre part
-    the exported inverse dynamics does not hold) are not supported for a LuGre model: the recalibration refuses them
-    by name, before any fit, with the way out."""
+def _report(candidate, parameters) -> SimpleNamespace:
+    """A diagnosis report with one finding of ``candidate`` (the parts the recalibration reads)."""
     value = next(iter(parameters.values()))
     finding = Finding(effect=candidate.key, label=candidate.label, joints=(() if candidate.joint is None else (1,)),
                       parameters=parameters, coefficients=(value,), feature_names=tuple(candidate.feature_names()),
                       explanation="", signature="", rmse_before=(1.0, 1.0), rmse_after=(0.5, 0.5), delta_bic=-10.0,
                       validation_gain=0.5)  # fmt: skip
-    report = SimpleNamespace(findings=[finding], augmented=SimpleNamespace(terms=(candidate,), coefficients=([value],)))
+    return SimpleNamespace(findings=[finding], augmented=SimpleNamespace(terms=(candidate,), coefficients=([value],)))
+
+
+def _stand_in_diagnosis(patch, candidate, parameters) -> None:
+    """``diagnose`` replaced (for ``psdm diagnose``) by one that reports a finding of ``candidate``."""
+    diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
+    report = _report(candidate, parameters)
+    report.to_markdown = lambda paths: f"stand-in diagnosis: {candidate.label}"
+    patch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: report)
+
+
+def test_apply_to_a_lugre_model_refuses_load_dependent_friction():
+    """A load-dependent friction (a multiple of the model's own torque, whose LuGre part the exported inverse
+    dynamics does not hold) is not supported for a LuGre model: the recalibration refuses it by name, before any
+    fit, with the way out."""
+    candidate = LoadDependentFrictionTerm(joint=1)
     match = rf"drive.lugre. does not take the findings \['{re.escape(candidate.label)}'\]"
     with pytest.raises(ParameterError, match=match) as refused:
-        recalibrate(_lugre_document(), None, None, report, [], [])
-    assert "--friction stribeck" in str(refused.value)
+        recalibrate(_lugre_document(), None, None, _report(candidate, {"coefficient": 0.02}), [], [])
     assert "--friction stribeck" in str(refused.value)
