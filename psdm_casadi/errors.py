@@ -47,12 +47,16 @@ class NotFittedError(PSDMError, ValueError, AttributeError):
 
 
 class SolverError(PSDMError, RuntimeError):
-    """A numerical solver (Ipopt, a factorisation) failed; the message carries its status."""
+    """A numerical solver (Ipopt, a factorisation) failed; the message carries its status.
 
-    def __init__(self, message, status=None, iterations=None):
+    ``joint`` (0-based, None when the solve was not one joint's) lets a caller name the joint in its own words.
+    """
+
+    def __init__(self, message, status=None, iterations=None, joint=None):
         super().__init__(message)
         self.status = status
         self.iterations = iterations
+        self.joint = joint
 
 
 class DerivationError(PSDMError, RuntimeError):

@@ -239,11 +239,12 @@ class OutputFolder:
     ...     (stage / "report.md").write_text("...")
     """
 
-    def __init__(self, target, names, option: str = "--force", shared: bool = False):
+    def __init__(self, target, names, option: str = "--force", shared: bool = False, label: str = "--out"):
         self.target = Path(target).expanduser()
         self.names = frozenset(names)
         self.option = option
         self.shared = shared
+        self.label = label  # the option that names the folder, in messages
 
     def check(self, force: bool) -> None:
         """Refuse a target this run may not write, before any work (FileExistsError, naming the fix)."""
@@ -253,29 +254,32 @@ class OutputFolder:
             resolved in (Path.cwd().resolve(), Path.home().resolve()) or resolved == Path(resolved.anchor)
         ):
             raise FileExistsError(
-                f"--out {str(target)!r} is the working, home or root folder; name a new folder, e.g. --out report."
+                f"{self.label} {str(target)!r} is the working, home or root folder; name a new folder, "
+                f"e.g. {self.label} report."
             )
         if os.path.lexists(target) and not target.is_dir():
-            raise FileExistsError(f"--out {str(target)!r} is a file; name a folder (new, or one this tool wrote).")
+            raise FileExistsError(
+                f"{self.label} {str(target)!r} is a file; name a folder (new, or one this tool wrote)."
+            )
         existing = sorted(p.name for p in target.iterdir()) if target.is_dir() else []
         if self.shared:
             self._check_shared(existing, force)
         elif existing:
             self._check_exclusive(existing, force)
-        check_writable(self._staging_parent(), "--out", target)
+        check_writable(self._staging_parent(), self.label, target)
         if target.is_dir():
-            check_writable(target, "--out", target)
+            check_writable(target, self.label, target)
 
     def _check_exclusive(self, existing: list, force: bool) -> None:
         if not force:
             raise FileExistsError(
-                f"--out {str(self.target)!r} exists and is not empty; pass {self.option} to replace "
+                f"{self.label} {str(self.target)!r} exists and is not empty; pass {self.option} to replace "
                 "the files this tool wrote there, or name a new folder."
             )
         foreign = [name for name in existing if name not in self.names]
         if foreign:
             raise FileExistsError(
-                f"--out {str(self.target)!r} holds files this tool did not write ({_shown(foreign)}); "
+                f"{self.label} {str(self.target)!r} holds files this tool did not write ({_shown(foreign)}); "
                 f"{self.option} replaces only its own outputs. Name a new folder."
             )
 
@@ -283,7 +287,7 @@ class OutputFolder:
         ours = [name for name in existing if name in self.names]
         if ours and not force:
             raise FileExistsError(
-                f"--out {str(self.target)!r} already holds {_shown(ours)}; pass {self.option} to replace "
+                f"{self.label} {str(self.target)!r} already holds {_shown(ours)}; pass {self.option} to replace "
                 "them, or name another folder."
             )
 

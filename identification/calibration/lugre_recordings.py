@@ -51,7 +51,7 @@ from identification.data.preprocessing import central_difference, resample_unifo
 from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
 from identification.friction.shooting import ShootingOptions, fit_lugre_multiple_shooting
 from identification.friction.simulation import simulate_lugre, simulated_mse
-from psdm_casadi.errors import InsufficientExcitationError, ParameterError, ShapeError
+from psdm_casadi.errors import InsufficientExcitationError, ParameterError, ShapeError, SolverError
 
 __all__ = ["IDENTIFIABLE_RELATIVE_SIGMA", "LuGreFit", "LuGreWarning", "fit_lugre_recordings", "friction_residual",
            "lugre_friction", "lugre_std", "bristle_force_at", "presliding_time", "sigma0_identifiable",
@@ -359,6 +359,8 @@ def fit_lugre_recordings(
                 f"--friction lugre: joint {j + 1} ({exc}). LuGre friction is fitted along the recorded reversals; "
                 "record this joint moving both ways, or pass --friction stribeck."
             ) from None
+        except SolverError as exc:
+            raise SolverError(f"joint {j + 1}: {exc}", exc.status, exc.iterations, joint=j) from None
         parameters.append(result.parameters)
         s0 = result.parameters.sigma0 * result.z[0]
         std.append(lugre_std(result.parameters, t, qd[:, j], residual[:, j], options.fixed, s0))

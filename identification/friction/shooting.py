@@ -400,7 +400,8 @@ def _solve(nlp, hess_lag, w0, n_nodes, options):
     if status not in accepted:
         raise SolverError(
             f"fit_lugre_multiple_shooting: Ipopt returned status {status} after {iterations} iterations. "
-            "Improve the initial guess, raise ShootingOptions.max_iter or check the data.",
+            "Start from a better guess (initial), raise ShootingOptions.max_iter, or check the friction series "
+            "(a low-pass cutoff well above the motion's frequencies keeps its low-velocity shape).",
             status=status,
             iterations=iterations,
         )

@@ -7,7 +7,9 @@ package and the demo import more than one of ``psdm_casadi``, ``trajopt``, ``ide
 psdm-casadi print in one line (``--debug`` shows the traceback).
 
 Exit codes: 0 success, 1 a check failed (e.g. accuracy or a target not met), 2 bad input
-(file, option, data), 3 a solver or compiler failed, 130 interrupted.
+(file, option, data), 3 a solver or compiler failed, 130 interrupted, 141 stdout closed by its reader
+(``psdm ... | head -1``: the files are written, the rest of the printout is dropped). With ``--json`` an
+error is printed as ``{"command", "error", "exit_code"}`` on stdout as well.
 """
 
 from __future__ import annotations
@@ -20,19 +22,24 @@ from psdm_casadi.cli.checks import check_seed
 from psdm_casadi.cli.interrupts import InterruptGuard
 from psdm_casadi.cli.output import (
     EXIT_BAD_INPUT,
+    EXIT_BROKEN_PIPE,
     EXIT_CHECK_FAILED,
     EXIT_INTERRUPTED,
     EXIT_OK,
     EXIT_SOLVER,
     configure_logging,
+    json_printed,
     print_json,
     progress,
     remove_logging,
+    reset_json,
+    silence_stdout,
 )
 from psdm_casadi.errors import PSDMError, SolverError
 
 __all__ = [
     "EXIT_BAD_INPUT",
+    "EXIT_BROKEN_PIPE",
     "EXIT_CHECK_FAILED",
     "EXIT_INTERRUPTED",
     "EXIT_OK",
@@ -86,13 +93,21 @@ def main(argv=None) -> int:
         parser.print_help()
         return EXIT_BAD_INPUT
     configure_logging(_log_level(args))
+    reset_json()
     try:
         with InterruptGuard():
             check_seed(getattr(args, "seed", None))
-            return int(args.handler(args) or 0)
+            code = int(args.handler(args) or 0)
+            sys.stdout.flush()  # a closed stdout shows here, not in Python's flush at exit
+            return code
     except KeyboardInterrupt:
-        print(f"psdm {args.command}: interrupted; no output was written or changed", file=sys.stderr)
+        message = "interrupted; no output was written or changed"
+        print(f"psdm {args.command}: {message}", file=sys.stderr)
+        _json_error(args, message, EXIT_INTERRUPTED)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:  # stdout closed by its reader (| head): the files are written; end quietly
+        silence_stdout()
+        return EXIT_BROKEN_PIPE
     except SolverError as exc:
         return _report(args, exc, EXIT_SOLVER)
     except (PSDMError, OSError) as exc:
@@ -110,7 +125,18 @@ def _report(args, exc: Exception, code: int) -> int:
         where = f" {str(exc.filename)!r}" if exc.filename else ""
         message = f"{exc.strerror}:{where}. Check the file and folder options (--out, --data, ...)."
     print(f"psdm {args.command}: error: {message}", file=sys.stderr)
+    _json_error(args, message, code)
     return code
+
+
+def _json_error(args, message: str, code: int) -> None:
+    """With ``--json``, an error is one JSON object on stdout too (unless the command printed its own)."""
+    if not getattr(args, "json", False) or json_printed():
+        return
+    try:
+        print_json({"command": args.command, "error": message, "exit_code": code})
+    except BrokenPipeError:
+        silence_stdout()
 
 
 if __name__ == "__main__":

@@ -5,17 +5,22 @@ Every command that loads a robot takes it through :func:`add_robot_argument` and
 
 Values are printed as plain numbers (``0``, ``-1``, ``1e+09``), never as numpy reprs. The outputs of a
 command are checked here too (:func:`output_file`, :func:`output_folder`) and written through
-:func:`staged`, so that a refusal, a failure or Ctrl-C leaves no partial file.
+:func:`staged`, so that a refusal, a failure or Ctrl-C leaves no partial file. No output may be, hold or lie
+inside an input of the same command (:func:`check_not_input`), and a folder's ``--overwrite`` replaces only
+what its manifest lists (``psdm_casadi.manifest``).
 """
 
 from __future__ import annotations
 
 import math
+import os
 from contextlib import ExitStack, contextmanager
 from numbers import Integral, Real
+from pathlib import Path
 
 from psdm_casadi.errors import ParameterError
-from psdm_casadi.fileio import OutputFile, OutputFolder
+from psdm_casadi.fileio import OutputFile
+from psdm_casadi.manifest import ManifestFolder
 
 __all__ = [
     "MAX_SAMPLES",
@@ -24,9 +29,11 @@ __all__ = [
     "add_robot_argument",
     "add_topic_argument",
     "check_count",
+    "check_not_input",
     "check_positive",
     "check_samples",
     "check_seed",
+    "check_suffix",
     "load_locked_robot",
     "load_robot_argument",
     "output_file",
@@ -120,11 +127,71 @@ def output_file(path, option: str, overwrite: bool, overwrite_option: str = "--o
     return output
 
 
-def output_folder(path, names, force: bool, force_option: str = "--overwrite", shared: bool = False) -> OutputFolder:
-    """The checked ``--out`` folder of a command that writes ``names`` (see ``OutputFolder``)."""
-    folder = OutputFolder(path, names, option=force_option, shared=shared)
+def output_folder(
+    path,
+    names,
+    force: bool,
+    force_option: str = "--overwrite",
+    shared: bool = False,
+    command: str = "psdm",
+    label: str = "--out",
+) -> ManifestFolder:
+    """The checked ``label`` folder of a command that writes ``names``: its manifest limits what ``force`` replaces
+    (see ``ManifestFolder``)."""  # fmt: skip
+    folder = ManifestFolder(path, names, command, force_option, shared, label)
     folder.check(force)
     return folder
+
+
+def check_suffix(path, option: str, suffixes, what: str) -> None:
+    """``path`` (None allowed) must end with one of ``suffixes`` (``.json``): the format the command writes."""
+    if path is None or Path(str(path)).suffix.lower() in suffixes:
+        return
+    name = Path(str(path))
+    raise ParameterError(
+        f"{option} {str(path)!r} must end with {' or '.join(suffixes)}: the command writes {what}. "
+        f"Pass e.g. {option} {name.with_suffix(suffixes[0]) if name.suffix else str(name) + suffixes[0]}."
+    )
+
+
+def _resolved(path) -> Path:
+    return Path(os.path.realpath(Path(str(path)).expanduser()))
+
+
+def check_not_input(output, option: str, inputs, force_option: str = "--overwrite", example=None) -> None:
+    """Refuse an output that is, holds or lies inside an input of the same command (paths and symlinks resolved).
+
+    ``inputs`` is an iterable of ``(option, path)``; None paths and names that are not files (a built-in
+    robot) are skipped. ``force_option`` never replaces an input: the message names both options and the fix
+    (``example``, default the output's name with ``_out``).
+    """
+    if output is None:
+        return
+    target = _resolved(output)
+    for input_option, path in inputs:
+        if path is None or not os.path.lexists(Path(str(path)).expanduser()):
+            continue
+        source = _resolved(path)
+        if target == source:
+            relation = "is"
+        elif target in source.parents:
+            relation = "is a folder holding"
+        elif source.is_dir() and source in target.parents:
+            relation = "lies inside"
+        else:
+            continue
+        raise ParameterError(
+            f"{option} {str(output)!r} {relation} the {input_option} input {str(path)!r} of this command; "
+            f"{force_option} never replaces an input. Name another {option}, e.g. {example or _suggestion(output)}."
+        )
+
+
+def _suggestion(output) -> str:
+    path = Path(str(output))
+    path = path if path.name else _resolved(path)
+    return (
+        str(path.with_name(f"{path.stem}_out{path.suffix}")) if path.suffix else str(path.with_name(path.name + "_out"))
+    )
 
 
 @contextmanager

@@ -9,13 +9,29 @@ from pathlib import Path
 import numpy as np
 
 from codegen.export import export_c
-from psdm_casadi.cli.checks import add_lock_argument, load_locked_robot, output_folder
+from psdm_casadi.cli.checks import add_lock_argument, check_not_input, load_locked_robot, output_folder
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK
 from psdm_casadi.errors import ParameterError, ShapeError
 
 ROBOT_SUFFIXES = (".toml", ".urdf")
 CALIBRATED_SUFFIX = ".json"
 FORMS = ("recursive", "sum")
+DESCRIPTION = (
+    "Export the PSDM dynamics of a robot (.toml/.urdf, derived first) or of a saved model (.npz) as a "
+    "self-contained C folder: <library>.c/.h, Makefile and an example main.c. Functions taking theta are "
+    "exported with theta baked in (from --theta, else the robot's nominal base parameters) and with "
+    "theta as a runtime input (suffix _theta). The default recursive form evaluates the model by Newton-Euler "
+    "on a sparse standard-parameter preimage of theta (needs the kinematics: a robot file, or --robot with a "
+    "model); --form sum writes the paper's pseudo-symbolic sum. A calibrated model (.json, written by "
+    "'psdm identify') exports the full torque it reports: the rigid body of its base parameters plus its "
+    "drive terms (friction, offsets, drive inertias) and the torque-type findings of 'psdm diagnose MODEL "
+    "--apply' (spring, offset, ripple, coupling, asymmetry, rotor inertia, load-dependent friction), every "
+    "parameter compiled in; its regressor is the rigid body's. Measurement corrections (delay, elasticity, "
+    "backlash) are not a torque and are not exported: 'psdm validate' applies them to recordings. A "
+    "calibrated model that is not physically consistent is refused (exit 1) unless --allow-inconsistent, "
+    "and so is a --theta whose mass matrix is not positive definite over random configurations in the joint "
+    "limits (the error names the eigenvalue and the base parameters to blame)."
+)
 
 
 def register(subparsers) -> None:
@@ -23,20 +39,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "codegen",
         help="export inverse/forward dynamics, regressor and mass matrix as C code",
-        description=(
-            "Export the PSDM dynamics of a robot (.toml/.urdf, derived first) or of a saved model (.npz) as a "
-            "self-contained C folder: <library>.c/.h, Makefile and an example main.c. Functions taking theta are "
-            "exported with theta baked in (from --theta, else the robot's nominal base parameters) and with "
-            "theta as a runtime input (suffix _theta). The default recursive form evaluates the model by Newton-Euler "
-            "on a sparse standard-parameter preimage of theta (needs the kinematics: a robot file, or --robot with a "
-            "model); --form sum writes the paper's pseudo-symbolic sum. A calibrated model (.json, written by "
-            "'psdm identify') exports the full torque it reports: the rigid body of its base parameters plus its "
-            "drive terms (friction, offsets, drive inertias) and the torque-type findings of 'psdm diagnose MODEL "
-            "--apply' (spring, offset, ripple, coupling, asymmetry, rotor inertia, load-dependent friction), every "
-            "parameter compiled in; its regressor is the rigid body's. Measurement corrections (delay, elasticity, "
-            "backlash) are not a torque and are not exported: 'psdm validate' applies them to recordings. A "
-            "calibrated model that is not physically consistent is refused (exit 1) unless --allow-inconsistent."
-        ),
+        description=DESCRIPTION,
     )
     p.add_argument(
         "source",
@@ -48,7 +51,8 @@ def register(subparsers) -> None:
         "--theta",
         type=Path,
         default=None,
-        help="base parameters to bake in: .npy, .csv or whitespace-separated text with n_base values",
+        help="base parameters to bake in: .npy, .csv or whitespace-separated text with n_base values; refused "
+        "(exit 1) unless --allow-inconsistent when their mass matrix is not positive definite",
     )
     p.add_argument(
         "--form",
@@ -66,7 +70,8 @@ def register(subparsers) -> None:
     p.add_argument(
         "--allow-inconsistent",
         action="store_true",
-        help="export a calibrated model that is not physically consistent (or was not checked); the files say so",
+        help="export a calibrated model that is not physically consistent (or was not checked), or a --theta whose "
+        "mass matrix is not positive definite; the files say so",
     )
     add_lock_argument(p)
     p.add_argument("--jacobians", action="store_true", help="also export the Jacobians (<function>_jac)")
@@ -96,7 +101,8 @@ def register(subparsers) -> None:
     p.add_argument(
         "--force",
         action="store_true",
-        help="replace the files of an earlier export in --out (a folder that holds anything else is refused)",
+        help="replace the files an earlier 'psdm codegen' wrote in --out (listed in its .psdm-manifest.json); a "
+        "folder holding anything else, or a file of an output's name that psdm did not write, is refused",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_codegen)
@@ -118,7 +124,14 @@ def read_theta(path: Path) -> np.ndarray:
             f"codegen --theta must be a .npy, .csv or text file of numbers; could not read {path.name} ({exc}). "
             "Write it with numpy.save or numpy.savetxt."
         ) from None
-    return np.asarray(values, dtype=float).ravel()
+    values = np.asarray(values, dtype=float).ravel()
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        raise ParameterError(
+            f"codegen --theta must hold finite numbers; got {values[bad[0]]} at value {bad[0] + 1} of {path.name}. "
+            "Pass the base parameters the identification wrote."
+        )
+    return values
 
 
 def _load_source(path: Path, robot_path: Path | None, locks=()):
@@ -182,11 +195,14 @@ def _check_options(args):
         )
     if args.theta is not None and not Path(args.theta).is_file():
         raise ParameterError(f"codegen --theta must name an existing file; got {str(args.theta)!r}. Check the path.")
-    return output_folder(args.out, output_names(library), args.force, force_option="--force")
+    inputs = (("ROBOT_OR_MODEL", args.source), ("--robot", args.robot), ("--theta", args.theta))
+    folder = output_folder(args.out, output_names(library), args.force, force_option="--force", command="codegen")
+    check_not_input(args.out, "--out", inputs, "--force")
+    return folder
 
 
 def _calibrated_functions(args, path: Path, out: Path):
-    """(Functions, form, header note) of a calibrated-model file, or None when the consistency gate refuses it."""
+    """(Functions, form, header note, CalibratedModel) of a calibrated-model file, or None when refused."""
     from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
     from identification.calibration.calibrated_model import load_calibrated_model
     from psdm_casadi.cli.output import progress
@@ -216,28 +232,55 @@ def _calibrated_functions(args, path: Path, out: Path):
     progress("building the CasADi functions (rigid body + drive terms) ...")
     form = args.form or "recursive"
     functions = build_calibrated_functions(calibrated, model, robot, form=form, allow_inconsistent=True)
-    return functions, form, header_note(calibrated, source_name=path.name)
+    return functions, form, header_note(calibrated, source_name=path.name), calibrated
 
 
 def _export_functions(args, out: Path):
-    """(Functions, form, theta to bake, header note or None) of the source, or None when refused."""
+    """(Functions, form, theta to bake, header note or None, CalibratedModel or None) of the source, or None when
+    refused."""
     from psdm_casadi.cli.output import progress
 
     source = Path(args.source)
     if source.suffix.lower() == CALIBRATED_SUFFIX:
         built = _calibrated_functions(args, source, out)
-        return None if built is None else (built[0], built[1], None, built[2])
+        return None if built is None else (built[0], built[1], None, built[2], built[3])
     model, robot, theta = _load_source(source, args.robot, args.lock)
+    note = None
     if args.theta is not None:
         theta = read_theta(args.theta)
-    if theta is not None and theta.size != model.n_base:
-        raise ShapeError(
-            f"codegen --theta must have {model.n_base} values (the model's n_base); got {theta.size}. "
-            "Pass the base parameters of this model."
-        )
+        if theta.size != model.n_base:
+            raise ShapeError(
+                f"codegen --theta must have {model.n_base} values (the model's n_base); got {theta.size}. "
+                "Pass the base parameters of this model."
+            )
+        checked = _checked_theta(args, model, robot, theta, out)
+        if checked is None:
+            return None
+        note = checked or None
     progress("building the CasADi functions ...")
     functions, form = build_export_functions(model, robot, args.form)
-    return functions, form, theta, None
+    return functions, form, theta, note, None
+
+
+def _checked_theta(args, model, robot, theta, out: Path) -> str | None:
+    """'' for a --theta whose mass matrix is positive definite, the header warning when it is not and
+    --allow-inconsistent is given, else None (refused: the error is printed)."""
+    from codegen.theta_check import check_theta
+    from psdm_casadi.cli.output import progress
+
+    progress(f"checking the mass matrix of {Path(args.theta).name} over random configurations ...")
+    problem = check_theta(model, theta, robot).problem(Path(args.theta).name)
+    if problem is None:
+        return ""
+    if not args.allow_inconsistent:
+        print(
+            f"psdm codegen: error: {problem}. Nothing was written to {str(out)!r}. Pass the base parameters of a "
+            "consistent identification, or --allow-inconsistent to export them anyway (marked in the files).",
+            file=sys.stderr,
+        )
+        return None
+    print(f"psdm codegen: warning: exporting it although {problem}", file=sys.stderr)
+    return f"/* WARNING: {problem}; exported with --allow-inconsistent. */\n"
 
 
 def _run_codegen(args) -> int:
@@ -248,7 +291,7 @@ def _run_codegen(args) -> int:
     built = _export_functions(args, out)
     if built is None:
         return EXIT_CHECK_FAILED
-    functions, form, theta, note = built
+    functions, form, theta, note, calibrated = built
     exporter = export_c
     if getattr(args, "derivatives", False):
         from codegen.derivatives import export_derivatives as exporter
@@ -264,11 +307,12 @@ def _run_codegen(args) -> int:
         lugre_source = None
         if note is not None:
             from codegen.calibrated import add_header_note
-            from codegen.calibrated_lugre import add_lugre_step
-            from identification.calibration.calibrated_model import load_calibrated_model
 
             add_header_note(export, note)
-            lugre_source = add_lugre_step(export, load_calibrated_model(args.source), note)  # None unless LuGre
+        if calibrated is not None:
+            from codegen.calibrated_lugre import add_lugre_step
+
+            lugre_source = add_lugre_step(export, calibrated, note)  # None unless LuGre
         batch = None
         if getattr(args, "batch", False):
             from codegen.batch import add_batch
@@ -282,7 +326,7 @@ def _run_codegen(args) -> int:
             sources, openmp = ([export.source], ()) if batch is None else ([export.source, batch.source], ("-fopenmp",))
             sources += [lugre_source] if lugre_source is not None else []
             compile_shared(sources, stage / f"lib{export.library}.so", flags=("-O3", "-march=native", *openmp))
-    _print_export(args, out, export, form, calibrated=note is not None, batch=batch)
+    _print_export(args, out, export, form, calibrated=calibrated is not None, batch=batch)
     if lugre_source is not None:
         progress(f"LuGre friction: NOT in inverse_dynamics; {lugre_source.name} has psdm_lugre_step(s, qd_prev, "
                  "qd, dt) -> (s_next, tau_friction), the bristle step to carry (see its header)")  # fmt: skip
@@ -297,6 +341,7 @@ def _print_export(args, out: Path, export, form: str, calibrated: bool = False, 
         lanes = export.lane_regressor
         print_json(
             {
+                "command": "codegen",
                 "out": str(out),
                 "form": form,
                 "calibrated": calibrated,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from psdm_casadi.cli.checks import add_robot_argument, load_robot_argument, output_file
+from psdm_casadi.cli.checks import add_robot_argument, check_not_input, load_robot_argument, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.derive import DeriveOptions, derive_psdm
 
@@ -34,6 +34,7 @@ def model_path(output: str) -> Path:
 
 def run_derive(args) -> int:
     if args.output:
+        check_not_input(model_path(args.output), "-o/--output", [("ROBOT", args.robot)], "--force")
         output_file(model_path(args.output), "-o/--output", args.force, "--force")
     robot = load_robot_argument(args)
     progress(f"deriving {robot.name} ({robot.n_dof} joints) ...", quiet=args.json)
@@ -47,6 +48,8 @@ def run_derive(args) -> int:
     if args.json:
         print_json(
             {
+                "command": "derive",
+                "robot": robot.name,
                 "p": model.n_functions,
                 "l": model.n_base,
                 "n_gravity": model.n_gravity,

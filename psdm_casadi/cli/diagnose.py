@@ -4,12 +4,14 @@ validation; with a calibrated model and ``--apply NEW.json``, the findings ident
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from psdm_casadi.cli.checks import (
     add_robot_argument,
     add_topic_argument,
     check_count,
+    check_not_input,
     check_positive,
     load_robot_argument,
     output_folder,
@@ -98,7 +100,8 @@ def register(subparsers) -> None:
 
 
 def _run_diagnose(args) -> int:
-    from identification.data.io import load_recording
+    from identification.data.io import load_recording, not_held_out
+    from identification.data.plausibility import check_plausible_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
@@ -118,6 +121,10 @@ def _run_diagnose(args) -> int:
         robot = load_robot_argument(args)
     train = load_recording(args.train, robot.n_dof, robot.joint_names, args.topic)
     validation = load_recording(args.validate, robot.n_dof, robot.joint_names, args.topic)
+    for recording in (train, validation):  # positions, speeds and time in the robot's units, before any fit
+        check_plausible_recording(recording, robot)
+    for warning in not_held_out([args.train], [args.validate], "--train"):
+        print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     options = DiagnosisOptions(
         friction=args.friction or (_own_friction(calibrated) if calibrated is not None else "lugre"),
         rigid_body=args.rigid_body,
@@ -157,7 +164,7 @@ def _own_friction(calibrated) -> str:
 def _calibrated_source(args):
     """(CalibratedModel or None, checked --apply output or None): a .json source is a calibrated model."""
     from identification.calibration.calibrated_model import load_calibrated_model
-    from psdm_casadi.cli.checks import output_file
+    from psdm_casadi.cli.checks import check_suffix, output_file
 
     if not str(args.robot).lower().endswith(".json"):
         if args.apply is not None:
@@ -171,6 +178,9 @@ def _calibrated_source(args):
             f"diagnose --lock must not be given with a calibrated model; got {args.robot!r}, which holds its locked "
             "joints. Drop --lock."
         )
+    if args.apply is not None:
+        check_not_input(args.apply, "--apply", _inputs(args), example=f"{Path(args.apply).stem}_applied.json")
+        check_suffix(args.apply, "--apply", (".json",), "a calibrated-model file (JSON)")
     calibrated = load_calibrated_model(args.robot)
     return calibrated, output_file(args.apply, "--apply", args.overwrite)
 
@@ -264,7 +274,16 @@ def _out_folder(args):
     """The checked --out folder (None without --out): new, or one holding an earlier diagnosis with --overwrite."""
     from identification.diagnosis.report import REPORT_FILES
 
-    return None if args.out is None else output_folder(args.out, REPORT_FILES, args.overwrite)
+    if args.out is None:
+        return None
+    folder = output_folder(args.out, REPORT_FILES, args.overwrite, command="diagnose")
+    check_not_input(args.out, "--out", _inputs(args))
+    return folder
+
+
+def _inputs(args) -> tuple:
+    """The files ``psdm diagnose`` reads, which no output may replace."""
+    return (("ROBOT", args.robot), ("--train", args.train), ("--validate", args.validate))
 
 
 def _contribution(entry) -> str:

@@ -12,6 +12,7 @@ import numpy as np
 from psdm_casadi.cli.checks import (
     add_robot_argument,
     check_count,
+    check_not_input,
     check_positive,
     check_samples,
     load_robot_argument,
@@ -153,6 +154,8 @@ def _outputs(args, csv: str):
     """The checked outputs of a trajectory command: (CSV, plot or None); both refused before any work."""
     if args.plot is not None and Path(args.plot).expanduser().absolute() == Path(csv).expanduser().absolute():
         raise ParameterError(f"--plot must name another file than --out; got {args.plot!r} for both. Rename one.")
+    for option, path in (("--out", csv), ("--plot", args.plot)):
+        check_not_input(path, option, [("ROBOT", args.robot)])
     return output_file(csv, "--out", args.overwrite), output_file(args.plot, "--plot", args.overwrite)
 
 
@@ -204,6 +207,7 @@ def _run_excite(args) -> int:
     if args.json:
         print_json(
             {
+                "command": "excite",
                 "cond": trajectory.cond,
                 "worst_limit_margin": trajectory.worst_margin,
                 "seconds": round(seconds, 3),
@@ -264,6 +268,7 @@ def _run_experiment(args) -> int:
     if args.json:
         print_json(
             {
+                "command": "experiment",
                 "kind": args.kind,
                 "duration": experiment.duration,
                 "worst_limit_margin": experiment.worst_margin,

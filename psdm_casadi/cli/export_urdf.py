@@ -10,8 +10,9 @@ never replaces a file without ``--overwrite``; a model that is not physically co
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
-from psdm_casadi.cli.checks import output_file
+from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 
 __all__ = ["register"]
@@ -28,12 +29,18 @@ def register(subparsers) -> None:
             "of its joint (links merged into that body by fixed or locked joints get mass 0), for a DH robot a "
             "generated chain of links. Each inertial is given in its link frame about the centre of mass; joints "
             "get <dynamics damping=fv friction=fc>; drive inertias (armature) are written as comments, since "
-            "URDF has no field for them and Pinocchio's URDF parser does not read one."
+            "URDF has no field for them and Pinocchio's URDF parser does not read one. Friction shapes and findings "
+            "URDF cannot hold (Stribeck, LuGre, the torque terms and measurement corrections of 'psdm diagnose "
+            "--apply') are left out with a warning, their parameters in comments."
         ),
     )
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
     p.add_argument("out", help="URDF file to write (.urdf)")
-    p.add_argument("--overwrite", action="store_true", help="replace an existing output file")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing output file (never MODEL, nor the robot file MODEL was identified from)",
+    )
     p.add_argument(
         "--allow-inconsistent",
         action="store_true",
@@ -43,12 +50,36 @@ def register(subparsers) -> None:
     p.set_defaults(handler=_run_export_urdf)
 
 
+def _check_not_robot_file(args, calibrated) -> None:
+    """OUT must not replace the robot file MODEL was identified from (its text is stored in MODEL, not its path):
+    an existing OUT named as one of those files, or holding the same text, is refused even with --overwrite."""
+
+    from psdm_casadi.errors import ParameterError
+
+    files = (calibrated.document.get("robot") or {}).get("files") or {}
+    path = Path(args.out).expanduser()
+    if not path.is_file():
+        return
+    same_name = path.name in files
+    if not same_name and path.stat().st_size > 10_000_000:
+        return
+    if same_name or path.read_text(errors="replace") in files.values():
+        raise ParameterError(
+            f"OUT {str(args.out)!r} is (or shares its name with) the robot file {args.model!r} was identified from; "
+            f"--overwrite never replaces an input. Name another file, e.g. {path.stem}_identified.urdf."
+        )
+
+
 def _run_export_urdf(args) -> int:
     from identification.calibration.calibrated_model import load_calibrated_model
     from identification.calibration.urdf_export import friction_not_representable, render_urdf
+    from identification.calibration.urdf_findings import findings_not_representable
 
+    check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.urdf")
+    check_suffix(args.out, "OUT", (".urdf",), "a URDF")
     out = output_file(args.out, "OUT", args.overwrite)
     calibrated = load_calibrated_model(args.model)
+    _check_not_robot_file(args, calibrated)
     eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
     checked = calibrated.document["standard"].get("checked", True)
     if checked and not calibrated.consistent and not args.allow_inconsistent:
@@ -64,9 +95,9 @@ def _run_export_urdf(args) -> int:
     text = render_urdf(calibrated, robot)
     if not calibrated.consistent:
         print("psdm export-urdf: warning: writing an INCONSISTENT model (marked in the file)", file=sys.stderr)
-    left_out = friction_not_representable(calibrated)
-    if left_out is not None:
-        print(f"psdm export-urdf: warning: {left_out}", file=sys.stderr)
+    for left_out in (friction_not_representable(calibrated), findings_not_representable(calibrated)):
+        if left_out is not None:
+            print(f"psdm export-urdf: warning: {left_out}", file=sys.stderr)
     with out.staging() as stage:
         stage.write_text(text)
     source = "urdf" if robot.urdf_path is not None else "dh"

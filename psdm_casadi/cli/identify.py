@@ -12,7 +12,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from psdm_casadi.cli import identify_recordings
-from psdm_casadi.cli.checks import add_robot_argument, load_robot_argument, output_folder
+from psdm_casadi.cli.checks import add_robot_argument, check_not_input, load_robot_argument, output_folder
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.fileio import atomic_write, markdown_escape
 
@@ -52,8 +52,18 @@ def register(subparsers) -> None:
     p.add_argument("--out", required=True, help="calibrated-model file (.json), or a folder for the four-step route")
     p.add_argument("--model", default=None, help="derived PSDM model (.npz from 'psdm derive'); derived when omitted")
     p.add_argument("--no-refine", action="store_true", help="skip the joint refinement")
-    p.add_argument("--plots", action="store_true", help="also write observed-vs-predicted plots (PNG)")
-    p.add_argument("--overwrite", action="store_true", help="replace the files of an earlier identification in --out")
+    p.add_argument(
+        "--plots",
+        action="store_true",
+        help="four-step route: also write observed-vs-predicted plots (PNG) into --out (on recordings use "
+        "'psdm validate MODEL RECORDINGS --plots DIR')",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the model file, or the files an earlier 'psdm identify' wrote in the --out folder (listed in "
+        "its .psdm-manifest.json); never an input of the command",
+    )
     p.add_argument(
         "--allow-inconsistent",
         action="store_true",
@@ -102,7 +112,10 @@ def _check_inputs(args):
         )
     if args.model is not None and not Path(args.model).is_file():
         raise FileNotFoundError(f"--model {args.model!r} does not exist. Check the path, or leave --model out.")
-    return output_folder(args.out, RESULT_FILES + REPORT_FILES, args.overwrite)
+    inputs = (("ROBOT", args.robot), ("--data", args.data[0]), ("--model", args.model))
+    folder = output_folder(args.out, RESULT_FILES + REPORT_FILES, args.overwrite, command="identify")
+    check_not_input(args.out, "--out", inputs)
+    return folder
 
 
 def _run_identify(args) -> int:

@@ -11,11 +11,13 @@ writes one calibrated-model file (``identification.calibration.calibrated_model`
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import add_topic_argument, load_robot_argument, output_file
+from psdm_casadi.cli.checks import add_topic_argument, check_not_input, check_suffix, load_robot_argument, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.errors import ParameterError, SolverError
 
 MASS_CHECK_CONFIGURATIONS = 2000
 FRICTION_SHAPES = ("coulomb-viscous", "stribeck", "lugre")
@@ -50,14 +52,18 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-    from identification.data.io import load_recording
+    from identification.data.io import load_recording, not_held_out
+    from identification.data.plausibility import check_plausible_recording
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
 
-    out = output_file(args.out, "--out", args.overwrite)
+    out = _check_outputs(args)
     robot = load_robot_argument(args)
+    check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.data]
     validation = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.validate]
+    for recording in (*recordings, *validation):  # units and joint order, before any fit (plausibility)
+        check_plausible_recording(recording, robot)
     if args.friction == "lugre":
         _check_reversals(recordings, args.data)
     friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")
@@ -74,8 +80,9 @@ def run(args) -> int:
     else:
         fit = start = identify_trajectories(robot, model, recordings, options)
         lugre = None
-    for warning in _negative_drive_inertias(start):
-        print(warning, file=sys.stderr)
+    warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *not_held_out(args.data, args.validate))))
+    for warning in warnings:
+        print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     calibrated = CalibratedModel.from_fit(
         robot, model, fit, robot_source=args.robot, lugre=lugre,
@@ -84,6 +91,7 @@ def run(args) -> int:
     report = _validation(robot, model, start, validation, args.validate, calibrated)
     report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated.document["validation"] = report
+    calibrated.document["warnings"] = warnings
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "
@@ -99,6 +107,20 @@ def run(args) -> int:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
     _print(args, robot, model, fit, report, calibrated)
     return EXIT_OK
+
+
+def _check_outputs(args):
+    """--out must be a new .json file (or, with --overwrite, any file but an input); --plots has no folder here."""
+    if args.plots:
+        raise ParameterError(
+            "identify --plots writes the four-step route's plots into its --out folder; the recordings route writes "
+            "one model file. Drop --plots, and plot with 'psdm validate MODEL.json RECORDING.csv --plots DIR'."
+        )
+    inputs = [("ROBOT", args.robot), ("--model", args.model)]
+    inputs += [("--data", path) for path in args.data] + [("--validate", path) for path in args.validate]
+    check_not_input(args.out, "--out", inputs, example=f"{Path(args.out).stem}_model.json")
+    check_suffix(args.out, "--out", (".json",), "one calibrated-model file (JSON)")
+    return output_file(args.out, "--out", args.overwrite)
 
 
 def _check_reversals(recordings, paths) -> None:
@@ -128,28 +150,28 @@ def _fit_lugre(robot, model, recordings, options):
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LuGreWarning)
-        result = identify_lugre_trajectories(robot, model, recordings, options)
+        try:
+            result = identify_lugre_trajectories(robot, model, recordings, options)
+        except SolverError as exc:
+            if exc.joint is None:  # not one joint's LuGre fit (the linear fits): its own message
+                raise
+            raise SolverError(_lugre_failure(robot, options, exc), exc.status, exc.iterations, exc.joint) from None
     for warning in caught:
         print(f"psdm identify: warning: {warning.message}", file=sys.stderr)
     return result.fit, result.lugre, result.stribeck
 
 
-def _negative_drive_inertias(fit, z: float = 3.0) -> list:
-    """Warnings for drive-inertia columns whose unconstrained estimate is below zero by more than ``z`` sigma.
-
-    A rotor inertia cannot be negative; the consistent fit holds it at zero and the joint's fit pays for
-    it. The usual cause is a torque signal without the rotors in it: a link-side joint torque sensor.
-    """
-    out = []
-    for name, value, std in zip(fit.drive_names, fit.drive_ols, fit.drive_std):
-        if name.startswith("Ia") and value < -z * std:
-            out.append(
-                f"psdm identify: warning: the data ask for a negative drive inertia on joint {name[2:]} "
-                f"(unconstrained {name} = {value:.3g} +- {std:.2g} kg m^2); the consistent fit holds it at 0, "
-                "which costs fit on that joint. Torques measured on the link side of the gearbox (joint torque "
-                "sensors: Franka Panda, KUKA iiwa) hold no rotor inertia: pass --no-drive-inertia."
-            )
-    return out
+def _lugre_failure(robot, options, exc) -> str:
+    """The LuGre fit's failure in the command line's words: the joint, Ipopt's status, the options that help."""
+    joint = f"joint {exc.joint + 1} ({robot.joint_names[exc.joint]})"
+    cutoff = "the default cutoff" if options.cutoff_hz is None else f"--cutoff {options.cutoff_hz:g}"
+    higher = 40 if options.cutoff_hz is None else max(40, 2 * options.cutoff_hz)
+    return (
+        f"--friction lugre: the LuGre friction fit of {joint} did not converge (Ipopt status {exc.status} after "
+        f"{exc.iterations} iterations); nothing was written. The low-pass filter at {cutoff} may smear the "
+        f"low-velocity friction the bristle model is fitted to: pass a higher --cutoff (e.g. --cutoff {higher:g}), "
+        "or --friction stribeck for the steady-state friction without the bristle state."
+    )
 
 
 def _min_mass_eigenvalue(robot, fit, seed: int = 0) -> float:
@@ -221,7 +243,8 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
                     "drive_std": dict(zip(fit.drive_names, fit.drive_std.tolist())),
                     "stribeck_velocity": list(fit.stribeck_velocity),
                     "stribeck_velocity_std": list(fit.stribeck_velocity_std),
-                    "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds})  # fmt: skip
+                    "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
+                    "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
           f"(decimation {', '.join(map(str, fit.decimation))}); condition number of the weighted regressor "

@@ -5,7 +5,8 @@ ends the running solve with a failure status and returns, and the command would 
 start, the next step). :class:`InterruptGuard` therefore repeats the interrupt every
 :data:`REPEAT_SECONDS` after the first one, until the command has ended; a repeat is held back while
 an exception is being handled, so that the clean-up of partial outputs (``OutputFolder``,
-``atomic_write``) runs to its end.
+``atomic_write``) runs to its end. An exception that ends the command after an interrupt (a solver's
+failure status, turned into ``SolverError`` before the next repeat) is reported as the interrupt.
 """
 
 from __future__ import annotations
@@ -66,4 +67,8 @@ class InterruptGuard:
         for sig, handler in self._previous.items():
             signal.signal(sig, handler if handler is not None else signal.SIG_DFL)
         self._previous = {}
+        if self.interrupted and exc is not None and not isinstance(exc, KeyboardInterrupt):
+            # the failure a swallowed interrupt caused (Ipopt's NonIpopt_Exception_Thrown, raised as a
+            # SolverError before the next repeat): the command was interrupted, not failed
+            raise KeyboardInterrupt from exc
         return False

@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import sys
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: A closed stdout (``psdm ... | head -1``): the code a shell gives a process ended by SIGPIPE (128 + 13).
+EXIT_BROKEN_PIPE = 141
 
 #: The packages whose loggers the command line shows.
 LOGGED_PACKAGES = ("psdm_casadi", "trajopt", "identification", "codegen")
@@ -19,9 +22,37 @@ LOGGED_PACKAGES = ("psdm_casadi", "trajopt", "identification", "codegen")
 _HANDLER_NAME = "psdm-cli"
 
 
+class _JsonState:
+    """Whether the running command has printed its JSON object (an error then prints none of its own)."""
+
+    printed = False
+
+
 def print_json(payload) -> None:
     """Print one JSON object on stdout (the ``--json`` contract of every subcommand)."""
     print(json.dumps(payload, sort_keys=False, default=float))
+    _JsonState.printed = True
+
+
+def reset_json() -> None:
+    """Start a command: no JSON object printed yet."""
+    _JsonState.printed = False
+
+
+def json_printed() -> bool:
+    """True once the running command has printed its JSON object."""
+    return _JsonState.printed
+
+
+def silence_stdout() -> None:
+    """After a closed stdout: point its descriptor at /dev/null, so that Python's flush at exit stays quiet."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # a replaced stdout (tests): nothing to redirect
+        return
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, fd)
+    os.close(devnull)
 
 
 def progress(message: str, *, quiet: bool = False) -> None:

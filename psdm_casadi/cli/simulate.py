@@ -16,6 +16,7 @@ import numpy as np
 from psdm_casadi.cli.checks import (
     add_robot_argument,
     check_count,
+    check_not_input,
     check_positive,
     check_samples,
     load_robot_argument,
@@ -82,7 +83,12 @@ def _add_simulate(subparsers) -> None:
     )
     p.add_argument("--tau", action="store_true", help="also record joint torques tau1..taun")
     p.add_argument("--format", choices=("csv", "npz"), default="csv")
-    p.add_argument("--overwrite", action="store_true", help="replace existing files")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace recordings an earlier 'psdm simulate' wrote in --out (listed in its .psdm-manifest.json; "
+        "other files are kept, a user's file of a recording's name is refused)",
+    )
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     p.set_defaults(handler=_run_simulate)
 
@@ -176,6 +182,13 @@ def _recording_names(runs, fmt: str) -> list:
     return [f"{name}{suffix}" for name, _, _ in runs for suffix in (f".{fmt}", ".truth.json", ".truth.npz")]
 
 
+def _check_not_inputs(args, names) -> None:
+    """No recording this run writes may replace the robot, model or --reference file it reads."""
+    inputs = (("ROBOT", args.robot), ("--reference", args.reference))
+    for name in names:
+        check_not_input(Path(args.out) / name, "--out", inputs)
+
+
 def _run_simulate(args) -> int:
     from identification.virtual.simulation import SimulationOptions
 
@@ -195,7 +208,9 @@ def _run_simulate(args) -> int:
     else:
         runs = _experiment_runs(args, robot, joints, rng, base)
     _check_lengths(runs, args.rate)
-    folder = output_folder(args.out, _recording_names(runs, args.format), args.overwrite, shared=True)
+    names = _recording_names(runs, args.format)
+    _check_not_inputs(args, names)
+    folder = output_folder(args.out, names, args.overwrite, shared=True, command="simulate")
     with folder.staging() as stage:
         written, simulated, wall = _simulate_runs(args, robot, runs, rng, stage)
     for entry in written:
@@ -277,7 +292,8 @@ def _run_model(args) -> int:
     span = float(reference[0][-1] - reference[0][0]) if isinstance(reference, tuple) else reference.duration
     fix = "Lower --rate, or shorten --duration or the reference."
     check_samples(args.duration or span, args.rate, "--rate", f"in the recording {name}", fix)
-    folder = output_folder(args.out, [f"{name}.{args.format}"], args.overwrite, shared=True)
+    _check_not_inputs(args, [f"{name}.{args.format}"])
+    folder = output_folder(args.out, [f"{name}.{args.format}"], args.overwrite, shared=True, command="simulate")
     progress(f"simulate: deriving the PSDM model of {robot.name} ...", quiet=args.json)
     model = derive_psdm(robot)
     start = time.perf_counter()

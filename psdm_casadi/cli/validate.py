@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import add_topic_argument
+from psdm_casadi.cli.checks import add_topic_argument, check_not_input, output_folder
 from psdm_casadi.cli.output import EXIT_OK, print_json, progress
 
 
@@ -28,7 +28,14 @@ def register(subparsers) -> None:
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
     p.add_argument("recordings", nargs="+", help="recordings (.csv, .npz, .mat, or ROS 2 bags) with joint torques")
     add_topic_argument(p)
-    p.add_argument("--plots", type=Path, default=None, help="folder for one plot per recording (must not exist)")
+    p.add_argument(
+        "--plots",
+        type=Path,
+        default=None,
+        help="folder for one plot per recording (RECORDING.png): new or empty, or with --overwrite one an earlier "
+        "'psdm validate' wrote (only the plots listed in its .psdm-manifest.json are replaced)",
+    )
+    p.add_argument("--overwrite", action="store_true", help="replace the plots an earlier run wrote in --plots")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_validate)
 
@@ -37,16 +44,20 @@ def _run_validate(args) -> int:
     from identification.calibration.calibrated_model import load_calibrated_model
     from identification.calibration.recalibrate import validation_rmse
     from identification.data.io import load_recording
+    from identification.data.plausibility import check_plausible_recording
     from psdm_casadi.derive import derive_psdm
-    from psdm_casadi.fileio import OutputFolder
 
+    plots = None
+    if args.plots is not None:  # refused before any work
+        names = [f"{Path(p).stem}.png" for p in args.recordings]
+        plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
+        inputs = [("MODEL", args.model), *(("RECORDINGS", path) for path in args.recordings)]
+        check_not_input(args.plots, "--plots", inputs)
     calibrated = load_calibrated_model(args.model)
     robot = calibrated.load_robot()
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.recordings]
-    plots = None
-    if args.plots is not None:
-        plots = OutputFolder(args.plots, [f"{Path(p).stem}.png" for p in args.recordings], option="--plots")
-        plots.check(force=False)
+    for recording in recordings:  # positions, speeds and time in the robot's units (plausibility)
+        check_plausible_recording(recording, robot)
     progress(f"validate: deriving the model of {robot.name} ...")
     model = derive_psdm(robot)
     rows = []

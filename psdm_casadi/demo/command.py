@@ -25,7 +25,8 @@ def register(subparsers) -> None:
     parser.add_argument(
         "--force",
         action="store_true",
-        help="replace the files of an earlier demo report in --out (a folder that holds anything else is refused)",
+        help="replace the files an earlier demo report wrote in --out (listed in its .psdm-manifest.json; a folder "
+        "that holds anything else is refused)",
     )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.set_defaults(handler=run_demo_command)

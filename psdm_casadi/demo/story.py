@@ -11,7 +11,7 @@ from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.demo.markdown import report_markdown
 from psdm_casadi.demo.options import REPORT_ENTRIES, REPORT_FORMAT, DemoOptions, DemoResult, DemoRun
 from psdm_casadi.demo.speed import finish_speed_job, speed_markdown, speed_sentence, start_speed_job
-from psdm_casadi.fileio import OutputFolder
+from psdm_casadi.manifest import ManifestFolder
 from psdm_casadi.recursive import build_recursive_functions
 
 
@@ -19,12 +19,13 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
     """Run the whole loop and write the report folder.
 
     The report is built in a staging folder beside ``out_dir`` and moved into place at the end; an
-    interrupted or failed run leaves ``out_dir`` as it was (:class:`psdm_casadi.fileio.OutputFolder`).
+    interrupted or failed run leaves ``out_dir`` as it was (:class:`psdm_casadi.manifest.ManifestFolder`).
 
     Parameters
     ----------
     out_dir : str or Path
-        Report folder: new, empty, or (with ``overwrite``) one that holds only a previous demo report.
+        Report folder: new, empty, or (with ``overwrite``) one that holds only a previous demo report (the
+        entries listed in its ``.psdm-manifest.json``).
     options : DemoOptions, optional
     overwrite : bool
         Replace the files of an earlier demo report in ``out_dir``.
@@ -39,7 +40,7 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
         Before any work, when ``out_dir`` may not be written (see ``OutputFolder.check``).
     """
     options = DemoOptions() if options is None else options
-    folder = OutputFolder(out_dir, REPORT_ENTRIES)
+    folder = ManifestFolder(out_dir, REPORT_ENTRIES, "demo", force_option="--force")
     folder.check(force=overwrite)
     start_all = time.perf_counter()
     with folder.staging() as stage:

@@ -280,9 +280,9 @@ def test_identify_allow_inconsistent_says_so_in_every_file(odd_scara, fake_fit, 
     assert header["consistent"] is False and "not positive definite" in header["metadata"]["inconsistent"]
     report = (model / "report.md").read_text()
     assert "**WARNING: INCONSISTENT MODEL" in report and "--allow-inconsistent" in report
-    assert sorted(p.name for p in model.iterdir()) == sorted(
-        ["identified.json", "parameters.npz", "model.npz", "report.md", "validation_all.png"]
-    )
+    written = ["identified.json", "parameters.npz", "model.npz", "report.md", "validation_all.png"]
+    assert sorted(p.name for p in model.iterdir()) == sorted([*written, ".psdm-manifest.json"])
+    assert sorted(json.loads((model / ".psdm-manifest.json").read_text())["files"]) == sorted(written)
 
 
 def test_identify_escapes_robot_and_joint_names_in_report_md(odd_scara, fake_fit, tmp_path, capsys):
