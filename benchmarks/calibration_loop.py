@@ -5,19 +5,26 @@ Each scenario simulates the calibration experiments of the virtual Denso (the qu
 whole calibration, runs the four steps (``IdentificationPipeline``, no refinement), diagnoses the
 excitation recording (first period trains, last validates), and runs the four steps again with the
 diagnosis' torque-type findings as known terms (``ExtraTerms.from_diagnosis``). The same plan without
-the effect gives the clean-data errors the target is measured against (after within 2x clean).
-The known terms are estimated on the excitation with every base parameter free and held in the
-gravity step (``identification.calibration.extra_passes``); their own standard error still moves
-the gravity parameters a term is nearly collinear with on the jog, so the after-errors of one seed
-scatter about that floor, while the clean errors of one seed scatter about theirs.
+the effect gives the clean-data errors the target is measured against (issue 16: after within 2x clean).
+The known terms and the gravity parameters are fitted jointly on the jog and the excitation, each
+experiment's rows weighted by its own residual variance (``identification.calibration.extra_passes``,
+``JointGravityIdentifier``); the clean calibration has no terms and takes its gravity from the jog alone.
 
 Errors against the simulation truth (the robot file): ``kt`` the worst relative Kt error; ``gravity``
 and ``inertial`` the worst base-parameter error scaled by max(|truth|, 5 % of the largest parameter
 of its kind) (as ``benchmarks/calibration.py``'s ``gravity_max_scaled_err``; parameters below 5 % of
 the largest carry torques near the sensor noise). ``loop_parameter_errors`` is the worst over the
-scenarios.
+scenarios of one seed; its ``after_within_2x_clean`` compares them with that seed's clean errors.
 
-    python benchmarks/calibration_loop.py [--json] [--seed 0] [--scenarios spring_j4 spring_j2]
+Over several seeds (``--seeds 0 1 2``, :func:`loop_errors_over_seeds`): one seed's clean error is one
+draw of the noise, and a lucky one makes a poor reference (the after-errors of that seed are other
+draws, from other recordings). So the target is also stated on the distributions:
+``after_within_2x_clean_median`` is true when, for Kt, gravity and inertial alike, the median over
+the seeds of the worst after-error over the scenarios is at most twice the median over the same
+seeds of the clean error (with the same 1e-3 floor as the per-seed test). The worst after-error
+over the seeds and the per-seed verdicts are reported beside it, so a seed far off stays visible.
+
+    python benchmarks/calibration_loop.py [--json] [--seeds 0 1 2] [--scenarios spring_j4 spring_j2]
 """
 
 from __future__ import annotations
@@ -52,6 +59,11 @@ SCENARIOS = {
 
 def _scaled(estimate, truth) -> float:
     return float((np.abs(estimate - truth) / np.maximum(np.abs(truth), 0.05 * np.abs(truth).max())).max())
+
+
+def _within(after: dict, clean: dict) -> bool:
+    """Issue 16's test: every error of ``after`` at most twice that of ``clean`` (floored at 1e-3)."""
+    return all(after[key] <= 2 * max(clean[key], 1e-3) for key in clean)
 
 
 def parameter_errors(robot, model, result) -> dict:
@@ -146,30 +158,56 @@ def loop_parameter_errors(seed: int = 0, scenarios=tuple(SCENARIOS)) -> dict:
         stage: {key: max(r[stage][key] for r in rows) for key in ("kt", "gravity", "inertial")}
         for stage in ("before", "after")
     }
-    within = all(worst["after"][key] <= 2 * max(clean[key], 1e-3) for key in clean)
-    return dict(worst, clean=clean, after_within_2x_clean=within, scenarios=rows)
+    return dict(worst, clean=clean, after_within_2x_clean=_within(worst["after"], clean), scenarios=rows)
+
+
+def loop_errors_over_seeds(seeds=(0, 1, 2), scenarios=tuple(SCENARIOS)) -> dict:
+    """``loop_parameter_errors`` per seed and their comparison across the seeds (module docstring)."""
+    per_seed = {int(seed): loop_parameter_errors(int(seed), scenarios) for seed in seeds}
+    keys = ("kt", "gravity", "inertial")
+
+    def median(stage):
+        return {key: float(np.median([r[stage][key] for r in per_seed.values()])) for key in keys}
+
+    worst_after = {key: max(r["after"][key] for r in per_seed.values()) for key in keys}
+    clean, after = median("clean"), median("after")
+    return {
+        "per_seed": per_seed,
+        "clean_median": clean,
+        "before_median": median("before"),
+        "after_median": after,
+        "after_worst": worst_after,
+        "after_median_over_clean_median": {key: after[key] / max(clean[key], 1e-3) for key in keys},
+        "after_within_2x_clean_median": _within(after, clean),
+        "after_within_2x_clean_per_seed": {seed: r["after_within_2x_clean"] for seed, r in per_seed.items()},
+    }
 
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--json", action="store_true")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=list(SCENARIOS))
     args = parser.parse_args(argv)
     show_progress()
-    result = loop_parameter_errors(args.seed, tuple(args.scenarios))
+    result = loop_errors_over_seeds(tuple(args.seeds), tuple(args.scenarios))
     if args.json:
-        print_json({"benchmark": "calibration_loop", "seed": args.seed, "loop_parameter_errors": result})
+        print_json({"benchmark": "calibration_loop", "seeds": args.seeds, "loop_parameter_errors": result})
         return 0
-    table = [{"stage": "clean", **result["clean"]}, {"stage": "before (worst)", **result["before"]}]
-    table.append({"stage": "after (worst)", **result["after"]})
-    for r in result["scenarios"]:
-        for stage in ("before", "after"):
-            table.append({"stage": f"{r['scenario']} {stage}", **r[stage]})
-    print_table(table, ["stage", "kt", "gravity", "inertial"])
-    for r in result["scenarios"]:
-        print(f"{r['scenario']}: diagnosis found {r['found']}; terms {r.get('terms')}")
-    print(f"after within 2x clean: {result['after_within_2x_clean']}")
+    table = []
+    for seed, r in result["per_seed"].items():
+        table.append({"seed": seed, "stage": "clean", **r["clean"]})
+        for s in r["scenarios"]:
+            for stage in ("before", "after"):
+                table.append({"seed": seed, "stage": f"{s['scenario']} {stage}", **s[stage]})
+    for name in ("clean_median", "before_median", "after_median", "after_worst"):
+        table.append({"seed": "all", "stage": name, **result[name]})
+    print_table(table, ["seed", "stage", "kt", "gravity", "inertial"])
+    for seed, r in result["per_seed"].items():
+        for s in r["scenarios"]:
+            print(f"seed {seed} {s['scenario']}: diagnosis found {s['found']}; terms {s.get('terms')}")
+        print(f"seed {seed}: after within 2x clean: {r['after_within_2x_clean']}")
+    print(f"over seeds {args.seeds}: median after within 2x median clean: {result['after_within_2x_clean_median']}")
     return 0
 
 

@@ -17,9 +17,10 @@ named steps in order, each on the previous steps' estimates, passed explicitly:
 Known extra torques (``extra_terms``, e.g. the spring a diagnosis found; :mod:`identification.calibration.extra_terms`):
 the gravity step fits their columns beside the gravity parameters, the friction step removes the
 torque so fitted, the inertial step fits them again beside the inertial parameters; then the terms
-are estimated on the excitation with every base parameter free and held in the gravity step, and the
-inertial step runs on that gravity (its values are the ones reported, with their sigma;
-``extra_passes``); the refinement and Table 3 hold them. Step 1 needs no
+and the gravity parameters are fitted jointly on the jog and the excitation (each experiment's rows
+weighted by its own residual variance), and the inertial step runs on that gravity (its values are
+the ones reported, with their sigma; ``extra_passes``); the refinement and Table 3 hold them. Without
+terms the gravity parameters come from the jog alone. Step 1 needs no
 column: a torque of the joint state is the same on the sweeps with and without the mass along the
 same path and cancels in their difference, like gravity.
 
@@ -384,8 +385,8 @@ class IdentificationPipeline:
         """The extra terms settled between the steps: ``(gravity, gravity_split, friction, inertial)`` again.
 
         The slow jog moves the joints over a small range, where a spring ``k q + c`` is nearly collinear
-        with the gravity torques; the excitation separates them. So the terms are fitted on the excitation
-        with every base parameter free, the gravity step runs again with them held, then the inertial step
+        with the gravity torques; the excitation separates them. So the terms and the gravity parameters
+        are fitted jointly on the jog and the excitation, then the inertial step runs on that gravity
         (``settle_extra_terms``); then the friction of the terms' joints is fitted again without their
         torque (the first friction fit removed the gravity step's estimate), and the terms are settled
         once more on that friction.
