@@ -19,6 +19,7 @@ import numpy as np
 
 from identification.diagnosis.nominal import friction_feature_names
 from identification.diagnosis.report import Finding
+from identification.diagnosis.rigid_body_choice import Claim, inertia_in_question, stand_in_note, standing_in
 from identification.diagnosis.sparse_fit import (
     MIN_TORQUE_FRACTION,
     VALIDATION_SLACK,
@@ -32,12 +33,19 @@ logger = logging.getLogger(__name__)
 SHAPE_KEYS = ("torque_ripple", "spring")  # library terms that are a torque of one joint's angle alone
 
 
-def look_beyond_library(problem, selection, final, options) -> tuple:
-    """``(selection, final, unnamed)``: the selection and final fit (``diagnose.FinalFit``) of a ``DiagnosisProblem``
-    with composite shapes replaced (module docstring) and the sparse terms of ``propose_sparse_terms`` added (one per
-    joint whose residual they explain, ``DiagnosisOptions.sparse_min_gain``), and the unnamed ``Finding`` values."""
+def look_beyond_library(problem, selection, final, options, identified=None) -> tuple:
+    """``(selection, final, unnamed, notes)``: the selection and final fit (``diagnose.FinalFit``) of a
+    ``DiagnosisProblem`` with composite shapes replaced (module docstring) and the sparse terms of
+    ``propose_sparse_terms`` added (one per joint whose residual they explain, ``DiagnosisOptions.sparse_min_gain``),
+    the unnamed ``Finding`` values, and the sentences on sparse terms left out as stand-ins.
+
+    ``identified`` (a ``rigid_body_choice.IdentifiedDiagnosis``, given by ``rigid_body="auto"`` when the prior
+    won) is the diagnosis with the rigid body identified: when the prior model kept an inertial finding, a sparse
+    term proposed on a joint's residual is reported only if it is not a stand-in for the robot file's inertia
+    (``_drop_stand_ins``), the rule its library findings obey. A term that replaces composite library shapes is
+    not judged again: those shapes already passed that rule."""
     if not options.sparse:
-        return selection, final, ()
+        return selection, final, (), ()
     logger.info("diagnose: looking beyond the library (sparse regression of the residual) ...")
     n_friction = _friction_column_count(problem, options)
     nuisance, columns = [], []
@@ -51,11 +59,40 @@ def look_beyond_library(problem, selection, final, options) -> tuple:
         problem.ctx_t, problem.ctx_v, residual_t, residual_v, options.sparse_min_gain, nuisance
     )
     done = {p.term.joint for p in replacing}
-    proposals = replacing + tuple(p for p in proposals if p.term.joint not in done)
+    proposals = tuple(p for p in proposals if p.term.joint not in done)
+    notes = ()
+    if proposals and identified is not None and inertia_in_question(selection):
+        proposals, notes = _drop_stand_ins(problem, final, proposals, identified)
+    proposals = replacing + proposals
     if not proposals:
-        return selection, final, ()
+        return selection, final, (), notes
     final, findings = _add_proposals(problem, final, proposals, columns)
-    return selection, final, findings
+    return selection, final, findings, notes
+
+
+def _drop_stand_ins(problem, final, proposals, identified) -> tuple:
+    """``(proposals, notes)``: the sparse ``proposals`` of the prior fit without those that stand in for the robot
+    file's inertia (``rigid_body_choice.standing_in``): a proposal stands if the diagnosis with the rigid body
+    identified, beyond the library too, keeps a finding on its joint, or if the prior model with it predicts its
+    joint's validation recording better than that diagnosis by ``STAND_IN_MARGIN``."""
+    logger.info("diagnose: judging the unnamed terms against the diagnosis with the rigid body identified ...")
+    ref = identified
+    _, final_i, unnamed_i, _ = look_beyond_library(ref.problem, ref.selection, ref.final, ref.options)
+    rmse_recalibrated = rmse(ref.problem.y_v, final_i.prediction_v)
+    rmse_prior = rmse(problem.y_v, final.prediction_v)
+    for p in proposals:
+        rmse_prior[p.term.joint] = p.rmse_after  # a sparse term changes its own joint's prediction only
+    claims = [Claim(key=p.term.key, joints=(p.term.joint,)) for p in proposals]
+    supporting = [Claim.of_step(step) for step in ref.selection.steps]
+    supporting += [Claim(key=f.effect, joints=tuple(f.joints)) for f in unnamed_i]
+    joints, _ = standing_in(claims, supporting, rmse_prior, rmse_recalibrated)
+    if not joints:
+        return proposals, ()
+    labels = [p.term.label for p in proposals if p.term.joint in joints]
+    action = "the sparse term was left out"
+    note = stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action)
+    logger.info(f"diagnose: {note}")
+    return tuple(p for p in proposals if p.term.joint not in joints), (note,)
 
 
 def _add_proposals(problem, final, proposals, columns) -> tuple:

@@ -4,7 +4,8 @@ RobotDescription + training/validation Recordings -> DiagnosisReport (with the a
 diagnoser sees only the robot file (kinematics, nominal inertia, drive friction shapes) and the
 recordings. The steps, each a function below: ``prepare_problem`` (preprocess, nominal signals, the
 nominal model's columns), ``select_terms`` (``selection.forward_select``), ``refine_terms``
-(``refine.refine_fit``), ``build_report``. Progress is logged at INFO (logger ``identification.diagnosis``).
+(``refine.refine_fit``), ``settle_rigid_body`` (``rigid_body_choice``), ``look_beyond_library``, and
+``report_assembly.build_report``. Progress is logged at INFO (logger ``identification.diagnosis``).
 """
 
 from __future__ import annotations
@@ -16,25 +17,22 @@ import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds
 from identification.data.preprocessing import PreprocessOptions, preprocess
-from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
 from identification.diagnosis.columns import BlockColumns
-from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.context import DiagnosisContext, build_context
-from identification.diagnosis.joint_changes import explain_joint_changes
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
     RIGID_BODY_CHOICES,
     friction_blocks,
     friction_feature_names,
-    friction_shapes,
 )
 from identification.diagnosis.refine import refine_fit
-from identification.diagnosis.report import DiagnosisReport, Finding
-from identification.diagnosis.residual_tests import analyse_residuals
+from identification.diagnosis.report import DiagnosisReport
+from identification.diagnosis.report_assembly import build_report, findings_of
 from identification.diagnosis.rigid_body_choice import (
+    IdentifiedDiagnosis,
     drop_stand_ins,
     inertial_note,
     moved_parameters,
@@ -42,7 +40,7 @@ from identification.diagnosis.rigid_body_choice import (
     recalibration_parts,
 )
 from identification.diagnosis.selection import SelectionResult, forward_select
-from identification.metrics import r2, rms, rmse
+from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
@@ -239,20 +237,24 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     problem = prepare_problem(robot, model, train, validation, options)
     selection = select_terms(robot, problem, options)
     final = refine_terms(problem, selection, options)
-    notes = ()
+    notes, identified = (), None
     if options.rigid_body == "auto":
-        problem, selection, final, options, notes = settle_rigid_body(robot, model, problem, selection, final, options)
-    selection, final, unnamed = look_beyond_library(problem, selection, final, options)
+        problem, selection, final, options, notes, identified = settle_rigid_body(
+            robot, model, problem, selection, final, options
+        )
+    selection, final, unnamed, more = look_beyond_library(problem, selection, final, options, identified)
+    notes += more
     report = build_report(robot, model, problem, selection, final, options, unnamed)
     return replace(report, rigid_body_notes=notes) if notes else report
 
 
 def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final: FinalFit, options) -> tuple:
-    """``rigid_body="auto"`` (``rigid_body_choice``): ``(problem, selection, final, options, notes)`` of the prior
-    fit, or of the identified rigid body when that diagnosis predicts the validation recording better."""
+    """``rigid_body="auto"`` (``rigid_body_choice``): ``(problem, selection, final, options, notes, identified)`` of
+    the prior fit, or of the identified rigid body when that diagnosis predicts the validation recording better;
+    ``identified`` is the ``IdentifiedDiagnosis`` the prior's findings were judged against when the prior won."""
     prior = replace(options, rigid_body="prior")
     if not selection.steps:
-        return problem, selection, final, prior, ()
+        return problem, selection, final, prior, (), None
     logger.info("diagnose: findings with the robot file's inertia; diagnosing with a recalibrated rigid body too ...")
     identified = replace(options, rigid_body="identified")
     recal = DiagnosisProblem(**recalibration_parts(problem, model))
@@ -261,7 +263,9 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     weights = 1.0 / np.maximum(rms(problem.ctx_v.tau), 1e-9)
     rmse_prior, rmse_recal = rmse(problem.y_v, final.prediction_v), rmse(recal.y_v, final_i.prediction_v)
     rmse_nominal = rmse(problem.y_v, selection.nominal_validation)
-    found, found_i = (tuple(f.effect for f in _findings(x, y)) for x, y in ((selection, final), (selection_i, final_i)))
+    found, found_i = (
+        tuple(f.effect for f in findings_of(x, y)) for x, y in ((selection, final), (selection_i, final_i))
+    )
     if prior_wins(rmse_nominal, rmse_prior, rmse_recal, weights, found, found_i):
 
         def reselect(instances):  # the prior diagnosis on fewer candidates (``drop_stand_ins``)
@@ -273,14 +277,14 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
         fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal)
         for note in fit[2]:
             logger.info(f"diagnose: {note}")
-        return problem, fit[0], fit[1], prior, fit[2]
+        return problem, fit[0], fit[1], prior, fit[2], IdentifiedDiagnosis(recal, selection_i, final_i, identified)
     effects = sorted(set(found) - set(found_i))
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
     moved = moved_parameters(model, robot, final_i.friction_coefficients[n_friction:])
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
-    return recal, selection_i, final_i, identified, (note,)
+    return recal, selection_i, final_i, identified, (note,), None
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
@@ -386,101 +390,4 @@ def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options:
         prediction_t=refined.prediction_train,
         prediction_v=refined.prediction_validation,
         nonlinear=refined.nonlinear,
-    )
-
-
-def build_report(
-    robot,
-    model,
-    problem: DiagnosisProblem,
-    selection: SelectionResult,
-    final: FinalFit,
-    options: DiagnosisOptions,
-    unnamed: tuple = (),
-) -> DiagnosisReport:
-    """The findings, the augmented model and the per-joint errors of the nominal and the final model."""
-    ctx_t, ctx_v = problem.ctx_t, problem.ctx_v
-    fixed_t = ctx_t.tau - problem.y_t
-    fixed_v = ctx_v.tau - problem.y_v
-    model_nominal_v = fixed_v + selection.nominal_validation
-    model_final_v = fixed_v + final.prediction_v
-    model_nominal_t = fixed_t + selection.nominal_train
-    model_final_t = fixed_t + final.prediction_t
-    residual_v = ctx_v.tau - model_nominal_v
-    findings = _findings(selection, final) + tuple(unnamed)
-    rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
-    return DiagnosisReport(
-        robot_name=robot.name,
-        n_dof=robot.n_dof,
-        friction=options.friction,
-        rigid_body=options.rigid_body,
-        findings=findings,
-        rmse_before=tuple(rmse_before.tolist()),
-        rmse_after=tuple(rmse_after.tolist()),
-        r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()),
-        r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
-        rmse_train_before=tuple(rmse(ctx_t.tau, model_nominal_t).tolist()),
-        rmse_train_after=tuple(rmse(ctx_t.tau, model_final_t).tolist()),
-        residual_findings=analyse_residuals(ctx_v, residual_v),
-        candidates_tried=selection.candidates_tried,
-        augmented=_augmented_model(robot, model, final, options),
-        validation_t=ctx_v.t,
-        validation_q=ctx_v.q,
-        validation_qd=ctx_v.qd,
-        validation_tau=ctx_v.tau,
-        validation_nominal=model_nominal_v,
-        validation_final=model_final_v,
-        joint_notes=explain_joint_changes(rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear)),
-        confounding=confounding_of(robot, model, problem, final, len(selection.steps), options),
-        dropped=selection.dropped,
-    )
-
-
-def _findings(selection: SelectionResult, final: FinalFit) -> tuple:
-    """One ``Finding`` per kept term, in the order the selection kept them."""
-    findings = []
-    for step, term, coefficients in zip(selection.steps, final.terms, final.coefficients):
-        effect, explanation = term.interpret(coefficients)
-        parameters = dict(term.physical_parameters(coefficients))
-        parameters.update(final.nonlinear.get(term.label, {}))
-        findings.append(
-            Finding(
-                effect=effect,
-                label=term.label,
-                joints=tuple(int(j) for j in step.joints),
-                parameters=parameters,
-                coefficients=tuple(float(c) for c in coefficients),
-                feature_names=tuple(term.feature_names()),
-                explanation=explanation,
-                signature=term.signature,
-                rmse_before=tuple(float(x) for x in step.rmse_before),
-                rmse_after=tuple(float(x) for x in step.rmse_after),
-                delta_bic=step.delta_bic,
-                validation_gain=step.validation_gain,
-                shape_note=step.shape_note,
-            )
-        )
-    return tuple(findings)
-
-
-def _augmented_model(robot, model, final: FinalFit, options: DiagnosisOptions) -> AugmentedModel:
-    """The nominal model (the robot file's or the identified base parameters, fitted friction) plus the kept terms."""
-    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
-    n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
-    friction_all = final.friction_coefficients
-    theta = (
-        model.base_parameters(robot.nominal_dynamic_parameters())
-        if options.rigid_body == "prior"
-        else friction_all[n_friction + n_dynamic :]
-    )
-    vs, dv = friction_shapes(robot)
-    return AugmentedModel(
-        model=model,
-        theta=np.asarray(theta, dtype=float),
-        friction_kind=options.friction,
-        friction_coefficients=np.asarray(friction_all[:n_friction], dtype=float),
-        friction_vs=vs,
-        friction_dv=dv,
-        terms=final.terms,
-        coefficients=final.coefficients,
     )

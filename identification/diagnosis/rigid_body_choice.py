@@ -15,12 +15,14 @@ with a right prior gives no finding and costs no recalibration.
 When the prior wins with an inertial finding, the robot file's inertia is in question, so its other findings
 are judged against the recalibrated rigid body too (``stand_ins``): one that the diagnosis with the rigid body
 identified does not need, on joints the recalibrated model predicts about as well, only stands in for the wrong
-prior; it is not reported and the prior diagnosis is repeated without it (``drop_stand_ins``, with a note).
+prior; it is not reported and the prior diagnosis is repeated without it (``drop_stand_ins``, with a note). The
+unnamed sparse terms of the beyond-library stage obey the same rule (``standing_in``, judged there against the
+``IdentifiedDiagnosis`` looked at beyond the library too).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -83,35 +85,87 @@ def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(),
     return nominal > recalibrated and (nominal - prior) >= MIN_SHARE * (nominal - recalibrated)
 
 
-def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated) -> tuple:
-    """The non-inertial findings of the prior model that only stand in for its wrong inertia, when the prior wins:
-    ``(joints, keys)``, the joints of the per-joint ones and the effect keys of the robot-wide ones.
+@dataclass(frozen=True)
+class Claim:
+    """What a finding claims, for ``standing_in``: its effect ``key``, its ``joints`` (0-based) and whether it is a
+    per-joint term (else robot-wide: a base tilt, a delay)."""
 
-    Only when the prior model kept an inertial finding (a payload, a rotor inertia: the robot file's inertia is then
-    in question) are its other findings judged against the recalibrated rigid body: a finding stands if the
-    diagnosis with the rigid body identified also keeps a finding on one of its joints, or if the prior model with
-    its findings predicts one of its joints' validation recording better than the recalibrated one by
-    ``STAND_IN_MARGIN`` (a robot-wide finding, such as a base tilt, needs the same effect kept with the rigid body
-    identified). Otherwise it only mimics the wrong prior (CAD inertia 10-20 % off leaves a torque that a
-    spring, an offset or a base tilt fits in part). ``rmse_*`` are the per-joint validation RMSE of the two fits
-    (``prior_wins``)."""
-    if not any(step.term.key in INERTIAL_TERMS for step in selection.steps):
-        return (), ()
-    supported = {int(j) for step in selection_identified.steps for j in (step.term.joints or step.joints)}
-    supported_keys = {step.term.key for step in selection_identified.steps}
+    key: str
+    joints: tuple
+    per_joint: bool = True
+
+    @classmethod
+    def of_step(cls, step) -> Claim:
+        """The claim of a kept term (a ``SelectionStep``, or anything with ``term`` and ``joints``)."""
+        named = tuple(int(j) for j in (step.term.joints or step.joints))
+        return cls(key=step.term.key, joints=named, per_joint=bool(step.term.joints))
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifiedDiagnosis:
+    """The diagnosis with the rigid body identified that the prior's findings were judged against when the prior
+    won (``DiagnosisProblem``, selection, final fit and options of that run): the beyond-library stage judges its
+    unnamed terms against it too (``standing_in``)."""
+
+    problem: object
+    selection: object
+    final: object
+    options: object
+
+
+def inertia_in_question(selection) -> bool:
+    """Whether the prior model kept an inertial finding (a payload, a rotor inertia): the robot file's inertia is
+    then in question, and its other findings are judged against the recalibrated rigid body (``standing_in``)."""
+    return any(step.term.key in INERTIAL_TERMS for step in selection.steps)
+
+
+def standing_in(claims, supporting, rmse_prior, rmse_recalibrated) -> tuple:
+    """The prior model's findings (``claims``, ``Claim`` values) that only stand in for its wrong inertia: ``(joints,
+    keys)``, the joints of the per-joint ones and the effect keys of the robot-wide ones.
+
+    A finding stands if the diagnosis with the rigid body identified also keeps a finding (``supporting``, its
+    ``Claim`` values) on one of its joints, or if the prior model with its findings predicts one of its joints'
+    validation recording better than the recalibrated one by ``STAND_IN_MARGIN`` (a robot-wide finding, such as a
+    base tilt, needs the same effect kept with the rigid body identified); inertial findings always stand. Otherwise
+    it only mimics the wrong prior (CAD inertia 10-20 % off leaves a torque that a spring, an offset, a base tilt or
+    an unnamed sparse term fits in part). ``rmse_*`` are the per-joint validation RMSE of the two fits."""
+    supported = {j for claim in supporting for j in claim.joints}
+    supported_keys = {claim.key for claim in supporting}
     joints, keys = set(), set()
-    for step in selection.steps:
-        named = [int(j) for j in (step.term.joints or step.joints)]
-        # a robot-wide term (a base tilt, a delay) is supported by the same effect, a per-joint one by any on its joint
-        found = step.term.key in supported_keys if not step.term.joints else any(j in supported for j in named)
-        better = any(rmse_prior[j] <= (1.0 - STAND_IN_MARGIN) * rmse_recalibrated[j] for j in named)
-        if step.term.key in INERTIAL_TERMS or found or better:
+    for claim in claims:
+        found = any(j in supported for j in claim.joints) if claim.per_joint else claim.key in supported_keys
+        better = any(rmse_prior[j] <= (1.0 - STAND_IN_MARGIN) * rmse_recalibrated[j] for j in claim.joints)
+        if claim.key in INERTIAL_TERMS or found or better:
             continue
-        if step.term.joints:
-            joints.update(named)
+        if claim.per_joint:
+            joints.update(claim.joints)
         else:
-            keys.add(step.term.key)
+            keys.add(claim.key)
     return tuple(sorted(joints)), tuple(sorted(keys))
+
+
+def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated) -> tuple:
+    """The non-inertial findings of the prior model's ``selection`` that only stand in for its wrong inertia, when
+    the prior wins: ``(joints, keys)`` of ``standing_in``, judged against ``selection_identified`` (the selection with
+    the rigid body identified), and only when the prior model kept an inertial finding (``inertia_in_question``).
+    ``rmse_*`` are the per-joint validation RMSE of the two fits (``prior_wins``)."""
+    if not inertia_in_question(selection):
+        return (), ()
+    claims = [Claim.of_step(step) for step in selection.steps]
+    supporting = [Claim.of_step(step) for step in selection_identified.steps]
+    return standing_in(claims, supporting, rmse_prior, rmse_recalibrated)
+
+
+def stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action: str) -> str:
+    """The report's sentence on findings (``labels``) on ``joints`` that stand in for the robot file's inertia
+    (``standing_in``); ``action`` says what was done about them."""
+    pairs = "; ".join(f"joint {j + 1}: {rmse_prior[j]:.4g} with them, {rmse_recalibrated[j]:.4g}" for j in joints)
+    return (
+        f"{', '.join(f'`{x}`' for x in labels)} not reported as missing physics: the prior model needed an "
+        "inertial finding (the robot file's inertia is in question), and with the rigid body identified the "
+        f"diagnosis needs no finding there and predicts those joints about as well (validation RMSE {pairs} "
+        f"recalibrated), so they stand in for the robot file's inertia; {action}."
+    )
 
 
 def without_stand_ins(instances, joints, keys=()) -> tuple:
@@ -139,13 +193,8 @@ def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation,
         kept = set(without_stand_ins([step.term for step in selection.steps], joints, keys))
         labels = [step.term.label for step in selection.steps if step.term not in kept]
         named = sorted({j for step in selection.steps if step.term not in kept for j in step.joints})
-        pairs = "; ".join(f"joint {j + 1}: {rmse_prior[j]:.4g} with them, {rmse_recalibrated[j]:.4g}" for j in named)
-        notes.append(
-            f"{', '.join(f'`{x}`' for x in labels)} not reported as missing physics: the prior model needed an "
-            "inertial finding (the robot file's inertia is in question), and with the rigid body identified the "
-            f"diagnosis needs no finding there and predicts those joints about as well (validation RMSE {pairs} "
-            "recalibrated), so they stand in for the robot file's inertia; the diagnosis was repeated without them."
-        )
+        action = "the diagnosis was repeated without them"
+        notes.append(stand_in_note(labels, named, rmse_prior, rmse_recalibrated, action))
         instances = without_stand_ins(instances, joints, keys)
         selection, final = reselect(instances)
     return selection, final, tuple(notes)

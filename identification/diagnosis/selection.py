@@ -28,6 +28,10 @@ After the forward pass a backward check refits the kept terms without each one i
 lowers the validation RMSE of every joint it names (a later term took its part) is dropped and the check repeats
 (``SelectionResult.dropped`` says which and why).
 
+A candidate whose name the recording cannot support (``CandidateTerm.name_unsupported``: a torque ripple, periodic in
+the angle, on a joint whose recorded travel covers less than one of its periods) is not named when a candidate on
+the same joint whose name it supports (a spring, a counterbalance) fits that joint as well (``NAME_TOLERANCE``).
+
 Ties (gains within 2 % that leave at most ``TIE_REMAINING`` times the best one's remaining error: a gain of
 97.9 % leaves 20 times the error of one of 99.9 %) go to the candidate with fewer parameters, then to the earlier
 term of the library. Selection stops when no candidate qualifies or ``max_effects`` are kept. Each round's best
@@ -51,6 +55,7 @@ logger = logging.getLogger(__name__)
 ROBOT_FLOOR = 0.0004  # least RMSE drop on any joint as a fraction of the robot's largest joint torque RMS
 SCORE_ROWS = 2000  # training rows a ``JointScore`` sums over
 TIE_REMAINING = 1.5  # a tie in gain must leave at most this times the best candidate's remaining validation error
+NAME_TOLERANCE = 0.1  # a rival fits a joint as well: its validation RMSE there within this fraction (``_backed_name``)
 PRUNE_TOLERANCE = 1e-6  # a kept term must lower its joints' validation RMSE by more than this fraction (``_prune``)
 
 
@@ -219,7 +224,7 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
         if own:  # a per-joint term earns its place on its own joint, not through a shared parameter elsewhere
             improving = improving[list(own)]
         if np.any(improving) and wval1 < wval0 and delta_bic < 0:
-            qualified.append((gain, k, index, variant, rv1, delta_bic, note))
+            qualified.append((gain, k, index, variant, rv1, delta_bic, note, variant.name_unsupported(train_ctx)))
     for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
         logger.info(
             f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, "
@@ -232,11 +237,41 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
 
 def _choose(qualified):
     """The best qualifying candidate; gains within 2 % of the best that leave at most ``TIE_REMAINING`` times its
-    remaining error tie, and ties go to fewer parameters, then the earlier term."""
+    remaining error tie, and ties go to fewer parameters, then the earlier term (``_backed_name`` then checks that
+    the recording supports the chosen term's name)."""
     top = max(q[0] for q in qualified)
     left = max(1.0 - top, 1e-12)
     near = [q for q in qualified if q[0] >= top - 0.02 * abs(top) and 1.0 - q[0] <= TIE_REMAINING * left]
-    return min(near, key=lambda q: (q[1], q[2]))
+    return _backed_name(min(near, key=lambda q: (q[1], q[2])), qualified)
+
+
+def _backed_name(chosen, qualified):
+    """``chosen``, unless the recording cannot support its name (``CandidateTerm.name_unsupported``: a ripple over
+    less than one of its periods) and a qualifying candidate whose name it supports acts on the same joint and fits
+    it as well (validation RMSE of the joint within ``NAME_TOLERANCE`` of the chosen one's): then the best of those,
+    with a shape note saying why. A smooth stretch of torque is named by the family that claims no more than the
+    data show; a ripple that fits its joint clearly better than every such rival is still named, since the data
+    then show a shape the smooth family cannot follow."""
+    reason, joints = chosen[7], list(chosen[3].joints)
+    if reason is None or not joints:
+        return chosen
+    rivals = [
+        q
+        for q in qualified
+        if q[7] is None
+        and set(q[3].joints) & set(joints)
+        and np.all(q[4][joints] <= (1.0 + NAME_TOLERANCE) * chosen[4][joints])
+    ]
+    if not rivals:
+        return chosen
+    rival = max(rivals, key=lambda q: (q[0], -q[1], -q[2]))
+    j = joints[0]
+    note = (
+        f"{rival[3].label} named rather than {chosen[3].label}, which fits joint {j + 1} about as well (validation "
+        f"RMSE {rival[4][j]:.4g} N m, {chosen[4][j]:.4g} N m with {chosen[3].label}) but {reason}"
+    )
+    logger.info(f"diagnose:   {note}")
+    return rival[:6] + ("; ".join(x for x in (note, rival[6]) if x), None)
 
 
 def _named_joints(term, rmse_before, rmse_after, joint_threshold) -> tuple:
@@ -373,7 +408,7 @@ def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_t
         tried += len(remaining)
         if not qualified:
             break
-        gain, _, index, term, _, delta_bic, note = _choose(qualified)
+        gain, _, index, term, _, delta_bic, note, _ = _choose(qualified)
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
         step = SelectionStep(

@@ -166,6 +166,14 @@ class CandidateTerm:
         """
         return None
 
+    def name_unsupported(self, context) -> str | None:
+        """Why the training ``context``'s motion cannot show what the term's name claims, or None (the default).
+
+        A term that fits the torque but whose name the recording cannot back (a ripple, periodic in the angle, over
+        less than one of its periods) is named by the selection only when no candidate without such a reason fits
+        its joint about as well (``selection``)."""
+        return None
+
     def interpret(self, coefficients) -> tuple:
         """``(effect, explanation)`` reported for the fitted coefficients (the payload term reports a negative
         mass as a last link too heavy in the robot file)."""

@@ -16,6 +16,7 @@ from identification.diagnosis.candidates.gas_spring import GasSpringTerm, fit_ge
 from psdm_casadi.errors import ParameterError
 
 MAX_ORDER = 3  # highest polynomial order of a spring's shape
+MIN_PERIODS = 1.0  # periods of a ripple the joint's recorded travel must cover for the data to show it is periodic
 LEVER_LAW_MIN_DROP = 0.01  # lever law offered where the highest-order polynomial lowers the training SSE this much
 
 
@@ -225,6 +226,25 @@ class TorqueRippleTerm(CandidateTerm):
     def physical_parameters(self, coefficients):
         a, b = (float(x) for x in coefficients)
         return {"amplitude": float(np.hypot(a, b)), "harmonic": float(self.harmonic), "phase": float(np.arctan2(b, a))}
+
+    def periods_covered(self, context) -> float:
+        """How many of the ripple's periods (``2 pi / harmonic`` of the angle) the joint's travel in ``context``
+        covers."""
+        self._require_joint()
+        q = context.q[:, self.joint]
+        return float(np.max(q) - np.min(q)) * self.harmonic / (2.0 * np.pi)
+
+    def name_unsupported(self, context):
+        """A ripple is a periodic function of the angle: a recording whose travel on the joint covers less than
+        ``MIN_PERIODS`` of its periods shows a smooth stretch of it, which a spring's polynomial or a lever law
+        fits as well; the data then cannot tell the torque is periodic."""
+        periods = self.periods_covered(context)
+        if periods >= MIN_PERIODS:
+            return None
+        return (
+            f"joint {self.joint + 1}'s recorded travel covers {periods:.2f} of the ripple's period "
+            f"(2 pi / {self.harmonic} rad), too little to show a periodic torque"
+        )
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         x = self.harmonic * q[self.joint]

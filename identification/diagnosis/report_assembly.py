@@ -1,0 +1,115 @@
+"""The ``DiagnosisReport`` of a diagnosis fit: the findings of the kept terms, the augmented model, the errors.
+
+``diagnose`` hands over its ``DiagnosisProblem``, the selection, the final fit (``diagnose.FinalFit``) and the
+unnamed findings of the beyond-library stage; ``build_report`` turns them into the report that the C export and
+the model file reproduce (the augmented model holds exactly the terms and coefficients the findings show).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from identification.diagnosis.augmented import AugmentedModel
+from identification.diagnosis.confounding import confounding_of
+from identification.diagnosis.joint_changes import explain_joint_changes
+from identification.diagnosis.nominal import friction_feature_names, friction_shapes
+from identification.diagnosis.report import DiagnosisReport, Finding
+from identification.diagnosis.residual_tests import analyse_residuals
+from identification.metrics import r2, rmse
+
+
+def build_report(
+    robot,
+    model,
+    problem,
+    selection,
+    final,
+    options,
+    unnamed: tuple = (),
+) -> DiagnosisReport:
+    """The findings, the augmented model and the per-joint errors of the nominal and the final model."""
+    ctx_t, ctx_v = problem.ctx_t, problem.ctx_v
+    fixed_t = ctx_t.tau - problem.y_t
+    fixed_v = ctx_v.tau - problem.y_v
+    model_nominal_v = fixed_v + selection.nominal_validation
+    model_final_v = fixed_v + final.prediction_v
+    model_nominal_t = fixed_t + selection.nominal_train
+    model_final_t = fixed_t + final.prediction_t
+    residual_v = ctx_v.tau - model_nominal_v
+    findings = findings_of(selection, final) + tuple(unnamed)
+    rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
+    return DiagnosisReport(
+        robot_name=robot.name,
+        n_dof=robot.n_dof,
+        friction=options.friction,
+        rigid_body=options.rigid_body,
+        findings=findings,
+        rmse_before=tuple(rmse_before.tolist()),
+        rmse_after=tuple(rmse_after.tolist()),
+        r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()),
+        r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
+        rmse_train_before=tuple(rmse(ctx_t.tau, model_nominal_t).tolist()),
+        rmse_train_after=tuple(rmse(ctx_t.tau, model_final_t).tolist()),
+        residual_findings=analyse_residuals(ctx_v, residual_v),
+        candidates_tried=selection.candidates_tried,
+        augmented=augmented_model_of(robot, model, final, options),
+        validation_t=ctx_v.t,
+        validation_q=ctx_v.q,
+        validation_qd=ctx_v.qd,
+        validation_tau=ctx_v.tau,
+        validation_nominal=model_nominal_v,
+        validation_final=model_final_v,
+        joint_notes=explain_joint_changes(rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear)),
+        confounding=confounding_of(robot, model, problem, final, len(selection.steps), options),
+        dropped=selection.dropped,
+    )
+
+
+def findings_of(selection, final) -> tuple:
+    """One ``Finding`` per kept term, in the order the selection kept them."""
+    findings = []
+    for step, term, coefficients in zip(selection.steps, final.terms, final.coefficients):
+        effect, explanation = term.interpret(coefficients)
+        parameters = dict(term.physical_parameters(coefficients))
+        parameters.update(final.nonlinear.get(term.label, {}))
+        findings.append(
+            Finding(
+                effect=effect,
+                label=term.label,
+                joints=tuple(int(j) for j in step.joints),
+                parameters=parameters,
+                coefficients=tuple(float(c) for c in coefficients),
+                feature_names=tuple(term.feature_names()),
+                explanation=explanation,
+                signature=term.signature,
+                rmse_before=tuple(float(x) for x in step.rmse_before),
+                rmse_after=tuple(float(x) for x in step.rmse_after),
+                delta_bic=step.delta_bic,
+                validation_gain=step.validation_gain,
+                shape_note=step.shape_note,
+            )
+        )
+    return tuple(findings)
+
+
+def augmented_model_of(robot, model, final, options) -> AugmentedModel:
+    """The nominal model (the robot file's or the identified base parameters, fitted friction) plus the kept terms."""
+    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
+    n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
+    friction_all = final.friction_coefficients
+    theta = (
+        model.base_parameters(robot.nominal_dynamic_parameters())
+        if options.rigid_body == "prior"
+        else friction_all[n_friction + n_dynamic :]
+    )
+    vs, dv = friction_shapes(robot)
+    return AugmentedModel(
+        model=model,
+        theta=np.asarray(theta, dtype=float),
+        friction_kind=options.friction,
+        friction_coefficients=np.asarray(friction_all[:n_friction], dtype=float),
+        friction_vs=vs,
+        friction_dv=dv,
+        terms=final.terms,
+        coefficients=final.coefficients,
+    )
