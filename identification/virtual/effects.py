@@ -318,7 +318,9 @@ class StribeckHump(ExtraPhysics):
 @dataclass(frozen=True)
 class CamCounterbalance(ExtraPhysics):
     """A counterbalance acting through a cam: ``amplitude sin(q - q0) (1 + lobe cos(2 (q - q0)))``, a torque
-    that is neither linear in the angle (a spring) nor a single sine (gravity). Outside the diagnosis library."""
+    that is neither linear in the angle (a spring) nor a single sine (gravity). It equals
+    ``amplitude ((1 - lobe / 2) sin x + (lobe / 2) sin 3x)``, ``x = q - q0``: two harmonics of the diagnosis' torque
+    ripple, and over a short travel a low-order spring series, so it is inside the library (``LobedCam`` is not)."""
 
     joint: int
     amplitude: float
