@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
+from identification.calibration.model_file_check import robot_digest
 from identification.calibration.trajectory_data import drive_columns, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
@@ -373,7 +374,7 @@ def _robot_block(robot, robot_source) -> dict:
     files = {main.name: main.read_text()}
     if robot.urdf_path is not None and Path(robot.urdf_path).name != main.name:
         files[Path(robot.urdf_path).name] = Path(robot.urdf_path).read_text()
-    digest = hashlib.sha256(json.dumps(files, sort_keys=True).encode()).hexdigest()
+    digest = robot_digest(files)  # the same digest the reader checks
     locked = [list(_lock(entry)) for entry in robot.locked_joints] if robot.urdf_path is not None else []
     return {"name": robot.name, "joint_names": list(robot.joint_names), "main_file": main.name, "files": files,
             "locked_joints": locked, "sha256": digest}  # fmt: skip
