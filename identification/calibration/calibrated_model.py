@@ -55,7 +55,8 @@ from psdm_casadi.fileio import atomic_write
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
 __all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "friction_drives",
-           "load_calibrated_model", "recording_provenance", "standard_parameter_labels"]  # fmt: skip
+           "LoadedModel", "load_calibrated_model", "read_calibrated_model", "recording_provenance",
+           "standard_parameter_labels"]  # fmt: skip
 
 CALIBRATED_FORMAT = "psdm-calibrated-model"
 CALIBRATED_VERSION = 2
@@ -402,7 +403,22 @@ def _version() -> str:
         return "unknown"
 
 
+@dataclass(frozen=True, eq=False)
+class LoadedModel:
+    """A checked calibrated-model file with the robot it was identified for and that robot's PSDM model (the
+    check derives them; :func:`read_calibrated_model` hands them on so that a command does not derive again)."""
+
+    calibrated: CalibratedModel
+    robot: object
+    model: object
+
+
 def load_calibrated_model(path) -> CalibratedModel:
+    """The checked calibrated model of ``path`` (:func:`read_calibrated_model` without the robot and its model)."""
+    return read_calibrated_model(path).calibrated
+
+
+def read_calibrated_model(path) -> LoadedModel:
     """Read a calibrated-model file, checking its format, version and contents (``model_file_check``).
 
     Every field must parse (finite numbers of the right length, booleans, drive names and values one to one),
@@ -441,5 +457,7 @@ def load_calibrated_model(path) -> CalibratedModel:
     check_document(document, path.name)  # every field parses, the robot text matches its hash
     calibrated = CalibratedModel(document)
     calibrated.lugre_parameters, calibrated.torque_findings  # noqa: B018  (raise here, not in the command)
-    check_against_model(calibrated, derive_psdm(calibrated.load_robot()), path.name)  # base == standard's, claims
-    return calibrated
+    robot = calibrated.load_robot()
+    model = derive_psdm(robot)
+    check_against_model(calibrated, model, path.name)  # base == standard's, and what the file claims
+    return LoadedModel(calibrated, robot, model)

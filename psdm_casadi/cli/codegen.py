@@ -204,9 +204,8 @@ def _check_options(args):
 def _calibrated_functions(args, path: Path, out: Path):
     """(Functions, form, header note, CalibratedModel) of a calibrated-model file, or None when refused."""
     from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
-    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.calibrated_model import read_calibrated_model
     from psdm_casadi.cli.output import progress
-    from psdm_casadi.derive import derive_psdm
 
     given = (("--theta", args.theta), ("--robot", args.robot), ("--lock", getattr(args, "lock", None) or None))
     extra = [option for option, value in given if value is not None]
@@ -215,7 +214,8 @@ def _calibrated_functions(args, path: Path, out: Path):
             f"codegen {' and '.join(extra)} must not be given with a calibrated model; got {path.name}, which holds "
             f"its robot and parameters. Drop {' and '.join(extra)}."
         )
-    calibrated = load_calibrated_model(path)
+    loaded = read_calibrated_model(path)  # checked; its robot and model derived once
+    calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     problem = consistency_problem(calibrated)
     if problem is not None and not args.allow_inconsistent:
         print(
@@ -226,9 +226,6 @@ def _calibrated_functions(args, path: Path, out: Path):
         return None
     if problem is not None:
         print(f"psdm codegen: warning: exporting it although {problem}", file=sys.stderr)
-    robot = calibrated.load_robot()
-    progress(f"deriving the PSDM model of {robot.name} ...")
-    model = derive_psdm(robot)
     progress("building the CasADi functions (rigid body + drive terms) ...")
     form = args.form or "recursive"
     functions = build_calibrated_functions(calibrated, model, robot, form=form, allow_inconsistent=True)

@@ -108,14 +108,12 @@ def _run_diagnose(args) -> int:
     check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
     check_positive(args.cutoff, "--cutoff", "Use --cutoff 15 (the default).", " [Hz]")
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
-    calibrated, apply_out = _calibrated_source(args)
-    model = robot_file = None
-    if calibrated is not None:
+    loaded, apply_out = _calibrated_source(args)
+    calibrated = model = robot_file = None
+    if loaded is not None:
         from identification.calibration.calibrated_model import calibrated_robot
-        from psdm_casadi.derive import derive_psdm
 
-        robot_file = calibrated.load_robot()
-        model = derive_psdm(robot_file)
+        calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
         robot = calibrated_robot(calibrated, robot_file)
     else:
         robot = load_robot_argument(args)
@@ -162,8 +160,8 @@ def _own_friction(calibrated) -> str:
 
 
 def _calibrated_source(args):
-    """(CalibratedModel or None, checked --apply output or None): a .json source is a calibrated model."""
-    from identification.calibration.calibrated_model import load_calibrated_model
+    """(LoadedModel or None, checked --apply output or None): a .json source is a calibrated model."""
+    from identification.calibration.calibrated_model import read_calibrated_model
     from psdm_casadi.cli.checks import check_suffix, output_file
 
     if not str(args.robot).lower().endswith(".json"):
@@ -181,8 +179,7 @@ def _calibrated_source(args):
     if args.apply is not None:
         check_not_input(args.apply, "--apply", _inputs(args), example=f"{Path(args.apply).stem}_applied.json")
         check_suffix(args.apply, "--apply", (".json",), "a calibrated-model file (JSON)")
-    calibrated = load_calibrated_model(args.robot)
-    return calibrated, output_file(args.apply, "--apply", args.overwrite)
+    return read_calibrated_model(args.robot), output_file(args.apply, "--apply", args.overwrite)
 
 
 def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> int:

@@ -71,14 +71,15 @@ def _check_not_robot_file(args, calibrated) -> None:
 
 
 def _run_export_urdf(args) -> int:
-    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.urdf_export import friction_not_representable, render_urdf
     from identification.calibration.urdf_findings import findings_not_representable
 
     check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.urdf")
     check_suffix(args.out, "OUT", (".urdf",), "a URDF")
     out = output_file(args.out, "OUT", args.overwrite)
-    calibrated = load_calibrated_model(args.model)
+    loaded = read_calibrated_model(args.model)
+    calibrated = loaded.calibrated
     _check_not_robot_file(args, calibrated)
     eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
     checked = calibrated.document["standard"].get("checked", True)
@@ -90,7 +91,7 @@ def _run_export_urdf(args) -> int:
             file=sys.stderr,
         )
         return EXIT_CHECK_FAILED
-    robot = calibrated.load_robot()
+    robot = loaded.robot
     progress(f"export-urdf: writing the identified inertias of {robot.name} ...", quiet=args.json)
     text = render_urdf(calibrated, robot)
     if not calibrated.consistent:

@@ -264,10 +264,9 @@ def _simulate_runs(args, robot, runs, rng, stage: Path) -> tuple:
 
 def _run_model(args) -> int:
     """``psdm simulate MODEL.json``: the calibrated model's torques along the reference (module docstring)."""
-    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.model_simulation import simulate_calibrated
     from identification.data.io import save_recording
-    from psdm_casadi.derive import derive_psdm
 
     if not (np.isfinite(args.tau_noise) and args.tau_noise >= 0):
         raise ParameterError(f"--tau-noise must be >= 0 [N m]; got {args.tau_noise!r}. Pass e.g. --tau-noise 0.1.")
@@ -282,8 +281,8 @@ def _run_model(args) -> int:
             f"{', '.join(MODEL_EXPERIMENTS)} or --reference FILE."
         )
     output_folder(args.out, (), args.overwrite, shared=True)
-    calibrated = load_calibrated_model(args.robot)
-    robot = calibrated.load_robot()
+    loaded = read_calibrated_model(args.robot)  # checked; its robot and model derived once
+    calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     rng = np.random.default_rng(args.seed)
     if args.reference:
         name, reference = "reference", _read_reference(args.reference, robot.n_dof)
@@ -294,8 +293,6 @@ def _run_model(args) -> int:
     check_samples(args.duration or span, args.rate, "--rate", f"in the recording {name}", fix)
     _check_not_inputs(args, [f"{name}.{args.format}"])
     folder = output_folder(args.out, [f"{name}.{args.format}"], args.overwrite, shared=True, command="simulate")
-    progress(f"simulate: deriving the PSDM model of {robot.name} ...", quiet=args.json)
-    model = derive_psdm(robot)
     start = time.perf_counter()
     recording = simulate_calibrated(calibrated, model, reference, rate=args.rate, duration=args.duration,
                                     tau_noise_std=args.tau_noise, rng=rng, name=name)  # fmt: skip

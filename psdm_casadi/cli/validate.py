@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from psdm_casadi.cli.checks import add_topic_argument, check_not_input, output_folder
-from psdm_casadi.cli.output import EXIT_OK, print_json, progress
+from psdm_casadi.cli.output import EXIT_OK, print_json
 
 
 def register(subparsers) -> None:
@@ -41,11 +41,10 @@ def register(subparsers) -> None:
 
 
 def _run_validate(args) -> int:
-    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.recalibrate import validation_rmse
     from identification.data.io import load_recording
     from identification.data.plausibility import check_plausible_recording
-    from psdm_casadi.derive import derive_psdm
 
     plots = None
     if args.plots is not None:  # refused before any work
@@ -53,13 +52,11 @@ def _run_validate(args) -> int:
         plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
         inputs = [("MODEL", args.model), *(("RECORDINGS", path) for path in args.recordings)]
         check_not_input(args.plots, "--plots", inputs)
-    calibrated = load_calibrated_model(args.model)
-    robot = calibrated.load_robot()
+    loaded = read_calibrated_model(args.model)  # checked; its robot and model derived once
+    calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.recordings]
     for recording in recordings:  # positions, speeds and time in the robot's units (plausibility)
         check_plausible_recording(recording, robot)
-    progress(f"validate: deriving the model of {robot.name} ...")
-    model = derive_psdm(robot)
     rows = []
     for path, recording in zip(args.recordings, recordings):
         error, r2, prepared, predicted = validation_rmse(
