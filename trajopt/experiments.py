@@ -323,6 +323,7 @@ def oscillation_experiment(
     *,
     amplitudes=(2e-4, 1e-3, 5e-3, 0.03, 0.15, 0.6),
     speed_fraction: float = 0.6,
+    acceleration_fraction: float = 0.9,
     cycles: int = 3,
     min_period: float = 1.0,
     pose=None,
@@ -331,9 +332,11 @@ def oscillation_experiment(
     """One joint through oscillations ``A sin^3(w t)`` of growing amplitude, others held (a quick friction run).
 
     ``sin^3`` starts and ends each block at rest with zero acceleration, so blocks join smoothly. The
-    period of a block is the longer of ``min_period`` and the one reaching ``speed_fraction`` of the
-    joint speed limit. Coarser than :func:`friction_experiment`: it does not resolve ``sigma0``,
-    ``sigma1`` and ``vs`` well, and its large amplitudes may exceed the acceleration limit.
+    period of a block is the longest of ``min_period``, the one reaching ``speed_fraction`` of the
+    joint speed limit and the one reaching ``acceleration_fraction`` of its acceleration limit (the
+    peak acceleration of ``A sin^3(w t)`` is ``3 A w^2``, at the block's turns), so a large amplitude
+    is run slower instead of leaving the limits. Coarser than :func:`friction_experiment`: it does not
+    resolve ``sigma0``, ``sigma1`` and ``vs`` well.
 
     Parameters
     ----------
@@ -344,6 +347,8 @@ def oscillation_experiment(
         [rad], each inside the range about the pose.
     speed_fraction : float
         Peak speed of a block as a fraction of the speed limit, in (0, 1].
+    acceleration_fraction : float
+        Peak acceleration of a block as a fraction of the acceleration limit, in (0, 1].
     cycles : int
         Periods per block.
     min_period : float
@@ -358,6 +363,7 @@ def oscillation_experiment(
     owner = "oscillation_experiment"
     joint = _check_joint(robot, joint, owner)
     _check_fraction(owner, "speed_fraction", speed_fraction)
+    _check_fraction(owner, "acceleration_fraction", acceleration_fraction)
     _check_positive(owner, cycles=cycles, min_period=min_period)
     pose = _pose(robot, pose, owner)
     limit = min(robot.q_max[joint] - pose[joint], pose[joint] - robot.q_min[joint])
@@ -368,8 +374,12 @@ def oscillation_experiment(
         )
     pieces, start = [], 0.0
     for amplitude in amplitudes:
-        # peak speed of A sin^3(w t) is about 1.15 A w
-        omega = min(2.0 * np.pi / min_period, speed_fraction * robot.qd_max[joint] / (1.155 * amplitude))
+        # peak speed of A sin^3(w t) is about 1.155 A w, peak acceleration 3 A w^2
+        omega = min(
+            2.0 * np.pi / min_period,
+            speed_fraction * robot.qd_max[joint] / (1.155 * amplitude),
+            np.sqrt(acceleration_fraction * robot.qdd_max[joint] / (3.0 * amplitude)),
+        )
         period = 2.0 * np.pi / omega
         tb = np.arange(0.0, cycles * period, 1.0 / GRID_HZ)
         pieces.append((start + tb, amplitude * np.sin(omega * tb) ** 3))

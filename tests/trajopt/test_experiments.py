@@ -84,7 +84,11 @@ def test_gravity_path_is_run_back_exactly(denso):
 
 
 def test_experiments_respect_limits(denso):
-    friction = [friction_experiment(denso, j).reference() for j in range(denso.n_dof)]
+    with warnings.catch_warnings():  # the spline the robot tracks, checked on a fine grid, keeps every limit too
+        warnings.simplefilter("error", ExcitationWarning)
+        friction = [friction_experiment(denso, j).reference() for j in range(denso.n_dof)]
+        for j in range(denso.n_dof):
+            friction_experiment(denso, j, FrictionDesign().validation())
     others = (
         motor_experiment(denso, 1),
         oscillation_experiment(denso, 5, amplitudes=(1e-3, 0.05)),
@@ -98,6 +102,23 @@ def test_experiments_respect_limits(denso):
     for j, (t, q) in enumerate(friction):
         qdd = np.gradient(np.gradient(q[:, j], t), t)
         assert np.abs(qdd).max() <= denso.qdd_max[j]
+
+
+def test_oscillation_experiment_runs_large_amplitudes_slower_instead_of_leaving_the_acceleration_limit(denso):
+    """The quick plan's amplitudes (the demo's, up to 0.3 rad) on every joint: the speed and acceleration of the
+    sampled path, by finite differences on a fine grid, stay within the robot's limits, and no limit warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ExcitationWarning)
+        for j in range(denso.n_dof):
+            exp = oscillation_experiment(denso, j, amplitudes=(1e-3, 0.03, 0.3))
+            t = exp.time_grid(2000.0)
+            q = exp.sample(t)[0][:, j]
+            qd = np.gradient(q, t)
+            qdd = np.gradient(qd, t)
+            assert np.abs(qd).max() <= denso.qd_max[j] * 1.001
+            assert np.abs(qdd).max() <= denso.qdd_max[j] * 1.001
+            # the largest block uses most of the acceleration limit: it is slowed down, not stopped
+            assert np.abs(qdd).max() >= 0.5 * denso.qdd_max[j]
 
 
 def test_out_and_back_experiments_keep_every_limit_through_the_turn(denso, planar_robot):
