@@ -40,6 +40,7 @@ __all__ = [
     "add_header_note",
     "build_calibrated_functions",
     "consistency_problem",
+    "corrections_note",
     "drive_bias",
     "drive_inertia",
     "header_note",
@@ -344,8 +345,67 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
         if names:
             vs = [] if stribeck is None else [f"vs{j + 1} = {stribeck[j]:.17g}"]
             lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs))
-    lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated)
+    lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated) + corrections_note(calibrated, prefix)
+    lines = [line.replace("*/", "* /") for line in _warning_lines(calibrated) + lines]  # free text: no comment end
     return "/* " + "\n * ".join(_wrap(lines)) + "\n */\n"
+
+
+def _warning_lines(calibrated) -> list:
+    """The warnings 'psdm identify' stored in the model file (``trajectory_checks.fit_warnings``), first."""
+    warnings = calibrated.document.get("warnings") or []
+    if not warnings:
+        return []
+    return [
+        "WARNINGS of the identification (stored in the model file; check the recordings before using this code):"
+    ] + [f"  - {w}" for w in warnings]
+
+
+def _correction_text(entry: dict) -> str:
+    """One correction in the words of ``findings.correct_recording`` (numbers as the file holds them)."""
+    effect, j = entry.get("effect"), entry.get("joint")
+    if effect == "delay":
+        return f"torque delay d = delay_s = {float(entry['delay_s'])!r} s: the recorded torque lags the positions by d"
+    if effect == "joint_elasticity":
+        c = float(entry["compliance_rad_per_Nm"])
+        return f"joint {j} elasticity: q{j} = q_rec{j} - c tau_rec{j}, c = compliance_rad_per_Nm = {c!r} rad/(N m)"
+    if effect == "backlash":
+        b, scale = float(entry["backlash_rad"]), float(entry["torque_scale_Nm"])
+        return (
+            f"joint {j} backlash: q{j} = q_rec{j} - (b / 2) tanh(tau_rec{j} / s), b = backlash_rad = {b!r} rad, "
+            f"s = torque_scale_Nm = {scale!r} N m"
+        )
+    return f"{effect}: {entry}"
+
+
+def corrections_note(calibrated, prefix: str = "psdm_") -> list:
+    """Header lines for a model with measurement corrections (empty without): what to feed the compiled functions.
+
+    The model was fitted on corrected signals (``findings.correct_recording``): link-side positions, and the
+    torque advanced by the delay. No exported function applies the corrections, so the header says which
+    signals the functions expect, the way ``CalibratedModel.predict_recording`` feeds them.
+    """
+    corrections = calibrated.corrections
+    if not corrections:
+        return []
+    entries = [dict(v, effect=v.get("effect", k)) for k, v in corrections.items()]
+    step = f" and {prefix}lugre_step (its qd_prev and qd)" if calibrated.lugre_parameters is not None else ""
+    lines = [
+        "MEASUREMENT CORRECTIONS (signal findings; tau_rec is the recorded joint torque, or kt times the current):"
+    ]
+    lines += [f"  {_correction_text(e)}" for e in entries]
+    text = "No function of this code applies them; the model was fitted on the corrected signals."
+    if any(e["effect"] != "delay" for e in entries):
+        text += (
+            f" Feed {prefix}inverse_dynamics{step} the corrected positions q above and their velocities and "
+            "accelerations (the derivatives of the corrected q), not the raw encoder values."
+        )
+    if any(e["effect"] == "delay" for e in entries):
+        text += " Compare its torque with the recorded torque advanced by d, tau_rec(t + d)."
+    text += (
+        " CalibratedModel.predict_recording does so (identification.calibration.findings.correct_recording corrects "
+        "a recording in Python)."
+    )
+    return lines + [text]
 
 
 def _findings_lines(calibrated) -> list:
@@ -361,8 +421,6 @@ def _findings_lines(calibrated) -> list:
             lines.append(f"  {entry['label']}: {text}")
         else:
             lines.append(f"  {entry['label']} ({entry['kind']}): not in this code; {entry.get('applied', '')}")
-    if calibrated.corrections:
-        lines.append(f"Measurement corrections (apply to recorded signals, not here): {calibrated.corrections}")
     return lines
 
 

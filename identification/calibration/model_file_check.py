@@ -190,6 +190,9 @@ def check_document(document: dict, name: str) -> None:
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])
+    warnings = document.get("warnings") if document.get("warnings") is not None else []  # null: none stored
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        raise _refuse(name, "warnings", "a list of strings (the warnings of 'psdm identify')", repr(warnings)[:80])
 
 
 def free_links(model) -> list:

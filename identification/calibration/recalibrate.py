@@ -424,6 +424,7 @@ def _document(
     document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia
     document["findings"] = filled_entries(entries, terms, columns, extra)
     document["corrections"] = corrections
+    document["warnings"] = list(dict.fromkeys(fit.warnings))  # the refit's own (a wrong recording stays flagged)
     return CalibratedModel(document)
 
 

@@ -15,6 +15,11 @@ inertia that the data want negative by many standard deviations (held at its bou
 consistent fit: a torque of the wrong sign, or of another joint), and link masses an order of magnitude
 away from the robot file's (torques in another unit, a wrong torque constant). These are warnings, not
 refusals: the model may still be what the data say, and the user decides.
+
+A recording a calibrated model is judged on (``psdm validate``, ``psdm identify --validate``) passes
+:func:`check_validation_recording` first: in the robot's units (``plausibility``), every joint moving. On a
+joint that stands still the model's friction and velocity terms are not tested, and its RMSE and R^2
+are a number that says nothing about them.
 """
 
 from __future__ import annotations
@@ -23,15 +28,20 @@ import re
 
 import numpy as np
 
-from identification.data.excitation_check import check_reversals, joint_label
+from identification.data.excitation_check import check_joint_motion, check_reversals, joint_label
+from identification.data.plausibility import check_plausible_recording
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 
-__all__ = ["COLUMN_FIX", "check_columns", "check_offset_reversals", "fit_warnings"]
+__all__ = ["COLUMN_FIX", "check_columns", "check_offset_reversals", "check_validation_recording", "fit_warnings"]
 
 COLUMN_FIX = "record a trajectory that excites {joints} better ('psdm excite' designs one), or add recordings"
 REVERSAL_FIX = (
     "Record a trajectory on which {joints} reverses ('psdm excite' designs one), or identify without the torque "
     "offset (drop --offset)."
+)
+VALIDATION_FIX = (
+    "Validate on a recording that moves {joints} over more of its range and speed, as the identification's "
+    "recordings do ('psdm excite' designs one)."
 )
 #: Least share of the samples in each direction for Coulomb friction and an offset to be told apart.
 MIN_REVERSAL_FRACTION = 0.02
@@ -75,6 +85,28 @@ def check_offset_reversals(robot, prepared, friction, coulomb_velocity: float) -
     check_reversals(prepared, range(robot.n_dof), speed=coulomb_velocity, min_fraction=MIN_REVERSAL_FRACTION,
                     robot=robot, purpose="to tell its Coulomb friction (fc) from its torque offset (offset)",
                     fix=REVERSAL_FIX)  # fmt: skip
+
+
+def check_validation_recording(robot, recording) -> None:
+    """Refuse a recording a calibrated model of ``robot`` cannot be judged on (module docstring, last paragraph).
+
+    Parameters
+    ----------
+    robot : RobotDescription
+        The robot the model was identified for (limits, joint names).
+    recording : Recording
+        The raw validation recording; its ``name`` is the file named in the messages.
+
+    Raises
+    ------
+    RecordingError
+        For positions, speeds or time stamps in the wrong units (``plausibility.check_plausible_recording``).
+    InsufficientExcitationError
+        Naming the recording and every joint that barely moves (``excitation_check.check_joint_motion``).
+    """
+    check_plausible_recording(recording, robot)
+    check_joint_motion(recording, range(robot.n_dof), robot=robot, purpose="the validation of a calibrated model",
+                       fix=VALIDATION_FIX)  # fmt: skip
 
 
 def _negative_terms(fit) -> dict:

@@ -5,9 +5,11 @@ A recording in the wrong units identifies a "consistent" model that is nonsense:
 time column in milliseconds makes every speed a thousand times too small. Before any fit,
 :func:`check_plausible_recording` compares a recording with the robot's limits and raises a
 :class:`~psdm_casadi.errors.RecordingError` naming the file, the column, what it reached and the likely
-cause (degrees? milliseconds? joint order or the robot file's limits?). Run where recordings are read:
-the identification from recordings (``trajectory_data.prepare_recordings``), the calibration data folder
-(``excitation.check_calibration_data``), ``psdm validate`` and ``psdm diagnose``.
+cause (degrees? milliseconds? joint order or the robot file's limits?). Run by the library functions that
+read recordings, so the Python API refuses what the command line refuses: the identification from
+recordings (``trajectory_data.prepare_recordings``), the calibration data folder
+(``excitation.check_calibration_data``), the diagnosis (``diagnose.diagnose``) and the recordings a model is
+validated on (``trajectory_checks.check_validation_recording``: ``psdm validate``, ``identify --validate``).
 
 The bounds are loose on purpose (:class:`PlausibilityThresholds`): they separate a unit or mapping
 error, which misses by a factor of tens to a thousand, from a real recording that grazes a limit.

@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds
+from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
@@ -211,7 +212,8 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
     Raises
     ------
     ShapeError, RecordingError
-        When a recording does not match the robot or is too short.
+        When a recording does not match the robot, is too short, or is in the wrong units (positions in degrees, a
+        time column in milliseconds: ``plausibility.check_plausible_recording``, as ``psdm diagnose`` refuses them).
     InsufficientExcitationError
         When a joint does not move enough in a recording, or the nominal model's columns are not excited
         (before any candidate is tried).
@@ -228,6 +230,8 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
     train.check_robot(robot.n_dof, robot.name)
     validation.check_robot(robot.n_dof, robot.name)
+    for recording in (train, validation):  # positions, speeds and time in the robot's units, before any fit
+        check_plausible_recording(recording, robot)
     check_motion(robot, train, validation, options)
     if model is None:
         from psdm_casadi.derive import derive_psdm

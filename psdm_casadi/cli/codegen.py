@@ -10,7 +10,7 @@ import numpy as np
 
 from codegen.export import export_c
 from psdm_casadi.cli.checks import add_lock_argument, check_not_input, load_locked_robot, output_folder
-from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, model_warnings, report_model_warnings
 from psdm_casadi.errors import ParameterError, ShapeError
 
 ROBOT_SUFFIXES = (".toml", ".urdf")
@@ -27,7 +27,9 @@ DESCRIPTION = (
     "drive terms (friction, offsets, drive inertias) and the torque-type findings of 'psdm diagnose MODEL "
     "--apply' (spring, offset, ripple, coupling, asymmetry, rotor inertia, load-dependent friction), every "
     "parameter compiled in; its regressor is the rigid body's. Measurement corrections (delay, elasticity, "
-    "backlash) are not a torque and are not exported: 'psdm validate' applies them to recordings. A "
+    "backlash) are not a torque and are not exported: 'psdm validate' applies them to recordings, and the "
+    "header says which corrected signals the functions expect. The warnings 'psdm identify' stored in the "
+    "model file are repeated on stderr, in the header and under 'warnings' with --json. A "
     "calibrated model that is not physically consistent is refused (exit 1) unless --allow-inconsistent, "
     "and so is a --theta whose mass matrix is not positive definite over random configurations in the joint "
     "limits (the error names the eigenvalue and the base parameters to blame)."
@@ -216,6 +218,7 @@ def _calibrated_functions(args, path: Path, out: Path):
         )
     loaded = read_calibrated_model(path)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    report_model_warnings("codegen", path, calibrated)
     problem = consistency_problem(calibrated)
     if problem is not None and not args.allow_inconsistent:
         print(
@@ -323,14 +326,15 @@ def _run_codegen(args) -> int:
             sources, openmp = ([export.source], ()) if batch is None else ([export.source, batch.source], ("-fopenmp",))
             sources += [lugre_source] if lugre_source is not None else []
             compile_shared(sources, stage / f"lib{export.library}.so", flags=("-O3", "-march=native", *openmp))
-    _print_export(args, out, export, form, calibrated=calibrated is not None, batch=batch)
+    warnings = [] if calibrated is None else model_warnings(calibrated)
+    _print_export(args, out, export, form, calibrated=calibrated is not None, batch=batch, warnings=warnings)
     if lugre_source is not None:
         progress(f"LuGre friction: NOT in inverse_dynamics; {lugre_source.name} has psdm_lugre_step(s, qd_prev, "
                  "qd, dt) -> (s_next, tau_friction), the bristle step to carry (see its header)")  # fmt: skip
     return EXIT_OK
 
 
-def _print_export(args, out: Path, export, form: str, calibrated: bool = False, batch=None) -> None:
+def _print_export(args, out: Path, export, form: str, calibrated: bool = False, batch=None, warnings=()) -> None:
     from psdm_casadi.cli.output import print_json
 
     compiled = bool(args.compile)
@@ -347,6 +351,7 @@ def _print_export(args, out: Path, export, form: str, calibrated: bool = False, 
                 "compiled": compiled,
                 "lane_regressor": None if lanes is None else dataclasses.asdict(lanes),
                 "batch_functions": None if batch is None else list(batch.function_names),
+                "warnings": list(warnings),
             }
         )
     else:

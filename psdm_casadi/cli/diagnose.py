@@ -16,7 +16,7 @@ from psdm_casadi.cli.checks import (
     load_robot_argument,
     output_folder,
 )
-from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.errors import ParameterError
 
 
@@ -101,7 +101,6 @@ def register(subparsers) -> None:
 
 def _run_diagnose(args) -> int:
     from identification.data.io import load_recording, not_held_out
-    from identification.data.plausibility import check_plausible_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
@@ -115,12 +114,11 @@ def _run_diagnose(args) -> int:
 
         calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
         robot = calibrated_robot(calibrated, robot_file)
+        report_model_warnings("diagnose", args.robot, calibrated)
     else:
         robot = load_robot_argument(args)
     train = load_recording(args.train, robot.n_dof, robot.joint_names, args.topic)
     validation = load_recording(args.validate, robot.n_dof, robot.joint_names, args.topic)
-    for recording in (train, validation):  # positions, speeds and time in the robot's units, before any fit
-        check_plausible_recording(recording, robot)
     for warning in not_held_out([args.train], [args.validate], "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     options = DiagnosisOptions(
@@ -216,6 +214,7 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> 
         return EXIT_CHECK_FAILED
     with out.staging() as stage:
         result.after.save(stage, overwrite=True, allow_inconsistent=True)
+    report_model_warnings("diagnose", args.apply, result.after)  # the refit's, stored in the new file too
     if payload is not None:
         payload["recalibration"] = dict(result.after.document["recalibration"], model=str(args.apply))
         print_json(payload)

@@ -13,7 +13,7 @@ import sys
 from pathlib import Path
 
 from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
-from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress, report_model_warnings
 
 __all__ = ["register"]
 
@@ -80,6 +80,7 @@ def _run_export_urdf(args) -> int:
     out = output_file(args.out, "OUT", args.overwrite)
     loaded = read_calibrated_model(args.model)
     calibrated = loaded.calibrated
+    report_model_warnings("export-urdf", args.model, calibrated)
     _check_not_robot_file(args, calibrated)
     eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
     checked = calibrated.document["standard"].get("checked", True)

@@ -51,9 +51,9 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+    from identification.calibration.trajectory_checks import check_validation_recording
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
     from identification.data.io import load_recording, not_held_out
-    from identification.data.plausibility import check_plausible_recording
     from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
 
@@ -62,8 +62,8 @@ def run(args) -> int:
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.data]
     validation = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.validate]
-    for recording in (*recordings, *validation):  # units and joint order, before any fit (plausibility)
-        check_plausible_recording(recording, robot)
+    for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
+        check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
     if args.friction == "lugre":
         _check_reversals(recordings, args.data)
     friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")

@@ -11,6 +11,7 @@ import json
 import logging
 import os
 import sys
+from pathlib import Path
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 #: A closed stdout (``psdm ... | head -1``): the code a shell gives a process ended by SIGPIPE (128 + 13).
@@ -42,6 +43,25 @@ def reset_json() -> None:
 def json_printed() -> bool:
     """True once the running command has printed its JSON object."""
     return _JsonState.printed
+
+
+def model_warnings(calibrated) -> list:
+    """The warnings ``psdm identify`` stored in a calibrated model (its document's ``warnings``), as strings."""
+    return [str(w) for w in calibrated.document.get("warnings") or []]
+
+
+def report_model_warnings(command: str, source, calibrated) -> list:
+    """Print on stderr the warnings stored in a calibrated-model file; return them (for ``--json``).
+
+    ``psdm identify`` and ``psdm diagnose --apply`` store the warnings of their fit: they point at a wrong
+    recording behind the model (a friction held at zero, masses an order of magnitude off the robot file's, a
+    joint its own training data did not explain: ``trajectory_checks.fit_warnings``). Every command that reads
+    a model file repeats them rather than leave them in the file; ``--quiet`` keeps them.
+    """
+    warnings = model_warnings(calibrated)
+    for warning in warnings:
+        print(f"psdm {command}: warning: {Path(source).name} (stored in the model file): {warning}", file=sys.stderr)
+    return warnings
 
 
 def silence_stdout() -> None:

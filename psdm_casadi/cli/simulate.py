@@ -23,7 +23,7 @@ from psdm_casadi.cli.checks import (
     output_folder,
     parse_joints,
 )
-from psdm_casadi.cli.output import print_json, progress
+from psdm_casadi.cli.output import print_json, progress, report_model_warnings
 from psdm_casadi.errors import ParameterError
 
 EXPERIMENTS = ("motor", "gravity", "friction", "sine")
@@ -283,6 +283,7 @@ def _run_model(args) -> int:
     output_folder(args.out, (), args.overwrite, shared=True)
     loaded = read_calibrated_model(args.robot)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    report_model_warnings("simulate", args.robot, calibrated)
     rng = np.random.default_rng(args.seed)
     if args.reference:
         name, reference = "reference", _read_reference(args.reference, robot.n_dof)

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from psdm_casadi.cli.checks import add_topic_argument, check_not_input, output_folder
-from psdm_casadi.cli.output import EXIT_OK, print_json
+from psdm_casadi.cli.output import EXIT_OK, print_json, report_model_warnings
 
 
 def register(subparsers) -> None:
@@ -22,7 +22,10 @@ def register(subparsers) -> None:
             "(psdm diagnose MODEL --apply); its measurement corrections (a torque delay, an encoder before a "
             "compliant joint or a play) are applied to the recordings first, as the recalibration did. A model with "
             "LuGre friction (identify --friction lugre) carries its bristle state along each recording: relaxed at "
-            "the recording's start, carried over the samples the filter trims."
+            "the recording's start, carried over the samples the filter trims. The warnings 'psdm identify' stored "
+            "in the model file (a friction held at zero, masses far from the robot file's, a joint its own training "
+            "data did not explain) are repeated on stderr (and under 'warnings' with --json). A recording in the "
+            "wrong units, or in which a joint barely moves, is refused (exit 2)."
         ),
     )
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
@@ -43,8 +46,8 @@ def register(subparsers) -> None:
 def _run_validate(args) -> int:
     from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.recalibrate import validation_rmse
+    from identification.calibration.trajectory_checks import check_validation_recording
     from identification.data.io import load_recording
-    from identification.data.plausibility import check_plausible_recording
 
     plots = None
     if args.plots is not None:  # refused before any work
@@ -54,9 +57,10 @@ def _run_validate(args) -> int:
         check_not_input(args.plots, "--plots", inputs)
     loaded = read_calibrated_model(args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    warnings = report_model_warnings("validate", args.model, calibrated)
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.recordings]
-    for recording in recordings:  # positions, speeds and time in the robot's units (plausibility)
-        check_plausible_recording(recording, robot)
+    for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
+        check_validation_recording(robot, recording)
     rows = []
     for path, recording in zip(args.recordings, recordings):
         error, r2, prepared, predicted = validation_rmse(
@@ -70,6 +74,7 @@ def _run_validate(args) -> int:
                 _plot(stage / f"{Path(row['recording']).stem}.png", row, robot.joint_names)
     if args.json:
         print_json({"command": "validate", "model": str(args.model), "consistent": calibrated.consistent,
+                    "warnings": warnings,
                     "recordings": [{k: row[k] for k in ("recording", "rmse", "r2")} for row in rows]})  # fmt: skip
     else:
         for row in rows:

@@ -1,0 +1,197 @@
+"""What a user of a calibrated model must be told: its stored warnings, and recordings it cannot be judged on.
+
+``psdm identify`` stores in the model file the warnings that point at a wrong recording (here: torques in
+mN m, which make link masses an order of magnitude off); ``psdm validate`` and ``psdm codegen`` read the
+file later and repeat them (stderr, ``--json``, the C header). A validation recording whose joint stands
+still is refused naming the joint rather than given an R^2; a recording in degrees is refused once, by the
+library the command calls. Inputs: the 3-joint arm of the catalogue on the virtual robot; the recording
+in N m is the control (no warning).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from identification.calibration.trajectory_checks import check_validation_recording
+from identification.calibration.trajectory_fit import identify_trajectories
+from identification.data.io import load_recording, save_recording
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from psdm_casadi.derive import derive_psdm
+from psdm_casadi.errors import InsufficientExcitationError, RecordingError
+from psdm_casadi.robot import load_robot
+from tests.catalogue.harness import BadInput, check_refusal
+from tests.catalogue.test_implausible_recordings import ARM
+from trajopt.experiments import sine_experiment
+
+
+@pytest.fixture(autouse=True)
+def _robot_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # load_robot's copies of the robot texts
+
+
+@pytest.fixture(scope="module")
+def arm(tmp_path_factory):
+    """Folder with arm.toml, train.csv, valid.csv (virtual arm, N m), mNm.csv (train in mN m) and the two models."""
+    folder = tmp_path_factory.mktemp("trust")
+    (folder / "arm.toml").write_text(ARM)
+    robot = load_robot(folder / "arm.toml")
+    rng = np.random.default_rng(3)
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.05, friction=True)
+    for name in ("train.csv", "valid.csv"):
+        recording, _ = simulate_recording(
+            robot, sine_experiment(robot, duration=8.0, rng=rng).reference(), options, rng
+        )
+        save_recording(recording, folder / name)
+    train = load_recording(folder / "train.csv")
+    save_recording(train.with_signals(tau=1000.0 * train.tau), folder / "mNm.csv")
+    for data, model in (("train.csv", "good.json"), ("mNm.csv", "mNm.json")):
+        argv = ["identify", str(folder / "arm.toml"), "--data", str(folder / data), "--out", str(folder / model)]
+        assert main(argv) == 0
+    return folder
+
+
+def _folder(path):
+    """A new empty folder for one refusal (the harness checks that nothing appears in it)."""
+    path.mkdir()
+    return path
+
+
+def _run(capsys, argv) -> tuple:
+    capsys.readouterr()
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_validate_repeats_the_warnings_stored_in_the_model_file(arm, capsys):
+    stored = json.loads((arm / "mNm.json").read_text())["warnings"]
+    assert any("identified mass" in w and "mN m?" in w for w in stored)  # identify flagged the mN m torques
+    code, out, err = _run(capsys, ["validate", arm / "mNm.json", arm / "valid.csv"])
+    assert code == 0 and "R^2" in out
+    for warning in stored:
+        assert err.count(warning) == 1, err
+    assert "psdm validate: warning: mNm.json" in err
+    code, out, err = _run(capsys, ["validate", arm / "mNm.json", arm / "valid.csv", "--json"])
+    assert code == 0 and json.loads(out)["warnings"] == stored and all(w in err for w in stored)
+    # the control: a model identified from torques in N m has no warning, and validate prints none
+    assert json.loads((arm / "good.json").read_text())["warnings"] == []
+    code, out, err = _run(capsys, ["validate", arm / "good.json", arm / "valid.csv", "--json"])
+    assert code == 0 and json.loads(out)["warnings"] == [] and "warning" not in err
+
+
+def test_codegen_repeats_the_warnings_on_stderr_in_json_and_in_the_header(arm, tmp_path, capsys):
+    stored = json.loads((arm / "mNm.json").read_text())["warnings"]
+    code, out, err = _run(capsys, ["codegen", arm / "mNm.json", "--out", tmp_path / "c", "--json"])
+    assert code == 0 and json.loads(out)["warnings"] == stored
+    assert all(err.count(w) == 1 for w in stored) and "psdm codegen: warning: mNm.json" in err
+    header = next((tmp_path / "c").glob("*.h")).read_text()
+    assert header.startswith("/* WARNINGS of the identification") and "mN m?" in header
+    code, out, err = _run(capsys, ["codegen", arm / "good.json", "--out", tmp_path / "g", "--json"])
+    assert code == 0 and json.loads(out)["warnings"] == [] and "warning" not in err
+    assert "WARNINGS" not in next((tmp_path / "g").glob("*.h")).read_text()
+
+
+def test_a_model_file_whose_warnings_are_not_strings_is_refused(arm, tmp_path, capsys, monkeypatch):
+    document = json.loads((arm / "good.json").read_text())
+    document["warnings"] = "masses off"
+    files = {"edited.json": json.dumps(document), "valid.csv": (arm / "valid.csv").read_text()}
+    case = BadInput("warnings a string", ("validate", "edited.json", "valid.csv"), ("edited.json", "warnings",
+                    "a list of strings"), files=files)  # fmt: skip
+    check_refusal(case, _folder(tmp_path / "case"), capsys, monkeypatch)
+
+
+def _still(arm, name="still.csv") -> str:
+    """The validation recording with joint 3 held at its first position (its torques as recorded)."""
+    valid = load_recording(arm / "valid.csv")
+    q = valid.q.copy()
+    q[:, 2] = q[0, 2]
+    save_recording(valid.with_signals(q=q), arm / name, overwrite=True)
+    return (arm / name).read_text()
+
+
+def test_validate_refuses_a_recording_whose_joint_did_not_move(arm, tmp_path, capsys, monkeypatch):
+    text = _still(arm)
+    # before the check, this gave exit 0 and an R^2 of joint 3 as if the model had been tested on it
+    expect = ("still.csv", "joint 3 (J3) must move", "range 0 rad", "Validate on a recording that moves joint 3")
+    files = {"still.csv": text, "model.json": (arm / "good.json").read_text()}
+    check_refusal(BadInput("validate still", ("validate", "model.json", "still.csv"), expect, files=files),
+                  _folder(tmp_path / "validate"), capsys, monkeypatch)  # fmt: skip
+    argv = ("identify", str(arm / "arm.toml"), "--data", "train.csv", "--validate", "still.csv", "--out", "m.json")
+    files = {"still.csv": text, "train.csv": (arm / "train.csv").read_text()}
+    case = BadInput("identify --validate still", argv, expect, files=files)
+    check_refusal(case, _folder(tmp_path / "identify"), capsys, monkeypatch)
+
+
+def test_identify_refuses_a_recording_in_degrees_once_through_the_library(arm, tmp_path, capsys, monkeypatch):
+    train = load_recording(arm / "train.csv")
+    degrees = train.with_signals(q=np.degrees(train.q))
+    case_folder = _folder(tmp_path / "case")
+    save_recording(degrees, case_folder / "deg.csv")
+    robot = load_robot(arm / "arm.toml")
+    # the Python API refuses it as the command does (identify_trajectories -> prepare_recordings)
+    with pytest.raises(RecordingError, match="positions in degrees"):
+        identify_trajectories(robot, derive_psdm(robot), [load_recording(case_folder / "deg.csv")])
+    argv = ("identify", str(arm / "arm.toml"), "--data", "deg.csv", "--out", "m.json")
+    case = BadInput("identify degrees", argv, ("deg.csv", "column q1", "degrees?"))
+    err = check_refusal(case, case_folder, capsys, monkeypatch)
+    assert err.count("error:") == 1 and err.count("column q1 (joint 1 (J1)) reaches") == 1, err
+
+
+def test_a_still_validation_joint_is_an_excitation_error_in_the_library(arm):
+    robot = load_robot(arm / "arm.toml")
+    check_validation_recording(robot, load_recording(arm / "valid.csv"))  # the recording as recorded passes
+    _still(arm, "still_lib.csv")
+    with pytest.raises(InsufficientExcitationError, match=r"joint 3 \(J3\)") as caught:
+        check_validation_recording(robot, load_recording(arm / "still_lib.csv"))
+    assert caught.value.joints == (2,)
+
+
+def test_every_command_reading_the_model_repeats_its_warnings(arm, tmp_path, capsys):
+    """``psdm simulate MODEL``, ``psdm export-urdf MODEL`` and ``psdm diagnose MODEL`` show the stored warnings too."""
+    stored = json.loads((arm / "mNm.json").read_text())["warnings"]
+    runs = {
+        "simulate": ["simulate", arm / "mNm.json", "--experiment", "sine", "--duration", "2", "--out", tmp_path / "s"],
+        "export-urdf": ["export-urdf", arm / "mNm.json", tmp_path / "arm.urdf"],
+        "diagnose": ["diagnose", arm / "mNm.json", "--train", arm / "mNm.csv", "--validate", arm / "mNm.csv",
+                     "--max-effects", "0", "--no-sparse"],
+    }  # fmt: skip
+    for command, argv in runs.items():
+        code, _, err = _run(capsys, argv)
+        assert code in (0, 1), (command, err)  # export-urdf may refuse an inconsistent model: it still says why
+        assert f"psdm {command}: warning: mNm.json" in err and all(err.count(w) == 1 for w in stored), (command, err)
+    code, _, err = _run(capsys, ["simulate", arm / "good.json", "--experiment", "sine", "--duration", "2", "--out",
+                                 tmp_path / "g2"])  # fmt: skip
+    assert code == 0 and "warning" not in err
+
+
+def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path, capsys, monkeypatch):
+    """``psdm diagnose MODEL --apply NEW`` refits on the same mN m torques: the refit flags the masses again, and
+    the new file stores that warning (and the command prints it) instead of starting clean."""
+    from types import SimpleNamespace
+
+    from identification.diagnosis.candidates import TorqueOffsetTerm
+    from identification.diagnosis.report import Finding
+
+    candidate = TorqueOffsetTerm(joint=0)
+    finding = Finding(effect=candidate.key, label=candidate.label, joints=(1,), parameters={"offset": 1.0},
+                      coefficients=(1.0,), feature_names=tuple(candidate.feature_names()), explanation="",
+                      signature="", rmse_before=(1.0,) * 3, rmse_after=(0.5,) * 3, delta_bic=-10.0,
+                      validation_gain=0.5)  # fmt: skip
+    report = SimpleNamespace(findings=[finding], augmented=SimpleNamespace(terms=(candidate,), coefficients=([1.0],)),
+                             to_markdown=lambda paths: "stand-in diagnosis", to_dict=dict)  # fmt: skip
+    import importlib
+
+    monkeypatch.setattr(importlib.import_module("identification.diagnosis.diagnose"), "diagnose", lambda *a, **k: report)
+    valid = load_recording(arm / "valid.csv")
+    save_recording(valid.with_signals(tau=1000.0 * valid.tau), tmp_path / "valid_mNm.csv")
+    new = tmp_path / "new.json"
+    code, _, err = _run(capsys, ["diagnose", arm / "mNm.json", "--train", arm / "mNm.csv", "--validate",
+                                 tmp_path / "valid_mNm.csv", "--apply", new, "--allow-inconsistent"])  # fmt: skip
+    assert code == 0, err
+    kept = json.loads(new.read_text())["warnings"]
+    assert any("identified mass" in w and "mN m?" in w for w in kept), kept
+    assert "psdm diagnose: warning: new.json" in err and all(w in err for w in kept)
