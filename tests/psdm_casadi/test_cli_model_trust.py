@@ -10,7 +10,9 @@ in N m is the control (no warning).
 
 from __future__ import annotations
 
+import importlib
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,6 +20,8 @@ import pytest
 from identification.calibration.trajectory_checks import check_validation_recording
 from identification.calibration.trajectory_fit import identify_trajectories
 from identification.data.io import load_recording, save_recording
+from identification.diagnosis.candidates import TorqueOffsetTerm
+from identification.diagnosis.report import Finding
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
@@ -171,11 +175,6 @@ def test_every_command_reading_the_model_repeats_its_warnings(arm, tmp_path, cap
 def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path, capsys, monkeypatch):
     """``psdm diagnose MODEL --apply NEW`` refits on the same mN m torques: the refit flags the masses again, and
     the new file stores that warning (and the command prints it) instead of starting clean."""
-    from types import SimpleNamespace
-
-    from identification.diagnosis.candidates import TorqueOffsetTerm
-    from identification.diagnosis.report import Finding
-
     candidate = TorqueOffsetTerm(joint=0)
     finding = Finding(effect=candidate.key, label=candidate.label, joints=(1,), parameters={"offset": 1.0},
                       coefficients=(1.0,), feature_names=tuple(candidate.feature_names()), explanation="",
@@ -183,9 +182,8 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
                       validation_gain=0.5)  # fmt: skip
     report = SimpleNamespace(findings=[finding], augmented=SimpleNamespace(terms=(candidate,), coefficients=([1.0],)),
                              to_markdown=lambda paths: "stand-in diagnosis", to_dict=dict)  # fmt: skip
-    import importlib
-
-    monkeypatch.setattr(importlib.import_module("identification.diagnosis.diagnose"), "diagnose", lambda *a, **k: report)
+    diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
+    monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: report)
     valid = load_recording(arm / "valid.csv")
     save_recording(valid.with_signals(tau=1000.0 * valid.tau), tmp_path / "valid_mNm.csv")
     new = tmp_path / "new.json"
