@@ -21,8 +21,10 @@ that lowers the weighted validation error most, if it earns its parameters:
 
 A term with shape variants (``CandidateTerm.shape_variants``: a spring as a polynomial of order 1 to 3 in the
 joint angle, or a gas-spring lever law whose geometry is fitted by variable projection on the current training
-fit, ``JointScore``, and counted in the BIC) is screened in the variant with the lowest BIC on the training data,
-unless that variant's weighted validation error is above the simplest one's (then the simplest is screened).
+fit, ``JointScore``, and counted in the BIC; a delay as its first-order column or as its exact torque at the delay
+where ``JointScore.fixed`` puts the exact profile lowest) is screened in the variant with the lowest BIC on the
+training data, unless that variant's weighted validation error is above the simplest one's (then the simplest is
+screened).
 
 After the forward pass a backward check refits the kept terms without each one in turn: a term that no longer
 lowers the validation RMSE of every joint it names (a later term took its part) is dropped and the check repeats
@@ -157,6 +159,20 @@ class JointScore:
         s = self.scale * (c.T @ c) - bc.T @ solve_scaled(self.design.G, bc)
         g = self.scale * (c.T @ e)
         return max(self.sse - float(g @ np.linalg.lstsq(s, g, rcond=1e-12)[0]), 1e-300)
+
+    def fixed(self, values) -> float:
+        """The weighted training SSE with the torque ``values`` (len(rows), n_dof) [N m] added to the model as it is
+        (coefficient one, the base refitted): the exact profile of a robot-wide signal term at one value of its
+        parameter (a delay's torque ``tau(t) - tau(t + d)``)."""
+        values = np.asarray(values, dtype=float)
+        br, rr, er = 0.0, 0.0, 0.0
+        for j in range(values.shape[1]):
+            rows, e = self._joint(j)
+            r = values[:, j] / self.design.sigma[j]
+            br, rr, er = br + rows.T @ r, rr + r @ r, er + e @ r
+        br = self.scale * br  # the base refitted: the part of the torque its columns take up is given back
+        sse = self.sse - 2.0 * self.scale * er + self.scale * rr - float(br @ solve_scaled(self.design.G, br))
+        return max(sse, 1e-300)
 
 
 def _shape_fits(design, term, train_ctx, val_ctx, sse, limits, score=None) -> list:

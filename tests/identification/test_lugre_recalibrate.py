@@ -7,13 +7,13 @@ columns in every linear fit) recovers the spring, the LuGre truth of every joint
 version 3 file whose compiled C (inverse dynamics with the spring, plus the LuGre step) gives the reported
 validation RMSE.
 
-The same robot with a hidden torque-sensor delay instead, and the delay given to ``psdm diagnose --apply`` by a
-stand-in of the diagnosis (``_stand_in_diagnosis``): run on the LuGre model identified from the delayed torque, the
-diagnosis does not report the delay (that model has taken up most of it; the delay candidate is fitted negative and
-rejected, joint elasticities are reported instead), so what is tested here is the recalibration's signal path from
-the finding on: the LuGre friction fitted on the corrected recordings, the judgement with the bristle state carried
-along them, as ``psdm validate`` does. A load-dependent friction finding, which the LuGre model cannot carry, is
-refused by the recalibration and by ``psdm diagnose --apply`` (exit 2, nothing written).
+The same robot with a hidden torque-sensor delay instead: the LuGre model identified from the delayed torque has
+taken up part of the delay (its bristle dynamics and Stribeck curve mimic a lag), yet the diagnosis of that model
+finds the delay within one sample (the delay is screened at the minimum of its exact profile, ``DelayTerm``), and
+``psdm diagnose --apply`` fits the LuGre friction on the corrected recordings and judges the new model with the
+bristle state carried along them, as ``psdm validate`` does. The same robot without the delay: the diagnosis of its
+LuGre model finds nothing. A load-dependent friction finding, which the LuGre model cannot carry, is refused by the
+recalibration and by ``psdm diagnose --apply`` (exit 2, nothing written).
 """
 
 import copy
@@ -28,7 +28,7 @@ import pytest
 
 from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
 from identification.calibration.recalibrate import recalibrate
-from identification.diagnosis.candidates import DelayTerm, LoadDependentFrictionTerm
+from identification.diagnosis.candidates import LoadDependentFrictionTerm
 from identification.diagnosis.report import Finding
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from identification.virtual import effects as xp
@@ -120,7 +120,7 @@ def test_the_exported_c_of_the_recalibrated_lugre_model_gives_the_reported_rmse(
 @pytest.fixture(scope="module")
 def delay_loop(denso, tmp_path_factory):
     """``psdm identify --friction lugre`` on the recordings whose torque lags by ``DELAY_SAMPLES``, then ``psdm
-    diagnose MODEL --apply`` with a stand-in diagnosis that reports that delay (module docstring: why a stand-in)."""
+    diagnose MODEL --apply``."""
     from psdm_casadi.cli import main
     from tests.conftest import DENSO_FILE
     from tests.identification.lugre_recordings_data import CUTOFF, write_lugre_recordings
@@ -132,23 +132,43 @@ def delay_loop(denso, tmp_path_factory):
     assert main(argv) == 0
     argv = ["diagnose", str(folder / "model.json"), "--train", str(train), "--validate", str(valid), "--cutoff",
             str(CUTOFF), "--apply", str(folder / "new.json")]  # fmt: skip
-    with pytest.MonkeyPatch.context() as patch:
-        _stand_in_diagnosis(patch, DelayTerm(), {"delay_s": DELAY_SAMPLES / RATE})
-        assert main(argv) == 0
+    assert main(argv) == 0
     return folder, valid
+
+
+@pytest.fixture(scope="module")
+def clean_diagnosis(denso, tmp_path_factory):
+    """``psdm identify --friction lugre`` on the recordings without hidden physics, then ``psdm diagnose MODEL
+    --json``: the report's findings."""
+    from psdm_casadi.cli import main
+    from tests.conftest import DENSO_FILE
+    from tests.identification.lugre_recordings_data import CUTOFF, write_lugre_recordings
+
+    folder = tmp_path_factory.mktemp("lugre_clean")
+    train, valid = write_lugre_recordings(denso, folder)
+    argv = ["identify", str(DENSO_FILE), "--data", str(train), "--friction", "lugre", "--cutoff", str(CUTOFF),
+            "--out", str(folder / "model.json")]  # fmt: skip
+    assert main(argv) == 0
+    argv = ["diagnose", str(folder / "model.json"), "--train", str(train), "--validate", str(valid), "--cutoff",
+            str(CUTOFF), "--out", str(folder / "report")]  # fmt: skip
+    assert main(argv) == 0
+    return json.loads((folder / "report" / "report.json").read_text())
 
 
 @pytest.mark.slow
 def test_apply_of_a_delay_to_a_lugre_model_refits_the_friction_and_validates_as_psdm_validate(delay_loop, capsys):
-    """The delay is kept (it lowers the validation RMSE of every joint), the LuGre friction fitted on the corrected
-    recordings is the truth again where the delayed torque had corrupted it, and ``psdm validate NEW valid.csv``
-    (the correction applied, the bristle state carried along the corrected recording) gives the file's RMSE."""
+    """The diagnosis of the LuGre model identified on the delayed torque finds the delay within one sample; it is
+    kept (it lowers the validation RMSE of every joint), the LuGre friction fitted on the corrected recordings is the
+    truth again where the delayed torque had corrupted it, and ``psdm validate NEW valid.csv`` (the correction
+    applied, the bristle state carried along the corrected recording) gives the file's RMSE."""
     from psdm_casadi.cli import main
 
     folder, valid = delay_loop
     before, after = load_calibrated_model(folder / "model.json"), load_calibrated_model(folder / "new.json")
     assert after.document["version"] == 3 and after.lugre_parameters is not None
-    assert list(after.corrections.values()) == [{"effect": "delay", "delay_s": DELAY_SAMPLES / RATE}]
+    corrections = list(after.corrections.values())
+    assert [c["effect"] for c in corrections] == ["delay"], corrections
+    assert abs(corrections[0]["delay_s"] - DELAY_SAMPLES / RATE) < DELAY_TOLERANCE_S, corrections
     entry = next(e for e in after.document["findings"] if e["effect"] == "delay")
     assert entry["kind"] == "signal"
     block = after.document["recalibration"]
@@ -164,6 +184,13 @@ def test_apply_of_a_delay_to_a_lugre_model_refits_the_friction_and_validates_as_
     assert main(["validate", str(folder / "new.json"), str(valid), "--json"]) == 0
     validated = json.loads(capsys.readouterr().out)["recordings"][0]["rmse"]
     np.testing.assert_allclose(validated, block["after"]["validation_rmse"], rtol=1e-9)
+
+
+@pytest.mark.slow
+def test_the_diagnosis_of_a_lugre_model_of_clean_recordings_finds_nothing(clean_diagnosis):
+    """The same robot without the delay: the LuGre model identified from its recordings leaves nothing the
+    diagnosis reports (no delay, no other finding), though the delay is screened at its profile's minimum."""
+    assert clean_diagnosis["findings"] == [], [f["label"] for f in clean_diagnosis["findings"]]
 
 
 @pytest.mark.slow

@@ -151,7 +151,8 @@ class CandidateTerm:
         one with the lowest BIC on the training ``context``), simplest first; ``(self,)`` by default.
         ``score(joint, values)``, when given, is the weighted training SSE of the current model with columns
         ``values`` (on the training rows ``score.rows``, k) added on a joint, for shapes whose nonlinear parameters
-        are fitted by it (``n_shape_parameters``)."""
+        are fitted by it (``n_shape_parameters``); ``score.fixed(values)`` the SSE with a torque (rows, n_dof) added
+        as it is, the exact profile of a robot-wide signal term (the delay)."""
         return (self,)
 
     def theta_change(self, coefficients, parameter_map) -> np.ndarray | None:
