@@ -71,6 +71,12 @@ class SimulationOptions:
         Integral action of the joint controller as a fraction of the Routh bound's scale:
         ``Ki = integral_gain * M_ii w^3`` (stable for ``integral_gain < 2 zeta``); it removes the
         steady tracking error an unmodelled load (a spring, a payload) would leave. 0 gives a PD loop.
+    settled_start : bool
+        The controller has been holding the start state before the recording, as a robot in position
+        control does before a run: its integral term starts at the torque the feed-forward misses there
+        (hidden extras, the plant's own inertia or friction where the controller's model differs), so
+        the recording starts without a sag. False starts the integral term at zero, a controller
+        switched on at the first sample (a hidden torque then shows a start-up transient).
     damping_ratio : float
         ``zeta`` of the PD loop.
     feedforward : {"model", "gravity", "none"}
@@ -107,6 +113,7 @@ class SimulationOptions:
     bandwidth_hz: float = 10.0
     damping_ratio: float = 1.0
     integral_gain: float = 0.25
+    settled_start: bool = True
     feedforward: str = "model"
     friction_feedforward: bool = True
     friction: bool = True
@@ -369,7 +376,7 @@ def simulate_recording(
     gains = _pid_gains(ctrl_model, ctrl_data, q_ref[0], options)
 
     plant = build_pinocchio_model(plant_robot, plant_params)
-    states = _integrate(plant, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras)
+    states = _integrate(plant, lugre, t, (q_ref, qd_ref, qdd_ref[0]), tau_ff, gains, options, extras)
     q, qd, qdd, z, tau_motor, tau_f, tau_x = states
     recording = _sensor_recording(robot.name, t, q, qd, tau_motor, kt, options, extras, rng)
     truth = SimulationTruth(
@@ -393,9 +400,10 @@ def simulate_recording(
     return recording, truth
 
 
-def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
+def _integrate(model, lugre, t, reference, tau_ff, gains, options, extras):
     """The time loop: PID + feed-forward at each sample, ``substeps`` symplectic-Euler or leapfrog steps, exact z
-    steps."""
+    steps. ``reference`` is ``(q_ref, qd_ref, qdd_ref[0])``."""
+    q_ref, qd_ref, qdd_start = reference
     kp, kd, ki = gains
     n_samples, n = q_ref.shape
     data = model.createData()
@@ -428,6 +436,12 @@ def _integrate(model, lugre, t, q_ref, qd_ref, tau_ff, gains, options, extras):
     out_q, out_qd, out_qdd = (np.empty((n_samples, n)) for _ in range(3))
     out_z, out_tau, out_tf, out_tx = (np.empty((n_samples, n)) for _ in range(4))
     error_integral = np.zeros(n)
+    if options.settled_start and np.all(ki > 0):  # the integral term already holds what the feed-forward misses
+        tau_f = (s0 * z + s1 * (qd - rate * z) + visc) if friction else zero
+        tau_x = sum(e.torque(t[0], q, qd, tau_ff[0]) for e in torque_terms) if torque_terms else zero
+        needed = pin.rnea(model, data, q, qd, qdd_start) + tau_f + tau_x
+        error_integral = (needed - tau_ff[0]) / ki
+        tau_x = zero
     dt = 1.0 / options.rate
     for k in range(n_samples):
         error = q_ref[k] - q

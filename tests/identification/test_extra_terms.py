@@ -187,7 +187,8 @@ def test_model_with_a_spring_predicts_saves_and_exports_its_whole_torque(denso, 
 
 
 def test_motor_step_is_not_misled_by_the_start_up_transient_of_a_hidden_spring(denso):
-    """The spring yanks joint 4 at the start of each sweep; Kt comes from the steady sweep (truth: the robot file)."""
+    """The spring yanks joint 4 at the start of each sweep (a controller switched on at the first sample,
+    ``settled_start=False``); Kt comes from the steady sweep (truth: the robot file)."""
     from dataclasses import replace
     from functools import partial
 
@@ -206,7 +207,9 @@ def test_motor_step_is_not_misled_by_the_start_up_transient_of_a_hidden_spring(d
         denso, JOINT, partial(payload_static_torque, denso, options.payload), rng
     )
     nominal, loaded = (
-        simulate_recording(denso, reference, replace(options.simulation, payload=payload), rng, extras=spring)[0]
+        simulate_recording(
+            denso, reference, replace(options.simulation, payload=payload, settled_start=False), rng, extras=spring
+        )[0]
         for payload in (None, options.payload)
     )
     split = motor_split(SimpleNamespace(motor=((JOINT, nominal, loaded),)), PipelineOptions())

@@ -116,6 +116,32 @@ def test_spring_shows_up_as_k_q_minus_q0(denso):
     np.testing.assert_allclose(extra, expected, atol=1e-8 * np.abs(rec.tau).max())
 
 
+def _hold_still(t):
+    """The reference of a robot holding a pose (the calibration experiments start at rest)."""
+    q = np.tile(0.5 * A, (np.asarray(t).size, 1))
+    return q, np.zeros_like(q), np.zeros_like(q)
+
+
+def test_a_settled_controller_holds_a_hidden_torque_from_the_first_sample(denso):
+    """A hidden spring the feed-forward does not know: with the controller settled before the recording
+    (the default, as a robot holding its pose before a run) the arm does not move, and the recorded torque is
+    the gravity torque of the pose plus the spring's, from the first sample (Pinocchio's gravity, the spring
+    law); with the integral term starting at zero the arm sags first, as a controller switched on at t = 0."""
+    spring = Spring(joint=1, stiffness=80.0, q0=-0.5)  # 50 N m at the pose
+    options = SimulationOptions(duration=1.0, friction=False, **CLEAN)
+    rec, truth = simulate_recording(denso, _hold_still, options, extras=[spring])
+    q_pose = 0.5 * A
+    assert np.abs(truth.q - q_pose).max() < 1e-9
+    expected = PinocchioOracle(denso).rnea(truth.q, 0 * truth.q, 0 * truth.q)
+    expected[:, 1] += 80.0 * (q_pose[1] + 0.5)
+    np.testing.assert_allclose(rec.tau, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
+    cold, _ = simulate_recording(denso, _hold_still, replace(options, settled_start=False), extras=[spring])
+    assert np.abs(cold.q[:, 1] - q_pose[1]).max() > 1e-3  # the sag of a cold start (settled: below 1e-9)
+    # without a hidden torque there is nothing to hold: both starts give the same recording
+    clean = [simulate_recording(denso, sines, replace(options, settled_start=s))[0].tau for s in (True, False)]
+    np.testing.assert_allclose(clean[0], clean[1], rtol=1e-9, atol=1e-9 * np.abs(clean[1]).max())
+
+
 def test_torque_ripple_and_coupling(denso):
     terms = [TorqueRipple(joint=2, amplitude=1.5, harmonic=4.0), JointCoupling(matrix=0.5 * np.eye(6)[::-1])]
     rec, truth = simulate_recording(
