@@ -75,7 +75,8 @@ class SimulationOptions:
         The controller has been holding the start state before the recording, as a robot in position
         control does before a run: its integral term starts at the torque the feed-forward misses there
         (hidden extras, the plant's own inertia or friction where the controller's model differs), so
-        the recording starts without a sag. False starts the integral term at zero, a controller
+        the recording starts without a sag (without hidden extras the controller's model is the plant and
+        there is nothing to hold). False starts the integral term at zero, a controller
         switched on at the first sample (a hidden torque then shows a start-up transient).
     damping_ratio : float
         ``zeta`` of the PD loop.
@@ -436,7 +437,7 @@ def _integrate(model, lugre, t, reference, tau_ff, gains, options, extras):
     out_q, out_qd, out_qdd = (np.empty((n_samples, n)) for _ in range(3))
     out_z, out_tau, out_tf, out_tx = (np.empty((n_samples, n)) for _ in range(4))
     error_integral = np.zeros(n)
-    if options.settled_start and np.all(ki > 0):  # the integral term already holds what the feed-forward misses
+    if options.settled_start and extras and np.all(ki > 0):  # the integral term holds what the feed-forward misses
         tau_f = (s0 * z + s1 * (qd - rate * z) + visc) if friction else zero
         tau_x = sum(e.torque(t[0], q, qd, tau_ff[0]) for e in torque_terms) if torque_terms else zero
         needed = pin.rnea(model, data, q, qd, qdd_start) + tau_f + tau_x
