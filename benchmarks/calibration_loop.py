@@ -1,14 +1,16 @@
 """The discovery loop on the four-step calibration: parameter errors with a hidden effect, before and after the loop.
 
-Each scenario simulates the calibration experiments of the virtual Denso (the quick demo's plan:
-``psdm_casadi.demo.DemoOptions.quick()`` sizes, noise on) with one hidden effect present during the
-whole calibration, runs the four steps (``IdentificationPipeline``, no refinement), diagnoses the
-excitation recording (first period trains, last validates), and runs the four steps again with the
-diagnosis' torque-type findings as known terms (``ExtraTerms.from_diagnosis``). The same plan without
-the effect gives the clean-data errors the target is measured against (issue 16: after within 2x clean).
-The known terms and the gravity parameters are fitted jointly on the jog and the excitation, each
-experiment's rows weighted by its own residual variance (``identification.calibration.extra_passes``,
-``JointGravityIdentifier``); the clean calibration has no terms and takes its gravity from the jog alone.
+Each scenario simulates the calibration experiments of the virtual Denso (``--plan quick``, the default: the
+quick demo's plan, ``psdm_casadi.demo.DemoOptions.quick()`` sizes; ``--plan full``: the experiments of
+``benchmarks/calibration.py``, ``CalibrationPlan()`` with its 120 s jog and designed friction experiments, and
+the full demo's excitation; noise on) with one hidden effect present during the whole calibration, runs the
+four steps (``IdentificationPipeline``, no refinement), diagnoses the excitation recording (first period
+trains, last validates), and runs the four steps again with the diagnosis' torque-type findings as known terms
+(``ExtraTerms.from_diagnosis``). The same plan without the effect gives the clean-data errors the target is
+measured against (issue 16: after within 2x clean). The known terms and the gravity parameters are fitted
+jointly on the jog and the excitation, each experiment's rows weighted by its own residual variance
+(``identification.calibration.extra_passes``, ``JointGravityIdentifier``); the clean calibration has no terms
+and takes its gravity from the jog alone.
 
 Errors against the simulation truth (the robot file): ``kt`` the worst relative Kt error; ``gravity``
 and ``inertial`` the worst base-parameter error scaled by max(|truth|, 5 % of the largest parameter
@@ -24,7 +26,12 @@ the seeds of the worst after-error over the scenarios is at most twice the media
 seeds of the clean error (with the same 1e-3 floor as the per-seed test). The worst after-error
 over the seeds and the per-seed verdicts are reported beside it, so a seed far off stays visible.
 
-    python benchmarks/calibration_loop.py [--json] [--seeds 0 1 2] [--scenarios spring_j4 spring_j2]
+The quick plan's jog lasts 16 s, so each joint travels about 1.2 rad of it: over that travel a linear spring
+``k q + c`` is nearly a combination of the joint's gravity torques (sine and cosine of the angle), the jog
+alone cannot tell them apart, and the gravity parameters after the loop are as good as the excitation's
+estimate of ``k``. The full plan's jog covers 80 % of every joint's range.
+
+    python benchmarks/calibration_loop.py [--json] [--seeds 0 1 2] [--plan quick|full] [--scenarios spring_j4 ...]
 """
 
 from __future__ import annotations
@@ -96,9 +103,16 @@ def _excitation(robot, model, options):
     return excitation, (t, *excitation.sample(t))
 
 
-def _scenario(robot, model, options, excitation, reference, extras) -> dict:
+def _plan(options, plan: str) -> CalibrationPlan:
+    """The calibration experiments of ``--plan``: the quick demo's sizes, or ``benchmarks/calibration.py``'s."""
+    if plan == "full":
+        return CalibrationPlan()
+    return CalibrationPlan(gravity_duration=options.gravity_duration, friction_amplitudes=options.friction_amplitudes)
+
+
+def _scenario(robot, model, options, excitation, reference, extras, plan="quick") -> dict:
     """One calibration with ``extras`` hidden: errors before, the diagnosis, errors after the loop."""
-    plan = CalibrationPlan(gravity_duration=options.gravity_duration, friction_amplitudes=options.friction_amplitudes)
+    plan = _plan(options, plan)
     data = simulate_calibration(
         robot,
         plan,
@@ -140,19 +154,19 @@ def _scenario(robot, model, options, excitation, reference, extras) -> dict:
     return row
 
 
-def loop_parameter_errors(seed: int = 0, scenarios=tuple(SCENARIOS)) -> dict:
+def loop_parameter_errors(seed: int = 0, scenarios=tuple(SCENARIOS), plan: str = "quick") -> dict:
     """``{"before": {...}, "after": {...}, "clean": {...}, "scenarios": [...]}``: worst errors over the scenarios."""
-    options = DemoOptions.quick(seed=seed)
+    options = DemoOptions.quick(seed=seed) if plan == "quick" else DemoOptions(seed=seed, quiet=True)
     robot = load_robot(DENSO_FILE)
     model = derive_psdm(robot)
     excitation, reference = _excitation(robot, model, options)
     progress("loop benchmark: clean calibration ...")
-    clean = _scenario(robot, model, options, excitation, reference, ())["before"]
+    clean = _scenario(robot, model, options, excitation, reference, (), plan)["before"]
     rows = []
     for name in scenarios:
         effect, joint = SCENARIOS[name]
         progress(f"loop benchmark: {name} ...")
-        row = _scenario(robot, model, options, excitation, reference, (effect,))
+        row = _scenario(robot, model, options, excitation, reference, (effect,), plan)
         rows.append(dict(row, scenario=name, joint=joint + 1))
     worst = {
         stage: {key: max(r[stage][key] for r in rows) for key in ("kt", "gravity", "inertial")}
@@ -161,9 +175,9 @@ def loop_parameter_errors(seed: int = 0, scenarios=tuple(SCENARIOS)) -> dict:
     return dict(worst, clean=clean, after_within_2x_clean=_within(worst["after"], clean), scenarios=rows)
 
 
-def loop_errors_over_seeds(seeds=(0, 1, 2), scenarios=tuple(SCENARIOS)) -> dict:
+def loop_errors_over_seeds(seeds=(0, 1, 2), scenarios=tuple(SCENARIOS), plan: str = "quick") -> dict:
     """``loop_parameter_errors`` per seed and their comparison across the seeds (module docstring)."""
-    per_seed = {int(seed): loop_parameter_errors(int(seed), scenarios) for seed in seeds}
+    per_seed = {int(seed): loop_parameter_errors(int(seed), scenarios, plan) for seed in seeds}
     keys = ("kt", "gravity", "inertial")
 
     def median(stage):
@@ -188,11 +202,14 @@ def main(argv=None) -> int:
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0])
     parser.add_argument("--scenarios", nargs="+", default=list(SCENARIOS), choices=list(SCENARIOS))
+    parser.add_argument("--plan", default="quick", choices=("quick", "full"), help="the calibration experiments")
     args = parser.parse_args(argv)
     show_progress()
-    result = loop_errors_over_seeds(tuple(args.seeds), tuple(args.scenarios))
+    result = loop_errors_over_seeds(tuple(args.seeds), tuple(args.scenarios), args.plan)
     if args.json:
-        print_json({"benchmark": "calibration_loop", "seeds": args.seeds, "loop_parameter_errors": result})
+        print_json(
+            {"benchmark": "calibration_loop", "seeds": args.seeds, "plan": args.plan, "loop_parameter_errors": result}
+        )
         return 0
     table = []
     for seed, r in result["per_seed"].items():
