@@ -351,7 +351,7 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
 
 
 def _warning_lines(calibrated) -> list:
-    """The warnings 'psdm identify' stored in the model file (``trajectory_checks.fit_warnings``), first."""
+    """The warnings of the fit stored in the model file (``trajectory_checks.fit_warnings``), first."""
     warnings = calibrated.document.get("warnings") or []
     if not warnings:
         return []
