@@ -117,41 +117,38 @@ def test_the_exported_c_of_the_recalibrated_lugre_model_gives_the_reported_rmse(
     np.testing.assert_allclose(rmse_c, after.document["recalibration"]["after"]["validation_rmse"], rtol=1e-9)
 
 
-@pytest.fixture(scope="module")
-def delay_loop(denso, tmp_path_factory):
-    """``psdm identify --friction lugre`` on the recordings whose torque lags by ``DELAY_SAMPLES``, then ``psdm
-    diagnose MODEL --apply``."""
+def _identify_then_diagnose(denso, folder, extras, *diagnose_options):
+    """``psdm identify --friction lugre`` on the recordings written with ``extras`` into ``folder``, then ``psdm
+    diagnose MODEL`` with ``diagnose_options``; returns the validation recording's path."""
     from psdm_casadi.cli import main
     from tests.conftest import DENSO_FILE
     from tests.identification.lugre_recordings_data import CUTOFF, write_lugre_recordings
 
-    folder = tmp_path_factory.mktemp("lugre_delay")
-    train, valid = write_lugre_recordings(denso, folder, extras=[xp.SignalDelay(samples=DELAY_SAMPLES)])
+    train, valid = write_lugre_recordings(denso, folder, extras=extras)
     argv = ["identify", str(DENSO_FILE), "--data", str(train), "--friction", "lugre", "--cutoff", str(CUTOFF),
             "--out", str(folder / "model.json")]  # fmt: skip
     assert main(argv) == 0
     argv = ["diagnose", str(folder / "model.json"), "--train", str(train), "--validate", str(valid), "--cutoff",
-            str(CUTOFF), "--apply", str(folder / "new.json")]  # fmt: skip
+            str(CUTOFF), *diagnose_options]  # fmt: skip
     assert main(argv) == 0
-    return folder, valid
+    return valid
+
+
+@pytest.fixture(scope="module")
+def delay_loop(denso, tmp_path_factory):
+    """``psdm identify --friction lugre`` on the recordings whose torque lags by ``DELAY_SAMPLES``, then ``psdm
+    diagnose MODEL --apply``."""
+    folder = tmp_path_factory.mktemp("lugre_delay")
+    extras = [xp.SignalDelay(samples=DELAY_SAMPLES)]
+    return folder, _identify_then_diagnose(denso, folder, extras, "--apply", str(folder / "new.json"))
 
 
 @pytest.fixture(scope="module")
 def clean_diagnosis(denso, tmp_path_factory):
     """``psdm identify --friction lugre`` on the recordings without hidden physics, then ``psdm diagnose MODEL
     --json``: the report's findings."""
-    from psdm_casadi.cli import main
-    from tests.conftest import DENSO_FILE
-    from tests.identification.lugre_recordings_data import CUTOFF, write_lugre_recordings
-
     folder = tmp_path_factory.mktemp("lugre_clean")
-    train, valid = write_lugre_recordings(denso, folder)
-    argv = ["identify", str(DENSO_FILE), "--data", str(train), "--friction", "lugre", "--cutoff", str(CUTOFF),
-            "--out", str(folder / "model.json")]  # fmt: skip
-    assert main(argv) == 0
-    argv = ["diagnose", str(folder / "model.json"), "--train", str(train), "--validate", str(valid), "--cutoff",
-            str(CUTOFF), "--out", str(folder / "report")]  # fmt: skip
-    assert main(argv) == 0
+    _identify_then_diagnose(denso, folder, (), "--out", str(folder / "report"))
     return json.loads((folder / "report" / "report.json").read_text())
 
 
