@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -211,9 +212,24 @@ def _pick_shape(fits, sigma) -> tuple:
     return best, f"{best[0].label} chosen by BIC on the training data, checked on validation ({note})"
 
 
+class _Qualified(NamedTuple):
+    """A candidate that qualified in a round of ``_screen``: its weighted validation ``gain``, parameter count
+    ``k``, ``index`` in the remaining candidates, ``term`` (the chosen shape), validation RMSE per joint
+    ``rmse_v``, ``delta_bic``, the shape ``note`` and why the recording cannot support its name (``unsupported``,
+    ``CandidateTerm.name_unsupported``; None when it can)."""
+
+    gain: float
+    k: int
+    index: int
+    term: object
+    rmse_v: np.ndarray
+    delta_bic: float
+    note: str
+    unsupported: str | None
+
+
 def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
-    """Fit each remaining candidate (in its chosen shape) with the kept terms; the qualifying ones as
-    ``(gain, k, index, term, rmse_v, dBIC, shape_note)``."""
+    """Fit each remaining candidate (in its chosen shape) with the kept terms; the qualifying ones (``_Qualified``)."""
     score = JointScore(design, sse)
     qualified, scored, rejected = [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
@@ -240,7 +256,8 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
         if own:  # a per-joint term earns its place on its own joint, not through a shared parameter elsewhere
             improving = improving[list(own)]
         if np.any(improving) and wval1 < wval0 and delta_bic < 0:
-            qualified.append((gain, k, index, variant, rv1, delta_bic, note, variant.name_unsupported(train_ctx)))
+            unsupported = variant.name_unsupported(train_ctx)
+            qualified.append(_Qualified(gain, k, index, variant, rv1, delta_bic, note, unsupported))
     for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
         logger.info(
             f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, "
@@ -255,10 +272,10 @@ def _choose(qualified):
     """The best qualifying candidate; gains within 2 % of the best that leave at most ``TIE_REMAINING`` times its
     remaining error tie, and ties go to fewer parameters, then the earlier term (``_backed_name`` then checks that
     the recording supports the chosen term's name)."""
-    top = max(q[0] for q in qualified)
+    top = max(q.gain for q in qualified)
     left = max(1.0 - top, 1e-12)
-    near = [q for q in qualified if q[0] >= top - 0.02 * abs(top) and 1.0 - q[0] <= TIE_REMAINING * left]
-    return _backed_name(min(near, key=lambda q: (q[1], q[2])), qualified)
+    near = [q for q in qualified if q.gain >= top - 0.02 * abs(top) and 1.0 - q.gain <= TIE_REMAINING * left]
+    return _backed_name(min(near, key=lambda q: (q.k, q.index)), qualified)
 
 
 def _backed_name(chosen, qualified):
@@ -268,26 +285,26 @@ def _backed_name(chosen, qualified):
     with a shape note saying why. A smooth stretch of torque is named by the family that claims no more than the
     data show; a ripple that fits its joint clearly better than every such rival is still named, since the data
     then show a shape the smooth family cannot follow."""
-    reason, joints = chosen[7], list(chosen[3].joints)
+    reason, joints = chosen.unsupported, list(chosen.term.joints)
     if reason is None or not joints:
         return chosen
     rivals = [
         q
         for q in qualified
-        if q[7] is None
-        and set(q[3].joints) & set(joints)
-        and np.all(q[4][joints] <= (1.0 + NAME_TOLERANCE) * chosen[4][joints])
+        if q.unsupported is None
+        and set(q.term.joints) & set(joints)
+        and np.all(q.rmse_v[joints] <= (1.0 + NAME_TOLERANCE) * chosen.rmse_v[joints])
     ]
     if not rivals:
         return chosen
-    rival = max(rivals, key=lambda q: (q[0], -q[1], -q[2]))
+    rival = max(rivals, key=lambda q: (q.gain, -q.k, -q.index))
     j = joints[0]
     note = (
-        f"{rival[3].label} named rather than {chosen[3].label}, which fits joint {j + 1} about as well (validation "
-        f"RMSE {rival[4][j]:.4g} N m, {chosen[4][j]:.4g} N m with {chosen[3].label}) but {reason}"
+        f"{rival.term.label} named rather than {chosen.term.label}, which fits joint {j + 1} about as well "
+        f"(validation RMSE {rival.rmse_v[j]:.4g} N m, {chosen.rmse_v[j]:.4g} N m with {chosen.term.label}) but {reason}"
     )
     logger.info(f"diagnose:   {note}")
-    return rival[:6] + ("; ".join(x for x in (note, rival[6]) if x), None)
+    return rival._replace(note="; ".join(x for x in (note, rival.note) if x))
 
 
 def _named_joints(term, rmse_before, rmse_after, joint_threshold) -> tuple:
@@ -424,7 +441,8 @@ def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_t
         tried += len(remaining)
         if not qualified:
             break
-        gain, _, index, term, _, delta_bic, note, _ = _choose(qualified)
+        chosen = _choose(qualified)
+        gain, index, term, delta_bic, note = chosen.gain, chosen.index, chosen.term, chosen.delta_bic, chosen.note
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
         step = SelectionStep(
