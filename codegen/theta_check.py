@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.calibration.consistency import check_consistency, mass_matrices
+from identification.calibration.consistency import ConsistencyReport, check_consistency, mass_matrices
 from identification.calibration.recalibrate import MASS_CHECK_CONFIGURATIONS
 from psdm_casadi.errors import ShapeError
 
@@ -34,12 +34,9 @@ class ThetaCheck:
 
     Attributes
     ----------
-    min_eigenvalue : float
-        Smallest eigenvalue of D(q) over the samples [kg m^2].
-    worst_q : array, shape (n_dof,)
-        Its configuration [rad or m].
-    n_samples, n_violations : int
-        Configurations sampled, and those with an eigenvalue <= 0.
+    report : ConsistencyReport
+        The mass-matrix check (``consistency.check_consistency``): smallest eigenvalue, its configuration, the
+        configurations sampled and those that failed.
     blamed : tuple of (str, float, float)
         ``(name, value, contribution)`` of the base parameters that pull the smallest eigenvalue down most
         (contribution < 0, most negative first) [kg m^2].
@@ -47,28 +44,26 @@ class ThetaCheck:
         Where the configurations were sampled.
     """
 
-    min_eigenvalue: float
-    worst_q: np.ndarray
-    n_samples: int
-    n_violations: int
+    report: ConsistencyReport
     blamed: tuple
     ranges: str
 
     @property
     def consistent(self) -> bool:
         """True when D(q) was positive definite at every sample."""
-        return self.n_violations == 0
+        return self.report.consistent
 
     def problem(self, source: str) -> str | None:
         """None when consistent, else one sentence naming the eigenvalue and the parameters to blame."""
         if self.consistent:
             return None
+        report = self.report
         blamed = ", ".join(f"{name} = {value:.6g} (adds {share:.3g})" for name, value, share in self.blamed)
         return (
             f"the base parameters of {source} are not physically consistent: the mass matrix is not positive "
-            f"definite at {self.n_violations} of {self.n_samples} configurations ({self.ranges}); smallest eigenvalue "
-            f"{self.min_eigenvalue:.4g} kg m^2 at q = [{', '.join(f'{v:.3f}' for v in self.worst_q)}]; the base "
-            f"parameters that pull it down most: {blamed or 'none alone'}"
+            f"definite at {report.n_violations} of {report.n_samples} configurations ({self.ranges}); smallest "
+            f"eigenvalue {report.min_eigenvalue:.4g} kg m^2 at q = [{', '.join(f'{v:.3f}' for v in report.worst_q)}];"
+            f" the base parameters that pull it down most: {blamed or 'none alone'}"
         )
 
 
@@ -114,7 +109,7 @@ def check_theta(model, theta, robot=None, *, n_samples: int = MASS_CHECK_CONFIGU
         ranges = f"revolute joints over one turn, prismatic over +-{FREE_PRISMATIC_RANGE} m: no robot file"
     report = check_consistency(model, theta, q_min, q_max, n_samples=n_samples, rng=rng)
     blamed = () if report.consistent else _blame(model, theta, report.worst_q)
-    return ThetaCheck(report.min_eigenvalue, report.worst_q, report.n_samples, report.n_violations, blamed, ranges)
+    return ThetaCheck(report, blamed, ranges)
 
 
 def _blame(model, theta, q, count: int = 3) -> tuple:

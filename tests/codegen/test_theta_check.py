@@ -30,17 +30,17 @@ def test_the_nominal_theta_passes_with_pinocchios_smallest_eigenvalue(scara):
     robot, model, theta = scara
     check = check_theta(model, theta, robot, n_samples=200)
     assert check.consistent and check.problem("theta.txt") is None and check.blamed == ()
-    assert np.all(check.worst_q >= robot.q_min) and np.all(check.worst_q <= robot.q_max)
-    crba = PinocchioOracle(robot).crba(check.worst_q[None, :])[0]
-    assert check.min_eigenvalue == pytest.approx(np.linalg.eigvalsh(crba)[0], rel=1e-9)
+    assert np.all(check.report.worst_q >= robot.q_min) and np.all(check.report.worst_q <= robot.q_max)
+    crba = PinocchioOracle(robot).crba(check.report.worst_q[None, :])[0]
+    assert check.report.min_eigenvalue == pytest.approx(np.linalg.eigvalsh(crba)[0], rel=1e-9)
 
 
 def test_the_negated_theta_fails_everywhere_and_names_the_parameters(scara):
     robot, model, theta = scara
     check = check_theta(model, -theta, robot, n_samples=200)
-    assert not check.consistent and check.n_violations == 200
-    crba = PinocchioOracle(robot).crba(check.worst_q[None, :])[0]
-    assert check.min_eigenvalue == pytest.approx(-np.linalg.eigvalsh(crba)[-1], rel=1e-9)
+    assert not check.consistent and check.report.n_violations == 200
+    crba = PinocchioOracle(robot).crba(check.report.worst_q[None, :])[0]
+    assert check.report.min_eigenvalue == pytest.approx(-np.linalg.eigvalsh(crba)[-1], rel=1e-9)
     # the named terms are the most negative of theta_k v^T D_k v, whose sum over k is the eigenvalue
     assert 1 <= len(check.blamed) <= 3 and all(share < 0 for _, _, share in check.blamed)
     names = [name for name, _, _ in check.blamed]
@@ -49,20 +49,20 @@ def test_the_negated_theta_fails_everywhere_and_names_the_parameters(scara):
     assert shares == sorted(shares)
     values, vectors = np.linalg.eigh(-crba)
     v = vectors[:, 0]
-    every = [-theta[k] * v @ mass_matrices(model, np.eye(model.n_base)[k], check.worst_q)[0] @ v
+    every = [-theta[k] * v @ mass_matrices(model, np.eye(model.n_base)[k], check.report.worst_q)[0] @ v
              for k in range(model.n_base)]  # fmt: skip
     assert sum(every) == pytest.approx(values[0], rel=1e-9)  # D(q) is linear in theta: the terms sum to it
     np.testing.assert_allclose(shares, sorted(every)[: len(shares)], rtol=1e-9)
     assert all(share < -1e-9 * max(map(abs, every)) for share in shares)
     problem = check.problem("neg.txt")
-    assert "neg.txt" in problem and f"{check.min_eigenvalue:.4g}" in problem and names[0] in problem
+    assert "neg.txt" in problem and f"{check.report.min_eigenvalue:.4g}" in problem and names[0] in problem
 
 
 def test_without_a_robot_revolute_joints_are_sampled_over_a_turn(scara):
     robot, model, theta = scara
     check = check_theta(model, theta, None, n_samples=200)
     assert check.consistent and "no robot file" in check.ranges
-    assert np.any(np.abs(check.worst_q[model.revolute]) > 0)
+    assert np.any(np.abs(check.report.worst_q[model.revolute]) > 0)
 
 
 def test_codegen_refuses_a_negated_theta_unless_allowed_and_then_marks_it(scara, tmp_path, capsys):
