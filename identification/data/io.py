@@ -10,6 +10,7 @@ module makes its columns the signals of a ``Recording``.
 
 from __future__ import annotations
 
+import filecmp
 import re
 from pathlib import Path
 
@@ -306,15 +307,7 @@ def _same_file(a: Path, b: Path) -> bool:
     try:
         if a.resolve() == b.resolve() or (a.exists() and b.exists() and a.samefile(b)):
             return True
-        if not (a.is_file() and b.is_file()) or a.stat().st_size != b.stat().st_size:
-            return False
-        with a.open("rb") as fa, b.open("rb") as fb:
-            while True:
-                block = fa.read(1 << 20)
-                if block != fb.read(1 << 20):
-                    return False
-                if not block:
-                    return True
+        return a.is_file() and b.is_file() and filecmp.cmp(a, b, shallow=False)
     except OSError:
         return False
 
