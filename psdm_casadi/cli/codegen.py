@@ -204,7 +204,8 @@ def _check_options(args):
 
 
 def _calibrated_functions(args, path: Path, out: Path):
-    """(Functions, form, header note, CalibratedModel) of a calibrated-model file, or None when refused."""
+    """(Functions, form, None (no theta to bake), header note, CalibratedModel) of a calibrated-model file, as
+    ``_export_functions`` returns them, or None when refused."""
     from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
     from identification.calibration.calibrated_model import read_calibrated_model
     from psdm_casadi.cli.output import progress
@@ -232,7 +233,7 @@ def _calibrated_functions(args, path: Path, out: Path):
     progress("building the CasADi functions (rigid body + drive terms) ...")
     form = args.form or "recursive"
     functions = build_calibrated_functions(calibrated, model, robot, form=form, allow_inconsistent=True)
-    return functions, form, header_note(calibrated, source_name=path.name), calibrated
+    return functions, form, None, header_note(calibrated, source_name=path.name), calibrated
 
 
 def _export_functions(args, out: Path):
@@ -242,8 +243,7 @@ def _export_functions(args, out: Path):
 
     source = Path(args.source)
     if source.suffix.lower() == CALIBRATED_SUFFIX:
-        built = _calibrated_functions(args, source, out)
-        return None if built is None else (built[0], built[1], None, built[2], built[3])
+        return _calibrated_functions(args, source, out)
     model, robot, theta = _load_source(source, args.robot, args.lock)
     note = None
     if args.theta is not None:
