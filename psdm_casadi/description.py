@@ -249,6 +249,8 @@ class RobotDescription:
         locks at zero, and a mapping ``{name: value}`` is accepted too (see :func:`locked_positions`).
     source : str or None
         The robot file (TOML or URDF) the description was read from, for messages; not compared.
+    replaced_inertias : tuple of urdf.ReplacedInertia
+        URDF link inertias that were not physical and are replaced in ``links`` by a neutral stand-in.
     """
 
     name: str
@@ -264,6 +266,7 @@ class RobotDescription:
     urdf_path: str | None = None
     locked_joints: tuple = ()
     source: str | None = field(default=None, compare=False)
+    replaced_inertias: tuple = field(default=(), compare=False)
 
     def __post_init__(self):
         joints = tuple(self.joints)

@@ -18,6 +18,7 @@ import os
 import sys
 import tempfile
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -26,9 +27,45 @@ import pinocchio as pin
 from psdm_casadi.description import GRAVITY_STANDARD, Joint, LinkInertia, RobotDescription, locked_positions
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.text_file import read_text_file
-from psdm_casadi.values import format_value
+from psdm_casadi.values import format_value, inertia_violation
 
 logger = logging.getLogger(__name__)
+
+# The stand-in for an unusable URDF inertia is a uniform solid sphere about the link's centre of mass, of the
+# link's mass and of the link's size: radius the larger of half the distance to the next joint, the distance of
+# the centre of mass from the joint, and this floor [m].
+MIN_STAND_IN_RADIUS = 0.02
+
+
+@dataclass(frozen=True)
+class ReplacedInertia:
+    """A URDF link inertia that is not physical, and the neutral stand-in the robot carries in its place.
+
+    Parameters
+    ----------
+    joint : int
+        0-based joint whose moving link it is (Pinocchio lumps fixed children onto it).
+    link : str
+        The URDF link names lumped on that joint, for messages.
+    problem : str
+        The violated condition, with the principal moments (:func:`psdm_casadi.values.inertia_violation`).
+    radius : float
+        [m] Radius of the solid sphere of the link's mass that replaces the inertia about the centre of mass.
+    """
+
+    joint: int
+    link: str
+    problem: str
+    radius: float
+
+    def message(self, source: str) -> str:
+        """The warning: which link, which condition, what replaced it, and the fix."""
+        return (
+            f"{source}: the inertia of link {self.link} (joint {self.joint + 1}) is unusable: it {self.problem}. "
+            f"Its kinematics, mass and centre of mass are kept; its inertia is replaced by a solid sphere of its mass "
+            f"(radius {self.radius:.3g} m) with a weak pull, and identification decides it from the data. To use "
+            "the vendor's inertia, correct it in the URDF (e.g. from the vendor's CAD or xacro)."
+        )
 
 
 @contextmanager
@@ -177,9 +214,15 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
     RobotFileError
         When the file is not a readable URDF (the parser's errors are quoted), a locked joint is
         unknown or locked outside its limits, a joint is neither revolute nor prismatic with one
-        degree of freedom, its limits are swapped, or a link's mass or inertia is not physical
-        (negative mass, an inertia that is not positive semi-definite or violates the triangle
-        inequality).
+        degree of freedom, its limits are swapped, or a link's mass is negative.
+
+    Warns
+    -----
+    A link inertia that is not positive semi-definite or violates the triangle inequality (finite
+    numbers) is unusable but not refused: the kinematics, mass and centre of mass are kept, the
+    inertia is replaced by a solid sphere of the link's mass and size, the warning names the link
+    and the violated condition, and ``RobotDescription.replaced_inertias`` lists them (the fit pulls
+    those links' inertias only weakly towards the stand-in).
 
     Notes
     -----
@@ -189,18 +232,18 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
     """
     path = Path(path)
     model = load_urdf_model(path, locked_joints)
-    joints, links = [], []
+    joints, links, replaced = [], [], []
     for jid in range(1, model.njoints):
         where = f"{path.name} joint {model.names[jid]!r}"
         try:
             joints.append(_joint(model, jid))
-            inertia = model.inertias[jid]
-            links.append(
-                LinkInertia(mass=float(inertia.mass), com=np.array(inertia.lever), inertia=np.array(inertia.inertia))
-            )
+            link, stand_in = _link_inertia(model, jid)
         except RobotFileError as exc:
-            body = _body_names(model, jid)
-            raise RobotFileError(f"{where} (link {body}): {exc}") from None
+            raise RobotFileError(f"{where} (link {_body_names(model, jid)}): {exc}") from None
+        links.append(link)
+        if stand_in is not None:
+            replaced.append(stand_in)
+            logger.warning("%s", stand_in.message(path.name))
     if not joints:
         raise RobotFileError(
             f"{path.name} must hold at least one revolute or prismatic joint; got none (only fixed or floating "
@@ -216,7 +259,31 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
         urdf_path=str(path.resolve()),
         locked_joints=locked_positions(locked_joints),
         source=str(path),
+        replaced_inertias=tuple(replaced),
     )
+
+
+def _link_inertia(model: pin.Model, jid: int):
+    """``(LinkInertia, ReplacedInertia or None)`` of joint ``jid``'s link: the file's, or the neutral stand-in.
+
+    A mass, centre of mass and inertia that are finite with a mass >= 0 but an inertia that is not positive
+    semi-definite or breaks the triangle inequality (a vendor file edited by hand) are kept for their mass
+    and centre of mass; the inertia becomes a solid sphere of the link's mass and size (``MIN_STAND_IN_RADIUS``).
+    Anything else that is not physical (a negative or non-finite number) is refused by ``LinkInertia``.
+    """
+    inertia = model.inertias[jid]
+    mass, com, tensor = float(inertia.mass), np.array(inertia.lever), np.array(inertia.inertia)
+    problem = None
+    if np.isfinite(mass) and mass >= 0 and np.all(np.isfinite(com)) and np.all(np.isfinite(tensor)):
+        problem = inertia_violation(tensor)
+    if problem is None:
+        return LinkInertia(mass=mass, com=com, inertia=tensor), None
+    children = [k for k in range(jid + 1, model.njoints) if model.parents[k] == jid]
+    reach = max((float(np.linalg.norm(model.jointPlacements[k].translation)) for k in children), default=0.0)
+    radius = max(0.5 * reach, float(np.linalg.norm(com)), MIN_STAND_IN_RADIUS)
+    sphere = 0.4 * mass * radius**2 * np.eye(3)
+    stand_in = ReplacedInertia(joint=jid - 1, link=_body_names(model, jid), problem=problem, radius=radius)
+    return LinkInertia(mass=mass, com=com, inertia=sphere), stand_in
 
 
 def _joint(model: pin.Model, jid: int) -> Joint:

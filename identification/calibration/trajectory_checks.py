@@ -25,6 +25,7 @@ are a number that says nothing about them.
 from __future__ import annotations
 
 import re
+from pathlib import Path
 
 import numpy as np
 
@@ -191,4 +192,5 @@ def fit_warnings(robot, fit) -> tuple:
         + _friction_warnings(robot, fit)
         + _drive_inertia_warnings(fit)
         + _mass_warnings(robot, fit)
+        + [r.message(Path(robot.source or robot.name).name) for r in getattr(robot, "replaced_inertias", ())]
     )

@@ -436,7 +436,7 @@ def _consistent_fit(robot, model, equations, sigma, names, options, drive_lower=
     standard = ca.vertcat(*rows)
     x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive)
     count = float(equations.count.sum())
-    scale = _prior_scale(prior)
+    scale = _prior_scale(prior, [r.joint for r in robot.replaced_inertias])  # stand-ins pulled 100x less
     pull = options.prior_weight * ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
     variables = ca.vertcat(phi, rotor, drive)
     start = np.concatenate([*(_chart_start(prior[i, :10], options.margin) for i in links),
@@ -473,11 +473,13 @@ def _chart_start(link, margin):
     return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
 
 
-def _prior_scale(prior):
-    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor)."""
+def _prior_scale(prior, stand_ins=()):
+    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor); the
+    inertias of ``stand_ins`` (links whose URDF inertia was unusable) are measured in ten times their size."""
     mass = np.maximum(np.abs(prior[:, :1]), 0.1)
     moment = np.maximum(np.abs(prior[:, 1:4]), 0.01 * mass)
-    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass)
+    weak = np.where(np.isin(np.arange(len(prior)), stand_ins), 10.0, 1.0)[:, None]
+    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass) * weak
     rotor = np.maximum(np.abs(prior[:, ROTOR:]), 1e-3)
     return np.concatenate([mass, moment, inertia, rotor], axis=1)
 

@@ -146,7 +146,6 @@ URDFS = [
     derive_urdf("urdf nan mass", urdf(mass="nan"), "mass [nan] is not a float", "fix the file"),
     derive_urdf("urdf nan limit", urdf(lower="nan"), "lower value (nan)", "fix the file"),
     derive_urdf("urdf negative mass", urdf(mass="-1.0"), "joint 'j1'", "link 'l1'", "mass must be", "in kg"),
-    derive_urdf("urdf triangle", urdf(ixx="0.5"), "joint 'j1'", "triangle inequality", INERTIA_FIX),
     derive_urdf("urdf swapped limits", urdf(lower="1.0", upper="-1.0"), "joint 'j1'", "lower must be below", "swap"),
     BadInput(
         "urdf table names a missing file",

@@ -1,0 +1,83 @@
+"""A URDF whose link inertias are not physical is read for its kinematics: the inertias are reported, not refused.
+
+Vendor URDFs edited by hand carry inertias that break the triangle inequality or are not positive
+semi-definite (the shared Kinova Gen3 file has two). The reader keeps the kinematics, masses and centres
+of mass, replaces each such inertia by a solid sphere of the link's mass and size, and says which link
+and which condition; non-finite or negative numbers are still refused. Checked against Pinocchio's own
+model of the same file.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from psdm_casadi import load_robot
+from psdm_casadi.cli import main
+from psdm_casadi.errors import RobotFileError
+from psdm_casadi.urdf import MIN_STAND_IN_RADIUS
+
+
+def two_links(ixx1="0.01", ixx2="0.01", mass1="2.0"):
+    """Two revolute joints; link 1's COM 0.05 m from its joint, joint 2 0.3 m beyond joint 1."""
+    return (
+        '<robot name="r"><link name="base"/>'
+        f'<link name="l1"><inertial><origin xyz="0 0 0.05"/><mass value="{mass1}"/>'
+        f'<inertia ixx="{ixx1}" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        '<link name="l2"><inertial><origin xyz="0.2 0 0"/><mass value="1.0"/>'
+        f'<inertia ixx="{ixx2}" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>'
+        '<joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>'
+        '<limit lower="-2" upper="2" velocity="2" effort="10"/></joint>'
+        '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.3"/>'
+        '<axis xyz="0 1 0"/><limit effort="10" velocity="2"/></joint></robot>'
+    )
+
+
+def write(tmp_path, text, name="arm.urdf"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize(
+    "ixx1, ixx2, condition",
+    [("0.05", "0.01", "triangle inequality"), ("0.01", "-0.02", "positive semi-definite")],
+    ids=["triangle", "not psd"],
+)
+def test_an_impossible_urdf_inertia_is_replaced_and_reported(tmp_path, caplog, ixx1, ixx2, condition):
+    path = write(tmp_path, two_links(ixx1, ixx2))
+    with caplog.at_level(logging.WARNING, logger="psdm_casadi"):
+        robot = load_robot(path)
+    reference = pin.buildModelFromUrdf(str(path))
+    bad = 0 if ixx1 != "0.01" else 1
+    (replaced,) = robot.replaced_inertias
+    assert replaced.joint == bad and replaced.link == f"'l{bad + 1}'" and condition in replaced.problem
+    for j in range(2):  # kinematics, masses and centres of mass are the file's
+        inertia = reference.inertias[j + 1]
+        assert robot.links[j].mass == pytest.approx(inertia.mass)
+        np.testing.assert_allclose(robot.links[j].com, inertia.lever)
+        if j != bad:
+            np.testing.assert_allclose(robot.links[j].inertia, inertia.inertia)
+    # link 1: half the 0.3 m to joint 2 (0.15) beats its COM distance 0.05; link 2: its COM distance 0.2
+    radius = 0.15 if bad == 0 else 0.2
+    assert replaced.radius == pytest.approx(radius) and radius > MIN_STAND_IN_RADIUS
+    mass = reference.inertias[bad + 1].mass
+    np.testing.assert_allclose(robot.links[bad].inertia, 0.4 * mass * radius**2 * np.eye(3))
+    assert robot.q_min[1] == -np.pi and robot.q_max[1] == np.pi  # no limits in the file: the default range
+    text = " ".join(r.getMessage() for r in caplog.records)
+    assert f"link 'l{bad + 1}' (joint {bad + 1}) is unusable" in text and condition in text
+    assert "correct it in the URDF" in text
+
+
+def test_derive_goes_on_with_a_warning_and_non_finite_or_negative_numbers_are_still_refused(tmp_path, capsys):
+    path = write(tmp_path, two_links("0.05"))
+    assert main(["derive", str(path), "--out", str(tmp_path / "model.npz")]) == 0
+    err = capsys.readouterr().err
+    assert "arm.urdf: the inertia of link 'l1' (joint 1) is unusable" in err and "triangle inequality" in err
+    with pytest.raises(RobotFileError, match=r"arm\.urdf joint 'j1' \(link 'l1'\): LinkInertia.mass must be"):
+        load_robot(write(tmp_path, two_links("0.05", mass1="-1.0")))
+    assert main(["derive", str(write(tmp_path, two_links(mass1="nan"), "nan.urdf"))]) == 2
+    assert "mass [nan] is not a float" in capsys.readouterr().err
