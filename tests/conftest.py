@@ -27,6 +27,14 @@ def example_robot_urdf(relative: str) -> Path:
     pytest.skip(f"example-robot-data URDF {relative} is not installed")
 
 
+@pytest.fixture(autouse=True)
+def model_cache_folder(tmp_path_factory, monkeypatch):
+    """Every test derives into its own empty model cache: none writes the user's cache or reads a warm one."""
+    folder = tmp_path_factory.mktemp("psdm-model-cache")
+    monkeypatch.setenv("PSDM_CACHE_DIR", str(folder))
+    return folder
+
+
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)

@@ -418,12 +418,13 @@ def load_calibrated_model(path) -> CalibratedModel:
     return read_calibrated_model(path).calibrated
 
 
-def read_calibrated_model(path) -> LoadedModel:
+def read_calibrated_model(path, derive=None) -> LoadedModel:
     """Read a calibrated-model file, checking its format, version and contents (``model_file_check``).
 
     Every field must parse (finite numbers of the right length, booleans, drive names and values one to one),
     the robot texts must match ``robot.sha256``, the base parameters must be those of the standard block under
     the model derived from the file's robot, and a file that claims ``consistent`` must pass the check again.
+    ``derive(robot) -> PSDMModel`` derives that model (default ``derive_psdm``; the CLI passes its model cache).
 
     Raises
     ------
@@ -458,6 +459,6 @@ def read_calibrated_model(path) -> LoadedModel:
     calibrated = CalibratedModel(document)
     calibrated.lugre_parameters, calibrated.torque_findings  # noqa: B018  (raise here, not in the command)
     robot = calibrated.load_robot()
-    model = derive_psdm(robot)
+    model = (derive or derive_psdm)(robot)
     check_against_model(calibrated, model, path.name)  # base == standard's, and what the file claims
     return LoadedModel(calibrated, robot, model)

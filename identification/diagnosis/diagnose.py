@@ -191,7 +191,9 @@ class FinalFit:
     nonlinear: dict
 
 
-def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, model=None) -> DiagnosisReport:
+def diagnose(
+    robot, train, validation, options: DiagnosisOptions | None = None, model=None, derive=None
+) -> DiagnosisReport:
     """Find the physics a nominal model leaves out of the recordings, and show the fit with it.
 
     Parameters
@@ -203,7 +205,10 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
         ``train`` and judged on ``validation``.
     options : DiagnosisOptions, optional
     model : PSDMModel, optional
-        ``derive_psdm(robot)``, derived when omitted.
+        ``derive_psdm(robot)``, derived when omitted (after the recordings are checked).
+    derive : callable, optional
+        ``derive(robot) -> PSDMModel`` used instead of ``derive_psdm`` when ``model`` is omitted (the CLI's model
+        cache).
 
     Returns
     -------
@@ -237,7 +242,7 @@ def diagnose(robot, train, validation, options: DiagnosisOptions | None = None, 
         from psdm_casadi.derive import derive_psdm
 
         logger.info("diagnose: deriving the PSDM model ...")
-        model = derive_psdm(robot)
+        model = (derive or derive_psdm)(robot)
     problem = prepare_problem(robot, model, train, validation, options)
     selection = select_terms(robot, problem, options)
     final = refine_terms(problem, selection, options)

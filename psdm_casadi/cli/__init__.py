@@ -65,6 +65,12 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--debug", action="store_true", help="show full tracebacks on errors")
+    parser.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="derive the robot's model even when the model cache holds it (cache folder: $PSDM_CACHE_DIR, else "
+        "the user's cache folder)",
+    )
     verbosity = parser.add_mutually_exclusive_group()
     verbosity.add_argument("-q", "--quiet", action="store_true", help="no progress lines, only warnings and errors")
     verbosity.add_argument("-v", "--verbose", action="store_true", help="more detail on what each step does")

@@ -34,10 +34,12 @@ __all__ = [
     "check_samples",
     "check_seed",
     "check_suffix",
+    "derive_model",
     "load_locked_robot",
     "load_robot_argument",
     "output_file",
     "output_folder",
+    "read_calibrated_argument",
     "parse_joints",
     "parse_locks",
     "plain",
@@ -283,3 +285,18 @@ def load_locked_robot(path, items):
 def load_robot_argument(args, path=None):
     """The robot of a command: ``path`` (default ``args.robot``) with the command's ``--lock`` options."""
     return load_locked_robot(args.robot if path is None else path, getattr(args, "lock", ()))
+
+
+def derive_model(args, robot, seed: int = 0):
+    """The PSDM model of ``robot`` through the model cache (``psdm --no-cache`` derives without it)."""
+    from psdm_casadi.derive import DeriveOptions
+    from psdm_casadi.model_cache import ModelCache
+
+    return ModelCache(enabled=not getattr(args, "no_cache", False)).derive(robot, DeriveOptions(seed=seed))
+
+
+def read_calibrated_argument(args, path):
+    """The checked calibrated model of ``path`` (a ``LoadedModel``), its robot's model through the model cache."""
+    from identification.calibration.calibrated_model import read_calibrated_model
+
+    return read_calibrated_model(path, derive=lambda robot: derive_model(args, robot))

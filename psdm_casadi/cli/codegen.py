@@ -136,10 +136,10 @@ def read_theta(path: Path) -> np.ndarray:
     return values
 
 
-def _load_source(path: Path, robot_path: Path | None, locks=()):
+def _load_source(args, path: Path, robot_path: Path | None, locks=()):
     """(PSDMModel, RobotDescription or None, nominal theta or None) from a robot file or a saved model."""
+    from psdm_casadi.cli.checks import derive_model
     from psdm_casadi.cli.output import progress
-    from psdm_casadi.derive import derive_psdm
     from psdm_casadi.model import load_model
     from psdm_casadi.robot import builtin_robot_names
 
@@ -151,7 +151,7 @@ def _load_source(path: Path, robot_path: Path | None, locks=()):
             )
         robot = load_locked_robot(path, locks)
         progress(f"deriving the PSDM model of {robot.name} ...")
-        model = derive_psdm(robot)
+        model = derive_model(args, robot)
         nominal = model.base_parameters(robot.nominal_dynamic_parameters()) if robot.has_inertia else None
         return model, robot, nominal
     if locks and robot_path is None:
@@ -207,7 +207,7 @@ def _calibrated_functions(args, path: Path, out: Path):
     """(Functions, form, None (no theta to bake), header note, CalibratedModel) of a calibrated-model file, as
     ``_export_functions`` returns them, or None when refused."""
     from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
-    from identification.calibration.calibrated_model import read_calibrated_model
+    from psdm_casadi.cli.checks import read_calibrated_argument
     from psdm_casadi.cli.output import progress
 
     given = (("--theta", args.theta), ("--robot", args.robot), ("--lock", getattr(args, "lock", None) or None))
@@ -217,7 +217,7 @@ def _calibrated_functions(args, path: Path, out: Path):
             f"codegen {' and '.join(extra)} must not be given with a calibrated model; got {path.name}, which holds "
             f"its robot and parameters. Drop {' and '.join(extra)}."
         )
-    loaded = read_calibrated_model(path)  # checked; its robot and model derived once
+    loaded = read_calibrated_argument(args, path)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     report_model_warnings("codegen", path, calibrated)
     problem = consistency_problem(calibrated)
@@ -244,7 +244,7 @@ def _export_functions(args, out: Path):
     source = Path(args.source)
     if source.suffix.lower() == CALIBRATED_SUFFIX:
         return _calibrated_functions(args, source, out)
-    model, robot, theta = _load_source(source, args.robot, args.lock)
+    model, robot, theta = _load_source(args, source, args.robot, args.lock)
     note = None
     if args.theta is not None:
         theta = read_theta(args.theta)

@@ -5,9 +5,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from psdm_casadi.cli.checks import add_robot_argument, check_not_input, load_robot_argument, output_file
+from psdm_casadi.cli.checks import add_robot_argument, check_not_input, derive_model, load_robot_argument, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
-from psdm_casadi.derive import DeriveOptions, derive_psdm
 
 
 def register(subparsers) -> None:
@@ -39,7 +38,7 @@ def run_derive(args) -> int:
     robot = load_robot_argument(args)
     progress(f"deriving {robot.name} ({robot.n_dof} joints) ...", quiet=args.json)
     start = time.perf_counter()
-    model = derive_psdm(robot, DeriveOptions(seed=args.seed))
+    model = derive_model(args, robot, seed=args.seed)
     seconds = time.perf_counter() - start
     if args.output:
         path = model.save(model_path(args.output), overwrite=args.force)

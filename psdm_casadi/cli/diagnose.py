@@ -13,6 +13,7 @@ from psdm_casadi.cli.checks import (
     check_count,
     check_not_input,
     check_positive,
+    derive_model,
     load_robot_argument,
     output_folder,
 )
@@ -131,7 +132,7 @@ def _run_diagnose(args) -> int:
         sparse=not args.no_sparse,
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
-    report = diagnose(robot, train, validation, options, model=model)
+    report = diagnose(robot, train, validation, options, model=model, derive=lambda r: derive_model(args, r))
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -159,8 +160,7 @@ def _own_friction(calibrated) -> str:
 
 def _calibrated_source(args):
     """(LoadedModel or None, checked --apply output or None): a .json source is a calibrated model."""
-    from identification.calibration.calibrated_model import read_calibrated_model
-    from psdm_casadi.cli.checks import check_suffix, output_file
+    from psdm_casadi.cli.checks import check_suffix, output_file, read_calibrated_argument
 
     if not str(args.robot).lower().endswith(".json"):
         if args.apply is not None:
@@ -177,7 +177,7 @@ def _calibrated_source(args):
     if args.apply is not None:
         check_not_input(args.apply, "--apply", _inputs(args), example=f"{Path(args.apply).stem}_applied.json")
         check_suffix(args.apply, "--apply", (".json",), "a calibrated-model file (JSON)")
-    return read_calibrated_model(args.robot), output_file(args.apply, "--apply", args.overwrite)
+    return read_calibrated_argument(args, args.robot), output_file(args.apply, "--apply", args.overwrite)
 
 
 def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> int:

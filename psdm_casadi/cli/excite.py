@@ -160,7 +160,7 @@ def _outputs(args, csv: str):
 
 
 def _run_excite(args) -> int:
-    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.cli.checks import derive_model
     from psdm_casadi.recursive import build_recursive_functions
     from trajopt.optimize import ExcitationOptions, optimize_excitation
     from trajopt.plot import plot_trajectory
@@ -186,7 +186,7 @@ def _run_excite(args) -> int:
     options.build_limits(robot)  # bad limits fail here, before the derivation
     options.build_parametrization(robot.n_dof)
     progress(f"excite: deriving the model of {robot.name} ...")
-    model = derive_psdm(robot, seed=args.seed)
+    model = derive_model(args, robot, seed=args.seed)
     functions = build_recursive_functions(model, robot)  # equal to the sum form, far fewer operations
     if args.columns == "inertial":
         columns = tuple(int(c) for c in np.flatnonzero(~model.gravity_mask))

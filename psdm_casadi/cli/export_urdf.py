@@ -71,14 +71,14 @@ def _check_not_robot_file(args, calibrated) -> None:
 
 
 def _run_export_urdf(args) -> int:
-    from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.urdf_export import friction_not_representable, render_urdf
     from identification.calibration.urdf_findings import findings_not_representable
+    from psdm_casadi.cli.checks import read_calibrated_argument
 
     check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.urdf")
     check_suffix(args.out, "OUT", (".urdf",), "a URDF")
     out = output_file(args.out, "OUT", args.overwrite)
-    loaded = read_calibrated_model(args.model)
+    loaded = read_calibrated_argument(args, args.model)
     calibrated = loaded.calibrated
     report_model_warnings("export-urdf", args.model, calibrated)
     _check_not_robot_file(args, calibrated)

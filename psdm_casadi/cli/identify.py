@@ -120,7 +120,7 @@ def _check_inputs(args):
 
 def _run_identify(args) -> int:
     from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.cli.checks import derive_model
     from psdm_casadi.model import load_model
 
     if _protocol(args) == "recordings":
@@ -131,7 +131,7 @@ def _run_identify(args) -> int:
         model = load_model(args.model)
     else:
         progress("identify: deriving the PSDM model ...", quiet=args.json)
-        model = derive_psdm(robot)
+        model = derive_model(args, robot)
     options = PipelineOptions(refine=not args.no_refine, quiet=args.json)
     pipeline = IdentificationPipeline(robot, model, options).fit(args.data[0])
     result = pipeline.result_

@@ -54,7 +54,7 @@ def run(args) -> int:
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
     from identification.data.io import load_recording, not_held_out
-    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.cli.checks import derive_model
     from psdm_casadi.model import load_model
 
     out = _check_outputs(args)
@@ -74,7 +74,7 @@ def run(args) -> int:
         model = load_model(args.model)
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
-        model = derive_psdm(robot)
+        model = derive_model(args, robot)
     if args.friction == "lugre":
         fit, lugre, start = _fit_lugre(robot, model, recordings, options)
     else:

@@ -264,9 +264,9 @@ def _simulate_runs(args, robot, runs, rng, stage: Path) -> tuple:
 
 def _run_model(args) -> int:
     """``psdm simulate MODEL.json``: the calibrated model's torques along the reference (module docstring)."""
-    from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.model_simulation import simulate_calibrated
     from identification.data.io import save_recording
+    from psdm_casadi.cli.checks import read_calibrated_argument
 
     if not (np.isfinite(args.tau_noise) and args.tau_noise >= 0):
         raise ParameterError(f"--tau-noise must be >= 0 [N m]; got {args.tau_noise!r}. Pass e.g. --tau-noise 0.1.")
@@ -281,7 +281,7 @@ def _run_model(args) -> int:
             f"{', '.join(MODEL_EXPERIMENTS)} or --reference FILE."
         )
     output_folder(args.out, (), args.overwrite, shared=True)
-    loaded = read_calibrated_model(args.robot)  # checked; its robot and model derived once
+    loaded = read_calibrated_argument(args, args.robot)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     report_model_warnings("simulate", args.robot, calibrated)
     rng = np.random.default_rng(args.seed)

@@ -44,10 +44,10 @@ def register(subparsers) -> None:
 
 
 def _run_validate(args) -> int:
-    from identification.calibration.calibrated_model import read_calibrated_model
     from identification.calibration.recalibrate import validation_rmse
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.data.io import load_recording
+    from psdm_casadi.cli.checks import read_calibrated_argument
 
     plots = None
     if args.plots is not None:  # refused before any work
@@ -55,7 +55,7 @@ def _run_validate(args) -> int:
         plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
         inputs = [("MODEL", args.model), *(("RECORDINGS", path) for path in args.recordings)]
         check_not_input(args.plots, "--plots", inputs)
-    loaded = read_calibrated_model(args.model)  # checked; its robot and model derived once
+    loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
     recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.recordings]

@@ -71,9 +71,9 @@ def test_cli_diagnose_max_samples_reaches_the_diagnosis(denso, tmp_path, monkeyp
     seen = []
     real = diagnose_module.diagnose
 
-    def spy(robot, train_rec, validation, options, model=None):
+    def spy(robot, train_rec, validation, options, model=None, derive=None):
         seen.append(options.max_samples)
-        return real(robot, train_rec, validation, options, model=model)
+        return real(robot, train_rec, validation, options, model=model, derive=derive)
 
     monkeypatch.setattr(diagnose_module, "diagnose", spy)
     args = ["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate), "--json"]
