@@ -14,6 +14,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.recording_layout import RecordingLayout
+from psdm_casadi.transmission import Transmission
 from psdm_casadi.values import float_array, format_value, inertia_violation, is_real_number
 
 JOINT_KINDS = ("revolute", "prismatic")
@@ -251,6 +253,10 @@ class RobotDescription:
         The robot file (TOML or URDF) the description was read from, for messages; not compared.
     replaced_inertias : tuple of urdf.ReplacedInertia
         URDF link inertias that were not physical and are replaced in ``links`` by a neutral stand-in.
+    transmission : Transmission or None
+        Gears and couplings between motors and joints (``[transmission]``), to map motor-side recordings.
+    recording_layout : RecordingLayout or None
+        How the robot's recordings are written (``[recording]``: side, sample rate, files); not compared.
     """
 
     name: str
@@ -267,10 +273,17 @@ class RobotDescription:
     locked_joints: tuple = ()
     source: str | None = field(default=None, compare=False)
     replaced_inertias: tuple = field(default=(), compare=False)
+    transmission: Transmission | None = field(default=None, compare=False)
+    recording_layout: RecordingLayout | None = field(default=None, compare=False)
 
     def __post_init__(self):
         joints = tuple(self.joints)
         n = len(joints)
+        if self.transmission is not None and self.transmission.n_dof != n:
+            raise RobotFileError(
+                f"RobotDescription.transmission must couple {n} motors with the {n} joints; got "
+                f"{self.transmission.n_dof}. Give one gear ratio (and one matrix row) per joint."
+            )
         if not isinstance(self.name, str):
             raise RobotFileError(f"RobotDescription.name must be a string; got {format_value(self.name)}.")
         if n == 0:

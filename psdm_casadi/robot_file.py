@@ -10,9 +10,6 @@ may override the URDF's limits per joint (``[urdf.limits.<joint>]``) and add ``[
 
 from __future__ import annotations
 
-import ast
-import math
-import operator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -31,57 +28,14 @@ from psdm_casadi.description import (
     locked_positions,
 )
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.file_values import file_number as _number
+from psdm_casadi.file_values import file_vector as _vector
 from psdm_casadi.text_file import read_text_file
+from psdm_casadi.transmission_file import layout_from_table, transmission_from_table
 from psdm_casadi.urdf import from_urdf
-from psdm_casadi.values import format_value, is_real_number
+from psdm_casadi.values import format_value
 
 ROBOT_FORMAT = "psdm-robot/1"
-
-_NUMBER_OPS = {ast.Add: operator.add, ast.Sub: operator.sub, ast.Mult: operator.mul, ast.Div: operator.truediv}
-_MAX_EXPRESSION = 200  # characters of a number written as an expression
-
-
-def _number(value, where: str, fix: str = "Give a finite value.") -> float:
-    """A finite float from a TOML number or a small expression like ``"-pi/2"``."""
-    number = None
-    if is_real_number(value):
-        try:
-            number = float(value)
-        except OverflowError:  # an integer beyond the float range
-            number = math.inf if value > 0 else -math.inf
-    elif isinstance(value, str) and len(value) <= _MAX_EXPRESSION:
-        try:
-            number = float(_eval_expression(ast.parse(value, mode="eval").body))
-        except (SyntaxError, ValueError, ZeroDivisionError, OverflowError, RecursionError):
-            number = None
-    if number is None:
-        raise RobotFileError(
-            f'{where} must be a number or an expression of numbers and pi such as "-pi/2"; '
-            f"got {format_value(value)}. Fix the value."
-        )
-    if not math.isfinite(number):
-        shown = f"{value!r} (= {number!r})" if isinstance(value, str) else format_value(number)
-        raise RobotFileError(f"{where} must be a finite number; got {shown}. {fix}")
-    return number
-
-
-def _eval_expression(node):
-    if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
-        return node.value
-    if isinstance(node, ast.Name) and node.id == "pi":
-        return math.pi
-    if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
-        value = _eval_expression(node.operand)
-        return -value if isinstance(node.op, ast.USub) else value
-    if isinstance(node, ast.BinOp) and type(node.op) in _NUMBER_OPS:
-        return _NUMBER_OPS[type(node.op)](_eval_expression(node.left), _eval_expression(node.right))
-    raise ValueError("unsupported expression")
-
-
-def _vector(value, length, where):
-    if not isinstance(value, list) or len(value) != length:
-        raise RobotFileError(f"{where} must be a list of {length} numbers; got {format_value(value)}. Fix the list.")
-    return np.array([_number(v, f"{where}[{k}]") for k, v in enumerate(value)])
 
 
 def _table(value, where: str, example: str) -> dict:
@@ -133,7 +87,8 @@ _LIMIT_KEYS = {"q_min", "q_max", "qd_max", "qdd_max", "tau_max"}
 _JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta"} | _LIMIT_KEYS
 _LINK_KEYS = {"mass", "com", "inertia", "rotor_inertia"}
 _DRIVE_KEYS = {"kt", "fc", "fs", "vs", "fv", "dv", "sigma0", "sigma1"}
-_TOP_KEYS = {"format", "name", "convention", "gravity", "joint", "link", "drive", "assumptions", "urdf", "description"}
+_TOP_KEYS = {"format", "name", "convention", "gravity", "joint", "link", "drive", "assumptions", "urdf", "description",
+             "transmission", "recording"}  # fmt: skip
 _ASSUMPTION_KEYS = {"drive_inertia", "massless_links", "zero_parameters"}
 _URDF_KEYS = {"path", "locked_joints", "limits"}
 _TAU_MAX_FIX = "Give the limit in N m (N for a prismatic joint), or leave tau_max out for no torque limit."
@@ -243,7 +198,7 @@ def robot_from_mapping(data: dict, source: Path | None = None, locked_joints=())
     drives = _drives_from_tables(data.get("drive"), n, where)
     name = _string(data["name"], f"{where} name") if "name" in data else (source.stem if source else "robot")
     convention = _convention(data.get("convention", "standard"), where)
-    assumed = _assumed(assumptions, n, where)
+    assumed = {**_assumed(assumptions, n, where), **_motor_side(data, n, where)}
     with _within(where):
         return RobotDescription(
             name=name,
@@ -265,6 +220,13 @@ def _assumed(assumptions: dict, n: int, where: str) -> dict:
         "massless_links": _massless(assumptions.get("massless_links", []), n, where),
         "zero_parameters": _strings(assumptions.get("zero_parameters", []), f"{where} [assumptions].zero_parameters"),
     }
+
+
+def _motor_side(data: dict, n: int, where: str) -> dict:
+    """The RobotDescription fields of the ``[transmission]`` and ``[recording]`` tables (``transmission_file``)."""
+    transmission = transmission_from_table(data["transmission"], n, where) if "transmission" in data else None
+    layout = layout_from_table(data["recording"], n, where, transmission) if "recording" in data else None
+    return {"transmission": transmission, "recording_layout": layout}
 
 
 def _joints_from_tables(tables, where) -> list:
@@ -390,7 +352,7 @@ def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     n = robot.n_dof
     joints = _urdf_limits(robot.joints, table.get("limits", {}), where)
     drives = _drives_from_tables(data.get("drive"), n, where)
-    assumed = _assumed(assumptions, n, where)
+    assumed = {**_assumed(assumptions, n, where), **_motor_side(data, n, where)}
     with _within(where):
         return replace(robot, joints=joints, drives=drives, source=None if source is None else str(source), **assumed)
 

@@ -175,23 +175,29 @@ class CalibratedModel:
         """The robot file's text written into the robot cache (with its URDF), as a path to load or copy."""
         block = self.document["robot"]
         folder = Path(cache_dir or _cache_root()) / block["sha256"][:16]
-        folder.mkdir(parents=True, exist_ok=True)
+        # a URDF outside the robot file's folder is stored by its relative path ("../data/robot.urdf"): the robot
+        # file goes as many folders deep as the paths climb, so that each lands inside ``folder``
+        depth = max(os.path.normpath(name).split(os.sep).count("..") for name in block["files"])
+        base = folder.joinpath(*["up"] * depth)
         for name, text in block["files"].items():
-            target = folder / name
+            target = Path(os.path.normpath(base / name))
+            if folder.resolve() not in target.resolve().parents:
+                raise ModelFileError(f"robot.files name {name!r} must lie beside the robot file or below it.")
+            target.parent.mkdir(parents=True, exist_ok=True)
             if not target.exists() or target.read_text() != text:
                 atomic_write(target, lambda handle, text=text: handle.write(text), overwrite=True)
-        return folder / block["main_file"]
+        return base / block["main_file"]
 
     def load_robot(self, cache_dir=None):
         """The robot description the model was identified for, rebuilt from the texts in the file."""
         from psdm_casadi.robot import load_robot
 
         block = self.document["robot"]
-        folder = self.robot_file(cache_dir).parent
-        robot = load_robot(folder / block["main_file"])
+        main = self.robot_file(cache_dir)
+        robot = load_robot(main)
         stored = [_lock(entry) for entry in block["locked_joints"]]
         extra = [lock for lock in stored if lock not in robot.locked_joints]  # the command line's, not the file's
-        return load_robot(folder / block["main_file"], locked_joints=tuple(extra)) if extra else robot
+        return load_robot(main, locked_joints=tuple(extra)) if extra else robot
 
     @property
     def corrections(self) -> dict:
@@ -374,11 +380,18 @@ def _robot_block(robot, robot_source) -> dict:
     main = resolve_robot_path(robot_source)
     files = {main.name: main.read_text()}
     if robot.urdf_path is not None and Path(robot.urdf_path).name != main.name:
-        files[Path(robot.urdf_path).name] = Path(robot.urdf_path).read_text()
+        # by its path relative to the robot file (its name when beside it), as the robot file's [urdf].path reads
+        relative = Path(robot.urdf_path).name if main.suffix.lower() == ".urdf" else _relative(robot.urdf_path, main)
+        files[relative] = Path(robot.urdf_path).read_text()
     digest = robot_digest(files)  # the same digest the reader checks
     locked = [list(_lock(entry)) for entry in robot.locked_joints] if robot.urdf_path is not None else []
     return {"name": robot.name, "joint_names": list(robot.joint_names), "main_file": main.name, "files": files,
             "locked_joints": locked, "sha256": digest}  # fmt: skip
+
+
+def _relative(urdf_path, main: Path) -> str:
+    """The URDF's path relative to the robot file's folder, with / separators."""
+    return Path(os.path.relpath(os.path.abspath(urdf_path), os.path.abspath(main.parent))).as_posix()
 
 
 def _lock(entry) -> tuple:

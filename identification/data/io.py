@@ -129,18 +129,32 @@ def time_column(table: ColumnTable) -> np.ndarray:
     return t
 
 
-def recording_from_table(table: ColumnTable, n_dof: int | None = None) -> Recording:
+def sample_times(n_samples: int, sample_rate: float) -> np.ndarray:
+    """``t = k / sample_rate`` [s] for k = 0..n_samples-1, read-only: the time of a file without a ``t`` column."""
+    t = np.arange(n_samples) / float(sample_rate)
+    t.setflags(write=False)
+    return t
+
+
+def recording_from_table(table: ColumnTable, n_dof: int | None = None, sample_rate: float | None = None) -> Recording:
     """The Recording of a table's columns (``t``, ``q1..qn``, ...), refusing bad columns and time with a fix.
+
+    A table without a ``t`` column is timed ``t = k / sample_rate`` when a ``sample_rate`` [Hz] is given
+    (the robot file's ``[recording].sample_rate``); a table's own ``t`` column always wins.
 
     Raises
     ------
     RecordingError
         Naming the file, the column and the fix: missing, unknown or unmatched columns, a joint count
-        other than ``n_dof``, too few samples, time that does not strictly increase (with its line).
+        other than ``n_dof``, too few samples, time that does not strictly increase (with its line), no
+        ``t`` column and no ``sample_rate``.
     """
     source = table.source
-    if "t" not in table.names:
-        raise RecordingError(f"{source}: column t is missing. Add a time column named 't' [s].")
+    if "t" not in table.names and sample_rate is None:
+        raise RecordingError(
+            f"{source}: column t is missing. Add a time column named 't' [s], or state the sample rate "
+            "(sample_rate = <Hz> in the robot file's [recording] table)."
+        )
     groups = _group(table)
     n = _check_joints(source, groups, n_dof)
     if table.n_samples < MIN_SAMPLES:
@@ -148,7 +162,7 @@ def recording_from_table(table: ColumnTable, n_dof: int | None = None) -> Record
             f"{source}: {table.n_samples} sample{'' if table.n_samples == 1 else 's'}; a recording needs at least "
             f"{MIN_SAMPLES}. Record a longer experiment."
         )
-    t = time_column(table)
+    t = time_column(table) if "t" in table.names else sample_times(table.n_samples, sample_rate)
     arrays = {signal: _signal(table, [found[j] for j in range(1, n + 1)]) for signal, found in groups.items() if found}
     return Recording(t=t, name=source, **arrays)
 

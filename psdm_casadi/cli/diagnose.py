@@ -101,7 +101,8 @@ def register(subparsers) -> None:
 
 
 def _run_diagnose(args) -> int:
-    from identification.data.io import load_recording, not_held_out
+    from identification.data.io import not_held_out
+    from identification.data.robot_recordings import load_robot_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
@@ -118,8 +119,8 @@ def _run_diagnose(args) -> int:
         report_model_warnings("diagnose", args.robot, calibrated)
     else:
         robot = load_robot_argument(args)
-    train = load_recording(args.train, robot.n_dof, robot.joint_names, args.topic)
-    validation = load_recording(args.validate, robot.n_dof, robot.joint_names, args.topic)
+    train = load_robot_recording(args.train, robot, args.topic)  # joint side, timed (robot file's [recording])
+    validation = load_robot_recording(args.validate, robot, args.topic)
     for warning in not_held_out([args.train], [args.validate], "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     options = DiagnosisOptions(

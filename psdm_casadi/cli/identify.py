@@ -84,6 +84,11 @@ def _protocol(args) -> str:
                 "of the paper's experiments that 'psdm simulate --out' wrote."
             )
     folders = [Path(path).is_dir() and not is_rosbag(path) for path in args.data]  # a bag folder is one recording
+    if any(folders):  # so is the folder of a recording the robot file says is split into one file per signal
+        from identification.data.robot_recordings import is_split_recording
+
+        robot = load_robot_argument(args)
+        folders = [folder and not is_split_recording(path, robot) for folder, path in zip(folders, args.data)]
     protocol = args.protocol
     if protocol == "auto":
         protocol = "four-step" if len(args.data) == 1 and folders[0] else "recordings"

@@ -53,15 +53,17 @@ def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-    from identification.data.io import load_recording, not_held_out
+    from identification.data.io import not_held_out
+    from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import derive_model
     from psdm_casadi.model import load_model
 
     out = _check_outputs(args)
     robot = load_robot_argument(args)
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
-    recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.data]
-    validation = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.validate]
+    args.data, args.validate = recording_paths(args.data, robot), recording_paths(args.validate, robot)
+    recordings = [load_robot_recording(path, robot, args.topic) for path in args.data]  # joint side, timed
+    validation = [load_robot_recording(path, robot, args.topic) for path in args.validate]
     for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
         check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
     if args.friction == "lugre":

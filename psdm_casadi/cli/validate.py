@@ -46,7 +46,7 @@ def register(subparsers) -> None:
 def _run_validate(args) -> int:
     from identification.calibration.recalibrate import validation_rmse
     from identification.calibration.trajectory_checks import check_validation_recording
-    from identification.data.io import load_recording
+    from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import read_calibrated_argument
 
     plots = None
@@ -58,7 +58,8 @@ def _run_validate(args) -> int:
     loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
-    recordings = [load_recording(path, robot.n_dof, robot.joint_names, args.topic) for path in args.recordings]
+    args.recordings = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
+    recordings = [load_robot_recording(path, robot, args.topic) for path in args.recordings]
     for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
         check_validation_recording(robot, recording)
     rows = []

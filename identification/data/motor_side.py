@@ -1,0 +1,138 @@
+"""Motor-side recordings mapped to the joint side (and back), through the robot's transmission.
+
+The robot file states which signals a controller logs on the motor side (``[recording].side``) and
+the gears between motors and joints (``[transmission]``, :class:`psdm_casadi.transmission.Transmission`).
+:func:`to_joint_side` maps such a recording once, when it is read, so that every command (identify,
+validate, diagnose) works on joint-side signals::
+
+    q = N_q^-1 (theta_m - theta_0)     qd = N_q^-1 qd_m     qdd = N_q^-1 qdd_m     tau = N_q^T tau_m
+
+Motor currents become joint torques ``N_q^T (kt_m * i_m)`` when the motors' torque constants are
+stated (``motor_kt``); without them, the currents of an uncoupled transmission stay currents, signed
+like their joint (the [[drive]] tables' kt is then the joint-side constant ``|N_i| kt_m``), and the
+currents of a coupled one are refused. :func:`to_motor_side` is the inverse (a virtual controller's log).
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from identification.data.recording import Recording
+from psdm_casadi.errors import RecordingError
+
+__all__ = ["to_joint_side", "to_motor_side"]
+
+logger = logging.getLogger(__name__)
+
+
+def _motor_signals(recording: Recording, robot) -> tuple:
+    """The signals of ``recording`` the robot file says are on the motor side (none without a layout)."""
+    layout = robot.recording_layout
+    if layout is None:
+        return ()
+    return tuple(s for s in layout.motor_signals if getattr(recording, s) is not None)
+
+
+def to_joint_side(recording: Recording, robot) -> Recording:
+    """The joint-side recording of one logged with the motor-side signals of ``robot.recording_layout``.
+
+    Parameters
+    ----------
+    recording : Recording
+        As read from the files (motor angles [rad], motor torques [N m], currents [A] where stated).
+    robot : RobotDescription
+        With its ``transmission`` and ``recording_layout`` (a robot without them: returned unchanged).
+
+    Returns
+    -------
+    Recording
+        Joint positions, velocities, accelerations and torques (currents where they stay currents).
+
+    Raises
+    ------
+    RecordingError
+        When the recording's joint count is not the transmission's, or it holds motor currents of a
+        coupled transmission without the motors' torque constants.
+    """
+    signals = _motor_signals(recording, robot)
+    if not signals:
+        return recording
+    transmission = _transmission(recording, robot)
+    changes = {s: transmission.joint_rates(getattr(recording, s)) for s in ("qd", "qdd") if s in signals}
+    if "q" in signals:
+        changes["q"] = transmission.joint_positions(recording.q)
+    if "tau" in signals:
+        changes["tau"] = transmission.joint_torques(recording.tau)
+    if "current" in signals:
+        changes.update(_joint_currents(recording, transmission))
+    logger.info(
+        "%s: %s mapped from the motor side to the joints (gear ratios %s%s)",
+        recording.name or "recording",
+        ", ".join(signals),
+        ", ".join(f"{r:g}" for r in transmission.gear_ratios),
+        ", coupled" if transmission.is_coupled else "",
+    )
+    return recording.with_signals(**changes)
+
+
+def _joint_currents(recording: Recording, transmission) -> dict:
+    """Joint torques of motor currents (with ``motor_kt``), or joint-signed currents of an uncoupled transmission."""
+    if transmission.motor_kt is not None:
+        tau = transmission.current_torques(recording.current)
+        if recording.tau is not None:  # a recorded torque is kept; the currents it replaces are dropped
+            return {"current": None}
+        return {"tau": tau, "current": None}
+    if transmission.is_coupled:
+        raise RecordingError(
+            f"{recording.name or 'recording'}: motor currents of a coupled transmission become joint torques only "
+            "through the motors' torque constants; got none. Add motor_kt = [...] (N m/A per motor) to the robot "
+            "file's [transmission] table, or record the currents on the joint side."
+        )
+    return {"current": recording.current * np.sign(transmission.gear_ratios)}
+
+
+def to_motor_side(recording: Recording, robot) -> Recording:
+    """The inverse of :func:`to_joint_side`: the recording a controller would log on the motor side.
+
+    Joint torques become motor torques ``N_q^-T tau``; currents become motor currents (the inverse of
+    the joint-signed currents; with ``motor_kt``, currents are not invertible from torques and are refused).
+
+    Raises
+    ------
+    RecordingError
+        As :func:`to_joint_side`, and for currents when the transmission states ``motor_kt``.
+    """
+    signals = _motor_signals(recording, robot)
+    if not signals:
+        return recording
+    transmission = _transmission(recording, robot)
+    changes = {s: transmission.motor_rates(getattr(recording, s)) for s in ("qd", "qdd") if s in signals}
+    if "q" in signals:
+        changes["q"] = transmission.motor_positions(recording.q)
+    if "tau" in signals:
+        changes["tau"] = transmission.motor_torques(recording.tau)
+    if "current" in signals:
+        if transmission.motor_kt is not None or transmission.is_coupled:
+            raise RecordingError(
+                f"{recording.name or 'recording'}: joint-side currents map back to motor currents only for an "
+                "uncoupled transmission without motor_kt. Map the torques instead."
+            )
+        changes["current"] = recording.current * np.sign(transmission.gear_ratios)
+    return recording.with_signals(**changes)
+
+
+def _transmission(recording: Recording, robot):
+    transmission = robot.transmission
+    if transmission is None:  # the robot-file reader refuses this; a RobotDescription built in Python may not
+        raise RecordingError(
+            f"{robot.name}: its recording layout puts signals on the motor side but it has no transmission. "
+            "Add a [transmission] table to the robot file."
+        )
+    if recording.n_dof != transmission.n_dof:
+        raise RecordingError(
+            f"{recording.name or 'recording'}: {recording.n_dof} joint columns, but the transmission of "
+            f"{robot.name} couples {transmission.n_dof} motors. Record one column per motor."
+        )
+    return transmission

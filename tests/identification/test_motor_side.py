@@ -1,0 +1,119 @@
+"""Motor-side recordings read as the robot file states them: mapped to the joints once, identified alike."""
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.motor_side import to_joint_side, to_motor_side
+from identification.data.recording import Recording
+from identification.data.robot_recordings import load_robot_recording, recording_paths
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.errors import RecordingError
+from psdm_casadi.recording_layout import RecordingLayout
+from psdm_casadi.robot import load_robot
+from psdm_casadi.transmission import Transmission
+from tests.conftest import DATASETS
+from trajopt.experiments import sine_experiment
+
+ROOT = Path(__file__).resolve().parents[2]
+TX40 = DATASETS / "staubli_tx40_figaroh"
+
+
+def _random_transmission(rng, n):
+    """Gear ratios of either sign between 10 and 120 and a few couplings, with encoder offsets."""
+    matrix = np.diag(rng.choice([-1.0, 1.0], n) * rng.uniform(10, 120, n))
+    for _ in range(3):
+        motor, joint = rng.choice(n, 2, replace=False)
+        matrix[motor, joint] = rng.uniform(-40, 40)
+    return Transmission(coupling=matrix, motor_offsets=rng.uniform(-100, 100, n))
+
+
+def _write_without_time(recording: Recording, path: Path) -> None:
+    """A controller's log: q1..qn and tau1..taun, no t column."""
+    names = [f"q{j + 1}" for j in range(recording.n_dof)] + [f"tau{j + 1}" for j in range(recording.n_dof)]
+    np.savetxt(path, np.hstack([recording.q, recording.tau]), delimiter=",", header=",".join(names), comments="",
+               fmt="%.17g")  # fmt: skip
+
+
+def test_a_virtual_recording_logged_on_the_motor_side_identifies_the_same_model(denso, denso_model, tmp_path):
+    rng = np.random.default_rng(7)
+    reference = sine_experiment(denso, duration=8.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1)
+    joint, _ = simulate_recording(denso, reference, options, rng)
+    transmission = _random_transmission(rng, denso.n_dof)
+    layout = RecordingLayout(sides=dict.fromkeys(("q", "tau"), "motor"), sample_rate=1.0 / joint.dt)
+    robot = dataclasses.replace(denso, transmission=transmission, recording_layout=layout)
+    motor = to_motor_side(joint, robot)
+    assert np.abs(motor.q - joint.q).max() > 1.0  # really another signal
+    _write_without_time(motor, tmp_path / "log.csv")
+    read = load_robot_recording(tmp_path / "log.csv", robot)
+    np.testing.assert_allclose(read.t, joint.t, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(read.q, joint.q, atol=1e-9)
+    np.testing.assert_allclose(read.tau, joint.tau, rtol=1e-9, atol=1e-9)
+    fit_joint = identify_trajectories(denso, denso_model, [joint], TrajectoryOptions())
+    fit_motor = identify_trajectories(robot, denso_model, [read], TrajectoryOptions())
+    np.testing.assert_allclose(fit_motor.theta_ols, fit_joint.theta_ols, rtol=1e-6, atol=1e-8)
+    np.testing.assert_allclose(fit_motor.theta, fit_joint.theta, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(fit_motor.drive, fit_joint.drive, rtol=1e-5, atol=1e-6)
+    # the same file read without the robot's layout is refused: no time, and the rate is not stated
+    with pytest.raises(RecordingError, match=r"column t is missing.*sample_rate = <Hz>"):
+        load_robot_recording(tmp_path / "log.csv", denso)
+
+
+def test_velocities_accelerations_and_currents_cross_the_transmission(rng):
+    n = 3
+    t = np.arange(5) * 0.01
+    q, qd, qdd, current = rng.normal(size=(4, 5, n))
+    uncoupled = Transmission(coupling=np.diag([10.0, -20.0, 5.0]))
+    layout = RecordingLayout(sides=dict.fromkeys(("q", "qd", "qdd", "current"), "motor"))
+    robot = _Robot(uncoupled, layout)
+    motor = Recording(t=t, q=q, qd=qd, qdd=qdd, current=current)
+    joint = to_joint_side(motor, robot)
+    np.testing.assert_allclose(joint.qd * [10.0, -20.0, 5.0], qd, rtol=1e-14)
+    np.testing.assert_allclose(joint.qdd * [10.0, -20.0, 5.0], qdd, rtol=1e-14)
+    # an uncoupled motor's current stays a current, signed like its joint (kt_joint = |N| kt_motor > 0)
+    np.testing.assert_array_equal(joint.current, current * [1.0, -1.0, 1.0])
+    np.testing.assert_allclose(to_motor_side(joint, robot).current, current)
+    coupling = np.array([[10.0, 0, 0], [0, -20.0, 0], [0, 4.0, 5.0]])
+    with pytest.raises(RecordingError, match="motor_kt"):
+        to_joint_side(motor, _Robot(Transmission(coupling=coupling), layout))
+    kt = np.array([0.1, 0.2, 0.3])
+    joint = to_joint_side(motor, _Robot(Transmission(coupling=coupling, motor_kt=kt), layout))
+    assert joint.current is None
+    np.testing.assert_allclose(joint.tau, (current * kt) @ coupling, rtol=1e-14)  # tau_j = N_q^T (kt i_m)
+
+
+@dataclasses.dataclass
+class _Robot:
+    """The two fields ``to_joint_side`` reads (a stand-in for a RobotDescription of three joints)."""
+
+    transmission: Transmission
+    recording_layout: RecordingLayout
+    name: str = "three joints"
+
+
+@pytest.mark.real_data
+def test_the_tx40_as_shipped_equals_the_readme_conversion():
+    if not TX40.exists():
+        pytest.skip(f"{TX40} is absent")
+    robot = load_robot(ROOT / "examples" / "staubli_tx40.toml")
+    files = [TX40 / "pos_read_data.csv", TX40 / "curr_data.csv"]
+    assert recording_paths(files, robot) == [str(TX40)]  # the two files are one recording
+    recording = load_robot_recording(TX40, robot)
+    # the README's formulas, written out independently of the transmission code
+    theta_m = np.loadtxt(files[0], delimiter=",", skiprows=1)
+    tau_m = np.loadtxt(files[1], delimiter=",", skiprows=1)
+    ratios = np.array([32.0, 32.0, 45.0, -48.0, 45.0, 32.0])
+    q = theta_m / ratios
+    q[:, 5] = (theta_m[:, 5] - 32.0 * q[:, 4]) / 32.0  # theta_m6 = 32 q5 + 32 q6
+    q[:, 1] -= np.pi / 2
+    q[:, 2] += np.pi / 2
+    tau = tau_m * ratios
+    tau[:, 4] += 32.0 * tau_m[:, 5]  # N_tau[4, 5] = 32
+    np.testing.assert_allclose(recording.q, q, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(recording.tau, tau, rtol=1e-14, atol=1e-12)
+    np.testing.assert_allclose(recording.t, np.arange(45_000) * 0.0002, rtol=1e-12, atol=1e-15)
+    assert recording.current is None and recording.n_samples == 45_000
