@@ -253,10 +253,8 @@ class RobotDescription:
         The robot file (TOML or URDF) the description was read from, for messages; not compared.
     replaced_inertias : tuple of urdf.ReplacedInertia
         URDF link inertias that were not physical and are replaced in ``links`` by a neutral stand-in.
-    transmission : Transmission or None
-        Gears and couplings between motors and joints (``[transmission]``), to map motor-side recordings.
-    recording_layout : RecordingLayout or None
-        How the robot's recordings are written (``[recording]``: side, sample rate, files); not compared.
+    transmission, recording_layout : Transmission, RecordingLayout or None
+        Motor/joint gears (``[transmission]``); how recordings are written (``[recording]``); not compared.
     """
 
     name: str
@@ -281,8 +279,7 @@ class RobotDescription:
         n = len(joints)
         if self.transmission is not None and self.transmission.n_dof != n:
             raise RobotFileError(
-                f"RobotDescription.transmission must couple {n} motors with the {n} joints; got "
-                f"{self.transmission.n_dof}. Give one gear ratio (and one matrix row) per joint."
+                f"RobotDescription.transmission must couple {n} motors; got {self.transmission.n_dof}."
             )
         if not isinstance(self.name, str):
             raise RobotFileError(f"RobotDescription.name must be a string; got {format_value(self.name)}.")

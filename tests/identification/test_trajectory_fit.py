@@ -1,5 +1,7 @@
 """Identification from exciting trajectories: the consistency chart, the normal equations, known truth, real data."""
 
+from pathlib import Path
+
 import casadi as ca
 import numpy as np
 import pytest
@@ -15,7 +17,7 @@ from identification.calibration.trajectory_data import NormalEquations, choose_f
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.description import physical_to_dynamic
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.oracle import PinocchioOracle
 from trajopt.experiments import sine_experiment
 
@@ -212,3 +214,28 @@ def test_a_fit_stopped_at_the_iteration_cap_is_kept_consistent_and_marked(denso,
     assert fit.solver_status == "Maximum_Iterations_Exceeded"
     assert "iteration cap" in caplog.text and "not proven optimal" in caplog.text
     assert fit.consistent and fit.min_pseudo_inertia_eigenvalue > 0  # every iterate of the chart is consistent
+
+
+def test_a_robot_file_whose_urdf_lies_elsewhere_is_rebuilt_from_the_model_file(tmp_path):
+    from identification.calibration.calibrated_model import CalibratedModel, _robot_block
+    from psdm_casadi.robot import load_robot
+    from tests.conftest import example_robot_urdf
+
+    urdf_text = example_robot_urdf("ur_description/urdf/ur5_robot.urdf").read_text()
+    (tmp_path / "data" / "urdf").mkdir(parents=True)
+    (tmp_path / "data" / "urdf" / "ur5.urdf").write_text(urdf_text)
+    (tmp_path / "robots").mkdir()
+    main = tmp_path / "robots" / "ur5.toml"
+    main.write_text(
+        '[urdf]\npath = "../data/urdf/ur5.urdf"\n\n[transmission]\ngear_ratios = [100, 100, 100, 50, 50, 50]\n'
+    )
+    robot = load_robot(main)
+    block = _robot_block(robot, main)
+    assert set(block["files"]) == {"ur5.toml", "../data/urdf/ur5.urdf"}
+    rebuilt = CalibratedModel({"robot": block}).load_robot(cache_dir=tmp_path / "cache")
+    assert rebuilt.joint_names == robot.joint_names
+    np.testing.assert_array_equal(rebuilt.transmission.gear_ratios, [100, 100, 100, 50, 50, 50])
+    assert (tmp_path / "cache").resolve() in Path(rebuilt.urdf_path).resolve().parents  # inside the cache
+    escaping = dict(block, files={**block["files"], str(tmp_path / "outside.urdf"): "x"})
+    with pytest.raises(ModelFileError, match="must lie beside the robot file or below it"):
+        CalibratedModel({"robot": escaping}).robot_file(cache_dir=tmp_path / "cache2")
