@@ -14,6 +14,7 @@
 
 from __future__ import annotations
 
+import logging
 import math
 import time
 from dataclasses import dataclass, replace
@@ -40,6 +41,8 @@ REVOLUTE_NODES = 2.0 * np.pi * np.arange(5) / 5.0 + 0.1
 PRISMATIC_NODES = np.array([-1.0, 0.0, 1.0])
 # Per-joint basis exponents: revolute digits 0..4 = 1, s, c, s c, c^2; prismatic digits 0..2 = 1, q, q^2.
 REVOLUTE_DIGITS = ((0, 0), (1, 0), (0, 1), (1, 1), (0, 2))  # (sin power, cos power)
+
+logger = logging.getLogger(__name__)
 
 MAX_DOF = 8
 """The largest robot (number of joints) that ``derive_psdm`` accepts.
@@ -170,6 +173,11 @@ def _dependencies(sampler, functions, robot, rng, trials=3, rtol=1e-9):
         change = np.abs(f1 - f0[:, None]).max(axis=(0, 2, 3))
         out.append(tuple(int(j) for j in np.nonzero(change > rtol * scale)[0]))
     return out
+
+
+def _function_label(function) -> str:
+    """``gravity`` or ``qdd3`` (1-based joint): the acceleration function being sampled, for progress lines."""
+    return "gravity" if function[0] == "g" else f"{function[0]}{function[1] + 1}"
 
 
 def _basis_matrix(revolute: bool) -> np.ndarray:
@@ -375,10 +383,14 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
     sampled = [("g",)] if robot.gravity_magnitude > 0 else []
     sampled += [("qdd", k) for k in range(n)]
     dependencies = _dependencies(sampler, sampled, robot, rng)
-    coefficients_of = {
-        function: ({} if joints is None else _coefficients(sampler, function, joints, robot, options.coefficient_rtol))
-        for function, joints in zip(sampled, dependencies)
-    }
+    coefficients_of = {}
+    for index, (function, joints) in enumerate(zip(sampled, dependencies)):  # the slow part: a bar on a terminal
+        logger.info(
+            "deriving: %s", _function_label(function), extra={"progress": (index + 1, len(sampled)), "tick": True}
+        )
+        coefficients_of[function] = (
+            {} if joints is None else _coefficients(sampler, function, joints, robot, options.coefficient_rtol)
+        )
     coefficients_of.update(_velocity_coefficients(coefficients_of, robot, options.coefficient_rtol))
 
     columns, coefficients, keys = [], [], []

@@ -371,7 +371,8 @@ def fit_lugre_recordings(
             rmse_stribeck.append(float(np.sqrt(np.mean((residual[:, j] - stribeck) ** 2))))
         else:
             rmse_stribeck.append(float("nan"))
-        logger.info("identify: LuGre joint %d: %s", j + 1, np.round(result.parameters.as_array(), 5))
+        logger.info("identify: LuGre joint %d: %s", j + 1, np.round(result.parameters.as_array(), 5),
+                    extra={"progress": (j + 1, qd.shape[1])})  # fmt: skip
     std = np.array(std)
     relative = std[:, LUGRE_PARAMETER_NAMES.index("sigma0")] / np.array([p.sigma0 for p in parameters])
     checks = [sigma0_identifiable(p, t, qd[:, j], relative[j], min(fit.cutoff_hz)) for j, p in enumerate(parameters)]

@@ -234,7 +234,7 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
     qualified, scored, rejected = [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
     for index, term in enumerate(remaining):
-        logger.debug("diagnose:   screening %s", term.label, extra={"progress": (index + 1, len(remaining))})
+        logger.info("diagnose: screening %s", term.label, extra={"progress": (index + 1, len(remaining)), "tick": True})
         fits = _shape_fits(design, term, train_ctx, val_ctx, sse, limits, score)
         chosen, note = _pick_shape(fits, limits.sigma)
         if chosen is None:

@@ -82,40 +82,65 @@ def progress(message: str, *, quiet: bool = False) -> None:
 
 
 class ProgressHandler(logging.StreamHandler):
-    """Log lines on stderr; a record with ``extra={"progress": (done, total)}`` draws a bar on a terminal.
+    """Log lines on stderr; a record with ``extra={"progress": (done, total)}`` draws a tqdm bar on a terminal.
 
-    On a terminal the bar is redrawn in place (``\r``) until the next plain line; elsewhere (a file,
-    a pipe, CI) every record is one plain line, so logs stay readable.
+    The libraries mark the steps of a long loop (the derivation's functions, the diagnosis' candidates, the
+    LuGre fits per joint, the excitation's starts) with ``progress``. On a terminal those records move one bar
+    (a new bar starts when the total changes or the count goes back); other lines print above it. Elsewhere (a
+    file, a pipe, CI) a progress record is one plain line, unless it also carries ``"tick": True`` (a loop step
+    worth a bar but not a log line), which prints only when ``ticks_as_lines`` (``--verbose``). With ``--quiet``
+    and ``--json`` the level is WARNING: no progress record arrives, so no bar is drawn.
     """
 
-    width = 24
-
-    def __init__(self, stream=None):
+    def __init__(self, stream=None, ticks_as_lines: bool = False):
         super().__init__(stream)
-        self._bar_open = False
+        self.ticks_as_lines = ticks_as_lines
+        self._bar = None
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
             self._draw(record)
         except Exception:  # a closed or broken stream: logging's own error report, never the caller's failure
+            self._bar = None
             self.handleError(record)
 
     def _draw(self, record: logging.LogRecord) -> None:
         done_total = getattr(record, "progress", None)
         if done_total is None or not self.stream.isatty():
-            if self._bar_open:
-                self.stream.write("\n")
-                self._bar_open = False
-            super().emit(record)
+            if done_total is not None and getattr(record, "tick", False) and not self.ticks_as_lines:
+                return
+            if self._bar is not None:  # a line between two steps: print it above the bar
+                self._bar.clear()
+                super().emit(record)
+                self._bar.refresh()
+            else:
+                super().emit(record)
             return
-        done, total = done_total
-        filled = int(self.width * done / total) if total else self.width
-        bar = "#" * filled + "-" * (self.width - filled)
-        self.stream.write(f"\r[{bar}] {done}/{total} {self.format(record)}\033[K")
-        self.stream.flush()
-        self._bar_open = done < total
-        if not self._bar_open:
-            self.stream.write("\n")
+        from tqdm import tqdm
+
+        done, total = (int(x) for x in done_total)
+        if self._bar is None or self._bar.total != total or done < self._bar.n:
+            self.close_bar()
+            leave = not getattr(record, "tick", False)
+            self._bar = tqdm(total=total, desc=self.format(record), file=self.stream, leave=leave, mininterval=0)
+        else:
+            self._bar.set_description_str(self.format(record), refresh=False)
+        self._bar.update(done - self._bar.n)
+        if done >= total:
+            self.close_bar()
+
+    def close_bar(self) -> None:
+        """End the open bar (left on screen unless it was made of ticks)."""
+        bar, self._bar = self._bar, None
+        if bar is not None:
+            bar.close()
+
+    def close(self) -> None:
+        try:
+            self.close_bar()
+        except Exception:  # the stream closed before the command's handler: nothing left to draw on
+            pass
+        super().close()
 
 
 def remove_logging() -> None:
@@ -124,17 +149,19 @@ def remove_logging() -> None:
         logger = logging.getLogger(name)
         for old in [h for h in logger.handlers if h.get_name() == _HANDLER_NAME]:
             logger.removeHandler(old)
+            old.close()
         logger.setLevel(logging.NOTSET)
         logger.propagate = True
 
 
 def configure_logging(level: int) -> None:
-    """Send the project's log records of ``level`` and above to the current stderr, as plain lines.
+    """Send the project's log records of ``level`` and above to the current stderr: plain lines, and a progress
+    bar for long loops on a terminal (:class:`ProgressHandler`).
 
     Called once per command; a handler installed by an earlier call (tests run many commands in one
     process) is replaced, so that every line appears once and on the stderr of the current call.
     """
-    handler = ProgressHandler(sys.stderr)
+    handler = ProgressHandler(sys.stderr, ticks_as_lines=level <= logging.DEBUG)
     handler.set_name(_HANDLER_NAME)
     handler.setFormatter(logging.Formatter("%(message)s"))
     for name in LOGGED_PACKAGES:

@@ -2,6 +2,7 @@
 
 import io
 import logging
+import sys
 
 import pytest
 
@@ -22,17 +23,52 @@ def _logger(stream):
     return logger
 
 
-def test_progress_records_draw_one_bar_on_a_terminal_and_plain_lines_elsewhere():
+BAR_MARKS = ("\r", "%|", "\u2588")  # tqdm redraws in place, "NN%|" starts its bar, full blocks fill it
+
+
+def test_progress_records_draw_one_tqdm_bar_on_a_terminal_and_plain_lines_elsewhere():
     terminal, pipe = _Terminal(), io.StringIO()
     for stream in (terminal, pipe):
         logger = _logger(stream)
         for k in range(1, 4):
             logger.info("start %d", k, extra={"progress": (k, 3)})
+        for k in range(1, 6):
+            logger.info("step %d", k, extra={"progress": (k, 5), "tick": True})
         logger.info("done")
-    assert pipe.getvalue() == "start 1\nstart 2\nstart 3\ndone\n"
+    assert pipe.getvalue() == "start 1\nstart 2\nstart 3\ndone\n"  # ticks are not log lines
     screen = terminal.getvalue()
-    assert screen.count("\r[") == 3 and "[########----------------] 1/3 start 1" in screen
-    assert screen.endswith("3/3 start 3\x1b[K\ndone\n")
+    assert "start 1:  33%|" in screen and "start 3: 100%|" in screen and "| 3/3 " in screen
+    assert "step 5: 100%|" in screen and "| 5/5 " in screen
+    assert screen.count("\n") == 2 and screen.endswith("done\n")  # the starts' bar stays, the ticks' bar goes
+    assert "start 1\n" not in screen  # no plain progress line on a terminal
+
+
+def test_a_line_during_a_bar_prints_above_it_and_verbose_shows_ticks_as_lines():
+    terminal = _Terminal()
+    logger = _logger(terminal)
+    logger.info("step 1", extra={"progress": (1, 4), "tick": True})
+    logger.info("a finding")
+    logger.info("step 2", extra={"progress": (2, 4), "tick": True})
+    screen = terminal.getvalue()
+    assert "a finding\n" in screen and screen.rindex("step 2") > screen.index("a finding")
+    pipe = io.StringIO()
+    logger.handlers[:] = [ProgressHandler(pipe, ticks_as_lines=True)]
+    logger.info("step 1", extra={"progress": (1, 4), "tick": True})
+    assert pipe.getvalue() == "step 1\n"
+
+
+def test_derivation_draws_a_bar_on_a_terminal_and_none_in_a_pipe_or_with_json(monkeypatch, capsys):
+    assert main(["--no-cache", "derive", "scara"]) == 0  # stderr is captured: not a terminal
+    err = capsys.readouterr().err
+    assert "deriving" in err and not any(mark in err for mark in BAR_MARKS)
+    terminal = _Terminal()
+    monkeypatch.setattr(sys, "stderr", terminal)
+    assert main(["--no-cache", "derive", "scara", "--json"]) == 0
+    assert main(["--no-cache", "--quiet", "derive", "scara"]) == 0
+    assert terminal.getvalue() == ""
+    assert main(["--no-cache", "derive", "scara"]) == 0
+    screen = terminal.getvalue()
+    assert "deriving: gravity" in screen and "%|" in screen and "\r" in screen
 
 
 def test_quiet_hides_progress_lines_and_verbose_is_accepted(capsys):
