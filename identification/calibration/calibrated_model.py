@@ -21,6 +21,10 @@ It holds everything needed to use an identification without the recordings or th
   applied by ``psdm validate`` as by the recalibration (``findings.correct_recording``);
 - ``recalibration`` (version 2): the calibration before and after the findings (validation RMSE,
   consistency, the parameters that moved);
+- ``configurations`` (optional, any version; absent in older files, read as none): the load each
+  recording carried at the flange (``payload_fit.configurations_block``): none, a known payload as
+  given, or an unknown one as identified (mass and centre of mass with standard deviations). The
+  arm's parameters above are the unloaded arm's; older readers ignore the block and predict the arm;
 - ``drive.lugre`` (version 3, ``friction_shape`` ``"lugre"``): the seven LuGre parameters per joint with their
   standard deviations and whether ``sigma0`` was identifiable (``lugre_recordings``); the drive columns then
   hold only the drive inertias and offsets, and the friction is the LuGre model carried along the series
@@ -48,6 +52,7 @@ import numpy as np
 
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.model_file_check import robot_digest
+from identification.calibration.payload_fit import configurations_block
 from identification.calibration.trajectory_data import drive_columns, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
@@ -93,11 +98,13 @@ class CalibratedModel:
 
     # --- building and writing --------------------------------------------------------------------
     @classmethod
-    def from_fit(cls, robot, model, fit: TrajectoryFit, *, robot_source, recordings=(), validation=None, lugre=None):
+    def from_fit(cls, robot, model, fit: TrajectoryFit, *, robot_source, recordings=(), validation=None, lugre=None,
+                 configurations=None):  # fmt: skip
         """The document of a :class:`TrajectoryFit` of ``robot`` (``robot_source`` is its file or built-in name).
 
         With ``lugre`` (a ``lugre_recordings.LuGreFit``), ``fit`` is the Stribeck fit: its friction columns are
-        replaced by the LuGre block (version 3).
+        replaced by the LuGre block (version 3). With ``configurations`` (one ``PayloadConfiguration`` per
+        recording of ``recordings``), the ``configurations`` block says which load each recording carried.
         """
         if lugre is not None:
             from identification.calibration.lugre_recordings import without_friction
@@ -132,6 +139,11 @@ class CalibratedModel:
             "validation": validation or {},
             "findings": [],
         }  # fmt: skip
+        if configurations is not None and any(c.stated for c in configurations):
+            names = [entry["name"] for entry in recordings] or [
+                f"recording {k + 1}" for k in range(len(configurations))
+            ]
+            document["configurations"] = configurations_block(configurations, names, fit.payloads)
         if lugre is not None:
             document["version"] = LUGRE_VERSION
             document["drive"]["friction_shape"] = "lugre"
@@ -153,6 +165,11 @@ class CalibratedModel:
     @property
     def consistent(self) -> bool:
         return bool(self.document["standard"]["consistent"])
+
+    @property
+    def configurations(self) -> list:
+        """The ``configurations`` block (module docstring): a list of dicts, empty for a file without one."""
+        return list(self.document.get("configurations") or [])
 
     @property
     def n_dof(self) -> int:

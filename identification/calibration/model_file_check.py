@@ -190,6 +190,11 @@ def check_document(document: dict, name: str) -> None:
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])
+    configurations = document.get("configurations") if document.get("configurations") is not None else []
+    if not isinstance(configurations, list) or not all(isinstance(e, dict) for e in configurations):
+        raise _refuse(
+            name, "configurations", "a list of objects (the payload configurations)", repr(configurations)[:80]
+        )
     warnings = document.get("warnings") if document.get("warnings") is not None else []  # null: none stored
     if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
         raise _refuse(name, "warnings", "a list of strings (the warnings of 'psdm identify')", repr(warnings)[:80])

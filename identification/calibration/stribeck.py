@@ -76,11 +76,12 @@ def _regressors(model, prepared) -> list:
     ]  # fmt: skip
 
 
-def _accumulate(regressors, prepared, terms, inertia_joints, coulomb_velocity, extra) -> NormalEquations:
-    """Normal equations of ``[Y, D(vs), extra]`` (``extra`` a :class:`StribeckColumns` holding ``vs``)."""
-    vs = extra.stribeck_velocity
+def _accumulate(regressors, prepared, terms, inertia_joints, coulomb_velocity, extras) -> NormalEquations:
+    """Normal equations of ``[Y, D(vs), extra]`` (``extras`` one :class:`StribeckColumns` holding ``vs`` per
+    recording)."""
+    vs = extras[0].stribeck_velocity
     equations = None
-    for chunks, r in zip(regressors, prepared):
+    for chunks, r, extra in zip(regressors, prepared, extras):
         for k, rigid in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
             drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs)
@@ -126,17 +127,19 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None) 
         Its ``friction`` holds ``"fs"``; ``coulomb_velocity`` as in the fit.
     inertia_joints : sequence of int
         The joints with a drive-inertia column of their own.
-    extra : object with ``names``, ``lower`` and ``columns(q, qd, qdd)``, optional
-        Further linear columns fitted jointly.
+    extra : object with ``names``, ``lower`` and ``columns(q, qd, qdd)``, or a list of them, optional
+        Further linear columns fitted jointly (a list: one per recording, e.g. its payload's, ``payload_fit``).
     """
     n_dof = prepared[0].n_dof
     terms, velocity = options.friction, options.coulomb_velocity
     names = drive_column_names(n_dof, terms, inertia_joints)
     regressors = _regressors(model, prepared)
 
+    extras = list(extra) if isinstance(extra, (list, tuple)) else [extra] * len(prepared)
+
     def solve(vs):
         """(augmented estimate with the derivative coefficients, per-joint relative residual without them)."""
-        columns = StribeckColumns(velocity, vs, extra)
+        columns = [StribeckColumns(velocity, vs, e) for e in extras]
         equations = _accumulate(regressors, prepared, terms, inertia_joints, velocity, columns)
         plain = equations.subset(range(equations.n_columns - n_dof))
         return _solve(equations), plain.residual_sum(_solve(plain)) / np.maximum(plain.energy, 1e-300)

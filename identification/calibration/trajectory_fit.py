@@ -31,17 +31,23 @@ import logging
 import time
 from dataclasses import dataclass, replace
 
-import casadi as ca
 import numpy as np
 
-from identification.calibration.pseudo_inertia import (
-    LINK_PARAMETER_COUNT,
-    link_from_log_cholesky,
-    link_from_pseudo_inertia,
-    log_cholesky_from_link,
-    pseudo_inertia,
-    pseudo_inertia_eigenvalues,
+from identification.calibration.consistent_fit import (
+    IPOPT_OPTIONS,
+    consistent_fit,
+    drive_lower_bounds,
+    link_is_free,
+    residual_sigma,
 )
+from identification.calibration.payload_fit import (
+    Estimable,
+    FlangeBodies,
+    identified_payloads,
+    payload_prior,
+    subtract_known_payloads,
+)
+from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
 from identification.calibration.trajectory_checks import check_columns, check_offset_reversals, fit_warnings
 from identification.calibration.trajectory_data import (
@@ -51,19 +57,20 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     prepare_recordings,
 )
-from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.errors import ParameterError
 
-__all__ = ["TrajectoryFit", "TrajectoryOptions", "identify_trajectories", "predict_torque", "separate_inertia_joints"]
+__all__ = [
+    "IPOPT_OPTIONS",
+    "TrajectoryFit",
+    "TrajectoryOptions",
+    "identify_trajectories",
+    "predict_torque",
+    "separate_inertia_joints",
+]
 
 logger = logging.getLogger(__name__)
 
 ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
-# When the data ask for an inconsistent link, the optimum lies on the boundary of the chart, at
-# infinity in its log-diagonal: the objective then creeps down without its gradient vanishing.
-# Ipopt stops when the objective has stopped changing (acceptable_obj_change_tol, relative).
-IPOPT_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-9,
-                 "ipopt.acceptable_tol": 1e-2, "ipopt.acceptable_obj_change_tol": 1e-9,
-                 "ipopt.acceptable_iter": 10, "ipopt.max_iter": 2000}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -161,6 +168,9 @@ class TrajectoryFit:
         What looks like a wrong recording (``trajectory_checks.fit_warnings``): a joint the model does not explain
         on its own data, a friction or drive inertia the data want negative by many sigma, link masses an order of
         magnitude from the robot file's.
+    payloads : tuple of payload_fit.IdentifiedPayload
+        The unknown payloads of the recordings' configurations (``identify_trajectories(configurations=)``),
+        each a body fixed to the flange identified with the arm's parameters shared.
     """
 
     standard: np.ndarray
@@ -189,6 +199,7 @@ class TrajectoryFit:
     training_r2: tuple = ()
     training_r2_ols: tuple = ()
     warnings: tuple = ()
+    payloads: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -209,7 +220,7 @@ def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) 
 
 
 def identify_trajectories(
-    robot, model, recordings, options: TrajectoryOptions | None = None, extra=None
+    robot, model, recordings, options: TrajectoryOptions | None = None, extra=None, configurations=None
 ) -> TrajectoryFit:
     """Identify base, standard and drive parameters from exciting recordings (module docstring).
 
@@ -225,6 +236,9 @@ def identify_trajectories(
     extra : findings.FindingColumns, optional
         Extra linear columns fitted jointly (the torque-type findings of a diagnosis, ``recalibrate``); their
         coefficients follow the drive parameters in ``TrajectoryFit.drive`` (labelled by ``extra.names``).
+    configurations : sequence of data.configuration.PayloadConfiguration, optional
+        The load each recording carries at the flange (default: none): known loads are subtracted, unknown
+        ones identified with the arm's parameters shared (``payload_fit``; ``TrajectoryFit.payloads``).
 
     Returns
     -------
@@ -245,55 +259,72 @@ def identify_trajectories(
     recordings = list(recordings)
     if not recordings:
         raise ParameterError("identify_trajectories needs at least one recording; got none. Pass --data FILE.")
+    bodies = FlangeBodies.of(configurations, len(recordings))
     kt = _torque_constants(robot, options, recordings)
     inertia_joints = _separate_inertia_joints(model, robot) if options.drive_inertia else ()
     names = drive_column_names(robot.n_dof, options.friction, inertia_joints)
-    lower = _drive_lower_bounds(names)
+    lower = drive_lower_bounds(names)
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    prepared = subtract_known_payloads(robot, prepared, configurations)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity)
-    vs, columns = None, extra
+    vs, extras = None, bodies.extras(robot, extra)
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
-        vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, extra)
-        columns = StribeckColumns(options.coulomb_velocity, vs, extra)
+        vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, extras)
+        extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in extras]
     n_fit = model.n_base + len(names)
-    equations = NormalEquations(robot.n_dof, n_fit + (0 if vs is None else robot.n_dof))
-    for ready in prepared:
+    n_all = n_fit + bodies.n_columns
+    equations = NormalEquations(robot.n_dof, n_all + (0 if vs is None else robot.n_dof))
+    for ready, columns in zip(prepared, extras):
         equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity, columns, vs)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
     check_columns(robot, model, equations.subset(range(n_fit)), names, recordings)
     sigma, x_ols, inverse, condition = _weighted_least_squares(equations)
     correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
-                   for rec in prepared]  # fmt: skip
+                   for rec, columns in zip(prepared, extras)]  # fmt: skip
     covariance = _sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
-    x_ols, std, equations = x_ols[:n_fit], std[:n_fit], equations.subset(range(n_fit))
+    x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
+    estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
+    keep, separable = bodies.separable(estimable, n_fit)
+    prior = payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
-        standard, drive, status = _consistent_fit(robot, model, equations, sigma, names, options, lower)
+        standard, drive, found, status = consistent_fit(robot, model, equations.subset(keep), sigma, names, options,
+                                                        lower, prior[separable])  # fmt: skip
+        found = _with_rows(found, separable)
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
-        free = [i for i in range(robot.n_dof) if _link_is_free(model, i)]
+        free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)
     else:  # base parameters only: no standard parameters are identified, none are made up
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
-        drive, status, eigen, theta = x_ols[model.n_base :], "not solved", float("nan"), x_ols[: model.n_base]
+        drive, status, eigen, theta = x_ols[model.n_base : n_fit], "not solved", float("nan"), x_ols[: model.n_base]
+        found = x_ols[n_fit:].reshape(-1, 10)
+    payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
         inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
         coulomb_velocity=options.coulomb_velocity,
-        theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base :], theta_std=std[: model.n_base],
-        drive_std=std[model.n_base :], sigma=sigma, condition_number=condition,
+        theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base : n_fit], theta_std=std[: model.n_base],
+        drive_std=std[model.n_base : n_fit], sigma=sigma, condition_number=condition,
         consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
         n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
-        training_r2=tuple(equations.r2(np.concatenate([theta, drive])).tolist()),
-        training_r2_ols=tuple(equations.r2(x_ols).tolist()),
+        training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
+        training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads,
     )  # fmt: skip
     return replace(fit, warnings=fit_warnings(robot, fit))
+
+
+def _with_rows(found, mask):
+    """The consistent bodies of the separable payloads in their places, NaN for the others."""
+    out = np.full((mask.size, found.shape[1] if found.size else 10), np.nan)
+    out[mask] = found
+    return out
 
 
 def _torque_constants(robot, options, recordings):
@@ -343,13 +374,6 @@ def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
     return kept
 
 
-def _residual_sigma(equations, x) -> np.ndarray:
-    """Per joint, the residual standard deviation [N m] of the parameters ``x`` (never below 1e-9 x torque RMS)."""
-    dof = np.maximum(equations.count - equations.n_columns / equations.n_dof, 1.0)
-    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
-    return np.maximum(np.sqrt(np.maximum(equations.residual_sum(x), 0.0) / dof), 1e-9 * np.maximum(rms, 1e-12))
-
-
 def _solve_scaled(gram, moment):
     """Least squares from normal equations with unit-diagonal scaling; (x, inverse of gram, condition)."""
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
@@ -364,7 +388,7 @@ def _weighted_least_squares(equations: NormalEquations):
     """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and covariance."""
     rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
     first, _, _ = _solve_scaled(*equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
-    sigma = _residual_sigma(equations, first)
+    sigma = residual_sigma(equations, first)
     gram, moment, _ = equations.weighted(1.0 / sigma**2)
     x, inverse, condition = _solve_scaled(gram, moment)
     return sigma, x, inverse, condition
@@ -404,88 +428,6 @@ def _sandwich_covariance(equations, sigma, inverse, correlation) -> np.ndarray:
     """Covariance of the weighted estimate with each joint's residual variance grown by its correlation time."""
     middle, _, _ = equations.weighted(correlation / sigma**2)
     return inverse @ middle @ inverse
-
-
-def _prior_standard(robot, model):
-    if robot.links is not None:
-        return robot.nominal_dynamic_parameters()
-    standard = np.zeros((robot.n_dof, LINK_PARAMETER_COUNT + 1))
-    standard[:, 0] = 1.0  # a unit mass at the frame origin with a small inertia: a consistent start
-    standard[:, [4, 6, 9]] = 0.01
-    return standard
-
-
-def _link_is_free(model, link: int) -> bool:
-    block = model.parameter_map[:, link * (LINK_PARAMETER_COUNT + 1) : link * (LINK_PARAMETER_COUNT + 1) + 10]
-    return bool(np.any(block))
-
-
-def _consistent_fit(robot, model, equations, sigma, names, options, drive_lower=None):
-    """Ipopt over log-Cholesky links, drive inertias and friction (module docstring, step 3)."""
-    n = robot.n_dof
-    prior = _prior_standard(robot, model)
-    links = [i for i in range(n) if _link_is_free(model, i)]
-    phi = ca.SX.sym("phi", LINK_PARAMETER_COUNT * len(links))
-    rotor = ca.SX.sym("rotor", n)
-    drive = ca.SX.sym("drive", len(names))
-    rows = []
-    for i in range(n):
-        k = links.index(i) if i in links else None
-        link = None if k is None else link_from_log_cholesky(phi[k * 10 : k * 10 + 10], margin=options.margin)
-        rows.append(ca.vertcat(link if link is not None else ca.DM(prior[i, :10]), rotor[i]))
-    standard = ca.vertcat(*rows)
-    x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive)
-    count = float(equations.count.sum())
-    scale = _prior_scale(prior, [r.joint for r in robot.replaced_inertias])  # stand-ins pulled 100x less
-    pull = options.prior_weight * ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
-    variables = ca.vertcat(phi, rotor, drive)
-    start = np.concatenate([*(_chart_start(prior[i, :10], options.margin) for i in links),
-                            np.maximum(prior[:, ROTOR], 0.0), np.zeros(len(names))])  # fmt: skip
-    drive_lower = _drive_lower_bounds(names) if drive_lower is None else drive_lower
-    lower = np.concatenate([np.full(phi.numel(), -np.inf), np.zeros(n), drive_lower])
-    evaluate = ca.Function("standard", [variables], [standard, x])
-    x_opt, w = start, 1.0 / sigma**2
-    for _ in range(2):  # then once more weighted by the consistent fit's own residuals (module docstring)
-        gram, moment, energy = equations.weighted(w)
-        residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
-        solver = ca.nlpsol("consistent_fit", "ipopt", {"x": variables, "f": residual + pull}, IPOPT_OPTIONS)
-        solution = solver(x0=x_opt, lbx=lower, ubx=np.full(lower.size, np.inf))
-        status = solver.stats()["return_status"]
-        if status == "Maximum_Iterations_Exceeded":  # every iterate of the chart is consistent: keep it, marked
-            logger.warning(
-                "identify: the consistent fit stopped at Ipopt's iteration cap (%s) with the objective still "
-                "creeping towards the boundary of physical consistency; the model is consistent but not proven "
-                "optimal (solver_status says so). Compare its validation RMSE with --no-consistency.",
-                IPOPT_OPTIONS["ipopt.max_iter"],
-            )
-        elif not solver.stats()["success"]:
-            fix = "try --no-consistency to see the unconstrained estimate, or record a better-exciting trajectory."
-            raise SolverError(f"the consistent fit did not converge ({status}); {fix}", status=status)
-        x_opt = np.maximum(np.asarray(solution["x"]).reshape(-1), lower)  # Ipopt may end a hair outside a bound
-        w = 1.0 / _residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
-    values = np.asarray(evaluate(x_opt)[0]).reshape(n, -1)
-    return values, x_opt[-len(names) :] if names else np.zeros(0), status
-
-
-def _chart_start(link, margin):
-    """Chart coordinates of a prior link with the margin taken off (projected if inconsistent)."""
-    shifted = link_from_pseudo_inertia(pseudo_inertia(link) - margin * np.eye(4))
-    return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
-
-
-def _prior_scale(prior, stand_ins=()):
-    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor); the
-    inertias of ``stand_ins`` (links whose URDF inertia was unusable) are measured in ten times their size."""
-    mass = np.maximum(np.abs(prior[:, :1]), 0.1)
-    moment = np.maximum(np.abs(prior[:, 1:4]), 0.01 * mass)
-    weak = np.where(np.isin(np.arange(len(prior)), stand_ins), 10.0, 1.0)[:, None]
-    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass) * weak
-    rotor = np.maximum(np.abs(prior[:, ROTOR:]), 1e-3)
-    return np.concatenate([mass, moment, inertia, rotor], axis=1)
-
-
-def _drive_lower_bounds(names):
-    return np.array([-np.inf if name.startswith("offset") else 0.0 for name in names])
 
 
 def _drive_inertias(model, standard, drive, names):

@@ -18,7 +18,7 @@ from psdm_casadi.robot import physical_to_dynamic
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.values import float_array, format_value, inertia_violation, is_real_number
 
-__all__ = ["Payload", "read_payload", "payload_json"]
+__all__ = ["Payload", "payload_from_mapping", "payload_json", "read_payload"]
 
 
 @dataclass(frozen=True)
@@ -106,25 +106,35 @@ def read_payload(path) -> Payload:
         raise ParameterError(f"{path.name} must be JSON such as {_EXAMPLE}; got nesting too deep. Fix it.") from None
     if not isinstance(data, dict):
         raise ParameterError(f"{path.name} must hold a JSON object such as {_EXAMPLE}; got {format_value(data)}.")
+    return payload_from_mapping(data, path.name)
+
+
+def payload_from_mapping(data: dict, name: str) -> Payload:
+    """A Payload from the keys ``mass``, ``com`` and ``inertia`` of a parsed JSON or TOML table named ``name``.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``name``, the field and the fix (as :func:`read_payload`).
+    """
     unknown = sorted(set(data) - {"mass", "com", "inertia"})
     if unknown:
         raise ParameterError(
-            f"{path.name} has unknown key(s) {unknown}; allowed keys are ['com', 'inertia', 'mass']. "
-            "Check the spelling."
+            f"{name} has unknown key(s) {unknown}; allowed keys are ['com', 'inertia', 'mass']. Check the spelling."
         )
     if "mass" not in data:
-        raise ParameterError(f"{path.name}: Payload.mass is missing. Add the mass in kg, e.g. {_EXAMPLE}.")
-    mass = _json_numbers(data["mass"], (), path.name, "mass", '"mass": 2.0 [kg]')
-    com = _json_numbers(data.get("com", [0.0, 0.0, 0.0]), (3,), path.name, "com", '"com": [x, y, z] [m]')
+        raise ParameterError(f"{name}: Payload.mass is missing. Add the mass in kg, e.g. {_EXAMPLE}.")
+    mass = _json_numbers(data["mass"], (), name, "mass", '"mass": 2.0 [kg]')
+    com = _json_numbers(data.get("com", [0.0, 0.0, 0.0]), (3,), name, "com", '"com": [x, y, z] [m]')
     inertia = data.get("inertia")
     if inertia is not None:
         example = '"inertia": [[Ixx, Ixy, Ixz], [Ixy, Iyy, Iyz], [Ixz, Iyz, Izz]] [kg m^2] or null'
-        inertia = tuple(map(tuple, _json_numbers(inertia, (3, 3), path.name, "inertia", example)))
+        inertia = tuple(map(tuple, _json_numbers(inertia, (3, 3), name, "inertia", example)))
     payload = Payload(mass=mass, com=tuple(com), inertia=inertia)
     try:
         payload.validate(0)
     except ParameterError as exc:
-        raise ParameterError(f"{path.name}: {exc}") from None
+        raise ParameterError(f"{name}: {exc}") from None
     return payload
 
 

@@ -61,13 +61,15 @@ def run(args) -> int:
     out = _check_outputs(args)
     robot = load_robot_argument(args)
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
-    args.data, args.validate = recording_paths(args.data, robot), recording_paths(args.validate, robot)
-    recordings = [load_robot_recording(path, robot, args.topic) for path in args.data]  # joint side, timed
+    paths, configurations = _configurations(args.data, robot)
+    args.validate = recording_paths(args.validate, robot)
+    recordings = [load_robot_recording(path, robot, args.topic) for path in paths]  # joint side, timed
     validation = [load_robot_recording(path, robot, args.topic) for path in args.validate]
     for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
         check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
     if args.friction == "lugre":
-        _check_reversals(recordings, args.data)
+        _check_lugre_configurations(configurations)
+        _check_reversals(recordings, paths)
     friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")
     friction = (*friction, "offset") if args.offset else friction
     options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
@@ -80,15 +82,16 @@ def run(args) -> int:
     if args.friction == "lugre":
         fit, lugre, start = _fit_lugre(robot, model, recordings, options)
     else:
-        fit = start = identify_trajectories(robot, model, recordings, options)
+        fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
         lugre = None
-    warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *not_held_out(args.data, args.validate))))
+    held_out = not_held_out([str(p) for p in paths], args.validate)
+    warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *held_out)))
     for warning in warnings:
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     calibrated = CalibratedModel.from_fit(
         robot, model, fit, robot_source=args.robot, lugre=lugre,
-        recordings=[recording_provenance(r, p) for r, p in zip(recordings, args.data)],
+        recordings=[recording_provenance(r, p) for r, p in zip(recordings, paths)], configurations=configurations,
     )  # fmt: skip
     report = _validation(robot, model, start, validation, args.validate, calibrated)
     report["min_mass_eigenvalue"] = mass_eigenvalue
@@ -123,6 +126,29 @@ def _check_outputs(args):
     check_not_input(args.out, "--out", inputs, example=f"{Path(args.out).stem}_model.json")
     check_suffix(args.out, "--out", (".json",), "one calibrated-model file (JSON)")
     return output_file(args.out, "--out", args.overwrite)
+
+
+def _configurations(data, robot) -> tuple:
+    """(recording paths, one PayloadConfiguration each) of --data: manifests expanded, sidecars read, the files
+    of a split recording named once (by their folder, ``robot_recordings.recording_paths``)."""
+    from identification.data.configuration import recordings_with_configurations
+    from identification.data.robot_recordings import recording_paths
+
+    merged = {}
+    for path, configuration in zip(*recordings_with_configurations(data)):
+        merged.setdefault(recording_paths([path], robot)[0], configuration)
+    return list(merged), list(merged.values())
+
+
+def _check_lugre_configurations(configurations) -> None:
+    """--friction lugre fits one arm along recordings without a load at the flange: refuse a stated payload."""
+    loaded = [c.name for c in configurations if c.kind != "none"]
+    if loaded:
+        raise ParameterError(
+            f"--friction lugre takes recordings without a payload; got the payload configuration(s) "
+            f"{sorted(set(loaded))}. Identify with --friction stribeck (payloads are shared-arm fits), or leave the "
+            "loaded recordings out."
+        )
 
 
 def _check_reversals(recordings, paths) -> None:
@@ -230,6 +256,22 @@ def _print_lugre(block) -> None:
         print(f"{j + 1:<5} " + " ".join(f"{c:>20}" for c in cells) + note)
 
 
+def _print_payloads(payloads) -> None:
+    """Each unknown payload's mass and centre of mass (flange frame) with sigma, or why they are not separable."""
+    if not payloads:
+        return
+    print("\nunknown payloads (a body fixed to the flange; the arm's parameters shared by every configuration):")
+    for p in payloads:
+        where = f"{p.name} ({len(p.recordings)} recording{'s' if len(p.recordings) != 1 else ''})"
+        if not p.identifiable:
+            print(f"  {where}: not separable from the arm's last link (every recording carries it, or the motion does "
+                  "not tell them apart). Record the arm without it too.")  # fmt: skip
+            continue
+        com = ", ".join(f"{v:.4f}" for v in p.com)
+        com_std = ", ".join(_sigma(None if not np.isfinite(v) else v) for v in p.com_std)
+        print(f"  {where}: mass {p.mass:.4g} +- {_sigma(p.mass_std)} kg, centre of mass [{com}] +- [{com_std}] m")
+
+
 def _sigma(value) -> str:
     return "inf" if value is None else f"{value:.2g}"
 
@@ -246,6 +288,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
                     "stribeck_velocity": list(fit.stribeck_velocity),
                     "stribeck_velocity_std": list(fit.stribeck_velocity_std),
                     "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
+                    "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -263,6 +306,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
     for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
         print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
     _print_lugre(calibrated.document["drive"].get("lugre"))
+    _print_payloads(fit.payloads)
     for entry in report["recordings"]:
         print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
         for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):

@@ -1,0 +1,113 @@
+"""Payload configurations on the recordings route: known loads subtracted, unknown ones identified, the arm shared.
+
+The truth is the virtual Denso's (``identification.virtual``): its nominal links, and payloads added as
+``virtual.effects.Payload`` bodies at the flange. Short recordings keep every test to a few seconds.
+"""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from identification.calibration.payload import payload_torque
+from identification.calibration.payload_fit import FlangeRegressor
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.configuration import PayloadConfiguration, recordings_with_configurations
+from identification.data.payload import Payload
+from identification.virtual.effects import Payload as VirtualPayload
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.errors import ParameterError
+from trajopt.experiments import sine_experiment
+
+KNOWN = Payload(mass=0.6, com=(0.0, 0.02, 0.04))
+UNKNOWN = VirtualPayload(mass=0.8, com=(0.03, 0.0, 0.06))
+
+
+def _record(robot, seed, extras=(), duration=8.0):
+    rng = np.random.default_rng(seed)
+    reference = sine_experiment(robot, duration=duration, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=True)
+    return simulate_recording(robot, reference, options, rng, extras=extras)[0]
+
+
+@pytest.fixture(scope="module")
+def recorded(denso):
+    """The virtual Denso empty, with a known payload and with an unknown one (one recording each)."""
+    with warnings.catch_warnings():  # the sine experiment may graze a limit: irrelevant here
+        warnings.simplefilter("ignore")
+        return {
+            "empty": _record(denso, 11),
+            "known": _record(denso, 12, (VirtualPayload(mass=KNOWN.mass, com=KNOWN.com),)),
+            "unknown": _record(denso, 13, (UNKNOWN,)),
+        }
+
+
+def test_the_flange_columns_give_the_payload_torque_of_pinocchio(denso):
+    rng = np.random.default_rng(0)
+    q, qd, qdd = rng.normal(size=(3, 30, denso.n_dof))
+    load = Payload(mass=1.3, com=(0.02, -0.01, 0.05), inertia=np.diag([0.01, 0.02, 0.015]).tolist())
+    columns = FlangeRegressor(denso)(q, qd, qdd)
+    np.testing.assert_allclose(columns @ load.dynamic_parameters(), payload_torque(denso, load, q, qd, qdd),
+                               rtol=1e-9, atol=1e-9)  # fmt: skip
+
+
+def test_a_known_payload_subtracted_gives_the_unloaded_arm(denso, denso_model, recorded):
+    truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    pair = [recorded["empty"], recorded["known"]]
+    known = PayloadConfiguration("mass", payload=KNOWN, stated=True)
+    said = identify_trajectories(denso, denso_model, pair, configurations=[PayloadConfiguration(), known])
+    unsaid = identify_trajectories(denso, denso_model, pair)
+    z_said = np.abs((said.theta_ols - truth) / said.theta_std)
+    z_unsaid = np.abs((unsaid.theta_ols - truth) / unsaid.theta_std)
+    assert z_said.max() < 5.0, np.round(z_said, 1)
+    assert z_unsaid.max() > 2 * z_said.max(), (z_unsaid.max(), z_said.max())  # the load unsaid biases the arm
+
+
+def test_an_unknown_payload_is_identified_with_the_arm_shared(denso, denso_model, recorded):
+    configurations = [PayloadConfiguration(), PayloadConfiguration("gripper", unknown=True, stated=True)]
+    fit = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["unknown"]],
+                                configurations=configurations)  # fmt: skip
+    (payload,) = fit.payloads
+    assert payload.identifiable and payload.name == "gripper"
+    assert (
+        abs(payload.mass - UNKNOWN.mass) < 0.1 * UNKNOWN.mass
+        and abs(payload.mass - UNKNOWN.mass) < 4 * payload.mass_std
+    )
+    assert np.linalg.norm(np.subtract(payload.com, UNKNOWN.com)) < 0.02, payload.com
+    truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    assert np.abs((fit.theta_ols - truth) / fit.theta_std).max() < 5.0
+    # all recordings with the same unknown payload: it cannot be told from the last link, and the fit says so
+    alone = identify_trajectories(denso, denso_model, [recorded["unknown"]], TrajectoryOptions(consistency=False),
+                                  configurations=configurations[1:])  # fmt: skip
+    assert not alone.payloads[0].identifiable and np.isnan(alone.payloads[0].mass)
+
+
+def test_sidecars_and_manifests_state_configurations(tmp_path):
+    for name in ("a.csv", "b.csv", "c.csv"):
+        (tmp_path / name).write_text("t,q1,tau1\n")
+    (tmp_path / "b.payload.json").write_text(json.dumps({"mass": 2.8, "com": [0, 0, 0.05]}))
+    (tmp_path / "c.payload.json").write_text(json.dumps({"unknown": "gripper"}))
+    paths, configurations = recordings_with_configurations([tmp_path / n for n in ("a.csv", "b.csv", "c.csv")])
+    assert [c.kind for c in configurations] == ["none", "known", "unknown"]
+    assert configurations[1].payload.mass == 2.8 and configurations[2].name == "gripper"
+    manifest = tmp_path / "configurations.toml"
+    manifest.write_text(
+        '[[configuration]]\nname = "empty"\nrecordings = ["a.csv"]\n\n[[configuration]]\nname = "tool"\n'
+        'payload = "unknown"\nrecordings = ["b.csv", "c.csv"]\n\n[[configuration]]\nname = "mass"\n'
+        'payload = {mass = 1.5, com = [0.0, 0.0, 0.1]}\nrecordings = ["d.csv"]\n'
+    )
+    paths, configurations = recordings_with_configurations([manifest])
+    assert [p.name for p in paths] == ["a.csv", "b.csv", "c.csv", "d.csv"]
+    assert [c.kind for c in configurations] == ["none", "unknown", "unknown", "known"]
+    manifest.write_text('[[configuration]]\nname = "mass"\npayload = {mass = -1.0}\nrecordings = ["a.csv"]\n')
+    with pytest.raises(ParameterError, match=r"configurations.toml configuration 1 payload: Payload.mass must be"):
+        recordings_with_configurations([manifest])
+    manifest.write_text('[[configuration]]\nname = "x"\npayload = "heavy"\nrecordings = ["a.csv"]\n')
+    with pytest.raises(ParameterError, match='payload must be "none", "unknown"'):
+        recordings_with_configurations([manifest])
+    (tmp_path / "c.payload.json").write_text(json.dumps({"unknown": ""}))
+    with pytest.raises(ParameterError, match=r"c.payload.json: an unknown payload is"):
+        recordings_with_configurations([tmp_path / "c.csv"])
+    with pytest.raises(ParameterError, match="more than once"):
+        recordings_with_configurations([tmp_path / "a.csv", tmp_path / "a.csv"])
