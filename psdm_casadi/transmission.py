@@ -2,10 +2,10 @@
 
 Controllers log motor-side signals: encoder angles ``theta_m``, motor torques ``tau_m``, motor currents
 ``i_m``. With the joint -> motor position coupling ``N_q`` (gear ratios on the diagonal; a coupled wrist
-adds off-diagonal entries, e.g. the Staubli TX40's motor 6 turns with joints 5 and 6) and the motor
-positions ``theta_0`` at q = 0::
+adds off-diagonal entries, e.g. the Staubli TX40's motor 6 turns with joints 5 and 6) and the joint
+positions ``q_0`` at which the encoders read zero (the motor positions at q = 0 are ``theta_0 = -N_q q_0``)::
 
-    theta_m = N_q q + theta_0          q = N_q^-1 (theta_m - theta_0)
+    theta_m = N_q (q - q_0) = N_q q + theta_0          q = N_q^-1 theta_m + q_0
     qd_m    = N_q qd                   qd = N_q^-1 qd_m            (accelerations alike)
     tau_j   = N_q^T tau_m              tau_m = N_q^-T tau_j
 
@@ -37,10 +37,10 @@ class Transmission:
     Parameters
     ----------
     coupling : array, shape (n_dof, n_dof)
-        ``N_q``: motor positions per joint position (``theta_m = N_q q + motor_offsets``); gear ratios on
+        ``N_q``: motor positions per joint position (``theta_m = N_q (q - joint_offsets)``); gear ratios on
         the diagonal, couplings off it. Must be invertible.
-    motor_offsets : array, shape (n_dof,), optional
-        Motor positions [rad] at q = 0 (encoder zero offsets); zero by default.
+    joint_offsets : array, shape (n_dof,), optional
+        Joint positions [rad or m] at which the motor encoders read zero; zero by default.
     motor_kt : array, shape (n_dof,), optional
         Motor torque constants [N m/A] at the motor, for motor-side currents.
 
@@ -58,7 +58,7 @@ class Transmission:
     """
 
     coupling: np.ndarray
-    motor_offsets: np.ndarray | None = None
+    joint_offsets: np.ndarray | None = None
     motor_kt: np.ndarray | None = None
 
     def __post_init__(self):
@@ -78,7 +78,7 @@ class Transmission:
                 "couplings (no two motors may see the same combination of joints)."
             )
         object.__setattr__(self, "coupling", _frozen(matrix))
-        for key in ("motor_offsets", "motor_kt"):
+        for key in ("joint_offsets", "motor_kt"):
             value = getattr(self, key)
             if value is None:
                 continue
@@ -93,13 +93,18 @@ class Transmission:
                     "Give the motors' torque constants (the gear's sign is in the coupling)."
                 )
             object.__setattr__(self, key, _frozen(vector))
-        if self.motor_offsets is None:
-            object.__setattr__(self, "motor_offsets", _frozen(np.zeros(n)))
+        if self.joint_offsets is None:
+            object.__setattr__(self, "joint_offsets", _frozen(np.zeros(n)))
 
     # --- views -----------------------------------------------------------------------------------
     @property
     def n_dof(self) -> int:
         return int(self.coupling.shape[0])
+
+    @property
+    def motor_offsets(self) -> np.ndarray:
+        """Motor positions [rad] at q = 0: ``theta_0 = -N_q q_0``."""
+        return -self.coupling @ self.joint_offsets
 
     @property
     def gear_ratios(self) -> np.ndarray:
@@ -113,8 +118,8 @@ class Transmission:
 
     # --- motor side -> joint side (arrays are (n_samples, n_dof)) -------------------------------
     def joint_positions(self, theta_m) -> np.ndarray:
-        """``q = N_q^-1 (theta_m - theta_0)`` [rad]."""
-        return self.joint_rates(np.asarray(theta_m, dtype=float) - self.motor_offsets)
+        """``q = N_q^-1 theta_m + q_0`` [rad]."""
+        return self.joint_rates(theta_m) + self.joint_offsets
 
     def joint_rates(self, rate_m) -> np.ndarray:
         """Joint velocities or accelerations of the motors' ones: ``N_q^-1 x_m``."""
@@ -135,8 +140,8 @@ class Transmission:
 
     # --- joint side -> motor side ------------------------------------------------------------------
     def motor_positions(self, q) -> np.ndarray:
-        """``theta_m = N_q q + theta_0`` [rad]."""
-        return self.motor_rates(q) + self.motor_offsets
+        """``theta_m = N_q (q - q_0)`` [rad]."""
+        return self.motor_rates(np.asarray(q, dtype=float) - self.joint_offsets)
 
     def motor_rates(self, rate) -> np.ndarray:
         """Motor velocities or accelerations of the joints' ones: ``N_q x``."""

@@ -63,13 +63,15 @@ def transmission_from_table(table, n: int, where: str) -> Transmission:
             "(motor_offsets = -N_q joint_offsets). Keep one."
         )
     offsets = None
-    if "motor_offsets" in table:
-        offsets = file_vector(table["motor_offsets"], n, f"{where}.motor_offsets")
-    elif "joint_offsets" in table:
-        offsets = -matrix @ file_vector(table["joint_offsets"], n, f"{where}.joint_offsets")
+    if "joint_offsets" in table:
+        offsets = file_vector(table["joint_offsets"], n, f"{where}.joint_offsets")
     kt = file_vector(table["motor_kt"], n, f"{where}.motor_kt") if "motor_kt" in table else None
     try:
-        return Transmission(coupling=matrix, motor_offsets=offsets, motor_kt=kt)
+        transmission = Transmission(coupling=matrix, joint_offsets=offsets, motor_kt=kt)
+        if "motor_offsets" in table:  # theta_0 = -N_q q_0
+            theta_0 = file_vector(table["motor_offsets"], n, f"{where}.motor_offsets")
+            transmission = Transmission(matrix, -transmission.joint_rates(theta_0), kt)
+        return transmission
     except RobotFileError as exc:
         field = "matrix" if "matrix" in table else "gear_ratios and coupling"
         raise RobotFileError(f"{where}.{field}: {exc}") from None

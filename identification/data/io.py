@@ -131,7 +131,7 @@ def time_column(table: ColumnTable) -> np.ndarray:
 
 def sample_times(n_samples: int, sample_rate: float) -> np.ndarray:
     """``t = k / sample_rate`` [s] for k = 0..n_samples-1, read-only: the time of a file without a ``t`` column."""
-    t = np.arange(n_samples) / float(sample_rate)
+    t = np.arange(n_samples) * (1.0 / float(sample_rate))  # k * dt, as a controller's clock counts
     t.setflags(write=False)
     return t
 

@@ -5,7 +5,7 @@ the gears between motors and joints (``[transmission]``, :class:`psdm_casadi.tra
 :func:`to_joint_side` maps such a recording once, when it is read, so that every command (identify,
 validate, diagnose) works on joint-side signals::
 
-    q = N_q^-1 (theta_m - theta_0)     qd = N_q^-1 qd_m     qdd = N_q^-1 qdd_m     tau = N_q^T tau_m
+    q = N_q^-1 theta_m + q_0     qd = N_q^-1 qd_m     qdd = N_q^-1 qdd_m     tau = N_q^T tau_m
 
 Motor currents become joint torques ``N_q^T (kt_m * i_m)`` when the motors' torque constants are
 stated (``motor_kt``); without them, the currents of an uncoupled transmission stay currents, signed

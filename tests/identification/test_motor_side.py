@@ -28,7 +28,7 @@ def _random_transmission(rng, n):
     for _ in range(3):
         motor, joint = rng.choice(n, 2, replace=False)
         matrix[motor, joint] = rng.uniform(-40, 40)
-    return Transmission(coupling=matrix, motor_offsets=rng.uniform(-100, 100, n))
+    return Transmission(coupling=matrix, joint_offsets=rng.uniform(-3, 3, n))
 
 
 def _write_without_time(recording: Recording, path: Path) -> None:

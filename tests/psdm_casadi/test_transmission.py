@@ -116,3 +116,16 @@ def test_the_tx40_robot_file_states_the_readme_conversion():
     layout = robot.recording_layout
     assert layout.sample_rate == 5000.0 and layout.motor_signals == ("q", "qd", "qdd", "tau", "current")
     assert dict(layout.files) == {"q": "pos_read_data.csv", "tau": "curr_data.csv"}
+
+
+def test_motor_offsets_state_the_same_zero_as_joint_offsets(tmp_path):
+    joint = load_robot(_denso_with(tmp_path, '[transmission]\ngear_ratios = [10, 20, 30, 40, 50, 60]\n'
+                                             'joint_offsets = [0.1, 0, 0, 0, 0, "-pi/2"]'))  # fmt: skip
+    (tmp_path / "b").mkdir()
+    motor = load_robot(_denso_with(tmp_path / "b", '[transmission]\ngear_ratios = [10, 20, 30, 40, 50, 60]\n'
+                                                   'motor_offsets = [-1, 0, 0, 0, 0, "30*pi"]'))  # fmt: skip
+    np.testing.assert_allclose(motor.transmission.joint_offsets, joint.transmission.joint_offsets, rtol=1e-15)
+    np.testing.assert_allclose(joint.transmission.motor_offsets, [-1, 0, 0, 0, 0, 30 * np.pi], rtol=1e-15)
+    with pytest.raises(RobotFileError, match="states both joint_offsets and motor_offsets"):
+        both = "joint_offsets = [0, 0, 0, 0, 0, 0]\nmotor_offsets = [0, 0, 0, 0, 0, 0]"
+        load_robot(_denso_with(tmp_path, f"[transmission]\ngear_ratios = [1, 1, 1, 1, 1, 1]\n{both}"))
