@@ -12,6 +12,7 @@ RobotFileError naming the file (with the parser's own words), anything else goes
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import os
@@ -30,6 +31,10 @@ from psdm_casadi.text_file import read_text_file
 from psdm_casadi.values import format_value, inertia_violation
 
 logger = logging.getLogger(__name__)
+
+# A joint origin whose rotation lies this close [rad, about] to a right-angle one (rpy written with 4-5 digits:
+# 3.1416, 1.5708) is taken as that right-angle rotation: the derivation needs the exact zeros of its sines.
+RIGHT_ANGLE_TOLERANCE = 1e-4
 
 # The stand-in for an unusable URDF inertia is a uniform solid sphere about the link's centre of mass, of the
 # link's mass and of the link's size: radius the larger of half the distance to the next joint, the distance of
@@ -153,6 +158,7 @@ def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
     """
     path = Path(path)
     model = _parse_urdf(path)
+    _square_joint_origins(path, model)
     locked = locked_positions(locked_joints)
     if locked:
         reference = pin.neutral(model)
@@ -167,6 +173,36 @@ def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
             _set_locked_position(path, model, ids[-1], value, reference)
         model = pin.buildReducedModel(model, ids, reference)
     return model
+
+
+def _square_joint_origins(path: Path, model: pin.Model) -> None:
+    """Make joint origins within ``RIGHT_ANGLE_TOLERANCE`` of a right-angle rotation exactly that rotation.
+
+    Vendor URDFs write pi/2 and pi with a few digits (``rpy="3.1416 0 0"``): a sine of 7e-6 where the
+    kinematics have a zero, which the derivation's structure cannot hold (it then misses Pinocchio's rnea
+    by percent). The change moves no point of the arm by more than the rounding of the file.
+    """
+    squared = []
+    for jid in range(1, model.njoints):
+        placement = model.jointPlacements[jid]
+        exact = np.round(placement.rotation)
+        gap = float(np.abs(placement.rotation - exact).max())
+        is_rotation = np.all(np.abs(exact).sum(axis=0) == 1) and np.all(np.abs(exact).sum(axis=1) == 1)
+        if 0.0 < gap < RIGHT_ANGLE_TOLERANCE and is_rotation and np.linalg.det(exact) > 0:
+            placement.rotation = exact
+            model.jointPlacements[jid] = placement
+            squared.append(model.names[jid])
+    if squared:
+        _state_once(
+            f"{path.name}: the origins of {', '.join(squared)} are within {RIGHT_ANGLE_TOLERANCE:g} rad of right "
+            "angles (rpy written with few digits, e.g. 3.1416); they are taken as exact right angles."
+        )
+
+
+@functools.lru_cache(maxsize=64)
+def _state_once(message: str) -> None:
+    """Log a choice made on reading a file once per process, not on every reload of the same file."""
+    logger.info("%s", message)
 
 
 def _set_locked_position(path: Path, model: pin.Model, jid: int, value: float, reference: np.ndarray) -> None:

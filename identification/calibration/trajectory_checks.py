@@ -192,5 +192,5 @@ def fit_warnings(robot, fit) -> tuple:
         + _friction_warnings(robot, fit)
         + _drive_inertia_warnings(fit)
         + _mass_warnings(robot, fit)
-        + [r.message(Path(robot.source or robot.name).name) for r in getattr(robot, "replaced_inertias", ())]
+        + [r.message(Path(robot.urdf_path or "").name) for r in getattr(robot, "replaced_inertias", ())]
     )

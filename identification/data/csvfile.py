@@ -19,6 +19,7 @@ from typing import NoReturn
 
 import numpy as np
 
+from identification.data.layout import ColumnLayout, check_standard_header
 from identification.data.table import ColumnTable
 from psdm_casadi.errors import RecordingError
 
@@ -180,13 +181,17 @@ def _explain_parse_error(path: Path, encoding: str, header_line: int, names: tup
     raise RecordingError(f"{source}: numpy could not read the samples ({error}). Fix the file.")
 
 
-def read_csv_table(path) -> ColumnTable:
+def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
     """Read a CSV recording into a :class:`ColumnTable` (grammar in the module docstring).
 
     Parameters
     ----------
     path : str or Path
         An existing regular file.
+    layout : ColumnLayout, optional
+        Which columns to read, renamed to ``t, q1..``; the others are dropped unchecked (a controller's log
+        with NaN in its reference columns). Without it, a header of numbered groups without ``q1`` is
+        refused naming the ``--columns`` that reads it (``layout.check_standard_header``).
 
     Returns
     -------
@@ -217,6 +222,8 @@ def read_csv_table(path) -> ColumnTable:
             )
         delimiter = _guess_delimiter(header)
         names = _header_names(source, header, header_line, delimiter)
+    if layout is None:
+        check_standard_header(source, names)
     try:
         data = _load_rows(path, encoding, header_line, delimiter, filtered=False)
     except ValueError:
@@ -228,5 +235,12 @@ def read_csv_table(path) -> ColumnTable:
         _explain_parse_error(path, encoding, header_line, names, delimiter, f"{data.shape[1]} columns")
     if data.shape[0] == 0:
         data = np.empty((0, len(names)))
-    data.setflags(write=False)  # handed over to the table without a copy
-    return ColumnTable(source=source, names=names, data=data, locate=_locator(path, encoding, header_line))
+    locate = _locator(path, encoding, header_line)
+    if layout is None:
+        data.setflags(write=False)  # handed over to the table without a copy
+        return ColumnTable(source=source, names=names, data=data, locate=locate)
+    mapping = layout.columns(source, names)
+    data = np.ascontiguousarray(data[:, [names.index(name) for name in mapping]])
+    data.setflags(write=False)
+    checked = ColumnTable(source=source, names=tuple(mapping), data=data, locate=locate)  # messages name file columns
+    return ColumnTable(source=source, names=tuple(mapping.values()), data=checked.data, locate=locate)

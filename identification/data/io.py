@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.data.csvfile import read_csv_table
+from identification.data.layout import ColumnLayout, seconds
 from identification.data.matfile import read_mat_table
 from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
@@ -107,17 +108,22 @@ def _check_joints(source: str, groups: dict, n_dof: int | None) -> int:
     return n
 
 
-def time_column(table: ColumnTable) -> np.ndarray:
+def time_column(table: ColumnTable, rate: float | None = None) -> np.ndarray:
     """The table's column ``t`` [s] as a new read-only array, after checking that it strictly increases.
+
+    A column ``t`` that counts samples (a controller's row index: 0, 1, 2, ...) is divided by ``rate`` [Hz]
+    (``--rate``, or the robot file's ``[recording].sample_rate``) and refused without one
+    (``layout.seconds``); a column of times is kept as it is.
 
     Raises
     ------
     RecordingError
-        When the column is missing, or a time stamp repeats or goes back (naming its line and the fix).
+        When the column is missing, counts samples without a rate, or a time stamp repeats or goes back
+        (naming its line and the fix).
     """
     if "t" not in table.names:
         raise RecordingError(f"{table.source}: column t is missing. Add a time column named 't' [s].")
-    t = _signal(table, ["t"])[:, 0].copy()
+    t = seconds(table.source, _signal(table, ["t"])[:, 0], rate)
     t.setflags(write=False)
     back = np.flatnonzero(t[1:] <= t[:-1])
     if back.size:
@@ -140,7 +146,8 @@ def recording_from_table(table: ColumnTable, n_dof: int | None = None, sample_ra
     """The Recording of a table's columns (``t``, ``q1..qn``, ...), refusing bad columns and time with a fix.
 
     A table without a ``t`` column is timed ``t = k / sample_rate`` when a ``sample_rate`` [Hz] is given
-    (the robot file's ``[recording].sample_rate``); a table's own ``t`` column always wins.
+    (the robot file's ``[recording].sample_rate``, or ``--rate``); a table's own ``t`` column of times always wins,
+    and one that counts samples is divided by it.
 
     Raises
     ------
@@ -162,12 +169,12 @@ def recording_from_table(table: ColumnTable, n_dof: int | None = None, sample_ra
             f"{source}: {table.n_samples} sample{'' if table.n_samples == 1 else 's'}; a recording needs at least "
             f"{MIN_SAMPLES}. Record a longer experiment."
         )
-    t = time_column(table) if "t" in table.names else sample_times(table.n_samples, sample_rate)
+    t = time_column(table, sample_rate) if "t" in table.names else sample_times(table.n_samples, sample_rate)
     arrays = {signal: _signal(table, [found[j] for j in range(1, n + 1)]) for signal, found in groups.items() if found}
     return Recording(t=t, name=source, **arrays)
 
 
-def read_table(path, joint_names=None, topic: str | None = None) -> ColumnTable:
+def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnLayout | None = None) -> ColumnTable:
     """The named columns of a recording (CSV, NPZ, MAT by the suffix; a ROS 2 bag), checked but not yet a Recording.
 
     Parameters
@@ -180,6 +187,8 @@ def read_table(path, joint_names=None, topic: str | None = None) -> ColumnTable:
         Files with numbered columns ignore it.
     topic : str, optional
         The JointState topic of a bag (default: its only one); other files ignore it.
+    layout : ColumnLayout, optional
+        Which columns of a file with its own names to read (``layout``); the others are dropped.
 
     Returns
     -------
@@ -215,10 +224,19 @@ def read_table(path, joint_names=None, topic: str | None = None) -> ColumnTable:
             f"recording {path.name!r} must end in .csv or .npz (named columns), .mat (MATLAB) or .mcap/.db3 (a ROS 2 "
             f"bag), or be a bag folder; got {path.suffix!r}. Convert it."
         )
-    return reader(path)
+    if layout is None:
+        return reader(path)
+    if reader is read_csv_table:
+        return read_csv_table(path, layout)
+    table = reader(path)
+    mapping = layout.columns(table.source, table.names)
+    data = table.data[:, [table.names.index(name) for name in mapping]]
+    return ColumnTable(source=table.source, names=tuple(mapping.values()), data=data, locate=table.locate)
 
 
-def load_recording(path, n_dof: int | None = None, joint_names=None, topic: str | None = None) -> Recording:
+def load_recording(
+    path, n_dof: int | None = None, joint_names=None, topic: str | None = None, layout: ColumnLayout | None = None
+) -> Recording:
     """Read a recording from a CSV (header row, ``#`` comments), NPZ or MATLAB file, or a ROS 2 bag.
 
     CSV text is parsed by numpy's C parser (``csvfile``); comma, semicolon, tab or blank separated,
@@ -238,6 +256,10 @@ def load_recording(path, n_dof: int | None = None, joint_names=None, topic: str 
         matched to them by name. Without it a bag keeps its own order; other formats ignore it.
     topic : str, optional
         A bag's JointState topic (default: its only one); other formats ignore it.
+    layout : ColumnLayout, optional
+        For a controller's log with its own column names: which columns are ``t``, ``q``, ``tau``, ``i``
+        (``--columns``) and the sample rate of a time column that counts samples (``--rate``); the
+        file's other columns are not read.
 
     Returns
     -------
@@ -261,7 +283,8 @@ def load_recording(path, n_dof: int | None = None, joint_names=None, topic: str 
     (20000, 6)
     >>> rec = load_recording("run1.mcap", robot.n_dof, robot.joint_names)   # doctest: +SKIP
     """
-    return recording_from_table(read_table(path, joint_names, topic), n_dof)
+    rate = None if layout is None else layout.rate
+    return recording_from_table(read_table(path, joint_names, topic, layout), n_dof, sample_rate=rate)
 
 
 def save_recording(recording: Recording, path, overwrite: bool = False, comment: str | None = None) -> Path:

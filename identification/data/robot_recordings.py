@@ -63,7 +63,7 @@ def recording_paths(paths, robot) -> list:
     return out
 
 
-def load_robot_recording(path, robot, topic: str | None = None) -> Recording:
+def load_robot_recording(path, robot, topic: str | None = None, columns=None) -> Recording:
     """A joint-side recording of ``robot`` read from ``path`` (module docstring).
 
     Parameters
@@ -74,6 +74,9 @@ def load_robot_recording(path, robot, topic: str | None = None) -> Recording:
         Its ``recording_layout`` (sample rate, split files, motor-side signals) and ``transmission``.
     topic : str, optional
         A bag's JointState topic.
+    columns : layout.ColumnLayout, optional
+        A controller's log with its own column names (``--columns``, ``--rate``): which columns to read; its
+        rate, when given, replaces the robot file's ``sample_rate``.
 
     Returns
     -------
@@ -88,10 +91,11 @@ def load_robot_recording(path, robot, topic: str | None = None) -> Recording:
     """
     layout = robot.recording_layout
     rate = None if layout is None else layout.sample_rate
+    rate = columns.rate if columns is not None and columns.rate is not None else rate
     if is_split_recording(path, robot):
         recording = _read_split(Path(path), robot, rate)
     else:
-        table = read_table(path, robot.joint_names, topic)
+        table = read_table(path, robot.joint_names, topic, columns)
         recording = recording_from_table(table, robot.n_dof, sample_rate=rate)
     return to_joint_side(recording, robot)
 

@@ -218,12 +218,35 @@ def add_robot_argument(parser, help: str = ROBOT_HELP) -> None:
 
 
 def add_topic_argument(parser) -> None:
-    """``--topic``: the JointState topic of ROS 2 bag recordings (default: a bag's only one)."""
+    """How recordings are read: ``--topic`` (a ROS 2 bag's JointState topic), ``--columns`` and ``--rate`` (a
+    controller's log with its own column names; read by :func:`recording_layout`)."""
     parser.add_argument(
         "--topic",
         default=None,
         help="sensor_msgs/msg/JointState topic of ROS 2 bag recordings (default: the bag's only one)",
     )
+    parser.add_argument(
+        "--columns",
+        default=None,
+        metavar="SIGNAL=PREFIX,...",
+        help="for a log with its own column names: which numbered columns are which signal, e.g. "
+        "t=Time,q=Position,tau=TorqueSm (joint-torque sensors) or t=Time,q=Position,i=Cur (motor currents, with "
+        "the robot file's torque constants); signals t, q, qd, qdd, tau, i; the file's other columns are not read",
+    )
+    parser.add_argument(
+        "--rate",
+        type=float,
+        default=None,
+        metavar="HZ",
+        help="sample rate [Hz] of recordings whose time column counts samples (0, 1, 2, ...) or that have none",
+    )
+
+
+def recording_layout(args):
+    """The ``ColumnLayout`` of ``--columns`` and ``--rate``, or None when neither is given."""
+    from identification.data.layout import ColumnLayout
+
+    return ColumnLayout.parse(getattr(args, "columns", None), getattr(args, "rate", None))
 
 
 def parse_locks(items) -> dict:

@@ -16,6 +16,7 @@ from psdm_casadi.cli.checks import (
     derive_model,
     load_robot_argument,
     output_folder,
+    recording_layout,
 )
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.errors import ParameterError
@@ -119,8 +120,9 @@ def _run_diagnose(args) -> int:
         report_model_warnings("diagnose", args.robot, calibrated)
     else:
         robot = load_robot_argument(args)
-    train = load_robot_recording(args.train, robot, args.topic)  # joint side, timed (robot file's [recording])
-    validation = load_robot_recording(args.validate, robot, args.topic)
+    layout = recording_layout(args)  # --columns, --rate
+    train = load_robot_recording(args.train, robot, args.topic, layout)  # joint side, timed (robot file's [recording])
+    validation = load_robot_recording(args.validate, robot, args.topic, layout)
     for warning in not_held_out([args.train], [args.validate], "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     options = DiagnosisOptions(

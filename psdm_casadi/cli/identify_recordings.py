@@ -15,7 +15,14 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import add_topic_argument, check_not_input, check_suffix, load_robot_argument, output_file
+from psdm_casadi.cli.checks import (
+    add_topic_argument,
+    check_not_input,
+    check_suffix,
+    load_robot_argument,
+    output_file,
+    recording_layout,
+)
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.errors import ParameterError, SolverError
 
@@ -61,10 +68,11 @@ def run(args) -> int:
     out = _check_outputs(args)
     robot = load_robot_argument(args)
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
+    layout = recording_layout(args)  # --columns, --rate
     paths, configurations = _configurations(args.data, robot)
     args.validate = recording_paths(args.validate, robot)
-    recordings = [load_robot_recording(path, robot, args.topic) for path in paths]  # joint side, timed
-    validation = [load_robot_recording(path, robot, args.topic) for path in args.validate]
+    recordings = [load_robot_recording(path, robot, args.topic, layout) for path in paths]  # joint side, timed
+    validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
     for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
         check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
     if args.friction == "lugre":

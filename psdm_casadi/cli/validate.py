@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import add_topic_argument, check_not_input, output_folder
+from psdm_casadi.cli.checks import add_topic_argument, check_not_input, output_folder, recording_layout
 from psdm_casadi.cli.output import EXIT_OK, print_json, report_model_warnings
 
 
@@ -58,8 +58,9 @@ def _run_validate(args) -> int:
     loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
+    layout = recording_layout(args)  # --columns, --rate
     args.recordings = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
-    recordings = [load_robot_recording(path, robot, args.topic) for path in args.recordings]
+    recordings = [load_robot_recording(path, robot, args.topic, layout) for path in args.recordings]
     for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
         check_validation_recording(robot, recording)
     rows = []

@@ -81,3 +81,19 @@ def test_derive_goes_on_with_a_warning_and_non_finite_or_negative_numbers_are_st
         load_robot(write(tmp_path, two_links("0.05", mass1="-1.0")))
     assert main(["derive", str(write(tmp_path, two_links(mass1="nan"), "nan.urdf"))]) == 2
     assert "mass [nan] is not a float" in capsys.readouterr().err
+
+
+def test_right_angles_written_with_few_digits_are_taken_as_exact(tmp_path):
+    """rpy="1.5708 0 0" (the Kinova file's spelling of pi/2) gives the exact right angle, so the derivation holds."""
+    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.urdf import load_urdf_model
+
+    rounded = two_links().replace('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 0.3" rpy="1.5708 0 3.1416"/>')
+    exact = two_links().replace('<origin xyz="0 0 0.3"/>', f'<origin xyz="0 0 0.3" rpy="{np.pi / 2!r} 0 {np.pi!r}"/>')
+    model = load_urdf_model(write(tmp_path, rounded))
+    reference = pin.buildModelFromUrdf(str(write(tmp_path, exact, "exact.urdf")))
+    np.testing.assert_allclose(model.jointPlacements[2].rotation, reference.jointPlacements[2].rotation, atol=1e-15)
+    assert np.count_nonzero(model.jointPlacements[2].rotation) == 3
+    derive_psdm(load_robot(tmp_path / "arm.urdf"))  # checks itself against Pinocchio's rnea (raises otherwise)
+    tilted = two_links().replace('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 0.3" rpy="1.56 0 0"/>')
+    assert load_urdf_model(write(tmp_path, tilted, "tilted.urdf")).jointPlacements[2].rotation[1, 1] != 0.0

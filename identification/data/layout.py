@@ -1,0 +1,194 @@
+"""Column layouts: which columns of a file are a recording's signals, and its time base, for logs as robots write them.
+
+A recording file names its columns ``t, q1..qn, qd1..qdn, tau1..taun, i1..in`` (``io``). A controller's log
+names them its own way and holds more: Kinova's Gen3 logs ``Time`` (a sample index, not seconds),
+``Position1..7``, ``Velocity1..7``, a model torque ``Torque1..7``, the joint-torque sensors
+``TorqueSm1..7``, ``Cur1..7`` and reference columns that hold NaN where the controller left them unset.
+Which torque column is the measurement cannot be guessed from its name, so the user states it:
+
+    --columns q=Position,tau=TorqueSm --rate 1000     (``ColumnLayout.parse``)
+
+maps each signal to the prefix of its numbered columns and the time column to ``t`` [s]; every other
+column is left unread, so its NaN or text never blocks the file. ``--rate`` [Hz] (or the robot file's
+``[recording].sample_rate``) gives the time base when the time column counts samples (0, 1, 2, ...) or
+there is none; a column of times is kept as it is. Without a layout, a file whose
+header has no ``q1`` but numbered groups of its own is refused with the groups it has and the
+``--columns`` that reads it (:func:`check_standard_header`); a time column of row indices is refused
+without ``--rate`` (:func:`seconds`).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError, RecordingError
+
+#: signal -> the standard column prefix (``io.COLUMN_PREFIXES``) and the time column's name.
+SIGNAL_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "i": "i"}
+TIME = "t"
+_STANDARD = re.compile(r"^(qdd|qd|q|tau|i)[1-9][0-9]*$")
+_NUMBERED = re.compile(r"^(.*?[^0-9])([1-9][0-9]*)$")
+#: Fewest rows for a time column of consecutive integers to count as a sample index rather than seconds.
+MIN_INDEX_ROWS = 20
+
+
+@dataclass(frozen=True)
+class ColumnLayout:
+    """Which columns of a file hold which signal, and the time base.
+
+    Parameters
+    ----------
+    prefixes : tuple of (str, str)
+        ``(signal, prefix)`` pairs, signal among ``q, qd, qdd, tau, i``: columns ``<prefix>1..<prefix>n``
+        hold that signal of joints 1..n. Must include ``q``; signals not named keep their standard names.
+    time : str or None
+        The time column (default ``t`` when the file has one).
+    rate : float or None
+        [Hz] Samples per second when the time column counts samples or there is none.
+    """
+
+    prefixes: tuple = ()
+    time: str | None = None
+    rate: float | None = None
+
+    def __post_init__(self):
+        prefixes = tuple((str(s), str(p)) for s, p in self.prefixes)
+        for signal, prefix in prefixes:
+            if signal not in SIGNAL_PREFIXES:
+                raise ParameterError(
+                    f"--columns names signal {signal!r}; signals are t, {', '.join(SIGNAL_PREFIXES)}. "
+                    "Write e.g. --columns q=Position,tau=TorqueSm."
+                )
+            if not prefix:
+                raise ParameterError(f"--columns {signal}= needs a column prefix; e.g. {signal}=Position.")
+        if len({s for s, _ in prefixes}) != len(prefixes):
+            raise ParameterError(f"--columns names a signal twice: {prefixes}. Name each signal once.")
+        if self.rate is not None and not (math.isfinite(self.rate) and self.rate > 0):
+            raise ParameterError(f"--rate must be a sample rate > 0 [Hz]; got {self.rate!r}. Pass e.g. --rate 1000.")
+        object.__setattr__(self, "prefixes", prefixes)
+
+    @classmethod
+    def parse(cls, text: str | None, rate: float | None = None) -> ColumnLayout | None:
+        """The layout of ``--columns SIGNAL=PREFIX[,SIGNAL=PREFIX...]`` (``t=NAME`` names the time column)."""
+        if text is None and rate is None:
+            return None
+        prefixes, time = [], None
+        for item in (text or "").replace(" ", ",").split(","):
+            if not item:
+                continue
+            signal, sep, prefix = item.partition("=")
+            if not sep:
+                raise ParameterError(
+                    f"--columns items must be SIGNAL=PREFIX; got {item!r}. Write e.g. "
+                    "--columns q=Position,tau=TorqueSm."
+                )
+            if signal.strip() == TIME:
+                time = prefix.strip()
+            else:
+                prefixes.append((signal.strip(), prefix.strip()))
+        return cls(prefixes=tuple(prefixes), time=time, rate=rate)
+
+    def columns(self, source: str, names: tuple) -> dict:
+        """``{file column: standard name}`` of the columns this layout reads from a file with header ``names``.
+
+        Raises
+        ------
+        RecordingError
+            When a stated prefix or time column is not in the file (naming the groups it has).
+        """
+        chosen = dict(self.prefixes)
+        chosen.setdefault("q", "q")
+        mapping = {}
+        for signal, prefix in chosen.items():
+            found = {int(m.group(2)): n for n in names if (m := _NUMBERED.match(n)) and m.group(1) == prefix}
+            if not found and prefix != SIGNAL_PREFIXES[signal]:
+                raise RecordingError(
+                    f"{source}: --columns {signal}={prefix} names no column of the file (no {prefix}1, {prefix}2, "
+                    f"...); its numbered columns are {numbered_groups(names) or 'none'}. Check the prefix."
+                )
+            mapping.update({name: f"{SIGNAL_PREFIXES[signal]}{k}" for k, name in found.items()})
+        for signal in SIGNAL_PREFIXES:  # signals the layout does not name keep their standard columns
+            if signal not in chosen:
+                mapping.update({n: n for n in names if re.fullmatch(rf"{signal}[1-9][0-9]*", n)})
+        time = self.time or (TIME if TIME in names else None)
+        if time is not None and time not in names:
+            raise RecordingError(f"{source}: --columns t={time} names no column of the file. Check the name.")
+        if time is None and self.rate is None:
+            raise RecordingError(
+                f"{source}: no time column t. Name it (--columns t=NAME) or state the sample rate (--rate HZ)."
+            )
+        return {**({time: TIME} if time else {}), **mapping}
+
+
+def _groups(names) -> dict:
+    """``{prefix: [joint numbers]}`` of the numbered columns among ``names``, in file order."""
+    groups: dict = {}
+    for name in names:
+        if m := _NUMBERED.match(name):
+            groups.setdefault(m.group(1), []).append(int(m.group(2)))
+    return groups
+
+
+def numbered_groups(names) -> str:
+    """The file's numbered column groups as ``Position1..7, Cur1..7`` (for messages)."""
+    return ", ".join(f"{p}{min(k)}..{max(k)}" if len(k) > 1 else f"{p}{k[0]}" for p, k in _groups(names).items())
+
+
+def _example(groups, time) -> str:
+    """A ``--columns`` value built from the file's own groups (its likeliest position and torque groups)."""
+
+    def pick(words, fallback):
+        return next((g for g in groups if g.lower().startswith(words)), fallback)
+
+    torque = [g for g in groups if g.lower().startswith(("tau", "torque", "effort"))]
+    items = [f"t={time}"] if time and time != TIME else []
+    tau = torque[0] if len(torque) == 1 else f"<one of {', '.join(torque)}>" if torque else "<torque group>"
+    items += [f"q={pick(('q', 'pos', 'angle'), '<position group>')}", f"tau={tau}"]
+    return ",".join(items)
+
+
+def check_standard_header(source: str, names) -> None:
+    """Refuse a header without ``q1`` whose columns come in numbered groups of other names, naming the fix.
+
+    A controller's log (``Position1..7``, ``TorqueSm1..7``, ...) is read with ``--columns``; which of its
+    torque-like groups is the measurement is the user's to say. Files with ``q1`` (or only upper-case
+    standard names, which ``io`` explains) are left to ``io``.
+    """
+    names = tuple(names)
+    groups = _groups(n for n in names if n != TIME)
+    if not groups or any(_STANDARD.match(n) for n in names) or all(g.lower() in SIGNAL_PREFIXES for g in groups):
+        return
+    time = next((n for n in names if n.lower() in ("t", "time", "timestamp", "stamp")), None)
+    raise RecordingError(
+        f"{source}: the columns are not t, q1..qn, tau1..taun or i1..in; the file has {numbered_groups(names)}"
+        + (f" and {time}" if time else "")
+        + f". Say which group is which signal, e.g. --columns {_example(groups, time)} (the torque group that is "
+        "measured, not a model's or a reference's; or i=<current group> for motor currents, with torque constants "
+        "in the robot file's [[drive]] tables); add --rate HZ when the time column counts samples. The other "
+        "columns are then not read."
+    )
+
+
+def seconds(source: str, t: np.ndarray, rate: float | None) -> np.ndarray:
+    """The time column in seconds (a new array): a sample index divided by ``rate`` [Hz], times as they are.
+
+    Raises
+    ------
+    RecordingError
+        When the column counts samples (at least ``MIN_INDEX_ROWS`` consecutive integers) and no rate is stated.
+    """
+    t = np.array(t, dtype=float)
+    index = t.size >= MIN_INDEX_ROWS and bool(np.all(t == np.round(t)) and np.all(np.diff(t) == 1.0))
+    if not index:
+        return t
+    if rate is None:
+        raise RecordingError(
+            f"{source}: the time column counts samples ({t[0]:g}, {t[1]:g}, {t[2]:g}, ..., {t[-1]:g}), not "
+            "seconds. State the sample rate: --rate HZ (e.g. --rate 1000 for a 1 kHz log), or sample_rate = HZ in "
+            "the robot file's [recording] table."
+        )
+    return t / rate

@@ -1,0 +1,81 @@
+"""Reading a controller's log as shipped: ``--columns`` names the signals' column groups, ``--rate`` the time base.
+
+The file written here has the Kinova Gen3 logs' layout (a sample-index ``Time``, ``Position``, a model
+``Torque``, sensor ``TorqueSm``, ``Cur``, and reference columns holding NaN and 1e297 in rows the
+controller left unset); the expected values are the columns themselves.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from identification.data.io import load_recording
+from identification.data.layout import ColumnLayout
+from psdm_casadi.errors import ParameterError, RecordingError
+
+N = 50
+
+
+def vendor_log(tmp_path, time=None, name="log.csv"):
+    rng = np.random.default_rng(0)
+    columns = {"Time": np.arange(N, dtype=float) if time is None else time}
+    for group in ("Position", "Velocity", "Torque", "TorqueSm", "Cur", "PositionCmptd"):
+        for k in (1, 2):
+            columns[f"{group}{k}"] = rng.normal(size=N)
+    columns["PositionCmptd2"][-5:] = [np.nan, 1e297, -1e297, 4e-320, np.nan]  # garbage rows of unset references
+    path = tmp_path / name
+    header = ",".join(columns)
+    np.savetxt(path, np.column_stack(list(columns.values())), delimiter=",", header=header, comments="", fmt="%.17g")
+    return path, columns
+
+
+def test_a_log_is_read_by_its_column_groups_and_rate(tmp_path):
+    path, columns = vendor_log(tmp_path)
+    sensor = load_recording(path, 2, layout=ColumnLayout.parse("t=Time,q=Position,tau=TorqueSm", 1000.0))
+    np.testing.assert_array_equal(sensor.t, np.arange(N) / 1000.0)
+    np.testing.assert_array_equal(sensor.q, np.column_stack([columns["Position1"], columns["Position2"]]))
+    np.testing.assert_array_equal(sensor.tau, np.column_stack([columns["TorqueSm1"], columns["TorqueSm2"]]))
+    assert sensor.current is None and sensor.qd is None
+    currents = load_recording(path, 2, layout=ColumnLayout.parse("q=Position,qd=Velocity,i=Cur", 500.0))
+    np.testing.assert_array_equal(currents.current[:, 1], columns["Cur2"])
+    np.testing.assert_array_equal(currents.qd[:, 0], columns["Velocity1"])
+    np.testing.assert_array_equal(currents.t, np.arange(N) / 500.0)  # no time column named: the rate alone
+    assert currents.tau is None
+
+
+def test_a_log_without_a_layout_or_rate_is_refused_with_the_fix(tmp_path):
+    path, _ = vendor_log(tmp_path)
+    with pytest.raises(
+        RecordingError, match=r"log\.csv: the columns are not t, q1\.\.qn.*Position1\.\.2.*TorqueSm1\.\.2"
+    ):
+        load_recording(path, 2)
+    with pytest.raises(
+        RecordingError,
+        match=r"--columns t=Time,q=Position,tau=<one of Torque, TorqueSm> \(the torque group that is measured",
+    ):
+        load_recording(path, 2)
+    with pytest.raises(RecordingError, match=r"time column counts samples \(0, 1, 2, \.\.\., 49\).*--rate HZ"):
+        load_recording(path, 2, layout=ColumnLayout.parse("t=Time,q=Position,tau=TorqueSm"))
+    with pytest.raises(RecordingError, match=r"--columns tau=Torq names no column.*TorqueSm1\.\.2"):
+        load_recording(path, 2, layout=ColumnLayout.parse("t=Time,q=Position,tau=Torq", 1000.0))
+    with pytest.raises(RecordingError, match=r"column PositionCmptd2 holds nan"):  # a column that is read is checked
+        load_recording(path, 2, layout=ColumnLayout.parse("t=Time,q=PositionCmptd,tau=TorqueSm", 1000.0))
+    seconds, _ = vendor_log(tmp_path, time=np.arange(N) * 0.001 + 0.0005, name="seconds.csv")
+    for rate in (None, 1000.0):  # a column of times is kept as it is, whatever the rate
+        layout = ColumnLayout.parse("t=Time,q=Position,tau=TorqueSm", rate)
+        np.testing.assert_allclose(load_recording(seconds, 2, layout=layout).t[:2], [5e-4, 1.5e-3])
+
+
+@pytest.mark.parametrize(
+    "text, rate, match",
+    [
+        ("q=Position,torque=TorqueSm", None, r"--columns names signal 'torque'"),
+        ("q=Position,tau", None, r"--columns items must be SIGNAL=PREFIX; got 'tau'"),
+        ("q=Position,q=Pos", None, r"names a signal twice"),
+        ("q=Position", -5.0, r"--rate must be a sample rate > 0"),
+    ],
+)
+def test_bad_layout_options_are_refused(text, rate, match):
+    with pytest.raises(ParameterError, match=match):
+        ColumnLayout.parse(text, rate)
