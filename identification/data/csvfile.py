@@ -190,8 +190,9 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
         An existing regular file.
     layout : ColumnLayout, optional
         Which columns to read, renamed to ``t, q1..``; the others are dropped unchecked (a controller's log
-        with NaN in its reference columns). Without it, a header of numbered groups without ``q1`` is
-        refused naming the ``--columns`` that reads it (``layout.check_standard_header``).
+        with NaN in its reference columns). Without it, every column is checked; a header of numbered
+        groups without ``q1`` whose values are refused is refused naming the ``--columns`` that reads it
+        (``layout.check_standard_header``).
 
     Returns
     -------
@@ -222,8 +223,6 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
             )
         delimiter = _guess_delimiter(header)
         names = _header_names(source, header, header_line, delimiter)
-    if layout is None:
-        check_standard_header(source, names)
     try:
         data = _load_rows(path, encoding, header_line, delimiter, filtered=False)
     except ValueError:
@@ -238,7 +237,11 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
     locate = _locator(path, encoding, header_line)
     if layout is None:
         data.setflags(write=False)  # handed over to the table without a copy
-        return ColumnTable(source=source, names=names, data=data, locate=locate)
+        try:
+            return ColumnTable(source=source, names=names, data=data, locate=locate)
+        except RecordingError as exc:  # NaN in a controller's reference column: say how to leave it unread
+            check_standard_header(source, names, because=str(exc))
+            raise
     mapping = layout.columns(source, names)
     data = np.ascontiguousarray(data[:, [names.index(name) for name in mapping]])
     data.setflags(write=False)

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.data.csvfile import read_csv_table
-from identification.data.layout import ColumnLayout, seconds
+from identification.data.layout import ColumnLayout, check_standard_header, seconds
 from identification.data.matfile import read_mat_table
 from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
@@ -157,6 +157,7 @@ def recording_from_table(table: ColumnTable, n_dof: int | None = None, sample_ra
         ``t`` column and no ``sample_rate``.
     """
     source = table.source
+    check_standard_header(source, table.names)  # a controller's own column groups: name the --columns to give
     if "t" not in table.names and sample_rate is None:
         raise RecordingError(
             f"{source}: column t is missing. Add a time column named 't' [s], or state the sample rate "

@@ -151,12 +151,13 @@ def _example(groups, time) -> str:
     return ",".join(items)
 
 
-def check_standard_header(source: str, names) -> None:
+def check_standard_header(source: str, names, because: str = "") -> None:
     """Refuse a header without ``q1`` whose columns come in numbered groups of other names, naming the fix.
 
     A controller's log (``Position1..7``, ``TorqueSm1..7``, ...) is read with ``--columns``; which of its
     torque-like groups is the measurement is the user's to say. Files with ``q1`` (or only upper-case
-    standard names, which ``io`` explains) are left to ``io``.
+    standard names, which ``io`` explains) are left to ``io``. ``because`` (a refused value of a column the
+    layout would leave unread) is quoted.
     """
     names = tuple(names)
     groups = _groups(n for n in names if n != TIME)
@@ -169,7 +170,7 @@ def check_standard_header(source: str, names) -> None:
         + f". Say which group is which signal, e.g. --columns {_example(groups, time)} (the torque group that is "
         "measured, not a model's or a reference's; or i=<current group> for motor currents, with torque constants "
         "in the robot file's [[drive]] tables); add --rate HZ when the time column counts samples. The other "
-        "columns are then not read."
+        "columns are then not read" + (f" (as it is: {because})." if because else ".")
     )
 
 
