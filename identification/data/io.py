@@ -74,7 +74,7 @@ def _group(table: ColumnTable) -> dict:
     return groups
 
 
-def _check_joints(source: str, groups: dict, n_dof: int | None) -> int:
+def _check_joints(source: str, groups: dict, n_dof: int | None, joint_names=None) -> int:
     """The joint count the q columns give, after checking every signal has exactly the columns 1..n."""
     if not groups["q"]:
         raise RecordingError(f"{source}: column q1 is missing. Add joint positions q1..qn [rad or m].")
@@ -83,10 +83,8 @@ def _check_joints(source: str, groups: dict, n_dof: int | None) -> int:
         if j not in groups["q"]:
             raise RecordingError(f"{source}: column q{j} is missing (q1..q{n} expected). Add it.")
     if n_dof is not None and n != n_dof:
-        raise RecordingError(
-            f"{source}: columns q1..q{n} give {n} joints but the robot has n_dof={n_dof}. "
-            f"Record q1..q{n_dof} (one column per joint) or load with the matching robot."
-        )
+        raise RecordingError(f"{source}: columns q1..q{n} give {n} joints but the robot has n_dof={n_dof}. "
+                             + _joint_count_fix(n, n_dof, joint_names))  # fmt: skip
     if not groups["tau"] and not groups["current"]:
         raise RecordingError(
             f"{source}: columns tau1..tau{n} and i1..i{n} are both missing. "
@@ -142,7 +140,21 @@ def sample_times(n_samples: int, sample_rate: float) -> np.ndarray:
     return t
 
 
-def recording_from_table(table: ColumnTable, n_dof: int | None = None, sample_rate: float | None = None) -> Recording:
+def _joint_count_fix(n: int, n_dof: int, joint_names=None) -> str:
+    """The fix of a recording of ``n`` joint columns for a robot of ``n_dof`` joints: lock the joints it leaves out."""
+    if n < n_dof:
+        extra = list(joint_names)[n:] if joint_names is not None and len(joint_names) == n_dof else []
+        named = f" ({', '.join(extra)})" if extra else ""
+        locks = " ".join(f"--lock {name}" for name in extra) if extra else "--lock JOINT"
+        return (f"If the robot's joints {n + 1}..{n_dof}{named} are not in the recording (a gripper's fingers), lock "
+                f"them: {locks} (at a position: --lock JOINT=VALUE; in Python load_robot(..., locked_joints=[...])). "
+                f"Otherwise record q1..q{n_dof}.")  # fmt: skip
+    return f"Load it with the robot it was recorded on, or remove the columns of joints {n_dof + 1}..{n}."
+
+
+def recording_from_table(
+    table: ColumnTable, n_dof: int | None = None, sample_rate: float | None = None, joint_names=None
+) -> Recording:
     """The Recording of a table's columns (``t``, ``q1..qn``, ...), refusing bad columns and time with a fix.
 
     A table without a ``t`` column is timed ``t = k / sample_rate`` when a ``sample_rate`` [Hz] is given
@@ -164,7 +176,7 @@ def recording_from_table(table: ColumnTable, n_dof: int | None = None, sample_ra
             "(sample_rate = <Hz> in the robot file's [recording] table)."
         )
     groups = _group(table)
-    n = _check_joints(source, groups, n_dof)
+    n = _check_joints(source, groups, n_dof, joint_names)
     if table.n_samples < MIN_SAMPLES:
         raise RecordingError(
             f"{source}: {table.n_samples} sample{'' if table.n_samples == 1 else 's'}; a recording needs at least "
@@ -285,7 +297,8 @@ def load_recording(
     >>> rec = load_recording("run1.mcap", robot.n_dof, robot.joint_names)   # doctest: +SKIP
     """
     rate = None if layout is None else layout.rate
-    return recording_from_table(read_table(path, joint_names, topic, layout), n_dof, sample_rate=rate)
+    table = read_table(path, joint_names, topic, layout)
+    return recording_from_table(table, n_dof, sample_rate=rate, joint_names=joint_names)
 
 
 def save_recording(recording: Recording, path, overwrite: bool = False, comment: str | None = None) -> Path:

@@ -96,7 +96,7 @@ def load_robot_recording(path, robot, topic: str | None = None, columns=None) ->
         recording = _read_split(Path(path), robot, rate)
     else:
         table = read_table(path, robot.joint_names, topic, columns)
-        recording = recording_from_table(table, robot.n_dof, sample_rate=rate)
+        recording = recording_from_table(table, robot.n_dof, sample_rate=rate, joint_names=robot.joint_names)
     return to_joint_side(recording, robot)
 
 

@@ -59,7 +59,8 @@ def cross_correlation(residual, signal, max_lag: int = 50) -> tuple[float, int]:
 
 
 def dominant_frequency(t, residual) -> tuple[float, float]:
-    """Frequency [Hz] of the largest spectral peak of the residual and the share of power within +-10 % of it."""
+    """Frequency [Hz] of the largest spectral peak of the residual and the share (0..1) of its power (without the
+    0 Hz bin) within +-10 % of the peak and one bin: a fraction of the same bins it is divided by."""
     x = np.asarray(residual, dtype=float) - np.mean(residual)
     dt = float(np.median(np.diff(t)))
     power = np.abs(np.fft.rfft(x * np.hanning(x.size))) ** 2
@@ -68,6 +69,7 @@ def dominant_frequency(t, residual) -> tuple[float, float]:
         return 0.0, 0.0
     k = int(np.argmax(power[1:])) + 1
     band = np.abs(freq - freq[k]) <= 0.1 * freq[k] + freq[1]
+    band[0] = False  # the 0 Hz bin is left out of the total; a peak at the first bins must not count it
     return float(freq[k]), float(power[band].sum() / power[1:].sum())
 
 

@@ -280,6 +280,14 @@ def _print_payloads(payloads) -> None:
         print(f"  {where}: mass {p.mass:.4g} +- {_sigma(p.mass_std)} kg, centre of mass [{com}] +- [{com_std}] m")
 
 
+def sigma_percent(value, std) -> np.ndarray:
+    """100 sigma / |value| [%] of each printed estimate (inf for an estimate of zero), so that the table's columns
+    agree: the file's ``relative_sigma_percent`` is relative to the least-squares estimate (``ols``) instead."""
+    value, std = np.asarray(value, dtype=float), np.asarray(std, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(value == 0, np.inf, 100.0 * np.abs(std) / np.abs(value))
+
+
 def _sigma(value) -> str:
     return "inf" if value is None else f"{value:.2g}"
 
@@ -305,8 +313,8 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
     state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
-    relative = fit.relative_sigma_percent
-    print("\nparameter        estimate      sigma   sigma %")
+    relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
+    print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
     for k, value in enumerate(fit.theta):
         print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {relative[k]:8.1f}")
     for k, name in enumerate(fit.drive_names):

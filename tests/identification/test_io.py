@@ -89,6 +89,34 @@ def test_joint_count_must_match_robot(tmp_path):
         load_recording(write(tmp_path, GOOD), n_dof=6)
 
 
+def test_a_robot_with_more_joints_names_the_lock_that_fixes_it(tmp_path, capsys):
+    from psdm_casadi.cli import main
+    from psdm_casadi.robot import load_robot
+    from tests.conftest import example_robot_urdf
+
+    urdf = example_robot_urdf("panda_description/urdf/panda.urdf")
+    panda = load_robot(urdf)  # 7 arm joints and 2 fingers
+    columns = [f"{p}{j}" for p in ("q", "tau") for j in range(1, 8)]
+    rows = np.random.default_rng(0).normal(size=(30, 14)) * 0.1
+    text = (
+        "t,"
+        + ",".join(columns)
+        + "\n"
+        + "".join(f"{0.01 * k}," + ",".join(map(str, r)) + "\n" for k, r in enumerate(rows))
+    )
+    path = write(tmp_path, text)
+    fix = "--lock panda_finger_joint1 --lock panda_finger_joint2"
+    with pytest.raises(RecordingError, match="give 7 joints but the robot has n_dof=9") as caught:
+        load_recording(path, panda.n_dof, panda.joint_names)
+    assert "joints 8..9 (panda_finger_joint1, panda_finger_joint2)" in str(caught.value) and fix in str(caught.value)
+    with pytest.raises(RecordingError, match="or remove the columns of joints 2..2"):
+        load_recording(write(tmp_path, GOOD, "two.csv"), 1, ("j1",))  # fewer robot joints: no lock can fix it
+    assert main(["validate", "no_model.json", str(path)]) == 2  # a missing model is named first
+    capsys.readouterr()
+    assert main(["diagnose", str(urdf), "--train", str(path), "--validate", str(path)]) == 2
+    assert fix in capsys.readouterr().err
+
+
 def test_currents_only(tmp_path):
     rec = load_recording(write(tmp_path, "t,q1,i1\n0,0,1\n1,0,2\n2,0,3\n"), n_dof=1)
     np.testing.assert_allclose(rec.current[:, 0], [1, 2, 3])

@@ -72,3 +72,22 @@ def test_a_recording_with_a_still_joint_is_refused_naming_it(recordings, tmp_pat
     assert main(["identify", "denso_vs6556g", "--data", str(tmp_path / "still.csv"), "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "still.csv" in err and "J3" in err and "psdm excite" in err and not out.exists()
+
+
+def test_sigma_percent_is_relative_to_the_printed_estimate(recordings, tmp_path, capsys):
+    from psdm_casadi.cli.identify_recordings import sigma_percent
+
+    np.testing.assert_allclose(sigma_percent([-2.0, 0.5, 0.0], [0.5, 0.01, 1.0]), [25.0, 2.0, np.inf])
+    out = tmp_path / "model.json"
+    assert main(["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    start = next(k for k, line in enumerate(lines) if line.startswith("parameter ")) + 1
+    rows = [line.split() for line in lines[start:] if line.startswith(("theta", "fc", "fv"))]
+    document = json.loads(out.read_text())
+    estimates = dict(zip(document["base"]["names"] + document["drive"]["names"],
+                         document["base"]["values"] + document["drive"]["values"]))  # fmt: skip
+    assert len(rows) > 30
+    for name, estimate, sigma, percent in (row[:4] for row in rows):
+        assert float(estimate) == pytest.approx(estimates[name], rel=1e-3, abs=1e-12)  # the file's (consistent) value
+        if abs(float(estimate)) > 1e-6 and percent != "inf":
+            assert float(percent) == pytest.approx(100 * float(sigma) / abs(float(estimate)), rel=0.02, abs=0.1)
