@@ -25,7 +25,7 @@ from codegen.operation_count import OperationCount, count_operations
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
-EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix")
+EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix", "motor_torque")
 THETA_INPUT = "theta"
 RUNTIME_SUFFIX = "_theta"
 JACOBIAN_SUFFIX = "_jac"
@@ -310,7 +310,7 @@ def export_c(
     ----------
     functions : DynamicsFunctions-like, casadi.Function or sequence of casadi.Function
         With a DynamicsFunctions (``build_functions(model)``) the exported ones are
-        ``inverse_dynamics, forward_dynamics, regressor, mass_matrix``.
+        ``inverse_dynamics, forward_dynamics, regressor, mass_matrix`` (and ``motor_torque`` when set).
     folder : str or Path
         Output folder; created if missing.
     theta : array, shape (n_base,), optional

@@ -49,6 +49,9 @@ class DynamicsFunctions:
     regressor_structure : psdm_casadi.recursive.RegressorStructure or None
         The regressor's pieces (joint chain, unit-parameter wrenches, preimage) when built by the
         recursive form; ``codegen.export_c`` writes a vectorised regressor from them.
+    motor_torque : casadi.Function or None
+        (q, qd, qdd[, theta]) -> tau_m = N_q^-T tau, the motor torques of a robot with a transmission
+        (``codegen.motor_torque.add_motor_torque``); None otherwise.
     """
 
     regressor: ca.Function
@@ -62,6 +65,7 @@ class DynamicsFunctions:
     n_base: int
     theta: np.ndarray | None = None
     regressor_structure: object | None = None
+    motor_torque: ca.Function | None = None
 
     def all(self) -> list:
         """All functions, regressor first."""

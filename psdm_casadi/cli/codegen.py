@@ -207,6 +207,7 @@ def _calibrated_functions(args, path: Path, out: Path):
     """(Functions, form, None (no theta to bake), header note, CalibratedModel) of a calibrated-model file, as
     ``_export_functions`` returns them, or None when refused."""
     from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
+    from codegen.motor_torque import add_motor_torque
     from psdm_casadi.cli.checks import read_calibrated_argument
     from psdm_casadi.cli.output import progress
 
@@ -233,6 +234,7 @@ def _calibrated_functions(args, path: Path, out: Path):
     progress("building the CasADi functions (rigid body + drive terms) ...")
     form = args.form or "recursive"
     functions = build_calibrated_functions(calibrated, model, robot, form=form, allow_inconsistent=True)
+    functions = add_motor_torque(functions, robot.transmission)  # tau_m = N_q^-T tau, with a [transmission]
     return functions, form, None, header_note(calibrated, source_name=path.name), calibrated
 
 
@@ -259,6 +261,10 @@ def _export_functions(args, out: Path):
         note = checked or None
     progress("building the CasADi functions ...")
     functions, form = build_export_functions(model, robot, args.form)
+    if robot is not None:
+        from codegen.motor_torque import add_motor_torque
+
+        functions = add_motor_torque(functions, robot.transmission)  # tau_m = N_q^-T tau, with a [transmission]
     return functions, form, theta, note, None
 
 
