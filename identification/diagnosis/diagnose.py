@@ -233,6 +233,7 @@ def diagnose(
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
+    robot, options = torque_constants_only(robot, options)
     train.check_robot(robot.n_dof, robot.name)
     validation.check_robot(robot.n_dof, robot.name)
     for recording in (train, validation):  # positions, speeds and time in the robot's units, before any fit
@@ -294,6 +295,21 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
     return recal, selection_i, final_i, identified, (note,), None
+
+
+def torque_constants_only(robot, options: DiagnosisOptions) -> tuple:
+    """(robot, options) for a robot file whose drives give torque constants but no friction prior (``fc`` 0).
+
+    The drives' LuGre friction is the nominal model's prior and its bristle dynamics; without a Coulomb level
+    there is none. The torque constants are kept (``options.torque_constants``, for recordings of currents) and
+    the drives left out, so the friction is identified from the recordings as for a robot without drives.
+    """
+    if robot.drives is None or all(d.fc > 0 for d in robot.drives):
+        return robot, options
+    logger.info("diagnose: the robot file's drives give torque constants but no friction prior (fc = 0): the "
+                "friction is identified from the recordings alone")  # fmt: skip
+    kt = options.torque_constants if options.torque_constants is not None else tuple(d.kt for d in robot.drives)
+    return replace(robot, drives=None), replace(options, torque_constants=kt)
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
