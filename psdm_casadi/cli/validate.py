@@ -6,7 +6,13 @@ from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import add_topic_argument, check_not_input, output_folder, recording_layout
+from psdm_casadi.cli.checks import (
+    add_topic_argument,
+    check_not_input,
+    output_file,
+    output_folder,
+    recording_layout,
+)
 from psdm_casadi.cli.output import EXIT_OK, print_json, report_model_warnings
 
 
@@ -38,7 +44,19 @@ def register(subparsers) -> None:
         help="folder for one plot per recording (RECORDING.png): new or empty, or with --overwrite one an earlier "
         "'psdm validate' wrote (only the plots listed in its .psdm-manifest.json are replaced)",
     )
-    p.add_argument("--overwrite", action="store_true", help="replace the plots an earlier run wrote in --plots")
+    p.add_argument(
+        "--predictions",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="write the prepared samples (recording, t, q, qd, qdd, the measured tau) and the model's torques "
+        "(tau_model) of every recording to this CSV file",
+    )
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace the plots an earlier run wrote in --plots, and an existing --predictions file",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_validate)
 
@@ -55,6 +73,7 @@ def _run_validate(args) -> int:
         plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
         inputs = [("MODEL", args.model), *(("RECORDINGS", path) for path in args.recordings)]
         check_not_input(args.plots, "--plots", inputs)
+    predictions = _predictions_output(args)
     loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
@@ -70,6 +89,9 @@ def _run_validate(args) -> int:
         )
         rows.append({"recording": str(path), "rmse": np.atleast_1d(error).tolist(), "r2": np.atleast_1d(r2).tolist(),
                      "prepared": prepared, "predicted": predicted})  # fmt: skip
+    if predictions is not None:
+        with predictions.staging() as stage:
+            stage.write_text(predictions_csv(rows, robot.n_dof))
     if plots is not None:
         with plots.staging() as stage:
             for row in rows:
@@ -80,13 +102,48 @@ def _run_validate(args) -> int:
                     "recordings": [{k: row[k] for k in ("recording", "rmse", "r2")} for row in rows]})  # fmt: skip
     else:
         for row in rows:
-            print(f"{row['recording']}:")
-            print("  joint  " + " ".join(f"{name[:10]:>10}" for name in robot.joint_names))
-            print("  RMSE   " + " ".join(f"{v:10.4g}" for v in row["rmse"]))
-            print("  R^2    " + " ".join(f"{v:10.4f}" for v in row["r2"]))
+            print(validation_table(row["recording"], robot.joint_names, row["rmse"], row["r2"]))
+        if predictions is not None:
+            print(f"prepared samples and the model's torques written to {predictions.target}")
         if not calibrated.consistent:
             print("warning: this model is NOT physically consistent (written with --allow-inconsistent)")
     return EXIT_OK
+
+
+def validation_table(recording: str, joint_names, rmse, r2) -> str:
+    """One recording's per-joint RMSE and R^2, a joint a row, its name whole (URDF names are long)."""
+    width = max(5, *(len(name) for name in joint_names))
+    lines = [f"{recording}:", f"  {'joint':<{width}}  {'RMSE [N m]':>10}  {'R^2':>8}"]
+    lines += [f"  {name:<{width}}  {e:10.4g}  {r:8.4f}" for name, e, r in zip(joint_names, rmse, r2)]
+    return "\n".join(lines)
+
+
+def _predictions_output(args):
+    """The checked ``--predictions`` file (None when not asked), refused before any work."""
+    from psdm_casadi.cli.checks import check_suffix
+
+    if args.predictions is None:
+        return None
+    check_suffix(args.predictions, "--predictions", (".csv",), "a CSV file")
+    inputs = [("MODEL", args.model), *(("RECORDINGS", path) for path in args.recordings)]
+    check_not_input(args.predictions, "--predictions", inputs)
+    return output_file(args.predictions, "--predictions", args.overwrite)
+
+
+def predictions_csv(rows, n_dof: int) -> str:
+    """The CSV text of ``--predictions``: per prepared sample its recording (1-based, named in the header
+    comments), t, q, qd, qdd, the measured tau and the model's tau_model, every number to full precision."""
+    header = ["recording", "t"] + [
+        f"{s}{j}" for s in ("q", "qd", "qdd", "tau", "tau_model") for j in range(1, n_dof + 1)
+    ]
+    lines = [f"# recording {k}: {row['recording']}" for k, row in enumerate(rows, start=1)]
+    lines.append(",".join(header))
+    for k, row in enumerate(rows, start=1):
+        prepared = row["prepared"]
+        block = np.column_stack([np.full(prepared.t.shape, k), prepared.t, prepared.q, prepared.qd, prepared.qdd,
+                                 prepared.tau, row["predicted"]])  # fmt: skip
+        lines += [f"{k}," + ",".join(repr(float(x)) for x in sample[1:]) for sample in block]
+    return "\n".join(lines) + "\n"
 
 
 def _torque_constants(robot, recording):

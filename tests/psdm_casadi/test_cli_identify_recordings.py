@@ -91,3 +91,47 @@ def test_sigma_percent_is_relative_to_the_printed_estimate(recordings, tmp_path,
         assert float(estimate) == pytest.approx(estimates[name], rel=1e-3, abs=1e-12)  # the file's (consistent) value
         if abs(float(estimate)) > 1e-6 and percent != "inf":
             assert float(percent) == pytest.approx(100 * float(sigma) / abs(float(estimate)), rel=0.02, abs=0.1)
+
+
+def test_validate_writes_the_prepared_samples_and_the_model_torques(recordings, tmp_path, capsys):
+    from identification.calibration.calibrated_model import read_calibrated_model
+    from identification.data.io import load_recording
+    from identification.metrics import rmse
+
+    out, predictions = tmp_path / "model.json", tmp_path / "predictions.csv"
+    assert main(["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out)]) == 0
+    capsys.readouterr()
+    valid = recordings / "valid.csv"
+    assert main(["validate", str(out), str(valid), "--predictions", str(predictions), "--json"]) == 0
+    reported = json.loads(capsys.readouterr().out)["recordings"][0]
+    lines = [line for line in predictions.read_text().splitlines() if not line.startswith("#")]
+    table = np.genfromtxt(lines, delimiter=",", names=True)
+    assert predictions.read_text().startswith(f"# recording 1: {valid}\nrecording,t,q1,")
+    n = 6
+    q, qd, qdd, tau, model_tau = (np.column_stack([table[f"{s}{j}"] for j in range(1, n + 1)])
+                                  for s in ("q", "qd", "qdd", "tau", "tau_model"))  # fmt: skip
+    loaded = read_calibrated_model(out)
+    np.testing.assert_allclose(model_tau, loaded.calibrated.predict(loaded.model, q, qd, qdd), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(rmse(tau, model_tau), reported["rmse"], rtol=1e-12)  # the samples validate judged
+    raw = load_recording(valid, n)
+    assert np.all(np.diff(table["t"]) > 0) and raw.t[0] <= table["t"][0] and table["t"][-1] <= raw.t[-1]
+    np.testing.assert_allclose(
+        q, np.column_stack([np.interp(table["t"], raw.t, raw.q[:, j]) for j in range(n)]), atol=1e-3
+    )  # fmt: skip  (the positions filtered, not moved)
+    before = predictions.read_bytes()
+    assert main(["validate", str(out), str(valid), "--predictions", str(predictions)]) == 2
+    assert "--overwrite" in capsys.readouterr().err and predictions.read_bytes() == before
+    assert main(["validate", str(out), str(valid), "--predictions", str(predictions), "--overwrite"]) == 0
+    assert "written to" in capsys.readouterr().out and not list(tmp_path.glob(".predictions*"))
+
+
+def test_validate_prints_urdf_joint_names_whole():
+    from psdm_casadi.cli.validate import validation_table
+    from psdm_casadi.robot import load_robot
+    from tests.conftest import example_robot_urdf
+
+    names = load_robot(example_robot_urdf("panda_description/urdf/panda.urdf")).joint_names
+    text = validation_table("run.csv", names, np.linspace(0.1, 0.9, len(names)), np.full(len(names), 0.99))
+    rows = text.splitlines()[2:]
+    assert [row.split()[0] for row in rows] == list(names) and "panda_finger_joint2" in text
+    assert [float(row.split()[1]) for row in rows] == pytest.approx(np.linspace(0.1, 0.9, len(names)), rel=1e-3)
