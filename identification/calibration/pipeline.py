@@ -198,7 +198,7 @@ class IdentificationPipeline:
 
     def _calibration_data(self, data) -> CalibrationData:
         if isinstance(data, (str, Path)):
-            data = load_calibration_data(data, self.robot.n_dof)
+            data = load_calibration_data(data, self.robot.n_dof, robot=self.robot)
         if not isinstance(data, CalibrationData):
             raise ParameterError(
                 f"IdentificationPipeline.fit data must be a directory or CalibrationData; got {type(data).__name__}."

@@ -25,6 +25,7 @@ from pathlib import Path
 
 from identification.data.io import load_recording, save_recording
 from identification.data.payload import Payload, payload_json, read_payload
+from identification.data.robot_recordings import load_robot_recording
 from psdm_casadi.errors import ParameterError, RecordingError
 from psdm_casadi.fileio import atomic_write
 
@@ -127,7 +128,7 @@ def _one_per_joint(paths: list, n_dof: int | None) -> list:
     return list(seen.items())
 
 
-def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationData:
+def load_calibration_data(directory, n_dof: int | None = None, robot=None) -> CalibrationData:
     """Read a data directory laid out as in the module docstring.
 
     Parameters
@@ -135,6 +136,9 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
     directory : str or Path
     n_dof : int, optional
         Joints of the robot, checked against every file.
+    robot : RobotDescription, optional
+        Read each file as the robot file's ``[recording]`` says (``robot_recordings.load_robot_recording``:
+        motor-side signals mapped to the joints, files without time timed by its sample rate).
 
     Returns
     -------
@@ -163,6 +167,10 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
             'Write {"mass": 2.0, "com": [0.05, 0.0, 0.05]} there.'
         )
     payload = read_payload(payload_path)
+
+    def read(path):
+        return load_recording(path, n_dof) if robot is None else load_robot_recording(path, robot)
+
     tool = read_payload(directory / "tool.json") if (directory / "tool.json").exists() else None
     motor = []
     for joint, path in _one_per_joint(_find(directory, r"motor_j([0-9]+)_nominal"), n_dof):
@@ -172,16 +180,13 @@ def load_calibration_data(directory, n_dof: int | None = None) -> CalibrationDat
             raise RecordingError(
                 f"{path.name} has no partner motor_j{k}_payload.csv|npz; record the sweep with the mass."
             )
-        motor.append((k - 1, load_recording(path, n_dof), load_recording(partner[0], n_dof)))
-    friction = [
-        (joint, load_recording(p, n_dof)) for joint, p in _one_per_joint(_find(directory, r"friction_j([0-9]+)"), n_dof)
-    ]
+        motor.append((k - 1, read(path), read(partner[0])))
+    friction = [(joint, read(p)) for joint, p in _one_per_joint(_find(directory, r"friction_j([0-9]+)"), n_dof)]
     friction_validation = [
-        (joint, load_recording(p, n_dof))
-        for joint, p in _one_per_joint(_find(directory, r"friction_j([0-9]+)_validation"), n_dof)
+        (joint, read(p)) for joint, p in _one_per_joint(_find(directory, r"friction_j([0-9]+)_validation"), n_dof)
     ]
-    gravity = [load_recording(p, n_dof) for p in _find(directory, r"gravity.*")]
-    excitation = [load_recording(p, n_dof) for p in _find(directory, r"(excitation|sine).*")]
+    gravity = [read(p) for p in _find(directory, r"gravity.*")]
+    excitation = [read(p) for p in _find(directory, r"(excitation|sine).*")]
     for name, items in (
         ("motor_j<k>_nominal", motor),
         ("gravity", gravity),

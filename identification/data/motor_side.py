@@ -96,13 +96,15 @@ def _joint_currents(recording: Recording, transmission) -> dict:
 def to_motor_side(recording: Recording, robot) -> Recording:
     """The inverse of :func:`to_joint_side`: the recording a controller would log on the motor side.
 
-    Joint torques become motor torques ``N_q^-T tau``; currents become motor currents (the inverse of
-    the joint-signed currents; with ``motor_kt``, currents are not invertible from torques and are refused).
+    Joint torques become motor torques ``N_q^-T tau``. Currents become motor currents: the joint-signed
+    currents of an uncoupled transmission without ``motor_kt`` are signed back; with ``motor_kt`` they are
+    the currents of the motor torques, ``N_q^-T tau / kt_m`` (the recording needs ``tau``); a coupled
+    transmission without ``motor_kt`` cannot log currents, so they are dropped where ``tau`` is recorded.
 
     Raises
     ------
     RecordingError
-        As :func:`to_joint_side`, and for currents when the transmission states ``motor_kt``.
+        As :func:`to_joint_side`, and for currents without torques that cannot be mapped.
     """
     signals = _motor_signals(recording, robot)
     if not signals:
@@ -114,13 +116,28 @@ def to_motor_side(recording: Recording, robot) -> Recording:
     if "tau" in signals:
         changes["tau"] = transmission.motor_torques(recording.tau)
     if "current" in signals:
-        if transmission.motor_kt is not None or transmission.is_coupled:
-            raise RecordingError(
-                f"{recording.name or 'recording'}: joint-side currents map back to motor currents only for an "
-                "uncoupled transmission without motor_kt. Map the torques instead."
-            )
-        changes["current"] = recording.current * np.sign(transmission.gear_ratios)
+        changes["current"] = _motor_currents(recording, transmission, robot.drives)
     return recording.with_signals(**changes)
+
+
+def _motor_currents(recording: Recording, transmission, drives):
+    """The motor currents :func:`to_joint_side` maps back to ``recording``'s (module docstring); None: dropped.
+
+    The joint torque is the recorded ``tau``, else the joint-side currents times the drives' ``kt``."""
+    if transmission.motor_kt is None and not transmission.is_coupled:
+        return recording.current * np.sign(transmission.gear_ratios)
+    tau = recording.tau
+    if tau is None and drives is not None:
+        tau = recording.current * np.array([drive.kt for drive in drives])
+    if tau is None:
+        raise RecordingError(
+            f"{recording.name or 'recording'}: joint-side currents map back to motor currents only for an uncoupled "
+            "transmission without motor_kt, or through the joint torques. Record tau, or state [[drive]] kt."
+        )
+    if transmission.motor_kt is None:
+        logger.info("%s: the currents are dropped (a coupled transmission without motor_kt)", recording.name)
+        return None
+    return transmission.motor_torques(tau) / transmission.motor_kt
 
 
 def _transmission(recording: Recording, robot):

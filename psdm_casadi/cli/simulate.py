@@ -233,6 +233,7 @@ def _run_simulate(args) -> int:
 
 def _simulate_runs(args, robot, runs, rng, stage: Path) -> tuple:
     """Simulate every run into ``stage``: (summaries, simulated seconds, wall seconds)."""
+    from identification.data.motor_side import to_motor_side
     from identification.virtual.simulation import simulate_recording
     from identification.virtual.truth import write_recording
 
@@ -242,7 +243,8 @@ def _simulate_runs(args, robot, runs, rng, stage: Path) -> tuple:
         start = time.perf_counter()
         recording, truth = simulate_recording(robot, ref, options, rng)
         elapsed = time.perf_counter() - start
-        paths = write_recording(recording, truth, stage, name=name, fmt=args.format)
+        # written as the robot's controller logs it (the robot file's [recording].side); the truth stays joint side
+        paths = write_recording(to_motor_side(recording, robot), truth, stage, name=name, fmt=args.format)
         simulated += recording.duration
         wall += elapsed
         written.append(
@@ -266,6 +268,7 @@ def _run_model(args) -> int:
     """``psdm simulate MODEL.json``: the calibrated model's torques along the reference (module docstring)."""
     from identification.calibration.model_simulation import simulate_calibrated
     from identification.data.io import save_recording
+    from identification.data.motor_side import to_motor_side
     from psdm_casadi.cli.checks import read_calibrated_argument
 
     if not (np.isfinite(args.tau_noise) and args.tau_noise >= 0):
@@ -301,7 +304,7 @@ def _run_model(args) -> int:
         comment = (
             f"psdm simulate {Path(args.robot).name}: the calibrated model's torques, noise std {args.tau_noise:g} N m"
         )
-        save_recording(recording, stage / f"{name}.{args.format}", comment=comment)
+        save_recording(to_motor_side(recording, robot), stage / f"{name}.{args.format}", comment=comment)
     elapsed = time.perf_counter() - start
     target = folder.target / f"{name}.{args.format}"
     progress(f"simulate: {name}: {recording.duration:.1f} s of the calibrated model -> {target}", quiet=args.json)

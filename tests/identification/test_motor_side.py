@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import read_table
 from identification.data.motor_side import to_joint_side, to_motor_side
 from identification.data.recording import Recording
 from identification.data.robot_recordings import load_robot_recording, recording_paths
@@ -88,11 +89,12 @@ def test_velocities_accelerations_and_currents_cross_the_transmission(rng):
 
 @dataclasses.dataclass
 class _Robot:
-    """The two fields ``to_joint_side`` reads (a stand-in for a RobotDescription of three joints)."""
+    """The fields ``to_joint_side`` reads (a stand-in for a RobotDescription of three joints)."""
 
     transmission: Transmission
     recording_layout: RecordingLayout
     name: str = "three joints"
+    drives: tuple | None = None
 
 
 @pytest.mark.real_data
@@ -117,3 +119,40 @@ def test_the_tx40_as_shipped_equals_the_readme_conversion():
     np.testing.assert_allclose(recording.tau, tau, rtol=1e-14, atol=1e-12)
     np.testing.assert_allclose(recording.t, np.arange(45_000) * 0.0002, rtol=1e-12, atol=1e-15)
     assert recording.current is None and recording.n_samples == 45_000
+
+
+def test_simulate_logs_as_the_controller_and_every_reader_maps_back(tmp_path):
+    from psdm_casadi.cli import main
+    from tests.conftest import DENSO_FILE
+
+    robot_file = tmp_path / "denso_motors.toml"
+    robot_file.write_text(DENSO_FILE.read_text() + """
+[transmission]
+gear_ratios = [100, -80, 60, 50, -40, 30]
+coupling = [{ motor = 6, joint = 5, ratio = 30 }]
+joint_offsets = [0.1, 0, -0.2, 0, 0, 0.3]
+motor_kt = [0.3, 0.3, 0.2, 0.1, 0.1, 0.05]
+
+[recording]
+side = "motor"
+""")  # fmt: skip
+    assert (
+        main(["simulate", str(robot_file), "--experiment", "sine", "--duration", "2", "--out", str(tmp_path / "o")])
+        == 0
+    )
+    robot = load_robot(robot_file)
+    table = read_table(tmp_path / "o" / "sine.csv")
+    truth = np.load(tmp_path / "o" / "sine.truth.npz")
+    theta_m = np.column_stack([table.column(f"q{j + 1}") for j in range(6)])
+    # the file holds the motors' angles: theta_m = N_q (q - q_0) (up to the simulated encoders' resolution)
+    np.testing.assert_allclose(theta_m, robot.transmission.motor_positions(truth["q"]), atol=1e-3)
+    assert np.abs(theta_m - truth["q"]).max() > 1.0
+    read = load_robot_recording(tmp_path / "o" / "sine.csv", robot)
+    np.testing.assert_allclose(read.q, truth["q"], atol=2e-5)
+    assert "i1" in table.names and read.current is None  # the motors' currents (motor_kt) come back as joint torques
+    currents = np.column_stack([table.column(f"i{j + 1}") for j in range(6)])
+    np.testing.assert_allclose(
+        read.tau, (currents * robot.transmission.motor_kt) @ robot.transmission.coupling, rtol=1e-12
+    )
+    error = np.sqrt(((read.tau - truth["tau_motor"]) ** 2).mean(axis=0))  # the simulated drive torque, up to the
+    assert np.all(error < 0.05 * np.sqrt((truth["tau_motor"] ** 2).mean(axis=0)))  # current sensors' noise
