@@ -94,7 +94,26 @@ def robot_file_text(robot: RobotDescription) -> str:
             lines += [f"inertia = {_numbers(six)}", f"rotor_inertia = {_number(rotor)}"]
     for drive in robot.drives or ():
         lines += ["", "[[drive]]"] + [f"{key} = {_number(getattr(drive, key))}" for key in _DRIVE_FIELDS]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _motor_side_lines(robot)) + "\n"
+
+
+def _motor_side_lines(robot: RobotDescription) -> list:
+    """The ``[transmission]`` and ``[recording]`` tables of a robot that has them (``transmission_file``)."""
+    lines = []
+    transmission, layout = robot.transmission, robot.recording_layout
+    if transmission is not None:
+        lines += ["", "[transmission]", "matrix = [" + ", ".join(_numbers(row) for row in transmission.coupling) + "]"]
+        lines.append(f"joint_offsets = {_numbers(transmission.joint_offsets)}")
+        if transmission.motor_kt is not None:
+            lines.append(f"motor_kt = {_numbers(transmission.motor_kt)}")
+    if layout is not None:
+        sides = ", ".join(f"{signal} = {_string(side)}" for signal, side in layout.sides.items())
+        lines += ["", "[recording]", f"side = {{ {sides} }}"]
+        if layout.sample_rate is not None:
+            lines.append(f"sample_rate = {_number(layout.sample_rate)}")
+        if layout.files:
+            lines.append("files = { " + ", ".join(f"{s} = {_string(name)}" for s, name in layout.files) + " }")
+    return lines
 
 
 def write_robot_file(robot: RobotDescription, path, overwrite: bool = False) -> Path:

@@ -114,3 +114,20 @@ def test_the_writer_refuses_rotor_inertia_without_link_inertias(tmp_path):
     robot = dataclasses.replace(load_robot("scara"), links=None, rotor_inertia=np.full(4, 0.1))
     with pytest.raises(RobotFileError, match="rotor inertia but RobotDescription.links is None"):
         write_robot_file(robot, tmp_path / "robot.toml")
+
+
+def test_a_transmission_and_a_recording_layout_are_written_and_read_back(tmp_path, rng):
+    from psdm_casadi.recording_layout import RecordingLayout
+    from psdm_casadi.transmission import Transmission
+
+    coupling = np.diag(rng.uniform(10, 100, 6) * rng.choice([-1, 1], 6))
+    coupling[5, 4] = rng.uniform(-50, 50)
+    transmission = Transmission(coupling=coupling, joint_offsets=rng.normal(size=6), motor_kt=rng.uniform(0.1, 1, 6))
+    layout = RecordingLayout(sides={"q": "motor", "tau": "joint"}, sample_rate=2500.0,
+                             files=(("q", "p.csv"), ("tau", "t.csv")))  # fmt: skip
+    robot = dataclasses.replace(load_robot("denso_vs6556g"), transmission=transmission, recording_layout=layout)
+    back = load_robot(write_robot_file(robot, tmp_path / "robot.toml"))
+    _assert_same_robot(robot, back)
+    for key in ("coupling", "joint_offsets", "motor_kt"):
+        assert np.array_equal(getattr(back.transmission, key), getattr(transmission, key)), key
+    assert back.recording_layout == layout
