@@ -1,11 +1,12 @@
 """Missing-physics diagnosis on real recordings: Staubli TX40 (FIGAROH) and Franka Panda (Gaz et al. 2019).
 
-Reads the third-party data from ../shared/datasets (never copied), converts it to joint-side
-recordings, splits each into a training part (first 70 %) and a validation part (last 30 %), runs
-``diagnose`` with the robot's URDF as the prior, prints the findings and writes report.md, report.json,
-plots and the augmented model per robot into OUT_DIR/<robot>/. Robots whose data are absent are skipped.
+Reads the third-party data from ../shared/datasets (``--data-root PATH``: PATH/datasets; never copied),
+converts it to joint-side recordings, splits each into a training part (first 70 %) and a validation part
+(last 30 %), runs ``diagnose`` with the robot's URDF as the prior, prints the findings and writes report.md,
+report.json, plots and the augmented model per robot into OUT_DIR/<robot>/. Robots whose data are absent are
+skipped.
 
-    python benchmarks/real_data_diagnosis.py OUT_DIR [--json] [--overwrite]
+    python benchmarks/real_data_diagnosis.py OUT_DIR [--json] [--overwrite] [--data-root PATH]
 """
 
 from __future__ import annotations
@@ -17,22 +18,22 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_support import ROOT, load_panda, show_progress
+from bench_support import DEFAULT_DATA_ROOT, add_data_root_argument, at_data_root, load_panda, show_progress
 
 from identification.data.recording import Recording
 from identification.diagnosis import DiagnosisOptions, diagnose
 from psdm_casadi.robot import load_robot
 
-DATASETS = ROOT.parent / "shared" / "datasets"
+DATASETS = DEFAULT_DATA_ROOT / "datasets"
 TX40 = DATASETS / "staubli_tx40_figaroh"
 PANDA = DATASETS / "panda_gaz2019"
 TRAIN_FRACTION = 0.7
 
 
-def load_tx40():
+def load_tx40(folder: Path = TX40):
     """TX40 joint-side recording (README: q = N_q^-1 theta_m, q2 -= pi/2, q3 += pi/2, tau = N_tau tau_m)."""
-    theta_m = np.loadtxt(TX40 / "pos_read_data.csv", delimiter=",", skiprows=1)
-    tau_m = np.loadtxt(TX40 / "curr_data.csv", delimiter=",", skiprows=1)
+    theta_m = np.loadtxt(folder / "pos_read_data.csv", delimiter=",", skiprows=1)
+    tau_m = np.loadtxt(folder / "curr_data.csv", delimiter=",", skiprows=1)
     ratios = np.array([32.0, 32.0, 45.0, -48.0, 45.0, 32.0])
     n_q, n_tau = np.diag(ratios), np.diag(ratios)
     n_q[5, 4] = 32.0
@@ -42,13 +43,13 @@ def load_tx40():
     q[:, 2] += np.pi / 2
     tau = tau_m @ n_tau.T
     t = np.arange(q.shape[0]) * 2e-4
-    return load_robot(TX40 / "tx40_mdh_modified.urdf"), Recording(t=t, q=q, tau=tau, name="staubli_tx40_figaroh")
+    return load_robot(folder / "tx40_mdh_modified.urdf"), Recording(t=t, q=q, tau=tau, name="staubli_tx40_figaroh")
 
 
-def load_panda_real():
-    t = np.loadtxt(PANDA / "exciting_traj_time.txt")
-    q = np.loadtxt(PANDA / "exciting_traj_positions.txt").reshape(-1, 7)
-    tau = np.loadtxt(PANDA / "exciting_traj_torques.txt").reshape(-1, 7)
+def load_panda_real(folder: Path = PANDA):
+    t = np.loadtxt(folder / "exciting_traj_time.txt")
+    q = np.loadtxt(folder / "exciting_traj_positions.txt").reshape(-1, 7)
+    tau = np.loadtxt(folder / "exciting_traj_torques.txt").reshape(-1, 7)
     keep = np.concatenate([[True], np.diff(t) > 0])
     return load_panda(), Recording(t=t[keep], q=q[keep], tau=tau[keep], name="panda_gaz2019")
 
@@ -64,16 +65,18 @@ def main(argv=None):
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--overwrite", action="store_true")
     parser.add_argument("--cutoff", type=float, default=10.0, help="low-pass cut-off [Hz] (default 10)")
+    add_data_root_argument(parser)
     args = parser.parse_args(argv)
     show_progress()
     results = {}
     for name, folder, loader in (("staubli_tx40", TX40, load_tx40), ("panda_gaz2019", PANDA, load_panda_real)):
+        folder = at_data_root(folder, args.data_root)
         if not folder.exists():
             print(f"{name}: data absent in {folder}; skipped", file=sys.stderr)
             results[name] = {"skipped": True}
             continue
         start = time.perf_counter()
-        robot, rec = loader()
+        robot, rec = loader(folder)
         train, validation = split(rec)
         report = diagnose(robot, train, validation, DiagnosisOptions(cutoff_hz=args.cutoff, max_effects=6))
         paths = report.save(Path(args.out) / name, overwrite=args.overwrite)

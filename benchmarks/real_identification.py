@@ -1,8 +1,9 @@
 """Identification from ordinary recordings on real data: our consistent fit against OLS, the URDF and Gaz et al.
 
-For each real recording in ../shared/datasets (Staubli TX40 from FIGAROH, Franka Panda from Gaz et
-al. 2019; read at run time, never copied; a robot whose data are absent is skipped), the first 70 %
-trains and the last 30 % validates (loaders and split of ``real_data_diagnosis``):
+For each real recording in ../shared/datasets (``--data-root PATH``: PATH/datasets and PATH/reference; Staubli
+TX40 from FIGAROH, Franka Panda from Gaz et al. 2019; read at run time, never copied; a robot whose data are
+absent is skipped), the first 70 % trains and the last 30 % validates (loaders and split of
+``real_data_diagnosis``):
 
 - derive the PSDM model and ``identify_trajectories`` with Coulomb, viscous and offset friction, and
   drive inertias where the torque signal holds them (the TX40's motor-side torques; not the Panda's
@@ -49,7 +50,15 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_support import ROOT, print_table, show_progress
+from bench_support import (
+    DEFAULT_DATA_ROOT,
+    ROOT,
+    add_data_root_argument,
+    at_data_root,
+    loader_at,
+    print_table,
+    show_progress,
+)
 from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
 from tx40_motor_side import compare_routes
 
@@ -59,7 +68,7 @@ from identification.metrics import r2, rmse
 from psdm_casadi import derive_psdm
 from psdm_casadi.oracle import PinocchioOracle
 
-GAZ_MODEL = ROOT.parent / "shared" / "reference" / "panda_gaz2019_model"
+GAZ_MODEL = DEFAULT_DATA_ROOT / "reference" / "panda_gaz2019_model"
 GAZ_SOURCES = ("CoriolisMatrix.cpp", "MassMatrix.cpp", "GravityVector.cpp", "FrictionTorque.cpp")  # longest first
 GAZ_FLAGS = ("-std=c++14", "-O1", "-fPIC", "-DNDEBUG")
 SHIM_FLAGS = ("-std=c++14", "-O2", "-fPIC", "-DNDEBUG")
@@ -138,10 +147,10 @@ def find_compiler() -> str:
     return path
 
 
-def build_key(compiler: str) -> str:
+def build_key(compiler: str, gaz_model: Path = GAZ_MODEL) -> str:
     """Hash of the published sources and header, the shim, the flags and the compiler's version."""
     digest = hashlib.sha256()
-    for path in [GAZ_MODEL / "include" / "franka_model.h", *(GAZ_MODEL / "src" / name for name in GAZ_SOURCES)]:
+    for path in [gaz_model / "include" / "franka_model.h", *(gaz_model / "src" / name for name in GAZ_SOURCES)]:
         digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
     version = subprocess.run([compiler, "--version"], capture_output=True, text=True, check=False).stdout
     digest.update("\0".join([SHIM_SOURCE, *GAZ_FLAGS, *SHIM_FLAGS, version]).encode())
@@ -160,7 +169,7 @@ def _compile(command: list, name: str) -> float:
     return time.perf_counter() - start
 
 
-def build_published_model(build_dir: Path, jobs: int, log) -> dict:
+def build_published_model(build_dir: Path, jobs: int, log, gaz_model: Path = GAZ_MODEL) -> dict:
     """Compile the published model and the shim into a shared library, cached by :func:`build_key`.
 
     Returns ``{"library": path, "seconds": wall time of this call, "cached": bool, "build_seconds": wall time
@@ -169,12 +178,12 @@ def build_published_model(build_dir: Path, jobs: int, log) -> dict:
     Raises BuildError with the reason when a file is absent or the compiler fails.
     """
     start = time.perf_counter()
-    missing = [p for p in (GAZ_MODEL / "include" / "franka_model.h", *(GAZ_MODEL / "src" / n for n in GAZ_SOURCES))
+    missing = [p for p in (gaz_model / "include" / "franka_model.h", *(gaz_model / "src" / n for n in GAZ_SOURCES))
                if not p.exists()]  # fmt: skip
     if missing:
         raise BuildError(f"published model sources absent: {', '.join(str(p) for p in missing)}")
     compiler, eigen = find_compiler(), find_eigen()
-    target = build_dir / build_key(compiler)
+    target = build_dir / build_key(compiler, gaz_model)
     library = target / LIBRARY_NAME
     if library.exists():
         info = json.loads((target / BUILD_INFO).read_text()) if (target / BUILD_INFO).exists() else {}
@@ -184,8 +193,8 @@ def build_published_model(build_dir: Path, jobs: int, log) -> dict:
     work = Path(tempfile.mkdtemp(prefix=f"{target.name}.", dir=build_dir))  # renamed to target when complete
     try:
         (work / SHIM_NAME).write_text(SHIM_SOURCE)
-        includes = [f"-I{GAZ_MODEL / 'include'}", f"-I{eigen}"]
-        units = [(name, GAZ_MODEL / "src" / name, GAZ_FLAGS) for name in GAZ_SOURCES]
+        includes = [f"-I{gaz_model / 'include'}", f"-I{eigen}"]
+        units = [(name, gaz_model / "src" / name, GAZ_FLAGS) for name in GAZ_SOURCES]
         units.append((SHIM_NAME, work / SHIM_NAME, SHIM_FLAGS))
         log(f"building the published Panda model with {Path(compiler).name} on {jobs} cores into {target} ...")
         with concurrent.futures.ThreadPoolExecutor(max_workers=jobs) as pool:
@@ -363,6 +372,7 @@ def main(argv=None) -> int:
     parser.add_argument("--configurations", type=int, default=10_000, help="random q for the mass eigenvalue")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    add_data_root_argument(parser)
     args = parser.parse_args(argv)
     show_progress()
     build_dir = (args.build_dir or default_build_dir()).expanduser().resolve()
@@ -379,6 +389,8 @@ def main(argv=None) -> int:
     results = {}
     for key in args.robots:
         folder, loader = ROBOTS[key]
+        folder = at_data_root(folder, args.data_root)
+        loader = loader_at(loader, folder)
         if not folder.exists():
             log(f"{key}: data absent in {folder}; skipped")
             results[key] = {"skipped": True, "reason": f"data absent in {folder}"}
@@ -386,7 +398,7 @@ def main(argv=None) -> int:
         published, extra = None, {}
         if key == "panda":  # built before the timed identification, so that it does not share the cores
             try:
-                build = build_published_model(build_dir, args.jobs, log)
+                build = build_published_model(build_dir, args.jobs, log, at_data_root(GAZ_MODEL, args.data_root))
                 published = PublishedModel(build["library"])
                 extra = {"published_build_seconds": build["seconds"], "published_build_cached": build["cached"],
                          "published_original_build_seconds": build["build_seconds"],
@@ -398,13 +410,14 @@ def main(argv=None) -> int:
                 extra = {"rmse_published": None, "r2_published": None, "published_error": str(exc)}
         results[key] = {**evaluate_robot(key, loader, published, args), **extra}
     if all(r.get("skipped") for r in results.values()):
-        log("no dataset found under " + str(TX40.parent))
+        log("no dataset found under " + str(at_data_root(TX40.parent, args.data_root)))
         return 2
     missed = missed_targets(results)
     motor_side = None
     if not results.get("tx40", {"skipped": True}).get("skipped"):
         log("tx40: identifying the shipped motor-side files through examples/staubli_tx40.toml ...")
-        motor_side = compare_routes(TX40, load_tx40, split, OPTIONS["tx40"])
+        tx40 = at_data_root(TX40, args.data_root)
+        motor_side = compare_routes(tx40, loader_at(load_tx40, tx40), split, OPTIONS["tx40"])
         if not motor_side["equal"]:
             worst = motor_side["max_relative_difference"]
             missed.append(f"tx40 tx40_motor_side_equal: relative difference {worst:.3g}")

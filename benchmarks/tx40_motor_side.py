@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import tomllib
-from bench_support import ROOT, show_progress
+from bench_support import ROOT, add_data_root_argument, at_data_root, loader_at, show_progress
 
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.robot_recordings import load_robot_recording
@@ -68,12 +68,14 @@ def main(argv=None) -> int:
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true")
+    add_data_root_argument(parser)
     args = parser.parse_args(argv)
     show_progress()
-    if not TX40.exists():
-        print(f"TX40 data absent in {TX40}", file=sys.stderr)
+    folder = at_data_root(TX40, args.data_root)
+    if not folder.exists():
+        print(f"TX40 data absent in {folder}", file=sys.stderr)
         return 2
-    result = compare_routes(TX40, load_tx40, split, OPTIONS["tx40"])
+    result = compare_routes(folder, loader_at(load_tx40, folder), split, OPTIONS["tx40"])
     if args.json:
         print(json.dumps({"tx40_motor_side_equal": result["equal"], "tx40_motor_side": result}))
     else:
