@@ -33,6 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.configuration_check import loaded_recordings, unstated_payload_warnings
 from identification.calibration.consistent_fit import (
     IPOPT_OPTIONS,
     consistent_fit,
@@ -269,10 +270,11 @@ def identify_trajectories(
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
     prepared = subtract_known_payloads(robot, prepared, configurations)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity)
-    vs, extras = None, bodies.extras(robot, extra)
+    vs, plain = None, bodies.extras(robot, extra)
+    extras = plain
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
-        vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, extras)
-        extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in extras]
+        vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, plain)
+        extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in plain]
     n_fit = model.n_base + len(names)
     n_all = n_fit + bodies.n_columns
     equations = NormalEquations(robot.n_dof, n_all + (0 if vs is None else robot.n_dof))
@@ -288,6 +290,8 @@ def identify_trajectories(
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
+    setup = (options.friction, inertia_joints, options.coulomb_velocity, vs)
+    mixed = _unstated_payloads(robot, model, prepared, plain, setup, equations, sigma, correlation, bodies)
     estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
@@ -317,7 +321,18 @@ def identify_trajectories(
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads,
     )  # fmt: skip
-    return replace(fit, warnings=fit_warnings(robot, fit))
+    return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))
+
+
+def _unstated_payloads(robot, model, prepared, plain, setup, equations, sigma, correlation, bodies) -> list:
+    """Warnings for recordings that look loaded against the others (``configuration_check``); the recordings of
+    an unknown payload are not tested (their flange body is fitted already), nor a single recording."""
+    tested = [k for k, body in enumerate(bodies.index) if body is None]
+    if len(prepared) < 2 or not tested:
+        return []
+    found = loaded_recordings(robot, model, [prepared[k] for k in tested], [plain[k] for k in tested], setup,
+                              equations, sigma, np.max(correlation, axis=0))  # fmt: skip
+    return unstated_payload_warnings(found)
 
 
 def _with_rows(found, mask):

@@ -6,6 +6,7 @@ The truth is the virtual Denso's (``identification.virtual``): its nominal links
 
 import json
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -38,6 +39,7 @@ def recorded(denso):
         warnings.simplefilter("ignore")
         return {
             "empty": _record(denso, 11),
+            "empty again": _record(denso, 14),
             "known": _record(denso, 12, (VirtualPayload(mass=KNOWN.mass, com=KNOWN.com),)),
             "unknown": _record(denso, 13, (UNKNOWN,)),
         }
@@ -81,6 +83,21 @@ def test_an_unknown_payload_is_identified_with_the_arm_shared(denso, denso_model
     alone = identify_trajectories(denso, denso_model, [recorded["unknown"]], TrajectoryOptions(consistency=False),
                                   configurations=configurations[1:])  # fmt: skip
     assert not alone.payloads[0].identifiable and np.isnan(alone.payloads[0].mass)
+
+
+def test_a_loaded_recording_mixed_in_unsaid_is_named_with_its_mass(denso, denso_model, recorded):
+    def named(fit):
+        return [w for w in fit.warnings if "at the flange" in w]
+
+    loaded = replace(recorded["unknown"], name="loaded.csv")
+    mixed = identify_trajectories(denso, denso_model, [recorded["empty"], loaded], TrajectoryOptions(consistency=False))
+    (warning,) = named(mixed)
+    assert warning.startswith("loaded.csv looks as if it carries") and "loaded.payload.json" in warning
+    mass = float(warning.split("carries ")[1].split(" ")[0])
+    assert 0.5 * UNKNOWN.mass < mass < 1.5 * UNKNOWN.mass
+    same = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["empty again"]],
+                                 TrajectoryOptions(consistency=False))  # fmt: skip
+    assert not named(same), named(same)
 
 
 def test_sidecars_and_manifests_state_configurations(tmp_path):
