@@ -78,7 +78,11 @@ def _run_validate(args) -> int:
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
     layout = recording_layout(args)  # --columns, --rate
-    args.recordings = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
+    grouped = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
+    if plots is not None and grouped != list(args.recordings):  # one plot per recording, named after the folder
+        names = [f"{Path(p).stem}.png" for p in grouped]
+        plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
+    args.recordings = grouped
     recordings = [load_robot_recording(path, robot, args.topic, layout) for path in args.recordings]
     for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
         check_validation_recording(robot, recording)

@@ -156,3 +156,42 @@ side = "motor"
     )
     error = np.sqrt(((read.tau - truth["tau_motor"]) ** 2).mean(axis=0))  # the simulated drive torque, up to the
     assert np.all(error < 0.05 * np.sqrt((truth["tau_motor"] ** 2).mean(axis=0)))  # current sensors' noise
+
+
+def test_a_split_motor_side_log_runs_through_identify_and_validate(denso, tmp_path, capsys):
+    """One folder of per-signal files without time (the TX40's layout) on the virtual Denso, end to end."""
+    import json
+
+    from psdm_casadi.cli import main
+    from tests.conftest import DENSO_FILE
+
+    robot_file = tmp_path / "denso_split.toml"
+    robot_file.write_text(DENSO_FILE.read_text() + """
+[transmission]
+gear_ratios = [100, -80, 60, 50, -40, 30]
+coupling = [{ motor = 6, joint = 5, ratio = 30 }]
+
+[recording]
+side = "motor"
+sample_rate = 1000.0
+files = { q = "positions.csv", tau = "torques.csv" }
+""")  # fmt: skip
+    robot = load_robot(robot_file)
+    rng = np.random.default_rng(5)
+    for name in ("train", "valid"):
+        reference = sine_experiment(denso, duration=6.0, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=1000.0)
+        motor = to_motor_side(simulate_recording(denso, reference, options, rng)[0], robot)
+        (tmp_path / name).mkdir()
+        for signal, file in (("q", "positions.csv"), ("tau", "torques.csv")):
+            header = ",".join(f"Joint_{j + 1}" for j in range(6))  # a vendor's header: columns in joint order
+            np.savetxt(tmp_path / name / file, getattr(motor, signal), delimiter=",", header=header, comments="")
+    out = tmp_path / "model.json"
+    argv = ["identify", str(robot_file), "--data", str(tmp_path / "train"), "--out", str(out), "--json"]
+    assert main(argv) == 0
+    assert json.loads(capsys.readouterr().out)["consistent"]
+    files = [str(tmp_path / "valid" / "positions.csv"), str(tmp_path / "valid" / "torques.csv")]
+    assert main(["validate", str(out), *files, "--plots", str(tmp_path / "plots"), "--json"]) == 0
+    validated = json.loads(capsys.readouterr().out)["recordings"]
+    assert len(validated) == 1 and min(validated[0]["r2"]) > 0.95  # the two files are one recording, well predicted
+    assert [p.name for p in (tmp_path / "plots").glob("*.png")] == ["valid.png"]
