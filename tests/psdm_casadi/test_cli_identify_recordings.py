@@ -135,3 +135,20 @@ def test_validate_prints_urdf_joint_names_whole():
     rows = text.splitlines()[2:]
     assert [row.split()[0] for row in rows] == list(names) and "panda_finger_joint2" in text
     assert [float(row.split()[1]) for row in rows] == pytest.approx(np.linspace(0.1, 0.9, len(names)), rel=1e-3)
+
+
+def test_commands_after_identify_read_the_model_from_the_cache(recordings, tmp_path, monkeypatch, capsys):
+    import psdm_casadi.model_cache as model_cache
+
+    calls = []
+    derive = model_cache.derive_psdm
+    monkeypatch.setattr(
+        model_cache, "derive_psdm", lambda robot, options=None: calls.append(1) or derive(robot, options)
+    )
+    out = tmp_path / "model.json"
+    assert main(["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out)]) == 0
+    assert calls == [1]
+    assert main(["validate", str(out), str(recordings / "valid.csv")]) == 0
+    assert main(["codegen", str(out), "--out", str(tmp_path / "c"), "--json"]) == 0
+    assert calls == [1]  # the model file's robot is the same robot: the same cache entry
+    capsys.readouterr()
