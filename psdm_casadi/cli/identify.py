@@ -35,7 +35,10 @@ def register(subparsers) -> None:
             "write one calibrated-model file (--out model.json). A folder (--data DIR, or --protocol four-step) "
             "runs the paper's four calibration steps (motor, gravity, friction, inertial) on its experiments "
             "(payload.json, motor_j<k>_nominal/_payload, gravity, friction_j<k>, excitation) into --out DIR. "
-            "A model that is not physically consistent is not saved (exit 1) unless --allow-inconsistent."
+            "A model that is not physically consistent is not saved (exit 1) unless --allow-inconsistent. "
+            "Recordings logged on the motor side (encoder angles, motor torques or currents, gears and coupled "
+            "joints) are mapped to the joints as the robot file's [transmission] and [recording] tables say; a "
+            "folder holding the files of its [recording].files is one recording (see examples/staubli_tx40.toml)."
         ),
     )
     add_robot_argument(p)
