@@ -102,7 +102,7 @@ def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, 
     payloads = ca.vertcat(*bodies) if bodies else ca.DM.zeros(0, 1)
     x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, payloads)
     count = float(equations.count.sum())
-    scale = prior_scale(prior, [r.joint for r in robot.replaced_inertias])  # stand-ins pulled 100x less
+    scale = prior_scale(prior)
     pull = ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
     if bodies:
         scale = prior_scale(np.column_stack([payload_prior, np.zeros(len(payload_prior))]))[:, :10]
@@ -130,13 +130,11 @@ def chart_start(link, margin):
     return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
 
 
-def prior_scale(prior, stand_ins=()):
-    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor); the
-    inertias of ``stand_ins`` (links whose URDF inertia was unusable) are measured in ten times their size."""
+def prior_scale(prior):
+    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor)."""
     mass = np.maximum(np.abs(prior[:, :1]), 0.1)
     moment = np.maximum(np.abs(prior[:, 1:4]), 0.01 * mass)
-    weak = np.where(np.isin(np.arange(len(prior)), stand_ins), 10.0, 1.0)[:, None]
-    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass) * weak
+    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass)
     rotor = np.maximum(np.abs(prior[:, ROTOR:]), 1e-3)
     return np.concatenate([mass, moment, inertia, rotor], axis=1)
 

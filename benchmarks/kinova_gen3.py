@@ -1,0 +1,193 @@
+"""The Kinova Gen3 read as shipped, identified and diagnosed with the commands' defaults: the ``kinova_models`` key.
+
+The shared logs (../shared/datasets/kinova_gen3_dynid, read at run time, never copied) have a sample-index
+``Time`` column, joint-torque sensors ``TorqueSm1..7``, motor currents ``Cur1..7`` and reference columns
+with NaN; the vendor URDF has two inertias that are not physical, and an undocumented tool was probably
+mounted (README: 0.6-0.8 kg at the flange over Kinova's published masses). Through
+``examples/kinova_gen3.toml`` (the URDF's kinematics, the vendor's nominal torque constants, 1 kHz):
+
+- ``psdm identify`` validated on opti_traj_testing2, once from the joint-torque sensors on
+  opti_traj_testing1 (``--columns t=Time,q=Position,tau=TorqueSm``) and once from the currents on
+  opti_traj_testing1, RunTrajectory1 and Trajectory1 (``i=Cur``, torque constants only), defaults
+  otherwise: per-joint validation RMSE [N m] and R^2, the robot file's RMSE, and the identified links
+  (mass, distance of the centre of mass from the joint) against the URDF;
+- ``psdm diagnose`` of the robot file on opti_traj_testing1/2 (sensors): the payload it names is the tool.
+
+Joint 7 carries almost no gravity load and its sensor shows only noise and offset (README), so its RMSE
+is reported but says little. RunTrajectory1 is not used for the sensor fit: its TorqueSm1 is all zero.
+
+Usage::
+
+    python benchmarks/kinova_gen3.py [--json] [--skip-diagnosis]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from bench_support import ROOT
+
+KINOVA = ROOT.parent / "shared" / "datasets" / "kinova_gen3_dynid"
+ROBOT_FILE = ROOT / "examples" / "kinova_gen3.toml"
+TRAIN, VALIDATE = "opti_traj_testing1.csv", "opti_traj_testing2.csv"
+SOURCES = {"sensor": "t=Time,q=Position,tau=TorqueSm", "current": "t=Time,q=Position,i=Cur"}
+#: Training recordings per source: every log with that signal on all joints (RunTrajectory1's TorqueSm1 is zero).
+TRAINING = {"sensor": (TRAIN,), "current": (TRAIN, "RunTrajectory1.csv", "Trajectory1.csv")}
+#: A link is plausible when its mass is within this factor of the URDF's and its centre of mass lies within
+#: its reach (the distance to the next joint, 0.15 m for the last link) plus this margin [m].
+MASS_FACTOR, COM_MARGIN = 5.0, 0.1
+#: The tool the README infers: 0.6-0.8 kg over Kinova's masses; this URDF's links are 1.0 kg lighter in all.
+TOOL_RANGE_KG = (0.4, 2.0)
+
+
+def run_cli(argv: list) -> tuple:
+    """``(exit code, JSON printed on stdout or None, stderr text)`` of one in-process ``psdm`` command."""
+    from psdm_casadi.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(argv)
+    text = out.getvalue().strip()
+    try:
+        payload = json.loads(text.splitlines()[-1]) if text else None
+    except json.JSONDecodeError:
+        payload = None
+    return code, payload, err.getvalue()
+
+
+def link_reach(robot) -> np.ndarray:
+    """Per link, the distance from its joint to the next joint [m] (0.15 for the last link)."""
+    from psdm_casadi.urdf import load_urdf_model
+
+    model = load_urdf_model(Path(robot.urdf_path))
+    reach = np.full(robot.n_dof, 0.15)
+    for k in range(2, model.njoints):
+        reach[model.parents[k] - 1] = float(np.linalg.norm(model.jointPlacements[k].translation))
+    return reach
+
+
+def links_report(robot, model_file: Path) -> dict:
+    """The identified links against the URDF: masses, centre-of-mass distances, and whether each is plausible."""
+    standard = np.array(json.loads(model_file.read_text())["standard"]["values"]).reshape(robot.n_dof, -1)
+    mass = standard[:, 0]
+    com = np.linalg.norm(standard[:, 1:4], axis=1) / np.maximum(mass, 1e-9)
+    urdf = np.array([link.mass for link in robot.links])
+    reach = link_reach(robot)
+    mass_ok = (mass >= urdf / MASS_FACTOR) & (mass <= urdf * MASS_FACTOR)
+    com_ok = com <= reach + COM_MARGIN
+    return {"mass": mass.tolist(), "urdf_mass": urdf.tolist(), "com_distance": com.tolist(), "reach": reach.tolist(),
+            "total_mass": float(mass.sum()), "urdf_total_mass": float(urdf.sum()),
+            "last_link_excess_mass": float(mass[-1] - urdf[-1]),
+            "implausible_links": [j + 1 for j in range(robot.n_dof) if not (mass_ok[j] and com_ok[j])],
+            "plausible": bool(np.all(mass_ok & com_ok))}  # fmt: skip
+
+
+def identify(robot, source: str, folder: Path, log) -> dict:
+    """One ``psdm identify`` with the defaults; its validation, consistency, warnings and links."""
+    out = folder / f"{source}.json"
+    data = [str(KINOVA / name) for name in TRAINING[source]]
+    argv = ["identify", str(ROBOT_FILE), "--data", *data, "--validate", str(KINOVA / VALIDATE),
+            "--columns", SOURCES[source], "--out", str(out), "--json"]  # fmt: skip
+    start = time.perf_counter()
+    code, payload, err = run_cli(argv)
+    seconds = time.perf_counter() - start
+    log(f"kinova {source}: psdm identify exit {code} in {seconds:.0f} s")
+    if code != 0 or payload is None:
+        return {"exit_code": code, "error": err.strip().splitlines()[-1] if err.strip() else "no output"}
+    validation = payload["validation"][0]
+    return {"exit_code": code, "columns": SOURCES[source], "training": list(TRAINING[source]), "seconds": seconds,
+            "consistent": payload["consistent"],
+            "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
+            "warnings": payload.get("warnings", []), "links": links_report(robot, out)}  # fmt: skip
+
+
+def diagnose_tool(folder: Path, log) -> dict:
+    """``psdm diagnose`` of the robot file on the sensor recordings: the payload it names (the tool), if any."""
+    argv = ["diagnose", str(ROBOT_FILE), "--train", str(KINOVA / TRAIN), "--validate", str(KINOVA / VALIDATE),
+            "--columns", SOURCES["sensor"], "--out", str(folder / "diagnosis"), "--json"]  # fmt: skip
+    start = time.perf_counter()
+    code, payload, err = run_cli(argv)
+    seconds = time.perf_counter() - start
+    log(f"kinova: psdm diagnose (robot file, sensors) exit {code} in {seconds:.0f} s")
+    if code != 0 or payload is None or "findings" not in payload:
+        return {"exit_code": code, "error": err.strip().splitlines()[-1] if err.strip() else "no output"}
+    found = [f for f in payload["findings"] if f["effect"] == "payload"]
+    tool = found[0]["parameters"] if found else None
+    return {"exit_code": code, "seconds": seconds, "findings": [f["label"] for f in payload["findings"]],
+            "tool_mass": None if tool is None else tool["mass"],
+            "tool_com": None if tool is None else [tool.get(f"com_{a}") for a in "xyz"],
+            "rmse_before": payload["rmse_before"], "rmse_after": payload["rmse_after"]}  # fmt: skip
+
+
+def evaluate_kinova(log, diagnosis: bool = True) -> dict:
+    """The ``kinova_models`` entry: both fits, the URDF's unusable inertias, the tool (module docstring)."""
+    from psdm_casadi.robot import load_robot
+
+    if not (KINOVA / TRAIN).exists():
+        return {"skipped": True, "reason": f"data absent in {KINOVA}"}
+    robot = load_robot(ROBOT_FILE)
+    with tempfile.TemporaryDirectory(prefix="psdm-kinova-") as tmp:
+        fits = {source: identify(robot, source, Path(tmp), log) for source in SOURCES}
+        tool = diagnose_tool(Path(tmp), log) if diagnosis else None
+    replaced = robot.replaced_inertias
+    unusable = [{"link": r.link.strip("'"), "joint": r.joint + 1, "problem": r.problem} for r in replaced]
+    masses = [tool and tool.get("tool_mass")] + [f.get("links", {}).get("last_link_excess_mass") for f in fits.values()]
+    low, high = TOOL_RANGE_KG
+    return {"skipped": False, **fits, "urdf_unusable_inertias": unusable, "tool_diagnosis": tool,
+            "tool_found": any(m is not None and low <= m <= high for m in masses),
+            "ran_on_defaults": all(f.get("exit_code") == 0 for f in fits.values())}  # fmt: skip
+
+
+def print_kinova(result: dict) -> None:
+    """The table of both fits' validation RMSE, the links that are implausible, the URDF and the tool."""
+    if result.get("skipped"):
+        print(f"\nkinova: skipped ({result['reason']})")
+        return
+    print(f"\nkinova gen3 (validated on {VALIDATE}, defaults): validation RMSE [N m] per joint")
+    for source in SOURCES:
+        fit = result[source]
+        if fit.get("exit_code") != 0:
+            print(f"  {source:<8} FAILED: {fit.get('error')}")
+            continue
+        r2 = min(fit["r2"][:6])
+        print(f"  {source:<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse"]) + f"   R^2 >= {r2:.2f} on J1-6")
+        print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
+        links = fit["links"]
+        print(f"           total mass {links['total_mass']:.2f} kg (URDF {links['urdf_total_mass']:.2f}); last link "
+              f"+{links['last_link_excess_mass']:.2f} kg over the URDF; implausible links: "
+              f"{links['implausible_links'] or 'none'}")  # fmt: skip
+    for entry in result["urdf_unusable_inertias"]:
+        print(f"  URDF: {entry['link']} (joint {entry['joint']}) inertia unusable: {entry['problem']}")
+    tool = result["tool_diagnosis"]
+    if tool is not None and tool.get("exit_code") == 0:
+        print(f"  diagnosis of the robot file: {', '.join(tool['findings']) or 'nothing'}; tool mass "
+              f"{tool['tool_mass'] if tool['tool_mass'] is None else round(tool['tool_mass'], 3)} kg")  # fmt: skip
+    elif tool is not None:
+        print(f"  diagnosis of the robot file FAILED: {tool.get('error')}")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    parser.add_argument("--skip-diagnosis", action="store_true", help="identify only (about a minute)")
+    args = parser.parse_args(argv)
+    result = evaluate_kinova(lambda m: print(m, file=sys.stderr, flush=True), diagnosis=not args.skip_diagnosis)
+    with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
+        print_kinova(result)
+    if args.json:
+        print(json.dumps({"kinova_models": result}, default=float))
+    if result.get("skipped"):
+        return 2
+    return 0 if result["ran_on_defaults"] else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
