@@ -26,7 +26,7 @@ Targets: consistent (both eigenvalues > 0); our validation RMSE within 10 % of O
 on the Panda, below the published model on every joint; derive + identify under 60 s per robot.
 Usage::
 
-    python benchmarks/real_identification.py [--robots tx40 panda] [--build-dir DIR] [--jobs 2]
+    python benchmarks/real_identification.py [--robots tx40 panda kinova] [--build-dir DIR] [--jobs 2]
         [--configurations 10000] [--seed 0] [--json]
 
 Exit code 0 when every target is met, 1 otherwise, 2 when no dataset is found or an option is wrong.
@@ -59,6 +59,7 @@ from bench_support import (
     print_table,
     show_progress,
 )
+from kinova_gen3 import KINOVA, evaluate_kinova, kinova_missed, print_kinova
 from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
 from tx40_motor_side import compare_routes
 
@@ -94,6 +95,8 @@ TARGETS = {
     "seconds": f"derive + identify < {MAX_SECONDS:g} s per robot",
     "tx40_motor_side_equal": "TX40: the shipped motor-side files read through examples/staubli_tx40.toml give the "
     "hand-converted route's model (1e-9 relative)",
+    "kinova_models": "Kinova Gen3: identify on defaults from the joint-torque sensors and from currents, every link "
+    "plausible (mass within 5x the URDF's, centre of mass within reach), the tool found (0.4-2 kg)",
 }
 
 # Our own code: evaluates the published functions for n samples stored row by row, (n, 7) in C order.
@@ -364,7 +367,7 @@ def print_robot(key: str, r: dict) -> None:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--robots", nargs="+", default=list(ROBOTS), choices=list(ROBOTS))
+    parser.add_argument("--robots", nargs="+", default=[*ROBOTS, "kinova"], choices=[*ROBOTS, "kinova"])
     parser.add_argument("--build-dir", type=Path, default=None,
                         help="cache folder of the published model's build (outside the repository; "
                              "default ~/.cache/psdm-casadi/gaz2019)")  # fmt: skip
@@ -387,7 +390,7 @@ def main(argv=None) -> int:
         print(message, file=sys.stderr, flush=True)
 
     results = {}
-    for key in args.robots:
+    for key in [key for key in args.robots if key in ROBOTS]:
         folder, loader = ROBOTS[key]
         folder = at_data_root(folder, args.data_root)
         loader = loader_at(loader, folder)
@@ -409,10 +412,11 @@ def main(argv=None) -> int:
                 log(f"published model unavailable: {exc}")
                 extra = {"rmse_published": None, "r2_published": None, "published_error": str(exc)}
         results[key] = {**evaluate_robot(key, loader, published, args), **extra}
-    if all(r.get("skipped") for r in results.values()):
+    kinova = evaluate_kinova(log, at_data_root(KINOVA, args.data_root)) if "kinova" in args.robots else None
+    if all(r.get("skipped") for r in results.values()) and (kinova is None or kinova["skipped"]):
         log("no dataset found under " + str(at_data_root(TX40.parent, args.data_root)))
         return 2
-    missed = missed_targets(results)
+    missed = missed_targets(results) + kinova_missed(kinova)
     motor_side = None
     if not results.get("tx40", {"skipped": True}).get("skipped"):
         log("tx40: identifying the shipped motor-side files through examples/staubli_tx40.toml ...")
@@ -427,6 +431,7 @@ def main(argv=None) -> int:
         if motor_side is not None:
             print(f"\ntx40 read as shipped (motor side, coupled wrist, 5 kHz without time) vs hand-converted: largest "
                   f"relative parameter difference {motor_side['max_relative_difference']:.3g}")  # fmt: skip
+        print_kinova(kinova)
         print("\ntargets:")
         for name, text in TARGETS.items():
             failed = [m for m in missed if m.split(" ", 2)[1].rstrip(":") == name]
@@ -435,7 +440,7 @@ def main(argv=None) -> int:
     if args.json:
         payload = {"robots": results, "targets": TARGETS, "targets_met": not missed, "targets_missed": missed,
                    "tx40_motor_side_equal": None if motor_side is None else motor_side["equal"],
-                   "tx40_motor_side": motor_side}  # fmt: skip
+                   "tx40_motor_side": motor_side, "kinova_models": kinova}  # fmt: skip
         print(json.dumps(payload, default=float))
     return 0 if not missed else 1
 
