@@ -14,6 +14,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.link_envelope import check_envelopes
 from psdm_casadi.recording_layout import RecordingLayout
 from psdm_casadi.transmission import Transmission
 from psdm_casadi.values import float_array, format_value, inertia_violation, is_real_number
@@ -25,17 +26,8 @@ CONVENTIONS = ("standard", "modified")
 # physical parameters of the paper's X (eq. 2): COM position r in the link frame, inertia about the COM.
 PHYSICAL_PARAMETER_NAMES = ("m", "rx", "ry", "rz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 GRAVITY_STANDARD = 9.806132  # m/s^2, the value the published Denso model uses
-_JOINT_UNITS = {
-    "a": "m",
-    "alpha": "rad",
-    "d": "m",
-    "theta": "rad",
-    "q_min": "rad or m",
-    "q_max": "rad or m",
-    "qd_max": "rad/s or m/s",
-    "qdd_max": "rad/s^2 or m/s^2",
-    "tau_max": "N m or N",
-}
+_JOINT_UNITS = {"a": "m", "alpha": "rad", "d": "m", "theta": "rad", "q_min": "rad or m", "q_max": "rad or m",
+                "qd_max": "rad/s or m/s", "qdd_max": "rad/s^2 or m/s^2", "tau_max": "N m or N"}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -255,6 +247,8 @@ class RobotDescription:
         URDF link inertias that were not physical and are replaced in ``links`` by a neutral stand-in.
     transmission, recording_layout : Transmission, RecordingLayout or None
         Motor/joint gears (``[transmission]``); how recordings are written (``[recording]``); not compared.
+    envelopes : tuple or None
+        Per link, its physical envelope (``link_envelope.LinkEnvelope``) or None (the identification derives one).
     """
 
     name: str
@@ -273,6 +267,7 @@ class RobotDescription:
     replaced_inertias: tuple = field(default=(), compare=False)
     transmission: Transmission | None = field(default=None, compare=False)
     recording_layout: RecordingLayout | None = field(default=None, compare=False)
+    envelopes: tuple | None = field(default=None, compare=False)
 
     def __post_init__(self):
         joints = tuple(self.joints)
@@ -315,6 +310,7 @@ class RobotDescription:
             parse_parameter_name(name, n)
         _check_parts(self.links, LinkInertia, "links", "one per link", n)
         _check_parts(self.drives, DriveParameters, "drives", "one per joint", n)
+        object.__setattr__(self, "envelopes", check_envelopes(self.envelopes, n))
         rotor = np.zeros(n) if self.rotor_inertia is None else self.rotor_inertia
         rotor = float_array(rotor, "RobotDescription.rotor_inertia", f"{n} numbers [kg m^2]").reshape(-1)
         if rotor.shape != (n,) or not np.all(np.isfinite(rotor)) or np.any(rotor < 0):

@@ -30,12 +30,15 @@ from psdm_casadi.description import (
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.file_values import file_number as _number
 from psdm_casadi.file_values import file_vector as _vector
+from psdm_casadi.link_envelope import LinkEnvelope
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.transmission_file import layout_from_table, transmission_from_table
 from psdm_casadi.urdf import from_urdf
 from psdm_casadi.values import format_value
 
 ROBOT_FORMAT = "psdm-robot/1"
+#: The format of a robot file with link envelopes (``envelope`` in ``[[link]]`` tables); it reads version 1 too.
+ROBOT_FORMAT_ENVELOPES = "psdm-robot/2"
 
 
 def _table(value, where: str, example: str) -> dict:
@@ -85,7 +88,9 @@ def _within(where: str):
 
 _LIMIT_KEYS = {"q_min", "q_max", "qd_max", "qdd_max", "tau_max"}
 _JOINT_KEYS = {"name", "type", "a", "alpha", "d", "theta"} | _LIMIT_KEYS
-_LINK_KEYS = {"mass", "com", "inertia", "rotor_inertia"}
+_LINK_KEYS = {"mass", "com", "inertia", "rotor_inertia", "envelope"}
+_ENVELOPE_KEYS = {"center", "semi_axes", "half_extents", "rpy"}
+_ENVELOPE_EXAMPLE = "envelope = { center = [0.1, 0, 0], semi_axes = [0.25, 0.08, 0.08] } (or half_extents = [...])"
 _DRIVE_KEYS = {"kt", "fc", "fs", "vs", "fv", "dv", "sigma0", "sigma1"}
 _TOP_KEYS = {"format", "name", "convention", "gravity", "joint", "link", "drive", "assumptions", "urdf", "description",
              "transmission", "recording"}  # fmt: skip
@@ -174,9 +179,10 @@ def robot_from_mapping(data: dict, source: Path | None = None, locked_joints=())
     _table(data, where, "a TOML document")
     _check_keys(data, _TOP_KEYS, where)
     fmt = data.get("format", ROBOT_FORMAT)
-    if fmt != ROBOT_FORMAT:
+    if fmt not in (ROBOT_FORMAT, ROBOT_FORMAT_ENVELOPES):
         raise RobotFileError(
-            f"{where}: format must be {ROBOT_FORMAT!r}; got {format_value(fmt)}. Convert the file or fix the line."
+            f"{where}: format must be {ROBOT_FORMAT!r} (or {ROBOT_FORMAT_ENVELOPES!r} with link envelopes); got "
+            f"{format_value(fmt)}. Convert the file or fix the line."
         )
     assumptions = _table(data.get("assumptions", {}), f"{where} [assumptions]", "an [assumptions] table")
     _check_keys(assumptions, _ASSUMPTION_KEYS, f"{where} [assumptions]")
@@ -195,6 +201,7 @@ def robot_from_mapping(data: dict, source: Path | None = None, locked_joints=())
     n = len(joints)
     gravity = _vector(data.get("gravity", [0, 0, -GRAVITY_STANDARD]), 3, f"{where} gravity")
     links, rotor = _links_from_tables(data.get("link"), n, where)
+    envelopes = _envelopes_from_tables(data.get("link"), n, where, fmt)
     drives = _drives_from_tables(data.get("drive"), n, where)
     name = _string(data["name"], f"{where} name") if "name" in data else (source.stem if source else "robot")
     convention = _convention(data.get("convention", "standard"), where)
@@ -209,6 +216,7 @@ def robot_from_mapping(data: dict, source: Path | None = None, locked_joints=())
             rotor_inertia=rotor,
             drives=drives,
             source=None if source is None else str(source),
+            envelopes=envelopes,
             **assumed,
         )
 
@@ -309,6 +317,45 @@ def _links_from_tables(tables, n, where):
                 f"{lwhere}.rotor_inertia must be >= 0 [kg m^2]; got {format_value(rotor[-1])}. Fix the sign."
             )
     return tuple(links), np.array(rotor)
+
+
+def _envelopes_from_tables(tables, n, where, fmt):
+    """Per link, the ``envelope`` of its ``[[link]]`` table (an ellipsoid, or a box's half extents), or None."""
+    if tables is None or not any(isinstance(t, dict) and "envelope" in t for t in tables):
+        return None
+    out = []
+    for i, table in enumerate(tables):
+        ewhere = f"{where} link[{i + 1}].envelope"
+        if "envelope" not in table:
+            out.append(None)
+            continue
+        if fmt != ROBOT_FORMAT_ENVELOPES:
+            raise RobotFileError(
+                f"{ewhere} needs format = {ROBOT_FORMAT_ENVELOPES!r} (a file with link envelopes); got "
+                f"{format_value(fmt)}. Write format = {ROBOT_FORMAT_ENVELOPES!r} at the top of the file."
+            )
+        table = _table(table["envelope"], ewhere, _ENVELOPE_EXAMPLE)
+        _check_keys(table, _ENVELOPE_KEYS, ewhere)
+        if ("semi_axes" in table) == ("half_extents" in table) or "center" not in table:
+            raise RobotFileError(
+                f"{ewhere} must give center and one of semi_axes (an ellipsoid) or half_extents (a box) [m], in the "
+                f"link frame; got keys {sorted(table)}. For example {_ENVELOPE_EXAMPLE}."
+            )
+        size = "semi_axes" if "semi_axes" in table else "half_extents"
+        center, axes = _vector(table["center"], 3, f"{ewhere}.center"), _vector(table[size], 3, f"{ewhere}.{size}")
+        rpy = _vector(table.get("rpy", [0, 0, 0]), 3, f"{ewhere}.rpy")
+        with _within(ewhere):
+            make = LinkEnvelope if size == "semi_axes" else LinkEnvelope.from_box
+            out.append(make(center, axes, _rotation(rpy), "robot file"))
+    return tuple(out)
+
+
+def _rotation(rpy) -> np.ndarray:
+    """The rotation of roll, pitch, yaw angles [rad] (URDF's convention: ``Rz(yaw) Ry(pitch) Rx(roll)``)."""
+    (cr, cp, cy), (sr, sp, sy) = np.cos(rpy), np.sin(rpy)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])  # fmt: skip
 
 
 def _drives_from_tables(tables, n, where):

@@ -20,7 +20,7 @@ import numpy as np
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.fileio import atomic_write
-from psdm_casadi.robot_file import ROBOT_FORMAT
+from psdm_casadi.robot_file import ROBOT_FORMAT, ROBOT_FORMAT_ENVELOPES
 
 __all__ = ["robot_file_text", "write_robot_file"]
 
@@ -70,7 +70,7 @@ def robot_file_text(robot: RobotDescription) -> str:
     _check_writable(robot)
     lines = [
         "# Written by psdm_casadi.robot_writer.write_robot_file.",
-        f"format = {_string(ROBOT_FORMAT)}",
+        f"format = {_string(ROBOT_FORMAT if robot.envelopes is None else ROBOT_FORMAT_ENVELOPES)}",
         f"name = {_string(robot.name)}",
         f"convention = {_string(robot.convention)}",
         f"gravity = {_numbers(robot.gravity)}",
@@ -87,11 +87,15 @@ def robot_file_text(robot: RobotDescription) -> str:
         if math.isfinite(joint.tau_max):  # no torque limit: the key is left out
             lines.append(f"tau_max = {_number(joint.tau_max)}")
     if robot.links is not None:
-        for link, rotor in zip(robot.links, robot.rotor_inertia):
+        envelopes = robot.envelopes or (None,) * robot.n_dof
+        for link, rotor, envelope in zip(robot.links, robot.rotor_inertia, envelopes):
             i = np.asarray(link.inertia, dtype=float)
             six = [i[0, 0], i[1, 1], i[2, 2], i[0, 1], i[0, 2], i[1, 2]]
             lines += ["", "[[link]]", f"mass = {_number(link.mass)}", f"com = {_numbers(link.com)}"]
             lines += [f"inertia = {_numbers(six)}", f"rotor_inertia = {_number(rotor)}"]
+            if envelope is not None:
+                axes, rpy = _numbers(envelope.semi_axes), _numbers(_rpy(envelope.rotation))
+                lines.append(f"envelope = {{ center = {_numbers(envelope.center)}, semi_axes = {axes}, rpy = {rpy} }}")
     for drive in robot.drives or ():
         lines += ["", "[[drive]]"] + [f"{key} = {_number(getattr(drive, key))}" for key in _DRIVE_FIELDS]
     return "\n".join(lines + _motor_side_lines(robot)) + "\n"
@@ -114,6 +118,14 @@ def _motor_side_lines(robot: RobotDescription) -> list:
         if layout.files:
             lines.append("files = { " + ", ".join(f"{s} = {_string(name)}" for s, name in layout.files) + " }")
     return lines
+
+
+def _rpy(rotation) -> np.ndarray:
+    """Roll, pitch, yaw [rad] of a rotation (``robot_file``'s convention, ``Rz(yaw) Ry(pitch) Rx(roll)``)."""
+    r = np.asarray(rotation, dtype=float)
+    return np.array(
+        [np.arctan2(r[2, 1], r[2, 2]), np.arcsin(np.clip(-r[2, 0], -1.0, 1.0)), np.arctan2(r[1, 0], r[0, 0])]
+    )
 
 
 def write_robot_file(robot: RobotDescription, path, overwrite: bool = False) -> Path:

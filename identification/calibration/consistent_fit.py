@@ -6,15 +6,24 @@ link, and every unknown payload fixed to the flange (``payload_fit``), has a pos
 pseudo-inertia; friction and drive inertias are bounded below by zero, and a small pull
 (``prior_weight``) towards the robot file's parameters settles what the data cannot see. It is
 solved twice, the second time weighted by the first consistent fit's own residual.
+
+With ``TrajectoryOptions.envelope`` (the default) each link also stays inside its physical envelope
+(``envelope``): the density condition of its bounding ellipsoid, its mass within ``mass_ratio`` of the
+robot file's, and the drive inertias within ``drive_inertia_ratio`` of the file's where it gives them
+(:func:`fit_bounds`). The envelope is per body (``FitBounds.envelopes``, one ellipsoid or None per link); a
+flange payload has none. The bounds come back with the data's pressure on each, so that a report can say
+which ones the data pushed against (``envelope_report``).
 """
 
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
 
+from identification.calibration.envelope import density_weights, link_envelopes
 from identification.calibration.pseudo_inertia import (
     LINK_PARAMETER_COUNT,
     link_from_log_cholesky,
@@ -24,7 +33,16 @@ from identification.calibration.pseudo_inertia import (
 )
 from psdm_casadi.errors import SolverError
 
-__all__ = ["IPOPT_OPTIONS", "consistent_fit", "drive_lower_bounds", "link_is_free", "prior_scale", "residual_sigma"]
+__all__ = [
+    "IPOPT_OPTIONS",
+    "FitBounds",
+    "consistent_fit",
+    "drive_lower_bounds",
+    "fit_bounds",
+    "link_is_free",
+    "prior_scale",
+    "residual_sigma",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -37,11 +55,59 @@ IPOPT_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False,
                  "ipopt.acceptable_iter": 10, "ipopt.max_iter": 2000}  # fmt: skip
 
 
+@dataclass(frozen=True, eq=False)
+class FitBounds:
+    """What the consistent fit held each joint's link and drive to (inf / -inf / None: no bound).
+
+    Attributes
+    ----------
+    envelopes : tuple
+        Per joint, the link's ``LinkEnvelope`` or None (not bounded, or not a free link).
+    mass_lower, mass_upper : array, shape (n_dof,)
+        [kg]
+    rotor_lower, rotor_upper : array, shape (n_dof,)
+        [kg m^2] of the drive inertias (in the base parameters or a column ``Ia<j>`` of their own).
+    pressure : array, shape (n_dof, 3)
+        After the fit: per joint, how hard the data press on the link's envelope, its mass bounds and the drive
+        inertia's bounds (``_pressure``: the weighted squared residual, in noise variances, that the bound costs
+        to first order); zeros before it.
+    """
+
+    envelopes: tuple
+    mass_lower: np.ndarray
+    mass_upper: np.ndarray
+    rotor_lower: np.ndarray
+    rotor_upper: np.ndarray
+    pressure: np.ndarray | None = None
+
+
 def residual_sigma(equations, x) -> np.ndarray:
     """Per joint, the residual standard deviation [N m] of the parameters ``x`` (never below 1e-9 x torque RMS)."""
     dof = np.maximum(equations.count - equations.n_columns / equations.n_dof, 1.0)
     rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
     return np.maximum(np.sqrt(np.maximum(equations.residual_sum(x), 0.0) / dof), 1e-9 * np.maximum(rms, 1e-12))
+
+
+def fit_bounds(robot, model, options) -> FitBounds:
+    """The bounds of ``options`` (``envelope``, ``mass_ratio``, ``drive_inertia_ratio``) for ``robot``'s links."""
+    n = robot.n_dof
+    none = np.full(n, np.inf)
+    if not options.envelope or robot.links is None:
+        return FitBounds((None,) * n, np.zeros(n), none, np.zeros(n), none.copy())
+    free = [i for i in range(n) if link_is_free(model, i)]
+    mass = np.array([link.mass for link in robot.links], dtype=float)
+    rotor = np.asarray(robot.rotor_inertia, dtype=float)
+    low, high = options.mass_ratio
+    given = mass > 0
+    rotor_low, rotor_high = options.drive_inertia_ratio
+    with_rotor = rotor > 0
+    return FitBounds(
+        envelopes=link_envelopes(robot, free),
+        mass_lower=np.where(given, low * mass, 0.0),
+        mass_upper=np.where(given, high * mass, np.inf),
+        rotor_lower=np.where(with_rotor, rotor_low * rotor, 0.0),
+        rotor_upper=np.where(with_rotor, rotor_high * rotor, np.inf),
+    )
 
 
 def prior_standard(robot):
@@ -60,9 +126,11 @@ def link_is_free(model, link: int) -> bool:
     return bool(np.any(block))
 
 
-def _solve(variables, objective, start, lower, evaluate):
-    solver = ca.nlpsol("consistent_fit", "ipopt", {"x": variables, "f": objective}, IPOPT_OPTIONS)
-    solution = solver(x0=start, lbx=lower, ubx=np.full(lower.size, np.inf))
+def _solve(problem, start, bounds):
+    """Ipopt from ``start`` within ``bounds`` ``(lbx, ubx, lbg, ubg)``: (solution, status)."""
+    solver = ca.nlpsol("consistent_fit", "ipopt", problem, IPOPT_OPTIONS)
+    lbx, ubx, lbg, ubg = bounds
+    solution = solver(x0=np.clip(start, lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     status = solver.stats()["return_status"]
     if status == "Maximum_Iterations_Exceeded":  # every iterate of the chart is consistent: keep it, marked
         logger.warning(
@@ -74,16 +142,77 @@ def _solve(variables, objective, start, lower, evaluate):
     elif not solver.stats()["success"]:
         fix = "try --no-consistency to see the unconstrained estimate, or record a better-exciting trajectory."
         raise SolverError(f"the consistent fit did not converge ({status}); {fix}", status=status)
-    return np.maximum(np.asarray(solution["x"]).reshape(-1), lower), status  # Ipopt may end a hair outside a bound
+    return solution, status
 
 
-def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, payload_prior=None):
-    """(standard (n_dof, 11), drive, payloads (k, 10), Ipopt status): the consistent step (module docstring).
+def _link_constraints(rows, links, prior, bounds):
+    """Envelope (``tr(J Q_hat) >= 0``) and mass bounds of the free links, each scaled by the link's mass.
+
+    Returns the constraints, their bounds, and per constraint ``(link, column of the pressure)``.
+    """
+    g, lower, upper, owner = [], [], [], []
+    for i in links:
+        scale = max(prior[i, 0], 0.1)
+        if bounds.envelopes[i] is not None:
+            g.append(ca.dot(ca.DM(density_weights(bounds.envelopes[i])), rows[i][:LINK_PARAMETER_COUNT]) / scale)
+            lower.append(0.0)
+            upper.append(np.inf)
+            owner.append((i, 0))
+        if np.isfinite(bounds.mass_upper[i]) or bounds.mass_lower[i] > 0:
+            g.append(rows[i][0] / scale)
+            lower.append(bounds.mass_lower[i] / scale)
+            upper.append(bounds.mass_upper[i] / scale)
+            owner.append((i, 1))
+    return g, np.array(lower), np.array(upper), owner
+
+
+def _pressure(solution, owner, names, bounds, count, n_phi):
+    """Per joint, how hard the data press on its (envelope, mass, drive inertia) bounds (``FitBounds.pressure``).
+
+    Ipopt's multiplier of a bound is the objective's derivative with respect to it; times the number of samples
+    and the bound's own size it is the first-order drop of the weighted squared residual (in noise variances)
+    if the bound gave way by its whole size: the envelope by its size (the constraint is scaled by the mass),
+    a mass or drive inertia bound by its value.
+    """
+    n = bounds.mass_lower.size
+    out = np.zeros((n, 3))
+    lam_g = np.abs(np.asarray(solution["lam_g"]).reshape(-1))
+    values = np.asarray(solution["g"]).reshape(-1)
+    for (i, column), lam, value in zip(owner, lam_g, values):
+        out[i, column] = count * lam * (1.0 if column == 0 else abs(value))
+    lam_x = np.abs(np.asarray(solution["lam_x"]).reshape(-1))
+    x = np.asarray(solution["x"]).reshape(-1)
+    out[:, 2] = count * lam_x[n_phi : n_phi + n] * np.abs(x[n_phi : n_phi + n])
+    for k, name in enumerate(names):
+        if name.startswith("Ia") and name[2:].isdigit():
+            index = n_phi + n + k
+            out[int(name[2:]) - 1, 2] += count * lam_x[index] * abs(x[index])
+    return out
+
+
+def _variable_bounds(n_phi, names, drive_lower, bounds):
+    """Bounds of (phi, rotor, drive): the chart is free, drive inertias in theirs, drive terms from ``drive_lower``."""
+    upper_drive = np.full(len(names), np.inf)
+    lower_drive = np.array(drive_lower, dtype=float)
+    for k, name in enumerate(names):
+        if name.startswith("Ia") and name[2:].isdigit():
+            j = int(name[2:]) - 1
+            lower_drive[k], upper_drive[k] = max(lower_drive[k], bounds.rotor_lower[j]), bounds.rotor_upper[j]
+    lower = np.concatenate([np.full(n_phi, -np.inf), bounds.rotor_lower, lower_drive])
+    upper = np.concatenate([np.full(n_phi, np.inf), bounds.rotor_upper, upper_drive])
+    return lower, upper
+
+
+def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, payload_prior=None, bounds=None):
+    """(standard (n_dof, 11), drive, payloads (k, 10), Ipopt status, bounds): the consistent step (module docstring).
 
     ``equations`` hold the columns ``[base, drive (names), payload_1 (10), ..., payload_k (10)]``;
-    ``payload_prior`` (k, 10) are the unknown payloads' start and pull targets (consistent bodies).
+    ``payload_prior`` (k, 10) are the unknown payloads' start and pull targets (consistent bodies); ``bounds``
+    (``FitBounds``, default :func:`fit_bounds` of ``options``) hold the links in their envelopes and come back
+    with the data's ``pressure`` on each.
     """
     n = robot.n_dof
+    bounds = fit_bounds(robot, model, options) if bounds is None else bounds
     payload_prior = np.zeros((0, 10)) if payload_prior is None else np.asarray(payload_prior, dtype=float)
     prior = prior_standard(robot)
     links = [i for i in range(n) if link_is_free(model, i)]
@@ -111,17 +240,26 @@ def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, 
     start = np.concatenate([*(chart_start(prior[i, :10], options.margin) for i in links),
                             np.maximum(prior[:, ROTOR], 0.0), np.zeros(len(names)),
                             *(chart_start(body, options.margin) for body in payload_prior)])  # fmt: skip
-    lower = np.concatenate([np.full(phi.numel(), -np.inf), np.zeros(n), drive_lower, np.full(psi.numel(), -np.inf)])
+    lower, upper = _variable_bounds(phi.numel(), names, drive_lower, bounds)
+    lower, upper = (np.concatenate([v, np.full(psi.numel(), sign * np.inf)]) for v, sign in ((lower, -1), (upper, 1)))
+    g, g_lower, g_upper, owner = _link_constraints(rows, links, prior, bounds)
     evaluate = ca.Function("standard", [variables], [standard, x, payloads])
     x_opt, w = start, 1.0 / sigma**2
     for _ in range(2):  # then once more weighted by the consistent fit's own residuals (module docstring)
         gram, moment, energy = equations.weighted(w)
         residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
-        x_opt, status = _solve(variables, residual + options.prior_weight * pull, x_opt, lower, evaluate)
+        problem = {
+            "x": variables,
+            "f": residual + options.prior_weight * pull,
+            "g": ca.vertcat(*g) if g else ca.SX(0, 1),
+        }
+        solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper))
+        x_opt = np.clip(np.asarray(solution["x"]).reshape(-1), lower, upper)  # Ipopt may end a hair outside a bound
         w = 1.0 / residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
     values, _, bodies_opt = (np.asarray(v) for v in evaluate(x_opt))
     drive_opt = x_opt[phi.numel() + n : phi.numel() + n + len(names)]
-    return values.reshape(n, -1), drive_opt, bodies_opt.reshape(-1, 10), status
+    bounds = replace(bounds, pressure=_pressure(solution, owner, names, bounds, count, phi.numel()))
+    return values.reshape(n, -1), drive_opt, bodies_opt.reshape(-1, 10), status, bounds
 
 
 def chart_start(link, margin):

@@ -12,8 +12,10 @@ After it, :func:`fit_warnings` lists what a correct recording does not produce: 
 the model does not explain on its own training data (R^2 below one half: a torque of another joint, or
 of the wrong sign where the unconstrained fit does explain it), a friction or drive
 inertia that the data want negative by many standard deviations (held at its bound of zero by the
-consistent fit: a torque of the wrong sign, or of another joint), and link masses an order of magnitude
-away from the robot file's (torques in another unit, a wrong torque constant). These are warnings, not
+consistent fit: a torque of the wrong sign, or of another joint), torques in another unit (only when every
+joint's recorded torque is a unit factor, 1000 or 180/pi, off the robot file's), link masses an order of
+magnitude away from the robot file's (an unmodelled effect or another robot's file), and the links the data
+push against their physical envelope (``envelope_report``, with what they likely absorb). These are warnings, not
 refusals: the model may still be what the data say, and the user decides.
 
 A recording a calibrated model is judged on (``psdm validate``, ``psdm identify --validate``) passes
@@ -33,7 +35,15 @@ from identification.data.excitation_check import check_joint_motion, check_rever
 from identification.data.plausibility import check_plausible_recording
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 
-__all__ = ["COLUMN_FIX", "check_columns", "check_offset_reversals", "check_validation_recording", "fit_warnings"]
+__all__ = [
+    "COLUMN_FIX",
+    "check_columns",
+    "check_offset_reversals",
+    "check_validation_recording",
+    "fit_warnings",
+    "torque_ratio",
+    "unit_factor",
+]
 
 COLUMN_FIX = "record a trajectory that excites {joints} better ('psdm excite' designs one), or add recordings"
 REVERSAL_FIX = (
@@ -51,6 +61,11 @@ FRICTION_Z = 5.0
 DRIVE_INERTIA_Z = 3.0
 #: Identified link mass over (or under) the robot file's by this factor is flagged.
 MASS_RATIO = 10.0
+#: Unit mistakes of a torque signal (recorded over true torque) and how close every joint's ratio must be to one.
+UNIT_FACTORS = ((1000.0, "torques in mN m? (N m expected)"), (1e-3, "torques in kN m? (N m expected)"),
+                (180.0 / np.pi, "a torque signal scaled by 180/pi (a degree conversion applied to it?)"),
+                (np.pi / 180.0, "a torque signal scaled by pi/180 (a radian conversion applied to it?)"))  # fmt: skip
+UNIT_TOLERANCE = 2.0
 #: A joint whose torque the identified model explains less than this share of (R^2 on its own data) is flagged.
 MIN_TRAINING_R2 = 0.5
 
@@ -144,9 +159,31 @@ def _drive_inertia_warnings(fit) -> list:
     ]
 
 
+def unit_factor(ratios) -> str | None:
+    """The unit mistake that explains a torque ratio (recorded over expected) on every joint, or None.
+
+    A factor counts when every joint's ratio is within ``UNIT_TOLERANCE`` of it (friction and a wrong robot file
+    scatter the ratios; a unit scales them all alike).
+    """
+    ratios = np.asarray(ratios, dtype=float)
+    if ratios.size == 0 or not np.all(np.isfinite(ratios) & (ratios > 0)):
+        return None
+    for factor, name in UNIT_FACTORS:
+        if np.all(np.abs(np.log(ratios / factor)) <= np.log(UNIT_TOLERANCE)):
+            return name
+    return None
+
+
 def _mass_warnings(robot, fit) -> list:
+    """Torques in another unit (every joint off by a unit factor), else masses far from the robot file's."""
     if robot.links is None or not fit.checked:
         return []
+    unit = unit_factor(fit.torque_ratio)
+    if unit is not None:
+        ratios = ", ".join(f"{r:.3g}" for r in fit.torque_ratio)
+        return [f"the identified rigid-body torques are {ratios} times the robot file's on joints 1-"
+                f"{robot.n_dof}: {unit}. Convert the torques to N m (or fix the torque constants kt) and identify "
+                "again."]  # fmt: skip
     prior = np.array([link.mass for link in robot.links], dtype=float)
     mass = np.asarray(fit.standard, dtype=float)[:, 0]
     out = []
@@ -154,10 +191,17 @@ def _mass_warnings(robot, fit) -> list:
         if m0 > 0 and np.isfinite(m) and not (m0 / MASS_RATIO <= m <= m0 * MASS_RATIO):
             out.append(
                 f"link {j + 1} ({joint_label(j, robot)}): identified mass {m:.3g} kg, {m / m0:.3g} times the robot "
-                f"file's {m0:.3g} kg. Torques in another unit (N m expected; mN m?), a wrong torque constant kt, or "
-                "another robot's file?"
+                f"file's {m0:.3g} kg: the link absorbs a torque the rigid body does not model (a counterbalance or "
+                "spring, a payload), or the robot file is another robot's. Identify with the physical envelope (the "
+                "default) to see which link is pushed, and run 'psdm diagnose ROBOT --train DATA --validate OTHER' "
+                "against the robot file to find the effect."
             )
     return out
+
+
+def _envelope_warnings(fit) -> list:
+    """The links and drives the data push against their physical envelope (``envelope_report``)."""
+    return [finding.message for finding in fit.envelope]
 
 
 def _fit_quality_warnings(robot, fit) -> list:
@@ -193,4 +237,16 @@ def fit_warnings(robot, fit) -> tuple:
         + _drive_inertia_warnings(fit)
         + _mass_warnings(robot, fit)
         + [r.message(Path(robot.urdf_path or "").name) for r in getattr(robot, "replaced_inertias", ())]
+        + _envelope_warnings(fit)
     )
+
+
+def torque_ratio(robot, model, equations, x_ols) -> tuple:
+    """Per joint, the RMS of the unconstrained fit's rigid-body torque over the robot file's, on the same rows."""
+    if robot.links is None:
+        return ()
+    prior, fitted = np.zeros(equations.n_columns), np.zeros(equations.n_columns)
+    prior[: model.n_base] = model.base_parameters(robot.nominal_dynamic_parameters())
+    fitted[: model.n_base] = x_ols[: model.n_base]
+    energy = [np.einsum("c,ncd,d->n", x, equations.gram, x) for x in (fitted, prior)]
+    return tuple(np.sqrt(np.maximum(energy[0], 0.0) / np.maximum(energy[1], 1e-300)).tolist())

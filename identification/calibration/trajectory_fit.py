@@ -41,6 +41,7 @@ from identification.calibration.consistent_fit import (
     link_is_free,
     residual_sigma,
 )
+from identification.calibration.envelope_report import bounds_note, envelope_findings
 from identification.calibration.payload_fit import (
     Estimable,
     FlangeBodies,
@@ -50,7 +51,12 @@ from identification.calibration.payload_fit import (
 )
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
-from identification.calibration.trajectory_checks import check_columns, check_offset_reversals, fit_warnings
+from identification.calibration.trajectory_checks import (
+    check_columns,
+    check_offset_reversals,
+    fit_warnings,
+    torque_ratio,
+)
 from identification.calibration.trajectory_data import (
     FRICTION_TERMS,
     NormalEquations,
@@ -105,6 +111,12 @@ class TrajectoryOptions:
     stribeck_velocity : float
         [rad/s] Where the Gauss-Newton search of each joint's Stribeck velocity starts when a grid
         (``stribeck.STRIBECK_GRID``) does not find a better start; used only with ``"fs"``.
+    envelope : bool
+        Keep each link of the consistent fit inside its physical envelope (``envelope``): its bounding
+        ellipsoid, its mass within ``mass_ratio`` and its drive inertia within ``drive_inertia_ratio`` of the
+        robot file's (default; needs the robot file's links).
+    mass_ratio, drive_inertia_ratio : tuple of float
+        ``(low, high)`` multiples of the robot file's link masses and drive inertias (default 0.5 and 2).
     """
 
     friction: tuple = ("fc", "fv")
@@ -116,6 +128,9 @@ class TrajectoryOptions:
     cutoff_hz: float | None = None
     kt: tuple | None = None
     stribeck_velocity: float = 0.1
+    envelope: bool = True
+    mass_ratio: tuple = (0.5, 2.0)
+    drive_inertia_ratio: tuple = (0.5, 2.0)
 
     def __post_init__(self):
         unknown = [t for t in self.friction if t not in FRICTION_TERMS]
@@ -139,6 +154,21 @@ class TrajectoryOptions:
             raise ParameterError(f"TrajectoryOptions.margin must be > 0 [kg m^2]; got {self.margin!r}.")
         if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0):
             raise ParameterError(f"TrajectoryOptions.prior_weight must be >= 0; got {self.prior_weight!r}.")
+        for key in ("mass_ratio", "drive_inertia_ratio"):
+            _check_ratio(key, getattr(self, key))
+
+
+def _check_ratio(key, value) -> None:
+    """A ``(low, high)`` pair with ``0 <= low <= 1 <= high`` (high may be inf)."""
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        low = high = float("nan")
+    if not (0.0 <= low <= 1.0 <= high):
+        raise ParameterError(
+            f"TrajectoryOptions.{key} must be (low, high) with 0 <= low <= 1 <= high (multiples of the robot file's "
+            f"values); got {value!r}. For example (0.5, 2)."
+        )
 
 
 @dataclass(frozen=True)
@@ -165,6 +195,15 @@ class TrajectoryFit:
         [rad/s] Per joint, for the Stribeck shape (``"fs"`` in ``friction_terms``); empty otherwise.
     training_r2, training_r2_ols : tuple
         Per joint, R^2 of the identified model (and of the least-squares estimate) on the recordings it was fitted to.
+    torque_ratio : tuple
+        Per joint, the RMS of the unconstrained fit's rigid-body torque over that of the robot file's on the same
+        motion (about 1; about 1000 on every joint for torques in mN m); empty without the file's links.
+    envelope_bounds : tuple
+        ``(name, value)`` pairs of the bounds the fit kept the links in (``mass_ratio``, ``drive_inertia_ratio``,
+        ``envelopes``: where each link's ellipsoid came from); empty when it was not bounded.
+    envelope : tuple of EnvelopeFinding
+        The links and drives the data pushed against their physical envelope (``envelope_report``), each with what
+        it most likely absorbs; empty when the fit stayed inside (or was not bounded).
     warnings : tuple of str
         What looks like a wrong recording (``trajectory_checks.fit_warnings``): a joint the model does not explain
         on its own data, a friction or drive inertia the data want negative by many sigma, link masses an order of
@@ -199,6 +238,9 @@ class TrajectoryFit:
     stribeck_velocity_std: tuple = ()
     training_r2: tuple = ()
     training_r2_ols: tuple = ()
+    torque_ratio: tuple = ()
+    envelope_bounds: tuple = ()
+    envelope: tuple = ()
     warnings: tuple = ()
     payloads: tuple = ()
 
@@ -296,10 +338,12 @@ def identify_trajectories(
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
-        standard, drive, found, status = consistent_fit(robot, model, equations.subset(keep), sigma, names, options,
-                                                        lower, prior[separable])  # fmt: skip
+        standard, drive, found, status, bounds = consistent_fit(robot, model, equations.subset(keep), sigma, names,
+                                                                options, lower, prior[separable])  # fmt: skip
         found = _with_rows(found, separable)
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
+        x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
+        pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma)
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)
@@ -307,6 +351,7 @@ def identify_trajectories(
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base : n_fit], "not solved", float("nan"), x_ols[: model.n_base]
         found = x_ols[n_fit:].reshape(-1, 10)
+        pushed, bounds = (), None
     payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
@@ -320,6 +365,8 @@ def identify_trajectories(
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads,
+        envelope=tuple(pushed), envelope_bounds=bounds_note(options, bounds),
+        torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip
     return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))
 

@@ -53,6 +53,28 @@ def add_arguments(p) -> None:
         help="keep the unconstrained weighted least-squares estimate (base parameters only), marked as not checked",
     )
     p.add_argument("--cutoff", type=float, default=None, help="low-pass cutoff [Hz] (default: min(10, rate/10))")
+    p.add_argument(
+        "--mass-bounds",
+        nargs=2,
+        type=float,
+        default=(0.5, 2.0),
+        metavar=("LOW", "HIGH"),
+        help="each link's mass stays within LOW-HIGH x the robot file's (default 0.5 2)",
+    )
+    p.add_argument(
+        "--drive-inertia-bounds",
+        nargs=2,
+        type=float,
+        default=(0.5, 2.0),
+        metavar=("LOW", "HIGH"),
+        help="each drive inertia stays within LOW-HIGH x the robot file's where it gives one (default 0.5 2)",
+    )
+    p.add_argument(
+        "--no-envelope",
+        action="store_true",
+        help="do not keep the links inside their physical envelope (bounding ellipsoid, mass and drive-inertia "
+        "bounds): consistent only, as before",
+    )
     add_topic_argument(p)
 
 
@@ -81,7 +103,9 @@ def run(args) -> int:
     friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")
     friction = (*friction, "offset") if args.offset else friction
     options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
-                                consistency=not args.no_consistency, cutoff_hz=args.cutoff)  # fmt: skip
+                                consistency=not args.no_consistency, cutoff_hz=args.cutoff,
+                                envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
+                                drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
     if args.model:
         model = load_model(args.model)
     else:
@@ -94,6 +118,7 @@ def run(args) -> int:
         lugre = None
     held_out = not_held_out([str(p) for p in paths], args.validate)
     warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *held_out)))
+    warnings = [_concrete_route(w, args, paths) for w in warnings]
     for warning in warnings:
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
@@ -120,6 +145,14 @@ def run(args) -> int:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
     _print(args, robot, model, fit, report, calibrated)
     return EXIT_OK
+
+
+def _concrete_route(warning: str, args, paths) -> str:
+    """A warning's suggested ``psdm diagnose`` command with this run's robot and recordings in it."""
+    from identification.calibration.envelope_report import DIAGNOSE_COMMAND
+
+    validate = args.validate[0] if args.validate else "OTHER.csv"
+    return warning.replace(DIAGNOSE_COMMAND, f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}")
 
 
 def _check_outputs(args):
@@ -292,6 +325,23 @@ def _sigma(value) -> str:
     return "inf" if value is None else f"{value:.2g}"
 
 
+def _print_envelope(fit) -> None:
+    """The physical envelope the links were kept in, and the links the data pushed against it."""
+    bounds = dict(fit.envelope_bounds)
+    if not bounds:
+        return
+    sources = sorted({s for s in bounds["envelopes"] if s})
+    mass, rotor = ("-".join(f"{v:g}" for v in bounds[key]) for key in ("mass_ratio", "drive_inertia_ratio"))
+    print(
+        f"physical envelope: each link's mass within {mass} x the robot file's, drive inertias within {rotor} x, "
+        f"the mass inside a bounding ellipsoid ({', '.join(sources)})"
+    )
+    if not fit.envelope:
+        print("  every link inside, none pushed against its bounds")
+    for finding in fit.envelope:
+        print(f"  PUSHED: {finding.message}")
+
+
 def _print(args, robot, model, fit, report, calibrated) -> None:
     if args.json:
         print_json({"command": "identify", "protocol": "recordings", "robot": robot.name, "out": str(args.out),
@@ -305,6 +355,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
                     "stribeck_velocity_std": list(fit.stribeck_velocity_std),
                     "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
                     "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
+                    "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -313,6 +364,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
     state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
+    _print_envelope(fit)
     relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
     print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
     for k, value in enumerate(fit.theta):

@@ -12,7 +12,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from identification.calibration.trajectory_checks import FRICTION_Z, MASS_RATIO, MIN_TRAINING_R2, fit_warnings
+from identification.calibration.trajectory_checks import (
+    FRICTION_Z,
+    MASS_RATIO,
+    MIN_TRAINING_R2,
+    fit_warnings,
+    unit_factor,
+)
 from identification.calibration.trajectory_data import NormalEquations
 from identification.data.excitation_check import check_reversals
 from identification.data.io import not_held_out
@@ -140,7 +146,7 @@ def test_reversals_refuse_a_one_way_joint_and_pool_the_recordings(denso):
                     fix="")  # fmt: skip
 
 
-def _fit(robot, drive_names=(), ols=(), std=(), masses=None, r2=None, r2_ols=None, checked=True):
+def _fit(robot, drive_names=(), ols=(), std=(), masses=None, r2=None, r2_ols=None, checked=True, torque_ratio=()):
     standard = robot.nominal_dynamic_parameters().copy()
     if masses is not None:
         standard[:, 0] = masses
@@ -148,6 +154,7 @@ def _fit(robot, drive_names=(), ols=(), std=(), masses=None, r2=None, r2_ols=Non
     return SimpleNamespace(
         drive_names=tuple(drive_names), drive_ols=np.array(ols, float), drive_std=np.array(std, float),
         standard=standard, checked=checked, training_r2=r2 or ones, training_r2_ols=r2_ols or ones,
+        torque_ratio=torque_ratio, envelope=(),
     )  # fmt: skip
 
 
@@ -166,9 +173,24 @@ def test_fit_warnings_flag_masses_an_order_of_magnitude_off(denso):
     masses[1] *= 1.2 * MASS_RATIO
     masses[2] *= 0.8 * MASS_RATIO
     masses[3] /= 1.2 * MASS_RATIO
-    warnings = fit_warnings(denso, _fit(denso, masses=masses))
-    assert [w.split(" ")[1] for w in warnings] == ["2", "4"] and all("mN m?" in w for w in warnings)
+    warnings = fit_warnings(denso, _fit(denso, masses=masses, torque_ratio=(1.3, 0.9, 2.5, 1.1, 1.0, 1.2)))
+    assert [w.split(" ")[1] for w in warnings] == ["2", "4"]
+    # not a unit: the torques are not off by a unit factor on every joint; an unmodelled effect or a payload is
+    assert all("mN m" not in w and "counterbalance" in w and "payload" in w and "psdm diagnose" in w for w in warnings)
     assert fit_warnings(denso, _fit(denso, masses=masses, checked=False)) == ()  # no standard parameters identified
+
+
+@pytest.mark.parametrize(
+    ("factor", "named"), [(1000.0, "mN m?"), (1e-3, "kN m?"), (180 / np.pi, "180/pi"), (np.pi / 180, "pi/180")]
+)
+def test_fit_warnings_blame_units_only_for_a_unit_factor_on_every_joint(denso, factor, named):
+    ratios = factor * np.array([1.1, 0.8, 1.3, 0.9, 1.2, 1.0])
+    warnings = fit_warnings(denso, _fit(denso, torque_ratio=tuple(ratios)))
+    assert len(warnings) == 1 and named in warnings[0] and "Convert the torques" in warnings[0]
+    ratios[2] = 1.0  # one joint in N m: not a unit of the signal
+    assert unit_factor(ratios) is None and not any(
+        named in w for w in fit_warnings(denso, _fit(denso, torque_ratio=tuple(ratios)))
+    )
 
 
 def test_fit_warnings_flag_joints_the_model_does_not_explain(denso):

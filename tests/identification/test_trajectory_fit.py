@@ -209,7 +209,7 @@ def test_a_fit_stopped_at_the_iteration_cap_is_kept_consistent_and_marked(denso,
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
     recording, _ = simulate_recording(denso, reference, options, rng)
     monkeypatch.setitem(trajectory_fit.IPOPT_OPTIONS, "ipopt.max_iter", 2)
-    with caplog.at_level("WARNING", logger="identification.calibration.trajectory_fit"):
+    with caplog.at_level("WARNING", logger="identification.calibration.consistent_fit"):
         fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
     assert fit.solver_status == "Maximum_Iterations_Exceeded"
     assert "iteration cap" in caplog.text and "not proven optimal" in caplog.text

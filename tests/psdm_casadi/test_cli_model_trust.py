@@ -73,7 +73,7 @@ def _run(capsys, argv) -> tuple:
 
 def test_validate_repeats_the_warnings_stored_in_the_model_file(arm, capsys):
     stored = json.loads((arm / "mNm.json").read_text())["warnings"]
-    assert any("identified mass" in w and "mN m?" in w for w in stored)  # identify flagged the mN m torques
+    assert any("rigid-body torques" in w and "mN m?" in w for w in stored)  # identify flagged the mN m torques
     code, out, err = _run(capsys, ["validate", arm / "mNm.json", arm / "valid.csv"])
     assert code == 0 and "R^2" in out
     for warning in stored:
@@ -191,5 +191,5 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
                                  tmp_path / "valid_mNm.csv", "--apply", new, "--allow-inconsistent"])  # fmt: skip
     assert code == 0, err
     kept = json.loads(new.read_text())["warnings"]
-    assert any("identified mass" in w and "mN m?" in w for w in kept), kept
+    assert any("rigid-body torques" in w and "mN m?" in w for w in kept), kept
     assert "psdm diagnose: warning: new.json" in err and all(w in err for w in kept)

@@ -1,0 +1,236 @@
+"""What the data pushed against in the plausible fit, and what that most likely is.
+
+A bound of the consistent fit (``consistent_fit``: a link's envelope, its mass bounds, a drive inertia's
+bounds) that is active at the solution means the recordings ask for a link the robot cannot have: the
+torque of something the rigid body does not model is being pushed into it. :func:`envelope_findings` lists
+those bounds and names the likely cause:
+
+- a link of the arm (not one of the last two that carry mass) pushed to its envelope or a mass bound: a
+  **counterbalance or spring** on the joint whose torque the bound refuses most (a gravity-like torque the
+  link's first moment was absorbing, e.g. a shoulder's balancer);
+- one of the last two links pushed outward (envelope, upper mass bound): a **payload** or tool at the flange;
+- a drive inertia at a bound: a **drive inertia** unlike the file's (below it: a torque measured on the link
+  side of the gearbox; above it: extra inertia such as a coupled load).
+
+"Refused" is measured on the joints' own training data: the growth of each joint's residual from the
+unconstrained least-squares estimate to the bounded fit, in units of its noise. The route that finds the
+cause is ``psdm diagnose`` against the robot file, which fits a spring, counterbalance or payload jointly
+with the rigid body; the messages say so.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from identification.calibration.envelope import envelope_fill
+from identification.data.excitation_check import joint_label
+
+__all__ = [
+    "ABSORBED_EFFECTS",
+    "DIAGNOSE_COMMAND",
+    "bounds_note",
+    "ACTIVE_TOLERANCE",
+    "MIN_PRESSURE",
+    "MIN_REFUSED_SIGMA",
+    "EnvelopeFinding",
+    "envelope_findings",
+]
+
+#: A bound counts as active when the solution is within this fraction of it ...
+ACTIVE_TOLERANCE = 0.01
+#: ... and reported when it costs at least this many noise variances per sample of its joint (first order) ...
+MIN_PRESSURE = 0.05
+#: ... or (a link's bounds) its joint gives up this many noise levels of RMS torque to the bounds.
+MIN_REFUSED_SIGMA = 1.0
+ABSORBED_EFFECTS = ("counterbalance", "payload", "drive_inertia")
+#: The command the messages suggest; the command line puts its own robot and recordings in.
+DIAGNOSE_COMMAND = "psdm diagnose ROBOT --train DATA --validate OTHER"
+DIAGNOSE_ROUTE = "run '" + DIAGNOSE_COMMAND + "' against the robot file: it fits {what} jointly with the rigid body"
+
+
+@dataclass(frozen=True)
+class EnvelopeFinding:
+    """A link (or a drive) the data pushed against its bounds.
+
+    Attributes
+    ----------
+    link : int
+        0-based link (and joint).
+    bounds : tuple of str
+        The active bounds among ``"envelope"``, ``"mass upper"``, ``"mass lower"`` (a link's), or
+        ``"drive inertia upper"``, ``"drive inertia lower"`` (its drive's).
+    mass, prior_mass : float
+        [kg] identified and in the robot file.
+    fill, prior_fill : float
+        How much of its envelope the link's mass spreads over (``envelope.envelope_fill``: 1 on the boundary), and
+        the robot file link's; nan without an envelope.
+    drive_inertia, prior_drive_inertia : float
+        [kg m^2] identified and in the robot file.
+    absorbs : str
+        One of ``ABSORBED_EFFECTS``: what the bounds most likely keep out of the link.
+    joint : int
+        0-based joint on which the bounds refuse the most torque (where to look for it).
+    refused_rms : float
+        [N m] RMS torque of ``joint`` that the unconstrained least squares gives and the bounded fit does not.
+    refused_sigma : float
+        ``refused_rms`` over that joint's noise level (its residual standard deviation).
+    pressure : float
+        How hard the data press on the bounds (``consistent_fit.FitBounds.pressure``: the weighted squared residual,
+        in noise variances, they cost to first order).
+    message : str
+        The report's sentence: the bounds, the likely cause, the route that finds it.
+    """
+
+    link: int
+    bounds: tuple
+    mass: float
+    prior_mass: float
+    fill: float
+    prior_fill: float
+    drive_inertia: float
+    prior_drive_inertia: float
+    absorbs: str
+    joint: int
+    refused_rms: float
+    refused_sigma: float
+    pressure: float
+    message: str = ""
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        out["bounds"] = list(self.bounds)
+        return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
+
+
+def _refused(equations, x_fit, x_ols) -> np.ndarray:
+    """Per joint, the RMS torque [N m] by which the bounded fit's residual exceeds the least-squares one."""
+    growth = equations.residual_sum(np.asarray(x_fit)) - equations.residual_sum(np.asarray(x_ols))
+    return np.sqrt(np.maximum(growth, 0.0) / np.maximum(equations.count, 1))
+
+
+def _active(bounds, standard, i) -> tuple:
+    """(link bounds, drive bounds) active at link ``i``: names, and the pressure on each group."""
+    pressure = np.zeros((standard.shape[0], 3)) if bounds.pressure is None else bounds.pressure
+    mass, rotor = float(standard[i, 0]), float(standard[i, -1])
+    link, drive = [], []
+    envelope = bounds.envelopes[i]
+    if envelope is not None and envelope_fill(standard[i], envelope) >= 1.0 - ACTIVE_TOLERANCE:
+        link.append("envelope")
+    for names, value, low, high in ((link, mass, bounds.mass_lower[i], bounds.mass_upper[i]),
+                                    (drive, rotor, bounds.rotor_lower[i], bounds.rotor_upper[i])):  # fmt: skip
+        what = "mass" if names is link else "drive inertia"
+        if np.isfinite(high) and value >= high * (1.0 - ACTIVE_TOLERANCE):
+            names.append(f"{what} upper")
+        elif low > 0 and value <= low * (1.0 + ACTIVE_TOLERANCE):
+            names.append(f"{what} lower")
+    return tuple(link), tuple(drive), float(pressure[i, 0] + pressure[i, 1]), float(pressure[i, 2])
+
+
+def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma) -> tuple:
+    """The links and drives of a bounded consistent fit that the data push against (module docstring).
+
+    A bound counts when it is active (within ``ACTIVE_TOLERANCE``) and the data press on it: its pressure is at
+    least ``MIN_PRESSURE`` noise variances per sample of the joint, or (a link's) the joint it refuses most torque
+    on gives up at least ``MIN_REFUSED_SIGMA`` noise levels of RMS torque.
+
+    Parameters
+    ----------
+    robot : RobotDescription
+    bounds : consistent_fit.FitBounds
+        With the fit's ``pressure``.
+    standard : array, shape (n_dof, 11)
+        The fit's standard parameters (drive inertias in the last column).
+    equations : trajectory_data.NormalEquations
+        The training data's normal equations over (base parameters, drive parameters).
+    x_fit, x_ols : array
+        (base, drive) parameters of the bounded fit and of the unconstrained least squares.
+    sigma : array, shape (n_dof,)
+        Per joint noise level [N m].
+
+    Returns
+    -------
+    tuple of EnvelopeFinding
+    """
+    if robot.links is None:
+        return ()
+    refused = _refused(equations, x_fit, x_ols)
+    ratio = refused / np.maximum(np.asarray(sigma, dtype=float), 1e-12)
+    floor = MIN_PRESSURE * np.asarray(equations.count, dtype=float)
+    masses = [i for i in range(robot.n_dof) if bounds.envelopes[i] is not None or np.isfinite(bounds.mass_upper[i])]
+    prior = robot.nominal_dynamic_parameters()
+    pushed = {}
+    for i in range(robot.n_dof):
+        link, drive, link_push, drive_push = _active(bounds, standard, i)
+        if link:
+            outward = "envelope" in link or "mass upper" in link
+            pushed[(i, "link")] = (link, "payload" if outward and i in masses[-2:] else "counterbalance", link_push)
+        if drive and drive_push >= floor[i]:
+            pushed[(i, "drive")] = (drive, "drive_inertia", drive_push)
+    payload = any(absorbs == "payload" for _, absorbs, _ in pushed.values())
+    out = []
+    for (i, kind), (names, absorbs, push) in pushed.items():
+        if payload and kind == "link" and ("envelope" in names or "mass upper" in names):
+            absorbs = "payload"  # a payload pulls every link outward: the proximal ones too
+        joint = {"payload": int(np.argmax(ratio)), "drive_inertia": i}.get(absorbs, int(np.argmax(ratio[: i + 1])))
+        if kind == "link" and push < floor[joint] and ratio[joint] < MIN_REFUSED_SIGMA:
+            continue
+        envelope = bounds.envelopes[i]
+        fill = (envelope_fill(standard[i], envelope), envelope_fill(prior[i], envelope)) if envelope else (np.nan,) * 2
+        finding = EnvelopeFinding(i, names, float(standard[i, 0]), float(prior[i, 0]), *fill, float(standard[i, -1]),
+                                  float(prior[i, -1]), absorbs, joint, float(refused[joint]), float(ratio[joint]),
+                                  push)  # fmt: skip
+        out.append(replace(finding, message=_message(finding, robot)))
+    return tuple(out)
+
+
+def _pushed_what(finding: EnvelopeFinding) -> str:
+    parts = []
+    for bound in finding.bounds:
+        if bound == "envelope":
+            parts.append(f"its physical envelope (its mass spreads over {finding.fill:.2f} of its bounding ellipsoid; "
+                         f"the robot file's link over {finding.prior_fill:.2f})")  # fmt: skip
+        elif bound.startswith("mass"):
+            parts.append(f"its {bound} bound ({finding.mass:.4g} kg; robot file {finding.prior_mass:.4g} kg)")
+        else:
+            parts.append(f"its {bound} bound ({finding.drive_inertia:.4g} kg m^2; robot file "
+                         f"{finding.prior_drive_inertia:.4g} kg m^2)")  # fmt: skip
+    return " and ".join(parts)
+
+
+def _message(finding: EnvelopeFinding, robot) -> str:
+    """The report's sentence on one finding: what is pushed, by how much, what it most likely is, what to run."""
+    i, k = finding.link, finding.joint
+    size = f"{finding.refused_rms:.3g} N m RMS ({finding.refused_sigma:.1f} x its noise)"
+    refused = f"the data ask {joint_label(k, robot)} for {size} more than the bounded model gives"
+    if finding.absorbs == "counterbalance":
+        cause = (
+            f"most likely a counterbalance or spring on {joint_label(k, robot)} (a gravity-like torque the "
+            f"link's mass would otherwise absorb); {DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}"
+        )
+    elif finding.absorbs == "payload":
+        cause = (
+            "most likely a payload or tool at the flange that the robot file does not hold; add it to the robot "
+            f"file, or {DIAGNOSE_ROUTE.format(what='a payload')}"
+        )
+    elif "drive inertia lower" in finding.bounds:
+        cause = (
+            "a torque signal with less drive inertia than the robot file's: torques measured on the link side of "
+            "the gearbox (joint torque sensors) hold none (identify with --no-drive-inertia); or a spring or "
+            "counterbalance on the joint, which a periodic motion makes look like a negative inertia; "
+            f"{DIAGNOSE_ROUTE.format(what='a spring')}"
+        )
+    else:
+        cause = "extra inertia on the joint (a coupled load, a heavier gear), or the robot file's rotor inertia is off"
+    label = f"link {i + 1}" if finding.absorbs != "drive_inertia" else f"the drive of {joint_label(i, robot)}"
+    return f"{label} is pushed against {_pushed_what(finding)}: {refused}. This is {cause}."
+
+
+def bounds_note(options, bounds) -> tuple:
+    """The ``envelope_bounds`` of a fit (``TrajectoryFit``)."""
+    if bounds is None or all(e is None for e in bounds.envelopes):
+        return ()
+    sources = [None if e is None else e.source for e in bounds.envelopes]
+    return (("mass_ratio", list(options.mass_ratio)), ("drive_inertia_ratio", list(options.drive_inertia_ratio)),
+            ("envelopes", sources))  # fmt: skip

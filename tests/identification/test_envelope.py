@@ -1,0 +1,234 @@
+"""The physical envelope of the consistent fit (issue 25, item 1): the ellipsoid condition against known bodies, the
+bounded fit on virtual data with and without hidden physics, and what the report names.
+
+References: textbook bodies whose pseudo-inertia and fill of their bounding ellipsoid are known in closed form
+(a uniform box fills the ellipsoid through its corners to 1/3, a uniform solid ellipsoid its own to 3/5), a
+Monte-Carlo integral of the density condition, and the virtual robot's hidden truth.
+"""
+
+import json
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from identification.calibration.envelope import (
+    PRIOR_FILL,
+    density_weights,
+    ellipsoid_matrix,
+    envelope_fill,
+    kinematic_envelope,
+    link_envelopes,
+)
+from identification.calibration.pseudo_inertia import pseudo_inertia
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import save_recording
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from psdm_casadi.description import physical_to_dynamic
+from psdm_casadi.errors import ParameterError, RobotFileError
+from psdm_casadi.link_envelope import LinkEnvelope
+from psdm_casadi.robot import load_robot
+from psdm_casadi.robot_writer import write_robot_file
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
+
+
+def _box(mass, centre, half, rotation):
+    """Standard parameters of a uniform box with half extents ``half`` (its axes the columns of ``rotation``)."""
+    a, b, c = 2 * np.asarray(half)
+    inertia = mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
+    return physical_to_dynamic(mass, centre, rotation @ inertia @ rotation.T)
+
+
+def _condition(link, envelope):
+    """``tr(J Q_hat)`` with the 4 x 4 matrices of the paper (Wensing, Kim and Slotine 2017)."""
+    return float(np.trace(pseudo_inertia(link) @ ellipsoid_matrix(envelope)))
+
+
+def test_a_uniform_box_fills_the_ellipsoid_through_its_corners_to_one_third():
+    rng = np.random.default_rng(0)
+    for _ in range(10):
+        rotation = Rotation.random(random_state=rng).as_matrix()
+        centre, half, mass = rng.normal(size=3) * 0.3, rng.uniform(0.02, 0.4, 3), rng.uniform(0.5, 20.0)
+        envelope = LinkEnvelope.from_box(centre, half, rotation)
+        link = _box(mass, centre, half, rotation)
+        # the LMI's trace equals the linear form the fit uses, and E[(x-c)^T Q (x-c)] = sum (h_i^2/3) / (3 h_i^2)
+        assert density_weights(envelope) @ link == pytest.approx(_condition(link, envelope), rel=1e-10)
+        assert envelope_fill(link, envelope) == pytest.approx(1.0 / 3.0, rel=1e-9)
+        assert _condition(link, envelope) > 0
+        # the same against a Monte-Carlo integral of 1 - (x-c)^T Q (x-c) over the box's mass
+        points = centre + (rng.uniform(-1, 1, (20000, 3)) * half) @ rotation.T
+        d = points - centre
+        integral = mass * np.mean(1.0 - np.einsum("ni,ij,nj->n", d, envelope.shape_matrix, d))
+        assert _condition(link, envelope) == pytest.approx(integral, rel=0.02)
+        # a point mass at a corner lies on the ellipsoid (condition 0); beyond it the condition fails
+        corner = centre + rotation @ half
+        assert _condition(physical_to_dynamic(mass, corner, np.zeros((3, 3))), envelope) == pytest.approx(
+            0.0, abs=1e-9 * mass
+        )
+        outside = physical_to_dynamic(mass, centre + 1.05 * rotation @ (np.sqrt(3.0) * half * [1, 0, 0]), np.zeros(3))
+        assert _condition(outside, envelope) < 0 and not envelope.contains(
+            centre + 1.05 * rotation @ [np.sqrt(3) * half[0], 0, 0]
+        )
+
+
+def test_a_uniform_solid_ellipsoid_fills_its_own_envelope_to_three_fifths():
+    axes, centre = np.array([0.3, 0.1, 0.05]), np.array([0.2, -0.1, 0.0])
+    rotation = Rotation.from_euler("xyz", [0.3, -0.7, 1.1]).as_matrix()
+    inertia = (
+        4.0 / 5.0 * np.diag([axes[1] ** 2 + axes[2] ** 2, axes[0] ** 2 + axes[2] ** 2, axes[0] ** 2 + axes[1] ** 2])
+    )
+    link = physical_to_dynamic(4.0, centre, rotation @ inertia @ rotation.T)
+    envelope = LinkEnvelope(centre, axes, rotation)
+    assert envelope_fill(link, envelope) == pytest.approx(3.0 / 5.0, rel=1e-12)
+    shrunk = LinkEnvelope(centre, 0.7 * axes, rotation)  # the same body does not fit in a smaller ellipsoid
+    assert _condition(link, shrunk) < 0
+
+
+def test_the_kinematic_envelope_holds_the_capsule_around_its_segment():
+    rng = np.random.default_rng(1)
+    ends = np.array([[0.0, 0.0, 0.0], [0.4, 0.2, -0.1]])
+    radius = 0.1
+    envelope = kinematic_envelope(ends, radius)
+    t = rng.uniform(0, 1, 5000)[:, None]
+    direction = rng.normal(size=(5000, 3))
+    direction /= np.linalg.norm(direction, axis=1, keepdims=True)
+    capsule = ends[0] + t * (ends[1] - ends[0]) + radius * rng.uniform(0, 1, (5000, 1)) ** (1 / 3) * direction
+    assert envelope.contains(capsule).all()
+    assert not envelope.contains(ends[1] + 3.0 * radius * (ends[1] - ends[0]) / np.linalg.norm(ends[1] - ends[0]))[0]
+
+
+def test_every_link_envelope_holds_the_robot_files_link_and_its_joints(denso):
+    envelopes = link_envelopes(denso)
+    prior = denso.nominal_dynamic_parameters()
+    for i, envelope in enumerate(envelopes):
+        if prior[i, 0] > 0:
+            assert envelope_fill(prior[i], envelope) <= PRIOR_FILL + 1e-9
+            assert envelope.contains(prior[i, 1:4] / prior[i, 0])[0]
+        assert envelope.contains(np.zeros(3))[0]  # the link frame's origin (a joint axis of the DH link)
+        assert envelope.semi_axes.max() < 1.0  # a link of a 0.6 m arm: not a sphere around the world
+
+
+def test_bad_envelopes_and_bounds_are_refused():
+    with pytest.raises(RobotFileError, match="semi_axes must be 3 finite numbers > 0"):
+        LinkEnvelope([0, 0, 0], [0.1, 0.0, 0.2])
+    with pytest.raises(RobotFileError, match="rotation must be a 3x3 rotation"):
+        LinkEnvelope([0, 0, 0], [0.1, 0.1, 0.2], np.diag([1.0, 2.0, 1.0]))
+    with pytest.raises(ParameterError, match="mass_ratio must be"):
+        TrajectoryOptions(mass_ratio=(2.0, 0.5))
+    with pytest.raises(ParameterError, match="drive_inertia_ratio must be"):
+        TrajectoryOptions(drive_inertia_ratio=(0.5,))
+
+
+def _recording(robot, extras, seed=3):
+    rng = np.random.default_rng(seed)
+    reference = sine_experiment(robot, duration=8.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    recording, _ = simulate_recording(robot, reference, options, rng, extras=extras)
+    return recording
+
+
+def test_the_bounded_fit_recovers_true_parameters_inside_the_envelope_as_before(denso, denso_model):
+    recording = _recording(denso, [])
+    bounded = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+    free = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(envelope=False))
+    assert bounded.envelope == () and bounded.consistent
+    scale = np.maximum(np.abs(free.theta), 1e-3 * np.abs(free.theta).max())
+    np.testing.assert_allclose(bounded.theta / scale, free.theta / scale, atol=5e-3)
+    truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    gravity = denso_model.gravity_mask
+    np.testing.assert_allclose(bounded.theta[gravity], truth[gravity], atol=0.01 * np.abs(truth[gravity]).max())
+
+
+def test_a_hidden_counterbalance_stays_out_of_the_links_and_is_named(denso, denso_model):
+    recording = _recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
+    free = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(envelope=False))
+    fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+    prior = denso.nominal_dynamic_parameters()
+    assert free.standard[1, 0] > 2.0 * prior[1, 0]  # without the envelope, link 2 absorbs the counterbalance
+    assert np.all(fit.standard[:, 0] <= 2.0 * prior[:, 0] * (1 + 1e-6))
+    for i, envelope in enumerate(link_envelopes(denso, range(5))):
+        if envelope is not None:
+            assert envelope_fill(fit.standard[i], envelope) <= 1.0 + 1e-6
+    named = [f for f in fit.envelope if f.absorbs == "counterbalance"]
+    assert named and all(f.joint == 1 for f in named) and named[0].link == 1
+    assert any("counterbalance or spring on joint 2" in w and "psdm diagnose" in w for w in fit.warnings)
+    assert not any("mN m" in w for w in fit.warnings)
+
+
+def test_a_hidden_payload_is_named_as_a_payload(denso, denso_model):
+    recording = _recording(denso, [xp.Payload(mass=4.0, com=(0.0, 0.0, 0.1))])
+    fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+    assert fit.envelope and {f.absorbs for f in fit.envelope} == {"payload"}
+    assert any(f.link == 4 and "mass upper" in f.bounds for f in fit.envelope)
+    assert any("payload or tool at the flange" in w for w in fit.warnings)
+
+
+def _with_envelopes(text, envelope_line, fmt="psdm-robot/2"):
+    """The Denso robot file with ``envelope_line`` added to its second [[link]] table, in format ``fmt``."""
+    head, first, second = text.split("\n[[link]]\n", 2)
+    head = head.replace('format = "psdm-robot/1"', f'format = "{fmt}"')
+    return head + "\n[[link]]\n" + first + "\n[[link]]\n" + envelope_line + "\n" + second
+
+
+def test_the_robot_file_gives_a_links_envelope_and_writes_it_back(denso, tmp_path):
+    text = _with_envelopes(
+        DENSO_FILE.read_text(), "envelope = { center = [0.13, 0, -0.03], half_extents = [0.2, 0.06, 0.06] }"
+    )
+    (tmp_path / "arm.toml").write_text(text)
+    robot = load_robot(tmp_path / "arm.toml")
+    given = robot.envelopes[1]
+    assert robot.envelopes[0] is None and given.source == "robot file"
+    np.testing.assert_allclose(given.semi_axes, np.sqrt(3.0) * np.array([0.2, 0.06, 0.06]))
+    envelopes = link_envelopes(robot)
+    assert envelopes[1] is given and envelopes[0].source == "kinematic lengths"
+    again = load_robot(write_robot_file(robot, tmp_path / "copy.toml"))
+    np.testing.assert_allclose(again.envelopes[1].shape_matrix, given.shape_matrix, rtol=1e-9)
+    assert 'format = "psdm-robot/2"' in (tmp_path / "copy.toml").read_text()
+    assert 'format = "psdm-robot/1"' in write_robot_file(denso, tmp_path / "plain.toml").read_text()
+
+
+@pytest.mark.parametrize(
+    ("line", "fmt", "message"),
+    [
+        (
+            "envelope = { center = [0, 0, 0], semi_axes = [0.2, -0.1, 0.1] }",
+            "psdm-robot/2",
+            "semi_axes must be 3 finite",
+        ),
+        ("envelope = { center = [0, 0, 0] }", "psdm-robot/2", "must give center and one of semi_axes"),
+        ("envelope = { center = [0, 0, 0], semi_axes = [0.2, 0.1, 0.1], size = 3 }", "psdm-robot/2", "size"),
+        (
+            "envelope = { center = [0, 0, 0], semi_axes = [0.2, 0.1, 0.1] }",
+            "psdm-robot/1",
+            "needs format = 'psdm-robot/2'",
+        ),
+    ],
+)
+def test_a_bad_envelope_in_the_robot_file_exits_2_naming_the_field(tmp_path, capsys, line, fmt, message):
+    (tmp_path / "arm.toml").write_text(_with_envelopes(DENSO_FILE.read_text(), line, fmt))
+    assert main(["derive", str(tmp_path / "arm.toml"), "--out", str(tmp_path / "m.npz")]) == 2
+    err = capsys.readouterr().err
+    assert "link[2].envelope" in err and message in err and "Traceback" not in err
+
+
+def test_identify_reports_the_pushed_link_in_text_json_and_the_model_file(denso, tmp_path, capsys):
+    recording = _recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
+    save_recording(recording, tmp_path / "train.csv")
+    argv = ["identify", str(DENSO_FILE), "--data", str(tmp_path / "train.csv"), "--out", str(tmp_path / "m.json")]
+    assert main([*argv, "--json"]) == 0
+    captured = capsys.readouterr()
+    payload = json.loads(captured.out)
+    assert payload["envelope"]["mass_ratio"] == [0.5, 2.0]
+    assert any(f["absorbs"] == "counterbalance" and f["joint"] == 1 for f in payload["envelope_findings"])
+    route = f"psdm diagnose {DENSO_FILE} --train {tmp_path / 'train.csv'} --validate OTHER.csv"
+    assert any("counterbalance or spring on joint 2" in w and route in w for w in payload["warnings"])
+    stored = json.loads((tmp_path / "m.json").read_text())
+    assert stored["warnings"] == payload["warnings"] and stored["standard"]["envelope_findings"]
+    assert main([*argv, "--overwrite", "--no-envelope"]) == 0
+    out = capsys.readouterr().out
+    assert "physical envelope" not in out and json.loads((tmp_path / "m.json").read_text())["warnings"] == []
+    assert main([*argv, "--overwrite", "--mass-bounds", "2", "3"]) == 2
+    assert "mass" in capsys.readouterr().err
