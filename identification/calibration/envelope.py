@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.link_envelope import LinkEnvelope
 from psdm_casadi.oracle import build_kinematic_model
 
@@ -35,6 +36,7 @@ __all__ = [
     "LENGTH_MARGIN",
     "PRIOR_FILL",
     "REACH_MARGIN",
+    "check_ratio",
     "density_weights",
     "envelope_fill",
     "ellipsoid_matrix",
@@ -141,3 +143,17 @@ def _holding(envelope: LinkEnvelope, link) -> LinkEnvelope:
         return envelope
     grow = np.sqrt(fill / PRIOR_FILL)
     return LinkEnvelope(envelope.center, envelope.semi_axes * grow, envelope.rotation, envelope.source)
+
+
+def check_ratio(owner: str, value) -> None:
+    """Refuse a bound ``value`` that is not ``(low, high)`` with ``0 <= low <= 1 <= high`` (multiples of the robot
+    file's values; ``high`` may be inf), naming ``owner`` (the option or the command-line flag)."""
+    try:
+        low, high = (float(v) for v in value)
+    except (TypeError, ValueError):
+        low = high = float("nan")
+    if not (0.0 <= low <= 1.0 <= high):
+        raise ParameterError(
+            f"{owner} must be (low, high) with 0 <= low <= 1 <= high (multiples of the robot file's values); got "
+            f"{value!r}. For example (0.5, 2)."
+        )

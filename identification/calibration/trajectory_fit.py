@@ -41,6 +41,7 @@ from identification.calibration.consistent_fit import (
     link_is_free,
     residual_sigma,
 )
+from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
 from identification.calibration.payload_fit import (
     Estimable,
@@ -155,20 +156,7 @@ class TrajectoryOptions:
         if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0):
             raise ParameterError(f"TrajectoryOptions.prior_weight must be >= 0; got {self.prior_weight!r}.")
         for key in ("mass_ratio", "drive_inertia_ratio"):
-            _check_ratio(key, getattr(self, key))
-
-
-def _check_ratio(key, value) -> None:
-    """A ``(low, high)`` pair with ``0 <= low <= 1 <= high`` (high may be inf)."""
-    try:
-        low, high = (float(v) for v in value)
-    except (TypeError, ValueError):
-        low = high = float("nan")
-    if not (0.0 <= low <= 1.0 <= high):
-        raise ParameterError(
-            f"TrajectoryOptions.{key} must be (low, high) with 0 <= low <= 1 <= high (multiples of the robot file's "
-            f"values); got {value!r}. For example (0.5, 2)."
-        )
+            check_ratio(f"TrajectoryOptions.{key}", getattr(self, key))
 
 
 @dataclass(frozen=True)

@@ -80,6 +80,7 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+    from identification.calibration.envelope import check_ratio
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
     from identification.data.io import not_held_out
@@ -102,6 +103,8 @@ def run(args) -> int:
         _check_reversals(recordings, paths)
     friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")
     friction = (*friction, "offset") if args.offset else friction
+    for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):
+        check_ratio(flag, value)
     options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
                                 consistency=not args.no_consistency, cutoff_hz=args.cutoff,
                                 envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),

@@ -231,4 +231,4 @@ def test_identify_reports_the_pushed_link_in_text_json_and_the_model_file(denso,
     out = capsys.readouterr().out
     assert "physical envelope" not in out and json.loads((tmp_path / "m.json").read_text())["warnings"] == []
     assert main([*argv, "--overwrite", "--mass-bounds", "2", "3"]) == 2
-    assert "mass" in capsys.readouterr().err
+    assert "--mass-bounds must be (low, high)" in capsys.readouterr().err
