@@ -62,6 +62,7 @@ def register(subparsers) -> None:
 
 
 def _run_validate(args) -> int:
+    from identification.calibration.payload_check import new_payload
     from identification.calibration.recalibrate import validation_rmse
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.data.robot_recordings import load_robot_recording, recording_paths
@@ -91,8 +92,9 @@ def _run_validate(args) -> int:
         error, r2, prepared, predicted = validation_rmse(
             calibrated, model, recording, _torque_constants(robot, recording)
         )
+        load = new_payload(robot, prepared, predicted, name=str(path))  # a load the model does not have
         rows.append({"recording": str(path), "rmse": np.atleast_1d(error).tolist(), "r2": np.atleast_1d(r2).tolist(),
-                     "prepared": prepared, "predicted": predicted})  # fmt: skip
+                     "prepared": prepared, "predicted": predicted, "payload": load})  # fmt: skip
     if predictions is not None:
         with predictions.staging() as stage:
             stage.write_text(predictions_csv(rows, robot.n_dof))
@@ -103,15 +105,24 @@ def _run_validate(args) -> int:
     if args.json:
         print_json({"command": "validate", "model": str(args.model), "consistent": calibrated.consistent,
                     "warnings": warnings,
-                    "recordings": [{k: row[k] for k in ("recording", "rmse", "r2")} for row in rows]})  # fmt: skip
+                    "recordings": [_json_row(row) for row in rows]})  # fmt: skip
     else:
         for row in rows:
             print(validation_table(row["recording"], robot.joint_names, row["rmse"], row["r2"]))
+            if row["payload"] is not None:
+                print(f"  payload: {row['payload'].sentence()}")
         if predictions is not None:
             print(f"prepared samples and the model's torques written to {predictions.target}")
         if not calibrated.consistent:
             print("warning: this model is NOT physically consistent (written with --allow-inconsistent)")
     return EXIT_OK
+
+
+def _json_row(row) -> dict:
+    """A recording's entry of the JSON output: RMSE, R^2, and the payload it appears to carry (or null)."""
+    load = row["payload"]
+    return {"recording": row["recording"], "rmse": row["rmse"], "r2": row["r2"],
+            "payload": None if load is None else load.to_dict()}  # fmt: skip
 
 
 def validation_table(recording: str, joint_names, rmse, r2) -> str:

@@ -128,3 +128,23 @@ def test_sidecars_and_manifests_state_configurations(tmp_path):
         recordings_with_configurations([tmp_path / "c.csv"])
     with pytest.raises(ParameterError, match="more than once"):
         recordings_with_configurations([tmp_path / "a.csv", tmp_path / "a.csv"])
+
+
+def test_a_payload_in_new_recordings_of_a_calibrated_arm_is_named_by_validate(denso, denso_model, recorded, tmp_path,
+                                                                              capsys):  # fmt: skip
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.data.io import save_recording
+    from psdm_casadi.cli import main
+    from tests.conftest import DENSO_FILE
+
+    known = [PayloadConfiguration(), PayloadConfiguration("mass", payload=KNOWN, stated=True)]
+    arm = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["known"]],
+                                TrajectoryOptions(consistency=False), configurations=known)  # fmt: skip
+    model_file = CalibratedModel.from_fit(denso, denso_model, arm, robot_source=DENSO_FILE)
+    model_file.save(tmp_path / "arm.json", allow_inconsistent=True)  # not checked: the base parameters predict
+    paths = [save_recording(recorded[k], tmp_path / f"{k.replace(' ', '_')}.npz") for k in ("unknown", "empty again")]
+    assert main(["validate", str(tmp_path / "arm.json"), *map(str, paths), "--json"]) == 0
+    loaded, empty = json.loads(capsys.readouterr().out)["recordings"]
+    assert empty["payload"] is None
+    assert loaded["payload"]["mass"] == pytest.approx(UNKNOWN.mass, rel=0.2)
+    assert np.linalg.norm(np.subtract(loaded["payload"]["com"], UNKNOWN.com)) < 0.03

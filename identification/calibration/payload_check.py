@@ -1,0 +1,93 @@
+"""A payload the calibrated model does not have, in new recordings: the residual regressed on a flange body.
+
+A calibrated arm recorded again with a tool, a gripper or a part in its hand shows a residual that is the
+load's own torque: the columns of a body fixed to the flange (``payload_fit.FlangeRegressor``) times its
+10 inertial parameters. :func:`new_payload` fits them to the residual of the model's prediction (each joint
+weighted by its residual variance) and names the load when it explains much of the residual with a mass
+many standard deviations above zero (standard deviations grown by the residual's correlation time: the
+recording is filtered). ``psdm validate`` reports it beside the RMSE, so that a worse validation is read
+as "carries 2.5 kg" rather than as a worse model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.calibration.payload_fit import Estimable, FlangeRegressor
+
+__all__ = ["MIN_DROP", "MIN_Z", "NewPayload", "new_payload"]
+
+MIN_DROP = 0.2  # the flange body must remove this fraction of the weighted residual
+MIN_Z = 5.0  # and its mass be this many (correlation-grown) standard deviations above zero
+MAX_LAG = 50
+
+
+@dataclass(frozen=True)
+class NewPayload:
+    """The load a recording appears to carry beyond the model's arm: mass [kg], centre of mass in the flange
+    frame [m], their standard deviations, and the fraction of the weighted residual it explains."""
+
+    recording: str
+    mass: float
+    mass_std: float
+    com: tuple
+    com_std: tuple
+    residual_drop: float
+
+    def to_dict(self) -> dict:
+        return {"recording": self.recording, "mass": self.mass, "mass_std": self.mass_std, "com": list(self.com),
+                "com_std": list(self.com_std), "residual_drop": self.residual_drop}  # fmt: skip
+
+    def sentence(self) -> str:
+        """One line for the command's output, with the fix."""
+        com = ", ".join(f"{v:.3f}" for v in self.com)
+        return (f"{self.recording} appears to carry {self.mass:.3g} +- {self.mass_std:.2g} kg at the flange (centre "
+                f"of mass [{com}] m in the flange frame) that the model does not have: the load explains "
+                f"{100 * self.residual_drop:.0f} % of the residual. If the arm carried it, identify with it "
+                '(a sidecar {"unknown": "tool"} beside the recording, or its known mass).')  # fmt: skip
+
+
+def _correlation_time(residual) -> float:
+    """Mean over joints of the integrated autocorrelation time of a residual (Bartlett weights, 1 when white)."""
+    residual = residual - residual.mean(axis=0)
+    lags = min(MAX_LAG, residual.shape[0] // 4)
+    variance = np.maximum(np.einsum("sn,sn->n", residual, residual), 1e-300)
+    factor = np.ones(residual.shape[1])
+    for k in range(1, lags + 1):
+        factor += 2.0 * (1.0 - k / (lags + 1)) * np.einsum("sn,sn->n", residual[:-k], residual[k:]) / variance
+    return float(np.mean(np.maximum(factor, 1.0)))
+
+
+def new_payload(robot, prepared, predicted, name: str | None = None) -> NewPayload | None:
+    """The :class:`NewPayload` a prepared recording appears to carry beyond ``predicted`` (the model's torques on
+    its samples), or None when the residual does not show one (module docstring)."""
+    residual = np.asarray(prepared.tau, dtype=float) - np.asarray(predicted, dtype=float)
+    columns = FlangeRegressor(robot)(prepared.q, prepared.qd, prepared.qdd)  # (samples, joints, 10)
+    weights = 1.0 / np.maximum(residual.var(axis=0), 1e-300)
+    gram = np.einsum("n,snc,snd->cd", weights, columns, columns)
+    moment = np.einsum("n,snc,sn->c", weights, columns, residual)
+    estimable = Estimable(gram)
+    if not estimable.unit(0):
+        return None
+    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
+    inverse = np.linalg.pinv(gram / np.outer(scale, scale), rcond=1e-12, hermitian=True) / np.outer(scale, scale)
+    x = inverse @ moment
+    total = float(np.einsum("n,sn,sn->", weights, residual, residual))
+    drop = float(moment @ x) / total
+    after = residual - columns @ x
+    dof = max(after.size - np.linalg.matrix_rank(gram), 1)
+    variance = float(np.einsum("n,sn,sn->", weights, after, after)) / dof * _correlation_time(after)
+    covariance = inverse[:4, :4] * variance
+    mass, mass_std = float(x[0]), float(np.sqrt(max(covariance[0, 0], 0.0)))
+    if not (drop > MIN_DROP and mass > MIN_Z * mass_std):
+        return None
+    com = x[1:4] / mass
+    com_std = []
+    for axis in range(3):  # delta method: d(h/m) = dh/m - h dm/m^2
+        gradient = np.zeros(4)
+        gradient[0], gradient[1 + axis] = -x[1 + axis] / mass**2, 1.0 / mass
+        com_std.append(float(np.sqrt(max(gradient @ covariance @ gradient, 0.0))))
+    label = name or prepared.name or "the recording"
+    return NewPayload(label, mass, mass_std, tuple(float(v) for v in com), tuple(com_std), drop)
