@@ -10,7 +10,9 @@ It holds everything needed to use an identification without the recordings or th
   sigma in percent;
 - ``drive``: the labelled drive parameters (``fc1, fv1, offset1, ..., Ia<j>``) with their standard
   deviations and the friction model's shape;
-- ``identification``: filter, decimation, samples, weights, condition number, solver status;
+- ``identification``: filter, decimation, samples, weights, condition number, solver status; its
+  ``preparation`` block (``model_preparation``: filter, order, cutoff, grid rate, edge trim) is how every command
+  that judges the model prepares a recording (absent from older files, which are judged with their cutoff as before);
 - ``provenance``: when, which version, which recordings (name, samples, SHA-256);
 - ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
 - ``findings``: the terms diagnosis added (empty until a diagnosis is applied with
@@ -52,6 +54,7 @@ import numpy as np
 
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.model_file_check import robot_digest
+from identification.calibration.model_preparation import model_preparation, preparation_block
 from identification.calibration.payload_fit import configurations_block
 from identification.calibration.trajectory_data import drive_columns, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
@@ -135,7 +138,8 @@ class CalibratedModel:
             "identification": {"cutoff_hz": list(fit.cutoff_hz), "decimation": list(fit.decimation),
                                "n_samples": fit.n_samples, "sigma": _floats(fit.sigma),
                                "condition_number": float(fit.condition_number), "solver_status": fit.solver_status,
-                               "seconds": round(fit.seconds, 3)},
+                               "seconds": round(fit.seconds, 3),
+                               "preparation": preparation_block(fit.cutoff_hz, fit.decimation)},
             "provenance": {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
                            "psdm_casadi_version": _version(), "recordings": list(recordings)},
             "validation": validation or {},
@@ -262,12 +266,13 @@ class CalibratedModel:
         """(prepared recording, predicted joint torques [N m]) of the model on a raw recording, as ``psdm validate``.
 
         The one path from a raw recording to the model's torque: the model's measurement corrections first
-        (``findings.correct_recording``), then the identification's preparation (its cutoff). A LuGre model's bristle
-        state starts relaxed at the raw start and is carried over the samples the filter trims along the corrected
-        recording (``lugre_recordings.bristle_force_at``): the friction sees the corrected velocity, as in the fit.
+        (``findings.correct_recording``), then the identification's preparation (``model_preparation``). A LuGre
+        model's bristle state starts relaxed at the raw start and is carried over the samples the filter trims along
+        the corrected recording (``lugre_recordings.bristle_force_at``): the friction sees the corrected velocity, as
+        in the fit.
         ``kt`` [N m/A], shape (n_dof,), converts a recording of currents.
         """
-        cutoff = self.document["identification"]["cutoff_hz"][0]
+        cutoff = model_preparation(self.document).cutoff_hz
         corrected = correct_recording(recording, self.corrections, kt)
         prepared, _, _ = prepare_recording(corrected, kt, cutoff)
         bristle = None

@@ -12,10 +12,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.pseudo_inertia import pseudo_inertia_eigenvalues
 from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.model import PSDMModel
+from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
-__all__ = ["ConsistencyReport", "mass_matrices", "check_consistency"]
+__all__ = [
+    "MASS_CHECK_CONFIGURATIONS",
+    "ConsistencyReport",
+    "check_consistency",
+    "consistency_failure",
+    "mass_matrices",
+    "min_mass_eigenvalue",
+]
+
+#: Random configurations of the mass-matrix check of a recalibrated model (``min_mass_eigenvalue``).
+MASS_CHECK_CONFIGURATIONS = 2000
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,4 +140,37 @@ def check_consistency(
     k = int(np.argmin(eig))
     return ConsistencyReport(
         float(eig[k]), q[k].copy(), int(n_samples), int(np.sum(eig <= tolerance)), float(tolerance)
+    )
+
+
+def min_mass_eigenvalue(robot, standard, seed: int = 0) -> float:
+    """Smallest eigenvalue of the mass matrix of ``standard`` over random configurations within the limits."""
+    from psdm_casadi.oracle import PinocchioOracle
+
+    oracle = PinocchioOracle(robot, standard)
+    q = np.random.default_rng(seed).uniform(robot.q_min, robot.q_max, size=(MASS_CHECK_CONFIGURATIONS, robot.n_dof))
+    return float(min(np.linalg.eigvalsh(m)[0] for m in oracle.crba(q)))
+
+
+def consistency_failure(recalibration) -> str | None:
+    """None for a consistent recalibrated model (a ``recalibrate.Recalibration``: its ``after`` model and
+    ``min_mass_eigenvalue``), else a sentence naming the eigenvalue and the parameters to blame."""
+    after = recalibration.after
+    standard = after.document["standard"]
+    if not standard.get("checked", True):
+        return "the recalibrated model was not checked for physical consistency (identified with --no-consistency)"
+    mass = recalibration.min_mass_eigenvalue
+    if after.consistent and not (np.isfinite(mass) and mass <= 0):
+        return None
+    values = after.standard
+    eigen = pseudo_inertia_eigenvalues(values) if np.all(np.isfinite(values[:, :10])) else np.full(len(values), -1.0)
+    bad = [i for i in np.argsort(eigen) if eigen[i] <= 0] or [int(np.argmin(eigen))]
+    blamed = "; ".join(
+        f"link {i + 1} ({', '.join(f'{n}{i + 1}' for n in LINK_PARAMETER_NAMES)}, pseudo-inertia "
+        f"eigenvalue {eigen[i]:.3g})"
+        for i in bad
+    )
+    return (
+        f"the recalibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
+        f"{standard['min_pseudo_inertia_eigenvalue']}, smallest mass-matrix eigenvalue {mass:.3g}): {blamed}"
     )

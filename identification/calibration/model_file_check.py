@@ -187,6 +187,12 @@ def check_document(document: dict, name: str) -> None:
     cutoff = _numbers(name, document["identification"], "cutoff_hz", "identification")
     if not cutoff or min(cutoff) <= 0:
         raise _refuse(name, "identification.cutoff_hz", "positive numbers [Hz]", cutoff)
+    preparation = document["identification"].get("preparation")  # absent from older files: their cutoff is used
+    if preparation is not None:
+        rates = [preparation.get(k) if isinstance(preparation, dict) else None for k in ("cutoff_hz", "grid_rate_hz")]
+        if not all(_is_number(v) and v > 0 for v in rates):
+            raise _refuse(name, "identification.preparation", "an object with positive cutoff_hz and grid_rate_hz [Hz]",
+                          repr(preparation)[:80])  # fmt: skip
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])

@@ -29,6 +29,13 @@ code gives. A finding is kept only if it lowers the validation RMSE of every joi
 refit) does not raise them is dropped, listed with its RMSE pair in the ``recalibration`` block
 (``dropped_findings``), and the model is refitted without it (a finding whose every feature the fit's other
 columns already span contributes nothing by construction; it is kept and reported as absorbed).
+
+Then the never-worse gate (``never_worse.keep_not_worse``): no joint's validation RMSE may exceed the model's
+before by more than a noise margin derived from the data (``never_worse.MARGIN_RULE``). Otherwise the finding whose
+removal most repairs the worst joint is dropped and the model refitted, until it holds; when no finding is left
+and a joint is still worse, ``Recalibration.refused`` says which joints and findings, and nothing may be written.
+The ``recalibration.never_worse`` block of the file holds the per-joint before, after and margin of the model
+written, and the findings the gate dropped with their reasons.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ import logging
 import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
 from identification.calibration.finding_value import unhelpful_findings, validation_rmse, without_entry
 from identification.calibration.findings import (
     SPEC_EFFECTS,
@@ -51,14 +59,15 @@ from identification.calibration.findings import (
 )
 from identification.calibration.lugre_identify import identify_lugre_trajectories
 from identification.calibration.lugre_recordings import split_findings
-from identification.calibration.pseudo_inertia import pseudo_inertia_eigenvalues
+from identification.calibration.model_preparation import model_preparation
+from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.trajectory_data import NormalEquations, drive_column_names, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from psdm_casadi.errors import ParameterError, SolverError
-from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
 __all__ = [
+    "MASS_CHECK_CONFIGURATIONS",
     "Recalibration",
     "consistency_failure",
     "min_mass_eigenvalue",
@@ -70,7 +79,6 @@ logger = logging.getLogger(__name__)
 
 #: A feature whose column keeps less than this fraction of its norm after projection on the others is absorbed.
 ABSORBED = 1e-8
-MASS_CHECK_CONFIGURATIONS = 2000
 #: Rounds of dropping the findings that do not help and refitting (a refit can make another one useless).
 MAX_DROP_ROUNDS = 3
 
@@ -88,6 +96,9 @@ class Recalibration:
         The base and drive parameters that moved by more than 3 standard deviations (of the new fit).
     min_mass_eigenvalue : float
         Smallest mass-matrix eigenvalue of the new standard parameters over random configurations.
+    refused : str or None
+        Why no subset of the findings keeps every joint within its noise margin (``never_worse``); the caller
+        writes nothing then. None when ``after`` may be written.
     """
 
     before: CalibratedModel
@@ -96,6 +107,7 @@ class Recalibration:
     rmse_after: np.ndarray
     moved: list
     min_mass_eigenvalue: float
+    refused: str | None = None
 
 
 def _pairs(report):
@@ -232,7 +244,7 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         coulomb_velocity=float(drive["coulomb_velocity"]),
         drive_inertia=bool(identification.get("drive_inertia", True)),
         consistency=bool(document["standard"].get("checked", True)),
-        cutoff_hz=float(identification["cutoff_hz"][0]),
+        cutoff_hz=model_preparation(document).cutoff_hz,
     )
 
 
@@ -302,7 +314,11 @@ def recalibrate(
         corrections = {k: v for k, v in corrections.items() if k not in labels}
         entries = [e for e in entries if e["label"] not in labels]
         after, fit = _joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
-    rmse_before = np.mean([validation_rmse(calibrated, model, r, kt)[0] for r in validation], axis=0)
+    gate = keep_not_worse(calibrated, (after, fit), _refit_without(calibrated, robot, model, train,
+                          (terms, corrections, entries), robot_source), [t.label for t in terms] + list(corrections),
+                          model, validation, kt)  # fmt: skip
+    after, fit = gate.after, gate.payload
+    rmse_before, rmse_after = gate.comparison.before, gate.comparison.after
     scores = [validation_rmse(after, model, r, kt) for r in validation]
     mass = min_mass_eigenvalue(robot, fit.standard) if fit.checked else float("nan")
     moved = _moved(calibrated, after)
@@ -313,7 +329,6 @@ def recalibrate(
         ],
         "min_mass_eigenvalue": None if not np.isfinite(mass) else mass,
     }
-    rmse_after = np.mean([s[0] for s in scores], axis=0)
     document["recalibration"] = {
         "before": {
             "validation_rmse": _list(rmse_before),
@@ -327,6 +342,7 @@ def recalibrate(
         },
         "moved_parameters": moved,
         "dropped_findings": dropped,
+        "never_worse": {**gate.comparison.to_dict(), "dropped": gate.dropped, "refused": gate.refused},
     }
     for entry in document["findings"]:
         entry["validation_rmse_before"], entry["validation_rmse_after"] = _list(rmse_before), _list(rmse_after)
@@ -342,7 +358,20 @@ def recalibrate(
         rmse_after=rmse_after,
         moved=moved,
         min_mass_eigenvalue=mass,
+        refused=gate.refused,
     )
+
+
+def _refit_without(calibrated, robot, model, train, findings, robot_source):
+    """``refit(labels)`` of ``never_worse.keep_not_worse``: the joint fit without the findings labelled ``labels``."""
+    terms, corrections, entries = findings
+
+    def refit(labels):
+        kept = ([t for t in terms if t.label not in labels], {k: v for k, v in corrections.items() if k not in labels},
+                [e for e in entries if e["label"] not in labels])  # fmt: skip
+        return _joint_fit(calibrated, robot, model, train, kept, robot_source)
+
+    return refit
 
 
 def _joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:
@@ -456,38 +485,6 @@ def _moved(before: CalibratedModel, after: CalibratedModel) -> list:
 def _values(block: dict, names: list) -> list:
     lookup = dict(zip(block["names"], block["values"]))
     return [lookup.get(name) for name in names]
-
-
-def min_mass_eigenvalue(robot, standard, seed: int = 0) -> float:
-    """Smallest eigenvalue of the mass matrix of ``standard`` over random configurations within the limits."""
-    from psdm_casadi.oracle import PinocchioOracle
-
-    oracle = PinocchioOracle(robot, standard)
-    q = np.random.default_rng(seed).uniform(robot.q_min, robot.q_max, size=(MASS_CHECK_CONFIGURATIONS, robot.n_dof))
-    return float(min(np.linalg.eigvalsh(m)[0] for m in oracle.crba(q)))
-
-
-def consistency_failure(recalibration: Recalibration) -> str | None:
-    """None for a consistent recalibrated model, else a sentence naming the eigenvalue and the parameters to blame."""
-    after = recalibration.after
-    standard = after.document["standard"]
-    if not standard.get("checked", True):
-        return "the recalibrated model was not checked for physical consistency (identified with --no-consistency)"
-    mass = recalibration.min_mass_eigenvalue
-    if after.consistent and not (np.isfinite(mass) and mass <= 0):
-        return None
-    values = after.standard
-    eigen = pseudo_inertia_eigenvalues(values) if np.all(np.isfinite(values[:, :10])) else np.full(len(values), -1.0)
-    bad = [i for i in np.argsort(eigen) if eigen[i] <= 0] or [int(np.argmin(eigen))]
-    blamed = "; ".join(
-        f"link {i + 1} ({', '.join(f'{n}{i + 1}' for n in LINK_PARAMETER_NAMES)}, pseudo-inertia "
-        f"eigenvalue {eigen[i]:.3g})"
-        for i in bad
-    )
-    return (
-        f"the recalibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
-        f"{standard['min_pseudo_inertia_eigenvalue']}, smallest mass-matrix eigenvalue {mass:.3g}): {blamed}"
-    )
 
 
 def _list(values) -> list:

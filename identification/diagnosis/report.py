@@ -118,6 +118,9 @@ class DiagnosisReport:
     confounding: tuple = ()
     dropped: tuple = ()
     rigid_body_notes: tuple = ()  # ``rigid_body="auto"``: why the rigid body was identified (``rigid_body_choice``)
+    nominal_model: str = ""  # the model the diagnosis started from (a calibrated model file, or the robot file)
+    preparation: str = ""  # how the recordings were prepared (``model_preparation.Preparation.text``)
+    model_file_rmse: tuple = ()  # a calibrated model's own validation RMSE per joint, as ``psdm validate`` computes it
 
     @property
     def effects(self) -> tuple:
@@ -150,6 +153,9 @@ class DiagnosisReport:
             "confounding": [c.to_dict() for c in self.confounding],
             "dropped": list(self.dropped),
             "rigid_body_notes": list(self.rigid_body_notes),
+            "nominal_model": self.nominal_model,
+            "preparation": self.preparation,
+            "model_file_rmse": list(self.model_file_rmse),
         }
 
     def to_json(self) -> str:
@@ -159,10 +165,10 @@ class DiagnosisReport:
         lines = [
             f"# Missing-physics diagnosis: {self.robot_name}",
             "",
-            f"Nominal model: rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
-            f" + {self.friction} friction fitted on the training recording; {self.candidates_tried} candidate "
-            "fits judged on the validation recording.",
+            f"Nominal model: {self._nominal()} + {self.friction} friction fitted on the training recording; "
+            f"{self.candidates_tried} candidate fits judged on the validation recording.",
             "",
+            *([f"Preparation: {self.preparation}.", ""] if self.preparation else []),
             "## Findings",
             "",
         ]
@@ -186,6 +192,10 @@ class DiagnosisReport:
                 f"| {j + 1} | {self.rmse_before[j]:.4g} | {self.rmse_after[j]:.4g} | "
                 f"{self.r2_before[j]:.4f} | {self.r2_after[j]:.4f} |"
             )
+        if self.model_file_rmse:
+            own = ", ".join(f"joint {j + 1} {v:.4g}" for j, v in enumerate(self.model_file_rmse))
+            lines += ["", "RMSE before is the nominal model refitted on the training recording; the model file as it "
+                      f"is (as 'psdm validate' computes it): {own} N m."]  # fmt: skip
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):
             items = [r for r in self.residual_findings if r.joint == j]
@@ -195,6 +205,12 @@ class DiagnosisReport:
             for name, path in plots.items():
                 lines.append(f"![{name}]({Path(path).name})")
         return "\n".join(lines) + "\n"
+
+    def _nominal(self) -> str:
+        """What the diagnosis started from: the model it names, else the robot file's rigid body (or identified)."""
+        if self.nominal_model:
+            return self.nominal_model
+        return f"rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
 
     def _notes_markdown(self) -> list:
         """The sections on joints whose RMSE rose, terms the backward check dropped, and confounding."""

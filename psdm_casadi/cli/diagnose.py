@@ -69,7 +69,9 @@ def register(subparsers) -> None:
         action="store_true",
         help="do not look beyond the library (no sparse symbolic term for a residual that stays structured)",
     )
-    p.add_argument("--cutoff", type=float, default=15.0, help="low-pass cut-off of the preprocessing [Hz]")
+    p.add_argument("--cutoff", type=float, default=None,
+                   help="low-pass cut-off of the preprocessing [Hz] (default: a calibrated model's own preparation; "
+                   "for a robot file the one 'psdm identify' would choose, min(10 Hz, rate/10))")  # fmt: skip
     p.add_argument(
         "--min-improvement",
         type=float,
@@ -108,7 +110,9 @@ def _run_diagnose(args) -> int:
 
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
     check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
-    check_positive(args.cutoff, "--cutoff", "Use --cutoff 15 (the default).", " [Hz]")
+    if args.cutoff is not None:
+        fix = "Leave --cutoff out (the model's own preparation) or give e.g. --cutoff 10."
+        check_positive(args.cutoff, "--cutoff", fix, " [Hz]")
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
     loaded, apply_out = _calibrated_source(args)
     calibrated = model = robot_file = None
@@ -125,10 +129,12 @@ def _run_diagnose(args) -> int:
     validation = load_robot_recording(args.validate, robot, args.topic, layout)
     for warning in not_held_out([args.train], [args.validate], "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
+    preparation = _preparation(args, calibrated, train)
     options = DiagnosisOptions(
         friction=args.friction or (_own_friction(calibrated) if calibrated is not None else "lugre"),
         rigid_body=args.rigid_body,
-        cutoff_hz=args.cutoff,
+        cutoff_hz=preparation.cutoff_hz,
+        rate_hz=preparation.grid_rate_hz,
         min_improvement=args.min_improvement,
         max_effects=args.max_effects,
         max_samples=args.max_samples,
@@ -136,6 +142,7 @@ def _run_diagnose(args) -> int:
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     report = diagnose(robot, train, validation, options, model=model, derive=lambda r: derive_model(args, r))
+    report = _named(args, report, preparation, (calibrated, robot_file, model), validation)
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -153,6 +160,49 @@ def _run_diagnose(args) -> int:
     return _apply(
         args, calibrated, robot_file, model, report, (train, validation), apply_out, payload if args.json else None
     )
+
+
+def _preparation(args, calibrated, train):
+    """The preparation of the diagnosis: the model file's own, identify's default for a robot file, or --cutoff."""
+    import dataclasses
+
+    from identification.calibration.model_preparation import (
+        SAMPLES_PER_CUTOFF,
+        default_preparation,
+        model_preparation,
+    )
+
+    own = model_preparation(calibrated.document) if calibrated is not None else default_preparation(train)
+    if own.note:
+        print(f"psdm diagnose: note: {args.robot}: {own.note}", file=sys.stderr)
+    if args.cutoff is None:
+        return own
+    cutoff = float(args.cutoff)
+    source = f"--cutoff {cutoff:g}, instead of the {own.source}'s {own.cutoff_hz:g} Hz"
+    return dataclasses.replace(own, cutoff_hz=cutoff, grid_rate_hz=SAMPLES_PER_CUTOFF * cutoff, source=source)
+
+
+def _named(args, report, preparation, loaded, validation):
+    """The report naming the nominal model it used and the preparation; a model file's own validation RMSE beside."""
+    import dataclasses
+    import hashlib
+
+    import numpy as np
+
+    prior, (calibrated, robot, model) = report.rigid_body == "prior", loaded
+    if calibrated is None:
+        nominal = f"the robot file {args.robot}: rigid body {'from it' if prior else 'identified'}"
+        return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text())
+    from identification.calibration.finding_value import validation_rmse
+
+    digest = hashlib.sha256(Path(args.robot).read_bytes()).hexdigest()[:12]
+    created = calibrated.document.get("provenance", {}).get("created", "unknown")
+    nominal = (f"the calibrated model file {args.robot} (sha256 {digest}..., created {created}): rigid body "
+               f"{'as identified in it' if prior else 'identified again on the training recording'}")  # fmt: skip
+    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    own = validation_rmse(calibrated, model, validation, kt)[0]
+    return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text(),
+                               model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
 
 
 def _own_friction(calibrated) -> str:
@@ -207,6 +257,13 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> 
     for w in caught:  # the others as they were
         if not issubclass(w.category, LuGreWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if result.refused is not None:  # the never-worse gate: no subset of the findings keeps every joint
+        print(f"psdm diagnose: error: {result.refused}. Nothing was written to {args.apply!r}.", file=sys.stderr)
+        if payload is not None:
+            payload["recalibration"] = {"refused": result.refused, "model": None,
+                                        **result.after.document["recalibration"]["never_worse"]}  # fmt: skip
+            print_json(payload)
+        return EXIT_CHECK_FAILED
     problem = consistency_failure(result)
     if problem is not None and not args.allow_inconsistent:
         print(
@@ -237,8 +294,12 @@ def recalibration_markdown(result, joint_names, path) -> str:
         "|---" * (len(joint_names) + 1) + "|",
         "| validation RMSE before [N m] | " + " | ".join(f"{v:.4g}" for v in result.rmse_before) + " |",
         "| validation RMSE after [N m] | " + " | ".join(f"{v:.4g}" for v in result.rmse_after) + " |",
+        "| noise margin [N m] | " + " | ".join(f"{v:.2g}" for v in block["never_worse"]["margin"]) + " |",
         "",
+        f"- never worse: {block['never_worse']['margin_rule']}; every joint of the model written is within it",
     ]
+    lines += [f"- dropped {d['label']} (never worse): {d['reason']}; the model was refitted without it"
+              for d in block["never_worse"]["dropped"]]  # fmt: skip
     for key in ("before", "after"):
         state = block[key]
         lines.append(

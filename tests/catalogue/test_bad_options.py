@@ -110,7 +110,7 @@ CASES = [
     BadInput(
         "diagnose --cutoff 0",
         ("diagnose", DENSO, "--train", "a.csv", "--validate", "b.csv", "--cutoff", "0"),
-        ("--cutoff", "got 0", "--cutoff 15"),
+        ("--cutoff", "got 0", "--cutoff 10"),
     ),
     BadInput(
         "diagnose --train missing",

@@ -1,0 +1,239 @@
+"""The never-worse gate of a refit that writes a model: no joint's validation RMSE may rise beyond the noise.
+
+calibrated model before + refitted model + validation recordings -> ``JointComparison`` (per joint before, after,
+noise margin, the joints made worse) -> ``keep_not_worse`` (the findings kept, the ones dropped and why, or a
+refusal).
+
+A refit with findings is judged on the validation recordings as ``psdm validate`` judges it
+(``finding_value.validation_rmse``). A finding that lowers the overall error can still raise it on joints it does
+not act on (a robot-wide delay that helps the wrists and hurts the base joints; a rigid body refitted around a
+spring): such a model is not written. The allowance is the noise of the comparison itself, derived from the data:
+
+- the paired difference of the two models' RMSE on the same validation samples, resampled by a moving-block
+  bootstrap (``BOOTSTRAP_SAMPLES`` draws, fixed seed) whose block length is where the autocorrelation of the
+  difference of the squared residuals first drops below 1/e (twice that lag; at least ``n**(1/3)``): the
+  standard error of the RMSE change a different stretch of the same motion would give;
+- the margin is ``MARGIN_SIGMAS`` of those standard errors, and never below ``MARGIN_FLOOR`` of the joint's RMSE
+  before (a change that small is below what a validation RMSE tells).
+
+``keep_not_worse`` drops findings greedily: while a joint is worse than before plus its margin, the finding whose
+removal (with a refit) most lowers the RMSE of the joint that is most over its margin is dropped, and the model is
+refitted and checked again. When every finding the gate may drop is gone (the refit is then the model before, or a
+joint is still worse), nothing is kept: the refit is refused (``GateResult.refused``, naming the joints and the
+findings) and the caller writes nothing.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.calibration.finding_value import validation_rmse
+
+__all__ = [
+    "BOOTSTRAP_SAMPLES",
+    "MARGIN_FLOOR",
+    "MARGIN_RULE",
+    "MARGIN_SIGMAS",
+    "GateResult",
+    "JointComparison",
+    "block_length",
+    "compare_models",
+    "keep_not_worse",
+    "paired_rmse_margin",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Standard errors of the paired RMSE difference a joint may rise by.
+MARGIN_SIGMAS = 2.0
+#: Smallest margin, as a fraction of the joint's validation RMSE before.
+MARGIN_FLOOR = 0.01
+#: Moving-block bootstrap draws of the paired RMSE difference (fixed seed: the same margin every run).
+BOOTSTRAP_SAMPLES = 300
+MARGIN_RULE = (
+    f"a joint is worse when its validation RMSE after exceeds before + margin; margin = max({MARGIN_SIGMAS:g} x the "
+    f"standard error of the paired RMSE difference (moving-block bootstrap, block = twice the lag where the "
+    f"autocorrelation of the squared-residual difference drops below 1/e), {MARGIN_FLOOR:.0%} of the RMSE before)"
+)
+
+
+def block_length(series: np.ndarray) -> int:
+    """Block length [samples] of the moving-block bootstrap of ``series`` (n_samples,): twice the first lag at
+    which its autocorrelation drops below 1/e, at least ``n**(1/3)``, at most n / 5."""
+    x = np.asarray(series, dtype=float) - np.mean(series)
+    n = x.size
+    floor = max(1, int(np.ceil(n ** (1.0 / 3.0))))
+    if n < 10 or not np.any(x):
+        return floor
+    spectrum = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
+    acf = acf / acf[0]
+    below = np.flatnonzero(acf < np.exp(-1.0))
+    lag = int(below[0]) if below.size else n
+    return int(min(max(2 * lag, floor), max(1, n // 5)))
+
+
+def paired_rmse_margin(before: np.ndarray, after: np.ndarray, seed: int = 0) -> tuple:
+    """(RMSE before, RMSE after, standard error of their difference) per joint from residuals on the same samples.
+
+    ``before``, ``after``: residuals [N m], shape (n_samples, n_dof), row k of both at the same instant. The
+    standard error is of ``RMSE_after - RMSE_before`` over ``BOOTSTRAP_SAMPLES`` moving-block resamples (the same
+    blocks for both models: the difference is paired).
+    """
+    before, after = np.atleast_2d(before), np.atleast_2d(after)
+    n = min(len(before), len(after))
+    e_b, e_a = before[:n] ** 2, after[:n] ** 2
+    rng = np.random.default_rng(seed)
+    se = np.zeros(e_b.shape[1])
+    for j in range(e_b.shape[1]):
+        length = block_length(e_a[:, j] - e_b[:, j])
+        starts = rng.integers(0, n - length + 1, size=(BOOTSTRAP_SAMPLES, -(-n // length)))
+        rows = (starts[:, :, None] + np.arange(length)).reshape(BOOTSTRAP_SAMPLES, -1)[:, :n]
+        diff = np.sqrt(e_a[rows, j].mean(axis=1)) - np.sqrt(e_b[rows, j].mean(axis=1))
+        se[j] = float(np.std(diff, ddof=1))
+    return np.sqrt(e_b.mean(axis=0)), np.sqrt(e_a.mean(axis=0)), se
+
+
+@dataclass(frozen=True, eq=False)
+class JointComparison:
+    """Validation RMSE [N m] per joint of a model before and after a refit, with the noise margin.
+
+    Attributes
+    ----------
+    before, after, margin : arrays (n_dof,)
+        The mean over the validation recordings of each model's RMSE (as ``psdm validate``), and the margin
+        (``MARGIN_RULE``).
+    """
+
+    before: np.ndarray
+    after: np.ndarray
+    margin: np.ndarray
+
+    @property
+    def excess(self) -> np.ndarray:
+        """How far each joint is above before + margin [N m] (<= 0: not worse)."""
+        return self.after - self.before - self.margin
+
+    @property
+    def worse(self) -> tuple:
+        """The joints (0-based) whose RMSE after exceeds before + margin."""
+        return tuple(int(j) for j in np.flatnonzero(self.excess > 0))
+
+    def worst(self) -> int:
+        """The joint (0-based) most over its margin, relative to its RMSE before."""
+        return int(np.argmax(self.excess / np.maximum(self.before, 1e-12)))
+
+    def to_dict(self) -> dict:
+        return {"validation_rmse_before": _floats(self.before), "validation_rmse_after": _floats(self.after),
+                "margin": _floats(self.margin), "worse_joints": [j + 1 for j in self.worse],
+                "margin_rule": MARGIN_RULE}  # fmt: skip
+
+    def text(self, joints=None) -> str:
+        """``joint 2: 0.31 -> 0.49 N m (margin 0.012)`` for ``joints`` (0-based; default the worse ones)."""
+        joints = self.worse if joints is None else joints
+        return "; ".join(
+            f"joint {j + 1}: {self.before[j]:.4g} -> {self.after[j]:.4g} N m (margin {self.margin[j]:.2g})"
+            for j in joints
+        )
+
+
+def _floats(values) -> list:
+    return [float(v) for v in np.atleast_1d(values)]
+
+
+def compare_models(before, after, model, validation, kt=None) -> JointComparison:
+    """``JointComparison`` of two calibrated models on the raw ``validation`` recordings (a list), each prepared
+    as its own file says (``CalibratedModel.predict_recording``); the margin combines the recordings' standard
+    errors as that of a mean."""
+    rmse_b, rmse_a, se = [], [], []
+    for recording in validation:  # both on the raw recording's time grid: the prepared samples are the same instants
+        error_b, _, ready_b, predicted_b = validation_rmse(before, model, recording, kt)
+        error_a, _, ready_a, predicted_a = validation_rmse(after, model, recording, kt)
+        rmse_b.append(error_b)
+        rmse_a.append(error_a)
+        se.append(paired_rmse_margin(ready_b.tau - predicted_b, ready_a.tau - predicted_a)[2])
+    before_mean, after_mean = np.mean(rmse_b, axis=0), np.mean(rmse_a, axis=0)
+    standard_error = np.sqrt(np.sum(np.square(se), axis=0)) / len(se)
+    margin = np.maximum(MARGIN_SIGMAS * standard_error, MARGIN_FLOOR * before_mean)
+    return JointComparison(before=before_mean, after=after_mean, margin=margin)
+
+
+@dataclass(frozen=True, eq=False)
+class GateResult:
+    """What ``keep_not_worse`` decided.
+
+    Attributes
+    ----------
+    after : CalibratedModel
+        The refitted model with the findings kept (the last one tried when refused).
+    payload : object
+        What ``refit`` returned beside it.
+    comparison : JointComparison
+        Of that refit against the model before.
+    dropped : list of dict
+        Per finding dropped by the gate, in order: label, the joint it repaired, the RMSE pair with and without it,
+        the reason.
+    refused : str or None
+        Why no subset of the findings is not worse (joints and findings named), or None.
+    """
+
+    after: object
+    payload: object
+    comparison: JointComparison
+    dropped: list
+    refused: str | None = None
+
+
+def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) -> GateResult:
+    """Drop findings until no joint is worse than ``before`` beyond its margin, or refuse.
+
+    Parameters
+    ----------
+    before : CalibratedModel
+        The model the findings were added to.
+    first : tuple (CalibratedModel, object)
+        The refit with every finding: the new model and any payload the caller needs back.
+    refit : callable
+        ``refit(labels)`` -> (CalibratedModel, payload): the refit without the findings labelled ``labels``.
+    droppable : sequence of str
+        Labels of the findings the gate may drop (those that change the fit: torque terms and corrections).
+    model : PSDMModel
+    validation : list of Recording
+        Raw validation recordings.
+    kt : array (n_dof,), optional
+        Torque constants of recordings with currents only.
+    """
+    after, payload = first
+    comparison = compare_models(before, after, model, validation, kt)
+    remaining, dropped, first_text = list(droppable), [], comparison.text()
+    while comparison.worse and remaining:
+        worst = comparison.worst()
+        trials = {}
+        for label in remaining:
+            candidate, extra = refit([d["label"] for d in dropped] + [label])
+            trials[label] = (compare_models(before, candidate, model, validation, kt), (candidate, extra))
+        label = min(remaining, key=lambda k: (trials[k][0].after[worst], len(trials[k][0].worse)))
+        trial, (after, payload) = trials[label]
+        logger.info("never worse: %s raised joint %d; dropped and refitted", label, worst + 1)
+        dropped.append({
+            "label": label,
+            "joint": worst + 1,
+            "validation_rmse_before": float(comparison.before[worst]),
+            "validation_rmse_with": float(comparison.after[worst]),
+            "validation_rmse_without": float(trial.after[worst]),
+            "margin": float(comparison.margin[worst]),
+            "reason": f"with it joint {worst + 1} is worse than before beyond the noise margin "
+            f"({comparison.text([worst])}); without it {trial.after[worst]:.4g} N m",
+        })  # fmt: skip
+        remaining.remove(label)
+        comparison = trial
+    if dropped and (comparison.worse or not remaining):
+        still = f"; without any, still {comparison.text()}" if comparison.worse else ""
+        return GateResult(after, payload, comparison, dropped, refused=(
+            f"no subset of the findings ({', '.join(droppable)}) keeps every joint's validation RMSE within its noise "
+            f"margin: with all of them {first_text}{still}; dropped in turn: "
+            + "; ".join(f"{d['label']} ({d['reason']})" for d in dropped)))  # fmt: skip
+    return GateResult(after, payload, comparison, dropped)

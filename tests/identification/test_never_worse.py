@@ -1,0 +1,169 @@
+"""The never-worse gate of ``diagnose --apply``: no joint's validation RMSE rises beyond the noise margin.
+
+The noise margin is checked against a Monte-Carlo truth (the spread of the RMSE difference over many independent
+recordings of the same process); the gate on the virtual Denso, whose recordings carry a hidden spring on joint 2
+and a torque delay on joints 4-6 only: a robot-wide delay correction fits the wrists and hurts joints 1-3 (as the
+Panda's 17 ms delay did). With the spring and the delay, the gate drops the delay and writes a model not worse on
+any joint; with the delay alone nothing can be kept: ``psdm diagnose --apply`` exits 1 and writes nothing.
+"""
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
+from identification.calibration.never_worse import MARGIN_FLOOR, block_length, compare_models, paired_rmse_margin
+from identification.calibration.recalibrate import recalibrate
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import save_recording
+from identification.diagnosis.candidates import DelayTerm, SpringTerm
+from identification.diagnosis.report import DiagnosisReport, Finding
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
+
+DELAY_S, DELAYED_JOINTS = 0.08, (3, 4, 5)
+SPRING_K, SPRING_Q0 = 40.0, 0.2
+
+
+@pytest.fixture(autouse=True)
+def _robot_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+
+
+def _ar1(rng, n, rho, size):
+    noise = rng.normal(size=(size, n))
+    out = np.empty_like(noise)
+    out[:, 0] = noise[:, 0]
+    for k in range(1, n):
+        out[:, k] = rho * out[:, k - 1] + np.sqrt(1 - rho**2) * noise[:, k]
+    return out
+
+
+@pytest.mark.parametrize("rho", [0.0, 0.9])
+def test_the_margin_is_the_spread_of_the_rmse_difference_over_other_recordings(rho):
+    """One recording's block-bootstrap standard error matches the spread over 400 independent recordings."""
+    rng, n = np.random.default_rng(3), 3000
+    before, after = _ar1(rng, n, rho, 400), 1.05 * _ar1(rng, n, rho, 400)  # paired: independent parts
+    truth = np.std(np.sqrt(np.mean(after**2, axis=1)) - np.sqrt(np.mean(before**2, axis=1)))
+    estimates = [paired_rmse_margin(before[k][:, None], after[k][:, None], seed=k)[2][0] for k in range(20)]
+    assert np.median(estimates) == pytest.approx(truth, rel=0.3), (estimates, truth)
+    assert block_length(before[0]) >= (8 if rho else 1)  # correlated residuals get longer blocks
+
+
+@pytest.mark.slow
+def test_identical_models_compare_equal_with_the_floor_margin(spring_data, denso_model):
+    calibrated = load_calibrated_model(spring_data / "model.json")
+    validation = [_load(spring_data / "valid.csv")]
+    comparison = compare_models(calibrated, calibrated, denso_model, validation)
+    np.testing.assert_allclose(comparison.after, comparison.before, rtol=1e-12)
+    np.testing.assert_allclose(comparison.margin, MARGIN_FLOOR * comparison.before, rtol=1e-12)
+    assert comparison.worse == ()
+
+
+def _load(path):
+    from identification.data.io import load_recording
+
+    return load_recording(path, 6)
+
+
+def _delayed_on(recording, joints, delay):
+    """The recording with the torque of ``joints`` lagging by ``delay`` [s] (the first sample held)."""
+    tau = recording.tau.copy()
+    for j in joints:
+        tau[:, j] = np.interp(recording.t - delay, recording.t, recording.tau[:, j])
+    return recording.with_signals(tau=tau)
+
+
+@pytest.fixture(scope="module")
+def spring_data(tmp_path_factory, denso, denso_model):
+    """Training and validation recordings with a spring on joint 2 and a delay on joints 4-6; the model without
+    either."""
+    folder = tmp_path_factory.mktemp("never_worse")
+    recordings = []
+    for k, name in enumerate(("train.csv", "valid.csv")):
+        rng = np.random.default_rng(70 + k)
+        reference = sine_experiment(denso, duration=10.0, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.05, rate=500.0)
+        extras = [xp.Spring(joint=1, stiffness=SPRING_K, q0=SPRING_Q0)]
+        recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
+        recording = _delayed_on(recording, DELAYED_JOINTS, DELAY_S)
+        save_recording(recording, folder / name)
+        recordings.append(recording)
+    fit = identify_trajectories(denso, denso_model, recordings[:1], TrajectoryOptions())
+    CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE).save(folder / "model.json")
+    return folder
+
+
+def _finding(term, parameters, coefficients, joints):
+    n = 6
+    return Finding(effect=term.key, label=term.label, joints=tuple(joints), parameters=parameters,
+                   coefficients=tuple(coefficients), feature_names=tuple(term.feature_names()), explanation="",
+                   signature="", rmse_before=(1.0,) * n, rmse_after=(0.5,) * n, delta_bic=-100.0,
+                   validation_gain=0.5)  # fmt: skip
+
+
+def _report(with_spring: bool):
+    """A diagnosis report with the delay (robot-wide, named on joints 4-6) and, optionally, the spring."""
+    delay = DelayTerm()
+    pairs = [(delay, _finding(delay, {"delay_s": DELAY_S}, [DELAY_S], DELAYED_JOINTS), np.array([DELAY_S]))]
+    if with_spring:
+        spring = SpringTerm(joint=1, max_order=1)
+        stiffness = np.array([SPRING_K, -SPRING_K * SPRING_Q0])
+        pairs.insert(0, (spring, _finding(spring, {"k": SPRING_K, "q0": SPRING_Q0}, stiffness, (1,)), stiffness))
+    n, zeros = 6, np.zeros((3, 6))
+    return DiagnosisReport(
+        robot_name="denso", n_dof=n, friction="coulomb_viscous", rigid_body="prior",
+        findings=tuple(f for _, f, _ in pairs), rmse_before=(1.0,) * n, rmse_after=(0.5,) * n, r2_before=(0.9,) * n,
+        r2_after=(0.95,) * n, rmse_train_before=(1.0,) * n, rmse_train_after=(0.5,) * n, residual_findings=(),
+        candidates_tried=2,
+        augmented=SimpleNamespace(terms=tuple(t for t, _, _ in pairs), coefficients=tuple(c for _, _, c in pairs)),
+        validation_t=np.arange(3.0), validation_q=zeros, validation_qd=zeros, validation_tau=zeros,
+        validation_nominal=zeros, validation_final=zeros,
+    )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_the_gate_drops_the_delay_that_hurts_joints_1_to_3_and_keeps_the_spring(spring_data, denso, denso_model):
+    calibrated = load_calibrated_model(spring_data / "model.json")
+    train, validation = _load(spring_data / "train.csv"), _load(spring_data / "valid.csv")
+    result = recalibrate(calibrated, denso, denso_model, _report(True), train, validation)
+    assert result.refused is None
+    labels = [entry["label"] for entry in result.after.document["findings"]]
+    assert "spring[j2]" in labels and "delay" not in labels and result.after.corrections == {}
+    block = result.after.document["recalibration"]["never_worse"]
+    assert [d["label"] for d in block["dropped"]] == ["delay"] and block["dropped"][0]["joint"] in (1, 2, 3)
+    assert block["worse_joints"] == []
+    # independently of the gate's own numbers: psdm validate's RMSE of both files, per joint
+    before = np.array(block["validation_rmse_before"])
+    after = np.array(result.after.document["validation"]["recordings"][0]["rmse"])
+    assert np.all(after <= before + np.array(block["margin"])), (before, after)
+    assert after[1] < 0.5 * before[1]  # the spring is modelled: joint 2 much better
+    # the delay alone helped joints 4-6 on the sum the diagnosis judges, and hurt joints 1-3 beyond the margin
+    assert (
+        block["dropped"][0]["validation_rmse_with"]
+        > block["dropped"][0]["validation_rmse_before"] + block["dropped"][0]["margin"]
+    )
+
+
+@pytest.mark.slow
+def test_apply_refuses_when_no_finding_can_be_kept(spring_data, denso, capsys, monkeypatch):
+    """Only the delay: every subset is worse on joints 1-3 (or is the model itself): exit 1, no file."""
+    import importlib
+
+    diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
+    monkeypatch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: _report(False))
+    out = spring_data / "refused.json"
+    argv = ["diagnose", str(spring_data / "model.json"), "--train", str(spring_data / "train.csv"), "--validate",
+            str(spring_data / "valid.csv"), "--apply", str(out), "--json"]  # fmt: skip
+    assert main(argv) == 1
+    captured = capsys.readouterr()
+    assert not out.exists()
+    assert "Nothing was written" in captured.err and "delay" in captured.err and "joint 1" in captured.err
+    recalibration = json.loads(captured.out)["recalibration"]
+    assert recalibration["model"] is None and recalibration["refused"]
+    assert [d["label"] for d in recalibration["dropped"]] == ["delay"] and recalibration["dropped"][0]["joint"] <= 3

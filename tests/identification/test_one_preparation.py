@@ -1,0 +1,93 @@
+"""One preparation: every command that judges a model prepares the recordings as the model file says.
+
+``psdm validate`` and ``psdm diagnose`` of the same model file on the same recording report the same RMSE of that
+model per joint, and the diagnosis names the file it started from and the preparation it used; a file written
+before the preparation was stored is judged as before, with a note; a robot file is diagnosed with the preparation
+``psdm identify`` would choose.
+"""
+
+import copy
+import json
+
+import numpy as np
+import pytest
+
+from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
+from identification.calibration.model_preparation import default_preparation, model_preparation
+from identification.calibration.trajectory_data import prepare_recording
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import save_recording
+from identification.data.recording import Recording
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
+
+
+@pytest.fixture(autouse=True)
+def _robot_cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+
+
+@pytest.fixture(scope="module")
+def denso_files(tmp_path_factory, denso, denso_model):
+    """A training and a validation recording of the virtual Denso at 500 Hz, and the model identified on the first
+    at a cutoff of 8 Hz (neither identify's default 10 Hz nor diagnose's former 15 Hz)."""
+    folder = tmp_path_factory.mktemp("one_preparation")
+    recordings = []
+    for k, name in enumerate(("train.csv", "valid.csv")):
+        rng = np.random.default_rng(90 + k)
+        reference = sine_experiment(denso, duration=8.0, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=500.0)
+        recording, _ = simulate_recording(denso, reference, options, rng)
+        save_recording(recording, folder / name)
+        recordings.append(recording)
+    fit = identify_trajectories(denso, denso_model, recordings[:1], TrajectoryOptions(cutoff_hz=8.0))
+    CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE).save(folder / "model.json")
+    return folder
+
+
+def test_the_model_file_stores_its_preparation_and_an_older_file_is_judged_as_before(denso_files, denso_model):
+    calibrated = load_calibrated_model(denso_files / "model.json")
+    block = calibrated.document["identification"]["preparation"]
+    assert block["cutoff_hz"] == 8.0 and block["grid_rate_hz"] == 80.0 and block["order"] == 8 and block["version"]
+    assert model_preparation(calibrated.document).note == ""
+    older = copy.deepcopy(calibrated.document)
+    del older["identification"]["preparation"]
+    preparation = model_preparation(older)
+    assert preparation.cutoff_hz == 8.0 and "written before its preparation was stored" in preparation.note
+    from identification.data.io import load_recording
+
+    recording = load_recording(denso_files / "valid.csv", 6)
+    ours = calibrated.predict_recording(denso_model, recording)
+    theirs = CalibratedModel(older).predict_recording(denso_model, recording)
+    np.testing.assert_array_equal(ours[1], theirs[1])
+    ready, _, _ = prepare_recording(recording, None, 8.0)  # the identification's own preparation, independently
+    np.testing.assert_array_equal(ours[0].tau, ready.tau)
+
+
+def test_a_robot_file_gets_the_preparation_identify_would_choose():
+    t = np.arange(0.0, 2.0, 0.02)  # 50 Hz: identify filters at rate / 10 = 5 Hz
+    slow = default_preparation(Recording(t=t, q=np.zeros((t.size, 1)), tau=np.zeros((t.size, 1))))
+    t = np.arange(0.0, 2.0, 1e-3)  # 1 kHz: at 10 Hz
+    fast = default_preparation(Recording(t=t, q=np.zeros((t.size, 1)), tau=np.zeros((t.size, 1))))
+    found = (slow.cutoff_hz, slow.grid_rate_hz, fast.cutoff_hz, fast.grid_rate_hz)
+    np.testing.assert_allclose(found, (5.0, 50.0, 10.0, 100.0), rtol=1e-12)
+    assert "identify's default" in fast.source
+
+
+@pytest.mark.slow
+def test_validate_and_diagnose_report_the_same_before_and_the_report_names_the_file(denso_files, capsys, tmp_path):
+    model, valid = str(denso_files / "model.json"), str(denso_files / "valid.csv")
+    assert main(["validate", model, valid, "--json"]) == 0
+    validated = json.loads(capsys.readouterr().out)["recordings"][0]["rmse"]
+    argv = ["diagnose", model, "--train", str(denso_files / "train.csv"), "--validate", valid, "--out",
+            str(tmp_path / "report"), "--no-sparse", "--rigid-body", "prior", "--max-effects", "1"]  # fmt: skip
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    report = json.loads((tmp_path / "report" / "report.json").read_text())
+    np.testing.assert_allclose(report["model_file_rmse"], validated, rtol=1e-12)
+    assert model in report["nominal_model"] and "calibrated model file" in report["nominal_model"]
+    assert "at 8 Hz" in report["preparation"] and "(model file)" in report["preparation"]
+    assert f"Nominal model: the calibrated model file {model}" in text and "rigid body from the robot file" not in text
+    assert "the model file as it is (as 'psdm validate' computes it): joint 1 " + f"{validated[0]:.4g}" in text
