@@ -6,12 +6,16 @@ converts it to joint-side recordings, splits each into a training part (first 70
 report.json, plots and the augmented model per robot into OUT_DIR/<robot>/. Robots whose data are absent are
 skipped.
 
-    python benchmarks/real_data_diagnosis.py OUT_DIR [--json] [--overwrite] [--data-root PATH]
+Then, unless ``--no-loop``, identify -> diagnose --apply with default options on both robots (``never_worse_loop``):
+key ``loop_never_worse``.
+
+    python benchmarks/real_data_diagnosis.py OUT_DIR [--json] [--overwrite] [--data-root PATH] [--no-loop]
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -66,6 +70,7 @@ def main(argv=None):
     parser.add_argument("--overwrite", action="store_true")
     parser.add_argument("--cutoff", type=float, default=10.0, help="low-pass cut-off [Hz] (default 10)")
     add_data_root_argument(parser)
+    parser.add_argument("--no-loop", action="store_true", help="skip identify -> diagnose --apply (loop_never_worse)")
     args = parser.parse_args(argv)
     show_progress()
     results = {}
@@ -90,6 +95,14 @@ def main(argv=None):
         print("  validation RMSE after:  " + " ".join(f"{x:.3g}" for x in report.rmse_after), file=out)
         print("  R^2 before: " + " ".join(f"{x:.3f}" for x in report.r2_before), file=out)
         print("  R^2 after:  " + " ".join(f"{x:.3f}" for x in report.r2_after), file=out)
+    if not args.no_loop:  # identify -> diagnose --apply with default options (never_worse_loop)
+        from never_worse_loop import print_loops, run_loops
+
+        loops = run_loops(("tx40", "panda"), lambda text: print(text, file=sys.stderr, flush=True), args.data_root)
+        results.update(loops)
+        with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
+            print_loops(loops["loop"])
+            print(f"loop_never_worse: {loops['loop_never_worse']}")
     if args.json:
         print(json.dumps(results, default=float))
     return 0

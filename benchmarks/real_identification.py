@@ -22,12 +22,17 @@ with a shim of ours into a shared library in a cache folder outside the reposito
 (``~/.cache/psdm-casadi/gaz2019/<hash of sources, shim, flags and compiler>``, or ``--build-dir``)
 and loaded with ctypes. The first build takes minutes (CoriolisMatrix.cpp is 2.5 MB, compiled at -O1).
 
+Then, unless ``--no-loop``, the loop a new user runs with default options, ``psdm identify`` -> ``psdm diagnose
+model.json --apply`` (``never_worse_loop``), judged by ``psdm validate`` before and after.
+
 Targets: consistent (both eigenvalues > 0); our validation RMSE within 10 % of OLS on every joint;
-on the Panda, below the published model on every joint; derive + identify under 60 s per robot.
+on the Panda, below the published model on every joint; derive + identify under 60 s per robot;
+``loop_never_worse``: at the end of the loop no joint's validation RMSE above its value after identify plus the
+noise margin the diagnosis states.
 Usage::
 
     python benchmarks/real_identification.py [--robots tx40 panda kinova] [--build-dir DIR] [--jobs 2]
-        [--configurations 10000] [--seed 0] [--json]
+        [--configurations 10000] [--seed 0] [--json] [--no-loop]
 
 Exit code 0 when every target is met, 1 otherwise, 2 when no dataset is found or an option is wrong.
 """
@@ -60,6 +65,8 @@ from bench_support import (
     show_progress,
 )
 from kinova_gen3 import KINOVA, evaluate_kinova, kinova_missed, print_kinova
+from never_worse_loop import ROBOTS as LOOP_ROBOTS
+from never_worse_loop import print_loops, run_loops
 from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
 from tx40_motor_side import compare_routes
 
@@ -97,6 +104,8 @@ TARGETS = {
     "hand-converted route's model (1e-9 relative)",
     "kinova_models": "Kinova Gen3: identify on defaults from the joint-torque sensors and from currents, every link "
     "plausible (mass within 5x the URDF's, centre of mass within reach), the tool found (0.4-2 kg)",
+    "loop_never_worse": "identify -> diagnose --apply (defaults): every joint's validation RMSE at the end <= after "
+    "identify + the stated noise margin (never_worse_loop)",
 }
 
 # Our own code: evaluates the published functions for n samples stored row by row, (n, 7) in C order.
@@ -376,6 +385,7 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     add_data_root_argument(parser)
+    parser.add_argument("--no-loop", action="store_true", help="skip identify -> diagnose --apply (loop_never_worse)")
     args = parser.parse_args(argv)
     show_progress()
     build_dir = (args.build_dir or default_build_dir()).expanduser().resolve()
@@ -425,6 +435,11 @@ def main(argv=None) -> int:
         if not motor_side["equal"]:
             worst = motor_side["max_relative_difference"]
             missed.append(f"tx40 tx40_motor_side_equal: relative difference {worst:.3g}")
+    looped = [key for key in args.robots if key in LOOP_ROBOTS]
+    loops = {} if args.no_loop or not looped else run_loops(looped, log, args.data_root)
+    if loops and not loops["loop_never_worse"]:
+        missed += [f"{key} loop_never_worse: {r['rmse_end']} > {r['rmse_identify']} + {r['margin']}"
+                   for key, r in loops["loop"].items() if not r.get("skipped") and not r["never_worse"]]  # fmt: skip
     with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):  # stdout is pure JSON with --json
         for key, r in results.items():
             print_robot(key, r)
@@ -432,6 +447,8 @@ def main(argv=None) -> int:
             print(f"\ntx40 read as shipped (motor side, coupled wrist, 5 kHz without time) vs hand-converted: largest "
                   f"relative parameter difference {motor_side['max_relative_difference']:.3g}")  # fmt: skip
         print_kinova(kinova)
+        if loops:
+            print_loops(loops["loop"])
         print("\ntargets:")
         for name, text in TARGETS.items():
             failed = [m for m in missed if m.split(" ", 2)[1].rstrip(":") == name]
@@ -440,7 +457,8 @@ def main(argv=None) -> int:
     if args.json:
         payload = {"robots": results, "targets": TARGETS, "targets_met": not missed, "targets_missed": missed,
                    "tx40_motor_side_equal": None if motor_side is None else motor_side["equal"],
-                   "tx40_motor_side": motor_side, "kinova_models": kinova}  # fmt: skip
+                   "tx40_motor_side": motor_side, "kinova_models": kinova,
+                   **loops}  # fmt: skip
         print(json.dumps(payload, default=float))
     return 0 if not missed else 1
 
