@@ -10,9 +10,8 @@ It holds everything needed to use an identification without the recordings or th
   sigma in percent;
 - ``drive``: the labelled drive parameters (``fc1, fv1, offset1, ..., Ia<j>``) with their standard
   deviations and the friction model's shape;
-- ``identification``: filter, decimation, samples, weights, condition number, solver status; its
-  ``preparation`` block (``model_preparation``: filter, order, cutoff, grid rate, edge trim) is how every command
-  that judges the model prepares a recording (absent from older files, which are judged with their cutoff as before);
+- ``identification``: filter, decimation, samples, weights, condition number, solver status, and ``preparation``
+  (``model_preparation``): how every command that judges the model prepares a recording;
 - ``provenance``: when, which version, which recordings (name, samples, SHA-256);
 - ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
 - ``findings``: the terms diagnosis added (empty until a diagnosis is applied with
