@@ -4,6 +4,7 @@ validation; with a calibrated model and ``--apply NEW.json``, the findings ident
 
 from __future__ import annotations
 
+import logging
 import sys
 from pathlib import Path
 
@@ -131,7 +132,7 @@ def _run_diagnose(args) -> int:
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
     options = DiagnosisOptions(
-        friction=args.friction or (_own_friction(calibrated) if calibrated is not None else "lugre"),
+        friction=args.friction or (_own_friction(calibrated) if calibrated is not None else _robot_friction(robot)),
         rigid_body=args.rigid_body,
         cutoff_hz=preparation.cutoff_hz,
         rate_hz=preparation.grid_rate_hz,
@@ -203,6 +204,18 @@ def _named(args, report, preparation, loaded, validation):
     own = validation_rmse(calibrated, model, validation, kt)[0]
     return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text(),
                                model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
+
+
+def _robot_friction(robot) -> str:
+    """The nominal friction of a robot file: the LuGre shape of its drives, or Coulomb + viscous when its drives
+    state torque constants but no friction (no Stribeck velocity to take, and none the data can fix on a joint
+    that never slows down: the Kinova example's joint 5); a robot without drives keeps the steady-state LuGre."""
+    if robot.drives is None or all(drive.fc > 0 for drive in robot.drives):
+        return "lugre"
+    logging.getLogger("identification.diagnosis").info(
+        "diagnose: the robot file's drives state no friction: nominal friction Coulomb + viscous (--friction to choose)"
+    )
+    return "coulomb_viscous"
 
 
 def _own_friction(calibrated) -> str:
