@@ -224,7 +224,11 @@ class PSDMModel:
 
     # --- files ----------------------------------------------------------------------------------
     def save(self, path, overwrite: bool = False) -> Path:
-        """Write the model to a versioned ``.npz`` file atomically; refuse to overwrite unless asked."""
+        """Write the model to a versioned ``.npz`` file atomically; refuse to overwrite unless asked.
+
+        The arrays are zip-compressed: the reduction tensor is mostly zeros (the Panda's 64 MB become 0.2 MB,
+        and read faster); ``load_model`` reads compressed and uncompressed files alike.
+        """
         path = Path(path)
         if path.suffix != ".npz":
             path = path.with_suffix(path.suffix + ".npz") if path.suffix else path.with_suffix(".npz")
@@ -239,7 +243,7 @@ class PSDMModel:
         }
         atomic_write(
             path,
-            lambda handle: np.savez(
+            lambda handle: np.savez_compressed(
                 handle,
                 header=np.array(json.dumps(header)),
                 exponents=self.exponents,

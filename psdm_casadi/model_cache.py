@@ -13,7 +13,9 @@ The folder is ``$PSDM_CACHE_DIR`` when set, else the user's cache folder (``plat
 ``~/.cache/psdm-casadi/models`` on Linux). Writing is atomic (a temporary file in the same folder renamed
 over the entry), so two commands deriving the same robot at once both leave a whole file. An entry that
 does not read (truncated, edited, another format) is logged and derived again; a folder that cannot be
-written is logged and the model derived without caching.
+written is logged and the model derived without caching. The folder keeps the :data:`MAX_ENTRIES` most
+recently used entries (a read touches its entry; a write removes the oldest beyond that), so that entries of
+older versions or edited robots do not pile up.
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ import numpy as np
 
 from psdm_casadi.derive import DeriveOptions, derive_psdm
 from psdm_casadi.description import RobotDescription
-from psdm_casadi.errors import PSDMError
+from psdm_casadi.errors import ParameterError, PSDMError
 from psdm_casadi.model import MODEL_VERSION, PSDMModel, load_model
 
 __all__ = ["CACHE_ENV", "ModelCache", "default_cache_folder", "model_key"]
@@ -45,6 +47,8 @@ logger = logging.getLogger(__name__)
 CACHE_ENV = "PSDM_CACHE_DIR"
 #: Errors of reading an entry that mean "derive again" (a truncated zip, bad JSON, missing arrays ...).
 UNREADABLE = (PSDMError, OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile)
+#: Entries kept in the cache folder (the least recently used beyond it are removed after a write).
+MAX_ENTRIES = 64
 
 
 def default_cache_folder() -> Path:
@@ -99,6 +103,14 @@ def _software() -> dict:
     }
 
 
+def _touch(path: Path) -> None:
+    """Mark an entry used now (a read-only folder keeps its old time)."""
+    try:
+        os.utime(path)
+    except OSError:
+        pass
+
+
 def model_key(robot: RobotDescription, options: DeriveOptions | None = None) -> str:
     """The sha256 (hex) naming the derived model of ``robot`` with ``options`` (see the module docstring)."""
     description = _canonical(robot)
@@ -125,9 +137,12 @@ class ModelCache:
 
     folder: Path | None = None
     enabled: bool = True
+    max_entries: int = MAX_ENTRIES
 
     def __post_init__(self):
         object.__setattr__(self, "folder", default_cache_folder() if self.folder is None else Path(self.folder))
+        if not (isinstance(self.max_entries, int) and self.max_entries >= 1):
+            raise ParameterError(f"ModelCache.max_entries must be an integer >= 1; got {self.max_entries!r}.")
 
     def path(self, key: str) -> Path:
         """The entry of ``key``."""
@@ -142,6 +157,7 @@ class ModelCache:
         model = self._read(path, robot)
         if model is not None:
             logger.info("model of %s read from the cache (%s)", robot.name, path)
+            _touch(path)
             return model
         model = derive_psdm(robot, options)
         try:
@@ -150,7 +166,23 @@ class ModelCache:
             logger.warning("could not write the model cache %s (%s); the model will be derived again", path, exc)
         else:
             logger.debug("model of %s stored in the cache (%s)", robot.name, path)
+            self.prune()
         return model
+
+    def prune(self) -> None:
+        """Remove the least recently used entries beyond ``max_entries`` (another command's removal is no error)."""
+        entries = []
+        for entry in self.folder.glob("*.npz"):
+            try:
+                entries.append((entry.stat().st_mtime, entry))
+            except OSError:  # removed meanwhile
+                continue
+        for _, entry in sorted(entries, reverse=True)[self.max_entries :]:
+            try:
+                entry.unlink()
+                logger.debug("removed the least recently used model cache entry %s", entry)
+            except OSError:
+                pass
 
     def _read(self, path: Path, robot: RobotDescription) -> PSDMModel | None:
         if not path.is_file():

@@ -15,6 +15,7 @@ import pytest
 import psdm_casadi.model_cache as model_cache
 from psdm_casadi.cli import main
 from psdm_casadi.derive import DeriveOptions, derive_psdm
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.model import load_model
 from psdm_casadi.model_cache import ModelCache, default_cache_folder, model_key
 from psdm_casadi.robot import from_dh, load_robot
@@ -137,3 +138,23 @@ def test_two_processes_writing_at_once_leave_a_valid_entry(tmp_path):
     entries = sorted(p.name for p in folder.iterdir())
     assert len(entries) == 1 and entries[0].endswith(".npz")  # no temporary file left
     assert load_model(folder / entries[0]) == derive_psdm(load_robot(robot_file))
+
+
+def test_the_least_recently_used_entries_beyond_the_limit_are_removed(tmp_path, derivations):
+    import os
+    import time
+
+    cache = ModelCache(tmp_path, max_entries=2)
+    robots = [small_robot(a2) for a2 in (0.30, 0.31, 0.32)]
+    first, second, third = (cache.path(model_key(r)) for r in robots)
+    cache.derive(robots[0])
+    cache.derive(robots[1])
+    os.utime(first, (time.time() - 100, time.time() - 100))
+    os.utime(second, (time.time() - 50, time.time() - 50))
+    cache.derive(robots[0])  # read: now the most recently used
+    cache.derive(robots[2])  # written: the oldest (robot 2) goes
+    assert first.exists() and third.exists() and not second.exists()
+    assert len(derivations) == 3
+    assert load_model(first).parameter_map.shape[1] == 33  # entries are whole, compressed npz files
+    with pytest.raises(ParameterError, match="max_entries"):
+        ModelCache(tmp_path, max_entries=0)
