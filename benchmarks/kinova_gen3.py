@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from bench_support import DEFAULT_DATA_ROOT, ROOT
+from bench_support import DEFAULT_DATA_ROOT, ROOT, add_data_root_argument, at_data_root
 
 KINOVA = DEFAULT_DATA_ROOT / "datasets" / "kinova_gen3_dynid"
 ROBOT_FILE = ROOT / "examples" / "kinova_gen3.toml"
@@ -204,10 +204,12 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     parser.add_argument("--skip-diagnosis", action="store_true", help="identify only (about a minute)")
-    parser.add_argument("--data", type=Path, default=KINOVA, help="the dataset folder (default: ../shared/...)")
+    parser.add_argument("--data", type=Path, default=None, help="the dataset folder (default: DATA_ROOT/datasets/...)")
+    add_data_root_argument(parser)
     args = parser.parse_args(argv)
     log = lambda m: print(m, file=sys.stderr, flush=True)  # noqa: E731
-    result = evaluate_kinova(log, args.data, diagnosis=not args.skip_diagnosis)
+    data = args.data if args.data is not None else at_data_root(KINOVA, args.data_root)
+    result = evaluate_kinova(log, data, diagnosis=not args.skip_diagnosis)
     with contextlib.redirect_stdout(sys.stderr if args.json else sys.stdout):
         print_kinova(result)
     if args.json:

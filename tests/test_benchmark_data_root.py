@@ -16,7 +16,7 @@ def benchmarks(monkeypatch):
     return bench_support
 
 
-@pytest.mark.parametrize("script", ["real_identification", "tx40_motor_side", "real_data_diagnosis"])
+@pytest.mark.parametrize("script", ["real_identification", "tx40_motor_side", "real_data_diagnosis", "kinova_gen3"])
 def test_an_empty_data_root_is_looked_in_and_named(benchmarks, script, tmp_path, capsys):
     import importlib
 
