@@ -62,7 +62,7 @@ from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.trajectory_data import NormalEquations, drive_column_names, prepare_recording
-from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
+from identification.calibration.trajectory_fit import TrajectoryOptions, drive_inertia_joints, identify_trajectories
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from psdm_casadi.errors import ParameterError, SolverError
 
@@ -191,7 +191,7 @@ def _check_lugre_findings(calibrated: CalibratedModel, terms) -> None:
 def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, stribeck=None) -> tuple:
     """Which finding features the fit's other columns (and earlier features) do not span, on the training data
     (a Stribeck friction shape with the velocities ``stribeck`` of the model the diagnosis started from)."""
-    inertia = list(_inertia_joints(model, robot, options))
+    inertia = drive_inertia_joints(model, robot, options)
     names = drive_column_names(robot.n_dof, options.friction, inertia)
     n_extra = len(columns.all_names)
     equations = NormalEquations(robot.n_dof, model.n_base + len(names) + n_extra)
@@ -222,10 +222,6 @@ def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, s
     return tuple(keep)
 
 
-def _inertia_joints(model, robot, options):
-    return separate_inertia_joints(model, robot) if options.drive_inertia else ()
-
-
 def _kt(robot, recordings):
     if all(r.tau is not None for r in recordings) or robot.drives is None:
         return None
@@ -245,7 +241,16 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         drive_inertia=bool(identification.get("drive_inertia", True)),
         consistency=bool(document["standard"].get("checked", True)),
         cutoff_hz=model_preparation(document).cutoff_hz,
+        offset_joints=_offset_joints(identification),
+        inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
     )
+
+
+def _offset_joints(identification):
+    """The joints (0-based) of the file's chosen offsets (``column_choice``); None (every joint) in older files."""
+    choice = identification.get("column_choice") or {}
+    on = choice.get("request", {}).get("offset", "on") == "on"
+    return None if on else tuple(j - 1 for j in choice["offset_joints"])
 
 
 def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lugre=False):

@@ -32,7 +32,8 @@ from identification.calibration.trajectory_data import (
     stribeck_derivative,
 )
 
-__all__ = ["STRIBECK_GRID", "StribeckColumns", "fit_stribeck_velocity", "stribeck_step", "stribeck_velocity_std"]
+__all__ = ["STRIBECK_GRID", "StribeckColumns", "base_regressors", "fit_stribeck_velocity", "stribeck_step",
+           "stribeck_velocity_std"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -67,7 +68,7 @@ class StribeckColumns:
         return own if self.extra is None else np.concatenate([self.extra.columns(q, qd, qdd), own], axis=2)
 
 
-def _regressors(model, prepared) -> list:
+def base_regressors(model, prepared) -> list:
     """The base-parameter regressor of every prepared recording in chunks: it does not depend on ``vs``."""
     return [
         [model.regressor(r.q[k : k + CHUNK_SAMPLES], r.qd[k : k + CHUNK_SAMPLES], r.qdd[k : k + CHUNK_SAMPLES])
@@ -115,7 +116,7 @@ def stribeck_step(x, offset: int, names, vs) -> np.ndarray:
     return np.where(defined, x[-n_dof:] / np.where(defined, gap, 1.0), 0.0)
 
 
-def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None) -> np.ndarray:
+def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, regressors=None) -> np.ndarray:
     """Stribeck velocity [rad/s] per joint of prepared recordings (module docstring), shape (n_dof,).
 
     Parameters
@@ -129,11 +130,13 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None) 
         The joints with a drive-inertia column of their own.
     extra : object with ``names``, ``lower`` and ``columns(q, qd, qdd)``, or a list of them, optional
         Further linear columns fitted jointly (a list: one per recording, e.g. its payload's, ``payload_fit``).
+    regressors : list, optional
+        :func:`base_regressors` of ``prepared``, when the caller has them already.
     """
     n_dof = prepared[0].n_dof
     terms, velocity = options.friction, options.coulomb_velocity
     names = drive_column_names(n_dof, terms, inertia_joints)
-    regressors = _regressors(model, prepared)
+    regressors = base_regressors(model, prepared) if regressors is None else regressors
 
     extras = list(extra) if isinstance(extra, (list, tuple)) else [extra] * len(prepared)
 

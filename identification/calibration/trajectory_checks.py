@@ -87,9 +87,10 @@ def check_columns(robot, model, equations, names, recordings) -> None:
                     column_joints=list(base_parameter_joints(model)) + drive_joints)  # fmt: skip
 
 
-def check_offset_reversals(robot, prepared, friction, coulomb_velocity: float) -> None:
-    """With ``"offset"`` and ``"fc"`` in ``friction``, every joint moves faster than ``coulomb_velocity`` both ways
-    on at least ``MIN_REVERSAL_FRACTION`` of the prepared samples (``excitation_check.check_reversals``).
+def check_offset_reversals(robot, prepared, friction, coulomb_velocity: float, joints=None) -> None:
+    """With ``"offset"`` and ``"fc"`` in ``friction``, every joint with an offset (``joints``, 0-based; None: all)
+    moves faster than ``coulomb_velocity`` both ways on at least ``MIN_REVERSAL_FRACTION`` of the prepared samples
+    (``excitation_check.check_reversals``).
 
     Raises
     ------
@@ -98,7 +99,8 @@ def check_offset_reversals(robot, prepared, friction, coulomb_velocity: float) -
     """
     if "offset" not in friction or "fc" not in friction:
         return
-    check_reversals(prepared, range(robot.n_dof), speed=coulomb_velocity, min_fraction=MIN_REVERSAL_FRACTION,
+    joints = range(robot.n_dof) if joints is None else joints
+    check_reversals(prepared, joints, speed=coulomb_velocity, min_fraction=MIN_REVERSAL_FRACTION,
                     robot=robot, purpose="to tell its Coulomb friction (fc) from its torque offset (offset)",
                     fix=REVERSAL_FIX)  # fmt: skip
 
@@ -152,8 +154,8 @@ def _drive_inertia_warnings(fit) -> list:
     return [
         f"the data ask for a negative drive inertia on joint {name[2:]} (unconstrained {name} = {value:.3g} +- "
         f"{std:.2g} kg m^2); the consistent fit holds it at 0, which costs fit on that joint. Torques measured on "
-        "the link side of the gearbox (joint torque sensors: Franka Panda, KUKA iiwa) hold no rotor inertia: pass "
-        "--no-drive-inertia."
+        "the link side of the gearbox (joint torque sensors: Franka Panda, KUKA iiwa) hold no rotor inertia: identify "
+        "with --drive-inertia auto (the default, which drops such a column) or off."
         for name, value, std in zip(fit.drive_names, fit.drive_ols, fit.drive_std)
         if name.startswith("Ia") and value < -DRIVE_INERTIA_Z * std
     ]

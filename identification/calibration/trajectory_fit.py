@@ -51,6 +51,7 @@ from identification.calibration.payload_fit import (
     subtract_known_payloads,
 )
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
+from identification.calibration.residual_correlation import correlation_time, sandwich_covariance
 from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
 from identification.calibration.trajectory_checks import (
     check_columns,
@@ -71,9 +72,11 @@ __all__ = [
     "IPOPT_OPTIONS",
     "TrajectoryFit",
     "TrajectoryOptions",
+    "drive_inertia_joints",
     "identify_trajectories",
     "predict_torque",
     "separate_inertia_joints",
+    "torque_constants",
 ]
 
 logger = logging.getLogger(__name__)
@@ -118,6 +121,12 @@ class TrajectoryOptions:
         robot file's (default; needs the robot file's links).
     mass_ratio, drive_inertia_ratio : tuple of float
         ``(low, high)`` multiples of the robot file's link masses and drive inertias (default 0.5 and 2).
+    offset_joints : tuple of int or None
+        With ``"offset"``: the joints (0-based) whose torque offset is identified; the others' is held at 0
+        (``column_choice`` decides it from the data). None: every joint.
+    inertia_joints : tuple of int or None
+        With ``drive_inertia``: the joints (0-based) whose drive-inertia column of its own is identified, among
+        :func:`separate_inertia_joints` (``column_choice`` drops those the data want negative). None: all of them.
     """
 
     friction: tuple = ("fc", "fv")
@@ -132,8 +141,14 @@ class TrajectoryOptions:
     envelope: bool = True
     mass_ratio: tuple = (0.5, 2.0)
     drive_inertia_ratio: tuple = (0.5, 2.0)
+    offset_joints: tuple | None = None
+    inertia_joints: tuple | None = None
 
     def __post_init__(self):
+        for name in ("offset_joints", "inertia_joints"):
+            joints = getattr(self, name)
+            if joints is not None and not all(isinstance(j, (int, np.integer)) and j >= 0 for j in joints):
+                raise ParameterError(f"TrajectoryOptions.{name} must be None or 0-based joint indices; got {joints!r}.")
         unknown = [t for t in self.friction if t not in FRICTION_TERMS]
         if unknown or len(set(self.friction)) != len(self.friction):
             raise ParameterError(
@@ -291,15 +306,15 @@ def identify_trajectories(
     if not recordings:
         raise ParameterError("identify_trajectories needs at least one recording; got none. Pass --data FILE.")
     bodies = FlangeBodies.of(configurations, len(recordings))
-    kt = _torque_constants(robot, options, recordings)
-    inertia_joints = _separate_inertia_joints(model, robot) if options.drive_inertia else ()
+    kt = torque_constants(robot, options, recordings)
+    inertia_joints = drive_inertia_joints(model, robot, options)
     names = drive_column_names(robot.n_dof, options.friction, inertia_joints)
     lower = drive_lower_bounds(names)
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
     prepared = subtract_known_payloads(robot, prepared, configurations)
-    check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity)
+    check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
     vs, plain = None, bodies.extras(robot, extra)
     extras = plain
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
@@ -312,11 +327,14 @@ def identify_trajectories(
         equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity, columns, vs)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
-    check_columns(robot, model, equations.subset(range(n_fit)), names, recordings)
-    sigma, x_ols, inverse, condition = _weighted_least_squares(equations)
-    correlation = [_correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
+    held = _held_offsets(names, options, model.n_base)  # columns held at 0: left out of both fits
+    free = [k for k in range(equations.n_columns) if k not in held]
+    check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
+                  [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
+    sigma, x_ols, inverse, condition = _weighted_least_squares(equations, free)
+    correlation = [correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
                    for rec, columns in zip(prepared, extras)]  # fmt: skip
-    covariance = _sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
+    covariance = sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
@@ -326,8 +344,13 @@ def identify_trajectories(
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
-        standard, drive, found, status, bounds = consistent_fit(robot, model, equations.subset(keep), sigma, names,
-                                                                options, lower, prior[separable])  # fmt: skip
+        fitted = [k for k in range(len(names)) if model.n_base + k not in held]
+        keep = [k for k in keep if k not in held]
+        standard, drive_fitted, found, status, bounds = consistent_fit(
+            robot, model, equations.subset(keep), sigma, [names[k] for k in fitted], options, lower[fitted],
+            prior[separable])  # fmt: skip
+        drive = np.zeros(len(names))
+        drive[fitted] = drive_fitted
         found = _with_rows(found, separable)
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
@@ -377,7 +400,15 @@ def _with_rows(found, mask):
     return out
 
 
-def _torque_constants(robot, options, recordings):
+def _held_offsets(names, options, n_base) -> set:
+    """Column indices (after the ``n_base`` base parameters) of the offsets outside ``options.offset_joints``."""
+    kept = options.offset_joints
+    return {n_base + k for k, n in enumerate(names) if n.startswith("offset") and kept is not None
+            and int(n[6:]) - 1 not in kept}  # fmt: skip
+
+
+def torque_constants(robot, options, recordings):
+    """Torque constants [N m/A] for recordings of currents; None when every recording holds joint torques."""
     if all(rec.tau is not None for rec in recordings):
         return None
     if options.kt is not None:
@@ -393,6 +424,14 @@ def _torque_constants(robot, options, recordings):
 def separate_inertia_joints(model, robot) -> list:
     """Joints whose drive inertia the fit identifies as a column of its own (``Ia<j>``), 0-based."""
     return _separate_inertia_joints(model, robot)
+
+
+def drive_inertia_joints(model, robot, options: TrajectoryOptions) -> list:
+    """The joints with an ``Ia<j>`` column in a fit with ``options``: the separate ones it keeps (0-based)."""
+    if not options.drive_inertia:
+        return []
+    kept = options.inertia_joints
+    return [j for j in _separate_inertia_joints(model, robot) if kept is None or j in kept]
 
 
 def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
@@ -434,50 +473,19 @@ def _solve_scaled(gram, moment):
     return inverse @ moment, inverse, condition
 
 
-def _weighted_least_squares(equations: NormalEquations):
-    """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and covariance."""
-    rms = np.sqrt(equations.energy / np.maximum(equations.count, 1))
-    first, _, _ = _solve_scaled(*equations.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
-    sigma = residual_sigma(equations, first)
-    gram, moment, _ = equations.weighted(1.0 / sigma**2)
-    x, inverse, condition = _solve_scaled(gram, moment)
+def _weighted_least_squares(equations: NormalEquations, free=None):
+    """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and the inverse of its
+    normal matrix; only the ``free`` columns are fitted (None: all), the others stay 0 (0 rows in the inverse)."""
+    free = np.arange(equations.n_columns) if free is None else np.asarray(free, dtype=int)
+    subset = equations.subset(free)
+    rms = np.sqrt(subset.energy / np.maximum(subset.count, 1))
+    first, _, _ = _solve_scaled(*subset.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
+    sigma = residual_sigma(subset, first)
+    gram, moment, _ = subset.weighted(1.0 / sigma**2)
+    x_free, inverse_free, condition = _solve_scaled(gram, moment)
+    x, inverse = np.zeros(equations.n_columns), np.zeros((equations.n_columns,) * 2)
+    x[free], inverse[np.ix_(free, free)] = x_free, inverse_free
     return sigma, x, inverse, condition
-
-
-def _correlation_time(model, recording, x, options, inertia_joints, extra=None, max_lag: int = 50, *, stribeck=None):
-    """Per joint, the integrated autocorrelation time of the residual (1 for white residuals).
-
-    Filtered residuals are correlated over several samples; counting them as independent would make
-    the standard deviations too small. ``1 + 2 sum_k (1 - k/(L+1)) rho_k`` (Bartlett weights, ``L`` lags)
-    is the factor by which the variance of a mean grows, used per joint in :func:`_sandwich_covariance`.
-    """
-    residual = np.concatenate(
-        [
-            recording.tau[sl]
-            - np.concatenate(
-                [model.regressor(recording.q[sl], recording.qd[sl], recording.qdd[sl]),
-                 drive_columns(recording.qd[sl], recording.qdd[sl], options.friction, inertia_joints,
-                               options.coulomb_velocity, stribeck),
-                 *([] if extra is None else [extra.columns(recording.q[sl], recording.qd[sl], recording.qdd[sl])])],
-                axis=2,
-            ) @ x
-            for sl in (slice(s, s + 4000) for s in range(0, recording.n_samples, 4000))
-        ]
-    )  # fmt: skip
-    residual = residual - residual.mean(axis=0)
-    lags = min(max_lag, residual.shape[0] // 4)
-    variance = np.maximum(np.einsum("sn,sn->n", residual, residual), 1e-300)
-    factor = np.ones(residual.shape[1])
-    for k in range(1, lags + 1):
-        rho = np.einsum("sn,sn->n", residual[:-k], residual[k:]) / variance
-        factor += 2.0 * (1.0 - k / (lags + 1)) * rho
-    return np.maximum(factor, 1.0)
-
-
-def _sandwich_covariance(equations, sigma, inverse, correlation) -> np.ndarray:
-    """Covariance of the weighted estimate with each joint's residual variance grown by its correlation time."""
-    middle, _, _ = equations.weighted(correlation / sigma**2)
-    return inverse @ middle @ inverse
 
 
 def _drive_inertias(model, standard, drive, names):

@@ -27,18 +27,29 @@ from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progr
 from psdm_casadi.errors import ParameterError, SolverError
 
 MASS_CHECK_CONFIGURATIONS = 2000
-FRICTION_SHAPES = ("coulomb-viscous", "stribeck", "lugre")
+FRICTION_SHAPES = ("auto", "coulomb-viscous", "stribeck", "lugre")  # column_choice.FRICTION_CHOICES
+SWITCHES = ("auto", "on", "off")  # column_choice.SWITCH_CHOICES
 
 
 def add_arguments(p) -> None:
     """The options of the recordings route (the folder route shares ``--data``, ``--out`` and the rest)."""
     p.add_argument("--validate", nargs="+", default=(), help="held-out recordings for the validation report")
-    p.add_argument("--offset", action="store_true", help="also identify a constant torque offset per joint")
+    p.add_argument(
+        "--offset",
+        nargs="?",
+        const="on",
+        default="auto",
+        choices=SWITCHES,
+        help="a constant torque offset per joint: auto (default) identifies it on the joints whose data want it "
+        "(information criterion on the training data, checked on --validate or a block cross-validation; stated in "
+        "the output and the model file); on (or plain --offset): on every joint; off: on none",
+    )
     p.add_argument(
         "--friction",
         choices=FRICTION_SHAPES,
-        default="coulomb-viscous",
-        help="friction shape per joint: fc tanh(qd/eps) + fv qd (default); stribeck: (fc + (fs - fc) "
+        default="auto",
+        help="friction shape: auto (default) chooses coulomb-viscous or stribeck from the data as --offset does; "
+        "coulomb-viscous: fc tanh(qd/eps) + fv qd; stribeck: (fc + (fs - fc) "
         "exp(-(qd/vs)^2)) tanh(qd/eps) + fv qd, with fs and vs fitted (a --cutoff well above the motion's "
         "frequencies keeps the sharp low-velocity friction the filter would smear); lugre: the Stribeck fit, then "
         "all seven LuGre parameters per joint (fc, fs, vs, fv with dv = 1, bristle stiffness sigma0 and damping "
@@ -46,7 +57,17 @@ def add_arguments(p) -> None:
         "terms); sigma0 is reported as not identifiable where the motion never dwells at low speed. Predict, "
         "validate, simulate and the exported C carry the bristle state along the series",
     )
-    p.add_argument("--no-drive-inertia", action="store_true", help="do not identify drive (rotor) inertias")
+    p.add_argument(
+        "--drive-inertia",
+        choices=SWITCHES,
+        default="auto",
+        help="drive (rotor) inertia columns: auto (default) keeps a joint's where the data want it, and drops it where "
+        "they want it negative (torques measured behind the gearbox, as by link-side torque sensors, hold no rotor "
+        "inertia); on: every joint's; off: none",
+    )
+    p.add_argument(
+        "--no-drive-inertia", dest="drive_inertia", action="store_const", const="off", help="--drive-inertia off"
+    )
     p.add_argument(
         "--no-consistency",
         action="store_true",
@@ -82,7 +103,7 @@ def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
     from identification.calibration.envelope import check_ratio
     from identification.calibration.trajectory_checks import check_validation_recording
-    from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+    from identification.calibration.trajectory_fit import identify_trajectories
     from identification.data.io import not_held_out
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import derive_model
@@ -101,19 +122,14 @@ def run(args) -> int:
     if args.friction == "lugre":
         _check_lugre_configurations(configurations)
         _check_reversals(recordings, paths)
-    friction = ("fc", "fs", "fv") if args.friction in ("stribeck", "lugre") else ("fc", "fv")
-    friction = (*friction, "offset") if args.offset else friction
     for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):
         check_ratio(flag, value)
-    options = TrajectoryOptions(friction=friction, drive_inertia=not args.no_drive_inertia,
-                                consistency=not args.no_consistency, cutoff_hz=args.cutoff,
-                                envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
-                                drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
     if args.model:
         model = load_model(args.model)
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
+    choice, options = _columns(args, robot, model, recordings, validation, configurations)
     if args.friction == "lugre":
         fit, lugre, start = _fit_lugre(robot, model, recordings, options)
     else:
@@ -133,6 +149,7 @@ def run(args) -> int:
     report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
+    calibrated.document["identification"]["column_choice"] = choice.to_dict()
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "
@@ -146,7 +163,7 @@ def run(args) -> int:
         print(warning, file=sys.stderr)
     with out.staging() as stage:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
-    _print(args, robot, model, fit, report, calibrated)
+    _print(args, robot, model, fit, report, calibrated, choice)
     return EXIT_OK
 
 
@@ -156,6 +173,22 @@ def _concrete_route(warning: str, args, paths) -> str:
 
     validate = args.validate[0] if args.validate else "OTHER.csv"
     return warning.replace(DIAGNOSE_COMMAND, f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}")
+
+
+def _columns(args, robot, model, recordings, validation, configurations):
+    """(ColumnChoice, TrajectoryOptions): the drive columns --friction, --offset and --drive-inertia ask for, the
+    ``auto`` ones chosen from the data (``column_choice``)."""
+    from identification.calibration.column_choice import ColumnRequest, choose_columns
+    from identification.calibration.trajectory_fit import TrajectoryOptions
+
+    request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia)
+    options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
+                                envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
+                                drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
+    if "auto" in (request.friction, request.offset, request.drive_inertia):
+        progress("identify: choosing the friction shape, offsets and drive inertias from the data ...", quiet=args.json)
+    choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
+    return choice, choice.options(options)
 
 
 def _check_outputs(args):
@@ -345,7 +378,7 @@ def _print_envelope(fit) -> None:
         print(f"  PUSHED: {finding.message}")
 
 
-def _print(args, robot, model, fit, report, calibrated) -> None:
+def _print(args, robot, model, fit, report, calibrated, choice) -> None:
     if args.json:
         print_json({"command": "identify", "protocol": "recordings", "robot": robot.name, "out": str(args.out),
                     "consistent": calibrated.consistent, "checked": fit.checked,
@@ -359,6 +392,7 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
                     "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
                     "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
                     "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
+                    "columns": calibrated.document["identification"]["column_choice"],
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -368,11 +402,14 @@ def _print(args, robot, model, fit, report, calibrated) -> None:
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
     _print_envelope(fit)
+    print("drive columns: " + "; ".join(choice.describe()))
     relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
     print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
     for k, value in enumerate(fit.theta):
         print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {relative[k]:8.1f}")
     for k, name in enumerate(fit.drive_names):
+        if name.startswith("offset") and fit.drive_std[k] == 0:
+            continue  # held at 0: no offset on that joint (the drive columns above say so)
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
     for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
         print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")

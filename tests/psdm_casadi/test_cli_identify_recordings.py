@@ -152,3 +152,24 @@ def test_commands_after_identify_read_the_model_from_the_cache(recordings, tmp_p
     assert main(["codegen", str(out), "--out", str(tmp_path / "c"), "--json"]) == 0
     assert calls == [1]  # the model file's robot is the same robot: the same cache entry
     capsys.readouterr()
+
+
+def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_options_override(
+    recordings, tmp_path, capsys
+):
+    argv = ["identify", "denso_vs6556g", "--data", str(recordings / "train.csv")]
+    out = tmp_path / "auto.json"
+    assert main([*argv, "--out", str(out)]) == 0
+    columns = json.loads(out.read_text())["identification"]["column_choice"]
+    assert columns["request"] == {"friction": "auto", "offset": "auto", "drive_inertia": "auto"}
+    assert columns["friction"] in ("coulomb-viscous", "stribeck") and "cross-validation" in columns["check"]
+    assert {e["term"] for e in columns["evidence"]} >= {"stribeck", "offset"}
+    assert "drive columns: friction shape: " in capsys.readouterr().out
+    # the options override the choice: plain --offset is every joint's offset, --no-drive-inertia none
+    out = tmp_path / "asked.json"
+    asked = ["--offset", "--friction", "coulomb-viscous", "--no-drive-inertia", "--out", str(out), "--json"]
+    assert main([*argv, *asked]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["columns"]["request"] == {"friction": "coulomb-viscous", "offset": "on", "drive_inertia": "off"}
+    assert summary["columns"]["evidence"] == [] and {f"offset{j}" for j in range(1, 7)} <= set(summary["drive"])
+    assert not any(name.startswith("fs") for name in summary["drive"])

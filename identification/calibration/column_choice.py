@@ -1,0 +1,383 @@
+"""Which drive columns the data want: the friction shape, and per joint a torque offset and a drive inertia.
+
+On default settings ``psdm identify`` does not ask whether the torque signal carries an offset, holds the
+rotors' inertia (motor currents do; link-side joint-torque sensors, as on the Franka Panda or KUKA iiwa,
+do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, before the fit.
+
+1. The training recordings are prepared as the fit prepares them and summed into normal equations with
+   every candidate column (the Stribeck shape's two Coulomb columns, its velocities found first; each
+   joint's offset where the joint reverses; each separate drive-inertia column), in contiguous blocks.
+2. Every candidate model is a linear map of these columns (the Coulomb-viscous shape is the Stribeck shape
+   with ``fs = fc``: the two Coulomb columns summed; a dropped column is left out), fitted by weighted
+   least squares with each joint's weight ``1 / sigma_j^2`` of the full model.
+3. A candidate is kept when the Bayesian information criterion on the training data prefers it (per
+   joint for a joint's own column, summed over the joints for the shape), with the number of samples
+   divided by the residual's correlation time (filtered samples are not independent), **and** it lowers
+   the error on held-out data: the validation recordings when given, else a cross-validation over the
+   training blocks (each block predicted by the fit on the others).
+4. A drive inertia the data want negative is dropped: a torque measured behind the gearbox holds no rotor
+   inertia. That is an expected situation, stated in the choice, not a warning.
+
+LuGre friction stays an explicit choice (its fit is a multiple-shooting problem per joint, too costly to
+try by default); with it, the offsets and drive inertias are chosen under the Stribeck shape it starts from.
+An explicit ``on``/``off`` (``ColumnRequest``) is taken as given.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from identification.calibration.payload_fit import FlangeBodies, subtract_known_payloads
+from identification.calibration.residual_correlation import residual_correlation_time
+from identification.calibration.stribeck import base_regressors, fit_stribeck_velocity
+from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
+from identification.calibration.trajectory_data import (
+    NormalEquations,
+    drive_column_names,
+    drive_columns,
+    prepare_recording,
+    prepare_recordings,
+)
+from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints, torque_constants
+from psdm_casadi.errors import ParameterError
+
+__all__ = ["FRICTION_CHOICES", "SWITCH_CHOICES", "ColumnChoice", "ColumnRequest", "Evidence", "choose_columns"]
+
+logger = logging.getLogger(__name__)
+
+FRICTION_CHOICES = ("auto", "coulomb-viscous", "stribeck", "lugre")
+SWITCH_CHOICES = ("auto", "on", "off")
+#: Contiguous blocks per training recording for the cross-validation (without validation recordings).
+N_BLOCKS = 5
+#: Parameters the Stribeck shape adds per joint: the static friction and the Stribeck velocity.
+STRIBECK_PARAMETERS = 2
+#: Standard deviations by which the static friction must exceed the Coulomb level for a Stribeck effect.
+STRIBECK_Z = 2.0
+
+
+@dataclass(frozen=True)
+class ColumnRequest:
+    """What the user asked for: ``"auto"`` (the data decide, the default) or an explicit choice each."""
+
+    friction: str = "auto"
+    offset: str = "auto"
+    drive_inertia: str = "auto"
+
+    def __post_init__(self):
+        for name, allowed in (("friction", FRICTION_CHOICES), ("offset", SWITCH_CHOICES),
+                              ("drive_inertia", SWITCH_CHOICES)):  # fmt: skip
+            if getattr(self, name) not in allowed:
+                raise ParameterError(f"ColumnRequest.{name} must be one of {allowed}; got {getattr(self, name)!r}.")
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """What the data said about one candidate: ``term`` ``"stribeck"`` (``joint`` None), ``"offset"`` or ``"Ia"``.
+
+    ``delta_bic``: the training BIC without the candidate minus with it (positive: the training data want it);
+    ``held_out_ratio``: held-out sum of squared residuals with it over without it (below 1: it predicts
+    better); ``estimate`` and ``std``: its least-squares value in the full model (per-joint columns).
+    """
+
+    term: str
+    joint: int | None
+    delta_bic: float
+    held_out_ratio: float
+    kept: bool
+    reason: str
+    estimate: float | None = None
+    std: float | None = None
+
+    def to_dict(self) -> dict:
+        out = asdict(self)
+        out["joint"] = None if self.joint is None else self.joint + 1
+        return out
+
+
+@dataclass(frozen=True)
+class ColumnChoice:
+    """The drive columns of a fit: friction shape, offset joints and drive-inertia joints (0-based), and why."""
+
+    friction: str
+    offset_joints: tuple
+    inertia_joints: tuple
+    request: ColumnRequest
+    check: str = ""
+    evidence: tuple = ()
+
+    def options(self, options: TrajectoryOptions) -> TrajectoryOptions:
+        """``options`` with these columns (the LuGre shape's fit starts from the Stribeck columns)."""
+        terms = ("fc", "fs", "fv") if self.friction in ("stribeck", "lugre") else ("fc", "fv")
+        offset = self.request.offset == "on" or bool(self.offset_joints)
+        return replace(
+            options,
+            friction=(*terms, "offset") if offset else terms,
+            offset_joints=None if self.request.offset == "on" else tuple(self.offset_joints),
+            drive_inertia=self.request.drive_inertia != "off",
+            inertia_joints=None if self.request.drive_inertia == "on" else tuple(self.inertia_joints),
+        )
+
+    def describe(self) -> list:
+        """One sentence per choice: what was chosen, and whether the data or the user chose it."""
+
+        def joints(values):
+            return "joints " + ", ".join(str(j + 1) for j in values) if values else "no joint"
+
+        auto = "chosen from the data"
+        by = {k: auto if getattr(self.request, k) == "auto" else "as asked" for k in ("friction", "offset")}
+        lines = [f"friction shape: {self.friction} ({by['friction']})",
+                 f"torque offset: {'every joint' if self.request.offset == 'on' else joints(self.offset_joints)} "
+                 f"({by['offset']})"]  # fmt: skip
+        if self.request.drive_inertia == "auto":
+            negative = [e.joint for e in self.evidence if e.term == "Ia" and e.estimate is not None and e.estimate <= 0]
+            line = f"drive-inertia columns: {joints(self.inertia_joints)} ({auto}"
+            if negative:
+                line += (f"; none on {joints(negative)}: the data want it negative, as a torque measured behind the "
+                         "gearbox (link-side torque sensors) holds no rotor inertia")  # fmt: skip
+            lines.append(line + ")")
+        else:
+            lines.append(f"drive-inertia columns: {'off' if self.request.drive_inertia == 'off' else 'on'} (as asked)")
+        if self.check:
+            lines.append(f"checked on {self.check}")
+        return lines
+
+    def to_dict(self) -> dict:
+        """The choice as the model file and ``--json`` hold it (joints 1-based)."""
+        return {"friction": self.friction, "offset_joints": [j + 1 for j in self.offset_joints],
+                "inertia_joints": [j + 1 for j in self.inertia_joints], "request": asdict(self.request),
+                "check": self.check, "evidence": [e.to_dict() for e in self.evidence]}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class _Candidates:
+    """The full column set the choice works on, and the training and held-out normal equations."""
+
+    names: tuple
+    n_base: int
+    stribeck: bool
+    blocks: tuple
+    held: NormalEquations | None
+    weights: np.ndarray
+    effective: np.ndarray
+
+    def blocks_count(self, joint: int) -> int:
+        """Training samples of ``joint``."""
+        return int(sum(block.count[joint] for block in self.blocks))
+
+    def transform(self, stribeck: bool, dropped=()) -> np.ndarray:
+        """Map from a sub-model's columns to the full ones (Coulomb-viscous: ``fs`` joins ``fc``)."""
+        full = [f"theta{k}" for k in range(self.n_base)] + list(self.names)
+        kept = [n for n in full if n not in dropped and not (self.stribeck and not stribeck and n.startswith("fs"))]
+        out = np.zeros((len(full), len(kept)))
+        for k, name in enumerate(kept):
+            out[full.index(name), k] = 1.0
+            if self.stribeck and not stribeck and name.startswith("fc"):
+                out[full.index("fs" + name[2:]), k] = 1.0
+        return out
+
+    def evaluate(self, stribeck: bool, dropped=()) -> tuple:
+        """(training RSS per joint, held-out RSS per joint, estimate in full columns, its std) of a sub-model."""
+        transform = self.transform(stribeck, dropped)
+        total = _sum(self.blocks)
+        x, std = _solve(total, transform, self.weights)
+        if self.held is not None:
+            held = self.held.residual_sum(x)
+        else:
+            held = sum(block.residual_sum(_solve(_sum(self.blocks, skip=k), transform, self.weights)[0])
+                       for k, block in enumerate(self.blocks))  # fmt: skip
+        return total.residual_sum(x), held, x, std
+
+
+def _sum(blocks, skip=None) -> NormalEquations:
+    first = blocks[0]
+    out = NormalEquations(first.n_dof, first.n_columns)
+    for k, block in enumerate(blocks):
+        if k != skip:
+            for name in ("gram", "moment", "energy", "count", "total"):
+                setattr(out, name, getattr(out, name) + getattr(block, name))
+    return out
+
+
+def _solve(equations, transform, weights) -> tuple:
+    """Weighted least squares of the sub-model ``transform``, as full-column estimate and standard deviations."""
+    gram, moment, _ = equations.weighted(weights)
+    gram, moment = transform.T @ gram @ transform, transform.T @ moment
+    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
+    inverse = np.linalg.pinv(gram / np.outer(scale, scale), rcond=1e-12, hermitian=True) / np.outer(scale, scale)
+    return transform @ (inverse @ moment), transform @ np.sqrt(np.clip(np.diag(inverse), 0.0, None))
+
+
+def _reversing_joints(prepared, speed: float) -> list:
+    """Joints that move faster than ``speed`` both ways on enough samples to tell an offset from Coulomb friction."""
+    qd = np.concatenate([r.qd for r in prepared])
+    share = np.minimum(np.mean(qd > speed, axis=0), np.mean(qd < -speed, axis=0))
+    return [j for j in range(qd.shape[1]) if share[j] >= MIN_REVERSAL_FRACTION]
+
+
+def _candidates(robot, model, recordings, options, request, validation, configurations) -> tuple:
+    """(_Candidates, offset candidates, inertia candidates) of the recordings (module docstring, steps 1-2); known
+    payloads are taken off, unknown ones get their flange-body columns (``payload_fit``), as in the fit."""
+    kt = torque_constants(robot, options, recordings)
+    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    prepared = subtract_known_payloads(robot, prepared, configurations)
+    bodies = FlangeBodies.of(configurations, len(prepared))
+    extras = bodies.extras(robot)
+    offsets = _reversing_joints(prepared, options.coulomb_velocity) if request.offset != "off" else []
+    inertia = separate_inertia_joints(model, robot) if request.drive_inertia != "off" else []
+    stribeck = request.friction in ("auto", "stribeck", "lugre")
+    offset = ("offset",) if offsets or request.offset == "on" else ()
+    terms = (("fc", "fs", "fv") if stribeck else ("fc", "fv")) + offset
+    full = replace(options, friction=terms, offset_joints=None, inertia_joints=None)
+    regressors = base_regressors(model, prepared)  # evaluated once: the costly part
+    vs = fit_stribeck_velocity(model, prepared, full, inertia, extras, regressors=regressors) if stribeck else None
+    every = drive_column_names(robot.n_dof, terms, inertia)
+    # an offset of a joint that does not reverse is no candidate: its Coulomb column is a constant too
+    names = [n for n in every if not (n.startswith("offset") and request.offset == "auto" and int(n[6:]) - 1
+                                      not in offsets)]  # fmt: skip
+    keep = list(range(model.n_base)) + [model.n_base + every.index(n) for n in names]
+    keep += list(range(model.n_base + len(every), model.n_base + len(every) + bodies.n_columns))
+    names += [f"payload{k}" for k in range(bodies.n_columns)]
+
+    def rows(recording, rigid, extra=None):
+        drive = drive_columns(recording.qd, recording.qdd, terms, inertia, options.coulomb_velocity, vs)
+        bodies_rows = np.zeros((*drive.shape[:2], bodies.n_columns))
+        if extra is not None:
+            bodies_rows = extra.columns(recording.q, recording.qd, recording.qdd)
+        return np.concatenate([rigid, drive, bodies_rows], axis=2)[:, :, keep]
+
+    blocks, training = [], []
+    for recording, chunks, extra in zip(prepared, regressors, extras):
+        columns = rows(recording, np.concatenate(chunks), extra)
+        training.append((columns, recording.tau))
+        edges = np.linspace(0, recording.n_samples, N_BLOCKS + 1).astype(int)
+        for a, b in zip(edges[:-1], edges[1:]):
+            blocks.append(NormalEquations(robot.n_dof, len(keep)))
+            blocks[-1].add(columns[a:b], recording.tau[a:b])
+    held = None
+    for recording in validation:
+        ready = prepare_recording(recording, kt, cutoffs[0])[0]
+        held = held or NormalEquations(robot.n_dof, len(keep))
+        held.add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
+    weights, effective = _weights(_sum(blocks), training)
+    return _Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective), offsets, inertia
+
+
+def _weights(total, training) -> tuple:
+    """Per joint, the weight ``1 / sigma^2`` of the full model's residual, and the effective sample count: the
+    sample count over the residual's correlation time (``residual_correlation.correlation_time``)."""
+    rms = np.sqrt(total.energy / np.maximum(total.count, 1))
+    x, _ = _solve(total, np.eye(total.n_columns), 1.0 / np.maximum(rms, 1e-12) ** 2)
+    dof = np.maximum(total.count - total.n_columns / total.n_dof, 1.0)
+    sigma = np.sqrt(np.maximum(total.residual_sum(x), 1e-300) / dof)
+    tau = np.max([residual_correlation_time(tau - columns @ x) for columns, tau in training], axis=0)
+    return 1.0 / sigma**2, np.maximum(total.count / tau, 2.0)
+
+
+def choose_columns(robot, model, recordings, options=None, request=None, validation=(), configurations=None):
+    """The drive columns the recordings want (module docstring); explicit choices of ``request`` are kept.
+
+    Parameters
+    ----------
+    robot, model : RobotDescription, PSDMModel
+    recordings : sequence of Recording
+        The training recordings (raw, as for ``identify_trajectories``).
+    options : TrajectoryOptions, optional
+        Cutoff, Coulomb velocity and torque constants as the fit will use them (its columns are ignored).
+    request : ColumnRequest, optional
+        ``"auto"`` for each by default.
+    validation : sequence of Recording
+        Held-out recordings the choice is checked on; without them, a block cross-validation over the training.
+    configurations : sequence of data.configuration.PayloadConfiguration, optional
+        The load each training recording carries (as for ``identify_trajectories``).
+
+    Returns
+    -------
+    ColumnChoice
+    """
+    options = TrajectoryOptions() if options is None else options
+    request = ColumnRequest() if request is None else request
+    if "auto" not in (request.friction, request.offset, request.drive_inertia):  # nothing to choose
+        every = tuple(range(robot.n_dof)) if request.offset == "on" else ()
+        inertia = tuple(separate_inertia_joints(model, robot)) if request.drive_inertia == "on" else ()
+        return ColumnChoice(request.friction, every, inertia, request)
+    found, offsets, inertia = _candidates(robot, model, list(recordings), options, request, list(validation),
+                                          configurations)  # fmt: skip
+    check = (f"{len(validation)} validation recording(s)" if validation else
+             f"a cross-validation over {len(found.blocks)} contiguous blocks of the training data")  # fmt: skip
+    evidence, stribeck = [], request.friction in ("stribeck", "lugre")
+    if request.friction == "auto":
+        evidence.append(_shape_evidence(found))
+        stribeck = evidence[-1].kept
+    train, held, x, std = found.evaluate(stribeck)
+    for name in found.names:
+        term = "offset" if name.startswith("offset") else "Ia" if name.startswith("Ia") else None
+        if term is None or getattr(request, "offset" if term == "offset" else "drive_inertia") != "auto":
+            continue
+        evidence.append(_column_evidence(found, stribeck, name, term, (train, held, x, std)))
+    kept = {(e.term, e.joint) for e in evidence if e.kept}
+    friction = request.friction if request.friction != "auto" else ("stribeck" if stribeck else "coulomb-viscous")
+    choice = ColumnChoice(
+        friction=friction,
+        offset_joints=tuple(j for j in offsets if request.offset == "on" or ("offset", j) in kept),
+        inertia_joints=tuple(j for j in inertia if request.drive_inertia == "on" or ("Ia", j) in kept),
+        request=request, check=check, evidence=tuple(evidence),
+    )  # fmt: skip
+    logger.info("identify: %s", "; ".join(choice.describe()))
+    return choice
+
+
+def _shape_evidence(found: _Candidates) -> Evidence:
+    """The Stribeck shape against the Coulomb-viscous one, all other candidate columns in (summed over joints).
+
+    Beside the criterion and the held-out error, the shape must be a Stribeck effect: static friction above
+    the Coulomb level (``fs > fc`` by two standard deviations) on at least half the joints. A fit with
+    ``fs < fc`` only follows the low-pass filter's smearing of the Coulomb step at each reversal (it appears
+    on Coulomb-viscous truth too).
+    """
+    if not found.stribeck:
+        return Evidence("stribeck", None, float("nan"), float("nan"), False, "not a candidate")
+    train_s, held_s, x, std = found.evaluate(True)
+    train_c, held_c, _, _ = found.evaluate(False)
+    n = found.effective
+    delta = float(np.sum(n * np.log(train_c / train_s) - STRIBECK_PARAMETERS * np.log(n)))
+    ratio = float(found.weights @ held_s / (found.weights @ held_c))
+    above = []
+    for j in range(found.effective.size):
+        fc, fs = (found.n_base + found.names.index(f"{term}{j + 1}") for term in ("fc", "fs"))
+        spread = np.hypot(std[fc], std[fs]) * np.sqrt(found.blocks_count(j) / found.effective[j])
+        above.append(bool(x[fs] - x[fc] > STRIBECK_Z * spread))
+    kept = delta > 0 and ratio < 1 and 2 * sum(above) >= len(above)
+    reason = _reason(delta, ratio, kept)
+    if delta > 0 and ratio < 1 and not kept:
+        reason = (f"static friction above the Coulomb level on {sum(above)} of {len(above)} joints only: the fit "
+                  "follows the low-pass filter's smearing of the Coulomb step, not a Stribeck effect")  # fmt: skip
+    return Evidence("stribeck", None, delta, ratio, kept, reason)
+
+
+def _column_evidence(found, stribeck, name, term, base) -> Evidence:
+    """One joint's offset or drive-inertia column, dropped from the model with every other candidate in."""
+    train, held, x, std = base
+    j = int(name[6:] if term == "offset" else name[2:]) - 1
+    train_without, held_without, _, _ = found.evaluate(stribeck, dropped=(name,))
+    n = found.effective[j]
+    delta = float(n * np.log(train_without[j] / train[j]) - np.log(n))
+    ratio = float(held[j] / held_without[j])
+    k = found.n_base + found.names.index(name)
+    # the standard deviation of the weighted fit, grown by the residual's correlation time
+    estimate, sigma = float(x[k]), float(std[k] * np.sqrt(found.blocks_count(j) / found.effective[j]))
+    if term == "Ia" and estimate <= 0:
+        return Evidence(term, j, delta, ratio, False, "the data want it negative: no rotor inertia in the torque "
+                        "signal (measured behind the gearbox)", estimate, sigma)  # fmt: skip
+    kept = delta > 0 and ratio < 1
+    return Evidence(term, j, delta, ratio, kept, _reason(delta, ratio, kept), estimate, sigma)
+
+
+def _reason(delta, ratio, kept) -> str:
+    if kept:
+        return "the training data want it (BIC) and it predicts the held-out data better"
+    if delta <= 0:
+        return "the training data do not want it (BIC)"
+    return "the training data want it (BIC) but it does not predict the held-out data better"

@@ -1,0 +1,105 @@
+"""The drive columns chosen from the data by default (``column_choice``), on synthetic recordings of known truth.
+
+The truth is the Denso's rigid body by Pinocchio (with or without its rotors' inertia) plus friction of a
+stated shape, an optional torque offset per joint and white noise, along a sum-of-sines trajectory: the
+choice must find what was put in, and nothing else.
+"""
+
+import numpy as np
+import pytest
+
+from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
+from identification.data.recording import Recording
+from psdm_casadi.derive import derive_psdm
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.oracle import PinocchioOracle
+from psdm_casadi.robot_file import load_robot
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
+
+OFFSET = np.array([0.0, 3.0, -2.0, 0.0, 0.5, 0.0])  # [N m] on joints 2, 3 and 5
+
+
+def synthetic(robot, seed, *, offset=None, rotor=True, stribeck=False, duration=12.0, rate=200.0):
+    """A recording of the Denso's true torque: rigid body (rotor inertias only with ``rotor``), Coulomb-viscous or
+    Stribeck friction, ``offset``, noise of 0.05 N m."""
+    rng = np.random.default_rng(seed)
+    experiment = sine_experiment(robot, duration=duration, rng=rng)
+    t = experiment.time_grid(rate)
+    q, qd, qdd = experiment.sample(t)
+    standard = robot.nominal_dynamic_parameters().copy()
+    if not rotor:  # a link-side torque sensor: the rotors are on the other side of it
+        standard[:, 10] = 0.0
+    tau = PinocchioOracle(robot, standard).rnea(q, qd, qdd)
+    static = 6.0 if stribeck else 2.0
+    tau += (2.0 + (static - 2.0) * np.exp(-((qd / 0.1) ** 2))) * np.tanh(qd / 0.05) + 1.0 * qd
+    tau += 0.0 if offset is None else offset
+    return Recording(t=t, q=q, tau=tau + rng.normal(scale=0.05, size=tau.shape), name=f"synthetic{seed}")
+
+
+@pytest.fixture(scope="module")
+def no_rotor(tmp_path_factory):
+    """The Denso whose model holds no rotor inertia: every drive inertia is a column of its own (``Ia<j>``)."""
+    text = DENSO_FILE.read_text().replace("drive_inertia = true", "drive_inertia = false")
+    path = tmp_path_factory.mktemp("no_rotor") / "denso_no_rotor.toml"
+    path.write_text("\n".join(line for line in text.splitlines() if not line.startswith("rotor_inertia")) + "\n")
+    robot = load_robot(path)
+    return robot, derive_psdm(robot)
+
+
+def test_a_true_offset_turns_the_offset_on_where_it_is_and_without_it_off(denso, denso_model):
+    request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")  # the offsets alone are chosen
+    found = choose_columns(denso, denso_model, [synthetic(denso, 1, offset=OFFSET)], request=request)
+    assert found.offset_joints == (1, 2, 4)
+    assert found.options(TrajectoryOptions()).friction == ("fc", "fv", "offset")
+    clean = choose_columns(denso, denso_model, [synthetic(denso, 1)], request=request)
+    assert clean.offset_joints == () and "offset" not in clean.options(TrajectoryOptions()).friction
+    assert all(e.term == "offset" and not e.kept for e in clean.evidence)
+    assert "torque offset: no joint (chosen from the data)" in clean.describe()
+
+
+def test_held_out_recordings_check_the_choice_when_given(denso, denso_model):
+    request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
+    train, held = synthetic(denso, 2, offset=OFFSET), synthetic(denso, 3, offset=OFFSET)
+    found = choose_columns(denso, denso_model, [train], request=request, validation=[held])
+    assert found.offset_joints == (1, 2, 4) and found.check == "1 validation recording(s)"
+    kept = [e for e in found.evidence if e.kept]
+    assert all(e.held_out_ratio < 0.5 and abs(e.estimate - OFFSET[e.joint]) < 0.1 for e in kept)
+
+
+def test_link_side_torques_drop_the_drive_inertia_without_a_warning(no_rotor, denso):
+    robot, model = no_rotor
+    assert separate_inertia_joints(model, robot) == [2, 3, 4, 5]  # joints 1 and 2's add to base parameters
+    request = ColumnRequest(friction="coulomb-viscous", offset="off")
+    recording = synthetic(denso, 4, rotor=False)  # the joints' torque sensors hold no rotor inertia
+    found = choose_columns(robot, model, [recording], request=request)
+    assert found.inertia_joints == ()
+    assert all(not e.kept for e in found.evidence) and "drive-inertia columns: no joint" in found.describe()[2]
+    fit = identify_trajectories(robot, model, [recording], found.options(TrajectoryOptions()))
+    assert not [w for w in fit.warnings if "drive inertia" in w] and fit.inertia_joints == ()
+    # motor-side torques (the rotors in them): the drive inertias are kept (0.55, 0.08, 0.09, 0.03 kg m^2)
+    motor = choose_columns(robot, model, [synthetic(denso, 4)], request=request)
+    assert motor.inertia_joints == (2, 3, 4, 5), motor.evidence
+
+
+def test_stribeck_truth_chooses_stribeck_and_coulomb_viscous_truth_does_not(denso, denso_model):
+    request = ColumnRequest(offset="off", drive_inertia="off")
+    stribeck = choose_columns(denso, denso_model, [synthetic(denso, 5, stribeck=True)], request=request)
+    assert stribeck.friction == "stribeck" and stribeck.evidence[0].kept
+    plain = choose_columns(denso, denso_model, [synthetic(denso, 5)], request=request)
+    # the filter's smearing of the Coulomb step lowers the error of a Stribeck fit too, with fs < fc: not taken
+    assert plain.friction == "coulomb-viscous" and "smearing" in plain.evidence[0].reason
+
+
+def test_explicit_choices_are_kept_without_looking_at_the_data(denso, denso_model):
+    request = ColumnRequest(friction="stribeck", offset="on", drive_inertia="off")
+    found = choose_columns(denso, denso_model, [synthetic(denso, 6)], request=request)
+    assert (found.friction, found.offset_joints, found.evidence) == ("stribeck", tuple(range(6)), ())
+    options = found.options(TrajectoryOptions())
+    assert options.friction == ("fc", "fs", "fv", "offset") and options.offset_joints is None
+    assert not options.drive_inertia
+    with pytest.raises(ParameterError, match="ColumnRequest.offset"):
+        ColumnRequest(offset="maybe")
+    document = ColumnChoice("coulomb-viscous", (0, 2), (3,), ColumnRequest()).to_dict()
+    assert document["offset_joints"] == [1, 3] and document["inertia_joints"] == [4]
