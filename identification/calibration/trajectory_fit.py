@@ -252,7 +252,7 @@ class TrajectoryFit:
         """100 * sigma / |estimate| of the base then drive parameters of the least-squares estimate."""
         x = np.concatenate([self.theta_ols, self.drive_ols])
         s = np.concatenate([self.theta_std, self.drive_std])
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):  # 0 / 0: an offset held at 0 (``offset_joints``)
             return 100.0 * s / np.abs(x)
 
 

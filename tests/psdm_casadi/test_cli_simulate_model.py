@@ -156,7 +156,8 @@ def test_exported_drive_inertia_columns_match_predict_and_pinocchio_armature(cal
 
 @pytest.mark.slow
 def test_a_negative_drive_inertia_in_the_data_is_named_with_its_likely_cause(calibrated, tmp_path, capsys):
-    """Torques with less inertia than any rotor adds (as a link-side torque sensor can show) get a warning."""
+    """Torques with less inertia than any rotor adds (as a link-side torque sensor can show): dropped by default,
+    a warning when the column is asked for."""
     folder, _, _ = calibrated
     document = json.loads((folder / "model.json").read_text())
     drive = document["drive"]
@@ -168,10 +169,18 @@ def test_a_negative_drive_inertia_in_the_data_is_named_with_its_likely_cause(cal
     assert main([*argv, "--tau-noise", "0.05", "--out", str(sim)]) == 0
     capsys.readouterr()
     argv = ["identify", str(folder / "denso_no_rotor.toml"), "--data", str(sim / "sine.csv"), "--model",
-            str(folder / "model.npz"), "--out", str(tmp_path / "m.json")]  # fmt: skip
-    assert main(argv) == 0
+            str(folder / "model.npz")]  # fmt: skip
+    assert main([*argv, "--drive-inertia", "on", "--out", str(tmp_path / "m.json")]) == 0
     err = capsys.readouterr().err
-    assert f"negative drive inertia on joint {joint}" in err and "--no-drive-inertia" in err
+    assert f"negative drive inertia on joint {joint}" in err and "--drive-inertia auto" in err
+    # by default the data decide: the column is dropped, stated, and nothing is left to warn about
+    assert main([*argv, "--out", str(tmp_path / "auto.json")]) == 0
+    out, err = capsys.readouterr()
+    assert (
+        "negative drive inertia" not in err
+        and f"Ia{joint}" not in json.loads((tmp_path / "auto.json").read_text())["drive"]["names"]
+    )
+    assert "the data want it negative" in out
 
 
 def test_simulate_model_follows_a_reference_file(calibrated, tmp_path, capsys, denso):
