@@ -10,8 +10,8 @@ It holds everything needed to use an identification without the recordings or th
   sigma in percent;
 - ``drive``: the labelled drive parameters (``fc1, fv1, offset1, ..., Ia<j>``) with their standard
   deviations and the friction model's shape;
-- ``identification``: filter, decimation, samples, weights, condition number, solver status, and ``preparation``
-  (``model_preparation``): how every command that judges the model prepares a recording;
+- ``identification``: filter, decimation, samples, weights, condition number, solver status, ``preparation``
+  (``model_preparation``): how every command prepares a recording, ``column_choice`` (optional): the columns chosen;
 - ``provenance``: when, which version, which recordings (name, samples, SHA-256);
 - ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
 - ``findings``: the terms diagnosis added (empty until a diagnosis is applied with

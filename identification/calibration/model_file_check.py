@@ -128,6 +128,16 @@ def _check_base(name: str, block: dict) -> None:
             _numbers(name, block, key, "base", len(names), nullable=True)
 
 
+def _check_column_choice(name, choice, n_dof) -> None:
+    """``identification.column_choice`` (optional; ``column_choice.ColumnChoice.to_dict``): its joints are 1..n."""
+    if choice is None:
+        return
+    joints = [choice.get(key) for key in ("offset_joints", "inertia_joints")] if isinstance(choice, dict) else [None]
+    if not all(isinstance(j, list) and all(isinstance(k, int) and 1 <= k <= n_dof for k in j) for j in joints):
+        expected = f"offset_joints and inertia_joints: joint numbers 1..{n_dof}"
+        raise _refuse(name, "identification.column_choice", expected, repr(choice)[:80])
+
+
 def _check_drive(name: str, block: dict, n_dof: int) -> None:
     """The drive block: names and values one to one, as the friction terms and drive-inertia joints say."""
     names = _strings(name, block, "names", "drive")
@@ -193,6 +203,7 @@ def check_document(document: dict, name: str) -> None:
         if not all(_is_number(v) and v > 0 for v in rates):
             raise _refuse(name, "identification.preparation", "an object with positive cutoff_hz and grid_rate_hz [Hz]",
                           repr(preparation)[:80])  # fmt: skip
+    _check_column_choice(name, document["identification"].get("column_choice"), n_dof)
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])

@@ -5,9 +5,11 @@ import json
 import numpy as np
 import pytest
 
+from identification.calibration.calibrated_model import load_calibrated_model
 from identification.data.io import save_recording
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
+from psdm_casadi.errors import ModelFileError
 from trajopt.experiments import sine_experiment
 
 
@@ -165,6 +167,15 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     assert columns["friction"] in ("coulomb-viscous", "stribeck") and "cross-validation" in columns["check"]
     assert {e["term"] for e in columns["evidence"]} >= {"stribeck", "offset"}
     assert "drive columns: friction shape: " in capsys.readouterr().out
+    document = json.loads(out.read_text())
+    assert load_calibrated_model(out).document["identification"]["column_choice"] == columns
+    document["identification"]["column_choice"]["offset_joints"] = [7]  # the Denso has six joints
+    (tmp_path / "bad.json").write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match="identification.column_choice"):
+        load_calibrated_model(tmp_path / "bad.json")
+    del document["identification"]["column_choice"]  # a file of an earlier version: read as it was
+    (tmp_path / "old.json").write_text(json.dumps(document))
+    assert "column_choice" not in load_calibrated_model(tmp_path / "old.json").document["identification"]
     # the options override the choice: plain --offset is every joint's offset, --no-drive-inertia none
     out = tmp_path / "asked.json"
     asked = ["--offset", "--friction", "coulomb-viscous", "--no-drive-inertia", "--out", str(out), "--json"]
