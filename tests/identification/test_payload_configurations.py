@@ -148,3 +148,26 @@ def test_a_payload_in_new_recordings_of_a_calibrated_arm_is_named_by_validate(de
     assert empty["payload"] is None
     assert loaded["payload"]["mass"] == pytest.approx(UNKNOWN.mass, rel=0.2)
     assert np.linalg.norm(np.subtract(loaded["payload"]["com"], UNKNOWN.com)) < 0.03
+
+
+def test_identify_reads_a_manifest_stores_the_configurations_and_refuses_bad_ones(recorded, tmp_path, capsys):
+    from identification.data.io import save_recording
+    from psdm_casadi.cli import main
+
+    for key in ("empty", "unknown"):
+        save_recording(recorded[key], tmp_path / f"{key}.npz")
+    manifest = tmp_path / "configurations.toml"
+    manifest.write_text('[[configuration]]\nname = "empty"\nrecordings = ["empty.npz"]\n\n[[configuration]]\n'
+                        'name = "gripper"\npayload = "unknown"\nrecordings = ["unknown.npz"]\n')  # fmt: skip
+    out = tmp_path / "model.json"
+    argv = ["identify", "denso_vs6556g", "--data", str(manifest), "--out", str(out), "--no-consistency"]
+    assert main([*argv, "--json"]) == 0
+    (payload,) = json.loads(capsys.readouterr().out)["payloads"]
+    assert payload["name"] == "gripper" and payload["mass"] == pytest.approx(UNKNOWN.mass, rel=0.15)
+    stored = json.loads(out.read_text())["configurations"]
+    assert [c["kind"] for c in stored] == ["none", "unknown"] and stored[1]["recordings"] == ["unknown.npz"]
+    assert main(["validate", str(out), str(tmp_path / "empty.npz")]) == 0  # the file reads back
+    capsys.readouterr()
+    (tmp_path / "empty.payload.json").write_text('{"mass": 2.8, "com": [0, 0]}')
+    assert main([*argv[:3], str(tmp_path / "empty.npz"), *argv[4:], "--overwrite"]) == 2
+    assert "empty.payload.json: Payload.com must be 3 numbers" in capsys.readouterr().err
