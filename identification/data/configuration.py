@@ -156,6 +156,9 @@ def _read_manifest(path: Path) -> list:
     out, seen = [], set()
     for k, entry in enumerate(entries):
         where = f"{path.name} configuration {k + 1}"
+        if not isinstance(entry, dict):
+            raise ParameterError(f"{where} must be a [[configuration]] table; got {format_value(entry)}. Write\n"
+                                 f"{MANIFEST_EXAMPLE}")  # fmt: skip
         unknown = sorted(set(entry) - {"name", "payload", "recordings"})
         name, files = entry.get("name"), entry.get("recordings")
         if unknown:

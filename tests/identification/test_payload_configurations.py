@@ -120,6 +120,9 @@ def test_sidecars_and_manifests_state_configurations(tmp_path):
     manifest.write_text('[[configuration]]\nname = "mass"\npayload = {mass = -1.0}\nrecordings = ["a.csv"]\n')
     with pytest.raises(ParameterError, match=r"configurations.toml configuration 1 payload: Payload.mass must be"):
         recordings_with_configurations([manifest])
+    manifest.write_text("configuration = [1, 2]\n")
+    with pytest.raises(ParameterError, match="configuration 1 must be a"):
+        recordings_with_configurations([manifest])
     manifest.write_text('[[configuration]]\nname = "x"\npayload = "heavy"\nrecordings = ["a.csv"]\n')
     with pytest.raises(ParameterError, match='payload must be "none", "unknown"'):
         recordings_with_configurations([manifest])
