@@ -16,7 +16,7 @@ one (``--recordings`` each; 2.9 % and 3.8 % of the arm's mass). Rows:
 
 Targets: unknown payload mass within 10 %, its centre of mass within 2 cm, every new payload named with its mass
 and no false alarm. ``--diagnose`` also runs ``psdm diagnose MODEL --train NEW1 --validate NEW2`` on two new
-loaded recordings (a few minutes) and reports whether its first finding is the payload (not a spring).
+loaded recordings (a few minutes) and reports its findings: the payload (with its mass), not a spring.
 
 Usage: python benchmarks/payload.py [--json] [--duration 20] [--recordings 2] [--diagnose]
 """
@@ -119,7 +119,7 @@ def new_payload_rows(robot, model, fit, duration: float, seed: int) -> list:
 
 
 def diagnose_row(robot, model, fit, duration: float, seed: int) -> dict:
-    """The first finding of a diagnosis of the calibrated arm on two new recordings with the unknown payload."""
+    """The findings of a diagnosis of the calibrated arm on two new recordings with the unknown payload."""
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
     train, validation = (record(robot, seed + k, UNKNOWN, duration, f"loaded{k}") for k in range(2))
@@ -128,10 +128,11 @@ def diagnose_row(robot, model, fit, duration: float, seed: int) -> dict:
 
     report = diagnose(calibrated_robot(calibrated, robot), train, validation,
                       DiagnosisOptions(friction="coulomb_viscous"), model=model)  # fmt: skip
-    first = report.findings[0] if report.findings else None
+    payloads = [f for f in report.findings if f.effect == "payload"]
     return {
-        "first_finding": None if first is None else first.effect,
-        "mass_kg": None if first is None else (first.parameters or {}).get("mass"),
+        "findings": [f.effect for f in report.findings],
+        "payload_mass_kg": (payloads[0].parameters or {}).get("mass") if payloads else None,
+        "spring_found": any(f.effect == "spring" for f in report.findings),
     }
 
 
@@ -172,7 +173,7 @@ def main(argv=None) -> int:
         print_table(mixing, ["recordings", "warnings", "named_mass_kg", "correct"])
         print_table(new, ["recording", "true_mass_kg", "named_mass_kg", "com_error_m", "correct"])
         if diagnosis is not None:
-            print(f"diagnosis of the calibrated arm on new loaded recordings: first finding {diagnosis}")
+            print(f"diagnosis of the calibrated arm on new loaded recordings: {diagnosis}")
         print(f"new payloads named: {found_fraction:.0%}; " + ("all targets met" if ok else "SOME TARGETS MISSED"))
     return 0 if ok else 1
 
