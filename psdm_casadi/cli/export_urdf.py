@@ -1,7 +1,7 @@
 """The ``psdm export-urdf`` subcommand: a calibrated model's identified inertias, friction and drives as a URDF.
 
 ``psdm export-urdf model.json robot.urdf`` reads the file ``psdm identify`` wrote and writes
-``identification.calibration.urdf_export.render_urdf`` of it: for a URDF robot a copy of its URDF
+``codegen.urdf_export.render_urdf`` of it: for a URDF robot a copy of its URDF
 with the identified bodies, for a DH robot a generated URDF. The output is written atomically and
 never replaces a file without ``--overwrite``; a model that is not physically consistent is refused
 (exit 1) unless ``--allow-inconsistent``, as ``psdm identify`` does.
@@ -71,8 +71,8 @@ def _check_not_robot_file(args, calibrated) -> None:
 
 
 def _run_export_urdf(args) -> int:
-    from identification.calibration.urdf_export import friction_not_representable, render_urdf
-    from identification.calibration.urdf_findings import findings_not_representable
+    from codegen.target_holds import findings_not_representable, friction_not_representable
+    from codegen.urdf_export import render_urdf
     from psdm_casadi.cli.checks import read_calibrated_argument
 
     check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.urdf")

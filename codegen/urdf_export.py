@@ -34,12 +34,13 @@ limits from the robot file (a joint without a torque limit gets ``effort="0"``, 
 Stribeck model (``--friction stribeck``) and a LuGre model (``--friction lugre``) the file gets the honest
 part: ``friction = fc``, the sliding level the friction settles at beyond a few ``vs``, and ``damping = fv``;
 the static hump (``fs``, ``vs``) and the LuGre bristle dynamics (``sigma0``, ``sigma1``) are left out, their
-values written in a comment on each joint, and :func:`friction_not_representable` gives the warning
+values written in a comment on each joint, and ``target_holds.friction_not_representable`` gives the warning
 ``psdm export-urdf`` prints. (Writing ``fs`` instead, or a blend, would be wrong at every sliding speed.)
 
 **Findings** of ``psdm diagnose MODEL --apply`` (torque terms such as a spring, measurement corrections such
 as a joint elasticity) have no URDF element either: each is named with its parameters in a comment on its
-joint, the header warns (``urdf_findings``), and ``psdm export-urdf`` prints the warning.
+joint, the header warns (``target_holds``, the statement of what each target holds), and ``psdm export-urdf``
+prints the warning.
 
 **Drives.** The model's Coulomb term is ``fc tanh(qd / v)`` (``v`` in the header comment); a torque
 offset and the drive inertia have no URDF field and are written as comments on their joint. The
@@ -64,8 +65,14 @@ from xml.parsers.expat import ExpatError
 import numpy as np
 import pinocchio as pin
 
-from identification.calibration.urdf_findings import findings_left_out, findings_not_representable
-from identification.calibration.urdf_friction import friction_left_out, friction_not_representable
+from codegen.target_holds import (
+    drive_inertias,
+    drive_terms,
+    findings_left_out,
+    findings_not_representable,
+    friction_left_out,
+    friction_not_representable,
+)
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.oracle import dh_transform, inertia_from_dynamic_parameters
@@ -154,14 +161,8 @@ def render_urdf(calibrated, robot=None) -> str:
 
 
 def urdf_armature(calibrated, robot) -> np.ndarray:
-    """Drive inertias [kg m^2] per joint the model predicts with: ``Ia`` where it has one, else 0.
-
-    A joint has a drive inertia in the model when the robot file says so (``drive_inertia``, inside
-    the base parameters) or when it was identified as a column of its own (``Ia<j>`` of the drive).
-    """
-    separate = {j - 1 for j in calibrated.document["drive"]["inertia_joints"]}
-    has = np.array([bool(flag) or j in separate for j, flag in enumerate(robot.drive_inertia)])
-    return np.where(has, calibrated.standard[:, N_LINK], 0.0)
+    """Drive inertias [kg m^2] per joint the model predicts with (``target_holds.drive_inertias``)."""
+    return drive_inertias(calibrated, robot)
 
 
 # --- numbers and elements ----------------------------------------------------------------------------
@@ -206,23 +207,10 @@ def _inertial(document, parameters, where: str):
     ])  # fmt: skip
 
 
-def _drive_terms(calibrated) -> dict:
-    """``{"fc": array, "fv": array, "offset": array}`` per joint (zeros for terms the model lacks; a LuGre
-    model's fc and fv from its LuGre block)."""
-    drive = calibrated.document["drive"]
-    values = dict(zip(drive["names"], calibrated.drive))
-    n = calibrated.n_dof
-    out = {term: np.array([values.get(f"{term}{j + 1}", 0.0) for j in range(n)]) for term in ("fc", "fv", "offset")}
-    lugre = calibrated.lugre_parameters
-    if lugre is not None:
-        out["fc"], out["fv"] = np.array([p.fc for p in lugre]), np.array([p.fv for p in lugre])
-    return out
-
-
 def _joint_notes(calibrated, robot) -> list:
     """Per joint, the comment on what URDF cannot hold: the drive inertia and a torque offset."""
     armature = urdf_armature(calibrated, robot)
-    offsets = _drive_terms(calibrated)["offset"]
+    offsets = drive_terms(calibrated)["offset"]
     left_out = friction_left_out(calibrated)
     findings, _ = findings_left_out(calibrated)
     notes = []
@@ -313,7 +301,7 @@ def _dh_urdf(calibrated, robot):
     root.appendChild(_header(document, calibrated, robot, world is not None, "\n  "))
     children = [] if world is None else _world(document, world, "base_link", "world")
     children.append(_element(document, "link", [("name", "base_link")]))
-    terms, notes = _drive_terms(calibrated), _joint_notes(calibrated, robot)
+    terms, notes = drive_terms(calibrated), _joint_notes(calibrated, robot)
     parent = "base_link"
     for j, joint in enumerate(robot.joints):
         link = f"link{j + 1}"
@@ -387,7 +375,7 @@ def _copied_urdf(calibrated, robot):
     if missing:
         raise ModelFileError(f"the URDF {name!r} of the calibrated model must have the joints "
                              f"{list(robot.joint_names)}; {missing} are missing. Re-run 'psdm identify'.")  # fmt: skip
-    terms, notes, standard = _drive_terms(calibrated), _joint_notes(calibrated, robot), calibrated.standard
+    terms, notes, standard = drive_terms(calibrated), _joint_notes(calibrated, robot), calibrated.standard
     for j, joint_name in enumerate(robot.joint_names):
         carrier = _child_link(joints[joint_name])
         merged = _merged_links(joints, carrier, {name for name, _ in _locked(robot)})

@@ -9,8 +9,8 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from codegen.target_holds import findings_left_out, findings_not_representable
 from identification.calibration.calibrated_model import load_calibrated_model
-from identification.calibration.urdf_findings import findings_left_out, findings_not_representable
 from psdm_casadi.cli import main
 from tests.catalogue.model_files import model_document, model_text
 

@@ -12,9 +12,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+from codegen.urdf_export import export_urdf, render_urdf, urdf_armature
 from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
 from identification.calibration.trajectory_fit import identify_trajectories
-from identification.calibration.urdf_export import export_urdf, render_urdf, urdf_armature
 from identification.data.recording import Recording
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi import derive_psdm, load_robot

@@ -1,0 +1,240 @@
+"""What each export target can hold of a calibrated model, and what of a model it leaves out (URDF, MJCF).
+
+The one statement the exporters share (``urdf_export``, ``mjcf_export``): a target holds the identified
+inertials, Coulomb friction and viscous damping; beyond that
+
+=========================  =====================================  ==========================================
+model part                 URDF                                   MJCF
+=========================  =====================================  ==========================================
+drive inertia ``Ia``       comment (no field)                     ``armature``
+Coulomb ``fc``             ``<dynamics friction>``                ``frictionloss`` (a constraint, see below)
+viscous ``fv``             ``<dynamics damping>``                 ``damping``
+linear spring finding      comment                                ``stiffness`` and ``springref``
+gravity                    along -z of the root (``world`` link)  ``<option gravity>``
+torque offset              comment                                comment
+Stribeck hump, LuGre       comment (``fs, vs, sigma0, sigma1``)   comment
+other torque findings      comment (non-linear spring, ripple,    comment
+                           coupling, ...)
+measurement corrections    comment (delay, joint elasticity,      comment
+                           backlash)
+=========================  =====================================  ==========================================
+
+The model's Coulomb term is ``fc tanh(qd / v)``. URDF's ``friction`` is read by Pinocchio as that level;
+MuJoCo's ``frictionloss`` is a dry-friction constraint whose force is at most ``fc`` in magnitude and opposes
+the motion (the same level while sliding, anything within ``[-fc, fc]`` at rest).
+
+``psdm diagnose MODEL --apply`` adds findings to a model: torque-type terms (a spring, a ripple, a coupling, ...)
+that ``psdm validate`` and the C export add to the rigid-body torque, and measurement corrections (a delay, a
+joint elasticity, a backlash) that ``psdm validate`` applies to the recorded signals. The functions here name
+each part a target leaves out, with its parameters, for the per-joint comments and the warning the export
+command prints. Rigid-body findings (a payload) are part of the standard parameters, and so of the inertials;
+findings only reported were never part of the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.calibration.findings import FindingTerm, term_values
+from psdm_casadi.values import exact_text
+
+__all__ = [
+    "LEFT_OUT_KINDS",
+    "MJCF",
+    "URDF",
+    "ExportTarget",
+    "drive_inertias",
+    "drive_terms",
+    "findings_left_out",
+    "findings_not_representable",
+    "friction_left_out",
+    "friction_not_representable",
+    "linear_springs",
+]
+
+N_LINK = 10  # m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz; the 11th standard parameter is the drive inertia
+
+#: The finding kinds (``findings.FINDING_KINDS``) that change the model's torque or its signals, but not its body.
+LEFT_OUT_KINDS = ("torque", "signal")
+
+
+@dataclass(frozen=True)
+class ExportTarget:
+    """What one export target holds beyond the inertials (module docstring's table).
+
+    Parameters
+    ----------
+    name : str
+        "URDF" or "MJCF", in messages.
+    friction_fields : str
+        How it holds Coulomb friction and viscous damping (``friction = fc`` ...), in messages.
+    drive_inertia : bool
+        Whether it holds the drive inertia (MJCF ``armature``).
+    linear_spring : bool
+        Whether it holds a linear spring ``k q + c`` (MJCF ``stiffness``, ``springref``).
+    """
+
+    name: str
+    friction_fields: str
+    drive_inertia: bool
+    linear_spring: bool
+
+    @property
+    def article(self) -> str:
+        """ "a" or "an" before the name ("a URDF", "an MJCF")."""
+        return "an" if self.name[0] in "AEFHILMNORSX" else "a"
+
+
+URDF = ExportTarget("URDF", "<dynamics> friction = fc and damping = fv", drive_inertia=False, linear_spring=False)
+MJCF = ExportTarget("MJCF", "joint frictionloss = fc and damping = fv", drive_inertia=True, linear_spring=True)
+
+
+# --- the numbers every target writes -------------------------------------------------------------------------
+def drive_terms(calibrated) -> dict:
+    """``{"fc": array, "fv": array, "offset": array}`` per joint (zeros for terms the model lacks; a LuGre
+    model's fc and fv from its LuGre block)."""
+    drive = calibrated.document["drive"]
+    values = dict(zip(drive["names"], calibrated.drive))
+    n = calibrated.n_dof
+    out = {term: np.array([values.get(f"{term}{j + 1}", 0.0) for j in range(n)]) for term in ("fc", "fv", "offset")}
+    lugre = calibrated.lugre_parameters
+    if lugre is not None:
+        out["fc"], out["fv"] = np.array([p.fc for p in lugre]), np.array([p.fv for p in lugre])
+    return out
+
+
+def drive_inertias(calibrated, robot) -> np.ndarray:
+    """Drive inertias [kg m^2 or kg] per joint the model predicts with: ``Ia`` where it has one, else 0.
+
+    A joint has a drive inertia in the model when the robot file says so (``drive_inertia``, inside
+    the base parameters) or when it was identified as a column of its own (``Ia<j>`` of the drive).
+    """
+    separate = {j - 1 for j in calibrated.document["drive"]["inertia_joints"]}
+    has = np.array([bool(flag) or j in separate for j, flag in enumerate(robot.drive_inertia)])
+    return np.where(has, calibrated.standard[:, N_LINK], 0.0)
+
+
+# --- friction ----------------------------------------------------------------------------------------------
+def friction_left_out(calibrated) -> list | None:
+    """Per joint, the friction values no target holds (``"fs = .., vs = .."``, LuGre: also sigma0, sigma1)."""
+    lugre = calibrated.lugre_parameters
+    if lugre is not None:
+        names = ("fs", "vs", "sigma0", "sigma1")
+        return [", ".join(f"{name} = {exact_text(getattr(p, name))}" for name in names) for p in lugre]
+    drive = calibrated.document["drive"]
+    if "fs" not in drive["friction_terms"]:
+        return None
+    values = dict(zip(drive["names"], calibrated.drive))
+    return [
+        f"fs = {exact_text(values[f'fs{j + 1}'])}, vs = {exact_text(v)}"
+        for j, v in enumerate(drive["stribeck_velocity"])
+    ]
+
+
+def friction_not_representable(calibrated, target: ExportTarget = URDF) -> str | None:
+    """The warning for a model whose friction ``target`` cannot hold (module docstring), or None (Coulomb + viscous)."""
+    if friction_left_out(calibrated) is None:
+        return None
+    shape = "LuGre" if calibrated.lugre_parameters is not None else "Stribeck"
+    dynamics = " and the bristle dynamics (sigma0, sigma1)" if shape == "LuGre" else ""
+    return (
+        f"the model's friction is {shape}; {target.name} holds only Coulomb friction and viscous damping, so "
+        f"{target.friction_fields} (the sliding level and the viscous slope) are written, and the static hump "
+        f"(fs, vs){dynamics} are NOT in the {target.name} (their values are in a comment on each joint)"
+    )
+
+
+# --- findings ------------------------------------------------------------------------------------------------
+def linear_springs(calibrated) -> dict:
+    """``{joint (0-based): (k, c)}`` of the torque findings that are linear springs ``k q_j + c`` [N m/rad, N m].
+
+    A spring finding of order 1 (``findings.term_values`` gives its columns ``q_j, 1``): ``k`` and ``c`` are
+    read from its torque at ``q_j = 0`` and ``q_j = 1``, so that they are the model's own numbers. Two springs on
+    one joint add up.
+    """
+    out = {}
+    n = calibrated.n_dof
+    for term, values in calibrated.torque_findings:
+        if not _is_linear_spring(term):
+            continue
+        states = np.zeros((2, n))
+        states[1, term.joint] = 1.0
+        torque = sum(c * v for c, v in zip(values, term_values(term, states, np.zeros((2, n)), np.zeros((2, n)))))
+        k, c = float(torque[1] - torque[0]), float(torque[0])
+        previous = out.get(term.joint, (0.0, 0.0))
+        out[term.joint] = (previous[0] + k, previous[1] + c)
+    return out
+
+
+def _is_linear_spring(term) -> bool:
+    return term.effect == "spring" and (term.spec is None or term.candidate.order == 1)
+
+
+def _left_out_entries(calibrated, target: ExportTarget) -> list:
+    entries = [e for e in calibrated.document.get("findings") or [] if e.get("kind") in LEFT_OUT_KINDS]
+    if not target.linear_spring:
+        return entries
+    held = []
+    for entry in entries:
+        if entry.get("kind") == "torque" and entry.get("effect") == "spring":
+            held.append(_is_linear_spring(FindingTerm.from_dict(entry.get("term") or {})))
+        else:
+            held.append(False)
+    return [entry for entry, inside in zip(entries, held) if not inside]
+
+
+def _values_text(entry: dict, number) -> str:
+    """``name = value`` of a finding's coefficients (torque) and physical parameters."""
+    pairs = []
+    if entry.get("kind") == "torque":
+        for name, value in zip(entry.get("feature_names") or (), entry.get("coefficients") or ()):
+            pairs.append(f"{name} = {'absorbed' if value is None else number(value)}")
+    for name, value in (entry.get("parameters") or {}).items():
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            pairs.append(f"{name} = {number(value)}")
+    return ", ".join(pairs) or "no parameters"
+
+
+def _describe(entry: dict, number, target: ExportTarget) -> str:
+    what = "torque term" if entry.get("kind") == "torque" else "measurement correction"
+    return f"{entry.get('label', '?')} ({what}, NOT in the {target.name}): {_values_text(entry, number)}"
+
+
+def findings_left_out(calibrated, target: ExportTarget = URDF) -> tuple:
+    """(per joint (0-based) the comment texts of its findings ``target`` cannot hold, the texts of those on no joint).
+
+    Parameters
+    ----------
+    calibrated : CalibratedModel
+    target : ExportTarget
+        :data:`URDF` or :data:`MJCF` (which holds linear springs).
+
+    Returns
+    -------
+    tuple of (dict, list)
+        ``{joint: [text, ...]}`` and ``[text, ...]`` (a delay); both empty for a model without such findings.
+    """
+    per_joint, general = {}, []
+    for entry in _left_out_entries(calibrated, target):
+        text = _describe(entry, exact_text, target)
+        joints = [int(j) - 1 for j in entry.get("joints") or () if isinstance(j, int) and 1 <= j <= calibrated.n_dof]
+        for j in joints:
+            per_joint.setdefault(j, []).append(text)
+        if not joints:
+            general.append(text)
+    return per_joint, general
+
+
+def findings_not_representable(calibrated, target: ExportTarget = URDF) -> str | None:
+    """The warning for a model with findings ``target`` cannot hold (module docstring), naming each; else None."""
+    entries = _left_out_entries(calibrated, target)
+    if not entries:
+        return None
+    named = "; ".join(_describe(entry, lambda v: f"{float(v):.4g}", target) for entry in entries)
+    return (
+        f"the model has {len(entries)} finding(s) {target.article} {target.name} cannot hold, left out of it (their "
+        f"parameters are in the {target.name}'s comments): {named}. The {target.name}'s torque therefore differs from "
+        "'psdm validate' and 'psdm codegen' of this model"
+    )
