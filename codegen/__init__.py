@@ -3,8 +3,9 @@
 ``export`` (C sources from CasADi Functions, with inlined sin/cos), ``lane_regressor`` (the regressor
 with joint rows in SIMD lanes), ``derivatives`` (d(tau)/d(q, qd, qdd), d(qdd)/d(q, qd, tau) and the
 regressor's, exported beside the dynamics: export_derivatives), ``operation_count``, ``build`` (compile
-and load), ``templates``; the calibrated model as a URDF (``urdf_export``) and as MJCF (``mjcf_export``),
-sharing ``target_holds``, the statement of what each target can hold; the peers the speed benchmark compares against live in ``codegen.peers``.
+and load), ``templates``; the calibrated model as a URDF (``urdf_export``), sharing ``target_holds``, the
+statement of what each export target can hold; the peers the speed benchmark compares against live in
+``codegen.peers``.
 """
 
 from codegen.build import CompiledLibrary, build_library, compile_shared, find_compiler
