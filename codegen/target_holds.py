@@ -51,6 +51,7 @@ __all__ = [
     "findings_not_representable",
     "friction_left_out",
     "friction_not_representable",
+    "is_linear_spring",
     "linear_springs",
 ]
 
@@ -157,7 +158,7 @@ def linear_springs(calibrated) -> dict:
     out = {}
     n = calibrated.n_dof
     for term, values in calibrated.torque_findings:
-        if not _is_linear_spring(term):
+        if not is_linear_spring(term):
             continue
         states = np.zeros((2, n))
         states[1, term.joint] = 1.0
@@ -168,7 +169,8 @@ def linear_springs(calibrated) -> dict:
     return out
 
 
-def _is_linear_spring(term) -> bool:
+def is_linear_spring(term) -> bool:
+    """Whether a ``FindingTerm`` is a linear spring ``k q_j + c`` (MJCF ``stiffness``, ``springref``)."""
     return term.effect == "spring" and (term.spec is None or term.candidate.order == 1)
 
 
@@ -179,7 +181,7 @@ def _left_out_entries(calibrated, target: ExportTarget) -> list:
     held = []
     for entry in entries:
         if entry.get("kind") == "torque" and entry.get("effect") == "spring":
-            held.append(_is_linear_spring(FindingTerm.from_dict(entry.get("term") or {})))
+            held.append(is_linear_spring(FindingTerm.from_dict(entry.get("term") or {})))
         else:
             held.append(False)
     return [entry for entry, inside in zip(entries, held) if not inside]

@@ -54,7 +54,17 @@ __all__ = [
 def build_parser() -> argparse.ArgumentParser:
     """The ``psdm`` parser with every subcommand."""
     from psdm_casadi import demo
-    from psdm_casadi.cli import codegen, derive, diagnose, excite, export_urdf, identify, simulate, validate
+    from psdm_casadi.cli import (
+        codegen,
+        derive,
+        diagnose,
+        excite,
+        export_mjcf,
+        export_urdf,
+        identify,
+        simulate,
+        validate,
+    )
 
     parser = argparse.ArgumentParser(
         prog="psdm",
@@ -75,7 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
     verbosity.add_argument("-q", "--quiet", action="store_true", help="no progress lines, only warnings and errors")
     verbosity.add_argument("-v", "--verbose", action="store_true", help="more detail on what each step does")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (derive, excite, simulate, identify, validate, diagnose, codegen, export_urdf, demo):
+    for module in (derive, excite, simulate, identify, validate, diagnose, codegen, export_urdf, export_mjcf, demo):
         module.register(subparsers)
     return parser
 

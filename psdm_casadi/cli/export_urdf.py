@@ -15,7 +15,7 @@ from pathlib import Path
 from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress, report_model_warnings
 
-__all__ = ["register"]
+__all__ = ["check_not_robot_file", "register"]
 
 
 def register(subparsers) -> None:
@@ -50,7 +50,7 @@ def register(subparsers) -> None:
     p.set_defaults(handler=_run_export_urdf)
 
 
-def _check_not_robot_file(args, calibrated) -> None:
+def check_not_robot_file(args, calibrated) -> None:
     """OUT must not replace the robot file MODEL was identified from (its text is stored in MODEL, not its path):
     an existing OUT named as one of those files, or holding the same text, is refused even with --overwrite."""
 
@@ -66,7 +66,7 @@ def _check_not_robot_file(args, calibrated) -> None:
     if same_name or path.read_text(errors="replace") in files.values():
         raise ParameterError(
             f"OUT {str(args.out)!r} is (or shares its name with) the robot file {args.model!r} was identified from; "
-            f"--overwrite never replaces an input. Name another file, e.g. {path.stem}_identified.urdf."
+            f"--overwrite never replaces an input. Name another file, e.g. {path.stem}_identified{path.suffix}."
         )
 
 
@@ -81,7 +81,7 @@ def _run_export_urdf(args) -> int:
     loaded = read_calibrated_argument(args, args.model)
     calibrated = loaded.calibrated
     report_model_warnings("export-urdf", args.model, calibrated)
-    _check_not_robot_file(args, calibrated)
+    check_not_robot_file(args, calibrated)
     eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
     checked = calibrated.document["standard"].get("checked", True)
     if checked and not calibrated.consistent and not args.allow_inconsistent:

@@ -1,0 +1,91 @@
+"""The ``psdm export-mjcf`` subcommand: a calibrated model's identified inertias, drives and friction as MJCF.
+
+``psdm export-mjcf model.json robot.xml`` reads the file ``psdm identify`` wrote and writes
+``codegen.mjcf_export.render_mjcf`` of it, for MuJoCo. The output is written atomically and never replaces a
+file without ``--overwrite`` (nor ever an input); a model that is not physically consistent is refused (exit 1)
+unless ``--allow-inconsistent``, as ``psdm export-urdf`` does.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
+from psdm_casadi.cli.export_urdf import check_not_robot_file
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress, report_model_warnings
+
+__all__ = ["register"]
+
+
+def register(subparsers) -> None:
+    """Add ``export-mjcf`` to the ``psdm`` parser."""
+    p = subparsers.add_parser(
+        "export-mjcf",
+        help="write the identified inertias, drive inertias, friction and springs of a calibrated model as MJCF",
+        description=(
+            "Read a calibrated-model file written by 'psdm identify' and write an MJCF file for MuJoCo: each moving "
+            "body carries the identified rigid body of its joint (fullinertia, exact floats), each joint its range, "
+            "armature (the drive inertia), damping (viscous friction), frictionloss (Coulomb friction, a constraint "
+            "in MuJoCo) and, for a linear spring finding, stiffness and springref; the robot's gravity is the "
+            "option gravity. What MJCF cannot hold (torque offsets, Stribeck and LuGre friction shapes, other "
+            "findings, measurement corrections) is named in a warning and written as comments with its values."
+        ),
+    )
+    p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
+    p.add_argument("out", help="MJCF file to write (.xml)")
+    p.add_argument(
+        "--overwrite",
+        action="store_true",
+        help="replace an existing output file (never MODEL, nor the robot file MODEL was identified from)",
+    )
+    p.add_argument(
+        "--allow-inconsistent",
+        action="store_true",
+        help="write a model that is not physically consistent (marked as such in the file)",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(handler=_run_export_mjcf)
+
+
+def _run_export_mjcf(args) -> int:
+    from codegen.mjcf_export import render_mjcf
+    from codegen.target_holds import MJCF, findings_not_representable, friction_not_representable
+    from psdm_casadi.cli.checks import read_calibrated_argument
+
+    check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.xml")
+    check_suffix(args.out, "OUT", (".xml",), "MJCF")
+    out = output_file(args.out, "OUT", args.overwrite)
+    loaded = read_calibrated_argument(args, args.model)
+    calibrated = loaded.calibrated
+    report_model_warnings("export-mjcf", args.model, calibrated)
+    check_not_robot_file(args, calibrated)
+    eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
+    checked = calibrated.document["standard"].get("checked", True)
+    if checked and not calibrated.consistent and not args.allow_inconsistent:
+        print(
+            f"psdm export-mjcf: error: the calibrated model {args.model!r} is not physically consistent (smallest "
+            f"pseudo-inertia eigenvalue {eigenvalue}). Nothing was written to {args.out!r}. Re-identify it, or pass "
+            "--allow-inconsistent to write it marked as inconsistent.",
+            file=sys.stderr,
+        )
+        return EXIT_CHECK_FAILED
+    robot = loaded.robot
+    progress(f"export-mjcf: writing the identified model of {robot.name} ...", quiet=args.json)
+    text = render_mjcf(calibrated, robot)
+    if not calibrated.consistent:
+        print("psdm export-mjcf: warning: writing an INCONSISTENT model (marked in the file)", file=sys.stderr)
+    left_out = (friction_not_representable(calibrated, MJCF), findings_not_representable(calibrated, MJCF))
+    if "offset" in calibrated.document["drive"]["friction_terms"]:
+        left_out += ("the model's constant torque offsets have no MJCF field; they are in a comment on each joint",)
+    for warning in left_out:
+        if warning is not None:
+            print(f"psdm export-mjcf: warning: {warning}", file=sys.stderr)
+    with out.staging() as stage:
+        stage.write_text(text)
+    if args.json:
+        print_json({"command": "export-mjcf", "model": str(args.model), "out": str(args.out), "robot": robot.name,
+                    "consistent": calibrated.consistent, "min_pseudo_inertia_eigenvalue": eigenvalue})  # fmt: skip
+    else:
+        print(f"{robot.name}: identified model of {robot.n_dof} joints written to {args.out} (MJCF)")
+    return EXIT_OK

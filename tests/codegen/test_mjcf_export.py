@@ -1,0 +1,189 @@
+"""MJCF out (issue 28, part 1): MuJoCo's own inverse dynamics on the written file computes the calibrated model.
+
+The oracle is the ``mujoco`` package: ``mj_inverse`` on the written MJCF against ``CalibratedModel.predict``
+without the parts MJCF does not hold as a torque (Coulomb, offsets, findings other than a linear spring), to
+1e-9 relative. MuJoCo's ``frictionloss`` is a constraint: with it, ``qfrc_inverse`` differs by a force bounded
+by ``fc`` that opposes the motion (``fc sign(qd)`` on most sliding samples, anything within ``[-fc, fc]`` else).
+"""
+
+import copy
+import dataclasses
+import json
+import re
+
+import mujoco
+import numpy as np
+import pytest
+
+from codegen.mjcf_check import mjcf_round_trip, mujoco_inverse
+from codegen.mjcf_export import MIN_BODY, export_mjcf, render_mjcf
+from identification.calibration.calibrated_model import CalibratedModel
+from psdm_casadi.cli import main
+from psdm_casadi.derive import derive_psdm
+from psdm_casadi.errors import ModelFileError
+from psdm_casadi.robot import load_robot
+from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
+from tests.conftest import DENSO_FILE
+
+IA = {1: 0.03, 2: 0.02}  # drive inertias identified as columns of their own (1-based joints)
+SPRING = {
+    "effect": "spring",
+    "label": "spring[j2]",
+    "kind": "torque",
+    "joints": [2],
+    "term": {"effect": "spring", "joint": 2},
+    "feature_names": ["spring_k_2", "spring_c_2"],
+    "coefficients": [19.078944408223368, 0.5165913046084039],
+    "parameters": {"k": 19.078944408223368},
+}
+RIPPLE = {
+    "effect": "torque_ripple",
+    "label": "torque_ripple[j1,h=3]",
+    "kind": "torque",
+    "joints": [1],
+    "term": {"effect": "torque_ripple", "joint": 1, "harmonic": 3},
+    "feature_names": ["ripple_sin3_1", "ripple_cos3_1"],
+    "coefficients": [0.25, -0.125],
+    "parameters": {},
+}
+DELAY = {"effect": "delay", "label": "delay", "kind": "signal", "joints": [], "parameters": {"delay_s": 0.007}}
+# fmt: skip
+
+
+def _calibrated(robot_file, findings=(), friction=("fc", "fv", "offset"), ia=None):
+    """A calibrated model of the robot file's nominal inertia with drive inertias ``ia`` (``{joint: Ia}``, 1-based)
+    identified as columns of their own, friction, offsets and findings."""
+    robot = load_robot(robot_file)
+    model = derive_psdm(robot)
+    fit = nominal_fit(robot, model, friction)
+    ia = ia or {}
+    joints = tuple(j - 1 for j in ia)
+    extra = np.array(list(ia.values()))
+    standard = fit.standard.copy()
+    standard[list(joints), 10] = extra
+    fit = dataclasses.replace(
+        fit, standard=standard, inertia_joints=joints, drive=np.r_[fit.drive, extra],
+        drive_names=fit.drive_names + tuple(f"Ia{j}" for j in ia), drive_ols=np.r_[fit.drive_ols, extra],
+        drive_std=np.r_[fit.drive_std, 0.01 * extra],
+    )  # fmt: skip
+    calibrated = CalibratedModel.from_fit(robot, model, fit, robot_source=robot_file)
+    document = copy.deepcopy(calibrated.document)
+    document["findings"] = list(findings)
+    if any(f["kind"] == "signal" for f in findings):
+        document["corrections"] = {"delay": {"effect": "delay", "delay_s": 0.007}}
+    return CalibratedModel(document), robot, model
+
+
+def _states(robot, n, seed=0):
+    """Random states strictly inside the joint ranges (MuJoCo's limits are constraints)."""
+    rng = np.random.default_rng(seed)
+    low, high = robot.q_min + 0.05 * (robot.q_max - robot.q_min), robot.q_max - 0.05 * (robot.q_max - robot.q_min)
+    q = rng.uniform(low, high, size=(n, robot.n_dof))
+    qd, qdd = rng.normal(scale=2.0, size=(2, n, robot.n_dof))
+    return q, qd, qdd
+
+
+@pytest.fixture(scope="module")
+def scara():
+    return _calibrated(SCARA_FILE, findings=[SPRING, RIPPLE, DELAY], ia=IA)
+
+
+def test_mujoco_computes_the_scara_model_with_drive_inertias_a_spring_and_a_slide(scara):
+    calibrated, robot, model = scara
+    text = render_mjcf(calibrated, robot)
+    result = mjcf_round_trip(calibrated, model, text, *_states(robot, 200))
+    assert result.max_rel_error < 1e-9, result
+    mj = mujoco.MjModel.from_xml_string(text)
+    # the file's numbers are the model's, exactly (MuJoCo reads the shortest round-trip floats back)
+    drive = dict(zip(calibrated.document["drive"]["names"], calibrated.drive))
+    np.testing.assert_array_equal(mj.dof_armature, [IA.get(j + 1, 0.0) for j in range(4)])
+    np.testing.assert_array_equal(mj.dof_damping, [drive[f"fv{j + 1}"] for j in range(4)])
+    np.testing.assert_array_equal(mj.dof_frictionloss, [drive[f"fc{j + 1}"] for j in range(4)])
+    np.testing.assert_array_equal(mj.body_mass[1:], calibrated.standard[:, 0])
+    np.testing.assert_array_equal(mj.jnt_range, np.c_[robot.q_min, robot.q_max])
+    np.testing.assert_array_equal(mj.opt.gravity, robot.gravity)
+    assert list(mj.jnt_type) == [mujoco.mjtJoint.mjJNT_HINGE] * 2 + [
+        mujoco.mjtJoint.mjJNT_SLIDE,
+        mujoco.mjtJoint.mjJNT_HINGE,
+    ]
+    k, c = SPRING["coefficients"]
+    assert mj.jnt_stiffness[1] == k and mj.qpos_spring[1] == pytest.approx(-c / k, rel=1e-15)
+
+
+def test_friction_loss_is_a_bounded_force_against_the_motion(scara):
+    """MuJoCo's frictionloss: |f| <= fc on every joint, fc sign(qd) on most sliding samples."""
+    calibrated, robot, model = scara
+    q, qd, qdd = _states(robot, 200, seed=1)
+    result = mjcf_round_trip(calibrated, model, render_mjcf(calibrated, robot), q, qd, qdd)
+    assert result.friction_excess <= 1e-9
+    assert result.friction_saturated > 0.5, result  # measured 0.76 on these states
+    mj = mujoco.MjModel.from_xml_string(render_mjcf(calibrated, robot))
+    friction = mujoco_inverse(mj, q, qd, qdd, True) - mujoco_inverse(mj, q, qd, qdd, False)
+    assert np.abs(friction).max() > 0.5 * mj.dof_frictionloss.min()  # it acts
+
+
+def test_what_mjcf_cannot_hold_is_named_with_its_values(scara):
+    calibrated, robot, _ = scara
+    text = render_mjcf(calibrated, robot)
+    flat = " ".join(text.split())
+    assert "torque_ripple[j1,h=3] (torque term, NOT in the MJCF): ripple_sin3_1 = 0.25, ripple_cos3_1 = -0.125" in flat
+    assert "Finding delay (measurement correction, NOT in the MJCF): delay_s = 0.007" in flat
+    assert "spring[j2] (torque term" not in flat  # a linear spring is stiffness and springref
+    offsets = re.findall(r"constant torque offset (\S+) (N m|N) \(not an MJCF field\)", text)
+    drive = dict(zip(calibrated.document["drive"]["names"], calibrated.drive))
+    assert [float(v) for v, _ in offsets] == [drive[f"offset{j + 1}"] for j in range(4)]  # exact
+    assert [unit for _, unit in offsets] == ["N m", "N m", "N", "N m"]
+
+
+def test_the_denso_dh_model_round_trips_with_gravity_along_x_and_its_massless_link():
+    """Rotor inertias inside the base parameters (armature); the Denso's link 6 is massless in its robot file:
+    MuJoCo refuses that, so it gets 1e-12 kg (said so)."""
+    calibrated, robot, model = _calibrated(DENSO_FILE)
+    assert np.all(calibrated.standard[5, :10] == 0.0)
+    text = render_mjcf(calibrated, robot)
+    mj = mujoco.MjModel.from_xml_string(text)
+    assert mj.opt.gravity[0] == robot.gravity[0] != 0.0 and mj.body_mass[6] == MIN_BODY
+    assert "MuJoCo needs a positive mass" in text
+    np.testing.assert_array_equal(mj.dof_armature, calibrated.standard[:, 10])
+    assert np.all(mj.dof_armature > 0)
+    result = mjcf_round_trip(calibrated, model, text, *_states(robot, 100))
+    assert result.max_rel_error < 1e-9, result
+
+
+def test_a_model_without_standard_parameters_or_inconsistent_is_refused(tmp_path, scara):
+    calibrated = scara[0]
+    document = copy.deepcopy(calibrated.document)
+    document["standard"]["values"] = [None] * len(document["standard"]["values"])
+    with pytest.raises(ModelFileError, match="CalibratedModel.standard must hold finite"):
+        render_mjcf(CalibratedModel(document))
+    document = copy.deepcopy(calibrated.document)
+    document["standard"].update(consistent=False, min_pseudo_inertia_eigenvalue=-0.25)
+    with pytest.raises(ModelFileError, match="eigenvalue -0.25"):
+        export_mjcf(CalibratedModel(document), tmp_path / "bad.xml")
+    assert not (tmp_path / "bad.xml").exists()
+    export_mjcf(CalibratedModel(document), tmp_path / "bad.xml", allow_inconsistent=True)
+    assert "NOT physically consistent" in (tmp_path / "bad.xml").read_text()
+
+
+def test_cli_export_mjcf_warns_writes_once_and_refuses_bad_input(tmp_path, capsys, scara):
+    model = tmp_path / "model.json"
+    model.write_text(model_text(scara[0].document))
+    out = tmp_path / "robot.xml"
+    assert main(["export-mjcf", str(model), str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "torque_ripple[j1,h=3]" in err and "delay" in err and "torque offsets" in err and "spring[j2]" not in err
+    first = out.read_text()
+    assert first == render_mjcf(scara[0])
+    assert main(["export-mjcf", str(model), str(out)]) == 2
+    assert "--overwrite" in capsys.readouterr().err and out.read_text() == first
+    assert main(["export-mjcf", str(model), str(out), "--overwrite", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["command"] == "export-mjcf"
+    assert main(["export-mjcf", str(model), str(tmp_path / "robot.urdf")]) == 2
+    assert "OUT" in capsys.readouterr().err
+    assert main(["export-mjcf", str(tmp_path / "missing.json"), str(tmp_path / "x.xml")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    document = json.loads(model.read_text())
+    document["standard"].update(consistent=False, min_pseudo_inertia_eigenvalue=-0.25)
+    model.write_text(json.dumps(document))
+    assert main(["export-mjcf", str(model), str(tmp_path / "bad.xml")]) == 1
+    assert "eigenvalue -0.25" in capsys.readouterr().err and not (tmp_path / "bad.xml").exists()
