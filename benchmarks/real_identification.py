@@ -32,7 +32,9 @@ Targets: consistent (both eigenvalues > 0); our validation RMSE within 10 % of O
 on the Panda, defaults below the published model on every joint (``defaults_beat_published_every_joint``);
 defaults not worse than the hand-picked options beyond 2 % on any joint; derive + identify under 60 s
 per robot; ``loop_never_worse``: at the end of the loop no joint's validation RMSE above its value after
-identify plus the noise margin the diagnosis states.
+identify plus the noise margin the diagnosis states; ``mjcf_max_rel_error``: the fit exported as MJCF, MuJoCo's
+``mj_inverse`` on the file equals the model's torque without its Coulomb term and offsets to 1e-9 relative
+(``mjcf_round_trip``).
 Usage::
 
     python benchmarks/real_identification.py [--robots tx40 panda kinova] [--build-dir DIR] [--jobs 2]
@@ -69,6 +71,7 @@ from bench_support import (
     show_progress,
 )
 from kinova_gen3 import KINOVA, evaluate_kinova, kinova_missed, print_kinova
+from mjcf_round_trip import MJCF_TARGET, mjcf_max_rel_error
 from never_worse_loop import ROBOTS as LOOP_ROBOTS
 from never_worse_loop import print_loops, run_loops
 from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
@@ -109,6 +112,8 @@ TARGETS = {
     "rmse_vs_options": f"validation RMSE of ours (defaults) <= {OPTIONS_MARGIN:g} x the hand-picked OPTIONS on every "
     "joint",
     "seconds": f"derive + identify < {MAX_SECONDS:g} s per robot",
+    "mjcf_max_rel_error": f"MJCF export: MuJoCo's mj_inverse on the written file vs the model's torque without Coulomb "
+    f"and offsets <= {MJCF_TARGET:g} relative on the validation states",
     "tx40_motor_side_equal": "TX40: the shipped motor-side files read through examples/staubli_tx40.toml give the "
     "hand-converted route's model (1e-9 relative)",
     "kinova_models": "Kinova Gen3: identify on defaults from the joint-torque sensors and from currents, every link "
@@ -316,6 +321,7 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
         columns=choice.to_dict(),
         columns_text=choice.describe(),
         warnings=list(fit.warnings),
+        **mjcf_max_rel_error(robot, model, fit, q, qd, qdd),
     )
     return result
 
@@ -337,6 +343,8 @@ def missed_targets(results: dict) -> list:
         for j, (ours, hand) in enumerate(zip(r["rmse"], r["rmse_options"])):
             if not ours <= OPTIONS_MARGIN * hand:
                 missed.append(f"{key} rmse_vs_options: joint {j + 1} {ours:.3g} > {OPTIONS_MARGIN:g} x {hand:.3g} N m")
+        if not r["mjcf_max_rel_error"] <= MJCF_TARGET:
+            missed.append(f"{key} mjcf_max_rel_error: {r['mjcf_max_rel_error']:.3g} > {MJCF_TARGET:g}")
         if key == "panda":
             if r.get("rmse_published") is None:
                 missed.append(f"panda rmse_vs_published: published model not evaluated ({r.get('published_error')})")
@@ -376,6 +384,8 @@ def print_robot(key: str, r: dict) -> None:
         f"{r['identify_seconds']:.1f} s = {r['seconds']:.1f} s wall, {r['cpu_seconds']:.1f} s CPU "
         f"({r['solver_status']})"
     )
+    print(f"MJCF export: mj_inverse vs the model, max relative error {r['mjcf_max_rel_error']:.3g} (frictionloss at fc "
+          f"on {100 * r['mjcf_friction_saturated']:.0f} % of the sliding samples)")  # fmt: skip
     if key == "panda":
         if r.get("rmse_published") is None:
             print(f"published model (Gaz et al. 2019): not evaluated: {r['published_error']}")

@@ -31,6 +31,7 @@ from psdm_casadi.errors import RobotFileError
 from psdm_casadi.file_values import file_number as _number
 from psdm_casadi.file_values import file_vector as _vector
 from psdm_casadi.link_envelope import LinkEnvelope
+from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.transmission_file import layout_from_table, transmission_from_table
 from psdm_casadi.urdf import from_urdf
@@ -126,7 +127,7 @@ def resolve_robot_path(path) -> Path:
 
 
 def load_robot(path, locked_joints=()) -> RobotDescription:
-    """Read a robot file: ``.toml`` (DH rows or a ``[urdf]`` table) or ``.urdf``, or a built-in robot by name.
+    """Read a robot file: ``.toml`` (DH rows or a ``[urdf]`` table), ``.urdf`` or MJCF ``.xml``, or a built-in robot.
 
     Parameters
     ----------
@@ -149,11 +150,12 @@ def load_robot(path, locked_joints=()) -> RobotDescription:
     """
     path = resolve_robot_path(path)
     suffix = path.suffix.lower()
-    if suffix == ".urdf":
+    if suffix in (".urdf", *MJCF_SUFFIXES):
         return from_urdf(path, locked_joints=locked_joints)
     if suffix != ".toml":
         raise RobotFileError(
-            f"robot file {path.name!r} must end in .toml or .urdf; got {suffix!r}. Rename it or convert it."
+            f"robot file {path.name!r} must end in .toml, .urdf or .xml (MJCF); got {suffix!r}. Rename it or "
+            "convert it."
         )
     text = read_text_file(path, what="robot file")
     try:

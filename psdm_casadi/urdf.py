@@ -27,6 +27,7 @@ import pinocchio as pin
 
 from psdm_casadi.description import GRAVITY_STANDARD, Joint, LinkInertia, RobotDescription, locked_positions
 from psdm_casadi.errors import RobotFileError
+from psdm_casadi.mjcf import MJCF_SUFFIXES, load_mjcf_model
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.values import format_value, inertia_violation
 
@@ -157,7 +158,7 @@ def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
         outside the joint's limits or is nonzero for a joint with more than one degree of freedom.
     """
     path = Path(path)
-    model = _parse_urdf(path)
+    model = load_mjcf_model(path) if path.suffix.lower() in MJCF_SUFFIXES else _parse_urdf(path)
     _square_joint_origins(path, model)
     locked = locked_positions(locked_joints)
     if locked:
@@ -288,6 +289,8 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
             "joints, or every joint locked). Check the file and the locked joints."
         )
     g = np.array([0.0, 0.0, -GRAVITY_STANDARD]) if gravity is None else gravity
+    if gravity is None and path.suffix.lower() in MJCF_SUFFIXES:  # an MJCF states its gravity (option gravity)
+        g = np.array(model.gravity.linear, dtype=float)
     return RobotDescription(
         name=name or path.stem,
         joints=tuple(joints),

@@ -13,11 +13,11 @@ from psdm_casadi.cli.checks import add_lock_argument, check_not_input, load_lock
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, model_warnings, report_model_warnings
 from psdm_casadi.errors import ParameterError, ShapeError
 
-ROBOT_SUFFIXES = (".toml", ".urdf")
+ROBOT_SUFFIXES = (".toml", ".urdf", ".xml", ".mjcf")
 CALIBRATED_SUFFIX = ".json"
 FORMS = ("recursive", "sum")
 DESCRIPTION = (
-    "Export the PSDM dynamics of a robot (.toml/.urdf, derived first) or of a saved model (.npz) as a "
+    "Export the PSDM dynamics of a robot (.toml/.urdf/.xml MJCF, derived first) or of a saved model (.npz) as a "
     "self-contained C folder: <library>.c/.h, Makefile and an example main.c. Functions taking theta are "
     "exported with theta baked in (from --theta, else the robot's nominal base parameters) and with "
     "theta as a runtime input (suffix _theta). The default recursive form evaluates the model by Newton-Euler "

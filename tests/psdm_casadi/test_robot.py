@@ -69,7 +69,7 @@ def test_malformed_files_name_the_field(tmp_path, text, match):
 def test_missing_file_and_wrong_suffix(tmp_path):
     with pytest.raises(RobotFileError, match="does not exist"):
         load_robot(tmp_path / "none.toml")
-    with pytest.raises(RobotFileError, match="must end in .toml or .urdf"):
+    with pytest.raises(RobotFileError, match="must end in .toml, .urdf or .xml"):
         load_robot(write(tmp_path, "x", name="robot.yaml"))
 
 
