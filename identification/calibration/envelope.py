@@ -13,9 +13,11 @@ it is necessary and sufficient. It is linear in the ten standard parameters (:fu
 the fit adds it as one constraint per link. It also holds the centre of mass in the ellipsoid.
 
 Each link's ellipsoid (:func:`link_envelopes`) is, in this order: the robot file's (``envelope`` in a
-``[[link]]`` table), else the one around the link's kinematic segment (the joint axes it connects, from the
-DH rows or the URDF's joint placements) with a margin (:func:`kinematic_envelope`). It is enlarged, if needed,
-until the robot file's own link fills at most ``PRIOR_FILL`` of it, so that the prior is always inside.
+``[[link]]`` table); else the one through the corners of the box around the link's URDF collision (else
+visual) geometry, oriented along its principal axes (:func:`geometry_envelope`); else the one around the
+link's kinematic segment (the joint axes it connects, from the DH rows or the URDF's joint placements) with a
+margin (:func:`kinematic_envelope`). It is enlarged, if needed, until the robot file's own link fills at most
+``PRIOR_FILL`` of it, so that the prior is always inside.
 
 Masses stay within ``mass_ratio`` times the robot file's (default 0.5-2: CAD masses are off by tens of
 percent, not by factors), and drive inertias within ``drive_inertia_ratio`` times the file's where it gives
@@ -31,6 +33,7 @@ from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.link_envelope import LinkEnvelope
 from psdm_casadi.oracle import build_kinematic_model
+from psdm_casadi.urdf_geometry import link_geometry_points
 
 __all__ = [
     "LENGTH_MARGIN",
@@ -40,6 +43,7 @@ __all__ = [
     "density_weights",
     "envelope_fill",
     "ellipsoid_matrix",
+    "geometry_envelope",
     "kinematic_envelope",
     "link_envelopes",
 ]
@@ -110,6 +114,18 @@ def kinematic_envelope(points, radius: float, source: str = "kinematic lengths")
     return LinkEnvelope(centre, np.sqrt(2.0) * np.array([half + r, r, r]), rotation, source)
 
 
+def geometry_envelope(points, source: str) -> LinkEnvelope:
+    """The ellipsoid through the corners of the box around ``points`` (k, 3), aligned with their principal axes."""
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    mean = points.mean(axis=0)
+    _, _, vt = np.linalg.svd(points - mean, full_matrices=True)
+    rotation = vt.T if np.linalg.det(vt) > 0 else vt.T * np.array([1.0, 1.0, -1.0])
+    local = (points - mean) @ rotation
+    low, high = local.min(axis=0), local.max(axis=0)
+    half = np.maximum(0.5 * (high - low), 1e-3)  # a flat plate still has a thickness
+    return LinkEnvelope.from_box(mean + rotation @ (0.5 * (low + high)), half, rotation, source)
+
+
 def link_envelopes(robot, free=None) -> tuple:
     """Per link, its ``LinkEnvelope`` (module docstring), or None for the links not in ``free`` (0-based; all).
 
@@ -118,6 +134,7 @@ def link_envelopes(robot, free=None) -> tuple:
     """
     free = range(robot.n_dof) if free is None else free
     given = getattr(robot, "envelopes", None) or (None,) * robot.n_dof
+    shapes, kind = link_geometry_points(robot)
     segments = _segment_points(robot)
     lengths = [float(np.ptp(p, axis=0).max(initial=0.0)) if len(p) > 1 else 0.0 for p in segments]
     reach = max(sum(lengths), 1e-3)
@@ -125,6 +142,8 @@ def link_envelopes(robot, free=None) -> tuple:
     out = [None] * robot.n_dof
     for i in free:
         envelope = given[i]
+        if envelope is None and shapes[i] is not None:
+            envelope = geometry_envelope(shapes[i], f"URDF {kind} geometry")
         if envelope is None:
             points = segments[i]
             if prior is not None and prior[i, 0] > 0:

@@ -232,3 +232,54 @@ def test_identify_reports_the_pushed_link_in_text_json_and_the_model_file(denso,
     assert "physical envelope" not in out and json.loads((tmp_path / "m.json").read_text())["warnings"] == []
     assert main([*argv, "--overwrite", "--mass-bounds", "2", "3"]) == 2
     assert "--mass-bounds must be (low, high)" in capsys.readouterr().err
+
+
+ARM_URDF = """<robot name="arm">
+  <link name="base"/>
+  <joint name="j1" type="revolute"><parent link="base"/><child link="l1"/><axis xyz="0 0 1"/>
+    <limit lower="-3" upper="3" effort="10" velocity="2"/></joint>
+  <link name="l1">
+    <inertial><origin xyz="0 0 0.2"/><mass value="2"/>
+      <inertia ixx="0.03" iyy="0.03" izz="0.003" ixy="0" ixz="0" iyz="0"/></inertial>
+    {l1}
+  </link>
+  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/><origin xyz="0 0 0.4"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="2"/></joint>
+  <link name="l2">
+    <inertial><origin xyz="0.15 0 0"/><mass value="1"/>
+      <inertia ixx="0.001" iyy="0.008" izz="0.008" ixy="0" ixz="0" iyz="0"/></inertial>
+    {l2}
+  </link>
+  <joint name="tip" type="fixed"><parent link="l2"/><child link="l2_tip"/><origin xyz="0.3 0 0"/></joint>
+  <link name="l2_tip">{tip}</link>
+</robot>
+"""
+SHAPES = {
+    "l1": '<collision><origin xyz="0 0 0.2"/><geometry><box size="0.1 0.1 0.4"/></geometry></collision>',
+    "l2": '<collision><origin xyz="0.15 0 0" rpy="0 1.5707963267948966 0"/><geometry><cylinder radius="0.05" '
+    'length="0.3"/></geometry></collision>',
+    "tip": '<collision><geometry><sphere radius="0.04"/></geometry></collision>',
+}
+
+
+def test_a_urdf_links_envelope_comes_from_its_collision_geometry(tmp_path):
+    from psdm_casadi.urdf_geometry import link_geometry_points
+
+    (tmp_path / "arm.urdf").write_text(ARM_URDF.format(**SHAPES))
+    robot = load_robot(tmp_path / "arm.urdf")
+    points, kind = link_geometry_points(robot)
+    assert kind == "collision"
+    np.testing.assert_allclose(points[0].min(axis=0), [-0.05, -0.05, 0.0], atol=1e-9)  # the box
+    np.testing.assert_allclose(points[0].max(axis=0), [0.05, 0.05, 0.4], atol=1e-9)
+    # the cylinder along x and the sphere of the fixed tip link count for link 2
+    np.testing.assert_allclose(points[1].min(axis=0), [0.0, -0.05, -0.05], atol=1e-9)
+    np.testing.assert_allclose(points[1].max(axis=0), [0.34, 0.05, 0.05], atol=1e-9)
+    envelopes = link_envelopes(robot)
+    assert all(e.source == "URDF collision geometry" for e in envelopes)
+    for envelope, shape in zip(envelopes, points):
+        assert envelope.contains(shape).all()
+    # the box link: the ellipsoid through its corners, a uniform box of the same size fills a third of it
+    box = _box(2.0, [0, 0, 0.2], [0.05, 0.05, 0.2], np.eye(3))
+    assert envelope_fill(box, envelopes[0]) == pytest.approx(1.0 / 3.0, rel=1e-6)
+    (tmp_path / "bare.urdf").write_text(ARM_URDF.format(l1="", l2="", tip=""))
+    assert {e.source for e in link_envelopes(load_robot(tmp_path / "bare.urdf"))} == {"kinematic lengths"}
