@@ -204,11 +204,18 @@ def _message(finding: EnvelopeFinding, robot) -> str:
     i, k = finding.link, finding.joint
     size = f"{finding.refused_rms:.3g} N m RMS ({finding.refused_sigma:.1f} x its noise)"
     refused = f"the data ask {joint_label(k, robot)} for {size} more than the bounded model gives"
-    if finding.absorbs == "counterbalance":
-        cause = (
-            f"most likely a counterbalance or spring on {joint_label(k, robot)} (a gravity-like torque the "
-            f"link's mass would otherwise absorb); {DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}"
+    file_off = (
+        (
+            ", or a robot file whose mass of this link is off by more than the bounds allow (pass --mass-bounds "
+            "LOW HIGH if the file's masses are rough)"
         )
+        if any(b.startswith("mass") for b in finding.bounds)
+        else ""
+    )
+    if finding.absorbs == "counterbalance":
+        cause = (f"most likely a counterbalance or spring on {joint_label(k, robot)} (a gravity-like torque the "
+                 f"link's mass would otherwise absorb){file_off}; "
+                 f"{DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}")  # fmt: skip
     elif finding.absorbs == "payload":
         cause = (
             "most likely a payload or tool at the flange that the robot file does not hold; add it to the robot "
