@@ -11,6 +11,7 @@ mounted (README: 0.6-0.8 kg at the flange over Kinova's published masses). Throu
   opti_traj_testing1, RunTrajectory1 and Trajectory1 (``i=Cur``, torque constants only), defaults
   otherwise: per-joint validation RMSE [N m] and R^2, the robot file's RMSE, and the identified links
   (mass, distance of the centre of mass from the joint) against the URDF;
+- whether each fit names a tool at the flange (its last link pushed against its mass bound);
 - ``psdm diagnose`` of the robot file on opti_traj_testing1/2 (sensors): the payload it names is the tool.
 
 Joint 7 carries almost no gravity load and its sensor shows only noise and offset (README), so its RMSE
@@ -104,10 +105,12 @@ def identify(robot, source: str, folder: Path, data: Path, log) -> dict:
     if code != 0 or payload is None:
         return {"exit_code": code, "error": err.strip().splitlines()[-1] if err.strip() else "no output"}
     validation = payload["validation"][0]
+    warnings = payload.get("warnings", [])
+    tool = [w for w in warnings if w.startswith(f"link {robot.n_dof} ") and "tool at the flange" in w]
     return {"exit_code": code, "columns": SOURCES[source], "training": list(TRAINING[source]), "seconds": seconds,
-            "consistent": payload["consistent"],
+            "consistent": payload["consistent"], "names_tool_at_flange": bool(tool),
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
-            "warnings": payload.get("warnings", []), "links": links_report(robot, out)}  # fmt: skip
+            "warnings": warnings, "links": links_report(robot, out)}  # fmt: skip
 
 
 def diagnose_tool(folder: Path, data: Path, log) -> dict:
@@ -147,10 +150,11 @@ def evaluate_kinova(log, data: Path = KINOVA, diagnosis: bool = True) -> dict:
         tool = diagnose_tool(Path(tmp), data, log) if diagnosis else None
     replaced = robot.replaced_inertias
     unusable = [{"link": r.link.strip("'"), "joint": r.joint + 1, "problem": r.problem} for r in replaced]
-    masses = [tool and tool.get("tool_mass")] + [f.get("links", {}).get("last_link_excess_mass") for f in fits.values()]
+    mass = None if tool is None else tool.get("tool_mass")
     low, high = TOOL_RANGE_KG
     return {"skipped": False, **fits, "urdf_unusable_inertias": unusable, "tool_diagnosis": tool,
-            "tool_found": any(m is not None and low <= m <= high for m in masses),
+            "tool_found": mass is not None and low <= mass <= high,
+            "identify_names_the_tool": all(f.get("names_tool_at_flange") for f in fits.values()),
             "ran_on_defaults": all(f.get("exit_code") == 0 for f in fits.values())}  # fmt: skip
 
 
@@ -166,7 +170,9 @@ def kinova_missed(result) -> list:
         elif not fit["links"]["plausible"]:
             missed.append(f"kinova kinova_models: {source} fit, implausible links {fit['links']['implausible_links']}")
     if not result["tool_found"]:
-        missed.append("kinova kinova_models: no tool of 0.4-2 kg found")
+        missed.append("kinova kinova_models: the diagnosis of the robot file found no tool of 0.4-2 kg")
+    if not result["identify_names_the_tool"]:
+        missed.append("kinova kinova_models: an identification does not name the tool at the flange")
     return missed
 
 
@@ -189,7 +195,8 @@ def print_kinova(result) -> None:
         links = fit["links"]
         print(f"           total mass {links['total_mass']:.2f} kg (URDF {links['urdf_total_mass']:.2f}); last link "
               f"+{links['last_link_excess_mass']:.2f} kg over the URDF; implausible links: "
-              f"{links['implausible_links'] or 'none'}")  # fmt: skip
+              f"{links['implausible_links'] or 'none'}; a tool at the flange named: "
+              f"{'yes' if fit['names_tool_at_flange'] else 'no'}")  # fmt: skip
     for entry in result["urdf_unusable_inertias"]:
         print(f"  URDF: {entry['link']} (joint {entry['joint']}) inertia unusable: {entry['problem']}")
     tool = result["tool_diagnosis"]

@@ -5,8 +5,8 @@ example's torque constants); ``Time`` counts rows at a nominal 1 kHz (opti_traj_
 4.74 s); the last 21 rows of opti_traj_testing1 hold NaN in reference columns but valid measured
 ones; the URDF's shoulder_link and spherical_wrist_1_link inertias break the triangle inequality; the
 moving links weigh 5.477 kg in the URDF. The slow test identifies the arm from the sensors with the
-defaults and checks that every link is plausible and the tool appears at the flange (0.6-0.8 kg over
-Kinova's published masses by the README; this URDF's links are lighter, so up to 2 kg here).
+defaults and checks that every link is plausible and that the tool at the flange is named (0.6-0.8 kg
+over Kinova's published masses by the README; the diagnosis of the robot file weighs it in the benchmark).
 """
 
 from __future__ import annotations
@@ -90,4 +90,5 @@ def test_identify_on_defaults_from_the_sensors_is_plausible_and_finds_the_tool(r
     com = np.linalg.norm(standard[:, 1:4], axis=1) / mass
     assert np.all((mass > urdf / 5) & (mass < urdf * 5)), mass
     assert np.all(com < 0.5), com  # every centre of mass within the arm's 0.42 m longest link plus a margin
-    assert 0.4 < mass[-1] - urdf[-1] < 2.0  # the tool, carried by the last link
+    assert mass[-1] > 1.5 * urdf[-1]  # the tool, carried by the last link, named as such
+    assert any(w.startswith("link 7 ") and "tool at the flange" in w for w in report["warnings"])
