@@ -18,6 +18,7 @@ import numpy as np
 
 from codegen.target_holds import is_linear_spring
 from identification.calibration.findings import FindingTerm
+from psdm_casadi.mjcf import route_mujoco_warnings
 
 __all__ = ["MjcfRoundTrip", "mjcf_round_trip", "mujoco_inverse"]
 
@@ -47,6 +48,7 @@ class MjcfRoundTrip:
 
 def mujoco_inverse(mj_model, q, qd, qdd, constraints: bool) -> np.ndarray:
     """``qfrc_inverse`` of MuJoCo per sample, shape (n_samples, nv), with its constraints enabled or disabled."""
+    route_mujoco_warnings()
     flags = mj_model.opt.disableflags
     if not constraints:
         mj_model.opt.disableflags = flags | int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)

@@ -25,6 +25,7 @@ body, branches (two moving bodies below one), tendons, equality constraints (clo
 
 from __future__ import annotations
 
+import logging
 import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -36,12 +37,25 @@ import pinocchio as pin
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.text_file import read_text_file
 
-__all__ = ["MJCF_SUFFIXES", "load_mjcf_model", "mjcf_gravity"]
+__all__ = ["MJCF_SUFFIXES", "load_mjcf_model", "mjcf_gravity", "route_mujoco_warnings"]
+
+logger = logging.getLogger(__name__)
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
 ASSET_REFERENCES = ("material", "mesh", "hfield", "texture", "skin")  # attributes naming an asset that is removed
 UNIT_AXES = {(1.0, 0.0, 0.0): pin.JointModelRX, (0.0, 1.0, 0.0): pin.JointModelRY, (0.0, 0.0, 1.0): pin.JointModelRZ}
 UNIT_SLIDES = {(1.0, 0.0, 0.0): pin.JointModelPX, (0.0, 1.0, 0.0): pin.JointModelPY, (0.0, 0.0, 1.0): pin.JointModelPZ}
+
+
+def _mujoco_warning(text: str) -> None:
+    logger.warning("MuJoCo: %s", " ".join(str(text).split()))
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to ``logging`` rather than to a ``MUJOCO_LOG.TXT`` in the working folder (unless the
+    process installed its own handler)."""
+    if mujoco.get_mju_user_warning() is None:
+        mujoco.set_mju_user_warning(_mujoco_warning)
 
 
 def _refuse_unsupported(path: Path, root: ET.Element) -> None:
@@ -93,6 +107,7 @@ def _compiled(path: Path) -> mujoco.MjModel:
             "URDF ending in .urdf)."
         )
     _refuse_unsupported(path, root)
+    route_mujoco_warnings()
     try:
         return mujoco.MjModel.from_xml_string(_stripped(path, root))
     except ValueError as exc:
