@@ -18,7 +18,7 @@ import numpy as np
 
 from codegen.target_holds import is_linear_spring
 from identification.calibration.findings import FindingTerm
-from psdm_casadi.mjcf import route_mujoco_warnings
+from psdm_casadi.mjcf import compile_mjcf, route_mujoco_warnings
 
 __all__ = ["MjcfRoundTrip", "mjcf_round_trip", "mujoco_inverse"]
 
@@ -90,7 +90,7 @@ def mjcf_round_trip(calibrated, model, text: str, q, qd, qdd) -> MjcfRoundTrip:
         States within the joint ranges (MuJoCo's joint limits are constraints).
     """
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    mj_model = mujoco.MjModel.from_xml_string(text)
+    mj_model = compile_mjcf(text, "the written MJCF")  # MuJoCo's compiler, without mesh files (not dynamics)
     held, lugre = _held_part(calibrated)
     expected = held.predict(model, q, qd, qdd)
     if lugre is not None:

@@ -31,32 +31,32 @@ joint elasticity, backlash) and acceleration limits.
 
 from __future__ import annotations
 
-import textwrap
+from pathlib import Path
 from xml.dom import minidom
 
 import numpy as np
 import pinocchio as pin
 
-from codegen.target_holds import (
-    MJCF,
-    N_LINK,
-    drive_inertias,
-    drive_terms,
-    findings_left_out,
-    findings_not_representable,
-    friction_left_out,
-    friction_not_representable,
-    linear_springs,
+from codegen.mjcf_copy import copied_mjcf
+from codegen.mjcf_elements import (
+    comment,
+    element,
+    header_text,
+    inertial_attributes,
+    joint_attributes,
+    joint_fields,
+    numbers,
 )
+from codegen.target_holds import N_LINK
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.fileio import atomic_write
-from psdm_casadi.oracle import build_kinematic_model, inertia_from_dynamic_parameters, link_to_joint_frame_maps
+from psdm_casadi.mjcf import MJCF_SUFFIXES
+from psdm_casadi.oracle import build_kinematic_model, link_to_joint_frame_maps
 from psdm_casadi.values import exact_text
 
-__all__ = ["JointFields", "export_mjcf", "joint_fields", "render_mjcf"]
+__all__ = ["export_mjcf", "render_mjcf"]
 
 LINK_RADIUS = 0.02  # [m] radius of the capsules drawn along the links (no mass)
-MIN_BODY = 1e-12  # [kg, kg m^2] the least mass and principal moment written (MuJoCo refuses ~1e-15 and below)
 
 
 def export_mjcf(calibrated, path, *, overwrite: bool = False, allow_inconsistent: bool = False):
@@ -95,50 +95,6 @@ def export_mjcf(calibrated, path, *, overwrite: bool = False, allow_inconsistent
     return atomic_write(path, lambda handle: handle.write(text), overwrite)
 
 
-class JointFields:
-    """The MJCF joint attributes of a calibrated model, per joint (module docstring): what MuJoCo will compute with.
-
-    Attributes
-    ----------
-    armature, damping, frictionloss, stiffness, springref : ndarray, shape (n_dof,)
-    notes : list of str
-        Per joint, what MJCF cannot hold of it (offset, friction shape, findings), for its comment.
-    """
-
-    def __init__(self, calibrated, robot):
-        terms = drive_terms(calibrated)
-        n = calibrated.n_dof
-        self.armature = drive_inertias(calibrated, robot)
-        self.damping, self.frictionloss = terms["fv"], terms["fc"]
-        self.stiffness, self.springref = np.zeros(n), np.zeros(n)
-        for j, (k, c) in linear_springs(calibrated).items():
-            if k == 0.0:  # a constant: a torque offset MJCF cannot hold (kept in the notes by the finding)
-                continue
-            self.stiffness[j], self.springref[j] = k, -c / k
-        left_out = friction_left_out(calibrated)
-        findings, _ = findings_left_out(calibrated, MJCF)
-        offset = "offset" in calibrated.document["drive"]["friction_terms"]
-        self.notes = []
-        for j, joint in enumerate(robot.joints):
-            unit = "N m" if joint.is_revolute else "N"
-            parts = (
-                [f"constant torque offset {exact_text(terms['offset'][j])} {unit} (not an MJCF field)"]
-                if offset
-                else []
-            )
-            if left_out is not None:
-                parts.append(f"friction not representable in MJCF (left out): {left_out[j]}")
-            parts += [f"finding {text}" for text in findings.get(j, ())]
-            accel = "rad/s^2" if joint.is_revolute else "m/s^2"
-            parts.append(f"acceleration limit {exact_text(joint.qdd_max)} {accel} (not an MJCF field)")
-            self.notes.append("psdm: " + "; ".join(parts))
-
-
-def joint_fields(calibrated, robot) -> JointFields:
-    """:class:`JointFields` of a calibrated model (the numbers :func:`render_mjcf` writes on each joint)."""
-    return JointFields(calibrated, robot)
-
-
 def render_mjcf(calibrated, robot=None) -> str:
     """The MJCF text of a calibrated model (module docstring), whether it is consistent or not.
 
@@ -160,86 +116,10 @@ def render_mjcf(calibrated, robot=None) -> str:
             "identified with --no-consistency: base parameters only). Re-run 'psdm identify' without it."
         )
     robot = calibrated.load_robot() if robot is None else robot
+    if robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES:
+        return copied_mjcf(calibrated, robot)
     document = _generated(calibrated, robot)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + document.documentElement.toprettyxml(indent="  ")
-
-
-# --- elements ------------------------------------------------------------------------------------------------
-def _nums(values) -> str:
-    return " ".join(exact_text(v) for v in values)
-
-
-def _comment(document, text: str):
-    return document.createComment(" " + " ".join(str(text).replace("--", "- -").split()) + " ")
-
-
-def _element(document, tag: str, attributes=(), children=()):
-    node = document.createElement(tag)
-    for key, value in attributes:
-        node.setAttribute(key, value)
-    for child in children:
-        node.appendChild(child)
-    return node
-
-
-def inertial_attributes(parameters) -> tuple:
-    """(``<inertial>`` attributes, note or None) of 10 dynamic parameters in the body frame.
-
-    The attributes are pos (centre of mass), mass and fullinertia (about the centre of mass). MuJoCo refuses a
-    moving body whose mass or a principal moment is below ~1e-15 or whose moments break ``A + B >= C``; a body the
-    model leaves without mass or inertia there (a link the data cannot see, a thin rod) gets ``MIN_BODY`` of mass
-    and ``pad I`` more inertia (the least that MuJoCo takes, 1e-12 [kg, kg m^2]: a torque change far below the
-    1e-9 round trip), said in the returned note.
-    """
-    inertia = inertia_from_dynamic_parameters(parameters)
-    mass, tensor = float(inertia.mass), np.asarray(inertia.inertia, dtype=float)
-    a, b, c = np.linalg.eigvalsh(tensor)
-    pad = max(MIN_BODY - a, c - a - b + MIN_BODY, 0.0) if (a < MIN_BODY or c - a - b > -MIN_BODY) else 0.0
-    note = None
-    if mass < MIN_BODY or pad > 0.0:
-        note = (
-            "psdm: MuJoCo needs a positive mass and principal moments with A + B >= C on a moving body; the model's "
-            f"body (mass {exact_text(mass)} kg, principal moments {_nums([a, b, c])} kg m^2) is written with mass "
-            f"{exact_text(max(mass, MIN_BODY))} kg and {exact_text(pad)} kg m^2 more on each axis"
-        )
-        mass, tensor = max(mass, MIN_BODY), tensor + pad * np.eye(3)
-    full = [tensor[0, 0], tensor[1, 1], tensor[2, 2], tensor[0, 1], tensor[0, 2], tensor[1, 2]]
-    return [("pos", _nums(inertia.lever)), ("mass", exact_text(mass)), ("fullinertia", _nums(full))], note
-
-
-def joint_attributes(fields: JointFields, j: int) -> list:
-    """The calibrated attributes of joint ``j``: armature, damping, frictionloss (stiffness, springref: a spring)."""
-    out = [("armature", exact_text(fields.armature[j])), ("damping", exact_text(fields.damping[j])),
-           ("frictionloss", exact_text(fields.frictionloss[j]))]  # fmt: skip
-    if fields.stiffness[j] != 0.0:
-        out += [("stiffness", exact_text(fields.stiffness[j])), ("springref", exact_text(fields.springref[j]))]
-    return out
-
-
-def header_text(calibrated, robot, source: str) -> str:
-    """The comment that opens the file: where it comes from and what MJCF cannot hold (wrapped lines)."""
-    block = calibrated.document["standard"]
-    drive = calibrated.document["drive"]
-    state = "physically consistent" if calibrated.consistent else "NOT physically consistent"
-    lines = [
-        f"Written by psdm export-mjcf from the calibrated model of {robot.name} "
-        f"(created {calibrated.document.get('provenance', {}).get('created', '?')}), {source}.",
-        f"Inertial parameters: identified, {state} (smallest pseudo-inertia eigenvalue "
-        f"{block['min_pseudo_inertia_eigenvalue']}); each moving body's <inertial> is the whole rigid body the model "
-        "attaches to its joint.",
-        "Joints: armature = the drive inertia reflected to the joint, damping = fv (viscous), frictionloss = fc: "
-        f"MuJoCo's dry-friction constraint (bounded by fc), where the model has fc tanh(qd / "
-        f"{drive['coulomb_velocity']} rad/s); a linear spring finding is stiffness and springref."
-        + (f" WARNING: {left_out}." if (left_out := friction_not_representable(calibrated, MJCF)) else ""),
-        f"Gravity: {_nums(robot.gravity)} m/s^2 in the robot's base frame.",
-    ]
-    if "offset" in drive["friction_terms"]:
-        lines.append("The model's constant torque offsets have no MJCF field: they are in a comment on each joint.")
-    if (findings := findings_not_representable(calibrated, MJCF)) is not None:
-        lines.append(f"Findings: WARNING: {findings}.")
-        lines += [f"Finding {text}." for text in findings_left_out(calibrated, MJCF)[1]]  # on no joint (a delay)
-    wrapped = [row for line in lines for row in textwrap.wrap(" ".join(line.replace("--", "- -").split()), 100)]
-    return "\n    " + "\n    ".join(wrapped) + "\n"
 
 
 # --- generated from the robot's kinematics ------------------------------------------------------------------
@@ -261,9 +141,9 @@ def _generated(calibrated, robot):
     root = document.documentElement
     root.setAttribute("model", robot.name)
     root.appendChild(document.createComment(header_text(calibrated, robot, "generated from its kinematics")))
-    root.appendChild(_element(document, "compiler", [("angle", "radian"), ("inertiafromgeom", "false")]))
-    root.appendChild(_element(document, "option", [("gravity", _nums(robot.gravity))]))
-    worldbody = root.appendChild(_element(document, "worldbody"))
+    root.appendChild(element(document, "compiler", [("angle", "radian"), ("inertiafromgeom", "false")]))
+    root.appendChild(element(document, "option", [("gravity", numbers(robot.gravity))]))
+    worldbody = root.appendChild(element(document, "worldbody"))
     model, _ = build_kinematic_model(robot)
     maps = link_to_joint_frame_maps(robot)
     fields = joint_fields(calibrated, robot)
@@ -273,18 +153,18 @@ def _generated(calibrated, robot):
         j, joint = jid - 1, robot.joints[jid - 1]
         placement = model.jointPlacements[jid]
         turn = pin.Quaternion(placement.rotation)
-        body = _element(document, "body", [("name", f"link{jid}"), ("pos", _nums(placement.translation)),
-                                           ("quat", _nums([turn.w, turn.x, turn.y, turn.z]))])  # fmt: skip
+        body = element(document, "body", [("name", f"link{jid}"), ("pos", numbers(placement.translation)),
+                                           ("quat", numbers([turn.w, turn.x, turn.y, turn.z]))])  # fmt: skip
         parameters = maps[j] @ calibrated.standard[j, :N_LINK]
         attributes, note = inertial_attributes(parameters)
         if note is not None:
-            body.appendChild(_comment(document, note))
-        body.appendChild(_element(document, "inertial", attributes))
+            body.appendChild(comment(document, note))
+        body.appendChild(element(document, "inertial", attributes))
         kind, axis = axes[j]
-        body.appendChild(_comment(document, fields.notes[j]))
-        attributes = [("name", joint.name), ("type", kind), ("axis", _nums(axis)), ("limited", "true"),
-                      ("range", _nums([joint.q_min, joint.q_max]))] + joint_attributes(fields, j)  # fmt: skip
-        body.appendChild(_element(document, "joint", attributes))
+        body.appendChild(comment(document, fields.notes[j]))
+        attributes = [("name", joint.name), ("type", kind), ("axis", numbers(axis)), ("limited", "true"),
+                      ("range", numbers([joint.q_min, joint.q_max]))] + joint_attributes(fields, j)  # fmt: skip
+        body.appendChild(element(document, "joint", attributes))
         bodies[model.parents[jid]].appendChild(body)
         bodies[jid] = body
     _add_link_geoms(document, model, bodies)
@@ -301,20 +181,20 @@ def _add_link_geoms(document, model: pin.Model, bodies: dict) -> None:
             for k in children
             if np.linalg.norm(model.jointPlacements[k].translation) > 1e-9
         ]
-        shapes = [[("type", "capsule"), ("fromto", _nums([0.0, 0.0, 0.0, *end]))] for end in ends] or [
+        shapes = [[("type", "capsule"), ("fromto", numbers([0.0, 0.0, 0.0, *end]))] for end in ends] or [
             [("type", "sphere")]
         ]
         for shape in shapes:
             attributes = shape + [("size", exact_text(LINK_RADIUS)), ("contype", "0"), ("conaffinity", "0")]
-            bodies[jid].appendChild(_element(document, "geom", attributes))
+            bodies[jid].appendChild(element(document, "geom", attributes))
 
 
 def _actuators(document, robot):
     """A torque motor (gear 1) per joint, limited to the robot's torque limit where it has one."""
-    actuator = _element(document, "actuator")
+    actuator = element(document, "actuator")
     for joint in robot.joints:
         attributes = [("name", f"{joint.name}_motor"), ("joint", joint.name), ("gear", "1")]
         if np.isfinite(joint.tau_max):
-            attributes += [("ctrllimited", "true"), ("ctrlrange", _nums([-joint.tau_max, joint.tau_max]))]
-        actuator.appendChild(_element(document, "motor", attributes))
+            attributes += [("ctrllimited", "true"), ("ctrlrange", numbers([-joint.tau_max, joint.tau_max]))]
+        actuator.appendChild(element(document, "motor", attributes))
     return actuator

@@ -37,7 +37,7 @@ import pinocchio as pin
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.text_file import read_text_file
 
-__all__ = ["MJCF_SUFFIXES", "load_mjcf_model", "mjcf_gravity", "route_mujoco_warnings"]
+__all__ = ["MJCF_SUFFIXES", "compile_mjcf", "load_mjcf_model", "mjcf_gravity", "route_mujoco_warnings"]
 
 logger = logging.getLogger(__name__)
 
@@ -96,7 +96,18 @@ def _stripped(path: Path, root: ET.Element) -> str:
 
 def _compiled(path: Path) -> mujoco.MjModel:
     """MuJoCo's compiled model of the stripped file, its errors as a RobotFileError."""
-    text = read_text_file(path, what="MJCF")
+    return compile_mjcf(read_text_file(path, what="MJCF"), path.name)
+
+
+def compile_mjcf(text: str, name: str = "MJCF") -> mujoco.MjModel:
+    """MuJoCo's model of an MJCF text compiled without its meshes (module docstring), for its dynamics.
+
+    Raises
+    ------
+    RobotFileError
+        Naming ``name``, for text that is not MJCF, holds what psdm refuses, or MuJoCo cannot compile.
+    """
+    path = Path(name)
     try:
         root = ET.fromstring(text)
     except ET.ParseError as exc:

@@ -16,7 +16,8 @@ import numpy as np
 import pytest
 
 from codegen.mjcf_check import mjcf_round_trip, mujoco_inverse
-from codegen.mjcf_export import MIN_BODY, export_mjcf, render_mjcf
+from codegen.mjcf_elements import MIN_BODY
+from codegen.mjcf_export import export_mjcf, render_mjcf
 from identification.calibration.calibrated_model import CalibratedModel
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
@@ -24,6 +25,7 @@ from psdm_casadi.errors import ModelFileError
 from psdm_casadi.robot import load_robot
 from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
 from tests.conftest import DENSO_FILE
+from tests.psdm_casadi.test_mjcf_robot import ARM
 
 IA = {1: 0.03, 2: 0.02}  # drive inertias identified as columns of their own (1-based joints)
 SPRING = {
@@ -148,6 +150,27 @@ def test_the_denso_dh_model_round_trips_with_gravity_along_x_and_its_massless_li
     assert np.all(mj.dof_armature > 0)
     result = mjcf_round_trip(calibrated, model, text, *_states(robot, 100))
     assert result.max_rel_error < 1e-9, result
+
+
+def test_an_mjcf_robot_is_written_into_a_copy_of_its_file(tmp_path):
+    """The arm of test_mjcf_robot (degrees, classes, a joint off its body origin and with ref, a welded tool, meshes
+    that are absent): its own file with the identified bodies and joints, computing the model in MuJoCo."""
+    source = tmp_path / "arm4.xml"
+    source.write_text(ARM)
+    calibrated, robot, model = _calibrated(source, findings=[SPRING], ia=IA)
+    text = render_mjcf(calibrated)  # the robot rebuilt from the model file's copy of the MJCF
+    result = mjcf_round_trip(calibrated, model, text, *_states(robot, 100))
+    assert result.max_rel_error < 1e-9, result
+    for kept in ('<mesh name="link" file="link.stl"/>', 'class="wrist"', 'ref="10"', '<site name="tcp"/>', "gear="):
+        assert kept in text
+    assert 'inertiafromgeom="false"' in text and "the inertia of this welded body is part of" in text
+    assert text.count("<inertial pos") == 4  # the tool's is in link4's identified body
+    from psdm_casadi.mjcf import compile_mjcf
+
+    mj = compile_mjcf(text)
+    k, c = SPRING["coefficients"]
+    assert mj.jnt_stiffness[1] == k and mj.qpos_spring[1] == pytest.approx(-c / k, rel=1e-12)  # degrees in the file
+    np.testing.assert_array_equal(mj.dof_armature, [IA.get(j + 1, 0.0) for j in range(4)])
 
 
 def test_a_model_without_standard_parameters_or_inconsistent_is_refused(tmp_path, scara):

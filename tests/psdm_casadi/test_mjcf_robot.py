@@ -208,3 +208,11 @@ def test_the_panda_derived_from_mjcf_equals_the_urdf_derived_model(panda_files):
     tau_a = model_a.inverse_dynamics(q, qd, qdd, model_a.base_parameters(a.nominal_dynamic_parameters()))
     tau_b = model_b.inverse_dynamics(q, qd, qdd, model_b.base_parameters(b.nominal_dynamic_parameters()))
     assert np.abs(tau_b - tau_a).max() <= 1e-9 * np.abs(tau_a).max()
+
+
+def test_psdm_derive_takes_an_mjcf_file(arm, capsys):
+    import json
+
+    assert main(["derive", str(arm), "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["robot"] == "arm4" and summary["max_rel_error_vs_pinocchio"] < 1e-12
