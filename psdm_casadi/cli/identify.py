@@ -29,8 +29,10 @@ def register(subparsers) -> None:
         help="identify a calibrated model from exciting recordings (or the paper's four calibration steps)",
         description=(
             "Recordings (--data A.csv [B.csv ...], joint torques or currents; columns t, q1..qn, tau1..taun or "
-            "i1..in): filter them (cutoff min(10 Hz, rate/10), stated), fit base parameters, Coulomb "
-            "and viscous friction and drive inertias by weighted least squares, then physically consistent "
+            "i1..in): filter them (cutoff min(10 Hz, rate/10), stated), choose from the data the friction shape "
+            "(Coulomb-viscous or Stribeck), a torque offset per joint and the drive-inertia columns (stated; "
+            "--friction, --offset, --drive-inertia override), fit base parameters, friction, offsets and drive "
+            "inertias by weighted least squares, then physically consistent "
             "standard parameters (positive-definite pseudo-inertias), validate on --validate recordings, and "
             "write one calibrated-model file (--out model.json). A folder (--data DIR, or --protocol four-step) "
             "runs the paper's four calibration steps (motor, gravity, friction, inertial) on its experiments "
