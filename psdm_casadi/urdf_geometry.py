@@ -68,11 +68,14 @@ def link_geometry_points(robot) -> tuple:
     from a URDF or a URDF without readable geometry.
     """
     none = ((None,) * robot.n_dof, "")
-    if robot.urdf_path is None:
+    if robot.urdf_path is None or Path(robot.urdf_path).suffix.lower() != ".urdf":  # DH rows, or an MJCF file
         return none
     path = Path(robot.urdf_path)
-    with captured_stderr():
-        model = pin.buildModelFromUrdf(str(path))
+    try:
+        with captured_stderr():
+            model = pin.buildModelFromUrdf(str(path))
+    except (RuntimeError, ValueError, OSError):
+        return none
     found = _geometry(model, path)
     if found is None:
         return none

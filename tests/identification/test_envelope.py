@@ -283,3 +283,14 @@ def test_a_urdf_links_envelope_comes_from_its_collision_geometry(tmp_path):
     assert envelope_fill(box, envelopes[0]) == pytest.approx(1.0 / 3.0, rel=1e-6)
     (tmp_path / "bare.urdf").write_text(ARM_URDF.format(l1="", l2="", tip=""))
     assert {e.source for e in link_envelopes(load_robot(tmp_path / "bare.urdf"))} == {"kinematic lengths"}
+
+
+def test_an_mjcf_robots_envelope_comes_from_its_kinematic_lengths(tmp_path):
+    from tests.psdm_casadi.test_mjcf_robot import ARM
+
+    (tmp_path / "arm4.xml").write_text(ARM)
+    robot = load_robot(tmp_path / "arm4.xml")
+    envelopes = link_envelopes(robot)
+    assert {e.source for e in envelopes} == {"kinematic lengths"}
+    prior = robot.nominal_dynamic_parameters()
+    assert all(envelope_fill(prior[i], e) <= PRIOR_FILL + 1e-9 for i, e in enumerate(envelopes) if prior[i, 0] > 0)
