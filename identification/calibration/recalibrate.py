@@ -456,6 +456,8 @@ def _document(
     document = new.document
     document["robot"] = copy.deepcopy(calibrated.document["robot"])
     document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia
+    choice = calibrated.document["identification"].get("column_choice")  # the columns the refit kept (_options)
+    document["identification"].update({} if choice is None else {"column_choice": copy.deepcopy(choice)})
     document["findings"] = filled_entries(entries, terms, columns, extra)
     document["corrections"] = corrections
     document["warnings"] = list(dict.fromkeys(fit.warnings))  # the refit's own (a wrong recording stays flagged)

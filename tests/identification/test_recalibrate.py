@@ -167,3 +167,26 @@ def test_the_nominal_robot_of_a_calibrated_model_is_its_identified_rigid_body(sp
     np.testing.assert_allclose(PinocchioOracle(nominal).rnea(q, qd, qdd), expected, atol=1e-9 * np.abs(expected).max())
     prior = PinocchioOracle(denso).rnea(q, qd, qdd)
     assert np.abs(prior - expected).max() > 1.0  # the spring moved the identified inertia away from the robot file
+
+
+@pytest.mark.slow
+def test_diagnose_apply_keeps_the_drive_columns_the_model_was_identified_with(spring_loop, denso, denso_model, capsys):
+    """A model whose offsets were chosen per joint (``column_choice``) is refitted with the same columns."""
+    from identification.calibration.column_choice import ColumnChoice, ColumnRequest
+    from identification.data.io import load_recording
+
+    folder = spring_loop
+    options = TrajectoryOptions(friction=("fc", "fv", "offset"), offset_joints=(1,))
+    fit = identify_trajectories(denso, denso_model, [load_recording(folder / "train.csv", denso.n_dof)], options)
+    chosen = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE)
+    choice = ColumnChoice("coulomb-viscous", (1,), (), ColumnRequest())
+    chosen.document["identification"]["column_choice"] = choice.to_dict()
+    chosen.save(folder / "chosen.json")
+    argv = ["diagnose", str(folder / "chosen.json"), "--train", str(folder / "train.csv"), "--validate",
+            str(folder / "valid.csv"), "--apply", str(folder / "chosen_new.json")]  # fmt: skip
+    assert main(argv) == 0
+    capsys.readouterr()
+    after = json.loads((folder / "chosen_new.json").read_text())
+    offsets = {n: v for n, v in zip(after["drive"]["names"], after["drive"]["values"]) if n.startswith("offset")}
+    assert offsets.pop("offset2") != 0.0 and set(offsets.values()) == {0.0}  # held at 0 as the choice said
+    assert after["identification"]["column_choice"]["offset_joints"] == [2]
