@@ -16,8 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.payload_fit import Estimable, FlangeRegressor
+from identification.metrics import r2, rmse
 
-__all__ = ["MIN_DROP", "MIN_Z", "NewPayload", "new_payload"]
+__all__ = ["MIN_DROP", "MIN_Z", "NewPayload", "new_payload", "validation_with_payload"]
 
 MIN_DROP = 0.2  # the flange body must remove this fraction of the weighted residual
 MIN_Z = 5.0  # and its mass be this many (correlation-grown) standard deviations above zero
@@ -91,3 +92,13 @@ def new_payload(robot, prepared, predicted, name: str | None = None) -> NewPaylo
         com_std.append(float(np.sqrt(max(gradient @ covariance @ gradient, 0.0))))
     label = name or prepared.name or "the recording"
     return NewPayload(label, mass, mass_std, tuple(float(v) for v in com), tuple(com_std), drop)
+
+
+def validation_with_payload(robot, calibrated, model, recording, kt=None, payload=None) -> tuple:
+    """(RMSE, R^2, prepared recording, prediction) of a calibrated model on a raw recording that carries
+    ``payload`` (10 inertial parameters about the flange, or None): the model's prediction
+    (``CalibratedModel.predict_recording``, as ``psdm validate``) plus the load's torque."""
+    prepared, predicted = calibrated.predict_recording(model, recording, kt)
+    if payload is not None:
+        predicted = predicted + FlangeRegressor(robot)(prepared.q, prepared.qd, prepared.qdd) @ payload
+    return rmse(prepared.tau, predicted), r2(prepared.tau, predicted), prepared, predicted

@@ -30,7 +30,7 @@ from psdm_casadi.oracle import build_pinocchio_model, link_to_joint_frame_maps
 from psdm_casadi.robot import physical_to_dynamic
 
 __all__ = ["FlangeBodies", "FlangeRegressor", "IdentifiedPayload", "Estimable", "configurations_block",
-           "identified_payloads",
+           "identified_payloads", "stated_payload",
            "payload_prior", "subtract_known_payloads"]  # fmt: skip
 
 BODY = 10  # inertial parameters of a flange body: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (origin)
@@ -238,3 +238,24 @@ def configurations_block(configurations, names, payloads) -> list:
         elif configuration.kind == "unknown":
             entry["payload"] = identified[configuration.name].to_dict()
     return list(out.values())
+
+
+def stated_payload(configuration, stored, model_name: str) -> tuple:
+    """(10 inertial parameters about the flange or None, note or None): the load a recording to be validated
+    carries by its own statement (``configuration``): a known one as given, an unknown one as the model
+    identified it under the same name (``stored``: the model file's ``configurations`` block); None for none, and
+    None with a note for an unknown payload the model has not identified (then validated against the arm alone)."""
+    if configuration.kind == "known":
+        return configuration.payload.dynamic_parameters(), None
+    if configuration.kind == "none":
+        return None, None
+    entries = {e.get("name"): e for e in stored if e.get("kind") == "unknown"}
+    entry = entries.get(configuration.name)
+    parameters = None if entry is None else (entry.get("payload") or {}).get("parameters")
+    if parameters is None or any(v is None for v in parameters):
+        return None, (
+            f"payload {configuration.name!r} is unknown and {model_name} has not identified it (its identified "
+            f"payloads: {sorted(entries) or 'none'}); the recording is validated against the arm alone. Identify "
+            "with recordings that carry it, or state its mass."
+        )
+    return np.asarray(parameters, dtype=float), None

@@ -44,7 +44,13 @@ from psdm_casadi.errors import ParameterError
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.values import format_value
 
-__all__ = ["NO_PAYLOAD", "PayloadConfiguration", "recordings_with_configurations", "sidecar_path"]
+__all__ = [
+    "NO_PAYLOAD",
+    "PayloadConfiguration",
+    "recordings_with_configurations",
+    "sidecar_path",
+    "stated_configuration",
+]
 
 MANIFEST_EXAMPLE = '[[configuration]]\nname = "gripper"\npayload = "unknown"\nrecordings = ["a.csv", "b.csv"]'
 SIDECAR_EXAMPLE = '{"mass": 2.8, "com": [0, 0, 0.05]} (known), {"unknown": "gripper"} or {"mass": 0} (none)'
@@ -93,6 +99,12 @@ def sidecar_path(recording_path) -> Path:
     path = Path(recording_path)
     stem = path.name[: -len(path.suffix)] if path.suffix else path.name
     return path.with_name(f"{stem}.payload.json")
+
+
+def stated_configuration(recording_path) -> PayloadConfiguration:
+    """The configuration the sidecar of a recording states (``A.payload.json``), or no payload without one."""
+    sidecar = sidecar_path(recording_path)
+    return _sidecar(sidecar) if sidecar.is_file() else NO_PAYLOAD
 
 
 def _sidecar(path: Path) -> PayloadConfiguration:
@@ -195,9 +207,8 @@ def recordings_with_configurations(paths, option: str = "--data") -> tuple[list,
                 recordings.append(path)
                 configurations.append(configuration)
             continue
-        sidecar = sidecar_path(item)
         recordings.append(item)
-        configurations.append(_sidecar(sidecar) if sidecar.is_file() else NO_PAYLOAD)
+        configurations.append(stated_configuration(item))
     resolved = [p.resolve() for p in recordings]
     twice = sorted({str(p) for p, r in zip(recordings, resolved) if resolved.count(r) > 1})
     if twice:

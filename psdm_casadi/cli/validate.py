@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -62,9 +63,10 @@ def register(subparsers) -> None:
 
 
 def _run_validate(args) -> int:
-    from identification.calibration.payload_check import new_payload
-    from identification.calibration.recalibrate import validation_rmse
+    from identification.calibration.payload_check import new_payload, validation_with_payload
+    from identification.calibration.payload_fit import stated_payload
     from identification.calibration.trajectory_checks import check_validation_recording
+    from identification.data.configuration import stated_configuration
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import read_calibrated_argument
 
@@ -89,12 +91,17 @@ def _run_validate(args) -> int:
         check_validation_recording(robot, recording)
     rows = []
     for path, recording in zip(args.recordings, recordings):
-        error, r2, prepared, predicted = validation_rmse(
-            calibrated, model, recording, _torque_constants(robot, recording)
+        stated, note = stated_payload(stated_configuration(path), calibrated.configurations, args.model)  # sidecar
+        if note is not None:
+            warnings.append(note)
+            print(f"psdm validate: warning: {path}: {note}", file=sys.stderr)
+        error, r2, prepared, predicted = validation_with_payload(
+            robot, calibrated, model, recording, _torque_constants(robot, recording), stated
         )
         load = new_payload(robot, prepared, predicted, name=str(path))  # a load the model does not have
         rows.append({"recording": str(path), "rmse": np.atleast_1d(error).tolist(), "r2": np.atleast_1d(r2).tolist(),
-                     "prepared": prepared, "predicted": predicted, "payload": load})  # fmt: skip
+                     "prepared": prepared, "predicted": predicted, "payload": load,
+                     "stated_payload_kg": None if stated is None else float(stated[0])})  # fmt: skip
     if predictions is not None:
         with predictions.staging() as stage:
             stage.write_text(predictions_csv(rows, robot.n_dof))
@@ -122,6 +129,7 @@ def _json_row(row) -> dict:
     """A recording's entry of the JSON output: RMSE, R^2, and the payload it appears to carry (or null)."""
     load = row["payload"]
     return {"recording": row["recording"], "rmse": row["rmse"], "r2": row["r2"],
+            "stated_payload_kg": row["stated_payload_kg"],
             "payload": None if load is None else load.to_dict()}  # fmt: skip
 
 

@@ -169,8 +169,11 @@ def test_identify_reads_a_manifest_stores_the_configurations_and_refuses_bad_one
     assert payload["name"] == "gripper" and payload["mass"] == pytest.approx(UNKNOWN.mass, rel=0.15)
     stored = json.loads(out.read_text())["configurations"]
     assert [c["kind"] for c in stored] == ["none", "unknown"] and stored[1]["recordings"] == ["unknown.npz"]
-    assert main(["validate", str(out), str(tmp_path / "empty.npz")]) == 0  # the file reads back
-    capsys.readouterr()
+    (tmp_path / "unknown.payload.json").write_text('{"unknown": "gripper"}')  # validated with the identified load
+    assert main(["validate", str(out), str(tmp_path / "empty.npz"), str(tmp_path / "unknown.npz"), "--json"]) == 0
+    empty, loaded = json.loads(capsys.readouterr().out)["recordings"]
+    assert empty["stated_payload_kg"] is None and loaded["stated_payload_kg"] == pytest.approx(payload["mass"])
+    assert loaded["payload"] is None and min(loaded["r2"]) > 0.95  # nothing left unexplained at the flange
     (tmp_path / "empty.payload.json").write_text('{"mass": 2.8, "com": [0, 0]}')
     assert main([*argv[:3], str(tmp_path / "empty.npz"), *argv[4:], "--overwrite"]) == 2
     assert "empty.payload.json: Payload.com must be 3 numbers" in capsys.readouterr().err
