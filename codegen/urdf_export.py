@@ -75,6 +75,7 @@ from codegen.target_holds import (
 )
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.fileio import atomic_write
+from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.oracle import dh_transform, inertia_from_dynamic_parameters
 from psdm_casadi.values import exact_text
 
@@ -152,6 +153,11 @@ def render_urdf(calibrated, robot=None) -> str:
             "was identified with --no-consistency: base parameters only). Re-run 'psdm identify' without it."
         )
     robot = calibrated.load_robot() if robot is None else robot
+    if robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES:
+        raise ModelFileError(
+            f"the robot {robot.name!r} of the calibrated model was read from MJCF ({Path(robot.urdf_path).name}); "
+            "export-urdf copies a URDF robot's file or generates one for DH rows. Write it with 'psdm export-mjcf'."
+        )
     if robot.urdf_path is not None:
         document = _copied_urdf(calibrated, robot)
     else:

@@ -237,7 +237,8 @@ class RobotDescription:
     drives : tuple of DriveParameters or None
         Nominal motor constants and friction.
     urdf_path : str or None
-        When set, kinematics and nominal inertia come from this URDF through Pinocchio.
+        When set, kinematics and nominal inertia come from this URDF through Pinocchio (or from this MJCF file,
+        ``.xml``, through MuJoCo's compiler: ``psdm_casadi.mjcf``).
     locked_joints : tuple of (str, float)
         URDF joints fixed at a position [rad or m] (grippers), as ``(name, value)`` pairs; a bare name
         locks at zero, and a mapping ``{name: value}`` is accepted too (see :func:`locked_positions`).

@@ -47,7 +47,7 @@ __all__ = [
 ]
 
 #: The help of every command's robot argument.
-ROBOT_HELP = "robot file (.toml with DH rows or a [urdf] table, or .urdf) or the name of a built-in robot"
+ROBOT_HELP = "robot file (.toml with DH rows or a [urdf] table, .urdf, or MJCF .xml) or the name of a built-in robot"
 _LOCK_HELP = (
     "fix JOINT at VALUE [rad or m] (default 0); the model keeps the other joints. Repeat for several, e.g. "
     "--lock panda_finger_joint1=0.02 (robots read from a URDF only)"

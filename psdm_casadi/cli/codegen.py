@@ -46,7 +46,7 @@ def register(subparsers) -> None:
     p.add_argument(
         "source",
         metavar="ROBOT_OR_MODEL",
-        help="robot file (.toml, .urdf), saved model (.npz) or calibrated model (.json, from 'psdm identify')",
+        help="robot file (.toml, .urdf, .xml MJCF), saved model (.npz) or calibrated model (.json, 'psdm identify')",
     )
     p.add_argument("--out", required=True, type=Path, help="output folder (new or empty unless --force)")
     p.add_argument(
@@ -67,7 +67,7 @@ def register(subparsers) -> None:
         "--robot",
         type=Path,
         default=None,
-        help="robot file (.toml, .urdf) a saved model was derived from; enables the recursive form",
+        help="robot file (.toml, .urdf, .xml) a saved model was derived from; enables the recursive form",
     )
     p.add_argument(
         "--allow-inconsistent",

@@ -12,7 +12,7 @@ from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progr
 def register(subparsers) -> None:
     parser = subparsers.add_parser(
         "derive",
-        help="derive the PSDM model of a robot file (.toml DH or .urdf)",
+        help="derive the PSDM model of a robot file (.toml DH, .urdf or MJCF .xml)",
         description="Derive the minimal regressor model tau = Y(q, qd, qdd) theta of a robot, check it "
         "against Pinocchio's rnea on random states, and optionally write it to a model file.",
     )

@@ -43,7 +43,8 @@ def register(subparsers) -> None:
         ),
     )
     add_robot_argument(
-        p, help="robot file (.toml, .urdf), built-in robot name, or calibrated model (.json from 'psdm identify')"
+        p,
+        help="robot file (.toml, .urdf, .xml MJCF), built-in robot name, or calibrated model (.json, 'psdm identify')",
     )
     p.add_argument("--train", required=True, help="training recording (.csv, .npz, .mat, or a ROS 2 bag)")
     p.add_argument("--validate", required=True, help="validation recording (.csv, .npz, .mat, or a ROS 2 bag)")

@@ -18,10 +18,12 @@ import pytest
 from codegen.mjcf_check import mjcf_round_trip, mujoco_inverse
 from codegen.mjcf_elements import MIN_BODY
 from codegen.mjcf_export import export_mjcf, render_mjcf
+from codegen.urdf_export import render_urdf
 from identification.calibration.calibrated_model import CalibratedModel
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.errors import ModelFileError
+from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
 from tests.conftest import DENSO_FILE
@@ -171,6 +173,8 @@ def test_an_mjcf_robot_is_written_into_a_copy_of_its_file(tmp_path):
     k, c = SPRING["coefficients"]
     assert mj.jnt_stiffness[1] == k and mj.qpos_spring[1] == pytest.approx(-c / k, rel=1e-12)  # degrees in the file
     np.testing.assert_array_equal(mj.dof_armature, [IA.get(j + 1, 0.0) for j in range(4)])
+    with pytest.raises(ModelFileError, match="read from MJCF .*psdm export-mjcf"):
+        render_urdf(calibrated)
 
 
 def test_a_model_without_standard_parameters_or_inconsistent_is_refused(tmp_path, scara):
@@ -210,3 +214,43 @@ def test_cli_export_mjcf_warns_writes_once_and_refuses_bad_input(tmp_path, capsy
     model.write_text(json.dumps(document))
     assert main(["export-mjcf", str(model), str(tmp_path / "bad.xml")]) == 1
     assert "eigenvalue -0.25" in capsys.readouterr().err and not (tmp_path / "bad.xml").exists()
+
+
+def _sine_csv(robot, path, duration=8.0, seed=4):
+    """Joint torques of the robot's own inertia along sums of sines about mid-range, with friction and noise, as a
+    CSV a user would log (t, q1..qn, tau1..taun)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, 2e-3)
+    omega = 2 * np.pi * rng.uniform(0.15, 0.5, size=(3, robot.n_dof))
+    phase = rng.uniform(0.0, 2 * np.pi, size=(3, robot.n_dof))
+    amplitude = 0.25 / 3 * np.minimum(0.5 * (robot.q_max - robot.q_min), robot.qdd_max / omega.max(axis=0) ** 2)
+    angle = omega[None] * t[:, None, None] + phase[None]
+    q = 0.5 * (robot.q_min + robot.q_max) + amplitude * np.sin(angle).sum(axis=1)
+    qd = amplitude * (omega * np.cos(angle)).sum(axis=1)
+    qdd = -amplitude * (omega**2 * np.sin(angle)).sum(axis=1)
+    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + 0.3 * np.tanh(qd / 0.05) + 0.2 * qd
+    tau += rng.normal(scale=0.02, size=tau.shape)
+    n = robot.n_dof
+    header = ",".join(["t", *(f"q{j + 1}" for j in range(n)), *(f"tau{j + 1}" for j in range(n))])
+    np.savetxt(path, np.column_stack([t, q, tau]), delimiter=",", header=header, comments="")
+    return q, qd, qdd
+
+
+@pytest.mark.slow  # identifies the 4-joint arm from a recording: about 15 s
+def test_a_user_takes_an_mjcf_arm_from_a_recording_back_to_mujoco(tmp_path, capsys):
+    """psdm identify arm4.xml --data rec.csv, then psdm export-mjcf: MuJoCo computes the identified model."""
+    source = tmp_path / "arm4.xml"
+    source.write_text(ARM)
+    robot = load_robot(source)
+    q, qd, qdd = _sine_csv(robot, tmp_path / "rec.csv")
+    model_file, out = tmp_path / "model.json", tmp_path / "arm4_identified.xml"
+    assert main(["identify", str(source), "--data", str(tmp_path / "rec.csv"), "--out", str(model_file)]) == 0
+    assert main(["export-mjcf", str(model_file), str(source), "--overwrite"]) == 2  # never the robot's own file
+    assert main(["export-mjcf", str(model_file), str(out)]) == 0
+    capsys.readouterr()
+    from identification.calibration.calibrated_model import load_calibrated_model
+
+    calibrated = load_calibrated_model(model_file)
+    result = mjcf_round_trip(calibrated, derive_psdm(robot), out.read_text(), q[::20], qd[::20], qdd[::20])
+    assert result.max_rel_error < 1e-9, result
+    assert 'class="wrist"' in out.read_text() and source.read_text() == ARM
