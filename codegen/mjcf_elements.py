@@ -7,6 +7,7 @@ and the note of what MJCF cannot hold), per body the ``<inertial>`` of an identi
 from __future__ import annotations
 
 import textwrap
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,48 +30,55 @@ __all__ = ["MIN_BODY", "JointFields", "comment", "element", "header_text", "iner
 MIN_BODY = 1e-12  # [kg, kg m^2] the least mass and principal moment written (MuJoCo refuses ~1e-15 and below)
 
 
+@dataclass(frozen=True)
 class JointFields:
     """The MJCF joint attributes of a calibrated model, per joint (module docstring): what MuJoCo will compute with.
 
     Attributes
     ----------
     armature, damping, frictionloss, stiffness, springref : ndarray, shape (n_dof,)
-    notes : list of str
+    notes : tuple of str
         Per joint, what MJCF cannot hold of it (offset, friction shape, findings), for its comment.
     """
 
-    def __init__(self, calibrated, robot):
-        terms = drive_terms(calibrated)
-        n = calibrated.n_dof
-        self.armature = drive_inertias(calibrated, robot)
-        self.damping, self.frictionloss = terms["fv"], terms["fc"]
-        self.stiffness, self.springref = np.zeros(n), np.zeros(n)
-        for j, (k, c) in linear_springs(calibrated).items():
-            if k == 0.0:  # a constant: a torque offset MJCF cannot hold (kept in the notes by the finding)
-                continue
-            self.stiffness[j], self.springref[j] = k, -c / k
-        left_out = friction_left_out(calibrated)
-        findings, _ = findings_left_out(calibrated, MJCF)
-        offset = "offset" in calibrated.document["drive"]["friction_terms"]
-        self.notes = []
-        for j, joint in enumerate(robot.joints):
-            unit = "N m" if joint.is_revolute else "N"
-            parts = (
-                [f"constant torque offset {exact_text(terms['offset'][j])} {unit} (not an MJCF field)"]
-                if offset
-                else []
-            )
-            if left_out is not None:
-                parts.append(f"friction not representable in MJCF (left out): {left_out[j]}")
-            parts += [f"finding {text}" for text in findings.get(j, ())]
-            accel = "rad/s^2" if joint.is_revolute else "m/s^2"
-            parts.append(f"acceleration limit {exact_text(joint.qdd_max)} {accel} (not an MJCF field)")
-            self.notes.append("psdm: " + "; ".join(parts))
+    armature: np.ndarray
+    damping: np.ndarray
+    frictionloss: np.ndarray
+    stiffness: np.ndarray
+    springref: np.ndarray
+    notes: tuple
 
 
 def joint_fields(calibrated, robot) -> JointFields:
-    """:class:`JointFields` of a calibrated model (the numbers :func:`render_mjcf` writes on each joint)."""
-    return JointFields(calibrated, robot)
+    """:class:`JointFields` of a calibrated model (the numbers ``render_mjcf`` writes on each joint).
+
+    A linear spring ``k q + c`` is ``stiffness = k`` and ``springref = -c / k``; one with ``k = 0`` (a constant) has
+    no MJCF field and is named in the joint's note.
+    """
+    terms = drive_terms(calibrated)
+    n = calibrated.n_dof
+    stiffness, springref, constants = np.zeros(n), np.zeros(n), {}
+    for j, (k, c) in linear_springs(calibrated).items():
+        if k == 0.0:
+            constants[j] = c
+        else:
+            stiffness[j], springref[j] = k, -c / k
+    left_out = friction_left_out(calibrated)
+    findings, _ = findings_left_out(calibrated, MJCF)
+    offset = "offset" in calibrated.document["drive"]["friction_terms"]
+    notes = []
+    for j, joint in enumerate(robot.joints):
+        unit = "N m" if joint.is_revolute else "N"
+        parts = [f"constant torque offset {exact_text(terms['offset'][j])} {unit} (not an MJCF field)"] * offset
+        if j in constants:
+            parts.append(f"spring finding with k = 0: constant torque {exact_text(constants[j])} {unit} (left out)")
+        if left_out is not None:
+            parts.append(f"friction not representable in MJCF (left out): {left_out[j]}")
+        parts += [f"finding {text}" for text in findings.get(j, ())]
+        accel = "rad/s^2" if joint.is_revolute else "m/s^2"
+        parts.append(f"acceleration limit {exact_text(joint.qdd_max)} {accel} (not an MJCF field)")
+        notes.append("psdm: " + "; ".join(parts))
+    return JointFields(drive_inertias(calibrated, robot), terms["fv"], terms["fc"], stiffness, springref, tuple(notes))
 
 
 # --- elements ------------------------------------------------------------------------------------------------

@@ -26,9 +26,10 @@ from psdm_casadi.errors import ModelFileError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
-from tests.conftest import DENSO_FILE
+from tests.conftest import DATASETS, DENSO_FILE
 from tests.psdm_casadi.test_mjcf_robot import ARM
 
+TX40_URDF = DATASETS / "staubli_tx40_figaroh" / "tx40_mdh_modified.urdf"
 IA = {1: 0.03, 2: 0.02}  # drive inertias identified as columns of their own (1-based joints)
 SPRING = {
     "effect": "spring",
@@ -152,6 +153,22 @@ def test_the_denso_dh_model_round_trips_with_gravity_along_x_and_its_massless_li
     assert np.all(mj.dof_armature > 0)
     result = mjcf_round_trip(calibrated, model, text, *_states(robot, 100))
     assert result.max_rel_error < 1e-9, result
+
+
+@pytest.mark.slow  # derives the TX40: about 10 s
+def test_a_urdf_robot_is_generated_from_its_kinematics(tmp_path):
+    """The TX40's URDF through a robot file (gravity along +y, drive inertias in the base parameters): the generated
+    MJCF's bodies are Pinocchio's joint frames of the URDF."""
+    if not TX40_URDF.exists():
+        pytest.skip(f"{TX40_URDF} is not present")
+    source = tmp_path / "tx40.toml"
+    source.write_text(f'name = "tx40"\ngravity = [0.0, 9.81, 0.0]\n[urdf]\npath = "{TX40_URDF}"\n'
+                      "[assumptions]\ndrive_inertia = true\n")  # fmt: skip
+    calibrated, robot, model = _calibrated(source)
+    text = render_mjcf(calibrated, robot)
+    result = mjcf_round_trip(calibrated, model, text, *_states(robot, 100))
+    assert result.max_rel_error < 1e-9, result
+    assert "generated from its kinematics" in text and 'gravity="0.0 9.81 0.0"' in text
 
 
 def test_an_mjcf_robot_is_written_into_a_copy_of_its_file(tmp_path):
