@@ -427,11 +427,12 @@ def separate_inertia_joints(model, robot) -> list:
 
 
 def drive_inertia_joints(model, robot, options: TrajectoryOptions) -> list:
-    """The joints with an ``Ia<j>`` column in a fit with ``options``: the separate ones it keeps (0-based)."""
+    """The joints with an ``Ia<j>`` column in a fit with ``options`` (0-based): ``options.inertia_joints`` as given
+    (``column_choice`` takes them among the separate ones), else every separate one."""
     if not options.drive_inertia:
         return []
     kept = options.inertia_joints
-    return [j for j in _separate_inertia_joints(model, robot) if kept is None or j in kept]
+    return _separate_inertia_joints(model, robot) if kept is None else sorted(int(j) for j in kept)
 
 
 def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
