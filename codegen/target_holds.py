@@ -1,23 +1,21 @@
 """What each export target can hold of a calibrated model, and what of a model it leaves out (URDF, MJCF).
 
-The one statement the exporters share (``urdf_export``, ``mjcf_export``): a target holds the identified
-inertials, Coulomb friction and viscous damping; beyond that
+The one statement the exporters share (``urdf_export``, ``mjcf_export``; the C export, ``calibrated``, holds the
+whole torque the model predicts): every target holds the identified inertials; beyond them
 
-=========================  =====================================  ==========================================
-model part                 URDF                                   MJCF
-=========================  =====================================  ==========================================
-drive inertia ``Ia``       comment (no field)                     ``armature``
-Coulomb ``fc``             ``<dynamics friction>``                ``frictionloss`` (a constraint, see below)
-viscous ``fv``             ``<dynamics damping>``                 ``damping``
-linear spring finding      comment                                ``stiffness`` and ``springref``
-gravity                    along -z of the root (``world`` link)  ``<option gravity>``
-torque offset              comment                                comment
-Stribeck hump, LuGre       comment (``fs, vs, sigma0, sigma1``)   comment
-other torque findings      comment (non-linear spring, ripple,    comment
-                           coupling, ...)
-measurement corrections    comment (delay, joint elasticity,      comment
-                           backlash)
-=========================  =====================================  ==========================================
+=======================  ==========================  ==================================  ==========================
+model part               URDF (``urdf_export``)      MJCF (``mjcf_export``)              C (``calibrated``)
+=======================  ==========================  ==================================  ==========================
+drive inertia ``Ia``     comment (no field)          ``armature``                        ``mass_matrix``
+Coulomb ``fc``           ``<dynamics friction>``     ``frictionloss`` (a constraint)     ``fc tanh(qd / v)``
+viscous ``fv``           ``<dynamics damping>``      ``damping``                         yes
+linear spring finding    comment                     ``stiffness``, ``springref``        yes
+gravity                  -z of the root (``world``)  ``<option gravity>``                yes
+torque offset            comment                     comment                             yes
+Stribeck hump, LuGre     comment (their values)      comment (their values)              yes (LuGre: a step)
+other torque findings    comment                     comment                             yes
+measurement corrections  comment                     comment                             stated in the header
+=======================  ==========================  ==================================  ==========================
 
 The model's Coulomb term is ``fc tanh(qd / v)``. URDF's ``friction`` is read by Pinocchio as that level;
 MuJoCo's ``frictionloss`` is a dry-friction constraint whose force is at most ``fc`` in magnitude and opposes

@@ -52,6 +52,7 @@ def _run_export_mjcf(args) -> int:
     from codegen.mjcf_export import render_mjcf
     from codegen.target_holds import MJCF, findings_not_representable, friction_not_representable
     from psdm_casadi.cli.checks import read_calibrated_argument
+    from psdm_casadi.mjcf import MJCF_SUFFIXES
 
     check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.xml")
     check_suffix(args.out, "OUT", (".xml",), "MJCF")
@@ -78,14 +79,17 @@ def _run_export_mjcf(args) -> int:
     left_out = (friction_not_representable(calibrated, MJCF), findings_not_representable(calibrated, MJCF))
     if "offset" in calibrated.document["drive"]["friction_terms"]:
         left_out += ("the model's constant torque offsets have no MJCF field; they are in a comment on each joint",)
+    left_out = [warning for warning in left_out if warning is not None]
     for warning in left_out:
-        if warning is not None:
-            print(f"psdm export-mjcf: warning: {warning}", file=sys.stderr)
+        print(f"psdm export-mjcf: warning: {warning}", file=sys.stderr)
     with out.staging() as stage:
         stage.write_text(text)
+    copied = robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES
+    source = "a copy of its MJCF" if copied else "generated from its kinematics"
     if args.json:
         print_json({"command": "export-mjcf", "model": str(args.model), "out": str(args.out), "robot": robot.name,
-                    "consistent": calibrated.consistent, "min_pseudo_inertia_eigenvalue": eigenvalue})  # fmt: skip
+                    "source": "mjcf" if copied else "generated", "consistent": calibrated.consistent,
+                    "min_pseudo_inertia_eigenvalue": eigenvalue, "left_out": left_out})  # fmt: skip
     else:
-        print(f"{robot.name}: identified model of {robot.n_dof} joints written to {args.out} (MJCF)")
+        print(f"{robot.name}: identified model of {robot.n_dof} joints written to {args.out} (MJCF, {source})")
     return EXIT_OK

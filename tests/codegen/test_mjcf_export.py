@@ -221,7 +221,8 @@ def test_cli_export_mjcf_warns_writes_once_and_refuses_bad_input(tmp_path, capsy
     assert main(["export-mjcf", str(model), str(out)]) == 2
     assert "--overwrite" in capsys.readouterr().err and out.read_text() == first
     assert main(["export-mjcf", str(model), str(out), "--overwrite", "--json"]) == 0
-    assert json.loads(capsys.readouterr().out)["command"] == "export-mjcf"
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["source"] == "generated" and len(summary["left_out"]) == 2  # the findings, the offsets
     assert main(["export-mjcf", str(model), str(tmp_path / "robot.urdf")]) == 2
     assert "OUT" in capsys.readouterr().err
     assert main(["export-mjcf", str(tmp_path / "missing.json"), str(tmp_path / "x.xml")]) == 2
