@@ -6,7 +6,9 @@ attribute kept, and these changes (``psdm_casadi.mjcf`` says how the file was re
 - each moving body's ``<inertial>`` is the identified rigid body of its joint, in the body's frame (the joint frame
   moved back by the joint's ``pos``); bodies welded to it (a hand, a tool) were lumped into that body by the
   reading, so their ``<inertial>`` is removed (a comment says where their inertia went) and
-  ``compiler inertiafromgeom="false"`` keeps MuJoCo from giving them their geoms' mass again;
+  ``compiler inertiafromgeom="false"`` keeps MuJoCo from giving them their geoms' mass again; the compiler's
+  ``settotalmass``, ``boundmass``, ``boundinertia`` and ``balanceinertia``, which would change the written bodies,
+  are removed;
 - each joint gets explicit ``armature``, ``damping``, ``frictionloss``, ``stiffness`` (and ``springref``, in the
   file's angle unit) over its default class, and a comment on what MJCF cannot hold of it;
 - ``option gravity`` is the robot's; a header comment says where the file comes from.
@@ -30,6 +32,8 @@ from psdm_casadi.mjcf import compile_mjcf
 from psdm_casadi.oracle import inertia_from_dynamic_parameters
 
 __all__ = ["copied_mjcf"]
+
+MASS_CHANGING = ("settotalmass", "boundmass", "boundinertia", "balanceinertia")  # compiler attributes, removed
 
 
 def _elements(root, tag: str) -> list:
@@ -121,6 +125,10 @@ def copied_mjcf(calibrated, robot) -> str:
                 note = "psdm: the inertia of this welded body is part of the identified body of the joint it moves with"
                 body.replaceChild(comment(document, note), inertial)
     _set_first(document, root, "compiler", "inertiafromgeom", "false")
+    for node in _elements(root, "compiler"):  # they would change the written masses and inertias
+        for key in MASS_CHANGING:
+            if node.hasAttribute(key):
+                node.removeAttribute(key)
     _set_first(document, root, "option", "gravity", " ".join(repr(float(g) + 0.0) for g in robot.gravity))
     first = root.firstChild
     root.insertBefore(document.createComment(header_text(calibrated, robot, "a copy of its MJCF")), first)

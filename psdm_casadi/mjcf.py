@@ -42,6 +42,7 @@ __all__ = ["MJCF_SUFFIXES", "compile_mjcf", "load_mjcf_model", "mjcf_gravity", "
 logger = logging.getLogger(__name__)
 
 MJCF_SUFFIXES = (".xml", ".mjcf")
+STRIPPED_SECTIONS = ("asset", "sensor", "visual", "keyframe", "contact", "custom")  # no part of the arm's dynamics
 ASSET_REFERENCES = ("material", "mesh", "hfield", "texture", "skin")  # attributes naming an asset that is removed
 UNIT_AXES = {(1.0, 0.0, 0.0): pin.JointModelRX, (0.0, 1.0, 0.0): pin.JointModelRY, (0.0, 0.0, 1.0): pin.JointModelRZ}
 UNIT_SLIDES = {(1.0, 0.0, 0.0): pin.JointModelPX, (0.0, 1.0, 0.0): pin.JointModelPY, (0.0, 0.0, 1.0): pin.JointModelPZ}
@@ -78,7 +79,7 @@ def _stripped(path: Path, root: ET.Element) -> str:
     """The file's XML without assets, asset references, visual-only geoms and sensors (module docstring)."""
     for parent in [root, *root.iter()]:
         for child in list(parent):
-            if child.tag in ("asset", "sensor", "visual", "keyframe"):
+            if child.tag in STRIPPED_SECTIONS:
                 parent.remove(child)
     for node in root.iter():
         for key in ASSET_REFERENCES:

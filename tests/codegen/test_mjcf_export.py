@@ -183,6 +183,7 @@ def test_an_mjcf_robot_is_written_into_a_copy_of_its_file(tmp_path):
     for kept in ('<mesh name="link" file="link.stl"/>', 'class="wrist"', 'ref="10"', '<site name="tcp"/>', "gear="):
         assert kept in text
     assert 'inertiafromgeom="false"' in text and "the inertia of this welded body is part of" in text
+    assert "boundinertia" not in text and '<pair geom1="g1" geom2="g3"/>' in text
     assert text.count("<inertial pos") == 4  # the tool's is in link4's identified body
     from psdm_casadi.mjcf import compile_mjcf
 
