@@ -61,6 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
         excite,
         export_mjcf,
         export_urdf,
+        fleet,
         identify,
         simulate,
         validate,
@@ -85,7 +86,19 @@ def build_parser() -> argparse.ArgumentParser:
     verbosity.add_argument("-q", "--quiet", action="store_true", help="no progress lines, only warnings and errors")
     verbosity.add_argument("-v", "--verbose", action="store_true", help="more detail on what each step does")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for module in (derive, excite, simulate, identify, validate, diagnose, codegen, export_urdf, export_mjcf, demo):
+    for module in (
+        derive,
+        excite,
+        simulate,
+        identify,
+        validate,
+        diagnose,
+        codegen,
+        export_urdf,
+        export_mjcf,
+        fleet,
+        demo,
+    ):
         module.register(subparsers)
     return parser
 

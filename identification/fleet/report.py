@@ -1,0 +1,135 @@
+"""The fleet report: one self-contained HTML page (plotly inlined), opened from disk without a server.
+
+A fleet table (robot, last recording day, sessions ok and failed, status, alarms), then per robot the trend of
+every tracked parameter that alarmed (or, for a quiet robot, its friction and the baseline's validation error)
+with its sigma band and the onset marker of each finding, and the failed sessions with their errors. Plots, not
+walls of numbers: the page holds one plotly figure per robot.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from identification.fleet.history import History
+
+__all__ = ["FleetRow", "fleet_rows", "write_report"]
+
+QUIET_PARAMETERS = ("fc", "kt")  # what a quiet robot's plot shows (the first of each joint's)
+MAX_TRACES = 8
+
+
+@dataclass(frozen=True)
+class FleetRow:
+    """One line of the fleet table."""
+
+    robot_id: str
+    last_day: str
+    ok: int
+    failed: int
+    status: str
+    alarms: tuple
+
+
+def fleet_rows(history: History) -> list:
+    """The fleet table: status ``alarm`` with findings, ``failed`` with failed sessions only, else ``ok``."""
+    findings: dict = {}
+    for row in history.findings():
+        findings.setdefault(row[0], []).append(row[-1])
+    rows = []
+    for robot_id, ok, failed, last in history.session_counts():
+        alarms = tuple(findings.get(robot_id, ()))
+        status = "alarm" if alarms else ("failed sessions" if failed else "ok")
+        rows.append(FleetRow(robot_id, str(last), int(ok), int(failed), status, alarms))
+    return rows
+
+
+def _series(history: History) -> dict:
+    """{robot_id: {parameter: (days, values, sigmas)}} of the latest ok sessions."""
+    out: dict = {}
+    for row in history.parameter_rows():
+        days, values, sigmas = out.setdefault(row.robot_id, {}).setdefault(row.name, ([], [], []))
+        days.append(str(row.day))
+        values.append(row.value)
+        sigmas.append(row.sigma)
+    return out
+
+
+def _figure(robot_id: str, series: dict, findings: list):
+    """A plotly figure of a robot: each chosen parameter relative to its first day, with a 1-sigma band."""
+    import plotly.graph_objects as go
+
+    alarmed = [f[2] for f in findings]
+    names = alarmed or [n for n in series if n.rstrip("0123456789") in QUIET_PARAMETERS]
+    fig = go.Figure()
+    for name in names[:MAX_TRACES]:
+        days, values, sigmas = (np.asarray(x) for x in series[name])
+        ref = values[0] if abs(values[0]) > 0 else 1.0
+        scale = 100.0 / abs(ref)
+        rel, band = (values - ref) * scale, sigmas * scale
+        fig.add_trace(go.Scatter(x=list(days) + list(days[::-1]), y=list(rel + band) + list((rel - band)[::-1]),
+                                 fill="toself", opacity=0.2, line={"width": 0}, showlegend=False, hoverinfo="skip",
+                                 name=f"{name} +-1 sigma"))  # fmt: skip
+        fig.add_trace(go.Scatter(x=list(days), y=list(rel), mode="lines+markers", name=name))
+    for f in findings:
+        if f[4] is not None:
+            fig.add_vline(x=str(f[4]), line_dash="dash", line_color="red")
+            fig.add_annotation(x=str(f[4]), y=1.0, yref="paper", text=f"onset {f[2]}", showarrow=False,
+                               font={"color": "red"})  # fmt: skip
+    fig.update_layout(
+        title=f"{robot_id}: change from the first day [%] (band: 1 sigma)",
+        height=360,
+        margin={"l": 50, "r": 20, "t": 40, "b": 40},
+        xaxis_title="day",
+        yaxis_title="change [%]",
+    )
+    return fig
+
+
+def _table(rows: list) -> str:
+    lines = ["<table><tr><th>robot</th><th>last recording</th><th>sessions ok</th><th>failed</th><th>status</th>"
+             "<th>alarms</th></tr>"]  # fmt: skip
+    for r in rows:
+        alarms = "<br>".join(html.escape(a) for a in r.alarms) or "-"
+        lines.append(f'<tr class="{r.status.split()[0]}"><td><a href="#{r.robot_id}">{html.escape(r.robot_id)}</a>'
+                     f"</td><td>{r.last_day}</td><td>{r.ok}</td><td>{r.failed}</td><td>{r.status}</td>"
+                     f"<td>{alarms}</td></tr>")  # fmt: skip
+    return "\n".join(lines + ["</table>"])
+
+
+STYLE = (
+    "body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
+    "padding:4px 8px;text-align:left;vertical-align:top}tr.alarm td{background:#fde2e2}tr.failed td{background:#fff4d6}"
+)
+
+
+def write_report(history: History, path, title: str = "Fleet report") -> Path:
+    """Write the report page to ``path``; returns it. The plotly library is inlined once (no network needed)."""
+    import plotly.io as pio
+
+    rows = fleet_rows(history)
+    series = _series(history)
+    by_robot: dict = {}
+    for f in history.findings():
+        by_robot.setdefault(f[0], []).append(f)
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+             f"<style>{STYLE}</style></head><body><h1>{html.escape(title)}</h1>", _table(rows)]  # fmt: skip
+    first = True
+    for r in rows:
+        parts.append(f'<h2 id="{r.robot_id}">{html.escape(r.robot_id)}: {r.status}</h2>')
+        if r.robot_id in series:
+            fig = _figure(r.robot_id, series[r.robot_id], by_robot.get(r.robot_id, []))
+            parts.append(pio.to_html(fig, full_html=False, include_plotlyjs=True if first else False))
+            first = False
+    failures = history.failures()
+    if failures:
+        parts.append("<h2>Failed sessions</h2><ul>")
+        parts += [f"<li>{html.escape(str(rid))} {day}: {html.escape(str(err))}</li>" for rid, day, err in failures]
+        parts.append("</ul>")
+    parts.append("</body></html>")
+    path = Path(path)
+    path.write_text("\n".join(parts), encoding="utf-8")
+    return path

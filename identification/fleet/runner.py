@@ -1,0 +1,196 @@
+"""A fleet run: plan the robot-days, skip those stored, process the rest as Dask tasks, write as they finish.
+
+The client plans (``plan``), loads each robot's baseline and PSDM model once (one model per distinct robot file),
+sends them to the workers (``Client.scatter``) and submits one :func:`~identification.fleet.session.process_session`
+task per new robot-day; it writes each result as it completes (``as_completed``), so an interrupted run (Ctrl-C, a
+killed client, a power cut) keeps every session written and the next run resumes with the rest. A worker that dies
+has its tasks rerun by Dask; a task that still fails is stored as a failed session. Then the drift tests run on
+the whole history (``drift``) and their findings replace the stored ones.
+
+By default the tasks run on an embedded ``distributed.LocalCluster`` (one single-threaded worker process per core,
+or ``workers``); ``scheduler`` names an existing Dask cluster instead; ``serial`` runs them in this process (the
+reference the Dask runs equal).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from identification.fleet.baseline import SharedModels, build_baseline
+from identification.fleet.drift import DriftOptions, detect_drift
+from identification.fleet.history import History
+from identification.fleet.layout import Fleet
+from identification.fleet.plan import plan_run
+from identification.fleet.session import SessionResult, process_session, software_version
+from psdm_casadi.errors import ParameterError
+
+__all__ = ["RunOptions", "RunSummary", "dask_client", "run_fleet"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """Where the tasks run: ``serial`` here, else on ``scheduler`` or on a LocalCluster of ``workers`` processes
+    (default: the number of cores). ``stop_after`` stops after that many written sessions (an interruption, for
+    tests)."""
+
+    workers: int | None = None
+    scheduler: str | None = None
+    serial: bool = False
+    stop_after: int | None = None
+    drift: DriftOptions = DriftOptions()
+
+    def __post_init__(self):
+        if self.workers is not None and not (isinstance(self.workers, int) and self.workers >= 1):
+            raise ParameterError(f"RunOptions.workers must be an integer >= 1; got {self.workers!r}.")
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What a run did: sessions planned, processed (ok + failed), failed, skipped as stored, duplicates dropped."""
+
+    run_id: int
+    planned: int
+    processed: int
+    failed: int
+    skipped: int
+    duplicates: int
+    seconds: float
+    where: str
+    findings: int
+    interrupted: bool = False
+
+
+@contextmanager
+def dask_client(workers: int | None = None, scheduler: str | None = None):
+    """A ``distributed.Client``: of the cluster at ``scheduler``, else of an embedded LocalCluster."""
+    from dask.distributed import Client, LocalCluster
+
+    if scheduler:
+        client = Client(scheduler)
+        try:
+            yield client
+        finally:
+            client.close()
+        return
+    n = workers or os.cpu_count() or 1
+    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
+        with Client(cluster) as client:
+            yield client
+
+
+def _baselines(fleet: Fleet, robot_ids: set, derive) -> tuple:
+    """({robot_id: Baseline}, {model_key: PSDMModel}) of the robots with work to do."""
+    baselines, models = {}, {}
+    derive = SharedModels(derive)
+    for entry in fleet.robots:
+        if entry.robot_id in robot_ids:
+            baseline, model = build_baseline(entry, fleet.track, derive)
+            baselines[entry.robot_id] = baseline
+            models.setdefault(baseline.model_key, model)
+    return baselines, models
+
+
+def _failed(task, exc) -> SessionResult:
+    return SessionResult(task, "failed", None, f"{type(exc).__name__}: {exc}", 0.0, software_version())
+
+
+def _results_serial(todo, baselines, models):
+    """The tasks in this process, with one BLAS thread as in a Dask worker (the same sums: the same bits)."""
+    from threadpoolctl import threadpool_limits
+
+    for task in todo:
+        baseline = baselines[task.robot_id]
+        with threadpool_limits(limits=1, user_api="blas"):
+            result = process_session(task, baseline, models[baseline.model_key])
+        yield result
+
+
+def _results_dask(client, todo, baselines, models):
+    from dask.distributed import as_completed
+
+    scattered_models = {key: client.scatter(model, broadcast=True) for key, model in models.items()}
+    scattered = {rid: client.scatter(b, broadcast=True) for rid, b in baselines.items()}
+    futures = {}
+    for task in todo:
+        key = f"fleet-session-{task.robot_id}-{task.day}-{task.content_hash[:16]}"
+        model = scattered_models[baselines[task.robot_id].model_key]
+        futures[client.submit(process_session, task, scattered[task.robot_id], model, key=key, pure=False)] = task
+    try:
+        for future in as_completed(futures):
+            try:
+                yield future.result()
+            except Exception as exc:  # a task Dask gave up on (a worker killed too often): stored as failed
+                yield _failed(futures[future], exc)
+    finally:
+        client.cancel(list(futures))
+
+
+def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=None, client=None) -> RunSummary:
+    """Process the new robot-days of ``fleet`` into the history ``db_path`` and update the drift findings.
+
+    ``derive(robot) -> PSDMModel`` (default: the model cache); ``client`` an open ``distributed.Client`` (else one
+    is made from ``options``).
+    """
+    options = options or RunOptions()
+    if derive is None:
+        from psdm_casadi.model_cache import ModelCache
+
+        derive = ModelCache().derive
+    start = time.perf_counter()
+    plan = plan_run(fleet)
+    with History(db_path) as history:
+        done = history.done_keys()
+        todo = [task for task in plan.tasks if task.key not in done]
+        where = (
+            "serial" if options.serial else (options.scheduler or f"LocalCluster({options.workers or os.cpu_count()})")
+        )
+        if client is not None and not options.serial:
+            where = f"client {client.scheduler.address}"
+        run_id = history.start_run(str(fleet.source), software_version(), where, len(plan.tasks))
+        history.record_recordings(plan.hashes, plan.tasks, plan.duplicates)
+        logger.info("%d robot-days, %d new, %d stored; running on %s", len(plan.tasks), len(todo), len(done), where)
+        processed = failed = 0
+        interrupted = False
+        status = "interrupted"
+        try:
+            if todo:
+                baselines, models = _baselines(fleet, {t.robot_id for t in todo}, derive)
+                with _executor(options, client) as run_client:
+                    results = (_results_serial(todo, baselines, models) if run_client is None
+                               else _results_dask(run_client, todo, baselines, models))  # fmt: skip
+                    for result in results:
+                        history.write_session(run_id, result)
+                        processed += 1
+                        failed += result.status == "failed"
+                        if options.stop_after is not None and processed >= options.stop_after:
+                            interrupted = True
+                            break
+                    if hasattr(results, "close"):
+                        results.close()
+            findings = [] if interrupted else detect_drift(history.parameter_rows(), options.drift)
+            if not interrupted:
+                history.replace_findings(run_id, findings)
+                status = "done"
+        finally:
+            history.finish_run(run_id, processed, failed, len(plan.tasks) - len(todo), status)
+    seconds = time.perf_counter() - start
+    return RunSummary(run_id, len(plan.tasks), processed, failed, len(plan.tasks) - len(todo), len(plan.duplicates),
+                      seconds, where, len(findings), interrupted)  # fmt: skip
+
+
+@contextmanager
+def _executor(options: RunOptions, client):
+    """None for a serial run, the given client, or a client of a new cluster for this run."""
+    if options.serial:
+        yield None
+    elif client is not None:
+        yield client
+    else:
+        with dask_client(options.workers, options.scheduler) as own:
+            yield own

@@ -1,0 +1,102 @@
+"""One robot-day as a pure function: read the day's recordings, refit, return a result (the Dask task).
+
+:func:`process_session` takes a :class:`SessionTask` (the robot, the day, the recording paths and their content
+hash), the robot's :class:`~identification.fleet.baseline.Baseline` and its PSDM model, and returns a
+:class:`SessionResult`; it writes nothing. A recording that does not read or does not pass the checks of the
+identification (``trajectory_data.prepare_recordings``: the robot's joint count, plausible units, every joint
+moving) fails its own session: the result holds the error text and ``status = "failed"``, and the fleet goes on.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+
+import numpy as np
+
+from identification.calibration.trajectory_data import prepare_recordings
+from identification.data.io import load_recording
+from identification.fleet.baseline import Baseline
+from identification.fleet.update import DayFit, refit_day
+from psdm_casadi.errors import PSDMError
+
+__all__ = ["SessionResult", "SessionTask", "process_session", "software_version"]
+
+logger = logging.getLogger(__name__)
+
+
+def software_version() -> str:
+    """The installed psdm-casadi version (``unknown`` when it is not installed)."""
+    try:
+        return metadata.version("psdm-casadi")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+@dataclass(frozen=True)
+class SessionTask:
+    """A robot-day to process: ``paths`` are its distinct recordings, ``content_hash`` their joint sha256."""
+
+    robot_id: str
+    day: str
+    paths: tuple
+    content_hash: str
+
+    @property
+    def key(self) -> tuple:
+        return (self.robot_id, self.day, self.content_hash)
+
+
+@dataclass(frozen=True)
+class SessionResult:
+    """The outcome of a robot-day: the fit (None when it failed) or the error, with provenance.
+
+    Attributes
+    ----------
+    task : SessionTask
+    status : {"ok", "failed"}
+    fit : DayFit or None
+    error : str
+        The error's one-line text for a failed session, else empty.
+    seconds : float
+        Wall time of the task [s] (not part of the result's identity).
+    software_version : str
+    """
+
+    task: SessionTask
+    status: str
+    fit: DayFit | None
+    error: str = ""
+    seconds: float = field(default=0.0, compare=False)
+    software_version: str = ""
+
+
+def _read(task: SessionTask, baseline: Baseline) -> tuple:
+    """(prepared recordings, currents?) of a task; all of one kind (joint torques, else currents)."""
+    robot = baseline.robot
+    recordings = [load_recording(path, robot.n_dof, robot.joint_names) for path in task.paths]
+    currents = all(rec.tau is None for rec in recordings)
+    if not currents and any(rec.tau is None for rec in recordings):
+        raise PSDMError(
+            f"{task.robot_id} {task.day}: some recordings hold joint torques and some only currents; record one kind "
+            "per day or split the day."
+        )
+    kt = np.ones(robot.n_dof) if currents else None  # currents stay in amperes: kt is refitted
+    _, _, prepared = prepare_recordings(robot, recordings, kt)
+    return prepared, currents
+
+
+def process_session(task: SessionTask, baseline: Baseline, model) -> SessionResult:
+    """Refit one robot-day (module docstring); never raises for bad data: the error goes into the result."""
+    start = time.perf_counter()
+    version = software_version()
+    try:
+        prepared, currents = _read(task, baseline)
+        fit = refit_day(baseline, model, prepared, currents)
+    except (PSDMError, OSError, ValueError, np.linalg.LinAlgError) as exc:
+        logger.warning("%s %s failed: %s", task.robot_id, task.day, exc)
+        error = f"{type(exc).__name__}: {exc}"
+        return SessionResult(task, "failed", None, error, time.perf_counter() - start, version)
+    return SessionResult(task, "ok", fit, "", time.perf_counter() - start, version)

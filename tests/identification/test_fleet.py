@@ -1,0 +1,181 @@
+"""The fleet: layout, the robot-day task against the virtual fleet's truth, Dask == serial, the history's
+idempotence, resume, corrupt and duplicate recordings, the CLI."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from identification.fleet.baseline import SharedModels, build_baseline
+from identification.fleet.history import History
+from identification.fleet.layout import FleetLayoutError, read_fleet
+from identification.fleet.plan import plan_run
+from identification.fleet.runner import RunOptions, dask_client, run_fleet
+from identification.fleet.session import process_session
+from identification.virtual.fleet import VirtualFleetOptions, write_virtual_fleet
+
+TINY = VirtualFleetOptions(n_robots=3, n_days=6, duration=3.0, rate=200.0, baseline_days=3, seed=3)
+
+
+@pytest.fixture(scope="module")
+def tiny_fleet(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("fleet") / "fleet"
+    truth = write_virtual_fleet(folder, TINY)
+    return folder, truth
+
+
+@pytest.fixture(scope="module")
+def derive(denso_model):
+    return lambda robot: denso_model  # every virtual robot is a Denso: one PSDM model (SharedModels' point)
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with dask_client(workers=2) as client:
+        yield client
+
+
+def _parameters(db) -> dict:
+    with History(db) as history:
+        return {(r.robot_id, str(r.day), r.name): (r.value, r.sigma) for r in history.parameter_rows()}
+
+
+def _copy(tiny_fleet, tmp_path):
+    folder = tmp_path / "fleet"
+    shutil.copytree(tiny_fleet[0], folder)
+    return folder
+
+
+# --- layout --------------------------------------------------------------------------------------
+def test_layout_folder_and_manifest_agree(tiny_fleet, tmp_path):
+    folder, truth = tiny_fleet
+    fleet = read_fleet(folder)
+    assert [r.robot_id for r in fleet.robots] == truth["robots"]
+    assert fleet.n_sessions == TINY.n_robots * TINY.n_days
+    assert fleet.track.spring == (TINY.spring_joint,) and fleet.track.ripple == ((4, 12),)
+    manifest = tmp_path / "fleet.toml"
+    lines = [(folder / "fleet.toml").read_text()]
+    for robot_id in truth["robots"]:
+        lines.append(f'[[robot]]\nid = "{robot_id}"\nrobot = "{folder / robot_id / "robot.toml"}"\n'
+                     f'recordings = "{folder / robot_id}"\n')  # fmt: skip
+    manifest.write_text("\n".join(lines))
+    listed = read_fleet(manifest)
+    assert [(r.robot_id, r.days) for r in listed.robots] == [(r.robot_id, r.days) for r in fleet.robots]
+
+
+def test_layout_errors_name_the_path_and_fix(tiny_fleet, tmp_path):
+    folder = _copy(tiny_fleet, tmp_path)
+    (folder / "r02" / "robot.toml").unlink()
+    with pytest.raises(FleetLayoutError, match=r"r02.*no baseline.*baseline.json"):
+        read_fleet(folder)
+    shutil.copy(tiny_fleet[0] / "r02" / "robot.toml", folder / "r02" / "robot.toml")
+    (folder / "r01" / "yesterday").mkdir()
+    (folder / "r01" / "yesterday" / "a.csv").write_text("t,q1\n")
+    with pytest.raises(FleetLayoutError, match="'yesterday' is not a date YYYY-MM-DD"):
+        read_fleet(folder)
+    with pytest.raises(FleetLayoutError, match="no such fleet"):
+        read_fleet(tmp_path / "missing")
+
+
+# --- the robot-day task --------------------------------------------------------------------------
+def test_session_recovers_the_virtual_robots_truth(tiny_fleet, derive):
+    """Day 1 of r03 (a spring on joint 2, a ripple on joint 4): the refit finds the truth within 4 sigma."""
+    folder, truth = tiny_fleet
+    fleet = read_fleet(folder)
+    entry = fleet.robots[2]
+    baseline, model = build_baseline(entry, fleet.track, SharedModels(derive))
+    task = next(t for t in plan_run(fleet).tasks if t.robot_id == entry.robot_id)
+    result = process_session(task, baseline, model)
+    assert result.status == "ok", result.error
+    fit = dict(zip(result.fit.names, zip(result.fit.values, result.fit.sigmas)))
+    true = truth["truth"][entry.robot_id]
+    for name, expected in (("spring_k_2", true["spring_stiffness"]), ("ripple_amp12_4", true["ripple_amplitude"]),
+                           ("kt2", true["kt"][1]), ("kt3", true["kt"][2])):  # fmt: skip
+        value, sigma = fit[name]
+        assert abs(value - expected) < 4 * sigma + 0.02 * abs(expected), (name, value, sigma, expected)
+    assert abs(fit["payload_mass"][0]) < 4 * fit["payload_mass"][1] + 0.05
+    assert np.all(result.fit.rmse_refit <= result.fit.rmse_baseline + 1e-12)
+
+
+def test_corrupt_recording_fails_its_own_day_and_duplicates_count_once(tiny_fleet, derive, tmp_path):
+    folder = _copy(tiny_fleet, tmp_path)
+    bad = folder / "r01" / "2026-10-03" / "health.csv"
+    bad.write_text("t,q1,q2\n0,1\nnot numbers\n")
+    day = folder / "r02" / "2026-10-02"
+    shutil.copy(day / "health.csv", day / "health_copy.csv")  # the same recording under two names
+    shutil.copy(day / "health.csv", folder / "r02" / "2026-10-05" / "again.csv")  # and under another day
+    summary = run_fleet(read_fleet(folder), tmp_path / "h.duckdb", RunOptions(serial=True), derive=derive)
+    assert (summary.processed, summary.failed, summary.duplicates) == (18, 1, 2)
+    with History(tmp_path / "h.duckdb") as history:
+        failures = history.failures()
+        counts = {r[0]: r[1:3] for r in history.session_counts()}
+        dup = history.connection.execute("SELECT count(*) FROM recordings WHERE duplicate_of IS NOT NULL").fetchone()
+    assert [(r, str(d)) for r, d, _ in failures] == [("r01", "2026-10-03")]
+    assert "health.csv" in failures[0][2]
+    assert counts == {"r01": (5, 1), "r02": (6, 0), "r03": (6, 0)} and dup == (2,)
+    clean = _parameters(tmp_path / "h.duckdb")
+    assert ("r02", "2026-10-02", "fc1") in clean
+
+
+# --- Dask, the history ---------------------------------------------------------------------------
+def test_serial_one_worker_and_two_workers_agree(tiny_fleet, derive, cluster, tmp_path):
+    fleet = read_fleet(tiny_fleet[0])
+    run_fleet(fleet, tmp_path / "serial.duckdb", RunOptions(serial=True), derive=derive)
+    run_fleet(fleet, tmp_path / "two.duckdb", derive=derive, client=cluster)
+    run_fleet(fleet, tmp_path / "one.duckdb", RunOptions(workers=1), derive=derive)
+    serial, two, one = (_parameters(tmp_path / f"{n}.duckdb") for n in ("serial", "two", "one"))
+    assert serial.keys() == two.keys() == one.keys() and len(serial) > 100
+    for key, (value, sigma) in serial.items():
+        for other in (one, two):
+            assert other[key][0] == pytest.approx(value, rel=1e-12, abs=1e-12)
+            assert other[key][1] == pytest.approx(sigma, rel=1e-12, abs=1e-12)
+
+
+def test_incremental_idempotent_and_resume(tiny_fleet, derive, cluster, tmp_path):
+    fleet = read_fleet(tiny_fleet[0])
+    db = tmp_path / "h.duckdb"
+    first = run_fleet(fleet, db, RunOptions(stop_after=5), derive=derive, client=cluster)  # interrupted
+    assert first.interrupted and first.processed == 5
+    second = run_fleet(fleet, db, derive=derive, client=cluster)
+    assert (second.processed, second.skipped) == (13, 5)
+    third = run_fleet(fleet, db, RunOptions(serial=True), derive=derive)
+    assert (third.processed, third.skipped) == (0, 18)
+    with History(db) as history:
+        n_sessions = history.connection.execute("SELECT count(*) FROM sessions").fetchone()[0]
+        runs = history.connection.execute("SELECT status FROM runs ORDER BY run_id").fetchall()
+        paths = history.export_parquet(tmp_path / "parquet")
+    assert n_sessions == 18 and [r[0] for r in runs] == ["interrupted", "done", "done"]
+    reference = tmp_path / "ref.duckdb"
+    run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
+    assert _close(db, reference)
+    import duckdb
+
+    assert duckdb.connect().execute(f"SELECT count(*) FROM '{paths[1]}'").fetchone()[0] == 18
+
+
+def _close(a, b) -> bool:
+    pa, pb = _parameters(a), _parameters(b)
+    return pa.keys() == pb.keys() and all(np.allclose(pa[k], pb[k], rtol=1e-12, atol=1e-12) for k in pa)
+
+
+# --- the command line ----------------------------------------------------------------------------
+def test_cli_run_status_report(tiny_fleet, tmp_path, capsys):
+    from psdm_casadi.cli import main
+
+    db = tmp_path / "h.duckdb"
+    code = main(["fleet", "run", str(tiny_fleet[0]), "--db", str(db), "--serial", "--json",
+                 "--export-parquet", str(tmp_path / "pq")])  # fmt: skip
+    out = json.loads(capsys.readouterr().out)
+    assert code in (0, 1) and out["processed"] == 18 and out["failed"] == 0
+    assert (tmp_path / "pq" / "parameters.parquet").is_file()
+    assert main(["fleet", "status", "--db", str(db), "--json"]) == 0
+    status = json.loads(capsys.readouterr().out)
+    assert [r["robot_id"] for r in status["robots"]] == ["r01", "r02", "r03"]
+    assert main(["fleet", "report", "--db", str(db), "--out", str(tmp_path / "r.html")]) == 0
+    page = (tmp_path / "r.html").read_text()
+    assert page.count("Plotly.newPlot") == 3 and "<script" in page and "r03" in page
+    assert main(["fleet", "run", str(tmp_path / "nowhere")]) == 2
+    assert "no such fleet folder" in capsys.readouterr().err
