@@ -24,7 +24,7 @@ import datetime as dt
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from identification.fleet.phrases import describe, meaning
 
@@ -89,10 +89,14 @@ def series_of(rows) -> list:
 def cusum_interval(arl: float, k: float) -> float:
     """Decision interval ``h`` of a one-sided CUSUM with allowance ``k`` whose in-control ARL is ``arl``
     (Siegmund: ``ARL = (exp(2 k b) - 2 k b - 1) / (2 k^2)``, ``b = h + 1.166``)."""
-    b = 1.0
-    while (np.exp(2 * k * b) - 2 * k * b - 1) / (2 * k * k) < arl:
-        b *= 1.05
-    return b - 1.166
+
+    def excess(b):
+        return (np.expm1(2 * k * b) - 2 * k * b) / (2 * k * k) - arl
+
+    high = 1.0
+    while excess(high) < 0:
+        high *= 2.0
+    return float(optimize.brentq(excess, 1e-9, high)) - 1.166
 
 
 def _standardise(s: Series, window: int, confidence: float) -> tuple:
