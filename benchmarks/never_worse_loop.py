@@ -91,6 +91,7 @@ def run_loop(key: str, log=print, data_root: Path = DEFAULT_DATA_ROOT) -> dict:
             "findings": [f["label"] for f in report.get("findings", [])],
             "kept": [e["label"] for e in json.loads(applied.read_text())["findings"]] if written else [],
             "dropped_never_worse": [d["label"] for d in block.get("dropped", [])],
+            "dropped_reasons": [f"{d['label']}: {d['reason']}" for d in block.get("dropped", [])],
             "dropped_unhelpful": [d["label"] for d in block.get("dropped_findings", [])],
             "refused": block.get("refused"),
             "rmse_identify": identified,
@@ -127,3 +128,5 @@ def print_loops(loops: dict) -> None:
                               ("margin", r["margin"])):  # fmt: skip
             print(f"  {label:<15} " + " ".join(f"{v:8.4g}" for v in values))
         print(f"  never worse: {r['never_worse']}" + (f" (refused: {r['refused']})" if r["refused"] else ""))
+        for reason in r["dropped_reasons"]:
+            print(f"  dropped {reason}")
