@@ -63,6 +63,7 @@ def register(subparsers) -> None:
 
 
 def _run_validate(args) -> int:
+    from identification.calibration.model_preparation import model_preparation
     from identification.calibration.payload_check import new_payload, validation_with_payload
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.trajectory_checks import check_validation_recording
@@ -80,6 +81,9 @@ def _run_validate(args) -> int:
     loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
+    preparation = model_preparation(calibrated.document)  # the identification's own, as every judging command
+    if preparation.note:
+        print(f"psdm validate: note: {args.model}: {preparation.note}", file=sys.stderr)
     layout = recording_layout(args)  # --columns, --rate
     grouped = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
     if plots is not None and grouped != list(args.recordings):  # one plot per recording, named after the folder
@@ -111,7 +115,7 @@ def _run_validate(args) -> int:
                 _plot(stage / f"{Path(row['recording']).stem}.png", row, robot.joint_names)
     if args.json:
         print_json({"command": "validate", "model": str(args.model), "consistent": calibrated.consistent,
-                    "warnings": warnings,
+                    "warnings": warnings, "preparation": preparation.to_dict(),
                     "recordings": [_json_row(row) for row in rows]})  # fmt: skip
     else:
         for row in rows:

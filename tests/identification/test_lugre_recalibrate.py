@@ -29,7 +29,7 @@ import pytest
 from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
 from identification.calibration.recalibrate import recalibrate
 from identification.diagnosis.candidates import LoadDependentFrictionTerm
-from identification.diagnosis.report import Finding
+from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from identification.virtual import effects as xp
 from psdm_casadi.errors import ParameterError
@@ -256,8 +256,14 @@ def _report(candidate, parameters) -> SimpleNamespace:
 def _stand_in_diagnosis(patch, candidate, parameters) -> None:
     """``diagnose`` replaced (for ``psdm diagnose``) by one that reports a finding of ``candidate``."""
     diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
-    report = _report(candidate, parameters)
-    report.to_markdown = lambda paths: f"stand-in diagnosis: {candidate.label}"
+    parts, n, zeros = _report(candidate, parameters), 2, np.zeros((2, 2))
+    report = DiagnosisReport(
+        robot_name="stand-in", n_dof=n, friction="lugre", rigid_body="prior", findings=tuple(parts.findings),
+        rmse_before=(1.0,) * n, rmse_after=(0.5,) * n, r2_before=(0.9,) * n, r2_after=(0.95,) * n,
+        rmse_train_before=(1.0,) * n, rmse_train_after=(0.5,) * n, residual_findings=(), candidates_tried=1,
+        augmented=parts.augmented, validation_t=np.arange(2.0), validation_q=zeros, validation_qd=zeros,
+        validation_tau=zeros, validation_nominal=zeros, validation_final=zeros,
+    )  # fmt: skip
     patch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: report)
 
 

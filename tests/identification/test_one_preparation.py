@@ -66,6 +66,21 @@ def test_the_model_file_stores_its_preparation_and_an_older_file_is_judged_as_be
     np.testing.assert_array_equal(ours[0].tau, ready.tau)
 
 
+def test_validate_states_the_preparation_and_notes_an_older_file(denso_files, tmp_path, capsys):
+    document = json.loads((denso_files / "model.json").read_text())
+    assert main(["validate", str(denso_files / "model.json"), str(denso_files / "valid.csv"), "--json"]) == 0
+    captured = capsys.readouterr()
+    new = json.loads(captured.out)
+    assert new["preparation"]["cutoff_hz"] == 8.0 and "note:" not in captured.err
+    del document["identification"]["preparation"]
+    (tmp_path / "old.json").write_text(json.dumps(document))
+    assert main(["validate", str(tmp_path / "old.json"), str(denso_files / "valid.csv"), "--json"]) == 0
+    captured = capsys.readouterr()
+    old = json.loads(captured.out)
+    assert old["recordings"][0]["rmse"] == new["recordings"][0]["rmse"]  # judged as before
+    assert "note:" in captured.err and "written before its preparation was stored" in captured.err
+
+
 def test_a_robot_file_gets_the_preparation_identify_would_choose():
     t = np.arange(0.0, 2.0, 0.02)  # 50 Hz: identify filters at rate / 10 = 5 Hz
     slow = default_preparation(Recording(t=t, q=np.zeros((t.size, 1)), tau=np.zeros((t.size, 1))))

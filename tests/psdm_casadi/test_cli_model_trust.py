@@ -21,7 +21,7 @@ from identification.calibration.trajectory_checks import check_validation_record
 from identification.calibration.trajectory_fit import identify_trajectories
 from identification.data.io import load_recording, save_recording
 from identification.diagnosis.candidates import TorqueOffsetTerm
-from identification.diagnosis.report import Finding
+from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
@@ -180,8 +180,15 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
                       coefficients=(1.0,), feature_names=tuple(candidate.feature_names()), explanation="",
                       signature="", rmse_before=(1.0,) * 3, rmse_after=(0.5,) * 3, delta_bic=-10.0,
                       validation_gain=0.5)  # fmt: skip
-    report = SimpleNamespace(findings=[finding], augmented=SimpleNamespace(terms=(candidate,), coefficients=([1.0],)),
-                             to_markdown=lambda paths: "stand-in diagnosis", to_dict=dict)  # fmt: skip
+    n, zeros = 3, np.zeros((2, 3))
+    report = DiagnosisReport(
+        robot_name="arm", n_dof=n, friction="coulomb_viscous", rigid_body="prior", findings=(finding,),
+        rmse_before=(1.0,) * n, rmse_after=(0.5,) * n, r2_before=(0.9,) * n, r2_after=(0.95,) * n,
+        rmse_train_before=(1.0,) * n, rmse_train_after=(0.5,) * n, residual_findings=(), candidates_tried=1,
+        augmented=SimpleNamespace(terms=(candidate,), coefficients=([1.0],)), validation_t=np.arange(2.0),
+        validation_q=zeros, validation_qd=zeros, validation_tau=zeros, validation_nominal=zeros,
+        validation_final=zeros,
+    )  # fmt: skip
     diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
     monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: report)
     valid = load_recording(arm / "valid.csv")
