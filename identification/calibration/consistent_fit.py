@@ -53,6 +53,7 @@ ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 stan
 IPOPT_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-9,
                  "ipopt.acceptable_tol": 1e-2, "ipopt.acceptable_obj_change_tol": 1e-9,
                  "ipopt.acceptable_iter": 10, "ipopt.max_iter": 2000}  # fmt: skip
+FIRST_PASS_MAX_ITER = 300
 
 
 @dataclass(frozen=True, eq=False)
@@ -126,13 +127,20 @@ def link_is_free(model, link: int) -> bool:
     return bool(np.any(block))
 
 
-def _solve(problem, start, bounds):
-    """Ipopt from ``start`` within ``bounds`` ``(lbx, ubx, lbg, ubg)``: (solution, status)."""
-    solver = ca.nlpsol("consistent_fit", "ipopt", problem, IPOPT_OPTIONS)
+def _solve(problem, start, bounds, final=True):
+    """Ipopt from ``start`` within ``bounds`` ``(lbx, ubx, lbg, ubg)``: (solution, status).
+
+    The first of the two passes only sets the second's weights: it stops at ``FIRST_PASS_MAX_ITER`` iterations
+    without a word (a link pressed against its envelope creeps towards the chart's boundary for long).
+    """
+    cap = IPOPT_OPTIONS["ipopt.max_iter"] if final else min(FIRST_PASS_MAX_ITER, IPOPT_OPTIONS["ipopt.max_iter"])
+    solver = ca.nlpsol("consistent_fit", "ipopt", problem, {**IPOPT_OPTIONS, "ipopt.max_iter": cap})
     lbx, ubx, lbg, ubg = bounds
     solution = solver(x0=np.clip(start, lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     status = solver.stats()["return_status"]
-    if status == "Maximum_Iterations_Exceeded":  # every iterate of the chart is consistent: keep it, marked
+    if status == "Maximum_Iterations_Exceeded" and not final:
+        logger.debug("identify: the first pass of the consistent fit stopped at %s iterations", cap)
+    elif status == "Maximum_Iterations_Exceeded":  # every iterate of the chart is consistent: keep it, marked
         logger.warning(
             "identify: the consistent fit stopped at Ipopt's iteration cap (%s) with the objective still "
             "creeping towards the boundary of physical consistency; the model is consistent but not proven "
@@ -245,7 +253,7 @@ def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, 
     g, g_lower, g_upper, owner = _link_constraints(rows, links, prior, bounds)
     evaluate = ca.Function("standard", [variables], [standard, x, payloads])
     x_opt, w = start, 1.0 / sigma**2
-    for _ in range(2):  # then once more weighted by the consistent fit's own residuals (module docstring)
+    for final in (False, True):  # then once more weighted by the consistent fit's own residuals (module docstring)
         gram, moment, energy = equations.weighted(w)
         residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
         problem = {
@@ -253,7 +261,7 @@ def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, 
             "f": residual + options.prior_weight * pull,
             "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         }
-        solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper))
+        solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper), final)
         x_opt = np.clip(np.asarray(solution["x"]).reshape(-1), lower, upper)  # Ipopt may end a hair outside a bound
         w = 1.0 / residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
     values, _, bodies_opt = (np.asarray(v) for v in evaluate(x_opt))
