@@ -19,8 +19,9 @@ spring): such a model is not written. The allowance is the noise of the comparis
 ``keep_not_worse`` drops findings greedily: while a joint is worse than before plus its margin, the finding whose
 removal (with a refit) most lowers the RMSE of the joint that is most over its margin is dropped, and the model is
 refitted and checked again. When every finding the gate may drop is gone (the refit is then the model before, or a
-joint is still worse), nothing is kept: the refit is refused (``GateResult.refused``, naming the joints and the
-findings) and the caller writes nothing.
+joint is still worse), or a joint is worse and no finding can be dropped (a payload the refit's rigid body takes up),
+nothing is kept: the refit is refused (``GateResult.refused``, naming the joints and the findings) and the caller
+writes nothing.
 """
 
 from __future__ import annotations
@@ -230,10 +231,12 @@ def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) 
         })  # fmt: skip
         remaining.remove(label)
         comparison = trial
-    if dropped and (comparison.worse or not remaining):
-        still = f"; without any, still {comparison.text()}" if comparison.worse else ""
+    if comparison.worse or (dropped and not remaining):
+        still = f"; without any, still {comparison.text()}" if comparison.worse and dropped else ""
+        turns = "; ".join(f"{d['label']} ({d['reason']})" for d in dropped) or "none (no finding adds a column or a "
+        "correction: the refit's rigid body takes them up)"
+        names = ", ".join(droppable) or "none to drop"
         return GateResult(after, payload, comparison, dropped, refused=(
-            f"no subset of the findings ({', '.join(droppable)}) keeps every joint's validation RMSE within its noise "
-            f"margin: with all of them {first_text}{still}; dropped in turn: "
-            + "; ".join(f"{d['label']} ({d['reason']})" for d in dropped)))  # fmt: skip
+            f"no subset of the findings ({names}) keeps every joint's validation RMSE within its noise margin: with "
+            f"all of them {first_text}{still}; dropped in turn: {turns}"))  # fmt: skip
     return GateResult(after, payload, comparison, dropped)

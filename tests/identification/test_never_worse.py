@@ -65,6 +65,45 @@ def test_identical_models_compare_equal_with_the_floor_margin(spring_data, denso
     assert comparison.worse == ()
 
 
+def _gate(monkeypatch, table, droppable):
+    """``keep_not_worse`` on stand-in models: a model is the set of labels dropped, its RMSE per joint from
+    ``table`` (the before model 1.0 on both joints, margin 0.05)."""
+    import identification.calibration.never_worse as gate
+
+    def compare(before, after, model, validation, kt=None):
+        return gate.JointComparison(np.ones(2), np.asarray(table[frozenset(after)], dtype=float), np.full(2, 0.05))
+
+    monkeypatch.setattr(gate, "compare_models", compare)
+    refits = []
+
+    def refit(labels):
+        refits.append(frozenset(labels))
+        return frozenset(labels), None
+
+    return gate.keep_not_worse(None, (frozenset(), None), refit, droppable, None, []), refits
+
+
+def test_the_gate_drops_the_finding_that_most_repairs_the_worst_joint(monkeypatch):
+    table = {frozenset(): [0.5, 1.3], frozenset({"a"}): [0.6, 1.2], frozenset({"b"}): [0.7, 1.0],
+             frozenset({"a", "b"}): [1.0, 1.0]}  # fmt: skip
+    result, refits = _gate(monkeypatch, table, ["a", "b"])
+    assert result.refused is None and result.after == frozenset({"b"}) and refits == [{"a"}, {"b"}]
+    assert [(d["label"], d["joint"]) for d in result.dropped] == [("b", 2)]
+    assert result.dropped[0]["validation_rmse_with"] == 1.3 and result.dropped[0]["validation_rmse_without"] == 1.0
+
+
+def test_the_gate_refuses_when_every_finding_goes_or_none_can(monkeypatch):
+    table = {frozenset(): [0.5, 1.3], frozenset({"a"}): [0.6, 1.2], frozenset({"b"}): [0.7, 1.1],
+             frozenset({"a", "b"}): [1.0, 1.0]}  # fmt: skip
+    result, _ = _gate(monkeypatch, table, ["a", "b"])  # b, then a: nothing left to write
+    assert result.refused and [d["label"] for d in result.dropped] == ["b", "a"]
+    assert "joint 2: 1 -> 1.3 N m" in result.refused
+    result, refits = _gate(monkeypatch, {frozenset(): [0.5, 1.3]}, [])  # a payload: nothing to drop, still worse
+    assert result.refused and "none to drop" in result.refused and refits == []
+    result, _ = _gate(monkeypatch, {frozenset(): [0.5, 1.04]}, [])  # within the margin: written
+    assert result.refused is None and result.dropped == []
+
+
 def _load(path):
     from identification.data.io import load_recording
 
