@@ -18,9 +18,10 @@ and torque offset. ``frictionloss`` is MuJoCo's dry-friction constraint: its for
 the motion, where the model has ``fc tanh(qd / v)``. Each joint also gets a ``<motor>`` (gear 1) limited to the
 robot's torque limit, so that the file simulates under torque control as it is.
 
-**Generated, not copied.** The file is generated from the robot's kinematics (DH rows or URDF, locked joints
-locked) with a capsule per link for the eye (no mass: ``inertiafromgeom="false"``); gravity is the robot's,
-in its base frame (``<option gravity>``).
+**Generated or copied.** A robot read from MJCF is written into a copy of its file (``mjcf_copy``), unless it has
+locked joints (a gripper's fingers): MuJoCo's file would keep them moving, so such a robot, like a DH or URDF robot,
+gets a file generated from its kinematics (locked joints locked) with a capsule per link for the eye (no mass:
+``inertiafromgeom="false"``); gravity is the robot's, in its base frame (``<option gravity>``).
 
 **Left out** (the header and a comment on each joint name them with their values, and
 ``target_holds.friction_not_representable`` / ``findings_not_representable`` give the warnings
@@ -116,7 +117,11 @@ def render_mjcf(calibrated, robot=None) -> str:
             "identified with --no-consistency: base parameters only). Re-run 'psdm identify' without it."
         )
     robot = calibrated.load_robot() if robot is None else robot
-    if robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES:
+    if (
+        robot.urdf_path is not None
+        and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES
+        and not robot.locked_joints
+    ):
         return copied_mjcf(calibrated, robot)
     document = _generated(calibrated, robot)
     return '<?xml version="1.0" encoding="utf-8"?>\n' + document.documentElement.toprettyxml(indent="  ")

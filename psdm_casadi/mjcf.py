@@ -20,7 +20,10 @@ files, so that a robot reads the same with or without its meshes (from a calibra
 the XML's text). A body without ``<inertial>`` takes its inertia from its geoms, which then must not be meshes.
 
 **Refused** with a RobotFileError naming the element and the fix: free and ball joints, more than one joint on a
-body, branches (two moving bodies below one), tendons, equality constraints (closed loops), ``<include>``.
+body, branches (two moving bodies below one), tendons, equality constraints (closed loops), ``<include>``. A
+gripper's fingers (Menagerie's Panda: two slide joints, a fixed tendon and an equality constraint between them)
+are read when their joints are locked (``--lock``): the couplings of locked joints only are dropped, and the
+locked bodies may branch off the chain.
 """
 
 from __future__ import annotations
@@ -59,20 +62,51 @@ def route_mujoco_warnings() -> None:
         mujoco.set_mju_user_warning(_mujoco_warning)
 
 
-def _refuse_unsupported(path: Path, root: ET.Element) -> None:
-    """Refuse what a serial arm of hinge and slide joints cannot hold (module docstring), naming the element."""
+def _refuse_unsupported(path: Path, root: ET.Element, locked=()) -> None:
+    """Refuse what a serial arm of hinge and slide joints cannot hold (module docstring), naming the element;
+    couplings of locked joints only are removed (:func:`_drop_locked_couplings`)."""
+    _drop_locked_couplings(path, root, set(locked))
     for tag, what, fix in (
         ("include", "an <include> file", "inline it, or pass the included robot file itself"),
-        ("tendon", "tendons", "remove the <tendon> section (psdm models a serial chain of joints)"),
-        ("equality", "equality constraints (closed loops, coupled joints)", "remove the <equality> section"),
         ("freejoint", "a free joint (a floating base)", "fix the base: remove the <freejoint>"),
     ):
-        found = [node for node in root.iter(tag) if tag in ("include", "freejoint") or len(node)]
-        if found:
+        if any(True for _ in root.iter(tag)):
             raise RobotFileError(
                 f"MJCF {path.name!r} holds {what}, which psdm cannot read (a serial arm of hinge and slide joints); "
                 f"{fix}."
             )
+
+
+def _drop_locked_couplings(path: Path, root: ET.Element, locked: set) -> None:
+    """Remove the fixed tendons and joint/tendon equality constraints that couple locked joints only (a gripper's
+    fingers) with the actuators on those tendons; refuse any other tendon or equality constraint."""
+    removed = set()
+    for section in list(root.iter("tendon")):
+        for tendon in list(section):
+            joints = {node.get("joint") for node in tendon.iter("joint")}
+            if tendon.tag != "fixed" or not joints or not joints <= locked:
+                raise RobotFileError(
+                    f"MJCF {path.name!r} holds the {tendon.tag} tendon {tendon.get('name', '?')!r} (joints "
+                    f"{sorted(j for j in joints if j)}), which psdm cannot read (a serial arm of hinge and slide "
+                    "joints); lock the joints it couples (a gripper's: --lock, or locked_joints in a robot file's "
+                    "[urdf] table) or remove the <tendon>."
+                )
+            removed.add(tendon.get("name"))
+            section.remove(tendon)
+    for section in list(root.iter("equality")):
+        for constraint in list(section):
+            joints = {constraint.get(key) for key in ("joint1", "joint2")} - {None}
+            tendons = {constraint.get(key) for key in ("tendon1", "tendon2")} - {None}
+            if not ((constraint.tag == "joint" and joints and joints <= locked) or (tendons and tendons <= removed)):
+                named = f"<{constraint.tag}> {constraint.get('name') or ''}".strip()
+                raise RobotFileError(
+                    f"MJCF {path.name!r} holds the equality constraint {named} (closed loops, coupled joints), which "
+                    "psdm cannot read (a serial arm); remove it, or lock the joints it couples (--lock)."
+                )
+            section.remove(constraint)
+    for section in root.iter("actuator"):
+        for actuator in [a for a in section if a.get("tendon") in removed]:
+            section.remove(actuator)
 
 
 def _stripped(path: Path, root: ET.Element) -> str:
@@ -95,13 +129,15 @@ def _stripped(path: Path, root: ET.Element) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def _compiled(path: Path) -> mujoco.MjModel:
+def _compiled(path: Path, locked=()) -> mujoco.MjModel:
     """MuJoCo's compiled model of the stripped file, its errors as a RobotFileError."""
-    return compile_mjcf(read_text_file(path, what="MJCF"), path.name)
+    return compile_mjcf(read_text_file(path, what="MJCF"), path.name, locked)
 
 
-def compile_mjcf(text: str, name: str = "MJCF") -> mujoco.MjModel:
+def compile_mjcf(text: str, name: str = "MJCF", locked=()) -> mujoco.MjModel:
     """MuJoCo's model of an MJCF text compiled without its meshes (module docstring), for its dynamics.
+
+    ``locked`` names the joints the caller locks: tendons and equality constraints coupling only them are removed.
 
     Raises
     ------
@@ -118,7 +154,7 @@ def compile_mjcf(text: str, name: str = "MJCF") -> mujoco.MjModel:
             f"MJCF {path.name!r} must have the root element <mujoco>; got <{root.tag}>. Give an MJCF file (or a "
             "URDF ending in .urdf)."
         )
-    _refuse_unsupported(path, root)
+    _refuse_unsupported(path, root, locked)
     route_mujoco_warnings()
     try:
         return mujoco.MjModel.from_xml_string(_stripped(path, root))
@@ -199,13 +235,16 @@ def _torque_limit(mj: mujoco.MjModel, joint: int) -> float:
     return max(limits) if limits else math.inf
 
 
-def load_mjcf_model(path) -> pin.Model:
+def load_mjcf_model(path, locked=()) -> pin.Model:
     """The Pinocchio model of the serial arm of an MJCF file (module docstring).
 
     Parameters
     ----------
     path : str or Path
         MJCF file (``.xml``); meshes are not needed.
+    locked : iterable of str
+        Joints the caller locks (``urdf.load_urdf_model``): they may branch off the chain (a gripper's fingers), and
+        tendons and equality constraints that couple only them are dropped.
 
     Returns
     -------
@@ -218,16 +257,16 @@ def load_mjcf_model(path) -> pin.Model:
     RobotFileError
         For a file MuJoCo cannot compile without its meshes, and for what the module docstring refuses.
     """
-    path = Path(path)
-    mj = _compiled(path)
+    path, locked = Path(path), set(locked)
+    mj = _compiled(path, locked)
     model = pin.Model()
     model.name = mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, 0) or path.stem
-    carrier = {0: (0, pin.SE3.Identity())}  # body -> (Pinocchio joint it moves with, its frame in that joint frame)
+    carrier = {0: (0, pin.SE3.Identity(), 0)}  # body -> (Pinocchio joint it moves with, its frame there, frame id)
     chain_child = {}
     lower, upper, effort = [], [], []
     for body in range(1, mj.nbody):
         body_name = _name(mj, mujoco.mjtObj.mjOBJ_BODY, body, f"body{body}")
-        parent_joint, parent_frame = carrier[int(mj.body_parentid[body])]
+        parent_joint, parent_frame, parent_id = carrier[int(mj.body_parentid[body])]
         frame = parent_frame * _frame(mj, body)
         if mj.body_jntnum[body] > 1:
             raise RobotFileError(
@@ -235,31 +274,35 @@ def load_mjcf_model(path) -> pin.Model:
                 "body. Give each joint a body of its own (a massless body between them)."
             )
         if mj.body_jntnum[body] == 0:
-            carrier[body] = (parent_joint, frame)
             if parent_joint > 0:
                 model.appendBodyToJoint(parent_joint, _inertia(mj, body, np.zeros(3)), frame)
-            model.addBodyFrame(body_name, parent_joint, frame, 0)
+            carrier[body] = (parent_joint, frame, model.addBodyFrame(body_name, parent_joint, frame, parent_id))
             continue
         joint = int(mj.body_jntadr[body])
         joint_name = _name(mj, mujoco.mjtObj.mjOBJ_JOINT, joint, f"{body_name}_joint")
-        if parent_joint in chain_child:
+        if parent_joint in chain_child and joint_name not in locked:
             raise RobotFileError(
                 f"MJCF {path.name!r} branches: bodies {chain_child[parent_joint]!r} and {body_name!r} both move on "
-                "their own below one body; psdm reads a serial chain. Keep one branch (weld or remove the other)."
+                "their own below one body; psdm reads a serial chain. Keep one branch (weld or remove the other), "
+                "or lock the joints of the other (a gripper's fingers: --lock)."
             )
-        chain_child[parent_joint] = body_name
+        if joint_name not in locked:
+            chain_child[parent_joint] = body_name
         offset = np.array(mj.jnt_pos[joint], dtype=float)
         jmodel = _joint_model(path, mj, joint, joint_name)
         placement = frame * pin.SE3(np.eye(3), offset) * _reference_motion(mj, joint)
         jid = model.addJoint(parent_joint, jmodel, placement, joint_name)
         model.appendBodyToJoint(jid, _inertia(mj, body, offset), pin.SE3.Identity())
-        model.addBodyFrame(body_name, jid, pin.SE3(np.eye(3), -offset), 0)
-        carrier[body] = (jid, pin.SE3(np.eye(3), -offset))
+        joint_frame = model.addJointFrame(jid, parent_id)
+        body_frame = model.addBodyFrame(body_name, jid, pin.SE3(np.eye(3), -offset), joint_frame)
+        carrier[body] = (jid, pin.SE3(np.eye(3), -offset), body_frame)
         limited = bool(mj.jnt_limited[joint])
         lower.append(float(mj.jnt_range[joint, 0]) if limited else -math.inf)
         upper.append(float(mj.jnt_range[joint, 1]) if limited else math.inf)
         effort.append(_torque_limit(mj, joint))
     model.lowerPositionLimit, model.upperPositionLimit = np.array(lower), np.array(upper)
     model.effortLimit, model.velocityLimit = np.array(effort), np.zeros(len(effort))
+    if hasattr(model, "lowerEffortLimit"):  # Pinocchio 4 keeps both bounds (the lower velocity one as a magnitude)
+        model.lowerEffortLimit, model.lowerVelocityLimit = -np.array(effort), np.zeros(len(effort))
     model.gravity.linear = np.array(mj.opt.gravity, dtype=float)
     return model

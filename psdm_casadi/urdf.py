@@ -158,9 +158,12 @@ def load_urdf_model(path: Path, locked_joints=()) -> pin.Model:
         outside the joint's limits or is nonzero for a joint with more than one degree of freedom.
     """
     path = Path(path)
-    model = load_mjcf_model(path) if path.suffix.lower() in MJCF_SUFFIXES else _parse_urdf(path)
-    _square_joint_origins(path, model)
     locked = locked_positions(locked_joints)
+    if path.suffix.lower() in MJCF_SUFFIXES:
+        model = load_mjcf_model(path, [name for name, _ in locked])
+    else:
+        model = _parse_urdf(path)
+    _square_joint_origins(path, model)
     if locked:
         reference = pin.neutral(model)
         ids = []

@@ -27,7 +27,7 @@ from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
 from tests.conftest import DATASETS, DENSO_FILE
-from tests.psdm_casadi.test_mjcf_robot import ARM
+from tests.psdm_casadi.test_mjcf_robot import ARM, HAND
 
 TX40_URDF = DATASETS / "staubli_tx40_figaroh" / "tx40_mdh_modified.urdf"
 IA = {1: 0.03, 2: 0.02}  # drive inertias identified as columns of their own (1-based joints)
@@ -193,6 +193,19 @@ def test_an_mjcf_robot_is_written_into_a_copy_of_its_file(tmp_path):
     np.testing.assert_array_equal(mj.dof_armature, [IA.get(j + 1, 0.0) for j in range(4)])
     with pytest.raises(ModelFileError, match="read from MJCF .*psdm export-mjcf"):
         render_urdf(calibrated)
+
+
+def test_an_mjcf_robot_with_locked_fingers_is_generated(tmp_path):
+    """A robot file naming an MJCF gripper arm with its fingers locked: MuJoCo would keep the fingers moving in a
+    copy of the file, so the MJCF is generated from the locked kinematics (the hand and fingers in link4's body)."""
+    (tmp_path / "hand.xml").write_text(HAND)
+    source = tmp_path / "arm.toml"
+    source.write_text('name = "gripper arm"\n[urdf]\npath = "hand.xml"\nlocked_joints = ["f1", "f2"]\n')
+    calibrated, robot, model = _calibrated(source, ia=IA)
+    text = render_mjcf(calibrated)  # the robot rebuilt from the model file's copies of both files
+    assert "generated from its kinematics" in text and "f1" not in text
+    result = mjcf_round_trip(calibrated, model, text, *_states(robot, 100))
+    assert result.max_rel_error < 1e-9, result
 
 
 def test_a_model_without_standard_parameters_or_inconsistent_is_refused(tmp_path, scara):

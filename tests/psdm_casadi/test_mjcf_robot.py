@@ -67,6 +67,30 @@ ARM = """<mujoco model="arm4">
 """
 
 
+# The arm with a Menagerie-style gripper in place of its tool: two slide fingers coupled by a fixed tendon and an
+# equality constraint, driven through the tendon.
+HAND = ARM.replace(
+    """<body name="tool" pos="0 0 0.08" euler="0 90 0">
+                <inertial pos="0 0 0.02" mass="0.4" diaginertia="0.0005 0.0005 0.0002"/>
+                <site name="tcp"/>
+              </body>""",
+    """<body name="hand" pos="0 0 0.08" euler="0 90 0">
+                <inertial pos="0 0 0.02" mass="0.4" diaginertia="0.0005 0.0005 0.0002"/>
+                <body name="left" pos="0 0 0.05"><joint name="f1" type="slide" axis="0 1 0" range="0 0.04"/>
+                  <inertial pos="0 0.01 0.02" mass="0.05" diaginertia="2e-5 2e-5 1e-5"/></body>
+                <body name="right" pos="0 0 0.05" quat="0 0 0 1">
+                  <joint name="f2" type="slide" axis="0 1 0" range="0 0.04"/>
+                  <inertial pos="0 0.01 0.02" mass="0.05" diaginertia="2e-5 2e-5 1e-5"/></body>
+              </body>""",
+).replace(
+    "<actuator>",
+    '<tendon><fixed name="split"><joint joint="f1" coef="0.5"/><joint joint="f2" coef="0.5"/></fixed></tendon>\n'
+    '  <equality><joint joint1="f1" joint2="f2"/></equality>\n'
+    '  <actuator><general name="grip" tendon="split" ctrlrange="0 255" gainprm="0.01 0 0" biasprm="0 -100 -10" '
+    'biastype="affine"/>',
+)
+
+
 def _mujoco_inverse(text, q, qd, qdd):
     """MuJoCo's rigid-body inverse dynamics of the file (constraints, passive forces and armature off)."""
     text = re.sub(r"<asset>.*?</asset>|material=\"grey\"", "", text, flags=re.S)  # no mesh files: spheres
@@ -79,10 +103,10 @@ def _mujoco_inverse(text, q, qd, qdd):
     mj.dof_armature[:] = 0.0
     data = mujoco.MjData(mj)
     out = []
-    for x in zip(q, qd, qdd):
-        data.qpos[:], data.qvel[:], data.qacc[:] = x
+    for x in zip(q, qd, qdd):  # joints beyond the arm's (a gripper's fingers) at 0, still
+        data.qpos[:], data.qvel[:], data.qacc[:] = (np.r_[v, np.zeros(mj.nv - len(v))] for v in x)
         mujoco.mj_inverse(mj, data)
-        out.append(data.qfrc_inverse.copy())
+        out.append(data.qfrc_inverse[: len(x[0])].copy())
     return np.array(out)
 
 
@@ -128,8 +152,10 @@ def _broken(tmp_path, old, new, name="bad.xml"):
         ('<body name="link1" pos="0 0 0.3">', '<body name="link1" pos="0 0 0.3"><freejoint/>', "free joint"),
         ('<joint name="j1" class="arm"/>', '<joint name="j1" type="ball"/>', "joint 'j1' is a ball joint"),
         ('<joint name="j1" class="arm"/>', '<joint name="j1" class="arm"/><joint name="j0"/>', "has 2 joints"),
-        ("<actuator>", '<tendon><fixed name="t"><joint joint="j1" coef="1"/></fixed></tendon><actuator>', "tendons"),
-        ("<actuator>", '<equality><joint joint1="j1" joint2="j4"/></equality><actuator>', "equality constraints"),
+        ("<actuator>", '<tendon><fixed name="t"><joint joint="j1" coef="1"/></fixed></tendon><actuator>',
+         "fixed tendon 't'"),
+        ("<actuator>", '<equality><joint joint1="j1" joint2="j4"/></equality><actuator>',
+         "equality constraint <joint>"),
         ('<body name="link4"', '<body name="twin"><joint name="jt"/><inertial pos="0 0 0" mass="1" '
          'diaginertia="1 1 1"/></body><body name="link4"', "branches: bodies 'twin' and 'link4'"),
         ("<worldbody>", '<include file="other.xml"/><worldbody>', "<include>"),
@@ -218,3 +244,21 @@ def test_psdm_derive_takes_an_mjcf_file(arm, capsys):
     assert main(["derive", str(arm), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["robot"] == "arm4" and summary["max_rel_error_vs_pinocchio"] < 1e-12
+
+
+def test_a_gripper_is_read_with_its_fingers_locked(tmp_path):
+    """Menagerie's gripper pattern: refused as it is (tendon), read with --lock f1 f2 as MuJoCo's arm holding it."""
+    path = tmp_path / "hand.xml"
+    path.write_text(HAND)
+    with pytest.raises(RobotFileError, match="fixed tendon 'split'.*lock the joints it couples"):
+        load_robot(path)
+    robot = load_robot(path, locked_joints=("f1", "f2"))
+    assert robot.joint_names == ("j1", "j2", "j3", "j4")
+    q, qd, qdd = _states(robot)
+    expected = _mujoco_inverse(HAND, q, qd, qdd)
+    ours = PinocchioOracle(robot).rnea(q, qd, qdd)
+    assert np.abs(ours - expected).max() <= 1e-12 * np.abs(expected).max()
+    with pytest.raises(RobotFileError, match="branches: bodies 'left' and 'right'.*--lock"):
+        load_robot(path.with_name("fingers.xml"), locked_joints=()) if path.with_name("fingers.xml").write_text(
+            re.sub(r"<tendon>.*?</equality>", "", HAND, flags=re.S).replace('tendon="split"', 'joint="f1"')
+        ) else None
