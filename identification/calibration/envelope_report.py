@@ -169,11 +169,17 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma) -
         if drive and drive_push >= floor[i]:
             pushed[(i, "drive")] = (drive, "drive_inertia", drive_push)
     payload = any(absorbs == "payload" for _, absorbs, _ in pushed.values())
+    low = [i for (i, kind), (names, _, _) in pushed.items() if kind == "drive" and "drive inertia lower" in names]
+    rotors = int(np.sum(bounds.rotor_lower > 0))
     out = []
     for (i, kind), (names, absorbs, push) in pushed.items():
         if payload and kind == "link" and ("envelope" in names or "mass upper" in names):
             absorbs = "payload"  # a payload pulls every link outward: the proximal ones too
-        joint = {"payload": int(np.argmax(ratio)), "drive_inertia": i}.get(absorbs, int(np.argmax(ratio[: i + 1])))
+        if i in low and kind == "drive" and len(low) <= rotors // 2:  # one joint's, not the torque signal's
+            absorbs = "counterbalance"
+        joint = (
+            i if kind == "drive" else {"payload": int(np.argmax(ratio))}.get(absorbs, int(np.argmax(ratio[: i + 1])))
+        )
         if kind == "link" and push < floor[joint] and ratio[joint] < MIN_REFUSED_SIGMA:
             continue
         envelope = bounds.envelopes[i]
@@ -212,7 +218,15 @@ def _message(finding: EnvelopeFinding, robot) -> str:
         if any(b.startswith("mass") for b in finding.bounds)
         else ""
     )
-    if finding.absorbs == "counterbalance":
+    drive = any(b.startswith("drive") for b in finding.bounds)
+    if finding.absorbs == "counterbalance" and drive:
+        cause = (
+            f"most likely a spring or counterbalance on {joint_label(k, robot)}: on a periodic motion a torque "
+            "that follows the position looks like a negative inertia, and this joint alone presses its drive "
+            "inertia down (a torque signal without the rotors would press every joint's); or the robot file's "
+            f"rotor inertia of this joint is off; {DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}"
+        )
+    elif finding.absorbs == "counterbalance":
         cause = (f"most likely a counterbalance or spring on {joint_label(k, robot)} (a gravity-like torque the "
                  f"link's mass would otherwise absorb){file_off}; "
                  f"{DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}")  # fmt: skip
@@ -224,13 +238,13 @@ def _message(finding: EnvelopeFinding, robot) -> str:
     elif "drive inertia lower" in finding.bounds:
         cause = (
             "a torque signal with less drive inertia than the robot file's: torques measured on the link side of "
-            "the gearbox (joint torque sensors) hold none (identify with --no-drive-inertia); or a spring or "
+            "the gearbox (joint torque sensors) hold none (identify with --drive-inertia off); or a spring or "
             "counterbalance on the joint, which a periodic motion makes look like a negative inertia; "
             f"{DIAGNOSE_ROUTE.format(what='a spring')}"
         )
     else:
         cause = "extra inertia on the joint (a coupled load, a heavier gear), or the robot file's rotor inertia is off"
-    label = f"link {i + 1}" if finding.absorbs != "drive_inertia" else f"the drive of {joint_label(i, robot)}"
+    label = f"the drive of {joint_label(i, robot)}" if drive else f"link {i + 1}"
     return f"{label} is pushed against {_pushed_what(finding)}: {refused}. This is {cause}."
 
 

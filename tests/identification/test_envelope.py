@@ -294,3 +294,29 @@ def test_an_mjcf_robots_envelope_comes_from_its_kinematic_lengths(tmp_path):
     assert {e.source for e in envelopes} == {"kinematic lengths"}
     prior = robot.nominal_dynamic_parameters()
     assert all(envelope_fill(prior[i], e) <= PRIOR_FILL + 1e-9 for i, e in enumerate(envelopes) if prior[i, 0] > 0)
+
+
+def test_one_drive_pressed_down_is_a_spring_every_drive_is_the_torque_signal(denso):
+    from types import SimpleNamespace
+
+    from identification.calibration.consistent_fit import FitBounds
+    from identification.calibration.envelope_report import envelope_findings
+
+    n, prior = denso.n_dof, denso.nominal_dynamic_parameters()
+    rotor = prior[:, -1]
+    equations = SimpleNamespace(count=np.full(n, 1000.0), residual_sum=lambda x: np.full(n, 1000.0) * (1.0 + x[0]))
+    sigma = np.ones(n)
+
+    def findings(low_joints):
+        standard = prior.copy()
+        standard[low_joints, -1] = 0.5 * rotor[low_joints]
+        pressure = np.zeros((n, 3))
+        pressure[low_joints, 2] = 500.0  # well above MIN_PRESSURE x 1000 samples
+        bounds = FitBounds((None,) * n, np.zeros(n), np.full(n, np.inf), 0.5 * rotor, 2.0 * rotor, pressure)
+        return envelope_findings(denso, bounds, standard, equations, np.array([0.2]), np.array([0.0]), sigma)
+
+    (one,) = findings([1])
+    assert one.absorbs == "counterbalance" and one.joint == 1 and "spring or counterbalance on joint 2" in one.message
+    every = findings(list(range(n)))
+    assert len(every) == n and {f.absorbs for f in every} == {"drive_inertia"}
+    assert all("link side of the gearbox" in f.message for f in every)
