@@ -195,7 +195,7 @@ def _square_joint_origins(path: Path, model: pin.Model) -> None:
         if 0.0 < gap < RIGHT_ANGLE_TOLERANCE and is_rotation and np.linalg.det(exact) > 0:
             placement.rotation = exact
             model.jointPlacements[jid] = placement
-            squared.append(model.names[jid])
+            squared += [model.names[jid]] if gap > 1e-12 else []  # not the round-off of an exact pi/2
     if squared:
         _state_once(
             f"{path.name}: the origins of {', '.join(squared)} are within {RIGHT_ANGLE_TOLERANCE:g} rad of right "
