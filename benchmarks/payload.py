@@ -129,7 +129,10 @@ def diagnose_row(robot, model, fit, duration: float, seed: int) -> dict:
     report = diagnose(calibrated_robot(calibrated, robot), train, validation,
                       DiagnosisOptions(friction="coulomb_viscous"), model=model)  # fmt: skip
     payloads = [f for f in report.findings if f.effect == "payload"]
+    _, _, prepared, predicted = validation_rmse(calibrated, model, validation)
+    check = new_payload(robot, prepared, predicted)  # what diagnose MODEL prints beside the findings
     return {
+        "payload_check_kg": None if check is None else check.mass,
         "findings": [f.effect for f in report.findings],
         "payload_mass_kg": (payloads[0].parameters or {}).get("mass") if payloads else None,
         "spring_found": any(f.effect == "spring" for f in report.findings),

@@ -145,6 +145,7 @@ def _run_diagnose(args) -> int:
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     report = diagnose(robot, train, validation, options, model=model, derive=lambda r: derive_model(args, r))
     report = _named(args, report, preparation, (calibrated, robot_file, model), validation)
+    load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -153,15 +154,30 @@ def _run_diagnose(args) -> int:
         payload = report.to_dict()
         payload["command"] = "diagnose"
         payload["files"] = {k: str(v) for k, v in paths.items()}
+        payload["payload_check"] = None if load is None else load.to_dict()
         if apply_out is None:
             print_json(payload)
     else:
         print(report.to_markdown(paths))
+        if load is not None:
+            print(f"\n## Payload check (as psdm validate)\n\n{load.sentence()}")
     if apply_out is None:
         return 0
     return _apply(
         args, calibrated, robot_file, model, report, (train, validation), apply_out, payload if args.json else None
     )
+
+
+def _payload_check(args, calibrated, robot, model, validation):
+    """A load the model file does not have in the validation recording, as ``psdm validate`` names it
+    (``payload_check.new_payload``: mass and centre of mass at the flange), or None."""
+    import numpy as np
+
+    from identification.calibration.payload_check import new_payload, validation_with_payload
+
+    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
+    return new_payload(robot, prepared, predicted, name=str(args.validate))
 
 
 def _preparation(args, calibrated, train):

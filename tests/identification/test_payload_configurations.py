@@ -141,16 +141,19 @@ def test_a_payload_in_new_recordings_of_a_calibrated_arm_is_named_by_validate(de
     from tests.conftest import DENSO_FILE
 
     known = [PayloadConfiguration(), PayloadConfiguration("mass", payload=KNOWN, stated=True)]
-    arm = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["known"]],
-                                TrajectoryOptions(consistency=False), configurations=known)  # fmt: skip
-    model_file = CalibratedModel.from_fit(denso, denso_model, arm, robot_source=DENSO_FILE)
-    model_file.save(tmp_path / "arm.json", allow_inconsistent=True)  # not checked: the base parameters predict
+    arm = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["known"]], configurations=known)
+    CalibratedModel.from_fit(denso, denso_model, arm, robot_source=DENSO_FILE).save(tmp_path / "arm.json")
     paths = [save_recording(recorded[k], tmp_path / f"{k.replace(' ', '_')}.npz") for k in ("unknown", "empty again")]
     assert main(["validate", str(tmp_path / "arm.json"), *map(str, paths), "--json"]) == 0
     loaded, empty = json.loads(capsys.readouterr().out)["recordings"]
     assert empty["payload"] is None
     assert loaded["payload"]["mass"] == pytest.approx(UNKNOWN.mass, rel=0.2)
     assert np.linalg.norm(np.subtract(loaded["payload"]["com"], UNKNOWN.com)) < 0.03
+    # diagnose of the model file names it too, beside its findings
+    argv = ["diagnose", str(tmp_path / "arm.json"), "--train", str(paths[0]), "--validate", str(paths[0]), "--json"]
+    assert main([*argv, "--max-effects", "0", "--no-sparse"]) == 0
+    check = json.loads(capsys.readouterr().out)["payload_check"]
+    assert check["mass"] == pytest.approx(UNKNOWN.mass, rel=0.2)
 
 
 def test_identify_reads_a_manifest_stores_the_configurations_and_refuses_bad_ones(recorded, tmp_path, capsys):
