@@ -12,16 +12,17 @@ import pytest
 
 from identification.data.io import load_recording
 from identification.data.layout import ColumnLayout
+from psdm_casadi.cli import main
 from psdm_casadi.errors import ParameterError, RecordingError
 
 N = 50
 
 
-def vendor_log(tmp_path, time=None, name="log.csv"):
+def vendor_log(tmp_path, time=None, name="log.csv", joints=2):
     rng = np.random.default_rng(0)
     columns = {"Time": np.arange(N, dtype=float) if time is None else time}
     for group in ("Position", "Velocity", "Torque", "TorqueSm", "Cur", "PositionCmptd"):
-        for k in (1, 2):
+        for k in range(1, joints + 1):
             columns[f"{group}{k}"] = rng.normal(size=N)
     columns["PositionCmptd2"][-5:] = [np.nan, 1e297, -1e297, 4e-320, np.nan]  # garbage rows of unset references
     path = tmp_path / name
@@ -79,3 +80,20 @@ def test_a_log_without_a_layout_or_rate_is_refused_with_the_fix(tmp_path):
 def test_bad_layout_options_are_refused(text, rate, match):
     with pytest.raises(ParameterError, match=match):
         ColumnLayout.parse(text, rate)
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        ((), "the columns are not t, q1..qn"),
+        (("--columns", "t=Time,q=Position,tau=Torq", "--rate", "1000"), "--columns tau=torq names no column"),
+        (("--columns", "t=Time,q=Position,tau=TorqueSm"), "the time column counts samples"),
+    ],
+    ids=["no layout", "wrong prefix", "no rate"],
+)
+def test_the_commands_take_the_layout_and_refuse_a_log_without_it(tmp_path, capsys, options, message):
+    path, _ = vendor_log(tmp_path, joints=6)
+    for command in (["identify", "denso_vs6556g", "--data", str(path), "--out", str(tmp_path / "m.json")],
+                    ["diagnose", "denso_vs6556g", "--train", str(path), "--validate", str(path)]):  # fmt: skip
+        assert main([*command, *options]) == 2
+        assert message in capsys.readouterr().err.lower()
