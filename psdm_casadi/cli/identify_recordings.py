@@ -168,11 +168,15 @@ def run(args) -> int:
 
 
 def _concrete_route(warning: str, args, paths) -> str:
-    """A warning's suggested ``psdm diagnose`` command with this run's robot and recordings in it."""
+    """A warning's suggested ``psdm diagnose`` command with this run's robot and recordings (and how they are
+    read: ``--columns``, ``--rate``) in it."""
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
     validate = args.validate[0] if args.validate else "OTHER.csv"
-    return warning.replace(DIAGNOSE_COMMAND, f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}")
+    layout = "".join(f" --{key} {getattr(args, key)}" for key in ("columns", "rate") if getattr(args, key, None))
+    return warning.replace(
+        DIAGNOSE_COMMAND, f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}{layout}"
+    )
 
 
 def _columns(args, robot, model, recordings, validation, configurations):

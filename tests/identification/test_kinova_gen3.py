@@ -91,4 +91,5 @@ def test_identify_on_defaults_from_the_sensors_is_plausible_and_finds_the_tool(r
     assert np.all((mass > urdf / 5) & (mass < urdf * 5)), mass
     assert np.all(com < 0.5), com  # every centre of mass within the arm's 0.42 m longest link plus a margin
     assert mass[-1] > 1.5 * urdf[-1]  # the tool, carried by the last link, named as such
-    assert any(w.startswith("link 7 ") and "tool at the flange" in w for w in report["warnings"])
+    (tool,) = [w for w in report["warnings"] if w.startswith("link 7 ") and "tool at the flange" in w]
+    assert "--columns t=Time,q=Position,tau=TorqueSm'" in tool  # the diagnose it suggests reads the logs too
