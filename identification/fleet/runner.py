@@ -5,7 +5,7 @@ sends them to the workers (``Client.scatter``) and submits one :func:`~identific
 task per new robot-day; it writes each result as it completes (``as_completed``), so an interrupted run (Ctrl-C, a
 killed client, a power cut) keeps every session written and the next run resumes with the rest. A worker that dies
 has its tasks rerun by Dask; a task that still fails is stored as a failed session. Then the drift tests run on
-the whole history (``drift``) and their findings replace the stored ones.
+the whole history (``drift``, then the fleet-relative ``fleet_check``) and their findings replace the stored ones.
 
 By default the tasks run on an embedded ``distributed.LocalCluster`` (one single-threaded worker process per core,
 or ``workers``); ``scheduler`` names an existing Dask cluster instead; ``serial`` runs them in this process (the
@@ -22,13 +22,14 @@ from dataclasses import dataclass
 
 from identification.fleet.baseline import SharedModels, build_baseline
 from identification.fleet.drift import DriftOptions, detect_drift
+from identification.fleet.fleet_check import FleetCheckOptions, fleet_outliers
 from identification.fleet.history import History
 from identification.fleet.layout import Fleet
 from identification.fleet.plan import plan_run
 from identification.fleet.session import SessionResult, process_session, software_version
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["RunOptions", "RunSummary", "dask_client", "run_fleet"]
+__all__ = ["RunOptions", "RunSummary", "dask_client", "import_task_modules", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
@@ -44,6 +45,7 @@ class RunOptions:
     serial: bool = False
     stop_after: int | None = None
     drift: DriftOptions = DriftOptions()
+    fleet: FleetCheckOptions = FleetCheckOptions()
 
     def __post_init__(self):
         if self.workers is not None and not (isinstance(self.workers, int) and self.workers >= 1):
@@ -81,7 +83,13 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
     n = workers or os.cpu_count() or 1
     with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
         with Client(cluster) as client:
+            client.run(import_task_modules)  # each worker imports the task's modules once, at start-up
             yield client
+
+
+def import_task_modules() -> None:
+    """Import what a robot-day task needs (CasADi, Pinocchio, SciPy, the readers): run on a worker at start-up."""
+    import identification.fleet.session  # noqa: F401
 
 
 def _baselines(fleet: Fleet, robot_ids: set, derive) -> tuple:
@@ -173,7 +181,7 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
                             break
                     if hasattr(results, "close"):
                         results.close()
-            findings = [] if interrupted else detect_drift(history.parameter_rows(), options.drift)
+            findings = [] if interrupted else _findings(history, options, fleet.baseline_days)
             if not interrupted:
                 history.replace_findings(run_id, findings)
                 status = "done"
@@ -182,6 +190,12 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
     seconds = time.perf_counter() - start
     return RunSummary(run_id, len(plan.tasks), processed, failed, len(plan.tasks) - len(todo), len(plan.duplicates),
                       seconds, where, len(findings), interrupted)  # fmt: skip
+
+
+def _findings(history: History, options: RunOptions, baseline_days: int) -> list:
+    """The drift findings of each robot against its baseline window, then the fleet-relative ones."""
+    rows = history.parameter_rows()
+    return detect_drift(rows, options.drift, baseline_days) + fleet_outliers(rows, options.fleet)
 
 
 @contextmanager

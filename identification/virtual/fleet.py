@@ -110,8 +110,10 @@ def _events(options: VirtualFleetOptions, ids: list, rng) -> list:
     for k, robot_id in enumerate(ids[:n_events]):
         kind = EVENT_KINDS[k % len(EVENT_KINDS)]
         onset = int(rng.integers(options.baseline_days + 2, max(options.baseline_days + 3, options.n_days - 4)))
-        joint = {"spring_loss": options.spring_joint, "ripple_growth": options.ripple_joint,
-                 "payload_change": 0}.get(kind, int(rng.integers(1, 7)))  # fmt: skip
+        # a torque constant is identifiable with the rigid body held only where that torque is large beside the
+        # friction (the daily update holds the others): its drop goes on joints 1-3 (else it reads as friction)
+        joint = {"spring_loss": options.spring_joint, "ripple_growth": options.ripple_joint, "payload_change": 0,
+                 "kt_drop": int(rng.integers(1, 4))}.get(kind, int(rng.integers(1, 7)))  # fmt: skip
         parameter = {"friction_wear": f"fc{joint}", "viscous_rise": f"fv{joint}", "spring_loss": f"spring_k_{joint}",
                      "payload_change": "payload_mass", "kt_drop": f"kt{joint}",
                      "ripple_growth": f"ripple_amp{options.ripple_harmonic}_{joint}"}[kind]  # fmt: skip

@@ -179,3 +179,31 @@ def test_cli_run_status_report(tiny_fleet, tmp_path, capsys):
     assert page.count("Plotly.newPlot") == 3 and "<script" in page and "r03" in page
     assert main(["fleet", "run", str(tmp_path / "nowhere")]) == 2
     assert "no such fleet folder" in capsys.readouterr().err
+
+
+def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluster, tmp_path):
+    """A worker process killed mid-run (its nanny restarts it; Dask reruns its tasks): every robot-day once."""
+    import os
+    import threading
+
+    fleet = read_fleet(tiny_fleet[0])
+    victim = sorted(cluster.scheduler_info()["workers"])[0]
+    killed = threading.Event()
+
+    def kill():
+        try:
+            cluster.run(os._exit, 1, workers=[victim])
+        except Exception:  # the worker's death breaks the call's own reply
+            pass
+        killed.set()
+
+    timer = threading.Timer(1.0, kill)
+    timer.start()
+    summary = run_fleet(fleet, tmp_path / "h.duckdb", derive=derive, client=cluster)
+    timer.join()
+    assert killed.is_set() and summary.seconds > 1.0  # the kill fell inside the run
+    assert (summary.processed, summary.failed) == (18, 0)
+    reference = tmp_path / "ref.duckdb"
+    run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
+    assert _close(tmp_path / "h.duckdb", reference)
+    cluster.wait_for_workers(2, timeout=60)
