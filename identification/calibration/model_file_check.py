@@ -207,11 +207,7 @@ def check_document(document: dict, name: str) -> None:
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])
-    configurations = document.get("configurations") if document.get("configurations") is not None else []
-    if not isinstance(configurations, list) or not all(isinstance(e, dict) for e in configurations):
-        raise _refuse(
-            name, "configurations", "a list of objects (the payload configurations)", repr(configurations)[:80]
-        )
+    _check_configurations(name, document.get("configurations"))
     warnings = document.get("warnings") if document.get("warnings") is not None else []  # null: none stored
     if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
         raise _refuse(name, "warnings", "a list of strings (the warnings of 'psdm identify')", repr(warnings)[:80])
@@ -286,3 +282,17 @@ def _check_consistency_claim(name: str, standard, model) -> None:
             f"{name}: standard.consistent is true, but drive inertias must be >= 0; got {listed} "
             f"(standard.values). {FIX}."
         )
+
+
+def _check_configurations(name: str, configurations) -> None:
+    """The optional ``configurations`` block: a list of objects with a text name, a kind and their recordings."""
+    configurations = [] if configurations is None else configurations
+    if not isinstance(configurations, list) or not all(isinstance(e, dict) for e in configurations):
+        got = repr(configurations)[:80]
+        raise _refuse(name, "configurations", "a list of objects (the payload configurations)", got)
+    for k, entry in enumerate(configurations):
+        if not isinstance(entry.get("name"), str) or entry.get("kind") not in ("none", "known", "unknown"):
+            got = f"name {entry.get('name')!r}, kind {entry.get('kind')!r}"
+            raise _refuse(name, f"configurations[{k}]", "a name and a kind among none, known, unknown", got)
+        if not isinstance(entry.get("recordings"), list):
+            raise _refuse(name, f"configurations[{k}].recordings", "a list of recording names", entry.get("recordings"))

@@ -172,6 +172,17 @@ def test_identify_reads_a_manifest_stores_the_configurations_and_refuses_bad_one
     assert payload["name"] == "gripper" and payload["mass"] == pytest.approx(UNKNOWN.mass, rel=0.15)
     stored = json.loads(out.read_text())["configurations"]
     assert [c["kind"] for c in stored] == ["none", "unknown"] and stored[1]["recordings"] == ["unknown.npz"]
+    from identification.calibration.calibrated_model import load_calibrated_model
+    from psdm_casadi.errors import ModelFileError
+
+    document = json.loads(out.read_text())
+    document["configurations"][1]["kind"] = "maybe"
+    (tmp_path / "bad.json").write_text(json.dumps(document))
+    with pytest.raises(ModelFileError, match=r"configurations\[1\] must be a name and a kind"):
+        load_calibrated_model(tmp_path / "bad.json")
+    del document["configurations"]  # a file written before configurations existed still reads: none stated
+    (tmp_path / "old.json").write_text(json.dumps(document))
+    assert load_calibrated_model(tmp_path / "old.json").configurations == []
     (tmp_path / "unknown.payload.json").write_text('{"unknown": "gripper"}')  # validated with the identified load
     assert main(["validate", str(out), str(tmp_path / "empty.npz"), str(tmp_path / "unknown.npz"), "--json"]) == 0
     empty, loaded = json.loads(capsys.readouterr().out)["recordings"]
