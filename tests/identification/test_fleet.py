@@ -207,3 +207,29 @@ def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluste
     run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
     assert _close(tmp_path / "h.duckdb", reference)
     cluster.wait_for_workers(2, timeout=60)
+
+
+def test_a_calibrated_model_is_a_baseline(tiny_fleet, derive, denso_model, tmp_path):
+    """r01's baseline is a calibrated-model file identified from its first days: the fleet refits on top of it."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+    from identification.data.io import load_recording
+    from psdm_casadi.robot import load_robot
+
+    folder = _copy(tiny_fleet, tmp_path)
+    robot = load_robot(folder / "r01" / "robot.toml")
+    days = read_fleet(folder).robots[0].days[:3]
+    recordings = [load_recording(d.paths[0], robot.n_dof) for d in days]
+    fit = identify_trajectories(robot, denso_model, recordings, TrajectoryOptions(consistency=False))
+    calibrated = CalibratedModel.from_fit(robot, denso_model, fit, robot_source=folder / "r01" / "robot.toml")
+    calibrated.save(folder / "r01" / "baseline.json", allow_inconsistent=True)
+    fleet = read_fleet(folder)
+    assert fleet.robots[0].baseline_kind == "calibrated"
+    run_fleet(fleet, tmp_path / "h.duckdb", RunOptions(serial=True), derive=derive)
+    with History(tmp_path / "h.duckdb") as history:
+        rows = history.validation_rows()
+        counts = {r[0]: r[1:3] for r in history.session_counts()}
+    assert counts["r01"] == (6, 0)
+    first = [r for r in rows if r[0] == "r01" and str(r[1]) == days[0].day]
+    # on a day it was identified from, the calibrated model explains the torque about as well as the refit
+    assert all(baseline < 1.5 * refit + 0.05 for _, _, _, baseline, refit in first), first
