@@ -111,14 +111,14 @@ def copied_mjcf(calibrated, robot) -> str:
     fields, unit = joint_fields(calibrated, robot), _angle_unit(root)
     moving = set()
     for j, name in enumerate(robot.joint_names):
-        node, body = joints[name], joints[name].parentNode
+        node, body = joints[name], _body_of(joints[name])
         moving.add(body)
         offset = np.array(compiled.jnt_pos[mujoco.mj_name2id(compiled, mujoco.mjtObj.mjOBJ_JOINT, name)])
         attributes, note = inertial_attributes(_moved(calibrated.standard[j, :N_LINK], offset))
         _replace_inertial(document, body, attributes, note or f"psdm: the identified body of joint {name!r}")
         for key, value in joint_attributes(fields, j, unit if robot.joints[j].is_revolute else 1.0):
             node.setAttribute(key, value)
-        _insert(document, body, comment(document, fields.notes[j]), node)
+        _insert(document, node.parentNode, comment(document, fields.notes[j]), node)
     for body in _elements(root, "body"):
         if body not in moving and _carried(body, moving):
             for inertial in [n for n in body.childNodes if n.nodeType == n.ELEMENT_NODE and n.tagName == "inertial"]:
@@ -144,11 +144,19 @@ def _moved(parameters, offset) -> np.ndarray:
     return pin.SE3(np.eye(3), np.asarray(offset, dtype=float)).act(inertia).toDynamicParameters()
 
 
+def _body_of(node):
+    """The ``<body>`` an element belongs to (through ``<frame>`` elements), None at the world."""
+    node = node.parentNode
+    while node is not None and node.nodeType == node.ELEMENT_NODE and node.tagName == "frame":
+        node = node.parentNode
+    return node if node is not None and node.nodeType == node.ELEMENT_NODE and node.tagName == "body" else None
+
+
 def _carried(body, moving: set) -> bool:
     """Whether a body without a joint hangs from a moving body (its inertia was lumped into that body)."""
-    node = body.parentNode
-    while node is not None and node.nodeType == node.ELEMENT_NODE and node.tagName == "body":
+    node = _body_of(body)
+    while node is not None:
         if node in moving:
             return True
-        node = node.parentNode
+        node = _body_of(node)
     return False

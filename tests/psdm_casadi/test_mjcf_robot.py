@@ -22,8 +22,9 @@ from tests.conftest import example_robot_urdf
 PANDA_LOCKED = ("panda_finger_joint1", "panda_finger_joint2")
 
 # A Menagerie-style arm: degrees, default classes for the axes and ranges, frames by pos/quat/euler/axisangle/
-# xyaxes, a joint off its body's origin, a joint with ref, a slide joint, a welded tool, fullinertia and
-# diaginertia + quat, mesh geoms whose files are absent, a contact pair, an actuator's force range, a base body.
+# xyaxes and <frame> elements, a joint off its body's origin, a joint with ref, a slide joint, a welded tool,
+# fullinertia and diaginertia + quat, mesh geoms whose files are absent, a contact pair, an actuator's force
+# range, a base body.
 ARM = """<mujoco model="arm4">
   <compiler angle="degree" meshdir="assets" boundinertia="1e-6"/>
   <option gravity="0 -1.5 -9.7"/>
@@ -41,21 +42,21 @@ ARM = """<mujoco model="arm4">
         <inertial pos="0.01 0.02 0.1" mass="3.2" fullinertia="0.05 0.04 0.02 0.001 -0.002 0.003"/>
         <geom name="g1" type="mesh" mesh="link"/>
         <body name="link2" pos="0 0.1 0.2" axisangle="1 0 0 -90">
-          <joint name="j2" class="wrist" pos="0 0 0.05" ref="10"/>
+          <frame><joint name="j2" class="wrist" pos="0 0 0.05" ref="10"/></frame>
           <inertial pos="0.2 0 0.01" quat="0.9 0.1 0.3 0.2" mass="2.1" diaginertia="0.03 0.025 0.01"/>
           <geom type="mesh" mesh="link" material="grey"/>
           <body name="link3" pos="0.4 0 0" xyaxes="0 1 0 -1 0 0">
             <joint name="j3" type="slide" axis="1 0 0" range="-0.1 0.2"/>
             <inertial pos="0.05 0 0" mass="1.1" diaginertia="0.004 0.006 0.005"/>
             <geom name="g3" type="box" size="0.05 0.02 0.02"/>
-            <body name="link4" pos="0.1 0 0" quat="0.7 0.1 0.7 0.1">
+            <frame pos="0.05 0 0" euler="0 0 20"><body name="link4" pos="0.05 0 0" quat="0.7 0.1 0.7 0.1">
               <joint name="j4" class="arm" axis="0.6 0 0.8"/>
               <inertial pos="0 0.01 0.03" mass="0.6" diaginertia="0.001 0.0012 0.0008"/>
               <body name="tool" pos="0 0 0.08" euler="0 90 0">
                 <inertial pos="0 0 0.02" mass="0.4" diaginertia="0.0005 0.0005 0.0002"/>
                 <site name="tcp"/>
               </body>
-            </body>
+            </body></frame>
           </body>
         </body>
       </body>
