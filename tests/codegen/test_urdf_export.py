@@ -149,7 +149,9 @@ def test_the_tx40_from_a_robot_file_round_trips_with_its_base_turned(tmp_path):
     error = _round_trip_error(calibrated, model, path, robot)
     assert error < 1e-9, error
     text = path.read_text()
-    assert "RAL 1028" in text and '<child link="base_link"/>' in text and np.all(urdf_armature(calibrated, robot) > 0)
+    # the recording holds no drive inertia: the model's are >= 0 (some at their bound 0), and some joint's is carried
+    armature = urdf_armature(calibrated, robot)
+    assert "RAL 1028" in text and '<child link="base_link"/>' in text and np.all(armature >= 0) and armature.max() > 0
 
 
 @pytest.mark.parametrize("variant", ["modified", "scara"])
