@@ -2,8 +2,9 @@
 
 A fleet table (robot, last recording day, sessions ok and failed, status, alarms), then per robot the trend of
 every tracked parameter that alarmed (or, for a quiet robot, its friction and the baseline's validation error)
-with its sigma band and the onset marker of each finding, and the failed sessions with their errors. Plots, not
-walls of numbers: the page holds one plotly figure per robot.
+with its sigma band and the onset marker of each finding, the baseline model's validation RMSE per joint over the
+days (the cheapest drift signal), and the failed sessions with their errors. Plots, not walls of numbers: the page
+holds two plotly figures per robot.
 """
 
 from __future__ import annotations
@@ -89,6 +90,21 @@ def _figure(robot_id: str, series: dict, findings: list):
     return fig
 
 
+def _validation_figure(robot_id: str, rows: list):
+    """The baseline model's validation RMSE per joint over the days: the cheapest drift signal."""
+    import plotly.graph_objects as go
+
+    fig = go.Figure()
+    for joint in sorted({r[2] for r in rows}):
+        mine = [r for r in rows if r[2] == joint]
+        fig.add_trace(go.Scatter(x=[str(r[1]) for r in mine], y=[r[3] for r in mine], mode="lines",
+                                 name=f"joint {joint}"))  # fmt: skip
+    title = f"{robot_id}: the baseline model's torque RMSE per joint [N m]"
+    margin = {"l": 50, "r": 20, "t": 40, "b": 40}
+    fig.update_layout(title=title, height=260, margin=margin, xaxis_title="day", yaxis_title="RMSE [N m]")
+    return fig
+
+
 def _table(rows: list) -> str:
     lines = ["<table><tr><th>robot</th><th>last recording</th><th>sessions ok</th><th>failed</th><th>status</th>"
              "<th>alarms</th></tr>"]  # fmt: skip
@@ -117,13 +133,18 @@ def write_report(history: History, path, title: str = "Fleet report") -> Path:
         by_robot.setdefault(f[0], []).append(f)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
              f"<style>{STYLE}</style></head><body><h1>{html.escape(title)}</h1>", _table(rows)]  # fmt: skip
+    validation: dict = {}
+    for row in history.validation_rows():
+        validation.setdefault(row[0], []).append(row)
     first = True
     for r in rows:
         parts.append(f'<h2 id="{r.robot_id}">{html.escape(r.robot_id)}: {r.status}</h2>')
         if r.robot_id in series:
-            fig = _figure(r.robot_id, series[r.robot_id], by_robot.get(r.robot_id, []))
-            parts.append(pio.to_html(fig, full_html=False, include_plotlyjs=True if first else False))
-            first = False
+            figures = [_figure(r.robot_id, series[r.robot_id], by_robot.get(r.robot_id, [])),
+                       _validation_figure(r.robot_id, validation.get(r.robot_id, []))]  # fmt: skip
+            for fig in figures:
+                parts.append(pio.to_html(fig, full_html=False, include_plotlyjs=first))
+                first = False
     failures = history.failures()
     if failures:
         parts.append("<h2>Failed sessions</h2><ul>")

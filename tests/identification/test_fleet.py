@@ -176,7 +176,7 @@ def test_cli_run_status_report(tiny_fleet, tmp_path, capsys):
     assert [r["robot_id"] for r in status["robots"]] == ["r01", "r02", "r03"]
     assert main(["fleet", "report", "--db", str(db), "--out", str(tmp_path / "r.html")]) == 0
     page = (tmp_path / "r.html").read_text()
-    assert page.count("Plotly.newPlot") == 3 and "<script" in page and "r03" in page
+    assert page.count("Plotly.newPlot") == 6 and "<script" in page and "r03" in page
     assert main(["fleet", "run", str(tmp_path / "nowhere")]) == 2
     assert "no such fleet folder" in capsys.readouterr().err
 

@@ -42,7 +42,7 @@ def report(tmp_path, rng):
 
 def test_report_page_is_self_contained_with_table_plots_and_onsets(report):
     page = report.read_text()
-    assert page.count("Plotly.newPlot") == 2  # one figure per robot
+    assert page.count("Plotly.newPlot") == 4  # two figures per robot: the parameters, the validation error
     assert not re.search(r"<script[^>]+src=", page)  # plotly inlined: opens from disk without network
     assert re.search(r'<tr class="alarm"><td><a href="#r02">r02', page)
     found = re.search(r"joint 3 Coulomb friction \+(\d+) % since 2026-10-10 .*: gearbox wear or lubrication", page)
@@ -66,7 +66,7 @@ def _render(path) -> tuple:
 def test_report_renders_in_headless_chromium_without_console_errors(report, tmp_path):
     dom, console = _render(report)
     assert console == []
-    assert dom.count('class="main-svg"') >= 2 * 2  # plotly drew both figures (its SVG layers)
+    assert dom.count('class="main-svg"') >= 2 * 4  # plotly drew the four figures (its SVG layers)
     control = tmp_path / "bad.html"  # the check sees a console error when there is one
     control.write_text("<html><body><script>console.error('boom'); missing();</script></body></html>")
     assert any("boom" in line for line in _render(control)[1])
