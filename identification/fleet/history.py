@@ -61,11 +61,11 @@ class ParameterRow:
     sigma: float
 
 
-def _insert(con, table: str, rows: list) -> None:
+def _insert(con, table: str, rows: list, verb: str = "INSERT INTO") -> None:
     """Insert rows with one statement (DuckDB's executemany runs one statement per row: slow)."""
     if rows:
         values = ", ".join(["(" + ", ".join(["?"] * len(rows[0])) + ")"] * len(rows))
-        con.execute(f"INSERT INTO {table} VALUES {values}", [x for row in rows for x in row])
+        con.execute(f"{verb} {table} VALUES {values}", [x for row in rows for x in row])
 
 
 def _now() -> dt.datetime:
@@ -115,8 +115,10 @@ class History:
         """The recordings of the planned tasks and the duplicates dropped (idempotent)."""
         rows = [(t.robot_id, t.day, p, hashes[p], None) for t in tasks for p in t.paths]
         rows += [(d.robot_id, d.day, d.path, None, d.original) for d in duplicates]
-        if rows:
-            self.connection.executemany("INSERT OR REPLACE INTO recordings VALUES (?, ?, ?, ?, ?)", rows)
+        stored = set(self.connection.execute("SELECT robot_id, CAST(day AS VARCHAR), path FROM recordings").fetchall())
+        rows = [row for row in rows if row[:3] not in stored]
+        for start in range(0, len(rows), 500):
+            _insert(self.connection, "recordings", rows[start : start + 500], "INSERT OR REPLACE INTO")
 
     def write_session(self, run_id: int, result: SessionResult) -> None:
         """One session with its parameters and errors, in one transaction (nothing when already stored)."""
