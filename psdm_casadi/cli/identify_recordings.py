@@ -296,10 +296,13 @@ def _validation(robot, model, fit, recordings, paths, calibrated) -> dict:
     """Per-joint RMSE [N m] and R^2 on each held-out recording: ours, the unconstrained fit, the prior.
 
     Ours is the calibrated model's own prediction (``CalibratedModel.predict``, as ``psdm validate``); for a
-    LuGre model the unconstrained fit is the Stribeck one it started from.
+    LuGre model the unconstrained fit is the Stribeck one it started from. A recording's payload sidecar adds the
+    load's torque to every prediction (a known load as given, an unknown one as identified under its name).
     """
-    from identification.calibration.finding_value import validation_rmse
+    from identification.calibration.payload_check import validation_with_payload
+    from identification.calibration.payload_fit import FlangeRegressor, stated_payload
     from identification.calibration.trajectory_fit import predict_torque
+    from identification.data.configuration import stated_configuration
     from identification.metrics import rmse
     from psdm_casadi.oracle import PinocchioOracle
 
@@ -308,13 +311,15 @@ def _validation(robot, model, fit, recordings, paths, calibrated) -> dict:
     for path, recording in zip(paths, recordings):
         kt = None if recording.tau is not None else np.array([d.kt for d in robot.drives or ()], dtype=float)
         kt = kt if kt is not None and kt.size else None
-        error, r2, prepared, _ = validation_rmse(calibrated, model, recording, kt)
+        stated, _ = stated_payload(stated_configuration(path), calibrated.configurations, "the model")  # its sidecar
+        error, r2, prepared, _ = validation_with_payload(robot, calibrated, model, recording, kt, stated)
         x = (prepared.q, prepared.qd, prepared.qdd)
-        ols = predict_torque(model, fit, *x, ols=True)
+        load = 0.0 if stated is None else FlangeRegressor(robot)(*x) @ stated
+        ols = predict_torque(model, fit, *x, ols=True) + load
         entry = {"recording": str(path), "rmse": _list(error), "r2": _list(r2),
                  "rmse_ols": _list(rmse(prepared.tau, ols))}  # fmt: skip
         if prior is not None:
-            entry["rmse_prior"] = _list(rmse(prepared.tau, prior.rnea(*x)))
+            entry["rmse_prior"] = _list(rmse(prepared.tau, prior.rnea(*x) + load))
         out["recordings"].append(entry)
     return out
 
