@@ -10,6 +10,9 @@ least-squares sigma does not see, such as temperature) scale every later day's s
   spring);
 - **CUSUM** (two-sided, allowance ``k``, decision interval ``h``) for a slow drift (wear).
 
+The baseline model's validation RMSE per joint (the cheapest drift signal, :func:`validation_parameters`) is
+tested the same way: a rise says the model no longer explains the robot and names the diagnosis to run.
+
 False alarms are the enemy: both thresholds are family-wise over every series and day tested (Bonferroni at
 ``alpha``: the shift threshold is ``Phi^-1(1 - alpha / (2 M))``; ``h`` gives an in-control average run length
 above ``days M / alpha`` by Siegmund's approximation), and the CUSUM allowance covers the baseline mean's own
@@ -26,9 +29,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
+from identification.fleet.history import ParameterRow
 from identification.fleet.phrases import describe, meaning
 
-__all__ = ["DriftFinding", "DriftOptions", "cusum_interval", "detect_drift", "series_of"]
+__all__ = ["DriftFinding", "DriftOptions", "cusum_interval", "detect_drift", "series_of", "validation_parameters"]
+
+#: relative sigma of a day's validation RMSE (a floor: changes of a few % are not news; a wider scatter of the
+#: baseline window raises it through ``phi``)
+VALIDATION_SIGMA = 0.05
 
 
 @dataclass(frozen=True)
@@ -70,6 +78,13 @@ class Series:
     days: tuple
     values: np.ndarray
     sigmas: np.ndarray
+
+
+def validation_parameters(validation_rows) -> list:
+    """The baseline model's validation RMSE of each joint (``History.validation_rows()``) as parameters
+    ``rmse_<j>``, so that the same tests flag a day whose torque the baseline no longer explains."""
+    return [ParameterRow(robot_id, day, f"rmse_{joint}", joint, float(rmse), VALIDATION_SIGMA * max(float(rmse), 1e-12))
+            for robot_id, day, joint, rmse, _ in validation_rows]  # fmt: skip
 
 
 def series_of(rows) -> list:

@@ -34,8 +34,13 @@ MEANINGS = {
     "bias": Meaning("torque offset", "N m", "a torque sensor offset or a cable pulling", "a torque sensor offset"),
     "ripple_amp": Meaning("torque ripple", "N m", "a developing gear tooth or bearing defect", "ripple decreasing"),
     "payload_mass": Meaning("payload", "kg", "a tool changed or a load added", "a tool changed or a load removed"),
+    "rmse": Meaning("baseline model's torque error", "N m",
+                    "the model no longer explains the robot: run 'psdm diagnose' on the day's recordings",
+                    "the model explains the robot better than in its baseline window"),
 }  # fmt: skip
-PATTERN = re.compile(r"^(fc|fv|kt)(\d+)$|^(spring_k|spring_c|bias)_(\d+)$|^(ripple_amp)\d+_(\d+)$|^(payload_mass)$")
+PATTERN = re.compile(
+    r"^(fc|fv|kt)(\d+)$|^(spring_k|spring_c|bias|rmse)_(\d+)$|^(ripple_amp)\d+_(\d+)$|^(payload_mass)$"
+)
 
 
 def meaning(name: str) -> Meaning | None:

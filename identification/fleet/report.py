@@ -63,7 +63,7 @@ def _figure(robot_id: str, series: dict, findings: list):
     """A plotly figure of a robot: each chosen parameter relative to its first day, with a 1-sigma band."""
     import plotly.graph_objects as go
 
-    alarmed = [f[2] for f in findings]
+    alarmed = [f[2] for f in findings if f[2] in series]  # a validation-error finding has its own figure
     names = alarmed or [n for n in series if n.rstrip("0123456789") in QUIET_PARAMETERS]
     fig = go.Figure()
     for name in names[:MAX_TRACES]:

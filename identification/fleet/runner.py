@@ -21,7 +21,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 from identification.fleet.baseline import SharedModels, build_baseline
-from identification.fleet.drift import DriftOptions, detect_drift
+from identification.fleet.drift import DriftOptions, detect_drift, validation_parameters
 from identification.fleet.fleet_check import FleetCheckOptions, fleet_outliers
 from identification.fleet.history import History
 from identification.fleet.layout import Fleet
@@ -193,9 +193,11 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
 
 
 def _findings(history: History, options: RunOptions, baseline_days: int) -> list:
-    """The drift findings of each robot against its baseline window, then the fleet-relative ones."""
+    """The drift findings of each robot (parameters and validation error) against its baseline window, then the
+    fleet-relative ones (parameters only: the error's level differs from robot to robot by design)."""
     rows = history.parameter_rows()
-    return detect_drift(rows, options.drift, baseline_days) + fleet_outliers(rows, options.fleet)
+    tested = rows + validation_parameters(history.validation_rows())
+    return detect_drift(tested, options.drift, baseline_days) + fleet_outliers(rows, options.fleet)
 
 
 @contextmanager

@@ -233,3 +233,30 @@ def test_a_calibrated_model_is_a_baseline(tiny_fleet, derive, denso_model, tmp_p
     first = [r for r in rows if r[0] == "r01" and str(r[1]) == days[0].day]
     # on a day it was identified from, the calibrated model explains the torque about as well as the refit
     assert all(baseline < 1.5 * refit + 0.05 for _, _, _, baseline, refit in first), first
+
+
+def test_ctrl_c_keeps_the_written_days_and_the_next_run_resumes(tiny_fleet, derive, tmp_path, monkeypatch):
+    """Ctrl-C during the fourth write: three robot-days stay, the run says interrupted, the next run does the rest."""
+    fleet = read_fleet(tiny_fleet[0])
+    db = tmp_path / "h.duckdb"
+    original = History.write_session
+    calls = []
+
+    def interrupted(self, run_id, result):
+        calls.append(result.task.key)
+        if len(calls) == 4:
+            raise KeyboardInterrupt
+        original(self, run_id, result)
+
+    monkeypatch.setattr(History, "write_session", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        run_fleet(fleet, db, RunOptions(serial=True), derive=derive)
+    monkeypatch.setattr(History, "write_session", original)
+    with History(db) as history:
+        assert history.done_keys() == set(calls[:3])
+        assert history.connection.execute("SELECT status FROM runs").fetchall() == [("interrupted",)]
+    resumed = run_fleet(fleet, db, RunOptions(serial=True), derive=derive)
+    assert (resumed.processed, resumed.skipped) == (15, 3)
+    reference = tmp_path / "ref.duckdb"
+    run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
+    assert _close(db, reference)

@@ -70,3 +70,17 @@ def test_describe_names_the_effect():
         "joint 2 spring (counterbalance) stiffness -30 % since 2026-10-12 (-40 +- 4 N m/rad, 10 sigma): "
         "counterbalance losing pressure or a weakened spring"
     )
+
+
+def test_a_rising_validation_error_names_the_diagnosis(rng):
+    """The baseline's validation RMSE as a series: a 40 % rise alarms, a few-% wander does not."""
+    from identification.fleet.drift import validation_parameters
+
+    days = [START + dt.timedelta(days=d) for d in range(30)]
+    quiet = 2.0 * (1 + 0.02 * rng.standard_normal(30))
+    rising = 2.0 * (1 + 0.02 * rng.standard_normal(30))
+    rising[20:] *= 1.4
+    rows = [("r01", d, 1, q, q) for d, q in zip(days, quiet)] + [("r02", d, 3, r, r) for d, r in zip(days, rising)]
+    findings = detect_drift(validation_parameters(rows), baseline_days=7)
+    assert [(f.robot_id, f.parameter, f.onset) for f in findings] == [("r02", "rmse_3", days[20])]
+    assert "run 'psdm diagnose' on the day's recordings" in findings[0].text
