@@ -108,6 +108,11 @@ class BlockColumns:
         out[:, self.index[j]] = values / scale
         return out
 
+    def take(self, rows) -> BlockColumns:
+        """The columns of the rows ``rows`` (an index array), in that order (a held-out block of the training data,
+        ``second_opinion``)."""
+        return BlockColumns(self.n_columns, self.index, tuple(v[rows] for v in self.values))
+
     def concatenate(self, other: BlockColumns) -> BlockColumns:
         """The columns of ``self`` followed by those of ``other`` (same rows and joints)."""
         if other.n_dof != self.n_dof or other.n_samples != self.n_samples:

@@ -78,6 +78,9 @@ class DiagnosisContext:
     drives : tuple of DriveParameters or None
         The robot file's drives (LuGre friction of ``friction_shift``).
     name : str
+    gravity : array (n_samples, n_dof) or None
+        Gravity torque of the robot file's nominal model on the grid [N m] (the scale the plausibility of a
+        candidate's torque is judged against, ``candidates.base.torque_bound``).
     filtered_friction : bool
         Whether friction-like columns use the exact sign filtered like the recording (with a LuGre prior)
         or the smooth sign of the filtered velocity (``friction_sign``).
@@ -112,6 +115,7 @@ class DiagnosisContext:
     name: str = ""
     full_tau_raw: np.ndarray | None = None
     filtered_friction: bool = True
+    gravity: np.ndarray | None = None
 
     @property
     def raw_torque(self) -> np.ndarray:
@@ -253,6 +257,12 @@ def _rigid_body_signals(pmodel, q, qd, qdd) -> tuple:
         tau_rigid[k] = pin.rnea(pmodel, data, q[k], qd[k], qdd[k])
     upper = np.triu(upper)  # Pinocchio fills the upper triangle of M
     return tau_rigid, dq, dv, upper + np.triu(upper, 1).transpose(0, 2, 1)
+
+
+def _gravity_torque(pmodel, q) -> np.ndarray:
+    """The nominal model's gravity torque (n_samples, n_dof) at the angles ``q``."""
+    data = pmodel.createData()
+    return np.array([pin.computeGeneralizedGravity(pmodel, data, x) for x in q]).reshape(q.shape)
 
 
 def _tilted_gravity_torque(pmodel, gravity: np.ndarray, q) -> tuple:
@@ -412,4 +422,5 @@ def build_context(
         name=recording.name,
         full_tau_raw=tau_raw,
         filtered_friction=(robot.drives is not None) if filtered_friction is None else bool(filtered_friction),
+        gravity=_gravity_torque(pmodel, q),
     )

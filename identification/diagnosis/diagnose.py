@@ -40,6 +40,7 @@ from identification.diagnosis.rigid_body_choice import (
     prior_wins,
     recalibration_parts,
 )
+from identification.diagnosis.second_opinion import SecondOpinion
 from identification.diagnosis.selection import SelectionResult, forward_select
 from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
@@ -98,6 +99,10 @@ class DiagnosisOptions:
         stays structured after the library's terms, reported as an unnamed effect with its formula.
     sparse_min_gain : float
         Validation RMSE reduction (fraction) of its joint a sparse term must show to be kept.
+    cv_folds : int
+        With one validation recording, the second opinion on each finding (``second_opinion``): the training recording
+        is cut into this many contiguous blocks, each held out once, and a finding must hold on every block; 0 turns
+        it off (with several validation recordings a finding must hold on each of them instead).
     """
 
     friction: str = "lugre"
@@ -115,8 +120,15 @@ class DiagnosisOptions:
     max_samples: int = 250_000
     sparse: bool = True
     sparse_min_gain: float = 0.3
+    cv_folds: int = 4
 
     def __post_init__(self):
+        if isinstance(self.cv_folds, bool) or not (
+            isinstance(self.cv_folds, (int, np.integer)) and (self.cv_folds == 0 or 2 <= self.cv_folds <= 20)
+        ):
+            raise ParameterError(
+                f"DiagnosisOptions.cv_folds must be 0 (off) or an integer 2..20; got {self.cv_folds!r}. Use 4."
+            )
         if not 0.0 < self.sparse_min_gain < 1.0:
             raise ParameterError(
                 f"DiagnosisOptions.sparse_min_gain must be in (0, 1); got {self.sparse_min_gain!r}. Use 0.3."
@@ -169,6 +181,9 @@ class DiagnosisProblem:
     y_t, y_v : arrays (n_samples, n_dof)
         Measured torque minus the fixed part of the nominal model (the robot file's rigid body for
         ``rigid_body="prior"``, nothing otherwise).
+    extra_v : tuple of (DiagnosisContext, BlockColumns, array)
+        The further validation recordings, each as its ``ctx_v``, ``base_v`` and ``y_v`` (the second opinion of
+        ``second_opinion``).
     """
 
     ctx_t: DiagnosisContext
@@ -177,6 +192,7 @@ class DiagnosisProblem:
     base_v: BlockColumns
     y_t: np.ndarray
     y_v: np.ndarray
+    extra_v: tuple = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,9 +216,13 @@ def diagnose(
     ----------
     robot : RobotDescription
         The robot file (kinematics, nominal inertia = the prior, drives).
-    train, validation : Recording
-        Raw (or, with ``options.preprocess=False``, preprocessed) recordings; the model is fitted on
-        ``train`` and judged on ``validation``.
+    train : Recording
+        Raw (or, with ``options.preprocess=False``, preprocessed) recording the model is fitted on.
+    validation : Recording or sequence of Recording
+        The recording(s) the model is judged on. With several, a finding is kept only if it passes the selection's
+        gates on each (the first is the one the report's errors are computed on); with one, a block
+        cross-validation of ``train`` gives the second opinion (``DiagnosisOptions.cv_folds``). A finding that does
+        not hold is reported in ``DiagnosisReport.unstable``, not as missing physics.
     options : DiagnosisOptions, optional
     model : PSDMModel, optional
         ``derive_psdm(robot)``, derived when omitted (after the recordings are checked).
@@ -234,17 +254,18 @@ def diagnose(
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
     robot, options = torque_constants_only(robot, options)
-    train.check_robot(robot.n_dof, robot.name)
-    validation.check_robot(robot.n_dof, robot.name)
-    for recording in (train, validation):  # positions, speeds and time in the robot's units, before any fit
+    validations = validation_recordings(validation)
+    for recording in (train, *validations):  # positions, speeds and time in the robot's units, before any fit
+        recording.check_robot(robot.n_dof, robot.name)
         check_plausible_recording(recording, robot)
-    check_motion(robot, train, validation, options)
+    for recording in validations:
+        check_motion(robot, train, recording, options)
     if model is None:
         from psdm_casadi.derive import derive_psdm
 
         logger.info("diagnose: deriving the PSDM model ...")
         model = (derive or derive_psdm)(robot)
-    problem = prepare_problem(robot, model, train, validation, options)
+    problem = prepare_problem(robot, model, train, validations, options)
     selection = select_terms(robot, problem, options)
     final = refine_terms(problem, selection, options)
     notes, identified = (), None
@@ -256,6 +277,25 @@ def diagnose(
     notes += more
     report = build_report(robot, model, problem, selection, final, options, unnamed)
     return replace(report, rigid_body_notes=notes) if notes else report
+
+
+def validation_recordings(validation) -> tuple:
+    """``validation`` (a Recording or a non-empty sequence of them) as a tuple of Recordings.
+
+    Raises
+    ------
+    ParameterError
+        When it is empty or holds something else than Recordings.
+    """
+    from identification.data.recording import Recording
+
+    items = (validation,) if isinstance(validation, Recording) else tuple(validation or ())
+    if not items or not all(isinstance(r, Recording) for r in items):
+        raise ParameterError(
+            "diagnose validation must be a Recording or a non-empty list of Recordings; got "
+            f"{type(validation).__name__}. Pass validation=[recording_a, recording_b]."
+        )
+    return items
 
 
 def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final: FinalFit, options) -> tuple:
@@ -313,25 +353,29 @@ def torque_constants_only(robot, options: DiagnosisOptions) -> tuple:
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
-    """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares."""
+    """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares;
+    ``validation`` is a Recording or a sequence of them (the first is ``ctx_v``, the others ``extra_v``)."""
     kt = options.torque_constants
     if kt is None and robot.drives is not None:
         kt = tuple(d.kt for d in robot.drives)
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
     logger.info("diagnose: evaluating the nominal model ...")
     ctx_t = _context(robot, model, train, options, kt_arr)
-    ctx_v = _context(robot, model, validation, options, kt_arr)
-    base_t = friction_blocks(robot, options.friction, ctx_t)
-    base_v = friction_blocks(robot, options.friction, ctx_v)
-    if options.rigid_body != "identified":
-        y_t, y_v = ctx_t.tau - ctx_t.tau_rigid, ctx_v.tau - ctx_v.tau_rigid
-    else:
-        base_t = base_t.concatenate(BlockColumns.from_dense(ctx_t.regressor))
-        base_v = base_v.concatenate(BlockColumns.from_dense(ctx_v.regressor))
-        y_t, y_v = ctx_t.tau, ctx_v.tau
-    problem = DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v)
+    base_t, y_t = _least_squares(robot, options, ctx_t)
+    validations = [_context(robot, model, v, options, kt_arr) for v in validation_recordings(validation)]
+    parts = [(ctx, *_least_squares(robot, options, ctx)) for ctx in validations]
+    (ctx_v, base_v, y_v), extra = parts[0], tuple(parts[1:])
+    problem = DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v, extra_v=extra)
     check_nominal_columns(robot, model, problem, options)
     return problem
+
+
+def _least_squares(robot, options: DiagnosisOptions, ctx) -> tuple:
+    """``(base, y)`` of a recording's context: the nominal model's free columns and the torque they are fitted to."""
+    base = friction_blocks(robot, options.friction, ctx)
+    if options.rigid_body != "identified":
+        return base, ctx.tau - ctx.tau_rigid
+    return base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau
 
 
 def _context(robot, model, recording, options: DiagnosisOptions, kt) -> DiagnosisContext:
@@ -362,6 +406,10 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
     logger.info(f"diagnose: selecting among {len(instances)} candidate terms ...")
+    opinion = None
+    if problem.extra_v or options.cv_folds:
+        validations = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
+        opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2)
     return forward_select(
         instances,
         ctx_t,
@@ -374,6 +422,7 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
         max_effects=options.max_effects,
         effective_samples=n_eff,
         joint_threshold=options.joint_threshold,
+        opinion=opinion,
     )
 
 

@@ -121,6 +121,9 @@ class DiagnosisReport:
     nominal_model: str = ""  # the model the diagnosis started from (a calibrated model file, or the robot file)
     preparation: str = ""  # how the recordings were prepared (``model_preparation.Preparation.text``)
     model_file_rmse: tuple = ()  # a calibrated model's own validation RMSE per joint, as ``psdm validate`` computes it
+    unstable: tuple = ()  # ``second_opinion.UnstableFinding``: qualified on one recording, not on another; not kept
+    rejected: tuple = ()  # (label, reason): would have qualified, but its parameters are physically meaningless
+    opinion_route: str = ""  # how findings were checked beyond the validation recording (``second_opinion``)
 
     @property
     def effects(self) -> tuple:
@@ -156,6 +159,9 @@ class DiagnosisReport:
             "nominal_model": self.nominal_model,
             "preparation": self.preparation,
             "model_file_rmse": list(self.model_file_rmse),
+            "second_opinion": self.opinion_route or None,
+            "unstable": [u.to_dict() for u in self.unstable],
+            "rejected": [{"label": label, "reason": reason} for label, reason in self.rejected],
         }
 
     def to_json(self) -> str:
@@ -169,6 +175,7 @@ class DiagnosisReport:
             f"{self.candidates_tried} candidate fits judged on the validation recording.",
             "",
             *([f"Preparation: {self.preparation}.", ""] if self.preparation else []),
+            *self._route_lines(),
             "## Findings",
             "",
         ]
@@ -212,6 +219,17 @@ class DiagnosisReport:
             return self.nominal_model
         return f"rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
 
+    def _route_lines(self) -> list:
+        """The sentence saying how findings were checked beyond the validation recording (``second_opinion``)."""
+        if not self.opinion_route:
+            return []
+        how = {
+            "validation recordings": "each finding was kept only if it passes the gates on every validation recording",
+            "block cross-validation": "one validation recording: each finding was kept only if it also holds on every "
+            "block of the training recording held out in turn (block cross-validation)",
+        }.get(self.opinion_route, self.opinion_route)
+        return [f"Second opinion: {how}.", ""]
+
     def _notes_markdown(self) -> list:
         """The sections on joints whose RMSE rose, terms the backward check dropped, and confounding."""
         lines = (
@@ -220,6 +238,12 @@ class DiagnosisReport:
         if self.joint_notes or self.dropped:
             lines += ["", "## Why some joints fit worse", ""] if self.joint_notes else ["", "## Notes", ""]
             lines += [f"- {text}" for text in self.joint_notes + self.dropped]
+        if self.unstable:
+            lines += ["", "## Unstable (not kept: they do not hold on every recording)", ""]
+            lines += [f"- {u.sentence()}" for u in self.unstable]
+        if self.rejected:
+            lines += ["", "## Rejected as physically meaningless", ""]
+            lines += [f"- `{label}`: {reason}" for label, reason in self.rejected]
         if self.confounding:
             lines += [
                 "",

@@ -62,6 +62,9 @@ def build_report(
         joint_notes=explain_joint_changes(rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear)),
         confounding=confounding_of(robot, model, problem, final, len(selection.steps), options),
         dropped=selection.dropped,
+        unstable=selection.unstable,
+        rejected=selection.rejected,
+        opinion_route=selection.opinion_route,
     )
 
 

@@ -57,7 +57,14 @@ def recalibration_parts(problem, model) -> dict:
         "base_v": problem.base_v.concatenate(BlockColumns.from_dense(ctx_v.regressor)),
         "y_t": ctx_t.tau,
         "y_v": ctx_v.tau,
+        "extra_v": tuple(_with_regressor_part(ctx, base, model) for ctx, base, _ in problem.extra_v),
     }
+
+
+def _with_regressor_part(ctx, base, model) -> tuple:
+    """A further validation recording's ``(ctx, base, y)`` with the identified rigid body."""
+    ctx = with_regressor(ctx, model)
+    return ctx, base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau
 
 
 def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(), recalibrated_effects=()) -> bool:

@@ -26,6 +26,10 @@ where ``JointScore.fixed`` puts the exact profile lowest) is screened in the var
 training data, unless that variant's weighted validation error is above the simplest one's (then the simplest is
 screened).
 
+A candidate chosen in a round must also hold on a second opinion when one is given (``second_opinion``: the
+selection's gates on each further validation recording, or a block cross-validation of the training recording);
+one that does not is an unstable finding, not kept, and the next best is tried.
+
 After the forward pass a backward check refits the kept terms without each one in turn: a term that no longer
 lowers the validation RMSE of every joint it names (a later term took its part) is dropped and the check repeats
 (``SelectionResult.dropped`` says which and why).
@@ -49,14 +53,14 @@ from typing import NamedTuple
 import numpy as np
 
 from identification.diagnosis.columns import BlockColumns, as_blocks
-from identification.diagnosis.design import WeightedDesign, joint_weights, solve_scaled
+from identification.diagnosis.design import WeightedDesign, joint_weights
+from identification.diagnosis.joint_score import JointScore
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
 
 ROBOT_FLOOR = 0.0004  # least RMSE drop on any joint as a fraction of the robot's largest joint torque RMS
-SCORE_ROWS = 2000  # training rows a ``JointScore`` sums over
 TIE_REMAINING = 1.5  # a tie in gain must leave at most this times the best candidate's remaining validation error
 NAME_TOLERANCE = 0.1  # a rival fits a joint as well: its validation RMSE there within this fraction (``_backed_name``)
 PRUNE_TOLERANCE = 1e-6  # a kept term must lower its joints' validation RMSE by more than this fraction (``_prune``)
@@ -96,6 +100,14 @@ class SelectionResult:
     candidates_tried : int
     dropped : tuple of str
         Sentences naming the terms the backward check removed, and why.
+    unstable : tuple of UnstableFinding
+        Candidates that qualified on the validation recording but not on a second opinion (another validation
+        recording, or a held-out block of the training data): not kept, reported with their numbers.
+    rejected : tuple of (label, reason)
+        Candidates whose fit would have qualified but whose parameters are physically meaningless
+        (``CandidateTerm.implausibility``), with the reason.
+    opinion_route : str
+        How the second opinion was formed (``second_opinion.SecondOpinion.route``), or "" without one.
     """
 
     steps: tuple
@@ -108,6 +120,9 @@ class SelectionResult:
     prediction_validation: np.ndarray
     candidates_tried: int
     dropped: tuple = ()
+    unstable: tuple = ()
+    rejected: tuple = ()
+    opinion_route: str = ""
 
 
 @dataclass(frozen=True)
@@ -127,53 +142,21 @@ def acting_joints(term, ct) -> tuple:
     return tuple(int(j) for j in term.joints if np.any(ct[:, j, :] != 0))
 
 
-class JointScore:
-    """``score(joint, values)``: the weighted training SSE of ``design``'s current fit with columns ``values``
-    (len(rows), k) on the training rows ``rows`` added on joint ``joint``, by the normal equations of the base (no
-    refit of the base columns).
-
-    With ``e`` the joint's weighted residual, ``B`` its weighted base rows and ``C`` the weighted columns, the SSE
-    drops by ``g^T S^+ g`` with ``g = C^T e`` and ``S = C^T C - (B^T C)^T G^-1 (B^T C)``: the variable projection a
-    term with shape parameters (a gas spring's geometry) is fitted by. The sums run over at most ``SCORE_ROWS``
-    evenly spaced rows, scaled to the whole recording (the signals are low-pass filtered, so this loses little),
-    cheap enough for a grid of starts; the design then fits the chosen shape on every row."""
-
-    def __init__(self, design, sse: float):
-        self.design, self.sse = design, float(sse)
-        n = design.y_train.shape[0]
-        self.rows = np.unique(np.linspace(0, n - 1, min(n, SCORE_ROWS)).astype(int))
-        self.scale = n / self.rows.size
-        self.beta = solve_scaled(design.G, design.b)
-        self._joints = {}
-
-    def _joint(self, j: int) -> tuple:
-        if j not in self._joints:
-            d = self.design
-            rows = d.base_train.joint(j, slice(None), d.sigma[j])[self.rows]
-            self._joints[j] = (rows, d.ytw[self.rows, j] - rows @ self.beta)
-        return self._joints[j]
-
-    def __call__(self, joint: int, values) -> float:
-        rows, e = self._joint(int(joint))
-        c = np.asarray(values, dtype=float).reshape(rows.shape[0], -1) / self.design.sigma[joint]
-        bc = self.scale * (rows.T @ c)
-        s = self.scale * (c.T @ c) - bc.T @ solve_scaled(self.design.G, bc)
-        g = self.scale * (c.T @ e)
-        return max(self.sse - float(g @ np.linalg.lstsq(s, g, rcond=1e-12)[0]), 1e-300)
-
-    def fixed(self, values) -> float:
-        """The weighted training SSE with the torque ``values`` (len(rows), n_dof) [N m] added to the model as it is
-        (coefficient one, the base refitted): the exact profile of a robot-wide signal term at one value of its
-        parameter (a delay's torque ``tau(t) - tau(t + d)``)."""
-        values = np.asarray(values, dtype=float)
-        br, rr, er = 0.0, 0.0, 0.0
-        for j in range(values.shape[1]):
-            rows, e = self._joint(j)
-            r = values[:, j] / self.design.sigma[j]
-            br, rr, er = br + rows.T @ r, rr + r @ r, er + e @ r
-        br = self.scale * br  # the base refitted: the part of the torque its columns take up is given back
-        sse = self.sse - 2.0 * self.scale * er + self.scale * rr - float(br @ solve_scaled(self.design.G, br))
-        return max(sse, 1e-300)
+def passes_gates(rmse_before, rmse_after, own, floor, min_improvement, sigma) -> str | None:
+    """Why a candidate that takes one recording's per-joint validation RMSE from ``rmse_before`` to ``rmse_after`` fails
+    the selection's gates there (module docstring), or None: the RMSE of each of its own joints ``own`` drops, one
+    joint's (its own, for a per-joint term) drops by ``min_improvement`` and by ``floor`` [N m], and the
+    joint-weighted error (``sigma``) drops."""
+    own = list(own)
+    if own and not np.all(rmse_after[own] < rmse_before[own]):
+        return f"raises the validation RMSE of its joint {own[0] + 1}"
+    rel = 1.0 - rmse_after / np.maximum(rmse_before, 1e-300)
+    improving = (rel >= min_improvement) & ((rmse_before - rmse_after) >= floor)
+    if not np.any(improving[own] if own else improving):
+        return f"lowers no{' own' if own else ''} joint's validation RMSE by {min_improvement:.0%}"
+    if np.sum(rmse_after**2 / sigma**2) >= np.sum(rmse_before**2 / sigma**2):
+        return "raises the joint-weighted validation error"
+    return None
 
 
 def _shape_fits(design, term, train_ctx, val_ctx, sse, limits, score=None) -> list:
@@ -229,9 +212,11 @@ class _Qualified(NamedTuple):
 
 
 def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
-    """Fit each remaining candidate (in its chosen shape) with the kept terms; the qualifying ones (``_Qualified``)."""
+    """Fit each remaining candidate (in its chosen shape) with the kept terms: ``(qualifying, implausible)``, the
+    qualifying ones (``_Qualified``) and ``(label, reason)`` of those whose fit would qualify but whose parameters are
+    physically meaningless (every shape implausible; judged in the simplest shape)."""
     score = JointScore(design, sse)
-    qualified, scored, rejected = [], [], []
+    qualified, scored, rejected, implausible = [], [], [], []
     wval0 = float(np.sum(rmse_v**2 / limits.sigma**2))
     for index, term in enumerate(remaining):
         logger.info("diagnose: screening %s", term.label, extra={"progress": (index + 1, len(remaining)), "tick": True})
@@ -239,23 +224,21 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
         chosen, note = _pick_shape(fits, limits.sigma)
         if chosen is None:
             rejected.append((term.label, note))
+            own = acting_joints(fits[0][0], fits[0][1])
+            if fits[0][7] < 0 and _gates(rmse_v, fits[0][5], own, limits) is None:
+                implausible.append((fits[0][0].label, note))
             continue
         variant, ct, _, k, _, rv1, _, delta_bic = chosen
-        rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
-        absolute = (rmse_v - rv1) >= limits.floor
         wval1 = float(np.sum(rv1**2 / limits.sigma**2))
         gain = (wval0 - wval1) / wval0
+        rel = 1.0 - rv1 / np.maximum(rmse_v, 1e-300)
         scored.append(
             (gain, variant.label, float(np.max(rel)), float(np.max((rmse_v - rv1) / limits.torque_rms)), delta_bic)
         )
-        own = acting_joints(variant, ct)
-        if own and not np.all(rv1[list(own)] < rmse_v[list(own)]):
-            rejected.append((variant.label, f"raises the validation RMSE of its joint {own[0] + 1}"))
-            continue
-        improving = (rel >= limits.min_improvement) & absolute
-        if own:  # a per-joint term earns its place on its own joint, not through a shared parameter elsewhere
-            improving = improving[list(own)]
-        if np.any(improving) and wval1 < wval0 and delta_bic < 0:
+        reason = _gates(rmse_v, rv1, acting_joints(variant, ct), limits)
+        if reason is not None and reason.startswith("raises the validation RMSE"):
+            rejected.append((variant.label, reason))
+        elif reason is None and delta_bic < 0:
             unsupported = variant.name_unsupported(train_ctx)
             qualified.append(_Qualified(gain, k, index, variant, rv1, delta_bic, note, unsupported))
     for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
@@ -265,7 +248,12 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
         )
     for label, reason in rejected[:5]:
         logger.info(f"diagnose:   rejected {label}: {reason}")
-    return qualified
+    return qualified, implausible
+
+
+def _gates(rmse_before, rmse_after, own, limits) -> str | None:
+    """``passes_gates`` with the selection's ``_Limits``."""
+    return passes_gates(rmse_before, rmse_after, own, limits.floor, limits.min_improvement, limits.sigma)
 
 
 def _choose(qualified):
@@ -367,6 +355,7 @@ def forward_select(
     effective_samples=None,
     joint_threshold=0.1,
     min_torque_fraction=0.004,
+    opinion=None,
 ) -> SelectionResult:
     """Greedy forward selection of candidate term instances, then a backward check (see the module docstring).
 
@@ -389,6 +378,9 @@ def forward_select(
     min_torque_fraction : float
         Least absolute RMSE drop on the improving joint, as a fraction of that joint's torque RMS
         (a floor in N m below which a change is not worth reporting; default 0.4 %).
+    opinion : second_opinion.SecondOpinion, optional
+        Judges each candidate the forward pass would keep on more validation recordings or held-out blocks of the
+        training data; one that does not hold is reported unstable, not kept (``SelectionResult.unstable``).
     """
     if not 0.0 < min_improvement < 1.0:
         raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
@@ -411,7 +403,8 @@ def forward_select(
     nominal = (as_blocks(base_train), as_blocks(base_val))
     design = WeightedDesign(*nominal, y_train, y_val, sigma)
     _, _, _, _, nominal_train, nominal_val = design.fit(full=True)
-    kept, tried = _forward(design, list(instances), train_ctx, val_ctx, limits, max_effects, joint_threshold)
+    forward = _forward(design, list(instances), train_ctx, val_ctx, limits, max_effects, joint_threshold, opinion)
+    kept, tried, unstable, rejected = forward
     kept, dropped = _prune(nominal, kept, y_train, y_val, sigma)
     design = _design_with(nominal, [(ct, cv) for _, ct, cv in kept], y_train, y_val, sigma)
     beta, _, _, _, pred_t, pred_v = design.fit(full=True)
@@ -429,19 +422,24 @@ def forward_select(
         prediction_validation=pred_v,
         candidates_tried=tried,
         dropped=dropped,
+        unstable=unstable,
+        rejected=rejected,
+        opinion_route=opinion.route if opinion is not None else "",
     )
 
 
-def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_threshold) -> tuple:
-    """The forward pass: ``([(step, ct, cv), ...], candidates tried)``; ``design`` grows with each kept term."""
+def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_threshold, opinion=None) -> tuple:
+    """The forward pass: ``([(step, ct, cv), ...], candidates tried, unstable, rejected)``; ``design`` grows with each
+    kept term; ``opinion`` (a ``second_opinion.SecondOpinion``) judges each chosen candidate before it is kept."""
     _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
-    kept, tried = [], 0
+    kept, tried, unstable, rejected = [], 0, [], {}
     while len(kept) < max_effects and remaining:
-        qualified = _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits)
+        qualified, implausible = _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits)
+        rejected.update(implausible)
         tried += len(remaining)
-        if not qualified:
+        chosen, drop = _stable_choice(design, qualified, opinion, limits, unstable)
+        if chosen is None:
             break
-        chosen = _choose(qualified)
         gain, index, term, delta_bic, note = chosen.gain, chosen.index, chosen.term, chosen.delta_bic, chosen.note
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
@@ -464,6 +462,25 @@ def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_t
             design.base_train.concatenate(BlockColumns.from_dense(ct)),
             design.base_val.concatenate(BlockColumns.from_dense(cv)),
         )
+        if opinion is not None:
+            opinion.keep(term)
         _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
-        remaining = remaining[:index] + remaining[index + 1 :]
-    return kept, tried
+        remaining = [r for i, r in enumerate(remaining) if i != index and i not in drop]
+    labels = {step.term.label for step, _, _ in kept} | {u.label for u in unstable}
+    return kept, tried, tuple(unstable), tuple((k, v) for k, v in rejected.items() if k not in labels)
+
+
+def _stable_choice(design, qualified, opinion, limits, unstable: list) -> tuple:
+    """The best qualifying candidate that holds on the second ``opinion``: ``(chosen or None, indices of the
+    candidates found unstable)``; each unstable one is appended to ``unstable`` and the next best is tried."""
+    drop = set()
+    while qualified:
+        chosen = _choose(qualified)
+        verdict = None if opinion is None else opinion.judge(design, chosen.term, limits)
+        if verdict is None:
+            return chosen, drop
+        logger.info(f"diagnose: {verdict.sentence()}")
+        unstable.append(verdict)
+        drop.add(chosen.index)
+        qualified = [q for q in qualified if q.index != chosen.index]
+    return None, drop

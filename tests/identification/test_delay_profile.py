@@ -14,7 +14,7 @@ from identification.diagnosis.candidates import MAX_DELAY_S, DelayTerm
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.design import WeightedDesign, joint_weights
 from identification.diagnosis.diagnose import DiagnosisOptions, prepare_problem
-from identification.diagnosis.selection import JointScore
+from identification.diagnosis.joint_score import JointScore
 from identification.diagnosis.term_spec import term_from_spec
 from identification.virtual import effects as xp
 from psdm_casadi.errors import ParameterError

@@ -3,6 +3,7 @@ pair, rises are explained, negative stiffness is said aloud, spring shapes beyon
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -170,14 +171,19 @@ def test_cubic_counterbalance_gets_order_three_and_beats_the_linear_spring(denso
     assert paths["torque_vs_angle"].stat().st_size > 0 and "torque_vs_angle.png" in paths["markdown"].read_text()
 
 
-def test_linear_spring_keeps_order_one_and_negative_stiffness_is_said_aloud(denso, denso_model):
+def test_negative_stiffness_is_rejected_as_not_a_spring_with_its_reason(denso, denso_model):
+    # known truth: a torque of -35 (q2 - 0.15) N m pushes joint 2 away from its rest angle; it fits the residual
+    # (every gate but plausibility passes) but is not a spring, so it is listed as rejected with the fitted k
     lib = SpringTerm() + TorqueOffsetTerm()
     train, val = recording_pair(denso, [xp.Spring(joint=1, stiffness=-35.0, q0=0.15)], seed=1)
     report = diagnose(denso, train, val, DiagnosisOptions(library=lib, sparse=False), model=denso_model)
-    f = _spring_finding(report)
-    assert f.label == "spring[j2]" and f.parameters["k"] == pytest.approx(-35.0, rel=0.1)
-    assert f.explanation.startswith("negative stiffness: not a spring")
-    assert "negative stiffness: not a spring" in report.to_markdown()
+    assert "spring" not in report.effects
+    reasons = dict(report.rejected)
+    assert "spring[j2]" in reasons and reasons["spring[j2]"].startswith("negative stiffness")
+    k = float(re.search(r"k = (-[0-9.]+)", reasons["spring[j2]"]).group(1))
+    assert k == pytest.approx(-35.0, rel=0.1)
+    assert "## Rejected as physically meaningless" in report.to_markdown()
+    assert report.to_dict()["rejected"][0]["label"] == "spring[j2]"
 
 
 def test_positive_spring_is_not_flagged_and_orders_are_checked():

@@ -5,6 +5,7 @@ prior.
 from __future__ import annotations
 
 import logging
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -41,7 +42,10 @@ from tests.identification.diagnosis_data import recording_pair
         (JointElasticityTerm(joint=0), [-1e-4], False),
         (PayloadTerm(), [2.0, 0.0, 0.0, 0.2], True),
         (PayloadTerm(), [0.1, 0.0, 0.0, 0.2], False),  # centre of mass 2 m away
-        (SpringTerm(joint=0), [-40.0, 3.0], True),  # any sign: no bound
+        (SpringTerm(joint=0), [40.0, 3.0], True),
+        (SpringTerm(joint=0), [-40.0, 3.0], False),  # pushes the joint away: not a spring
+        (SpringTerm(joint=0, order=3, centre=0.0, q_range=(-1.0, 1.0)), [-5.0, 0.0, -1.0, 0.0], False),
+        (SpringTerm(joint=0, order=3, centre=0.0, q_range=(-1.0, 1.0)), [-5.0, 0.0, 30.0, 0.0], True),  # mostly stiff
     ],
 )
 def test_implausible_parameters_are_named(term, coefficients, accepted):
@@ -49,6 +53,42 @@ def test_implausible_parameters_are_named(term, coefficients, accepted):
     assert (reason is None) == accepted
     if not accepted:
         assert isinstance(reason, str) and reason
+
+
+def _context(tau_rms, gravity_amplitude):
+    """A context of one joint with a measured torque of RMS ``tau_rms`` and a nominal gravity torque reaching
+    ``gravity_amplitude`` over the recording."""
+    t = np.linspace(0.0, 10.0, 1001)
+    tau = np.sqrt(2.0) * tau_rms * np.sin(2.0 * np.pi * 0.3 * t)
+    gravity = gravity_amplitude * np.cos(2.0 * np.pi * 0.1 * t)
+    return SimpleNamespace(tau=tau[:, None], gravity=gravity[:, None], full_t=t, qd=tau[:, None], qdd=tau[:, None])
+
+
+@pytest.mark.parametrize(
+    "term, coefficients, accepted",
+    [
+        (TorqueOffsetTerm(joint=0), [30.0], True),
+        (TorqueOffsetTerm(joint=0), [-2038.0], False),  # the TX40's "offset" of issue 25
+        (TorqueOffsetTerm(joint=0), [-90.0], False),  # beyond the gravity amplitude 80 N m and the torque RMS 20 N m
+        (SpringTerm(joint=0, q_range=(-1.0, 1.0)), [10.0, 5.0], True),
+        (SpringTerm(joint=0, q_range=(-1.0, 1.0)), [500.0, 0.0], False),  # 500 N m over the range
+        (FrictionDriftTerm(joint=0), [1.0], True),  # 10 N m over 10 s
+        (FrictionDriftTerm(joint=0), [10.0], False),  # 100 N m over 10 s
+    ],
+)
+def test_torques_beyond_the_joints_gravity_amplitude_are_not_findings(term, coefficients, accepted):
+    reason = term.implausibility(np.array(coefficients), _context(tau_rms=20.0, gravity_amplitude=80.0))
+    assert (reason is None) == accepted
+    if not accepted:
+        assert "80 N m" in reason  # names the bound: the larger of the gravity amplitude and the torque RMS
+
+
+def test_offset_bound_falls_back_to_the_torque_rms_where_gravity_does_not_load_the_joint():
+    # a vertical first axis: no gravity torque, the bound is the measured torque RMS
+    context = _context(tau_rms=20.0, gravity_amplitude=0.0)
+    assert TorqueOffsetTerm(joint=0).implausibility(np.array([15.0]), context) is None
+    reason = TorqueOffsetTerm(joint=0).implausibility(np.array([25.0]), context)
+    assert float(reason.rsplit("(", 1)[1].split(" ")[0]) == pytest.approx(20.0, rel=0.01)
 
 
 def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(denso, denso_model):

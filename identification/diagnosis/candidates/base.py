@@ -3,8 +3,10 @@
 Every family module (``torque``, ``friction``, ``inertial``, ``delay``, ``deflection``) subclasses
 ``CandidateTerm``; ``+`` composes terms into a ``CandidateLibrary`` like the candidate functions of
 pysindy. Fitted parameters are checked against the physical bounds ``MAX_*`` below
-(``CandidateTerm.implausibility``). Sign convention: columns describe torque the motors must supply in
-addition to the nominal model, ``tau_measured = tau_nominal + columns @ coefficients``.
+(``CandidateTerm.implausibility``, one rule per family, the one place that says what is physically meaningless:
+a negative stiffness, an offset or a torque larger than the joint's torque scale ``torque_bound``, a load-dependent
+friction taking a large share of the load, a negative inertia, ...). Sign convention: columns describe torque the
+motors must supply in addition to the nominal model, ``tau_measured = tau_nominal + columns @ coefficients``.
 """
 
 from __future__ import annotations
@@ -19,11 +21,13 @@ from psdm_casadi.errors import ParameterError
 SMOOTH_VELOCITY = 0.02  # [rad/s] width of the smooth sign tanh(qd / v) of the friction-like terms
 
 # plausibility bounds of fitted parameters (``CandidateTerm.implausibility``)
-MAX_LOAD_FRICTION = 0.5  # load-dependent friction coefficient mu (gear efficiency above 50 %)
+MAX_LOAD_FRICTION = 0.4  # load-dependent friction coefficient mu (gear tooth friction: efficiency above 60 %)
+MAX_TORQUE_SHARE = 1.0  # a term's torque on its joint at most this times the joint's ``torque_bound``
 MAX_DELAY_S = 0.1  # torque-to-position delay [s]
 MAX_BACKLASH_RAD = 0.05  # total play [rad] (about 3 degrees)
 MAX_DEFLECTION_RAD = 0.05  # joint torsion at the peak torque [rad]
 MAX_PAYLOAD_REACH = 0.5  # distance of a payload's centre of mass from the flange [m]
+MAX_TILT_DEG = 10.0  # tilt of the robot's base off level [deg]
 
 
 def joint_columns(context, joint: int, values) -> np.ndarray:
@@ -42,6 +46,32 @@ def joint_expression(n_dof: int, joint: int, value):
     out = ca.SX.zeros(n_dof)
     out[joint] = value
     return out
+
+
+def torque_bound(context, joint: int) -> float | None:
+    """The joint's torque scale [N m] a candidate's torque is judged against (``CandidateTerm.implausibility``): the
+    larger of the nominal model's gravity torque amplitude over the recorded range (``DiagnosisContext.gravity``)
+    and the measured torque RMS (the scale of a joint gravity does not load, such as a vertical first axis); None
+    without a context (a term rebuilt from a model file is judged by its sign rules only)."""
+    if context is None:
+        return None
+    measured = float(np.sqrt(np.mean(np.asarray(context.tau)[:, joint] ** 2)))
+    gravity = getattr(context, "gravity", None)
+    amplitude = 0.0 if gravity is None else float(np.max(np.abs(np.asarray(gravity)[:, joint])))
+    return max(amplitude, measured)
+
+
+def oversized(name: str, torque: float, context, joint: int) -> str | None:
+    """Why a term whose torque reaches ``torque`` [N m] on ``joint`` is not physical: it exceeds ``MAX_TORQUE_SHARE``
+    times the joint's ``torque_bound`` (an effect larger than all the joint's gravity and measured torque is the fit
+    fighting the nominal model, not missing physics); None when it does not, or without a context."""
+    bound = torque_bound(context, joint)
+    if bound is None or abs(float(torque)) <= MAX_TORQUE_SHARE * bound:
+        return None
+    return (
+        f"{name} {float(torque):.4g} N m is larger than joint {joint + 1}'s gravity torque amplitude and measured "
+        f"torque RMS ({bound:.4g} N m)"
+    )
 
 
 def _jsonable(value):

@@ -68,7 +68,7 @@ class DelayTerm(CandidateTerm):
         return (context.delayed_torque_difference(self.secant_s) / self.secant_s)[:, :, None]
 
     def shape_variants(self, context, score=None):
-        """The tangent and, given ``score`` (a ``selection.JointScore``), the secant at the delay in (0,
+        """The tangent and, given ``score`` (a ``joint_score.JointScore``), the secant at the delay in (0,
         ``MAX_DELAY_S``) where the exact profile ``score.fixed`` is lowest, unless that is the profile's shortest
         delay (the tangent then stands for it)."""
         tangent = replace(self, secant_s=None)

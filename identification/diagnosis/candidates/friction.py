@@ -18,6 +18,7 @@ from identification.diagnosis.candidates.base import (
     CandidateTerm,
     joint_columns,
     joint_expression,
+    oversized,
 )
 
 
@@ -37,6 +38,10 @@ class CoulombAsymmetryTerm(CandidateTerm):
     def columns(self, context):
         self._require_joint()
         return joint_columns(context, self.joint, 0.5 * (1.0 + context.friction_sign(self.joint)))
+
+    def implausibility(self, coefficients, context=None):
+        """A direction-dependent friction step larger than the joint's torque scale (``oversized``)."""
+        return oversized("friction step", float(coefficients[0]), context, self.joint)
 
     def physical_parameters(self, coefficients):
         return {"delta": float(coefficients[0])}
@@ -71,7 +76,10 @@ class LoadDependentFrictionTerm(CandidateTerm):
     def implausibility(self, coefficients, context=None):
         mu = float(coefficients[0])
         if not 0.0 < mu < MAX_LOAD_FRICTION:
-            return f"friction coefficient mu = {mu:.3g} outside (0, {MAX_LOAD_FRICTION})"
+            return (
+                f"friction coefficient mu = {mu:.3g} outside (0, {MAX_LOAD_FRICTION}): a gear's tooth friction "
+                "does not take that share of the load"
+            )
         return None
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
@@ -112,6 +120,14 @@ class FrictionDriftTerm(CandidateTerm):
         if self.time_constant is not None:
             out["time_constant_s"] = float(self.time_constant)
         return out
+
+    def implausibility(self, coefficients, context=None):
+        """A friction change over the recording larger than the joint's torque scale (``oversized``)."""
+        if context is None:
+            return None
+        ends = self._shape(np.asarray([context.full_t[0], context.full_t[-1]], dtype=float))
+        change = float(coefficients[0]) * float(ends[1] - ends[0])
+        return oversized("friction change over the recording", change, context, self.joint)
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         j = self.joint

@@ -11,7 +11,14 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from identification.diagnosis.candidates.base import MAX_PAYLOAD_REACH, CandidateTerm, joint_columns, joint_expression
+from identification.diagnosis.candidates.base import (
+    MAX_PAYLOAD_REACH,
+    MAX_TILT_DEG,
+    CandidateTerm,
+    joint_columns,
+    joint_expression,
+    oversized,
+)
 from psdm_casadi.values import inertia_violation
 
 INERTIA_ORDER = ("Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")  # a payload body's inertia entries, Pinocchio's order
@@ -92,6 +99,15 @@ class CouplingTerm(CandidateTerm):
             "inertia": float(coefficients[1]),
             "source_joint": float(self.source + 1),
         }
+
+    def implausibility(self, coefficients, context=None):
+        """A coupled torque larger than the joint's torque scale (``oversized``) at the source joint's peak speed and
+        acceleration of the recording."""
+        if context is None:
+            return None
+        k, c = self.source, np.abs(np.asarray(coefficients, dtype=float))
+        peak = c[0] * float(np.max(np.abs(context.qd[:, k]))) + c[1] * float(np.max(np.abs(context.qdd[:, k])))
+        return oversized("coupled torque", peak, context, self.joint)
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         k = self.source
@@ -215,3 +231,9 @@ class GravityTiltTerm(CandidateTerm):
     def physical_parameters(self, coefficients):
         a, b = (float(x) for x in coefficients)
         return {"angle_deg": float(np.degrees(np.hypot(a, b))), "angle_a_rad": a, "angle_b_rad": b}
+
+    def implausibility(self, coefficients, context=None):
+        """A mounting tilt beyond ``MAX_TILT_DEG``: no robot is bolted that far off level unnoticed (the gravity-shaped
+        residual is then the robot file's masses, not the mounting)."""
+        angle = float(np.degrees(np.hypot(*np.asarray(coefficients, dtype=float)[:2])))
+        return None if angle <= MAX_TILT_DEG else f"a base tilted {angle:.3g} deg (more than {MAX_TILT_DEG:g} deg)"

@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from identification.diagnosis.candidates.base import CandidateTerm, joint_columns, joint_expression
+from identification.diagnosis.candidates.base import CandidateTerm, joint_columns, joint_expression, oversized
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm, fit_geometry
 from psdm_casadi.errors import ParameterError
 
@@ -139,6 +139,24 @@ class SpringTerm(CandidateTerm):
         out["offset"] = float(coefficients[-1])
         return out
 
+    def implausibility(self, coefficients, context=None):
+        """Not a spring: a negative stiffness (the linear spring's slope, or a polynomial whose stiffness is negative
+        over the whole recorded range: the torque pushes the joint away from its rest angle instead of pulling it
+        back, the sign of a gravity or mass error of the robot file), or a torque over the recorded range larger
+        than the joint's torque scale (``oversized``)."""
+        k = self._secant(coefficients)
+        low, high = self.stiffness_range(coefficients)
+        if (self.order == 1 and k < 0.0) or high < 0.0:
+            return (
+                f"negative stiffness k = {k:.3g} N m/rad: a spring pulls the joint back to its rest angle; this torque "
+                "pushes it away (a position-dependent torque of another cause, such as a gravity or mass error of the "
+                "robot file)"
+            )
+        if self.q_range is None or context is None:
+            return None
+        ends = self.torque_of_angle(np.linspace(self.q_range[0], self.q_range[1], 21), coefficients)
+        return oversized("spring torque", float(ends[np.argmax(np.abs(ends))]), context, self.joint)
+
     def interpret(self, coefficients):
         """The effect reported; a negative stiffness is said aloud: it is not a spring (a spring pulls the joint back
         to its rest angle, a negative stiffness pushes it away)."""
@@ -190,6 +208,11 @@ class TorqueOffsetTerm(CandidateTerm):
     def physical_parameters(self, coefficients):
         return {"offset": float(coefficients[0])}
 
+    def implausibility(self, coefficients, context=None):
+        """An offset larger than the joint's gravity torque amplitude over the recorded range (and its measured
+        torque RMS) is the fit fighting the nominal model, not a sensor bias (``oversized``)."""
+        return oversized("offset", float(coefficients[0]), context, self.joint)
+
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         return joint_expression(q.shape[0], self.joint, coefficients[0] + 0 * q[self.joint])
 
@@ -226,6 +249,11 @@ class TorqueRippleTerm(CandidateTerm):
     def physical_parameters(self, coefficients):
         a, b = (float(x) for x in coefficients)
         return {"amplitude": float(np.hypot(a, b)), "harmonic": float(self.harmonic), "phase": float(np.arctan2(b, a))}
+
+    def implausibility(self, coefficients, context=None):
+        """A ripple larger than the joint's torque scale (``oversized``)."""
+        return oversized("ripple amplitude", float(np.hypot(*np.asarray(coefficients, dtype=float)[:2])), context,
+                         self.joint)  # fmt: skip
 
     def periods_covered(self, context) -> float:
         """How many of the ripple's periods (``2 pi / harmonic`` of the angle) the joint's travel in ``context``

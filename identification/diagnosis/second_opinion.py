@@ -1,0 +1,196 @@
+"""Second opinions on a finding: more validation recordings, or a block cross-validation of the training recording.
+
+A candidate that qualifies on the validation recording (``selection``) is kept only if it holds on a second
+opinion too (``SecondOpinion.judge``):
+
+- **validation recordings** (``diagnose(..., validation=[A, B, ...])``, ``psdm diagnose --validate A B``): the
+  candidate, fitted on the training recording, must pass the selection's gates (``selection.passes_gates``) on each
+  recording by itself;
+- **block cross-validation** (one validation recording): the training recording is cut into ``FOLDS`` contiguous
+  blocks; each is held out once, the model with and without the candidate fitted on the others predicts it. The
+  candidate must lower the held-out error of its own joints and the joint-weighted error in every block, and pass the
+  selection's gates on the blocks' predictions taken together.
+
+A candidate that fails is not kept and not reported as missing physics: it is an ``UnstableFinding`` with its numbers
+(its physical parameters fitted on each recording, or on the training data without each block, and its joints'
+RMSE there without and with it), listed apart in the report (``DiagnosisReport.unstable``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.diagnosis.columns import BlockColumns
+from identification.diagnosis.design import WeightedDesign
+from identification.diagnosis.selection import acting_joints, passes_gates
+from identification.metrics import rmse
+
+FOLDS = 4  # contiguous blocks of the training recording, each held out once
+
+VALIDATION_ROUTE = "validation recordings"
+CROSS_VALIDATION_ROUTE = "block cross-validation"
+
+
+@dataclass(frozen=True)
+class OpinionNumbers:
+    """A candidate on one recording or held-out block: its physical parameters fitted there (on the recording alone,
+    or on the training data without the block), its joints' RMSE [N m] without and with it, and why it fails the
+    gates there (None when it passes)."""
+
+    name: str
+    parameters: dict
+    joints: tuple
+    rmse_before: tuple
+    rmse_after: tuple
+    failure: str | None
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "parameters": {k: float(v) for k, v in self.parameters.items()},
+            "joints": [j + 1 for j in self.joints],
+            "rmse_before": list(self.rmse_before),
+            "rmse_after": list(self.rmse_after),
+            "holds": self.failure is None,
+            "failure": self.failure,
+        }
+
+    def text(self) -> str:
+        params = ", ".join(f"{k} = {v:.4g}" for k, v in self.parameters.items())
+        errors = "; ".join(
+            f"joint {j + 1} {a:.4g} -> {b:.4g} N m" for j, a, b in zip(self.joints, self.rmse_before, self.rmse_after)
+        )
+        verdict = "holds" if self.failure is None else f"fails: {self.failure}"
+        return f"{self.name}: {params} ({errors}; {verdict})"
+
+
+@dataclass(frozen=True)
+class UnstableFinding:
+    """A candidate that qualified on the validation recording but does not hold on a second opinion: not kept."""
+
+    effect: str
+    label: str
+    joints: tuple
+    route: str
+    opinions: tuple
+
+    def to_dict(self) -> dict:
+        return {
+            "effect": self.effect,
+            "label": self.label,
+            "joints": [j + 1 for j in self.joints],
+            "route": self.route,
+            "opinions": [o.to_dict() for o in self.opinions],
+        }
+
+    def sentence(self) -> str:
+        failed = sum(o.failure is not None for o in self.opinions)
+        return (
+            f"`{self.label}` is unstable ({self.route}: it does not hold on {failed} of {len(self.opinions)}), not "
+            "missing physics: " + "; ".join(o.text() for o in self.opinions)
+        )
+
+
+class SecondOpinion:
+    """The second opinion of a diagnosis (module docstring).
+
+    Parameters
+    ----------
+    train_ctx : DiagnosisContext
+        The training recording (the candidates' columns).
+    validations : sequence of (DiagnosisContext, BlockColumns, array)
+        Each validation recording's context, nominal columns and fitted torque, the selection's validation recording
+        first. With one, the route is the block cross-validation of the training data.
+    folds : int
+    """
+
+    def __init__(self, train_ctx, validations, folds: int = FOLDS):
+        self.train_ctx = train_ctx
+        self.validations = [list(v) for v in validations]
+        self.folds = int(folds)
+
+    @property
+    def route(self) -> str:
+        return VALIDATION_ROUTE if len(self.validations) > 1 else CROSS_VALIDATION_ROUTE
+
+    def keep(self, term) -> None:
+        """A kept term joins the validation recordings' base columns (as it joins the selection's design)."""
+        for v in self.validations:
+            v[1] = v[1].concatenate(BlockColumns.from_dense(term.columns(v[0])))
+
+    def judge(self, design, term, limits) -> UnstableFinding | None:
+        """None when ``term`` (qualified on the selection's ``design``) holds on the second opinion; otherwise the
+        ``UnstableFinding`` with its numbers."""
+        ct = term.columns(self.train_ctx)
+        own = acting_joints(term, ct)
+        if self.route == VALIDATION_ROUTE:
+            opinions = self._recordings(design, term, ct, own, limits)
+        else:
+            opinions = self._blocks(design, term, ct, own, limits)
+        if all(o.failure is None for o in opinions):
+            return None
+        p = design.G.shape[0]
+        beta = design.fit(ct, np.zeros((design.y_val.shape[0],) + ct.shape[1:]))[0]
+        effect = term.interpret(beta[p:])[0]
+        return UnstableFinding(effect, term.label, tuple(own) or tuple(term.joints), self.route, tuple(opinions))
+
+    def _recordings(self, design, term, ct, own, limits) -> list:
+        """The candidate fitted on the training data, judged on each validation recording by the selection's gates;
+        its parameters fitted on each recording alone."""
+        p = design.G.shape[0]
+        beta0 = design.fit()[0]
+        beta1 = design.fit(ct, np.zeros((design.y_val.shape[0],) + ct.shape[1:]))[0]
+        shown = list(own) or list(range(ct.shape[1]))
+        out = []
+        for i, (ctx, base, y) in enumerate(self.validations):
+            cv = term.columns(ctx)
+            before = rmse(y, base.predict(beta0))
+            after = rmse(y, base.predict(beta1[:p]) + cv @ beta1[p:])
+            failure = passes_gates(before, after, own, limits.floor, limits.min_improvement, limits.sigma)
+            alone = WeightedDesign(base, base, y, y, limits.sigma).fit(cv, cv)[0][p:]
+            name = f"validation recording {i + 1}" + (f" ({ctx.name})" if ctx.name else "")
+            out.append(_numbers(name, term, alone, shown, before, after, failure))
+        return out
+
+    def _blocks(self, design, term, ct, own, limits) -> list:
+        """Each contiguous block of the training data held out once: the model with and without the candidate fitted
+        on the others predicts it (its own joints and the weighted error must improve in every block); the blocks'
+        predictions together pass the selection's gates."""
+        n = design.y_train.shape[0]
+        p = design.G.shape[0]
+        y = design.y_train
+        pooled0, pooled1 = np.empty_like(y), np.empty_like(y)
+        shown = list(own) or list(range(ct.shape[1]))
+        out = []
+        t = self.train_ctx.t
+        for k, block in enumerate(np.array_split(np.arange(n), self.folds)):
+            rest = np.setdiff1d(np.arange(n), block)
+            fold = WeightedDesign(
+                design.base_train.take(rest), design.base_train.take(block), y[rest], y[block], design.sigma
+            )
+            pooled0[block] = fold.fit(full=True)[5]
+            beta, _, _, _, _, pooled1[block] = fold.fit(ct[rest], ct[block], full=True)
+            before, after = rmse(y[block], pooled0[block]), rmse(y[block], pooled1[block])
+            failure = passes_gates(before, after, own, 0.0, 0.0, design.sigma)
+            name = f"training block {k + 1} of {self.folds} (t {t[block[0]]:.1f}-{t[block[-1]]:.1f} s)"
+            out.append(_numbers(name, term, beta[p:], shown, before, after, failure))
+        pooled = passes_gates(
+            rmse(y, pooled0), rmse(y, pooled1), own, limits.floor, limits.min_improvement, limits.sigma
+        )
+        together = _numbers("all blocks held out", term, (), shown, rmse(y, pooled0), rmse(y, pooled1), pooled)
+        return out + [together]
+
+
+def _numbers(name, term, coefficients, shown, before, after, failure) -> OpinionNumbers:
+    """The ``OpinionNumbers`` of ``term`` with ``coefficients`` (none: no parameters) on the joints ``shown``."""
+    parameters = term.physical_parameters(np.asarray(coefficients, dtype=float)) if len(coefficients) else {}
+    return OpinionNumbers(
+        name=name,
+        parameters=dict(parameters),
+        joints=tuple(int(j) for j in shown),
+        rmse_before=tuple(float(before[j]) for j in shown),
+        rmse_after=tuple(float(after[j]) for j in shown),
+        failure=failure,
+    )
