@@ -124,6 +124,12 @@ class DiagnosisReport:
     unstable: tuple = ()  # ``second_opinion.UnstableFinding``: qualified on one recording, not on another; not kept
     rejected: tuple = ()  # (label, reason): would have qualified, but its parameters are physically meaningless
     opinion_route: str = ""  # how findings were checked beyond the validation recording (``second_opinion``)
+    recordings: tuple = ()  # ``recording_checks.RecordingCheck`` per validation recording
+
+    @property
+    def findings_not_holding(self) -> tuple:
+        """Labels of the findings whose torque does not lower its joints' error on some validation recording."""
+        return tuple(sorted({f.label for r in self.recordings for f in r.findings if not f.holds}))
 
     @property
     def effects(self) -> tuple:
@@ -161,6 +167,7 @@ class DiagnosisReport:
             "model_file_rmse": list(self.model_file_rmse),
             "second_opinion": self.opinion_route or None,
             "unstable": [u.to_dict() for u in self.unstable],
+            "validation_recordings": [r.to_dict() for r in self.recordings],
             "rejected": [{"label": label, "reason": reason} for label, reason in self.rejected],
         }
 
@@ -203,6 +210,7 @@ class DiagnosisReport:
             own = ", ".join(f"joint {j + 1} {v:.4g}" for j, v in enumerate(self.model_file_rmse))
             lines += ["", "RMSE before is the nominal model refitted on the training recording; the model file as it "
                       f"is (as 'psdm validate' computes it): {own} N m."]  # fmt: skip
+        lines += self._recordings_markdown()
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):
             items = [r for r in self.residual_findings if r.joint == j]
@@ -218,6 +226,21 @@ class DiagnosisReport:
         if self.nominal_model:
             return self.nominal_model
         return f"rigid body {'from the robot file' if self.rigid_body == 'prior' else 'identified'}"
+
+    def _recordings_markdown(self) -> list:
+        """With several validation recordings: each one's per-joint RMSE before -> after, and the findings whose
+        torque does not lower their joints' error there."""
+        if len(self.recordings) < 2:
+            return []
+        head = " | ".join(f"joint {j + 1}" for j in range(self.n_dof))
+        lines = ["", "### Each validation recording (RMSE before -> after [N m])", "", f"| recording | {head} |"]
+        lines.append("|---" * (self.n_dof + 1) + "|")
+        for r in self.recordings:
+            cells = " | ".join(f"{a:.4g} -> {b:.4g}" for a, b in zip(r.rmse_before, r.rmse_after))
+            lines.append(f"| {markdown_escape(r.name)} | {cells} |")
+        failing = self.findings_not_holding
+        lines += [f"- `{label}` does not lower its joints' error on every recording" for label in failing]
+        return lines
 
     def _route_lines(self) -> list:
         """The sentence saying how findings were checked beyond the validation recording (``second_opinion``)."""

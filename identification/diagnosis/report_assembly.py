@@ -13,6 +13,7 @@ from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.joint_changes import explain_joint_changes
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
+from identification.diagnosis.recording_checks import check_recordings
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
 from identification.metrics import r2, rmse
@@ -65,6 +66,7 @@ def build_report(
         unstable=selection.unstable,
         rejected=selection.rejected,
         opinion_route=selection.opinion_route,
+        recordings=check_recordings(problem, final, findings),
     )
 
 

@@ -47,7 +47,15 @@ def register(subparsers) -> None:
         help="robot file (.toml, .urdf, .xml MJCF), built-in robot name, or calibrated model (.json, 'psdm identify')",
     )
     p.add_argument("--train", required=True, help="training recording (.csv, .npz, .mat, or a ROS 2 bag)")
-    p.add_argument("--validate", required=True, help="validation recording (.csv, .npz, .mat, or a ROS 2 bag)")
+    p.add_argument(
+        "--validate",
+        required=True,
+        nargs="+",
+        metavar="RECORDING",
+        help="validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag). With several, a finding is kept only if it "
+        "holds on each (the errors are reported on the first); with one, a block cross-validation of --train is the "
+        "second opinion. Findings that flip are listed as unstable, not as missing physics",
+    )
     add_topic_argument(p)
     p.add_argument(
         "--friction",
@@ -128,8 +136,9 @@ def _run_diagnose(args) -> int:
         robot = load_robot_argument(args)
     layout = recording_layout(args)  # --columns, --rate
     train = load_robot_recording(args.train, robot, args.topic, layout)  # joint side, timed (robot file's [recording])
-    validation = load_robot_recording(args.validate, robot, args.topic, layout)
-    for warning in not_held_out([args.train], [args.validate], "--train"):
+    validations = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
+    validation = validations[0]
+    for warning in not_held_out([args.train], args.validate, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
     options = DiagnosisOptions(
@@ -143,7 +152,7 @@ def _run_diagnose(args) -> int:
         sparse=not args.no_sparse,
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
-    report = diagnose(robot, train, validation, options, model=model, derive=lambda r: derive_model(args, r))
+    report = diagnose(robot, train, validations, options, model=model, derive=lambda r: derive_model(args, r))
     report = _named(args, report, preparation, (calibrated, robot_file, model), validation)
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
@@ -373,7 +382,7 @@ def _out_folder(args):
 
 def _inputs(args) -> tuple:
     """The files ``psdm diagnose`` reads, which no output may replace."""
-    return (("ROBOT", args.robot), ("--train", args.train), ("--validate", args.validate))
+    return (("ROBOT", args.robot), ("--train", args.train), *(("--validate", path) for path in args.validate))
 
 
 def _contribution(entry) -> str:

@@ -80,3 +80,24 @@ def test_cli_diagnose_max_samples_reaches_the_diagnosis(denso, tmp_path, monkeyp
     assert main([*args, "--max-samples", "1200", "--max-effects", "0", "--no-sparse"]) == 0
     assert seen == [1200]
     assert json.loads(capsys.readouterr().out)["findings"] == []
+
+
+def test_cli_diagnose_takes_several_validation_recordings_and_keeps_what_holds_on_each(denso, tmp_path, capsys):
+    extras = [xp.Spring(joint=1, stiffness=40.0, q0=0.1)]
+    train, validate = _write_pair(denso, tmp_path, extras)
+    rng = np.random.default_rng(43)
+    rec, _ = simulate_recording(
+        denso,
+        sine_experiment(denso, duration=4.0, rng=rng).reference(),
+        SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
+        rng,
+        extras=extras,
+    )
+    second = save_recording(rec, tmp_path / "validate_b.npz")
+    args = ["diagnose", str(DENSO_FILE), "--train", str(train), "--validate", str(validate), str(second)]
+    assert main([*args, "--json", "--max-effects", "2", "--no-sparse"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["second_opinion"] == "validation recordings" and out["unstable"] == []
+    assert out["findings"][0]["effect"] == "spring" and out["findings"][0]["parameters"]["k"] == pytest.approx(
+        40.0, rel=0.15
+    )

@@ -1,0 +1,86 @@
+"""Each validation recording's verdict on the final diagnosis model (``DiagnosisReport.recordings``).
+
+For every validation recording (the one the report's errors are computed on first, then the further ones of
+``diagnose(..., validation=[A, B])``): the per-joint RMSE of the nominal and the final model, and for each finding
+whether it still lowers the error of the joints it names there, its torque taken out of the final model without a
+refit. The selection judged each finding when it was kept (``second_opinion``); this judges the model as it is
+written, after later terms, the refinement and the backward check, on every recording.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.diagnosis.design import WeightedDesign, joint_weights
+from identification.metrics import rmse
+
+
+@dataclass(frozen=True)
+class FindingOnRecording:
+    """A finding on one recording: its joints' RMSE [N m] without it (its torque taken out) and with it."""
+
+    label: str
+    joints: tuple
+    rmse_without: tuple
+    rmse_with: tuple
+    holds: bool
+
+    def to_dict(self) -> dict:
+        return {
+            "label": self.label,
+            "joints": [j + 1 for j in self.joints],
+            "rmse_without": list(self.rmse_without),
+            "rmse_with": list(self.rmse_with),
+            "holds": self.holds,
+        }
+
+
+@dataclass(frozen=True)
+class RecordingCheck:
+    """One validation recording: per-joint RMSE of the nominal and the final model, and each finding's verdict."""
+
+    name: str
+    rmse_before: tuple
+    rmse_after: tuple
+    findings: tuple
+
+    def to_dict(self) -> dict:
+        return {
+            "name": self.name,
+            "rmse_before": list(self.rmse_before),
+            "rmse_after": list(self.rmse_after),
+            "findings": [f.to_dict() for f in self.findings],
+        }
+
+
+def check_recordings(problem, final, findings) -> tuple:
+    """The ``RecordingCheck`` of every validation recording of ``problem`` (``diagnose.DiagnosisProblem``) for the
+    final fit ``final`` (``diagnose.FinalFit``) and its ``findings`` (``report.Finding``, matched by label)."""
+    sigma = joint_weights(problem.ctx_t.tau)
+    nominal = WeightedDesign(problem.base_t, problem.base_t, problem.y_t, problem.y_t, sigma).fit()[0]
+    joints_of = {f.label: tuple(f.joints) for f in findings}
+    recordings = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
+    out = []
+    for i, (ctx, base, y) in enumerate(recordings):
+        parts = [term.columns(ctx) @ np.asarray(c, dtype=float) for term, c in zip(final.terms, final.coefficients)]
+        predicted = base.predict(final.friction_coefficients) + sum(parts, np.zeros_like(y))
+        if i == 0:
+            predicted = final.prediction_v  # the refined fit as the report shows it
+        after = rmse(y, predicted)
+        verdicts = []
+        for term, part in zip(final.terms, parts):
+            joints = joints_of.get(term.label)
+            if not joints:
+                continue
+            without = rmse(y, predicted - part)
+            js = list(joints)
+            holds = bool(np.sum(after[js] ** 2 / sigma[js] ** 2) < np.sum(without[js] ** 2 / sigma[js] ** 2))
+            verdicts.append(
+                FindingOnRecording(term.label, joints, tuple(without[js].tolist()), tuple(after[js].tolist()), holds)
+            )
+        name = f"validation recording {i + 1}" + (f" ({ctx.name})" if getattr(ctx, "name", "") else "")
+        before = rmse(y, base.predict(nominal))
+        out.append(RecordingCheck(name, tuple(before.tolist()), tuple(after.tolist()), tuple(verdicts)))
+    return tuple(out)
