@@ -22,6 +22,12 @@ from psdm_casadi.cli.checks import (
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.errors import ParameterError
 
+VALIDATE_HELP = (
+    "validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag). With several, a finding is kept only if it holds on "
+    "each (the errors are reported on the first); with one, a block cross-validation of --train is the second "
+    "opinion. Findings that flip are listed as unstable, not as missing physics"
+)
+
 
 def register(subparsers) -> None:
     """Add ``diagnose`` to the ``psdm`` parser."""
@@ -47,15 +53,7 @@ def register(subparsers) -> None:
         help="robot file (.toml, .urdf, .xml MJCF), built-in robot name, or calibrated model (.json, 'psdm identify')",
     )
     p.add_argument("--train", required=True, help="training recording (.csv, .npz, .mat, or a ROS 2 bag)")
-    p.add_argument(
-        "--validate",
-        required=True,
-        nargs="+",
-        metavar="RECORDING",
-        help="validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag). With several, a finding is kept only if it "
-        "holds on each (the errors are reported on the first); with one, a block cross-validation of --train is the "
-        "second opinion. Findings that flip are listed as unstable, not as missing physics",
-    )
+    p.add_argument("--validate", required=True, nargs="+", metavar="RECORDING", help=VALIDATE_HELP)
     add_topic_argument(p)
     p.add_argument(
         "--friction",

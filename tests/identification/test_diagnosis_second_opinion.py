@@ -116,5 +116,10 @@ def test_diagnose_with_two_validation_recordings_reports_a_flipping_offset_as_un
     listed = both.to_dict()["unstable"]
     assert listed[0]["label"] == "torque_offset[j3]" and [o["holds"] for o in listed[0]["opinions"]] == [True, False]
     assert "## Unstable" in both.to_markdown()
+    # each validation recording's verdict on the final model: the first is the one the report's errors are on
+    assert [r.name.split(" (")[0] for r in both.recordings] == ["validation recording 1", "validation recording 2"]
+    np.testing.assert_allclose(both.recordings[0].rmse_after, both.rmse_after, rtol=1e-9)
+    np.testing.assert_allclose(both.recordings[0].rmse_before, both.rmse_before, rtol=1e-6)
+    assert both.findings_not_holding == ()
     with pytest.raises(ParameterError, match="non-empty list of Recordings"):
         diagnose(denso, train, [], options, model=denso_model)
