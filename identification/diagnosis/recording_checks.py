@@ -2,9 +2,10 @@
 
 For every validation recording (the one the report's errors are computed on first, then the further ones of
 ``diagnose(..., validation=[A, B])``): the per-joint RMSE of the nominal and the final model, and for each finding
-whether it still lowers the error of the joints it names there, its torque taken out of the final model without a
-refit. The selection judged each finding when it was kept (``second_opinion``); this judges the model as it is
-written, after later terms, the refinement and the backward check, on every recording.
+whether it still lowers the joint-weighted error of the joints it acts on there (a robot-wide term such as a payload
+or a delay: of every joint, as the selection judged it), its torque taken out of the final model without a refit.
+The selection judged each finding when it was kept (``second_opinion``); this judges the model as it is written,
+after later terms, the refinement and the backward check, on every recording.
 """
 
 from __future__ import annotations
@@ -19,7 +20,8 @@ from identification.metrics import rmse
 
 @dataclass(frozen=True)
 class FindingOnRecording:
-    """A finding on one recording: its joints' RMSE [N m] without it (its torque taken out) and with it."""
+    """A finding on one recording: the RMSE [N m] of the joints it is judged on without it (its torque taken out) and
+    with it, and whether their joint-weighted error is lower with it."""
 
     label: str
     joints: tuple
@@ -75,7 +77,7 @@ def check_recordings(problem, final, findings) -> tuple:
             if not joints:
                 continue
             without = rmse(y, predicted - part)
-            js = list(joints)
+            js = list(joints) if term.joints else list(range(y.shape[1]))  # robot-wide: every joint, as selected
             holds = bool(np.sum(after[js] ** 2 / sigma[js] ** 2) < np.sum(without[js] ** 2 / sigma[js] ** 2))
             verdicts.append(
                 FindingOnRecording(term.label, joints, tuple(without[js].tolist()), tuple(after[js].tolist()), holds)
