@@ -69,7 +69,7 @@ def _context(tau_rms, gravity_amplitude):
     [
         (TorqueOffsetTerm(joint=0), [30.0], True),
         (TorqueOffsetTerm(joint=0), [-2038.0], False),  # the TX40's "offset" of issue 25
-        (TorqueOffsetTerm(joint=0), [-90.0], False),  # beyond the gravity amplitude 80 N m and the torque RMS 20 N m
+        (TorqueOffsetTerm(joint=0), [-90.0], False),  # beyond the gravity amplitude 80 N m and the peak torque 28 N m
         (SpringTerm(joint=0, q_range=(-1.0, 1.0)), [10.0, 5.0], True),
         (SpringTerm(joint=0, q_range=(-1.0, 1.0)), [500.0, 0.0], False),  # 500 N m over the range
         (FrictionDriftTerm(joint=0), [1.0], True),  # 10 N m over 10 s
@@ -80,15 +80,15 @@ def test_torques_beyond_the_joints_gravity_amplitude_are_not_findings(term, coef
     reason = term.implausibility(np.array(coefficients), _context(tau_rms=20.0, gravity_amplitude=80.0))
     assert (reason is None) == accepted
     if not accepted:
-        assert "80 N m" in reason  # names the bound: the larger of the gravity amplitude and the torque RMS
+        assert "80 N m" in reason  # names the bound: the larger of the gravity amplitude and the peak torque
 
 
-def test_offset_bound_falls_back_to_the_torque_rms_where_gravity_does_not_load_the_joint():
-    # a vertical first axis: no gravity torque, the bound is the measured torque RMS
+def test_offset_bound_falls_back_to_the_peak_torque_where_gravity_does_not_load_the_joint():
+    # a vertical first axis: no gravity torque, the bound is the peak measured torque (sqrt(2) x its RMS of 20 N m)
     context = _context(tau_rms=20.0, gravity_amplitude=0.0)
-    assert TorqueOffsetTerm(joint=0).implausibility(np.array([15.0]), context) is None
-    reason = TorqueOffsetTerm(joint=0).implausibility(np.array([25.0]), context)
-    assert float(reason.rsplit("(", 1)[1].split(" ")[0]) == pytest.approx(20.0, rel=0.01)
+    assert TorqueOffsetTerm(joint=0).implausibility(np.array([25.0]), context) is None
+    reason = TorqueOffsetTerm(joint=0).implausibility(np.array([-30.0]), context)
+    assert float(reason.rsplit("(", 1)[1].split(" ")[0]) == pytest.approx(20.0 * np.sqrt(2.0), rel=0.01)
 
 
 def test_negative_payload_is_reported_as_a_last_link_too_heavy_in_the_prior(denso, denso_model):

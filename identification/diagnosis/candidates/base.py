@@ -51,11 +51,12 @@ def joint_expression(n_dof: int, joint: int, value):
 def torque_bound(context, joint: int) -> float | None:
     """The joint's torque scale [N m] a candidate's torque is judged against (``CandidateTerm.implausibility``): the
     larger of the nominal model's gravity torque amplitude over the recorded range (``DiagnosisContext.gravity``)
-    and the measured torque RMS (the scale of a joint gravity does not load, such as a vertical first axis); None
-    without a context (a term rebuilt from a model file is judged by its sign rules only)."""
+    and the peak measured torque (the scale of a joint gravity does not load, such as a vertical first axis, and of a
+    spring that is larger than the gravity it balances); None without a context (a term rebuilt from a model file is
+    judged by its sign rules only)."""
     if context is None:
         return None
-    measured = float(np.sqrt(np.mean(np.asarray(context.tau)[:, joint] ** 2)))
+    measured = float(np.max(np.abs(np.asarray(context.tau)[:, joint])))
     gravity = getattr(context, "gravity", None)
     amplitude = 0.0 if gravity is None else float(np.max(np.abs(np.asarray(gravity)[:, joint])))
     return max(amplitude, measured)
@@ -69,8 +70,8 @@ def oversized(name: str, torque: float, context, joint: int) -> str | None:
     if bound is None or abs(float(torque)) <= MAX_TORQUE_SHARE * bound:
         return None
     return (
-        f"{name} {float(torque):.4g} N m is larger than joint {joint + 1}'s gravity torque amplitude and measured "
-        f"torque RMS ({bound:.4g} N m)"
+        f"{name} {float(torque):.4g} N m is larger than joint {joint + 1}'s gravity torque amplitude and peak measured "
+        f"torque ({bound:.4g} N m)"
     )
 
 

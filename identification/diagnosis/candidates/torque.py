@@ -209,8 +209,8 @@ class TorqueOffsetTerm(CandidateTerm):
         return {"offset": float(coefficients[0])}
 
     def implausibility(self, coefficients, context=None):
-        """An offset larger than the joint's gravity torque amplitude over the recorded range (and its measured
-        torque RMS) is the fit fighting the nominal model, not a sensor bias (``oversized``)."""
+        """An offset larger than the joint's gravity torque amplitude over the recorded range (and its peak measured
+        torque) is the fit fighting the nominal model, not a sensor bias (``oversized``)."""
         return oversized("offset", float(coefficients[0]), context, self.joint)
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
