@@ -202,7 +202,10 @@ def _mass_warnings(robot, fit) -> list:
 
 
 def _envelope_warnings(fit) -> list:
-    """The links and drives the data push against their physical envelope (``envelope_report``)."""
+    """The links and drives the data push against their physical envelope (``envelope_report``); none when the
+    torques are in another unit (every link is then pushed, and the unit is the one cause to name)."""
+    if unit_factor(getattr(fit, "torque_ratio", ())) is not None:
+        return []
     return [finding.message for finding in fit.envelope]
 
 

@@ -204,8 +204,9 @@ def test_torques_of_two_joints_swapped_are_flagged(arm, tmp_path, capsys):
 
 def test_torques_in_milli_newton_metres_are_flagged_by_the_link_masses(arm, tmp_path, capsys):
     code, err, document = _identified(arm, tmp_path, capsys, "mNm.csv", tau=1000.0 * arm[2].tau)
-    assert code == 0 and "identified mass" in err and "mN m?" in err
+    assert code == 0 and "rigid-body torques" in err and "mN m?" in err
     assert any("times the robot file's" in w for w in document["warnings"])
+    assert not any("pushed against" in w for w in document["warnings"])  # the unit, not a payload, is named
 
 
 def test_validating_on_the_training_file_warns_that_it_is_not_held_out(arm, tmp_path, capsys, monkeypatch):
