@@ -20,7 +20,7 @@ from identification.calibration.trajectory_data import prepare_recordings
 from identification.data.io import load_recording
 from identification.fleet.baseline import Baseline
 from identification.fleet.update import DayFit, refit_day
-from psdm_casadi.errors import PSDMError
+from psdm_casadi.errors import PSDMError, RecordingError
 
 __all__ = ["SessionResult", "SessionTask", "process_session", "software_version"]
 
@@ -79,7 +79,7 @@ def _read(task: SessionTask, baseline: Baseline) -> tuple:
     recordings = [load_recording(path, robot.n_dof, robot.joint_names) for path in task.paths]
     currents = all(rec.tau is None for rec in recordings)
     if not currents and any(rec.tau is None for rec in recordings):
-        raise PSDMError(
+        raise RecordingError(
             f"{task.robot_id} {task.day}: some recordings hold joint torques and some only currents; record one kind "
             "per day or split the day."
         )

@@ -3,12 +3,12 @@
 Each robot is the built-in robot (default the Denso VS-6556G) with manufacturing spread (every link's inertia
 scaled by a few %, friction by tens of %, torque constants by 2 %), written as its own robot file (as if each robot
 had been calibrated once: the fleet's baseline), with LuGre friction of linear viscous part (``dv = 1``), a
-counterbalance spring on one joint and a
-torque ripple on another (both tracked by the fleet), day-to-day friction jitter (temperature) and current
-noise. Every day it runs the same health-check motion (a two-tone sine per joint, ``duration`` s at ``rate`` Hz)
-and logs positions and motor currents: the motor torque is the rigid body of the robot's true inertia (Pinocchio
-RNEA, a payload in the last link), LuGre steady-state friction, the spring and the ripple
-(``effects.Spring``, ``effects.TorqueRipple``), and the current is that torque over the true torque constant.
+counterbalance spring on one joint and a torque ripple on another (both tracked by the fleet), day-to-day friction
+jitter (temperature) and current noise. Every day it runs the same health-check motion (a two-tone sine per
+joint, ``duration`` s at ``rate`` Hz) and logs positions and motor currents: the motor torque is the rigid body of
+the robot's true inertia (Pinocchio RNEA, a payload in the last link), LuGre steady-state friction, the spring and
+the ripple (``effects.Spring``, ``effects.TorqueRipple``), and the current is that torque over the true torque
+constant.
 
 Events (:data:`EVENT_KINDS`), each with an onset day after the baseline window, change one true parameter:
 friction wear (Coulomb and static friction rising along a ramp), viscous rise (lubricant ageing, a ramp), a

@@ -64,6 +64,11 @@ def test_layout_folder_and_manifest_agree(tiny_fleet, tmp_path):
     manifest.write_text("\n".join(lines))
     listed = read_fleet(manifest)
     assert [(r.robot_id, r.days) for r in listed.robots] == [(r.robot_id, r.days) for r in fleet.robots]
+    days = fleet.robots[0].days[:2]  # recordings listed one by one with their day
+    listed_days = "".join(f'[[robot.recordings]]\nday = "{d.day}"\npath = "{d.paths[0]}"\n' for d in days)
+    manifest.write_text(f'[[robot]]\nid = "solo"\nrobot = "{folder / "r01" / "robot.toml"}"\n{listed_days}')
+    solo = read_fleet(manifest).robots[0]
+    assert solo.robot_id == "solo" and solo.days == days
 
 
 def test_layout_errors_name_the_path_and_fix(tiny_fleet, tmp_path):
