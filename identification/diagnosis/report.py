@@ -29,6 +29,7 @@ REPORT_FILES = (
     "augmented_inverse_dynamics.casadi",
     "torque_vs_angle.png",
     "unnamed_effects.png",
+    "report.html",
 )
 
 
@@ -385,7 +386,7 @@ class DiagnosisReport:
         the directory as it was. The robot name is escaped in report.md.
         """
         directory = Path(directory)
-        names = [name for name in REPORT_FILES if plots or not name.endswith(".png")]
+        names = [name for name in REPORT_FILES if plots or not name.endswith((".png", ".html"))]
         existing = [name for name in names if (directory / name).exists()]
         if existing and not overwrite:
             raise FileExistsError(
@@ -398,4 +399,8 @@ class DiagnosisReport:
             js = self.to_json()
             paths["json"] = atomic_write(stage / "report.json", lambda h: h.write(js + "\n"))
             paths.update(self.augmented.save(stage))
+            if plots:  # the page a reader opens first (``report_html.diagnosis_page``)
+                from identification.report_html.diagnosis_page import diagnosis_page
+
+                paths["html"] = diagnosis_page(self).write(stage / "report.html")
         return {key: directory / Path(path).name for key, path in paths.items()}

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from psdm_casadi.cli import identify_recordings
 from psdm_casadi.cli.checks import add_robot_argument, check_not_input, load_robot_argument, output_folder
+from psdm_casadi.cli.html_report import add_html_argument
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.fileio import atomic_write, markdown_escape
 
@@ -82,6 +83,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     identify_recordings.add_arguments(p)
+    add_html_argument(p)
     p.set_defaults(handler=_run_identify)
 
 

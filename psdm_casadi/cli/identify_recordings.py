@@ -23,6 +23,7 @@ from psdm_casadi.cli.checks import (
     output_file,
     recording_layout,
 )
+from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.errors import ParameterError, SolverError
 
@@ -110,6 +111,7 @@ def run(args) -> int:
     from psdm_casadi.model import load_model
 
     out = _check_outputs(args)
+    html = html_output(args)  # report.html: refused before any work like --out
     robot = load_robot_argument(args)
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
     layout = recording_layout(args)  # --columns, --rate
@@ -164,6 +166,9 @@ def run(args) -> int:
     with out.staging() as stage:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
     _print(args, robot, model, fit, report, calibrated, choice)
+    if html is not None:  # the held-out recordings' prediction, else the training recordings'
+        page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
+        progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
 
 

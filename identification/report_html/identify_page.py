@@ -1,0 +1,177 @@
+"""The page of ``psdm identify``: is the calibrated model consistent, plausible and better than the robot file,
+and what to do next; then per-joint measured vs predicted torque with the residual, and the parameters with their
+standard deviations as error bars.
+
+Every number comes from the calibrated-model document (``CalibratedModel.document``: ``validation``,
+``warnings``, ``base``, ``drive``, ``standard``) or from the model's own prediction of a recording
+(``CalibratedModel.predict_recording``, as ``psdm validate``), so the page says what the file says.
+"""
+
+from __future__ import annotations
+
+import html
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from identification.report_html.page import Page, figure_div, paragraphs, table
+
+#: Most samples per joint plotted (a longer recording is plotted every k-th sample; the RMSE uses all).
+MAX_PLOTTED = 4000
+#: The validation columns of the model file shown in the table, with their headings.
+VALIDATION_COLUMNS = (
+    ("rmse", "identified"),
+    ("rmse_ols", "unconstrained"),
+    ("rmse_prior", "robot file"),
+    ("r2", "R^2 identified"),
+)
+
+
+@dataclass(frozen=True)
+class TorqueSeries:
+    """Measured and predicted joint torques [N m] of one recording, on the prepared samples the RMSE uses."""
+
+    name: str
+    held_out: bool
+    t: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+
+
+def torque_series(calibrated, model, robot, recordings, names, held_out: bool) -> list:
+    """``TorqueSeries`` of ``recordings`` (raw, joint side) predicted by ``calibrated`` as ``psdm validate`` does."""
+    out = []
+    for name, recording in zip(names, recordings):
+        kt = None
+        if recording.tau is None and robot.drives:
+            kt = np.array([d.kt for d in robot.drives], dtype=float)
+        prepared, predicted = calibrated.predict_recording(model, recording, kt)
+        out.append(TorqueSeries(Path(str(name)).name, held_out, prepared.t, prepared.tau, np.asarray(predicted)))
+    return out
+
+
+def identify_page(document: dict, series=()) -> Page:
+    """The report page of a calibrated-model ``document`` and the ``TorqueSeries`` it predicted."""
+    names = document["robot"]["joint_names"]
+    page = Page(f"Identified model: {document['robot']['name']}")
+    _summary(page, document)
+    warnings = list(document.get("warnings") or [])
+    if warnings:
+        page.section(f"Warnings stored with the fit ({len(warnings)})", paragraphs(warnings), open_=True)
+    validation = (document.get("validation") or {}).get("recordings") or []
+    if validation:
+        page.section("Validation RMSE per joint", _validation_tables(validation, names))
+    for s in series:
+        kind = "held-out recording" if s.held_out else "training recording"
+        divs = [_joint_figure(s, j, name) for j, name in enumerate(names)]
+        page.section(f"Measured vs predicted torque: {s.name} ({kind})", "".join(divs))
+    page.section("Parameters with their standard deviation (1 sigma error bars)", _parameter_figures(document))
+    return page
+
+
+def _summary(page: Page, document: dict) -> None:
+    ident, standard = document.get("identification", {}), document.get("standard", {})
+    n_rec = len(document.get("provenance", {}).get("recordings") or [])
+    cutoff = ", ".join(f"{c:g}" for c in ident.get("cutoff_hz") or [])
+    counts = f"{len(document['base']['values'])} base parameters and {len(document['drive']['values'])} drive"
+    samples = f"{ident.get('n_samples', '?')} samples after filtering at {cutoff or '?'} Hz"
+    condition = f"condition number {ident.get('condition_number', 0):.3g}"
+    page.say(
+        f"{counts} parameters identified from {n_rec} recording{'s' if n_rec != 1 else ''} ({samples}; {condition})."
+    )
+    mass = (document.get("validation") or {}).get("min_mass_eigenvalue")
+    eigen = f"smallest pseudo-inertia eigenvalue {standard.get('min_pseudo_inertia_eigenvalue', float('nan')):.3g}"
+    eigen += "" if mass is None else f", smallest mass-matrix eigenvalue {mass:.3g}"
+    if not standard.get("checked", True):
+        page.say("NOT checked for physical consistency (--no-consistency): the mass matrix may be indefinite.", "bad")
+    elif standard.get("consistent"):
+        page.say(f"Physically consistent ({eigen}).", "good")
+    else:
+        page.say(f"NOT physically consistent ({eigen}): do not simulate or control the robot with it.", "bad")
+    warnings = document.get("warnings") or []
+    if warnings:
+        first = warnings[0].split(". ")[0]
+        page.say(f"Plausibility: {len(warnings)} warning{'s' if len(warnings) != 1 else ''} stored with the fit "
+                 f"(section below); the first: {first}.", "warn")  # fmt: skip
+    else:
+        page.say("Plausibility: no warning (friction, masses and each joint's fit within the checks).", "good")
+    for entry in (document.get("validation") or {}).get("recordings") or []:
+        page.say(*_comparison(entry, document["robot"]["joint_names"]))
+    page.say(_next_step(document))
+
+
+def _comparison(entry: dict, names) -> tuple:
+    """(sentence, tone): the validation RMSE against the robot file's and the unconstrained fit's, per joint."""
+    ours = np.asarray(entry["rmse"], dtype=float)
+    name = Path(entry["recording"]).name
+    if "rmse_prior" not in entry:
+        return (
+            f"Validation on {name}: RMSE summed over joints {ours.sum():.4g} N m (no robot-file prior to compare).",
+            "",
+        )
+    prior = np.asarray(entry["rmse_prior"], dtype=float)
+    better = int(np.sum(ours < prior))
+    text = (f"Validation on {name}: better than the robot file on {better} of {len(ours)} joints (RMSE summed over "
+            f"joints {prior.sum():.4g} -> {ours.sum():.4g} N m).")  # fmt: skip
+    ols = np.asarray(entry.get("rmse_ols", ours), dtype=float)
+    worse = [f"{names[j]} ({ours[j]:.3g} vs {ols[j]:.3g} N m)" for j in range(len(ours)) if ours[j] > 1.5 * ols[j]]
+    if worse:
+        text += " The physically consistent model fits clearly worse than the unconstrained fit on " + ", ".join(worse)
+        text += ": the model lacks something there (see the warnings)."
+    return text, "good" if better == len(ours) and not worse else "warn"
+
+
+def _next_step(document: dict) -> str:
+    """What to do next, from what the page found."""
+    if not document.get("standard", {}).get("consistent", True):
+        return "Next: record a better-exciting trajectory and identify again."
+    if document.get("warnings"):
+        return "Next: act on the warnings (each names its check and, where one helps, the command to run)."
+    if not (document.get("validation") or {}).get("recordings"):
+        return "Next: validate on a held-out recording (psdm validate MODEL.json OTHER.csv)."
+    return "Next: use it: psdm codegen MODEL.json (C), psdm export-urdf or psdm export-mjcf."
+
+
+def _validation_tables(validation, names) -> str:
+    parts = []
+    for entry in validation:
+        columns = [(k, label) for k, label in VALIDATION_COLUMNS if k in entry]
+        rows = [[name] + [float(entry[k][j]) for k, _ in columns] for j, name in enumerate(names)]
+        headers = ["joint"] + [f"{label}" + ("" if k == "r2" else " RMSE [N m]") for k, label in columns]
+        parts.append(f"<h3>{html.escape(Path(entry['recording']).name)}</h3>" + table(headers, rows))
+    return "".join(parts)
+
+
+def _joint_figure(series: TorqueSeries, j: int, name: str) -> str:
+    """Measured and predicted torque of joint ``j`` over time, and the residual below."""
+    from plotly.subplots import make_subplots
+
+    step = max(1, len(series.t) // MAX_PLOTTED)
+    t, measured, predicted = series.t[::step], series.measured[::step, j], series.predicted[::step, j]
+    rmse = float(np.sqrt(np.mean((series.measured[:, j] - series.predicted[:, j]) ** 2)))
+    fig = make_subplots(rows=2, cols=1, shared_xaxes=True, row_heights=[0.7, 0.3], vertical_spacing=0.05)
+    fig.add_scatter(x=t, y=measured, name="measured", line={"color": "black", "width": 1}, row=1, col=1)
+    fig.add_scatter(x=t, y=predicted, name="predicted", line={"width": 1, "color": "#1f77b4"}, row=1, col=1)
+    fig.add_scatter(x=t, y=measured - predicted, name="residual", line={"width": 1, "color": "#cf222e"}, row=2, col=1)
+    fig.update_layout(title=f"joint {j + 1} ({name}): RMSE {rmse:.4g} N m", height=380, margin={"t": 40, "b": 30})
+    fig.update_yaxes(title_text="torque [N m]", row=1, col=1)
+    fig.update_yaxes(title_text="residual", row=2, col=1)
+    fig.update_xaxes(title_text="t [s]", row=2, col=1)
+    return figure_div(fig, f"joint-{j + 1}-{series.name}", "joint-plot")
+
+
+def _parameter_figures(document: dict) -> str:
+    """Base and drive parameters as points with 1-sigma error bars (drive parameters held at 0 left out)."""
+    import plotly.graph_objects as go
+
+    divs = []
+    for key, title in (("base", "base parameters"), ("drive", "drive parameters (friction, offsets, inertias)")):
+        block = document[key]
+        keep = [k for k, n in enumerate(block["names"]) if not (n.startswith("offset") and block["std"][k] == 0)]
+        fig = go.Figure(go.Scatter(
+            x=[block["names"][k] for k in keep], y=[block["values"][k] for k in keep], mode="markers", name=title,
+            error_y={"type": "data", "array": [block["std"][k] for k in keep], "visible": True}))  # fmt: skip
+        fig.update_layout(title=title, height=380, margin={"t": 40, "b": 30}, yaxis_title="value (SI units)")
+        divs.append(figure_div(fig, f"parameters-{key}", "parameter-plot"))
+    return "".join(divs)

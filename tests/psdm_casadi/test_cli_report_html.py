@@ -1,0 +1,168 @@
+"""``report.html`` of ``psdm identify`` and ``psdm diagnose``: written, self-contained, one plot per joint, a summary
+first, and the numbers of the model file and of the diagnosis report (read back out of the page's plot JSON and
+table cells); rendered by a real headless Chromium where one is installed."""
+
+from __future__ import annotations
+
+import argparse
+import base64
+import json
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from identification.data.io import save_recording
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from psdm_casadi.cli.html_report import default_html_path, html_output
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.fixture(scope="module")
+def recordings(tmp_path_factory, denso):
+    """A short training and validation pair of the virtual Denso with a hidden spring on joint 2."""
+    folder = tmp_path_factory.mktemp("html_recordings")
+    for k, (name, duration) in enumerate((("train.npz", 5.0), ("valid.npz", 3.0))):
+        rng = np.random.default_rng(40 + k)
+        reference = sine_experiment(denso, duration=duration, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1)
+        recording, _ = simulate_recording(denso, reference, options, rng, extras=[xp.Spring(1, 40.0, 0.1)])
+        save_recording(recording, folder / name)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def identified(recordings, tmp_path_factory):
+    out = tmp_path_factory.mktemp("html_identify") / "model.json"
+    argv = ["identify", "denso_vs6556g", "--data", str(recordings / "train.npz")]
+    assert main([*argv, "--validate", str(recordings / "valid.npz"), "--out", str(out)]) == 0
+    return out, default_html_path(out)
+
+
+@pytest.fixture(scope="module")
+def diagnosed(recordings, tmp_path_factory):
+    out = tmp_path_factory.mktemp("html_diagnose") / "diagnosis"
+    argv = ["diagnose", str(DENSO_FILE), "--train", str(recordings / "train.npz"), "--validate"]
+    argv += [str(recordings / "valid.npz"), "--out", str(out), "--max-effects", "1", "--no-sparse"]
+    assert main([*argv, "--rigid-body", "prior"]) == 0
+    return out / "report.html", json.loads((out / "report.json").read_text())
+
+
+def plot_data(page: str, div_id: str) -> list:
+    """The traces of the plot ``div_id`` as the page hands them to plotly (typed arrays decoded)."""
+    match = re.search(r'Plotly\.newPlot\(\s*"' + re.escape(div_id) + r'",\s*', page)
+    start = match.end()
+    traces, _ = json.JSONDecoder().raw_decode(page[start:])
+    return [{k: _decoded(v) for k, v in trace.items()} for trace in traces]
+
+
+def _decoded(value):
+    if isinstance(value, dict) and "bdata" in value:
+        return np.frombuffer(base64.b64decode(value["bdata"]), dtype=np.dtype(value["dtype"])).tolist()
+    if isinstance(value, dict):
+        return {k: _decoded(v) for k, v in value.items()}
+    return value
+
+
+def table_rows(page: str, heading: str) -> list:
+    """The body rows (cell texts) of the first table after ``heading``."""
+    start = page.index(heading)
+    block = page[page.index("<table>", start) : page.index("</table>", start)]
+    rows = re.findall(r"<tr>(.*?)</tr>", block)[1:]
+    return [re.findall(r"<td[^>]*>(.*?)</td>", row) for row in rows]
+
+
+def assert_self_contained(page: str) -> None:
+    assert page.startswith("<!DOCTYPE html>")
+    assert re.search(r"<script[^>]*\bsrc\s*=", page) is None  # plotly.js inlined: no script from a network
+    assert re.search(r"<link[^>]*href\s*=\s*['\"]https?:", page) is None
+    assert "Plotly.newPlot" in page and 'id="summary"' in page
+
+
+def test_identify_writes_a_page_holding_the_model_files_numbers(identified):
+    out, html = identified
+    document, page = json.loads(out.read_text()), html.read_text()
+    assert_self_contained(page)
+    names = document["robot"]["joint_names"]
+    assert page.count('class="psdm-plot joint-plot"') == len(names) == 6
+    assert page.index('id="summary"') < page.index("<details")  # the summary first, the details folded below
+    assert "Physically consistent" in page and "better than the robot file on" in page
+    base = plot_data(page, "parameters-base")[0]
+    assert base["x"] == document["base"]["names"]
+    np.testing.assert_array_equal(base["y"], document["base"]["values"])
+    np.testing.assert_array_equal(base["error_y"]["array"], document["base"]["std"])
+    rows = table_rows(page, "Validation RMSE per joint")
+    entry = document["validation"]["recordings"][0]
+    assert [row[0] for row in rows] == names
+    for j, row in enumerate(rows):  # identified, unconstrained, robot file, R^2 as the file holds them
+        expected = [entry[k][j] for k in ("rmse", "rmse_ols", "rmse_prior", "r2")]
+        np.testing.assert_allclose([float(cell) for cell in row[1:]], expected, rtol=5e-4)
+    # the joint plot's measured minus predicted is its residual, and its RMSE the file's validation RMSE
+    measured, predicted, residual = plot_data(page, "joint-1-valid.npz")
+    np.testing.assert_allclose(np.subtract(measured["y"], predicted["y"]), residual["y"], atol=1e-9)
+    assert f"RMSE {entry['rmse'][0]:.4g} N m" in page
+
+
+def test_diagnose_writes_a_page_with_each_finding_and_its_before_after(diagnosed):
+    html, report = diagnosed
+    page = html.read_text()
+    assert_self_contained(page)
+    assert report["findings"] and report["findings"][0]["effect"] == "spring" and "Found: spring on joint 2" in page
+    finding = report["findings"][0]
+    before, after = plot_data(page, "finding-1-rmse")
+    np.testing.assert_array_equal(before["y"], finding["rmse_before"])
+    np.testing.assert_array_equal(after["y"], finding["rmse_after"])
+    angle = plot_data(page, "finding-1-angle")
+    assert [t["name"] for t in angle][-1] == finding["label"]  # the spring's torque against its joint's angle
+    rows = table_rows(page, "Validation RMSE per joint, before and after")
+    np.testing.assert_allclose([float(r[1]) for r in rows], report["rmse_before"], rtol=5e-4)
+    np.testing.assert_allclose([float(r[2]) for r in rows], report["rmse_after"], rtol=5e-4)
+
+
+def _args(tmp_path, **kw):
+    values = dict(no_html=False, json=False, html=None, out=str(tmp_path / "m.json"), overwrite=False,
+                  robot="denso_vs6556g", model=None, data=[str(tmp_path / "a.csv")], validate=[])  # fmt: skip
+    return argparse.Namespace(**{**values, **kw})
+
+
+def test_the_html_option_defaults_beside_the_model_and_never_replaces_a_file_unasked(tmp_path):
+    assert html_output(_args(tmp_path)).target == tmp_path / "m.report.html"
+    assert html_output(_args(tmp_path, json=True)) is None  # --json writes no page unless --html asks
+    assert html_output(_args(tmp_path, json=True, html=str(tmp_path / "r.html"))).target == tmp_path / "r.html"
+    assert html_output(_args(tmp_path, no_html=True)) is None
+    (tmp_path / "m.report.html").write_text("mine")
+    with pytest.raises(FileExistsError, match="--overwrite"):
+        html_output(_args(tmp_path))
+    assert html_output(_args(tmp_path, overwrite=True)) is not None
+
+
+def test_identify_refuses_an_existing_page_before_any_work(recordings, tmp_path, capsys):
+    (tmp_path / "r.html").write_text("mine")
+    argv = ["identify", "denso_vs6556g", "--data", str(recordings / "train.npz"), "--out", str(tmp_path / "m.json")]
+    assert main([*argv, "--html", str(tmp_path / "r.html")]) == 2
+    assert "--overwrite" in capsys.readouterr().err and (tmp_path / "r.html").read_text() == "mine"
+    assert main([*argv, "--html", str(tmp_path / "r.txt")]) == 2
+    assert ".html" in capsys.readouterr().err and not (tmp_path / "m.json").exists()
+
+
+@pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (chromium or chromium-browser on PATH)")
+@pytest.mark.parametrize("which", ["identified", "diagnosed"])
+def test_the_page_renders_every_plot_in_a_headless_browser_without_console_errors(which, request):
+    html = request.getfixturevalue(which)
+    html = html[1] if which == "identified" else html[0]
+    command = [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr", "--v=0",
+               "--virtual-time-budget=10000", "--dump-dom", html.resolve().as_uri()]  # fmt: skip
+    done = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    console = [line for line in done.stderr.splitlines() if ":CONSOLE" in line]
+    assert console == []
+    dom = done.stdout
+    plots = dom.split('class="psdm-plot')[1:]
+    assert len(plots) >= (8 if which == "identified" else 2)
+    assert all("main-svg" in plot for plot in plots)  # plotly drew every figure
