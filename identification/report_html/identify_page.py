@@ -76,13 +76,13 @@ def _summary(page: Page, document: dict) -> None:
     cutoff = ", ".join(f"{c:g}" for c in ident.get("cutoff_hz") or [])
     counts = f"{len(document['base']['values'])} base parameters and {len(document['drive']['values'])} drive"
     samples = f"{ident.get('n_samples', '?')} samples after filtering at {cutoff or '?'} Hz"
-    condition = f"condition number {ident.get('condition_number', 0):.3g}"
+    condition = f"condition number {_number(ident.get('condition_number'))}"
     page.say(
         f"{counts} parameters identified from {n_rec} recording{'s' if n_rec != 1 else ''} ({samples}; {condition})."
     )
     mass = (document.get("validation") or {}).get("min_mass_eigenvalue")
-    eigen = f"smallest pseudo-inertia eigenvalue {standard.get('min_pseudo_inertia_eigenvalue', float('nan')):.3g}"
-    eigen += "" if mass is None else f", smallest mass-matrix eigenvalue {mass:.3g}"
+    eigen = f"smallest pseudo-inertia eigenvalue {_number(standard.get('min_pseudo_inertia_eigenvalue'))}"
+    eigen += "" if mass is None else f", smallest mass-matrix eigenvalue {_number(mass)}"
     if not standard.get("checked", True):
         page.say("NOT checked for physical consistency (--no-consistency): the mass matrix may be indefinite.", "bad")
     elif standard.get("consistent"):
@@ -99,6 +99,11 @@ def _summary(page: Page, document: dict) -> None:
     for entry in (document.get("validation") or {}).get("recordings") or []:
         page.say(*_comparison(entry, document["robot"]["joint_names"]))
     page.say(_next_step(document))
+
+
+def _number(value) -> str:
+    """A number of the file as ``%.3g``; "n/a" where the file holds none (an unchecked model's eigenvalues)."""
+    return "n/a" if value is None else f"{float(value):.3g}"
 
 
 def _comparison(entry: dict, names) -> tuple:
