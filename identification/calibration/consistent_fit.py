@@ -53,7 +53,7 @@ ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 stan
 IPOPT_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-9,
                  "ipopt.acceptable_tol": 1e-2, "ipopt.acceptable_obj_change_tol": 1e-9,
                  "ipopt.acceptable_iter": 10, "ipopt.max_iter": 2000}  # fmt: skip
-FIRST_PASS_MAX_ITER = 300
+FIRST_PASS_MAX_ITER = 2000  # a lower cap makes the second pass depend on round-off (where the creep stopped)
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,8 +130,8 @@ def link_is_free(model, link: int) -> bool:
 def _solve(problem, start, bounds, final=True):
     """Ipopt from ``start`` within ``bounds`` ``(lbx, ubx, lbg, ubg)``: (solution, status).
 
-    The first of the two passes only sets the second's weights: it stops at ``FIRST_PASS_MAX_ITER`` iterations
-    without a word (a link pressed against its envelope creeps towards the chart's boundary for long).
+    The first of the two passes only sets the second's weights: a stop at ``FIRST_PASS_MAX_ITER`` iterations there
+    is not warned about (a link pressed against its envelope creeps towards the chart's boundary for long).
     """
     cap = IPOPT_OPTIONS["ipopt.max_iter"] if final else min(FIRST_PASS_MAX_ITER, IPOPT_OPTIONS["ipopt.max_iter"])
     solver = ca.nlpsol("consistent_fit", "ipopt", problem, {**IPOPT_OPTIONS, "ipopt.max_iter": cap})
