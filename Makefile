@@ -1,4 +1,4 @@
-# Two entry points: `make demo` (the main job) and `make test` (the suite).
+# Two entry points: `make demo` (the main job) and `make test` (lint, the documentation site, the suite).
 # Both create .venv and install the project into it on first use.
 PYTHON ?= python3
 VENV   := .venv
@@ -21,6 +21,7 @@ demo: setup
 test: setup
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
+	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict --quiet --site-dir site
 	$(BIN)/python -m pytest -q -m "not slow"
 
 bench: setup
@@ -33,4 +34,4 @@ bench: setup
 	$(BIN)/python benchmarks/real_identification.py
 
 clean:
-	rm -rf $(VENV) demo_report .pytest_cache
+	rm -rf $(VENV) demo_report .pytest_cache site
