@@ -20,7 +20,15 @@ from scipy.stats import chi2
 from identification.calibration.payload_fit import BODY, Estimable, FlangeRegressor
 from identification.calibration.trajectory_data import NormalEquations
 
-__all__ = ["LoadedRecording", "MIN_DROP", "MIN_Z", "P_VALUE", "loaded_recordings", "unstated_payload_warnings"]
+__all__ = [
+    "LoadedRecording",
+    "MIN_DROP",
+    "MIN_Z",
+    "P_VALUE",
+    "accumulate",
+    "loaded_recordings",
+    "unstated_payload_warnings",
+]
 
 P_VALUE = 1e-6  # the residual drop must be this unlikely under the recording's noise (chi-square, correlation-scaled)
 MIN_DROP = 0.05  # and at least this fraction of the recording's own weighted residual
@@ -54,46 +62,60 @@ def _solve(gram, moment):
     return inverse @ moment, inverse
 
 
-def loaded_recordings(robot, model, prepared, extras, setup, equations, sigma, correlation) -> list:
-    """The :class:`LoadedRecording` of every recording whose flange body passes the three thresholds.
-
-    ``prepared`` are the fit's prepared recordings and ``extras`` their extra-column objects (without the
-    Stribeck derivatives); ``setup`` is ``(friction terms, drive-inertia joints, coulomb velocity, vs)``;
-    ``equations`` the fit's summed normal equations of the same columns, ``sigma`` its per-joint residual sigma
-    and ``correlation`` the per-joint correlation time. Recordings listed with an unknown payload are skipped by
-    the caller (their flange body is in the fit already).
-    """
+def accumulate(robot, model, prepared, extras, setup, n_columns: int, probes=None) -> tuple:
+    """(summed normal equations of ``n_columns``, per recording its own with a flange probe's 10 columns last, or
+    None): the fit's one pass over the recordings. ``probes`` (one entry per recording, None for those to test;
+    None: no probe) asks for the per-recording equations; ``setup`` is ``(friction terms, drive-inertia joints,
+    coulomb velocity, vs)`` and ``extras`` the recordings' extra-column objects."""
     terms, inertia_joints, coulomb_velocity, vs = setup
+    probes = probes if probes is not None and len(prepared) > 1 and None in probes else None  # one recording: none
+    flange = None if probes is None else FlangeRegressor(robot)
+    total, own = NormalEquations(robot.n_dof, n_columns), []
+    for ready, extra, probe in zip(prepared, extras, probes if probes is not None else [0] * len(prepared)):
+        if flange is None or probe is not None:
+            total.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, extra, vs)
+            continue
+        equations = NormalEquations(robot.n_dof, n_columns + BODY)
+        equations.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, _Probe(extra, flange), vs)
+        own.append((ready.name, equations))
+        shared = equations.subset(range(n_columns))
+        total.gram += shared.gram
+        total.moment += shared.moment
+        total.energy += shared.energy
+        total.count += shared.count
+        total.total += shared.total
+    return total, (own if flange is not None else None)
+
+
+def loaded_recordings(own, n_shared: int, equations, sigma, correlation) -> list:
+    """The :class:`LoadedRecording` of every probed recording whose flange body passes the three thresholds.
+
+    ``own`` are the (name, normal equations) of :func:`accumulate` (the probe's columns last); ``equations`` the
+    fit's summed normal equations of its first ``n_shared`` columns, ``sigma`` its per-joint residual sigma and
+    ``correlation`` the per-joint correlation time.
+    """
     weights = 1.0 / np.asarray(sigma, dtype=float) ** 2
     gram, moment, _ = equations.weighted(weights)
     n = gram.shape[0]
     x0, _ = _solve(gram, moment)
     tau = float(np.mean(correlation))
-    flange = FlangeRegressor(robot)
     out = []
-    for ready, extra in zip(prepared, extras):
-        own = NormalEquations(robot.n_dof, n + BODY)
-        own.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, _Probe(extra, flange), vs)
-        g, m, _ = own.weighted(weights)
-        augmented = np.zeros((n + BODY, n + BODY))
-        augmented[:n, :n], augmented[:n, n:], augmented[n:, :n], augmented[n:, n:] = (
-            gram,
-            g[:n, n:],
-            g[n:, :n],
-            g[n:, n:],
-        )
+    for name, full in own:
+        probed = full.subset([*range(n_shared), *range(full.n_columns - BODY, full.n_columns)])
+        g, m, _ = probed.weighted(weights)
+        augmented = g.copy()  # its own flange rows and columns, everyone's rows of the shared columns
+        augmented[:n, :n] = gram
         moment_aug = np.concatenate([moment, m[n:]])
         x1, inverse = _solve(augmented, moment_aug)
         drop = float(moment_aug @ x1 - moment @ x0)  # weighted residual sum before minus after
-        residual = float(weights @ own.residual_sum(np.concatenate([x0, np.zeros(BODY)])))
-        estimable = Estimable(augmented)
+        residual = float(weights @ probed.residual_sum(np.concatenate([x0, np.zeros(BODY)])))
         df = int(np.linalg.matrix_rank(g[n:, n:] / max(np.abs(g[n:, n:]).max(), 1e-300), tol=1e-9))
-        if not estimable.unit(n) or df == 0 or residual <= 0:
+        if df == 0 or residual <= 0 or not Estimable(augmented).unit(n):
             continue
         mass, mass_std = float(x1[n]), float(np.sqrt(max(inverse[n, n], 0.0) * tau))
         significant = drop / tau > chi2.isf(P_VALUE, df) and drop > MIN_DROP * residual
         if significant and abs(mass) > MIN_Z * mass_std:
-            out.append(LoadedRecording(ready.name, mass, mass_std, drop / residual))
+            out.append(LoadedRecording(name, mass, mass_std, drop / residual))
     return out
 
 

@@ -33,7 +33,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from identification.calibration.configuration_check import loaded_recordings, unstated_payload_warnings
+from identification.calibration.configuration_check import accumulate, loaded_recordings, unstated_payload_warnings
 from identification.calibration.consistent_fit import (
     IPOPT_OPTIONS,
     consistent_fit,
@@ -322,9 +322,9 @@ def identify_trajectories(
         extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in plain]
     n_fit = model.n_base + len(names)
     n_all = n_fit + bodies.n_columns
-    equations = NormalEquations(robot.n_dof, n_all + (0 if vs is None else robot.n_dof))
-    for ready, columns in zip(prepared, extras):
-        equations.add_recording(model, ready, options.friction, inertia_joints, options.coulomb_velocity, columns, vs)
+    setup = (options.friction, inertia_joints, options.coulomb_velocity, vs)
+    n_columns = n_all + (0 if vs is None else robot.n_dof)  # one pass; flange probes of configuration_check
+    equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
     held = _held_offsets(names, options, model.n_base)  # columns held at 0: left out of both fits
@@ -338,8 +338,8 @@ def identify_trajectories(
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
-    setup = (options.friction, inertia_joints, options.coulomb_velocity, vs)
-    mixed = _unstated_payloads(robot, model, prepared, plain, setup, equations, sigma, correlation, bodies)
+    found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, np.max(correlation, axis=0))
+    mixed = unstated_payload_warnings(found)
     estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
@@ -380,17 +380,6 @@ def identify_trajectories(
         torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip
     return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))
-
-
-def _unstated_payloads(robot, model, prepared, plain, setup, equations, sigma, correlation, bodies) -> list:
-    """Warnings for recordings that look loaded against the others (``configuration_check``); the recordings of
-    an unknown payload are not tested (their flange body is fitted already), nor a single recording."""
-    tested = [k for k, body in enumerate(bodies.index) if body is None]
-    if len(prepared) < 2 or not tested:
-        return []
-    found = loaded_recordings(robot, model, [prepared[k] for k in tested], [plain[k] for k in tested], setup,
-                              equations, sigma, np.max(correlation, axis=0))  # fmt: skip
-    return unstated_payload_warnings(found)
 
 
 def _with_rows(found, mask):
