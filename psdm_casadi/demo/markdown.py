@@ -38,7 +38,7 @@ def report_markdown(robot, model, excitation, before, after, diagnosis, summary)
         "",
         "## 4. Diagnosis of missing physics",
         "",
-        diagnosis.to_markdown(),
+        *_diagnosis_brief(diagnosis),
         "",
         "## 5. Identification again with the spring as a known term",
         "",
@@ -52,6 +52,19 @@ def report_markdown(robot, model, excitation, before, after, diagnosis, summary)
         *_codegen(summary),
     ]
     return "\n".join(lines)
+
+
+def _diagnosis_brief(diagnosis) -> list:
+    """The findings and the per-joint validation RMSE; the residual analysis, the confounding and the plots are in
+    ``diagnosis/report.html`` (and the full ``diagnosis/report.md``), so that this file stays short."""
+    lines = [f"{k}. {f.sentence()} (dBIC {f.delta_bic:.0f})." for k, f in enumerate(diagnosis.findings, 1)]
+    lines = lines or ["No significant missing physics."]
+    lines += ["", "| joint | validation RMSE before [N m] | after [N m] |", "|---|---|---|"]
+    lines += [
+        f"| {j + 1} | {b:.4g} | {a:.4g} |" for j, (b, a) in enumerate(zip(diagnosis.rmse_before, diagnosis.rmse_after))
+    ]
+    return lines + ["", "Plots, residual analysis and confounding: [diagnosis/report.html](diagnosis/report.html) "
+                    "(full text: [diagnosis/report.md](diagnosis/report.md))."]  # fmt: skip
 
 
 def _gate_warning(summary) -> list:

@@ -19,6 +19,7 @@ REPORT_FORMAT = "psdm-demo-report/1"
 #: Everything the demo writes into its report folder (``--force`` replaces these and nothing else).
 REPORT_ENTRIES = (
     "report.md",
+    "report.html",
     "speed.md",
     "summary.json",
     "excitation.png",

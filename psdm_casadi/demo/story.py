@@ -39,6 +39,8 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
     FileExistsError
         Before any work, when ``out_dir`` may not be written (see ``OutputFolder.check``).
     """
+    from psdm_casadi.demo.page import demo_page
+
     options = DemoOptions() if options is None else options
     folder = ManifestFolder(out_dir, REPORT_ENTRIES, "demo", force_option="--force")
     folder.check(force=overwrite)
@@ -58,6 +60,7 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
         run.timed("total", start_all)
         run.summary["seconds"] = {k: round(v, 2) for k, v in run.timings.items()}
         (stage / "report.md").write_text(report_markdown(robot, model, excitation, before, after, report, run.summary))
+        demo_page(robot.name, run.summary, stage).write(stage / "report.html")  # summary first, details folded
         (stage / "speed.md").write_text(speed_markdown(run.summary))
         (stage / "summary.json").write_text(json.dumps(run.summary, indent=2, default=float))
     run.say(f"report written to {folder.target}/report.md ({run.timings['total']:.0f} s in all)")

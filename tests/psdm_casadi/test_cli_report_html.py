@@ -5,9 +5,7 @@ table cells); rendered by a real headless Chromium where one is installed."""
 from __future__ import annotations
 
 import argparse
-import base64
 import json
-import re
 import shutil
 import subprocess
 
@@ -20,6 +18,7 @@ from identification.virtual.simulation import SimulationOptions, simulate_record
 from psdm_casadi.cli import main
 from psdm_casadi.cli.html_report import default_html_path, html_output
 from tests.conftest import DENSO_FILE
+from tests.psdm_casadi.html_page import assert_self_contained, plot_data, table_rows
 from trajopt.experiments import sine_experiment
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
@@ -53,37 +52,6 @@ def diagnosed(recordings, tmp_path_factory):
     argv += [str(recordings / "valid.npz"), "--out", str(out), "--max-effects", "1", "--no-sparse"]
     assert main([*argv, "--rigid-body", "prior"]) == 0
     return out / "report.html", json.loads((out / "report.json").read_text())
-
-
-def plot_data(page: str, div_id: str) -> list:
-    """The traces of the plot ``div_id`` as the page hands them to plotly (typed arrays decoded)."""
-    match = re.search(r'Plotly\.newPlot\(\s*"' + re.escape(div_id) + r'",\s*', page)
-    start = match.end()
-    traces, _ = json.JSONDecoder().raw_decode(page[start:])
-    return [{k: _decoded(v) for k, v in trace.items()} for trace in traces]
-
-
-def _decoded(value):
-    if isinstance(value, dict) and "bdata" in value:
-        return np.frombuffer(base64.b64decode(value["bdata"]), dtype=np.dtype(value["dtype"])).tolist()
-    if isinstance(value, dict):
-        return {k: _decoded(v) for k, v in value.items()}
-    return value
-
-
-def table_rows(page: str, heading: str) -> list:
-    """The body rows (cell texts) of the first table after ``heading``."""
-    start = page.index(heading)
-    block = page[page.index("<table>", start) : page.index("</table>", start)]
-    rows = re.findall(r"<tr>(.*?)</tr>", block)[1:]
-    return [re.findall(r"<td[^>]*>(.*?)</td>", row) for row in rows]
-
-
-def assert_self_contained(page: str) -> None:
-    assert page.startswith("<!DOCTYPE html>")
-    assert re.search(r"<script[^>]*\bsrc\s*=", page) is None  # plotly.js inlined: no script from a network
-    assert re.search(r"<link[^>]*href\s*=\s*['\"]https?:", page) is None
-    assert "Plotly.newPlot" in page and 'id="summary"' in page
 
 
 def test_identify_writes_a_page_holding_the_model_files_numbers(identified):

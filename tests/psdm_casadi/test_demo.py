@@ -12,6 +12,7 @@ import pytest
 from psdm_casadi.cli import main
 from psdm_casadi.demo import DemoOptions, run_demo
 from psdm_casadi.robot import load_robot
+from tests.psdm_casadi.html_page import assert_self_contained, plot_data
 
 
 @pytest.fixture(scope="module")
@@ -35,6 +36,13 @@ def test_quick_demo_finds_the_hidden_spring_and_writes_the_report(quick_report):
         assert heading in report
     for plot in ("excitation.png", "validation_before.png", "validation_after.png"):
         assert (quick_report.folder / plot).stat().st_size > 0
+    # report.md stays short: the diagnosis' residual analysis and confounding are on its page
+    assert "Residual analysis" not in report and "diagnosis/report.html" in report
+    page = (quick_report.folder / "report.html").read_text()
+    assert_self_contained(page)
+    assert "Diagnosis found: spring[j4]" in page and (quick_report.folder / "diagnosis" / "report.html").is_file()
+    bars = plot_data(page, "demo-r2")
+    assert bars[0]["y"] == summary["identification"]["r2_all"] and bars[1]["y"] == summary["recalibration"]["r2_all"]
     assert json.loads((quick_report.folder / "summary.json").read_text())["seed"] == 0
 
 
