@@ -55,7 +55,7 @@ def _r2(before: dict, after: dict) -> str:
         bars.append(go.Bar(x=joints, y=after["r2_all"], name="spring known"))
         rows = [row + [float(a)] for row, a in zip(rows, after["r2_all"])]
     fig = go.Figure(bars)
-    fig.update_layout(title='"All" R^2 per joint', height=340, margin={"t": 40, "b": 30}, yaxis_range=[0, 1.02])
+    fig.update_layout(title='"All" R^2 per joint', height=340, margin={"t": 40, "b": 30})
     headers = ["joint", "spring unknown", "spring known"][: len(rows[0])]
     return figure_div(fig, "demo-r2", "demo-plot") + table(headers, rows)
 
