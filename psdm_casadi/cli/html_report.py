@@ -26,6 +26,15 @@ def add_html_argument(p) -> None:
     p.add_argument("--no-html", action="store_true", help="write no HTML report")
 
 
+def refuse_html_option(args, why: str) -> None:
+    """A route that writes no page refuses ``--html`` rather than ignore it."""
+    if args.html is not None:
+        raise ParameterError(
+            f"--html {args.html!r}: no HTML report on this route ({why}). Drop --html, or identify from recording "
+            "files (--data A.csv ...), which writes the page."
+        )
+
+
 def default_html_path(out) -> Path:
     """The page beside a model file: ``model.json`` -> ``model.report.html``."""
     out = Path(str(out))

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from psdm_casadi.cli import identify_recordings
 from psdm_casadi.cli.checks import add_robot_argument, check_not_input, load_robot_argument, output_folder
-from psdm_casadi.cli.html_report import add_html_argument
+from psdm_casadi.cli.html_report import add_html_argument, refuse_html_option
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.fileio import atomic_write, markdown_escape
 
@@ -143,6 +143,7 @@ def _run_identify(args) -> int:
 
     if _protocol(args) == "recordings":
         return identify_recordings.run(args)
+    refuse_html_option(args, "the four-step route writes report.md into its --out folder")
     folder = _check_inputs(args)
     robot = load_robot_argument(args)
     if args.model:

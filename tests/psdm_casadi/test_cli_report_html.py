@@ -118,6 +118,9 @@ def test_identify_refuses_an_existing_page_before_any_work(recordings, tmp_path,
     assert "--overwrite" in capsys.readouterr().err and (tmp_path / "r.html").read_text() == "mine"
     assert main([*argv, "--html", str(tmp_path / "r.txt")]) == 2
     assert ".html" in capsys.readouterr().err and not (tmp_path / "m.json").exists()
+    folder = ["identify", "denso_vs6556g", "--data", str(recordings), "--protocol", "four-step", "--out"]
+    assert main([*folder, str(tmp_path / "out"), "--html", str(tmp_path / "x.html")]) == 2  # not ignored
+    assert "no HTML report on this route" in capsys.readouterr().err
 
 
 @pytest.mark.skipif(CHROMIUM is None, reason="no Chromium installed (chromium or chromium-browser on PATH)")
