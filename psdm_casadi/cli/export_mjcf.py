@@ -8,12 +8,10 @@ unless ``--allow-inconsistent``, as ``psdm export-urdf`` does.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
-from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
-from psdm_casadi.cli.export_urdf import check_not_robot_file
-from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress, report_model_warnings
+from psdm_casadi.cli.exports import add_export_arguments, read_export_input, write_export
+from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 
 __all__ = ["register"]
 
@@ -32,64 +30,31 @@ def register(subparsers) -> None:
             "findings, measurement corrections) is named in a warning and written as comments with its values."
         ),
     )
-    p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
-    p.add_argument("out", help="MJCF file to write (.xml)")
-    p.add_argument(
-        "--overwrite",
-        action="store_true",
-        help="replace an existing output file (never MODEL, nor the robot file MODEL was identified from)",
-    )
-    p.add_argument(
-        "--allow-inconsistent",
-        action="store_true",
-        help="write a model that is not physically consistent (marked as such in the file)",
-    )
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.set_defaults(handler=_run_export_mjcf)
+    add_export_arguments(p, "MJCF file to write (.xml)", _run_export_mjcf)
 
 
 def _run_export_mjcf(args) -> int:
     from codegen.mjcf_export import render_mjcf
     from codegen.target_holds import MJCF, findings_not_representable, friction_not_representable
-    from psdm_casadi.cli.checks import read_calibrated_argument
     from psdm_casadi.mjcf import MJCF_SUFFIXES
 
-    check_not_input(args.out, "OUT", [("MODEL", args.model)], example=f"{Path(args.model).stem}.xml")
-    check_suffix(args.out, "OUT", (".xml",), "MJCF")
-    out = output_file(args.out, "OUT", args.overwrite)
-    loaded = read_calibrated_argument(args, args.model)
-    calibrated = loaded.calibrated
-    report_model_warnings("export-mjcf", args.model, calibrated)
-    check_not_robot_file(args, calibrated)
-    eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
-    checked = calibrated.document["standard"].get("checked", True)
-    if checked and not calibrated.consistent and not args.allow_inconsistent:
-        print(
-            f"psdm export-mjcf: error: the calibrated model {args.model!r} is not physically consistent (smallest "
-            f"pseudo-inertia eigenvalue {eigenvalue}). Nothing was written to {args.out!r}. Re-identify it, or pass "
-            "--allow-inconsistent to write it marked as inconsistent.",
-            file=sys.stderr,
-        )
+    read = read_export_input(args, "export-mjcf", ".xml", "MJCF")
+    if read is None:
         return EXIT_CHECK_FAILED
-    robot = loaded.robot
+    calibrated, robot = read.calibrated, read.robot
     progress(f"export-mjcf: writing the identified model of {robot.name} ...", quiet=args.json)
     text = render_mjcf(calibrated, robot)
-    if not calibrated.consistent:
-        print("psdm export-mjcf: warning: writing an INCONSISTENT model (marked in the file)", file=sys.stderr)
     left_out = (friction_not_representable(calibrated, MJCF), findings_not_representable(calibrated, MJCF))
     if "offset" in calibrated.document["drive"]["friction_terms"]:
         left_out += ("the model's constant torque offsets have no MJCF field; they are in a comment on each joint",)
     left_out = [warning for warning in left_out if warning is not None]
-    for warning in left_out:
-        print(f"psdm export-mjcf: warning: {warning}", file=sys.stderr)
-    with out.staging() as stage:
-        stage.write_text(text)
+    write_export("export-mjcf", read, text, left_out)
     copied = robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES
     source = "a copy of its MJCF" if copied else "generated from its kinematics"
     if args.json:
         print_json({"command": "export-mjcf", "model": str(args.model), "out": str(args.out), "robot": robot.name,
                     "source": "mjcf" if copied else "generated", "consistent": calibrated.consistent,
-                    "min_pseudo_inertia_eigenvalue": eigenvalue, "left_out": left_out})  # fmt: skip
+                    "min_pseudo_inertia_eigenvalue": read.eigenvalue, "left_out": left_out})  # fmt: skip
     else:
         print(f"{robot.name}: identified model of {robot.n_dof} joints written to {args.out} (MJCF, {source})")
     return EXIT_OK
