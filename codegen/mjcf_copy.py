@@ -25,8 +25,9 @@ import mujoco
 import numpy as np
 import pinocchio as pin
 
-from codegen.mjcf_elements import comment, header_text, inertial_attributes, joint_attributes, joint_fields
+from codegen.mjcf_elements import header_text, inertial_attributes, joint_attributes, joint_fields
 from codegen.target_holds import N_LINK
+from codegen.xml_nodes import comment
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.mjcf import compile_mjcf
 from psdm_casadi.oracle import inertia_from_dynamic_parameters

@@ -21,11 +21,11 @@ from codegen.target_holds import (
     friction_not_representable,
     linear_springs,
 )
+from codegen.xml_nodes import numbers
 from psdm_casadi.oracle import inertia_from_dynamic_parameters
 from psdm_casadi.values import exact_text
 
-__all__ = ["MIN_BODY", "JointFields", "comment", "element", "header_text", "inertial_attributes", "joint_attributes",
-           "joint_fields", "numbers"]  # fmt: skip
+__all__ = ["MIN_BODY", "JointFields", "header_text", "inertial_attributes", "joint_attributes", "joint_fields"]
 
 MIN_BODY = 1e-12  # [kg, kg m^2] the least mass and principal moment written (MuJoCo refuses ~1e-15 and below)
 
@@ -82,23 +82,6 @@ def joint_fields(calibrated, robot) -> JointFields:
 
 
 # --- elements ------------------------------------------------------------------------------------------------
-def numbers(values) -> str:
-    return " ".join(exact_text(v) for v in values)
-
-
-def comment(document, text: str):
-    return document.createComment(" " + " ".join(str(text).replace("--", "- -").split()) + " ")
-
-
-def element(document, tag: str, attributes=(), children=()):
-    node = document.createElement(tag)
-    for key, value in attributes:
-        node.setAttribute(key, value)
-    for child in children:
-        node.appendChild(child)
-    return node
-
-
 def inertial_attributes(parameters) -> tuple:
     """(``<inertial>`` attributes, note or None) of 10 dynamic parameters in the body frame.
 

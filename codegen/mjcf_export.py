@@ -39,18 +39,10 @@ import numpy as np
 import pinocchio as pin
 
 from codegen.mjcf_copy import copied_mjcf
-from codegen.mjcf_elements import (
-    comment,
-    element,
-    header_text,
-    inertial_attributes,
-    joint_attributes,
-    joint_fields,
-    numbers,
-)
+from codegen.mjcf_elements import header_text, inertial_attributes, joint_attributes, joint_fields
+from codegen.model_export import require_standard, write_model
 from codegen.target_holds import N_LINK
-from psdm_casadi.errors import ModelFileError
-from psdm_casadi.fileio import atomic_write
+from codegen.xml_nodes import comment, element, numbers
 from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.oracle import build_kinematic_model, link_to_joint_frame_maps
 from psdm_casadi.values import exact_text
@@ -86,14 +78,7 @@ def export_mjcf(calibrated, path, *, overwrite: bool = False, allow_inconsistent
     FileExistsError
         When ``path`` exists and ``overwrite`` is false.
     """
-    if not calibrated.consistent and not allow_inconsistent:
-        raise ModelFileError(
-            f"the calibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
-            f"{calibrated.document['standard']['min_pseudo_inertia_eigenvalue']}); no MJCF was written to "
-            f"{str(path)!r}. Pass --allow-inconsistent to write it marked as such."
-        )
-    text = render_mjcf(calibrated)
-    return atomic_write(path, lambda handle: handle.write(text), overwrite)
+    return write_model(calibrated, path, render_mjcf, "MJCF", overwrite, allow_inconsistent)
 
 
 def render_mjcf(calibrated, robot=None) -> str:
@@ -110,12 +95,7 @@ def render_mjcf(calibrated, robot=None) -> str:
     ModelFileError
         When the model holds no standard parameters (identified with ``--no-consistency``).
     """
-    standard = calibrated.standard
-    if not np.all(np.isfinite(standard)):
-        raise ModelFileError(
-            "CalibratedModel.standard must hold finite standard parameters to write MJCF; got none (the model was "
-            "identified with --no-consistency: base parameters only). Re-run 'psdm identify' without it."
-        )
+    require_standard(calibrated, "MJCF")
     robot = calibrated.load_robot() if robot is None else robot
     if (
         robot.urdf_path is not None

@@ -65,7 +65,9 @@ from xml.parsers.expat import ExpatError
 import numpy as np
 import pinocchio as pin
 
+from codegen.model_export import require_standard, write_model
 from codegen.target_holds import (
+    N_LINK,
     drive_inertias,
     drive_terms,
     findings_left_out,
@@ -73,16 +75,13 @@ from codegen.target_holds import (
     friction_left_out,
     friction_not_representable,
 )
+from codegen.xml_nodes import comment, element, numbers
 from psdm_casadi.errors import ModelFileError
-from psdm_casadi.fileio import atomic_write
 from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.oracle import dh_transform, inertia_from_dynamic_parameters
 from psdm_casadi.values import exact_text
 
 __all__ = ["export_urdf", "render_urdf", "urdf_armature"]
-
-
-N_LINK = 10  # m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz; the 11th standard parameter is the drive inertia
 
 
 def export_urdf(calibrated, path, *, overwrite: bool = False, allow_inconsistent: bool = False) -> Path:
@@ -116,14 +115,7 @@ def export_urdf(calibrated, path, *, overwrite: bool = False, allow_inconsistent
     --------
     >>> export_urdf(load_calibrated_model("model.json"), "robot.urdf")  # doctest: +SKIP
     """
-    if not calibrated.consistent and not allow_inconsistent:
-        raise ModelFileError(
-            f"the calibrated model is not physically consistent (smallest pseudo-inertia eigenvalue "
-            f"{calibrated.document['standard']['min_pseudo_inertia_eigenvalue']}); no URDF was written to "
-            f"{str(path)!r}. Pass --allow-inconsistent to write it marked as such."
-        )
-    text = render_urdf(calibrated)
-    return atomic_write(path, lambda handle: handle.write(text), overwrite)
+    return write_model(calibrated, path, render_urdf, "URDF", overwrite, allow_inconsistent)
 
 
 def render_urdf(calibrated, robot=None) -> str:
@@ -146,12 +138,7 @@ def render_urdf(calibrated, robot=None) -> str:
         When the model holds no standard parameters (identified with ``--no-consistency``), a link
         has first moments but no mass, or the robot's URDF cannot be read.
     """
-    standard = calibrated.standard
-    if not np.all(np.isfinite(standard)):
-        raise ModelFileError(
-            "CalibratedModel.standard must hold finite standard parameters to write a URDF; got none (the model "
-            "was identified with --no-consistency: base parameters only). Re-run 'psdm identify' without it."
-        )
+    require_standard(calibrated, "a URDF")
     robot = calibrated.load_robot() if robot is None else robot
     if robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES:
         raise ModelFileError(
@@ -172,26 +159,9 @@ def urdf_armature(calibrated, robot) -> np.ndarray:
 
 
 # --- numbers and elements ----------------------------------------------------------------------------
-def _nums(values) -> str:
-    return " ".join(exact_text(v) for v in values)
-
-
-def _comment(document, text: str):
-    return document.createComment(" " + " ".join(str(text).replace("--", "- -").split()) + " ")
-
-
-def _element(document, tag: str, attributes=(), children=()):
-    node = document.createElement(tag)
-    for key, value in attributes:
-        node.setAttribute(key, value)
-    for child in children:
-        node.appendChild(child)
-    return node
-
-
 def _origin(document, placement: pin.SE3):
     rpy = pin.rpy.matrixToRpy(placement.rotation)
-    return _element(document, "origin", [("xyz", _nums(placement.translation)), ("rpy", _nums(rpy))])
+    return element(document, "origin", [("xyz", numbers(placement.translation)), ("rpy", numbers(rpy))])
 
 
 def _inertial(document, parameters, where: str):
@@ -200,16 +170,16 @@ def _inertial(document, parameters, where: str):
     inertia = inertia_from_dynamic_parameters(parameters)
     if inertia.mass == 0.0 and np.any(parameters[1:4] != 0.0):
         raise ModelFileError(
-            f"{where}: a link with first moments {_nums(parameters[1:4])} kg m and no mass cannot be written as a "
+            f"{where}: a link with first moments {numbers(parameters[1:4])} kg m and no mass cannot be written as a "
             "URDF <inertial>. Re-identify the model (it is not physically consistent)."
         )
     i = np.asarray(inertia.inertia)
     tensor = [("ixx", i[0, 0]), ("ixy", i[0, 1]), ("ixz", i[0, 2]),
               ("iyy", i[1, 1]), ("iyz", i[1, 2]), ("izz", i[2, 2])]  # fmt: skip
-    return _element(document, "inertial", children=[
-        _element(document, "origin", [("xyz", _nums(inertia.lever)), ("rpy", "0 0 0")]),
-        _element(document, "mass", [("value", exact_text(inertia.mass))]),
-        _element(document, "inertia", [(k, exact_text(v)) for k, v in tensor]),
+    return element(document, "inertial", children=[
+        element(document, "origin", [("xyz", numbers(inertia.lever)), ("rpy", "0 0 0")]),
+        element(document, "mass", [("value", exact_text(inertia.mass))]),
+        element(document, "inertia", [(k, exact_text(v)) for k, v in tensor]),
     ])  # fmt: skip
 
 
@@ -253,7 +223,7 @@ def _header(document, calibrated, robot, world: bool, indent: str):
         "Drive inertias (armature) are in a comment on each joint: URDF has no field for them and Pinocchio's URDF "
         "parser does not read one; set model.armature.",
         f"Gravity: {exact_text(gravity)} m/s^2 along -z of the root link"
-        + (" 'world' (added: the robot's base frame has gravity " + _nums(robot.gravity) + ")" if world else "")
+        + (" 'world' (added: the robot's base frame has gravity " + numbers(robot.gravity) + ")" if world else "")
         + "; set model.gravity (Pinocchio's default is 9.81).",
     ]
     if (findings := findings_not_representable(calibrated)) is not None:
@@ -283,16 +253,16 @@ def _world_placement(gravity) -> pin.SE3 | None:
 
 
 def _world(document, placement: pin.SE3, root: str, name: str) -> list:
-    joint = _element(document, "joint", [("name", f"{name}_to_{root}"), ("type", "fixed")], [
+    joint = element(document, "joint", [("name", f"{name}_to_{root}"), ("type", "fixed")], [
         _origin(document, placement),
-        _element(document, "parent", [("link", name)]),
-        _element(document, "child", [("link", root)]),
+        element(document, "parent", [("link", name)]),
+        element(document, "child", [("link", root)]),
     ])  # fmt: skip
-    return [_element(document, "link", [("name", name)]), joint]
+    return [element(document, "link", [("name", name)]), joint]
 
 
 def _dynamics(document, terms: dict, j: int):
-    return _element(
+    return element(
         document, "dynamics", [("damping", exact_text(terms["fv"][j])), ("friction", exact_text(terms["fc"][j]))]
     )
 
@@ -306,7 +276,7 @@ def _dh_urdf(calibrated, robot):
     world = _world_placement(robot.gravity)
     root.appendChild(_header(document, calibrated, robot, world is not None, "\n  "))
     children = [] if world is None else _world(document, world, "base_link", "world")
-    children.append(_element(document, "link", [("name", "base_link")]))
+    children.append(element(document, "link", [("name", "base_link")]))
     terms, notes = drive_terms(calibrated), _joint_notes(calibrated, robot)
     parent = "base_link"
     for j, joint in enumerate(robot.joints):
@@ -324,10 +294,10 @@ def _dh_urdf(calibrated, robot):
         note = notes[j] + f"; acceleration limit {exact_text(joint.qdd_max)} {unit} (not a URDF field)"
         if not np.isfinite(joint.tau_max):
             note += "; no torque limit (effort 0)"
-        pieces.insert(pieces.index(moving), _comment(document, note))
+        pieces.insert(pieces.index(moving), comment(document, note))
         inertial = _inertial(document, calibrated.standard[j, :N_LINK], f"{robot.name} link {j + 1}")
-        children += [_element(document, "link", [("name", p)]) if isinstance(p, str) else p for p in pieces]
-        children.append(_element(document, "link", [("name", link)], [inertial]))
+        children += [element(document, "link", [("name", p)]) if isinstance(p, str) else p for p in pieces]
+        children.append(element(document, "link", [("name", link)], [inertial]))
         parent = link
     for child in children:
         root.appendChild(child)
@@ -342,12 +312,12 @@ def _dh_moving(document, joint, parent: str, child: str):
         ("effort", exact_text(joint.tau_max) if np.isfinite(joint.tau_max) else "0"),
         ("velocity", exact_text(joint.qd_max)),
     ]
-    return _element(document, "joint", [("name", joint.name), ("type", joint.kind)], [
+    return element(document, "joint", [("name", joint.name), ("type", joint.kind)], [
         _origin(document, pin.SE3.Identity()),
-        _element(document, "parent", [("link", parent)]),
-        _element(document, "child", [("link", child)]),
-        _element(document, "axis", [("xyz", "0 0 1")]),
-        _element(document, "limit", limit),
+        element(document, "parent", [("link", parent)]),
+        element(document, "child", [("link", child)]),
+        element(document, "axis", [("xyz", "0 0 1")]),
+        element(document, "limit", limit),
     ])  # fmt: skip
 
 
@@ -355,12 +325,12 @@ def _dh_fixed(document, robot, j: int, parent: str, child: str):
     """The fixed joint carrying DH row ``j`` (its constant transform, the joint offset included)."""
     joint = robot.joints[j]
     row = dh_transform(robot.convention, joint.a, joint.alpha, joint.d, joint.theta)
-    return _element(document, "joint", [("name", f"{joint.name}_dh"), ("type", "fixed")], [
-        _comment(document, f"DH row {j + 1} ({robot.convention} convention): a, alpha, d, theta = "
-                           f"{_nums([joint.a, joint.alpha, joint.d, joint.theta])}"),
+    return element(document, "joint", [("name", f"{joint.name}_dh"), ("type", "fixed")], [
+        comment(document, f"DH row {j + 1} ({robot.convention} convention): a, alpha, d, theta = "
+                           f"{numbers([joint.a, joint.alpha, joint.d, joint.theta])}"),
         _origin(document, row),
-        _element(document, "parent", [("link", parent)]),
-        _element(document, "child", [("link", child)]),
+        element(document, "parent", [("link", parent)]),
+        element(document, "child", [("link", child)]),
     ])  # fmt: skip
 
 
@@ -473,5 +443,5 @@ def _place(document, parent, new, note: str) -> None:
             tail = parent.appendChild(document.createTextNode(outer))
         parent.insertBefore(document.createTextNode(indent), tail)
         parent.insertBefore(new, tail)
-    parent.insertBefore(_comment(document, note), new)
+    parent.insertBefore(comment(document, note), new)
     parent.insertBefore(document.createTextNode(indent), new)
