@@ -26,6 +26,7 @@ from psdm_casadi.errors import ModelFileError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
+from tests.codegen.export_refusals import assert_cli_refuses_inconsistent, assert_refuses_bad_models
 from tests.conftest import DATASETS, DENSO_FILE
 from tests.psdm_casadi.test_mjcf_robot import ARM, HAND
 
@@ -209,18 +210,7 @@ def test_an_mjcf_robot_with_locked_fingers_is_generated(tmp_path):
 
 
 def test_a_model_without_standard_parameters_or_inconsistent_is_refused(tmp_path, scara):
-    calibrated = scara[0]
-    document = copy.deepcopy(calibrated.document)
-    document["standard"]["values"] = [None] * len(document["standard"]["values"])
-    with pytest.raises(ModelFileError, match="CalibratedModel.standard must hold finite"):
-        render_mjcf(CalibratedModel(document))
-    document = copy.deepcopy(calibrated.document)
-    document["standard"].update(consistent=False, min_pseudo_inertia_eigenvalue=-0.25)
-    with pytest.raises(ModelFileError, match="eigenvalue -0.25"):
-        export_mjcf(CalibratedModel(document), tmp_path / "bad.xml")
-    assert not (tmp_path / "bad.xml").exists()
-    export_mjcf(CalibratedModel(document), tmp_path / "bad.xml", allow_inconsistent=True)
-    assert "NOT physically consistent" in (tmp_path / "bad.xml").read_text()
+    assert_refuses_bad_models(scara[0], render_mjcf, export_mjcf, tmp_path / "bad.xml")
 
 
 def test_cli_export_mjcf_warns_writes_once_and_refuses_bad_input(tmp_path, capsys, scara):
@@ -241,11 +231,7 @@ def test_cli_export_mjcf_warns_writes_once_and_refuses_bad_input(tmp_path, capsy
     assert "OUT" in capsys.readouterr().err
     assert main(["export-mjcf", str(tmp_path / "missing.json"), str(tmp_path / "x.xml")]) == 2
     assert "does not exist" in capsys.readouterr().err
-    document = json.loads(model.read_text())
-    document["standard"].update(consistent=False, min_pseudo_inertia_eigenvalue=-0.25)
-    model.write_text(json.dumps(document))
-    assert main(["export-mjcf", str(model), str(tmp_path / "bad.xml")]) == 1
-    assert "eigenvalue -0.25" in capsys.readouterr().err and not (tmp_path / "bad.xml").exists()
+    assert_cli_refuses_inconsistent("export-mjcf", model, tmp_path / "bad.xml", capsys)
 
 
 def _sine_csv(robot, path, duration=8.0, seed=4):

@@ -19,9 +19,9 @@ from identification.data.recording import Recording
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.cli import main
-from psdm_casadi.errors import ModelFileError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, from_urdf
+from tests.codegen.export_refusals import assert_cli_refuses_inconsistent, assert_refuses_bad_models
 from tests.conftest import DATASETS, DENSO_FILE, example_robot_urdf
 from trajopt.experiments import sine_experiment
 
@@ -175,17 +175,7 @@ def test_modified_dh_and_prismatic_robots_round_trip(tmp_path, variant):
 
 
 def test_a_model_without_standard_parameters_or_inconsistent_is_refused(tmp_path, denso_calibrated):
-    document = json.loads(json.dumps(denso_calibrated.document))
-    document["standard"]["values"] = [None] * len(document["standard"]["values"])
-    with pytest.raises(ModelFileError, match="CalibratedModel.standard must hold finite"):
-        render_urdf(CalibratedModel(document))
-    document = json.loads(json.dumps(denso_calibrated.document))
-    document["standard"].update(consistent=False, min_pseudo_inertia_eigenvalue=-0.25)
-    with pytest.raises(ModelFileError, match="eigenvalue -0.25"):
-        export_urdf(CalibratedModel(document), tmp_path / "bad.urdf")
-    assert not (tmp_path / "bad.urdf").exists()
-    export_urdf(CalibratedModel(document), tmp_path / "bad.urdf", allow_inconsistent=True)
-    assert "NOT physically consistent" in (tmp_path / "bad.urdf").read_text()
+    assert_refuses_bad_models(denso_calibrated, render_urdf, export_urdf, tmp_path / "bad.urdf")
 
 
 def test_cli_export_urdf_writes_once_and_refuses_to_overwrite(tmp_path, capsys, denso_calibrated):
@@ -200,11 +190,7 @@ def test_cli_export_urdf_writes_once_and_refuses_to_overwrite(tmp_path, capsys, 
     assert main(["export-urdf", str(model), str(out), "--overwrite", "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["source"] == "dh" and summary["consistent"] is True
-    document = json.loads(model.read_text())
-    document["standard"].update(consistent=False, min_pseudo_inertia_eigenvalue=-0.25)
-    model.write_text(json.dumps(document))
-    assert main(["export-urdf", str(model), str(tmp_path / "bad.urdf")]) == 1
-    assert "eigenvalue -0.25" in capsys.readouterr().err and not (tmp_path / "bad.urdf").exists()
+    assert_cli_refuses_inconsistent("export-urdf", model, tmp_path / "bad.urdf", capsys)
     assert main(["export-urdf", str(model), str(tmp_path / "bad.urdf"), "--allow-inconsistent"]) == 0
     assert "INCONSISTENT" in capsys.readouterr().err
     assert main(["export-urdf", str(tmp_path / "missing.json"), str(tmp_path / "x.urdf")]) == 2
