@@ -35,6 +35,25 @@ def _motor_signals(recording: Recording, robot) -> tuple:
     return tuple(s for s in layout.motor_signals if getattr(recording, s) is not None)
 
 
+def _mapped_motion(recording: Recording, robot, to_joint: bool):
+    """(motor-side signals, transmission, changes): the angles, rates and torques among the signals mapped to the
+    joint side (``to_joint``) or back to the motor side; None for a recording without motor-side signals."""
+    signals = _motor_signals(recording, robot)
+    if not signals:
+        return None
+    t = _transmission(recording, robot)
+    if to_joint:
+        positions, rates, torques = t.joint_positions, t.joint_rates, t.joint_torques
+    else:
+        positions, rates, torques = t.motor_positions, t.motor_rates, t.motor_torques
+    changes = {s: rates(getattr(recording, s)) for s in ("qd", "qdd") if s in signals}
+    if "q" in signals:
+        changes["q"] = positions(recording.q)
+    if "tau" in signals:
+        changes["tau"] = torques(recording.tau)
+    return signals, t, changes
+
+
 def to_joint_side(recording: Recording, robot) -> Recording:
     """The joint-side recording of one logged with the motor-side signals of ``robot.recording_layout``.
 
@@ -56,15 +75,10 @@ def to_joint_side(recording: Recording, robot) -> Recording:
         When the recording's joint count is not the transmission's, or it holds motor currents of a
         coupled transmission without the motors' torque constants.
     """
-    signals = _motor_signals(recording, robot)
-    if not signals:
+    mapped = _mapped_motion(recording, robot, to_joint=True)
+    if mapped is None:
         return recording
-    transmission = _transmission(recording, robot)
-    changes = {s: transmission.joint_rates(getattr(recording, s)) for s in ("qd", "qdd") if s in signals}
-    if "q" in signals:
-        changes["q"] = transmission.joint_positions(recording.q)
-    if "tau" in signals:
-        changes["tau"] = transmission.joint_torques(recording.tau)
+    signals, transmission, changes = mapped
     if "current" in signals:
         changes.update(_joint_currents(recording, transmission))
     logger.info(
@@ -106,15 +120,10 @@ def to_motor_side(recording: Recording, robot) -> Recording:
     RecordingError
         As :func:`to_joint_side`, and for currents without torques that cannot be mapped.
     """
-    signals = _motor_signals(recording, robot)
-    if not signals:
+    mapped = _mapped_motion(recording, robot, to_joint=False)
+    if mapped is None:
         return recording
-    transmission = _transmission(recording, robot)
-    changes = {s: transmission.motor_rates(getattr(recording, s)) for s in ("qd", "qdd") if s in signals}
-    if "q" in signals:
-        changes["q"] = transmission.motor_positions(recording.q)
-    if "tau" in signals:
-        changes["tau"] = transmission.motor_torques(recording.tau)
+    signals, transmission, changes = mapped
     if "current" in signals:
         changes["current"] = _motor_currents(recording, transmission, robot.drives)
     return recording.with_signals(**changes)
