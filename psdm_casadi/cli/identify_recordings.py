@@ -75,22 +75,13 @@ def add_arguments(p) -> None:
         help="keep the unconstrained weighted least-squares estimate (base parameters only), marked as not checked",
     )
     p.add_argument("--cutoff", type=float, default=None, help="low-pass cutoff [Hz] (default: min(10, rate/10))")
-    p.add_argument(
-        "--mass-bounds",
-        nargs=2,
-        type=float,
-        default=(0.5, 2.0),
-        metavar=("LOW", "HIGH"),
-        help="each link's mass stays within LOW-HIGH x the robot file's (default 0.5 2)",
-    )
-    p.add_argument(
-        "--drive-inertia-bounds",
-        nargs=2,
-        type=float,
-        default=(0.5, 2.0),
-        metavar=("LOW", "HIGH"),
-        help="each drive inertia stays within LOW-HIGH x the robot file's where it gives one (default 0.5 2)",
-    )
+    for option, bounded in (
+        ("--mass-bounds", "each link's mass stays within LOW-HIGH x the robot file's"),
+        ("--drive-inertia-bounds", "each drive inertia stays within LOW-HIGH x the robot file's where it gives one"),
+    ):
+        p.add_argument(
+            option, nargs=2, type=float, default=(0.5, 2.0), metavar=("LOW", "HIGH"), help=f"{bounded} (default 0.5 2)"
+        )
     p.add_argument(
         "--no-envelope",
         action="store_true",
