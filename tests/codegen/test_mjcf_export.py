@@ -27,6 +27,7 @@ from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
 from tests.codegen.export_refusals import assert_cli_refuses_inconsistent, assert_refuses_bad_models
+from tests.codegen.sine_motion import sines_about_mid_range
 from tests.conftest import DATASETS, DENSO_FILE
 from tests.psdm_casadi.test_mjcf_robot import ARM, HAND
 
@@ -239,13 +240,7 @@ def _sine_csv(robot, path, duration=8.0, seed=4):
     CSV a user would log (t, q1..qn, tau1..taun)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration, 2e-3)
-    omega = 2 * np.pi * rng.uniform(0.15, 0.5, size=(3, robot.n_dof))
-    phase = rng.uniform(0.0, 2 * np.pi, size=(3, robot.n_dof))
-    amplitude = 0.25 / 3 * np.minimum(0.5 * (robot.q_max - robot.q_min), robot.qdd_max / omega.max(axis=0) ** 2)
-    angle = omega[None] * t[:, None, None] + phase[None]
-    q = 0.5 * (robot.q_min + robot.q_max) + amplitude * np.sin(angle).sum(axis=1)
-    qd = amplitude * (omega * np.cos(angle)).sum(axis=1)
-    qdd = -amplitude * (omega**2 * np.sin(angle)).sum(axis=1)
+    q, qd, qdd = sines_about_mid_range(robot, t, rng, (0.15, 0.5), 0.25)
     tau = PinocchioOracle(robot).rnea(q, qd, qdd) + 0.3 * np.tanh(qd / 0.05) + 0.2 * qd
     tau += rng.normal(scale=0.02, size=tau.shape)
     n = robot.n_dof

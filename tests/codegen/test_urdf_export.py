@@ -22,6 +22,7 @@ from psdm_casadi.cli import main
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, from_urdf
 from tests.codegen.export_refusals import assert_cli_refuses_inconsistent, assert_refuses_bad_models
+from tests.codegen.sine_motion import sines_about_mid_range
 from tests.conftest import DATASETS, DENSO_FILE, example_robot_urdf
 from trajopt.experiments import sine_experiment
 
@@ -31,19 +32,9 @@ ARMATURE = re.compile(r"<!-- psdm: drive inertia \(armature, reflected to the jo
 
 
 def _sine_recording(robot, duration: float, rng) -> Recording:
-    """Joint torques of the robot file's inertia along sums of sines about mid-range, with friction and noise.
-
-    (The virtual robot's sine experiment turns about zero clipped into the ranges, where some of the
-    Panda's joints cannot move; inverse dynamics of an analytic reference is all this test needs.)
-    """
+    """Joint torques of the robot file's inertia along sums of sines about mid-range, with friction and noise."""
     t = np.arange(0.0, duration, 1e-3)
-    omega = 2 * np.pi * rng.uniform(0.1, 0.4, size=(3, robot.n_dof))
-    phase = rng.uniform(0.0, 2 * np.pi, size=(3, robot.n_dof))
-    amplitude = 0.3 / 3 * np.minimum(0.5 * (robot.q_max - robot.q_min), robot.qdd_max / omega.max(axis=0) ** 2)
-    angle = omega[None] * t[:, None, None] + phase[None]
-    q = 0.5 * (robot.q_min + robot.q_max) + amplitude * np.sin(angle).sum(axis=1)
-    qd = amplitude * (omega * np.cos(angle)).sum(axis=1)
-    qdd = -amplitude * (omega**2 * np.sin(angle)).sum(axis=1)
+    q, qd, qdd = sines_about_mid_range(robot, t, rng, (0.1, 0.4), 0.3)
     tau = PinocchioOracle(robot).rnea(q, qd, qdd) + 0.4 * np.tanh(qd / 0.05) + 0.2 * qd
     return Recording(t=t, q=q, tau=tau + rng.normal(scale=0.05, size=tau.shape), name=f"sines {robot.name}")
 
