@@ -186,28 +186,33 @@ def test_cli_run_status_report(tiny_fleet, tmp_path, capsys):
     assert "no such fleet folder" in capsys.readouterr().err
 
 
-def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluster, tmp_path):
-    """A worker process killed mid-run (its nanny restarts it; Dask reruns its tasks): every robot-day once."""
+def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluster, tmp_path, monkeypatch):
+    """A worker process killed mid-run (its nanny restarts it; Dask reruns its tasks): every robot-day once.
+
+    The kill happens while the client writes the first result, so it falls inside the run whatever the
+    machine's speed (a timer missed a run that ended before it fired).
+    """
     import os
-    import threading
 
     fleet = read_fleet(tiny_fleet[0])
     victim = sorted(cluster.scheduler_info()["workers"])[0]
-    killed = threading.Event()
+    original = History.write_session
+    written = []
 
-    def kill():
-        try:
-            cluster.run(os._exit, 1, workers=[victim])
-        except Exception:  # the worker's death breaks the call's own reply
-            pass
-        killed.set()
+    def write_then_kill(self, run_id, result):
+        if not written:
+            try:
+                cluster.run(os._exit, 1, workers=[victim])
+            except Exception:  # the worker's death breaks the call's own reply
+                pass
+        written.append(result.task.key)
+        original(self, run_id, result)
 
-    timer = threading.Timer(1.0, kill)
-    timer.start()
+    monkeypatch.setattr(History, "write_session", write_then_kill)
     summary = run_fleet(fleet, tmp_path / "h.duckdb", derive=derive, client=cluster)
-    timer.join()
-    assert killed.is_set() and summary.seconds > 1.0  # the kill fell inside the run
+    monkeypatch.setattr(History, "write_session", original)
     assert (summary.processed, summary.failed) == (18, 0)
+    assert len(written) == len(set(written)) == 18
     reference = tmp_path / "ref.duckdb"
     run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
     assert _close(tmp_path / "h.duckdb", reference)
