@@ -17,6 +17,7 @@ from psdm_casadi.errors import ParameterError
 
 MAX_ORDER = 3  # highest polynomial order of a spring's shape
 MIN_PERIODS = 1.0  # periods of a ripple the joint's recorded travel must cover for the data to show it is periodic
+NEARLY_LINEAR = 2.0  # a polynomial whose stiffness stays within this factor over the range is a linear spring
 LEVER_LAW_MIN_DROP = 0.01  # lever law offered where the highest-order polynomial lowers the training SSE this much
 
 
@@ -141,12 +142,14 @@ class SpringTerm(CandidateTerm):
 
     def implausibility(self, coefficients, context=None):
         """Not a spring: a negative stiffness (the linear spring's slope, or a polynomial whose stiffness is negative
-        over the whole recorded range: the torque pushes the joint away from its rest angle instead of pulling it
-        back, the sign of a gravity or mass error of the robot file), or a torque over the recorded range larger
-        than the joint's torque scale (``oversized``)."""
+        and nearly constant, within ``NEARLY_LINEAR``, over the whole recorded range: the torque pushes the joint away
+        from its rest angle instead of pulling it back, the sign of a gravity or mass error of the robot file; a
+        counterbalance's strongly curved torque, such as a gas spring's near its strut's alignment, may fall over the
+        range and stays a candidate), or a torque over the recorded range larger than the joint's torque scale
+        (``oversized``)."""
         k = self._secant(coefficients)
         low, high = self.stiffness_range(coefficients)
-        if (self.order == 1 and k < 0.0) or high < 0.0:
+        if (self.order == 1 and k < 0.0) or (high < 0.0 and low > NEARLY_LINEAR * high):
             return (
                 f"negative stiffness k = {k:.3g} N m/rad: a spring pulls the joint back to its rest angle; this torque "
                 "pushes it away (a position-dependent torque of another cause, such as a gravity or mass error of the "
