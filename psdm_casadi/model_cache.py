@@ -39,7 +39,7 @@ from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import ParameterError, PSDMError
 from psdm_casadi.model import MODEL_VERSION, PSDMModel, load_model
 
-__all__ = ["CACHE_ENV", "ModelCache", "default_cache_folder", "model_key"]
+__all__ = ["CACHE_ENV", "ModelCache", "default_cache_folder", "model_key", "robot_cache_folder"]
 
 logger = logging.getLogger(__name__)
 
@@ -59,6 +59,21 @@ def default_cache_folder() -> Path:
     import platformdirs
 
     return Path(platformdirs.user_cache_dir("psdm-casadi")) / "models"
+
+
+def robot_cache_folder() -> Path:
+    """Where a calibrated-model file's robot texts are written back: ``robots`` beside the models.
+
+    ``$PSDM_CACHE_DIR/robots`` when the variable is set (the model entries are the ``*.npz`` files of that
+    folder, so the subfolder is never pruned), else ``<user cache dir>/psdm-casadi/robots``: one setting moves
+    every cache psdm keeps.
+    """
+    override = os.environ.get(CACHE_ENV)
+    if override:
+        return Path(override).expanduser() / "robots"
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("psdm-casadi")) / "robots"
 
 
 def _canonical(value):

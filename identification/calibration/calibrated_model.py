@@ -59,6 +59,7 @@ from identification.calibration.trajectory_data import drive_columns, prepare_re
 from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
+from psdm_casadi.model_cache import robot_cache_folder
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
 __all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "friction_drives",
@@ -196,7 +197,7 @@ class CalibratedModel:
     def robot_file(self, cache_dir=None) -> Path:
         """The robot file's text written into the robot cache (with its URDF), as a path to load or copy."""
         block = self.document["robot"]
-        folder = Path(cache_dir or _cache_root()) / block["sha256"][:16]
+        folder = Path(cache_dir or robot_cache_folder()) / block["sha256"][:16]
         # a URDF outside the robot file's folder is stored by its relative path ("../data/robot.urdf"): the robot
         # file goes as many folders deep as the paths climb, so that each lands inside ``folder``
         depth = max(os.path.normpath(name).split(os.sep).count("..") for name in block["files"])
@@ -423,11 +424,6 @@ def _lock(entry) -> tuple:
         return (entry, 0.0)
     name, value = entry
     return (str(name), float(value))
-
-
-def _cache_root() -> Path:
-    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
-    return Path(base) / "psdm-casadi" / "robots"
 
 
 def _version() -> str:

@@ -124,6 +124,27 @@ def test_without_consistency_no_standard_parameters_are_reported(denso, denso_mo
     np.testing.assert_array_equal(fit.theta, fit.theta_ols)
 
 
+def test_the_robot_copies_of_a_model_file_go_where_the_model_cache_goes(
+    tmp_path, monkeypatch, denso, denso_model, denso_fit
+):
+    """One setting moves every cache: $PSDM_CACHE_DIR holds the robot texts a model file writes back, not ~/.cache."""
+    from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
+    from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+
+    monkeypatch.setenv("PSDM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    written = CalibratedModel.from_fit(
+        denso, denso_model, denso_fit, robot_source=BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
+    )
+    loaded = load_calibrated_model(written.save(tmp_path / "denso.json"))
+    main = loaded.robot_file()
+    assert (tmp_path / "cache" / "robots") in main.parents
+    assert main.read_text() == (BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml").read_text()
+    assert loaded.load_robot().joint_names == denso.joint_names
+    assert not (tmp_path / "xdg").exists() and not (tmp_path / "home").exists()
+
+
 def test_the_calibrated_model_file_round_trips_and_predicts_the_fit(tmp_path, denso, denso_model, denso_fit):
     from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
     from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
