@@ -35,6 +35,7 @@ from psdm_casadi.errors import SolverError
 
 __all__ = [
     "IPOPT_OPTIONS",
+    "ROTOR",
     "FitBounds",
     "consistent_fit",
     "drive_lower_bounds",

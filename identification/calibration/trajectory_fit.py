@@ -36,6 +36,7 @@ import numpy as np
 from identification.calibration.configuration_check import accumulate, loaded_recordings, unstated_payload_warnings
 from identification.calibration.consistent_fit import (
     IPOPT_OPTIONS,
+    ROTOR,
     consistent_fit,
     drive_lower_bounds,
     link_is_free,
@@ -80,8 +81,6 @@ __all__ = [
 ]
 
 logger = logging.getLogger(__name__)
-
-ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
 
 
 @dataclass(frozen=True)
