@@ -22,7 +22,7 @@ from identification.fleet.baseline import Baseline
 from identification.fleet.update import DayFit, refit_day
 from psdm_casadi.errors import PSDMError, RecordingError
 
-__all__ = ["SessionResult", "SessionTask", "process_session", "software_version"]
+__all__ = ["SessionResult", "SessionTask", "process_session", "read_session", "software_version"]
 
 logger = logging.getLogger(__name__)
 
@@ -73,7 +73,7 @@ class SessionResult:
     software_version: str = ""
 
 
-def _read(task: SessionTask, baseline: Baseline) -> tuple:
+def read_session(task: SessionTask, baseline: Baseline) -> tuple:
     """(prepared recordings, currents?) of a task; all of one kind (joint torques, else currents)."""
     robot = baseline.robot
     recordings = [load_recording(path, robot.n_dof, robot.joint_names) for path in task.paths]
@@ -93,7 +93,7 @@ def process_session(task: SessionTask, baseline: Baseline, model) -> SessionResu
     start = time.perf_counter()
     version = software_version()
     try:
-        prepared, currents = _read(task, baseline)
+        prepared, currents = read_session(task, baseline)
         fit = refit_day(baseline, model, prepared, currents)
     except (PSDMError, OSError, ValueError, np.linalg.LinAlgError) as exc:
         logger.warning("%s %s failed: %s", task.robot_id, task.day, exc)

@@ -11,7 +11,9 @@ constant and the friction scale together). It is one linear least-squares proble
 (``estimator.weighted_least_squares``): ordinary least squares first, then each joint's rows weighted by
 ``1 / (sigma_j^2 c_j)`` with ``sigma_j`` its residual RMS and ``c_j = (1 + rho_j) / (1 - rho_j)`` the variance
 inflation of its residual's lag-one correlation ``rho_j`` (filtered, decimated residuals are not white), so
-that the standard deviations are honest ones.
+that the standard deviations are honest ones. The rows are streamed in chunks of samples into per-joint QR
+factors (:mod:`identification.fleet.streamed`), so a day's memory is bounded whatever its length, and the result
+equals the whole matrix's solve to rounding.
 
 Reported parameters: ``fc<j>``, ``fv<j>``, ``kt<j>``, the terms' features (``spring_k_<j>``, ``bias_<j>``,
 ...), a ripple's amplitude ``ripple_amp<h>_<j>`` (from its sine and cosine, sigma by linearisation) and
@@ -30,11 +32,13 @@ from identification.calibration.payload import payload_torque
 from identification.calibration.trajectory_data import drive_columns
 from identification.data.payload import Payload
 from identification.fleet.baseline import FRICTION, Baseline
+from identification.fleet.streamed import StreamedRows
 
 __all__ = ["DayFit", "refit_day"]
 
 MAX_INFLATION = 50.0
-KT_MAX_RELATIVE = 0.05  # a torque constant less certain than this is held (see _fit_currents)
+KT_MAX_RELATIVE = 0.05  # a torque constant less certain than this is held (see _fit)
+CHUNK = 4096  # samples per chunk of rows (bounds the memory of a day, whatever its length)
 
 
 @dataclass(frozen=True)
@@ -88,21 +92,19 @@ def _baseline_values(baseline: Baseline) -> np.ndarray:
     return np.concatenate(values)
 
 
-def _inflation(residual: np.ndarray) -> np.ndarray:
-    """Per joint ``(1 + rho) / (1 - rho)`` of the lag-one correlation ``rho`` of each column of ``residual``."""
-    r = residual - residual.mean(axis=0)
-    rho = np.sum(r[1:] * r[:-1], axis=0) / np.maximum(np.sum(r * r, axis=0), 1e-300)
+def _inflation(rho: np.ndarray) -> np.ndarray:
+    """Per joint ``(1 + rho) / (1 - rho)`` of the lag-one correlations ``rho`` of the residuals (clipped)."""
     rho = np.clip(rho, 0.0, 0.99)
     return np.minimum((1.0 + rho) / (1.0 - rho), MAX_INFLATION)
 
 
-def _solve(matrix, target, n_dof: int, n_samples: int):
-    """Two-step weighted least squares on rows ordered (sample, joint): weights from the OLS residuals."""
-    first = weighted_least_squares(matrix, target)
-    residual = (target - matrix @ first.coefficients).reshape(n_samples, n_dof)
-    sigma2 = np.maximum(np.mean(residual**2, axis=0), 1e-300) * _inflation(residual)
-    weights = np.tile(1.0 / sigma2, n_samples)
-    result = weighted_least_squares(matrix, target, weights)
+def _solve(rows: StreamedRows, embedding: list, constant: np.ndarray):
+    """Two-step weighted least squares: each joint's weight from the OLS residual (module docstring)."""
+    first = weighted_least_squares(*rows.system(embedding, constant))
+    x = first.coefficients
+    mean_square, rho = rows.residual_moments(np.array([e @ x for e in embedding]) + constant)
+    sigma2 = np.maximum(mean_square, 1e-300) * _inflation(rho)
+    result = weighted_least_squares(*rows.system(embedding, constant, 1.0 / sigma2))
     # the weights are 1 / variance: the covariance is (A^T W A)^-1, not rescaled by the weighted residual
     covariance = result.covariance / max(result.sigma2, 1e-300)
     return result.coefficients, np.sqrt(np.clip(np.diag(covariance), 0.0, None)), covariance
@@ -124,33 +126,51 @@ def _with_amplitudes(names, joints, values, sigmas, covariance) -> tuple:
     return tuple(names), tuple(joints), np.asarray(values), np.asarray(sigmas)
 
 
-def _stack(baseline: Baseline, model, prepared: list) -> tuple:
-    """(names, joints, held torque, measured signal, columns) of the day's prepared recordings, stacked."""
-    held, measured, columns = [], [], []
+def _accumulate(baseline: Baseline, model, prepared: list) -> tuple:
+    """(names, joints, rows) of the day's prepared recordings: per joint the augmented rows
+    ``[signal_j, D_j, held_j]`` streamed in chunks of ``CHUNK`` samples into their QR factors."""
+    rows = names = joints = None
     for rec in prepared:
-        held.append(model.inverse_dynamics(rec.q, rec.qd, rec.qdd, baseline.theta))
-        names, joints, block = _columns(baseline, rec.q, rec.qd, rec.qdd)
-        measured.append(rec.tau)
-        columns.append(block)
-    return names, joints, np.concatenate(held), np.concatenate(measured), np.concatenate(columns)
+        for start in range(0, rec.n_samples, CHUNK):
+            part = slice(start, start + CHUNK)
+            q, qd, qdd = rec.q[part], rec.qd[part], rec.qdd[part]
+            held = model.inverse_dynamics(q, qd, qdd, baseline.theta)
+            names, joints, block = _columns(baseline, q, qd, qdd)
+            if rows is None:
+                rows = StreamedRows(baseline.robot.n_dof, block.shape[2] + 2)
+            rows.add(np.concatenate([rec.tau[part][:, :, None], block, held[:, :, None]], axis=2))
+    return names, joints, rows
 
 
-def _fit_currents(held, current, columns, kt_nominal) -> tuple:
-    """(fitted kt joints, x, sigmas, covariance) of ``kt_j i_j - D_j f = Y_j theta``.
+def _embedding(n: int, k: int, fitted: np.ndarray, signal_scale: np.ndarray) -> tuple:
+    """Per joint (E_j, c0_j) of the residual ``s_j signal_j - D_j f - held_j`` with ``x = (kt of fitted, f)``:
+    ``s_j`` is the fitted torque constant, else ``signal_scale[j]`` (held)."""
+    nf = fitted.size
+    embedding, constant = [], np.zeros((n, k + 2))
+    for j in range(n):
+        e = np.zeros((k + 2, nf + k))
+        e[1 : k + 1, nf:] = -np.eye(k)
+        where = np.flatnonzero(fitted == j)
+        if where.size:
+            e[0, where[0]] = 1.0
+        else:
+            constant[j, 0] = signal_scale[j]
+        constant[j, k + 1] = -1.0
+        embedding.append(e)
+    return embedding, constant
+
+
+def _fit(rows: StreamedRows, n: int, k: int, kt_nominal, currents: bool) -> tuple:
+    """(fitted kt joints, x, sigmas, covariance) of ``kt_j i_j - D_j f = Y_j theta`` (currents) or of
+    ``tau_j - D_j f = Y_j theta`` (torques, no constant fitted).
 
     A torque constant whose relative sigma exceeds ``KT_MAX_RELATIVE`` (a joint whose rigid-body torque is small
     beside its friction: the constant and the friction then scale together) is held at the nominal value.
     """
-    n_samples, n = current.shape
-    fitted = np.arange(n)
+    fitted = np.arange(n) if currents else np.zeros(0, dtype=int)
+    scale = kt_nominal if currents else np.ones(n)
     for attempt in range(2):
-        diag = np.zeros((n_samples, n, fitted.size))
-        diag[:, fitted, np.arange(fitted.size)] = current[:, fitted]
-        held_kt = np.setdiff1d(np.arange(n), fitted)
-        target = held.copy()
-        target[:, held_kt] -= current[:, held_kt] * kt_nominal[held_kt]
-        matrix = np.concatenate([diag, -columns], axis=2).reshape(n_samples * n, -1)
-        x, s, covariance = _solve(matrix, target.reshape(-1), n, n_samples)
+        x, s, covariance = _solve(rows, *_embedding(n, k, fitted, scale))
         weak = s[: fitted.size] > KT_MAX_RELATIVE * np.abs(x[: fitted.size])
         if attempt or not weak.any():
             break
@@ -162,23 +182,21 @@ def refit_day(baseline: Baseline, model, prepared: list, currents: bool) -> DayF
     """Refit a robot-day (module docstring) on prepared recordings of one kind.
 
     ``prepared`` recordings hold in ``tau`` the joint torque [N m], or with ``currents`` the motor current [A]
-    (the torque constants are then refitted too, where the data determine them).
+    (the torque constants are then refitted too, where the data determine them). The rows are streamed in chunks
+    (:class:`~identification.fleet.streamed.StreamedRows`): the memory does not grow with the recordings' length.
     """
     n = baseline.robot.n_dof
-    names, joints, held, signal, columns = _stack(baseline, model, prepared)
-    n_samples = held.shape[0]
-    measured = signal * baseline.kt if currents else signal
-    rmse_baseline = np.sqrt(np.mean((measured - held - columns @ _baseline_values(baseline)) ** 2, axis=0))
-    if currents:
-        fitted, x, s, covariance = _fit_currents(held, signal, columns, baseline.kt)
-        kt = baseline.kt.copy()
-        kt[fitted] = x[: fitted.size]
-        names = [f"kt{j + 1}" for j in fitted] + names
-        joints = [int(j) + 1 for j in fitted] + joints
-        refit = signal * kt - columns @ x[fitted.size :] - held
-    else:
-        x, s, covariance = _solve(columns.reshape(n_samples * n, -1), (signal - held).reshape(-1), n, n_samples)
-        refit = measured - held - columns @ x
-    rmse_refit = np.sqrt(np.mean(refit**2, axis=0))
+    names, joints, rows = _accumulate(baseline, model, prepared)
+    k = rows.width - 2
+    scale = baseline.kt if currents else np.ones(n)
+    before = np.column_stack([scale, -np.tile(_baseline_values(baseline), (n, 1)), -np.ones(n)])
+    rmse_baseline = np.sqrt(rows.squares(before) / rows.count)
+    fitted, x, s, covariance = _fit(rows, n, k, baseline.kt, currents)
+    kt = scale.copy()
+    kt[fitted] = x[: fitted.size]
+    names = [f"kt{j + 1}" for j in fitted] + list(names)
+    joints = [int(j) + 1 for j in fitted] + list(joints)
+    after = np.column_stack([kt, -np.tile(x[fitted.size :], (n, 1)), -np.ones(n)])
+    rmse_refit = np.sqrt(rows.squares(after) / rows.count)
     names, joints, values, sigmas = _with_amplitudes(names, joints, x, s, covariance)
-    return DayFit(names, joints, values, sigmas, rmse_baseline, rmse_refit, n_samples)
+    return DayFit(names, joints, values, sigmas, rmse_baseline, rmse_refit, rows.count)
