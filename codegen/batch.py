@@ -8,7 +8,9 @@ again (``codegen.batch_kernel``) with every scalar replaced by a vector of ``lan
 lanes), the same instructions evaluate ``lane_width`` states at once: inverse dynamics, forward
 dynamics (divisions included) and the regressor alike. The sin/cos of the joint angles keep the
 inlined ``psdm_sincos_n`` (over all lanes); other calls (rare) run lane by lane. Blocks of
-``lane_width`` states are shared between threads by OpenMP. The rewrite understands exactly the
+``lane_width`` states are shared between threads by OpenMP; the pool must stay awake between calls (libgomp's
+default, or ``OMP_WAIT_POLICY=ACTIVE``): with ``PASSIVE`` every call of ~1000 states pays a thread wake-up
+as long as its work, and two threads run slower than one. The rewrite understands exactly the
 statements CasADi writes for SX Functions and refuses anything else (``SolverError``), so it never
 computes something else silently. A function whose outputs outweigh its arithmetic (a small robot's
 regressor) calls its single-call C state by state instead, its joint rows still in lanes.

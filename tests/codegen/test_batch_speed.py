@@ -4,7 +4,7 @@ import re
 
 import pytest
 
-from codegen.peers.batch_speed import GPU_ANCHOR_STATES_PER_S, TEMPLATE, batch_ratios
+from codegen.peers.batch_speed import GPU_ANCHOR_STATES_PER_S, HARNESS_ENV, TEMPLATE, batch_ratios, thread_scaling
 from codegen.peers.harness import cpp_model_code
 from psdm_casadi.oracle import build_pinocchio_model
 
@@ -31,6 +31,31 @@ def test_batch_ratios_are_per_core_against_the_best_peer_and_the_gpu_anchor():
     assert with_cppadcg["batch_best_cpu_peer"] == "cppadcg_rnea_loop"
     assert with_cppadcg["batch_speedup_vs_best_cpu_peer"] == pytest.approx(5.0)
     assert with_cppadcg["batch_fd_speedup_vs_best_cpu_peer"] == pytest.approx(10.0)
+
+
+def test_thread_scaling_is_wall_clock_all_threads_over_one_for_ours_and_pinocchio():
+    wall = {
+        "psdm_batch_id_t1": 30e6,
+        "psdm_batch_id_t2": 57e6,
+        "psdm_batch_fd_t1": 20e6,
+        "psdm_batch_fd_t2": 36e6,
+        "psdm_batch_regressor_t1": 8e6,
+        "psdm_batch_regressor_t2": 16e6,
+        "pinocchio_rnea_parallel_t1": 3e6,
+        "pinocchio_rnea_parallel_t2": 5.9e6,
+    }
+    scaling = thread_scaling(wall, threads=2)
+    assert scaling["psdm"] == pytest.approx({"id": 1.9, "fd": 1.8, "regressor": 2.0})
+    assert scaling["pinocchio"] == pytest.approx({"id": 5.9 / 3})  # peers not timed are left out, not zero
+
+
+def test_harness_keeps_the_openmp_pool_awake_between_batches_and_times_one_thread_on_its_own_clock():
+    # A pool put to sleep after every parallel region pays a wake-up per call (what held two threads to
+    # 1.2-1.4x); the one-thread rounds must then be timed on the calling thread's clock, not the process's,
+    # which would count the pool spinning.
+    assert HARNESS_ENV.get("OMP_WAIT_POLICY") != "PASSIVE" and int(HARNESS_ENV["GOMP_SPINCOUNT"]) > 0
+    text = TEMPLATE.read_text()
+    assert "CLOCK_THREAD_CPUTIME_ID" in text and "std::clock()" not in text
 
 
 def test_harness_model_code_adds_every_joint(denso):
