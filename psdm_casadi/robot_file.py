@@ -5,11 +5,13 @@ RobotDescription. Every malformed entry raises a RobotFileError naming the file,
 and the fix: unreadable or non-text files, a value of the wrong kind, NaN or infinite numbers,
 unphysical inertia, duplicate joint names. Numbers may be written as small expressions of ``pi``
 (``"-pi/2"``). A robot file with a ``[urdf]`` table takes its joints and inertia from the URDF and
-may override the URDF's limits per joint (``[urdf.limits.<joint>]``) and add ``[[drive]]`` tables.
+may override the URDF's limits per joint (``[urdf.limits.<joint>]``) and inertials per link (``[[link]]`` tables
+naming the URDF link: ``link_overrides``), and add ``[[drive]]`` tables.
 """
 
 from __future__ import annotations
 
+import logging
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -31,11 +33,14 @@ from psdm_casadi.errors import RobotFileError
 from psdm_casadi.file_values import file_number as _number
 from psdm_casadi.file_values import file_vector as _vector
 from psdm_casadi.link_envelope import LinkEnvelope
+from psdm_casadi.link_overrides import apply_link_overrides
 from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.transmission_file import layout_from_table, transmission_from_table
 from psdm_casadi.urdf import from_urdf
 from psdm_casadi.values import format_value
+
+logger = logging.getLogger(__name__)
 
 ROBOT_FORMAT = "psdm-robot/1"
 #: The format of a robot file with link envelopes (``envelope`` in ``[[link]]`` tables); it reads version 1 too.
@@ -376,11 +381,12 @@ def _drives_from_tables(tables, n, where):
 def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     table = _table(data["urdf"], f"{where} [urdf]", '[urdf] with path = "robot.urdf"')
     _check_keys(table, _URDF_KEYS, f"{where} [urdf]")
-    for key, text in (("joint", "[[joint]] tables"), ("link", "[[link]] tables"), ("convention", "a convention")):
+    for key, text in (("joint", "[[joint]] tables"), ("convention", "a convention")):
         if key in data:
             raise RobotFileError(
-                f"{where}: a robot with a [urdf] table must take its joints and inertia from the URDF; got {text} "
-                "as well. Remove them (override joint limits in [urdf.limits.<joint name>])."
+                f"{where}: a robot with a [urdf] table must take its joints from the URDF; got {text} as well. "
+                "Remove them (override joint limits in [urdf.limits.<joint name>], link inertials in [[link]] "
+                "tables with the link's name)."
             )
     if "path" not in table:
         raise RobotFileError(f"{where} [urdf].path is missing. Give the URDF path relative to the robot file.")
@@ -397,13 +403,17 @@ def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     gravity = _vector(data["gravity"], 3, f"{where} gravity") if "gravity" in data else None
     name = _string(data["name"], f"{where} name") if "name" in data else None
     with _within(f"{where} [urdf].path"):
-        robot = from_urdf(urdf, locked_joints=locked, gravity=gravity, name=name)
+        robot = from_urdf(urdf, locked_joints=locked, gravity=gravity, name=name, warn=False)
     n = robot.n_dof
     joints = _urdf_limits(robot.joints, table.get("limits", {}), where)
     drives = _drives_from_tables(data.get("drive"), n, where)
     assumed = {**_assumed(assumptions, n, where), **_motor_side(data, n, where)}
     with _within(where):
-        return replace(robot, joints=joints, drives=drives, source=None if source is None else str(source), **assumed)
+        robot = replace(robot, joints=joints, drives=drives, source=None if source is None else str(source), **assumed)
+    robot = apply_link_overrides(robot, data["link"], where) if "link" in data else robot
+    for stand_in in robot.replaced_inertias:  # those the [[link]] tables did not replace
+        logger.warning("%s", stand_in.message(urdf.name))
+    return robot
 
 
 def _urdf_limits(joints: tuple, limits, where) -> tuple:

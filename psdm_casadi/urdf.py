@@ -230,7 +230,7 @@ def _set_locked_position(path: Path, model: pin.Model, jid: int, value: float, r
         )
 
 
-def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescription:
+def from_urdf(path, *, locked_joints=(), gravity=None, name=None, warn: bool = True) -> RobotDescription:
     """Read a URDF through Pinocchio: joints, limits and link inertias.
 
     Parameters
@@ -243,6 +243,9 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
         Gravity acceleration in the base frame [m/s^2]; default ``[0, 0, -9.806132]``.
     name : str, optional
         Robot name; default the file's stem.
+    warn : bool
+        Log the unusable inertias (below) here; a robot file that may replace them (``[[link]]`` tables) logs
+        those that remain itself.
 
     Returns
     -------
@@ -285,7 +288,8 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None) -> RobotDescri
         links.append(link)
         if stand_in is not None:
             replaced.append(stand_in)
-            logger.warning("%s", stand_in.message(path.name))
+            if warn:
+                logger.warning("%s", stand_in.message(path.name))
     if not joints:
         raise RobotFileError(
             f"{path.name} must hold at least one revolute or prismatic joint; got none (only fixed or floating "
@@ -359,6 +363,18 @@ def _joint(model: pin.Model, jid: int) -> Joint:
         qd_max=min(qd_max, 1e3),
         qdd_max=10.0,
         tau_max=tau_max,
+    )
+
+
+def moving_link_names(path, locked_joints=()) -> tuple:
+    """Per moving joint (base to tip), the URDF links it carries: its child and the fixed links lumped onto it.
+
+    The names a robot file's ``[[link]]`` tables use to replace a URDF link's inertial (``link_overrides``).
+    """
+    model = load_urdf_model(Path(path), locked_joints)
+    return tuple(
+        tuple(f.name for f in model.frames if f.type == pin.FrameType.BODY and f.parentJoint == jid)
+        for jid in range(1, model.njoints)
     )
 
 

@@ -294,7 +294,7 @@ def test_urdf_table_limits_drives_and_refusals(tmp_path):
         load_robot(write(tmp_path, base + "[urdf.limits.j1]\nq_min = 2.0\n"))
     with pytest.raises(RobotFileError, match=r"\[urdf.limits.j1\] has unknown key.*qdd_mx"):
         load_robot(write(tmp_path, base + "[urdf.limits.j1]\nqdd_mx = 2.0\n"))
-    with pytest.raises(RobotFileError, match=r"must take its joints and inertia from the URDF; got \[\[joint\]\]"):
+    with pytest.raises(RobotFileError, match=r"must take its joints from the URDF; got \[\[joint\]\]"):
         load_robot(write(tmp_path, base + JOINT))
     with pytest.raises(RobotFileError, match=r"robot\.toml \[urdf\]\.path: URDF 'bad\.urdf' must be a valid URDF"):
         write(tmp_path, "<robot", "bad.urdf")
