@@ -7,21 +7,29 @@ failed: a failed recording is retried only when its content changes). Plain SQL 
 
     SELECT day, value, sigma FROM parameters WHERE robot_id = 'r01' AND name = 'fc3' ORDER BY day;
 
-Tables: ``runs``, ``sessions``, ``recordings``, ``parameters``, ``validation``, ``findings`` (see
-``SCHEMA``); :meth:`History.export_parquet` writes one Parquet file per table.
+Tables: ``runs``, ``sessions``, ``recordings``, ``parameters``, ``validation``, ``findings``, and since schema 2
+``checks`` (each robot-day's validation-error check, ``day_check``), ``diagnoses`` (what the automatic diagnosis
+named on a day whose error rose unexplained), ``baselines`` (each robot's re-identifications: the model file and
+the first day it judges) and ``meta`` (``schema_version``); see ``SCHEMA``. A file of schema 1 (no ``meta``) is
+migrated on opening: the new tables are added, its rows stay as they are (its days show as not checked).
+:meth:`History.export_parquet` writes one Parquet file per table.
 """
 
 from __future__ import annotations
 
 import datetime as dt
+import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import duckdb
 
 from identification.fleet.session import SessionResult
+from psdm_casadi.errors import ParameterError
 
-__all__ = ["History", "ParameterRow", "SCHEMA"]
+__all__ = ["History", "ParameterRow", "SCHEMA", "SCHEMA_VERSION"]
+
+SCHEMA_VERSION = 2
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (run_id INTEGER PRIMARY KEY, started TIMESTAMP, finished TIMESTAMP, fleet VARCHAR,
@@ -38,8 +46,17 @@ CREATE TABLE IF NOT EXISTS validation (robot_id VARCHAR, day DATE, content_hash 
     rmse_baseline DOUBLE, rmse_refit DOUBLE);
 CREATE TABLE IF NOT EXISTS findings (run_id INTEGER, robot_id VARCHAR, joint INTEGER, parameter VARCHAR,
     test VARCHAR, onset DATE, size DOUBLE, size_sigma DOUBLE, relative_percent DOUBLE, z DOUBLE, text VARCHAR);
+CREATE TABLE IF NOT EXISTS meta (key VARCHAR PRIMARY KEY, value VARCHAR);
+CREATE TABLE IF NOT EXISTS checks (robot_id VARCHAR, day DATE, content_hash VARCHAR, verdict VARCHAR,
+    joints VARCHAR, statistic DOUBLE, refit_statistic DOUBLE, threshold DOUBLE, since DATE, diagnosis_error VARCHAR);
+CREATE TABLE IF NOT EXISTS diagnoses (robot_id VARCHAR, day DATE, content_hash VARCHAR, effect VARCHAR,
+    label VARCHAR, joints VARCHAR, parameters VARCHAR, gain DOUBLE, text VARCHAR);
+CREATE TABLE IF NOT EXISTS baselines (robot_id VARCHAR, since DATE, source VARCHAR, run_id INTEGER,
+    created TIMESTAMP, PRIMARY KEY (robot_id, since));
 """
-TABLES = ("runs", "sessions", "recordings", "parameters", "validation", "findings")
+TABLES = ("runs", "sessions", "recordings", "parameters", "validation", "findings", "checks", "diagnoses",
+          "baselines")  # fmt: skip
+KEYED = ("parameters", "validation", "checks", "diagnoses")  # rows of one session, by (robot_id, day, content_hash)
 # the latest session of each robot-day (a day whose recordings changed has several)
 LATEST = """
 SELECT robot_id, day, content_hash FROM (
@@ -78,7 +95,23 @@ class History:
     def __init__(self, path):
         self.path = Path(path)
         self.connection = duckdb.connect(str(self.path))
-        self.connection.execute(SCHEMA)
+        self.schema_version = self._migrate()
+
+    def _migrate(self) -> int:
+        """Create the tables (new file) or add schema 2's to a schema-1 file; refuse a newer schema."""
+        con = self.connection
+        tables = {row[0] for row in con.execute("SELECT table_name FROM information_schema.tables").fetchall()}
+        if "meta" in tables:
+            version = int(con.execute("SELECT value FROM meta WHERE key = 'schema_version'").fetchone()[0])
+            if version > SCHEMA_VERSION:
+                con.close()
+                raise ParameterError(
+                    f"{self.path}: a fleet history of schema {version}, written by a newer psdm-casadi (this one "
+                    f"reads up to {SCHEMA_VERSION}). Upgrade psdm-casadi, or pass another --db."
+                )
+        con.execute(SCHEMA)
+        con.execute("INSERT OR REPLACE INTO meta VALUES ('schema_version', ?)", [str(SCHEMA_VERSION)])
+        return SCHEMA_VERSION
 
     def close(self) -> None:
         self.connection.close()
@@ -126,8 +159,8 @@ class History:
         con = self.connection
         con.execute("BEGIN TRANSACTION")
         try:
-            con.execute("DELETE FROM parameters WHERE robot_id = ? AND day = ? AND content_hash = ?", list(task.key))
-            con.execute("DELETE FROM validation WHERE robot_id = ? AND day = ? AND content_hash = ?", list(task.key))
+            for table in KEYED:
+                con.execute(f"DELETE FROM {table} WHERE robot_id = ? AND day = ? AND content_hash = ?", list(task.key))
             con.execute(
                 "INSERT OR REPLACE INTO sessions VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                 [*task.key, run_id, result.status, result.error, None if fit is None else fit.n_samples,
@@ -150,10 +183,33 @@ class History:
                         for j, (b, r) in enumerate(zip(fit.rmse_baseline, fit.rmse_refit))
                     ],
                 )
+            self._write_check(task, result)
             con.execute("COMMIT")
         except BaseException:
             con.execute("ROLLBACK")
             raise
+
+    def _write_check(self, task, result: SessionResult) -> None:
+        """The day's validation-error check and its diagnosis' findings (inside :meth:`write_session`)."""
+        c = result.check
+        if c is not None:
+            row = (*task.key, c.verdict, ",".join(map(str, c.joints)), c.statistic, c.refit_statistic, c.threshold,
+                   c.since, result.diagnosis_error)  # fmt: skip
+            _insert(self.connection, "checks", [row])
+        rows = [(*task.key, f.effect, f.label, ",".join(map(str, f.joints)), json.dumps(f.parameters), f.gain, f.text)
+                for f in result.diagnosis]  # fmt: skip
+        _insert(self.connection, "diagnoses", rows)
+
+    def record_baseline(self, robot_id: str, since: str, source: str, run_id: int) -> None:
+        """A robot's new baseline (a re-identification's model file) that judges the days from ``since`` on."""
+        self.connection.execute("INSERT OR REPLACE INTO baselines VALUES (?, ?, ?, ?, ?)",
+                                [robot_id, since, source, run_id, _now()])  # fmt: skip
+
+    def baselines(self) -> list:
+        """``(robot_id, since, source)`` of every recorded re-identification, by robot and day."""
+        return self.connection.execute(
+            "SELECT robot_id, since, source FROM baselines ORDER BY robot_id, since"
+        ).fetchall()
 
     # --- reading ------------------------------------------------------------------------------
     def parameter_rows(self) -> list:
@@ -202,6 +258,34 @@ class History:
             "SELECT robot_id, joint, parameter, test, onset, size, size_sigma, relative_percent, z, text "
             "FROM findings ORDER BY robot_id, onset"
         ).fetchall()
+
+    def window_rows(self, robot_id: str, days: int, since=None) -> list:
+        """``(day, joint, rmse_baseline, rmse_refit)`` of a robot's first ``days`` ok recording days (from ``since``
+        on, when given): the window its days' validation errors are judged against (``day_check``)."""
+        return self.connection.execute(
+            f"SELECT v.day, v.joint, v.rmse_baseline, v.rmse_refit FROM validation v "
+            f"JOIN ({LATEST}) l USING (robot_id, day, content_hash) WHERE v.robot_id = ? AND v.day IN ("
+            f"SELECT DISTINCT day FROM ({LATEST}) WHERE robot_id = ? "
+            f"AND day >= coalesce(CAST(? AS DATE), DATE '0001-01-01') ORDER BY day LIMIT ?) ORDER BY v.day, v.joint",
+            [robot_id, robot_id, since, days],
+        ).fetchall()
+
+    def checks(self) -> list:
+        """``(robot_id, day, verdict, joints, statistic, refit_statistic, threshold, diagnosis_error)`` of the latest
+        sessions' checks, by robot and day."""
+        return self.connection.execute(
+            f"SELECT c.robot_id, c.day, c.verdict, c.joints, c.statistic, c.refit_statistic, c.threshold, "
+            f"c.diagnosis_error FROM checks c JOIN ({LATEST}) l USING (robot_id, day, content_hash) "
+            f"ORDER BY c.robot_id, c.day"
+        ).fetchall()
+
+    def diagnoses(self) -> list:
+        """``(robot_id, day, effect, label, joints, parameters (dict), gain, text)`` of the latest sessions."""
+        rows = self.connection.execute(
+            f"SELECT d.robot_id, d.day, d.effect, d.label, d.joints, d.parameters, d.gain, d.text FROM diagnoses d "
+            f"JOIN ({LATEST}) l USING (robot_id, day, content_hash) ORDER BY d.robot_id, d.day, d.gain DESC"
+        ).fetchall()
+        return [(*row[:5], json.loads(row[5]), *row[6:]) for row in rows]
 
     def export_parquet(self, folder) -> list:
         """One ``TABLE.parquet`` per table in ``folder`` (created); returns the paths."""

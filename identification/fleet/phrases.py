@@ -35,7 +35,7 @@ MEANINGS = {
     "ripple_amp": Meaning("torque ripple", "N m", "a developing gear tooth or bearing defect", "ripple decreasing"),
     "payload_mass": Meaning("payload", "kg", "a tool changed or a load added", "a tool changed or a load removed"),
     "rmse": Meaning("baseline model's torque error", "N m",
-                    "the model no longer explains the robot: run 'psdm diagnose' on the day's recordings",
+                    "the model no longer explains the robot: the fleet diagnoses the days its refit does not explain",
                     "the model explains the robot better than in its baseline window"),
 }  # fmt: skip
 PATTERN = re.compile(

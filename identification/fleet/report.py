@@ -4,17 +4,21 @@ A fleet table (robot, last recording day, sessions ok and failed, status, alarms
 every tracked parameter that alarmed (or, for a quiet robot, its friction and the baseline's validation error)
 with its sigma band and the onset marker of each finding, the baseline model's validation RMSE per joint over the
 days (the cheapest drift signal), and the failed sessions with their errors. Plots, not walls of numbers: the page
-holds two plotly figures per robot.
+holds two plotly figures per robot. Each robot lists its days as links to each day's own page (``day_report``,
+beside the history), coloured by the day's validation-error check (window, quiet, explained, unexplained,
+failed), and what the automatic diagnosis named on the days whose error rose unexplained.
 """
 
 from __future__ import annotations
 
 import html
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from identification.fleet.day_report import day_report_path
 from identification.fleet.history import History
 
 __all__ = ["FleetRow", "fleet_rows", "write_report"]
@@ -33,19 +37,58 @@ class FleetRow:
     failed: int
     status: str
     alarms: tuple
+    diagnoses: tuple = ()
+
+
+def diagnosis_lines(history: History) -> dict:
+    """{robot_id: lines}: each effect the automatic diagnosis named on a robot, with its days and parameters (those
+    of its first day)."""
+    effects: dict = {}
+    for robot_id, day, effect, label, joints, parameters, gain, _ in history.diagnoses():
+        entry = effects.setdefault(robot_id, {}).setdefault((label, joints), [effect, [], parameters, gain])
+        entry[1].append(str(day))
+    out = {}
+    for robot_id, named in effects.items():
+        lines = []
+        for (_, joints), (effect, days, parameters, gain) in named.items():
+            values = ", ".join(f"{k} = {v:.3g}" for k, v in list(parameters.items())[:3])
+            plural = "s" if len(days) > 1 else ""
+            lines.append(f"diagnosis: {effect.replace('_', ' ')} on joint {joints} ({values}; removes "
+                         f"{100 * gain:.0f} % of its error) on {len(days)} day{plural} from {days[0]}")  # fmt: skip
+        out[robot_id] = tuple(lines)
+    return out
 
 
 def fleet_rows(history: History) -> list:
-    """The fleet table: status ``alarm`` with findings, ``failed`` with failed sessions only, else ``ok``."""
+    """The fleet table: status ``alarm`` with findings or diagnoses, ``failed`` with failed sessions only, else
+    ``ok``."""
     findings: dict = {}
     for row in history.findings():
         findings.setdefault(row[0], []).append(row[-1])
+    diagnoses = diagnosis_lines(history)
     rows = []
     for robot_id, ok, failed, last in history.session_counts():
-        alarms = tuple(findings.get(robot_id, ()))
-        status = "alarm" if alarms else ("failed sessions" if failed else "ok")
-        rows.append(FleetRow(robot_id, str(last), int(ok), int(failed), status, alarms))
+        alarms, named = tuple(findings.get(robot_id, ())), diagnoses.get(robot_id, ())
+        status = "alarm" if alarms or named else ("failed sessions" if failed else "ok")
+        rows.append(FleetRow(robot_id, str(last), int(ok), int(failed), status, alarms, named))
     return rows
+
+
+def _day_links(history: History, robot_id: str, report_dir: Path, verdicts: dict) -> str:
+    """Each day of a robot as a link to its page (when written), coloured by its check's verdict."""
+    links = []
+    for day, status in history.connection.execute(
+        "SELECT DISTINCT day, status FROM sessions WHERE robot_id = ? ORDER BY day", [robot_id]
+    ).fetchall():
+        kind = "failed" if status == "failed" else verdicts.get((robot_id, str(day)), "window")
+        page = day_report_path(history.path, robot_id, str(day))
+        label = f"{str(day)[5:]}"
+        if page.is_file():
+            href = Path(os.path.relpath(page, report_dir)).as_posix()
+            links.append(f'<a class="day {kind}" href="{html.escape(href)}" title="{day}: {kind}">{label}</a>')
+        else:
+            links.append(f'<span class="day {kind}" title="{day}: {kind}">{label}</span>')
+    return '<p class="days">Days (each links to its report): ' + " ".join(links) + "</p>"
 
 
 def _series(history: History) -> dict:
@@ -109,7 +152,7 @@ def _table(rows: list) -> str:
     lines = ["<table><tr><th>robot</th><th>last recording</th><th>sessions ok</th><th>failed</th><th>status</th>"
              "<th>alarms</th></tr>"]  # fmt: skip
     for r in rows:
-        alarms = "<br>".join(html.escape(a) for a in r.alarms) or "-"
+        alarms = "<br>".join(html.escape(a) for a in (*r.alarms, *r.diagnoses)) or "-"
         lines.append(f'<tr class="{r.status.split()[0]}"><td><a href="#{r.robot_id}">{html.escape(r.robot_id)}</a>'
                      f"</td><td>{r.last_day}</td><td>{r.ok}</td><td>{r.failed}</td><td>{r.status}</td>"
                      f"<td>{alarms}</td></tr>")  # fmt: skip
@@ -119,6 +162,9 @@ def _table(rows: list) -> str:
 STYLE = (
     "body{font-family:sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
     "padding:4px 8px;text-align:left;vertical-align:top}tr.alarm td{background:#fde2e2}tr.failed td{background:#fff4d6}"
+    ".day{display:inline-block;padding:1px 4px;margin:1px;border-radius:3px;font-size:80%;text-decoration:none;"
+    "color:#000}.window{background:#eee}.quiet{background:#dff0d8}.explained{background:#fcf8e3}"
+    ".unexplained{background:#f2dede;font-weight:bold}.failed{background:#f0ad4e}"
 )
 
 
@@ -136,9 +182,14 @@ def write_report(history: History, path, title: str = "Fleet report") -> Path:
     validation: dict = {}
     for row in history.validation_rows():
         validation.setdefault(row[0], []).append(row)
+    verdicts = {(row[0], str(row[1])): row[2] for row in history.checks()}
+    report_dir = Path(path).resolve().parent
     first = True
     for r in rows:
         parts.append(f'<h2 id="{r.robot_id}">{html.escape(r.robot_id)}: {r.status}</h2>')
+        parts.append(_day_links(history, r.robot_id, report_dir, verdicts))
+        if r.diagnoses:
+            parts.append("<ul>" + "".join(f"<li>{html.escape(d)}</li>" for d in r.diagnoses) + "</ul>")
         if r.robot_id in series:
             figures = [_figure(r.robot_id, series[r.robot_id], by_robot.get(r.robot_id, [])),
                        _validation_figure(r.robot_id, validation.get(r.robot_id, []))]  # fmt: skip

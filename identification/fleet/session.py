@@ -5,6 +5,11 @@ hash), the robot's :class:`~identification.fleet.baseline.Baseline` and its PSDM
 :class:`SessionResult`; it writes nothing. A recording that does not read or does not pass the checks of the
 identification (``trajectory_data.prepare_recordings``: the robot's joint count, plausible units, every joint
 moving) fails its own session: the result holds the error text and ``status = "failed"``, and the fleet goes on.
+
+Given the robot's :class:`~identification.fleet.day_check.ErrorReference` (its baseline window's validation
+errors; the client passes it for the days after the window), the task also checks whether the day's error rose
+(``day_check``) and, when the refit does not explain the rise, runs the diagnosis on the day's recordings in the
+same task (``day_diagnosis``); its findings, or its error, come back in the result.
 """
 
 from __future__ import annotations
@@ -19,6 +24,7 @@ import numpy as np
 from identification.calibration.trajectory_data import prepare_recordings
 from identification.data.io import load_recording
 from identification.fleet.baseline import Baseline
+from identification.fleet.day_check import DayCheck, ErrorReference, check_day
 from identification.fleet.update import DayFit, refit_day
 from psdm_casadi.errors import PSDMError, RecordingError
 
@@ -63,6 +69,12 @@ class SessionResult:
     seconds : float
         Wall time of the task [s] (not part of the result's identity).
     software_version : str
+    check : DayCheck or None
+        The validation-error check (None without a reference: a baseline-window day).
+    diagnosis : tuple of DayFinding
+        What the diagnosis named on an ``unexplained`` day (empty when it found nothing or did not run).
+    diagnosis_error : str
+        Why the diagnosis could not run on the day (its error text), else empty.
     """
 
     task: SessionTask
@@ -71,6 +83,9 @@ class SessionResult:
     error: str = ""
     seconds: float = field(default=0.0, compare=False)
     software_version: str = ""
+    check: DayCheck | None = None
+    diagnosis: tuple = ()
+    diagnosis_error: str = ""
 
 
 def read_session(task: SessionTask, baseline: Baseline) -> tuple:
@@ -88,8 +103,20 @@ def read_session(task: SessionTask, baseline: Baseline) -> tuple:
     return prepared, currents
 
 
-def process_session(task: SessionTask, baseline: Baseline, model) -> SessionResult:
-    """Refit one robot-day (module docstring); never raises for bad data: the error goes into the result."""
+def _diagnosis(task, baseline, model, prepared, currents, fit) -> tuple:
+    """(findings, error text) of the day's diagnosis; a diagnosis that cannot run does not fail the session."""
+    from identification.fleet.day_diagnosis import diagnose_day
+
+    try:
+        return diagnose_day(baseline, model, prepared, currents, fit), ""
+    except (PSDMError, ValueError, np.linalg.LinAlgError) as exc:
+        logger.warning("%s %s: the diagnosis did not run: %s", task.robot_id, task.day, exc)
+        return (), f"{type(exc).__name__}: {exc}"
+
+
+def process_session(task: SessionTask, baseline: Baseline, model, reference: ErrorReference | None = None):
+    """Refit one robot-day and, given the robot's ``reference``, check its validation error and diagnose an
+    unexplained rise (module docstring); never raises for bad data: the error goes into the result."""
     start = time.perf_counter()
     version = software_version()
     try:
@@ -99,4 +126,9 @@ def process_session(task: SessionTask, baseline: Baseline, model) -> SessionResu
         logger.warning("%s %s failed: %s", task.robot_id, task.day, exc)
         error = f"{type(exc).__name__}: {exc}"
         return SessionResult(task, "failed", None, error, time.perf_counter() - start, version)
-    return SessionResult(task, "ok", fit, "", time.perf_counter() - start, version)
+    check, findings, error = None, (), ""
+    if reference is not None:
+        check = check_day(reference, fit.rmse_baseline, fit.rmse_refit)
+        if check.verdict == "unexplained" and reference.options.diagnose:
+            findings, error = _diagnosis(task, baseline, model, prepared, currents, fit)
+    return SessionResult(task, "ok", fit, "", time.perf_counter() - start, version, check, findings, error)

@@ -34,7 +34,7 @@ from identification.data.payload import Payload
 from identification.fleet.baseline import FRICTION, Baseline
 from identification.fleet.streamed import StreamedRows
 
-__all__ = ["DayFit", "refit_day"]
+__all__ = ["CHUNK", "DayFit", "baseline_values", "refit_columns", "refit_day"]
 
 MAX_INFLATION = 50.0
 KT_MAX_RELATIVE = 0.05  # a torque constant less certain than this is held (see _fit)
@@ -66,7 +66,7 @@ class DayFit:
     n_samples: int
 
 
-def _columns(baseline: Baseline, q, qd, qdd) -> tuple:
+def refit_columns(baseline: Baseline, q, qd, qdd) -> tuple:
     """(names, joints, columns (n_samples, n_dof, k)) of the refitted torque terms."""
     n = baseline.robot.n_dof
     blocks = [drive_columns(qd, qdd, FRICTION, (), baseline.coulomb_velocity)]
@@ -85,7 +85,7 @@ def _columns(baseline: Baseline, q, qd, qdd) -> tuple:
     return names, joints, np.concatenate(blocks, axis=2)
 
 
-def _baseline_values(baseline: Baseline) -> np.ndarray:
+def baseline_values(baseline: Baseline) -> np.ndarray:
     values = [baseline.friction.reshape(-1), baseline.term_values]
     if baseline.payload_com is not None:
         values.append(np.zeros(1))
@@ -135,7 +135,7 @@ def _accumulate(baseline: Baseline, model, prepared: list) -> tuple:
             part = slice(start, start + CHUNK)
             q, qd, qdd = rec.q[part], rec.qd[part], rec.qdd[part]
             held = model.inverse_dynamics(q, qd, qdd, baseline.theta)
-            names, joints, block = _columns(baseline, q, qd, qdd)
+            names, joints, block = refit_columns(baseline, q, qd, qdd)
             if rows is None:
                 rows = StreamedRows(baseline.robot.n_dof, block.shape[2] + 2)
             rows.add(np.concatenate([rec.tau[part][:, :, None], block, held[:, :, None]], axis=2))
@@ -189,7 +189,7 @@ def refit_day(baseline: Baseline, model, prepared: list, currents: bool) -> DayF
     names, joints, rows = _accumulate(baseline, model, prepared)
     k = rows.width - 2
     scale = baseline.kt if currents else np.ones(n)
-    before = np.column_stack([scale, -np.tile(_baseline_values(baseline), (n, 1)), -np.ones(n)])
+    before = np.column_stack([scale, -np.tile(baseline_values(baseline), (n, 1)), -np.ones(n)])
     rmse_baseline = np.sqrt(rows.squares(before) / rows.count)
     fitted, x, s, covariance = _fit(rows, n, k, baseline.kt, currents)
     kt = scale.copy()

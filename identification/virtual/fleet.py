@@ -13,7 +13,9 @@ constant.
 Events (:data:`EVENT_KINDS`), each with an onset day after the baseline window, change one true parameter:
 friction wear (Coulomb and static friction rising along a ramp), viscous rise (lubricant ageing, a ramp), a
 counterbalance losing stiffness (a step), a payload change (a step), ripple growth (a ramp) and a torque-constant
-drop (a step). Robots without an event are healthy. :func:`write_virtual_fleet` writes the fleet folder
+drop (a step); with ``kinds`` including :data:`UNMODELLED_KINDS`, a current-sensor offset that no tracked
+term models (a step: only the validation error and the automatic diagnosis see it). Robots without an event are
+healthy. :func:`write_virtual_fleet` writes the fleet folder
 (``FLEET/ROBOT/YYYY-MM-DD/health.csv``, ``robot.toml``, ``fleet.toml``) and ``truth.json`` beside it.
 """
 
@@ -35,9 +37,19 @@ from psdm_casadi.oracle import build_pinocchio_model
 from psdm_casadi.robot import load_robot
 from psdm_casadi.robot_writer import write_robot_file
 
-__all__ = ["EVENT_KINDS", "FleetEvent", "VirtualFleetOptions", "health_check_motion", "write_virtual_fleet"]
+__all__ = [
+    "EVENT_KINDS",
+    "UNMODELLED_KINDS",
+    "FleetEvent",
+    "VirtualFleetOptions",
+    "health_check_motion",
+    "write_virtual_fleet",
+]
 
 EVENT_KINDS = ("friction_wear", "viscous_rise", "spring_loss", "payload_change", "ripple_growth", "kt_drop")
+#: events the fleet's daily update does not model (no tracked term absorbs them): the baseline's and the refit's
+#: validation error rise, and the automatic diagnosis must name the effect
+UNMODELLED_KINDS = ("sensor_offset",)
 RAMPS = ("friction_wear", "viscous_rise", "ripple_growth")
 
 
@@ -68,8 +80,9 @@ class VirtualFleetOptions:
     payload_com: tuple = (0.0, 0.0, 0.05)
     baseline_days: int = 7
     event_robots: int | None = None
+    kinds: tuple = EVENT_KINDS
     sizes: tuple = (("friction_wear", 0.5), ("viscous_rise", 0.4), ("spring_loss", -0.3), ("payload_change", 2.0),
-                    ("ripple_growth", 2.0), ("kt_drop", -0.1))  # fmt: skip
+                    ("ripple_growth", 2.0), ("kt_drop", -0.1), ("sensor_offset", 0.5))  # fmt: skip
     seed: int = 0
 
 
@@ -104,11 +117,12 @@ def health_check_motion(robot, duration: float, rate: float) -> tuple:
 
 
 def _events(options: VirtualFleetOptions, ids: list, rng) -> list:
-    n_events = options.event_robots if options.event_robots is not None else min(len(ids), 2 * len(EVENT_KINDS))
+    kinds = options.kinds
+    n_events = options.event_robots if options.event_robots is not None else min(len(ids), 2 * len(kinds))
     sizes = dict(options.sizes)
     events = []
     for k, robot_id in enumerate(ids[:n_events]):
-        kind = EVENT_KINDS[k % len(EVENT_KINDS)]
+        kind = kinds[k % len(kinds)]
         onset = int(rng.integers(options.baseline_days + 2, max(options.baseline_days + 3, options.n_days - 4)))
         # a torque constant is identifiable with the rigid body held only where that torque is large beside the
         # friction (the daily update holds the others): its drop goes on joints 1-3 (else it reads as friction)
@@ -116,7 +130,8 @@ def _events(options: VirtualFleetOptions, ids: list, rng) -> list:
                  "kt_drop": int(rng.integers(1, 4))}.get(kind, int(rng.integers(1, 7)))  # fmt: skip
         parameter = {"friction_wear": f"fc{joint}", "viscous_rise": f"fv{joint}", "spring_loss": f"spring_k_{joint}",
                      "payload_change": "payload_mass", "kt_drop": f"kt{joint}",
-                     "ripple_growth": f"ripple_amp{options.ripple_harmonic}_{joint}"}[kind]  # fmt: skip
+                     "ripple_growth": f"ripple_amp{options.ripple_harmonic}_{joint}",
+                     "sensor_offset": f"rmse_{joint}"}[kind]  # fmt: skip
         day = (dt.date.fromisoformat(options.start) + dt.timedelta(days=onset)).isoformat()
         events.append(FleetEvent(robot_id, kind, joint, onset, day, parameter, sizes[kind]))
     return events
@@ -159,8 +174,12 @@ def _spread_robot(robot, options: VirtualFleetOptions, rng) -> tuple:
 
 
 def _day_truth(base: _Robot, events: list, day: int, options: VirtualFleetOptions, rng) -> tuple:
-    """(parameters, drives, spring, ripple) of a robot on a day, with its events and friction jitter."""
+    """(parameters, drives, spring, ripple, torque offset) of a robot on a day, with its events and friction jitter.
+
+    A ``sensor_offset`` adds ``size`` times the joint's Coulomb friction to its measured torque (a current-sensor
+    offset: unmodelled, the daily update has no column for it)."""
     parameters, spring, ripple = base.parameters, base.spring, base.ripple
+    offset = np.zeros(len(base.drives))
     jitter = 1 + options.friction_jitter * rng.standard_normal(len(base.drives))
     drives = [replace(d, fc=d.fc * j, fs=d.fs * j, fv=d.fv * j) for d, j in zip(base.drives, jitter)]
     for event in events:
@@ -177,17 +196,19 @@ def _day_truth(base: _Robot, events: list, day: int, options: VirtualFleetOption
             ripple = replace(ripple, amplitude=ripple.amplitude * (1 + c))
         elif event.kind == "payload_change" and c > 0:
             parameters = Payload(mass=c, com=tuple(options.payload_com)).modify_model(None, parameters)[1]
-    return parameters, drives, spring, ripple
+        elif event.kind == "sensor_offset":
+            offset[j] = c * base.drives[j].fc
+    return parameters, drives, spring, ripple, offset
 
 
 def _recording(robot, truth: tuple, motion: tuple, options: VirtualFleetOptions, rng, name: str) -> Recording:
-    parameters, drives, spring, ripple = truth
+    parameters, drives, spring, ripple, offset = truth
     t, q, qd, qdd = motion
     model = build_pinocchio_model(robot, parameters)
     data = model.createData()
     tau = np.array([pin.rnea(model, data, a, b, c) for a, b, c in zip(q, qd, qdd)])
     tau += steady_state_friction(qd, LuGreArrays.from_drives(drives))
-    tau += (spring.torque(t, q.T, qd.T, None) + ripple.torque(t, q.T, qd.T, None)).T
+    tau += (spring.torque(t, q.T, qd.T, None) + ripple.torque(t, q.T, qd.T, None)).T + offset
     kt = np.array([d.kt for d in drives])
     current = tau / kt + options.current_noise * rng.standard_normal(tau.shape)
     return Recording(t=t, q=q + 1e-6 * rng.standard_normal(q.shape), current=current, name=name)

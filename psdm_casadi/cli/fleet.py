@@ -80,6 +80,7 @@ def _open(path: Path, must_exist: bool = True):
 
 def _run(args) -> int:
     from identification.fleet.layout import read_fleet
+    from identification.fleet.report import diagnosis_lines
     from identification.fleet.runner import RunOptions, run_fleet
     from psdm_casadi.cli.checks import derive_model
 
@@ -91,12 +92,13 @@ def _run(args) -> int:
     summary = run_fleet(fleet, args.db, options, derive=lambda robot: derive_model(args, robot))
     with _open(args.db) as history:
         findings = history.findings()
+        diagnoses = [f"{robot}: {line}" for robot, lines in diagnosis_lines(history).items() for line in lines]
         if args.export_parquet is not None:
             history.export_parquet(args.export_parquet)
     out = {"command": "fleet run", "db": str(args.db), "run_id": summary.run_id, "planned": summary.planned,
            "processed": summary.processed, "failed": summary.failed, "skipped": summary.skipped,
            "duplicates": summary.duplicates, "seconds": round(summary.seconds, 3), "where": summary.where,
-           "findings": [f[-1] for f in findings]}  # fmt: skip
+           "findings": [f[-1] for f in findings], "diagnoses": diagnoses}  # fmt: skip
     if args.json:
         print_json(out)
     else:
@@ -106,7 +108,9 @@ def _run(args) -> int:
         )
         for f in findings:
             print(f"ALARM {f[0]}: {f[-1]}")
-    return 1 if findings else EXIT_OK
+        for line in diagnoses:
+            print(f"DIAGNOSIS {line}")
+    return 1 if findings or diagnoses else EXIT_OK
 
 
 def _status(args) -> int:
@@ -116,12 +120,13 @@ def _status(args) -> int:
         rows = fleet_rows(history)
         failures = history.failures()
     if args.json:
-        print_json({"command": "fleet status", "robots": [r.__dict__ | {"alarms": list(r.alarms)} for r in rows],
+        robots = [r.__dict__ | {"alarms": list(r.alarms), "diagnoses": list(r.diagnoses)} for r in rows]
+        print_json({"command": "fleet status", "robots": robots,
                     "failures": [{"robot": r, "day": str(d), "error": e} for r, d, e in failures]})  # fmt: skip
         return EXIT_OK
     for r in rows:
         print(f"{r.robot_id:12s} last {r.last_day}  ok {r.ok:4d}  failed {r.failed:3d}  {r.status}")
-        for alarm in r.alarms:
+        for alarm in (*r.alarms, *r.diagnoses):
             print(f"    {alarm}")
     for robot_id, day, error in failures:
         print(f"failed {robot_id} {day}: {error}")

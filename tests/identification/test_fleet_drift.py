@@ -83,4 +83,4 @@ def test_a_rising_validation_error_names_the_diagnosis(rng):
     rows = [("r01", d, 1, q, q) for d, q in zip(days, quiet)] + [("r02", d, 3, r, r) for d, r in zip(days, rising)]
     findings = detect_drift(validation_parameters(rows), baseline_days=7)
     assert [(f.robot_id, f.parameter, f.onset) for f in findings] == [("r02", "rmse_3", days[20])]
-    assert "run 'psdm diagnose' on the day's recordings" in findings[0].text
+    assert "the fleet diagnoses the days its refit does not explain" in findings[0].text

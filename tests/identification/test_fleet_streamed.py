@@ -35,11 +35,11 @@ def _reference(baseline, model, prepared, currents, fitted):
     """(values, sigmas, rmse_baseline) of the whole solve with the torque constants of ``fitted`` joints."""
     n = baseline.robot.n_dof
     held = np.concatenate([model.inverse_dynamics(r.q, r.qd, r.qdd, baseline.theta) for r in prepared])
-    cols = np.concatenate([update._columns(baseline, r.q, r.qd, r.qdd)[2] for r in prepared])
+    cols = np.concatenate([update.refit_columns(baseline, r.q, r.qd, r.qdd)[2] for r in prepared])
     signal = np.concatenate([r.tau for r in prepared])
     m = held.shape[0]
     measured = signal * baseline.kt if currents else signal
-    rmse = np.sqrt(np.mean((measured - held - cols @ update._baseline_values(baseline)) ** 2, axis=0))
+    rmse = np.sqrt(np.mean((measured - held - cols @ update.baseline_values(baseline)) ** 2, axis=0))
     diag = np.zeros((m, n, fitted.size))
     diag[:, fitted, np.arange(fitted.size)] = signal[:, fitted]
     target = held.copy()
