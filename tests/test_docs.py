@@ -27,7 +27,7 @@ BLOCK = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 FENCE = re.compile(r"^```([^\n`]*)\n(.*?)^```", re.S | re.M)
 TITLE = re.compile(r'title="([^"]+)"')
 #: Tutorial pages too long for the default suite (each has a fast test of its own below).
-SLOW = {"discovery-loop.md"}
+SLOW = {"discovery-loop.md", "four-step.md"}
 
 
 def python_blocks(page: Path) -> list[str]:
@@ -80,7 +80,7 @@ def test_python_blocks_are_found():
 def test_every_tutorial_with_code_is_run_and_listed_in_the_site():
     """No tutorial escapes: each page with code is in the parametrised run below and in mkdocs.yml's nav."""
     pages = {p.name for p in TUTORIALS.glob("*.md") if page_steps(p)}
-    assert {"first-model.md", "ros2-bag-to-c.md", "discovery-loop.md", "mpc.md"} <= pages
+    assert {"first-model.md", "ros2-bag-to-c.md", "discovery-loop.md", "mpc.md", "four-step.md"} <= pages
     nav = (ROOT / "mkdocs.yml").read_text(encoding="utf-8")
     assert all(f"tutorials/{name}" in nav for name in pages)
     assert SLOW <= pages
@@ -115,6 +115,18 @@ def test_discovery_loop_until_the_diagnosis(tmp_path, monkeypatch):
     first = next(k for k, (kind, _, text) in enumerate(steps) if kind == "python" and 'psdm("diagnose' in text)
     assert first >= 3
     run_steps(steps[:first])
+
+
+def test_four_step_route_designs(tmp_path, monkeypatch):
+    """The fast part of the (slow) four-step page: the experiments' designs (the motor sweep's speed, the page's
+    own assert); the simulation of every experiment, the four steps and the comparison with the truth run
+    with the whole page."""
+    monkeypatch.chdir(tmp_path)
+    steps = page_steps(TUTORIALS / "four-step.md")
+    first = next(k for k, (kind, _, text) in enumerate(steps) if kind == "python" and "simulate_calibration(" in text)
+    assert first >= 2
+    run_steps(steps[:first])
+    assert (tmp_path / "friction_j4_validation.csv").exists()
 
 
 def test_cli_reference_covers_every_subcommand():
