@@ -22,7 +22,7 @@ import numpy as np
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import ParameterError, SolverError
 from trajopt.joint_friction import friction_function
-from trajopt.mpc_model import build_step_function, expanded, stage_functions
+from trajopt.mpc_model import INTEGRATORS, build_step_function, expanded, stage_functions
 
 SOLVERS = ("ipopt", "fatrop", "sqpmethod")
 # fatrop is also a CasADi QP plugin, but its QP interface prints its matrices and stalled on this problem
@@ -39,8 +39,12 @@ class MPCOptions:
     horizon : int
         Shooting intervals N.
     dt : float
-        Control interval [s]; one RK4 step of ``dt / rk4_steps`` is taken ``rk4_steps`` times per interval.
+        Control interval [s]; one step of ``dt / rk4_steps`` is taken ``rk4_steps`` times per interval.
     rk4_steps : int
+    integrator : {"rk4", "euler"}
+        The controller's discretisation: classical RK4, or semi-implicit Euler (``qd += h qdd``, then
+        ``q += h qd``; one forward dynamics per step, the discretisation of Crocoddyl's
+        ``IntegratedActionModelEuler``).
     solver : {"ipopt", "fatrop", "sqpmethod"}
         The interior-point NLP solvers Ipopt or fatrop, or CasADi's SQP method whose QPs go to
         ``qp_solver`` (with a Gauss-Newton Hessian: the real-time SQP scheme of acados).
@@ -65,6 +69,7 @@ class MPCOptions:
     horizon: int = 20
     dt: float = 0.01
     rk4_steps: int = 1
+    integrator: str = "rk4"
     solver: str = "ipopt"
     qp_solver: str = "hpipm"
     hessian: str = "gauss-newton"
@@ -86,6 +91,8 @@ class MPCOptions:
                 raise ParameterError(f"MPCOptions.{name} must be a positive finite number; got {value!r}.")
         if self.solver not in SOLVERS:
             raise ParameterError(f"MPCOptions.solver must be one of {SOLVERS}; got {self.solver!r}.")
+        if self.integrator not in INTEGRATORS:
+            raise ParameterError(f"MPCOptions.integrator must be one of {INTEGRATORS}; got {self.integrator!r}.")
         if self.qp_solver not in QP_SOLVERS:
             raise ParameterError(f"MPCOptions.qp_solver must be one of {QP_SOLVERS}; got {self.qp_solver!r}.")
         if self.hessian not in HESSIANS:
@@ -281,7 +288,7 @@ def build_mpc(
         )
     forward_dynamics = expanded(forward_dynamics)
     friction_law = friction_function(robot) if friction else None
-    step = build_step_function(forward_dynamics, n, options.dt, options.rk4_steps, friction_law)
+    step = build_step_function(forward_dynamics, n, options.dt, options.rk4_steps, friction_law, options.integrator)
     exact = options.hessian == "exact"
     sx_model = forward_dynamics.is_a("SXFunction") and (
         forward_dynamics_jacobian is None or forward_dynamics_jacobian.is_a("SXFunction")
@@ -306,22 +313,22 @@ def build_mpc(
         (step, None)
         if exact
         else stage_functions(
-            forward_dynamics, n, options.dt, options.rk4_steps, friction_law, forward_dynamics_jacobian
+            forward_dynamics,
+            n,
+            options.dt,
+            options.rk4_steps,
+            friction_law,
+            forward_dynamics_jacobian,
+            options.integrator,
         )
     )
     gaps = states[:, 1:] - model.map(horizon)(states[:, :-1], torques)
     constraints = ca.vec(gaps)  # stage by stage; x0 is fixed through equal bounds, as structured QP solvers want
-    error = states[:, 1:] - ca.reshape(p, 2 * n, horizon + 1)[:, 1:]
-    tau_scale = np.where(np.isfinite(robot.tau_max), robot.tau_max, 1.0)
-    cost = (
-        options.position_weight * ca.sumsqr(error[:n, :])
-        + options.velocity_weight * ca.sumsqr(error[n:, :])
-        + options.torque_weight * ca.sumsqr(torques / ca.DM(tau_scale))
-    )
+    cost = tracking_cost(robot, options, states, torques, p)
     nlp = {"x": w, "p": p, "f": cost, "g": constraints}
     functions = {}
     if not exact:
-        jac_g = _constraint_jacobian(w, p, constraints, states, torques, model_jacobian, n)
+        jac_g = constraint_jacobian(w, states, torques, model_jacobian, n)
         if options.solver == "sqpmethod":
             functions["jac_fg"] = ca.Function(
                 "nlp_jac_fg",
@@ -341,7 +348,7 @@ def build_mpc(
     if not exact:  # the multipliers' gradient would need second-order AD through the model
         solver_options.update(no_nlp_grad=True, calc_lam_p=False)
     solver = ca.nlpsol("mpc", options.solver, nlp, dict(solver_options, **functions))
-    return MPCController(solver, step, options, n, _bounds(robot, horizon, constraints.numel()))
+    return MPCController(solver, step, options, n, variable_bounds(robot, horizon))
 
 
 def _jit_options(enabled: bool) -> dict:
@@ -354,7 +361,23 @@ def _jit_options(enabled: bool) -> dict:
     }
 
 
-def _constraint_jacobian(w, p, constraints, states, torques, model_jacobian, n):
+def tracking_cost(robot: RobotDescription, options: MPCOptions, states, torques, reference):
+    """``wq |q - q_ref|^2 + wv |qd - qd_ref|^2 + wu |tau / tau_max|^2`` over the nodes 1..N and the N torques.
+
+    states (2 n_dof, N + 1), torques (n_dof, N), reference (2 n_dof (N + 1),) column-major: the one
+    objective of every MPC of this package (the full solve, the real-time iteration, the peers).
+    """
+    n, horizon = robot.n_dof, options.horizon
+    error = states[:, 1:] - ca.reshape(reference, 2 * n, horizon + 1)[:, 1:]
+    tau_scale = np.where(np.isfinite(robot.tau_max), robot.tau_max, 1.0)
+    return (
+        options.position_weight * ca.sumsqr(error[:n, :])
+        + options.velocity_weight * ca.sumsqr(error[n:, :])
+        + options.torque_weight * ca.sumsqr(torques / ca.DM(tau_scale))
+    )
+
+
+def constraint_jacobian(w, states, torques, model_jacobian, n):
     """``dg/dx`` assembled from the stage Jacobians: -[A_k B_k] and the identity per gap."""
     horizon = torques.shape[1]
     n_w = w.numel()
@@ -392,7 +415,7 @@ def _constant_hessian(w, p, cost):
     return evaluate(np.zeros(w.numel()), np.zeros(p.numel()))
 
 
-def _bounds(robot: RobotDescription, horizon: int, n_constraints: int) -> dict:
+def variable_bounds(robot: RobotDescription, horizon: int) -> dict:
     """Variable bounds in stage order: x0 (set to the measured state at each step), then the joint and torque limits."""
     x_low = np.concatenate([robot.q_min, -robot.qd_max])
     x_high = np.concatenate([robot.q_max, robot.qd_max])
@@ -404,5 +427,5 @@ def _bounds(robot: RobotDescription, horizon: int, n_constraints: int) -> dict:
         high.append(np.concatenate([x_high, robot.tau_max]))
     low.append(x_low)
     high.append(x_high)
-    zeros = np.zeros(n_constraints)
+    zeros = np.zeros(2 * robot.n_dof * horizon)
     return {"lbx": np.concatenate(low), "ubx": np.concatenate(high), "lbg": zeros, "ubg": zeros}

@@ -26,8 +26,28 @@ def rk4(rhs, x, dt: float, steps: int):
     return x
 
 
-def build_step_function(forward_dynamics: ca.Function, n_dof: int, dt: float, rk4_steps: int = 1, friction=None):
-    """RK4 discretisation ``(x, u) -> x_next`` of ``qdd = forward_dynamics(q, qd, tau - friction(qd))``.
+INTEGRATORS = ("rk4", "euler")
+
+
+def semi_implicit_euler(rhs, x, dt: float, steps: int, n_dof: int):
+    """``steps`` semi-implicit (symplectic) Euler steps of ``(q, qd)' = rhs(q, qd)`` over dt: ``qd += h qdd``,
+    then ``q += h qd`` with the new velocity (Crocoddyl's ``IntegratedActionModelEuler``)."""
+    h = dt / steps
+    for _ in range(steps):
+        qd = x[n_dof:] + h * rhs(x)[n_dof:]
+        x = (
+            ca.vertcat(x[:n_dof] + h * qd, qd)
+            if isinstance(x, (ca.SX, ca.MX))
+            else np.concatenate([x[:n_dof] + h * qd, qd])
+        )
+    return x
+
+
+def build_step_function(
+    forward_dynamics: ca.Function, n_dof: int, dt: float, rk4_steps: int = 1, friction=None, integrator="rk4"
+):
+    """Discretisation ``(x, u) -> x_next`` of ``qdd = forward_dynamics(q, qd, tau - friction(qd))``: RK4 or
+    semi-implicit Euler (``integrator``), ``rk4_steps`` steps per interval.
 
     The graph is MX (so that any CasADi Function, also a callback, can be the dynamics); it is
     expanded to SX when the dynamics allow it, which is what the solvers evaluate fastest.
@@ -39,7 +59,8 @@ def build_step_function(forward_dynamics: ca.Function, n_dof: int, dt: float, rk
         tau = u if friction is None else u - friction(qd)
         return ca.vertcat(qd, forward_dynamics(q, qd, tau))
 
-    step = ca.Function("step", [x, u], [rk4(rhs, x, dt, rk4_steps)], ["x", "u"], ["x_next"])
+    x_next = rk4(rhs, x, dt, rk4_steps) if integrator == "rk4" else semi_implicit_euler(rhs, x, dt, rk4_steps, n_dof)
+    step = ca.Function("step", [x, u], [x_next], ["x", "u"], ["x_next"])
     try:
         return step.expand()
     except RuntimeError:  # a callback or external without an SX form stays MX
@@ -90,8 +111,8 @@ def expanded(function: ca.Function) -> ca.Function:
         return function
 
 
-def stage_functions(forward_dynamics, n, dt, rk4_steps, friction, fd_jacobian=None):
-    """The RK4 stage model ``(x, u) -> x_next`` and ``(x, u) -> (x_next, d x_next / d(x, u))``.
+def stage_functions(forward_dynamics, n, dt, rk4_steps, friction, fd_jacobian=None, integrator="rk4"):
+    """The stage model ``(x, u) -> x_next`` and ``(x, u) -> (x_next, d x_next / d(x, u))``, RK4 or semi-implicit Euler.
 
     The continuous right-hand side and its Jacobian are two small functions (compiled with the NLP's
     functions when jit); the RK4 sensitivities are chained from them in MX, dk = J(s) [ds; E] at each
@@ -117,7 +138,7 @@ def stage_functions(forward_dynamics, n, dt, rk4_steps, friction, fd_jacobian=No
     select_u = ca.DM(np.hstack([np.zeros((n, 2 * n)), np.eye(n)]))
     h = dt / rk4_steps
     state, sens, state_only = xm, ca.MX(ca.DM(np.hstack([np.eye(2 * n), np.zeros((2 * n, n))]))), xm
-    for _ in range(rk4_steps):
+    for _ in range(rk4_steps if integrator == "rk4" else 0):
         slopes, slope_sens, plain = [], [], []
         for c in (0.0, 0.5, 0.5, 1.0):
             point = state if not slopes else state + c * h * slopes[-1]
@@ -129,6 +150,13 @@ def stage_functions(forward_dynamics, n, dt, rk4_steps, friction, fd_jacobian=No
         state = state + h / 6 * (slopes[0] + 2 * slopes[1] + 2 * slopes[2] + slopes[3])
         sens = sens + h / 6 * (slope_sens[0] + 2 * slope_sens[1] + 2 * slope_sens[2] + slope_sens[3])
         state_only = state_only + h / 6 * (plain[0] + 2 * plain[1] + 2 * plain[2] + plain[3])
+    for _ in range(rk4_steps if integrator == "euler" else 0):  # qd += h qdd(x, u); q += h qd
+        value, jac = rhs_jac(state, um)
+        velocity = state[n:] + h * value[n:]
+        velocity_sens = sens[n:, :] + h * ca.mtimes(jac[n:, :], ca.vertcat(sens, select_u))
+        state = ca.vertcat(state[:n] + h * velocity, velocity)
+        sens = ca.vertcat(sens[:n, :] + h * velocity_sens, velocity_sens)
+        state_only = semi_implicit_euler(lambda s: rhs(s, um), state_only, h, 1, n)
     model = ca.Function("model", [xm, um], [state_only], ["x", "u"], ["x_next"])
     model_jacobian = ca.Function("model_jacobian", [xm, um], [state, sens], ["x", "u"], ["x_next", "jac_x_next_xu"])
     return model, model_jacobian

@@ -1,0 +1,189 @@
+"""The real-time-iteration MPC: its QP against finite differences and a dense KKT solve, the closed loop, the C."""
+
+from __future__ import annotations
+
+import shutil
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from psdm_casadi.errors import ParameterError
+from psdm_casadi.oracle import PinocchioOracle
+from psdm_casadi.recursive import build_recursive_functions
+from trajopt.joint_friction import friction_function
+from trajopt.mpc import MPCOptions, variable_bounds
+from trajopt.mpc_loop import build_pinocchio_plant, simulate_closed_loop
+from trajopt.mpc_model import build_forward_dynamics_jacobian, build_step_function, stage_functions
+from trajopt.mpc_rti import build_rti, compile_rti, rti_qp_data
+
+DT = 0.005
+
+
+@pytest.fixture(scope="module")
+def denso_dynamics(denso, denso_model):
+    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    functions = build_recursive_functions(denso_model, denso, theta)
+    jacobian = build_forward_dynamics_jacobian(
+        functions.forward_dynamics, functions.inverse_dynamics, functions.mass_matrix
+    )
+    return functions.forward_dynamics, jacobian
+
+
+def sine_reference(robot, amplitude=0.15):
+    middle = (robot.q_min + robot.q_max) / 2
+    omega = 2 * np.pi * 0.5
+
+    def reference(t):
+        return middle + amplitude * np.sin(omega * t), np.full(robot.n_dof, amplitude * omega * np.cos(omega * t))
+
+    return reference
+
+
+def nodes(reference, horizon, t=0.0):
+    return np.array([np.concatenate(reference(t + k * DT)) for k in range(horizon + 1)])
+
+
+def guess_vector(states, torques):
+    return np.concatenate([np.hstack([states[:-1], torques]).ravel(), states[-1]])
+
+
+def test_euler_stage_jacobian_equals_casadi_ad_of_the_step(denso, denso_dynamics, rng):
+    n, (fd, jacobian) = denso.n_dof, denso_dynamics
+    friction = friction_function(denso)
+    step = build_step_function(fd, n, DT, 2, friction, "euler")
+    _, model_jacobian = stage_functions(fd, n, DT, 2, friction, jacobian, "euler")
+    x, u = ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
+    reference_jacobian = ca.Function("j", [x, u], [ca.jacobian(step(x, u), ca.vertcat(x, u))])
+    xv, uv = rng.uniform(-1, 1, 2 * n), rng.uniform(-20, 20, n)
+    value, jac = model_jacobian(xv, uv)
+    # semi-implicit Euler by hand: qd += h qdd, q += h qd (new), twice
+    state = xv.copy()
+    for _ in range(2):
+        qdd = np.array(fd(state[:n], state[n:], uv - np.array(friction(state[n:])).ravel())).ravel()
+        state[n:] += DT / 2 * qdd
+        state[:n] += DT / 2 * state[n:]
+    np.testing.assert_allclose(np.array(value).ravel(), state, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(np.array(jac), np.array(reference_jacobian(xv, uv)), rtol=1e-8, atol=1e-8)
+
+
+def test_qp_linearisation_matches_finite_differences_and_its_step_the_kkt_solve(denso, denso_dynamics, rng):
+    """The QP data against central differences of the RK4 model, and HPIPM's step against a dense KKT solve.
+
+    With the state on the reference every bound is inactive, so the first SQP step of the full
+    problem is the equality-constrained Gauss-Newton step ``[H A'; A 0] [dw; lam] = [-g; -c]`` with
+    dx0 fixed: solved here by numpy, independently of HPIPM's Riccati interior point.
+    """
+    n, horizon, (fd, jacobian) = denso.n_dof, 3, denso_dynamics
+    options = MPCOptions(horizon=horizon, dt=DT, max_iter=50, tol=1e-10)
+    controller = build_rti(denso, fd, options, forward_dynamics_jacobian=jacobian, qp_mode="robust")
+    friction = friction_function(denso)
+    step = build_step_function(fd, n, DT, 1, friction)
+    _, model_jacobian = stage_functions(fd, n, DT, 1, friction, jacobian)
+    data = rti_qp_data(denso, options, model_jacobian, variable_bounds(denso, horizon))
+    reference = sine_reference(denso)
+    states = nodes(reference, horizon) + rng.normal(0, 1e-3, (horizon + 1, 2 * n))
+    gravity = PinocchioOracle(denso).gravity(states[0, :n])
+    w = guess_vector(states, np.tile(gravity, (horizon, 1)) + rng.normal(0, 0.5, (horizon, n)))
+    x0, p = nodes(reference, horizon)[0], nodes(reference, horizon).ravel()
+    qp = {k: np.array(ca.densify(v)) for k, v in data(x0=x0, w=w, p=p).items()}
+    # A: row block k holds d(x_{k+1} - F(x_k, u_k)) / dw, by central differences of the RK4 step
+    a_fd, eps = np.zeros_like(qp["a"]), 1e-6
+    for j in range(w.size):
+        e = np.zeros(w.size)
+        e[j] = eps
+        gaps = [
+            np.concatenate(
+                [
+                    wv[3 * n * (k + 1) : 3 * n * (k + 1) + 2 * n]
+                    - np.array(step(wv[3 * n * k : 3 * n * k + 2 * n], wv[3 * n * k + 2 * n : 3 * n * (k + 1)])).ravel()
+                    for k in range(horizon)
+                ]
+            )  # fmt: skip
+            for wv in (w + e, w - e)
+        ]
+        a_fd[:, j] = (gaps[0] - gaps[1]) / (2 * eps)
+    np.testing.assert_allclose(qp["a"], a_fd, rtol=1e-6, atol=1e-6 * np.abs(a_fd).max())
+    # the step: equality-constrained KKT with dx0 = x0 - w_x0
+    free = np.arange(2 * n, w.size)
+    dx0 = x0 - w[: 2 * n]
+    h, a = qp["h"], qp["a"]
+    g = qp["g"].ravel() + h[:, : 2 * n] @ dx0
+    c = -qp["lba"].ravel() + a[:, : 2 * n] @ dx0  # gaps + A_x0 dx0
+    hf, af = h[np.ix_(free, free)], a[:, free]
+    kkt = np.block([[hf, af.T], [af, np.zeros((af.shape[0], af.shape[0]))]])
+    solution = np.linalg.solve(kkt, np.concatenate([-g[free], -c]))
+    expected = w + np.concatenate([dx0, solution[: free.size]])
+    _, _, w_sol, _ = controller.function(x0, w, p)
+    w_sol = np.array(w_sol).ravel()
+    assert np.all(w_sol > variable_bounds(denso, horizon)["lbx"]) and np.all(
+        w_sol < variable_bounds(denso, horizon)["ubx"]
+    )
+    np.testing.assert_allclose(w_sol, expected, rtol=1e-6, atol=1e-6)
+
+
+def test_rti_tracks_the_pinocchio_plant_within_the_torque_limits(denso, denso_dynamics):
+    fd, jacobian = denso_dynamics
+    options = MPCOptions(horizon=6, dt=DT, max_iter=10, tol=1e-6)
+    controller = build_rti(denso, fd, options, forward_dynamics_jacobian=jacobian)
+    reference = sine_reference(denso)
+    guess = PinocchioOracle(denso).gravity(reference(0.0)[0])
+    result = simulate_closed_loop(controller, build_pinocchio_plant(denso), reference, 40, torque_guess=guess)
+    assert result.tracking_rmse < 1e-3
+    assert np.max(np.abs(result.q - result.q_ref)) < 3e-3
+    assert result.limit_violation(denso) == 0.0
+    assert np.all(np.abs(result.torque) <= denso.tau_max)
+
+
+def test_rti_holds_a_torque_limit_the_reference_would_need_to_exceed(denso, denso_dynamics):
+    """A fast reference on joint 1 with its torque limit cut below what tracking needs: saturate, never exceed."""
+    import dataclasses
+
+    fd, jacobian = denso_dynamics
+    joints = list(denso.joints)
+    joints[0] = dataclasses.replace(joints[0], tau_max=2.0)
+    robot = dataclasses.replace(denso, joints=tuple(joints))
+    controller = build_rti(
+        robot, fd, MPCOptions(horizon=6, dt=DT, max_iter=20, tol=1e-6), forward_dynamics_jacobian=jacobian
+    )
+    reference = sine_reference(robot, amplitude=0.4)
+    guess = np.clip(PinocchioOracle(robot).gravity(reference(0.0)[0]), -robot.tau_max, robot.tau_max)
+    result = simulate_closed_loop(controller, build_pinocchio_plant(robot), reference, 40, torque_guess=guess)
+    assert np.max(np.abs(result.torque[:, 0])) > 0.95 * 2.0  # it does push against the limit
+    assert np.all(np.abs(result.torque) <= robot.tau_max + 1e-6)
+
+
+@pytest.mark.needs_cc
+@pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
+def test_compiled_step_agrees_with_the_casadi_evaluated_one(denso, denso_dynamics, tmp_path, rng):
+    """The generated C (dynamics, derivatives, HPIPM call) against CasADi's evaluation of the same Function.
+
+    Both solve the QP to 1e-10: with a small iteration cap the two stop at different iterates, as
+    CasADi's generated code fills HPIPM's arguments in its own way (the closed-loop tests cover the cap).
+    """
+    fd, jacobian = denso_dynamics
+    horizon, n = 4, denso.n_dof
+    controller = build_rti(
+        denso, fd, MPCOptions(horizon=horizon, dt=DT, max_iter=50, tol=1e-10), forward_dynamics_jacobian=jacobian
+    )
+    compiled = compile_rti(controller, tmp_path, flags=("-O1",))
+    assert (tmp_path / "mpc_rti.c").exists() and (tmp_path / "mpc_rti.h").exists()
+    reference = nodes(sine_reference(denso), horizon)
+    gravity = PinocchioOracle(denso).gravity(reference[0, :n])
+    w = guess_vector(reference, np.tile(gravity, (horizon, 1))) + rng.normal(0, 1e-3, 3 * n * horizon + 2 * n)
+    x0 = reference[0] + rng.normal(0, 1e-3, 2 * n)
+    for expected, got in zip(
+        controller.function(x0, w, reference.ravel()), compiled.function(x0, w, reference.ravel())
+    ):
+        np.testing.assert_allclose(np.array(got), np.array(expected), rtol=1e-7, atol=1e-7)
+
+
+def test_bad_qp_mode_and_dynamics_are_refused(denso, denso_dynamics):
+    fd, _ = denso_dynamics
+    with pytest.raises(ParameterError, match="qp_mode"):
+        build_rti(denso, fd, MPCOptions(horizon=2, dt=DT), qp_mode="fastest")
+    q, qd, tau = (ca.SX.sym(name, 2) for name in ("q", "qd", "tau"))
+    with pytest.raises(ParameterError, match="forward_dynamics"):
+        build_rti(denso, ca.Function("f", [q, qd, tau], [q + qd + tau]), MPCOptions(horizon=2, dt=DT))
+    with pytest.raises(ParameterError, match="MPCOptions.integrator"):
+        MPCOptions(integrator="midpoint")

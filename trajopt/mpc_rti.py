@@ -1,0 +1,339 @@
+"""Real-time-iteration NMPC: one Gauss-Newton SQP step per control interval as one compiled CasADi Function.
+
+The tracking problem is the one of ``trajopt.mpc`` (same cost, bounds, RK4 model); instead of
+iterating an NLP solver from Python, each control interval takes exactly one SQP step from the
+shifted previous solution (the real-time iteration of Diehl et al., the scheme of acados): the
+stage models and their Jacobians at the guess, the constant Gauss-Newton Hessian of the
+least-squares cost, and the structured QP in the step ``dw`` solved by HPIPM (Riccati-based
+interior point, through CasADi's ``conic`` plugin). Everything, the shift for the next interval
+included, is one Function ``mpc_rti(x0, w, p) -> (u, w_next, w_sol)``; ``export_rti_c`` writes it as
+C (with the dynamics and their derivatives inlined), ``compile_rti`` builds and loads it, so the
+per-step loop holds no Python: a C program calls ``mpc_rti`` directly (see ``examples/`` in the
+report of ``benchmarks/mpc.py``), Python calls the same compiled code through ``casadi.external``.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import shlex
+import shutil
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from psdm_casadi.description import RobotDescription
+from psdm_casadi.errors import ParameterError, SolverError
+from trajopt.joint_friction import friction_function
+from trajopt.mpc import MPCOptions, constraint_jacobian, tracking_cost, variable_bounds
+from trajopt.mpc_model import expanded, stage_functions
+
+LOG = logging.getLogger(__name__)
+RTI_NAME = "mpc_rti"
+# HPIPM's own presets: "speed_abs" (no residual checks), "speed", "balance", "robust"
+QP_MODES = ("speed_abs", "speed", "balance", "robust")
+# CasADi's generated HPIPM call fails the whole Function on any status but success (its error_on_fail is
+# not honoured in generated code), also at the iteration cap, whose iterate the real-time scheme applies
+# (as the MX Function does with error_on_fail=False); the export takes the check out, and the caller
+# still rejects non-finite results
+QP_FAILURE_CHECK = "\n  if (d.return_status!=0) {\n    return -1;\n  }\n"
+
+
+@dataclass
+class RTIController:
+    """A real-time-iteration MPC: the step Function and the guess it carries from one interval to the next.
+
+    Attributes
+    ----------
+    function : casadi.Function
+        ``(x0, w, p) -> (u, w_next, w_sol)``: measured state (2 n_dof,), guess (stage order
+        x0, u0, ..., x_N), reference (2 n_dof (N + 1),) column-major -> first torque, the shifted
+        solution (next interval's guess) and the solution itself. The MX Function (evaluated by
+        CasADi's virtual machine) or its compiled twin from ``compile_rti``.
+    options : MPCOptions
+        Horizon, interval, RK4 steps and weights; ``max_iter`` and ``tol`` are HPIPM's cap and tolerance.
+    n_dof : int
+    bounds : dict
+        ``lbx``, ``ubx`` of the variables (the same as ``trajopt.mpc``'s).
+    """
+
+    function: ca.Function
+    options: MPCOptions
+    n_dof: int
+    bounds: dict
+    _guess: np.ndarray | None = field(default=None, repr=False)
+
+    def initialize(self, states, torques) -> None:
+        """Set the first guess: states (N + 1, 2 n_dof) and torques (N, n_dof)."""
+        states, torques = np.asarray(states, dtype=float), np.asarray(torques, dtype=float)
+        n, horizon = self.n_dof, self.options.horizon
+        if states.shape != (horizon + 1, 2 * n) or torques.shape != (horizon, n):
+            raise ParameterError(
+                f"RTIController.initialize needs states ({horizon + 1}, {2 * n}) and torques ({horizon}, {n}); "
+                f"got {states.shape} and {torques.shape}."
+            )
+        self._guess = np.concatenate([np.hstack([states[:-1], torques]).ravel(), states[-1]])
+
+    def warm_up(self, state, reference, iterations: int) -> None:
+        """Take ``iterations`` RTI steps from the same state without shifting: the converged start of a
+        real-time loop (the first guess is usually far from optimal)."""
+        for _ in range(iterations):
+            _, _, w, _ = self.function(state, self._guess, np.asarray(reference, dtype=float).ravel())
+            self._guess = np.asarray(w).ravel()
+
+    def step(self, state, reference) -> tuple[np.ndarray, dict]:
+        """One real-time iteration: returns the first torque (n_dof,) and the step's timing.
+
+        ``reference`` is (N + 1, 2 n_dof): (q_ref, qd_ref) at the N + 1 nodes from now. The solution,
+        shifted by one interval, is the next step's guess.
+
+        Raises
+        ------
+        ParameterError
+            On a state or reference of the wrong shape, or before ``initialize``.
+        SolverError
+            When the QP returns non-finite numbers.
+        """
+        n, horizon = self.n_dof, self.options.horizon
+        reference, state = np.asarray(reference, dtype=float), np.asarray(state, dtype=float)
+        if state.shape != (2 * n,):
+            raise ParameterError(f"RTIController.step state must be (q, qd) of shape ({2 * n},); got {state.shape}.")
+        if reference.shape != (horizon + 1, 2 * n):
+            raise ParameterError(
+                f"RTIController.step reference must have shape ({horizon + 1}, {2 * n}); got {reference.shape}."
+            )
+        if self._guess is None:
+            raise ParameterError("RTIController.step needs a first guess; call initialize(states, torques) first.")
+        p = reference.ravel()
+        start, start_cpu = time.perf_counter(), time.process_time()
+        u, w_next, _, _ = self.function(state, self._guess, p)
+        elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
+        u, w_next = np.asarray(u).ravel(), np.asarray(w_next).ravel()
+        if not (np.all(np.isfinite(u)) and np.all(np.isfinite(w_next))):
+            raise SolverError(
+                "MPC real-time iteration: the QP returned non-finite values; check the state against the "
+                "limits and the reference, or warm up from a better guess.",
+                status="non-finite",
+            )
+        self._guess = w_next
+        stats = {"time_s": elapsed, "cpu_time_s": cpu, "iter_count": 1, "return_status": "rti"}
+        return u, stats
+
+
+def build_rti(
+    robot: RobotDescription,
+    forward_dynamics: ca.Function,
+    options: MPCOptions | None = None,
+    *,
+    friction=True,
+    forward_dynamics_jacobian: ca.Function | None = None,
+    qp_mode: str = "speed",
+) -> RTIController:
+    """Build the real-time-iteration MPC of a robot on a forward-dynamics function (not compiled yet).
+
+    Parameters
+    ----------
+    robot : RobotDescription
+        Gives the joint position, velocity and torque limits and (``friction=True``) the drives.
+    forward_dynamics : casadi.Function
+        ``(q, qd, tau) -> qdd`` of the controller's model (SX or MX; an external's C is linked when compiled).
+    options : MPCOptions, optional
+        The horizon, interval, RK4 steps and weights of ``trajopt.mpc``; ``max_iter`` caps HPIPM's
+        interior-point iterations and ``tol`` is its tolerance (the solver, Hessian and jit fields do not apply).
+    friction : bool
+        Subtract the drives' smooth friction from the torque before the dynamics.
+    forward_dynamics_jacobian : casadi.Function, optional
+        ``(q, qd, tau) -> (d qdd/d q, d qdd/d qd, d qdd/d tau)``, e.g.
+        ``trajopt.mpc_model.build_forward_dynamics_jacobian`` (through the inverse dynamics); CasADi's
+        AD of forward_dynamics otherwise.
+    qp_mode : {"speed_abs", "speed", "balance", "robust"}
+        HPIPM's preset.
+
+    Returns
+    -------
+    RTIController
+        Call ``compile_rti`` for the C speed, then ``initialize`` and ``step`` once per interval.
+
+    Raises
+    ------
+    ParameterError
+        When forward_dynamics does not map three (n_dof,) inputs to one (n_dof,) output, or on an unknown qp_mode.
+    """
+    options = options or MPCOptions()
+    n = robot.n_dof
+    if forward_dynamics.n_in() != 3 or any(forward_dynamics.size_in(i) != (n, 1) for i in range(3)):
+        raise ParameterError(
+            f"build_rti forward_dynamics must take (q, qd, tau) of shape ({n}, 1) each for {robot.name}; "
+            f"got inputs {[forward_dynamics.size_in(i) for i in range(forward_dynamics.n_in())]}."
+        )
+    if qp_mode not in QP_MODES:
+        raise ParameterError(f"build_rti qp_mode must be one of {QP_MODES}; got {qp_mode!r}.")
+    friction_law = friction_function(robot) if friction else None
+    _, model_jacobian = stage_functions(
+        expanded(forward_dynamics),
+        n,
+        options.dt,
+        options.rk4_steps,
+        friction_law,
+        forward_dynamics_jacobian,
+        options.integrator,
+    )
+    bounds = variable_bounds(robot, options.horizon)
+    function = rti_function(robot, options, model_jacobian, bounds, qp_mode)
+    return RTIController(function, options, n, bounds)
+
+
+def rti_function(robot, options, model_jacobian, bounds, qp_mode="speed") -> ca.Function:
+    """``(x0, w, p) -> (u, w_next, w_sol, lam_g)``: one Gauss-Newton SQP step from w with HPIPM, and its shift.
+
+    The QP (``rti_qp_data``) is in the step ``dw``; lam_g are its gap multipliers (an output because
+    the plugin writes them unconditionally).
+    """
+    n, horizon = robot.n_dof, options.horizon
+    n_w = 3 * n * horizon + 2 * n
+    x0, w, p = ca.MX.sym("x0", 2 * n), ca.MX.sym("w", n_w), ca.MX.sym("p", 2 * n * (horizon + 1))
+    data = rti_qp_data(robot, options, model_jacobian, bounds)
+    qp = rti_qp_solver(data, options, qp_mode)
+    args = data(x0=x0, w=w, p=p)
+    zeros = ca.MX(n_w, 1)  # every input given: the plugin reads the initial guesses unconditionally
+    step = qp(**{k: args[k] for k in ("h", "g", "a", "lba", "uba", "lbx", "ubx")}, x0=zeros, lam_x0=zeros,
+              lam_a0=ca.MX(data.size1_out("a"), 1))  # fmt: skip
+    solution = w + step["x"]
+    return ca.Function(
+        RTI_NAME,
+        [x0, w, p],
+        [solution[2 * n : 3 * n], shift_guess(solution, n), solution, step["lam_a"]],
+        ["x0", "w", "p"],
+        ["u", "w_next", "w_sol", "lam_g"],
+    )
+
+
+def rti_qp_data(robot, options, model_jacobian, bounds) -> ca.Function:
+    """``(x0, w, p) -> (h, g, a, lba, uba, lbx, ubx)``: the Gauss-Newton QP of one SQP step from w.
+
+    ``min 1/2 dw' H dw + g' dw`` subject to the linearised gaps ``a dw = -gaps(w)`` (lba = uba), the
+    variable bounds shifted by w and ``dx0 = x0 - w_x0`` (equal bounds on the first state). H is the
+    cost's constant Hessian (a least-squares cost: Gauss-Newton is exact for it) with every diagonal
+    entry present, as HPIPM's block detection wants.
+    """
+    n, horizon = robot.n_dof, options.horizon
+    n_w = 3 * n * horizon + 2 * n
+    x0, w, p = ca.MX.sym("x0", 2 * n), ca.MX.sym("w", n_w), ca.MX.sym("p", 2 * n * (horizon + 1))
+    states = ca.horzcat(*[w[3 * n * k : 3 * n * k + 2 * n] for k in range(horizon + 1)])
+    torques = ca.horzcat(*[w[3 * n * k + 2 * n : 3 * n * (k + 1)] for k in range(horizon)])
+    values, _ = model_jacobian.map(horizon)(states[:, :-1], torques)
+    gaps = ca.vec(states[:, 1:] - values)
+    jac_g = constraint_jacobian(w, states, torques, model_jacobian, n)
+    cost = tracking_cost(robot, options, states, torques, p)
+    hessian = ca.Function("h", [w, p], [ca.hessian(cost, w)[0]])(np.zeros(n_w), np.zeros(p.numel()))
+    hessian = ca.DM(ca.sparsify(hessian)) + ca.DM(ca.Sparsity.diag(n_w), 0.0)
+    lbx, ubx = ca.DM(bounds["lbx"]), ca.DM(bounds["ubx"])
+    lbx[: 2 * n] = ubx[: 2 * n] = 0
+    measured = ca.vertcat(x0, ca.MX(n_w - 2 * n, 1))
+    return ca.Function(
+        "rti_qp_data",
+        [x0, w, p],
+        [ca.MX(hessian), ca.gradient(cost, w), jac_g, -gaps, -gaps, measured + lbx - w, measured + ubx - w],
+        ["x0", "w", "p"],
+        ["h", "g", "a", "lba", "uba", "lbx", "ubx"],
+    )
+
+
+def rti_qp_solver(data: ca.Function, options: MPCOptions, qp_mode: str) -> ca.Function:
+    """HPIPM through CasADi's conic on the QP of ``rti_qp_data`` (stage structure detected from the sparsity)."""
+    hpipm = {"mode": qp_mode, "iter_max": options.max_iter}
+    hpipm.update({key: options.tol for key in ("res_g_max", "res_b_max", "res_d_max", "res_m_max")})
+    return ca.conic(
+        "rti_qp",
+        "hpipm",
+        {"h": data.sparsity_out("h"), "a": data.sparsity_out("a")},
+        {"error_on_fail": False, "print_time": False, "hpipm": hpipm},
+    )
+
+
+def shift_guess(w, n_dof):
+    """Shift a solution (x0, u0, ..., x_N) by one interval: (x1, u1, ..., x_N, u_{N-1}, x_N)."""
+    stage, tail = 3 * n_dof, 2 * n_dof
+    n_w = w.shape[0]
+    return ca.vertcat(w[stage:], w[n_w - tail - n_dof : n_w - tail], w[n_w - tail :])
+
+
+def hpipm_folders(hpipm_dir=None) -> tuple[Path, Path]:
+    """(include, lib) folders of the HPIPM and BLASFEO the C links against.
+
+    ``hpipm_dir`` (else ``$PSDM_HPIPM_DIR``) is an install prefix of both (``include/``, ``lib/``),
+    e.g. BLASFEO built for the machine's CPU (``TARGET=X64_INTEL_HASWELL``) as acados does; its
+    headers must be those CasADi's generated code was written for (HPIPM af3ca47, BLASFEO 0.1.4.2
+    for CasADi 3.7-3.8). By default CasADi's own copies, whose BLASFEO is the portable (generic) build.
+    """
+    chosen = hpipm_dir or os.environ.get("PSDM_HPIPM_DIR")
+    if not chosen:
+        folder = Path(ca.__file__).parent
+        return folder / "include", folder
+    folder = Path(chosen)
+    if not (folder / "include" / "hpipm_d_ocp_qp_ipm.h").exists() or not (folder / "lib").is_dir():
+        raise ParameterError(
+            f"compile_rti hpipm_dir must hold include/hpipm_d_ocp_qp_ipm.h and lib/; got {str(folder)!r}. "
+            "Pass the install prefix of HPIPM and BLASFEO, or unset PSDM_HPIPM_DIR for CasADi's copies."
+        )
+    return folder / "include", folder / "lib"
+
+
+def export_rti_c(controller: RTIController, folder) -> Path:
+    """Write the RTI step as C: ``<folder>/mpc_rti.c`` and ``mpc_rti.h``; returns the source path.
+
+    The C calls HPIPM (``hpipm_d_ocp_qp_ipm.h``), shipped with CasADi: compile with
+    ``-I<casadi>/include -L<casadi> -lhpipm -lblasfeo`` (``compile_rti`` does).
+    """
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    source = folder / f"{RTI_NAME}.c"
+    generator = ca.CodeGenerator(source.name, {"with_header": True})
+    generator.add(controller.function)
+    generator.generate(str(folder) + "/")
+    text = source.read_text()
+    if QP_FAILURE_CHECK not in text:
+        raise SolverError(
+            f"export_rti_c: CasADi {ca.__version__} generated the HPIPM call differently than expected; the "
+            "iteration cap of the real-time scheme would fail the step. Check the generated code.",
+            status="codegen",
+        )
+    source.write_text(text.replace(QP_FAILURE_CHECK, "\n  /* RTI: an iterate at HPIPM's cap is applied */\n"))
+    return source
+
+
+def compile_rti(
+    controller: RTIController, folder, *, compiler="cc", flags=("-O3", "-march=native"), hpipm_dir=None
+) -> RTIController:
+    """Export, compile and load the RTI step; returns a controller whose ``function`` is the compiled C.
+
+    ``hpipm_dir``: see ``hpipm_folders`` (CasADi's HPIPM and BLASFEO by default).
+
+    Raises
+    ------
+    SolverError
+        When the compiler is missing or fails (its last lines quoted).
+    """
+    source = export_rti_c(controller, folder)
+    library = Path(folder) / f"lib{RTI_NAME}.so"
+    include, lib = hpipm_folders(hpipm_dir)
+    found = shutil.which(compiler)
+    if found is None:
+        raise SolverError(f"compile_rti compiler must be on PATH; {compiler!r} was not found. Install gcc or pass one.")
+    command = [found, *flags, "-fPIC", "-shared", "-o", str(library), str(source), f"-I{include}",
+               f"-L{lib}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{lib}", "-lm"]  # fmt: skip
+    start = time.perf_counter()
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        tail = "\n".join(result.stderr.strip().splitlines()[-12:])
+        raise SolverError(
+            f"compile_rti compilation must succeed; `{shlex.join(command)}` exited with {result.returncode}:\n{tail}",
+            status=result.returncode,
+        )
+    LOG.info("compiled %s in %.1f s", library, time.perf_counter() - start)
+    compiled = ca.external(RTI_NAME, str(library))
+    return RTIController(compiled, controller.options, controller.n_dof, controller.bounds)
