@@ -20,6 +20,7 @@ import numpy as np
 
 from identification.fleet.day_report import day_report_path
 from identification.fleet.history import History
+from identification.report_html.page import plotly_bundle
 
 __all__ = ["FleetRow", "fleet_rows", "write_report"]
 
@@ -178,13 +179,13 @@ def write_report(history: History, path, title: str = "Fleet report") -> Path:
     for f in history.findings():
         by_robot.setdefault(f[0], []).append(f)
     parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
-             f"<style>{STYLE}</style></head><body><h1>{html.escape(title)}</h1>", _table(rows)]  # fmt: skip
+             f"<style>{STYLE}</style><script type='text/javascript'>{plotly_bundle()}</script></head>",
+             f"<body><h1>{html.escape(title)}</h1>", _table(rows)]  # fmt: skip
     validation: dict = {}
     for row in history.validation_rows():
         validation.setdefault(row[0], []).append(row)
     verdicts = {(row[0], str(row[1])): row[2] for row in history.checks()}
     report_dir = Path(path).resolve().parent
-    first = True
     for r in rows:
         parts.append(f'<h2 id="{r.robot_id}">{html.escape(r.robot_id)}: {r.status}</h2>')
         parts.append(_day_links(history, r.robot_id, report_dir, verdicts))
@@ -193,9 +194,8 @@ def write_report(history: History, path, title: str = "Fleet report") -> Path:
         if r.robot_id in series:
             figures = [_figure(r.robot_id, series[r.robot_id], by_robot.get(r.robot_id, [])),
                        _validation_figure(r.robot_id, validation.get(r.robot_id, []))]  # fmt: skip
-            for fig in figures:
-                parts.append(pio.to_html(fig, full_html=False, include_plotlyjs=first))
-                first = False
+            for fig in figures:  # scatter traces: plotly's basic bundle in the head draws them
+                parts.append(pio.to_html(fig, full_html=False, include_plotlyjs=False))
     failures = history.failures()
     if failures:
         parts.append("<h2>Failed sessions</h2><ul>")

@@ -44,6 +44,7 @@ def test_report_page_is_self_contained_with_table_plots_and_onsets(report):
     page = report.read_text()
     assert page.count("Plotly.newPlot") == 4  # two figures per robot: the parameters, the validation error
     assert not re.search(r"<script[^>]+src=", page)  # plotly inlined: opens from disk without network
+    assert page.count("plotly.js (basic - minified)") == 1 and len(page) < 1_500_000  # the 1.2 MB bundle, once
     assert re.search(r'<tr class="alarm"><td><a href="#r02">r02', page)
     found = re.search(r"joint 3 Coulomb friction \+(\d+) % since 2026-10-10 .*: gearbox wear or lubrication", page)
     assert found and abs(int(found.group(1)) - 30) <= 2 and "onset fc3" in page
