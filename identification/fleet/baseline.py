@@ -45,6 +45,8 @@ class Baseline:
         Flange point [m] of a refitted payload mass (baseline mass 0).
     model_key : str
         Names the PSDM model the update needs (one per distinct robot file).
+    robot_source : str
+        The robot file (or built-in name) a re-identification names as its source (``reidentify``).
     """
 
     robot: object
@@ -56,6 +58,7 @@ class Baseline:
     term_values: np.ndarray
     payload_com: tuple | None
     model_key: str
+    robot_source: str = ""
 
 
 def structure_key(robot) -> str:
@@ -132,6 +135,7 @@ def build_baseline(entry: RobotEntry, track: TrackedTerms, derive) -> tuple:
             if term not in terms:
                 terms, values = (*terms, term), np.append(values, named[f"offset{term.joint + 1}"])
         theta, cv = calibrated.theta, float(drive["coulomb_velocity"])
+        source = str(calibrated.robot_file())
     else:
         from psdm_casadi.robot import load_robot
 
@@ -139,8 +143,9 @@ def build_baseline(entry: RobotEntry, track: TrackedTerms, derive) -> tuple:
         model = derive(robot)
         theta = model.base_parameters(robot.nominal_dynamic_parameters())
         friction, cv = _robot_friction(robot), 0.05
+        source = str(entry.baseline)
         terms, values = _merge([], tracked)
     kt = np.array([d.kt for d in robot.drives], dtype=float) if robot.drives else np.ones(robot.n_dof)
     baseline = Baseline(robot, np.asarray(theta, dtype=float), friction, cv, kt, terms, values, track.payload_com,
-                        structure_key(robot))  # fmt: skip
+                        structure_key(robot), source)  # fmt: skip
     return baseline, model

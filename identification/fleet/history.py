@@ -271,11 +271,11 @@ class History:
         ).fetchall()
 
     def checks(self) -> list:
-        """``(robot_id, day, verdict, joints, statistic, refit_statistic, threshold, diagnosis_error)`` of the latest
-        sessions' checks, by robot and day."""
+        """``(robot_id, day, verdict, joints, statistic, refit_statistic, threshold, diagnosis_error, since)`` of the
+        latest sessions' checks (``since``: the first day of the window they were judged against), by robot and day."""
         return self.connection.execute(
             f"SELECT c.robot_id, c.day, c.verdict, c.joints, c.statistic, c.refit_statistic, c.threshold, "
-            f"c.diagnosis_error FROM checks c JOIN ({LATEST}) l USING (robot_id, day, content_hash) "
+            f"c.diagnosis_error, c.since FROM checks c JOIN ({LATEST}) l USING (robot_id, day, content_hash) "
             f"ORDER BY c.robot_id, c.day"
         ).fetchall()
 

@@ -25,16 +25,20 @@ import os
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
+from pathlib import Path
 
+from identification.calibration.calibrated_model import CalibratedModel
 from identification.fleet.baseline import SharedModels, build_baseline
-from identification.fleet.day_check import CheckOptions, error_reference
+from identification.fleet.day_check import CheckOptions
 from identification.fleet.day_report import day_report_path, write_day_report
 from identification.fleet.drift import DriftOptions, detect_drift, validation_parameters
 from identification.fleet.fleet_check import FleetCheckOptions, fleet_outliers
 from identification.fleet.history import History
 from identification.fleet.layout import Fleet
 from identification.fleet.plan import plan_run
-from identification.fleet.session import SessionResult, process_session, software_version
+from identification.fleet.reidentify import ReidentifyResult, baseline_file, reidentify
+from identification.fleet.schedule import RobotContext, Wave, robot_waves
+from identification.fleet.session import SessionResult, SessionTask, process_session, software_version
 from psdm_casadi.errors import ParameterError
 
 __all__ = ["RunOptions", "RunSummary", "dask_client", "import_task_modules", "run_fleet"]
@@ -46,7 +50,8 @@ logger = logging.getLogger(__name__)
 class RunOptions:
     """Where the tasks run: ``serial`` here, else on ``scheduler`` or on a LocalCluster of ``workers`` processes
     (default: the number of cores). ``stop_after`` stops after that many written sessions (an interruption, for
-    tests)."""
+    tests). ``reidentify_every`` N re-identifies each robot after every N recording days of its baseline, and the
+    robots in ``reidentify`` after their new days (``schedule``)."""
 
     workers: int | None = None
     scheduler: str | None = None
@@ -56,10 +61,15 @@ class RunOptions:
     fleet: FleetCheckOptions = FleetCheckOptions()
     check: CheckOptions = CheckOptions()
     day_reports: bool = True
+    reidentify_every: int | None = None
+    reidentify: tuple = ()
 
     def __post_init__(self):
         if self.workers is not None and not (isinstance(self.workers, int) and self.workers >= 1):
             raise ParameterError(f"RunOptions.workers must be an integer >= 1; got {self.workers!r}.")
+        every = self.reidentify_every
+        if every is not None and not (isinstance(every, int) and every >= 2):
+            raise ParameterError(f"RunOptions.reidentify_every must be an integer >= 2 [days]; got {every!r}.")
 
 
 @dataclass(frozen=True)
@@ -76,6 +86,7 @@ class RunSummary:
     where: str
     findings: int
     interrupted: bool = False
+    reidentified: tuple = ()
 
 
 @contextmanager
@@ -102,111 +113,128 @@ def import_task_modules() -> None:
     import identification.fleet.session  # noqa: F401
 
 
-def _baselines(fleet: Fleet, robot_ids: set, derive) -> tuple:
-    """({robot_id: Baseline}, {model_key: PSDMModel}) of the robots with work to do."""
-    baselines, models = {}, {}
+def _contexts(fleet: Fleet, history: History, todo, derive, options: RunOptions) -> dict:
+    """{robot_id: RobotContext} of the robots with work to do: their layout baseline and the re-identifications the
+    history records (each loaded from its model file), sharing one PSDM model per distinct robot structure."""
+    robot_ids = {t.robot_id for t in todo} | set(options.reidentify)
     derive = SharedModels(derive)
+    recorded: dict = {}
+    for robot_id, since, source in history.baselines():
+        recorded.setdefault(robot_id, []).append((str(since), Path(source)))
+    contexts, models = {}, {}
     for entry in fleet.robots:
         if entry.robot_id in robot_ids:
             baseline, model = build_baseline(entry, fleet.track, derive)
-            baselines[entry.robot_id] = baseline
             models.setdefault(baseline.model_key, model)
-    return baselines, models
+            ctx = RobotContext(entry, {None: baseline}, fleet.baseline_days, options.reidentify_every,
+                               entry.robot_id in options.reidentify, options.check, history, fleet.track, derive,
+                               models)  # fmt: skip
+            for since, source in recorded.get(entry.robot_id, []):
+                ctx.add_baseline(since, source)
+            contexts[entry.robot_id] = ctx
+    return contexts
 
 
 def _failed(task, exc) -> SessionResult:
     return SessionResult(task, "failed", None, f"{type(exc).__name__}: {exc}", 0.0, software_version())
 
 
-class References:
-    """Per robot: the days of its baseline window still to be written and, once none is, its error reference
-    (``day_check.error_reference`` of the window as the history holds it)."""
-
-    def __init__(self, history: History, tasks, todo, window: int, options: CheckOptions):
-        self.history, self.window, self.options = history, window, options
-        days: dict = {}
-        for task in tasks:
-            days.setdefault(task.robot_id, []).append(task.day)
-        self.window_days = {robot: set(sorted(d)[:window]) for robot, d in days.items()}
-        self.pending = {robot: set() for robot in days}
-        for task in todo:
-            if self.in_window(task):
-                self.pending[task.robot_id].add(task.key)
-        self.cache: dict = {}
-
-    def in_window(self, task) -> bool:
-        return task.day in self.window_days[task.robot_id]
-
-    def ready(self, task) -> bool:
-        """Whether the task can be submitted: a window day, or its robot's window is written."""
-        return self.in_window(task) or not self.pending[task.robot_id]
-
-    def written(self, task) -> bool:
-        """Mark a task written; True when that completes its robot's window."""
-        pending = self.pending[task.robot_id]
-        if task.key not in pending:
-            return False
-        pending.discard(task.key)
-        return not pending
-
-    def reference(self, task):
-        """None for a window day, else the robot's reference (None when its window has too few ok days)."""
-        if self.in_window(task):
-            return None
-        if task.robot_id not in self.cache:
-            rows = self.history.window_rows(task.robot_id, self.window)
-            self.cache[task.robot_id] = error_reference(task.robot_id, rows, self.options)
-        return self.cache[task.robot_id]
-
-
-def _results_serial(todo, baselines, models, references: References):
-    """The tasks in this process, with one BLAS thread as in a Dask worker (the same sums: the same bits); in plan
-    order (robot, day), so each robot's window is written before its later days need their reference."""
+def _run_item(item, wave: Wave, ctx: RobotContext):
+    """One robot-day or a re-identification, in this process with one BLAS thread (as in a Dask worker)."""
     from threadpoolctl import threadpool_limits
 
-    for task in todo:
-        baseline = baselines[task.robot_id]
-        reference = references.reference(task)
-        with threadpool_limits(limits=1, user_api="blas"):
-            result = process_session(task, baseline, models[baseline.model_key], reference)
-        yield result
-        references.written(task)
+    with threadpool_limits(limits=1, user_api="blas"):
+        if wave.reidentify is not None:
+            return reidentify(wave.reidentify, wave.baseline, ctx.models[wave.baseline.model_key], ctx.track)
+        task, baseline, reference = item
+        return process_session(task, baseline, ctx.models[baseline.model_key], reference)
 
 
-def _results_dask(client, todo, baselines, models, references: References):
-    """The tasks on Dask, as they finish: window days first, a robot's later days once its window is written."""
+def _results_serial(plan, todo, contexts):
+    """Robot after robot, wave after wave, in this process."""
+    for robot_id, ctx in contexts.items():
+        for wave in robot_waves(ctx, _days(plan, robot_id), [t for t in todo if t.robot_id == robot_id]):
+            for item in wave.sessions or (None,):
+                yield _run_item(item, wave, ctx)
+
+
+def _days(plan, robot_id: str) -> list:
+    return sorted(t.day for t in plan.tasks if t.robot_id == robot_id)
+
+
+def _results_dask(client, plan, todo, contexts):
+    """Robots in parallel on Dask, each robot's waves in turn: its next wave is submitted once the last is written."""
     from dask.distributed import as_completed
 
-    scattered_models = {key: client.scatter(model, broadcast=True) for key, model in models.items()}
-    scattered = {rid: client.scatter(b, broadcast=True) for rid, b in baselines.items()}
-    futures, held = {}, {}
+    scattered: dict = {}
 
-    def submit(task):
-        key = f"fleet-session-{task.robot_id}-{task.day}-{task.content_hash[:16]}"
-        model = scattered_models[baselines[task.robot_id].model_key]
-        future = client.submit(process_session, task, scattered[task.robot_id], model, references.reference(task),
-                               key=key, pure=False)  # fmt: skip
-        futures[future] = task
-        return future
+    def shared(value):
+        if id(value) not in scattered:
+            scattered[id(value)] = (client.scatter(value, broadcast=True), value)
+        return scattered[id(value)][0]
 
-    for task in todo:
-        if references.ready(task):
-            submit(task)
-        else:
-            held.setdefault(task.robot_id, []).append(task)
-    completed = as_completed(list(futures))
+    futures, outstanding, generators = {}, {}, {}
+
+    def advance(robot_id):
+        ctx = contexts[robot_id]
+        wave = next(generators[robot_id], None)
+        if wave is None:
+            return []
+        submitted = []
+        for item in wave.sessions:
+            task, baseline, reference = item
+            key = f"fleet-session-{task.robot_id}-{task.day}-{task.content_hash[:16]}"
+            future = client.submit(process_session, task, shared(baseline), shared(ctx.models[baseline.model_key]),
+                                   reference, key=key, pure=False)  # fmt: skip
+            futures[future] = (robot_id, task)
+            submitted.append(future)
+        if wave.reidentify is not None:
+            key = f"fleet-reidentify-{robot_id}-{wave.reidentify.since}"
+            model = shared(ctx.models[wave.baseline.model_key])
+            future = client.submit(reidentify, wave.reidentify, shared(wave.baseline), model, ctx.track, key=key,
+                                   pure=False)  # fmt: skip
+            futures[future] = (robot_id, wave.reidentify)
+            submitted.append(future)
+        outstanding[robot_id] = len(submitted)
+        return submitted or advance(robot_id)
+
+    first = []
+    for robot_id, ctx in contexts.items():
+        generators[robot_id] = robot_waves(ctx, _days(plan, robot_id), [t for t in todo if t.robot_id == robot_id])
+        first += advance(robot_id)
+    completed = as_completed(first)
     try:
         for future in completed:
-            task = futures[future]
+            robot_id, task = futures[future]
             try:
                 yield future.result()
             except Exception as exc:  # a task Dask gave up on (a worker killed too often): stored as failed
-                yield _failed(task, exc)
-            if references.written(task):
-                for later in held.pop(task.robot_id, []):
-                    completed.add(submit(later))
+                yield _failed(task, exc) if isinstance(task, SessionTask) else ReidentifyResult(task, None, str(exc))
+            outstanding[robot_id] -= 1
+            if outstanding[robot_id] == 0:
+                for later in advance(robot_id):
+                    completed.add(later)
     finally:
         client.cancel(list(futures))
+
+
+def _write(history: History, run_id: int, result, db_path, options: RunOptions, contexts) -> bool:
+    """Store a session (and its day page) or a re-identification (its model file, its baselines row); True for a
+    session."""
+    if isinstance(result, ReidentifyResult):
+        task = result.task
+        if result.document is not None:
+            path = baseline_file(db_path, task.robot_id, task.since)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            CalibratedModel(result.document).save(path, allow_inconsistent=True, overwrite=True)
+            history.record_baseline(task.robot_id, task.since, str(path), run_id)
+            contexts[task.robot_id].add_baseline(task.since, path)
+            logger.info("%s re-identified from %s (days %s)", task.robot_id, task.since, ", ".join(task.days))
+        return False
+    history.write_session(run_id, result)
+    if options.day_reports:
+        write_day_report(result, day_report_path(db_path, result.task.robot_id, result.task.day))
+    return True
 
 
 def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=None, client=None) -> RunSummary:
@@ -234,19 +262,20 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
         history.record_recordings(plan.hashes, plan.tasks, plan.duplicates)
         logger.info("%d robot-days, %d new, %d stored; running on %s", len(plan.tasks), len(todo), len(done), where)
         processed = failed = 0
+        reidentified = ()
         interrupted = False
         status = "interrupted"
         try:
-            if todo:
-                baselines, models = _baselines(fleet, {t.robot_id for t in todo}, derive)
-                references = References(history, plan.tasks, todo, fleet.baseline_days, options.check)
+            if todo or options.reidentify:
+                contexts = _contexts(fleet, history, todo, derive, options)
                 with _executor(options, client) as run_client:
-                    results = (_results_serial(todo, baselines, models, references) if run_client is None
-                               else _results_dask(run_client, todo, baselines, models, references))  # fmt: skip
+                    results = (_results_serial(plan, todo, contexts) if run_client is None
+                               else _results_dask(run_client, plan, todo, contexts))  # fmt: skip
                     for result in results:
-                        history.write_session(run_id, result)
-                        if options.day_reports:
-                            write_day_report(result, day_report_path(db_path, result.task.robot_id, result.task.day))
+                        if not _write(history, run_id, result, db_path, options, contexts):
+                            reidentified += (f"{result.task.robot_id} from {result.task.since}" if result.document
+                                             else f"{result.task.robot_id} failed: {result.error}",)  # fmt: skip
+                            continue
                         processed += 1
                         failed += result.status == "failed"
                         if options.stop_after is not None and processed >= options.stop_after:
@@ -262,14 +291,18 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
             history.finish_run(run_id, processed, failed, len(plan.tasks) - len(todo), status)
     seconds = time.perf_counter() - start
     return RunSummary(run_id, len(plan.tasks), processed, failed, len(plan.tasks) - len(todo), len(plan.duplicates),
-                      seconds, where, len(findings), interrupted)  # fmt: skip
+                      seconds, where, len(findings), interrupted, reidentified)  # fmt: skip
 
 
 def _findings(history: History, options: RunOptions, baseline_days: int) -> list:
     """The drift findings of each robot (parameters and validation error) against its baseline window, then the
     fleet-relative ones (parameters only: the error's level differs from robot to robot by design)."""
-    rows = history.parameter_rows()
-    tested = rows + validation_parameters(history.validation_rows())
+    since: dict = {}
+    for robot_id, day, _ in history.baselines():  # a re-identification restarts the robot's window
+        since[robot_id] = day
+    rows = [r for r in history.parameter_rows() if r.day >= since.get(r.robot_id, r.day)]
+    validation = [r for r in history.validation_rows() if r[1] >= since.get(r[0], r[1])]
+    tested = rows + validation_parameters(validation)
     return detect_drift(tested, options.drift, baseline_days) + fleet_outliers(rows, options.fleet)
 
 

@@ -43,6 +43,17 @@ def register(subparsers) -> None:
     where.add_argument("--scheduler", default=None, metavar="ADDRESS", help="run on an existing Dask cluster, e.g. "
                        "tcp://10.0.0.5:8786")  # fmt: skip
     where.add_argument("--serial", action="store_true", help="run in this process, without Dask")
+    run.add_argument("--reidentify-every", type=int, default=None, metavar="N",
+                     help="re-identify each robot after every N recording days of its baseline (a new calibrated "
+                     "baseline beside the history, from its last baseline-window days; later days are judged against "
+                     "it and the drift tests restart there)")  # fmt: skip
+    run.add_argument(
+        "--reidentify",
+        action="append",
+        default=[],
+        metavar="ROBOT",
+        help="re-identify this robot after its new days, on its latest days (repeat for several)",
+    )
     run.add_argument("--export-parquet", type=Path, default=None, metavar="DIR",
                      help="also write every table as DIR/TABLE.parquet")  # fmt: skip
     run.add_argument("--json", action="store_true", help="print one JSON object")
@@ -86,9 +97,17 @@ def _run(args) -> int:
 
     if args.workers is not None:
         check_count(args.workers, "--workers", "pass the number of worker processes, e.g. --workers 2")
+    if args.reidentify_every is not None:
+        check_count(args.reidentify_every, "--reidentify-every", "pass a number of days, e.g. --reidentify-every 30",
+                    minimum=2)  # fmt: skip
     fleet = read_fleet(args.fleet)
+    unknown = sorted(set(args.reidentify) - {r.robot_id for r in fleet.robots})
+    if unknown:
+        raise ParameterError(f"--reidentify {', '.join(unknown)}: no such robot in {args.fleet}; its robots are "
+                             f"{', '.join(r.robot_id for r in fleet.robots)}.")  # fmt: skip
     progress(f"fleet {fleet.name}: {len(fleet.robots)} robots, {fleet.n_sessions} robot-days")
-    options = RunOptions(workers=args.workers, scheduler=args.scheduler, serial=args.serial)
+    options = RunOptions(workers=args.workers, scheduler=args.scheduler, serial=args.serial,
+                         reidentify_every=args.reidentify_every, reidentify=tuple(args.reidentify))  # fmt: skip
     summary = run_fleet(fleet, args.db, options, derive=lambda robot: derive_model(args, robot))
     with _open(args.db) as history:
         findings = history.findings()
@@ -98,7 +117,8 @@ def _run(args) -> int:
     out = {"command": "fleet run", "db": str(args.db), "run_id": summary.run_id, "planned": summary.planned,
            "processed": summary.processed, "failed": summary.failed, "skipped": summary.skipped,
            "duplicates": summary.duplicates, "seconds": round(summary.seconds, 3), "where": summary.where,
-           "findings": [f[-1] for f in findings], "diagnoses": diagnoses}  # fmt: skip
+           "findings": [f[-1] for f in findings], "diagnoses": diagnoses,
+           "reidentified": list(summary.reidentified)}  # fmt: skip
     if args.json:
         print_json(out)
     else:
@@ -106,6 +126,8 @@ def _run(args) -> int:
             f"{summary.processed} robot-days processed ({summary.failed} failed), {summary.skipped} already stored, "
             f"{summary.duplicates} duplicate recordings dropped, on {summary.where} in {summary.seconds:.1f} s"
         )
+        for line in summary.reidentified:
+            print(f"re-identified {line}")
         for f in findings:
             print(f"ALARM {f[0]}: {f[-1]}")
         for line in diagnoses:
