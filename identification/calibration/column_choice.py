@@ -183,11 +183,11 @@ class _Candidates:
         transform = self.transform(stribeck, dropped)
         total = _sum(self.blocks)
         x, std = _solve(total, transform, self.weights)
-        if self.held is not None:
-            held = self.held.residual_sum(x)
-        else:
-            held = sum(block.residual_sum(_solve(_sum(self.blocks, skip=k), transform, self.weights)[0])
-                       for k, block in enumerate(self.blocks))  # fmt: skip
+        held = None if self.held is None else self.held.residual_sum(x)
+        if held is None or np.any(self.held.count == 0):  # no held-out rows of a joint (its torque missing): CV
+            cv = sum(block.residual_sum(_solve(_sum(self.blocks, skip=k), transform, self.weights)[0])
+                     for k, block in enumerate(self.blocks))  # fmt: skip
+            held = cv if held is None else np.where(self.held.count == 0, cv, held)
         return total.residual_sum(x), held, x, std
 
 

@@ -39,6 +39,8 @@ def residual_correlation_time(residual, max_lag: int = 50) -> np.ndarray:
     """Per joint, ``1 + 2 sum_k (1 - k/(L+1)) rho_k`` of a residual series (n_samples, n_dof): the factor by which
     the variance of a mean grows over white residuals (Bartlett weights, ``L`` lags; at least 1)."""
     residual = np.asarray(residual, dtype=float)
+    measured = np.all(np.isfinite(residual), axis=0)  # a joint without torque (NaN) counts as white
+    residual = np.where(measured, residual, 0.0)
     residual = residual - residual.mean(axis=0)
     lags = min(max_lag, residual.shape[0] // 4)
     variance = np.maximum(np.einsum("sn,sn->n", residual, residual), 1e-300)

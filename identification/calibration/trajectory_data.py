@@ -78,7 +78,8 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
             f"{rec.name or 'recording'}: {rec.duration:.3g} s is too short to filter at {cutoff:g} Hz and keep "
             f"samples; record at least {4 * edge / rate:.2g} s."
         )
-    prepared = Recording(t=rec.t[keep], q=q[keep], tau=tau[keep], qd=qd[keep], qdd=qdd[keep], name=rec.name)
+    prepared = Recording(t=rec.t[keep], q=q[keep], tau=tau[keep], qd=qd[keep], qdd=qdd[keep], name=rec.name,
+                         missing_torque=rec.missing_torque)  # fmt: skip
     return prepared, cutoff, step
 
 
@@ -185,12 +186,20 @@ class NormalEquations:
         self.total = np.zeros(self.n_dof)
 
     def add(self, columns: np.ndarray, tau: np.ndarray) -> None:
-        """Add rows: ``columns`` (n_samples, n_dof, n_columns), ``tau`` (n_samples, n_dof)."""
+        """Add rows: ``columns`` (n_samples, n_dof, n_columns), ``tau`` (n_samples, n_dof).
+
+        A NaN torque (a joint whose torque the recording does not measure: ``Recording.missing_torque``) leaves
+        that joint's row out; the other joints' rows of the sample count.
+        """
+        measured = np.isfinite(tau)
+        if not measured.all():
+            tau = np.where(measured, tau, 0.0)
+            columns = columns * measured[:, :, None]
         per_joint = np.ascontiguousarray(columns.transpose(1, 0, 2))  # (n_dof, n_samples, n_columns): BLAS products
         self.gram += np.matmul(per_joint.transpose(0, 2, 1), per_joint)
         self.moment += np.einsum("nsc,ns->nc", per_joint, tau.T)
         self.energy += np.einsum("sn,sn->n", tau, tau)
-        self.count += tau.shape[0]
+        self.count += measured.sum(axis=0)
         self.total += tau.sum(axis=0)
 
     def add_recording(

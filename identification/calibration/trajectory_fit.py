@@ -67,6 +67,7 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     prepare_recordings,
 )
+from identification.data.missing_torque import find_missing_torque, missing_torque_messages
 from psdm_casadi.errors import ParameterError
 
 __all__ = [
@@ -301,7 +302,7 @@ def identify_trajectories(
     """
     options = TrajectoryOptions() if options is None else options
     start = time.perf_counter()
-    recordings = list(recordings)
+    recordings = [find_missing_torque(r) for r in recordings]  # a dead torque channel: only its joint's rows out
     if not recordings:
         raise ParameterError("identify_trajectories needs at least one recording; got none. Pass --data FILE.")
     bodies = FlangeBodies.of(configurations, len(recordings))
@@ -338,7 +339,7 @@ def identify_trajectories(
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
     found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, np.max(correlation, axis=0))
-    mixed = unstated_payload_warnings(found)
+    mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(found)]
     estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)

@@ -52,14 +52,19 @@ class Recording:
         Joint accelerations [rad/s^2], usually from ``preprocess``.
     name : str
         Where the recording came from (a file name, an experiment); used in messages.
+    missing_torque : tuple of (int, str)
+        ``(joint, why)`` pairs, 0-based: joints whose torque (or current) column carries no measurement (a dead
+        sensor channel). Their columns are NaN; the fit and the validation leave those joints' rows of this
+        recording out and keep the other joints' (``missing_torque.find_missing_torque`` detects them). A
+        ``tau`` or ``current`` column that is NaN in every sample is marked so by itself.
 
     Raises
     ------
     ShapeError
         When an array does not have the shape above.
     RecordingError
-        When a value is NaN or infinite, time does not increase, there are fewer than 3 samples,
-        or neither ``tau`` nor ``current`` is given.
+        When a value is NaN or infinite (other than a whole missing torque column), time does not increase,
+        there are fewer than 3 samples, or neither ``tau`` nor ``current`` is given.
 
     Examples
     --------
@@ -79,6 +84,7 @@ class Recording:
     qd: np.ndarray | None = None
     qdd: np.ndarray | None = None
     name: str = ""
+    missing_torque: tuple = ()
 
     def __post_init__(self):
         where = f" ({self.name})" if self.name else ""
@@ -124,12 +130,37 @@ class Recording:
                     f"Recording.{key} must have shape (n_samples, n_dof) = ({n}, {n_dof}) to match Recording.q; "
                     f"got {arr.shape}{where}.{hint}"
                 )
-            _check_finite(key, arr, where)
+            if key in ("tau", "current"):
+                arr = self._mark_missing(key, arr, n_dof)
+            missing = [j for j, _ in self.missing_torque] if key in ("tau", "current") else ()
+            _check_finite(key, arr, where, missing)
             object.__setattr__(self, key, _frozen(arr))
         if self.tau is None and self.current is None:
             raise RecordingError(
                 f"Recording needs joint torques or motor currents; got neither{where}. Pass tau= or current=."
             )
+
+    def _mark_missing(self, key: str, arr: np.ndarray, n_dof: int) -> np.ndarray:
+        """``arr`` with the missing joints' columns NaN; a column NaN throughout joins ``missing_torque``."""
+        missing = {}
+        for joint, why in self.missing_torque:
+            if not (isinstance(joint, (int, np.integer)) and 0 <= joint < n_dof):
+                raise RecordingError(
+                    f"Recording.missing_torque must name joints 0..{n_dof - 1}; got {joint!r}. Give 0-based joints."
+                )
+            missing.setdefault(int(joint), str(why))
+        for joint in np.flatnonzero(np.all(np.isnan(arr), axis=0)):
+            missing.setdefault(int(joint), "NaN in every sample")
+        if len(missing) == n_dof:
+            raise RecordingError(
+                f"Recording.{key} holds no measurement: every joint's column is NaN or marked missing "
+                f"({self.name or 'recording'}). Check the {key} columns (--columns)."
+            )
+        object.__setattr__(self, "missing_torque", tuple(sorted(missing.items())))
+        if missing and not np.all(np.isnan(arr[:, sorted(missing)])):
+            arr = arr.copy()
+            arr[:, sorted(missing)] = np.nan
+        return arr
 
     # --- views -----------------------------------------------------------------------------------
     @property
@@ -240,6 +271,7 @@ class Recording:
             qd=pick(self.qd),
             qdd=pick(self.qdd),
             name=self.name,
+            missing_torque=self.missing_torque,
         )
 
     def split(self, fraction: float = 0.85, n_blocks: int = 1) -> tuple[Recording, Recording]:
@@ -286,8 +318,10 @@ class Recording:
         return self._take(train), self._take(validation)
 
 
-def _check_finite(key: str, arr: np.ndarray, where: str) -> None:
+def _check_finite(key: str, arr: np.ndarray, where: str, missing=()) -> None:
     bad = ~np.isfinite(arr)
+    if missing:  # the missing joints' columns are NaN by design
+        bad[:, list(missing)] = False
     if np.any(bad):
         index = np.argwhere(bad)[0]
         row = int(index[0])

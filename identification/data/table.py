@@ -75,6 +75,7 @@ class ColumnTable:
         if data.shape[0]:
             # one pass each over the whole array; min and max are NaN where a NaN is, which fails both tests
             good = (data.min(axis=0) >= -MAX_MAGNITUDE) & (data.max(axis=0) <= MAX_MAGNITUDE)
+            good |= np.isnan(data).all(axis=0)  # a column never logged (NaN throughout): the Recording judges it
             for k in np.flatnonzero(~good):
                 self._refuse_values(names[k], data[:, k])
 

@@ -113,6 +113,7 @@ def register(subparsers) -> None:
 
 def _run_diagnose(args) -> int:
     from identification.data.io import not_held_out
+    from identification.data.missing_torque import require_torque
     from identification.data.robot_recordings import load_robot_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
@@ -135,6 +136,8 @@ def _run_diagnose(args) -> int:
     layout = recording_layout(args)  # --columns, --rate
     train = load_robot_recording(args.train, robot, args.topic, layout)  # joint side, timed (robot file's [recording])
     validations = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
+    for recording in (train, *validations):  # a dead torque channel: refused, named
+        require_torque(recording, robot.joint_names, "diagnose")
     validation = validations[0]
     for warning in not_held_out([args.train], args.validate, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)

@@ -88,6 +88,16 @@ def add_arguments(p) -> None:
         help="do not keep the links inside their physical envelope (bounding ellipsoid, mass and drive-inertia "
         "bounds): consistent only, as before",
     )
+    p.add_argument(
+        "--missing-torque",
+        action="append",
+        default=[],
+        metavar="FILE:JOINTS",
+        help="a recording's joints whose torque column is not a measurement (e.g. RunTrajectory1.csv:1, or "
+        "FILE:1,3 or FILE:joint_1; repeatable): their rows of that recording are left out of the fit and the "
+        "validation, the other joints' rows count. A column that is zero, constant or NaN throughout is found "
+        "without it and named in the output",
+    )
     add_topic_argument(p)
 
 
@@ -110,6 +120,7 @@ def run(args) -> int:
     args.validate = recording_paths(args.validate, robot)
     recordings = [load_robot_recording(path, robot, args.topic, layout) for path in paths]  # joint side, timed
     validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
+    recordings, validation, missing = _missing_torque(args, robot, paths, recordings, validation)
     for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
         check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
     if args.friction == "lugre":
@@ -129,7 +140,7 @@ def run(args) -> int:
         fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
         lugre = None
     held_out = not_held_out([str(p) for p in paths], args.validate)
-    warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *held_out)))
+    warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *missing, *held_out)))
     warnings = [_concrete_route(w, args, paths) for w in warnings]
     for warning in warnings:
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
@@ -161,6 +172,35 @@ def run(args) -> int:
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
+
+
+def _missing_torque(args, robot, paths, recordings, validation) -> tuple:
+    """(training, validation recordings with their joints without torque marked, the validation's sentences): the
+    ``--missing-torque`` statements and the columns found empty (``missing_torque``); the fit names its own."""
+    from identification.data.missing_torque import (
+        find_missing_torque,
+        missing_torque_messages,
+        parse_missing_torque,
+        stated_missing_torque,
+    )
+
+    stated = parse_missing_torque(args.missing_torque, robot.joint_names)
+    unknown = sorted(set(stated) - {Path(p).name for p in (*paths, *args.validate)})
+    if unknown:
+        raise ParameterError(
+            f"--missing-torque names {unknown}, which is not among the --data or --validate recordings; name one of "
+            "those files (FILE:JOINTS)."
+        )
+    marked = [
+        [find_missing_torque(stated_missing_torque(r, p, stated)) for r, p in zip(group, names)]
+        for group, names in ((recordings, paths), (validation, args.validate))
+    ]
+    if args.friction == "lugre" and any(r.missing_torque for group in marked for r in group):
+        raise ParameterError(
+            "--friction lugre fits every joint's friction along its whole series; a recording misses a joint's "
+            "torque. Leave that recording out, or identify with --friction stribeck."
+        )
+    return marked[0], marked[1], missing_torque_messages(marked[1], robot.joint_names, "validation")
 
 
 def _concrete_route(warning: str, args, paths) -> str:
@@ -321,7 +361,7 @@ def _validation(robot, model, fit, recordings, paths, calibrated) -> dict:
 
 
 def _list(values) -> list:
-    return [float(v) for v in np.atleast_1d(values)]
+    return [float(v) if np.isfinite(v) else None for v in np.atleast_1d(values)]  # None: a joint without torque
 
 
 def _print_lugre(block) -> None:
@@ -424,6 +464,6 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
         print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
         for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):
             if key in entry:
-                print(f"  {label:<14}" + " ".join(f"{v:9.4g}" for v in entry[key]))
-        print(f"  {'R^2':<14}" + " ".join(f"{v:9.4f}" for v in entry["r2"]))
+                print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
+        print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
     print(f"\ncalibrated model written to {args.out}")

@@ -68,6 +68,7 @@ def _run_validate(args) -> int:
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.data.configuration import stated_configuration
+    from identification.data.missing_torque import require_torque
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import read_calibrated_argument
 
@@ -92,6 +93,7 @@ def _run_validate(args) -> int:
     args.recordings = grouped
     recordings = [load_robot_recording(path, robot, args.topic, layout) for path in args.recordings]
     for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
+        require_torque(recording, robot.joint_names, "validate")  # a dead torque channel: refused, named
         check_validation_recording(robot, recording)
     rows = []
     for path, recording in zip(args.recordings, recordings):
