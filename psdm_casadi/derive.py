@@ -10,6 +10,11 @@
    Christoffel symbols, differentiation being a linear map on that basis.
 3. Reduce the per-joint lumped parameters to base parameters (reduction.py).
 4. Check the model against Pinocchio's rnea on random states and random parameters.
+
+The grid costs 5^n: a robot beyond it (more than 8 revolute joints, see :data:`MAX_DOF`), or any
+robot with ``DeriveOptions(form="recursive")``, is derived instead from the regressor's column
+space at random states (``column_space.py``), in time and memory polynomial in n: the same base
+parameter space, no monomial table, the model evaluated through its joint tree and preimage.
 """
 
 from __future__ import annotations
@@ -22,7 +27,10 @@ from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
+from threadpoolctl import threadpool_limits
 
+from psdm_casadi.chain_regressor import ChainRegressor
+from psdm_casadi.column_space import column_space_basis
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import DerivationError, ParameterError
 from psdm_casadi.model import PSDMModel
@@ -45,7 +53,7 @@ REVOLUTE_DIGITS = ((0, 0), (1, 0), (0, 1), (1, 1), (0, 2))  # (sin power, cos po
 logger = logging.getLogger(__name__)
 
 MAX_DOF = 8
-"""The largest robot (number of joints) that ``derive_psdm`` accepts.
+"""The largest robot (number of joints) that ``derive_psdm`` derives with its monomial table (the sum form).
 
 The derivation's memory grows as 5^n: a function of the accelerations that depends on every
 joint (gravity, qdd of joint 1) is sampled on a tensor grid of 5 angles per revolute joint, and at
@@ -54,8 +62,8 @@ each of the 5^n points Pinocchio's regressor (n x 10n) and its lift to the free 
 so the peak is about 4 * 5^n * n * 11n * 8 bytes (:func:`derivation_memory_bytes`). Measured on
 all-revolute DH robots: 6 joints 0.4 GiB and 2 s, 7 joints 1.6 GiB and 11 s, 8 joints 8.0 GiB and
 about 90 s; 9 joints would need about 52 GiB and 12 joints about 11 TiB (and beyond about 27
-joints the array sizes overflow 64-bit integers). Larger robots are refused before anything is
-allocated: lock joints (a URDF's ``[urdf].locked_joints``) or derive sub-chains.
+joints the array sizes overflow 64-bit integers). Larger robots are derived without the table
+(``DeriveOptions.form``), in polynomial time; ``form="sum"`` refuses them before anything is allocated.
 
 The check counts grid points, 5 per revolute and 3 per prismatic joint, and accepts up to
 :data:`MAX_GRID_POINTS` (twice the eight-revolute grid): a Panda with its two prismatic fingers
@@ -63,6 +71,7 @@ free (7 revolute + 2 prismatic joints, 703,125 points) is derived, nine revolute
 """
 
 MAX_GRID_POINTS = 2 * 5**MAX_DOF
+FORMS = ("auto", "sum", "recursive")
 
 
 @dataclass(frozen=True)
@@ -82,6 +91,10 @@ class DeriveOptions:
         are round-off.
     independence_rtol : float
         Tolerance of the base-parameter selection.
+    form : {"auto", "sum", "recursive"}
+        ``"sum"``: the monomial table (E, P) of the paper, up to :data:`MAX_DOF` revolute joints;
+        ``"recursive"``: base parameters from the regressor's column space, no table, any size;
+        ``"auto"`` (default): the sum form when its grid is affordable, else the recursive one.
     """
 
     seed: int = 0
@@ -89,8 +102,11 @@ class DeriveOptions:
     tolerance: float = 1e-9
     coefficient_rtol: float = 1e-10
     independence_rtol: float = 1e-8
+    form: str = "auto"
 
     def __post_init__(self):
+        if self.form not in FORMS:
+            raise ParameterError(f"DeriveOptions.form must be one of {FORMS}; got {self.form!r}.")
         if self.n_check < 1:
             raise ParameterError(f"DeriveOptions.n_check must be >= 1; got {self.n_check}.")
         if not 0 < self.tolerance < 1:
@@ -333,11 +349,12 @@ def check_derivation_size(robot: RobotDescription) -> None:
     if points > MAX_GRID_POINTS:
         memory = 4 * points * n * N_PARAMETERS_PER_JOINT * n * 8
         raise ParameterError(
-            f"RobotDescription.n_dof must be at most {MAX_DOF} for derive_psdm when the joints are revolute (its "
-            f"sampling grid has 5 points per revolute and 3 per prismatic joint, at most {MAX_GRID_POINTS}); "
-            f"got {n} joints in {robot.name!r}{origin}: {points} points, which would need about "
+            f"RobotDescription.n_dof must be at most {MAX_DOF} for derive_psdm's sum form when the joints are "
+            f"revolute (its sampling grid has 5 points per revolute and 3 per prismatic joint, at most "
+            f"{MAX_GRID_POINTS}); got {n} joints in {robot.name!r}{origin}: {points} points, which would need about "
             f"{memory / 2**30:.3g} GiB. Lock joints (e.g. [urdf].locked_joints) to bring the robot to "
-            f"{MAX_DOF} revolute joints or fewer."
+            f"{MAX_DOF} revolute joints or fewer, or derive it in the recursive form (psdm derive --form auto or "
+            "recursive; DeriveOptions.form): no monomial table, polynomial cost."
         )
 
 
@@ -359,7 +376,8 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
     Raises
     ------
     ParameterError
-        When the robot has more than :data:`MAX_DOF` joints (checked before anything is allocated).
+        When ``options.form="sum"`` and the robot has more than :data:`MAX_DOF` revolute joints
+        (checked before anything is allocated).
     DerivationError
         When the derived model does not reproduce Pinocchio's rnea to ``options.tolerance``.
 
@@ -374,6 +392,9 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
         options = DeriveOptions(seed=0 if seed is None else seed)
     elif seed is not None:
         raise ParameterError("derive_psdm takes either options or seed, not both. Put the seed in DeriveOptions.")
+    if recursive_form_chosen(robot, options):
+        with threadpool_limits(limits=1, user_api="blas"):  # small dense algebra: threads only add contention
+            return _derive_recursive(robot, options)
     check_derivation_size(robot)
     start = time.perf_counter()
     rng = np.random.default_rng(options.seed)
@@ -418,6 +439,44 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
         revolute=robot.revolute,
         robot_name=robot.name,
     )
+    return _checked(model, robot, options, rng, start, int(free_basis.shape[1]))
+
+
+def recursive_form_chosen(robot: RobotDescription, options: DeriveOptions) -> bool:
+    """True when ``derive_psdm`` derives ``robot`` without monomial table (see ``DeriveOptions.form``)."""
+    return options.form == "recursive" or (options.form == "auto" and derivation_grid_points(robot) > MAX_GRID_POINTS)
+
+
+def _derive_recursive(robot: RobotDescription, options: DeriveOptions) -> PSDMModel:
+    """The model without monomial table: base parameters from the regressor's column space (polynomial in n)."""
+    start = time.perf_counter()
+    rng = np.random.default_rng(options.seed)
+    n = robot.n_dof
+    logger.info("deriving %s (%d joints) from the regressor's column space", robot.name, n)
+    free_basis = free_parameter_basis(robot, rng)
+    basis = column_space_basis(robot, free_basis, rng)
+    kinematic, _ = build_kinematic_model(robot)
+    kinematic.gravity.linear = np.asarray(robot.gravity, dtype=float)
+    parameter_map = basis.base_map @ free_basis.T
+    parameter_map[np.abs(parameter_map) < 1e-12 * np.abs(parameter_map).max()] = 0.0
+    model = PSDMModel(
+        exponents=np.zeros((5 * n, 0), dtype=np.uint8),
+        reduction=np.zeros((0, basis.preimage.shape[1], n)),
+        parameter_map=parameter_map,
+        base_names=tuple(f"theta{j + 1}" for j in range(basis.preimage.shape[1])),
+        standard_names=tuple(standard_parameter_names(n)),
+        gravity_magnitude=robot.gravity_magnitude,
+        revolute=robot.revolute,
+        robot_name=robot.name,
+        chain=ChainRegressor.from_pinocchio(kinematic, basis.preimage, basis.gravity_mask),
+    )
+    model = _checked(model, robot, options, rng, start, int(free_basis.shape[1]))
+    metadata = {**model.metadata, "form": "recursive", "relation_error": basis.relation_error}
+    return replace(model, metadata={**metadata, "n_states": basis.n_states})
+
+
+def _checked(model, robot, options, rng, start, n_free) -> PSDMModel:
+    """The model with its provenance, after the check against Pinocchio's rnea."""
     error = check_against_oracle(model, robot, rng, options.n_check)
     if not error <= options.tolerance:
         raise DerivationError(
@@ -429,6 +488,6 @@ def derive_psdm(robot: RobotDescription, options: DeriveOptions | None = None, *
         "seed": options.seed,
         "seconds": time.perf_counter() - start,
         "max_rel_error_vs_pinocchio": error,
-        "n_free_parameters": int(free_basis.shape[1]),
+        "n_free_parameters": n_free,
     }
     return replace(model, metadata=metadata)

@@ -3,6 +3,11 @@
 tau_i = y(q, qd, qdd) P[:, :, i] theta, where y_f = prod_h gamma_h^E[h, f] over
 gamma = [q; sin q; cos q; qd; qdd], and functions with no velocity or acceleration factor
 (the gravity functions) are multiplied by the gravity magnitude g.
+
+A model too large for the monomial table (more than 8 revolute joints, where the number of
+functions grows exponentially) has an empty E and P and a ``chain`` instead: its joint tree and
+the standard-parameter preimage of the base parameters, evaluated by a recursion
+(``psdm_casadi.chain_regressor``). Both kinds answer the same numeric calls.
 """
 
 from __future__ import annotations
@@ -14,11 +19,14 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse
 
+from psdm_casadi.chain_regressor import ChainRegressor
 from psdm_casadi.errors import ModelFileError, ShapeError
 from psdm_casadi.fileio import atomic_write
 
 MODEL_FORMAT = "psdm-model"
 MODEL_VERSION = 1
+CHAIN_MODEL_VERSION = 2  # a model with a chain (no monomial table): older releases must refuse it
+READABLE_VERSIONS = (MODEL_VERSION, CHAIN_MODEL_VERSION)
 
 
 @dataclass(frozen=True, eq=False)
@@ -42,6 +50,9 @@ class PSDMModel:
     robot_name : str
     metadata : dict
         Provenance only (seed, seconds, accuracy); never read by algorithms.
+    chain : ChainRegressor or None
+        For a model without monomial table (``exponents`` with no column): the joint tree and the
+        preimage that evaluate its regressor.
     """
 
     exponents: np.ndarray
@@ -53,6 +64,7 @@ class PSDMModel:
     revolute: np.ndarray
     robot_name: str = "robot"
     metadata: dict = field(default_factory=dict, compare=False)
+    chain: ChainRegressor | None = None
 
     def __post_init__(self):
         exponents = np.asarray(self.exponents, dtype=np.uint8)
@@ -70,6 +82,11 @@ class PSDMModel:
             raise ShapeError(f"PSDMModel.parameter_map must have shape ({l}, {11 * n}); got {parameter_map.shape}.")
         if len(self.base_names) != l or len(self.standard_names) != 11 * n:
             raise ShapeError("PSDMModel.base_names/standard_names must match the reduction and parameter map sizes.")
+        if self.chain is not None and (p != 0 or self.chain.n_dof != n or self.chain.n_base != l):
+            raise ShapeError(
+                f"PSDMModel.chain must describe {n} joints and {l} base parameters of a model without monomial "
+                f"table; got {self.chain.n_dof} joints, {self.chain.n_base} base parameters and {p} functions."
+            )
         for name, value in (
             ("exponents", exponents),
             ("reduction", reduction),
@@ -94,6 +111,8 @@ class PSDMModel:
             and self.base_names == other.base_names
             and self.standard_names == other.standard_names
             and self.gravity_magnitude == other.gravity_magnitude
+            and (self.chain is None) == (other.chain is None)
+            and (self.chain is None or self.chain.same_as(other.chain))
         )
 
     __hash__ = None
@@ -105,7 +124,13 @@ class PSDMModel:
 
     @property
     def n_functions(self) -> int:
+        """p, the number of monomial functions (0 for a model without monomial table)."""
         return self.exponents.shape[1]
+
+    @property
+    def has_monomials(self) -> bool:
+        """True for a model with E and P (the sum form); False for one evaluated through its ``chain``."""
+        return self.chain is None
 
     @property
     def n_base(self) -> int:
@@ -120,6 +145,8 @@ class PSDMModel:
     @property
     def gravity_mask(self) -> np.ndarray:
         """Boolean (n_base,): base parameters that appear in gravity terms (the paper's theta_b,grav)."""
+        if self.chain is not None:
+            return self.chain.gravity_mask
         return np.any(self.reduction[self.gravity_functions] != 0, axis=(0, 2))
 
     @property
@@ -157,6 +184,10 @@ class PSDMModel:
     def regressor(self, q, qd, qdd) -> np.ndarray:
         """Y(q, qd, qdd), shape (n_samples, n_dof, n_base), or (n_dof, n_base) for one state."""
         single = np.asarray(q).ndim == 1
+        if self.chain is not None:
+            (q, qd, qdd), _ = self._states(q, qd, qdd)
+            out = self.chain.regressor(q, qd, qdd)
+            return out[0] if single else out
         y = self.functions(q, qd, qdd)
         out = np.asarray(self._reduction_sparse.T @ y.T).T.reshape(y.shape[0], self.n_dof, self.n_base)
         return out[0] if single else out
@@ -234,7 +265,7 @@ class PSDMModel:
             path = path.with_suffix(path.suffix + ".npz") if path.suffix else path.with_suffix(".npz")
         header = {
             "format": MODEL_FORMAT,
-            "version": MODEL_VERSION,
+            "version": MODEL_VERSION if self.chain is None else CHAIN_MODEL_VERSION,
             "robot_name": self.robot_name,
             "base_names": list(self.base_names),
             "standard_names": list(self.standard_names),
@@ -250,6 +281,7 @@ class PSDMModel:
                 reduction=self.reduction,
                 parameter_map=self.parameter_map,
                 revolute=self.revolute,
+                **({} if self.chain is None else self.chain.arrays()),
             ),
             overwrite=overwrite,
             mode="wb",
@@ -272,14 +304,15 @@ def load_model(path) -> PSDMModel:
         with np.load(path, allow_pickle=False) as data:
             header = json.loads(str(data["header"]))
             arrays = {k: data[k] for k in ("exponents", "reduction", "parameter_map", "revolute")}
+            chain = ChainRegressor.from_arrays(data) if header.get("version") == CHAIN_MODEL_VERSION else None
     except (OSError, ValueError, KeyError) as exc:
         raise ModelFileError(f"{path.name} is not a psdm-casadi model file ({exc}).") from None
     if header.get("format") != MODEL_FORMAT:
         raise ModelFileError(f"{path.name}: format must be {MODEL_FORMAT!r}; got {header.get('format')!r}.")
-    if header.get("version") != MODEL_VERSION:
+    if header.get("version") not in READABLE_VERSIONS:
         raise ModelFileError(
             f"{path.name}: model version {header.get('version')} is not supported (this release reads "
-            f"version {MODEL_VERSION}). Derive the model again with this release."
+            f"versions {', '.join(map(str, READABLE_VERSIONS))}). Derive the model again with this release."
         )
     return PSDMModel(
         exponents=arrays["exponents"],
@@ -291,4 +324,5 @@ def load_model(path) -> PSDMModel:
         revolute=arrays["revolute"],
         robot_name=header["robot_name"],
         metadata=header.get("metadata", {}),
+        chain=chain,
     )

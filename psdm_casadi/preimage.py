@@ -29,7 +29,7 @@ from psdm_casadi.reduction import select_independent_rows
 # Names of the 11 joint-frame parameters, and the order in which the selection prefers them (lower
 # first): a rotor or zz inertia adds one product per use, a mass a whole force.
 JOINT_PARAMETER_NAMES = ("m", "mx", "my", "mz", "Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz", "Im")
-_PREFERENCE = {"Im": 0, "Izz": 0, "Ixx": 1, "Ixy": 1, "Ixz": 1, "Iyz": 1, "mx": 2, "my": 2, "Iyy": 3, "mz": 4, "m": 5}
+PREFERENCE = {"Im": 0, "Izz": 0, "Ixx": 1, "Ixy": 1, "Ixz": 1, "Iyz": 1, "mx": 2, "my": 2, "Iyy": 3, "mz": 4, "m": 5}
 _CHECK_STATES = 40
 _CHECK_RTOL = 1e-9
 _SNAP_RTOL = 1e-13
@@ -94,7 +94,7 @@ def _select_columns(k_joint: np.ndarray) -> list:
         sorted(
             range(k_joint.shape[1]),
             key=lambda c: (
-                _PREFERENCE[JOINT_PARAMETER_NAMES[c % N_PARAMETERS_PER_JOINT]],
+                PREFERENCE[JOINT_PARAMETER_NAMES[c % N_PARAMETERS_PER_JOINT]],
                 -(c // N_PARAMETERS_PER_JOINT),
             ),
         )
@@ -133,6 +133,25 @@ def _snap_halves(matrix: np.ndarray) -> np.ndarray:
     return np.where(close, halves, matrix)
 
 
+def model_preimage(model: PSDMModel) -> StandardPreimage:
+    """The preimage a model derived without monomial table carries (``model.chain``), exact by construction.
+
+    Raises
+    ------
+    DerivationError
+        When the model has a monomial table (its preimage needs the robot: :func:`standard_preimage`).
+    """
+    if model.chain is None:
+        raise DerivationError(
+            f"model {model.robot_name!r} has a monomial table and no preimage of its own. Call "
+            "standard_preimage(model, robot) with the robot it was derived from."
+        )
+    matrix = np.array(model.chain.preimage)
+    support = np.flatnonzero(np.abs(matrix).max(axis=1) > 0)
+    error = float(model.metadata.get("relation_error", 0.0))
+    return StandardPreimage(matrix=matrix, support=tuple(int(s) for s in support), max_rel_error=error)
+
+
 def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 0) -> StandardPreimage:
     """The sparse joint-frame preimage of a model's base parameters, checked against Pinocchio.
 
@@ -159,6 +178,15 @@ def standard_preimage(model: PSDMModel, robot: RobotDescription, *, seed: int = 
             "Pass the robot file the model was derived from."
         )
     rng = np.random.default_rng(seed)
+    if model.chain is not None:  # derived without monomial table: the model states its own preimage
+        preimage = model_preimage(model)
+        error = _regressor_error(model, robot, preimage.matrix, rng)
+        if not error <= _CHECK_RTOL:
+            raise DerivationError(
+                f"the model {model.robot_name!r} is not the PSDM model of robot {robot.name!r}: its preimage misses "
+                f"the robot's regressor by {error:.2g} (relative). Pass the robot file the model was derived from."
+            )
+        return StandardPreimage(matrix=preimage.matrix, support=preimage.support, max_rel_error=error)
     k_joint = _joint_frame_parameter_map(model, robot)
     support = _select_columns(k_joint)
     matrix = np.zeros((k_joint.shape[1], model.n_base))

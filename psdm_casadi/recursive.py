@@ -18,11 +18,12 @@ import casadi as ca
 import numpy as np
 
 from psdm_casadi.description import RobotDescription
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.kinematics_sx import JointChain, joint_chain
 from psdm_casadi.model import PSDMModel
 from psdm_casadi.newton_euler import ROTOR_INERTIA, forward_pass, newton_euler, unit_parameter_wrench
 from psdm_casadi.oracle import N_PARAMETERS_PER_JOINT, build_pinocchio_model
-from psdm_casadi.preimage import StandardPreimage, standard_preimage
+from psdm_casadi.preimage import StandardPreimage, model_preimage, standard_preimage
 from psdm_casadi.symbolic import DynamicsFunctions, assemble_functions, baked_theta
 
 
@@ -73,15 +74,16 @@ def _linear_parameters(preimage: StandardPreimage, theta) -> list:
 
 
 def build_recursive_functions(
-    model: PSDMModel, robot: RobotDescription, theta=None, *, preimage: StandardPreimage | None = None
+    model: PSDMModel, robot: RobotDescription | None, theta=None, *, preimage: StandardPreimage | None = None
 ) -> DynamicsFunctions:
     """Build the CasADi functions of a PSDM model by Newton-Euler on its standard-parameter preimage.
 
     Parameters
     ----------
     model : PSDMModel
-    robot : RobotDescription
-        The robot the model was derived from.
+    robot : RobotDescription or None
+        The robot the model was derived from; None for a model derived without monomial table, which
+        carries its own joint tree (``model.chain``).
     theta : array, shape (n_base,), optional
         Numeric base parameters to compile in; the functions then have no ``theta`` input.
     preimage : StandardPreimage, optional
@@ -98,14 +100,26 @@ def build_recursive_functions(
         When the model was not derived from this robot.
     ShapeError
         When theta does not have n_base entries.
+    ParameterError
+        When robot is None and the model has a monomial table (its kinematics are the robot's).
     """
-    preimage = preimage or standard_preimage(model, robot)
     n, l = model.n_dof, model.n_base
+    if robot is None:
+        if model.chain is None:
+            raise ParameterError(
+                f"build_recursive_functions needs the robot of model {model.robot_name!r} (derived with a monomial "
+                "table, it does not carry its kinematics); got robot=None. Pass the robot it was derived from."
+            )
+        preimage = preimage or model_preimage(model)
+        kinematics, gravity = model.chain.pinocchio_model(), model.chain.gravity
+    else:
+        preimage = preimage or standard_preimage(model, robot)
+        kinematics = build_pinocchio_model(robot, np.zeros((n, N_PARAMETERS_PER_JOINT)))  # placements only
+        gravity = robot.gravity
     q, qd, qdd, tau_in = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
     theta_sym = ca.SX.sym("theta", l)
-    kinematics = build_pinocchio_model(robot, np.zeros((n, N_PARAMETERS_PER_JOINT)))  # placements only
     chain = joint_chain(kinematics, q, caller="build_recursive_functions")
-    base_acceleration = ca.DM(-np.asarray(robot.gravity, dtype=float))
+    base_acceleration = ca.DM(-np.asarray(gravity, dtype=float))
     no_gravity = ca.DM.zeros(3, 1)
     zero = ca.SX.zeros(n, 1)
 

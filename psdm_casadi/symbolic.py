@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from psdm_casadi.errors import ShapeError
+from psdm_casadi.errors import ParameterError, ShapeError
 from psdm_casadi.forward import ldl_solve, symmetric_from_columns
 from psdm_casadi.model import PSDMModel
 
@@ -281,11 +281,22 @@ def build_functions(model: PSDMModel, theta=None) -> DynamicsFunctions:
     -------
     DynamicsFunctions
 
+    Raises
+    ------
+    ParameterError
+        When the model has no monomial table (derived in the recursive form, e.g. beyond 8 joints).
+
     Examples
     --------
     >>> fns = build_functions(model)                          # doctest: +SKIP
     >>> tau = fns.inverse_dynamics(q, qd, qdd, theta)         # DM, or SX/MX for derivatives
     """
+    if not model.has_monomials:
+        raise ParameterError(
+            f"build_functions needs the model's monomial table (the sum form); model {model.robot_name!r} has "
+            f"{model.n_dof} joints and was derived without one (the recursive form). Use "
+            "build_recursive_functions(model, robot) (or --form recursive)."
+        )
     n, l = model.n_dof, model.n_base
     q, qd, qdd, tau_in = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd", "tau"))
     if theta is None:

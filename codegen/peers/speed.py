@@ -110,7 +110,7 @@ def psdm_variants(robot, *, sum_form=None) -> tuple:
     model = derive_psdm(robot)
     variants = [_Variant("psdm", build_recursive_functions(model, robot), "recursive form")]
     if sum_form is None:
-        sum_form = model.n_functions <= SUM_FORM_MAX_FUNCTIONS
+        sum_form = model.has_monomials and model.n_functions <= SUM_FORM_MAX_FUNCTIONS
     if sum_form:
         variants.append(_Variant("psdm_sum", build_functions(model), "sum form (paper)"))
     return tuple(variants), model

@@ -71,12 +71,16 @@ class AugmentedModel:
 
     def build_function(self) -> ca.Function:
         """``augmented_inverse_dynamics(q, qd, qdd, t) -> tau`` (CasADi, SX)."""
+        from psdm_casadi.recursive import build_recursive_functions
         from psdm_casadi.symbolic import build_functions
 
         n = self.model.n_dof
         q, qd, qdd = (ca.SX.sym(name, n) for name in ("q", "qd", "qdd"))
         t = ca.SX.sym("t")
-        fns = build_functions(self.model, self.theta_augmented)
+        if self.model.has_monomials:
+            fns = build_functions(self.model, self.theta_augmented)
+        else:  # derived without monomial table (beyond 8 joints): the model carries its joint tree
+            fns = build_recursive_functions(self.model, None, self.theta_augmented)
         tau_rigid = fns.inverse_dynamics(q, qd, qdd)
         tau = tau_rigid + friction_casadi(
             self.friction_kind, qd, self.friction_coefficients, self.friction_vs, self.friction_dv

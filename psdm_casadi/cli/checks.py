@@ -315,7 +315,8 @@ def derive_model(args, robot, seed: int = 0):
     from psdm_casadi.derive import DeriveOptions
     from psdm_casadi.model_cache import ModelCache
 
-    return ModelCache(enabled=not getattr(args, "no_cache", False)).derive(robot, DeriveOptions(seed=seed))
+    options = DeriveOptions(seed=seed, form=getattr(args, "derive_form", None) or "auto")
+    return ModelCache(enabled=not getattr(args, "no_cache", False)).derive(robot, options)
 
 
 def read_calibrated_argument(args, path):

@@ -168,14 +168,19 @@ def build_export_functions(model, robot, form: str | None):
     from psdm_casadi.recursive import build_recursive_functions
     from psdm_casadi.symbolic import build_functions
 
-    form = form or ("recursive" if robot is not None else "sum")
+    form = form or ("recursive" if robot is not None or not model.has_monomials else "sum")
     if form == "recursive":
-        if robot is None:
+        if robot is None and model.has_monomials:
             raise ParameterError(
                 "codegen --form recursive needs the robot's kinematics; got a model file without --robot. "
                 "Pass --robot ROBOT_FILE (the file the model was derived from) or --form sum."
             )
-        return build_recursive_functions(model, robot), form
+        return build_recursive_functions(model, robot), form  # a model without table carries its kinematics
+    if not model.has_monomials:
+        raise ParameterError(
+            f"codegen --form sum needs the model's monomial table; {model.robot_name!r} ({model.n_dof} joints) was "
+            "derived without one (the recursive form). Drop --form sum or pass --form recursive."
+        )
     return build_functions(model), form
 
 

@@ -20,6 +20,14 @@ def register(subparsers) -> None:
     parser.add_argument("-o", "--output", help="write the model to this .npz file (.npz is appended when missing)")
     parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random checks (default 0)")
+    parser.add_argument(
+        "--form",
+        dest="derive_form",
+        choices=("auto", "sum", "recursive"),
+        default="auto",
+        help="sum: the paper's monomial table (E, P; up to 8 revolute joints); recursive: base parameters from the "
+        "regressor's column space, no table, any size (trees too); auto (default): sum when affordable",
+    )
     parser.add_argument("--equations", action="store_true", help="print the base parameters as equations")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(handler=run_derive)
@@ -49,7 +57,9 @@ def run_derive(args) -> int:
             {
                 "command": "derive",
                 "robot": robot.name,
-                "p": model.n_functions,
+                "n_dof": robot.n_dof,
+                "form": "sum" if model.has_monomials else "recursive",
+                "p": model.n_functions if model.has_monomials else None,
                 "l": model.n_base,
                 "n_gravity": model.n_gravity,
                 "seconds": round(seconds, 4),
@@ -57,8 +67,15 @@ def run_derive(args) -> int:
             }
         )
     else:
+        from psdm_casadi.derive import MAX_DOF
+
+        terms = (
+            f"p = {model.n_functions} functions"
+            if model.has_monomials
+            else f"{robot.n_dof} joints, recursive form (no monomial table beyond {MAX_DOF} revolute joints)"
+        )
         print(
-            f"{robot.name}: p = {model.n_functions} functions, l = {model.n_base} base parameters "
+            f"{robot.name}: {terms}, l = {model.n_base} base parameters "
             f"({model.n_gravity} gravity), {seconds:.2f} s, max relative error vs Pinocchio {error:.2e}"
         )
         if args.equations:

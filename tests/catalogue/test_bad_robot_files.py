@@ -173,9 +173,17 @@ URDFS = [
     ),
 ]
 
+
+def derive_sum_form(name, text, *expect):
+    """``psdm derive robot.toml --form sum``: the paper's monomial table, refused beyond 8 revolute joints."""
+    return BadInput(
+        name, ("derive", "robot.toml", "--form", "sum"), expect=("robot.toml", *expect), files={"robot.toml": text}
+    )
+
+
 SIZE = [
-    derive("12 joints", dh_robot(12), "12 joints", "at most 8", "lock joints"),
-    derive("50 joints", dh_robot(50), "50 joints", "at most 8", "lock joints"),
+    derive_sum_form("12 joints", dh_robot(12), "12 joints", "at most 8", "lock joints", "--form auto"),
+    derive_sum_form("50 joints", dh_robot(50), "50 joints", "at most 8", "lock joints", "--form auto"),
 ]
 
 OTHER_COMMANDS = [
@@ -186,9 +194,9 @@ OTHER_COMMANDS = [
         files={"robot.toml": robot(LINK.replace("mass = 1.0", "mass = nan"))},
     ),
     BadInput(
-        "codegen 12 joints",
-        ("codegen", "robot.toml", "--out", "c"),
-        expect=("12 joints", "lock joints"),
+        "codegen 12 joints in the sum form",
+        ("codegen", "robot.toml", "--out", "c", "--form", "sum"),
+        expect=("12 joints", "monomial table", "--form recursive"),
         files={"robot.toml": dh_robot(12)},
     ),
     BadInput(
