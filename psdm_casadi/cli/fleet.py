@@ -141,13 +141,17 @@ def _status(args) -> int:
     with _open(args.db) as history:
         rows = fleet_rows(history)
         failures = history.failures()
+        baselines = {robot_id: (str(since), source) for robot_id, since, source in history.baselines()}
     if args.json:
-        robots = [r.__dict__ | {"alarms": list(r.alarms), "diagnoses": list(r.diagnoses)} for r in rows]
+        robots = [r.__dict__ | {"alarms": list(r.alarms), "diagnoses": list(r.diagnoses),
+                                "baseline": baselines.get(r.robot_id)} for r in rows]  # fmt: skip
         print_json({"command": "fleet status", "robots": robots,
                     "failures": [{"robot": r, "day": str(d), "error": e} for r, d, e in failures]})  # fmt: skip
         return EXIT_OK
     for r in rows:
         print(f"{r.robot_id:12s} last {r.last_day}  ok {r.ok:4d}  failed {r.failed:3d}  {r.status}")
+        if r.robot_id in baselines:
+            print(f"    re-identified: baseline from {baselines[r.robot_id][0]} ({baselines[r.robot_id][1]})")
         for alarm in (*r.alarms, *r.diagnoses):
             print(f"    {alarm}")
     for robot_id, day, error in failures:

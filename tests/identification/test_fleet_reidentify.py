@@ -75,6 +75,8 @@ def test_reidentify_on_demand_from_the_command_line(fleet, runs, tmp_path, capsy
     assert code == 0 and out["processed"] == 0 and out["reidentified"] == ["r01 from 2026-10-13"]
     with History(db) as history:
         assert [str(b[1]) for b in history.baselines()] == ["2026-10-09", "2026-10-13"]
+    assert main(["fleet", "status", "--db", str(db), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["robots"][0]["baseline"][0] == "2026-10-13"
     assert main(["fleet", "run", str(fleet.source), "--db", str(db), "--reidentify", "r99"]) == 2
     assert "--reidentify r99: no such robot" in capsys.readouterr().err
     assert main(["fleet", "run", str(fleet.source), "--db", str(db), "--reidentify-every", "1"]) == 2
