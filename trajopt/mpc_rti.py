@@ -66,6 +66,7 @@ class RTIController:
     n_dof: int
     bounds: dict
     _guess: np.ndarray | None = field(default=None, repr=False)
+    _buffers: tuple | None = field(default=None, repr=False)
 
     def initialize(self, states, torques) -> None:
         """Set the first guess: states (N + 1, 2 n_dof) and torques (N, n_dof)."""
@@ -108,11 +109,12 @@ class RTIController:
             )
         if self._guess is None:
             raise ParameterError("RTIController.step needs a first guess; call initialize(states, torques) first.")
-        p = reference.ravel()
+        _, trigger, inputs, outputs = self._buffers or self._make_buffers()
+        inputs[0][:], inputs[1][:], inputs[2][:] = state, self._guess, reference.ravel()
         start, start_cpu = time.perf_counter(), time.process_time()
-        u, w_next, _, _ = self.function(state, self._guess, p)
+        trigger()
         elapsed, cpu = time.perf_counter() - start, time.process_time() - start_cpu
-        u, w_next = np.asarray(u).ravel(), np.asarray(w_next).ravel()
+        u, w_next = outputs[0].copy(), outputs[1].copy()
         if not (np.all(np.isfinite(u)) and np.all(np.isfinite(w_next))):
             raise SolverError(
                 "MPC real-time iteration: the QP returned non-finite values; check the state against the "
@@ -122,6 +124,19 @@ class RTIController:
         self._guess = w_next
         stats = {"time_s": elapsed, "cpu_time_s": cpu, "iter_count": 1, "return_status": "rti"}
         return u, stats
+
+    def _make_buffers(self) -> tuple:
+        """CasADi's zero-copy call (``Function.buffer``): numpy arrays bound to the inputs and outputs
+        once, so a step is the compiled code alone, not CasADi's conversion of Python arguments."""
+        buffer, trigger = self.function.buffer()
+        inputs = [np.zeros(self.function.nnz_in(i)) for i in range(self.function.n_in())]
+        outputs = [np.zeros(self.function.nnz_out(i)) for i in range(self.function.n_out())]
+        for i, array in enumerate(inputs):
+            buffer.set_arg(i, memoryview(array))
+        for i, array in enumerate(outputs):
+            buffer.set_res(i, memoryview(array))
+        self._buffers = (buffer, trigger, inputs, outputs)
+        return self._buffers
 
 
 def build_rti(
@@ -265,7 +280,8 @@ def shift_guess(w, n_dof):
 def hpipm_folders(hpipm_dir=None) -> tuple[Path, Path]:
     """(include, lib) folders of the HPIPM and BLASFEO the C links against.
 
-    ``hpipm_dir`` (else ``$PSDM_HPIPM_DIR``) is an install prefix of both (``include/``, ``lib/``),
+    ``hpipm_dir`` (else ``$PSDM_HPIPM_DIR``) is an install prefix of both (``include/``, ``lib/``; static
+    libraries built with -fPIC are linked in, else the shared ones),
     e.g. BLASFEO built for the machine's CPU (``TARGET=X64_INTEL_HASWELL``) as acados does; its
     headers must be those CasADi's generated code was written for (HPIPM af3ca47, BLASFEO 0.1.4.2
     for CasADi 3.7-3.8). By default CasADi's own copies, whose BLASFEO is the portable (generic) build.
@@ -324,8 +340,13 @@ def compile_rti(
     found = shutil.which(compiler)
     if found is None:
         raise SolverError(f"compile_rti compiler must be on PATH; {compiler!r} was not found. Install gcc or pass one.")
-    command = [found, *flags, "-fPIC", "-shared", "-o", str(library), str(source), f"-I{include}",
-               f"-L{lib}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{lib}", "-lm"]  # fmt: skip
+    if (lib / "libhpipm.a").exists() and (lib / "libblasfeo.a").exists():
+        # linked in: a process that already loaded CasADi's libhpipm.so (its conic plugin) would
+        # otherwise bind the shared libraries of that name to CasADi's copies
+        libraries = [str(lib / "libhpipm.a"), str(lib / "libblasfeo.a"), "-Wl,-Bsymbolic"]
+    else:
+        libraries = [f"-L{lib}", "-lhpipm", "-lblasfeo", "-Wl,--disable-new-dtags", f"-Wl,-rpath,{lib}"]
+    command = [found, *flags, "-fPIC", "-shared", "-o", str(library), str(source), f"-I{include}", *libraries, "-lm"]
     start = time.perf_counter()
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
