@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import gzip
 import html
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,6 +23,8 @@ from psdm_casadi.fileio import atomic_write
 #: The trace types of plotly's basic partial bundle (what the reports draw).
 BASIC_TRACES = frozenset({"scatter", "bar", "pie"})
 BASIC_BUNDLE = Path(__file__).with_name("assets") / "plotly-basic.min.js.gz"
+#: The version line of the bundle's header comment (``plotly.js (basic - minified) v4.1.1``).
+BUNDLE_VERSION = re.compile(r"plotly\.js \(basic - minified\) v(\d+\.\d+\.\d+)")
 #: The class of a figure whose traces the basic bundle cannot draw (the page then inlines the full bundle).
 NEEDS_FULL = "psdm-needs-full-plotly"
 
@@ -107,12 +110,17 @@ def figure_div(figure, div_id: str, css_class: str = "") -> str:
 
 
 def plotly_bundle(full: bool = False) -> str:
-    """The plotly.js source to inline: the basic partial bundle, or the plotly package's full one if ``full``."""
-    if full:
-        from plotly.offline import get_plotlyjs
+    """The plotly.js source to inline: the basic partial bundle, or the plotly package's full one.
 
+    The full one when ``full``, or when the installed plotly package speaks another major version of
+    plotly.js than the basic bundle (its figures' JSON might use what the bundle does not read)."""
+    from plotly.offline import get_plotlyjs, get_plotlyjs_version
+
+    basic = gzip.decompress(BASIC_BUNDLE.read_bytes()).decode("utf-8")
+    found = BUNDLE_VERSION.search(basic[:200])
+    if full or found is None or found.group(1).split(".")[0] != get_plotlyjs_version().split(".")[0]:
         return get_plotlyjs()
-    return gzip.decompress(BASIC_BUNDLE.read_bytes()).decode("utf-8")
+    return basic
 
 
 def table(headers, rows, text_columns: int = 1) -> str:

@@ -160,3 +160,15 @@ def test_a_trace_outside_the_basic_bundle_gets_the_full_bundle():
     page.section("map", figure_div(go.Figure(go.Heatmap(z=[[1, 2], [3, 4]])), "b"))
     assert "heatmap" not in BASIC_TRACES and page.needs_full_bundle()
     assert "plotly.js (basic - minified)" not in page.to_html() and "plotly.js v" in page.to_html()
+
+
+def test_a_plotly_package_of_another_plotly_js_major_version_gets_its_own_full_bundle(monkeypatch):
+    import plotly.offline
+
+    from identification.report_html.page import BUNDLE_VERSION, plotly_bundle
+
+    basic = plotly_bundle()
+    vendored = BUNDLE_VERSION.search(basic[:200]).group(1)
+    assert vendored.split(".")[0] == plotly.offline.get_plotlyjs_version().split(".")[0]
+    monkeypatch.setattr(plotly.offline, "get_plotlyjs_version", lambda: "9.0.0")
+    assert plotly_bundle() == plotly.offline.get_plotlyjs() != basic
