@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import shutil
+import subprocess
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -15,9 +17,10 @@ from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, variable_bounds
 from trajopt.mpc_loop import build_pinocchio_plant, simulate_closed_loop
 from trajopt.mpc_model import build_forward_dynamics_jacobian, build_step_function, stage_functions
-from trajopt.mpc_rti import build_rti, compile_rti, rti_qp_data
+from trajopt.mpc_rti import build_rti, compile_rti, hpipm_folders, rti_qp_data
 
 DT = 0.005
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.fixture(scope="module")
@@ -176,6 +179,24 @@ def test_compiled_step_agrees_with_the_casadi_evaluated_one(denso, denso_dynamic
         controller.function(x0, w, reference.ravel()), compiled.function(x0, w, reference.ravel())
     ):
         np.testing.assert_allclose(np.array(got), np.array(expected), rtol=1e-7, atol=1e-7)
+    # the same C from a C program (examples/mpc_rti_loop.c): three iterations, the guess shifted in C
+    include, lib = hpipm_folders()
+    program = tmp_path / "loop"
+    subprocess.run(
+        ["cc", "-O1", str(EXAMPLES / "mpc_rti_loop.c"), str(tmp_path / "mpc_rti.c"), f"-I{tmp_path}", f"-I{include}",
+         f"-L{lib}", "-lhpipm", "-lblasfeo", f"-Wl,-rpath,{lib}", "-lm", "-o", str(program)],
+        check=True,
+    )  # fmt: skip
+    np.concatenate([x0, w, reference.ravel()]).tofile(tmp_path / "in.bin")
+    files = [str(tmp_path / "in.bin"), str(tmp_path / "out.bin")]
+    run = subprocess.run([str(program), *files, "3"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert float(run.stdout) > 0  # microseconds per step
+    guess = w
+    for _ in range(3):
+        u, guess, w_sol, _ = (np.array(v).ravel() for v in controller.function(x0, guess, reference.ravel()))
+    out = np.fromfile(tmp_path / "out.bin")
+    np.testing.assert_allclose(out, np.concatenate([u, guess, w_sol]), rtol=1e-7, atol=1e-7)
 
 
 def test_bad_qp_mode_and_dynamics_are_refused(denso, denso_dynamics):
