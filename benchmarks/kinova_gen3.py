@@ -8,7 +8,8 @@ mounted (README: 0.6-0.8 kg at the flange over Kinova's published masses). Throu
 where the URDF's differ and the tool as part of the last link; the vendor's nominal torque constants; 1 kHz):
 
 - ``psdm identify`` validated on opti_traj_testing2, once from the joint-torque sensors on
-  opti_traj_testing1 (``--columns t=Time,q=Position,tau=TorqueSm``) and once from the currents on
+  opti_traj_testing1 and RunTrajectory1 (``--columns t=Time,q=Position,tau=TorqueSm``; RunTrajectory1's dead
+  TorqueSm1 channel found and only its joint-1 rows left out) and once from the currents on
   opti_traj_testing1, RunTrajectory1 and Trajectory1 (``i=Cur``, torque constants only), defaults
   otherwise: per-joint validation RMSE [N m] and R^2, the robot file's RMSE, and the identified links
   (mass, distance of the centre of mass from the joint) against the robot file's and the URDF's, with the
@@ -17,7 +18,7 @@ where the URDF's differ and the tool as part of the last link; the vendor's nomi
   payload it names says the stated tool is off.
 
 Joint 7 carries almost no gravity load and its sensor shows only noise and offset (README), so its RMSE
-is reported but says little. RunTrajectory1 is not used for the sensor fit: its TorqueSm1 is all zero.
+is reported but says little.
 
 Usage::
 
@@ -43,8 +44,9 @@ ROBOT_FILE = ROOT / "examples" / "kinova_gen3.toml"
 URDF_IN_EXAMPLE = "../../shared/datasets/kinova_gen3_dynid/gen3.urdf"  # replaced by the --data-root's URDF
 TRAIN, VALIDATE = "opti_traj_testing1.csv", "opti_traj_testing2.csv"
 SOURCES = {"sensor": "t=Time,q=Position,tau=TorqueSm", "current": "t=Time,q=Position,i=Cur"}
-#: Training recordings per source: every log with that signal on all joints (RunTrajectory1's TorqueSm1 is zero).
-TRAINING = {"sensor": (TRAIN,), "current": (TRAIN, "RunTrajectory1.csv", "Trajectory1.csv")}
+#: Training recordings per source: every log with that signal (RunTrajectory1's TorqueSm1 is zero: identify finds
+#: it and leaves joint 1's rows of that recording out; Trajectory1 and the others have no sensor torque at all).
+TRAINING = {"sensor": (TRAIN, "RunTrajectory1.csv"), "current": (TRAIN, "RunTrajectory1.csv", "Trajectory1.csv")}
 #: A link is plausible when its mass is within this factor of the URDF's and its centre of mass lies within
 #: its reach (the distance to the next joint, 0.15 m for the last link) plus this margin [m].
 MASS_FACTOR, COM_MARGIN = 5.0, 0.1
@@ -121,8 +123,9 @@ def identify(robot, source: str, folder: Path, data: Path, log) -> dict:
     validation = payload["validation"][0]
     warnings = payload.get("warnings", [])
     tool = [w for w in warnings if w.startswith(f"link {robot.n_dof} ") and "tool at the flange" in w]
+    missing = [w for w in warnings if "has no torque measurement" in w]
     return {"exit_code": code, "columns": SOURCES[source], "training": list(TRAINING[source]), "seconds": seconds,
-            "consistent": payload["consistent"], "names_tool_at_flange": bool(tool),
+            "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
             "warnings": warnings, "links": links_report(robot, out)}  # fmt: skip
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psdm_casadi.errors import ExcitationWarning, ParameterError, SolverError
+from psdm_casadi.ipopt_progress import shows_progress_bars
 from trajopt.constraints import (
     JointLimits,
     KeepOut,
@@ -278,7 +279,9 @@ def _interrupts_recorded(monitor):
 
 def _solve_interruptibly(solver, problem, label: str, **arguments):
     """One Ipopt solve; a Ctrl-C during it raises KeyboardInterrupt (the user asked to stop, not this start)."""
-    deadline = problem.monitor.deadline
+    deadline, monitor = problem.monitor.deadline, problem.monitor
+    monitor.show, monitor.label = shows_progress_bars(logger), f"excite: start {label} (Ipopt)"
+    monitor.set_bounds(problem.lbg, problem.ubg)
     with _interrupts_recorded(problem.monitor) as interrupts:
         try:
             solution = solver(lbx=problem.lbx, ubx=problem.ubx, lbg=problem.lbg, ubg=problem.ubg, **arguments)
@@ -286,6 +289,8 @@ def _solve_interruptibly(solver, problem, label: str, **arguments):
             if interrupts:
                 raise KeyboardInterrupt(f"excite: start {label} interrupted") from None
             raise
+        finally:
+            monitor.close()
     status = solver.stats().get("return_status", "unknown")
     # User_Requested_Stop before the deadline of the time limit: Ipopt's own handling of SIGINT
     own_stop = status == "User_Requested_Stop" and time.perf_counter() < deadline

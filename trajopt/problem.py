@@ -18,6 +18,7 @@ the previous primal-dual point with a small barrier parameter.
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -25,9 +26,12 @@ import casadi as ca
 import numpy as np
 
 from psdm_casadi.errors import ParameterError, ShapeError
+from psdm_casadi.ipopt_progress import IpoptProgress
 from trajopt.constraints import JointLimits, KeepOut, check_same_dof
 from trajopt.criteria import CriterionCallback, build_information_function, check_columns
 from trajopt.parametrization import FourierTrajectory
+
+logger = logging.getLogger(__name__)
 
 DEFAULT_IPOPT = {
     "hessian_approximation": "limited-memory",
@@ -50,37 +54,24 @@ WARM_START_IPOPT = {
 }
 
 
-class IpoptMonitor(ca.Callback):
+class IpoptMonitor(IpoptProgress):
     """Ipopt iteration callback that stops the solve once ``deadline`` (a ``time.perf_counter`` value) passes.
 
     The optimiser sets ``deadline`` before each solve; a stopped solve returns ``User_Requested_Stop``
-    with its current iterate, which is then verified like any other.
+    with its current iterate, which is then verified like any other. With ``show`` set (a terminal:
+    ``ipopt_progress.shows_progress_bars``) each iteration also moves a progress bar (``IpoptProgress``).
     """
 
-    def __init__(self, name: str, n_x: int, n_g: int, n_p: int):
-        ca.Callback.__init__(self)
-        self._sizes = {"x": n_x, "lam_x": n_x, "g": n_g, "lam_g": n_g, "p": n_p, "lam_p": n_p, "f": 1}
+    def __init__(self, name: str, n_x: int, n_g: int, n_p: int, max_iter: int = 300):
+        super().__init__(name, (n_x, n_g, n_p), max_iter, "excite: trajectory optimisation (Ipopt)", logger)
         self.deadline = float("inf")
-        self.iterations = 0
-        self.construct(name, {})
-
-    def get_n_in(self):
-        return ca.nlpsol_n_out()
-
-    def get_n_out(self):
-        return 1
-
-    def get_name_in(self, i):
-        return ca.nlpsol_out(i)
-
-    def get_name_out(self, i):
-        return "stop"
-
-    def get_sparsity_in(self, i):
-        return ca.Sparsity.dense(self._sizes.get(ca.nlpsol_out(i), 0), 1)
+        self.show = False
 
     def eval(self, arg):
-        self.iterations += 1
+        if self.show:
+            super().eval(arg)
+        else:
+            self.iterations += 1
         return [1 if time.perf_counter() > self.deadline else 0]
 
 
@@ -232,7 +223,7 @@ def build_excitation_problem(
     g, lbg, ubg, linear = _constraints(parametrization, x, t_con, tight, torque_function, keep_out)
 
     nlp = {"x": x, "p": sharpness, "f": objective, "g": g}
-    monitor = IpoptMonitor("monitor", x.numel(), g.numel(), 1)
+    monitor = IpoptMonitor("monitor", x.numel(), g.numel(), 1, max_iter)
     solver, warm_solver = _ipopt_solvers(nlp, monitor, linear, max_iter, max_wall_time, ipopt_options)
     lbx, ubx = parametrization.bounds(tight.q_min, tight.q_max)
     objective_function = ca.Function("objective", [x, sharpness], [objective], ["x", "p"], ["f"])

@@ -32,6 +32,7 @@ from identification.calibration.pseudo_inertia import (
     pseudo_inertia,
 )
 from psdm_casadi.errors import SolverError
+from psdm_casadi.ipopt_progress import progress_options
 
 __all__ = [
     "IPOPT_OPTIONS",
@@ -135,9 +136,14 @@ def _solve(problem, start, bounds, final=True):
     is not warned about (a link pressed against its envelope creeps towards the chart's boundary for long).
     """
     cap = IPOPT_OPTIONS["ipopt.max_iter"] if final else min(FIRST_PASS_MAX_ITER, IPOPT_OPTIONS["ipopt.max_iter"])
-    solver = ca.nlpsol("consistent_fit", "ipopt", problem, {**IPOPT_OPTIONS, "ipopt.max_iter": cap})
     lbx, ubx, lbg, ubg = bounds
+    sizes = (problem["x"].numel(), problem["g"].numel(), 0)
+    bar, callback = progress_options("consistent_fit_progress", sizes, cap, "identify: consistent fit (Ipopt)",
+                                     logger, lbg, ubg)  # fmt: skip
+    solver = ca.nlpsol("consistent_fit", "ipopt", problem, {**IPOPT_OPTIONS, "ipopt.max_iter": cap, **bar})
     solution = solver(x0=np.clip(start, lbx, ubx), lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    if callback is not None:
+        callback.close()
     status = solver.stats()["return_status"]
     if status == "Maximum_Iterations_Exceeded" and not final:
         logger.debug("identify: the first pass of the consistent fit stopped at %s iterations", cap)

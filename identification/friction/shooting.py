@@ -23,6 +23,7 @@ simulation of the whole data set), the peer of the benchmarks, lives in
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
 
@@ -41,6 +42,9 @@ from identification.friction.shooting_nlp import assemble_shooting_nlp, build_sh
 from identification.friction.simulation import simulate_lugre
 from identification.friction.start import check_initial
 from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.ipopt_progress import progress_options
+
+logger = logging.getLogger(__name__)
 
 __all__ = ["ShootingOptions", "ShootingResult", "fit_lugre_multiple_shooting"]
 
@@ -382,7 +386,9 @@ def _solve(nlp, hess_lag, w0, n_nodes, options):
         "hessian_approximation": options.hessian,
     }
     ipopt.update(options.ipopt_options)
-    solver_options = {"ipopt": ipopt, "print_time": False}
+    sizes = (nlp["x"].numel(), nlp["g"].numel(), 0)
+    bar, callback = progress_options("lugre_progress", sizes, ipopt["max_iter"], "LuGre friction fit (Ipopt)", logger)
+    solver_options = {"ipopt": ipopt, "print_time": False, **bar}
     if options.hessian == "exact":
         solver_options["hess_lag"] = hess_lag
     solver = ca.nlpsol("lugre_shooting", "ipopt", nlp, solver_options)
@@ -393,6 +399,8 @@ def _solve(nlp, hess_lag, w0, n_nodes, options):
     solve_start = time.perf_counter()
     sol = solver(x0=w0, lbx=lbx, ubx=ubx, lbg=0, ubg=0)
     solve_seconds = time.perf_counter() - solve_start
+    if callback is not None:
+        callback.close()
     stats = solver.stats()
     status = str(stats.get("return_status", "unknown"))
     iterations = int(stats.get("iter_count", -1))

@@ -89,13 +89,22 @@ class ProgressHandler(logging.StreamHandler):
     (a new bar starts when the total changes or the count goes back); other lines print above it. Elsewhere (a
     file, a pipe, CI) a progress record is one plain line, unless it also carries ``"tick": True`` (a loop step
     worth a bar but not a log line), which prints only when ``ticks_as_lines`` (``--verbose``). With ``--quiet``
-    and ``--json`` the level is WARNING: no progress record arrives, so no bar is drawn.
+    and ``--json`` the level is WARNING: no progress record arrives, so no bar is drawn. A record with
+    ``"bar_only": True`` (an Ipopt iteration, ``psdm_casadi.ipopt_progress``) is drawn on a terminal only, with its
+    ``"postfix"`` text; one with ``"progress_end": True`` ends the bar of a loop that stopped before its total.
     """
 
     def __init__(self, stream=None, ticks_as_lines: bool = False):
         super().__init__(stream)
         self.ticks_as_lines = ticks_as_lines
         self._bar = None
+
+    def draws_progress_bars(self) -> bool:
+        """True on a terminal at INFO: the loops that log only for a bar (``ipopt_progress``) then log."""
+        try:
+            return self.level <= logging.INFO and self.stream.isatty()
+        except (AttributeError, ValueError):  # a closed or replaced stream
+            return False
 
     def emit(self, record: logging.LogRecord) -> None:
         try:
@@ -106,8 +115,13 @@ class ProgressHandler(logging.StreamHandler):
 
     def _draw(self, record: logging.LogRecord) -> None:
         done_total = getattr(record, "progress", None)
+        bar_only = getattr(record, "bar_only", False)
+        if getattr(record, "progress_end", False):  # a loop of unknown length (Ipopt's iterations) ended
+            if self._bar is not None:
+                self.close_bar()
+            return
         if done_total is None or not self.stream.isatty():
-            if done_total is not None and getattr(record, "tick", False) and not self.ticks_as_lines:
+            if done_total is not None and (bar_only or (getattr(record, "tick", False) and not self.ticks_as_lines)):
                 return
             if self._bar is not None:  # a line between two steps: print it above the bar
                 self._bar.clear()
@@ -125,6 +139,8 @@ class ProgressHandler(logging.StreamHandler):
             self._bar = tqdm(total=total, desc=self.format(record), file=self.stream, leave=leave, mininterval=0)
         else:
             self._bar.set_description_str(self.format(record), refresh=False)
+        if getattr(record, "postfix", None):
+            self._bar.set_postfix_str(record.postfix, refresh=False)
         self._bar.update(done - self._bar.n)
         if done >= total:
             self.close_bar()

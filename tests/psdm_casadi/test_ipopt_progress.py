@@ -1,0 +1,97 @@
+"""Ipopt's iterations as a progress bar (``psdm_casadi.ipopt_progress``): one step per iteration on a terminal, the
+objective and the primal infeasibility in its postfix, nothing in a file, a pipe or ``--json`` mode.
+
+The reference is Ipopt's own iteration count (``solver.stats()["iter_count"]``; its intermediate callback is
+also called once for the starting point).
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+
+import casadi as ca
+import numpy as np
+import pytest
+
+from psdm_casadi.cli.output import ProgressHandler
+from psdm_casadi.ipopt_progress import progress_options
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+class CountingHandler(ProgressHandler):
+    """The command line's handler, noting the bar's count after every record."""
+
+    def __init__(self, stream):
+        super().__init__(stream)
+        self.counts = []
+
+    def emit(self, record):
+        super().emit(record)
+        self.counts.append(None if self._bar is None else self._bar.n)
+
+
+@pytest.fixture
+def logger():
+    log = logging.getLogger("identification.test_ipopt_progress")
+    parent = logging.getLogger("identification")
+    saved = (parent.handlers[:], parent.level, parent.propagate)
+    yield log
+    parent.handlers[:], parent.level, parent.propagate = saved[0], saved[1], saved[2]
+
+
+def _install(stream, level=logging.INFO):
+    handler = CountingHandler(stream)
+    parent = logging.getLogger("identification")
+    parent.handlers[:] = [handler]
+    parent.setLevel(level)
+    parent.propagate = False
+    return handler
+
+
+def _solve(logger):
+    """Rosenbrock's valley with a circle constraint: a few dozen Ipopt iterations."""
+    x = ca.SX.sym("x", 2)
+    problem = {"x": x, "f": (1 - x[0]) ** 2 + 100 * (x[1] - x[0] ** 2) ** 2, "g": x[0] ** 2 + x[1] ** 2}
+    bar, callback = progress_options("test_progress", (2, 1, 0), 200, "test: Ipopt", logger, -np.inf, 1.5)
+    solver = ca.nlpsol("test", "ipopt", problem, {"ipopt.print_level": 0, "print_time": False,
+                                                  "ipopt.max_iter": 200, **bar})  # fmt: skip
+    solver(x0=[-1.2, 1.0], lbg=-np.inf, ubg=1.5)
+    if callback is not None:
+        callback.close()
+    return solver.stats()["iter_count"], callback
+
+
+def test_the_bar_advances_once_per_iteration_on_a_terminal(logger):
+    stream = FakeTerminal()
+    handler = _install(stream)
+    iterations, callback = _solve(logger)
+    assert callback is not None and iterations > 10
+    steps = handler.counts[:-1]  # the last record ends the bar
+    assert steps == list(range(1, iterations + 2))  # Ipopt's iterations and its starting point, one step each
+    assert handler.counts[-1] is None and handler._bar is None
+    text = stream.getvalue()
+    assert "test: Ipopt" in text and "/200" in text and "obj " in text and "inf_pr " in text
+    assert callback.seconds >= 0
+
+
+@pytest.mark.parametrize("stream, level", [(io.StringIO(), logging.INFO), (FakeTerminal(), logging.WARNING)],
+                         ids=["not a terminal", "--json or --quiet"])  # fmt: skip
+def test_nothing_is_drawn_or_paid_elsewhere(logger, stream, level):
+    _install(stream, level)
+    iterations, callback = _solve(logger)
+    assert iterations > 10 and callback is None and stream.getvalue() == ""
+
+
+def test_the_consistent_fit_shows_its_iterations(logger, denso, denso_model):
+    from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+    from tests.identification.test_envelope import _recording
+
+    stream = FakeTerminal()
+    _install(stream)
+    identify_trajectories(denso, denso_model, [_recording(denso, [])], TrajectoryOptions())
+    assert "identify: consistent fit (Ipopt)" in stream.getvalue() and "inf_pr" in stream.getvalue()
