@@ -88,11 +88,11 @@ class IpoptProgress(ca.Callback):
         self.iterations += 1
         objective = float(arg[1])
         g = np.asarray(arg[2], dtype=float).reshape(-1)
-        violation = np.concatenate([[0.0], self._lbg - g, g - self._ubg]) if g.size else np.zeros(1)
+        violation = max(np.max(self._lbg - g, initial=0.0), np.max(g - self._ubg, initial=0.0))
         self.logger.info(
             "%s", self.label,
             extra={"progress": (min(self.iterations, self.max_iter), self.max_iter), "tick": True, "bar_only": True,
-                   "postfix": f"obj {objective:.6g}, inf_pr {max(float(np.max(violation)), 0.0):.1e}"},
+                   "postfix": f"obj {objective:.6g}, inf_pr {float(violation):.1e}"},
         )  # fmt: skip
         self.seconds += time.perf_counter() - start
         return [0]

@@ -97,7 +97,7 @@ class ProgressHandler(logging.StreamHandler):
     def __init__(self, stream=None, ticks_as_lines: bool = False):
         super().__init__(stream)
         self.ticks_as_lines = ticks_as_lines
-        self._bar = None
+        self._bar = self._inner = None
 
     def draws_progress_bars(self) -> bool:
         """True on a terminal at INFO: the loops that log only for a bar (``ipopt_progress``) then log."""
@@ -110,18 +110,17 @@ class ProgressHandler(logging.StreamHandler):
         try:
             self._draw(record)
         except Exception:  # a closed or broken stream: logging's own error report, never the caller's failure
-            self._bar = None
+            self._bar = self._inner = None
             self.handleError(record)
 
     def _draw(self, record: logging.LogRecord) -> None:
         done_total = getattr(record, "progress", None)
-        bar_only = getattr(record, "bar_only", False)
-        if getattr(record, "progress_end", False):  # a loop of unknown length (Ipopt's iterations) ended
-            if self._bar is not None:
-                self.close_bar()
+        if getattr(record, "bar_only", False):
+            if self.stream.isatty():
+                self._draw_inner(record, done_total)
             return
         if done_total is None or not self.stream.isatty():
-            if done_total is not None and (bar_only or (getattr(record, "tick", False) and not self.ticks_as_lines)):
+            if done_total is not None and getattr(record, "tick", False) and not self.ticks_as_lines:
                 return
             if self._bar is not None:  # a line between two steps: print it above the bar
                 self._bar.clear()
@@ -139,11 +138,32 @@ class ProgressHandler(logging.StreamHandler):
             self._bar = tqdm(total=total, desc=self.format(record), file=self.stream, leave=leave, mininterval=0)
         else:
             self._bar.set_description_str(self.format(record), refresh=False)
-        if getattr(record, "postfix", None):
-            self._bar.set_postfix_str(record.postfix, refresh=False)
         self._bar.update(done - self._bar.n)
         if done >= total:
             self.close_bar()
+
+    def _draw_inner(self, record: logging.LogRecord, done_total) -> None:
+        """An Ipopt solve's iterations: a second bar under the loop's own bar (if one is open), drawn at most ten
+        times a second (an iteration takes milliseconds), the record's ``postfix`` beside it; ``progress_end``
+        (or a record without a count) removes it."""
+        from tqdm import tqdm
+
+        if getattr(record, "progress_end", False) or done_total is None:
+            self._close_inner()
+            return
+        done, total = (int(x) for x in done_total)
+        if self._inner is None or self._inner.total != total or done < self._inner.n:
+            self._close_inner()
+            self._inner = tqdm(total=total, desc=self.format(record), file=self.stream, leave=False,
+                               mininterval=0.1, position=0 if self._bar is None else 1)  # fmt: skip
+        if getattr(record, "postfix", None):
+            self._inner.set_postfix_str(record.postfix, refresh=False)
+        self._inner.update(done - self._inner.n)
+
+    def _close_inner(self) -> None:
+        inner, self._inner = self._inner, None
+        if inner is not None:
+            inner.close()
 
     def close_bar(self) -> None:
         """End the open bar (left on screen unless it was made of ticks)."""
@@ -153,6 +173,7 @@ class ProgressHandler(logging.StreamHandler):
 
     def close(self) -> None:
         try:
+            self._close_inner()
             self.close_bar()
         except Exception:  # the stream closed before the command's handler: nothing left to draw on
             pass

@@ -24,15 +24,16 @@ class FakeTerminal(io.StringIO):
 
 
 class CountingHandler(ProgressHandler):
-    """The command line's handler, noting the bar's count after every record."""
+    """The command line's handler, noting the Ipopt bar's count and postfix after every record."""
 
     def __init__(self, stream):
         super().__init__(stream)
-        self.counts = []
+        self.counts, self.postfixes = [], []
 
     def emit(self, record):
         super().emit(record)
-        self.counts.append(None if self._bar is None else self._bar.n)
+        self.counts.append(None if self._inner is None else self._inner.n)
+        self.postfixes.append(None if self._inner is None else self._inner.postfix)
 
 
 @pytest.fixture
@@ -73,10 +74,20 @@ def test_the_bar_advances_once_per_iteration_on_a_terminal(logger):
     assert callback is not None and iterations > 10
     steps = handler.counts[:-1]  # the last record ends the bar
     assert steps == list(range(1, iterations + 2))  # Ipopt's iterations and its starting point, one step each
-    assert handler.counts[-1] is None and handler._bar is None
-    text = stream.getvalue()
-    assert "test: Ipopt" in text and "/200" in text and "obj " in text and "inf_pr " in text
+    assert handler.counts[-1] is None and handler._inner is None
+    text = stream.getvalue()  # drawn at most ten times a second: the description and the cap at least
+    assert "test: Ipopt" in text and "/200" in text
+    assert all(p.startswith("obj ") and ", inf_pr " in p for p in handler.postfixes[:-1])
     assert callback.seconds >= 0
+
+
+def test_inside_a_loop_the_solve_draws_a_second_bar_and_leaves_the_loops(logger):
+    handler = _install(FakeTerminal())
+    logger.info("test: joint 1 of 3", extra={"progress": (1, 3)})
+    outer = handler._bar
+    iterations, _ = _solve(logger)
+    assert handler._bar is outer and outer.n == 1 and handler._inner is None  # the loop's bar stays, at its count
+    assert handler.counts[1:-1] == list(range(1, iterations + 2))
 
 
 @pytest.mark.parametrize("stream, level", [(io.StringIO(), logging.INFO), (FakeTerminal(), logging.WARNING)],
@@ -94,4 +105,4 @@ def test_the_consistent_fit_shows_its_iterations(logger, denso, denso_model):
     stream = FakeTerminal()
     _install(stream)
     identify_trajectories(denso, denso_model, [_recording(denso, [])], TrajectoryOptions())
-    assert "identify: consistent fit (Ipopt)" in stream.getvalue() and "inf_pr" in stream.getvalue()
+    assert "identify: consistent fit (Ipopt)" in stream.getvalue()
