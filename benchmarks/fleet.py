@@ -46,7 +46,7 @@ from identification.fleet.layout import read_fleet
 from identification.fleet.plan import plan_run
 from identification.fleet.runner import dask_client, run_fleet
 from identification.fleet.session import process_session
-from identification.virtual.fleet import EVENT_KINDS, UNMODELLED_KINDS, VirtualFleetOptions, write_virtual_fleet
+from identification.virtual.fleet import UNMODELLED_KINDS, VirtualFleetOptions, write_virtual_fleet
 from psdm_casadi.model_cache import ModelCache
 
 ONSET_DAYS = 3
@@ -158,9 +158,8 @@ def _diagnosis_scores(db: Path, truth: dict) -> dict:
 
 def run(args) -> dict:
     out = Path(args.keep) if args.keep else Path(tempfile.mkdtemp(prefix="psdm-fleet-"))
-    kinds = EVENT_KINDS + (UNMODELLED_KINDS if not args.no_unmodelled else ())
     options = VirtualFleetOptions(n_robots=args.robots, n_days=args.days, duration=args.duration, rate=args.rate,
-                                  kinds=kinds)  # fmt: skip
+                                  unmodelled_robots=args.unmodelled)  # fmt: skip
     start = time.perf_counter()
     truth = write_virtual_fleet(out / "fleet", options)
     generate = time.perf_counter() - start
@@ -234,7 +233,12 @@ def main(argv=None):
     parser.add_argument("--no-projection", action="store_true", help="skip the 5-minute 1 kHz robot-day")
     parser.add_argument("--no-faults", action="store_true", help="skip the fault cases")
     parser.add_argument("--fault-robots", type=int, default=3, help="robots of the fault cases' fleet copy")
-    parser.add_argument("--no-unmodelled", action="store_true", help="no unmodelled event (the six tracked kinds)")
+    parser.add_argument(
+        "--unmodelled",
+        type=int,
+        default=2,
+        help="robots with an unmodelled event (a sensor offset), after the 12 tracked-event robots",
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     args = parser.parse_args(argv)
     result = run(args)

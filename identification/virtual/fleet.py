@@ -13,7 +13,7 @@ constant.
 Events (:data:`EVENT_KINDS`), each with an onset day after the baseline window, change one true parameter:
 friction wear (Coulomb and static friction rising along a ramp), viscous rise (lubricant ageing, a ramp), a
 counterbalance losing stiffness (a step), a payload change (a step), ripple growth (a ramp) and a torque-constant
-drop (a step); with ``kinds`` including :data:`UNMODELLED_KINDS`, a current-sensor offset that no tracked
+drop (a step); with ``unmodelled_robots``, a current-sensor offset (:data:`UNMODELLED_KINDS`) that no tracked
 term models (a step: only the validation error and the automatic diagnosis see it). Robots without an event are
 healthy. :func:`write_virtual_fleet` writes the fleet folder
 (``FLEET/ROBOT/YYYY-MM-DD/health.csv``, ``robot.toml``, ``fleet.toml``) and ``truth.json`` beside it.
@@ -33,6 +33,7 @@ from identification.data.io import save_recording
 from identification.data.recording import Recording
 from identification.virtual.effects import Payload, Spring, TorqueRipple
 from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import build_pinocchio_model
 from psdm_casadi.robot import load_robot
 from psdm_casadi.robot_writer import write_robot_file
@@ -57,8 +58,11 @@ RAMPS = ("friction_wear", "viscous_rise", "ripple_growth")
 class VirtualFleetOptions:
     """Size, motion, spread, noise and events of a virtual fleet (module docstring).
 
-    ``event_robots`` robots carry one event each (kinds in turn); the others are healthy. ``sizes`` are the
-    relative changes at the last day (ramps) or from the onset (steps); the payload change is in kg.
+    ``event_robots`` robots carry one event each (``kinds`` in turn), the next ``unmodelled_robots`` robots a
+    ``sensor_offset`` each (drawn from a generator of its own, ``seed + 1``, so that the other robots are the same
+    with or without them; on a joint without a tracked spring, whose preload would take the offset up); the others
+    are healthy. ``sizes`` are the relative changes at the last day (ramps) or from the onset (steps); the payload
+    change is in kg; the sensor offset is a fraction of the joint's Coulomb friction.
     """
 
     n_robots: int = 20
@@ -81,9 +85,16 @@ class VirtualFleetOptions:
     baseline_days: int = 7
     event_robots: int | None = None
     kinds: tuple = EVENT_KINDS
+    unmodelled_robots: int = 0
     sizes: tuple = (("friction_wear", 0.5), ("viscous_rise", 0.4), ("spring_loss", -0.3), ("payload_change", 2.0),
                     ("ripple_growth", 2.0), ("kt_drop", -0.1), ("sensor_offset", 0.5))  # fmt: skip
     seed: int = 0
+
+    def __post_init__(self):
+        unknown = [k for k in self.kinds if k not in EVENT_KINDS]
+        if unknown:
+            raise ParameterError(f"VirtualFleetOptions.kinds must be among {EVENT_KINDS}; got {unknown}. Unmodelled "
+                                 "events go on their own robots: unmodelled_robots=N.")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -116,6 +127,21 @@ def health_check_motion(robot, duration: float, rate: float) -> tuple:
     return t, q, qd, qdd
 
 
+def _unmodelled(options: VirtualFleetOptions, ids: list, n_dof: int) -> list:
+    """The ``sensor_offset`` events of the ``unmodelled_robots`` robots after the event robots."""
+    rng = np.random.default_rng(options.seed + 1)
+    n_events = options.event_robots if options.event_robots is not None else min(len(ids), 2 * len(options.kinds))
+    free = [j for j in range(1, n_dof + 1) if j != options.spring_joint]
+    events = []
+    for robot_id in ids[n_events : n_events + options.unmodelled_robots]:
+        onset = int(rng.integers(options.baseline_days + 2, max(options.baseline_days + 3, options.n_days - 4)))
+        joint = int(rng.choice(free))
+        day = (dt.date.fromisoformat(options.start) + dt.timedelta(days=onset)).isoformat()
+        events.append(FleetEvent(robot_id, "sensor_offset", joint, onset, day, f"rmse_{joint}",
+                                 dict(options.sizes)["sensor_offset"]))  # fmt: skip
+    return events
+
+
 def _events(options: VirtualFleetOptions, ids: list, rng) -> list:
     kinds = options.kinds
     n_events = options.event_robots if options.event_robots is not None else min(len(ids), 2 * len(kinds))
@@ -130,8 +156,7 @@ def _events(options: VirtualFleetOptions, ids: list, rng) -> list:
                  "kt_drop": int(rng.integers(1, 4))}.get(kind, int(rng.integers(1, 7)))  # fmt: skip
         parameter = {"friction_wear": f"fc{joint}", "viscous_rise": f"fv{joint}", "spring_loss": f"spring_k_{joint}",
                      "payload_change": "payload_mass", "kt_drop": f"kt{joint}",
-                     "ripple_growth": f"ripple_amp{options.ripple_harmonic}_{joint}",
-                     "sensor_offset": f"rmse_{joint}"}[kind]  # fmt: skip
+                     "ripple_growth": f"ripple_amp{options.ripple_harmonic}_{joint}"}[kind]  # fmt: skip
         day = (dt.date.fromisoformat(options.start) + dt.timedelta(days=onset)).isoformat()
         events.append(FleetEvent(robot_id, kind, joint, onset, day, parameter, sizes[kind]))
     return events
@@ -233,7 +258,7 @@ def write_virtual_fleet(folder, options: VirtualFleetOptions | None = None) -> d
     rng = np.random.default_rng(options.seed)
     robot = load_robot(options.robot)
     ids = [f"r{k + 1:02d}" for k in range(options.n_robots)]
-    events = _events(options, ids, rng)
+    events = _events(options, ids, rng) + _unmodelled(options, ids, robot.n_dof)
     motion = health_check_motion(robot, options.duration, options.rate)
     (folder / "fleet.toml").write_text(_fleet_toml(options))
     start = dt.date.fromisoformat(options.start)

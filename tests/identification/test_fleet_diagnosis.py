@@ -24,9 +24,9 @@ from identification.virtual.fleet import VirtualFleetOptions, write_virtual_flee
 from psdm_casadi.errors import ParameterError
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
-# r01: an unmodelled current-sensor offset from day 8; r02: Coulomb friction wear (tracked) from day 8; r03 healthy
-EVENTS = VirtualFleetOptions(n_robots=3, n_days=9, duration=6.0, baseline_days=5,
-                             kinds=("sensor_offset", "friction_wear"), event_robots=2, seed=1)  # fmt: skip
+# r01: Coulomb friction wear (tracked); r02: an unmodelled current-sensor offset; r03 healthy
+EVENTS = VirtualFleetOptions(n_robots=3, n_days=9, duration=6.0, baseline_days=5, kinds=("friction_wear",),
+                             event_robots=1, unmodelled_robots=1, seed=1)  # fmt: skip
 
 
 def test_false_alarm_rate_of_the_day_check_is_its_alpha(rng):
@@ -55,31 +55,33 @@ def fleet_run(tmp_path_factory, denso_model):
 
 def test_an_unmodelled_event_is_diagnosed_and_healthy_robots_are_not(fleet_run):
     folder, truth, _, summary = fleet_run
-    offset, wear = truth["events"]
-    assert (offset["kind"], wear["kind"], summary.failed) == ("sensor_offset", "friction_wear", 0)
+    wear, offset = truth["events"]
+    assert (wear["robot_id"], offset["robot_id"], truth["healthy"]) == ("r01", "r02", ["r03"])
+    assert (wear["kind"], offset["kind"], summary.failed) == ("friction_wear", "sensor_offset", 0)
     with History(folder / "h.duckdb") as history:
         checks = {(r[0], str(r[1])): r for r in history.checks()}
         diagnoses = history.diagnoses()
     assert len(checks) == 3 * (EVENTS.n_days - EVENTS.baseline_days)  # every day after the window is checked
-    after = {(rid, day) for rid, day in checks if day >= offset["onset"] and rid != "r03"}
+    offset_days = {k for k in checks if k[0] == "r02" and k[1] >= offset["onset"]}
+    wear_days = {k for k in checks if k[0] == "r01" and k[1] >= wear["onset"]}
+    assert offset_days and wear_days
     for key, row in checks.items():
-        if key[0] == "r02" and key in after:  # the wear rises the baseline's error; the refit explains most of it
-            assert row[2] in ("explained", "unexplained") and row[3] == str(wear["joint"]), row
+        if key in wear_days:  # the wear raises the baseline's error; the refit explains most of it
+            assert row[2] == "quiet" or row[3] == str(wear["joint"]), row
         else:
-            assert row[2] == ("unexplained" if key in after else "quiet"), row
+            assert row[2] == ("unexplained" if key in offset_days else "quiet"), row
     named = {(d[0], str(d[1])) for d in diagnoses}
-    assert {k for k in after if k[0] == "r01"} <= named <= after  # never on a healthy robot or a quiet day
-    diagnoses = [d for d in diagnoses if d[0] == "r01"]
-    true_offset = 0.5 * truth["truth"]["r01"]["fc"][offset["joint"] - 1]
-    for robot_id, _, effect, _, joints, parameters, gain, text in diagnoses:
-        assert (robot_id, effect, joints) == ("r01", "torque_offset", str(offset["joint"])), text
+    assert offset_days <= named <= offset_days | wear_days  # never on a healthy robot or a quiet day
+    true_offset = 0.5 * truth["truth"]["r02"]["fc"][offset["joint"] - 1]
+    for _, _, effect, _, joints, parameters, gain, text in (d for d in diagnoses if d[0] == "r02"):
+        assert (effect, joints) == ("torque_offset", str(offset["joint"])), text
         assert abs(parameters["offset"] - true_offset) < 0.1 * true_offset and gain > 0.5
 
 
 def test_dask_runs_the_diagnosis_in_the_task_and_equals_serial(fleet_run, denso_model, tmp_path):
-    """r01 alone (its window, then its later days with the diagnosis, on two workers): as the serial run."""
+    """r02 alone (its window, then its later days with the diagnosis, on two workers): as the serial run."""
     folder = fleet_run[0]
-    shutil.copytree(folder / "fleet" / "r01", tmp_path / "fleet" / "r01")
+    shutil.copytree(folder / "fleet" / "r02", tmp_path / "fleet" / "r02")
     shutil.copy(folder / "fleet" / "fleet.toml", tmp_path / "fleet")
     with dask_client(workers=2) as client:
         run_fleet(read_fleet(tmp_path / "fleet"), tmp_path / "dask.duckdb", derive=lambda robot: denso_model,
@@ -87,8 +89,8 @@ def test_dask_runs_the_diagnosis_in_the_task_and_equals_serial(fleet_run, denso_
     rows = []
     for db in (folder / "h.duckdb", tmp_path / "dask.duckdb"):
         with History(db) as history:
-            rows.append(([c for c in history.checks() if c[0] == "r01"],
-                         [d[:6] for d in history.diagnoses() if d[0] == "r01"]))  # fmt: skip
+            rows.append(([c for c in history.checks() if c[0] == "r02"],
+                         [d[:6] for d in history.diagnoses() if d[0] == "r02"]))  # fmt: skip
     (checks_a, diag_a), (checks_b, diag_b) = rows
     assert [c[:4] for c in checks_a] == [c[:4] for c in checks_b] and diag_a == diag_b and diag_a
     assert np.allclose([c[4:7] for c in checks_a], [c[4:7] for c in checks_b], rtol=1e-12)
@@ -101,7 +103,7 @@ def test_status_and_report_show_the_diagnosis_and_link_every_day(fleet_run, tmp_
     db = folder / "h.duckdb"
     assert main(["fleet", "status", "--db", str(db), "--json"]) == 0
     robots = {r["robot_id"]: r for r in json.loads(capsys.readouterr().out)["robots"]}
-    assert robots["r01"]["status"] == "alarm" and "torque offset on joint" in robots["r01"]["diagnoses"][0]
+    assert robots["r02"]["status"] == "alarm" and "torque offset on joint" in robots["r02"]["diagnoses"][0]
     assert robots["r03"]["diagnoses"] == [] and robots["r03"]["status"] == "ok"
     report = tmp_path / "out" / "fleet.html"  # elsewhere than the history: the links are relative to the page
     report.parent.mkdir()
@@ -113,7 +115,7 @@ def test_status_and_report_show_the_diagnosis_and_link_every_day(fleet_run, tmp_
     for _, href in hrefs:
         assert (report.parent / href).resolve().is_file(), href
     assert sum(kind == "unexplained" for kind, _ in hrefs) >= 2 and "diagnosis: torque offset" in page
-    day = day_report_path(db, "r01", "2026-10-09").read_text()
+    day = day_report_path(db, "r02", "2026-10-09").read_text()
     assert "<b>unexplained</b>" in day and "torque_offset" in day and "<svg" in day and "<script" not in day
 
 
@@ -121,7 +123,7 @@ def test_status_and_report_show_the_diagnosis_and_link_every_day(fleet_run, tmp_
     CHROMIUM is None, reason="no Chromium on this machine (apt-get install chromium) to render the page"
 )
 def test_a_day_page_renders_in_headless_chromium(fleet_run):
-    page = day_report_path(fleet_run[0] / "h.duckdb", "r01", "2026-10-09")
+    page = day_report_path(fleet_run[0] / "h.duckdb", "r02", "2026-10-09")
     done = subprocess.run(
         [CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr", "--v=0",
          "--virtual-time-budget=2000", "--dump-dom", page.as_uri()],
