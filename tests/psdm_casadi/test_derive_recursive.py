@@ -6,6 +6,7 @@ parameters, of its gravity columns the number of gravity ones) and, on the Denso
 of the paper (the same base-parameter space).
 """
 
+import logging
 import time
 from pathlib import Path
 
@@ -172,3 +173,14 @@ def test_a_thirty_joint_arm_derives_in_polynomial_time(rng):
     assert time.perf_counter() - start < 60.0
     assert _torque_error(model, robot, rng, n_states=60) < 1e-12
     assert (model.n_base, model.n_gravity) == _pinocchio_ranks(robot, rng, n_states=40)
+
+
+def test_the_model_cache_keeps_a_model_without_table(tree, tree_model, caplog):
+    from psdm_casadi.model_cache import ModelCache
+
+    cache = ModelCache()
+    first = cache.derive(tree)
+    with caplog.at_level(logging.INFO, logger="psdm_casadi.model_cache"):
+        again = cache.derive(tree)
+    assert "read from the cache" in caplog.text  # a model file of version 2, read back
+    assert first == again == tree_model and not again.has_monomials
