@@ -78,16 +78,32 @@ def test_the_urdf_is_read_for_its_kinematics_with_its_unusable_inertias_named(ro
         np.testing.assert_array_equal(robot.links[joint].com, urdf.links[joint].com)
 
 
+def test_run_trajectory1s_dead_sensor_channel_is_found_and_only_joint_1_is_left_out(robot):
+    from identification.data.missing_torque import find_missing_torque
+
+    columns = ColumnLayout.parse("t=Time,q=Position,tau=TorqueSm")
+    run = find_missing_torque(load_robot_recording(KINOVA / "RunTrajectory1.csv", robot, columns=columns))
+    assert run.missing_torque == ((0, "zero in every sample"),)  # README: TorqueSm1 is zero in RunTrajectory1
+    assert np.all(np.isnan(run.tau[:, 0])) and np.all(np.isfinite(run.tau[:, 1:])) and np.ptp(run.tau[:, 1]) > 1
+    with pytest.raises(RecordingError, match=r"Trajectory1.csv: no joint's torque is measured \(every column is zero"):
+        find_missing_torque(load_robot_recording(KINOVA / "Trajectory1.csv", robot, columns=columns))
+
+
 @pytest.mark.slow
 def test_identify_on_defaults_from_the_sensors_is_plausible_and_no_link_is_at_a_mass_bound(robot, tmp_path, capsys):
     out = tmp_path / "sensor.json"
-    argv = ["identify", robot.source, "--data", str(KINOVA / "opti_traj_testing1.csv"), "--validate",
+    argv = ["identify", robot.source, "--data", str(KINOVA / "opti_traj_testing1.csv"),
+            str(KINOVA / "RunTrajectory1.csv"), "--validate",
             str(KINOVA / "opti_traj_testing2.csv"), "--columns", "t=Time,q=Position,tau=TorqueSm", "--out", str(out),
             "--json"]  # fmt: skip
     assert main(argv) == 0
     report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
     assert report["consistent"]
     assert not any("is unusable" in w for w in report["warnings"])  # the example states those inertias
+    assert (
+        "RunTrajectory1.csv: joint 1 (joint_1) has no torque measurement (zero in every sample)"
+        in (report["warnings"][0])
+    )
     validation = report["validation"][0]
     rmse, prior = np.array(validation["rmse"]), np.array(validation["rmse_prior"])
     assert np.all(rmse[1:4] < prior[1:4])
