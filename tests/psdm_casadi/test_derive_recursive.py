@@ -184,3 +184,17 @@ def test_the_model_cache_keeps_a_model_without_table(tree, tree_model, caplog):
         again = cache.derive(tree)
     assert "read from the cache" in caplog.text  # a model file of version 2, read back
     assert first == again == tree_model and not again.has_monomials
+
+
+def test_a_small_tree_in_both_forms(rng):
+    """1 + 2 + 2 joints (the torso's arms locked beyond their second joint): the sum form and the recursive one."""
+    locks = {f"{side}_panda_joint{k}": (-1.5 if k == 4 else 0.3) for side in ("left", "right") for k in range(3, 8)}
+    robot = load_robot(EXAMPLES / "dual_arm_torso.urdf", locked_joints=locks)
+    sum_form, recursive = derive_psdm(robot), derive_psdm(robot, DeriveOptions(form="recursive"))
+    assert robot.n_dof == 5 and sum_form.has_monomials and not recursive.has_monomials
+    assert (
+        (sum_form.n_base, sum_form.n_gravity) == (recursive.n_base, recursive.n_gravity) == _pinocchio_ranks(robot, rng)
+    )
+    both = np.vstack([sum_form.parameter_map, recursive.parameter_map])
+    assert np.linalg.matrix_rank(both, tol=1e-8 * np.abs(both).max()) == sum_form.n_base
+    assert max(_torque_error(sum_form, robot, rng), _torque_error(recursive, robot, rng)) < 1e-12
