@@ -198,3 +198,15 @@ def test_a_small_tree_in_both_forms(rng):
     both = np.vstack([sum_form.parameter_map, recursive.parameter_map])
     assert np.linalg.matrix_rank(both, tol=1e-8 * np.abs(both).max()) == sum_form.n_base
     assert max(_torque_error(sum_form, robot, rng), _torque_error(recursive, robot, rng)) < 1e-12
+
+
+def test_base_parameters_from_the_free_directions_when_no_coordinate_fits(denso, denso_model, monkeypatch, rng):
+    """The fallback of assumptions not aligned with joint-frame coordinates: the preimage from the free directions."""
+    import psdm_casadi.column_space
+
+    monkeypatch.setattr(psdm_casadi.column_space, "_inside", lambda columns, space: np.zeros(columns.shape[1], bool))
+    model = derive_psdm(denso, DeriveOptions(form="recursive"))
+    assert (model.n_base, model.n_gravity) == (32, 9)
+    assert _torque_error(model, denso, rng) < 1e-12
+    both = np.vstack([denso_model.parameter_map, model.parameter_map])
+    assert np.linalg.matrix_rank(both, tol=1e-8 * np.abs(both).max()) == 32
