@@ -248,7 +248,8 @@ class PSDMModel:
         return {
             "robot": self.robot_name,
             "n_dof": self.n_dof,
-            "p": self.n_functions,
+            "form": "sum" if self.has_monomials else "recursive",
+            "p": self.n_functions if self.has_monomials else None,
             "l": self.n_base,
             "n_gravity": self.n_gravity,
         }
