@@ -129,11 +129,12 @@ def link_is_free(model, link: int) -> bool:
     return bool(np.any(block))
 
 
-def _solve(problem, start, bounds, final=True):
+def _solve(problem, start, bounds, final=True, warn=True):
     """Ipopt from ``start`` within ``bounds`` ``(lbx, ubx, lbg, ubg)``: (solution, status).
 
     The first of the two passes only sets the second's weights: a stop at ``FIRST_PASS_MAX_ITER`` iterations there
-    is not warned about (a link pressed against its envelope creeps towards the chart's boundary for long).
+    is not warned about (a link pressed against its envelope creeps towards the chart's boundary for long), nor
+    anywhere when ``warn`` is off (a fit that only judges, such as the diagnosis's ``envelope_check``).
     """
     cap = IPOPT_OPTIONS["ipopt.max_iter"] if final else min(FIRST_PASS_MAX_ITER, IPOPT_OPTIONS["ipopt.max_iter"])
     lbx, ubx, lbg, ubg = bounds
@@ -145,7 +146,7 @@ def _solve(problem, start, bounds, final=True):
     if callback is not None:
         callback.close()
     status = solver.stats()["return_status"]
-    if status == "Maximum_Iterations_Exceeded" and not final:
+    if status == "Maximum_Iterations_Exceeded" and not (final and warn):
         logger.debug("identify: the first pass of the consistent fit stopped at %s iterations", cap)
     elif status == "Maximum_Iterations_Exceeded":  # every iterate of the chart is consistent: keep it, marked
         logger.warning(
@@ -218,13 +219,15 @@ def _variable_bounds(n_phi, names, drive_lower, bounds):
     return lower, upper
 
 
-def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, payload_prior=None, bounds=None):
+def consistent_fit(
+    robot, model, equations, sigma, names, options, drive_lower, payload_prior=None, bounds=None, warn=True
+):
     """(standard (n_dof, 11), drive, payloads (k, 10), Ipopt status, bounds): the consistent step (module docstring).
 
     ``equations`` hold the columns ``[base, drive (names), payload_1 (10), ..., payload_k (10)]``;
     ``payload_prior`` (k, 10) are the unknown payloads' start and pull targets (consistent bodies); ``bounds``
     (``FitBounds``, default :func:`fit_bounds` of ``options``) hold the links in their envelopes and come back
-    with the data's ``pressure`` on each.
+    with the data's ``pressure`` on each. ``warn=False`` logs a stop at Ipopt's iteration cap at DEBUG only.
     """
     n = robot.n_dof
     bounds = fit_bounds(robot, model, options) if bounds is None else bounds
@@ -268,7 +271,7 @@ def consistent_fit(robot, model, equations, sigma, names, options, drive_lower, 
             "f": residual + options.prior_weight * pull,
             "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         }
-        solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper), final)
+        solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper), final, warn)
         x_opt = np.clip(np.asarray(solution["x"]).reshape(-1), lower, upper)  # Ipopt may end a hair outside a bound
         w = 1.0 / residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
     values, _, bodies_opt = (np.asarray(v) for v in evaluate(x_opt))

@@ -22,6 +22,7 @@ from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import DiagnosisContext, build_context
+from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
@@ -99,6 +100,11 @@ class DiagnosisOptions:
         stays structured after the library's terms, reported as an unnamed effect with its formula.
     sparse_min_gain : float
         Validation RMSE reduction (fraction) of its joint a sparse term must show to be kept.
+    envelope : bool
+        With ``rigid_body="auto"``: a finding the free rigid-body recalibration makes unnecessary still stands where a
+        rigid body recalibrated inside its physical envelope, as ``psdm identify`` fits it, needs it
+        (``envelope_check``: a counterbalance that only a link twice as heavy with its centre of mass outside the link
+        absorbs); False judges against the free recalibration alone.
     cv_folds : int
         With one validation recording, the second opinion on each finding (``second_opinion``): the training recording
         is cut into this many contiguous blocks, each held out once, and a finding must hold on every block; 0 turns
@@ -121,6 +127,7 @@ class DiagnosisOptions:
     sparse: bool = True
     sparse_min_gain: float = 0.3
     cv_folds: int = 4
+    envelope: bool = True
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (
@@ -324,7 +331,9 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
             return chosen, refine_terms(problem, chosen, again)
 
         library = (options.library or default_library()).expand(robot.n_dof)
-        fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal)
+        contexts, friction = (recal.ctx_t, recal.ctx_v), (problem.base_t, problem.base_v)
+        envelope = EnvelopedRecalibration(robot, model, contexts, friction).check if options.envelope else None
+        fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal, envelope)
         for note in fit[2]:
             logger.info(f"diagnose: {note}")
         return problem, fit[0], fit[1], prior, fit[2], IdentifiedDiagnosis(recal, selection_i, final_i, identified)

@@ -126,7 +126,7 @@ def inertia_in_question(selection) -> bool:
     return any(step.term.key in INERTIAL_TERMS for step in selection.steps)
 
 
-def standing_in(claims, supporting, rmse_prior, rmse_recalibrated) -> tuple:
+def standing_in(claims, supporting, rmse_prior, rmse_recalibrated, needed=()) -> tuple:
     """The prior model's findings (``claims``, ``Claim`` values) that only stand in for its wrong inertia: ``(joints,
     keys)``, the joints of the per-joint ones and the effect keys of the robot-wide ones.
 
@@ -135,14 +135,16 @@ def standing_in(claims, supporting, rmse_prior, rmse_recalibrated) -> tuple:
     validation recording better than the recalibrated one by ``STAND_IN_MARGIN`` (a robot-wide finding, such as a
     base tilt, needs the same effect kept with the rigid body identified); inertial findings always stand. Otherwise
     it only mimics the wrong prior (CAD inertia 10-20 % off leaves a torque that a spring, an offset, a base tilt or
-    an unnamed sparse term fits in part). ``rmse_*`` are the per-joint validation RMSE of the two fits."""
+    an unnamed sparse term fits in part). ``rmse_*`` are the per-joint validation RMSE of the two fits. A finding
+    among the ``needed`` claims stands too: a rigid body recalibrated inside its physical envelope still needs it
+    (``envelope_check``), so only a rigid body no arm has would do its work."""
     supported = {j for claim in supporting for j in claim.joints}
     supported_keys = {claim.key for claim in supporting}
     joints, keys = set(), set()
     for claim in claims:
         found = any(j in supported for j in claim.joints) if claim.per_joint else claim.key in supported_keys
         better = any(rmse_prior[j] <= (1.0 - STAND_IN_MARGIN) * rmse_recalibrated[j] for j in claim.joints)
-        if claim.key in INERTIAL_TERMS or found or better:
+        if claim.key in INERTIAL_TERMS or found or better or claim in needed:
             continue
         if claim.per_joint:
             joints.update(claim.joints)
@@ -151,16 +153,16 @@ def standing_in(claims, supporting, rmse_prior, rmse_recalibrated) -> tuple:
     return tuple(sorted(joints)), tuple(sorted(keys))
 
 
-def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated) -> tuple:
+def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, needed=()) -> tuple:
     """The non-inertial findings of the prior model's ``selection`` that only stand in for its wrong inertia, when
     the prior wins: ``(joints, keys)`` of ``standing_in``, judged against ``selection_identified`` (the selection with
     the rigid body identified), and only when the prior model kept an inertial finding (``inertia_in_question``).
-    ``rmse_*`` are the per-joint validation RMSE of the two fits (``prior_wins``)."""
+    ``rmse_*`` are the per-joint validation RMSE of the two fits (``prior_wins``); ``needed`` as in ``standing_in``."""
     if not inertia_in_question(selection):
         return (), ()
     claims = [Claim.of_step(step) for step in selection.steps]
     supporting = [Claim.of_step(step) for step in selection_identified.steps]
-    return standing_in(claims, supporting, rmse_prior, rmse_recalibrated)
+    return standing_in(claims, supporting, rmse_prior, rmse_recalibrated, needed)
 
 
 def stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action: str) -> str:
@@ -185,16 +187,21 @@ def without_stand_ins(instances, joints, keys=()) -> tuple:
     )
 
 
-def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation, rmse_recalibrated) -> tuple:
+def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation, rmse_recalibrated, envelope=None):
     """The prior fit without the findings that stand in for its wrong inertia (``stand_ins``): ``(selection, final,
     notes)``. ``reselect(instances)`` runs the prior diagnosis's selection and final fit on the candidate
     ``instances``; ``fit`` is its ``(selection, final)`` on all of them. Up to ``STAND_IN_PASSES`` rounds, since a
-    new selection may take another stand-in."""
+    new selection may take another stand-in. ``envelope(selection, joints)``, when given, is the
+    ``envelope_check.EnvelopeCheck`` of the findings on ``joints`` that would be dropped: those it needs stand."""
     selection, final = fit
     notes = []
     for _ in range(STAND_IN_PASSES):
         rmse_prior = rmse(y_validation, final.prediction_v)
         joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated)
+        check = envelope(selection, joints) if envelope is not None and joints else None
+        if check is not None and check.needed:
+            notes.extend(note for note in check.notes() if note not in notes)
+            joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, check.claims)
         if not (joints or keys):
             break
         kept = set(without_stand_ins([step.term for step in selection.steps], joints, keys))

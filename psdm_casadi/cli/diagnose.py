@@ -73,6 +73,13 @@ def register(subparsers) -> None:
         "inertial parameters are off; prior: keep the robot file's inertia; identified: identify them too",
     )
     p.add_argument(
+        "--no-envelope",
+        action="store_true",
+        help="with --rigid-body auto: judge the findings against the free rigid-body recalibration only (by default a "
+        "finding it makes unnecessary still stands where a rigid body recalibrated inside its physical envelope, as "
+        "'psdm identify' fits it, needs it: a counterbalance only a link twice as heavy would absorb)",
+    )
+    p.add_argument(
         "--no-sparse",
         action="store_true",
         help="do not look beyond the library (no sparse symbolic term for a residual that stays structured)",
@@ -151,6 +158,7 @@ def _run_diagnose(args) -> int:
         max_effects=args.max_effects,
         max_samples=args.max_samples,
         sparse=not args.no_sparse,
+        envelope=not args.no_envelope,
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     report = diagnose(robot, train, validations, options, model=model, derive=lambda r: derive_model(args, r))
