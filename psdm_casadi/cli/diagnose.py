@@ -28,6 +28,12 @@ VALIDATE_HELP = (
     "opinion. Findings that flip are listed as unstable, not as missing physics"
 )
 
+ENVELOPE_HELP = (
+    "with --rigid-body auto: judge the findings against the free rigid-body recalibration only (by default a finding "
+    "it makes unnecessary still stands where a rigid body recalibrated inside its physical envelope, as 'psdm "
+    "identify' fits it, needs it: a counterbalance only a link twice as heavy would absorb)"
+)
+
 
 def register(subparsers) -> None:
     """Add ``diagnose`` to the ``psdm`` parser."""
@@ -72,13 +78,7 @@ def register(subparsers) -> None:
         "validation recording, otherwise the base parameters are identified and the report says the robot file's "
         "inertial parameters are off; prior: keep the robot file's inertia; identified: identify them too",
     )
-    p.add_argument(
-        "--no-envelope",
-        action="store_true",
-        help="with --rigid-body auto: judge the findings against the free rigid-body recalibration only (by default a "
-        "finding it makes unnecessary still stands where a rigid body recalibrated inside its physical envelope, as "
-        "'psdm identify' fits it, needs it: a counterbalance only a link twice as heavy would absorb)",
-    )
+    p.add_argument("--no-envelope", action="store_true", help=ENVELOPE_HELP)
     p.add_argument(
         "--no-sparse",
         action="store_true",
