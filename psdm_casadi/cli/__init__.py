@@ -18,6 +18,7 @@ import argparse
 import logging
 import sys
 
+from psdm_casadi.cli.blas_threads import blas_thread_limit
 from psdm_casadi.cli.checks import check_seed
 from psdm_casadi.cli.interrupts import InterruptGuard
 from psdm_casadi.cli.output import (
@@ -124,7 +125,7 @@ def main(argv=None) -> int:
     configure_logging(_log_level(args))
     reset_json()
     try:
-        with InterruptGuard():
+        with InterruptGuard(), blas_thread_limit():
             check_seed(getattr(args, "seed", None))
             code = int(args.handler(args) or 0)
             sys.stdout.flush()  # a closed stdout shows here, not in Python's flush at exit
