@@ -53,6 +53,16 @@ ONSET_DAYS = 3
 
 
 def _peak_mb() -> float:
+    """This process's peak resident memory [MB]: Linux's VmHWM (``ru_maxrss`` keeps, across the exec that starts
+    a Dask worker, the resident size of the process it was forked from: the worker would be charged for its
+    parent), else ``ru_maxrss``."""
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except OSError:
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
