@@ -65,8 +65,10 @@ def new_payload(robot, prepared, predicted, name: str | None = None) -> NewPaylo
     """The :class:`NewPayload` a prepared recording appears to carry beyond ``predicted`` (the model's torques on
     its samples), or None when the residual does not show one (module docstring)."""
     residual = np.asarray(prepared.tau, dtype=float) - np.asarray(predicted, dtype=float)
+    measured = np.all(np.isfinite(residual), axis=0)  # a joint without torque (NaN): no weight
+    residual = np.where(measured, residual, 0.0)
     columns = FlangeRegressor(robot)(prepared.q, prepared.qd, prepared.qdd)  # (samples, joints, 10)
-    weights = 1.0 / np.maximum(residual.var(axis=0), 1e-300)
+    weights = np.where(measured, 1.0 / np.maximum(residual.var(axis=0), 1e-300), 0.0)
     gram = np.einsum("n,snc,snd->cd", weights, columns, columns)
     moment = np.einsum("n,snc,sn->c", weights, columns, residual)
     estimable = Estimable(gram)

@@ -103,7 +103,7 @@ def stated_missing_torque(recording: Recording, path, stated: dict) -> Recording
 def require_torque(recording: Recording, joint_names, command: str) -> Recording:
     """``recording`` if every joint's torque is measured; else RecordingError naming the joint, why and the route.
 
-    For the commands that judge every joint of a recording together (``psdm validate``, ``psdm diagnose``).
+    For the commands that judge every joint of a recording together (``psdm diagnose``).
     """
     recording = find_missing_torque(recording)
     if recording.missing_torque:

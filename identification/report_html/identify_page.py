@@ -142,7 +142,8 @@ def _validation_tables(validation, names) -> str:
     parts = []
     for entry in validation:
         columns = [(k, label) for k, label in VALIDATION_COLUMNS if k in entry]
-        rows = [[name] + [float(entry[k][j]) for k, _ in columns] for j, name in enumerate(names)]
+        rows = [[name] + [np.nan if entry[k][j] is None else float(entry[k][j]) for k, _ in columns]  # None: no torque
+                for j, name in enumerate(names)]  # fmt: skip
         headers = ["joint"] + [f"{label}" + ("" if k == "r2" else " RMSE [N m]") for k, label in columns]
         parts.append(f"<h3>{html.escape(Path(entry['recording']).name)}</h3>" + table(headers, rows))
     return "".join(parts)

@@ -68,7 +68,7 @@ def _run_validate(args) -> int:
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.data.configuration import stated_configuration
-    from identification.data.missing_torque import require_torque
+    from identification.data.missing_torque import find_missing_torque, missing_torque_messages
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import read_calibrated_argument
 
@@ -92,8 +92,11 @@ def _run_validate(args) -> int:
         plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
     args.recordings = grouped
     recordings = [load_robot_recording(path, robot, args.topic, layout) for path in args.recordings]
+    recordings = [find_missing_torque(r) for r in recordings]  # a dead torque channel: that joint left out, named
+    for message in missing_torque_messages(recordings, robot.joint_names, "validation"):
+        warnings.append(message)
+        print(f"psdm validate: warning: {message}", file=sys.stderr)
     for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
-        require_torque(recording, robot.joint_names, "validate")  # a dead torque channel: refused, named
         check_validation_recording(robot, recording)
     rows = []
     for path, recording in zip(args.recordings, recordings):
@@ -105,7 +108,7 @@ def _run_validate(args) -> int:
             robot, calibrated, model, recording, _torque_constants(robot, recording), stated
         )
         load = new_payload(robot, prepared, predicted, name=str(path))  # a load the model does not have
-        rows.append({"recording": str(path), "rmse": np.atleast_1d(error).tolist(), "r2": np.atleast_1d(r2).tolist(),
+        rows.append({"recording": str(path), "rmse": _numbers(error), "r2": _numbers(r2),
                      "prepared": prepared, "predicted": predicted, "payload": load,
                      "stated_payload_kg": None if stated is None else float(stated[0])})  # fmt: skip
     if predictions is not None:
@@ -131,6 +134,15 @@ def _run_validate(args) -> int:
     return EXIT_OK
 
 
+def _numbers(values) -> list:
+    """Per joint, the value, or None for a joint whose torque the recording does not measure (NaN)."""
+    return [float(v) if np.isfinite(v) else None for v in np.atleast_1d(values)]
+
+
+def _shown(value, spec: str) -> str:
+    return "-" if value is None else format(value, spec)
+
+
 def _json_row(row) -> dict:
     """A recording's entry of the JSON output: RMSE, R^2, and the payload it appears to carry (or null)."""
     load = row["payload"]
@@ -143,7 +155,8 @@ def validation_table(recording: str, joint_names, rmse, r2) -> str:
     """One recording's per-joint RMSE and R^2, a joint a row, its name whole (URDF names are long)."""
     width = max(5, *(len(name) for name in joint_names))
     lines = [f"{recording}:", f"  {'joint':<{width}}  {'RMSE [N m]':>10}  {'R^2':>8}"]
-    lines += [f"  {name:<{width}}  {e:10.4g}  {r:8.4f}" for name, e, r in zip(joint_names, rmse, r2)]
+    lines += [f"  {name:<{width}}  {_shown(e, '10.4g'):>10}  {_shown(r, '8.4f'):>8}"
+              for name, e, r in zip(joint_names, rmse, r2)]  # fmt: skip
     return "\n".join(lines)
 
 
@@ -194,7 +207,9 @@ def _plot(path, row, joint_names) -> None:
         ax.plot(prepared.t, prepared.tau[:, j], lw=0.8, label="recorded")
         ax.plot(prepared.t, predicted[:, j], lw=0.8, label="model")
         ax.set_ylabel(f"{joint_names[j]} [N m]", fontsize=7)
-        ax.set_title(f"RMSE {row['rmse'][j]:.3g}, R^2 {row['r2'][j]:.3f}", fontsize=7, loc="right")
+        ax.set_title(
+            f"RMSE {_shown(row['rmse'][j], '.3g')}, R^2 {_shown(row['r2'][j], '.3f')}", fontsize=7, loc="right"
+        )
     axes[0, 0].legend(fontsize=7)
     axes[-1, 0].set_xlabel("t [s]")
     fig.tight_layout()

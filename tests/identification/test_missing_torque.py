@@ -10,6 +10,7 @@ recording and why; the validation leaves that joint of that recording out.
 from __future__ import annotations
 
 import json
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -106,8 +107,17 @@ def test_identify_names_the_dead_joint_and_leaves_it_out_of_the_validation(denso
     assert rmse[1] is None and all(v is not None and v > 0 for v in rmse[:1] + rmse[2:])  # joint 2: no rows
     assert main([*argv[:-1], "--overwrite", "--missing-torque", "nowhere.csv:1"]) == 2
     assert "--missing-torque names ['nowhere.csv']" in capsys.readouterr().err
-    assert main(["validate", str(tmp_path / "m.json"), str(tmp_path / "check.csv")]) == 2
-    assert "check.csv: joint 2 (J2) has no torque measurement (zero in every sample); psdm validate needs" in (
+    assert main(["validate", str(tmp_path / "m.json"), str(tmp_path / "check.csv"), "--json"]) == 0
+    captured = capsys.readouterr()
+    (row,) = json.loads(captured.out)["recordings"]
+    assert row["rmse"][1] is None and row["r2"][1] is None and row["rmse"][0] == pytest.approx(rmse[0], rel=1e-6)
+    assert "check.csv: joint 2 (J2) has no torque measurement (zero in every sample)" in captured.err
+    assert main(["validate", str(tmp_path / "m.json"), str(tmp_path / "check.csv")]) == 0
+    assert re.search(r"\n  J2 +- +-\n", capsys.readouterr().out)  # the table: no number for joint 2
+    diagnose = ["diagnose", str(tmp_path / "m.json"), "--train", str(tmp_path / "full.csv"), "--validate",
+                str(tmp_path / "check.csv")]  # fmt: skip
+    assert main(diagnose) == 2
+    assert "check.csv: joint 2 (J2) has no torque measurement (zero in every sample); psdm diagnose needs" in (
         capsys.readouterr().err
     )
 
