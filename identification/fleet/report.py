@@ -203,5 +203,6 @@ def write_report(history: History, path, title: str = "Fleet report") -> Path:
         parts.append("</ul>")
     parts.append("</body></html>")
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(parts), encoding="utf-8")
     return path

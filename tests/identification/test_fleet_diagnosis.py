@@ -105,8 +105,7 @@ def test_status_and_report_show_the_diagnosis_and_link_every_day(fleet_run, tmp_
     robots = {r["robot_id"]: r for r in json.loads(capsys.readouterr().out)["robots"]}
     assert robots["r02"]["status"] == "alarm" and "torque offset on joint" in robots["r02"]["diagnoses"][0]
     assert robots["r03"]["diagnoses"] == [] and robots["r03"]["status"] == "ok"
-    report = tmp_path / "out" / "fleet.html"  # elsewhere than the history: the links are relative to the page
-    report.parent.mkdir()
+    report = tmp_path / "out" / "fleet.html"  # elsewhere than the history (a folder made for it): relative links
     with History(db) as history:
         write_report(history, report)
     page = report.read_text()
