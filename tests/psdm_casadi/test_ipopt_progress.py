@@ -36,21 +36,26 @@ class CountingHandler(ProgressHandler):
         self.postfixes.append(None if self._inner is None else self._inner.postfix)
 
 
+PACKAGES = ("identification", "trajopt")
+
+
 @pytest.fixture
 def logger():
-    log = logging.getLogger("identification.test_ipopt_progress")
-    parent = logging.getLogger("identification")
-    saved = (parent.handlers[:], parent.level, parent.propagate)
-    yield log
-    parent.handlers[:], parent.level, parent.propagate = saved[0], saved[1], saved[2]
+    saved = {name: (logging.getLogger(name).handlers[:], logging.getLogger(name).level,
+                    logging.getLogger(name).propagate) for name in PACKAGES}  # fmt: skip
+    yield logging.getLogger("identification.test_ipopt_progress")
+    for name, (handlers, level, propagate) in saved.items():
+        parent = logging.getLogger(name)
+        parent.handlers[:], parent.level, parent.propagate = handlers, level, propagate
 
 
 def _install(stream, level=logging.INFO):
     handler = CountingHandler(stream)
-    parent = logging.getLogger("identification")
-    parent.handlers[:] = [handler]
-    parent.setLevel(level)
-    parent.propagate = False
+    for name in PACKAGES:
+        parent = logging.getLogger(name)
+        parent.handlers[:] = [handler]
+        parent.setLevel(level)
+        parent.propagate = False
     return handler
 
 
@@ -106,3 +111,18 @@ def test_the_consistent_fit_shows_its_iterations(logger, denso, denso_model):
     _install(stream)
     identify_trajectories(denso, denso_model, [_recording(denso, [])], TrajectoryOptions())
     assert "identify: consistent fit (Ipopt)" in stream.getvalue()
+
+
+def test_the_lugre_fit_shows_its_iterations(logger):
+    from identification.friction.shooting import fit_lugre_multiple_shooting
+    from identification.friction.simulation import simulate_lugre
+    from tests.identification.friction_signal import denso_truth, sine_series
+
+    handler = _install(FakeTerminal())
+    truth, qd_max = denso_truth(3)
+    t, qd = sine_series(truth, qd_max, frequency_scale=2.0)
+    tau, _ = simulate_lugre(truth, t, qd)
+    start = truth.as_array() * np.array([1.1, 0.9, 1.3, 0.95, 1.05, 0.6, 2.0])
+    fit_lugre_multiple_shooting(t, qd, tau, type(truth).from_array(start))
+    assert "LuGre friction fit (Ipopt)" in handler.stream.getvalue() and max(c or 0 for c in handler.counts) >= 1
+    assert handler._inner is None

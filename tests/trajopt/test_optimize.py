@@ -245,3 +245,23 @@ def test_progress_goes_to_the_module_logger_and_quiet_silences_it(planar_robot, 
     assert quiet == []
     # the line that ends a start carries (done, total) for the command line's progress bar
     assert [r.progress for r in loud if hasattr(r, "progress")] == [(1, 1)]
+
+
+def test_each_start_shows_its_ipopt_iterations_on_a_terminal(planar_robot, planar_regressor):
+    import logging
+
+    from tests.psdm_casadi.test_ipopt_progress import FakeTerminal, _install
+
+    parent = logging.getLogger("trajopt")
+    saved = (parent.handlers[:], parent.level, parent.propagate)
+    try:
+        handler = _install(FakeTerminal())
+        options = ExcitationOptions(**{**FAST, "n_starts": 1, "max_iter": 5, "sharpness": (8.0,)})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ExcitationWarning)
+            optimize_excitation(planar_robot, planar_regressor, options, seed=0)
+    finally:
+        parent.handlers[:], parent.level, parent.propagate = saved
+        logging.getLogger("identification").handlers[:] = []
+    assert "excite: start 1" in handler.stream.getvalue() and "(Ipopt)" in handler.stream.getvalue()
+    assert [c for c in handler.counts if c][:5] == [1, 2, 3, 4, 5] and handler._inner is None  # of max_iter 5
