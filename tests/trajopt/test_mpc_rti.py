@@ -234,3 +234,12 @@ def test_crocoddyl_peer_solves_the_same_problem_or_names_the_fix(denso, denso_dy
         controller.initialize(reference, torques)
         firsts.append(controller.step(reference[0] + 0.01, reference)[0])
     np.testing.assert_allclose(firsts[1], firsts[0], rtol=1e-5, atol=1e-6 * np.abs(firsts[0]).max())
+
+
+def test_hpipm_folder_without_the_headers_is_refused_naming_the_fix(tmp_path, monkeypatch):
+    monkeypatch.setenv("PSDM_HPIPM_DIR", str(tmp_path))
+    with pytest.raises(ParameterError, match="include/hpipm_d_ocp_qp_ipm.h"):
+        hpipm_folders()
+    monkeypatch.delenv("PSDM_HPIPM_DIR")
+    include, lib = hpipm_folders()  # CasADi's own copies
+    assert (include / "hpipm_d_ocp_qp_ipm.h").exists() and any(lib.glob("libhpipm*"))
