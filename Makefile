@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test bench clean
+.PHONY: setup demo test bench crocoddyl-env clean
 
 setup: $(STAMP)
 
@@ -33,5 +33,11 @@ bench: setup
 	$(BIN)/python benchmarks/diagnosis.py
 	$(BIN)/python benchmarks/real_identification.py
 
+# Crocoddyl (the MPC peer) in an environment of its own, with the Pinocchio its wheel was built for:
+#   make crocoddyl-env && .venv/bin/python benchmarks/mpc.py --crocoddyl-python .venv-crocoddyl/bin/python
+crocoddyl-env:
+	python3 -m venv .venv-crocoddyl
+	.venv-crocoddyl/bin/python -m pip install --quiet -e . "crocoddyl==3.1.0" "pin==3.8.0"
+
 clean:
-	rm -rf $(VENV) demo_report .pytest_cache site
+	rm -rf $(VENV) .venv-crocoddyl demo_report .pytest_cache site
