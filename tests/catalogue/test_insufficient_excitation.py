@@ -30,9 +30,12 @@ def _t(duration=4.0):
 
 
 def _csv(q, signal="tau", value=None) -> str:
-    """A recording CSV (t, q1..q6, tau1..6 or i1..6) of positions ``q`` sampled at RATE; torques ``value``."""
+    """A recording CSV (t, q1..q6, tau1..6 or i1..6) of positions ``q`` sampled at RATE; torques ``value``, by
+    default a slow sine per joint (a torque column constant throughout is a dead channel, refused before the
+    motion is judged)."""
     t = np.arange(q.shape[0]) / RATE
-    other = np.full_like(q, 0.0) if value is None else np.broadcast_to(value, q.shape)
+    default = 0.5 * np.sin(2.0 * np.pi * 0.3 * np.outer(t, np.arange(1, q.shape[1] + 1)))
+    other = default if value is None else np.broadcast_to(value, q.shape)
     prefix = "tau" if signal == "tau" else "i"
     header = ",".join(["t"] + [f"q{j + 1}" for j in range(N)] + [f"{prefix}{j + 1}" for j in range(N)])
     buffer = io.StringIO()
