@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from identification.calibration.payload_fit import FlangeRegressor
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
@@ -64,8 +65,9 @@ class DiagnosisContext:
     regressor : array (n_samples, n_dof, n_base) or None
         PSDM regressor Y(q, qd, qdd) (only when requested: it is slow for 7 joints).
     payload : array (n_samples, n_dof, 10)
-        Torque per unit mass, first moment and inertia about the link frame origin added to the last link (m, mx,
-        my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz, Pinocchio's order; RNEA is linear in them).
+        Torque per unit mass, first moment and inertia about the link frame origin of a body fixed to the flange (m,
+        mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz, Pinocchio's order): ``payload_fit.FlangeRegressor``, the columns
+        ``psdm validate``'s payload check and identify's unknown payloads use too.
     tilt : array (n_samples, n_dof, 2)
         Gravity torque of a gravity tilted by 1 rad about two axes normal to gravity (linearised).
     tilt_axes : array (2, 3)
@@ -278,32 +280,6 @@ def _tilted_gravity_torque(pmodel, gravity: np.ndarray, q) -> tuple:
     return axes, tilt
 
 
-def _payload_torque(robot, q, qd, qdd, tau_rigid) -> np.ndarray:
-    """Torque per unit of each of the 10 dynamic parameters added to the last link (m, mx, my, mz, then the inertia
-    about the link frame origin in Pinocchio's order), (n_samples, n_dof, 10).
-
-    RNEA is linear in them: differences of RNEA with the nominal parameters, with a unit mass added to the
-    last link (a reference that keeps every perturbed body usable) and with a unit first moment or inertia
-    entry added to that."""
-    standard = np.array(robot.nominal_dynamic_parameters(), dtype=float)
-    reference = standard.copy()
-    reference[-1, 0] += 1.0
-    payload = np.empty((q.shape[0], q.shape[1], 10))
-
-    def rnea_all(params):
-        pm = build_pinocchio_model(robot, params)
-        pd_ = pm.createData()
-        return np.array([pin.rnea(pm, pd_, a, b, c) for a, b, c in zip(q, qd, qdd)])
-
-    tau_ref = rnea_all(reference)
-    payload[:, :, 0] = tau_ref - tau_rigid
-    for c in range(1, 10):
-        shifted = reference.copy()
-        shifted[-1, c] += 1.0
-        payload[:, :, c] = rnea_all(shifted) - tau_ref
-    return payload
-
-
 def _joint_torque(recording: Recording, torque_constants) -> np.ndarray:
     """``recording.joint_torque(torque_constants)``, the recorded torque itself when that is what it copies (a
     Recording's arrays are read-only: an hour at 1 kHz is then held once)."""
@@ -394,7 +370,7 @@ def build_context(
     tau_rigid, dq, dv, mass = _rigid_body_signals(pmodel, q, qd, qdd)
     axes, tilt = _tilted_gravity_torque(pmodel, np.asarray(robot.gravity, dtype=float), q)
     regressor = _regressor(model, q, qd, qdd) if with_regressor else None
-    payload = _payload_torque(robot, q, qd, qdd, tau_rigid)
+    payload = FlangeRegressor(robot)(q, qd, qdd)  # the flange body's columns, as payload_check and identify
     tau_raw = None if raw is None else _raw_torque(raw, recording, tau_full, torque_constants)
     return DiagnosisContext(
         t=recording.t[keep],
