@@ -313,6 +313,16 @@ def _design_with(nominal, columns, y_train, y_val, sigma) -> WeightedDesign:
     return WeightedDesign(base_t, base_v, y_train, y_val, sigma)
 
 
+def _prune_ratio(term, joints, rv_full, rv_without, sigma) -> float:
+    """Validation error with a kept term over without it: the largest ratio of the joints a per-joint term names; the
+    joint-weighted error of every joint for a robot-wide term (a payload, a delay, a tilt), as the selection judged
+    it. A payload that takes 3 N m off joint 2 and puts 0.06 N m on joint 5 stays (it was dropped as "no longer
+    lowering joint 5": 0.19 with it against 0.13 N m without)."""
+    if term.joints:
+        return float(np.max(rv_full[joints] / np.maximum(rv_without[joints], 1e-300)))
+    return float(np.sqrt(np.sum(rv_full**2 / sigma**2) / max(np.sum(rv_without**2 / sigma**2), 1e-300)))
+
+
 def _prune(nominal, kept, y_train, y_val, sigma) -> tuple:
     """Backward check of the kept terms ``[(step, ct, cv), ...]``: drop, one at a time, a term whose removal does
     not raise the validation RMSE of every joint it names; ``(kept, sentences on the dropped)``."""
@@ -324,7 +334,7 @@ def _prune(nominal, kept, y_train, y_val, sigma) -> tuple:
             others = [(c, v) for k, (_, c, v) in enumerate(kept) if k != i]
             _, _, rv_without = _design_with(nominal, others, y_train, y_val, sigma).fit()
             joints = list(acting_joints(step.term, ct) or step.joints)
-            ratio = float(np.max(rv_full[joints] / np.maximum(rv_without[joints], 1e-300)))
+            ratio = _prune_ratio(step.term, joints, rv_full, rv_without, sigma)
             if ratio >= 1.0 - PRUNE_TOLERANCE and (worst is None or ratio > worst[1]):
                 worst = (i, ratio, joints)
         if worst is None:

@@ -40,6 +40,11 @@ def test_prior_wins_and_moved_parameters_by_hand(denso, denso_model):
     assert prior_wins([40.0, 40.0, 0.0], [1.0, 2.0, 0.5], [0.5, 1.0, 0.1], weights)  # removes 77 of 78.5
     # a last link lighter than the file says is the file being off: only the error itself counts then
     assert not prior_wins([40.0, 40.0, 0.0], [1.0, 2.0, 0.5], [0.5, 1.0, 0.1], weights, ("last_link_mass_excess",))
+    # a payload the recalibrated rigid body needs too is a load (no stand-in for wrong inertia); only the prior weighs
+    # it, so the prior's diagnosis is reported even when the recalibration predicts better
+    both = (("payload", "delay"), ("delay", "payload"))
+    assert prior_wins([4.0, 4.0, 0.0], [1.0, 2.0, 0.5], [0.5, 1.0, 0.1], weights, *both)
+    assert not prior_wins([4.0, 4.0, 0.0], [1.0, 2.0, 0.5], [0.5, 1.0, 0.1], weights, ("payload",), ("delay",))
     prior = np.asarray(denso_model.base_parameters(denso.nominal_dynamic_parameters()), dtype=float)
     moved = prior.copy()
     k = int(np.argmax(np.abs(prior)))
