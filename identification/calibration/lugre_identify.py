@@ -10,6 +10,11 @@ The recordings route with ``--friction lugre`` (``lugre_recordings`` fits the fr
    the bristles' hysteresis) biases the rigid body it is fitted with, and this removes the bias;
 4. the LuGre fit again from step 2's parameters on the friction step 3 leaves.
 
+With payload ``configurations`` (``trajectory_fit.identify_trajectories(configurations=)``) every linear fit shares
+the arm across them, subtracts the known loads and identifies the unknown ones as flange bodies; every LuGre fit
+sees the friction left once the known loads and the unknown ones as that linear fit identified them are taken out
+too (``payload_fit.subtract_loads``): the loads' torque never passes for friction.
+
 Steps 3 and 4 are repeated ``rounds - 1`` times in all. With ``extra`` columns (the torque findings of a
 diagnosis, ``recalibrate``) every linear fit holds them beside the rigid body, and every LuGre fit sees the
 friction they leave: a spring the first identification put into gravity and friction is taken out of both.
@@ -27,6 +32,7 @@ import logging
 import numpy as np
 
 from identification.calibration.lugre_recordings import fit_lugre_recordings, lugre_friction
+from identification.calibration.payload_fit import subtract_loads
 from identification.calibration.trajectory_data import choose_filter, prepare_recordings
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
@@ -71,7 +77,9 @@ def _without_friction_torque(recordings, parameters, kt, cutoff_hz) -> list:
     return out
 
 
-def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOptions, rounds: int = 2, extra=None):
+def identify_lugre_trajectories(
+    robot, model, recordings, options: TrajectoryOptions, rounds: int = 2, extra=None, configurations=None
+):
     """Rigid body, drive terms and LuGre friction of exciting recordings (module docstring).
 
     Parameters
@@ -87,6 +95,8 @@ def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOpt
     extra : findings.FindingColumns, optional
         Extra linear columns fitted jointly in every linear fit (module docstring); their coefficients follow the
         drive parameters in ``fit.drive``, as in ``trajectory_fit.identify_trajectories``.
+    configurations : sequence of data.configuration.PayloadConfiguration, optional
+        The load each recording carries at the flange (module docstring); the unknown ones are in ``fit.payloads``.
 
     Returns
     -------
@@ -108,13 +118,15 @@ def identify_lugre_trajectories(robot, model, recordings, options: TrajectoryOpt
     kt = None
     if not all(r.tau is not None for r in recordings):
         kt = np.asarray(options.kt if options.kt is not None else [d.kt for d in robot.drives], dtype=float)
-    stribeck = identify_trajectories(robot, model, recordings, options, extra)
+    stribeck = identify_trajectories(robot, model, recordings, options, extra, configurations)
     _, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
-    fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, prepared, warn=rounds == 1, extra=extra)
+    arm = subtract_loads(robot, prepared, configurations, stribeck.payloads)
+    fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, arm, warn=rounds == 1, extra=extra)
     plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)
     for k in range(1, rounds):
         corrected = _without_friction_torque(recordings, lugre.parameters, kt, options.cutoff_hz)
-        fit = identify_trajectories(robot, model, corrected, plain, extra)
-        lugre = fit_lugre_recordings(model, fit, prepared, initial=lugre.parameters, warn=k == rounds - 1, extra=extra)
+        fit = identify_trajectories(robot, model, corrected, plain, extra, configurations)
+        arm = subtract_loads(robot, prepared, configurations, fit.payloads)
+        lugre = fit_lugre_recordings(model, fit, arm, initial=lugre.parameters, warn=k == rounds - 1, extra=extra)
         logger.info("identify: LuGre round %d: friction RMSE %s N m", k + 1, np.round(lugre.rmse, 4))
     return LuGreIdentification(fit=fit, lugre=lugre, stribeck=stribeck)

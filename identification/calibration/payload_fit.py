@@ -30,8 +30,8 @@ from psdm_casadi.oracle import build_pinocchio_model, link_to_joint_frame_maps
 from psdm_casadi.robot import physical_to_dynamic
 
 __all__ = ["FlangeBodies", "FlangeRegressor", "IdentifiedPayload", "Estimable", "configurations_block",
-           "identified_payloads", "stated_payload",
-           "payload_prior", "subtract_known_payloads"]  # fmt: skip
+           "carried_configurations", "identified_payloads", "stated_payload",
+           "payload_prior", "subtract_known_payloads", "subtract_loads"]  # fmt: skip
 
 BODY = 10  # inertial parameters of a flange body: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (origin)
 
@@ -124,6 +124,28 @@ def subtract_known_payloads(robot, prepared, configurations) -> list:
             out.append(recording)
             continue
         load = payload_torque(robot, configuration.payload, recording.q, recording.qd, recording.qdd)
+        out.append(Recording(t=recording.t, q=recording.q, tau=recording.tau - load, qd=recording.qd,
+                             qdd=recording.qdd, name=recording.name))  # fmt: skip
+    return out
+
+
+def subtract_loads(robot, prepared, configurations, payloads) -> list:
+    """The prepared recordings with every load taken off their torque: the known ones as stated, the unknown ones as
+    identified (``payloads``, the :class:`IdentifiedPayload` of a fit with these configurations; one whose recordings
+    do not separate it from the arm stays in, as the arm's parameters took it up). What is left is the arm's own
+    torque: the friction fits that follow the linear one (``lugre_identify``) see the arm's friction only."""
+    prepared = subtract_known_payloads(robot, prepared, configurations)
+    bodies = FlangeBodies.of(configurations, len(prepared))
+    identified = {p.name: np.asarray(p.parameters, dtype=float) for p in payloads}
+    if not bodies.labels:
+        return prepared
+    flange, out = FlangeRegressor(robot), []
+    for recording, k in zip(prepared, bodies.index):
+        body = None if k is None else identified.get(bodies.labels[k])
+        if body is None or not np.all(np.isfinite(body)):
+            out.append(recording)
+            continue
+        load = flange(recording.q, recording.qd, recording.qdd) @ body
         out.append(Recording(t=recording.t, q=recording.q, tau=recording.tau - load, qd=recording.qd,
                              qdd=recording.qdd, name=recording.name))  # fmt: skip
     return out
@@ -238,6 +260,25 @@ def configurations_block(configurations, names, payloads) -> list:
         elif configuration.kind == "unknown":
             entry["payload"] = identified[configuration.name].to_dict()
     return list(out.values())
+
+
+def carried_configurations(stored, configurations, names) -> list:
+    """The ``configurations`` block of a model identified again on new recordings (``recalibrate``): the file's own
+    entries (``stored``), with each new recording (``names``) that states its load (``configurations``, loads already
+    taken off its torque: ``payload_check.without_load``) listed under that load. A known load the file did not
+    have gets an entry of its own; an unknown one the file has not identified is left out (nothing weighs it)."""
+    out = [dict(entry, recordings=list(entry.get("recordings") or [])) for entry in stored]
+    by_name = {entry.get("name"): entry for entry in out}
+    for configuration, name in zip(configurations or (), names):
+        entry = by_name.get(configuration.name)
+        if not configuration.stated or (entry is None and configuration.kind == "unknown"):
+            continue
+        if entry is None:
+            entry = by_name[configuration.name] = configurations_block([configuration], [name], ())[0]
+            out.append(entry)
+        elif name not in entry["recordings"]:
+            entry["recordings"].append(name)
+    return out
 
 
 def stated_payload(configuration, stored, model_name: str) -> tuple:

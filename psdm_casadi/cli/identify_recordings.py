@@ -124,7 +124,6 @@ def run(args) -> int:
     for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
         check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
     if args.friction == "lugre":
-        _check_lugre_configurations(configurations)
         _check_reversals(recordings, paths)
     for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):
         check_ratio(flag, value)
@@ -135,7 +134,7 @@ def run(args) -> int:
         model = derive_model(args, robot)
     choice, options = _columns(args, robot, model, recordings, validation, configurations)
     if args.friction == "lugre":
-        fit, lugre, start = _fit_lugre(robot, model, recordings, options)
+        fit, lugre, start = _fit_lugre(robot, model, recordings, options, configurations)
     else:
         fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
         lugre = None
@@ -257,17 +256,6 @@ def _configurations(data, robot) -> tuple:
     return list(merged), list(merged.values())
 
 
-def _check_lugre_configurations(configurations) -> None:
-    """--friction lugre fits one arm along recordings without a load at the flange: refuse a stated payload."""
-    loaded = [c.name for c in configurations if c.kind != "none"]
-    if loaded:
-        raise ParameterError(
-            f"--friction lugre takes recordings without a payload; got the payload configuration(s) "
-            f"{sorted(set(loaded))}. Identify with --friction stribeck (payloads are shared-arm fits), or leave the "
-            "loaded recordings out."
-        )
-
-
 def _check_reversals(recordings, paths) -> None:
     """Refuse, before any work, a recording in which a joint does not slide both ways: LuGre friction is fitted
     along the reversals (``friction.models.check_slides_both_ways`` on the velocity of the recorded positions)."""
@@ -286,8 +274,9 @@ def _check_reversals(recordings, paths) -> None:
                 ) from None
 
 
-def _fit_lugre(robot, model, recordings, options):
-    """(final fit, LuGre fit, Stribeck fit) of ``lugre_identify``, its warnings printed."""
+def _fit_lugre(robot, model, recordings, options, configurations=None):
+    """(final fit, LuGre fit, Stribeck fit) of ``lugre_identify`` (the recordings' payload configurations shared-arm
+    fitted as on the linear route), its warnings printed."""
     import warnings
 
     from identification.calibration.lugre_identify import identify_lugre_trajectories
@@ -296,7 +285,7 @@ def _fit_lugre(robot, model, recordings, options):
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LuGreWarning)
         try:
-            result = identify_lugre_trajectories(robot, model, recordings, options)
+            result = identify_lugre_trajectories(robot, model, recordings, options, configurations=configurations)
         except SolverError as exc:
             if exc.joint is None:  # not one joint's LuGre fit (the linear fits): its own message
                 raise
