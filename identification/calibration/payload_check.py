@@ -16,9 +16,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.payload_fit import Estimable, FlangeRegressor
+from identification.calibration.trajectory_data import choose_filter
+from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
+from identification.data.recording import Recording
 from identification.metrics import r2, rmse
 
-__all__ = ["MIN_DROP", "MIN_Z", "NewPayload", "new_payload", "validation_with_payload"]
+__all__ = ["MIN_DROP", "MIN_Z", "NewPayload", "new_payload", "validation_with_payload", "without_load"]
 
 MIN_DROP = 0.2  # the flange body must remove this fraction of the weighted residual
 MIN_Z = 5.0  # and its mass be this many (correlation-grown) standard deviations above zero
@@ -104,3 +107,21 @@ def validation_with_payload(robot, calibrated, model, recording, kt=None, payloa
     if payload is not None:
         predicted = predicted + FlangeRegressor(robot)(prepared.q, prepared.qd, prepared.qdd) @ payload
     return rmse(prepared.tau, predicted), r2(prepared.tau, predicted), prepared, predicted
+
+
+def without_load(robot, recording, body, kt=None, cutoff_hz=None) -> Recording:
+    """A raw recording with the torque of a load it states (``body``: 10 inertial parameters about the flange, the
+    flange-body columns of :class:`payload_fit.FlangeRegressor`) taken off its joint torque: the arm's own torque,
+    for a diagnosis of the arm and its refit (``psdm diagnose MODEL`` on recordings with a payload sidecar).
+
+    The load's torque is evaluated at the full rate on the positions filtered as the identification filters them
+    (``trajectory_data.choose_filter`` at ``cutoff_hz``) and their central differences: a smooth torque, which the
+    preparation's filter then passes as it passes the recorded one. ``kt`` converts a recording of currents.
+    """
+    rec = recording if recording.is_uniform(1e-6) else resample_uniform(recording)
+    rate = 1.0 / rec.dt
+    cutoff, _ = choose_filter(rate, cutoff_hz)
+    q = zero_phase_filter(rec.q, rate, cutoff)
+    qd, qdd = central_difference(rec.t, q)
+    load = FlangeRegressor(robot)(q, qd, qdd) @ np.asarray(body, dtype=float)
+    return Recording(t=rec.t, q=rec.q, tau=rec.joint_torque(kt) - load, name=rec.name)

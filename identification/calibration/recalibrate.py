@@ -61,6 +61,7 @@ from identification.calibration.lugre_identify import identify_lugre_trajectorie
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
+from identification.calibration.payload_fit import carried_configurations
 from identification.calibration.trajectory_data import NormalEquations, drive_column_names, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, drive_inertia_joints, identify_trajectories
 from identification.friction.models import LUGRE_PARAMETER_NAMES
@@ -268,7 +269,7 @@ def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lug
 
 
 def recalibrate(
-    calibrated: CalibratedModel, robot, model, report, train, validation, *, robot_source=None
+    calibrated: CalibratedModel, robot, model, report, train, validation, *, robot_source=None, configurations=None
 ) -> Recalibration:
     """Identify ``calibrated`` again from ``train`` with the findings of ``report``; judge it on ``validation``.
 
@@ -284,6 +285,9 @@ def recalibrate(
         Raw recordings (as given to the diagnosis).
     robot_source : path, optional
         Robot file written into the new model (default: the file's own copy).
+    configurations : sequence of data.configuration.PayloadConfiguration, optional
+        The load each ``train`` recording states, taken off its torque already (``payload_check.without_load``);
+        listed in the new file's ``configurations``, which keeps the model's own (``carried_configurations``).
 
     Returns
     -------
@@ -328,6 +332,8 @@ def recalibrate(
     mass = min_mass_eigenvalue(robot, fit.standard) if fit.checked else float("nan")
     moved = _moved(calibrated, after)
     document = after.document
+    carried = carried_configurations(calibrated.configurations, configurations, [r.name for r in train])
+    document.update({"configurations": carried} if carried else {})
     document["validation"] = {
         "recordings": [
             {"recording": r.name, "rmse": _list(s[0]), "r2": _list(s[1])} for r, s in zip(validation, scores)
@@ -444,7 +450,7 @@ def _document(
     """The new calibrated model of a joint fit (findings filled, corrections, provenance kept; with ``lugre``, a
     ``lugre_recordings.LuGreFit``, a version 3 file with that friction)."""
     plain, extra = split_findings(fit, len(columns.names) if terms else 0)
-    source = robot_source or _robot_copy(calibrated)
+    source = robot_source or calibrated.robot_file()  # the file's robot text, written to the robot cache
     new = CalibratedModel.from_fit(
         robot,
         model,
@@ -462,11 +468,6 @@ def _document(
     document["corrections"] = corrections
     document["warnings"] = list(dict.fromkeys(fit.warnings))  # the refit's own (a wrong recording stays flagged)
     return CalibratedModel(document)
-
-
-def _robot_copy(calibrated: CalibratedModel):
-    """The path of the file's robot text (written to the robot cache, as ``load_robot`` does)."""
-    return calibrated.robot_file()
 
 
 def _moved(before: CalibratedModel, after: CalibratedModel) -> list:

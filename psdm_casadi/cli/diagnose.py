@@ -149,6 +149,8 @@ def _run_diagnose(args) -> int:
     for warning in not_held_out([args.train], args.validate, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
+    (train, *validations), stated = _stated_loads(args, calibrated, robot, (train, *validations), preparation)
+    validation = validations[0]
     options = DiagnosisOptions(
         friction=args.friction or (_own_friction(calibrated) if calibrated is not None else _robot_friction(robot)),
         rigid_body=args.rigid_body,
@@ -181,9 +183,31 @@ def _run_diagnose(args) -> int:
             print(f"\n## Payload check (as psdm validate)\n\n{load.sentence()}")
     if apply_out is None:
         return 0
-    return _apply(
-        args, calibrated, robot_file, model, report, (train, validation), apply_out, payload if args.json else None
-    )
+    return _apply(args, calibrated, robot_file, model, report, (train, validation), apply_out,
+                  payload if args.json else None, stated[:1])  # fmt: skip
+
+
+def _stated_loads(args, calibrated, robot, recordings, preparation) -> tuple:
+    """(recordings, their configurations): each recording with the load its sidecar states (``A.payload.json``: a
+    known one as given, an unknown one as the model file identified it by name) taken off its torque, so that the
+    diagnosis and its refit see the arm (``payload_check.without_load``); a note for a load nothing weighs."""
+    import numpy as np
+
+    from identification.calibration.payload_check import without_load
+    from identification.calibration.payload_fit import stated_payload
+    from identification.data.configuration import stated_configuration
+
+    stored = [] if calibrated is None else calibrated.configurations
+    out, configurations = [], []
+    for path, recording in zip((args.train, *args.validate), recordings):
+        configuration = stated_configuration(path)
+        body, note = stated_payload(configuration, stored, args.robot)
+        if note:
+            print(f"psdm diagnose: warning: {path}: {note}", file=sys.stderr)
+        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
+        configurations.append(configuration)
+    return out, configurations
 
 
 def _payload_check(args, calibrated, robot, model, validation):
@@ -281,7 +305,7 @@ def _calibrated_source(args):
     return read_calibrated_argument(args, args.robot), output_file(args.apply, "--apply", args.overwrite)
 
 
-def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> int:
+def _apply(args, calibrated, robot, model, report, recordings, out, payload, configurations=None) -> int:
     """Recalibrate with the findings, gate on consistency, write the new model, show before and after."""
     import sys
     import warnings
@@ -297,7 +321,8 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload) -> 
     try:
         with warnings.catch_warnings(record=True) as caught:  # a LuGre model's refit says what it cannot determine
             warnings.simplefilter("always", LuGreWarning)
-            result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None)
+            result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None,
+                                 configurations=configurations)  # fmt: skip
     except ParameterError as exc:  # name the input: the model the findings were to be applied to
         raise ParameterError(f"diagnose {args.robot!r} --apply: {exc} Nothing was written to {args.apply!r}.") from None
     for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, LuGreWarning)):
