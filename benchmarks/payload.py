@@ -16,7 +16,8 @@ one (``--recordings`` each; 2.9 % and 3.8 % of the arm's mass). Rows:
 
 Targets: unknown payload mass within 10 %, its centre of mass within 2 cm, every new payload named with its mass
 and no false alarm. ``--diagnose`` also runs ``psdm diagnose MODEL --train NEW1 --validate NEW2`` on two new
-loaded recordings (a few minutes) and reports its findings: the payload (with its mass), not a spring.
+loaded recordings (a few minutes) and reports its findings: the payload first (``diagnosis_payload_first``), its mass
+error against the truth (``diagnosis_payload_mass_error``, None when no payload is named), not a spring.
 
 Usage: python benchmarks/payload.py [--json] [--duration 20] [--recordings 2] [--diagnose]
 """
@@ -128,13 +129,20 @@ def diagnose_row(robot, model, fit, duration: float, seed: int) -> dict:
 
     report = diagnose(calibrated_robot(calibrated, robot), train, validation,
                       DiagnosisOptions(friction="coulomb_viscous"), model=model)  # fmt: skip
-    payloads = [f for f in report.findings if f.effect == "payload"]
+    payloads = [f.parameters or {} for f in report.findings if f.effect == "payload"]
     _, _, prepared, predicted = validation_rmse(calibrated, model, validation)
     check = new_payload(robot, prepared, predicted)  # what diagnose MODEL prints beside the findings
+    mass = payloads[0].get("mass") if payloads else None
+    com = [payloads[0].get(f"com_{a}") for a in "xyz"] if payloads else None
     return {
         "payload_check_kg": None if check is None else check.mass,
         "findings": [f.effect for f in report.findings],
-        "payload_mass_kg": (payloads[0].parameters or {}).get("mass") if payloads else None,
+        "rigid_body": report.rigid_body,
+        "payload_first": bool(report.findings) and report.findings[0].effect == "payload",
+        "payload_mass_kg": mass,
+        "payload_mass_error": None if mass is None else abs(mass - UNKNOWN.mass) / UNKNOWN.mass,
+        "payload_com_error_m": None if com is None else float(np.linalg.norm(np.subtract(com, UNKNOWN.com))),
+        "delay_found": any(f.effect == "delay" for f in report.findings),
         "spring_found": any(f.effect == "spring" for f in report.findings),
     }
 
@@ -161,12 +169,15 @@ def main(argv=None) -> int:
     found_fraction = sum(row["correct"] for row in loaded_new) / len(loaded_new)
     false_alarms = sum(not row["correct"] for row in new if row["true_mass_kg"] == 0)
     said = fits[0]
+    named = diagnosis is None or (diagnosis["payload_first"] and diagnosis["payload_mass_error"] <= TARGET_MASS)
     ok = (said["mass_error"] <= TARGET_MASS and said["com_error_m"] <= TARGET_COM_M and found_fraction == 1.0
-          and false_alarms == 0 and all(row["correct"] for row in mixing))  # fmt: skip
+          and false_alarms == 0 and all(row["correct"] for row in mixing) and named)  # fmt: skip
     summary = {"unknown_payload_mass_error": said["mass_error"], "unknown_payload_com_error_m": said["com_error_m"],
                "arm_max_z_said": said["arm_max_z"], "arm_max_z_unsaid": fits[1]["arm_max_z"],
                "mixing_detected": mixing[0]["correct"], "mixing_false_alarm": not mixing[1]["correct"],
                "new_payload_found_fraction": found_fraction, "new_payload_false_alarms": false_alarms,
+               "diagnosis_payload_mass_error": None if diagnosis is None else diagnosis["payload_mass_error"],
+               "diagnosis_payload_first": None if diagnosis is None else diagnosis["payload_first"],
                "arm_mass_kg": float(robot.nominal_dynamic_parameters()[:, 0].sum()),
                "seconds": time.perf_counter() - start, "all_targets_met": ok}  # fmt: skip
     if args.json:
