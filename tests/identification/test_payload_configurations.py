@@ -191,3 +191,31 @@ def test_identify_reads_a_manifest_stores_the_configurations_and_refuses_bad_one
     (tmp_path / "empty.payload.json").write_text('{"mass": 2.8, "com": [0, 0]}')
     assert main([*argv[:3], str(tmp_path / "empty.npz"), *argv[4:], "--overwrite"]) == 2
     assert "empty.payload.json: Payload.com must be 3 numbers" in capsys.readouterr().err
+
+
+def test_a_stated_load_taken_off_a_recording_leaves_the_arm(denso, denso_model, recorded):
+    """``payload_check.without_load`` (what ``psdm diagnose`` does with a recording's sidecar): the tool as the model
+    weighed it, taken off the loaded recording, leaves what the calibrated arm predicts as well as an empty recording;
+    ``carried_configurations`` keeps the file's block and lists the new recording under its load (``--apply``)."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.finding_value import validation_rmse
+    from identification.calibration.payload_check import without_load
+    from identification.calibration.payload_fit import carried_configurations
+
+    configurations = [PayloadConfiguration(), PayloadConfiguration("tool", unknown=True, stated=True)]
+    fit = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["unknown"]],
+                                configurations=configurations)  # fmt: skip
+    calibrated = CalibratedModel.from_fit(denso, denso_model, fit, robot_source="denso_vs6556g",
+                                          configurations=configurations)  # fmt: skip
+    (tool,) = fit.payloads
+    loaded, empty = recorded["unknown"], recorded["empty again"]
+    arm = without_load(denso, loaded, tool.parameters)
+    rmse_empty, rmse_loaded, rmse_arm = (validation_rmse(calibrated, denso_model, r)[0] for r in (empty, loaded, arm))
+    assert np.all(rmse_arm < 1.5 * rmse_empty), (rmse_arm, rmse_empty)  # the arm alone is left
+    assert np.max(rmse_loaded / rmse_arm) > 3.0, (rmse_loaded, rmse_arm)  # the load was there to take off
+    stored = calibrated.configurations
+    carried = carried_configurations(stored, [configurations[1], PayloadConfiguration()], ["new.npz", "other.npz"])
+    tool_entry = next(e for e in carried if e["name"] == "tool")
+    assert tool_entry["recordings"][-1] == "new.npz" and tool_entry["payload"] == stored[1]["payload"]
+    assert len(carried) == len(stored) and stored[1]["recordings"] != tool_entry["recordings"]  # the file's untouched
+    assert carried_configurations([], [PayloadConfiguration("gripper", unknown=True, stated=True)], ["x.npz"]) == []

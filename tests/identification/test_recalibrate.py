@@ -190,3 +190,27 @@ def test_diagnose_apply_keeps_the_drive_columns_the_model_was_identified_with(sp
     offsets = {n: v for n, v in zip(after["drive"]["names"], after["drive"]["values"]) if n.startswith("offset")}
     assert offsets.pop("offset2") != 0.0 and set(offsets.values()) == {0.0}  # held at 0 as the choice said
     assert after["identification"]["column_choice"]["offset_joints"] == [2]
+
+
+@pytest.mark.slow
+def test_diagnose_apply_keeps_the_model_s_payload_configurations(spring_loop, tmp_path, capsys):
+    """A model identified with payload configurations (a known load, an unknown one it weighed) keeps them through
+    ``--apply``: the refit on the diagnosis' recordings does not drop what the file knows of its loads."""
+    from identification.calibration.payload_fit import IdentifiedPayload, configurations_block
+    from identification.data.configuration import PayloadConfiguration
+    from identification.data.payload import Payload
+
+    tool = Payload(mass=0.8, com=(0.03, 0.0, 0.06))
+    weighed = IdentifiedPayload("tool", ("tool.csv",), 0.8, 0.02, tool.com, (0.003, 0.003, 0.008),
+                                tuple(tool.dynamic_parameters()), True)  # fmt: skip
+    configurations = [PayloadConfiguration("mass", payload=Payload(mass=0.6, com=(0.0, 0.02, 0.04)), stated=True),
+                      PayloadConfiguration("tool", unknown=True, stated=True)]  # fmt: skip
+    document = json.loads((spring_loop / "model.json").read_text())
+    document["configurations"] = configurations_block(configurations, ["mass.csv", "tool.csv"], (weighed,))
+    (tmp_path / "model.json").write_text(json.dumps(document))
+    argv = ["diagnose", str(tmp_path / "model.json"), "--train", str(spring_loop / "train.csv"), "--validate",
+            str(spring_loop / "valid.csv"), "--apply", str(tmp_path / "new.json")]  # fmt: skip
+    assert main(argv) == 0
+    written = load_calibrated_model(tmp_path / "new.json")
+    assert written.configurations == document["configurations"]
+    assert any(e["label"] == "spring[j2]" for e in written.document["findings"])
