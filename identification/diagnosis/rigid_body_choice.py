@@ -17,7 +17,9 @@ are judged against the recalibrated rigid body too (``stand_ins``): one that the
 identified does not need, on joints the recalibrated model predicts about as well, only stands in for the wrong
 prior; it is not reported and the prior diagnosis is repeated without it (``drop_stand_ins``, with a note). The
 unnamed sparse terms of the beyond-library stage obey the same rule (``standing_in``, judged there against the
-``IdentifiedDiagnosis`` looked at beyond the library too).
+``IdentifiedDiagnosis`` looked at beyond the library too). The free recalibration may take up an effect no
+physical link can (a counterbalance on a shoulder, with a link twice as heavy): a finding that a rigid body
+recalibrated inside its envelope still needs stands (``envelope_check``, passed to ``drop_stand_ins``).
 """
 
 from __future__ import annotations
