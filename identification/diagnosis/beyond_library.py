@@ -2,12 +2,15 @@
 
 Two places where the named library falls short are looked at, after the selection and refinement:
 
-- a joint whose residual stays structured gets a sparse term when it explains enough of it
-  (``propose_sparse_terms``);
+- a joint whose residual stays structured gets a sparse term when it explains enough of it on every validation
+  recording (``propose_sparse_terms``, ``SparseProposal.holds``);
 - a joint on which the selection kept two or more shapes of the angle alone (springs, ripples) is a joint where
   the library composes a shape it has no name for (four ripples standing in for a cam lobe): those terms are taken
-  out and a sparse term is fitted in their place, which replaces them when it predicts the joint's validation
-  recording as well (within ``VALIDATION_SLACK``) with fewer coefficients. The report says which terms it replaced.
+  out and a sparse term is fitted in their place, which replaces them when it predicts each of the joint's validation
+  recordings as well (within ``VALIDATION_SLACK``) with fewer coefficients. The report says which terms it replaced.
+
+With several validation recordings (``diagnose(..., validation=[A, B])``) a term is kept only if it holds on each, as
+the library's candidates are (``second_opinion``); the report's numbers are those of the first recording.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from dataclasses import replace
 import numpy as np
 
 from identification.diagnosis.nominal import friction_feature_names
+from identification.diagnosis.recording_checks import predict_recording
 from identification.diagnosis.report import Finding
 from identification.diagnosis.rigid_body_choice import Claim, inertia_in_question, stand_in_note, standing_in
 from identification.diagnosis.sparse_fit import (
@@ -53,10 +57,19 @@ def look_beyond_library(problem, selection, final, options, identified=None) -> 
         mask = problem.base_t.index[j] < n_friction
         columns.append(problem.base_t.index[j][mask])
         nuisance.append((problem.base_t.values[j][:, mask], problem.base_v.values[j][:, mask]))
-    selection, final, replacing = _replace_composite_shapes(problem, selection, final, nuisance, options)
+    extra_nuisance = [
+        [base.values[j][:, problem.base_t.index[j] < n_friction] for j in range(problem.ctx_t.n_dof)]
+        for _, base, _ in problem.extra_v
+    ]
+    selection, final, replacing = _replace_composite_shapes(
+        problem, selection, final, nuisance, extra_nuisance, options
+    )
     residual_t, residual_v = problem.y_t - final.prediction_t, problem.y_v - final.prediction_v
+    more = [
+        (ctx, y - predict_recording(final, ctx, base), n) for (ctx, base, y), n in zip(problem.extra_v, extra_nuisance)
+    ]
     proposals = propose_sparse_terms(
-        problem.ctx_t, problem.ctx_v, residual_t, residual_v, options.sparse_min_gain, nuisance
+        problem.ctx_t, problem.ctx_v, residual_t, residual_v, options.sparse_min_gain, nuisance, more
     )
     done = {p.term.joint for p in replacing}
     proposals = tuple(p for p in proposals if p.term.joint not in done)
@@ -139,12 +152,13 @@ def _add_proposals(problem, final, proposals, columns) -> tuple:
     return final, tuple(findings)
 
 
-def _replace_composite_shapes(problem, selection, final, nuisance, options) -> tuple:
+def _replace_composite_shapes(problem, selection, final, nuisance, extra_nuisance, options) -> tuple:
     """``(selection, final, proposals)``: on each joint where the selection kept two or more ``SHAPE_KEYS`` terms, a
     sparse term fitted in their place; it replaces them (they leave the selection and the final fit, and
     ``selection.dropped`` says so) when it passes ``propose_sparse_terms``'s bar on the residual without them and
-    predicts the joint's validation recording as well as they do with fewer coefficients."""
+    predicts each of the joint's validation recordings as well as they do with fewer coefficients."""
     proposals = []
+    extras = [(ctx, y, predict_recording(final, ctx, base)) for ctx, base, y in problem.extra_v]
     for j in range(problem.ctx_t.n_dof):
         n_steps = len(selection.steps)
         shapes = [
@@ -156,22 +170,27 @@ def _replace_composite_shapes(problem, selection, final, nuisance, options) -> t
         parts_v = sum(final.terms[k].columns(problem.ctx_v)[:, j, :] @ final.coefficients[k] for k in shapes)
         without_t = problem.y_t[:, j] - final.prediction_t[:, j] + parts_t
         without_v = problem.y_v[:, j] - final.prediction_v[:, j] + parts_v
-        p = fit_sparse_term(problem.ctx_t, problem.ctx_v, j, without_t, without_v, *nuisance[j])
+        more = [
+            (ctx, y[:, j] - predicted[:, j] + sum(final.terms[k].columns(ctx)[:, j, :] @ final.coefficients[k]
+                                                   for k in shapes), n[j])
+            for (ctx, y, predicted), n in zip(extras, extra_nuisance)
+        ]  # fmt: skip
+        p = fit_sparse_term(problem.ctx_t, problem.ctx_v, j, without_t, without_v, *nuisance[j], more=more)
         n_library = sum(np.size(final.coefficients[k]) for k in shapes)
-        library = float(rms(problem.y_v[:, j] - final.prediction_v[:, j]))
+        library = [float(rms(problem.y_v[:, j] - final.prediction_v[:, j]))]
+        library += [float(rms(y[:, j] - predicted[:, j])) for _, y, predicted in extras]
         floor = MIN_TORQUE_FRACTION * float(rms(problem.ctx_t.tau[:, j]))
         if (
             p is None
             or len(p.coefficients) >= n_library
-            or p.rmse_after > (1.0 + VALIDATION_SLACK) * library
-            or p.validation_gain < options.sparse_min_gain
-            or p.rmse_before - p.rmse_after < floor
+            or any(a > (1.0 + VALIDATION_SLACK) * b for a, b in zip(p.each_after, library))
+            or not p.holds(options.sparse_min_gain, floor)
         ):
             continue
         labels = ", ".join(final.terms[k].label for k in shapes)
         sentence = (
             f"{labels} replaced by {p.term.label}: one sparse term predicts joint {j + 1}'s validation recording "
-            f"at least as well (validation RMSE {p.rmse_after:.4g} N m against {library:.4g} N m with the named "
+            f"at least as well (validation RMSE {p.rmse_after:.4g} N m against {library[0]:.4g} N m with the named "
             f"terms) with {len(p.coefficients)} coefficient(s) instead of {n_library}: several named shapes stood in "
             "for one the library has no name for."
         )

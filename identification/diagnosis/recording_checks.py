@@ -57,6 +57,18 @@ class RecordingCheck:
         }
 
 
+def term_torques(final, ctx) -> list:
+    """The torque (n_samples, n_dof) of each term of the final fit ``final`` (``diagnose.FinalFit``) on a recording's
+    context ``ctx``, with its final coefficients."""
+    return [term.columns(ctx) @ np.asarray(c, dtype=float) for term, c in zip(final.terms, final.coefficients)]
+
+
+def predict_recording(final, ctx, base) -> np.ndarray:
+    """The final fit's prediction (n_samples, n_dof) of a validation recording from its context and nominal columns
+    ``base`` (``BlockColumns``): the nominal columns with the final coefficients plus every term's torque."""
+    return base.predict(final.friction_coefficients) + sum(term_torques(final, ctx), 0.0)
+
+
 def check_recordings(problem, final, findings) -> tuple:
     """The ``RecordingCheck`` of every validation recording of ``problem`` (``diagnose.DiagnosisProblem``) for the
     final fit ``final`` (``diagnose.FinalFit``) and its ``findings`` (``report.Finding``, matched by label)."""
@@ -66,7 +78,7 @@ def check_recordings(problem, final, findings) -> tuple:
     recordings = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
     out = []
     for i, (ctx, base, y) in enumerate(recordings):
-        parts = [term.columns(ctx) @ np.asarray(c, dtype=float) for term, c in zip(final.terms, final.coefficients)]
+        parts = term_torques(final, ctx)
         predicted = base.predict(final.friction_coefficients) + sum(parts, np.zeros_like(y))
         if i == 0:
             predicted = final.prediction_v  # the refined fit as the report shows it

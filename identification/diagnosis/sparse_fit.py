@@ -5,9 +5,12 @@ is regressed on the library by sequentially thresholded least squares (pysindy's
 unit-RMS columns for a few thresholds, and each fit is pruned by backward elimination; the sparsest fit within
 ``VALIDATION_SLACK`` of the best validation RMSE is taken. The library's lobes of the angle get their centre
 and width here: per width on a grid (fractions of the recorded range), the centre whose odd and even lobe fit the
-training residual best (a scan, like the ripple's harmonic). ``propose_sparse_terms`` keeps a joint's term only
-when it lowers the joint's validation RMSE by ``DiagnosisOptions.sparse_min_gain`` and by ``MIN_TORQUE_FRACTION``
-of its torque RMS.
+training residual best (a scan, like the ripple's harmonic). With several validation recordings the fit is chosen on
+all of them together (their samples pooled), and ``propose_sparse_terms`` keeps a joint's term only when it holds on
+each (``SparseProposal.holds``): it lowers the joint's pooled validation RMSE by ``DiagnosisOptions.sparse_min_gain``
+and by ``MIN_TORQUE_FRACTION`` of its torque RMS (the size of the effect, measured on all the held-out data), and
+the joint's RMSE on every recording by ``sparse_min_gain`` (the library's candidates must hold on each recording as
+well, ``second_opinion``).
 """
 
 from __future__ import annotations
@@ -82,22 +85,36 @@ def best_lobes(q, target, nuisance) -> tuple:
 
 @dataclass(frozen=True, eq=False)
 class SparseProposal:
-    """A kept unnamed term with its evidence: validation RMSE of its joint before/after, the residual tests."""
+    """A kept unnamed term with its evidence: validation RMSE of its joint before/after (on the first validation
+    recording, the report's; on each; on all pooled), the residual tests."""
 
     term: SparseTerm
     coefficients: np.ndarray
     prediction_t: np.ndarray  # (n_samples_t,) on the term's joint
-    prediction_v: np.ndarray
+    prediction_v: np.ndarray  # on the first validation recording
     rmse_before: float
     rmse_after: float
     ljung_box_p: float
     state_correlation: float
     delta_bic: float
     nuisance: np.ndarray  # change of the nuisance columns' coefficients (the joint's friction)
+    each_before: tuple = ()  # the joint's RMSE on every validation recording (the first one first)
+    each_after: tuple = ()
+    pooled_before: float = 0.0  # over the samples of every validation recording together
+    pooled_after: float = 0.0
 
     @property
     def validation_gain(self) -> float:
         return 1.0 - self.rmse_after / self.rmse_before if self.rmse_before > 0 else 0.0
+
+    def holds(self, min_gain: float, floor: float) -> bool:
+        """The term lowers its joint's pooled validation RMSE by ``min_gain`` (fraction) and by ``floor`` [N m], and its
+        RMSE on each validation recording by ``min_gain``."""
+        pairs = list(zip(self.each_before, self.each_after)) or [(self.rmse_before, self.rmse_after)]
+        pooled = (self.pooled_before, self.pooled_after) if self.each_before else pairs[0]
+        if pooled[0] - pooled[1] < floor:
+            return False
+        return all(before > 0 and 1.0 - after / before >= min_gain for before, after in [pooled, *pairs])
 
 
 def _stlsq(matrix, target, threshold: float) -> np.ndarray:
@@ -138,7 +155,7 @@ def _prune(theta_t, residual_t, theta_v, residual_v, support, best, project, nui
 
 
 def fit_sparse_term(
-    context_t, context_v, joint: int, residual_t, residual_v, nuisance_t=None, nuisance_v=None
+    context_t, context_v, joint: int, residual_t, residual_v, nuisance_t=None, nuisance_v=None, more=()
 ) -> SparseProposal | None:
     """The sparsest good STLSQ fit of one joint's residual (training) judged on validation, or None.
 
@@ -152,15 +169,23 @@ def fit_sparse_term(
         Columns refitted with the term without being thresholded (the joint's nominal friction, which a hump
         or a position-dependent friction otherwise bends): they are projected out of the features and the
         residual before the sparse regression, and their coefficient change is ``SparseProposal.nuisance``.
+    more : sequence of (DiagnosisContext, array, array or None)
+        Further validation recordings, each as its context, the joint's residual and its nuisance columns: the fit
+        is chosen on every validation recording together, and judged on each (``SparseProposal.each_after``).
     """
     if nuisance_t is None:
         nuisance_t, nuisance_v = np.zeros((context_t.n_samples, 0)), np.zeros((context_v.n_samples, 0))
+    held = [(context_v, residual_v, nuisance_v)] + [
+        (c, r, np.zeros((c.n_samples, 0)) if n is None else n) for c, r, n in more
+    ]
     q_t = context_t.q[:, joint]
     target = residual_t - nuisance_t @ np.linalg.lstsq(nuisance_t, residual_t, rcond=None)[0]
     features = sparse_features(best_lobes(q_t, target, nuisance_t))
     centre = float(np.mean(q_t))
     theta_t = feature_matrix(context_t, joint, features, centre)
-    theta_v = feature_matrix(context_v, joint, features, centre)
+    thetas = [feature_matrix(c, joint, features, centre) for c, _, _ in held]
+    # every validation recording together: the fit is chosen (and pruned) on their pooled samples
+    theta_v, pooled_v, pooled_n = (np.concatenate(x) for x in (thetas, [h[1] for h in held], [h[2] for h in held]))
     # Frisch-Waugh: the sparse fit on what the nuisance columns cannot explain
     project = np.linalg.lstsq(nuisance_t, np.column_stack([theta_t, residual_t]), rcond=None)[0]
     theta_t_full, residual_t_full = theta_t, residual_t
@@ -169,8 +194,7 @@ def fit_sparse_term(
     scale = rms(theta_t)
     usable = scale > 1e-9 * max(float(np.max(scale)), 1e-300)
     r_scale = float(rms(residual_t))
-    before = float(rms(residual_v))
-    if r_scale <= 0 or before <= 0:
+    if r_scale <= 0 or float(rms(residual_v)) <= 0:
         return None
     fits = []
     for threshold in THRESHOLDS:
@@ -181,46 +205,50 @@ def fit_sparse_term(
             continue
         coefficients = w[support] * r_scale / scale[support]
         nuisance = project[:, -1] - project[:, support] @ coefficients
-        after = float(rms(residual_v - theta_v[:, support] @ coefficients - nuisance_v @ nuisance))
+        after = float(rms(pooled_v - theta_v[:, support] @ coefficients - pooled_n @ nuisance))
         fits.append((after, support.size, support, coefficients))
     if not fits:
         return None
     best = min(f[0] for f in fits)
     _, _, support, _ = min((f for f in fits if f[0] <= (1 + VALIDATION_SLACK) * best), key=lambda f: f[1])
-    support, coefficients = _prune(theta_t, residual_t, theta_v, residual_v, support, best, project, nuisance_v)
+    support, coefficients = _prune(theta_t, residual_t, theta_v, pooled_v, support, best, project, pooled_n)
     term = SparseTerm(joint=joint, features=tuple(features[k] for k in support), centre=centre)
     nuisance = project[:, -1] - project[:, support] @ coefficients
     pred_t = theta_t_full[:, support] @ coefficients + nuisance_t @ nuisance
-    pred_v = theta_v[:, support] @ coefficients + nuisance_v @ nuisance
-    after = float(rms(residual_v - pred_v))
+    predictions = [theta[:, support] @ coefficients + n @ nuisance for theta, (_, _, n) in zip(thetas, held)]
+    each_before = tuple(float(rms(r)) for _, r, _ in held)
+    each_after = tuple(float(rms(r - p)) for (_, r, _), p in zip(held, predictions))
     residual_t = residual_t_full
     n = residual_t.size
     sse0, sse1 = float(residual_t @ residual_t), float(np.sum((residual_t - pred_t) ** 2))
-    correlation = max(
-        abs(cross_correlation(residual_v, s, max_lag=0)[0])
-        for s in (
-            context_v.q[:, joint],
-            context_v.qd[:, joint],
-            context_v.qdd[:, joint],
-            np.sign(context_v.qd[:, joint]),
-        )
-    )
     return SparseProposal(
         term=term,
         coefficients=coefficients,
         prediction_t=pred_t,
-        prediction_v=pred_v,
-        rmse_before=before,
-        rmse_after=after,
+        prediction_v=predictions[0],
+        rmse_before=each_before[0],
+        rmse_after=each_after[0],
         ljung_box_p=ljung_box(residual_v)[1],
-        state_correlation=float(correlation),
+        state_correlation=_state_correlation(context_v, joint, residual_v),
         delta_bic=float(n * np.log(max(sse1, 1e-300) / max(sse0, 1e-300)) + support.size * np.log(n)),
         nuisance=nuisance,
+        each_before=each_before,
+        each_after=each_after,
+        pooled_before=float(rms(pooled_v)),
+        pooled_after=float(rms(pooled_v - np.concatenate(predictions))),
     )
 
 
-def propose_sparse_terms(context_t, context_v, residual_t, residual_v, min_gain: float, nuisance=None) -> tuple:
-    """One ``SparseProposal`` per joint whose validation RMSE falls by at least ``min_gain`` (fraction), best first.
+def _state_correlation(context, joint: int, residual) -> float:
+    """The largest correlation (lag 0) of ``residual`` with the joint's angle, speed, acceleration and speed sign."""
+    signals = (context.q[:, joint], context.qd[:, joint], context.qdd[:, joint], np.sign(context.qd[:, joint]))
+    return float(max(abs(cross_correlation(residual, s, max_lag=0)[0]) for s in signals))
+
+
+def propose_sparse_terms(
+    context_t, context_v, residual_t, residual_v, min_gain: float, nuisance=None, more=()
+) -> tuple:
+    """One ``SparseProposal`` per joint whose term holds (``SparseProposal.holds``), best first.
 
     Parameters
     ----------
@@ -228,23 +256,27 @@ def propose_sparse_terms(context_t, context_v, residual_t, residual_v, min_gain:
     residual_t, residual_v : arrays (n_samples, n_dof)
         Residual of the model with the library's kept terms on training and validation [N m].
     min_gain : float
-        Validation RMSE reduction a joint must show for its term to be kept (and at least ``MIN_TORQUE_FRACTION`` of
-        the joint's torque RMS in N m, as the library's terms must, see ``selection``).
+        Validation RMSE reduction a joint must show, pooled and on each validation recording, for its term to be kept
+        (and at least ``MIN_TORQUE_FRACTION`` of the joint's torque RMS in N m pooled, as the library's terms must
+        clear a floor, see ``selection``).
     nuisance : list of (array, array), optional
         Per joint, its training and validation columns refitted with the term (``fit_sparse_term``).
+    more : sequence of (DiagnosisContext, array (n_samples, n_dof), list of arrays or None)
+        Further validation recordings: each one's context, residual and per-joint nuisance columns.
     """
     out = []
     for j in range(context_t.n_dof):
         extra = (None, None) if nuisance is None else nuisance[j]
-        proposal = fit_sparse_term(context_t, context_v, j, residual_t[:, j], residual_v[:, j], *extra)
+        others = [(c, r[:, j], None if n is None else n[j]) for c, r, n in more]
+        proposal = fit_sparse_term(context_t, context_v, j, residual_t[:, j], residual_v[:, j], *extra, more=others)
         if proposal is None:
             continue
         logger.info(
             f"diagnose: sparse term on joint {j + 1}: {len(proposal.term.features)} features, validation RMSE "
-            f"{proposal.rmse_before:.4g} -> {proposal.rmse_after:.4g} N m"
+            + ", ".join(f"{b:.4g} -> {a:.4g}" for b, a in zip(proposal.each_before, proposal.each_after))
+            + " N m"
         )
         # a relative gain on a residual already near the noise is not worth a term: an absolute floor too
-        floor = MIN_TORQUE_FRACTION * float(rms(context_t.tau[:, j]))
-        if proposal.validation_gain >= min_gain and proposal.rmse_before - proposal.rmse_after >= floor:
+        if proposal.holds(min_gain, MIN_TORQUE_FRACTION * float(rms(context_t.tau[:, j]))):
             out.append(proposal)
     return tuple(sorted(out, key=lambda p: -p.validation_gain))

@@ -195,3 +195,30 @@ def test_position_dependent_friction_is_reported_as_an_unnamed_effect(denso, den
     assert np.sqrt(np.mean(error**2)) < 0.25 * np.sqrt(np.mean(law[moving] ** 2))
     paths = report.save(tmp_path)
     assert paths["unnamed_effects"].exists() and "unnamed_effect" in paths["markdown"].read_text()
+
+
+def test_a_sparse_term_is_kept_only_if_it_holds_on_every_validation_recording(contexts):
+    """Judged on each validation recording (issue 25): a law present in the first validation recording and absent from
+    the second is not kept, though it halves the first one's error; present in both, it is kept, judged on each."""
+    from identification.diagnosis.sparse_fit import propose_sparse_terms
+
+    ctx_t, ctx_v = contexts
+    truth = _features("sign(qd2) exp(-(qd2/0.2)^2)")
+    rng = np.random.default_rng(4)
+
+    def residual(ctx, size):
+        out = 0.05 * rng.standard_normal((ctx.n_samples, 6))
+        out[:, 1] += size * SparseTerm(joint=1, features=truth).columns(ctx)[:, 1, 0]
+        return out
+
+    r_t, r_v = residual(ctx_t, 2.0), residual(ctx_v, 2.0)
+    held = [(ctx_t, residual(ctx_t, 2.0), None)]  # a second validation recording with the law
+    kept = propose_sparse_terms(ctx_t, ctx_v, r_t, r_v, 0.3, more=held)
+    assert [p.term.joint for p in kept] == [1]
+    p = kept[0]
+    assert len(p.each_before) == 2 and all(a < 0.5 * b for a, b in zip(p.each_after, p.each_before))
+    assert p.rmse_before == p.each_before[0] and p.pooled_after < 0.5 * p.pooled_before
+    without = [(ctx_t, residual(ctx_t, 0.0), None)]  # the second recording has none of it: noise only
+    alone = propose_sparse_terms(ctx_t, ctx_v, r_t, r_v, 0.3)
+    assert [p.term.joint for p in alone] == [1]  # the first recording by itself would keep it
+    assert propose_sparse_terms(ctx_t, ctx_v, r_t, r_v, 0.3, more=without) == ()
