@@ -502,7 +502,7 @@ def split_validation(val, parts):
     return [val.time_slice(-np.inf, middle), val.time_slice(middle, np.inf)]
 
 
-def run(seeds, quick=False, verbose=True, only=None, validations=2):
+def run(seeds, quick=False, verbose=True, only=None, validations=2, cutoff=None):
     robots, models = {}, {}
     rows = []
     chosen = only if only is not None else (QUICK if quick else range(len(SCENARIOS)))
@@ -517,7 +517,10 @@ def run(seeds, quick=False, verbose=True, only=None, validations=2):
             truth, train, val = _scenario(robot_key, robot, effects, rng, 100 * seed + index)
             sim_s = time.perf_counter() - start
             start = time.perf_counter()
-            report = diagnose(robot, train, split_validation(val, validations), DiagnosisOptions(), model=model)
+            options = (
+                DiagnosisOptions() if cutoff is None else DiagnosisOptions(cutoff_hz=cutoff, rate_hz=20.0 * cutoff)
+            )
+            report = diagnose(robot, train, split_validation(val, validations), options, model=model)
             diag_s = time.perf_counter() - start
             found = report.findings
             clean = not truth
@@ -578,6 +581,7 @@ def run(seeds, quick=False, verbose=True, only=None, validations=2):
         "unstable_findings_reported_as_missing_physics": int(sum(r["unstable_reported"] for r in rows)),
         "unstable_findings_listed": int(sum(len(r["unstable_listed"]) for r in rows)),
         "validation_recordings": validations,
+        "cutoff_hz": cutoff or "identify's default (DiagnosisOptions)",
         "per_seed": {
             int(s): {
                 "correct_fraction": float(np.mean([r["correct"] for r in rows if r["seed"] == s])),
@@ -630,13 +634,19 @@ def main(argv=None):
         help="validation recordings per scenario (2: the validation part's halves; 1: block cross-validation route)",
     )
     parser.add_argument(
+        "--cutoff",
+        type=float,
+        default=None,
+        help="low-pass cutoff [Hz] with a grid of 20 x it (default: identify's preparation, DiagnosisOptions())",
+    )
+    parser.add_argument(
         "--loop",
         action="store_true",
         help="also the calibration-loop scenarios (benchmarks/calibration_loop.py, minutes): loop_parameter_errors",
     )
     args = parser.parse_args(argv)
     show_progress()
-    summary = run(args.seeds, quick=args.quick, only=args.only, validations=args.validations)
+    summary = run(args.seeds, quick=args.quick, only=args.only, validations=args.validations, cutoff=args.cutoff)
     if args.loop:
         from calibration_loop import loop_parameter_errors
 

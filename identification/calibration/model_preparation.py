@@ -17,15 +17,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from identification.calibration.trajectory_data import choose_filter
+from identification.data.filter_choice import SAMPLES_PER_CUTOFF, choose_filter
 from identification.data.preprocessing import PreprocessOptions
 
 __all__ = ["PREPARATION_VERSION", "SAMPLES_PER_CUTOFF", "Preparation", "default_preparation", "model_preparation",
            "preparation_block"]  # fmt: skip
 
 PREPARATION_VERSION = 1
-#: identify keeps samples at about this many times the cutoff (``trajectory_data.choose_filter``).
-SAMPLES_PER_CUTOFF = 10.0
 FILTER = "zero-phase Butterworth low-pass (filtfilt)"
 ORDER = PreprocessOptions().order
 EDGE = "ceil(rate / cutoff) samples (one filter period) trimmed at each end"
@@ -85,6 +83,6 @@ def model_preparation(document: dict) -> Preparation:
 
 
 def default_preparation(recording) -> Preparation:
-    """The preparation ``psdm identify`` chooses for ``recording`` (``trajectory_data.choose_filter``)."""
+    """The preparation ``psdm identify`` chooses for ``recording`` (``filter_choice.choose_filter``)."""
     cutoff, _ = choose_filter(1.0 / recording.dt)
     return Preparation(cutoff, SAMPLES_PER_CUTOFF * cutoff, "identify's default for the training recording")

@@ -16,16 +16,22 @@ spring): such a model is not written. The allowance is the noise of the comparis
 - the margin is ``MARGIN_SIGMAS`` of those standard errors, and never below ``MARGIN_FLOOR`` of the joint's RMSE
   before (a change that small is below what a validation RMSE tells).
 
-``keep_not_worse`` drops findings greedily: while a joint is worse than before plus its margin, the finding whose
-removal (with a refit) most lowers the RMSE of the joint that is most over its margin is dropped, and the model is
-refitted and checked again. When every finding the gate may drop is gone (the refit is then the model before, or a
-joint is still worse), or a joint is worse and no finding can be dropped (a payload the refit's rigid body takes up),
-nothing is kept: the refit is refused (``GateResult.refused``, naming the joints and the findings) and the caller
-writes nothing.
+``keep_not_worse`` searches which findings to drop when a joint is worse than before plus its margin. With at most
+``EXHAUSTIVE_MAX`` findings it may drop, every subset is refitted and checked, and of those that keep every joint
+within its margin the one with the largest improvement (``improvement``: the mean over joints of the relative
+validation RMSE drop) is written: dropping one finding at a time can remove the wrong one first (the finding that
+most repairs the worst joint may be the one that helps the other joints most). Beyond that, greedily: while a joint
+is worse, the finding whose removal (with a refit) most lowers the RMSE of the joint that is most over its margin is
+dropped, and the model is refitted and checked again. When only dropping every finding the gate may drop passes (the
+refit is then the model before, or a joint is still worse), or a joint is worse and no finding can be dropped (a
+payload the refit's rigid body takes up), nothing is kept: the refit is refused (``GateResult.refused``, naming the
+joints and the findings) and the caller writes nothing. The stored record (``JointComparison.to_dict``,
+``GateResult.search``) says per joint which part of the margin rule set its margin, and how the subset was searched.
 """
 
 from __future__ import annotations
 
+import itertools
 import logging
 from dataclasses import dataclass
 
@@ -35,6 +41,7 @@ from identification.calibration.finding_value import validation_rmse
 
 __all__ = [
     "BOOTSTRAP_SAMPLES",
+    "EXHAUSTIVE_MAX",
     "MARGIN_FLOOR",
     "MARGIN_RULE",
     "MARGIN_SIGMAS",
@@ -43,6 +50,7 @@ __all__ = [
     "block_length",
     "compare_models",
     "keep_not_worse",
+    "improvement",
     "paired_rmse_margin",
 ]
 
@@ -54,6 +62,8 @@ MARGIN_SIGMAS = 2.0
 MARGIN_FLOOR = 0.01
 #: Moving-block bootstrap draws of the paired RMSE difference (fixed seed: the same margin every run).
 BOOTSTRAP_SAMPLES = 300
+#: Most droppable findings whose every subset is tried (2**8 - 1 refits at most); greedy beyond.
+EXHAUSTIVE_MAX = 8
 MARGIN_RULE = (
     f"a joint is worse when its validation RMSE after exceeds before + margin; margin = max({MARGIN_SIGMAS:g} x the "
     f"standard error of the paired RMSE difference (moving-block bootstrap, block = twice the lag where the "
@@ -107,11 +117,14 @@ class JointComparison:
     before, after, margin : arrays (n_dof,)
         The mean over the validation recordings of each model's RMSE (as ``psdm validate``), and the margin
         (``MARGIN_RULE``).
+    standard_error : array (n_dof,) or None
+        The standard error of the paired RMSE difference the margin was derived from (None: not known).
     """
 
     before: np.ndarray
     after: np.ndarray
     margin: np.ndarray
+    standard_error: np.ndarray | None = None
 
     @property
     def excess(self) -> np.ndarray:
@@ -127,10 +140,28 @@ class JointComparison:
         """The joint (0-based) most over its margin, relative to its RMSE before."""
         return int(np.argmax(self.excess / np.maximum(self.before, 1e-12)))
 
+    def margin_sources(self) -> list:
+        """Per joint, the sentence saying which part of ``MARGIN_RULE`` set its margin, with the numbers."""
+        out = []
+        for j, (before, margin) in enumerate(zip(self.before, self.margin)):
+            floor = MARGIN_FLOOR * before
+            if self.standard_error is None:
+                out.append(f"joint {j + 1}: {margin:.3g} N m")
+                continue
+            noise = MARGIN_SIGMAS * self.standard_error[j]
+            which = (f"{MARGIN_SIGMAS:g} standard errors of the paired difference ({noise:.3g} N m), above the "
+                     f"{MARGIN_FLOOR:.0%} floor ({floor:.3g} N m)") if noise >= floor else (
+                     f"the {MARGIN_FLOOR:.0%} floor of the RMSE before ({floor:.3g} N m), above {MARGIN_SIGMAS:g} "
+                     f"standard errors of the paired difference ({noise:.3g} N m)")  # fmt: skip
+            out.append(f"joint {j + 1}: {margin:.3g} N m = {which}")
+        return out
+
     def to_dict(self) -> dict:
+        se = None if self.standard_error is None else _floats(self.standard_error)
         return {"validation_rmse_before": _floats(self.before), "validation_rmse_after": _floats(self.after),
-                "margin": _floats(self.margin), "worse_joints": [j + 1 for j in self.worse],
-                "margin_rule": MARGIN_RULE}  # fmt: skip
+                "margin": _floats(self.margin), "margin_standard_error": se, "margin_sigmas": MARGIN_SIGMAS,
+                "margin_floor": MARGIN_FLOOR, "margin_source": self.margin_sources(),
+                "worse_joints": [j + 1 for j in self.worse], "margin_rule": MARGIN_RULE}  # fmt: skip
 
     def text(self, joints=None) -> str:
         """``joint 2: 0.31 -> 0.49 N m (margin 0.012)`` for ``joints`` (0-based; default the worse ones)."""
@@ -159,7 +190,13 @@ def compare_models(before, after, model, validation, kt=None) -> JointComparison
     before_mean, after_mean = np.mean(rmse_b, axis=0), np.mean(rmse_a, axis=0)
     standard_error = np.sqrt(np.sum(np.square(se), axis=0)) / len(se)
     margin = np.maximum(MARGIN_SIGMAS * standard_error, MARGIN_FLOOR * before_mean)
-    return JointComparison(before=before_mean, after=after_mean, margin=margin)
+    return JointComparison(before=before_mean, after=after_mean, margin=margin, standard_error=standard_error)
+
+
+def improvement(comparison: JointComparison) -> float:
+    """The mean over joints of the relative validation RMSE drop (before - after) / before: what a subset of the
+    findings is ranked by (joints count alike whatever their torque)."""
+    return float(np.mean((comparison.before - comparison.after) / np.maximum(comparison.before, 1e-12)))
 
 
 @dataclass(frozen=True, eq=False)
@@ -179,6 +216,8 @@ class GateResult:
         the reason.
     refused : str or None
         Why no subset of the findings is not worse (joints and findings named), or None.
+    search : str
+        How the findings to drop were searched (every subset, or greedily), and what was found.
     """
 
     after: object
@@ -186,10 +225,12 @@ class GateResult:
     comparison: JointComparison
     dropped: list
     refused: str | None = None
+    search: str = ""
 
 
 def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) -> GateResult:
-    """Drop findings until no joint is worse than ``before`` beyond its margin, or refuse.
+    """Drop findings until no joint is worse than ``before`` beyond its margin, or refuse (module docstring: every
+    subset with at most ``EXHAUSTIVE_MAX`` droppable findings, greedily beyond).
 
     Parameters
     ----------
@@ -209,6 +250,66 @@ def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) 
     """
     after, payload = first
     comparison = compare_models(before, after, model, validation, kt)
+    if not comparison.worse:
+        return GateResult(after, payload, comparison, [], search="every finding kept: no joint is worse")
+    if 0 < len(droppable) <= EXHAUSTIVE_MAX:
+        return _every_subset(before, (after, payload, comparison), refit, list(droppable), model, validation, kt)
+    return _greedy(before, (after, payload, comparison), refit, list(droppable), model, validation, kt)
+
+
+def _every_subset(before, first, refit, droppable, model, validation, kt) -> GateResult:
+    """``keep_not_worse`` by trying every non-empty subset of ``droppable`` to drop: of those leaving every joint
+    within its margin (dropping them all does not count: that is the model before), the largest ``improvement``,
+    fewer dropped on a tie."""
+    _, _, comparison = first
+    trials = {}
+    for size in range(1, len(droppable) + 1):
+        for labels in itertools.combinations(droppable, size):
+            candidate, extra = refit(list(labels))
+            trials[labels] = (compare_models(before, candidate, model, validation, kt), candidate, extra)
+    passing = [k for k, t in trials.items() if not t[0].worse and len(k) < len(droppable)]
+    tried = f"every subset of the {len(droppable)} findings it may drop tried ({len(trials)} refits)"
+    if not passing:
+        names = ", ".join(droppable)
+        least = min(trials, key=lambda k: (len(trials[k][0].worse), float(np.sum(np.maximum(trials[k][0].excess, 0)))))
+        only_all = " except dropping every one (the model before)" if not trials[tuple(droppable)][0].worse else ""
+        refused = (f"no subset of the findings ({names}) keeps every joint's validation RMSE within its noise margin: "
+                   f"with all of them {comparison.text()}; {tried}, each leaves a joint worse{only_all}")  # fmt: skip
+        trial, after, payload = trials[least]
+        reason = f"the subset closest to passing drops {', '.join(least)}"
+        return GateResult(after, payload, trial, _records(least, comparison, trials, reason), refused, tried)
+    chosen = max(passing, key=lambda k: (improvement(trials[k][0]), -len(k)))
+    trial, after, payload = trials[chosen]
+    search = (f"{tried}; {len(passing)} keep every joint within its margin; the one dropping {', '.join(chosen)} "
+              f"improves most (mean relative validation RMSE drop {improvement(trial):.1%})")  # fmt: skip
+    logger.info("never worse: %s", search)
+    reason = (f"of the subsets that keep every joint within its margin, the one without {', '.join(chosen)} "
+              f"improves most ({improvement(trial):.1%})")  # fmt: skip
+    return GateResult(after, payload, trial, _records(chosen, comparison, trials, reason), search=search)
+
+
+def _records(labels, comparison: JointComparison, trials: dict, reason: str) -> list:
+    """The stored record of each finding dropped in ``labels`` (``GateResult.dropped``): the joint most over its margin
+    with every finding, its RMSE before, with them all, without the subset, and without the finding alone."""
+    worst = comparison.worst()
+    trial = trials[tuple(labels)][0]
+    return [{
+        "label": label,
+        "joint": worst + 1,
+        "validation_rmse_before": float(comparison.before[worst]),
+        "validation_rmse_with": float(comparison.after[worst]),
+        "validation_rmse_without": float(trial.after[worst]),
+        "validation_rmse_without_it_alone": float(trials[(label,)][0].after[worst]),
+        "margin": float(comparison.margin[worst]),
+        "reason": f"with every finding joint {worst + 1} is worse than before beyond the noise margin "
+        f"({comparison.text([worst])}); {reason}: joint {worst + 1} {trial.after[worst]:.4g} N m",
+    } for label in labels]  # fmt: skip
+
+
+def _greedy(before, first, refit, droppable, model, validation, kt) -> GateResult:
+    """``keep_not_worse`` greedily (more than ``EXHAUSTIVE_MAX`` findings, or none to drop): while a joint is worse,
+    drop the finding whose removal most lowers the RMSE of the joint most over its margin."""
+    after, payload, comparison = first
     remaining, dropped, first_text = list(droppable), [], comparison.text()
     while comparison.worse and remaining:
         worst = comparison.worst()
@@ -231,6 +332,8 @@ def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) 
         })  # fmt: skip
         remaining.remove(label)
         comparison = trial
+    search = (f"greedily, one finding at a time ({len(droppable)} findings it may drop, more than {EXHAUSTIVE_MAX} "
+              "for every subset)") if droppable else "no finding to drop"  # fmt: skip
     if comparison.worse or (dropped and not remaining):
         still = f"; without any, still {comparison.text()}" if comparison.worse and dropped else ""
         turns = "; ".join(f"{d['label']} ({d['reason']})" for d in dropped) or "none (no finding adds a column or a "
@@ -238,5 +341,5 @@ def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) 
         names = ", ".join(droppable) or "none to drop"
         return GateResult(after, payload, comparison, dropped, refused=(
             f"no subset of the findings ({names}) keeps every joint's validation RMSE within its noise margin: with "
-            f"all of them {first_text}{still}; dropped in turn: {turns}"))  # fmt: skip
-    return GateResult(after, payload, comparison, dropped)
+            f"all of them {first_text}{still}; dropped in turn: {turns}"), search=search)  # fmt: skip
+    return GateResult(after, payload, comparison, dropped, search=search)

@@ -4,7 +4,7 @@
 torque and its time derivatives (full rate), the nominal rigid-body torque of the robot file
 (the prior), its Jacobians with respect to q and qd and the mass matrix (Pinocchio
 ``computeRNEADerivatives``), the PSDM regressor and the gravity torque under a tilted gravity.
-The expensive matrices are evaluated on a decimated grid (``rate_hz``, default 200 Hz); signals
+The expensive matrices are evaluated on a decimated grid (``rate_hz``: identify's samples, ``filter_choice``); signals
 that are differentiated (torque derivatives for delay, elasticity, backlash) are differentiated at
 full rate first and then decimated.
 
@@ -35,6 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from identification.calibration.payload_fit import FlangeRegressor
+from identification.data.filter_choice import grid_step, kept_samples
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
@@ -215,13 +216,20 @@ def _tilt_axes(gravity: np.ndarray) -> np.ndarray:
     return np.vstack([a1, a2])
 
 
-def _decimated_indices(recording: Recording, rate_hz: float, max_samples: int | None = None) -> np.ndarray:
+def _decimated_indices(
+    recording: Recording, rate_hz: float, max_samples: int | None = None, cutoff_hz: float | None = None
+) -> np.ndarray:
     """Indices of the samples of a ``rate_hz`` grid (coarser when it would hold more than ``max_samples``
-    samples), without the ends where the zero-phase filter and the differences are least reliable (5 % of the
-    grid, at most 0.2 s each)."""
-    step = max(1, int(round(1.0 / (rate_hz * recording.dt))))
+    samples). Filtered at ``cutoff_hz``: identify's samples (``filter_choice.kept_samples``: every
+    ``grid_step``-th, without one filter period at each end, where the zero-phase filter and the differences are
+    least reliable), so a model is judged on the samples ``psdm validate`` judges it on; unfiltered: without 5 % of
+    the grid (at most 0.2 s) at each end."""
+    rate = 1.0 / recording.dt
+    step = grid_step(rate, rate_hz)
     if max_samples is not None:
         step = max(step, -(-recording.n_samples // int(max_samples)))
+    if cutoff_hz is not None:
+        return np.arange(recording.n_samples)[kept_samples(recording.n_samples, rate, cutoff_hz, step)]
     keep = np.arange(0, recording.n_samples, step)
     margin = min(keep.size // 20, int(round(0.2 / (recording.dt * step))))
     return keep[margin : keep.size - margin] if margin > 0 else keep
@@ -229,8 +237,8 @@ def _decimated_indices(recording: Recording, rate_hz: float, max_samples: int | 
 
 def _grid(recording: Recording, rate_hz: float, max_samples: int | None, cutoff_hz: float | None) -> np.ndarray:
     """``_decimated_indices``, logging a grid that ``max_samples`` made coarser than ``rate_hz``."""
-    keep = _decimated_indices(recording, rate_hz, max_samples)
-    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz).size:
+    keep = _decimated_indices(recording, rate_hz, max_samples, cutoff_hz)
+    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz, None, cutoff_hz).size:
         return keep
     grid_hz = 1.0 / (recording.dt * float(keep[1] - keep[0]))
     source = recording.name or "the recording"

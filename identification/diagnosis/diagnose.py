@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds
+from identification.data.filter_choice import SAMPLES_PER_CUTOFF, choose_filter
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
@@ -48,6 +49,9 @@ from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
 
+#: ``DiagnosisOptions.cutoff_hz`` and ``rate_hz``: identify's preparation of the training recording.
+AUTO = "auto"
+
 
 @dataclass(frozen=True)
 class DiagnosisOptions:
@@ -62,10 +66,14 @@ class DiagnosisOptions:
         payload- or inertia-type finding of the prior model must beat a full rigid-body recalibration on the
         validation recording, otherwise the rigid body is identified and the report says the robot file's
         inertial parameters are off (``rigid_body_choice``).
-    cutoff_hz : float or None
-        Zero-phase low-pass cut-off of the preprocessing [Hz].
-    rate_hz : float
-        Rate of the decimated grid the fit works on [Hz].
+    cutoff_hz : float, None or "auto"
+        Zero-phase low-pass cut-off of the preprocessing [Hz]; None: unfiltered; ``"auto"`` (default): the cutoff
+        ``psdm identify`` chooses for the training recording (``filter_choice.choose_filter``, ``min(10 Hz, rate /
+        10)``), so a diagnosis prepares its recordings as the identification does.
+    rate_hz : float or "auto"
+        Rate of the decimated grid the fit works on [Hz]; ``"auto"`` (default): identify's grid, ``SAMPLES_PER_CUTOFF``
+        times the cutoff. The grid keeps identify's samples: every ``filter_choice.grid_step``-th, without one filter
+        period at each end (``filter_choice.kept_samples``).
     min_improvement : float
         Validation RMSE reduction (fraction) one joint must show for a term to be kept.
     max_effects : int
@@ -91,9 +99,9 @@ class DiagnosisOptions:
         Most samples of a recording's decimated grid: a recording longer than ``max_samples / rate_hz``
         (20.8 minutes at the defaults) gets a coarser grid, so the memory and time of the fit are bounded by
         this rather than by the recording's length (about 1.5 kB per sample for 6 joints). A 60-minute
-        recording is fitted on a 66.7 Hz grid, 4.4 samples per period of the 15 Hz cut-off: the zero-phase
-        filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with fewer
-        than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
+        recording at a 200 Hz grid is fitted on a 66.7 Hz grid, 4.4 samples per period of a 15 Hz cut-off: the
+        zero-phase filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with
+        fewer than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
         ``rate_hz`` grid (and the results they always had).
     sparse : bool
         Look beyond the library: propose a sparse symbolic term (``sparse_terms``) for a joint whose residual
@@ -113,8 +121,8 @@ class DiagnosisOptions:
 
     friction: str = "lugre"
     rigid_body: str = "auto"
-    cutoff_hz: float | None = 15.0
-    rate_hz: float = 200.0
+    cutoff_hz: float | None | str = AUTO
+    rate_hz: float | str = AUTO
     min_improvement: float = 0.2
     max_effects: int = 4
     joint_threshold: float = 0.1
@@ -152,16 +160,21 @@ class DiagnosisOptions:
             )
         if not (isinstance(self.max_effects, (int, np.integer)) and self.max_effects >= 0):
             raise ParameterError(f"DiagnosisOptions.max_effects must be an integer >= 0; got {self.max_effects!r}.")
-        if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise ParameterError(f"DiagnosisOptions.rate_hz must be positive [Hz]; got {self.rate_hz!r}.")
+        if self.rate_hz != AUTO and not (_number(self.rate_hz) and self.rate_hz > 0):
+            raise ParameterError(
+                f"DiagnosisOptions.rate_hz must be positive [Hz] or {AUTO!r}; got {self.rate_hz!r}. Leave it {AUTO!r}."
+            )
         if isinstance(self.max_samples, bool) or not (
             isinstance(self.max_samples, (int, np.integer)) and self.max_samples >= 1000
         ):
             raise ParameterError(
                 f"DiagnosisOptions.max_samples must be an integer >= 1000; got {self.max_samples!r}. Use 250000."
             )
-        if self.cutoff_hz is not None and not (np.isfinite(self.cutoff_hz) and self.cutoff_hz > 0):
-            raise ParameterError(f"DiagnosisOptions.cutoff_hz must be positive [Hz] or None; got {self.cutoff_hz!r}.")
+        if self.cutoff_hz not in (None, AUTO) and not (_number(self.cutoff_hz) and self.cutoff_hz > 0):
+            raise ParameterError(
+                f"DiagnosisOptions.cutoff_hz must be positive [Hz], None (unfiltered) or {AUTO!r}; got "
+                f"{self.cutoff_hz!r}. Leave it {AUTO!r} (identify's preparation)."
+            )
         if self.excitation is not None and not isinstance(self.excitation, ExcitationThresholds):
             raise ParameterError(
                 f"DiagnosisOptions.excitation must be an ExcitationThresholds or None; got "
@@ -172,6 +185,23 @@ class DiagnosisOptions:
                 f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
                 "Combine terms with +, e.g. SpringTerm() + TorqueOffsetTerm()."
             )
+
+    def for_recording(self, train) -> DiagnosisOptions:
+        """These options with ``"auto"`` cutoff and grid rate resolved for the training recording ``train`` as
+        ``psdm identify`` resolves them (``filter_choice.choose_filter``)."""
+        if AUTO not in (self.cutoff_hz, self.rate_hz):
+            return self
+        cutoff = self.cutoff_hz
+        if cutoff == AUTO:
+            cutoff = choose_filter(1.0 / float(train.dt))[0]
+        rate = self.rate_hz
+        if rate == AUTO:
+            rate = SAMPLES_PER_CUTOFF * (cutoff if cutoff is not None else choose_filter(1.0 / float(train.dt))[0])
+        return replace(self, cutoff_hz=cutoff, rate_hz=float(rate))
+
+
+def _number(value) -> bool:
+    return isinstance(value, (int, float, np.number)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 @dataclass(frozen=True, eq=False)
@@ -261,6 +291,7 @@ def diagnose(
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
     robot, options = torque_constants_only(robot, options)
+    options = options.for_recording(train)
     validations = validation_recordings(validation)
     for recording in (train, *validations):  # positions, speeds and time in the robot's units, before any fit
         recording.check_robot(robot.n_dof, robot.name)
@@ -364,6 +395,7 @@ def torque_constants_only(robot, options: DiagnosisOptions) -> tuple:
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
     """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares;
     ``validation`` is a Recording or a sequence of them (the first is ``ctx_v``, the others ``extra_v``)."""
+    options = options.for_recording(train)
     kt = options.torque_constants
     if kt is None and robot.drives is not None:
         kt = tuple(d.kt for d in robot.drives)

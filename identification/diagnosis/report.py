@@ -122,6 +122,7 @@ class DiagnosisReport:
     nominal_model: str = ""  # the model the diagnosis started from (a calibrated model file, or the robot file)
     preparation: str = ""  # how the recordings were prepared (``model_preparation.Preparation.text``)
     model_file_rmse: tuple = ()  # a calibrated model's own validation RMSE per joint, as ``psdm validate`` computes it
+    before_is_model_file: bool = False  # "before" is that model file as it is, on the samples validate judges it on
     unstable: tuple = ()  # ``second_opinion.UnstableFinding``: qualified on one recording, not on another; not kept
     rejected: tuple = ()  # (label, reason): would have qualified, but its parameters are physically meaningless
     opinion_route: str = ""  # how findings were checked beyond the validation recording (``second_opinion``)
@@ -166,6 +167,7 @@ class DiagnosisReport:
             "nominal_model": self.nominal_model,
             "preparation": self.preparation,
             "model_file_rmse": list(self.model_file_rmse),
+            "before_is_model_file": self.before_is_model_file,
             "second_opinion": self.opinion_route or None,
             "unstable": [u.to_dict() for u in self.unstable],
             "validation_recordings": [r.to_dict() for r in self.recordings],
@@ -207,7 +209,10 @@ class DiagnosisReport:
                 f"| {j + 1} | {self.rmse_before[j]:.4g} | {self.rmse_after[j]:.4g} | "
                 f"{self.r2_before[j]:.4f} | {self.r2_after[j]:.4f} |"
             )
-        if self.model_file_rmse:
+        if self.before_is_model_file:
+            lines += ["", "RMSE before is the model file as it is, on the samples of its own preparation ('psdm "
+                      "validate' gives the same numbers); after: the diagnosis's model with the findings."]  # fmt: skip
+        elif self.model_file_rmse:
             own = ", ".join(f"joint {j + 1} {v:.4g}" for j, v in enumerate(self.model_file_rmse))
             lines += ["", "RMSE before is the nominal model refitted on the training recording; the model file as it "
                       f"is (as 'psdm validate' computes it): {own} N m."]  # fmt: skip

@@ -7,11 +7,13 @@ the model file reproduce (the augmented model holds exactly the terms and coeffi
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.confounding import confounding_of
-from identification.diagnosis.joint_changes import explain_joint_changes
+from identification.diagnosis.joint_changes import explain_joint_changes, rise_sentence
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
 from identification.diagnosis.recording_checks import check_recordings
 from identification.diagnosis.report import DiagnosisReport, Finding
@@ -118,3 +120,32 @@ def augmented_model_of(robot, model, final, options) -> AugmentedModel:
         terms=final.terms,
         coefficients=final.coefficients,
     )
+
+
+def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: float = 1e-9) -> DiagnosisReport | None:
+    """The report whose "before" is a calibrated model file as it is, or None when the diagnosis did not judge the
+    same samples.
+
+    ``t``, ``tau`` and ``predicted`` are the validation recording as the model file prepares it and the file's
+    prediction there (``CalibratedModel.predict_recording``, as ``psdm validate``). The diagnosis prepares its
+    recordings as the file says (``DiagnosisOptions`` cutoff and grid rate, identify's trims), so its validation
+    samples are those same instants with the same torque, to ``rtol``; then one "before" is shown per joint: the RMSE,
+    R^2 and prediction of the file, and a joint whose final RMSE is above it gets its sentence (``joint_notes``). Not
+    the same samples (a file with measurement corrections, a grid made coarser by ``max_samples``): None.
+    """
+    t, tau, predicted = (np.asarray(x, dtype=float) for x in (t, tau, predicted))
+    own_t, own_tau = np.asarray(report.validation_t), np.asarray(report.validation_tau)
+    if own_t.shape != t.shape or own_tau.shape != tau.shape or predicted.shape != tau.shape:
+        return None
+    scale = max(float(np.max(np.abs(tau))), 1e-300)
+    if not (np.allclose(own_t, t, rtol=0.0, atol=1e-9) and np.allclose(own_tau, tau, rtol=rtol, atol=rtol * scale)):
+        return None
+    before, after = rmse(tau, predicted), np.asarray(report.rmse_after, dtype=float)
+    cause = (
+        "the diagnosis refits the nominal friction on the training recording before it adds the findings; the model "
+        "file as it is predicts this joint better ('diagnose --apply' refits the file itself, never worse)"
+    )
+    notes = tuple(rise_sentence(j, before[j], after[j], cause) for j in range(before.size) if after[j] > before[j])
+    return replace(report, rmse_before=tuple(before.tolist()), r2_before=tuple(r2(tau, predicted).tolist()),
+                   validation_nominal=predicted, joint_notes=notes, model_file_rmse=tuple(before.tolist()),
+                   before_is_model_file=True)  # fmt: skip

@@ -243,7 +243,8 @@ def _preparation(args, calibrated, train):
 
 
 def _named(args, report, preparation, loaded, validation):
-    """The report naming the nominal model it used and the preparation; a model file's own validation RMSE beside."""
+    """The report naming the nominal model it used and the preparation; a model file's own validation RMSE is its
+    "before" (``report_assembly.with_model_file_before``), or beside it when the samples differ."""
     import dataclasses
     import hashlib
 
@@ -254,15 +255,18 @@ def _named(args, report, preparation, loaded, validation):
         nominal = f"the robot file {args.robot}: rigid body {'from it' if prior else 'identified'}"
         return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text())
     from identification.calibration.finding_value import validation_rmse
+    from identification.diagnosis.report_assembly import with_model_file_before
 
     digest = hashlib.sha256(Path(args.robot).read_bytes()).hexdigest()[:12]
     created = calibrated.document.get("provenance", {}).get("created", "unknown")
     nominal = (f"the calibrated model file {args.robot} (sha256 {digest}..., created {created}): rigid body "
                f"{'as identified in it' if prior else 'identified again on the training recording'}")  # fmt: skip
     kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-    own = validation_rmse(calibrated, model, validation, kt)[0]
-    return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text(),
-                               model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
+    own, _, prepared, predicted = validation_rmse(calibrated, model, validation, kt)
+    report = dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text(),
+                                 model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
+    # one "before": the file as it is, when the diagnosis judged the samples the file's preparation keeps
+    return with_model_file_before(report, prepared.t, prepared.tau, predicted) or report
 
 
 def _robot_friction(robot) -> str:
@@ -371,6 +375,8 @@ def recalibration_markdown(result, joint_names, path) -> str:
         "",
         f"- never worse: {block['never_worse']['margin_rule']}; every joint of the model written is within it",
     ]
+    if block["never_worse"].get("search"):
+        lines.append(f"- findings to drop: {block['never_worse']['search']}")
     lines += [f"- dropped {d['label']} (never worse): {d['reason']}; the model was refitted without it"
               for d in block["never_worse"]["dropped"]]  # fmt: skip
     for key in ("before", "after"):

@@ -87,16 +87,75 @@ def test_the_gate_drops_the_finding_that_most_repairs_the_worst_joint(monkeypatc
     table = {frozenset(): [0.5, 1.3], frozenset({"a"}): [0.6, 1.2], frozenset({"b"}): [0.7, 1.0],
              frozenset({"a", "b"}): [1.0, 1.0]}  # fmt: skip
     result, refits = _gate(monkeypatch, table, ["a", "b"])
-    assert result.refused is None and result.after == frozenset({"b"}) and refits == [{"a"}, {"b"}]
+    assert result.refused is None and result.after == frozenset({"b"}) and refits == [{"a"}, {"b"}, {"a", "b"}]
     assert [(d["label"], d["joint"]) for d in result.dropped] == [("b", 2)]
     assert result.dropped[0]["validation_rmse_with"] == 1.3 and result.dropped[0]["validation_rmse_without"] == 1.0
+    assert "every subset of the 2 findings" in result.search
+
+
+def _table_where_greedy_goes_wrong(labels):
+    """RMSE per joint (before: 1.0 on both, margin 0.05) of every subset of ``labels`` dropped: with all findings
+    joint 2 is worse (1.3); dropping ``a`` repairs joint 2 most (1.0) but ``a`` is what lowers joint 1 (0.5); dropping
+    ``b`` instead leaves joint 2 at 1.04, within its margin, and keeps joint 1 at 0.5. The others (c, d, ...) each lower
+    joint 1 a little and are harmless."""
+    import itertools
+
+    table = {}
+    for size in range(len(labels) + 1):
+        for drop in itertools.combinations(labels, size):
+            joint1 = (0.9 if "a" in drop else 0.5) + 0.01 * sum(x not in ("a", "b") for x in drop)
+            joint2 = 1.3 - (0.3 if "a" in drop else 0.0) - (0.26 if "b" in drop else 0.0)
+            table[frozenset(drop)] = [joint1, max(joint2, 1.0)]
+    return table
+
+
+@pytest.mark.parametrize("n", [3, 8])
+def test_every_subset_finds_a_better_model_than_dropping_greedily(monkeypatch, n):
+    """With up to 8 findings every subset is tried: the largest improvement that keeps every joint within its margin
+    (drop b: joint 1 0.5, joint 2 1.04), where the greedy search drops a (joint 1 0.9, joint 2 1.0)."""
+    import identification.calibration.never_worse as gate
+
+    labels = ["a", "b", "c", "d", "e", "f", "g", "h", "i"][:n]
+    table = _table_where_greedy_goes_wrong(labels)
+    result, refits = _gate(monkeypatch, table, labels)
+    assert result.refused is None and result.after == frozenset({"b"}) and len(refits) == 2**n - 1
+    assert [d["label"] for d in result.dropped] == ["b"] and result.comparison.worse == ()
+    assert result.dropped[0]["validation_rmse_without_it_alone"] == pytest.approx(1.04)
+    # the greedy route on the same table: a first, a worse model (joint 1 0.9 instead of 0.5)
+    monkeypatch.setattr(gate, "EXHAUSTIVE_MAX", 0)
+    greedy, _ = _gate(monkeypatch, table, labels)
+    assert greedy.after == frozenset({"a"}) and greedy.comparison.after[0] == pytest.approx(0.9)
+    assert gate.improvement(result.comparison) > gate.improvement(greedy.comparison)
+    assert "greedily" in greedy.search and f"every subset of the {n} findings" in result.search
+
+
+def test_more_than_eight_findings_are_dropped_greedily(monkeypatch):
+    labels = ["a", "b", "c", "d", "e", "f", "g", "h", "i"]
+    result, refits = _gate(monkeypatch, _table_where_greedy_goes_wrong(labels), labels)
+    assert result.after == frozenset({"a"}) and len(refits) == 9 and "greedily" in result.search
+
+
+def test_the_stored_margin_says_what_set_it():
+    """The record explains each joint's margin: the bootstrap's standard errors or the floor, with the numbers."""
+    from identification.calibration.never_worse import JointComparison
+
+    comparison = JointComparison(np.array([1.0, 1.0]), np.array([1.0, 1.0]), np.array([0.04, 0.01]),
+                                 standard_error=np.array([0.02, 0.001]))  # fmt: skip
+    record = comparison.to_dict()
+    assert record["margin_standard_error"] == [0.02, 0.001] and record["margin_sigmas"] == 2.0
+    assert (
+        "2 standard errors of the paired difference (0.04 N m), above the 1% floor (0.01 N m)"
+        in (record["margin_source"][0])
+    )
+    assert record["margin_source"][1].startswith("joint 2: 0.01 N m = the 1% floor of the RMSE before (0.01 N m)")
 
 
 def test_the_gate_refuses_when_every_finding_goes_or_none_can(monkeypatch):
     table = {frozenset(): [0.5, 1.3], frozenset({"a"}): [0.6, 1.2], frozenset({"b"}): [0.7, 1.1],
              frozenset({"a", "b"}): [1.0, 1.0]}  # fmt: skip
-    result, _ = _gate(monkeypatch, table, ["a", "b"])  # b, then a: nothing left to write
-    assert result.refused and [d["label"] for d in result.dropped] == ["b", "a"]
+    result, _ = _gate(monkeypatch, table, ["a", "b"])  # only dropping both passes: nothing left to write
+    assert result.refused and "except dropping every one" in result.refused
+    assert [d["label"] for d in result.dropped] == ["a", "b"]  # the subset closest to passing: both
     assert "joint 2: 1 -> 1.3 N m" in result.refused
     result, refits = _gate(monkeypatch, {frozenset(): [0.5, 1.3]}, [])  # a payload: nothing to drop, still worse
     assert result.refused and "none to drop" in result.refused and refits == []

@@ -102,7 +102,32 @@ def test_validate_and_diagnose_report_the_same_before_and_the_report_names_the_f
     text = capsys.readouterr().out
     report = json.loads((tmp_path / "report" / "report.json").read_text())
     np.testing.assert_allclose(report["model_file_rmse"], validated, rtol=1e-12)
+    # one "before": the diagnosis judged the samples validate judges, so its before is the file's own RMSE
+    np.testing.assert_allclose(report["rmse_before"], validated, rtol=1e-9)
+    assert report["before_is_model_file"] is True
     assert model in report["nominal_model"] and "calibrated model file" in report["nominal_model"]
     assert "at 8 Hz" in report["preparation"] and "(model file)" in report["preparation"]
     assert f"Nominal model: the calibrated model file {model}" in text and "rigid body from the robot file" not in text
-    assert "the model file as it is (as 'psdm validate' computes it): joint 1 " + f"{validated[0]:.4g}" in text
+    assert "RMSE before is the model file as it is" in text and f"| 1 | {validated[0]:.4g} |" in text
+    assert "RMSE before is the nominal model refitted" not in text
+
+
+def test_the_library_default_is_identify_s_preparation_and_its_samples(denso_files, denso, denso_model):
+    """``DiagnosisOptions()`` prepares a recording as ``psdm identify`` would (one definition of the default), and the
+    diagnosis keeps identify's samples: the same instants and torques as ``prepare_recording``, for a model file's
+    own cutoff too."""
+    from identification.data.io import load_recording
+    from identification.diagnosis.diagnose import DiagnosisOptions, prepare_problem
+
+    train, valid = (load_recording(denso_files / name, 6) for name in ("train.csv", "valid.csv"))
+    auto = DiagnosisOptions().for_recording(train)
+    identify = default_preparation(train)
+    assert (auto.cutoff_hz, auto.rate_hz) == (identify.cutoff_hz, identify.grid_rate_hz) == (10.0, 100.0)
+    for options in (DiagnosisOptions(rigid_body="prior"), DiagnosisOptions(rigid_body="prior", cutoff_hz=8.0,
+                                                                           rate_hz=80.0)):  # fmt: skip
+        problem = prepare_problem(denso, denso_model, train, valid, options)
+        cutoff = options.for_recording(train).cutoff_hz
+        ready, _, _ = prepare_recording(valid, None, cutoff)  # the identification's own preparation
+        np.testing.assert_allclose(problem.ctx_v.t, ready.t, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(problem.ctx_v.tau, ready.tau, rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(problem.ctx_v.q, ready.q, rtol=1e-9, atol=1e-12)

@@ -1,0 +1,47 @@
+"""The preparation identify chooses for a recording: one definition of the filter, grid and trims for every command.
+
+``psdm identify`` filters a recording by a zero-phase Butterworth low-pass at ``min(MAX_CUTOFF_HZ, rate / 10)``
+(``choose_filter``), keeps samples at about ``SAMPLES_PER_CUTOFF`` times the cutoff and drops one filter period at
+each end, where the filter's start-up transient corrupts the differentiated acceleration (``kept_samples``). The
+identification (``calibration.trajectory_data.prepare_recording``), a calibrated model's stored preparation
+(``calibration.model_preparation``) and the diagnosis (``DiagnosisOptions`` by default, and the samples its
+contexts keep) all take it from here, so a diagnosis of a model file is judged on the very samples ``psdm validate``
+judges it on.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError, RecordingError
+
+__all__ = ["MAX_CUTOFF_HZ", "SAMPLES_PER_CUTOFF", "choose_filter", "grid_step", "kept_samples"]
+
+#: Highest default low-pass cutoff [Hz]: the joint motion of excitation trajectories is a few Hz at most.
+MAX_CUTOFF_HZ = 10.0
+#: Samples are kept at about this many times the cutoff.
+SAMPLES_PER_CUTOFF = 10.0
+
+
+def grid_step(rate_hz: float, grid_rate_hz: float) -> int:
+    """Keep every this-many samples of a ``rate_hz`` recording for a grid of about ``grid_rate_hz`` [Hz] (>= 1)."""
+    return max(1, int(rate_hz // grid_rate_hz))
+
+
+def choose_filter(rate_hz: float, cutoff_hz: float | None = None) -> tuple[float, int]:
+    """(cutoff [Hz], decimation step) for a sampling rate: ``min(10 Hz, rate/10)``, samples at ~10x cutoff."""
+    if not (np.isfinite(rate_hz) and rate_hz > 0):
+        raise RecordingError(f"the sampling rate must be positive [Hz]; got {rate_hz!r}. Check the time column.")
+    cutoff = min(MAX_CUTOFF_HZ, rate_hz / 10.0) if cutoff_hz is None else float(cutoff_hz)
+    if not (0 < cutoff < rate_hz / 2):
+        raise ParameterError(
+            f"cutoff_hz must be in (0, {rate_hz / 2:g}) Hz (below Nyquist for {rate_hz:g} Hz); got {cutoff!r}."
+        )
+    return cutoff, grid_step(rate_hz, SAMPLES_PER_CUTOFF * cutoff)
+
+
+def kept_samples(n_samples: int, rate_hz: float, cutoff_hz: float, step: int) -> slice:
+    """The samples kept of a recording filtered at ``cutoff_hz``: every ``step``-th, without one filter period
+    (``ceil(rate / cutoff)`` samples) at each end."""
+    edge = int(np.ceil(rate_hz / cutoff_hz))
+    return slice(edge, n_samples - edge, int(step))
