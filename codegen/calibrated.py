@@ -144,9 +144,9 @@ def stribeck_velocity(calibrated) -> np.ndarray | None:
     if "fs" not in drive["friction_terms"]:
         return None
     vs = np.array([np.nan if v is None else v for v in drive.get("stribeck_velocity") or []], dtype=float)
-    if vs.shape != (calibrated.n_dof,) or not np.all(np.isfinite(vs) & (vs > 0)):
+    if vs.shape != (calibrated.n_dof,) or not np.all(np.isfinite(vs) & (vs >= 0)):
         raise ModelFileError(
-            f"calibrated model drive.stribeck_velocity must be {calibrated.n_dof} positive numbers [rad/s] (the "
+            f"calibrated model drive.stribeck_velocity must be {calibrated.n_dof} numbers >= 0 [rad/s] (the "
             f"friction terms hold 'fs'); got {drive.get('stribeck_velocity')!r}. Re-run 'psdm identify'."
         )
     return vs
@@ -344,6 +344,8 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
         names = [f"{term}{j + 1}" for term in terms] + ([f"Ia{j + 1}"] if j in inertia_joints else [])
         if names:
             vs = [] if stribeck is None else [f"vs{j + 1} = {stribeck[j]:.17g}"]
+            if stribeck is not None and stribeck[j] == 0:
+                vs = [f"vs{j + 1} = 0 (Coulomb-viscous joint: no Stribeck term)"]
             lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs))
     lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated) + corrections_note(calibrated, prefix)
     lines = [line.replace("*/", "* /") for line in _warning_lines(calibrated) + lines]  # free text: no comment end

@@ -55,7 +55,7 @@ from identification.calibration.findings import FindingTerm, correct_recording, 
 from identification.calibration.model_file_check import robot_digest
 from identification.calibration.model_preparation import model_preparation, preparation_block
 from identification.calibration.payload_fit import configurations_block
-from identification.calibration.trajectory_data import drive_columns, prepare_recording
+from identification.calibration.trajectory_data import drive_columns, friction_shapes, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
@@ -132,6 +132,7 @@ class CalibratedModel:
                       "std": _floats(fit.drive_std), "relative_sigma_percent": _floats(relative[model.n_base :]),
                       "friction_terms": list(fit.friction_terms), "coulomb_velocity": fit.coulomb_velocity,
                       "friction_shape": "stribeck" if "fs" in fit.friction_terms else "coulomb-viscous",
+                      "friction_shapes": friction_shapes(fit.friction_terms, fit.stribeck_velocity, n),
                       "stribeck_velocity": list(fit.stribeck_velocity),
                       "stribeck_velocity_std": _floats(fit.stribeck_velocity_std),
                       "inertia_joints": [j + 1 for j in fit.inertia_joints]},
@@ -153,6 +154,7 @@ class CalibratedModel:
         if lugre is not None:
             document["version"] = LUGRE_VERSION
             document["drive"]["friction_shape"] = "lugre"
+            document["drive"]["friction_shapes"] = ["lugre"] * n
             document["drive"]["lugre"] = _lugre_block(lugre)
         return cls(document)
 
@@ -372,8 +374,10 @@ def friction_drives(calibrated: CalibratedModel, robot) -> tuple | None:
         return tuple(dataclasses.replace(d, **p.as_dict()) for d, p in zip(base, lugre))
     values = dict(zip(calibrated.document["drive"]["names"], calibrated.drive))
     vs = calibrated.document["drive"]["stribeck_velocity"]
+    flat = [float(v) == 0.0 for v in vs]  # a Coulomb-viscous joint of the file: its static level is its Coulomb one
     return tuple(
-        dataclasses.replace(d, fc=max(values[f"fc{j + 1}"], 0.0), fs=max(values[f"fs{j + 1}"], 0.0), vs=float(vs[j]),
+        dataclasses.replace(d, fc=max(values[f"fc{j + 1}"], 0.0), vs=d.vs if flat[j] else float(vs[j]),
+                            fs=max(values[f"fc{j + 1}" if flat[j] else f"fs{j + 1}"], 0.0),
                             fv=max(values[f"fv{j + 1}"], 0.0), dv=1.0)
         for j, d in enumerate(base)
     )  # fmt: skip

@@ -1,4 +1,4 @@
-"""Which drive columns the data want: the friction shape, and per joint a torque offset and a drive inertia.
+"""Which drive columns the data want: per joint the friction shape, a torque offset and a drive inertia.
 
 On default settings ``psdm identify`` does not ask whether the torque signal carries an offset, holds the
 rotors' inertia (motor currents do; link-side joint-torque sensors, as on the Franka Panda or KUKA iiwa,
@@ -7,20 +7,25 @@ do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, be
 1. The training recordings are prepared as the fit prepares them and summed into normal equations with
    every candidate column (the Stribeck shape's two Coulomb columns, its velocities found first; each
    joint's offset where the joint reverses; each separate drive-inertia column), in contiguous blocks.
-2. Every candidate model is a linear map of these columns (the Coulomb-viscous shape is the Stribeck shape
-   with ``fs = fc``: the two Coulomb columns summed; a dropped column is left out), fitted by weighted
-   least squares with each joint's weight ``1 / sigma_j^2`` of the full model.
-3. A candidate is kept when the Bayesian information criterion on the training data prefers it (per
-   joint for a joint's own column, summed over the joints for the shape), with the number of samples
-   divided by the residual's correlation time (filtered samples are not independent), **and** it lowers
-   the error on held-out data: the validation recordings when given, else a cross-validation over the
-   training blocks (each block predicted by the fit on the others).
+2. Every candidate model is a linear map of these columns (a joint of the Coulomb-viscous shape is one of the
+   Stribeck shape with ``fs = fc``: its two Coulomb columns summed; a dropped column is left out), fitted by
+   weighted least squares with each joint's weight ``1 / sigma_j^2`` of the full model.
+3. A candidate is kept when the Bayesian information criterion on the training data prefers it (per joint:
+   the joint's own columns, its Stribeck shape, offset or drive inertia, dropped with every other candidate in),
+   with the number of samples divided by the residual's correlation time (filtered samples are not independent),
+   **and** it lowers the joint's error on held-out data: the validation recordings when given, else a
+   cross-validation over the training blocks (each block predicted by the fit on the others). A joint's Stribeck
+   shape must also be a Stribeck effect: its static friction above its Coulomb level by ``STRIBECK_Z`` standard
+   deviations (a fit with ``fs < fc`` only follows the low-pass filter's smearing of the Coulomb step at each
+   reversal, which Coulomb-viscous truth shows too). Each joint gets the shape its own data want; the fit holds the
+   others' static friction at their Coulomb level (``TrajectoryOptions.stribeck_joints``).
 4. A drive inertia the data want negative is dropped: a torque measured behind the gearbox holds no rotor
    inertia. That is an expected situation, stated in the choice, not a warning.
 
 LuGre friction stays an explicit choice (its fit is a multiple-shooting problem per joint, too costly to
-try by default); with it, the offsets and drive inertias are chosen under the Stribeck shape it starts from.
-An explicit ``on``/``off`` (``ColumnRequest``) is taken as given.
+try by default); with it, the offsets and drive inertias are chosen under the Stribeck shape it starts from, on
+every joint. An explicit ``on``/``off`` or shape (``ColumnRequest``, ``--friction X``) is taken as given, for every
+joint.
 """
 
 from __future__ import annotations
@@ -75,7 +80,8 @@ class ColumnRequest:
 
 @dataclass(frozen=True)
 class Evidence:
-    """What the data said about one candidate: ``term`` ``"stribeck"`` (``joint`` None), ``"offset"`` or ``"Ia"``.
+    """What the data said about one candidate of one joint: ``term`` ``"stribeck"`` (the shape), ``"offset"`` or
+    ``"Ia"``.
 
     ``delta_bic``: the training BIC without the candidate minus with it (positive: the training data want it);
     ``held_out_ratio``: held-out sum of squared residuals with it over without it (below 1: it predicts
@@ -99,7 +105,11 @@ class Evidence:
 
 @dataclass(frozen=True)
 class ColumnChoice:
-    """The drive columns of a fit: friction shape, offset joints and drive-inertia joints (0-based), and why."""
+    """The drive columns of a fit: friction shape, offset joints and drive-inertia joints (0-based), and why.
+
+    ``friction`` is the model's shape (``"stribeck"`` when any joint has the Stribeck shape, whose joints are
+    ``stribeck_joints``; the others are Coulomb-viscous); ``shapes`` gives it per joint.
+    """
 
     friction: str
     offset_joints: tuple
@@ -107,17 +117,28 @@ class ColumnChoice:
     request: ColumnRequest
     check: str = ""
     evidence: tuple = ()
+    stribeck_joints: tuple | None = None  # None: every joint of a Stribeck (or LuGre) model, none otherwise
+    n_dof: int = 0  # joints of the robot (0: not stated; ``shapes`` then needs it)
+
+    def shapes(self, n_dof: int) -> list:
+        """The friction shape of each joint."""
+        if self.friction not in ("stribeck", "lugre"):
+            return ["coulomb-viscous"] * n_dof
+        joints = range(n_dof) if self.stribeck_joints is None else self.stribeck_joints
+        return [self.friction if j in joints else "coulomb-viscous" for j in range(n_dof)]
 
     def options(self, options: TrajectoryOptions) -> TrajectoryOptions:
         """``options`` with these columns (the LuGre shape's fit starts from the Stribeck columns)."""
         terms = ("fc", "fs", "fv") if self.friction in ("stribeck", "lugre") else ("fc", "fv")
         offset = self.request.offset == "on" or bool(self.offset_joints)
+        stribeck = None if self.stribeck_joints is None or self.friction != "stribeck" else self.stribeck_joints
         return replace(
             options,
             friction=(*terms, "offset") if offset else terms,
             offset_joints=None if self.request.offset == "on" else tuple(self.offset_joints),
             drive_inertia=self.request.drive_inertia != "off",
             inertia_joints=None if self.request.drive_inertia == "on" else tuple(self.inertia_joints),
+            stribeck_joints=None if stribeck is None else tuple(stribeck),
         )
 
     def describe(self) -> list:
@@ -128,7 +149,7 @@ class ColumnChoice:
 
         auto = "chosen from the data"
         by = {k: auto if getattr(self.request, k) == "auto" else "as asked" for k in ("friction", "offset")}
-        lines = [f"friction shape: {self.friction} ({by['friction']})",
+        lines = [f"friction shape: {self._shape_text()} ({by['friction']})",
                  f"torque offset: {'every joint' if self.request.offset == 'on' else joints(self.offset_joints)} "
                  f"({by['offset']})"]  # fmt: skip
         if self.request.drive_inertia == "auto":
@@ -144,9 +165,21 @@ class ColumnChoice:
             lines.append(f"checked on {self.check}")
         return lines
 
+    def _shape_text(self) -> str:
+        """``stribeck`` (every joint), or ``stribeck on joints 1, 3; coulomb-viscous on joints 2, 4``."""
+        if self.stribeck_joints is None or self.friction != "stribeck":
+            return self.friction
+        n_dof = self.n_dof or max(self.stribeck_joints) + 1
+        shapes = self.shapes(n_dof)
+        parts = [(shape, [j + 1 for j in range(n_dof) if shapes[j] == shape]) for shape in dict.fromkeys(shapes)]
+        return "; ".join(f"{shape} on joint{'s' if len(js) > 1 else ''} {', '.join(map(str, js))}"
+                         for shape, js in parts)  # fmt: skip
+
     def to_dict(self) -> dict:
         """The choice as the model file and ``--json`` hold it (joints 1-based)."""
-        return {"friction": self.friction, "offset_joints": [j + 1 for j in self.offset_joints],
+        stribeck = None if self.stribeck_joints is None else [j + 1 for j in self.stribeck_joints]
+        return {"friction": self.friction, "friction_shapes": self.shapes(self.n_dof) if self.n_dof else None,
+                "stribeck_joints": stribeck, "offset_joints": [j + 1 for j in self.offset_joints],
                 "inertia_joints": [j + 1 for j in self.inertia_joints], "request": asdict(self.request),
                 "check": self.check, "evidence": [e.to_dict() for e in self.evidence]}  # fmt: skip
 
@@ -167,19 +200,22 @@ class _Candidates:
         """Training samples of ``joint``."""
         return int(sum(block.count[joint] for block in self.blocks))
 
-    def transform(self, stribeck: bool, dropped=()) -> np.ndarray:
-        """Map from a sub-model's columns to the full ones (Coulomb-viscous: ``fs`` joins ``fc``)."""
+    def transform(self, stribeck, dropped=()) -> np.ndarray:
+        """Map from a sub-model's columns to the full ones: the joints of ``stribeck`` (0-based) keep the Stribeck
+        shape, on the others (Coulomb-viscous) ``fs`` joins ``fc``."""
         full = [f"theta{k}" for k in range(self.n_base)] + list(self.names)
-        kept = [n for n in full if n not in dropped and not (self.stribeck and not stribeck and n.startswith("fs"))]
+        flat = {f"{j + 1}" for j in range(self.weights.size) if j not in stribeck} if self.stribeck else set()
+        kept = [n for n in full if n not in dropped and not (n.startswith("fs") and n[2:] in flat)]
         out = np.zeros((len(full), len(kept)))
         for k, name in enumerate(kept):
             out[full.index(name), k] = 1.0
-            if self.stribeck and not stribeck and name.startswith("fc"):
+            if name.startswith("fc") and name[2:] in flat:
                 out[full.index("fs" + name[2:]), k] = 1.0
         return out
 
-    def evaluate(self, stribeck: bool, dropped=()) -> tuple:
-        """(training RSS per joint, held-out RSS per joint, estimate in full columns, its std) of a sub-model."""
+    def evaluate(self, stribeck, dropped=()) -> tuple:
+        """(training RSS per joint, held-out RSS per joint, estimate in full columns, its std) of a sub-model whose
+        joints ``stribeck`` (0-based) have the Stribeck shape."""
         transform = self.transform(stribeck, dropped)
         total = _sum(self.blocks)
         x, std = _solve(total, transform, self.weights)
@@ -302,15 +338,16 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
     if "auto" not in (request.friction, request.offset, request.drive_inertia):  # nothing to choose
         every = tuple(range(robot.n_dof)) if request.offset == "on" else ()
         inertia = tuple(separate_inertia_joints(model, robot)) if request.drive_inertia == "on" else ()
-        return ColumnChoice(request.friction, every, inertia, request)
+        return ColumnChoice(request.friction, every, inertia, request, n_dof=robot.n_dof)
     found, offsets, inertia = _candidates(robot, model, list(recordings), options, request, list(validation),
                                           configurations)  # fmt: skip
     check = (f"{len(validation)} validation recording(s)" if validation else
              f"a cross-validation over {len(found.blocks)} contiguous blocks of the training data")  # fmt: skip
-    evidence, stribeck = [], request.friction in ("stribeck", "lugre")
+    every = tuple(range(robot.n_dof))
+    evidence, stribeck = [], every if request.friction in ("stribeck", "lugre") else ()
     if request.friction == "auto":
-        evidence.append(_shape_evidence(found))
-        stribeck = evidence[-1].kept
+        evidence += _shape_evidence(found)
+        stribeck = tuple(e.joint for e in evidence if e.kept)
     train, held, x, std = found.evaluate(stribeck)
     for name in found.names:
         term = "offset" if name.startswith("offset") else "Ia" if name.startswith("Ia") else None
@@ -324,37 +361,43 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         offset_joints=tuple(j for j in offsets if request.offset == "on" or ("offset", j) in kept),
         inertia_joints=tuple(j for j in inertia if request.drive_inertia == "on" or ("Ia", j) in kept),
         request=request, check=check, evidence=tuple(evidence),
+        stribeck_joints=tuple(stribeck) if request.friction == "auto" and stribeck else None, n_dof=robot.n_dof,
     )  # fmt: skip
     logger.info("identify: %s", "; ".join(choice.describe()))
     return choice
 
 
-def _shape_evidence(found: _Candidates) -> Evidence:
-    """The Stribeck shape against the Coulomb-viscous one, all other candidate columns in (summed over joints).
+def _shape_evidence(found: _Candidates) -> list:
+    """Per joint, its Stribeck shape against the Coulomb-viscous one, every other joint Stribeck and every other
+    candidate column in (one ``Evidence`` per joint, ``term`` ``"stribeck"``).
 
-    Beside the criterion and the held-out error, the shape must be a Stribeck effect: static friction above
-    the Coulomb level (``fs > fc`` by two standard deviations) on at least half the joints. A fit with
-    ``fs < fc`` only follows the low-pass filter's smearing of the Coulomb step at each reversal (it appears
-    on Coulomb-viscous truth too).
+    Beside the criterion and the held-out error of the joint, the shape must be a Stribeck effect there: static
+    friction above the Coulomb level (``fs > fc`` by ``STRIBECK_Z`` standard deviations, grown by the residual's
+    correlation time). A fit with ``fs < fc`` only follows the low-pass filter's smearing of the Coulomb step at
+    each reversal (it appears on Coulomb-viscous truth too).
     """
+    n_dof = found.effective.size
     if not found.stribeck:
-        return Evidence("stribeck", None, float("nan"), float("nan"), False, "not a candidate")
-    train_s, held_s, x, std = found.evaluate(True)
-    train_c, held_c, _, _ = found.evaluate(False)
-    n = found.effective
-    delta = float(np.sum(n * np.log(train_c / train_s) - STRIBECK_PARAMETERS * np.log(n)))
-    ratio = float(found.weights @ held_s / (found.weights @ held_c))
-    above = []
-    for j in range(found.effective.size):
+        return [Evidence("stribeck", j, float("nan"), float("nan"), False, "not a candidate") for j in range(n_dof)]
+    every = tuple(range(n_dof))
+    train_s, held_s, x, std = found.evaluate(every)
+    out = []
+    for j in range(n_dof):
+        train_c, held_c, _, _ = found.evaluate(tuple(k for k in every if k != j))
+        n = found.effective[j]
+        delta = float(n * np.log(train_c[j] / train_s[j]) - STRIBECK_PARAMETERS * np.log(n))
+        ratio = float(held_s[j] / held_c[j])
         fc, fs = (found.n_base + found.names.index(f"{term}{j + 1}") for term in ("fc", "fs"))
-        spread = np.hypot(std[fc], std[fs]) * np.sqrt(found.blocks_count(j) / found.effective[j])
-        above.append(bool(x[fs] - x[fc] > STRIBECK_Z * spread))
-    kept = delta > 0 and ratio < 1 and 2 * sum(above) >= len(above)
-    reason = _reason(delta, ratio, kept)
-    if delta > 0 and ratio < 1 and not kept:
-        reason = (f"static friction above the Coulomb level on {sum(above)} of {len(above)} joints only: the fit "
-                  "follows the low-pass filter's smearing of the Coulomb step, not a Stribeck effect")  # fmt: skip
-    return Evidence("stribeck", None, delta, ratio, kept, reason)
+        spread = float(np.hypot(std[fc], std[fs]) * np.sqrt(found.blocks_count(j) / n))
+        above = bool(x[fs] - x[fc] > STRIBECK_Z * spread)
+        kept = delta > 0 and ratio < 1 and above
+        reason = _reason(delta, ratio, kept)
+        if delta > 0 and ratio < 1 and not kept:
+            reason = (f"static friction {x[fs]:.3g} not above the Coulomb level {x[fc]:.3g} by {STRIBECK_Z:g} standard "
+                      "deviations: the fit follows the low-pass filter's smearing of the Coulomb step, not a Stribeck "
+                      "effect")  # fmt: skip
+        out.append(Evidence("stribeck", j, delta, ratio, kept, reason, float(x[fs] - x[fc]), spread))
+    return out
 
 
 def _column_evidence(found, stribeck, name, term, base) -> Evidence:

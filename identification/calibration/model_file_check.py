@@ -162,8 +162,9 @@ def _check_drive(name: str, block: dict, n_dof: int) -> None:
         raise _refuse(name, "drive.coulomb_velocity", "a positive number [rad/s]", repr(velocity))
     if "fs" in terms:
         vs = _numbers(name, block, "stribeck_velocity", "drive", n_dof)
-        if min(vs) <= 0:
-            raise _refuse(name, "drive.stribeck_velocity", f"{n_dof} positive numbers [rad/s]", vs)
+        if min(vs) < 0 or max(vs) <= 0:
+            raise _refuse(name, "drive.stribeck_velocity", f"{n_dof} numbers >= 0 [rad/s], one positive (0: a "
+                          "Coulomb-viscous joint, no Stribeck hump)", vs)  # fmt: skip
     lugre = block.get("lugre")
     if lugre:
         from identification.friction.models import LUGRE_PARAMETER_NAMES

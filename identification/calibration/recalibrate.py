@@ -244,7 +244,17 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         cutoff_hz=model_preparation(document).cutoff_hz,
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
+        stribeck_joints=_stribeck_joints(drive) if calibrated.lugre_parameters is None else None,
     )
+
+
+def _stribeck_joints(drive):
+    """The joints (0-based) of the file's Stribeck shape: those with a Stribeck velocity (0: a Coulomb-viscous joint,
+    ``column_choice`` chose per joint); None (every joint) when all have one or the file has none."""
+    vs = drive.get("stribeck_velocity") or []
+    if "fs" not in drive["friction_terms"] or all(float(v) > 0 for v in vs):
+        return None
+    return tuple(j for j, v in enumerate(vs) if float(v) > 0)
 
 
 def _offset_joints(identification):
@@ -353,7 +363,12 @@ def recalibrate(
         },
         "moved_parameters": moved,
         "dropped_findings": dropped,
-        "never_worse": {**gate.comparison.to_dict(), "dropped": gate.dropped, "refused": gate.refused},
+        "never_worse": {
+            **gate.comparison.to_dict(),
+            "dropped": gate.dropped,
+            "refused": gate.refused,
+            "search": gate.search,
+        },
     }
     for entry in document["findings"]:
         entry["validation_rmse_before"], entry["validation_rmse_after"] = _list(rmse_before), _list(rmse_after)

@@ -125,7 +125,8 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
     prepared : sequence of Recording
         Filtered, differentiated and decimated (``trajectory_data.prepare_recording``).
     options : trajectory_fit.TrajectoryOptions
-        Its ``friction`` holds ``"fs"``; ``coulomb_velocity`` as in the fit.
+        Its ``friction`` holds ``"fs"``; ``coulomb_velocity`` as in the fit; the joints of its ``stribeck_joints``
+        (None: every joint) get a velocity, the others 0 (no Stribeck hump: the Coulomb-viscous shape).
     inertia_joints : sequence of int
         The joints with a drive-inertia column of their own.
     extra : object with ``names``, ``lower`` and ``columns(q, qd, qdd)``, or a list of them, optional
@@ -147,13 +148,18 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
         plain = equations.subset(range(equations.n_columns - n_dof))
         return _solve(equations), plain.residual_sum(_solve(plain)) / np.maximum(plain.energy, 1e-300)
 
-    residuals = [solve(np.full(n_dof, candidate))[1] for candidate in STRIBECK_GRID]
-    vs = np.asarray(STRIBECK_GRID)[np.argmin(residuals, axis=0)]
+    joints = getattr(options, "stribeck_joints", None)
+    hump = np.ones(n_dof, bool) if joints is None else np.isin(np.arange(n_dof), list(joints))
+    if not hump.any():
+        return np.zeros(n_dof)
+    residuals = [solve(np.where(hump, candidate, 0.0))[1] for candidate in STRIBECK_GRID]
+    vs = np.where(hump, np.asarray(STRIBECK_GRID)[np.argmin(residuals, axis=0)], 0.0)
     x, residual = solve(vs)
     steps = 0
     while steps < MAX_STEPS:
         steps += 1
         change = np.clip(vs + stribeck_step(x, model.n_base, names, vs), vs / 2.0, vs * 2.0) - vs
+        change[~hump] = 0.0
         for _ in range(8):  # halve the step until the residual does not grow
             trial_x, trial_residual = solve(vs + change)
             if trial_residual.sum() <= residual.sum() * (1 + 1e-12):
@@ -162,7 +168,7 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
         else:
             break
         vs, x, residual = vs + change, trial_x, trial_residual
-        if np.max(np.abs(change) / vs) < STEP_TOLERANCE:
+        if np.max(np.abs(change[hump]) / vs[hump]) < STEP_TOLERANCE:
             break
     logger.info("identify: Stribeck velocities %s rad/s after %d Gauss-Newton steps", np.round(vs, 4), steps)
     return vs
@@ -177,5 +183,5 @@ def stribeck_velocity_std(x, std, offset: int, names, vs) -> tuple:
     n_dof = vs.size
     fc = np.array([x[offset + names.index(f"fc{j + 1}")] for j in range(n_dof)])
     fs = np.array([x[offset + names.index(f"fs{j + 1}")] for j in range(n_dof)])
-    with np.errstate(divide="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):
         return tuple(float(v) for v in np.asarray(std)[-n_dof:] / np.abs(fs - fc))

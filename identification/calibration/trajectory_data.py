@@ -26,13 +26,14 @@ import casadi as ca
 import numpy as np
 
 from identification.data.excitation_check import check_joint_motion
+from identification.data.filter_choice import choose_filter, kept_samples
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_names",
-           "drive_columns", "friction_term", "prepare_recording", "prepare_recordings",
+           "drive_columns", "friction_shapes", "friction_term", "prepare_recording", "prepare_recordings",
            "stribeck_derivative"]  # fmt: skip
 
 #: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
@@ -41,21 +42,8 @@ FRICTION_TERMS = ("fc", "fs", "fv", "offset")
 DRIVE_TERMS = (*FRICTION_TERMS, "Ia")
 
 
-MAX_CUTOFF_HZ = 10.0
 MOTION_FIX = "record a trajectory that moves {joints} over more of its range and speed ('psdm excite' designs one)"
 CHUNK_SAMPLES = 4000
-
-
-def choose_filter(rate_hz: float, cutoff_hz: float | None = None) -> tuple[float, int]:
-    """(cutoff [Hz], decimation step) for a sampling rate: ``min(10 Hz, rate/10)``, samples at ~10x cutoff."""
-    if not (np.isfinite(rate_hz) and rate_hz > 0):
-        raise RecordingError(f"the sampling rate must be positive [Hz]; got {rate_hz!r}. Check the time column.")
-    cutoff = min(MAX_CUTOFF_HZ, rate_hz / 10.0) if cutoff_hz is None else float(cutoff_hz)
-    if not (0 < cutoff < rate_hz / 2):
-        raise ParameterError(
-            f"cutoff_hz must be in (0, {rate_hz / 2:g}) Hz (below Nyquist for {rate_hz:g} Hz); got {cutoff!r}."
-        )
-    return cutoff, max(1, int(rate_hz // (10.0 * cutoff)))
 
 
 def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = None) -> tuple[Recording, float, int]:
@@ -72,7 +60,7 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
     tau = zero_phase_filter(tau, rate, cutoff)
     qd, qdd = central_difference(rec.t, q)
     edge = int(np.ceil(rate / cutoff))
-    keep = slice(edge, rec.n_samples - edge, step)
+    keep = kept_samples(rec.n_samples, rate, cutoff, step)
     if len(range(*keep.indices(rec.n_samples))) < 3:
         raise RecordingError(
             f"{rec.name or 'recording'}: {rec.duration:.3g} s is too short to filter at {cutoff:g} Hz and keep "
@@ -121,8 +109,10 @@ def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None
     ``fc``: the smooth sign ``s = tanh(qd / coulomb_velocity)``; ``fv``: ``qd``; ``offset``: 1. With a
     Stribeck velocity ``vs`` (the Stribeck shape), the friction ``(fc + (fs - fc) g) s + fv qd`` with
     ``g = exp(-(qd / vs)^2)`` is linear in ``fc`` and ``fs``: ``fc`` has the column ``(1 - g) s`` and
-    ``fs`` the column ``g s``. The one definition the fit (:func:`drive_columns`), the calibrated
-    model's ``predict`` and the exported code (``codegen.calibrated``) share.
+    ``fs`` the column ``g s``. A joint whose ``vs`` is 0 has no Stribeck hump (``g = 0``: the Coulomb-viscous
+    shape, its ``fs`` column zero), so one model holds joints of both shapes (``column_choice`` chooses per joint).
+    The one definition the fit (:func:`drive_columns`), the calibrated model's ``predict`` and the exported code
+    (``codegen.calibrated``) share.
     """
     if term in ("fc", "fs"):
         symbolic = _is_symbolic(qd, stribeck_velocity)
@@ -131,7 +121,7 @@ def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None
             if term == "fs":
                 raise ParameterError("friction_term: the term 'fs' needs stribeck_velocity [rad/s]; got None.")
             return sign
-        bump = (ca.exp if symbolic else np.exp)(-((qd / stribeck_velocity) ** 2))
+        bump = _stribeck_bump(qd, stribeck_velocity, symbolic)
         return sign * (bump if term == "fs" else 1.0 - bump)
     if term == "fv":
         return qd
@@ -140,10 +130,32 @@ def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None
     raise ParameterError(f"friction_term.term must be one of {FRICTION_TERMS}; got {term!r}.")
 
 
-def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
-    """``d/d vs`` of the Stribeck column ``g s`` (:func:`friction_term`): ``g s 2 qd^2 / vs^3``, numpy."""
+def _stribeck_bump(qd, stribeck_velocity, symbolic: bool):
+    """``g = exp(-(qd / vs)^2)``, and 0 where ``vs`` is 0 (no Stribeck hump on that joint)."""
+    if symbolic:
+        if not isinstance(stribeck_velocity, (ca.SX, ca.MX)) and float(stribeck_velocity) == 0.0:
+            return 0.0 * qd
+        return ca.exp(-((qd / stribeck_velocity) ** 2))
     vs = np.asarray(stribeck_velocity, dtype=float)
-    return friction_term("fs", qd, coulomb_velocity, vs) * 2.0 * qd**2 / vs**3
+    hump = vs > 0
+    return np.where(hump, np.exp(-((qd / np.where(hump, vs, 1.0)) ** 2)), 0.0)
+
+
+def friction_shapes(terms, stribeck_velocity, n_dof: int) -> list:
+    """The friction shape of each joint of a fit with friction ``terms``: ``"stribeck"`` where it has a Stribeck
+    velocity, else ``"coulomb-viscous"`` (``column_choice`` chooses it per joint; ``drive.friction_shapes`` of the
+    calibrated-model file)."""
+    if "fs" not in terms:
+        return ["coulomb-viscous"] * n_dof
+    return ["stribeck" if float(v) > 0 else "coulomb-viscous" for v in stribeck_velocity]
+
+
+def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
+    """``d/d vs`` of the Stribeck column ``g s`` (:func:`friction_term`): ``g s 2 qd^2 / vs^3`` (0 where ``vs`` is 0:
+    that joint's velocity is not fitted), numpy."""
+    vs = np.asarray(stribeck_velocity, dtype=float)
+    safe = np.where(vs > 0, vs, 1.0)
+    return friction_term("fs", qd, coulomb_velocity, vs) * 2.0 * qd**2 / safe**3
 
 
 def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float, stribeck_velocity=None):

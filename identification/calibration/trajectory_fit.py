@@ -127,6 +127,10 @@ class TrajectoryOptions:
     inertia_joints : tuple of int or None
         With ``drive_inertia``: the joints (0-based) whose drive-inertia column of its own is identified, among
         :func:`separate_inertia_joints` (``column_choice`` drops those the data want negative). None: all of them.
+    stribeck_joints : tuple of int or None
+        With ``"fs"``: the joints (0-based) of the Stribeck shape; the others are Coulomb-viscous (Stribeck velocity
+        0, static friction held at 0: ``trajectory_data.friction_term``; ``column_choice`` decides it per joint from
+        the data). None: every joint.
     """
 
     friction: tuple = ("fc", "fv")
@@ -143,9 +147,10 @@ class TrajectoryOptions:
     drive_inertia_ratio: tuple = (0.5, 2.0)
     offset_joints: tuple | None = None
     inertia_joints: tuple | None = None
+    stribeck_joints: tuple | None = None
 
     def __post_init__(self):
-        for name in ("offset_joints", "inertia_joints"):
+        for name in ("offset_joints", "inertia_joints", "stribeck_joints"):
             joints = getattr(self, name)
             if joints is not None and not all(isinstance(j, (int, np.integer)) and j >= 0 for j in joints):
                 raise ParameterError(f"TrajectoryOptions.{name} must be None or 0-based joint indices; got {joints!r}.")
@@ -328,6 +333,10 @@ def identify_trajectories(
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
     held = _held_offsets(names, options, model.n_base)  # columns held at 0: left out of both fits
+    if vs is not None:  # a Coulomb-viscous joint of a Stribeck model: no static friction, no velocity to fit
+        flat = [j for j in range(robot.n_dof) if vs[j] == 0]
+        held |= {model.n_base + names.index(f"fs{j + 1}") for j in flat}
+        held |= {n_columns - robot.n_dof + j for j in flat}
     free = [k for k in range(equations.n_columns) if k not in held]
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
                   [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
@@ -336,7 +345,9 @@ def identify_trajectories(
                    for rec, columns in zip(prepared, extras)]  # fmt: skip
     covariance = sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-    vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
+    vs_std = (
+        () if vs is None else tuple(np.where(vs > 0, stribeck_velocity_std(x_ols, std, model.n_base, names, vs), 0.0))
+    )
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
     found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, np.max(correlation, axis=0))
     mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(found)]

@@ -442,10 +442,12 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
     for k, value in enumerate(fit.theta):
         print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {relative[k]:8.1f}")
     for k, name in enumerate(fit.drive_names):
-        if name.startswith("offset") and fit.drive_std[k] == 0:
-            continue  # held at 0: no offset on that joint (the drive columns above say so)
+        if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
+            continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
     for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
+        if vs == 0:
+            continue  # a Coulomb-viscous joint: no Stribeck velocity
         print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)

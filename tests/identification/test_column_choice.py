@@ -23,7 +23,7 @@ OFFSET = np.array([0.0, 3.0, -2.0, 0.0, 0.5, 0.0])  # [N m] on joints 2, 3 and 5
 
 def synthetic(robot, seed, *, offset=None, rotor=True, stribeck=False, duration=12.0, rate=200.0):
     """A recording of the Denso's true torque: rigid body (rotor inertias only with ``rotor``), Coulomb-viscous or
-    Stribeck friction, ``offset``, noise of 0.05 N m."""
+    Stribeck friction (``stribeck`` True, or the static level per joint), ``offset``, noise of 0.05 N m."""
     rng = np.random.default_rng(seed)
     experiment = sine_experiment(robot, duration=duration, rng=rng)
     t = experiment.time_grid(rate)
@@ -32,7 +32,7 @@ def synthetic(robot, seed, *, offset=None, rotor=True, stribeck=False, duration=
     if not rotor:  # a link-side torque sensor: the rotors are on the other side of it
         standard[:, 10] = 0.0
     tau = PinocchioOracle(robot, standard).rnea(q, qd, qdd)
-    static = 6.0 if stribeck else 2.0
+    static = (6.0 if stribeck else 2.0) if np.isscalar(stribeck) else np.asarray(stribeck, dtype=float)
     tau += (2.0 + (static - 2.0) * np.exp(-((qd / 0.1) ** 2))) * np.tanh(qd / 0.05) + 1.0 * qd
     tau += 0.0 if offset is None else offset
     return Recording(t=t, q=q, tau=tau + rng.normal(scale=0.05, size=tau.shape), name=f"synthetic{seed}")
@@ -103,3 +103,49 @@ def test_explicit_choices_are_kept_without_looking_at_the_data(denso, denso_mode
         ColumnRequest(offset="maybe")
     document = ColumnChoice("coulomb-viscous", (0, 2), (3,), ColumnRequest()).to_dict()
     assert document["offset_joints"] == [1, 3] and document["inertia_joints"] == [4]
+
+
+def test_each_joint_gets_its_own_friction_shape(denso, denso_model, tmp_path):
+    """Joints 1, 3 and 5 carry a Stribeck hump (static 6 N m over Coulomb 2 N m), joints 2, 4 and 6 Coulomb-viscous
+    friction: the choice names each joint's true shape, the fit holds the others' static friction at their Coulomb
+    level, and the model file and the choice state the shape per joint."""
+    from identification.calibration.calibrated_model import CalibratedModel
+
+    static = np.array([6.0, 2.0, 6.0, 2.0, 6.0, 2.0])
+    request = ColumnRequest(offset="off", drive_inertia="off")
+    recording = synthetic(denso, 7, stribeck=static)
+    found = choose_columns(denso, denso_model, [recording], request=request)
+    assert found.shapes(6) == ["stribeck", "coulomb-viscous"] * 3, found.evidence
+    assert found.stribeck_joints == (0, 2, 4) and found.to_dict()["stribeck_joints"] == [1, 3, 5]
+    assert [e.joint for e in found.evidence if e.term == "stribeck" and e.kept] == [0, 2, 4]
+    assert "friction shape: stribeck on joints 1, 3, 5; coulomb-viscous on joints 2, 4, 6" in found.describe()[0]
+    options = found.options(TrajectoryOptions(consistency=False))
+    assert options.friction == ("fc", "fs", "fv") and options.stribeck_joints == (0, 2, 4)
+    fit = identify_trajectories(denso, denso_model, [recording], options)
+    vs = np.asarray(fit.stribeck_velocity)
+    assert np.all(vs[[1, 3, 5]] == 0.0) and np.all(vs[[0, 2, 4]] > 0.0), vs
+    values = dict(zip(fit.drive_names, fit.drive))
+    for j in (1, 3, 5):  # Coulomb-viscous: the true Coulomb level, the static friction held at 0
+        assert abs(values[f"fc{j + 1}"] - 2.0) < 0.1 and values[f"fs{j + 1}"] == 0.0
+    document = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE).document
+    assert document["drive"]["friction_shapes"] == ["stribeck", "coulomb-viscous"] * 3
+    # the file predicts the true friction on every joint (a Coulomb-viscous joint with no hump)
+    qd = np.linspace(-0.5, 0.5, 11)[:, None] * np.ones((1, 6))
+    from identification.calibration.trajectory_data import drive_columns
+
+    friction = drive_columns(qd, 0 * qd, fit.friction_terms, (), fit.coulomb_velocity, vs) @ fit.drive
+    truth = (2.0 + (static - 2.0) * np.exp(-((qd / 0.1) ** 2))) * np.tanh(qd / 0.05) + qd
+    np.testing.assert_allclose(friction[:, 1::2], truth[:, 1::2], atol=0.1)  # no hump where there is none
+    fast = np.abs(qd[:, 0]) >= 0.3
+    np.testing.assert_allclose(friction[fast], truth[fast], atol=0.1)
+    # the exported code (CasADi, hence C) computes the same friction, with no hump on the Coulomb-viscous joints
+    import casadi as ca
+
+    from codegen.calibrated import drive_bias
+
+    velocity = ca.SX.sym("qd", 6)
+    bias = ca.Function("bias", [velocity], [drive_bias(CalibratedModel(document), velocity)])
+    exported = np.array([np.array(bias(row)).ravel() for row in qd])
+    np.testing.assert_allclose(exported, friction, rtol=1e-12, atol=1e-12)
+    forced = choose_columns(denso, denso_model, [recording], request=ColumnRequest(friction="stribeck"))
+    assert forced.shapes(6) == ["stribeck"] * 6 and forced.options(TrajectoryOptions()).stribeck_joints is None
