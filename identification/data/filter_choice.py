@@ -15,12 +15,14 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["MAX_CUTOFF_HZ", "SAMPLES_PER_CUTOFF", "choose_filter", "grid_step", "kept_samples"]
+__all__ = ["AUTO", "MAX_CUTOFF_HZ", "SAMPLES_PER_CUTOFF", "choose_filter", "grid_step", "kept_samples", "resolve_auto"]
 
 #: Highest default low-pass cutoff [Hz]: the joint motion of excitation trajectories is a few Hz at most.
 MAX_CUTOFF_HZ = 10.0
 #: Samples are kept at about this many times the cutoff.
 SAMPLES_PER_CUTOFF = 10.0
+#: A cutoff or grid rate left to identify's choice (``DiagnosisOptions`` defaults).
+AUTO = "auto"
 
 
 def grid_step(rate_hz: float, grid_rate_hz: float) -> int:
@@ -45,3 +47,14 @@ def kept_samples(n_samples: int, rate_hz: float, cutoff_hz: float, step: int) ->
     (``ceil(rate / cutoff)`` samples) at each end."""
     edge = int(np.ceil(rate_hz / cutoff_hz))
     return slice(edge, n_samples - edge, int(step))
+
+
+def resolve_auto(cutoff_hz, grid_rate_hz, rate_hz: float) -> tuple:
+    """``(cutoff [Hz] or None, grid rate [Hz])`` with ``AUTO`` ones as identify chooses them for a recording sampled at
+    ``rate_hz``: the cutoff of ``choose_filter``, the grid ``SAMPLES_PER_CUTOFF`` times the cutoff (identify's cutoff
+    for an unfiltered one)."""
+    default = choose_filter(rate_hz)[0]
+    cutoff = default if cutoff_hz == AUTO else cutoff_hz
+    if grid_rate_hz == AUTO:
+        grid_rate_hz = SAMPLES_PER_CUTOFF * (default if cutoff is None else cutoff)
+    return cutoff, float(grid_rate_hz)

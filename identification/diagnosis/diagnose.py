@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds
-from identification.data.filter_choice import SAMPLES_PER_CUTOFF, choose_filter
+from identification.data.filter_choice import AUTO, resolve_auto
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
@@ -48,9 +48,6 @@ from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
 
 logger = logging.getLogger(__name__)
-
-#: ``DiagnosisOptions.cutoff_hz`` and ``rate_hz``: identify's preparation of the training recording.
-AUTO = "auto"
 
 
 @dataclass(frozen=True)
@@ -188,16 +185,9 @@ class DiagnosisOptions:
 
     def for_recording(self, train) -> DiagnosisOptions:
         """These options with ``"auto"`` cutoff and grid rate resolved for the training recording ``train`` as
-        ``psdm identify`` resolves them (``filter_choice.choose_filter``)."""
-        if AUTO not in (self.cutoff_hz, self.rate_hz):
-            return self
-        cutoff = self.cutoff_hz
-        if cutoff == AUTO:
-            cutoff = choose_filter(1.0 / float(train.dt))[0]
-        rate = self.rate_hz
-        if rate == AUTO:
-            rate = SAMPLES_PER_CUTOFF * (cutoff if cutoff is not None else choose_filter(1.0 / float(train.dt))[0])
-        return replace(self, cutoff_hz=cutoff, rate_hz=float(rate))
+        ``psdm identify`` resolves them (``filter_choice.resolve_auto``)."""
+        cutoff, rate = resolve_auto(self.cutoff_hz, self.rate_hz, 1.0 / float(train.dt))
+        return replace(self, cutoff_hz=cutoff, rate_hz=rate)
 
 
 def _number(value) -> bool:
