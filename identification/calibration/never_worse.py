@@ -227,6 +227,10 @@ class GateResult:
     refused: str | None = None
     search: str = ""
 
+    def to_dict(self) -> dict:
+        """The ``recalibration.never_worse`` block: the comparison, the findings dropped, the refusal, the search."""
+        return {**self.comparison.to_dict(), "dropped": self.dropped, "refused": self.refused, "search": self.search}
+
 
 def keep_not_worse(before, first, refit, droppable, model, validation, kt=None) -> GateResult:
     """Drop findings until no joint is worse than ``before`` beyond its margin, or refuse (module docstring: every

@@ -2,40 +2,38 @@
 
 calibrated model + DiagnosisReport + recordings -> calibrated model with findings (version 2).
 
-A missing effect corrupts the identification it hides in: a spring on a joint is absorbed into the
-gravity parameters and the friction, a missing drive inertia into the link inertias. Adding the finding
-afterwards, with the corrupted parameters kept, leaves them wrong. So the recordings-route fit
-(``trajectory_fit.identify_trajectories``) is run again on the training recording with one more linear
-column per feature of every torque-type finding (``findings.FindingColumns``), all fitted jointly
-and with their standard deviations from the same covariance; the ``signal`` findings correct the
-recordings first (``findings.correct_recording``), the ``rigid_body`` ones (a payload) are taken up by the
-re-identified rigid body. A feature the other columns already span (a spring's constant beside a
-drive offset, a rotor inertia the fit already identifies) is left out and reported as absorbed.
-Load-dependent friction is linear in its coefficient once the torque it multiplies is fixed: the fit
-uses the previous model's torque, then the new model's (two passes).
+A missing effect corrupts the identification it hides in: a spring on a joint is absorbed into the gravity parameters
+and the friction, a missing drive inertia into the link inertias. Adding the finding afterwards, with the corrupted
+parameters kept, leaves them wrong. So the recordings-route fit (``trajectory_fit.identify_trajectories``) is run again
+on the training recording with one more linear column per feature of every torque-type finding
+(``findings.FindingColumns``), all fitted jointly and with their standard deviations from the same covariance; the
+``signal`` findings correct the recordings first (``findings.correct_recording``), the ``rigid_body`` ones (a payload)
+are taken up by the re-identified rigid body. A feature the other columns already span (a spring's constant beside a
+drive offset, a rotor inertia the fit already identifies) is left out and reported as absorbed. Load-dependent friction
+is linear in its coefficient once the torque it multiplies is fixed: the fit uses the previous model's torque, then the
+new model's (two passes).
 
 A model with LuGre friction (file version 3) is identified again as ``psdm identify --friction lugre`` does
-(``lugre_identify.identify_lugre_trajectories``: the Stribeck fit, the LuGre fit of the friction it leaves, the
-rigid body again with that friction taken out, the LuGre fit again) with the finding columns in every linear
-fit, so the new file holds the LuGre friction and the findings. Its signal findings correct the recordings the
-LuGre friction is fitted on and judged on alike (``CalibratedModel.predict_recording``: the bristle state carried
-along the corrected recording). Load-dependent friction is refused for it (a multiple of the model's own torque,
-whose LuGre part the exported ``psdm_inverse_dynamics`` does not hold, so the file and its exported code would
-differ).
+(``lugre_identify.identify_lugre_trajectories``: the Stribeck fit, the LuGre fit of the friction it leaves, the rigid
+body again with that friction taken out, the LuGre fit again) with the finding columns in every linear fit, so the new
+file holds the LuGre friction and the findings. Its signal findings correct the recordings the LuGre friction is fitted
+on and judged on alike (``CalibratedModel.predict_recording``: the bristle state carried along the corrected
+recording). Load-dependent friction is refused for it (a multiple of the model's own torque, whose LuGre part the
+exported ``psdm_inverse_dynamics`` does not hold, so the file and its exported code would differ).
 
-The result is judged on the validation recording as ``psdm validate`` judges it (the same corrections and
-preparation, ``CalibratedModel.predict_recording``), before and after, so the file's numbers are what its exported
-code gives. A finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no
-refit) does not raise them is dropped, listed with its RMSE pair in the ``recalibration`` block
-(``dropped_findings``), and the model is refitted without it (a finding whose every feature the fit's other
-columns already span contributes nothing by construction; it is kept and reported as absorbed).
+The result is judged on the validation recording as ``psdm validate`` judges it (the same corrections and preparation,
+``CalibratedModel.predict_recording``), before and after, so the file's numbers are what its exported code gives. A
+finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no refit) does not
+raise them is dropped, listed with its RMSE pair in the ``recalibration`` block (``dropped_findings``), and the model
+is refitted without it (a finding whose every feature the fit's other columns already span contributes nothing by
+construction; it is kept and reported as absorbed).
 
-Then the never-worse gate (``never_worse.keep_not_worse``): no joint's validation RMSE may exceed the model's
-before by more than a noise margin derived from the data (``never_worse.MARGIN_RULE``). Otherwise the finding whose
-removal most repairs the worst joint is dropped and the model refitted, until it holds; when no finding is left
-and a joint is still worse, ``Recalibration.refused`` says which joints and findings, and nothing may be written.
-The ``recalibration.never_worse`` block of the file holds the per-joint before, after and margin of the model
-written, and the findings the gate dropped with their reasons.
+Then the never-worse gate (``never_worse.keep_not_worse``): no joint's validation RMSE may exceed the model's before by
+more than a noise margin derived from the data (``never_worse.MARGIN_RULE``). Otherwise findings are dropped and the
+model refitted (of every subset of up to ``never_worse.EXHAUSTIVE_MAX`` findings, the one with the largest improvement
+that passes; greedily beyond); when none passes, ``Recalibration.refused`` names the joints and findings, and nothing
+may be written. The ``recalibration.never_worse`` block of the file holds the per-joint before, after and margin (and
+what set it) of the model written, the search, and the findings dropped with their reasons.
 """
 
 from __future__ import annotations
@@ -62,19 +60,18 @@ from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.payload_fit import carried_configurations
-from identification.calibration.trajectory_data import NormalEquations, drive_column_names, prepare_recording
+from identification.calibration.trajectory_data import (
+    NormalEquations,
+    drive_column_names,
+    prepare_recording,
+    stribeck_joints,
+)
 from identification.calibration.trajectory_fit import TrajectoryOptions, drive_inertia_joints, identify_trajectories
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = [
-    "MASS_CHECK_CONFIGURATIONS",
-    "Recalibration",
-    "consistency_failure",
-    "min_mass_eigenvalue",
-    "recalibrate",
-    "validation_rmse",
-]
+__all__ = ["MASS_CHECK_CONFIGURATIONS", "Recalibration", "consistency_failure", "min_mass_eigenvalue", "recalibrate",
+           "validation_rmse"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -244,17 +241,8 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         cutoff_hz=model_preparation(document).cutoff_hz,
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
-        stribeck_joints=_stribeck_joints(drive) if calibrated.lugre_parameters is None else None,
+        stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
     )
-
-
-def _stribeck_joints(drive):
-    """The joints (0-based) of the file's Stribeck shape: those with a Stribeck velocity (0: a Coulomb-viscous joint,
-    ``column_choice`` chose per joint); None (every joint) when all have one or the file has none."""
-    vs = drive.get("stribeck_velocity") or []
-    if "fs" not in drive["friction_terms"] or all(float(v) > 0 for v in vs):
-        return None
-    return tuple(j for j, v in enumerate(vs) if float(v) > 0)
 
 
 def _offset_joints(identification):
@@ -363,12 +351,7 @@ def recalibrate(
         },
         "moved_parameters": moved,
         "dropped_findings": dropped,
-        "never_worse": {
-            **gate.comparison.to_dict(),
-            "dropped": gate.dropped,
-            "refused": gate.refused,
-            "search": gate.search,
-        },
+        "never_worse": gate.to_dict(),
     }
     for entry in document["findings"]:
         entry["validation_rmse_before"], entry["validation_rmse_after"] = _list(rmse_before), _list(rmse_after)

@@ -34,7 +34,7 @@ from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_names",
            "drive_columns", "friction_shapes", "friction_term", "prepare_recording", "prepare_recordings",
-           "stribeck_derivative"]  # fmt: skip
+           "stribeck_derivative", "stribeck_joints"]  # fmt: skip
 
 #: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
 FRICTION_TERMS = ("fc", "fs", "fv", "offset")
@@ -148,6 +148,13 @@ def friction_shapes(terms, stribeck_velocity, n_dof: int) -> list:
     if "fs" not in terms:
         return ["coulomb-viscous"] * n_dof
     return ["stribeck" if float(v) > 0 else "coulomb-viscous" for v in stribeck_velocity]
+
+
+def stribeck_joints(terms, stribeck_velocity) -> tuple | None:
+    """The joints (0-based) of the Stribeck shape of a fit with friction ``terms``: those with a Stribeck velocity
+    (``TrajectoryOptions.stribeck_joints``); None (every joint) when all have one, or without ``"fs"``."""
+    vs = [float(v) for v in stribeck_velocity or []]
+    return None if "fs" not in terms or all(v > 0 for v in vs) else tuple(j for j, v in enumerate(vs) if v > 0)
 
 
 def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
