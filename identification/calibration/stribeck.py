@@ -183,5 +183,5 @@ def stribeck_velocity_std(x, std, offset: int, names, vs) -> tuple:
     n_dof = vs.size
     fc = np.array([x[offset + names.index(f"fc{j + 1}")] for j in range(n_dof)])
     fs = np.array([x[offset + names.index(f"fs{j + 1}")] for j in range(n_dof)])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return tuple(float(v) for v in np.asarray(std)[-n_dof:] / np.abs(fs - fc))
+    with np.errstate(divide="ignore", invalid="ignore"):  # 0 where vs is 0: a Coulomb-viscous joint, none fitted
+        return tuple(float(v) for v in np.where(vs > 0, np.asarray(std)[-n_dof:] / np.abs(fs - fc), 0.0))

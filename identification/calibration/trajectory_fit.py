@@ -332,11 +332,7 @@ def identify_trajectories(
     equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
-    held = _held_offsets(names, options, model.n_base)  # columns held at 0: left out of both fits
-    if vs is not None:  # a Coulomb-viscous joint of a Stribeck model: no static friction, no velocity to fit
-        flat = [j for j in range(robot.n_dof) if vs[j] == 0]
-        held |= {model.n_base + names.index(f"fs{j + 1}") for j in flat}
-        held |= {n_columns - robot.n_dof + j for j in flat}
+    held = _held_columns(names, options, model.n_base, vs, n_columns)  # held at 0: left out of both fits
     free = [k for k in range(equations.n_columns) if k not in held]
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
                   [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
@@ -345,9 +341,7 @@ def identify_trajectories(
                    for rec, columns in zip(prepared, extras)]  # fmt: skip
     covariance = sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-    vs_std = (
-        () if vs is None else tuple(np.where(vs > 0, stribeck_velocity_std(x_ols, std, model.n_base, names, vs), 0.0))
-    )
+    vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
     found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, np.max(correlation, axis=0))
     mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(found)]
@@ -400,11 +394,15 @@ def _with_rows(found, mask):
     return out
 
 
-def _held_offsets(names, options, n_base) -> set:
-    """Column indices (after the ``n_base`` base parameters) of the offsets outside ``options.offset_joints``."""
+def _held_columns(names, options, n_base, vs, n_columns) -> set:
+    """Column indices (after the ``n_base`` base parameters) held at 0: the offsets outside ``options.offset_joints``,
+    and on a Coulomb-viscous joint of a Stribeck model (Stribeck velocity ``vs`` 0) its static friction and its
+    velocity's derivative column (the last ``n_dof`` of the ``n_columns``)."""
     kept = options.offset_joints
-    return {n_base + k for k, n in enumerate(names) if n.startswith("offset") and kept is not None
+    held = {n_base + k for k, n in enumerate(names) if n.startswith("offset") and kept is not None
             and int(n[6:]) - 1 not in kept}  # fmt: skip
+    flat = [] if vs is None else [j for j in range(len(vs)) if vs[j] == 0]
+    return held | {n_base + names.index(f"fs{j + 1}") for j in flat} | {n_columns - len(vs) + j for j in flat}
 
 
 def torque_constants(robot, options, recordings):
