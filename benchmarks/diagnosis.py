@@ -502,7 +502,7 @@ def split_validation(val, parts):
     return [val.time_slice(-np.inf, middle), val.time_slice(middle, np.inf)]
 
 
-def run(seeds, quick=False, verbose=True, only=None, validations=2, cutoff=None):
+def run(seeds, quick=False, verbose=True, only=None, validations=2, cutoff=None, rate=None):
     robots, models = {}, {}
     rows = []
     chosen = only if only is not None else (QUICK if quick else range(len(SCENARIOS)))
@@ -517,9 +517,8 @@ def run(seeds, quick=False, verbose=True, only=None, validations=2, cutoff=None)
             truth, train, val = _scenario(robot_key, robot, effects, rng, 100 * seed + index)
             sim_s = time.perf_counter() - start
             start = time.perf_counter()
-            options = (
-                DiagnosisOptions() if cutoff is None else DiagnosisOptions(cutoff_hz=cutoff, rate_hz=20.0 * cutoff)
-            )
+            given = {k: v for k, v in (("cutoff_hz", cutoff), ("rate_hz", rate)) if v is not None}
+            options = DiagnosisOptions(**given)
             report = diagnose(robot, train, split_validation(val, validations), options, model=model)
             diag_s = time.perf_counter() - start
             found = report.findings
@@ -581,7 +580,8 @@ def run(seeds, quick=False, verbose=True, only=None, validations=2, cutoff=None)
         "unstable_findings_reported_as_missing_physics": int(sum(r["unstable_reported"] for r in rows)),
         "unstable_findings_listed": int(sum(len(r["unstable_listed"]) for r in rows)),
         "validation_recordings": validations,
-        "cutoff_hz": cutoff or "identify's default (DiagnosisOptions)",
+        "cutoff_hz": cutoff or DiagnosisOptions().cutoff_hz,
+        "rate_hz": rate or DiagnosisOptions().rate_hz,
         "per_seed": {
             int(s): {
                 "correct_fraction": float(np.mean([r["correct"] for r in rows if r["seed"] == s])),
@@ -637,8 +637,9 @@ def main(argv=None):
         "--cutoff",
         type=float,
         default=None,
-        help="low-pass cutoff [Hz] with a grid of 20 x it (default: identify's preparation, DiagnosisOptions())",
+        help="low-pass cutoff [Hz] (default: DiagnosisOptions')",
     )
+    parser.add_argument("--rate", type=float, default=None, help="grid rate [Hz] (default: DiagnosisOptions')")
     parser.add_argument(
         "--loop",
         action="store_true",
@@ -646,7 +647,9 @@ def main(argv=None):
     )
     args = parser.parse_args(argv)
     show_progress()
-    summary = run(args.seeds, quick=args.quick, only=args.only, validations=args.validations, cutoff=args.cutoff)
+    summary = run(
+        args.seeds, quick=args.quick, only=args.only, validations=args.validations, cutoff=args.cutoff, rate=args.rate
+    )
     if args.loop:
         from calibration_loop import loop_parameter_errors
 

@@ -217,28 +217,32 @@ def _tilt_axes(gravity: np.ndarray) -> np.ndarray:
 
 
 def _decimated_indices(
-    recording: Recording, rate_hz: float, max_samples: int | None = None, cutoff_hz: float | None = None
+    recording: Recording,
+    rate_hz: float,
+    max_samples: int | None = None,
+    cutoff_hz: float | None = None,
+    identify: bool = False,
 ) -> np.ndarray:
     """Indices of the samples of a ``rate_hz`` grid (coarser when it would hold more than ``max_samples``
-    samples). Filtered at ``cutoff_hz``: identify's samples (``filter_choice.kept_samples``: every
-    ``grid_step``-th, without one filter period at each end, where the zero-phase filter and the differences are
-    least reliable), so a model is judged on the samples ``psdm validate`` judges it on; unfiltered: without 5 % of
-    the grid (at most 0.2 s) at each end."""
+    samples), without the ends where the zero-phase filter and the differences are least reliable: 5 % of the
+    grid (at most 0.2 s) at each end, or with ``identify`` (filtered at ``cutoff_hz``) identify's samples
+    (``filter_choice.kept_samples``: every ``grid_step``-th, one filter period trimmed), so a model file is
+    judged on the samples ``psdm validate`` judges it on."""
     rate = 1.0 / recording.dt
-    step = grid_step(rate, rate_hz)
+    step = grid_step(rate, rate_hz) if identify else max(1, int(round(1.0 / (rate_hz * recording.dt))))
     if max_samples is not None:
         step = max(step, -(-recording.n_samples // int(max_samples)))
-    if cutoff_hz is not None:
+    if identify and cutoff_hz is not None:
         return np.arange(recording.n_samples)[kept_samples(recording.n_samples, rate, cutoff_hz, step)]
     keep = np.arange(0, recording.n_samples, step)
     margin = min(keep.size // 20, int(round(0.2 / (recording.dt * step))))
     return keep[margin : keep.size - margin] if margin > 0 else keep
 
 
-def _grid(recording: Recording, rate_hz: float, max_samples: int | None, cutoff_hz: float | None) -> np.ndarray:
+def _grid(recording: Recording, rate_hz: float, max_samples, cutoff_hz, identify: bool = False) -> np.ndarray:
     """``_decimated_indices``, logging a grid that ``max_samples`` made coarser than ``rate_hz``."""
-    keep = _decimated_indices(recording, rate_hz, max_samples, cutoff_hz)
-    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz, None, cutoff_hz).size:
+    keep = _decimated_indices(recording, rate_hz, max_samples, cutoff_hz, identify)
+    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz, None, cutoff_hz, identify).size:
         return keep
     grid_hz = 1.0 / (recording.dt * float(keep[1] - keep[0]))
     source = recording.name or "the recording"
@@ -330,6 +334,7 @@ def build_context(
     raw: Recording | None = None,
     filtered_friction: bool | None = None,
     max_samples: int | None = None,
+    identify_samples: bool = False,
 ) -> DiagnosisContext:
     """Evaluate the nominal model's signals on a preprocessed recording.
 
@@ -355,6 +360,8 @@ def build_context(
     max_samples : int, optional
         Most samples of the grid: a longer recording gets a coarser grid (``DiagnosisOptions.max_samples``);
         default no bound.
+    identify_samples : bool
+        Keep identify's samples (``DiagnosisOptions.samples``).
 
     Raises
     ------
@@ -371,7 +378,7 @@ def build_context(
             "Use DiagnosisOptions().max_samples."
         )
     tau_full = _joint_torque(recording, torque_constants)
-    keep = _grid(recording, rate_hz, max_samples, cutoff_hz)
+    keep = _grid(recording, rate_hz, max_samples, cutoff_hz, identify_samples)
     tau_rate, tau_accel = _torque_derivatives(recording.t, tau_full, keep)
     q, qd, qdd = recording.q[keep], recording.qd[keep], recording.qdd[keep]
     pmodel = build_pinocchio_model(robot)

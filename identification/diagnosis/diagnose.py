@@ -63,14 +63,12 @@ class DiagnosisOptions:
         payload- or inertia-type finding of the prior model must beat a full rigid-body recalibration on the
         validation recording, otherwise the rigid body is identified and the report says the robot file's
         inertial parameters are off (``rigid_body_choice``).
-    cutoff_hz : float, None or "auto"
-        Zero-phase low-pass cut-off of the preprocessing [Hz]; None: unfiltered; ``"auto"`` (default): the cutoff
-        ``psdm identify`` chooses for the training recording (``filter_choice.choose_filter``, ``min(10 Hz, rate /
-        10)``), so a diagnosis prepares its recordings as the identification does.
-    rate_hz : float or "auto"
-        Rate of the decimated grid the fit works on [Hz]; ``"auto"`` (default): identify's grid, ``SAMPLES_PER_CUTOFF``
-        times the cutoff. The grid keeps identify's samples: every ``filter_choice.grid_step``-th, without one filter
-        period at each end (``filter_choice.kept_samples``).
+    cutoff_hz, rate_hz : float or "auto"
+        Zero-phase low-pass cut-off of the preprocessing [Hz] (None: unfiltered) and rate of the grid the fit works on
+        [Hz]; ``"auto"``: as ``psdm identify`` chooses them for the training recording (``filter_choice``).
+    samples : {"diagnosis", "identify"}
+        The grid's samples: without 5 % (at most 0.2 s) at each end, or identify's (``filter_choice.kept_samples``: one
+        filter period trimmed, identify's step), so a model file is judged on the samples ``psdm validate`` judges.
     min_improvement : float
         Validation RMSE reduction (fraction) one joint must show for a term to be kept.
     max_effects : int
@@ -96,9 +94,9 @@ class DiagnosisOptions:
         Most samples of a recording's decimated grid: a recording longer than ``max_samples / rate_hz``
         (20.8 minutes at the defaults) gets a coarser grid, so the memory and time of the fit are bounded by
         this rather than by the recording's length (about 1.5 kB per sample for 6 joints). A 60-minute
-        recording at a 200 Hz grid is fitted on a 66.7 Hz grid, 4.4 samples per period of a 15 Hz cut-off: the
-        zero-phase filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with
-        fewer than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
+        recording is fitted on a 66.7 Hz grid, 4.4 samples per period of the 15 Hz cut-off: the zero-phase
+        filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with fewer
+        than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
         ``rate_hz`` grid (and the results they always had).
     sparse : bool
         Look beyond the library: propose a sparse symbolic term (``sparse_terms``) for a joint whose residual
@@ -118,8 +116,9 @@ class DiagnosisOptions:
 
     friction: str = "lugre"
     rigid_body: str = "auto"
-    cutoff_hz: float | None | str = AUTO
-    rate_hz: float | str = AUTO
+    cutoff_hz: float | None | str = 15.0
+    rate_hz: float | str = 200.0
+    samples: str = "diagnosis"
     min_improvement: float = 0.2
     max_effects: int = 4
     joint_threshold: float = 0.1
@@ -167,6 +166,8 @@ class DiagnosisOptions:
             raise ParameterError(
                 f"DiagnosisOptions.max_samples must be an integer >= 1000; got {self.max_samples!r}. Use 250000."
             )
+        if self.samples not in ("diagnosis", "identify"):
+            raise ParameterError(f"DiagnosisOptions.samples must be 'diagnosis' or 'identify'; got {self.samples!r}.")
         if self.cutoff_hz not in (None, AUTO) and not (_number(self.cutoff_hz) and self.cutoff_hz > 0):
             raise ParameterError(
                 f"DiagnosisOptions.cutoff_hz must be positive [Hz], None (unfiltered) or {AUTO!r}; got "
@@ -425,6 +426,7 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
         with_regressor=options.rigid_body == "identified",
         raw=raw,
         max_samples=options.max_samples,
+        identify_samples=options.samples == "identify",
     )
 
 

@@ -112,19 +112,19 @@ def test_validate_and_diagnose_report_the_same_before_and_the_report_names_the_f
     assert "RMSE before is the nominal model refitted" not in text
 
 
-def test_the_library_default_is_identify_s_preparation_and_its_samples(denso_files, denso, denso_model):
-    """``DiagnosisOptions()`` prepares a recording as ``psdm identify`` would (one definition of the default), and the
-    diagnosis keeps identify's samples: the same instants and torques as ``prepare_recording``, for a model file's
-    own cutoff too."""
+def test_auto_is_identify_s_preparation_and_identify_samples_are_validate_s(denso_files, denso, denso_model):
+    """``DiagnosisOptions(cutoff_hz="auto", rate_hz="auto")`` prepares a recording as ``psdm identify`` would (one
+    definition, ``filter_choice``), and with ``samples="identify"`` the diagnosis keeps identify's samples: the same
+    instants and torques as ``prepare_recording``, for a model file's own cutoff too."""
     from identification.data.io import load_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, prepare_problem
 
     train, valid = (load_recording(denso_files / name, 6) for name in ("train.csv", "valid.csv"))
-    auto = DiagnosisOptions().for_recording(train)
+    auto = DiagnosisOptions(cutoff_hz="auto", rate_hz="auto").for_recording(train)
     identify = default_preparation(train)
     assert (auto.cutoff_hz, auto.rate_hz) == (identify.cutoff_hz, identify.grid_rate_hz) == (10.0, 100.0)
-    for options in (DiagnosisOptions(rigid_body="prior"), DiagnosisOptions(rigid_body="prior", cutoff_hz=8.0,
-                                                                           rate_hz=80.0)):  # fmt: skip
+    for cutoff, rate in (("auto", "auto"), (8.0, 80.0)):
+        options = DiagnosisOptions(rigid_body="prior", cutoff_hz=cutoff, rate_hz=rate, samples="identify")
         problem = prepare_problem(denso, denso_model, train, valid, options)
         cutoff = options.for_recording(train).cutoff_hz
         ready, _, _ = prepare_recording(valid, None, cutoff)  # the identification's own preparation
