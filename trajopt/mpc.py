@@ -155,16 +155,8 @@ class MPCController:
         SolverError
             When the solver returns non-finite numbers.
         """
-        n, horizon = self.n_dof, self.options.horizon
-        reference, state = np.asarray(reference, dtype=float), np.asarray(state, dtype=float)
-        if state.shape != (2 * n,):
-            raise ParameterError(f"MPCController.step state must be (q, qd) of shape ({2 * n},); got {state.shape}.")
-        if reference.shape != (horizon + 1, 2 * n):
-            raise ParameterError(
-                f"MPCController.step reference must have shape ({horizon + 1}, {2 * n}); got {reference.shape}."
-            )
-        if self._guess is None:
-            raise ParameterError("MPCController.step needs a first guess; call initialize(states, torques) first.")
+        n = self.n_dof
+        state, reference = step_arguments("MPCController", n, self.options.horizon, state, reference, self._guess)
         lbx, ubx = self.bounds["lbx"].copy(), self.bounds["ubx"].copy()
         lbx[: 2 * n] = ubx[: 2 * n] = state
         args = dict(self.bounds, lbx=lbx, ubx=ubx, x0=self._guess, p=reference.ravel())
@@ -185,6 +177,24 @@ class MPCController:
         self._guess = _shift_primal(w, n)
         self._multipliers = _shift_multipliers(np.asarray(result["lam_g"]).ravel(), n)
         return w[2 * n : 3 * n].copy(), stats
+
+
+def step_arguments(controller: str, n_dof: int, horizon: int, state, reference, guess) -> tuple:
+    """(state, reference) as float arrays, checked for a controller's ``step``: the state (q, qd) of shape
+    (2 n_dof,), the reference (N + 1, 2 n_dof), and a first guess already given (``initialize``).
+
+    Raises ParameterError naming ``<controller>.step``, the argument and the shape it needs.
+    """
+    reference, state = np.asarray(reference, dtype=float), np.asarray(state, dtype=float)
+    if state.shape != (2 * n_dof,):
+        raise ParameterError(f"{controller}.step state must be (q, qd) of shape ({2 * n_dof},); got {state.shape}.")
+    if reference.shape != (horizon + 1, 2 * n_dof):
+        raise ParameterError(
+            f"{controller}.step reference must have shape ({horizon + 1}, {2 * n_dof}); got {reference.shape}."
+        )
+    if guess is None:
+        raise ParameterError(f"{controller}.step needs a first guess; call initialize(states, torques) first.")
+    return state, reference
 
 
 def _shift_primal(w, n_dof):

@@ -29,7 +29,7 @@ import numpy as np
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import ParameterError, SolverError
 from trajopt.joint_friction import friction_function
-from trajopt.mpc import MPCOptions, constraint_jacobian, tracking_cost, variable_bounds
+from trajopt.mpc import MPCOptions, constraint_jacobian, step_arguments, tracking_cost, variable_bounds
 from trajopt.mpc_model import expanded, stage_functions
 
 LOG = logging.getLogger(__name__)
@@ -99,16 +99,9 @@ class RTIController:
         SolverError
             When the QP returns non-finite numbers.
         """
-        n, horizon = self.n_dof, self.options.horizon
-        reference, state = np.asarray(reference, dtype=float), np.asarray(state, dtype=float)
-        if state.shape != (2 * n,):
-            raise ParameterError(f"RTIController.step state must be (q, qd) of shape ({2 * n},); got {state.shape}.")
-        if reference.shape != (horizon + 1, 2 * n):
-            raise ParameterError(
-                f"RTIController.step reference must have shape ({horizon + 1}, {2 * n}); got {reference.shape}."
-            )
-        if self._guess is None:
-            raise ParameterError("RTIController.step needs a first guess; call initialize(states, torques) first.")
+        state, reference = step_arguments(
+            "RTIController", self.n_dof, self.options.horizon, state, reference, self._guess
+        )
         _, trigger, inputs, outputs = self._buffers or self._make_buffers()
         inputs[0][:], inputs[1][:], inputs[2][:] = state, self._guess, reference.ravel()
         start, start_cpu = time.perf_counter(), time.process_time()
