@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.fleet.session import SessionResult
+from psdm_casadi.fileio import atomic_write
 
 __all__ = ["day_report_path", "write_day_report"]
 
@@ -92,7 +93,5 @@ def write_day_report(result: SessionResult, path) -> Path:
                   for n, j, v, s in zip(fit.names, fit.joints, fit.values, fit.sigmas)]  # fmt: skip
         parts.append("</table>")
     parts.append("</body></html>")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(parts), encoding="utf-8")
-    return path
+    data = "\n".join(parts).encode("utf-8")
+    return atomic_write(path, lambda handle: handle.write(data), overwrite=True, mode="wb")

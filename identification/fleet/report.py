@@ -21,6 +21,7 @@ import numpy as np
 from identification.fleet.day_report import day_report_path
 from identification.fleet.history import History
 from identification.report_html.page import plotly_bundle
+from psdm_casadi.fileio import atomic_write
 
 __all__ = ["FleetRow", "fleet_rows", "write_report"]
 
@@ -202,7 +203,5 @@ def write_report(history: History, path, title: str = "Fleet report") -> Path:
         parts += [f"<li>{html.escape(str(rid))} {day}: {html.escape(str(err))}</li>" for rid, day, err in failures]
         parts.append("</ul>")
     parts.append("</body></html>")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("\n".join(parts), encoding="utf-8")
-    return path
+    data = "\n".join(parts).encode("utf-8")
+    return atomic_write(path, lambda handle: handle.write(data), overwrite=True, mode="wb")
