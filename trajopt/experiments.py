@@ -31,6 +31,7 @@ __all__ = [
     "GRID_HZ",
     "ExperimentTrajectory",
     "home_pose",
+    "motion_centre",
     "motor_experiment",
     "choose_motor_pose",
     "gravity_experiment",
@@ -45,6 +46,17 @@ GRID_HZ = 500.0  # knots per second of every design
 def home_pose(robot) -> np.ndarray:
     """Zero clipped into the joint ranges: the pose of the joints an experiment does not move."""
     return np.clip(np.zeros(robot.n_dof), robot.q_min, robot.q_max)
+
+
+def motion_centre(robot) -> np.ndarray:
+    """Zero clipped into the middle half of each joint's range: the centre a motion of every joint swings about.
+
+    A range that holds zero well inside keeps zero (the designs of symmetric arms are unchanged); a joint whose range
+    ends at or near zero (the Panda's joint 4, [-3.07, -0.07] rad) is centred a quarter of its range inside, so it
+    has room to move both ways instead of none.
+    """
+    quarter = 0.25 * (np.asarray(robot.q_max, dtype=float) - np.asarray(robot.q_min, dtype=float))
+    return np.clip(np.zeros(robot.n_dof), robot.q_min + quarter, robot.q_max - quarter)
 
 
 def _check_joint(robot, joint, owner) -> int:
@@ -388,6 +400,16 @@ def oscillation_experiment(
     return verify_experiment("friction", t, q, robot, (joint,), limits)
 
 
+def _fitted(swing: np.ndarray, up: float, down: float) -> np.ndarray:
+    """``swing`` (a motion starting at 0) scaled down, if need be, to stay within ``[-down, up]``: starting from its
+    first value, a sum of sines can swing twice its amplitude one way (at ``fraction`` above 0.5 it would leave the
+    range). A swing scaled down keeps 0.1 % of the room free, so the spline a controller tracks between the knots
+    does not overshoot the limit either."""
+    high, low = float(swing.max()) / 0.999, float(-swing.min()) / 0.999
+    factor = min(1.0, up / high if high > 0 else 1.0, down / low if low > 0 else 1.0)
+    return swing * factor
+
+
 def sine_experiment(
     robot,
     *,
@@ -399,8 +421,9 @@ def sine_experiment(
 ) -> ExperimentTrajectory:
     """A sum of ``n_sines`` sines per joint (eq. 22) with random frequencies and phases, a stand-in excitation.
 
-    Scaled into ``fraction`` of the position, speed and acceleration limits about the home pose;
-    it starts and ends with a one-second cosine fade. ``trajopt.optimize_excitation`` designs a
+    Scaled into ``fraction`` of the position, speed and acceleration limits about ``motion_centre`` (zero, or a
+    quarter of the range inside for a joint whose range ends near zero), and scaled down further where the swing
+    would leave the range; it starts and ends with a one-second cosine fade. ``trajopt.optimize_excitation`` designs a
     better-conditioned excitation; this one needs no model.
 
     Parameters
@@ -427,7 +450,7 @@ def sine_experiment(
     t = np.arange(0.0, duration + 0.5 / GRID_HZ, 1.0 / GRID_HZ)
     fade = np.minimum(1.0, np.minimum(t, duration - t) / 1.0)
     fade = 0.5 * (1.0 - np.cos(np.pi * fade))
-    centre = home_pose(robot)
+    centre = motion_centre(robot)
     q = np.tile(centre, (t.size, 1))
     for j in range(robot.n_dof):
         omega = 2.0 * np.pi * rng.uniform(0.05, 0.5, n_sines)
@@ -438,5 +461,5 @@ def sine_experiment(
             room / weight.sum(), robot.qd_max[j] / (weight * omega).sum(), robot.qdd_max[j] / (weight * omega**2).sum()
         )
         x = (scale * weight * np.sin(np.outer(t, omega) + phase)).sum(axis=1)
-        q[:, j] = centre[j] + fade * (x - x[0])
+        q[:, j] = centre[j] + fade * _fitted(x - x[0], robot.q_max[j] - centre[j], centre[j] - robot.q_min[j])
     return verify_experiment("sine", t, q, robot, tuple(range(robot.n_dof)), limits)

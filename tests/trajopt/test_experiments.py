@@ -265,3 +265,35 @@ def test_experiment_errors(planar_robot, call, field):
 def test_friction_design_errors(kwargs, field):
     with pytest.raises(ParameterError, match=field):
         FrictionDesign(**kwargs)
+
+
+@pytest.mark.parametrize("fraction", [0.5, 1.0])
+def test_sine_stays_inside_every_range_and_moves_every_joint_of_the_panda(fraction):
+    """The Panda's joint 4 ranges over [-3.07, -0.07] rad and joint 6 over [-0.02, 3.75] rad: zero clipped into the
+    range left joint 4 no room at all (it stood still) and a full ``fraction`` swung the others out of their range.
+    Every joint's path, sampled densely from the spline a controller tracks, stays inside its limits and moves."""
+    from psdm_casadi.robot_file import load_robot
+    from tests.conftest import example_robot_urdf
+    from trajopt.experiments import motion_centre
+
+    urdf = example_robot_urdf("panda_description/urdf/panda.urdf")
+    panda = load_robot(urdf, locked_joints=("panda_finger_joint1", "panda_finger_joint2"))
+    with warnings.catch_warnings():  # at the default fraction no limit at all is left (a full one may speed past)
+        warnings.simplefilter("error" if fraction == 0.5 else "ignore", ExcitationWarning)
+        exp = sine_experiment(panda, duration=20.0, rng=np.random.default_rng(3), fraction=fraction)
+    _, q, _, _ = _dense(exp, rate=1000.0)
+    assert np.all(q >= panda.q_min - 1e-12) and np.all(q <= panda.q_max + 1e-12)
+    span = panda.q_max - panda.q_min
+    assert np.all(np.ptp(q, axis=0) > 0.1 * fraction * span)  # joint 4 included (it stood still before)
+    centre = motion_centre(panda)
+    assert centre[3] == pytest.approx(panda.q_max[3] - 0.25 * span[3]) and centre[5] > 0.0  # a quarter inside
+    np.testing.assert_allclose(q[0], centre, atol=1e-12)
+
+
+def test_sine_keeps_zero_as_centre_where_the_range_holds_it_well_inside(denso):
+    """Zero stays the centre of a joint whose range holds it in its middle half (every Denso joint): the Denso's
+    designs are unchanged."""
+    from trajopt.experiments import motion_centre
+
+    np.testing.assert_array_equal(motion_centre(denso), np.zeros(denso.n_dof))
+    np.testing.assert_array_equal(motion_centre(denso), home_pose(denso))
