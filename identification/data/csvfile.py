@@ -246,4 +246,4 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
     data = np.ascontiguousarray(data[:, [names.index(name) for name in mapping]])
     data.setflags(write=False)
     checked = ColumnTable(source=source, names=tuple(mapping), data=data, locate=locate)  # messages name file columns
-    return ColumnTable(source=source, names=tuple(mapping.values()), data=checked.data, locate=locate)
+    return ColumnTable(source=source, names=tuple(mapping.values()), data=checked.data, locate=checked.locate)

@@ -23,6 +23,7 @@ from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
 from identification.data.rosbag import is_rosbag, read_rosbag_table
 from identification.data.table import ColumnTable
+from identification.data.units import to_si
 from psdm_casadi.errors import RecordingError
 from psdm_casadi.fileio import atomic_write
 
@@ -240,11 +241,16 @@ def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnL
     if layout is None:
         return reader(path)
     if reader is read_csv_table:
-        return read_csv_table(path, layout)
-    table = reader(path)
-    mapping = layout.columns(table.source, table.names)
-    data = table.data[:, [table.names.index(name) for name in mapping]]
-    return ColumnTable(source=table.source, names=tuple(mapping.values()), data=data, locate=table.locate)
+        table = read_csv_table(path, layout)
+    else:
+        table = reader(path)
+        mapping = layout.columns(table.source, table.names)
+        data = table.data[:, [table.names.index(name) for name in mapping]]
+        table = ColumnTable(source=table.source, names=tuple(mapping.values()), data=data, locate=table.locate)
+    data = to_si(table.names, table.data, layout.units)
+    if data is table.data:
+        return table
+    return ColumnTable(source=table.source, names=table.names, data=data, locate=table.locate)
 
 
 def load_recording(

@@ -8,7 +8,8 @@ Which torque column is the measurement cannot be guessed from its name, so the u
 
     --columns q=Position,tau=TorqueSm --rate 1000     (``ColumnLayout.parse``)
 
-maps each signal to the prefix of its numbered columns and the time column to ``t`` [s]; every other
+maps each signal to the prefix of its numbered columns and the time column to ``t`` [s] (a group numbered from 0,
+as UR's RTDE logs ``actual_q_0..5``, is joints 1..n in that order); every other
 column is left unread, so its NaN or text never blocks the file. ``--rate`` [Hz] (or the robot file's
 ``[recording].sample_rate``) gives the time base when the time column counts samples (0, 1, 2, ...) or
 there is none; a column of times is kept as it is. Without a layout, a file whose
@@ -19,21 +20,27 @@ without ``--rate`` (:func:`seconds`).
 
 from __future__ import annotations
 
+import logging
 import math
 import re
 from dataclasses import dataclass
 
 import numpy as np
 
+from identification.data.units import si_factor
 from psdm_casadi.errors import ParameterError, RecordingError
+
+logger = logging.getLogger(__name__)
 
 #: signal -> the standard column prefix (``io.COLUMN_PREFIXES``) and the time column's name.
 SIGNAL_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "i": "i"}
 TIME = "t"
 _STANDARD = re.compile(r"^(qdd|qd|q|tau|i)[1-9][0-9]*$")
-_NUMBERED = re.compile(r"^(.*?[^0-9])([1-9][0-9]*)$")
+_NUMBERED = re.compile(r"^(.*?[^0-9])([0-9]+)$")
 #: Fewest rows for a time column of consecutive integers to count as a sample index rather than seconds.
 MIN_INDEX_ROWS = 20
+#: [s] A first time stamp beyond this (about 3 years) is a wall clock (Unix time), not time from the start.
+CLOCK_SECONDS = 1e8
 
 
 @dataclass(frozen=True)
@@ -49,11 +56,14 @@ class ColumnLayout:
         The time column (default ``t`` when the file has one).
     rate : float or None
         [Hz] Samples per second when the time column counts samples or there is none.
+    units : tuple of (str, str)
+        ``(signal, unit)`` pairs of signals the log does not hold in SI (``q=AxisPos_A:deg``): ``units.UNITS``.
     """
 
     prefixes: tuple = ()
     time: str | None = None
     rate: float | None = None
+    units: tuple = ()
 
     def __post_init__(self):
         prefixes = tuple((str(s), str(p)) for s, p in self.prefixes)
@@ -70,13 +80,18 @@ class ColumnLayout:
         if self.rate is not None and not (math.isfinite(self.rate) and self.rate > 0):
             raise ParameterError(f"--rate must be a sample rate > 0 [Hz]; got {self.rate!r}. Pass e.g. --rate 1000.")
         object.__setattr__(self, "prefixes", prefixes)
+        units = tuple((str(s), str(u)) for s, u in self.units)
+        for signal, unit in units:
+            si_factor(signal, unit)  # refuses a unit that is not the signal's
+        object.__setattr__(self, "units", units)
 
     @classmethod
     def parse(cls, text: str | None, rate: float | None = None) -> ColumnLayout | None:
-        """The layout of ``--columns SIGNAL=PREFIX[,SIGNAL=PREFIX...]`` (``t=NAME`` names the time column)."""
+        """The layout of ``--columns SIGNAL=PREFIX[:UNIT][,SIGNAL=PREFIX[:UNIT]...]`` (``t=NAME`` names the time
+        column; ``:deg``, ``:mNm``, ``:ms``... state a unit other than SI)."""
         if text is None and rate is None:
             return None
-        prefixes, time = [], None
+        prefixes, time, units = [], None, []
         for item in (text or "").replace(" ", ",").split(","):
             if not item:
                 continue
@@ -86,11 +101,14 @@ class ColumnLayout:
                     f"--columns items must be SIGNAL=PREFIX; got {item!r}. Write e.g. "
                     "--columns q=Position,tau=TorqueSm."
                 )
+            prefix, colon, unit = prefix.partition(":")
+            if colon:
+                units.append((signal.strip(), unit.strip()))
             if signal.strip() == TIME:
                 time = prefix.strip()
             else:
                 prefixes.append((signal.strip(), prefix.strip()))
-        return cls(prefixes=tuple(prefixes), time=time, rate=rate)
+        return cls(prefixes=tuple(prefixes), time=time, rate=rate, units=tuple(units))
 
     def columns(self, source: str, names: tuple) -> dict:
         """``{file column: standard name}`` of the columns this layout reads from a file with header ``names``.
@@ -105,6 +123,8 @@ class ColumnLayout:
         mapping = {}
         for signal, prefix in chosen.items():
             found = {int(m.group(2)): n for n in names if (m := _NUMBERED.match(n)) and m.group(1) == prefix}
+            if 0 in found:  # numbered from 0 (actual_q_0..5): joint k + 1
+                found = {k + 1: n for k, n in found.items()}
             if not found and prefix != SIGNAL_PREFIXES[signal]:
                 raise RecordingError(
                     f"{source}: --columns {signal}={prefix} names no column of the file (no {prefix}1, {prefix}2, "
@@ -177,12 +197,20 @@ def check_standard_header(source: str, names, because: str = "") -> None:
 def seconds(source: str, t: np.ndarray, rate: float | None) -> np.ndarray:
     """The time column in seconds (a new array): a sample index divided by ``rate`` [Hz], times as they are.
 
+    Wall-clock stamps (Unix time, as RTDE, ROS and most loggers write) become seconds from the first sample,
+    as a bag's header stamps do: terms of time (a friction warm-up ``t sign(qd)``, ``1 - exp(-t / T)``) are
+    otherwise a constant of 1.7e9 that the Coulomb friction absorbs, and reports quote times of ten digits.
+
     Raises
     ------
     RecordingError
         When the column counts samples (at least ``MIN_INDEX_ROWS`` consecutive integers) and no rate is stated.
     """
     t = np.array(t, dtype=float)
+    if t.size and np.isfinite(t[0]) and t[0] > CLOCK_SECONDS:
+        logger.info("%s: the time column is a wall clock (first stamp %.6f s); times from its first sample", source,
+                    t[0])  # fmt: skip
+        return t - t[0]
     index = t.size >= MIN_INDEX_ROWS and bool(np.all(t == np.round(t)) and np.all(np.diff(t) == 1.0))
     if not index:
         return t

@@ -95,7 +95,8 @@ def _position_problem(j, q, low, high, fraction, robot) -> str | None:
     far = lowest < low - span or highest > high + span
     in_degrees = far and low - margin <= lowest * DEGREE and highest * DEGREE <= high + margin
     cause = (
-        f"in radians (x pi/180) they would lie within: positions in degrees? Convert q{j + 1} to radians"
+        f"in radians (x pi/180) they would lie within: positions in degrees? Convert q{j + 1} to radians or state "
+        "the unit (--columns q=PREFIX:deg)"
         if in_degrees
         else f"check the unit of q{j + 1} (rad or m), the joint order and zero offsets, or the robot file's limits"
     )
@@ -161,7 +162,8 @@ def check_plausible_recording(recording: Recording, robot, thresholds: Plausibil
         raise RecordingError(
             f"Recording {source}: the time column t looks like milliseconds: its median step is {step:.4g} and every "
             f"joint then moves at most {float(np.max(speed / qd_max)):.2g} of its speed limit (a thousand times "
-            "faster would be a robot's speeds). Write t in seconds (divide it by 1000)."
+            "faster would be a robot's speeds). Write t in seconds (divide it by 1000) or state the unit: "
+            "--columns t=NAME:ms."
         )
     problems = []
     for j in range(recording.n_dof):  # one problem per joint: a position beyond the limits says more than its speed
@@ -173,5 +175,6 @@ def check_plausible_recording(recording: Recording, robot, thresholds: Plausibil
         raise RecordingError(
             f"Recording {source}: no {getattr(robot, 'name', 'robot')} can have recorded this; "
             + "; ".join(problems)
-            + ". Fix the recording's units (q in rad or m, t in s) or the robot file."
+            + ". Fix the recording's units (q in rad or m, t in s; a log's own units are stated in --columns, e.g. "
+            "q=Position:deg,tau=Torque:mNm,t=Time:ms) or the robot file."
         )

@@ -231,7 +231,9 @@ def add_topic_argument(parser) -> None:
         metavar="SIGNAL=PREFIX,...",
         help="for a log with its own column names: which numbered columns are which signal, e.g. "
         "t=Time,q=Position,tau=TorqueSm (joint-torque sensors) or t=Time,q=Position,i=Cur (motor currents, with "
-        "the robot file's torque constants); signals t, q, qd, qdd, tau, i; the file's other columns are not read",
+        "the robot file's torque constants); signals t, q, qd, qdd, tau, i; a unit other than SI after a colon: "
+        "t=Time:ms,q=Position:deg,tau=Torque:mNm (units t: s ms us ns; q: rad deg mrad m mm; tau: Nm mNm kNm; "
+        "i: A mA); a group numbered from 0 is joints 1..n; the file's other columns are not read",
     )
     parser.add_argument(
         "--rate",

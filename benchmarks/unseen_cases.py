@@ -1,0 +1,298 @@
+"""Virtual stand-ins for real arms the project does not have, written as their users' files (benchmarks/unseen_arms.py).
+
+Each case writes a robot file and recordings the way a controller or a logger would: vendor column names, a
+sample rate of its own with jittered time stamps, NaN rows, units other than SI, a payload stated in a sidecar,
+a log that starts before the arm moves. The truth (links, payload, hidden effects, sensor noise) is kept beside
+the files in a :class:`Case`, so every answer of the default commands can be checked against it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sysconfig
+from pathlib import Path
+
+import numpy as np
+
+from identification.virtual.effects import CamCounterbalance, Payload
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.description import DriveParameters, LinkInertia
+from psdm_casadi.robot import load_robot
+from psdm_casadi.robot_writer import write_robot_file
+from psdm_casadi.samples import kr6, serial_arm
+
+
+@dataclasses.dataclass
+class Case:
+    """One unseen arm: its files and the truth behind them."""
+
+    name: str
+    what: str
+    robot: Path
+    train: Path
+    validate: Path
+    extra: tuple = ()  # the CLI options the user needs for the log's layout (--columns, --rate)
+    true_links: np.ndarray | None = None  # link masses of the truth [kg]
+    payload_mass: float | None = None  # the flange load's truth [kg]; known (sidecar) or to identify
+    payload_known: bool = True
+    noise_nm: np.ndarray | None = None  # per-joint torque noise of the recording [N m]
+    hidden: tuple = ()  # (effect, joint 1-based) the diagnosis should name
+    expect_exit: int = 0  # identify's expected exit code (2: a refusal that names the fix)
+    refusal_words: tuple = ()  # words the refusal must hold
+
+
+def ur5_urdf() -> Path:
+    """The example-robot-data UR5 URDF (the vendor's file as ROS users get it)."""
+    for base in {sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]}:
+        path = Path(base) / "cmeel.prefix/share/example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+        if path.exists():
+            return path
+    raise FileNotFoundError("example-robot-data's ur5_robot.urdf is not installed (pip install example-robot-data)")
+
+
+def _reference(robot, duration: float, rng, still: float = 0.0, slow: float = 1.0):
+    """Sum of sines per joint within half the limits (times ``slow``), after ``still`` seconds at rest."""
+    t = np.arange(0.0, duration + 1e-9, 1e-3)
+    moving = np.clip(t - still, 0.0, None)
+    span = duration - still
+    fade = 0.5 * (1.0 - np.cos(np.pi * np.minimum(1.0, np.minimum(moving, span - moving))))
+    low, high = np.asarray(robot.q_min), np.asarray(robot.q_max)
+    centre = np.clip(0.0, low + 0.25 * (high - low), high - 0.25 * (high - low))
+    q = np.tile(centre, (t.size, 1))
+    for j in range(robot.n_dof):
+        omega = 2.0 * np.pi * rng.uniform(0.1, 0.5, 3) * slow
+        phase, weight = rng.uniform(0.0, 2.0 * np.pi, 3), rng.uniform(0.5, 1.0, 3)
+        room = min(high[j] - centre[j], centre[j] - low[j])
+        scale = 0.5 * min(
+            room / weight.sum(),
+            slow * robot.qd_max[j] / (weight * omega).sum(),
+            slow * robot.qdd_max[j] / (weight * omega**2).sum(),
+        )
+        x = (scale * weight * np.sin(np.outer(moving, omega) + phase)).sum(axis=1)
+        q[:, j] = centre[j] + fade * (x - x[0])
+    return t, q
+
+
+def _jittered(rec, rate: float, rng, jitter: float, gap: tuple | None = None, nan_rows: int = 0):
+    """(t, q, tau) sampled at ``rate`` with time-stamp jitter [s], an optional gap (start, length) [s] of dropped
+    samples, and ``nan_rows`` rows whose values are NaN (a logger's dropouts)."""
+    step = max(1, int(round(1.0 / (rate * float(np.median(np.diff(rec.t)))))))
+    keep = np.arange(0, rec.n_samples, step)
+    t, q, tau = rec.t[keep], rec.q[keep], rec.tau[keep]
+    if gap is not None:
+        inside = (t >= gap[0]) & (t < gap[0] + gap[1])
+        t, q, tau = t[~inside], q[~inside], tau[~inside]
+    stamps = t + rng.normal(0.0, jitter, t.size) * (jitter > 0)
+    stamps = np.maximum.accumulate(stamps)  # a logger's clock never runs back
+    stamps[1:] = np.maximum(stamps[1:], stamps[:-1] + 1e-6)
+    q, tau = q.copy(), tau.copy()
+    if nan_rows:
+        rows = rng.choice(np.arange(10, t.size - 10), nan_rows, replace=False)
+        q[rows] = np.nan
+        tau[rows] = np.nan
+    return stamps, q, tau
+
+
+def _simulate(robot, reference, rate, noise, rng, extras=(), payload=None):
+    options = SimulationOptions(
+        rate=rate, record_tau=True, record_current=False, tau_noise_std=0.0, payload=payload, q_noise_std=0.0
+    )
+    rec, _ = simulate_recording(robot, reference, options, rng, extras=extras)
+    tau = rec.tau + rng.normal(0.0, 1.0, rec.tau.shape) * np.asarray(noise)
+    return rec.with_tau(tau)
+
+
+def _write_csv(path: Path, header: list, columns: list) -> Path:
+    data = np.column_stack(columns)
+    fmt = ["%.6f"] + ["%.9g"] * (data.shape[1] - 1)  # time stamps to the microsecond (Unix seconds need 16 digits)
+    np.savetxt(path, data, delimiter=",", header=",".join(header), comments="", fmt=fmt)
+    return path
+
+
+def _friction_drives(robot, scale: float) -> tuple:
+    """Coulomb-viscous-ish LuGre drives scaled to the arm's torques (the virtual robot needs drives)."""
+    return tuple(
+        DriveParameters(kt=1.0, fc=0.8 * scale, fs=1.0 * scale, vs=0.05, fv=1.5 * scale, sigma0=1e4, sigma1=30.0)
+        for _ in range(robot.n_dof)
+    )
+
+
+def cobot_currents(folder: Path, rng) -> Case:
+    """A UR5 from its vendor URDF logging motor currents over RTDE at 500 Hz (0-based column names, jitter, NaN
+    rows), carrying a 2 kg gripper stated in the sidecar; currents x motor kt x gear ratio are the torques."""
+    urdf = ur5_urdf()
+    gear, motor_kt = 101.0, 0.125
+    body = f'format = "psdm-robot/1"\n[urdf]\npath = "{urdf}"\n\n'
+    body += "[[drive]]\nkt = 1.0\nfc = 1.0\nfs = 1.2\nvs = 0.05\nfv = 2.0\n\n" * 6
+    truth_file = folder / "ur5_truth.toml"
+    truth_file.write_text(body)
+    robot = load_robot(truth_file)
+    user = folder / "ur5.toml"
+    user.write_text(
+        body.replace("kt = 1.0\nfc = 1.0\nfs = 1.2\nvs = 0.05\nfv = 2.0\n", f"kt = {gear * motor_kt}\n")
+        + f"[transmission]\ngear_ratios = [{', '.join(['101'] * 6)}]\nmotor_kt = [{', '.join(['0.125'] * 6)}]\n"
+        + '\n[recording]\nside = { q = "joint", tau = "motor" }\n'
+    )
+    payload = Payload(mass=2.0, com=np.array([0.0, 0.0, 0.06]))
+    current_noise = 0.02  # [A] at the motor
+    noise = np.full(6, current_noise * gear * motor_kt)
+    files = []
+    for name in ("train", "validate"):
+        reference = _reference(robot, 12.0 if name == "train" else 8.0, rng)
+        rec = _simulate(robot, reference, 1000.0, noise, rng, payload=payload)
+        t, q, tau = _jittered(rec, 500.0, rng, jitter=2e-4, nan_rows=3)
+        current = tau / (gear * motor_kt)
+        header = ["timestamp"] + [f"actual_q_{j}" for j in range(6)] + [f"actual_current_{j}" for j in range(6)]
+        path = _write_csv(folder / f"rtde_{name}.csv", header, [t + 1733380000.0, q, current])
+        path.with_suffix(".payload.json").write_text(json.dumps({"mass": 2.0, "com": [0.0, 0.0, 0.06]}))
+        files.append(path)
+    return Case(
+        name="cobot_currents_payload",
+        what="UR5 vendor URDF, RTDE 500 Hz: motor currents x kt x gear, 0-based names, jitter, NaN rows, 2 kg stated",
+        robot=user,
+        train=files[0],
+        validate=files[1],
+        extra=("--columns", "t=timestamp,q=actual_q_,i=actual_current_"),
+        true_links=np.array([link.mass for link in robot.links]),
+        payload_mass=2.0,
+        noise_nm=noise,
+    )
+
+
+def _kr6_robot():
+    """The KR6 Agilus DH table with a 50 kg-class arm's links and drives (as a user writes it from a datasheet)."""
+    base = kr6()
+    masses = [7.0, 8.0, 5.0, 3.0, 1.5, 0.5]
+    links = tuple(
+        LinkInertia(mass=m, com=np.array([0.02, 0.01, 0.03]) * (1 + i % 2), inertia=np.diag([0.04, 0.035, 0.03]) * m)
+        for i, m in enumerate(masses)
+    )
+    joints = tuple(
+        dataclasses.replace(j, q_min=-2.5, q_max=2.5, qd_max=3.0, qdd_max=12.0, tau_max=400.0) for j in base.joints
+    )
+    return dataclasses.replace(
+        base.with_links(links),
+        joints=joints,
+        name="KR6-like industrial arm",
+        rotor_inertia=np.array([0.3, 0.3, 0.12, 0.04, 0.04, 0.03]),
+        drives=_friction_drives(base, 2.0),
+    )
+
+
+def industrial_degrees(folder: Path, rng) -> Case:
+    """A six-axis industrial arm from a DH table, traced at 1 kHz by its controller: positions in degrees, torques
+    in mN m, vendor column names; the trace starts 2 s before the arm moves."""
+    robot = load_robot(write_robot_file(_kr6_robot(), folder / "kr6.toml", overwrite=True))
+    noise = np.full(6, 0.3)
+    files = []
+    for name in ("train", "validate"):
+        reference = _reference(robot, 14.0 if name == "train" else 9.0, rng, still=2.0)
+        rec = _simulate(robot, reference, 1000.0, noise, rng)
+        t, q, tau = _jittered(rec, 1000.0, rng, jitter=0.0)
+        header = ["Time"] + [f"AxisPos_A{j + 1}" for j in range(6)] + [f"MotorTorque_A{j + 1}" for j in range(6)]
+        files.append(_write_csv(folder / f"trace_{name}.csv", header, [t, np.degrees(q), 1000.0 * tau]))
+    return Case(
+        name="industrial_dh_degrees_mNm",
+        what="KR6-like DH table, controller trace 1 kHz: degrees, mN m, vendor names, 2 s at rest first",
+        robot=robot.source,
+        train=files[0],
+        validate=files[1],
+        extra=("--columns", "t=Time,q=AxisPos_A,tau=MotorTorque_A"),
+        true_links=np.array([link.mass for link in robot.links]),
+        noise_nm=noise,
+    )
+
+
+def heavy_counterbalance(folder: Path, rng) -> Case:
+    """The heavy industrial arm (benchmarks/heavy_arm.py) with a cam counterbalance on joint 2, slow gravity-only
+    motions at 250 Hz, 10 s training and 10 s validation, in a plain psdm CSV."""
+    from heavy_arm import heavy_industrial_arm
+
+    robot = heavy_industrial_arm(folder)
+    counterbalance = CamCounterbalance(joint=1, amplitude=-2500.0, q0=0.0, lobe=0.4)
+    noise = np.full(6, 5.0)
+    files = []
+    for name in ("train", "validate"):
+        reference = _reference(robot, 10.0, rng, slow=0.5)
+        rec = _simulate(robot, reference, 1000.0, noise, rng, extras=(counterbalance,))
+        t, q, tau = _jittered(rec, 250.0, rng, jitter=0.0)
+        header = ["t"] + [f"q{j + 1}" for j in range(6)] + [f"tau{j + 1}" for j in range(6)]
+        files.append(_write_csv(folder / f"heavy_{name}.csv", header, [t, q, tau]))
+    return Case(
+        name="heavy_counterbalance_slow",
+        what="heavy 6-axis arm (~1 t), cam counterbalance on J2, slow motions, 250 Hz, 10 s + 10 s",
+        robot=Path(robot.source),
+        train=files[0],
+        validate=files[1],
+        true_links=np.array([link.mass for link in robot.links]),
+        noise_nm=noise,
+        hidden=(("counterbalance", 2),),
+    )
+
+
+def serial_bag(folder: Path, rng) -> Case:
+    """A six-joint serial arm logged as a ROS 2 MCAP at 1 kHz (jittered stamps, a 60 ms gap of dropped messages,
+    a gripper joint on the same topic), with an unknown 1.5 kg gripper named in the sidecar."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    robot = load_robot(write_robot_file(serial_arm(6), folder / "serial6.toml", overwrite=True))
+    payload = Payload(mass=1.5, com=np.array([0.0, 0.02, 0.08]))
+    noise = np.full(6, 0.1)
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    joint_state = store.types["sensor_msgs/msg/JointState"]
+    header_type, time_type = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
+    names = [*robot.joint_names, "gripper_finger"]
+    files = []
+    for name in ("train", "validate"):
+        reference = _reference(robot, 12.0 if name == "train" else 8.0, rng)
+        rec = _simulate(robot, reference, 1000.0, noise, rng, payload=payload)
+        t, q, tau = _jittered(rec, 1000.0, rng, jitter=1e-4, gap=(4.0, 0.06))
+        path = folder / f"arm_{name}.mcap"
+        with Writer(folder / f"bag_{name}", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+            topic = writer.add_connection("/joint_states", "sensor_msgs/msg/JointState", typestore=store)
+            for tk, qk, tauk in zip(t, q, tau):
+                ns = 1_764_900_000 * 10**9 + int(round(tk * 1e9))
+                message = joint_state(
+                    header=header_type(stamp=time_type(sec=ns // 10**9, nanosec=ns % 10**9), frame_id=""),
+                    name=names,
+                    position=np.append(qk, 0.01),
+                    velocity=np.zeros(0),
+                    effort=np.append(tauk, 0.0),
+                )
+                writer.write(topic, ns, store.serialize_cdr(message, "sensor_msgs/msg/JointState"))
+        mcap = next((folder / f"bag_{name}").glob("*.mcap"))
+        mcap.rename(path)
+        path.with_suffix(".payload.json").write_text(json.dumps({"unknown": "gripper"}))
+        files.append(path)
+    return Case(
+        name="serial_mcap_unknown_payload",
+        what="6-joint serial arm, ROS 2 MCAP 1 kHz: jitter, 60 ms gap, extra gripper joint, unknown 1.5 kg gripper",
+        robot=Path(robot.source),
+        train=files[0],
+        validate=files[1],
+        true_links=np.array([link.mass for link in robot.links]),
+        payload_mass=1.5,
+        payload_known=False,
+        noise_nm=noise,
+    )
+
+
+CASES = {
+    "cobot_currents_payload": cobot_currents,
+    "industrial_dh_degrees_mNm": industrial_degrees,
+    "heavy_counterbalance_slow": heavy_counterbalance,
+    "serial_mcap_unknown_payload": serial_bag,
+}
+
+
+def build(name: str, folder, seed: int = 0) -> Case:
+    """Write case ``name``'s files into ``folder`` and return it with its truth."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    return CASES[name](folder, np.random.default_rng(seed))
+
+
+__all__ = ["CASES", "Case", "build", "math"]

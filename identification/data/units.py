@@ -1,0 +1,56 @@
+"""Units of a controller's log: the factors that turn its stated units into the recording's SI units.
+
+A log states positions in degrees, torques in mN m or time in milliseconds as often as in SI. The user says
+so once, beside the column group (``--columns t=Time:ms,q=AxisPos_A:deg,tau=MotorTorque_A:mNm``), and every
+command reads the file in SI; a unit that does not belong to the signal is refused with the ones that do.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from psdm_casadi.errors import ParameterError
+
+__all__ = ["UNITS", "si_factor", "to_si"]
+
+_ANGLE = {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3, "m": 1.0, "mm": 1e-3}
+_TORQUE = {"Nm": 1.0, "mNm": 1e-3, "kNm": 1e3, "N": 1.0}
+#: signal -> {unit: factor to SI}; positions in rad (m for prismatic joints), torques in N m, currents in A.
+UNITS = {
+    "t": {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9},
+    "q": _ANGLE,
+    "qd": {f"{u}/s": f for u, f in _ANGLE.items()},
+    "qdd": {f"{u}/s2": f for u, f in _ANGLE.items()},
+    "tau": _TORQUE,
+    "i": {"A": 1.0, "mA": 1e-3},
+}
+
+
+def si_factor(signal: str, unit: str) -> float:
+    """The factor that turns ``signal`` in ``unit`` into SI (``deg`` -> pi/180); refused with the units there are."""
+    known = UNITS.get(signal, {})
+    compact = unit.replace(" ", "").replace("·", "").replace("*", "")
+    if compact not in known:
+        raise ParameterError(
+            f"--columns {signal}=...:{unit}: {unit!r} is not a unit of {signal}; use one of {', '.join(known)} "
+            f"(e.g. --columns q=Position:deg,tau=Torque:mNm,t=Time:ms)."
+        )
+    return known[compact]
+
+
+def to_si(names: tuple, data: np.ndarray, units: tuple) -> np.ndarray:
+    """``data`` (columns ``names`` in standard names: t, q1.., tau1..) with each ``(signal, unit)`` of ``units``
+    scaled to SI; a new read-only array (the same array when every unit is SI)."""
+    scale = np.ones(len(names))
+    for signal, unit in units:
+        factor = si_factor(signal, unit)
+        for k, name in enumerate(names):
+            if name == signal or (name.startswith(signal) and name[len(signal) :].isdigit()):
+                scale[k] = factor
+    if np.all(scale == 1.0):
+        return data
+    out = np.asarray(data) * scale
+    out.setflags(write=False)
+    return out

@@ -1,0 +1,134 @@
+"""Logs as controllers write them, read against the truth they were written from.
+
+Logger dropouts (rows of NaN), groups numbered from 0 (UR's RTDE ``actual_q_0..5``), wall-clock time stamps, and
+units other than SI stated in ``--columns`` (degrees, mN m, milliseconds): each read back to the SI signals they
+were made from, and a two-link virtual arm logged in degrees, mN m and ms identified through the CLI recovers its
+link masses when the units are stated, and is refused (exit 2, naming the file and the fix) when they are not.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import logging
+
+import numpy as np
+import pytest
+
+from identification.data.io import load_recording
+from identification.data.layout import ColumnLayout
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from psdm_casadi.description import DriveParameters, LinkInertia
+from psdm_casadi.errors import ParameterError, RecordingError
+from psdm_casadi.robot import load_robot
+from psdm_casadi.robot_writer import write_robot_file
+from psdm_casadi.samples import two_link
+
+MASSES = (4.0, 2.5)
+
+
+def _write(path, header, columns, time_format="%.6f"):
+    data = np.column_stack(columns)
+    fmt = [time_format] + ["%.12g"] * (data.shape[1] - 1)
+    np.savetxt(path, data, delimiter=",", header=",".join(header), comments="", fmt=fmt)
+    return path
+
+
+def _signals(n=1000, n_dof=2, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 2e-3
+    q = 0.3 * np.sin(np.outer(t, 1.0 + np.arange(n_dof)))
+    tau = rng.normal(0.0, 1.0, (n, n_dof))
+    return t, q, tau
+
+
+def test_dropout_rows_are_left_out_and_named(tmp_path, caplog):
+    t, q, tau = _signals()
+    q, tau = q.copy(), tau.copy()
+    q[[100, 500, 501]] = np.nan
+    tau[[100, 500, 501]] = np.nan
+    path = _write(tmp_path / "log.csv", ["t", "q1", "q2", "tau1", "tau2"], [t, q, tau])
+    with caplog.at_level(logging.WARNING):
+        rec = load_recording(path, 2)
+    assert rec.n_samples == 997 and np.all(np.isfinite(rec.q))
+    keep = np.setdiff1d(np.arange(1000), [100, 500, 501])
+    np.testing.assert_allclose(rec.t, t[keep], atol=1e-9)
+    np.testing.assert_allclose(rec.tau, tau[keep], rtol=1e-11)
+    assert "3 of 1000 rows" in caplog.text and "line 102" in caplog.text  # header is line 1, sample 100 line 102
+
+
+def test_a_nan_of_one_joint_or_many_rows_is_refused(tmp_path):
+    t, q, tau = _signals()
+    one = q.copy()
+    one[200, 1] = np.nan  # one joint only: not a dropout, a broken channel
+    path = _write(tmp_path / "one.csv", ["t", "q1", "q2", "tau1", "tau2"], [t, one, tau])
+    with pytest.raises(RecordingError, match=r"one.csv: column q2 holds nan at line 202"):
+        load_recording(path, 2)
+    many = q.copy()
+    many[::50] = np.nan  # 20 rows of 1000: beyond 1 %
+    path = _write(tmp_path / "many.csv", ["t", "q1", "q2", "tau1", "tau2"], [t, many, tau])
+    with pytest.raises(RecordingError, match=r"20 of 1000 rows hold NaN.*up to 1% of the rows"):
+        load_recording(path, 2)
+
+
+def test_zero_based_groups_wall_clock_and_units(tmp_path):
+    t, q, tau = _signals(n_dof=3)
+    header = ["timestamp"] + [f"actual_q_{j}" for j in range(3)] + [f"actual_current_{j}" for j in range(3)]
+    path = _write(tmp_path / "rtde.csv", header, [t + 1733380000.0, q, tau])
+    rec = load_recording(path, 3, layout=ColumnLayout.parse("t=timestamp,q=actual_q_,i=actual_current_"))
+    np.testing.assert_allclose(rec.q, q, rtol=1e-11)  # actual_q_0 is joint 1, in order
+    np.testing.assert_allclose(rec.current, tau, rtol=1e-11)
+    np.testing.assert_allclose(rec.t, t, atol=2e-6)  # Unix time: seconds from the first sample
+    header = ["Time"] + [f"Pos{j + 1}" for j in range(3)] + [f"Trq{j + 1}" for j in range(3)]
+    path = _write(tmp_path / "trace.csv", header, [1000.0 * t, np.degrees(q), 1000.0 * tau], "%.3f")
+    rec = load_recording(path, 3, layout=ColumnLayout.parse("t=Time:ms,q=Pos:deg,tau=Trq:mNm"))
+    np.testing.assert_allclose(rec.t, t, atol=1e-9)
+    np.testing.assert_allclose(rec.q, q, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(rec.tau, tau, rtol=1e-10)
+    with pytest.raises(ParameterError, match=r"'deg' is not a unit of tau; use one of Nm, mNm, kNm"):
+        ColumnLayout.parse("q=Pos,tau=Trq:deg")
+
+
+@pytest.fixture(scope="module")
+def logged_arm(tmp_path_factory):
+    """A two-link arm's 8 s log in ms, degrees and mN m (starting 1 s before it moves), and its robot file."""
+    folder = tmp_path_factory.mktemp("two-link-log")
+    base = two_link()
+    links = tuple(
+        LinkInertia(mass=m, com=np.array([-0.5, 0.02, 0.0]), inertia=np.diag([0.02, 0.3, 0.3]) * m / 4) for m in MASSES
+    )
+    joints = tuple(dataclasses.replace(j, q_min=-2.5, q_max=2.5, qd_max=2.0, qdd_max=8.0) for j in base.joints)
+    drives = tuple(DriveParameters(kt=1.0, fc=1.0, fs=1.2, vs=0.05, fv=1.0, sigma0=1e4, sigma1=30.0) for _ in MASSES)
+    robot = dataclasses.replace(
+        base.with_links(links), joints=joints, name="two-link", rotor_inertia=np.array([0.2, 0.1]), drives=drives
+    )
+    robot = load_robot(write_robot_file(robot, folder / "arm.toml"))
+    t = np.arange(0.0, 8.0, 2e-3)
+    moving = np.clip(t - 1.0, 0.0, None)  # the log starts 1 s before the arm moves
+    fade = 0.5 * (1.0 - np.cos(np.pi * np.minimum(1.0, np.minimum(moving, 7.0 - moving))))
+    q = fade[:, None] * np.column_stack(
+        [
+            0.5 * np.sin(2.1 * moving) + 0.4 * np.sin(3.7 * moving + 1),
+            0.5 * np.sin(2.9 * moving) - 0.3 * np.sin(1.3 * moving),
+        ]
+    )
+    options = SimulationOptions(rate=500.0, record_tau=True, record_current=False, tau_noise_std=0.05)
+    rec, _ = simulate_recording(robot, (t, q), options, np.random.default_rng(3))
+    header = ["Time", "Pos0", "Pos1", "Trq0", "Trq1"]
+    path = _write(folder / "trace.csv", header, [1000.0 * rec.t, np.degrees(rec.q), 1000.0 * rec.tau])
+    return folder, path
+
+
+def test_a_log_in_degrees_mnm_and_ms_identifies_the_arm_once_its_units_are_stated(logged_arm, capsys):
+    folder, path = logged_arm
+    robot, out = folder / "arm.toml", folder / "model.json"
+    code = main(["identify", str(robot), "--data", str(path), "--columns", "t=Time,q=Pos,tau=Trq", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2 and not out.exists()
+    assert "trace.csv" in err and "positions in degrees?" in err and "--columns q=PREFIX:deg" in err
+    columns = "t=Time:ms,q=Pos:deg,tau=Trq:mNm"
+    code = main(["-q", "identify", str(robot), "--data", str(path), "--columns", columns, "--out", str(out)])
+    assert code == 0
+    standard = np.asarray(json.loads(out.read_text())["standard"]["values"], dtype=float).reshape(2, -1)
+    np.testing.assert_allclose(standard[:, 0], MASSES, rtol=0.1)  # the truth, not 1000x or the bounds
