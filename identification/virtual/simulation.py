@@ -34,6 +34,7 @@ from scipy.interpolate import CubicSpline
 
 from identification.data.recording import Recording
 from identification.virtual.effects import ExtraPhysics, Payload
+from identification.virtual.joint_loop import joint_loop_gains
 from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
 from identification.virtual.truth import SimulationTruth
 from psdm_casadi.errors import ParameterError, ShapeError
@@ -290,49 +291,6 @@ def _feedforward(model, data, q_ref, qd_ref, qdd_ref, lugre, options: Simulation
     return tau_ff
 
 
-# spectral radius of dt M^-1 Kd above which the sampled PD loop is retuned: a held derivative term is unstable
-# beyond 2, and well damped only far below it
-LOOP_DAMPING_LIMIT = 0.5
-
-
-def _loop_damping(model, data, poses, kd, dt: float) -> float:
-    """Largest spectral radius of ``dt M(q)^-1 diag(kd)`` over ``poses``: how hard the sampled derivative term
-    kicks the arm in one control period (symmetric positive-definite pencil, so real eigenvalues)."""
-    worst = 0.0
-    for q in poses:
-        mass = pin.crba(model, data, q)
-        mass = np.triu(mass) + np.triu(mass, 1).T
-        worst = max(worst, float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(mass, np.diag(kd)))))) * dt)
-    return worst
-
-
-def _pid_gains(model, data, q_ref, options: SimulationOptions) -> tuple:
-    """``(kp, kd, ki)`` per joint from the bandwidth and each joint's inertia at the first reference pose.
-
-    The inertia is the mass-matrix diagonal ``M_ii``. Where axes are nearly aligned and rotors light (a tree of
-    arms, long serial chains) the inverse mass matrix couples the joints strongly, and gains from ``M_ii`` make the
-    sampled loop unstable although each joint alone would be fine (``dt M^-1 Kd`` has eigenvalues beyond 2: the
-    recording diverges). When that measure exceeds ``LOOP_DAMPING_LIMIT`` on the reference's poses, each joint's
-    inertia becomes the one it sees with the other joints free, ``1 / (M^-1)_ii``, and if needed the bandwidth is
-    lowered until the loop is within the limit. Robots whose loop was already stable keep their gains exactly.
-    """
-    omega = 2.0 * np.pi * options.bandwidth_hz
-    dt = 1.0 / options.rate
-    poses = q_ref[np.linspace(0, q_ref.shape[0] - 1, min(16, q_ref.shape[0])).astype(int)]
-    mass = pin.crba(model, data, q_ref[0])
-    mass = np.triu(mass) + np.triu(mass, 1).T
-    inertia = mass.diagonal().copy()
-    worst = _loop_damping(model, data, poses, 2.0 * options.damping_ratio * inertia * omega, dt)
-    if worst > LOOP_DAMPING_LIMIT:
-        inertia = 1.0 / np.linalg.inv(mass).diagonal()
-        worst = _loop_damping(model, data, poses, 2.0 * options.damping_ratio * inertia * omega, dt)
-        if worst > LOOP_DAMPING_LIMIT:
-            omega *= LOOP_DAMPING_LIMIT / worst
-    kp, kd = inertia * omega**2, 2.0 * options.damping_ratio * inertia * omega
-    ki = options.integral_gain * inertia * omega**3
-    return kp, kd, ki
-
-
 def _sensor_recording(robot_name, t, q, qd, tau_motor, kt, options: SimulationOptions, extras: tuple, rng) -> Recording:
     """What the sensors record: signal-level physics of the extras, then noise and quantisation."""
     q_meas, tau_meas = q, tau_motor
@@ -408,7 +366,9 @@ def simulate_recording(
     ctrl_model = build_pinocchio_model(ctrl_robot, ctrl_params)
     ctrl_data = ctrl_model.createData()
     tau_ff = _feedforward(ctrl_model, ctrl_data, q_ref, qd_ref, qdd_ref, lugre, options)
-    gains = _pid_gains(ctrl_model, ctrl_data, q_ref, options)
+    gains = joint_loop_gains(
+        ctrl_model, ctrl_data, q_ref, options.rate, options.bandwidth_hz, options.damping_ratio, options.integral_gain
+    )
 
     plant = build_pinocchio_model(plant_robot, plant_params)
     states = _integrate(plant, lugre, t, (q_ref, qd_ref, qdd_ref[0]), tau_ff, gains, options, extras)

@@ -1,0 +1,53 @@
+"""Gains of the virtual robot's joint controller, chosen so that the sampled loop is stable on any arm."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+__all__ = ["LOOP_DAMPING_LIMIT", "joint_loop_gains"]
+
+# spectral radius of dt M^-1 Kd above which the sampled PD loop is retuned: a held derivative term is unstable
+# beyond 2, and well damped only far below it
+LOOP_DAMPING_LIMIT = 0.5
+
+
+def _loop_damping(model, data, poses, kd, dt: float) -> float:
+    """Largest spectral radius of ``dt M(q)^-1 diag(kd)`` over ``poses``: how hard the sampled derivative term
+    kicks the arm in one control period (symmetric positive-definite pencil, so real eigenvalues)."""
+    worst = 0.0
+    for q in poses:
+        mass = pin.crba(model, data, q)
+        mass = np.triu(mass) + np.triu(mass, 1).T
+        worst = max(worst, float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(mass, np.diag(kd)))))) * dt)
+    return worst
+
+
+def joint_loop_gains(
+    model, data, q_ref, rate: float, bandwidth_hz: float, damping_ratio: float, integral_gain: float
+) -> tuple:
+    """``(kp, kd, ki)`` per joint of the virtual robot's PD + integral loop sampled at ``rate``: from the bandwidth
+    and each joint's inertia at the first pose of ``q_ref`` (n_samples, n_dof).
+
+    The inertia is the mass-matrix diagonal ``M_ii``. Where axes are nearly aligned and rotors light (a tree of
+    arms, long serial chains) the inverse mass matrix couples the joints strongly, and gains from ``M_ii`` make the
+    sampled loop unstable although each joint alone would be fine (``dt M^-1 Kd`` has eigenvalues beyond 2: the
+    recording diverges). When that measure exceeds ``LOOP_DAMPING_LIMIT`` on the reference's poses, each joint's
+    inertia becomes the one it sees with the other joints free, ``1 / (M^-1)_ii``, and if needed the bandwidth is
+    lowered until the loop is within the limit. Robots whose loop was already stable keep their gains exactly.
+    """
+    omega = 2.0 * np.pi * bandwidth_hz
+    dt = 1.0 / rate
+    poses = q_ref[np.linspace(0, q_ref.shape[0] - 1, min(16, q_ref.shape[0])).astype(int)]
+    mass = pin.crba(model, data, q_ref[0])
+    mass = np.triu(mass) + np.triu(mass, 1).T
+    inertia = mass.diagonal().copy()
+    worst = _loop_damping(model, data, poses, 2.0 * damping_ratio * inertia * omega, dt)
+    if worst > LOOP_DAMPING_LIMIT:
+        inertia = 1.0 / np.linalg.inv(mass).diagonal()
+        worst = _loop_damping(model, data, poses, 2.0 * damping_ratio * inertia * omega, dt)
+        if worst > LOOP_DAMPING_LIMIT:
+            omega *= LOOP_DAMPING_LIMIT / worst
+    kp, kd = inertia * omega**2, 2.0 * damping_ratio * inertia * omega
+    ki = integral_gain * inertia * omega**3
+    return kp, kd, ki
