@@ -1,4 +1,4 @@
-"""Reading an MJCF (MuJoCo's XML) through MuJoCo's own compiler: the Pinocchio model of a serial arm in the file.
+"""Reading an MJCF (MuJoCo's XML) through MuJoCo's own compiler: the Pinocchio model of the arm (or tree) in the file.
 
 The one place that parses MJCF files; ``urdf.load_urdf_model`` calls :func:`load_mjcf_model` for ``.xml``
 files, so that a robot read from MJCF is built, locked, derived and cached like one read from a URDF
@@ -20,10 +20,10 @@ files, so that a robot reads the same with or without its meshes (from a calibra
 the XML's text). A body without ``<inertial>`` takes its inertia from its geoms, which then must not be meshes.
 
 **Refused** with a RobotFileError naming the element and the fix: free and ball joints, more than one joint on a
-body, branches (two moving bodies below one), tendons, equality constraints (closed loops), ``<include>``. A
-gripper's fingers (Menagerie's Panda: two slide joints, a fixed tendon and an equality constraint between them)
-are read when their joints are locked (``--lock``): the couplings of locked joints only are dropped, and the
-locked bodies may branch off the chain.
+body, tendons, equality constraints (closed loops), ``<include>``. Branches (two moving bodies below one: a torso
+with two arms) are read as a tree, as from a URDF. A gripper's fingers (Menagerie's Panda: two slide joints, a
+fixed tendon and an equality constraint between them) are read when their joints are locked (``--lock``): the
+couplings of locked joints only are dropped.
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def route_mujoco_warnings() -> None:
 
 
 def _refuse_unsupported(path: Path, root: ET.Element, locked=()) -> None:
-    """Refuse what a serial arm of hinge and slide joints cannot hold (module docstring), naming the element;
+    """Refuse what an arm of hinge and slide joints cannot hold (module docstring), naming the element;
     couplings of locked joints only are removed (:func:`_drop_locked_couplings`)."""
     _drop_locked_couplings(path, root, set(locked))
     for tag, what, fix in (
@@ -72,8 +72,8 @@ def _refuse_unsupported(path: Path, root: ET.Element, locked=()) -> None:
     ):
         if any(True for _ in root.iter(tag)):
             raise RobotFileError(
-                f"MJCF {path.name!r} holds {what}, which psdm cannot read (a serial arm of hinge and slide joints); "
-                f"{fix}."
+                f"MJCF {path.name!r} holds {what}, which psdm cannot read (an arm of hinge and slide joints, "
+                f"a chain or a tree); {fix}."
             )
 
 
@@ -87,7 +87,7 @@ def _drop_locked_couplings(path: Path, root: ET.Element, locked: set) -> None:
             if tendon.tag != "fixed" or not joints or not joints <= locked:
                 raise RobotFileError(
                     f"MJCF {path.name!r} holds the {tendon.tag} tendon {tendon.get('name', '?')!r} (joints "
-                    f"{sorted(j for j in joints if j)}), which psdm cannot read (a serial arm of hinge and slide "
+                    f"{sorted(j for j in joints if j)}), which psdm cannot read (an arm of hinge and slide "
                     "joints); lock the joints it couples (a gripper's: --lock, or locked_joints in a robot file's "
                     "[urdf] table) or remove the <tendon>."
                 )
@@ -101,7 +101,7 @@ def _drop_locked_couplings(path: Path, root: ET.Element, locked: set) -> None:
                 named = f"<{constraint.tag}> {constraint.get('name') or ''}".strip()
                 raise RobotFileError(
                     f"MJCF {path.name!r} holds the equality constraint {named} (closed loops, coupled joints), which "
-                    "psdm cannot read (a serial arm); remove it, or lock the joints it couples (--lock)."
+                    "psdm cannot read (an arm without closed loops); remove it, or lock the joints it couples (--lock)."
                 )
             section.remove(constraint)
     for section in root.iter("actuator"):
@@ -236,15 +236,15 @@ def _torque_limit(mj: mujoco.MjModel, joint: int) -> float:
 
 
 def load_mjcf_model(path, locked=()) -> pin.Model:
-    """The Pinocchio model of the serial arm of an MJCF file (module docstring).
+    """The Pinocchio model of the arm (a chain or a tree) of an MJCF file (module docstring).
 
     Parameters
     ----------
     path : str or Path
         MJCF file (``.xml``); meshes are not needed.
     locked : iterable of str
-        Joints the caller locks (``urdf.load_urdf_model``): they may branch off the chain (a gripper's fingers), and
-        tendons and equality constraints that couple only them are dropped.
+        Joints the caller locks (``urdf.load_urdf_model``): tendons and equality constraints that couple only them
+        are dropped.
 
     Returns
     -------
@@ -262,7 +262,6 @@ def load_mjcf_model(path, locked=()) -> pin.Model:
     model = pin.Model()
     model.name = mujoco.mj_id2name(mj, mujoco.mjtObj.mjOBJ_BODY, 0) or path.stem
     carrier = {0: (0, pin.SE3.Identity(), 0)}  # body -> (Pinocchio joint it moves with, its frame there, frame id)
-    chain_child = {}
     lower, upper, effort = [], [], []
     for body in range(1, mj.nbody):
         body_name = _name(mj, mujoco.mjtObj.mjOBJ_BODY, body, f"body{body}")
@@ -280,14 +279,6 @@ def load_mjcf_model(path, locked=()) -> pin.Model:
             continue
         joint = int(mj.body_jntadr[body])
         joint_name = _name(mj, mujoco.mjtObj.mjOBJ_JOINT, joint, f"{body_name}_joint")
-        if parent_joint in chain_child and joint_name not in locked:
-            raise RobotFileError(
-                f"MJCF {path.name!r} branches: bodies {chain_child[parent_joint]!r} and {body_name!r} both move on "
-                "their own below one body; psdm reads a serial chain. Keep one branch (weld or remove the other), "
-                "or lock the joints of the other (a gripper's fingers: --lock)."
-            )
-        if joint_name not in locked:
-            chain_child[parent_joint] = body_name
         offset = np.array(mj.jnt_pos[joint], dtype=float)
         jmodel = _joint_model(path, mj, joint, joint_name)
         placement = frame * pin.SE3(np.eye(3), offset) * _reference_motion(mj, joint)

@@ -7,6 +7,7 @@ and for the Panda, the URDF-derived model of the same robot (the MJCF written fr
 
 import re
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -18,6 +19,8 @@ from psdm_casadi.errors import RobotFileError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import from_urdf, load_robot
 from tests.conftest import example_robot_urdf
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 PANDA_LOCKED = ("panda_finger_joint1", "panda_finger_joint2")
 
@@ -157,8 +160,6 @@ def _broken(tmp_path, old, new, name="bad.xml"):
          "fixed tendon 't'"),
         ("<actuator>", '<equality><joint joint1="j1" joint2="j4"/></equality><actuator>',
          "equality constraint <joint>"),
-        ('<body name="link4"', '<body name="twin"><joint name="jt"/><inertial pos="0 0 0" mass="1" '
-         'diaginertia="1 1 1"/></body><body name="link4"', "branches: bodies 'twin' and 'link4'"),
         ("<worldbody>", '<include file="other.xml"/><worldbody>', "<include>"),
         ('<inertial pos="0.05 0 0" mass="1.1" diaginertia="0.004 0.006 0.005"/>', '<geom type="mesh" mesh="link"/>',
          "give it an <inertial>"),
@@ -259,7 +260,25 @@ def test_a_gripper_is_read_with_its_fingers_locked(tmp_path):
     expected = _mujoco_inverse(HAND, q, qd, qdd)
     ours = PinocchioOracle(robot).rnea(q, qd, qdd)
     assert np.abs(ours - expected).max() <= 1e-12 * np.abs(expected).max()
-    with pytest.raises(RobotFileError, match="branches: bodies 'left' and 'right'.*--lock"):
-        load_robot(path.with_name("fingers.xml"), locked_joints=()) if path.with_name("fingers.xml").write_text(
-            re.sub(r"<tendon>.*?</equality>", "", HAND, flags=re.S).replace('tendon="split"', 'joint="f1"')
-        ) else None
+    # without the tendon and the equality the fingers are two free branches: a tree of 6 joints, MuJoCo's too
+    free = re.sub(r"<tendon>.*?</equality>", "", HAND, flags=re.S).replace('tendon="split"', 'joint="f1"')
+    path.with_name("fingers.xml").write_text(free)
+    tree = load_robot(path.with_name("fingers.xml"))
+    assert tree.joint_names == ("j1", "j2", "j3", "j4", "f1", "f2")
+    q, qd, qdd = _states(tree)
+    expected = _mujoco_inverse(free, q, qd, qdd)
+    ours = PinocchioOracle(tree).rnea(q, qd, qdd)
+    assert np.abs(ours - expected).max() <= 1e-12 * np.abs(expected).max()
+
+
+def test_a_torso_with_two_arms_is_read_as_a_tree(tmp_path):
+    """MuJoCo compiles the example URDF of a torso with two Pandas; its saved MJCF reads as the same 15-joint tree."""
+    compiled = mujoco.MjModel.from_xml_path(str(EXAMPLES / "dual_arm_torso.urdf"))
+    path = tmp_path / "torso.xml"
+    mujoco.mj_saveLastXML(str(path), compiled)
+    robot = load_robot(path)
+    assert robot.n_dof == 15 and robot.joint_names[:2] == ("torso_joint", "left_panda_joint1")
+    q, qd, qdd = _states(robot)
+    expected = _mujoco_inverse(path.read_text(), q, qd, qdd)
+    ours = PinocchioOracle(robot).rnea(q, qd, qdd)
+    assert np.abs(ours - expected).max() <= 1e-12 * np.abs(expected).max()
