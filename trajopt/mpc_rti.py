@@ -15,7 +15,6 @@ report of ``benchmarks/mpc.py``), Python calls the same compiled code through ``
 from __future__ import annotations
 
 import logging
-import os
 import shlex
 import shutil
 import subprocess
@@ -28,6 +27,7 @@ import numpy as np
 
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import ParameterError, SolverError
+from trajopt.hpipm_c import hpipm_folders, persistent_workspace
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, constraint_jacobian, step_arguments, tracking_cost, variable_bounds
 from trajopt.mpc_model import expanded, stage_functions
@@ -272,33 +272,13 @@ def shift_guess(w, n_dof):
     return ca.vertcat(w[stage:], w[n_w - tail - n_dof : n_w - tail], w[n_w - tail :])
 
 
-def hpipm_folders(hpipm_dir=None) -> tuple[Path, Path]:
-    """(include, lib) folders of the HPIPM and BLASFEO the C links against.
-
-    ``hpipm_dir`` (else ``$PSDM_HPIPM_DIR``) is an install prefix of both (``include/``, ``lib/``; static
-    libraries built with -fPIC are linked in, else the shared ones),
-    e.g. BLASFEO built for the machine's CPU (``TARGET=X64_INTEL_HASWELL``) as acados does; its
-    headers must be those CasADi's generated code was written for (HPIPM af3ca47, BLASFEO 0.1.4.2
-    for CasADi 3.7-3.8). By default CasADi's own copies, whose BLASFEO is the portable (generic) build.
-    """
-    chosen = hpipm_dir or os.environ.get("PSDM_HPIPM_DIR")
-    if not chosen:
-        folder = Path(ca.__file__).parent
-        return folder / "include", folder
-    folder = Path(chosen)
-    if not (folder / "include" / "hpipm_d_ocp_qp_ipm.h").exists() or not (folder / "lib").is_dir():
-        raise ParameterError(
-            f"compile_rti hpipm_dir must hold include/hpipm_d_ocp_qp_ipm.h and lib/; got {str(folder)!r}. "
-            "Pass the install prefix of HPIPM and BLASFEO, or unset PSDM_HPIPM_DIR for CasADi's copies."
-        )
-    return folder / "include", folder / "lib"
-
-
 def export_rti_c(controller: RTIController, folder) -> Path:
     """Write the RTI step as C: ``<folder>/mpc_rti.c`` and ``mpc_rti.h``; returns the source path.
 
     The C calls HPIPM (``hpipm_d_ocp_qp_ipm.h``), shipped with CasADi: compile with
-    ``-I<casadi>/include -L<casadi> -lhpipm -lblasfeo`` (``compile_rti`` does).
+    ``-I<casadi>/include -L<casadi> -lhpipm -lblasfeo`` (``compile_rti`` does). HPIPM's workspace is
+    created on the first call and kept (``trajopt.hpipm_c.persistent_workspace``): one thread at a time
+    calls the step.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -313,7 +293,8 @@ def export_rti_c(controller: RTIController, folder) -> Path:
             "iteration cap of the real-time scheme would fail the step. Check the generated code.",
             status="codegen",
         )
-    source.write_text(text.replace(QP_FAILURE_CHECK, "\n  /* RTI: an iterate at HPIPM's cap is applied */\n"))
+    text = text.replace(QP_FAILURE_CHECK, "\n  /* RTI: an iterate at HPIPM's cap is applied */\n")
+    source.write_text(persistent_workspace(text))
     return source
 
 
