@@ -336,7 +336,7 @@ def identify_trajectories(
     free = [k for k in range(equations.n_columns) if k not in held]
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
                   [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
-    sigma, x_ols, inverse, condition = _weighted_least_squares(equations, free)
+    sigma, x_ols, inverse, condition = _weighted_least_squares(equations, free, range(n_fit, n_all))
     correlation = [correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
                    for rec, columns in zip(prepared, extras)]  # fmt: skip
     covariance = sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
@@ -462,26 +462,28 @@ def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
     return kept
 
 
-def _solve_scaled(gram, moment):
-    """Least squares from normal equations with unit-diagonal scaling; (x, inverse of gram, condition)."""
+def _solve_scaled(gram, moment, arm=slice(None)):
+    """Least squares from normal equations with unit-diagonal scaling; (x, inverse of gram, condition of the ``arm``
+    columns: an unknown payload on every recording is not separable from the arm, ``FlangeBodies.separable``)."""
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
     scaled = gram / np.outer(scale, scale)
-    values = np.linalg.eigvalsh(scaled)
+    values = np.linalg.eigvalsh(scaled[np.ix_(arm, arm)] if isinstance(arm, np.ndarray) else scaled)
     condition = float(np.sqrt(values[-1] / values[0])) if values[0] > 0 else float("inf")
     inverse = np.linalg.pinv(scaled, rcond=1e-12, hermitian=True) / np.outer(scale, scale)
     return inverse @ moment, inverse, condition
 
 
-def _weighted_least_squares(equations: NormalEquations, free=None):
+def _weighted_least_squares(equations: NormalEquations, free=None, payload=range(0)):
     """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and the inverse of its
-    normal matrix; only the ``free`` columns are fitted (None: all), the others stay 0 (0 rows in the inverse)."""
+    normal matrix; only the ``free`` columns are fitted (None: all), the others stay 0 (0 rows in the inverse);
+    the condition number is the arm's (every column but the unknown payloads' ``payload``)."""
     free = np.arange(equations.n_columns) if free is None else np.asarray(free, dtype=int)
     subset = equations.subset(free)
     rms = np.sqrt(subset.energy / np.maximum(subset.count, 1))
     first, _, _ = _solve_scaled(*subset.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
     sigma = residual_sigma(subset, first)
     gram, moment, _ = subset.weighted(1.0 / sigma**2)
-    x_free, inverse_free, condition = _solve_scaled(gram, moment)
+    x_free, inverse_free, condition = _solve_scaled(gram, moment, np.flatnonzero(~np.isin(free, payload)))
     x, inverse = np.zeros(equations.n_columns), np.zeros((equations.n_columns,) * 2)
     x[free], inverse[np.ix_(free, free)] = x_free, inverse_free
     return sigma, x, inverse, condition

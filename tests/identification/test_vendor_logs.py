@@ -132,3 +132,21 @@ def test_a_log_in_degrees_mnm_and_ms_identifies_the_arm_once_its_units_are_state
     assert code == 0
     standard = np.asarray(json.loads(out.read_text())["standard"]["values"], dtype=float).reshape(2, -1)
     np.testing.assert_allclose(standard[:, 0], MASSES, rtol=0.1)  # the truth, not 1000x or the bounds
+
+
+def test_an_unknown_tool_on_every_recording_is_named_not_separable_and_the_model_written(logged_arm, capsys):
+    """A sidecar {"unknown": ...} beside the only recording: the tool cannot be told from the last link (the fit
+    leaves it to the arm); identify said so, then crashed writing an infinite condition number into the model."""
+    folder, path = logged_arm
+    (folder / "trace.payload.json").write_text('{"unknown": "gripper"}')
+    out = folder / "tool.json"
+    try:
+        code = main(["--quiet", "identify", str(folder / "arm.toml"), "--data", str(path), "--columns",
+                     "t=Time:ms,q=Pos:deg,tau=Trq:mNm", "--out", str(out)])  # fmt: skip
+    finally:
+        (folder / "trace.payload.json").unlink()
+    assert code == 0 and "gripper" in capsys.readouterr().out
+    document = json.loads(out.read_text())
+    assert np.isfinite(document["identification"]["condition_number"])
+    standard = np.asarray(document["standard"]["values"], dtype=float).reshape(2, -1)
+    np.testing.assert_allclose(standard[:, 0], MASSES, rtol=0.1)  # no tool: the arm as it is
