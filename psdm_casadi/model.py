@@ -22,11 +22,15 @@ import scipy.sparse
 from psdm_casadi.chain_regressor import ChainRegressor
 from psdm_casadi.errors import ModelFileError, ShapeError
 from psdm_casadi.fileio import atomic_write
+from psdm_casadi.monomials import MonomialTree
+from psdm_casadi.state_cache import StateCache
 
 MODEL_FORMAT = "psdm-model"
 MODEL_VERSION = 1
 CHAIN_MODEL_VERSION = 2  # a model with a chain (no monomial table): older releases must refuse it
 READABLE_VERSIONS = (MODEL_VERSION, CHAIN_MODEL_VERSION)
+#: Samples per block of the regressor's evaluation (its functions: n_functions x this many values at a time).
+REGRESSOR_BLOCK = 512
 
 
 @dataclass(frozen=True, eq=False)
@@ -98,6 +102,7 @@ class PSDMModel:
         # P as one sparse (n_functions, n_dof * n_base) matrix for fast batch evaluation
         flat = reduction.transpose(0, 2, 1).reshape(p, n * l)
         object.__setattr__(self, "_reduction_sparse", scipy.sparse.csr_matrix(flat))
+        object.__setattr__(self, "_regressor_cache", StateCache())  # a recording's regressor, evaluated once
         object.__setattr__(self, "base_names", tuple(self.base_names))
         object.__setattr__(self, "standard_names", tuple(self.standard_names))
 
@@ -171,26 +176,39 @@ class PSDMModel:
     def functions(self, q, qd, qdd) -> np.ndarray:
         """The p functions y(q, qd, qdd), shape (n_samples, n_functions), gravity ones times g."""
         (q, qd, qdd), _ = self._states(q, qd, qdd)
-        gamma = np.concatenate([q, np.sin(q), np.cos(q), qd, qdd], axis=1)
-        y = np.ones((gamma.shape[0], self.n_functions))
-        for h in range(gamma.shape[1]):
-            for power in (1, 2):
-                cols = self.exponents[h] == power
-                if cols.any():
-                    y[:, cols] *= gamma[:, h : h + 1] ** power
-        y[:, self.gravity_functions] *= self.gravity_magnitude
+        return self._functions_transposed(np.concatenate([q, np.sin(q), np.cos(q), qd, qdd], axis=1)).T
+
+    def _functions_transposed(self, gamma) -> np.ndarray:
+        """``functions`` transposed (n_functions, n_samples), C-contiguous, of the signals ``gamma``."""
+        tree = self.__dict__.get("_monomial_tree")
+        if tree is None:  # the evaluation plan of E, built at the first evaluation (monomials.MonomialTree)
+            tree = MonomialTree.of(self.exponents)
+            object.__setattr__(self, "_monomial_tree", tree)
+        y = tree.evaluate_transposed(gamma)
+        y[self.gravity_functions] *= self.gravity_magnitude
         return y
 
     def regressor(self, q, qd, qdd) -> np.ndarray:
-        """Y(q, qd, qdd), shape (n_samples, n_dof, n_base), or (n_dof, n_base) for one state."""
+        """Y(q, qd, qdd), shape (n_samples, n_dof, n_base), or (n_dof, n_base) for one state.
+
+        A series of states evaluated before is answered from memory (``state_cache``: identification evaluates
+        one recording's regressor several times); the monomial table is evaluated in blocks of
+        ``REGRESSOR_BLOCK`` samples, never for the whole series at once."""
         single = np.asarray(q).ndim == 1
-        if self.chain is not None:
-            (q, qd, qdd), _ = self._states(q, qd, qdd)
-            out = self.chain.regressor(q, qd, qdd)
-            return out[0] if single else out
-        y = self.functions(q, qd, qdd)
-        out = np.asarray(self._reduction_sparse.T @ y.T).T.reshape(y.shape[0], self.n_dof, self.n_base)
+        (q, qd, qdd), _ = self._states(q, qd, qdd)
+        out = self._regressor_cache.get(self._evaluate_regressor, q, qd, qdd)
         return out[0] if single else out
+
+    def _evaluate_regressor(self, q, qd, qdd) -> np.ndarray:
+        if self.chain is not None:
+            return self.chain.regressor(q, qd, qdd)
+        gamma = np.concatenate([q, np.sin(q), np.cos(q), qd, qdd], axis=1)
+        out = np.empty((gamma.shape[0], self.n_dof, self.n_base))
+        for start in range(0, gamma.shape[0], REGRESSOR_BLOCK):
+            y = self._functions_transposed(gamma[start : start + REGRESSOR_BLOCK])
+            block = np.asarray(self._reduction_sparse.T @ y).T
+            out[start : start + REGRESSOR_BLOCK] = block.reshape(y.shape[1], self.n_dof, self.n_base)
+        return out
 
     def gravity_regressor(self, q) -> np.ndarray:
         """Y_grav(q): the regressor of the gravity functions only, shape (n_samples, n_dof, n_base)."""

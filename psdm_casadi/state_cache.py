@@ -1,0 +1,78 @@
+"""A bounded memory of a model's regressor on series of states it has already evaluated.
+
+Identification evaluates the regressor of one prepared recording several times: the column choice, the
+Stribeck-velocity fit, the normal equations, the residual's correlation time, the validation and its report.
+:class:`StateCache` keeps the latest results keyed by a digest of the states (BLAKE2b of their bytes and
+shape), up to a byte budget (least recently used first out), and hands out copies, so a caller that changes its
+array changes nothing here. Series shorter than ``min_samples`` are not kept: hashing them costs more than it
+saves.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import threading
+from collections import OrderedDict
+
+import numpy as np
+
+__all__ = ["CACHE_BYTES", "MIN_SAMPLES", "StateCache"]
+
+#: Bytes of results a cache holds at most (about 40 Panda recordings of 2,900 prepared samples).
+CACHE_BYTES = 256 << 20
+#: Shortest series kept.
+MIN_SAMPLES = 64
+
+
+class StateCache:
+    """Results of a function of ``(q, qd, qdd)`` series, by the digest of the states."""
+
+    def __init__(self, max_bytes: int = CACHE_BYTES, min_samples: int = MIN_SAMPLES):
+        self.max_bytes = max_bytes
+        self.min_samples = min_samples
+        self._entries = OrderedDict()
+        self._bytes = 0
+        self._lock = threading.Lock()
+
+    @staticmethod
+    def key(*arrays) -> bytes:
+        """The digest of the arrays' shapes and bytes."""
+        digest = hashlib.blake2b(digest_size=20)
+        for array in arrays:
+            digest.update(repr(array.shape).encode())
+            digest.update(np.ascontiguousarray(array, dtype=float).data)
+        return digest.digest()
+
+    def get(self, compute, *arrays) -> np.ndarray:
+        """``compute(*arrays)``, from memory when the same states were evaluated before (a copy either way)."""
+        if arrays[0].shape[0] < self.min_samples:
+            return compute(*arrays)
+        key = self.key(*arrays)
+        with self._lock:
+            found = self._entries.get(key)
+            if found is not None:
+                self._entries.move_to_end(key)
+                return found.copy()
+        value = compute(*arrays)
+        if value.nbytes <= self.max_bytes:
+            with self._lock:
+                if key not in self._entries:
+                    self._entries[key] = value.copy()
+                    self._bytes += value.nbytes
+                while self._bytes > self.max_bytes:
+                    _, dropped = self._entries.popitem(last=False)
+                    self._bytes -= dropped.nbytes
+        return value
+
+    def __getstate__(self) -> dict:
+        """Pickled (a model sent to a worker) without its results or lock: the copy starts empty."""
+        return {"max_bytes": self.max_bytes, "min_samples": self.min_samples}
+
+    def __setstate__(self, state) -> None:
+        self.__init__(**state)
+
+    def clear(self) -> None:
+        """Forget every result."""
+        with self._lock:
+            self._entries.clear()
+            self._bytes = 0
