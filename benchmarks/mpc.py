@@ -20,6 +20,10 @@ closed loop against Pinocchio's aba integrated by RK4 with 4 substeps per interv
 - ``--dynamics-peers``: the full solve on other dynamics (``psdm_ad``, ``psdm_external``,
   ``casadi_rnea``, ``casadi_rnea_id_derivatives``, ``pinocchio_callback``, ``pinocchio_casadi``).
 
+``--model MODEL.json``: ``psdm_rti`` and ``psdm_sqp`` run on a calibrated model written by ``psdm identify``
+(its rigid body, friction and offsets, as ``psdm validate`` predicts; ``examples/mpc_rti_calibrated.py``)
+instead of the robot file's parameters; the plant stays the robot file's.
+
 Per row: mean and worst wall time of a step, mean CPU time of the process (the honest figure on a
 shared machine), iterations, RMS tracking error of the plant and the largest limit violation.
 ``rate_hz`` is 1 / mean step wall time of ``psdm_rti`` (``rate_hz_cpu``: of its CPU time);
@@ -32,6 +36,7 @@ Usage::
 
     python benchmarks/mpc.py [--robots denso panda] [--steps 200] [--horizon 20] [--integrator rk4]
                              [--qp-iterations 3] [--crocoddyl-python PATH] [--dynamics-peers] [--json]
+                             [--model MODEL.json]  # ours on a calibrated model (psdm identify) instead
 
 Exit code 0 when the targets are met, 1 otherwise, 2 on bad arguments.
 """
@@ -53,10 +58,13 @@ from bench_support import DENSO_FILE, load_panda, print_json, print_table, show_
 from mpc_rows import CONTROL_DT, closed_loop_figures
 
 from codegen.build import build_library
+from codegen.calibrated import build_calibrated_functions
 from codegen.export import export_c
 from codegen.peers.pinocchio_callback import PinocchioAba
 from codegen.peers.rnea_sx import build_rnea_functions
+from identification.calibration.calibrated_model import read_calibrated_model
 from psdm_casadi import derive_psdm, load_robot
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
 from trajopt.mpc import MPCOptions, build_mpc
@@ -119,6 +127,17 @@ def dynamics_peers(robot, ours, folder):
     }
 
 
+def calibrated_functions(model_file, robot):
+    """The calibrated model's Functions (rigid body, friction, offsets: what ``psdm validate`` predicts with)."""
+    loaded = read_calibrated_model(model_file)
+    if loaded.robot.n_dof != robot.n_dof:
+        raise ParameterError(
+            f"benchmarks/mpc.py --model must be identified for the robot of --robots ({robot.n_dof} joints); "
+            f"{model_file} holds {loaded.robot.n_dof}. Pass that robot's model file."
+        )
+    return build_calibrated_functions(loaded.calibrated, loaded.model, loaded.robot)
+
+
 def timed_build(build):
     start = time.perf_counter()
     controller = build()
@@ -141,29 +160,40 @@ def crocoddyl_rows(name, args) -> dict:
 
 def run_robot(name, robot, args):
     dt = CONTROL_DT[name]
-    options = MPCOptions(horizon=args.horizon, dt=dt, integrator=args.integrator, solver="sqpmethod",
+    options = MPCOptions(horizon=args.horizon, dt=dt, integrator=args.integrator, rk4_steps=args.substeps,
+                         solver="sqpmethod",
                          qp_solver="hpipm", max_iter=args.max_iter, jit=True)  # fmt: skip
     rti_options = dataclasses.replace(options, max_iter=args.qp_iterations, tol=args.qp_tol)
     start = time.perf_counter()
     model = derive_psdm(robot)
     ours = build_recursive_functions(model, robot, model.base_parameters(robot.nominal_dynamic_parameters()))
-    jacobian = build_forward_dynamics_jacobian(ours.forward_dynamics, ours.inverse_dynamics, ours.mass_matrix)
     LOG.info("%s: PSDM model derived in %.1f s", name, time.perf_counter() - start)
+    dynamics, friction = (ours, True) if args.model is None else (calibrated_functions(args.model, robot), False)
+    jacobian = build_forward_dynamics_jacobian(
+        dynamics.forward_dynamics, dynamics.inverse_dynamics, dynamics.mass_matrix
+    )
     rows, skipped = {}, {}
     with tempfile.TemporaryDirectory(prefix="psdm-mpc-") as folder:
         LOG.info("%s: compiling the RTI step", name)
         rti, build_s = timed_build(
             lambda: compile_rti(
                 build_rti(
-                    robot, ours.forward_dynamics, rti_options, forward_dynamics_jacobian=jacobian, qp_mode=args.qp_mode
-                ),
+                    robot,
+                    dynamics.forward_dynamics,
+                    rti_options,
+                    friction=friction,
+                    forward_dynamics_jacobian=jacobian,
+                    qp_mode=args.qp_mode,
+                ),  # fmt: skip
                 Path(folder) / "rti",
             )
         )
         rows["psdm_rti"] = dict(closed_loop_figures(robot, rti, args.steps), build_s=build_s)
         LOG.info("%s: the full solve (sqpmethod)", name)
         sqp, build_s = timed_build(
-            lambda: build_mpc(robot, ours.forward_dynamics, options, forward_dynamics_jacobian=jacobian)
+            lambda: build_mpc(
+                robot, dynamics.forward_dynamics, options, friction=friction, forward_dynamics_jacobian=jacobian
+            )
         )
         rows["psdm_sqp"] = dict(closed_loop_figures(robot, sqp, args.steps), build_s=build_s)
         if args.dynamics_peers:
@@ -206,7 +236,13 @@ def summary(rows, skipped, rti_options, args, dt, versions) -> dict:
         crocoddyl_versions=versions,
         rti=f"HPIPM {args.qp_mode}, {rti_options.max_iter} iterations at most, tolerance {rti_options.tol:g}",
         full_solve=f"sqpmethod (hpipm QPs), Gauss-Newton Hessian, max {args.max_iter} iterations per step, jit",
+        controller_model=(
+            "the robot file's nominal parameters and drive friction"
+            if args.model is None
+            else f"calibrated model {args.model} (rigid body, friction, offsets; friction=False)"
+        ),
         integrator=args.integrator,
+        substeps=args.substeps,
         horizon=args.horizon,
         dt=dt,
         n_steps=args.steps,
@@ -230,8 +266,8 @@ COLUMNS = [
 
 def print_results(results) -> None:
     for name, r in results.items():
-        steps = f"{r['integrator']}, {r['n_steps']} closed-loop steps"
-        print(f"\n{name}: N={r['horizon']}, dt={r['dt'] * 1e3:.0f} ms, {steps}")
+        steps = f"{r['integrator']} x {r['substeps']}, {r['n_steps']} closed-loop steps"
+        print(f"\n{name}: N={r['horizon']}, dt={r['dt'] * 1e3:.0f} ms, {steps}; ours on {r['controller_model']}")
         print_table([dict(row=k, **{c: v.get(c) for c in COLUMNS}) for k, v in r["rows"].items()], ["row", *COLUMNS])
         for row, reason in r["skipped"].items():
             print(f"  {row}: not run: {reason}")
@@ -283,14 +319,24 @@ def main(argv=None) -> int:
     parser.add_argument("--crocoddyl-python", default=os.environ.get("PSDM_CROCODDYL_PYTHON", sys.executable))
     parser.add_argument("--crocoddyl-iterations", type=int, default=1, help="FDDP iterations per step")
     parser.add_argument("--dynamics-peers", action="store_true", help="also the full solve on other dynamics")
+    parser.add_argument("--model", help="calibrated-model file (psdm identify --out) for psdm_rti and psdm_sqp")
+    substeps = "integrator steps per interval of psdm_rti and psdm_sqp (Crocoddyl keeps one); 4 at 5 ms for a "
+    substeps += "calibrated model, whose identified friction is steeper than the robot file's law"
+    parser.add_argument("--substeps", type=int, default=1, help=substeps)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
-    for flag in ("steps", "horizon", "max_iter", "qp_iterations", "crocoddyl_iterations"):
+    for flag in ("steps", "horizon", "max_iter", "qp_iterations", "crocoddyl_iterations", "substeps"):
         if getattr(args, flag) < 1:
             parser.error(f"--{flag.replace('_', '-')} must be a positive integer; got {getattr(args, flag)}.")
+    if args.model is not None and len(args.robots) != 1:
+        parser.error(f"--model needs one robot in --robots (the one it was identified for); got {args.robots}.")
     show_progress()
     loaders = {"denso": lambda: load_robot(DENSO_FILE), "panda": load_panda}
-    results = {name: run_robot(name, loaders[name](), args) for name in args.robots}
+    try:
+        results = {name: run_robot(name, loaders[name](), args) for name in args.robots}
+    except ParameterError as error:  # a model file that does not read or fit the robot
+        print(f"error: {error}", file=sys.stderr)
+        return 2
     if args.json:
         print_json({"robots": results})
     else:

@@ -59,12 +59,16 @@ class RTIController:
     n_dof : int
     bounds : dict
         ``lbx``, ``ubx`` of the variables (the same as ``trajopt.mpc``'s).
+    prediction : casadi.Function, optional
+        ``(x, u) -> x_next``: the controller's model over one interval (the integrator on the forward
+        dynamics, friction included), the Function whose Jacobian the QP's linearisation holds.
     """
 
     function: ca.Function
     options: MPCOptions
     n_dof: int
     bounds: dict
+    prediction: ca.Function | None = None
     _guess: np.ndarray | None = field(default=None, repr=False)
     _buffers: tuple | None = field(default=None, repr=False)
 
@@ -194,7 +198,9 @@ def build_rti(
     )
     bounds = variable_bounds(robot, options.horizon)
     function = rti_function(robot, options, model_jacobian, bounds, qp_mode)
-    return RTIController(function, options, n, bounds)
+    x, u = ca.MX.sym("x", 2 * n), ca.MX.sym("u", n)
+    prediction = ca.Function("prediction", [x, u], [model_jacobian(x, u)[0]], ["x", "u"], ["x_next"])
+    return RTIController(function, options, n, bounds, prediction)
 
 
 def rti_function(robot, options, model_jacobian, bounds, qp_mode="speed") -> ca.Function:
@@ -333,4 +339,4 @@ def compile_rti(
         )
     LOG.info("compiled %s in %.1f s", library, time.perf_counter() - start)
     compiled = ca.external(RTI_NAME, str(library))
-    return RTIController(compiled, controller.options, controller.n_dof, controller.bounds)
+    return RTIController(compiled, controller.options, controller.n_dof, controller.bounds, controller.prediction)

@@ -10,7 +10,9 @@ through ``export_c`` and ``build_library`` in-process; an inconsistent model is 
 import copy
 import dataclasses
 import json
+import runpy
 import shutil
+from pathlib import Path
 
 import casadi as ca
 import numpy as np
@@ -25,11 +27,15 @@ from identification.metrics import rmse
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.recursive import build_recursive_functions
 from tests.conftest import DENSO_FILE
 from trajopt.experiments import sine_experiment
+from trajopt.mpc import MPCOptions
+from trajopt.mpc_rti import build_rti
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 TOLERANCE = 1e-9
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
 
 @pytest.fixture(scope="module")
@@ -171,3 +177,41 @@ def test_theta_and_robot_options_are_refused_for_a_calibrated_model(calibration,
     ]
     assert main(argv) == 2
     assert "Drop --theta" in capsys.readouterr().err and not (tmp_path / "out").exists()
+
+
+def _mpc_example():
+    return runpy.run_path(str(EXAMPLES / "mpc_rti_calibrated.py"))
+
+
+def test_rti_mpc_on_a_model_file_predicts_with_the_torque_validate_reports(calibration, denso):
+    """The RTI controller built from the file (examples/mpc_rti_calibrated.py) predicts the motion under
+    the torque ``psdm validate`` computes on a recording (``predict_recording``): one semi-implicit Euler
+    step from each prepared sample gives back the sample's acceleration to 1e-9. The robot file's model
+    (rigid body and its own friction law) does not."""
+    folder, _ = calibration
+    dt = 0.005
+    options = MPCOptions(horizon=2, dt=dt, integrator="euler")
+    controller, loaded = _mpc_example()["calibrated_rti"](folder / "model.json", options)
+    recording = load_recording(folder / "valid.csv", loaded.robot.n_dof)
+    prepared, tau = loaded.calibrated.predict_recording(loaded.model, recording)
+    rows = slice(0, None, 25)
+    q, qd, qdd, tau = prepared.q[rows], prepared.qd[rows], prepared.qdd[rows], tau[rows]
+    x_next = np.array(controller.prediction.map(q.shape[0])(np.hstack([q, qd]).T, tau.T)).T
+    predicted_qdd = (x_next[:, denso.n_dof :] - qd) / dt
+    error = _relative_error(predicted_qdd, qdd)
+    assert error < TOLERANCE, error
+    theta = loaded.model.base_parameters(denso.nominal_dynamic_parameters())
+    rigid = build_recursive_functions(loaded.model, denso, theta)
+    file_model = build_rti(denso, rigid.forward_dynamics, options).prediction  # with the robot file's friction
+    x_file = np.array(file_model.map(q.shape[0])(np.hstack([q, qd]).T, tau.T)).T
+    assert _relative_error((x_file[:, denso.n_dof :] - qd) / dt, qdd) > 1e-2
+
+
+@pytest.mark.needs_cc
+@needs_cc
+def test_compiled_rti_mpc_on_a_model_file_tracks_the_plant(calibration, tmp_path):
+    folder, _ = calibration
+    robot, result = _mpc_example()["run"](folder / "model.json", tmp_path, 40)
+    assert result.limit_violation(robot) == 0.0
+    assert result.tracking_rmse < 2e-3, result.tracking_rmse
+    assert np.all(result.step_cpu_s > 0)

@@ -39,3 +39,17 @@ def test_json_has_every_row_and_the_rows_track_the_plant():
     for row in denso["rows"].values():
         assert row["tracking_rmse"] < 1e-3 and row["limit_violation"] == 0.0
         assert row["max_step_ms"] >= row["mean_step_ms"] > 0
+
+
+def test_model_file_that_does_not_read_exits_2_naming_it(tmp_path):
+    broken = tmp_path / "model.json"
+    broken.write_text("{}")
+    run = subprocess.run(
+        [sys.executable, str(SCRIPT), "--robots", "denso", "--steps", "2", "--horizon", "2", "--model", str(broken)],
+        capture_output=True, text=True, timeout=300, cwd=ROOT,
+    )  # fmt: skip
+    assert run.returncode == 2, run.stderr
+    assert "model.json" in run.stderr and "format must be" in run.stderr
+    assert "Traceback" not in run.stderr
+    run = subprocess.run([sys.executable, str(SCRIPT), "--model", str(broken)], capture_output=True, text=True)
+    assert run.returncode == 2 and "--model needs one robot" in run.stderr
