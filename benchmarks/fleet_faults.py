@@ -59,25 +59,25 @@ def _verdict(stored: dict, reference: dict, expected_days: int, expected_failed:
 
 def _killed_worker(folder: Path, db: Path, derive) -> None:
     """A LocalCluster of 2; one worker process is killed while the client writes the first result."""
-    original = History.write_session
+    original = History.write_sessions
     state = {"killed": False}
     with dask_client(workers=2) as client:
         victim = sorted(client.scheduler_info()["workers"])[0]
 
-        def write_then_kill(self, run_id, result):
+        def write_then_kill(self, run_id, results):
             if not state["killed"]:
                 state["killed"] = True
                 try:
                     client.run(os._exit, 1, workers=[victim])
                 except Exception:  # the worker's death breaks the call's own reply
                     pass
-            original(self, run_id, result)
+            original(self, run_id, results)
 
-        History.write_session = write_then_kill
+        History.write_sessions = write_then_kill
         try:
             run_fleet(read_fleet(folder), db, RunOptions(check=QUIET, day_reports=False), derive=derive, client=client)
         finally:
-            History.write_session = original
+            History.write_sessions = original
 
 
 def run_faults(fleet_folder: Path, out: Path, derive, robots: int = 3) -> dict:

@@ -45,6 +45,8 @@ __all__ = ["RunOptions", "RunSummary", "dask_client", "import_task_modules", "ru
 
 logger = logging.getLogger(__name__)
 
+WRITE_INTERVAL = 0.25  # s: the shortest time between two writes of a Dask run (``_batches``)
+
 
 @dataclass(frozen=True)
 class RunOptions:
@@ -151,27 +153,61 @@ def _run_item(item, wave: Wave, ctx: RobotContext):
 
 
 def _results_serial(plan, todo, contexts):
-    """Robot after robot, wave after wave, in this process."""
+    """Robot after robot, wave after wave, in this process: batches of one result."""
     for robot_id, ctx in contexts.items():
         for wave in robot_waves(ctx, _days(plan, robot_id), [t for t in todo if t.robot_id == robot_id]):
             for item in wave.sessions or (None,):
-                yield _run_item(item, wave, ctx)
+                yield [_run_item(item, wave, ctx)]
 
 
 def _days(plan, robot_id: str) -> list:
     return sorted(t.day for t in plan.tasks if t.robot_id == robot_id)
 
 
+def _outcome(future, value, task):
+    """A finished future's result, or a failed session (re-identification) for a task Dask gave up on (a worker
+    killed too often)."""
+    if future.status != "error":
+        return value
+    exc = value[1] if isinstance(value, tuple) else value
+    return _failed(task, exc) if isinstance(task, SessionTask) else ReidentifyResult(task, None, str(exc))
+
+
+def _scatter_all(client, contexts) -> dict:
+    """{id: future} of every baseline and PSDM model known now, sent to every worker in one call (a worker
+    unpickles each once, not once per task)."""
+    values = {id(m): m for ctx in contexts.values() for m in ctx.models.values()}
+    values.update({id(b): b for ctx in contexts.values() for b in ctx.segments.values()})
+    futures = client.scatter(list(values.values()), broadcast=True) if values else []
+    return dict(zip(values, futures))
+
+
+def _batches(completed):
+    """The finished futures in batches: at least one, and those that finish within ``WRITE_INTERVAL`` of the last
+    batch (each batch is one transaction, whose fixed cost, a few ms, would otherwise take a core's share from the
+    workers when they finish a task every few tens of ms)."""
+    last = time.perf_counter()
+    while not completed.is_empty():
+        batch = completed.next_batch(block=True)
+        wait = WRITE_INTERVAL - (time.perf_counter() - last)
+        if wait > 0 and completed.count():
+            time.sleep(wait)
+            batch += completed.next_batch(block=False)
+        last = time.perf_counter()
+        yield batch
+
+
 def _results_dask(client, plan, todo, contexts):
-    """Robots in parallel on Dask, each robot's waves in turn: its next wave is submitted once the last is written."""
+    """Robots in parallel on Dask, each robot's waves in turn: its next wave is submitted once the last is written.
+    Yields batches: every result finished since the last batch (fetched in the background), written together."""
     from dask.distributed import as_completed
 
-    scattered: dict = {}
+    scattered = _scatter_all(client, contexts)
 
     def shared(value):
-        if id(value) not in scattered:
-            scattered[id(value)] = (client.scatter(value, broadcast=True), value)
-        return scattered[id(value)][0]
+        if id(value) not in scattered:  # a baseline this run re-identified
+            scattered[id(value)] = client.scatter(value, broadcast=True)
+        return scattered[id(value)]
 
     futures, outstanding, generators = {}, {}, {}
 
@@ -202,39 +238,38 @@ def _results_dask(client, plan, todo, contexts):
     for robot_id, ctx in contexts.items():
         generators[robot_id] = robot_waves(ctx, _days(plan, robot_id), [t for t in todo if t.robot_id == robot_id])
         first += advance(robot_id)
-    completed = as_completed(first)
+    completed = as_completed(first, with_results=True, raise_errors=False)
     try:
-        for future in completed:
-            robot_id, task = futures[future]
-            try:
-                yield future.result()
-            except Exception as exc:  # a task Dask gave up on (a worker killed too often): stored as failed
-                yield _failed(task, exc) if isinstance(task, SessionTask) else ReidentifyResult(task, None, str(exc))
-            outstanding[robot_id] -= 1
-            if outstanding[robot_id] == 0:
-                for later in advance(robot_id):
-                    completed.add(later)
+        for batch in _batches(completed):
+            yield [_outcome(future, value, futures[future][1]) for future, value in batch]
+            for future, _ in batch:  # the batch is written: the robots whose wave is done go on
+                robot_id = futures[future][0]
+                outstanding[robot_id] -= 1
+                if outstanding[robot_id] == 0:
+                    completed.update(advance(robot_id))
     finally:
         client.cancel(list(futures))
 
 
-def _write(history: History, run_id: int, result, db_path, options: RunOptions, contexts) -> bool:
-    """Store a session (and its day page) or a re-identification (its model file, its baselines row); True for a
-    session."""
-    if isinstance(result, ReidentifyResult):
-        task = result.task
-        if result.document is not None:
-            path = baseline_file(db_path, task.robot_id, task.since)
-            path.parent.mkdir(parents=True, exist_ok=True)
-            CalibratedModel(result.document).save(path, allow_inconsistent=True, overwrite=True)
-            history.record_baseline(task.robot_id, task.since, str(path), run_id)
-            contexts[task.robot_id].add_baseline(task.since, path)
-            logger.info("%s re-identified from %s (days %s)", task.robot_id, task.since, ", ".join(task.days))
-        return False
-    history.write_session(run_id, result)
+def _write(history: History, run_id: int, batch: list, db_path, options: RunOptions, contexts) -> list:
+    """Store a batch: its sessions in one transaction (then their day pages), each re-identification (its model
+    file, its baselines row); returns the sessions."""
+    sessions = [r for r in batch if not isinstance(r, ReidentifyResult)]
+    for result in batch:
+        if isinstance(result, ReidentifyResult):
+            task = result.task
+            if result.document is not None:
+                path = baseline_file(db_path, task.robot_id, task.since)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                CalibratedModel(result.document).save(path, allow_inconsistent=True, overwrite=True)
+                history.record_baseline(task.robot_id, task.since, str(path), run_id)
+                contexts[task.robot_id].add_baseline(task.since, path)
+                logger.info("%s re-identified from %s (days %s)", task.robot_id, task.since, ", ".join(task.days))
+    history.write_sessions(run_id, sessions)
     if options.day_reports:
-        write_day_report(result, day_report_path(db_path, result.task.robot_id, result.task.day))
-    return True
+        for result in sessions:
+            write_day_report(result, day_report_path(db_path, result.task.robot_id, result.task.day))
+    return sessions
 
 
 def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=None, client=None) -> RunSummary:
@@ -271,13 +306,13 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
                 with _executor(options, client) as run_client:
                     results = (_results_serial(plan, todo, contexts) if run_client is None
                                else _results_dask(run_client, plan, todo, contexts))  # fmt: skip
-                    for result in results:
-                        if not _write(history, run_id, result, db_path, options, contexts):
-                            reidentified += (f"{result.task.robot_id} from {result.task.since}" if result.document
-                                             else f"{result.task.robot_id} failed: {result.error}",)  # fmt: skip
-                            continue
-                        processed += 1
-                        failed += result.status == "failed"
+                    for batch in results:
+                        if options.stop_after is not None:  # an interruption after that many sessions (tests)
+                            batch = _truncated(batch, options.stop_after - processed)
+                        sessions = _write(history, run_id, batch, db_path, options, contexts)
+                        reidentified += tuple(_reidentified(r) for r in batch if isinstance(r, ReidentifyResult))
+                        processed += len(sessions)
+                        failed += sum(r.status == "failed" for r in sessions)
                         if options.stop_after is not None and processed >= options.stop_after:
                             interrupted = True
                             break
@@ -292,6 +327,23 @@ def run_fleet(fleet: Fleet, db_path, options: RunOptions | None = None, derive=N
     seconds = time.perf_counter() - start
     return RunSummary(run_id, len(plan.tasks), processed, failed, len(plan.tasks) - len(todo), len(plan.duplicates),
                       seconds, where, len(findings), interrupted, reidentified)  # fmt: skip
+
+
+def _truncated(batch: list, sessions: int) -> list:
+    """The batch up to its first ``sessions`` sessions (re-identifications before them kept)."""
+    out = []
+    for result in batch:
+        if not isinstance(result, ReidentifyResult):
+            if sessions <= 0:
+                break
+            sessions -= 1
+        out.append(result)
+    return out
+
+
+def _reidentified(result: ReidentifyResult) -> str:
+    task = result.task
+    return f"{task.robot_id} from {task.since}" if result.document else f"{task.robot_id} failed: {result.error}"
 
 
 def _findings(history: History, options: RunOptions, baseline_days: int) -> list:

@@ -196,21 +196,21 @@ def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluste
 
     fleet = read_fleet(tiny_fleet[0])
     victim = sorted(cluster.scheduler_info()["workers"])[0]
-    original = History.write_session
+    original = History.write_sessions
     written = []
 
-    def write_then_kill(self, run_id, result):
+    def write_then_kill(self, run_id, results):
         if not written:
             try:
                 cluster.run(os._exit, 1, workers=[victim])
             except Exception:  # the worker's death breaks the call's own reply
                 pass
-        written.append(result.task.key)
-        original(self, run_id, result)
+        written.extend(result.task.key for result in results)
+        original(self, run_id, results)
 
-    monkeypatch.setattr(History, "write_session", write_then_kill)
+    monkeypatch.setattr(History, "write_sessions", write_then_kill)
     summary = run_fleet(fleet, tmp_path / "h.duckdb", derive=derive, client=cluster)
-    monkeypatch.setattr(History, "write_session", original)
+    monkeypatch.setattr(History, "write_sessions", original)
     assert (summary.processed, summary.failed) == (18, 0)
     assert len(written) == len(set(written)) == 18
     reference = tmp_path / "ref.duckdb"
@@ -249,19 +249,19 @@ def test_ctrl_c_keeps_the_written_days_and_the_next_run_resumes(tiny_fleet, deri
     """Ctrl-C during the fourth write: three robot-days stay, the run says interrupted, the next run does the rest."""
     fleet = read_fleet(tiny_fleet[0])
     db = tmp_path / "h.duckdb"
-    original = History.write_session
+    original = History.write_sessions
     calls = []
 
-    def interrupted(self, run_id, result):
-        calls.append(result.task.key)
+    def interrupted(self, run_id, results):
+        calls.extend(result.task.key for result in results)
         if len(calls) == 4:
             raise KeyboardInterrupt
-        original(self, run_id, result)
+        original(self, run_id, results)
 
-    monkeypatch.setattr(History, "write_session", interrupted)
+    monkeypatch.setattr(History, "write_sessions", interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_fleet(fleet, db, RunOptions(serial=True), derive=derive)
-    monkeypatch.setattr(History, "write_session", original)
+    monkeypatch.setattr(History, "write_sessions", original)
     with History(db) as history:
         assert history.done_keys() == set(calls[:3])
         assert history.connection.execute("SELECT status FROM runs").fetchall() == [("interrupted",)]
