@@ -20,7 +20,16 @@ do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, be
    reversal, which Coulomb-viscous truth shows too). Each joint gets the shape its own data want; the fit holds the
    others' static friction at their Coulomb level (``TrajectoryOptions.stribeck_joints``).
 4. A drive inertia the data want negative is dropped: a torque measured behind the gearbox holds no rotor
-   inertia. That is an expected situation, stated in the choice, not a warning.
+   inertia. That is an expected situation, stated in the choice, not a warning. A torque from motor currents holds
+   the rotors' inertia by construction (the motor side of the gearbox): there every separate drive-inertia column is
+   kept (the consistent fit bounds it at >= 0). The free least squares of the choice cannot tell it from the links'
+   inertias on short recordings (Kinova Gen3 currents: its estimates 0.2 +- 0.2 kg m^2, some negative, while the
+   currents against the joint-torque sensors give 0.4-0.5 on the large actuators and 0.1 on the small ones); left
+   out, the links absorb it and are pushed against their envelopes.
+5. When currents are the torque source, each joint's drive loss (``drive_loss``: a gear efficiency that depends on
+   the power flow, the column ``|tau| tanh(qd / v)`` of the robot file's rigid-body torque) is a candidate like an
+   offset, kept only with a coefficient inside ``(0, MAX_LOAD_FRICTION)``. Joint-torque sensors sit behind the
+   gearbox: no candidate.
 
 LuGre friction stays an explicit choice (its fit is a multiple-shooting problem per joint, too costly to
 try by default); with it, the offsets and drive inertias are chosen under the Stribeck shape it starts from, on
@@ -35,6 +44,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from identification.calibration.drive_loss import efficiency, loss_columns, prior_theta
 from identification.calibration.payload_fit import FlangeBodies, subtract_known_payloads
 from identification.calibration.residual_correlation import residual_correlation_time
 from identification.calibration.stribeck import base_regressors, fit_stribeck_velocity
@@ -47,6 +57,7 @@ from identification.calibration.trajectory_data import (
     prepare_recordings,
 )
 from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints, torque_constants
+from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
 
 __all__ = ["FRICTION_CHOICES", "SWITCH_CHOICES", "ColumnChoice", "ColumnRequest", "Evidence", "choose_columns"]
@@ -70,18 +81,19 @@ class ColumnRequest:
     friction: str = "auto"
     offset: str = "auto"
     drive_inertia: str = "auto"
+    drive_loss: str = "auto"  # currents only (``drive_loss``); "on": every joint's, "off": none
 
     def __post_init__(self):
         for name, allowed in (("friction", FRICTION_CHOICES), ("offset", SWITCH_CHOICES),
-                              ("drive_inertia", SWITCH_CHOICES)):  # fmt: skip
+                              ("drive_inertia", SWITCH_CHOICES), ("drive_loss", SWITCH_CHOICES)):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ParameterError(f"ColumnRequest.{name} must be one of {allowed}; got {getattr(self, name)!r}.")
 
 
 @dataclass(frozen=True)
 class Evidence:
-    """What the data said about one candidate of one joint: ``term`` ``"stribeck"`` (the shape), ``"offset"`` or
-    ``"Ia"``.
+    """What the data said about one candidate of one joint: ``term`` ``"stribeck"`` (the shape), ``"offset"``,
+    ``"Ia"`` or ``"loss"`` (a drive loss: ``estimate`` is its coefficient ``mu``).
 
     ``delta_bic``: the training BIC without the candidate minus with it (positive: the training data want it);
     ``held_out_ratio``: held-out sum of squared residuals with it over without it (below 1: it predicts
@@ -119,6 +131,8 @@ class ColumnChoice:
     evidence: tuple = ()
     stribeck_joints: tuple | None = None  # None: every joint of a Stribeck (or LuGre) model, none otherwise
     n_dof: int = 0  # joints of the robot (0: not stated; ``shapes`` then needs it)
+    loss_joints: tuple = ()  # joints (0-based) with a drive loss (``drive_loss``; currents only)
+    torque_source: str = ""  # "current" (kt i) or "torque" (measured joint torque); "" not stated
 
     def shapes(self, n_dof: int) -> list:
         """The friction shape of each joint."""
@@ -152,7 +166,10 @@ class ColumnChoice:
         lines = [f"friction shape: {self._shape_text()} ({by['friction']})",
                  f"torque offset: {'every joint' if self.request.offset == 'on' else joints(self.offset_joints)} "
                  f"({by['offset']})"]  # fmt: skip
-        if self.request.drive_inertia == "auto":
+        if self.request.drive_inertia == "auto" and self.torque_source == "current":
+            lines.append(f"drive-inertia columns: {joints(self.inertia_joints)} (motor currents hold the rotors' "
+                         "inertia: every separate one identified, >= 0)")  # fmt: skip
+        elif self.request.drive_inertia == "auto":
             negative = [e.joint for e in self.evidence if e.term == "Ia" and e.estimate is not None and e.estimate <= 0]
             line = f"drive-inertia columns: {joints(self.inertia_joints)} ({auto}"
             if negative:
@@ -161,9 +178,26 @@ class ColumnChoice:
             lines.append(line + ")")
         else:
             lines.append(f"drive-inertia columns: {'off' if self.request.drive_inertia == 'off' else 'on'} (as asked)")
+        lines += self._loss_lines(joints)
         if self.check:
             lines.append(f"checked on {self.check}")
         return lines
+
+    def _loss_lines(self, joints) -> list:
+        """The drive-loss sentence: where and with what efficiency, or why there is none."""
+        if self.torque_source == "torque" and self.request.drive_loss != "on":
+            return ["drive loss: none (joint torques measured behind the gearbox do not hold its efficiency)"]
+        if self.torque_source != "current":
+            return []
+        if self.request.drive_loss != "auto":
+            return [f"drive loss (gear efficiency by power-flow direction): {self.request.drive_loss} (as asked)"]
+        found = {e.joint: e for e in self.evidence if e.term == "loss"}
+        if not found:
+            return ["drive loss: not tried (no rigid-body torque to scale: the robot file has no links, or LuGre)"]
+        eta = ", ".join(f"{float(efficiency(found[j].estimate)):.3f} on joint {j + 1}" for j in self.loss_joints)
+        text = (f"drive loss (motor currents: gear efficiency by power-flow direction, the current torque / eta "
+                f"driving, x eta back-driven): {joints(self.loss_joints)} (chosen from the data")  # fmt: skip
+        return [text + (f"; eta ~ {eta} before the fit)" if eta else ")")]
 
     def _shape_text(self) -> str:
         """``stribeck`` (every joint), or ``stribeck on joints 1, 3; coulomb-viscous on joints 2, 4``."""
@@ -181,6 +215,7 @@ class ColumnChoice:
         return {"friction": self.friction, "friction_shapes": self.shapes(self.n_dof) if self.n_dof else None,
                 "stribeck_joints": stribeck, "offset_joints": [j + 1 for j in self.offset_joints],
                 "inertia_joints": [j + 1 for j in self.inertia_joints], "request": asdict(self.request),
+                "drive_loss_joints": [j + 1 for j in self.loss_joints], "torque_source": self.torque_source,
                 "check": self.check, "evidence": [e.to_dict() for e in self.evidence]}  # fmt: skip
 
 
@@ -264,6 +299,7 @@ def _candidates(robot, model, recordings, options, request, validation, configur
     offsets = _reversing_joints(prepared, options.coulomb_velocity) if request.offset != "off" else []
     inertia = separate_inertia_joints(model, robot) if request.drive_inertia != "off" else []
     stribeck = request.friction in ("auto", "stribeck", "lugre")
+    losses, theta = _loss_candidates(robot, model, kt, request)
     offset = ("offset",) if offsets or request.offset == "on" else ()
     terms = (("fc", "fs", "fv") if stribeck else ("fc", "fv")) + offset
     full = replace(options, friction=terms, offset_joints=None, inertia_joints=None)
@@ -275,14 +311,16 @@ def _candidates(robot, model, recordings, options, request, validation, configur
                                       not in offsets)]  # fmt: skip
     keep = list(range(model.n_base)) + [model.n_base + every.index(n) for n in names]
     keep += list(range(model.n_base + len(every), model.n_base + len(every) + bodies.n_columns))
-    names += [f"payload{k}" for k in range(bodies.n_columns)]
+    names += [f"payload{k}" for k in range(bodies.n_columns)] + [f"loss{j + 1}" for j in losses]
 
     def rows(recording, rigid, extra=None):
         drive = drive_columns(recording.qd, recording.qdd, terms, inertia, options.coulomb_velocity, vs)
         bodies_rows = np.zeros((*drive.shape[:2], bodies.n_columns))
         if extra is not None:
             bodies_rows = extra.columns(recording.q, recording.qd, recording.qdd)
-        return np.concatenate([rigid, drive, bodies_rows], axis=2)[:, :, keep]
+        loss = loss_columns(rigid, recording.qd, theta, losses, options.coulomb_velocity) if losses else None
+        plain = np.concatenate([rigid, drive, bodies_rows], axis=2)[:, :, keep]
+        return plain if loss is None else np.concatenate([plain, loss], axis=2)
 
     blocks, training = [], []
     for recording, chunks, extra in zip(prepared, regressors, extras):
@@ -290,15 +328,24 @@ def _candidates(robot, model, recordings, options, request, validation, configur
         training.append((columns, recording.tau))
         edges = np.linspace(0, recording.n_samples, N_BLOCKS + 1).astype(int)
         for a, b in zip(edges[:-1], edges[1:]):
-            blocks.append(NormalEquations(robot.n_dof, len(keep)))
+            blocks.append(NormalEquations(robot.n_dof, len(keep) + len(losses)))
             blocks[-1].add(columns[a:b], recording.tau[a:b])
     held = None
     for recording in validation:
         ready = prepare_recording(recording, kt, cutoffs[0])[0]
-        held = held or NormalEquations(robot.n_dof, len(keep))
+        held = held or NormalEquations(robot.n_dof, len(keep) + len(losses))
         held.add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
     weights, effective = _weights(_sum(blocks), training)
     return _Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective), offsets, inertia
+
+
+def _loss_candidates(robot, model, kt, request) -> tuple:
+    """(joints, reference base parameters) of the drive-loss candidates (module docstring, step 5): every joint when
+    currents are the torque source (``kt``) or ``request.drive_loss`` is ``"on"``, none for LuGre friction (its
+    exported code cannot hold a multiple of its own torque) or without the robot file's links."""
+    wanted = request.drive_loss == "on" or (request.drive_loss == "auto" and kt is not None)
+    theta = prior_theta(robot, model) if wanted and request.friction != "lugre" else None
+    return ([], None) if theta is None else (list(range(robot.n_dof)), theta)
 
 
 def _weights(total, training) -> tuple:
@@ -335,10 +382,15 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
     """
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
-    if "auto" not in (request.friction, request.offset, request.drive_inertia):  # nothing to choose
+    source = "current" if any(r.tau is None for r in recordings) else "torque"
+    if "auto" not in (request.friction, request.offset, request.drive_inertia) and (
+        request.drive_loss != "auto" or source == "torque"
+    ):  # nothing to choose
         every = tuple(range(robot.n_dof)) if request.offset == "on" else ()
         inertia = tuple(separate_inertia_joints(model, robot)) if request.drive_inertia == "on" else ()
-        return ColumnChoice(request.friction, every, inertia, request, n_dof=robot.n_dof)
+        losses = tuple(range(robot.n_dof)) if request.drive_loss == "on" and request.friction != "lugre" else ()
+        return ColumnChoice(request.friction, every, inertia, request, n_dof=robot.n_dof, loss_joints=losses,
+                            torque_source=source)  # fmt: skip
     found, offsets, inertia = _candidates(robot, model, list(recordings), options, request, list(validation),
                                           configurations)  # fmt: skip
     check = (f"{len(validation)} validation recording(s)" if validation else
@@ -349,9 +401,10 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         evidence += _shape_evidence(found)
         stribeck = tuple(e.joint for e in evidence if e.kept)
     train, held, x, std = found.evaluate(stribeck)
+    asked = {"offset": "offset", "Ia": "drive_inertia", "loss": "drive_loss"}
     for name in found.names:
-        term = "offset" if name.startswith("offset") else "Ia" if name.startswith("Ia") else None
-        if term is None or getattr(request, "offset" if term == "offset" else "drive_inertia") != "auto":
+        term = next((t for t in asked if name.startswith(t)), None)
+        if term is None or getattr(request, asked[term]) != "auto":
             continue
         evidence.append(_column_evidence(found, stribeck, name, term, (train, held, x, std)))
     kept = {(e.term, e.joint) for e in evidence if e.kept}
@@ -359,12 +412,21 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
     choice = ColumnChoice(
         friction=friction,
         offset_joints=tuple(j for j in offsets if request.offset == "on" or ("offset", j) in kept),
-        inertia_joints=tuple(j for j in inertia if request.drive_inertia == "on" or ("Ia", j) in kept),
+        inertia_joints=tuple(j for j in inertia if request.drive_inertia == "on" or ("Ia", j) in kept
+                             or (source == "current" and request.drive_inertia == "auto")),
         request=request, check=check, evidence=tuple(evidence),
         stribeck_joints=tuple(stribeck) if request.friction == "auto" and stribeck else None, n_dof=robot.n_dof,
+        loss_joints=_loss_joints(robot, model, request, kept), torque_source=source,
     )  # fmt: skip
     logger.info("identify: %s", "; ".join(choice.describe()))
     return choice
+
+
+def _loss_joints(robot, model, request, kept) -> tuple:
+    """The joints (0-based) with a drive loss: every one when asked ``"on"`` (not for LuGre), else those kept."""
+    if request.drive_loss == "on":
+        return tuple(range(robot.n_dof)) if request.friction != "lugre" else ()
+    return tuple(j for j in range(robot.n_dof) if ("loss", j) in kept)
 
 
 def _shape_evidence(found: _Candidates) -> list:
@@ -403,7 +465,7 @@ def _shape_evidence(found: _Candidates) -> list:
 def _column_evidence(found, stribeck, name, term, base) -> Evidence:
     """One joint's offset or drive-inertia column, dropped from the model with every other candidate in."""
     train, held, x, std = base
-    j = int(name[6:] if term == "offset" else name[2:]) - 1
+    j = int(name[len(term) :]) - 1
     train_without, held_without, _, _ = found.evaluate(stribeck, dropped=(name,))
     n = found.effective[j]
     delta = float(n * np.log(train_without[j] / train[j]) - np.log(n))
@@ -414,6 +476,9 @@ def _column_evidence(found, stribeck, name, term, base) -> Evidence:
     if term == "Ia" and estimate <= 0:
         return Evidence(term, j, delta, ratio, False, "the data want it negative: no rotor inertia in the torque "
                         "signal (measured behind the gearbox)", estimate, sigma)  # fmt: skip
+    if term == "loss" and not 0.0 < estimate < MAX_LOAD_FRICTION:
+        return Evidence(term, j, delta, ratio, False, f"coefficient mu = {estimate:.3g} outside (0, "
+                        f"{MAX_LOAD_FRICTION}): not a gear efficiency above 60 %", estimate, sigma)  # fmt: skip
     kept = delta > 0 and ratio < 1
     return Evidence(term, j, delta, ratio, kept, _reason(delta, ratio, kept), estimate, sigma)
 

@@ -70,6 +70,15 @@ def add_arguments(p) -> None:
         "--no-drive-inertia", dest="drive_inertia", action="store_const", const="off", help="--drive-inertia off"
     )
     p.add_argument(
+        "--drive-loss",
+        choices=SWITCHES,
+        default="auto",
+        help="a gear efficiency that depends on the power flow (motor currents: the current torque is the link's / eta "
+        "when the motor drives, x eta when back-driven): auto (default) keeps it on the joints whose data want it, "
+        "tried only when currents are the torque source; on: every joint; off: none. Stored in the model file as a "
+        "load-dependent friction of the model's own torque (predict, validate and the exported C apply it)",
+    )
+    p.add_argument(
         "--no-consistency",
         action="store_true",
         help="keep the unconstrained weighted least-squares estimate (base parameters only), marked as not checked",
@@ -133,8 +142,15 @@ def run(args) -> int:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
     choice, options = _columns(args, robot, model, recordings, validation, configurations)
+    loss = None
     if args.friction == "lugre":
         fit, lugre, start = _fit_lugre(robot, model, recordings, options, configurations)
+    elif choice.loss_joints:  # currents with a gear loss (identification.calibration.drive_loss)
+        from identification.calibration.drive_loss import identify_with_drive_loss
+
+        progress("identify: fitting the drive loss (gear efficiency by power-flow direction) ...", quiet=args.json)
+        fit, *loss = identify_with_drive_loss(robot, model, recordings, options, choice.loss_joints, configurations)
+        start, lugre = fit, None
     else:
         fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
         lugre = None
@@ -148,6 +164,10 @@ def run(args) -> int:
         robot, model, fit, robot_source=args.robot, lugre=lugre,
         recordings=[recording_provenance(r, p) for r, p in zip(recordings, paths)], configurations=configurations,
     )  # fmt: skip
+    if loss:
+        from identification.calibration.drive_loss import with_drive_loss
+
+        calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
     report = _validation(robot, model, start, validation, args.validate, calibrated)
     report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated.document["validation"] = report
@@ -220,7 +240,8 @@ def _columns(args, robot, model, recordings, validation, configurations):
     from identification.calibration.column_choice import ColumnRequest, choose_columns
     from identification.calibration.trajectory_fit import TrajectoryOptions
 
-    request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia)
+    request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
+                            drive_loss=args.drive_loss)  # fmt: skip
     options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
                                 envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
                                 drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
@@ -413,6 +434,8 @@ def _print_envelope(fit) -> None:
 
 
 def _print(args, robot, model, fit, report, calibrated, choice) -> None:
+    from identification.calibration.drive_loss import drive_loss_summary
+
     if args.json:
         print_json({"command": "identify", "protocol": "recordings", "robot": robot.name, "out": str(args.out),
                     "consistent": calibrated.consistent, "checked": fit.checked,
@@ -427,6 +450,7 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
                     "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
                     "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
                     "columns": calibrated.document["identification"]["column_choice"],
+                    "drive_loss": drive_loss_summary(calibrated.document),
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -437,6 +461,11 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
     _print_envelope(fit)
     print("drive columns: " + "; ".join(choice.describe()))
+    for entry in drive_loss_summary(calibrated.document):
+        print(
+            f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "
+            f"eta {entry['efficiency']:.3f} ({entry['efficiency_range'][0]:.3f}-{entry['efficiency_range'][1]:.3f})"
+        )
     relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
     print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
     for k, value in enumerate(fit.theta):

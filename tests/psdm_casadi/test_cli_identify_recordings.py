@@ -163,7 +163,7 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     out = tmp_path / "auto.json"
     assert main([*argv, "--out", str(out)]) == 0
     columns = json.loads(out.read_text())["identification"]["column_choice"]
-    assert columns["request"] == {"friction": "auto", "offset": "auto", "drive_inertia": "auto"}
+    assert columns["request"] == {"friction": "auto", "offset": "auto", "drive_inertia": "auto", "drive_loss": "auto"}
     assert columns["friction"] in ("coulomb-viscous", "stribeck") and "cross-validation" in columns["check"]
     assert {e["term"] for e in columns["evidence"]} >= {"stribeck", "offset"}
     assert "drive columns: friction shape: " in capsys.readouterr().out
@@ -181,6 +181,11 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     asked = ["--offset", "--friction", "coulomb-viscous", "--no-drive-inertia", "--out", str(out), "--json"]
     assert main([*argv, *asked]) == 0
     summary = json.loads(capsys.readouterr().out)
-    assert summary["columns"]["request"] == {"friction": "coulomb-viscous", "offset": "on", "drive_inertia": "off"}
+    assert summary["columns"]["request"] == {
+        "friction": "coulomb-viscous",
+        "offset": "on",
+        "drive_inertia": "off",
+        "drive_loss": "auto",
+    }
     assert summary["columns"]["evidence"] == [] and {f"offset{j}" for j in range(1, 7)} <= set(summary["drive"])
     assert not any(name.startswith("fs") for name in summary["drive"])
