@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import sysconfig
 from pathlib import Path
 
 import numpy as np
 
 from identification.virtual.effects import CamCounterbalance, Payload
+from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.description import DriveParameters, LinkInertia
 from psdm_casadi.robot import load_robot
@@ -31,16 +31,16 @@ class Case:
     name: str
     what: str
     robot: Path
-    train: Path
+    train: tuple  # the training recordings (Paths)
     validate: Path
     extra: tuple = ()  # the CLI options the user needs for the log's layout (--columns, --rate)
     true_links: np.ndarray | None = None  # link masses of the truth [kg]
     payload_mass: float | None = None  # the flange load's truth [kg]; known (sidecar) or to identify
     payload_known: bool = True
-    noise_nm: np.ndarray | None = None  # per-joint torque noise of the recording [N m]
+    floor_nm: np.ndarray | None = None  # per joint, the truth model's RMSE floor on the validation recording [N m]
     hidden: tuple = ()  # (effect, joint 1-based) the diagnosis should name
-    expect_exit: int = 0  # identify's expected exit code (2: a refusal that names the fix)
-    refusal_words: tuple = ()  # words the refusal must hold
+    unstated: tuple = ()  # CLI options without the log's units: identify must refuse them (exit 2) ...
+    refusal_words: tuple = ()  # ... with these words (the file, the field, the fix)
 
 
 def ur5_urdf() -> Path:
@@ -96,12 +96,16 @@ def _jittered(rec, rate: float, rng, jitter: float, gap: tuple | None = None, na
 
 
 def _simulate(robot, reference, rate, noise, rng, extras=(), payload=None):
+    """(recording with torque noise ``noise`` [N m per joint], the truth model's RMSE floor per joint): the noise and
+    the LuGre friction's departure from its steady state, which no steady-state friction model predicts."""
     options = SimulationOptions(
         rate=rate, record_tau=True, record_current=False, tau_noise_std=0.0, payload=payload, q_noise_std=0.0
     )
-    rec, _ = simulate_recording(robot, reference, options, rng, extras=extras)
+    rec, truth = simulate_recording(robot, reference, options, rng, extras=extras)
     tau = rec.tau + rng.normal(0.0, 1.0, rec.tau.shape) * np.asarray(noise)
-    return rec.with_tau(tau)
+    dynamic = truth.tau_friction - steady_state_friction(truth.qd, LuGreArrays.from_drives(robot.drives))
+    floor = np.sqrt(np.asarray(noise, dtype=float) ** 2 + np.mean(dynamic**2, axis=0))
+    return rec.with_tau(tau), floor
 
 
 def _write_csv(path: Path, header: list, columns: list) -> Path:
@@ -125,6 +129,9 @@ def cobot_currents(folder: Path, rng) -> Case:
     urdf = ur5_urdf()
     gear, motor_kt = 101.0, 0.125
     body = f'format = "psdm-robot/1"\n[urdf]\npath = "{urdf}"\n\n'
+    links = ("shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link", "wrist_3_link")
+    rotors = (0.4, 0.4, 0.3, 0.1, 0.1, 0.1)  # motor inertia x gear^2 (the URDF has none; a real UR's drives do)
+    body += "".join(f'[[link]]\nname = "{n}"\nrotor_inertia = {r}\n\n' for n, r in zip(links, rotors))
     body += "[[drive]]\nkt = 1.0\nfc = 1.0\nfs = 1.2\nvs = 0.05\nfv = 2.0\n\n" * 6
     truth_file = folder / "ur5_truth.toml"
     truth_file.write_text(body)
@@ -141,7 +148,7 @@ def cobot_currents(folder: Path, rng) -> Case:
     files = []
     for name in ("train", "validate"):
         reference = _reference(robot, 12.0 if name == "train" else 8.0, rng)
-        rec = _simulate(robot, reference, 1000.0, noise, rng, payload=payload)
+        rec, floor = _simulate(robot, reference, 1000.0, noise, rng, payload=payload)
         t, q, tau = _jittered(rec, 500.0, rng, jitter=2e-4, nan_rows=3)
         current = tau / (gear * motor_kt)
         header = ["timestamp"] + [f"actual_q_{j}" for j in range(6)] + [f"actual_current_{j}" for j in range(6)]
@@ -152,12 +159,12 @@ def cobot_currents(folder: Path, rng) -> Case:
         name="cobot_currents_payload",
         what="UR5 vendor URDF, RTDE 500 Hz: motor currents x kt x gear, 0-based names, jitter, NaN rows, 2 kg stated",
         robot=user,
-        train=files[0],
-        validate=files[1],
+        train=tuple(files[:-1]),
+        validate=files[-1],
         extra=("--columns", "t=timestamp,q=actual_q_,i=actual_current_"),
         true_links=np.array([link.mass for link in robot.links]),
         payload_mass=2.0,
-        noise_nm=noise,
+        floor_nm=floor,
     )
 
 
@@ -189,7 +196,7 @@ def industrial_degrees(folder: Path, rng) -> Case:
     files = []
     for name in ("train", "validate"):
         reference = _reference(robot, 14.0 if name == "train" else 9.0, rng, still=2.0)
-        rec = _simulate(robot, reference, 1000.0, noise, rng)
+        rec, floor = _simulate(robot, reference, 1000.0, noise, rng)
         t, q, tau = _jittered(rec, 1000.0, rng, jitter=0.0)
         header = ["Time"] + [f"AxisPos_A{j + 1}" for j in range(6)] + [f"MotorTorque_A{j + 1}" for j in range(6)]
         files.append(_write_csv(folder / f"trace_{name}.csv", header, [t, np.degrees(q), 1000.0 * tau]))
@@ -197,11 +204,13 @@ def industrial_degrees(folder: Path, rng) -> Case:
         name="industrial_dh_degrees_mNm",
         what="KR6-like DH table, controller trace 1 kHz: degrees, mN m, vendor names, 2 s at rest first",
         robot=robot.source,
-        train=files[0],
-        validate=files[1],
-        extra=("--columns", "t=Time,q=AxisPos_A,tau=MotorTorque_A"),
+        train=tuple(files[:-1]),
+        validate=files[-1],
+        extra=("--columns", "t=Time,q=AxisPos_A:deg,tau=MotorTorque_A:mNm"),
+        unstated=("--columns", "t=Time,q=AxisPos_A,tau=MotorTorque_A"),
+        refusal_words=("trace_", "q1", "positions in degrees?", "--columns q=PREFIX:deg"),
         true_links=np.array([link.mass for link in robot.links]),
-        noise_nm=noise,
+        floor_nm=floor,
     )
 
 
@@ -216,7 +225,7 @@ def heavy_counterbalance(folder: Path, rng) -> Case:
     files = []
     for name in ("train", "validate"):
         reference = _reference(robot, 10.0, rng, slow=0.5)
-        rec = _simulate(robot, reference, 1000.0, noise, rng, extras=(counterbalance,))
+        rec, floor = _simulate(robot, reference, 1000.0, noise, rng, extras=(counterbalance,))
         t, q, tau = _jittered(rec, 250.0, rng, jitter=0.0)
         header = ["t"] + [f"q{j + 1}" for j in range(6)] + [f"tau{j + 1}" for j in range(6)]
         files.append(_write_csv(folder / f"heavy_{name}.csv", header, [t, q, tau]))
@@ -224,10 +233,10 @@ def heavy_counterbalance(folder: Path, rng) -> Case:
         name="heavy_counterbalance_slow",
         what="heavy 6-axis arm (~1 t), cam counterbalance on J2, slow motions, 250 Hz, 10 s + 10 s",
         robot=Path(robot.source),
-        train=files[0],
-        validate=files[1],
+        train=tuple(files[:-1]),
+        validate=files[-1],
         true_links=np.array([link.mass for link in robot.links]),
-        noise_nm=noise,
+        floor_nm=floor,
         hidden=(("counterbalance", 2),),
     )
 
@@ -246,9 +255,9 @@ def serial_bag(folder: Path, rng) -> Case:
     header_type, time_type = store.types["std_msgs/msg/Header"], store.types["builtin_interfaces/msg/Time"]
     names = [*robot.joint_names, "gripper_finger"]
     files = []
-    for name in ("train", "validate"):
-        reference = _reference(robot, 12.0 if name == "train" else 8.0, rng)
-        rec = _simulate(robot, reference, 1000.0, noise, rng, payload=payload)
+    for name in ("empty", "train", "validate"):
+        reference = _reference(robot, 8.0 if name != "train" else 12.0, rng)
+        rec, floor = _simulate(robot, reference, 1000.0, noise, rng, payload=None if name == "empty" else payload)
         t, q, tau = _jittered(rec, 1000.0, rng, jitter=1e-4, gap=(4.0, 0.06))
         path = folder / f"arm_{name}.mcap"
         with Writer(folder / f"bag_{name}", version=9, storage_plugin=StoragePlugin.MCAP) as writer:
@@ -265,18 +274,21 @@ def serial_bag(folder: Path, rng) -> Case:
                 writer.write(topic, ns, store.serialize_cdr(message, "sensor_msgs/msg/JointState"))
         mcap = next((folder / f"bag_{name}").glob("*.mcap"))
         mcap.rename(path)
-        path.with_suffix(".payload.json").write_text(json.dumps({"unknown": "gripper"}))
+        path.with_suffix(".payload.json").write_text(
+            json.dumps({"mass": 0} if name == "empty" else {"unknown": "gripper"})
+        )
         files.append(path)
     return Case(
         name="serial_mcap_unknown_payload",
-        what="6-joint serial arm, ROS 2 MCAP 1 kHz: jitter, 60 ms gap, extra gripper joint, unknown 1.5 kg gripper",
+        what="6-joint serial arm, ROS 2 MCAP 1 kHz: jitter, 60 ms gap, extra gripper joint; unknown 1.5 kg gripper "
+        "on 2 of 3 bags (sidecars)",
         robot=Path(robot.source),
-        train=files[0],
-        validate=files[1],
+        train=tuple(files[:-1]),
+        validate=files[-1],
         true_links=np.array([link.mass for link in robot.links]),
         payload_mass=1.5,
         payload_known=False,
-        noise_nm=noise,
+        floor_nm=floor,
     )
 
 
@@ -295,4 +307,4 @@ def build(name: str, folder, seed: int = 0) -> Case:
     return CASES[name](folder, np.random.default_rng(seed))
 
 
-__all__ = ["CASES", "Case", "build", "math"]
+__all__ = ["CASES", "Case", "build"]

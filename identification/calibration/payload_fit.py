@@ -293,7 +293,14 @@ def stated_payload(configuration, stored, model_name: str) -> tuple:
     entries = {e.get("name"): e for e in stored if e.get("kind") == "unknown"}
     entry = entries.get(configuration.name)
     parameters = None if entry is None else (entry.get("payload") or {}).get("parameters")
-    if parameters is None or any(v is None for v in parameters):
+    if entry is not None and (parameters is None or any(v is None for v in parameters)):
+        return None, (
+            f"payload {configuration.name!r} is in {model_name} but not separable from the arm (every recording it "
+            "was identified from carried it, or their motion did not tell them apart): the last links hold it, and "
+            "the recording is judged against the arm as identified, the load included. To weigh the load itself, "
+            "identify with a recording of the arm without it too."
+        )
+    if parameters is None:
         return None, (
             f"payload {configuration.name!r} is unknown and {model_name} has not identified it (its identified "
             f"payloads: {sorted(entries) or 'none'}); the recording is validated against the arm alone. Identify "

@@ -58,7 +58,7 @@ def register(subparsers) -> None:
         p,
         help="robot file (.toml, .urdf, .xml MJCF), built-in robot name, or calibrated model (.json, 'psdm identify')",
     )
-    p.add_argument("--train", required=True, help="training recording (.csv, .npz, .mat, or a ROS 2 bag)")
+    p.add_argument("--train", required=True, nargs="+", metavar="RECORDING", help=TRAIN_HELP)
     p.add_argument("--validate", required=True, nargs="+", metavar="RECORDING", help=VALIDATE_HELP)
     add_topic_argument(p)
     p.add_argument(
@@ -118,12 +118,29 @@ def register(subparsers) -> None:
     p.set_defaults(handler=_run_diagnose)
 
 
+TRAIN_HELP = "one training recording (.csv, .npz, .mat, or a ROS 2 bag): the diagnosis judges one continuous run"
+
+
+def _one_training_recording(paths: list) -> str:
+    """The one ``--train`` recording; several (as ``identify --data`` takes) are refused naming the fix, rather than
+    argparse's "unrecognized arguments" for the second."""
+    if len(paths) == 1:
+        return paths[0]
+    names = ", ".join(Path(p).name for p in paths)
+    raise ParameterError(
+        f"--train takes one recording; got {len(paths)} ({names}). The diagnosis fits one continuous run (a drift, a "
+        f"delay, a warm-up are judged along its time): pass the longest or most exciting one, e.g. --train "
+        f"{paths[-1]}, and give the others to --validate if they were not used to identify the model."
+    )
+
+
 def _run_diagnose(args) -> int:
     from identification.data.io import not_held_out
     from identification.data.missing_torque import require_torque
     from identification.data.robot_recordings import load_robot_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 
+    args.train = _one_training_recording(args.train)
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
     check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
     if args.cutoff is not None:

@@ -150,3 +150,22 @@ def test_an_unknown_tool_on_every_recording_is_named_not_separable_and_the_model
     assert np.isfinite(document["identification"]["condition_number"])
     standard = np.asarray(document["standard"]["values"], dtype=float).reshape(2, -1)
     np.testing.assert_allclose(standard[:, 0], MASSES, rtol=0.1)  # no tool: the arm as it is
+
+
+def test_a_stored_tool_that_is_not_separable_is_explained_not_called_unidentified():
+    from identification.calibration.payload_fit import stated_payload
+    from identification.data.configuration import PayloadConfiguration
+
+    stored = [{"name": "gripper", "kind": "unknown", "payload": {"parameters": None}}]
+    parameters, note = stated_payload(PayloadConfiguration(name="gripper", unknown=True), stored, "model.json")
+    assert parameters is None and "not separable from the arm" in note and "has not identified" not in note
+    parameters, note = stated_payload(PayloadConfiguration(name="hammer", unknown=True), stored, "model.json")
+    assert parameters is None and "has not identified it" in note
+
+
+def test_diagnose_names_its_one_training_recording_when_given_identifys_list(tmp_path, capsys):
+    """identify takes --data A B; the same list given to diagnose --train was argparse's "unrecognized arguments"."""
+    code = main(["diagnose", "denso_vs6556g", "--train", str(tmp_path / "a.csv"), str(tmp_path / "b.csv"),
+                 "--validate", str(tmp_path / "c.csv")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "--train takes one recording; got 2 (a.csv, b.csv)" in err and "Traceback" not in err

@@ -1,0 +1,189 @@
+"""Arms the project has not seen, run end to end on default settings, checked against their truth.
+
+Each case of ``unseen_cases`` writes a robot file and logs the way a vendor's controller or logger would (a UR5
+from its vendor URDF logging motor currents over RTDE with a 2 kg gripper in the sidecar; a KR6-like arm from a DH
+table traced in degrees and mN m; a heavy arm with a cam counterbalance on slow motions; a serial arm in ROS 2 MCAP
+bags with an unknown gripper). The commands the README prints are run with no options but the log's own layout
+(``--columns`` with its units, as the log needs):
+
+    psdm identify ROBOT --data TRAIN... --validate VAL --out model.json
+    psdm validate model.json VAL
+    psdm diagnose model.json --train TRAIN --validate VAL          (the last training recording: it takes one)
+    psdm codegen model.json --out c/
+
+and judged against the truth:
+
+- ``payload_error``: the identified unknown payload's mass error (relative); for a known payload, it is stated
+  and subtracted, so the arm's masses (next) test it;
+- ``link_mass_ratio``: the largest ``max(m / m_true, m_true / m)`` over the links with mass;
+- ``rmse_ratio``: the largest per-joint validation RMSE of identify's model over the truth model's floor (torque
+  noise and the LuGre friction's departure from steady state), ``after_diagnose`` the same for diagnose's model;
+- ``findings``: the diagnosis's findings; ``missed`` the hidden effects it did not name, ``false`` the ones it named
+  that are not there; where identify names a link pushed against its envelope, the route it suggests (``psdm
+  diagnose ROBOT``) is run too and its findings listed;
+- exit codes of the four commands, and for a log in other units, that identify without them is refused (exit 2)
+  naming the file, the column and the ``--columns`` fix.
+
+A case passes when every command exits 0, the refusal holds, payload error <= 0.10, link mass ratio <= 1.5,
+rmse_ratio <= 2.5 after the diagnosis, nothing missed and nothing false.
+
+    python benchmarks/unseen_arms.py [--cases NAME ...] [--seed 0] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from bench_support import print_json, print_table
+from unseen_cases import CASES, build
+
+#: The diagnosis's names for each hidden effect (a cam counterbalance is a spring series, a gravity-like unnamed
+#: effect or, as two harmonics of the joint angle, a torque ripple).
+ACCEPTED = {"counterbalance": ("spring", "unnamed_effect", "gas_spring", "torque_ripple")}
+LIMITS = {"payload_error": 0.10, "link_mass_ratio": 1.5, "rmse_ratio_after": 2.5}
+TABLE = ["case", "identify_exit", "units_refused_with_fix", "payload_error", "link_mass_ratio", "worst_link",
+         "rmse_ratio", "rmse_ratio_after", "envelope_pushed", "findings", "suggested_route_findings", "missed", "false",
+         "validate_exit", "diagnose_exit", "codegen_exit", "identify_s", "diagnose_s", "passed"]  # fmt: skip
+
+
+def _cli(argv) -> tuple:
+    """(exit code, JSON on stdout or None, stderr text, seconds) of one ``psdm`` command run in this process."""
+    from psdm_casadi.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    start = time.perf_counter()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main([str(a) for a in argv])
+    seconds = time.perf_counter() - start
+    try:
+        return code, json.loads(out.getvalue()), err.getvalue(), seconds
+    except json.JSONDecodeError:
+        return code, None, err.getvalue() + out.getvalue(), seconds
+
+
+def _refusal(case, folder: Path) -> bool | None:
+    """Whether identify without the log's units exits 2 naming the file, the column and the fix (None: no such)."""
+    if not case.unstated:
+        return None
+    code, _, text, _ = _cli(["identify", case.robot, "--data", *case.train, *case.unstated, "--out",
+                             folder / "refused.json"])  # fmt: skip
+    return code == 2 and all(word in text for word in case.refusal_words) and "Traceback" not in text
+
+
+def _masses(document, n_dof) -> np.ndarray:
+    return np.asarray(document["standard"]["values"], dtype=float).reshape(n_dof, -1)[:, 0]
+
+
+def _payload_error(case, document) -> float | None:
+    if case.payload_mass is None or case.payload_known:
+        return None
+    masses = [c["payload"].get("mass") for c in document.get("configurations") or () if c.get("kind") == "unknown"]
+    masses = [m for m in masses if m is not None]
+    return abs(masses[0] - case.payload_mass) / case.payload_mass if masses else float("inf")
+
+
+def _findings(case, diagnosis) -> tuple:
+    """(names of the findings, hidden effects missed, findings that are not there)."""
+    found = [(f["effect"], tuple(f["joints"])) for f in (diagnosis or {}).get("findings", ())]
+    missed = [
+        f"{effect}[j{joint}]"
+        for effect, joint in case.hidden
+        if not any(name in ACCEPTED.get(effect, (effect,)) and joint in joints for name, joints in found)
+    ]
+    true_names = {(name, joint) for effect, joint in case.hidden for name in ACCEPTED.get(effect, (effect,))}
+    false = [f"{name}{list(joints)}" for name, joints in found if not any((name, j) in true_names for j in joints)]
+    return [f"{name}{list(joints)}" for name, joints in found], missed, false
+
+
+def run_case(name: str, folder: Path, seed: int) -> dict:
+    """Build one case, run the four commands on it, judge them against its truth."""
+    case = build(name, folder, seed)
+    model, layout = folder / "model.json", list(case.extra)
+    code_id, identified, id_text, id_s = _cli(
+        ["identify", case.robot, "--data", *case.train, "--validate", case.validate, *layout, "--out", model, "--json"]
+    )
+    row = {"case": name, "what": case.what, "identify_exit": code_id, "identify_s": round(id_s, 1)}
+    row["units_refused_with_fix"] = _refusal(case, folder)
+    if code_id != 0 or not model.exists():
+        row["error"] = id_text.strip().splitlines()[-1] if id_text.strip() else "no output"
+        row["passed"] = False
+        return row
+    document = json.loads(model.read_text())
+    n_dof = case.true_links.size
+    masses, truth = _masses(document, n_dof), case.true_links
+    heavy = truth > 0
+    ratio = np.maximum(masses[heavy] / truth[heavy], truth[heavy] / masses[heavy])
+    rmse = np.asarray(identified["validation"][0]["rmse"], dtype=float)
+    code_val, _, _, _ = _cli(["validate", model, case.validate, *layout, "--json"])
+    # diagnose takes one training recording (the loaded one, as its refusal of several says)
+    diagnose = ["--train", case.train[-1], "--validate", case.validate, *layout, "--json"]
+    code_dia, diagnosis, dia_text, dia_s = _cli(["diagnose", model, *diagnose])
+    pushed = document["standard"].get("envelope_findings", ())
+    if pushed:  # the route identify's envelope warning suggests: diagnose against the robot file
+        _, suggested, _, _ = _cli(["diagnose", case.robot, *diagnose])
+        row["suggested_route_findings"] = _findings(case, suggested)[0]
+    code_gen, _, _, _ = _cli(["codegen", model, "--out", folder / "c_code", "--json"])
+    after = np.asarray((diagnosis or {}).get("rmse_after") or rmse, dtype=float)
+    names, missed, false = _findings(case, diagnosis)
+    row.update(
+        payload_error=_payload_error(case, document),
+        link_mass_ratio=round(float(ratio.max()), 3),
+        worst_link=int(np.flatnonzero(heavy)[int(np.argmax(ratio))]) + 1,
+        rmse_ratio=round(float(np.max(rmse / case.floor_nm)), 2),
+        rmse_ratio_after=round(float(np.max(after / case.floor_nm)), 2),
+        envelope_pushed=", ".join(f"link {f['link'] + 1}: {f['absorbs']}" for f in pushed if "link" in f) or "-",
+        findings=", ".join(names) or "-",
+        missed=", ".join(missed) or "-",
+        false=", ".join(false) or "-",
+        validate_exit=code_val,
+        diagnose_exit=code_dia,
+        diagnose_s=round(dia_s, 1),
+        codegen_exit=code_gen,
+        warnings=[line for line in (id_text + dia_text).splitlines() if "warning" in line],
+    )
+    row["passed"] = bool(
+        code_id == code_val == code_dia == code_gen == 0
+        and row["units_refused_with_fix"] in (None, True)
+        and (row["payload_error"] is None or row["payload_error"] <= LIMITS["payload_error"])
+        and row["link_mass_ratio"] <= LIMITS["link_mass_ratio"]
+        and row["rmse_ratio_after"] <= LIMITS["rmse_ratio_after"]
+        and not missed
+        and not false
+    )
+    return row
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args(argv)
+    rows = []
+    for name in args.cases:
+        with tempfile.TemporaryDirectory(prefix=f"psdm-unseen-{name}-") as folder:
+            rows.append(run_case(name, Path(folder), args.seed))
+    summary = {"passed": sum(r["passed"] for r in rows), "cases": len(rows), "limits": LIMITS}
+    if args.json:
+        print_json({"benchmark": "unseen_arms", "rows": rows, **summary})
+        return 0
+    print_table(rows, TABLE)
+    for row in rows:
+        print(f"{row['case']}: {row['what']}")
+        for warning in row.get("warnings", ()):
+            print(f"  {warning[:300]}")
+        if "error" in row:
+            print(f"  error: {row['error']}")
+    print(json.dumps(summary))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
