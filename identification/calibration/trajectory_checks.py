@@ -184,8 +184,8 @@ def _mass_warnings(robot, fit) -> list:
     if unit is not None:
         ratios = ", ".join(f"{r:.3g}" for r in fit.torque_ratio)
         return [f"the identified rigid-body torques are {ratios} times the robot file's on joints 1-"
-                f"{robot.n_dof}: {unit}. Convert the torques to N m (or fix the torque constants kt) and identify "
-                "again."]  # fmt: skip
+                f"{robot.n_dof}: {unit}. Convert the torques to N m, state the log's unit (--columns tau=PREFIX:mNm), "
+                "or fix the torque constants kt, and identify again."]  # fmt: skip
     prior = np.array([link.mass for link in robot.links], dtype=float)
     mass = np.asarray(fit.standard, dtype=float)[:, 0]
     out = []
@@ -210,7 +210,10 @@ def _envelope_warnings(fit) -> list:
 
 
 def _fit_quality_warnings(robot, fit) -> list:
-    """Joints whose torque the identified model does not explain on the very recordings it was fitted to."""
+    """Joints whose torque the identified model does not explain on the very recordings it was fitted to (none when
+    the torques are in another unit: the bounded model cannot reach them, and the unit is the one cause to name)."""
+    if unit_factor(getattr(fit, "torque_ratio", ())) is not None:
+        return []
     out = []
     for j, (r2, r2_ols) in enumerate(zip(fit.training_r2, fit.training_r2_ols)):
         if r2 >= MIN_TRAINING_R2:

@@ -418,6 +418,8 @@ def _sigma(value) -> str:
 
 def _print_envelope(fit) -> None:
     """The physical envelope the links were kept in, and the links the data pushed against it."""
+    from identification.calibration.trajectory_checks import unit_factor
+
     bounds = dict(fit.envelope_bounds)
     if not bounds:
         return
@@ -429,6 +431,9 @@ def _print_envelope(fit) -> None:
     )
     if not fit.envelope:
         print("  every link inside, none pushed against its bounds")
+    elif unit_factor(fit.torque_ratio) is not None:  # every link pushed by the unit: the warning names it
+        print(f"  links {', '.join(str(f.link + 1) for f in fit.envelope)} pushed: the torques are in another unit")
+        return
     for finding in fit.envelope:
         print(f"  PUSHED: {finding.message}")
 
