@@ -99,8 +99,21 @@ def _column_index(names: tuple, size: int, wanted):
         return np.arange(count) if size == count else None
     position = {name: k for k, name in enumerate(names)}
     if any(name not in position for name in wanted):
-        return None
+        return _prefixed_index(names, wanted)
     return np.array([position[name] for name in wanted], dtype=int)
+
+
+def _prefixed_index(names, wanted) -> np.ndarray | None:
+    """Joints named with a driver's prefix (``arm_joint1``, ``ur/shoulder_pan_joint`` for ``joint1``,
+    ``shoulder_pan_joint``: a tf_prefix or namespace): each robot joint matched by the one message name that ends
+    in it after ``_``, ``/`` or ``:``; None when a joint has no such name or several."""
+    index = []
+    for name in wanted:
+        found = [k for k, n in enumerate(names) if n == name or n.endswith(("_" + name, "/" + name, ":" + name))]
+        if len(found) != 1:
+            return None
+        index.append(found[0])
+    return np.array(index, dtype=int) if len(set(index)) == len(index) else None
 
 
 def _select(source: str, topic: str, rows: list, joint_names) -> tuple:
@@ -124,8 +137,13 @@ def _select(source: str, topic: str, rows: list, joint_names) -> tuple:
         raise RecordingError(
             f"{source}: topic {topic} must hold the robot's joints {', '.join(wanted)}; {', '.join(missing)} "
             f"{'is' if len(missing) == 1 else 'are'} missing ({listing}). Load it with the robot it was recorded "
-            "on, with its joint names, or lock the joints the bag does not have (--lock)."
+            "on, with its joint names (a driver's prefix, arm_joint1 for joint1, is matched), or lock the joints the "
+            "bag does not have (--lock)."
         )
+    named = kept[0][0][2] if kept else ()
+    if named and not isinstance(wanted, int) and any(named[k] != n for k, n in zip(kept[0][1], wanted)):
+        pairs = ", ".join(f"{named[k]} as {n}" for k, n in zip(kept[0][1], wanted) if named[k] != n)
+        logger.warning("%s: the joints of %s carry a prefix; read %s", source, topic, pairs)
     if len(kept) < len(rows):
         skipped = len(rows) - len(kept)
         logger.info("%s: %d of %d messages on %s lack a joint and are skipped", source, skipped, len(rows), topic)

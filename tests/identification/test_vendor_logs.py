@@ -183,3 +183,22 @@ def test_torques_in_mnm_left_unstated_are_blamed_on_the_unit_alone(logged_arm, c
     assert code == 0 and len(warnings) == 1, warnings
     assert "torques in mN m?" in warnings[0] and "--columns tau=PREFIX:mNm" in warnings[0]
     assert "PUSHED" not in captured.out and "Torque sign" not in captured.err
+
+
+def test_a_bag_whose_driver_prefixes_the_joint_names_is_read_by_them(tmp_path, caplog):
+    from tests.identification.recording_formats import joint_state_bag, smooth_signals
+
+    robot_names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint"]
+    logged = [f"ur/{n}" for n in robot_names] + ["ur/gripper_joint"]
+    signals = smooth_signals(logged)
+    bag = joint_state_bag(tmp_path / "prefixed", logged, signals, storage="mcap")
+    with caplog.at_level(logging.WARNING):
+        rec = load_recording(bag, 3, joint_names=robot_names)
+    for j, name in enumerate(logged[:3]):  # each joint's own signal, whatever the message's order
+        np.testing.assert_allclose(rec.q[:, j], signals[name][0], rtol=1e-12)
+        np.testing.assert_allclose(rec.tau[:, j], signals[name][2], rtol=1e-12)
+    assert "ur/elbow_joint as elbow_joint" in caplog.text
+    twice = ["left_joint1", "right_joint1", "left_joint2"]  # two arms on one topic: joint1 is ambiguous
+    bag = joint_state_bag(tmp_path / "two_arms", twice, smooth_signals(twice), storage="mcap")
+    with pytest.raises(RecordingError, match=r"joint1, joint2 are missing \(its messages name"):
+        load_recording(bag, 2, joint_names=["joint1", "joint2"])
