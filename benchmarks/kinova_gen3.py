@@ -15,7 +15,12 @@ where the URDF's differ and the tool as part of the last link; the vendor's nomi
   (mass, distance of the centre of mass from the joint) against the robot file's and the URDF's, with the
   links that end at the identification's mass bounds (0.5-2x the robot file's);
 - ``psdm diagnose`` of the robot file on opti_traj_testing1/2 (sensors): with the tool stated, a further
-  payload it names says the stated tool is off.
+  payload it names says the stated tool is off;
+- the currents against the sensors (``sensor_check``, no model of the arm needed): per joint, on the three logs with
+  both, ``kt i = a tau_s + mu |tau_s| tanh(qd / v) + fc tanh(qd / v) + fv qd + Ia qdd + offset`` by least squares
+  (10 Hz zero-phase filter): the gear's efficiency by power-flow direction ``eta = sqrt((1 - mu) / (1 + mu))``
+  (``drive_loss``) and the rotors' inertia the currents hold and the sensors do not, beside the currents fit's own
+  (``drive_loss``, ``Ia<j>``).
 
 Joint 7 carries almost no gravity load and its sensor shows only noise and offset (README), so its RMSE
 is reported but says little.
@@ -56,6 +61,53 @@ MASS_BOUNDS, BOUND_TOLERANCE = (0.5, 2.0), 1e-3
 #: The example states the tool as part of the last link (0.6 kg); a diagnosis that names a further payload heavier
 #: than this [kg] says the stated tool is off.
 RESIDUAL_TOOL_KG = 0.4
+
+
+SENSOR_LOGS = (TRAIN, VALIDATE, "RunTrajectory1.csv")
+KT = np.array([9.13] * 4 + [5.852] * 3)  # the robot file's torque constants (TorqueCur = Cur x kt)
+
+
+def _columns(path: Path, prefix: str) -> np.ndarray:
+    header = path.read_text().split("\n", 1)[0].strip().split(",")
+    data = np.loadtxt(path, delimiter=",", skiprows=1, usecols=[header.index(f"{prefix}{j}") for j in range(1, 8)])
+    return data[:-25]  # opti_traj_testing1's last 21 rows are at rest with garbage reference columns
+
+
+def sensor_check(data: Path, cutoff: float = 10.0, velocity: float = 0.05) -> dict:
+    """Per joint, the current torque against the joint-torque sensor (module docstring): scale ``a``, load-dependent
+    coefficient ``mu`` with its efficiency, rotor inertia ``Ia``, and the residual RMS with and without ``mu``."""
+    from identification.data.preprocessing import central_difference, zero_phase_filter
+
+    rows = [[] for _ in range(7)]
+    for k, name in enumerate(SENSOR_LOGS):
+        path = data / name
+        q, sensor, current = (_columns(path, p) for p in ("Position", "TorqueSm", "Cur"))
+        t = np.arange(q.shape[0]) * 1e-3
+        q, sensor, current = (zero_phase_filter(x, 1000.0, cutoff) for x in (q, sensor, current * KT))
+        qd, qdd = central_difference(t, q)
+        inner = slice(100, -100)
+        for j in range(7):
+            if np.all(_columns(path, "TorqueSm")[:, j] == 0):
+                continue  # RunTrajectory1's dead TorqueSm1
+            rows[j].append(np.column_stack([sensor[inner, j], current[inner, j], qd[inner, j], qdd[inner, j],
+                                            np.full(q[inner].shape[0], k)]))  # fmt: skip
+    out = {key: [] for key in ("scale", "mu", "efficiency", "Ia", "rms_with_mu", "rms_without_mu")}
+    for j in range(7):
+        s, c, qd, qdd, log = np.vstack(rows[j]).T
+        sign = np.tanh(qd / velocity)
+        offsets = np.column_stack([(log == k).astype(float) for k in np.unique(log)])
+        full = np.column_stack([s, np.abs(s) * sign, sign, qd, qdd, offsets])
+        x = np.linalg.lstsq(full, c, rcond=None)[0]
+        plain = np.delete(full, 1, axis=1)
+        residual = c - plain @ np.linalg.lstsq(plain, c, rcond=None)[0]
+        mu = float(x[1] / x[0])
+        out["scale"].append(float(x[0]))
+        out["mu"].append(mu)
+        out["efficiency"].append(float(np.sqrt((1 - mu) / (1 + mu))) if 0 <= mu < 1 else None)
+        out["Ia"].append(float(x[4]))
+        out["rms_with_mu"].append(float(np.std(c - full @ x)))
+        out["rms_without_mu"].append(float(np.std(residual)))
+    return out
 
 
 def run_cli(argv: list) -> tuple:
@@ -124,7 +176,11 @@ def identify(robot, source: str, folder: Path, data: Path, log) -> dict:
     warnings = payload.get("warnings", [])
     tool = [w for w in warnings if w.startswith(f"link {robot.n_dof} ") and "tool at the flange" in w]
     missing = [w for w in warnings if "has no torque measurement" in w]
+    drive = payload.get("drive", {})
+    inertia = [drive.get(f"Ia{j + 1}") for j in range(robot.n_dof)]
     return {"exit_code": code, "columns": SOURCES[source], "training": list(TRAINING[source]), "seconds": seconds,
+            "drive_loss": payload.get("drive_loss", []), "drive_inertia": inertia,
+            "column_text": payload["columns"].get("drive_loss_joints"),
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
             "warnings": warnings, "links": links_report(robot, out)}  # fmt: skip
@@ -165,12 +221,12 @@ def evaluate_kinova(log, data: Path = KINOVA, diagnosis: bool = True) -> dict:
         robot = load_robot(Path(tmp) / ROBOT_FILE.name)
         fits = {source: identify(robot, source, Path(tmp), data, log) for source in SOURCES}
         tool = diagnose_tool(Path(tmp), data, log) if diagnosis else None
-    replaced = robot.replaced_inertias
+    replaced = load_robot(robot.urdf_path).replaced_inertias  # the URDF's own (the robot file states them)
     unusable = [{"link": r.link.strip("'"), "joint": r.joint + 1, "problem": r.problem} for r in replaced]
     mass = None if tool is None else tool.get("tool_mass")
     stated = robot.links[-1].mass - load_robot(robot.urdf_path).links[-1].mass
     return {"skipped": False, **fits, "urdf_unusable_inertias": unusable, "tool_diagnosis": tool,
-            "tool_stated_in_robot_file_kg": stated,
+            "tool_stated_in_robot_file_kg": stated, "sensor_check": sensor_check(data),
             "diagnosis_finds_no_further_tool": tool is None or mass is None or mass < RESIDUAL_TOOL_KG,
             "sensor_fit_no_link_at_mass_bound": not fits["sensor"].get("links", {}).get("links_at_mass_bound", [0]),
             "ran_on_defaults": all(f.get("exit_code") == 0 for f in fits.values())}  # fmt: skip
@@ -217,6 +273,15 @@ def print_kinova(result) -> None:
               f"URDF {links['urdf_total_mass']:.2f}); links at a mass bound: {links['links_at_mass_bound'] or 'none'}; "
               f"implausible links: {links['implausible_links'] or 'none'}; a tool at the flange named: "
               f"{'yes' if fit['names_tool_at_flange'] else 'no'}")  # fmt: skip
+    check = result["sensor_check"]
+    print("  currents against the sensors (kt i = a tau_s + mu |tau_s| sign + friction + Ia qdd):")
+    for key in ("scale", "mu", "efficiency", "Ia", "rms_with_mu", "rms_without_mu"):
+        print(f"    {key:<15}" + " ".join("      -" if v is None else f"{v:7.3f}" for v in check[key]))
+    current = result["current"]
+    if current.get("exit_code") == 0:
+        eta = {e["joint"]: e["efficiency"] for e in current["drive_loss"]}
+        print(f"    {'currents fit':<15}eta " + (", ".join(f"J{j} {v:.3f}" for j, v in eta.items()) or "none chosen")
+              + "; Ia " + " ".join("-" if v is None else f"{v:.3f}" for v in current["drive_inertia"]))  # fmt: skip
     for entry in result["urdf_unusable_inertias"]:
         print(f"  URDF: {entry['link']} (joint {entry['joint']}) inertia unusable: {entry['problem']}")
     tool = result["tool_diagnosis"]

@@ -410,9 +410,14 @@ def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     assumed = {**_assumed(assumptions, n, where), **_motor_side(data, n, where)}
     with _within(where):
         robot = replace(robot, joints=joints, drives=drives, source=None if source is None else str(source), **assumed)
+    unusable = robot.replaced_inertias
     robot = apply_link_overrides(robot, data["link"], where) if "link" in data else robot
     for stand_in in robot.replaced_inertias:  # those the [[link]] tables did not replace
         logger.warning("%s", stand_in.message(urdf.name))
+    for stand_in in (r for r in unusable if r not in robot.replaced_inertias):  # said once, nothing left to do
+        logger.info("%s: the URDF's inertia of link %s (joint %d) is unusable (it %s); its kinematics are used and the "
+                    "robot file's [[link]] table states the inertia", urdf.name, stand_in.link, stand_in.joint + 1,
+                    stand_in.problem)  # fmt: skip
     return robot
 
 

@@ -128,7 +128,7 @@ def _active(bounds, standard, i) -> tuple:
     return tuple(link), tuple(drive), float(pressure[i, 0] + pressure[i, 1]), float(pressure[i, 2])
 
 
-def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma) -> tuple:
+def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, currents: bool = False) -> tuple:
     """The links and drives of a bounded consistent fit that the data push against (module docstring).
 
     A bound counts when it is active (within ``ACTIVE_TOLERANCE``) and the data press on it: its pressure is at
@@ -148,6 +148,10 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma) -
         (base, drive) parameters of the bounded fit and of the unconstrained least squares.
     sigma : array, shape (n_dof,)
         Per joint noise level [N m].
+    currents : bool
+        Whether the torque is motor current times torque constant: a link pushed outward may then hold an unmodelled
+        drive effect (the rotors' inertia, a gear efficiency by power-flow direction) rather than a load, and the
+        message names both with the options that fit them.
 
     Returns
     -------
@@ -187,7 +191,7 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma) -
         finding = EnvelopeFinding(i, names, float(standard[i, 0]), float(prior[i, 0]), *fill, float(standard[i, -1]),
                                   float(prior[i, -1]), absorbs, joint, float(refused[joint]), float(ratio[joint]),
                                   push)  # fmt: skip
-        out.append(replace(finding, message=_message(finding, robot)))
+        out.append(replace(finding, message=_message(finding, robot, currents)))
     return tuple(out)
 
 
@@ -205,7 +209,7 @@ def _pushed_what(finding: EnvelopeFinding) -> str:
     return " and ".join(parts)
 
 
-def _message(finding: EnvelopeFinding, robot) -> str:
+def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
     """The report's sentence on one finding: what is pushed, by how much, what it most likely is, what to run."""
     i, k = finding.link, finding.joint
     size = f"{finding.refused_rms:.3g} N m RMS ({finding.refused_sigma:.1f} x its noise)"
@@ -244,6 +248,10 @@ def _message(finding: EnvelopeFinding, robot) -> str:
         )
     else:
         cause = "extra inertia on the joint (a coupled load, a heavier gear), or the robot file's rotor inertia is off"
+    if currents and not drive:
+        cause += (". With motor currents as the torque source it may instead be a drive effect the currents hold: the "
+                  "rotors' inertia (identify --drive-inertia on) or a gear efficiency that depends on the power flow "
+                  "(identify --drive-loss on)")  # fmt: skip
     label = f"the drive of {joint_label(i, robot)}" if drive else f"link {i + 1}"
     return f"{label} is pushed against {_pushed_what(finding)}: {refused}. This is {cause}."
 

@@ -359,7 +359,7 @@ def identify_trajectories(
         found = _with_rows(found, separable)
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
-        pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma)
+        pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, kt is not None)
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)

@@ -126,3 +126,26 @@ def test_efficiency_summary_range_is_ordered(eta):
                               "coefficients": [mu], "std": [0.01]}]}  # fmt: skip
     (entry,) = drive_loss_summary(document)
     assert entry["efficiency_range"][0] <= entry["efficiency"] <= entry["efficiency_range"][1]
+
+
+def test_a_link_pushed_outward_on_currents_names_the_drive_effects_beside_the_load(denso):
+    """With motor currents as the torque source, a last link at its upper mass bound may hold the rotors' inertia or
+    a gear loss instead of a load: the message names them with the options that fit them; with joint torques not."""
+    from types import SimpleNamespace
+
+    from identification.calibration.consistent_fit import FitBounds
+    from identification.calibration.envelope_report import envelope_findings
+
+    n, prior = denso.n_dof, denso.nominal_dynamic_parameters()
+    equations = SimpleNamespace(count=np.full(n, 1000.0), residual_sum=lambda x: np.full(n, 1000.0) * (1.0 + x[0]))
+    standard = prior.copy()
+    standard[4, 0] = 2.0 * prior[4, 0]  # link 5 at its upper mass bound, pressed hard
+    pressure = np.zeros((n, 3))
+    pressure[4, 0] = 500.0
+    bounds = FitBounds((None,) * n, 0.5 * prior[:, 0], 2.0 * prior[:, 0], np.zeros(n), np.full(n, np.inf), pressure)
+    args = (denso, bounds, standard, equations, np.array([0.2]), np.array([0.0]), np.ones(n))
+    (torque,) = envelope_findings(*args)
+    (current,) = envelope_findings(*args, currents=True)
+    assert torque.absorbs == current.absorbs == "payload" and "--drive-loss on" not in torque.message
+    assert "payload or tool at the flange" in current.message
+    assert "--drive-inertia on" in current.message and "--drive-loss on" in current.message
