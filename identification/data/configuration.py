@@ -102,9 +102,32 @@ def sidecar_path(recording_path) -> Path:
 
 
 def stated_configuration(recording_path) -> PayloadConfiguration:
-    """The configuration the sidecar of a recording states (``A.payload.json``), or no payload without one."""
+    """The configuration the sidecar of a recording states (``A.payload.json``, or ``A.csv.payload.json`` named
+    after the whole file), or no payload without one.
+
+    Raises
+    ------
+    ParameterError
+        For a sidecar under a near-miss name (``A_payload.json``, ``A-payload.json``, ``A.Payload.json``): read
+        silently as none, its load would go into the arm's links.
+    """
     sidecar = sidecar_path(recording_path)
-    return _sidecar(sidecar) if sidecar.is_file() else NO_PAYLOAD
+    whole = Path(recording_path).with_name(f"{Path(recording_path).name}.payload.json")
+    for candidate in (sidecar, whole):
+        if candidate.is_file():
+            return _sidecar(candidate)
+    _refuse_near_miss(sidecar)
+    return NO_PAYLOAD
+
+
+def _refuse_near_miss(sidecar: Path) -> None:
+    stem = sidecar.name[: -len(".payload.json")]
+    for name in (f"{stem}_payload.json", f"{stem}-payload.json", f"{stem}.Payload.json", f"{stem}.payload.JSON"):
+        if (sidecar.parent / name).is_file() and name != sidecar.name:
+            raise ParameterError(
+                f"{name} beside recording {stem} is not read: a recording's payload is stated in {sidecar.name} "
+                f"(without it the load goes into the arm's links). Rename {name} to {sidecar.name}."
+            )
 
 
 def _sidecar(path: Path) -> PayloadConfiguration:

@@ -202,3 +202,17 @@ def test_a_bag_whose_driver_prefixes_the_joint_names_is_read_by_them(tmp_path, c
     bag = joint_state_bag(tmp_path / "two_arms", twice, smooth_signals(twice), storage="mcap")
     with pytest.raises(RecordingError, match=r"joint1, joint2 are missing \(its messages name"):
         load_recording(bag, 2, joint_names=["joint1", "joint2"])
+
+
+def test_a_sidecar_named_after_the_whole_file_is_read_and_a_near_miss_refused(tmp_path):
+    from identification.data.configuration import stated_configuration
+
+    recording = tmp_path / "run1.csv"
+    (tmp_path / "run1.csv.payload.json").write_text('{"mass": 2.0, "com": [0, 0, 0.06]}')
+    stated = stated_configuration(recording)
+    assert stated.payload.mass == 2.0 and stated.stated
+    (tmp_path / "run2_payload.json").write_text('{"unknown": "gripper"}')
+    with pytest.raises(ParameterError, match=r"run2_payload.json beside recording run2 is not read.*Rename "
+                       r"run2_payload.json to run2.payload.json"):  # fmt: skip
+        stated_configuration(tmp_path / "run2.csv")
+    assert not stated_configuration(tmp_path / "run3.csv").stated  # no sidecar: no payload, as before
