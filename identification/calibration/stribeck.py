@@ -32,7 +32,8 @@ from identification.calibration.trajectory_data import (
     stribeck_derivative,
 )
 
-__all__ = ["STRIBECK_GRID", "StribeckColumns", "base_regressors", "fit_stribeck_velocity", "stribeck_step",
+__all__ = ["STRIBECK_GRID", "StribeckColumns", "base_regressors", "fit_stribeck_velocity", "per_joint_regressors",
+           "stribeck_equations", "stribeck_step",
            "stribeck_velocity_std"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
@@ -77,20 +78,27 @@ def base_regressors(model, prepared) -> list:
     ]  # fmt: skip
 
 
-def _accumulate(regressors, prepared, terms, inertia_joints, coulomb_velocity, extras) -> NormalEquations:
+def stribeck_equations(regressors, prepared, terms, inertia_joints, coulomb_velocity, extras) -> NormalEquations:
     """Normal equations of ``[Y, D(vs), extra]`` (``extras`` one :class:`StribeckColumns` holding ``vs`` per
-    recording)."""
+    recording); ``regressors`` laid out per joint (:func:`per_joint_regressors`): the rows are built in the layout
+    of the Gram products, not transposed into it for every candidate ``vs``."""
     vs = extras[0].stribeck_velocity
     equations = None
     for chunks, r, extra in zip(regressors, prepared, extras):
         for k, rigid in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
             drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs)
-            columns = np.concatenate([rigid, drive, extra.columns(q, qd, qdd)], axis=2)
+            blocks = [rigid, drive.transpose(1, 0, 2), extra.columns(q, qd, qdd).transpose(1, 0, 2)]
+            per_joint = np.concatenate(blocks, axis=2)
             if equations is None:
-                equations = NormalEquations(vs.size, columns.shape[2])
-            equations.add(columns, r.tau[k : k + CHUNK_SAMPLES])
+                equations = NormalEquations(vs.size, per_joint.shape[2])
+            equations.add_per_joint(per_joint, r.tau[k : k + CHUNK_SAMPLES])
     return equations
+
+
+def per_joint_regressors(regressors) -> list:
+    """The chunks of :func:`base_regressors` as (n_dof, n_samples, n_base) arrays."""
+    return [[np.ascontiguousarray(chunk.transpose(1, 0, 2)) for chunk in chunks] for chunks in regressors]
 
 
 def _solve(equations: NormalEquations) -> np.ndarray:
@@ -137,14 +145,14 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
     n_dof = prepared[0].n_dof
     terms, velocity = options.friction, options.coulomb_velocity
     names = drive_column_names(n_dof, terms, inertia_joints)
-    regressors = base_regressors(model, prepared) if regressors is None else regressors
+    regressors = per_joint_regressors(base_regressors(model, prepared) if regressors is None else regressors)
 
     extras = list(extra) if isinstance(extra, (list, tuple)) else [extra] * len(prepared)
 
     def solve(vs):
         """(augmented estimate with the derivative coefficients, per-joint relative residual without them)."""
         columns = [StribeckColumns(velocity, vs, e) for e in extras]
-        equations = _accumulate(regressors, prepared, terms, inertia_joints, velocity, columns)
+        equations = stribeck_equations(regressors, prepared, terms, inertia_joints, velocity, columns)
         plain = equations.subset(range(equations.n_columns - n_dof))
         return _solve(equations), plain.residual_sum(_solve(plain)) / np.maximum(plain.energy, 1e-300)
 

@@ -210,11 +210,15 @@ class NormalEquations:
         A NaN torque (a joint whose torque the recording does not measure: ``Recording.missing_torque``) leaves
         that joint's row out; the other joints' rows of the sample count.
         """
+        self.add_per_joint(np.ascontiguousarray(columns.transpose(1, 0, 2)), tau)
+
+    def add_per_joint(self, per_joint: np.ndarray, tau: np.ndarray) -> None:
+        """:meth:`add` of the columns laid out per joint, ``per_joint`` (n_dof, n_samples, n_columns) C-contiguous
+        (the layout of the BLAS products; a caller that builds its rows in it saves the transposed copy)."""
         measured = np.isfinite(tau)
         if not measured.all():
             tau = np.where(measured, tau, 0.0)
-            columns = columns * measured[:, :, None]
-        per_joint = np.ascontiguousarray(columns.transpose(1, 0, 2))  # (n_dof, n_samples, n_columns): BLAS products
+            per_joint = per_joint * measured.T[:, :, None]
         self.gram += np.matmul(per_joint.transpose(0, 2, 1), per_joint)
         self.moment += np.einsum("nsc,ns->nc", per_joint, tau.T)
         self.energy += np.einsum("sn,sn->n", tau, tau)
