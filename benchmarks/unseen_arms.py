@@ -2,9 +2,9 @@
 
 Each case of ``unseen_cases`` writes a robot file and logs the way a vendor's controller or logger would (a UR5
 from its vendor URDF logging motor currents over RTDE with a 2 kg gripper in the sidecar; a KR6-like arm from a DH
-table traced in degrees and mN m; a heavy arm with a cam counterbalance on slow motions; a serial arm in ROS 2 MCAP
-bags with an unknown gripper). The commands the README prints are run with no options but the log's own layout
-(``--columns`` with its units, as the log needs):
+table traced in degrees and mN m; the same arm on slow gravity poses with a 5 kg tool; a heavy arm with a cam
+counterbalance on slow motions; a serial arm in ROS 2 MCAP bags with an unknown gripper). The commands the README
+prints are run with no options but the log's own layout (``--columns`` with its units, as the log needs):
 
     psdm identify ROBOT --data TRAIN... --validate VAL --out model.json
     psdm validate model.json VAL

@@ -214,6 +214,32 @@ def industrial_degrees(folder: Path, rng) -> Case:
     )
 
 
+def industrial_slow(folder: Path, rng) -> Case:
+    """The KR6-like arm moved slowly through gravity poses (a tenth of its speeds) with a known 5 kg tool stated in
+    each recording's sidecar, logged at 250 Hz in psdm's own CSV columns: gravity alone excites the links."""
+    robot = load_robot(write_robot_file(_kr6_robot(), folder / "kr6.toml", overwrite=True))
+    payload = Payload(mass=5.0, com=np.array([0.0, 0.0, 0.1]))
+    noise = np.full(6, 0.3)
+    files = []
+    for name in ("train", "validate"):
+        rec, floor = _simulate(robot, _reference(robot, 20.0, rng, slow=0.1), 1000.0, noise, rng, payload=payload)
+        t, q, tau = _jittered(rec, 250.0, rng, jitter=0.0)
+        header = ["t"] + [f"q{j + 1}" for j in range(6)] + [f"tau{j + 1}" for j in range(6)]
+        path = _write_csv(folder / f"slow_{name}.csv", header, [t, q, tau])
+        path.with_suffix(".payload.json").write_text(json.dumps({"mass": 5.0, "com": [0.0, 0.0, 0.1]}))
+        files.append(path)
+    return Case(
+        name="industrial_slow_gravity_tool",
+        what="KR6-like DH arm, slow gravity poses (0.1 x its speeds), 250 Hz, known 5 kg tool in the sidecars",
+        robot=Path(robot.source),
+        train=tuple(files[:-1]),
+        validate=files[-1],
+        true_links=np.array([link.mass for link in robot.links]),
+        payload_mass=5.0,
+        floor_nm=floor,
+    )
+
+
 def heavy_counterbalance(folder: Path, rng) -> Case:
     """The heavy industrial arm (benchmarks/heavy_arm.py) with a cam counterbalance on joint 2, slow gravity-only
     motions at 250 Hz, 10 s training and 10 s validation, in a plain psdm CSV."""
@@ -295,6 +321,7 @@ def serial_bag(folder: Path, rng) -> Case:
 CASES = {
     "cobot_currents_payload": cobot_currents,
     "industrial_dh_degrees_mNm": industrial_degrees,
+    "industrial_slow_gravity_tool": industrial_slow,
     "heavy_counterbalance_slow": heavy_counterbalance,
     "serial_mcap_unknown_payload": serial_bag,
 }

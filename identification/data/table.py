@@ -8,7 +8,8 @@ A logger drops a sample now and then and writes its row as NaN (or leaves its fi
 ``MAX_DROPOUT_FRACTION`` of the rows in which a signal's columns are NaN together (every joint of ``q``, of
 ``tau``, ...; a column NaN throughout was never logged and is left to the Recording) are taken out, with a
 warning naming the file and their lines (the time steps may be uneven, so the recording stays exact);
-a NaN in one joint's column only, or more rows, is refused, counted, with the fix.
+a NaN in one joint's column only, or more rows, is refused, counted, with the fix. A row whose time stamp repeats
+the one before it (a coarse logger clock under jitter) is left out the same way.
 """
 
 from __future__ import annotations
@@ -89,6 +90,8 @@ class ColumnTable:
         object.__setattr__(self, "data", data)
         if data.shape[0]:
             self._drop_dropouts(names, data)
+            if "t" in names:
+                self._drop_repeated_stamps(names.index("t"))
             data = self.data
             # one pass each over the whole array; min and max are NaN where a NaN is, which fails both tests
             good = (data.min(axis=0) >= -MAX_MAGNITUDE) & (data.max(axis=0) <= MAX_MAGNITUDE)
@@ -132,6 +135,26 @@ class ColumnTable:
             "%s: %d of %d rows hold NaN on every joint (a logger's dropouts: %s); they are left out (the time steps "
             "may be uneven)", self.source, rows.size, data.shape[0], shown,
         )  # fmt: skip
+
+    def _drop_repeated_stamps(self, column: int) -> None:
+        """Leave out a row whose time stamp repeats the row before it (a logger's clock of coarse resolution under
+        jitter), when they are at most MAX_DROPOUT_FRACTION of the rows; more, or a stamp that goes back, are left
+        to ``io.time_column`` to refuse."""
+        t = self.data[:, column]
+        repeated = np.flatnonzero(t[1:] == t[:-1]) + 1
+        if repeated.size == 0 or repeated.size > MAX_DROPOUT_FRACTION * t.size:
+            return
+        keep = np.setdiff1d(np.arange(t.size), repeated)
+        where = tuple(self.locate(int(r)) for r in repeated)
+        locate = self.locate
+        kept = self.data[keep]
+        kept.setflags(write=False)
+        object.__setattr__(self, "data", kept)
+        object.__setattr__(self, "locate", lambda row: locate(int(keep[row])))
+        object.__setattr__(self, "dropped", self.dropped + where)
+        shown = ", ".join(where[:5]) + (f" and {len(where) - 5} more" if len(where) > 5 else "")
+        logger.warning("%s: %d of %d rows repeat the time stamp before them (%s); they are left out",
+                       self.source, repeated.size, t.size, shown)  # fmt: skip
 
     def _refuse_values(self, name: str, values: np.ndarray) -> None:
         """Refuse the first NaN, infinite or implausibly large value of a column, naming where it is."""

@@ -216,3 +216,19 @@ def test_a_sidecar_named_after_the_whole_file_is_read_and_a_near_miss_refused(tm
                        r"run2_payload.json to run2.payload.json"):  # fmt: skip
         stated_configuration(tmp_path / "run2.csv")
     assert not stated_configuration(tmp_path / "run3.csv").stated  # no sidecar: no payload, as before
+
+
+def test_a_few_repeated_time_stamps_are_left_out_and_many_refused(tmp_path, caplog):
+    t, q, tau = _signals()
+    stamps = t.copy()
+    stamps[[300, 700]] = stamps[[299, 699]]  # a millisecond clock under jitter: two rows share a stamp
+    path = _write(tmp_path / "coarse.csv", ["t", "q1", "q2", "tau1", "tau2"], [stamps, q, tau])
+    with caplog.at_level(logging.WARNING):
+        rec = load_recording(path, 2)
+    keep = np.setdiff1d(np.arange(1000), [300, 700])
+    np.testing.assert_allclose(rec.q, q[keep], rtol=1e-11)
+    assert "2 of 1000 rows repeat the time stamp" in caplog.text and "line 302" in caplog.text
+    stamps[1::40] = stamps[::40]  # 25 rows: beyond 1 %, refused at the first
+    path = _write(tmp_path / "many.csv", ["t", "q1", "q2", "tau1", "tau2"], [stamps, q, tau])
+    with pytest.raises(RecordingError, match=r"column t must be strictly increasing.*line 3\b"):
+        load_recording(path, 2)
