@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from codegen.calibrated import build_calibrated_functions
+from codegen.target_holds import findings_left_out, findings_not_representable
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_choice import ColumnRequest, choose_columns
 from identification.calibration.drive_loss import (
@@ -117,6 +118,10 @@ def test_the_model_file_holds_the_loss_and_its_exported_code_applies_it(denso, d
     functions = build_calibrated_functions(calibrated, denso_model, denso)
     exported = np.array([np.ravel(functions.inverse_dynamics(*x)) for x in zip(q, qd, qdd)])
     assert np.allclose(exported, with_loss, atol=1e-9)
+    # a URDF cannot hold it: its export names it (and its efficiency) in the warning and the joints' comments
+    warning = findings_not_representable(calibrated)
+    assert "load_dependent_friction[j1]" in warning and "efficiency" in warning
+    assert set(findings_left_out(calibrated)[0]) == {0, 1, 2} and findings_not_representable(plain) is None
 
 
 @pytest.mark.parametrize("eta", [0.5, 1.0])
