@@ -7,6 +7,11 @@ pseudo-inertia; friction and drive inertias are bounded below by zero, and a sma
 (``prior_weight``) towards the robot file's parameters settles what the data cannot see. It is
 solved twice, the second time weighted by the first consistent fit's own residual.
 
+In the chart the problem is not convex, and where the data push a link towards a degenerate pseudo-inertia its optimum
+lies at infinity: Ipopt regularises and creeps (the heavy arm's fits ran to the iteration cap, their answer set by
+the cap). Each pass is therefore first solved as the convex problem it is, in the standard parameters along a
+log-det barrier path (``barrier_path``); the chart solve is kept as the fallback from the path's last point.
+
 With ``TrajectoryOptions.envelope`` (the default) each link also stays inside its physical envelope
 (``envelope``): the density condition of its bounding ellipsoid, its mass within ``mass_ratio`` of the
 robot file's, and the drive inertias within ``drive_inertia_ratio`` of the file's where it gives them
@@ -262,6 +267,7 @@ def consistent_fit(
     lower, upper = (np.concatenate([v, np.full(psi.numel(), sign * np.inf)]) for v, sign in ((lower, -1), (upper, 1)))
     g, g_lower, g_upper, owner = _link_constraints(rows, links, prior, bounds)
     evaluate = ca.Function("standard", [variables], [standard, x, payloads])
+    plain = _standard_form(model, prior, links, payload_prior, len(names), bounds, options.prior_weight)
     x_opt, w = start, 1.0 / sigma**2
     for final in (False, True):  # then once more weighted by the consistent fit's own residuals (module docstring)
         gram, moment, energy = equations.weighted(w)
@@ -271,12 +277,17 @@ def consistent_fit(
             "f": residual + options.prior_weight * pull,
             "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         }
-        solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper), final, warn)
-        x_opt = np.clip(np.asarray(solution["x"]).reshape(-1), lower, upper)  # Ipopt may end a hair outside a bound
+        convex, x_opt = _convex_solve(plain, evaluate, x_opt, (gram, moment, energy, count), (lower, upper),
+                                      options.margin, (links, len(payload_prior), n))  # fmt: skip
+        if convex is not None and convex.complete:  # the convex problem solved: the chart has nothing to add
+            solution, status, offset = convex.solution, convex.status, 10 * (len(links) + len(payload_prior))
+        else:  # the chart from the path's last point (or from the last pass's solution)
+            solution, status = _solve(problem, x_opt, (lower, upper, g_lower, g_upper), final, warn)
+            x_opt, offset = np.clip(np.asarray(solution["x"]).reshape(-1), lower, upper), phi.numel()  # a hair out
         w = 1.0 / residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
     values, _, bodies_opt = (np.asarray(v) for v in evaluate(x_opt))
     drive_opt = x_opt[phi.numel() + n : phi.numel() + n + len(names)]
-    bounds = replace(bounds, pressure=_pressure(solution, owner, names, bounds, count, phi.numel()))
+    bounds = replace(bounds, pressure=_pressure(solution, owner, names, bounds, count, offset))
     return values.reshape(n, -1), drive_opt, bodies_opt.reshape(-1, 10), status, bounds
 
 
@@ -298,3 +309,57 @@ def prior_scale(prior):
 def drive_lower_bounds(names):
     """0 for friction and drive inertias, none for torque offsets."""
     return np.array([-np.inf if name.startswith("offset") else 0.0 for name in names])
+
+
+def _standard_form(model, prior, links, flange, n_drive, bounds, prior_weight) -> dict:
+    """The consistent fit's pieces with the standard parameters themselves as the variables (``barrier_path``): the
+    variables (free links' ten, flange bodies' ten, rotors, drive terms), the regression vector ``x``, the pull, the
+    link constraints and their bounds, and each body's size (its pseudo-inertia's trace at the prior)."""
+    n, n_bodies = prior.shape[0], len(flange)
+    links_v, bodies_v = ca.SX.sym("s", 10 * len(links)), ca.SX.sym("b", 10 * n_bodies)
+    rotor, drive = ca.SX.sym("rotor", n), ca.SX.sym("drive", n_drive)
+    rows = []
+    for i in range(n):
+        k = links.index(i) if i in links else None
+        rows.append(ca.vertcat(ca.DM(prior[i, :10]) if k is None else links_v[10 * k : 10 * k + 10], rotor[i]))
+    standard = ca.vertcat(*rows)
+    pull = ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(prior_scale(prior).reshape(-1)))
+    if n_bodies:  # the flange bodies' pull as in ``consistent_fit``
+        scale = prior_scale(np.column_stack([flange, np.zeros(n_bodies)]))[:, :10]
+        pull += ca.sumsqr((bodies_v - ca.DM(np.asarray(flange).reshape(-1))) / ca.DM(scale.reshape(-1)))
+    g, g_lower, g_upper, _ = _link_constraints(rows, links, prior, bounds)
+    sizes = [max(float(np.trace(pseudo_inertia(body))), 1e-6) for body in [*prior[links, :10], *flange]]
+    return {
+        "variables": ca.vertcat(links_v, bodies_v, rotor, drive),
+        "sizes": sizes,
+        "x": ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, bodies_v),
+        "f_extra": prior_weight * pull,
+        "g": ca.vertcat(*g) if g else ca.SX(0, 1),
+        "g_bounds": (g_lower, g_upper),
+    }
+
+
+def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts) -> tuple:
+    """(``barrier_path.BarrierResult`` or None, chart coordinates of its point, or ``chart`` without one): the convex
+    problem (``_standard_form``) solved along the barrier path from the chart point ``chart``."""
+    from identification.calibration.barrier_path import barrier_solution
+
+    gram, moment, energy, count = normal
+    free, n_bodies, n = counts
+    values, _, bodies = (np.asarray(v) for v in evaluate(chart))
+    values, bodies = values.reshape(n, -1), bodies.reshape(-1, 10)
+    n_phi, n_psi = 10 * len(free), 10 * n_bodies
+    rest = chart[n_phi : chart.size - n_psi]  # rotors and drive terms: the same in both forms
+    start = np.concatenate([values[free, :10].reshape(-1), bodies.reshape(-1), rest])
+    x = plain["x"]
+    residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
+    lower, upper = chart_bounds
+    lbx = np.concatenate([np.full(n_phi + n_psi, -np.inf), lower[n_phi : lower.size - n_psi]])
+    ubx = np.concatenate([np.full(n_phi + n_psi, np.inf), upper[n_phi : upper.size - n_psi]])
+    problem = {"x": plain["variables"], "f": residual + plain["f_extra"], "g": plain["g"]}
+    solved = barrier_solution(problem, plain["sizes"], start, (lbx, ubx, *plain["g_bounds"]), margin)
+    if solved is None:
+        return None, chart
+    links = [chart_start(body, margin) for body in solved.x[:n_phi].reshape(-1, 10)]
+    flange = [chart_start(body, margin) for body in solved.x[n_phi : n_phi + n_psi].reshape(-1, 10)]
+    return solved, np.concatenate([*links, solved.x[n_phi + n_psi :], *flange])

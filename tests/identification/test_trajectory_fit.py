@@ -229,7 +229,10 @@ def test_a_fit_stopped_at_the_iteration_cap_is_kept_consistent_and_marked(denso,
     reference = sine_experiment(denso, duration=6.0, rng=rng).reference()
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
     recording, _ = simulate_recording(denso, reference, options, rng)
+    import identification.calibration.barrier_path as barrier_path
+
     monkeypatch.setitem(trajectory_fit.IPOPT_OPTIONS, "ipopt.max_iter", 2)
+    monkeypatch.setitem(barrier_path.BARRIER_OPTIONS, "ipopt.max_iter", 2)  # the convex path fails: the chart's cap
     with caplog.at_level("WARNING", logger="identification.calibration.consistent_fit"):
         fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
     assert fit.solver_status == "Maximum_Iterations_Exceeded"

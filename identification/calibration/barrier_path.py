@@ -1,0 +1,143 @@
+"""The consistent fit as a convex problem: a log-det barrier path in the standard parameters.
+
+The consistent fit (``consistent_fit``) minimises a convex quadratic of the standard parameters (the weighted
+residual and the pull towards the prior) over links whose pseudo-inertia is positive definite and, with the
+envelope, inside linear bounds: a convex problem. Solved in the log-Cholesky chart it is not convex any more, and
+where the data push a link towards a degenerate pseudo-inertia (a link asked to hold a counterbalance or a payload
+it cannot) the optimum lies at infinity in the chart: Ipopt regularises the indefinite Hessian at every step and
+creeps along the flat directions for thousands of iterations, stopping wherever its iteration cap falls (the heavy
+arm's joint 2 RMSE differed by 40 % between 300 and 2000 iterations).
+
+:func:`barrier_solution` solves the convex problem itself: the standard parameters are the variables, each body's
+positive definiteness a barrier ``-mu log det(J - margin 1)`` summed from the pivots of an LDL^T elimination of its
+pseudo-inertia (Sylvester: all positive exactly inside the cone), with the pivots also constrained to stay positive so
+that Ipopt's fraction-to-the-boundary rule keeps every step inside. Ipopt follows ``mu`` down a path (``MU_PATH``, in
+the objective's units, noise variances per sample), each solve warm-started from the last. The objective it reaches
+is within ``mu`` times four per body of the optimum (the barrier's duality gap), far below the noise: on the heavy
+arm's envelope check it is within 4e-4 (relative) of the chart's converged optimum, in 80 Ipopt iterations instead
+of 3000 or more (``consistent_fit`` falls back on the chart from the path's last point when a solve fails).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from identification.calibration.pseudo_inertia import pseudo_inertia
+
+__all__ = ["MU_PATH", "BarrierResult", "barrier_solution", "log_det_barrier"]
+
+logger = logging.getLogger(__name__)
+
+#: The barrier weights, in the objective's units (noise variances per sample), from the first solve to the last.
+MU_PATH = (1e-2, 1e-3, 1e-4, 1e-5)
+BARRIER_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-10,
+                   "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 5, "ipopt.max_iter": 300,
+                   "show_eval_warnings": False}  # fmt: skip
+
+
+def _pseudo(v, margin: float, size: float):
+    """``(J - margin 1) / size`` of ten standard parameters (a CasADi column), as nested lists of expressions."""
+    m, mx, my, mz, ixx, ixy, iyy, ixz, iyz, izz = (v[k] for k in range(10))
+    half = 0.5 * (ixx + iyy + izz)
+    rows = [[half - ixx, -ixy, -ixz, mx], [-ixy, half - iyy, -iyz, my], [-ixz, -iyz, half - izz, mz], [mx, my, mz, m]]
+    return [[(rows[r][c] - (margin if r == c else 0.0)) / size for c in range(4)] for r in range(4)]
+
+
+def pivots(v, margin: float, size: float) -> list:
+    """The four pivots of an LDL^T elimination of ``(J - margin 1) / size`` of one body: all positive exactly inside
+    the cone of positive-definite pseudo-inertias (Sylvester's criterion)."""
+    a = _pseudo(v, margin, size)
+    out = []
+    for p in range(4):
+        out.append(a[p][p])
+        for r in range(p + 1, 4):
+            factor = a[r][p] / a[p][p]
+            for c in range(p + 1, 4):
+                a[r][c] = a[r][c] - factor * a[p][c]
+    return out
+
+
+def log_det_barrier(v, margin: float, size: float):
+    """``-log det((J - margin 1) / size)`` of one body, summed from its ``pivots``: the log of a pivot that is not
+    positive is NaN, so a point outside the cone is never accepted (a determinant alone would be positive with two
+    negative eigenvalues)."""
+    return -sum(ca.log(d) for d in pivots(v, margin, size))
+
+
+def _inside(body, margin: float) -> np.ndarray:
+    """A start strictly inside the cone: the body with its pseudo-inertia's eigenvalues raised to twice the margin
+    plus a small share of its trace (a prior on the boundary has no barrier value)."""
+    from identification.calibration.pseudo_inertia import link_from_pseudo_inertia
+
+    matrix = pseudo_inertia(body)
+    values, vectors = np.linalg.eigh(matrix)
+    floor = 2.0 * margin + 1e-6 * max(float(np.trace(matrix)), margin)
+    return link_from_pseudo_inertia((vectors * np.maximum(values, floor)) @ vectors.T)
+
+
+@dataclass(frozen=True, eq=False)
+class BarrierResult:
+    """Where the barrier path ended: the variables ``x``, Ipopt's last ``solution`` (its multipliers give the
+    bounds' pressure), its ``status``, and whether the path reached its last weight (``complete``; otherwise ``x`` is
+    the last weight's that was solved, a start for another solver)."""
+
+    x: np.ndarray
+    solution: dict
+    status: str
+    complete: bool
+
+
+def barrier_solution(problem, bodies, start, bounds, margin: float):
+    """The ``BarrierResult`` of the path ``MU_PATH``, or None when its first solve fails.
+
+    Parameters
+    ----------
+    problem : dict
+        ``x`` (the variables: the ten standard parameters of each body in ``bodies`` first, then the rest), ``f``
+        (the objective, in noise variances per sample) and ``g`` (the linear constraints).
+    bodies : list of float
+        Per body, the size its pseudo-inertia is measured in (its trace at the prior).
+    start : array
+        Of the variables; the bodies' parameters are moved inside the cone first.
+    bounds : tuple
+        ``(lbx, ubx, lbg, ubg)``.
+    """
+    x, n_bodies = problem["x"], len(bodies)
+    mu = ca.SX.sym("mu")
+    barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size) for k, size in enumerate(bodies)), 0)
+    lbx, ubx, lbg, ubg = bounds
+    # the pivots also as constraints >= 0: Ipopt's fraction-to-the-boundary rule then keeps its steps inside the
+    # cone (without them a Newton step of the small barrier overshoots and is cut back, hundreds of times)
+    steps = [d for k, size in enumerate(bodies) for d in pivots(x[10 * k : 10 * k + 10], margin, size)]
+    problem = {**problem, "g": ca.vertcat(problem["g"], *steps)}
+    lbg, ubg = np.concatenate([lbg, np.zeros(len(steps))]), np.concatenate([ubg, np.full(len(steps), np.inf)])
+    solver = ca.nlpsol("consistent_fit_barrier", "ipopt", {**problem, "p": mu, "f": problem["f"] + mu * barrier},
+                       BARRIER_OPTIONS)  # fmt: skip
+    current = np.array(start, dtype=float)
+    for k in range(n_bodies):
+        current[10 * k : 10 * k + 10] = _inside(current[10 * k : 10 * k + 10], margin)
+    current, last, iterations = np.clip(current, lbx, ubx), None, 0
+    for weight in MU_PATH:
+        solution = solver(x0=current, p=weight, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        stats = solver.stats()
+        iterations += stats["iter_count"]
+        if stats["return_status"] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+            logger.debug("consistent fit: the barrier path stopped at mu %g (%s)", weight, stats["return_status"])
+            return None if last is None else BarrierResult(current, last, stats["return_status"], False)
+        current, last = np.clip(np.asarray(solution["x"]).reshape(-1), lbx, ubx), _without_pivots(solution, steps)
+    logger.debug("consistent fit: barrier path in %d Ipopt iterations", iterations)
+    return BarrierResult(current, last, solver.stats()["return_status"], True)
+
+
+def _without_pivots(solution, steps) -> dict:
+    """Ipopt's solution with the pivot constraints' rows left out of ``g`` and ``lam_g`` (the caller's constraints
+    come first)."""
+    out = dict(solution)
+    n = np.asarray(solution["g"]).size - len(steps)
+    for key in ("g", "lam_g"):
+        out[key] = np.asarray(solution[key]).reshape(-1)[:n]
+    return out

@@ -1,0 +1,73 @@
+"""The consistent fit solved as the convex problem it is (``calibration.barrier_path``, issue 25).
+
+References: the unconstrained least squares where it is inside the envelope (the constraint must then cost nothing),
+the virtual robot's truth, and the log-Cholesky chart solve run to convergence (the barrier path must reach its
+optimum, in far fewer Ipopt iterations, where the data push links against their envelope).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+import pytest
+
+import identification.calibration.barrier_path as barrier_path
+from identification.calibration.barrier_path import log_det_barrier, pivots
+from identification.calibration.pseudo_inertia import pseudo_inertia
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from trajopt.experiments import sine_experiment
+
+
+def _recording(denso, extras=(), seed=3, duration=8.0):
+    rng = np.random.default_rng(seed)
+    reference = sine_experiment(denso, duration=duration, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    return simulate_recording(denso, reference, options, rng, extras=list(extras))[0]
+
+
+def test_the_barrier_is_minus_log_det_inside_the_cone_and_refuses_outside(denso):
+    v = ca.SX.sym("v", 10)
+    barrier = ca.Function("b", [v], [log_det_barrier(v, 1e-6, 2.0)])
+    steps = ca.Function("p", [v], pivots(v, 1e-6, 2.0))
+    link = denso.nominal_dynamic_parameters()[2, :10]
+    expected = -np.log(np.linalg.det((pseudo_inertia(link) - 1e-6 * np.eye(4)) / 2.0))
+    assert float(barrier(link)) == pytest.approx(expected, rel=1e-10)
+    # a centre of mass far outside the link: the pseudo-inertia has a negative eigenvalue (its determinant may be
+    # positive with two), so a pivot is negative and the barrier is not a number
+    outside = link.copy()
+    outside[1:4] = link[0] * np.array([3.0, 3.0, 3.0])
+    assert np.linalg.eigvalsh(pseudo_inertia(outside))[0] < 0
+    assert min(float(p) for p in steps(outside)) < 0 and not np.isfinite(float(barrier(outside)))
+
+
+def test_inside_the_envelope_the_consistent_fit_is_the_least_squares_one_and_near_the_truth(denso, denso_model):
+    fit = identify_trajectories(denso, denso_model, [_recording(denso)], TrajectoryOptions(friction=()))
+    assert fit.solver_status == "Solve_Succeeded" and fit.consistent  # the convex path, not the chart at its cap
+    assert not fit.envelope  # nothing pushed: the least squares is inside and the constraint costs nothing
+    np.testing.assert_allclose(fit.training_r2, fit.training_r2_ols, atol=5e-5)  # the pull and the barrier only
+    truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    sigma = np.maximum(fit.theta_std, 1e-3 * np.abs(truth).max())
+    assert np.max(np.abs(fit.theta - truth) / sigma) < 5.0
+
+
+def test_where_the_data_push_links_against_the_envelope_the_path_reaches_the_charts_optimum(
+    denso, denso_model, monkeypatch
+):
+    """A hidden cam counterbalance on joint 2 and a payload the robot file does not hold: the data push links
+    against their envelope and towards degenerate pseudo-inertias, where the chart solve creeps."""
+    import identification.calibration.consistent_fit as consistent_fit
+
+    extras = [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3), xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))]
+    recording = _recording(denso, extras)
+    options = TrajectoryOptions(friction=())
+    charted, solve = [], consistent_fit._solve
+    monkeypatch.setattr(consistent_fit, "_solve", lambda *a, **k: charted.append(1) or solve(*a, **k))
+    fit = identify_trajectories(denso, denso_model, [recording], options)
+    assert fit.consistent and fit.envelope and not charted  # pushed against the envelope, and solved by the path
+    monkeypatch.setitem(barrier_path.BARRIER_OPTIONS, "ipopt.max_iter", 0)  # no path: the chart alone
+    chart = identify_trajectories(denso, denso_model, [recording], options)
+    assert len(charted) == 2  # both passes
+    # the convex solution explains the training data at least as well as the chart's, joint by joint
+    assert np.all(np.asarray(fit.training_r2) >= np.asarray(chart.training_r2) - 1e-4)
