@@ -226,6 +226,8 @@ def main(argv=None) -> int:
             "diagnose_model_finds_counterbalance")  # fmt: skip
     summary = {key: all(row[key] for row in rows) for key in keys}
     summary["counts"] = {key: f"{sum(bool(row[key]) for row in rows)}/{len(rows)}" for key in keys}
+    found = sum(bool(row["diagnose_model_finds_counterbalance"]) for row in rows)
+    summary["identify_then_diagnose_finds_counterbalance"] = found / len(rows)  # the route identify -> diagnose MODEL
     summary["identify_stays_inside_or_names_effect"] = all(
         row["envelope_respected"] and (row["absorbed_effect_named"] or row["stays_inside_unpushed"]) for row in rows
     )

@@ -148,13 +148,20 @@ def _run_diagnose(args) -> int:
         check_positive(args.cutoff, "--cutoff", fix, " [Hz]")
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
     loaded, apply_out = _calibrated_source(args)
+    from identification.calibration.diagnosis_prior import DiagnosisPrior, diagnosis_prior, with_file_rigid_body
+
     calibrated = model = robot_file = None
+    prior = DiagnosisPrior()
     if loaded is not None:
         from identification.calibration.calibrated_model import calibrated_robot
 
         calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
         robot = calibrated_robot(calibrated, robot_file)
         report_model_warnings("diagnose", args.robot, calibrated)
+        prior = diagnosis_prior(calibrated.document, robot_file)
+        if prior.robot_file:  # identify's rigid body absorbed an effect: start from the robot file's
+            robot = with_file_rigid_body(robot, robot_file)
+            print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     else:
         robot = load_robot_argument(args)
     layout = recording_layout(args)  # --columns, --rate
@@ -182,7 +189,7 @@ def _run_diagnose(args) -> int:
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     report = diagnose(robot, train, validations, options, model=model, derive=lambda r: derive_model(args, r))
-    report = _named(args, report, preparation, (calibrated, robot_file, model), validation)
+    report = _named(args, report, preparation, (calibrated, robot_file, model), validation, prior)
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
@@ -260,31 +267,48 @@ def _preparation(args, calibrated, train):
     return dataclasses.replace(own, cutoff_hz=cutoff, grid_rate_hz=SAMPLES_PER_CUTOFF * cutoff, source=source)
 
 
-def _named(args, report, preparation, loaded, validation):
+def _named(args, report, preparation, loaded, validation, prior):
     """The report naming the nominal model it used and the preparation; a model file's own validation RMSE is its
-    "before" (``report_assembly.with_model_file_before``), or beside it when the samples differ."""
+    "before" (``report_assembly.with_model_file_before``), or beside it when the samples differ. With a model file:
+    why the rigid body came from its robot file (``DiagnosisPrior``), and the findings it already holds."""
     import dataclasses
     import hashlib
 
     import numpy as np
 
-    prior, (calibrated, robot, model) = report.rigid_body == "prior", loaded
+    calibrated, robot, model = loaded
     if calibrated is None:
-        nominal = f"the robot file {args.robot}: rigid body {'from it' if prior else 'identified'}"
+        nominal = (
+            f"the robot file {args.robot}: rigid body {'from it' if report.rigid_body == 'prior' else 'identified'}"
+        )
         return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text())
     from identification.calibration.finding_value import validation_rmse
     from identification.diagnosis.report_assembly import with_model_file_before
 
     digest = hashlib.sha256(Path(args.robot).read_bytes()).hexdigest()[:12]
     created = calibrated.document.get("provenance", {}).get("created", "unknown")
+    kept = prior.sentence() or "as identified in it"
     nominal = (f"the calibrated model file {args.robot} (sha256 {digest}..., created {created}): rigid body "
-               f"{'as identified in it' if prior else 'identified again on the training recording'}")  # fmt: skip
+               f"{kept if report.rigid_body == 'prior' else 'identified again on the training recording'}")  # fmt: skip
+    notes = tuple(n for n in (prior.note(), _carried(report, calibrated)) if n)
+    report = dataclasses.replace(report, rigid_body_notes=notes + tuple(report.rigid_body_notes))
     kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
     own, _, prepared, predicted = validation_rmse(calibrated, model, validation, kt)
     report = dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text(),
                                  model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
     # one "before": the file as it is, when the diagnosis judged the samples the file's preparation keeps
     return with_model_file_before(report, prepared.t, prepared.tau, predicted) or report
+
+
+def _carried(report, calibrated) -> str:
+    """The sentence naming the findings the model file already holds (its nominal model leaves them out)."""
+    from identification.calibration.diagnosis_prior import carried_findings
+
+    labels = carried_findings(report.findings, calibrated.document)
+    if not labels:
+        return ""
+    return (f"the model file already carries {', '.join(f'`{x}`' for x in labels)} (identified with it); the "
+            "diagnosis's nominal model leaves the file's own findings out, so it finds them again")  # fmt: skip
 
 
 def _robot_friction(robot) -> str:

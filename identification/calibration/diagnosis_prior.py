@@ -1,0 +1,102 @@
+"""Which rigid body a diagnosis of a calibrated model starts from: the model file's, or its robot file's.
+
+``psdm diagnose MODEL`` normally takes the model file's identified rigid body as its nominal model. When identify
+pushed a link against its physical envelope (``envelope_report``: a counterbalance, a spring or a payload the rigid
+body was absorbing), that rigid body holds part of the effect, and whatever of it looks like gravity (the first
+harmonic of a shoulder's counterbalance has the shape of that joint's gravity) is no longer in the residual: the
+diagnosis cannot find it. A full recalibration of the rigid body, which the diagnosis tries when the prior's findings
+look like wrong inertia, absorbs even more. The robot file's rigid body (the model file keeps the robot file) does
+not hold the effect: against it the diagnosis finds the counterbalance and the payload as ``psdm diagnose ROBOT``
+does, and its envelope check (``diagnosis.envelope_check``) keeps them where a physical rigid body still needs them.
+
+:func:`diagnosis_prior` decides it from the model file: the robot file's rigid body when identify reported a link
+(not only a drive inertia) pushed against its bounds for an absorbed counterbalance or payload and the robot file
+states link inertias; the model file's otherwise. The friction and the preparation stay the model file's either way.
+:func:`carried_findings` names the findings of a diagnosis that the model file already holds (its nominal model
+leaves the file's own findings out, so a diagnosis finds them again).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+__all__ = ["ABSORBING_EFFECTS", "DiagnosisPrior", "carried_findings", "diagnosis_prior"]
+
+#: What a pushed link absorbs that the robot file's rigid body lets the diagnosis find (not a drive inertia).
+ABSORBING_EFFECTS = ("counterbalance", "payload")
+LINK_BOUNDS = ("envelope", "mass upper", "mass lower")
+
+
+@dataclass(frozen=True)
+class DiagnosisPrior:
+    """The rigid body a model-file diagnosis starts from.
+
+    Attributes
+    ----------
+    robot_file : bool
+        True: the robot file's link inertias (identify pushed ``links`` against their envelope for ``effects``);
+        False: the model file's identified ones.
+    links : tuple of int
+        0-based links identify pushed against their bounds.
+    effects : tuple of str
+        What identify said they most likely absorb (``ABSORBING_EFFECTS``).
+    """
+
+    robot_file: bool = False
+    links: tuple = ()
+    effects: tuple = ()
+
+    def note(self) -> str:
+        """The report's sentence on the choice (empty for the model file's own rigid body)."""
+        if not self.robot_file:
+            return ""
+        links = ", ".join(str(i + 1) for i in self.links)
+        return (
+            f"the model file's identify pushed link{'s' if len(self.links) > 1 else ''} {links} against the physical "
+            f"envelope, absorbing a {' or a '.join(self.effects)}: its rigid body holds part of that effect, so the "
+            "diagnosis starts from the robot file's rigid body (kept in the model file) with the model's friction "
+            "and preparation, as 'psdm diagnose ROBOT' would"
+        )
+
+    def sentence(self) -> str:
+        """How the report's nominal-model line names the rigid body."""
+        return "from the robot file the model file keeps (see the rigid-body notes)" if self.robot_file else ""
+
+
+def diagnosis_prior(document: dict, robot) -> DiagnosisPrior:
+    """The ``DiagnosisPrior`` of a calibrated-model file's ``document`` and its robot file ``robot`` (module
+    docstring): the robot file's rigid body when identify reported links pushed for an absorbed counterbalance or
+    payload and ``robot`` has link inertias."""
+    findings = (document.get("standard") or {}).get("envelope_findings") or []
+    pushed = [
+        f for f in findings if f.get("absorbs") in ABSORBING_EFFECTS and set(f.get("bounds") or ()) & set(LINK_BOUNDS)
+    ]
+    if not pushed or robot is None or robot.links is None:
+        return DiagnosisPrior()
+    links = tuple(sorted({int(f["link"]) for f in pushed}))
+    effects = tuple(e for e in ABSORBING_EFFECTS if any(f["absorbs"] == e for f in pushed))
+    return DiagnosisPrior(True, links, effects)
+
+
+def with_file_rigid_body(nominal, robot):
+    """``nominal`` (``calibrated_model.calibrated_robot``: the model's links and friction) with the robot file
+    ``robot``'s link inertias and rotor inertias instead of the identified ones; the friction stays the model's."""
+    out = nominal.with_links(robot.links, rotor_inertia=robot.rotor_inertia)
+    return dataclasses.replace(out, drives=nominal.drives)
+
+
+def carried_findings(findings, document: dict) -> tuple:
+    """The labels of ``findings`` (a diagnosis's ``Finding``s, 0-based ``joints``) that the calibrated-model
+    ``document`` already holds as torque findings: the same effect (a spring and a gas spring alike: one
+    counterbalance) on the same single joint."""
+    held = {
+        (_family(e["term"].get("effect")), int(e["term"].get("joint", 0)) - 1)
+        for e in document.get("findings") or ()
+        if e.get("kind") == "torque" and isinstance(e.get("term"), dict)
+    }
+    return tuple(f.label for f in findings if len(f.joints) == 1 and (_family(f.effect), int(f.joints[0])) in held)
+
+
+def _family(effect) -> str:
+    return "spring" if effect in ("spring", "gas_spring") else str(effect)
