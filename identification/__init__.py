@@ -14,11 +14,22 @@ The flow reads off the subpackages:
 The names below are the everyday entry points.
 """
 
-from identification.calibration.pipeline import IdentificationPipeline, PipelineOptions
-from identification.calibration.result import IdentifiedModel, load_identified
-from identification.data.io import load_recording, save_recording
-from identification.data.recording import Recording
-from identification.diagnosis import DiagnosisOptions, DiagnosisReport, diagnose
+import importlib
+
+#: each entry point's module: imported on first use (PEP 562), so that importing one subpackage (a Dask worker's
+#: robot-day task imports the readers and the fleet's refit) does not load the pipeline and the diagnosis
+_ENTRY_POINTS = {
+    "DiagnosisOptions": "identification.diagnosis",
+    "DiagnosisReport": "identification.diagnosis",
+    "IdentificationPipeline": "identification.calibration.pipeline",
+    "IdentifiedModel": "identification.calibration.result",
+    "PipelineOptions": "identification.calibration.pipeline",
+    "Recording": "identification.data.recording",
+    "diagnose": "identification.diagnosis",
+    "load_identified": "identification.calibration.result",
+    "load_recording": "identification.data.io",
+    "save_recording": "identification.data.io",
+}
 
 __all__ = [
     "DiagnosisOptions",
@@ -32,3 +43,13 @@ __all__ = [
     "load_recording",
     "save_recording",
 ]
+
+
+def __getattr__(name: str):
+    if name in _ENTRY_POINTS:
+        return getattr(importlib.import_module(_ENTRY_POINTS[name]), name)
+    raise AttributeError(f"module 'identification' has no attribute {name!r}")
+
+
+def __dir__() -> list:
+    return sorted(list(globals()) + __all__)

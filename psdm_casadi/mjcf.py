@@ -28,17 +28,35 @@ couplings of locked joints only are dropped.
 
 from __future__ import annotations
 
+import importlib.util
 import logging
 import math
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pinocchio as pin
 
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.text_file import read_text_file
+
+
+def _lazy_module(name: str):
+    """``name`` imported on its first attribute use (``importlib.util.LazyLoader``): MuJoCo (~20 MB resident) is
+    loaded only when an MJCF file is read, not by every process that imports the robot readers (a fleet's Dask
+    worker)."""
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.find_spec(name)
+    spec.loader = importlib.util.LazyLoader(spec.loader)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+mujoco = _lazy_module("mujoco")
 
 __all__ = ["MJCF_SUFFIXES", "compile_mjcf", "load_mjcf_model", "mjcf_gravity", "route_mujoco_warnings"]
 

@@ -188,6 +188,12 @@ class PSDMModel:
         y[self.gravity_functions] *= self.gravity_magnitude
         return y
 
+    @property
+    def state_cache(self) -> StateCache:
+        """The memory of evaluated series of states (``regressor``); a caller that evaluates each series once (a
+        fleet's daily update, chunk by chunk) sets its ``max_bytes`` to 0 while it runs, so that nothing is kept."""
+        return self._regressor_cache
+
     def regressor(self, q, qd, qdd) -> np.ndarray:
         """Y(q, qd, qdd), shape (n_samples, n_dof, n_base), or (n_dof, n_base) for one state.
 

@@ -55,19 +55,23 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
     rec = recording if recording.is_uniform(1e-6) else resample_uniform(recording)
     rate = 1.0 / rec.dt
     cutoff, step = choose_filter(rate, cutoff_hz)
-    tau = rec.joint_torque(kt)
-    q = zero_phase_filter(rec.q, rate, cutoff)
-    tau = zero_phase_filter(tau, rate, cutoff)
-    qd, qdd = central_difference(rec.t, q)
-    edge = int(np.ceil(rate / cutoff))
+    rec.joint_torque(kt, 0)  # refuses currents without torque constants before any work
     keep = kept_samples(rec.n_samples, rate, cutoff, step)
-    if len(range(*keep.indices(rec.n_samples))) < 3:
+    # one joint at a time, only its kept samples stored: the full-rate filtered signals and derivatives are one
+    # column long (an hour at 1 kHz is not held four times over); the values are those of the whole arrays
+    kept = {name: np.empty((len(range(*keep.indices(rec.n_samples))), rec.n_dof)) for name in ("q", "qd", "qdd", "tau")}
+    for j in range(rec.n_dof):
+        q = zero_phase_filter(rec.q[:, j], rate, cutoff)
+        kept["tau"][:, j] = zero_phase_filter(rec.joint_torque(kt, j), rate, cutoff)[keep]
+        qd, qdd = central_difference(rec.t, q)
+        kept["q"][:, j], kept["qd"][:, j], kept["qdd"][:, j] = q[keep], qd[keep], qdd[keep]
+    if kept["q"].shape[0] < 3:
+        edge = int(np.ceil(rate / cutoff))
         raise RecordingError(
             f"{rec.name or 'recording'}: {rec.duration:.3g} s is too short to filter at {cutoff:g} Hz and keep "
             f"samples; record at least {4 * edge / rate:.2g} s."
         )
-    prepared = Recording(t=rec.t[keep], q=q[keep], tau=tau[keep], qd=qd[keep], qdd=qdd[keep], name=rec.name,
-                         missing_torque=rec.missing_torque)  # fmt: skip
+    prepared = Recording(t=rec.t[keep], name=rec.name, missing_torque=rec.missing_torque, **kept)
     return prepared, cutoff, step
 
 

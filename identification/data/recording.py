@@ -186,13 +186,16 @@ class Recording:
         steps = np.diff(self.t)
         return bool(np.all(np.abs(steps - self.dt) <= rtol * self.dt))
 
-    def joint_torque(self, kt=None) -> np.ndarray:
+    def joint_torque(self, kt=None, joint: int | None = None) -> np.ndarray:
         """Joint torques [N m]: ``tau`` if recorded, else ``kt * current`` (paper eq. 11).
 
         Parameters
         ----------
         kt : array, shape (n_dof,), optional
             Motor torque constants [N m/A]; needed when only currents were recorded.
+        joint : int, optional
+            Only this joint's column (0-based), shape (n_samples,): what a column-by-column preparation needs
+            without a copy of every joint.
 
         Returns
         -------
@@ -203,10 +206,11 @@ class Recording:
         ParameterError
             When only currents were recorded and ``kt`` is missing or of the wrong length.
         """
+        columns = slice(None) if joint is None else joint
         if self.tau is not None and kt is None:
-            return self.tau.copy()
+            return self.tau[:, columns].copy()
         if self.current is None:
-            return self.tau.copy()
+            return self.tau[:, columns].copy()
         if kt is None:
             raise RecordingError(
                 "Recording.tau is absent, so Recording.joint_torque needs kt; got kt=None. "
@@ -217,7 +221,7 @@ class Recording:
             raise ShapeError(
                 f"Recording.joint_torque kt must have shape ({self.n_dof},) to match Recording.n_dof; got {kt.shape}."
             )
-        return self.current * kt
+        return self.current[:, columns] * kt[columns]
 
     def check_robot(self, n_dof: int, robot_name: str = "RobotDescription") -> Recording:
         """Check the recording has one column per joint of a robot; return it unchanged.

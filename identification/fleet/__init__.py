@@ -9,13 +9,29 @@ It composes the readers, the calibration's columns, least squares and identifica
 copies none of them.
 """
 
-from identification.fleet.day_check import CheckOptions, DayCheck
-from identification.fleet.day_diagnosis import DayFinding
-from identification.fleet.drift import DriftFinding, DriftOptions, detect_drift
-from identification.fleet.history import History
-from identification.fleet.layout import Fleet, FleetLayoutError, read_fleet
-from identification.fleet.runner import RunOptions, RunSummary, dask_client, run_fleet
-from identification.fleet.session import SessionResult, SessionTask, process_session
+import importlib
+
+#: each name's module, imported on first use (PEP 562): a Dask worker imports ``session`` alone, not the history
+#: (DuckDB), the runner (Dask's client) or the report
+_NAMES = {
+    "CheckOptions": "day_check",
+    "DayCheck": "day_check",
+    "DayFinding": "day_diagnosis",
+    "DriftFinding": "drift",
+    "DriftOptions": "drift",
+    "detect_drift": "drift",
+    "History": "history",
+    "Fleet": "layout",
+    "FleetLayoutError": "layout",
+    "read_fleet": "layout",
+    "RunOptions": "runner",
+    "RunSummary": "runner",
+    "dask_client": "runner",
+    "run_fleet": "runner",
+    "SessionResult": "session",
+    "SessionTask": "session",
+    "process_session": "session",
+}
 
 __all__ = [
     "CheckOptions",
@@ -36,3 +52,13 @@ __all__ = [
     "read_fleet",
     "run_fleet",
 ]
+
+
+def __getattr__(name: str):
+    if name in _NAMES:
+        return getattr(importlib.import_module(f"identification.fleet.{_NAMES[name]}"), name)
+    raise AttributeError(f"module 'identification.fleet' has no attribute {name!r}")
+
+
+def __dir__() -> list:
+    return sorted(list(globals()) + __all__)

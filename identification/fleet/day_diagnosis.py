@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.fleet.baseline import FRICTION, Baseline
-from identification.fleet.update import CHUNK, DayFit, refit_columns
+from identification.fleet.update import CHUNK, DayFit, refit_columns, uncached
 
 __all__ = ["DayFinding", "diagnose_day", "residual_recordings"]
 
@@ -57,9 +57,10 @@ def residual_recordings(baseline: Baseline, model, prepared: list, currents: boo
     values = dict(zip(fit.names, fit.values))
     kt = np.array([values.get(f"kt{j + 1}", baseline.kt[j]) for j in range(baseline.robot.n_dof)])
     out = []
-    for rec in prepared:
-        torque = rec.tau * kt if currents else rec.tau
-        out.append(dataclasses.replace(rec, tau=torque - _tracked_torque(baseline, model, rec, fit)))
+    with uncached(model):
+        for rec in prepared:
+            torque = rec.tau * kt if currents else rec.tau
+            out.append(dataclasses.replace(rec, tau=torque - _tracked_torque(baseline, model, rec, fit)))
     return out
 
 

@@ -22,6 +22,7 @@ Reported parameters: ``fc<j>``, ``fv<j>``, ``kt<j>``, the terms' features (``spr
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,7 +35,7 @@ from identification.data.payload import Payload
 from identification.fleet.baseline import FRICTION, Baseline
 from identification.fleet.streamed import StreamedRows
 
-__all__ = ["CHUNK", "DayFit", "baseline_values", "refit_columns", "refit_day"]
+__all__ = ["CHUNK", "DayFit", "baseline_values", "refit_columns", "refit_day", "uncached"]
 
 MAX_INFLATION = 50.0
 KT_MAX_RELATIVE = 0.05  # a torque constant less certain than this is held (see _fit)
@@ -64,6 +65,21 @@ class DayFit:
     rmse_baseline: np.ndarray
     rmse_refit: np.ndarray
     n_samples: int
+
+
+@contextmanager
+def uncached(model):
+    """The model's memory of evaluated states off while the update runs: each chunk of a day is evaluated once, and
+    a Dask worker keeps its model for the whole run, so the memory would grow to the cache's budget."""
+    cache = getattr(model, "state_cache", None)
+    if cache is None:
+        yield
+        return
+    budget, cache.max_bytes = cache.max_bytes, 0
+    try:
+        yield
+    finally:
+        cache.max_bytes = budget
 
 
 def refit_columns(baseline: Baseline, q, qd, qdd) -> tuple:
@@ -186,7 +202,8 @@ def refit_day(baseline: Baseline, model, prepared: list, currents: bool) -> DayF
     (:class:`~identification.fleet.streamed.StreamedRows`): the memory does not grow with the recordings' length.
     """
     n = baseline.robot.n_dof
-    names, joints, rows = _accumulate(baseline, model, prepared)
+    with uncached(model):
+        names, joints, rows = _accumulate(baseline, model, prepared)
     k = rows.width - 2
     scale = baseline.kt if currents else np.ones(n)
     before = np.column_stack([scale, -np.tile(baseline_values(baseline), (n, 1)), -np.ones(n)])
