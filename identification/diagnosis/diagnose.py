@@ -24,6 +24,7 @@ from identification.diagnosis.candidates import CandidateLibrary, default_librar
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import DiagnosisContext, build_context
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
+from identification.diagnosis.friction_rival import FrictionRival
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
@@ -439,24 +440,14 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
     logger.info(f"diagnose: selecting among {len(instances)} candidate terms ...")
-    opinion = None
-    if problem.extra_v or options.cv_folds:
-        validations = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
-        opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2)
+    validations = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
+    opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2)
     return forward_select(
-        instances,
-        ctx_t,
-        problem.ctx_v,
-        problem.base_t,
-        problem.base_v,
-        problem.y_t,
-        problem.y_v,
-        min_improvement=options.min_improvement,
-        max_effects=options.max_effects,
-        effective_samples=n_eff,
-        joint_threshold=options.joint_threshold,
-        opinion=opinion,
-    )
+        instances, ctx_t, problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v,
+        min_improvement=options.min_improvement, max_effects=options.max_effects, effective_samples=n_eff,
+        joint_threshold=options.joint_threshold, opinion=opinion if problem.extra_v or options.cv_folds else None,
+        rival=FrictionRival(ctx_t, validations),
+    )  # fmt: skip
 
 
 def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options: DiagnosisOptions) -> FinalFit:

@@ -366,6 +366,7 @@ def forward_select(
     joint_threshold=0.1,
     min_torque_fraction=0.004,
     opinion=None,
+    rival=None,
 ) -> SelectionResult:
     """Greedy forward selection of candidate term instances, then a backward check (see the module docstring).
 
@@ -391,6 +392,9 @@ def forward_select(
     opinion : second_opinion.SecondOpinion, optional
         Judges each candidate the forward pass would keep on more validation recordings or held-out blocks of the
         training data; one that does not hold is reported unstable, not kept (``SelectionResult.unstable``).
+    rival : friction_rival.FrictionRival, optional
+        A delay is kept only if it beats the friction shapes the nominal model lacks on every validation recording;
+        the sentences on the delays it refuses are the first of ``SelectionResult.dropped``.
     """
     if not 0.0 < min_improvement < 1.0:
         raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
@@ -413,9 +417,10 @@ def forward_select(
     nominal = (as_blocks(base_train), as_blocks(base_val))
     design = WeightedDesign(*nominal, y_train, y_val, sigma)
     _, _, _, _, nominal_train, nominal_val = design.fit(full=True)
-    forward = _forward(design, list(instances), train_ctx, val_ctx, limits, max_effects, joint_threshold, opinion)
-    kept, tried, unstable, rejected = forward
+    kept, tried, unstable, rejected = _forward(design, list(instances), (train_ctx, val_ctx), limits, max_effects,
+                                               joint_threshold, (opinion, rival))  # fmt: skip
     kept, dropped = _prune(nominal, kept, y_train, y_val, sigma)
+    dropped = tuple(rival.sentences if rival is not None else ()) + dropped
     design = _design_with(nominal, [(ct, cv) for _, ct, cv in kept], y_train, y_val, sigma)
     beta, _, _, _, pred_t, pred_v = design.fit(full=True)
     p0 = nominal[0].n_columns
@@ -438,32 +443,27 @@ def forward_select(
     )
 
 
-def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_threshold, opinion=None) -> tuple:
+def _forward(design, remaining, contexts, limits, max_effects, joint_threshold, judges=(None, None)) -> tuple:
     """The forward pass: ``([(step, ct, cv), ...], candidates tried, unstable, rejected)``; ``design`` grows with each
-    kept term; ``opinion`` (a ``second_opinion.SecondOpinion``) judges each chosen candidate before it is kept."""
+    kept term; ``judges`` (a ``second_opinion.SecondOpinion`` and a ``friction_rival.FrictionRival``, each or None)
+    judge each chosen candidate before it is kept."""
+    train_ctx, val_ctx = contexts
     _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
     kept, tried, unstable, rejected = [], 0, [], {}
     while len(kept) < max_effects and remaining:
         qualified, implausible = _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits)
         rejected.update(implausible)
         tried += len(remaining)
-        chosen, drop = _stable_choice(design, qualified, opinion, limits, unstable)
+        chosen, drop = _stable_choice(design, qualified, judges, limits, unstable)
         if chosen is None:
             break
         gain, index, term, delta_bic, note = chosen.gain, chosen.index, chosen.term, chosen.delta_bic, chosen.note
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
-        step = SelectionStep(
-            term=term,
-            joints=_named_joints(term, rmse_v, rv1, joint_threshold),
-            rmse_before=rmse_v.copy(),
-            rmse_after=rv1.copy(),
-            rmse_train_before=rmse_t.copy(),
-            rmse_train_after=rt1.copy(),
-            delta_bic=float(delta_bic),
-            validation_gain=float(gain),
-            shape_note=note,
-        )
+        step = SelectionStep(term=term, joints=_named_joints(term, rmse_v, rv1, joint_threshold),
+                             rmse_before=rmse_v.copy(), rmse_after=rv1.copy(), rmse_train_before=rmse_t.copy(),
+                             rmse_train_after=rt1.copy(), delta_bic=float(delta_bic), validation_gain=float(gain),
+                             shape_note=note)  # fmt: skip
         logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
         if note:
             logger.info(f"diagnose:   shape: {note}")
@@ -472,25 +472,29 @@ def _forward(design, remaining, train_ctx, val_ctx, limits, max_effects, joint_t
             design.base_train.concatenate(BlockColumns.from_dense(ct)),
             design.base_val.concatenate(BlockColumns.from_dense(cv)),
         )
-        if opinion is not None:
-            opinion.keep(term)
+        for judge in (j for j in judges if j is not None):
+            judge.keep(term)
         _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
         remaining = [r for i, r in enumerate(remaining) if i != index and i not in drop]
     labels = {step.term.label for step, _, _ in kept} | {u.label for u in unstable}
     return kept, tried, tuple(unstable), tuple((k, v) for k, v in rejected.items() if k not in labels)
 
 
-def _stable_choice(design, qualified, opinion, limits, unstable: list) -> tuple:
-    """The best qualifying candidate that holds on the second ``opinion``: ``(chosen or None, indices of the
-    candidates found unstable)``; each unstable one is appended to ``unstable`` and the next best is tried."""
+def _stable_choice(design, qualified, judges, limits, unstable: list) -> tuple:
+    """The best qualifying candidate that holds on the second opinion and, for a delay, beats the friction rival
+    (``judges``): ``(chosen or None, indices of the candidates refused)``; each unstable one is appended to
+    ``unstable`` (the rival keeps its own sentences) and the next best is tried."""
+    opinion, rival = judges
     drop = set()
     while qualified:
         chosen = _choose(qualified)
         verdict = None if opinion is None else opinion.judge(design, chosen.term, limits)
-        if verdict is None:
+        explained = None if (verdict is not None or rival is None) else rival.judge(design, chosen.term, limits)
+        if verdict is None and explained is None:
             return chosen, drop
-        logger.info(f"diagnose: {verdict.sentence()}")
-        unstable.append(verdict)
+        if verdict is not None:
+            logger.info(f"diagnose: {verdict.sentence()}")
+            unstable.append(verdict)
         drop.add(chosen.index)
         qualified = [q for q in qualified if q.index != chosen.index]
     return None, drop

@@ -1,0 +1,185 @@
+"""The friction rival of a lag: a delay (or a joint elasticity, a backlash) is named only if it predicts every
+validation recording better than the friction shapes the nominal model lacks.
+
+A torque that lags the motion is what a delay of the torque signal does, and also what friction the nominal model
+lacks does around every velocity reversal: a Stribeck peak, a viscous curve that is not linear, pre-sliding (the
+friction builds up over a small displacement after each reversal, LuGre's bristles). A deflection of the transmission
+(elasticity, backlash) shifts the velocity the friction sees by the torque's rate: a lag of the friction too. On the
+virtual Denso (LuGre friction, no delay) a diagnosis with a Coulomb-viscous nominal model named a delay of 4-6.5 ms,
+and without the delay a joint elasticity; the recording itself has no lag: with the simulator's own friction filtered
+like the recording, the torque fits the motion best 0.25 ms *early* (the command held over each sample period, see
+``virtual.simulation``); with its steady-state friction evaluated on the filtered velocity, 3 ms late.
+
+``FrictionRival.judge`` lets such a candidate compete with a family of friction-shape columns on the same held-out
+recordings. The family has three columns on each joint the candidate acts on (every joint for a delay), each with its
+scale fitted on the training recording (the value of a log-spaced grid whose single column lowers the training error
+most, with the nominal model and the kept terms):
+
+- ``exp(-(qd/vs)^2) sign(qd)``: a Stribeck peak of velocity ``vs``;
+- ``tanh(qd/v)``: a smooth Coulomb friction that reaches its level over the velocity scale ``v`` (and bends the
+  viscous curve);
+- ``u(t) - sign(qd)`` with ``du/dq = (1 - u sign(qd)) / x0``: pre-sliding (Dahl; the bristle state of a LuGre model
+  with ``fs = fc``), the friction deficit over the displacement ``x0`` after each reversal.
+
+The candidate (fitted on the training recording with the nominal model and the kept terms) and the family (fitted the
+same way) each predict every validation recording; the candidate is kept only if its joint-weighted validation error
+is below the family's on each. One the family explains as well is not named, and the report says so with the numbers
+(``sentences``). A true delay also lags the inertial and gravity torque, and a true elasticity the rigid body's torque
+through the deflection, which no friction shape follows.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from identification.diagnosis.columns import BlockColumns
+from identification.diagnosis.context import simulate_friction
+from identification.diagnosis.selection import passes_gates
+from identification.metrics import rmse
+
+logger = logging.getLogger(__name__)
+
+STRIBECK_VELOCITIES = np.geomspace(0.005, 0.5, 7)  # vs [rad/s] of the Stribeck column's grid
+SMOOTH_VELOCITIES = np.geomspace(0.01, 1.0, 7)  # v [rad/s] of the smooth Coulomb column's grid
+PRESLIDING_DISPLACEMENTS = np.geomspace(1e-4, 1e-2, 7)  # x0 [rad] of the pre-sliding column's grid
+SHAPES = ("stribeck", "smooth_coulomb", "presliding")
+LAGS = ("delay", "joint_elasticity", "backlash")  # the candidates whose torque a lag of the friction mimics
+
+
+def shape_column(ctx, joint: int, shape: str, scale: float) -> np.ndarray:
+    """One friction-shape column of ``joint`` on the grid (n_samples,): evaluated at full rate on the recorded velocity
+    and, like the nominal friction columns, filtered as the recording when ``ctx.filtered_friction``."""
+    from identification.friction.models import LuGreParameters
+
+    qd = np.asarray(ctx.full_qd[:, joint], dtype=float)
+    sign = np.sign(qd)
+    if shape == "stribeck":
+        values = np.exp(-((qd / scale) ** 2)) * sign
+    elif shape == "smooth_coulomb":
+        values = np.tanh(qd / scale)
+    else:  # a LuGre bristle with fc = fs = 1 and sigma0 = 1/x0 is the Dahl state u in [-1, 1]
+        unit = LuGreParameters(fc=1.0, fs=1.0, vs=1.0, fv=0.0, dv=1.0, sigma0=1.0 / scale, sigma1=0.0)
+        values = simulate_friction(unit, ctx.full_t, qd) - sign
+    return ctx.lowpass(values) if ctx.filtered_friction else values[ctx.keep]
+
+
+def family_columns(ctx, scales: np.ndarray, joints) -> np.ndarray:
+    """The family's columns on ``joints`` (n_samples, n_dof, 3 len(joints)), joint-major, at ``scales`` (n_dof, 3)
+    in ``SHAPES``'s order."""
+    joints = list(joints)
+    out = np.zeros((ctx.n_samples, ctx.n_dof, 3 * len(joints)))
+    for i, j in enumerate(joints):
+        for k, shape in enumerate(SHAPES):
+            out[:, j, 3 * i + k] = shape_column(ctx, j, shape, float(scales[j, k]))
+    return out
+
+
+def fitted_scales(design, ctx, joints) -> np.ndarray:
+    """Each joint's scale of each shape (n_dof, 3; NaN off ``joints``): the grid value whose column alone, added to
+    ``design`` (the nominal model and the kept terms), gives the lowest training error on ``ctx`` (the training
+    recording)."""
+    grids = (STRIBECK_VELOCITIES, SMOOTH_VELOCITIES, PRESLIDING_DISPLACEMENTS)
+    n = ctx.n_dof
+    scales = np.full((n, 3), np.nan)
+    blank = np.zeros((design.y_val.shape[0], n, 1))
+    for j in joints:
+        for k, (shape, grid) in enumerate(zip(SHAPES, grids)):
+            errors = []
+            for scale in grid:
+                column = np.zeros((ctx.n_samples, n, 1))
+                column[:, j, 0] = shape_column(ctx, j, shape, float(scale))
+                errors.append(design.fit(column, blank)[1])
+            scales[j, k] = grid[int(np.argmin(errors))]
+    return scales
+
+
+def validation_errors(design, columns_t, columns_v: list, validations: list) -> list:
+    """Per-joint validation RMSE (n_dof,) on each validation recording of ``design`` with the candidate columns
+    ``columns_t`` fitted on the training recording; ``columns_v[i]`` are the columns on ``validations[i] = (ctx, base,
+    y)``."""
+    p = design.G.shape[0]
+    beta = design.fit(columns_t, np.zeros((design.y_val.shape[0],) + columns_t.shape[1:]))[0]
+    return [rmse(y, base.predict(beta[:p]) + cv @ beta[p:]) for cv, (_, base, y) in zip(columns_v, validations)]
+
+
+class FrictionRival:
+    """The friction rival of a lag candidate (``LAGS``; module docstring).
+
+    Parameters
+    ----------
+    train_ctx : DiagnosisContext
+        The training recording.
+    validations : sequence of (DiagnosisContext, BlockColumns, array)
+        Each validation recording's context, nominal columns and fitted torque, the selection's first; ``keep`` adds
+        the kept terms' columns as the selection adds them to its design.
+
+    Attributes
+    ----------
+    sentences : list of str
+        One per candidate not named, with the numbers (``SelectionResult.dropped`` carries them to the report).
+    """
+
+    def __init__(self, train_ctx, validations):
+        self.train_ctx = train_ctx
+        self.validations = [list(v) for v in validations]
+        self.sentences = []
+
+    def keep(self, term) -> None:
+        """A kept term joins the validation recordings' base columns."""
+        for v in self.validations:
+            v[1] = v[1].concatenate(BlockColumns.from_dense(term.columns(v[0])))
+
+    def judge(self, design, term, limits) -> str | None:
+        """None when ``term`` is not a lag (``LAGS``) or wins against the friction family on every validation recording
+        (module docstring: a delay beside the family passes the selection's gates, ``selection.passes_gates`` with
+        ``limits``; a deflection of one joint predicts better than the family on that joint); otherwise the sentence
+        saying why it is not named (also appended to ``sentences``)."""
+        if getattr(term, "key", None) not in LAGS:
+            return None
+        logger.info(f"diagnose: {term.label} against the friction shapes the nominal model lacks ...")
+        joints = list(term.joints) or list(range(self.train_ctx.n_dof))
+        scales = fitted_scales(design, self.train_ctx, joints)
+        family = (family_columns(self.train_ctx, scales, joints),
+                  [family_columns(ctx, scales, joints) for ctx, _, _ in self.validations])  # fmt: skip
+        lag = (term.columns(self.train_ctx), [term.columns(ctx) for ctx, _, _ in self.validations])
+        rival = validation_errors(design, *family, self.validations)
+        if term.joints:  # the deflection alone against the family alone
+            errors = validation_errors(design, *lag, self.validations)
+            weighted = [(_weighted(f, limits.sigma), _weighted(e, limits.sigma)) for f, e in zip(rival, errors)]
+            failures = [None if e < f else "predicts no better than the friction shapes alone" for f, e in weighted]
+            compared = "with the friction shapes vs with it"
+        else:  # the delay beside the family
+            both = (
+                np.concatenate([family[0], lag[0]], axis=2),
+                [np.concatenate(p, axis=2) for p in zip(family[1], lag[1])],
+            )
+            errors = validation_errors(design, *both, self.validations)
+            failures = [passes_gates(f, e, [], limits.floor, limits.min_improvement, limits.sigma)
+                        for f, e in zip(rival, errors)]  # fmt: skip
+            weighted = [(_weighted(f, limits.sigma), _weighted(e, limits.sigma)) for f, e in zip(rival, errors)]
+            compared = "with the friction shapes, without/with it"
+        numbers = "; ".join(f"recording {i + 1}: {a:.4g} -> {b:.4g}" for i, (a, b) in enumerate(weighted))
+        if all(f is None for f in failures):
+            logger.info(f"diagnose:   {term.label} wins against the friction shapes ({numbers})")
+            return None
+        failure = next(f for f in failures if f is not None)
+        sentence = (
+            f"{term.label} not named: beside friction shapes the nominal model lacks (a Stribeck peak, a smooth "
+            f"Coulomb friction, pre-sliding; scales fitted per joint) it {failure} on validation recording "
+            f"{failures.index(failure) + 1} (joint-weighted validation error {compared}: {numbers}): a lag of the "
+            f"friction, not {_what(term)}"
+        )
+        logger.info(f"diagnose: {sentence}")
+        self.sentences.append(sentence)
+        return sentence
+
+
+def _weighted(errors, sigma) -> float:
+    """The joint-weighted validation error ``sum_j (rmse_j / sigma_j)^2`` of per-joint RMSE ``errors``."""
+    return float(np.sum(np.asarray(errors) ** 2 / sigma**2))
+
+
+def _what(term) -> str:
+    return "of the torque signal" if term.key == "delay" else f"a deflection of joint {term.joints[0] + 1}"

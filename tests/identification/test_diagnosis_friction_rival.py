@@ -1,0 +1,104 @@
+"""A lag is not named when friction the nominal model lacks explains it (issue 25): the virtual Denso's recordings have
+no positive lag between torque and motion, a Coulomb-viscous diagnosis of them names no delay, and a true 10 ms delay
+is still found first."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from identification.data.preprocessing import PreprocessOptions, preprocess, zero_phase_filter
+from identification.diagnosis import DiagnosisOptions, diagnose
+from identification.diagnosis.candidates import BacklashTerm, DelayTerm, JointElasticityTerm
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.oracle import build_pinocchio_model
+from trajopt.experiments import sine_experiment
+
+CUTOFF_HZ = 15.0
+
+
+def _record(robot, seed: int, duration: float, extras=(), noise: float = 0.1):
+    rng = np.random.default_rng(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the sine experiment may graze a limit
+        reference = sine_experiment(robot, duration=duration, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=noise)
+    return simulate_recording(robot, reference, options, rng, extras=list(extras))
+
+
+def _best_shift(t, tau, model, shifts) -> float:
+    """The shift d [s] for which the recorded torque at t + d fits the model torque at t best (RMS, ends trimmed)."""
+    keep = slice(300, -300)
+    errors = []
+    for d in shifts:
+        shifted = np.column_stack([np.interp(t + d, t, tau[:, j]) for j in range(tau.shape[1])])
+        errors.append(np.sqrt(np.mean((shifted[keep] - model[keep]) ** 2)))
+    return float(shifts[int(np.argmin(errors))])
+
+
+def test_the_virtual_robot_records_no_positive_lag_between_torque_and_motion(denso):
+    # independent reference: Pinocchio's rnea of the true inertia on the preprocessed motion plus the simulator's own
+    # friction (the truth) filtered like the recording; the torque fits it best a quarter sample *early* (the command
+    # is held over each sample period, the simulation module's docstring), never late
+    robot = denso
+    recording, truth = _record(robot, 0, 3.0, noise=0.0)
+    prepared = preprocess(recording, PreprocessOptions(cutoff_hz=CUTOFF_HZ))
+    pmodel = build_pinocchio_model(robot, robot.nominal_dynamic_parameters())
+    data = pmodel.createData()
+    rigid = np.array([pin.rnea(pmodel, data, a, b, c) for a, b, c in zip(prepared.q, prepared.qd, prepared.qdd)])
+    friction = zero_phase_filter(truth.tau_friction, 1000.0, CUTOFF_HZ, PreprocessOptions().order)
+    shift = _best_shift(prepared.t, prepared.tau, rigid + friction, np.arange(-2e-3, 6e-3, 0.25e-3))
+    assert -0.75e-3 <= shift <= 0.0
+
+
+def _lags(robot, model, extras, seed: int):
+    """A Coulomb-viscous diagnosis (the nominal model of a model file identified that way) of a 4 s training and a 3 s
+    validation recording, with the lag candidates only (fast); the validation recording judges alone (no block
+    cross-validation), so the friction rival is what decides."""
+    train, _ = _record(robot, seed, 4.0, extras)
+    validation, _ = _record(robot, seed + 1, 3.0, extras)
+    library = DelayTerm() + JointElasticityTerm() + BacklashTerm()
+    options = DiagnosisOptions(
+        friction="coulomb_viscous", rigid_body="prior", sparse=False, library=library, cv_folds=0
+    )
+    return diagnose(robot, train, validation, options, model=model)
+
+
+def test_a_coulomb_viscous_diagnosis_of_lugre_friction_names_no_delay(denso, denso_model):
+    # the virtual Denso has LuGre friction and no delay: the delay qualifies against the Coulomb-viscous model (a lag
+    # of the friction), but friction shapes the nominal model lacks explain it; no lag of any kind is named
+    report = _lags(denso, denso_model, (), 0)
+    assert report.findings == ()
+    assert any(text.startswith("delay not named") for text in report.dropped)
+
+
+def test_a_true_10_ms_delay_is_still_named_first(denso, denso_model):
+    report = _lags(denso, denso_model, (xp.SignalDelay(samples=10),), 0)
+    assert report.findings and report.findings[0].effect == "delay"
+    # the Coulomb-viscous model's friction lag adds to the estimate (about 7 ms of it: 17 ms on this recording); the
+    # diagnosis benchmark checks the size with the robot file's LuGre friction
+    assert 0.008 <= report.findings[0].parameters["delay_s"] <= 0.02
+    assert not any(text.startswith("delay not named") for text in report.dropped)
+
+
+@pytest.mark.parametrize("shape", ["stribeck", "smooth_coulomb", "presliding"])
+def test_friction_shape_columns_are_odd_and_bounded(shape):
+    # each shape is an odd function of the motion (a friction) of unit amplitude: bounded by 1, the pre-sliding deficit
+    # by 2 (from one sliding level to the other after a reversal)
+    from types import SimpleNamespace
+
+    from identification.diagnosis.friction_rival import shape_column
+
+    t = np.arange(0.0, 2.0, 1e-3)
+    qd = np.sin(2 * np.pi * t)[:, None]
+    ctx = SimpleNamespace(full_qd=qd, full_t=t, keep=np.arange(t.size), filtered_friction=False)
+    up = shape_column(ctx, 0, shape, 0.05 if shape != "presliding" else 1e-3)
+    ctx.full_qd = -qd
+    down = shape_column(ctx, 0, shape, 0.05 if shape != "presliding" else 1e-3)
+    bound = 2.0 if shape == "presliding" else 1.0
+    assert 0.1 < np.max(np.abs(up)) <= bound + 1e-12
+    np.testing.assert_allclose(up[1:], -down[1:], atol=1e-9)
