@@ -171,6 +171,17 @@ def check_plausible_recording(recording: Recording, robot, thresholds: Plausibil
         if problem is None and np.isfinite(qd_max[j]) and qd_max[j] > 0:
             problem = _speed_problem(j, speed[j], qd_max[j], thresholds.speed_factor, robot)
         problems += [] if problem is None else [problem]
+    in_degrees = [p for p in problems if "in radians (x pi/180) they would lie within" in p]
+    if len(problems) > 1 and len(in_degrees) == len(problems):  # one cause: say it once
+        joints = [p.split()[1] for p in problems]  # "column q3 (...) reaches ..."
+        j, others = int(joints[0][1:]) - 1, ", ".join(joints[1:])
+        raise RecordingError(
+            f"Recording {source}: column q{j + 1} ({joint_label(j, robot)}) reaches {recording.q[:, j].min():.4g} to "
+            f"{recording.q[:, j].max():.4g}, beyond the joint limits [{q_min[j]:.4g}, {q_max[j]:.4g}], and {others} "
+            "beyond theirs too, every one within them once x pi/180: positions in degrees? Convert "
+            f"q{j + 1} to radians, and {others} alike, or state the log's unit: --columns q=PREFIX:deg (e.g. "
+            "--columns t=Time,q=Position:deg,tau=Torque)."
+        )
     if problems:
         raise RecordingError(
             f"Recording {source}: no {getattr(robot, 'name', 'robot')} can have recorded this; "
