@@ -16,6 +16,9 @@ where the URDF's differ and the tool as part of the last link; the vendor's nomi
   links that end at the identification's mass bounds (0.5-2x the robot file's);
 - ``psdm diagnose`` of the robot file on opti_traj_testing1/2 (sensors): with the tool stated, a further
   payload it names says the stated tool is off;
+- the vendor URDF alone (``vendor_urdf``: no ``[[link]]`` tables, no tool): ``psdm identify`` on the sensors must
+  name its two unusable inertias and a tool at the flange and go on, consistent; ``psdm diagnose`` of it weighs the
+  tool;
 - the currents against the sensors (``sensor_check``, no model of the arm needed): per joint, on the three logs with
   both, ``kt i = a tau_s + mu |tau_s| tanh(qd / v) + fc tanh(qd / v) + fv qd + Ia qdd + offset`` by least squares
   (10 Hz zero-phase filter): the gear's efficiency by power-flow direction ``eta = sqrt((1 - mu) / (1 + mu))``
@@ -160,16 +163,18 @@ def links_report(robot, model_file: Path) -> dict:
             "plausible": bool(np.all(mass_ok & com_ok))}  # fmt: skip
 
 
-def identify(robot, source: str, folder: Path, data: Path, log) -> dict:
-    """One ``psdm identify`` with the defaults; its validation, consistency, warnings and links."""
-    out = folder / f"{source}.json"
+def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path | None = None) -> dict:
+    """One ``psdm identify`` with the defaults (of the example, or of ``robot_file``); its validation, consistency,
+    warnings and links."""
+    robot_file = folder / ROBOT_FILE.name if robot_file is None else robot_file
+    out = folder / f"{robot_file.stem}_{source}.json"
     training = [str(data / name) for name in TRAINING[source]]
-    argv = ["identify", str(folder / ROBOT_FILE.name), "--data", *training, "--validate", str(data / VALIDATE),
+    argv = ["identify", str(robot_file), "--data", *training, "--validate", str(data / VALIDATE),
             "--columns", SOURCES[source], "--out", str(out), "--json"]  # fmt: skip
     start = time.perf_counter()
     code, payload, err = run_cli(argv)
     seconds = time.perf_counter() - start
-    log(f"kinova {source}: psdm identify exit {code} in {seconds:.0f} s")
+    log(f"kinova {source} ({robot_file.name}): psdm identify exit {code} in {seconds:.0f} s")
     if code != 0 or payload is None:
         return {"exit_code": code, "error": err.strip().splitlines()[-1] if err.strip() else "no output"}
     validation = payload["validation"][0]
@@ -182,18 +187,20 @@ def identify(robot, source: str, folder: Path, data: Path, log) -> dict:
             "drive_loss": payload.get("drive_loss", []), "drive_inertia": inertia,
             "column_text": payload["columns"].get("drive_loss_joints"),
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
+            "names_unusable_urdf_inertias": [w.split(" is unusable")[0] for w in warnings if " is unusable" in w],
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
             "warnings": warnings, "links": links_report(robot, out)}  # fmt: skip
 
 
-def diagnose_tool(folder: Path, data: Path, log) -> dict:
+def diagnose_tool(folder: Path, data: Path, log, robot_file: Path | None = None) -> dict:
     """``psdm diagnose`` of the robot file on the sensor recordings: the payload it names (the tool), if any."""
-    argv = ["diagnose", str(folder / ROBOT_FILE.name), "--train", str(data / TRAIN), "--validate", str(data / VALIDATE),
-            "--columns", SOURCES["sensor"], "--out", str(folder / "diagnosis"), "--json"]  # fmt: skip
+    robot_file = folder / ROBOT_FILE.name if robot_file is None else robot_file
+    argv = ["diagnose", str(robot_file), "--train", str(data / TRAIN), "--validate", str(data / VALIDATE),
+            "--columns", SOURCES["sensor"], "--out", str(folder / f"diag_{robot_file.stem}"), "--json"]  # fmt: skip
     start = time.perf_counter()
     code, payload, err = run_cli(argv)
     seconds = time.perf_counter() - start
-    log(f"kinova: psdm diagnose (robot file, sensors) exit {code} in {seconds:.0f} s")
+    log(f"kinova: psdm diagnose ({robot_file.name}, sensors) exit {code} in {seconds:.0f} s")
     if code != 0 or payload is None or "findings" not in payload:
         return {"exit_code": code, "error": err.strip().splitlines()[-1] if err.strip() else "no output"}
     found = [f for f in payload["findings"] if f["effect"] == "payload"]
@@ -202,6 +209,24 @@ def diagnose_tool(folder: Path, data: Path, log) -> dict:
             "tool_mass": None if tool is None else tool["mass"],
             "tool_com": None if tool is None else [tool.get(f"com_{a}") for a in "xyz"],
             "rmse_before": payload["rmse_before"], "rmse_after": payload["rmse_after"]}  # fmt: skip
+
+
+def vendor_urdf(folder: Path, data: Path, log, diagnosis: bool) -> dict:
+    """The vendor URDF alone (its kinematics, inertials and no tool; the example's torque constants and rate):
+    ``psdm identify`` on the sensors must name its unusable inertias and a tool at the flange, go on and stay
+    consistent; ``psdm diagnose`` of it weighs the tool (it also takes up the URDF's too-light links: README)."""
+    from psdm_casadi.robot import load_robot
+
+    path = folder / "kinova_gen3_vendor.toml"
+    drives = "".join(f"[[drive]]\nkt = {kt}\n\n" for kt in KT)
+    path.write_text(f'format = "psdm-robot/1"\nname = "kinova_gen3_vendor"\n\n[urdf]\npath = "{data / "gen3.urdf"}"\n\n'
+                    f"[recording]\nsample_rate = 1000.0\n\n{drives}")  # fmt: skip
+    fit = identify(load_robot(path), "sensor", folder, data, log, robot_file=path)
+    tool = diagnose_tool(folder, data, log, robot_file=path) if diagnosis else None
+    return {"identify": fit, "diagnosis": tool,
+            "names_unusable_inertias": len(fit.get("names_unusable_urdf_inertias", [])) == 2,
+            "names_tool": bool(fit.get("names_tool_at_flange")),
+            "diagnosis_tool_mass": None if tool is None else tool.get("tool_mass")}  # fmt: skip
 
 
 def evaluate_kinova(log, data: Path = KINOVA, diagnosis: bool = True) -> dict:
@@ -221,12 +246,13 @@ def evaluate_kinova(log, data: Path = KINOVA, diagnosis: bool = True) -> dict:
         robot = load_robot(Path(tmp) / ROBOT_FILE.name)
         fits = {source: identify(robot, source, Path(tmp), data, log) for source in SOURCES}
         tool = diagnose_tool(Path(tmp), data, log) if diagnosis else None
+        vendor = vendor_urdf(Path(tmp), data, log, diagnosis)
     replaced = load_robot(robot.urdf_path).replaced_inertias  # the URDF's own (the robot file states them)
     unusable = [{"link": r.link.strip("'"), "joint": r.joint + 1, "problem": r.problem} for r in replaced]
     mass = None if tool is None else tool.get("tool_mass")
     stated = robot.links[-1].mass - load_robot(robot.urdf_path).links[-1].mass
     return {"skipped": False, **fits, "urdf_unusable_inertias": unusable, "tool_diagnosis": tool,
-            "tool_stated_in_robot_file_kg": stated, "sensor_check": sensor_check(data),
+            "tool_stated_in_robot_file_kg": stated, "sensor_check": sensor_check(data), "vendor_urdf": vendor,
             "diagnosis_finds_no_further_tool": tool is None or mass is None or mass < RESIDUAL_TOOL_KG,
             "sensor_fit_no_link_at_mass_bound": not fits["sensor"].get("links", {}).get("links_at_mass_bound", [0]),
             "ran_on_defaults": all(f.get("exit_code") == 0 for f in fits.values())}  # fmt: skip
@@ -246,6 +272,14 @@ def kinova_missed(result) -> list:
     if not result["diagnosis_finds_no_further_tool"]:
         missed.append(f"kinova kinova_models: the diagnosis of the robot file (tool stated) names a further payload "
                       f"of {result['tool_diagnosis']['tool_mass']:.2f} kg")  # fmt: skip
+    vendor = result["vendor_urdf"]
+    if vendor["identify"].get("exit_code") != 0 or not vendor["identify"]["consistent"]:
+        missed.append(
+            f"kinova kinova_models: the vendor URDF alone, identify failed ({vendor['identify'].get('error')})"
+        )
+    elif not (vendor["names_unusable_inertias"] and vendor["names_tool"]):
+        missed.append("kinova kinova_models: the vendor URDF alone, identify does not name its unusable inertias and "
+                      "the tool")  # fmt: skip
     if not result["sensor_fit_no_link_at_mass_bound"]:
         missed.append(f"kinova kinova_models: sensor fit, links at a mass bound "
                       f"{result['sensor']['links']['links_at_mass_bound']}")  # fmt: skip
@@ -284,6 +318,14 @@ def print_kinova(result) -> None:
               + "; Ia " + " ".join("-" if v is None else f"{v:.3f}" for v in current["drive_inertia"]))  # fmt: skip
     for entry in result["urdf_unusable_inertias"]:
         print(f"  URDF: {entry['link']} (joint {entry['joint']}) inertia unusable: {entry['problem']}")
+    vendor = result["vendor_urdf"]
+    if vendor["identify"].get("exit_code") == 0:
+        fit = vendor["identify"]
+        mass = vendor["diagnosis_tool_mass"]
+        print("  vendor URDF alone (sensors)   " + " ".join(f"{v:7.3f}" for v in fit["rmse"])
+              + f"; names its unusable inertias: {'yes' if vendor['names_unusable_inertias'] else 'no'}, a tool at the "
+              f"flange: {'yes' if vendor['names_tool'] else 'no'}; diagnosis: payload "
+              f"{'none' if mass is None else f'{mass:.3f} kg'}")  # fmt: skip
     tool = result["tool_diagnosis"]
     if tool is not None and tool.get("exit_code") == 0:
         print(f"  diagnosis of the robot file (tool of {result['tool_stated_in_robot_file_kg']:.2f} kg stated): "
