@@ -11,13 +11,14 @@ module makes its columns the signals of a ``Recording``.
 from __future__ import annotations
 
 import filecmp
+import logging
 import re
 from pathlib import Path
 
 import numpy as np
 
 from identification.data.csvfile import read_csv_table
-from identification.data.layout import ColumnLayout, check_standard_header, seconds
+from identification.data.layout import SIGNAL_PREFIXES, ColumnLayout, check_standard_header, seconds
 from identification.data.matfile import read_mat_table
 from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
@@ -31,6 +32,7 @@ from psdm_casadi.fileio import atomic_write
 COLUMN_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "current": "i"}
 _COLUMN = re.compile(r"^(qdd|qd|q|tau|i)([1-9][0-9]*)$")
 _PREFIX_TO_SIGNAL = {v: k for k, v in COLUMN_PREFIXES.items()}
+logger = logging.getLogger(__name__)
 FORMAT_COMMENT = "# psdm recording: t [s], q [rad|m], qd [rad/s], qdd [rad/s^2], tau [N m], i [A]"
 
 
@@ -221,7 +223,15 @@ def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnL
     if not path.exists():
         raise FileNotFoundError(f"recording {str(path)!r} does not exist. Check the path.")
     if is_rosbag(path):
-        return read_rosbag_table(path, topic=topic, joint_names=joint_names)
+        table = read_rosbag_table(path, topic=topic, joint_names=joint_names)
+        if layout is None:
+            return table
+        renamed = any(prefix != SIGNAL_PREFIXES[signal] for signal, prefix in layout.prefixes)
+        if renamed or layout.time not in (None, "t"):  # a bag's fields have fixed names: only the units apply
+            logger.warning("%s: a ROS 2 bag's JointState fields are read by name; --columns' prefixes are not used "
+                           "(only its units)", table.source)  # fmt: skip
+        data = to_si(table.names, table.data, layout.units)
+        return table if data is table.data else ColumnTable(table.source, table.names, data, table.locate)
     if path.is_dir():
         raise RecordingError(
             f"recording {str(path)!r} is a folder, not a file or a ROS 2 bag (no metadata.yaml in it). Pass one .csv, "

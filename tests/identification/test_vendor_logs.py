@@ -232,3 +232,17 @@ def test_a_few_repeated_time_stamps_are_left_out_and_many_refused(tmp_path, capl
     path = _write(tmp_path / "many.csv", ["t", "q1", "q2", "tau1", "tau2"], [stamps, q, tau])
     with pytest.raises(RecordingError, match=r"column t must be strictly increasing.*line 3\b"):
         load_recording(path, 2)
+
+
+def test_a_bag_takes_the_units_of_columns_and_says_its_prefixes_are_not_used(tmp_path, caplog):
+    from tests.identification.recording_formats import joint_state_bag, smooth_signals
+
+    names = ["joint1", "joint2"]
+    signals = smooth_signals(names)
+    bag = joint_state_bag(tmp_path / "deg", names, signals, storage="mcap")
+    rec = load_recording(bag, 2, joint_names=names, layout=ColumnLayout.parse("q=q:deg,tau=tau:mNm"))
+    np.testing.assert_allclose(rec.q[:, 1], np.radians(signals["joint2"][0]), rtol=1e-12)
+    np.testing.assert_allclose(rec.tau[:, 0], 1e-3 * signals["joint1"][2], rtol=1e-12)
+    with caplog.at_level(logging.WARNING):
+        load_recording(bag, 2, joint_names=names, layout=ColumnLayout.parse("q=Position,tau=Effort"))
+    assert "prefixes are not used" in caplog.text
