@@ -29,6 +29,8 @@ VERDICTS = {
     "(see the drift findings of the fleet report)",
     "unexplained": "the validation error rose and the day's refit does not explain it: the diagnosis ran on the "
     "day's recordings",
+    "friction_drift": "the validation error rose, the day's refit does not explain all of it, and the refitted "
+    "Coulomb friction of every such joint left its window's: friction drift",
 }
 
 
@@ -59,6 +61,10 @@ def _check(result: SessionResult) -> list:
     out = [f"<p>Check against the window from {c.since}: <b>{c.verdict}</b>{joints}: {VERDICTS[c.verdict]}. "
            f"Largest statistic {c.statistic:.2f} (refit {c.refit_statistic:.2f}), critical value "
            f"{c.threshold:.2f}.</p>"]  # fmt: skip
+    if c.verdict == "friction_drift":
+        out.append("<h2>Friction drift</h2><ul>")
+        out += [f"<li>{html.escape(f.text)}</li>" for f in result.diagnosis]
+        out.append("</ul>")
     if c.verdict == "unexplained":
         if result.diagnosis_error:
             out.append(f'<p class="bad">The diagnosis did not run: {html.escape(result.diagnosis_error)}</p>')

@@ -66,6 +66,13 @@ WHERE k = 1 AND status = 'ok'
 """
 
 
+# a robot's window: its first ok days (from a day on, when given), parameters robot_id, since, days
+WINDOW = (
+    f"SELECT DISTINCT day FROM ({LATEST}) WHERE robot_id = ? "
+    "AND day >= coalesce(CAST(? AS DATE), DATE '0001-01-01') ORDER BY day LIMIT ?"
+)
+
+
 @dataclass(frozen=True)
 class ParameterRow:
     """One parameter of one robot-day as stored."""
@@ -319,10 +326,19 @@ class History:
         on, when given): the window its days' validation errors are judged against (``day_check``)."""
         return self.connection.execute(
             f"SELECT v.day, v.joint, v.rmse_baseline, v.rmse_refit FROM validation v "
-            f"JOIN ({LATEST}) l USING (robot_id, day, content_hash) WHERE v.robot_id = ? AND v.day IN ("
-            f"SELECT DISTINCT day FROM ({LATEST}) WHERE robot_id = ? "
-            f"AND day >= coalesce(CAST(? AS DATE), DATE '0001-01-01') ORDER BY day LIMIT ?) ORDER BY v.day, v.joint",
+            f"JOIN ({LATEST}) l USING (robot_id, day, content_hash) WHERE v.robot_id = ? AND v.day IN ({WINDOW}) "
+            f"ORDER BY v.day, v.joint",
             [robot_id, robot_id, since, days],
+        ).fetchall()
+
+    def window_parameters(self, robot_id: str, days: int, since=None, prefix: str = "fc") -> list:
+        """``(day, joint, value)`` of the parameters ``<prefix><joint>`` (default the Coulomb friction) on the same
+        window days as :meth:`window_rows`."""
+        return self.connection.execute(
+            f"SELECT p.day, p.joint, p.value FROM parameters p JOIN ({LATEST}) l USING (robot_id, day, content_hash) "
+            f"WHERE p.robot_id = ? AND p.day IN ({WINDOW}) AND p.name = ? || CAST(p.joint AS VARCHAR) "
+            f"ORDER BY p.day, p.joint",
+            [robot_id, robot_id, since, days, prefix],
         ).fetchall()
 
     def checks(self) -> list:

@@ -5,8 +5,8 @@ every tracked parameter that alarmed (or, for a quiet robot, its friction and th
 with its sigma band and the onset marker of each finding, the baseline model's validation RMSE per joint over the
 days (the cheapest drift signal), and the failed sessions with their errors. Plots, not walls of numbers: the page
 holds two plotly figures per robot. Each robot lists its days as links to each day's own page (``day_report``,
-beside the history), coloured by the day's validation-error check (window, quiet, explained, unexplained,
-failed), and what the automatic diagnosis named on the days whose error rose unexplained.
+beside the history), coloured by the day's validation-error check (window, quiet, explained, friction_drift,
+unexplained, failed), and what the automatic diagnosis named on the days whose error rose unexplained.
 """
 
 from __future__ import annotations
@@ -166,7 +166,8 @@ STYLE = (
     "padding:4px 8px;text-align:left;vertical-align:top}tr.alarm td{background:#fde2e2}tr.failed td{background:#fff4d6}"
     ".day{display:inline-block;padding:1px 4px;margin:1px;border-radius:3px;font-size:80%;text-decoration:none;"
     "color:#000}.window{background:#eee}.quiet{background:#dff0d8}.explained{background:#fcf8e3}"
-    ".unexplained{background:#f2dede;font-weight:bold}.failed{background:#f0ad4e}"
+    ".unexplained{background:#f2dede;font-weight:bold}.friction_drift{background:#fcf8e3;font-weight:bold}"
+    ".failed{background:#f0ad4e}"
 )
 
 

@@ -104,7 +104,8 @@ def robot_waves(ctx: RobotContext, planned: list, todo: list):
         rest = [t for t in mine if t.day not in window]
         if rest:
             rows = ctx.history.window_rows(ctx.entry.robot_id, ctx.window, since)
-            reference = error_reference(ctx.entry.robot_id, rows, ctx.check)
+            friction = ctx.history.window_parameters(ctx.entry.robot_id, ctx.window, since, "fc")
+            reference = error_reference(ctx.entry.robot_id, rows, ctx.check, friction)
             yield Wave(sessions=tuple((t, baseline, reference) for t in rest))
         remaining = [t for t in remaining if t not in mine]
         if end is not None:

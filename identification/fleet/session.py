@@ -9,11 +9,14 @@ moving) fails its own session: the result holds the error text and ``status = "f
 Given the robot's :class:`~identification.fleet.day_check.ErrorReference` (its baseline window's validation
 errors; the client passes it for the days after the window), the task also checks whether the day's error rose
 (``day_check``) and, when the refit does not explain the rise, runs the diagnosis on the day's recordings in the
-same task (``day_diagnosis``); its findings, or its error, come back in the result.
+same task (``day_diagnosis``); its findings, or its error, come back in the result. An unexplained rise on joints
+whose refitted Coulomb friction left the window's is named friction drift (``day_check.friction_changes``): a day
+whose every unexplained joint drifted is ``friction_drift`` and not diagnosed further.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -24,7 +27,8 @@ import numpy as np
 from identification.calibration.trajectory_data import prepare_recordings
 from identification.data.io import load_recording
 from identification.fleet.baseline import Baseline
-from identification.fleet.day_check import DayCheck, ErrorReference, check_day
+from identification.fleet.day_check import DayCheck, ErrorReference, FrictionChange, check_day, friction_changes
+from identification.fleet.day_diagnosis import DayFinding
 from identification.fleet.update import DayFit, refit_day
 from psdm_casadi.errors import PSDMError, RecordingError
 
@@ -72,7 +76,8 @@ class SessionResult:
     check : DayCheck or None
         The validation-error check (None without a reference: a baseline-window day).
     diagnosis : tuple of DayFinding
-        What the diagnosis named on an ``unexplained`` day (empty when it found nothing or did not run).
+        The friction drifts named on a day whose rise the refit does not explain, then what the diagnosis named on
+        an ``unexplained`` day (empty when it found nothing or did not run).
     diagnosis_error : str
         Why the diagnosis could not run on the day (its error text), else empty.
     """
@@ -129,6 +134,21 @@ def process_session(task: SessionTask, baseline: Baseline, model, reference: Err
     check, findings, error = None, (), ""
     if reference is not None:
         check = check_day(reference, fit.rmse_baseline, fit.rmse_refit)
+        drift = ()
+        if check.verdict == "unexplained":
+            drift = friction_changes(reference, fit.names, fit.values, check.joints)
+            if {c.joint for c in drift} == set(check.joints):  # every unexplained joint's friction moved
+                check = dataclasses.replace(check, verdict="friction_drift")
         if check.verdict == "unexplained" and reference.options.diagnose:
             findings, error = _diagnosis(task, baseline, model, prepared, currents, fit)
+        findings = tuple(_friction_finding(c, fit) for c in drift) + tuple(findings)
     return SessionResult(task, "ok", fit, "", time.perf_counter() - start, version, check, findings, error)
+
+
+def _friction_finding(change: FrictionChange, fit: DayFit) -> DayFinding:
+    """A friction drift as a finding of the day (its gain: the part of the baseline's error the refit removes)."""
+    j = change.joint - 1
+    gain = 1.0 - float(fit.rmse_refit[j]) / max(float(fit.rmse_baseline[j]), 1e-300)
+    parameters = {"relative_change_percent": change.relative_percent, "z": change.z}
+    return DayFinding("friction_drift", "Coulomb friction drift", (change.joint,), parameters, max(gain, 0.0),
+                      change.text)  # fmt: skip

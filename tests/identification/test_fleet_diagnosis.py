@@ -14,7 +14,7 @@ import duckdb
 import numpy as np
 import pytest
 
-from identification.fleet.day_check import CheckOptions, check_day, error_reference
+from identification.fleet.day_check import CheckOptions, check_day, error_reference, friction_changes
 from identification.fleet.day_report import day_report_path
 from identification.fleet.history import SCHEMA_VERSION, History
 from identification.fleet.layout import read_fleet
@@ -76,6 +76,43 @@ def test_an_unmodelled_event_is_diagnosed_and_healthy_robots_are_not(fleet_run):
     for _, _, effect, _, joints, parameters, gain, text in (d for d in diagnoses if d[0] == "r02"):
         assert (effect, joints) == ("torque_offset", str(offset["joint"])), text
         assert abs(parameters["offset"] - true_offset) < 0.1 * true_offset and gain > 0.5
+
+
+def test_a_friction_wear_day_the_refit_does_not_explain_names_the_friction_drift(fleet_run):
+    """Wear raises r01's static friction with its Coulomb friction (a hump the daily Coulomb-viscous refit does not
+    follow): the day's rise is not left "unexplained" but named on its joint with the size against the window."""
+    folder, truth, _, _ = fleet_run
+    wear = truth["events"][0]
+    with History(folder / "h.duckdb") as history:
+        checks = {(r[0], str(r[1])): r for r in history.checks()}
+        diagnoses = history.diagnoses()
+    wear_days = sorted(k for k in checks if k[0] == "r01" and k[1] >= wear["onset"])
+    assert all(checks[k][2] != "unexplained" for k in wear_days)
+    drifted = [k for k in wear_days if checks[k][2] == "friction_drift"]
+    assert wear_days[-1] in drifted, [checks[k] for k in wear_days]  # the last day: the full +50 %
+    assert {checks[k][2] for k in checks if k[0] != "r01"} <= {"quiet", "unexplained"}  # no drift elsewhere
+    named = [d for d in diagnoses if d[2] == "friction_drift"]
+    assert {(d[0], str(d[1])) for d in named} <= set(wear_days) and named
+    last = next(d for d in named if str(d[1]) == wear_days[-1][1])
+    assert last[4] == str(wear["joint"]) and last[5]["z"] > checks[wear_days[-1]][6]
+    assert abs(last[5]["relative_change_percent"] - 100 * wear["size"]) < 10, last  # the truth's ramp ends at +50 %
+    assert last[7].startswith(f"joint {wear['joint']} Coulomb friction +") and "gearbox wear" in last[7]
+    page = day_report_path(folder / "h.duckdb", "r01", wear_days[-1][1]).read_text()
+    assert "<b>friction_drift</b>" in page and "Coulomb friction +" in page
+
+
+def test_friction_changes_test_the_refitted_friction_against_the_window(rng):
+    """The window's log Coulomb friction scatters by 1 %: +20 % on a day is named with its size, +1 % is not, and a
+    joint without a window friction is not tested."""
+    days = [f"2026-10-{d + 1:02d}" for d in range(7)]
+    rows = [(day, j, 1.0, 1.0) for day in days for j in (1, 2)]
+    friction = [(day, 1, 2.0 * np.exp(0.01 * rng.standard_normal())) for day in days]
+    reference = error_reference("r", rows, CheckOptions(), friction)
+    changes = friction_changes(reference, ("fc1", "fc2"), (2.4, 5.0), (1, 2))
+    assert [c.joint for c in changes] == [1] and abs(changes[0].relative_percent - 20.0) < 2.0
+    assert changes[0].z > reference.threshold and "joint 1 Coulomb friction +2" in changes[0].text
+    assert friction_changes(reference, ("fc1",), (2.02,), (1,)) == ()
+    assert friction_changes(error_reference("r", rows), ("fc1",), (2.4,), (1,)) == ()  # no window friction
 
 
 def test_dask_runs_the_diagnosis_in_the_task_and_equals_serial(fleet_run, denso_model, tmp_path):
