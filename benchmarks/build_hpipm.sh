@@ -3,7 +3,8 @@
 # generated code was written for, and install them into PREFIX; then
 #   export PSDM_HPIPM_DIR=PREFIX
 # makes trajopt.mpc_rti.compile_rti (and benchmarks/mpc.py) link them instead of CasADi's portable
-# BLASFEO (TARGET_GENERIC). acados does the same for its HPIPM.
+# BLASFEO (TARGET_GENERIC). acados does the same for its HPIPM. `make hpipm` installs into psdm's cache
+# folder (trajopt.hpipm_c.hpipm_cache_folder), where compile_rti finds them without PSDM_HPIPM_DIR.
 #
 # Usage: sh benchmarks/build_hpipm.sh PREFIX [BLASFEO_TARGET] [HPIPM_TARGET]
 #   BLASFEO_TARGET: X64_INTEL_HASWELL (AVX2+FMA, default), X64_INTEL_SANDY_BRIDGE (AVX), GENERIC, ...

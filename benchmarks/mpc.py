@@ -8,8 +8,9 @@ closed loop against Pinocchio's aba integrated by RK4 with 4 substeps per interv
 - ``psdm_rti``: ours, the real-time iteration (``trajopt.mpc_rti``): one Gauss-Newton SQP step per
   interval from the shifted solution, the QP by HPIPM (Riccati interior point, at most
   ``--qp-iterations``), the PSDM dynamics and their derivatives through the inverse dynamics, all
-  one code-generated C function compiled with -O3 -march=native (``$PSDM_HPIPM_DIR``: link an HPIPM
-  and BLASFEO built for this CPU instead of CasADi's portable copies);
+  one code-generated C function compiled with -O3 -march=native (linking the HPIPM and BLASFEO built for
+  this CPU by ``make hpipm`` or named by ``$PSDM_HPIPM_DIR``, else CasADi's portable copies; the JSON's
+  ``hpipm_blasfeo`` says which);
 - ``psdm_sqp``: the previous path, CasADi's sqpmethod re-solving the NLP each interval (HPIPM QPs,
   at most ``--max-iter`` iterations, jit-compiled functions, Python around the solver);
 - ``crocoddyl_box_fddp``, ``crocoddyl_fddp`` (Panda): Crocoddyl's BoxFDDP (torque bounds) and FDDP
@@ -67,6 +68,7 @@ from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
+from trajopt.hpipm_c import hpipm_folders
 from trajopt.mpc import MPCOptions, build_mpc
 from trajopt.mpc_model import build_forward_dynamics_jacobian
 from trajopt.mpc_rti import QP_MODES, build_rti, compile_rti
@@ -241,6 +243,7 @@ def summary(rows, skipped, rti_options, args, dt, versions) -> dict:
             if args.model is None
             else f"calibrated model {args.model} (rigid body, friction, offsets; friction=False)"
         ),
+        hpipm_blasfeo=str(hpipm_folders()[1]),
         integrator=args.integrator,
         substeps=args.substeps,
         horizon=args.horizon,
@@ -284,7 +287,7 @@ def print_results(results) -> None:
         if r["crocoddyl_versions"]:
             print(f"  {r['crocoddyl_versions']}")
         load = f"load average {r['load_average']:.1f} on {os.cpu_count()} cores"
-        print(f"  {load}: wall times include waiting for other jobs")
+        print(f"  {load}: wall times include waiting for other jobs; HPIPM/BLASFEO from {r['hpipm_blasfeo']}")
 
 
 def missed_targets(results) -> list:

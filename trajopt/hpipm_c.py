@@ -1,5 +1,5 @@
-"""HPIPM inside the generated C of the real-time-iteration MPC: which HPIPM/BLASFEO it links, and a
-workspace kept from one call to the next.
+"""HPIPM inside the generated C of the real-time-iteration MPC: which HPIPM/BLASFEO it links (``make hpipm``'s
+build for this CPU when there is one), and a workspace kept from one call to the next.
 
 CasADi's generated HPIPM call (``casadi_hpipm_solve``) allocates HPIPM's dimensions, QP, solution,
 arguments and interior-point workspace with ``malloc`` on every call, zeroes them (HPIPM's
@@ -14,6 +14,7 @@ per loaded library: one thread at a time calls a compiled controller, as a contr
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 from pathlib import Path
@@ -21,6 +22,9 @@ from pathlib import Path
 import casadi as ca
 
 from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.model_cache import CACHE_ENV
+
+LOG = logging.getLogger(__name__)
 
 SOLVE_START = "int casadi_hpipm_solve("
 SOLVE_END = "   return d->return_status==0;\n}"
@@ -74,18 +78,57 @@ def _unexpected(detail: str) -> SolverError:
     )
 
 
-def hpipm_folders(hpipm_dir=None) -> tuple[Path, Path]:
-    """(include, lib) folders of the HPIPM and BLASFEO the C links against.
+def hpipm_cache_folder() -> Path:
+    """Where ``make hpipm`` installs BLASFEO and HPIPM built for this CPU: ``hpipm`` in psdm's cache folder
+    (``$PSDM_CACHE_DIR/hpipm`` when the variable is set)."""
+    override = os.environ.get(CACHE_ENV)
+    if override:
+        return Path(override).expanduser() / "hpipm"
+    import platformdirs
 
-    ``hpipm_dir`` (else ``$PSDM_HPIPM_DIR``) is an install prefix of both (``include/``, ``lib/``; static
-    libraries built with -fPIC are linked in, else the shared ones),
-    e.g. BLASFEO built for the machine's CPU (``TARGET=X64_INTEL_HASWELL``) as acados does; its
-    headers must be those CasADi's generated code was written for (HPIPM af3ca47, BLASFEO 0.1.4.2
-    for CasADi 3.7-3.8). By default CasADi's own copies, whose BLASFEO is the portable (generic) build.
+    return Path(platformdirs.user_cache_dir("psdm-casadi")) / "hpipm"
+
+
+def cpu_runs(folder: Path) -> str | None:
+    """None when this CPU runs the BLASFEO installed in ``folder``, else why not (its target's instructions)."""
+    target = folder / "include" / "blasfeo_target.h"
+    text = target.read_text() if target.exists() else ""
+    needed = [flag for flag in ("avx2", "fma", "avx") if f"TARGET_NEED_FEATURE_{flag.upper()} 1" in text]
+    flags = cpu_flags()
+    missing = [flag for flag in needed if flags is not None and flag not in flags]
+    return f"this CPU lacks {', '.join(missing)}" if missing else None
+
+
+def cpu_flags() -> set | None:
+    """The CPU's instruction-set flags (``/proc/cpuinfo``); None without that file (the build is then trusted)."""
+    try:
+        return set(Path("/proc/cpuinfo").read_text().split())
+    except OSError:
+        return None
+
+
+def hpipm_folders(hpipm_dir=None) -> tuple[Path, Path]:
+    """(include, lib) folders of the HPIPM and BLASFEO the C links against, and which was chosen is logged.
+
+    In order: ``hpipm_dir``, ``$PSDM_HPIPM_DIR``, the build of ``make hpipm`` in ``hpipm_cache_folder()``
+    when this CPU runs it, else CasADi's own copies, whose BLASFEO is the portable (generic) build: the
+    Panda's MPC step 1.3-1.6x slower (docs/results/benchmarks.md). A prefix holds ``include/`` and
+    ``lib/`` (static libraries built with -fPIC are linked in, else the shared ones), e.g. BLASFEO built for
+    the machine's CPU (``TARGET=X64_INTEL_HASWELL``) as acados does (``benchmarks/build_hpipm.sh``); its
+    headers must be those CasADi's generated code was written for (HPIPM af3ca47, BLASFEO 0.1.4.2 for
+    CasADi 3.7-3.8).
     """
     chosen = hpipm_dir or os.environ.get("PSDM_HPIPM_DIR")
     if not chosen:
+        cached = hpipm_cache_folder()
+        if (cached / "include" / "hpipm_d_ocp_qp_ipm.h").exists() and (cached / "lib").is_dir():
+            reason = cpu_runs(cached)
+            if reason is None:
+                LOG.info("HPIPM/BLASFEO built for this CPU: %s", cached)
+                return cached / "include", cached / "lib"
+            LOG.warning("not using the BLASFEO in %s (%s); CasADi's portable copy instead", cached, reason)
         folder = Path(ca.__file__).parent
+        LOG.info("HPIPM/BLASFEO: CasADi's portable copies (`make hpipm` builds them for this CPU)")
         return folder / "include", folder
     folder = Path(chosen)
     if not (folder / "include" / "hpipm_d_ocp_qp_ipm.h").exists() or not (folder / "lib").is_dir():

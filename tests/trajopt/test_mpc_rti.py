@@ -14,7 +14,7 @@ import pytest
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
-from trajopt.hpipm_c import persistent_workspace
+from trajopt.hpipm_c import hpipm_cache_folder, persistent_workspace
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, variable_bounds
 from trajopt.mpc_loop import build_pinocchio_plant, simulate_closed_loop
@@ -257,3 +257,24 @@ def test_generated_hpipm_call_of_another_shape_is_refused_not_patched_blindly():
     one_allocation = "int casadi_hpipm_solve(void) {\n    void *m = malloc(n);\n   return d->return_status==0;\n}"
     with pytest.raises(SolverError, match="differently than expected"):
         persistent_workspace(one_allocation)
+
+
+def test_make_hpipm_build_is_used_when_this_cpu_runs_it_else_casadis_copies(tmp_path, monkeypatch, caplog):
+    monkeypatch.delenv("PSDM_HPIPM_DIR", raising=False)
+    monkeypatch.setenv("PSDM_CACHE_DIR", str(tmp_path))
+    casadi_include, casadi_lib = hpipm_folders()  # nothing built: CasADi's portable copies
+    assert casadi_lib == Path(ca.__file__).parent
+    cached = hpipm_cache_folder()
+    assert cached == tmp_path / "hpipm"
+    (cached / "lib").mkdir(parents=True)
+    (cached / "include").mkdir()
+    (cached / "include" / "hpipm_d_ocp_qp_ipm.h").write_text("")
+    (cached / "include" / "blasfeo_target.h").write_text(
+        "#define TARGET_NEED_FEATURE_AVX2 1\n#define TARGET_NEED_FEATURE_FMA 1\n"
+    )
+    monkeypatch.setattr("trajopt.hpipm_c.cpu_flags", lambda: {"avx", "avx2", "fma"})
+    assert hpipm_folders() == (cached / "include", cached / "lib")
+    monkeypatch.setattr("trajopt.hpipm_c.cpu_flags", lambda: {"avx", "sse4_2"})  # a CPU without AVX2: not that build
+    with caplog.at_level("WARNING", logger="trajopt.hpipm_c"):
+        assert hpipm_folders() == (casadi_include, casadi_lib)
+    assert "lacks avx2, fma" in caplog.text
