@@ -17,7 +17,9 @@ one (``--recordings`` each; 2.9 % and 3.8 % of the arm's mass). Rows:
 Targets: unknown payload mass within 10 %, its centre of mass within 2 cm, every new payload named with its mass
 and no false alarm. ``--diagnose`` also runs ``psdm diagnose MODEL --train NEW1 --validate NEW2`` on two new
 loaded recordings (a few minutes) and reports its findings: the payload first (``diagnosis_payload_first``), its mass
-error against the truth (``diagnosis_payload_mass_error``, None when no payload is named), not a spring.
+error against the truth (``diagnosis_payload_mass_error``, None when no payload is named), not a spring; its centre of
+mass (``payload_com_m``) and the lags it did not name because friction the nominal model lacks explains them
+(``lags_not_named``, ``diagnosis.friction_rival``).
 
 ``--diagnose-lugre`` identifies the arm as ``psdm identify --friction lugre`` with the configurations said and runs
 the same diagnosis of that model with its own LuGre friction (``diagnosis_lugre_payload_mass_error``): a model whose
@@ -158,7 +160,9 @@ def diagnose_row(robot, model, calibrated, duration: float, seed: int) -> dict:
         "payload_first": bool(report.findings) and report.findings[0].effect == "payload",
         "payload_mass_kg": mass,
         "payload_mass_error": None if mass is None else abs(mass - UNKNOWN.mass) / UNKNOWN.mass,
+        "payload_com_m": com,
         "payload_com_error_m": None if com is None else float(np.linalg.norm(np.subtract(com, UNKNOWN.com))),
+        "lags_not_named": [text.split(" not named")[0] for text in report.dropped if " not named: " in text],
         "delay_found": any(f.effect == "delay" for f in report.findings),
         "spring_found": any(f.effect == "spring" for f in report.findings),
     }
