@@ -32,7 +32,7 @@ from identification.calibration.trajectory_data import (
     stribeck_derivative,
 )
 
-__all__ = ["STRIBECK_GRID", "StribeckColumns", "base_regressors", "fit_stribeck_velocity", "per_joint_regressors",
+__all__ = ["STRIBECK_GRID", "StribeckColumns", "base_regressors", "fit_stribeck_velocity", "row_buffers",
            "stribeck_equations", "stribeck_step",
            "stribeck_velocity_std"]  # fmt: skip
 
@@ -78,27 +78,37 @@ def base_regressors(model, prepared) -> list:
     ]  # fmt: skip
 
 
-def stribeck_equations(regressors, prepared, terms, inertia_joints, coulomb_velocity, extras) -> NormalEquations:
+def stribeck_equations(rows, prepared, terms, inertia_joints, coulomb_velocity, extras) -> NormalEquations:
     """Normal equations of ``[Y, D(vs), extra]`` (``extras`` one :class:`StribeckColumns` holding ``vs`` per
-    recording); ``regressors`` laid out per joint (:func:`per_joint_regressors`): the rows are built in the layout
-    of the Gram products, not transposed into it for every candidate ``vs``."""
+    recording) from :func:`row_buffers` ``rows``: the rows are laid out as the Gram products take them, and only the
+    columns after the base regressor, which depend on ``vs``, are written for each candidate ``vs``."""
     vs = extras[0].stribeck_velocity
     equations = None
-    for chunks, r, extra in zip(regressors, prepared, extras):
-        for k, rigid in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
+    for chunks, r, extra in zip(rows, prepared, extras):
+        for k, per_joint in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
             drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs)
-            blocks = [rigid, drive.transpose(1, 0, 2), extra.columns(q, qd, qdd).transpose(1, 0, 2)]
-            per_joint = np.concatenate(blocks, axis=2)
+            more = extra.columns(q, qd, qdd)
+            start = per_joint.shape[2] - drive.shape[2] - more.shape[2]
+            per_joint[:, :, start : start + drive.shape[2]] = drive.transpose(1, 0, 2)
+            per_joint[:, :, start + drive.shape[2] :] = more.transpose(1, 0, 2)
             if equations is None:
                 equations = NormalEquations(vs.size, per_joint.shape[2])
             equations.add_per_joint(per_joint, r.tau[k : k + CHUNK_SAMPLES])
     return equations
 
 
-def per_joint_regressors(regressors) -> list:
-    """The chunks of :func:`base_regressors` as (n_dof, n_samples, n_base) arrays."""
-    return [[np.ascontiguousarray(chunk.transpose(1, 0, 2)) for chunk in chunks] for chunks in regressors]
+def row_buffers(regressors, n_columns: int) -> list:
+    """Per chunk of :func:`base_regressors`, an (n_dof, n_samples, n_columns) array holding the base regressor in its
+    first columns (written once), the others for :func:`stribeck_equations` to fill."""
+    out = []
+    for chunks in regressors:
+        out.append([])
+        for chunk in chunks:
+            buffer = np.zeros((chunk.shape[1], chunk.shape[0], n_columns))
+            buffer[:, :, : chunk.shape[2]] = chunk.transpose(1, 0, 2)
+            out[-1].append(buffer)
+    return out
 
 
 def _solve(equations: NormalEquations) -> np.ndarray:
@@ -145,14 +155,15 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
     n_dof = prepared[0].n_dof
     terms, velocity = options.friction, options.coulomb_velocity
     names = drive_column_names(n_dof, terms, inertia_joints)
-    regressors = per_joint_regressors(base_regressors(model, prepared) if regressors is None else regressors)
-
+    regressors = base_regressors(model, prepared) if regressors is None else regressors
     extras = list(extra) if isinstance(extra, (list, tuple)) else [extra] * len(prepared)
+    n_columns = model.n_base + len(names) + len(StribeckColumns(velocity, np.ones(n_dof), extras[0]).names)
+    rows = row_buffers(regressors, n_columns)
 
     def solve(vs):
         """(augmented estimate with the derivative coefficients, per-joint relative residual without them)."""
         columns = [StribeckColumns(velocity, vs, e) for e in extras]
-        equations = stribeck_equations(regressors, prepared, terms, inertia_joints, velocity, columns)
+        equations = stribeck_equations(rows, prepared, terms, inertia_joints, velocity, columns)
         plain = equations.subset(range(equations.n_columns - n_dof))
         return _solve(equations), plain.residual_sum(_solve(plain)) / np.maximum(plain.energy, 1e-300)
 

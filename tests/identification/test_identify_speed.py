@@ -18,14 +18,17 @@ from tests.identification.test_column_choice import OFFSET, synthetic
 
 
 def plain_accumulate(regressors, prepared, terms, inertia_joints, coulomb_velocity, extras):
-    """The normal equations of ``[Y, D(vs), extra]`` from the rows as ``NormalEquations.add`` takes them."""
+    """The normal equations of ``[Y, D(vs), extra]`` from the rows as ``NormalEquations.add`` takes them (the base
+    regressor read from the first columns of ``stribeck.row_buffers``)."""
     vs, equations = extras[0].stribeck_velocity, None
     for chunks, r, extra in zip(regressors, prepared, extras):
         for k, per_joint in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
             drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs)
-            rigid = per_joint.transpose(1, 0, 2)  # back to (n_samples, n_dof, n_base)
-            columns = np.concatenate([rigid, drive, extra.columns(q, qd, qdd)], axis=2)
+            more = extra.columns(q, qd, qdd)
+            n_base = per_joint.shape[2] - drive.shape[2] - more.shape[2]
+            rigid = per_joint.transpose(1, 0, 2)[:, :, :n_base]  # the base regressor, (n_samples, n_dof, n_base)
+            columns = np.concatenate([rigid, drive, more], axis=2)
             equations = equations or NormalEquations(vs.size, columns.shape[2])
             equations.add(columns, r.tau[k : k + CHUNK_SAMPLES])
     return equations
@@ -52,8 +55,9 @@ def denso_recordings(denso):
 
 def test_the_stribeck_rows_built_per_joint_give_the_same_sums(denso, denso_model, denso_recordings):
     ready = prepare_recording(denso_recordings[0])[0]
-    regressors = stribeck.per_joint_regressors(stribeck.base_regressors(denso_model, [ready]))
     terms = ("fc", "fs", "fv", "offset")
+    n_columns = denso_model.n_base + 4 * 6 + 1 + 6
+    regressors = stribeck.row_buffers(stribeck.base_regressors(denso_model, [ready]), n_columns)
     for vs in ([0.1, 0.0, 0.2, 0.05, 1.0, 0.0], [0.02] * 6):
         at = [stribeck.StribeckColumns(0.01, np.array(vs))]
         fast = stribeck.stribeck_equations(regressors, [ready], terms, [3], 0.01, at)
