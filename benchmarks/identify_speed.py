@@ -30,13 +30,13 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import subprocess
 import sys
 import tempfile
 import time
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +49,7 @@ ROBOTS = ("denso", "panda", "arm12")
 TARGET_RELATIVE = 1e-9
 
 
-@contextmanager
+@contextlib.contextmanager
 def timed(stages: dict, name: str):
     wall, cpu = time.perf_counter(), time.process_time()
     yield
@@ -148,6 +148,16 @@ def run_case(robot, sources, read) -> dict:
     }
 
 
+def command_scope():
+    """What ``psdm identify`` runs inside: the regressor memory of one command (``state_cache.remembering``; a
+    revision without it: nothing)."""
+    try:
+        from psdm_casadi.state_cache import remembering
+    except ImportError:
+        return contextlib.nullcontext()
+    return remembering()
+
+
 def measure(robots, data_root: Path) -> dict:
     from psdm_casadi.cli.blas_threads import blas_thread_limit
 
@@ -156,7 +166,11 @@ def measure(robots, data_root: Path) -> dict:
         for name in robots:
             case = {"denso": lambda: denso_case(Path(tmp)), "panda": lambda: panda_case(data_root),
                     "arm12": arm12_case}[name]()  # fmt: skip
-            out[name] = {"skipped": "data absent"} if case is None else run_case(*case)
+            if case is None:
+                out[name] = {"skipped": "data absent"}
+                continue
+            with command_scope():
+                out[name] = run_case(*case)
     return out
 
 

@@ -6,22 +6,53 @@ Stribeck-velocity fit, the normal equations, the residual's correlation time, th
 shape), up to a byte budget (least recently used first out), and hands out copies, so a caller that changes its
 array changes nothing here. Series shorter than ``min_samples`` are not kept: hashing them costs more than it
 saves.
+
+The memory is on only inside :func:`remembering` (``psdm identify`` and ``identify_trajectories`` / ``choose_columns``
+open it) and is emptied when the outermost such block ends: a long-running process that streams recordings through
+the regressor once each (the fleet's workers) holds nothing, and a command holds its recordings' regressors only
+while it runs.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import hashlib
 import threading
+import weakref
 from collections import OrderedDict
 
 import numpy as np
 
-__all__ = ["CACHE_BYTES", "MIN_SAMPLES", "StateCache"]
+__all__ = ["CACHE_BYTES", "MIN_SAMPLES", "StateCache", "remembering"]
 
-#: Bytes of results a cache holds at most (about 40 Panda recordings of 2,900 prepared samples).
-CACHE_BYTES = 256 << 20
+#: Bytes of results a cache holds at most (about 18 Panda recordings of 2,900 prepared samples, 5 of the 12-joint arm).
+CACHE_BYTES = 128 << 20
 #: Shortest series kept.
 MIN_SAMPLES = 64
+
+
+#: How many :func:`remembering` blocks are open in this context, and the caches that stored something in them.
+_DEPTH = contextvars.ContextVar("psdm_state_cache_depth", default=0)
+_USED = weakref.WeakSet()
+_USED_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def remembering():
+    """A block inside which regressors of series evaluated before come from memory; the memory is emptied when the
+    outermost block ends."""
+    token = _DEPTH.set(_DEPTH.get() + 1)
+    try:
+        yield
+    finally:
+        _DEPTH.reset(token)
+        if _DEPTH.get() == 0:
+            with _USED_LOCK:
+                caches = list(_USED)
+                _USED.clear()
+            for cache in caches:
+                cache.clear()
 
 
 class StateCache:
@@ -45,7 +76,7 @@ class StateCache:
 
     def get(self, compute, *arrays) -> np.ndarray:
         """``compute(*arrays)``, from memory when the same states were evaluated before (a copy either way)."""
-        if arrays[0].shape[0] < self.min_samples:
+        if arrays[0].shape[0] < self.min_samples or _DEPTH.get() == 0:
             return compute(*arrays)
         key = self.key(*arrays)
         with self._lock:
@@ -59,6 +90,8 @@ class StateCache:
                 if key not in self._entries:
                     self._entries[key] = value.copy()
                     self._bytes += value.nbytes
+                    with _USED_LOCK:
+                        _USED.add(self)
                 while self._bytes > self.max_bytes:
                     _, dropped = self._entries.popitem(last=False)
                     self._bytes -= dropped.nbytes

@@ -59,6 +59,7 @@ from identification.calibration.trajectory_data import (
 from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints, torque_constants
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.state_cache import remembering
 
 __all__ = ["FRICTION_CHOICES", "SWITCH_CHOICES", "ColumnChoice", "ColumnRequest", "Evidence", "choose_columns"]
 
@@ -359,6 +360,7 @@ def _weights(total, training) -> tuple:
     return 1.0 / sigma**2, np.maximum(total.count / tau, 2.0)
 
 
+@remembering()  # the recordings' regressors evaluated once (state_cache)
 def choose_columns(robot, model, recordings, options=None, request=None, validation=(), configurations=None):
     """The drive columns the recordings want (module docstring); explicit choices of ``request`` are kept.
 

@@ -69,6 +69,7 @@ from identification.calibration.trajectory_data import (
 )
 from identification.data.missing_torque import find_missing_torque, missing_torque_messages
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.state_cache import remembering
 
 __all__ = [
     "IPOPT_OPTIONS",
@@ -270,6 +271,7 @@ def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) 
     return model.inverse_dynamics(q, qd, qdd, theta) + columns @ drive
 
 
+@remembering()  # the recordings' regressors evaluated once (state_cache)
 def identify_trajectories(
     robot, model, recordings, options: TrajectoryOptions | None = None, extra=None, configurations=None
 ) -> TrajectoryFit:

@@ -26,6 +26,7 @@ from psdm_casadi.cli.checks import (
 from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.state_cache import remembering
 
 MASS_CHECK_CONFIGURATIONS = 2000
 FRICTION_SHAPES = ("auto", "coulomb-viscous", "stribeck", "lugre")  # column_choice.FRICTION_CHOICES
@@ -110,6 +111,7 @@ def add_arguments(p) -> None:
     add_topic_argument(p)
 
 
+@remembering()  # the recordings' regressors evaluated once (state_cache)
 def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
     from identification.calibration.envelope import check_ratio

@@ -10,7 +10,7 @@ from psdm_casadi import model as model_module
 from psdm_casadi import monomials
 from psdm_casadi.monomials import MonomialTree
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.state_cache import StateCache
+from psdm_casadi.state_cache import StateCache, remembering
 
 
 def plain_functions(exponents, gamma):
@@ -68,17 +68,23 @@ def test_a_series_evaluated_again_comes_from_memory_as_a_copy(denso_model):
         return denso_model._evaluate_regressor(*arrays)
 
     cache = StateCache()
-    first = cache.get(compute, q, qd, qdd)
-    first[:] = 0.0  # the caller's copy: the memory keeps the result
-    again = cache.get(compute, q, qd, qdd)
-    assert len(calls) == 1 and np.array_equal(again, denso_model._evaluate_regressor(q, qd, qdd))
-    q2 = q.copy()
-    q2[50, 3] += 1e-12  # other states: evaluated
-    cache.get(compute, q2, qd, qdd)
-    assert len(calls) == 2
-    cache.get(compute, q[:10], qd[:10], qdd[:10])  # short series are not kept
-    cache.get(compute, q[:10], qd[:10], qdd[:10])
-    assert len(calls) == 4
+    cache.get(compute, q, qd, qdd)
+    cache.get(compute, q, qd, qdd)  # outside a remembering block nothing is kept
+    assert len(calls) == 2 and not cache._entries
+    with remembering():
+        first = cache.get(compute, q, qd, qdd)
+        first[:] = 0.0  # the caller's copy: the memory keeps the result
+        with remembering():
+            again = cache.get(compute, q, qd, qdd)
+        assert len(calls) == 3 and np.array_equal(again, denso_model._evaluate_regressor(q, qd, qdd))
+        q2 = q.copy()
+        q2[50, 3] += 1e-12  # other states: evaluated
+        cache.get(compute, q2, qd, qdd)
+        assert len(calls) == 4
+        cache.get(compute, q[:10], qd[:10], qdd[:10])  # short series are not kept
+        cache.get(compute, q[:10], qd[:10], qdd[:10])
+        assert len(calls) == 6 and len(cache._entries) == 2
+    assert not cache._entries and cache._bytes == 0  # emptied when the outermost block ends
 
 
 def test_the_memory_stays_within_its_budget_and_is_not_pickled(denso_model):
@@ -86,11 +92,13 @@ def test_the_memory_stays_within_its_budget_and_is_not_pickled(denso_model):
     size = denso_model._evaluate_regressor(*rng.normal(size=(3, 100, 6))).nbytes
     cache = StateCache(max_bytes=2 * size)
     series = [rng.normal(size=(3, 100, 6)) for _ in range(3)]
-    for states in series:
-        cache.get(denso_model._evaluate_regressor, *states)
-    assert cache._bytes <= 2 * size and len(cache._entries) == 2
-    assert StateCache.key(*series[0]) not in cache._entries  # the least recently used went first
-    copy = pickle.loads(pickle.dumps(denso_model))
+    with remembering():
+        for states in series:
+            cache.get(denso_model._evaluate_regressor, *states)
+        assert cache._bytes <= 2 * size and len(cache._entries) == 2
+        assert StateCache.key(*series[0]) not in cache._entries  # the least recently used went first
+        denso_model.regressor(*series[1])
+        copy = pickle.loads(pickle.dumps(denso_model))
     assert len(copy._regressor_cache._entries) == 0 and np.array_equal(
         copy.regressor(*series[1]), denso_model.regressor(*series[1])
     )
