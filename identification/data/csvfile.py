@@ -13,6 +13,7 @@ looked up only when a message needs one.
 
 from __future__ import annotations
 
+import logging
 import warnings
 from pathlib import Path
 from typing import NoReturn
@@ -21,8 +22,10 @@ import numpy as np
 
 from identification.data.layout import ColumnLayout, check_standard_header
 from identification.data.table import ColumnTable
+from identification.data.units import header_unit
 from psdm_casadi.errors import RecordingError
 
+logger = logging.getLogger(__name__)
 _HEAD_BYTES = 1 << 16  # bytes inspected to tell text from binary data
 _DELIMITERS = {",": "','", ";": "';'", "\t": "tab", None: "blanks"}
 _SIGNATURES = (  # leading bytes of formats a recording is mistaken for, and what to do with them
@@ -117,6 +120,15 @@ def _header_names(source: str, text: str, number: int, delimiter: str | None) ->
     return names
 
 
+def _stated_units(source: str, names: tuple, data: np.ndarray) -> tuple:
+    """The header's names without the units they state (``q1 [deg]`` -> ``q1``), and the data in SI."""
+    pairs = [header_unit(source, name) for name in names]
+    factors = np.array([factor for _, factor in pairs])
+    if np.all(factors == 1.0):
+        return tuple(name for name, _ in pairs), data
+    return tuple(name for name, _ in pairs), data * factors
+
+
 def _open_text(path: Path, encoding: str):
     return open(path, encoding=encoding, errors="replace", newline=None)
 
@@ -134,6 +146,25 @@ def _load_rows(path: Path, encoding: str, header_line: int, delimiter: str | Non
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # "input contained no data": refused by the caller
             return np.loadtxt(rows, dtype=float, delimiter=delimiter, comments="#", ndmin=2)
+
+
+def _decimal_comma_rows(path: Path, encoding: str, header_line: int, delimiter: str | None):
+    """The samples of a file separated by ``;`` or tabs whose numbers have a decimal comma (``0,5``, as a spreadsheet
+    in a European locale writes), or None when it is not one (the comma cannot be a decimal mark beside ``,``)."""
+    if delimiter not in (";", "\t"):
+        return None
+    with _open_text(path, encoding) as handle:
+        for _ in zip(range(header_line), handle):
+            pass
+        rows = (line.replace(",", ".") for line in handle if _is_data_line(line))
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                data = np.loadtxt(rows, dtype=float, delimiter=delimiter, comments="#", ndmin=2)
+        except ValueError:
+            return None
+    logger.info("%s: numbers with a decimal comma read as decimals", path.name)
+    return data
 
 
 def _data_lines(path: Path, encoding: str, header_line: int):
@@ -229,11 +260,14 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
         try:  # lines of blanks or indented comments trip numpy's parser: drop them and parse again
             data = _load_rows(path, encoding, header_line, delimiter, filtered=True)
         except ValueError as exc:
-            _explain_parse_error(path, encoding, header_line, names, delimiter, str(exc))
+            data = _decimal_comma_rows(path, encoding, header_line, delimiter)
+            if data is None:
+                _explain_parse_error(path, encoding, header_line, names, delimiter, str(exc))
     if data.shape[0] and data.shape[1] != len(names):
         _explain_parse_error(path, encoding, header_line, names, delimiter, f"{data.shape[1]} columns")
     if data.shape[0] == 0:
         data = np.empty((0, len(names)))
+    names, data = _stated_units(source, names, data)
     locate = _locator(path, encoding, header_line)
     if layout is None:
         data.setflags(write=False)  # handed over to the table without a copy

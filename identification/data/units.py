@@ -2,18 +2,20 @@
 
 A log states positions in degrees, torques in mN m or time in milliseconds as often as in SI. The user says
 so once, beside the column group (``--columns t=Time:ms,q=AxisPos_A:deg,tau=MotorTorque_A:mNm``), and every
-command reads the file in SI; a unit that does not belong to the signal is refused with the ones that do.
+command reads the file in SI; a unit that does not belong to the signal is refused with the ones that do. A CSV
+header that states its units (``t [s]``, ``q1 [deg]``, ``tau1 (mNm)``) is read the same way (:func:`header_unit`).
 """
 
 from __future__ import annotations
 
 import math
+import re
 
 import numpy as np
 
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["UNITS", "si_factor", "to_si"]
+__all__ = ["UNITS", "header_unit", "si_factor", "to_si"]
 
 _ANGLE = {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3, "m": 1.0, "mm": 1e-3}
 _TORQUE = {"Nm": 1.0, "mNm": 1e-3, "kNm": 1e3, "N": 1.0}
@@ -26,6 +28,36 @@ UNITS = {
     "tau": _TORQUE,
     "i": {"A": 1.0, "mA": 1e-3},
 }
+
+
+_HEADER_UNIT = re.compile(r"^(.*?\S)\s*[\[(]\s*([^\])]*?)\s*[\])]$")
+#: Every unit a header may state, by its factor to SI (a unit names its dimension, whatever the column).
+_ANY_UNIT = {
+    **{u: f for table in UNITS.values() for u, f in table.items()},
+    "°": math.pi / 180.0, "degree": math.pi / 180.0, "degrees": math.pi / 180.0, "radian": 1.0, "radians": 1.0,
+    "sec": 1.0, "msec": 1e-3, "rad/s^2": 1.0, "deg/s^2": math.pi / 180.0, "Nm": 1.0,
+}  # fmt: skip
+
+
+def header_unit(source: str, name: str) -> tuple:
+    """``(name, factor to SI)`` of a header field that may state its unit: ``q1 [deg]`` -> ``("q1", pi/180)``,
+    ``t (ms)`` -> ``("t", 1e-3)``, ``q1`` -> ``("q1", 1.0)``.
+
+    Raises
+    ------
+    RecordingError
+        For a bracketed suffix that is not a unit (naming the column and the units there are).
+    """
+    match = _HEADER_UNIT.match(name)
+    if match is None:
+        return name, 1.0
+    unit = match.group(2).replace(" ", "").replace("·", "").replace("*", "")
+    if unit not in _ANY_UNIT:
+        raise RecordingError(
+            f"{source}: column {name!r} states {match.group(2)!r}, which is not a unit psdm reads (s, ms, rad, deg, "
+            f"m, mm, N m, mN m, kN m, A, mA, rad/s, ...). Write the unit in SI or one of those, or rename the column."
+        )
+    return match.group(1), _ANY_UNIT[unit]
 
 
 def si_factor(signal: str, unit: str) -> float:

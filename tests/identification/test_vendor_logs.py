@@ -246,3 +246,24 @@ def test_a_bag_takes_the_units_of_columns_and_says_its_prefixes_are_not_used(tmp
     with caplog.at_level(logging.WARNING):
         load_recording(bag, 2, joint_names=names, layout=ColumnLayout.parse("q=Position,tau=Effort"))
     assert "prefixes are not used" in caplog.text
+
+
+def test_units_stated_in_the_header_and_decimal_commas_are_read_in_si(tmp_path):
+    t, q, tau = _signals(n=50)
+    header = ["t [ms]", "q1 [deg]", "q2 (deg)", "tau1 [mN m]", "tau2 [Nm]"]
+    path = _write(tmp_path / "units.csv", header, [1000.0 * t, np.degrees(q), np.column_stack([1e3 * tau[:, 0],
+                                                                                              tau[:, 1]])])  # fmt: skip
+    rec = load_recording(path, 2)
+    np.testing.assert_allclose(rec.t, t, atol=1e-9)
+    np.testing.assert_allclose(rec.q, q, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(rec.tau, tau, rtol=1e-10)
+    (tmp_path / "label.csv").write_text("t,q1,tau1 (J1)\n0,0,0\n1,0,0\n2,0,0\n")
+    with pytest.raises(RecordingError, match=r"column 'tau1 \(J1\)' states 'J1', which is not a unit"):
+        load_recording(tmp_path / "label.csv", 1)
+    lines = ["t;q1;q2;tau1;tau2"] + [
+        ";".join(f"{v:.9f}".replace(".", ",") for v in row) for row in np.column_stack([t, q, tau])
+    ]  # a spreadsheet's export in a European locale
+    (tmp_path / "excel.csv").write_text("\n".join(lines) + "\n")
+    rec = load_recording(tmp_path / "excel.csv", 2)
+    np.testing.assert_allclose(rec.q, q, atol=1e-9)
+    np.testing.assert_allclose(rec.tau, tau, atol=1e-9)
