@@ -157,7 +157,9 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
     names = drive_column_names(n_dof, terms, inertia_joints)
     regressors = base_regressors(model, prepared) if regressors is None else regressors
     extras = list(extra) if isinstance(extra, (list, tuple)) else [extra] * len(prepared)
-    n_columns = model.n_base + len(names) + len(StribeckColumns(velocity, np.ones(n_dof), extras[0]).names)
+    first = prepared[0]  # the extra columns as computed (an unknown payload's block has columns but no names)
+    probe = StribeckColumns(velocity, np.ones(n_dof), extras[0]).columns(first.q[:1], first.qd[:1], first.qdd[:1])
+    n_columns = model.n_base + len(names) + probe.shape[2]
     rows = row_buffers(regressors, n_columns)
 
     def solve(vs):
