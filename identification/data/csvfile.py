@@ -14,7 +14,9 @@ looked up only when a message needs one.
 from __future__ import annotations
 
 import logging
+import re
 import warnings
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import NoReturn
 
@@ -167,6 +169,38 @@ def _decimal_comma_rows(path: Path, encoding: str, header_line: int, delimiter: 
     return data
 
 
+_CLOCK = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?$")
+
+
+def _clock(field: str) -> datetime:
+    stamp = datetime.fromisoformat(field.strip().strip('"'))
+    return stamp if stamp.tzinfo else stamp.replace(tzinfo=timezone.utc)
+
+
+def _clock_time_rows(path: Path, encoding: str, header_line: int, delimiter: str | None):
+    """The samples of a file whose time column holds ISO 8601 date-times (``2026-12-05T04:13:29.123``, as pandas and
+    many loggers write), that column as seconds from the first; None when no column of the first row is one."""
+    with _open_text(path, encoding) as handle:
+        lines = [_content(line) for number, line in enumerate(handle, start=1) if number > header_line]
+    lines = [line for line in lines if line]
+    if not lines:
+        return None
+    first = [f.strip('"') for f in _split_fields(lines[0], delimiter)]
+    clock = [k for k, f in enumerate(first) if _CLOCK.match(f)]
+    if len(clock) != 1:
+        return None
+    try:
+        rows = [_split_fields(line, delimiter) for line in lines]
+        origin = _clock(rows[0][clock[0]])  # seconds from the first stamp: exact, where Unix seconds lose digits
+        k0 = clock[0]
+        data = np.array([[(_clock(f) - origin).total_seconds() if k == k0 else float(f) for k, f in enumerate(r)]
+                         for r in rows])  # fmt: skip
+    except ValueError:
+        return None
+    logger.info("%s: column %d holds date-times; read as seconds", path.name, clock[0] + 1)
+    return data if data.ndim == 2 else None
+
+
 def _data_lines(path: Path, encoding: str, header_line: int):
     """``(line number, content)`` of every data line after the header (the slow path, for messages)."""
     with _open_text(path, encoding) as handle:
@@ -261,6 +295,7 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
             data = _load_rows(path, encoding, header_line, delimiter, filtered=True)
         except ValueError as exc:
             data = _decimal_comma_rows(path, encoding, header_line, delimiter)
+            data = _clock_time_rows(path, encoding, header_line, delimiter) if data is None else data
             if data is None:
                 _explain_parse_error(path, encoding, header_line, names, delimiter, str(exc))
     if data.shape[0] and data.shape[1] != len(names):

@@ -155,6 +155,21 @@ def _joint_count_fix(n: int, n_dof: int, joint_names=None) -> str:
     return f"Load it with the robot it was recorded on, or remove the columns of joints {n_dof + 1}..{n}."
 
 
+#: Names a file gives its time column (compared in lower case), read as ``t`` when the file has no ``t``.
+TIME_NAMES = ("time", "timestamp", "stamp", "times", "time_s", "t_s", "sec", "seconds")
+
+
+def _time_named_t(table: ColumnTable) -> ColumnTable:
+    """The table with its one time-like column (``time``, ``Timestamp``, ...) named ``t`` when it has no ``t``."""
+    found = [k for k, n in enumerate(table.names) if n.lower() in TIME_NAMES]
+    if "t" in table.names or len(found) != 1:
+        return table
+    names = list(table.names)
+    logger.info("%s: column %s read as the time t [s]", table.source, names[found[0]])
+    names[found[0]] = "t"
+    return ColumnTable(source=table.source, names=tuple(names), data=table.data, locate=table.locate)
+
+
 def recording_from_table(
     table: ColumnTable, n_dof: int | None = None, sample_rate: float | None = None, joint_names=None
 ) -> Recording:
@@ -172,6 +187,7 @@ def recording_from_table(
         ``t`` column and no ``sample_rate``.
     """
     source = table.source
+    table = _time_named_t(table)
     check_standard_header(source, table.names)  # a controller's own column groups: name the --columns to give
     if "t" not in table.names and sample_rate is None:
         raise RecordingError(

@@ -129,8 +129,8 @@ ENCODING_AND_LAYOUT = [
         "not a number",
     ),
     train(
-        "semicolons with decimal commas",
-        csv_text(sep=";", rows=[[c.replace(".", ",") for c in r] for r in cells()]),
+        "semicolons with decimal commas and a cell that is not a number",  # decimal commas alone are read
+        csv_text(sep=";", rows=[[c.replace(".", ",") for c in r] for r in cells()], edit={(5, "tau1"): "n/a"}),
         "line 3",
         "decimal comma",
         "0.5, not 0,5",
@@ -180,7 +180,7 @@ NUMBERS = [
 ]
 
 COLUMNS = [
-    train("no time column", csv_text(header=["time"] + HEADER[1:]), "column t is missing", "add a time column"),
+    train("no time column", csv_text(header=["clock"] + HEADER[1:]), "column t is missing", "add a time column"),
     train(
         "BOM, semicolons and a NaN (read up to the NaN)",
         "\ufeff" + csv_text(sep=";", edit={(2, "q3"): "nan"}),

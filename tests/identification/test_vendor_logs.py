@@ -267,3 +267,15 @@ def test_units_stated_in_the_header_and_decimal_commas_are_read_in_si(tmp_path):
     rec = load_recording(tmp_path / "excel.csv", 2)
     np.testing.assert_allclose(rec.q, q, atol=1e-9)
     np.testing.assert_allclose(rec.tau, tau, atol=1e-9)
+
+
+def test_a_time_column_of_iso_date_times_named_time_is_read_in_seconds(tmp_path):
+    t, q, tau = _signals(n=50)
+    start = np.datetime64("2026-12-05T04:13:29.000")
+    stamps = [str(start + np.timedelta64(int(round(1e6 * s)), "us")) for s in t]  # pandas' to_csv of a time index
+    lines = ["time,q1,q2,tau1,tau2"] + [f"{s},{a:.12g},{b:.12g},{c:.12g},{d:.12g}" for s, (a, b, c, d)
+                                         in zip(stamps, np.column_stack([q, tau]))]  # fmt: skip
+    (tmp_path / "pandas.csv").write_text("\n".join(lines) + "\n")
+    rec = load_recording(tmp_path / "pandas.csv", 2)
+    np.testing.assert_allclose(rec.t, t, atol=1e-9)
+    np.testing.assert_allclose(rec.q, q, rtol=1e-11)
