@@ -21,7 +21,9 @@ recording under two names) run on a copy of a few robots: ``faults`` says what w
 The machine is shared: the 1-minute load average before and after each timed run stands beside the throughput
 (``load_average``); with a load above the core count the wall-clock ``scaling_efficiency`` measures the other jobs
 as much as the fleet, so ``scaling_efficiency_cpu`` (the workers' CPU seconds per recording, 1 worker over 2) is
-given too: it shows the work the parallel run adds, whatever the load.
+given too: it shows the work the parallel run adds, whatever the load. ``client_cpu_seconds`` is the client's
+(it writes the history in batches and runs the LocalCluster's scheduler, on the workers' cores) and
+``worker_blas_threads`` the BLAS threads a worker may use (one with 1 and with 2 workers: Dask's nanny sets it).
 
     python benchmarks/fleet.py [--robots 20] [--days 30] [--duration 6] [--json]
 """
@@ -114,15 +116,26 @@ def score(findings: list, truth: dict, start: str) -> dict:
     }
 
 
+def _blas_threads() -> int:
+    """The most threads any BLAS or OpenMP pool of this process may use."""
+    from threadpoolctl import threadpool_info
+
+    return max((pool["num_threads"] for pool in threadpool_info()), default=1)
+
+
 def _timed_run(fleet, db: Path, workers: int, derive) -> tuple:
-    """(summary, peak MB of the workers, their CPU seconds, load before and after) of a run on a new cluster."""
+    """(summary, peak MB of the workers, their CPU seconds, load before and after, the client's CPU seconds (its
+    main thread and the scheduler's, which a LocalCluster runs in this process), the workers' BLAS threads) of a
+    run on a new cluster."""
     with dask_client(workers=workers) as client:
         cpu = sum(client.run(_cpu_seconds).values())
-        load = _load()
+        load, own = _load(), _cpu_seconds()
         summary = run_fleet(fleet, db, derive=derive, client=client)
+        own = _cpu_seconds() - own
         peaks = client.run(_peak_mb)
         cpu = sum(client.run(_cpu_seconds).values()) - cpu
-    return summary, max(peaks.values()), cpu, [load, _load()]
+        blas = max(client.run(_blas_threads).values())
+    return summary, max(peaks.values()), cpu, [load, _load()], own, blas
 
 
 def _projection(folder: Path, derive) -> dict:
@@ -176,19 +189,21 @@ def run(args) -> dict:
     fleet = read_fleet(out / "fleet")
     derive = SharedModels(ModelCache().derive)
     n = fleet.n_sessions
-    rpm, peaks, summaries, cpu, loads = {}, {}, {}, {}, {}
+    rpm, peaks, summaries, cpu, loads, client_cpu, blas = {}, {}, {}, {}, {}, {}, {}
     for workers in args.workers:
         db = out / f"history_{workers}.duckdb"
         db.unlink(missing_ok=True)
-        summary, peak, cpu_seconds, load = _timed_run(fleet, db, workers, derive)
+        summary, peak, cpu_seconds, load, own, threads = _timed_run(fleet, db, workers, derive)
         rpm[str(workers)] = round(60.0 * n / summary.seconds, 1)
         peaks[str(workers)] = round(peak, 1)
         cpu[str(workers)] = round(cpu_seconds / n, 3)
         loads[str(workers)] = load
+        client_cpu[str(workers)] = round(own, 2)
+        blas[str(workers)] = threads
         summaries[workers] = summary
     last = max(args.workers)
     db = out / f"history_{last}.duckdb"
-    rerun, _, _, _ = _timed_run(fleet, db, last, derive)
+    rerun = _timed_run(fleet, db, last, derive)[0]
     with History(db) as history:
         findings = [DriftFinding(*row) for row in history.findings()]
     scores = score(findings, truth, options.start)
@@ -218,6 +233,9 @@ def run(args) -> dict:
         "scaling_efficiency": efficiency,
         "scaling_efficiency_cpu": cpu_efficiency,
         "worker_cpu_seconds_per_recording": cpu,
+        "client_cpu_seconds": client_cpu,
+        "worker_blas_threads": blas,
+        "run_seconds": {str(w): round(summaries[w].seconds, 2) for w in args.workers},
         "load_average": loads,
         "cores": os.cpu_count(),
         "peak_mb_per_worker": max(peaks.values()),

@@ -104,10 +104,43 @@ def dask_client(workers: int | None = None, scheduler: str | None = None):
             client.close()
         return
     n = workers or os.cpu_count() or 1
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0") as cluster:
-        with Client(cluster) as client:
-            client.run(import_task_modules)  # each worker imports the task's modules once, at start-up
-            yield client
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0")
+    client = None
+    try:
+        client = Client(cluster)
+        client.run(import_task_modules)  # each worker imports the task's modules once, at start-up
+        yield client
+    finally:
+        _close_quietly(client, cluster)
+
+
+SHUTDOWN_LOGGERS = ("distributed", "tornado", "asyncio")
+
+
+def quiet_logs() -> None:
+    """Run on each worker before the cluster closes: its Dask loggers say nothing below CRITICAL."""
+    for name in SHUTDOWN_LOGGERS:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
+
+
+def _close_quietly(client, cluster) -> None:
+    """Close the client, then the cluster, with Dask's loggers (here and on the workers) silent: a worker closing
+    while the scheduler goes (``CommClosedError``) or one slow to stop on a loaded machine ("still alive after 4
+    seconds, killing") is the shutdown, not news, and the results are written by then."""
+    if client is not None:
+        try:
+            client.run(quiet_logs)
+        except Exception:  # a worker already gone: nothing to silence there
+            pass
+    levels = {name: logging.getLogger(name).level for name in SHUTDOWN_LOGGERS}
+    quiet_logs()
+    try:
+        if client is not None:
+            client.close()
+        cluster.close()
+    finally:
+        for name, level in levels.items():
+            logging.getLogger(name).setLevel(level)
 
 
 def import_task_modules() -> None:

@@ -186,6 +186,23 @@ def test_cli_run_status_report(tiny_fleet, tmp_path, capsys):
     assert "no such fleet folder" in capsys.readouterr().err
 
 
+def test_the_cli_on_a_local_cluster_writes_no_dask_noise(tiny_fleet, tmp_path):
+    """``psdm fleet run --workers 2`` in a process of its own: its stderr holds the command's progress lines only,
+    no traceback and no Dask log line (the client, then the cluster, close with Dask's loggers silent)."""
+    import subprocess
+    import sys
+
+    code = "import sys; from psdm_casadi.cli import main; sys.exit(main())"
+    command = [sys.executable, "-c", code, "fleet", "run", str(tiny_fleet[0]), "--db", str(tmp_path / "h.duckdb"),
+               "--workers", "2"]  # fmt: skip
+    result = subprocess.run(command, capture_output=True, text=True, timeout=600)
+    assert result.returncode in (0, 1), result.stderr
+    assert "robot-days processed (0 failed)" in result.stdout
+    lines = result.stderr.splitlines()
+    assert "Traceback" not in result.stderr and not [x for x in lines if "distributed." in x or "Error" in x], lines
+    assert lines[0].startswith("fleet ") and "running on LocalCluster(2)" in lines[1], lines
+
+
 def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluster, tmp_path, monkeypatch):
     """A worker process killed mid-run (its nanny restarts it; Dask reruns its tasks): every robot-day once.
 
