@@ -10,8 +10,7 @@ on the training recording with one more linear column per feature of every torqu
 ``signal`` findings correct the recordings first (``findings.correct_recording``), the ``rigid_body`` ones (a payload)
 are taken up by the re-identified rigid body. A feature the other columns already span (a spring's constant beside a
 drive offset, a rotor inertia the fit already identifies) is left out and reported as absorbed. Load-dependent friction
-is linear in its coefficient once the torque it multiplies is fixed: the fit uses the previous model's torque, then the
-new model's (two passes).
+is linear in its coefficient for a fixed torque: the previous model's, then the new model's (two passes).
 
 A model with LuGre friction (file version 3) is identified again as ``psdm identify --friction lugre`` does
 (``lugre_identify.identify_lugre_trajectories``: the Stribeck fit, the LuGre fit of the friction it leaves, the rigid
@@ -46,7 +45,7 @@ import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
-from identification.calibration.finding_value import unhelpful_findings, validation_rmse, without_entry
+from identification.calibration.finding_value import implausibility, unhelpful_findings, validation_rmse, without_entry
 from identification.calibration.findings import (
     SPEC_EFFECTS,
     FindingColumns,
@@ -376,9 +375,13 @@ def _refit_without(calibrated, robot, model, train, findings, robot_source):
     terms, corrections, entries = findings
 
     def refit(labels):
-        kept = ([t for t in terms if t.label not in labels], {k: v for k, v in corrections.items() if k not in labels},
-                [e for e in entries if e["label"] not in labels])  # fmt: skip
-        return _joint_fit(calibrated, robot, model, train, kept, robot_source)
+        labels, bad = set(labels), {None}
+        while bad:  # dropping findings can push another's coefficients out of their bounds (implausibility): drop it
+            kept = ([t for t in terms if t.label not in labels], {k: v for k, v in corrections.items()
+                    if k not in labels}, [e for e in entries if e["label"] not in labels])  # fmt: skip
+            after, fit = _joint_fit(calibrated, robot, model, train, kept, robot_source)
+            labels |= (bad := {e["label"] for e in after.document["findings"] if implausibility(e)} - labels)
+        return after, fit
 
     return refit
 

@@ -24,8 +24,8 @@ import numpy as np
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["find_missing_torque", "missing_torque_messages", "parse_missing_torque", "require_torque",
-           "stated_missing_torque"]  # fmt: skip
+__all__ = ["find_missing_torque", "measured_torque", "missing_torque_messages", "parse_missing_torque",
+           "require_torque", "stated_missing_torque"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -114,3 +114,32 @@ def require_torque(recording: Recording, joint_names, command: str) -> Recording
             "it with only that joint's rows left out."
         )
     return recording
+
+
+def measured_torque(recordings, joint_names, purpose: str = "diagnosis") -> tuple:
+    """``(recordings, missing joints, messages)`` for a fit that judges every recording's joints together (the
+    diagnosis): each recording with its missing columns (``find_missing_torque``) set to zero so that filters and
+    derivatives stay finite, the sorted 0-based joints missing in any of them (the caller leaves those joints' rows
+    out of every recording, so that a joint is fitted and judged on the same footing), and one sentence per missing
+    joint and recording (logged as a warning too)."""
+    found = [find_missing_torque(r) for r in recordings]
+    messages = [
+        f"{Path(r.name).name if r.name else 'a recording'}: joint {joint + 1} ({joint_names[joint]}) has no torque "
+        f"measurement ({why}); that joint's rows of every recording are left out of the {purpose} (it is not "
+        "diagnosed), the other joints are"
+        for r in found
+        for joint, why in r.missing_torque
+    ]
+    for message in messages:
+        logger.warning(message)
+    missing = sorted({joint for r in found for joint, _ in r.missing_torque})
+    out = []
+    for r in found:
+        if not r.missing_torque:
+            out.append(r)
+            continue
+        key = "tau" if r.tau is not None else "current"
+        values = np.array(getattr(r, key), dtype=float)
+        values[:, [joint for joint, _ in r.missing_torque]] = 0.0
+        out.append(replace(r, **{key: values}, missing_torque=()))
+    return out, missing, tuple(messages)

@@ -29,7 +29,7 @@ carry over to the validation recording).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -119,6 +119,25 @@ class DiagnosisContext:
     full_tau_raw: np.ndarray | None = None
     filtered_friction: bool = True
     gravity: np.ndarray | None = None
+    missing: tuple = ()
+
+    def without_torque(self, joints) -> DiagnosisContext:
+        """This context with the joints ``joints`` left out (no torque measurement in one of the diagnosis's
+        recordings, ``missing_torque``): their torque is the nominal rigid body's, so there is nothing to explain on
+        them, and ``missing`` names them, so every fit weighs their rows by nothing (``design.joint_weights``) and no
+        term is fitted on them."""
+        joints = sorted({int(j) for j in joints})
+        if not joints:
+            return self
+        tau, rate, accel = self.tau.copy(), self.tau_rate.copy(), self.tau_accel.copy()
+        tau[:, joints], rate[:, joints], accel[:, joints] = self.tau_rigid[:, joints], 0.0, 0.0
+        full = self.full_tau.copy()
+        full[:, joints] = 0.0
+        raw = None if self.full_tau_raw is None else self.full_tau_raw.copy()
+        if raw is not None:
+            raw[:, joints] = 0.0
+        return replace(self, tau=tau, tau_rate=rate, tau_accel=accel, full_tau=full, full_tau_raw=raw,
+                       missing=tuple(joints))  # fmt: skip
 
     @property
     def raw_torque(self) -> np.ndarray:

@@ -14,12 +14,24 @@ import numpy as np
 from identification.diagnosis.columns import BlockColumns, row_chunks
 from identification.metrics import rms, rmse
 
+#: The weight of a left-out joint (``DiagnosisContext.missing``) is this many times the largest: its rows count for
+#: 1e-16 of a measured joint's (they are the nominal model's own torque, no measurement).
+LEFT_OUT = 1e8
 
-def joint_weights(tau) -> np.ndarray:
+
+def left_out(context) -> tuple:
+    """The joints of a context left out of the fits (``DiagnosisContext.missing``; none for a context without it)."""
+    return tuple(getattr(context, "missing", ()))
+
+
+def joint_weights(tau, missing=()) -> np.ndarray:
     """Joint weights [N m] (n_dof,): each joint's torque RMS on the training recording ``tau`` (n_samples, n_dof),
-    at least 1e-6 of the largest, so that joints count alike whatever their size."""
+    at least 1e-6 of the largest, so that joints count alike whatever their size; the ``missing`` joints (no torque
+    measured, ``DiagnosisContext.missing``) ``LEFT_OUT`` times the largest, so that their rows count for nothing."""
     torque_rms = rms(tau)
-    return np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    sigma[list(missing)] = LEFT_OUT * float(np.max(sigma))
+    return sigma
 
 
 def solve_scaled(gram, rhs):

@@ -17,24 +17,29 @@ import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds
 from identification.data.filter_choice import AUTO, resolve_auto
+from identification.data.missing_torque import measured_torque
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import DiagnosisContext, build_context
+from identification.diagnosis.design import left_out
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.friction_rival import FrictionRival
-from identification.diagnosis.motion_checks import check_motion, check_nominal_columns
+from identification.diagnosis.motion_checks import check_motion, check_nominal_columns, validation_recordings
 from identification.diagnosis.nominal import (
     FRICTION_MODELS,
     RIGID_BODY_CHOICES,
     friction_blocks,
     friction_feature_names,
+    nominal_friction,
+    torque_constants_only,
 )
+from identification.diagnosis.plausible_fit import implausible_terms, plausible_diagnosis
 from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport
-from identification.diagnosis.report_assembly import build_report, findings_of
+from identification.diagnosis.report_assembly import build_report, findings_of, preparation_text
 from identification.diagnosis.rigid_body_choice import (
     IdentifiedDiagnosis,
     drop_stand_ins,
@@ -57,8 +62,10 @@ class DiagnosisOptions:
 
     Parameters
     ----------
-    friction : {"lugre", "coulomb_viscous", "stribeck"}
-        Nominal friction (see ``nominal``).
+    friction : {"auto", "lugre", "coulomb_viscous", "stribeck"}
+        Nominal friction (see ``nominal``); ``"auto"`` (default): the steady-state LuGre with the robot file's shape,
+        or Coulomb + viscous when its drives state torque constants but no friction (``nominal_friction``); a
+        calibrated model's own shape in ``model_file.diagnose_model``.
     rigid_body : {"auto", "prior", "identified"}
         Keep the robot file's inertia, identify the base parameters too, or (default) decide from the data: a
         payload- or inertia-type finding of the prior model must beat a full rigid-body recalibration on the
@@ -66,10 +73,14 @@ class DiagnosisOptions:
         inertial parameters are off (``rigid_body_choice``).
     cutoff_hz, rate_hz : float or "auto"
         Zero-phase low-pass cut-off of the preprocessing [Hz] (None: unfiltered) and rate of the grid the fit works on
-        [Hz]; ``"auto"``: as ``psdm identify`` chooses them for the training recording (``filter_choice``).
-    samples : {"diagnosis", "identify"}
-        The grid's samples: without 5 % (at most 0.2 s) at each end, or identify's (``filter_choice.kept_samples``: one
-        filter period trimmed, identify's step), so a model file is judged on the samples ``psdm validate`` judges.
+        [Hz]; ``"auto"`` (default): as ``psdm identify`` chooses them for the training recording (``filter_choice``:
+        ``min(10 Hz, rate / 10)``, samples at ten times the cutoff), or a calibrated model file's own preparation
+        (``model_file.diagnose_model``), so ``diagnose`` in Python and ``psdm diagnose`` give the same numbers.
+        A cutoff of 15 Hz on a 200 Hz grid keeps more of a narrow Stribeck hump than identify's 10 Hz.
+    samples : {"identify", "diagnosis"}
+        The grid's samples: identify's (default; ``filter_choice.kept_samples``: one filter period trimmed, identify's
+        step), so a model is judged on the samples ``psdm validate`` judges it on; or without 5 % (at most 0.2 s) of
+        the grid at each end.
     min_improvement : float
         Validation RMSE reduction (fraction) one joint must show for a term to be kept.
     max_effects : int
@@ -93,12 +104,10 @@ class DiagnosisOptions:
         (:func:`check_regressor`). A still or dithering joint otherwise gives noise-fitted "findings".
     max_samples : int
         Most samples of a recording's decimated grid: a recording longer than ``max_samples / rate_hz``
-        (20.8 minutes at the defaults) gets a coarser grid, so the memory and time of the fit are bounded by
-        this rather than by the recording's length (about 1.5 kB per sample for 6 joints). A 60-minute
-        recording is fitted on a 66.7 Hz grid, 4.4 samples per period of the 15 Hz cut-off: the zero-phase
-        filter passes less than 1e-5 of the amplitude above that grid's Nyquist frequency. A grid with fewer
+        (41.7 minutes on a 100 Hz grid) gets a coarser grid, so the memory and time of the fit are bounded by
+        this rather than by the recording's length (about 1.5 kB per sample for 6 joints). A grid with fewer
         than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
-        ``rate_hz`` grid (and the results they always had).
+        ``rate_hz`` grid.
     sparse : bool
         Look beyond the library: propose a sparse symbolic term (``sparse_terms``) for a joint whose residual
         stays structured after the library's terms, reported as an unnamed effect with its formula.
@@ -115,11 +124,11 @@ class DiagnosisOptions:
         it off (with several validation recordings a finding must hold on each of them instead).
     """
 
-    friction: str = "lugre"
+    friction: str = AUTO
     rigid_body: str = "auto"
-    cutoff_hz: float | None | str = 15.0
-    rate_hz: float | str = 200.0
-    samples: str = "diagnosis"
+    cutoff_hz: float | None | str = AUTO
+    rate_hz: float | str = AUTO
+    samples: str = "identify"
     min_improvement: float = 0.2
     max_effects: int = 4
     joint_threshold: float = 0.1
@@ -145,8 +154,10 @@ class DiagnosisOptions:
             raise ParameterError(
                 f"DiagnosisOptions.sparse_min_gain must be in (0, 1); got {self.sparse_min_gain!r}. Use 0.3."
             )
-        if self.friction not in FRICTION_MODELS:
-            raise ParameterError(f"DiagnosisOptions.friction must be one of {FRICTION_MODELS}; got {self.friction!r}.")
+        if self.friction not in (AUTO, *FRICTION_MODELS):
+            raise ParameterError(
+                f"DiagnosisOptions.friction must be {AUTO!r} or one of {FRICTION_MODELS}; got {self.friction!r}."
+            )
         if self.rigid_body not in RIGID_BODY_CHOICES:
             raise ParameterError(
                 f"DiagnosisOptions.rigid_body must be one of {RIGID_BODY_CHOICES}; got {self.rigid_body!r}."
@@ -185,11 +196,13 @@ class DiagnosisOptions:
                 "Combine terms with +, e.g. SpringTerm() + TorqueOffsetTerm()."
             )
 
-    def for_recording(self, train) -> DiagnosisOptions:
+    def for_recording(self, train, robot=None) -> DiagnosisOptions:
         """These options with ``"auto"`` cutoff and grid rate resolved for the training recording ``train`` as
-        ``psdm identify`` resolves them (``filter_choice.resolve_auto``)."""
+        ``psdm identify`` resolves them (``filter_choice.resolve_auto``), and an ``"auto"`` friction for ``robot``
+        (``nominal_friction``)."""
         cutoff, rate = resolve_auto(self.cutoff_hz, self.rate_hz, 1.0 / float(train.dt))
-        return replace(self, cutoff_hz=cutoff, rate_hz=rate)
+        friction = nominal_friction(robot) if self.friction == AUTO and robot is not None else self.friction
+        return replace(self, cutoff_hz=cutoff, rate_hz=rate, friction=friction)
 
 
 def _number(value) -> bool:
@@ -222,6 +235,7 @@ class DiagnosisProblem:
     y_t: np.ndarray
     y_v: np.ndarray
     extra_v: tuple = ()
+    left_out: tuple = ()  # why joints without a torque measurement are left out (``missing_torque.measured_torque``)
 
 
 @dataclass(frozen=True, eq=False)
@@ -282,8 +296,8 @@ def diagnose(
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
+    given, options = options, options.for_recording(train, robot)
     robot, options = torque_constants_only(robot, options)
-    options = options.for_recording(train)
     validations = validation_recordings(validation)
     for recording in (train, *validations):  # positions, speeds and time in the robot's units, before any fit
         recording.check_robot(robot.n_dof, robot.name)
@@ -295,37 +309,22 @@ def diagnose(
 
         logger.info("diagnose: deriving the PSDM model ...")
         model = (derive or derive_psdm)(robot)
-    problem = prepare_problem(robot, model, train, validations, options)
-    selection = select_terms(robot, problem, options)
-    final = refine_terms(problem, selection, options)
-    notes, identified = (), None
-    if options.rigid_body == "auto":
-        problem, selection, final, options, notes, identified = settle_rigid_body(
-            robot, model, problem, selection, final, options
-        )
-    selection, final, unnamed, more = look_beyond_library(problem, selection, final, options, identified)
-    notes += more
+    prepared = prepare_problem(robot, model, train, validations, options)
+
+    def run(options):  # the findings: selection, refinement, rigid-body choice, beyond the library
+        problem, selection = prepared, select_terms(robot, prepared, options)
+        final, notes, identified = refine_terms(problem, selection, options), (), None
+        if options.rigid_body == "auto":
+            problem, selection, final, options, notes, identified = settle_rigid_body(
+                robot, model, problem, selection, final, options
+            )
+        selection, final, unnamed, more = look_beyond_library(problem, selection, final, options, identified)
+        return problem, selection, final, options, notes + more, unnamed
+
+    (problem, selection, final, options, notes, unnamed), rejected = plausible_diagnosis(run, options, robot.n_dof)
     report = build_report(robot, model, problem, selection, final, options, unnamed)
-    return replace(report, rigid_body_notes=notes) if notes else report
-
-
-def validation_recordings(validation) -> tuple:
-    """``validation`` (a Recording or a non-empty sequence of them) as a tuple of Recordings.
-
-    Raises
-    ------
-    ParameterError
-        When it is empty or holds something else than Recordings.
-    """
-    from identification.data.recording import Recording
-
-    items = (validation,) if isinstance(validation, Recording) else tuple(validation or ())
-    if not items or not all(isinstance(r, Recording) for r in items):
-        raise ParameterError(
-            "diagnose validation must be a Recording or a non-empty list of Recordings; got "
-            f"{type(validation).__name__}. Pass validation=[recording_a, recording_b]."
-        )
-    return items
+    return replace(report, rigid_body_notes=notes, preparation=preparation_text(given, options),
+                   rejected=report.rejected + rejected)  # fmt: skip
 
 
 def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final: FinalFit, options) -> tuple:
@@ -337,10 +336,11 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
         return problem, selection, final, prior, (), None
     logger.info("diagnose: findings with the robot file's inertia; diagnosing with a recalibrated rigid body too ...")
     identified = replace(options, rigid_body="identified")
-    recal = DiagnosisProblem(**recalibration_parts(problem, model))
+    recal = DiagnosisProblem(**recalibration_parts(problem, model), left_out=problem.left_out)
     selection_i = select_terms(robot, recal, identified)
     final_i = refine_terms(recal, selection_i, identified)
     weights = 1.0 / np.maximum(rms(problem.ctx_v.tau), 1e-9)
+    weights[list(left_out(problem.ctx_v))] = 0.0  # joints without a torque measurement are not judged
     rmse_prior, rmse_recal = rmse(problem.y_v, final.prediction_v), rmse(recal.y_v, final_i.prediction_v)
     rmse_nominal = rmse(problem.y_v, selection.nominal_validation)
     found, found_i = (
@@ -369,36 +369,22 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     return recal, selection_i, final_i, identified, (note,), None
 
 
-def torque_constants_only(robot, options: DiagnosisOptions) -> tuple:
-    """(robot, options) for a robot file whose drives give torque constants but no friction prior (``fc`` 0).
-
-    The drives' LuGre friction is the nominal model's prior and its bristle dynamics; without a Coulomb level
-    there is none. The torque constants are kept (``options.torque_constants``, for recordings of currents) and
-    the drives left out, so the friction is identified from the recordings as for a robot without drives.
-    """
-    if robot.drives is None or all(d.fc > 0 for d in robot.drives):
-        return robot, options
-    logger.info("diagnose: the robot file's drives give torque constants but no friction prior (fc = 0): the "
-                "friction is identified from the recordings alone")  # fmt: skip
-    kt = options.torque_constants if options.torque_constants is not None else tuple(d.kt for d in robot.drives)
-    return replace(robot, drives=None), replace(options, torque_constants=kt)
-
-
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
     """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares;
     ``validation`` is a Recording or a sequence of them (the first is ``ctx_v``, the others ``extra_v``)."""
-    options = options.for_recording(train)
+    options = options.for_recording(train, robot)
     kt = options.torque_constants
     if kt is None and robot.drives is not None:
         kt = tuple(d.kt for d in robot.drives)
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
     logger.info("diagnose: evaluating the nominal model ...")
-    ctx_t = _context(robot, model, train, options, kt_arr)
+    recordings, missing, left_out = measured_torque((train, *validation_recordings(validation)), robot.joint_names)
+    ctx_t = _context(robot, model, recordings[0], options, kt_arr).without_torque(missing)
     base_t, y_t = _least_squares(robot, options, ctx_t)
-    validations = [_context(robot, model, v, options, kt_arr) for v in validation_recordings(validation)]
+    validations = [_context(robot, model, v, options, kt_arr).without_torque(missing) for v in recordings[1:]]
     parts = [(ctx, *_least_squares(robot, options, ctx)) for ctx in validations]
     (ctx_v, base_v, y_v), extra = parts[0], tuple(parts[1:])
-    problem = DiagnosisProblem(ctx_t=ctx_t, ctx_v=ctx_v, base_t=base_t, base_v=base_v, y_t=y_t, y_v=y_v, extra_v=extra)
+    problem = DiagnosisProblem(ctx_t, ctx_v, base_t, base_v, y_t, y_v, extra_v=extra, left_out=left_out)
     check_nominal_columns(robot, model, problem, options)
     return problem
 
@@ -434,8 +420,8 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
     """Forward selection of the library's terms, the BIC counted with the filter's effective sample count."""
     library = options.library if options.library is not None else default_library()
-    instances = library.expand(robot.n_dof)
     ctx_t = problem.ctx_t
+    instances = [term for term in library.expand(robot.n_dof) if not set(term.joints) & set(left_out(ctx_t))]
     n_eff = None
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
@@ -477,6 +463,10 @@ def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options:
         return linear
     if not refined.improved:
         logger.info(f"diagnose: Ipopt refinement not used ({refined.status}); keeping the linearised fit")
+        return linear
+    moved = implausible_terms(refined.terms, refined.coefficients, problem.ctx_t)
+    if moved and not implausible_terms(linear.terms, linear.coefficients, problem.ctx_t):
+        logger.info(f"diagnose: Ipopt refinement not used: {moved[0][0].label}: {moved[0][1]}; keeping the linear fit")
         return linear
     logger.info(
         f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations"

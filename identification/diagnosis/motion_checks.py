@@ -1,5 +1,6 @@
 """Checks run before any fit of ``diagnose``: every joint moves in both recordings, and the nominal model's free columns
-are well conditioned on the training recording (a still or dithering joint otherwise gives noise-fitted findings)."""
+are well conditioned on the training recording (a still or dithering joint otherwise gives noise-fitted findings);
+``validation_recordings`` checks the validation argument."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from identification.diagnosis.columns import row_chunks
 from identification.diagnosis.context import check_preprocessed
 from identification.diagnosis.nominal import friction_feature_names
 from identification.metrics import rms
+from psdm_casadi.errors import ParameterError
 
 RECORD_FIX = (
     "Record training and validation runs that move {joints} over a large part of the range, with speed and "
@@ -71,3 +73,22 @@ def check_nominal_columns(robot, model, problem, options) -> None:
         max_condition=thresholds.max_condition,
         robot=robot,
     )
+
+
+def validation_recordings(validation) -> tuple:
+    """``validation`` (a Recording or a non-empty sequence of them) as a tuple of Recordings.
+
+    Raises
+    ------
+    ParameterError
+        When it is empty or holds something else than Recordings.
+    """
+    from identification.data.recording import Recording
+
+    items = (validation,) if isinstance(validation, Recording) else tuple(validation or ())
+    if not items or not all(isinstance(r, Recording) for r in items):
+        raise ParameterError(
+            "diagnose validation must be a Recording or a non-empty list of Recordings; got "
+            f"{type(validation).__name__}. Pass validation=[recording_a, recording_b]."
+        )
+    return items

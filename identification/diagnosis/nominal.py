@@ -14,16 +14,19 @@ the two underlying ones:
 
 Friction (``DiagnosisOptions.friction``), per joint and linear in its amplitudes:
 
-- ``"lugre"`` (default): the steady-state LuGre curve of the paper (eq. 14 at zdot = 0),
-  ``fc s + (fs - fc) exp(-(qd/vs)^2) s + fv |qd|^dv s`` with ``s = sign(qd)``, the shape values
-  ``vs`` and ``dv`` from the robot file's drives (``vs = 0.01``, ``dv = 1`` without drives). The
-  bristle dynamics (pre-sliding) are not modelled in the diagnosis.
+- ``"lugre"`` (what the default ``"auto"`` takes unless the drives state no friction, ``nominal_friction``): the
+  steady-state LuGre curve of the paper (eq. 14 at zdot = 0), ``fc s + (fs - fc) exp(-(qd/vs)^2) s + fv |qd|^dv s``
+  with ``s = sign(qd)``, the shape values ``vs`` and ``dv`` from the robot file's drives (``vs = 0.01``, ``dv = 1``
+  without drives). The bristle dynamics (pre-sliding) are not modelled in the diagnosis.
 - ``"coulomb_viscous"``: ``fc s + fv qd``.
 - ``"stribeck"``: the steady-state curve of ``"lugre"`` alone (no bristle-dynamics columns), the shape of a
   calibrated model identified with ``--friction stribeck`` (its ``vs`` in the drives ``calibrated_robot`` builds).
 """
 
 from __future__ import annotations
+
+import logging
+from dataclasses import replace
 
 import numpy as np
 
@@ -35,6 +38,33 @@ from psdm_casadi.errors import ParameterError
 FRICTION_MODELS = ("lugre", "coulomb_viscous", "stribeck")
 STRIBECK_SHAPED = ("lugre", "stribeck")  # three columns per joint: fc, (fs - fc) exp(-(qd/vs)^2), fv
 RIGID_BODY_CHOICES = ("auto", "prior", "identified")
+
+logger = logging.getLogger(__name__)
+
+
+def nominal_friction(robot) -> str:
+    """The ``"auto"`` nominal friction of a robot file: the LuGre shape of its drives, or Coulomb + viscous when its
+    drives state torque constants but no friction (no Stribeck velocity to take, and none the data can fix on a joint
+    that never slows down); a robot without drives keeps the steady-state LuGre."""
+    if robot.drives is None or all(drive.fc > 0 for drive in robot.drives):
+        return "lugre"
+    logger.info("diagnose: the robot file's drives state no friction: nominal friction Coulomb + viscous")
+    return "coulomb_viscous"
+
+
+def torque_constants_only(robot, options) -> tuple:
+    """(robot, options) for a robot file whose drives give torque constants but no friction prior (``fc`` 0).
+
+    The drives' LuGre friction is the nominal model's prior and its bristle dynamics; without a Coulomb level
+    there is none. The torque constants are kept (``options.torque_constants``, for recordings of currents) and
+    the drives left out, so the friction is identified from the recordings as for a robot without drives.
+    """
+    if robot.drives is None or all(d.fc > 0 for d in robot.drives):
+        return robot, options
+    logger.info("diagnose: the robot file's drives give torque constants but no friction prior (fc = 0): the "
+                "friction is identified from the recordings alone")  # fmt: skip
+    kt = options.torque_constants if options.torque_constants is not None else tuple(d.kt for d in robot.drives)
+    return replace(robot, drives=None), replace(options, torque_constants=kt)
 
 
 def friction_shapes(robot) -> tuple[np.ndarray, np.ndarray]:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.diagnosis.design import WeightedDesign, joint_weights
+from identification.diagnosis.design import WeightedDesign, joint_weights, left_out
 from identification.metrics import rmse
 
 
@@ -72,7 +72,7 @@ def predict_recording(final, ctx, base) -> np.ndarray:
 def check_recordings(problem, final, findings) -> tuple:
     """The ``RecordingCheck`` of every validation recording of ``problem`` (``diagnose.DiagnosisProblem``) for the
     final fit ``final`` (``diagnose.FinalFit``) and its ``findings`` (``report.Finding``, matched by label)."""
-    sigma = joint_weights(problem.ctx_t.tau)
+    sigma = joint_weights(problem.ctx_t.tau, left_out(problem.ctx_t))
     nominal = WeightedDesign(problem.base_t, problem.base_t, problem.y_t, problem.y_t, sigma).fit()[0]
     joints_of = {f.label: tuple(f.joints) for f in findings}
     recordings = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]

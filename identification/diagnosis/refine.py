@@ -25,8 +25,8 @@ import casadi as ca
 import numpy as np
 
 from identification.diagnosis.columns import as_dense
+from identification.diagnosis.design import joint_weights, left_out
 from identification.diagnosis.signal_fit import SIGNAL_KEYS, exact_contribution, fit_signal_terms, resolve_deflection
-from identification.metrics import rms
 
 
 @dataclass(frozen=True)
@@ -179,8 +179,7 @@ def refine_fit(
     if not any(refinable):
         return None
     base_train, base_val = as_dense(base_train), as_dense(base_val)
-    torque_rms = rms(train_ctx.tau)
-    sigma = np.maximum(torque_rms, 1e-6 * max(float(np.max(torque_rms)), 1e-12))
+    sigma = joint_weights(train_ctx.tau, left_out(train_ctx))
     signal = fit_signal_terms(terms, coefficients, train_ctx, base_train, y_train, sigma)
     terms, coefficients, signal = resolve_deflection(terms, coefficients, signal, train_ctx, base_train, y_train, sigma)
     fixed = {} if signal is None else signal.parameters

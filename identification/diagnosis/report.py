@@ -127,6 +127,7 @@ class DiagnosisReport:
     rejected: tuple = ()  # (label, reason): would have qualified, but its parameters are physically meaningless
     opinion_route: str = ""  # how findings were checked beyond the validation recording (``second_opinion``)
     recordings: tuple = ()  # ``recording_checks.RecordingCheck`` per validation recording
+    left_out: tuple = ()  # joints without a torque measurement, left out and not diagnosed (one sentence each)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -152,10 +153,10 @@ class DiagnosisReport:
             "rigid_body": self.rigid_body,
             "summary": self.summary(),
             "findings": [f.to_dict() for f in self.findings],
-            "rmse_before": list(self.rmse_before),
-            "rmse_after": list(self.rmse_after),
-            "r2_before": list(self.r2_before),
-            "r2_after": list(self.r2_after),
+            "rmse_before": _numbers(self.rmse_before),  # None for a joint without a torque measurement
+            "rmse_after": _numbers(self.rmse_after),
+            "r2_before": _numbers(self.r2_before),
+            "r2_after": _numbers(self.r2_after),
             "rmse_train_before": list(self.rmse_train_before),
             "rmse_train_after": list(self.rmse_train_after),
             "candidates_tried": self.candidates_tried,
@@ -166,12 +167,13 @@ class DiagnosisReport:
             "rigid_body_notes": list(self.rigid_body_notes),
             "nominal_model": self.nominal_model,
             "preparation": self.preparation,
-            "model_file_rmse": list(self.model_file_rmse),
+            "model_file_rmse": _numbers(self.model_file_rmse),
             "before_is_model_file": self.before_is_model_file,
             "second_opinion": self.opinion_route or None,
             "unstable": [u.to_dict() for u in self.unstable],
             "validation_recordings": [r.to_dict() for r in self.recordings],
             "rejected": [{"label": label, "reason": reason} for label, reason in self.rejected],
+            "left_out": list(self.left_out),
         }
 
     def to_json(self) -> str:
@@ -185,6 +187,11 @@ class DiagnosisReport:
             f"{self.candidates_tried} candidate fits judged on the validation recording.",
             "",
             *([f"Preparation: {self.preparation}.", ""] if self.preparation else []),
+            *(
+                ["Not diagnosed (no torque measurement):", "", *(f"- {s}" for s in self.left_out), ""]
+                if self.left_out
+                else []
+            ),  # fmt: skip
             *self._route_lines(),
             "## Findings",
             "",
@@ -409,3 +416,8 @@ class DiagnosisReport:
 
                 paths["html"] = diagnosis_page(self).write(stage / "report.html")
         return {key: directory / Path(path).name for key, path in paths.items()}
+
+
+def _numbers(values) -> list:
+    """``values`` as a JSON list: None where there is no number (a joint without a torque measurement)."""
+    return [None if v is None or not np.isfinite(v) else float(v) for v in values]

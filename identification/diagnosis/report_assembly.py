@@ -11,8 +11,11 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.model_preparation import EDGE, Preparation
+from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.confounding import confounding_of
+from identification.diagnosis.design import left_out
 from identification.diagnosis.joint_changes import explain_joint_changes, rise_sentence
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
 from identification.diagnosis.recording_checks import check_recordings
@@ -41,6 +44,9 @@ def build_report(
     residual_v = ctx_v.tau - model_nominal_v
     findings = findings_of(selection, final) + tuple(unnamed)
     rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
+    r2_before, r2_after = r2(ctx_v.tau, model_nominal_v), r2(ctx_v.tau, model_final_v)
+    for values in (rmse_before, rmse_after, r2_before, r2_after):  # a joint without a torque measurement: no number
+        values[list(left_out(ctx_v))] = np.nan
     return DiagnosisReport(
         robot_name=robot.name,
         n_dof=robot.n_dof,
@@ -49,8 +55,8 @@ def build_report(
         findings=findings,
         rmse_before=tuple(rmse_before.tolist()),
         rmse_after=tuple(rmse_after.tolist()),
-        r2_before=tuple(r2(ctx_v.tau, model_nominal_v).tolist()),
-        r2_after=tuple(r2(ctx_v.tau, model_final_v).tolist()),
+        r2_before=tuple(r2_before.tolist()),
+        r2_after=tuple(r2_after.tolist()),
         rmse_train_before=tuple(rmse(ctx_t.tau, model_nominal_t).tolist()),
         rmse_train_after=tuple(rmse(ctx_t.tau, model_final_t).tolist()),
         residual_findings=analyse_residuals(ctx_v, residual_v),
@@ -69,6 +75,7 @@ def build_report(
         rejected=selection.rejected,
         opinion_route=selection.opinion_route,
         recordings=check_recordings(problem, final, findings),
+        left_out=problem.left_out,
     )
 
 
@@ -137,8 +144,12 @@ def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: flo
     own_t, own_tau = np.asarray(report.validation_t), np.asarray(report.validation_tau)
     if own_t.shape != t.shape or own_tau.shape != tau.shape or predicted.shape != tau.shape:
         return None
-    scale = max(float(np.max(np.abs(tau))), 1e-300)
-    if not (np.allclose(own_t, t, rtol=0.0, atol=1e-9) and np.allclose(own_tau, tau, rtol=rtol, atol=rtol * scale)):
+    measured = np.all(np.isfinite(tau), axis=0)  # a joint without a torque measurement is not compared
+    own_tau, tau_measured = own_tau[:, measured], tau[:, measured]
+    scale = max(float(np.max(np.abs(tau_measured), initial=0.0)), 1e-300)
+    if not (
+        np.allclose(own_t, t, rtol=0.0, atol=1e-9) and np.allclose(own_tau, tau_measured, rtol=rtol, atol=rtol * scale)
+    ):
         return None
     before, after = rmse(tau, predicted), np.asarray(report.rmse_after, dtype=float)
     cause = (
@@ -149,3 +160,14 @@ def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: flo
     return replace(report, rmse_before=tuple(before.tolist()), r2_before=tuple(r2(tau, predicted).tolist()),
                    validation_nominal=predicted, joint_notes=notes, model_file_rmse=tuple(before.tolist()),
                    before_is_model_file=True)  # fmt: skip
+
+
+def preparation_text(given, options) -> str:
+    """How the diagnosis prepared its recordings (``DiagnosisReport.preparation``): ``options`` as resolved from the
+    ``given`` ones, identify's default for the training recording when the cutoff was left ``"auto"``."""
+    if options.cutoff_hz is None or not options.preprocess:
+        return "the recordings as given (not filtered by the diagnosis)"
+    source = "identify's default for the training recording" if given.cutoff_hz == AUTO else "DiagnosisOptions"
+    text = Preparation(float(options.cutoff_hz), float(options.rate_hz), source).text()
+    other = "5 % of the grid (at most 0.2 s) trimmed at each end"
+    return text if options.samples == "identify" else text.replace(EDGE, other)

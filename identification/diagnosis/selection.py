@@ -53,7 +53,7 @@ from typing import NamedTuple
 import numpy as np
 
 from identification.diagnosis.columns import BlockColumns, as_blocks
-from identification.diagnosis.design import WeightedDesign, joint_weights
+from identification.diagnosis.design import WeightedDesign, joint_weights, left_out
 from identification.diagnosis.joint_score import JointScore
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError
@@ -403,7 +403,7 @@ def forward_select(
     n_eff = float(effective_samples) if effective_samples is not None else float(y_train.shape[0])
     # joint weights: torque RMS of each joint on the training data, so joints count alike whatever their size
     torque_rms = rms(train_ctx.tau)
-    sigma = joint_weights(train_ctx.tau)
+    sigma = joint_weights(train_ctx.tau, left_out(train_ctx))
     # least RMSE drop per joint in N m: a fraction of that joint's own torque RMS (joints count alike), and
     # at least ROBOT_FLOOR of the robot's largest joint torque RMS (noise-level changes on the weakest joints)
     floor = np.maximum(min_torque_fraction * torque_rms, ROBOT_FLOOR * float(np.max(torque_rms)))

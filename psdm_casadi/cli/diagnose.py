@@ -4,7 +4,7 @@ validation; with a calibrated model and ``--apply NEW.json``, the findings ident
 
 from __future__ import annotations
 
-import logging
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -98,7 +98,7 @@ def register(subparsers) -> None:
         "--max-samples",
         type=int,
         default=250_000,
-        help="most samples of a recording's diagnosis grid (default 250000: up to 21 minutes at the 200 Hz grid; "
+        help="most samples of a recording's diagnosis grid (default 250000: 41 minutes on identify's 100 Hz grid; "
         "longer recordings are decimated further, which bounds memory and time)",
     )
     p.add_argument("--out", default=None, help="folder for report.md, report.json, plots and the augmented model")
@@ -135,10 +135,12 @@ def _one_training_recording(paths: list) -> str:
 
 
 def _run_diagnose(args) -> int:
+    from identification.data.filter_choice import AUTO
     from identification.data.io import not_held_out
-    from identification.data.missing_torque import require_torque
+    from identification.data.missing_torque import find_missing_torque
     from identification.data.robot_recordings import load_robot_recording
-    from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+    from identification.diagnosis.diagnose import DiagnosisOptions
+    from identification.diagnosis.model_file import diagnose_model
 
     args.train = _one_training_recording(args.train)
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
@@ -167,20 +169,19 @@ def _run_diagnose(args) -> int:
     layout = recording_layout(args)  # --columns, --rate
     train = load_robot_recording(args.train, robot, args.topic, layout)  # joint side, timed (robot file's [recording])
     validations = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
-    for recording in (train, *validations):  # a dead torque channel: refused, named
-        require_torque(recording, robot.joint_names, "diagnose")
+    # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
+    train, *validations = (find_missing_torque(r) for r in (train, *validations))
     validation = validations[0]
     for warning in not_held_out([args.train], args.validate, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
     (train, *validations), stated = _stated_loads(args, calibrated, robot, (train, *validations), preparation)
     validation = validations[0]
-    options = DiagnosisOptions(
-        friction=args.friction or (_own_friction(calibrated) if calibrated is not None else _robot_friction(robot)),
+    options = DiagnosisOptions(  # "auto" friction: the robot file's (nominal_friction) or the model file's own shape
+        friction=args.friction or AUTO,
         rigid_body=args.rigid_body,
         cutoff_hz=preparation.cutoff_hz,
         rate_hz=preparation.grid_rate_hz,
-        samples="diagnosis" if calibrated is None else "identify",  # a model file: validate's own samples
         min_improvement=args.min_improvement,
         max_effects=args.max_effects,
         max_samples=args.max_samples,
@@ -188,8 +189,11 @@ def _run_diagnose(args) -> int:
         envelope=not args.no_envelope,
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
-    report = diagnose(robot, train, validations, options, model=model, derive=lambda r: derive_model(args, r))
-    report = _named(args, report, preparation, (calibrated, robot_file, model), validation, prior)
+    if loaded is None:
+        report = _robot_report(args, robot, train, validations, options)
+    else:  # the Python API's diagnosis of a model file (diagnose_model): the same numbers
+        report = diagnose_model(loaded, train, validations, options, name=args.robot)
+    report = dataclasses.replace(report, preparation=preparation.text())
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
@@ -210,6 +214,15 @@ def _run_diagnose(args) -> int:
         return 0
     return _apply(args, calibrated, robot_file, model, report, (train, validation), apply_out,
                   payload if args.json else None, stated[:1])  # fmt: skip
+
+
+def _robot_report(args, robot, train, validations, options):
+    """``diagnose`` of a robot file, the report naming it as its nominal model."""
+    from identification.diagnosis.diagnose import diagnose
+
+    report = diagnose(robot, train, validations, options, derive=lambda r: derive_model(args, r))
+    rigid = "from it" if report.rigid_body == "prior" else "identified"
+    return dataclasses.replace(report, nominal_model=f"the robot file {args.robot}: rigid body {rigid}")
 
 
 def _stated_loads(args, calibrated, robot, recordings, preparation) -> tuple:
@@ -249,7 +262,6 @@ def _payload_check(args, calibrated, robot, model, validation):
 
 def _preparation(args, calibrated, train):
     """The preparation of the diagnosis: the model file's own, identify's default for a robot file, or --cutoff."""
-    import dataclasses
 
     from identification.calibration.model_preparation import (
         SAMPLES_PER_CUTOFF,
@@ -265,68 +277,6 @@ def _preparation(args, calibrated, train):
     cutoff = float(args.cutoff)
     source = f"--cutoff {cutoff:g}, instead of the {own.source}'s {own.cutoff_hz:g} Hz"
     return dataclasses.replace(own, cutoff_hz=cutoff, grid_rate_hz=SAMPLES_PER_CUTOFF * cutoff, source=source)
-
-
-def _named(args, report, preparation, loaded, validation, prior):
-    """The report naming the nominal model it used and the preparation; a model file's own validation RMSE is its
-    "before" (``report_assembly.with_model_file_before``), or beside it when the samples differ. With a model file:
-    why the rigid body came from its robot file (``DiagnosisPrior``), and the findings it already holds."""
-    import dataclasses
-    import hashlib
-
-    import numpy as np
-
-    calibrated, robot, model = loaded
-    if calibrated is None:
-        nominal = (
-            f"the robot file {args.robot}: rigid body {'from it' if report.rigid_body == 'prior' else 'identified'}"
-        )
-        return dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text())
-    from identification.calibration.finding_value import validation_rmse
-    from identification.diagnosis.report_assembly import with_model_file_before
-
-    digest = hashlib.sha256(Path(args.robot).read_bytes()).hexdigest()[:12]
-    created = calibrated.document.get("provenance", {}).get("created", "unknown")
-    kept = prior.sentence() or "as identified in it"
-    nominal = (f"the calibrated model file {args.robot} (sha256 {digest}..., created {created}): rigid body "
-               f"{kept if report.rigid_body == 'prior' else 'identified again on the training recording'}")  # fmt: skip
-    notes = tuple(n for n in (prior.note(), _carried(report, calibrated)) if n)
-    report = dataclasses.replace(report, rigid_body_notes=notes + tuple(report.rigid_body_notes))
-    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-    own, _, prepared, predicted = validation_rmse(calibrated, model, validation, kt)
-    report = dataclasses.replace(report, nominal_model=nominal, preparation=preparation.text(),
-                                 model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
-    # one "before": the file as it is, when the diagnosis judged the samples the file's preparation keeps
-    return with_model_file_before(report, prepared.t, prepared.tau, predicted) or report
-
-
-def _carried(report, calibrated) -> str:
-    """The sentence naming the findings the model file already holds (its nominal model leaves them out)."""
-    from identification.calibration.diagnosis_prior import carried_findings
-
-    labels = carried_findings(report.findings, calibrated.document)
-    if not labels:
-        return ""
-    return (f"the model file already carries {', '.join(f'`{x}`' for x in labels)} (identified with it); the "
-            "diagnosis's nominal model leaves the file's own findings out, so it finds them again")  # fmt: skip
-
-
-def _robot_friction(robot) -> str:
-    """The nominal friction of a robot file: the LuGre shape of its drives, or Coulomb + viscous when its drives
-    state torque constants but no friction (no Stribeck velocity to take, and none the data can fix on a joint
-    that never slows down: the Kinova example's joint 5); a robot without drives keeps the steady-state LuGre."""
-    if robot.drives is None or all(drive.fc > 0 for drive in robot.drives):
-        return "lugre"
-    logging.getLogger("identification.diagnosis").info(
-        "diagnose: the robot file's drives state no friction: nominal friction Coulomb + viscous (--friction to choose)"
-    )
-    return "coulomb_viscous"
-
-
-def _own_friction(calibrated) -> str:
-    """The diagnosis' friction kind of a calibrated model's own shape (its drives carry vs or the LuGre values)."""
-    shape = calibrated.document["drive"].get("friction_shape", "coulomb-viscous")
-    return {"stribeck": "stribeck", "lugre": "lugre"}.get(shape, "coulomb_viscous")
 
 
 def _calibrated_source(args):

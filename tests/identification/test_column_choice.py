@@ -149,3 +149,39 @@ def test_each_joint_gets_its_own_friction_shape(denso, denso_model, tmp_path):
     np.testing.assert_allclose(exported, friction, rtol=1e-12, atol=1e-12)
     forced = choose_columns(denso, denso_model, [recording], request=ColumnRequest(friction="stribeck"))
     assert forced.shapes(6) == ["stribeck"] * 6 and forced.options(TrajectoryOptions()).stribeck_joints is None
+
+
+@pytest.mark.slow
+def test_what_identify_decided_is_not_warned_again_by_later_commands(no_rotor, denso, tmp_path, capsys):
+    """Link-side torque sensors (no rotor inertia in the torque): identify decides from the data to drop the
+    drive-inertia columns and says so once; the model file stores no warning about it, and validate, codegen and
+    diagnose of that file warn about nothing identify decided (issue 25: three negative-drive-inertia warnings
+    were repeated by every later command)."""
+    from identification.data.io import save_recording
+    from psdm_casadi.cli import main
+
+    robot_file = tmp_path / "denso_no_rotor.toml"
+    robot_file.write_text(
+        "\n".join(line for line in DENSO_FILE.read_text().replace("drive_inertia = true", "drive_inertia = false")
+                  .splitlines() if not line.startswith("rotor_inertia")) + "\n"
+    )  # fmt: skip
+    for seed, name in ((4, "train.csv"), (5, "valid.csv")):
+        save_recording(synthetic(denso, seed, rotor=False), tmp_path / name)
+    train, valid, model = str(tmp_path / "train.csv"), str(tmp_path / "valid.csv"), str(tmp_path / "m.json")
+    assert main(["identify", str(robot_file), "--data", train, "--out", model, "--allow-inconsistent"]) == 0
+    out, err = capsys.readouterr()
+    assert "the data want it negative" in out + err and "warning" not in err  # decided and stated, not warned
+    import json
+
+    document = json.loads((tmp_path / "m.json").read_text())
+    assert not [w for w in document.get("warnings") or [] if "inertia" in w]
+    commands = (
+        ["validate", model, valid],
+        ["codegen", model, "--out", str(tmp_path / "c")],
+        ["diagnose", model, "--train", train, "--validate", valid, "--no-sparse", "--rigid-body", "prior",
+         "--max-effects", "1"],
+    )  # fmt: skip
+    for argv in commands:
+        assert main(argv) == 0, argv
+        err = capsys.readouterr().err
+        assert "drive inertia" not in err and "stored in the model file" not in err, (argv[0], err)

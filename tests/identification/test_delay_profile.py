@@ -32,7 +32,8 @@ def absorbed(denso, denso_model):
     """The problem of a delayed recording whose base columns hold the delay's tangent column (training and
     validation), and the true delay [s]."""
     train, val = recording_pair(denso, [xp.SignalDelay(samples=DELAY_SAMPLES)], seed=5)
-    problem = prepare_problem(denso, denso_model, train, val, DiagnosisOptions(rigid_body="prior"))
+    wide = DiagnosisOptions(rigid_body="prior", cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis")  # above identify's
+    problem = prepare_problem(denso, denso_model, train, val, wide)
     tangent = DelayTerm()
     base_t = problem.base_t.concatenate(BlockColumns.from_dense(tangent.columns(problem.ctx_t)))
     base_v = problem.base_v.concatenate(BlockColumns.from_dense(tangent.columns(problem.ctx_v)))

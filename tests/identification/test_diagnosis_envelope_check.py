@@ -37,7 +37,8 @@ def counterbalanced(denso, denso_model):
     extras = [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3), xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))]
     recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
     train, validation = recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
-    problem = prepare_problem(denso, denso_model, train, [validation], DiagnosisOptions(friction="coulomb_viscous"))
+    wide = DiagnosisOptions(friction="coulomb_viscous", cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis")
+    problem = prepare_problem(denso, denso_model, train, [validation], wide)
     return problem, DiagnosisProblem(**recalibration_parts(problem, denso_model))
 
 

@@ -32,7 +32,8 @@ def test_a_robot_file_without_friction_is_diagnosed_with_coulomb_viscous(denso, 
     seen = []
 
     def spy(robot, train, validation, options, model=None, derive=None):  # records the choice, stops there
-        seen.append(options.friction)
+        seen.append(options.friction)  # "auto": the library chooses (as diagnose() resolves it)
+        seen.append(options.for_recording(train, robot).friction)
         raise ParameterError("stopped by the test")
 
     monkeypatch.setattr(diagnose_module, "diagnose", spy)
@@ -40,4 +41,4 @@ def test_a_robot_file_without_friction_is_diagnosed_with_coulomb_viscous(denso, 
     assert main(["diagnose", str(tmp_path / "kt_only.toml"), *quick]) == 2
     assert "drives state no friction: nominal friction Coulomb + viscous" in capsys.readouterr().err
     assert main(["diagnose", str(DENSO_FILE), *quick]) == 2
-    assert seen == ["coulomb_viscous", "lugre"]
+    assert seen == ["auto", "coulomb_viscous", "auto", "lugre"]

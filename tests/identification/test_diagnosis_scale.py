@@ -124,7 +124,8 @@ def test_max_samples_bounds_the_grid_and_the_finding_stays(denso, denso_model, p
     assert ctx.n_samples <= 1200 and ctx.keep[1] - ctx.keep[0] == 7  # 8000 samples in steps of 7 ms
     lib = SpringTerm() + TorqueOffsetTerm()
     with caplog.at_level("INFO", logger="identification.diagnosis.context"):
-        report = diagnose(denso, train, val, DiagnosisOptions(library=lib, max_samples=1200), model=denso_model)
+        options = DiagnosisOptions(library=lib, max_samples=1200, cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis")
+        report = diagnose(denso, train, val, options, model=denso_model)  # 1600 samples on the 200 Hz grid
     assert "on a 143 Hz grid" in caplog.text
     assert report.findings[0].effect == "spring" and report.findings[0].joints == (1,)
     assert report.findings[0].parameters["k"] == pytest.approx(35.0, rel=0.1)

@@ -214,8 +214,8 @@ def test_diagnose_model_takes_the_model_s_own_friction_shape(identified, shape):
     """The nominal friction a diagnosis of the file fits has the model's shape: its columns span the model's
     friction (Coulomb + viscous columns do not), with the model's vs."""
     from identification.calibration.calibrated_model import calibrated_robot, load_calibrated_model
+    from identification.diagnosis.model_file import own_friction as _own_friction
     from identification.diagnosis.nominal import friction_columns
-    from psdm_casadi.cli.diagnose import _own_friction
 
     calibrated = load_calibrated_model(identified[2][shape])
     kind = _own_friction(calibrated)

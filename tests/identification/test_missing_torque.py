@@ -115,11 +115,12 @@ def test_identify_names_the_dead_joint_and_leaves_it_out_of_the_validation(denso
     assert main(["validate", str(tmp_path / "m.json"), str(tmp_path / "check.csv")]) == 0
     assert re.search(r"\n  J2 +- +-\n", capsys.readouterr().out)  # the table: no number for joint 2
     diagnose = ["diagnose", str(tmp_path / "m.json"), "--train", str(tmp_path / "full.csv"), "--validate",
-                str(tmp_path / "check.csv")]  # fmt: skip
-    assert main(diagnose) == 2
-    assert "check.csv: joint 2 (J2) has no torque measurement (zero in every sample); psdm diagnose needs" in (
-        capsys.readouterr().err
-    )
+                str(tmp_path / "check.csv"), "--no-sparse", "--rigid-body", "prior", "--max-effects", "1",
+                "--json"]  # fmt: skip
+    assert main(diagnose) == 0  # joint 2 left out, the others diagnosed
+    captured = capsys.readouterr()
+    assert "check.csv: joint 2 (J2) has no torque measurement (zero in every sample)" in captured.err
+    assert "left out of the diagnosis" in captured.err and json.loads(captured.out)["left_out"]
 
 
 def test_the_option_names_joints_by_number_or_name(recordings):
@@ -132,3 +133,28 @@ def test_the_option_names_joints_by_number_or_name(recordings):
     for bad, message in (("a.csv", "takes FILE:JOINTS"), ("a.csv:7", "'7' is not a joint"), ("a.csv:J9", "'J9'")):
         with pytest.raises(ParameterError, match=message):
             parse_missing_torque([bad], ("J1", "J2", "J3", "J4", "J5", "J6"))
+
+
+def test_diagnose_leaves_a_dead_joint_out_and_diagnoses_the_others(denso, denso_model):
+    """Joint 3's torque is zero throughout the training recording and NaN throughout the validation recording: the
+    diagnosis leaves joint 3 out of both (no term on it, not judged on it), says so, and still finds the spring hidden
+    on joint 2, as on the recordings with every joint measured."""
+    from identification.diagnosis import DiagnosisOptions, SpringTerm, TorqueOffsetTerm, diagnose
+    from identification.virtual import effects as xp
+    from tests.identification.diagnosis_data import recording_pair
+
+    train, valid = recording_pair(denso, [xp.Spring(joint=1, stiffness=40.0, q0=0.2)], seed=7)
+    options = DiagnosisOptions(library=SpringTerm() + TorqueOffsetTerm(), rigid_body="prior", sparse=False)
+    full = diagnose(denso, train, valid, options, model=denso_model)
+    dead_train = replace(train, tau=np.where(np.arange(6) == 2, 0.0, train.tau), name="train.csv")
+    dead_valid = replace(valid, tau=np.where(np.arange(6) == 2, np.nan, valid.tau), name="valid.csv")
+    report = diagnose(denso, dead_train, dead_valid, options, model=denso_model)
+    assert [f.label for f in full.findings][:1] == [f.label for f in report.findings][:1] == ["spring[j2]"]
+    assert all(2 not in f.joints for f in report.findings)
+    ours, theirs = report.findings[0].parameters["k"], full.findings[0].parameters["k"]
+    assert ours == pytest.approx(theirs, rel=0.05) and ours == pytest.approx(40.0, rel=0.1)
+    assert len(report.left_out) == 2 and all("joint 3 (J3) has no torque measurement" in s for s in report.left_out)
+    assert "train.csv" in report.left_out[0] and "zero in every sample" in report.left_out[0]
+    assert "Not diagnosed (no torque measurement)" in report.to_markdown()
+    assert np.isnan(report.rmse_after[2]) and np.all(np.isfinite(np.delete(report.rmse_after, 2)))  # no number: j3
+    assert report.to_dict()["rmse_after"][2] is None

@@ -131,3 +131,59 @@ def test_auto_is_identify_s_preparation_and_identify_samples_are_validate_s(dens
         np.testing.assert_allclose(problem.ctx_v.t, ready.t, rtol=0, atol=1e-12)
         np.testing.assert_allclose(problem.ctx_v.tau, ready.tau, rtol=1e-9, atol=1e-9)
         np.testing.assert_allclose(problem.ctx_v.q, ready.q, rtol=1e-9, atol=1e-12)
+
+
+def test_the_library_s_defaults_are_identify_s_preparation_and_samples(denso_files, denso, denso_model):
+    """``DiagnosisOptions()`` without arguments prepares a robot file's recordings as ``psdm identify`` would (the
+    cutoff, grid and samples ``psdm diagnose ROBOT`` uses), and a model file's as the file says."""
+    from identification.data.io import load_recording
+    from identification.diagnosis.diagnose import DiagnosisOptions, prepare_problem
+    from identification.diagnosis.model_file import model_file_options
+
+    train, valid = (load_recording(denso_files / name, 6) for name in ("train.csv", "valid.csv"))
+    resolved = DiagnosisOptions().for_recording(train, denso)
+    identify = default_preparation(train)  # what the CLI takes for a robot file
+    assert (resolved.cutoff_hz, resolved.rate_hz) == (identify.cutoff_hz, identify.grid_rate_hz) == (10.0, 100.0)
+    assert resolved.samples == "identify" and resolved.friction == "lugre"
+    problem = prepare_problem(denso, denso_model, train, valid, DiagnosisOptions(rigid_body="prior"))
+    ready, _, _ = prepare_recording(valid, None, 10.0)  # the identification's own preparation
+    np.testing.assert_allclose(problem.ctx_v.t, ready.t, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(problem.ctx_v.tau, ready.tau, rtol=1e-9, atol=1e-9)
+    calibrated = load_calibrated_model(denso_files / "model.json")
+    own = model_file_options(calibrated)
+    assert (own.cutoff_hz, own.rate_hz, own.samples, own.friction) == (8.0, 80.0, "identify", "coulomb_viscous")
+    stated = model_file_options(calibrated, DiagnosisOptions(cutoff_hz=12.0))  # a stated cutoff: identify's grid
+    assert stated.for_recording(train).rate_hz == 120.0
+
+
+@pytest.mark.slow
+def test_python_and_cli_diagnoses_of_a_model_file_and_a_robot_file_give_the_same_numbers(denso_files, capsys, tmp_path):
+    """``diagnose_model`` in Python and ``psdm diagnose MODEL`` report the model file's own validation RMSE (``psdm
+    validate``'s) as "before", to 1e-9; ``diagnose(robot)`` and ``psdm diagnose ROBOT`` give the same numbers with
+    identify's default preparation (10 Hz here)."""
+    from identification.data.io import load_recording
+    from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+    from identification.diagnosis.model_file import diagnose_model
+    from psdm_casadi.robot_file import load_robot
+
+    model, train_csv, valid_csv = (str(denso_files / n) for n in ("model.json", "train.csv", "valid.csv"))
+    assert main(["validate", model, valid_csv, "--json"]) == 0
+    validated = json.loads(capsys.readouterr().out)["recordings"][0]["rmse"]
+    train, valid = load_recording(train_csv, 6), load_recording(valid_csv, 6)
+    options = DiagnosisOptions(rigid_body="prior", sparse=False, max_effects=1)
+    ours = diagnose_model(model, train, valid, options)
+    np.testing.assert_allclose(ours.rmse_before, validated, rtol=1e-9)
+    assert ours.before_is_model_file and "at 8 Hz" in ours.preparation and model in ours.nominal_model
+    flags = ["--no-sparse", "--rigid-body", "prior", "--max-effects", "1", "--json"]
+    assert main(["diagnose", model, "--train", train_csv, "--validate", valid_csv, *flags]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(cli["rmse_before"], validated, rtol=1e-9)
+    np.testing.assert_allclose(cli["rmse_after"], ours.rmse_after, rtol=1e-9)
+    robot = load_robot(str(DENSO_FILE))
+    python = diagnose(robot, train, valid, options)
+    assert main(["diagnose", str(DENSO_FILE), "--train", train_csv, "--validate", valid_csv, *flags]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    np.testing.assert_allclose(cli["rmse_before"], python.rmse_before, rtol=1e-9)
+    np.testing.assert_allclose(cli["rmse_after"], python.rmse_after, rtol=1e-9)
+    assert "at 10 Hz" in python.preparation and "identify's default" in python.preparation
+    assert "at 10 Hz" in cli["preparation"]

@@ -1,0 +1,129 @@
+"""Diagnose a calibrated model file (``psdm identify``'s JSON) as ``psdm diagnose MODEL.json`` does, from Python.
+
+The nominal model is the file's: its robot, its identified inertia (``calibrated_robot``; the robot file's when identify
+pushed links against their envelope for an absorbed effect, ``diagnosis_prior``) and its friction shape (Coulomb +
+viscous, Stribeck with its vs, or LuGre with its identified parameters). The recordings are prepared as
+the file says (``model_preparation``: its filter, cutoff and grid rate, and identify's samples with one filter
+period trimmed), so the report's "before" is the file's own validation RMSE, the one ``psdm validate`` prints
+(``report_assembly.with_model_file_before``), and the report names the file and the preparation it used.
+``psdm diagnose`` calls :func:`diagnose_model`, so the Python API and the command give the same numbers.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from identification.calibration.calibrated_model import LoadedModel, calibrated_robot, read_calibrated_model
+from identification.calibration.diagnosis_prior import carried_findings, diagnosis_prior, with_file_rigid_body
+from identification.calibration.finding_value import validation_rmse
+from identification.calibration.model_preparation import model_preparation
+from identification.data.filter_choice import AUTO
+from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+from identification.diagnosis.motion_checks import validation_recordings
+from identification.diagnosis.report import DiagnosisReport
+from identification.diagnosis.report_assembly import with_model_file_before
+from psdm_casadi.errors import ParameterError
+
+__all__ = ["diagnose_model", "model_file_options", "own_friction"]
+
+logger = logging.getLogger(__name__)
+
+
+def own_friction(calibrated) -> str:
+    """The diagnosis' friction kind of a calibrated model's own shape (its drives carry vs or the LuGre values)."""
+    shape = calibrated.document["drive"].get("friction_shape", "coulomb-viscous")
+    return {"stribeck": "stribeck", "lugre": "lugre"}.get(shape, "coulomb_viscous")
+
+
+def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> DiagnosisOptions:
+    """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its
+    friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated."""
+    options = DiagnosisOptions() if options is None else options
+    if not isinstance(options, DiagnosisOptions):
+        raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
+    own = model_preparation(calibrated.document)
+    cutoff = own.cutoff_hz if options.cutoff_hz == AUTO else options.cutoff_hz
+    rate = options.rate_hz
+    if rate == AUTO:
+        rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
+    friction = own_friction(calibrated) if options.friction == AUTO else options.friction
+    return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate)
+
+
+def diagnose_model(
+    source, train, validation, options: DiagnosisOptions | None = None, derive=None, name: str | None = None
+) -> DiagnosisReport:
+    """``diagnose`` with a calibrated model file as the nominal model (module docstring).
+
+    Parameters
+    ----------
+    source : path or LoadedModel
+        The calibrated-model file, or its ``read_calibrated_model`` (the file with its robot and PSDM model).
+    train, validation : Recording, Recording or sequence of Recording
+        Raw recordings, as for ``diagnose``.
+    options : DiagnosisOptions, optional
+        Fields left ``"auto"`` take the model file's values (``model_file_options``).
+    derive : callable, optional
+        ``derive(robot) -> PSDMModel`` for reading a path (the CLI's model cache).
+    name : str, optional
+        How the report names the file (default: the path, or the robot's name).
+
+    Returns
+    -------
+    DiagnosisReport
+        Whose ``nominal_model`` names the file, ``preparation`` its preparation, ``model_file_rmse`` the file's own
+        validation RMSE on the first validation recording and, when the diagnosis judged the samples the file's
+        preparation keeps, ``rmse_before`` that same RMSE (``before_is_model_file``).
+    """
+    loaded = source if isinstance(source, LoadedModel) else read_calibrated_model(source, derive=derive)
+    calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
+    given = options
+    options = model_file_options(calibrated, options)
+    robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
+    if prior.robot_file:  # identify's rigid body absorbed an effect: start from the robot file's
+        logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
+        robot = with_file_rigid_body(robot, robot_file)
+    report = diagnose(robot, train, validation, options, model=model)
+    if name is None:
+        name = str(source) if not isinstance(source, LoadedModel) else f"for {robot_file.name}"
+    own = model_preparation(calibrated.document)
+    preparation = own if (given is None or given.cutoff_hz == AUTO) else None
+    return file_before(report, loaded, validation_recordings(validation)[0], name, (preparation, prior))
+
+
+def file_before(report, loaded: LoadedModel, validation, name: str, choices=(None, None)) -> DiagnosisReport:
+    """The report naming the model file it started from (and, with ``choices`` = (its ``Preparation``, its
+    ``DiagnosisPrior``), the preparation and why the rigid body came from the robot file), with the file's own
+    validation RMSE as its "before" when the diagnosis judged the samples the file's preparation keeps (else beside
+    it, ``model_file_rmse``), and the findings the file already holds named."""
+    calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    preparation, prior = choices
+    path = Path(name)
+    digest = f"sha256 {hashlib.sha256(path.read_bytes()).hexdigest()[:12]}..., " if path.is_file() else ""
+    created = calibrated.document.get("provenance", {}).get("created", "unknown")
+    kept = (prior.sentence() if prior is not None else "") or "as identified in it"
+    nominal = (f"the calibrated model file {name} ({digest}created {created}): rigid body "
+               f"{kept if report.rigid_body == 'prior' else 'identified again on the training recording'}")  # fmt: skip
+    notes = tuple(n for n in ((prior.note() if prior is not None else ""), _carried(report, calibrated)) if n)
+    report = replace(report, rigid_body_notes=notes + tuple(report.rigid_body_notes))
+    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    own, _, prepared, predicted = validation_rmse(calibrated, model, validation, kt)
+    text = report.preparation if preparation is None else preparation.text()
+    report = replace(report, nominal_model=nominal, preparation=text,
+                     model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip
+    # one "before": the file as it is, when the diagnosis judged the samples the file's preparation keeps
+    return with_model_file_before(report, prepared.t, prepared.tau, predicted) or report
+
+
+def _carried(report, calibrated) -> str:
+    """The sentence naming the findings the model file already holds (its nominal model leaves them out)."""
+    labels = carried_findings(report.findings, calibrated.document)
+    if not labels:
+        return ""
+    return (f"the model file already carries {', '.join(f'`{x}`' for x in labels)} (identified with it); the "
+            "diagnosis's nominal model leaves the file's own findings out, so it finds them again")  # fmt: skip
