@@ -17,6 +17,7 @@ whose every unexplained joint drifted is ``friction_drift`` and not diagnosed fu
 from __future__ import annotations
 
 import dataclasses
+import functools
 import logging
 import time
 from dataclasses import dataclass, field
@@ -37,8 +38,10 @@ __all__ = ["SessionResult", "SessionTask", "process_session", "read_session", "s
 logger = logging.getLogger(__name__)
 
 
+@functools.cache
 def software_version() -> str:
-    """The installed psdm-casadi version (``unknown`` when it is not installed)."""
+    """The installed psdm-casadi version (``unknown`` when it is not installed); read once per process (the
+    package metadata lookup costs ~1 ms, a few % of a robot-day task)."""
     try:
         return metadata.version("psdm-casadi")
     except metadata.PackageNotFoundError:
