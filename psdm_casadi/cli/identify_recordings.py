@@ -113,7 +113,8 @@ def add_arguments(p) -> None:
 
 @remembering()  # the recordings' regressors evaluated once (state_cache)
 def run(args) -> int:
-    from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.counterbalance_column import take_counterbalance
     from identification.calibration.envelope import check_ratio
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.calibration.trajectory_fit import identify_trajectories
@@ -156,16 +157,15 @@ def run(args) -> int:
     else:
         fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
         lugre = None
+    saved = {"robot_source": args.robot, "lugre": lugre, "configurations": configurations}
+    problem, skip = (robot, model, recordings, options, configurations), args.friction == "lugre" or bool(loss)
+    fit, calibrated, counter = take_counterbalance(problem, fit, validation, (saved, paths), skip)
     held_out = not_held_out([str(p) for p in paths], args.validate)
-    warnings = list(dict.fromkeys((*start.warnings, *fit.warnings, *missing, *held_out)))
+    warnings = list(dict.fromkeys((*(fit if counter.kept else start).warnings, *fit.warnings, *missing, *held_out)))
     warnings = [_concrete_route(w, args, paths) for w in warnings]
     for warning in warnings:
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
-    calibrated = CalibratedModel.from_fit(
-        robot, model, fit, robot_source=args.robot, lugre=lugre,
-        recordings=[recording_provenance(r, p) for r, p in zip(recordings, paths)], configurations=configurations,
-    )  # fmt: skip
     if loss:
         from identification.calibration.drive_loss import with_drive_loss
 
@@ -457,6 +457,7 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
                     "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
                     "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
                     "columns": calibrated.document["identification"]["column_choice"],
+                    "counterbalance": calibrated.document["identification"]["counterbalance"],
                     "drive_loss": drive_loss_summary(calibrated.document),
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return

@@ -1,0 +1,74 @@
+"""Identify takes the counterbalance its envelope report names (``calibration.counterbalance_column``, issue 25).
+
+Reference: the virtual Denso's hidden truth. A spring (or a cam counterbalance) on joint 2 pushes link 2 against its
+envelope; identify then fits a spring on the named joint, keeps it where the held-out recording says so, with the
+truth's stiffness and every link back inside. A payload, or nothing hidden, adds no spring.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+
+import numpy as np
+import pytest
+
+from identification.data.io import save_recording
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
+from trajopt.experiments import sine_experiment
+
+HIDDEN = {
+    "spring": [xp.Spring(joint=1, stiffness=20.0, q0=0.3)],
+    "cam": [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)],
+    "payload": [xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))],
+    "nothing": [],
+}
+
+
+def _identify(denso, tmp_path, hidden) -> tuple:
+    """(the model file's document, identify's JSON) of 8 s training and 8 s held out with ``hidden`` effects."""
+    rng = np.random.default_rng(3)
+    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    recording, _ = simulate_recording(denso, reference, options, rng, extras=HIDDEN[hidden])
+    train, held_out, out = tmp_path / "train.csv", tmp_path / "val.csv", tmp_path / "model.json"
+    save_recording(recording.time_slice(-np.inf, 8.0), train)
+    save_recording(recording.time_slice(8.0, np.inf), held_out)
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
+        code = main(["identify", str(denso.source), "--data", str(train), "--validate", str(held_out), "--out",
+                     str(out), "--json"])  # fmt: skip
+    assert code == 0
+    return json.loads(out.read_text()), json.loads(stdout.getvalue())
+
+
+@pytest.mark.slow  # 8 fits and their held-out checks: 20-40 s
+@pytest.mark.parametrize(("hidden", "order"), [("spring", 1), ("cam", 3)])
+def test_a_counterbalance_identify_names_is_taken_with_its_shape_and_the_links_come_back_inside(
+    denso, tmp_path, hidden, order
+):
+    document, output = _identify(denso, tmp_path, hidden)
+    choice = document["identification"]["counterbalance"]
+    assert choice["kept"] and choice["joints"] == [2], choice["reason"]  # joint 2 only: no spring on joint 1
+    springs = [f for f in document["findings"] if f["effect"] == "spring"]
+    assert [(f["joints"], f["source"]) for f in springs] == [([2], "identify")]
+    parameters = springs[0]["parameters"]
+    assert parameters.get("order", 1) == order  # the linear spring as a line, the cam as a cubic
+    if hidden == "spring":
+        assert parameters["k"] == pytest.approx(20.0, rel=0.1)  # the truth's stiffness
+    assert document["standard"]["envelope_findings"] == []  # every link back inside, none pushed
+    rmse = output["validation"][0]["rmse"]
+    assert rmse == pytest.approx(choice["rmse_with"], rel=1e-6)  # the written model is the one judged
+    assert rmse[1] < 0.5 * choice["rmse_without"][1]
+    worse = np.array(choice["rmse_with"]) - np.array(choice["rmse_without"])
+    assert np.all(worse <= np.array(choice["margin"]))  # no joint worse beyond its noise margin
+
+
+@pytest.mark.parametrize("hidden", ["payload", "nothing"])
+def test_no_spring_on_a_robot_without_a_counterbalance(denso, tmp_path, hidden):
+    document, _ = _identify(denso, tmp_path, hidden)
+    assert document["identification"]["counterbalance"]["joints"] == []  # nothing named, nothing tried
+    assert not [f for f in document.get("findings") or [] if f["effect"] == "spring"]
