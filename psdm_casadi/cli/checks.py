@@ -326,3 +326,15 @@ def read_calibrated_argument(args, path):
     from identification.calibration.calibrated_model import read_calibrated_model
 
     return read_calibrated_model(path, derive=lambda robot: derive_model(args, robot))
+
+
+def check_recordings_first(robot, training, validation) -> None:
+    """Refuse recordings in the wrong units before a model is derived or fitted: the training ones first (their
+    units; the fit checks their motion), then the validation ones (units, joint order and motion)."""
+    from identification.calibration.trajectory_checks import check_validation_recording
+    from identification.data.plausibility import check_plausible_recording
+
+    for recording in training:
+        check_plausible_recording(recording, robot)
+    for recording in validation:
+        check_validation_recording(robot, recording)

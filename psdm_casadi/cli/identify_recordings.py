@@ -116,11 +116,10 @@ def run(args) -> int:
     from identification.calibration.calibrated_model import CalibratedModel
     from identification.calibration.counterbalance_column import take_counterbalance
     from identification.calibration.envelope import check_ratio
-    from identification.calibration.trajectory_checks import check_validation_recording
     from identification.calibration.trajectory_fit import identify_trajectories
     from identification.data.io import not_held_out
     from identification.data.robot_recordings import load_robot_recording, recording_paths
-    from psdm_casadi.cli.checks import derive_model
+    from psdm_casadi.cli.checks import check_recordings_first, derive_model
     from psdm_casadi.model import load_model
 
     out = _check_outputs(args)
@@ -133,8 +132,7 @@ def run(args) -> int:
     recordings = [load_robot_recording(path, robot, args.topic, layout) for path in paths]  # joint side, timed
     validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
     recordings, validation, missing = _missing_torque(args, robot, paths, recordings, validation)
-    for recording in validation:  # units, joint order and motion, before any fit; the training recordings are
-        check_validation_recording(robot, recording)  # checked by the fit itself (prepare_recordings)
+    check_recordings_first(robot, recordings, validation)  # units, joint order, motion: before deriving and fitting
     if args.friction == "lugre":
         _check_reversals(recordings, paths)
     for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):

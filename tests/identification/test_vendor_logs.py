@@ -279,3 +279,13 @@ def test_a_time_column_of_iso_date_times_named_time_is_read_in_seconds(tmp_path)
     rec = load_recording(tmp_path / "pandas.csv", 2)
     np.testing.assert_allclose(rec.t, t, atol=1e-9)
     np.testing.assert_allclose(rec.q, q, rtol=1e-11)
+
+
+def test_a_training_log_in_degrees_is_refused_by_name_before_the_model_is_derived(logged_arm, capsys):
+    folder, path = logged_arm
+    validation = folder / "later.csv"
+    validation.write_text(path.read_text())
+    code = main(["identify", str(folder / "arm.toml"), "--data", str(path), "--validate", str(validation),
+                 "--columns", "t=Time:ms,q=Pos,tau=Trq:mNm", "--out", str(folder / "deg.json")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "Recording trace.csv:" in err and "later.csv" not in err and "deriving" not in err
