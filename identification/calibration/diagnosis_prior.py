@@ -88,8 +88,9 @@ def with_file_rigid_body(nominal, robot):
 
 def carried_findings(findings, document: dict) -> tuple:
     """The labels of ``findings`` (a diagnosis's ``Finding``s, 0-based ``joints``) that the calibrated-model
-    ``document`` already holds as torque findings: the same effect (a spring and a gas spring alike: one
-    counterbalance) on the same single joint."""
+    ``document`` already holds as torque findings: the same effect on the same single joint, a position-dependent
+    torque counting as one (a spring, a gas spring or a ripple found where the file carries a spring: one
+    counterbalance, whose shape the diagnosis may name otherwise)."""
     held = {
         (_family(e["term"].get("effect")), int(e["term"].get("joint", 0)) - 1)
         for e in document.get("findings") or ()
@@ -98,5 +99,9 @@ def carried_findings(findings, document: dict) -> tuple:
     return tuple(f.label for f in findings if len(f.joints) == 1 and (_family(f.effect), int(f.joints[0])) in held)
 
 
+#: Torques of the joint angle alone: one counterbalance may be found as any of them.
+POSITION_TORQUES = ("spring", "gas_spring", "torque_ripple")
+
+
 def _family(effect) -> str:
-    return "spring" if effect in ("spring", "gas_spring") else str(effect)
+    return "position" if effect in POSITION_TORQUES else str(effect)
