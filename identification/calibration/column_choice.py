@@ -253,14 +253,24 @@ class _Candidates:
         """(training RSS per joint, held-out RSS per joint, estimate in full columns, its std) of a sub-model whose
         joints ``stribeck`` (0-based) have the Stribeck shape."""
         transform = self.transform(stribeck, dropped)
-        total = _sum(self.blocks)
-        x, std = _solve(total, transform, self.weights)
+        total, weighted = self.summed(None)
+        x, std = _solve_weighted(*weighted, transform)
         held = None if self.held is None else self.held.residual_sum(x)
         if held is None or np.any(self.held.count == 0):  # no held-out rows of a joint (its torque missing): CV
-            cv = sum(block.residual_sum(_solve(_sum(self.blocks, skip=k), transform, self.weights)[0])
+            cv = sum(block.residual_sum(_solve_weighted(*self.summed(k)[1], transform)[0])
                      for k, block in enumerate(self.blocks))  # fmt: skip
             held = cv if held is None else np.where(self.held.count == 0, cv, held)
         return total.residual_sum(x), held, x, std
+
+    def summed(self, skip) -> tuple:
+        """(normal equations of every block but ``skip``, their weighted Gram matrix and moment): the same for every
+        candidate, so summed once (the sums and products as each candidate would make them)."""
+        memory = self.__dict__.setdefault("_summed", {})
+        if skip not in memory:
+            equations = _sum(self.blocks, skip=skip)
+            gram, moment, _ = equations.weighted(self.weights)
+            memory[skip] = (equations, (gram, moment))
+        return memory[skip]
 
 
 def _sum(blocks, skip=None) -> NormalEquations:
@@ -276,6 +286,11 @@ def _sum(blocks, skip=None) -> NormalEquations:
 def _solve(equations, transform, weights) -> tuple:
     """Weighted least squares of the sub-model ``transform``, as full-column estimate and standard deviations."""
     gram, moment, _ = equations.weighted(weights)
+    return _solve_weighted(gram, moment, transform)
+
+
+def _solve_weighted(gram, moment, transform) -> tuple:
+    """:func:`_solve` from the weighted Gram matrix and moment."""
     gram, moment = transform.T @ gram @ transform, transform.T @ moment
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
     inverse = np.linalg.pinv(gram / np.outer(scale, scale), rcond=1e-12, hermitian=True) / np.outer(scale, scale)
