@@ -29,8 +29,8 @@ MODEL_FORMAT = "psdm-model"
 MODEL_VERSION = 1
 CHAIN_MODEL_VERSION = 2  # a model with a chain (no monomial table): older releases must refuse it
 READABLE_VERSIONS = (MODEL_VERSION, CHAIN_MODEL_VERSION)
-#: Samples per block of the regressor's evaluation (its functions: n_functions x this many values at a time).
-REGRESSOR_BLOCK = 512
+#: Samples per block of the regressor's evaluation: its functions, n_functions x this many values (15 MB for the Panda).
+REGRESSOR_BLOCK = 64
 
 
 @dataclass(frozen=True, eq=False)
