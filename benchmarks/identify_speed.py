@@ -15,16 +15,19 @@ Coulomb and viscous friction, 40 s and 15 s). Each runs what ``psdm identify`` r
   consistent fit by Ipopt);
 - ``validation``: the validation recording prepared and predicted (``predict_torque``), per-joint RMSE.
 
-With ``--ref REV`` (default: the revision this work started from) the same script runs on ``git archive REV`` in a
-child process, so both columns are measured side by side on the same machine; the table then states the speed-up
-and whether the answer is the same: chosen columns equal, the largest relative difference of the base, drive and
-standard parameters, and of the validation RMSE (targets: equal, 1e-9, 1e-9). ``--ref none`` measures this tree only.
+With ``--ref REV`` the same script runs on ``git archive REV`` in a child process, so both columns are measured
+side by side on the same machine; the table then states the speed-up and whether the answer is the same: chosen
+columns equal, the largest relative difference of the base, drive and standard parameters, and of the validation
+RMSE (targets: equal, 1e-9, 1e-9; exit 1 otherwise). The answer is only comparable with a revision whose other code
+is the same: the speed work's own reference is its start, 856267a, with the later commits of others applied, i.e.
+``main`` with the speed commits reverted (``git revert --no-commit`` of them in a scratch worktree, committed there).
+Default ``--ref none``: this tree only.
 One BLAS thread, as ``psdm`` commands run (``cli.blas_threads``). CPU seconds are this process's: on a loaded
 machine the wall time also counts the others' work.
 
 Usage::
 
-    python benchmarks/identify_speed.py [--robots denso panda arm12] [--ref REV|none] [--json]
+    python benchmarks/identify_speed.py [--robots denso panda arm12] [--ref REV] [--json]
 """
 
 from __future__ import annotations
@@ -43,7 +46,7 @@ import numpy as np
 from bench_support import DEFAULT_DATA_ROOT, DENSO_FILE, ROOT, add_data_root_argument, at_data_root, print_table
 
 #: The revision this work started from (before the fast regressor, its cache and the per-joint Stribeck rows).
-DEFAULT_REF = "856267a"
+START = "856267a"
 STAGES = ("derive", "prepare", "regressor", "column_choice", "fit", "validation")
 ROBOTS = ("denso", "panda", "arm12")
 TARGET_RELATIVE = 1e-9
@@ -240,8 +243,8 @@ def print_report(result: dict) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--robots", nargs="+", choices=ROBOTS, default=list(ROBOTS))
-    parser.add_argument("--ref", default=DEFAULT_REF, help=f"revision measured as 'before' (default {DEFAULT_REF}); "
-                        "none: this tree only")  # fmt: skip
+    parser.add_argument("--ref", default="none", help=f"revision measured as 'before' (e.g. {START}, where this work "
+                        "started); none (default): this tree only")  # fmt: skip
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--measure-only", action="store_true", help=argparse.SUPPRESS)
     add_data_root_argument(parser)
