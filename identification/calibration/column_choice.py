@@ -253,23 +253,20 @@ class _Candidates:
         """(training RSS per joint, held-out RSS per joint, estimate in full columns, its std) of a sub-model whose
         joints ``stribeck`` (0-based) have the Stribeck shape."""
         transform = self.transform(stribeck, dropped)
-        total, weighted = self.summed(None)
-        x, std = _solve_weighted(*weighted, transform)
+        (total, weighted), folds = self.summed(None), range(len(self.blocks))
+        x, std = _solve(weighted, transform)
         held = None if self.held is None else self.held.residual_sum(x)
         if held is None or np.any(self.held.count == 0):  # no held-out rows of a joint (its torque missing): CV
-            cv = sum(block.residual_sum(_solve_weighted(*self.summed(k)[1], transform)[0])
-                     for k, block in enumerate(self.blocks))  # fmt: skip
+            cv = sum(self.blocks[k].residual_sum(_solve(self.summed(k)[1], transform)[0]) for k in folds)
             held = cv if held is None else np.where(self.held.count == 0, cv, held)
         return total.residual_sum(x), held, x, std
 
     def summed(self, skip) -> tuple:
-        """(normal equations of every block but ``skip``, their weighted Gram matrix and moment): the same for every
-        candidate, so summed once (the sums and products as each candidate would make them)."""
+        """(every block's normal equations but ``skip``'s, summed; their weighted Gram matrix and moment): the same for
+        every candidate, so made once (the sums and products as each candidate would make them)."""
         memory = self.__dict__.setdefault("_summed", {})
         if skip not in memory:
-            equations = _sum(self.blocks, skip=skip)
-            gram, moment, _ = equations.weighted(self.weights)
-            memory[skip] = (equations, (gram, moment))
+            memory[skip] = (equations := _sum(self.blocks, skip=skip)), equations.weighted(self.weights)[:2]
         return memory[skip]
 
 
@@ -283,15 +280,10 @@ def _sum(blocks, skip=None) -> NormalEquations:
     return out
 
 
-def _solve(equations, transform, weights) -> tuple:
-    """Weighted least squares of the sub-model ``transform``, as full-column estimate and standard deviations."""
-    gram, moment, _ = equations.weighted(weights)
-    return _solve_weighted(gram, moment, transform)
-
-
-def _solve_weighted(gram, moment, transform) -> tuple:
-    """:func:`_solve` from the weighted Gram matrix and moment."""
-    gram, moment = transform.T @ gram @ transform, transform.T @ moment
+def _solve(weighted, transform) -> tuple:
+    """Weighted least squares of the sub-model ``transform`` from the weighted Gram matrix and moment ``weighted``, as
+    full-column estimate and standard deviations."""
+    gram, moment = transform.T @ weighted[0] @ transform, transform.T @ weighted[1]
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
     inverse = np.linalg.pinv(gram / np.outer(scale, scale), rcond=1e-12, hermitian=True) / np.outer(scale, scale)
     return transform @ (inverse @ moment), transform @ np.sqrt(np.clip(np.diag(inverse), 0.0, None))
@@ -368,7 +360,7 @@ def _weights(total, training) -> tuple:
     """Per joint, the weight ``1 / sigma^2`` of the full model's residual, and the effective sample count: the
     sample count over the residual's correlation time (``residual_correlation.correlation_time``)."""
     rms = np.sqrt(total.energy / np.maximum(total.count, 1))
-    x, _ = _solve(total, np.eye(total.n_columns), 1.0 / np.maximum(rms, 1e-12) ** 2)
+    x, _ = _solve(total.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2], np.eye(total.n_columns))
     dof = np.maximum(total.count - total.n_columns / total.n_dof, 1.0)
     sigma = np.sqrt(np.maximum(total.residual_sum(x), 1e-300) / dof)
     tau = np.max([residual_correlation_time(tau - columns @ x) for columns, tau in training], axis=0)

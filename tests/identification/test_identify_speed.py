@@ -39,11 +39,11 @@ def plain_evaluate(self, stribeck, dropped=()):
     """``column_choice._Candidates.evaluate`` summing the blocks and weighting them anew for every candidate."""
     transform = self.transform(stribeck, dropped)
     total = column_choice._sum(self.blocks)
-    x, std = column_choice._solve(total, transform, self.weights)
+    x, std = column_choice._solve(total.weighted(self.weights)[:2], transform)
     held = None if self.held is None else self.held.residual_sum(x)
     if held is None or np.any(self.held.count == 0):
         folds = [column_choice._sum(self.blocks, skip=k) for k in range(len(self.blocks))]
-        fits = [column_choice._solve(fold, transform, self.weights)[0] for fold in folds]
+        fits = [column_choice._solve(fold.weighted(self.weights)[:2], transform)[0] for fold in folds]
         cv = sum(block.residual_sum(fit) for block, fit in zip(self.blocks, fits))
         held = cv if held is None else np.where(self.held.count == 0, cv, held)
     return total.residual_sum(x), held, x, std
