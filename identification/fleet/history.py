@@ -66,11 +66,14 @@ WHERE k = 1 AND status = 'ok'
 """
 
 
-# a robot's window: its first ok days (from a day on, when given), parameters robot_id, since, days
-WINDOW = (
-    f"SELECT DISTINCT day FROM ({LATEST}) WHERE robot_id = ? "
-    "AND day >= coalesce(CAST(? AS DATE), DATE '0001-01-01') ORDER BY day LIMIT ?"
-)
+# a robot's window: (day, content_hash) of its first ok days (from a day on, when given), the latest session of each;
+# parameters robot_id, since, days (filtered by robot first: a query per robot does not rank the whole fleet's days)
+WINDOW = """
+SELECT day, content_hash FROM (
+    SELECT day, content_hash, status,
+           row_number() OVER (PARTITION BY day ORDER BY written DESC) AS k FROM sessions WHERE robot_id = ?)
+WHERE k = 1 AND status = 'ok' AND day >= coalesce(CAST(? AS DATE), DATE '0001-01-01') ORDER BY day LIMIT ?
+"""
 
 
 @dataclass(frozen=True)
@@ -325,20 +328,18 @@ class History:
         """``(day, joint, rmse_baseline, rmse_refit)`` of a robot's first ``days`` ok recording days (from ``since``
         on, when given): the window its days' validation errors are judged against (``day_check``)."""
         return self.connection.execute(
-            f"SELECT v.day, v.joint, v.rmse_baseline, v.rmse_refit FROM validation v "
-            f"JOIN ({LATEST}) l USING (robot_id, day, content_hash) WHERE v.robot_id = ? AND v.day IN ({WINDOW}) "
-            f"ORDER BY v.day, v.joint",
-            [robot_id, robot_id, since, days],
+            f"SELECT v.day, v.joint, v.rmse_baseline, v.rmse_refit FROM validation v JOIN ({WINDOW}) w "
+            "USING (day, content_hash) WHERE v.robot_id = ? ORDER BY v.day, v.joint",
+            [robot_id, since, days, robot_id],
         ).fetchall()
 
     def window_parameters(self, robot_id: str, days: int, since=None, prefix: str = "fc") -> list:
         """``(day, joint, value)`` of the parameters ``<prefix><joint>`` (default the Coulomb friction) on the same
         window days as :meth:`window_rows`."""
         return self.connection.execute(
-            f"SELECT p.day, p.joint, p.value FROM parameters p JOIN ({LATEST}) l USING (robot_id, day, content_hash) "
-            f"WHERE p.robot_id = ? AND p.day IN ({WINDOW}) AND p.name = ? || CAST(p.joint AS VARCHAR) "
-            f"ORDER BY p.day, p.joint",
-            [robot_id, robot_id, since, days, prefix],
+            f"SELECT p.day, p.joint, p.value FROM parameters p JOIN ({WINDOW}) w USING (day, content_hash) "
+            "WHERE p.robot_id = ? AND p.name = ? || CAST(p.joint AS VARCHAR) ORDER BY p.day, p.joint",
+            [robot_id, since, days, robot_id, prefix],
         ).fetchall()
 
     def checks(self) -> list:
