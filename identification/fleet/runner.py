@@ -197,13 +197,22 @@ def _days(plan, robot_id: str) -> list:
     return sorted(t.day for t in plan.tasks if t.robot_id == robot_id)
 
 
-def _outcome(future, value, task):
-    """A finished future's result, or a failed session (re-identification) for a task Dask gave up on (a worker
-    killed too often)."""
-    if future.status != "error":
-        return value
-    exc = value[1] if isinstance(value, tuple) else value
-    return _failed(task, exc) if isinstance(task, SessionTask) else ReidentifyResult(task, None, str(exc))
+def _outcomes(client, batch: list, tasks: dict) -> list:
+    """The batch's results, fetched in one call (one round trip per worker, not per future), each task Dask gave up
+    on (a worker killed too often) as a failed session or re-identification."""
+    finished = [f for f in batch if f.status == "finished"]
+    values = dict(zip(finished, client.gather(finished)))
+    out = []
+    for future in batch:
+        if future in values:
+            out.append(values[future])
+            continue
+        try:
+            out.append(future.result())
+        except Exception as exc:
+            task = tasks[future]
+            out.append(_failed(task, exc) if isinstance(task, SessionTask) else ReidentifyResult(task, None, str(exc)))
+    return out
 
 
 def _scatter_all(client, contexts) -> dict:
@@ -232,7 +241,7 @@ def _batches(completed):
 
 def _results_dask(client, plan, todo, contexts):
     """Robots in parallel on Dask, each robot's waves in turn: its next wave is submitted once the last is written.
-    Yields batches: every result finished since the last batch (fetched in the background), written together."""
+    Yields batches: every result finished since the last batch (fetched together), written together."""
     from dask.distributed import as_completed
 
     scattered = _scatter_all(client, contexts)
@@ -271,11 +280,11 @@ def _results_dask(client, plan, todo, contexts):
     for robot_id, ctx in contexts.items():
         generators[robot_id] = robot_waves(ctx, _days(plan, robot_id), [t for t in todo if t.robot_id == robot_id])
         first += advance(robot_id)
-    completed = as_completed(first, with_results=True, raise_errors=False)
+    completed = as_completed(first)
     try:
         for batch in _batches(completed):
-            yield [_outcome(future, value, futures[future][1]) for future, value in batch]
-            for future, _ in batch:  # the batch is written: the robots whose wave is done go on
+            yield _outcomes(client, batch, {f: futures[f][1] for f in batch})
+            for future in batch:  # the batch is written: the robots whose wave is done go on
                 robot_id = futures[future][0]
                 outstanding[robot_id] -= 1
                 if outstanding[robot_id] == 0:

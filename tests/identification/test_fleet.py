@@ -186,6 +186,31 @@ def test_cli_run_status_report(tiny_fleet, tmp_path, capsys):
     assert "no such fleet folder" in capsys.readouterr().err
 
 
+def _break_refit(broken: bool) -> None:
+    """On a worker: the robot-day's refit raises an error no task expects (``broken``), or is the real one again."""
+    from identification.fleet import session, update
+
+    def exploded(*args, **kwargs):
+        raise RuntimeError("refit exploded")
+
+    session.refit_day = exploded if broken else update.refit_day
+
+
+def test_a_task_that_raises_on_the_workers_is_stored_as_failed(tiny_fleet, derive, cluster, tmp_path):
+    """An error inside the task (not a bad recording: Dask returns it as the future's error) fails that robot-day in
+    the history with its text; the run goes on and ends."""
+    fleet = read_fleet(tiny_fleet[0])
+    cluster.run(_break_refit, True)
+    try:
+        summary = run_fleet(fleet, tmp_path / "h.duckdb", RunOptions(day_reports=False), derive=derive, client=cluster)
+    finally:
+        cluster.run(_break_refit, False)
+    assert (summary.processed, summary.failed) == (18, 18)
+    with History(tmp_path / "h.duckdb") as history:
+        errors = {row[2] for row in history.failures()}
+    assert errors == {"RuntimeError: refit exploded"}
+
+
 def test_the_cli_on_a_local_cluster_writes_no_dask_noise(tiny_fleet, tmp_path):
     """``psdm fleet run --workers 2`` in a process of its own: its stderr holds the command's progress lines only,
     no traceback and no Dask log line (the client, then the cluster, close with Dask's loggers silent)."""
