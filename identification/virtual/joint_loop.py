@@ -5,11 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-__all__ = ["LOOP_DAMPING_LIMIT", "joint_loop_gains"]
+__all__ = ["LOOP_DAMPING_LIMIT", "TRACKING_LIMIT", "joint_loop_gains", "tracks"]
 
 # spectral radius of dt M^-1 Kd above which the sampled PD loop is retuned: a held derivative term is unstable
 # beyond 2, and well damped only far below it
 LOOP_DAMPING_LIMIT = 0.5
+# a run farther than this from its reference [rad or m] has diverged: the simulator retunes the loop and runs again
+TRACKING_LIMIT = 0.5
 
 
 def _loop_damping(model, data, poses, kd, dt: float) -> float:
@@ -24,26 +26,33 @@ def _loop_damping(model, data, poses, kd, dt: float) -> float:
 
 
 def joint_loop_gains(
-    model, data, q_ref, rate: float, bandwidth_hz: float, damping_ratio: float, integral_gain: float
+    model,
+    data,
+    q_ref,
+    rate: float,
+    bandwidth_hz: float,
+    damping_ratio: float,
+    integral_gain: float,
+    retuned: bool = False,
 ) -> tuple:
     """``(kp, kd, ki)`` per joint of the virtual robot's PD + integral loop sampled at ``rate``: from the bandwidth
     and each joint's inertia at the first pose of ``q_ref`` (n_samples, n_dof).
 
     The inertia is the mass-matrix diagonal ``M_ii``. Where axes are nearly aligned and rotors light (a tree of
-    arms, long serial chains) the inverse mass matrix couples the joints strongly, and gains from ``M_ii`` make the
-    sampled loop unstable although each joint alone would be fine (``dt M^-1 Kd`` has eigenvalues beyond 2: the
-    recording diverges). When that measure exceeds ``LOOP_DAMPING_LIMIT`` on the reference's poses, each joint's
-    inertia becomes the one it sees with the other joints free, ``1 / (M^-1)_ii``, and if needed the bandwidth is
-    lowered until the loop is within the limit. Robots whose loop was already stable keep their gains exactly.
+    arms) the inverse mass matrix couples the joints strongly, and gains from ``M_ii`` can make the sampled loop
+    unstable although each joint alone would be fine: the recording diverges. ``retuned=True`` (the simulator's
+    second attempt after such a run, :data:`TRACKING_LIMIT`) takes each joint's inertia with the other joints free,
+    ``1 / (M^-1)_ii``, and lowers the bandwidth if ``dt M^-1 Kd`` still exceeds ``LOOP_DAMPING_LIMIT`` on the
+    reference's poses. The retune is a fallback, not the default: on arms whose loop tracks (the Panda with a hidden
+    spring) the lower gains of the coupled inertia interact with the integral term and can diverge themselves.
     """
     omega = 2.0 * np.pi * bandwidth_hz
-    dt = 1.0 / rate
-    poses = q_ref[np.linspace(0, q_ref.shape[0] - 1, min(16, q_ref.shape[0])).astype(int)]
     mass = pin.crba(model, data, q_ref[0])
     mass = np.triu(mass) + np.triu(mass, 1).T
     inertia = mass.diagonal().copy()
-    worst = _loop_damping(model, data, poses, 2.0 * damping_ratio * inertia * omega, dt)
-    if worst > LOOP_DAMPING_LIMIT:
+    if retuned:
+        dt = 1.0 / rate
+        poses = q_ref[np.linspace(0, q_ref.shape[0] - 1, min(16, q_ref.shape[0])).astype(int)]
         inertia = 1.0 / np.linalg.inv(mass).diagonal()
         worst = _loop_damping(model, data, poses, 2.0 * damping_ratio * inertia * omega, dt)
         if worst > LOOP_DAMPING_LIMIT:
@@ -51,3 +60,8 @@ def joint_loop_gains(
     kp, kd = inertia * omega**2, 2.0 * damping_ratio * inertia * omega
     ki = integral_gain * inertia * omega**3
     return kp, kd, ki
+
+
+def tracks(q, q_ref) -> bool:
+    """Whether a simulated run followed its reference: finite and never farther than :data:`TRACKING_LIMIT`."""
+    return bool(np.all(np.isfinite(q)) and np.abs(q - q_ref).max() <= TRACKING_LIMIT)

@@ -26,6 +26,7 @@ The truth of a run and its files are in :mod:`identification.virtual.truth`.
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,7 +35,7 @@ from scipy.interpolate import CubicSpline
 
 from identification.data.recording import Recording
 from identification.virtual.effects import ExtraPhysics, Payload
-from identification.virtual.joint_loop import joint_loop_gains
+from identification.virtual.joint_loop import joint_loop_gains, tracks
 from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
 from identification.virtual.truth import SimulationTruth
 from psdm_casadi.errors import ParameterError, ShapeError
@@ -42,6 +43,8 @@ from psdm_casadi.oracle import build_pinocchio_model
 from psdm_casadi.robot import RobotDescription
 
 __all__ = ["SimulationOptions", "simulate_recording"]
+
+logger = logging.getLogger(__name__)
 
 FEEDFORWARDS = ("model", "gravity", "none")
 INTEGRATORS = ("symplectic-euler", "leapfrog")
@@ -366,12 +369,16 @@ def simulate_recording(
     ctrl_model = build_pinocchio_model(ctrl_robot, ctrl_params)
     ctrl_data = ctrl_model.createData()
     tau_ff = _feedforward(ctrl_model, ctrl_data, q_ref, qd_ref, qdd_ref, lugre, options)
-    gains = joint_loop_gains(
-        ctrl_model, ctrl_data, q_ref, options.rate, options.bandwidth_hz, options.damping_ratio, options.integral_gain
-    )
-
+    loop = (ctrl_model, ctrl_data, q_ref, options.rate, options.bandwidth_hz, options.damping_ratio)
     plant = build_pinocchio_model(plant_robot, plant_params)
-    states = _integrate(plant, lugre, t, (q_ref, qd_ref, qdd_ref[0]), tau_ff, gains, options, extras)
+    reference_start = (q_ref, qd_ref, qdd_ref[0])
+    with np.errstate(all="ignore"):  # a diverging run is detected below, not warned about sample by sample
+        states = _integrate(plant, lugre, t, reference_start, tau_ff, joint_loop_gains(*loop, options.integral_gain),
+                            options, extras)  # fmt: skip
+    if not tracks(states[0], q_ref):
+        logger.info("virtual %s: the joint loop diverged with gains from the mass-matrix diagonal; retuned", robot.name)
+        gains = joint_loop_gains(*loop, options.integral_gain, retuned=True)
+        states = _integrate(plant, lugre, t, reference_start, tau_ff, gains, options, extras)
     q, qd, qdd, z, tau_motor, tau_f, tau_x = states
     recording = _sensor_recording(robot.name, t, q, qd, tau_motor, kt, options, extras, rng)
     truth = SimulationTruth(
