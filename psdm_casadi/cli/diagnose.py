@@ -21,6 +21,7 @@ from psdm_casadi.cli.checks import (
 )
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.state_cache import remembering
 
 VALIDATE_HELP = (
     "validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag). With several, a finding is kept only if it holds on "
@@ -134,6 +135,7 @@ def _one_training_recording(paths: list) -> str:
     )
 
 
+@remembering()  # the recordings' regressors evaluated once across the refits (state_cache)
 def _run_diagnose(args) -> int:
     from identification.data.filter_choice import AUTO
     from identification.data.io import not_held_out
