@@ -44,6 +44,7 @@ from identification.calibration.consistent_fit import (
 )
 from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
+from identification.calibration.merged_rotors import with_merged_rotors
 from identification.calibration.payload_fit import (
     Estimable,
     FlangeBodies,
@@ -351,11 +352,11 @@ def identify_trajectories(
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
+        model = with_merged_rotors(model, robot, options, kt is not None)  # the links do not absorb the rotors
         fitted = [k for k in range(len(names)) if model.n_base + k not in held]
-        keep = [k for k in keep if k not in held]
         standard, drive_fitted, found, status, bounds = consistent_fit(
-            robot, model, equations.subset(keep), sigma, [names[k] for k in fitted], options, lower[fitted],
-            prior[separable])  # fmt: skip
+            robot, model, equations.subset([k for k in keep if k not in held]), sigma, [names[k] for k in fitted],
+            options, lower[fitted], prior[separable])  # fmt: skip
         drive = np.zeros(len(names))
         drive[fitted] = drive_fitted
         found = _with_rows(found, separable)
@@ -494,7 +495,5 @@ def _weighted_least_squares(equations: NormalEquations, free=None, payload=range
 def _drive_inertias(model, standard, drive, names):
     """The drive inertia of every joint: in the model's standard parameters, from its own column, else 0."""
     out = np.where(np.any(model.parameter_map[:, ROTOR :: ROTOR + 1], axis=0), standard[:, ROTOR], 0.0)
-    for name, value in zip(names, drive):
-        if name.startswith("Ia"):
-            out[int(name[2:]) - 1] = value
+    out[[int(n[2:]) - 1 for n in names if n.startswith("Ia")]] = [v for n, v in zip(names, drive) if n.startswith("Ia")]
     return out

@@ -1,0 +1,70 @@
+"""Drive inertias inside the base parameters (``merged_rotors``): the consistent fit holds them, the links do not.
+
+The truth is the virtual Denso's motor currents (``test_drive_loss.recorded``: the rigid body by Pinocchio, the rotors'
+inertia of the robot file and Coulomb-viscous friction on the motor side), its model derived without the file's
+``[assumptions] drive_inertia`` (as a URDF with rotor inertias per link gives it): the drive inertias the base
+regressor spans had no place in the map, the consistent fit set them to 0 and the links absorbed them.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from identification.calibration.merged_rotors import merged_rotor_map, with_merged_rotors
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
+from psdm_casadi.derive import derive_psdm
+from tests.identification.test_drive_loss import recorded
+
+ROTOR = 10
+
+
+@pytest.fixture(scope="module")
+def arm(denso):
+    """The Denso with the rotor inertias of its file but a rigid-body model (no drive inertia in the derivation)."""
+    robot = replace(denso, drive_inertia=(False,) * denso.n_dof)
+    return robot, derive_psdm(robot)
+
+
+def test_the_map_reproduces_each_merged_drive_inertia_torque_on_other_states(arm):
+    denso, denso_model = arm
+    merged = merged_rotor_map(denso_model, denso, range(denso.n_dof))
+    separate = separate_inertia_joints(denso_model, denso)
+    assert merged and sorted(merged) == [j for j in range(denso.n_dof) if j not in separate]
+    rng = np.random.default_rng(7)  # states other than the map's own
+    q = rng.uniform(denso.q_min, denso.q_max, size=(20, denso.n_dof))
+    qd, qdd = rng.normal(size=(2, 20, denso.n_dof))
+    regressor = denso_model.regressor(q, qd, qdd)
+    for j, coefficients in merged.items():
+        expected = np.zeros((20, denso.n_dof))
+        expected[:, j] = qdd[:, j]
+        assert np.allclose(regressor @ coefficients, expected, atol=1e-8), j
+
+
+def test_only_currents_with_stated_rotors_get_them_in_the_map(arm, denso, denso_model):
+    # a model derived with the drive inertias holds them already
+    assert with_merged_rotors(denso_model, denso, TrajectoryOptions(), currents=True) is denso_model
+    denso, denso_model = arm
+    options = TrajectoryOptions()
+    assert with_merged_rotors(denso_model, denso, options, currents=False) is denso_model
+    assert with_merged_rotors(denso_model, denso, TrajectoryOptions(drive_inertia=False), True) is denso_model
+    merged = with_merged_rotors(denso_model, denso, options, currents=True)
+    standard = denso.nominal_dynamic_parameters()
+    bare = standard.copy()
+    bare[:, ROTOR] = 0.0
+    # the rigid body's base parameters unchanged; the rotors add their share
+    assert np.allclose(merged.base_parameters(bare), denso_model.base_parameters(bare))
+    assert not np.allclose(merged.base_parameters(standard), denso_model.base_parameters(standard))
+
+
+def test_currents_keep_the_rotor_inertias_and_the_links_their_masses(arm):
+    denso, denso_model = arm
+    fit = identify_trajectories(denso, denso_model, [recorded(denso, 11)])
+    truth = denso.nominal_dynamic_parameters()
+    rotor, mass = fit.standard[:, ROTOR], fit.standard[:, 0]
+    assert fit.consistent
+    # the rotors near the file's (the truth here; before: 0, absorbed by the links), within 0.5-2 x in any case
+    assert np.all(np.abs(rotor[:3] / truth[:3, ROTOR] - 1) < 0.25), rotor
+    assert np.all((rotor >= 0.4999 * truth[:, ROTOR]) & (rotor <= 2.0001 * truth[:, ROTOR])), rotor
+    # the loaded links within 20 % of the truth (the wrist's barely seen by these currents)
+    assert np.all(np.abs(mass[1:4] / truth[1:4, 0] - 1) < 0.2), mass
