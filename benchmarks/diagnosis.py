@@ -375,8 +375,9 @@ ACCEPTED = {
     "position_dependent_friction": ("unnamed_effect",),
     "stribeck_hump": ("unnamed_effect",),
     "lobed_cam": ("unnamed_effect",),
-    "cam_counterbalance": ("spring", "unnamed_effect"),
-    "gas_spring_counterbalance": ("spring",),  # found as a spring, in the lever-law shape (gas_spring) or another
+    "cam_counterbalance": ("spring", "unnamed_effect", "counterbalance"),
+    # found as a spring, in the lever-law shape (gas_spring) or another, or as a low harmonic named a counterbalance
+    "gas_spring_counterbalance": ("spring", "counterbalance"),
 }
 
 # (robot, effects); joints drawn among the robot's loaded axes (torque RMS above 20 x the sensor noise)

@@ -133,7 +133,7 @@ def cad_error(robot, rng, low: float = 0.1, high: float = 0.2):
 EFFECTS = ("heavy_counterbalance", "heavy_payload")
 ABSORBED = {"heavy_counterbalance": "counterbalance", "heavy_gas_spring": "counterbalance", "heavy_payload": "payload"}
 # a counterbalance is found when diagnose names one of these on joint 2 (the diagnosis benchmark's ACCEPTED)
-COUNTERBALANCE_NAMES = ("spring", "unnamed_effect", "gas_spring")
+COUNTERBALANCE_NAMES = ("spring", "unnamed_effect", "gas_spring", "counterbalance")
 
 
 def _cli(argv) -> tuple:

@@ -46,7 +46,7 @@ from unseen_cases import CASES, build
 
 #: The diagnosis's names for each hidden effect (a cam counterbalance is a spring series, a gravity-like unnamed
 #: effect or, as two harmonics of the joint angle, a torque ripple).
-ACCEPTED = {"counterbalance": ("spring", "unnamed_effect", "gas_spring", "torque_ripple")}
+ACCEPTED = {"counterbalance": ("counterbalance", "spring", "unnamed_effect", "gas_spring", "torque_ripple")}
 LIMITS = {"payload_error": 0.10, "link_mass_ratio": 1.5, "rmse_ratio_after": 2.5}
 TABLE = ["case", "identify_exit", "units_refused_with_fix", "payload_error", "link_mass_ratio", "worst_link",
          "rmse_ratio", "rmse_ratio_after", "envelope_pushed", "findings", "suggested_route_findings", "missed", "false",

@@ -100,7 +100,7 @@ def carried_findings(findings, document: dict) -> tuple:
 
 
 #: Torques of the joint angle alone: one counterbalance may be found as any of them.
-POSITION_TORQUES = ("spring", "gas_spring", "torque_ripple")
+POSITION_TORQUES = ("spring", "gas_spring", "torque_ripple", "counterbalance")
 
 
 def _family(effect) -> str:

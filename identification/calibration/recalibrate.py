@@ -125,7 +125,7 @@ def _finding_terms(calibrated: CalibratedModel, report) -> tuple:
     for finding, candidate, coefficients in _pairs(report):
         if finding.label in labels:
             continue
-        kind = finding_kind(finding.effect) if candidate is not None else "reported"
+        kind = finding_kind(candidate.key) if candidate is not None else "reported"  # a counterbalance: its term's
         entry = {
             "effect": finding.effect,
             "label": finding.label,

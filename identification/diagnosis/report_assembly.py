@@ -15,6 +15,7 @@ from identification.calibration.model_preparation import EDGE, Preparation
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.confounding import confounding_of
+from identification.diagnosis.counterbalance_naming import name_counterbalances
 from identification.diagnosis.design import left_out
 from identification.diagnosis.joint_changes import explain_joint_changes, rise_sentence
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
@@ -42,7 +43,7 @@ def build_report(
     model_nominal_t = fixed_t + selection.nominal_train
     model_final_t = fixed_t + final.prediction_t
     residual_v = ctx_v.tau - model_nominal_v
-    findings = findings_of(selection, final) + tuple(unnamed)
+    findings = name_counterbalances(findings_of(selection, final), ctx_t) + tuple(unnamed)
     rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
     r2_before, r2_after = r2(ctx_v.tau, model_nominal_v), r2(ctx_v.tau, model_final_v)
     for values in (rmse_before, rmse_after, r2_before, r2_after):  # a joint without a torque measurement: no number

@@ -1,0 +1,106 @@
+"""Naming a low-harmonic "ripple" as large as the joint's gravity torque: a counterbalance, not motor ripple.
+
+A ``torque_ripple`` term ``A sin(h q + phase)`` fits any torque periodic in the joint angle. Motor cogging and gear
+ripple repeat at harmonics of the motor or gear angle (the gear ratio times the joint angle: tens to hundreds of
+periods per joint revolution) and are small against the joint's load. A torque of one to ``LOW_HARMONIC`` periods
+per joint revolution reaching ``GRAVITY_SHARE`` of the joint's gravity torque (its amplitude, or the ripples of such
+low harmonics on the joint summed over the recorded angles: over part of a revolution one smooth torque may be fitted
+as several) is a position-dependent load instead: a counterbalance (a cam, a spring or gas-spring balancer) or a
+spring, whose smooth curve over the joint's range a low harmonic fits as well as a polynomial. Such a finding keeps
+its term (the augmented model and the model file hold the same ``A sin(h q + phase)``) but is reported as
+``COUNTERBALANCE`` with its numbers: the peak torque, the harmonics and its share of the joint's gravity torque.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+#: The effect name a low-harmonic, gravity-sized ripple is reported under.
+COUNTERBALANCE = "counterbalance"
+LOW_HARMONIC = 3  # highest periods per joint revolution of a position-dependent load named a counterbalance
+GRAVITY_SHARE = 0.2  # its amplitude at least this share of the joint's gravity torque amplitude
+LOADED_SHARE = 0.1  # a joint gravity loads: gravity amplitude at least this share of its peak measured torque
+
+
+def gravity_amplitude(context, joint: int) -> float:
+    """The nominal model's gravity torque amplitude [N m] on ``joint`` over the recorded angles; 0 without it or on a
+    joint gravity barely loads (below ``LOADED_SHARE`` of its peak measured torque: no gravity to balance)."""
+    gravity = getattr(context, "gravity", None)
+    if gravity is None:
+        return 0.0
+    amplitude = float(np.max(np.abs(np.asarray(gravity)[:, joint])))
+    measured = float(np.max(np.abs(np.asarray(context.tau)[:, joint])))
+    return amplitude if amplitude >= LOADED_SHARE * measured else 0.0
+
+
+def _low_ripple(finding) -> bool:
+    """A ``torque_ripple`` finding on one joint of at most ``LOW_HARMONIC`` periods per revolution."""
+    harmonic = finding.parameters.get("harmonic")
+    return (
+        finding.effect == "torque_ripple"
+        and len(finding.joints) == 1
+        and harmonic is not None
+        and harmonic <= LOW_HARMONIC
+        and len(finding.coefficients) == 2
+    )
+
+
+def low_harmonic_torque(findings, context, joint: int) -> np.ndarray:
+    """The summed torque [N m] of the low-harmonic ripples among ``findings`` on ``joint`` at its recorded angles
+    (one counterbalance over part of a revolution may be fitted as several low harmonics)."""
+    q = np.asarray(context.q)[:, joint]
+    torque = np.zeros_like(q)
+    for f in findings:
+        if _low_ripple(f) and int(f.joints[0]) == joint:
+            x = float(f.parameters["harmonic"]) * q
+            torque += f.coefficients[0] * np.sin(x) + f.coefficients[1] * np.cos(x)
+    return torque
+
+
+def counterbalance_joints(findings, context) -> dict:
+    """``{joint: (peak torque, gravity amplitude)}`` of the joints whose low-harmonic ripples reach ``GRAVITY_SHARE``
+    of the joint's gravity torque amplitude (``gravity_amplitude``): their summed torque's peak over the recorded
+    angles, or the largest one's amplitude (the torque it claims over a whole revolution)."""
+    out = {}
+    for j in sorted({int(f.joints[0]) for f in findings if _low_ripple(f)}):
+        gravity = gravity_amplitude(context, j)
+        amplitudes = [float(f.parameters["amplitude"]) for f in findings if _low_ripple(f) and f.joints[0] == j]
+        peak = max(float(np.max(np.abs(low_harmonic_torque(findings, context, j)))), *amplitudes)
+        if gravity > 0.0 and peak >= GRAVITY_SHARE * gravity:
+            out[j] = (peak, gravity)
+    return out
+
+
+def named_counterbalance(finding, peak: float, gravity: float, harmonics: tuple):
+    """``finding`` (a low-harmonic ripple on a counterbalanced joint) reported as the counterbalance it is, its
+    explanation giving the numbers and why it is not motor ripple."""
+    j = int(finding.joints[0])
+    amplitude, harmonic = float(finding.parameters["amplitude"]), int(finding.parameters["harmonic"])
+    shape = "harmonic" if len(harmonics) == 1 else "harmonics"
+    explanation = (
+        f"a position-dependent torque on joint {j + 1}: a counterbalance or spring (peak {peak:.4g} N m, "
+        f"{peak / gravity:.0%} of the joint's gravity torque {gravity:.4g} N m), fitted as the "
+        f"{shape} {', '.join(str(h) for h in harmonics)} of the joint angle (this one A sin({harmonic} q + phase), "
+        f"A = {amplitude:.4g} N m); not motor or gear ripple, which repeats at the gear ratio times the joint angle "
+        "and is small against the load"
+    )
+    parameters = {**finding.parameters, "peak_torque": peak, "gravity_torque": gravity, "gravity_share": peak / gravity}
+    return replace(finding, effect=COUNTERBALANCE, explanation=explanation, parameters=parameters,
+                   signature="residual follows joint position over the whole range, as large as gravity")  # fmt: skip
+
+
+def name_counterbalances(findings, context) -> tuple:
+    """The ``findings``, the low-harmonic ripples of each counterbalanced joint (``counterbalance_joints``) named a
+    counterbalance (``named_counterbalance``), any other finding unchanged."""
+    findings = tuple(findings)
+    joints = counterbalance_joints(findings, context)
+    out = []
+    for f in findings:
+        j = int(f.joints[0]) if f.joints else None
+        if _low_ripple(f) and j in joints:
+            harmonics = tuple(int(g.parameters["harmonic"]) for g in findings if _low_ripple(g) and g.joints[0] == j)
+            f = named_counterbalance(f, *joints[j], harmonics)
+        out.append(f)
+    return tuple(out)
