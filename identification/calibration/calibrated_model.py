@@ -496,5 +496,5 @@ def read_calibrated_model(path, derive=None) -> LoadedModel:
     calibrated.lugre_parameters, calibrated.torque_findings  # noqa: B018  (raise here, not in the command)
     robot = calibrated.load_robot()
     model = (derive or derive_psdm)(robot)
-    check_against_model(calibrated, model, path.name)  # base == standard's, and what the file claims
+    check_against_model(calibrated, model, path.name, robot)  # base == standard's, and what the file claims
     return LoadedModel(calibrated, robot, model)

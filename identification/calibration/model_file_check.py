@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from identification.calibration.merged_rotors import merged_rotor_map
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.trajectory_data import drive_column_names
 from psdm_casadi.errors import ModelFileError
@@ -182,6 +183,8 @@ def check_document(document: dict, name: str) -> None:
         The parsed JSON of a file of format ``psdm-calibrated-model`` with its five blocks.
     name : str
         The file's name, for the messages.
+    robot : RobotDescription, optional
+        ``calibrated.load_robot()`` (loaded here when a drive inertia outside the model's map needs it).
 
     Raises
     ------
@@ -222,7 +225,7 @@ def free_links(model) -> list:
     ]
 
 
-def check_against_model(calibrated, model, name: str) -> None:
+def check_against_model(calibrated, model, name: str, robot=None) -> None:
     """Refuse a model whose base and standard blocks disagree, or that claims a consistency it lacks.
 
     Parameters
@@ -248,7 +251,7 @@ def check_against_model(calibrated, model, name: str) -> None:
         return  # a base-parameters-only model (identified with --no-consistency): nothing to compare
     if calibrated.document["standard"]["consistent"]:
         _check_consistency_claim(name, standard, model)
-    expected = model.base_parameters(standard)
+    expected = model.base_parameters(standard) + _merged_rotor_share(calibrated, model, standard, robot)
     error = np.abs(theta - expected)
     scale = max(float(np.max(np.abs(expected))), np.finfo(float).tiny)
     if float(np.max(error)) > BASE_TOLERANCE * scale:
@@ -259,6 +262,19 @@ def check_against_model(calibrated, model, name: str) -> None:
             f"disagree by {error[k] / scale:.3g} of the largest base parameter: one of them was edited, or the file "
             f"was written for another model of its robot). {FIX}."
         )
+
+
+def _merged_rotor_share(calibrated, model, standard, robot):
+    """The base parameters' share of the drive inertias outside both the model's map and the drive columns: those
+    the fit held inside the base parameters (``merged_rotors``, motor currents)."""
+    names = set(calibrated.document["drive"]["names"])
+    columns = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
+    joints = [j for j in range(model.n_dof) if standard[j, LINK_PARAMETER_COUNT] != 0 and f"Ia{j + 1}" not in names
+              and not np.any(columns[:, j])]  # fmt: skip
+    if not joints:
+        return 0.0
+    merged = merged_rotor_map(model, calibrated.load_robot() if robot is None else robot, joints)
+    return sum(coefficients * standard[j, LINK_PARAMETER_COUNT] for j, coefficients in merged.items())
 
 
 def _check_consistency_claim(name: str, standard, model) -> None:

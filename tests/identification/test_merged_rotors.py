@@ -11,9 +11,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.merged_rotors import merged_rotor_map, with_merged_rotors
+from identification.calibration.model_file_check import check_against_model
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
 from psdm_casadi.derive import derive_psdm
+from psdm_casadi.errors import ModelFileError
+from tests.conftest import DENSO_FILE
 from tests.identification.test_drive_loss import recorded
 
 ROTOR = 10
@@ -68,3 +72,9 @@ def test_currents_keep_the_rotor_inertias_and_the_links_their_masses(arm):
     assert np.all((rotor >= 0.4999 * truth[:, ROTOR]) & (rotor <= 2.0001 * truth[:, ROTOR])), rotor
     # the loaded links within 20 % of the truth (the wrist's barely seen by these currents)
     assert np.all(np.abs(mass[1:4] / truth[1:4, 0] - 1) < 0.2), mass
+    # the model file's check (validate, diagnose, codegen): its base block is the standard block's with the rotors
+    calibrated = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=str(DENSO_FILE))
+    check_against_model(calibrated, denso_model, "model.json", denso)
+    calibrated.document["standard"]["values"][ROTOR] *= 2.0  # an edited drive inertia of joint 1
+    with pytest.raises(ModelFileError, match="theta"):
+        check_against_model(calibrated, denso_model, "model.json", denso)
