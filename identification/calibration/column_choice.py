@@ -22,10 +22,9 @@ do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, be
 4. A drive inertia the data want negative is dropped: a torque measured behind the gearbox holds no rotor
    inertia. That is an expected situation, stated in the choice, not a warning. A torque from motor currents holds
    the rotors' inertia by construction (the motor side of the gearbox): there every separate drive-inertia column is
-   kept (the consistent fit bounds it at >= 0). The free least squares of the choice cannot tell it from the links'
-   inertias on short recordings (Kinova Gen3 currents: its estimates 0.2 +- 0.2 kg m^2, some negative, while the
-   currents against the joint-torque sensors give 0.4-0.5 on the large actuators and 0.1 on the small ones); left
-   out, the links absorb it and are pushed against their envelopes.
+   kept (the consistent fit bounds it at >= 0; its evidence says so): the free least squares of the choice cannot
+   tell it from the links' inertias on short recordings (Kinova Gen3 currents: 0.2 +- 0.2 kg m^2, some negative;
+   against joint-torque sensors 0.4-0.5 on the large actuators, 0.1 on the small), and left out the links absorb it.
 5. When currents are the torque source, each joint's drive loss (``drive_loss``: a gear efficiency that depends on
    the power flow, the column ``|tau| tanh(qd / v)`` of the robot file's rigid-body torque) is a candidate like an
    offset, kept only with a coefficient inside ``(0, MAX_LOAD_FRICTION)``. Joint-torque sensors sit behind the
@@ -415,7 +414,7 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         term = next((t for t in asked if name.startswith(t)), None)
         if term is None or getattr(request, asked[term]) != "auto":
             continue
-        evidence.append(_column_evidence(found, stribeck, name, term, (train, held, x, std)))
+        evidence.append(_column_evidence(found, stribeck, name, term, (train, held, x, std), source == "current"))
     kept = {(e.term, e.joint) for e in evidence if e.kept}
     friction = request.friction if request.friction != "auto" else ("stribeck" if stribeck else "coulomb-viscous")
     choice = ColumnChoice(
@@ -471,8 +470,8 @@ def _shape_evidence(found: _Candidates) -> list:
     return out
 
 
-def _column_evidence(found, stribeck, name, term, base) -> Evidence:
-    """One joint's offset or drive-inertia column, dropped from the model with every other candidate in."""
+def _column_evidence(found, stribeck, name, term, base, current=False) -> Evidence:
+    """One joint's offset or drive-inertia column, dropped with every other candidate in (``current``: currents)."""
     train, held, x, std = base
     j = int(name[len(term) :]) - 1
     train_without, held_without, _, _ = found.evaluate(stribeck, dropped=(name,))
@@ -482,8 +481,9 @@ def _column_evidence(found, stribeck, name, term, base) -> Evidence:
     k = found.n_base + found.names.index(name)
     # the standard deviation of the weighted fit, grown by the residual's correlation time
     estimate, sigma = float(x[k]), float(std[k] * np.sqrt(found.blocks_count(j) / found.effective[j]))
-    if term == "Ia" and estimate <= 0:
-        return Evidence(term, j, delta, ratio, False, "the data want it negative: no rotor inertia in the torque "
+    if term == "Ia" and (current or estimate <= 0):  # currents hold the rotors' inertia: not a sensor's placement
+        return Evidence(term, j, delta, ratio, current, "motor currents hold the rotor's inertia: kept, >= 0 in the "
+                        "consistent fit" if current else "the data want it negative: no rotor inertia in the torque "
                         "signal (measured behind the gearbox)", estimate, sigma)  # fmt: skip
     if term == "loss" and not 0.0 < estimate < MAX_LOAD_FRICTION:
         return Evidence(term, j, delta, ratio, False, f"coefficient mu = {estimate:.3g} outside (0, "

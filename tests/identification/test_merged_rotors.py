@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.column_choice import ColumnRequest, choose_columns
 from identification.calibration.merged_rotors import merged_rotor_map, with_merged_rotors
 from identification.calibration.model_file_check import check_against_model
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
@@ -78,3 +79,16 @@ def test_currents_keep_the_rotor_inertias_and_the_links_their_masses(arm):
     calibrated.document["standard"]["values"][ROTOR] *= 2.0  # an edited drive inertia of joint 1
     with pytest.raises(ModelFileError, match="theta"):
         check_against_model(calibrated, denso_model, "model.json", denso)
+
+
+def test_on_currents_no_drive_inertia_is_blamed_on_link_side_sensors(arm):
+    denso, denso_model = arm
+    request = ColumnRequest(friction="coulomb-viscous", offset="off", drive_loss="off")
+    choice = choose_columns(denso, denso_model, [recorded(denso, 12)], request=request)
+    inertia = [e for e in choice.evidence if e.term == "Ia"]
+    assert inertia and choice.torque_source == "current"
+    assert (
+        sorted(e.joint for e in inertia) == sorted(choice.inertia_joints) == separate_inertia_joints(denso_model, denso)
+    )
+    text = " ".join([*choice.describe(), *(e.reason for e in inertia)])
+    assert all(e.kept and "motor currents" in e.reason for e in inertia) and "behind the gearbox" not in text
