@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from identification.calibration.pseudo_inertia import pseudo_inertia
+from psdm_casadi.ipopt_progress import progress_options
 
 __all__ = ["MU_ENOUGH", "MU_PATH", "BarrierResult", "barrier_solution", "log_det_barrier"]
 
@@ -110,7 +111,7 @@ def barrier_solution(problem, bodies, start, bounds, margin: float):
     bounds : tuple
         ``(lbx, ubx, lbg, ubg)``.
     """
-    x, n_bodies = problem["x"], len(bodies)
+    x = problem["x"]
     mu = ca.SX.sym("mu")
     barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size) for k, size in enumerate(bodies)), 0)
     lbx, ubx, lbg, ubg = bounds
@@ -119,8 +120,24 @@ def barrier_solution(problem, bodies, start, bounds, margin: float):
     steps = [d for k, size in enumerate(bodies) for d in pivots(x[10 * k : 10 * k + 10], margin, size)]
     problem = {**problem, "g": ca.vertcat(problem["g"], *steps)}
     lbg, ubg = np.concatenate([lbg, np.zeros(len(steps))]), np.concatenate([ubg, np.full(len(steps), np.inf)])
+    cap = BARRIER_OPTIONS["ipopt.max_iter"] * len(MU_PATH)  # the bar counts the whole path's iterations
+    sizes = (problem["x"].numel(), problem["g"].numel(), 1)
+    bar, callback = progress_options("consistent_fit_barrier_progress", sizes, cap, "identify: consistent fit (Ipopt)",
+                                     logger, lbg, ubg)  # fmt: skip
     solver = ca.nlpsol("consistent_fit_barrier", "ipopt", {**problem, "p": mu, "f": problem["f"] + mu * barrier},
-                       BARRIER_OPTIONS)  # fmt: skip
+                       {**BARRIER_OPTIONS, **bar})  # fmt: skip
+    try:
+        return _follow_path(solver, bodies, start, bounds, margin, steps, (lbg, ubg))
+    finally:
+        if callback is not None:
+            callback.close()
+
+
+def _follow_path(solver, bodies, start, bounds, margin, steps, constraint_bounds):
+    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last."""
+    n_bodies = len(bodies)
+    lbx, ubx, _, _ = bounds
+    lbg, ubg = constraint_bounds
     current = np.array(start, dtype=float)
     for k in range(n_bodies):
         current[10 * k : 10 * k + 10] = _inside(current[10 * k : 10 * k + 10], margin)
