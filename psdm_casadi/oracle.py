@@ -136,6 +136,12 @@ def build_pinocchio_model(robot: RobotDescription, parameters=None) -> pin.Model
     return model
 
 
+def mass_matrix(model: pin.Model, data, q) -> np.ndarray:
+    """The symmetric mass matrix of ``model`` at ``q`` (``pin.crba`` fills the upper triangle only)."""
+    m = pin.crba(model, data, q)
+    return np.triu(m) + np.triu(m, 1).T
+
+
 def _batch(x, n_dof, name):
     arr = np.asarray(x, dtype=float)
     single = arr.ndim == 1
@@ -176,10 +182,7 @@ class PinocchioOracle:
         """Mass matrix (symmetric, rotor inertia included), shape (n_dof, n_dof) or (n_samples, n, n)."""
         q, single = _batch(q, self.robot.n_dof, "q")
         out = []
-        for qi in q:
-            m = pin.crba(self.model, self.data, qi)
-            out.append(np.triu(m) + np.triu(m, 1).T)
-        out = np.array(out)
+        out = np.array([mass_matrix(self.model, self.data, qi) for qi in q])
         return out[0] if single else out
 
     def aba(self, q, qd, tau) -> np.ndarray:

@@ -127,17 +127,16 @@ def barrier_solution(problem, bodies, start, bounds, margin: float):
     solver = ca.nlpsol("consistent_fit_barrier", "ipopt", {**problem, "p": mu, "f": problem["f"] + mu * barrier},
                        {**BARRIER_OPTIONS, **bar})  # fmt: skip
     try:
-        return _follow_path(solver, bodies, start, bounds, margin, steps, (lbg, ubg))
+        return _follow_path(solver, bodies, start, (lbx, ubx, lbg, ubg), margin, steps)
     finally:
         if callback is not None:
             callback.close()
 
 
-def _follow_path(solver, bodies, start, bounds, margin, steps, constraint_bounds):
-    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last."""
+def _follow_path(solver, bodies, start, bounds, margin, steps):
+    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bounds`` with the pivots' rows."""
     n_bodies = len(bodies)
-    lbx, ubx, _, _ = bounds
-    lbg, ubg = constraint_bounds
+    lbx, ubx, lbg, ubg = bounds
     current = np.array(start, dtype=float)
     for k in range(n_bodies):
         current[10 * k : 10 * k + 10] = _inside(current[10 * k : 10 * k + 10], margin)

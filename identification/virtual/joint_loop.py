@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 import numpy as np
-import pinocchio as pin
+
+from psdm_casadi.oracle import mass_matrix
 
 __all__ = ["LOOP_DAMPING_LIMIT", "TRACKING_LIMIT", "joint_loop_gains", "tracks"]
 
@@ -19,8 +20,7 @@ def _loop_damping(model, data, poses, kd, dt: float) -> float:
     kicks the arm in one control period (symmetric positive-definite pencil, so real eigenvalues)."""
     worst = 0.0
     for q in poses:
-        mass = pin.crba(model, data, q)
-        mass = np.triu(mass) + np.triu(mass, 1).T
+        mass = mass_matrix(model, data, q)
         worst = max(worst, float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(mass, np.diag(kd)))))) * dt)
     return worst
 
@@ -47,8 +47,7 @@ def joint_loop_gains(
     spring) the lower gains of the coupled inertia interact with the integral term and can diverge themselves.
     """
     omega = 2.0 * np.pi * bandwidth_hz
-    mass = pin.crba(model, data, q_ref[0])
-    mass = np.triu(mass) + np.triu(mass, 1).T
+    mass = mass_matrix(model, data, q_ref[0])
     inertia = mass.diagonal().copy()
     if retuned:
         dt = 1.0 / rate

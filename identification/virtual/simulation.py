@@ -369,15 +369,16 @@ def simulate_recording(
     ctrl_model = build_pinocchio_model(ctrl_robot, ctrl_params)
     ctrl_data = ctrl_model.createData()
     tau_ff = _feedforward(ctrl_model, ctrl_data, q_ref, qd_ref, qdd_ref, lugre, options)
-    loop = (ctrl_model, ctrl_data, q_ref, options.rate, options.bandwidth_hz, options.damping_ratio)
+    loop = (ctrl_model, ctrl_data, q_ref, options.rate, options.bandwidth_hz, options.damping_ratio,
+            options.integral_gain)  # fmt: skip
     plant = build_pinocchio_model(plant_robot, plant_params)
     reference_start = (q_ref, qd_ref, qdd_ref[0])
     with np.errstate(all="ignore"):  # a diverging run is detected below, not warned about sample by sample
-        states = _integrate(plant, lugre, t, reference_start, tau_ff, joint_loop_gains(*loop, options.integral_gain),
+        states = _integrate(plant, lugre, t, reference_start, tau_ff, joint_loop_gains(*loop),
                             options, extras)  # fmt: skip
     if not tracks(states[0], q_ref):
         logger.info("virtual %s: the joint loop diverged with gains from the mass-matrix diagonal; retuned", robot.name)
-        gains = joint_loop_gains(*loop, options.integral_gain, retuned=True)
+        gains = joint_loop_gains(*loop, retuned=True)
         states = _integrate(plant, lugre, t, reference_start, tau_ff, gains, options, extras)
     q, qd, qdd, z, tau_motor, tau_f, tau_x = states
     recording = _sensor_recording(robot.name, t, q, qd, tau_motor, kt, options, extras, rng)

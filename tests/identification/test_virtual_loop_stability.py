@@ -7,7 +7,7 @@ import pinocchio as pin
 
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi import load_robot
-from psdm_casadi.oracle import build_pinocchio_model
+from psdm_casadi.oracle import PinocchioOracle, build_pinocchio_model
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -24,9 +24,7 @@ def zero_centred_sines(n):
 
 def sampled_loop_damping(robot, q, kd, dt):
     """Spectral radius of dt M(q)^-1 Kd from Pinocchio's mass matrix, independent of the simulator's gains."""
-    model = build_pinocchio_model(robot, robot.nominal_dynamic_parameters())
-    mass = pin.crba(model, model.createData(), q)
-    mass = np.triu(mass) + np.triu(mass, 1).T
+    mass = PinocchioOracle(robot).crba(q)
     return float(np.max(np.abs(np.linalg.eigvals(np.linalg.solve(mass, np.diag(kd)))))) * dt
 
 

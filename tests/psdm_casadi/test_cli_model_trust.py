@@ -189,11 +189,9 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
         validation_q=zeros, validation_qd=zeros, validation_tau=zeros, validation_nominal=zeros,
         validation_final=zeros,
     )  # fmt: skip
-    diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
-    monkeypatch.setattr(diagnosis, "diagnose", lambda *a, **k: report)
-    # psdm diagnose MODEL calls it through diagnose_model, which holds its own name for it once imported
-    monkeypatch.setattr(importlib.import_module("identification.diagnosis.model_file"), "diagnose",
-                        lambda *a, **k: report)  # fmt: skip
+    # psdm diagnose MODEL runs the diagnosis through diagnose_model: patched where that module looks it up
+    model_file = importlib.import_module("identification.diagnosis.model_file")  # the module, not the function
+    monkeypatch.setattr(model_file, "diagnose", lambda *a, **k: report)
     valid = load_recording(arm / "valid.csv")
     save_recording(valid.with_signals(tau=1000.0 * valid.tau), tmp_path / "valid_mNm.csv")
     new = tmp_path / "new.json"
