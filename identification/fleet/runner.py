@@ -220,7 +220,9 @@ def _scatter_all(client, contexts) -> dict:
     unpickles each once, not once per task)."""
     values = {id(m): m for ctx in contexts.values() for m in ctx.models.values()}
     values.update({id(b): b for ctx in contexts.values() for b in ctx.segments.values()})
-    futures = client.scatter(list(values.values()), broadcast=True) if values else []
+    # hash=False: keys of their own, not the content's: a run right after an interrupted one scatters the same models,
+    # and a content key the scheduler was still releasing from the first run made scatter wait forever
+    futures = client.scatter(list(values.values()), broadcast=True, hash=False) if values else []
     return dict(zip(values, futures))
 
 
@@ -248,7 +250,7 @@ def _results_dask(client, plan, todo, contexts):
 
     def shared(value):
         if id(value) not in scattered:  # a baseline this run re-identified
-            scattered[id(value)] = client.scatter(value, broadcast=True)
+            scattered[id(value)] = client.scatter(value, broadcast=True, hash=False)
         return scattered[id(value)]
 
     futures, outstanding, generators = {}, {}, {}
