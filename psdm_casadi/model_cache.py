@@ -21,6 +21,7 @@ older versions or edited robots do not pile up.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import logging
@@ -99,8 +100,10 @@ def _file_digest(path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+@functools.lru_cache(maxsize=1)
 def _software() -> dict:
-    """The versions and derivation sources that a cached model depends on."""
+    """The versions and derivation sources that a cached model depends on (read once per process: a fleet run
+    asks for a model key per robot and day, and the installed sources do not change under a running process)."""
     import pinocchio
 
     try:
