@@ -5,7 +5,11 @@ with velocities and accelerations; ``Recording.split`` then cuts it 85/15 into t
 
 Uneven time steps: a Butterworth filter is defined for a uniform sample rate, so a recording with
 uneven steps is first resampled (cubic spline, not-a-knot) onto a uniform grid with the median step
-over the same time span; the result lives on that grid. Without filtering (``cutoff_hz=None``) no
+over the same time span; the result lives on that grid. Across a gap (a step longer than ``GAP_STEPS``
+median steps: messages a logger dropped) the torques and currents are interpolated linearly: a cubic spline
+through noisy torques swings far outside them over a gap (its end slopes come from single noisy samples: over
+a 60 ms gap of a 1 kHz log by tens of N m), a torque the fit then takes as measured; the line stays between
+the samples measured on either side. Without filtering (``cutoff_hz=None``) no
 resampling happens and the differences use the exact three-point formulas for uneven steps.
 """
 
@@ -21,6 +25,8 @@ from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 DIFFERENTIATIONS = ("central", "none")
+#: A time step longer than this many median steps is a gap (``resample_uniform``).
+GAP_STEPS = 2.5
 
 
 @dataclass(frozen=True)
@@ -170,15 +176,25 @@ def zero_phase_filter(x, sample_rate_hz: float, cutoff_hz: float, order: int = 8
 
 
 def resample_uniform(recording: Recording) -> Recording:
-    """The recording on a uniform grid with its median step over the same span (cubic spline per signal)."""
+    """The recording on a uniform grid with its median step over the same span (cubic spline per signal; torques
+    and currents linear across gaps, module docstring)."""
     dt = recording.dt
     n = int(np.floor(recording.duration / dt + 1e-9)) + 1
     t = recording.t[0] + dt * np.arange(n)
+    gaps = np.flatnonzero(np.diff(recording.t) > GAP_STEPS * dt)  # step k: from t[k] to t[k + 1]
+    inside = np.zeros(n, dtype=bool)
+    for k in gaps:
+        inside |= (t > recording.t[k]) & (t < recording.t[k + 1])
     changes = {}
     for key in ("q", "tau", "current", "qd", "qdd"):
         value = getattr(recording, key)
         if value is not None:
             changes[key] = CubicSpline(recording.t, value, axis=0)(t)
+            if key in ("tau", "current") and inside.any():
+                line = [
+                    np.interp(t[inside], recording.t, column) for column in np.reshape(value, (value.shape[0], -1)).T
+                ]
+                changes[key][inside] = np.reshape(np.column_stack(line), changes[key][inside].shape)
     return recording.with_signals(t=t, **changes)
 
 
