@@ -187,3 +187,25 @@ def test_python_and_cli_diagnoses_of_a_model_file_and_a_robot_file_give_the_same
     np.testing.assert_allclose(cli["rmse_after"], python.rmse_after, rtol=1e-9)
     assert "at 10 Hz" in python.preparation and "identify's default" in python.preparation
     assert "at 10 Hz" in cli["preparation"]
+
+
+def test_a_diagnosis_without_findings_reports_the_model_file_as_its_after(denso_files, denso_model):
+    """The virtual Denso holds nothing the model lacks: a diagnosis of its model file that keeps no finding adds
+    nothing, so its "after" is the file as it is, the RMSE ``psdm validate`` gives, not the diagnosis's own refit of
+    the nominal friction on its one training recording (which the report once showed as "after", worse on a joint,
+    for a model nobody writes)."""
+    from identification.calibration.finding_value import validation_rmse
+    from identification.data.io import load_recording
+    from identification.diagnosis.candidates import CandidateLibrary, TorqueOffsetTerm
+    from identification.diagnosis.diagnose import DiagnosisOptions
+    from identification.diagnosis.model_file import diagnose_model
+
+    train, valid = (load_recording(denso_files / name, 6) for name in ("train.csv", "valid.csv"))
+    options = DiagnosisOptions(rigid_body="prior", sparse=False, library=CandidateLibrary((TorqueOffsetTerm(),)),
+                               refine=False)
+    report = diagnose_model(denso_files / "model.json", train, valid, options, derive=lambda robot: denso_model)
+    own = validation_rmse(load_calibrated_model(denso_files / "model.json"), denso_model, valid)[0]
+    assert not report.findings and report.before_is_model_file
+    np.testing.assert_allclose(report.rmse_before, own, rtol=1e-9)
+    np.testing.assert_allclose(report.rmse_after, own, rtol=1e-9)
+    assert report.joint_notes == ()
