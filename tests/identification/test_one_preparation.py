@@ -201,8 +201,9 @@ def test_a_diagnosis_without_findings_reports_the_model_file_as_its_after(denso_
     from identification.diagnosis.model_file import diagnose_model
 
     train, valid = (load_recording(denso_files / name, 6) for name in ("train.csv", "valid.csv"))
-    options = DiagnosisOptions(rigid_body="prior", sparse=False, library=CandidateLibrary((TorqueOffsetTerm(),)),
-                               refine=False)
+    options = DiagnosisOptions(
+        rigid_body="prior", sparse=False, library=CandidateLibrary((TorqueOffsetTerm(),)), refine=False
+    )
     report = diagnose_model(denso_files / "model.json", train, valid, options, derive=lambda robot: denso_model)
     own = validation_rmse(load_calibrated_model(denso_files / "model.json"), denso_model, valid)[0]
     assert not report.findings and report.before_is_model_file
