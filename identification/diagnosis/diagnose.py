@@ -436,8 +436,15 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     )  # fmt: skip
 
 
+#: Terms whose nonlinear parameter judges the term itself: a friction drift settling within seconds is no warm-up
+#: (``FrictionDriftTerm.implausibility``), whatever its linear screening column (``rate t``) suggested.
+SHAPE_VERDICTS = ("friction_drift",)
+
+
 def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options: DiagnosisOptions) -> FinalFit:
-    """Refit the kept terms with their nonlinear parameters; the linear fit stays when that does not improve it."""
+    """Refit the kept terms with their nonlinear parameters; the linear fit stays when that does not improve it, or
+    when the refit alone moved a term out of its bounds, unless the term is in ``SHAPE_VERDICTS`` (then the refit
+    stands and ``plausible_diagnosis`` rejects the term)."""
     linear = FinalFit(
         terms=tuple(step.term for step in selection.steps),
         coefficients=selection.coefficients,
@@ -465,7 +472,8 @@ def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options:
         logger.info(f"diagnose: Ipopt refinement not used ({refined.status}); keeping the linearised fit")
         return linear
     moved = implausible_terms(refined.terms, refined.coefficients, problem.ctx_t)
-    if moved and not implausible_terms(linear.terms, linear.coefficients, problem.ctx_t):
+    shape = [term.label for term, _ in moved if term.key in SHAPE_VERDICTS]  # the refit's verdict on the term itself
+    if moved and not shape and not implausible_terms(linear.terms, linear.coefficients, problem.ctx_t):
         logger.info(f"diagnose: Ipopt refinement not used: {moved[0][0].label}: {moved[0][1]}; keeping the linear fit")
         return linear
     logger.info(

@@ -5,8 +5,9 @@ Every family module (``torque``, ``friction``, ``inertial``, ``delay``, ``deflec
 pysindy. Fitted parameters are checked against the physical bounds ``MAX_*`` below
 (``CandidateTerm.implausibility``, one rule per family, the one place that says what is physically meaningless:
 a negative stiffness, an offset or a torque larger than the joint's torque scale ``torque_bound``, a load-dependent
-friction taking a large share of the load, a negative inertia, ...). Sign convention: columns describe torque the
-motors must supply in addition to the nominal model, ``tau_measured = tau_nominal + columns @ coefficients``.
+friction taking a large share of the load, a negative inertia, a friction "warm-up" faster than heat spreads, ...).
+Sign convention: columns describe torque the motors must supply in addition to the nominal model,
+``tau_measured = tau_nominal + columns @ coefficients``.
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ MAX_BACKLASH_RAD = 0.05  # total play [rad] (about 3 degrees)
 MAX_DEFLECTION_RAD = 0.05  # joint torsion at the peak torque [rad]
 MAX_PAYLOAD_REACH = 0.5  # distance of a payload's centre of mass from the flange [m]
 MAX_TILT_DEG = 10.0  # tilt of the robot's base off level [deg]
+# shortest time constant [s] of a friction drift: gears, lubricant and motors warm up over minutes (thermal time
+# constants of 5-30 min); a change within seconds is a start-up transient of the recording, not a drift
+MIN_DRIFT_TIME_CONSTANT_S = 30.0
 
 
 def joint_columns(context, joint: int, values) -> np.ndarray:

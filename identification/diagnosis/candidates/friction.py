@@ -14,6 +14,7 @@ import numpy as np
 
 from identification.diagnosis.candidates.base import (
     MAX_LOAD_FRICTION,
+    MIN_DRIFT_TIME_CONSTANT_S,
     SMOOTH_VELOCITY,
     CandidateTerm,
     joint_columns,
@@ -122,7 +123,18 @@ class FrictionDriftTerm(CandidateTerm):
         return out
 
     def implausibility(self, coefficients, context=None):
-        """A friction change over the recording larger than the joint's torque scale (``oversized``)."""
+        """A time constant below ``MIN_DRIFT_TIME_CONSTANT_S`` (heat spreads over minutes: a friction that settles
+        within seconds is a start-up transient of the recording, not a warm-up), or a friction change over the
+        recording larger than the joint's torque scale (``oversized``)."""
+        big_t = self.time_constant
+        if big_t is not None and big_t < MIN_DRIFT_TIME_CONSTANT_S:
+            settled = float(coefficients[0]) * big_t
+            return (
+                f"time constant {big_t:.3g} s below the {MIN_DRIFT_TIME_CONSTANT_S:g} s of a thermal warm-up (gears "
+                f"and lubricant warm up over minutes): a Coulomb friction that settles by {settled:.4g} N m within "
+                f"{3.0 * big_t:.3g} s of the recording's start is a start-up transient (the first motion after a "
+                "standstill, the controller settling, the filter's edge), not a drift"
+            )
         if context is None:
             return None
         ends = self._shape(np.asarray([context.full_t[0], context.full_t[-1]], dtype=float))
