@@ -4,11 +4,18 @@ The validation RMSE of a calibrated model as ``psdm validate`` computes it (``va
 one finding taken out and nothing refitted (``without_entry``), and the findings that do not lower the validation
 RMSE where they act (``unhelpful_findings``), which ``recalibrate`` drops (issue 16: a finding is kept only if it
 lowers the validation RMSE of every joint it names).
+
+Two torque findings on one joint whose torques cancel each other (``cancelling_findings``: anti-correlated beyond
+``CANCEL_CORRELATION`` and together less than ``CANCEL_SHARE`` of the smaller) are not physics but a nearly collinear
+pair fitted with huge opposite coefficients: a torque ripple a diagnosis found beside the spring the model file
+carries came out as k = -6.8e4 N m/rad against a ripple of 3.5e4 N m (issue 25). The newer of the two (later in the
+file's findings: the file's own come first) is dropped and the older refitted alone.
 """
 
 from __future__ import annotations
 
 import copy
+import itertools
 
 import numpy as np
 
@@ -16,7 +23,21 @@ from identification.calibration.calibrated_model import CalibratedModel
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from identification.metrics import r2, rmse
 
-__all__ = ["implausibility", "unhelpful_findings", "validation_rmse", "without_entry"]
+__all__ = [
+    "CANCEL_CORRELATION",
+    "CANCEL_SHARE",
+    "cancelling_findings",
+    "cancelling_pairs",
+    "implausibility",
+    "unhelpful_findings",
+    "validation_rmse",
+    "without_entry",
+]
+
+#: Two findings' torques on one joint cancel when their correlation is below this ...
+CANCEL_CORRELATION = -0.9
+#: ... and the RMS of their sum is below this share of the smaller one's RMS.
+CANCEL_SHARE = 0.5
 
 
 def validation_rmse(calibrated: CalibratedModel, model, recording, kt=None) -> tuple:
@@ -63,7 +84,8 @@ def unhelpful_findings(after: CalibratedModel, model, validation, kt) -> list:
     or whose removal (no refit) does not raise the validation RMSE where they act (``_judged``), with the RMSE pair
     that shows it. A torque finding whose features were all absorbed by the fit's other columns contributes
     nothing by construction and is kept (reported as absorbed), not judged. Implausible findings are returned
-    alone when there are any: the others are judged again once those are gone."""
+    alone when there are any, then cancelling ones (``cancelling_findings``): the others are judged again once those
+    are gone."""
     reasons = [(e, implausibility(e)) for e in after.document["findings"]]
     implausible = [
         {"label": e["label"], "effect": e["effect"], "joints": list(e["joints"] or []), "reason": reason}
@@ -72,6 +94,9 @@ def unhelpful_findings(after: CalibratedModel, model, validation, kt) -> list:
     ]
     if implausible:
         return implausible
+    cancelling = cancelling_findings(after, model, validation[0], kt)
+    if cancelling:
+        return cancelling
     with_it = np.mean([validation_rmse(after, model, r, kt)[0] for r in validation], axis=0)
     out = []
     for entry in after.document["findings"]:
@@ -102,3 +127,42 @@ def without_entry(calibrated: CalibratedModel, entry: dict) -> CalibratedModel:
     document["findings"] = [e for e in document["findings"] if e["label"] != entry["label"]]
     document["corrections"] = {k: v for k, v in (document.get("corrections") or {}).items() if k != entry["label"]}
     return CalibratedModel(document)
+
+
+def cancelling_findings(after: CalibratedModel, model, recording, kt=None) -> list:
+    """The newer finding of each pair of torque findings on one joint whose torques on ``recording`` cancel
+    (``cancelling_pairs``); each one's torque is the model's prediction less the prediction without it."""
+    entries = [e for e in after.document["findings"]
+               if e["kind"] == "torque" and any(c is not None for c in e["coefficients"])]  # fmt: skip
+    if len(entries) < 2:
+        return []
+    full = validation_rmse(after, model, recording, kt)[3]
+    torques = []
+    for entry in entries:
+        joint = int(entry["term"]["joint"]) - 1
+        without = validation_rmse(without_entry(after, entry), model, recording, kt)[3]
+        torques.append((entry["label"], joint, full[:, joint] - without[:, joint]))
+    effects = {e["label"]: e["effect"] for e in entries}
+    return [{**d, "effect": effects[d["label"]]} for d in cancelling_pairs(torques)]
+
+
+def cancelling_pairs(torques) -> list:
+    """``[{"label", "joints", "reason"}, ...]``: of ``torques`` = ``[(label, 0-based joint, torque array), ...]`` in
+    the order the findings were added, the newer of each pair on one joint anti-correlated beyond
+    ``CANCEL_CORRELATION`` whose sum's RMS is below ``CANCEL_SHARE`` of the smaller one's (module docstring)."""
+    out, dropped = [], set()
+    for (older, j, a), (newer, k, b) in itertools.combinations(torques, 2):
+        if j != k or older in dropped or newer in dropped:
+            continue
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        ra, rb, rs = (float(np.sqrt(np.mean(x**2))) for x in (a, b, a + b))
+        if min(ra, rb) <= 0.0 or rs >= CANCEL_SHARE * min(ra, rb):
+            continue
+        correlation = float(np.corrcoef(a, b)[0, 1])
+        if correlation < CANCEL_CORRELATION:
+            dropped.add(newer)
+            out.append({"label": newer, "joints": [j + 1],
+                        "reason": f"cancels {older} on joint {j + 1} (torque RMS {rb:.4g} and {ra:.4g} N m, together "
+                        f"{rs:.4g} N m; correlation {correlation:.3f}): two findings fitted to cancel each other are "
+                        f"not physics; {older} refitted without it"})  # fmt: skip
+    return out
