@@ -6,11 +6,13 @@ closed loop against Pinocchio's aba integrated by RK4 with 4 substeps per interv
 (``mpc_rows``: the same reference, horizon, interval, weights, limits and plant for every row):
 
 - ``psdm_rti``: ours, the real-time iteration (``trajopt.mpc_rti``): one Gauss-Newton SQP step per
-  interval from the shifted solution, the QP by HPIPM (Riccati interior point, at most
-  ``--qp-iterations``), the PSDM dynamics and their derivatives through the inverse dynamics, all
-  one code-generated C function compiled with -O3 -march=native (linking the HPIPM and BLASFEO built for
-  this CPU by ``make hpipm`` or named by ``$PSDM_HPIPM_DIR``, else CasADi's portable copies; the JSON's
-  ``hpipm_blasfeo`` says which);
+  interval from the shifted solution, the PSDM dynamics and their derivatives through the inverse
+  dynamics, all one code-generated C function compiled with -O3 -march=native. The QP per
+  ``--qp-solver``: ``riccati`` (the default; ``trajopt.riccati_qp``, this package's C for the stage
+  structure: the exact solution by one Riccati recursion when no bound is active, else an interior
+  point of at most ``--qp-iterations``), or ``hpipm`` (Riccati interior point, at most
+  ``--qp-iterations``, linking the HPIPM and BLASFEO built for this CPU by ``make hpipm`` or named by
+  ``$PSDM_HPIPM_DIR``, else CasADi's portable copies; the JSON's ``hpipm_blasfeo`` says which);
 - ``psdm_sqp``: the previous path, CasADi's sqpmethod re-solving the NLP each interval (HPIPM QPs,
   at most ``--max-iter`` iterations, jit-compiled functions, Python around the solver);
 - ``crocoddyl_box_fddp``, ``crocoddyl_fddp`` (Panda): Crocoddyl's BoxFDDP (torque bounds) and FDDP
@@ -36,7 +38,8 @@ tracking RMSE, no limit violation.
 Usage::
 
     python benchmarks/mpc.py [--robots denso panda] [--steps 200] [--horizon 20] [--integrator rk4]
-                             [--qp-iterations 3] [--crocoddyl-python PATH] [--dynamics-peers] [--json]
+                             [--qp-solver riccati] [--qp-iterations 4] [--crocoddyl-python PATH]
+                             [--dynamics-peers] [--json]
                              [--model MODEL.json]  # ours on a calibrated model (psdm identify) instead
 
 Exit code 0 when the targets are met, 1 otherwise, 2 on bad arguments.
@@ -71,7 +74,7 @@ from psdm_casadi.recursive import build_recursive_functions
 from trajopt.hpipm_c import hpipm_folders
 from trajopt.mpc import MPCOptions, build_mpc
 from trajopt.mpc_model import build_forward_dynamics_jacobian
-from trajopt.mpc_rti import QP_MODES, build_rti, compile_rti
+from trajopt.mpc_rti import QP_MODES, RTI_QP_SOLVERS, build_rti, compile_rti
 
 LOG = logging.getLogger("benchmarks.mpc")
 TARGET_RATE_HZ = 1000.0
@@ -186,6 +189,7 @@ def run_robot(name, robot, args):
                     friction=friction,
                     forward_dynamics_jacobian=jacobian,
                     qp_mode=args.qp_mode,
+                    qp_solver=args.qp_solver,
                 ),  # fmt: skip
                 Path(folder) / "rti",
             )
@@ -236,14 +240,20 @@ def summary(rows, skipped, rti_options, args, dt, versions) -> dict:
         speedup_vs_crocoddyl_cpu=croc[fastest]["mean_step_cpu_ms"] / ours["mean_step_cpu_ms"] if fastest else None,
         fastest_crocoddyl=fastest,
         crocoddyl_versions=versions,
-        rti=f"HPIPM {args.qp_mode}, {rti_options.max_iter} iterations at most, tolerance {rti_options.tol:g}",
+        rti=(
+            f"Riccati (exact when no bound is active, else interior point of {rti_options.max_iter} iterations at "
+            f"most, tolerance {rti_options.tol:g})"
+            if args.qp_solver == "riccati"
+            else f"HPIPM {args.qp_mode}, {rti_options.max_iter} iterations at most, tolerance {rti_options.tol:g}"
+        ),
+        qp_solver=args.qp_solver,
         full_solve=f"sqpmethod (hpipm QPs), Gauss-Newton Hessian, max {args.max_iter} iterations per step, jit",
         controller_model=(
             "the robot file's nominal parameters and drive friction"
             if args.model is None
             else f"calibrated model {args.model} (rigid body, friction, offsets; friction=False)"
         ),
-        hpipm_blasfeo=str(hpipm_folders()[1]),
+        hpipm_blasfeo=str(hpipm_folders()[1]) if args.qp_solver == "hpipm" else None,
         integrator=args.integrator,
         substeps=args.substeps,
         horizon=args.horizon,
@@ -287,7 +297,8 @@ def print_results(results) -> None:
         if r["crocoddyl_versions"]:
             print(f"  {r['crocoddyl_versions']}")
         load = f"load average {r['load_average']:.1f} on {os.cpu_count()} cores"
-        print(f"  {load}: wall times include waiting for other jobs; HPIPM/BLASFEO from {r['hpipm_blasfeo']}")
+        blasfeo = f"; HPIPM/BLASFEO from {r['hpipm_blasfeo']}" if r["hpipm_blasfeo"] else ""
+        print(f"  {load}: wall times include waiting for other jobs{blasfeo}")
 
 
 def missed_targets(results) -> list:
@@ -315,9 +326,10 @@ def main(argv=None) -> int:
     parser.add_argument("--steps", type=int, default=200, help="closed-loop control steps per row")
     parser.add_argument("--horizon", type=int, default=20)
     parser.add_argument("--integrator", default="rk4", choices=["rk4", "euler"])
-    parser.add_argument("--qp-iterations", type=int, default=4, help="HPIPM iteration cap of the RTI step")
+    parser.add_argument("--qp-iterations", type=int, default=4, help="interior-point iteration cap of the RTI step")
+    parser.add_argument("--qp-solver", default="riccati", choices=RTI_QP_SOLVERS, help="the RTI step's QP solver")
     parser.add_argument("--qp-mode", default="speed_abs", choices=QP_MODES, help="HPIPM's preset in the RTI step")
-    parser.add_argument("--qp-tol", type=float, default=1e-3, help="HPIPM residual tolerance of the RTI step")
+    parser.add_argument("--qp-tol", type=float, default=1e-3, help="QP residual tolerance of the RTI step")
     parser.add_argument("--max-iter", type=int, default=3, help="SQP iteration cap of the full solve per step")
     parser.add_argument("--crocoddyl-python", default=os.environ.get("PSDM_CROCODDYL_PYTHON", sys.executable))
     parser.add_argument("--crocoddyl-iterations", type=int, default=1, help="FDDP iterations per step")

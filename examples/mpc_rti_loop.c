@@ -1,8 +1,13 @@
 /* The real-time-iteration MPC from C: one call of mpc_rti per control interval, no Python.
  *
  * mpc_rti.c / mpc_rti.h come from trajopt.mpc_rti.export_rti_c (the dynamics, their derivatives,
- * the QP and HPIPM's call in one function). Build (CASADI = the casadi package folder, which ships
- * HPIPM and BLASFEO; or an HPIPM/BLASFEO install built for the CPU):
+ * the QP and its solver's call in one function). Build, with the package's QP solver (the default;
+ * export_rti_c writes riccati_qp.c beside mpc_rti.c):
+ *
+ *   cc -O3 -march=native mpc_rti_loop.c mpc_rti.c riccati_qp.c -I. -lm -o mpc_rti_loop
+ *
+ * or, for a step built with qp_solver="hpipm" (CASADI = the casadi package folder, which ships HPIPM
+ * and BLASFEO; or an HPIPM/BLASFEO install built for the CPU):
  *
  *   cc -O3 -march=native mpc_rti_loop.c mpc_rti.c -I. -I$CASADI/include -L$CASADI \
  *      -lhpipm -lblasfeo -Wl,-rpath,$CASADI -lm -o mpc_rti_loop

@@ -14,6 +14,7 @@ report of ``benchmarks/mpc.py``), Python calls the same compiled code through ``
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import shlex
 import shutil
@@ -31,11 +32,15 @@ from trajopt.hpipm_c import hpipm_folders, persistent_workspace
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, constraint_jacobian, step_arguments, tracking_cost, variable_bounds
 from trajopt.mpc_model import expanded, stage_functions
+from trajopt.riccati_qp import RiccatiQP, riccati_qp
 
 LOG = logging.getLogger(__name__)
 RTI_NAME = "mpc_rti"
+QP_SOURCE = "riccati_qp.c"
 # HPIPM's own presets: "speed_abs" (no residual checks), "speed", "balance", "robust"
 QP_MODES = ("speed_abs", "speed", "balance", "robust")
+# the QP of a step: this package's Riccati solver in C (trajopt.riccati_qp) or HPIPM through CasADi
+RTI_QP_SOLVERS = ("riccati", "hpipm")
 # CasADi's generated HPIPM call fails the whole Function on any status but success (its error_on_fail is
 # not honoured in generated code), also at the iteration cap, whose iterate the real-time scheme applies
 # (as the MX Function does with error_on_fail=False); the export takes the check out, and the caller
@@ -62,6 +67,8 @@ class RTIController:
     prediction : casadi.Function, optional
         ``(x, u) -> x_next``: the controller's model over one interval (the integrator on the forward
         dynamics, friction included), the Function whose Jacobian the QP's linearisation holds.
+    qp : RiccatiQP, optional
+        The QP solver the step calls when it is this package's (its C is compiled with the step's).
     """
 
     function: ca.Function
@@ -69,6 +76,7 @@ class RTIController:
     n_dof: int
     bounds: dict
     prediction: ca.Function | None = None
+    qp: RiccatiQP | None = None
     _guess: np.ndarray | None = field(default=None, repr=False)
     _buffers: tuple | None = field(default=None, repr=False)
 
@@ -144,6 +152,7 @@ def build_rti(
     friction=True,
     forward_dynamics_jacobian: ca.Function | None = None,
     qp_mode: str = "speed_abs",
+    qp_solver: str = "riccati",
 ) -> RTIController:
     """Build the real-time-iteration MPC of a robot on a forward-dynamics function (not compiled yet).
 
@@ -166,6 +175,12 @@ def build_rti(
         HPIPM's preset; "speed_abs" (the default) skips the residual checks of each interior-point
         iteration and stops at ``options.max_iter`` (4 in benchmarks/mpc.py: the real-time scheme
         applies an inexact QP step, corrected at the next interval), the others stop at ``options.tol``.
+    qp_solver : {"riccati", "hpipm"}
+        The QP's solver: "riccati" (the default), this package's C for the stage structure
+        (``trajopt.riccati_qp``: the exact solution by one Riccati recursion when no bound is active,
+        else an interior point stopping at ``options.tol`` or ``options.max_iter``; compiled with the C
+        compiler on first use), or HPIPM through CasADi (with ``qp_mode``; CasADi's portable BLASFEO
+        unless ``make hpipm`` built one for the CPU).
 
     Returns
     -------
@@ -186,6 +201,8 @@ def build_rti(
         )
     if qp_mode not in QP_MODES:
         raise ParameterError(f"build_rti qp_mode must be one of {QP_MODES}; got {qp_mode!r}.")
+    if qp_solver not in RTI_QP_SOLVERS:
+        raise ParameterError(f"build_rti qp_solver must be one of {RTI_QP_SOLVERS}; got {qp_solver!r}.")
     friction_law = friction_function(robot) if friction else None
     _, model_jacobian = stage_functions(
         expanded(forward_dynamics),
@@ -197,10 +214,64 @@ def build_rti(
         options.integrator,
     )
     bounds = variable_bounds(robot, options.horizon)
-    function = rti_function(robot, options, model_jacobian, bounds, qp_mode)
+    qp = None
+    if qp_solver == "riccati":
+        qp = riccati_qp(2 * n, n, options.horizon, options.max_iter, options.tol)
+        function = riccati_rti_function(robot, options, model_jacobian, bounds, qp)
+    else:
+        function = rti_function(robot, options, model_jacobian, bounds, qp_mode)
     x, u = ca.MX.sym("x", 2 * n), ca.MX.sym("u", n)
     prediction = ca.Function("prediction", [x, u], [model_jacobian(x, u)[0]], ["x", "u"], ["x_next"])
-    return RTIController(function, options, n, bounds, prediction)
+    return RTIController(function, options, n, bounds, prediction, qp)
+
+
+def riccati_rti_function(robot, options, model_jacobian, bounds, qp: RiccatiQP) -> ca.Function:
+    """``(x0, w, p) -> (u, w_next, w_sol, lam_g)`` as ``rti_function``, the QP by ``trajopt.riccati_qp``:
+    the stage Jacobians go to it as they come from the model (dense blocks), the Hessian as its diagonal."""
+    n, horizon = robot.n_dof, options.horizon
+    n_w = 3 * n * horizon + 2 * n
+    x0, w, p = ca.MX.sym("x0", 2 * n), ca.MX.sym("w", n_w), ca.MX.sym("p", 2 * n * (horizon + 1))
+    pieces = qp_pieces(robot, options, model_jacobian, bounds, x0, w, p)
+    hessian = pieces["hessian"]
+    if hessian.nnz() != n_w or ca.triu(hessian, False).nnz() > 0:
+        raise SolverError("riccati_rti_function: the tracking cost's Hessian must be diagonal", status="structure")
+    step, lam_g = qp.function(
+        ca.diag(hessian), pieces["g"], pieces["blocks"], -pieces["gaps"], pieces["lbx"], pieces["ubx"]
+    )
+    solution = w + step
+    return ca.Function(
+        RTI_NAME,
+        [x0, w, p],
+        [solution[2 * n : 3 * n], shift_guess(solution, n), solution, lam_g],
+        ["x0", "w", "p"],
+        ["u", "w_next", "w_sol", "lam_g"],
+    )
+
+
+def qp_pieces(robot, options, model_jacobian, bounds, x0, w, p) -> dict:
+    """The Gauss-Newton QP of one SQP step from w (see ``rti_qp_data``) as expressions in (x0, w, p): the
+    constant Hessian (DM, every diagonal entry present), gradient, stage Jacobians ``[A_k B_k]`` side by
+    side, gaps ``x_{k+1} - F(x_k, u_k)``, the constraint Jacobian and the bounds of the step."""
+    n, horizon = robot.n_dof, options.horizon
+    n_w = w.numel()
+    states = ca.horzcat(*[w[3 * n * k : 3 * n * k + 2 * n] for k in range(horizon + 1)])
+    torques = ca.horzcat(*[w[3 * n * k + 2 * n : 3 * n * (k + 1)] for k in range(horizon)])
+    values, blocks = model_jacobian.map(horizon)(states[:, :-1], torques)
+    cost = tracking_cost(robot, options, states, torques, p)
+    hessian = ca.Function("h", [w, p], [ca.hessian(cost, w)[0]])(np.zeros(n_w), np.zeros(p.numel()))
+    hessian = ca.DM(ca.sparsify(hessian)) + ca.DM(ca.Sparsity.diag(n_w), 0.0)
+    lbx, ubx = ca.DM(bounds["lbx"]), ca.DM(bounds["ubx"])
+    lbx[: 2 * n] = ubx[: 2 * n] = 0
+    measured = ca.vertcat(x0, ca.MX(n_w - 2 * n, 1))
+    return {
+        "hessian": hessian,
+        "g": ca.gradient(cost, w),
+        "blocks": blocks,
+        "gaps": ca.vec(states[:, 1:] - values),
+        "jac_g": constraint_jacobian(w, states, torques, model_jacobian, n),
+        "lbx": measured + lbx - w,
+        "ubx": measured + ubx - w,
+    }
 
 
 def rti_function(robot, options, model_jacobian, bounds, qp_mode="speed") -> ca.Function:
@@ -239,21 +310,11 @@ def rti_qp_data(robot, options, model_jacobian, bounds) -> ca.Function:
     n, horizon = robot.n_dof, options.horizon
     n_w = 3 * n * horizon + 2 * n
     x0, w, p = ca.MX.sym("x0", 2 * n), ca.MX.sym("w", n_w), ca.MX.sym("p", 2 * n * (horizon + 1))
-    states = ca.horzcat(*[w[3 * n * k : 3 * n * k + 2 * n] for k in range(horizon + 1)])
-    torques = ca.horzcat(*[w[3 * n * k + 2 * n : 3 * n * (k + 1)] for k in range(horizon)])
-    values, _ = model_jacobian.map(horizon)(states[:, :-1], torques)
-    gaps = ca.vec(states[:, 1:] - values)
-    jac_g = constraint_jacobian(w, states, torques, model_jacobian, n)
-    cost = tracking_cost(robot, options, states, torques, p)
-    hessian = ca.Function("h", [w, p], [ca.hessian(cost, w)[0]])(np.zeros(n_w), np.zeros(p.numel()))
-    hessian = ca.DM(ca.sparsify(hessian)) + ca.DM(ca.Sparsity.diag(n_w), 0.0)
-    lbx, ubx = ca.DM(bounds["lbx"]), ca.DM(bounds["ubx"])
-    lbx[: 2 * n] = ubx[: 2 * n] = 0
-    measured = ca.vertcat(x0, ca.MX(n_w - 2 * n, 1))
+    q = qp_pieces(robot, options, model_jacobian, bounds, x0, w, p)
     return ca.Function(
         "rti_qp_data",
         [x0, w, p],
-        [ca.MX(hessian), ca.gradient(cost, w), jac_g, -gaps, -gaps, measured + lbx - w, measured + ubx - w],
+        [ca.MX(q["hessian"]), q["g"], q["jac_g"], -q["gaps"], -q["gaps"], q["lbx"], q["ubx"]],
         ["x0", "w", "p"],
         ["h", "g", "a", "lba", "uba", "lbx", "ubx"],
     )
@@ -281,10 +342,11 @@ def shift_guess(w, n_dof):
 def export_rti_c(controller: RTIController, folder) -> Path:
     """Write the RTI step as C: ``<folder>/mpc_rti.c`` and ``mpc_rti.h``; returns the source path.
 
-    The C calls HPIPM (``hpipm_d_ocp_qp_ipm.h``), shipped with CasADi: compile with
-    ``-I<casadi>/include -L<casadi> -lhpipm -lblasfeo`` (``compile_rti`` does). HPIPM's workspace is
-    created on the first call and kept (``trajopt.hpipm_c.persistent_workspace``): one thread at a time
-    calls the step.
+    With the Riccati QP (the default) the step calls ``<folder>/riccati_qp.c``, written beside it:
+    compile the two together (``cc -O3 -march=native mpc_rti.c riccati_qp.c -lm``). With HPIPM the C
+    calls HPIPM (``hpipm_d_ocp_qp_ipm.h``), shipped with CasADi: compile with ``-I<casadi>/include
+    -L<casadi> -lhpipm -lblasfeo``; HPIPM's workspace is created on the first call and kept
+    (``trajopt.hpipm_c.persistent_workspace``). ``compile_rti`` does either. One thread at a time calls the step.
     """
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
@@ -292,6 +354,9 @@ def export_rti_c(controller: RTIController, folder) -> Path:
     generator = ca.CodeGenerator(source.name, {"with_header": True})
     generator.add(controller.function)
     generator.generate(str(folder) + "/")
+    if controller.qp is not None:
+        (folder / QP_SOURCE).write_text(controller.qp.source)
+        return source
     text = source.read_text()
     if QP_FAILURE_CHECK not in text:
         raise SolverError(
@@ -309,7 +374,7 @@ def compile_rti(
 ) -> RTIController:
     """Export, compile and load the RTI step; returns a controller whose ``function`` is the compiled C.
 
-    ``hpipm_dir``: see ``hpipm_folders`` (CasADi's HPIPM and BLASFEO by default).
+    ``hpipm_dir``: see ``hpipm_folders`` (CasADi's HPIPM and BLASFEO by default; HPIPM path only).
 
     Raises
     ------
@@ -318,10 +383,13 @@ def compile_rti(
     """
     source = export_rti_c(controller, folder)
     library = Path(folder) / f"lib{RTI_NAME}.so"
-    include, lib = hpipm_folders(hpipm_dir)
     found = shutil.which(compiler)
     if found is None:
         raise SolverError(f"compile_rti compiler must be on PATH; {compiler!r} was not found. Install gcc or pass one.")
+    if controller.qp is not None:
+        command = [found, *flags, "-fPIC", "-shared", "-o", str(library), str(source), str(Path(folder) / QP_SOURCE)]
+        return _compiled(controller, command + ["-Wl,-Bsymbolic", "-lm"], library)
+    include, lib = hpipm_folders(hpipm_dir)
     if (lib / "libhpipm.a").exists() and (lib / "libblasfeo.a").exists():
         # linked in: a process that already loaded CasADi's libhpipm.so (its conic plugin) would
         # otherwise bind the shared libraries of that name to CasADi's copies
@@ -329,6 +397,11 @@ def compile_rti(
     else:
         libraries = [f"-L{lib}", "-lhpipm", "-lblasfeo", "-Wl,--disable-new-dtags", f"-Wl,-rpath,{lib}"]
     command = [found, *flags, "-fPIC", "-shared", "-o", str(library), str(source), f"-I{include}", *libraries, "-lm"]
+    return _compiled(controller, command, library)
+
+
+def _compiled(controller: RTIController, command: list, library: Path) -> RTIController:
+    """Run the compiler command and load the step from the library it writes."""
     start = time.perf_counter()
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
@@ -339,4 +412,4 @@ def compile_rti(
         )
     LOG.info("compiled %s in %.1f s", library, time.perf_counter() - start)
     compiled = ca.external(RTI_NAME, str(library))
-    return RTIController(compiled, controller.options, controller.n_dof, controller.bounds, controller.prediction)
+    return dataclasses.replace(controller, function=compiled, _guess=None, _buffers=None)

@@ -32,7 +32,7 @@ def test_json_has_every_row_and_the_rows_track_the_plant():
     )
     assert run.returncode in (0, 1), run.stderr
     denso = json.loads(run.stdout)["robots"]["denso"]
-    for key in ("rate_hz", "tracking_rmse", "limit_violation", "speedup_vs_crocoddyl", "load_average"):
+    for key in ("rate_hz", "tracking_rmse", "limit_violation", "speedup_vs_crocoddyl", "load_average", "qp_solver"):
         assert key in denso
     assert set(denso["rows"]) == {"psdm_rti", "psdm_sqp"}
     assert "Panda only" in denso["skipped"]["crocoddyl"]

@@ -159,7 +159,7 @@ def test_rti_holds_a_torque_limit_the_reference_would_need_to_exceed(denso, dens
 
 @pytest.mark.needs_cc
 @pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
-def test_compiled_step_agrees_with_the_casadi_evaluated_one(denso, denso_dynamics, tmp_path, rng):
+def test_compiled_hpipm_step_agrees_with_the_casadi_evaluated_one(denso, denso_dynamics, tmp_path, rng):
     """The generated C (dynamics, derivatives, HPIPM call with its workspace kept between calls) against
     CasADi's evaluation of the same Function, at the benchmark's iteration cap (4, ``speed_abs``): the
     iterate there is not the QP's solution, and both stop at the same one (the same cap, tolerances,
@@ -168,7 +168,9 @@ def test_compiled_step_agrees_with_the_casadi_evaluated_one(denso, denso_dynamic
     fd, jacobian = denso_dynamics
     horizon, n = 4, denso.n_dof
     options = MPCOptions(horizon=horizon, dt=DT, max_iter=4, tol=1e-3)
-    controller = build_rti(denso, fd, options, forward_dynamics_jacobian=jacobian, qp_mode="speed_abs")
+    controller = build_rti(
+        denso, fd, options, forward_dynamics_jacobian=jacobian, qp_mode="speed_abs", qp_solver="hpipm"
+    )
     compiled = compile_rti(controller, tmp_path, flags=("-O1",))
     assert (tmp_path / "mpc_rti.c").exists() and (tmp_path / "mpc_rti.h").exists()
     assert "static int psdm_hpipm_ready" in (tmp_path / "mpc_rti.c").read_text()
@@ -178,7 +180,7 @@ def test_compiled_step_agrees_with_the_casadi_evaluated_one(denso, denso_dynamic
     x0 = reference[0] + rng.normal(0, 1e-2, 2 * n)
     converged = build_rti(
         denso, fd, dataclasses.replace(options, max_iter=50, tol=1e-10), forward_dynamics_jacobian=jacobian,
-        qp_mode="robust",
+        qp_mode="robust", qp_solver="hpipm",
     ).function(x0, w, reference.ravel())  # fmt: skip
     for guess in (w, w + rng.normal(0, 1e-2, w.size)):
         expected = controller.function(x0, guess, reference.ravel())
