@@ -204,7 +204,7 @@ def _pushed_what(finding: EnvelopeFinding) -> str:
         elif bound.startswith("mass"):
             parts.append(f"its {bound} bound ({finding.mass:.4g} kg; robot file {finding.prior_mass:.4g} kg)")
         else:
-            parts.append(f"its {bound} bound ({finding.drive_inertia:.4g} kg m^2; robot file "
+            parts.append(f"its {bound} bound ({finding.drive_inertia:.4g} kg m^2; held to "
                          f"{finding.prior_drive_inertia:.4g} kg m^2)")  # fmt: skip
     return " and ".join(parts)
 
@@ -247,7 +247,9 @@ def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
             f"{DIAGNOSE_ROUTE.format(what='a spring')}"
         )
     else:
-        cause = "extra inertia on the joint (a coupled load, a heavier gear), or the robot file's rotor inertia is off"
+        cause = ("extra inertia on the joint (a coupled load, a heavier gear), or the rotor inertia it is held to is "
+                 "off (the robot file's, or on currents the drive inertia of the joints with its torque constant: "
+                 "state its rotor_inertia in the robot file's [[link]] table)")  # fmt: skip
     if currents and not drive:
         cause += (". With motor currents as the torque source it may instead be a drive effect the currents hold: the "
                   "rotors' inertia (identify --drive-inertia on) or a gear efficiency that depends on the power flow "

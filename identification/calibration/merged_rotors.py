@@ -10,14 +10,22 @@ are pushed up their envelopes (a virtual UR5 on motor currents, rotors 0.4 kg m^
 that reproduces ``Ia_j qdd_j`` exactly, so the consistent fit holds each such drive inertia within
 ``drive_inertia_ratio`` of the robot file's and pulled towards it, and the links keep their own share.
 
-Only motor currents hold the rotors' inertia (a torque measured behind the gearbox does not), and only a robot file
-that states a joint's rotor inertia gives the fit something to hold it to: other joints keep the map as derived.
+Only motor currents hold the rotors' inertia (a torque measured behind the gearbox does not). A robot file rarely
+states rotor inertias (a URDF has none): for a merged joint without one, :func:`sibling_rotors` takes the drive
+inertias the same fit identifies as columns of their own (``Ia<j>``) on the joints with the same torque constant (the
+same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to. Without a stated
+value or such a sibling, the joint keeps the map as derived and its link takes the rotor's torque; the envelope report
+then says that on currents a pushed link may hold the rotors' inertia (``envelope_report``). On the Kinova's
+currents the links 2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint
+2's rotor: its axis is normal to joint 1's); with the siblings' 0.40 kg m^2 as reference the fit gives 0.50 and 0.80
+kg m^2 for them, and the joint-torque sensors give 0.52 and 0.48 for the difference between current and sensor torque
+(``benchmarks/kinova_gen3.py``, ``sensor_check``).
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -25,9 +33,32 @@ from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["merged_rotor_map", "with_merged_rotors"]
+__all__ = ["MergedRotors", "merged_rotor_map", "sibling_rotors", "with_merged_rotors"]
 
 SPAN_TOLERANCE = 1e-8  # relative residual below which Ia_j qdd_j is taken as inside the base regressor's span
+SAME_ACTUATOR = 1e-6  # relative difference of two torque constants below which their drives are the same actuator
+
+
+@dataclass(frozen=True)
+class MergedRotors:
+    """What identify holds the drive inertias inside the base parameters to: the ``model`` with them in its map, the
+    ``robot`` with the reference of each (the file's, or its siblings': :func:`sibling_rotors`), and per joint whose
+    reference came from siblings ``(joint, reference [kg m^2], sibling joints)`` (0-based), for the report."""
+
+    model: object
+    robot: object
+    from_siblings: tuple = ()
+
+    def __iter__(self):
+        """``model, robot, note()``: unpacked where the fit goes on with them."""
+        return iter((self.model, self.robot, self.note()))
+
+    def note(self) -> tuple:
+        """The ``envelope_bounds`` entry naming the references taken from siblings (empty when none)."""
+        if not self.from_siblings:
+            return ()
+        return (("drive_inertia_reference", [{"joint": j + 1, "kg_m2": value, "from_joints": [s + 1 for s in sib]}
+                                             for j, value, sib in self.from_siblings]),)  # fmt: skip
 
 
 def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
@@ -50,21 +81,50 @@ def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
     return out
 
 
-def with_merged_rotors(model, robot, options, currents: bool):
-    """``model`` with the drive inertias of the base parameters in its map (module docstring); ``model`` itself
-    when there are none: no drive inertia asked for (``options.drive_inertia``), torques measured behind the
-    gearbox (``currents`` False), or no rotor inertia in the robot file."""
+def sibling_rotors(robot, model, kt, drive) -> tuple:
+    """``(joint, reference, siblings)`` per merged joint without a rotor inertia in the robot file whose torque constant
+    ``kt`` another joint shares that has a drive-inertia column of its own: the median of those columns' unconstrained
+    values (``drive``: {column name: value}, only positive ones count) is its reference (module docstring)."""
     rotor = np.asarray(robot.rotor_inertia, dtype=float)
     columns = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
+    out = []
+    for j in range(robot.n_dof):
+        if rotor[j] > 0 or np.any(columns[:, j]) or f"Ia{j + 1}" in drive:
+            continue
+        same = [s for s in range(robot.n_dof) if abs(kt[s] - kt[j]) <= SAME_ACTUATOR * abs(kt[j]) and s != j]
+        siblings = [s for s in same if drive.get(f"Ia{s + 1}", 0.0) > 0]
+        if siblings:
+            out.append((j, float(np.median([drive[f"Ia{s + 1}"] for s in siblings])), tuple(siblings)))
+    return tuple(out)
+
+
+def with_merged_rotors(model, robot, options, kt=None, drive=None) -> MergedRotors:
+    """The drive inertias of the base parameters in ``model``'s map, each held to the robot file's rotor inertia or
+    its siblings' (``kt``, the torque constants of recordings of currents, and ``drive``, the unconstrained drive
+    columns: :func:`sibling_rotors`); ``model`` and ``robot`` unchanged when there are none: no drive inertia asked
+    for (``options.drive_inertia``), torques measured behind the gearbox (``kt`` None), or no reference."""
+    unchanged = MergedRotors(model, robot)
+    if not (options.drive_inertia and kt is not None):
+        return unchanged
+    siblings = sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive or {})
+    rotor = np.array(robot.rotor_inertia, dtype=float)
+    for j, value, _ in siblings:
+        rotor[j] = value
+    columns = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
     joints = [j for j in range(robot.n_dof) if rotor[j] > 0 and not np.any(columns[:, j])]
-    if not (options.drive_inertia and currents and joints):
-        return model
-    merged = merged_rotor_map(model, robot, joints)
+    merged = merged_rotor_map(model, robot, joints) if joints else {}
     if not merged:
-        return model
+        return unchanged
+    for j, value, sib in siblings:
+        logger.info("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
+                    "none; held near %.3g kg m^2, the drive inertias of joints %s (the same torque constant)", j + 1,
+                    value, ", ".join(str(s + 1) for s in sib))  # fmt: skip
     parameter_map = np.array(model.parameter_map, dtype=float)
     for j, coefficients in merged.items():
         parameter_map[:, j * (LINK_PARAMETER_COUNT + 1) + LINK_PARAMETER_COUNT] = coefficients
-    logger.info("identify: drive inertias of joints %s inside the base parameters, held near the robot file's "
+    logger.info("identify: drive inertias of joints %s inside the base parameters, held near their reference "
                 "in the consistent fit", ", ".join(str(j + 1) for j in sorted(merged)))  # fmt: skip
-    return replace(model, parameter_map=parameter_map)
+    kept = tuple(entry for entry in siblings if entry[0] in merged)
+    robot = replace(robot, rotor_inertia=np.where([j in merged for j in range(robot.n_dof)], rotor,
+                                                  robot.rotor_inertia))  # fmt: skip
+    return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept)

@@ -48,12 +48,13 @@ def test_the_map_reproduces_each_merged_drive_inertia_torque_on_other_states(arm
 
 def test_only_currents_with_stated_rotors_get_them_in_the_map(arm, denso, denso_model):
     # a model derived with the drive inertias holds them already
-    assert with_merged_rotors(denso_model, denso, TrajectoryOptions(), currents=True) is denso_model
+    kt = [d.kt for d in denso.drives]
+    assert with_merged_rotors(denso_model, denso, TrajectoryOptions(), kt).model is denso_model
     denso, denso_model = arm
     options = TrajectoryOptions()
-    assert with_merged_rotors(denso_model, denso, options, currents=False) is denso_model
-    assert with_merged_rotors(denso_model, denso, TrajectoryOptions(drive_inertia=False), True) is denso_model
-    merged = with_merged_rotors(denso_model, denso, options, currents=True)
+    assert with_merged_rotors(denso_model, denso, options, kt=None).model is denso_model
+    assert with_merged_rotors(denso_model, denso, TrajectoryOptions(drive_inertia=False), kt).model is denso_model
+    merged = with_merged_rotors(denso_model, denso, options, kt).model
     standard = denso.nominal_dynamic_parameters()
     bare = standard.copy()
     bare[:, ROTOR] = 0.0
@@ -92,3 +93,30 @@ def test_on_currents_no_drive_inertia_is_blamed_on_link_side_sensors(arm):
     )
     text = " ".join([*choice.describe(), *(e.reason for e in inertia)])
     assert all(e.kept and "motor currents" in e.reason for e in inertia) and "behind the gearbox" not in text
+
+
+def test_a_rotor_the_file_does_not_state_is_held_to_its_siblings_with_the_same_torque_constant(arm):
+    """Joint 2's drive inertia lies inside link 2's base parameters; the robot file states none (a URDF has none).
+    Its actuator is joint 3's (same torque constant, same rotor: the truth), whose drive inertia is a column of its own:
+    held to it, the rotor is found and link 2 keeps its mass. With another torque constant there is no sibling and
+    link 2 absorbs the rotor up to its mass bound, named by the envelope report."""
+    denso, denso_model = arm
+    drives, rotor = list(denso.drives), np.array(denso.rotor_inertia)
+    drives[1], rotor[1] = replace(drives[1], kt=drives[2].kt), rotor[2]
+    truth = replace(denso, drives=tuple(drives), rotor_inertia=rotor)
+    recording = recorded(truth, 11)
+    unstated = np.where(np.arange(denso.n_dof) == 1, 0.0, rotor)
+    fit = identify_trajectories(replace(truth, rotor_inertia=unstated), denso_model, [recording])
+    mass = fit.standard[:, 0] / truth.nominal_dynamic_parameters()[:, 0]
+    assert abs(fit.standard[1, ROTOR] / rotor[1] - 1) < 0.1, fit.standard[:, ROTOR]
+    assert np.all(np.abs(mass[:5] - 1) < 0.1), mass
+    reference = dict(fit.envelope_bounds)["drive_inertia_reference"]
+    assert [(r["joint"], r["from_joints"]) for r in reference] == [(2, [3])]
+    assert not any(w.startswith("link 2 is pushed") for w in fit.warnings)
+    # the file's joint 3 with a torque constant 0.1 % off (the currents read the same): no sibling, link 2 absorbs
+    drives[2] = replace(drives[2], kt=drives[2].kt * 1.001)
+    other = replace(truth, drives=tuple(drives), rotor_inertia=unstated)
+    alone = identify_trajectories(other, denso_model, [recording])
+    assert alone.standard[1, ROTOR] == 0.0 and alone.standard[1, 0] > 1.5 * truth.links[1].mass
+    assert "drive_inertia_reference" not in dict(alone.envelope_bounds)
+    assert any(w.startswith("link 2 is pushed") and "rotors' inertia" in w for w in alone.warnings)
