@@ -33,7 +33,7 @@ from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MergedRotors", "merged_rotor_map", "sibling_rotors", "with_merged_rotors"]
+__all__ = ["MergedRotors", "merged_rotor_map", "robot_file_theta", "sibling_rotors", "with_merged_rotors"]
 
 SPAN_TOLERANCE = 1e-8  # relative residual below which Ia_j qdd_j is taken as inside the base regressor's span
 SAME_ACTUATOR = 1e-6  # relative difference of two torque constants below which their drives are the same actuator
@@ -102,9 +102,10 @@ def with_merged_rotors(model, robot, options, kt=None, drive=None) -> MergedRoto
     """The drive inertias of the base parameters in ``model``'s map, each held to the robot file's rotor inertia or
     its siblings' (``kt``, the torque constants of recordings of currents, and ``drive``, the unconstrained drive
     columns: :func:`sibling_rotors`); ``model`` and ``robot`` unchanged when there are none: no drive inertia asked
-    for (``options.drive_inertia``), torques measured behind the gearbox (``kt`` None), or no reference."""
+    for (``options.drive_inertia``; ``options`` None asks for it), torques measured behind the gearbox (``kt`` None),
+    or no reference."""
     unchanged = MergedRotors(model, robot)
-    if not (options.drive_inertia and kt is not None):
+    if not ((options is None or options.drive_inertia) and kt is not None):
         return unchanged
     siblings = sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive or {})
     rotor = np.array(robot.rotor_inertia, dtype=float)
@@ -128,3 +129,13 @@ def with_merged_rotors(model, robot, options, kt=None, drive=None) -> MergedRoto
     robot = replace(robot, rotor_inertia=np.where([j in merged for j in range(robot.n_dof)], rotor,
                                                   robot.rotor_inertia))  # fmt: skip
     return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept)
+
+
+def robot_file_theta(robot, model, kt=None) -> np.ndarray:
+    """The robot file's base parameters in the map identify fits in: on motor currents (``kt`` given) with the rotor
+    inertias the file states on joints whose drive inertia the base parameters merge (:func:`with_merged_rotors`),
+    else the derived map's (the rigid body, and the drive inertias the model was derived with). The diagnosis's
+    baselines use it, so that a robot file's prediction, its enveloped recalibration and identify agree on currents.
+    """
+    merged = with_merged_rotors(model, robot, None, kt).model
+    return merged.base_parameters(robot.nominal_dynamic_parameters())

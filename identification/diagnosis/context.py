@@ -91,6 +91,9 @@ class DiagnosisContext:
         The measured torque before filtering (on ``full_t``): nonlinear functions of the torque (the
         backlash flank) are taken of it and then filtered, as the sensor saw them; None falls back to
         ``full_tau``.
+    torque_constants : array (n_dof,) or None
+        Kt [N m/A] the torque was computed with from motor currents; None for a torque signal. On currents the
+        robot file's rigid body is taken in identify's map (``merged_rotors``: the rotors the base parameters hold).
     """
 
     t: np.ndarray
@@ -120,6 +123,7 @@ class DiagnosisContext:
     filtered_friction: bool = True
     gravity: np.ndarray | None = None
     missing: tuple = ()
+    torque_constants: np.ndarray | None = None
 
     def without_torque(self, joints) -> DiagnosisContext:
         """This context with the joints ``joints`` left out (no torque measurement in one of the diagnosis's
@@ -433,4 +437,5 @@ def build_context(
         full_tau_raw=tau_raw,
         filtered_friction=(robot.drives is not None) if filtered_friction is None else bool(filtered_friction),
         gravity=_gravity_torque(pmodel, q),
+        torque_constants=None if tau_full is recording.tau else np.asarray(torque_constants, dtype=float),
     )

@@ -363,7 +363,9 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     effects = sorted(set(found) - set(found_i))
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
-    moved = moved_parameters(model, robot, final_i.friction_coefficients[n_friction:])
+    moved = moved_parameters(
+        model, robot, final_i.friction_coefficients[n_friction:], kt=problem.ctx_t.torque_constants
+    )
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
     return recal, selection_i, final_i, identified, (note,), None

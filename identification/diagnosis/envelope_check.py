@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.consistent_fit import consistent_fit, residual_sigma
+from identification.calibration.merged_rotors import with_merged_rotors
 from identification.calibration.trajectory_data import NormalEquations
 from identification.calibration.trajectory_fit import TrajectoryOptions
 from identification.diagnosis.rigid_body_choice import Claim
@@ -98,7 +99,9 @@ class EnvelopedRecalibration:
 
     def __init__(self, robot, model, contexts, friction):
         self.robot = robot
-        self.model = model
+        # identify's map: on motor currents the rotors the base parameters merge are held near the file's, not
+        # absorbed by the links (``merged_rotors``); the base parameters' layout is the derived model's
+        self.model = with_merged_rotors(model, robot, None, contexts[0].torque_constants).model
         self.contexts = contexts
         self.friction = friction
         self.fits = {}

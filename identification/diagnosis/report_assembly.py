@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.merged_rotors import robot_file_theta
 from identification.calibration.model_preparation import EDGE, Preparation
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
@@ -62,7 +63,7 @@ def build_report(
         rmse_train_after=tuple(rmse(ctx_t.tau, model_final_t).tolist()),
         residual_findings=analyse_residuals(ctx_v, residual_v),
         candidates_tried=selection.candidates_tried,
-        augmented=augmented_model_of(robot, model, final, options),
+        augmented=augmented_model_of(robot, model, final, options, ctx_t.torque_constants),
         validation_t=ctx_v.t,
         validation_q=ctx_v.q,
         validation_qd=ctx_v.qd,
@@ -107,15 +108,15 @@ def findings_of(selection, final) -> tuple:
     return tuple(findings)
 
 
-def augmented_model_of(robot, model, final, options) -> AugmentedModel:
-    """The nominal model (the robot file's or the identified base parameters, fitted friction) plus the kept terms."""
+def augmented_model_of(robot, model, final, options, kt=None) -> AugmentedModel:
+    """The nominal model (the robot file's or the identified base parameters, fitted friction) plus the kept terms;
+    the robot file's in identify's map (``merged_rotors.robot_file_theta``: on motor currents, ``kt``, with the rotors
+    the base parameters merge)."""
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_dynamic = robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
     friction_all = final.friction_coefficients
     theta = (
-        model.base_parameters(robot.nominal_dynamic_parameters())
-        if options.rigid_body == "prior"
-        else friction_all[n_friction + n_dynamic :]
+        robot_file_theta(robot, model, kt) if options.rigid_body == "prior" else friction_all[n_friction + n_dynamic :]
     )
     vs, dv = friction_shapes(robot)
     return AugmentedModel(

@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.merged_rotors import robot_file_theta
 from identification.diagnosis.columns import BlockColumns, row_chunks
 from identification.metrics import rmse
 
@@ -225,10 +226,11 @@ def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation,
     return selection, final, tuple(notes)
 
 
-def moved_parameters(model, robot, theta_identified, count: int = N_MOVED) -> list:
+def moved_parameters(model, robot, theta_identified, count: int = N_MOVED, kt=None) -> list:
     """The base parameters that moved most from the robot file's values: ``(name, file, identified, relative)``,
-    largest relative change first (relative to the larger of the file's value and 1 % of the largest one)."""
-    prior = np.asarray(model.base_parameters(robot.nominal_dynamic_parameters()), dtype=float)
+    largest relative change first (relative to the larger of the file's value and 1 % of the largest one). The file's
+    in identify's map (``merged_rotors.robot_file_theta``: on motor currents, ``kt``, with the merged rotors)."""
+    prior = np.asarray(robot_file_theta(robot, model, kt), dtype=float)
     theta = np.asarray(theta_identified, dtype=float)
     floor = 0.01 * max(float(np.max(np.abs(prior))), 1e-12)
     relative = np.abs(theta - prior) / np.maximum(np.abs(prior), floor)
