@@ -142,7 +142,7 @@ def run(args) -> int:
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
-    choice, options = _columns(args, robot, model, recordings, validation, configurations)
+    choice, options, smoothing = _columns(args, robot, model, recordings, validation, configurations)
     loss = None
     if args.friction == "lugre":
         fit, lugre, start = _fit_lugre(robot, model, recordings, options, configurations)
@@ -172,7 +172,7 @@ def run(args) -> int:
     report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
-    calibrated.document["identification"]["column_choice"] = choice.to_dict()
+    calibrated.document["identification"]["column_choice"] = {**choice.to_dict(), "smoothing": smoothing.sentence()}
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "
@@ -235,9 +235,11 @@ def _concrete_route(warning: str, args, paths) -> str:
 
 
 def _columns(args, robot, model, recordings, validation, configurations):
-    """(ColumnChoice, TrajectoryOptions): the drive columns --friction, --offset and --drive-inertia ask for, the
-    ``auto`` ones chosen from the data (``column_choice``)."""
+    """(ColumnChoice, TrajectoryOptions, SmoothingChoice): the drive columns --friction, --offset and --drive-inertia
+    ask for, the ``auto`` ones chosen from the data (``column_choice``), with the Coulomb column's smoothing velocity
+    the recordings' reversals want (``coulomb_smoothing``)."""
     from identification.calibration.column_choice import ColumnRequest, choose_columns
+    from identification.calibration.coulomb_smoothing import with_smoothing
     from identification.calibration.trajectory_fit import TrajectoryOptions
 
     request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
@@ -245,10 +247,11 @@ def _columns(args, robot, model, recordings, validation, configurations):
     options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
                                 envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
                                 drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
+    options, smoothing = with_smoothing(robot, recordings, options)
     if "auto" in (request.friction, request.offset, request.drive_inertia):
         progress("identify: choosing the friction shape, offsets and drive inertias from the data ...", quiet=args.json)
     choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
-    return choice, choice.options(options)
+    return choice, choice.options(options), smoothing
 
 
 def _check_outputs(args):
@@ -466,7 +469,8 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
     _print_envelope(fit)
-    print("drive columns: " + "; ".join(choice.describe()))
+    smoothing = calibrated.document["identification"]["column_choice"]["smoothing"]
+    print("drive columns: " + "; ".join([*choice.describe(), smoothing]))
     for entry in drive_loss_summary(calibrated.document):
         print(
             f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "
