@@ -10,8 +10,9 @@ A finding of the diagnosis becomes one :class:`FindingTerm`, of one of four kind
   ``[1]``, position ripple ``[sin(h q_j), cos(h q_j)]``, coupling ``[qd_k, qdd_k]`` on joint j, Coulomb
   asymmetry ``[(1 + tanh(qd_j / v)) / 2]``, rotor inertia ``[qdd_j]`` and load-dependent friction
   ``[|tau_j| tanh(qd_j / v)]``, where ``tau`` is the model's own torque without the load-dependent
-  terms (never the measurement, so the model predicts); a spring of any order, a gas spring's lever law and an
-  unnamed effect (a sparse formula of the joint state) are stored by their candidate term's spec
+  terms (never the measurement, so the model predicts); a spring of any order, a gas spring's lever law, an
+  unnamed effect (a sparse formula of the joint state) and a friction shape a Coulomb-viscous model lacks (a Stribeck
+  peak ``exp(-(qd/vs)^2) tanh(qd/v)``, a smooth Coulomb ``tanh(qd/v)``) are stored by their candidate term's spec
   (``CandidateTerm.spec``) and their columns are that term's own (``term_from_spec``), the ones the diagnosis fitted;
 - ``rigid_body``: a payload (or a last link lighter than the file says): a change of the standard
   parameters, absorbed by the recalibrated rigid body;
@@ -61,9 +62,11 @@ TORQUE_EFFECTS = (
     "load_dependent_friction",
     "unnamed_effect",
     "gas_spring",
+    "friction_shape",
 )
-# torque findings whose columns are their candidate term's (a spec): a spring of any order or a gas spring's lever law
-SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring")
+# torque findings whose columns are their candidate term's (a spec): a spring of any order, a gas spring's lever law,
+# a friction shape
+SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring", "friction_shape")
 RIGID_BODY_EFFECTS = ("payload", "last_link_mass_excess")
 SIGNAL_EFFECTS = ("delay", "joint_elasticity", "backlash")
 FINDING_KINDS = ("torque", "rigid_body", "signal", "reported")
@@ -171,10 +174,12 @@ class FindingTerm:
         }[self.effect]
 
     def lower_bounds(self) -> list:
-        """Lower bound of each coefficient in the consistent fit: a drive inertia and a friction are >= 0."""
-        return [0.0 if self.effect in ("rotor_inertia", "load_dependent_friction") else -np.inf] * len(
-            self.feature_names()
+        """Lower bound of each coefficient in the consistent fit: a drive inertia, a friction and a Stribeck peak are
+        >= 0."""
+        positive = self.effect in ("rotor_inertia", "load_dependent_friction") or (
+            self.effect == "friction_shape" and self.spec.get("shape") == "stribeck"  # a peak, not a dip
         )
+        return [0.0 if positive else -np.inf] * len(self.feature_names())
 
     def to_dict(self) -> dict:
         out = {"effect": self.effect, "joint": self.joint + 1, "velocity": self.velocity}

@@ -22,6 +22,7 @@ from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
+from identification.diagnosis.candidates.friction import lacking_friction_shapes
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import DiagnosisContext, build_context
 from identification.diagnosis.design import left_out
@@ -420,8 +421,12 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
-    """Forward selection of the library's terms, the BIC counted with the filter's effective sample count."""
+    """Forward selection of the library's terms, the BIC counted with the filter's effective sample count; the default
+    library takes the friction shapes a Coulomb-viscous or Stribeck nominal model lacks (``lacking_friction_shapes``:
+    a model file's friction, whose Stribeck velocities are fixed and whose Coulomb friction is a step)."""
     library = options.library if options.library is not None else default_library()
+    if options.library is None and options.friction in ("coulomb_viscous", "stribeck"):
+        library = library + CandidateLibrary(lacking_friction_shapes())
     ctx_t = problem.ctx_t
     instances = [term for term in library.expand(robot.n_dof) if not set(term.joints) & set(left_out(ctx_t))]
     n_eff = None

@@ -27,10 +27,14 @@ passes the selection's gates (``selection.passes_gates``) on each recording. A d
 backlash) has one column against the family's three on that joint: it is kept only if it alone predicts each recording
 better (joint-weighted validation error) than the family alone. (Judged beside the family, a true elasticity of the
 benchmark's scenario failed the 20 % gate its joint's friction columns share with it.) A lag that loses is not named,
-and the report's notes say so with the numbers (``sentences``). A true delay also lags the inertial and gravity
-torque, and a true elasticity the rigid body's torque through the deflection, which no friction shape follows: a
-10 ms delay on the virtual Denso is still named first, and ``benchmarks/diagnosis.py``'s delay, backlash and
-elasticity scenarios still find theirs.
+and the report's notes say so with the numbers (``sentences``), and the family's shapes that are a torque of the state
+(a Stribeck peak, a smooth Coulomb friction, each on each joint of the lag, its scale fitted again:
+``candidates.friction.FrictionShapeTerm``) are offered to the selection as candidates, screened and judged as every
+candidate (the gates on each validation recording, the second opinion, plausible coefficients): what explains the lag
+is then named, and a model file takes it (``diagnose --apply``). A true delay also lags the inertial and gravity
+torque, and a true elasticity the rigid body's torque through the deflection, which no friction shape follows: a 10 ms
+delay on the virtual Denso is still named first, and ``benchmarks/diagnosis.py``'s delay, backlash and elasticity
+scenarios still find theirs.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ import logging
 
 import numpy as np
 
+from identification.diagnosis.candidates.friction import FRICTION_SHAPES, FrictionShapeTerm
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import simulate_friction
 from identification.diagnosis.selection import passes_gates
@@ -124,12 +129,15 @@ class FrictionRival:
     ----------
     sentences : list of str
         One per candidate not named, with the numbers (``SelectionResult.dropped`` carries them to the report).
+    offered : dict of label -> FrictionShapeTerm
+        The friction shapes offered as candidates where a lag lost (``take_offers``).
     """
 
     def __init__(self, train_ctx, validations):
         self.train_ctx = train_ctx
         self.validations = [list(v) for v in validations]
         self.sentences = []
+        self.offered, self.new_offers = {}, []
 
     def keep(self, term) -> None:
         """A kept term joins the validation recordings' base columns."""
@@ -178,7 +186,21 @@ class FrictionRival:
         )
         logger.info(f"diagnose: {sentence}")
         self.sentences.append(sentence)
+        self._offer(joints)
         return sentence
+
+    def _offer(self, joints) -> None:
+        """Offer the family's shapes that are a torque of the state (``FrictionShapeTerm``: Stribeck, smooth Coulomb;
+        not pre-sliding, a state of its own) on ``joints``, each once; the selection fits their scales."""
+        for term in (FrictionShapeTerm(joint=j, shape=shape) for j in joints for shape in FRICTION_SHAPES):
+            if term.label not in self.offered:
+                self.offered[term.label] = term
+                self.new_offers.append(term)
+
+    def take_offers(self) -> list:
+        """The friction shapes offered since the last call (the selection screens them as candidates)."""
+        offers, self.new_offers = self.new_offers, []
+        return offers
 
 
 def _weighted(errors, sigma) -> float:

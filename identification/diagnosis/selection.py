@@ -19,16 +19,16 @@ that lowers the weighted validation error most, if it earns its parameters:
 - the Bayesian information criterion on the training data drops, counted with the effective
   number of independent samples of a low-pass filtered signal (2 x cut-off x duration per joint).
 
-A term with shape variants (``CandidateTerm.shape_variants``: a spring as a polynomial of order 1 to 3 in the
-joint angle, or a gas-spring lever law whose geometry is fitted by variable projection on the current training
-fit, ``JointScore``, and counted in the BIC; a delay as its first-order column or as its exact torque at the delay
-where ``JointScore.fixed`` puts the exact profile lowest) is screened in the variant with the lowest BIC on the
-training data, unless that variant's weighted validation error is above the simplest one's (then the simplest is
-screened).
+A term with shape variants (``CandidateTerm.shape_variants``: a spring as a polynomial of order 1 to 3 in the joint
+angle, or a gas-spring lever law whose geometry is fitted by variable projection on the current training fit,
+``JointScore``, counted in the BIC; a delay as its first-order column or as its exact torque at the delay where
+``JointScore.fixed`` puts the exact profile lowest) is screened in the variant with the lowest training BIC, unless
+that variant's weighted validation error is above the simplest one's (then the simplest is screened).
 
 A candidate chosen in a round must also hold on a second opinion when one is given (``second_opinion``: the
 selection's gates on each further validation recording, or a block cross-validation of the training recording);
-one that does not is an unstable finding, not kept, and the next best is tried.
+one that does not is an unstable finding, not kept, and the next best is tried; nor is a lag that the friction shapes
+the nominal model lacks explain (``friction_rival``): those shapes join the candidates instead.
 
 After the forward pass a backward check refits the kept terms without each one in turn: a term that no longer
 lowers the validation RMSE of every joint it names (a later term took its part) is dropped and the check repeats
@@ -308,16 +308,14 @@ def _design_with(nominal, columns, y_train, y_val, sigma) -> WeightedDesign:
     """A design whose base is the nominal columns followed by the kept terms' ``columns`` ((ct, cv) pairs)."""
     base_t, base_v = nominal
     for ct, cv in columns:
-        base_t = base_t.concatenate(BlockColumns.from_dense(ct))
-        base_v = base_v.concatenate(BlockColumns.from_dense(cv))
+        base_t, base_v = (b.concatenate(BlockColumns.from_dense(c)) for b, c in ((base_t, ct), (base_v, cv)))
     return WeightedDesign(base_t, base_v, y_train, y_val, sigma)
 
 
 def _prune_ratio(term, joints, rv_full, rv_without, sigma) -> float:
     """Validation error with a kept term over without it: the largest ratio of the joints a per-joint term names; the
     joint-weighted error of every joint for a robot-wide term (a payload, a delay, a tilt), as the selection judged
-    it. A payload that takes 3 N m off joint 2 and puts 0.06 N m on joint 5 stays (it was dropped as "no longer
-    lowering joint 5": 0.19 with it against 0.13 N m without)."""
+    it (a payload that takes 3 N m off joint 2 and puts 0.06 N m on joint 5 stays)."""
     if term.joints:
         return float(np.max(rv_full[joints] / np.maximum(rv_without[joints], 1e-300)))
     return float(np.sqrt(np.sum(rv_full**2 / sigma**2) / max(np.sum(rv_without**2 / sigma**2), 1e-300)))
@@ -393,8 +391,8 @@ def forward_select(
         Judges each candidate the forward pass would keep on more validation recordings or held-out blocks of the
         training data; one that does not hold is reported unstable, not kept (``SelectionResult.unstable``).
     rival : friction_rival.FrictionRival, optional
-        A delay is kept only if it beats the friction shapes the nominal model lacks on every validation recording;
-        the sentences on the delays it refuses are the first of ``SelectionResult.dropped``.
+        A lag is kept only if it beats the friction shapes the nominal model lacks on every validation recording (the
+        shapes then join the candidates); the sentences on the lags it refuses lead ``SelectionResult.dropped``.
     """
     if not 0.0 < min_improvement < 1.0:
         raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
@@ -455,9 +453,14 @@ def _forward(design, remaining, contexts, limits, max_effects, joint_threshold, 
         rejected.update(implausible)
         tried += len(remaining)
         chosen, drop = _stable_choice(design, qualified, judges, limits, unstable)
-        if chosen is None:
+        offers = judges[1].take_offers() if judges[1] is not None else []  # friction shapes that explain a lag
+        if chosen is None and not offers:
             break
-        gain, index, term, delta_bic, note = chosen.gain, chosen.index, chosen.term, chosen.delta_bic, chosen.note
+        remaining = [r for i, r in enumerate(remaining) if i not in drop and (chosen is None or i != chosen.index)]
+        remaining += offers
+        if chosen is None:
+            continue
+        gain, term, delta_bic, note = chosen.gain, chosen.term, chosen.delta_bic, chosen.note
         ct, cv = term.columns(train_ctx), term.columns(val_ctx)
         _, _, rt1, rv1, _, _ = design.fit(ct, cv, full=True)
         step = SelectionStep(term=term, joints=_named_joints(term, rmse_v, rv1, joint_threshold),
@@ -468,22 +471,19 @@ def _forward(design, remaining, contexts, limits, max_effects, joint_threshold, 
         if note:
             logger.info(f"diagnose:   shape: {note}")
         kept.append((step, ct, cv))
-        design.set_base(
-            design.base_train.concatenate(BlockColumns.from_dense(ct)),
-            design.base_val.concatenate(BlockColumns.from_dense(cv)),
-        )
+        design.set_base(design.base_train.concatenate(BlockColumns.from_dense(ct)),
+                        design.base_val.concatenate(BlockColumns.from_dense(cv)))  # fmt: skip
         for judge in (j for j in judges if j is not None):
             judge.keep(term)
         _, sse, rmse_t, rmse_v, _, _ = design.fit(full=True)
-        remaining = [r for i, r in enumerate(remaining) if i != index and i not in drop]
     labels = {step.term.label for step, _, _ in kept} | {u.label for u in unstable}
     return kept, tried, tuple(unstable), tuple((k, v) for k, v in rejected.items() if k not in labels)
 
 
 def _stable_choice(design, qualified, judges, limits, unstable: list) -> tuple:
-    """The best qualifying candidate that holds on the second opinion and, for a delay, beats the friction rival
+    """The best qualifying candidate that holds on the second opinion and, for a lag, beats the friction rival
     (``judges``): ``(chosen or None, indices of the candidates refused)``; each unstable one is appended to
-    ``unstable`` (the rival keeps its own sentences) and the next best is tried."""
+    ``unstable`` (the rival keeps its own sentences and offers) and the next best is tried."""
     opinion, rival = judges
     drop = set()
     while qualified:

@@ -18,6 +18,7 @@ from identification.data.preprocessing import preprocess
 from identification.diagnosis.candidates import (
     CoulombAsymmetryTerm,
     CouplingTerm,
+    FrictionShapeTerm,
     LoadDependentFrictionTerm,
     RotorInertiaTerm,
     SpringTerm,
@@ -50,6 +51,8 @@ TORQUE_TERMS = (
     RotorInertiaTerm(joint=2),
     LoadDependentFrictionTerm(joint=1),
     _sparse(),
+    FrictionShapeTerm(joint=4, shape="stribeck", scale=0.08, velocity=0.01),
+    FrictionShapeTerm(joint=0, shape="smooth_coulomb", scale=0.3),
 )
 
 
@@ -97,7 +100,11 @@ def test_polynomial_spring_and_unnamed_term_columns_are_their_formulas(context):
     np.testing.assert_allclose(sparse.columns(state)[:, 2] @ c, law, atol=1e-12)
 
 
-@pytest.mark.parametrize("candidate", [TORQUE_TERMS[2], TORQUE_TERMS[-1]], ids=["spring3", "unnamed"])
+@pytest.mark.parametrize(
+    "candidate",
+    [TORQUE_TERMS[2], TORQUE_TERMS[9], *TORQUE_TERMS[-2:]],
+    ids=["spring3", "unnamed", "stribeck", "smooth"],
+)
 def test_finding_term_with_a_spec_evaluates_its_candidate_in_numbers_and_casadi(candidate, context):
     entry = FindingTerm(effect=candidate.key, joint=candidate.joint, spec=candidate.spec()).to_dict()
     term = FindingTerm.from_dict(json.loads(json.dumps(entry)))
@@ -112,6 +119,38 @@ def test_finding_term_with_a_spec_evaluates_its_candidate_in_numbers_and_casadi(
     np.testing.assert_allclose(symbolic, numeric, rtol=0, atol=1e-12)
     expected = candidate.columns(TermContext(context.t[rows], q, qd, qdd))[:, candidate.joint, :]
     np.testing.assert_allclose(numeric, expected, rtol=0, atol=1e-12)
+
+
+def test_friction_shape_columns_are_their_formulas(context):
+    """Reference: the Stribeck peak and the smooth Coulomb friction written out here, as a torque of the state (a model
+    file's finding, the exported code: the smooth sign ``tanh(qd / velocity)``); on the diagnosis' context the
+    Stribeck peak takes the recorded sign (``friction_sign``) and agrees away from the reversals."""
+    state = TermContext(context.t, context.q, context.qd, context.qdd)
+    v4, v1 = context.qd[:, 4], context.qd[:, 0]
+    stribeck, smooth = (_rebuilt(t) for t in TORQUE_TERMS[-2:])
+    law = np.exp(-((v4 / 0.08) ** 2)) * np.tanh(v4 / 0.01)
+    np.testing.assert_allclose(stribeck.columns(state)[:, 4, 0], law, atol=1e-12)
+    np.testing.assert_allclose(smooth.columns(state)[:, 0, 0], np.tanh(v1 / 0.3), atol=1e-12)
+    moving = np.abs(v4) > 0.15
+    np.testing.assert_allclose(stribeck.columns(context)[moving, 4, 0], law[moving], atol=1e-5)
+    assert np.sum(moving) > 50
+    assert np.all(stribeck.columns(state)[:, [0, 1, 2, 3, 5], :] == 0.0)
+
+
+def test_friction_shapes_refuse_a_dip_and_an_unknown_shape():
+    stribeck = TORQUE_TERMS[-2]
+    assert "not a peak" in stribeck.implausibility([-0.2])
+    assert stribeck.implausibility([0.2]) is None
+    assert TORQUE_TERMS[-1].implausibility([-0.2]) is None  # a smooth Coulomb friction may fall with the speed
+    with pytest.raises(ParameterError, match="shape must be one of"):
+        FrictionShapeTerm(joint=1, shape="lugre")
+    term = FindingTerm("friction_shape", 4, spec=stribeck.spec()).to_dict()
+    entry = {"label": "friction_shape[j5,stribeck]", "effect": "friction_shape", "kind": "torque", "joints": [5],
+             "coefficients": [-0.1], "term": term}  # fmt: skip
+    from identification.calibration.finding_value import implausibility
+
+    assert "Stribeck peak" in implausibility(entry)
+    assert FindingTerm("friction_shape", 4, spec=stribeck.spec()).lower_bounds() == [0.0]
 
 
 def test_a_linear_spring_finding_of_a_file_without_spec_still_loads():

@@ -7,7 +7,8 @@ feature libraries of pysindy; one module per family of effects:
   plausibility bounds ``MAX_*`` of fitted parameters;
 - ``torque``: spring, torque offset, torque ripple (torques of position);
 - ``gas_spring``: the gas-spring lever law, a spring shape offered beside the polynomial ones;
-- ``friction``: Coulomb asymmetry, load-dependent friction, friction drift (friction-like columns);
+- ``friction``: Coulomb asymmetry, load-dependent friction, friction drift, the friction shapes a Coulomb-viscous
+  model lacks (friction-like columns);
 - ``inertial``: rotor inertia, joint coupling, payload, gravity tilt (rigid-body and mounting effects);
 - ``delay``: a delay between the torque and the motion signals;
 - ``deflection``: backlash and joint elasticity (a transmission that is not rigid);
@@ -32,6 +33,7 @@ from identification.diagnosis.candidates.delay import DelayTerm
 from identification.diagnosis.candidates.friction import (
     CoulombAsymmetryTerm,
     FrictionDriftTerm,
+    FrictionShapeTerm,
     LoadDependentFrictionTerm,
 )
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm
@@ -56,6 +58,7 @@ __all__ = [
     "DelayTerm",
     "CoulombAsymmetryTerm",
     "FrictionDriftTerm",
+    "FrictionShapeTerm",
     "LoadDependentFrictionTerm",
     "GasSpringTerm",
     "CouplingTerm",

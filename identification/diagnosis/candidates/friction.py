@@ -1,4 +1,5 @@
-"""Friction-like candidate terms: Coulomb asymmetry, load-dependent friction and friction drifting with time.
+"""Friction-like candidate terms: Coulomb asymmetry, load-dependent friction, friction drifting with time, and the
+friction shapes a Coulomb-viscous model lacks (offered by ``friction_rival``).
 
 Their columns take the sign of the velocity from ``DiagnosisContext.friction_sign`` (with a LuGre
 prior: the exact sign at full rate filtered like the recording, as the measured torque is); their
@@ -7,7 +8,7 @@ CasADi expressions use the smooth sign ``tanh(qd / SMOOTH_VELOCITY)``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
@@ -21,6 +22,7 @@ from identification.diagnosis.candidates.base import (
     joint_expression,
     oversized,
 )
+from psdm_casadi.errors import ParameterError
 
 
 @dataclass(frozen=True)
@@ -144,3 +146,117 @@ class FrictionDriftTerm(CandidateTerm):
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         j = self.joint
         return joint_expression(q.shape[0], j, coefficients[0] * self._shape(t) * ca.tanh(qd[j] / SMOOTH_VELOCITY))
+
+
+FRICTION_SHAPES = ("stribeck", "smooth_coulomb")  # the shapes a ``FrictionShapeTerm`` takes
+# the velocity scales [rad/s] a ``FrictionShapeTerm`` searches (log-spaced, about 21 % apart), per shape
+SCALE_GRIDS = {"stribeck": np.geomspace(0.005, 0.5, 25), "smooth_coulomb": np.geomspace(0.01, 1.0, 25)}
+
+
+@dataclass(frozen=True)
+class FrictionShapeTerm(CandidateTerm):
+    """``friction_shape``: friction of a shape a Coulomb-viscous model lacks, on one joint:
+
+    - ``stribeck``: a Stribeck peak ``exp(-(qd/vs)^2) sign(qd)`` of velocity ``vs = scale`` (the static friction above
+      the Coulomb level, coefficient ``fs - fc > 0``);
+    - ``smooth_coulomb``: ``tanh(qd/v)``, a Coulomb friction that reaches its level over the velocity ``v = scale``
+      (and bends the viscous curve).
+
+    Built without a ``scale`` (a candidate), its one shape variant has the scale of least training error on
+    ``SCALE_GRIDS[shape]``, refined by a parabola in log scale through the best three (``n_shape_parameters``: counted
+    in the BIC). A candidate where the nominal friction is a model file's (Coulomb-viscous or Stribeck at fixed
+    velocities: ``lacking_friction_shapes``), and offered by ``friction_rival`` on the joints of a lag these shapes
+    explain. On a diagnosis context the sign is
+    ``friction_sign``'s; as a torque of the state (a model file's finding, the exported code) it is the smooth sign
+    ``tanh(qd / velocity)``, the Stribeck column of ``trajectory_data.friction_term``.
+    """
+
+    joint: int | None = None
+    shape: str = "stribeck"
+    scale: float | None = None
+    velocity: float = SMOOTH_VELOCITY
+    key = "friction_shape"
+    explanation = "friction that is not Coulomb-viscous"
+    signature = "friction-like residual about the velocity reversals (which the lag of a delay or a deflection mimics)"
+    n_shape_parameters = 1
+
+    def __post_init__(self):
+        if self.shape not in FRICTION_SHAPES:
+            raise ParameterError(f"FrictionShapeTerm.shape must be one of {FRICTION_SHAPES}; got {self.shape!r}.")
+        if not ((self.scale is None or self.scale > 0) and self.velocity > 0):
+            raise ParameterError(f"FrictionShapeTerm scale and velocity must be > 0 [rad/s]; got {self.scale!r}, "
+                                 f"{self.velocity!r}.")  # fmt: skip
+
+    @property
+    def label(self) -> str:
+        return f"{self.key}[j{self.joint + 1},{self.shape}]" if self.joint is not None else self.key
+
+    def feature_names(self):
+        self._require_joint()
+        return [f"{'fs_minus_fc' if self.shape == 'stribeck' else 'smooth_fc'}_{self.joint + 1}"]
+
+    def shape_variants(self, context, score=None):
+        """``(self,)`` with a scale; without, the one variant at the scale of least training error (``score``)."""
+        if self.scale is not None or score is None:
+            return (self if self.scale is not None else self._scaled(float(np.median(SCALE_GRIDS[self.shape]))),)
+        grid = SCALE_GRIDS[self.shape]
+        sse = np.array([score(self.joint, self._scaled(s).columns(context)[score.rows, self.joint, 0]) for s in grid])
+        i = int(np.clip(np.argmin(sse), 1, grid.size - 2))
+        x, y = np.log(grid[i - 1 : i + 2]), sse[i - 1 : i + 2]
+        curvature = y[0] - 2 * y[1] + y[2]
+        best = grid[int(np.argmin(sse))]
+        if curvature > 0:  # the vertex of the parabola, within the neighbours
+            best = float(np.exp(x[1] + np.clip(0.5 * (y[0] - y[2]) / curvature, -1, 1) * (x[2] - x[1])))
+        return (self._scaled(best),)
+
+    def _scaled(self, scale: float):
+        return replace(self, scale=float(scale), velocity=min(SMOOTH_VELOCITY, 0.5 * float(scale)))
+
+    def _values(self, qd, symbolic: bool):
+        exp, tanh = (ca.exp, ca.tanh) if symbolic else (np.exp, np.tanh)
+        if self.shape == "stribeck":
+            return exp(-((qd / self.scale) ** 2)) * tanh(qd / self.velocity)
+        return tanh(qd / self.scale)
+
+    def columns(self, context):
+        self._require_joint()
+        if self.scale is None:  # a candidate judged without its shape fitted (confounding): the grid's middle
+            return self._scaled(float(np.median(SCALE_GRIDS[self.shape]))).columns(context)
+        j = self.joint
+        if not hasattr(context, "full_qd"):  # a model file's recording (``extra_terms.TermContext``)
+            return joint_columns(context, j, self._values(np.asarray(context.qd)[:, j], False))
+        qd = np.asarray(context.full_qd[:, j], dtype=float)
+        if self.shape == "stribeck":
+            return joint_columns(context, j, context.friction_sign(j, np.exp(-((qd / self.scale) ** 2))))
+        values = np.tanh(qd / self.scale)
+        return joint_columns(context, j, context.lowpass(values) if context.filtered_friction else values[context.keep])
+
+    def physical_parameters(self, coefficients):
+        name = "stribeck_peak_Nm" if self.shape == "stribeck" else "smooth_coulomb_Nm"
+        scale = "stribeck_velocity_rad_s" if self.shape == "stribeck" else "velocity_scale_rad_s"
+        return {name: float(coefficients[0]), scale: float(self.scale)}
+
+    def implausibility(self, coefficients, context=None):
+        """A Stribeck "peak" below the Coulomb level (a dip: not Stribeck friction), or a friction larger than the
+        joint's torque scale (``oversized``)."""
+        c = float(coefficients[0])
+        if self.shape == "stribeck" and c <= 0.0:
+            return f"Stribeck peak {c:.3g} N m <= 0: friction below the Coulomb level at low speed is not a peak"
+        return oversized("friction", c, context, self.joint)
+
+    def interpret(self, coefficients):
+        c, j = float(coefficients[0]), self.joint + 1
+        if self.shape == "stribeck":
+            what = f"a Stribeck peak of {c:.3g} N m above the Coulomb level, fading over {self.scale:.3g} rad/s"
+        else:
+            what = f"a smooth Coulomb friction of {c:+.3g} N m reached over {self.scale:.3g} rad/s"
+        return self.key, f"friction on joint {j} is not Coulomb-viscous: {what}"
+
+    def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        return joint_expression(q.shape[0], self.joint, coefficients[0] * self._values(qd[self.joint], True))
+
+
+def lacking_friction_shapes() -> tuple:
+    """The friction-shape candidates of a Coulomb-viscous (or fixed-velocity Stribeck) nominal model: a Stribeck peak
+    and a smooth Coulomb friction on every joint (``FrictionShapeTerm``, each scale fitted)."""
+    return tuple(FrictionShapeTerm(shape=shape) for shape in FRICTION_SHAPES)

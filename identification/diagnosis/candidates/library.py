@@ -9,6 +9,7 @@ from identification.diagnosis.candidates.delay import DelayTerm
 from identification.diagnosis.candidates.friction import (
     CoulombAsymmetryTerm,
     FrictionDriftTerm,
+    FrictionShapeTerm,
     LoadDependentFrictionTerm,
 )
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm
@@ -30,8 +31,9 @@ ALL_TERMS = (
     BacklashTerm,
     JointElasticityTerm,
 )
-# every term a spec may name: the library's, and the shapes a term offers as variants (a spring's gas-spring law)
-TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm,)}
+# every term a spec may name: the library's, the shapes a term offers as variants (a spring's gas-spring law) and
+# the friction shapes ``friction_rival`` offers
+TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm, FrictionShapeTerm)}
 
 
 def default_library() -> CandidateLibrary:
