@@ -19,11 +19,14 @@ where the URDF's differ and the tool as part of the last link; the vendor's nomi
 - the vendor URDF alone (``vendor_urdf``: no ``[[link]]`` tables, no tool): ``psdm identify`` on the sensors must
   name its two unusable inertias and a tool at the flange and go on, consistent; ``psdm diagnose`` of it weighs the
   tool;
+- the identified link-side rigid body (no rotors, no friction) against the joint-torque sensors on the three logs
+  that have them (``sensor_prediction``, per-log offsets removed, 10 Hz zero-phase filter): a model identified on the
+  currents must predict what the sensors measure about as well as the sensors' own fit (trained on two of the logs);
 - the currents against the sensors (``sensor_check``, no model of the arm needed): per joint, on the three logs with
   both, ``kt i = a tau_s + mu |tau_s| tanh(qd / v) + fc tanh(qd / v) + fv qd + Ia qdd + offset`` by least squares
   (10 Hz zero-phase filter): the gear's efficiency by power-flow direction ``eta = sqrt((1 - mu) / (1 + mu))``
   (``drive_loss``) and the rotors' inertia the currents hold and the sensors do not, beside the currents fit's own
-  (``drive_loss``, ``Ia<j>``).
+  (``rotor_inertia``: its drive-inertia columns and the rotors the base parameters merge, ``merged_rotors``).
 
 Joint 7 carries almost no gravity load and its sensor shows only noise and offset (README), so its RMSE
 is reported but says little.
@@ -113,6 +116,35 @@ def sensor_check(data: Path, cutoff: float = 10.0, velocity: float = 0.05) -> di
     return out
 
 
+def sensor_prediction(robot, model_file: Path, data: Path, cutoff: float = 10.0) -> dict:
+    """Per joint, the RMSE [N m] of a fit's link-side rigid body (its standard parameters without the rotors; no
+    friction) against the joint-torque sensors of each log that has them, and pooled over the logs (per-log offsets
+    removed: the sensors carry offsets), 10 Hz zero-phase filter, 100 samples trimmed at each end."""
+    from identification.data.preprocessing import central_difference, zero_phase_filter
+    from psdm_casadi.model_cache import ModelCache
+
+    standard = np.array(json.loads(model_file.read_text())["standard"]["values"]).reshape(robot.n_dof, -1)
+    standard[:, 10] = 0.0
+    model = ModelCache().derive(robot)
+    theta = model.base_parameters(standard)
+    out, squares, counts = {}, np.zeros(robot.n_dof), np.zeros(robot.n_dof)
+    for name in SENSOR_LOGS:
+        q, raw = (_columns(data / name, p) for p in ("Position", "TorqueSm"))
+        t = np.arange(q.shape[0]) * 1e-3
+        q, sensor = zero_phase_filter(q, 1000.0, cutoff), zero_phase_filter(raw, 1000.0, cutoff)
+        qd, qdd = central_difference(t, q)
+        inner = slice(100, -100)
+        error = sensor[inner] - model.regressor(q[inner], qd[inner], qdd[inner]) @ theta
+        error -= error.mean(axis=0)
+        dead = np.all(raw == 0, axis=0)  # RunTrajectory1's TorqueSm1
+        rms = np.sqrt(np.mean(error**2, axis=0))
+        out[name] = [None if dead[j] else float(rms[j]) for j in range(robot.n_dof)]
+        squares += np.where(dead, 0.0, np.sum(error**2, axis=0))
+        counts += np.where(dead, 0, error.shape[0])
+    out["pooled"] = np.sqrt(squares / np.maximum(counts, 1)).tolist()
+    return out
+
+
 def run_cli(argv: list) -> tuple:
     """``(exit code, JSON printed on stdout or None, stderr text)`` of one in-process ``psdm`` command."""
     from psdm_casadi.cli import main
@@ -183,8 +215,11 @@ def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path
     missing = [w for w in warnings if "has no torque measurement" in w]
     drive = payload.get("drive", {})
     inertia = [drive.get(f"Ia{j + 1}") for j in range(robot.n_dof)]
+    rotor = np.array(json.loads(out.read_text())["standard"]["values"]).reshape(robot.n_dof, -1)[:, 10]
     return {"exit_code": code, "columns": SOURCES[source], "training": list(TRAINING[source]), "seconds": seconds,
-            "drive_loss": payload.get("drive_loss", []), "drive_inertia": inertia,
+            "drive_loss": payload.get("drive_loss", []), "drive_inertia": inertia, "rotor_inertia": rotor.tolist(),
+            "drive_inertia_reference": payload.get("envelope", {}).get("drive_inertia_reference", []),
+            "sensor_prediction": sensor_prediction(robot, out, data),
             "column_text": payload["columns"].get("drive_loss_joints"),
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "names_unusable_urdf_inertias": [w.split(" is unusable")[0] for w in warnings if " is unusable" in w],
@@ -315,7 +350,15 @@ def print_kinova(result) -> None:
     if current.get("exit_code") == 0:
         eta = {e["joint"]: e["efficiency"] for e in current["drive_loss"]}
         print(f"    {'currents fit':<15}eta " + (", ".join(f"J{j} {v:.3f}" for j, v in eta.items()) or "none chosen")
-              + "; Ia " + " ".join("-" if v is None else f"{v:.3f}" for v in current["drive_inertia"]))  # fmt: skip
+              + "; rotor inertia " + " ".join(f"{v:.3f}" for v in current["rotor_inertia"]))  # fmt: skip
+        for entry in current["drive_inertia_reference"]:
+            print(f"    joint {entry['joint']}'s rotor (inside the base parameters, not in the robot file) held near "
+                  f"{entry['kg_m2']:.3f} kg m^2, the drive inertias of joints {entry['from_joints']}")  # fmt: skip
+    print("  link-side rigid body against the joint-torque sensors, pooled over the 3 logs [N m]:")
+    for source in SOURCES:
+        if result[source].get("exit_code") == 0:
+            pooled = result[source]["sensor_prediction"]["pooled"]
+            print(f"    {source + ' fit':<15}" + " ".join(f"{v:7.3f}" for v in pooled))
     for entry in result["urdf_unusable_inertias"]:
         print(f"  URDF: {entry['link']} (joint {entry['joint']}) inertia unusable: {entry['problem']}")
     vendor = result["vendor_urdf"]

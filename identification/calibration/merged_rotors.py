@@ -17,7 +17,7 @@ same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference t
 value or such a sibling, the joint keeps the map as derived and its link takes the rotor's torque; the envelope report
 then says that on currents a pushed link may hold the rotors' inertia (``envelope_report``). On the Kinova's
 currents the links 2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint
-2's rotor: its axis is normal to joint 1's); with the siblings' 0.40 kg m^2 as reference the fit gives 0.50 and 0.80
+2's rotor: its axis is normal to joint 1's); held to joint 4's unconstrained 0.31 kg m^2 the fit gives 0.48 and 0.62
 kg m^2 for them, and the joint-torque sensors give 0.52 and 0.48 for the difference between current and sensor torque
 (``benchmarks/kinova_gen3.py``, ``sensor_check``).
 """

@@ -159,7 +159,10 @@ def test_the_currents_against_the_sensors_hold_the_rotors_and_a_gear_loss_on_joi
 def test_identify_on_defaults_from_the_currents_keeps_the_rotors_and_every_link_plausible(robot, tmp_path, capsys):
     """From the currents alone (Trajectory1 has no sensor): the drive inertias are identified (motor currents hold
     them) near the sensor check's, link 5's centre of mass stays on its link (0.209 m before, 2x its length), the
-    drive loss is tried and stated."""
+    drive loss is tried and stated. The rotors of joints 1-2 lie inside links 1-2's base parameters (joint 2's axis is
+    normal to joint 1's) and the robot file states none: held near joint 4's (same torque constant; joint 3's
+    unconstrained drive inertia is negative, so it does not count), they come out
+    near the sensor check's 0.52 and 0.48 kg m^2 and links 2 and 4 leave their upper mass bounds (they held them)."""
     out = tmp_path / "current.json"
     argv = ["identify", robot.source, "--data", *(str(KINOVA / n) for n in ("opti_traj_testing1.csv",
             "RunTrajectory1.csv", "Trajectory1.csv")), "--validate", str(KINOVA / "opti_traj_testing2.csv"),
@@ -174,4 +177,9 @@ def test_identify_on_defaults_from_the_currents_keeps_the_rotors_and_every_link_
     standard = np.array(json.loads(Path(out).read_text())["standard"]["values"]).reshape(7, -1)
     com = np.linalg.norm(standard[:, 1:4], axis=1) / standard[:, 0]
     assert com[4] < 0.15, com  # joint 6 sits 0.106 m from joint 5
-    assert not any("pushed" in w for w in report["warnings"]), report["warnings"]
+    reference = report["envelope"]["drive_inertia_reference"]
+    assert [r["joint"] for r in reference] == [1, 2] and all(set(r["from_joints"]) <= {3, 4} for r in reference)
+    assert np.all((standard[:2, 10] > 0.3) & (standard[:2, 10] < 0.8)), standard[:, 10]
+    prior = np.array([link.mass for link in robot.links])
+    assert standard[1, 0] < 1.9 * prior[1] and standard[3, 0] < 1.9 * prior[3], standard[:, 0] / prior
+    assert not any(w.startswith("link ") and "pushed" in w for w in report["warnings"]), report["warnings"]
