@@ -238,7 +238,8 @@ def riccati_rti_function(robot, options, model_jacobian, bounds, qp: RiccatiQP) 
     step, lam_g = qp.function(
         ca.diag(hessian), pieces["g"], pieces["blocks"], -pieces["gaps"], pieces["lbx"], pieces["ubx"]
     )
-    solution = w + step
+    # held inside the bounds in absolute terms too: w + (ubx - w) can round above ubx by an ulp
+    solution = ca.fmin(ca.fmax(w + step, pieces["low"]), pieces["high"])
     return ca.Function(
         RTI_NAME,
         [x0, w, p],
@@ -251,7 +252,7 @@ def riccati_rti_function(robot, options, model_jacobian, bounds, qp: RiccatiQP) 
 def qp_pieces(robot, options, model_jacobian, bounds, x0, w, p) -> dict:
     """The Gauss-Newton QP of one SQP step from w (see ``rti_qp_data``) as expressions in (x0, w, p): the
     constant Hessian (DM, every diagonal entry present), gradient, stage Jacobians ``[A_k B_k]`` side by
-    side, gaps ``x_{k+1} - F(x_k, u_k)``, the constraint Jacobian and the bounds of the step."""
+    side, gaps ``x_{k+1} - F(x_k, u_k)``, the constraint Jacobian, the bounds of the step and of the variables."""
     n, horizon = robot.n_dof, options.horizon
     n_w = w.numel()
     states = ca.horzcat(*[w[3 * n * k : 3 * n * k + 2 * n] for k in range(horizon + 1)])
@@ -271,6 +272,8 @@ def qp_pieces(robot, options, model_jacobian, bounds, x0, w, p) -> dict:
         "jac_g": constraint_jacobian(w, states, torques, model_jacobian, n),
         "lbx": measured + lbx - w,
         "ubx": measured + ubx - w,
+        "low": measured + lbx,
+        "high": measured + ubx,
     }
 
 
