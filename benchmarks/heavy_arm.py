@@ -184,7 +184,7 @@ def run_case(seed: int, folder: Path, effects=EFFECTS) -> dict:
     code, identified = _cli(["identify", robot.source, "--data", data, "--validate", val, "--out", out, "--json"])
     seconds = time.perf_counter() - start
     document = json.loads(out.read_text())
-    findings = document["standard"].get("envelope_findings", [])
+    findings = [f for f in document["standard"].get("envelope_findings", []) if f.get("pressed", True)]
     named = [f for f in findings if f["absorbs"] == "counterbalance" and f["joint"] == 1]
     counter = document["identification"].get("counterbalance") or {}
     taken = bool(counter.get("kept")) and 2 in counter.get("joints", ())  # identify took a spring on joint 2

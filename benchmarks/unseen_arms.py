@@ -125,7 +125,8 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
     # diagnose takes one training recording (the loaded one, as its refusal of several says)
     diagnose = ["--train", case.train[-1], "--validate", case.validate, *layout, "--json"]
     code_dia, diagnosis, dia_text, dia_s = _cli(["diagnose", model, *diagnose])
-    pushed = document["standard"].get("envelope_findings", ())
+    listed = document["standard"].get("envelope_findings", ())
+    pushed = [f for f in listed if f.get("pressed", True)]  # the others rest on a bound: a note, no route
     if pushed:  # the route identify's envelope warning suggests: diagnose against the robot file
         _, suggested, _, _ = _cli(["diagnose", case.robot, *diagnose])
         row["suggested_route_findings"] = _findings(case, suggested)[0]
@@ -138,7 +139,12 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
         worst_link=int(np.flatnonzero(heavy)[int(np.argmax(ratio))]) + 1,
         rmse_ratio=round(float(np.max(rmse / case.floor_nm)), 2),
         rmse_ratio_after=round(float(np.max(after / case.floor_nm)), 2),
-        envelope_pushed=", ".join(f"link {f['link'] + 1}: {f['absorbs']}" for f in pushed if "link" in f) or "-",
+        envelope_pushed=", ".join(
+            f"link {f['link'] + 1}: {f['absorbs']}{'' if f.get('pressed', True) else ' (rests)'}"
+            for f in listed
+            if "link" in f
+        )
+        or "-",
         findings=", ".join(names) or "-",
         missed=", ".join(missed) or "-",
         false=", ".join(false) or "-",

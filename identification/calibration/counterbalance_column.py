@@ -79,7 +79,7 @@ def counterbalance_joints(fit) -> tuple:
     """0-based joints the fit's envelope report names a counterbalance or spring on: through a link's bounds (its
     first moment absorbing a gravity-like torque) or one joint's drive inertia pressed down (a torque following the
     position looks like a negative inertia on a periodic motion)."""
-    return tuple(sorted({f.joint for f in fit.envelope if f.absorbs == "counterbalance"}))
+    return tuple(sorted({f.joint for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed}))
 
 
 def _columns(joints, options, recordings, order: int) -> FindingColumns:

@@ -21,6 +21,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from identification.calibration.envelope_report import pressed_findings
+
 __all__ = ["ABSORBING_EFFECTS", "DiagnosisPrior", "carried_findings", "diagnosis_prior"]
 
 #: What a pushed link absorbs that the robot file's rigid body lets the diagnosis find (not a drive inertia).
@@ -68,7 +70,7 @@ def diagnosis_prior(document: dict, robot) -> DiagnosisPrior:
     """The ``DiagnosisPrior`` of a calibrated-model file's ``document`` and its robot file ``robot`` (module
     docstring): the robot file's rigid body when identify reported links pushed for an absorbed counterbalance or
     payload and ``robot`` has link inertias."""
-    findings = (document.get("standard") or {}).get("envelope_findings") or []
+    findings = pressed_findings((document.get("standard") or {}).get("envelope_findings") or [])
     pushed = [
         f for f in findings if f.get("absorbs") in ABSORBING_EFFECTS and set(f.get("bounds") or ()) & set(LINK_BOUNDS)
     ]

@@ -12,6 +12,9 @@ those bounds and names the likely cause:
 - a drive inertia at a bound: a **drive inertia** unlike the file's (below it: a torque measured on the link
   side of the gearbox; above it: extra inertia such as a coupled load).
 
+A link that only rests on a bound, the data pressing on it lightly, is listed as well (``pressed`` False) with a
+note rather than a warning: its mass or extent was set by the bound, not by the data.
+
 "Refused" is measured on the joints' own training data: the growth of each joint's residual from the
 unconstrained least-squares estimate to the bounded fit, in units of its noise. The route that finds the
 cause is ``psdm diagnose`` against the robot file, which fits a spring, counterbalance or payload jointly
@@ -36,6 +39,7 @@ __all__ = [
     "MIN_REFUSED_SIGMA",
     "EnvelopeFinding",
     "envelope_findings",
+    "pressed_findings",
 ]
 
 #: A bound counts as active when the solution is within this fraction of it ...
@@ -81,6 +85,10 @@ class EnvelopeFinding:
         in noise variances, they cost to first order).
     message : str
         The report's sentence: the bounds, the likely cause, the route that finds it.
+    pressed : bool
+        Whether the data press on the bounds (``MIN_PRESSURE``, ``MIN_REFUSED_SIGMA``): the warnings, identify's
+        counterbalance route and the diagnosis's choice of rigid body act on those only. A link resting on a bound
+        the data press lightly (False) is reported too (the bound, not the data, set its mass or extent), as a note.
     """
 
     link: int
@@ -97,6 +105,7 @@ class EnvelopeFinding:
     refused_sigma: float
     pressure: float
     message: str = ""
+    pressed: bool = True
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -133,7 +142,9 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
 
     A bound counts when it is active (within ``ACTIVE_TOLERANCE``) and the data press on it: its pressure is at
     least ``MIN_PRESSURE`` noise variances per sample of the joint, or (a link's) the joint it refuses most torque
-    on gives up at least ``MIN_REFUSED_SIGMA`` noise levels of RMS torque.
+    on gives up at least ``MIN_REFUSED_SIGMA`` noise levels of RMS torque. A link's active bound the data press on
+    less is listed too, ``pressed`` False: the link rests where the bound stopped it (the unseen KR6-like arm on slow
+    gravity poses had links 4 and 6 at their mass bounds, unreported).
 
     Parameters
     ----------
@@ -172,6 +183,13 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
             pushed[(i, "link")] = (link, "payload" if outward and i in masses[-2:] else "counterbalance", link_push)
         if drive and drive_push >= floor[i]:
             pushed[(i, "drive")] = (drive, "drive_inertia", drive_push)
+
+    def joint_and_pressure(i, kind, absorbs, push) -> tuple:
+        if kind == "drive":
+            return i, True
+        joint = {"payload": int(np.argmax(ratio))}.get(absorbs, int(np.argmax(ratio[: i + 1])))
+        return joint, bool(push >= floor[joint] or ratio[joint] >= MIN_REFUSED_SIGMA)
+
     payload = any(absorbs == "payload" for _, absorbs, _ in pushed.values())
     low = [i for (i, kind), (names, _, _) in pushed.items() if kind == "drive" and "drive inertia lower" in names]
     rotors = int(np.sum(bounds.rotor_lower > 0))
@@ -181,18 +199,39 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
             absorbs = "payload"  # a payload pulls every link outward: the proximal ones too
         if i in low and kind == "drive" and len(low) <= rotors // 2:  # one joint's, not the torque signal's
             absorbs = "counterbalance"
-        joint = (
-            i if kind == "drive" else {"payload": int(np.argmax(ratio))}.get(absorbs, int(np.argmax(ratio[: i + 1])))
-        )
-        if kind == "link" and push < floor[joint] and ratio[joint] < MIN_REFUSED_SIGMA:
+        joint, pressed = joint_and_pressure(i, kind, absorbs, push)
+        if not pressed and standard[i, 0] <= 0:  # a massless link at its bound of 0: nothing rests there
             continue
         envelope = bounds.envelopes[i]
         fill = (envelope_fill(standard[i], envelope), envelope_fill(prior[i], envelope)) if envelope else (np.nan,) * 2
         finding = EnvelopeFinding(i, names, float(standard[i, 0]), float(prior[i, 0]), *fill, float(standard[i, -1]),
                                   float(prior[i, -1]), absorbs, joint, float(refused[joint]), float(ratio[joint]),
-                                  push)  # fmt: skip
-        out.append(replace(finding, message=_message(finding, robot, currents)))
+                                  push, pressed=pressed)  # fmt: skip
+        text = _message(finding, robot, currents) if pressed else _resting_message(finding, robot)
+        out.append(replace(finding, message=text))
     return tuple(out)
+
+
+def pressed_findings(findings) -> tuple:
+    """The findings (``EnvelopeFinding`` or their dicts from a model file, where a file written before ``pressed``
+    counts every one) whose bounds the data press on."""
+    return tuple(f for f in findings if (f.get("pressed", True) if isinstance(f, dict) else f.pressed))
+
+
+def _resting_message(finding: EnvelopeFinding, robot) -> str:
+    """The report's note on a link resting on a bound the data press lightly."""
+    k = finding.joint
+    cause = {
+        "payload": "a payload or tool at the flange that the robot file does not hold (or a stated one that is off)",
+        "counterbalance": f"a counterbalance or spring on {joint_label(k, robot)}",
+    }[finding.absorbs]
+    return (
+        f"link {finding.link + 1} rests against {_pushed_what(finding)}, the data pressing on it lightly "
+        f"({joint_label(k, robot)} gives up {finding.refused_rms:.2g} N m RMS, {finding.refused_sigma:.2g} x its "
+        f"noise, to the bounds): these recordings hardly fix this link, and the bound, not the data, set it. If "
+        f"anything it holds {cause}; pass --mass-bounds LOW HIGH if the robot file's masses are rough, or record "
+        "motions that move this link apart from its neighbours."
+    )
 
 
 def _pushed_what(finding: EnvelopeFinding) -> str:

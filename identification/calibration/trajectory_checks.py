@@ -206,7 +206,7 @@ def _envelope_warnings(fit) -> list:
     torques are in another unit (every link is then pushed, and the unit is the one cause to name)."""
     if unit_factor(getattr(fit, "torque_ratio", ())) is not None:
         return []
-    return [finding.message for finding in fit.envelope]
+    return [finding.message for finding in fit.envelope if finding.pressed]  # a link resting on a bound: a note
 
 
 def _fit_quality_warnings(robot, fit) -> list:

@@ -432,13 +432,13 @@ def _print_envelope(fit) -> None:
         f"physical envelope: each link's mass within {mass} x the robot file's, drive inertias within {rotor} x, "
         f"the mass inside a bounding ellipsoid ({', '.join(sources)})"
     )
-    if not fit.envelope:
-        print("  every link inside, none pushed against its bounds")
+    if not any(f.pressed for f in fit.envelope):
+        print("  every link inside, none pushed against its bounds" if not fit.envelope else "  none pushed hard")
     elif unit_factor(fit.torque_ratio) is not None:  # every link pushed by the unit: the warning names it
         print(f"  links {', '.join(str(f.link + 1) for f in fit.envelope)} pushed: the torques are in another unit")
         return
     for finding in fit.envelope:
-        print(f"  PUSHED: {finding.message}")
+        print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {finding.message}")
 
 
 def _print(args, robot, model, fit, report, calibrated, choice) -> None:
