@@ -220,6 +220,10 @@ def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path
             "drive_loss": payload.get("drive_loss", []), "drive_inertia": inertia, "rotor_inertia": rotor.tolist(),
             "drive_inertia_reference": payload.get("envelope", {}).get("drive_inertia_reference", []),
             "sensor_prediction": sensor_prediction(robot, out, data),
+            "links_pushed": sorted({f["link"] + 1 for f in payload.get("envelope_findings", [])
+                                    if set(f["bounds"]) & {"envelope", "mass upper", "mass lower"}}),
+            "drives_pushed": sorted({f["link"] + 1 for f in payload.get("envelope_findings", [])
+                                     if any(b.startswith("drive") for b in f["bounds"])}),
             "column_text": payload["columns"].get("drive_loss_joints"),
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "names_unusable_urdf_inertias": [w.split(" is unusable")[0] for w in warnings if " is unusable" in w],
@@ -339,7 +343,9 @@ def print_kinova(result) -> None:
         print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
         links = fit["links"]
         print(f"           total mass {links['total_mass']:.2f} kg (robot file {links['robot_file_total_mass']:.2f}, "
-              f"URDF {links['urdf_total_mass']:.2f}); links at a mass bound: {links['links_at_mass_bound'] or 'none'}; "
+              f"URDF {links['urdf_total_mass']:.2f}); links at a mass bound: {links['links_at_mass_bound'] or 'none'} "
+              f"(pushed there by the data, identify's report: links {fit['links_pushed'] or 'none'}, drives "
+              f"{fit['drives_pushed'] or 'none'}); "
               f"implausible links: {links['implausible_links'] or 'none'}; a tool at the flange named: "
               f"{'yes' if fit['names_tool_at_flange'] else 'no'}")  # fmt: skip
     check = result["sensor_check"]

@@ -248,6 +248,11 @@ def _pushed_what(finding: EnvelopeFinding) -> str:
     return " and ".join(parts)
 
 
+def outward(finding: EnvelopeFinding) -> bool:
+    """Whether the data push the link outward (its envelope or its upper mass bound): a load it does not hold."""
+    return "envelope" in finding.bounds or "mass upper" in finding.bounds
+
+
 def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
     """The report's sentence on one finding: what is pushed, by how much, what it most likely is, what to run."""
     i, k = finding.link, finding.joint
@@ -289,7 +294,12 @@ def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
         cause = ("extra inertia on the joint (a coupled load, a heavier gear), or the rotor inertia it is held to is "
                  "off (the robot file's, or on currents the drive inertia of the joints with its torque constant: "
                  "state its rotor_inertia in the robot file's [[link]] table)")  # fmt: skip
-    if currents and not drive:
+    if currents and not drive and finding.prior_drive_inertia == 0 and finding.drive_inertia == 0 and outward(finding):
+        cause += (f". With motor currents as the torque source it is most likely joint {i + 1}'s rotor inertia: the "
+                  f"base parameters merge it into link {i + 1} and the robot file states none, nor does a joint with "
+                  f"the same torque constant give one; state rotor_inertia in link {i + 1}'s [[link]] table and "
+                  "identify holds it there")  # fmt: skip
+    elif currents and not drive:
         cause += (". With motor currents as the torque source it may instead be a drive effect the currents hold: the "
                   "rotors' inertia (identify --drive-inertia on) or a gear efficiency that depends on the power flow "
                   "(identify --drive-loss on)")  # fmt: skip

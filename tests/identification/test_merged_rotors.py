@@ -119,4 +119,4 @@ def test_a_rotor_the_file_does_not_state_is_held_to_its_siblings_with_the_same_t
     alone = identify_trajectories(other, denso_model, [recording])
     assert alone.standard[1, ROTOR] == 0.0 and alone.standard[1, 0] > 1.5 * truth.links[1].mass
     assert "drive_inertia_reference" not in dict(alone.envelope_bounds)
-    assert any(w.startswith("link 2 is pushed") and "rotors' inertia" in w for w in alone.warnings)
+    assert any(w.startswith("link 2 is pushed") and "joint 2's rotor inertia" in w for w in alone.warnings)
