@@ -216,14 +216,14 @@ def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path
     drive = payload.get("drive", {})
     inertia = [drive.get(f"Ia{j + 1}") for j in range(robot.n_dof)]
     rotor = np.array(json.loads(out.read_text())["standard"]["values"]).reshape(robot.n_dof, -1)[:, 10]
+    pressed = [f for f in payload.get("envelope_findings", []) if f.get("pressed", True)]  # not merely resting
     return {"exit_code": code, "columns": SOURCES[source], "training": list(TRAINING[source]), "seconds": seconds,
             "drive_loss": payload.get("drive_loss", []), "drive_inertia": inertia, "rotor_inertia": rotor.tolist(),
             "drive_inertia_reference": payload.get("envelope", {}).get("drive_inertia_reference", []),
             "sensor_prediction": sensor_prediction(robot, out, data),
-            "links_pushed": sorted({f["link"] + 1 for f in payload.get("envelope_findings", [])
+            "links_pushed": sorted({f["link"] + 1 for f in pressed
                                     if set(f["bounds"]) & {"envelope", "mass upper", "mass lower"}}),
-            "drives_pushed": sorted({f["link"] + 1 for f in payload.get("envelope_findings", [])
-                                     if any(b.startswith("drive") for b in f["bounds"])}),
+            "drives_pushed": sorted({f["link"] + 1 for f in pressed if f["bounds"][0].startswith("drive")}),
             "column_text": payload["columns"].get("drive_loss_joints"),
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "names_unusable_urdf_inertias": [w.split(" is unusable")[0] for w in warnings if " is unusable" in w],
