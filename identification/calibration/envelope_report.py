@@ -219,18 +219,25 @@ def pressed_findings(findings) -> tuple:
 
 
 def _resting_message(finding: EnvelopeFinding, robot) -> str:
-    """The report's note on a link resting on a bound the data press lightly."""
+    """The report's note on a link resting on a bound the data press lightly: what rests where, how lightly, what
+    it may hold, and which bound to revisit."""
     k = finding.joint
     cause = {
         "payload": "a payload or tool at the flange that the robot file does not hold (or a stated one that is off)",
-        "counterbalance": f"a counterbalance or spring on {joint_label(k, robot)}",
+        "counterbalance": f"a counterbalance or spring (it gives up most on {joint_label(k, robot)})",
     }[finding.absorbs]
+    fixes = []
+    if any(b.startswith("mass") for b in finding.bounds):
+        fixes.append("pass --mass-bounds LOW HIGH if the robot file's masses are rough")
+    if "envelope" in finding.bounds:
+        fixes.append(f"give link {finding.link + 1} its envelope in the robot file ([[link]] envelope) if its "
+                     "kinematic lengths understate the link")  # fmt: skip
     return (
         f"link {finding.link + 1} rests against {_pushed_what(finding)}, the data pressing on it lightly "
         f"({joint_label(k, robot)} gives up {finding.refused_rms:.2g} N m RMS, {finding.refused_sigma:.2g} x its "
         f"noise, to the bounds): these recordings hardly fix this link, and the bound, not the data, set it. If "
-        f"anything it holds {cause}; pass --mass-bounds LOW HIGH if the robot file's masses are rough, or record "
-        "motions that move this link apart from its neighbours."
+        f"anything it holds {cause}; {', or '.join(fixes)}, or record motions that move this link apart from its "
+        "neighbours."
     )
 
 
