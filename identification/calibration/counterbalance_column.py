@@ -8,7 +8,10 @@ on the held-out recordings, no joint's RMSE is worse than without it beyond the 
 (``never_worse.compare_models``), its joints' RMSE drops, and nothing is left pushed for a counterbalance on those
 joints; otherwise the model without it is written and the report says why. A kept spring is a ``findings`` entry with
 ``source`` ``"identify"``, applied by ``psdm validate``, ``predict``, ``diagnose`` (which says the model already
-carries it) and the exported code alike. Without held-out recordings nothing is judged: the report suggests it.
+carries it) and the exported code alike. Without held-out recordings (``psdm identify robot.toml rec.csv``) the same
+rules are judged by a block cross-validation over the training recordings (``counterbalance_folds``: each block held
+out once, the models without and with the spring identified on the rest), where the spring must also not raise its own
+joint's error beyond the noise in any block; ``CounterbalanceChoice.route`` says which judged it.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from identification.calibration.counterbalance_folds import BlockFolds, block_folds, holds_everywhere
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_models
@@ -58,6 +62,8 @@ class CounterbalanceChoice:
     rmse_without, rmse_with, margin : array or None
         Per joint, the held-out RMSE [N m] of the models without and with the springs, and the noise margin a joint
         may be worse by (``never_worse``).
+    route : str
+        What judged it: ``"held-out recordings"`` or the block cross-validation (``counterbalance_folds``).
     """
 
     joints: tuple = ()
@@ -68,11 +74,13 @@ class CounterbalanceChoice:
     rmse_without: np.ndarray | None = None
     rmse_with: np.ndarray | None = None
     margin: np.ndarray | None = None
+    route: str = ""
 
     def to_dict(self) -> dict:
         pairs = (("rmse_without", self.rmse_without), ("rmse_with", self.rmse_with), ("margin", self.margin))
         rmse = {k: None if v is None else [float(x) for x in v] for k, v in pairs}
-        return {"joints": [j + 1 for j in self.joints], "kept": self.kept, "reason": self.reason, **rmse}
+        return {"joints": [j + 1 for j in self.joints], "kept": self.kept, "reason": self.reason, **rmse,
+                "route": self.route}  # fmt: skip
 
 
 def counterbalance_joints(fit) -> tuple:
@@ -106,7 +114,8 @@ def _offset(offsets, joint: int) -> bool:
 def _entries(columns: FindingColumns, extra) -> list:
     entries = [{"effect": "spring", "label": t.label, "kind": "torque", "joints": [t.joint + 1], "term": t.to_dict(),
                 "source": COUNTERBALANCE_SOURCE, "cause": "counterbalance or spring named by identify's envelope "
-                "report (a link pushed against its envelope), kept on the held-out recordings"}
+                "report (a link pushed against its envelope), kept on the held-out recordings or a block "
+                "cross-validation of the training recordings"}
                for t in columns.terms]  # fmt: skip
     return filled_entries(entries, list(columns.terms), columns, extra)
 
@@ -123,7 +132,7 @@ def try_counterbalance(
     fit, calibrated : TrajectoryFit, CalibratedModel
         The fit without springs and its model file.
     validation : list of Recording
-        The held-out recordings (raw); empty: nothing is tried.
+        The held-out recordings (raw); empty: the block cross-validation of ``recordings`` (``counterbalance_folds``).
     build : callable
         ``build(fit) -> CalibratedModel`` of a fit (the command line's ``CalibratedModel.from_fit``).
     kt : array, optional
@@ -133,26 +142,28 @@ def try_counterbalance(
     if not joints:
         return CounterbalanceChoice()
     labels = ", ".join(f"joint {j + 1}" for j in joints)
-    if not validation:
+    judge = list(validation) or block_folds(recordings, configurations)
+    if isinstance(judge, str):
         return CounterbalanceChoice(joints, reason=f"a counterbalance named on {labels}: not tried without held-out "
-                                    "recordings (pass --validate) ")  # fmt: skip
-    problem = (robot, model, recordings, options, calibrated, validation, build, configurations, kt)
+                                    f"recordings: {judge} (pass --validate)")  # fmt: skip
+    route = judge.route if isinstance(judge, BlockFolds) else "held-out recordings"
+    problem = (robot, model, recordings, options, calibrated, judge, build, configurations, kt)
     trials = [_pruned(problem, joints, order) for order in ORDERS]
     passing = [t for t in trials if t[0]]
-    ok, chosen, (plain, document, comparison) = min(passing or trials, key=lambda t: _score(t[2][2]))
-    shown = sorted(set(chosen) | set(comparison.worse))
+    ok, chosen, (plain, document, comparison, _) = min(passing or trials, key=lambda t: _score(t[2][2]))
+    shown = sorted(set(chosen or joints) | set(comparison.worse))
     pair = "; ".join(f"joint {j + 1}: {comparison.before[j]:.4g} -> {comparison.after[j]:.4g} N m" for j in shown)
     labels = ", ".join(f"joint {j + 1}" for j in chosen)
+    numbers = (comparison.before, comparison.after, comparison.margin, route)
     if not ok:
         why = ("it makes " + ", ".join(f"joint {j + 1}" for j in comparison.worse) + " worse beyond the noise margin"
                if comparison.worse else "it leaves them pushed against their bounds" if chosen
-               else "none lowers its own joint's held-out error")  # fmt: skip
+               else f"none lowers its own joint's error on the {route}")  # fmt: skip
         return CounterbalanceChoice(joints, False, f"a spring on {labels or 'the named joints'} tried and not kept: "
-                                    f"{why} ({pair})", None, None, comparison.before, comparison.after,
-                                    comparison.margin)  # fmt: skip
+                                    f"{why} ({pair})", None, None, *numbers)  # fmt: skip
     return CounterbalanceChoice(chosen, True, f"a spring on {labels} identified with the model (the counterbalance "
-                                f"the envelope report named): held-out RMSE {pair}, no joint worse", plain, document,
-                                comparison.before, comparison.after, comparison.margin)  # fmt: skip
+                                f"the envelope report named): RMSE on the {route} {pair}, no joint worse", plain,
+                                document, *numbers)  # fmt: skip
 
 
 def _score(comparison) -> float:
@@ -165,28 +176,42 @@ def _pruned(problem, joints, order) -> tuple:
     lower with it than without it (the others kept) is left out, then the rest is judged (module docstring)."""
     trial = _attempt(*problem, joints, order)
     kept = []
-    for j in joints:
-        alone = trial if len(joints) == 1 else None
+    for j in joints:  # judged against the fit without that spring; by the folds, against none (a fifth of the fits)
+        alone = trial if len(joints) == 1 or trial[3] is not None else None
         without = _attempt(*problem, tuple(k for k in joints if k != j), order) if alone is None else None
         before = trial[2].before[j] if alone is not None else without[2].after[j]
-        if trial[2].after[j] < before:
+        if trial[2].after[j] < before and (trial[3] is None or holds_everywhere(trial[3], j)):
             kept.append(j)
     if kept and tuple(kept) != tuple(joints):
         trial = _attempt(*problem, tuple(kept), order)
-    plain, _, comparison = trial
+    plain, _, comparison, _ = trial
     ok = bool(kept) and not comparison.worse and not set(counterbalance_joints(plain)) & set(kept)
     return ok, tuple(kept), trial
 
 
 def _attempt(robot, model, recordings, options, calibrated, validation, build, configurations, kt, joints, order):
     """(fit without the springs' coefficients, document with the spring entries, ``JointComparison`` against
-    ``calibrated`` on the held-out recordings) of the fit with a spring on ``joints``."""
+    ``calibrated`` on the held-out recordings or pooled over the ``BlockFolds``, the folds' comparisons or None) of
+    the fit with a spring on ``joints``."""
     columns = _columns(joints, options, recordings, order)
-    refit = identify_trajectories(robot, model, recordings, options, columns, configurations)
-    plain, extra = split_findings(refit, len(columns.names))
-    document = copy.deepcopy(build(plain).document)
-    document["findings"] = [*(document.get("findings") or []), *_entries(columns, extra)]
-    return plain, document, compare_models(calibrated, type(calibrated)(document), model, list(validation), kt)
+
+    def with_springs(data, configs):
+        plain, extra = split_findings(identify_trajectories(robot, model, data, options, columns, configs),
+                                      len(columns.names))  # fmt: skip
+        document = copy.deepcopy(build(plain).document)
+        document["findings"] = [*(document.get("findings") or []), *_entries(columns, extra)]
+        return plain, document
+
+    plain, document = with_springs(recordings, configurations)
+    if not isinstance(validation, BlockFolds):
+        return plain, document, compare_models(calibrated, type(calibrated)(document), model, validation, kt), None
+    comparison, folds = validation.compare(
+        lambda pieces: build(identify_trajectories(robot, model, list(pieces), options)),
+        lambda pieces: type(calibrated)(with_springs(list(pieces), None)[1]),
+        model,
+        kt,
+    )
+    return plain, document, comparison, folds
 
 
 def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = False) -> tuple:
@@ -208,10 +233,11 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
     choice, calibrated = CounterbalanceChoice(), build(fit)
     if not skip and fit.checked:
         kt = None
-        if any(r.tau is None for r in validation) and robot.drives is not None:
+        if any(r.tau is None for r in (validation or recordings)) and robot.drives is not None:
             kt = np.array([d.kt for d in robot.drives], dtype=float)
-        if counterbalance_joints(fit) and validation:
-            logger.info("identify: trying the counterbalance the envelope report names ...")
+        if counterbalance_joints(fit):
+            how = "on the held-out recordings" if validation else "by block cross-validation over the training data"
+            logger.info(f"identify: trying the counterbalance the envelope report names ({how}) ...")
         choice = try_counterbalance(robot, model, recordings, options, fit, calibrated, validation, build,
                                     configurations, kt)  # fmt: skip
         if choice.reason:

@@ -92,12 +92,11 @@ def add_arguments(p) -> None:
         p.add_argument(
             option, nargs=2, type=float, default=(0.5, 2.0), metavar=("LOW", "HIGH"), help=f"{bounded} (default 0.5 2)"
         )
-    p.add_argument(
-        "--no-envelope",
-        action="store_true",
-        help="do not keep the links inside their physical envelope (bounding ellipsoid, mass and drive-inertia "
-        "bounds): consistent only, as before",
-    )
+    for option, what in (("--no-envelope", "do not keep the links inside their physical envelope (bounding "
+                          "ellipsoid, mass and drive-inertia bounds): consistent only, as before"),
+                         ("--no-counterbalance", "do not try the spring the envelope report names (judged on "
+                          "--validate, else by a block cross-validation of the training recordings)")):  # fmt: skip
+        p.add_argument(option, action="store_true", help=what)
     p.add_argument(
         "--missing-torque",
         action="append",
@@ -156,7 +155,8 @@ def run(args) -> int:
         fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
         lugre = None
     saved = {"robot_source": args.robot, "lugre": lugre, "configurations": configurations}
-    problem, skip = (robot, model, recordings, options, configurations), args.friction == "lugre" or bool(loss)
+    problem = (robot, model, recordings, options, configurations)
+    skip = args.friction == "lugre" or bool(loss) or args.no_counterbalance
     fit, calibrated, counter = take_counterbalance(problem, fit, validation, (saved, paths), skip)
     held_out = not_held_out([str(p) for p in paths], args.validate)
     warnings = list(dict.fromkeys((*(fit if counter.kept else start).warnings, *fit.warnings, *missing, *held_out)))

@@ -1,0 +1,76 @@
+"""The block cross-validation identify judges its counterbalance spring by without a held-out recording
+(``calibration.counterbalance_folds``, issue 25): how the training recordings are cut, and the noise of the judgement.
+
+Reference: the recording's own samples (every sample held out exactly once, the training pieces the rest) and the
+paired-RMSE margin of ``never_worse`` on residuals with a known difference.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from identification.calibration.counterbalance_folds import (
+    FOLDS,
+    MIN_BLOCK_S,
+    block_folds,
+    holds_everywhere,
+    residual_comparison,
+    with_fold_spread,
+)
+from identification.calibration.never_worse import JointComparison
+from identification.data.configuration import PayloadConfiguration
+from identification.data.recording import Recording
+
+
+def _recording(seconds: float, rate: float = 100.0, name: str = "r") -> Recording:
+    t = np.arange(int(seconds * rate)) / rate
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    return Recording(t=t, q=q, tau=q.copy(), name=name)
+
+
+def test_every_sample_is_held_out_once_and_trained_on_in_the_other_folds():
+    recordings = [_recording(10.0, name="a"), _recording(9.0, name="b")]
+    folds = block_folds(recordings)
+    assert len(folds.training) == len(folds.held_out) == FOLDS and folds.route.endswith(f"({FOLDS} blocks)")
+    for source, index in zip(recordings, range(2)):
+        held = np.concatenate([blocks[index].t for blocks in folds.held_out])
+        np.testing.assert_array_equal(held, source.t)  # the blocks tile the recording, in order
+    for blocks, pieces in zip(folds.held_out, folds.training):
+        for block, recording in zip(blocks, recordings):
+            own = [p.t for p in pieces if p.name == recording.name]  # the rest of this recording, before and after
+            np.testing.assert_array_equal(np.sort(np.concatenate([*own, block.t])), recording.t)
+    first, last = folds.training[0], folds.training[-1]
+    assert len(first) == len(last) == 2  # the end blocks leave one piece per recording, the middle ones two
+    assert all(len(pieces) == 4 for pieces in folds.training[1:-1])
+
+
+@pytest.mark.parametrize(
+    "recordings, configurations, words",
+    [
+        ([_recording(FOLDS * MIN_BLOCK_S * 0.9)], None, "too short to cut into"),
+        ([_recording(10.0)], [PayloadConfiguration(name="box", unknown=True)], "carry payloads"),
+    ],
+)
+def test_recordings_that_cannot_be_cut_say_why(recordings, configurations, words):
+    reason = block_folds(recordings, configurations)
+    assert isinstance(reason, str) and words in reason
+
+
+def test_the_margin_takes_the_spread_of_the_folds_changes():
+    """A change that is noise over the folds (+0.02, 0, +0.28, -0.02 N m: the tutorial's joint 3) is within the
+    margin once the folds' spread counts; a change alike in every fold stays outside it."""
+    rng = np.random.default_rng(0)
+    before = rng.normal(0.0, 1.0, (4000, 2))
+    together = residual_comparison(before, before * np.array([1.07, 1.07]))
+    assert together.worse == (0, 1)  # 7 % worse on the same samples: beyond the bootstrap margin alone
+
+    def fold(change):
+        return JointComparison(before=np.ones(2), after=1.0 + np.asarray(change), margin=np.full(2, 0.01))
+
+    folds = [fold([0.02, 0.07]), fold([0.0, 0.07]), fold([0.28, 0.07]), fold([-0.02, 0.07])]
+    judged = with_fold_spread(together, folds)
+    assert judged.worse == (1,)  # joint 1's change is fold-to-fold noise, joint 2's is everywhere
+    spread = np.std([0.02, 0.0, 0.28, -0.02], ddof=1) / 2.0
+    assert judged.standard_error[0] == pytest.approx(spread)
+    assert not holds_everywhere(folds, 0) and holds_everywhere([fold([0.005, 0.0])] * 4, 0)
