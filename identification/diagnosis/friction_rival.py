@@ -27,23 +27,24 @@ passes the selection's gates (``selection.passes_gates``) on each recording. A d
 backlash) has one column against the family's three on that joint: it is kept only if it alone predicts each recording
 better (joint-weighted validation error) than the family alone. (Judged beside the family, a true elasticity of the
 benchmark's scenario failed the 20 % gate its joint's friction columns share with it.) A lag that loses is not named,
-and the report's notes say so with the numbers (``sentences``), and the family's shapes that are a torque of the state
-(a Stribeck peak, a smooth Coulomb friction, each on each joint of the lag, its scale fitted again:
-``candidates.friction.FrictionShapeTerm``) are offered to the selection as candidates, screened and judged as every
-candidate (the gates on each validation recording, the second opinion, plausible coefficients): what explains the lag
-is then named, and a model file takes it (``diagnose --apply``). A true delay also lags the inertial and gravity
-torque, and a true elasticity the rigid body's torque through the deflection, which no friction shape follows: a 10 ms
-delay on the virtual Denso is still named first, and ``benchmarks/diagnosis.py``'s delay, backlash and elasticity
-scenarios still find theirs.
+and the report's notes say so with the numbers (``sentences``), and the family's shapes (a Stribeck peak, a smooth
+Coulomb friction, pre-sliding, each on each joint of the lag, its scale fitted again:
+``candidates.friction.lacking_friction_shapes``) are offered to the selection as candidates, screened and judged as
+every candidate (the gates on each validation recording, the second opinion, plausible coefficients): what explains
+the lag is then named, and a model file takes it (``diagnose --apply``; pre-sliding, a state of the friction, is
+reported with its route). A true delay also lags the inertial and gravity torque, and a true elasticity the rigid
+body's torque through the deflection, which no friction shape follows: a 10 ms delay on the virtual Denso is still
+named first, and ``benchmarks/diagnosis.py``'s delay, backlash and elasticity scenarios still find theirs.
 """
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 
-from identification.diagnosis.candidates.friction import FRICTION_SHAPES, FrictionShapeTerm
+from identification.diagnosis.candidates.friction import lacking_friction_shapes
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import simulate_friction
 from identification.diagnosis.selection import passes_gates
@@ -190,9 +191,9 @@ class FrictionRival:
         return sentence
 
     def _offer(self, joints) -> None:
-        """Offer the family's shapes that are a torque of the state (``FrictionShapeTerm``: Stribeck, smooth Coulomb;
-        not pre-sliding, a state of its own) on ``joints``, each once; the selection fits their scales."""
-        for term in (FrictionShapeTerm(joint=j, shape=shape) for j in joints for shape in FRICTION_SHAPES):
+        """Offer the family's shapes (``lacking_friction_shapes``: Stribeck, smooth Coulomb, pre-sliding) on ``joints``,
+        each once; the selection fits their scales."""
+        for term in (replace(shape, joint=j) for j in joints for shape in lacking_friction_shapes()):
             if term.label not in self.offered:
                 self.offered[term.label] = term
                 self.new_offers.append(term)

@@ -151,6 +151,14 @@ def test_friction_shapes_refuse_a_dip_and_an_unknown_shape():
 
     assert "Stribeck peak" in implausibility(entry)
     assert FindingTerm("friction_shape", 4, spec=stribeck.spec()).lower_bounds() == [0.0]
+    # pre-sliding is a state of the friction, not a torque of (q, qd, qdd): reported with its route, not applied
+    from identification.calibration.findings import finding_kind
+    from identification.diagnosis.candidates import PreslidingTerm
+
+    assert finding_kind("friction_shape") == "torque" and finding_kind("presliding") == "reported"
+    presliding = PreslidingTerm(joint=2, scale=1e-3)
+    assert presliding.casadi_expression(None, None, None, None, None, [1.0]) is None
+    assert "not a" not in (presliding.implausibility([0.3]) or "") and "<= 0" in presliding.implausibility([-0.3])
 
 
 def test_a_linear_spring_finding_of_a_file_without_spec_still_loads():

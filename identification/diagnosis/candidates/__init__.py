@@ -8,7 +8,7 @@ feature libraries of pysindy; one module per family of effects:
 - ``torque``: spring, torque offset, torque ripple (torques of position);
 - ``gas_spring``: the gas-spring lever law, a spring shape offered beside the polynomial ones;
 - ``friction``: Coulomb asymmetry, load-dependent friction, friction drift, the friction shapes a Coulomb-viscous
-  model lacks (friction-like columns);
+  model lacks (Stribeck, smooth Coulomb, pre-sliding; friction-like columns);
 - ``inertial``: rotor inertia, joint coupling, payload, gravity tilt (rigid-body and mounting effects);
 - ``delay``: a delay between the torque and the motion signals;
 - ``deflection``: backlash and joint elasticity (a transmission that is not rigid);
@@ -35,6 +35,7 @@ from identification.diagnosis.candidates.friction import (
     FrictionDriftTerm,
     FrictionShapeTerm,
     LoadDependentFrictionTerm,
+    PreslidingTerm,
 )
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
@@ -59,6 +60,7 @@ __all__ = [
     "CoulombAsymmetryTerm",
     "FrictionDriftTerm",
     "FrictionShapeTerm",
+    "PreslidingTerm",
     "LoadDependentFrictionTerm",
     "GasSpringTerm",
     "CouplingTerm",

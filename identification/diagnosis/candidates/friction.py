@@ -150,7 +150,9 @@ class FrictionDriftTerm(CandidateTerm):
 
 FRICTION_SHAPES = ("stribeck", "smooth_coulomb")  # the shapes a ``FrictionShapeTerm`` takes
 # the velocity scales [rad/s] a ``FrictionShapeTerm`` searches (log-spaced, about 21 % apart), per shape
-SCALE_GRIDS = {"stribeck": np.geomspace(0.005, 0.5, 25), "smooth_coulomb": np.geomspace(0.01, 1.0, 25)}
+# (and the displacements [rad] a ``PreslidingTerm`` searches: each one a simulation of the bristle state)
+SCALE_GRIDS = {"stribeck": np.geomspace(0.005, 0.5, 25), "smooth_coulomb": np.geomspace(0.01, 1.0, 25),
+               "presliding": np.geomspace(1e-4, 3e-2, 13)}  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -256,7 +258,71 @@ class FrictionShapeTerm(CandidateTerm):
         return joint_expression(q.shape[0], self.joint, coefficients[0] * self._values(qd[self.joint], True))
 
 
+@dataclass(frozen=True)
+class PreslidingTerm(FrictionShapeTerm):
+    """``presliding``: after each velocity reversal the friction builds up over a displacement ``x0 = scale`` [rad]
+    instead of switching at once (Dahl's model, the bristle state of a LuGre friction with ``fs = fc``): the column is
+    ``u(t) - sign(qd)`` with ``du/dq = (1 - u sign(qd)) / x0`` from the recorded velocity, its coefficient the
+    Coulomb level that builds up (> 0). A lag of the friction that a delay or a joint elasticity mimics.
+
+    A state of the friction, not a torque of ``(q, qd, qdd)``: a model file holds it only as LuGre friction (``psdm
+    identify --friction lugre``), so the finding is reported with that route, not applied (``findings.finding_kind``
+    ``reported``).
+    """
+
+    shape: str = "presliding"
+    key = "presliding"
+    explanation = "friction that builds up over a small displacement after each reversal (pre-sliding)"
+
+    def __post_init__(self):
+        if self.shape != "presliding" or not (self.scale is None or self.scale > 0):
+            raise ParameterError(f"PreslidingTerm: shape 'presliding' and scale > 0 [rad]; got {self.shape!r}, "
+                                 f"{self.scale!r}.")  # fmt: skip
+
+    @property
+    def label(self) -> str:
+        return self.key if self.joint is None else f"{self.key}[j{self.joint + 1}]"
+
+    def feature_names(self):
+        self._require_joint()
+        return [f"presliding_fc_{self.joint + 1}"]
+
+    def columns(self, context):
+        from identification.friction.models import LuGreParameters
+        from identification.friction.simulation import simulate_lugre
+
+        self._require_joint()
+        if self.scale is None:
+            return self._scaled(float(np.median(SCALE_GRIDS[self.shape]))).columns(context)
+        qd = np.asarray(context.full_qd[:, self.joint], dtype=float)
+        unit = LuGreParameters(fc=1.0, fs=1.0, vs=1.0, fv=0.0, dv=1.0, sigma0=1.0 / self.scale, sigma1=0.0)
+        values = simulate_lugre(unit, context.full_t, qd, z0=0.0)[0] - np.sign(qd)  # context.simulate_friction
+        return joint_columns(context, self.joint, context.lowpass(values) if context.filtered_friction else
+                             values[context.keep])  # fmt: skip
+
+    def physical_parameters(self, coefficients):
+        return {"presliding_coulomb_Nm": float(coefficients[0]), "presliding_displacement_rad": float(self.scale)}
+
+    def implausibility(self, coefficients, context=None):
+        c = float(coefficients[0])
+        if c <= 0.0:
+            return f"pre-sliding level {c:.3g} N m <= 0: friction that overshoots after a reversal is not pre-sliding"
+        return oversized("friction", c, context, self.joint)
+
+    def interpret(self, coefficients):
+        return self.key, (
+            f"friction on joint {self.joint + 1} is not Coulomb-viscous: pre-sliding, a Coulomb friction of "
+            f"{float(coefficients[0]):.3g} N m that builds up over {self.scale * 1e3:.3g} mrad after each reversal "
+            "(LuGre's bristles); a state of the friction, which a model file holds as LuGre friction: identify with "
+            "--friction lugre to model it"
+        )
+
+    def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        return None
+
+
 def lacking_friction_shapes() -> tuple:
-    """The friction-shape candidates of a Coulomb-viscous (or fixed-velocity Stribeck) nominal model: a Stribeck peak
-    and a smooth Coulomb friction on every joint (``FrictionShapeTerm``, each scale fitted)."""
-    return tuple(FrictionShapeTerm(shape=shape) for shape in FRICTION_SHAPES)
+    """The friction-shape candidates of a Coulomb-viscous (or fixed-velocity Stribeck) nominal model on every joint: a
+    Stribeck peak and a smooth Coulomb friction (``FrictionShapeTerm``), pre-sliding (``PreslidingTerm``), each scale
+    fitted."""
+    return tuple(FrictionShapeTerm(shape=shape) for shape in FRICTION_SHAPES) + (PreslidingTerm(),)

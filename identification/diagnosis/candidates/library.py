@@ -11,6 +11,7 @@ from identification.diagnosis.candidates.friction import (
     FrictionDriftTerm,
     FrictionShapeTerm,
     LoadDependentFrictionTerm,
+    PreslidingTerm,
 )
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
@@ -33,7 +34,7 @@ ALL_TERMS = (
 )
 # every term a spec may name: the library's, the shapes a term offers as variants (a spring's gas-spring law) and
 # the friction shapes ``friction_rival`` offers
-TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm, FrictionShapeTerm)}
+TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm, FrictionShapeTerm, PreslidingTerm)}
 
 
 def default_library() -> CandidateLibrary:
