@@ -425,7 +425,8 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     library takes the friction shapes a Coulomb-viscous or Stribeck nominal model lacks (``lacking_friction_shapes``:
     a model file's friction, whose Stribeck velocities are fixed and whose Coulomb friction is a step)."""
     library = options.library if options.library is not None else default_library()
-    if options.library is None and options.friction in ("coulomb_viscous", "stribeck"):
+    lacking = options.friction in ("coulomb_viscous", "stribeck")  # a robot file's LuGre drives state them
+    if options.library is None and lacking:
         library = library + CandidateLibrary(lacking_friction_shapes())
     ctx_t = problem.ctx_t
     instances = [term for term in library.expand(robot.n_dof) if not set(term.joints) & set(left_out(ctx_t))]
@@ -439,7 +440,7 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
         instances, ctx_t, problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v,
         min_improvement=options.min_improvement, max_effects=options.max_effects, effective_samples=n_eff,
         joint_threshold=options.joint_threshold, opinion=opinion if problem.extra_v or options.cv_folds else None,
-        rival=FrictionRival(ctx_t, validations),
+        rival=FrictionRival(ctx_t, validations, offer=lacking),
     )  # fmt: skip
 
 

@@ -29,12 +29,13 @@ better (joint-weighted validation error) than the family alone. (Judged beside t
 benchmark's scenario failed the 20 % gate its joint's friction columns share with it.) A lag that loses is not named,
 and the report's notes say so with the numbers (``sentences``), and the family's shapes (a Stribeck peak, a smooth
 Coulomb friction, pre-sliding, each on each joint of the lag, its scale fitted again:
-``candidates.friction.lacking_friction_shapes``) are offered to the selection as candidates, screened and judged as
-every candidate (the gates on each validation recording, the second opinion, plausible coefficients): what explains
-the lag is then named, and a model file takes it (``diagnose --apply``; pre-sliding, a state of the friction, is
-reported with its route). A true delay also lags the inertial and gravity torque, and a true elasticity the rigid
-body's torque through the deflection, which no friction shape follows: a 10 ms delay on the virtual Denso is still
-named first, and ``benchmarks/diagnosis.py``'s delay, backlash and elasticity scenarios still find theirs.
+``candidates.friction.lacking_friction_shapes``) are offered to the selection as candidates where the nominal friction
+lacks them (a model file's Coulomb-viscous or Stribeck friction; ``offer``), screened and judged as every candidate
+(the gates on each validation recording, the second opinion, plausible coefficients): what explains the lag is then
+named, and a model file takes it (``diagnose --apply``; pre-sliding, a state of the friction, is reported with its
+route). A true delay also lags the inertial and gravity torque, and a true elasticity the rigid body's torque through
+the deflection, which no friction shape follows: a 10 ms delay on the virtual Denso is still named first, and
+``benchmarks/diagnosis.py``'s delay, backlash and elasticity scenarios still find theirs.
 """
 
 from __future__ import annotations
@@ -125,6 +126,10 @@ class FrictionRival:
     validations : sequence of (DiagnosisContext, BlockColumns, array)
         Each validation recording's context, nominal columns and fitted torque, the selection's first; ``keep`` adds
         the kept terms' columns as the selection adds them to its design.
+    offer : bool
+        Whether the shapes are offered where a lag loses: where the nominal friction lacks them (a model file's
+        Coulomb-viscous or Stribeck friction); a robot file's LuGre drives state their bristles, so there the lag is
+        only not named.
 
     Attributes
     ----------
@@ -134,8 +139,8 @@ class FrictionRival:
         The friction shapes offered as candidates where a lag lost (``take_offers``).
     """
 
-    def __init__(self, train_ctx, validations):
-        self.train_ctx = train_ctx
+    def __init__(self, train_ctx, validations, offer: bool = True):
+        self.train_ctx, self.offer = train_ctx, bool(offer)
         self.validations = [list(v) for v in validations]
         self.sentences = []
         self.offered, self.new_offers = {}, []
@@ -187,7 +192,8 @@ class FrictionRival:
         )
         logger.info(f"diagnose: {sentence}")
         self.sentences.append(sentence)
-        self._offer(joints)
+        if self.offer:
+            self._offer(joints)
         return sentence
 
     def _offer(self, joints) -> None:

@@ -71,7 +71,11 @@ def _lags(robot, model, extras, seed: int, shapes: bool = False, identify_prepar
     # default since issue 25's one preparation) seed 0 gets a joint_elasticity on joint 3 or 4 (issue 25, open)
     preparation = {} if identify_preparation else {"cutoff_hz": 15.0, "rate_hz": 200.0, "samples": "diagnosis"}
     options = DiagnosisOptions(
-        friction="coulomb_viscous", rigid_body="prior", sparse=False, library=library, cv_folds=0, **preparation, **more
+        rigid_body="prior",
+        sparse=False,
+        library=library,
+        cv_folds=0,
+        **{"friction": "coulomb_viscous", **preparation, **more},
     )
     return diagnose(robot, train, validation, options, model=model)
 
