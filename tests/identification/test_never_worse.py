@@ -253,8 +253,9 @@ def test_apply_refuses_when_no_finding_can_be_kept(spring_data, denso, capsys, m
     """Only the delay: every subset is worse on joints 1-3 (or is the model itself): exit 1, no file."""
     import importlib
 
-    diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
-    monkeypatch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: _report(False))
+    # where psdm diagnose MODEL looks it up (model_file holds its own name once imported), and the module itself
+    for module in ("identification.diagnosis.diagnose", "identification.diagnosis.model_file"):
+        monkeypatch.setattr(importlib.import_module(module), "diagnose", lambda *args, **kwargs: _report(False))
     out = spring_data / "refused.json"
     argv = ["diagnose", str(spring_data / "model.json"), "--train", str(spring_data / "train.csv"), "--validate",
             str(spring_data / "valid.csv"), "--apply", str(out), "--json"]  # fmt: skip
