@@ -288,7 +288,7 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     fit = identify_trajectories(robot, model, [train], choice.options(TrajectoryOptions()))  # held-out part stays out)
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     hand_picked = identify_trajectories(robot, model, [train], OPTIONS[key])
-    ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0])
+    ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0], fit.edge_periods)
     q, qd, qdd, tau = ready.q, ready.qd, ready.qdd, ready.tau
     predictions = {
         "": predict_torque(model, fit, q, qd, qdd),

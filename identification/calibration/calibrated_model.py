@@ -140,7 +140,7 @@ class CalibratedModel:
                                "n_samples": fit.n_samples, "sigma": _floats(fit.sigma),
                                "condition_number": float(fit.condition_number), "solver_status": fit.solver_status,
                                "seconds": round(fit.seconds, 3),
-                               "preparation": preparation_block(fit.cutoff_hz, fit.decimation)},
+                               "preparation": preparation_block(fit.cutoff_hz, fit.decimation, fit.edge_periods)},
             "provenance": {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
                            "psdm_casadi_version": _version(), "recordings": list(recordings)},
             "validation": validation or {},
@@ -274,14 +274,14 @@ class CalibratedModel:
         in the fit.
         ``kt`` [N m/A], shape (n_dof,), converts a recording of currents.
         """
-        cutoff = model_preparation(self.document).cutoff_hz
+        own = model_preparation(self.document)  # its cutoff and edge trim (one filter period in older files)
         corrected = correct_recording(recording, self.corrections, kt)
-        prepared, _, _ = prepare_recording(corrected, kt, cutoff)
+        prepared, _, _ = prepare_recording(corrected, kt, own.cutoff_hz, own.edge_periods)
         bristle = None
         if self.lugre_parameters is not None:
             from identification.calibration.lugre_recordings import bristle_force_at
 
-            bristle = bristle_force_at(self.lugre_parameters, corrected, cutoff, prepared.t[0])
+            bristle = bristle_force_at(self.lugre_parameters, corrected, own.cutoff_hz, prepared.t[0])
         predicted = self.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle)
         return prepared, predicted
 

@@ -299,7 +299,7 @@ def _candidates(robot, model, recordings, options, request, validation, configur
     """(_Candidates, offset candidates, inertia candidates) of the recordings (module docstring, steps 1-2); known
     payloads are taken off, unknown ones get their flange-body columns (``payload_fit``), as in the fit."""
     kt = torque_constants(robot, options, recordings)
-    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
     prepared = subtract_known_payloads(robot, prepared, configurations)
     bodies = FlangeBodies.of(configurations, len(prepared))
     extras = bodies.extras(robot)
@@ -339,7 +339,7 @@ def _candidates(robot, model, recordings, options, request, validation, configur
             blocks[-1].add(columns[a:b], recording.tau[a:b])
     held = None
     for recording in validation:
-        ready = prepare_recording(recording, kt, cutoffs[0])[0]
+        ready = prepare_recording(recording, kt, cutoffs[0], options.edge_periods)[0]
         held = held or NormalEquations(robot.n_dof, len(keep) + len(losses))
         held.add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
     weights, effective = _weights(_sum(blocks), training)

@@ -119,7 +119,7 @@ def identify_lugre_trajectories(
     if not all(r.tau is not None for r in recordings):
         kt = np.asarray(options.kt if options.kt is not None else [d.kt for d in robot.drives], dtype=float)
     stribeck = identify_trajectories(robot, model, recordings, options, extra, configurations)
-    _, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    _, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
     arm = subtract_loads(robot, prepared, configurations, stribeck.payloads)
     fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, arm, warn=rounds == 1, extra=extra)
     plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)

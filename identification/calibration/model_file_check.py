@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from identification.calibration.merged_rotors import merged_rotor_map
+from identification.calibration.model_preparation import PREPARATION_VERSION
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.trajectory_data import drive_column_names
 from psdm_casadi.errors import ModelFileError
@@ -45,6 +46,26 @@ def _refuse(name: str, field: str, constraint: str, got) -> ModelFileError:
 
 def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _check_preparation(name: str, preparation) -> None:
+    """``identification.preparation`` (absent from older files: their cutoff is used): positive cutoff and grid rate,
+    a version this reader knows and, from version 2, the filter periods trimmed at each end (``edge_periods``)."""
+    if preparation is None:
+        return
+    rates = [preparation.get(k) if isinstance(preparation, dict) else None for k in ("cutoff_hz", "grid_rate_hz")]
+    if not all(_is_number(v) and v > 0 for v in rates):
+        raise _refuse(name, "identification.preparation", "an object with positive cutoff_hz and grid_rate_hz [Hz]",
+                      repr(preparation)[:80])  # fmt: skip
+    version = preparation.get("version", 1)
+    if not (isinstance(version, int) and not isinstance(version, bool) and 1 <= version <= PREPARATION_VERSION):
+        raise ModelFileError(
+            f"{name}: identification.preparation.version must be 1..{PREPARATION_VERSION}; got {version!r}. Re-run "
+            "'psdm identify' with this version of psdm-casadi, or use the version that wrote the file."
+        )
+    edge = preparation.get("edge_periods")
+    if version >= 2 and not (_is_number(edge) and math.isfinite(edge) and edge >= 0):
+        raise _refuse(name, "identification.preparation.edge_periods", "a number >= 0 (filter periods)", repr(edge))
 
 
 def _numbers(name: str, block: dict, key: str, path: str, length=None, *, nullable=False) -> list:
@@ -201,12 +222,7 @@ def check_document(document: dict, name: str) -> None:
     cutoff = _numbers(name, document["identification"], "cutoff_hz", "identification")
     if not cutoff or min(cutoff) <= 0:
         raise _refuse(name, "identification.cutoff_hz", "positive numbers [Hz]", cutoff)
-    preparation = document["identification"].get("preparation")  # absent from older files: their cutoff is used
-    if preparation is not None:
-        rates = [preparation.get(k) if isinstance(preparation, dict) else None for k in ("cutoff_hz", "grid_rate_hz")]
-        if not all(_is_number(v) and v > 0 for v in rates):
-            raise _refuse(name, "identification.preparation", "an object with positive cutoff_hz and grid_rate_hz [Hz]",
-                          repr(preparation)[:80])  # fmt: skip
+    _check_preparation(name, document["identification"].get("preparation"))
     _check_column_choice(name, document["identification"].get("column_choice"), n_dof)
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):

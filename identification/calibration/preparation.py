@@ -20,10 +20,9 @@ from identification.calibration.friction_step import FrictionExperiment, frictio
 from identification.calibration.out_and_back import MotorExperiment, fold_out_and_back
 from identification.calibration.payload import payload_torque
 from identification.calibration.refinement import RefinementBlock
+from identification.data.filter_choice import EDGE_PERIODS
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
-
-EDGE_PERIODS = 3.0  # filter periods (1 / cutoff) trimmed at both ends of an exciting recording (trim_filter_edges)
 
 __all__ = [
     "EDGE_PERIODS",
@@ -138,7 +137,8 @@ def friction_split(data, options) -> Split:
 
 
 def trim_filter_edges(rec: Recording, cutoff_hz) -> Recording:
-    """``rec`` without its first and last ``EDGE_PERIODS / cutoff_hz`` seconds (unchanged when unfiltered).
+    """``rec`` without its first and last ``EDGE_PERIODS / cutoff_hz`` seconds (unchanged when unfiltered), the trim
+    of ``psdm identify`` (``filter_choice.EDGE_PERIODS``, one definition).
 
     An exciting trajectory is recorded in motion from its first sample to its last; the zero-phase
     filter's start-up transient at both ends then corrupts the differentiated qdd there (and the

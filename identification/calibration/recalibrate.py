@@ -193,16 +193,9 @@ def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, s
     n_extra = len(columns.all_names)
     equations = NormalEquations(robot.n_dof, model.n_base + len(names) + n_extra)
     for recording in recordings:
-        ready, _, _ = prepare_recording(recording, _kt(robot, recordings), options.cutoff_hz)
-        equations.add_recording(
-            model,
-            ready,
-            options.friction,
-            inertia,
-            options.coulomb_velocity,
-            FindingColumns(columns.terms, columns.reference),
-            stribeck=stribeck,
-        )
+        ready, _, _ = prepare_recording(recording, _kt(robot, recordings), options.cutoff_hz, options.edge_periods)
+        equations.add_recording(model, ready, options.friction, inertia, options.coulomb_velocity,
+                                FindingColumns(columns.terms, columns.reference), stribeck=stribeck)  # fmt: skip
     rms_tau = np.sqrt(equations.energy / np.maximum(equations.count, 1))
     gram, _, _ = equations.weighted(1.0 / np.maximum(rms_tau, 1e-12) ** 2)
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
@@ -227,7 +220,7 @@ def _kt(robot, recordings):
 
 def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
     """The recordings-route options the file was identified with (for LuGre: of the Stribeck fit it starts from)."""
-    document = calibrated.document
+    document, own = calibrated.document, model_preparation(calibrated.document)  # a refit keeps its file's preparation
     drive, identification = document["drive"], document["identification"]
     friction = tuple(drive["friction_terms"])
     if calibrated.lugre_parameters is not None:
@@ -237,7 +230,8 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         coulomb_velocity=float(drive["coulomb_velocity"]),
         drive_inertia=bool(identification.get("drive_inertia", True)),
         consistency=bool(document["standard"].get("checked", True)),
-        cutoff_hz=model_preparation(document).cutoff_hz,
+        cutoff_hz=own.cutoff_hz,
+        edge_periods=own.edge_periods,
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None

@@ -9,7 +9,8 @@ into what a linear fit needs, with memory that does not grow with the recording'
   keeps the joint motion of excitation trajectories (a few Hz at most) and removes the noise that
   differentiating twice would amplify; after it, samples are kept at about ten times the cutoff.
 - :func:`prepare_recording` applies it to q and the torque alike (so both see the same phase and
-  gain), differentiates q by central differences and drops one filter settling time at each end.
+  gain), differentiates q by central differences and drops ``filter_choice.EDGE_PERIODS`` filter periods at each end
+  (a model file's own number when it is judged: ``model_preparation``).
 - :class:`NormalEquations` accumulates, per joint, ``A_j^T A_j``, ``A_j^T y_j`` and ``y_j^T y_j``
   of the rows ``tau_j = A_j x`` in chunks of samples: the regressor of an hour at 1 kHz is never held.
 
@@ -26,7 +27,7 @@ import casadi as ca
 import numpy as np
 
 from identification.data.excitation_check import check_joint_motion
-from identification.data.filter_choice import choose_filter, kept_samples
+from identification.data.filter_choice import EDGE_PERIODS, choose_filter, edge_samples, kept_samples
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
@@ -46,8 +47,10 @@ MOTION_FIX = "record a trajectory that moves {joints} over more of its range and
 CHUNK_SAMPLES = 4000
 
 
-def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = None) -> tuple[Recording, float, int]:
-    """Filter q and the joint torque alike, differentiate, trim the filter's settling, decimate.
+def prepare_recording(
+    recording: Recording, kt=None, cutoff_hz: float | None = None, edge_periods: float = EDGE_PERIODS
+) -> tuple[Recording, float, int]:
+    """Filter q and the joint torque alike, differentiate, trim ``edge_periods`` filter periods at each end, decimate.
 
     Returns the prepared recording (``tau`` is the joint torque, ``kt * current`` when only currents
     were recorded), the cutoff [Hz] and the decimation step used.
@@ -56,7 +59,7 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
     rate = 1.0 / rec.dt
     cutoff, step = choose_filter(rate, cutoff_hz)
     rec.joint_torque(kt, 0)  # refuses currents without torque constants before any work
-    keep = kept_samples(rec.n_samples, rate, cutoff, step)
+    keep = kept_samples(rec.n_samples, rate, cutoff, step, edge_periods)
     # one joint at a time, only its kept samples stored: the full-rate filtered signals and derivatives are one
     # column long (an hour at 1 kHz is not held four times over); the values are those of the whole arrays
     kept = {name: np.empty((len(range(*keep.indices(rec.n_samples))), rec.n_dof)) for name in ("q", "qd", "qdd", "tau")}
@@ -66,7 +69,7 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
         qd, qdd = central_difference(rec.t, q)
         kept["q"][:, j], kept["qd"][:, j], kept["qdd"][:, j] = q[keep], qd[keep], qdd[keep]
     if kept["q"].shape[0] < 3:
-        edge = int(np.ceil(rate / cutoff))
+        edge = edge_samples(rate, cutoff, edge_periods)
         raise RecordingError(
             f"{rec.name or 'recording'}: {rec.duration:.3g} s is too short to filter at {cutoff:g} Hz and keep "
             f"samples; record at least {4 * edge / rate:.2g} s."
@@ -75,8 +78,9 @@ def prepare_recording(recording: Recording, kt=None, cutoff_hz: float | None = N
     return prepared, cutoff, step
 
 
-def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = None) -> tuple:
-    """(cutoffs, decimation steps, prepared recordings): each recording checked against ``robot``, then prepared.
+def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = None, edge_periods=EDGE_PERIODS) -> tuple:
+    """(cutoffs, decimation steps, prepared recordings): each recording checked against ``robot``, then prepared
+    (``prepare_recording``).
 
     Raises
     ------
@@ -90,7 +94,7 @@ def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = Non
         check_plausible_recording(rec, robot)
         check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
                            fix=MOTION_FIX)  # fmt: skip
-        ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz)
+        ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz, edge_periods)
         cutoffs.append(cutoff)
         steps.append(step)
         prepared.append(ready)

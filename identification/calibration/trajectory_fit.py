@@ -68,20 +68,13 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     prepare_recordings,
 )
+from identification.data.filter_choice import EDGE_PERIODS
 from identification.data.missing_torque import find_missing_torque, missing_torque_messages
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
-__all__ = [
-    "IPOPT_OPTIONS",
-    "TrajectoryFit",
-    "TrajectoryOptions",
-    "drive_inertia_joints",
-    "identify_trajectories",
-    "predict_torque",
-    "separate_inertia_joints",
-    "torque_constants",
-]
+__all__ = ["IPOPT_OPTIONS", "TrajectoryFit", "TrajectoryOptions", "drive_inertia_joints", "identify_trajectories",
+           "predict_torque", "separate_inertia_joints", "torque_constants"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -112,6 +105,8 @@ class TrajectoryOptions:
         squared residual per sample: small, so that it decides only what the data leaves free.
     cutoff_hz : float or None
         Low-pass cutoff [Hz]; None chooses ``min(10 Hz, rate / 10)`` per recording.
+    edge_periods : float
+        Filter periods trimmed at each end of a recording (``filter_choice.EDGE_PERIODS``; a refit keeps its file's).
     kt : array or None
         Torque constants [N m/A] per joint for recordings of currents (default: the robot's drives).
     stribeck_velocity : float
@@ -142,6 +137,7 @@ class TrajectoryOptions:
     margin: float = 1e-6
     prior_weight: float = 1e-4
     cutoff_hz: float | None = None
+    edge_periods: float = EDGE_PERIODS
     kt: tuple | None = None
     stribeck_velocity: float = 0.1
     envelope: bool = True
@@ -221,6 +217,8 @@ class TrajectoryFit:
     payloads : tuple of payload_fit.IdentifiedPayload
         The unknown payloads of the recordings' configurations (``identify_trajectories(configurations=)``),
         each a body fixed to the flange identified with the arm's parameters shared.
+    edge_periods : float
+        Filter periods trimmed at each end of every recording (``TrajectoryOptions.edge_periods``).
     """
 
     standard: np.ndarray
@@ -253,6 +251,7 @@ class TrajectoryFit:
     envelope: tuple = ()
     warnings: tuple = ()
     payloads: tuple = ()
+    edge_periods: float = EDGE_PERIODS
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -320,7 +319,7 @@ def identify_trajectories(
     lower = drive_lower_bounds(names)
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
-    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)
+    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
     prepared = subtract_known_payloads(robot, prepared, configurations)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
     vs, plain = None, bodies.extras(robot, extra)
@@ -383,7 +382,7 @@ def identify_trajectories(
         n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
-        training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads,
+        training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
         envelope=tuple(pushed), envelope_bounds=bounds_note(options, bounds) + rotors,
         torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip

@@ -35,7 +35,7 @@ import numpy as np
 import pinocchio as pin
 
 from identification.calibration.payload_fit import FlangeRegressor
-from identification.data.filter_choice import grid_step, kept_samples
+from identification.data.filter_choice import EDGE_PERIODS, grid_step, kept_samples
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
@@ -245,27 +245,28 @@ def _decimated_indices(
     max_samples: int | None = None,
     cutoff_hz: float | None = None,
     identify: bool = False,
+    edge_periods: float = EDGE_PERIODS,
 ) -> np.ndarray:
     """Indices of the samples of a ``rate_hz`` grid (coarser when it would hold more than ``max_samples``
     samples), without the ends where the zero-phase filter and the differences are least reliable: 5 % of the
     grid (at most 0.2 s) at each end, or with ``identify`` (filtered at ``cutoff_hz``) identify's samples
-    (``filter_choice.kept_samples``: every ``grid_step``-th, one filter period trimmed), so a model file is
-    judged on the samples ``psdm validate`` judges it on."""
+    (``filter_choice.kept_samples``: every ``grid_step``-th, ``edge_periods`` filter periods trimmed), so a model
+    file is judged on the samples ``psdm validate`` judges it on."""
     rate = 1.0 / recording.dt
     step = grid_step(rate, rate_hz) if identify else max(1, int(round(1.0 / (rate_hz * recording.dt))))
     if max_samples is not None:
         step = max(step, -(-recording.n_samples // int(max_samples)))
     if identify and cutoff_hz is not None:
-        return np.arange(recording.n_samples)[kept_samples(recording.n_samples, rate, cutoff_hz, step)]
+        return np.arange(recording.n_samples)[kept_samples(recording.n_samples, rate, cutoff_hz, step, edge_periods)]
     keep = np.arange(0, recording.n_samples, step)
     margin = min(keep.size // 20, int(round(0.2 / (recording.dt * step))))
     return keep[margin : keep.size - margin] if margin > 0 else keep
 
 
-def _grid(recording: Recording, rate_hz: float, max_samples, cutoff_hz, identify: bool = False) -> np.ndarray:
+def _grid(recording: Recording, rate_hz: float, max_samples, cutoff_hz, identify=False, edge=EDGE_PERIODS):
     """``_decimated_indices``, logging a grid that ``max_samples`` made coarser than ``rate_hz``."""
-    keep = _decimated_indices(recording, rate_hz, max_samples, cutoff_hz, identify)
-    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz, None, cutoff_hz, identify).size:
+    keep = _decimated_indices(recording, rate_hz, max_samples, cutoff_hz, identify, edge)
+    if max_samples is None or keep.size >= _decimated_indices(recording, rate_hz, None, cutoff_hz, identify, edge).size:
         return keep
     grid_hz = 1.0 / (recording.dt * float(keep[1] - keep[0]))
     source = recording.name or "the recording"
@@ -358,6 +359,7 @@ def build_context(
     filtered_friction: bool | None = None,
     max_samples: int | None = None,
     identify_samples: bool = False,
+    edge_periods: float = EDGE_PERIODS,
 ) -> DiagnosisContext:
     """Evaluate the nominal model's signals on a preprocessed recording.
 
@@ -384,7 +386,8 @@ def build_context(
         Most samples of the grid: a longer recording gets a coarser grid (``DiagnosisOptions.max_samples``);
         default no bound.
     identify_samples : bool
-        Keep identify's samples (``DiagnosisOptions.samples``).
+        Keep identify's samples (``DiagnosisOptions.samples``), ``edge_periods`` filter periods trimmed at each end
+        (``DiagnosisOptions.edge_periods``).
 
     Raises
     ------
@@ -401,7 +404,7 @@ def build_context(
             "Use DiagnosisOptions().max_samples."
         )
     tau_full = _joint_torque(recording, torque_constants)
-    keep = _grid(recording, rate_hz, max_samples, cutoff_hz, identify_samples)
+    keep = _grid(recording, rate_hz, max_samples, cutoff_hz, identify_samples, edge_periods)
     tau_rate, tau_accel = _torque_derivatives(recording.t, tau_full, keep)
     q, qd, qdd = recording.q[keep], recording.qd[keep], recording.qdd[keep]
     pmodel = build_pinocchio_model(robot)

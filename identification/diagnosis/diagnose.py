@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds
-from identification.data.filter_choice import AUTO, resolve_auto
+from identification.data.filter_choice import AUTO, EDGE_PERIODS, resolve_auto
 from identification.data.missing_torque import measured_torque
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
@@ -79,9 +79,12 @@ class DiagnosisOptions:
         (``model_file.diagnose_model``), so ``diagnose`` in Python and ``psdm diagnose`` give the same numbers.
         A cutoff of 15 Hz on a 200 Hz grid keeps more of a narrow Stribeck hump than identify's 10 Hz.
     samples : {"identify", "diagnosis"}
-        The grid's samples: identify's (default; ``filter_choice.kept_samples``: one filter period trimmed, identify's
-        step), so a model is judged on the samples ``psdm validate`` judges it on; or without 5 % (at most 0.2 s) of
-        the grid at each end.
+        The grid's samples: identify's (default; ``filter_choice.kept_samples``: ``edge_periods`` filter periods
+        trimmed, identify's step), so a model is judged on the samples ``psdm validate`` judges it on; or without 5 %
+        (at most 0.2 s) of the grid at each end.
+    edge_periods : float
+        With identify's samples: filter periods trimmed at each end (``filter_choice.EDGE_PERIODS``; a calibrated
+        model file's own in ``model_file.diagnose_model``, one period for files of preparation version 1).
     min_improvement : float
         Validation RMSE reduction (fraction) one joint must show for a term to be kept.
     max_effects : int
@@ -130,6 +133,7 @@ class DiagnosisOptions:
     cutoff_hz: float | None | str = AUTO
     rate_hz: float | str = AUTO
     samples: str = "identify"
+    edge_periods: float = EDGE_PERIODS
     min_improvement: float = 0.2
     max_effects: int = 4
     joint_threshold: float = 0.1
@@ -178,6 +182,10 @@ class DiagnosisOptions:
         ):
             raise ParameterError(
                 f"DiagnosisOptions.max_samples must be an integer >= 1000; got {self.max_samples!r}. Use 250000."
+            )
+        if not (_number(self.edge_periods) and self.edge_periods >= 0):
+            raise ParameterError(
+                f"DiagnosisOptions.edge_periods must be a number >= 0 (filter periods); got {self.edge_periods!r}."
             )
         if self.samples not in ("diagnosis", "identify"):
             raise ParameterError(f"DiagnosisOptions.samples must be 'diagnosis' or 'identify'; got {self.samples!r}.")
@@ -417,6 +425,7 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
         raw=raw,
         max_samples=options.max_samples,
         identify_samples=options.samples == "identify",
+        edge_periods=options.edge_periods,
     )
 
 

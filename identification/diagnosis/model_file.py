@@ -2,10 +2,11 @@
 
 The nominal model is the file's: its robot, its identified inertia (``calibrated_robot``; the robot file's when identify
 pushed links against their envelope for an absorbed effect, ``diagnosis_prior``) and its friction shape (Coulomb +
-viscous, Stribeck with its vs, or LuGre with its identified parameters). The recordings are prepared as
-the file says (``model_preparation``: its filter, cutoff and grid rate, and identify's samples with one filter
-period trimmed), so the report's "before" is the file's own validation RMSE, the one ``psdm validate`` prints
-(``report_assembly.with_model_file_before``), and the report names the file and the preparation it used.
+viscous, Stribeck with its vs, or LuGre with its identified parameters). The recordings are prepared as the file says
+(``model_preparation``: its filter, cutoff and grid rate, and identify's samples with the file's edge trim, one filter
+period in files of preparation version 1), so the report's "before" is the file's own validation RMSE, the one ``psdm
+validate`` prints (``report_assembly.with_model_file_before``), and the report names the file and the preparation it
+used.
 ``psdm diagnose`` calls :func:`diagnose_model`, so the Python API and the command give the same numbers.
 """
 
@@ -42,7 +43,8 @@ def own_friction(calibrated) -> str:
 
 def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> DiagnosisOptions:
     """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its
-    friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated."""
+    friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
+    with the file's edge trim (``Preparation.edge_periods``)."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -52,7 +54,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     if rate == AUTO:
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
     friction = own_friction(calibrated) if options.friction == AUTO else options.friction
-    return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate)
+    return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods)
 
 
 def diagnose_model(

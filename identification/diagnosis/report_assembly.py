@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from identification.calibration.merged_rotors import robot_file_theta
-from identification.calibration.model_preparation import EDGE, Preparation
+from identification.calibration.model_preparation import Preparation, edge_text
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.confounding import confounding_of
@@ -177,6 +177,6 @@ def preparation_text(given, options) -> str:
     if options.cutoff_hz is None or not options.preprocess:
         return "the recordings as given (not filtered by the diagnosis)"
     source = "identify's default for the training recording" if given.cutoff_hz == AUTO else "DiagnosisOptions"
-    text = Preparation(float(options.cutoff_hz), float(options.rate_hz), source).text()
+    text = Preparation(float(options.cutoff_hz), float(options.rate_hz), source, "", options.edge_periods).text()
     other = "5 % of the grid (at most 0.2 s) trimmed at each end"
-    return text if options.samples == "identify" else text.replace(EDGE, other)
+    return text if options.samples == "identify" else text.replace(edge_text(options.edge_periods), other)

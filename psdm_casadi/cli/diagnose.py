@@ -184,6 +184,7 @@ def _run_diagnose(args) -> int:
         rigid_body=args.rigid_body,
         cutoff_hz=preparation.cutoff_hz,
         rate_hz=preparation.grid_rate_hz,
+        edge_periods=preparation.edge_periods,
         min_improvement=args.min_improvement,
         max_effects=args.max_effects,
         max_samples=args.max_samples,

@@ -463,7 +463,8 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
-          f"(decimation {', '.join(map(str, fit.decimation))}); condition number of the weighted regressor "
+          f"(decimation {', '.join(map(str, fit.decimation))}; {fit.edge_periods:g} filter periods trimmed at each "
+          f"end, the filter's start-up transient); condition number of the weighted regressor "
           f"{fit.condition_number:.3g}")  # fmt: skip
     state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "

@@ -44,7 +44,9 @@ def test_the_barrier_is_minus_log_det_inside_the_cone_and_refuses_outside(denso)
 
 def test_inside_the_envelope_the_consistent_fit_is_the_least_squares_one_and_near_the_truth(denso, denso_model):
     fit = identify_trajectories(denso, denso_model, [_recording(denso)], TrajectoryOptions(friction=()))
-    assert fit.solver_status == "Solve_Succeeded" and fit.consistent  # the convex path, not the chart at its cap
+    # the convex path (its solves end Solve_Succeeded or, on its last barrier weight, Solved_To_Acceptable_Level, both
+    # accepted by barrier_path), not the chart at its cap (Maximum_Iterations_Exceeded)
+    assert fit.solver_status in ("Solve_Succeeded", "Solved_To_Acceptable_Level") and fit.consistent
     assert not fit.envelope  # nothing pushed: the least squares is inside and the constraint costs nothing
     np.testing.assert_allclose(fit.training_r2, fit.training_r2_ols, atol=5e-5)  # the pull and the barrier only
     truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())

@@ -137,7 +137,9 @@ def test_each_joint_gets_its_own_friction_shape(denso, denso_model, tmp_path):
     truth = (2.0 + (static - 2.0) * np.exp(-((qd / 0.1) ** 2))) * np.tanh(qd / 0.05) + qd
     np.testing.assert_allclose(friction[:, 1::2], truth[:, 1::2], atol=0.1)  # no hump where there is none
     fast = np.abs(qd[:, 0]) >= 0.3
-    np.testing.assert_allclose(friction[fast], truth[fast], atol=0.1)
+    # 0.15: the 10 Hz filter smears the narrow hump (joint 3's vs 0.21 for a true 0.1 with one filter period trimmed);
+    # this recording starts and ends at rest, so three periods trimmed drop slow samples too (vs 0.23, 0.12 N m at 0.3)
+    np.testing.assert_allclose(friction[fast], truth[fast], atol=0.15)
     # the exported code (CasADi, hence C) computes the same friction, with no hump on the Coulomb-viscous joints
     import casadi as ca
 

@@ -180,7 +180,10 @@ def test_a_coefficient_a_later_fit_pushes_out_of_its_bounds_is_not_a_finding(den
     hidden = [xp.LoadDependentFriction(joint=1, coefficient=0.42), xp.CoulombAsymmetry(joint=1, delta=12.0)]
     train, val = recording_pair(denso, hidden, seed=31)
     library = LoadDependentFrictionTerm(joint=1) + CoulombAsymmetryTerm(joint=1)
-    options = DiagnosisOptions(library=library, rigid_body="prior", sparse=False, cv_folds=0, refine=False)
+    # the asymmetry alone lowers joint 2's validation RMSE by 14 % (23 % with one filter period trimmed, where the
+    # samples next to the edges weighed more): a gate of 10 % lets the selection run again keep it
+    options = DiagnosisOptions(library=library, rigid_body="prior", sparse=False, cv_folds=0, refine=False,
+                               min_improvement=0.1)  # fmt: skip
     report = diagnose(denso, train, val, options, model=denso_model)
     assert any("load_dependent_friction[j2] rejected after the final fit" in m for m in diagnosis_log)
     assert "load_dependent_friction" not in report.effects

@@ -61,9 +61,12 @@ def test_the_model_file_stores_its_preparation_and_an_older_file_is_judged_as_be
     recording = load_recording(denso_files / "valid.csv", 6)
     ours = calibrated.predict_recording(denso_model, recording)
     theirs = CalibratedModel(older).predict_recording(denso_model, recording)
-    np.testing.assert_array_equal(ours[1], theirs[1])
     ready, _, _ = prepare_recording(recording, None, 8.0)  # the identification's own preparation, independently
     np.testing.assert_array_equal(ours[0].tau, ready.tau)
+    # the older file: its cutoff and today's filter, with the one filter period it was judged with (test_edge_trim)
+    before, _, _ = prepare_recording(recording, None, 8.0, 1)
+    np.testing.assert_array_equal(theirs[0].tau, before.tau)
+    np.testing.assert_array_equal(theirs[1], calibrated.predict(denso_model, before.q, before.qd, before.qdd))
 
 
 def test_validate_states_the_preparation_and_notes_an_older_file(denso_files, tmp_path, capsys):
@@ -77,7 +80,7 @@ def test_validate_states_the_preparation_and_notes_an_older_file(denso_files, tm
     assert main(["validate", str(tmp_path / "old.json"), str(denso_files / "valid.csv"), "--json"]) == 0
     captured = capsys.readouterr()
     old = json.loads(captured.out)
-    assert old["recordings"][0]["rmse"] == new["recordings"][0]["rmse"]  # judged as before
+    assert old["preparation"]["edge_periods"] == 1 and new["preparation"]["edge_periods"] == 3  # judged as before
     assert "note:" in captured.err and "written before its preparation was stored" in captured.err
 
 
