@@ -111,7 +111,8 @@ def with_smoothing(robot, recordings, options) -> tuple:
     from identification.calibration.trajectory_fit import torque_constants
 
     kt = torque_constants(robot, options, recordings)
-    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz)  # refusals as the fit's
+    # prepared and refused as the fit's
+    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
     choice = smoothing_velocity(prepared, min(cutoffs), options.coulomb_velocity)
     return replace(options, coulomb_velocity=choice.velocity), choice
 

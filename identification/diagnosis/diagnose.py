@@ -79,12 +79,11 @@ class DiagnosisOptions:
         (``model_file.diagnose_model``), so ``diagnose`` in Python and ``psdm diagnose`` give the same numbers.
         A cutoff of 15 Hz on a 200 Hz grid keeps more of a narrow Stribeck hump than identify's 10 Hz.
     samples : {"identify", "diagnosis"}
-        The grid's samples: identify's (default; ``filter_choice.kept_samples``: ``edge_periods`` filter periods
-        trimmed, identify's step), so a model is judged on the samples ``psdm validate`` judges it on; or without 5 %
-        (at most 0.2 s) of the grid at each end.
+        The grid's samples: identify's (default; ``filter_choice.kept_samples``: ``edge_periods`` trimmed, identify's
+        step), so a model is judged on the samples ``psdm validate`` judges it on; or without 5 % (at most 0.2 s) of
+        the grid at each end.
     edge_periods : float
-        With identify's samples: filter periods trimmed at each end (``filter_choice.EDGE_PERIODS``; a calibrated
-        model file's own in ``model_file.diagnose_model``, one period for files of preparation version 1).
+        Filter periods trimmed at each end (``filter_choice.EDGE_PERIODS``; a model file's own: ``model_file``).
     min_improvement : float
         Validation RMSE reduction (fraction) one joint must show for a term to be kept.
     max_effects : int
@@ -184,9 +183,7 @@ class DiagnosisOptions:
                 f"DiagnosisOptions.max_samples must be an integer >= 1000; got {self.max_samples!r}. Use 250000."
             )
         if not (_number(self.edge_periods) and self.edge_periods >= 0):
-            raise ParameterError(
-                f"DiagnosisOptions.edge_periods must be a number >= 0 (filter periods); got {self.edge_periods!r}."
-            )
+            raise ParameterError(f"DiagnosisOptions.edge_periods must be a number >= 0; got {self.edge_periods!r}.")
         if self.samples not in ("diagnosis", "identify"):
             raise ParameterError(f"DiagnosisOptions.samples must be 'diagnosis' or 'identify'; got {self.samples!r}.")
         if self.cutoff_hz not in (None, AUTO) and not (_number(self.cutoff_hz) and self.cutoff_hz > 0):
@@ -414,19 +411,9 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
     raw = recording if options.preprocess else None
     if options.preprocess:
         recording = preprocess(recording, PreprocessOptions(cutoff_hz=options.cutoff_hz))
-    return build_context(
-        robot,
-        model,
-        recording,
-        options.rate_hz,
-        options.cutoff_hz,
-        kt,
-        with_regressor=options.rigid_body == "identified",
-        raw=raw,
-        max_samples=options.max_samples,
-        identify_samples=options.samples == "identify",
-        edge_periods=options.edge_periods,
-    )
+    return build_context(robot, model, recording, options.rate_hz, options.cutoff_hz, kt,
+                         with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
+                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods)  # fmt: skip
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
