@@ -183,11 +183,12 @@ def test_a_stribeck_peak_a_coulomb_viscous_model_lacks_is_named_with_its_size(st
     # named too: its level is the joint's Coulomb friction, which builds up after each reversal (3.61 N m; truth 3.59).
     # With the 15 Hz / 200 Hz preparation seed 2 names nothing and seed 0 a delay of 6 ms beside the peak: the stiff,
     # lightly damped bristles stick at reversals, a lag of the motion the default preparation's 10 Hz filter leaves out
-    report = _lags(stribeck_denso, denso_model, (), 0, shapes=True, identify_preparation=True, refine=False)
+    # one filter period trimmed, the preparation this scenario was built on: with identify's three, 0.3 s of each end of
+    # the 3 s / 4 s recordings goes, the peak comes out 1.91 N m and the pre-sliding is named on joint 3 (issue 25)
+    report = _lags(stribeck_denso, denso_model, (), 0, shapes=True, identify_preparation=True, refine=False,
+                   edge_periods=1)  # fmt: skip
     finding = _stribeck_finding(report)
-    # 1.91 N m with identify's three filter periods trimmed (1.40 with one, 1.57 with two): 0.3 s off each end of the
-    # 3 s validation and 4 s training recordings; the Stribeck velocity stays 0.289 rad/s
-    assert finding.parameters["stribeck_peak_Nm"] == pytest.approx(STRIBECK_PEAK, rel=0.3)
+    assert finding.parameters["stribeck_peak_Nm"] == pytest.approx(STRIBECK_PEAK, rel=0.15)
     assert finding.parameters["stribeck_velocity_rad_s"] == pytest.approx(STRIBECK_VELOCITY, rel=0.25)
     assert f"a Stribeck peak of {finding.parameters['stribeck_peak_Nm']:.3g} N m" in finding.explanation
     assert finding.rmse_after[STRIBECK_JOINT] < 0.8 * finding.rmse_before[STRIBECK_JOINT]
@@ -207,6 +208,4 @@ def test_a_true_delay_beside_a_stribeck_peak_is_named_a_delay_first(stribeck_den
     assert report.findings[0].effect == "delay"
     assert 0.008 <= report.findings[0].parameters["delay_s"] <= 0.02
     finding = _stribeck_finding(report)  # and the peak beside it
-    # 1.91 N m with identify's three filter periods trimmed (1.40 with one, 1.57 with two): 0.3 s off each end of the
-    # 3 s validation and 4 s training recordings; the Stribeck velocity stays 0.289 rad/s
-    assert finding.parameters["stribeck_peak_Nm"] == pytest.approx(STRIBECK_PEAK, rel=0.3)
+    assert finding.parameters["stribeck_peak_Nm"] == pytest.approx(STRIBECK_PEAK, rel=0.15)
