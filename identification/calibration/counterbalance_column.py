@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from identification.calibration.counterbalance_folds import BlockFolds, block_folds, holds_everywhere
+from identification.calibration.counterbalance_folds import BlockFolds, FoldFailure, block_folds, holds_everywhere
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_models
@@ -142,13 +142,17 @@ def try_counterbalance(
     if not joints:
         return CounterbalanceChoice()
     labels = ", ".join(f"joint {j + 1}" for j in joints)
-    judge = list(validation) or block_folds(recordings, configurations)
-    if isinstance(judge, str):
-        return CounterbalanceChoice(joints, reason=f"a counterbalance named on {labels}: not tried without held-out "
-                                    f"recordings: {judge} (pass --validate)")  # fmt: skip
+    cutoffs = [c for c in fit.cutoff_hz if c]
+    judge = list(validation) or block_folds(recordings, configurations, min(cutoffs) if cutoffs else None)
     route = judge.route if isinstance(judge, BlockFolds) else "held-out recordings"
     problem = (robot, model, recordings, options, calibrated, judge, build, configurations, kt)
-    trials = [_pruned(problem, joints, order) for order in ORDERS]
+    try:
+        if isinstance(judge, str):
+            raise FoldFailure(judge)
+        trials = [_pruned(problem, joints, order) for order in ORDERS]
+    except FoldFailure as failure:
+        return CounterbalanceChoice(joints, reason=f"a counterbalance named on {labels}: not tried without held-out "
+                                    f"recordings: {failure} (pass --validate)")  # fmt: skip
     passing = [t for t in trials if t[0]]
     ok, chosen, (plain, document, comparison, _) = min(passing or trials, key=lambda t: _score(t[2][2]))
     shown = sorted(set(chosen or joints) | set(comparison.worse))

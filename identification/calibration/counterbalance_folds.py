@@ -12,8 +12,10 @@ must also leave its own joint's held-out error no worse than the block's noise m
 not kept. (On the heavy arm, seed 2, joint 2: 493 -> 479, 366 -> 259, 376 -> 386, 421 -> 365 N m: the third block is
 within its noise, and all blocks together keep the spring.)
 
-Blocks are only cut where every piece stays long enough to be prepared (``MIN_BLOCK_S``), and not for recordings that
-carry payloads (a held-out block would be judged without its load): then nothing is tried and the report says why.
+Blocks are only cut where every piece stays long enough to be prepared (``MIN_BLOCK_S``, and ``MIN_BLOCK_PERIODS``
+periods of the filter), and not for recordings that carry payloads (a held-out block would be judged without its
+load): then nothing is tried and the report says why, as when a fold cannot be identified (a piece that does not
+excite what the fit identifies: ``FoldFailure``).
 """
 
 from __future__ import annotations
@@ -24,10 +26,13 @@ import numpy as np
 
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.never_worse import MARGIN_FLOOR, MARGIN_SIGMAS, JointComparison, paired_rmse_margin
+from psdm_casadi.errors import PSDMError
 
 __all__ = [
     "FOLDS",
+    "MIN_BLOCK_PERIODS",
     "MIN_BLOCK_S",
+    "FoldFailure",
     "BlockFolds",
     "block_folds",
     "holds_everywhere",
@@ -37,10 +42,15 @@ __all__ = [
 
 #: Contiguous blocks per training recording, each held out once (the diagnosis's second opinion uses as many).
 FOLDS = 4
-#: Shortest block [s]: the preparation trims filter periods at each end of every piece.
+#: Shortest block [s], and in filter periods (the preparation trims periods at each end of every piece).
 MIN_BLOCK_S = 1.5
+MIN_BLOCK_PERIODS = 15
 
 ROUTE = "block cross-validation over the training recordings"
+
+
+class FoldFailure(Exception):
+    """A fold could not be identified or judged (``BlockFolds.compare``); its message says why, for the report."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,8 +87,11 @@ class BlockFolds:
         (``residual_comparison``)."""
         folds, pooled_without, pooled_with = [], [], []
         for k, (pieces, held) in enumerate(zip(self.training, self.held_out)):
-            without, with_it = self.baseline(k, identify_without), identify_with(pieces)
-            residuals = [[_residual(m, model, block, kt) for block in held] for m in (without, with_it)]
+            try:
+                without, with_it = self.baseline(k, identify_without), identify_with(pieces)
+                residuals = [[_residual(m, model, block, kt) for block in held] for m in (without, with_it)]
+            except PSDMError as error:  # a piece that excites too little, too short to prepare, a fit that fails
+                raise FoldFailure(f"block {k + 1} of {len(self.training)}: {str(error).splitlines()[0]}") from error
             fold = [np.concatenate(r, axis=0) for r in residuals]
             folds.append(residual_comparison(*fold))
             pooled_without.append(fold[0])
@@ -101,14 +114,16 @@ def residual_comparison(before: np.ndarray, after: np.ndarray) -> JointCompariso
     return JointComparison(before=rmse_b, after=rmse_a, margin=margin, standard_error=standard_error)
 
 
-def block_folds(recordings, configurations=None, folds: int = FOLDS) -> BlockFolds | str:
-    """The ``BlockFolds`` of ``recordings``, or why they cannot be cut (a sentence for the report)."""
+def block_folds(recordings, configurations=None, cutoff_hz=None, folds: int = FOLDS) -> BlockFolds | str:
+    """The ``BlockFolds`` of ``recordings`` (filtered at ``cutoff_hz``, None: unfiltered), or why they cannot be cut
+    (a sentence for the report)."""
     if configurations is not None and any(c.kind != "none" for c in configurations):
         return "the training recordings carry payloads (a held-out block would be judged without its load)"
     shortest = min(float(r.t[-1] - r.t[0]) for r in recordings)
-    if shortest / folds < MIN_BLOCK_S:
+    block = max(MIN_BLOCK_S, MIN_BLOCK_PERIODS / cutoff_hz if cutoff_hz else 0.0)
+    if shortest / folds < block:
         return (f"a training recording of {shortest:.3g} s is too short to cut into {folds} blocks of at least "
-                f"{MIN_BLOCK_S:g} s")  # fmt: skip
+                f"{block:.3g} s")  # fmt: skip
     training, held_out = [[] for _ in range(folds)], [[] for _ in range(folds)]
     for recording in recordings:
         edges = np.linspace(0, recording.n_samples, folds + 1).astype(int)

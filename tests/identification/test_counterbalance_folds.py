@@ -74,3 +74,21 @@ def test_the_margin_takes_the_spread_of_the_folds_changes():
     spread = np.std([0.02, 0.0, 0.28, -0.02], ddof=1) / 2.0
     assert judged.standard_error[0] == pytest.approx(spread)
     assert not holds_everywhere(folds, 0) and holds_everywhere([fold([0.005, 0.0])] * 4, 0)
+
+
+def test_blocks_hold_enough_filter_periods_and_a_fold_that_cannot_be_fitted_says_which():
+    """A slow recording filtered at 2 Hz needs blocks of 7.5 s (15 filter periods), not the 1.5 s of a 10 Hz one; a
+    fold whose fit fails gives up the cross-validation with the block and the error (the report shows it)."""
+    from identification.calibration.counterbalance_folds import MIN_BLOCK_PERIODS, BlockFolds, FoldFailure
+    from psdm_casadi.errors import InsufficientExcitationError
+
+    recording = _recording(20.0)
+    assert isinstance(block_folds([recording], cutoff_hz=10.0), BlockFolds)  # 5 s blocks of 50 periods
+    reason = block_folds([recording], cutoff_hz=2.0)
+    assert isinstance(reason, str) and f"blocks of at least {MIN_BLOCK_PERIODS / 2.0:.3g} s" in reason
+
+    def fails(pieces):
+        raise InsufficientExcitationError("joint 3 never reverses in these samples\nmore text")
+
+    with pytest.raises(FoldFailure, match="block 1 of 4: joint 3 never reverses in these samples$"):
+        block_folds([recording]).compare(fails, fails, model=None)
