@@ -195,7 +195,7 @@ def test_a_stribeck_peak_a_coulomb_viscous_model_lacks_is_named_with_its_size(st
     (presliding,) = [f for f in report.findings if f.label == f"presliding[j{STRIBECK_JOINT + 1}]"]
     fc = stribeck_denso.drives[STRIBECK_JOINT].fc
     assert presliding.parameters["presliding_coulomb_Nm"] == pytest.approx(fc, rel=0.15)
-    assert "identify with --friction lugre" in presliding.explanation
+    assert "identify --friction lugre" in presliding.explanation
     assert not any(f.effect == "delay" for f in report.findings)
     assert not any(f.effect == "friction_shape" and f.joints != (STRIBECK_JOINT,) and "stribeck" in f.label
                    for f in report.findings)  # fmt: skip

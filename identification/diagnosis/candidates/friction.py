@@ -313,8 +313,8 @@ class PreslidingTerm(FrictionShapeTerm):
         return self.key, (
             f"friction on joint {self.joint + 1} is not Coulomb-viscous: pre-sliding, a Coulomb friction of "
             f"{float(coefficients[0]):.3g} N m that builds up over {self.scale * 1e3:.3g} mrad after each reversal "
-            "(LuGre's bristles); a state of the friction, which a model file holds as LuGre friction: identify with "
-            "--friction lugre to model it"
+            "(LuGre's bristles); a state of the friction, which a model file holds only as LuGre friction of every "
+            "joint ('psdm identify --friction lugre'): reported, not applied"
         )
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
