@@ -13,12 +13,14 @@ that reproduces ``Ia_j qdd_j`` exactly, so the consistent fit holds each such dr
 Only motor currents hold the rotors' inertia (a torque measured behind the gearbox does not). A robot file rarely
 states rotor inertias (a URDF has none): for a merged joint without one, :func:`sibling_rotors` takes the drive
 inertias the same fit identifies as columns of their own (``Ia<j>``) on the joints with the same torque constant (the
-same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to. Without a stated
+same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to, each fitted with
+the robot file's rigid body held (:func:`file_drive_columns`: the unconstrained fit trades a drive inertia against the
+links, and on the Kinova's currents gave joint 4's as 0.02 kg m^2 for the consistent fit's 0.42). Without a stated
 value or such a sibling, the joint keeps the map as derived and its link takes the rotor's torque; the envelope report
 then says that on currents a pushed link may hold the rotors' inertia (``envelope_report``). On the Kinova's
 currents the links 2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint
-2's rotor: its axis is normal to joint 1's); held to joint 4's unconstrained 0.31 kg m^2 the fit gives 0.48 and 0.62
-kg m^2 for them, and the joint-torque sensors give 0.52 and 0.48 for the difference between current and sensor torque
+2's rotor: its axis is normal to joint 1's); held to joints 3-4's the fit keeps them off the links, and the
+joint-torque sensors give 0.52 and 0.48 kg m^2 for the difference between current and sensor torque
 (``benchmarks/kinova_gen3.py``, ``sensor_check``).
 """
 
@@ -33,32 +35,57 @@ from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["MergedRotors", "merged_rotor_map", "robot_file_theta", "sibling_rotors", "with_merged_rotors"]
+__all__ = [
+    "MergedRotors",
+    "file_drive_columns",
+    "merged_rotor_map",
+    "robot_file_theta",
+    "sibling_rotors",
+    "with_merged_rotors",
+]
 
 SPAN_TOLERANCE = 1e-8  # relative residual below which Ia_j qdd_j is taken as inside the base regressor's span
 SAME_ACTUATOR = 1e-6  # relative difference of two torque constants below which their drives are the same actuator
+#: A rotor held to its siblings stays within their values' spread widened by this factor: the same actuator has the
+#: same rotor (the robot file's wider ``drive_inertia_ratio`` is for a stated value; on the Kinova's currents it let
+#: joints 1-2's rotors reach 2x their siblings', 1.0 kg m^2 against the sensors' 0.52 and 0.48).
+SIBLING_SPREAD = 1.25
 
 
 @dataclass(frozen=True)
 class MergedRotors:
     """What identify holds the drive inertias inside the base parameters to: the ``model`` with them in its map, the
     ``robot`` with the reference of each (the file's, or its siblings': :func:`sibling_rotors`), and per joint whose
-    reference came from siblings ``(joint, reference [kg m^2], sibling joints)`` (0-based), for the report."""
+    reference came from siblings ``(joint, reference, sibling joints, low, high)`` (0-based; [kg m^2]: the band the fit
+    holds it in, ``SIBLING_SPREAD``)."""
 
     model: object
     robot: object
     from_siblings: tuple = ()
 
     def __iter__(self):
-        """``model, robot, note()``: unpacked where the fit goes on with them."""
-        return iter((self.model, self.robot, self.note()))
+        """``model, robot, self``: unpacked where the fit goes on with them."""
+        return iter((self.model, self.robot, self))
+
+    def fit_bounds(self, options):
+        """``consistent_fit.fit_bounds`` of ``options`` with each sibling-held rotor in its siblings' band."""
+        from identification.calibration.consistent_fit import fit_bounds
+
+        bounds = fit_bounds(self.robot, self.model, options)
+        if not (options.envelope and self.from_siblings):
+            return bounds
+        lower, upper = bounds.rotor_lower.copy(), bounds.rotor_upper.copy()
+        for j, _, _, low, high in self.from_siblings:
+            lower[j], upper[j] = low, high
+        return replace(bounds, rotor_lower=lower, rotor_upper=upper)
 
     def note(self) -> tuple:
         """The ``envelope_bounds`` entry naming the references taken from siblings (empty when none)."""
         if not self.from_siblings:
             return ()
-        return (("drive_inertia_reference", [{"joint": j + 1, "kg_m2": value, "from_joints": [s + 1 for s in sib]}
-                                             for j, value, sib in self.from_siblings]),)  # fmt: skip
+        return (("drive_inertia_reference", [{"joint": j + 1, "kg_m2": value, "from_joints": [s + 1 for s in sib],
+                                              "bounds": [low, high]}
+                                             for j, value, sib, low, high in self.from_siblings]),)  # fmt: skip
 
 
 def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
@@ -83,8 +110,9 @@ def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
 
 def sibling_rotors(robot, model, kt, drive) -> tuple:
     """``(joint, reference, siblings)`` per merged joint without a rotor inertia in the robot file whose torque constant
-    ``kt`` another joint shares that has a drive-inertia column of its own: the median of those columns' unconstrained
-    values (``drive``: {column name: value}, only positive ones count) is its reference (module docstring)."""
+    ``kt`` another joint shares that has a drive-inertia column of its own: the median of those columns' values
+    (``drive``: {column name: value}, :func:`file_drive_columns`; only positive ones count) is its reference, and their
+    spread widened by ``SIBLING_SPREAD`` its band ``(joint, reference, siblings, low, high)``."""
     rotor = np.asarray(robot.rotor_inertia, dtype=float)
     columns = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
     out = []
@@ -94,29 +122,43 @@ def sibling_rotors(robot, model, kt, drive) -> tuple:
         same = [s for s in range(robot.n_dof) if abs(kt[s] - kt[j]) <= SAME_ACTUATOR * abs(kt[j]) and s != j]
         siblings = [s for s in same if drive.get(f"Ia{s + 1}", 0.0) > 0]
         if siblings:
-            out.append((j, float(np.median([drive[f"Ia{s + 1}"] for s in siblings])), tuple(siblings)))
+            values = [drive[f"Ia{s + 1}"] for s in siblings]
+            low, high = min(values) / SIBLING_SPREAD, max(values) * SIBLING_SPREAD
+            out.append((j, float(np.median(values)), tuple(siblings), float(low), float(high)))
     return tuple(out)
 
 
-def with_merged_rotors(model, robot, options, kt=None, drive=None) -> MergedRotors:
+def file_drive_columns(robot, model, equations, names) -> dict:
+    """{column name: value} of the drive columns ``names`` (those after the base parameters in ``equations``, a
+    ``trajectory_data.NormalEquations``) fitted by least squares with the robot file's rigid body held: each joint's
+    friction, offset and drive inertia explain what the file's links leave of its torque."""
+    theta = robot_file_theta(robot, model)
+    gram, moment, _ = equations.weighted(np.ones(robot.n_dof))
+    base, drive = slice(0, theta.size), slice(theta.size, theta.size + len(names))
+    values = np.linalg.lstsq(gram[drive, drive], moment[drive] - gram[drive, base] @ theta, rcond=None)[0]
+    return dict(zip(names, values.tolist()))
+
+
+def with_merged_rotors(model, robot, options, kt=None, columns=None) -> MergedRotors:
     """The drive inertias of the base parameters in ``model``'s map, each held to the robot file's rotor inertia or
-    its siblings' (``kt``, the torque constants of recordings of currents, and ``drive``, the unconstrained drive
-    columns: :func:`sibling_rotors`); ``model`` and ``robot`` unchanged when there are none: no drive inertia asked
-    for (``options.drive_inertia``; ``options`` None asks for it), torques measured behind the gearbox (``kt`` None),
-    or no reference."""
+    its siblings' (``kt``, the torque constants of recordings of currents, and ``columns``, the normal equations and
+    the drive columns' names of the fit: :func:`sibling_rotors` of :func:`file_drive_columns`); ``model`` and
+    ``robot`` unchanged when there are none: no drive inertia asked for (``options.drive_inertia``; ``options`` None
+    asks for it), torques measured behind the gearbox (``kt`` None), or no reference."""
     unchanged = MergedRotors(model, robot)
     if not ((options is None or options.drive_inertia) and kt is not None):
         return unchanged
-    siblings = sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive or {})
+    drive = {} if columns is None or robot.links is None else file_drive_columns(robot, model, *columns)
+    siblings = sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive)
     rotor = np.array(robot.rotor_inertia, dtype=float)
-    for j, value, _ in siblings:
+    for j, value, *_ in siblings:
         rotor[j] = value
     columns = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
     joints = [j for j in range(robot.n_dof) if rotor[j] > 0 and not np.any(columns[:, j])]
     merged = merged_rotor_map(model, robot, joints) if joints else {}
     if not merged:
         return unchanged
-    for j, value, sib in siblings:
+    for j, value, sib, *_ in siblings:
         logger.info("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; held near %.3g kg m^2, the drive inertias of joints %s (the same torque constant)", j + 1,
                     value, ", ".join(str(s + 1) for s in sib))  # fmt: skip

@@ -351,11 +351,11 @@ def identify_trajectories(
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
-        model, robot, rotors = with_merged_rotors(model, robot, options, kt, dict(zip(names, x_ols[model.n_base :])))
+        model, robot, merged = with_merged_rotors(model, robot, options, kt, (equations, names))
         fitted = [k for k in range(len(names)) if model.n_base + k not in held]
         standard, drive_fitted, found, status, bounds = consistent_fit(
             robot, model, equations.subset([k for k in keep if k not in held]), sigma, [names[k] for k in fitted],
-            options, lower[fitted], prior[separable])  # fmt: skip
+            options, lower[fitted], prior[separable], merged.fit_bounds(options))  # fmt: skip
         drive = np.zeros(len(names))
         drive[fitted] = drive_fitted
         found = _with_rows(found, separable)
@@ -369,7 +369,7 @@ def identify_trajectories(
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base : n_fit], "not solved", float("nan"), x_ols[: model.n_base]
         found = x_ols[n_fit:].reshape(-1, 10)
-        pushed, bounds, rotors = (), None, ()
+        pushed, bounds, merged = (), None, None
     payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
@@ -383,7 +383,7 @@ def identify_trajectories(
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
-        envelope=tuple(pushed), envelope_bounds=bounds_note(options, bounds) + rotors,
+        envelope=tuple(pushed), envelope_bounds=bounds_note(options, bounds) + (merged.note() if merged else ()),
         torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip
     return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))
