@@ -16,6 +16,7 @@ resampling happens and the differences use the exact three-point formulas for un
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -125,6 +126,15 @@ def _central_difference_1d(t: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np
     return first, second
 
 
+@lru_cache(maxsize=64)
+def lowpass_sections(order: int, cutoff_hz: float, sample_rate_hz: float) -> np.ndarray:
+    """The Butterworth low-pass's second-order sections (read-only), designed once per (order, cut-off, rate): the
+    design costs more than filtering a few seconds of one signal, and a diagnosis filters thousands of columns."""
+    sos = butter(order, cutoff_hz, btype="low", fs=sample_rate_hz, output="sos")
+    sos.flags.writeable = False
+    return sos
+
+
 def zero_phase_filter(x, sample_rate_hz: float, cutoff_hz: float, order: int = 8) -> np.ndarray:
     """Butterworth low-pass applied forward and backward (``filtfilt``): zero phase, magnitude squared.
 
@@ -156,7 +166,7 @@ def zero_phase_filter(x, sample_rate_hz: float, cutoff_hz: float, order: int = 8
             f"PreprocessOptions.cutoff_hz must be below the Nyquist frequency {nyquist:g} Hz of this recording; "
             f"got {cutoff_hz!r}. Lower the cutoff or record faster."
         )
-    sos = butter(order, cutoff_hz, btype="low", fs=sample_rate_hz, output="sos")
+    sos = lowpass_sections(int(order), float(cutoff_hz), float(sample_rate_hz)).copy()  # scipy wants it writable
     x = np.asarray(x, dtype=float)
     padlen = 3 * (2 * len(sos) + 1)
     if x.shape[0] <= padlen:

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 import pinocchio as pin
@@ -163,9 +164,9 @@ class DiagnosisContext:
     def n_dof(self) -> int:
         return int(self.q.shape[1])
 
-    @property
+    @cached_property
     def full_rate_hz(self) -> float:
-        """Sample rate of the full-rate signals [Hz]."""
+        """Sample rate of the full-rate signals [Hz] (computed once: every filtered column asks for it)."""
         return 1.0 / float(np.median(np.diff(self.full_t)))
 
     def lowpass(self, values: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ CasADi expressions use the smooth sign ``tanh(qd / SMOOTH_VELOCITY)``.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, replace
 
 import casadi as ca
@@ -154,6 +155,9 @@ FRICTION_SHAPES = ("stribeck", "smooth_coulomb")  # the shapes a ``FrictionShape
 SCALE_GRIDS = {"stribeck": np.geomspace(0.005, 0.5, 25), "smooth_coulomb": np.geomspace(0.01, 1.0, 25),
                "presliding": np.geomspace(1e-4, 3e-2, 13)}  # fmt: skip
 
+# each training context's grid columns (``FrictionShapeTerm.grid_columns``), dropped with the context
+_GRID_COLUMNS = weakref.WeakKeyDictionary()
+
 
 @dataclass(frozen=True)
 class FrictionShapeTerm(CandidateTerm):
@@ -202,7 +206,8 @@ class FrictionShapeTerm(CandidateTerm):
         if self.scale is not None or score is None:
             return (self if self.scale is not None else self._scaled(float(np.median(SCALE_GRIDS[self.shape]))),)
         grid = SCALE_GRIDS[self.shape]
-        sse = np.array([score(self.joint, self._scaled(s).columns(context)[score.rows, self.joint, 0]) for s in grid])
+        columns = self.grid_columns(context)[score.rows]
+        sse = np.array([score(self.joint, columns[:, k]) for k in range(grid.size)])
         i = int(np.clip(np.argmin(sse), 1, grid.size - 2))
         x, y = np.log(grid[i - 1 : i + 2]), sse[i - 1 : i + 2]
         curvature = y[0] - 2 * y[1] + y[2]
@@ -210,6 +215,19 @@ class FrictionShapeTerm(CandidateTerm):
         if curvature > 0:  # the vertex of the parabola, within the neighbours
             best = float(np.exp(x[1] + np.clip(0.5 * (y[0] - y[2]) / curvature, -1, 1) * (x[2] - x[1])))
         return (self._scaled(best),)
+
+    def grid_columns(self, context) -> np.ndarray:
+        """The joint's column at each scale of ``SCALE_GRIDS[self.shape]`` (n_samples, grid size), computed once per
+        context, joint and shape (the selection searches the scale again in every round, on the same training context;
+        a pre-sliding column is a simulation of the bristle state), the values of ``columns``."""
+        params = getattr(type(context), "__dataclass_params__", None)
+        cache = _GRID_COLUMNS.setdefault(context, {}) if params is not None and params.frozen else {}
+        key = (type(self).__name__, self.shape, self.joint)
+        if key not in cache:
+            grid = SCALE_GRIDS[self.shape]
+            cache[key] = np.column_stack([self._scaled(s).columns(context)[:, self.joint, 0] for s in grid])
+            cache[key].flags.writeable = False
+        return cache[key]
 
     def _scaled(self, scale: float):
         return replace(self, scale=float(scale), velocity=min(SMOOTH_VELOCITY, 0.5 * float(scale)))

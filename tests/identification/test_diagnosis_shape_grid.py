@@ -1,0 +1,94 @@
+"""The friction shapes' scale search is computed once per recording and gives what the straightforward search gives:
+the grid columns equal each scale's own columns, the chosen scale equals the one of scoring each scale's freshly built
+columns, the rival's cached columns equal uncached ones, and the cached filter design equals scipy's."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.signal import butter, sosfiltfilt
+
+from identification.data.preprocessing import PreprocessOptions, lowpass_sections, preprocess, zero_phase_filter
+from identification.diagnosis.candidates.friction import SCALE_GRIDS, FrictionShapeTerm, PreslidingTerm
+from identification.diagnosis.context import build_context
+from identification.diagnosis.friction_rival import shape_column
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from trajopt.experiments import sine_experiment
+
+JOINT = 3
+
+
+@pytest.fixture(scope="module")
+def context(denso, denso_model):
+    rng = np.random.default_rng(5)
+    rec, _ = simulate_recording(
+        denso,
+        sine_experiment(denso, duration=3.0, rng=rng).reference(),
+        SimulationOptions(record_tau=True, record_current=False),
+        rng,
+    )
+    return build_context(denso, denso_model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
+
+
+def _terms():
+    return [FrictionShapeTerm(joint=JOINT, shape="stribeck"), FrictionShapeTerm(joint=JOINT, shape="smooth_coulomb"),
+            PreslidingTerm(joint=JOINT)]  # fmt: skip
+
+
+class _Score:
+    """An independent score: the SSE of the joint's measured torque fitted by a constant, the joint's velocity and the
+    candidate column (plain least squares on every other row)."""
+
+    def __init__(self, ctx):
+        self.ctx, self.rows = ctx, np.arange(0, ctx.n_samples, 2)
+
+    def __call__(self, joint, values):
+        a = np.column_stack([np.ones(self.rows.size), self.ctx.qd[self.rows, joint], values])
+        y = self.ctx.tau[self.rows, joint]
+        return float(np.sum((y - a @ np.linalg.lstsq(a, y, rcond=None)[0]) ** 2))
+
+
+def _straightforward_scale(term, ctx, score) -> float:
+    """The scale search as written before the grid was cached: each grid value's columns built afresh, scored, the
+    best three refined by a parabola in log scale."""
+    grid = SCALE_GRIDS[term.shape]
+    sse = np.array([score(JOINT, term._scaled(s).columns(ctx)[score.rows, JOINT, 0]) for s in grid])
+    i = int(np.clip(np.argmin(sse), 1, grid.size - 2))
+    x, y = np.log(grid[i - 1 : i + 2]), sse[i - 1 : i + 2]
+    curvature = y[0] - 2 * y[1] + y[2]
+    best = grid[int(np.argmin(sse))]
+    if curvature > 0:
+        best = float(np.exp(x[1] + np.clip(0.5 * (y[0] - y[2]) / curvature, -1, 1) * (x[2] - x[1])))
+    return float(best)
+
+
+@pytest.mark.parametrize("index", [0, 1, 2])
+def test_the_cached_grid_gives_each_scales_columns_and_the_same_chosen_scale(context, index):
+    term = _terms()[index]
+    grid = term.grid_columns(context)
+    assert term.grid_columns(context) is grid  # once per recording
+    for k, scale in enumerate(SCALE_GRIDS[term.shape]):
+        np.testing.assert_array_equal(grid[:, k], term._scaled(scale).columns(context)[:, JOINT, 0])
+    score = _Score(context)
+    (chosen,) = term.shape_variants(context, score)
+    assert chosen.scale == _straightforward_scale(term, context, score)
+
+
+@pytest.mark.parametrize("shape, scale", [("stribeck", 0.05), ("smooth_coulomb", 0.2), ("presliding", 1e-3)])
+def test_the_rivals_cached_column_equals_an_uncached_one(context, shape, scale):
+    column = shape_column(context, JOINT, shape, scale)
+    assert shape_column(context, JOINT, shape, scale) is column
+    fields = ("full_qd", "full_t", "keep", "filtered_friction", "lowpass", "n_samples", "n_dof")
+    plain = SimpleNamespace(**{name: getattr(context, name) for name in fields})  # not cached
+    np.testing.assert_array_equal(column, shape_column(plain, JOINT, shape, scale))
+
+
+def test_the_cached_filter_design_is_scipys(rng):
+    x = rng.standard_normal((500, 2))
+    sos = butter(8, 15.0, btype="low", fs=1000.0, output="sos")
+    np.testing.assert_array_equal(lowpass_sections(8, 15.0, 1000.0), sos)
+    expected = np.column_stack([sosfiltfilt(sos, x[:, c]) for c in range(2)])
+    np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, 8), expected)
+    np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, 8), expected)  # from the cache
