@@ -20,7 +20,7 @@ from functools import lru_cache
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
@@ -174,15 +174,37 @@ def zero_phase_filter(x, sample_rate_hz: float, cutoff_hz: float, order: int = 8
             f"Recording.t holds {x.shape[0]} samples; a zero-phase filter of order {order} needs more than {padlen}. "
             "Record longer or lower PreprocessOptions.order."
         )
+    zi = lowpass_initial_state(int(order), float(cutoff_hz), float(sample_rate_hz))
+    # scipy's edge padding: three times the taps, a first-order section (odd order) counted as one
+    padlen = 3 * (2 * len(sos) + 1 - min(int(np.sum(sos[:, 2] == 0)), int(np.sum(sos[:, 5] == 0))))
     if x.ndim == 1:
-        return sosfiltfilt(sos, x)
+        return _filtfilt(sos, zi, x, padlen)
     # one column at a time into one array: the filter's padded temporaries stay one column long (the values are
     # those of filtering the whole array)
     out = np.empty(x.shape)
     flat = out.reshape(x.shape[0], -1)
     for c, column in enumerate(x.reshape(x.shape[0], -1).T):
-        flat[:, c] = sosfiltfilt(sos, column)
+        flat[:, c] = _filtfilt(sos, zi, column, padlen)
     return out
+
+
+@lru_cache(maxsize=64)
+def lowpass_initial_state(order: int, cutoff_hz: float, sample_rate_hz: float) -> np.ndarray:
+    """``sosfilt_zi`` of ``lowpass_sections`` (read-only): the filter's steady state for a unit step, once per design
+    (scipy's ``sosfiltfilt`` solves for it on every call, which cost more than the filtering of a short signal)."""
+    zi = sosfilt_zi(lowpass_sections(order, cutoff_hz, sample_rate_hz).copy())
+    zi.flags.writeable = False
+    return zi
+
+
+def _filtfilt(sos: np.ndarray, zi: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
+    """scipy's ``sosfiltfilt(sos, x)`` of a 1-D ``x`` (odd extension by ``padlen``, the steady-state initial
+    conditions ``zi``), step for step, with ``zi`` given (tests/identification/test_diagnosis_shape_grid.py checks the
+    values are scipy's, bit for bit)."""
+    ext = np.concatenate((2 * x[:1] - x[padlen:0:-1], x, 2 * x[-1:] - x[-2 : -(padlen + 2) : -1]))
+    y, _ = sosfilt(sos, ext, zi=zi * ext[:1])
+    y, _ = sosfilt(sos, y[::-1], zi=zi * y[-1:])
+    return y[::-1][padlen:-padlen]
 
 
 def resample_uniform(recording: Recording) -> Recording:

@@ -41,14 +41,13 @@ the deflection, which no friction shape follows: a 10 ms delay on the virtual De
 from __future__ import annotations
 
 import logging
-import weakref
 from dataclasses import replace
 
 import numpy as np
 
-from identification.diagnosis.candidates.friction import lacking_friction_shapes
+from identification.diagnosis.candidates.friction import lacking_friction_shapes, recording_cache
 from identification.diagnosis.columns import BlockColumns
-from identification.diagnosis.context import DiagnosisContext, simulate_friction
+from identification.diagnosis.context import simulate_friction
 from identification.diagnosis.selection import passes_gates
 from identification.metrics import rmse
 
@@ -57,7 +56,7 @@ logger = logging.getLogger(__name__)
 STRIBECK_VELOCITIES = np.geomspace(0.005, 0.5, 7)  # vs [rad/s] of the Stribeck column's grid
 SMOOTH_VELOCITIES = np.geomspace(0.01, 1.0, 7)  # v [rad/s] of the smooth Coulomb column's grid
 PRESLIDING_DISPLACEMENTS = np.geomspace(1e-4, 1e-2, 7)  # x0 [rad] of the pre-sliding column's grid
-_SHAPE_COLUMNS = weakref.WeakKeyDictionary()  # each context's columns (``shape_column``), dropped with the context
+_SHAPE_COLUMNS = {}  # each recording's columns (``shape_column``, ``recording_cache``)
 SHAPES = ("stribeck", "smooth_coulomb", "presliding")
 LAGS = ("delay", "joint_elasticity", "backlash")  # the candidates whose torque a lag of the friction mimics
 
@@ -66,9 +65,7 @@ def shape_column(ctx, joint: int, shape: str, scale: float) -> np.ndarray:
     """One friction-shape column of ``joint`` on the grid (n_samples,): evaluated at full rate on the recorded velocity
     and, like the nominal friction columns, filtered as the recording when ``ctx.filtered_friction``. Computed once
     per context (every lag the rival judges searches the same grids on the same recordings), read-only."""
-    if not isinstance(ctx, DiagnosisContext):  # a context that may change (a test's namespace): not cached
-        return _shape_column(ctx, int(joint), shape, float(scale))
-    cache = _SHAPE_COLUMNS.setdefault(ctx, {})
+    cache = recording_cache(ctx, _SHAPE_COLUMNS)
     key = (int(joint), shape, float(scale))
     if key not in cache:
         cache[key] = _shape_column(ctx, int(joint), shape, float(scale))

@@ -85,10 +85,12 @@ def test_the_rivals_cached_column_equals_an_uncached_one(context, shape, scale):
     np.testing.assert_array_equal(column, shape_column(plain, JOINT, shape, scale))
 
 
-def test_the_cached_filter_design_is_scipys(rng):
+@pytest.mark.parametrize("order", [8, 5, 2])
+def test_the_cached_filter_design_and_zero_phase_filter_are_scipys(rng, order):
     x = rng.standard_normal((500, 2))
-    sos = butter(8, 15.0, btype="low", fs=1000.0, output="sos")
-    np.testing.assert_array_equal(lowpass_sections(8, 15.0, 1000.0), sos)
+    sos = butter(order, 15.0, btype="low", fs=1000.0, output="sos")
+    np.testing.assert_array_equal(lowpass_sections(order, 15.0, 1000.0), sos)
     expected = np.column_stack([sosfiltfilt(sos, x[:, c]) for c in range(2)])
-    np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, 8), expected)
-    np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, 8), expected)  # from the cache
+    np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, order), expected)
+    np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, order), expected)  # from the cache
+    np.testing.assert_array_equal(zero_phase_filter(x[:, 1], 1000.0, 15.0, order), expected[:, 1])

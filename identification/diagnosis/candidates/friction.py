@@ -155,8 +155,26 @@ FRICTION_SHAPES = ("stribeck", "smooth_coulomb")  # the shapes a ``FrictionShape
 SCALE_GRIDS = {"stribeck": np.geomspace(0.005, 0.5, 25), "smooth_coulomb": np.geomspace(0.01, 1.0, 25),
                "presliding": np.geomspace(1e-4, 3e-2, 13)}  # fmt: skip
 
-# each training context's grid columns (``FrictionShapeTerm.grid_columns``), dropped with the context
-_GRID_COLUMNS = weakref.WeakKeyDictionary()
+_GRID_COLUMNS = {}  # each recording's grid columns (``FrictionShapeTerm.grid_columns``, ``recording_cache``)
+
+
+def recording_cache(context, store: dict) -> dict:
+    """The dict in ``store`` of columns computed from ``context``'s motion (``full_qd``, ``full_t``, ``keep``, ``qd``,
+    the cut-off and ``filtered_friction``): shared by every context of one recording (the diagnosis with the identified
+    rigid body has a context of its own holding the same arrays), dropped with the recording's ``full_qd``. A context
+    without these attributes (a test's namespace) gets a fresh dict: nothing is cached."""
+    try:
+        motion = (context.full_t, context.keep, context.qd)
+        signature = tuple(id(part) for part in motion) + (context.cutoff_hz, bool(context.filtered_friction))
+        full_qd = context.full_qd
+    except AttributeError:
+        return {}
+    ident = id(full_qd)
+    if ident not in store:
+        store[ident] = {}
+        weakref.finalize(full_qd, store.pop, ident, None)
+    # the entry holds the motion's arrays, so their ids are not reused while it lives
+    return store[ident].setdefault(signature, (motion, {}))[1]
 
 
 @dataclass(frozen=True)
@@ -220,8 +238,7 @@ class FrictionShapeTerm(CandidateTerm):
         """The joint's column at each scale of ``SCALE_GRIDS[self.shape]`` (n_samples, grid size), computed once per
         context, joint and shape (the selection searches the scale again in every round, on the same training context;
         a pre-sliding column is a simulation of the bristle state), the values of ``columns``."""
-        params = getattr(type(context), "__dataclass_params__", None)
-        cache = _GRID_COLUMNS.setdefault(context, {}) if params is not None and params.frozen else {}
+        cache = recording_cache(context, _GRID_COLUMNS)
         key = (type(self).__name__, self.shape, self.joint)
         if key not in cache:
             grid = SCALE_GRIDS[self.shape]
