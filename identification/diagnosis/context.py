@@ -40,6 +40,7 @@ from identification.data.filter_choice import EDGE_PERIODS, grid_step, kept_samp
 from identification.data.preprocessing import PreprocessOptions, central_difference, zero_phase_filter
 from identification.data.recording import Recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from identification.diagnosis.candidates.friction import recording_cache
 from identification.diagnosis.columns import row_chunks
 from psdm_casadi.errors import ParameterError, RecordingError
 from psdm_casadi.oracle import build_pinocchio_model
@@ -201,9 +202,15 @@ class DiagnosisContext:
             return None
         p = lugre_parameters(self.drives[joint])
         qd = self.full_qd[:, joint]
-        recorded = simulate_friction(p, self.full_t, qd)
+        cache = recording_cache(self, _RECORDED_FRICTION)  # the recorded velocity's friction: once per recording
+        if (joint, p) not in cache:
+            cache[joint, p] = simulate_friction(p, self.full_t, qd)
+        recorded = cache[joint, p]
         true = simulate_friction(p, self.full_t, qd - shift_rate)
         return self.lowpass(recorded - true)
+
+
+_RECORDED_FRICTION = {}  # each recording's LuGre friction of each joint (``friction_shift``, ``recording_cache``)
 
 
 def lugre_parameters(drive):

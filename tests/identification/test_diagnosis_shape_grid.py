@@ -12,7 +12,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from identification.data.preprocessing import PreprocessOptions, lowpass_sections, preprocess, zero_phase_filter
 from identification.diagnosis.candidates.friction import SCALE_GRIDS, FrictionShapeTerm, PreslidingTerm
-from identification.diagnosis.context import build_context
+from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
 from identification.diagnosis.friction_rival import shape_column
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from trajopt.experiments import sine_experiment
@@ -94,3 +94,13 @@ def test_the_cached_filter_design_and_zero_phase_filter_are_scipys(rng, order):
     np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, order), expected)
     np.testing.assert_array_equal(zero_phase_filter(x, 1000.0, 15.0, order), expected)  # from the cache
     np.testing.assert_array_equal(zero_phase_filter(x[:, 1], 1000.0, 15.0, order), expected[:, 1])
+
+
+def test_the_friction_shift_with_the_recorded_friction_cached_is_the_two_simulations(context):
+    # the deflection terms' friction change: the recorded velocity's LuGre friction (simulated once per recording)
+    # minus the shifted velocity's, both simulated here afresh
+    p = lugre_parameters(context.drives[JOINT])
+    qd = context.full_qd[:, JOINT]
+    for rate in (0.01 * np.sin(context.full_t), 0.02 * np.cos(3 * context.full_t)):
+        direct = simulate_friction(p, context.full_t, qd) - simulate_friction(p, context.full_t, qd - rate)
+        np.testing.assert_array_equal(context.friction_shift(JOINT, rate), context.lowpass(direct))
