@@ -125,6 +125,9 @@ class DiagnosisOptions:
         With one validation recording, the second opinion on each finding (``second_opinion``): the training recording
         is cut into this many contiguous blocks, each held out once, and a finding must hold on every block; 0 turns
         it off (with several validation recordings a finding must hold on each of them instead).
+    friction_shapes : bool
+        Offer the friction shapes a Coulomb-viscous or Stribeck nominal model lacks (``lacking_friction_shapes``), as
+        candidates and in place of a lag they explain; the fleet's day diagnosis, which asks what changed, turns it off.
     """
 
     friction: str = AUTO
@@ -137,6 +140,7 @@ class DiagnosisOptions:
     max_effects: int = 4
     joint_threshold: float = 0.1
     library: CandidateLibrary | None = None
+    friction_shapes: bool = True
     preprocess: bool = True
     torque_constants: tuple | None = None
     refine: bool = True
@@ -421,7 +425,7 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     library takes the friction shapes a Coulomb-viscous or Stribeck nominal model lacks (``lacking_friction_shapes``:
     a model file's friction, whose Stribeck velocities are fixed and whose Coulomb friction is a step)."""
     library = options.library if options.library is not None else default_library()
-    lacking = options.friction in ("coulomb_viscous", "stribeck")  # a robot file's LuGre drives state them
+    lacking = options.friction_shapes and options.friction in ("coulomb_viscous", "stribeck")  # LuGre drives state them
     if options.library is None and lacking:
         library = library + CandidateLibrary(lacking_friction_shapes())
     ctx_t = problem.ctx_t

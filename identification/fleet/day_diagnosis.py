@@ -5,7 +5,9 @@ relative to the day's own model: the measured torque (the refitted torque consta
 refitted tracked terms (springs, ripples, offsets, payload: what the fleet already follows) and with the held rigid
 body in place of the robot file's (``Y (theta_held - theta_file)`` subtracted, so that the diagnosis's prior, the
 robot file's rigid body, is the baseline's). The diagnosis refits friction (Coulomb + viscous, the daily update's
-shape) and looks for what is still missing. With one recording its first half trains and its second half
+shape) and looks for what is still missing, not among the friction shapes a Coulomb-viscous model lacks (a Stribeck
+peak, smooth Coulomb, pre-sliding: a robot's friction has them on every day, its baseline's too, so they are not what
+changed on this one; ``DiagnosisOptions.friction_shapes``). With one recording its first half trains and its second half
 validates; with several, the first trains and the others validate.
 """
 
@@ -83,7 +85,8 @@ def diagnose_day(baseline: Baseline, model, prepared: list, currents: bool, fit:
     train, validation = _split(residual_recordings(baseline, model, prepared, currents, fit))
     rate = 1.0 / float(np.median(np.diff(train.t)))
     options = DiagnosisOptions(friction="coulomb_viscous", rigid_body="prior", preprocess=False, cutoff_hz=None,
-                               rate_hz=rate, sparse=False, cv_folds=0, refine=False)  # fmt: skip
+                               rate_hz=rate, sparse=False, cv_folds=0, refine=False,
+                               friction_shapes=False)  # fmt: skip
     report = diagnose(baseline.robot, train, validation, options, model=model)
     return tuple(
         DayFinding(
