@@ -19,7 +19,13 @@ With a LuGre friction prior (the robot file's drives, ``filtered_friction``), co
 the velocity are built at full rate with the exact sign and low-pass filtered like the recording
 (``DiagnosisContext.lowpass``) before decimation: the measured torque is the filtered true torque,
 whose friction steps are smeared over the filter's impulse response, and a sharp column evaluated on
-the filtered velocity leaves that smear as a residual far above the sensor noise.
+the filtered velocity leaves that smear as a residual far above the sensor noise. With the robot file's LuGre
+friction as the nominal model, the sparse terms' sign and low-speed features (``DiagnosisContext.sign_qd``) take
+the velocity of the raw angle filtered at ``SIGN_CUTOFF_FACTOR`` times the
+cutoff (``sign_velocity``): at identify's 10 Hz a velocity filtered like the torque misplaces the reversals where a
+joint sticks by tens of milliseconds, and the sign columns then miss friction that depends on the angle (a 0.8 N m
+position-dependent friction of the virtual Denso left 0.5 N m of its 0.7 N m, found with the sharper sign down to
+0.07 N m) or a low-speed hump. A model file's Coulomb-viscous or Stribeck friction keeps the filtered velocity.
 Without a prior the smooth sign ``tanh(qd / SMOOTH_VELOCITY)`` of the filtered velocity is kept: its
 width stands in for the unknown pre-sliding, and filtered low-speed columns of a guessed shape turn
 into pulses at every reversal that trade against inertia (unphysical friction amplitudes that do not
@@ -48,6 +54,7 @@ from psdm_casadi.oracle import build_pinocchio_model
 logger = logging.getLogger(__name__)
 
 FILTER_ORDER = PreprocessOptions().order  # the order ``diagnose`` preprocesses the recordings with
+SIGN_CUTOFF_FACTOR = 2.0  # the velocity of the friction columns' sign: filtered at this times the cutoff
 MIN_GRID_PER_CUTOFF = 4.0  # a grid coarser than this many samples per cut-off period is reported (``build_context``)
 
 
@@ -76,6 +83,11 @@ class DiagnosisContext:
     tilt_axes : array (2, 3)
     full_t, full_tau : arrays
         Full-rate time and filtered torque (for smoothed nonlinear transforms of the torque).
+    full_qd : array (n_full, n_dof)
+        Full-rate velocity of the preprocessed recording.
+    sign_qd : array (n_full, n_dof) or None
+        Full-rate velocity the sparse terms' sign and low-speed features take their sign from (``sign_velocity``);
+        None: ``full_qd``.
     keep : array of int
         Indices of the decimated samples in the full-rate arrays.
     cutoff_hz : float or None
@@ -125,6 +137,7 @@ class DiagnosisContext:
     filtered_friction: bool = True
     gravity: np.ndarray | None = None
     missing: tuple = ()
+    sign_qd: np.ndarray | None = None
     torque_constants: np.ndarray | None = None
 
     def without_torque(self, joints) -> DiagnosisContext:
@@ -183,13 +196,14 @@ class DiagnosisContext:
             values = zero_phase_filter(values, rate, self.cutoff_hz, FILTER_ORDER)
         return values
 
-    def friction_sign(self, joint: int, factor: np.ndarray | None = None) -> np.ndarray:
+    def friction_sign(self, joint: int, factor: np.ndarray | None = None, sharp: bool = False) -> np.ndarray:
         """``factor * sign(qd)`` of ``joint`` on the grid (n_samples,), ``factor`` (n_full,) at full rate (default 1).
 
         With ``filtered_friction`` the exact sign at full rate, multiplied and filtered like the recording;
-        otherwise ``factor * tanh(qd / SMOOTH_VELOCITY)`` on the grid (see the module docstring)."""
+        otherwise ``factor * tanh(qd / SMOOTH_VELOCITY)`` on the grid (see the module docstring). ``sharp``: the sign
+        of ``sign_qd`` where there is one (the sparse terms)."""
         if self.filtered_friction:
-            sign = np.sign(self.full_qd[:, joint])
+            sign = np.sign((self.sign_qd if sharp and self.sign_qd is not None else self.full_qd)[:, joint])
             return self.lowpass(sign if factor is None else sign * factor)
         sign = np.tanh(self.qd[:, joint] / SMOOTH_VELOCITY)
         return sign if factor is None else sign * np.asarray(factor)[self.keep]
@@ -340,6 +354,26 @@ def _raw_torque(raw: Recording, recording: Recording, tau_full, torque_constants
     return np.column_stack([np.interp(recording.t, raw.t, source[:, j]) for j in range(tau_full.shape[1])])
 
 
+def sign_velocity(raw: Recording | None, recording: Recording, cutoff_hz: float | None) -> np.ndarray:
+    """The full-rate velocity (n_full, n_dof) on ``recording``'s time grid that the friction columns take their sign
+    and low-speed shape from: the angle of ``raw`` (before preprocessing) filtered at ``SIGN_CUTOFF_FACTOR`` times
+    ``cutoff_hz`` (at most a quarter of the rate) and differentiated, one joint at a time; the preprocessed
+    ``recording.qd`` when there is no raw recording or no cutoff (module docstring)."""
+    if raw is None or cutoff_hz is None:
+        return recording.qd
+    rate = 1.0 / float(recording.dt)
+    cutoff = min(SIGN_CUTOFF_FACTOR * float(cutoff_hz), 0.25 * rate)
+    if cutoff <= float(cutoff_hz):
+        return recording.qd
+    same = raw.q.shape == recording.q.shape and np.allclose(raw.t, recording.t)
+    out = np.empty(recording.q.shape)
+    for j in range(recording.q.shape[1]):
+        q = raw.q[:, j] if same else np.interp(recording.t, raw.t, raw.q[:, j])
+        out[:, j] = central_difference(recording.t, zero_phase_filter(q, rate, cutoff, FILTER_ORDER))[0]
+    out.flags.writeable = False
+    return out
+
+
 def _torque_derivatives(t, tau_full, keep) -> tuple:
     """First and second time derivatives of the torque at full rate (central differences), on the grid ``keep``;
     one joint at a time, so the full-rate temporaries stay one column long."""
@@ -368,6 +402,7 @@ def build_context(
     max_samples: int | None = None,
     identify_samples: bool = False,
     edge_periods: float = EDGE_PERIODS,
+    sign_from_raw: bool = True,
 ) -> DiagnosisContext:
     """Evaluate the nominal model's signals on a preprocessed recording.
 
@@ -396,6 +431,11 @@ def build_context(
     identify_samples : bool
         Keep identify's samples (``DiagnosisOptions.samples``), ``edge_periods`` filter periods trimmed at each end
         (``DiagnosisOptions.edge_periods``).
+    sign_from_raw : bool
+        With ``raw`` and ``filtered_friction``: the friction columns' velocity is ``sign_velocity``'s (the robot file's
+        LuGre friction, whose bristles the nominal model simulates through each reversal); False keeps the
+        preprocessed velocity (a model file's Coulomb-viscous or Stribeck friction, whose lacking shapes,
+        ``lacking_friction_shapes``, are judged on it).
 
     Raises
     ------
@@ -421,6 +461,8 @@ def build_context(
     regressor = _regressor(model, q, qd, qdd) if with_regressor else None
     payload = FlangeRegressor(robot)(q, qd, qdd)  # the flange body's columns, as payload_check and identify
     tau_raw = None if raw is None else _raw_torque(raw, recording, tau_full, torque_constants)
+    filtered_friction = (robot.drives is not None) if filtered_friction is None else bool(filtered_friction)
+    sign_qd = sign_velocity(raw, recording, cutoff_hz) if filtered_friction and sign_from_raw else None
     return DiagnosisContext(
         t=recording.t[keep],
         q=q,
@@ -440,13 +482,14 @@ def build_context(
         full_t=recording.t,
         full_tau=tau_full,
         full_qd=recording.qd,
+        sign_qd=sign_qd,
         keep=keep,
         cutoff_hz=cutoff_hz,
         parameter_map=np.asarray(model.parameter_map),
         drives=robot.drives,
         name=recording.name,
         full_tau_raw=tau_raw,
-        filtered_friction=(robot.drives is not None) if filtered_friction is None else bool(filtered_friction),
+        filtered_friction=filtered_friction,
         gravity=_gravity_torque(pmodel, q),
         torque_constants=None if tau_full is recording.tau else np.asarray(torque_constants, dtype=float),
     )

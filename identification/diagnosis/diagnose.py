@@ -417,7 +417,8 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
         recording = preprocess(recording, PreprocessOptions(cutoff_hz=options.cutoff_hz))
     return build_context(robot, model, recording, options.rate_hz, options.cutoff_hz, kt,
                          with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
-                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods)  # fmt: skip
+                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
+                         sign_from_raw=options.friction == "lugre")  # fmt: skip
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:

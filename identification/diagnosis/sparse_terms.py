@@ -199,14 +199,14 @@ def feature_matrix(context, joint: int, features, centre: float) -> np.ndarray:
     (``DiagnosisContext.friction_sign``); the full-rate angle is interpolated from the grid."""
     q, qd, qdd = context.q[:, joint], context.qd[:, joint], context.qdd[:, joint]
     full_q = np.interp(context.full_t, context.t, q)
-    full_qd = context.full_qd[:, joint]
+    full_qd = (context.full_qd if getattr(context, "sign_qd", None) is None else context.sign_qd)[:, joint]
     out = np.empty((context.n_samples, len(features)))
     for c, f in enumerate(features):
         if f.velocity in ("sign", "hump"):
             factor = f.position_factor(full_q, centre)
             if f.velocity == "hump":
                 factor = factor * np.exp(-((full_qd / f.width) ** 2))
-            out[:, c] = context.friction_sign(joint, np.broadcast_to(factor, full_qd.shape))
+            out[:, c] = context.friction_sign(joint, np.broadcast_to(factor, full_qd.shape), sharp=True)
         else:
             vel = {"one": 1.0, "qd": qd, "qd_abs": qd * np.abs(qd), "qdd": qdd}[f.velocity]
             out[:, c] = f.position_factor(q, centre) * vel

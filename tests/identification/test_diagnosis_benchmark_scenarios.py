@@ -1,0 +1,62 @@
+"""Scenarios of ``benchmarks/diagnosis.py`` (seed 0) that the diagnosis missed at identify's preparation (issue 25).
+
+Diagnosed as the benchmark diagnoses them (identify's cutoff, grid and trims; the validation part's two halves as two
+validation recordings), each must name its hidden effect on the right joint. They were missed when the diagnosis moved
+from 15 Hz to identify's 10 Hz with one filter period trimmed at each end: the filter's start-up transient left in
+the ends let a recalibrated rigid body beat a true delay (scenario 10) and stand in for the heavy arm's counterbalance
+(30), and the sign of a velocity filtered at 10 Hz misplaced the reversals where a joint sticks, so that a
+position-dependent friction (24) stayed in the residual (the sparse terms' sign: ``context.sign_velocity``). The
+Stribeck hump (25) is still missed at 10 Hz (its sparse term falls short of the 1 % torque floor).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope="module")
+def bench():
+    import sys
+
+    path = str(Path(__file__).resolve().parents[2] / "benchmarks")
+    sys.path.insert(0, path)
+    try:
+        import diagnosis
+
+        yield diagnosis
+    finally:
+        sys.path.remove(path)
+
+
+def _diagnosed(bench, index):
+    from identification.diagnosis import DiagnosisOptions, diagnose
+
+    robot_key, effects = bench.SCENARIOS[index]
+    robot, model = bench._load(robot_key)
+    truth, train, val = bench._scenario(robot_key, robot, effects, np.random.default_rng(index), index)
+    report = diagnose(robot, train, bench.split_validation(val, 2), DiagnosisOptions(), model=model)
+    return truth, report
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("index", "effect", "joint"),
+    [
+        (10, "delay", None),
+        (24, "unnamed_effect", 4),
+        (30, "spring", 1),
+    ],
+)
+def test_the_hidden_effect_is_found_at_identify_s_preparation(bench, index, effect, joint):
+    truth, report = _diagnosed(bench, index)
+    assert bench._correct(report.findings, truth), report.summary()
+    hit = [f for f in report.findings if f.effect == effect and (joint is None or joint in f.joints)]
+    assert hit, report.summary()
+    assert not report.findings_not_holding and bench._kept_raising_rmse(report) == 0
+    if effect == "unnamed_effect":  # the term explains the effect: its joint's validation error falls by a third
+        assert report.rmse_after[joint] < 0.67 * report.rmse_before[joint]
+    if effect == "delay":  # 8 samples of 1 kHz (the scenario's truth)
+        assert abs(hit[0].parameters["delay_s"] - truth[0][3]["delay_s"]) < 0.5 * truth[0][3]["delay_s"]
