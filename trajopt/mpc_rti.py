@@ -16,9 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import shlex
 import shutil
-import subprocess
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +26,7 @@ import numpy as np
 
 from psdm_casadi.description import RobotDescription
 from psdm_casadi.errors import ParameterError, SolverError
+from trajopt.c_compiler import run_compiler
 from trajopt.hpipm_c import hpipm_folders, persistent_workspace
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, constraint_jacobian, step_arguments, tracking_cost, variable_bounds
@@ -406,13 +405,7 @@ def compile_rti(
 def _compiled(controller: RTIController, command: list, library: Path) -> RTIController:
     """Run the compiler command and load the step from the library it writes."""
     start = time.perf_counter()
-    result = subprocess.run(command, capture_output=True, text=True)
-    if result.returncode != 0:
-        tail = "\n".join(result.stderr.strip().splitlines()[-12:])
-        raise SolverError(
-            f"compile_rti compilation must succeed; `{shlex.join(command)}` exited with {result.returncode}:\n{tail}",
-            status=result.returncode,
-        )
+    run_compiler(command, "compile_rti's step")
     LOG.info("compiled %s in %.1f s", library, time.perf_counter() - start)
     compiled = ca.external(RTI_NAME, str(library))
     return dataclasses.replace(controller, function=compiled, _guess=None, _buffers=None)

@@ -21,9 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import shlex
 import shutil
-import subprocess
 import tempfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,6 +29,7 @@ from pathlib import Path
 import casadi as ca
 
 from psdm_casadi.errors import SolverError
+from trajopt.c_compiler import run_compiler
 
 LOG = logging.getLogger(__name__)
 TEMPLATE = Path(__file__).resolve().parent / "templates" / "riccati_qp.c"
@@ -94,13 +93,7 @@ def riccati_qp(
         path.write_text(source)
         library = path.with_suffix(".so")
         command = [found, *flags, "-fPIC", "-shared", "-o", str(library), str(path), "-lm"]
-        result = subprocess.run(command, capture_output=True, text=True)
-        if result.returncode != 0:
-            tail = "\n".join(result.stderr.strip().splitlines()[-12:])
-            raise SolverError(
-                f"the RTI's QP solver must compile; `{shlex.join(command)}` exited with {result.returncode}:\n{tail}",
-                status=result.returncode,
-            )
+        run_compiler(command, "the RTI's QP solver")
         _LOADED[key] = (folder, ca.external(name, str(library)))
         LOG.debug("compiled the RTI's QP solver %s", library)
     return RiccatiQP(name, source, _LOADED[key][1])
