@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sysconfig
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +49,14 @@ def denso():
 @pytest.fixture(scope="session")
 def denso_model(denso):
     return derive_psdm(denso)
+
+
+@pytest.fixture(scope="session")
+def denso_merged_rotors(denso):
+    """(robot, model): the Denso with the rotor inertias of its file but a rigid-body model (no drive inertia in the
+    derivation), as identify sees it on motor currents where the rotors merge into links (the merged-rotor tests)."""
+    robot = replace(denso, drive_inertia=(False,) * denso.n_dof)
+    return robot, derive_psdm(robot)
 
 
 @pytest.fixture(scope="session")

@@ -11,27 +11,18 @@ the derivation, as a URDF with rotor inertias per link gives it).
 from dataclasses import replace
 
 import numpy as np
-import pytest
 
 from identification.calibration.merged_rotors import robot_file_theta
 from identification.calibration.trajectory_fit import separate_inertia_joints
 from identification.diagnosis.diagnose import DiagnosisOptions, DiagnosisProblem, prepare_problem
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.rigid_body_choice import recalibration_parts
-from psdm_casadi.derive import derive_psdm
 from psdm_casadi.oracle import PinocchioOracle
 from tests.identification.test_drive_loss import recorded
 
 
-@pytest.fixture(scope="module")
-def arm(denso):
-    """The Denso with the rotor inertias of its file but a rigid-body model."""
-    robot = replace(denso, drive_inertia=(False,) * denso.n_dof)
-    return robot, derive_psdm(robot)
-
-
-def test_the_robot_file_theta_holds_the_merged_rotors_on_currents_as_pinocchio_does(arm):
-    robot, model = arm
+def test_the_robot_file_theta_holds_the_merged_rotors_on_currents_as_pinocchio_does(denso_merged_rotors):
+    robot, model = denso_merged_rotors
     kt = np.array([d.kt for d in robot.drives])
     rng = np.random.default_rng(5)
     q = rng.uniform(robot.q_min, robot.q_max, size=(30, robot.n_dof))
@@ -52,8 +43,8 @@ def test_the_robot_file_theta_holds_the_merged_rotors_on_currents_as_pinocchio_d
     assert not np.allclose(rigid[:, :2], expected[:, :2], atol=1e-2)  # the rotors matter on joints 1-2
 
 
-def test_the_enveloped_recalibration_on_currents_keeps_the_rotors_out_of_the_links(arm):
-    robot, model = arm
+def test_the_enveloped_recalibration_on_currents_keeps_the_rotors_out_of_the_links(denso_merged_rotors):
+    robot, model = denso_merged_rotors
     recording = recorded(robot, 21)
     train, validation = recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
     options = DiagnosisOptions(friction="coulomb_viscous", cutoff_hz=15.0, rate_hz=100.0, samples="diagnosis")

@@ -16,7 +16,6 @@ from identification.calibration.column_choice import ColumnRequest, choose_colum
 from identification.calibration.merged_rotors import merged_rotor_map, with_merged_rotors
 from identification.calibration.model_file_check import check_against_model
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
-from psdm_casadi.derive import derive_psdm
 from psdm_casadi.errors import ModelFileError
 from tests.conftest import DENSO_FILE
 from tests.identification.test_drive_loss import recorded
@@ -24,15 +23,8 @@ from tests.identification.test_drive_loss import recorded
 ROTOR = 10
 
 
-@pytest.fixture(scope="module")
-def arm(denso):
-    """The Denso with the rotor inertias of its file but a rigid-body model (no drive inertia in the derivation)."""
-    robot = replace(denso, drive_inertia=(False,) * denso.n_dof)
-    return robot, derive_psdm(robot)
-
-
-def test_the_map_reproduces_each_merged_drive_inertia_torque_on_other_states(arm):
-    denso, denso_model = arm
+def test_the_map_reproduces_each_merged_drive_inertia_torque_on_other_states(denso_merged_rotors):
+    denso, denso_model = denso_merged_rotors
     merged = merged_rotor_map(denso_model, denso, range(denso.n_dof))
     separate = separate_inertia_joints(denso_model, denso)
     assert merged and sorted(merged) == [j for j in range(denso.n_dof) if j not in separate]
@@ -46,11 +38,11 @@ def test_the_map_reproduces_each_merged_drive_inertia_torque_on_other_states(arm
         assert np.allclose(regressor @ coefficients, expected, atol=1e-8), j
 
 
-def test_only_currents_with_stated_rotors_get_them_in_the_map(arm, denso, denso_model):
+def test_only_currents_with_stated_rotors_get_them_in_the_map(denso_merged_rotors, denso, denso_model):
     # a model derived with the drive inertias holds them already
     kt = [d.kt for d in denso.drives]
     assert with_merged_rotors(denso_model, denso, TrajectoryOptions(), kt).model is denso_model
-    denso, denso_model = arm
+    denso, denso_model = denso_merged_rotors
     options = TrajectoryOptions()
     assert with_merged_rotors(denso_model, denso, options, kt=None).model is denso_model
     assert with_merged_rotors(denso_model, denso, TrajectoryOptions(drive_inertia=False), kt).model is denso_model
@@ -63,8 +55,8 @@ def test_only_currents_with_stated_rotors_get_them_in_the_map(arm, denso, denso_
     assert not np.allclose(merged.base_parameters(standard), denso_model.base_parameters(standard))
 
 
-def test_currents_keep_the_rotor_inertias_and_the_links_their_masses(arm):
-    denso, denso_model = arm
+def test_currents_keep_the_rotor_inertias_and_the_links_their_masses(denso_merged_rotors):
+    denso, denso_model = denso_merged_rotors
     fit = identify_trajectories(denso, denso_model, [recorded(denso, 11)])
     truth = denso.nominal_dynamic_parameters()
     rotor, mass = fit.standard[:, ROTOR], fit.standard[:, 0]
@@ -82,8 +74,8 @@ def test_currents_keep_the_rotor_inertias_and_the_links_their_masses(arm):
         check_against_model(calibrated, denso_model, "model.json", denso)
 
 
-def test_on_currents_no_drive_inertia_is_blamed_on_link_side_sensors(arm):
-    denso, denso_model = arm
+def test_on_currents_no_drive_inertia_is_blamed_on_link_side_sensors(denso_merged_rotors):
+    denso, denso_model = denso_merged_rotors
     request = ColumnRequest(friction="coulomb-viscous", offset="off", drive_loss="off")
     choice = choose_columns(denso, denso_model, [recorded(denso, 12)], request=request)
     inertia = [e for e in choice.evidence if e.term == "Ia"]
@@ -95,12 +87,12 @@ def test_on_currents_no_drive_inertia_is_blamed_on_link_side_sensors(arm):
     assert all(e.kept and "motor currents" in e.reason for e in inertia) and "behind the gearbox" not in text
 
 
-def test_a_rotor_the_file_does_not_state_is_held_to_its_siblings_with_the_same_torque_constant(arm):
+def test_a_rotor_the_file_does_not_state_is_held_to_its_siblings_with_the_same_torque_constant(denso_merged_rotors):
     """Joint 2's drive inertia lies inside link 2's base parameters; the robot file states none (a URDF has none).
     Its actuator is joint 3's (same torque constant, same rotor: the truth), whose drive inertia is a column of its own:
     held to it, the rotor is found and link 2 keeps its mass. With another torque constant there is no sibling and
     link 2 absorbs the rotor up to its mass bound, named by the envelope report."""
-    denso, denso_model = arm
+    denso, denso_model = denso_merged_rotors
     drives, rotor = list(denso.drives), np.array(denso.rotor_inertia)
     drives[1], rotor[1] = replace(drives[1], kt=drives[2].kt), rotor[2]
     truth = replace(denso, drives=tuple(drives), rotor_inertia=rotor)

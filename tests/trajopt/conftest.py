@@ -1,10 +1,13 @@
-"""Fixtures of the trajopt tests: a planar 2R arm with an analytic base-parameter regressor."""
+"""Fixtures of the trajopt tests: a planar 2R arm with an analytic base-parameter regressor, and the Denso's
+forward dynamics with their Jacobian for the MPC tests."""
 
 import casadi as ca
 import numpy as np
 import pytest
 
+from psdm_casadi.recursive import build_recursive_functions
 from psdm_casadi.robot import from_dh
+from trajopt.mpc_model import build_forward_dynamics_jacobian
 
 G = 9.81
 A1 = 0.5  # length of link 1 [m]
@@ -63,3 +66,14 @@ def planar_robot():
 @pytest.fixture
 def rng():
     return np.random.default_rng(1234)
+
+
+@pytest.fixture(scope="session")
+def denso_dynamics(denso, denso_model):
+    """(forward dynamics, its Jacobian) of the Denso's nominal model, shared by the RTI and Riccati-QP tests."""
+    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
+    functions = build_recursive_functions(denso_model, denso, theta)
+    jacobian = build_forward_dynamics_jacobian(
+        functions.forward_dynamics, functions.inverse_dynamics, functions.mass_matrix
+    )
+    return functions.forward_dynamics, jacobian

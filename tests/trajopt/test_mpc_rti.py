@@ -13,26 +13,15 @@ import pytest
 
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.recursive import build_recursive_functions
 from trajopt.hpipm_c import hpipm_cache_folder, persistent_workspace
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, variable_bounds
 from trajopt.mpc_loop import build_pinocchio_plant, simulate_closed_loop
-from trajopt.mpc_model import build_forward_dynamics_jacobian, build_step_function, stage_functions
+from trajopt.mpc_model import build_step_function, stage_functions
 from trajopt.mpc_rti import build_rti, compile_rti, hpipm_folders, rti_qp_data
 
 DT = 0.005
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
-
-
-@pytest.fixture(scope="module")
-def denso_dynamics(denso, denso_model):
-    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
-    functions = build_recursive_functions(denso_model, denso, theta)
-    jacobian = build_forward_dynamics_jacobian(
-        functions.forward_dynamics, functions.inverse_dynamics, functions.mass_matrix
-    )
-    return functions.forward_dynamics, jacobian
 
 
 def sine_reference(robot, amplitude=0.15):

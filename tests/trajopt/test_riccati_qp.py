@@ -12,26 +12,15 @@ import numpy as np
 import pytest
 
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.recursive import build_recursive_functions
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, variable_bounds
-from trajopt.mpc_model import build_forward_dynamics_jacobian, stage_functions
+from trajopt.mpc_model import stage_functions
 from trajopt.mpc_rti import build_rti, compile_rti, rti_qp_data, rti_qp_solver
 from trajopt.riccati_qp import riccati_qp
 
 pytestmark = [pytest.mark.needs_cc, pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")]
 DT = 0.005
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
-
-
-@pytest.fixture(scope="module")
-def denso_dynamics(denso, denso_model):
-    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
-    functions = build_recursive_functions(denso_model, denso, theta)
-    jacobian = build_forward_dynamics_jacobian(
-        functions.forward_dynamics, functions.inverse_dynamics, functions.mass_matrix
-    )
-    return functions.forward_dynamics, jacobian
 
 
 def ipopt_qp(h, g, a, b, lbx, ubx):
