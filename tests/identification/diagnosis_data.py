@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.diagnosis.context import build_context
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from trajopt.experiments import sine_experiment
 
@@ -20,3 +22,16 @@ def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
         )
         out.append(rec)
     return out
+
+
+def sine_context(robot, model, seed, duration=3.0):
+    """The diagnosis context of a noise-free sine-experiment recording of ``robot`` (torque sensors), filtered at
+    15 Hz on a 100 Hz grid: the candidates' columns are evaluated on it."""
+    rng = np.random.default_rng(seed)
+    rec, _ = simulate_recording(
+        robot,
+        sine_experiment(robot, duration=duration, rng=rng).reference(),
+        SimulationOptions(record_tau=True, record_current=False),
+        rng,
+    )
+    return build_context(robot, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)

@@ -18,6 +18,7 @@ from identification.diagnosis import (
 from identification.diagnosis.context import build_context
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
+from tests.identification.diagnosis_data import sine_context
 from trajopt.experiments import sine_experiment
 
 
@@ -25,14 +26,7 @@ from trajopt.experiments import sine_experiment
 def context(request):
     denso = request.getfixturevalue("denso")
     model = request.getfixturevalue("denso_model")
-    rng = np.random.default_rng(3)
-    rec, _ = simulate_recording(
-        denso,
-        sine_experiment(denso, duration=3.0, rng=rng).reference(),
-        SimulationOptions(record_tau=True, record_current=False),
-        rng,
-    )
-    return build_context(denso, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
+    return sine_context(denso, model, seed=3)
 
 
 def _instances(n_dof):

@@ -10,26 +10,18 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfiltfilt
 
-from identification.data.preprocessing import PreprocessOptions, lowpass_sections, preprocess, zero_phase_filter
+from identification.data.preprocessing import lowpass_sections, zero_phase_filter
 from identification.diagnosis.candidates.friction import SCALE_GRIDS, FrictionShapeTerm, PreslidingTerm
-from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
+from identification.diagnosis.context import lugre_parameters, simulate_friction
 from identification.diagnosis.friction_rival import shape_column
-from identification.virtual.simulation import SimulationOptions, simulate_recording
-from trajopt.experiments import sine_experiment
+from tests.identification.diagnosis_data import sine_context
 
 JOINT = 3
 
 
 @pytest.fixture(scope="module")
 def context(denso, denso_model):
-    rng = np.random.default_rng(5)
-    rec, _ = simulate_recording(
-        denso,
-        sine_experiment(denso, duration=3.0, rng=rng).reference(),
-        SimulationOptions(record_tau=True, record_current=False),
-        rng,
-    )
-    return build_context(denso, denso_model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
+    return sine_context(denso, denso_model, seed=5)
 
 
 def _terms():
