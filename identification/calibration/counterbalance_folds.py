@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from identification.calibration.finding_value import validation_rmse
-from identification.calibration.never_worse import MARGIN_FLOOR, MARGIN_SIGMAS, JointComparison, paired_rmse_margin
+from identification.calibration.never_worse import JointComparison, paired_rmse_margin
 from psdm_casadi.errors import PSDMError
 
 __all__ = [
@@ -109,9 +109,7 @@ def _residual(calibrated, model, recording, kt) -> np.ndarray:
 def residual_comparison(before: np.ndarray, after: np.ndarray) -> JointComparison:
     """``JointComparison`` of two models' residuals on the same samples, with the never-worse margin
     (``never_worse.paired_rmse_margin``: moving-block bootstrap of the paired difference, never below the floor)."""
-    rmse_b, rmse_a, standard_error = paired_rmse_margin(before, after)
-    margin = np.maximum(MARGIN_SIGMAS * standard_error, MARGIN_FLOOR * rmse_b)
-    return JointComparison(before=rmse_b, after=rmse_a, margin=margin, standard_error=standard_error)
+    return JointComparison.from_noise(*paired_rmse_margin(before, after))
 
 
 def block_folds(recordings, configurations=None, cutoff_hz=None, folds: int = FOLDS) -> BlockFolds | str:
@@ -143,9 +141,7 @@ def with_fold_spread(together: JointComparison, folds) -> JointComparison:
     not see (the tutorial's spring on joint 4 changes joint 3 by +0.02, 0, +0.28 and -0.02 N m in its 4 folds)."""
     changes = np.array([f.after - f.before for f in folds])
     spread = np.std(changes, axis=0, ddof=1) / np.sqrt(len(folds)) if len(folds) > 1 else np.zeros_like(together.after)
-    standard_error = np.maximum(together.standard_error, spread)
-    margin = np.maximum(together.margin, MARGIN_SIGMAS * standard_error)
-    return JointComparison(before=together.before, after=together.after, margin=margin, standard_error=standard_error)
+    return JointComparison.from_noise(together.before, together.after, np.maximum(together.standard_error, spread))
 
 
 def holds_everywhere(folds, joint: int) -> bool:

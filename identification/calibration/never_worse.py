@@ -126,6 +126,13 @@ class JointComparison:
     margin: np.ndarray
     standard_error: np.ndarray | None = None
 
+    @classmethod
+    def from_noise(cls, before, after, standard_error) -> JointComparison:
+        """The comparison with ``MARGIN_RULE``'s margin: ``MARGIN_SIGMAS`` standard errors of the paired difference,
+        never below ``MARGIN_FLOOR`` of the RMSE before."""
+        margin = np.maximum(MARGIN_SIGMAS * standard_error, MARGIN_FLOOR * before)
+        return cls(before=before, after=after, margin=margin, standard_error=standard_error)
+
     @property
     def excess(self) -> np.ndarray:
         """How far each joint is above before + margin [N m] (<= 0: not worse)."""
@@ -189,8 +196,7 @@ def compare_models(before, after, model, validation, kt=None) -> JointComparison
         se.append(paired_rmse_margin(ready_b.tau - predicted_b, ready_a.tau - predicted_a)[2])
     before_mean, after_mean = np.mean(rmse_b, axis=0), np.mean(rmse_a, axis=0)
     standard_error = np.sqrt(np.sum(np.square(se), axis=0)) / len(se)
-    margin = np.maximum(MARGIN_SIGMAS * standard_error, MARGIN_FLOOR * before_mean)
-    return JointComparison(before=before_mean, after=after_mean, margin=margin, standard_error=standard_error)
+    return JointComparison.from_noise(before_mean, after_mean, standard_error)
 
 
 def improvement(comparison: JointComparison) -> float:
