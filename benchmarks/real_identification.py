@@ -5,9 +5,10 @@ TX40 from FIGAROH, Franka Panda from Gaz et al. 2019; read at run time, never co
 absent is skipped), the first 70 % trains and the last 30 % validates (loaders and split of
 ``real_data_diagnosis``):
 
-- derive the PSDM model and identify on default settings, as ``psdm identify`` does: ``choose_columns``
-  picks the friction shape, the offsets and the drive inertias per joint from the training part alone
-  (information criterion, block cross-validation), then ``identify_trajectories``; for comparison the
+- derive the PSDM model and identify on default settings with the library's route that ``psdm identify`` calls
+  (``identify_route.identify_recordings``): the Coulomb smoothing, the friction shape, the offsets and the drive
+  inertias per joint chosen from the training part alone (information criterion, block cross-validation), the fit,
+  and the counterbalance its envelope report names, kept only where it holds out of sample; for comparison the
   hand-picked options the README used before (``OPTIONS``: Coulomb, viscous and offset friction on every
   joint, drive inertias for the TX40's motor-side torques, none for the Panda's link-side sensors) are
   fitted too (``rmse_options``);
@@ -77,7 +78,7 @@ from never_worse_loop import print_loops, run_loops
 from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
 from tx40_motor_side import compare_routes
 
-from identification.calibration.column_choice import choose_columns
+from identification.calibration.identify_route import identify_recordings
 from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
 from identification.metrics import r2, rmse
@@ -284,14 +285,14 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     start, cpu = time.perf_counter(), time.process_time()
     model = derive_psdm(robot)
     derived = time.perf_counter()
-    choice = choose_columns(robot, model, [train])  # the defaults of 'psdm identify' (no --validate: the
-    fit = identify_trajectories(robot, model, [train], choice.options(TrajectoryOptions()))  # held-out part stays out)
+    route = identify_recordings(robot, model, [train])  # the defaults of 'psdm identify' (no --validate: the
+    fit, choice = route.fit, route.choice  # held-out part stays out)
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     hand_picked = identify_trajectories(robot, model, [train], OPTIONS[key])
     ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0], fit.edge_periods)
     q, qd, qdd, tau = ready.q, ready.qd, ready.qdd, ready.tau
     predictions = {
-        "": predict_torque(model, fit, q, qd, qdd),
+        "": route.calibrated.predict(model, q, qd, qdd),  # with what the route took (a counterbalance spring)
         "_ols": predict_torque(model, fit, q, qd, qdd, ols=True),
         "_options": predict_torque(model, hand_picked, q, qd, qdd),
         "_prior": PinocchioOracle(robot).rnea(q, qd, qdd),
@@ -320,7 +321,8 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
         decimation=step,
         drive=dict(zip(fit.drive_names, fit.drive.tolist())),
         columns=choice.to_dict(),
-        columns_text=choice.describe(),
+        columns_text=route.describe(),
+        counterbalance=route.counterbalance.to_dict(),
         warnings=list(fit.warnings),
         **mjcf_max_rel_error(robot, model, fit, q, qd, qdd),
     )

@@ -43,19 +43,15 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from identification.calibration.drive_loss import efficiency, loss_columns, prior_theta
-from identification.calibration.payload_fit import FlangeBodies, subtract_known_payloads
-from identification.calibration.residual_correlation import residual_correlation_time
-from identification.calibration.stribeck import base_regressors, fit_stribeck_velocity
-from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
-from identification.calibration.trajectory_data import (
-    NormalEquations,
-    drive_column_names,
-    drive_columns,
-    prepare_recording,
-    prepare_recordings,
+from identification.calibration.column_candidates import (
+    Candidates,
+    PreparedTraining,
+    candidates,
+    prepare_training,
 )
-from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints, torque_constants
+from identification.calibration.coulomb_smoothing import SmoothingChoice, smoothing_velocity
+from identification.calibration.drive_loss import efficiency
+from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
@@ -66,8 +62,6 @@ logger = logging.getLogger(__name__)
 
 FRICTION_CHOICES = ("auto", "coulomb-viscous", "stribeck", "lugre")
 SWITCH_CHOICES = ("auto", "on", "off")
-#: Contiguous blocks per training recording for the cross-validation (without validation recordings).
-N_BLOCKS = 5
 #: Parameters the Stribeck shape adds per joint: the static friction and the Stribeck velocity.
 STRIBECK_PARAMETERS = 2
 #: Standard deviations by which the static friction must exceed the Coulomb level for a Stribeck effect.
@@ -76,18 +70,27 @@ STRIBECK_Z = 2.0
 
 @dataclass(frozen=True)
 class ColumnRequest:
-    """What the user asked for: ``"auto"`` (the data decide, the default) or an explicit choice each."""
+    """What the user asked for: ``"auto"`` (the data decide, the default) or an explicit choice each.
+
+    ``coulomb_velocity`` [rad/s]: the Coulomb column's smoothing velocity ``v`` of ``tanh(qd / v)``; None (the default)
+    chooses it from the joints' reversals (``coulomb_smoothing``, at most ``TrajectoryOptions.coulomb_velocity``).
+    """
 
     friction: str = "auto"
     offset: str = "auto"
     drive_inertia: str = "auto"
     drive_loss: str = "auto"  # currents only (``drive_loss``); "on": every joint's, "off": none
+    coulomb_velocity: float | None = None
 
     def __post_init__(self):
         for name, allowed in (("friction", FRICTION_CHOICES), ("offset", SWITCH_CHOICES),
                               ("drive_inertia", SWITCH_CHOICES), ("drive_loss", SWITCH_CHOICES)):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ParameterError(f"ColumnRequest.{name} must be one of {allowed}; got {getattr(self, name)!r}.")
+        v = self.coulomb_velocity
+        if v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
+            raise ParameterError(f"ColumnRequest.coulomb_velocity must be None (chosen from the data) or > 0 [rad/s]; "
+                                 f"got {v!r}.")  # fmt: skip
 
 
 @dataclass(frozen=True)
@@ -133,6 +136,7 @@ class ColumnChoice:
     n_dof: int = 0  # joints of the robot (0: not stated; ``shapes`` then needs it)
     loss_joints: tuple = ()  # joints (0-based) with a drive loss (``drive_loss``; currents only)
     torque_source: str = ""  # "current" (kt i) or "torque" (measured joint torque); "" not stated
+    smoothing: SmoothingChoice | None = None  # the Coulomb column's smoothing velocity (None: the options' own)
 
     def shapes(self, n_dof: int) -> list:
         """The friction shape of each joint."""
@@ -153,6 +157,7 @@ class ColumnChoice:
             drive_inertia=self.request.drive_inertia != "off",
             inertia_joints=None if self.request.drive_inertia == "on" else tuple(self.inertia_joints),
             stribeck_joints=None if stribeck is None else tuple(stribeck),
+            coulomb_velocity=options.coulomb_velocity if self.smoothing is None else self.smoothing.velocity,
         )
 
     def describe(self) -> list:
@@ -181,7 +186,7 @@ class ColumnChoice:
         lines += self._loss_lines(joints)
         if self.check:
             lines.append(f"checked on {self.check}")
-        return lines
+        return lines + ([] if self.smoothing is None else [self.smoothing.sentence()])
 
     def _loss_lines(self, joints) -> list:
         """The drive-loss sentence: where and with what efficiency, or why there is none."""
@@ -216,154 +221,9 @@ class ColumnChoice:
                 "stribeck_joints": stribeck, "offset_joints": [j + 1 for j in self.offset_joints],
                 "inertia_joints": [j + 1 for j in self.inertia_joints], "request": asdict(self.request),
                 "drive_loss_joints": [j + 1 for j in self.loss_joints], "torque_source": self.torque_source,
-                "check": self.check, "evidence": [e.to_dict() for e in self.evidence]}  # fmt: skip
-
-
-@dataclass(frozen=True)
-class _Candidates:
-    """The full column set the choice works on, and the training and held-out normal equations."""
-
-    names: tuple
-    n_base: int
-    stribeck: bool
-    blocks: tuple
-    held: NormalEquations | None
-    weights: np.ndarray
-    effective: np.ndarray
-
-    def blocks_count(self, joint: int) -> int:
-        """Training samples of ``joint``."""
-        return int(sum(block.count[joint] for block in self.blocks))
-
-    def transform(self, stribeck, dropped=()) -> np.ndarray:
-        """Map from a sub-model's columns to the full ones: the joints of ``stribeck`` (0-based) keep the Stribeck
-        shape, on the others (Coulomb-viscous) ``fs`` joins ``fc``."""
-        full = [f"theta{k}" for k in range(self.n_base)] + list(self.names)
-        flat = {f"{j + 1}" for j in range(self.weights.size) if j not in stribeck} if self.stribeck else set()
-        kept = [n for n in full if n not in dropped and not (n.startswith("fs") and n[2:] in flat)]
-        out = np.zeros((len(full), len(kept)))
-        for k, name in enumerate(kept):
-            out[full.index(name), k] = 1.0
-            if name.startswith("fc") and name[2:] in flat:
-                out[full.index("fs" + name[2:]), k] = 1.0
-        return out
-
-    def evaluate(self, stribeck, dropped=()) -> tuple:
-        """(training RSS per joint, held-out RSS per joint, estimate in full columns, its std) of a sub-model whose
-        joints ``stribeck`` (0-based) have the Stribeck shape."""
-        transform = self.transform(stribeck, dropped)
-        (total, weighted), folds = self.summed(None), range(len(self.blocks))
-        x, std = _solve(weighted, transform)
-        held = None if self.held is None else self.held.residual_sum(x)
-        if held is None or np.any(self.held.count == 0):  # no held-out rows of a joint (its torque missing): CV
-            cv = sum(self.blocks[k].residual_sum(_solve(self.summed(k)[1], transform)[0]) for k in folds)
-            held = cv if held is None else np.where(self.held.count == 0, cv, held)
-        return total.residual_sum(x), held, x, std
-
-    def summed(self, skip) -> tuple:
-        """(every block's normal equations but ``skip``'s, summed; their weighted Gram matrix and moment): the same for
-        every candidate, so made once (the sums and products as each candidate would make them)."""
-        memory = self.__dict__.setdefault("_summed", {})
-        if skip not in memory:
-            memory[skip] = (equations := _sum(self.blocks, skip=skip)), equations.weighted(self.weights)[:2]
-        return memory[skip]
-
-
-def _sum(blocks, skip=None) -> NormalEquations:
-    first = blocks[0]
-    out = NormalEquations(first.n_dof, first.n_columns)
-    for k, block in enumerate(blocks):
-        if k != skip:
-            for name in ("gram", "moment", "energy", "count", "total"):
-                setattr(out, name, getattr(out, name) + getattr(block, name))
-    return out
-
-
-def _solve(weighted, transform) -> tuple:
-    """Weighted least squares of the sub-model ``transform`` from the weighted Gram matrix and moment ``weighted``, as
-    full-column estimate and standard deviations."""
-    gram, moment = transform.T @ weighted[0] @ transform, transform.T @ weighted[1]
-    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
-    inverse = np.linalg.pinv(gram / np.outer(scale, scale), rcond=1e-12, hermitian=True) / np.outer(scale, scale)
-    return transform @ (inverse @ moment), transform @ np.sqrt(np.clip(np.diag(inverse), 0.0, None))
-
-
-def _reversing_joints(prepared, speed: float) -> list:
-    """Joints that move faster than ``speed`` both ways on enough samples to tell an offset from Coulomb friction."""
-    qd = np.concatenate([r.qd for r in prepared])
-    share = np.minimum(np.mean(qd > speed, axis=0), np.mean(qd < -speed, axis=0))
-    return [j for j in range(qd.shape[1]) if share[j] >= MIN_REVERSAL_FRACTION]
-
-
-def _candidates(robot, model, recordings, options, request, validation, configurations) -> tuple:
-    """(_Candidates, offset candidates, inertia candidates) of the recordings (module docstring, steps 1-2); known
-    payloads are taken off, unknown ones get their flange-body columns (``payload_fit``), as in the fit."""
-    kt = torque_constants(robot, options, recordings)
-    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
-    prepared = subtract_known_payloads(robot, prepared, configurations)
-    bodies = FlangeBodies.of(configurations, len(prepared))
-    extras = bodies.extras(robot)
-    offsets = _reversing_joints(prepared, options.coulomb_velocity) if request.offset != "off" else []
-    inertia = separate_inertia_joints(model, robot) if request.drive_inertia != "off" else []
-    stribeck = request.friction in ("auto", "stribeck", "lugre")
-    losses, theta = _loss_candidates(robot, model, kt, request)
-    offset = ("offset",) if offsets or request.offset == "on" else ()
-    terms = (("fc", "fs", "fv") if stribeck else ("fc", "fv")) + offset
-    full = replace(options, friction=terms, offset_joints=None, inertia_joints=None)
-    regressors = base_regressors(model, prepared)  # evaluated once: the costly part
-    vs = fit_stribeck_velocity(model, prepared, full, inertia, extras, regressors=regressors) if stribeck else None
-    every = drive_column_names(robot.n_dof, terms, inertia)
-    # an offset of a joint that does not reverse is no candidate: its Coulomb column is a constant too
-    names = [n for n in every if not (n.startswith("offset") and request.offset == "auto" and int(n[6:]) - 1
-                                      not in offsets)]  # fmt: skip
-    keep = list(range(model.n_base)) + [model.n_base + every.index(n) for n in names]
-    keep += list(range(model.n_base + len(every), model.n_base + len(every) + bodies.n_columns))
-    names += [f"payload{k}" for k in range(bodies.n_columns)] + [f"loss{j + 1}" for j in losses]
-
-    def rows(recording, rigid, extra=None):
-        drive = drive_columns(recording.qd, recording.qdd, terms, inertia, options.coulomb_velocity, vs)
-        bodies_rows = np.zeros((*drive.shape[:2], bodies.n_columns))
-        if extra is not None:
-            bodies_rows = extra.columns(recording.q, recording.qd, recording.qdd)
-        loss = loss_columns(rigid, recording.qd, theta, losses, options.coulomb_velocity) if losses else None
-        plain = np.concatenate([rigid, drive, bodies_rows], axis=2)[:, :, keep]
-        return plain if loss is None else np.concatenate([plain, loss], axis=2)
-
-    blocks, training = [], []
-    for recording, chunks, extra in zip(prepared, regressors, extras):
-        columns = rows(recording, np.concatenate(chunks), extra)
-        training.append((columns, recording.tau))
-        edges = np.linspace(0, recording.n_samples, N_BLOCKS + 1).astype(int)
-        for a, b in zip(edges[:-1], edges[1:]):
-            blocks.append(NormalEquations(robot.n_dof, len(keep) + len(losses)))
-            blocks[-1].add(columns[a:b], recording.tau[a:b])
-    held = None
-    for recording in validation:
-        ready = prepare_recording(recording, kt, cutoffs[0], options.edge_periods)[0]
-        held = held or NormalEquations(robot.n_dof, len(keep) + len(losses))
-        held.add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
-    weights, effective = _weights(_sum(blocks), training)
-    return _Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective), offsets, inertia
-
-
-def _loss_candidates(robot, model, kt, request) -> tuple:
-    """(joints, reference base parameters) of the drive-loss candidates (module docstring, step 5): every joint when
-    currents are the torque source (``kt``) or ``request.drive_loss`` is ``"on"``, none for LuGre friction (its
-    exported code cannot hold a multiple of its own torque) or without the robot file's links."""
-    wanted = request.drive_loss == "on" or (request.drive_loss == "auto" and kt is not None)
-    theta = prior_theta(robot, model) if wanted and request.friction != "lugre" else None
-    return ([], None) if theta is None else (list(range(robot.n_dof)), theta)
-
-
-def _weights(total, training) -> tuple:
-    """Per joint, the weight ``1 / sigma^2`` of the full model's residual, and the effective sample count: the
-    sample count over the residual's correlation time (``residual_correlation.correlation_time``)."""
-    rms = np.sqrt(total.energy / np.maximum(total.count, 1))
-    x, _ = _solve(total.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2], np.eye(total.n_columns))
-    dof = np.maximum(total.count - total.n_columns / total.n_dof, 1.0)
-    sigma = np.sqrt(np.maximum(total.residual_sum(x), 1e-300) / dof)
-    tau = np.max([residual_correlation_time(tau - columns @ x) for columns, tau in training], axis=0)
-    return 1.0 / sigma**2, np.maximum(total.count / tau, 2.0)
+                "check": self.check, "evidence": [e.to_dict() for e in self.evidence],
+                "smoothing": None if self.smoothing is None else self.smoothing.sentence(),
+                "coulomb_velocity": None if self.smoothing is None else self.smoothing.velocity}  # fmt: skip
 
 
 @remembering()  # the recordings' regressors evaluated once (state_cache)
@@ -391,16 +251,15 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
     source = "current" if any(r.tau is None for r in recordings) else "torque"
+    training = None if request.coulomb_velocity else prepare_training(robot, list(recordings), options)  # once
+    smoothing = _smoothing(training, options, request)
+    options = replace(options, coulomb_velocity=smoothing.velocity)
     if "auto" not in (request.friction, request.offset, request.drive_inertia) and (
         request.drive_loss != "auto" or source == "torque"
-    ):  # nothing to choose
-        every = tuple(range(robot.n_dof)) if request.offset == "on" else ()
-        inertia = tuple(separate_inertia_joints(model, robot)) if request.drive_inertia == "on" else ()
-        losses = tuple(range(robot.n_dof)) if request.drive_loss == "on" and request.friction != "lugre" else ()
-        return ColumnChoice(request.friction, every, inertia, request, n_dof=robot.n_dof, loss_joints=losses,
-                            torque_source=source)  # fmt: skip
-    found, offsets, inertia = _candidates(robot, model, list(recordings), options, request, list(validation),
-                                          configurations)  # fmt: skip
+    ):  # nothing else to choose
+        return _as_asked(robot, model, request, source, smoothing)
+    training = training or prepare_training(robot, list(recordings), options)
+    found, offsets, inertia = candidates(robot, model, training, options, request, list(validation), configurations)
     check = (f"{len(validation)} validation recording(s)" if validation else
              f"a cross-validation over {len(found.blocks)} contiguous blocks of the training data")  # fmt: skip
     every = tuple(range(robot.n_dof))
@@ -424,10 +283,27 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
                              or (source == "current" and request.drive_inertia == "auto")),
         request=request, check=check, evidence=tuple(evidence),
         stribeck_joints=tuple(stribeck) if request.friction == "auto" and stribeck else None, n_dof=robot.n_dof,
-        loss_joints=_loss_joints(robot, model, request, kept), torque_source=source,
+        loss_joints=_loss_joints(robot, model, request, kept), torque_source=source, smoothing=smoothing,
     )  # fmt: skip
     logger.info("identify: %s", "; ".join(choice.describe()))
     return choice
+
+
+def _smoothing(training: PreparedTraining | None, options, request) -> SmoothingChoice:
+    """The Coulomb column's smoothing velocity: as asked (``request.coulomb_velocity``), else from the prepared
+    training recordings' reversals (``coulomb_smoothing``), at most ``options.coulomb_velocity``."""
+    if request.coulomb_velocity:
+        return SmoothingChoice.as_asked(float(request.coulomb_velocity))
+    return smoothing_velocity(training.prepared, min(training.cutoffs), options.coulomb_velocity)
+
+
+def _as_asked(robot, model, request, source, smoothing) -> ColumnChoice:
+    """The ``ColumnChoice`` of a request with nothing to choose (every column on or off, the shape given)."""
+    every = tuple(range(robot.n_dof)) if request.offset == "on" else ()
+    inertia = tuple(separate_inertia_joints(model, robot)) if request.drive_inertia == "on" else ()
+    losses = tuple(range(robot.n_dof)) if request.drive_loss == "on" and request.friction != "lugre" else ()
+    return ColumnChoice(request.friction, every, inertia, request, n_dof=robot.n_dof, loss_joints=losses,
+                        torque_source=source, smoothing=smoothing)  # fmt: skip
 
 
 def _loss_joints(robot, model, request, kept) -> tuple:
@@ -437,7 +313,7 @@ def _loss_joints(robot, model, request, kept) -> tuple:
     return tuple(j for j in range(robot.n_dof) if ("loss", j) in kept)
 
 
-def _shape_evidence(found: _Candidates) -> list:
+def _shape_evidence(found: Candidates) -> list:
     """Per joint, its Stribeck shape against the Coulomb-viscous one, every other joint Stribeck and every other
     candidate column in (one ``Evidence`` per joint, ``term`` ``"stribeck"``).
 

@@ -15,7 +15,9 @@ far from the sign (on the unseen KR6-like arm moved at a tenth of its speeds, a 
 ``|qd| < 0.01 rad/s``), and the fit bent its Stribeck and gravity parameters to make up for the missing
 friction (validation 2.5 N m on joint 2 against a floor of 0.45). :func:`smoothing_velocity` then takes
 ``v`` from the median over the joints of each joint's median acceleration at its reversals, never above
-0.05 rad/s nor below ``MIN_VELOCITY``, and says what it chose.
+0.05 rad/s nor below ``MIN_VELOCITY``, and says what it chose. The column choice (``column_choice.choose_columns``)
+makes this choice on the training recordings it prepares, before its own candidates; ``ColumnRequest.coulomb_velocity``
+gives a value instead.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MIN_VELOCITY", "SmoothingChoice", "reversal_accelerations", "smoothing_velocity", "with_smoothing"]
+__all__ = ["MIN_VELOCITY", "SmoothingChoice", "reversal_accelerations", "smoothing_velocity"]
 
 #: The smooth sign's velocity per unit of reversal acceleration and cutoff: ``v = SPREAD * a / cutoff``.
 SPREAD = 0.2
@@ -52,12 +54,20 @@ class SmoothingChoice:
         [rad/s^2] the median over the joints of each joint's median |qdd| at its velocity reversals (nan: none).
     cutoff_hz : float
         The preparation's cutoff the step is smeared by.
+    asked : bool
+        Given by the user (``ColumnRequest.coulomb_velocity``, ``--coulomb-velocity``), not chosen from the data.
     """
 
     velocity: float
     default: float
     acceleration: float
     cutoff_hz: float
+    asked: bool = False
+
+    @classmethod
+    def as_asked(cls, velocity: float) -> SmoothingChoice:
+        """The choice of a smoothing velocity the user gave."""
+        return cls(velocity, velocity, float("nan"), float("nan"), asked=True)
 
     @property
     def changed(self) -> bool:
@@ -65,6 +75,8 @@ class SmoothingChoice:
 
     def sentence(self) -> str:
         """What was chosen and why, for the report's drive-column lines."""
+        if self.asked:
+            return f"Coulomb smoothing: tanh(qd / {self.velocity:g} rad/s) (as asked)"
         if not self.changed:
             return f"Coulomb smoothing: tanh(qd / {self.default:g} rad/s) (the joints reverse fast enough)"
         return (
@@ -99,22 +111,6 @@ def smoothing_velocity(prepared, cutoff_hz: float, default: float) -> SmoothingC
     wanted = SPREAD * acceleration / cutoff_hz
     velocity = default if wanted >= KEEP * default else float(max(wanted, min(MIN_VELOCITY, default)))
     return SmoothingChoice(velocity, default, acceleration, float(cutoff_hz))
-
-
-def with_smoothing(robot, recordings, options) -> tuple:
-    """(``options`` with the Coulomb smoothing velocity the raw training ``recordings`` want, the
-    ``SmoothingChoice``): the recordings prepared as the fit prepares them (``trajectory_data.prepare_recordings``)
-    at ``options.cutoff_hz``; ``options.coulomb_velocity`` is the largest value."""
-    from dataclasses import replace
-
-    from identification.calibration.trajectory_data import prepare_recordings
-    from identification.calibration.trajectory_fit import torque_constants
-
-    kt = torque_constants(robot, options, recordings)
-    # prepared and refused as the fit's
-    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
-    choice = smoothing_velocity(prepared, min(cutoffs), options.coulomb_velocity)
-    return replace(options, coulomb_velocity=choice.velocity), choice
 
 
 def reversal_accelerations(t, qd, qdd) -> np.ndarray:

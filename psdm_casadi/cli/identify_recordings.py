@@ -10,6 +10,7 @@ writes one calibrated-model file (``identification.calibration.calibrated_model`
 
 from __future__ import annotations
 
+import contextlib
 import sys
 from pathlib import Path
 
@@ -31,6 +32,11 @@ from psdm_casadi.state_cache import remembering
 MASS_CHECK_CONFIGURATIONS = 2000
 FRICTION_SHAPES = ("auto", "coulomb-viscous", "stribeck", "lugre")  # column_choice.FRICTION_CHOICES
 SWITCHES = ("auto", "on", "off")  # column_choice.SWITCH_CHOICES
+COULOMB_VELOCITY_HELP = (
+    "the Coulomb friction column's smoothing velocity [rad/s], fc tanh(qd / V) (default: chosen from the joints' "
+    "reversals, at most 0.05: slow motions reverse at a fraction of an exciting trajectory's acceleration and want a "
+    "sharper sign; stated in the output and the model file)"
+)
 
 
 def add_arguments(p) -> None:
@@ -85,6 +91,7 @@ def add_arguments(p) -> None:
         help="keep the unconstrained weighted least-squares estimate (base parameters only), marked as not checked",
     )
     p.add_argument("--cutoff", type=float, default=None, help="low-pass cutoff [Hz] (default: min(10, rate/10))")
+    p.add_argument("--coulomb-velocity", type=float, default=None, metavar="V", help=COULOMB_VELOCITY_HELP)
     for option, bounded in (
         ("--mass-bounds", "each link's mass stays within LOW-HIGH x the robot file's"),
         ("--drive-inertia-bounds", "each drive inertia stays within LOW-HIGH x the robot file's where it gives one"),
@@ -112,10 +119,10 @@ def add_arguments(p) -> None:
 
 @remembering()  # the recordings' regressors evaluated once (state_cache)
 def run(args) -> int:
-    from identification.calibration.calibrated_model import CalibratedModel
-    from identification.calibration.counterbalance_column import take_counterbalance
+    from identification.calibration.column_choice import ColumnRequest
     from identification.calibration.envelope import check_ratio
-    from identification.calibration.trajectory_fit import identify_trajectories
+    from identification.calibration.identify_route import identify_recordings
+    from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.data.io import not_held_out
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import check_recordings_first, derive_model
@@ -136,43 +143,33 @@ def run(args) -> int:
         _check_reversals(recordings, paths)
     for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):
         check_ratio(flag, value)
+    if args.coulomb_velocity is not None and not (np.isfinite(args.coulomb_velocity) and args.coulomb_velocity > 0):
+        raise ParameterError(f"--coulomb-velocity must be a velocity > 0 [rad/s], e.g. 0.02; got "
+                             f"{args.coulomb_velocity:g}. Leave it out to choose it from the data.")  # fmt: skip
+    request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
+                            drive_loss=args.drive_loss, coulomb_velocity=args.coulomb_velocity)  # fmt: skip
     if args.model:
         model = load_model(args.model)
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
-    choice, options, smoothing = _columns(args, robot, model, recordings, validation, configurations)
-    loss = None
-    if args.friction == "lugre":
-        fit, lugre, start = _fit_lugre(robot, model, recordings, options, configurations)
-    elif choice.loss_joints:  # currents with a gear loss (identification.calibration.drive_loss)
-        from identification.calibration.drive_loss import identify_with_drive_loss
-
-        progress("identify: fitting the drive loss (gear efficiency by power-flow direction) ...", quiet=args.json)
-        fit, *loss = identify_with_drive_loss(robot, model, recordings, options, choice.loss_joints, configurations)
-        start, lugre = fit, None
-    else:
-        fit = start = identify_trajectories(robot, model, recordings, options, configurations=configurations)
-        lugre = None
-    saved = {"robot_source": args.robot, "lugre": lugre, "configurations": configurations}
-    problem = (robot, model, recordings, options, configurations)
-    skip = args.friction == "lugre" or bool(loss) or args.no_counterbalance
-    fit, calibrated, counter = take_counterbalance(problem, fit, validation, (saved, paths), skip)
+    options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
+                                envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
+                                drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
+    with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
+        result = identify_recordings(robot, model, recordings, options, request, validation, configurations,
+                                     counterbalance=not args.no_counterbalance, robot_source=args.robot,
+                                     paths=paths)  # fmt: skip
+    fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], args.validate)
-    warnings = list(dict.fromkeys((*(fit if counter.kept else start).warnings, *fit.warnings, *missing, *held_out)))
-    warnings = [_concrete_route(w, args, paths) for w in warnings]
+    warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys((*result.warnings, *missing, *held_out))]
     for warning in warnings:
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
-    if loss:
-        from identification.calibration.drive_loss import with_drive_loss
-
-        calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
-    report = _validation(robot, model, start, validation, args.validate, calibrated)
+    report = _validation(robot, model, result.start, validation, args.validate, calibrated)
     report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
-    calibrated.document["identification"]["column_choice"] = {**choice.to_dict(), "smoothing": smoothing.sentence()}
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "
@@ -186,7 +183,7 @@ def run(args) -> int:
         print(warning, file=sys.stderr)
     with out.staging() as stage:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
-    _print(args, robot, model, fit, report, calibrated, choice)
+    _print(args, robot, model, fit, report, calibrated, result)
     if html is not None:  # the held-out recordings' prediction, else the training recordings'
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
@@ -234,26 +231,6 @@ def _concrete_route(warning: str, args, paths) -> str:
     )
 
 
-def _columns(args, robot, model, recordings, validation, configurations):
-    """(ColumnChoice, TrajectoryOptions, SmoothingChoice): the drive columns --friction, --offset and --drive-inertia
-    ask for, the ``auto`` ones chosen from the data (``column_choice``), with the Coulomb column's smoothing velocity
-    the recordings' reversals want (``coulomb_smoothing``)."""
-    from identification.calibration.column_choice import ColumnRequest, choose_columns
-    from identification.calibration.coulomb_smoothing import with_smoothing
-    from identification.calibration.trajectory_fit import TrajectoryOptions
-
-    request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
-                            drive_loss=args.drive_loss)  # fmt: skip
-    options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
-                                envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
-                                drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
-    options, smoothing = with_smoothing(robot, recordings, options)
-    if "auto" in (request.friction, request.offset, request.drive_inertia):
-        progress("identify: choosing the friction shape, offsets and drive inertias from the data ...", quiet=args.json)
-    choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
-    return choice, choice.options(options), smoothing
-
-
 def _check_outputs(args):
     """--out must be a new .json file (or, with --overwrite, any file but an input); --plots has no folder here."""
     if args.plots:
@@ -298,32 +275,34 @@ def _check_reversals(recordings, paths) -> None:
                 ) from None
 
 
-def _fit_lugre(robot, model, recordings, options, configurations=None):
-    """(final fit, LuGre fit, Stribeck fit) of ``lugre_identify`` (the recordings' payload configurations shared-arm
-    fitted as on the linear route), its warnings printed."""
+@contextlib.contextmanager
+def _lugre_messages(args, robot):
+    """With ``--friction lugre``: the LuGre fit's warnings printed, and a joint's LuGre fit that fails reported in the
+    command line's words (``_lugre_failure``)."""
     import warnings
 
-    from identification.calibration.lugre_identify import identify_lugre_trajectories
     from identification.calibration.lugre_recordings import LuGreWarning
 
+    if args.friction != "lugre":
+        yield
+        return
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", LuGreWarning)
         try:
-            result = identify_lugre_trajectories(robot, model, recordings, options, configurations=configurations)
+            yield
         except SolverError as exc:
             if exc.joint is None:  # not one joint's LuGre fit (the linear fits): its own message
                 raise
-            raise SolverError(_lugre_failure(robot, options, exc), exc.status, exc.iterations, exc.joint) from None
+            raise SolverError(_lugre_failure(robot, args.cutoff, exc), exc.status, exc.iterations, exc.joint) from None
     for warning in caught:
         print(f"psdm identify: warning: {warning.message}", file=sys.stderr)
-    return result.fit, result.lugre, result.stribeck
 
 
-def _lugre_failure(robot, options, exc) -> str:
+def _lugre_failure(robot, cutoff_hz, exc) -> str:
     """The LuGre fit's failure in the command line's words: the joint, Ipopt's status, the options that help."""
     joint = f"joint {exc.joint + 1} ({robot.joint_names[exc.joint]})"
-    cutoff = "the default cutoff" if options.cutoff_hz is None else f"--cutoff {options.cutoff_hz:g}"
-    higher = 40 if options.cutoff_hz is None else max(40, 2 * options.cutoff_hz)
+    cutoff = "the default cutoff" if cutoff_hz is None else f"--cutoff {cutoff_hz:g}"
+    higher = 40 if cutoff_hz is None else max(40, 2 * cutoff_hz)
     return (
         f"--friction lugre: the LuGre friction fit of {joint} did not converge (Ipopt status {exc.status} after "
         f"{exc.iterations} iterations); nothing was written. The low-pass filter at {cutoff} may smear the "
@@ -441,7 +420,7 @@ def _print_envelope(fit) -> None:
         print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {finding.message}")
 
 
-def _print(args, robot, model, fit, report, calibrated, choice) -> None:
+def _print(args, robot, model, fit, report, calibrated, result) -> None:
     from identification.calibration.drive_loss import drive_loss_summary
 
     if args.json:
@@ -470,8 +449,9 @@ def _print(args, robot, model, fit, report, calibrated, choice) -> None:
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
     _print_envelope(fit)
-    smoothing = calibrated.document["identification"]["column_choice"]["smoothing"]
-    print("drive columns: " + "; ".join([*choice.describe(), smoothing]))
+    print("drive columns: " + "; ".join(result.choice.describe()))
+    if result.counterbalance.reason:
+        print(f"counterbalance: {result.counterbalance.reason}")
     for entry in drive_loss_summary(calibrated.document):
         print(
             f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "

@@ -12,7 +12,6 @@ from identification.calibration.coulomb_smoothing import (
     MIN_VELOCITY,
     SmoothingChoice,
     smoothing_velocity,
-    with_smoothing,
 )
 from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions
@@ -56,9 +55,13 @@ def test_a_still_recording_keeps_the_default_and_the_floor_holds():
     assert smoothing_velocity([creeping], cutoff, 0.05).velocity == MIN_VELOCITY
 
 
-def test_with_smoothing_prepares_as_the_fit_and_keeps_the_other_options(denso):
-    """On the virtual Denso's exciting trajectory the joints reverse fast: 0.05 rad/s and every option kept;
-    a recording of another robot is refused as the fit refuses it."""
+def test_the_column_choice_takes_the_smoothing_from_the_recordings_it_prepares_once(denso, denso_model, monkeypatch):
+    """On the virtual Denso's exciting trajectory the joints reverse fast: 0.05 rad/s and every other option kept; ten
+    times slower, a sharper sign, stated. ``choose_columns`` prepares the training recordings once for the smoothing
+    and its candidates (it filtered them twice before), not at all for a smoothing given, and refuses a recording of
+    another robot as the fit refuses it."""
+    from identification.calibration import column_candidates
+    from identification.calibration.column_choice import ColumnRequest, choose_columns
     from identification.virtual.simulation import SimulationOptions, simulate_recording
     from psdm_casadi.errors import ShapeError
     from trajopt.experiments import sine_experiment
@@ -68,13 +71,37 @@ def test_with_smoothing_prepares_as_the_fit_and_keeps_the_other_options(denso):
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1)
     recording, _ = simulate_recording(denso, reference, options, rng)
     given = TrajectoryOptions(cutoff_hz=8.0, mass_ratio=(0.8, 1.25))
-    chosen, choice = with_smoothing(denso, [recording], given)
-    assert chosen == given and not choice.changed and choice.cutoff_hz == 8.0
+    asked = ColumnRequest(friction="coulomb-viscous", offset="off", drive_inertia="on")  # the smoothing alone
+    choice = choose_columns(denso, denso_model, [recording], given, asked)
+    assert not choice.smoothing.changed and choice.smoothing.cutoff_hz == 8.0
+    assert choice.options(given).coulomb_velocity == 0.05 and choice.options(given).mass_ratio == (0.8, 1.25)
     slow, _ = simulate_recording(denso, (10.0 * reference[0], reference[1]), SimulationOptions(rate=250.0), rng)
-    chosen, choice = with_smoothing(denso, [slow], given)
-    assert choice.changed and chosen.coulomb_velocity == choice.velocity < 0.01 and chosen.mass_ratio == (0.8, 1.25)
+    calls = []
+    counted = column_candidates.prepare_recordings
+
+    def counting(*args, **kwargs):
+        calls.append(len(args[1]))
+        return counted(*args, **kwargs)
+
+    monkeypatch.setattr(column_candidates, "prepare_recordings", counting)
+    choice = choose_columns(denso, denso_model, [slow], given, ColumnRequest(drive_inertia="on"))  # the data choose
+    chosen = choice.options(given)
+    assert choice.smoothing.changed and chosen.coulomb_velocity == choice.smoothing.velocity < 0.01
+    assert calls == [1] and chosen.mass_ratio == (0.8, 1.25)
+    assert choice.smoothing.sentence() in choice.describe() and "not 0.05" in choice.to_dict()["smoothing"]
+    fixed = choose_columns(
+        denso,
+        denso_model,
+        [slow],
+        given,
+        ColumnRequest(
+            friction="coulomb-viscous", offset="off", drive_inertia="on", drive_loss="off", coulomb_velocity=0.02
+        ),
+    )
+    assert calls == [1] and fixed.options(given).coulomb_velocity == 0.02 and "(as asked)" in fixed.describe()[-1]
     with pytest.raises(ShapeError):
-        with_smoothing(denso, [Recording(t=recording.t, q=recording.q[:, :3], tau=recording.tau[:, :3])], given)
+        choose_columns(denso, denso_model, [Recording(t=recording.t, q=recording.q[:, :3], tau=recording.tau[:, :3])],
+                       given, asked)  # fmt: skip
 
 
 @pytest.mark.slow
@@ -107,8 +134,12 @@ def test_a_slow_recording_fits_as_well_as_the_truth_with_the_chosen_smoothing(de
     truth += steady_state_friction(ready.qd, LuGreArrays.from_drives(denso.drives))
     floor = rmse(ready.tau, truth)
     default = TrajectoryOptions()
-    chosen, choice = with_smoothing(denso, [train], default)
-    assert choice.changed
+    from identification.calibration.column_choice import ColumnRequest, choose_columns
+
+    request = ColumnRequest(friction="coulomb-viscous", offset="off", drive_inertia="on", drive_loss="off")
+    choice = choose_columns(denso, denso_model, [train], default, request)
+    chosen = choice.options(default)
+    assert choice.smoothing.changed
     error = {}
     for options in (default, chosen):
         fit = identify_trajectories(denso, denso_model, [train], options)

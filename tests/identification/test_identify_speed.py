@@ -10,7 +10,7 @@ identification (column choice, fit, validation) on a virtual Denso of known fric
 import numpy as np
 import pytest
 
-from identification.calibration import column_choice, stribeck
+from identification.calibration import column_candidates, stribeck
 from identification.calibration.column_choice import choose_columns
 from identification.calibration.trajectory_data import CHUNK_SAMPLES, NormalEquations, drive_columns, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
@@ -36,14 +36,14 @@ def plain_accumulate(regressors, prepared, terms, inertia_joints, coulomb_veloci
 
 
 def plain_evaluate(self, stribeck, dropped=()):
-    """``column_choice._Candidates.evaluate`` summing the blocks and weighting them anew for every candidate."""
+    """``column_candidates.Candidates.evaluate`` summing the blocks and weighting them anew for every candidate."""
     transform = self.transform(stribeck, dropped)
-    total = column_choice._sum(self.blocks)
-    x, std = column_choice._solve(total.weighted(self.weights)[:2], transform)
+    total = column_candidates.sum_blocks(self.blocks)
+    x, std = column_candidates.solve_columns(total.weighted(self.weights)[:2], transform)
     held = None if self.held is None else self.held.residual_sum(x)
     if held is None or np.any(self.held.count == 0):
-        folds = [column_choice._sum(self.blocks, skip=k) for k in range(len(self.blocks))]
-        fits = [column_choice._solve(fold.weighted(self.weights)[:2], transform)[0] for fold in folds]
+        folds = [column_candidates.sum_blocks(self.blocks, skip=k) for k in range(len(self.blocks))]
+        fits = [column_candidates.solve_columns(fold.weighted(self.weights)[:2], transform)[0] for fold in folds]
         cv = sum(block.residual_sum(fit) for block, fit in zip(self.blocks, fits))
         held = cv if held is None else np.where(self.held.count == 0, cv, held)
     return total.residual_sum(x), held, x, std
@@ -85,7 +85,7 @@ def test_defaults_choose_and_fit_as_the_straightforward_computation(denso, denso
     train, validation = denso_recordings
     choice, fit, error = identify(denso, denso_model, train, validation)
     monkeypatch.setattr(stribeck, "stribeck_equations", plain_accumulate)
-    monkeypatch.setattr(column_choice._Candidates, "evaluate", plain_evaluate)
+    monkeypatch.setattr(column_candidates.Candidates, "evaluate", plain_evaluate)
     choice_ref, fit_ref, error_ref = identify(denso, denso_model, train, validation)
     assert choice.stribeck_joints == choice_ref.stribeck_joints == (0, 2, 4)  # the truth's shapes
     assert choice.offset_joints == choice_ref.offset_joints and choice.inertia_joints == choice_ref.inertia_joints

@@ -163,7 +163,9 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     out = tmp_path / "auto.json"
     assert main([*argv, "--out", str(out)]) == 0
     columns = json.loads(out.read_text())["identification"]["column_choice"]
-    assert columns["request"] == {"friction": "auto", "offset": "auto", "drive_inertia": "auto", "drive_loss": "auto"}
+    assert columns["request"] == {"friction": "auto", "offset": "auto", "drive_inertia": "auto", "drive_loss": "auto",
+                                  "coulomb_velocity": None}  # fmt: skip
+    assert columns["coulomb_velocity"] == 0.05 and "Coulomb smoothing: tanh(qd / 0.05 rad/s)" in columns["smoothing"]
     assert columns["friction"] in ("coulomb-viscous", "stribeck") and "cross-validation" in columns["check"]
     assert {e["term"] for e in columns["evidence"]} >= {"stribeck", "offset"}
     assert "drive columns: friction shape: " in capsys.readouterr().out
@@ -178,14 +180,19 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     assert "column_choice" not in load_calibrated_model(tmp_path / "old.json").document["identification"]
     # the options override the choice: plain --offset is every joint's offset, --no-drive-inertia none
     out = tmp_path / "asked.json"
-    asked = ["--offset", "--friction", "coulomb-viscous", "--no-drive-inertia", "--out", str(out), "--json"]
-    assert main([*argv, *asked]) == 0
+    asked = ["--offset", "--friction", "coulomb-viscous", "--no-drive-inertia", "--coulomb-velocity", "0.02"]
+    assert main([*argv, *asked, "--out", str(out), "--json"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["columns"]["request"] == {
         "friction": "coulomb-viscous",
         "offset": "on",
         "drive_inertia": "off",
         "drive_loss": "auto",
+        "coulomb_velocity": 0.02,
     }
+    assert summary["columns"]["smoothing"] == "Coulomb smoothing: tanh(qd / 0.02 rad/s) (as asked)"
+    assert load_calibrated_model(out).document["drive"]["coulomb_velocity"] == 0.02
+    assert main([*argv, "--coulomb-velocity", "-0.1", "--out", str(tmp_path / "no.json")]) == 2
+    assert "--coulomb-velocity must be a velocity > 0" in capsys.readouterr().err
     assert summary["columns"]["evidence"] == [] and {f"offset{j}" for j in range(1, 7)} <= set(summary["drive"])
     assert not any(name.startswith("fs") for name in summary["drive"])

@@ -1,0 +1,147 @@
+"""``psdm identify``'s route as one library call: the data's choices, the fit, the counterbalance, the model file.
+
+raw training recordings (and held-out ones, if any) -> ``column_choice.choose_columns`` (the recordings prepared once:
+the Coulomb column's smoothing velocity from the joints' reversals, ``coulomb_smoothing``; the friction shape, torque
+offsets, drive inertias and drive losses per joint) -> the fit (``trajectory_fit.identify_trajectories``; with a drive
+loss ``drive_loss.identify_with_drive_loss``; with LuGre friction ``lugre_identify``) -> the counterbalance the
+envelope report names, tried and kept only where it holds out of sample (``counterbalance_column``) -> one
+``CalibratedModel``.
+
+Python users, the benchmarks and the command line get the same model from the same data: defaults are decided from the
+data here, not in the command line. Its options are overrides (``ColumnRequest``, ``counterbalance=False``), and
+``IdentifyResult.describe`` states every choice with its reason.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
+from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
+from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
+from psdm_casadi.state_cache import remembering
+
+__all__ = ["IdentifyResult", "identify_recordings"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False)
+class IdentifyResult:
+    """What :func:`identify_recordings` decided and found.
+
+    Attributes
+    ----------
+    fit : TrajectoryFit
+        The fit written (with a kept counterbalance: without its spring coefficients, which are findings of
+        ``calibrated``; with LuGre friction: the Stribeck fit the LuGre block replaces).
+    start : TrajectoryFit
+        The fit before the counterbalance was tried (with LuGre friction, the Stribeck fit).
+    calibrated : CalibratedModel
+        The model file's document: ``identification.column_choice`` and ``identification.counterbalance`` say what
+        was chosen and why.
+    choice : ColumnChoice
+        The drive columns and the Coulomb smoothing (``choice.smoothing``).
+    options : TrajectoryOptions
+        The options the fit used (the choice applied).
+    counterbalance : CounterbalanceChoice
+        What was decided about the counterbalance the envelope report named (empty: none named or not tried).
+    lugre : object or None
+        The LuGre fit (``lugre_recordings.LuGreFit``) with ``ColumnRequest(friction="lugre")``.
+    """
+
+    fit: TrajectoryFit
+    start: TrajectoryFit
+    calibrated: CalibratedModel
+    choice: ColumnChoice
+    options: TrajectoryOptions
+    counterbalance: CounterbalanceChoice = field(default_factory=CounterbalanceChoice)
+    lugre: object = None
+
+    def describe(self) -> list:
+        """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance."""
+        lines = list(self.choice.describe())
+        if self.counterbalance.reason:
+            lines.append(f"counterbalance: {self.counterbalance.reason}")
+        return lines
+
+    @property
+    def warnings(self) -> tuple:
+        """The warnings of the fit written, each once (and of the Stribeck fit a LuGre fit started from); a kept
+        counterbalance's fit does not repeat what the fit without it warned about (the link it pushed)."""
+        first = self.fit if self.counterbalance.kept else self.start
+        return tuple(dict.fromkeys((*first.warnings, *self.fit.warnings)))
+
+
+@remembering()  # the recordings' regressors evaluated once (state_cache)
+def identify_recordings(
+    robot,
+    model,
+    recordings,
+    options: TrajectoryOptions | None = None,
+    request: ColumnRequest | None = None,
+    validation=(),
+    configurations=None,
+    *,
+    counterbalance: bool = True,
+    robot_source: str | None = None,
+    paths=None,
+) -> IdentifyResult:
+    """Identify a calibrated model from exciting recordings as ``psdm identify`` does (module docstring).
+
+    Parameters
+    ----------
+    robot, model : RobotDescription, PSDMModel
+    recordings : sequence of Recording
+        The raw training recordings.
+    options : TrajectoryOptions, optional
+        Cutoff, consistency, envelope bounds; its drive columns are replaced by the choice, and its
+        ``coulomb_velocity`` is the largest smoothing velocity the choice may take.
+    request : ColumnRequest, optional
+        ``"auto"`` (the data decide) for every column and the smoothing by default; explicit values are kept.
+    validation : sequence of Recording
+        Held-out raw recordings: they check the column choice and judge the counterbalance (without them, block
+        cross-validations of the training recordings do).
+    configurations : sequence of data.configuration.PayloadConfiguration, optional
+        The load each training recording carries.
+    counterbalance : bool
+        Try the counterbalance the envelope report names (default); False only names it.
+    robot_source : str, optional
+        The robot file or built-in name the model file records (default ``robot.source``).
+    paths : sequence of path, optional
+        The training recordings' files, for the model file's provenance (their SHA-256).
+    """
+    options = TrajectoryOptions() if options is None else options
+    request = ColumnRequest() if request is None else request
+    recordings, validation = list(recordings), list(validation)
+    logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")
+    choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
+    chosen = choice.options(options)
+    loss, lugre = None, None
+    if request.friction == "lugre":
+        from identification.calibration.lugre_identify import identify_lugre_trajectories
+
+        found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
+        fit, lugre, start = found.fit, found.lugre, found.stribeck
+    elif choice.loss_joints:  # currents with a gear loss (``drive_loss``)
+        from identification.calibration.drive_loss import identify_with_drive_loss
+
+        logger.info("identify: fitting the drive loss (gear efficiency by power-flow direction) ...")
+        fit, *loss = identify_with_drive_loss(robot, model, recordings, chosen, choice.loss_joints, configurations)
+        start = fit
+    else:
+        fit = start = identify_trajectories(robot, model, recordings, chosen, configurations=configurations)
+    source = robot.source if robot_source is None else robot_source
+    saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
+             list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
+    skip = lugre is not None or bool(loss) or not counterbalance  # routes that take no extra columns
+    final, calibrated, taken = take_counterbalance((robot, model, recordings, chosen, configurations), fit,
+                                                   validation, saved, skip)  # fmt: skip
+    if loss:
+        from identification.calibration.drive_loss import with_drive_loss
+
+        calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
+    calibrated.document["identification"]["column_choice"] = choice.to_dict()
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre)
