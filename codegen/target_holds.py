@@ -108,10 +108,12 @@ def drive_inertias(calibrated, robot) -> np.ndarray:
     """Drive inertias [kg m^2 or kg] per joint the model predicts with: ``Ia`` where it has one, else 0.
 
     A joint has a drive inertia in the model when the robot file says so (``drive_inertia``, inside
-    the base parameters) or when it was identified as a column of its own (``Ia<j>`` of the drive).
+    the base parameters), when it was identified as a column of its own (``Ia<j>`` of the drive), or when the fit
+    held one inside the base parameters (``merged_rotors``: a non-zero drive inertia of the standard block).
     """
     separate = {j - 1 for j in calibrated.document["drive"]["inertia_joints"]}
-    has = np.array([bool(flag) or j in separate for j, flag in enumerate(robot.drive_inertia)])
+    held = np.nan_to_num(calibrated.standard[:, N_LINK]) != 0.0
+    has = np.array([bool(flag) or j in separate or held[j] for j, flag in enumerate(robot.drive_inertia)])
     return np.where(has, calibrated.standard[:, N_LINK], 0.0)
 
 

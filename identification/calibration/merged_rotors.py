@@ -10,18 +10,23 @@ are pushed up their envelopes (a virtual UR5 on motor currents, rotors 0.4 kg m^
 that reproduces ``Ia_j qdd_j`` exactly, so the consistent fit holds each such drive inertia within
 ``drive_inertia_ratio`` of the robot file's and pulled towards it, and the links keep their own share.
 
-Only motor currents hold the rotors' inertia (a torque measured behind the gearbox does not). A robot file rarely
-states rotor inertias (a URDF has none): for a merged joint without one, :func:`sibling_rotors` takes the drive
-inertias the same fit identifies as columns of their own (``Ia<j>``) on the joints with the same torque constant (the
-same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to, each fitted with
-the robot file's rigid body held (:func:`file_drive_columns`: the unconstrained fit trades a drive inertia against the
-links, and on the Kinova's currents gave joint 4's as 0.02 kg m^2 for the consistent fit's 0.42). Without a stated
-value or such a sibling, the joint keeps the map as derived and its link takes the rotor's torque; the envelope report
-then says that on currents a pushed link may hold the rotors' inertia (``envelope_report``). On the Kinova's
-currents the links 2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint
-2's rotor: its axis is normal to joint 1's); held to joints 3-4's the fit keeps them off the links, and the
-joint-torque sensors give 0.52 and 0.48 kg m^2 for the difference between current and sensor torque
-(``benchmarks/kinova_gen3.py``, ``sensor_check``).
+Only a torque measured on the motor side of the gearbox holds the rotors' inertia: motor currents, or torques that
+the separate drive-inertia columns (``Ia<j>``, which ``column_choice`` keeps only where the data want them positive)
+show to hold it, such as the Staubli TX40's currents times its gear ratios. A joint-torque sensor behind the gearbox
+does not (the Panda's: its separate columns come out negative and are dropped), and the map stays as derived. A robot
+file rarely states rotor inertias (a URDF has none): for a merged joint without one, :func:`sibling_rotors` takes the
+drive inertias the same fit identifies as columns of their own (``Ia<j>``) on the joints with the same torque constant
+(the same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to, each fitted
+with the robot file's rigid body held (:func:`file_drive_columns`: the unconstrained fit trades a drive inertia against
+the links, and on the Kinova's currents gave joint 4's as 0.02 kg m^2 for the consistent fit's 0.42). Without a stated
+value or such a sibling, :func:`data_rotors` takes what the training data give the drive inertia beside the robot
+file's links (the base parameter holding it, less the file's link), held >= 0 only. On the Kinova's currents the links
+2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint 2's rotor: its axis
+is normal to joint 1's); held to joints 3-4's the fit keeps them off the links, and the joint-torque sensors give 0.52
+and 0.48 kg m^2 for the difference between current and sensor torque (``benchmarks/kinova_gen3.py``,
+``sensor_check``). On the TX40's motor-side torques links 1-3 sat at twice their masses on their envelopes
+(``benchmarks/real_identification.py``); with the rotors of joints 1 and 2 from the data (0.60 and 0.49 kg m^2) they
+keep 11.3, 4.0 and 3.7 kg (file: 10.5, 3.6, 4.1) and no link is pushed.
 """
 
 from __future__ import annotations
@@ -83,9 +88,11 @@ class MergedRotors:
         """The ``envelope_bounds`` entry naming the references taken from siblings (empty when none)."""
         if not self.from_siblings:
             return ()
-        return (("drive_inertia_reference", [{"joint": j + 1, "kg_m2": value, "from_joints": [s + 1 for s in sib],
-                                              "bounds": [low, high]}
-                                             for j, value, sib, low, high in self.from_siblings]),)  # fmt: skip
+        entries = [{"joint": j + 1, "kg_m2": value, "from_joints": [s + 1 for s in sib],
+                    "from": "same actuator" if sib else "training data",
+                    "bounds": [low, high if np.isfinite(high) else None]}
+                   for j, value, sib, low, high in self.from_siblings]  # fmt: skip
+        return (("drive_inertia_reference", entries),)
 
 
 def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
@@ -139,22 +146,59 @@ def file_drive_columns(robot, model, equations, names) -> dict:
     return dict(zip(names, values.tolist()))
 
 
+def data_rotors(robot, model, equations, names, joints) -> dict:
+    """{joint: drive inertia [kg m^2]} of the merged drive inertias of ``joints`` (0-based) the training data want
+    positive with the robot file's rigid body held: the least squares of those drive inertias and the drive columns
+    ``names`` on what the file's links leave of the torque (a base parameter holding a rotor, such as the first joint's
+    ZZ, takes the file's link and the rest is the rotor's). Joints whose value comes out <= 0 are left out."""
+    merged = merged_rotor_map(model, robot, joints)
+    if not merged:
+        return {}
+    theta = robot_file_theta(robot, model)
+    size = theta.size + len(names)
+    gram, moment, _ = equations.weighted(np.ones(robot.n_dof))
+    gram, moment = gram[:size, :size], moment[:size]
+    transform = np.zeros((size, len(merged) + len(names)))
+    transform[: theta.size, : len(merged)] = np.column_stack(list(merged.values()))
+    transform[theta.size :, len(merged) :] = np.eye(len(names))
+    start = np.concatenate([theta, np.zeros(len(names))])
+    values = np.linalg.lstsq(transform.T @ gram @ transform, transform.T @ (moment - gram @ start), rcond=None)[0]
+    return {j: float(v) for j, v in zip(merged, values[: len(merged)]) if v > 0}
+
+
+def _holds_rotors(kt, names) -> bool:
+    """Whether the torque signal holds the rotors' inertia: motor currents (``kt``), or a fit with drive-inertia
+    columns of their own (``Ia<j>``: ``column_choice`` keeps only those the data want positive, as motor-side torques
+    give them; a link-side sensor's are dropped)."""
+    return kt is not None or any(name.startswith("Ia") and name[2:].isdigit() for name in names)
+
+
 def with_merged_rotors(model, robot, options, kt=None, columns=None) -> MergedRotors:
-    """The drive inertias of the base parameters in ``model``'s map, each held to the robot file's rotor inertia or
-    its siblings' (``kt``, the torque constants of recordings of currents, and ``columns``, the normal equations and
-    the drive columns' names of the fit: :func:`sibling_rotors` of :func:`file_drive_columns`); ``model`` and
-    ``robot`` unchanged when there are none: no drive inertia asked for (``options.drive_inertia``; ``options`` None
-    asks for it), torques measured behind the gearbox (``kt`` None), or no reference."""
+    """The drive inertias of the base parameters in ``model``'s map, each held to a reference: the robot file's rotor
+    inertia, else (currents) its siblings' (:func:`sibling_rotors` of :func:`file_drive_columns`), else what the
+    training data want with the file's links held (:func:`data_rotors`; bounded below by 0 only). ``kt``: the torque
+    constants of recordings of currents; ``columns``: the normal equations and the drive columns' names of the fit.
+    ``model`` and ``robot`` unchanged when there are none: no drive inertia asked for (``options.drive_inertia``;
+    ``options`` None asks for it), a signal that holds no rotor inertia (:func:`_holds_rotors`), or no reference."""
     unchanged = MergedRotors(model, robot)
-    if not ((options is None or options.drive_inertia) and kt is not None):
+    names = () if columns is None else tuple(columns[1])
+    if not ((options is None or options.drive_inertia) and _holds_rotors(kt, names)):
         return unchanged
     drive = {} if columns is None or robot.links is None else file_drive_columns(robot, model, *columns)
-    siblings = sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive)
+    siblings = () if kt is None else sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive)
     rotor = np.array(robot.rotor_inertia, dtype=float)
     for j, value, *_ in siblings:
         rotor[j] = value
-    columns = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
-    joints = [j for j in range(robot.n_dof) if rotor[j] > 0 and not np.any(columns[:, j])]
+    mapped = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
+    unstated = [
+        j for j in range(robot.n_dof) if rotor[j] <= 0 and not np.any(mapped[:, j]) and f"Ia{j + 1}" not in names
+    ]
+    wanted = (
+        {} if columns is None or robot.links is None or not unstated else data_rotors(robot, model, *columns, unstated)
+    )
+    for j, value in wanted.items():
+        rotor[j] = value
+    joints = [j for j in range(robot.n_dof) if rotor[j] > 0 and not np.any(mapped[:, j])]
     merged = merged_rotor_map(model, robot, joints) if joints else {}
     if not merged:
         return unchanged
@@ -162,12 +206,17 @@ def with_merged_rotors(model, robot, options, kt=None, columns=None) -> MergedRo
         logger.info("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; held near %.3g kg m^2, the drive inertias of joints %s (the same torque constant)", j + 1,
                     value, ", ".join(str(s + 1) for s in sib))  # fmt: skip
+    for j, value in wanted.items():
+        logger.info("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
+                    "none; the training data give it %.3g kg m^2 beside the file's links: the consistent fit holds it "
+                    ">= 0 there rather than in link %d", j + 1, value, j + 1)  # fmt: skip
     parameter_map = np.array(model.parameter_map, dtype=float)
     for j, coefficients in merged.items():
         parameter_map[:, j * (LINK_PARAMETER_COUNT + 1) + LINK_PARAMETER_COUNT] = coefficients
     logger.info("identify: drive inertias of joints %s inside the base parameters, held near their reference "
                 "in the consistent fit", ", ".join(str(j + 1) for j in sorted(merged)))  # fmt: skip
     kept = tuple(entry for entry in siblings if entry[0] in merged)
+    kept += tuple((j, value, (), 0.0, float("inf")) for j, value in wanted.items() if j in merged)
     robot = replace(robot, rotor_inertia=np.where([j in merged for j in range(robot.n_dof)], rotor,
                                                   robot.rotor_inertia))  # fmt: skip
     return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept)
