@@ -17,7 +17,12 @@ absent is skipped), the first 70 % trains and the last 30 % validates (loaders a
   (b) the unconstrained weighted least-squares estimate on the same columns, (c) the robot file's
   URDF/CAD inertias by Pinocchio's rnea (no friction) and (d) for the Panda, the published
   identified model of Gaz et al. (RA-L 2019), ``tau = M(q) ddq + C(q, dq) dq + g(q) + tau_f(dq)``
-  on the same prepared samples;
+  on the same prepared samples, and (e) the physically consistent fit on the defaults' columns without the envelope
+  (``rmse_consistent``): what the envelope costs;
+- where the validation part ends in a standstill (the TX40's last 15 % of the recording, half its validation part: every
+  joint within ``REST_RAD`` of its final pose), the RMSE on the moving samples before it as well (``rmse_moving``): at
+  rest a joint holds whatever static friction it stopped with (TX40 joint 2: up to fc ~ 8 N m), one constant per joint
+  that no model of friction as a function of velocity predicts;
 - check consistency: the smallest mass-matrix eigenvalue of our model on random configurations
   within the joint limits and the smallest pseudo-inertia eigenvalue.
 
@@ -29,7 +34,11 @@ and loaded with ctypes. The first build takes minutes (CoriolisMatrix.cpp is 2.5
 Then, unless ``--no-loop``, the loop a new user runs with default options, ``psdm identify`` -> ``psdm diagnose
 model.json --apply`` (``never_worse_loop``), judged by ``psdm validate`` before and after.
 
-Targets: consistent (both eigenvalues > 0); our validation RMSE within 10 % of OLS on every joint;
+Targets: consistent (both eigenvalues > 0); our validation RMSE within 10 % of the consistent fit without the
+envelope on every joint (``rmse_vs_consistent``: the envelope's cost. Not the OLS: on the Panda's joint 4 the OLS is
+0.194 N m against 0.219 for every consistent fit, with or without the envelope, and a consistent fit that may take a
+negative drive inertia on joint 4 gives 0.193 with Ia4 = -0.09 kg m^2: the OLS's gain is a negative inertia about the
+joint, which no rigid body or drive has; the OLS is shown);
 on the Panda, defaults below the published model on every joint (``defaults_beat_published_every_joint``);
 defaults not worse than the hand-picked options beyond 2 % on any joint; derive + identify under 60 s
 per robot; ``loop_never_worse``: at the end of the loop no joint's validation RMSE above its value after
@@ -59,6 +68,7 @@ import sys
 import sysconfig
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -75,7 +85,7 @@ from kinova_gen3 import KINOVA, evaluate_kinova, kinova_missed, print_kinova
 from mjcf_round_trip import MJCF_TARGET, mjcf_max_rel_error
 from never_worse_loop import ROBOTS as LOOP_ROBOTS
 from never_worse_loop import print_loops, run_loops
-from real_data_diagnosis import PANDA, TX40, load_panda_real, load_tx40, split
+from real_data_diagnosis import PANDA, REST_RAD, TX40, load_panda_real, load_tx40, split
 from tx40_motor_side import compare_routes
 
 from identification.calibration.identify_route import identify_recordings
@@ -102,12 +112,13 @@ OPTIONS = {
     "tx40": TrajectoryOptions(friction=("fc", "fv", "offset")),
     "panda": TrajectoryOptions(friction=("fc", "fv", "offset"), drive_inertia=False),
 }
-OLS_TOLERANCE = 1.10  # ours may be at most 10 % above OLS on a joint
+CONSISTENT_TOLERANCE = 1.10  # ours may be at most 10 % above the consistent fit without the envelope on a joint
 OPTIONS_MARGIN = 1.02  # the defaults may be at most 2 % above the hand-picked options on a joint
 MAX_SECONDS = 60.0
 TARGETS = {
     "consistent": "min mass-matrix eigenvalue > 0 and min pseudo-inertia eigenvalue > 0",
-    "rmse_vs_ols": f"validation RMSE of ours <= {OLS_TOLERANCE:g} x OLS on every joint",
+    "rmse_vs_consistent": f"validation RMSE of ours <= {CONSISTENT_TOLERANCE:g} x the consistent fit without the "
+    "envelope on every joint (what the envelope costs)",
     "rmse_vs_published": "Panda: validation RMSE of ours (default options) < the published model (Gaz et al. "
     "2019) on every joint (defaults_beat_published_every_joint)",
     "rmse_vs_options": f"validation RMSE of ours (defaults) <= {OPTIONS_MARGIN:g} x the hand-picked OPTIONS on every "
@@ -289,20 +300,25 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     fit, choice = route.fit, route.choice  # held-out part stays out)
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     hand_picked = identify_trajectories(robot, model, [train], OPTIONS[key])
+    unbounded = identify_trajectories(robot, model, [train], replace(route.options, envelope=False))
     ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0], fit.edge_periods)
     q, qd, qdd, tau = ready.q, ready.qd, ready.qdd, ready.tau
     predictions = {
         "": route.calibrated.predict(model, q, qd, qdd),  # with what the route took (a counterbalance spring)
         "_ols": predict_torque(model, fit, q, qd, qdd, ols=True),
         "_options": predict_torque(model, hand_picked, q, qd, qdd),
+        "_consistent": predict_torque(model, unbounded, q, qd, qdd),
         "_prior": PinocchioOracle(robot).rnea(q, qd, qdd),
     }
     if published is not None:
         predictions["_published"] = published.inverse_dynamics(q, qd, qdd)
     result = {"robot": robot.name, "n_dof": robot.n_dof}
+    moving = moving_samples(q)
     for suffix, tau_hat in predictions.items():
         result[f"rmse{suffix}"] = np.asarray(rmse(tau, tau_hat)).tolist()
         result[f"r2{suffix}"] = np.asarray(r2(tau, tau_hat)).tolist()
+        result[f"rmse_moving{suffix}"] = np.asarray(rmse(tau[:moving], tau_hat[:moving])).tolist()
+    result["standstill_share"] = 1.0 - moving / len(q)
     rng = np.random.default_rng(args.seed)
     result.update(
         min_mass_eigenvalue=min_mass_eigenvalue(robot, fit.standard, args.configurations, rng),
@@ -329,6 +345,12 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     return result
 
 
+def moving_samples(q) -> int:
+    """The samples before a standstill at the end (every joint within ``REST_RAD`` of its final angle); all without."""
+    moved = np.flatnonzero(np.any(np.abs(q - q[-1]) > REST_RAD, axis=1))
+    return int(moved[-1]) + 2 if moved.size else len(q)
+
+
 def missed_targets(results: dict) -> list:
     """One sentence per missed target, e.g. ``"panda rmse_vs_ols: joint 4 0.250 > 1.1 x 0.221"``."""
     missed = []
@@ -340,9 +362,10 @@ def missed_targets(results: dict) -> list:
             missed.append(
                 f"{key} consistent: min mass eigenvalue {mass:.3g}, min pseudo-inertia eigenvalue {pseudo:.3g}"
             )
-        for j, (ours, ols) in enumerate(zip(r["rmse"], r["rmse_ols"])):
-            if not ours <= OLS_TOLERANCE * ols:
-                missed.append(f"{key} rmse_vs_ols: joint {j + 1} {ours:.3g} > {OLS_TOLERANCE:g} x {ols:.3g} N m")
+        for j, (ours, bare) in enumerate(zip(r["rmse"], r["rmse_consistent"])):
+            if not ours <= CONSISTENT_TOLERANCE * bare:
+                missed.append(f"{key} rmse_vs_consistent: joint {j + 1} {ours:.3g} > {CONSISTENT_TOLERANCE:g} x "
+                              f"{bare:.3g} N m")  # fmt: skip
         for j, (ours, hand) in enumerate(zip(r["rmse"], r["rmse_options"])):
             if not ours <= OPTIONS_MARGIN * hand:
                 missed.append(f"{key} rmse_vs_options: joint {j + 1} {ours:.3g} > {OPTIONS_MARGIN:g} x {hand:.3g} N m")
@@ -369,7 +392,14 @@ def print_robot(key: str, r: dict) -> None:
         f"on the last 30 % ({r['n_validation_samples']} samples after a {r['cutoff_hz']:g} Hz filter, "
         f"decimation {r['decimation']}; trained on {r['n_train_samples']})"
     )
-    names = {"": "ours", "_ols": "OLS", "_options": "options", "_prior": "prior", "_published": "published"}
+    names = {
+        "": "ours",
+        "_ols": "OLS",
+        "_consistent": "no envelope",
+        "_options": "options",
+        "_prior": "prior",
+        "_published": "published",
+    }
     rows = []
     for j in range(r["n_dof"]):
         row = {"joint": j + 1}
@@ -380,6 +410,12 @@ def print_robot(key: str, r: dict) -> None:
             row[f"R2 {label}"] = values[j] if values is not None else "-"
         rows.append(row)
     print_table(rows, ["joint", *names.values(), *(f"R2 {label}" for label in names.values())])
+    if r["standstill_share"] > 0.01:
+        print(f"the validation part ends in a standstill ({100 * r['standstill_share']:.0f} % of its samples); RMSE "
+              "[N m] on the moving samples before it:")  # fmt: skip
+        moving = ["", "_ols", "_consistent", "_options"]
+        rows = [{"joint": j + 1, **{names[k]: r[f"rmse_moving{k}"][j] for k in moving}} for j in range(r["n_dof"])]
+        print_table(rows, ["joint", *(names[k] for k in moving)])
     print(
         f"min mass eigenvalue {r['min_mass_eigenvalue']:.4g} kg m^2 ({r['mass_configurations']} random "
         f"configurations), min pseudo-inertia eigenvalue {r['min_pseudo_inertia_eigenvalue']:.3g}, condition "
@@ -404,6 +440,7 @@ def print_robot(key: str, r: dict) -> None:
     print("ours: default options, columns chosen from the training part: " + "; ".join(r["columns_text"]))
     print(
         "prior: the URDF's inertias by Pinocchio rnea, no friction; OLS: the weighted least squares on our columns; "
+        "no envelope: the consistent fit on our columns without the envelope; "
         "options: the hand-picked OPTIONS (offset on every joint, drive inertias on the TX40 only)"
     )
     if r["warnings"]:
