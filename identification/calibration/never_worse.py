@@ -48,10 +48,12 @@ __all__ = [
     "GateResult",
     "JointComparison",
     "block_length",
+    "compare_each",
     "compare_models",
     "keep_not_worse",
     "improvement",
     "paired_rmse_margin",
+    "pooled_comparison",
 ]
 
 logger = logging.getLogger(__name__)
@@ -187,16 +189,27 @@ def compare_models(before, after, model, validation, kt=None) -> JointComparison
     """``JointComparison`` of two calibrated models on the raw ``validation`` recordings (a list), each prepared
     as its own file says (``CalibratedModel.predict_recording``); the margin combines the recordings' standard
     errors as that of a mean."""
-    rmse_b, rmse_a, se = [], [], []
+    return pooled_comparison(compare_each(before, after, model, validation, kt))
+
+
+def compare_each(before, after, model, validation, kt=None) -> tuple:
+    """One ``JointComparison`` per raw recording of ``validation`` (as ``compare_models`` on that recording alone):
+    a finding that must hold on each recording is judged on these."""
+    out = []
     for recording in validation:  # both on the raw recording's time grid: the prepared samples are the same instants
         error_b, _, ready_b, predicted_b = validation_rmse(before, model, recording, kt)
         error_a, _, ready_a, predicted_a = validation_rmse(after, model, recording, kt)
-        rmse_b.append(error_b)
-        rmse_a.append(error_a)
-        se.append(paired_rmse_margin(ready_b.tau - predicted_b, ready_a.tau - predicted_a)[2])
-    before_mean, after_mean = np.mean(rmse_b, axis=0), np.mean(rmse_a, axis=0)
-    standard_error = np.sqrt(np.sum(np.square(se), axis=0)) / len(se)
-    return JointComparison.from_noise(before_mean, after_mean, standard_error)
+        se = paired_rmse_margin(ready_b.tau - predicted_b, ready_a.tau - predicted_a)[2]
+        out.append(JointComparison.from_noise(np.asarray(error_b), np.asarray(error_a), se))
+    return tuple(out)
+
+
+def pooled_comparison(comparisons) -> JointComparison:
+    """The comparisons of several recordings as one: the mean RMSE per joint, the standard error of that mean."""
+    before = np.mean([c.before for c in comparisons], axis=0)
+    after = np.mean([c.after for c in comparisons], axis=0)
+    standard_error = np.sqrt(np.sum(np.square([c.standard_error for c in comparisons]), axis=0)) / len(comparisons)
+    return JointComparison.from_noise(before, after, standard_error)
 
 
 def improvement(comparison: JointComparison) -> float:

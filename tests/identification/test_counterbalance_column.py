@@ -98,3 +98,60 @@ def test_without_a_held_out_recording_identify_takes_the_spring_by_block_cross_v
             assert main(["validate", str(tmp_path / "m.json"), str(tmp_path / "val.csv"), "--json"]) == 0
         joint2.append(json.loads(stdout.getvalue())["recordings"][0]["rmse"][1])
     assert joint2[0] < 0.5 * joint2[1]
+
+
+@pytest.mark.slow  # the spring fitted twice (linear, cubic) and judged on two held-out recordings: 15-30 s
+def test_a_spring_must_lower_its_joint_on_each_held_out_recording(denso, denso_model):
+    """Issue 25, findings that hold: with ``--validate A B`` the spring is kept only if it lowers its joint's error
+    on each recording. The arm's spring on joint 2 is in the training recording and in A; B was recorded after it was
+    taken off (the truth without it): the spring improves A, fails on B, and is not taken, with B's numbers; judged on
+    A alone (with the blocks as the second opinion) it is taken, with the truth's stiffness."""
+    from identification.calibration.identify_route import identify_recordings
+
+    rng = np.random.default_rng(3)
+    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    recording, _ = simulate_recording(denso, reference, options, rng, extras=HIDDEN["spring"])
+    without, _ = simulate_recording(denso, reference, options, rng)  # the same motion, the spring taken off
+    train, with_spring = recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
+    result = identify_recordings(denso, denso_model, [train], validation=[with_spring, without.time_slice(8.0, np.inf)])
+    choice = result.counterbalance
+    assert choice.joints == (1,) and not choice.kept and "recording 2 of 2" in choice.reason, choice.reason
+    first, second = [p for p in choice.parts if p["joints"] == [2]]
+    assert first["rmse_with"][0] < first["rmse_without"][0] and second["rmse_with"][0] > second["rmse_without"][0]
+    assert not [f for f in result.calibrated.document.get("findings") or [] if f["effect"] == "spring"]
+    taken = identify_recordings(denso, denso_model, [train], validation=[with_spring]).counterbalance
+    assert taken.kept and taken.route == "held-out recordings and block cross-validation over the training " \
+        "recordings (4 blocks)", taken.reason  # fmt: skip
+    assert [p["part"] for p in taken.parts] == ["recording 1 of 1", *(f"block {k} of 4" for k in range(1, 5))]
+
+
+@pytest.mark.slow  # the TX40's identify with its counterbalance trials and their folds: 30-60 s
+def test_the_tx40s_spring_that_does_not_hold_out_of_sample_is_not_taken(monkeypatch):
+    """Issue 25 on the real TX40 recording (skipped without ../shared; first 70 % trains): identify's envelope report
+    names a counterbalance on joint 2; a spring there lowers the blocks of the training recording taken together
+    (2.93 -> 2.20 N m, cubic) but not each block (the first, from the home pose, rises), and it raised the held-out
+    end's joint 2 from 3.80 to 4.22 N m. It is not taken, and the model written validates as the defaults without it."""
+    from pathlib import Path
+
+    from identification.calibration.finding_value import validation_rmse
+    from identification.calibration.identify_route import identify_recordings
+    from psdm_casadi.derive import derive_psdm
+
+    root = Path(__file__).resolve().parents[2]
+    if not (root.parent / "shared" / "datasets" / "staubli_tx40_figaroh").exists():
+        pytest.skip("the TX40 recording (../shared/datasets/staubli_tx40_figaroh) is absent")
+    monkeypatch.syspath_prepend(str(root / "benchmarks"))
+    from real_data_diagnosis import TX40, load_tx40, split
+
+    robot, recording = load_tx40(TX40)
+    train, validation = split(recording)
+    model = derive_psdm(robot)
+    result = identify_recordings(robot, model, [train])
+    choice = result.counterbalance
+    assert 1 in choice.joints and not choice.kept and choice.route.startswith("block cross-validation"), choice.reason
+    rises = [p for p in choice.parts if 2 in p["joints"] and p["rmse_with"][p["joints"].index(2)] >= p["rmse_without"][
+        p["joints"].index(2)]]  # fmt: skip
+    assert rises and all(p["part"] in choice.reason for p in rises)
+    error = validation_rmse(result.calibrated, model, validation)[0]
+    assert error[1] < 3.85 and not result.calibrated.document.get("findings")  # joint 2 as the defaults (3.80)
