@@ -9,10 +9,10 @@ together (``residual_comparison`` of every held-out residual: the RMSE per joint
 paired difference, the standard error at least the spread of the folds' changes: ``with_fold_spread``), and each
 block's comparison is kept (``BlockFolds.compare``): the spring must lower its own joint's error in every block
 (``counterbalance_column.Opinion.lowers``), as on each held-out recording. A block where it is worse, even within
-that block's noise, is a stretch of the motion it does not fit: the TX40's spurious cubic spring on joint 2 raised the
-first block (the start from the home pose) by 6 % while lowering the others by 24-34 %, and raised the held-out end
-(the return to the home pose) from 3.80 to 4.22 N m. The heavy arm's cam counterbalance lowers joint 2 in every block
-(seed 2: 217 -> 143, 434 -> 162, 149 -> 102, 286 -> 138 N m).
+that block's noise, is a stretch of the motion it does not fit: the TX40's spurious cubic spring on joint 2 (named
+while its links absorbed its rotors) raised the first block (the start from the home pose) by 6 % while lowering the
+others by 24-34 %, and raised the held-out end (the return to the home pose) from 3.80 to 4.22 N m. The heavy arm's
+cam counterbalance lowers joint 2 in every block (seed 2: 217 -> 143, 434 -> 162, 149 -> 102, 286 -> 138 N m).
 
 Blocks are only cut where every piece stays long enough to be prepared (``MIN_BLOCK_S``, and ``MIN_BLOCK_PERIODS``
 periods of the filter), and not for recordings that carry payloads (a held-out block would be judged without its
