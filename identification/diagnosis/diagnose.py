@@ -427,8 +427,8 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     a model file's friction, whose Stribeck velocities are fixed and whose Coulomb friction is a step)."""
     library = options.library if options.library is not None else default_library()
     lacking = options.friction_shapes and options.friction in ("coulomb_viscous", "stribeck")  # LuGre drives state them
-    if options.library is None and lacking:
-        library = library + CandidateLibrary(lacking_friction_shapes())
+    if options.library is None and options.friction_shapes:  # a LuGre nominal lacks a peak at another velocity
+        library = library + CandidateLibrary(lacking_friction_shapes(options.friction))
     ctx_t = problem.ctx_t
     instances = [term for term in library.expand(robot.n_dof) if not set(term.joints) & set(left_out(ctx_t))]
     n_eff = None

@@ -356,8 +356,12 @@ class PreslidingTerm(FrictionShapeTerm):
         return None
 
 
-def lacking_friction_shapes() -> tuple:
-    """The friction-shape candidates of a Coulomb-viscous (or fixed-velocity Stribeck) nominal model on every joint: a
-    Stribeck peak and a smooth Coulomb friction (``FrictionShapeTerm``), pre-sliding (``PreslidingTerm``), each scale
-    fitted."""
+def lacking_friction_shapes(nominal: str = "coulomb_viscous") -> tuple:
+    """The friction-shape candidates a nominal friction model (``nominal.FRICTION_MODELS``) lacks on every joint, each
+    scale fitted. A Coulomb-viscous (or fixed-velocity Stribeck) model: a Stribeck peak and a smooth Coulomb friction
+    (``FrictionShapeTerm``), pre-sliding (``PreslidingTerm``). The robot file's LuGre friction has its bristles (the
+    pre-sliding) and one Stribeck peak at the drive's velocity: a Stribeck peak at another velocity (a grease or seal
+    hump wider than the drive's curve)."""
+    if nominal == "lugre":
+        return (FrictionShapeTerm(shape="stribeck"),)
     return tuple(FrictionShapeTerm(shape=shape) for shape in FRICTION_SHAPES) + (PreslidingTerm(),)
