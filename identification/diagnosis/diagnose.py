@@ -126,8 +126,9 @@ class DiagnosisOptions:
         is cut into this many contiguous blocks, each held out once, and a finding must hold on every block; 0 turns
         it off (with several validation recordings a finding must hold on each of them instead).
     friction_shapes : bool
-        Offer the friction shapes a Coulomb-viscous or Stribeck nominal model lacks (``lacking_friction_shapes``), as
-        candidates and in place of a lag they explain; the fleet's day diagnosis, which asks what changed, turns it off.
+        Offer the friction shapes the nominal model lacks (``lacking_friction_shapes``): beside a Coulomb-viscous or
+        Stribeck one as candidates and in place of a lag they explain, beside the robot file's LuGre friction a Stribeck
+        peak at another velocity than the drive's; the fleet's day diagnosis, which asks what changed, turns it off.
     """
 
     friction: str = AUTO
@@ -423,8 +424,9 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
     """Forward selection of the library's terms, the BIC counted with the filter's effective sample count; the default
-    library takes the friction shapes a Coulomb-viscous or Stribeck nominal model lacks (``lacking_friction_shapes``:
-    a model file's friction, whose Stribeck velocities are fixed and whose Coulomb friction is a step)."""
+    library takes the friction shapes the nominal model lacks (``lacking_friction_shapes``: a model file's friction,
+    whose Stribeck velocities are fixed and whose Coulomb friction is a step; the robot file's LuGre friction, whose
+    one Stribeck peak sits at the drive's velocity)."""
     library = options.library if options.library is not None else default_library()
     lacking = options.friction_shapes and options.friction in ("coulomb_viscous", "stribeck")  # LuGre drives state them
     if options.library is None and options.friction_shapes:  # a LuGre nominal lacks a peak at another velocity

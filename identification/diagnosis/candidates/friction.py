@@ -189,7 +189,8 @@ class FrictionShapeTerm(CandidateTerm):
     Built without a ``scale`` (a candidate), its one shape variant has the scale of least training error on
     ``SCALE_GRIDS[shape]``, refined by a parabola in log scale through the best three (``n_shape_parameters``: counted
     in the BIC). A candidate where the nominal friction is a model file's (Coulomb-viscous or Stribeck at fixed
-    velocities: ``lacking_friction_shapes``), and offered by ``friction_rival`` on the joints of a lag these shapes
+    velocities: ``lacking_friction_shapes``), the Stribeck peak beside the robot file's LuGre friction too (a hump at
+    another velocity than the drive's), and offered by ``friction_rival`` on the joints of a lag these shapes
     explain. On a diagnosis context the sign is
     ``friction_sign``'s; as a torque of the state (a model file's finding, the exported code) it is the smooth sign
     ``tanh(qd / velocity)``, the Stribeck column of ``trajectory_data.friction_term``.
