@@ -23,7 +23,8 @@ and a 10 s validation recording at 250 Hz, as a user would on the command line:
    its bounding ellipsoid), and does the report name the absorbed effect (``absorbed_effect_named``: a
    counterbalance on joint 2) or stay clean (``stays_inside_unpushed``)? ``counterbalance_taken``: identify kept a
    spring on joint 2 (``calibration.counterbalance_column``: tried where its report names a counterbalance, kept
-   where the held-out recording says so); ``counterbalance_named`` counts it as named.
+   where it lowers joint 2 on the held-out recording and in each block of the training recording's cross-validation,
+   the second opinion, and no joint is worse); ``counterbalance_named`` counts it as named.
 2. ``psdm diagnose model.json --train train.csv --validate val.csv`` (``diagnose_model_finds_counterbalance``; as a
    fraction of the seeds, ``identify_then_diagnose_finds_counterbalance``: with links pushed against their envelope
    the diagnosis starts from the robot file's rigid body the model file keeps, ``calibration.diagnosis_prior``), and
@@ -33,7 +34,7 @@ and a 10 s validation recording at 250 Hz, as a user would on the command line:
    because a rigid body recalibrated inside its physical envelope still needs it (``diagnosis.envelope_check``).
 
 ``--identify both`` runs step 1 twice, with ``--validate val.csv`` and without (``psdm identify ROBOT --data
-train.csv``: identify then judges the spring by a block cross-validation over the training recording,
+train.csv``: identify then judges the spring by the block cross-validation over the training recording alone,
 ``calibration.counterbalance_folds``), one row each (``identify_validate``); ``--identify train`` only without.
 Steps 2 follow each identify.
 

@@ -346,10 +346,15 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
     choice, calibrated = CounterbalanceChoice(), build(fit)
     if not skip and fit.checked:
         kt = None
-        if any(r.tau is None for r in (validation or recordings)) and robot.drives is not None:
+        if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:  # blocks: training
             kt = np.array([d.kt for d in robot.drives], dtype=float)
         if counterbalance_joints(fit):
-            how = "on the held-out recordings" if validation else "by block cross-validation over the training data"
+            how = (
+                "on each held-out recording"
+                + (" and by block cross-validation over the training data" if len(validation) == 1 else "")
+                if validation
+                else "by block cross-validation over the training data"
+            )
             logger.info(f"identify: trying the counterbalance the envelope report names ({how}) ...")
         choice = try_counterbalance(robot, model, recordings, options, fit, calibrated, validation, build,
                                     configurations, kt)  # fmt: skip
