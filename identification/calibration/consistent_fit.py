@@ -3,9 +3,9 @@
 :func:`consistent_fit` minimises the weighted residual of the normal equations of
 ``trajectory_fit`` over standard parameters in the log-Cholesky chart (``pseudo_inertia``), so every
 link, and every unknown payload fixed to the flange (``payload_fit``), has a positive-definite
-pseudo-inertia; friction and drive inertias are bounded below by zero, and a small pull
-(``prior_weight``) towards the robot file's parameters settles what the data cannot see. It is
-solved twice, the second time weighted by the first consistent fit's own residual.
+pseudo-inertia; friction and drive inertias are bounded below by zero, and a pull towards the robot file's
+parameters, a Gaussian prior weighed against the data's independent samples (``prior_pull``), settles what the
+data hardly fix. It is solved twice, the second time weighted by the first consistent fit's own residual.
 
 In the chart the problem is not convex, and where the data push a link towards a degenerate pseudo-inertia its optimum
 lies at infinity: Ipopt regularises and creeps (the heavy arm's fits ran to the iteration cap, their answer set by
@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from identification.calibration.envelope import density_weights, link_envelopes
+from identification.calibration.prior_pull import PriorPull
 from identification.calibration.pseudo_inertia import (
     LINK_PARAMETER_COUNT,
     link_from_log_cholesky,
@@ -47,7 +48,6 @@ __all__ = [
     "drive_lower_bounds",
     "fit_bounds",
     "link_is_free",
-    "prior_scale",
     "residual_sigma",
 ]
 
@@ -79,6 +79,8 @@ class FitBounds:
         After the fit: per joint, how hard the data press on the link's envelope, its mass bounds and the drive
         inertia's bounds (``_pressure``: the weighted squared residual, in noise variances, that the bound costs
         to first order); zeros before it.
+    prior : PriorPull or None
+        After the fit: how strongly it was pulled towards the robot file (``prior_pull``).
     """
 
     envelopes: tuple
@@ -87,6 +89,7 @@ class FitBounds:
     rotor_lower: np.ndarray
     rotor_upper: np.ndarray
     pressure: np.ndarray | None = None
+    prior: PriorPull | None = None
 
 
 def residual_sigma(equations, x) -> np.ndarray:
@@ -225,14 +228,17 @@ def _variable_bounds(n_phi, names, drive_lower, bounds):
 
 
 def consistent_fit(
-    robot, model, equations, sigma, names, options, drive_lower, payload_prior=None, bounds=None, warn=True
-):
+    robot, model, equations, sigma, names, options, drive_lower, payload_prior=None, bounds=None, warn=True, *,
+    correlation=None,
+):  # fmt: skip
     """(standard (n_dof, 11), drive, payloads (k, 10), Ipopt status, bounds): the consistent step (module docstring).
 
     ``equations`` hold the columns ``[base, drive (names), payload_1 (10), ..., payload_k (10)]``;
     ``payload_prior`` (k, 10) are the unknown payloads' start and pull targets (consistent bodies); ``bounds``
     (``FitBounds``, default :func:`fit_bounds` of ``options``) hold the links in their envelopes and come back
-    with the data's ``pressure`` on each. ``warn=False`` logs a stop at Ipopt's iteration cap at DEBUG only.
+    with the data's ``pressure`` on each and the ``prior`` pull used. ``correlation`` (per joint, samples) is the
+    residual's correlation time that sets the pull's weight (``prior_pull``; None: independent samples).
+    ``warn=False`` logs a stop at Ipopt's iteration cap at DEBUG only.
     """
     n = robot.n_dof
     bounds = fit_bounds(robot, model, options) if bounds is None else bounds
@@ -254,11 +260,9 @@ def consistent_fit(
     payloads = ca.vertcat(*bodies) if bodies else ca.DM.zeros(0, 1)
     x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, payloads)
     count = float(equations.count.sum())
-    scale = prior_scale(prior)
-    pull = ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
-    if bodies:
-        scale = prior_scale(np.column_stack([payload_prior, np.zeros(len(payload_prior))]))[:, :10]
-        pull += ca.sumsqr((payloads - ca.DM(payload_prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
+    pull = PriorPull.of(options, equations.count, correlation)
+    logger.info("identify: %s", pull.describe())
+    prior_term = pull.expression(standard, prior, payloads, payload_prior)
     variables = ca.vertcat(phi, rotor, drive, psi)
     start = np.concatenate([*(chart_start(prior[i, :10], options.margin) for i in links),
                             np.maximum(prior[:, ROTOR], 0.0), np.zeros(len(names)),
@@ -267,14 +271,14 @@ def consistent_fit(
     lower, upper = (np.concatenate([v, np.full(psi.numel(), sign * np.inf)]) for v, sign in ((lower, -1), (upper, 1)))
     g, g_lower, g_upper, owner = _link_constraints(rows, links, prior, bounds)
     evaluate = ca.Function("standard", [variables], [standard, x, payloads])
-    plain = _standard_form(model, prior, links, payload_prior, len(names), bounds, options.prior_weight)
+    plain = _standard_form(model, prior, links, payload_prior, len(names), bounds, pull)
     x_opt, w = start, 1.0 / sigma**2
     for final in (False, True):  # then once more weighted by the consistent fit's own residuals (module docstring)
         gram, moment, energy = equations.weighted(w)
         residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
         problem = {
             "x": variables,
-            "f": residual + options.prior_weight * pull,
+            "f": residual + prior_term,
             "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         }
         convex, x_opt = _convex_solve(plain, evaluate, x_opt, (gram, moment, energy, count), (lower, upper),
@@ -287,7 +291,7 @@ def consistent_fit(
         w = 1.0 / residual_sigma(equations, np.asarray(evaluate(x_opt)[1]).reshape(-1)) ** 2
     values, _, bodies_opt = (np.asarray(v) for v in evaluate(x_opt))
     drive_opt = x_opt[phi.numel() + n : phi.numel() + n + len(names)]
-    bounds = replace(bounds, pressure=_pressure(solution, owner, names, bounds, count, offset))
+    bounds = replace(bounds, pressure=_pressure(solution, owner, names, bounds, count, offset), prior=pull)
     return values.reshape(n, -1), drive_opt, bodies_opt.reshape(-1, 10), status, bounds
 
 
@@ -297,24 +301,16 @@ def chart_start(link, margin):
     return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
 
 
-def prior_scale(prior):
-    """Per standard parameter, the size the pull towards the prior is measured in (never below a floor)."""
-    mass = np.maximum(np.abs(prior[:, :1]), 0.1)
-    moment = np.maximum(np.abs(prior[:, 1:4]), 0.01 * mass)
-    inertia = np.maximum(np.abs(prior[:, 4:10]), 1e-3 * mass)
-    rotor = np.maximum(np.abs(prior[:, ROTOR:]), 1e-3)
-    return np.concatenate([mass, moment, inertia, rotor], axis=1)
-
-
 def drive_lower_bounds(names):
     """0 for friction and drive inertias, none for torque offsets."""
     return np.array([-np.inf if name.startswith("offset") else 0.0 for name in names])
 
 
-def _standard_form(model, prior, links, flange, n_drive, bounds, prior_weight) -> dict:
+def _standard_form(model, prior, links, flange, n_drive, bounds, pull) -> dict:
     """The consistent fit's pieces with the standard parameters themselves as the variables (``barrier_path``): the
-    variables (free links' ten, flange bodies' ten, rotors, drive terms), the regression vector ``x``, the pull, the
-    link constraints and their bounds, and each body's size (its pseudo-inertia's trace at the prior)."""
+    variables (free links' ten, flange bodies' ten, rotors, drive terms), the regression vector ``x``, the ``pull``
+    (``PriorPull``, as in ``consistent_fit``), the link constraints and their bounds, and each body's size (its
+    pseudo-inertia's trace at the prior)."""
     n, n_bodies = prior.shape[0], len(flange)
     links_v, bodies_v = ca.SX.sym("s", 10 * len(links)), ca.SX.sym("b", 10 * n_bodies)
     rotor, drive = ca.SX.sym("rotor", n), ca.SX.sym("drive", n_drive)
@@ -323,17 +319,13 @@ def _standard_form(model, prior, links, flange, n_drive, bounds, prior_weight) -
         k = links.index(i) if i in links else None
         rows.append(ca.vertcat(ca.DM(prior[i, :10]) if k is None else links_v[10 * k : 10 * k + 10], rotor[i]))
     standard = ca.vertcat(*rows)
-    pull = ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(prior_scale(prior).reshape(-1)))
-    if n_bodies:  # the flange bodies' pull as in ``consistent_fit``
-        scale = prior_scale(np.column_stack([flange, np.zeros(n_bodies)]))[:, :10]
-        pull += ca.sumsqr((bodies_v - ca.DM(np.asarray(flange).reshape(-1))) / ca.DM(scale.reshape(-1)))
     g, g_lower, g_upper, _ = _link_constraints(rows, links, prior, bounds)
     sizes = [max(float(np.trace(pseudo_inertia(body))), 1e-6) for body in [*prior[links, :10], *flange]]
     return {
         "variables": ca.vertcat(links_v, bodies_v, rotor, drive),
         "sizes": sizes,
         "x": ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, bodies_v),
-        "f_extra": prior_weight * pull,
+        "f_extra": pull.expression(standard, prior, bodies_v, flange),
         "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         "g_bounds": (g_lower, g_upper),
     }

@@ -12,14 +12,13 @@ torque constants) along exciting trajectories, in :func:`identify_trajectories`:
    ``sigma_j^2``; weighted least squares with weights ``1 / sigma_j^2`` gives the unconstrained
    estimate, its covariance (standard deviations, relative sigma in percent) and the condition
    number of the weighted regressor (columns scaled to unit norm);
-3. unless ``consistency=False``, Ipopt minimises the same weighted residual over standard
-   parameters in the log-Cholesky chart (``pseudo_inertia``), so every link has a positive-definite
-   pseudo-inertia, with friction and drive inertias bounded below by zero, and a small pull
-   (``prior_weight``) towards the robot file's parameters that only settles what the data cannot
-   see. It is solved twice: the second time each joint's weight is ``1 / sigma_j^2`` of the first
-   consistent fit's own residual (two-step feasible GLS: where the constraint keeps a joint from
-   the least-squares fit, its residual, and so its noise estimate, is larger). The base parameters
-   are computed from the standard ones.
+3. unless ``consistency=False``, Ipopt minimises the same weighted residual over standard parameters in the
+   log-Cholesky chart (``pseudo_inertia``), so every link has a positive-definite pseudo-inertia, with friction and
+   drive inertias bounded below by zero, and a pull towards the robot file's parameters (a Gaussian prior against the
+   data's independent samples, ``prior_pull``) that only settles what the data hardly fix. It is solved twice: the
+   second time each joint's weight is ``1 / sigma_j^2`` of the first consistent fit's own residual (two-step feasible
+   GLS: where the constraint keeps a joint from the least-squares fit, its residual, and so its noise estimate, is
+   larger). The base parameters are computed from the standard ones.
 
 The unconstrained estimate is kept beside the consistent one, so a report can show what the
 constraint cost on the data.
@@ -52,6 +51,7 @@ from identification.calibration.payload_fit import (
     payload_prior,
     subtract_known_payloads,
 )
+from identification.calibration.prior_pull import PRIOR_UNCERTAINTY, check_prior_options
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.residual_correlation import correlation_time, sandwich_covariance
 from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
@@ -100,9 +100,9 @@ class TrajectoryOptions:
     margin : float
         [kg m^2] by which every identified pseudo-inertia stays positive definite (its smallest
         eigenvalue is at least this).
-    prior_weight : float
-        Weight of the pull towards the robot file's standard parameters, relative to one weighted
-        squared residual per sample: small, so that it decides only what the data leaves free.
+    prior_uncertainty, prior_weight : float
+        The robot file's standard parameters are known to ``prior_uncertainty`` of their size (``prior_pull``:
+        the pull's weight follows from the data's independent samples); a ``prior_weight`` (per sample) overrides it.
     cutoff_hz : float or None
         Low-pass cutoff [Hz]; None chooses ``min(10 Hz, rate / 10)`` per recording.
     edge_periods : float
@@ -135,7 +135,8 @@ class TrajectoryOptions:
     drive_inertia: bool = True
     consistency: bool = True
     margin: float = 1e-6
-    prior_weight: float = 1e-4
+    prior_uncertainty: float = PRIOR_UNCERTAINTY
+    prior_weight: float | None = None
     cutoff_hz: float | None = None
     edge_periods: float = EDGE_PERIODS
     kt: tuple | None = None
@@ -171,8 +172,7 @@ class TrajectoryOptions:
             )
         if not (np.isfinite(self.margin) and self.margin > 0):
             raise ParameterError(f"TrajectoryOptions.margin must be > 0 [kg m^2]; got {self.margin!r}.")
-        if not (np.isfinite(self.prior_weight) and self.prior_weight >= 0):
-            raise ParameterError(f"TrajectoryOptions.prior_weight must be >= 0; got {self.prior_weight!r}.")
+        check_prior_options(self)
         for key in ("mass_ratio", "drive_inertia_ratio"):
             check_ratio(f"TrajectoryOptions.{key}", getattr(self, key))
 
@@ -206,7 +206,7 @@ class TrajectoryFit:
         motion (about 1; about 1000 on every joint for torques in mN m); empty without the file's links.
     envelope_bounds : tuple
         ``(name, value)`` pairs of the bounds the fit kept the links in (``mass_ratio``, ``drive_inertia_ratio``,
-        ``envelopes``: where each link's ellipsoid came from); empty when it was not bounded.
+        ``envelopes``: where each link's ellipsoid came from; ``prior``: its pull towards the file, ``PriorPull``).
     envelope : tuple of EnvelopeFinding
         The links and drives the data pushed against their physical envelope (``envelope_report``), each with what
         it most likely absorbs; empty when the fit stayed inside (or was not bounded).
@@ -339,13 +339,13 @@ def identify_trajectories(
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
                   [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
     sigma, x_ols, inverse, condition = _weighted_least_squares(equations, free, range(n_fit, n_all))
-    correlation = [correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
-                   for rec, columns in zip(prepared, extras)]  # fmt: skip
-    covariance = sandwich_covariance(equations, sigma, inverse, np.max(correlation, axis=0))
+    correlation = np.max([correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
+                          for rec, columns in zip(prepared, extras)], axis=0)  # fmt: skip
+    covariance = sandwich_covariance(equations, sigma, inverse, correlation)
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
-    found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, np.max(correlation, axis=0))
+    found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, correlation)
     mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(found)]
     estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
     keep, separable = bodies.separable(estimable, n_fit)
@@ -355,7 +355,7 @@ def identify_trajectories(
         fitted = [k for k in range(len(names)) if model.n_base + k not in held]
         standard, drive_fitted, found, status, bounds = consistent_fit(
             robot, model, equations.subset([k for k in keep if k not in held]), sigma, [names[k] for k in fitted],
-            options, lower[fitted], prior[separable], merged.fit_bounds(options))  # fmt: skip
+            options, lower[fitted], prior[separable], merged.fit_bounds(options), correlation=correlation)  # fmt: skip
         drive = np.zeros(len(names))
         drive[fitted] = drive_fitted
         found = _with_rows(found, separable)
@@ -374,7 +374,7 @@ def identify_trajectories(
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
         inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
-        coulomb_velocity=options.coulomb_velocity,
+        coulomb_velocity=options.coulomb_velocity, envelope=tuple(pushed),
         theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base : n_fit], theta_std=std[: model.n_base],
         drive_std=std[model.n_base : n_fit], sigma=sigma, condition_number=condition,
         consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
@@ -383,7 +383,7 @@ def identify_trajectories(
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
-        envelope=tuple(pushed), envelope_bounds=bounds_note(options, bounds) + (merged.note() if merged else ()),
+        envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()),
         torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip
     return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))

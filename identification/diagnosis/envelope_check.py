@@ -26,6 +26,7 @@ import numpy as np
 
 from identification.calibration.consistent_fit import consistent_fit, residual_sigma
 from identification.calibration.merged_rotors import with_merged_rotors
+from identification.calibration.residual_correlation import residual_correlation_time
 from identification.calibration.trajectory_data import NormalEquations
 from identification.calibration.trajectory_fit import TrajectoryOptions
 from identification.diagnosis.rigid_body_choice import Claim
@@ -127,9 +128,10 @@ class EnvelopedRecalibration:
         n_extra = train.shape[2] - model.n_base
         x_ols = np.linalg.lstsq(train.reshape(-1, train.shape[2]), ctx_t.tau.reshape(-1), rcond=None)[0]
         names = [f"extra{k}" for k in range(n_extra)]
+        correlation = residual_correlation_time(ctx_t.tau - train @ x_ols)  # the pull's weight as identify's
         standard, extra, _, _, _ = consistent_fit(
             self.robot, model, equations, residual_sigma(equations, x_ols), names, TrajectoryOptions(),
-            np.full(n_extra, -np.inf), warn=False,
+            np.full(n_extra, -np.inf), warn=False, correlation=correlation,
         )  # fmt: skip
         x = np.concatenate([model.base_parameters(standard), extra])
         return rmse(ctx_v.tau, _columns(ctx_v, self.friction[1], terms) @ x)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +100,10 @@ def add_arguments(p) -> None:
         p.add_argument(
             option, nargs=2, type=float, default=(0.5, 2.0), metavar=("LOW", "HIGH"), help=f"{bounded} (default 0.5 2)"
         )
+    p.add_argument("--prior-uncertainty", type=float, default=None, metavar="U",
+                   help="the robot file's inertial parameters are known to U times their size (default 2): the pull "
+                   "towards the file that settles what the recordings hardly fix, weighed against their independent "
+                   "samples")  # fmt: skip
     for option, what in (("--no-envelope", "do not keep the links inside their physical envelope (bounding "
                           "ellipsoid, mass and drive-inertia bounds): consistent only, as before"),
                          ("--no-counterbalance", "do not try the spring the envelope report names (kept only if it "
@@ -149,6 +154,9 @@ def run(args) -> int:
                              f"{args.coulomb_velocity:g}. Leave it out to choose it from the data.")  # fmt: skip
     request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
                             drive_loss=args.drive_loss, coulomb_velocity=args.coulomb_velocity)  # fmt: skip
+    if args.prior_uncertainty is not None and not (np.isfinite(args.prior_uncertainty) and args.prior_uncertainty > 0):
+        raise ParameterError(f"--prior-uncertainty must be > 0 (a multiple of each parameter's size, e.g. 2); got "
+                             f"{args.prior_uncertainty!r}.")  # fmt: skip
     if args.model:
         model = load_model(args.model)
     else:
@@ -157,6 +165,8 @@ def run(args) -> int:
     options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
                                 envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
                                 drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
+    if args.prior_uncertainty is not None:
+        options = replace(options, prior_uncertainty=args.prior_uncertainty)
     with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
         result = identify_recordings(robot, model, recordings, options, request, validation, configurations,
                                      counterbalance=not args.no_counterbalance, robot_source=args.robot,
@@ -404,7 +414,7 @@ def _print_envelope(fit) -> None:
     from identification.calibration.trajectory_checks import unit_factor
 
     bounds = dict(fit.envelope_bounds)
-    if not bounds:
+    if "envelopes" not in bounds:  # not bounded (the ``prior`` pull alone)
         return
     sources = sorted({s for s in bounds["envelopes"] if s})
     mass, rotor = ("-".join(f"{v:g}" for v in bounds[key]) for key in ("mass_ratio", "drive_inertia_ratio"))
@@ -450,6 +460,10 @@ def _print(args, robot, model, fit, report, calibrated, result) -> None:
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
     _print_envelope(fit)
+    if "prior" in dict(fit.envelope_bounds):
+        from identification.calibration.prior_pull import PriorPull
+
+        print(PriorPull.from_note(dict(fit.envelope_bounds)["prior"]).describe())
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:
         print(f"counterbalance: {result.counterbalance.reason}")
