@@ -191,6 +191,8 @@ class ColumnChoice:
     def _loss_lines(self, joints) -> list:
         """The drive-loss sentence: where and with what efficiency, or why there is none."""
         if self.torque_source == "torque" and self.request.drive_loss != "on":
+            if self.inertia_joints:  # the data want rotor inertia: a motor-side torque, not a sensor behind the gearbox
+                return ["drive loss: not tried (a candidate on motor currents only; --drive-loss on tries it)"]
             return ["drive loss: none (joint torques measured behind the gearbox do not hold its efficiency)"]
         if self.torque_source != "current":
             return []

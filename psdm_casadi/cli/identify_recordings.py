@@ -422,6 +422,16 @@ def _print_envelope(fit) -> None:
         f"physical envelope: each link's mass within {mass} x the robot file's, drive inertias within {rotor} x, "
         f"the mass inside a bounding ellipsoid ({', '.join(sources)})"
     )
+    for entry in bounds.get("drive_inertia_reference", []):
+        source = (
+            "the training data beside the robot file's links"
+            if entry["from"] == "training data"
+            else "the drive inertias of joints " + ", ".join(str(j) for j in entry["from_joints"]) + " (same actuator)"
+        )
+        print(
+            f"  joint {entry['joint']}'s drive inertia lies inside the base parameters and the robot file "
+            f"states none: held near {entry['kg_m2']:.3g} kg m^2 from {source}, not absorbed by the links"
+        )
     if not any(f.pressed for f in fit.envelope):
         print("  every link inside, none pushed against its bounds" if not fit.envelope else "  none pushed hard")
     elif unit_factor(fit.torque_ratio) is not None:  # every link pushed by the unit: the warning names it

@@ -26,6 +26,7 @@ from identification.data.recording import Recording
 from identification.data.robot_recordings import load_robot_recording
 from identification.metrics import rmse
 from psdm_casadi import derive_psdm
+from psdm_casadi.cli import main
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.robot import load_robot
 from tests.conftest import DATASETS, DENSO_FILE, ROOT
@@ -181,3 +182,18 @@ def test_the_tx40s_rotors_of_joints_1_and_2_come_from_its_data_and_its_links_kee
     ready = prepare_recording(held, None, fit.cutoff_hz[0], fit.edge_periods)[0]
     ours, free = (rmse(ready.tau, predict_torque(model, f, ready.q, ready.qd, ready.qdd)) for f in (fit, bare))
     assert np.all(ours[:3] <= 1.02 * free[:3]), (ours, free)
+
+
+@pytest.mark.real_data
+def test_psdm_identify_says_where_the_tx40s_rotors_of_joints_1_and_2_came_from(tmp_path, capsys):
+    if not TX40.exists():
+        pytest.skip(f"{TX40} is absent")
+    out = tmp_path / "tx40.json"
+    assert main(["identify", str(ROOT / "examples" / "staubli_tx40.toml"), "--data", str(TX40), "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    for joint in (1, 2):
+        assert f"joint {joint}'s drive inertia lies inside the base parameters and the robot file states none" in text
+    assert text.count("from the training data beside the robot file's links") == 2
+    assert "PUSHED" not in text
+    # the torques hold rotor inertia: not called a sensor behind the gearbox
+    assert "drive loss: not tried" in text and "behind the gearbox" not in text
