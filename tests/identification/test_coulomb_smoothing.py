@@ -67,7 +67,7 @@ def test_the_column_choice_takes_the_smoothing_from_the_recordings_it_prepares_o
     from trajopt.experiments import sine_experiment
 
     rng = np.random.default_rng(5)
-    reference = sine_experiment(denso, duration=4.0, rng=rng).reference()
+    reference = sine_experiment(denso, duration=2.5, rng=rng).reference()
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1)
     recording, _ = simulate_recording(denso, reference, options, rng)
     given = TrajectoryOptions(cutoff_hz=8.0, mass_ratio=(0.8, 1.25))
