@@ -77,7 +77,7 @@ def test_a_recording_with_a_still_joint_is_refused_naming_it(recordings, tmp_pat
 
 
 def test_sigma_percent_is_relative_to_the_printed_estimate(recordings, tmp_path, capsys):
-    from psdm_casadi.cli.identify_recordings import sigma_percent
+    from psdm_casadi.cli.identify_text import sigma_percent
 
     np.testing.assert_allclose(sigma_percent([-2.0, 0.5, 0.0], [0.5, 0.01, 1.0]), [25.0, 2.0, np.inf])
     out = tmp_path / "model.json"

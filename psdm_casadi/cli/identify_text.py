@@ -1,0 +1,147 @@
+"""The report ``psdm identify`` prints on the recordings route (``identify_recordings``): text, or ``--json``."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from psdm_casadi.cli.output import print_json
+
+
+def _print_lugre(block) -> None:
+    """The LuGre parameters per joint with their standard deviations (the steady state above is the start)."""
+    if not block:
+        return
+    from identification.friction.models import LUGRE_PARAMETER_NAMES
+
+    print("\nLuGre friction (fitted along the series; the Stribeck values above are its start), value +- sigma:")
+    print("joint " + " ".join(f"{name:>20}" for name in LUGRE_PARAMETER_NAMES))
+    for j, identifiable in enumerate(block["sigma0_identifiable"]):
+        cells = [f"{block[n][j]:10.4g} +- {_sigma(block['std'][n][j]):<6}" for n in LUGRE_PARAMETER_NAMES]
+        note = "" if identifiable else "  (sigma0 not identifiable)"
+        print(f"{j + 1:<5} " + " ".join(f"{c:>20}" for c in cells) + note)
+
+
+def _print_payloads(payloads) -> None:
+    """Each unknown payload's mass and centre of mass (flange frame) with sigma, or why they are not separable."""
+    if not payloads:
+        return
+    print("\nunknown payloads (a body fixed to the flange; the arm's parameters shared by every configuration):")
+    for p in payloads:
+        where = f"{p.name} ({len(p.recordings)} recording{'s' if len(p.recordings) != 1 else ''})"
+        if not p.identifiable:
+            print(f"  {where}: not separable from the arm's last link (every recording carries it, or the motion does "
+                  "not tell them apart). Record the arm without it too.")  # fmt: skip
+            continue
+        com = ", ".join(f"{v:.4f}" for v in p.com)
+        com_std = ", ".join(_sigma(None if not np.isfinite(v) else v) for v in p.com_std)
+        print(f"  {where}: mass {p.mass:.4g} +- {_sigma(p.mass_std)} kg, centre of mass [{com}] +- [{com_std}] m")
+
+
+def sigma_percent(value, std) -> np.ndarray:
+    """100 sigma / |value| [%] of each printed estimate (inf for an estimate of zero), so that the table's columns
+    agree: the file's ``relative_sigma_percent`` is relative to the least-squares estimate (``ols``) instead."""
+    value, std = np.asarray(value, dtype=float), np.asarray(std, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(value == 0, np.inf, 100.0 * np.abs(std) / np.abs(value))
+
+
+def _sigma(value) -> str:
+    return "inf" if value is None else f"{value:.2g}"
+
+
+def _print_envelope(fit) -> None:
+    """The physical envelope the links were kept in, and the links the data pushed against it."""
+    from identification.calibration.trajectory_checks import unit_factor
+
+    bounds = dict(fit.envelope_bounds)
+    if "envelopes" not in bounds:  # not bounded (the ``prior`` pull alone)
+        return
+    sources = sorted({s for s in bounds["envelopes"] if s})
+    mass, rotor = ("-".join(f"{v:g}" for v in bounds[key]) for key in ("mass_ratio", "drive_inertia_ratio"))
+    print(
+        f"physical envelope: each link's mass within {mass} x the robot file's, drive inertias within {rotor} x, "
+        f"the mass inside a bounding ellipsoid ({', '.join(sources)})"
+    )
+    for entry in bounds.get("drive_inertia_reference", []):
+        source = (
+            "the training data beside the robot file's links"
+            if entry["from"] == "training data"
+            else "the drive inertias of joints " + ", ".join(str(j) for j in entry["from_joints"]) + " (same actuator)"
+        )
+        print(
+            f"  joint {entry['joint']}'s drive inertia lies inside the base parameters and the robot file "
+            f"states none: held near {entry['kg_m2']:.3g} kg m^2 from {source}, not absorbed by the links"
+        )
+    if not any(f.pressed for f in fit.envelope):
+        print("  every link inside, none pushed against its bounds" if not fit.envelope else "  none pushed hard")
+    elif unit_factor(fit.torque_ratio) is not None:  # every link pushed by the unit: the warning names it
+        print(f"  links {', '.join(str(f.link + 1) for f in fit.envelope)} pushed: the torques are in another unit")
+        return
+    for finding in fit.envelope:
+        print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {finding.message}")
+
+
+def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
+    """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, drive
+    columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording)."""
+    from identification.calibration.drive_loss import drive_loss_summary
+
+    if args.json:
+        print_json({"command": "identify", "protocol": "recordings", "robot": robot.name, "out": str(args.out),
+                    "consistent": calibrated.consistent, "checked": fit.checked,
+                    "min_pseudo_inertia_eigenvalue": fit.min_pseudo_inertia_eigenvalue,
+                    "min_mass_eigenvalue": report["min_mass_eigenvalue"], "condition_number": fit.condition_number,
+                    "cutoff_hz": list(fit.cutoff_hz), "theta": fit.theta.tolist(), "theta_std": fit.theta_std.tolist(),
+                    "drive": dict(zip(fit.drive_names, fit.drive.tolist())), "validation": report["recordings"],
+                    "drive_std": dict(zip(fit.drive_names, fit.drive_std.tolist())),
+                    "stribeck_velocity": list(fit.stribeck_velocity),
+                    "stribeck_velocity_std": list(fit.stribeck_velocity_std),
+                    "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
+                    "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
+                    "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
+                    "columns": calibrated.document["identification"]["column_choice"],
+                    "counterbalance": calibrated.document["identification"]["counterbalance"],
+                    "drive_loss": drive_loss_summary(calibrated.document),
+                    "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
+        return
+    print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
+          f"(decimation {', '.join(map(str, fit.decimation))}; {fit.edge_periods:g} filter periods trimmed at each "
+          f"end, the filter's start-up transient); condition number of the weighted regressor "
+          f"{fit.condition_number:.3g}")  # fmt: skip
+    state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
+    print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
+          f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
+    _print_envelope(fit)
+    if "prior" in dict(fit.envelope_bounds):
+        from identification.calibration.prior_pull import PriorPull
+
+        print(PriorPull.from_note(dict(fit.envelope_bounds)["prior"]).describe())
+    print("drive columns: " + "; ".join(result.choice.describe()))
+    if result.counterbalance.reason:
+        print(f"counterbalance: {result.counterbalance.reason}")
+    for entry in drive_loss_summary(calibrated.document):
+        print(
+            f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "
+            f"eta {entry['efficiency']:.3f} ({entry['efficiency_range'][0]:.3f}-{entry['efficiency_range'][1]:.3f})"
+        )
+    relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
+    print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
+    for k, value in enumerate(fit.theta):
+        print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {relative[k]:8.1f}")
+    for k, name in enumerate(fit.drive_names):
+        if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
+            continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
+        print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
+    for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
+        if vs == 0:
+            continue  # a Coulomb-viscous joint: no Stribeck velocity
+        print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
+    _print_lugre(calibrated.document["drive"].get("lugre"))
+    _print_payloads(fit.payloads)
+    for entry in report["recordings"]:
+        print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
+        for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):
+            if key in entry:
+                print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
+        print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
+    print(f"\ncalibrated model written to {args.out}")
