@@ -25,8 +25,9 @@ file's links (the base parameter holding it, less the file's link), held >= 0 on
 is normal to joint 1's); held to joints 3-4's the fit keeps them off the links, and the joint-torque sensors give 0.52
 and 0.48 kg m^2 for the difference between current and sensor torque (``benchmarks/kinova_gen3.py``,
 ``sensor_check``). On the TX40's motor-side torques links 1-3 sat at twice their masses on their envelopes
-(``benchmarks/real_identification.py``); with the rotors of joints 1 and 2 from the data (0.60 and 0.49 kg m^2) they
-keep 11.3, 4.0 and 3.7 kg (file: 10.5, 3.6, 4.1) and no link is pushed.
+(``benchmarks/real_identification.py``); with the rotors of joints 1 and 2 held near the data's 0.60 and 0.49 kg m^2
+(fitted 0.61 and 0.59; ``psdm diagnose`` of the robot file finds 0.60 and 0.51 on its own) they keep 10.7, 3.8 and
+3.8 kg (file: 10.5, 3.6, 4.1) and no link is pushed.
 """
 
 from __future__ import annotations
