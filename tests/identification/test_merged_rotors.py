@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from codegen.urdf_export import urdf_armature
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_choice import ColumnRequest, choose_columns
 from identification.calibration.merged_rotors import merged_rotor_map, with_merged_rotors
@@ -149,6 +150,9 @@ def test_motor_side_torques_keep_the_rotors_the_file_does_not_state_out_of_the_l
     assert not [f for f in fit.envelope if f.pressed]
     reference = dict(fit.envelope_bounds)["drive_inertia_reference"]
     assert sorted(r["joint"] - 1 for r in reference) == merged
+    # the exported model's armature (URDF comments, MJCF) holds them: the torque the model predicts
+    calibrated = CalibratedModel.from_fit(unstated, denso_model, fit, robot_source=str(DENSO_FILE))
+    np.testing.assert_array_equal(urdf_armature(calibrated, unstated)[merged], fit.standard[merged, ROTOR])
     # a link-side sensor (no rotor in the torque, no drive-inertia column): the map as derived
     sensor = identify_trajectories(unstated, denso_model, [recorded(denso, 11, current=False)],
                                    TrajectoryOptions(drive_inertia=False))  # fmt: skip
