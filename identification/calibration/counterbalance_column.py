@@ -17,9 +17,7 @@ identified on the rest; without held-out recordings it is the only judge). It is
   spring that helps on most of the motion and not on a stretch of it does not hold there. While the TX40's links
   absorbed its rotors of joints 1-2, its envelope named a counterbalance on joint 2; a cubic spring there lowered
   three blocks by 24-34 % and raised the first by 6 %, within that block's noise, and the blocks taken together kept
-  it, though it raised the held-out end's joint 2 from 3.80 to 4.22 N m. With the rotors fitted, a spring there
-  lowers the held-out end, mostly a standstill, from 4.87 to 4.79 N m and raises three of the four blocks: the
-  blocks, as the second opinion, refuse it);
+  it, though it raised the held-out end's joint 2 from 3.80 to 4.22 N m; now the first block's rise refuses it);
 - no joint's RMSE is worse than without it beyond the noise margin, on the held-out recordings together and on the
   blocks together (``never_worse``; the blocks' margin at least the spread of their changes);
 - nothing is left pushed for a counterbalance on its joints.
@@ -300,7 +298,7 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
              second=True) -> Trial:  # fmt: skip
     """The ``Trial`` of the fit with a spring of ``order`` on ``joints``: judged on the held-out recordings (each, and
     together), then by the block cross-validation (each block, and together) unless the held-out recordings already
-    refuse every spring (or ``second`` is False)."""
+    refuse it (a joint worse, or no spring lowering its joint) or ``second`` is False."""
     columns = _columns(joints, options, recordings, order)
 
     def with_springs(data, configs):
@@ -315,7 +313,8 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
     if judges.held:
         each = compare_each(calibrated, type(calibrated)(document), model, list(judges.held), kt)
         opinions.append(Opinion(HELD_OUT_ROUTE, pooled_comparison(each), each))
-    if judges.folds is not None and second and (not opinions or any(opinions[0].lowers(j) for j in joints)):
+    refused = opinions and (opinions[0].together.worse or not any(opinions[0].lowers(j) for j in joints))
+    if judges.folds is not None and second and not refused:
         together, folds = judges.folds.compare(
             lambda pieces: build(identify_trajectories(robot, model, list(pieces), options)),
             lambda pieces: type(calibrated)(with_springs(list(pieces), None)[1]),

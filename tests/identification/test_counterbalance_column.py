@@ -127,13 +127,13 @@ def test_a_spring_must_lower_its_joint_on_each_held_out_recording(denso, denso_m
     assert [p["part"] for p in taken.parts] == ["recording 1 of 1", *(f"block {k} of 4" for k in range(1, 5))]
 
 
-@pytest.mark.slow  # the TX40's fit, and a spring judged on its held-out end and by 4 blocks: 30-90 s
-def test_on_the_tx40_a_spring_the_held_out_end_alone_would_take_is_refused_by_the_blocks(monkeypatch):
-    """Issue 25 on the real TX40 recording (skipped without ../shared; the first 70 % trains). With its rotors of joints
-    1-2 fitted from the data no link is pushed and nothing is named; a spring on joint 2, tried as if the envelope had
-    named it, lowers the held-out end's joint 2 (4.87 -> 4.79 N m; half of it a standstill, where a joint holds
-    whatever static friction it stopped with) but raises the blocks of the training recording (three of four): with
-    one --validate recording the blocks give the second opinion, and it is not taken."""
+@pytest.mark.slow  # the TX40's fit, and a spring judged by 4 blocks and on its held-out end: 30-90 s
+def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(monkeypatch):
+    """Issue 25 on the real TX40 recording (skipped without ../shared; the first 70 % trains). While its links absorbed
+    the rotors of joints 1-2, its envelope named a counterbalance on joint 2 and the blocks taken together kept a cubic
+    spring there that raised the held-out end's joint 2 from 3.80 to 4.22 N m (the first block rose too, within its
+    noise). With the rotors fitted nothing is named; a spring on joint 2, tried as if it were, raises the blocks (each
+    named in the reason) and the held-out end, and is not taken by either judge."""
     from pathlib import Path
     from types import SimpleNamespace
 
@@ -160,9 +160,9 @@ def test_on_the_tx40_a_spring_the_held_out_end_alone_would_take_is_refused_by_th
     def build(fit):
         return CalibratedModel.from_fit(robot, model, fit, robot_source=str(TX40 / "tx40_mdh_modified.urdf"))
 
-    choice = try_counterbalance(robot, model, [train], result.options, named, result.calibrated, [validation], build)
-    assert choice.joints == (1,) and not choice.kept, choice.reason
-    held, *blocks = choice.parts
-    assert held["part"] == "recording 1 of 1" and held["rmse_with"][0] < held["rmse_without"][0]  # alone: taken
-    risen = [b["part"] for b in blocks if b["rmse_with"][0] > b["rmse_without"][0]]
-    assert len(blocks) == 4 and len(risen) >= 2 and all(part in choice.reason for part in risen)
+    for held_out in ([], [validation]):  # the blocks alone; the held-out end first, the blocks the second opinion
+        choice = try_counterbalance(robot, model, [train], result.options, named, result.calibrated, held_out, build)
+        assert choice.joints == (1,) and not choice.kept, choice.reason
+        risen = [p["part"] for p in choice.parts if p["rmse_with"][0] >= p["rmse_without"][0]]
+        assert risen and all(part in choice.reason for part in risen)
+        assert len(choice.parts) == (4 if not held_out else 1)  # the held-out end refuses: no second opinion needed
