@@ -50,6 +50,10 @@ def _diagnosed(bench, index):
         (10, "delay", None),
         (24, "unnamed_effect", 4),
         (30, "spring", 1),
+        # under the selection's 0.4 % size floor on the first validation half (docs/results/benchmarks.md): the
+        # elasticity lowers its joint by 0.0135 N m against 0.0146, the Stribeck peak by 0.0164 against 0.01645
+        pytest.param(12, "joint_elasticity", 5, marks=pytest.mark.xfail(strict=True, reason="issue 25: size floor")),
+        pytest.param(25, "friction_shape", 5, marks=pytest.mark.xfail(strict=True, reason="issue 25: size floor")),
     ],
 )
 def test_the_hidden_effect_is_found_at_identify_s_preparation(bench, index, effect, joint):
@@ -62,3 +66,7 @@ def test_the_hidden_effect_is_found_at_identify_s_preparation(bench, index, effe
         assert report.rmse_after[joint] < 0.67 * report.rmse_before[joint]
     if effect == "delay":  # 8 samples of 1 kHz (the scenario's truth)
         assert abs(hit[0].parameters["delay_s"] - truth[0][3]["delay_s"]) < 0.5 * truth[0][3]["delay_s"]
+    if effect == "friction_shape":  # the hump's height above the Coulomb level and its velocity (1.34 N m, 0.110 rad/s
+        # against 1.20 N m, 0.127 rad/s when the floor lets it through)
+        assert hit[0].parameters["stribeck_peak_Nm"] == pytest.approx(truth[0][3]["height"], rel=0.25)
+        assert hit[0].parameters["stribeck_velocity_rad_s"] == pytest.approx(truth[0][3]["velocity"], rel=0.25)
