@@ -4,7 +4,9 @@ One definition for the whole package, so that every table and report means the s
 
 - ``rms(x)``: root mean square, per column for 2-D input;
 - ``rmse(observed, predicted)``: root mean squared error, per column for 2-D input;
-- ``r2(observed, predicted)``: coefficient of determination ``1 - SS_res / SS_tot``, per column.
+- ``r2(observed, predicted)``: coefficient of determination ``1 - SS_res / SS_tot``, per column;
+- ``explained_rms(rmse_before, rmse_after)``: the RMS of the residual a model change takes away,
+  ``sqrt(before^2 - after^2)`` (0 where the error rises).
 
 Empty input gives NaN. R^2 of a constant observed signal (``SS_tot`` zero to rounding) is undefined
 and gives NaN rather than a huge or infinite number; callers that must refuse such data check
@@ -15,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["is_constant", "r2", "rms", "rmse"]
+__all__ = ["explained_rms", "is_constant", "r2", "rms", "rmse"]
 
 #: SS_tot at or below this fraction of sum(y^2) counts as a constant signal.
 _CONSTANT_RTOL = 1e-24
@@ -40,6 +42,15 @@ def rms(x):
 def rmse(observed, predicted):
     """Root mean squared error over the first axis (float for 1-D input, per column for 2-D)."""
     return rms(_as_float(observed) - _as_float(predicted))
+
+
+def explained_rms(rmse_before, rmse_after):
+    """The RMS of the residual a model change takes away: ``sqrt(before^2 - after^2)`` of the RMSE without and with it,
+    elementwise, 0 where it rises. A change that models an effect exactly explains the effect's own RMS whatever
+    noise it leaves; the drop ``before - after`` is that RMS only when the noise left is small against it (an effect
+    of RMS e on noise n drops the RMSE by ``sqrt(e^2 + n^2) - n``, about ``e^2 / 2n`` for e < n)."""
+    before, after = _as_float(rmse_before), _as_float(rmse_after)
+    return _reduce(np.sqrt(np.maximum(before * before - after * after, 0.0)))
 
 
 def is_constant(observed) -> np.ndarray | bool:

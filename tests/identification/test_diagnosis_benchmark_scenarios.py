@@ -6,9 +6,11 @@ from 15 Hz to identify's 10 Hz with one filter period trimmed at each end: the f
 the ends let a recalibrated rigid body beat a true delay (scenario 10) and stand in for the heavy arm's counterbalance
 (30), and the sign of a velocity filtered at 10 Hz misplaced the reversals where a joint sticks, so that a
 position-dependent friction (24) stayed in the residual (the sparse terms' sign: ``context.sign_velocity``). The
-Stribeck hump (25) is still missed at 10 Hz (its sparse term falls short of the 1 % torque floor; the Stribeck peak of a
-fitted velocity now offered beside a LuGre nominal friction names it, 1.34 N m over 0.110 rad/s against 1.20 N m over
-0.127 rad/s, but lowers the first validation half by 0.0164 N m, under the selection's 0.4 % floor of 0.01645 N m).
+wrist elasticity (12) was lost when identify's three filter periods were trimmed (in the middle it explains 0.6 % of its
+joint's torque, but the noise it leaves shrank the RMSE drop to 0.3 %, under the 0.4 % floor then judged on that
+drop), and the Stribeck hump (25) at 10 Hz (its RMSE drop 0.0164 N m under the floor of 0.01645): the size floor is on
+the torque a term explains (``metrics.explained_rms``), and an elasticity is not named where pre-sliding on its joint
+fit better but did not hold (``FrictionRival.stand_in``: the unseen UR5-like arm's joint 5, issue 25).
 """
 
 from __future__ import annotations
@@ -50,10 +52,8 @@ def _diagnosed(bench, index):
         (10, "delay", None),
         (24, "unnamed_effect", 4),
         (30, "spring", 1),
-        # under the selection's 0.4 % size floor on the first validation half (docs/results/benchmarks.md): the
-        # elasticity lowers its joint by 0.0135 N m against 0.0146, the Stribeck peak by 0.0164 against 0.01645
-        pytest.param(12, "joint_elasticity", 5, marks=pytest.mark.xfail(strict=True, reason="issue 25: size floor")),
-        pytest.param(25, "friction_shape", 5, marks=pytest.mark.xfail(strict=True, reason="issue 25: size floor")),
+        (12, "joint_elasticity", 5),
+        (25, "friction_shape", 5),
     ],
 )
 def test_the_hidden_effect_is_found_at_identify_s_preparation(bench, index, effect, joint):
@@ -66,7 +66,10 @@ def test_the_hidden_effect_is_found_at_identify_s_preparation(bench, index, effe
         assert report.rmse_after[joint] < 0.67 * report.rmse_before[joint]
     if effect == "delay":  # 8 samples of 1 kHz (the scenario's truth)
         assert abs(hit[0].parameters["delay_s"] - truth[0][3]["delay_s"]) < 0.5 * truth[0][3]["delay_s"]
+    if effect == "joint_elasticity":  # the stiffness within a quarter of the truth (1349 against 1133 N m/rad)
+        truth_k = truth[0][3]["stiffness_Nm_per_rad"]
+        assert hit[0].parameters["stiffness_Nm_per_rad"] == pytest.approx(truth_k, rel=0.25)
     if effect == "friction_shape":  # the hump's height above the Coulomb level and its velocity (1.34 N m, 0.110 rad/s
-        # against 1.20 N m, 0.127 rad/s when the floor lets it through)
+        # against 1.20 N m, 0.127 rad/s)
         assert hit[0].parameters["stribeck_peak_Nm"] == pytest.approx(truth[0][3]["height"], rel=0.25)
         assert hit[0].parameters["stribeck_velocity_rad_s"] == pytest.approx(truth[0][3]["velocity"], rel=0.25)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from identification.metrics import is_constant, r2, rms, rmse
+from identification.metrics import explained_rms, is_constant, r2, rms, rmse
 
 
 def test_rmse_and_r2_match_definitions_per_column():
@@ -30,3 +30,18 @@ def test_constant_and_empty_signals_give_nan_not_infinity():
     values = r2(both, both)
     assert np.isnan(values[0]) and values[1] == 1.0
     assert list(is_constant(both)) == [True, False]
+
+
+def test_explained_rms_is_the_size_of_an_effect_a_model_takes_out_whatever_noise_it_leaves():
+    # known truth: a residual of an effect of RMS e = 0.02 (a sine) plus noise of RMS n = 0.015, uncorrelated; the model
+    # that takes the effect out leaves the noise. The RMSE drops by sqrt(e^2 + n^2) - n = 0.010 only, half the effect,
+    # while the torque the model explains is the effect's RMS; a model that makes the residual worse explains nothing
+    rng = np.random.default_rng(3)
+    t = np.linspace(0.0, 100.0, 200_001)
+    effect = 0.02 * np.sqrt(2.0) * np.sin(2.0 * np.pi * 0.37 * t)
+    noise = 0.015 * rng.standard_normal(t.size)
+    before, after = rms(effect + noise), rms(noise)
+    assert before - after == pytest.approx(np.sqrt(0.02**2 + 0.015**2) - 0.015, abs=3e-4)  # 0.010, half the effect
+    assert explained_rms(before, after) == pytest.approx(0.02, rel=0.02)
+    np.testing.assert_allclose(explained_rms([before, 0.1], [after, 0.2]), [explained_rms(before, after), 0.0])
+    assert explained_rms(0.05, 0.05) == 0.0

@@ -1,0 +1,83 @@
+"""A joint elasticity does not stand in for pre-sliding that does not hold (issue 25).
+
+A compliance shifts the velocity the friction sees by ``c dtau/dt``: its fitted torque lives at the velocity reversals,
+where a LuGre bristle's pre-sliding lives too (on the benchmark's true wrist elasticity, scenario 12, 0.089 of its
+0.090 N m come from that shift, 0.31 N m RMS near the reversals against 0.02 elsewhere; on the unseen UR5-like arm's
+friction-dominated joint 5, with no elasticity, 0.09 against 0.01). Where a friction shape on the joint explained the
+validation recording better but did not hold on the second opinion, the elasticity chosen after it is not named
+(``FrictionRival.stand_in``). Known truth: the unseen UR5-like arm (LuGre drives, no elasticity) from
+``benchmarks/unseen_cases.py``, and the virtual Denso with a wrist elasticity beside the pre-sliding candidates."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from identification.diagnosis import DiagnosisOptions, diagnose
+from identification.diagnosis.candidates import CandidateLibrary, JointElasticityTerm
+from identification.diagnosis.candidates.deflection import BacklashTerm
+from identification.diagnosis.candidates.friction import lacking_friction_shapes
+from identification.diagnosis.friction_rival import FrictionRival
+from identification.diagnosis.second_opinion import UnstableFinding
+from identification.virtual.transmission_effects import JointElasticity
+from tests.identification.test_diagnosis_friction_rival import _record
+
+
+def _unstable(effect, label, joint):
+    return UnstableFinding(effect=effect, label=label, joints=(joint,), route="block cross-validation", opinions=())
+
+
+def test_an_elasticity_after_a_friction_shape_refused_on_its_joint_is_a_stand_in():
+    rival = FrictionRival(None, [])
+    elastic = JointElasticityTerm(joint=4)
+    presliding = _unstable("presliding", "presliding[j5]", 4)
+    sentence = rival.stand_in(elastic, [presliding])
+    assert sentence.startswith("joint_elasticity[j5] not named: presliding[j5]") and rival.sentences == [sentence]
+    assert rival.stand_in(elastic, [_unstable("presliding", "presliding[j4]", 3)]) is None  # another joint
+    assert rival.stand_in(elastic, [_unstable("delay", "delay", 4)]) is None  # not a friction shape
+    assert rival.stand_in(BacklashTerm(joint=4), [presliding]) is None  # the rule is the elasticity's
+
+
+@pytest.mark.parametrize("joint", [4, 5])
+def test_a_true_elasticity_is_named_beside_the_pre_sliding_candidates(denso, denso_model, joint):
+    # the Denso's LuGre friction diagnosed with a Coulomb-viscous nominal: pre-sliding and the other friction shapes
+    # compete with the elasticity (torsion 0.2 deg at the joint's RMS torque) and the blocks judge each
+    train, _ = _record(denso, 0, 4.0, ())
+    k = float(np.sqrt(np.mean(train.tau[:, joint] ** 2))) / np.radians(0.2)
+    extras = (JointElasticity(joint=joint, stiffness=k),)
+    train, _ = _record(denso, 0, 4.0, extras)
+    validation, _ = _record(denso, 1, 3.0, extras)
+    library = JointElasticityTerm() + CandidateLibrary(lacking_friction_shapes())
+    options = DiagnosisOptions(rigid_body="prior", sparse=False, library=library, friction="coulomb_viscous")
+    report = diagnose(denso, train, validation, options, model=denso_model)
+    (hit,) = [f for f in report.findings if f.effect == "joint_elasticity"]
+    assert hit.joints == (joint,)
+    assert hit.parameters["stiffness_Nm_per_rad"] == pytest.approx(k, rel=0.5)
+
+
+@pytest.mark.slow
+def test_the_unseen_ur5_s_friction_dominated_wrist_gets_no_elasticity(tmp_path):
+    # the UR5-like arm on motor currents (500 Hz, LuGre drives, no elasticity): identify, then diagnose as
+    # benchmarks/unseen_arms.py runs them; pre-sliding on joint 5 fits it best but does not hold on the blocks, and the
+    # elasticity after it (3900-4600 N m/rad, 0.02 deg at the joint's RMS torque) is not named
+    bench = str(Path(__file__).resolve().parents[2] / "benchmarks")
+    sys.path.insert(0, bench)
+    try:
+        import unseen_arms
+
+        case = unseen_arms.build("cobot_currents_payload", tmp_path, 0)
+        model, layout = tmp_path / "model.json", list(case.extra)
+        code, _, text, _ = unseen_arms._cli(["identify", case.robot, "--data", *case.train, "--validate",
+                                             case.validate, *layout, "--out", model, "--json"])  # fmt: skip
+        assert code == 0, text
+        code, report, text, _ = unseen_arms._cli(["diagnose", model, "--train", case.train[-1], "--validate",
+                                                  case.validate, *layout, "--json"])  # fmt: skip
+    finally:
+        sys.path.remove(bench)
+    assert code == 0, text
+    assert not [f for f in report["findings"] if f["effect"] == "joint_elasticity"], json.dumps(report["findings"])
+    assert any(s.startswith("joint_elasticity[j5] not named: presliding[j5]") for s in report["dropped"])
