@@ -101,8 +101,8 @@ class TrajectoryOptions:
         [kg m^2] by which every identified pseudo-inertia stays positive definite (its smallest
         eigenvalue is at least this).
     prior_uncertainty, prior_weight : float
-        The robot file's standard parameters are known to ``prior_uncertainty`` of their size (``prior_pull``:
-        the pull's weight follows from the data's independent samples); a ``prior_weight`` (per sample) overrides it.
+        The pull towards the robot file, weighed against the data's independent samples: its parameters known to
+        ``prior_uncertainty`` times their size (``prior_pull``); a ``prior_weight`` (per sample) overrides it.
     cutoff_hz : float or None
         Low-pass cutoff [Hz]; None chooses ``min(10 Hz, rate / 10)`` per recording.
     edge_periods : float

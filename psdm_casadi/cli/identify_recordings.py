@@ -102,7 +102,7 @@ def add_arguments(p) -> None:
             option, nargs=2, type=float, default=(0.5, 2.0), metavar=("LOW", "HIGH"), help=f"{bounded} (default 0.5 2)"
         )
     p.add_argument("--prior-uncertainty", type=float, default=None, metavar="U",
-                   help="the robot file's inertial parameters are known to U times their size (default 2): the pull "
+                   help="the robot file's inertial parameters are known to U times their size (default 3): the pull "
                    "towards the file that settles what the recordings hardly fix, weighed against their independent "
                    "samples")  # fmt: skip
     for option, what in (("--no-envelope", "do not keep the links inside their physical envelope (bounding "
@@ -156,7 +156,7 @@ def run(args) -> int:
     request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
                             drive_loss=args.drive_loss, coulomb_velocity=args.coulomb_velocity)  # fmt: skip
     if args.prior_uncertainty is not None and not (np.isfinite(args.prior_uncertainty) and args.prior_uncertainty > 0):
-        raise ParameterError(f"--prior-uncertainty must be > 0 (a multiple of each parameter's size, e.g. 2); got "
+        raise ParameterError(f"--prior-uncertainty must be > 0 (a multiple of each parameter's size, e.g. 3); got "
                              f"{args.prior_uncertainty!r}.")  # fmt: skip
     if args.model:
         model = load_model(args.model)

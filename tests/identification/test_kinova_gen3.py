@@ -141,7 +141,7 @@ def test_identify_on_defaults_from_the_sensors_leaves_no_link_at_a_mass_bound(ro
     assert not _at_a_mass_bound(robot, mass), mass
     prior = report["envelope"]["prior"]
     samples = 7 * json.loads((tmp_path / "sensor.json").read_text())["identification"]["n_samples"]
-    assert not prior["given"] and prior["uncertainty"] == 2.0
+    assert not prior["given"] and prior["uncertainty"] == 3.0
     assert 100 < prior["effective_samples"] < 0.5 * samples  # filtered, oversampled: neighbours are not independent
 
 

@@ -26,10 +26,10 @@ from trajopt.experiments import sine_experiment
 
 def test_the_weight_is_one_over_the_uncertainty_squared_times_the_independent_samples():
     count, correlation = np.array([400, 400, 200]), np.array([4.0, 2.0, 0.5])  # below 1 counts as white
-    pull = PriorPull.of(TrajectoryOptions(prior_uncertainty=0.5), count, correlation)
+    pull = PriorPull.of(TrajectoryOptions(prior_uncertainty=0.5, prior_weight=None), count, correlation)
     assert pull.effective_samples == pytest.approx(100 + 200 + 200)
     assert pull.weight == pytest.approx(1.0 / (0.25 * 500)) and pull.given is None
-    assert PriorPull.of(TrajectoryOptions(), count).effective_samples == pytest.approx(1000)
+    assert PriorPull.of(TrajectoryOptions(prior_weight=None), count).effective_samples == pytest.approx(1000)
     given = PriorPull.of(TrajectoryOptions(prior_weight=1e-4), count, correlation)
     assert given.weight == 1e-4 and given.note()[0][1]["given"] and "given" in given.describe()
     assert PriorPull.from_note(pull.note()[0][1]) == PriorPull(0.5, 500.0)
@@ -62,7 +62,7 @@ def test_a_well_excited_fit_stays_on_the_truth_and_not_on_a_wrong_file(denso, de
     """The base parameters' error stays at the estimate's own noise (0.8 standard deviations RMS, as with the weak
     pull of before), 50 times smaller than the file's."""
     recording = _recording(denso, 8.0)
-    fit = identify_trajectories(wrong_file, denso_model, [recording], TrajectoryOptions())
+    fit = identify_trajectories(wrong_file, denso_model, [recording], TrajectoryOptions(prior_weight=None))
     weak = identify_trajectories(wrong_file, denso_model, [recording], TrajectoryOptions(prior_weight=1e-4))
     truth = denso_model.base_parameters(denso.nominal_dynamic_parameters())
     file = denso_model.base_parameters(wrong_file.nominal_dynamic_parameters())
