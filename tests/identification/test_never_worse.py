@@ -253,9 +253,14 @@ def test_apply_refuses_when_no_finding_can_be_kept(spring_data, denso, capsys, m
     """Only the delay: every subset is worse on joints 1-3 (or is the model itself): exit 1, no file."""
     import importlib
 
-    # where psdm diagnose MODEL looks it up (model_file holds its own name once imported), and the module itself
-    for module in ("identification.diagnosis.diagnose", "identification.diagnosis.model_file"):
-        monkeypatch.setattr(importlib.import_module(module), "diagnose", lambda *args, **kwargs: _report(False))
+    # where psdm diagnose MODEL looks it up (model_file holds its own name once imported), and the module itself;
+    # both imported before either is patched: model_file imported after would bind the stand-in as its own name,
+    # and the monkeypatch would restore it to the stand-in (later tests then diagnosed nothing)
+    modules = [
+        importlib.import_module(m) for m in ("identification.diagnosis.diagnose", "identification.diagnosis.model_file")
+    ]
+    for module in modules:
+        monkeypatch.setattr(module, "diagnose", lambda *args, **kwargs: _report(False))
     out = spring_data / "refused.json"
     argv = ["diagnose", str(spring_data / "model.json"), "--train", str(spring_data / "train.csv"), "--validate",
             str(spring_data / "valid.csv"), "--apply", str(out), "--json"]  # fmt: skip
