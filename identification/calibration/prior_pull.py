@@ -41,14 +41,15 @@ from psdm_casadi.errors import ParameterError
 __all__ = ["PRIOR_UNCERTAINTY", "PriorPull", "check_prior_options", "prior_scale"]
 
 #: The robot file's standard parameters are taken as known to this multiple of their size (one standard deviation):
-#: a weak statement per parameter (a mass at the envelope's 2 x bound is a third of a standard deviation off), strong
-#: only where the data say little: the Kinova's sensor fit keeps every link off its mass bounds. Tighter costs where
-#: the file is rough or an effect is missing: at 2 (and 2.5) the virtual Denso with a hidden cam counterbalance
-#: refused the spring its refit needs (joint 4 worse by more than its tiny noise margin: test_counterbalance_column,
-#: test_never_worse), though the unseen slow-gravity arm's link 6 kept within 1.43 x its true mass (1.52 at 3); at 1
-#: the heavy arm's joint 2 lost 5 % held out (seed 0: 411 N m with the weight of before, 431 at 1) and a Denso carrying
-#: a hidden 4 kg payload had joint 2's drive inertia pressed down and named a counterbalance beside the payload.
-PRIOR_UNCERTAINTY = 3.0
+#: a weak statement per parameter (a mass at the envelope's 2 x bound is half a standard deviation off), strong only
+#: where the data say little. Looser lets such links drift: at 3 the unseen cobot on currents put link 6 at 1.70 x its
+#: true mass and the slow-gravity arm link 6 at 1.52 x (1.30 and 1.43 at 2; 2.0 with the per-sample weight of before),
+#: and the Kinova's current fit left link 3 on its mass bound. Tighter costs where the file is rough or an effect is
+#: missing: at 1 the heavy arm's joint 2 lost 5 % held out (seed 0: 411 N m with the weight of before, 431 at 1) and a
+#: Denso carrying a hidden 4 kg payload had joint 2's drive inertia pressed down and named a counterbalance beside the
+#: payload; at 2 a refit with a spring moves a neighbouring joint at its noise floor by ~3 %, which the never-worse gate
+#: refuses (the virtual Denso's cam counterbalance and its spring beside a delay: strict xfails in the tests).
+PRIOR_UNCERTAINTY = 2.0
 ROTOR = LINK_PARAMETER_COUNT  # column of the drive inertia in a joint's 11 standard parameters
 
 

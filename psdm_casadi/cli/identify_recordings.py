@@ -102,7 +102,7 @@ def add_arguments(p) -> None:
             option, nargs=2, type=float, default=(0.5, 2.0), metavar=("LOW", "HIGH"), help=f"{bounded} (default 0.5 2)"
         )
     p.add_argument("--prior-uncertainty", type=float, default=None, metavar="U",
-                   help="the robot file's inertial parameters are known to U times their size (default 3): the pull "
+                   help="the robot file's inertial parameters are known to U times their size (default 2): the pull "
                    "towards the file that settles what the recordings hardly fix, weighed against their independent "
                    "samples")  # fmt: skip
     for option, what in (("--no-envelope", "do not keep the links inside their physical envelope (bounding "
