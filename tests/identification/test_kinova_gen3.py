@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from identification.calibration.prior_pull import PRIOR_UNCERTAINTY
 from identification.data.io import load_recording
 from identification.data.layout import ColumnLayout
 from identification.data.robot_recordings import load_robot_recording
@@ -141,7 +142,7 @@ def test_identify_on_defaults_from_the_sensors_leaves_no_link_at_a_mass_bound(ro
     assert not _at_a_mass_bound(robot, mass), mass
     prior = report["envelope"]["prior"]
     samples = 7 * json.loads((tmp_path / "sensor.json").read_text())["identification"]["n_samples"]
-    assert not prior["given"] and prior["uncertainty"] == 3.0
+    assert not prior["given"] and prior["uncertainty"] == PRIOR_UNCERTAINTY
     assert 100 < prior["effective_samples"] < 0.5 * samples  # filtered, oversampled: neighbours are not independent
 
 
