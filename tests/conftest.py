@@ -19,6 +19,22 @@ DATASETS = SHARED / "datasets"
 DENSO_FILE = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 
 
+@pytest.fixture
+def benchmark_modules(monkeypatch):
+    """``benchmarks/`` importable for this test (tests that run a benchmark's own case import its module)."""
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+
+
+@pytest.fixture
+def tx40_benchmark(benchmark_modules):
+    """``benchmarks/real_data_diagnosis`` (the TX40's loader and splits); skipped without ../shared's TX40 recording."""
+    if not (DATASETS / "staubli_tx40_figaroh").exists():
+        pytest.skip("the TX40 recording (../shared/datasets/staubli_tx40_figaroh) is absent")
+    import real_data_diagnosis
+
+    return real_data_diagnosis
+
+
 def example_robot_urdf(relative: str) -> Path:
     """A URDF from the example-robot-data wheel (cmeel prefix), or skip the test."""
     for base in {sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]}:

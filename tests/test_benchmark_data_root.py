@@ -9,8 +9,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
-def benchmarks(monkeypatch):
-    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+def benchmarks(benchmark_modules):
     import bench_support
 
     return bench_support

@@ -12,7 +12,6 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -59,8 +58,12 @@ def _cli(argv) -> tuple:
 
 
 @pytest.mark.slow  # identify and diagnose --apply of the 1 t arm: ~15 s
-def test_diagnose_apply_does_not_add_a_ripple_that_cancels_the_spring_the_model_carries(tmp_path, monkeypatch):
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
+@pytest.mark.xfail(strict=True, reason=(
+    "with the pull towards the robot file at its stated uncertainty 2 (prior_pull), identify takes a linear spring for "
+    "the cam (joint 2 held out 276.6 -> 125.7 N m; the cubic at 3: 124.6), and diagnose --apply keeps a "
+    "torque_ripple[j2,h=2] beside it that trades slope with it (k -3330 -> +3803): two findings sharing one torque "
+    "that the cancellation rule (correlation < -0.9) does not catch (issue 25)"))  # fmt: skip
+def test_diagnose_apply_does_not_add_a_ripple_that_cancels_the_spring_the_model_carries(tmp_path, benchmark_modules):
     from unseen_cases import build
 
     case = build("heavy_counterbalance_slow", tmp_path, 0)

@@ -133,13 +133,12 @@ def test_a_spring_must_lower_its_joint_on_each_held_out_recording(denso, denso_m
 
 
 @pytest.mark.slow  # the TX40's fit, and a spring judged by 4 blocks and on its held-out end: 30-90 s
-def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(monkeypatch):
+def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(tx40_benchmark):
     """Issue 25 on the real TX40 recording (skipped without ../shared; the first 70 % trains). While its links absorbed
     the rotors of joints 1-2, its envelope named a counterbalance on joint 2 and the blocks taken together kept a cubic
     spring there that raised the held-out end's joint 2 from 3.80 to 4.22 N m (the first block rose too, within its
     noise). With the rotors fitted nothing is named; a spring on joint 2, tried as if it were, raises the blocks (each
     named in the reason) and the held-out end, and is not taken by either judge."""
-    from pathlib import Path
     from types import SimpleNamespace
 
     from identification.calibration.calibrated_model import CalibratedModel
@@ -147,14 +146,8 @@ def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(monkeypatch):
     from identification.calibration.identify_route import identify_recordings
     from psdm_casadi.derive import derive_psdm
 
-    root = Path(__file__).resolve().parents[2]
-    if not (root.parent / "shared" / "datasets" / "staubli_tx40_figaroh").exists():
-        pytest.skip("the TX40 recording (../shared/datasets/staubli_tx40_figaroh) is absent")
-    monkeypatch.syspath_prepend(str(root / "benchmarks"))
-    from real_data_diagnosis import TX40, load_tx40, split
-
-    robot, recording = load_tx40(TX40)
-    train, validation = split(recording)
+    robot, recording = tx40_benchmark.load_tx40(tx40_benchmark.TX40)
+    train, validation = tx40_benchmark.split(recording)
     model = derive_psdm(robot)
     result = identify_recordings(robot, model, [train], validation=[validation])
     assert result.counterbalance.joints == ()  # nothing pushed, nothing named
@@ -163,7 +156,9 @@ def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(monkeypatch):
     )
 
     def build(fit):
-        return CalibratedModel.from_fit(robot, model, fit, robot_source=str(TX40 / "tx40_mdh_modified.urdf"))
+        return CalibratedModel.from_fit(
+            robot, model, fit, robot_source=str(tx40_benchmark.TX40 / "tx40_mdh_modified.urdf")
+        )
 
     for held_out in ([], [validation]):  # the blocks alone; the held-out end first, the blocks the second opinion
         choice = try_counterbalance(robot, model, [train], result.options, named, result.calibrated, held_out, build)

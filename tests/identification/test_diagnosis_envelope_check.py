@@ -90,14 +90,11 @@ def test_drop_stand_ins_keeps_what_the_envelope_needs_and_says_why():
 
 
 @pytest.mark.slow
-def test_diagnosing_the_heavy_arm_finds_its_cam_counterbalance(monkeypatch):
+def test_diagnosing_the_heavy_arm_finds_its_cam_counterbalance(benchmark_modules):
     """The issue's case, as ``benchmarks/heavy_arm.py`` runs it (seed 0): a 1 t arm, CAD inertias 10-20 % off in the
     truth, a cam counterbalance on joint 2 and a 145 kg payload, 10 s training and 10 s validation at 250 Hz,
     diagnosed against the robot file on the preparation ``psdm identify`` chooses. The free recalibration absorbs the
     counterbalance into link 2; the enveloped one cannot, so the spring on joint 2 stands beside the payload."""
-    from pathlib import Path
-
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
     from diagnosis import _scenario
     from heavy_arm import EFFECTS, heavy_industrial_arm
 

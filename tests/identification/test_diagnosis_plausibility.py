@@ -243,24 +243,16 @@ def test_a_start_up_friction_transient_is_not_reported_as_a_warm_up_drift(denso,
     assert report.findings[0].parameters.get("time_constant_s", np.inf) >= MIN_DRIFT_TIME_CONSTANT_S
 
 
-def test_the_tx40s_joint_5_friction_change_is_a_start_up_transient_not_a_drift(monkeypatch):
+def test_the_tx40s_joint_5_friction_change_is_a_start_up_transient_not_a_drift(tx40_benchmark):
     """Issue 25 on the real TX40 recording (skipped without ../shared): beside the wrist coupling, joint 5's friction
     changes by about 7 N m within the first second of the training recording (time constant 0.3 s). With one filter
     period trimmed it was reported as ``friction_drift[j5]`` (a warm-up); now it is rejected with its numbers. With
     identify's three periods trimmed (the default preparation) the transient is gone from the samples and no drift
     qualifies at all."""
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parents[2]
-    if not (root.parent / "shared" / "datasets" / "staubli_tx40_figaroh").exists():
-        pytest.skip("the TX40 recording (../shared/datasets/staubli_tx40_figaroh) is absent")
-    monkeypatch.syspath_prepend(str(root / "benchmarks"))
-    from real_data_diagnosis import TX40, load_tx40, split_two
-
     from identification.diagnosis import CouplingTerm
 
-    robot, recording = load_tx40(TX40)
-    train, validation = split_two(recording)
+    robot, recording = tx40_benchmark.load_tx40(tx40_benchmark.TX40)
+    train, validation = tx40_benchmark.split_two(recording)
     library = CouplingTerm(joint=4, source=5) + CouplingTerm(joint=5, source=4) + FrictionDriftTerm(joint=4)
     options = DiagnosisOptions(cutoff_hz=10.0, library=library, rigid_body="prior", sparse=False, max_effects=3)
     report = diagnose(robot, train, validation, replace(options, edge_periods=1))

@@ -78,13 +78,10 @@ def test_findings_the_model_already_carries_are_named():
 
 
 @pytest.mark.slow
-def test_identify_then_diagnose_model_finds_the_heavy_arms_counterbalance(tmp_path, monkeypatch):
+def test_identify_then_diagnose_model_finds_the_heavy_arms_counterbalance(tmp_path, benchmark_modules):
     """The route of ``benchmarks/heavy_arm.py`` (seed 0) on the command line: identify absorbs part of the cam
     counterbalance into link 2 and pushes links 4-5 for the payload; diagnosing its model file finds the spring on
     joint 2 and the payload, as diagnosing the robot file does."""
-    from pathlib import Path
-
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[2] / "benchmarks"))
     from heavy_arm import run_case
 
     row = run_case(0, tmp_path)
