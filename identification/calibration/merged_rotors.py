@@ -140,11 +140,7 @@ def file_drive_columns(robot, model, equations, names) -> dict:
     """{column name: value} of the drive columns ``names`` (those after the base parameters in ``equations``, a
     ``trajectory_data.NormalEquations``) fitted by least squares with the robot file's rigid body held: each joint's
     friction, offset and drive inertia explain what the file's links leave of its torque."""
-    theta = robot_file_theta(robot, model)
-    gram, moment, _ = equations.weighted(np.ones(robot.n_dof))
-    base, drive = slice(0, theta.size), slice(theta.size, theta.size + len(names))
-    values = np.linalg.lstsq(gram[drive, drive], moment[drive] - gram[drive, base] @ theta, rcond=None)[0]
-    return dict(zip(names, values.tolist()))
+    return dict(zip(names, _beside_file_links(robot, model, equations, len(names))[1].tolist()))
 
 
 def data_rotors(robot, model, equations, names, joints) -> dict:
@@ -155,16 +151,26 @@ def data_rotors(robot, model, equations, names, joints) -> dict:
     merged = merged_rotor_map(model, robot, joints)
     if not merged:
         return {}
+    rotors, _ = _beside_file_links(robot, model, equations, len(names), list(merged.values()))
+    return {j: float(v) for j, v in zip(merged, rotors) if v > 0}
+
+
+def _beside_file_links(robot, model, equations, n_drive, rotor_columns=()) -> tuple:
+    """(rotor values, drive values) of the least squares with the robot file's rigid body held: the ``n_drive`` drive
+    columns that follow the base parameters in ``equations`` and, for each of ``rotor_columns`` (a drive inertia's
+    coefficients in the base parameters, ``merged_rotor_map``), its value, on what the file's links leave of the
+    torque."""
     theta = robot_file_theta(robot, model)
-    size = theta.size + len(names)
+    size, n_rotors = theta.size + n_drive, len(rotor_columns)
     gram, moment, _ = equations.weighted(np.ones(robot.n_dof))
     gram, moment = gram[:size, :size], moment[:size]
-    transform = np.zeros((size, len(merged) + len(names)))
-    transform[: theta.size, : len(merged)] = np.column_stack(list(merged.values()))
-    transform[theta.size :, len(merged) :] = np.eye(len(names))
-    start = np.concatenate([theta, np.zeros(len(names))])
+    transform = np.zeros((size, n_rotors + n_drive))
+    if n_rotors:
+        transform[: theta.size, :n_rotors] = np.column_stack(rotor_columns)
+    transform[theta.size :, n_rotors:] = np.eye(n_drive)
+    start = np.concatenate([theta, np.zeros(n_drive)])
     values = np.linalg.lstsq(transform.T @ gram @ transform, transform.T @ (moment - gram @ start), rcond=None)[0]
-    return {j: float(v) for j, v in zip(merged, values[: len(merged)]) if v > 0}
+    return values[:n_rotors], values[n_rotors:]
 
 
 def _holds_rotors(kt, names) -> bool:
