@@ -123,18 +123,30 @@ class Opinion:
     together: JointComparison
     parts: tuple
 
+    def shortfalls(self, joint: int, before: float | None = None) -> list:
+        """Where the springs do not lower ``joint``'s held-out RMSE, as ``(where, without, with)`` [N m]: each part,
+        then the parts taken together (against ``before`` when given: the model with the other springs; one part
+        without ``before`` is its own together)."""
+        out = [(self.part_name(k), p.before[joint], p.after[joint])
+               for k, p in enumerate(self.parts) if p.after[joint] >= p.before[joint]]  # fmt: skip
+        limit = self.together.before[joint] if before is None else before
+        if self.together.after[joint] >= limit and (len(self.parts) != 1 or before is not None):
+            out.append((f"the {self.route}", limit, self.together.after[joint]))
+        return out
+
     def lowers(self, joint: int, before: float | None = None) -> bool:
         """Whether the springs lower ``joint``'s held-out RMSE taken together (below ``before`` when given: the model
         with the other springs) and on every part."""
-        limit = self.together.before[joint] if before is None else before
-        return bool(self.together.after[joint] < limit and all(p.after[joint] < p.before[joint] for p in self.parts))
+        return not self.shortfalls(joint, before)
+
+    def part_name(self, k: int) -> str:
+        """``recording 1 of 2`` or ``block 3 of 4``."""
+        return f"{'recording' if self.route == HELD_OUT_ROUTE else 'block'} {k + 1} of {len(self.parts)}"
 
     def part_dicts(self, joints) -> list:
         """Per part, the RMSE [N m] of ``joints`` without and with the springs (the report's numbers)."""
-        kind = "recording" if self.route == HELD_OUT_ROUTE else "block"
-        return [{"route": self.route, "part": f"{kind} {k + 1} of {len(self.parts)}",
-                 "joints": [j + 1 for j in joints], "rmse_without": [float(p.before[j]) for j in joints],
-                 "rmse_with": [float(p.after[j]) for j in joints]}
+        return [{"route": self.route, "part": self.part_name(k), "joints": [j + 1 for j in joints],
+                 "rmse_without": [float(p.before[j]) for j in joints], "rmse_with": [float(p.after[j]) for j in joints]}
                 for k, p in enumerate(self.parts)]  # fmt: skip
 
 
@@ -149,18 +161,14 @@ class Trial:
     complete: bool = True
 
     def failures(self, joints) -> str:
-        """Where each of ``joints``' springs does not lower its joint's error: ``joint 2: block 1 of 4 2.203 ->
-        2.338 N m``."""
-        out = []
-        for j in joints:
-            for opinion in self.opinions:
-                for entry in opinion.part_dicts((j,)):
-                    if entry["rmse_with"][0] >= entry["rmse_without"][0]:
-                        out.append(f"joint {j + 1}: {entry['part']} {entry['rmse_without'][0]:.4g} -> "
-                                   f"{entry['rmse_with'][0]:.4g} N m")  # fmt: skip
-                if len(opinion.parts) != 1 and opinion.together.after[j] >= opinion.together.before[j]:
-                    out.append(f"joint {j + 1}: the {opinion.route} {opinion.together.before[j]:.4g} -> "
-                               f"{opinion.together.after[j]:.4g} N m")  # fmt: skip
+        """Where each of ``joints``' springs does not lower its joint's error (``Opinion.shortfalls``): ``joint 2:
+        block 1 of 4 2.203 -> 2.338 N m``."""
+        out = [
+            f"joint {j + 1}: {where} {without:.4g} -> {after:.4g} N m"
+            for j in joints
+            for opinion in self.opinions
+            for where, without, after in opinion.shortfalls(j)
+        ]
         return "; ".join(out) or "each lowers it only beside the other springs"
 
 

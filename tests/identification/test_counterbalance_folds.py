@@ -7,6 +7,8 @@ paired-RMSE margin of ``never_worse`` on residuals with a known difference.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -78,7 +80,7 @@ def test_a_spring_must_lower_its_joint_in_every_block_even_where_it_rises_within
     """The TX40's spurious spring on joint 2 lowered three blocks by 24-34 % and raised the first by 6 %, within that
     block's noise margin (29 %): the old per-block rule (no worse than the noise) kept it, and it raised the held-out
     end by 11 %. A spring that holds lowers its joint in every block (the heavy arm's: by 32-65 %)."""
-    from identification.calibration.counterbalance_column import Opinion
+    from identification.calibration.counterbalance_column import HELD_OUT_ROUTE, Opinion, Trial
 
     def fold(change, margin=0.3):
         return JointComparison(before=np.ones(2), after=1.0 + np.asarray(change), margin=np.full(2, margin))
@@ -91,6 +93,22 @@ def test_a_spring_must_lower_its_joint_in_every_block_even_where_it_rises_within
     assert not heavy.lowers(0, before=0.7)  # beside other springs the model already holds 0.7: not lower
     parts = tx40.part_dicts((0,))
     assert [p["part"] for p in parts] == [f"block {k} of 4" for k in range(1, 5)] and parts[0]["rmse_with"] == [1.06]
+    # the report names where a spring does not lower its joint: the same comparisons as lowers, each part and together
+    assert Trial(None, {}, (tx40,)).failures((0,)) == "joint 1: block 1 of 4 1 -> 1.06 N m"
+    assert Trial(None, {}, (heavy,)).failures((0,)) == "each lowers it only beside the other springs"
+    flat = Opinion("blocks", replace(pooled, after=np.array([1.1, 1.0])), tx40.parts)
+    assert Trial(None, {}, (heavy, flat)).failures((0, 1)) == (
+        "joint 1: block 1 of 4 1 -> 1.06 N m; joint 1: the blocks 1 -> 1.1 N m; "
+        + "; ".join(f"joint 2: block {k} of 4 1 -> 1 N m" for k in range(1, 5))
+        + "; joint 2: the blocks 1 -> 1 N m; "
+        + "; ".join(f"joint 2: block {k} of 4 1 -> 1 N m" for k in range(1, 5))
+        + "; joint 2: the blocks 1 -> 1 N m"
+    )
+    one = Opinion(HELD_OUT_ROUTE, fold([0.06, 0.0]), (fold([0.06, 0.0]),))  # one recording: itself together
+    assert not one.lowers(0) and Trial(None, {}, (one,)).failures((0,)) == "joint 1: recording 1 of 1 1 -> 1.06 N m"
+    assert not one.lowers(0, before=1.0) and not Opinion(HELD_OUT_ROUTE, fold([-0.1, 0]), (fold([-0.1, 0]),)).lowers(
+        0, before=0.85
+    )
 
 
 def test_blocks_hold_enough_filter_periods_and_a_fold_that_cannot_be_fitted_says_which():
