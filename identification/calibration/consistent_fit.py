@@ -261,7 +261,7 @@ def consistent_fit(
     x = ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, payloads)
     count = float(equations.count.sum())
     pull = PriorPull.of(options, equations.count, correlation)
-    logger.info("identify: %s", pull.describe())
+    logger.debug("consistent fit: %s", pull.describe())  # identify's report states it once (IdentifyResult)
     prior_term = pull.expression(standard, prior, payloads, payload_prior)
     variables = ca.vertcat(phi, rotor, drive, psi)
     start = np.concatenate([*(chart_start(prior[i, :10], options.margin) for i in links),

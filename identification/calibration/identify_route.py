@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
+from identification.calibration.prior_pull import PriorPull
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
 from psdm_casadi.state_cache import remembering
 
@@ -60,9 +61,18 @@ class IdentifyResult:
     counterbalance: CounterbalanceChoice = field(default_factory=CounterbalanceChoice)
     lugre: object = None
 
+    @property
+    def pull(self) -> PriorPull | None:
+        """The fit's pull towards the robot file (``prior_pull``; None without an envelope's note of it)."""
+        note = dict(self.fit.envelope_bounds).get("prior")
+        return None if note is None else PriorPull.from_note(note)
+
     def describe(self) -> list:
-        """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance."""
+        """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance, and the pull
+        towards the robot file (stated here once, not by each consistent fit the choices ran)."""
         lines = list(self.choice.describe())
+        if self.pull is not None:
+            lines.append(self.pull.describe())
         if self.counterbalance.reason:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
         return lines

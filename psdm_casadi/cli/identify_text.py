@@ -112,10 +112,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
     _print_envelope(fit)
-    if "prior" in dict(fit.envelope_bounds):
-        from identification.calibration.prior_pull import PriorPull
-
-        print(PriorPull.from_note(dict(fit.envelope_bounds)["prior"]).describe())
+    if result.pull is not None:
+        print(result.pull.describe())
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:
         print(f"counterbalance: {result.counterbalance.reason}")

@@ -15,6 +15,7 @@ import json
 import numpy as np
 
 from identification.calibration.identify_route import identify_recordings
+from identification.calibration.prior_pull import PRIOR_UNCERTAINTY
 from identification.data.io import load_recording, save_recording
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
@@ -40,6 +41,7 @@ def test_python_users_get_the_command_lines_model_with_the_smoothing_the_data_ch
     assert smoothing.changed and result.fit.coulomb_velocity == smoothing.velocity < 0.01
     assert result.calibrated.document["drive"]["coulomb_velocity"] == smoothing.velocity
     assert smoothing.sentence() in result.describe()
+    assert result.pull.uncertainty == PRIOR_UNCERTAINTY and result.pull.describe() in result.describe()  # once
     stored = result.calibrated.document["identification"]
     assert stored["column_choice"] == result.choice.to_dict() and "counterbalance" in stored
     out = tmp_path / "model.json"
