@@ -28,6 +28,7 @@ __all__ = [
     "CANCEL_SHARE",
     "cancelling_findings",
     "cancelling_pairs",
+    "finding_torques",
     "implausibility",
     "unhelpful_findings",
     "validation_rmse",
@@ -133,19 +134,32 @@ def without_entry(calibrated: CalibratedModel, entry: dict) -> CalibratedModel:
 
 def cancelling_findings(after: CalibratedModel, model, recording, kt=None) -> list:
     """The newer finding of each pair of torque findings on one joint whose torques on ``recording`` cancel
-    (``cancelling_pairs``); each one's torque is the model's prediction less the prediction without it."""
+    (``cancelling_pairs``; each one's torque as ``finding_torques`` gives it)."""
     entries = [e for e in after.document["findings"]
                if e["kind"] == "torque" and any(c is not None for c in e["coefficients"])]  # fmt: skip
     if len(entries) < 2:
         return []
-    full = validation_rmse(after, model, recording, kt)[3]
-    torques = []
+    torques = finding_torques(after, model, [recording], kt)
+    effects = {e["label"]: e["effect"] for e in entries}
+    return [{**d, "effect": effects[d["label"]]} for d in cancelling_pairs([(k, *v) for k, v in torques.items()])]
+
+
+def finding_torques(calibrated: CalibratedModel, model, recordings, kt=None, labels=None) -> dict:
+    """``{label: (0-based joint, torque array)}`` of the fitted torque findings (those labelled ``labels``, default
+    every one with a fitted coefficient), in the file's order: each one's torque on its joint is the model's
+    prediction less the prediction without it, on ``recordings`` (raw, prepared as the model's) one after another."""
+    entries = [e for e in calibrated.document["findings"]
+               if e["kind"] == "torque" and any(c is not None for c in e["coefficients"])
+               and (labels is None or e["label"] in labels)]  # fmt: skip
+    if not entries:
+        return {}
+    full = [validation_rmse(calibrated, model, r, kt)[3] for r in recordings]
+    out = {}
     for entry in entries:
         joint = int(entry["term"]["joint"]) - 1
-        without = validation_rmse(without_entry(after, entry), model, recording, kt)[3]
-        torques.append((entry["label"], joint, full[:, joint] - without[:, joint]))
-    effects = {e["label"]: e["effect"] for e in entries}
-    return [{**d, "effect": effects[d["label"]]} for d in cancelling_pairs(torques)]
+        without = [validation_rmse(without_entry(calibrated, entry), model, r, kt)[3] for r in recordings]
+        out[entry["label"]] = (joint, np.concatenate([f[:, joint] - w[:, joint] for f, w in zip(full, without)]))
+    return out
 
 
 def cancelling_pairs(torques) -> list:

@@ -25,7 +25,8 @@ The result is judged on the validation recording as ``psdm validate`` judges it 
 finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no refit) does not
 raise them is dropped, listed with its RMSE pair in the ``recalibration`` block (``dropped_findings``), and the model
 is refitted without it (a finding whose every feature the fit's other columns already span contributes nothing by
-construction; it is kept and reported as absorbed).
+construction; it is kept and reported as absorbed). First, a new finding that splits the torque of one the file
+carries (``split_torque``: the two one shape, the carried one moved beyond its uncertainty) is dropped likewise.
 
 Then the never-worse gate (``never_worse.keep_not_worse``): no joint's validation RMSE may exceed the model's before by
 more than a noise margin derived from the data (``never_worse.MARGIN_RULE``). Otherwise findings are dropped and the
@@ -59,6 +60,7 @@ from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.payload_fit import carried_configurations
+from identification.calibration.split_torque import splitting_findings
 from identification.calibration.trajectory_data import (
     NormalEquations,
     drive_column_names,
@@ -303,13 +305,16 @@ def recalibrate(
         calibrated, robot, model, train, (terms, corrections, entries), robot_source
     )
     dropped = []
-    for _ in range(MAX_DROP_ROUNDS):  # a finding is kept only if it lowers the validation RMSE where it acts
-        unhelpful = unhelpful_findings(after, model, validation, kt)
+    for _ in range(MAX_DROP_ROUNDS):  # kept only with a torque of its own, lowering the validation RMSE where it acts
+        refit = _refit_without(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
+        unhelpful = splitting_findings(calibrated, after, refit, model, train, _kt(robot, train)) or unhelpful_findings(
+            after, model, validation, kt)  # fmt: skip
         if not unhelpful:
             break
         dropped += unhelpful
         labels = {d["label"] for d in unhelpful}
-        logger.info("recalibrate: dropped findings that do not help on validation: %s; refitting", sorted(labels))
+        logger.info("recalibrate: dropped findings (a carried finding's torque split, or no help on validation): %s; "
+                    "refitting", sorted(labels))  # fmt: skip
         terms = [t for t in terms if t.label not in labels]
         corrections = {k: v for k, v in corrections.items() if k not in labels}
         entries = [e for e in entries if e["label"] not in labels]
