@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from identification.calibration.envelope_report import pressed_findings
 
-__all__ = ["ABSORBING_EFFECTS", "DiagnosisPrior", "carried_findings", "diagnosis_prior"]
+__all__ = ["ABSORBING_EFFECTS", "DiagnosisPrior", "carried_as", "carried_findings", "diagnosis_prior"]
 
 #: What a pushed link absorbs that the robot file's rigid body lets the diagnosis find (not a drive inertia).
 ABSORBING_EFFECTS = ("counterbalance", "payload")
@@ -93,12 +93,18 @@ def carried_findings(findings, document: dict) -> tuple:
     ``document`` already holds as torque findings: the same effect on the same single joint, a position-dependent
     torque counting as one (a spring, a gas spring or a ripple found where the file carries a spring: one
     counterbalance, whose shape the diagnosis may name otherwise)."""
+    return tuple(label for label, _ in carried_as(findings, document))
+
+
+def carried_as(findings, document: dict) -> tuple:
+    """``((finding label, the file's label), ...)``: each of ``carried_findings`` with the file's finding it is."""
     held = {
-        (_family(e["term"].get("effect")), int(e["term"].get("joint", 0)) - 1)
+        (_family(e["term"].get("effect")), int(e["term"].get("joint", 0)) - 1): e.get("label", e["term"].get("effect"))
         for e in document.get("findings") or ()
         if e.get("kind") == "torque" and isinstance(e.get("term"), dict)
     }
-    return tuple(f.label for f in findings if len(f.joints) == 1 and (_family(f.effect), int(f.joints[0])) in held)
+    keys = [(f.label, (_family(f.effect), int(f.joints[0]))) for f in findings if len(f.joints) == 1]
+    return tuple((label, held[key]) for label, key in keys if key in held)
 
 
 #: Torques of the joint angle alone: one counterbalance may be found as any of them.

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.calibration.calibrated_model import LoadedModel, calibrated_robot, read_calibrated_model
-from identification.calibration.diagnosis_prior import carried_findings, diagnosis_prior, with_file_rigid_body
+from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.model_preparation import model_preparation
 from identification.data.filter_choice import AUTO
@@ -124,8 +124,10 @@ def file_before(report, loaded: LoadedModel, validation, name: str, choices=(Non
 
 def _carried(report, calibrated) -> str:
     """The sentence naming the findings the model file already holds (its nominal model leaves them out)."""
-    labels = carried_findings(report.findings, calibrated.document)
-    if not labels:
+    pairs = carried_as(report.findings, calibrated.document)
+    if not pairs:
         return ""
-    return (f"the model file already carries {', '.join(f'`{x}`' for x in labels)} (identified with it); the "
-            "diagnosis's nominal model leaves the file's own findings out, so it finds them again")  # fmt: skip
+    named = ", ".join(f"`{x}`" if x == held else f"`{held}` (found again as `{x}`)" for x, held in pairs)
+    return (f"the model file already carries {named}, identified with it; the diagnosis's nominal model leaves the "
+            "file's own findings out, so it finds them again (--apply keeps the file's where a new one would split "
+            "its torque)")  # fmt: skip

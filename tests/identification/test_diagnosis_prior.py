@@ -15,6 +15,7 @@ import pytest
 
 from identification.calibration.diagnosis_prior import (
     DiagnosisPrior,
+    carried_as,
     carried_findings,
     diagnosis_prior,
     with_file_rigid_body,
@@ -67,7 +68,7 @@ def test_the_robot_files_rigid_body_with_the_models_friction(denso):
 
 
 def test_findings_the_model_already_carries_are_named():
-    document = {"findings": [{"kind": "torque", "term": {"effect": "spring", "joint": 2}},
+    document = {"findings": [{"label": "spring[j2]", "kind": "torque", "term": {"effect": "spring", "joint": 2}},
                              {"kind": "signal", "term": None}]}  # fmt: skip
     found = [SimpleNamespace(label="gas_spring[j2]", effect="gas_spring", joints=(1,)),
              SimpleNamespace(label="torque_ripple[j2,h=2]", effect="torque_ripple", joints=(1,)),
@@ -75,6 +76,7 @@ def test_findings_the_model_already_carries_are_named():
              SimpleNamespace(label="payload", effect="payload", joints=(4, 1, 2))]  # fmt: skip
     assert carried_findings(found, document) == ("gas_spring[j2]", "torque_ripple[j2,h=2]")
     assert carried_findings(found, {}) == ()
+    assert carried_as(found, document) == (("gas_spring[j2]", "spring[j2]"), ("torque_ripple[j2,h=2]", "spring[j2]"))
 
 
 @pytest.mark.slow
