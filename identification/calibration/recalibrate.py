@@ -307,8 +307,8 @@ def recalibrate(
     dropped = []
     for _ in range(MAX_DROP_ROUNDS):  # kept only with a torque of its own, lowering the validation RMSE where it acts
         refit = _refit_without(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
-        unhelpful = splitting_findings(calibrated, after, refit, model, train, _kt(robot, train)) or unhelpful_findings(
-            after, model, validation, kt)  # fmt: skip
+        unhelpful = splitting_findings(calibrated, after, refit, model, (train, validation), (_kt(robot, train), kt))
+        unhelpful = unhelpful or unhelpful_findings(after, model, validation, kt)
         if not unhelpful:
             break
         dropped += unhelpful

@@ -14,12 +14,27 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.finding_value import CANCEL_CORRELATION, CANCEL_SHARE, cancelling_pairs
-from identification.calibration.split_torque import SPLIT_CORRELATION, SPLIT_SIGMAS, coefficient_shift, split_reason
+from identification.calibration.recalibrate import recalibrate
+from identification.calibration.split_torque import (
+    REPLACE_GAIN,
+    SPLIT_CORRELATION,
+    SPLIT_SIGMAS,
+    coefficient_shift,
+    split_reason,
+)
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.diagnosis.candidates.torque import SpringTerm, TorqueRippleTerm
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from tests.conftest import DENSO_FILE
+from trajopt.experiments import sine_experiment
 
 Q = np.linspace(-0.6, 0.8, 2000)  # joint 2's travel [rad]
 COUNTERBALANCE = 2500.0 * np.sin(Q) * (1.0 + 0.4 * np.cos(2.0 * Q))  # the truth the pair sums to
@@ -99,6 +114,68 @@ def test_a_ripple_of_its_own_beside_the_carried_spring_is_kept():
     assert coefficient_shift(alone, beside)[0] > SPLIT_SIGMAS and abs(correlation) < SPLIT_CORRELATION
     assert split_reason(alone, beside, 1, correlation) is None
     assert split_reason(alone, alone, 1, -0.9999) is None  # one shape, but the carried spring does not move
+
+
+CAM_2 = xp.CamCounterbalance(joint=1, amplitude=20.0, q0=0.1, lobe=0.5)  # on the Denso's joint 2 [N m]
+
+
+def _report(term) -> SimpleNamespace:
+    """A diagnosis report holding one torque finding of ``term`` (what ``recalibrate`` reads of it)."""
+    finding = SimpleNamespace(label=term.label, effect=term.key, joints=(term.joint,), feature_names=(),
+                              coefficients=(), parameters={}, rmse_before=[], rmse_after=[])  # fmt: skip
+    return SimpleNamespace(findings=[finding], augmented=SimpleNamespace(terms=[term], coefficients=[np.zeros(2)]))
+
+
+@pytest.fixture(scope="module")
+def spring_for_a_cam(denso, denso_model):
+    """Training and validation recordings of the virtual Denso with a cam counterbalance on joint 2 (``CAM_2``), and
+    the model file that carries a linear spring for it (a shape that leaves part of the cam)."""
+    recordings = []
+    for k in range(2):
+        rng = np.random.default_rng(30 + k)
+        reference = sine_experiment(denso, duration=6.0, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=500.0)
+        recordings.append(simulate_recording(denso, reference, options, rng, extras=[CAM_2])[0])
+    fit = identify_trajectories(denso, denso_model, recordings[:1], TrajectoryOptions())
+    calibrated = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE)
+    spring = recalibrate(calibrated, denso, denso_model, _report(SpringTerm(joint=1)), *recordings)
+    return recordings, spring.after
+
+
+def _torque_error(entry, q) -> float:
+    """RMS of a joint-2 finding's torque less the hidden cam's on ``q`` (joint 2's angles), constants aside (the
+    drive offset takes them)."""
+    p = entry["parameters"]
+    torque = p["k"] * (q - p["q0"]) if "k" in p else p["amplitude"] * np.sin(p["harmonic"] * q + p["phase"])
+    error = torque - CAM_2.amplitude * np.sin(q - CAM_2.q0) * (1 + CAM_2.lobe * np.cos(2 * (q - CAM_2.q0)))
+    return float(np.std(error))
+
+
+@pytest.mark.parametrize("harmonic", [2, 1])
+def test_a_new_shape_of_the_carried_torque_replaces_it_only_when_it_describes_it_better(
+    spring_for_a_cam, denso, denso_model, harmonic
+):
+    (train, validation), carried = spring_for_a_cam
+    (spring,) = carried.document["findings"]
+    ripple = TorqueRippleTerm(joint=1, harmonic=harmonic)
+    result = recalibrate(carried, denso, denso_model, _report(ripple), train, validation)
+    (dropped,) = result.after.document["recalibration"]["dropped_findings"]
+    split, rmse = dropped["split"], dropped["split"]["validation_rmse"]
+    assert (split["carried"], split["new"]) == ("spring[j2]", ripple.label)
+    assert abs(split["correlation"]) > SPLIT_CORRELATION and split["sigmas"] > SPLIT_SIGMAS  # the two split one torque
+    replaced = rmse["new_alone"] <= (1.0 - REPLACE_GAIN) * rmse["carried_alone"]
+    assert replaced == (harmonic == 2)  # the cam's second harmonic beats the line by 44 %; the first by 15 %
+    (kept,) = result.after.document["findings"]
+    assert [kept["label"], dropped["label"]] == (
+        [ripple.label, "spring[j2]"] if replaced else ["spring[j2]", ripple.label]
+    )
+    assert result.rmse_after[1] == pytest.approx(rmse["new_alone"] if replaced else rmse["carried_alone"], rel=1e-9)
+    assert dropped["reason"].startswith(f"replaced by {ripple.label}" if replaced else "splits joint 2's torque")
+    if replaced:  # the truth agrees: the ripple is closer to the hidden cam over joint 2's recorded travel
+        q = np.concatenate([train.q[:, 1], validation.q[:, 1]])
+        assert _torque_error(kept, q) < 0.8 * _torque_error(spring, q)
+    else:
+        assert kept["parameters"]["k"] == pytest.approx(spring["parameters"]["k"], rel=1e-6)  # the carried spring
 
 
 def _cli(argv) -> tuple:
