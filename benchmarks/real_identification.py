@@ -41,8 +41,10 @@ negative drive inertia on joint 4 gives 0.193 with Ia4 = -0.09 kg m^2: the OLS's
 joint, which no rigid body or drive has; the OLS is shown);
 on the Panda, defaults below the published model on every joint (``defaults_beat_published_every_joint``);
 defaults not worse than the hand-picked options beyond 2 % on any joint; derive + identify under 60 s
-per robot; ``loop_never_worse``: at the end of the loop no joint's validation RMSE above its value after
-identify plus the noise margin the diagnosis states; ``mjcf_max_rel_error``: the fit exported as MJCF, MuJoCo's
+per robot (with one BLAS thread, as ``psdm`` commands run: ``cli.blas_threads``. With OpenBLAS's threads the Panda's
+identify took 12-16 s of CPU against 2 s, its spinning threads' share varying with the machine's load);
+``loop_never_worse``: at the end of the loop no joint's validation RMSE above its value after identify plus the
+noise margin the diagnosis states; ``mjcf_max_rel_error``: the fit exported as MJCF, MuJoCo's
 ``mj_inverse`` on the file equals the model's torque without its Coulomb term and offsets to 1e-9 relative
 (``mjcf_round_trip``).
 Usage::
@@ -93,6 +95,7 @@ from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
 from identification.metrics import r2, rmse
 from psdm_casadi import derive_psdm
+from psdm_casadi.cli.blas_threads import blas_thread_limit
 from psdm_casadi.oracle import PinocchioOracle
 
 GAZ_MODEL = DEFAULT_DATA_ROOT / "reference" / "panda_gaz2019_model"
@@ -494,7 +497,8 @@ def main(argv=None) -> int:
             except BuildError as exc:
                 log(f"published model unavailable: {exc}")
                 extra = {"rmse_published": None, "r2_published": None, "published_error": str(exc)}
-        results[key] = {**evaluate_robot(key, loader, published, args), **extra}
+        with blas_thread_limit():
+            results[key] = {**evaluate_robot(key, loader, published, args), **extra}
     kinova = evaluate_kinova(log, at_data_root(KINOVA, args.data_root)) if "kinova" in args.robots else None
     if all(r.get("skipped") for r in results.values()) and (kinova is None or kinova["skipped"]):
         log("no dataset found under " + str(at_data_root(TX40.parent, args.data_root)))

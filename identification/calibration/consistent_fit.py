@@ -295,6 +295,23 @@ def consistent_fit(
     return values.reshape(n, -1), drive_opt, bodies_opt.reshape(-1, 10), status, bounds
 
 
+def centred_residual(gram, moment, energy, count, x):
+    """The weighted squared residual per sample ``(x' G x - 2 m' x + e) / count`` of the regression vector ``x``
+    (CasADi), written around the least-squares minimum ``x_ls``: ``((x - x_ls)' G (x - x_ls) - 2 r' (x - x_ls) + e_ls)
+    / count`` with ``r = m - G x_ls`` (round-off) and ``e_ls`` the value there; the same quadratic for any ``x_ls``.
+
+    Its gradient ``2 (G (x - x_ls) - r) / count`` is then of the size of the distance from the least squares, not the
+    difference of ``G x`` and ``m``, each of size ``|G| |x|``: that difference carried a round-off of
+    ``eps |G| |x| / count``, about 1e-10 on the virtual Denso's gravity columns, which is Ipopt's ``tol`` for the
+    barrier path (``barrier_path.BARRIER_OPTIONS``); whether a solve reached it was chance.
+    """
+    centre = np.linalg.lstsq(gram, moment, rcond=None)[0]
+    rest = moment - gram @ centre
+    level = energy - 2.0 * moment @ centre + centre @ gram @ centre
+    d = x - ca.DM(centre)
+    return (ca.bilin(ca.DM(gram), d, d) - 2 * ca.dot(ca.DM(rest), d) + level) / count
+
+
 def chart_start(link, margin):
     """Chart coordinates of a link with the margin taken off (projected if inconsistent)."""
     shifted = link_from_pseudo_inertia(pseudo_inertia(link) - margin * np.eye(4))
@@ -343,8 +360,7 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts) 
     n_phi, n_psi = 10 * len(free), 10 * n_bodies
     rest = chart[n_phi : chart.size - n_psi]  # rotors and drive terms: the same in both forms
     start = np.concatenate([values[free, :10].reshape(-1), bodies.reshape(-1), rest])
-    x = plain["x"]
-    residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
+    residual = centred_residual(gram, moment, energy, count, plain["x"])
     lower, upper = chart_bounds
     lbx = np.concatenate([np.full(n_phi + n_psi, -np.inf), lower[n_phi : lower.size - n_psi]])
     ubx = np.concatenate([np.full(n_phi + n_psi, np.inf), upper[n_phi : upper.size - n_psi]])
