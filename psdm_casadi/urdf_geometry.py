@@ -49,15 +49,20 @@ def shape_points(geometry) -> np.ndarray | None:
 def _geometry(model, path: Path):
     """Pinocchio's collision geometry of the URDF, else its visual geometry; None when neither can be read."""
     package_dirs = [str(p) for p in list(path.parents)[:6]]
+    failed = {}
     for kind in (pin.GeometryType.COLLISION, pin.GeometryType.VISUAL):
         try:
             with captured_stderr():
                 geometry = pin.buildGeomFromUrdf(model, str(path), kind, package_dirs=package_dirs)
         except (RuntimeError, ValueError, OSError) as exc:
-            logger.info("%s: its %s geometry cannot be read (%s)", path.name, kind.name.lower(), exc)
+            failed[kind.name.lower()] = str(exc).strip()
             continue
         if geometry.ngeoms:
             return geometry, kind.name.lower()
+    if failed:  # said once, with what is used instead and how to have the geometry read
+        logger.info("%s: its %s geometry cannot be read (%s); the links' envelopes come from the kinematic lengths "
+                    "instead (the meshes' package folder in the URDF's folder or one above it makes them readable)",
+                    path.name, " and ".join(failed), "; ".join(dict.fromkeys(failed.values())))  # fmt: skip
     return None
 
 

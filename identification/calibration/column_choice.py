@@ -287,7 +287,7 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         stribeck_joints=tuple(stribeck) if request.friction == "auto" and stribeck else None, n_dof=robot.n_dof,
         loss_joints=_loss_joints(robot, model, request, kept), torque_source=source, smoothing=smoothing,
     )  # fmt: skip
-    logger.info("identify: %s", "; ".join(choice.describe()))
+    logger.debug("identify: %s", "; ".join(choice.describe()))  # identify's report states it (IdentifyResult)
     return choice
 
 

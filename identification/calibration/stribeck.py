@@ -191,7 +191,8 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
         vs, x, residual = vs + change, trial_x, trial_residual
         if np.max(np.abs(change[hump]) / vs[hump]) < STEP_TOLERANCE:
             break
-    logger.info("identify: Stribeck velocities %s rad/s after %d Gauss-Newton steps", np.round(vs, 4), steps)
+    logger.info("identify: Stribeck velocities %s rad/s after %d Gauss-Newton steps", ", ".join(f"{v:.3g}" for v in vs),
+                steps)  # fmt: skip
     return vs
 
 

@@ -49,6 +49,10 @@ def _sigma(value) -> str:
     return "inf" if value is None else f"{value:.2g}"
 
 
+def _value(value) -> str:
+    return "not checked" if value is None else f"{value:.3g}"
+
+
 def _print_envelope(fit) -> None:
     """The physical envelope the links were kept in, and the links the data pushed against it."""
     from identification.calibration.trajectory_checks import unit_factor
@@ -110,7 +114,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
           f"{fit.condition_number:.3g}")  # fmt: skip
     state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
-          f"smallest mass-matrix eigenvalue {report['min_mass_eigenvalue']})")  # fmt: skip
+          f"smallest mass-matrix eigenvalue {_value(report['min_mass_eigenvalue'])})")  # fmt: skip
     _print_envelope(fit)
     if result.pull is not None:
         print(result.pull.describe())
@@ -138,6 +142,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     _print_payloads(fit.payloads)
     for entry in report["recordings"]:
         print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
+        print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
         for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):
             if key in entry:
                 print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))

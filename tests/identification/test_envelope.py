@@ -7,6 +7,7 @@ Monte-Carlo integral of the density condition, and the virtual robot's hidden tr
 """
 
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -291,6 +292,20 @@ def test_a_urdf_links_envelope_comes_from_its_collision_geometry(tmp_path):
     assert envelope_fill(box, envelopes[0]) == pytest.approx(1.0 / 3.0, rel=1e-6)
     (tmp_path / "bare.urdf").write_text(ARM_URDF.format(l1="", l2="", tip=""))
     assert {e.source for e in link_envelopes(load_robot(tmp_path / "bare.urdf"))} == {"kinematic lengths"}
+
+
+def test_a_urdf_whose_meshes_are_absent_says_so_once_with_what_is_used_instead(tmp_path, caplog):
+    """A vendor URDF copied without its meshes package (the TX40's): both geometries fail on the same mesh; one line
+    names them, the envelope's source and how to have the meshes read."""
+    mesh = '<{0}><geometry><mesh filename="package://arm_description/meshes/l1.stl"/></geometry></{0}>'
+    (tmp_path / "arm.urdf").write_text(ARM_URDF.format(l1=mesh.format("collision") + mesh.format("visual"), l2="",
+                                                       tip=""))  # fmt: skip
+    with caplog.at_level(logging.INFO, logger="psdm_casadi.urdf_geometry"):
+        envelopes = link_envelopes(load_robot(tmp_path / "arm.urdf"))
+    assert {e.source for e in envelopes} == {"kinematic lengths"}
+    lines = [r.getMessage() for r in caplog.records if "cannot be read" in r.getMessage()]
+    assert len(lines) == 1 and "collision and visual geometry" in lines[0] and lines[0].count("l1.stl") == 1, lines
+    assert "from the kinematic lengths instead" in lines[0] and "package folder" in lines[0]
 
 
 def test_an_mjcf_robots_envelope_comes_from_its_kinematic_lengths(tmp_path):

@@ -1,6 +1,7 @@
 """``psdm identify`` on exciting recordings, ``psdm validate`` on its file: the everyday route end to end."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -46,8 +47,10 @@ def test_identify_writes_a_consistent_model_that_validate_reproduces(recordings,
 def test_without_consistency_the_file_says_it_was_not_checked(recordings, tmp_path, capsys):
     out = tmp_path / "model.json"
     argv = ["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out), "--no-consistency"]
-    assert main(argv) == 0
-    assert "NOT checked" in capsys.readouterr().err
+    assert main([*argv, "--validate", str(recordings / "valid.csv")]) == 0
+    text, err = capsys.readouterr()
+    assert "NOT checked" in err and "smallest mass-matrix eigenvalue not checked)" in text
+    assert re.search(r"\(RMSE \[N m\] per joint; R\^2\):\n  joint +1 +2 +3 +4 +5 +6\n  identified ", text), text
     document = json.loads(out.read_text())
     assert document["standard"]["consistent"] is False and document["standard"]["checked"] is False
     assert main(["validate", str(out), str(recordings / "valid.csv")]) == 0
@@ -168,7 +171,14 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     assert columns["coulomb_velocity"] == 0.05 and "Coulomb smoothing: tanh(qd / 0.05 rad/s)" in columns["smoothing"]
     assert columns["friction"] in ("coulomb-viscous", "stribeck") and "cross-validation" in columns["check"]
     assert {e["term"] for e in columns["evidence"]} >= {"stribeck", "offset"}
-    assert "drive columns: friction shape: " in capsys.readouterr().out
+    text, err = capsys.readouterr()
+    assert "drive columns: friction shape: " in text
+    # the choice stated once, in the report (its log line is DEBUG); the Stribeck trial's velocities on one line
+    assert (text + err).count("friction shape: ") == 1, err
+    assert re.search(r"Stribeck velocities ([0-9.e+-]+, ){5}[0-9.e+-]+ rad/s after", err), err
+    # the mass-matrix eigenvalue with as many digits as the pseudo-inertia's
+    value = re.search(r"smallest mass-matrix eigenvalue ([0-9.e+-]+)\)", text).group(1)
+    assert value == f"{float(value):.3g}", value
     document = json.loads(out.read_text())
     assert load_calibrated_model(out).document["identification"]["column_choice"] == columns
     document["identification"]["column_choice"]["offset_joints"] = [7]  # the Denso has six joints
