@@ -3,7 +3,9 @@
 When the plausible fit pushes a link (or one joint's drive inertia) against its bounds and the report names a
 counterbalance or spring on a joint (``envelope_report``), the route that finds it is taken, not only suggested:
 identify fits again with a spring on each named joint, linear and cubic (``findings.FindingTerm``, the term ``psdm
-diagnose --apply`` adds; its constant left out where the joint's torque offset spans it). A kept spring is a
+diagnose --apply`` adds; its constant left out where the joint's torque offset spans it), and the counterbalance's odd
+law of order 5 about a fitted neutral angle where the training data support it beyond the cubic by BIC
+(``counterbalance_laws``: the diagnosis's ``SpringTerm`` shape, ``candidates.counterbalance_law``). A kept spring is a
 ``findings`` entry with ``source`` ``"identify"``, applied by ``psdm validate``, ``predict``, ``diagnose`` (which says
 the model already carries it) and the exported code alike; otherwise the model without it is written and the report
 says why.
@@ -179,9 +181,10 @@ def counterbalance_joints(fit) -> tuple:
     return tuple(sorted({f.joint for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed}))
 
 
-def _columns(joints, options, recordings, order: int) -> FindingColumns:
-    """A spring of ``order`` per joint (``[q_j, 1]``, or ``[x, .., x^order, 1]`` with ``x = q_j`` less the middle of
-    the training range: a cam's or gas spring's shape); the constant out where the fit has the joint's torque offset."""
+def _columns(joints, options, recordings, shape) -> FindingColumns:
+    """A spring per joint of ``shape``: an order (``[q_j, 1]``, or ``[x, .., x^order, 1]`` with ``x = q_j`` less the
+    middle of the training range), or per joint the ``SpringTerm`` to take (a counterbalance's odd law); the constant
+    out where the fit has the joint's torque offset."""
     from identification.diagnosis.candidates import SpringTerm
 
     offsets = options.offset_joints if "offset" in options.friction else ()
@@ -189,10 +192,49 @@ def _columns(joints, options, recordings, order: int) -> FindingColumns:
     for j in joints:
         q = np.concatenate([np.asarray(r.q, dtype=float)[:, j] for r in recordings])
         lo, hi = float(np.min(q)), float(np.max(q))
-        spec = None if order == 1 else SpringTerm(joint=j, order=order, centre=0.5 * (lo + hi), q_range=(lo, hi)).spec()
-        terms.append(FindingTerm("spring", j, spec=spec))
-        keep += [True] * order + [not _offset(offsets, j)]
+        if isinstance(shape, dict):
+            term = shape.get(j)  # None: the linear spring
+        else:
+            term = None if shape == 1 else SpringTerm(joint=j, order=shape, centre=0.5 * (lo + hi), q_range=(lo, hi))
+        terms.append(FindingTerm("spring", j, spec=None if term is None else term.spec()))
+        keep += [True] * (len(terms[-1].feature_names()) - 1) + [not _offset(offsets, j)]
     return FindingColumns(tuple(terms), keep=tuple(keep))
+
+
+def _with_springs(robot, model, options, build, columns, data, configurations) -> tuple:
+    """(the fit without the springs' coefficients, its model file with the spring entries) on ``data``."""
+    plain, extra = split_findings(identify_trajectories(robot, model, data, options, columns, configurations),
+                                  len(columns.names))  # fmt: skip
+    document = copy.deepcopy(build(plain).document)
+    document["findings"] = [*(document.get("findings") or []), *_entries(columns, extra)]
+    return plain, document
+
+
+def counterbalance_laws(robot, model, recordings, options, build, configurations=None, kt=None, joints=()) -> dict:
+    """Per joint of ``joints``, the counterbalance's odd law the training recordings support (``candidates.
+    counterbalance_law``: the lowest BIC against the linear spring, the neutral angle fitted), or None.
+
+    The torque each law must explain is the training residual of the fit with a cubic spring of every power on each
+    joint (the springs' own torque given back): what the spring is to take once the links no longer absorb it. The
+    independent samples are those of the low-pass filtered signal (``2 x cut-off x duration``, as the diagnosis's
+    BIC)."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.finding_value import validation_rmse
+    from identification.diagnosis.candidates import counterbalance_law
+
+    columns = _columns(joints, options, recordings, 3)
+    plain, document = _with_springs(robot, model, options, build, columns, recordings, configurations)
+    document["findings"] = [f for f in document["findings"] if f.get("source") != COUNTERBALANCE_SOURCE]
+    without = CalibratedModel(document)
+    q, torque, n_eff = [], [], 0.0
+    cutoff = min([c for c in plain.cutoff_hz if c] or [np.inf])
+    for recording in recordings:
+        _, _, ready, predicted = validation_rmse(without, model, recording, kt)
+        q.append(ready.q)
+        torque.append(ready.tau - predicted)
+        n_eff += 2.0 * cutoff * float(ready.t[-1] - ready.t[0]) if np.isfinite(cutoff) else ready.t.size
+    q, torque = np.concatenate(q), np.concatenate(torque)
+    return {j: counterbalance_law(j, q[:, j], torque[:, j], max(n_eff, 2.0)) for j in joints}
 
 
 def _offset(offsets, joint: int) -> bool:
@@ -241,13 +283,19 @@ def try_counterbalance(
         return CounterbalanceChoice(joints, reason=not_tried.format(folds))
     judges = Judges(held, None, folds) if isinstance(folds, str) else Judges(held, folds)
     problem = (robot, model, recordings, options, calibrated, judges, build, configurations, kt)
+    shapes = list(ORDERS)
+    laws = counterbalance_laws(robot, model, recordings, options, build, configurations, kt, joints)
+    if any(law is not None for law in laws.values()):
+        shapes.append(laws)
+        logger.info("identify: the counterbalance's odd law the training data support (BIC): %s", ", ".join(
+            f"{law.label} about {law.centre:.4g} rad" for law in laws.values() if law is not None))  # fmt: skip
     try:
-        trials = [_pruned(problem, joints, order) for order in ORDERS]
+        trials = [_pruned(problem, joints, shape) for shape in shapes]
     except FoldFailure as failure:
         if not held:
             return CounterbalanceChoice(joints, reason=not_tried.format(failure))
         judges = Judges(held, None, str(failure))  # the second opinion failed: the held-out recordings alone judge
-        trials = [_pruned((*problem[:5], judges, *problem[6:]), joints, order) for order in ORDERS]
+        trials = [_pruned((*problem[:5], judges, *problem[6:]), joints, shape) for shape in shapes]
     return _choice(joints, trials, judges)
 
 
@@ -271,9 +319,10 @@ def _choice(joints, trials, judges) -> CounterbalanceChoice:
         why = "; ".join(why) or "it leaves them pushed against their bounds"
         return CounterbalanceChoice(joints, False, f"a spring on {labels or 'the named joints'} tried and not kept: "
                                     f"{why} ({pair})", None, None, *numbers, parts)  # fmt: skip
-    return CounterbalanceChoice(chosen, True, f"a spring on {labels} identified with the model (the counterbalance "
-                                f"the envelope report named): RMSE on the {route} {pair}, lower on every held-out "
-                                f"part, no joint worse", trial.plain, trial.document, *numbers, parts)  # fmt: skip
+    springs = ", ".join(f["label"] for f in trial.document["findings"] if f.get("source") == COUNTERBALANCE_SOURCE)
+    reason = (f"a spring on {labels} ({springs}) identified with the model (the counterbalance the envelope report "
+              f"named): RMSE on the {route} {pair}, lower on every held-out part, no joint worse")  # fmt: skip
+    return CounterbalanceChoice(chosen, True, reason, trial.plain, trial.document, *numbers, parts)
 
 
 def _score(comparison) -> float:
@@ -308,15 +357,7 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
     together), then by the block cross-validation (each block, and together) unless the held-out recordings already
     refuse it (a joint worse, or no spring lowering its joint) or ``second`` is False."""
     columns = _columns(joints, options, recordings, order)
-
-    def with_springs(data, configs):
-        plain, extra = split_findings(identify_trajectories(robot, model, data, options, columns, configs),
-                                      len(columns.names))  # fmt: skip
-        document = copy.deepcopy(build(plain).document)
-        document["findings"] = [*(document.get("findings") or []), *_entries(columns, extra)]
-        return plain, document
-
-    plain, document = with_springs(recordings, configurations)
+    plain, document = _with_springs(robot, model, options, build, columns, recordings, configurations)
     opinions = []
     if judges.held:
         each = compare_each(calibrated, type(calibrated)(document), model, list(judges.held), kt)
@@ -325,7 +366,9 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
     if judges.folds is not None and second and not refused:
         together, folds = judges.folds.compare(
             lambda pieces: build(identify_trajectories(robot, model, list(pieces), options)),
-            lambda pieces: type(calibrated)(with_springs(list(pieces), None)[1]),
+            lambda pieces: type(calibrated)(
+                _with_springs(robot, model, options, build, columns, list(pieces), None)[1]
+            ),
             model,
             kt,
         )

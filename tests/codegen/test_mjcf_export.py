@@ -142,6 +142,34 @@ def test_what_mjcf_cannot_hold_is_named_with_its_values(scara):
     assert [unit for _, unit in offsets] == ["N m", "N m", "N", "N m"]
 
 
+def test_a_counterbalance_odd_law_is_in_the_exported_functions_and_named_outside_the_mjcf(scara):
+    """An odd law of order 5 about its neutral angle (``SpringTerm(odd=True)``, a finding by its spec): the CasADi
+    functions ``psdm codegen`` compiles compute ``predict`` with it, the law written out here is their difference from
+    the model without it, and MJCF (which holds only a linear spring) names it with its exact coefficients."""
+    from codegen.calibrated import build_calibrated_functions
+    from identification.diagnosis.candidates import SpringTerm
+
+    calibrated, robot, model = scara
+    law = SpringTerm(joint=1, order=5, centre=0.2, q_range=(-1.0, 1.5), odd=True)
+    entry = {"effect": "spring", "label": law.label, "kind": "torque", "joints": [2],
+             "term": {"effect": "spring", "joint": 2, "spec": law.spec()}, "feature_names": law.feature_names(),
+             "coefficients": [12.5, -3.25, 0.75, 0.125], "parameters": {}}  # fmt: skip
+    document = copy.deepcopy(calibrated.document)
+    document["findings"] = [*document["findings"], entry]
+    with_law = CalibratedModel(json.loads(model_text(document)))
+    q, qd, qdd = _states(robot, 50, seed=2)
+    functions = build_calibrated_functions(with_law, model, robot)
+    tau = np.array(functions.inverse_dynamics.map(50)(q.T, qd.T, qdd.T), dtype=float).T
+    np.testing.assert_allclose(tau, with_law.predict(model, q, qd, qdd), rtol=0, atol=1e-9 * np.abs(tau).max())
+    x = q[:, 1] - 0.2
+    added = with_law.predict(model, q, qd, qdd) - calibrated.predict(model, q, qd, qdd)
+    np.testing.assert_allclose(added[:, 1], 12.5 * x - 3.25 * x**3 + 0.75 * x**5 + 0.125, atol=1e-9)
+    np.testing.assert_allclose(np.delete(added, 1, axis=1), 0.0, atol=1e-9)
+    flat = " ".join(render_mjcf(with_law, robot).split())
+    assert ("spring[j2,order=5,odd] (torque term, NOT in the MJCF): k1_q2 = 12.5, k3_q2 = -3.25, k5_q2 = 0.75, "
+            "c_2 = 0.125") in flat  # fmt: skip
+
+
 def test_the_denso_dh_model_round_trips_with_gravity_along_x_and_its_massless_link():
     """Rotor inertias inside the base parameters (armature); the Denso's link 6 is massless in its robot file:
     MuJoCo refuses that, so it gets 1e-12 kg (said so)."""

@@ -40,10 +40,14 @@ def _sparse(joint=2):
     return SparseTerm(joint=joint, features=tuple(library[n] for n in names), centre=0.3)
 
 
+#: a counterbalance's odd law of order 5 about its neutral angle
+ODD_LAW = SpringTerm(joint=1, order=5, centre=-0.05, q_range=(-0.3, 0.8), odd=True)
 TORQUE_TERMS = (
     SpringTerm(joint=1),
     SpringTerm(joint=1, order=2, centre=0.2, q_range=(-1.0, 1.4)),
     SpringTerm(joint=3, order=3, centre=-0.1, q_range=(-2.0, 1.8)),
+    SpringTerm(joint=3, order=5, centre=0.3, q_range=(-0.2, 0.8)),
+    ODD_LAW,
     TorqueOffsetTerm(joint=5),
     TorqueRippleTerm(joint=4, harmonic=6),
     CouplingTerm(joint=3, source=0),
@@ -92,6 +96,10 @@ def test_polynomial_spring_and_unnamed_term_columns_are_their_formulas(context):
     k = np.array([2.0, -0.5, 0.25, 0.7])
     x = context.q[:, 3] + 0.1
     np.testing.assert_allclose(spring.columns(context)[:, 3] @ k, 2 * x - 0.5 * x**2 + 0.25 * x**3 + 0.7, atol=1e-12)
+    law = _rebuilt(ODD_LAW)
+    x = context.q[:, 1] + 0.05  # about the neutral angle -0.05: odd powers only
+    assert law.feature_names() == ["k1_q2", "k3_q2", "k5_q2", "c_2"] and law.label == "spring[j2,order=5,odd]"
+    np.testing.assert_allclose(law.columns(context)[:, 1] @ k, 2 * x - 0.5 * x**3 + 0.25 * x**5 + 0.7, atol=1e-12)
     sparse = _rebuilt(_sparse())
     c = np.array([1.2, -0.4, 0.05])
     state = TermContext(context.t, context.q, context.qd, context.qdd)  # the calibration's context: smooth sign
@@ -102,8 +110,8 @@ def test_polynomial_spring_and_unnamed_term_columns_are_their_formulas(context):
 
 @pytest.mark.parametrize(
     "candidate",
-    [TORQUE_TERMS[2], TORQUE_TERMS[9], *TORQUE_TERMS[-2:]],
-    ids=["spring3", "unnamed", "stribeck", "smooth"],
+    [TORQUE_TERMS[2], ODD_LAW, TORQUE_TERMS[11], *TORQUE_TERMS[-2:]],
+    ids=["spring3", "odd5", "unnamed", "stribeck", "smooth"],
 )
 def test_finding_term_with_a_spec_evaluates_its_candidate_in_numbers_and_casadi(candidate, context):
     entry = FindingTerm(effect=candidate.key, joint=candidate.joint, spec=candidate.spec()).to_dict()
@@ -171,13 +179,25 @@ def test_a_linear_spring_finding_of_a_file_without_spec_still_loads():
     assert term.feature_names() == ["spring_k_2", "spring_c_2"]
 
 
+def test_a_polynomial_spring_of_a_file_before_odd_laws_still_loads(context):
+    """A spec written before the odd law (no ``odd``, ``max_order`` 3) is the polynomial of every power it was."""
+    old = {"key": "spring", "joint": 1, "order": 3, "max_order": 3, "centre": 0.2, "q_range": [-1.0, 1.4],
+           "lever_law": True}  # fmt: skip
+    term = term_from_spec(old)
+    assert not term.odd and term.label == "spring[j2,order=3]"
+    x = context.q[:, 1] - 0.2
+    np.testing.assert_allclose(term.columns(context)[:, 1, :3], np.column_stack([x, x**2, x**3]), atol=1e-12)
+
+
 def test_bad_specs_are_refused_with_the_spec_named():
     with pytest.raises(ParameterError, match="'key' one of"):
         term_from_spec({"key": "gravity_flip", "joint": 0})
     with pytest.raises(ParameterError, match="unknown fields \\['stiffness'\\]"):
         term_from_spec({"key": "spring", "joint": 0, "stiffness": 3.0})
-    with pytest.raises(ParameterError, match="integer 1..3"):
+    with pytest.raises(ParameterError, match="integer 1..5"):
         term_from_spec({"key": "spring", "joint": 0, "order": 7})
+    with pytest.raises(ParameterError, match="odd law must be 3 or 5"):
+        term_from_spec({"key": "spring", "joint": 0, "order": 4, "odd": True})
     with pytest.raises(ModelFileError, match="unnamed effect"):
         FindingTerm(effect="unnamed_effect", joint=1)
     with pytest.raises(ModelFileError, match="not unnamed_effect on joint 3"):

@@ -7,6 +7,8 @@ feature libraries of pysindy; one module per family of effects:
   plausibility bounds ``MAX_*`` of fitted parameters;
 - ``torque``: spring, torque offset, torque ripple (torques of position);
 - ``gas_spring``: the gas-spring lever law, a spring shape offered beside the polynomial ones;
+- ``neutral_angle``: where a counterbalance's odd law is centred (the spring's odd shape, fitted by variable
+  projection; ``counterbalance_law`` in ``torque`` chooses its order for identify);
 - ``friction``: Coulomb asymmetry, load-dependent friction, friction drift, the friction shapes a Coulomb-viscous
   model lacks (Stribeck, smooth Coulomb, pre-sliding; friction-like columns);
 - ``inertial``: rotor inertia, joint coupling, payload, gravity tilt (rigid-body and mounting effects);
@@ -40,7 +42,12 @@ from identification.diagnosis.candidates.friction import (
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm
 from identification.diagnosis.candidates.inertial import CouplingTerm, GravityTiltTerm, PayloadTerm, RotorInertiaTerm
 from identification.diagnosis.candidates.library import ALL_TERMS, EQUIVALENT_EFFECTS, TERMS_BY_KEY, default_library
-from identification.diagnosis.candidates.torque import SpringTerm, TorqueOffsetTerm, TorqueRippleTerm
+from identification.diagnosis.candidates.torque import (
+    SpringTerm,
+    TorqueOffsetTerm,
+    TorqueRippleTerm,
+    counterbalance_law,
+)
 
 __all__ = [
     "MAX_BACKLASH_RAD",
@@ -74,4 +81,5 @@ __all__ = [
     "SpringTerm",
     "TorqueOffsetTerm",
     "TorqueRippleTerm",
+    "counterbalance_law",
 ]

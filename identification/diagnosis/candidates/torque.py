@@ -1,5 +1,5 @@
-"""Candidate torques of position or of nothing at all: a spring (linear or a low-order polynomial), a torque offset,
-a position-periodic ripple.
+"""Candidate torques of position or of nothing at all: a spring (linear, a low-order polynomial, or a counterbalance's
+odd law about its neutral angle), a torque offset, a position-periodic ripple.
 
 Each acts on one joint and is an additive torque of (q, t) in the augmented model.
 """
@@ -13,12 +13,16 @@ import numpy as np
 
 from identification.diagnosis.candidates.base import CandidateTerm, joint_columns, joint_expression, oversized
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm, fit_geometry
+from identification.diagnosis.candidates.neutral_angle import fit_neutral_angle
 from psdm_casadi.errors import ParameterError
 
-MAX_ORDER = 3  # highest polynomial order of a spring's shape
+MAX_ORDER = 5  # highest polynomial order of a spring's shape
 MIN_PERIODS = 1.0  # periods of a ripple the joint's recorded travel must cover for the data to show it is periodic
 NEARLY_LINEAR = 2.0  # a polynomial whose stiffness stays within this factor over the range is a linear spring
 LEVER_LAW_MIN_DROP = 0.01  # lever law offered where the highest-order polynomial lowers the training SSE this much
+#: lowest order of the odd law offered: an odd cubic about a fitted angle plus the constant is every cubic (about its
+#: inflection point), the polynomial of order 3 already offered; the odd quintic (5 parameters) is a law of its own
+ODD_MIN_ORDER = 5
 
 
 @dataclass(frozen=True)
@@ -27,32 +31,38 @@ class SpringTerm(CandidateTerm):
 
     Order 1 is the linear spring ``k (q - q0)`` (columns ``q, 1``); order n > 1 a polynomial
     ``sum_i k_i (q - centre)^i + c`` about the middle of the training range, the shape of a nonlinear
-    counterbalance or a cam. ``shape_variants`` offers orders 1 to ``max_order`` to the selection, and with
-    ``lever_law`` and the selection's ``score`` a gas-spring lever law (``GasSpringTerm``, its geometry fitted by
-    variable projection); the selection keeps the shape with the lowest BIC on the training data if it carries over to
-    validation.
+    counterbalance or a cam; with ``odd`` only its odd powers (``x, x^3, x^5``) about the neutral angle ``centre``
+    (``neutral_angle``: a gas spring's, a linkage's or a gravity cam's law, odd about the angle where spring and
+    lever align). ``shape_variants`` offers orders 1 to ``max_order`` to the selection, and with the selection's
+    ``score`` the odd laws of order 5 to ``max_order`` at their fitted neutral angles and, with ``lever_law``, a
+    gas-spring lever law (``GasSpringTerm``, its geometry fitted by variable projection); the selection keeps the
+    shape with the lowest BIC on the training data (a fitted angle counted) if it carries over to validation.
 
     Parameters
     ----------
     joint : int or None
     order : int
-        Polynomial order (1 to 3).
+        Polynomial order (1 to ``MAX_ORDER``; odd and at least 3 with ``odd``).
     max_order : int
         Highest order ``shape_variants`` offers (1 keeps the linear spring only).
     centre : float
-        Angle the polynomial is expanded about [rad] (order > 1).
+        Angle the polynomial is expanded about [rad] (order > 1): the neutral angle with ``odd``.
     q_range : tuple (q_min, q_max) or None
         The training recording's range of the joint [rad]: the stiffness is reported over it.
     lever_law : bool
         Whether ``shape_variants`` also offers the gas-spring lever law (given the residual).
+    odd : bool
+        Only the odd powers about ``centre``: a counterbalance's law about its neutral angle (files without it read
+        as False).
     """
 
     joint: int | None = None
     order: int = 1
-    max_order: int = 3
+    max_order: int = MAX_ORDER
     centre: float = 0.0
     q_range: tuple | None = None
     lever_law: bool = True
+    odd: bool = False
     key = "spring"
     explanation = "a position-dependent elastic torque k (q - q0) on the joint (spring balancer, cables)"
     signature = "residual follows joint position, not velocity"
@@ -62,11 +72,26 @@ class SpringTerm(CandidateTerm):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, np.integer)) and 1 <= value <= MAX_ORDER):
                 raise ParameterError(f"SpringTerm.{name} must be an integer 1..{MAX_ORDER}; got {value!r}.")
+        if self.odd and (self.order < 3 or self.order % 2 == 0):
+            raise ParameterError(f"SpringTerm.order of an odd law must be 3 or 5 (odd, the linear spring is order 1 "
+                                 f"without odd); got {self.order!r}.")  # fmt: skip
 
     @property
     def label(self):
         base = CandidateTerm.label.fget(self)
-        return base if self.order == 1 or self.joint is None else f"{base[:-1]},order={self.order}]"
+        if self.order == 1 or self.joint is None:
+            return base
+        return f"{base[:-1]},order={self.order}{',odd' if self.odd else ''}]"
+
+    @property
+    def n_shape_parameters(self) -> int:
+        """The neutral angle of an odd law, fitted on the residual (``neutral_angle``): counted in the BIC."""
+        return int(self.odd)
+
+    @property
+    def exponents(self) -> tuple:
+        """The powers of ``q - centre`` the columns hold (before the constant)."""
+        return tuple(range(1, self.order + 1, 2 if self.odd else 1))
 
     def shape_variants(self, context, score=None):
         self._require_joint()
@@ -75,30 +100,44 @@ class SpringTerm(CandidateTerm):
         linear = replace(self, order=1, centre=0.0, q_range=(lo, hi))
         top = min(self.max_order, MAX_ORDER)
         variants = (linear,) + tuple(
-            replace(self, order=o, centre=0.5 * (lo + hi), q_range=(lo, hi)) for o in range(2, top + 1)
+            replace(self, order=o, centre=0.5 * (lo + hi), q_range=(lo, hi), odd=False) for o in range(2, top + 1)
         )
-        if not self.lever_law or score is None or hi - lo <= 0.0:
+        if score is None or hi - lo <= 0.0:
             return variants
-        # the geometry search costs a grid of fits: only where a position-dependent torque is there to shape
+        # the searches cost a grid of fits: only where a position-dependent torque is there to shape
         q = q[score.rows]
-        cubic = np.column_stack(variants[-1]._powers(q) + [np.ones_like(q)])
-        if score(self.joint, cubic) > (1.0 - LEVER_LAW_MIN_DROP) * score.sse:
+        highest = np.column_stack(variants[-1]._powers(q) + [np.ones_like(q)])
+        if score(self.joint, highest) > (1.0 - LEVER_LAW_MIN_DROP) * score.sse:
+            return variants
+        variants += self.odd_laws(q, lambda values: score(self.joint, values), (lo, hi))
+        if not self.lever_law:
             return variants
         ratio, q0 = fit_geometry(q, lambda values: score(self.joint, values))
         return variants + (GasSpringTerm(joint=self.joint, ratio=ratio, q0=q0, q_range=(lo, hi)),)
+
+    def odd_laws(self, q, sse, q_range) -> tuple:
+        """The odd laws of order ``ODD_MIN_ORDER`` to ``max_order`` (``odd``), each at the neutral angle that minimises
+        ``sse(columns)`` on the joint angles ``q`` (``neutral_angle.fit_neutral_angle``); ``q_range`` the recorded
+        range."""
+        top = min(self.max_order, MAX_ORDER)
+        laws = []
+        for order in range(ODD_MIN_ORDER, top + 1, 2):
+            q0, _ = fit_neutral_angle(q, sse, order)
+            laws.append(replace(self, order=order, centre=q0, q_range=tuple(q_range), odd=True))
+        return tuple(laws)
 
     def feature_names(self):
         self._require_joint()
         j = self.joint + 1
         if self.order == 1:
             return [f"k_q{j}", f"c_{j}"]
-        return [f"k{i}_q{j}" for i in range(1, self.order + 1)] + [f"c_{j}"]
+        return [f"k{i}_q{j}" for i in self.exponents] + [f"c_{j}"]
 
     def _powers(self, q):
         if self.order == 1:
             return [q]
         x = q - self.centre
-        return [x**i for i in range(1, self.order + 1)]
+        return [x**i for i in self.exponents]
 
     def columns(self, context):
         self._require_joint()
@@ -118,7 +157,7 @@ class SpringTerm(CandidateTerm):
         if self.order == 1 or self.q_range is None:
             return float(c[0]), float(c[0])
         x = np.linspace(self.q_range[0], self.q_range[1], 101) - self.centre
-        slope = sum(i * c[i - 1] * x ** (i - 1) for i in range(1, self.order + 1))
+        slope = sum(i * a * x ** (i - 1) for i, a in zip(self.exponents, c))
         return float(np.min(slope)), float(np.max(slope))
 
     def _secant(self, coefficients) -> float:
@@ -135,8 +174,10 @@ class SpringTerm(CandidateTerm):
             return {"k": k, "q0": (-c / k) if k != 0 else 0.0}
         low, high = self.stiffness_range(coefficients)
         out = {"k": self._secant(coefficients), "order": float(self.order), "centre": float(self.centre)}
+        if self.odd:
+            out["neutral_angle"] = float(self.centre)
         out.update({"stiffness_min": low, "stiffness_max": high})
-        out.update({f"k{i}": float(coefficients[i - 1]) for i in range(1, self.order + 1)})
+        out.update({f"k{i}": float(a) for i, a in zip(self.exponents, coefficients)})
         out["offset"] = float(coefficients[-1])
         return out
 
@@ -177,6 +218,12 @@ class SpringTerm(CandidateTerm):
             f"a polynomial of order {self.order} in the joint angle (nonlinear counterbalance, cam or gas spring), "
             f"stiffness {low:.3g} to {high:.3g} N m/rad over the recorded range"
         )
+        if self.odd:
+            shape = (
+                f"a counterbalance's law, odd about its neutral angle q0 = {self.centre:.4g} rad (powers "
+                f"{', '.join(str(i) for i in self.exponents)} of q - q0: a gas spring, a spring through a linkage or "
+                f"a gravity cam), stiffness {low:.3g} to {high:.3g} N m/rad over the recorded range"
+            )
         if low < 0.0 < high:
             shape += "; the stiffness changes sign over the range, so it is not a single spring"
         return self.key, "a position-dependent elastic torque: " + shape
@@ -186,8 +233,8 @@ class SpringTerm(CandidateTerm):
             return joint_expression(q.shape[0], self.joint, coefficients[0] * q[self.joint] + coefficients[1])
         x = q[self.joint] - self.centre
         value = coefficients[-1] + 0 * x
-        for i in range(1, self.order + 1):
-            value = value + coefficients[i - 1] * x**i
+        for i, a in zip(self.exponents, coefficients):
+            value = value + a * x**i
         return joint_expression(q.shape[0], self.joint, value)
 
 
@@ -280,3 +327,32 @@ class TorqueRippleTerm(CandidateTerm):
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         x = self.harmonic * q[self.joint]
         return joint_expression(q.shape[0], self.joint, coefficients[0] * ca.sin(x) + coefficients[1] * ca.cos(x))
+
+
+def counterbalance_law(joint: int, q, torque, n_eff: float, max_order: int = MAX_ORDER):
+    """The counterbalance's odd law (``SpringTerm`` with ``odd``) on ``joint`` that a torque supports, or None.
+
+    ``torque`` [N m] is what the spring should explain at the joint angles ``q`` [rad] (a training residual with the
+    spring's own torque given back). The laws of order 5 to ``max_order``, each at its fitted neutral angle
+    (``SpringTerm.odd_laws``), compete with the linear spring and the cubic (the shapes identify tries anyway) by the
+    Bayesian information criterion over ``n_eff`` independent samples, a fitted angle counted as a parameter: None
+    where the linear spring or the cubic has the lowest."""
+    q, y = np.asarray(q, dtype=float), np.asarray(torque, dtype=float)
+    lo, hi = float(np.min(q)), float(np.max(q))
+    if hi - lo <= 0.0:
+        return None
+
+    def sse(values):
+        beta = np.linalg.lstsq(values, y, rcond=None)[0]
+        return max(float(np.sum((y - values @ beta) ** 2)), 1e-300)
+
+    def bic(term):
+        columns = np.column_stack(term._powers(q) + [np.ones_like(q)])
+        return n_eff * np.log(sse(columns)) + (columns.shape[1] + term.n_shape_parameters) * np.log(n_eff)
+
+    base = SpringTerm(joint=joint, max_order=max_order, q_range=(lo, hi))
+    best, value = None, min(bic(base), bic(replace(base, order=3, centre=0.5 * (lo + hi))))
+    for law in base.odd_laws(q, sse, (lo, hi)):
+        if bic(law) < value:
+            best, value = law, bic(law)
+    return best
