@@ -5,7 +5,8 @@ counterbalance or spring on a joint (``envelope_report``), the route that finds 
 identify fits again with a spring on each named joint, linear and cubic (``findings.FindingTerm``, the term ``psdm
 diagnose --apply`` adds; its constant left out where the joint's torque offset spans it), and the counterbalance's odd
 law of order 5 about a fitted neutral angle where the training data support it beyond the cubic by BIC
-(``counterbalance_laws``: the diagnosis's ``SpringTerm`` shape, ``candidates.counterbalance_law``). A kept spring is a
+(``counterbalance_laws``: the diagnosis's ``SpringTerm`` shape, ``candidates.counterbalance_law``; in a block
+cross-validation its angle is fitted again on each fold's training blocks). A kept spring is a
 ``findings`` entry with ``source`` ``"identify"``, applied by ``psdm validate``, ``predict``, ``diagnose`` (which says
 the model already carries it) and the exported code alike; otherwise the model without it is written and the report
 says why.
@@ -210,9 +211,12 @@ def _with_springs(robot, model, options, build, columns, data, configurations) -
     return plain, document
 
 
-def counterbalance_laws(robot, model, recordings, options, build, configurations=None, kt=None, joints=()) -> dict:
+def counterbalance_laws(
+    robot, model, recordings, options, build, configurations=None, kt=None, joints=(), like=None
+) -> dict:
     """Per joint of ``joints``, the counterbalance's odd law the training recordings support (``candidates.
-    counterbalance_law``: the lowest BIC against the linear spring, the neutral angle fitted), or None.
+    counterbalance_law``: the lowest BIC against the linear spring and the cubic, the neutral angle fitted), or None;
+    with ``like`` (``{joint: law or None}``), its laws with their neutral angles refitted on ``recordings``.
 
     The torque each law must explain is the training residual of the fit with a cubic spring of every power on each
     joint (the springs' own torque given back): what the spring is to take once the links no longer absorb it. The
@@ -234,6 +238,9 @@ def counterbalance_laws(robot, model, recordings, options, build, configurations
         torque.append(ready.tau - predicted)
         n_eff += 2.0 * cutoff * float(ready.t[-1] - ready.t[0]) if np.isfinite(cutoff) else ready.t.size
     q, torque = np.concatenate(q), np.concatenate(torque)
+    if like is not None:
+        return {j: like.get(j) and counterbalance_law(j, q[:, j], torque[:, j], n_eff, order=like[j].order)
+                for j in joints}  # fmt: skip
     return {j: counterbalance_law(j, q[:, j], torque[:, j], max(n_eff, 2.0)) for j in joints}
 
 
@@ -363,12 +370,18 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
         each = compare_each(calibrated, type(calibrated)(document), model, list(judges.held), kt)
         opinions.append(Opinion(HELD_OUT_ROUTE, pooled_comparison(each), each))
     refused = opinions and (opinions[0].together.worse or not any(opinions[0].lowers(j) for j in joints))
+
+    def springs_on(pieces):  # a law's neutral angle is fitted again on each fold's training blocks
+        fold = columns
+        if isinstance(order, dict):
+            laws = counterbalance_laws(robot, model, pieces, options, build, None, kt, joints, like=order)
+            fold = _columns(joints, options, pieces, laws)
+        return type(calibrated)(_with_springs(robot, model, options, build, fold, pieces, None)[1])
+
     if judges.folds is not None and second and not refused:
         together, folds = judges.folds.compare(
             lambda pieces: build(identify_trajectories(robot, model, list(pieces), options)),
-            lambda pieces: type(calibrated)(
-                _with_springs(robot, model, options, build, columns, list(pieces), None)[1]
-            ),
+            lambda pieces: springs_on(list(pieces)),
             model,
             kt,
         )

@@ -15,7 +15,9 @@ inflection point), so the law starts at order 5 (``torque.ODD_MIN_ORDER``). On t
 (``CamCounterbalance``, odd about 0; training range -0.25 to 0.75 rad, held out down to -0.53 rad) the diagnosis's
 odd quintic put the neutral angle at -0.006 rad and left 0.041 N m of joint 2's torque held out, the quintic of every
 power 0.044 and the cubic 0.123; over that short range the link's gravity and a linear spring fit the training data as
-well (BIC), so the data do not choose it there.
+well (BIC), so the data do not choose it there. Swept over 1.8 rad, identify's training residual chooses it (BIC,
+neutral angle -0.023 rad) and the block cross-validation takes it: joint 2 from 5.46 to 0.114 N m on the held-out
+blocks, against 0.674 for the cubic and 1.34 for the linear spring.
 """
 
 from __future__ import annotations

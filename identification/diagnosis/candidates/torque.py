@@ -329,14 +329,15 @@ class TorqueRippleTerm(CandidateTerm):
         return joint_expression(q.shape[0], self.joint, coefficients[0] * ca.sin(x) + coefficients[1] * ca.cos(x))
 
 
-def counterbalance_law(joint: int, q, torque, n_eff: float, max_order: int = MAX_ORDER):
+def counterbalance_law(joint: int, q, torque, n_eff: float, max_order: int = MAX_ORDER, order: int | None = None):
     """The counterbalance's odd law (``SpringTerm`` with ``odd``) on ``joint`` that a torque supports, or None.
 
     ``torque`` [N m] is what the spring should explain at the joint angles ``q`` [rad] (a training residual with the
     spring's own torque given back). The laws of order 5 to ``max_order``, each at its fitted neutral angle
     (``SpringTerm.odd_laws``), compete with the linear spring and the cubic (the shapes identify tries anyway) by the
     Bayesian information criterion over ``n_eff`` independent samples, a fitted angle counted as a parameter: None
-    where the linear spring or the cubic has the lowest."""
+    where the linear spring or the cubic has the lowest. With ``order``, the law of that order at its fitted angle,
+    without a choice (the same law refitted on other data: a block cross-validation's folds)."""
     q, y = np.asarray(q, dtype=float), np.asarray(torque, dtype=float)
     lo, hi = float(np.min(q)), float(np.max(q))
     if hi - lo <= 0.0:
@@ -350,7 +351,9 @@ def counterbalance_law(joint: int, q, torque, n_eff: float, max_order: int = MAX
         columns = np.column_stack(term._powers(q) + [np.ones_like(q)])
         return n_eff * np.log(sse(columns)) + (columns.shape[1] + term.n_shape_parameters) * np.log(n_eff)
 
-    base = SpringTerm(joint=joint, max_order=max_order, q_range=(lo, hi))
+    base = SpringTerm(joint=joint, max_order=max_order if order is None else order, q_range=(lo, hi))
+    if order is not None:
+        return base.odd_laws(q, sse, (lo, hi))[-1]
     best, value = None, min(bic(base), bic(replace(base, order=3, centre=0.5 * (lo + hi))))
     for law in base.odd_laws(q, sse, (lo, hi)):
         if bic(law) < value:
