@@ -12,7 +12,7 @@ It holds everything needed to use an identification without the recordings or th
   deviations and the friction model's shape;
 - ``identification``: filter, decimation, samples, weights, condition number, solver status, ``preparation``
   (``model_preparation``): how every command prepares a recording, ``column_choice`` (optional): the columns chosen;
-- ``provenance``: when, which version, which recordings (name, samples, SHA-256);
+- ``provenance``: when, which version, which recordings (name, samples, SHA-256, optional ``columns`` read);
 - ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
 - ``findings``: the terms diagnosis added (empty until a diagnosis is applied with
   ``psdm diagnose MODEL --apply NEW``): per finding its effect, label, kind (``findings.FINDING_KINDS``),

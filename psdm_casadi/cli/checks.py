@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from contextlib import ExitStack, contextmanager
 from numbers import Integral, Real
 from pathlib import Path
@@ -249,6 +250,30 @@ def recording_layout(args):
     from identification.data.layout import ColumnLayout
 
     return ColumnLayout.parse(getattr(args, "columns", None), getattr(args, "rate", None))
+
+
+def stored_layout(args) -> dict | None:
+    """``provenance.columns`` of a model file: the ``--columns`` and ``--rate`` identify read its recordings with
+    (None when it was given neither)."""
+    given = {"columns": getattr(args, "columns", None), "rate": getattr(args, "rate", None)}
+    return given if any(v is not None for v in given.values()) else None
+
+
+def model_layout(args, document, command: str):
+    """``recording_layout``, or when neither ``--columns`` nor ``--rate`` is given, the ones identify read the model
+    file's recordings with (``document``'s ``provenance.columns``; older files have none), said on stderr: a
+    vendor's log is then read by every command as identify read it, without repeating the options."""
+    from identification.data.layout import ColumnLayout
+
+    layout = recording_layout(args)
+    stored = (document or {}).get("provenance", {}).get("columns") if layout is None else None
+    if not stored:
+        return layout
+    given = " ".join(f"--{key} {value}" for key, value in stored.items() if value is not None)
+    print(f"psdm {command}: note: the recordings are read as identify read the model's ({given}, stored in the "
+          f"model file); pass --columns to read them otherwise (--columns q=q for the standard columns t, "
+          f"q1..qn, tau1..taun).", file=sys.stderr)  # fmt: skip
+    return ColumnLayout.parse(stored.get("columns"), stored.get("rate"))
 
 
 def parse_locks(items) -> dict:

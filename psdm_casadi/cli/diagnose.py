@@ -16,8 +16,8 @@ from psdm_casadi.cli.checks import (
     check_positive,
     derive_model,
     load_robot_argument,
+    model_layout,
     output_folder,
-    recording_layout,
 )
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.errors import ParameterError
@@ -168,7 +168,7 @@ def _run_diagnose(args) -> int:
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     else:
         robot = load_robot_argument(args)
-    layout = recording_layout(args)  # --columns, --rate
+    layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
     train = load_robot_recording(args.train, robot, args.topic, layout)  # joint side, timed (robot file's [recording])
     validations = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
     # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
@@ -344,6 +344,8 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload, con
             file=sys.stderr,
         )
         return EXIT_CHECK_FAILED
+    read = calibrated.document.get("provenance", {}).get("columns")  # how identify read the recordings: kept
+    result.after.document["provenance"].update({} if read is None else {"columns": read})
     with out.staging() as stage:
         result.after.save(stage, overwrite=True, allow_inconsistent=True)
     report_model_warnings("diagnose", args.apply, result.after)  # the refit's, stored in the new file too

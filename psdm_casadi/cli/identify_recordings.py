@@ -132,7 +132,7 @@ def run(args) -> int:
     from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.data.io import not_held_out
     from identification.data.robot_recordings import load_robot_recording, recording_paths
-    from psdm_casadi.cli.checks import check_recordings_first, derive_model
+    from psdm_casadi.cli.checks import check_recordings_first, derive_model, stored_layout
     from psdm_casadi.model import load_model
 
     out = _check_outputs(args)
@@ -182,6 +182,7 @@ def run(args) -> int:
     report["min_mass_eigenvalue"] = mass_eigenvalue
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
+    calibrated.document["provenance"].update({"columns": stored_layout(args)} if stored_layout(args) else {})
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "

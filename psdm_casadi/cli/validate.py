@@ -10,9 +10,9 @@ import numpy as np
 from psdm_casadi.cli.checks import (
     add_topic_argument,
     check_not_input,
+    model_layout,
     output_file,
     output_folder,
-    recording_layout,
 )
 from psdm_casadi.cli.output import EXIT_OK, print_json, report_model_warnings
 
@@ -85,7 +85,7 @@ def _run_validate(args) -> int:
     preparation = model_preparation(calibrated.document)  # the identification's own, as every judging command
     if preparation.note:
         print(f"psdm validate: note: {args.model}: {preparation.note}", file=sys.stderr)
-    layout = recording_layout(args)  # --columns, --rate
+    layout = model_layout(args, calibrated.document, "validate")  # --columns, --rate (or identify's)
     grouped = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
     if plots is not None and grouped != list(args.recordings):  # one plot per recording, named after the folder
         names = [f"{Path(p).stem}.png" for p in grouped]

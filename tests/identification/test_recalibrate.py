@@ -193,6 +193,29 @@ def test_diagnose_apply_keeps_the_drive_columns_the_model_was_identified_with(sp
 
 
 @pytest.mark.slow
+def test_diagnose_reads_a_vendor_log_as_identify_did_and_apply_keeps_how(spring_loop, tmp_path, capsys):
+    """A model identified from a controller's log with ``--columns`` (``provenance.columns``): diagnose reads the
+    logs the same way without the option and says so, and the model ``--apply`` writes keeps how (validate reads
+    with it next)."""
+    folder = spring_loop
+    for name in ("train.csv", "valid.csv"):
+        lines = [line for line in (folder / name).read_text().splitlines() if not line.startswith("#")]
+        renamed = {"t": "Time", **{f"q{j}": f"Position{j}" for j in range(1, 7)},
+                   **{f"tau{j}": f"TorqueSm{j}" for j in range(1, 7)}}  # fmt: skip
+        header = ",".join(renamed.get(name, name) for name in lines[0].split(","))
+        (tmp_path / name).write_text("\n".join([header, *lines[1:]]) + "\n")
+    document = json.loads((folder / "model.json").read_text())
+    document["provenance"]["columns"] = {"columns": "t=Time,q=Position,tau=TorqueSm", "rate": None}
+    (tmp_path / "model.json").write_text(json.dumps(document))
+    argv = ["diagnose", str(tmp_path / "model.json"), "--train", str(tmp_path / "train.csv"), "--validate",
+            str(tmp_path / "valid.csv"), "--apply", str(tmp_path / "new.json")]  # fmt: skip
+    assert main(argv) == 0
+    assert "read as identify read the model's (--columns t=Time,q=Position,tau=TorqueSm" in capsys.readouterr().err
+    after = json.loads((tmp_path / "new.json").read_text())
+    assert after["provenance"]["columns"] == document["provenance"]["columns"]
+
+
+@pytest.mark.slow
 def test_diagnose_apply_keeps_the_model_s_payload_configurations(spring_loop, tmp_path, capsys):
     """A model identified with payload configurations (a known load, an unknown one it weighed) keeps them through
     ``--apply``: the refit on the diagnosis' recordings does not drop what the file knows of its loads."""

@@ -206,3 +206,37 @@ def test_the_drive_columns_are_chosen_from_the_data_stated_and_stored_and_option
     assert "--coulomb-velocity must be a velocity > 0" in capsys.readouterr().err
     assert summary["columns"]["evidence"] == [] and {f"offset{j}" for j in range(1, 7)} <= set(summary["drive"])
     assert not any(name.startswith("fs") for name in summary["drive"])
+
+
+def test_a_vendor_log_is_read_by_validate_as_identify_read_it(recordings, tmp_path, capsys):
+    """A controller's log (``Time``, ``Position1..6``, ``TorqueSm1..6`` and a model torque ``TorqueCmptd1..6``) read
+    with ``--columns`` by identify: validate reads the next log the same way without the option, says so, and gives
+    the numbers of the same file written with the standard columns; an older file (no ``provenance.columns``) and a
+    standard file with ``--columns q=q`` read as before."""
+
+    def vendor(name):
+        lines = [line for line in (recordings / name).read_text().splitlines() if not line.startswith("#")]
+        renamed = {"t": "Time", **{f"q{j}": f"Position{j}" for j in range(1, 7)},
+                   **{f"tau{j}": f"TorqueSm{j}" for j in range(1, 7)}}  # fmt: skip
+        header = [renamed.get(c, c) for c in lines[0].split(",")] + [f"TorqueCmptd{j}" for j in range(1, 7)]
+        rows = [line + ",0" * 6 for line in lines[1:]]  # a controller's model torque beside the measured one
+        (tmp_path / name).write_text("\n".join([",".join(header), *rows]) + "\n")
+        return str(tmp_path / name)
+
+    out = tmp_path / "m.json"
+    argv = ["--quiet", "identify", "denso_vs6556g", "--data", vendor("train.csv"), "--out", str(out)]
+    assert main([*argv, "--columns", "t=Time,q=Position,tau=TorqueSm"]) == 0
+    assert load_calibrated_model(out).document["provenance"]["columns"] == {
+        "columns": "t=Time,q=Position,tau=TorqueSm", "rate": None}  # fmt: skip
+    capsys.readouterr()
+    assert main(["validate", str(out), vendor("valid.csv"), "--json"]) == 0
+    out_text, err = capsys.readouterr()
+    assert "read as identify read the model's (--columns t=Time,q=Position,tau=TorqueSm" in err
+    vendor_rmse = json.loads(out_text)["recordings"][0]["rmse"]
+    assert main(["validate", str(out), str(recordings / "valid.csv"), "--columns", "q=q", "--json"]) == 0
+    np.testing.assert_allclose(json.loads(capsys.readouterr().out)["recordings"][0]["rmse"], vendor_rmse, rtol=1e-12)
+    document = json.loads(out.read_text())
+    del document["provenance"]["columns"]  # a model file of before
+    (tmp_path / "old.json").write_text(json.dumps(document))
+    assert main(["validate", str(tmp_path / "old.json"), vendor("valid.csv")]) == 2
+    assert "--columns q=Position,tau=<one of TorqueSm, TorqueCmptd>" in capsys.readouterr().err  # as before
