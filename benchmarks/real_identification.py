@@ -132,7 +132,7 @@ TARGETS = {
     "tx40_motor_side_equal": "TX40: the shipped motor-side files read through examples/staubli_tx40.toml give the "
     "hand-converted route's model (1e-9 relative)",
     "kinova_models": "Kinova Gen3: identify on defaults from the joint-torque sensors and from currents, every link "
-    "plausible (mass within 5x the robot file's, centre of mass within reach), no link of the sensor fit at its mass "
+    "plausible (mass within 5x the robot file's, centre of mass within reach), no link of either fit at its mass "
     "bound (the example states Kinova's inertials and the tool), no further payload > 0.4 kg found by diagnose",
     "loop_never_worse": "identify -> diagnose --apply (defaults): every joint's validation RMSE at the end <= after "
     "identify + the stated noise margin (never_worse_loop)",
