@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from identification.calibration.finding_value import validation_rmse
-from identification.calibration.never_worse import JointComparison, paired_rmse_margin
+from identification.calibration.never_worse import JointComparison, TrainingRefits, paired_rmse_margin
 from psdm_casadi.errors import PSDMError
 
 __all__ = [
@@ -81,6 +81,13 @@ class BlockFolds:
         if k not in self.baselines:
             self.baselines[k] = identify(self.training[k])
         return self.baselines[k]
+
+    def refits(self, identify_without, identify_with) -> TrainingRefits:
+        """The never-worse second opinion of these blocks (``never_worse.TrainingRefits``): block ``k``'s models
+        without the springs (``baseline``, the labels ``("springs",)``) and with them (``identify_with(pieces)``), for
+        a joint a held-out recording finds over its margin."""
+        return TrainingRefits(lambda labels, k: self.baseline(k, identify_without) if labels
+                              else identify_with(self.training[k]), len(self.training), ("springs",))  # fmt: skip
 
     def compare(self, identify_without, identify_with, model, kt=None) -> tuple:
         """(comparison over every held-out block taken together, per-fold comparisons) of the models
