@@ -28,18 +28,17 @@ is refitted without it (a finding whose every feature the fit's other columns al
 construction; it is kept and reported as absorbed). First, a new finding that splits the torque of one the file
 carries (``split_torque``: the two one shape, the carried one moved beyond its uncertainty) is dropped likewise.
 
-Then the never-worse gate (``never_worse.keep_not_worse``): no joint's validation RMSE may exceed the model's before by
-more than a noise margin derived from the data (``never_worse.MARGIN_RULE``). Otherwise findings are dropped and the
-model refitted (of every subset of up to ``never_worse.EXHAUSTIVE_MAX`` findings, the one with the largest improvement
-that passes; greedily beyond); when none passes, ``Recalibration.refused`` names the joints and findings, and nothing
-may be written. The ``recalibration.never_worse`` block of the file holds the per-joint before, after and margin (and
-what set it) of the model written, the search, and the findings dropped with their reasons.
+Then the never-worse gate (``never_worse.keep_not_worse``, its record in ``recalibration.never_worse``): no joint's
+validation RMSE may rise beyond a noise margin (``never_worse.MARGIN_RULE``) where the refits without each training
+block (``refit_folds``) reproduce the rise; otherwise findings are dropped and the model refitted, or
+``Recalibration.refused`` names the joints and findings and nothing may be written.
 """
 
 from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 import logging
 
 import numpy as np
@@ -60,6 +59,7 @@ from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.payload_fit import carried_configurations
+from identification.calibration.refit_folds import training_refits
 from identification.calibration.split_torque import splitting_findings
 from identification.calibration.trajectory_data import (
     NormalEquations,
@@ -319,9 +319,10 @@ def recalibrate(
         corrections = {k: v for k, v in corrections.items() if k not in labels}
         entries = [e for e in entries if e["label"] not in labels]
         after, fit = _joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
-    gate = keep_not_worse(calibrated, (after, fit), _refit_without(calibrated, robot, model, train,
-                          (terms, corrections, entries), robot_source), [t.label for t in terms] + list(corrections),
-                          model, validation, kt)  # fmt: skip
+    findings, droppable = (terms, corrections, entries), [t.label for t in terms] + list(corrections)
+    refit_on = functools.partial(_refit_without, calibrated, robot, model, findings=findings, robot_source=robot_source)
+    refits = training_refits(train, refit_on, droppable, _options(calibrated).cutoff_hz)
+    gate = keep_not_worse(calibrated, (after, fit), refit_on(train), droppable, model, validation, kt, refits)
     after, fit = gate.after, gate.payload
     rmse_before, rmse_after = gate.comparison.before, gate.comparison.after
     scores = [validation_rmse(after, model, r, kt) for r in validation]

@@ -372,6 +372,8 @@ def recalibration_markdown(result, joint_names, path) -> str:
         "",
         f"- never worse: {block['never_worse']['margin_rule']}; every joint of the model written is within it",
     ]
+    lines += [f"- {block['never_worse']['margin_source'][j - 1]}"  # over it, the refits do not confirm
+              for j in block["never_worse"].get("cleared_by_refits", [])]  # fmt: skip
     if block["never_worse"].get("search"):
         lines.append(f"- findings to drop: {block['never_worse']['search']}")
     lines += [f"- dropped {d['label']} (never worse): {d['reason']}; the model was refitted without it"

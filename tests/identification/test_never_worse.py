@@ -14,7 +14,13 @@ import numpy as np
 import pytest
 
 from identification.calibration.calibrated_model import CalibratedModel, load_calibrated_model
-from identification.calibration.never_worse import MARGIN_FLOOR, block_length, compare_models, paired_rmse_margin
+from identification.calibration.never_worse import (
+    MARGIN_FLOOR,
+    JointComparison,
+    block_length,
+    compare_models,
+    paired_rmse_margin,
+)
 from identification.calibration.recalibrate import recalibrate
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import save_recording
@@ -53,6 +59,78 @@ def test_the_margin_is_the_spread_of_the_rmse_difference_over_other_recordings(r
     estimates = [paired_rmse_margin(before[k][:, None], after[k][:, None], seed=k)[2][0] for k in range(20)]
     assert np.median(estimates) == pytest.approx(truth, rel=0.3), (estimates, truth)
     assert block_length(before[0]) >= (8 if rho else 1)  # correlated residuals get longer blocks
+
+
+def _shared_parameter_fits(rng, finding: str, draws: int = 100) -> np.ndarray:
+    """Known synthetic truth for the second opinion (``JointComparison.confirmed_by``): two outputs share three
+    parameters; output 1 carries a spring-like term (3 z) and output 2 an unmodelled misfit, as the Denso's joint 2
+    carries a spring and its wrist a delay. The model before fits the shared parameters alone (absorbing the spring);
+    the model after adds the spring column (``finding`` "spring"), or instead a wrong correction of output 2, its
+    regressors 0.6 s late ("delay"). Per training draw: (output 2's validation RMSE change, worse on the validation
+    recording alone, worse with the refits without each of 4 training blocks)."""
+    t = np.arange(3000) * 0.01
+
+    def draw(m):
+        w, phase = rng.uniform(0.2, 1.5, size=(5, 2)), rng.uniform(0, 2 * np.pi, size=(5, 2))
+        f = np.stack([np.sin(np.outer(t[:m], w[k]) + phase[k]).sum(axis=1) for k in range(5)], axis=1)
+        x1, x2, z = f[:, [0, 1, 2]], f[:, [3, 1, 0]], f[:, 4] * f[:, 0]
+        theta = np.array([1.0, -2.0, 0.5])
+        y1 = x1 @ theta + 3.0 * z + 0.05 * rng.normal(size=m)
+        y2 = x2 @ theta + np.sin(2 * f[:, 3]) * f[:, 1] + 0.05 * rng.normal(size=m)
+        return x1, x2, z, y1, y2
+
+    def residual(data, rows, after):  # output 2's validation residual of the model fitted on ``data[rows]``
+        x1, x2, z, y1, y2 = (a[rows] for a in data)
+        design = np.r_[np.c_[x1, z], np.c_[x2, 0 * z]] if after and finding == "spring" else np.r_[x1, x2]
+        theta = np.linalg.lstsq(design, np.r_[y1, y2], rcond=None)[0][:3]
+        shown = np.roll(valid[1], 60, axis=0) if after and finding == "delay" else valid[1]
+        return valid[4] - shown @ theta
+
+    valid, out = draw(3000), []
+    for _ in range(draws):
+        data = draw(1200)
+        edges = np.linspace(0, 1200, 5).astype(int)
+        folds = [np.r_[0 : edges[k], edges[k + 1] : 1200] for k in range(4)]
+        before, after = residual(data, slice(None), False), residual(data, slice(None), True)
+        comparison = JointComparison.from_noise(*paired_rmse_margin(before[:, None], after[:, None]))
+        rmse = [[np.sqrt(np.mean(residual(data, rows, after) ** 2)) for after in (False, True)] for rows in folds]
+        changes = [[with_it - without] for without, with_it in rmse]
+        confirmed = comparison.confirmed_by(changes)
+        out.append((comparison.after[0] - comparison.before[0], bool(comparison.worse), bool(confirmed.worse)))
+        assert confirmed.worse or confirmed.cleared == comparison.worse  # a joint over its margin is one or the other
+    return np.array(out)
+
+
+def test_the_refits_clear_the_training_fits_noise_and_confirm_a_real_degradation():
+    """Over independent training draws, modelling the spring lowers output 2 on average (its absorbed part goes),
+    yet in some draws the full fit raises it beyond the validation margin: the refits without each training block
+    clear most of those (on 8 validation motions of 150 draws each: 11 over the margin, 4 confirmed). A wrong delay
+    correction raises output 2 in every draw; the refits confirm nearly every rise the validation recording shows."""
+    noise = _shared_parameter_fits(np.random.default_rng(6), "spring", draws=150)
+    assert np.mean(noise[:, 0]) < 0  # the truth: the spring's side effect on output 2 is no degradation
+    alone, confirmed = int(noise[:, 1].sum()), int(noise[:, 2].sum())
+    assert alone >= 5 and confirmed <= alone // 3, (alone, confirmed)
+    real = _shared_parameter_fits(np.random.default_rng(8), "delay", draws=30)
+    assert np.all(real[:, 0] > 0)  # the truth: a real degradation in every draw
+    alone, confirmed = int(real[:, 1].sum()), int(real[:, 2].sum())
+    assert alone >= 0.8 * len(real) and confirmed >= 0.9 * alone, (alone, confirmed)
+
+
+def test_the_record_names_the_joints_the_refits_clear():
+    from identification.calibration.never_worse import JointComparison
+
+    comparison = JointComparison(np.array([1.0, 2.0]), np.array([1.1, 2.5]), np.array([0.05, 0.1]))
+    assert comparison.worse == (0, 1) and comparison.cleared == ()
+    checked = comparison.confirmed_by([[-0.2, 0.6], [0.1, 0.4], [0.0, 0.5], [-0.1, 0.5]])
+    assert checked.worse == (1,) and checked.cleared == (0,) and checked.excess[0] == 0.0
+    record = checked.to_dict()
+    assert record["cleared_by_refits"] == [1] and record["worse_joints"] == [2] and record["refit_folds"] == 4
+    assert record["refit_change"] == pytest.approx([-0.05, 0.5])
+    assert (
+        "not worse: the mean change of the 4 refits without each training block is -0.05 N m"
+        in (record["margin_source"][0])
+    )
+    assert "refits" in record["margin_rule"]
 
 
 @pytest.mark.slow
@@ -225,12 +303,11 @@ def _report(with_spring: bool):
     )  # fmt: skip
 
 
-@pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason=(
-    "with the pull towards the robot file at its stated uncertainty 2 (prior_pull), the spring alone refits the links "
-    "the delayed wrist torques had bent less freely and joint 3 rises from 1.089 to 1.126 N m, beyond its margin: the "
-    "gate refuses both findings instead of keeping the spring (issue 25)"))  # fmt: skip
+@pytest.mark.slow  # the gate's subsets and the refits without each training block: ~20 Denso fits, 60-120 s
 def test_the_gate_drops_the_delay_that_hurts_joints_1_to_3_and_keeps_the_spring(spring_data, denso, denso_model):
+    """The refit with the spring alone raises joint 3 (1.089 -> 1.126 N m, margin 0.035) on the validation recording;
+    the refits without each quarter of the training data do not reproduce that rise (the training fit's noise), while
+    they confirm the delay's harm on joints 1-3: the spring is written, the delay dropped."""
     calibrated = load_calibrated_model(spring_data / "model.json")
     train, validation = _load(spring_data / "train.csv"), _load(spring_data / "valid.csv")
     result = recalibrate(calibrated, denso, denso_model, _report(True), train, validation)
@@ -239,11 +316,14 @@ def test_the_gate_drops_the_delay_that_hurts_joints_1_to_3_and_keeps_the_spring(
     assert "spring[j2]" in labels and "delay" not in labels and result.after.corrections == {}
     block = result.after.document["recalibration"]["never_worse"]
     assert [d["label"] for d in block["dropped"]] == ["delay"] and block["dropped"][0]["joint"] in (1, 2, 3)
-    assert block["worse_joints"] == []
-    # independently of the gate's own numbers: psdm validate's RMSE of both files, per joint
+    assert block["worse_joints"] == [] and block["refit_folds"] == 4
+    # independently of the gate's own numbers: psdm validate's RMSE of both files, per joint; a joint over its
+    # margin (the spring acts on joint 2; only the link-shared joint 3 may rise) must have the refits' mean within it
     before = np.array(block["validation_rmse_before"])
     after = np.array(result.after.document["validation"]["recordings"][0]["rmse"])
-    assert np.all(after <= before + np.array(block["margin"])), (before, after)
+    margin, over = np.array(block["margin"]), np.flatnonzero(after > before + np.array(block["margin"]))
+    assert set(over + 1) <= {3} and set(over + 1) == set(block["cleared_by_refits"]), (before, after, margin)
+    assert all(block["refit_change"][j] <= margin[j] for j in over)
     assert after[1] < 0.5 * before[1]  # the spring is modelled: joint 2 much better
     # the delay alone helped joints 4-6 on the sum the diagnosis judges, and hurt joints 1-3 beyond the margin
     assert (
