@@ -27,7 +27,9 @@ and 0.48 kg m^2 for the difference between current and sensor torque (``benchmar
 ``sensor_check``). On the TX40's motor-side torques links 1-3 sat at twice their masses on their envelopes
 (``benchmarks/real_identification.py``); with the rotors of joints 1 and 2 held near the data's 0.60 and 0.49 kg m^2
 (fitted 0.61 and 0.59; ``psdm diagnose`` of the robot file finds 0.60 and 0.51 on its own) they keep 10.7, 3.8 and
-3.8 kg (file: 10.5, 3.6, 4.1) and no link is pushed.
+3.8 kg (file: 10.5, 3.6, 4.1) and no link is pushed. The diagnosis's enveloped refit (``diagnosis.envelope_check``)
+takes its map from :func:`with_merged_rotors` too, on its own normal equations, where a ``rotor_inertia`` finding's
+column is a drive-inertia column ``Ia<j>``: both routes hold the same rotors.
 """
 
 from __future__ import annotations
@@ -180,13 +182,14 @@ def _holds_rotors(kt, names) -> bool:
     return kt is not None or any(name.startswith("Ia") and name[2:].isdigit() for name in names)
 
 
-def with_merged_rotors(model, robot, options, kt=None, columns=None) -> MergedRotors:
+def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool = True) -> MergedRotors:
     """The drive inertias of the base parameters in ``model``'s map, each held to a reference: the robot file's rotor
     inertia, else (currents) its siblings' (:func:`sibling_rotors` of :func:`file_drive_columns`), else what the
     training data want with the file's links held (:func:`data_rotors`; bounded below by 0 only). ``kt``: the torque
     constants of recordings of currents; ``columns``: the normal equations and the drive columns' names of the fit.
     ``model`` and ``robot`` unchanged when there are none: no drive inertia asked for (``options.drive_inertia``;
-    ``options`` None asks for it), a signal that holds no rotor inertia (:func:`_holds_rotors`), or no reference."""
+    ``options`` None asks for it), a signal that holds no rotor inertia (:func:`_holds_rotors`), or no reference.
+    ``log`` False says what it holds at DEBUG only (the diagnosis's refits, ``envelope_check``, make many)."""
     unchanged = MergedRotors(model, robot)
     names = () if columns is None else tuple(columns[1])
     if not ((options is None or options.drive_inertia) and _holds_rotors(kt, names)):
@@ -209,18 +212,19 @@ def with_merged_rotors(model, robot, options, kt=None, columns=None) -> MergedRo
     merged = merged_rotor_map(model, robot, joints) if joints else {}
     if not merged:
         return unchanged
+    say = logger.info if log else logger.debug
     for j, value, sib, *_ in siblings:
-        logger.info("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
+        say("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; held near %.3g kg m^2, the drive inertias of joints %s (the same torque constant)", j + 1,
                     value, ", ".join(str(s + 1) for s in sib))  # fmt: skip
     for j, value in wanted.items():
-        logger.info("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
+        say("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; the training data give it %.3g kg m^2 beside the file's links: the consistent fit holds it "
                     ">= 0 there rather than in link %d", j + 1, value, j + 1)  # fmt: skip
     parameter_map = np.array(model.parameter_map, dtype=float)
     for j, coefficients in merged.items():
         parameter_map[:, j * (LINK_PARAMETER_COUNT + 1) + LINK_PARAMETER_COUNT] = coefficients
-    logger.info("identify: drive inertias of joints %s inside the base parameters, held near their reference "
+    say("identify: drive inertias of joints %s inside the base parameters, held near their reference "
                 "in the consistent fit", ", ".join(str(j + 1) for j in sorted(merged)))  # fmt: skip
     kept = tuple(entry for entry in siblings if entry[0] in merged)
     kept += tuple((j, value, (), 0.0, float("inf")) for j, value in wanted.items() if j in merged)

@@ -262,7 +262,9 @@ def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnL
     if reader is None:
         raise RecordingError(
             f"recording {path.name!r} must end in .csv or .npz (named columns), .mat (MATLAB) or .mcap/.db3 (a ROS 2 "
-            f"bag), or be a bag folder; got {path.suffix!r}. Convert it."
+            f"bag), or be a bag folder; got {path.suffix!r}. Rename it .csv if it is comma-separated text with a "
+            f"header row, or convert it to a CSV with the columns t, q1..qn and tau1..taun (or i1..in; --columns "
+            f"maps other names)."
         )
     if layout is None:
         return reader(path)

@@ -9,7 +9,9 @@ physical link can be; absorbing a counterbalance is not.
 
 ``EnvelopedRecalibration.check`` therefore fits the rigid body as ``psdm identify`` does (``consistent_fit``: every
 link with a positive-definite pseudo-inertia inside its bounding ellipsoid, masses and drive inertias within 0.5-2 x
-the robot file's, ``TrajectoryOptions`` defaults) on the training recording, jointly with the nominal friction and
+the robot file's, ``TrajectoryOptions`` defaults; the drive inertias the base parameters merge held where identify
+holds them, ``merged_rotors.with_merged_rotors``, so the links do not absorb the rotors on motor-side torques or
+currents) on the training recording, jointly with the nominal friction and
 all the prior's findings, and once more without each per-joint finding that would be dropped (leave one out: a
 finding is judged by what it adds to the others, not by what fixing another joint does to its own). A finding that
 lowers its joint's validation RMSE by ``STAND_IN_MARGIN`` there is needed even by a physical rigid body, so it is not
@@ -78,10 +80,16 @@ class EnvelopeCheck:
         )
 
 
-def _columns(ctx, friction, terms) -> np.ndarray:
-    """The columns ``[regressor, friction, terms...]`` (n_samples, n_dof, k) of a context with its regressor."""
+def _columns(ctx, friction, terms) -> tuple:
+    """The columns ``[regressor, friction, terms...]`` (n_samples, n_dof, k) of a context with its regressor, and the
+    names of those after the base parameters: a ``rotor_inertia`` finding's is ``Ia<j>`` (identify's
+    drive-inertia column), the others ``extra<k>``."""
     parts = [ctx.regressor, friction.dense()] + [np.asarray(t.columns(ctx), dtype=float) for t in terms]
-    return np.concatenate(parts, axis=2)
+    names = [f"extra{k}" for k in range(parts[1].shape[2])]
+    for term, part in zip(terms, parts[2:]):
+        rotor = getattr(term, "key", "") == "rotor_inertia" and part.shape[2] == 1
+        names += [f"Ia{term.joint + 1}"] if rotor else [f"extra{len(names) + k}" for k in range(part.shape[2])]
+    return np.concatenate(parts, axis=2), names
 
 
 class EnvelopedRecalibration:
@@ -100,9 +108,7 @@ class EnvelopedRecalibration:
 
     def __init__(self, robot, model, contexts, friction):
         self.robot = robot
-        # identify's map: on motor currents the rotors the base parameters merge are held near the file's, not
-        # absorbed by the links (``merged_rotors``); the base parameters' layout is the derived model's
-        self.model = with_merged_rotors(model, robot, None, contexts[0].torque_constants).model
+        self.model = model  # the derived map; each fit puts identify's merged rotors in it (``_fit``)
         self.contexts = contexts
         self.friction = friction
         self.fits = {}
@@ -121,20 +127,26 @@ class EnvelopedRecalibration:
         return self.fits[key]
 
     def _fit(self, terms) -> np.ndarray:
-        (ctx_t, ctx_v), model = self.contexts, self.model
-        train = _columns(ctx_t, self.friction[0], terms)
-        equations = NormalEquations(self.robot.n_dof, train.shape[2])
+        """Per joint, the validation RMSE of identify's consistent fit with ``terms``: in identify's map
+        (``merged_rotors.with_merged_rotors``, the one place both routes take it from), so that a drive inertia the
+        base parameters merge is held where identify holds it (the robot file's; on currents its siblings'; else what
+        the data want beside the file's links) and the links do not absorb it. A ``rotor_inertia`` finding's column is
+        the drive-inertia column ``Ia<j>`` of identify (>= 0): it says that the torque holds the rotors, as identify's
+        kept ``Ia<j>`` columns do."""
+        (ctx_t, ctx_v), robot = self.contexts, self.robot
+        train, names = _columns(ctx_t, self.friction[0], terms)
+        equations = NormalEquations(robot.n_dof, train.shape[2])
         equations.add(train, ctx_t.tau)
-        n_extra = train.shape[2] - model.n_base
         x_ols = np.linalg.lstsq(train.reshape(-1, train.shape[2]), ctx_t.tau.reshape(-1), rcond=None)[0]
-        names = [f"extra{k}" for k in range(n_extra)]
+        options = TrajectoryOptions()
+        merged = with_merged_rotors(self.model, robot, options, ctx_t.torque_constants, (equations, names), log=False)
         correlation = residual_correlation_time(ctx_t.tau - train @ x_ols)  # the pull's weight as identify's
         standard, extra, _, _, _ = consistent_fit(
-            self.robot, model, equations, residual_sigma(equations, x_ols), names, TrajectoryOptions(),
-            np.full(n_extra, -np.inf), warn=False, correlation=correlation,
+            merged.robot, merged.model, equations, residual_sigma(equations, x_ols), names, options,
+            np.full(len(names), -np.inf), bounds=merged.fit_bounds(options), warn=False, correlation=correlation,
         )  # fmt: skip
-        x = np.concatenate([model.base_parameters(standard), extra])
-        return rmse(ctx_v.tau, _columns(ctx_v, self.friction[1], terms) @ x)
+        x = np.concatenate([merged.model.base_parameters(standard), extra])
+        return rmse(ctx_v.tau, _columns(ctx_v, self.friction[1], terms)[0] @ x)
 
     def check(self, selection, joints) -> EnvelopeCheck:
         """The ``EnvelopeCheck`` of the per-joint findings of ``selection`` (a ``SelectionResult``) that act on

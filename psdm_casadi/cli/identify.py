@@ -87,6 +87,16 @@ def register(subparsers) -> None:
     p.set_defaults(handler=_run_identify)
 
 
+def _not_experiments(folder: Path) -> str:
+    """Why a folder given alone is not read: it is not the paper's experiments (no payload.json), and what to pass."""
+    files = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+    shown = ", ".join(files[:8]) + (f" and {len(files) - 8} more" if len(files) > 8 else "") if files else "nothing"
+    return (f"--data {str(folder)!r} is a folder but not one of the paper's calibration experiments (it has no "
+            f"payload.json; it holds {shown}). Pass the recording files themselves (.csv, .npz, .mat, .mcap/.db3: "
+            f"--data run1.csv run2.csv), or, for a recording split into one file per signal, state its files in the "
+            f"robot file's [recording] table (as examples/staubli_tx40.toml does).")  # fmt: skip
+
+
 def _protocol(args) -> str:
     from identification.data.rosbag import is_rosbag
 
@@ -105,6 +115,8 @@ def _protocol(args) -> str:
     protocol = args.protocol
     if protocol == "auto":
         protocol = "four-step" if len(args.data) == 1 and folders[0] else "recordings"
+        if protocol == "four-step" and not (Path(args.data[0]) / "payload.json").exists():
+            raise FileNotFoundError(_not_experiments(Path(args.data[0])))
     if protocol == "four-step" and not (len(args.data) == 1 and folders[0]):
         raise FileNotFoundError(
             f"--protocol four-step needs one --data folder of the paper's experiments; got {list(args.data)}. "

@@ -8,6 +8,7 @@ Monte-Carlo integral of the density condition, and the virtual robot's hidden tr
 
 import json
 import logging
+import re
 
 import numpy as np
 import pytest
@@ -143,6 +144,9 @@ def test_the_bounded_fit_recovers_true_parameters_inside_the_envelope_as_before(
     np.testing.assert_allclose(bounded.theta[gravity], truth[gravity], atol=0.01 * np.abs(truth[gravity]).max())
 
 
+NAMED_ON_JOINT_2 = r"most likely a (counterbalance or spring|spring or counterbalance) on joint 2"
+
+
 def test_a_hidden_counterbalance_stays_out_of_the_links_and_is_named(denso, denso_model):
     recording = _recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
     free = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(envelope=False))
@@ -155,7 +159,9 @@ def test_a_hidden_counterbalance_stays_out_of_the_links_and_is_named(denso, dens
             assert envelope_fill(fit.standard[i], envelope) <= 1.0 + 1e-6
     named = [f for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed]  # link 1 rests on its envelope
     assert named and all(f.joint == 1 for f in named) and named[0].link == 1
-    assert any("counterbalance or spring on joint 2" in w and "psdm diagnose" in w for w in fit.warnings)
+    # named whichever bound it presses: link 2's envelope, or joint 2's drive inertia (a negative inertia on a periodic
+    # motion) now that the masses are held as their bounds state them (link 2 at 1.76 x, no longer on its 2 x bound)
+    assert any(re.search(NAMED_ON_JOINT_2, w) and "psdm diagnose" in w for w in fit.warnings)
     assert not any("mN m" in w for w in fit.warnings)
 
 
@@ -233,7 +239,7 @@ def test_identify_reports_the_pushed_link_in_text_json_and_the_model_file(denso,
     assert payload["envelope"]["mass_ratio"] == [0.5, 2.0]
     assert any(f["absorbs"] == "counterbalance" and f["joint"] == 1 for f in payload["envelope_findings"])
     route = f"psdm diagnose {DENSO_FILE} --train {tmp_path / 'train.csv'} --validate OTHER.csv"
-    assert any("counterbalance or spring on joint 2" in w and route in w for w in payload["warnings"])
+    assert any(re.search(NAMED_ON_JOINT_2, w) and route in w for w in payload["warnings"])
     stored = json.loads((tmp_path / "m.json").read_text())
     assert stored["warnings"] == payload["warnings"] and stored["standard"]["envelope_findings"]
     assert main([*argv, "--overwrite", "--no-envelope"]) == 0

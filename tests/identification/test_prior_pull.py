@@ -32,7 +32,43 @@ def test_the_weight_is_one_over_the_uncertainty_squared_times_the_independent_sa
     assert PriorPull.of(TrajectoryOptions(prior_weight=None), count).effective_samples == pytest.approx(1000)
     given = PriorPull.of(TrajectoryOptions(prior_weight=1e-4), count, correlation)
     assert given.weight == 1e-4 and given.note()[0][1]["given"] and "given" in given.describe()
-    assert PriorPull.from_note(pull.note()[0][1]) == PriorPull(0.5, 500.0)
+    assert PriorPull.from_note(pull.note()[0][1]) == PriorPull(0.5, 500.0, None, np.log(4.0) / 4)
+    old = {k: v for k, v in pull.note()[0][1].items() if k != "mass_uncertainty"}  # a file written before
+    assert PriorPull.from_note(old) == PriorPull(0.5, 500.0)
+
+
+def test_the_masses_are_known_as_the_mass_bounds_state_them():
+    """The default bounds 0.5-2 x state each mass to ln(4) / 4 = 35 % (both bounds 1.4-2.9 standard deviations away);
+    bounds that say less (none, 0 or inf, wider than the stated uncertainty) leave the masses at the stated
+    uncertainty, as does a given per-sample weight."""
+    from identification.calibration.prior_pull import mass_uncertainty
+
+    assert mass_uncertainty(TrajectoryOptions()) == pytest.approx(0.3466, abs=1e-4)
+    assert mass_uncertainty(TrajectoryOptions(mass_ratio=(0.25, 4.0))) == pytest.approx(np.log(16) / 4)
+    for options in (TrajectoryOptions(envelope=False), TrajectoryOptions(mass_ratio=(0.0, 2.0)),
+                    TrajectoryOptions(mass_ratio=(0.5, np.inf)), TrajectoryOptions(prior_uncertainty=0.3),
+                    TrajectoryOptions(mass_ratio=(0.01, 100.0))):  # fmt: skip
+        assert mass_uncertainty(options) is None, options
+    assert PriorPull.of(TrajectoryOptions(prior_weight=1e-4), [100]).mass is None
+    pull = PriorPull.of(TrajectoryOptions(), [400], [4.0])
+    assert "the links' masses to 35 %, as the mass bounds state" in pull.describe()
+
+
+def test_a_mass_off_the_file_costs_its_relative_error_over_the_mass_uncertainty_squared():
+    """The pull evaluated against its formula: a link's mass 40 % above the file's costs ``(0.4 / 0.347)^2 / N_eff``,
+    its centre of mass's first moment (in the file's size, known to ``u``) ``(0.4 / 2)^2 / N_eff``."""
+    import casadi as ca
+
+    prior = np.zeros((2, 11))
+    prior[:, 0], prior[:, 3], prior[:, [4, 6, 9]] = [2.0, 0.5], [0.2, 0.05], 0.01
+    pull = PriorPull.of(TrajectoryOptions(), [400], [4.0])  # 100 independent samples
+    moved = prior.copy()
+    moved[0, 0] *= 1.4
+    value = float(pull.expression(ca.DM(moved.reshape(-1)), prior))
+    assert value == pytest.approx((0.4 / (np.log(4) / 4)) ** 2 / 100)
+    moved = prior.copy()
+    moved[1, 3] *= 1.4
+    assert float(pull.expression(ca.DM(moved.reshape(-1)), prior)) == pytest.approx((0.4 / 2) ** 2 / 100)
 
 
 @pytest.mark.parametrize("field, value", [("prior_uncertainty", 0.0), ("prior_uncertainty", np.nan),

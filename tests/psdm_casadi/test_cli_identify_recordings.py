@@ -63,6 +63,20 @@ def test_a_folder_and_files_pick_their_protocol_or_say_which_to_pass(recordings,
     assert "--protocol four-step" in capsys.readouterr().err
     assert main([*argv, "--data", str(recordings / "train.csv"), "--protocol", "four-step"]) == 2
     assert "one --data folder" in capsys.readouterr().err
+    # a folder of a robot's logs that is not the paper's experiments (the Panda's one-number-per-line .txt files):
+    # named with what it holds and what to pass, before any derivation, not asked for a calibration payload
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for name in ("exciting_traj_positions.txt", "exciting_traj_torques.txt"):
+        (logs / name).write_text("0.1\n0.2\n")
+    assert main([*argv, "--data", str(logs)]) == 2
+    err = capsys.readouterr().err
+    assert "not one of the paper's calibration experiments" in err and "exciting_traj_torques.txt" in err, err
+    assert "--data run1.csv" in err and "[recording]" in err and "payload.json is missing" not in err
+    assert "deriving" not in err and "Traceback" not in err
+    assert main([*argv, "--data", str(logs / "exciting_traj_torques.txt")]) == 2
+    err = capsys.readouterr().err
+    assert "exciting_traj_torques.txt" in err and "convert it to a CSV with the columns t, q1..qn" in err, err
     assert not (tmp_path / "m.json").exists()
 
 
