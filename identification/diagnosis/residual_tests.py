@@ -78,6 +78,11 @@ def _rms(x) -> float:
     return float(rms(x)) if x.size else 0.0
 
 
+def _mean_text(x) -> str:
+    """The mean of a regime's residual, or that the recording has no sample in it (not a mean of 0)."""
+    return f"{np.mean(x):+.3g} N m" if x.size else "no sample"
+
+
 def analyse_residuals(context, residual, n_windows: int = 8) -> tuple:
     """Residual findings for every joint (see the module docstring).
 
@@ -133,18 +138,18 @@ def _regime_findings(context, j: int, r, total: float) -> list:
             j,
             "velocity_sign",
             float(np.mean(pos) - np.mean(neg)) if pos.size and neg.size else 0.0,
-            f"joint {j + 1}: mean residual {np.mean(pos) if pos.size else 0:+.3g} N m for qd > 0, "
-            f"{np.mean(neg) if neg.size else 0:+.3g} N m for qd < 0",
+            f"joint {j + 1}: mean residual {_mean_text(pos)} for qd > 0, {_mean_text(neg)} for qd < 0",
         )
     ]
     slow = np.abs(qd) < 0.1 * np.max(np.abs(qd))
+    near = (f"{_rms(r[slow]):.3g} N m vs {_rms(r[~slow]):.3g} N m elsewhere" if slow.any() else
+            "none: the joint never slows below a tenth of its top speed here")  # fmt: skip
     out.append(
         ResidualFinding(
             j,
             "near_reversal",
             _rms(r[slow]) / total,
-            f"joint {j + 1}: RMS near velocity reversals (|qd| < 10 % of max) "
-            f"{_rms(r[slow]):.3g} N m vs {_rms(r[~slow]):.3g} N m elsewhere",
+            f"joint {j + 1}: RMS near velocity reversals (|qd| < 10 % of max) {near}",
         )
     )
     for name, signal in (("position", q), ("acceleration", qdd), ("load", np.abs(tau)), ("speed", np.abs(qd))):

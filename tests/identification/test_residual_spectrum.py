@@ -29,3 +29,22 @@ def test_a_peak_at_the_lowest_bins_holds_at_most_all_the_power(residual):
     }[residual]
     frequency, share = dominant_frequency(t, signal)
     assert frequency == pytest.approx(0.1) and 0.5 < share <= 1.0
+
+
+def test_a_regime_the_recording_never_visits_is_named_not_given_a_zero():
+    """The Kinova's 4.7 s validation log moves six of its joints one way only: their residual has no sample with
+    qd < 0 and none near a reversal, which the report said as '+0 N m' and '0 N m'."""
+    from types import SimpleNamespace
+
+    from identification.diagnosis.residual_tests import analyse_residuals
+
+    t = np.linspace(0.0, 4.0, 400)
+    qd = np.column_stack([0.5 + 0.2 * np.sin(t), np.cos(2.0 * t)])  # joint 1 one way, joint 2 reversing
+    q, qdd = np.cumsum(qd, axis=0) * (t[1] - t[0]), np.gradient(qd, t, axis=0)
+    context = SimpleNamespace(n_dof=2, t=t, q=q, qd=qd, qdd=qdd, tau=np.ones_like(qd))
+    residual = np.column_stack([1.0 + 0.1 * np.sin(3.0 * t), 0.2 * np.sign(qd[:, 1])])
+    text = {(f.joint, f.test): f.text for f in analyse_residuals(context, residual)}
+    assert text[(0, "velocity_sign")].endswith("+1 N m for qd > 0, no sample for qd < 0")
+    assert text[(0, "near_reversal")].endswith("none: the joint never slows below a tenth of its top speed here")
+    assert text[(1, "velocity_sign")].endswith("+0.2 N m for qd > 0, -0.2 N m for qd < 0")
+    assert "N m elsewhere" in text[(1, "near_reversal")]
