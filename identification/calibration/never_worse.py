@@ -225,10 +225,13 @@ class JointComparison:
                 "worse_joints": [j + 1 for j in self.worse], "margin_rule": MARGIN_RULE}  # fmt: skip
 
     def text(self, joints=None) -> str:
-        """``joint 2: 0.31 -> 0.49 N m (margin 0.012)`` for ``joints`` (0-based; default the worse ones)."""
+        """``joint 2: 0.31 -> 0.49 N m (margin 0.012)`` for ``joints`` (0-based; default the worse ones), with the
+        refits' mean change when they were asked (``; refits without each training block: +0.15``)."""
         joints = self.worse if joints is None else joints
+        refits = ["" if self.refit_change is None else f"; refits without each training block: {v:+.2g}"
+                  for v in (self.refit_change if self.refit_change is not None else self.after)]  # fmt: skip
         return "; ".join(
-            f"joint {j + 1}: {self.before[j]:.4g} -> {self.after[j]:.4g} N m (margin {self.margin[j]:.2g})"
+            f"joint {j + 1}: {self.before[j]:.4g} -> {self.after[j]:.4g} N m (margin {self.margin[j]:.2g}{refits[j]})"
             for j in joints
         )
 
@@ -382,7 +385,9 @@ def keep_not_worse(before, first, refit, droppable, model, validation, kt=None, 
 
     comparison = judge(after, ())
     if not comparison.worse:
-        return GateResult(after, payload, comparison, [], search="every finding kept: no joint is worse")
+        cleared = ", ".join(f"joint {j + 1}" for j in comparison.cleared)
+        cleared = f" ({cleared} over the margin, not in the refits without each training block)" if cleared else ""
+        return GateResult(after, payload, comparison, [], search=f"every finding kept: no joint is worse{cleared}")
     if 0 < len(droppable) <= EXHAUSTIVE_MAX:
         return _every_subset((after, payload, comparison), refit, list(droppable), judge)
     return _greedy((after, payload, comparison), refit, list(droppable), judge)

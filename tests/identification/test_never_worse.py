@@ -131,6 +131,7 @@ def test_the_record_names_the_joints_the_refits_clear():
         in (record["margin_source"][0])
     )
     assert "refits" in record["margin_rule"]
+    assert checked.text() == "joint 2: 2 -> 2.5 N m (margin 0.1; refits without each training block: +0.5)"
 
 
 @pytest.mark.slow
