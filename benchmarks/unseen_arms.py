@@ -28,7 +28,10 @@ and judged against the truth:
 A case passes when every command exits 0, the refusal holds, payload error <= 0.10, link mass ratio <= 1.5,
 rmse_ratio <= 2.5 after the diagnosis, nothing missed and nothing false.
 
-    python benchmarks/unseen_arms.py [--cases NAME ...] [--seed 0] [--json]
+``--seeds 0 1 2`` runs every case at each seed (one row each; ``--seed`` is the same option) and the summary gives
+each case's pass rate and the seeds it failed (``per_case``) beside the seeds run; ``passed`` counts the rows.
+
+    python benchmarks/unseen_arms.py [--cases NAME ...] [--seeds 0 1 2] [--json]
 """
 
 from __future__ import annotations
@@ -175,26 +178,42 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", "--seed", type=int, nargs="+", default=[0], help="one row per case and seed")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     rows = []
-    for name in args.cases:
-        with tempfile.TemporaryDirectory(prefix=f"psdm-unseen-{name}-") as folder:
-            rows.append(run_case(name, Path(folder), args.seed))
-    summary = {"passed": sum(r["passed"] for r in rows), "cases": len(rows), "limits": LIMITS}
+    for seed in args.seeds:
+        for name in args.cases:
+            with tempfile.TemporaryDirectory(prefix=f"psdm-unseen-{name}-") as folder:
+                rows.append({"seed": seed, **run_case(name, Path(folder), seed)})
+    summary = summarise(rows, args.seeds)
     if args.json:
         print_json({"benchmark": "unseen_arms", "rows": rows, **summary})
         return 0
-    print_table(rows, TABLE)
+    print_table(rows, ["seed", *TABLE])
     for row in rows:
-        print(f"{row['case']}: {row['what']}")
+        print(f"{row['case']} (seed {row['seed']}): {row['what']}")
         for warning in row.get("warnings", ()):
             print(f"  {warning[:300]}")
         if "error" in row:
             print(f"  error: {row['error']}")
     print(json.dumps(summary))
     return 0
+
+
+def summarise(rows, seeds) -> dict:
+    """Cases passed over every seed, the seeds, and per case its pass rate and the seeds it failed."""
+    per_case = {}
+    for row in rows:
+        entry = per_case.setdefault(row["case"], {"passed": 0, "runs": 0, "failed_seeds": []})
+        entry["runs"] += 1
+        entry["passed"] += bool(row["passed"])
+        if not row["passed"]:
+            entry["failed_seeds"].append(row["seed"])
+    for entry in per_case.values():
+        entry["pass_rate"] = round(entry["passed"] / entry["runs"], 3)
+    return {"passed": sum(bool(r["passed"]) for r in rows), "cases": len(rows), "seeds": list(seeds),
+            "per_case": per_case, "limits": LIMITS}  # fmt: skip
 
 
 if __name__ == "__main__":

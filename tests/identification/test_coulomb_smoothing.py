@@ -33,7 +33,8 @@ def test_the_smooth_sign_follows_the_filtered_friction_step(amplitude, frequency
     ready, cutoff, _ = prepare_recording(coulomb_recording(amplitude, frequency), None, None)
     choice = smoothing_velocity([ready], cutoff, 0.05)
     peak = amplitude * (2.0 * np.pi * frequency) ** 2 * np.array([1.0, 1.3**2])  # |qdd| at a reversal
-    wanted = 0.2 * float(np.median(peak)) / cutoff
+    # every reversal counts once: over 20 s the second joint reverses 5 times (10 at 0.4 Hz), the first 4 (8)
+    wanted = 0.2 * peak[1] / cutoff
     expected = 0.05 if wanted >= 0.025 else max(wanted, MIN_VELOCITY)
     assert choice.changed is slow
     np.testing.assert_allclose(choice.velocity, expected, rtol=0.05)
@@ -43,6 +44,23 @@ def test_the_smooth_sign_follows_the_filtered_friction_step(amplitude, frequency
         assert "chosen from the data" in choice.sentence() and f"{choice.velocity:.3g}" in choice.sentence()
     else:
         assert "0.05 rad/s" in choice.sentence()
+
+
+def test_every_reversal_counts_not_every_joint():
+    """A slow recording's joints that reverse once, in a fast start, do not outvote a joint that reverses slowly all
+    through it (the unseen KR6-like arm at seed 1 kept 0.05 rad/s so, and its joint 1 validated at 4 x its floor): the
+    chosen smoothing follows the slow reversals' filtered step."""
+    t = np.arange(0.0, 40.0, 1e-3)
+    slow = 0.3 * np.sin(2.0 * np.pi * 0.15 * t)  # 12 reversals at 0.27 rad/s^2
+    fast = np.exp(-(((t - 1.5) / 0.3) ** 2))  # out and back once: 1 reversal at 22 rad/s^2 (t = 1.5 s), then still
+    q = np.column_stack([slow, fast, 0.5 * fast, 2.0 * fast])
+    qd = np.gradient(q, t, axis=0)
+    ready, cutoff, _ = prepare_recording(Recording(t=t, q=q, tau=np.sign(qd)), None, None)
+    choice = smoothing_velocity([ready], cutoff, 0.05)
+    slow_step = 0.2 * 0.3 * (2.0 * np.pi * 0.15) ** 2 / cutoff  # the slow joint's filtered step [rad/s]
+    np.testing.assert_allclose(choice.velocity, slow_step, rtol=0.1)
+    error = {v: np.sqrt(np.mean((ready.tau[:, 0] - np.tanh(ready.qd[:, 0] / v)) ** 2)) for v in (choice.velocity, 0.05)}
+    assert error[choice.velocity] < 0.3 * error[0.05]
 
 
 def test_a_still_recording_keeps_the_default_and_the_floor_holds():
