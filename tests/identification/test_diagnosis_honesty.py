@@ -19,6 +19,7 @@ from identification.diagnosis import (
     diagnose,
 )
 from identification.diagnosis.candidates import CandidateTerm, joint_columns
+from identification.diagnosis.candidates.torque import MAX_ORDER
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.joint_changes import explain_joint_changes
 from identification.diagnosis.report import rmse_change
@@ -191,7 +192,9 @@ def test_positive_spring_is_not_flagged_and_orders_are_checked():
     assert term.interpret([35.0, 1.0])[1] == SpringTerm.explanation
     assert term.interpret([-35.0, 1.0])[1].startswith("negative stiffness")
     with pytest.raises(ParameterError, match="max_order"):
-        SpringTerm(max_order=4)
+        SpringTerm(max_order=MAX_ORDER + 1)
+    with pytest.raises(ParameterError, match="max_order"):
+        SpringTerm(max_order=0)
 
 
 def test_payload_absorbed_by_identified_rigid_body_is_said_aloud(denso, denso_model):
