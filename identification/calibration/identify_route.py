@@ -21,6 +21,7 @@ from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
 from identification.calibration.prior_pull import PriorPull
+from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
 from psdm_casadi.state_cache import remembering
 
@@ -51,6 +52,9 @@ class IdentifyResult:
         What was decided about the counterbalance the envelope report named (empty: none named or not tried).
     lugre : object or None
         The LuGre fit (``lugre_recordings.LuGreFit``) with ``ColumnRequest(friction="lugre")``.
+    file_check : FileCheck
+        The model written against the robot file (its rigid body, friction fitted) on the held-out recordings, per
+        joint with the never-worse margin (``robot_file_check``); not checked without held-out recordings.
     """
 
     fit: TrajectoryFit
@@ -60,6 +64,7 @@ class IdentifyResult:
     options: TrajectoryOptions
     counterbalance: CounterbalanceChoice = field(default_factory=CounterbalanceChoice)
     lugre: object = None
+    file_check: FileCheck = field(default_factory=FileCheck)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -68,13 +73,16 @@ class IdentifyResult:
         return None if note is None else PriorPull.from_note(note)
 
     def describe(self) -> list:
-        """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance, and the pull
-        towards the robot file (stated here once, not by each consistent fit the choices ran)."""
+        """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance, the pull towards
+        the robot file (stated here once, not by each consistent fit the choices ran), and whether the model is
+        worse than the robot file on any joint of the held-out recordings."""
         lines = list(self.choice.describe())
         if self.pull is not None:
             lines.append(self.pull.describe())
         if self.counterbalance.reason:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
+        if self.file_check.comparison is not None:
+            lines.append(self.file_check.describe())
         return lines
 
     @property
@@ -154,4 +162,20 @@ def identify_recordings(
 
         calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
-    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre)
+    check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
+    calibrated.document["identification"]["robot_file_check"] = check.to_dict()
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check)
+
+
+def _file_check(robot, model, recordings, validation, options, fit, calibrated, configurations) -> FileCheck:
+    """The model written against the robot file on the held-out recordings (``robot_file_check``)."""
+    from identification.calibration.column_candidates import prepare_training
+
+    if configurations is not None and any(c.payload is not None or c.unknown for c in configurations):
+        return FileCheck(reason="the recordings carry payloads the robot file does not")
+    if not validation or robot.links is None:
+        return check_against_file(robot, model, calibrated, fit, (), validation, options)
+    prepared = prepare_training(robot, recordings, options).prepared
+    pull = dict(fit.envelope_bounds).get("prior")
+    samples = None if pull is None else PriorPull.from_note(pull).effective_samples
+    return check_against_file(robot, model, calibrated, fit, prepared, validation, options, samples)

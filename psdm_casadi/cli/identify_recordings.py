@@ -174,12 +174,15 @@ def run(args) -> int:
                                      paths=paths)  # fmt: skip
     fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], args.validate)
-    warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys((*result.warnings, *missing, *held_out))]
+    worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
+    warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys((*result.warnings, *missing, *held_out, *worse))]
     for warning in warnings:
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report = _validation(robot, model, result.start, validation, args.validate, calibrated)
     report["min_mass_eigenvalue"] = mass_eigenvalue
+    for entry, comparison in zip(report["recordings"], result.file_check.each):  # the model identify replaces
+        entry["rmse_prior_friction"] = _list(comparison.before)
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
     calibrated.document["provenance"].update({"columns": stored_layout(args)} if stored_layout(args) else {})

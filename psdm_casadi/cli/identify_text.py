@@ -106,6 +106,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
                     "columns": calibrated.document["identification"]["column_choice"],
                     "counterbalance": calibrated.document["identification"]["counterbalance"],
                     "drive_loss": drive_loss_summary(calibrated.document),
+                    "robot_file_check": calibrated.document["identification"].get("robot_file_check"),
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -143,8 +144,15 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     for entry in report["recordings"]:
         print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
         print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
-        for key, label in (("rmse", "identified"), ("rmse_ols", "unconstrained"), ("rmse_prior", "robot file")):
+        for key, label in (
+            ("rmse", "identified"),
+            ("rmse_ols", "unconstrained"),
+            ("rmse_prior", "robot file"),
+            ("rmse_prior_friction", "file+friction"),
+        ):
             if key in entry:
                 print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
         print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
+    if result.file_check.comparison is not None and not result.file_check.worse:  # worse: a warning (stderr)
+        print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")
