@@ -66,6 +66,22 @@ def test_the_trim_removes_the_filter_s_start_up_transient(cut_motion, denso_mode
     assert np.all(acceleration[EDGE_PERIODS] < 0.2 * acceleration[1]), (acceleration[1], acceleration[EDGE_PERIODS])
 
 
+@pytest.mark.parametrize("rate", [500.0, 1000.0, 5000.0])
+def test_the_edge_transient_decays_as_the_filter_s_slowest_pole(rate):
+    """What a trim leaves, against the Butterworth's theory: the acceleration a motion at 1 rad/s through the cut (a
+    ramp, its true acceleration 0) gets from the filter is about 2 cutoff x the speed at the edge (21 rad/s^2 at
+    10 Hz), decays by the least damped pole pair's ``exp(-2 pi sin(pi / 16))`` = 0.29 per filter period, and
+    ``EDGE_PERIODS`` leave 1-5 % of it (filter_choice's comment)."""
+    t = np.arange(0.0, 4.0, 1.0 / rate)
+    error = np.abs(central_difference(t, zero_phase_filter(t - 2.0, rate, CUTOFF))[1])
+    periods = np.minimum(t - t[0], t[-1] - t) * CUTOFF  # from the nearer end
+    envelope = [error[(periods >= k) & (periods < k + 1)].max() for k in range(2, 8)]
+    decay = np.exp(np.diff(np.log(envelope)))
+    assert decay == pytest.approx(np.exp(-2.0 * np.pi * np.sin(np.pi / 16.0)), rel=0.15), decay
+    assert error.max() == pytest.approx(2.0 * CUTOFF, rel=0.1)
+    assert 0.01 < error[periods >= EDGE_PERIODS].max() / error.max() < 0.05
+
+
 def test_the_four_step_route_trims_what_identify_trims(cut_motion):
     """One definition: ``trim_filter_edges`` (the four-step route) keeps the same first and last instants as
     identify's ``prepare_recording`` (``filter_choice.kept_samples``), within a sample and identify's grid step."""
