@@ -96,9 +96,9 @@ class FileCheck:
         return (f"against the robot file (its rigid body, friction fitted): WORSE on joint(s) {joints} on {held} "
                 f"beyond {allowance}: {c.text()} (robot file with friction fitted -> identified). The model is "
                 "written as identified, but on those joints the robot file's rigid body with its friction fitted "
-                f"predicts the held-out motion better: '{DIAGNOSE_COMMAND} --apply' writes that model (with what "
-                "the diagnosis finds missing), or record more of those joints' motion (more --data recordings, over "
-                "the held-out speeds) and identify again")  # fmt: skip
+                f"predicts the held-out motion better: '{DIAGNOSE_COMMAND} --apply NEW_MODEL.json' writes that "
+                "model (with what the diagnosis finds missing), or record more of those joints' motion (more --data "
+                "recordings, over the held-out speeds) and identify again")  # fmt: skip
 
     @property
     def _extra(self) -> np.ndarray:

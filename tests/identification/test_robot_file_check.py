@@ -86,7 +86,7 @@ def test_a_model_worse_on_one_joint_is_named_with_its_numbers_and_the_route(dens
     assert c.after[1] - c.before[1] > 1.0  # a 2 N m Coulomb error is about that much RMSE on a reversing joint
     text = check.describe()
     assert "WORSE on joint(s) 2" in text and f"{c.before[1]:.4g} -> {c.after[1]:.4g} N m" in text
-    assert "psdm diagnose ROBOT --train DATA --validate OTHER --apply" in text
+    assert "psdm diagnose ROBOT --train DATA --validate OTHER --apply NEW_MODEL.json" in text
 
 
 def test_without_a_held_out_recording_the_check_says_it_was_not_made(denso, denso_model, denso_identified):
