@@ -81,7 +81,7 @@ class IdentifyResult:
             lines.append(self.pull.describe())
         if self.counterbalance.reason:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
-        if self.file_check.comparison is not None:
+        if self.file_check.comparison is not None or self.file_check.reason:
             lines.append(self.file_check.describe())
         return lines
 

@@ -153,6 +153,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
             if key in entry:
                 print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
         print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
-    if result.file_check.comparison is not None and not result.file_check.worse:  # worse: a warning (stderr)
+    if (result.file_check.comparison is not None or result.file_check.reason) and not result.file_check.worse:
+        # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")

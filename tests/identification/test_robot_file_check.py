@@ -94,6 +94,9 @@ def test_without_a_held_out_recording_the_check_says_it_was_not_made(denso, dens
     check = check_against_file(denso, denso_model, result.calibrated, result.fit, (), [], result.options)
     assert check.comparison is None and not check.worse
     assert "not checked (no held-out recording" in check.describe()
+    alone = identify_recordings(denso, denso_model, train, counterbalance=False)  # no --validate: said so
+    assert alone.file_check.comparison is None and check.describe() in alone.describe()
+    assert alone.calibrated.document["identification"]["robot_file_check"]["checked"] is False
 
 
 @pytest.mark.slow
