@@ -341,6 +341,7 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
         drive=dict(zip(fit.drive_names, fit.drive.tolist())),
         columns=choice.to_dict(),
         columns_text=route.describe(),
+        held_back=[item.to_dict() for item in route.held_back],  # what the pull or the envelope keeps from the data
         counterbalance=route.counterbalance.to_dict(),
         warnings=list(fit.warnings),
         **mjcf_max_rel_error(robot, model, fit, q, qd, qdd),

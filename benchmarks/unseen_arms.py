@@ -154,6 +154,12 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
             if "link" in f
         )
         or "-",
+        held_back="; ".join(
+            f"{h['words']} ({h['parameter']}): data {h['data']:.4g} +/- {h['data_std']:.2g}, model "
+            f"{h['fitted']:.4g}, {h['absorbs']}"
+            for h in document["standard"]["envelope"].get("held_back", ())
+        )
+        or "-",  # what the pull or the envelope keeps from the data
         findings=", ".join(names) or "-",
         missed=", ".join(missed) or "-",
         false=", ".join(false) or "-",

@@ -34,6 +34,7 @@ __all__ = [
     "ABSORBED_EFFECTS",
     "DIAGNOSE_COMMAND",
     "bounds_note",
+    "effect_phrase",
     "ACTIVE_TOLERANCE",
     "MIN_PRESSURE",
     "MIN_REFUSED_SIGMA",
@@ -218,14 +219,24 @@ def pressed_findings(findings) -> tuple:
     return tuple(f for f in findings if (f.get("pressed", True) if isinstance(f, dict) else f.pressed))
 
 
+def effect_phrase(absorbs: str, joint: int, robot=None) -> str:
+    """What an effect of ``ABSORBED_EFFECTS`` is, in the report's words, at ``joint`` (0-based): one vocabulary for the
+    envelope's findings and the parameters the fit holds back (``held_back``)."""
+    return {
+        "payload": "a payload or tool at the flange that the robot file does not hold (or a stated one that is off)",
+        "counterbalance": f"a counterbalance or spring on {joint_label(joint, robot)}",
+        "drive_inertia": (
+            f"extra inertia on {joint_label(joint, robot)}: a rotor or drive inertia the robot file does "
+            "not state (or states off), or a tool, cables or a coupled load it does not hold"
+        ),
+    }[absorbs]
+
+
 def _resting_message(finding: EnvelopeFinding, robot) -> str:
     """The report's note on a link resting on a bound the data press lightly: what rests where, how lightly, what
     it may hold, and which bound to revisit."""
     k = finding.joint
-    cause = {
-        "payload": "a payload or tool at the flange that the robot file does not hold (or a stated one that is off)",
-        "counterbalance": f"a counterbalance or spring (it gives up most on {joint_label(k, robot)})",
-    }[finding.absorbs]
+    cause = effect_phrase(finding.absorbs, k, robot)
     fixes = []
     if any(b.startswith("mass") for b in finding.bounds):
         fixes.append("pass --mass-bounds LOW HIGH if the robot file's masses are rough")

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
+from identification.calibration.held_back import stored_held_back
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
@@ -72,13 +73,20 @@ class IdentifyResult:
         note = dict(self.fit.envelope_bounds).get("prior")
         return None if note is None else PriorPull.from_note(note)
 
+    @property
+    def held_back(self) -> tuple:
+        """The parameters the fit keeps away from the data's own estimate (``held_back.HeldBack``; empty: none)."""
+        return stored_held_back(self.fit.envelope_bounds)
+
     def describe(self) -> list:
         """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance, the pull towards
-        the robot file (stated here once, not by each consistent fit the choices ran), and whether the model is
-        worse than the robot file on any joint of the held-out recordings."""
+        the robot file (stated here once, not by each consistent fit the choices ran), what the pull or the envelope
+        holds back from the data (``held_back``), and whether the model is worse than the robot file on any joint of
+        the held-out recordings."""
         lines = list(self.choice.describe())
         if self.pull is not None:
             lines.append(self.pull.describe())
+        lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
         if self.counterbalance.reason:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
         if self.file_check.comparison is not None or self.file_check.reason:

@@ -43,6 +43,7 @@ from identification.calibration.consistent_fit import (
 )
 from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
+from identification.calibration.held_back import held_back, held_note
 from identification.calibration.merged_rotors import with_merged_rotors
 from identification.calibration.payload_fit import (
     Estimable,
@@ -205,8 +206,8 @@ class TrajectoryFit:
         Per joint, the RMS of the unconstrained fit's rigid-body torque over that of the robot file's on the same
         motion (about 1; about 1000 on every joint for torques in mN m); empty without the file's links.
     envelope_bounds : tuple
-        ``(name, value)`` pairs of the bounds the fit kept the links in (``mass_ratio``, ``drive_inertia_ratio``,
-        ``envelopes``: where each link's ellipsoid came from; ``prior``: its pull towards the file, ``PriorPull``).
+        ``(name, value)`` pairs of the bounds (``mass_ratio``, ``drive_inertia_ratio``, ``envelopes``: each ellipsoid's
+        source; ``prior``: the pull, ``PriorPull``; ``held_back``: what it keeps from the data, ``held_back``).
     envelope : tuple of EnvelopeFinding
         The links and drives the data pushed against their physical envelope (``envelope_report``), each with what
         it most likely absorbs; empty when the fit stayed inside (or was not bounded).
@@ -322,8 +323,7 @@ def identify_trajectories(
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
     prepared = subtract_known_payloads(robot, prepared, configurations)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
-    vs, plain = None, bodies.extras(robot, extra)
-    extras = plain
+    vs, extras = None, (plain := bodies.extras(robot, extra))
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
         vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, plain)
         extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in plain]
@@ -362,6 +362,7 @@ def identify_trajectories(
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
         pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, kt is not None)
+        kept = held_note(held_back(robot, model, x_fit, x_ols, covariance, names, pushed))  # what it kept from the data
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)
@@ -369,7 +370,7 @@ def identify_trajectories(
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base : n_fit], "not solved", float("nan"), x_ols[: model.n_base]
         found = x_ols[n_fit:].reshape(-1, 10)
-        pushed, bounds, merged = (), None, None
+        pushed, bounds, merged, kept = (), None, None, ()
     payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
@@ -383,7 +384,7 @@ def identify_trajectories(
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
-        envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()),
+        envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
         torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip
     return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))

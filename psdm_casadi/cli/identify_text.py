@@ -119,6 +119,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     _print_envelope(fit)
     if result.pull is not None:
         print(result.pull.describe())
+    for item in result.held_back:
+        print(f"  HELD BACK: {item.message}")
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:
         print(f"counterbalance: {result.counterbalance.reason}")

@@ -1,0 +1,233 @@
+"""What the data want that the consistent fit does not give: its parameters against the data's own least squares.
+
+The consistent fit (``consistent_fit``) is pulled towards the robot file (``prior_pull``) and held inside each link's
+envelope (``envelope``). Its findings about an unmodelled effect come from the envelope's active bounds
+(``envelope_report``); but the pull can refuse what the data want without any bound being active (the Kinova Gen3's
+inertia about joint 1: the data's least squares 3.2 +/- 0.65 kg m^2, the fit 1.16, and nothing said). So after the
+fit each base parameter (and each drive inertia of a column of its own) is compared with the unconstrained weighted
+least-squares estimate and its standard deviation (``TrajectoryFit.theta_ols``, ``theta_std``: the sandwich covariance,
+which counts the recordings' correlated samples).
+
+A disagreement is reported where both hold:
+
+- the marginal difference ``|theta_fit - theta_ols| / std`` is at least ``HELD_BACK_SIGMA``;
+- the data's estimate differs from the robot file's value by as much (where the data agree with the file, the fit
+  moved the parameter as a side effect of another one it holds back: not an effect of its own);
+- the score of the parameter's column, ``|g_k| / sqrt(F_kk)`` with ``F`` the data's information (the inverse
+  covariance) and ``g = F (theta_fit - theta_ols)``, is at least ``HELD_BACK_SIGMA``: freeing that one parameter (an
+  unmodelled effect of its column's shape) would lower the data's chi^2 by ``score^2`` noise variances.
+
+One unmodelled effect moves several parameters (a link pushed outward to give inertia about joint 1 also changes its
+gravity terms), so the parameters are picked greedily, the largest score first, each one's column then counted as
+freed (``g`` recomputed with it at the data's value given the rest), until no score reaches the threshold: the
+fewest parameters that explain the refusal (at most ``MAX_HELD``).
+
+Each is named in words (:func:`parameter_words`: the inertia about a joint, the gravity torque of a link, an inertia
+of a link, a drive inertia) with the likely absorbed effect in the envelope check's vocabulary
+(``envelope_report.ABSORBED_EFFECTS`` and ``effect_phrase``) and the route that finds it: ``psdm diagnose`` against
+the robot file, or (where no bound is active, only the pull) a weaker pull, ``--prior-uncertainty``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from identification.calibration.envelope_report import DIAGNOSE_ROUTE, effect_phrase, pressed_findings
+from identification.data.excitation_check import joint_label
+
+__all__ = ["HELD_BACK_SIGMA", "MAX_HELD", "HeldBack", "held_back", "held_note", "parameter_words", "stored_held_back"]
+
+#: Standard deviations (of the data's own estimate) by which the fit must differ, and of chi^2 the parameter's column
+#: must explain, to be reported. Clean virtual Denso fits stay below 2 on every parameter.
+HELD_BACK_SIGMA = 3.0
+#: At most this many parameters are named (the greedy pick stops earlier when the rest is explained).
+MAX_HELD = 3
+#: The prior uncertainty suggested where only the pull holds a parameter back (``--prior-uncertainty``).
+WEAKER_PULL = 5
+
+
+@dataclass(frozen=True)
+class HeldBack:
+    """A parameter the consistent fit keeps away from what the data want (module docstring).
+
+    Attributes
+    ----------
+    parameter : str
+        Its name (``theta10``, or a drive column ``Ia3``).
+    words : str
+        What it is, for a robotics engineer (``the inertia about joint 1``).
+    joint : int
+        0-based joint it acts on most (the joint of the inertia; the link's for a gravity or inertia term).
+    fitted, data, data_std, file : float
+        The fit's value, the data's unconstrained least-squares value and its standard deviation, the robot file's.
+    sigma_off : float
+        ``(data - fitted) / data_std``.
+    score : float
+        Noise standard deviations of chi^2 its column explains when freed (``sqrt`` of the chi^2 drop).
+    absorbs : str
+        One of ``envelope_report.ABSORBED_EFFECTS``: what the data most likely hold there.
+    holder : str
+        ``"envelope"`` (a bound of the link or drive is active) or ``"pull"`` (the pull towards the robot file alone).
+    message : str
+        The report's sentence.
+    """
+
+    parameter: str
+    words: str
+    joint: int
+    fitted: float
+    data: float
+    data_std: float
+    file: float
+    sigma_off: float
+    score: float
+    absorbs: str
+    holder: str
+    message: str = ""
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def parameter_words(model, robot, k: int, seed: int = 0) -> tuple:
+    """``(words, joint, kind)`` of base parameter ``k``: ``kind`` ``"axis"`` (the inertia about a joint: its column
+    only ever enters that joint's own mass-matrix entry, with a constant coefficient), ``"gravity"`` (it enters the
+    gravity torque: a mass times a centre-of-mass offset) or ``"inertia"`` (another inertia of a link)."""
+    rng = np.random.default_rng(seed)
+    n = robot.n_dof
+    q = rng.uniform(robot.q_min, robot.q_max, size=(6, n))
+    zero = np.zeros_like(q)
+    gravity = model.regressor(q, zero, zero)[:, :, k]
+    size = np.abs(model.regressor(q, zero, np.ones_like(q))[:, :, k]).max() + 1e-300
+    owner = _owner_link(model, k)
+    if np.abs(gravity).max() > 1e-9 * max(size, 1.0):
+        return f"the gravity torque of link {owner + 1} (its mass times its centre of mass)", owner, "gravity"
+    entries = np.stack([model.regressor(q, zero, np.eye(n)[j] + zero)[:, :, k] for j in range(n)], axis=-1)
+    nonzero = np.abs(entries).max(axis=0) > 1e-9 * size  # (n_dof, n_dof): the mass-matrix entries it enters
+    j = int(np.argmax(np.diag(np.abs(entries).max(axis=0))))
+    if nonzero.sum() == 1 and nonzero[j, j] and np.ptp(entries[:, j, j]) <= 1e-9 * size:
+        return f"the inertia about {joint_label(j, robot)}", j, "axis"
+    return f"an inertia of link {owner + 1}", owner, "inertia"
+
+
+def _owner_link(model, k: int) -> int:
+    """The link whose standard parameter weighs most in base parameter ``k`` (the last one on a tie)."""
+    row = np.abs(model.parameter_map[k]).reshape(-1, 11)
+    return int(np.flatnonzero(row.max(axis=1) >= 0.5 * row.max())[-1])
+
+
+def _absorbs(kind: str, link: int, distal: list) -> str:
+    """The likely effect (``ABSORBED_EFFECTS``) behind a held-back parameter of ``kind`` on ``link``."""
+    if kind == "gravity":
+        return "payload" if link in distal else "counterbalance"
+    if kind == "inertia" and link in distal:
+        return "payload"
+    return "drive_inertia"
+
+
+def _picks(d, information, candidates, threshold: float) -> list:
+    """Greedy: the candidate columns whose freeing explains the most chi^2 (module docstring), with their scores."""
+    picks, d = [], d.copy()
+    for _ in range(MAX_HELD):
+        g = information @ d
+        diag = np.maximum(np.diag(information), 1e-300)
+        score = np.zeros(d.size)
+        score[candidates] = np.abs(g[candidates]) / np.sqrt(diag[candidates])
+        score[[k for k, _ in picks]] = 0.0
+        k = int(np.argmax(score))
+        if score[k] < threshold:
+            break
+        picks.append((k, float(score[k])))
+        d[k] -= g[k] / diag[k]  # freed: at the data's value given the others
+    return picks
+
+
+def held_back(robot, model, x_fit, x_ols, covariance, names, envelope=(), threshold: float = HELD_BACK_SIGMA) -> tuple:
+    """The parameters the consistent fit holds away from the data's own estimate (module docstring).
+
+    Parameters
+    ----------
+    robot, model : RobotDescription, PSDMModel
+        As fitted (``model.n_base`` base parameters, then the drive columns ``names``).
+    x_fit, x_ols : array
+        The consistent fit's and the unconstrained weighted least squares' (base, drive) parameters.
+    covariance : array
+        Of ``x_ols`` over the same columns (0 rows and columns: a column held at 0).
+    names : sequence of str
+        The drive columns' names (``Ia<j>`` are compared; friction and offsets, bounded only by 0, are not).
+    envelope : tuple of EnvelopeFinding
+        The fit's active bounds: a parameter of a link or drive among them is held by the envelope, else by the pull.
+
+    Returns
+    -------
+    tuple of HeldBack
+    """
+    if robot.links is None:
+        return ()
+    n = model.n_base + len(names)
+    d = np.asarray(x_fit, dtype=float)[:n] - np.asarray(x_ols, dtype=float)[:n]
+    covariance = np.asarray(covariance, dtype=float)[:n, :n]
+    std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    free = np.flatnonzero(std > 0)
+    information = np.zeros((n, n))
+    information[np.ix_(free, free)] = np.linalg.pinv(covariance[np.ix_(free, free)], rcond=1e-12, hermitian=True)
+    drives = [model.n_base + k for k, name in enumerate(names) if name.startswith("Ia") and name[2:].isdigit()]
+    prior = robot.nominal_dynamic_parameters()
+    theta_file = model.base_parameters(prior)
+    file = np.concatenate([theta_file, [prior[int(name[2:]) - 1, -1] if k + model.n_base in drives else np.nan
+                                        for k, name in enumerate(names)]])  # fmt: skip
+    off = np.abs(np.asarray(x_ols, dtype=float)[:n] - file)  # the data against the file: a side effect agrees with it
+    candidates = [k for k in [*range(model.n_base), *drives]
+                  if std[k] > 0 and min(abs(d[k]), off[k]) >= threshold * std[k]]  # fmt: skip
+    if not candidates:
+        return ()
+    masses = [i for i in range(robot.n_dof) if prior[i, 0] > 0]
+    pressed = {(f.link, any(b.startswith("drive") for b in f.bounds)) for f in pressed_findings(envelope)}
+    out = []
+    for k, score in _picks(d, information, candidates, threshold):
+        if k < model.n_base:
+            words, joint, kind = parameter_words(model, robot, k)
+            name = model.base_names[k]
+            held = (joint, False) in pressed or (kind == "axis" and (joint, True) in pressed)
+        else:
+            joint = int(names[k - model.n_base][2:]) - 1
+            words, kind, name = f"the drive inertia of {joint_label(joint, robot)}", "axis", names[k - model.n_base]
+            held = (joint, True) in pressed
+        item = HeldBack(name, words, joint, float(x_fit[k]), float(x_ols[k]), float(std[k]), float(file[k]),
+                        float(-d[k] / std[k]), score, _absorbs(kind, joint, masses[-2:]),
+                        "envelope" if held else "pull")  # fmt: skip
+        out.append(HeldBack(**{**item.to_dict(), "message": _message(item, robot)}))
+    return tuple(out)
+
+
+def _message(item: HeldBack, robot) -> str:
+    """The report's sentence: what the data want, what the model keeps and why, what it most likely is, what to run."""
+    more = "more" if item.data > item.fitted else "less"
+    why = (
+        "the robot file's links cannot give " + more + " inside their envelopes and bounds"
+        if item.holder == "envelope"
+        else "the pull towards the robot file holds it there"
+    )
+    route = DIAGNOSE_ROUTE.format(what="it")
+    if item.holder == "pull":
+        route += (f", or, if the robot file's values are rough, identify with --prior-uncertainty {WEAKER_PULL} "
+                  "(a weaker pull)")  # fmt: skip
+    return (
+        f"{item.words} ({item.parameter}): the data want {item.data:.4g} +/- {item.data_std:.2g}, the model keeps "
+        f"{item.fitted:.4g} (robot file {item.file:.4g}; {abs(item.sigma_off):.1f} standard deviations apart) because "
+        f"{why}. The data most likely hold {effect_phrase(item.absorbs, item.joint, robot)}; {route}."
+    )
+
+
+def held_note(items) -> tuple:
+    """The ``(name, value)`` pair stored with the fit's bounds (``TrajectoryFit.envelope_bounds``, the model file's
+    ``standard.envelope.held_back``: absent in files written before, read as none)."""
+    return (("held_back", [item.to_dict() for item in items]),)
+
+
+def stored_held_back(envelope_bounds) -> tuple:
+    """The ``HeldBack`` of a fit's ``envelope_bounds`` pairs or a model file's ``standard.envelope`` dict (none in a
+    file written before they were stored)."""
+    return tuple(HeldBack(**entry) for entry in dict(envelope_bounds or {}).get("held_back", ()))
