@@ -108,14 +108,37 @@ class FileCheck:
     def to_dict(self) -> dict:
         if self.comparison is None:
             return {"checked": False, "reason": self.reason}
-        return {"checked": True, "recordings": self.recordings, "worse_joints": [j + 1 for j in self.worse],
+        return _json({"checked": True, "recordings": self.recordings, "worse_joints": [j + 1 for j in self.worse],
                 **self.comparison.to_dict(), "estimation_allowance": self.allowance,
                 "estimation_allowance_rule": "margin = never-worse margin + (sqrt(1 + p / N) - 1) x RMSE before",
-                "estimated_parameters": self.parameters, "independent_samples_per_joint": self.samples}  # fmt: skip
+                "estimated_parameters": self.parameters, "independent_samples_per_joint": self.samples})  # fmt: skip
 
 
 def _numbers(values) -> str:
-    return "/".join(f"{v:.3g}" for v in values)
+    return "/".join("-" if not np.isfinite(v) else f"{v:.3g}" for v in values)  # -: a joint without torque
+
+
+def _json(value):
+    """``value`` with every non-finite float as None (a joint without torque in the held-out recordings)."""
+    if isinstance(value, dict):
+        return {k: _json(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json(v) for v in value]
+    return None if isinstance(value, float) and not np.isfinite(value) else value
+
+
+def _pooled(comparisons) -> JointComparison:
+    """``never_worse.pooled_comparison`` over the recordings that hold each joint's torque (a dead channel is NaN in
+    its recording and counts in the others only)."""
+    if all(np.all(np.isfinite(c.before) & np.isfinite(c.after)) for c in comparisons):
+        return pooled_comparison(comparisons)
+    stack = {k: np.array([getattr(c, k) for c in comparisons]) for k in ("before", "after", "standard_error")}
+    held = np.isfinite(stack["before"]) & np.isfinite(stack["after"])
+    count = held.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = {k: np.where(count > 0, np.where(held, v, 0.0).sum(axis=0) / count, np.nan) for k, v in stack.items()}
+        se = np.sqrt((np.where(held, stack["standard_error"], 0.0) ** 2).sum(axis=0)) / np.maximum(count, 1)
+    return JointComparison.from_noise(mean["before"], mean["after"], np.where(count > 0, se, np.nan))
 
 
 def _columns(fit, qd, qdd) -> np.ndarray:
@@ -172,7 +195,7 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
         comparisons.append(JointComparison.from_noise(before, after, se))
     per_joint = (fit.n_samples if samples is None else samples) / robot.n_dof
     allowance = float(np.sqrt(1.0 + model.n_base / max(per_joint, 1.0)) - 1.0)
-    pooled = pooled_comparison(comparisons)
+    pooled = _pooled(comparisons)
     pooled = replace(pooled, margin=pooled.margin + allowance * pooled.before)
     return FileCheck(pooled, len(validation), each=tuple(comparisons), allowance=allowance, parameters=model.n_base,
                      samples=per_joint)  # fmt: skip

@@ -130,3 +130,21 @@ def test_kinova_identify_on_the_cli_defaults_is_never_worse_than_the_robot_file(
     assert bool(worse) == bool(check["worse_joints"])
     for joint in check["worse_joints"]:
         assert f"joint {joint}: " in worse[0] and "--apply" in worse[0]
+
+
+def test_a_joint_without_torque_in_one_held_out_recording_is_judged_on_the_others(denso, denso_model, denso_identified):
+    """A dead torque channel (NaN in that recording) counts in the recordings that hold it; with none, the joint is not
+    judged, and the model file stores None for it (JSON has no NaN)."""
+    train, held, result = denso_identified
+    tau = held[0].tau.copy()
+    tau[:, 1] = np.nan
+    dead = held[0].__class__(t=held[0].t, q=held[0].q, tau=tau, name="dead")
+    prepared = prepare_training(denso, train, result.options).prepared
+    both = check_against_file(denso, denso_model, result.calibrated, result.fit, prepared, [held[0], dead],
+                              result.options)  # fmt: skip
+    alone = check_against_file(denso, denso_model, result.calibrated, result.fit, prepared, held, result.options)
+    np.testing.assert_allclose(both.comparison.before[1], alone.comparison.before[1], rtol=1e-12)
+    only = check_against_file(denso, denso_model, result.calibrated, result.fit, prepared, [dead], result.options)
+    assert np.isnan(only.comparison.after[1]) and 1 not in only.worse
+    stored = json.loads(json.dumps(only.to_dict(), allow_nan=False))
+    assert stored["validation_rmse_after"][1] is None and "-/" in only.describe()
