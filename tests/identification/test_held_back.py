@@ -86,6 +86,19 @@ def test_a_clean_robot_says_nothing(denso, denso_model):
     assert stored_held_back(fit.envelope_bounds) == ()
 
 
+def test_a_significant_but_tiny_difference_is_not_named(denso, denso_model):
+    """The clean Denso with its LuGre friction, which the fitted Coulomb-viscous friction only approximates (seed 1):
+    the data's least squares put an inertia of link 2 4.4 standard deviations from the fit, but its torque is 0.6 of
+    the joint's noise, below the envelope check's refused-torque size (``MIN_REFUSED_SIGMA``): nothing is named."""
+    rng = np.random.default_rng(1)
+    reference = sine_experiment(denso, duration=8.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=True)
+    recording, _ = simulate_recording(denso, reference, options, rng)
+    fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+    assert np.max(np.abs(fit.theta - fit.theta_ols) / fit.theta_std) > 4.0  # significant on its own
+    assert stored_held_back(fit.envelope_bounds) == ()
+
+
 def test_a_strong_pull_alone_holding_the_data_back_is_named_with_the_weaker_pull_as_route(denso, denso_model):
     """No envelope, a pull 2000 times the default's (u = 0.001): no bound is active, the pull alone keeps a small
     hidden inertia (0.5 kg m^2 on joint 1) out, and the route suggests a weaker pull beside the diagnosis."""
