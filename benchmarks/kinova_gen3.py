@@ -7,7 +7,9 @@ mounted (README: 0.6-0.8 kg at the flange over Kinova's published masses). Throu
 ``examples/kinova_gen3.toml`` (the URDF's kinematics; its ``[[link]]`` tables state Kinova's published inertials
 where the URDF's differ and the tool as part of the last link; the vendor's nominal torque constants; 1 kHz):
 
-- ``psdm identify`` validated on opti_traj_testing2, once from the joint-torque sensors on
+- ``psdm identify`` validated on opti_traj_testing2 (beside the robot file's RMSE, that of the model identify
+  replaces: the file's rigid body with its friction fitted, and the joints identify's own check finds worse,
+  ``robot_file_check``), once from the joint-torque sensors on
   opti_traj_testing1 and RunTrajectory1 (``--columns t=Time,q=Position,tau=TorqueSm``; RunTrajectory1's dead
   TorqueSm1 channel found and only its joint-1 rows left out) and once from the currents on
   opti_traj_testing1, RunTrajectory1 and Trajectory1 (``i=Cur``, torque constants only), defaults
@@ -229,6 +231,8 @@ def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "names_unusable_urdf_inertias": [w.split(" is unusable")[0] for w in warnings if " is unusable" in w],
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
+            "rmse_robot_file_friction": validation.get("rmse_prior_friction"),
+            "worse_than_robot_file": (payload.get("robot_file_check") or {}).get("worse_joints"),
             "warnings": warnings, "links": links_report(robot, out)}  # fmt: skip
 
 
@@ -344,6 +348,12 @@ def print_kinova(result) -> None:
         r2 = min(fit["r2"][:6])
         print(f"  {source:<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse"]) + f"   R^2 >= {r2:.2f} on J1-6")
         print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
+        if fit.get("rmse_robot_file_friction"):  # the model identify replaces (robot_file_check)
+            print(
+                f"  {'(+fric)':<8} "
+                + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_friction"])
+                + f"   identify's check, joints worse: {fit.get('worse_than_robot_file') or 'none'}"
+            )
         links = fit["links"]
         print(f"           total mass {links['total_mass']:.2f} kg (robot file {links['robot_file_total_mass']:.2f}, "
               f"URDF {links['urdf_total_mass']:.2f}); links at a mass bound: {links['links_at_mass_bound'] or 'none'} "
