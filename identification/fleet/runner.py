@@ -4,9 +4,11 @@ The client plans (``plan``), loads each robot's baseline and PSDM model once (on
 sends them to the workers (``Client.scatter``) and submits one :func:`~identification.fleet.session.process_session`
 task per new robot-day; it writes each result as it completes (``as_completed``), with the day's own page
 (``day_report``), so an interrupted run (Ctrl-C, a killed client, a power cut) keeps every session written and the
-next run resumes with the rest. A worker that dies has its tasks rerun by Dask; a task that still fails is stored as
-a failed session. Then the drift tests run on the whole history (``drift``, then the fleet-relative ``fleet_check``)
-and their findings replace the stored ones.
+next run resumes with the rest. A worker that dies has its tasks rerun by Dask; a task Dask gives up on for the
+cluster's sake (``KilledWorker``: its workers died; cancelled: the shared data it needs died with them) is submitted
+again, with the shared data scattered again, up to ``RESUBMITS`` times; a task that raises is stored as a failed
+session at once (its error is the task's own: running it again gives the same). Then the drift tests run on the
+whole history (``drift``, then the fleet-relative ``fleet_check``) and their findings replace the stored ones.
 
 A robot's days after its baseline window are checked against the window's validation errors (``day_check``): the
 client submits them once the window's days are written (at once when they are stored already; a first run of a robot
@@ -41,11 +43,12 @@ from identification.fleet.schedule import RobotContext, Wave, robot_waves
 from identification.fleet.session import SessionResult, SessionTask, process_session, software_version
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["RunOptions", "RunSummary", "dask_client", "import_task_modules", "run_fleet"]
+__all__ = ["RunOptions", "RunSummary", "dask_client", "import_task_modules", "lost_to_the_cluster", "run_fleet"]
 
 logger = logging.getLogger(__name__)
 
 WRITE_INTERVAL = 0.25  # s: the shortest time between two writes of a Dask run (``_batches``)
+RESUBMITS = 3  # times a task lost to the cluster (``lost_to_the_cluster``) is submitted again before it is failed
 
 
 @dataclass(frozen=True)
@@ -197,9 +200,20 @@ def _days(plan, robot_id: str) -> list:
     return sorted(t.day for t in plan.tasks if t.robot_id == robot_id)
 
 
+def lost_to_the_cluster(future) -> bool:
+    """True when Dask gave up on a done future for the cluster's sake, not for the task's: ``KilledWorker`` (workers
+    died while running it, ``distributed.scheduler.allowed-failures`` + 1 times) or cancelled (its shared data were
+    lost with the workers holding them). The task itself may be fine: it deserves another try."""
+    from distributed import KilledWorker
+
+    if future.status == "cancelled":
+        return True
+    return future.status == "error" and isinstance(future.exception(), KilledWorker)
+
+
 def _outcomes(client, batch: list, tasks: dict) -> list:
-    """The batch's results, fetched in one call (one round trip per worker, not per future), each task Dask gave up
-    on (a worker killed too often) as a failed session or re-identification."""
+    """The batch's results, fetched in one call (one round trip per worker, not per future), each task that raised
+    (or that Dask gave up on ``RESUBMITS`` + 1 times) as a failed session or re-identification."""
     finished = [f for f in batch if f.status == "finished"]
     values = dict(zip(finished, client.gather(finished)))
     out = []
@@ -243,17 +257,28 @@ def _batches(completed):
 
 def _results_dask(client, plan, todo, contexts):
     """Robots in parallel on Dask, each robot's waves in turn: its next wave is submitted once the last is written.
-    Yields batches: every result finished since the last batch (fetched together), written together."""
+    Yields batches: every result finished since the last batch (fetched together), written together. A task lost to
+    the cluster (``lost_to_the_cluster``) is submitted again (``RESUBMITS``) and written once it is done."""
     from dask.distributed import as_completed
 
     scattered = _scatter_all(client, contexts)
 
     def shared(value):
-        if id(value) not in scattered:  # a baseline this run re-identified
+        future = scattered.get(id(value))
+        if future is None or future.status != "finished":  # a baseline this run re-identified, or data lost
             scattered[id(value)] = client.scatter(value, broadcast=True, hash=False)
         return scattered[id(value)]
 
-    futures, outstanding, generators = {}, {}, {}
+    futures, outstanding, generators, again = {}, {}, {}, {}
+
+    def submit(robot_id, task, key, function, *args, attempt=0):
+        """Submit ``function(*args)`` (the shared values scattered, again if they were lost) as the ``attempt``th
+        try of ``task``; ``again`` remembers how to submit it once more."""
+        values = [shared(a.value) if isinstance(a, _Shared) else a for a in args]
+        future = client.submit(function, *values, key=key if not attempt else f"{key}-again{attempt}", pure=False)
+        futures[future] = (robot_id, task)
+        again[future] = (robot_id, task, key, function, args, attempt)
+        return future
 
     def advance(robot_id):
         ctx = contexts[robot_id]
@@ -264,17 +289,13 @@ def _results_dask(client, plan, todo, contexts):
         for item in wave.sessions:
             task, baseline, reference = item
             key = f"fleet-session-{task.robot_id}-{task.day}-{task.content_hash[:16]}"
-            future = client.submit(process_session, task, shared(baseline), shared(ctx.models[baseline.model_key]),
-                                   reference, key=key, pure=False)  # fmt: skip
-            futures[future] = (robot_id, task)
-            submitted.append(future)
+            submitted.append(submit(robot_id, task, key, process_session, task, _Shared(baseline),
+                                    _Shared(ctx.models[baseline.model_key]), reference))  # fmt: skip
         if wave.reidentify is not None:
             key = f"fleet-reidentify-{robot_id}-{wave.reidentify.since}"
-            model = shared(ctx.models[wave.baseline.model_key])
-            future = client.submit(reidentify, wave.reidentify, shared(wave.baseline), model, ctx.track, key=key,
-                                   pure=False)  # fmt: skip
-            futures[future] = (robot_id, wave.reidentify)
-            submitted.append(future)
+            model = _Shared(ctx.models[wave.baseline.model_key])
+            submitted.append(submit(robot_id, wave.reidentify, key, reidentify, wave.reidentify,
+                                    _Shared(wave.baseline), model, ctx.track))  # fmt: skip
         outstanding[robot_id] = len(submitted)
         return submitted or advance(robot_id)
 
@@ -285,6 +306,14 @@ def _results_dask(client, plan, todo, contexts):
     completed = as_completed(first)
     try:
         for batch in _batches(completed):
+            retry = [f for f in batch if again[f][-1] < RESUBMITS and lost_to_the_cluster(f)]
+            for future in retry:
+                robot_id, task, key, function, args, attempt = again[future]
+                logger.warning("%s: %s; submitted again (%d of %d)", key, _why(future), attempt + 1, RESUBMITS)
+                completed.add(submit(robot_id, task, key, function, *args, attempt=attempt + 1))
+            batch = [f for f in batch if f not in retry]
+            if not batch:
+                continue
             yield _outcomes(client, batch, {f: futures[f][1] for f in batch})
             for future in batch:  # the batch is written: the robots whose wave is done go on
                 robot_id = futures[future][0]
@@ -293,6 +322,17 @@ def _results_dask(client, plan, todo, contexts):
                     completed.update(advance(robot_id))
     finally:
         client.cancel(list(futures))
+
+
+@dataclass(frozen=True, eq=False)
+class _Shared:
+    """An argument of a task sent to the workers once (``_results_dask``'s ``shared``), not with each task."""
+
+    value: object
+
+
+def _why(future) -> str:
+    return "cancelled" if future.status == "cancelled" else f"{type(future.exception()).__name__}"
 
 
 def _write(history: History, run_id: int, batch: list, db_path, options: RunOptions, contexts) -> list:

@@ -190,21 +190,34 @@ def _break_refit(broken: bool) -> None:
     """On a worker: the robot-day's refit raises an error no task expects (``broken``), or is the real one again."""
     from identification.fleet import session, update
 
+    calls = session.__dict__.setdefault("exploded_calls", [])  # the count the test reads back (``_explosions``)
+    calls.clear()
+
     def exploded(*args, **kwargs):
+        calls.append(1)
         raise RuntimeError("refit exploded")
 
     session.refit_day = exploded if broken else update.refit_day
 
 
+def _explosions() -> int:
+    from identification.fleet import session
+
+    return len(session.__dict__.get("exploded_calls", []))
+
+
 def test_a_task_that_raises_on_the_workers_is_stored_as_failed(tiny_fleet, derive, cluster, tmp_path):
     """An error inside the task (not a bad recording: Dask returns it as the future's error) fails that robot-day in
-    the history with its text; the run goes on and ends."""
+    the history with its text, once: it is the task's own error, not the cluster's, so it is not submitted again
+    (each robot-day's refit ran once); the run goes on and ends."""
     fleet = read_fleet(tiny_fleet[0])
     cluster.run(_break_refit, True)
     try:
         summary = run_fleet(fleet, tmp_path / "h.duckdb", RunOptions(day_reports=False), derive=derive, client=cluster)
+        calls = sum(cluster.run(_explosions).values())
     finally:
         cluster.run(_break_refit, False)
+    assert calls == 18
     assert (summary.processed, summary.failed) == (18, 18)
     with History(tmp_path / "h.duckdb") as history:
         errors = {row[2] for row in history.failures()}
@@ -228,33 +241,56 @@ def test_the_cli_on_a_local_cluster_writes_no_dask_noise(tiny_fleet, tmp_path):
     assert lines[0].startswith("fleet ") and "running on LocalCluster(2)" in lines[1], lines
 
 
-def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluster, tmp_path, monkeypatch):
-    """A worker process killed mid-run (its nanny restarts it; Dask reruns its tasks): every robot-day once.
-
-    The kill happens while the client writes the first result, so it falls inside the run whatever the
-    machine's speed (a timer missed a run that ended before it fired).
-    """
+def _die_in_the_refit(die: bool) -> None:
+    """On a worker: its next robot-day's refit kills the worker process (``die``), or the refit is the real one."""
     import os
 
-    fleet = read_fleet(tiny_fleet[0])
-    victim = sorted(cluster.scheduler_info()["workers"])[0]
-    original = History.write_sessions
-    written = []
+    from identification.fleet import session, update
 
-    def write_then_kill(self, run_id, results):
-        if not written:
-            try:
-                cluster.run(os._exit, 1, workers=[victim])
-            except Exception:  # the worker's death breaks the call's own reply
-                pass
+    def killed(*args, **kwargs):
+        os._exit(1)
+
+    session.refit_day = killed if die else update.refit_day
+
+
+def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluster, tmp_path, monkeypatch, caplog):
+    """A worker process killed in the middle of a robot-day (its nanny restarts it): every robot-day once, none
+    failed, as the serial run.
+
+    The worker kills itself in its first refit, so the kill falls inside a task whatever the machine's speed (a
+    kill from the client, between two writes, could find the worker idle). The scheduler's allowed failures are 0
+    for the run: Dask gives up at once on the tasks the worker was running (``KilledWorker``: what a loaded machine
+    met, with a worker dying again as it restarted), and the runner must submit them again, not fail them.
+    """
+    import logging
+
+    fleet = read_fleet(tiny_fleet[0])
+    scheduler = cluster.cluster.scheduler
+    victim = sorted(cluster.scheduler_info()["workers"])[0]
+    allowed = scheduler.allowed_failures
+    original, written = History.write_sessions, []
+
+    def write(self, run_id, results):
         written.extend(result.task.key for result in results)
         original(self, run_id, results)
 
-    monkeypatch.setattr(History, "write_sessions", write_then_kill)
-    summary = run_fleet(fleet, tmp_path / "h.duckdb", derive=derive, client=cluster)
-    monkeypatch.setattr(History, "write_sessions", original)
-    assert (summary.processed, summary.failed) == (18, 0)
+    monkeypatch.setattr(History, "write_sessions", write)
+    caplog.set_level(logging.WARNING, logger="identification.fleet.runner")
+    cluster.run(_die_in_the_refit, True, workers=[victim])
+    scheduler.allowed_failures = 0
+    try:
+        summary = run_fleet(fleet, tmp_path / "h.duckdb", derive=derive, client=cluster)
+    finally:
+        scheduler.allowed_failures = allowed
+        cluster.run(_die_in_the_refit, False)  # the victim's successor is a fresh process; the others are restored
+    monkeypatch.undo()
+    with History(tmp_path / "h.duckdb") as history:
+        failures = history.failures()
+    assert (summary.processed, summary.failed) == (18, 0), failures
     assert len(written) == len(set(written)) == 18
+    again = [r.getMessage() for r in caplog.records if "submitted again" in r.getMessage()]
+    assert again and all("KilledWorker" in text for text in again), again
+    assert victim not in cluster.scheduler_info()["workers"]  # the victim did die
     reference = tmp_path / "ref.duckdb"
     run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
     assert _close(tmp_path / "h.duckdb", reference)
