@@ -57,27 +57,26 @@ def _verdict(stored: dict, reference: dict, expected_days: int, expected_failed:
     }
 
 
-def _killed_worker(folder: Path, db: Path, derive) -> None:
-    """A LocalCluster of 2; one worker process is killed while the client writes the first result."""
-    original = History.write_sessions
-    state = {"killed": False}
+def _killed_worker(folder: Path, db: Path, derive) -> bool:
+    """A LocalCluster of 2 whose first worker kills its own process in its first robot-day's refit (so the kill
+    falls inside a task, never on an idle worker); True when it did die (its nanny restarts it)."""
+
+    def die_in_the_refit(die: bool) -> None:
+        from identification.fleet import session, update
+
+        def killed(*args, **kwargs):
+            os._exit(1)
+
+        session.refit_day = killed if die else update.refit_day
+
     with dask_client(workers=2) as client:
         victim = sorted(client.scheduler_info()["workers"])[0]
-
-        def write_then_kill(self, run_id, results):
-            if not state["killed"]:
-                state["killed"] = True
-                try:
-                    client.run(os._exit, 1, workers=[victim])
-                except Exception:  # the worker's death breaks the call's own reply
-                    pass
-            original(self, run_id, results)
-
-        History.write_sessions = write_then_kill
+        client.run(die_in_the_refit, True, workers=[victim])
         try:
             run_fleet(read_fleet(folder), db, RunOptions(check=QUIET, day_reports=False), derive=derive, client=client)
         finally:
-            History.write_sessions = original
+            client.run(die_in_the_refit, False)
+        return victim not in client.scheduler_info()["workers"]
 
 
 def run_faults(fleet_folder: Path, out: Path, derive, robots: int = 3) -> dict:
@@ -88,8 +87,8 @@ def run_faults(fleet_folder: Path, out: Path, derive, robots: int = 3) -> dict:
     run_fleet(fleet, out / "reference.duckdb", RunOptions(serial=True, check=QUIET, day_reports=False), derive=derive)
     reference = _stored(out / "reference.duckdb")
     result = {}
-    _killed_worker(clean, out / "killed.duckdb", derive)
-    result["killed_worker"] = _verdict(_stored(out / "killed.duckdb"), reference, n_days)
+    killed = _killed_worker(clean, out / "killed.duckdb", derive)
+    result["killed_worker"] = {**_verdict(_stored(out / "killed.duckdb"), reference, n_days), "worker_died": killed}
     first = run_fleet(
         fleet,
         out / "resume.duckdb",
@@ -127,6 +126,8 @@ def run_faults(fleet_folder: Path, out: Path, derive, robots: int = 3) -> dict:
                                      "days_unchanged": verdict["max_relative_difference"] < 1e-12}  # fmt: skip
     result["nothing_lost_nothing_counted_twice"] = (
         all(case.get("lost", 0) == 0 and case.get("counted_twice", 0) == 0 for case in result.values())
+        and result["killed_worker"]["failed"] == 0
+        and result["killed_worker"]["worker_died"]
         and result["duplicate_recording"]["duplicates_dropped"] == 2
         and result["corrupt_file"]["failed"] == 1
     )

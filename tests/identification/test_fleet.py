@@ -297,6 +297,33 @@ def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluste
     cluster.wait_for_workers(2, timeout=60)
 
 
+def test_every_worker_killed_loses_the_shared_data_and_the_run_scatters_it_again(tiny_fleet, derive, cluster, tmp_path,
+                                                                                 caplog):  # fmt: skip
+    """Every worker dies in its first refit: the baselines and the model scattered to them die too (no copy is
+    left), Dask cancels the tasks needing them, and the runner scatters the data again to the restarted workers and
+    submits the tasks again: every robot-day once, none failed, as the serial run."""
+    import logging
+
+    fleet = read_fleet(tiny_fleet[0])
+    before = set(cluster.scheduler_info()["workers"])
+    caplog.set_level(logging.WARNING, logger="identification.fleet.runner")
+    cluster.run(_die_in_the_refit, True)
+    try:
+        summary = run_fleet(fleet, tmp_path / "h.duckdb", RunOptions(day_reports=False), derive=derive, client=cluster)
+    finally:
+        cluster.wait_for_workers(2, timeout=60)
+        cluster.run(_die_in_the_refit, False)
+    with History(tmp_path / "h.duckdb") as history:
+        failures = history.failures()
+    assert (summary.processed, summary.failed) == (18, 0), failures
+    assert not before & set(cluster.scheduler_info()["workers"])  # both workers died
+    again = [r.getMessage() for r in caplog.records if "submitted again" in r.getMessage()]
+    assert any("cancelled" in text for text in again), again
+    reference = tmp_path / "ref.duckdb"
+    run_fleet(fleet, reference, RunOptions(serial=True, day_reports=False), derive=derive)
+    assert _close(tmp_path / "h.duckdb", reference)
+
+
 def test_a_calibrated_model_is_a_baseline(tiny_fleet, derive, denso_model, tmp_path):
     """r01's baseline is a calibrated-model file identified from its first days: the fleet refits on top of it."""
     from identification.calibration.calibrated_model import CalibratedModel
