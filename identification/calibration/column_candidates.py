@@ -74,6 +74,7 @@ class Candidates:
     held: NormalEquations | None
     weights: np.ndarray
     effective: np.ndarray
+    parts: tuple = ()  # the held-out normal equations of each validation recording (``held`` is their sum)
 
     def blocks_count(self, joint: int) -> int:
         """Training samples of ``joint``."""
@@ -103,6 +104,12 @@ class Candidates:
             cv = sum(self.blocks[k].residual_sum(solve_columns(self.summed(k)[1], transform)[0]) for k in folds)
             held = cv if held is None else np.where(self.held.count == 0, cv, held)
         return total.residual_sum(x), held, x, std
+
+    def part_sums(self, stribeck, dropped=()) -> np.ndarray:
+        """Held-out RSS per validation recording and joint (parts, n_dof) of the sub-model (as ``evaluate``'s), each
+        recording on its own: a column must hold on each (``column_choice``)."""
+        x = solve_columns(self.summed(None)[1], self.transform(stribeck, dropped))[0]
+        return np.array([part.residual_sum(x) for part in self.parts]).reshape(len(self.parts), self.weights.size)
 
     def summed(self, skip) -> tuple:
         """(every block's normal equations but ``skip``'s, summed; their weighted Gram matrix and moment): the same for
@@ -180,13 +187,15 @@ def candidates(robot, model, training: PreparedTraining, options, request, valid
         for a, b in zip(edges[:-1], edges[1:]):
             blocks.append(NormalEquations(robot.n_dof, len(keep) + len(losses)))
             blocks[-1].add(columns[a:b], recording.tau[a:b])
-    held = None
+    parts = []
     for recording in validation:
         ready = prepare_recording(recording, kt, cutoffs[0], options.edge_periods)[0]
-        held = held or NormalEquations(robot.n_dof, len(keep) + len(losses))
-        held.add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
+        parts.append(NormalEquations(robot.n_dof, len(keep) + len(losses)))
+        parts[-1].add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
     weights, effective = residual_weights(sum_blocks(blocks), fitted)
-    return Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective), offsets, inertia
+    held = sum_blocks(parts) if parts else None
+    found = Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective, tuple(parts))
+    return found, offsets, inertia
 
 
 def loss_candidates(robot, model, kt, request) -> tuple:

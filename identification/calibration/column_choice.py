@@ -180,6 +180,8 @@ class ColumnChoice:
         lines = [f"friction shape: {self._shape_text()} ({by['friction']})",
                  f"torque offset: {'every joint' if self.request.offset == 'on' else joints(self.offset_joints)} "
                  f"({by['offset']})"]  # fmt: skip
+        lines += [f"torque offset refused on joint {e.joint + 1} ({e.estimate:+.3g} N m): {e.reason}"
+                  for e in self._near_offsets() if not e.kept]  # fmt: skip
         if self.request.drive_inertia == "auto" and self.torque_source == "current":
             lines.append(f"drive-inertia columns: {joints(self.inertia_joints)} (motor currents hold the rotors' "
                          "inertia: every separate one identified, >= 0)")  # fmt: skip
@@ -196,6 +198,12 @@ class ColumnChoice:
         if self.check:
             lines.append(f"checked on {self.check}")
         return lines + ([] if self.smoothing is None else [self.smoothing.sentence()])
+
+    def _near_offsets(self) -> list:
+        """The offsets the training BIC wants or is indifferent to that lower the joint's pooled held-out error: those
+        whose refusal the report explains (the check on each part, or too small a gain)."""
+        return [e for e in self.evidence if e.term == "offset" and e.delta_bic > -INDIFFERENT_BIC
+                and e.held_out_ratio < 1 and e.estimate is not None]  # fmt: skip
 
     def _loss_lines(self, joints) -> list:
         """The drive-loss sentence: where and with what efficiency, or why there is none."""
@@ -375,12 +383,38 @@ def _column_evidence(found, stribeck, name, term, base, current=False) -> Eviden
     if term == "loss" and not 0.0 < estimate < MAX_LOAD_FRICTION:
         return Evidence(term, j, delta, ratio, False, f"coefficient mu = {estimate:.3g} outside (0, "
                         f"{MAX_LOAD_FRICTION}): not a gear efficiency above 60 %", estimate, sigma)  # fmt: skip
+    if term == "offset":
+        kept, reason = _offset_verdict(found, stribeck, name, j, delta, ratio)
+        return Evidence(term, j, delta, ratio, kept, reason, estimate, sigma)
     kept = delta > 0 and ratio < 1
-    if term == "offset" and not kept and delta > -INDIFFERENT_BIC and np.sqrt(ratio) < 1 - OFFSET_HELD_OUT_GAIN:
-        return Evidence(term, j, delta, ratio, True, f"the training data are indifferent (BIC {delta:+.2g}) and it "
-                        f"lowers the held-out RMS error by {1 - np.sqrt(ratio):.0%}: a torque sensor's offset",
-                        estimate, sigma)  # fmt: skip
     return Evidence(term, j, delta, ratio, kept, _reason(delta, ratio, kept), estimate, sigma)
+
+
+def _offset_verdict(found, stribeck, name, j, delta, ratio) -> tuple:
+    """(kept, reason) of joint ``j``'s torque offset: the training BIC wants it and it lowers the joint's held-out
+    error, clearly (by ``OFFSET_HELD_OUT_GAIN``) where the BIC is indifferent (within ``INDIFFERENT_BIC`` of 0, either
+    way), and on each validation recording (``Candidates.part_sums``): an offset one recording contradicts is that
+    recording's sensor, not the arm's, and a pooled gain on the others does not outvote it."""
+    gain = 1.0 - np.sqrt(ratio)
+    if abs(delta) <= INDIFFERENT_BIC:
+        kept = bool(gain >= OFFSET_HELD_OUT_GAIN)
+        reason = (f"the training data are indifferent (BIC {delta:+.2g}) and it lowers the held-out RMS error by "
+                  f"{gain:.0%}" + (": a torque sensor's offset" if kept else f", less than the "
+                  f"{OFFSET_HELD_OUT_GAIN:.0%} asked of a column the training data do not decide"))  # fmt: skip
+    else:
+        kept, reason = delta > 0 and ratio < 1, _reason(delta, ratio, delta > 0 and ratio < 1)
+    if not kept or not found.parts:
+        return kept, reason
+    count = np.array([max(part.count[j], 1) for part in found.parts])
+    with_it = np.sqrt(found.part_sums(stribeck)[:, j] / count)
+    without = np.sqrt(found.part_sums(stribeck, (name,))[:, j] / count)
+    rises = [f"validation recording {k + 1} of {len(count)}: {b:.3g} -> {a:.3g} N m"
+             for k, (b, a) in enumerate(zip(without, with_it)) if a >= b]  # fmt: skip
+    if rises:
+        return False, (f"the training data want it (BIC {delta:+.2g}) and it lowers the held-out RMS error taken "
+                       f"together by {gain:.0%}, but it raises it on {'; '.join(rises)}: the offset of a recording's "
+                       "sensor, not the arm's")  # fmt: skip
+    return kept, reason
 
 
 def _reason(delta, ratio, kept) -> str:

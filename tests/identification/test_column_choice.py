@@ -187,3 +187,22 @@ def test_what_identify_decided_is_not_warned_again_by_later_commands(no_rotor, d
         assert main(argv) == 0, argv
         err = capsys.readouterr().err
         assert "drive inertia" not in err and "stored in the model file" not in err, (argv[0], err)
+
+
+def test_an_offset_is_taken_only_if_it_holds_on_each_validation_recording(denso, denso_model):
+    """Known truth: joint 3's offset (-2 N m) is the arm's, in every recording; joint 2's is the sensor's, 0.3 N m
+    in training, 0.6 and 0 in the two validation recordings. Pooled over both, joint 2's offset lowers the held-out
+    error (the first recording outvotes the second), but it raises the second's: refused, and the report says why."""
+    request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
+    arm = np.array([0.0, 0.0, -2.0, 0.0, 0.0, 0.0])
+    sensor = [np.array([0.0, s, 0.0, 0.0, 0.0, 0.0]) for s in (0.3, 0.6, 0.0)]
+    train, first, second = (synthetic(denso, seed, offset=arm + s) for seed, s in zip((4, 5, 6), sensor))
+    found = choose_columns(denso, denso_model, [train], request=request, validation=[first, second])
+    assert found.offset_joints == (2,)
+    spurious = next(e for e in found.evidence if e.term == "offset" and e.joint == 1)
+    assert spurious.delta_bic > 10 and spurious.held_out_ratio < 1  # training and the pooled check would keep it
+    assert "validation recording 2 of 2" in spurious.reason and abs(spurious.estimate - 0.3) < 0.05
+    assert any(line.startswith("torque offset refused on joint 2 (+0.27") for line in found.describe())
+    # each recording alone is no contradiction: with the first only, the offset is taken
+    alone = choose_columns(denso, denso_model, [train], request=request, validation=[first])
+    assert alone.offset_joints == (1, 2)
