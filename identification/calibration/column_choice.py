@@ -428,9 +428,10 @@ def _verdict(found, full, sub, j, delta, ratio) -> tuple:
     rises = [f"validation recording {k + 1} of {len(count)}: {b:.3g} -> {a:.3g} N m"
              for k, (b, a) in enumerate(zip(without, with_it)) if a >= b]  # fmt: skip
     if rises:
-        return False, (f"the training data want it (BIC {delta:+.2g}) and it lowers the held-out RMS error taken "
-                       f"together by {gain:.0%}, but it raises it on {'; '.join(rises)}: that recording's, not the "
-                       "arm's")  # fmt: skip
+        training = "are indifferent to" if abs(delta) <= INDIFFERENT_BIC else "want"
+        return False, (f"the training data {training} it (BIC {delta:+.2g}) and it lowers the held-out RMS error "
+                       f"taken together by {gain:.0%}, but it raises it on {'; '.join(rises)}: that recording's, not "
+                       "the arm's")  # fmt: skip
     return kept, reason
 
 
