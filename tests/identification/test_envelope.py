@@ -26,7 +26,6 @@ from identification.calibration.pseudo_inertia import pseudo_inertia
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import save_recording
 from identification.virtual import effects as xp
-from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from psdm_casadi.description import physical_to_dynamic
 from psdm_casadi.errors import ParameterError, RobotFileError
@@ -34,7 +33,7 @@ from psdm_casadi.link_envelope import LinkEnvelope
 from psdm_casadi.robot import load_robot
 from psdm_casadi.robot_writer import write_robot_file
 from tests.conftest import DENSO_FILE
-from trajopt.experiments import sine_experiment
+from tests.identification.diagnosis_data import rigid_recording
 
 
 def _box(mass, centre, half, rotation):
@@ -124,16 +123,8 @@ def test_bad_envelopes_and_bounds_are_refused():
         TrajectoryOptions(drive_inertia_ratio=(0.5,))
 
 
-def _recording(robot, extras, seed=3):
-    rng = np.random.default_rng(seed)
-    reference = sine_experiment(robot, duration=8.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    recording, _ = simulate_recording(robot, reference, options, rng, extras=extras)
-    return recording
-
-
 def test_the_bounded_fit_recovers_true_parameters_inside_the_envelope_as_before(denso, denso_model):
-    recording = _recording(denso, [])
+    recording = rigid_recording(denso, [])
     bounded = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
     free = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(envelope=False))
     assert bounded.envelope == () and bounded.consistent
@@ -148,7 +139,7 @@ NAMED_ON_JOINT_2 = r"most likely a (counterbalance or spring|spring or counterba
 
 
 def test_a_hidden_counterbalance_stays_out_of_the_links_and_is_named(denso, denso_model):
-    recording = _recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
+    recording = rigid_recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
     free = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions(envelope=False))
     fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
     prior = denso.nominal_dynamic_parameters()
@@ -166,7 +157,7 @@ def test_a_hidden_counterbalance_stays_out_of_the_links_and_is_named(denso, dens
 
 
 def test_a_hidden_payload_is_named_as_a_payload(denso, denso_model):
-    recording = _recording(denso, [xp.Payload(mass=4.0, com=(0.0, 0.0, 0.1))])
+    recording = rigid_recording(denso, [xp.Payload(mass=4.0, com=(0.0, 0.0, 0.1))])
     fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
     assert fit.envelope and {f.absorbs for f in fit.envelope} == {"payload"}
     assert any(f.link == 4 and "mass upper" in f.bounds for f in fit.envelope)
@@ -222,7 +213,7 @@ def test_a_bad_envelope_in_the_robot_file_exits_2_naming_the_field(tmp_path, cap
 
 
 def test_identify_reports_the_pushed_link_in_text_json_and_the_model_file(denso, tmp_path, capsys):
-    recording = _recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
+    recording = rigid_recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
     save_recording(recording, tmp_path / "train.csv")
     argv = [
         "identify",

@@ -24,17 +24,10 @@ from identification.virtual.simulation import SimulationOptions, simulate_record
 from psdm_casadi.cli import main
 from psdm_casadi.robot import load_robot
 from tests.conftest import DATASETS, ROOT
+from tests.identification.diagnosis_data import rigid_recording
 from trajopt.experiments import sine_experiment
 
 HIDDEN = 3.0  # [kg m^2] on joint 1, whose drive inertia the bounds hold to 2 x the file's 1.0
-
-
-def _recording(robot, extras, seed=3):
-    rng = np.random.default_rng(seed)
-    reference = sine_experiment(robot, duration=8.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    recording, _ = simulate_recording(robot, reference, options, rng, extras=extras)
-    return recording
 
 
 def _hidden_inertia(robot):
@@ -64,7 +57,8 @@ def test_the_words_follow_the_mass_matrix_and_the_gravity_regressor(denso, denso
 
 
 def test_a_hidden_inertia_beyond_the_files_links_is_named_with_the_datas_value(denso, denso_model):
-    fit = identify_trajectories(denso, denso_model, [_recording(denso, _hidden_inertia(denso))], TrajectoryOptions())
+    recording = rigid_recording(denso, _hidden_inertia(denso))
+    fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
     held = stored_held_back(fit.envelope_bounds)
     assert len(held) == 1, [h.message for h in held]  # the links' gravity terms it moved are side effects, not named
     item = held[0]
@@ -81,7 +75,7 @@ def test_a_hidden_inertia_beyond_the_files_links_is_named_with_the_datas_value(d
 
 
 def test_a_clean_robot_says_nothing(denso, denso_model):
-    fit = identify_trajectories(denso, denso_model, [_recording(denso, [])], TrajectoryOptions())
+    fit = identify_trajectories(denso, denso_model, [rigid_recording(denso, [])], TrajectoryOptions())
     assert dict(fit.envelope_bounds)["held_back"] == []
     assert stored_held_back(fit.envelope_bounds) == ()
 
@@ -102,7 +96,7 @@ def test_a_significant_but_tiny_difference_is_not_named(denso, denso_model):
 def test_a_strong_pull_alone_holding_the_data_back_is_named_with_the_weaker_pull_as_route(denso, denso_model):
     """No envelope, a pull 2000 times the default's (u = 0.001): no bound is active, the pull alone keeps a small
     hidden inertia (0.5 kg m^2 on joint 1) out, and the route suggests a weaker pull beside the diagnosis."""
-    recording = _recording(denso, [xp.ExtraRotorInertia(inertia=np.array([0.5, 0, 0, 0, 0, 0]))])
+    recording = rigid_recording(denso, [xp.ExtraRotorInertia(inertia=np.array([0.5, 0, 0, 0, 0, 0]))])
     fit = identify_trajectories(
         denso, denso_model, [recording], TrajectoryOptions(envelope=False, prior_uncertainty=0.001)
     )
@@ -112,7 +106,7 @@ def test_a_strong_pull_alone_holding_the_data_back_is_named_with_the_weaker_pull
 
 
 def test_identify_states_it_in_describe_the_text_and_the_model_file(denso, denso_model, tmp_path, capsys):
-    recording = _recording(denso, _hidden_inertia(denso))
+    recording = rigid_recording(denso, _hidden_inertia(denso))
     result = identify_recordings(denso, denso_model, [recording])
     assert any(line.startswith("held back from the data: the inertia about joint 1") for line in result.describe())
     stored = result.calibrated.document["standard"]["envelope"]["held_back"]
@@ -126,7 +120,7 @@ def test_the_cli_prints_it(denso, tmp_path, capsys):
     from identification.data.io import save_recording
 
     path = tmp_path / "train.npz"
-    save_recording(_recording(denso, _hidden_inertia(denso)), path)
+    save_recording(rigid_recording(denso, _hidden_inertia(denso)), path)
     out = tmp_path / "model.json"
     assert main(["identify", str(denso.source), "--data", str(path), "--out", str(out)]) == 0
     text = capsys.readouterr().out

@@ -90,6 +90,16 @@ def test_run_trajectory1s_dead_sensor_channel_is_found_and_only_joint_1_is_left_
         find_missing_torque(load_robot_recording(KINOVA / "Trajectory1.csv", robot, columns=columns))
 
 
+def _identify_on_the_currents(robot, out, capsys) -> dict:
+    """``psdm identify`` on defaults from the motor currents of the three logs, validated on opti_traj_testing2: its
+    --json report (the model file written to ``out``)."""
+    argv = ["identify", robot.source, "--data", *(str(KINOVA / n) for n in ("opti_traj_testing1.csv",
+            "RunTrajectory1.csv", "Trajectory1.csv")), "--validate", str(KINOVA / "opti_traj_testing2.csv"),
+            "--columns", "t=Time,q=Position,i=Cur", "--out", str(out), "--json"]  # fmt: skip
+    assert main(argv) == 0
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+
+
 def _identify_on_the_sensors(robot, folder, capsys) -> tuple:
     """``psdm identify`` on defaults from the joint-torque sensors: (its --json report, the link masses)."""
     out = folder / "sensor.json"
@@ -198,11 +208,7 @@ def test_the_currents_leave_no_link_on_a_mass_bound_and_give_the_sensors_masses(
     squares too want 2 and 1.3 kg m^2 more there than the file's links hold), and the report says so."""
     _, sensor = _identify_on_the_sensors(robot, tmp_path, capsys)
     out = tmp_path / "current.json"
-    argv = ["identify", robot.source, "--data", *(str(KINOVA / n) for n in ("opti_traj_testing1.csv",
-            "RunTrajectory1.csv", "Trajectory1.csv")), "--validate", str(KINOVA / "opti_traj_testing2.csv"),
-            "--columns", "t=Time,q=Position,i=Cur", "--out", str(out), "--json"]  # fmt: skip
-    assert main(argv) == 0
-    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    report = _identify_on_the_currents(robot, out, capsys)
     mass = np.array(json.loads(out.read_text())["standard"]["values"]).reshape(7, -1)[:, 0]
     assert not _at_a_mass_bound(robot, mass) and not _at_a_mass_bound(robot, sensor), (mass, sensor)
     np.testing.assert_allclose(mass, sensor, rtol=0.1)
@@ -221,11 +227,7 @@ def test_identify_on_defaults_from_the_currents_keeps_the_rotors_and_every_link_
     unconstrained drive inertia is negative, so it does not count), they come out
     near the sensor check's 0.52 and 0.48 kg m^2 and links 2 and 4 leave their upper mass bounds (they held them)."""
     out = tmp_path / "current.json"
-    argv = ["identify", robot.source, "--data", *(str(KINOVA / n) for n in ("opti_traj_testing1.csv",
-            "RunTrajectory1.csv", "Trajectory1.csv")), "--validate", str(KINOVA / "opti_traj_testing2.csv"),
-            "--columns", "t=Time,q=Position,i=Cur", "--out", str(out), "--json"]  # fmt: skip
-    assert main(argv) == 0
-    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    report = _identify_on_the_currents(robot, out, capsys)
     assert report["consistent"] and report["columns"]["torque_source"] == "current"
     assert report["columns"]["inertia_joints"] == [3, 4, 5, 6, 7]
     assert len([e for e in report["columns"]["evidence"] if e["term"] == "loss"]) == 7
