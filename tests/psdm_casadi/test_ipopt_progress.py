@@ -105,11 +105,11 @@ def test_nothing_is_drawn_or_paid_elsewhere(logger, stream, level):
 
 def test_the_consistent_fit_shows_its_iterations(logger, denso, denso_model):
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-    from tests.identification.test_envelope import _recording
+    from tests.identification.diagnosis_data import rigid_recording
 
     stream = FakeTerminal()
     _install(stream)
-    identify_trajectories(denso, denso_model, [_recording(denso, [])], TrajectoryOptions())
+    identify_trajectories(denso, denso_model, [rigid_recording(denso, [])], TrajectoryOptions())
     assert "identify: consistent fit (Ipopt)" in stream.getvalue()
 
 
