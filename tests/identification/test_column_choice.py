@@ -210,35 +210,3 @@ def test_an_offset_is_taken_only_if_it_holds_on_each_validation_recording(denso,
     # each recording alone is no contradiction: with the first only, the offset is taken
     alone = choose_columns(denso, denso_model, [train], request=request, validation=[first])
     assert alone.offset_joints == (1, 2)
-
-
-def test_a_shape_or_drive_column_the_training_bic_is_indifferent_to_must_hold_out_by_the_stated_gain(
-    denso, denso_model, no_rotor, monkeypatch
-):
-    """One verdict for every kind of column: with the indifferent band widened to every BIC, joint 1's true Stribeck
-    hump and the rotors' true drive inertias (torques measured on the motor side) are kept exactly when their own
-    held-out gain reaches ``HELD_OUT_GAIN``, and a refusal is stated with its numbers."""
-    import identification.calibration.column_choice as column_choice
-
-    recording = synthetic(denso, 5, stribeck=[6.0, 2.0, 2.0, 2.0, 2.0, 2.0])
-    request = ColumnRequest(offset="off", drive_inertia="off")
-    hump = choose_columns(denso, denso_model, [recording], request=request).evidence[0]
-    assert hump.kept and hump.delta_bic > 10  # outside the band: the BIC and any held-out gain decide
-    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
-    gain = 1.0 - np.sqrt(hump.held_out_ratio)
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain + 0.01)
-    refused = choose_columns(denso, denso_model, [recording], request=request)
-    assert not refused.evidence[0].kept and refused.stribeck_joints != (0,)
-    assert any(line.startswith("Stribeck shape refused on joint 1") and f"by {gain:.0%}, less than" in line
-               for line in refused.describe())  # fmt: skip
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain - 0.01)
-    assert choose_columns(denso, denso_model, [recording], request=request).evidence[0].kept
-    robot, model = no_rotor
-    drive = ColumnRequest(friction="coulomb-viscous", offset="off")
-    motor = synthetic(denso, 4)
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 0.0)
-    assert choose_columns(robot, model, [motor], request=drive).inertia_joints == (2, 3, 4, 5)
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)  # no column lowers its joint's error by 100 %
-    none = choose_columns(robot, model, [motor], request=drive)
-    assert none.inertia_joints == ()
-    assert any(line.startswith("drive inertia refused on joint 3 (+0.5") for line in none.describe())
