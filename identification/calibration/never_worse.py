@@ -260,11 +260,21 @@ def compare_each(before, after, model, validation, kt=None) -> tuple:
 
 
 def pooled_comparison(comparisons) -> JointComparison:
-    """The comparisons of several recordings as one: the mean RMSE per joint, the standard error of that mean."""
-    before = np.mean([c.before for c in comparisons], axis=0)
-    after = np.mean([c.after for c in comparisons], axis=0)
-    standard_error = np.sqrt(np.sum(np.square([c.standard_error for c in comparisons]), axis=0)) / len(comparisons)
-    return JointComparison.from_noise(before, after, standard_error)
+    """The comparisons of several recordings as one: the mean RMSE per joint, the standard error of that mean. A joint
+    without torque in a recording (NaN there: a dead channel) counts in the recordings that hold it only, and is NaN
+    where none does."""
+    if all(np.all(np.isfinite(c.before) & np.isfinite(c.after)) for c in comparisons):
+        before = np.mean([c.before for c in comparisons], axis=0)
+        after = np.mean([c.after for c in comparisons], axis=0)
+        standard_error = np.sqrt(np.sum(np.square([c.standard_error for c in comparisons]), axis=0)) / len(comparisons)
+        return JointComparison.from_noise(before, after, standard_error)
+    stack = {k: np.array([getattr(c, k) for c in comparisons]) for k in ("before", "after", "standard_error")}
+    held = np.isfinite(stack["before"]) & np.isfinite(stack["after"])
+    count = held.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = {k: np.where(count > 0, np.where(held, v, 0.0).sum(axis=0) / count, np.nan) for k, v in stack.items()}
+        se = np.sqrt((np.where(held, stack["standard_error"], 0.0) ** 2).sum(axis=0)) / np.maximum(count, 1)
+    return JointComparison.from_noise(mean["before"], mean["after"], np.where(count > 0, se, np.nan))
 
 
 def improvement(comparison: JointComparison) -> float:

@@ -36,7 +36,7 @@ import numpy as np
 
 from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 from identification.calibration.never_worse import JointComparison, paired_rmse_margin, pooled_comparison
-from identification.calibration.trajectory_data import drive_columns
+from identification.calibration.trajectory_data import drive_column_joint, drive_columns
 from identification.calibration.trajectory_fit import torque_constants
 
 __all__ = ["FileCheck", "FileFriction", "check_against_file", "file_friction"]
@@ -127,20 +127,6 @@ def _json(value):
     return None if isinstance(value, float) and not np.isfinite(value) else value
 
 
-def _pooled(comparisons) -> JointComparison:
-    """``never_worse.pooled_comparison`` over the recordings that hold each joint's torque (a dead channel is NaN in
-    its recording and counts in the others only)."""
-    if all(np.all(np.isfinite(c.before) & np.isfinite(c.after)) for c in comparisons):
-        return pooled_comparison(comparisons)
-    stack = {k: np.array([getattr(c, k) for c in comparisons]) for k in ("before", "after", "standard_error")}
-    held = np.isfinite(stack["before"]) & np.isfinite(stack["after"])
-    count = held.sum(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = {k: np.where(count > 0, np.where(held, v, 0.0).sum(axis=0) / count, np.nan) for k, v in stack.items()}
-        se = np.sqrt((np.where(held, stack["standard_error"], 0.0) ** 2).sum(axis=0)) / np.maximum(count, 1)
-    return JointComparison.from_noise(mean["before"], mean["after"], np.where(count > 0, se, np.nan))
-
-
 def _columns(fit, qd, qdd) -> np.ndarray:
     stribeck = np.asarray(fit.stribeck_velocity, dtype=float) if fit.stribeck_velocity else None
     return drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, stribeck)
@@ -151,7 +137,7 @@ def _joint_columns(fit, joint: int) -> np.ndarray:
     friction only where the fit did not hold it at 0, its own drive inertia."""
     keep = []
     for k, name in enumerate(fit.drive_names):
-        own = name.lstrip("abcdefghijklmnopqrstuvwxyzI") == str(joint + 1)
+        own = drive_column_joint(name) == joint
         held = name.startswith(("offset", "fs")) and fit.drive[k] == 0.0
         if own and not held:
             keep.append(k)
@@ -195,7 +181,7 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
         comparisons.append(JointComparison.from_noise(before, after, se))
     per_joint = (fit.n_samples if samples is None else samples) / robot.n_dof
     allowance = float(np.sqrt(1.0 + model.n_base / max(per_joint, 1.0)) - 1.0)
-    pooled = _pooled(comparisons)
+    pooled = pooled_comparison(comparisons)
     pooled = replace(pooled, margin=pooled.margin + allowance * pooled.before)
     return FileCheck(pooled, len(validation), each=tuple(comparisons), allowance=allowance, parameters=model.n_base,
                      samples=per_joint)  # fmt: skip

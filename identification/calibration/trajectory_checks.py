@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.trajectory_data import drive_column_joint
 from identification.data.excitation_check import check_joint_motion, check_reversals, joint_label
 from identification.data.plausibility import check_plausible_recording
 from identification.data.regressor_check import base_parameter_joints, check_regressor
@@ -81,7 +82,7 @@ def check_columns(robot, model, equations, names, recordings) -> None:
     values, vectors = np.linalg.eigh(gram)
     root = np.sqrt(np.clip(values, 0.0, None))[:, None] * vectors.T
     base_names = [f"theta{k + 1}" for k in range(model.n_base)]
-    drive_joints = [(int(re.search(r"\d+$", name).group()) - 1,) for name in names]  # fc3 -> joint 2
+    drive_joints = [(drive_column_joint(name),) for name in names]
     check_regressor(root, names=base_names + list(names), owner="identify", robot=robot,
                     source=", ".join(r.name or "recording" for r in recordings), fix=COLUMN_FIX,
                     column_joints=list(base_parameter_joints(model)) + drive_joints)  # fmt: skip

@@ -33,9 +33,9 @@ from identification.data.preprocessing import central_difference, resample_unifo
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_names",
-           "drive_columns", "friction_shapes", "friction_term", "prepare_recording", "prepare_recordings",
-           "stribeck_derivative", "stribeck_joints"]  # fmt: skip
+__all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_joint",
+           "drive_column_names", "drive_columns", "friction_shapes", "friction_term", "prepare_recording",
+           "prepare_recordings", "stribeck_derivative", "stribeck_joints"]  # fmt: skip
 
 #: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
 FRICTION_TERMS = ("fc", "fs", "fv", "offset")
@@ -105,6 +105,11 @@ def drive_column_names(n_dof: int, terms: tuple, inertia_joints) -> list:
     """Labels of the drive columns, e.g. ``fc1, fv1, fc2, ...``, then ``Ia<j>`` for ``inertia_joints``."""
     names = [f"{term}{j + 1}" for j in range(n_dof) for term in terms if term != "Ia"]
     return names + [f"Ia{j + 1}" for j in inertia_joints]
+
+
+def drive_column_joint(name: str) -> int:
+    """The joint (0-based) of a drive column labelled by ``drive_column_names``: ``fc3`` -> 2, ``Ia1`` -> 0."""
+    return int(name[len(name.rstrip("0123456789")) :]) - 1
 
 
 def _is_symbolic(*values) -> bool:

@@ -148,3 +148,25 @@ def test_a_joint_without_torque_in_one_held_out_recording_is_judged_on_the_other
     assert np.isnan(only.comparison.after[1]) and 1 not in only.worse
     stored = json.loads(json.dumps(only.to_dict(), allow_nan=False))
     assert stored["validation_rmse_after"][1] is None and "-/" in only.describe()
+
+
+def test_a_drive_columns_joint_is_read_back_from_its_label():
+    """``drive_column_joint`` inverts ``drive_column_names`` for every term, past joint 9 too."""
+    from identification.calibration.trajectory_data import drive_column_joint, drive_column_names
+
+    names = drive_column_names(12, ("fc", "fv", "fs", "offset"), inertia_joints=(0, 10))
+    joints = [j for j in range(12) for _ in range(4)] + [0, 10]
+    assert [drive_column_joint(name) for name in names] == joints
+
+
+def test_pooling_a_dead_channel_counts_the_recordings_that_hold_the_joint():
+    """``never_worse.pooled_comparison``: a joint NaN in one recording is the other's numbers; finite ones are the
+    mean with the standard error of the mean."""
+    from identification.calibration.never_worse import JointComparison, pooled_comparison
+
+    first = JointComparison.from_noise(np.array([1.0, np.nan]), np.array([2.0, np.nan]), np.array([0.3, np.nan]))
+    second = JointComparison.from_noise(np.array([3.0, 5.0]), np.array([4.0, 6.0]), np.array([0.4, 0.5]))
+    pooled = pooled_comparison([first, second])
+    np.testing.assert_allclose(pooled.before, [2.0, 5.0])
+    np.testing.assert_allclose(pooled.after, [3.0, 6.0])
+    np.testing.assert_allclose(pooled.standard_error, [0.25, 0.5])
