@@ -7,7 +7,8 @@
   imports the command line or the demo;
 - inside ``identification``, the estimators (``data``, ``friction``, ``calibration``, ``diagnosis``)
   never import the virtual robot (``identification.virtual``);
-- no module imports a private name (``_x``) of another module; tests may, to test helpers directly;
+- no module imports a private name (``_x``) of another module; tests may, to test a library helper directly, but
+  never take one from another test module (shared test helpers live in the tests' data modules, public);
 - no import cycles between modules, lazy (function-level) imports included;
 - no library module over 500 lines, no library function over 80 lines of code (docstring excluded).
 """
@@ -116,6 +117,18 @@ def test_no_private_name_is_imported_across_modules():
                 continue
             private = [n for n in names if n.startswith("_") and not n.startswith("__")]
             private += [part for part in target.split(".") if part.startswith("_") and not part.startswith("__")]
+            if private:
+                bad.append(f"{path.relative_to(ROOT)}:{line} imports {private} from {target}")
+    assert bad == []
+
+
+def test_no_test_module_takes_a_private_name_of_another_test_module():
+    bad = []
+    for path in _sources("tests"):
+        for target, names, line in _imports(path):
+            if target.split(".")[0] != "tests":
+                continue
+            private = [n for n in names if n.startswith("_") and not n.startswith("__")]
             if private:
                 bad.append(f"{path.relative_to(ROOT)}:{line} imports {private} from {target}")
     assert bad == []

@@ -1,5 +1,7 @@
 """Synthetic train/validation recordings for the diagnosis tests (known hidden effects)."""
 
+import warnings
+
 import numpy as np
 
 from identification.data.preprocessing import PreprocessOptions, preprocess
@@ -22,6 +24,17 @@ def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
         )
         out.append(rec)
     return out
+
+
+def sine_recording(robot, seed: int, duration: float, extras=(), noise: float = 0.1):
+    """A sine-experiment recording of ``robot`` with its friction and ``extras`` (torque sensors, ``noise`` N m) and
+    the simulator's truth: the recording and the truth's parts, as ``simulate_recording`` returns them."""
+    rng = np.random.default_rng(seed)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the sine experiment may graze a limit
+        reference = sine_experiment(robot, duration=duration, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=noise)
+    return simulate_recording(robot, reference, options, rng, extras=list(extras))
 
 
 def rigid_recording(robot, extras, seed=3, duration=8.0):

@@ -21,7 +21,7 @@ from identification.diagnosis.candidates import CandidateLibrary, FrictionShapeT
 from identification.diagnosis.candidates.friction import lacking_friction_shapes
 from identification.diagnosis.selection import passes_gates
 from identification.virtual import effects as xp
-from tests.identification.test_diagnosis_friction_rival import _record
+from tests.identification.diagnosis_data import sine_recording
 
 
 def test_the_size_floor_is_on_the_torque_a_term_explains_not_on_the_rmse_drop():
@@ -62,8 +62,8 @@ def _hump_diagnosis(denso, denso_model, extras):
     """The default (LuGre) diagnosis of a 4 s training and a 3 s validation recording with the Stribeck-peak
     candidates only (the default library takes them beside the others), the robot file's inertia, no block
     cross-validation: fast."""
-    train, _ = _record(denso, 0, 4.0, extras)
-    validation, _ = _record(denso, 1, 3.0, extras)
+    train, _ = sine_recording(denso, 0, 4.0, extras)
+    validation, _ = sine_recording(denso, 1, 3.0, extras)
     options = DiagnosisOptions(rigid_body="prior", sparse=False, cv_folds=0,
                                library=CandidateLibrary(lacking_friction_shapes("lugre")))  # fmt: skip
     return diagnose(denso, train, validation, options, model=denso_model)

@@ -24,7 +24,7 @@ from identification.diagnosis.candidates.friction import lacking_friction_shapes
 from identification.diagnosis.friction_rival import FrictionRival
 from identification.diagnosis.second_opinion import UnstableFinding
 from identification.virtual.transmission_effects import JointElasticity
-from tests.identification.test_diagnosis_friction_rival import _record
+from tests.identification.diagnosis_data import sine_recording
 
 
 def _unstable(effect, label, joint):
@@ -46,11 +46,11 @@ def test_an_elasticity_after_a_friction_shape_refused_on_its_joint_is_a_stand_in
 def test_a_true_elasticity_is_named_beside_the_pre_sliding_candidates(denso, denso_model, joint):
     # the Denso's LuGre friction diagnosed with a Coulomb-viscous nominal: pre-sliding and the other friction shapes
     # compete with the elasticity (torsion 0.2 deg at the joint's RMS torque) and the blocks judge each
-    train, _ = _record(denso, 0, 4.0, ())
+    train, _ = sine_recording(denso, 0, 4.0, ())
     k = float(np.sqrt(np.mean(train.tau[:, joint] ** 2))) / np.radians(0.2)
     extras = (JointElasticity(joint=joint, stiffness=k),)
-    train, _ = _record(denso, 0, 4.0, extras)
-    validation, _ = _record(denso, 1, 3.0, extras)
+    train, _ = sine_recording(denso, 0, 4.0, extras)
+    validation, _ = sine_recording(denso, 1, 3.0, extras)
     library = JointElasticityTerm() + CandidateLibrary(lacking_friction_shapes())
     options = DiagnosisOptions(rigid_body="prior", sparse=False, library=library, friction="coulomb_viscous")
     report = diagnose(denso, train, validation, options, model=denso_model)

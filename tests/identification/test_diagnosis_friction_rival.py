@@ -4,8 +4,6 @@ is still found first."""
 
 from __future__ import annotations
 
-import warnings
-
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -15,20 +13,10 @@ from identification.diagnosis import DiagnosisOptions, diagnose
 from identification.diagnosis.candidates import BacklashTerm, CandidateLibrary, DelayTerm, JointElasticityTerm
 from identification.diagnosis.candidates.friction import lacking_friction_shapes
 from identification.virtual import effects as xp
-from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import build_pinocchio_model
-from trajopt.experiments import sine_experiment
+from tests.identification.diagnosis_data import sine_recording
 
 CUTOFF_HZ = 15.0
-
-
-def _record(robot, seed: int, duration: float, extras=(), noise: float = 0.1):
-    rng = np.random.default_rng(seed)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the sine experiment may graze a limit
-        reference = sine_experiment(robot, duration=duration, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=noise)
-    return simulate_recording(robot, reference, options, rng, extras=list(extras))
 
 
 def _best_shift(t, tau, model, shifts) -> float:
@@ -46,7 +34,7 @@ def test_the_virtual_robot_records_no_positive_lag_between_torque_and_motion(den
     # friction (the truth) filtered like the recording; the torque fits it best a quarter sample *early* (the command
     # is held over each sample period, the simulation module's docstring), never late
     robot = denso
-    recording, truth = _record(robot, 0, 3.0, noise=0.0)
+    recording, truth = sine_recording(robot, 0, 3.0, noise=0.0)
     prepared = preprocess(recording, PreprocessOptions(cutoff_hz=CUTOFF_HZ))
     pmodel = build_pinocchio_model(robot, robot.nominal_dynamic_parameters())
     data = pmodel.createData()
@@ -62,8 +50,8 @@ def _lags(robot, model, extras, seed: int, shapes: bool = False, identify_prepar
     too, as the default library takes them); the validation recording judges alone (no block cross-validation), so
     the friction rival is what decides. ``identify_preparation``: the default preparation (identify's, 10 Hz) instead of
     the 15 Hz / 200 Hz one below; ``more``: further ``DiagnosisOptions``."""
-    train, _ = _record(robot, seed, 4.0, extras)
-    validation, _ = _record(robot, seed + 1, 3.0, extras)
+    train, _ = sine_recording(robot, seed, 4.0, extras)
+    validation, _ = sine_recording(robot, seed + 1, 3.0, extras)
     library = DelayTerm() + JointElasticityTerm() + BacklashTerm()
     if shapes:
         library = library + CandidateLibrary(lacking_friction_shapes())
@@ -137,7 +125,7 @@ def test_the_payload_finding_on_the_benchmark_recordings_is_as_good_as_the_nomin
 
     truth_mass, truth_com = 0.8, np.array([0.03, 0.0, 0.06])
     tool = xp.Payload(mass=truth_mass, com=tuple(truth_com))
-    train, validation = (_record(denso, 400 + k, 8.0, (tool,))[0] for k in range(2))
+    train, validation = (sine_recording(denso, 400 + k, 8.0, (tool,))[0] for k in range(2))
     options = DiagnosisOptions(friction=friction, rigid_body="prior", library=CandidateLibrary((PayloadTerm(),)),
                                sparse=False, refine=False, cv_folds=0)  # fmt: skip
     report = diagnose(denso, train, validation, options, model=denso_model)

@@ -21,11 +21,11 @@ from identification.calibration.recalibrate import recalibrate
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.diagnosis.candidates import FrictionShapeTerm
 from tests.conftest import DENSO_FILE
+from tests.identification.diagnosis_data import sine_recording
 from tests.identification.test_diagnosis_friction_rival import (
     STRIBECK_JOINT,
     STRIBECK_PEAK,
     STRIBECK_VELOCITY,
-    _record,
     stribeck_robot,
 )
 
@@ -37,7 +37,7 @@ def stribeck_denso(denso):
 
 @pytest.fixture(scope="module")
 def applied(stribeck_denso, denso_model):
-    train, validation = (_record(stribeck_denso, k, 4.0)[0] for k in range(2))
+    train, validation = (sine_recording(stribeck_denso, k, 4.0)[0] for k in range(2))
     fit = identify_trajectories(stribeck_denso, denso_model, [train], TrajectoryOptions())
     before = CalibratedModel.from_fit(stribeck_denso, denso_model, fit, robot_source=DENSO_FILE)
     term = FrictionShapeTerm(joint=STRIBECK_JOINT, shape="stribeck", scale=0.27, velocity=0.02)

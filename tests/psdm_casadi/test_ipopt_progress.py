@@ -14,29 +14,8 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from psdm_casadi.cli.output import ProgressHandler
 from psdm_casadi.ipopt_progress import progress_options
-
-
-class FakeTerminal(io.StringIO):
-    def isatty(self):
-        return True
-
-
-class CountingHandler(ProgressHandler):
-    """The command line's handler, noting the Ipopt bar's count and postfix after every record."""
-
-    def __init__(self, stream):
-        super().__init__(stream)
-        self.counts, self.postfixes = [], []
-
-    def emit(self, record):
-        super().emit(record)
-        self.counts.append(None if self._inner is None else self._inner.n)
-        self.postfixes.append(None if self._inner is None else self._inner.postfix)
-
-
-PACKAGES = ("identification", "trajopt")
+from tests.psdm_casadi.progress_terminal import PACKAGES, FakeTerminal, install_counting_handler
 
 
 @pytest.fixture
@@ -47,16 +26,6 @@ def logger():
     for name, (handlers, level, propagate) in saved.items():
         parent = logging.getLogger(name)
         parent.handlers[:], parent.level, parent.propagate = handlers, level, propagate
-
-
-def _install(stream, level=logging.INFO):
-    handler = CountingHandler(stream)
-    for name in PACKAGES:
-        parent = logging.getLogger(name)
-        parent.handlers[:] = [handler]
-        parent.setLevel(level)
-        parent.propagate = False
-    return handler
 
 
 def _solve(logger):
@@ -74,7 +43,7 @@ def _solve(logger):
 
 def test_the_bar_advances_once_per_iteration_on_a_terminal(logger):
     stream = FakeTerminal()
-    handler = _install(stream)
+    handler = install_counting_handler(stream)
     iterations, callback = _solve(logger)
     assert callback is not None and iterations > 10
     steps = handler.counts[:-1]  # the last record ends the bar
@@ -87,7 +56,7 @@ def test_the_bar_advances_once_per_iteration_on_a_terminal(logger):
 
 
 def test_inside_a_loop_the_solve_draws_a_second_bar_and_leaves_the_loops(logger):
-    handler = _install(FakeTerminal())
+    handler = install_counting_handler(FakeTerminal())
     logger.info("test: joint 1 of 3", extra={"progress": (1, 3)})
     outer = handler._bar
     iterations, _ = _solve(logger)
@@ -98,7 +67,7 @@ def test_inside_a_loop_the_solve_draws_a_second_bar_and_leaves_the_loops(logger)
 @pytest.mark.parametrize("stream, level", [(io.StringIO(), logging.INFO), (FakeTerminal(), logging.WARNING)],
                          ids=["not a terminal", "--json or --quiet"])  # fmt: skip
 def test_nothing_is_drawn_or_paid_elsewhere(logger, stream, level):
-    _install(stream, level)
+    install_counting_handler(stream, level)
     iterations, callback = _solve(logger)
     assert iterations > 10 and callback is None and stream.getvalue() == ""
 
@@ -108,7 +77,7 @@ def test_the_consistent_fit_shows_its_iterations(logger, denso, denso_model):
     from tests.identification.diagnosis_data import rigid_recording
 
     stream = FakeTerminal()
-    _install(stream)
+    install_counting_handler(stream)
     identify_trajectories(denso, denso_model, [rigid_recording(denso, [])], TrajectoryOptions())
     assert "identify: consistent fit (Ipopt)" in stream.getvalue()
 
@@ -118,7 +87,7 @@ def test_the_lugre_fit_shows_its_iterations(logger):
     from identification.friction.simulation import simulate_lugre
     from tests.identification.friction_signal import denso_truth, sine_series
 
-    handler = _install(FakeTerminal())
+    handler = install_counting_handler(FakeTerminal())
     truth, qd_max = denso_truth(3)
     t, qd = sine_series(truth, qd_max, frequency_scale=2.0)
     tau, _ = simulate_lugre(truth, t, qd)

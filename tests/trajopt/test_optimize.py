@@ -250,12 +250,12 @@ def test_progress_goes_to_the_module_logger_and_quiet_silences_it(planar_robot, 
 def test_each_start_shows_its_ipopt_iterations_on_a_terminal(planar_robot, planar_regressor):
     import logging
 
-    from tests.psdm_casadi.test_ipopt_progress import FakeTerminal, _install
+    from tests.psdm_casadi.progress_terminal import FakeTerminal, install_counting_handler
 
     parent = logging.getLogger("trajopt")
     saved = (parent.handlers[:], parent.level, parent.propagate)
     try:
-        handler = _install(FakeTerminal())
+        handler = install_counting_handler(FakeTerminal())
         options = ExcitationOptions(**{**FAST, "n_starts": 1, "max_iter": 5, "sharpness": (8.0,)})
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ExcitationWarning)
