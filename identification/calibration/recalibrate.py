@@ -7,18 +7,17 @@ and the friction, a missing drive inertia into the link inertias. Adding the fin
 parameters kept, leaves them wrong. So the recordings-route fit (``trajectory_fit.identify_trajectories``) is run again
 on the training recording with one more linear column per feature of every torque-type finding
 (``findings.FindingColumns``), all fitted jointly and with their standard deviations from the same covariance; the
-``signal`` findings correct the recordings first (``findings.correct_recording``), the ``rigid_body`` ones (a payload)
-are taken up by the re-identified rigid body. A feature the other columns already span (a spring's constant beside a
-drive offset, a rotor inertia the fit already identifies) is left out and reported as absorbed. Load-dependent friction
-is linear in its coefficient for a fixed torque: the previous model's, then the new model's (two passes).
+``signal`` findings correct the recordings first (``findings.correct_recording``); a payload (``rigid_body``) is taken
+up by the rigid body, held to the robot file carrying it (``carried_payload``). A feature the other columns span (a
+spring's constant beside a drive offset, a rotor inertia the fit identifies) is left out and reported as absorbed.
+Load-dependent friction is linear in its coefficient for a fixed torque: the model's own, then the new one's.
 
 A model with LuGre friction (file version 3) is identified again as ``psdm identify --friction lugre`` does
 (``lugre_identify.identify_lugre_trajectories``: the Stribeck fit, the LuGre fit of the friction it leaves, the rigid
 body again with that friction taken out, the LuGre fit again) with the finding columns in every linear fit, so the new
 file holds the LuGre friction and the findings. Its signal findings correct the recordings the LuGre friction is fitted
 on and judged on alike (``CalibratedModel.predict_recording``: the bristle state carried along the corrected
-recording). Load-dependent friction is refused for it (a multiple of the model's own torque, whose LuGre part the
-exported ``psdm_inverse_dynamics`` does not hold, so the file and its exported code would differ).
+recording). Load-dependent friction is refused for it (``psdm_inverse_dynamics`` does not hold the LuGre part).
 
 The result is judged on the validation recording as ``psdm validate`` judges it (the same corrections and preparation,
 ``CalibratedModel.predict_recording``), before and after, so the file's numbers are what its exported code gives. A
@@ -44,6 +43,7 @@ import logging
 import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+from identification.calibration.carried_payload import carrying_payloads
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
 from identification.calibration.finding_value import implausibility, unhelpful_findings, validation_rmse, without_entry
 from identification.calibration.findings import (
@@ -396,7 +396,7 @@ def _joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple
     stribeck = calibrated.document["drive"].get("stribeck_velocity") or None
     stribeck = [p.vs for p in own] if own is not None else stribeck  # LuGre: its own Stribeck velocities
     stribeck = None if stribeck is None or "fs" not in options.friction else np.asarray(stribeck, dtype=float)
-    common = (robot, model, corrected, options, terms)
+    common = (carrying_payloads(robot, model, entries), model, corrected, options, terms)  # the prior holds the load
     fit, columns, lugre = _fit(*common, _reference(calibrated, model), stribeck, own is not None)
     if any(term.load_dependent for term in terms):  # second pass: the load of the new model itself
         interim = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
