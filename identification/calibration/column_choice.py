@@ -14,13 +14,18 @@ do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, be
    the joint's own columns, its Stribeck shape, offset or drive inertia, dropped with every other candidate in),
    with the number of samples divided by the residual's correlation time (filtered samples are not independent),
    **and** it lowers the joint's error on held-out data: the validation recordings when given, else a
-   cross-validation over the training blocks (each block predicted by the fit on the others). A torque offset the
+   cross-validation over the training blocks (each block predicted by the fit on the others). One verdict
+   (``_verdict``) serves every kind of column (offset, Stribeck shape, drive inertia, drive loss): a column the
    training criterion is indifferent to (``INDIFFERENT_BIC``, either way) is kept only when the held-out data want it
-   clearly (``OFFSET_HELD_OUT_GAIN``): a sensor's offset that viscous friction would otherwise absorb, and not a
-   knife-edge one (the TX40's joint 6 with six filter periods trimmed: BIC +0.96, 8 % lower on the training blocks,
-   38 % worse on the held-out end). An offset must also lower its own joint's error on each validation recording, as
-   a diagnosis's finding and identify's counterbalance must (a pooled gain on one does not outvote a rise on
-   another). The training blocks are judged together: each block's own noise margin (``never_worse``) refused the
+   clearly (``HELD_OUT_GAIN``): a sensor's offset that viscous friction would otherwise absorb, and not a knife-edge
+   one (the TX40's joint 6 with six filter periods trimmed: BIC +0.96, 8 % lower on the training blocks, 38 % worse
+   on the held-out end; the Panda's joint-5 Stribeck shape at BIC +0.89 and 7 % was kept by the plain rule where the
+   TX40's joint 6 at +1.11 was refused). A column must also lower its own joint's error on each validation recording,
+   as a diagnosis's finding and identify's counterbalance must (a pooled gain on one does not outvote a rise on
+   another). A verdict the held-out data alone made (``Evidence.departs``) rests on free least-squares fits that can
+   be far from the model identify writes; with validation recordings identify decides it again on that model
+   (``column_check``: never worse on any joint than the column as the training BIC decides it). The training blocks
+   are judged together: each block's own noise margin (``never_worse``) refused the
    Panda's joint-3 offset for block 5 (0.262 -> 0.280 N m, margin 0.012) that the held-out part confirms (0.245 ->
    0.227 N m), and the TX40's joint-4 offset rises on three of five blocks within their noise. A joint's Stribeck
    shape must also be a Stribeck effect: its static friction above its Coulomb level by ``STRIBECK_Z`` standard
@@ -74,13 +79,20 @@ SWITCH_CHOICES = ("auto", "on", "off")
 STRIBECK_PARAMETERS = 2
 #: Standard deviations by which the static friction must exceed the Coulomb level for a Stribeck effect.
 STRIBECK_Z = 2.0
-#: A torque offset the training data are indifferent to (its BIC change above ``-INDIFFERENT_BIC``: "not worth more
+#: A column the training data are indifferent to (its BIC change within ``INDIFFERENT_BIC`` of 0: "not worth more
 #: than a bare mention", Kass and Raftery 1995) is kept when it lowers the joint's held-out RMS error by
-#: ``OFFSET_HELD_OUT_GAIN`` (the gain a diagnosis asks of a finding). A joint-torque sensor's offset moves between
-#: recordings (the Kinova Gen3's joint 7 shows only noise and offset); on one short recording the training BIC cannot
-#: tell it from viscous friction, which then absorbs it and predicts a faster held-out motion badly (joint 7: 0.40 N m
-#: against 0.21 for the robot file; with its offset 0.17).
-INDIFFERENT_BIC, OFFSET_HELD_OUT_GAIN = 2.0, 0.2
+#: ``HELD_OUT_GAIN`` (the gain a diagnosis asks of a finding), whatever its kind. A joint-torque sensor's offset moves
+#: between recordings (the Kinova Gen3's joint 7 shows only noise and offset); on one short recording the training BIC
+#: cannot tell it from viscous friction, which then absorbs it and predicts a faster held-out motion badly (joint 7:
+#: 0.40 N m against 0.21 for the robot file; with its offset 0.17).
+INDIFFERENT_BIC, HELD_OUT_GAIN = 2.0, 0.2
+#: How ``describe`` names each kind of column and its estimate.
+LABELS = {
+    "offset": ("torque offset", "{:+.3g} N m"),
+    "stribeck": ("Stribeck shape", "fs - fc = {:+.3g} N m"),
+    "Ia": ("drive inertia", "{:+.3g} kg m^2"),
+    "loss": ("drive loss", "mu = {:+.3g}"),
+}
 
 
 @dataclass(frozen=True)
@@ -115,7 +127,10 @@ class Evidence:
 
     ``delta_bic``: the training BIC without the candidate minus with it (positive: the training data want it);
     ``held_out_ratio``: held-out sum of squared residuals with it over without it (below 1: it predicts
-    better); ``estimate`` and ``std``: its least-squares value in the full model (per-joint columns).
+    better); ``estimate`` and ``std``: its least-squares value in the full model (per-joint columns); ``departs``: the
+    verdict departs from the plain rule's (the training BIC's sign and the pooled held-out error), so the held-out
+    data alone decided it (an indifferent BIC and the gain asked, or a rise on one validation recording): identify
+    checks such a column on the model it writes (``column_check``).
     """
 
     term: str
@@ -126,6 +141,7 @@ class Evidence:
     reason: str
     estimate: float | None = None
     std: float | None = None
+    departs: bool = False
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -175,6 +191,28 @@ class ColumnChoice:
             coulomb_velocity=options.coulomb_velocity if self.smoothing is None else self.smoothing.velocity,
         )
 
+    @property
+    def departures(self) -> tuple:
+        """The evidence of the columns the held-out data alone decided (``Evidence.departs``), drive losses aside
+        (a loss changes the fit's route: ``drive_loss``)."""
+        return tuple(e for e in self.evidence if e.departs and e.term != "loss")
+
+    def decided(self, evidence: Evidence, kept: bool, reason: str) -> ColumnChoice:
+        """This choice with ``evidence``'s column kept or not and ``reason`` its reason (``column_check``: the model
+        identify writes decided it)."""
+        j, term = evidence.joint, evidence.term
+        items = tuple(replace(e, kept=kept, reason=reason) if e is evidence else e for e in self.evidence)
+
+        def toggled(values) -> tuple:
+            return tuple(sorted({*values, j})) if kept else tuple(k for k in values if k != j)
+
+        if term == "stribeck":
+            joints = toggled(self.stribeck_joints or ())
+            return replace(self, friction="stribeck" if joints else "coulomb-viscous", evidence=items,
+                           stribeck_joints=joints or None)  # fmt: skip
+        field = {"offset": "offset_joints", "Ia": "inertia_joints", "loss": "loss_joints"}[term]
+        return replace(self, evidence=items, **{field: toggled(getattr(self, field))})
+
     def describe(self) -> list:
         """One sentence per choice: what was chosen, and whether the data or the user chose it."""
 
@@ -186,8 +224,8 @@ class ColumnChoice:
         lines = [f"friction shape: {self._shape_text()} ({by['friction']})",
                  f"torque offset: {'every joint' if self.request.offset == 'on' else joints(self.offset_joints)} "
                  f"({by['offset']})"]  # fmt: skip
-        lines += [f"torque offset refused on joint {e.joint + 1} ({e.estimate:+.3g} N m): {e.reason}"
-                  for e in self._near_offsets() if not e.kept]  # fmt: skip
+        lines += [f"{LABELS[e.term][0]} refused on joint {e.joint + 1} ({LABELS[e.term][1].format(e.estimate)}): "
+                  f"{e.reason}" for e in self._near_misses()]  # fmt: skip
         if self.request.drive_inertia == "auto" and self.torque_source == "current":
             lines.append(f"drive-inertia columns: {joints(self.inertia_joints)} (motor currents hold the rotors' "
                          "inertia: every separate one identified, >= 0)")  # fmt: skip
@@ -205,11 +243,14 @@ class ColumnChoice:
             lines.append(f"checked on {self.check}")
         return lines + ([] if self.smoothing is None else [self.smoothing.sentence()])
 
-    def _near_offsets(self) -> list:
-        """The offsets the training BIC wants or is indifferent to that lower the joint's pooled held-out error: those
-        whose refusal the report explains (the check on each part, or too small a gain)."""
-        return [e for e in self.evidence if e.term == "offset" and e.delta_bic > -INDIFFERENT_BIC
-                and e.held_out_ratio < 1 and e.estimate is not None]  # fmt: skip
+    def _near_misses(self) -> list:
+        """The refused columns of every kind the training BIC wants or is indifferent to that lower the joint's pooled
+        held-out error: those whose refusal the report explains (the check on each part, too small a gain, a static
+        friction not clearly above the Coulomb level, a loss outside its range). A shape with ``fs <= fc`` is no
+        Stribeck effect at all and a negative drive inertia has its own sentence: neither is a near miss."""
+        return [e for e in self.evidence if not e.kept and e.term in LABELS and e.delta_bic > -INDIFFERENT_BIC
+                and e.held_out_ratio < 1 and e.estimate is not None
+                and not (e.term in ("Ia", "stribeck") and e.estimate <= 0)]  # fmt: skip
 
     def _loss_lines(self, joints) -> list:
         """The drive-loss sentence: where and with what efficiency, or why there is none."""
@@ -361,13 +402,14 @@ def _shape_evidence(found: Candidates) -> list:
         fc, fs = (found.n_base + found.names.index(f"{term}{j + 1}") for term in ("fc", "fs"))
         spread = float(np.hypot(std[fc], std[fs]) * np.sqrt(found.blocks_count(j) / n))
         above = bool(x[fs] - x[fc] > STRIBECK_Z * spread)
-        kept = delta > 0 and ratio < 1 and above
-        reason = _reason(delta, ratio, kept)
-        if delta > 0 and ratio < 1 and not kept:
+        held, reason = _verdict(found, (every, ()), (tuple(k for k in every if k != j), ()), j, delta, ratio)
+        kept = held and above
+        if held and not kept:
             reason = (f"static friction {x[fs]:.3g} not above the Coulomb level {x[fc]:.3g} by {STRIBECK_Z:g} standard "
                       "deviations: the fit follows the low-pass filter's smearing of the Coulomb step, not a Stribeck "
                       "effect")  # fmt: skip
-        out.append(Evidence("stribeck", j, delta, ratio, kept, reason, float(x[fs] - x[fc]), spread))
+        departs = kept != (delta > 0 and ratio < 1 and above)  # the plain rule's verdict
+        out.append(Evidence("stribeck", j, delta, ratio, kept, reason, float(x[fs] - x[fc]), spread, departs))
     return out
 
 
@@ -389,38 +431,37 @@ def _column_evidence(found, stribeck, name, term, base, current=False) -> Eviden
     if term == "loss" and not 0.0 < estimate < MAX_LOAD_FRICTION:
         return Evidence(term, j, delta, ratio, False, f"coefficient mu = {estimate:.3g} outside (0, "
                         f"{MAX_LOAD_FRICTION}): not a gear efficiency above 60 %", estimate, sigma)  # fmt: skip
-    if term == "offset":
-        kept, reason = _offset_verdict(found, stribeck, name, j, delta, ratio)
-        return Evidence(term, j, delta, ratio, kept, reason, estimate, sigma)
-    kept = delta > 0 and ratio < 1
-    return Evidence(term, j, delta, ratio, kept, _reason(delta, ratio, kept), estimate, sigma)
+    kept, reason = _verdict(found, (stribeck, ()), (stribeck, (name,)), j, delta, ratio)
+    return Evidence(term, j, delta, ratio, kept, reason, estimate, sigma, kept != (delta > 0 and ratio < 1))
 
 
-def _offset_verdict(found, stribeck, name, j, delta, ratio) -> tuple:
-    """(kept, reason) of joint ``j``'s torque offset: the training BIC wants it and it lowers the joint's held-out
-    error, clearly (by ``OFFSET_HELD_OUT_GAIN``) where the BIC is indifferent (within ``INDIFFERENT_BIC`` of 0, either
-    way), and on each validation recording (``Candidates.part_sums``): an offset one recording contradicts is that
-    recording's sensor, not the arm's, and a pooled gain on the others does not outvote it."""
+def _verdict(found, full, sub, j, delta, ratio) -> tuple:
+    """(kept, reason) of one candidate of joint ``j``, of any kind (offset, Stribeck shape, drive inertia, drive loss;
+    ``full`` and ``sub``: the models with and without it, as ``(stribeck, dropped)``): the training BIC wants it and it
+    lowers the joint's held-out error, clearly (by ``HELD_OUT_GAIN``) where the BIC is indifferent (within
+    ``INDIFFERENT_BIC`` of 0, either way), and on each validation recording (``Candidates.part_sums``): a column one
+    recording contradicts is that recording's (a sensor's offset, its friction), not the arm's, and a pooled gain on
+    the others does not outvote it."""
     gain = 1.0 - np.sqrt(ratio)
     if abs(delta) <= INDIFFERENT_BIC:
-        kept = bool(gain >= OFFSET_HELD_OUT_GAIN)
+        kept = bool(gain >= HELD_OUT_GAIN)
         reason = (f"the training data are indifferent (BIC {delta:+.2g}) and it lowers the held-out RMS error by "
-                  f"{gain:.0%}" + (": a torque sensor's offset" if kept else f", less than the "
-                  f"{OFFSET_HELD_OUT_GAIN:.0%} asked of a column the training data do not decide"))  # fmt: skip
+                  f"{gain:.0%}" + ("" if kept else f", less than the {HELD_OUT_GAIN:.0%} asked of a column the "
+                  "training data do not decide"))  # fmt: skip
     else:
         kept, reason = delta > 0 and ratio < 1, _reason(delta, ratio, delta > 0 and ratio < 1)
     if not kept or not found.parts:
         return kept, reason
     count = np.array([max(part.count[j], 1) for part in found.parts])
-    with_it = np.sqrt(found.part_sums(stribeck)[:, j] / count)
-    without = np.sqrt(found.part_sums(stribeck, (name,))[:, j] / count)
+    with_it = np.sqrt(found.part_sums(*full)[:, j] / count)
+    without = np.sqrt(found.part_sums(*sub)[:, j] / count)
     rises = [f"validation recording {k + 1} of {len(count)}: {b:.3g} -> {a:.3g} N m"
              for k, (b, a) in enumerate(zip(without, with_it)) if a >= b]  # fmt: skip
     if rises:
         training = "are indifferent to" if abs(delta) <= INDIFFERENT_BIC else "want"
         return False, (f"the training data {training} it (BIC {delta:+.2g}) and it lowers the held-out RMS error "
-                       f"taken together by {gain:.0%}, but it raises it on {'; '.join(rises)}: the offset of a "
-                       "recording's sensor, not the arm's")  # fmt: skip
+                       f"taken together by {gain:.0%}, but it raises it on {'; '.join(rises)}: that recording's, not "
+                       "the arm's")  # fmt: skip
     return kept, reason
 
 

@@ -17,10 +17,14 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.column_check import check_departures
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
 from identification.calibration.held_back import stored_held_back
+from identification.calibration.never_worse import compare_models
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
@@ -158,7 +162,8 @@ def identify_recordings(
         fit, *loss = identify_with_drive_loss(robot, model, recordings, chosen, choice.loss_joints, configurations)
         start = fit
     else:
-        fit = start = identify_trajectories(robot, model, recordings, chosen, configurations=configurations)
+        choice, fit = _checked_fit(robot, model, recordings, options, choice, validation, configurations)
+        chosen, start = choice.options(options), fit
     source = robot.source if robot_source is None else robot_source
     saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
              list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
@@ -173,6 +178,28 @@ def identify_recordings(
     check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check)
+
+
+def _checked_fit(robot, model, recordings, options, choice, validation, configurations) -> tuple:
+    """(choice, fit): the consistent fit of ``choice``, each column the held-out data alone decided checked on it
+    (``column_check``) when there are held-out recordings."""
+
+    def fit_of(columns):
+        return identify_trajectories(robot, model, recordings, columns.options(options), configurations=configurations)
+
+    if not (validation and choice.departures):
+        return choice, fit_of(choice)
+    kt = None
+    if any(r.tau is None for r in validation) and robot.drives is not None:
+        kt = np.array([d.kt for d in robot.drives], dtype=float)
+
+    def compare(before, after):
+        models = [CalibratedModel.from_fit(robot, model, f, robot_source=robot.source) for f in (before, after)]
+        return compare_models(*models, model, validation, kt)
+
+    logger.info("identify: checking the %d column(s) the held-out data alone decided on the model it writes ...",
+                len(choice.departures))  # fmt: skip
+    return check_departures(choice, fit_of, compare)
 
 
 def _file_check(robot, model, recordings, validation, options, fit, calibrated, configurations) -> FileCheck:

@@ -210,3 +210,65 @@ def test_an_offset_is_taken_only_if_it_holds_on_each_validation_recording(denso,
     # each recording alone is no contradiction: with the first only, the offset is taken
     alone = choose_columns(denso, denso_model, [train], request=request, validation=[first])
     assert alone.offset_joints == (1, 2)
+
+
+def test_a_shape_or_drive_column_the_training_bic_is_indifferent_to_must_hold_out_by_the_stated_gain(
+    denso, denso_model, no_rotor, monkeypatch
+):
+    """One verdict for every kind of column: with the indifferent band widened to every BIC, joint 1's true Stribeck
+    hump and the rotors' true drive inertias (torques measured on the motor side) are kept exactly when their own
+    held-out gain reaches ``HELD_OUT_GAIN``, and a refusal is stated with its numbers."""
+    import identification.calibration.column_choice as column_choice
+
+    recording = synthetic(denso, 5, stribeck=[6.0, 2.0, 2.0, 2.0, 2.0, 2.0])
+    request = ColumnRequest(offset="off", drive_inertia="off")
+    hump = choose_columns(denso, denso_model, [recording], request=request).evidence[0]
+    assert hump.kept and hump.delta_bic > 10  # outside the band: the BIC and any held-out gain decide
+    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    gain = 1.0 - np.sqrt(hump.held_out_ratio)
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain + 0.01)
+    refused = choose_columns(denso, denso_model, [recording], request=request)
+    assert not refused.evidence[0].kept and refused.stribeck_joints != (0,)
+    assert any(line.startswith("Stribeck shape refused on joint 1") and f"by {gain:.0%}, less than" in line
+               for line in refused.describe())  # fmt: skip
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain - 0.01)
+    assert choose_columns(denso, denso_model, [recording], request=request).evidence[0].kept
+    robot, model = no_rotor
+    drive = ColumnRequest(friction="coulomb-viscous", offset="off")
+    motor = synthetic(denso, 4)
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 0.0)
+    assert choose_columns(robot, model, [motor], request=drive).inertia_joints == (2, 3, 4, 5)
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)  # no column lowers its joint's error by 100 %
+    none = choose_columns(robot, model, [motor], request=drive)
+    assert none.inertia_joints == ()
+    assert any(line.startswith("drive inertia refused on joint 3 (+0.5") for line in none.describe())
+
+
+def test_a_column_the_held_out_data_alone_decide_is_checked_on_the_model_identify_writes(
+    denso, denso_model, monkeypatch
+):
+    """``column_check``: a column whose verdict the held-out data alone made (``Evidence.departs``) is judged on the
+    consistent fit identify writes. With every BIC inside the indifferent band and a held-out gain no column can reach
+    (100 %), the choice refuses the true offsets of joints 2, 3 and 5 too; refusing them makes those joints worse on
+    the held-out recording beyond the never-worse margin, so the training BIC decides and they are kept, with the
+    numbers, while the offsets without truth (joints 1, 4, 6) stay refused and no joint ends worse than the plain
+    rule's model."""
+    import identification.calibration.column_choice as column_choice
+    from identification.calibration.identify_route import identify_recordings
+
+    train, held = synthetic(denso, 2, offset=OFFSET), synthetic(denso, 3, offset=OFFSET)
+    request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
+    plain = identify_recordings(denso, denso_model, [train], request=request, validation=[held], counterbalance=False)
+    assert plain.choice.offset_joints == (1, 2, 4) and not plain.choice.departures
+    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
+    refused = choose_columns(denso, denso_model, [train], request=request, validation=[held])
+    assert refused.offset_joints == () and {e.joint for e in refused.departures} == {1, 2, 4}
+    result = identify_recordings(denso, denso_model, [train], request=request, validation=[held], counterbalance=False)
+    assert result.choice.offset_joints == (1, 2, 4)
+    for e in result.choice.evidence:
+        assert e.kept == (OFFSET[e.joint] != 0.0)
+        if e.kept:  # the refusal made its own joint worse (joint 3's also joints 1-2: the rigid body absorbs it)
+            assert "refusing it makes the model identify writes worse on the held-out recordings" in e.reason
+            assert f"joint {e.joint + 1}: " in e.reason and "so the training BIC decides" in e.reason
+    np.testing.assert_allclose(result.fit.theta, plain.fit.theta, rtol=1e-6, atol=1e-9)
