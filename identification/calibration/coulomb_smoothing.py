@@ -9,13 +9,25 @@ that time a joint reversing at acceleration ``a`` passes through the velocities 
 
 ``TrajectoryOptions.coulomb_velocity`` (0.05 rad/s) is that value for the accelerations of exciting trajectories
 (``a >= 2.5 rad/s^2`` at 10 Hz) and is kept for them, and for any recording that wants at least half of it
-(``KEEP``). A slow recording (gravity poses, a heavy arm moved gently)
+(``KEEP``): a real sensor smooths the step too (the Panda's recording wants 0.037 rad/s by the filter alone; taking it
+raised its joint 7 from 0.0515 to 0.0533 N m, over the benchmark's 2 % margin against the fit without choices). A slow
+recording (gravity poses, a heavy arm moved gently)
 reverses at a fraction of that: its friction step is sharp on the scale of 0.05 rad/s, where ``tanh`` is still
 far from the sign (on the unseen KR6-like arm moved at a tenth of its speeds, a third of the samples had
 ``|qd| < 0.01 rad/s``), and the fit bent its Stribeck and gravity parameters to make up for the missing
 friction (validation 2.5 N m on joint 2 against a floor of 0.45). :func:`smoothing_velocity` then takes
 ``v`` from the median acceleration over every reversal of every joint (each reversal one friction step the
-column must follow), never above 0.05 rad/s nor below ``MIN_VELOCITY``, and says what it chose. Each reversal
+column must follow), never above 0.05 rad/s nor below ``MIN_VELOCITY``, and says what it chose.
+
+Between the two the default gives way gradually (:func:`eased_velocity`), not at a switch: below ``KEEP`` of the
+default ``v = default (w / (KEEP default))^2`` for the filter's value ``w``, until that meets ``w`` itself at ``KEEP^2``
+of the default (0.0125 rad/s), ``w`` below. The median is an estimate from a sample of reversals (a few tens on a
+slow recording) and both smearings, the filter's and a sensor's own, are there in proportions the recording does not
+show; a switch turned a few percent of that estimate into a factor of 2 in ``v`` (the unseen MCAP arm at seed 0
+wanted 0.0246 rad/s, took it, where 0.0251 would have taken 0.05, and its diagnosis named a false wrist elasticity).
+Eased, ``v`` is continuous and increasing in ``w`` (0.048 rad/s there) and unchanged outside 0.0125-0.025 rad/s:
+the virtual slow arms (0.002-0.009 rad/s) keep the filter's value their validation wants, the exciting ones and the
+Panda the default. Each reversal
 counts, not each joint: a slow recording's joints that reverse once, in its fast start or stop, would otherwise
 outvote the joints that reverse slowly all through it (the unseen KR6-like arm at seed 1: joints 1-3 reversed once
 each at 1.6-2.5 rad/s^2, joints 4 and 6 twelve times at 0.1; the median of the joints' medians kept 0.05 rad/s, joint
@@ -31,12 +43,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["MIN_VELOCITY", "SmoothingChoice", "reversal_accelerations", "smoothing_velocity"]
+__all__ = ["KEEP", "MIN_VELOCITY", "SmoothingChoice", "eased_velocity", "reversal_accelerations", "smoothing_velocity"]
 
 #: The smooth sign's velocity per unit of reversal acceleration and cutoff: ``v = SPREAD * a / cutoff``.
 SPREAD = 0.2
-#: The default stays unless the reversals want less than this share of it (the Panda's real recording wants 0.038
-#: rad/s and validates a hair worse with it, 0.2 % to 3 % per joint: a sensor's own smoothing beside the filter's).
+#: The default stays unless the reversals want less than this share of it (the Panda's real recording wants 0.037
+#: rad/s and validates a hair worse with it, 0.2 % to 3 % per joint: a sensor's own smoothing beside the filter's);
+#: below, it gives way to the filter's value by ``KEEP^2`` of it (:func:`eased_velocity`).
 KEEP = 0.5
 #: Never sharper than this [rad/s] (a sign at the velocity noise of a filtered encoder).
 MIN_VELOCITY = 1e-3
@@ -84,10 +97,16 @@ class SmoothingChoice:
             return f"Coulomb smoothing: tanh(qd / {self.velocity:g} rad/s) (as asked)"
         if not self.changed:
             return f"Coulomb smoothing: tanh(qd / {self.default:g} rad/s) (the joints reverse fast enough)"
+        smear = SPREAD * self.acceleration / self.cutoff_hz  # the filter's own value
+        eased = (
+            f"; eased from its {smear:.2g} rad/s towards the default, as a sensor may smooth the step too"
+            if self.velocity > max(smear, MIN_VELOCITY) * 1.001
+            else ""
+        )
         return (
             f"Coulomb smoothing: tanh(qd / {self.velocity:.3g} rad/s), not {self.default:g} (chosen from the data: "
             f"the joints reverse at a median |qdd| of {self.acceleration:.3g} rad/s^2, and the {self.cutoff_hz:g} Hz "
-            f"filter smears their friction step over +-{self.velocity * 1.1:.2g} rad/s only)"
+            f"filter smears their friction step over +-{smear * 1.1:.2g} rad/s only{eased})"
         )
 
 
@@ -110,9 +129,19 @@ def smoothing_velocity(prepared, cutoff_hz: float, default: float) -> SmoothingC
     acceleration = float(np.median(every)) if every.size else float("nan")
     if not np.isfinite(acceleration) or not cutoff_hz:
         return SmoothingChoice(default, default, acceleration, float(cutoff_hz or 0.0))
-    wanted = SPREAD * acceleration / cutoff_hz
-    velocity = default if wanted >= KEEP * default else float(max(wanted, min(MIN_VELOCITY, default)))
+    velocity = eased_velocity(SPREAD * acceleration / cutoff_hz, default)
     return SmoothingChoice(velocity, default, acceleration, float(cutoff_hz))
+
+
+def eased_velocity(wanted: float, default: float) -> float:
+    """The smoothing velocity [rad/s] for the filter's value ``wanted`` (``SPREAD a / cutoff``): ``default`` from
+    ``KEEP default`` up, ``default (wanted / (KEEP default))^2`` below until that meets ``wanted`` at
+    ``KEEP^2 default``, ``wanted`` further down, never below ``MIN_VELOCITY`` (module docstring). Continuous and
+    non-decreasing in ``wanted``."""
+    if wanted >= KEEP * default:
+        return float(default)
+    eased = default * (wanted / (KEEP * default)) ** 2
+    return float(max(wanted, eased, min(MIN_VELOCITY, default)))
 
 
 def reversal_accelerations(t, qd, qdd) -> np.ndarray:
