@@ -15,40 +15,88 @@ torque signal holds rotors (``merged_rotors``: any kept ``Ia<j>``), so the rotor
 
 So each such column is decided on the written model, one at a time (in the choice's order): the model is fitted with
 the choice as it stands and with that column as the plain rule would have it (its BIC's sign and the pooled held-out
-error), and the choice stands unless it is worse than the plain one beyond the never-worse margin
-(``never_worse.compare_models``) on some joint of the held-out recordings. A refusal is a model change as much as a
-keep: it is judged the same way. Each departure costs one consistent fit; without held-out recordings (the choice then
-cross-validates over the training blocks) there is nothing to check on, and the choice stands as made.
+error), and the choice stands unless it is worse than the plain one beyond the never-worse margin on some joint of
+the held-out data. A refusal is a model change as much as a keep: it is judged the same way. The held-out data are the
+validation recordings (``never_worse.compare_models``; one more consistent fit per departure), else, as for identify's
+counterbalance, a block cross-validation of the training recordings with each fold's two models identified on its
+other blocks (``counterbalance_folds``; 2 x 4 more fits per departure). Training recordings too short to cut into
+blocks, or carrying payloads, leave the choice as the held-out verdict made it, and its reason says so.
 """
 
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
-__all__ = ["check_departures"]
+import numpy as np
+
+from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.counterbalance_folds import FoldFailure, block_folds
+from identification.calibration.never_worse import compare_models
+from identification.calibration.trajectory_fit import identify_trajectories
+
+__all__ = ["check_departures", "written_model_judge"]
 
 logger = logging.getLogger(__name__)
 
 
-def check_departures(choice, fit_of, compare) -> tuple:
+def check_departures(choice, fit, fit_of, compare) -> tuple:
     """(choice, its fit) after each of ``choice.departures`` was checked on the written model (module docstring).
 
-    ``fit_of(choice)``: the fit of a ``ColumnChoice``; ``compare(before, after)``: the ``never_worse.JointComparison``
-    of two fits on the held-out recordings (``before``: the plain rule's, ``after``: the choice's).
+    ``fit``: the fit of ``choice``; ``fit_of(choice)``: the fit of a ``ColumnChoice``; ``compare(before, after)``: the
+    ``never_worse.JointComparison`` of two ``(choice, fit)`` pairs on held-out data (``before``: the plain rule's,
+    ``after``: the choice's; :func:`written_model_judge`), raising ``FoldFailure`` when it cannot judge.
     """
-    fit = fit_of(choice)
     for evidence in choice.departures:
         current = next(e for e in choice.evidence if (e.term, e.joint) == (evidence.term, evidence.joint))
-        plain_fit = fit_of(choice.decided(current, not current.kept, current.reason))
-        comparison = compare(plain_fit, fit)
+        plain = choice.decided(current, not current.kept, current.reason)
+        plain_fit = fit_of(plain)
         what = "keeping" if current.kept else "refusing"
+        try:
+            comparison = compare((plain, plain_fit), (choice, fit))
+        except FoldFailure as failure:
+            reason = f"{current.reason}; not checked on the model identify writes ({failure})"
+            choice = choice.decided(current, current.kept, reason)
+            logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
+            continue
         if comparison.worse:
             reason = (f"{current.reason}; but {what} it makes the model identify writes worse on the held-out "
-                      f"recordings: {comparison.text()} (as the training BIC decides -> as the held-out data decide), "
-                      "so the training BIC decides")  # fmt: skip
+                      f"data: {comparison.text()} (as the training BIC decides -> as the held-out data decide), so "
+                      "the training BIC decides")  # fmt: skip
             choice, fit = choice.decided(current, not current.kept, reason), plain_fit
         else:
-            reason = f"{current.reason}; the model identify writes is no worse on any held-out joint for {what} it"
+            reason = (f"{current.reason}; the model identify writes is no worse on any held-out joint for {what} it "
+                      f"({comparison.text([current.joint])}, as the training BIC decides -> as the held-out data "
+                      "decide)")  # fmt: skip
             choice = choice.decided(current, current.kept, reason)
         logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
     return choice, fit
+
+
+def written_model_judge(problem, validation, cutoff_hz):
+    """The ``compare`` of :func:`check_departures` for ``problem`` = (robot, model, training recordings, options,
+    configurations): on the ``validation`` recordings when given (``never_worse.compare_models``), else by block
+    cross-validation of the training recordings, each fold's two models identified on its other blocks
+    (``counterbalance_folds.BlockFolds.compare``, as identify's counterbalance is judged); or a sentence saying why
+    there is none (recordings too short to cut, payloads)."""
+    robot, model, recordings, options, configurations = problem
+    kt = None
+    if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:
+        kt = np.array([d.kt for d in robot.drives], dtype=float)
+
+    def build(fit):
+        return CalibratedModel.from_fit(robot, model, fit, robot_source=robot.source)
+
+    if validation:
+        return lambda before, after: compare_models(build(before[1]), build(after[1]), model, list(validation), kt)
+    folds = block_folds(recordings, configurations, cutoff_hz)
+    if isinstance(folds, str):
+        return folds
+
+    def refit(choice):
+        return lambda pieces: build(identify_trajectories(robot, model, list(pieces), choice.options(options)))
+
+    def by_folds(before, after):
+        return replace(folds, baselines={}).compare(refit(before[0]), refit(after[0]), model, kt)[0]
+
+    return by_folds

@@ -17,14 +17,11 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from identification.calibration.calibrated_model import CalibratedModel
-from identification.calibration.column_check import check_departures
+from identification.calibration.column_check import check_departures, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
 from identification.calibration.held_back import stored_held_back
-from identification.calibration.never_worse import compare_models
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
@@ -182,24 +179,24 @@ def identify_recordings(
 
 def _checked_fit(robot, model, recordings, options, choice, validation, configurations) -> tuple:
     """(choice, fit): the consistent fit of ``choice``, each column the held-out data alone decided checked on it
-    (``column_check``) when there are held-out recordings."""
+    (``column_check``: on the held-out recordings, else by block cross-validation of the training recordings)."""
 
     def fit_of(columns):
         return identify_trajectories(robot, model, recordings, columns.options(options), configurations=configurations)
 
-    if not (validation and choice.departures):
-        return choice, fit_of(choice)
-    kt = None
-    if any(r.tau is None for r in validation) and robot.drives is not None:
-        kt = np.array([d.kt for d in robot.drives], dtype=float)
-
-    def compare(before, after):
-        models = [CalibratedModel.from_fit(robot, model, f, robot_source=robot.source) for f in (before, after)]
-        return compare_models(*models, model, validation, kt)
-
+    fit = fit_of(choice)
+    if not choice.departures:
+        return choice, fit
+    cutoffs = [c for c in fit.cutoff_hz if c]
+    problem = (robot, model, recordings, options, configurations)
+    judge = written_model_judge(problem, validation, min(cutoffs) if cutoffs else None)
+    if isinstance(judge, str):
+        logger.info("identify: the columns the held-out data alone decided are not checked on the model it writes: "
+                    "%s", judge)  # fmt: skip
+        return choice, fit
     logger.info("identify: checking the %d column(s) the held-out data alone decided on the model it writes ...",
                 len(choice.departures))  # fmt: skip
-    return check_departures(choice, fit_of, compare)
+    return check_departures(choice, fit, fit_of, judge)
 
 
 def _file_check(robot, model, recordings, validation, options, fit, calibrated, configurations) -> FileCheck:

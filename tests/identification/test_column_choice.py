@@ -269,6 +269,27 @@ def test_a_column_the_held_out_data_alone_decide_is_checked_on_the_model_identif
     for e in result.choice.evidence:
         assert e.kept == (OFFSET[e.joint] != 0.0)
         if e.kept:  # the refusal made its own joint worse (joint 3's also joints 1-2: the rigid body absorbs it)
-            assert "refusing it makes the model identify writes worse on the held-out recordings" in e.reason
+            assert "refusing it makes the model identify writes worse on the held-out data" in e.reason
             assert f"joint {e.joint + 1}: " in e.reason and "so the training BIC decides" in e.reason
     np.testing.assert_allclose(result.fit.theta, plain.fit.theta, rtol=1e-6, atol=1e-9)
+
+
+def test_without_held_out_recordings_the_written_model_is_checked_by_block_cross_validation(
+    denso, denso_model, monkeypatch
+):
+    """``column_check`` without validation recordings: the training recording cut into blocks, each fold's two models
+    identified on the others (as identify's counterbalance is judged). The true offset of joint 2, refused by a held-out
+    gain no column reaches (100 %), is kept: refusing it makes joint 2 worse on the held-out blocks."""
+    import identification.calibration.column_choice as column_choice
+    from identification.calibration.identify_route import identify_recordings
+
+    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
+    train = synthetic(denso, 2, offset=np.array([0.0, 3.0, 0.0, 0.0, 0.0, 0.0]), duration=8.0)
+    request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
+    assert [e.joint for e in choose_columns(denso, denso_model, [train], request=request).departures] == [1]
+    result = identify_recordings(denso, denso_model, [train], request=request, counterbalance=False)
+    assert result.choice.offset_joints == (1,) and result.fit.drive_names.count("offset2") == 1
+    reason = next(e.reason for e in result.choice.evidence if e.joint == 1)
+    assert "refusing it makes the model identify writes worse on the held-out data: joint " in reason
+    assert "joint 2: " in reason and "so the training BIC decides" in reason
