@@ -30,8 +30,10 @@ there that no single column, with the others held, explains much (scores 0.1-2.4
 
 Each is named in words (:func:`parameter_words`: the inertia about a joint, the gravity torque of a link, an inertia
 of a link, a drive inertia) with the likely absorbed effect in the envelope check's vocabulary
-(``envelope_report.ABSORBED_EFFECTS`` and ``effect_phrase``) and the route that finds it: ``psdm diagnose`` against
-the robot file, or (where no bound is active, only the pull) a weaker pull, ``--prior-uncertainty``.
+(``envelope_report.ABSORBED_EFFECTS`` and ``effect_phrase``), chosen from the evidence and with the alternatives that
+fit it too (``absorbed_effect``: the sign an effect can give the parameter, the joints whose torque the difference
+moves, gravity or inertial), and the route that finds it: ``psdm diagnose`` against the robot file, or (where no
+bound is active, only the pull) a weaker pull, ``--prior-uncertainty``.
 """
 
 from __future__ import annotations
@@ -40,12 +42,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from identification.calibration.envelope_report import (
-    DIAGNOSE_ROUTE,
-    MIN_REFUSED_SIGMA,
-    effect_phrase,
-    pressed_findings,
-)
+from identification.calibration.absorbed_effect import absorbed_phrase, angle_following, likely_effects, torque_shares
+from identification.calibration.envelope_report import DIAGNOSE_ROUTE, MIN_REFUSED_SIGMA, pressed_findings
 from identification.calibration.prior_pull import prior_scale
 from identification.data.excitation_check import joint_label
 
@@ -96,11 +94,18 @@ class HeldBack:
         parameters it combines, ``sqrt(sum((c_p scale_p)^2))``): the relative uncertainty a pull would have to state
         to let the data have it.
     absorbs : str
-        One of ``envelope_report.ABSORBED_EFFECTS``: what the data most likely hold there.
+        One of ``envelope_report.ABSORBED_EFFECTS`` (or ``absorbed_effect.UNEXPLAINED``): what the data most likely
+        hold there (``absorbed_effect.likely_effects``).
     holder : str
         ``"envelope"`` (a bound of the link or drive is active) or ``"pull"`` (the pull towards the robot file alone).
     message : str
         The report's sentence.
+    alternatives : tuple of str
+        Other effects the evidence fits too, likelier first (none in files written before they were stored).
+    effect_joint : int
+        0-based joint the effect acts on (where the difference's torque sits); -1: ``joint`` (files written before).
+    evidence : str
+        What the effects were chosen from, in words (``absorbed_effect.likely_effects``).
     """
 
     parameter: str
@@ -116,6 +121,9 @@ class HeldBack:
     absorbs: str
     holder: str
     message: str = ""
+    alternatives: tuple = ()
+    effect_joint: int = -1
+    evidence: str = ""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -149,16 +157,6 @@ def _owner_link(model, robot, k: int) -> int:
     return int(np.argmax(sizes.sum(axis=1)))
 
 
-def _absorbs(kind: str, link: int, distal: list, more: bool) -> str:
-    """The likely effect (``ABSORBED_EFFECTS``) behind a held-back parameter of ``kind`` on ``link``, the data wanting
-    ``more`` than the fit keeps or less: a load at the flange on the last two links that carry mass, elsewhere a
-    counterbalance for a gravity term or for less inertia (a torque following the position looks like a negative
-    inertia on a periodic motion, as for the envelope's drive bounds), else extra inertia (a rotor, a tool, cables)."""
-    if link in distal and kind != "axis":
-        return "payload"
-    return "drive_inertia" if kind != "gravity" and more else "counterbalance"
-
-
 def _picks(d, covariance, candidates, threshold: float) -> list:
     """Greedy: the candidate columns farthest from the data's estimate, each then taken at the data's value and the
     others conditioned on it (module docstring)."""
@@ -183,9 +181,10 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
     robot, model : RobotDescription, PSDMModel
         As fitted (``model.n_base`` base parameters, then the drive columns ``names``).
     fitted : tuple
-        ``(x_fit, x_ols, equations, sigma)``: the consistent fit's and the unconstrained weighted least squares'
-        (base, drive) parameters, the training data's normal equations over them (``trajectory_data``) and the
-        joints' noise levels [N m].
+        ``(x_fit, x_ols, equations, sigma[, prepared])``: the consistent fit's and the unconstrained weighted least
+        squares' (base, drive) parameters, the training data's normal equations over them (``trajectory_data``), the
+        joints' noise levels [N m] and the prepared training recordings (whether the motion is periodic,
+        ``absorbed_effect.angle_following``; without them a torque of the angle may pass for less inertia).
     covariance : array
         Of ``x_ols`` over the same columns (0 rows and columns: a column held at 0).
     names : sequence of str
@@ -199,7 +198,7 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
     """
     if robot.links is None:
         return ()
-    x_fit, x_ols, equations, noise = fitted
+    x_fit, x_ols, equations, noise, *prepared = fitted
     n = model.n_base + len(names)
     d = np.asarray(x_fit, dtype=float)[:n] - np.asarray(x_ols, dtype=float)[:n]
     covariance = np.asarray(covariance, dtype=float)[:n, :n]
@@ -220,6 +219,9 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
                                   np.maximum(np.abs(file[model.n_base :]), 1e-3)])  # fmt: skip
     masses = [i for i in range(robot.n_dof) if prior[i, 0] > 0]
     pressed = {(f.link, any(b.startswith("drive") for b in f.bounds)) for f in pressed_findings(envelope)}
+    shares = torque_shares(-d, equations, noise)
+    following = angle_following(prepared[0], robot.n_dof) if prepared else None
+    columns = {int(names[k - model.n_base][2:]) - 1: k for k in drives}
     out = []
     for k in _picks(d, covariance, candidates, threshold):
         if k < model.n_base:
@@ -231,8 +233,11 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
             words, kind, name = f"the drive inertia of {joint_label(joint, robot)}", "axis", names[k - model.n_base]
             held = (joint, True) in pressed
         values = (float(v) for v in (x_fit[k], x_ols[k], std[k], file[k], -d[k] / std[k], torque[k], sizes[k]))
-        item = HeldBack(name, words, joint, *values, _absorbs(kind, joint, masses[-2:], d[k] < 0),
-                        "envelope" if held else "pull")  # fmt: skip
+        evidence = {"kind": kind, "joint": joint, "wanted": -d, "shares": shares, "drives": columns,
+                    "distal": masses[-2:], "following": following}  # fmt: skip
+        effects, at, why = likely_effects(model, robot, k, evidence)
+        item = HeldBack(name, words, joint, *values, effects[0], "envelope" if held else "pull",
+                        alternatives=effects[1:], effect_joint=at, evidence=why)  # fmt: skip
         out.append(HeldBack(**{**item.to_dict(), "message": _message(item, robot)}))
     return tuple(out)
 
@@ -240,6 +245,7 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
 def _message(item: HeldBack, robot) -> str:
     """The report's sentence: what the data want, what the model keeps and why, what it most likely is, what to run."""
     more = "more" if item.data > item.fitted else "less"
+    effects, at = (item.absorbs, *item.alternatives), item.effect_joint if item.effect_joint >= 0 else item.joint
     why = (
         "the robot file's links cannot give " + more + " inside their envelopes and bounds"
         if item.holder == "envelope"
@@ -257,7 +263,8 @@ def _message(item: HeldBack, robot) -> str:
         f"{item.words} ({item.parameter}): the data want {item.data:.4g} +/- {item.data_std:.2g}, the model keeps "
         f"{item.fitted:.4g} (robot file {item.file:.4g}; {abs(item.sigma_off):.1f} standard deviations apart, "
         f"{item.torque_sigma:.2g} x the noise in RMS torque) because "
-        f"{why}. The data most likely hold {effect_phrase(item.absorbs, item.joint, robot)}; {route}."
+        f"{why}. The data most likely hold {absorbed_phrase(effects, at, robot)}"
+        f"{f' ({item.evidence})' if item.evidence else ''}; {route}."
     )
 
 
@@ -271,5 +278,5 @@ def stored_held_back(envelope_bounds) -> tuple:
     """The ``HeldBack`` of a fit's ``envelope_bounds`` pairs or a model file's ``standard.envelope`` dict (none in a
     file written before they were stored)."""
     unstated = {"torque_sigma": float("nan"), "file_sizes": float("nan")}  # written before these were stored
-    return tuple(HeldBack(**{**unstated, **entry})
-                 for entry in dict(envelope_bounds or {}).get("held_back", ()))  # fmt: skip
+    entries = [{**unstated, **entry} for entry in dict(envelope_bounds or {}).get("held_back", ())]
+    return tuple(HeldBack(**{**e, "alternatives": tuple(e.get("alternatives", ()))}) for e in entries)

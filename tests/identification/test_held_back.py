@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pytest
 
+from identification.calibration.absorbed_effect import likely_effects
 from identification.calibration.calibrated_model import load_calibrated_model
 from identification.calibration.envelope_report import ABSORBED_EFFECTS
 from identification.calibration.held_back import HELD_BACK_SIGMA, ROUGH_FILE, parameter_words, stored_held_back
@@ -72,6 +73,46 @@ def test_a_hidden_inertia_beyond_the_files_links_is_named_with_the_datas_value(d
     assert any(f.link == 0 and "drive inertia upper" in f.bounds for f in fit.envelope)
     assert "the data want" in item.message and "psdm diagnose" in item.message
     assert "extra inertia on joint 1" in item.message
+
+
+def test_a_tool_at_the_flange_is_named_a_payload_where_it_moves_an_inertia_about_a_wrist_joint(denso, denso_model):
+    """An unstated 2 kg tool 0.16 m off the flange: beside link 5's gravity and inertia (the last body of the model,
+    the old rule's payload too), the fit holds back the inertia about joint 4, which the old rule named extra inertia
+    on joint 4 (a rotor). The tool's torque is on every wrist and arm joint, and a body at the flange raises that
+    inertia: a payload first, the rotor as the alternative; no item names a counterbalance first."""
+    tool = xp.Payload(mass=2.0, com=np.array([0.05, 0.0, 0.15]))
+    fit = identify_trajectories(denso, denso_model, [rigid_recording(denso, [tool])], TrajectoryOptions())
+    held = stored_held_back(fit.envelope_bounds)
+    assert held and all(h.absorbs == "payload" for h in held), [(h.words, h.absorbs) for h in held]
+    wrist = [h for h in held if h.words.startswith("the inertia about joint 4")]
+    assert wrist and wrist[0].data > wrist[0].fitted and "drive_inertia" in wrist[0].alternatives
+    assert "a payload or tool at the flange" in wrist[0].message and "its torque over joints" in wrist[0].message
+    assert "a body at the flange can give it" in wrist[0].message
+
+
+def test_a_counterbalance_is_named_a_counterbalance_and_the_motion_decides_it_against_a_drive(denso, denso_model):
+    """A cam counterbalance of 15 N m on joint 4 on a sine experiment (its acceleration follows its angle): the data
+    want less inertia about joint 4, its torque on joint 4 alone; no body at the flange or rotor gives less inertia,
+    a torque of the angle on a periodic motion does: a counterbalance on joint 4, a drive's dynamics the alternative.
+    The same evidence on moves between rests (no periodic motion to pass a torque of the angle for an inertia) puts
+    the drive's dynamics first."""
+    cam = xp.CamCounterbalance(joint=3, amplitude=15.0)
+    fit = identify_trajectories(denso, denso_model, [rigid_recording(denso, [cam])], TrajectoryOptions())
+    (item,) = stored_held_back(fit.envelope_bounds)
+    assert item.words.startswith("the inertia about joint 4") and item.data < item.fitted
+    assert item.absorbs == "counterbalance" and item.effect_joint == 3 and item.alternatives == ("drive_dynamics",)
+    assert "a counterbalance or spring on joint 4" in item.message and "periodic" in item.message
+    k = denso_model.base_names.index(item.parameter)
+    wanted = np.zeros(denso_model.n_base + 6)
+    wanted[k] = item.data - item.fitted
+    shares = np.eye(denso.n_dof)[3]
+    evidence = {"kind": "axis", "joint": 3, "wanted": wanted, "shares": shares, "drives": {}, "distal": [3, 4]}
+    periodic, _, _ = likely_effects(denso_model, denso, k, {**evidence, "following": np.ones(6)})
+    at_rest, at, words = likely_effects(denso_model, denso, k, {**evidence, "following": np.zeros(6)})
+    assert periodic == ("counterbalance", "drive_dynamics") and at_rest == ("drive_dynamics", "counterbalance")
+    assert at == 3 and "moves between rests" in words and "its torque on joint 4 (100%)" in words
+    more, _, words = likely_effects(denso_model, denso, k, {**evidence, "wanted": -wanted, "following": None})
+    assert more[0] == "drive_inertia" and "counterbalance" not in more and "more inertia" in words
 
 
 def test_a_clean_robot_says_nothing(denso, denso_model):
