@@ -4,24 +4,29 @@ A parameter the data want away from the fit (``held_back``) is named with the ef
 envelope check's vocabulary (``envelope_report.ABSORBED_EFFECTS``). A rule on the link and the sign alone named "a
 counterbalance" for any inertia the data want smaller on a link other than the last two: on the unseen slow-gravity
 arm with its tool stated (seed 2) an inertia of link 3 the data want at -0.73 +/- 0.22 was called a counterbalance
-where there is none. The effect follows here from four pieces of evidence, and the others that fit them too are
-listed as alternatives:
+where there is none. The effect follows here from the evidence, and the others that fit it too are listed as
+alternatives:
 
 - the sign an effect can give the parameter. Each rigid-body effect has a direction in the base parameters: a body
   at the flange (a point mass at the last body's frame, at its origin or 0.1 m along one of its axes: a tool's place
   is not known) ``P pi_payload``, an inertia about joint ``j`` (a rotor, a drive) the column of ``Im_j`` (or the
   drive's own column ``Ia_j``). An effect is a candidate only if one of its directions moves the parameter the way
-  the data want (an added body cannot make an inertia about a joint smaller);
+  the data want (an added rotor cannot make an inertia about a joint smaller);
 - which joints carry the torque of the difference (``d = x_ols - x_fit`` over every column, per joint in noise
   levels through the training data's normal equations): a counterbalance or a drive acts on its own joint
   (``LOCAL``: at least 80 % of the squared torque on one joint), a body at the flange on every joint that carries it;
-- gravity or inertial: a counterbalance is a torque of the angle, seen as a gravity term of either sign or, on a
-  periodic motion (``qdd = -w^2 q``), as an inertia the data want smaller, never larger;
+- gravity or inertial, and the motion: a counterbalance is a torque of the angle, seen as a gravity term of either
+  sign or, on a periodic motion (``qdd = -w^2 q``: ``angle_following`` >= ``FOLLOWING``), as an inertia the data
+  want smaller, never larger. On moves between rests a torque of the angle does not pass for an inertia; less
+  inertia on one joint is then first a dynamic of its drive the model lacks (``"drive_dynamics"``: friction that
+  lags through the reversals, an elastic transmission, a delay), the counterbalance the alternative;
 - where: a parameter of the last two links with mass is moved by a tool at the flange either way (its centre of mass
   and inertia shift), so a payload comes first there, as the envelope check names it.
 
 Where no effect fits the evidence the parameter is named ``"unexplained"`` (:func:`absorbed_phrase` says so): the
-data want something none of a payload, extra inertia or a counterbalance gives.
+data want something none of a payload, extra inertia or a counterbalance gives. The evidence is stated beside the
+effect (``likely_effects``' third value: "less inertia; its torque on joint 4 (97%); an acceleration that follows
+the angle (0.90: periodic); no body at the flange gives it", a cam on joint 4).
 """
 
 from __future__ import annotations
