@@ -40,7 +40,7 @@ from bench_support import DENSO_FILE, print_json, print_table
 
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.finding_value import validation_rmse
-from identification.calibration.payload_check import new_payload
+from identification.calibration.payload_check import model_columns, new_payload
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.configuration import PayloadConfiguration
 from identification.data.payload import Payload
@@ -115,7 +115,7 @@ def new_payload_rows(robot, model, fit, duration: float, seed: int) -> list:
     for k, load in enumerate((*NEW, None, None)):
         recording = record(robot, seed + k, load, duration, f"new{k + 1}")
         _, _, prepared, predicted = validation_rmse(calibrated, model, recording)
-        found = new_payload(robot, prepared, predicted, name=recording.name)
+        found = new_payload(robot, prepared, predicted, recording.name, model_columns(calibrated, model, prepared))
         truth = 0.0 if load is None else load.mass
         mass = None if found is None else found.mass
         ok = found is None if load is None else mass is not None and abs(mass - truth) <= NEW_MASS_TOLERANCE * truth
@@ -150,7 +150,7 @@ def diagnose_row(robot, model, calibrated, duration: float, seed: int) -> dict:
                       DiagnosisOptions(friction=friction), model=model)  # fmt: skip
     payloads = [f.parameters or {} for f in report.findings if f.effect == "payload"]
     _, _, prepared, predicted = validation_rmse(calibrated, model, validation)
-    check = new_payload(robot, prepared, predicted)  # what diagnose MODEL prints beside the findings
+    check = new_payload(robot, prepared, predicted, own=model_columns(calibrated, model, prepared))  # diagnose MODEL's
     mass = payloads[0].get("mass") if payloads else None
     com = [payloads[0].get(f"com_{a}") for a in "xyz"] if payloads else None
     return {

@@ -256,11 +256,11 @@ def _payload_check(args, calibrated, robot, model, validation):
     (``payload_check.new_payload``: mass and centre of mass at the flange), or None."""
     import numpy as np
 
-    from identification.calibration.payload_check import new_payload, validation_with_payload
+    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
 
     kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
     _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
-    return new_payload(robot, prepared, predicted, name=str(args.validate))
+    return new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
 
 
 def _preparation(args, calibrated, train):

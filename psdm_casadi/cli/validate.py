@@ -64,7 +64,7 @@ def register(subparsers) -> None:
 
 def _run_validate(args) -> int:
     from identification.calibration.model_preparation import model_preparation
-    from identification.calibration.payload_check import new_payload, validation_with_payload
+    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.trajectory_checks import check_validation_recording
     from identification.data.configuration import stated_configuration
@@ -107,7 +107,8 @@ def _run_validate(args) -> int:
         error, r2, prepared, predicted = validation_with_payload(
             robot, calibrated, model, recording, _torque_constants(robot, recording), stated
         )
-        load = new_payload(robot, prepared, predicted, name=str(path))  # a load the model does not have
+        own = model_columns(calibrated, model, prepared)  # the model's own error, allowed for in the load's
+        load = new_payload(robot, prepared, predicted, name=str(path), own=own)  # a load the model does not have
         rows.append({"recording": str(path), "rmse": _numbers(error), "r2": _numbers(r2),
                      "prepared": prepared, "predicted": predicted, "payload": load,
                      "stated_payload_kg": None if stated is None else float(stated[0])})  # fmt: skip
