@@ -51,6 +51,13 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from identification.calibration.finding_value import validation_rmse
+from identification.paired_margin import (
+    BOOTSTRAP_SAMPLES,
+    MARGIN_FLOOR,
+    MARGIN_SIGMAS,
+    block_length,
+    paired_rmse_margin,
+)
 from psdm_casadi.errors import PSDMError
 
 __all__ = [
@@ -73,12 +80,6 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: Standard errors of the paired RMSE difference a joint may rise by.
-MARGIN_SIGMAS = 2.0
-#: Smallest margin, as a fraction of the joint's validation RMSE before.
-MARGIN_FLOOR = 0.01
-#: Moving-block bootstrap draws of the paired RMSE difference (fixed seed: the same margin every run).
-BOOTSTRAP_SAMPLES = 300
 #: Most droppable findings whose every subset is tried (2**8 - 1 refits at most); greedy beyond.
 EXHAUSTIVE_MAX = 8
 MARGIN_RULE = (
@@ -89,43 +90,6 @@ MARGIN_RULE = (
     "confirm it (the mean of their validation RMSE changes also exceeds the margin: a rise those refits do not "
     "reproduce is the training fit's estimation noise); without such refits the validation recordings alone decide"
 )
-
-
-def block_length(series: np.ndarray) -> int:
-    """Block length [samples] of the moving-block bootstrap of ``series`` (n_samples,): twice the first lag at
-    which its autocorrelation drops below 1/e, at least ``n**(1/3)``, at most n / 5."""
-    x = np.asarray(series, dtype=float) - np.mean(series)
-    n = x.size
-    floor = max(1, int(np.ceil(n ** (1.0 / 3.0))))
-    if n < 10 or not np.any(x):
-        return floor
-    spectrum = np.fft.rfft(x, 2 * n)
-    acf = np.fft.irfft(spectrum * np.conj(spectrum))[:n]
-    acf = acf / acf[0]
-    below = np.flatnonzero(acf < np.exp(-1.0))
-    lag = int(below[0]) if below.size else n
-    return int(min(max(2 * lag, floor), max(1, n // 5)))
-
-
-def paired_rmse_margin(before: np.ndarray, after: np.ndarray, seed: int = 0) -> tuple:
-    """(RMSE before, RMSE after, standard error of their difference) per joint from residuals on the same samples.
-
-    ``before``, ``after``: residuals [N m], shape (n_samples, n_dof), row k of both at the same instant. The
-    standard error is of ``RMSE_after - RMSE_before`` over ``BOOTSTRAP_SAMPLES`` moving-block resamples (the same
-    blocks for both models: the difference is paired).
-    """
-    before, after = np.atleast_2d(before), np.atleast_2d(after)
-    n = min(len(before), len(after))
-    e_b, e_a = before[:n] ** 2, after[:n] ** 2
-    rng = np.random.default_rng(seed)
-    se = np.zeros(e_b.shape[1])
-    for j in range(e_b.shape[1]):
-        length = block_length(e_a[:, j] - e_b[:, j])
-        starts = rng.integers(0, n - length + 1, size=(BOOTSTRAP_SAMPLES, -(-n // length)))
-        rows = (starts[:, :, None] + np.arange(length)).reshape(BOOTSTRAP_SAMPLES, -1)[:, :n]
-        diff = np.sqrt(e_a[rows, j].mean(axis=1)) - np.sqrt(e_b[rows, j].mean(axis=1))
-        se[j] = float(np.std(diff, ddof=1))
-    return np.sqrt(e_b.mean(axis=0)), np.sqrt(e_a.mean(axis=0)), se
 
 
 @dataclass(frozen=True, eq=False)

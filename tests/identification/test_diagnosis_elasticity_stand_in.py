@@ -5,8 +5,10 @@ where a LuGre bristle's pre-sliding lives too (on the benchmark's true wrist ela
 0.090 N m come from that shift, 0.31 N m RMS near the reversals against 0.02 elsewhere; on the unseen UR5-like arm's
 friction-dominated joint 5, with no elasticity, 0.09 against 0.01). Where a friction shape on the joint explained the
 validation recording better but did not hold on the second opinion, the elasticity chosen after it is not named
-(``FrictionRival.stand_in``). Known truth: the unseen UR5-like arm (LuGre drives, no elasticity) from
-``benchmarks/unseen_cases.py``, and the virtual Denso with a wrist elasticity beside the pre-sliding candidates."""
+(``FrictionRival.stand_in``); where it beats them but not pre-sliding alone on every held-out training block, the pair
+is reported (``presliding_or_elasticity``, tested in ``test_presliding_or_elasticity.py``). Known truth: the unseen
+UR5-like arm (LuGre drives, no elasticity) from ``benchmarks/unseen_cases.py``, and the virtual Denso with a wrist
+elasticity beside the pre-sliding candidates."""
 
 from __future__ import annotations
 
@@ -43,9 +45,14 @@ def test_an_elasticity_after_a_friction_shape_refused_on_its_joint_is_a_stand_in
 
 
 @pytest.mark.parametrize("joint", [4, 5])
-def test_a_true_elasticity_is_named_beside_the_pre_sliding_candidates(denso, denso_model, joint):
-    # the Denso's LuGre friction diagnosed with a Coulomb-viscous nominal: pre-sliding and the other friction shapes
-    # compete with the elasticity (torsion 0.2 deg at the joint's RMS torque) and the blocks judge each
+def test_a_true_elasticity_beside_the_pre_sliding_a_nominal_model_lacks_is_reported_as_the_pair(
+    denso, denso_model, joint
+):
+    # the Denso's LuGre friction diagnosed with a Coulomb-viscous nominal: its bristles' pre-sliding and the elasticity
+    # (torsion 0.2 deg at the joint's RMS torque) are both in the data. On 4 s of training the elasticity fits the
+    # validation recording 2.5 % (joint 5) and 16 % (joint 6) better than pre-sliding alone but does not hold on the
+    # training blocks held out in turn (lower beyond the noise on 0 and 1 of 4): the pair is reported on the
+    # elasticity's joint (``presliding_or_elasticity``), and only pre-sliding, there too, is named
     train, _ = sine_recording(denso, 0, 4.0, ())
     k = float(np.sqrt(np.mean(train.tau[:, joint] ** 2))) / np.radians(0.2)
     extras = (JointElasticity(joint=joint, stiffness=k),)
@@ -54,9 +61,10 @@ def test_a_true_elasticity_is_named_beside_the_pre_sliding_candidates(denso, den
     library = JointElasticityTerm() + CandidateLibrary(lacking_friction_shapes())
     options = DiagnosisOptions(rigid_body="prior", sparse=False, library=library, friction="coulomb_viscous")
     report = diagnose(denso, train, validation, options, model=denso_model)
-    (hit,) = [f for f in report.findings if f.effect == "joint_elasticity"]
-    assert hit.joints == (joint,)
-    assert hit.parameters["stiffness_Nm_per_rad"] == pytest.approx(k, rel=0.5)
+    assert not [f for f in report.findings if f.effect == "joint_elasticity"], report.summary()
+    (pair,) = [s for s in report.dropped if s.startswith(f"pre-sliding or elasticity on joint {joint + 1}: ")]
+    assert "the data cannot tell them apart" in pair and "to tell them apart, record" in pair
+    assert any(f.effect == "presliding" and f.joints == (joint,) for f in report.findings), report.summary()
 
 
 @pytest.mark.slow
