@@ -27,7 +27,9 @@ from psdm_casadi.fileio import atomic_write
 
 @dataclass(frozen=True, eq=False)
 class AugmentedModel:
-    """Nominal model + found terms. ``theta`` are the base parameters before the terms' changes."""
+    """Nominal model + found terms. ``theta`` are the base parameters before the terms' changes. ``parameter_map``:
+    the model's with the flange body's block (``carried_payload.flange_parameter_map``: a payload on a robot whose
+    flange link the model does not hold goes to the last link it does); None: the model's own."""
 
     model: object
     theta: np.ndarray
@@ -37,13 +39,19 @@ class AugmentedModel:
     friction_dv: np.ndarray
     terms: tuple
     coefficients: tuple
+    parameter_map: np.ndarray | None = None
+
+    @property
+    def terms_map(self) -> np.ndarray:
+        """The parameter map the terms' base-parameter changes go through (``parameter_map`` or the model's)."""
+        return np.asarray(self.model.parameter_map if self.parameter_map is None else self.parameter_map, dtype=float)
 
     @property
     def theta_augmented(self) -> np.ndarray:
         """Base parameters with the payload and rotor-inertia changes folded in."""
         theta = np.array(self.theta, dtype=float)
         for term, c in zip(self.terms, self.coefficients):
-            change = term.theta_change(c, np.asarray(self.model.parameter_map))
+            change = term.theta_change(c, self.terms_map)
             if change is not None:
                 theta = theta + change
         return theta
@@ -52,7 +60,7 @@ class AugmentedModel:
         """Whether a rotor-inertia term has no place in the base parameters (its theta change is zero)."""
         if term.key != "rotor_inertia":
             return False
-        change = term.theta_change(coefficients, np.asarray(self.model.parameter_map))
+        change = term.theta_change(coefficients, self.terms_map)
         return change is not None and not np.any(change) and float(coefficients[0]) != 0.0
 
     @property
@@ -62,7 +70,7 @@ class AugmentedModel:
         out = {}
         for term, c in zip(self.terms, self.coefficients):
             if (
-                term.theta_change(c, np.asarray(self.model.parameter_map)) is None
+                term.theta_change(c, self.terms_map) is None
                 and term.casadi_expression(q, q, q, ca.SX.sym("t"), q, c) is None
                 and not self.outside_theta(term, c)
             ):

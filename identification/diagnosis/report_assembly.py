@@ -11,6 +11,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.carried_payload import flange_parameter_map
 from identification.calibration.merged_rotors import merged_rotor_map, robot_file_theta
 from identification.calibration.model_preparation import Preparation, edge_text
 from identification.data.filter_choice import AUTO
@@ -148,6 +149,7 @@ def augmented_model_of(robot, model, final, options, kt=None) -> AugmentedModel:
         friction_dv=dv,
         terms=final.terms,
         coefficients=final.coefficients,
+        parameter_map=flange_parameter_map(robot, model),
     )
 
 

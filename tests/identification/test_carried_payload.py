@@ -2,6 +2,7 @@
 
 import numpy as np
 import pinocchio as pin
+import pytest
 
 from identification.calibration.carried_payload import carried_payload_parameters, carrying_payloads
 from identification.calibration.payload import payload_torque
@@ -59,3 +60,56 @@ def test_only_payload_findings_with_a_mass_change_the_robot(denso, denso_model):
     assert carrying_payloads(denso, denso_model, [other]) is denso
     two = carried_payload_parameters([_entry(1.0, (0.0, 0.0, 0.1)), _entry(3.0, (0.0, 0.0, 0.3))])
     np.testing.assert_allclose(two[:4], [4.0, 0.0, 0.0, 1.0])
+
+
+def _augmented_torque(robot, model, coefficients, q, qd, qdd, parameter_map):
+    """The torque of the diagnosis's augmented model (the robot file's base parameters, no friction) with one payload
+    body of ``coefficients`` (10 dynamic parameters about the flange), less the file's own."""
+    from identification.diagnosis.augmented import AugmentedModel
+    from identification.diagnosis.candidates import PayloadTerm
+
+    zeros = np.zeros(robot.n_dof)
+    augmented = AugmentedModel(model, model.base_parameters(robot.nominal_dynamic_parameters()), "coulomb_viscous",
+                               np.zeros(2 * robot.n_dof), zeros, zeros, (PayloadTerm(inertia=True),),
+                               (tuple(coefficients),), parameter_map)  # fmt: skip
+    function = augmented.build_function()
+    torque = np.array([np.ravel(function(*x, 0.0)) for x in zip(q, qd, qdd)])
+    return torque - _torque(robot, q, qd, qdd)
+
+
+def test_the_diagnosis_folds_a_flange_payload_into_the_wrist_link(denso, denso_model):
+    """The diagnosis's payload term (``PayloadTerm.theta_change``) goes through the last link's block of the parameter
+    map, which is zero on the Denso (link 6 massless in the model): its augmented model carried no load. Through
+    ``flange_parameter_map`` it carries it as ``carrying_payloads`` does: a load on joint 6's axis exactly (Pinocchio's
+    payload torque); one off it with joint 6 at 0 with its mass (read back from the torque as a point mass at its centre
+    of mass) to 0.4 % and its torque on joints 1-5 to 8 % RMS: the robot file states link 5's rx, Ixy, Ixz, Iyz zero
+    (``zero_parameters``), so the model has no place for the load's moment along link 5's x."""
+    from identification.calibration.carried_payload import flange_parameter_map
+
+    assert not np.any(np.asarray(denso_model.parameter_map)[:, 55:65])  # the flange link's own block is empty
+    rng = np.random.default_rng(5)
+    flange_map = flange_parameter_map(denso, denso_model)
+    for mass, com in ((2.0, (0.0, 0.0, 0.05)), (0.8, (0.03, 0.0, 0.06))):
+        q, qd, qdd = _states(rng, denso.n_dof, still=(5,))
+        expected = payload_torque(denso, Payload(mass=mass, com=com), q, qd, qdd)
+        coefficients = pin.Inertia(mass, np.asarray(com), np.zeros((3, 3))).toDynamicParameters()
+        before = _augmented_torque(denso, denso_model, coefficients, q, qd, qdd, None)
+        assert np.abs(before).max() < 1e-9  # the load was lost
+        got = _augmented_torque(denso, denso_model, coefficients, q, qd, qdd, flange_map)
+        unit = payload_torque(denso, Payload(mass=1.0, com=com), q, qd, qdd)[:, :5].ravel()
+        assert unit @ got[:, :5].ravel() / (unit @ unit) == pytest.approx(mass, rel=0.01)
+        if com[0] == 0.0:
+            np.testing.assert_allclose(got, expected, atol=1e-9 * np.abs(expected).max())
+        else:
+            assert np.sqrt(np.mean((got - expected)[:, :5] ** 2) / np.mean(expected[:, :5] ** 2)) < 0.1
+
+
+def test_a_held_flange_link_keeps_its_own_map():
+    from identification.calibration.carried_payload import flange_parameter_map
+    from psdm_casadi import derive_psdm, load_robot
+    from psdm_casadi.robot import BUILTIN_ROBOTS_DIR
+
+    scara = load_robot(BUILTIN_ROBOTS_DIR / "scara.toml")
+    model = derive_psdm(scara)
+    assert np.any(np.asarray(model.parameter_map)[:, 11 * (scara.n_dof - 1) : 11 * scara.n_dof - 1])
+    np.testing.assert_array_equal(flange_parameter_map(scara, model), np.asarray(model.parameter_map))
