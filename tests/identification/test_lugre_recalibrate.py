@@ -254,8 +254,11 @@ def _report(candidate, parameters) -> SimpleNamespace:
 
 
 def _stand_in_diagnosis(patch, candidate, parameters) -> None:
-    """``diagnose`` replaced (for ``psdm diagnose``) by one that reports a finding of ``candidate``."""
-    diagnosis = importlib.import_module("identification.diagnosis.diagnose")  # the module, not the function
+    """``diagnose`` replaced (for ``psdm diagnose``) by one that reports a finding of ``candidate``: in its module
+    and where ``psdm diagnose MODEL`` looks it up (``model_file.diagnose_model``, which holds its own name), both
+    modules imported before either is patched."""
+    modules = [importlib.import_module(m) for m in ("identification.diagnosis.diagnose",
+                                                    "identification.diagnosis.model_file")]  # fmt: skip
     parts, n, zeros = _report(candidate, parameters), 2, np.zeros((2, 2))
     report = DiagnosisReport(
         robot_name="stand-in", n_dof=n, friction="lugre", rigid_body="prior", findings=tuple(parts.findings),
@@ -264,7 +267,8 @@ def _stand_in_diagnosis(patch, candidate, parameters) -> None:
         augmented=parts.augmented, validation_t=np.arange(2.0), validation_q=zeros, validation_qd=zeros,
         validation_tau=zeros, validation_nominal=zeros, validation_final=zeros,
     )  # fmt: skip
-    patch.setattr(diagnosis, "diagnose", lambda *args, **kwargs: report)
+    for module in modules:
+        patch.setattr(module, "diagnose", lambda *args, **kwargs: report)
 
 
 def test_apply_to_a_lugre_model_refuses_load_dependent_friction():
