@@ -28,6 +28,13 @@ the bristle force is more than 10 % of ``fc`` away from its steady state) lasts 
 :data:`MIN_PRESLIDING_SAMPLES` samples and the filter's time constant ``1 / (2 pi cutoff)``. A joint
 that fails gets a warning that says so, rather than its number returned as if it were measured.
 
+A stiff bristle behind the default filter (the Denso's own sigma0 of 2.5e5 N m/rad at 10 Hz) leaves the shooting fit
+with sigma0 and sigma1 free ill-conditioned: on one recording, a friction residual 4e-14 N m apart (round-off of an
+equal regressor, 1b7607d) took it from converging in 116 iterations to the iteration limit. Such a joint's fit is
+run again with the bristle parameters (:data:`BRISTLE_PARAMETERS`) held at their start (the grids' best, or the
+previous round's), which converges in 25 there; its sigma0 is then said not identifiable (``held_message``) instead
+of the whole identification failing. Only a fit that fails with them held too is an error.
+
 :func:`lugre_friction` is the one evaluation of the friction along a series: the calibrated-model
 file's prediction, ``psdm validate`` and ``psdm simulate MODEL`` all go through it (the exported C
 carries the same step, ``codegen.calibrated.build_lugre_step``). The bristle force at the first sample is
@@ -54,8 +61,8 @@ from identification.friction.simulation import simulate_lugre, simulated_mse
 from psdm_casadi.errors import InsufficientExcitationError, ParameterError, ShapeError, SolverError
 
 __all__ = ["IDENTIFIABLE_RELATIVE_SIGMA", "LuGreFit", "LuGreWarning", "fit_lugre_recordings", "friction_residual",
-           "lugre_friction", "lugre_std", "bristle_force_at", "presliding_time", "sigma0_identifiable",
-           "split_findings", "unidentifiable_message", "without_friction"]  # fmt: skip
+           "held_message", "lugre_friction", "lugre_std", "bristle_force_at", "presliding_time",
+           "sigma0_identifiable", "split_findings", "unidentifiable_message", "without_friction"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -64,6 +71,8 @@ IDENTIFIABLE_RELATIVE_SIGMA = 0.3
 #: ... and when its pre-sliding transient after a reversal spans at least this many samples (heuristic).
 MIN_PRESLIDING_SAMPLES = 5
 FRICTION_DRIVE_TERMS = ("fc", "fs", "fv")
+#: Held at their start when a joint's fit with them free does not converge (module docstring).
+BRISTLE_PARAMETERS = ("sigma0", "sigma1")
 
 
 class LuGreWarning(UserWarning):
@@ -346,24 +355,17 @@ def fit_lugre_recordings(
         )
     options = ShootingOptions(accept_acceptable=True, fixed=("dv",)) if options is None else options
     t, qd, residual = _chained(prepared, [friction_residual(model, fit, r, extra) for r in prepared])
-    parameters, std, status, rmse, rmse_stribeck = [], [], [], [], []
+    parameters, std, status, rmse, rmse_stribeck, held = [], [], [], [], [], []
     for j in range(qd.shape[1]):
         if initial is None:
             start = _initial(t, qd[:, j], residual[:, j], _steady_state(fit, j))
         else:
             start = _with_hump(initial[j], t, qd[:, j], residual[:, j])
-        try:
-            result = fit_lugre_multiple_shooting(t, qd[:, j], residual[:, j], start, options)
-        except InsufficientExcitationError as exc:
-            raise InsufficientExcitationError(
-                f"--friction lugre: joint {j + 1} ({exc}). LuGre friction is fitted along the recorded reversals; "
-                "record this joint moving both ways, or pass --friction stribeck."
-            ) from None
-        except SolverError as exc:
-            raise SolverError(f"joint {j + 1}: {exc}", exc.status, exc.iterations, joint=j) from None
+        result, used, failed = _fit_joint(t, qd[:, j], residual[:, j], start, options, j)
+        held.append(failed)
         parameters.append(result.parameters)
         s0 = result.parameters.sigma0 * result.z[0]
-        std.append(lugre_std(result.parameters, t, qd[:, j], residual[:, j], options.fixed, s0))
+        std.append(lugre_std(result.parameters, t, qd[:, j], residual[:, j], used.fixed, s0))
         status.append(result.status)
         rmse.append(np.sqrt(result.objective))
         if "fs" in fit.friction_terms:
@@ -376,13 +378,51 @@ def fit_lugre_recordings(
     std = np.array(std)
     relative = std[:, LUGRE_PARAMETER_NAMES.index("sigma0")] / np.array([p.sigma0 for p in parameters])
     checks = [sigma0_identifiable(p, t, qd[:, j], relative[j], min(fit.cutoff_hz)) for j, p in enumerate(parameters)]
-    identifiable = tuple(check[0] for check in checks)
+    identifiable = tuple(check[0] and held[j] is None for j, check in enumerate(checks))
     for j, (ok, time, needed) in enumerate(checks):
-        if warn and not ok:
+        if warn and held[j] is not None:
+            warnings.warn(held_message(j, parameters[j], held[j]), LuGreWarning, stacklevel=2)
+        elif warn and not ok:
             message = unidentifiable_message(j, parameters[j], relative[j], time, needed)
             warnings.warn(message, LuGreWarning, stacklevel=2)
     return LuGreFit(parameters=tuple(parameters), std=std, identifiable=identifiable, rmse=np.array(rmse),
                     rmse_stribeck=np.array(rmse_stribeck), status=tuple(status))  # fmt: skip
+
+
+def _fit_joint(t, qd, residual, start, options: ShootingOptions, j: int) -> tuple:
+    """(ShootingResult, the ShootingOptions it was fitted with, the Ipopt status of the fit with the bristle parameters
+    free when it failed, else None) of joint ``j``'s shooting fit (module docstring: held when free fails)."""
+    try:
+        return fit_lugre_multiple_shooting(t, qd, residual, start, options), options, None
+    except InsufficientExcitationError as exc:
+        raise InsufficientExcitationError(
+            f"--friction lugre: joint {j + 1} ({exc}). LuGre friction is fitted along the recorded reversals; "
+            "record this joint moving both ways, or pass --friction stribeck."
+        ) from None
+    except SolverError as exc:
+        failed = exc
+    held = dataclasses.replace(options, fixed=tuple(dict.fromkeys((*options.fixed, *BRISTLE_PARAMETERS))))
+    if held.fixed == options.fixed:
+        raise SolverError(f"joint {j + 1}: {failed}", failed.status, failed.iterations, joint=j) from None
+    try:
+        result = fit_lugre_multiple_shooting(t, qd, residual, start, held)
+    except SolverError:
+        raise SolverError(f"joint {j + 1}: {failed}", failed.status, failed.iterations, joint=j) from None
+    logger.info("identify: LuGre joint %d: the fit with sigma0 and sigma1 free stopped (%s); fitted with them held",
+                j + 1, failed.status)  # fmt: skip
+    return result, held, failed.status
+
+
+def held_message(j: int, parameters: LuGreParameters, status: str) -> str:
+    """The sentence that says a joint's sigma0 was held because its fit with it free did not converge."""
+    return (
+        f"joint {j + 1}: the bristle stiffness sigma0 is not identifiable from these recordings: the LuGre fit with "
+        f"sigma0 and sigma1 free did not converge (Ipopt status {status}), so they are held at their start "
+        f"({parameters.sigma0:.3g} N m/rad, {parameters.sigma1:.3g} N m s/rad, chosen on grids by simulating the "
+        "recordings) and the other parameters fitted. The model keeps them (they change the friction only near "
+        "reversals); record slow reversals of this joint (or run the four-step protocol's friction experiments) to "
+        "measure them."
+    )
 
 
 def unidentifiable_message(j: int, parameters: LuGreParameters, relative: float, time: float, needed: float) -> str:
