@@ -1,7 +1,7 @@
 """What a parameter the fit holds back most likely absorbs, from the evidence the fit has (``held_back``).
 
 A parameter the data want away from the fit (``held_back``) is named with the effect it most likely holds, in the
-envelope check's vocabulary (``envelope_report.ABSORBED_EFFECTS``). A rule on the link and the sign alone named "a
+envelope check's vocabulary (``ABSORBED_EFFECTS``). A rule on the link and the sign alone named "a
 counterbalance" for any inertia the data want smaller on a link other than the last two: on the unseen slow-gravity
 arm with its tool stated (seed 2) an inertia of link 3 the data want at -0.73 +/- 0.22 was called a counterbalance
 where there is none. The effect follows here from the evidence, and the others that fit it too are listed as
@@ -33,20 +33,28 @@ from __future__ import annotations
 
 import numpy as np
 
-from identification.calibration.envelope_report import effect_phrase
+from identification.calibration.prior_pull import prior_scale
 from identification.data.excitation_check import joint_label
 from psdm_casadi.description import physical_to_dynamic
 
 __all__ = [
+    "ABSORBED_EFFECTS",
     "FLANGE_OFFSET",
     "FOLLOWING",
     "LOCAL",
     "UNEXPLAINED",
     "absorbed_phrase",
     "angle_following",
+    "effect_phrase",
     "likely_effects",
+    "owned_columns",
+    "parameter_words",
     "torque_shares",
 ]
+
+#: What the data most likely hold where the fit refuses them: the vocabulary of the envelope check and the parameters
+#: the fit holds back (``drive_dynamics`` and ``UNEXPLAINED`` where the evidence fits none of these).
+ABSORBED_EFFECTS = ("counterbalance", "payload", "drive_inertia")
 
 #: A difference whose squared torque (in noise levels) sits on one joint by at least this share acts on that joint.
 LOCAL = 0.8
@@ -54,8 +62,49 @@ LOCAL = 0.8
 FLANGE_OFFSET = 0.1
 #: A joint whose acceleration follows its angle by this correlation moves periodically (``angle_following``).
 FOLLOWING = 0.5
-#: The name of an effect that none of ``ABSORBED_EFFECTS`` explains.
+#: The name of an effect that none of ``ABSORBED_EFFECTS`` (nor a drive's dynamics) explains.
 UNEXPLAINED = "unexplained"
+
+
+def effect_phrase(absorbs: str, joint: int, robot=None) -> str:
+    """What an effect of ``ABSORBED_EFFECTS`` is, in the report's words, at ``joint`` (0-based): one vocabulary for the
+    envelope's findings and the parameters the fit holds back (``held_back``)."""
+    return {
+        "payload": "a payload or tool at the flange that the robot file does not hold (or a stated one that is off)",
+        "counterbalance": f"a counterbalance or spring on {joint_label(joint, robot)}",
+        "drive_inertia": (
+            f"extra inertia on {joint_label(joint, robot)}: a rotor or drive inertia the robot file does "
+            "not state (or states off), or a tool, cables or a coupled load it does not hold"
+        ),
+    }[absorbs]
+
+
+def parameter_words(model, robot, k: int, seed: int = 0) -> tuple:
+    """``(words, joint, kind)`` of base parameter ``k``: ``kind`` ``"axis"`` (the inertia about a joint: its column
+    only ever enters that joint's own mass-matrix entry, with a constant coefficient), ``"gravity"`` (it enters the
+    gravity torque: a mass times a centre-of-mass offset) or ``"inertia"`` (another inertia of a link)."""
+    rng = np.random.default_rng(seed)
+    n = robot.n_dof
+    q = rng.uniform(robot.q_min, robot.q_max, size=(6, n))
+    zero = np.zeros_like(q)
+    gravity = model.regressor(q, zero, zero)[:, :, k]
+    size = np.abs(model.regressor(q, zero, np.ones_like(q))[:, :, k]).max() + 1e-300
+    owner = _owner_link(model, robot, k)
+    if np.abs(gravity).max() > 1e-9 * max(size, 1.0):
+        return f"the gravity torque of link {owner + 1} (its mass times its centre of mass)", owner, "gravity"
+    entries = np.stack([model.regressor(q, zero, np.eye(n)[j] + zero)[:, :, k] for j in range(n)], axis=-1)
+    nonzero = np.abs(entries).max(axis=0) > 1e-9 * size  # (n_dof, n_dof): the mass-matrix entries it enters
+    j = int(np.argmax(np.diag(np.abs(entries).max(axis=0))))
+    if nonzero.sum() == 1 and nonzero[j, j] and np.ptp(entries[:, j, j]) <= 1e-9 * size:
+        return f"the inertia about {joint_label(j, robot)}", j, "axis"
+    return f"an inertia of link {owner + 1}", owner, "inertia"
+
+
+def _owner_link(model, robot, k: int) -> int:
+    """The link whose standard parameters weigh most in base parameter ``k``, each measured in its size in the robot
+    file (``prior_pull.prior_scale``: a link's mass times a squared offset counts as much as the inertia it gives)."""
+    sizes = np.abs(model.parameter_map[k]).reshape(-1, 11) * prior_scale(robot.nominal_dynamic_parameters())
+    return int(np.argmax(sizes.sum(axis=1)))
 
 
 def torque_shares(difference, equations, noise) -> np.ndarray:
@@ -177,3 +226,10 @@ def absorbed_phrase(effects, joint: int, robot=None) -> str:
     }
     words = [own[e] if e in own else effect_phrase(e, joint, robot) for e in effects]
     return words[0] + "".join(f", or {w}" for w in words[1:])
+
+
+def owned_columns(model, robot, link: int) -> set:
+    """The base parameters of ``link``: those whose standard parameters weigh most in that link (``parameter_words``'
+    owner), as the report names them ("the gravity torque of link 2", "an inertia of link 5")."""
+    block = np.abs(model.parameter_map[:, 11 * link : 11 * link + 10]).max(axis=1) > 0
+    return {k for k in range(model.n_base) if block[k] and _owner_link(model, robot, k) == link}

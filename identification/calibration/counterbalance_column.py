@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from identification.calibration.counterbalance_folds import BlockFolds, FoldFailure, block_folds
+from identification.calibration.envelope_report import where
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import JointComparison, compare_each, pooled_comparison
@@ -189,7 +190,7 @@ def counterbalance_joints(fit) -> tuple:
     """0-based joints the fit's envelope report names a counterbalance or spring on: through a link's bounds (its
     first moment absorbing a gravity-like torque) or one joint's drive inertia pressed down (a torque following the
     position looks like a negative inertia on a periodic motion)."""
-    return tuple(sorted({f.joint for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed}))
+    return tuple(sorted({where(f) for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed}))
 
 
 def _columns(joints, options, recordings, shape) -> FindingColumns:

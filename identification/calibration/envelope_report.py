@@ -12,6 +12,12 @@ those bounds and names the likely cause:
 - a drive inertia at a bound: a **drive inertia** unlike the file's (below it: a torque measured on the link
   side of the gearbox; above it: extra inertia such as a coupled load).
 
+That is the bounds' naming (where the link is, which way it is pushed). Where the fit holds back parameters of the
+link (``held_back``), the finding is named from the same evidence as they are (:func:`named_from_evidence`,
+``absorbed_effect.likely_effects``: the sign each effect can give the parameter, the joints that carry the torque,
+gravity or inertial, the motion), with the alternatives that fit it too, the evidence in words and the joint the
+effect acts on (``effect_joint``); files written before read as none.
+
 A link that only rests on a bound, the data pressing on it lightly, is listed as well (``pressed`` False) with a
 note rather than a warning: its mass or extent was set by the bound, not by the data.
 
@@ -27,6 +33,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
+from identification.calibration.absorbed_effect import ABSORBED_EFFECTS, absorbed_phrase, effect_phrase, owned_columns
 from identification.calibration.envelope import envelope_fill
 from identification.data.excitation_check import joint_label
 
@@ -40,6 +47,8 @@ __all__ = [
     "MIN_REFUSED_SIGMA",
     "EnvelopeFinding",
     "envelope_findings",
+    "named_from_evidence",
+    "where",
     "pressed_findings",
 ]
 
@@ -49,7 +58,6 @@ ACTIVE_TOLERANCE = 0.01
 MIN_PRESSURE = 0.05
 #: ... or (a link's bounds) its joint gives up this many noise levels of RMS torque to the bounds.
 MIN_REFUSED_SIGMA = 1.0
-ABSORBED_EFFECTS = ("counterbalance", "payload", "drive_inertia")
 #: The command the messages suggest; the command line puts its own robot and recordings in.
 DIAGNOSE_COMMAND = "psdm diagnose ROBOT --train DATA --validate OTHER"
 DIAGNOSE_ROUTE = "run '" + DIAGNOSE_COMMAND + "' against the robot file: it fits {what} jointly with the rigid body"
@@ -74,7 +82,8 @@ class EnvelopeFinding:
     drive_inertia, prior_drive_inertia : float
         [kg m^2] identified and in the robot file.
     absorbs : str
-        One of ``ABSORBED_EFFECTS``: what the bounds most likely keep out of the link.
+        One of ``ABSORBED_EFFECTS`` (or, from the evidence, ``"drive_dynamics"``, ``absorbed_effect.UNEXPLAINED``):
+        what the bounds most likely keep out of the link.
     joint : int
         0-based joint on which the bounds refuse the most torque (where to look for it).
     refused_rms : float
@@ -90,6 +99,14 @@ class EnvelopeFinding:
         Whether the data press on the bounds (``MIN_PRESSURE``, ``MIN_REFUSED_SIGMA``): the warnings, identify's
         counterbalance route and the diagnosis's choice of rigid body act on those only. A link resting on a bound
         the data press lightly (False) is reported too (the bound, not the data, set its mass or extent), as a note.
+    alternatives : tuple of str
+        Other effects the evidence fits too, likelier first (``absorbed_effect.likely_effects``; none for a drive's
+        bounds, nor in files written before they were stored).
+    evidence : str
+        What the effects were chosen from, in words ("" without the data's evidence, and in files written before).
+    effect_joint : int
+        0-based joint the effect acts on where the evidence puts it elsewhere than ``joint`` (a counterbalance's or a
+        drive's own joint: identify's counterbalance route takes its spring there); -1: ``joint`` (``where``).
     """
 
     link: int
@@ -107,10 +124,13 @@ class EnvelopeFinding:
     pressure: float
     message: str = ""
     pressed: bool = True
+    alternatives: tuple = ()
+    evidence: str = ""
+    effect_joint: int = -1
 
     def to_dict(self) -> dict:
         out = asdict(self)
-        out["bounds"] = list(self.bounds)
+        out["bounds"], out["alternatives"] = list(self.bounds), list(self.alternatives)
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
 
 
@@ -213,30 +233,41 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
     return tuple(out)
 
 
+def named_from_evidence(findings, held, model, robot, currents: bool = False) -> tuple:
+    """``findings`` (``envelope_findings``) with each pushed link named as the parameters the fit holds back name
+    theirs (``held_back``, ``absorbed_effect.likely_effects``): a link with a parameter among ``held`` takes the effects
+    of its most significant one (the sign each effect can give it, the joints that carry the torque, gravity or
+    inertial, the motion), first and alternatives, the joint the effect acts on (the refused torque's for a payload)
+    and the evidence in words. A link none of whose parameters the data want beyond their noise keeps the bounds'
+    naming (``envelope_findings``: where it is and which way it is pushed); so does a drive's bound (one joint's
+    drive pressed down, or every joint's: the torque signal)."""
+    out = []
+    for finding in findings:
+        own = set() if any(b.startswith("drive") for b in finding.bounds) else owned_columns(model, robot, finding.link)
+        items = [h for h in held if h.parameter in model.base_names and model.base_names.index(h.parameter) in own]
+        if not items:
+            out.append(finding)
+            continue
+        item = max(items, key=lambda h: abs(h.sigma_off))
+        at = -1 if item.absorbs == "payload" else item.effect_joint if item.effect_joint >= 0 else item.joint
+        named = replace(finding, absorbs=item.absorbs, alternatives=tuple(item.alternatives), evidence=item.evidence,
+                        effect_joint=at)  # fmt: skip
+        text = _message(named, robot, currents) if named.pressed else _resting_message(named, robot)
+        out.append(replace(named, message=text))
+    return tuple(out)
+
+
 def pressed_findings(findings) -> tuple:
     """The findings (``EnvelopeFinding`` or their dicts from a model file, where a file written before ``pressed``
     counts every one) whose bounds the data press on."""
     return tuple(f for f in findings if (f.get("pressed", True) if isinstance(f, dict) else f.pressed))
 
 
-def effect_phrase(absorbs: str, joint: int, robot=None) -> str:
-    """What an effect of ``ABSORBED_EFFECTS`` is, in the report's words, at ``joint`` (0-based): one vocabulary for the
-    envelope's findings and the parameters the fit holds back (``held_back``)."""
-    return {
-        "payload": "a payload or tool at the flange that the robot file does not hold (or a stated one that is off)",
-        "counterbalance": f"a counterbalance or spring on {joint_label(joint, robot)}",
-        "drive_inertia": (
-            f"extra inertia on {joint_label(joint, robot)}: a rotor or drive inertia the robot file does "
-            "not state (or states off), or a tool, cables or a coupled load it does not hold"
-        ),
-    }[absorbs]
-
-
 def _resting_message(finding: EnvelopeFinding, robot) -> str:
     """The report's note on a link resting on a bound the data press lightly: what rests where, how lightly, what
     it may hold, and which bound to revisit."""
     k = finding.joint
-    cause = effect_phrase(finding.absorbs, k, robot)
+    cause = absorbed_phrase((finding.absorbs, *finding.alternatives), where(finding), robot)
     fixes = []
     if any(b.startswith("mass") for b in finding.bounds):
         fixes.append("pass --mass-bounds LOW HIGH if the robot file's masses are rough")
@@ -266,6 +297,12 @@ def _pushed_what(finding: EnvelopeFinding) -> str:
     return " and ".join(parts)
 
 
+def where(finding: EnvelopeFinding) -> int:
+    """The 0-based joint the finding's effect acts on: its ``effect_joint``, else (a payload, the bounds' naming, a
+    file written before) the joint the bounds refuse most torque on."""
+    return finding.effect_joint if finding.effect_joint >= 0 else finding.joint
+
+
 def outward(finding: EnvelopeFinding) -> bool:
     """Whether the data push the link outward (its envelope or its upper mass bound): a load it does not hold."""
     return "envelope" in finding.bounds or "mass upper" in finding.bounds
@@ -273,7 +310,7 @@ def outward(finding: EnvelopeFinding) -> bool:
 
 def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
     """The report's sentence on one finding: what is pushed, by how much, what it most likely is, what to run."""
-    i, k = finding.link, finding.joint
+    i, k, at = finding.link, finding.joint, where(finding)
     size = f"{finding.refused_rms:.3g} N m RMS ({finding.refused_sigma:.1f} x its noise)"
     refused = f"the data ask {joint_label(k, robot)} for {size} more than the bounded model gives"
     file_off = (
@@ -287,13 +324,13 @@ def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
     drive = any(b.startswith("drive") for b in finding.bounds)
     if finding.absorbs == "counterbalance" and drive:
         cause = (
-            f"most likely a spring or counterbalance on {joint_label(k, robot)}: on a periodic motion a torque "
+            f"most likely a spring or counterbalance on {joint_label(at, robot)}: on a periodic motion a torque "
             "that follows the position looks like a negative inertia, and this joint alone presses its drive "
             "inertia down (a torque signal without the rotors would press every joint's); or the robot file's "
             f"rotor inertia of this joint is off; {DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}"
         )
     elif finding.absorbs == "counterbalance":
-        cause = (f"most likely a counterbalance or spring on {joint_label(k, robot)} (a gravity-like torque the "
+        cause = (f"most likely a counterbalance or spring on {joint_label(at, robot)} (a gravity-like torque the "
                  f"link's mass would otherwise absorb){file_off}; "
                  f"{DIAGNOSE_ROUTE.format(what='a spring or counterbalance')}")  # fmt: skip
     elif finding.absorbs == "payload":
@@ -301,6 +338,8 @@ def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
             "most likely a payload or tool at the flange that the robot file does not hold; add it to the robot "
             f"file, or {DIAGNOSE_ROUTE.format(what='a payload')}"
         )
+    elif finding.absorbs not in ABSORBED_EFFECTS:  # a drive's dynamics, or an effect none of them gives
+        cause = f"most likely {absorbed_phrase((finding.absorbs,), at, robot)}; {DIAGNOSE_ROUTE.format(what='it')}"
     elif "drive inertia lower" in finding.bounds:
         cause = (
             "a torque signal with less drive inertia than the robot file's: torques measured on the link side of "
@@ -322,7 +361,24 @@ def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
                   "rotors' inertia (identify --drive-inertia on) or a gear efficiency that depends on the power flow "
                   "(identify --drive-loss on)")  # fmt: skip
     label = f"the drive of {joint_label(i, robot)}" if drive else f"link {i + 1}"
-    return f"{label} is pushed against {_pushed_what(finding)}: {refused}. This is {cause}."
+    return (
+        f"{label} is pushed against {_pushed_what(finding)}: {refused}. This is {cause}.{_alternatives(finding, robot)}"
+    )
+
+
+#: What ``psdm diagnose`` fits for each effect (``DIAGNOSE_ROUTE``).
+ROUTE_WHAT = {"counterbalance": "a spring or counterbalance", "payload": "a payload"}
+
+
+def _alternatives(finding: EnvelopeFinding, robot) -> str:
+    """The report's words on the other effects the evidence fits (``finding.alternatives``), the evidence, and the
+    route that finds them; "" where there are none."""
+    if not finding.alternatives:
+        return ""
+    what = " or ".join(ROUTE_WHAT.get(e, "it") for e in dict.fromkeys(finding.alternatives))
+    return (f" The evidence ({finding.evidence}) fits "
+            f"{absorbed_phrase(finding.alternatives, where(finding), robot)} as well; "
+            f"{DIAGNOSE_ROUTE.format(what=what)}.")  # fmt: skip
 
 
 def bounds_note(options, bounds) -> tuple:

@@ -43,7 +43,7 @@ from identification.calibration.consistent_fit import (
 )
 from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
-from identification.calibration.held_back import held_back, held_note
+from identification.calibration.held_back import causes
 from identification.calibration.merged_rotors import with_merged_rotors
 from identification.calibration.payload_fit import (
     Estimable,
@@ -362,7 +362,7 @@ def identify_trajectories(
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
         pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, kt is not None)
-        kept = held_note(held_back(robot, model, (x_fit, x_ols, equations, sigma, prepared), covariance, names, pushed))
+        pushed, kept = causes(robot, model, (x_fit, x_ols, equations, sigma, prepared), covariance, names, pushed, kt)
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)
