@@ -225,6 +225,7 @@ def test_a_shape_or_drive_column_the_training_bic_is_indifferent_to_must_hold_ou
     hump = choose_columns(denso, denso_model, [recording], request=request).evidence[0]
     assert hump.kept and hump.delta_bic > 10  # outside the band: the BIC and any held-out gain decide
     monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
     gain = 1.0 - np.sqrt(hump.held_out_ratio)
     monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain + 0.01)
     refused = choose_columns(denso, denso_model, [recording], request=request)
@@ -261,6 +262,7 @@ def test_a_column_the_held_out_data_alone_decide_is_checked_on_the_model_identif
     plain = identify_recordings(denso, denso_model, [train], request=request, validation=[held], counterbalance=False)
     assert plain.choice.offset_joints == (1, 2, 4) and not plain.choice.departures
     monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
     monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
     refused = choose_columns(denso, denso_model, [train], request=request, validation=[held])
     assert refused.offset_joints == () and {e.joint for e in refused.departures} == {1, 2, 4}
@@ -284,6 +286,7 @@ def test_without_held_out_recordings_the_written_model_is_checked_by_block_cross
     from identification.calibration.identify_route import identify_recordings
 
     monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
     monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
     train = synthetic(denso, 2, offset=np.array([0.0, 3.0, 0.0, 0.0, 0.0, 0.0]), duration=8.0)
     request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
