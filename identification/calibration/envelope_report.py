@@ -375,10 +375,10 @@ def _alternatives(finding: EnvelopeFinding, robot) -> str:
     route that finds them; "" where there are none."""
     if not finding.alternatives:
         return ""
-    what = " or ".join(ROUTE_WHAT.get(e, "it") for e in dict.fromkeys(finding.alternatives))
+    what = " or ".join(ROUTE_WHAT.get(e, "them") for e in dict.fromkeys(finding.alternatives))
     return (f" The evidence ({finding.evidence}) fits "
-            f"{absorbed_phrase(finding.alternatives, where(finding), robot)} as well; "
-            f"{DIAGNOSE_ROUTE.format(what=what)}.")  # fmt: skip
+            f"{absorbed_phrase(finding.alternatives, where(finding), robot)} as well: 'psdm diagnose' against the "
+            f"robot file fits {what} too.")  # fmt: skip
 
 
 def bounds_note(options, bounds) -> tuple:

@@ -36,7 +36,7 @@ def test_a_tool_alone_is_a_payload_on_every_pushed_link_from_the_evidence(denso,
     assert flange.evidence.startswith("more gravity torque") and "a body at the flange can give it" in flange.evidence
     assert flange.alternatives == ("counterbalance",) and flange.effect_joint == -1
     assert f"The evidence ({flange.evidence}) fits a counterbalance or spring on" in flange.message
-    assert "it fits a spring or counterbalance jointly with the rigid body" in flange.message
+    assert "'psdm diagnose' against the robot file fits a spring or counterbalance too" in flange.message
     held = stored_held_back(fit.envelope_bounds)
     assert held and all(h.absorbs == "payload" for h in held), [(h.words, h.absorbs) for h in held]
     stored = flange.to_dict()
