@@ -31,8 +31,8 @@ the resamples), the MCAP arm's on none (pre-sliding is lower on every block).
 
 Where the elasticity does not win, the pair is reported (``RivalPair.sentence``: both numbers, and the recording that
 tells them apart) and the elasticity is not named; the selection goes on, so pre-sliding is named only if it holds on
-its own. A model file (``diagnose --apply``) thus takes no elasticity from the pair: the simpler explanation, the
-friction the model has (or pre-sliding where it holds as a finding), is kept until a recording decides.
+its own (reported with its route, ``psdm identify --friction lugre``, not applied). ``diagnose --apply`` thus writes
+neither: the simpler explanation, the friction the model has, is kept until a recording decides.
 """
 
 from __future__ import annotations
@@ -100,8 +100,9 @@ class RivalPair:
             f"over x0 = {self.x0:.2g} rad, the elasticity {self.stiffness:.4g} N m/rad, {self.torsion_deg:.2g} deg at "
             f"the joint's RMS torque); the elasticity is lower beyond the noise on {self.blocks_won} of "
             f"{len(self.blocks)} training blocks held out in turn (pre-sliding vs elasticity: {blocks}). "
-            f"{self.label} is not named (a model file takes no elasticity from it; pre-sliding only where it holds on "
-            f"its own as a finding); to tell them apart, record "
+            f"{self.label} is not named, and diagnose --apply writes neither (pre-sliding is named only where it holds "
+            f"as a finding of its own, and a model file holds it as LuGre friction: psdm identify --friction lugre); "
+            f"to tell them apart, record "
             f"joint {n} reversing at two accelerations, or with and without a payload: an elasticity's lag grows "
             f"with the torque (its torsion is tau / k), pre-sliding's does not (a displacement of about x0 after each "
             f"reversal)"
