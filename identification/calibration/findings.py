@@ -31,7 +31,8 @@ the fit, the prediction and the exported code cannot differ.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
@@ -48,6 +49,7 @@ __all__ = [
     "correct_recording",
     "filled_entries",
     "finding_kind",
+    "offsets_left_to_findings",
     "physical_parameters",
     "term_values",
 ]
@@ -70,6 +72,8 @@ SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring", "friction_shape")
 RIGID_BODY_EFFECTS = ("payload", "last_link_mass_excess")
 SIGNAL_EFFECTS = ("delay", "joint_elasticity", "backlash")
 FINDING_KINDS = ("torque", "rigid_body", "signal", "reported")
+#: A finding's feature that is a constant torque on its joint: a spring's (``spring_c_j``, a polynomial's ``c_j``).
+CONSTANT_FEATURE = re.compile(r"(spring_)?c_\d+")
 
 
 def finding_kind(effect: str) -> str:
@@ -297,6 +301,23 @@ class FindingColumns:
     def columns(self, q, qd, qdd) -> np.ndarray:
         """The kept features' columns (n_samples, n_dof, len(names))."""
         return self.all_columns(q, qd, qdd)[:, :, self.mask]
+
+
+def offsets_left_to_findings(options, terms):
+    """``options`` (``trajectory_fit.TrajectoryOptions``) without the torque offsets chosen from the data on the joints
+    where a torque finding has a constant of its own (``CONSTANT_FEATURE``: a spring's, which holds its rest angle).
+
+    The offset and the constant are one column, so a fit keeps one of them (``recalibrate``: the other absorbed).
+    Beside an offset, a spring's constant was absorbed and its rest angle read 0 (``q0 = -c / k``, the offset holding
+    ``-k q0``). An offset chosen from the data (``column_choice``, ``--offset auto``: ``offset_joints`` a tuple) was
+    chosen on a fit without the finding's columns, where the missing spring's constant asked for it; with the
+    spring in the model, the constant is the spring's. An offset asked for (``--offset on``: ``offset_joints`` None)
+    is kept. The model's torque is the same either way."""
+    if options.offset_joints is None or "offset" not in options.friction:
+        return options
+    held = {t.joint for t in terms if any(CONSTANT_FEATURE.fullmatch(name) for name in t.feature_names())}
+    kept = tuple(j for j in options.offset_joints if j not in held)
+    return options if kept == tuple(options.offset_joints) else replace(options, offset_joints=kept)
 
 
 def physical_parameters(term: FindingTerm, c) -> dict:

@@ -53,6 +53,7 @@ from identification.calibration.findings import (
     correct_recording,
     filled_entries,
     finding_kind,
+    offsets_left_to_findings,
 )
 from identification.calibration.lugre_identify import identify_lugre_trajectories
 from identification.calibration.lugre_recordings import split_findings
@@ -189,7 +190,8 @@ def _check_lugre_findings(calibrated: CalibratedModel, terms) -> None:
 
 def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, stribeck=None) -> tuple:
     """Which finding features the fit's other columns (and earlier features) do not span, on the training data
-    (a Stribeck friction shape with the velocities ``stribeck`` of the model the diagnosis started from)."""
+    (a Stribeck friction shape with the velocities ``stribeck`` of the model the diagnosis started from); the offsets
+    the fit holds at 0 (outside ``options.offset_joints``) are not among those columns."""
     inertia = drive_inertia_joints(model, robot, options)
     names = drive_column_names(robot.n_dof, options.friction, inertia)
     n_extra = len(columns.all_names)
@@ -202,7 +204,10 @@ def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, s
     gram, _, _ = equations.weighted(1.0 / np.maximum(rms_tau, 1e-12) ** 2)
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
     gram = gram / np.outer(scale, scale)
-    kept = list(range(model.n_base + len(names)))
+    chosen = options.offset_joints  # an offset held at 0 (not chosen) absorbs nothing: a spring's constant stays
+    kept = [model.n_base + k for k, n in enumerate(names) if chosen is None or not n.startswith("offset")
+            or int(n[6:]) - 1 in chosen]  # fmt: skip
+    kept = list(range(model.n_base)) + kept
     keep = []
     for k in range(gram.shape[0] - n_extra, gram.shape[0]):
         block = gram[np.ix_(kept, kept)]
@@ -359,15 +364,8 @@ def recalibrate(
             entry["validation_rmse_without"] = _list(
                 np.mean([validation_rmse(without, model, r, kt)[0] for r in validation], axis=0)
             )
-    return Recalibration(
-        before=calibrated,
-        after=after,
-        rmse_before=rmse_before,
-        rmse_after=rmse_after,
-        moved=moved,
-        min_mass_eigenvalue=mass,
-        refused=gate.refused,
-    )
+    return Recalibration(before=calibrated, after=after, rmse_before=rmse_before, rmse_after=rmse_after, moved=moved,
+                         min_mass_eigenvalue=mass, refused=gate.refused)  # fmt: skip
 
 
 def _refit_without(calibrated, robot, model, train, findings, robot_source):
@@ -390,7 +388,7 @@ def _joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple
     """(new CalibratedModel, fit) of the recordings-route fit on ``train`` with ``findings`` = (torque terms,
     corrections, entries): the signal findings correct the recordings, the torque ones add columns."""
     terms, corrections, entries = findings
-    options = _options(calibrated)
+    options = offsets_left_to_findings(_options(calibrated), terms)  # a spring's constant, not an offset
     corrected = [correct_recording(r, corrections, _kt(robot, train)) for r in train]
     own = calibrated.lugre_parameters
     stribeck = calibrated.document["drive"].get("stribeck_velocity") or None

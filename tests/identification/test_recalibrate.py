@@ -105,6 +105,39 @@ def test_a_rotor_inertia_outside_the_base_parameters_stays_in_the_saved_function
     np.testing.assert_allclose(difference.ravel(), inertia * qdd * (np.arange(robot.n_dof) == 2), atol=1e-12)
 
 
+def test_an_offset_chosen_from_the_data_is_left_to_a_found_spring_s_constant():
+    """The two are one column: the spring's constant (its rest angle) takes a joint's offset chosen from the data,
+    of a linear spring and of a polynomial alike; an offset asked for (``offset_joints`` None) and an offset on a
+    joint without a constant finding stay."""
+    from identification.calibration.findings import FindingTerm, offsets_left_to_findings
+    from identification.diagnosis.candidates import SpringTerm
+
+    chosen = TrajectoryOptions(friction=("fc", "fv", "offset"), offset_joints=(0, 1, 2))
+    ripple = FindingTerm("torque_ripple", 2, harmonic=1)
+    cubic = FindingTerm("spring", 0, spec=SpringTerm(joint=0, order=3).spec())
+    assert offsets_left_to_findings(chosen, [FindingTerm("spring", 1), ripple, cubic]).offset_joints == (2,)
+    assert offsets_left_to_findings(chosen, [ripple]) is chosen
+    asked = dataclasses.replace(chosen, offset_joints=None)
+    assert offsets_left_to_findings(asked, [FindingTerm("spring", 1)]) is asked
+
+
+def test_an_offset_held_at_zero_absorbs_no_spring_constant(denso, denso_model):
+    """``recalibrate``'s absorbed features are judged against the columns the fit frees: a spring's constant on a
+    joint whose offset is held at 0 (outside ``offset_joints``) stays in the fit (it is the only column to carry the
+    spring's ``-k q0``), beside a chosen offset on that joint it is absorbed; its ``k`` stays either way."""
+    from identification.calibration.findings import FindingColumns, FindingTerm
+    from identification.calibration.recalibrate import _absorbed_mask
+
+    rng = np.random.default_rng(5)
+    reference = sine_experiment(denso, duration=3.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=200.0)
+    recording, _ = simulate_recording(denso, reference, options, rng)
+    columns = FindingColumns((FindingTerm("spring", 1),))
+    for offset_joints, keep in (((2,), (True, True)), ((1, 2), (True, False)), (None, (True, False))):
+        fit_options = TrajectoryOptions(friction=("fc", "fv", "offset"), offset_joints=offset_joints)
+        assert _absorbed_mask(denso, denso_model, [recording], fit_options, columns) == keep, offset_joints
+
+
 @pytest.fixture(scope="module")
 def spring_loop(tmp_path_factory, denso, denso_model):
     """A training and a validation recording with a hidden spring, and the model identified without it."""
@@ -171,7 +204,10 @@ def test_the_nominal_robot_of_a_calibrated_model_is_its_identified_rigid_body(sp
 
 @pytest.mark.slow
 def test_diagnose_apply_keeps_the_drive_columns_the_model_was_identified_with(spring_loop, denso, denso_model, capsys):
-    """A model whose offsets were chosen per joint (``column_choice``) is refitted with the same columns."""
+    """A model whose offsets were chosen per joint (``column_choice``) is refitted with the same columns, but for the
+    chosen offset of joint 2, which the spring found there takes as its constant (``findings.offsets_left_to_findings``;
+    the virtual robot has no offset and the spring's rest angle is SPRING_Q0). Kept beside the spring, the offset had
+    held -7.99 N m (-k q0) and the spring read q0 = 0; the validation RMSE is the same to 4 digits either way."""
     from identification.calibration.column_choice import ColumnChoice, ColumnRequest
     from identification.data.io import load_recording
 
@@ -188,8 +224,10 @@ def test_diagnose_apply_keeps_the_drive_columns_the_model_was_identified_with(sp
     capsys.readouterr()
     after = json.loads((folder / "chosen_new.json").read_text())
     offsets = {n: v for n, v in zip(after["drive"]["names"], after["drive"]["values"]) if n.startswith("offset")}
-    assert offsets.pop("offset2") != 0.0 and set(offsets.values()) == {0.0}  # held at 0 as the choice said
-    assert after["identification"]["column_choice"]["offset_joints"] == [2]
+    assert set(offsets.values()) == {0.0}  # held at 0 as the choice said; joint 2's left to the spring's constant
+    assert after["identification"]["column_choice"]["offset_joints"] == [2]  # the choice itself is carried
+    spring = next(e for e in after["findings"] if e["label"] == "spring[j2]")
+    assert abs(spring["parameters"]["q0"] - SPRING_Q0) < 0.02, spring
 
 
 @pytest.mark.slow
