@@ -13,6 +13,9 @@ Coulomb and viscous friction, 40 s and 15 s). Each runs what ``psdm identify`` r
   cross-validation);
 - ``fit``: ``identify_trajectories`` with the chosen columns (Stribeck velocities, weighted least squares, the
   consistent fit by Ipopt);
+- ``column_check``: each column the held-out data alone decided checked on the written model (``column_check``; no
+  validation recording here, so by block cross-validation of the training recording: 2 x 4 fold fits per column);
+  a revision without it: nothing;
 - ``validation``: the validation recording prepared and predicted (``predict_torque``), per-joint RMSE.
 
 With ``--ref REV`` the same script runs on ``git archive REV`` in a child process, so both columns are measured
@@ -47,7 +50,7 @@ from bench_support import DEFAULT_DATA_ROOT, DENSO_FILE, ROOT, add_data_root_arg
 
 #: The revision this work started from (before the fast regressor, its cache and the per-joint Stribeck rows).
 START = "856267a"
-STAGES = ("derive", "prepare", "regressor", "column_choice", "fit", "validation")
+STAGES = ("derive", "prepare", "regressor", "column_choice", "fit", "column_check", "validation")
 ROBOTS = ("denso", "panda", "arm12")
 TARGET_RELATIVE = 1e-9
 
@@ -138,6 +141,8 @@ def run_case(robot, sources, read) -> dict:
         choice = choose_columns(robot, model, [train])
     with timed(stages, "fit"):
         fit = identify_trajectories(robot, model, [train], choice.options(TrajectoryOptions()))
+    with timed(stages, "column_check"):
+        choice, fit = checked(robot, model, train, choice, fit)
     with timed(stages, "validation"):
         ready = prepare_recording(validation, kt, fit.cutoff_hz[0])[0]
         error = rmse(ready.tau, predict_torque(model, fit, ready.q, ready.qd, ready.qdd))
@@ -149,6 +154,25 @@ def run_case(robot, sources, read) -> dict:
         "parameters": np.concatenate([fit.theta, fit.drive, np.ravel(fit.standard)]).tolist(),
         "rmse": np.asarray(error, dtype=float).tolist(),
     }
+
+
+def checked(robot, model, train, choice, fit) -> tuple:
+    """(choice, fit) after identify's check of the columns the held-out data alone decided, as ``identify_route``
+    runs it without validation recordings (a revision without ``column_check``: as chosen)."""
+    from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+
+    try:
+        from identification.calibration.column_check import check_departures, written_model_judge
+    except ImportError:
+        return choice, fit
+    if not choice.departures:
+        return choice, fit
+    options, cutoffs = TrajectoryOptions(), [c for c in fit.cutoff_hz if c]
+    judge = written_model_judge((robot, model, [train], options, None), [], min(cutoffs) if cutoffs else None)
+    if isinstance(judge, str):
+        return choice, fit
+    return check_departures(choice, fit, lambda c: identify_trajectories(robot, model, [train], c.options(options)),
+                            judge)  # fmt: skip
 
 
 def command_scope():
@@ -226,9 +250,11 @@ def print_report(result: dict) -> None:
         then = result.get("before", {}).get(name, {}).get("stages")
         for stage in (*STAGES, "total"):
             cell = now["stages"].get(stage) if stage != "total" else now["total"]
+            if cell is None:  # a stage this revision does not run
+                continue
             row = {"robot": name, "stage": stage, "after cpu": cell["cpu"], "after wall": cell["wall"]}
-            if then is not None:
-                old = then.get(stage) if stage != "total" else result["before"][name]["total"]
+            old = None if then is None else then.get(stage) if stage != "total" else result["before"][name]["total"]
+            if old is not None:
                 row.update({"before cpu": old["cpu"], "before wall": old["wall"], "cpu x": old["cpu"] / cell["cpu"]})
             rows.append(row)
     columns = ["robot", "stage", "before cpu", "after cpu", "cpu x", "before wall", "after wall"]

@@ -19,14 +19,17 @@ error), and the choice stands unless it is worse than the plain one beyond the n
 the held-out data. A refusal is a model change as much as a keep: it is judged the same way. The held-out data are the
 validation recordings (``never_worse.compare_models``; one more consistent fit per departure), else, as for identify's
 counterbalance, a block cross-validation of the training recordings with each fold's two models identified on its
-other blocks (``counterbalance_folds``; 2 x 4 more fits per departure). Training recordings too short to cut into
-blocks, or carrying payloads, leave the choice as the held-out verdict made it, and its reason says so.
+other blocks (``counterbalance_folds``; 2 x 4 more fits per departure, a fold's model of columns an earlier departure
+fitted reused, and the plain rule's fit of all the training data made only where it wins). Training recordings too
+short to cut into blocks, or carrying payloads, leave the choice as the held-out verdict made it, and its reason
+says so.
 """
 
 from __future__ import annotations
 
 import logging
 from dataclasses import replace
+from functools import cache, partial
 
 import numpy as np
 
@@ -39,21 +42,27 @@ __all__ = ["check_departures", "written_model_judge"]
 
 logger = logging.getLogger(__name__)
 
+#: The ``TrajectoryOptions`` fields a ``ColumnChoice`` sets (``ColumnChoice.options``): a fold's model is the same for
+#: the same values on the same pieces (the other fields are identify's options, the same for every choice).
+COLUMN_FIELDS = ("friction", "offset_joints", "drive_inertia", "inertia_joints", "stribeck_joints", "coulomb_velocity")
+
 
 def check_departures(choice, fit, fit_of, compare) -> tuple:
     """(choice, its fit) after each of ``choice.departures`` was checked on the written model (module docstring).
 
     ``fit``: the fit of ``choice``; ``fit_of(choice)``: the fit of a ``ColumnChoice``; ``compare(before, after)``: the
-    ``never_worse.JointComparison`` of two ``(choice, fit)`` pairs on held-out data (``before``: the plain rule's,
-    ``after``: the choice's; :func:`written_model_judge`), raising ``FoldFailure`` when it cannot judge.
+    ``never_worse.JointComparison`` of two ``(choice, fit())`` pairs on held-out data (``before``: the plain rule's,
+    ``after``: the choice's; :func:`written_model_judge`), raising ``FoldFailure`` when it cannot judge. The fit is a
+    call: the plain rule's consistent fit is made only when the judge uses it (the held-out recordings; the block
+    folds identify their own models) or the plain rule wins, one fit fewer per departure the folds confirm.
     """
     for evidence in choice.departures:
         current = next(e for e in choice.evidence if (e.term, e.joint) == (evidence.term, evidence.joint))
         plain = choice.decided(current, not current.kept, current.reason)
-        plain_fit = fit_of(plain)
+        plain_fit = cache(partial(fit_of, plain))  # fitted only if the judge or a flip needs it
         what = "keeping" if current.kept else "refusing"
         try:
-            comparison = compare((plain, plain_fit), (choice, fit))
+            comparison = compare((plain, plain_fit), (choice, partial(_same, fit)))
         except FoldFailure as failure:
             reason = f"{current.reason}; not checked on the model identify writes ({failure})"
             choice = choice.decided(current, current.kept, reason)
@@ -63,7 +72,7 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
             reason = (f"{current.reason}; but {what} it makes the model identify writes worse on the held-out "
                       f"data: {comparison.text()} (as the training BIC decides -> as the held-out data decide), so "
                       "the training BIC decides")  # fmt: skip
-            choice, fit = choice.decided(current, not current.kept, reason), plain_fit
+            choice, fit = choice.decided(current, not current.kept, reason), plain_fit()
         else:
             reason = (f"{current.reason}; the model identify writes is no worse on any held-out joint for {what} it "
                       f"({comparison.text([current.joint])}, as the training BIC decides -> as the held-out data "
@@ -71,6 +80,10 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
             choice = choice.decided(current, current.kept, reason)
         logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
     return choice, fit
+
+
+def _same(fit):
+    return fit
 
 
 def written_model_judge(problem, validation, cutoff_hz):
@@ -88,13 +101,23 @@ def written_model_judge(problem, validation, cutoff_hz):
         return CalibratedModel.from_fit(robot, model, fit, robot_source=robot.source)
 
     if validation:
-        return lambda before, after: compare_models(build(before[1]), build(after[1]), model, list(validation), kt)
+        return lambda before, after: compare_models(build(before[1]()), build(after[1]()), model, list(validation), kt)
     folds = block_folds(recordings, configurations, cutoff_hz)
     if isinstance(folds, str):
         return folds
 
+    fitted = {}  # a fold's model of the same columns on the same pieces, once over the departures
+
     def refit(choice):
-        return lambda pieces: build(identify_trajectories(robot, model, list(pieces), choice.options(options)))
+        chosen = choice.options(options)
+
+        def identify(pieces):
+            key = (*(getattr(chosen, name) for name in COLUMN_FIELDS), *map(id, pieces))
+            if key not in fitted:
+                fitted[key] = build(identify_trajectories(robot, model, list(pieces), chosen))
+            return fitted[key]
+
+        return identify
 
     def by_folds(before, after):
         return replace(folds, baselines={}).compare(refit(before[0]), refit(after[0]), model, kt)[0]
