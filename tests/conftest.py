@@ -44,6 +44,16 @@ def example_robot_urdf(relative: str) -> Path:
     pytest.skip(f"example-robot-data URDF {relative} is not installed")
 
 
+@pytest.fixture(scope="session", autouse=True)
+def session_model_cache(tmp_path_factory):
+    """The model cache of the session's module- and session-scoped fixtures (set up before any function-scoped
+    fixture runs): they derive into an empty folder of the session, never the user's cache."""
+    folder = tmp_path_factory.mktemp("psdm-session-model-cache")
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("PSDM_CACHE_DIR", str(folder))
+        yield folder
+
+
 @pytest.fixture(autouse=True)
 def model_cache_folder(tmp_path_factory, monkeypatch):
     """Every test derives into its own empty model cache: none writes the user's cache or reads a warm one."""
