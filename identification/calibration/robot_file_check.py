@@ -36,8 +36,10 @@ import numpy as np
 
 from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 from identification.calibration.never_worse import JointComparison, paired_rmse_margin, pooled_comparison
+from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
 from identification.calibration.trajectory_data import drive_column_joint, drive_columns
 from identification.calibration.trajectory_fit import torque_constants
+from identification.data.excitation_check import one_way_joints
 
 __all__ = ["FileCheck", "FileFriction", "check_against_file", "file_friction"]
 
@@ -74,6 +76,7 @@ class FileCheck:
     allowance: float = 0.0  # the estimation allowance, relative to the RMSE before (module docstring)
     parameters: int = 0  # p: the base parameters the identified model estimates and the baseline takes from the file
     samples: float = 0.0  # N: independent samples per joint
+    one_way: tuple = ()  # the joints (0-based) that move one way only in the training recordings
 
     @property
     def worse(self) -> tuple:
@@ -96,9 +99,21 @@ class FileCheck:
         return (f"against the robot file (its rigid body, friction fitted): WORSE on joint(s) {joints} on {held} "
                 f"beyond {allowance}: {c.text()} (robot file with friction fitted -> identified). The model is "
                 "written as identified, but on those joints the robot file's rigid body with its friction fitted "
-                f"predicts the held-out motion better: '{DIAGNOSE_COMMAND} --apply NEW_MODEL.json' writes that "
-                "model (with what the diagnosis finds missing), or record more of those joints' motion (more --data "
-                "recordings, over the held-out speeds) and identify again")  # fmt: skip
+                f"predicts the held-out motion better: '{DIAGNOSE_COMMAND}' scores that model and names what it "
+                f"finds missing. {self._remedy()}")  # fmt: skip
+
+    def _remedy(self) -> str:
+        """What to record: the worse joints that never reversed first (their friction is a constant there)."""
+        one_way = [j for j in self.one_way if j in self.worse]
+        if not one_way:
+            return ("To identify those joints better, record more of their motion (more --data recordings, over the "
+                    "held-out speeds) and identify again")  # fmt: skip
+        joints = ", ".join(str(j + 1) for j in one_way)
+        return (
+            f"Joint(s) {joints} move one way only in the training recording(s) (both ways on less than "
+            f"{MIN_REVERSAL_FRACTION:.0%} of the samples): there their Coulomb and viscous friction trade with "
+            "the rigid body and an offset. Record them reversing (more --data recordings) and identify again"
+        )
 
     @property
     def _extra(self) -> np.ndarray:
@@ -111,7 +126,8 @@ class FileCheck:
         return _json({"checked": True, "recordings": self.recordings, "worse_joints": [j + 1 for j in self.worse],
                 **self.comparison.to_dict(), "estimation_allowance": self.allowance,
                 "estimation_allowance_rule": "margin = never-worse margin + (sqrt(1 + p / N) - 1) x RMSE before",
-                "estimated_parameters": self.parameters, "independent_samples_per_joint": self.samples})  # fmt: skip
+                "estimated_parameters": self.parameters, "independent_samples_per_joint": self.samples,
+                "one_way_joints": [j + 1 for j in self.one_way]})  # fmt: skip
 
 
 def _numbers(values) -> str:
@@ -183,5 +199,7 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
     allowance = float(np.sqrt(1.0 + model.n_base / max(per_joint, 1.0)) - 1.0)
     pooled = pooled_comparison(comparisons)
     pooled = replace(pooled, margin=pooled.margin + allowance * pooled.before)
+    one_way = one_way_joints(prepared, range(robot.n_dof), speed=options.coulomb_velocity,
+                             min_fraction=MIN_REVERSAL_FRACTION)  # fmt: skip
     return FileCheck(pooled, len(validation), each=tuple(comparisons), allowance=allowance, parameters=model.n_base,
-                     samples=per_joint)  # fmt: skip
+                     samples=per_joint, one_way=tuple(one_way))  # fmt: skip

@@ -376,6 +376,21 @@ def check_sliding(recording: Recording, joint: int, *, robot=None, fix: str, thr
     return speed
 
 
+def _pooled_velocity(recordings) -> np.ndarray:
+    """The recordings' joint velocities, pooled: ``qd`` where recorded (prepared recordings), else central
+    differences of ``q``."""
+    return np.concatenate([r.qd if r.qd is not None else np.gradient(r.q, r.t, axis=0) for r in recordings])
+
+
+def one_way_joints(recordings, joints, *, speed: float, min_fraction: float) -> list:
+    """The joints of ``joints`` (0-based, sorted) that do not move faster than ``speed`` [rad/s] both ways on
+    ``min_fraction`` of the pooled samples of ``recordings``: their Coulomb friction is a constant there, which a
+    torque offset or the rigid body's gravity takes as well."""
+    qd = _pooled_velocity(list(recordings))
+    return [j for j in sorted({int(j) for j in joints})
+            if min(np.mean(qd[:, j] > speed), np.mean(qd[:, j] < -speed)) < min_fraction]  # fmt: skip
+
+
 def check_reversals(recordings, joints, *, speed: float, min_fraction: float, robot=None, purpose: str, fix: str):
     """Raise unless every joint of ``joints`` moves faster than ``speed`` both ways on ``min_fraction`` of the samples.
 
@@ -405,16 +420,15 @@ def check_reversals(recordings, joints, *, speed: float, min_fraction: float, ro
         ``fix``.
     """
     recordings = list(recordings)
-    qd = np.concatenate([r.qd if r.qd is not None else np.gradient(r.q, r.t, axis=0) for r in recordings])
-    failing, details = [], []
-    for j in sorted({int(j) for j in joints}):
+    qd = _pooled_velocity(recordings)
+    failing = one_way_joints(recordings, joints, speed=speed, min_fraction=min_fraction)
+    details = []
+    for j in failing:
         shares = (float(np.mean(qd[:, j] > speed)), float(np.mean(qd[:, j] < -speed)))
-        if min(shares) < min_fraction:
-            failing.append(j)
-            details.append(
-                f"{joint_label(j, robot)}: {100 * shares[0]:.3g} % of the samples positive, {100 * shares[1]:.3g} % "
-                f"negative (qd{j + 1} from {qd[:, j].min():.3g} to {qd[:, j].max():.3g} rad/s)"
-            )
+        details.append(
+            f"{joint_label(j, robot)}: {100 * shares[0]:.3g} % of the samples positive, {100 * shares[1]:.3g} % "
+            f"negative (qd{j + 1} from {qd[:, j].min():.3g} to {qd[:, j].max():.3g} rad/s)"
+        )
     if failing:
         source = ", ".join(dict.fromkeys(r.name or "a recording" for r in recordings))
         raise InsufficientExcitationError(

@@ -15,6 +15,8 @@ import contextlib
 import copy
 import io
 import json
+import shlex
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -24,6 +26,8 @@ from identification.calibration.column_candidates import prepare_training
 from identification.calibration.identify_route import identify_recordings
 from identification.calibration.never_worse import MARGIN_FLOOR
 from identification.calibration.robot_file_check import check_against_file, file_friction
+from identification.data.excitation_check import one_way_joints
+from identification.data.recording import Recording
 from psdm_casadi.cli import main
 from psdm_casadi.oracle import PinocchioOracle
 from tests.conftest import DATASETS, ROOT
@@ -86,7 +90,22 @@ def test_a_model_worse_on_one_joint_is_named_with_its_numbers_and_the_route(dens
     assert c.after[1] - c.before[1] > 1.0  # a 2 N m Coulomb error is about that much RMSE on a reversing joint
     text = check.describe()
     assert "WORSE on joint(s) 2" in text and f"{c.before[1]:.4g} -> {c.after[1]:.4g} N m" in text
-    assert "psdm diagnose ROBOT --train DATA --validate OTHER --apply NEW_MODEL.json" in text
+    assert "'psdm diagnose ROBOT --train DATA --validate OTHER' scores that model" in text and "--apply" not in text
+    assert "record more of their motion" in text  # every joint of the sine experiment reverses
+    one_way = replace(check, one_way=(0, 1))  # joint 1 is not worse: only joint 2 is named
+    assert "Joint(s) 2 move one way only" in one_way.describe() and "Record them reversing" in one_way.describe()
+
+
+def test_one_way_joints_are_the_joints_that_never_reverse(denso):
+    """A joint whose velocity keeps one sign (a drift added to joint 2's motion) is one-way; the sine experiment's
+    other joints reverse. The speed and share are those of the offset's reversal check."""
+    recording = synthetic(denso, 3, duration=6.0)
+    q = recording.q.copy()
+    q[:, 1] = recording.t * 0.2 + 0.01 * np.sin(recording.t)  # qd2 = 0.2 + 0.01 cos t > 0
+    drifting = Recording(t=recording.t, q=q, tau=recording.tau, name="drift")
+    assert one_way_joints([recording], range(6), speed=0.05, min_fraction=0.02) == []
+    assert one_way_joints([drifting], range(6), speed=0.05, min_fraction=0.02) == [1]
+    assert one_way_joints([drifting, recording], range(6), speed=0.05, min_fraction=0.02) == []  # pooled
 
 
 def test_without_a_held_out_recording_the_check_says_it_was_not_made(denso, denso_model, denso_identified):
@@ -129,7 +148,39 @@ def test_kinova_identify_on_the_cli_defaults_is_never_worse_than_the_robot_file(
     worse = [w for w in report["warnings"] if "against the robot file" in w]
     assert bool(worse) == bool(check["worse_joints"])
     for joint in check["worse_joints"]:
-        assert f"joint {joint}: " in worse[0] and "--apply" in worse[0]
+        assert f"joint {joint}: " in worse[0] and "psdm diagnose" in worse[0] and "--apply" not in worse[0]
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+def test_kinova_trained_on_its_short_recording_names_the_joints_that_never_reverse_and_a_route_that_runs(
+    tmp_path, capsys
+):
+    """The other way round (train opti_traj_testing2, 2.3 s, on which only joint 2 reverses; validate on
+    opti_traj_testing1), the identified model is worse than the robot file with friction fitted on joints 3, 5 and 6
+    (their friction trades with the rigid body: condition number 1447 against 60): identify says so, names those
+    joints as moving one way only, and the diagnose command it names runs as printed."""
+    if not (KINOVA / "opti_traj_testing2.csv").exists():
+        pytest.skip(f"Kinova Gen3 data absent in {KINOVA}")
+    robot_file = tmp_path / "kinova_gen3.toml"
+    robot_file.write_text((ROOT / "examples" / "kinova_gen3.toml").read_text().replace(
+        "../../shared/datasets/kinova_gen3_dynid/gen3.urdf", str(KINOVA / "gen3.urdf")))  # fmt: skip
+    argv = ["identify", str(robot_file), "--data", str(KINOVA / "opti_traj_testing2.csv"), "--validate",
+            str(KINOVA / "opti_traj_testing1.csv"), "--columns", "t=Time,q=Position,tau=TorqueSm", "--out",
+            str(tmp_path / "model.json"), "--json"]  # fmt: skip
+    with contextlib.redirect_stderr(io.StringIO()):
+        assert main(argv) == 0
+    report = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    check = report["robot_file_check"]
+    assert set(check["worse_joints"]) and set(check["worse_joints"]) <= set(check["one_way_joints"])
+    assert 2 not in check["one_way_joints"]  # the one joint that reverses in opti_traj_testing2
+    warning = next(w for w in report["warnings"] if "against the robot file" in w)
+    named = ", ".join(str(j) for j in check["worse_joints"])
+    assert f"Joint(s) {named} move one way only" in warning
+    route = warning.split("predicts the held-out motion better: '")[1].split("'")[0]
+    assert route.startswith("psdm diagnose ") and str(robot_file) in route
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+        assert main(shlex.split(route)[1:]) == 0
 
 
 def test_a_joint_without_torque_in_one_held_out_recording_is_judged_on_the_others(denso, denso_model, denso_identified):
