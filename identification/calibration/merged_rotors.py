@@ -10,10 +10,12 @@ are pushed up their envelopes (a virtual UR5 on motor currents, rotors 0.4 kg m^
 that reproduces ``Ia_j qdd_j`` exactly, so the consistent fit holds each such drive inertia within
 ``drive_inertia_ratio`` of the robot file's and pulled towards it, and the links keep their own share.
 
-Only a torque measured on the motor side of the gearbox holds the rotors' inertia: motor currents, or torques that
-the separate drive-inertia columns (``Ia<j>``, which ``column_choice`` keeps only where the data want them positive)
-show to hold it, such as the Staubli TX40's currents times its gear ratios. A joint-torque sensor behind the gearbox
-does not (the Panda's: its separate columns come out negative and are dropped), and the map stays as derived. A robot
+Only a torque measured on the motor side of the gearbox holds the rotors' inertia (:func:`holds_rotors`): motor
+currents, torques the robot file's ``[recording] side`` states on the motor side, or torques that most separate
+drive-inertia columns (``Ia<j>``, which ``column_choice`` keeps only where the data want them positive) show to hold
+it, such as the Staubli TX40's currents times its gear ratios. A joint-torque sensor behind the gearbox does not (the
+Panda's: its separate columns come out negative and are dropped; the Kinova Gen3's: one kept ``Ia7`` of six, a tool's
+inertia), and the map stays as derived. A robot
 file rarely states rotor inertias (a URDF has none): for a merged joint without one, :func:`sibling_rotors` takes the
 drive inertias the same fit identifies as columns of their own (``Ia<j>``) on the joints with the same torque constant
 (the same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to, each fitted
@@ -46,8 +48,10 @@ logger = logging.getLogger(__name__)
 __all__ = [
     "MergedRotors",
     "file_drive_columns",
+    "holds_rotors",
     "merged_rotor_map",
     "robot_file_theta",
+    "separate_joints",
     "sibling_rotors",
     "with_merged_rotors",
 ]
@@ -175,11 +179,31 @@ def _beside_file_links(robot, model, equations, n_drive, rotor_columns=()) -> tu
     return values[:n_rotors], values[n_rotors:]
 
 
-def _holds_rotors(kt, names) -> bool:
-    """Whether the torque signal holds the rotors' inertia: motor currents (``kt``), or a fit with drive-inertia
-    columns of their own (``Ia<j>``: ``column_choice`` keeps only those the data want positive, as motor-side torques
-    give them; a link-side sensor's are dropped)."""
-    return kt is not None or any(name.startswith("Ia") and name[2:].isdigit() for name in names)
+def holds_rotors(model, robot, kt, names) -> bool:
+    """Whether the torque signal holds the rotors' inertia (is measured on the motor side of the gearbox): motor
+    currents (``kt``), torques the robot file's ``[recording] side`` states on the motor side, or else the fit's own
+    drive-inertia columns (``Ia<j>``: ``column_choice`` keeps only those the data want positive, as motor-side torques
+    give them) kept on at least half of the joints that have one (:func:`separate_joints`), and on two at least where
+    two can be had. A single kept column among several is no evidence: on the Kinova Gen3's joint-torque sensors (link
+    side) a kept ``Ia7`` stood in for a tool's inertia, and taking the signal for a motor-side one fitted the rotors of
+    joints 1-2 from the data and released joint 2's inertia from the pull (validation 2.77 -> 6.85 N m)."""
+    layout = getattr(robot, "recording_layout", None)
+    if kt is not None or (layout is not None and layout.side("tau") == "motor"):
+        return True
+    kept = {int(name[2:]) - 1 for name in names if name.startswith("Ia") and name[2:].isdigit()}
+    if not kept:
+        return False
+    separate = separate_joints(model, robot)
+    return 2 * len(kept) >= len(separate) and len(kept) >= min(2, len(separate))
+
+
+def separate_joints(model, robot) -> list:
+    """The joints (0-based) whose drive inertia is a column of its own: neither in ``model``'s map nor in the span of
+    its base regressor (``trajectory_fit.separate_inertia_joints``, which imports this module)."""
+    mapped = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
+    unmapped = [j for j in range(robot.n_dof) if not np.any(mapped[:, j])]
+    merged = merged_rotor_map(model, robot, unmapped) if unmapped else {}
+    return [j for j in unmapped if j not in merged]
 
 
 def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool = True) -> MergedRotors:
@@ -188,11 +212,11 @@ def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool =
     training data want with the file's links held (:func:`data_rotors`; bounded below by 0 only). ``kt``: the torque
     constants of recordings of currents; ``columns``: the normal equations and the drive columns' names of the fit.
     ``model`` and ``robot`` unchanged when there are none: no drive inertia asked for (``options.drive_inertia``;
-    ``options`` None asks for it), a signal that holds no rotor inertia (:func:`_holds_rotors`), or no reference.
+    ``options`` None asks for it), a signal that holds no rotor inertia (:func:`holds_rotors`), or no reference.
     ``log`` False says what it holds at DEBUG only (the diagnosis's refits, ``envelope_check``, make many)."""
     unchanged = MergedRotors(model, robot)
     names = () if columns is None else tuple(columns[1])
-    if not ((options is None or options.drive_inertia) and _holds_rotors(kt, names)):
+    if not ((options is None or options.drive_inertia) and holds_rotors(model, robot, kt, names)):
         return unchanged
     drive = {} if columns is None or robot.links is None else file_drive_columns(robot, model, *columns)
     siblings = () if kt is None else sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive)

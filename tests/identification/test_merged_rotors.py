@@ -14,7 +14,7 @@ import pytest
 from codegen.urdf_export import urdf_armature
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_choice import ColumnRequest, choose_columns
-from identification.calibration.merged_rotors import merged_rotor_map, with_merged_rotors
+from identification.calibration.merged_rotors import holds_rotors, merged_rotor_map, with_merged_rotors
 from identification.calibration.model_file_check import check_against_model
 from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import (
@@ -29,6 +29,7 @@ from identification.metrics import rmse
 from psdm_casadi import derive_psdm
 from psdm_casadi.cli import main
 from psdm_casadi.errors import ModelFileError
+from psdm_casadi.recording_layout import RecordingLayout
 from psdm_casadi.robot import load_robot
 from tests.conftest import DATASETS, DENSO_FILE, ROOT
 from tests.identification.test_drive_loss import recorded
@@ -202,3 +203,34 @@ def test_psdm_identify_says_where_the_tx40s_rotors_of_joints_1_and_2_came_from(t
     assert "PUSHED" not in text
     # the torques hold rotor inertia: not called a sensor behind the gearbox
     assert "drive loss: not tried" in text and "behind the gearbox" not in text
+
+
+def test_one_kept_drive_inertia_on_a_link_side_sensor_fits_no_rotors(denso_merged_rotors):
+    """A joint-torque sensor behind the gearbox (no rotor in the torque) with a tool's inertia about the last axis: a
+    kept ``Ia6`` fits it (positive), but one column of several is no evidence of a motor-side signal (the Kinova Gen3's
+    sensors: a kept ``Ia7`` made the rotors of joints 1-2 fitted from the data, joint 2's validation 2.77 -> 6.85 N m).
+    Motor-side torques keep the columns on most joints, and the rotors are fitted; a robot file stating the torque on
+    the motor side needs no column."""
+    denso, denso_model = denso_merged_rotors
+    unstated = replace(denso, rotor_inertia=np.zeros(denso.n_dof))
+    separate = separate_inertia_joints(denso_model, denso)
+    last = denso.n_dof - 1
+    assert last in separate and len(separate) >= 3
+    sensor = recorded(denso, 11, current=False)
+    tau = sensor.tau.copy()
+    tau[:, last] += 0.05 * np.gradient(np.gradient(sensor.q[:, last], sensor.t), sensor.t)  # the tool: 0.05 kg m^2
+    tool = Recording(t=sensor.t, q=sensor.q, tau=tau, name="sensor_tool")
+    options = TrajectoryOptions(inertia_joints=(last,))
+    fit = identify_trajectories(unstated, denso_model, [tool], options)
+    assert fit.drive[list(fit.drive_names).index(f"Ia{last + 1}")] > 0.02, fit.drive  # the column holds the tool
+    assert "drive_inertia_reference" not in dict(fit.envelope_bounds)
+    merged = [j for j in range(denso.n_dof) if j not in separate]
+    assert np.all(fit.standard[merged, ROTOR] == 0.0), fit.standard[:, ROTOR]
+    assert not holds_rotors(denso_model, unstated, None, (f"Ia{last + 1}",))
+    # motor-side torques: the columns kept on most joints, or the side stated by the robot file
+    names = tuple(f"Ia{j + 1}" for j in separate)
+    assert holds_rotors(denso_model, unstated, None, names[: (len(names) + 1) // 2])
+    assert holds_rotors(denso_model, unstated, [d.kt for d in denso.drives], ())
+    motor_side = replace(unstated, recording_layout=RecordingLayout(sides={"q": "motor", "tau": "motor"}))
+    assert holds_rotors(denso_model, motor_side, None, ())
+    assert not holds_rotors(denso_model, unstated, None, ())
