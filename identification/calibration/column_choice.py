@@ -64,6 +64,7 @@ from identification.calibration.column_candidates import (
 )
 from identification.calibration.coulomb_smoothing import SmoothingChoice, smoothing_velocity
 from identification.calibration.drive_loss import efficiency
+from identification.calibration.merged_rotors import without_lone_inertia
 from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
@@ -347,6 +348,7 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         if term is None or getattr(request, asked[term]) != "auto":
             continue
         evidence.append(_column_evidence(found, stribeck, name, term, (train, held, x, std), source == "current"))
+    evidence = evidence if source == "current" else without_lone_inertia(robot, model, evidence)
     kept = {(e.term, e.joint) for e in evidence if e.kept}
     friction = request.friction if request.friction != "auto" else ("stribeck" if stribeck else "coulomb-viscous")
     choice = ColumnChoice(

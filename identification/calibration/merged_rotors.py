@@ -54,6 +54,7 @@ __all__ = [
     "separate_joints",
     "sibling_rotors",
     "with_merged_rotors",
+    "without_lone_inertia",
 ]
 
 SPAN_TOLERANCE = 1e-8  # relative residual below which Ia_j qdd_j is taken as inside the base regressor's span
@@ -204,6 +205,23 @@ def separate_joints(model, robot) -> list:
     unmapped = [j for j in range(robot.n_dof) if not np.any(mapped[:, j])]
     merged = merged_rotor_map(model, robot, unmapped) if unmapped else {}
     return [j for j in unmapped if j not in merged]
+
+
+def without_lone_inertia(robot, model, evidence) -> list:
+    """``evidence`` (``column_choice.Evidence`` of a torque signal) with the drive-inertia columns the held-out data
+    alone kept (``departs``) dropped where too few columns are kept to show a motor-side torque (:func:`holds_rotors`):
+    behind the gearbox such a column stands for something else (the Kinova Gen3's sensors: ``Ia7``, BIC -0.93, a
+    tool's inertia; kept, joint 7 0.17 -> 0.26 N m held out). A column the training data want too stays (no rotor is
+    inferred from it)."""
+    names = [f"Ia{e.joint + 1}" for e in evidence if e.term == "Ia" and e.kept]
+    if not names or holds_rotors(model, robot, None, names):
+        return evidence
+    reason = (f"kept by the held-out data alone, on {len(names)} of the {len(separate_joints(model, robot))} "
+              "joints with a column: too few for a torque that holds the rotors' inertia (a sensor behind the "
+              "gearbox)")  # fmt: skip
+    lone = {e.joint for e in evidence if e.term == "Ia" and e.kept and e.departs}
+    return [replace(e, kept=False, reason=reason, departs=False) if e.term == "Ia" and e.joint in lone else e
+            for e in evidence]  # fmt: skip
 
 
 def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool = True) -> MergedRotors:

@@ -13,8 +13,13 @@ import pytest
 
 from codegen.urdf_export import urdf_armature
 from identification.calibration.calibrated_model import CalibratedModel
-from identification.calibration.column_choice import ColumnRequest, choose_columns
-from identification.calibration.merged_rotors import holds_rotors, merged_rotor_map, with_merged_rotors
+from identification.calibration.column_choice import ColumnRequest, Evidence, choose_columns
+from identification.calibration.merged_rotors import (
+    holds_rotors,
+    merged_rotor_map,
+    with_merged_rotors,
+    without_lone_inertia,
+)
 from identification.calibration.model_file_check import check_against_model
 from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import (
@@ -227,6 +232,18 @@ def test_one_kept_drive_inertia_on_a_link_side_sensor_fits_no_rotors(denso_merge
     merged = [j for j in range(denso.n_dof) if j not in separate]
     assert np.all(fit.standard[merged, ROTOR] == 0.0), fit.standard[:, ROTOR]
     assert not holds_rotors(denso_model, unstated, None, (f"Ia{last + 1}",))
+    # identify's column choice: the training data want the column too (BIC), so it stays, and no rotor is inferred
+    choice = choose_columns(unstated, denso_model, [tool], request=ColumnRequest(friction="coulomb-viscous"))
+    (strong,) = [e for e in choice.evidence if e.term == "Ia" and e.joint == last]
+    assert strong.kept and strong.delta_bic > 10 and choice.inertia_joints == (last,), strong
+    # one kept by the held-out data alone (the Kinova's Ia7: BIC -0.93, held out -54 %) among dropped ones: dropped
+    dropped = [Evidence("Ia", j, -5.0, 1.1, False, "the data want it negative", -0.1, 0.01) for j in separate[:-1]]
+    weak = Evidence("Ia", last, -0.93, 0.46, True, "held out", 0.13, 0.08, departs=True)
+    (verdict,) = [e for e in without_lone_inertia(unstated, denso_model, [*dropped, weak]) if e.joint == last]
+    assert not verdict.kept and "too few for a torque that holds the rotors' inertia" in verdict.reason
+    assert without_lone_inertia(unstated, denso_model, [*dropped, strong]) == [*dropped, strong]
+    several = [replace(weak, joint=j) for j in separate]
+    assert without_lone_inertia(unstated, denso_model, several) == several
     # motor-side torques: the columns kept on most joints, or the side stated by the robot file
     names = tuple(f"Ia{j + 1}" for j in separate)
     assert holds_rotors(denso_model, unstated, None, names[: (len(names) + 1) // 2])
