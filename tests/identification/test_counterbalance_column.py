@@ -150,7 +150,7 @@ def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(tx40_benchmark):
     result = identify_recordings(robot, model, [train], validation=[validation])
     assert result.counterbalance.joints == ()  # nothing pushed, nothing named
     named = dataclasses.replace(
-        result.fit, envelope=(SimpleNamespace(absorbs="counterbalance", pressed=True, joint=1),)
+        result.fit, envelope=(SimpleNamespace(absorbs="counterbalance", pressed=True, joint=1, effect_joint=-1),)
     )
 
     def build(fit):
