@@ -18,6 +18,7 @@ import numpy as np
 from identification.calibration.drive_loss import loss_columns, prior_theta
 from identification.calibration.payload_fit import FlangeBodies, subtract_known_payloads
 from identification.calibration.residual_correlation import residual_correlation_time
+from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.stribeck import base_regressors, fit_stribeck_velocity
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
 from identification.calibration.trajectory_data import (
@@ -27,7 +28,7 @@ from identification.calibration.trajectory_data import (
     prepare_recording,
     prepare_recordings,
 )
-from identification.calibration.trajectory_fit import separate_inertia_joints, torque_constants
+from identification.calibration.trajectory_fit import torque_constants
 
 __all__ = [
     "N_BLOCKS",

@@ -65,7 +65,8 @@ from identification.calibration.column_candidates import (
 from identification.calibration.coulomb_smoothing import SmoothingChoice, smoothing_velocity
 from identification.calibration.drive_loss import efficiency
 from identification.calibration.merged_rotors import without_lone_inertia
-from identification.calibration.trajectory_fit import TrajectoryOptions, separate_inertia_joints
+from identification.calibration.separate_inertia import separate_inertia_joints
+from identification.calibration.trajectory_fit import TrajectoryOptions
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering

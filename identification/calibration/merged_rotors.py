@@ -42,6 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
+from identification.calibration.separate_inertia import SPAN_TOLERANCE, random_states, separate_inertia_joints
 
 logger = logging.getLogger(__name__)
 
@@ -51,13 +52,11 @@ __all__ = [
     "holds_rotors",
     "merged_rotor_map",
     "robot_file_theta",
-    "separate_joints",
     "sibling_rotors",
     "with_merged_rotors",
     "without_lone_inertia",
 ]
 
-SPAN_TOLERANCE = 1e-8  # relative residual below which Ia_j qdd_j is taken as inside the base regressor's span
 SAME_ACTUATOR = 1e-6  # relative difference of two torque constants below which their drives are the same actuator
 #: A rotor held to its siblings stays within their values' spread widened by this factor: the same actuator has the
 #: same rotor (the robot file's wider ``drive_inertia_ratio`` is for a stated value; on the Kinova's currents it let
@@ -105,11 +104,9 @@ class MergedRotors:
 
 def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
     """{joint: base-parameter coefficients (n_base,)} of the drive inertias of ``joints`` (0-based) that lie in the
-    span of the base regressor on random states (the others are left out)."""
-    rng = np.random.default_rng(seed)
-    n_states = 4 * (model.n_base + robot.n_dof)
-    q = rng.uniform(robot.q_min, robot.q_max, size=(n_states, robot.n_dof))
-    qd, qdd = rng.normal(size=(2, n_states, robot.n_dof))
+    span of the base regressor on random states (``separate_inertia.random_states``; the others are left out)."""
+    q, qd, qdd = random_states(model, robot, seed)
+    n_states = q.shape[0]
     stacked = model.regressor(q, qd, qdd).reshape(-1, model.n_base)
     out = {}
     for j in joints:
@@ -184,27 +181,19 @@ def holds_rotors(model, robot, kt, names) -> bool:
     """Whether the torque signal holds the rotors' inertia (is measured on the motor side of the gearbox): motor
     currents (``kt``), torques the robot file's ``[recording] side`` states on the motor side, or else the fit's own
     drive-inertia columns (``Ia<j>``: ``column_choice`` keeps only those the data want positive, as motor-side torques
-    give them) kept on at least half of the joints that have one (:func:`separate_joints`), and on two at least where
-    two can be had. A single kept column among several is no evidence: on the Kinova Gen3's joint-torque sensors (link
-    side) a kept ``Ia7`` stood in for a tool's inertia, and taking the signal for a motor-side one fitted the rotors of
-    joints 1-2 from the data and released joint 2's inertia from the pull (validation 2.77 -> 6.85 N m)."""
+    give them) kept on at least half of the joints that have one (``separate_inertia.separate_inertia_joints``), and
+    on two at least where two can be had. A single kept column among several is no evidence: on the Kinova Gen3's
+    joint-torque sensors (link side) a kept ``Ia7`` stood in for a tool's inertia, and taking the signal for a
+    motor-side one fitted the rotors of joints 1-2 from the data and released joint 2's inertia from the pull
+    (validation 2.77 -> 6.85 N m)."""
     layout = getattr(robot, "recording_layout", None)
     if kt is not None or (layout is not None and layout.side("tau") == "motor"):
         return True
     kept = {int(name[2:]) - 1 for name in names if name.startswith("Ia") and name[2:].isdigit()}
     if not kept:
         return False
-    separate = separate_joints(model, robot)
+    separate = separate_inertia_joints(model, robot)
     return 2 * len(kept) >= len(separate) and len(kept) >= min(2, len(separate))
-
-
-def separate_joints(model, robot) -> list:
-    """The joints (0-based) whose drive inertia is a column of its own: neither in ``model``'s map nor in the span of
-    its base regressor (``trajectory_fit.separate_inertia_joints``, which imports this module)."""
-    mapped = model.parameter_map[:, LINK_PARAMETER_COUNT :: LINK_PARAMETER_COUNT + 1]
-    unmapped = [j for j in range(robot.n_dof) if not np.any(mapped[:, j])]
-    merged = merged_rotor_map(model, robot, unmapped) if unmapped else {}
-    return [j for j in unmapped if j not in merged]
 
 
 def without_lone_inertia(robot, model, evidence) -> list:
@@ -216,7 +205,7 @@ def without_lone_inertia(robot, model, evidence) -> list:
     names = [f"Ia{e.joint + 1}" for e in evidence if e.term == "Ia" and e.kept]
     if not names or holds_rotors(model, robot, None, names):
         return evidence
-    reason = (f"kept by the held-out data alone, on {len(names)} of the {len(separate_joints(model, robot))} "
+    reason = (f"kept by the held-out data alone, on {len(names)} of the {len(separate_inertia_joints(model, robot))} "
               "joints with a column: too few for a torque that holds the rotors' inertia (a sensor behind the "
               "gearbox)")  # fmt: skip
     lone = {e.joint for e in evidence if e.term == "Ia" and e.kept and e.departs}

@@ -55,6 +55,7 @@ from identification.calibration.payload_fit import (
 from identification.calibration.prior_pull import PRIOR_UNCERTAINTY, check_prior_options
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.residual_correlation import correlation_time, sandwich_covariance
+from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
 from identification.calibration.trajectory_checks import (
     check_columns,
@@ -75,7 +76,7 @@ from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
 __all__ = ["IPOPT_OPTIONS", "TrajectoryFit", "TrajectoryOptions", "drive_inertia_joints", "identify_trajectories",
-           "predict_torque", "separate_inertia_joints", "torque_constants"]  # fmt: skip
+           "predict_torque", "torque_constants"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -124,7 +125,8 @@ class TrajectoryOptions:
         (``column_choice`` decides it from the data). None: every joint.
     inertia_joints : tuple of int or None
         With ``drive_inertia``: the joints (0-based) whose drive-inertia column of its own is identified, among
-        :func:`separate_inertia_joints` (``column_choice`` drops those the data want negative). None: all of them.
+        ``separate_inertia.separate_inertia_joints`` (``column_choice`` drops those the data want negative). None: all
+        of them.
     stribeck_joints : tuple of int or None
         With ``"fs"``: the joints (0-based) of the Stribeck shape; the others are Coulomb-viscous (Stribeck velocity
         0, static friction held at 0: ``trajectory_data.friction_term``; ``column_choice`` decides it per joint from
@@ -422,47 +424,13 @@ def torque_constants(robot, options, recordings):
     return np.array([d.kt for d in robot.drives], dtype=float)
 
 
-def separate_inertia_joints(model, robot) -> list:
-    """Joints whose drive inertia the fit identifies as a column of its own (``Ia<j>``), 0-based."""
-    return _separate_inertia_joints(model, robot)
-
-
 def drive_inertia_joints(model, robot, options: TrajectoryOptions) -> list:
     """The joints with an ``Ia<j>`` column in a fit with ``options`` (0-based): ``options.inertia_joints`` as given
     (``column_choice`` takes them among the separate ones), else every separate one."""
     if not options.drive_inertia:
         return []
     kept = options.inertia_joints
-    return _separate_inertia_joints(model, robot) if kept is None else sorted(int(j) for j in kept)
-
-
-def _separate_inertia_joints(model, robot, seed: int = 0) -> list:
-    """Joints whose drive inertia needs a column of its own: not in the base parameters, and not confounded.
-
-    A drive inertia ``Ia_j qdd_j`` is kept as a column only where it is independent of the base
-    regressor on random states (the first joint's, about a vertical axis, adds to its link's Izz
-    and is identified inside that base parameter).
-    """
-    rotor_columns = model.parameter_map[:, ROTOR :: LINK_PARAMETER_COUNT + 1]
-    candidates = [j for j in range(robot.n_dof) if not np.any(rotor_columns[:, j])]
-    if not candidates:
-        return []
-    rng = np.random.default_rng(seed)
-    n_states = 4 * (model.n_base + robot.n_dof)
-    q = rng.uniform(robot.q_min, robot.q_max, size=(n_states, robot.n_dof))
-    qd, qdd = rng.normal(size=(2, n_states, robot.n_dof))
-    stacked = model.regressor(q, qd, qdd).reshape(-1, model.n_base)
-    kept = []
-    for j in candidates:
-        column = np.zeros((n_states, robot.n_dof))
-        column[:, j] = qdd[:, j]
-        trial = np.column_stack([stacked, column.reshape(-1)])
-        if np.linalg.matrix_rank(trial, tol=1e-9 * np.abs(trial).max() * trial.shape[0]) > np.linalg.matrix_rank(
-            stacked, tol=1e-9 * np.abs(trial).max() * trial.shape[0]
-        ):
-            kept.append(j)
-            stacked = trial
-    return kept
+    return separate_inertia_joints(model, robot) if kept is None else sorted(int(j) for j in kept)
 
 
 def _solve_scaled(gram, moment, arm=slice(None)):

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
-from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, separate_inertia_joints
+from identification.calibration.separate_inertia import separate_inertia_joints
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.recording import Recording
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.errors import ParameterError

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from identification.calibration.merged_rotors import robot_file_theta
-from identification.calibration.trajectory_fit import separate_inertia_joints
+from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.diagnosis.diagnose import DiagnosisOptions, DiagnosisProblem, prepare_problem
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.rigid_body_choice import recalibration_parts
@@ -73,7 +73,7 @@ def test_the_enveloped_recalibration_on_motor_side_torques_fits_the_rotors_the_f
     no better; without any rotor finding (nothing says the torque holds rotors) the links must absorb them, as the
     derived map made every refit do before (with the separate joints' rotor findings: links 1-2 on their 2 x mass
     bounds, joints 1-2 at 0.64 and 0.37 N m against 0.11 and 0.10 now)."""
-    from identification.calibration.trajectory_fit import separate_inertia_joints
+    from identification.calibration.separate_inertia import separate_inertia_joints
     from identification.data.recording import Recording
     from identification.diagnosis.candidates import RotorInertiaTerm
 

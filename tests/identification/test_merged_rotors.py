@@ -21,12 +21,12 @@ from identification.calibration.merged_rotors import (
     without_lone_inertia,
 )
 from identification.calibration.model_file_check import check_against_model
+from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import (
     TrajectoryOptions,
     identify_trajectories,
     predict_torque,
-    separate_inertia_joints,
 )
 from identification.data.recording import Recording
 from identification.data.robot_recordings import load_robot_recording
