@@ -23,6 +23,12 @@ other blocks (``counterbalance_folds``; 2 x 4 more fits per departure, a fold's 
 fitted reused, and the plain rule's fit of all the training data made only where it wins). Training recordings too
 short to cut into blocks, or carrying payloads, leave the choice as the held-out verdict made it, and its reason
 says so.
+
+A judge must be a converged fit: a fit the judge compares that stopped at Ipopt's iteration cap
+(``Maximum_Iterations_Exceeded``; a consistent fit that did not converge otherwise raises, and a fold that raises
+cannot be judged) is not judged on (``UnconvergedFit``), and the column goes as the training BIC decides, the reason
+naming the fit. On the Panda's defaults one fold fit of joint 5's Stribeck check once stopped at the barrier path's
+cap and was finished by the chart (``barrier_path``: where a pass's path starts); all eight now converge on the path.
 """
 
 from __future__ import annotations
@@ -38,13 +44,25 @@ from identification.calibration.counterbalance_folds import FoldFailure, block_f
 from identification.calibration.never_worse import compare_models
 from identification.calibration.trajectory_fit import identify_trajectories
 
-__all__ = ["check_departures", "written_model_judge"]
+__all__ = ["UnconvergedFit", "check_departures", "converged", "written_model_judge"]
 
 logger = logging.getLogger(__name__)
 
 #: The ``TrajectoryOptions`` fields a ``ColumnChoice`` sets (``ColumnChoice.options``): a fold's model is the same for
 #: the same values on the same pieces (the other fields are identify's options, the same for every choice).
 COLUMN_FIELDS = ("friction", "offset_joints", "drive_inertia", "inertia_joints", "stribeck_joints", "coulomb_velocity")
+
+
+class UnconvergedFit(FoldFailure):
+    """A fit the judge would compare stopped at Ipopt's iteration cap: the column is not judged on it."""
+
+
+def converged(fit, what: str):
+    """``fit`` (a ``TrajectoryFit``), or ``UnconvergedFit`` naming ``what`` when its consistent fit stopped at
+    Ipopt's iteration cap."""
+    if fit.solver_status == "Maximum_Iterations_Exceeded":
+        raise UnconvergedFit(f"the consistent fit {what} stopped at Ipopt's iteration cap ({fit.solver_status})")
+    return fit
 
 
 def check_departures(choice, fit, fit_of, compare) -> tuple:
@@ -63,6 +81,13 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
         what = "keeping" if current.kept else "refusing"
         try:
             comparison = compare((plain, plain_fit), (choice, partial(_same, fit)))
+        except UnconvergedFit as failure:  # no verdict from a fit that did not converge: the training BIC decides
+            reason = (
+                f"{current.reason}; not checked on the model identify writes ({failure}), so the training BIC decides"
+            )
+            choice, fit = choice.decided(current, not current.kept, reason), plain_fit()
+            logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
+            continue
         except FoldFailure as failure:
             reason = f"{current.reason}; not checked on the model identify writes ({failure})"
             choice = choice.decided(current, current.kept, reason)
@@ -101,7 +126,13 @@ def written_model_judge(problem, validation, cutoff_hz):
         return CalibratedModel.from_fit(robot, model, fit, robot_source=robot.source)
 
     if validation:
-        return lambda before, after: compare_models(build(before[1]()), build(after[1]()), model, list(validation), kt)
+
+        def on_validation(before, after):
+            models = [build(converged(fit(), f"of {what}")) for (_, fit), what in
+                      ((before, "the training BIC's columns"), (after, "the held-out data's columns"))]  # fmt: skip
+            return compare_models(*models, model, list(validation), kt)
+
+        return on_validation
     folds = block_folds(recordings, configurations, cutoff_hz)
     if isinstance(folds, str):
         return folds
@@ -114,7 +145,8 @@ def written_model_judge(problem, validation, cutoff_hz):
         def identify(pieces):
             key = (*(getattr(chosen, name) for name in COLUMN_FIELDS), *map(id, pieces))
             if key not in fitted:
-                fitted[key] = build(identify_trajectories(robot, model, list(pieces), chosen))
+                fold = identify_trajectories(robot, model, list(pieces), chosen)
+                fitted[key] = build(converged(fold, f"on the training data without a block ({fold.n_samples} samples)"))
             return fitted[key]
 
         return identify

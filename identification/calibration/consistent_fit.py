@@ -272,7 +272,7 @@ def consistent_fit(
     g, g_lower, g_upper, owner = _link_constraints(rows, links, prior, bounds)
     evaluate = ca.Function("standard", [variables], [standard, x, payloads])
     plain = _standard_form(model, prior, links, payload_prior, len(names), bounds, pull)
-    x_opt, w = start, 1.0 / sigma**2
+    x_opt, w, centre = start, 1.0 / sigma**2, None
     for final in (False, True):  # then once more weighted by the consistent fit's own residuals (module docstring)
         gram, moment, energy = equations.weighted(w)
         residual = (ca.bilin(ca.DM(gram), x, x) - 2 * ca.dot(ca.DM(moment), x) + energy) / count
@@ -282,7 +282,8 @@ def consistent_fit(
             "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         }
         convex, x_opt = _convex_solve(plain, evaluate, x_opt, (gram, moment, energy, count), (lower, upper),
-                                      options.margin, (links, len(payload_prior), n))  # fmt: skip
+                                      options.margin, (links, len(payload_prior), n), centre)  # fmt: skip
+        centre = None if convex is None else convex.first  # where the next pass's path starts (barrier_path)
         if convex is not None and convex.complete:  # the convex problem solved: the chart has nothing to add
             solution, status, offset = convex.solution, convex.status, 10 * (len(links) + len(payload_prior))
         else:  # the chart from the path's last point (or from the last pass's solution)
@@ -348,9 +349,11 @@ def _standard_form(model, prior, links, flange, n_drive, bounds, pull) -> dict:
     }
 
 
-def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts) -> tuple:
+def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts, centre=None) -> tuple:
     """(``barrier_path.BarrierResult`` or None, chart coordinates of its point, or ``chart`` without one): the convex
-    problem (``_standard_form``) solved along the barrier path from the chart point ``chart``."""
+    problem (``_standard_form``) solved along the barrier path from the chart point ``chart``, or from ``centre``
+    (the standard form's variables: the last pass's point of the path's first weight, ``BarrierResult.first``; a
+    second pass starts there, not at the last pass's end, ``barrier_path``)."""
     from identification.calibration.barrier_path import barrier_solution
 
     gram, moment, energy, count = normal
@@ -359,7 +362,7 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts) 
     values, bodies = values.reshape(n, -1), bodies.reshape(-1, 10)
     n_phi, n_psi = 10 * len(free), 10 * n_bodies
     rest = chart[n_phi : chart.size - n_psi]  # rotors and drive terms: the same in both forms
-    start = np.concatenate([values[free, :10].reshape(-1), bodies.reshape(-1), rest])
+    start = np.concatenate([values[free, :10].reshape(-1), bodies.reshape(-1), rest]) if centre is None else centre
     residual = centred_residual(gram, moment, energy, count, plain["x"])
     lower, upper = chart_bounds
     lbx = np.concatenate([np.full(n_phi + n_psi, -np.inf), lower[n_phi : lower.size - n_psi]])

@@ -297,3 +297,38 @@ def test_without_held_out_recordings_the_written_model_is_checked_by_block_cross
     reason = next(e.reason for e in result.choice.evidence if e.joint == 1)
     assert "refusing it makes the model identify writes worse on the held-out data: joint " in reason
     assert "joint 2: " in reason and "so the training BIC decides" in reason
+
+
+def test_a_fold_fit_stopped_at_the_iteration_cap_is_not_judged_on_and_the_training_bic_decides(
+    denso, denso_model, monkeypatch
+):
+    """``column_check.converged``: a fold fit whose consistent fit stopped at Ipopt's iteration cap
+    (``Maximum_Iterations_Exceeded``, stood in for by the real fit with that status) gives no verdict: the case of the
+    block cross-validation test above, whose judge would otherwise say refusing joint 2's true offset makes the
+    written model worse, now says it was not checked and why, and the training BIC decides (the offset is kept, the
+    fit is the plain rule's)."""
+    from dataclasses import replace
+
+    import identification.calibration.column_check as column_check
+    import identification.calibration.column_choice as column_choice
+    from identification.calibration.identify_route import identify_recordings
+
+    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
+    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
+    train = synthetic(denso, 2, offset=np.array([0.0, 3.0, 0.0, 0.0, 0.0, 0.0]), duration=8.0)
+    request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
+    folds, fit_fold = [], column_check.identify_trajectories
+
+    def capped(*args, **kwargs):  # only the fold fits are made here; the full fits go through identify_route
+        folds.append(1)
+        return replace(fit_fold(*args, **kwargs), solver_status="Maximum_Iterations_Exceeded")
+
+    monkeypatch.setattr(column_check, "identify_trajectories", capped)
+    result = identify_recordings(denso, denso_model, [train], request=request, counterbalance=False)
+    assert len(folds) == 1  # the first fold fit already stops the judge
+    assert result.choice.offset_joints == (1,) and result.fit.drive_names.count("offset2") == 1
+    reason = next(e.reason for e in result.choice.evidence if e.joint == 1)
+    assert "not checked on the model identify writes (the consistent fit on the training data without a block" in reason
+    assert "stopped at Ipopt's iteration cap" in reason and reason.endswith("so the training BIC decides")
+    assert "makes the model identify writes worse" not in reason
