@@ -22,6 +22,12 @@ from identification.calibration.column_check import check_departures, written_mo
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
 from identification.calibration.held_back import stored_held_back
+from identification.calibration.one_way_friction import (
+    OneWayFriction,
+    check_one_way_mode,
+    held_options,
+    hold_one_way_friction,
+)
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
@@ -57,6 +63,9 @@ class IdentifyResult:
     file_check : FileCheck
         The model written against the robot file (its rigid body, friction fitted) on the held-out recordings, per
         joint with the never-worse margin (``robot_file_check``); not checked without held-out recordings.
+    one_way : OneWayFriction
+        The friction of the joints that move one way only in training: fitted, or held to the robot file's fit where
+        the data do not determine it (``one_way_friction``).
     """
 
     fit: TrajectoryFit
@@ -67,6 +76,7 @@ class IdentifyResult:
     counterbalance: CounterbalanceChoice = field(default_factory=CounterbalanceChoice)
     lugre: object = None
     file_check: FileCheck = field(default_factory=FileCheck)
+    one_way: OneWayFriction = field(default_factory=OneWayFriction)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -90,6 +100,8 @@ class IdentifyResult:
         lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
         if self.counterbalance.reason:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
+        if self.one_way.describe():
+            lines.append(self.one_way.describe())
         if self.file_check.comparison is not None or self.file_check.reason:
             lines.append(self.file_check.describe())
         return lines
@@ -115,6 +127,7 @@ def identify_recordings(
     counterbalance: bool = True,
     robot_source: str | None = None,
     paths=None,
+    one_way: str = "auto",
 ) -> IdentifyResult:
     """Identify a calibrated model from exciting recordings as ``psdm identify`` does (module docstring).
 
@@ -139,14 +152,19 @@ def identify_recordings(
         The robot file or built-in name the model file records (default ``robot.source``).
     paths : sequence of path, optional
         The training recordings' files, for the model file's provenance (their SHA-256).
+    one_way : str
+        The friction of joints that move one way only in training (``one_way_friction.ONE_WAY_MODES``): ``"auto"``
+        holds it to the robot file's fit where the data do not determine it, ``"hold"`` wherever, ``"fit"`` nowhere.
     """
+    check_one_way_mode(one_way)
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
     recordings, validation = list(recordings), list(validation)
     logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")
     choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
     chosen = choice.options(options)
-    loss, lugre = None, None
+    loss, lugre, held = None, None, OneWayFriction(mode=one_way)
+    source = robot.source if robot_source is None else robot_source
     if request.friction == "lugre":
         from identification.calibration.lugre_identify import identify_lugre_trajectories
 
@@ -160,8 +178,10 @@ def identify_recordings(
         start = fit
     else:
         choice, fit = _checked_fit(robot, model, recordings, options, choice, validation, configurations)
-        chosen, start = choice.options(options), fit
-    source = robot.source if robot_source is None else robot_source
+        problem = (robot, model, recordings, choice.options(options), configurations)
+        fit, held = _one_way(problem, fit, validation, one_way, source)
+        chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
+        start = fit
     saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
              list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
     skip = lugre is not None or bool(loss) or not counterbalance  # routes that take no extra columns
@@ -174,7 +194,28 @@ def identify_recordings(
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
     check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
-    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check)
+    calibrated.document["identification"]["one_way_friction"] = held.to_dict()
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held)
+
+
+def _one_way(problem, fit, validation, mode, source) -> tuple:
+    """``(fit, OneWayFriction)``: the undetermined friction of the joints that move one way only held to the robot
+    file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``)."""
+    from identification.calibration.column_candidates import prepare_training
+
+    robot, model, recordings, options, configurations = problem
+    if configurations is not None and any(c.payload is not None or c.unknown for c in configurations):
+        return fit, OneWayFriction(mode=mode, reason="fitted from the data (the recordings carry payloads)")
+
+    def refit(held_options):
+        return identify_trajectories(robot, model, recordings, held_options, configurations=configurations)
+
+    def judge(candidate):
+        calibrated = CalibratedModel.from_fit(robot, model, candidate, robot_source=source)
+        return _file_check(robot, model, recordings, validation, options, candidate, calibrated, configurations)
+
+    prepared = prepare_training(robot, recordings, options).prepared
+    return hold_one_way_friction((*problem, refit), fit, prepared, mode, judge if validation else None)
 
 
 def _checked_fit(robot, model, recordings, options, choice, validation, configurations) -> tuple:

@@ -31,7 +31,7 @@ from psdm_casadi.robot import physical_to_dynamic
 
 __all__ = ["FlangeBodies", "FlangeRegressor", "IdentifiedPayload", "Estimable", "configurations_block",
            "carried_configurations", "identified_payloads", "stated_payload",
-           "payload_prior", "subtract_known_payloads", "subtract_loads"]  # fmt: skip
+           "payload_prior", "separable_in_place", "subtract_known_payloads", "subtract_loads"]  # fmt: skip
 
 BODY = 10  # inertial parameters of a flange body: m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz (origin)
 
@@ -112,6 +112,13 @@ class FlangeBodies:
             return [extra] * len(self.index)
         flange = FlangeRegressor(robot)
         return [RecordingColumns(flange, len(self.labels), k, extra) for k in self.index]
+
+
+def separable_in_place(found, mask) -> np.ndarray:
+    """The consistent bodies ``found`` of the separable payloads (``mask``) in their places, NaN for the others."""
+    out = np.full((mask.size, found.shape[1] if found.size else 10), np.nan)
+    out[mask] = found
+    return out
 
 
 def subtract_known_payloads(robot, prepared, configurations) -> list:

@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.consistent_fit import drive_lower_bounds
 from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 from identification.calibration.never_worse import JointComparison, paired_rmse_margin, pooled_comparison
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
@@ -160,16 +161,27 @@ def _joint_columns(fit, joint: int) -> np.ndarray:
     return np.asarray(keep, dtype=int)
 
 
-def file_friction(oracle, fit, prepared) -> FileFriction:
+def file_friction(oracle, fit, prepared, bounded: bool = False) -> FileFriction:
     """The robot file's rigid body (``oracle``) with each joint's drive columns of ``fit`` fitted by least squares
-    on the ``prepared`` training recordings (joints without torque, NaN, left out)."""
+    on the ``prepared`` training recordings (joints without torque, NaN, left out); ``bounded``: friction and drive
+    inertias >= 0, as the consistent fit bounds them (``consistent_fit.drive_lower_bounds``)."""
+    from scipy.optimize import lsq_linear
+
     rows = [(r.tau - oracle.rnea(r.q, r.qd, r.qdd), _columns(fit, r.qd, r.qdd)) for r in prepared]
     residual = np.concatenate([r for r, _ in rows])
     columns = np.concatenate([c for _, c in rows])
+    lower = drive_lower_bounds(fit.drive_names) if bounded else np.full(len(fit.drive_names), -np.inf)
     coefficients = []
     for j in range(residual.shape[1]):
         keep, ok = _joint_columns(fit, j), np.isfinite(residual[:, j])
-        x = np.linalg.lstsq(columns[ok][:, j, keep], residual[ok, j], rcond=None)[0] if keep.size and ok.any() else []
+        x = []
+        if keep.size and ok.any():
+            a, b = columns[ok][:, j, keep], residual[ok, j]
+            x = (
+                lsq_linear(a, b, (lower[keep], np.inf), method="bvls").x
+                if bounded
+                else np.linalg.lstsq(a, b, rcond=None)[0]
+            )
         coefficients.append((keep, np.asarray(x, dtype=float)))
     return FileFriction(fit, tuple(coefficients))
 

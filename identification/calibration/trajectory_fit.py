@@ -1,17 +1,16 @@
 """Identification from a few exciting trajectories: weighted least squares, then a physically consistent fit.
 
-The everyday route (FIGAROH's and BIRDy's): recordings of joint torques (or currents with known
-torque constants) along exciting trajectories, in :func:`identify_trajectories`:
+The everyday route (FIGAROH's and BIRDy's): recordings of joint torques (or currents with known torque constants)
+along exciting trajectories, in :func:`identify_trajectories`:
 
 1. each recording is filtered, differentiated and decimated (``trajectory_data``), and its rows
-   ``tau = Y(q, qd, qdd) theta + D(qd, qdd) f`` are summed into per-joint normal equations: the
-   base parameters ``theta`` and the drive parameters ``f`` (Coulomb, viscous, optional offset,
-   and the drive inertia of joints whose model has none). With the Stribeck shape (``"fs"``) each
-   joint's Stribeck velocity is found first (``stribeck``) and then held: ``f`` stays linear;
-2. ordinary least squares with each joint's rows scaled by its torque RMS gives residual variances
-   ``sigma_j^2``; weighted least squares with weights ``1 / sigma_j^2`` gives the unconstrained
-   estimate, its covariance (standard deviations, relative sigma in percent) and the condition
-   number of the weighted regressor (columns scaled to unit norm);
+   ``tau = Y(q, qd, qdd) theta + D(qd, qdd) f`` are summed into per-joint normal equations: the base parameters
+   ``theta`` and the drive parameters ``f`` (Coulomb, viscous, optional offset, and the drive inertia of joints whose
+   model has none; columns of ``TrajectoryOptions.held_friction`` held, ``held_friction``). With the Stribeck shape
+   (``"fs"``) each joint's Stribeck velocity is found first (``stribeck``) and then held: ``f`` stays linear;
+2. ordinary least squares with each joint's rows scaled by its torque RMS gives residual variances ``sigma_j^2``;
+   weighted least squares with weights ``1 / sigma_j^2`` gives the unconstrained estimate, its covariance (standard
+   deviations, relative sigma in percent) and the condition number of the weighted regressor (unit-norm columns);
 3. unless ``consistency=False``, Ipopt minimises the same weighted residual over standard parameters in the
    log-Cholesky chart (``pseudo_inertia``), so every link has a positive-definite pseudo-inertia, with friction and
    drive inertias bounded below by zero, and a pull towards the robot file's parameters (a Gaussian prior against the
@@ -20,8 +19,7 @@ torque constants) along exciting trajectories, in :func:`identify_trajectories`:
    GLS: where the constraint keeps a joint from the least-squares fit, its residual, and so its noise estimate, is
    larger). The base parameters are computed from the standard ones.
 
-The unconstrained estimate is kept beside the consistent one, so a report can show what the
-constraint cost on the data.
+The unconstrained estimate is kept beside the consistent one, so a report can show what the constraint cost on the data.
 """
 
 from __future__ import annotations
@@ -32,6 +30,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration import held_friction
 from identification.calibration.configuration_check import accumulate, loaded_recordings, unstated_payload_warnings
 from identification.calibration.consistent_fit import (
     IPOPT_OPTIONS,
@@ -50,6 +49,7 @@ from identification.calibration.payload_fit import (
     FlangeBodies,
     identified_payloads,
     payload_prior,
+    separable_in_place,
     subtract_known_payloads,
 )
 from identification.calibration.prior_pull import PRIOR_UNCERTAINTY, check_prior_options
@@ -131,6 +131,9 @@ class TrajectoryOptions:
         With ``"fs"``: the joints (0-based) of the Stribeck shape; the others are Coulomb-viscous (Stribeck velocity
         0, static friction held at 0: ``trajectory_data.friction_term``; ``column_choice`` decides it per joint from
         the data). None: every joint.
+    held_friction : tuple of (str, float)
+        Drive columns (``fc<j>``, ``fv<j>`` of Coulomb-viscous joints) held at these values, not fitted
+        (``held_friction``; ``one_way_friction`` holds the friction of a joint the data do not determine it on).
     """
 
     friction: tuple = ("fc", "fv")
@@ -150,6 +153,7 @@ class TrajectoryOptions:
     offset_joints: tuple | None = None
     inertia_joints: tuple | None = None
     stribeck_joints: tuple | None = None
+    held_friction: tuple = ()
 
     def __post_init__(self):
         for name in ("offset_joints", "inertia_joints", "stribeck_joints"):
@@ -176,6 +180,7 @@ class TrajectoryOptions:
         if not (np.isfinite(self.margin) and self.margin > 0):
             raise ParameterError(f"TrajectoryOptions.margin must be > 0 [kg m^2]; got {self.margin!r}.")
         check_prior_options(self)
+        held_friction.check_held_friction(self)
         for key in ("mass_ratio", "drive_inertia_ratio"):
             check_ratio(f"TrajectoryOptions.{key}", getattr(self, key))
 
@@ -323,7 +328,7 @@ def identify_trajectories(
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
-    prepared = subtract_known_payloads(robot, prepared, configurations)
+    prepared = held_friction.subtract_held_friction(subtract_known_payloads(robot, prepared, configurations), options)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
     vs, extras = None, (plain := bodies.extras(robot, extra))
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
@@ -360,7 +365,7 @@ def identify_trajectories(
             options, lower[fitted], prior[separable], merged.fit_bounds(options), correlation=correlation)  # fmt: skip
         drive = np.zeros(len(names))
         drive[fitted] = drive_fitted
-        found = _with_rows(found, separable)
+        found = separable_in_place(found, separable)
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
         pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, kt is not None)
@@ -389,23 +394,16 @@ def identify_trajectories(
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
         torque_ratio=torque_ratio(robot, model, equations, x_ols),
     )  # fmt: skip
-    return replace(fit, warnings=(*fit_warnings(robot, fit), *mixed))
-
-
-def _with_rows(found, mask):
-    """The consistent bodies of the separable payloads in their places, NaN for the others."""
-    out = np.full((mask.size, found.shape[1] if found.size else 10), np.nan)
-    out[mask] = found
-    return out
+    return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit), *mixed)), options)
 
 
 def _held_columns(names, options, n_base, vs, n_columns) -> set:
     """Column indices (after the ``n_base`` base parameters) held at 0: the offsets outside ``options.offset_joints``,
-    and on a Coulomb-viscous joint of a Stribeck model (Stribeck velocity ``vs`` 0) its static friction and its
-    velocity's derivative column (the last ``n_dof`` of the ``n_columns``)."""
+    those of ``options.held_friction`` (their torque is off the data), and on a Coulomb-viscous joint of a Stribeck
+    model (Stribeck velocity ``vs`` 0) its static friction and velocity's derivative column (the last ``n_dof``)."""
     kept = options.offset_joints
     held = {n_base + k for k, n in enumerate(names) if n.startswith("offset") and kept is not None
-            and int(n[6:]) - 1 not in kept}  # fmt: skip
+            and int(n[6:]) - 1 not in kept} | held_friction.held_friction_columns(names, options, n_base)  # fmt: skip
     flat = [] if vs is None else [j for j in range(len(vs)) if vs[j] == 0]
     return held | {n_base + names.index(f"fs{j + 1}") for j in flat} | {n_columns - len(vs) + j for j in flat}
 

@@ -40,6 +40,14 @@ COULOMB_VELOCITY_HELP = (
     "sharper sign; stated in the output and the model file)"
 )
 
+#: ``--one-way-friction`` (``identification.calibration.one_way_friction``).
+ONE_WAY_HELP = (
+    "the friction of joints that move one way only in the training recordings: auto (default) holds it to the robot "
+    "file's rigid body's friction fit where the data do not determine it (a standard deviation above its value) and "
+    "the --validate recordings, if any, find the fitted one worse than the robot file; hold: on every such joint; "
+    "fit: from the data everywhere"
+)
+
 
 def add_arguments(p) -> None:
     """The options of the recordings route (the folder route shares ``--data``, ``--out`` and the rest)."""
@@ -111,6 +119,7 @@ def add_arguments(p) -> None:
                           "lowers its joint's error on each --validate recording and, with at most one, in each block "
                           "of a cross-validation of the training recordings)")):  # fmt: skip
         p.add_argument(option, action="store_true", help=what)
+    p.add_argument("--one-way-friction", choices=("auto", "hold", "fit"), default="auto", help=ONE_WAY_HELP)
     p.add_argument(
         "--missing-torque",
         action="append",
@@ -171,7 +180,7 @@ def run(args) -> int:
     with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
         result = identify_recordings(robot, model, recordings, options, request, validation, configurations,
                                      counterbalance=not args.no_counterbalance, robot_source=args.robot,
-                                     paths=paths)  # fmt: skip
+                                     paths=paths, one_way=args.one_way_friction)  # fmt: skip
     fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], args.validate)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file

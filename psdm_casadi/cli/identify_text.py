@@ -107,6 +107,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
                     "counterbalance": calibrated.document["identification"]["counterbalance"],
                     "drive_loss": drive_loss_summary(calibrated.document),
                     "robot_file_check": calibrated.document["identification"].get("robot_file_check"),
+                    "one_way_friction": calibrated.document["identification"].get("one_way_friction"),
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -124,6 +125,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:
         print(f"counterbalance: {result.counterbalance.reason}")
+    if result.one_way.describe():
+        print(result.one_way.describe())
     for entry in drive_loss_summary(calibrated.document):
         print(
             f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "
@@ -136,6 +139,9 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     for k, name in enumerate(fit.drive_names):
         if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
             continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
+        if name in dict(result.one_way.held):  # not estimated: held to the robot file's fit
+            print(f"{name:<15} {fit.drive[k]:10.4g}       held (one way only: the robot file's fit)")
+            continue
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
     for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
         if vs == 0:
