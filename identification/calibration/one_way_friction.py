@@ -86,8 +86,8 @@ class OneWayFriction:
             f"joint {j + 1}: " + ", ".join(f"{n} {v:.3g}" for n, v in self.held if drive_column_joint(n) == j)
             for j in self.held_joints
         )
-        return (f"{head}held to the robot file's rigid body's friction fit ({values}; N m, N m s/rad) -- "
-                f"{self.reason}. --one-way-friction fit fits it from the data instead")  # fmt: skip
+        return (f"{head}held, Coulomb-viscous, to the robot file's rigid body's friction fit ({values}; N m, "
+                f"N m s/rad) -- {self.reason}. --one-way-friction fit fits it from the data instead")  # fmt: skip
 
     def to_dict(self) -> dict:
         return {"mode": self.mode, "one_way_joints": [j + 1 for j in self.one_way],
