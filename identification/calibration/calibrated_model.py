@@ -29,7 +29,8 @@ It holds everything needed to use an identification without the recordings or th
 - ``drive.lugre`` (version 3, ``friction_shape`` ``"lugre"``): the seven LuGre parameters per joint with their
   standard deviations and whether ``sigma0`` was identifiable (``lugre_recordings``); the drive columns then
   hold only the drive inertias and offsets, and the friction is the LuGre model carried along the series
-  (``predict`` needs the sample times).
+  (``predict`` needs the sample times);
+- ``covariance`` (optional, any version; older files: ``std`` alone): the base then drive parameters' covariance.
 
 Version 1 files (no findings) are read as they were. A model without LuGre friction is still written as
 version 2 (older readers read it); one with LuGre friction is version 3, which older readers refuse rather
@@ -54,6 +55,7 @@ import numpy as np
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.model_file_check import robot_digest
 from identification.calibration.model_preparation import model_preparation, preparation_block
+from identification.calibration.parameter_covariance import covariance_block
 from identification.calibration.payload_fit import configurations_block
 from identification.calibration.trajectory_data import drive_columns, friction_shapes, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
@@ -144,12 +146,10 @@ class CalibratedModel:
             "provenance": {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
                            "psdm_casadi_version": _version(), "recordings": list(recordings)},
             "validation": validation or {},
-            "findings": [],
+            "findings": [], **covariance_block(fit),
         }  # fmt: skip
         if configurations is not None and any(c.stated for c in configurations):
-            names = [entry["name"] for entry in recordings] or [
-                f"recording {k + 1}" for k in range(len(configurations))
-            ]
+            names = [e["name"] for e in recordings] or [f"recording {k + 1}" for k in range(len(configurations))]
             document["configurations"] = configurations_block(configurations, names, fit.payloads)
         if lugre is not None:
             document["version"] = LUGRE_VERSION

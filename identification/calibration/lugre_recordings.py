@@ -175,6 +175,7 @@ def without_friction(fit):
     return dataclasses.replace(
         fit, drive=fit.drive[keep], drive_names=tuple(fit.drive_names[k] for k in keep),
         drive_ols=fit.drive_ols[keep], drive_std=fit.drive_std[keep],
+        covariance=_drive_subset(fit.covariance, fit, keep),
         friction_terms=tuple(t for t in fit.friction_terms if t not in FRICTION_DRIVE_TERMS),
         stribeck_velocity=(), stribeck_velocity_std=(),
     )  # fmt: skip
@@ -187,9 +188,18 @@ def split_findings(fit, n_findings: int) -> tuple:
     extra = (fit.drive[n_drive:], fit.drive_ols[n_drive:], fit.drive_std[n_drive:])
     plain = dataclasses.replace(
         fit, drive=fit.drive[:n_drive], drive_ols=fit.drive_ols[:n_drive], drive_std=fit.drive_std[:n_drive],
-        drive_names=fit.drive_names[:n_drive],
+        drive_names=fit.drive_names[:n_drive], covariance=_drive_subset(fit.covariance, fit, range(n_drive)),
     )  # fmt: skip
     return plain, extra
+
+
+def _drive_subset(covariance, fit, keep):
+    """The rows and columns of ``covariance`` (base then drive parameters, ``TrajectoryFit.covariance``) of the base
+    parameters and the drive parameters ``keep``; None stays None."""
+    if covariance is None:
+        return None
+    index = [*range(len(fit.theta_std)), *(len(fit.theta_std) + k for k in keep)]
+    return covariance[np.ix_(index, index)]
 
 
 def friction_residual(model, fit, prepared, extra=None) -> np.ndarray:

@@ -25,6 +25,7 @@ import numpy as np
 
 from identification.calibration.merged_rotors import merged_rotor_map
 from identification.calibration.model_preparation import PREPARATION_VERSION
+from identification.calibration.parameter_covariance import check_covariance_block
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.trajectory_data import drive_column_names
 from psdm_casadi.errors import ModelFileError
@@ -228,6 +229,7 @@ def check_document(document: dict, name: str) -> None:
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])
     _check_configurations(name, document.get("configurations"))
+    check_covariance_block(name, document)
     warnings = document.get("warnings") if document.get("warnings") is not None else []  # null: none stored
     if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
         raise _refuse(name, "warnings", "a list of strings (the warnings of 'psdm identify')", repr(warnings)[:80])

@@ -10,12 +10,13 @@ read as "carries 2.5 kg" rather than as a worse model.
 Its standard deviations hold two parts. The noise's: each joint's residual variance grown by its correlation time
 (``residual_correlation.residual_correlation_time``: the recording is filtered and oversampled, so the samples are
 not independent). And the model's own: the residual is the load's torque plus the calibrated arm's estimation
-error, which the flange body takes up in part; with the model file's standard deviations of its base and drive
-parameters (``base.std``, ``drive.std``) each is propagated through the flange fit as if independent (the file
-stores no covariance), which states that part somewhat wider than it is. On the virtual Denso calibrated on two 8 s
-recordings (5 calibrations x 6 validation recordings with a 0.8 kg load) the check weighs 0.73-0.90 kg: the noise
-alone stated 0.022-0.038 kg and held the truth within 2 standard deviations in 24 of 30 (RMS z 1.45); with the
-model's part 0.035-0.11 kg, 30 of 30 (RMS z 0.77).
+error, which the flange body takes up in part; the covariance of the model's base and drive parameters the file
+states (``parameter_covariance``) is propagated through the flange fit. A file written before that block has only
+their standard deviations, propagated as if independent, which states that part too wide (the parameters of one
+fit are correlated, and their errors partly cancel in the torque). On the virtual Denso calibrated on two 8 s
+recordings (5 calibrations x 6 validation recordings with a 0.8 kg load) the noise alone held the truth within 2
+standard deviations in 20 of 30 (RMS z 1.74); with the model's part from the standard deviations 30 of 30 but RMS z
+0.72, from the covariance 30 of 30 with RMS z 0.94 (``test_payload_check_coverage``).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.parameter_covariance import stated_covariance
 from identification.calibration.payload_fit import Estimable, FlangeRegressor
 from identification.calibration.residual_correlation import residual_correlation_time
 from identification.calibration.trajectory_data import choose_filter, drive_columns
@@ -63,9 +65,10 @@ class NewPayload:
 
 
 def model_columns(calibrated, model, prepared) -> tuple:
-    """(columns (samples, joints, k), standard deviations (k,)) of a calibrated model's own base and drive parameters
-    on a prepared recording: the error of the model's prediction the flange check allows for (module docstring).
-    A parameter without a stated standard deviation (NaN: not estimated) adds none."""
+    """(columns (samples, joints, k), covariance (k, k)) of a calibrated model's own base and drive parameters on a
+    prepared recording: the error of the model's prediction the flange check allows for (module docstring). The
+    file's covariance (``parameter_covariance``), else its standard deviations as independent (a file written before
+    it); a parameter without a stated one (NaN: not estimated) adds none."""
     drive = calibrated.document["drive"]
     stribeck = drive.get("stribeck_velocity") or None
     own = drive_columns(prepared.qd, prepared.qdd, tuple(drive["friction_terms"]),
@@ -74,14 +77,15 @@ def model_columns(calibrated, model, prepared) -> tuple:
     columns = np.concatenate([model.regressor(prepared.q, prepared.qd, prepared.qdd), own], axis=2)
     std = np.concatenate([calibrated.document["base"].get("std", []), drive.get("std", [])]).astype(float)
     if std.shape != (columns.shape[2],):  # a file that does not state them all: no allowance
-        return columns[:, :, :0], std[:0]
-    return columns, np.nan_to_num(std, nan=0.0)
+        return columns[:, :, :0], np.zeros((0, 0))
+    covariance = stated_covariance(calibrated.document, std.size)
+    return columns, np.diag(np.nan_to_num(std, nan=0.0) ** 2) if covariance is None else covariance
 
 
 def new_payload(robot, prepared, predicted, name: str | None = None, own=None) -> NewPayload | None:
     """The :class:`NewPayload` a prepared recording appears to carry beyond ``predicted`` (the model's torques on
     its samples), or None when the residual does not show one (module docstring). ``own``: the model's own columns
-    and their standard deviations (:func:`model_columns`), allowed for in the load's; None: the noise's alone."""
+    and their covariance (:func:`model_columns`), allowed for in the load's; None: the noise's alone."""
     residual = np.asarray(prepared.tau, dtype=float) - np.asarray(predicted, dtype=float)
     measured = np.all(np.isfinite(residual), axis=0)  # a joint without torque (NaN): no weight
     residual = np.where(measured, residual, 0.0)
@@ -119,7 +123,7 @@ def _covariance(inverse, columns, weights, after, rank, own) -> np.ndarray:
     covariance = inverse @ np.einsum("n,snc,snd->cd", weights**2 * noise, columns, columns) @ inverse
     if own is not None and len(own[1]):
         gain = inverse @ np.einsum("n,snc,snd->cd", weights, columns, np.asarray(own[0], dtype=float))
-        covariance = covariance + (gain * np.asarray(own[1], dtype=float) ** 2) @ gain.T
+        covariance = covariance + gain @ np.asarray(own[1], dtype=float) @ gain.T
     return covariance
 
 

@@ -199,6 +199,9 @@ class TrajectoryFit:
         Drive parameters, labelled by ``drive_names`` (``fc1``, ``fv1``, ..., ``Ia<j>``).
     theta_ols, drive_ols, theta_std, drive_std : arrays
         The weighted least-squares estimate and its standard deviations.
+    covariance : array, shape (n_base + n_drive, n_base + n_drive) or None
+        Of the base then drive parameters of the least-squares estimate (the sandwich covariance their standard
+        deviations are the diagonal of); None where not computed.
     sigma : array
         Residual standard deviation [N m] per joint of the least-squares fit (its weights are ``1 / sigma^2``).
     condition_number : float
@@ -260,6 +263,7 @@ class TrajectoryFit:
     warnings: tuple = ()
     payloads: tuple = ()
     edge_periods: float = EDGE_PERIODS
+    covariance: np.ndarray | None = None
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -392,7 +396,7 @@ def identify_trajectories(
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
-        torque_ratio=torque_ratio(robot, model, equations, x_ols),
+        torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=covariance[:n_fit, :n_fit],
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit), *mixed)), options)
 
