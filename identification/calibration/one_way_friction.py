@@ -35,7 +35,7 @@ from identification.calibration.robot_file_check import file_friction
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
 from identification.calibration.trajectory_data import drive_column_joint
 from identification.data.excitation_check import one_way_joints
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["ONE_WAY_MODES", "OneWayFriction", "check_one_way_mode", "hold_one_way_friction", "held_options",
            "undetermined_friction"]  # fmt: skip
@@ -168,8 +168,12 @@ def hold_one_way_friction(problem, fit, prepared, mode: str = "auto", file_check
     held = _file_values(robot, fit, prepared, candidates)
     logger.info("identify: holding the friction of joints %s (one way only, undetermined) to the robot file's fit ...",
                 ", ".join(str(j + 1) for j in candidates))  # fmt: skip
-    why = _why(mode, candidates, worse, check)
-    return refit(held_options(options, held, robot.n_dof)), replace(record, held=held, worse=worse, reason=why)
+    try:
+        held_fit = refit(held_options(options, held, robot.n_dof))
+    except SolverError as error:  # the fit it replaces stands, and the report says why
+        return fit, replace(record, worse=worse, reason=f"fitted from the data: the fit with joint(s) "
+                            f"{', '.join(str(j + 1) for j in candidates)} held did not converge ({error})")  # fmt: skip
+    return held_fit, replace(record, held=held, worse=worse, reason=_why(mode, candidates, worse, check))
 
 
 def _why(mode, candidates, worse, check) -> str:

@@ -14,13 +14,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from identification.calibration.column_candidates import prepare_training
 from identification.calibration.held_friction import check_held_friction
 from identification.calibration.identify_route import identify_recordings
-from identification.calibration.one_way_friction import OneWayFriction, check_one_way_mode
+from identification.calibration.one_way_friction import OneWayFriction, check_one_way_mode, hold_one_way_friction
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.recording import Recording
 from psdm_casadi import derive_psdm, load_robot
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.oracle import PinocchioOracle
 
 FC, FV, NOISE = 0.3, 0.2, 0.02
@@ -55,7 +56,7 @@ def one_way_case(scara):
     robot, model = scara
     train, held = [recording(robot, 0, one_way=(2, 3), duration=2.0)], [recording(robot, 1)]
     run = {mode: identify_recordings(robot, model, train, validation=held, counterbalance=False, one_way=mode)
-           for mode in ("auto", "fit")}  # fmt: skip
+           for mode in ("auto", "fit", "hold")}  # fmt: skip
     return train, held, run
 
 
@@ -109,6 +110,32 @@ def test_without_a_held_out_recording_the_undetermined_friction_is_held(scara, o
     assert 2 in alone.one_way.held_joints and "no held-out recording tells" in alone.one_way.reason
     held, checked = dict(alone.one_way.held), dict(run["auto"].one_way.held)
     assert [held["fc3"], held["fv3"]] == pytest.approx([checked["fc3"], checked["fv3"]], abs=1e-3)
+
+
+def test_hold_holds_every_one_way_joint_without_asking_the_held_out_recording(one_way_case):
+    _, _, run = one_way_case
+    decided = run["hold"].one_way
+    assert decided.held_joints == (2, 3) and decided.worse == () and decided.reason == "--one-way-friction hold"
+    assert dict(decided.held)["fc3"] == pytest.approx(dict(run["auto"].one_way.held)["fc3"])
+    assert run["hold"].file_check.comparison.after[2] < 2 * run["hold"].file_check.comparison.before[2]
+
+
+def test_a_held_fit_that_does_not_converge_leaves_the_fitted_friction_and_says_why(scara, one_way_case):
+    robot, model = scara
+    train, _, run = one_way_case
+    result = run["fit"]
+    prepared = prepare_training(robot, train, result.options).prepared
+
+    def refit(options):
+        assert dict(options.held_friction).keys() == {"fc3", "fv3"}
+        raise SolverError("Ipopt stopped at its iteration cap")
+
+    problem = (robot, model, train, result.options, None, refit)
+    fit, decided = hold_one_way_friction(problem, result.fit, prepared, "auto")
+    assert (
+        fit is result.fit and decided.held == () and decided.describe().endswith("(Ipopt stopped at its iteration cap)")
+    )
+    assert "held did not converge" in decided.reason
 
 
 def test_a_held_column_is_not_fitted_and_bad_holds_are_refused(scara, one_way_case):
