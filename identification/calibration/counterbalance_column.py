@@ -1,7 +1,10 @@
 """Identify takes the counterbalance it names: a spring column on the joint, kept only where it holds out of sample.
 
 When the plausible fit pushes a link (or one joint's drive inertia) against its bounds and the report names a
-counterbalance or spring on a joint (``envelope_report``), the route that finds it is taken, not only suggested:
+counterbalance or spring on a joint (``envelope_report``), or a parameter the fit holds back away from the data (inside
+its link's envelope, by the pull towards the robot file) most likely absorbs one (``held_back``: its likeliest effect,
+on the joint the effect acts on; the heavy virtual arm's cam on joint 2 at seeds 0-1, where no bound is pressed for
+it), the route that finds it is taken, not only suggested (``named_joints``):
 identify fits again with a spring on each named joint, linear and cubic (``findings.FindingTerm``, the term ``psdm
 diagnose --apply`` adds; its constant left out where the joint's torque offset spans it), and the counterbalance's odd
 law of order 5 about a fitted neutral angle where the training data support it beyond the cubic by BIC
@@ -9,7 +12,7 @@ law of order 5 about a fitted neutral angle where the training data support it b
 cross-validation its angle is fitted again on each fold's training blocks). A kept spring is a
 ``findings`` entry with ``source`` ``"identify"``, applied by ``psdm validate``, ``predict``, ``diagnose`` (which says
 the model already carries it) and the exported code alike; otherwise the model without it is written and the report
-says why.
+says why and suggests the route that fits it against the robot file (``psdm diagnose ROBOT ...``).
 
 The spring is judged out of sample by the same rules as a diagnosis's finding (``diagnosis.second_opinion``): the
 held-out recordings (``--validate A [B ...]``) and, with at most one of them, a block cross-validation over the
@@ -41,8 +44,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from identification.calibration.counterbalance_folds import BlockFolds, FoldFailure, block_folds
-from identification.calibration.envelope_report import where
+from identification.calibration.envelope_report import DIAGNOSE_ROUTE, where
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
+from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import JointComparison, compare_each, pooled_comparison
 from identification.calibration.trajectory_fit import identify_trajectories
@@ -55,6 +59,7 @@ __all__ = [
     "Opinion",
     "Trial",
     "counterbalance_joints",
+    "named_joints",
     "take_counterbalance",
     "try_counterbalance",
 ]
@@ -71,12 +76,15 @@ HELD_OUT_ROUTE = "held-out recordings"
 
 @dataclass(frozen=True)
 class CounterbalanceChoice:
-    """What identify decided about the counterbalance its envelope report named.
+    """What identify decided about the counterbalance its report named.
 
     Attributes
     ----------
     joints : tuple of int
         0-based joints named (empty: none named, nothing tried).
+    named_by : dict
+        0-based joint -> where the report named it (``named_joints``: the envelope report, or a parameter the fit
+        holds back).
     kept : bool
         Whether the spring columns are in the model written.
     reason : str
@@ -99,6 +107,7 @@ class CounterbalanceChoice:
     """
 
     joints: tuple = ()
+    named_by: dict = field(default_factory=dict)
     kept: bool = False
     reason: str = ""
     fit: object = field(default=None, repr=False)
@@ -114,6 +123,7 @@ class CounterbalanceChoice:
         pairs = (("rmse_without", self.rmse_without), ("rmse_with", self.rmse_with), ("margin", self.margin))
         rmse = {k: None if v is None else [float(x) for x in v] for k, v in pairs}
         return {"joints": [j + 1 for j in self.joints], "kept": self.kept, "reason": self.reason, **rmse,
+                "named_by": {str(j + 1): v for j, v in self.named_by.items()},
                 "route": self.route, "parts": list(self.parts),
                 "cleared_by_refits": {str(j): float(v) for j, v in self.cleared.items()}}  # fmt: skip
 
@@ -193,6 +203,29 @@ def counterbalance_joints(fit) -> tuple:
     return tuple(sorted({where(f) for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed}))
 
 
+#: ``named_joints``' sources, in the report's words.
+BY_ENVELOPE, BY_HELD_BACK = "the envelope report", "a parameter the fit holds back"
+
+
+def named_joints(fit) -> dict:
+    """``{0-based joint: where it is named}`` of the counterbalances identify's report names: a pushed link or drive
+    (``counterbalance_joints``), or a gravity term the fit holds back whose likeliest absorbed effect is a
+    counterbalance (``held_back.HeldBack``: ``absorbs``, ``kind`` ``"gravity"``; on its ``effect_joint``).
+
+    The effect the evidence puts first is the one tried (an alternative is not), and the judges out of sample decide
+    whether it holds. A held-back inertia the data want smaller on a periodic motion is not tried: a counterbalance
+    is only one reading of it beside a drive's dynamics (its alternative), and its joint is the inertia's, not the
+    torque's (a 1.5 kg payload on the virtual Denso names one on joint 3, its torque on joints 4-5; a spring on joint 2
+    of 5 N m/rad one on joint 1). A gravity term is what a counterbalance's torque of the angle passes for: the heavy
+    virtual arm's cam on joint 2, held inside link 2's envelope by the pull (seeds 0-1: 98 and 72 times its size in
+    the robot file)."""
+    out = dict.fromkeys(counterbalance_joints(fit), BY_ENVELOPE)
+    for item in stored_held_back(getattr(fit, "envelope_bounds", ())):
+        if item.absorbs == "counterbalance" and item.kind == "gravity":
+            out.setdefault(item.effect_joint if item.effect_joint >= 0 else item.joint, BY_HELD_BACK)
+    return dict(sorted(out.items()))
+
+
 def _columns(joints, options, recordings, shape) -> FindingColumns:
     """A spring per joint of ``shape``: an order (``[q_j, 1]``, or ``[x, .., x^order, 1]`` with ``x = q_j`` less the
     middle of the training range), or per joint the ``SpringTerm`` to take (a counterbalance's odd law); the constant
@@ -262,9 +295,9 @@ def _offset(offsets, joint: int) -> bool:
 
 def _entries(columns: FindingColumns, extra) -> list:
     entries = [{"effect": "spring", "label": t.label, "kind": "torque", "joints": [t.joint + 1], "term": t.to_dict(),
-                "source": COUNTERBALANCE_SOURCE, "cause": "counterbalance or spring named by identify's envelope "
-                "report (a link pushed against its envelope), kept on the held-out recordings or a block "
-                "cross-validation of the training recordings"}
+                "source": COUNTERBALANCE_SOURCE, "cause": "counterbalance or spring named by identify's report (a link "
+                "pushed against its envelope, or a parameter the fit holds back), kept on the held-out recordings or a "
+                "block cross-validation of the training recordings"}
                for t in columns.terms]  # fmt: skip
     return filled_entries(entries, list(columns.terms), columns, extra)
 
@@ -288,17 +321,18 @@ def try_counterbalance(
     kt : array, optional
         Torque constants for held-out recordings of currents.
     """
-    joints = counterbalance_joints(fit)
-    if not joints:
+    named = named_joints(fit)
+    if not named:
         return CounterbalanceChoice()
+    joints = tuple(named)
     labels = ", ".join(f"joint {j + 1}" for j in joints)
     cutoffs = [c for c in fit.cutoff_hz if c]
     held = tuple(validation)
     folds = block_folds(recordings, configurations, min(cutoffs) if cutoffs else None) if len(held) < 2 else None
     not_tried = (f"a counterbalance named on {labels}: not tried without held-out recordings: {{}} (pass "
-                 "--validate)")  # fmt: skip
+                 f"--validate); {SUGGESTED}")  # fmt: skip
     if isinstance(folds, str) and not held:
-        return CounterbalanceChoice(joints, reason=not_tried.format(folds))
+        return CounterbalanceChoice(joints, named, reason=not_tried.format(folds))
     judges = Judges(held, None, folds) if isinstance(folds, str) else Judges(held, folds)
     problem = (robot, model, recordings, options, calibrated, judges, build, configurations, kt)
     shapes = list(ORDERS)
@@ -311,14 +345,19 @@ def try_counterbalance(
         trials = [_pruned(problem, joints, shape) for shape in shapes]
     except FoldFailure as failure:
         if not held:
-            return CounterbalanceChoice(joints, reason=not_tried.format(failure))
+            return CounterbalanceChoice(joints, named, reason=not_tried.format(failure))
         judges = Judges(held, None, str(failure))  # the second opinion failed: the held-out recordings alone judge
         trials = [_pruned((*problem[:5], judges, *problem[6:]), joints, shape) for shape in shapes]
-    return _choice(joints, trials, judges)
+    return _choice(named, trials, judges)
 
 
-def _choice(joints, trials, judges) -> CounterbalanceChoice:
+#: The route a counterbalance not kept is left to (the report's suggestion; the command line fills in its files).
+SUGGESTED = DIAGNOSE_ROUTE.format(what="a spring or counterbalance")
+
+
+def _choice(named, trials, judges) -> CounterbalanceChoice:
     """The ``CounterbalanceChoice`` of the best trial (one per spring order), with its numbers and why."""
+    joints = tuple(named)
     passing = [t for t in trials if t[0]]
     ok, chosen, trial = min(passing or trials, key=lambda t: _score(t[2].opinions[0].together))
     comparison = trial.opinions[0].together
@@ -338,12 +377,14 @@ def _choice(joints, trials, judges) -> CounterbalanceChoice:
         if worse:
             why.append("it makes " + ", ".join(f"joint {j + 1}" for j in worse) + " worse beyond the noise margin")
         why = "; ".join(why) or "it leaves them pushed against their bounds"
-        return CounterbalanceChoice(joints, False, f"a spring on {labels or 'the named joints'} tried and not kept: "
-                                    f"{why} ({pair}){noise}", None, None, *numbers, parts, cleared)  # fmt: skip
+        return CounterbalanceChoice(joints, named, False, f"a spring on {labels or 'the named joints'} tried and not "
+                                    f"kept: {why} ({pair}){noise}; {SUGGESTED}", None, None, *numbers, parts,
+                                    cleared)  # fmt: skip
     springs = ", ".join(f["label"] for f in trial.document["findings"] if f.get("source") == COUNTERBALANCE_SOURCE)
-    reason = (f"a spring on {labels} ({springs}) identified with the model (the counterbalance the envelope report "
-              f"named): RMSE on the {route} {pair}, lower on every held-out part, no joint worse{noise}")  # fmt: skip
-    return CounterbalanceChoice(chosen, True, reason, trial.plain, trial.document, *numbers, parts, cleared)
+    by = " and ".join(dict.fromkeys(named[j] for j in chosen))
+    reason = (f"a spring on {labels} ({springs}) identified with the model (the counterbalance named by {by}): RMSE on "
+              f"the {route} {pair}, lower on every held-out part, no joint worse{noise}")  # fmt: skip
+    return CounterbalanceChoice(chosen, named, True, reason, trial.plain, trial.document, *numbers, parts, cleared)
 
 
 def _score(comparison) -> float:
@@ -432,14 +473,14 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
         kt = None
         if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:  # blocks: training
             kt = np.array([d.kt for d in robot.drives], dtype=float)
-        if counterbalance_joints(fit):
+        if named_joints(fit):
             how = (
                 "on each held-out recording"
                 + (" and by block cross-validation over the training data" if len(validation) == 1 else "")
                 if validation
                 else "by block cross-validation over the training data"
             )
-            logger.info(f"identify: trying the counterbalance the envelope report names ({how}) ...")
+            logger.info(f"identify: trying the counterbalance the report names ({how}) ...")
         choice = try_counterbalance(robot, model, recordings, options, fit, calibrated, validation, build,
                                     configurations, kt)  # fmt: skip
         if choice.reason:

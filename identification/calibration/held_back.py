@@ -127,6 +127,10 @@ class HeldBack:
         0-based joint the effect acts on (where the difference's torque sits); -1: ``joint`` (files written before).
     evidence : str
         What the effects were chosen from, in words (``absorbed_effect.likely_effects``).
+    kind : str
+        ``parameter_words``' kind: ``"gravity"`` (a term of the gravity torque: a torque of the angle, as a
+        counterbalance gives, identify's counterbalance route takes it), ``"axis"`` or ``"inertia"``; "" in files
+        written before it was stored.
     """
 
     parameter: str
@@ -145,6 +149,7 @@ class HeldBack:
     alternatives: tuple = ()
     effect_joint: int = -1
     evidence: str = ""
+    kind: str = ""
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -236,7 +241,7 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
                     "distal": masses[-2:], "following": following}  # fmt: skip
         effects, at, why = likely_effects(model, robot, k, evidence)
         item = HeldBack(name, words, joint, *values, effects[0], "envelope" if held else "pull",
-                        alternatives=effects[1:], effect_joint=at, evidence=why)  # fmt: skip
+                        alternatives=effects[1:], effect_joint=at, evidence=why, kind=kind)  # fmt: skip
         out.append(HeldBack(**{**item.to_dict(), "message": _message(item, robot)}))
     return tuple(out)
 

@@ -194,6 +194,8 @@ def run(args) -> int:
         entry["rmse_prior_friction"] = _list(comparison.before)
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
+    counterbalance = calibrated.document["identification"]["counterbalance"]  # its suggested route, with these files
+    counterbalance["reason"] = _concrete_route(counterbalance["reason"], args, paths)
     calibrated.document["provenance"].update({"columns": stored_layout(args)} if stored_layout(args) else {})
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:

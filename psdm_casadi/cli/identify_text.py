@@ -123,8 +123,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     for item in result.held_back:
         print(f"  HELD BACK: {item.message}")
     print("drive columns: " + "; ".join(result.choice.describe()))
-    if result.counterbalance.reason:
-        print(f"counterbalance: {result.counterbalance.reason}")
+    if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
+        print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
     if result.one_way.describe():
         print(result.one_way.describe())
     for entry in drive_loss_summary(calibrated.document):
