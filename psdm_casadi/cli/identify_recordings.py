@@ -116,9 +116,8 @@ def add_arguments(p) -> None:
     for option, what in (("--no-envelope", "do not keep the links inside their physical envelope (bounding "
                           "ellipsoid, mass and drive-inertia bounds): consistent only, as before"),
                          ("--no-counterbalance", "do not try the spring the report names (a link pushed against its "
-                          "envelope, or a gravity term held back from the data; kept only if it "
-                          "lowers its joint's error on each --validate recording and, with at most one, in each block "
-                          "of a cross-validation of the training recordings)")):  # fmt: skip
+                          "envelope, or a gravity term held back; kept only if it lowers its joint's error on each "
+                          "--validate recording and, with at most one, in each training block)")):  # fmt: skip
         p.add_argument(option, action="store_true", help=what)
     p.add_argument("--one-way-friction", choices=("auto", "hold", "fit"), default="auto", help=ONE_WAY_HELP)
     p.add_argument(
