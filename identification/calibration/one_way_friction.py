@@ -132,12 +132,17 @@ def _file_values(robot, fit, prepared, joints) -> tuple:
 
 
 def held_options(options, held, n_dof: int):
-    """``options`` (``TrajectoryOptions``) with ``held`` friction, the held joints Coulomb-viscous."""
+    """``options`` (``TrajectoryOptions``) with ``held`` friction, the held joints Coulomb-viscous (without a Stribeck
+    joint left, no static friction at all: a model file's Stribeck velocities have one positive or none)."""
     joints = {drive_column_joint(name) for name, _ in held}
     if "fs" not in options.friction:
         return replace(options, held_friction=tuple(held))
     stribeck = range(n_dof) if options.stribeck_joints is None else options.stribeck_joints
-    return replace(options, held_friction=tuple(held), stribeck_joints=tuple(j for j in stribeck if j not in joints))
+    left = tuple(j for j in stribeck if j not in joints)
+    if not left:
+        return replace(options, held_friction=tuple(held), stribeck_joints=None,
+                       friction=tuple(t for t in options.friction if t != "fs"))  # fmt: skip
+    return replace(options, held_friction=tuple(held), stribeck_joints=left)
 
 
 def hold_one_way_friction(problem, fit, prepared, mode: str = "auto", file_check=None) -> tuple:

@@ -11,13 +11,20 @@ also one-way but carrying no gravity, has its friction determined and keeps it f
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from identification.calibration.column_candidates import prepare_training
 from identification.calibration.held_friction import check_held_friction
 from identification.calibration.identify_route import identify_recordings
-from identification.calibration.one_way_friction import OneWayFriction, check_one_way_mode, hold_one_way_friction
+from identification.calibration.one_way_friction import (
+    OneWayFriction,
+    check_one_way_mode,
+    held_options,
+    hold_one_way_friction,
+)
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.recording import Recording
 from psdm_casadi import derive_psdm, load_robot
@@ -118,6 +125,19 @@ def test_hold_holds_every_one_way_joint_without_asking_the_held_out_recording(on
     assert decided.held_joints == (2, 3) and decided.worse == () and decided.reason == "--one-way-friction hold"
     assert dict(decided.held)["fc3"] == pytest.approx(dict(run["auto"].one_way.held)["fc3"])
     assert run["hold"].file_check.comparison.after[2] < 2 * run["hold"].file_check.comparison.before[2]
+
+
+def test_a_held_joint_is_coulomb_viscous_and_a_model_without_a_stribeck_joint_left_has_no_static_friction():
+    """A model file's Stribeck velocities have one positive or none: holding the only Stribeck joint drops ``fs``."""
+    stribeck = TrajectoryOptions(friction=("fc", "fs", "fv", "offset"), stribeck_joints=(2, 3), offset_joints=(0,))
+    one = held_options(stribeck, (("fc3", 0.3), ("fv3", 0.2)), 4)
+    assert one.stribeck_joints == (3,) and one.friction == stribeck.friction and dict(one.held_friction)["fv3"] == 0.2
+    both = held_options(stribeck, (("fc3", 0.3), ("fc4", 0.1)), 4)
+    assert both.friction == ("fc", "fv", "offset") and both.stribeck_joints is None
+    every = held_options(replace(stribeck, stribeck_joints=None), (("fc3", 0.3),), 4)
+    assert every.stribeck_joints == (0, 1, 3)
+    plain = held_options(TrajectoryOptions(), (("fc3", 0.3),), 4)
+    assert plain.friction == ("fc", "fv") and plain.held_friction == (("fc3", 0.3),)
 
 
 def test_a_held_fit_that_does_not_converge_leaves_the_fitted_friction_and_says_why(scara, one_way_case):
