@@ -212,6 +212,13 @@ def test_kinova_trained_on_its_short_recording_is_no_worse_than_the_robot_file_b
     for j in (2, 4, 5):  # within the never-worse margin of the robot file with friction, and near it
         assert after[j] <= before[j] + check["margin"][j] and after[j] < 1.2 * before[j]
     assert all(a <= b for a, b in zip(after[2:7], [0.31, 0.61, 0.29, 0.42, 0.30]))  # no joint above the free fit
+    # joint 7, the only Stribeck joint, is held Coulomb-viscous: the file has no static friction left, and reads back
+    model = json.loads((tmp_path / "model.json").read_text())
+    assert "fs" not in model["drive"]["friction_terms"] and 7 in decided["held_joints"]
+    argv = ["validate", str(tmp_path / "model.json"), str(KINOVA / "opti_traj_testing1.csv"), "--columns",
+            "t=Time,q=Position,tau=TorqueSm"]  # fmt: skip
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(io.StringIO()):
+        assert main(argv) == 0
 
 
 def test_a_joint_without_torque_in_one_held_out_recording_is_judged_on_the_others(denso, denso_model, denso_identified):
