@@ -242,6 +242,7 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
+        held_friction=tuple((identification.get("one_way_friction") or {}).get("held", {}).items()),  # as identified
     )
 
 
@@ -461,8 +462,9 @@ def _document(
     document = new.document
     document["robot"] = copy.deepcopy(calibrated.document["robot"])
     document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia
-    choice = calibrated.document["identification"].get("column_choice")  # the columns the refit kept (_options)
-    document["identification"].update({} if choice is None else {"column_choice": copy.deepcopy(choice)})
+    kept = ("column_choice", "one_way_friction")  # the columns and held friction the refit kept (_options)
+    document["identification"].update({k: copy.deepcopy(v) for k, v in calibrated.document["identification"].items()
+                                       if k in kept and v is not None})  # fmt: skip
     document["findings"] = filled_entries(entries, terms, columns, extra)
     document["corrections"] = corrections
     document["warnings"] = list(dict.fromkeys(fit.warnings))  # the refit's own (a wrong recording stays flagged)

@@ -231,6 +231,31 @@ def test_diagnose_apply_keeps_the_drive_columns_the_model_was_identified_with(sp
 
 
 @pytest.mark.slow
+def test_diagnose_apply_keeps_the_friction_identify_held(spring_loop, denso, denso_model, capsys):
+    """A model whose joint-4 friction identify held to the robot file's fit (``one_way_friction``: a joint that moved
+    one way only) is refitted with it held at the same values, as the file states it; the spring is found as before."""
+    from identification.data.io import load_recording
+
+    folder = spring_loop
+    train = [load_recording(folder / "train.csv", denso.n_dof)]
+    free = identify_trajectories(denso, denso_model, train, TrajectoryOptions())
+    held = tuple((name, float(free.drive[free.drive_names.index(name)]) + 0.1) for name in ("fc4", "fv4"))
+    fit = identify_trajectories(denso, denso_model, train, TrajectoryOptions(held_friction=held))
+    model = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE)
+    model.document["identification"]["one_way_friction"] = {"held": dict(held), "held_joints": [4]}
+    model.save(folder / "held.json")
+    argv = ["diagnose", str(folder / "held.json"), "--train", str(folder / "train.csv"), "--validate",
+            str(folder / "valid.csv"), "--apply", str(folder / "held_new.json")]  # fmt: skip
+    assert main(argv) == 0
+    capsys.readouterr()
+    after = json.loads((folder / "held_new.json").read_text())
+    values = dict(zip(after["drive"]["names"], after["drive"]["values"]))
+    assert {name: values[name] for name, _ in held} == dict(held)  # not fitted again
+    assert after["identification"]["one_way_friction"]["held"] == dict(held)
+    assert any(e["label"] == "spring[j2]" for e in after["findings"])
+
+
+@pytest.mark.slow
 def test_diagnose_reads_a_vendor_log_as_identify_did_and_apply_keeps_how(spring_loop, tmp_path, capsys):
     """A model identified from a controller's log with ``--columns`` (``provenance.columns``): diagnose reads the
     logs the same way without the option and says so, and the model ``--apply`` writes keeps how (validate reads
