@@ -124,70 +124,93 @@ class BarrierResult:
     first: np.ndarray | None = None
 
 
-def barrier_solution(problem, bodies, start, bounds, margin: float):
+def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None):
     """The ``BarrierResult`` of the path ``MU_PATH``, or None when its first solve fails.
 
     Parameters
     ----------
     problem : dict
         ``x`` (the variables: the ten standard parameters of each body in ``bodies`` first, then the rest), ``f``
-        (the objective, in noise variances per sample) and ``g`` (the linear constraints).
+        (the objective, in noise variances per sample) and ``g`` (the linear constraints); with ``shared``, ``p``:
+        the objective's parameters.
     bodies : list of float
         Per body, the size its pseudo-inertia is measured in (its trace at the prior).
     start : array
         Of the variables; the bodies' parameters are moved inside the cone first.
     bounds : tuple
         ``(lbx, ubx, lbg, ubg)``.
+    shared : tuple, optional
+        ``(solvers, key, values)`` (``shared_barrier``): the solver of ``problem`` is ``solvers[key]``, built there
+        the first time (without a progress bar), with ``problem["p"]`` set to ``values``; ``problem`` is only read
+        when the solver is built.
     """
-    x = problem["x"]
-    mu = ca.SX.sym("mu")
-    barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size) for k, size in enumerate(bodies)), 0)
     lbx, ubx, lbg, ubg = bounds
-    # the pivots also as constraints >= 0: Ipopt's fraction-to-the-boundary rule then keeps its steps inside the
-    # cone (without them a Newton step of the small barrier overshoots and is cut back, hundreds of times)
-    steps = [d for k, size in enumerate(bodies) for d in pivots(x[10 * k : 10 * k + 10], margin, size)]
-    problem = {**problem, "g": ca.vertcat(problem["g"], *steps)}
-    lbg, ubg = np.concatenate([lbg, np.zeros(len(steps))]), np.concatenate([ubg, np.full(len(steps), np.inf)])
-    cap = BARRIER_OPTIONS["ipopt.max_iter"] * len(MU_PATH)  # the bar counts the whole path's iterations
-    sizes = (problem["x"].numel(), problem["g"].numel(), 1)
-    bar, callback = progress_options("consistent_fit_barrier_progress", sizes, cap, "identify: consistent fit (Ipopt)",
-                                     logger, lbg, ubg)  # fmt: skip
-    solver = ca.nlpsol("consistent_fit_barrier", "ipopt", {**problem, "p": mu, "f": problem["f"] + mu * barrier},
-                       {**BARRIER_OPTIONS, **bar})  # fmt: skip
+    n_steps = 4 * len(bodies)  # the pivots of each body, constrained >= 0 after the caller's constraints
+    lbg, ubg = np.concatenate([lbg, np.zeros(n_steps)]), np.concatenate([ubg, np.full(n_steps, np.inf)])
+    if shared is None:
+        (solver, callback), values = _solver(problem, bodies, margin, (lbg, ubg), True), ()
+    else:
+        solvers, key, values = shared
+        if key not in solvers:
+            solvers[key] = _solver(problem, bodies, margin, (lbg, ubg), False)[0]
+        solver, callback = solvers[key], None
     try:
-        return _follow_path(solver, bodies, start, (lbx, ubx, lbg, ubg), margin, steps)
+        return _follow_path(solver, bodies, start, (lbx, ubx, lbg, ubg), margin, (n_steps, values))
     finally:
         if callback is not None:
             callback.close()
 
 
+def _solver(problem, bodies, margin, g_bounds, progress: bool) -> tuple:
+    """(Ipopt solver, progress callback or None) of ``problem`` plus ``mu`` times the bodies' barrier, ``mu`` its
+    first parameter (then ``problem["p"]``, if any); the pivots also constrained >= 0 (``g_bounds``: with their
+    rows)."""
+    x = problem["x"]
+    mu = ca.SX.sym("mu")
+    barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size) for k, size in enumerate(bodies)), 0)
+    # the pivots also as constraints >= 0: Ipopt's fraction-to-the-boundary rule then keeps its steps inside the
+    # cone (without them a Newton step of the small barrier overshoots and is cut back, hundreds of times)
+    steps = [d for k, size in enumerate(bodies) for d in pivots(x[10 * k : 10 * k + 10], margin, size)]
+    g = ca.vertcat(problem["g"], *steps)
+    parameters = ca.vertcat(mu, problem["p"]) if "p" in problem else mu
+    bar, callback = {}, None
+    if progress:
+        cap = BARRIER_OPTIONS["ipopt.max_iter"] * len(MU_PATH)  # the bar counts the whole path's iterations
+        bar, callback = progress_options("consistent_fit_barrier_progress", (x.numel(), g.numel(), 1), cap,
+                                         "identify: consistent fit (Ipopt)", logger, *g_bounds)  # fmt: skip
+    nlp = {"x": x, "g": g, "p": parameters, "f": problem["f"] + mu * barrier}
+    return ca.nlpsol("consistent_fit_barrier", "ipopt", nlp, {**BARRIER_OPTIONS, **bar}), callback
+
+
 def _follow_path(solver, bodies, start, bounds, margin, steps):
-    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bounds`` with the pivots' rows."""
-    n_bodies = len(bodies)
+    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bounds`` with the pivots' rows,
+    ``steps``: (their number, the values of the solver's parameters after ``mu``)."""
+    n_bodies, (n_steps, values) = len(bodies), steps
     lbx, ubx, lbg, ubg = bounds
     current = np.array(start, dtype=float)
     for k in range(n_bodies):
         current[10 * k : 10 * k + 10] = _inside(current[10 * k : 10 * k + 10], margin)
     current, last, iterations, reached, status, first = np.clip(current, lbx, ubx), None, 0, np.inf, "", None
     for weight in MU_PATH:
-        solution = solver(x0=current, p=weight, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        p = np.concatenate([[weight], values]) if len(values) else weight
+        solution = solver(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         iterations += stats["iter_count"]
         if stats["return_status"] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
             logger.debug("consistent fit: the barrier path stopped at mu %g (%s)", weight, stats["return_status"])
             return None if last is None else BarrierResult(current, last, status, reached <= MU_ENOUGH, first)
-        current, last = np.clip(np.asarray(solution["x"]).reshape(-1), lbx, ubx), _without_pivots(solution, steps)
+        current, last = np.clip(np.asarray(solution["x"]).reshape(-1), lbx, ubx), _without_pivots(solution, n_steps)
         reached, status = weight, stats["return_status"]
         first = current if first is None else first
     logger.debug("consistent fit: barrier path in %d Ipopt iterations", iterations)
     return BarrierResult(current, last, solver.stats()["return_status"], True, first)
 
 
-def _without_pivots(solution, steps) -> dict:
-    """Ipopt's solution with the pivot constraints' rows left out of ``g`` and ``lam_g`` (the caller's constraints
-    come first)."""
+def _without_pivots(solution, n_steps: int) -> dict:
+    """Ipopt's solution with the ``n_steps`` pivot constraints' rows left out of ``g`` and ``lam_g`` (the caller's
+    constraints come first)."""
     out = dict(solution)
-    n = np.asarray(solution["g"]).size - len(steps)
+    n = np.asarray(solution["g"]).size - n_steps
     for key in ("g", "lam_g"):
         out[key] = np.asarray(solution[key]).reshape(-1)[:n]
     return out

@@ -42,6 +42,7 @@ import numpy as np
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.counterbalance_folds import FoldFailure, block_folds
 from identification.calibration.never_worse import compare_models
+from identification.calibration.shared_barrier import shared_solvers
 from identification.calibration.trajectory_fit import identify_trajectories
 
 __all__ = ["UnconvergedFit", "check_departures", "converged", "written_model_judge"]
@@ -152,6 +153,7 @@ def written_model_judge(problem, validation, cutoff_hz):
         return identify
 
     def by_folds(before, after):
-        return replace(folds, baselines={}).compare(refit(before[0]), refit(after[0]), model, kt)[0]
+        with shared_solvers():  # eight fits of two structures: two solvers (``shared_barrier``)
+            return replace(folds, baselines={}).compare(refit(before[0]), refit(after[0]), model, kt)[0]
 
     return by_folds

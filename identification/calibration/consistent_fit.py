@@ -328,7 +328,7 @@ def _standard_form(model, prior, links, flange, n_drive, bounds, pull) -> dict:
     """The consistent fit's pieces with the standard parameters themselves as the variables (``barrier_path``): the
     variables (free links' ten, flange bodies' ten, rotors, drive terms), the regression vector ``x``, the ``pull``
     (``PriorPull``, as in ``consistent_fit``), the link constraints and their bounds, and each body's size (its
-    pseudo-inertia's trace at the prior)."""
+    pseudo-inertia's trace at the prior); ``pull``: the pull without its weight, and the weight (``shared_barrier``)."""
     n, n_bodies = prior.shape[0], len(flange)
     links_v, bodies_v = ca.SX.sym("s", 10 * len(links)), ca.SX.sym("b", 10 * n_bodies)
     rotor, drive = ca.SX.sym("rotor", n), ca.SX.sym("drive", n_drive)
@@ -339,11 +339,13 @@ def _standard_form(model, prior, links, flange, n_drive, bounds, pull) -> dict:
     standard = ca.vertcat(*rows)
     g, g_lower, g_upper, _ = _link_constraints(rows, links, prior, bounds)
     sizes = [max(float(np.trace(pseudo_inertia(body))), 1e-6) for body in [*prior[links, :10], *flange]]
+    unweighted = pull.pull(standard, prior, bodies_v, flange)
     return {
         "variables": ca.vertcat(links_v, bodies_v, rotor, drive),
         "sizes": sizes,
         "x": ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, bodies_v),
-        "f_extra": pull.expression(standard, prior, bodies_v, flange),
+        "f_extra": pull.weight * unweighted,
+        "pull": (unweighted, pull.weight),
         "g": ca.vertcat(*g) if g else ca.SX(0, 1),
         "g_bounds": (g_lower, g_upper),
     }
@@ -355,6 +357,7 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts, 
     (the standard form's variables: the last pass's point of the path's first weight, ``BarrierResult.first``; a
     second pass starts there, not at the last pass's end, ``barrier_path``)."""
     from identification.calibration.barrier_path import barrier_solution
+    from identification.calibration.shared_barrier import shared_problem
 
     gram, moment, energy, count = normal
     free, n_bodies, n = counts
@@ -363,12 +366,14 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts, 
     n_phi, n_psi = 10 * len(free), 10 * n_bodies
     rest = chart[n_phi : chart.size - n_psi]  # rotors and drive terms: the same in both forms
     start = np.concatenate([values[free, :10].reshape(-1), bodies.reshape(-1), rest]) if centre is None else centre
-    residual = centred_residual(gram, moment, energy, count, plain["x"])
     lower, upper = chart_bounds
     lbx = np.concatenate([np.full(n_phi + n_psi, -np.inf), lower[n_phi : lower.size - n_psi]])
     ubx = np.concatenate([np.full(n_phi + n_psi, np.inf), upper[n_phi : upper.size - n_psi]])
-    problem = {"x": plain["variables"], "f": residual + plain["f_extra"], "g": plain["g"]}
-    solved = barrier_solution(problem, plain["sizes"], start, (lbx, ubx, *plain["g_bounds"]), margin)
+    problem, shared = shared_problem(plain, normal, margin)  # inside ``shared_solvers``: the data as parameters
+    if problem is None:
+        residual = centred_residual(gram, moment, energy, count, plain["x"])
+        problem = {"x": plain["variables"], "f": residual + plain["f_extra"], "g": plain["g"]}
+    solved = barrier_solution(problem, plain["sizes"], start, (lbx, ubx, *plain["g_bounds"]), margin, shared)
     if solved is None:
         return None, chart
     links = [chart_start(body, margin) for body in solved.x[:n_phi].reshape(-1, 10)]

@@ -136,6 +136,11 @@ class PriorPull:
     def expression(self, standard, prior, bodies=None, body_prior=None):
         """``weight x pull`` of the standard parameters ``standard`` (CasADi, ``prior.size``) towards ``prior``
         (n, 11) and of the flange ``bodies`` (CasADi, 10 per body) towards ``body_prior`` (k, 10)."""
+        return self.weight * self.pull(standard, prior, bodies, body_prior)
+
+    def pull(self, standard, prior, bodies=None, body_prior=None):
+        """The ``pull`` of :meth:`expression` without its ``weight`` (a solver shared by fits of other weights takes
+        the weight as a parameter: ``shared_barrier``)."""
         scale = prior_scale(prior)
         if self.mass is not None:  # the links with a mass in the file: as the mass bounds state it
             scale[:, 0] *= np.where(prior[:, 0] > 0, self.mass / self.uncertainty, 1.0)
@@ -144,7 +149,7 @@ class PriorPull:
             body_prior = np.asarray(body_prior, dtype=float)
             scale = prior_scale(np.column_stack([body_prior, np.zeros(len(body_prior))]))[:, :10]
             pull += ca.sumsqr((bodies - ca.DM(body_prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
-        return self.weight * pull
+        return pull
 
     def note(self) -> tuple:
         """The ``(name, value)`` pair stored with the fit's bounds (``TrajectoryFit.envelope_bounds``)."""
