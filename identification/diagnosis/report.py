@@ -19,6 +19,8 @@ import numpy as np
 from psdm_casadi.fileio import OutputFolder, atomic_write, markdown_escape
 
 NO_FINDING = "no significant missing physics"
+IMAGES = (".png", ".svg", ".jpg")  # the written files the Markdown report shows as images; the others it links
+MODEL_FILE_SAME = 0.01  # a finding's "before" within 1 % of the model file's RMSE is the file's (no note)
 #: The files ``DiagnosisReport.save`` writes (the plots only with ``plots=True``).
 REPORT_FILES = (
     "report.md",
@@ -201,7 +203,7 @@ class DiagnosisReport:
                 f"**{NO_FINDING}**: no candidate term lowered a joint's validation RMSE enough to earn its parameters."
             )
         for k, f in enumerate(self.findings, 1):
-            lines.append(f"{k}. {f.sentence()} (dBIC {f.delta_bic:.0f}).")
+            lines.append(f"{k}. {f.sentence()} (dBIC {f.delta_bic:.0f}){self._model_file_note(f)}.")
             lines += [f"   - {note}" for note in f.notes + ((f.shape_note,) if f.shape_note else ())]
         lines += self._notes_markdown()
         lines += [
@@ -228,11 +230,24 @@ class DiagnosisReport:
         for j in range(self.n_dof):
             items = [r for r in self.residual_findings if r.joint == j]
             lines.append("- " + "; ".join(r.text for r in items))
-        if plots:
-            lines += ["", "## Plots", ""]
-            for name, path in plots.items():
-                lines.append(f"![{name}]({Path(path).name})")
+        images = {name: Path(path).name for name, path in (plots or {}).items() if Path(path).suffix in IMAGES}
+        files = [Path(path).name for name, path in (plots or {}).items() if name not in images]
+        lines += ["", "## Plots", "", *(f"![{name}]({file})" for name, file in images.items())] if images else []
+        lines += ["", "## Files", "", *(f"- [{file}]({file})" for file in files)] if files else []
         return "\n".join(lines) + "\n"
+
+    def _model_file_note(self, finding) -> str:
+        """Where a finding's "before" on its joint is not the model file's own RMSE there (the diagnosis refits the
+        nominal friction on the training recording first): the model file's, so that its before -> after is not
+        read as the model file's improvement (Panda spring[j6]: 0.0887 -> 0.0326 N m against the file's 0.0343)."""
+        j = finding.joints[0] if finding.joints else None
+        if j is None or j >= len(self.model_file_rmse) or not np.isfinite(self.model_file_rmse[j]):
+            return ""
+        own, before = float(self.model_file_rmse[j]), float(finding.rmse_before[j])
+        if abs(before - own) <= MODEL_FILE_SAME * own:
+            return ""
+        return (f"; that before is the diagnosis's nominal (friction refitted on the training recording), the model "
+                f"file as it is gives joint {j + 1} {own:.3g} N m")  # fmt: skip
 
     def _nominal(self) -> str:
         """What the diagnosis started from: the model it names, else the robot file's rigid body (or identified)."""

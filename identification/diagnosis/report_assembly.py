@@ -26,6 +26,8 @@ from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.diagnosis.residual_tests import analyse_residuals
 from identification.metrics import r2, rmse
 
+RISE_NOTED = 0.01  # a joint's rise above the model file named as worse: beyond 1 %, the never-worse margin's floor
+
 
 def build_report(
     robot,
@@ -187,7 +189,8 @@ def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: flo
         "the diagnosis refits the nominal friction on the training recording before it adds the findings; the model "
         "file as it is predicts this joint better ('diagnose --apply' refits the file itself, never worse)"
     )
-    notes = tuple(rise_sentence(j, before[j], after[j], cause) for j in range(before.size) if after[j] > before[j])
+    risen = [j for j in range(before.size) if after[j] > before[j] * (1.0 + RISE_NOTED)]  # not a rise within noise
+    notes = tuple(rise_sentence(j, before[j], after[j], cause) for j in risen)
     return replace(report, rmse_before=tuple(before.tolist()), r2_before=tuple(r2(tau, predicted).tolist()),
                    validation_nominal=predicted, joint_notes=notes, model_file_rmse=tuple(before.tolist()),
                    before_is_model_file=True)  # fmt: skip

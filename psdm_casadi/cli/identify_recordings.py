@@ -210,7 +210,7 @@ def run(args) -> int:
         print(warning, file=sys.stderr)
     with out.staging() as stage:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
-    print_identify(args, robot, model, fit, report, calibrated, result)
+    print_identify(args, robot, model, fit, report, calibrated, result, lambda text: _concrete_route(text, args, paths))
     if html is not None:  # the held-out recordings' prediction, else the training recordings'
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
@@ -251,11 +251,10 @@ def _concrete_route(warning: str, args, paths) -> str:
     read: ``--columns``, ``--rate``) in it."""
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
-    validate = args.validate[0] if args.validate else "OTHER.csv"
+    validate = " ".join(map(str, args.validate)) if args.validate else "OTHER.csv"
     layout = "".join(f" --{key} {getattr(args, key)}" for key in ("columns", "rate") if getattr(args, key, None))
-    return warning.replace(
-        DIAGNOSE_COMMAND, f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}{layout}"
-    )
+    command = f"psdm diagnose {args.robot} --train {' '.join(map(str, paths))} --validate {validate}{layout}"
+    return warning.replace(DIAGNOSE_COMMAND, command)
 
 
 def _check_outputs(args):

@@ -85,9 +85,10 @@ def _print_envelope(fit) -> None:
         print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {finding.message}")
 
 
-def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
+def print_identify(args, robot, model, fit, report, calibrated, result, route=str) -> None:
     """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, drive
-    columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording)."""
+    columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording).
+    ``route`` puts this run's files into a suggested command (the held-back parameters' ``psdm diagnose ...``)."""
     from identification.calibration.drive_loss import drive_loss_summary
 
     if args.json:
@@ -121,7 +122,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result) -> None:
     if result.pull is not None:
         print(result.pull.describe())
     for item in result.held_back:
-        print(f"  HELD BACK: {item.message}")
+        print(f"  HELD BACK: {route(item.message)}")
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
