@@ -51,6 +51,7 @@ __all__ = [
     "friction_not_representable",
     "is_linear_spring",
     "linear_springs",
+    "offsets_not_representable",
 ]
 
 N_LINK = 10  # m, mx, my, mz, Ixx, Ixy, Iyy, Ixz, Iyz, Izz; the 11th standard parameter is the drive inertia
@@ -144,6 +145,20 @@ def friction_not_representable(calibrated, target: ExportTarget = URDF) -> str |
         f"the model's friction is {shape}; {target.name} holds only Coulomb friction and viscous damping, so "
         f"{target.friction_fields} (the sliding level and the viscous slope) are written, and the static hump "
         f"(fs, vs){dynamics} are NOT in the {target.name} (their values are in a comment on each joint)"
+    )
+
+
+def offsets_not_representable(calibrated, target: ExportTarget = URDF) -> str | None:
+    """The warning for a model with constant torque offsets, which neither URDF nor MJCF has a field for: their
+    values and what to do with them (export-urdf wrote them as comments without a word: Panda offsets of -0.166,
+    0.0613 and 0.0737 N m on joints 1, 3 and 6); None without offsets."""
+    if "offset" not in calibrated.document["drive"]["friction_terms"]:
+        return None
+    offsets = drive_terms(calibrated)["offset"]
+    named = ", ".join(f"joint {j + 1} {v:.4g}" for j, v in enumerate(offsets) if v != 0.0) or "all zero"
+    return (
+        f"the model's constant torque offsets ({named} N m) have no {target.name} field; they are in a comment on each "
+        f"joint: add them to the torque your simulator or controller applies ('psdm codegen' puts them in the C)"
     )
 
 

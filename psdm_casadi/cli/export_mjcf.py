@@ -35,7 +35,12 @@ def register(subparsers) -> None:
 
 def _run_export_mjcf(args) -> int:
     from codegen.mjcf_export import render_mjcf
-    from codegen.target_holds import MJCF, findings_not_representable, friction_not_representable
+    from codegen.target_holds import (
+        MJCF,
+        findings_not_representable,
+        friction_not_representable,
+        offsets_not_representable,
+    )
     from psdm_casadi.mjcf import MJCF_SUFFIXES
 
     read = read_export_input(args, "export-mjcf", ".xml", "MJCF")
@@ -44,9 +49,8 @@ def _run_export_mjcf(args) -> int:
     calibrated, robot = read.calibrated, read.robot
     progress(f"export-mjcf: writing the identified model of {robot.name} ...", quiet=args.json)
     text = render_mjcf(calibrated, robot)
-    left_out = (friction_not_representable(calibrated, MJCF), findings_not_representable(calibrated, MJCF))
-    if "offset" in calibrated.document["drive"]["friction_terms"]:
-        left_out += ("the model's constant torque offsets have no MJCF field; they are in a comment on each joint",)
+    left_out = (friction_not_representable(calibrated, MJCF), findings_not_representable(calibrated, MJCF),
+                offsets_not_representable(calibrated, MJCF))  # fmt: skip
     left_out = [warning for warning in left_out if warning is not None]
     write_export("export-mjcf", read, text, left_out)
     copied = robot.urdf_path is not None and Path(robot.urdf_path).suffix.lower() in MJCF_SUFFIXES

@@ -35,7 +35,7 @@ def register(subparsers) -> None:
 
 
 def _run_export_urdf(args) -> int:
-    from codegen.target_holds import findings_not_representable, friction_not_representable
+    from codegen.target_holds import findings_not_representable, friction_not_representable, offsets_not_representable
     from codegen.urdf_export import render_urdf
 
     read = read_export_input(args, "export-urdf", ".urdf", "a URDF")
@@ -44,7 +44,8 @@ def _run_export_urdf(args) -> int:
     calibrated, robot = read.calibrated, read.robot
     progress(f"export-urdf: writing the identified inertias of {robot.name} ...", quiet=args.json)
     text = render_urdf(calibrated, robot)
-    left_out = (friction_not_representable(calibrated), findings_not_representable(calibrated))
+    left_out = (friction_not_representable(calibrated), findings_not_representable(calibrated),
+                offsets_not_representable(calibrated))  # fmt: skip
     write_export("export-urdf", read, text, [warning for warning in left_out if warning is not None])
     source = "urdf" if robot.urdf_path is not None else "dh"
     if args.json:

@@ -95,3 +95,26 @@ def test_a_held_back_parameters_route_names_this_runs_files(denso, tmp_path, cap
     held = [line for line in capsys.readouterr().out.splitlines() if "HELD BACK" in line]
     assert held and all("ROBOT --train DATA" not in line for line in held)
     assert any(f"psdm diagnose {denso.source} --train {train} --validate {valid}" in line for line in held)
+
+
+def test_export_urdf_and_mjcf_name_the_offsets_they_leave_out_and_what_to_do(tmp_path, capsys):
+    """The Panda's model (defaults: offsets on joints 1, 3, 6): export-urdf wrote them as comments without a word,
+    export-mjcf said only that they were in comments. Both now name each joint's offset and what to do with it."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from psdm_casadi.derive import derive_psdm
+    from psdm_casadi.robot import load_robot
+    from tests.catalogue.model_files import SCARA_FILE, model_text, nominal_fit
+
+    robot = load_robot(SCARA_FILE)
+    model = derive_psdm(robot)
+    fit = nominal_fit(robot, model, ("fc", "fv", "offset"))  # offsets 0.5 .. 2.0 N m among the drive values
+    document = CalibratedModel.from_fit(robot, model, fit, robot_source=SCARA_FILE).document
+    path = tmp_path / "model.json"
+    path.write_text(model_text(document))
+    offsets = {name: value for name, value in zip(document["drive"]["names"], fit.drive) if name.startswith("offset")}
+    expected = ", ".join(f"joint {name[6:]} {value:.4g}" for name, value in offsets.items())
+    for command, out in (("export-urdf", tmp_path / "robot.urdf"), ("export-mjcf", tmp_path / "robot.xml")):
+        assert main([command, str(path), str(out)]) == 0
+        err = capsys.readouterr().err
+        assert f"constant torque offsets ({expected} N m)" in err, err
+        assert "add them to the torque your simulator or controller applies" in err
