@@ -118,3 +118,19 @@ def test_export_urdf_and_mjcf_name_the_offsets_they_leave_out_and_what_to_do(tmp
         err = capsys.readouterr().err
         assert f"constant torque offsets ({expected} N m)" in err, err
         assert "add them to the torque your simulator or controller applies" in err
+
+
+def test_no_finding_beside_unstable_candidates_or_a_poor_joint_says_what_it_does_not_mean():
+    """The Kinova's robot file (defaults): 'no significant missing physics' with 14 candidates unstable on the
+    training blocks (an offset on joint 1 among them) and joint 7 at R^2 -6.76; the report now says so beside it."""
+    from identification.diagnosis.second_opinion import UnstableFinding
+
+    unstable = UnstableFinding(effect="torque_offset", label="torque_offset[j1]", joints=(0,),
+                               route="block cross-validation", opinions=())  # fmt: skip
+    report = _report([], [1.0] * N)
+    r2 = (-0.227, 0.94, 0.92, 0.98, 0.88, 0.94, -6.76)
+    shown = DiagnosisReport(**{**report.__dict__, "unstable": (unstable,), "r2_after": r2}).to_markdown()
+    assert "**no significant missing physics**" in shown
+    caveat = next(line for line in shown.splitlines() if line.startswith("That is not a model that misses nothing"))
+    assert "1 candidate(s)" in caveat and "joint(s) 1 (R^2 -0.227), 7 (R^2 -6.76) poorly" in caveat
+    assert "That is not a model" not in report.to_markdown()  # every joint fits, nothing unstable: no caveat
