@@ -382,7 +382,7 @@ def recalibration_markdown(result, joint_names, path) -> str:
         state = block[key]
         lines.append(
             f"- consistency {key}: {'consistent' if state['consistent'] else 'NOT consistent'} (smallest "
-            f"pseudo-inertia eigenvalue {state['min_pseudo_inertia_eigenvalue']})"
+            f"pseudo-inertia eigenvalue {_significant(state['min_pseudo_inertia_eigenvalue'])})"
         )
     lines.append(f"- smallest mass-matrix eigenvalue after: {result.min_mass_eigenvalue:.4g}")
     moved = block["moved_parameters"]
@@ -424,6 +424,11 @@ def _inputs(args) -> tuple:
     return (("ROBOT", args.robot), ("--train", args.train), *(("--validate", path) for path in args.validate))
 
 
+def _significant(value) -> str:
+    """A number to 4 significant digits (9.999999999999176e-07 -> 1e-06); anything else (None) as it is."""
+    return f"{value:.4g}" if isinstance(value, (int, float)) else str(value)
+
+
 def _contribution(entry) -> str:
     """What a finding contributes on its joints: the validation RMSE with it and with it taken out (no refit)."""
     joints = entry["joints"] or list(range(1, len(entry["validation_rmse_after"]) + 1))
@@ -433,4 +438,5 @@ def _contribution(entry) -> str:
     ]
     helps = any(entry["validation_rmse_after"][j - 1] < entry["validation_rmse_without"][j - 1] for j in joints)
     verdict = "" if helps else " (it does NOT lower the validation error of its joints: consider dropping it)"
-    return "validation RMSE [N m] without -> with it: " + "; ".join(parts) + verdict
+    head = "validation RMSE [N m] without -> with it (its torque taken out, not refitted): "
+    return head + "; ".join(parts) + verdict

@@ -134,3 +134,33 @@ def test_no_finding_beside_unstable_candidates_or_a_poor_joint_says_what_it_does
     caveat = next(line for line in shown.splitlines() if line.startswith("That is not a model that misses nothing"))
     assert "1 candidate(s)" in caveat and "joint(s) 1 (R^2 -0.227), 7 (R^2 -6.76) poorly" in caveat
     assert "That is not a model" not in report.to_markdown()  # every joint fits, nothing unstable: no caveat
+
+
+def test_the_recalibration_summary_rounds_its_eigenvalues_and_says_how_without_is_computed():
+    """TX40 diagnose --apply (defaults) printed 'smallest pseudo-inertia eigenvalue 9.999999999999176e-07' and
+    'without -> with it: joint 3: 4.795 -> 0.9268' beside a before of 1.178: 'without' is the written model with the
+    term's torque taken out, not a refit, which the line now says."""
+    from types import SimpleNamespace
+
+    from psdm_casadi.cli.diagnose import recalibration_markdown
+
+    finding = {
+        "label": "friction_shape[j3,smooth_coulomb]",
+        "kind": "torque",
+        "parameters": {"smooth_coulomb_Nm": 5.4},
+        "joints": [3],
+        "validation_rmse_after": [1.1, 2.4, 0.9268],
+        "validation_rmse_without": [1.1, 2.4, 4.795],
+    }
+    block = {
+        "never_worse": {"margin": [0.1] * 3, "margin_rule": "rule", "dropped": []},
+        "moved_parameters": [],
+        "before": {"consistent": True, "min_pseudo_inertia_eigenvalue": 9.999999999999176e-07},
+        "after": {"consistent": True, "min_pseudo_inertia_eigenvalue": 3.5668661496138728e-06},
+    }
+    after = SimpleNamespace(document={"recalibration": block, "findings": [finding]})
+    result = SimpleNamespace(after=after, rmse_before=(1.6, 2.4, 1.178), rmse_after=(1.1, 2.4, 0.9268),
+                             min_mass_eigenvalue=6.456e-05)  # fmt: skip
+    text = recalibration_markdown(result, ["j1", "j2", "j3"], "new.json")
+    assert "eigenvalue 1e-06)" in text and "eigenvalue 3.567e-06)" in text and "9.99999" not in text
+    assert "without -> with it (its torque taken out, not refitted): joint 3: 4.795 -> 0.9268" in text
