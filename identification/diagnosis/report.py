@@ -203,7 +203,7 @@ class DiagnosisReport:
             lines.append(
                 f"**{NO_FINDING}**: no candidate term lowered a joint's validation RMSE enough to earn its parameters."
             )
-            lines += self._no_finding_caveat()
+            lines += ["", caveat] if (caveat := self.no_finding_caveat()) else []
         for k, f in enumerate(self.findings, 1):
             lines.append(f"{k}. {f.sentence()} (dBIC {f.delta_bic:.0f}){self._model_file_note(f)}.")
             lines += [f"   - {note}" for note in f.notes + ((f.shape_note,) if f.shape_note else ())]
@@ -238,20 +238,20 @@ class DiagnosisReport:
         lines += ["", "## Files", "", *(f"- [{file}]({file})" for file in files)] if files else []
         return "\n".join(lines) + "\n"
 
-    def _no_finding_caveat(self) -> list:
-        """Beside "no significant missing physics", what it does not mean: candidates that lowered the validation
-        error but did not hold on every recording or training block, and the joints the model predicts poorly (the
-        Kinova's robot file, defaults: torque_offset[j1] unstable, joint 7 at R^2 -6.76, was reported as nothing
-        missing)."""
+    def no_finding_caveat(self) -> str:
+        """Beside "no significant missing physics", what it does not mean ("" when nothing qualifies it): candidates
+        that lowered the validation error but did not hold on every recording or training block, and the joints the
+        model predicts poorly (the Kinova's robot file, defaults: torque_offset[j1] unstable, joint 7 at R^2 -6.76,
+        was reported as nothing missing)."""
         poor = [f"{j + 1} (R^2 {v:.3g})" for j, v in enumerate(self.r2_after) if np.isfinite(v) and v < POOR_R2]
-        if not self.unstable and not poor:
-            return []
+        if self.findings or (not self.unstable and not poor):
+            return ""
         parts = [
             f"{len(self.unstable)} candidate(s) lowered the validation error but did not hold on every "
             "recording or training block (under Unstable: record more motion to decide them)"
         ] * bool(self.unstable)
         parts += [f"the model predicts joint(s) {', '.join(poor)} poorly"] * bool(poor)
-        return ["", f"That is not a model that misses nothing: {'; '.join(parts)}."]
+        return f"That is not a model that misses nothing: {'; '.join(parts)}."
 
     def _model_file_note(self, finding) -> str:
         """Where a finding's "before" on its joint is not the model file's own RMSE there (the diagnosis refits the

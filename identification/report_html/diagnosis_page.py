@@ -39,8 +39,11 @@ def _summary(page: Page, report) -> None:
     page.say(f"Nominal model: {report.nominal_model or report.rigid_body + ' rigid body'} with {report.friction} "
              f"friction; {report.candidates_tried} candidate fits judged on the validation recording.")  # fmt: skip
     if not report.findings:
-        page.say("No significant missing physics: no candidate lowered a joint's validation RMSE enough.", "good")
-        page.say("Next: the model explains these recordings; use it, or diagnose a recording that moves differently.")
+        caveat = report.no_finding_caveat()  # unstable candidates or poorly predicted joints: not "all explained"
+        page.say("No significant missing physics: no candidate lowered a joint's validation RMSE enough.",
+                 "warn" if caveat else "good")  # fmt: skip
+        page.say(caveat or "Next: the model explains these recordings; use it, or diagnose a recording that moves "
+                 "differently.", "warn" if caveat else "")  # fmt: skip
         return
     page.say(f"Found: {report.summary()}.", "warn")
     page.say(f"Validation RMSE summed over joints {before.sum():.4g} -> {after.sum():.4g} N m with the findings; "
@@ -106,9 +109,11 @@ def _finding_rmse(report, finding, k: int) -> str:
                      go.Bar(x=joints, y=list(finding.rmse_after), name="after")])  # fmt: skip
     fig.update_layout(title="validation RMSE [N m] per joint", height=320, margin={"t": 40, "b": 30})
     rows = [[f"{j + 1}", float(b), float(a)] for j, (b, a) in enumerate(zip(finding.rmse_before, finding.rmse_after))]
-    return figure_div(fig, f"finding-{k}-rmse", "finding-rmse") + table(
-        ["joint", "RMSE before [N m]", "RMSE after [N m]"], rows
-    )
+    headers = ["joint", "RMSE before (the diagnosis's nominal) [N m]", "RMSE after [N m]"]
+    if report.model_file_rmse:  # the file as it is, beside the nominal the diagnosis refitted (Panda joint 6)
+        headers.append("model file as is [N m]")
+        rows = [row + [float(v)] for row, v in zip(rows, report.model_file_rmse)]
+    return figure_div(fig, f"finding-{k}-rmse", "finding-rmse") + table(headers, rows)
 
 
 def _validation(report) -> str:

@@ -164,3 +164,21 @@ def test_the_recalibration_summary_rounds_its_eigenvalues_and_says_how_without_i
     text = recalibration_markdown(result, ["j1", "j2", "j3"], "new.json")
     assert "eigenvalue 1e-06)" in text and "eigenvalue 3.567e-06)" in text and "9.99999" not in text
     assert "without -> with it (its torque taken out, not refitted): joint 3: 4.795 -> 0.9268" in text
+
+
+def test_the_html_page_qualifies_no_finding_and_shows_the_model_files_rmse_beside_a_finding():
+    """The HTML page said 'the model explains these recordings; use it' for the Kinova's robot file (joint 7 at
+    R^2 -6.76), and a finding's table showed only the diagnosis's nominal as 'before' (Panda joint 6: 0.0887 against
+    the file's 0.0343)."""
+    from identification.report_html.diagnosis_page import diagnosis_page
+
+    report = _report([], [1.0] * N)
+    r2 = (-0.227, 0.94, 0.92, 0.98, 0.88, 0.94, -6.76)
+    poor = diagnosis_page(DiagnosisReport(**{**report.__dict__, "r2_after": r2})).to_html()
+    assert "the model explains these recordings" not in poor and "That is not a model that misses nothing" in poor
+    assert "the model explains these recordings" in diagnosis_page(report).to_html()
+    own = (0.1997, 0.2681, 0.2273, 0.2199, 0.07727, 0.03431, 0.05145)
+    found = DiagnosisReport(**{**_report([_finding(5, 0.0887, 0.0326)], [1.0] * N).__dict__, "model_file_rmse": own})
+    page = diagnosis_page(found).to_html()
+    assert "RMSE before (the diagnosis&#x27;s nominal) [N m]" in page or "RMSE before (the diagnosis's nominal)" in page
+    assert page.count("model file as is [N m]") == 2  # the finding's table and the validation table
