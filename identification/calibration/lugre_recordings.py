@@ -97,6 +97,9 @@ class LuGreFit:
         [N m] Same for the Stribeck steady state of the linear fit.
     status : tuple of str
         Ipopt's return status per joint.
+    start_force : ndarray, shape (n_recordings, n_dof), optional
+        [N m] The fitted bristle force at the first sample of each prepared recording (the shooting fit's state
+        there): a recording starts where the last motion left the bristles, not relaxed.
     """
 
     parameters: tuple
@@ -105,6 +108,7 @@ class LuGreFit:
     rmse: np.ndarray
     rmse_stribeck: np.ndarray
     status: tuple
+    start_force: np.ndarray | None = None
 
     def table(self) -> np.ndarray:
         """Parameters as an array (n_dof, 7) in ``LUGRE_PARAMETER_NAMES`` order."""
@@ -365,7 +369,8 @@ def fit_lugre_recordings(
         )
     options = ShootingOptions(accept_acceptable=True, fixed=("dv",)) if options is None else options
     t, qd, residual = _chained(prepared, [friction_residual(model, fit, r, extra) for r in prepared])
-    parameters, std, status, rmse, rmse_stribeck, held = [], [], [], [], [], []
+    parameters, std, status, rmse, rmse_stribeck, held, start_force = [], [], [], [], [], [], []
+    firsts = np.cumsum([0] + [r.n_samples for r in prepared[:-1]])
     for j in range(qd.shape[1]):
         if initial is None:
             start = _initial(t, qd[:, j], residual[:, j], _steady_state(fit, j))
@@ -375,6 +380,7 @@ def fit_lugre_recordings(
         held.append(failed)
         parameters.append(result.parameters)
         s0 = result.parameters.sigma0 * result.z[0]
+        start_force.append(result.parameters.sigma0 * result.z[firsts])
         std.append(lugre_std(result.parameters, t, qd[:, j], residual[:, j], used.fixed, s0))
         status.append(result.status)
         rmse.append(np.sqrt(result.objective))
@@ -396,7 +402,8 @@ def fit_lugre_recordings(
             message = unidentifiable_message(j, parameters[j], relative[j], time, needed)
             warnings.warn(message, LuGreWarning, stacklevel=2)
     return LuGreFit(parameters=tuple(parameters), std=std, identifiable=identifiable, rmse=np.array(rmse),
-                    rmse_stribeck=np.array(rmse_stribeck), status=tuple(status))  # fmt: skip
+                    rmse_stribeck=np.array(rmse_stribeck), status=tuple(status),
+                    start_force=np.array(start_force).T)  # fmt: skip
 
 
 def _fit_joint(t, qd, residual, start, options: ShootingOptions, j: int) -> tuple:

@@ -32,8 +32,12 @@ PARAMETERS = (
     LuGreParameters(fc=2.0, fs=3.6, vs=0.1, fv=1.0, dv=1.0, sigma0=1000.0, sigma1=20.0),
     LuGreParameters(fc=0.5, fs=0.9, vs=0.12, fv=0.2, dv=1.0, sigma0=250.0, sigma1=5.0),
 )
-#: Stated tolerances (relative) of the recovered LuGre parameters on the virtual recording.
-TOLERANCE = {"fc": 0.05, "fs": 0.15, "vs": 0.25, "fv": 0.05, "sigma0": 0.15, "sigma1": 0.10}
+#: Stated tolerances (relative) of the recovered LuGre parameters on the virtual recording. Measured (6 joints, worst):
+#: fc 0.004, fs 0.025, vs 0.061, fv 0.010, sigma0 0.049, sigma1 0.037; with two rounds and a relaxed start of the
+#: rigid-body refit's friction they were 0.010, 0.073, 0.139, 0.032, 0.083, 0.045 (``lugre_identify``). sigma0's floor
+#: of about 5 % on joint 3 is the central second difference's acceleration (a triangle mean over two sample periods)
+#: against the sampled torque: with the true rigid body the fit gives 5.1 % there, with the true acceleration 0.8 %.
+TOLERANCE = {"fc": 0.02, "fs": 0.05, "vs": 0.1, "fv": 0.02, "sigma0": 0.06, "sigma1": 0.06}
 
 
 def _lugre_model(parameters=PARAMETERS) -> CalibratedModel:
