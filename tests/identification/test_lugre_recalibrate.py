@@ -169,7 +169,12 @@ def test_apply_of_a_delay_to_a_lugre_model_refits_the_friction_and_validates_as_
     entry = next(e for e in after.document["findings"] if e["effect"] == "delay")
     assert entry["kind"] == "signal"
     block = after.document["recalibration"]
-    assert block["dropped_findings"] == [], block["dropped_findings"]
+    # the delay is kept; what --apply drops is only a finding that did not help where it acts once the delay is
+    # corrected (since the LuGre fit settles its rounds, lugre_identify: a sparse term on joint 4, 0.1177 -> 0.0745 N m
+    # beside the delayed torque, 0.06463 -> 0.0647 N m after the refit without the delay's corruption)
+    for dropped in block["dropped_findings"]:
+        assert dropped["effect"] != "delay" and dropped["reason"].startswith("taking it out does not raise"), dropped
+        assert np.all(np.array(dropped["validation_rmse_with"]) >= np.array(dropped["validation_rmse_without"]))
     joints = [j - 1 for j in entry["joints"]] or list(range(after.n_dof))
     rmse_before, rmse_after = (np.array(block[k]["validation_rmse"])[joints] for k in ("before", "after"))
     assert np.all(rmse_after < rmse_before), (rmse_before, rmse_after)
