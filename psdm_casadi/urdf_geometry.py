@@ -46,6 +46,9 @@ def shape_points(geometry) -> np.ndarray | None:
     return None
 
 
+_SAID = set()  # (URDF, failures) already said in this process: a command builds the envelopes once per fit
+
+
 def _geometry(model, path: Path):
     """Pinocchio's collision geometry of the URDF, else its visual geometry; None when neither can be read."""
     package_dirs = [str(p) for p in list(path.parents)[:6]]
@@ -59,7 +62,9 @@ def _geometry(model, path: Path):
             continue
         if geometry.ngeoms:
             return geometry, kind.name.lower()
-    if failed:  # said once, with what is used instead and how to have the geometry read
+    said = (str(path.resolve()), tuple(failed.items()))
+    if failed and said not in _SAID:  # said once per file and process (identify reads it for each of its fits)
+        _SAID.add(said)
         logger.info("%s: its %s geometry cannot be read (%s); the links' envelopes come from the kinematic lengths "
                     "instead (the meshes' package folder in the URDF's folder or one above it makes them readable)",
                     path.name, " and ".join(failed), "; ".join(dict.fromkeys(failed.values())))  # fmt: skip

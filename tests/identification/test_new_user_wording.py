@@ -182,3 +182,21 @@ def test_the_html_page_qualifies_no_finding_and_shows_the_model_files_rmse_besid
     page = diagnosis_page(found).to_html()
     assert "RMSE before (the diagnosis&#x27;s nominal) [N m]" in page or "RMSE before (the diagnosis's nominal)" in page
     assert page.count("model file as is [N m]") == 2  # the finding's table and the validation table
+
+
+def test_a_urdf_without_its_meshes_is_said_once_per_command(tmp_path, caplog):
+    """The Panda's URDF from example-robot-data without its meshes: identify said 'its collision and visual geometry
+    cannot be read' once per fit (twice with the column check, again in diagnose --apply); once is enough."""
+    import logging
+
+    from identification.calibration.envelope import link_envelopes
+    from psdm_casadi.robot import load_robot
+    from tests.identification.test_envelope import ARM_URDF
+
+    mesh = '<{0}><geometry><mesh filename="package://arm_description/meshes/l1.stl"/></geometry></{0}>'
+    path = tmp_path / "arm.urdf"
+    path.write_text(ARM_URDF.format(l1=mesh.format("collision") + mesh.format("visual"), l2="", tip=""))
+    with caplog.at_level(logging.INFO, logger="psdm_casadi.urdf_geometry"):
+        for _ in range(3):
+            assert {e.source for e in link_envelopes(load_robot(path))} == {"kinematic lengths"}
+    assert len([r for r in caplog.records if "cannot be read" in r.getMessage()]) == 1
