@@ -6,18 +6,24 @@ then sees the torque the held friction leaves, ``tau - D_held f_held``, fits eve
 columns out of both the least-squares and the consistent fit, and reports the held values as the columns'
 estimates (standard deviation 0: not estimated). A held joint's friction is Coulomb-viscous (its smoothing velocity
 the fit's): a Stribeck hump is no more determined than the Coulomb level it sits on.
+
+A model file states what identify held (``identification.one_way_friction.held``); every command that refits the
+file's model keeps it: ``HeldFriction.of_document`` reads it with the file's smoothing velocity, for the refit of
+``diagnose --apply`` (``recalibrate``) and the nominal model of ``diagnose MODEL`` (``DiagnosisOptions.held_friction``),
+whose every fit explains the torque the held friction leaves (``HeldFriction.torque``, the one friction ``psdm
+validate`` predicts).
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from identification.calibration.trajectory_data import drive_column_joint, friction_term
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["HELD_TERMS", "check_held_friction", "held_friction_columns", "subtract_held_friction",
+__all__ = ["HELD_TERMS", "HeldFriction", "check_held_friction", "held_friction_columns", "subtract_held_friction",
            "with_held_values"]  # fmt: skip
 
 #: The friction terms that may be held: Coulomb and viscous (a held joint is Coulomb-viscous).
@@ -26,6 +32,64 @@ HELD_TERMS = ("fc", "fv")
 
 def _term(name: str) -> str:
     return name.rstrip("0123456789")
+
+
+@dataclass(frozen=True)
+class HeldFriction:
+    """Friction held at given values: ``values`` ``((name, value), ...)`` of ``fc<j>``/``fv<j>`` columns, the Coulomb
+    term smoothed over ``coulomb_velocity`` [rad/s] (``trajectory_data.friction_term``, as the model file predicts)."""
+
+    values: tuple = ()
+    coulomb_velocity: float = 0.05
+
+    def __post_init__(self):
+        values = tuple((str(name), float(value)) for name, value in self.values)
+        for name, value in values:
+            if _term(name) not in HELD_TERMS or not np.isfinite(value):
+                raise ParameterError(f"HeldFriction.values must be (name, finite value) pairs of the columns "
+                                     f"{HELD_TERMS}, e.g. ('fc3', 0.2); got {(name, value)!r}.")  # fmt: skip
+        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
+            raise ParameterError(
+                f"HeldFriction.coulomb_velocity must be positive [rad/s]; got {self.coulomb_velocity!r}."
+            )
+        object.__setattr__(self, "values", values)
+
+    @classmethod
+    def of_document(cls, document: dict) -> HeldFriction:
+        """What a calibrated-model file's identification held (``identification.one_way_friction.held``; none in files
+        without it), with the file's smoothing velocity."""
+        held = (document.get("identification", {}).get("one_way_friction") or {}).get("held") or {}
+        return cls(tuple(held.items()), float(document["drive"].get("coulomb_velocity", 0.05)))
+
+    @property
+    def joints(self) -> tuple:
+        """The held joints (0-based, increasing)."""
+        return tuple(sorted({drive_column_joint(name) for name, _ in self.values}))
+
+    def torque(self, qd) -> np.ndarray:
+        """The held friction's torque (n_samples, n_dof) at the velocities ``qd`` (n_samples, n_dof) [N m]."""
+        qd = np.asarray(qd, dtype=float)
+        out = np.zeros_like(qd)
+        for name, value in self.values:
+            j = drive_column_joint(name)
+            out[:, j] += value * friction_term(_term(name), qd[:, j], self.coulomb_velocity)
+        return out
+
+    def expression(self, qd):
+        """The held friction's torque as a CasADi expression of the velocity ``qd`` (SX, n_dof)."""
+        import casadi as ca
+
+        out = ca.SX.zeros(qd.shape[0])
+        for name, value in self.values:
+            j = drive_column_joint(name)
+            out[j] += value * friction_term(_term(name), qd[j], self.coulomb_velocity)
+        return out
+
+    def describe(self) -> str:
+        """``joint 3: fc3 0.292, fv3 0.0107`` per held joint ("" when nothing is held)."""
+        joint = drive_column_joint
+        return "; ".join(f"joint {j + 1}: " + ", ".join(f"{n} {v:.3g}" for n, v in self.values if joint(n) == j)
+                         for j in self.joints)  # fmt: skip
 
 
 def check_held_friction(options) -> None:
@@ -55,14 +119,9 @@ def subtract_held_friction(prepared, options) -> list:
     """The prepared recordings with the held friction's torque taken off (``options.held_friction``)."""
     if not options.held_friction:
         return list(prepared)
-    out = []
-    for recording in prepared:
-        tau = np.array(recording.tau, dtype=float)
-        for name, value in options.held_friction:
-            j = drive_column_joint(name)
-            tau[:, j] -= float(value) * friction_term(_term(name), recording.qd[:, j], options.coulomb_velocity)
-        out.append(replace(recording, tau=tau))
-    return out
+    held = HeldFriction(options.held_friction, options.coulomb_velocity)
+    return [replace(recording, tau=np.asarray(recording.tau, dtype=float) - held.torque(recording.qd))
+            for recording in prepared]  # fmt: skip
 
 
 def held_friction_columns(names, options, n_base: int) -> set:

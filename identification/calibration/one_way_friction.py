@@ -30,7 +30,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from identification.calibration.held_friction import HELD_TERMS
+from identification.calibration.held_friction import HELD_TERMS, HeldFriction
 from identification.calibration.robot_file_check import file_friction
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
 from identification.calibration.trajectory_data import drive_column_joint
@@ -72,7 +72,7 @@ class OneWayFriction:
 
     @property
     def held_joints(self) -> tuple:
-        return tuple(sorted({drive_column_joint(name) for name, _ in self.held}))
+        return HeldFriction(self.held).joints
 
     def describe(self) -> str:
         """One sentence: which joints move one way only, what was held and why, or why nothing was."""
@@ -82,10 +82,7 @@ class OneWayFriction:
         head = f"friction of the joints that move one way only in training ({joints}): "
         if not self.held:
             return head + self.reason
-        values = "; ".join(
-            f"joint {j + 1}: " + ", ".join(f"{n} {v:.3g}" for n, v in self.held if drive_column_joint(n) == j)
-            for j in self.held_joints
-        )
+        values = HeldFriction(self.held).describe()
         return (f"{head}held, Coulomb-viscous, to the robot file's rigid body's friction fit ({values}; N m, "
                 f"N m s/rad) -- {self.reason}. --one-way-friction fit fits it from the data instead")  # fmt: skip
 

@@ -55,6 +55,7 @@ from identification.calibration.findings import (
     finding_kind,
     offsets_left_to_findings,
 )
+from identification.calibration.held_friction import HeldFriction
 from identification.calibration.lugre_identify import identify_lugre_trajectories
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
@@ -242,7 +243,7 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
-        held_friction=tuple((identification.get("one_way_friction") or {}).get("held", {}).items()),  # as identified
+        held_friction=HeldFriction.of_document(document).values,  # as identified
     )
 
 
@@ -451,14 +452,8 @@ def _document(
     ``lugre_recordings.LuGreFit``, a version 3 file with that friction)."""
     plain, extra = split_findings(fit, len(columns.names) if terms else 0)
     source = robot_source or calibrated.robot_file()  # the file's robot text, written to the robot cache
-    new = CalibratedModel.from_fit(
-        robot,
-        model,
-        plain,
-        robot_source=source,
-        recordings=calibrated.document.get("provenance", {}).get("recordings", []),
-        lugre=lugre,
-    )
+    recordings = calibrated.document.get("provenance", {}).get("recordings", [])
+    new = CalibratedModel.from_fit(robot, model, plain, robot_source=source, recordings=recordings, lugre=lugre)
     document = new.document
     document["robot"] = copy.deepcopy(calibrated.document["robot"])
     document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia

@@ -20,6 +20,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from identification.calibration.held_friction import HeldFriction
 from identification.diagnosis.candidates import joint_expression
 from identification.diagnosis.nominal import friction_casadi
 from psdm_casadi.fileio import atomic_write
@@ -29,7 +30,9 @@ from psdm_casadi.fileio import atomic_write
 class AugmentedModel:
     """Nominal model + found terms. ``theta`` are the base parameters before the terms' changes. ``parameter_map``:
     the model's with the flange body's block (``carried_payload.flange_parameter_map``: a payload on a robot whose
-    flange link the model does not hold goes to the last link it does); None: the model's own."""
+    flange link the model does not hold goes to the last link it does); None: the model's own. ``held_friction``: the
+    friction a model file holds (``held_friction.HeldFriction``, in the file's own form), beside the fitted one, whose
+    coefficients on the held joints are 0."""
 
     model: object
     theta: np.ndarray
@@ -40,6 +43,7 @@ class AugmentedModel:
     terms: tuple
     coefficients: tuple
     parameter_map: np.ndarray | None = None
+    held_friction: HeldFriction = HeldFriction()
 
     @property
     def terms_map(self) -> np.ndarray:
@@ -93,6 +97,8 @@ class AugmentedModel:
         tau = tau_rigid + friction_casadi(
             self.friction_kind, qd, self.friction_coefficients, self.friction_vs, self.friction_dv
         )
+        if self.held_friction.values:
+            tau = tau + self.held_friction.expression(qd)
         nominal = tau
         for term, c in zip(self.terms, self.coefficients):
             extra = term.casadi_expression(q, qd, qdd, t, nominal, c)
@@ -116,6 +122,8 @@ class AugmentedModel:
                 "coefficients": self.friction_coefficients.tolist(),
                 "vs": self.friction_vs.tolist(),
                 "dv": self.friction_dv.tolist(),
+                "held": dict(self.held_friction.values),
+                "held_coulomb_velocity": self.held_friction.coulomb_velocity,
             },
             "terms": [
                 {

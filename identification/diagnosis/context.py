@@ -108,6 +108,9 @@ class DiagnosisContext:
     torque_constants : array (n_dof,) or None
         Kt [N m/A] the torque was computed with from motor currents; None for a torque signal. On currents the
         robot file's rigid body is taken in identify's map (``merged_rotors``: the rotors the base parameters hold).
+    tau_held : array (n_samples, n_dof) or None
+        The torque of the friction a model file holds (``held_friction.HeldFriction``; None: none), which no fit
+        estimates: every fit explains ``tau_fit``.
     """
 
     t: np.ndarray
@@ -139,6 +142,12 @@ class DiagnosisContext:
     missing: tuple = ()
     sign_qd: np.ndarray | None = None
     torque_constants: np.ndarray | None = None
+    tau_held: np.ndarray | None = None
+
+    @property
+    def tau_fit(self) -> np.ndarray:
+        """The measured torque the fits explain (n_samples, n_dof): ``tau`` less the held friction's (``tau_held``)."""
+        return self.tau if self.tau_held is None else self.tau - self.tau_held
 
     def without_torque(self, joints) -> DiagnosisContext:
         """This context with the joints ``joints`` left out (no torque measurement in one of the diagnosis's
@@ -152,10 +161,10 @@ class DiagnosisContext:
         tau[:, joints], rate[:, joints], accel[:, joints] = self.tau_rigid[:, joints], 0.0, 0.0
         full = self.full_tau.copy()
         full[:, joints] = 0.0
-        raw = None if self.full_tau_raw is None else self.full_tau_raw.copy()
-        if raw is not None:
-            raw[:, joints] = 0.0
-        return replace(self, tau=tau, tau_rate=rate, tau_accel=accel, full_tau=full, full_tau_raw=raw,
+        raw, held = (None if x is None else x.copy() for x in (self.full_tau_raw, self.tau_held))
+        for values in (x for x in (raw, held) if x is not None):
+            values[:, joints] = 0.0
+        return replace(self, tau=tau, tau_rate=rate, tau_accel=accel, full_tau=full, full_tau_raw=raw, tau_held=held,
                        missing=tuple(joints))  # fmt: skip
 
     @property
@@ -464,32 +473,10 @@ def build_context(
     filtered_friction = (robot.drives is not None) if filtered_friction is None else bool(filtered_friction)
     sign_qd = sign_velocity(raw, recording, cutoff_hz) if filtered_friction and sign_from_raw else None
     return DiagnosisContext(
-        t=recording.t[keep],
-        q=q,
-        qd=qd,
-        qdd=qdd,
-        tau=tau_full[keep],
-        tau_rate=tau_rate,
-        tau_accel=tau_accel,
-        tau_rigid=tau_rigid,
-        dtau_dq=dq,
-        dtau_dqd=dv,
-        mass=mass,
-        regressor=regressor,
-        payload=payload,
-        tilt=tilt,
-        tilt_axes=axes,
-        full_t=recording.t,
-        full_tau=tau_full,
-        full_qd=recording.qd,
-        sign_qd=sign_qd,
-        keep=keep,
-        cutoff_hz=cutoff_hz,
-        parameter_map=np.asarray(model.parameter_map),
-        drives=robot.drives,
-        name=recording.name,
-        full_tau_raw=tau_raw,
-        filtered_friction=filtered_friction,
-        gravity=_gravity_torque(pmodel, q),
+        t=recording.t[keep], q=q, qd=qd, qdd=qdd, tau=tau_full[keep], tau_rate=tau_rate, tau_accel=tau_accel,
+        tau_rigid=tau_rigid, dtau_dq=dq, dtau_dqd=dv, mass=mass, regressor=regressor, payload=payload, tilt=tilt,
+        tilt_axes=axes, full_t=recording.t, full_tau=tau_full, full_qd=recording.qd, sign_qd=sign_qd, keep=keep,
+        cutoff_hz=cutoff_hz, parameter_map=np.asarray(model.parameter_map), drives=robot.drives, name=recording.name,
+        full_tau_raw=tau_raw, filtered_friction=filtered_friction, gravity=_gravity_torque(pmodel, q),
         torque_constants=None if tau_full is recording.tau else np.asarray(torque_constants, dtype=float),
-    )
+    )  # fmt: skip

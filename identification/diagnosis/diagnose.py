@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.held_friction import HeldFriction
 from identification.data.excitation_check import ExcitationThresholds
 from identification.data.filter_choice import AUTO, EDGE_PERIODS, resolve_auto
 from identification.data.missing_torque import measured_torque
@@ -129,6 +130,11 @@ class DiagnosisOptions:
         Offer the friction shapes the nominal model lacks (``lacking_friction_shapes``): beside a Coulomb-viscous or
         Stribeck one as candidates and in place of a lag they explain, beside the robot file's LuGre friction a Stribeck
         peak at another velocity than the drive's; the fleet's day diagnosis, which asks what changed, turns it off.
+    held_friction : HeldFriction
+        Friction the nominal model holds at a model file's values (identify's ``one_way_friction``; a model file's, from
+        ``model_file.model_file_options``): no fit of the diagnosis estimates those joints' friction columns, every one
+        explains the torque the held friction leaves (``DiagnosisContext.tau_fit``), so the nominal model predicts
+        those joints as ``psdm validate`` predicts the file.
     """
 
     friction: str = AUTO
@@ -151,6 +157,7 @@ class DiagnosisOptions:
     sparse_min_gain: float = 0.3
     cv_folds: int = 4
     envelope: bool = True
+    held_friction: HeldFriction = HeldFriction()
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (
@@ -201,6 +208,9 @@ class DiagnosisOptions:
                 f"DiagnosisOptions.excitation must be an ExcitationThresholds or None; got "
                 f"{type(self.excitation).__name__}. Pass ExcitationThresholds(...)."
             )
+        if not isinstance(self.held_friction, HeldFriction):
+            raise ParameterError(f"DiagnosisOptions.held_friction must be a HeldFriction; got "
+                                 f"{type(self.held_friction).__name__}.")  # fmt: skip
         if self.library is not None and not isinstance(self.library, CandidateLibrary):
             raise ParameterError(
                 f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
@@ -404,10 +414,10 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
 
 def _least_squares(robot, options: DiagnosisOptions, ctx) -> tuple:
     """``(base, y)`` of a recording's context: the nominal model's free columns and the torque they are fitted to."""
-    base = friction_blocks(robot, options.friction, ctx)
+    base = friction_blocks(robot, options.friction, ctx, held=options.held_friction.joints)
     if options.rigid_body != "identified":
-        return base, ctx.tau - ctx.tau_rigid
-    return base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau
+        return base, ctx.tau_fit - ctx.tau_rigid
+    return base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau_fit
 
 
 def _context(robot, model, recording, options: DiagnosisOptions, kt) -> DiagnosisContext:
@@ -416,10 +426,12 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
     raw = recording if options.preprocess else None
     if options.preprocess:
         recording = preprocess(recording, PreprocessOptions(cutoff_hz=options.cutoff_hz))
-    return build_context(robot, model, recording, options.rate_hz, options.cutoff_hz, kt,
-                         with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
-                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
-                         sign_from_raw=options.friction == "lugre")  # fmt: skip
+    ctx = build_context(robot, model, recording, options.rate_hz, options.cutoff_hz, kt,
+                        with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
+                        identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
+                        sign_from_raw=options.friction == "lugre")  # fmt: skip
+    held = options.held_friction
+    return replace(ctx, tau_held=held.torque(ctx.qd)) if held.values else ctx
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
@@ -456,27 +468,13 @@ def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options:
     """Refit the kept terms with their nonlinear parameters; the linear fit stays when that does not improve it, or
     when the refit alone moved a term out of its bounds, unless the term is in ``SHAPE_VERDICTS`` (then the refit
     stands and ``plausible_diagnosis`` rejects the term)."""
-    linear = FinalFit(
-        terms=tuple(step.term for step in selection.steps),
-        coefficients=selection.coefficients,
-        friction_coefficients=selection.friction_coefficients,
-        prediction_t=selection.prediction_train,
-        prediction_v=selection.prediction_validation,
-        nonlinear={},
-    )
+    linear = FinalFit(terms=tuple(step.term for step in selection.steps), coefficients=selection.coefficients,
+                      friction_coefficients=selection.friction_coefficients, prediction_t=selection.prediction_train,
+                      prediction_v=selection.prediction_validation, nonlinear={})  # fmt: skip
     if not (options.refine and linear.terms):
         return linear
-    refined = refine_fit(
-        linear.terms,
-        linear.coefficients,
-        linear.friction_coefficients,
-        problem.ctx_t,
-        problem.ctx_v,
-        problem.base_t,
-        problem.base_v,
-        problem.y_t,
-        problem.y_v,
-    )
+    refined = refine_fit(linear.terms, linear.coefficients, linear.friction_coefficients, problem.ctx_t,
+                         problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v)  # fmt: skip
     if refined is None:
         return linear
     if not refined.improved:
@@ -490,11 +488,6 @@ def refine_terms(problem: DiagnosisProblem, selection: SelectionResult, options:
     logger.info(
         f"diagnose: Ipopt refinement of the nonlinear terms: {refined.status} in {refined.iterations} iterations"
     )
-    return FinalFit(
-        terms=refined.terms,
-        coefficients=refined.coefficients,
-        friction_coefficients=refined.friction_coefficients,
-        prediction_t=refined.prediction_train,
-        prediction_v=refined.prediction_validation,
-        nonlinear=refined.nonlinear,
-    )
+    return FinalFit(terms=refined.terms, coefficients=refined.coefficients,
+                    friction_coefficients=refined.friction_coefficients, prediction_t=refined.prediction_train,
+                    prediction_v=refined.prediction_validation, nonlinear=refined.nonlinear)  # fmt: skip

@@ -80,11 +80,12 @@ class EnvelopeCheck:
         )
 
 
-def _columns(ctx, friction, terms) -> tuple:
-    """The columns ``[regressor, friction, terms...]`` (n_samples, n_dof, k) of a context with its regressor, and the
-    names of those after the base parameters: a ``rotor_inertia`` finding's is ``Ia<j>`` (identify's
-    drive-inertia column), the others ``extra<k>``."""
-    parts = [ctx.regressor, friction.dense()] + [np.asarray(t.columns(ctx), dtype=float) for t in terms]
+def _columns(ctx, friction, terms, free) -> tuple:
+    """The columns ``[regressor, friction, terms...]`` (n_samples, n_dof, k) of a context with its regressor, the
+    friction's ``free`` ones (those of a model file's held friction are none of the fit), and the names of those after
+    the base parameters: a ``rotor_inertia`` finding's is ``Ia<j>`` (identify's drive-inertia column), the others
+    ``extra<k>``."""
+    parts = [ctx.regressor, friction.dense()[:, :, free]] + [np.asarray(t.columns(ctx), dtype=float) for t in terms]
     names = [f"extra{k}" for k in range(parts[1].shape[2])]
     for term, part in zip(terms, parts[2:]):
         rotor = getattr(term, "key", "") == "rotor_inertia" and part.shape[2] == 1
@@ -134,19 +135,20 @@ class EnvelopedRecalibration:
         the drive-inertia column ``Ia<j>`` of identify (>= 0): it says that the torque holds the rotors, as identify's
         kept ``Ia<j>`` columns do."""
         (ctx_t, ctx_v), robot = self.contexts, self.robot
-        train, names = _columns(ctx_t, self.friction[0], terms)
+        free = sorted(set().union(*(set(index.tolist()) for index in self.friction[0].index)))  # held: in no joint's
+        train, names = _columns(ctx_t, self.friction[0], terms, free)
         equations = NormalEquations(robot.n_dof, train.shape[2])
-        equations.add(train, ctx_t.tau)
-        x_ols = np.linalg.lstsq(train.reshape(-1, train.shape[2]), ctx_t.tau.reshape(-1), rcond=None)[0]
+        equations.add(train, ctx_t.tau_fit)
+        x_ols = np.linalg.lstsq(train.reshape(-1, train.shape[2]), ctx_t.tau_fit.reshape(-1), rcond=None)[0]
         options = TrajectoryOptions()
         merged = with_merged_rotors(self.model, robot, options, ctx_t.torque_constants, (equations, names), log=False)
-        correlation = residual_correlation_time(ctx_t.tau - train @ x_ols)  # the pull's weight as identify's
+        correlation = residual_correlation_time(ctx_t.tau_fit - train @ x_ols)  # the pull's weight as identify's
         standard, extra, _, _, _ = consistent_fit(
             merged.robot, merged.model, equations, residual_sigma(equations, x_ols), names, options,
             np.full(len(names), -np.inf), bounds=merged.fit_bounds(options), warn=False, correlation=correlation,
         )  # fmt: skip
         x = np.concatenate([merged.model.base_parameters(standard), extra])
-        return rmse(ctx_v.tau, _columns(ctx_v, self.friction[1], terms)[0] @ x)
+        return rmse(ctx_v.tau_fit, _columns(ctx_v, self.friction[1], terms, free)[0] @ x)
 
     def check(self, selection, joints) -> EnvelopeCheck:
         """The ``EnvelopeCheck`` of the per-joint findings of ``selection`` (a ``SelectionResult``) that act on

@@ -6,7 +6,10 @@ viscous, Stribeck with its vs, or LuGre with its identified parameters). The rec
 (``model_preparation``: its filter, cutoff and grid rate, and identify's samples with the file's edge trim, one filter
 period in files of preparation version 1), so the report's "before" is the file's own validation RMSE, the one ``psdm
 validate`` prints (``report_assembly.with_model_file_before``), and the report names the file and the preparation it
-used.
+used. The friction identify held on joints that moved one way only in its training data (``one_way_friction``) stays
+held at the file's values in every fit of the diagnosis (``DiagnosisOptions.held_friction``): the diagnosis's nominal
+model predicts those joints as the file does, and its refits (the rigid body recalibrated, freely or inside the
+envelope, the findings' joint fits) keep it, as ``diagnose --apply``'s refit does (``recalibrate``).
 ``psdm diagnose`` calls :func:`diagnose_model`, so the Python API and the command give the same numbers.
 """
 
@@ -22,6 +25,7 @@ import numpy as np
 from identification.calibration.calibrated_model import LoadedModel, calibrated_robot, read_calibrated_model
 from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
+from identification.calibration.held_friction import HeldFriction
 from identification.calibration.model_preparation import model_preparation
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
@@ -44,7 +48,9 @@ def own_friction(calibrated) -> str:
 def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> DiagnosisOptions:
     """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its
     friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
-    with the file's edge trim (``Preparation.edge_periods``)."""
+    with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``),
+    which every fit of the diagnosis keeps at the file's values (``DiagnosisOptions.held_friction``), unless
+    ``options`` hold some."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -54,7 +60,9 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     if rate == AUTO:
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
     friction = own_friction(calibrated) if options.friction == AUTO else options.friction
-    return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods)
+    held = options.held_friction if options.held_friction.values else HeldFriction.of_document(calibrated.document)
+    return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
+                   held_friction=held)  # fmt: skip
 
 
 def diagnose_model(

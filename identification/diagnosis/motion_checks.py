@@ -10,7 +10,7 @@ from identification.data.excitation_check import ExcitationThresholds, check_joi
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.diagnosis.columns import row_chunks
 from identification.diagnosis.context import check_preprocessed
-from identification.diagnosis.nominal import friction_feature_names
+from identification.diagnosis.nominal import friction_feature_names, joint_friction_columns
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError
 
@@ -61,11 +61,13 @@ def check_nominal_columns(robot, model, problem, options) -> None:
         )
     else:  # the same singular values and column norms, from a chunked QR of the weighted rows
         matrix, weights = problem.base_t.weighted_r(sigma), None
+    held = {c for j in options.held_friction.joints for c in joint_friction_columns(robot, options.friction, j)}
+    free = [c for c in range(len(names)) if c not in held]  # a held joint's friction is no column of the fit
     check_regressor(
-        matrix,
+        matrix[:, free],
         weights,
-        names=names,
-        column_joints=joints,
+        names=[names[c] for c in free],
+        column_joints=[joints[c] for c in free],
         owner="diagnose",
         source=f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction"
         + (" and base parameters)" if options.rigid_body == "identified" else ")"),

@@ -113,9 +113,18 @@ def filtered_friction_columns(robot, kind: str, context) -> np.ndarray:
     return friction_blocks(robot, kind, context).dense()
 
 
-def friction_blocks(robot, kind: str, context) -> BlockColumns:
+def joint_friction_columns(robot, kind: str, joint: int) -> list:
+    """The columns (0-based, in the layout of ``friction_blocks``) of joint ``joint``'s nominal friction: its
+    ``friction_columns``, then its bristle-dynamics column with a LuGre prior (``"lugre"`` and the robot's drives)."""
+    n, k = robot.n_dof, 3 if kind in STRIBECK_SHAPED else 2
+    return list(range(joint * k, (joint + 1) * k)) + ([n * k + joint] if kind == "lugre" and robot.drives else [])
+
+
+def friction_blocks(robot, kind: str, context, held: tuple = ()) -> BlockColumns:
     """``filtered_friction_columns`` as ``BlockColumns``, built one column at a time: each full-rate column of a
-    joint (n_full,) is filtered and decimated before the next, never the whole (n_full, n_dof, p)."""
+    joint (n_full,) is filtered and decimated before the next, never the whole (n_full, n_dof, p). The friction of
+    the ``held`` joints (0-based: a model file's held friction, ``DiagnosisOptions.held_friction``) is no column of
+    the fit: theirs stay in the layout, zero."""
     vs, dv = friction_shapes(robot)
     n = robot.n_dof
     dynamic = kind == "lugre" and robot.drives is not None
@@ -123,16 +132,18 @@ def friction_blocks(robot, kind: str, context) -> BlockColumns:
         out = friction_columns(kind, context.qd, vs, dv)
         if dynamic:
             out = np.concatenate([out, lugre_dynamic_columns(robot, context)], axis=2)
+        for j in held:
+            out[:, j, joint_friction_columns(robot, kind, j)] = 0.0
         return BlockColumns.from_dense(out)
-    k = 3 if kind in STRIBECK_SHAPED else 2
     index, values = [], []
     for j in range(n):
-        index.append(np.arange(j * k, (j + 1) * k).tolist() + ([n * k + j] if dynamic else []))
+        index.append([] if j in held else joint_friction_columns(robot, kind, j))
         block = np.empty((context.n_samples, len(index[-1])))
-        for c, column in enumerate(_joint_friction_columns(robot, kind, context, j, dynamic)):
+        columns = () if j in held else _joint_friction_columns(robot, kind, context, j, dynamic)
+        for c, column in enumerate(columns):
             block[:, c] = context.lowpass(column)  # one full-rate column at a time
         values.append(block)
-    return BlockColumns(n * k + (n if dynamic else 0), tuple(index), tuple(values))
+    return BlockColumns(n * len(joint_friction_columns(robot, kind, 0)), tuple(index), tuple(values))
 
 
 def _joint_friction_columns(robot, kind: str, context, j: int, dynamic: bool):

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.held_friction import HeldFriction
 from psdm_casadi.fileio import OutputFolder, atomic_write, markdown_escape
 
 NO_FINDING = "no significant missing physics"
@@ -131,6 +132,7 @@ class DiagnosisReport:
     opinion_route: str = ""  # how findings were checked beyond the validation recording (``second_opinion``)
     recordings: tuple = ()  # ``recording_checks.RecordingCheck`` per validation recording
     left_out: tuple = ()  # joints without a torque measurement, left out and not diagnosed (one sentence each)
+    held_friction: tuple = ()  # (name, value): friction the nominal model holds at a model file's values (no refit)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -177,6 +179,7 @@ class DiagnosisReport:
             "validation_recordings": [r.to_dict() for r in self.recordings],
             "rejected": [{"label": label, "reason": reason} for label, reason in self.rejected],
             "left_out": list(self.left_out),
+            "held_friction": dict(self.held_friction),
         }
 
     def to_json(self) -> str:
@@ -186,8 +189,8 @@ class DiagnosisReport:
         lines = [
             f"# Missing-physics diagnosis: {self.robot_name}",
             "",
-            f"Nominal model: {self._nominal()} + {self.friction} friction fitted on the training recording; "
-            f"{self.candidates_tried} candidate fits judged on the validation recording.",
+            f"Nominal model: {self._nominal()} + {self.friction} friction fitted on the training recording"
+            f"{self._held_text()}; {self.candidates_tried} candidate fits judged on the validation recording.",
             "",
             *([f"Preparation: {self.preparation}.", ""] if self.preparation else []),
             *(
@@ -265,6 +268,13 @@ class DiagnosisReport:
             return ""
         return (f"; that before is the diagnosis's nominal (friction refitted on the training recording), the model "
                 f"file as it is gives joint {j + 1} {own:.3g} N m")  # fmt: skip
+
+    def _held_text(self) -> str:
+        """The friction held at the model file's values, in words ("" when none)."""
+        if not self.held_friction:
+            return ""
+        return (f", except the friction identify held (joints that move one way only in its training data): held at "
+                f"the model file's values in every fit ({HeldFriction(self.held_friction).describe()})")  # fmt: skip
 
     def _nominal(self) -> str:
         """What the diagnosis started from: the model it names, else the robot file's rigid body (or identified)."""

@@ -83,6 +83,7 @@ def build_report(
         opinion_route=selection.opinion_route,
         recordings=check_recordings(problem, final, findings),
         left_out=problem.left_out,
+        held_friction=options.held_friction.values,
     )
 
 
@@ -152,6 +153,7 @@ def augmented_model_of(robot, model, final, options, kt=None) -> AugmentedModel:
         terms=final.terms,
         coefficients=final.coefficients,
         parameter_map=flange_parameter_map(robot, model),
+        held_friction=options.held_friction,
     )
 
 

@@ -51,15 +51,16 @@ def with_regressor(context, model):
 
 def recalibration_parts(problem, model) -> dict:
     """The fields of the ``DiagnosisProblem`` with the identified rigid body, from a prior-mode ``problem``: the
-    contexts with their regressor, the friction columns followed by the regressor's, and the whole torque."""
+    contexts with their regressor, the friction columns followed by the regressor's, and the whole torque (less a
+    model file's held friction, ``DiagnosisContext.tau_fit``)."""
     ctx_t, ctx_v = with_regressor(problem.ctx_t, model), with_regressor(problem.ctx_v, model)
     return {
         "ctx_t": ctx_t,
         "ctx_v": ctx_v,
         "base_t": problem.base_t.concatenate(BlockColumns.from_dense(ctx_t.regressor)),
         "base_v": problem.base_v.concatenate(BlockColumns.from_dense(ctx_v.regressor)),
-        "y_t": ctx_t.tau,
-        "y_v": ctx_v.tau,
+        "y_t": ctx_t.tau_fit,
+        "y_v": ctx_v.tau_fit,
         "extra_v": tuple(_with_regressor_part(ctx, base, model) for ctx, base, _ in problem.extra_v),
     }
 
@@ -67,7 +68,7 @@ def recalibration_parts(problem, model) -> dict:
 def _with_regressor_part(ctx, base, model) -> tuple:
     """A further validation recording's ``(ctx, base, y)`` with the identified rigid body."""
     ctx = with_regressor(ctx, model)
-    return ctx, base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau
+    return ctx, base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau_fit
 
 
 def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(), recalibrated_effects=()) -> bool:

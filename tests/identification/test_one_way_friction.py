@@ -180,3 +180,38 @@ def test_a_held_column_is_not_fitted_and_bad_holds_are_refused(scara, one_way_ca
     with pytest.raises(ParameterError, match="--one-way-friction must be one of auto, hold, fit"):
         check_one_way_mode("yes")
     assert OneWayFriction().describe() == ""  # no joint moves one way: nothing to say
+
+
+def test_diagnose_model_keeps_the_friction_the_file_holds_in_every_refit(scara, one_way_case):
+    """``diagnose MODEL`` of the held model: the diagnosis's nominal model predicts the held joint 3 as ``psdm
+    validate`` predicts the file (0.0066 N m; its friction held at the file's values, not refitted on the one-way
+    training recording, which gave 0.053 on main), the report names what it held, and the augmented model computes
+    the held friction as the file does."""
+    from identification.calibration.calibrated_model import LoadedModel, calibrated_robot
+    from identification.calibration.finding_value import validation_rmse
+    from identification.diagnosis.candidates import SpringTerm, TorqueOffsetTerm
+    from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+    from identification.diagnosis.model_file import diagnose_model, model_file_options
+
+    robot, model = scara
+    train, held, run = one_way_case
+    calibrated = run["auto"].calibrated
+    own = validation_rmse(calibrated, model, held[0])[0]
+    quick = DiagnosisOptions(rigid_body="prior", library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    options = model_file_options(calibrated, quick)  # the nominal fit does not depend on the candidates
+    assert options.held_friction.joints == (2,) and options.held_friction.values == run["auto"].one_way.held
+    nominal = diagnose(calibrated_robot(calibrated, robot), train[0], held[0], options, model=model)
+    assert nominal.rmse_before[2] == pytest.approx(own[2], rel=1e-6), (nominal.rmse_before, own)
+    free = diagnose(calibrated_robot(calibrated, robot), train[0], held[0],
+                    replace(options, held_friction=type(options.held_friction)()), model=model)  # fmt: skip
+    assert free.rmse_before[2] > 3 * own[2]  # the friction refitted where the data do not determine it
+    report = diagnose_model(LoadedModel(calibrated, robot, model), train[0], held[0], replace(quick, rigid_body="auto"))
+    assert report.held_friction == run["auto"].one_way.held and np.isfinite(report.rmse_after[2])
+    assert report.rmse_after[2] <= own[2] * 1.01 or any(2 in f.joints for f in report.findings)
+    assert "held at the model file's values" in report.to_markdown() and "joint 3: fc3" in report.to_markdown()
+    function = report.augmented.build_function()
+    states = recording(robot, 5, duration=1.5)
+    prepared, predicted = calibrated.predict_recording(model, states)
+    k = len(prepared.t) // 2
+    tau = np.asarray(function(prepared.q[k], prepared.qd[k], prepared.qdd[k], 0.0)).ravel()
+    assert tau[2] == pytest.approx(predicted[k, 2], abs=1e-9)

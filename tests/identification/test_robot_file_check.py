@@ -259,3 +259,35 @@ def test_pooling_a_dead_channel_counts_the_recordings_that_hold_the_joint():
     np.testing.assert_allclose(pooled.before, [2.0, 5.0])
     np.testing.assert_allclose(pooled.after, [3.0, 6.0])
     np.testing.assert_allclose(pooled.standard_error, [0.25, 0.5])
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+def test_diagnose_of_the_kinova_held_model_starts_from_the_file_on_the_held_joints(tmp_path, capsys):
+    """``psdm diagnose MODEL`` of the model identify wrote with joints 1 and 3-7 held: the diagnosis's nominal model
+    predicts each held joint as ``psdm validate`` predicts the file (before, it refitted their friction on the 2.3 s
+    recording: joint 1 1.24 -> 1.58 N m, joint 7 0.29 -> 0.50), and the report names the held values."""
+    from identification.calibration.calibrated_model import calibrated_robot, read_calibrated_model
+    from identification.calibration.finding_value import validation_rmse
+    from identification.data.layout import ColumnLayout
+    from identification.data.robot_recordings import load_robot_recording
+    from identification.diagnosis.candidates import SpringTerm, TorqueOffsetTerm
+    from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+    from identification.diagnosis.model_file import model_file_options
+
+    robot_file = _kinova_file(tmp_path)
+    with contextlib.redirect_stderr(io.StringIO()):
+        assert main(_short_recording(robot_file, tmp_path)) == 0
+    capsys.readouterr()
+    loaded = read_calibrated_model(tmp_path / "model.json")
+    held = loaded.calibrated.document["identification"]["one_way_friction"]["held_joints"]
+    assert {1, 3, 5, 6, 7} <= set(held)
+    layout = ColumnLayout.parse("t=Time,q=Position,tau=TorqueSm")
+    train, valid = (load_robot_recording(KINOVA / name, loaded.robot, None, layout)
+                    for name in ("opti_traj_testing2.csv", "opti_traj_testing1.csv"))  # fmt: skip
+    own = validation_rmse(loaded.calibrated, loaded.model, valid)[0]
+    quick = DiagnosisOptions(rigid_body="prior", library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    options = model_file_options(loaded.calibrated, quick)  # the nominal fit does not depend on the candidates
+    report = diagnose(calibrated_robot(loaded.calibrated, loaded.robot), train, valid, options, model=loaded.model)
+    for joint in held:
+        assert report.rmse_before[joint - 1] == pytest.approx(own[joint - 1], rel=1e-6), (joint, report.rmse_before)
