@@ -248,12 +248,12 @@ def _missing_torque(args, robot, paths, recordings, validation) -> tuple:
 
 def _concrete_route(warning: str, args, paths) -> str:
     """A warning's suggested ``psdm diagnose`` command with this run's robot and recordings (and how they are
-    read: ``--columns``, ``--rate``) in it."""
+    read: ``--columns``, ``--rate``) in it: the first training recording (diagnose takes one) and every held-out one."""
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
     validate = " ".join(map(str, args.validate)) if args.validate else "OTHER.csv"
     layout = "".join(f" --{key} {getattr(args, key)}" for key in ("columns", "rate") if getattr(args, key, None))
-    command = f"psdm diagnose {args.robot} --train {' '.join(map(str, paths))} --validate {validate}{layout}"
+    command = f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}{layout}"
     return warning.replace(DIAGNOSE_COMMAND, command)
 
 

@@ -85,11 +85,28 @@ def _print_envelope(fit) -> None:
         print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {finding.message}")
 
 
+def _below_mean(entry, diagnose: str) -> list:
+    """A line per held-out joint the model predicts worse than the joint's mean torque (R^2 < 0), with what the
+    robot file's rigid body alone gives there and the diagnosis that names the missing torque: the shared TX40's
+    joint 5 (R^2 -12, 4.715 N m against the file's 1.375: the wrist coupling) was printed without a word."""
+    lines = []
+    for j, r2 in enumerate(entry["r2"]):
+        if r2 is None or r2 >= 0.0:
+            continue
+        ours, file = entry["rmse"][j], (entry.get("rmse_prior") or [None] * len(entry["r2"]))[j]
+        alone = f"; the robot file's rigid body alone gives {file:.4g}" if file is not None and file < ours else ""
+        lines.append(f"  joint {j + 1}: R^2 {r2:.3g}, predicted worse than by its mean torque (RMSE {ours:.4g} N m"
+                     f"{alone}): a torque the model lacks acts on it (a coupling, a spring, a load); "
+                     f"'{diagnose} --apply NEW.json' names it and adds it")  # fmt: skip
+    return lines
+
+
 def print_identify(args, robot, model, fit, report, calibrated, result, route=str) -> None:
     """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, drive
     columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording).
     ``route`` puts this run's files into a suggested command (the held-back parameters' ``psdm diagnose ...``)."""
     from identification.calibration.drive_loss import drive_loss_summary
+    from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
     if args.json:
         print_json({"command": "identify", "protocol": "recordings", "robot": robot.name, "out": str(args.out),
@@ -162,6 +179,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
             if key in entry:
                 print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
         print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
+        for line in _below_mean(entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1)):
+            print(line)
     if (result.file_check.comparison is not None or result.file_check.reason) and not result.file_check.worse:
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")

@@ -4,6 +4,8 @@ wrote linked rather than shown as images, and a held-back parameter's suggested 
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from identification.diagnosis.report import DiagnosisReport, Finding
@@ -210,3 +212,23 @@ def test_diagnose_without_validate_says_why_and_how_to_have_one(tmp_path, capsys
     assert main(["diagnose", "denso_vs6556g", "--train", str(train)]) == 2
     err = capsys.readouterr().err
     assert "--validate is missing" in err and "not fitted on" in err and "first 70 % for --train" in err
+
+
+def test_identify_names_a_held_out_joint_predicted_worse_than_its_mean_and_the_route(denso, tmp_path, capsys):
+    """The shared TX40 (defaults, first 70 % trains): joint 5 validated at R^2 -12 (4.715 N m, the robot file's
+    rigid body alone 1.375: the wrist coupling) and identify said nothing. Here the validation recording carries a
+    spring on joint 6 the training one lacks: identify names that joint and the diagnosis of the file it wrote."""
+    from identification.data.io import save_recording
+    from identification.virtual import effects as xp
+
+    train, valid, out = tmp_path / "train.npz", tmp_path / "valid.npz", tmp_path / "model.json"
+    save_recording(rigid_recording(denso, []), train)
+    save_recording(rigid_recording(denso, [xp.Spring(joint=5, stiffness=40.0, q0=-1.0)], seed=1), valid)
+    args = ["identify", str(denso.source), "--data", str(train), "--validate", str(valid), "--out", str(out)]
+    assert main([*args, "--no-html"]) == 0
+    text = capsys.readouterr().out
+    r2 = json.loads(out.read_text())["validation"]["recordings"][0]["r2"]
+    assert r2[5] < 0 and all(v >= 0 for j, v in enumerate(r2) if j != 5)  # the test's premise
+    lines = [line for line in text.splitlines() if "predicted worse than by its mean torque" in line]
+    assert len(lines) == 1 and lines[0].startswith("  joint 6: R^2")
+    assert f"'psdm diagnose {out} --train {train} --validate {valid} --apply NEW.json'" in lines[0]
