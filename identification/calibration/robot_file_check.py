@@ -195,7 +195,8 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
     from psdm_casadi.oracle import PinocchioOracle
 
     if not validation:
-        return FileCheck(reason="no held-out recording (--validate)")
+        return FileCheck(reason="no held-out recording: pass --validate with a recording of another motion to compare "
+                         "each joint with the robot file's rigid body")  # fmt: skip
     if robot.links is None:
         return FileCheck(reason="the robot file states no links")
     oracle = PinocchioOracle(robot)

@@ -232,3 +232,13 @@ def test_identify_names_a_held_out_joint_predicted_worse_than_its_mean_and_the_r
     lines = [line for line in text.splitlines() if "predicted worse than by its mean torque" in line]
     assert len(lines) == 1 and lines[0].startswith("  joint 6: R^2")
     assert f"'psdm diagnose {out} --train {train} --validate {valid} --apply NEW.json'" in lines[0]
+
+
+def test_identify_without_a_held_out_recording_says_how_to_have_the_robot_file_check():
+    """TX40 identify on its one recording printed 'against the robot file: not checked (no held-out recording
+    (--validate))'; it now says what to pass and what for."""
+    from identification.calibration.robot_file_check import check_against_file
+
+    text = check_against_file(None, None, None, None, None, [], None).describe()
+    assert text.startswith("against the robot file: not checked (no held-out recording: pass --validate with")
+    assert "compare each joint with the robot file's rigid body" in text
