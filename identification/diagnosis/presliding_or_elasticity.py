@@ -13,21 +13,36 @@ readily as false ones. What does separate them is whether the difference holds o
 candidate's joint:
 
 - on every validation recording, the elasticity's RMSE must be below pre-sliding's;
-- on every contiguous block of the training recording held out in turn (``second_opinion.FOLDS``, the model fitted
-  on the others, as the second opinion judges a finding), it must be below pre-sliding's beyond the noise of the
-  never-worse margin: by at least ``MARGIN_FLOOR`` of pre-sliding's RMSE, and in ``WIN_SHARE`` (0.977, the one-sided
-  share of ``MARGIN_SIGMAS`` standard errors) of the moving-block bootstrap resamples of the paired difference
-  (``paired_margin.paired_rmse_draws``). The share, not twice the standard error: where pre-sliding's error sits in
-  a few bursts at reversals the elasticity follows, the draws are skewed (a true elasticity on the Denso's joint 3,
-  0.19 against 0.72 N m on a block, had a standard error of 0.27 N m and was lower in every resample).
+- on all contiguous blocks of the training recording held out in turn but ``SPARED_BLOCKS`` (one of
+  ``FOLDS`` = 4; the model fitted on the others, as the second opinion judges a finding), it must be below
+  pre-sliding's beyond the noise of the never-worse margin: by at least ``MARGIN_FLOOR`` of pre-sliding's RMSE, and in
+  ``WIN_SHARE`` (0.977, the one-sided share of ``MARGIN_SIGMAS`` standard errors) of the moving-block bootstrap
+  resamples of the paired difference (``paired_margin.paired_rmse_draws``). The share, not twice the standard error:
+  where pre-sliding's error sits in a few bursts at reversals the elasticity follows, the draws are skewed (a true
+  elasticity on the Denso's joint 3, 0.19 against 0.72 N m on a block, had a standard error of 0.27 N m and was lower
+  in every resample).
 
-Measured on known truth (the virtual Denso, LuGre friction, diagnosed against its robot file's): on the diagnosis
-benchmark's motion (12 s training, 6 s validation, seeds 0-1, joints 2, 3, 5, 6) a torsion of 0.2 deg at the joint's
-RMS torque wins on every block in 6 of 8 cases (in 100 % of the resamples; seed 1's joints 5 and 6 win on 2 and 3 of
-4), no compliance in 0 of 8 (though the elasticity fits the validation recording better in 3 of them, joint 6 at
-seed 0 by 26 %); on 10 s sine experiments (seeds 0-2, joints 5 and 6) 1 of 6 and 0 of 6: the rule costs power on
-short recordings. The unseen UR5-like arm's false elasticity wins on two blocks of four (the others in 96 and 97 % of
-the resamples), the MCAP arm's on none (pre-sliding is lower on every block).
+Why three blocks of four, not every block, and not one pooled test. Every block at 97.7 % multiplies the blocks'
+powers: a true elasticity won each block with probability p is named with p^4 (0.41 for p = 0.8), while a pure noise
+null passes three blocks of four with 4 (0.023)^3 = 5e-5 or less. The false elasticities the rule must refuse are not
+noise but structure: on a LuGre joint without compliance the elasticity's column can fit the bristle better than
+pre-sliding's one-shape column, consistently (the sine experiment at seed 1, joint 5: 2 to 9 % lower on every held-out
+part, in 92-94 % of each block's resamples) or in one part (the benchmark motion at seed 2, joint 6: 33 % lower on the
+validation recording, higher on two training blocks). A pooled test over all held-out parts (the paired squared-error
+difference, studentised by its overlapping-batch-means error, one-sided at 2.3 %) names 2 of the 42 joints without
+compliance measured below at every block length tried (from the autocorrelation of the squared difference, of either
+residual, or twice and four times that), a studentised moving-block bootstrap of it 8 of 42 (the resamples' t is
+skewed by the bursts: its upper quantile fell to 0.4-0.6), because pooling lets one part decide and resamples within
+parts cannot see that the parts disagree. Counting won blocks keeps the parts as replications.
+
+Measured (``benchmarks/presliding_or_elasticity.py``, the virtual Denso with LuGre friction diagnosed against its robot
+file's, a torsion of 0.2 deg at the joint's RMS torque or none): on the diagnosis benchmark's motion (12 s training,
+6 s validation, seeds 0-6, joints 2, 3, 5, 6; seed 2's compliances not simulated) 21 of 24 true elasticities named (18
+with every block), on 10 s sine experiments (seeds 0-6, joints 5 and 6) 7 of 14 (4 with every block), and 0 of 42
+joints without compliance (0 with every block). Of the true ones still refused, 4 are higher than pre-sliding on the
+validation recording (a finding must improve each: issue 25), the others win two blocks or fewer. The unseen UR5-like
+arm's false elasticity wins on two blocks of four (the others in 96 and 97 % of the resamples), the MCAP arm's on none
+(pre-sliding is lower on every block).
 
 Where the elasticity does not win, the pair is reported (``RivalPair.sentence``: both numbers, and the recording that
 tells them apart) and the elasticity is not named; the selection goes on, so pre-sliding is named only if it holds on
@@ -47,6 +62,8 @@ from identification.metrics import rms
 from identification.paired_margin import MARGIN_FLOOR, MARGIN_SIGMAS, paired_rmse_draws
 
 FOLDS = 4  # contiguous training blocks held out in turn (as ``second_opinion.FOLDS``)
+#: Held-out training blocks the elasticity may fail to win (module docstring: three of four, not all four).
+SPARED_BLOCKS = 1
 #: Share of a block's bootstrap resamples in which the elasticity must be lower: the one-sided probability of
 #: ``MARGIN_SIGMAS`` standard errors of a normal distribution (0.977), taken from the draws themselves.
 WIN_SHARE = 0.5 * (1.0 + math.erf(MARGIN_SIGMAS / math.sqrt(2.0)))
@@ -74,9 +91,15 @@ class RivalPair:
         return sum(e < (1.0 - MARGIN_FLOOR) * p and share >= WIN_SHARE for p, e, share in self.blocks)
 
     @property
+    def blocks_needed(self) -> int:
+        """Training blocks the elasticity must win: all but ``SPARED_BLOCKS``, at least one."""
+        return max(1, len(self.blocks) - SPARED_BLOCKS)
+
+    @property
     def elasticity_wins(self) -> bool:
-        """Lower than pre-sliding on every validation recording, and beyond the margin on every training block."""
-        return all(e < p for p, e in self.validation) and self.blocks_won == len(self.blocks)
+        """Lower than pre-sliding on every validation recording, and beyond the margin on ``blocks_needed`` training
+        blocks."""
+        return all(e < p for p, e in self.validation) and self.blocks_won >= self.blocks_needed
 
     @property
     def presliding_better(self) -> bool:
@@ -99,7 +122,8 @@ class RivalPair:
             f"pre-sliding or elasticity on joint {n}: {verdict}. Joint {n}'s validation RMSE [N m] ({val}; pre-sliding "
             f"over x0 = {self.x0:.2g} rad, the elasticity {self.stiffness:.4g} N m/rad, {self.torsion_deg:.2g} deg at "
             f"the joint's RMS torque); the elasticity is lower beyond the noise on {self.blocks_won} of "
-            f"{len(self.blocks)} training blocks held out in turn (pre-sliding vs elasticity: {blocks}). "
+            f"{len(self.blocks)} training blocks held out in turn, {self.blocks_needed} needed (pre-sliding vs "
+            f"elasticity: {blocks}). "
             f"{self.label} is not named, and diagnose --apply writes neither (pre-sliding is named only where it holds "
             f"as a finding of its own, and a model file holds it as LuGre friction: psdm identify --friction lugre); "
             f"to tell them apart, record "
@@ -115,35 +139,54 @@ def compare(design, term, presliding, train_ctx, validations) -> RivalPair:
     ``design`` is the selection's (the nominal model and the kept terms); ``presliding`` is a callable giving the
     pre-sliding column (n_samples, n_dof, 1) on a context with its ``x0`` as attribute; ``validations`` the
     ``(ctx, base, y)`` of each validation recording."""
-    j = int(term.joints[0])
-    columns = {"elasticity": term.columns, "presliding": presliding}
-    trains = {k: f(train_ctx) for k, f in columns.items()}
-    p = design.G.shape[0]
-    validation = []
-    betas = {k: design.fit(ct, np.zeros((design.y_val.shape[0],) + ct.shape[1:]))[0] for k, ct in trains.items()}
-    for ctx, base, y in validations:
-        errors = {}
-        for k, f in columns.items():
-            prediction = base.predict(betas[k][:p]) + f(ctx) @ betas[k][p:]
-            errors[k] = float(rms(y[:, j] - prediction[:, j]))
-        validation.append((errors["presliding"], errors["elasticity"]))
-    compliance = float(betas["elasticity"][p])
-    torque = float(rms(train_ctx.tau[:, j]))
+    parts = held_out_residuals(design, term, presliding, train_ctx, validations)
+    validation = [(float(rms(r_p)), float(rms(r_e))) for r_p, r_e in parts.validation]
+    blocks = []
+    for r_p, r_e in parts.blocks:
+        before, after, draws = paired_rmse_draws(r_p[:, None], r_e[:, None])
+        blocks.append((float(before[0]), float(after[0]), float(np.mean(draws[:, 0] < 0.0))))
+    torque = float(rms(train_ctx.tau[:, parts.joint]))
     return RivalPair(
         label=term.label,
-        joint=j,
+        joint=parts.joint,
         validation=tuple(validation),
-        blocks=tuple(_blocks(design, trains, j)),
-        stiffness=1.0 / compliance if compliance > 0 else float("inf"),
-        torsion_deg=float(np.degrees(compliance * torque)),
+        blocks=tuple(blocks),
+        stiffness=1.0 / parts.compliance if parts.compliance > 0 else float("inf"),
+        torsion_deg=float(np.degrees(parts.compliance * torque)),
         x0=float(presliding.x0),
     )
 
 
+@dataclass(frozen=True)
+class HeldOutResiduals:
+    """The residuals [N m] of ``joint`` with pre-sliding and with the elasticity on data their fits did not see:
+    ``validation``, one ``(pre-sliding, elasticity)`` pair of (n_samples,) arrays per validation recording (the
+    fits on the whole training recording); ``blocks``, one pair per contiguous training block held out in turn (the
+    fits on the other blocks); ``compliance`` [rad/(N m)], the elasticity's on the whole training recording."""
+
+    joint: int
+    validation: tuple
+    blocks: tuple
+    compliance: float
+
+
+def held_out_residuals(design, term, presliding, train_ctx, validations) -> HeldOutResiduals:
+    """Each rival fitted alone beside ``design`` (``compare``'s arguments) and its residual on each held-out part."""
+    j = int(term.joints[0])
+    columns = {"elasticity": term.columns, "presliding": presliding}
+    trains = {k: f(train_ctx) for k, f in columns.items()}
+    p = design.G.shape[0]
+    betas = {k: design.fit(ct, np.zeros((design.y_val.shape[0],) + ct.shape[1:]))[0] for k, ct in trains.items()}
+    validation = []
+    for ctx, base, y in validations:
+        res = {k: y[:, j] - (base.predict(betas[k][:p]) + f(ctx) @ betas[k][p:])[:, j] for k, f in columns.items()}
+        validation.append((res["presliding"], res["elasticity"]))
+    return HeldOutResiduals(j, tuple(validation), tuple(_blocks(design, trains, j)), float(betas["elasticity"][p]))
+
+
 def _blocks(design, trains: dict, joint: int) -> list:
-    """(pre-sliding, elasticity, share) of ``joint`` on each contiguous training block held out in turn, each model
-    fitted on the other blocks; the share of the block's moving-block bootstrap resamples in which the elasticity's
-    RMSE is the lower (``paired_margin.paired_rmse_draws``)."""
+    """(pre-sliding, elasticity) residuals of ``joint`` on each contiguous training block held out in turn, each
+    model fitted on the other blocks."""
     n = design.y_train.shape[0]
     y = design.y_train
     out = []
@@ -155,7 +198,6 @@ def _blocks(design, trains: dict, joint: int) -> list:
         residual = {}
         for k, ct in trains.items():
             prediction = fold.fit(ct[rest], ct[block], full=True)[5]
-            residual[k] = y[block][:, [joint]] - prediction[:, [joint]]
-        before, after, draws = paired_rmse_draws(residual["presliding"], residual["elasticity"])
-        out.append((float(before[0]), float(after[0]), float(np.mean(draws[:, 0] < 0.0))))
+            residual[k] = y[block][:, joint] - prediction[:, joint]
+        out.append((residual["presliding"], residual["elasticity"]))
     return out

@@ -1,7 +1,8 @@
 """Pre-sliding or a joint elasticity (issue 25): an elasticity is named only where it beats pre-sliding on its joint on
-every held-out block of the training recording by the noise margin; otherwise the pair is reported, not the
-elasticity. Known truth: the virtual Denso (LuGre friction, whose bristles give pre-sliding on every joint) with and
-without a torsion of 0.2 deg at the wrist's RMS torque, diagnosed against the robot file's LuGre friction."""
+three of the four held-out blocks of the training recording by the noise margin and on every validation recording;
+otherwise the pair is reported, not the elasticity. Known truth: the virtual Denso (LuGre friction, whose bristles give
+pre-sliding on every joint) with and without a torsion of 0.2 deg at the wrist's RMS torque, diagnosed against the
+robot file's LuGre friction."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ from identification.diagnosis.candidates import JointElasticityTerm
 from identification.diagnosis.design import WeightedDesign, joint_weights, left_out
 from identification.diagnosis.diagnose import prepare_problem
 from identification.diagnosis.friction_rival import FrictionRival, PreslidingColumn, fitted_scales
-from identification.diagnosis.presliding_or_elasticity import WIN_SHARE, RivalPair, compare
+from identification.diagnosis.presliding_or_elasticity import SPARED_BLOCKS, WIN_SHARE, RivalPair, compare
 from identification.virtual.transmission_effects import JointElasticity
 from tests.identification.diagnosis_data import recording_pair
 
@@ -57,6 +58,29 @@ def test_a_true_wrist_elasticity_beats_pre_sliding_on_every_training_block(denso
     assert pair.stiffness == pytest.approx(stiffness, rel=0.25)  # 2349 against 2050 N m/rad
 
 
+def test_a_true_elasticity_that_wins_three_training_blocks_of_four_is_named(denso, denso_model):
+    # 10 s sine experiment at seed 1, a 0.2 deg torsion on joint 6: the elasticity is lower in 100, 88, 100 and 100 %
+    # of the blocks' resamples (the rule of every block refused it: 3 of 4) and on the validation recording
+    rival, design, scales, stiffness = _rival(denso, denso_model, 5, seed=1, torsion_deg=0.2)
+    term = JointElasticityTerm(joint=5)
+    pair = compare(design, term, _presliding(rival, scales, 5), rival.train_ctx, rival.validations)
+    assert pair.blocks_won == 3 and pair.blocks_needed == 3 and pair.elasticity_wins
+    assert rival.presliding_rival(design, term, scales) is None and rival.sentences == []  # named
+    assert 0.5 < pair.stiffness / stiffness < 2.0  # 1898 against 1133 N m/rad: stiff by 68 % on 10 s (not the rule's)
+
+
+def test_a_lugre_wrist_whose_elasticity_wins_two_blocks_is_not_named(denso, denso_model):
+    # no compliance on joint 5 (seed 0): the elasticity wins two training blocks of four (98 and 100 % of the
+    # resamples; 77 and 40 % on the others) and the validation recording: the three-of-four rule still refuses it
+    rival, design, scales, _ = _rival(denso, denso_model, 4, seed=0, torsion_deg=0.0)
+    term = JointElasticityTerm(joint=4)
+    pair = compare(design, term, _presliding(rival, scales, 4), rival.train_ctx, rival.validations)
+    (p, e), = pair.validation  # fmt: skip
+    assert e < p and pair.blocks_won == 2 and not pair.elasticity_wins
+    sentence = rival.presliding_rival(design, term, scales)
+    assert sentence is not None and "on 2 of 4 training blocks held out in turn, 3 needed" in sentence
+
+
 def _presliding(rival, scales, joint):
     """Pre-sliding's column at its fitted displacement, as ``presliding_rival`` builds it."""
     return PreslidingColumn(joint, float(scales[joint, 2]))
@@ -70,14 +94,18 @@ def test_the_pair_s_verdicts_follow_the_blocks_and_the_validation_recordings():
     assert pair(((1.0, 0.9),), won).elasticity_wins
     assert not pair(((1.0, 1.1),), won).elasticity_wins  # higher than pre-sliding on a validation recording
     assert WIN_SHARE == pytest.approx(0.97725, abs=1e-5)  # two standard errors, one-sided
-    doubtful = won[:3] + ((1.0, 0.8, 0.96),)  # lower on the fourth block, but not in 97.7 % of its resamples
-    assert not pair(((1.0, 0.9),), doubtful).elasticity_wins and pair(((1.0, 0.9),), doubtful).blocks_won == 3
-    tiny = won[:3] + ((1.0, 0.995, 1.0),)  # lower in every resample, by less than the margin's floor (1 %)
-    assert pair(((1.0, 0.9),), tiny).blocks_won == 3
+    assert SPARED_BLOCKS == 1
+    spared = won[:3] + ((1.0, 1.2, 0.0),)  # three blocks of four won: one block may go the other way
+    assert pair(((1.0, 0.9),), spared).elasticity_wins and pair(((1.0, 0.9),), spared).blocks_won == 3
+    doubtful = won[:2] + ((1.0, 0.8, 0.96),) * 2  # lower on two blocks, but not in 97.7 % of their resamples
+    assert not pair(((1.0, 0.9),), doubtful).elasticity_wins and pair(((1.0, 0.9),), doubtful).blocks_won == 2
+    tiny = won[:2] + ((1.0, 0.995, 1.0),) * 2  # lower in every resample, by less than the margin's floor (1 %)
+    assert pair(((1.0, 0.9),), tiny).blocks_won == 2 and not pair(((1.0, 0.9),), tiny).elasticity_wins
     worse = pair(((0.9, 1.0),), ((0.8, 1.0, 0.0),) * 4)
     assert worse.presliding_better and "pre-sliding explains it better" in worse.sentence()
     sentence = pair(((1.0, 0.9),), doubtful).sentence()
     assert sentence.startswith("pre-sliding or elasticity on joint 2: the data cannot tell them apart")
     assert (
-        "recording 1: 1 with pre-sliding, 0.9 with the elasticity" in sentence and "3 of 4 training blocks" in sentence
+        "recording 1: 1 with pre-sliding, 0.9 with the elasticity" in sentence
+        and "2 of 4 training blocks held out in turn, 3 needed" in sentence
     )
