@@ -172,7 +172,7 @@ def test_diagnose_apply_finds_the_spring_and_restores_the_rigid_body(spring_loop
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert "## Recalibration with the findings" in out and "validation RMSE after" in out
-    assert "validation RMSE [N m] without -> with it: joint 2:" in out
+    assert "validation RMSE [N m] without -> with it (its torque taken out, not refitted): joint 2:" in out
     before, after = load_calibrated_model(folder / "model.json"), load_calibrated_model(folder / "new.json")
     assert after.document["version"] == 2 and before.document["findings"] == []
     spring = next(e for e in after.document["findings"] if e["label"] == "spring[j2]")
