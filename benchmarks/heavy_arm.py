@@ -41,7 +41,10 @@ train.csv``: identify then judges the spring by the block cross-validation over 
 ``calibration.counterbalance_folds``), one row each (``identify_validate``); ``--identify train`` only without.
 Steps 2 follow each identify.
 
-Each key is true when it holds on every row; ``counts`` gives how many rows it holds on (``3/3``).
+Each key is true when it holds on every row; ``counts`` gives how many rows it holds on (``3/3``). Per row,
+``identify_s`` is identify's wall time and ``identify_cpu_s`` this process's CPU time for it (on a loaded machine the
+wall time also counts the others' work); ``counterbalance_reason`` is identify's verdict on the counterbalance, with
+its numbers.
 
     python benchmarks/heavy_arm.py [--seeds 0 1] [--identify validate|train|both] [--json]
 """
@@ -211,10 +214,10 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
     data, val, out = folder / "train.csv", folder / "val.csv", folder / "model.json"
     save_recording(train, data)
     save_recording(validation, val)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     held_out = ["--validate", val] if validate else []
     code, identified = _cli(["identify", robot.source, "--data", data, *held_out, "--out", out, "--json"])
-    seconds = time.perf_counter() - start
+    seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     document = json.loads(out.read_text())
     findings = [f for f in document["standard"].get("envelope_findings", []) if f.get("pressed", True)]
     named = [f for f in findings if f["absorbs"] == "counterbalance" and f["joint"] == 1]
@@ -235,11 +238,13 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "amplitude_Nm": next((round(float(p["amplitude"]), 1) for k, _, _, p in truth if "amplitude" in p), None),
         "identify_exit": code,
         "identify_s": round(seconds, 1),
+        "identify_cpu_s": round(cpu, 1),
         "envelope_respected": _inside(robot, document),
         "absorbed_effect_named": bool(findings) and {f["absorbs"] for f in findings} <= hidden,
         "counterbalance_named": bool(named) or taken,
         "counterbalance_taken": taken,
         "counterbalance_stated": bool(stated) or taken,
+        "counterbalance_reason": counter.get("reason", ""),
         "payload_named": bool(payload),
         "stays_inside_unpushed": not findings,
         "named": "; ".join(sorted({f"{f['absorbs']} (joint {f['joint'] + 1})" for f in findings})) or "-",

@@ -28,6 +28,7 @@ import numpy as np
 
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.never_worse import JointComparison, TrainingRefits, paired_rmse_margin
+from identification.calibration.shared_barrier import shared_solvers
 from psdm_casadi.errors import PSDMError
 
 __all__ = [
@@ -66,11 +67,15 @@ class BlockFolds:
         Per fold, the blocks they predict.
     baselines : dict
         Per fold, the model without springs once identified (shared by every spring shape tried).
+    solvers : dict
+        The barrier-path solvers the folds' fits share (``shared_barrier``: one per structure, over every spring shape
+        tried and the never-worse refits, ``refits``).
     """
 
     training: tuple
     held_out: tuple
     baselines: dict = field(default_factory=dict)
+    solvers: dict = field(default_factory=dict, repr=False)
 
     @property
     def route(self) -> str:
@@ -87,7 +92,8 @@ class BlockFolds:
         without the springs (``baseline``, the labels ``("springs",)``) and with them (``identify_with(pieces)``), for
         a joint a held-out recording finds over its margin."""
         return TrainingRefits(lambda labels, k: self.baseline(k, identify_without) if labels
-                              else identify_with(self.training[k]), len(self.training), ("springs",))  # fmt: skip
+                              else identify_with(self.training[k]), len(self.training), ("springs",),
+                              solvers=self.solvers)  # fmt: skip
 
     def compare(self, identify_without, identify_with, model, kt=None) -> tuple:
         """(comparison over every held-out block taken together, per-fold comparisons) of the models
@@ -96,7 +102,8 @@ class BlockFolds:
         folds, pooled_without, pooled_with = [], [], []
         for k, (pieces, held) in enumerate(zip(self.training, self.held_out)):
             try:
-                without, with_it = self.baseline(k, identify_without), identify_with(pieces)
+                with shared_solvers(self.solvers):  # judges: one barrier-path solver per structure
+                    without, with_it = self.baseline(k, identify_without), identify_with(pieces)
                 residuals = [[_residual(m, model, block, kt) for block in held] for m in (without, with_it)]
             except PSDMError as error:  # a piece that excites too little, too short to prepare, a fit that fails
                 raise FoldFailure(f"block {k + 1} of {len(self.training)}: {str(error).splitlines()[0]}") from error

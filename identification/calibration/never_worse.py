@@ -51,6 +51,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from identification.calibration.finding_value import validation_rmse
+from identification.calibration.shared_barrier import shared_solvers
 from identification.paired_margin import (
     BOOTSTRAP_SAMPLES,
     MARGIN_FLOOR,
@@ -260,18 +261,24 @@ class TrainingRefits:
         How many blocks (each left out once).
     baseline : tuple of str
         The labels whose drop gives the model before's structure (every finding the gate may drop).
+    solvers : dict
+        The barrier-path solvers the refits share (``shared_barrier``: one per structure, kept between the gate's
+        turns; a caller's, e.g. ``BlockFolds.solvers``, to share them with its other fold fits).
     """
 
     refit: object
     folds: int
     baseline: tuple = ()
     models: dict = field(default_factory=dict, repr=False)
+    solvers: dict = field(default_factory=dict, repr=False)
 
     def model(self, labels, k: int):
-        """Block ``k``'s refit without ``labels`` (each refitted once)."""
+        """Block ``k``'s refit without ``labels`` (each refitted once; a judge, so its consistent fits share their
+        solvers: ``shared_barrier``)."""
         key = (frozenset(labels), k)
         if key not in self.models:
-            self.models[key] = self.refit(sorted(key[0]), k)
+            with shared_solvers(self.solvers):
+                self.models[key] = self.refit(sorted(key[0]), k)
         return self.models[key]
 
     def changes(self, labels, model, validation, kt=None) -> np.ndarray:

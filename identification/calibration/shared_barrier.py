@@ -37,10 +37,12 @@ _SOLVERS = contextvars.ContextVar("psdm_shared_barrier_solvers", default=None)
 
 
 @contextlib.contextmanager
-def shared_solvers():
+def shared_solvers(solvers: dict | None = None):
     """Within: consistent fits of one structure share one barrier-path solver (module docstring); the solvers are
-    dropped when the outermost block ends."""
-    token = _SOLVERS.set({}) if _SOLVERS.get() is None else None
+    dropped when the outermost block ends, or kept in ``solvers`` when given (a judge whose fold fits come in turns,
+    with fits of the written model outside the scope between them: ``never_worse.TrainingRefits``,
+    ``counterbalance_folds.BlockFolds``). A block inside an open one uses the open block's solvers."""
+    token = _SOLVERS.set({} if solvers is None else solvers) if _SOLVERS.get() is None else None
     try:
         yield
     finally:
