@@ -88,15 +88,17 @@ def test_a_held_back_parameters_route_names_this_runs_files(denso, tmp_path, cap
     from identification.virtual import effects as xp
 
     hidden = [xp.ExtraRotorInertia(inertia=np.array([3.0] + [0.0] * (denso.n_dof - 1)))]  # 3 x the bounds allow
-    train, valid = tmp_path / "train.npz", tmp_path / "valid.npz"
+    train, second, valid = tmp_path / "train.npz", tmp_path / "second.npz", tmp_path / "valid.npz"
     save_recording(rigid_recording(denso, hidden), train)
+    save_recording(rigid_recording(denso, hidden, seed=2, duration=4.0), second)
     save_recording(rigid_recording(denso, hidden, seed=1), valid)
     out = tmp_path / "model.json"
-    args = ["identify", str(denso.source), "--data", str(train), "--validate", str(valid), "--out", str(out)]
-    assert main([*args, "--no-html"]) == 0
+    args = ["identify", str(denso.source), "--data", str(train), str(second), "--validate", str(valid)]
+    assert main([*args, "--out", str(out), "--no-html"]) == 0
     held = [line for line in capsys.readouterr().out.splitlines() if "HELD BACK" in line]
     assert held and all("ROBOT --train DATA" not in line for line in held)
-    assert any(f"psdm diagnose {denso.source} --train {train} --validate {valid}" in line for line in held)
+    # diagnose takes one training recording: the first, as printed, runs
+    assert any(f"psdm diagnose {denso.source} --train {train} --validate {valid}'" in line for line in held)
 
 
 def test_export_urdf_and_mjcf_name_the_offsets_they_leave_out_and_what_to_do(tmp_path, capsys):
