@@ -11,7 +11,9 @@ A model file states what identify held (``identification.one_way_friction.held``
 file's model keeps it: ``HeldFriction.of_document`` reads it with the file's smoothing velocity, for the refit of
 ``diagnose --apply`` (``recalibrate``) and the nominal model of ``diagnose MODEL`` (``DiagnosisOptions.held_friction``),
 whose every fit explains the torque the held friction leaves (``HeldFriction.torque``, the one friction ``psdm
-validate`` predicts).
+validate`` predicts). The nominal model of ``diagnose MODEL`` also holds the file's torque offsets (``offset<j>``,
+``HeldFriction.of_model_file``): a diagnosis's nominal carries the file's columns, so its "before" is the file's and no
+finding is the offset found again; a spring is then tested against the nominal model with its offset.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ __all__ = ["HELD_TERMS", "HeldFriction", "check_held_friction", "held_friction_c
 
 #: The friction terms that may be held: Coulomb and viscous (a held joint is Coulomb-viscous).
 HELD_TERMS = ("fc", "fv")
+#: What a diagnosis's nominal model may hold besides: a model file's torque offsets (``HeldFriction.of_model_file``).
+CARRIED_TERMS = (*HELD_TERMS, "offset")
 
 
 def _term(name: str) -> str:
@@ -45,9 +49,9 @@ class HeldFriction:
     def __post_init__(self):
         values = tuple((str(name), float(value)) for name, value in self.values)
         for name, value in values:
-            if _term(name) not in HELD_TERMS or not np.isfinite(value):
+            if _term(name) not in CARRIED_TERMS or not np.isfinite(value):
                 raise ParameterError(f"HeldFriction.values must be (name, finite value) pairs of the columns "
-                                     f"{HELD_TERMS}, e.g. ('fc3', 0.2); got {(name, value)!r}.")  # fmt: skip
+                                     f"{CARRIED_TERMS}, e.g. ('fc3', 0.2); got {(name, value)!r}.")  # fmt: skip
         if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
             raise ParameterError(
                 f"HeldFriction.coulomb_velocity must be positive [rad/s]; got {self.coulomb_velocity!r}."
@@ -61,10 +65,26 @@ class HeldFriction:
         held = (document.get("identification", {}).get("one_way_friction") or {}).get("held") or {}
         return cls(tuple(held.items()), float(document["drive"].get("coulomb_velocity", 0.05)))
 
+    @classmethod
+    def of_model_file(cls, document: dict) -> HeldFriction:
+        """What the nominal model of ``diagnose MODEL`` holds at a calibrated-model file's values: the friction its
+        identification held (``of_document``) and its nonzero torque offsets (``offset<j>``, as ``psdm validate``
+        predicts them), so every fit of the diagnosis explains the torque they leave."""
+        held = cls.of_document(document)
+        drive = document["drive"]
+        offsets = tuple((name, float(value)) for name, value in zip(drive["names"], drive["values"])
+                        if _term(name) == "offset" and float(value) != 0.0)  # fmt: skip
+        return replace(held, values=held.values + offsets) if offsets else held
+
     @property
     def joints(self) -> tuple:
-        """The held joints (0-based, increasing)."""
-        return tuple(sorted({drive_column_joint(name) for name, _ in self.values}))
+        """The joints whose friction is held (0-based, increasing); a held offset leaves the friction free."""
+        return tuple(sorted({drive_column_joint(name) for name, _ in self.values if _term(name) in HELD_TERMS}))
+
+    @property
+    def offsets(self) -> tuple:
+        """The held torque offsets ``((name, value), ...)`` (a model file's, ``of_model_file``)."""
+        return tuple((name, value) for name, value in self.values if _term(name) == "offset")
 
     def torque(self, qd) -> np.ndarray:
         """The held friction's torque (n_samples, n_dof) at the velocities ``qd`` (n_samples, n_dof) [N m]."""
@@ -88,8 +108,9 @@ class HeldFriction:
     def describe(self) -> str:
         """``joint 3: fc3 0.292, fv3 0.0107`` per held joint ("" when nothing is held)."""
         joint = drive_column_joint
+        joints = sorted({joint(name) for name, _ in self.values})
         return "; ".join(f"joint {j + 1}: " + ", ".join(f"{n} {v:.3g}" for n, v in self.values if joint(n) == j)
-                         for j in self.joints)  # fmt: skip
+                         for j in joints)  # fmt: skip
 
 
 def check_held_friction(options) -> None:

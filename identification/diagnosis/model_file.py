@@ -48,9 +48,9 @@ def own_friction(calibrated) -> str:
 def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> DiagnosisOptions:
     """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its
     friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
-    with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``),
-    which every fit of the diagnosis keeps at the file's values (``DiagnosisOptions.held_friction``), unless
-    ``options`` hold some."""
+    with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``)
+    and the file's torque offsets, which every fit of the diagnosis keeps at the file's values
+    (``DiagnosisOptions.held_friction``, ``HeldFriction.of_model_file``), unless ``options`` hold some."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -60,7 +60,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     if rate == AUTO:
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
     friction = own_friction(calibrated) if options.friction == AUTO else options.friction
-    held = options.held_friction if options.held_friction.values else HeldFriction.of_document(calibrated.document)
+    held = options.held_friction if options.held_friction.values else HeldFriction.of_model_file(calibrated.document)
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held)  # fmt: skip
 

@@ -273,8 +273,14 @@ class DiagnosisReport:
         """The friction held at the model file's values, in words ("" when none)."""
         if not self.held_friction:
             return ""
-        return (f", except the friction identify held (joints that move one way only in its training data): held at "
-                f"the model file's values in every fit ({HeldFriction(self.held_friction).describe()})")  # fmt: skip
+        held = HeldFriction(self.held_friction)
+        offsets = HeldFriction(held.offsets).describe()
+        friction = HeldFriction(tuple(v for v in held.values if v not in held.offsets)).describe()
+        text = (f", except the friction identify held (joints that move one way only in its training data): held at "
+                f"the model file's values in every fit ({friction})") if friction else ""  # fmt: skip
+        if offsets:
+            text += f"; the model file's torque offsets held at its values in every fit ({offsets})"
+        return text
 
     def _nominal(self) -> str:
         """What the diagnosis started from: the model it names, else the robot file's rigid body (or identified)."""
