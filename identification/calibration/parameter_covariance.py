@@ -1,11 +1,14 @@
 """The covariance of a calibrated model's base and drive parameters in its file: written by identify, read by the
 checks that allow for the model's own error (the flange payload check, ``payload_check.model_columns``).
 
-The file's ``base.std`` and ``drive.std`` are its diagonal. The parameters of one fit are correlated (a link's mass
+It is the covariance of the parameters as written (``TrajectoryFit.covariance``): of a least-squares fit, whose
+``base.std`` and ``drive.std`` are its diagonal, or of a consistent fit, the least squares' with the pull towards the
+robot file's precision added (``consistent_covariance``; narrower than those standard deviations, which stay the least
+squares'). The parameters of one fit are correlated (a link's mass
 and its first moments share the gravity torque; a drive inertia and the link it turns), and the error of the model's
 torque prediction is the sum of their errors along each sample's columns, in which correlated errors partly cancel:
 propagated as if independent, the standard deviations alone state the flange check's spread too wide (virtual Denso,
-30 calibrations x recordings with a 0.8 kg load: RMS z 0.72, and 0.94 from the covariance). The block ``covariance``
+30 calibrations x recordings with a 0.8 kg load: RMS z 0.72, and 1.03 from the covariance). The block ``covariance``
 holds the whole matrix:
 
 - ``parameters``: ``"base then drive"`` (the order of ``base.names`` then ``drive.names``);

@@ -138,12 +138,23 @@ class PriorPull:
         (n, 11) and of the flange ``bodies`` (CasADi, 10 per body) towards ``body_prior`` (k, 10)."""
         return self.weight * self.pull(standard, prior, bodies, body_prior)
 
-    def pull(self, standard, prior, bodies=None, body_prior=None):
-        """The ``pull`` of :meth:`expression` without its ``weight`` (a solver shared by fits of other weights takes
-        the weight as a parameter: ``shared_barrier``)."""
+    def scales(self, prior) -> np.ndarray:
+        """Per standard parameter of the links (n, 11), the size the pull measures its distance from ``prior`` in:
+        ``prior_scale``, the masses the file gives as the mass bounds state them (``mass``)."""
         scale = prior_scale(prior)
         if self.mass is not None:  # the links with a mass in the file: as the mass bounds state it
             scale[:, 0] *= np.where(prior[:, 0] > 0, self.mass / self.uncertainty, 1.0)
+        return scale
+
+    def standard_deviations(self, prior) -> np.ndarray:
+        """The pull read as a Gaussian prior (module docstring): per standard parameter of the links (n, 11), its
+        standard deviation, ``scale / sqrt(weight N_eff)`` (``uncertainty x scale`` unless a weight is given)."""
+        return self.scales(prior) / np.sqrt(self.weight * self.effective_samples)
+
+    def pull(self, standard, prior, bodies=None, body_prior=None):
+        """The ``pull`` of :meth:`expression` without its ``weight`` (a solver shared by fits of other weights takes
+        the weight as a parameter: ``shared_barrier``)."""
+        scale = self.scales(prior)
         pull = ca.sumsqr((standard - ca.DM(prior.reshape(-1))) / ca.DM(scale.reshape(-1)))
         if body_prior is not None and len(body_prior):
             body_prior = np.asarray(body_prior, dtype=float)

@@ -32,6 +32,7 @@ import numpy as np
 
 from identification.calibration import held_friction
 from identification.calibration.configuration_check import accumulate, loaded_recordings, unstated_payload_warnings
+from identification.calibration.consistent_covariance import consistent_covariance
 from identification.calibration.consistent_fit import (
     IPOPT_OPTIONS,
     ROTOR,
@@ -200,8 +201,10 @@ class TrajectoryFit:
     theta_ols, drive_ols, theta_std, drive_std : arrays
         The weighted least-squares estimate and its standard deviations.
     covariance : array, shape (n_base + n_drive, n_base + n_drive) or None
-        Of the base then drive parameters of the least-squares estimate (the sandwich covariance their standard
-        deviations are the diagonal of); None where not computed.
+        Of the base then drive parameters as written: of the least-squares estimate (the sandwich covariance their
+        standard deviations are the diagonal of), or of a consistent fit that with the pull's precision added
+        (``consistent_covariance``: the fit is pulled towards the robot file, and more precise than the least
+        squares where the data hardly fix it); None where not computed.
     sigma : array
         Residual standard deviation [N m] per joint of the least-squares fit (its weights are ``1 / sigma^2``).
     condition_number : float
@@ -376,12 +379,12 @@ def identify_trajectories(
         pushed, kept = causes(robot, model, (x_fit, x_ols, equations, sigma, prepared), covariance, names, pushed, kt)
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
-        theta = model.base_parameters(standard)
+        theta, stated = model.base_parameters(standard), consistent_covariance(covariance[:n_fit, :n_fit], model,
+                                                                               robot, bounds.prior)  # fmt: skip
     else:  # base parameters only: no standard parameters are identified, none are made up
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base : n_fit], "not solved", float("nan"), x_ols[: model.n_base]
-        found = x_ols[n_fit:].reshape(-1, 10)
-        pushed, bounds, merged, kept = (), None, None, ()
+        found, (pushed, bounds, merged, kept, stated) = x_ols[n_fit:].reshape(-1, 10), ((), None, None, (), covariance)
     payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
@@ -396,7 +399,7 @@ def identify_trajectories(
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
-        torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=covariance[:n_fit, :n_fit],
+        torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit],
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit), *mixed)), options)
 
