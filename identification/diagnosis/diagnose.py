@@ -448,14 +448,15 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     n_eff = None
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
-    logger.info(f"diagnose: selecting among {len(instances)} candidate terms ...")
+    setting = "recalibrated rigid body" if options.rigid_body == "identified" else "nominal rigid body"
+    logger.info(f"diagnose: [{setting}] selecting among {len(instances)} candidate terms ...")
     validations = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
     opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2)
     return forward_select(
         instances, ctx_t, problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v,
         min_improvement=options.min_improvement, max_effects=options.max_effects, effective_samples=n_eff,
         joint_threshold=options.joint_threshold, opinion=opinion if problem.extra_v or options.cv_folds else None,
-        rival=FrictionRival(ctx_t, validations, offer=lacking),
+        rival=FrictionRival(ctx_t, validations, offer=lacking), setting=setting,
     )  # fmt: skip
 
 

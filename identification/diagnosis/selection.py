@@ -136,6 +136,7 @@ class _Limits:
     floor: np.ndarray
     min_improvement: float
     n_eff_total: float
+    setting: str = ""  # the pass its log lines name ("[recalibrated rigid body] "; "": one pass)
 
 
 def acting_joints(term, ct) -> tuple:
@@ -365,6 +366,7 @@ def forward_select(
     min_torque_fraction=0.004,
     opinion=None,
     rival=None,
+    setting: str = "",
 ) -> SelectionResult:
     """Greedy forward selection of candidate term instances, then a backward check (see the module docstring).
 
@@ -393,6 +395,8 @@ def forward_select(
     rival : friction_rival.FrictionRival, optional
         A lag is kept only if it beats the friction shapes the nominal model lacks on every validation recording (the
         shapes then join the candidates); the sentences on the lags it refuses lead ``SelectionResult.dropped``.
+    setting : str
+        The pass the log lines name (a diagnosis's with the nominal or the recalibrated rigid body; "": none).
     """
     if not 0.0 < min_improvement < 1.0:
         raise ParameterError(f"DiagnosisOptions.min_improvement must be in (0, 1); got {min_improvement!r}.")
@@ -405,13 +409,8 @@ def forward_select(
     # least explained torque per joint in N m: a fraction of that joint's own torque RMS (joints count alike), and
     # at least ROBOT_FLOOR of the robot's largest joint torque RMS (noise-level changes on the weakest joints)
     floor = np.maximum(min_torque_fraction * torque_rms, ROBOT_FLOOR * float(np.max(torque_rms)))
-    limits = _Limits(
-        sigma=sigma,
-        torque_rms=torque_rms,
-        floor=floor,
-        min_improvement=min_improvement,
-        n_eff_total=n_eff * y_train.shape[1],
-    )
+    limits = _Limits(sigma=sigma, torque_rms=torque_rms, floor=floor, min_improvement=min_improvement,
+                     n_eff_total=n_eff * y_train.shape[1], setting=f"[{setting}] " if setting else "")  # fmt: skip
     nominal = (as_blocks(base_train), as_blocks(base_val))
     design = WeightedDesign(*nominal, y_train, y_val, sigma)
     _, _, _, _, nominal_train, nominal_val = design.fit(full=True)
@@ -467,7 +466,7 @@ def _forward(design, remaining, contexts, limits, max_effects, joint_threshold, 
                              rmse_before=rmse_v.copy(), rmse_after=rv1.copy(), rmse_train_before=rmse_t.copy(),
                              rmse_train_after=rt1.copy(), delta_bic=float(delta_bic), validation_gain=float(gain),
                              shape_note=note)  # fmt: skip
-        logger.info(f"diagnose: kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
+        logger.info(f"diagnose: {limits.setting}kept {term.label} (validation gain {gain:.1%}, dBIC {delta_bic:.0f})")
         if note:
             logger.info(f"diagnose:   shape: {note}")
         kept.append((step, ct, cv))
@@ -493,7 +492,7 @@ def _stable_choice(design, qualified, judges, limits, unstable: list) -> tuple:
         if verdict is None and explained is None:
             return chosen, drop
         if verdict is not None:
-            logger.info(f"diagnose: {verdict.sentence()}")
+            logger.info(f"diagnose: {limits.setting}{verdict.sentence()}")
             unstable.append(verdict)
         drop.add(chosen.index)
         qualified = [q for q in qualified if q.index != chosen.index]

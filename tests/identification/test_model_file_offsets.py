@@ -88,3 +88,19 @@ def test_a_held_offset_must_be_finite():
         HeldFriction((("offset1", float("nan")),))
     with pytest.raises(ParameterError, match="HeldFriction.values"):
         HeldFriction((("Ia1", 0.1),))
+
+
+def test_the_log_names_the_pass_of_each_kept_term(case, caplog):
+    """The diagnosis selects twice when it finds something (the nominal rigid body, then the recalibrated one); each
+    pass's log lines say which, so a term kept or called unstable in the second pass is not read as the report's (the
+    report keeps the first pass's findings unless the recalibration wins). The file's offset dropped from the nominal
+    model gives the first pass a finding to keep."""
+    robot, model, train, held, calibrated = case
+    quick = DiagnosisOptions(library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    options = replace(model_file_options(calibrated, quick), held_friction=HeldFriction())
+    with caplog.at_level("INFO", logger="identification.diagnosis"):
+        diagnose(calibrated_robot(calibrated, robot), train, held, options, model=model)
+    lines = [r.getMessage() for r in caplog.records]
+    assert any(m.startswith("diagnose: [nominal rigid body] kept torque_offset[j1]") for m in lines), lines
+    assert any(m.startswith("diagnose: [recalibrated rigid body] selecting among") for m in lines), lines
+    assert not any(m.startswith("diagnose: kept") for m in lines)
