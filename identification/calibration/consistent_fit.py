@@ -355,7 +355,8 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts, 
     """(``barrier_path.BarrierResult`` or None, chart coordinates of its point, or ``chart`` without one): the convex
     problem (``_standard_form``) solved along the barrier path from the chart point ``chart``, or from ``centre``
     (the standard form's variables: the last pass's point of the path's first weight, ``BarrierResult.first``; a
-    second pass starts there, not at the last pass's end, ``barrier_path``)."""
+    second pass starts there, not at the last pass's end, ``barrier_path``). Inside ``shared_barrier.shared_solvers``
+    by the structure's shared solver, and by one of its own when that stops short of the path's end."""
     from identification.calibration.barrier_path import barrier_solution
     from identification.calibration.shared_barrier import shared_problem
 
@@ -369,11 +370,16 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts, 
     lower, upper = chart_bounds
     lbx = np.concatenate([np.full(n_phi + n_psi, -np.inf), lower[n_phi : lower.size - n_psi]])
     ubx = np.concatenate([np.full(n_phi + n_psi, np.inf), upper[n_phi : upper.size - n_psi]])
+    bounds = (lbx, ubx, *plain["g_bounds"])
     problem, shared = shared_problem(plain, normal, margin)  # inside ``shared_solvers``: the data as parameters
-    if problem is None:
+    solved = None if shared is None else barrier_solution(problem, plain["sizes"], start, bounds, margin, shared)
+    if shared is None or solved is None or not solved.complete:  # a shared solver that stopped: solved as alone
+        if shared is not None:
+            logger.debug("consistent fit: the shared barrier-path solver stopped (%s); this fit's own solver",
+                         "at its first weight" if solved is None else solved.status)  # fmt: skip
         residual = centred_residual(gram, moment, energy, count, plain["x"])
         problem = {"x": plain["variables"], "f": residual + plain["f_extra"], "g": plain["g"]}
-    solved = barrier_solution(problem, plain["sizes"], start, (lbx, ubx, *plain["g_bounds"]), margin, shared)
+        solved = barrier_solution(problem, plain["sizes"], start, bounds, margin)
     if solved is None:
         return None, chart
     links = [chart_start(body, margin) for body in solved.x[:n_phi].reshape(-1, 10)]

@@ -112,3 +112,40 @@ def test_the_counterbalance_s_blocks_and_refits_share_a_solver_per_structure(den
             np.testing.assert_allclose(getattr(shared, name), getattr(reference_, name), rtol=1e-4)
         assert shared.worse == reference_.worse
     assert np.all(together.after[1:3] < together.before[1:3])  # the verdict: the Coulomb columns lower joints 2-3
+
+
+class _Stopped:
+    """A barrier-path solver whose every solve reports Ipopt's ``Restoration_Failed``."""
+
+    def __init__(self, solver):
+        self.solver = solver
+
+    def __call__(self, **kwargs):
+        return self.solver(**kwargs)
+
+    def stats(self) -> dict:
+        return {**self.solver.stats(), "return_status": "Restoration_Failed", "success": False}
+
+
+def test_a_fold_fit_whose_shared_solver_fails_is_solved_as_alone(denso, denso_model, alone, monkeypatch):
+    """A fold fit whose shared solve ends worse than alone (here every one: ``Restoration_Failed`` at the path's first
+    weight, which alone would leave to the chart fallback and its other answer) is solved again with a solver of its
+    own: the gate's refits of the first block, both structures, predict exactly as the fits alone."""
+    train, validation, _, models = alone
+    options = {(): OPTIONS["with"], ("coulomb",): OPTIONS["without"]}
+    follow = barrier_path._follow_path
+
+    def shared_fails(solver, bodies, start, bounds, margin, steps):
+        return follow(_Stopped(solver) if len(steps[1]) else solver, bodies, start, bounds, margin, steps)
+
+    monkeypatch.setattr(barrier_path, "_follow_path", shared_fails)
+    built = _builds(monkeypatch)
+
+    def refit_on(pieces):
+        return lambda labels: (_fitter(denso, denso_model, options[tuple(labels)])(pieces), None)
+
+    refits = training_refits([train], refit_on, ("coulomb",))
+    for labels, name in (((), "with"), (("coulomb",), "without")):
+        rmse = validation_rmse(refits.model(labels, 0), denso_model, validation)[0]
+        np.testing.assert_array_equal(rmse, validation_rmse(models[name][0], denso_model, validation)[0])
+    assert len(built) == 2 + 4  # per structure the shared solver, then per pass the fit's own
