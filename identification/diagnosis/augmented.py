@@ -22,6 +22,7 @@ import numpy as np
 
 from identification.calibration.held_friction import HeldFriction
 from identification.diagnosis.candidates import joint_expression
+from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.nominal import friction_casadi
 from psdm_casadi.fileio import atomic_write
 
@@ -32,7 +33,8 @@ class AugmentedModel:
     the model's with the flange body's block (``carried_payload.flange_parameter_map``: a payload on a robot whose
     flange link the model does not hold goes to the last link it does); None: the model's own. ``held_friction``: the
     friction a model file holds (``held_friction.HeldFriction``, in the file's own form), beside the fitted one, whose
-    coefficients on the held joints are 0."""
+    coefficients on the held joints are 0. ``coulomb_velocity``: the smoothing of the fitted friction's sign (a model
+    file's, ``DiagnosisOptions.coulomb_velocity``)."""
 
     model: object
     theta: np.ndarray
@@ -44,6 +46,7 @@ class AugmentedModel:
     coefficients: tuple
     parameter_map: np.ndarray | None = None
     held_friction: HeldFriction = HeldFriction()
+    coulomb_velocity: float = SMOOTH_VELOCITY
 
     @property
     def terms_map(self) -> np.ndarray:
@@ -95,7 +98,12 @@ class AugmentedModel:
             fns = build_recursive_functions(self.model, None, self.theta_augmented)
         tau_rigid = fns.inverse_dynamics(q, qd, qdd)
         tau = tau_rigid + friction_casadi(
-            self.friction_kind, qd, self.friction_coefficients, self.friction_vs, self.friction_dv
+            self.friction_kind,
+            qd,
+            self.friction_coefficients,
+            self.friction_vs,
+            self.friction_dv,
+            self.coulomb_velocity,
         )
         if self.held_friction.values:
             tau = tau + self.held_friction.expression(qd)
@@ -124,6 +132,7 @@ class AugmentedModel:
                 "dv": self.friction_dv.tolist(),
                 "held": dict(self.held_friction.values),
                 "held_coulomb_velocity": self.held_friction.coulomb_velocity,
+                "coulomb_velocity": self.coulomb_velocity,
             },
             "terms": [
                 {

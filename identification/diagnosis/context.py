@@ -111,6 +111,9 @@ class DiagnosisContext:
     tau_held : array (n_samples, n_dof) or None
         The torque of the friction a model file holds (``held_friction.HeldFriction``; None: none), which no fit
         estimates: every fit explains ``tau_fit``.
+    coulomb_velocity : float
+        The smoothing velocity [rad/s] of the nominal friction's sign without a LuGre prior
+        (``nominal.friction_blocks``; ``DiagnosisOptions.coulomb_velocity``).
     """
 
     t: np.ndarray
@@ -143,6 +146,7 @@ class DiagnosisContext:
     sign_qd: np.ndarray | None = None
     torque_constants: np.ndarray | None = None
     tau_held: np.ndarray | None = None
+    coulomb_velocity: float = SMOOTH_VELOCITY
 
     @property
     def tau_fit(self) -> np.ndarray:

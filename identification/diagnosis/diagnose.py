@@ -23,6 +23,7 @@ from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
+from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.candidates.friction import lacking_friction_shapes
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import DiagnosisContext, build_context
@@ -135,6 +136,8 @@ class DiagnosisOptions:
         ``model_file.model_file_options``): no fit of the diagnosis estimates those joints' friction columns, every one
         explains the torque the held friction leaves (``DiagnosisContext.tau_fit``), so the nominal model predicts
         those joints as ``psdm validate`` predicts the file.
+    coulomb_velocity : float
+        The smoothing [rad/s] of the nominal friction's sign without drives (a model file's: ``model_file_options``).
     """
 
     friction: str = AUTO
@@ -158,6 +161,7 @@ class DiagnosisOptions:
     cv_folds: int = 4
     envelope: bool = True
     held_friction: HeldFriction = HeldFriction()
+    coulomb_velocity: float = SMOOTH_VELOCITY
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (
@@ -211,6 +215,8 @@ class DiagnosisOptions:
         if not isinstance(self.held_friction, HeldFriction):
             raise ParameterError(f"DiagnosisOptions.held_friction must be a HeldFriction; got "
                                  f"{type(self.held_friction).__name__}.")  # fmt: skip
+        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
+            raise ParameterError(f"DiagnosisOptions.coulomb_velocity must be > 0 [rad/s]; got {self.coulomb_velocity}.")
         if self.library is not None and not isinstance(self.library, CandidateLibrary):
             raise ParameterError(
                 f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
@@ -430,8 +436,8 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
                         with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
                         sign_from_raw=options.friction == "lugre")  # fmt: skip
-    held = options.held_friction
-    return replace(ctx, tau_held=held.torque(ctx.qd)) if held.values else ctx
+    held = options.held_friction.torque(ctx.qd) if options.held_friction.values else None
+    return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held)
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:

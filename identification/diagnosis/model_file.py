@@ -28,6 +28,7 @@ from identification.calibration.finding_value import validation_rmse
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.model_preparation import model_preparation
 from identification.data.filter_choice import AUTO
+from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.motion_checks import validation_recordings
 from identification.diagnosis.report import DiagnosisReport
@@ -61,8 +62,11 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
     friction = own_friction(calibrated) if options.friction == AUTO else options.friction
     held = options.held_friction if options.held_friction.values else HeldFriction.of_model_file(calibrated.document)
+    smooth = options.coulomb_velocity
+    if friction != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
+        smooth = float(calibrated.document["drive"].get("coulomb_velocity", SMOOTH_VELOCITY))
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
-                   held_friction=held)  # fmt: skip
+                   held_friction=held, coulomb_velocity=smooth)  # fmt: skip
 
 
 def diagnose_model(

@@ -128,8 +128,8 @@ def friction_blocks(robot, kind: str, context, held: tuple = ()) -> BlockColumns
     vs, dv = friction_shapes(robot)
     n = robot.n_dof
     dynamic = kind == "lugre" and robot.drives is not None
-    if not context.filtered_friction:
-        out = friction_columns(kind, context.qd, vs, dv)
+    if not context.filtered_friction:  # the sign smoothed as the model file predicts it (``coulomb_velocity``)
+        out = friction_columns(kind, context.qd, vs, dv, np.tanh(context.qd / context.coulomb_velocity))
         if dynamic:
             out = np.concatenate([out, lugre_dynamic_columns(robot, context)], axis=2)
         for j in held:
@@ -191,15 +191,16 @@ def lugre_dynamic_columns(robot, context) -> np.ndarray | None:
     return out
 
 
-def friction_casadi(kind: str, qd, coefficients, vs, dv):
-    """Friction torque (SX, n_dof) of fitted coefficients (joint-major as ``friction_columns``)."""
+def friction_casadi(kind: str, qd, coefficients, vs, dv, smooth: float = SMOOTH_VELOCITY):
+    """Friction torque (SX, n_dof) of fitted coefficients (joint-major as ``friction_columns``), the sign smoothed over
+    ``smooth`` [rad/s]."""
     import casadi as ca
 
     n = qd.shape[0]
     out = ca.SX.zeros(n)
     k = 3 if kind in STRIBECK_SHAPED else 2
     for j in range(n):
-        s = ca.tanh(qd[j] / SMOOTH_VELOCITY)
+        s = ca.tanh(qd[j] / smooth)
         c = coefficients[j * k : (j + 1) * k]
         if kind in STRIBECK_SHAPED:
             out[j] = c[0] * s + c[1] * ca.exp(-((qd[j] / vs[j]) ** 2)) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s

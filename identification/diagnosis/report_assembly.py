@@ -16,6 +16,7 @@ from identification.calibration.merged_rotors import merged_rotor_map, robot_fil
 from identification.calibration.model_preparation import Preparation, edge_text
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
+from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.counterbalance_naming import name_counterbalances
 from identification.diagnosis.design import left_out
@@ -154,6 +155,7 @@ def augmented_model_of(robot, model, final, options, kt=None) -> AugmentedModel:
         coefficients=final.coefficients,
         parameter_map=flange_parameter_map(robot, model),
         held_friction=options.held_friction,
+        coulomb_velocity=options.coulomb_velocity if robot.drives is None else SMOOTH_VELOCITY,  # as its columns
     )
 
 
