@@ -50,6 +50,7 @@ from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import JointComparison, compare_each, pooled_comparison
 from identification.calibration.trajectory_fit import identify_trajectories
+from psdm_casadi.errors import InsufficientExcitationError
 
 __all__ = [
     "COUNTERBALANCE_SOURCE",
@@ -336,7 +337,10 @@ def try_counterbalance(
     judges = Judges(held, None, folds) if isinstance(folds, str) else Judges(held, folds)
     problem = (robot, model, recordings, options, calibrated, judges, build, configurations, kt)
     shapes = list(ORDERS)
-    laws = counterbalance_laws(robot, model, recordings, options, build, configurations, kt, joints)
+    try:
+        laws = counterbalance_laws(robot, model, recordings, options, build, configurations, kt, joints)
+    except InsufficientExcitationError as error:  # a spring these data cannot tell from the joint's friction
+        return CounterbalanceChoice(joints, named, reason=f"not tried on {labels}: {error}; {SUGGESTED}")
     if any(law is not None for law in laws.values()):
         shapes.append(laws)
         logger.info("identify: the counterbalance's odd law the training data support (BIC): %s", ", ".join(
