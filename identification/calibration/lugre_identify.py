@@ -63,7 +63,7 @@ from identification.calibration.trajectory_fit import TrajectoryOptions, identif
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from identification.friction.simulation import simulate_lugre
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["FRICTION_EDGE_PERIODS", "MAX_ROUNDS", "ROUND_TOLERANCE", "ROUND_TOLERANCE_SD", "LuGreIdentification",
            "identify_lugre_trajectories", "raw_start_force", "round_change", "without_lugre_friction"]  # fmt: skip
@@ -76,6 +76,9 @@ ROUND_TOLERANCE = 0.01
 ROUND_TOLERANCE_SD = 0.1
 #: ... and at most this many LuGre fits in all.
 MAX_ROUNDS = 5
+#: A later LuGre fit whose friction RMSE rises on a joint beyond this factor (or that does not converge) ends the
+#: alternation at the round before it: the alternation refines, it never trades a fit for a worse one.
+RMSE_RISE = 1.5
 #: Filter periods trimmed at each end of the series the LuGre fits see (module docstring): the one period identify
 #: trimmed before ``filter_choice.EDGE_PERIODS``, or the options' own trim when that is shorter.
 FRICTION_EDGE_PERIODS = 1.0
@@ -209,16 +212,26 @@ def identify_lugre_trajectories(
     arm = subtract_loads(robot, prepared, configurations, stribeck.payloads)
     fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, arm, warn=rounds == 1, extra=extra)
     plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)
-    caught, taken = [], 1
+    caught, taken, score = [], 1, np.inf
     for taken in range(2, (rounds or MAX_ROUNDS) + 1):
         corrected = without_lugre_friction(recordings, lugre, prepared, kt, options.cutoff_hz)
-        fit = identify_trajectories(robot, model, corrected, plain, extra, configurations)
-        arm = subtract_loads(robot, prepared, configurations, fit.payloads)
+        refit = identify_trajectories(robot, model, corrected, plain, extra, configurations)
+        arm = subtract_loads(robot, prepared, configurations, refit.payloads)
         previous = lugre
-        with warnings.catch_warnings(record=True) as recorded:  # only the last fit's warnings are the result's
-            warnings.simplefilter("always")
-            lugre = fit_lugre_recordings(model, fit, arm, initial=lugre.parameters, extra=extra)
-        caught = recorded
+        try:
+            with warnings.catch_warnings(record=True) as recorded:  # only the last fit's warnings are the result's
+                warnings.simplefilter("always")
+                lugre = fit_lugre_recordings(model, refit, arm, initial=lugre.parameters, extra=extra)
+        except SolverError:
+            if rounds is not None:
+                raise
+            lugre = None
+        if rounds is None and (lugre is None or np.any(lugre.rmse > RMSE_RISE * previous.rmse)):
+            logger.info("identify: LuGre round %d did not converge or raised a joint's friction RMSE; round %d kept",
+                        taken, taken - 1)  # fmt: skip
+            lugre, taken = previous, taken - 1
+            break
+        fit, caught = refit, recorded
         score, relative = round_change(previous, lugre)
         logger.info("identify: LuGre round %d: friction RMSE %s N m; the parameters moved up to %.2g %%",
                     taken, np.round(lugre.rmse, 4), 100 * relative)  # fmt: skip
