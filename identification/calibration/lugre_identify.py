@@ -212,7 +212,7 @@ def identify_lugre_trajectories(
     arm = subtract_loads(robot, prepared, configurations, stribeck.payloads)
     fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, arm, warn=rounds == 1, extra=extra)
     plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)
-    caught, taken, score = [], 1, np.inf
+    caught, taken, ended = [], 1, f"stopped at the limit of {MAX_ROUNDS}"
     for taken in range(2, (rounds or MAX_ROUNDS) + 1):
         corrected = without_lugre_friction(recordings, lugre, prepared, kt, options.cutoff_hz)
         refit = identify_trajectories(robot, model, corrected, plain, extra, configurations)
@@ -229,17 +229,17 @@ def identify_lugre_trajectories(
         if rounds is None and (lugre is None or np.any(lugre.rmse > RMSE_RISE * previous.rmse)):
             logger.info("identify: LuGre round %d did not converge or raised a joint's friction RMSE; round %d kept",
                         taken, taken - 1)  # fmt: skip
-            lugre, taken = previous, taken - 1
+            lugre, taken, ended = previous, taken - 1, f"round {taken} not kept"
             break
         fit, caught = refit, recorded
         score, relative = round_change(previous, lugre)
         logger.info("identify: LuGre round %d: friction RMSE %s N m; the parameters moved up to %.2g %%",
                     taken, np.round(lugre.rmse, 4), 100 * relative)  # fmt: skip
         if rounds is None and score < 1.0:
+            ended = "converged"
             break
     for warning in caught:
         warnings.warn(warning.message, warning.category, stacklevel=2)
     if rounds is None and taken > 1:
-        logger.info("identify: LuGre fits alternated with rigid-body refits: %d LuGre fits (%s)", taken,
-                    "converged" if score < 1.0 else f"stopped at the limit of {MAX_ROUNDS}")  # fmt: skip
+        logger.info("identify: LuGre fits alternated with rigid-body refits: %d LuGre fits kept (%s)", taken, ended)
     return LuGreIdentification(fit=fit, lugre=lugre, stribeck=stribeck, rounds=taken)
