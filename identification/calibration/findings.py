@@ -31,13 +31,13 @@ the fit, the prediction and the exported code cannot differ.
 from __future__ import annotations
 
 import copy
-import re
 from dataclasses import dataclass, field, replace
 
 import casadi as ca
 import numpy as np
 
 from identification.calibration.extra_terms import TermContext
+from identification.calibration.held_friction import CONSTANT_FEATURE
 from identification.data.recording import Recording
 from identification.diagnosis.term_spec import term_from_spec
 from psdm_casadi.errors import ModelFileError, ParameterError
@@ -72,8 +72,6 @@ SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring", "friction_shape")
 RIGID_BODY_EFFECTS = ("payload", "last_link_mass_excess")
 SIGNAL_EFFECTS = ("delay", "joint_elasticity", "backlash")
 FINDING_KINDS = ("torque", "rigid_body", "signal", "reported")
-#: A finding's feature that is a constant torque on its joint: a spring's (``spring_c_j``, a polynomial's ``c_j``).
-CONSTANT_FEATURE = re.compile(r"(spring_)?c_\d+")
 
 
 def finding_kind(effect: str) -> str:

@@ -18,6 +18,7 @@ finding is the offset found again; a spring is then tested against the nominal m
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -25,11 +26,14 @@ import numpy as np
 from identification.calibration.trajectory_data import drive_column_joint, friction_term
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["HELD_TERMS", "HeldFriction", "check_held_friction", "held_friction_columns", "subtract_held_friction",
-           "with_held_values"]  # fmt: skip
+__all__ = ["CONSTANT_FEATURE", "HELD_TERMS", "HeldFriction", "check_held_friction", "held_friction_columns",
+           "subtract_held_friction", "with_held_values"]  # fmt: skip
 
 #: The friction terms that may be held: Coulomb and viscous (a held joint is Coulomb-viscous).
 HELD_TERMS = ("fc", "fv")
+#: A finding's feature that is a constant torque on its joint, one column with the joint's offset: a spring's
+#: (``spring_c_j``, a polynomial's ``c_j``).
+CONSTANT_FEATURE = re.compile(r"(spring_)?c_\d+")
 #: What a diagnosis's nominal model may hold besides: a model file's torque offsets (``HeldFriction.of_model_file``).
 CARRIED_TERMS = (*HELD_TERMS, "offset")
 
@@ -85,6 +89,10 @@ class HeldFriction:
     def offsets(self) -> tuple:
         """The held torque offsets ``((name, value), ...)`` (a model file's, ``of_model_file``)."""
         return tuple((name, value) for name, value in self.values if _term(name) == "offset")
+
+    def offset_of(self, joint: int) -> float:
+        """The held torque offset [N m] of ``joint`` (0-based); 0 when none is held."""
+        return sum(value for name, value in self.offsets if drive_column_joint(name) == joint)
 
     def torque(self, qd) -> np.ndarray:
         """The held friction's torque (n_samples, n_dof) at the velocities ``qd`` (n_samples, n_dof) [N m]."""

@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from identification.calibration.carried_payload import flange_parameter_map
+from identification.calibration.held_friction import CONSTANT_FEATURE, HeldFriction
 from identification.calibration.merged_rotors import merged_rotor_map, robot_file_theta
 from identification.calibration.model_preparation import Preparation, edge_text
 from identification.data.filter_choice import AUTO
@@ -48,7 +49,7 @@ def build_report(
     model_nominal_t = fixed_t + selection.nominal_train
     model_final_t = fixed_t + final.prediction_t
     residual_v = ctx_v.tau - model_nominal_v
-    findings = name_counterbalances(findings_of(selection, final), ctx_t) + tuple(unnamed)
+    findings = name_counterbalances(findings_of(selection, final, options.held_friction), ctx_t) + tuple(unnamed)
     if options.rigid_body == "prior":
         findings = tuple(with_rotor_note(f, robot, model) for f in findings)
     rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
@@ -106,12 +107,14 @@ def with_rotor_note(finding, robot, model):
     return replace(finding, notes=finding.notes + (note,))
 
 
-def findings_of(selection, final) -> tuple:
-    """One ``Finding`` per kept term, in the order the selection kept them."""
+def findings_of(selection, final, held: HeldFriction | None = None) -> tuple:
+    """One ``Finding`` per kept term, in the order the selection kept them; a term's constant is stated with the
+    torque offset the nominal model holds on its joint (``with_held_offset``)."""
     findings = []
     for step, term, coefficients in zip(selection.steps, final.terms, final.coefficients):
         effect, explanation = term.interpret(coefficients)
-        parameters = dict(term.physical_parameters(coefficients))
+        stated, note = with_held_offset(term, coefficients, held or HeldFriction())
+        parameters = dict(term.physical_parameters(stated))
         parameters.update(final.nonlinear.get(term.label, {}))
         findings.append(
             Finding(
@@ -127,10 +130,36 @@ def findings_of(selection, final) -> tuple:
                 rmse_after=tuple(float(x) for x in step.rmse_after),
                 delta_bic=step.delta_bic,
                 validation_gain=step.validation_gain,
+                notes=(note,) if note else (),
                 shape_note=step.shape_note,
             )
         )
     return tuple(findings)
+
+
+def with_held_offset(term, coefficients, held: HeldFriction) -> tuple:
+    """``(coefficients, note)``: ``coefficients`` with the term's constant (``CONSTANT_FEATURE``: a spring's, which
+    holds its rest angle ``q0 = -c / k``) plus the torque offset the nominal model holds on its joint (a model file's,
+    ``HeldFriction.of_model_file``), and the sentence that says so; the coefficients and "" otherwise.
+
+    The held offset and the constant are one column: the fit sees the torque the offset leaves, so its constant is
+    what the spring adds to the offset, and its rest angle without the offset is not the spring's. ``diagnose --apply``
+    leaves the offset to the spring's constant (``findings.offsets_left_to_findings``), so the rest angle stated with
+    the offset is the one the file it writes holds."""
+    joint = getattr(term, "joint", None)
+    names = list(term.feature_names()) if joint is not None else []
+    constant = [k for k, name in enumerate(names) if CONSTANT_FEATURE.fullmatch(name)]
+    offset = held.offset_of(int(joint)) if constant else 0.0
+    if offset == 0.0:
+        return coefficients, ""
+    stated = np.array(coefficients, dtype=float)
+    stated[constant[0]] += offset
+    note = (f"its constant {names[constant[0]]} = {stated[constant[0]]:.4g} N m includes the torque offset the "
+            f"model file holds on joint {int(joint) + 1} ({offset:.4g} N m; the fit's own part "
+            f"{float(coefficients[constant[0]]):.4g}): the two are one column, and 'diagnose --apply' gives an "
+            "offset chosen from the data to this term, so its parameters are stated as the file it writes holds "
+            "them")  # fmt: skip
+    return stated, note
 
 
 def augmented_model_of(robot, model, final, options, kt=None) -> AugmentedModel:

@@ -108,3 +108,36 @@ def test_the_log_names_the_pass_of_each_kept_term(case, caplog):
     assert any(m.startswith("diagnose: [nominal rigid body] kept torque_offset[j1]") for m in lines), lines
     assert any(m.startswith("diagnose: [recalibrated rigid body] selecting among") for m in lines), lines
     assert not any(m.startswith("diagnose: kept") for m in lines)
+
+
+SPRING_K, SPRING_Q0 = 3.0, -0.3
+
+
+def test_a_spring_beside_a_held_offset_reports_the_rest_angle_apply_writes():
+    """A linear spring ``k (q - q0)`` on joint 1 and no offset: identify (its counterbalance route off) takes the
+    spring's ``-k q0`` into the offset it chooses, which the diagnosis of its file holds; the spring the diagnosis
+    finds then has only its ``k`` left to fit, and its rest angle without the held offset read about 0 (0.022 rad
+    against the true -0.3). Stated with the offset, it is the truth and the rest angle ``diagnose --apply`` writes."""
+    from identification.calibration.recalibrate import recalibrate
+
+    robot = load_robot("scara")
+    model = derive_psdm(robot)
+    train, held = (recording(robot, seed) for seed in (0, 1))
+    train, held = (replace(r, tau=r.tau + np.outer(SPRING_K * (r.q[:, 0] - SPRING_Q0), [1, 0, 0, 0]) - OFFSET)
+                   for r in (train, held))  # fmt: skip
+    calibrated = identify_recordings(robot, model, [train], validation=[held], counterbalance=False).calibrated
+    offset = dict(HeldFriction.of_model_file(calibrated.document).offsets)["offset1"]
+    assert offset == pytest.approx(-SPRING_K * SPRING_Q0, rel=0.1)  # the spring's constant, taken as an offset
+    quick = DiagnosisOptions(library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(calibrated, robot, model), train, held, quick)
+    (spring,) = [f for f in report.findings if f.effect == "spring"]
+    k, c = spring.coefficients
+    assert abs(-c / k) < 0.1  # the fit's own constant: the rest angle without the offset
+    assert spring.parameters["k"] == pytest.approx(SPRING_K, rel=0.05)
+    assert spring.parameters["q0"] == pytest.approx(SPRING_Q0, abs=0.02)
+    assert spring.to_dict()["parameters"]["q0"] == spring.parameters["q0"]
+    assert f"q0 = {spring.parameters['q0']:.4g}" in report.to_markdown() and "offset1" not in spring.notes[0]
+    assert "includes the torque offset the model file holds on joint 1" in spring.notes[0]
+    applied = recalibrate(calibrated, robot, model, report, train, held).after
+    (entry,) = [e for e in applied.document["findings"] if e["label"] == spring.label]
+    assert spring.parameters["q0"] == pytest.approx(entry["parameters"]["q0"], abs=0.02)
