@@ -53,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
+from identification.calibration.held_friction import drive_inertia_split
 from identification.calibration.model_file_check import robot_digest
 from identification.calibration.model_preparation import model_preparation, preparation_block
 from identification.calibration.parameter_covariance import covariance_block
@@ -323,13 +324,9 @@ class CalibratedModel:
 
 def calibrated_robot(calibrated: CalibratedModel, robot):
     """``robot`` with the calibrated standard parameters as its nominal inertia: the nominal model a diagnosis of a
-    calibrated model starts from (``psdm diagnose MODEL``). Links the data cannot see keep the robot file's values.
-
-    Raises
-    ------
-    ParameterError
-        For a model identified with --no-consistency (it holds base parameters only).
-    """
+    calibrated model starts from (``psdm diagnose MODEL``). Links the data cannot see keep the robot file's values; a
+    drive inertia below 0 is held beside it (``held_friction.drive_inertia_split``). Raises ``ParameterError`` for a
+    model identified with --no-consistency (it holds base parameters only)."""
     import pinocchio as pin
 
     from psdm_casadi.description import LinkInertia
@@ -350,7 +347,7 @@ def calibrated_robot(calibrated: CalibratedModel, robot):
             )
         else:
             links.append(prior[i] if prior is not None else LinkInertia())
-    out = robot.with_links(links, rotor_inertia=np.maximum(standard[:, 10], 0.0))
+    out = robot.with_links(links, rotor_inertia=drive_inertia_split(standard[:, 10])[0])
     drives = friction_drives(calibrated, robot)
     return out if drives is None else dataclasses.replace(out, drives=drives)
 

@@ -13,7 +13,11 @@ file's model keeps it: ``HeldFriction.of_document`` reads it with the file's smo
 whose every fit explains the torque the held friction leaves (``HeldFriction.torque``, the one friction ``psdm
 validate`` predicts). The nominal model of ``diagnose MODEL`` also holds the file's torque offsets (``offset<j>``,
 ``HeldFriction.of_model_file``): a diagnosis's nominal carries the file's columns, so its "before" is the file's and no
-finding is the offset found again; a spring is then tested against the nominal model with its offset.
+finding is the offset found again; a spring is then tested against the nominal model with its offset. A file's
+drive inertia below 0 (``Ia<j>``: a torque measured behind the gearbox, which holds less than the robot file's rotor)
+is held likewise, ``Ia_j qdd_j``: the robot a diagnosis starts from holds rotor inertias >= 0 only
+(``drive_inertia_split``, the one rule ``calibrated_model.calibrated_robot`` and ``of_model_file`` share), so the
+nominal model predicts such a file as ``psdm validate`` does.
 """
 
 from __future__ import annotations
@@ -26,16 +30,17 @@ import numpy as np
 from identification.calibration.trajectory_data import drive_column_joint, friction_term
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["CONSTANT_FEATURE", "HELD_TERMS", "HeldFriction", "check_held_friction", "held_friction_columns",
-           "subtract_held_friction", "with_held_values"]  # fmt: skip
+__all__ = ["CONSTANT_FEATURE", "HELD_TERMS", "HeldFriction", "check_held_friction", "drive_inertia_split",
+           "held_friction_columns", "subtract_held_friction", "with_held_values"]  # fmt: skip
 
 #: The friction terms that may be held: Coulomb and viscous (a held joint is Coulomb-viscous).
 HELD_TERMS = ("fc", "fv")
 #: A finding's feature that is a constant torque on its joint, one column with the joint's offset: a spring's
 #: (``spring_c_j``, a polynomial's ``c_j``).
 CONSTANT_FEATURE = re.compile(r"(spring_)?c_\d+")
-#: What a diagnosis's nominal model may hold besides: a model file's torque offsets (``HeldFriction.of_model_file``).
-CARRIED_TERMS = (*HELD_TERMS, "offset")
+#: What a diagnosis's nominal model may hold besides: a model file's torque offsets and drive inertias below 0
+#: (``HeldFriction.of_model_file``).
+CARRIED_TERMS = (*HELD_TERMS, "offset", "Ia")
 
 
 def _term(name: str) -> str:
@@ -72,13 +77,18 @@ class HeldFriction:
     @classmethod
     def of_model_file(cls, document: dict) -> HeldFriction:
         """What the nominal model of ``diagnose MODEL`` holds at a calibrated-model file's values: the friction its
-        identification held (``of_document``) and its nonzero torque offsets (``offset<j>``, as ``psdm validate``
-        predicts them), so every fit of the diagnosis explains the torque they leave."""
+        identification held (``of_document``), its nonzero torque offsets (``offset<j>``, as ``psdm validate``
+        predicts them) and its drive inertias below 0 (``drive_inertia_split``), so every fit of the diagnosis explains
+        the torque they leave."""
         held = cls.of_document(document)
         drive = document["drive"]
         offsets = tuple((name, float(value)) for name, value in zip(drive["names"], drive["values"])
                         if _term(name) == "offset" and float(value) != 0.0)  # fmt: skip
-        return replace(held, values=held.values + offsets) if offsets else held
+        standard = np.asarray(document["standard"]["values"], dtype=float)
+        n_dof = standard.size // 11
+        inertias = drive_inertia_split(standard.reshape(n_dof, 11)[:, 10])[1]
+        extra = offsets + inertias
+        return replace(held, values=held.values + extra) if extra else held
 
     @property
     def joints(self) -> tuple:
@@ -90,28 +100,41 @@ class HeldFriction:
         """The held torque offsets ``((name, value), ...)`` (a model file's, ``of_model_file``)."""
         return tuple((name, value) for name, value in self.values if _term(name) == "offset")
 
+    @property
+    def drive_inertias(self) -> tuple:
+        """The held drive inertias ``((name, value), ...)`` (a model file's below 0, ``of_model_file``)."""
+        return tuple((name, value) for name, value in self.values if _term(name) == "Ia")
+
     def offset_of(self, joint: int) -> float:
         """The held torque offset [N m] of ``joint`` (0-based); 0 when none is held."""
         return sum(value for name, value in self.offsets if drive_column_joint(name) == joint)
 
-    def torque(self, qd) -> np.ndarray:
-        """The held friction's torque (n_samples, n_dof) at the velocities ``qd`` (n_samples, n_dof) [N m]."""
+    def torque(self, qd, qdd=None) -> np.ndarray:
+        """The held torque (n_samples, n_dof) at the velocities ``qd`` and accelerations ``qdd`` (n_samples, n_dof;
+        needed only with a held drive inertia) [N m]."""
         qd = np.asarray(qd, dtype=float)
         out = np.zeros_like(qd)
         for name, value in self.values:
             j = drive_column_joint(name)
-            out[:, j] += value * friction_term(_term(name), qd[:, j], self.coulomb_velocity)
+            out[:, j] += value * self._column(name, qd[:, j], None if qdd is None else np.asarray(qdd)[:, j])
         return out
 
-    def expression(self, qd):
-        """The held friction's torque as a CasADi expression of the velocity ``qd`` (SX, n_dof)."""
+    def expression(self, qd, qdd=None):
+        """The held torque as a CasADi expression of the velocity ``qd`` and acceleration ``qdd`` (SX, n_dof)."""
         import casadi as ca
 
         out = ca.SX.zeros(qd.shape[0])
         for name, value in self.values:
             j = drive_column_joint(name)
-            out[j] += value * friction_term(_term(name), qd[j], self.coulomb_velocity)
+            out[j] += value * self._column(name, qd[j], None if qdd is None else qdd[j])
         return out
+
+    def _column(self, name, qd, qdd):
+        if _term(name) != "Ia":
+            return friction_term(_term(name), qd, self.coulomb_velocity)
+        if qdd is None:
+            raise ParameterError(f"HeldFriction.torque needs the accelerations qdd for the held drive inertia {name}.")
+        return qdd
 
     def describe(self) -> str:
         """``joint 3: fc3 0.292, fv3 0.0107`` per held joint ("" when nothing is held)."""
@@ -119,6 +142,15 @@ class HeldFriction:
         joints = sorted({joint(name) for name, _ in self.values})
         return "; ".join(f"joint {j + 1}: " + ", ".join(f"{n} {v:.3g}" for n, v in self.values if joint(n) == j)
                          for j in joints)  # fmt: skip
+
+
+def drive_inertia_split(inertias) -> tuple:
+    """``(rotor, held)`` of a model file's drive inertias ``inertias`` [kg m^2], shape (n_dof,): the rotor inertias
+    a ``RobotDescription`` holds (>= 0), and the rest ``(("Ia<j>", value), ...)`` below 0, held beside it
+    (``HeldFriction.of_model_file``): together they are the file's ``Ia_j qdd_j``."""
+    inertias = np.asarray(inertias, dtype=float)
+    held = tuple((f"Ia{j + 1}", float(value)) for j, value in enumerate(inertias) if value < 0.0)
+    return np.maximum(inertias, 0.0), held
 
 
 def check_held_friction(options) -> None:

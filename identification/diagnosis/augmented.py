@@ -106,7 +106,7 @@ class AugmentedModel:
             self.coulomb_velocity,
         )
         if self.held_friction.values:
-            tau = tau + self.held_friction.expression(qd)
+            tau = tau + self.held_friction.expression(qd, qdd)
         nominal = tau
         for term, c in zip(self.terms, self.coefficients):
             extra = term.casadi_expression(q, qd, qdd, t, nominal, c)

@@ -436,7 +436,7 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
                         with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
                         sign_from_raw=options.friction == "lugre")  # fmt: skip
-    held = options.held_friction.torque(ctx.qd) if options.held_friction.values else None
+    held = options.held_friction.torque(ctx.qd, ctx.qdd) if options.held_friction.values else None
     return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held)
 
 

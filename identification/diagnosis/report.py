@@ -274,12 +274,16 @@ class DiagnosisReport:
         if not self.held_friction:
             return ""
         held = HeldFriction(self.held_friction)
-        offsets = HeldFriction(held.offsets).describe()
-        friction = HeldFriction(tuple(v for v in held.values if v not in held.offsets)).describe()
+        offsets, inertias = HeldFriction(held.offsets).describe(), HeldFriction(held.drive_inertias).describe()
+        others = held.offsets + held.drive_inertias
+        friction = HeldFriction(tuple(v for v in held.values if v not in others)).describe()
         text = (f", except the friction identify held (joints that move one way only in its training data): held at "
                 f"the model file's values in every fit ({friction})") if friction else ""  # fmt: skip
         if offsets:
             text += f"; the model file's torque offsets held at its values in every fit ({offsets})"
+        if inertias:
+            text += (f"; the model file's drive inertias below 0 (a torque measured behind the gearbox) held at its "
+                     f"values in every fit ({inertias} kg m^2)")  # fmt: skip
         return text
 
     def _nominal(self) -> str:

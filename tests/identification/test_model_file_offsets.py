@@ -30,8 +30,9 @@ from psdm_casadi.oracle import PinocchioOracle
 OFFSET, FC, FV, NOISE = np.array([0.5, 0.0, 0.0, 0.0]), 0.3, 0.2, 0.02
 
 
-def recording(robot, seed, duration=6.0, rate=200.0) -> Recording:
-    """Sums of two sines per joint about the middle of its range, the true torque with friction and the offset."""
+def recording(robot, seed, duration=6.0, rate=200.0, armature=0.0) -> Recording:
+    """Sums of two sines per joint about the middle of its range, the true torque with friction and the offset (and
+    ``armature`` [kg m^2] per joint times its acceleration: a drive inertia, of either sign)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration, 1.0 / rate)
     centre, amplitude = np.array([0, 0, 0.1, 0]), np.array([0.6, 0.6, 0.035, 1.0])
@@ -42,7 +43,7 @@ def recording(robot, seed, duration=6.0, rate=200.0) -> Recording:
         q[:, j] = centre[j] + (a[:, None] * np.sin(arg)).sum(0)
         qd[:, j] = (a[:, None] * w[:, None] * np.cos(arg)).sum(0)
         qdd[:, j] = -(a[:, None] * w[:, None] ** 2 * np.sin(arg)).sum(0)
-    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + FC * np.tanh(qd / 0.05) + FV * qd + OFFSET
+    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + FC * np.tanh(qd / 0.05) + FV * qd + OFFSET + armature * qdd
     return Recording(t=t, q=q, tau=tau + rng.normal(scale=NOISE, size=tau.shape), name=f"scara{seed}")
 
 
@@ -91,7 +92,7 @@ def test_a_held_offset_must_be_finite():
     with pytest.raises(ParameterError, match="HeldFriction.values"):
         HeldFriction((("offset1", float("nan")),))
     with pytest.raises(ParameterError, match="HeldFriction.values"):
-        HeldFriction((("Ia1", 0.1),))
+        HeldFriction((("fs1", 0.1),))
 
 
 def test_the_log_names_the_pass_of_each_kept_term(case, caplog):
@@ -141,3 +142,43 @@ def test_a_spring_beside_a_held_offset_reports_the_rest_angle_apply_writes():
     applied = recalibrate(calibrated, robot, model, report, train, held).after
     (entry,) = [e for e in applied.document["findings"] if e["label"] == spring.label]
     assert spring.parameters["q0"] == pytest.approx(entry["parameters"]["q0"], abs=0.02)
+
+
+def test_a_negative_drive_inertia_is_predicted_by_the_diagnosis_as_by_validate():
+    """A torque measured behind the gearbox holds less drive inertia than the robot file: here joint 2's torque lacks
+    0.05 kg m^2 times its acceleration, which a consistent fit holds at 0 (the unconstrained fit wants it), and a model
+    file states it (the fit of the torque without it, with ``Ia2`` set to the truth); ``psdm validate`` predicts it.
+    The robot a diagnosis starts from holds rotor inertias >= 0 only (``calibrated_robot``): the rest is held beside
+    it (``HeldFriction.of_model_file``), so the diagnosis's nominal predicts every joint as validate; with the drive
+    inertia clipped at 0 its "before" on joint 2 was several times validate's."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+
+    robot = load_robot("scara")
+    model = derive_psdm(robot)
+    armature = np.array([0.0, -0.05, 0.0, 0.0])
+    train, held = (recording(robot, seed, armature=armature) for seed in (0, 1))
+    options = TrajectoryOptions(friction=("fc", "fv", "offset"), offset_joints=(0,), inertia_joints=(1,))
+    fit = identify_trajectories(robot, model, [train], options)
+    k = list(fit.drive_names).index("Ia2")
+    assert fit.drive[k] == 0.0 and fit.drive_ols[k] == pytest.approx(armature[1], rel=0.2)  # held at 0; wants < 0
+    fit = identify_trajectories(robot, model, [recording(robot, 0)], options)  # the torque without it
+    drive, standard = np.array(fit.drive), np.array(fit.standard)
+    drive[k] = standard[1, 10] = armature[1]
+    calibrated = CalibratedModel.from_fit(robot, model, replace(fit, drive=drive, standard=standard),
+                                          robot_source="scara")  # fmt: skip
+    own = validation_rmse(calibrated, model, held)[0]
+    held_values = HeldFriction.of_model_file(calibrated.document)
+    assert dict(held_values.drive_inertias) == {"Ia2": armature[1]}
+    assert calibrated_robot(calibrated, robot).rotor_inertia[1] == 0.0
+    quick = DiagnosisOptions(rigid_body="prior", library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    nominal = diagnose(calibrated_robot(calibrated, robot), train, held, model_file_options(calibrated, quick),
+                       model=model)  # fmt: skip
+    np.testing.assert_allclose(nominal.rmse_before, own, rtol=1e-3)
+    clipped = replace(model_file_options(calibrated, quick), held_friction=HeldFriction(held_values.offsets))
+    worse = diagnose(calibrated_robot(calibrated, robot), train, held, clipped, model=model)
+    assert worse.rmse_before[1] > 3 * own[1], (worse.rmse_before, own)  # the drive inertia clipped at 0, as before
+    report = diagnose_model(LoadedModel(calibrated, robot, model), train, held, quick)
+    np.testing.assert_allclose(report.rmse_before, own, rtol=1e-3)
+    assert "drive inertias below 0" in report.to_markdown() and "Ia2" in report.to_markdown()
+    assert not report.findings, [f.label for f in report.findings]
