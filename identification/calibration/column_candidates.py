@@ -162,7 +162,7 @@ def candidates(robot, model, training: PreparedTraining, options, request, valid
     terms = (("fc", "fs", "fv") if stribeck else ("fc", "fv")) + offset
     full = replace(options, friction=terms, offset_joints=None, inertia_joints=None)
     regressors = base_regressors(model, prepared)  # evaluated once: the costly part
-    vs = fit_stribeck_velocity(model, prepared, full, inertia, extras, regressors=regressors) if stribeck else None
+    vs = fit_stribeck_velocity(model, prepared, full, inertia, extras, regressors, trial=True) if stribeck else None
     every = drive_column_names(robot.n_dof, terms, inertia)
     # an offset of a joint that does not reverse is no candidate: its Coulomb column is a constant too
     names = [n for n in every if not (n.startswith("offset") and request.offset == "auto" and int(n[6:]) - 1

@@ -138,7 +138,9 @@ def stribeck_step(x, offset: int, names, vs) -> np.ndarray:
     return np.where(defined, x[-n_dof:] / np.where(defined, gap, 1.0), 0.0)
 
 
-def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, regressors=None) -> np.ndarray:
+def fit_stribeck_velocity(
+    model, prepared, options, inertia_joints, extra=None, regressors=None, trial: bool = False
+) -> np.ndarray:
     """Stribeck velocity [rad/s] per joint of prepared recordings (module docstring), shape (n_dof,).
 
     Parameters
@@ -155,6 +157,9 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
         Further linear columns fitted jointly (a list: one per recording, e.g. its payload's, ``payload_fit``).
     regressors : list, optional
         :func:`base_regressors` of ``prepared``, when the caller has them already.
+    trial : bool
+        The Stribeck shape is a candidate the column choice judges (``column_candidates``), not the shape of the fit:
+        the log line says so (the velocities of a shape not chosen are no model's).
     """
     n_dof = prepared[0].n_dof
     terms, velocity = options.friction, options.coulomb_velocity
@@ -198,8 +203,12 @@ def fit_stribeck_velocity(model, prepared, options, inertia_joints, extra=None, 
         vs, x, residual = vs + change, trial_x, trial_residual
         if np.max(np.abs(change[hump]) / vs[hump]) < STEP_TOLERANCE:
             break
-    logger.info("identify: Stribeck velocities %s rad/s after %d Gauss-Newton steps", ", ".join(f"{v:.3g}" for v in vs),
-                steps)  # fmt: skip
+    shown = ", ".join(f"{v:.3g}" for v in vs)
+    if trial:
+        logger.info("identify: the Stribeck shape tried for the column choice (kept only if it is chosen): velocities "
+                    "%s rad/s after %d Gauss-Newton steps", shown, steps)  # fmt: skip
+    else:
+        logger.info("identify: Stribeck velocities %s rad/s after %d Gauss-Newton steps", shown, steps)
     return vs
 
 

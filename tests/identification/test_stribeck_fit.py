@@ -160,3 +160,30 @@ def test_the_stribeck_options_are_checked():
         TrajectoryOptions(friction=("fs", "fv"))
     with pytest.raises(ParameterError, match="stribeck_velocity must be > 0"):
         TrajectoryOptions(friction=("fc", "fs"), stribeck_velocity=0.0)
+
+
+def test_the_stribeck_velocities_are_logged_as_the_model_s_only_when_the_shape_is_chosen(caplog):
+    """The column choice fits the Stribeck shape as a candidate before it decides; on a virtual SCARA with Coulomb +
+    viscous friction it chooses Coulomb-viscous, and the log said "Stribeck velocities ... after N Gauss-Newton
+    steps" as if the model had them. The trial is now named a trial; the line the fit of the chosen Stribeck shape
+    logs is kept."""
+    from identification.calibration.identify_route import identify_recordings
+    from psdm_casadi import derive_psdm, load_robot
+    from tests.identification.test_model_file_offsets import recording
+
+    robot = load_robot("scara")
+    model = derive_psdm(robot)
+    train, held = recording(robot, 0), recording(robot, 1)
+    with caplog.at_level("INFO", logger="identification.calibration"):
+        result = identify_recordings(robot, model, [train], validation=[held], counterbalance=False)
+    assert result.calibrated.document["drive"]["friction_shape"] == "coulomb-viscous"
+    lines = [r.getMessage() for r in caplog.records]
+    assert not any("Stribeck velocities" in m for m in lines), lines
+    tried = [m for m in lines if m.startswith("identify: the Stribeck shape tried for the column choice")]
+    assert len(tried) == 1 and "kept only if it is chosen" in tried[0], lines
+    caplog.clear()
+    with caplog.at_level("INFO", logger="identification.calibration"):
+        fit = identify_trajectories(robot, model, [train], TrajectoryOptions(friction=("fc", "fs", "fv")))
+    lines = [r.getMessage() for r in caplog.records]
+    shown = ", ".join(f"{v:.3g}" for v in fit.stribeck_velocity)
+    assert any(m.startswith(f"identify: Stribeck velocities {shown} rad/s after") for m in lines), lines
