@@ -9,7 +9,8 @@ on the training recording with one more linear column per feature of every torqu
 (``findings.FindingColumns``), all fitted jointly and with their standard deviations from the same covariance; the
 ``signal`` findings correct the recordings first (``findings.correct_recording``); a payload (``rigid_body``) is taken
 up by the rigid body, held to the robot file carrying it (``carried_payload``). A feature the other columns span (a
-spring's constant beside a drive offset, a rotor inertia the fit identifies) is left out and reported as absorbed.
+spring's constant beside a drive offset, a rotor inertia the fit identifies: ``absorbed_features``) is left out and
+reported as absorbed.
 Load-dependent friction is linear in its coefficient for a fixed torque: the model's own, then the new one's.
 
 A model with LuGre friction (file version 3) is identified again as ``psdm identify --friction lugre`` does
@@ -42,6 +43,7 @@ import logging
 
 import numpy as np
 
+from identification.calibration.absorbed_features import absorbed_mask
 from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
 from identification.calibration.carried_payload import carrying_payloads
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
@@ -64,12 +66,9 @@ from identification.calibration.payload_fit import carried_configurations
 from identification.calibration.refit_folds import training_refits
 from identification.calibration.split_torque import splitting_findings
 from identification.calibration.trajectory_data import (
-    NormalEquations,
-    drive_column_names,
-    prepare_recording,
     stribeck_joints,
 )
-from identification.calibration.trajectory_fit import TrajectoryOptions, drive_inertia_joints, identify_trajectories
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 from psdm_casadi.errors import ParameterError, SolverError
 
@@ -78,8 +77,6 @@ __all__ = ["MASS_CHECK_CONFIGURATIONS", "Recalibration", "consistency_failure", 
 
 logger = logging.getLogger(__name__)
 
-#: A feature whose column keeps less than this fraction of its norm after projection on the others is absorbed.
-ABSORBED = 1e-8
 #: Rounds of dropping the findings that do not help and refitting (a refit can make another one useless).
 MAX_DROP_ROUNDS = 3
 
@@ -189,37 +186,6 @@ def _check_lugre_findings(calibrated: CalibratedModel, terms) -> None:
         )
 
 
-def _absorbed_mask(robot, model, recordings, options, columns: FindingColumns, stribeck=None) -> tuple:
-    """Which finding features the fit's other columns (and earlier features) do not span, on the training data
-    (a Stribeck friction shape with the velocities ``stribeck`` of the model the diagnosis started from); the offsets
-    the fit holds at 0 (outside ``options.offset_joints``) are not among those columns."""
-    inertia = drive_inertia_joints(model, robot, options)
-    names = drive_column_names(robot.n_dof, options.friction, inertia)
-    n_extra = len(columns.all_names)
-    equations = NormalEquations(robot.n_dof, model.n_base + len(names) + n_extra)
-    for recording in recordings:
-        ready, _, _ = prepare_recording(recording, _kt(robot, recordings), options.cutoff_hz, options.edge_periods)
-        equations.add_recording(model, ready, options.friction, inertia, options.coulomb_velocity,
-                                FindingColumns(columns.terms, columns.reference), stribeck=stribeck)  # fmt: skip
-    rms_tau = np.sqrt(equations.energy / np.maximum(equations.count, 1))
-    gram, _, _ = equations.weighted(1.0 / np.maximum(rms_tau, 1e-12) ** 2)
-    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
-    gram = gram / np.outer(scale, scale)
-    chosen = options.offset_joints  # an offset held at 0 (not chosen) absorbs nothing: a spring's constant stays
-    kept = [model.n_base + k for k, n in enumerate(names) if chosen is None or not n.startswith("offset")
-            or int(n[6:]) - 1 in chosen]  # fmt: skip
-    kept = list(range(model.n_base)) + kept
-    keep = []
-    for k in range(gram.shape[0] - n_extra, gram.shape[0]):
-        block = gram[np.ix_(kept, kept)]
-        projected = gram[k, kept] @ np.linalg.pinv(block, rcond=1e-12, hermitian=True) @ gram[kept, k]
-        independent = bool(gram[k, k] - projected > ABSORBED * gram[k, k])
-        keep.append(independent)
-        if independent:
-            kept.append(k)
-    return tuple(keep)
-
-
 def _kt(robot, recordings):
     if all(r.tau is not None for r in recordings) or robot.drives is None:
         return None
@@ -259,7 +225,7 @@ def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lug
     ``lugre_recordings.LuGreFit`` or None). A feature is left out when it is absorbed beside the Stribeck shape."""
     columns = FindingColumns(tuple(terms), reference)
     if terms:
-        keep = _absorbed_mask(robot, model, recordings, options, columns, stribeck)
+        keep = absorbed_mask(robot, model, recordings, options, columns, stribeck, _kt(robot, recordings))
         columns = dataclasses.replace(columns, keep=keep)
     extra = columns if terms else None
     if lugre:

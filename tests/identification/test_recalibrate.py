@@ -122,11 +122,12 @@ def test_an_offset_chosen_from_the_data_is_left_to_a_found_spring_s_constant():
 
 
 def test_an_offset_held_at_zero_absorbs_no_spring_constant(denso, denso_model):
-    """``recalibrate``'s absorbed features are judged against the columns the fit frees: a spring's constant on a
-    joint whose offset is held at 0 (outside ``offset_joints``) stays in the fit (it is the only column to carry the
-    spring's ``-k q0``), beside a chosen offset on that joint it is absorbed; its ``k`` stays either way."""
+    """``recalibrate``'s absorbed features (``absorbed_features.absorbed_mask``) are judged against the columns the
+    fit frees: a spring's constant on a joint whose offset is held at 0 (outside ``offset_joints``) stays in the fit
+    (it is the only column to carry the spring's ``-k q0``), beside a chosen offset on that joint it is absorbed; its
+    ``k`` stays either way."""
+    from identification.calibration.absorbed_features import absorbed_mask
     from identification.calibration.findings import FindingColumns, FindingTerm
-    from identification.calibration.recalibrate import _absorbed_mask
 
     rng = np.random.default_rng(5)
     reference = sine_experiment(denso, duration=3.0, rng=rng).reference()
@@ -135,7 +136,7 @@ def test_an_offset_held_at_zero_absorbs_no_spring_constant(denso, denso_model):
     columns = FindingColumns((FindingTerm("spring", 1),))
     for offset_joints, keep in (((2,), (True, True)), ((1, 2), (True, False)), (None, (True, False))):
         fit_options = TrajectoryOptions(friction=("fc", "fv", "offset"), offset_joints=offset_joints)
-        assert _absorbed_mask(denso, denso_model, [recording], fit_options, columns) == keep, offset_joints
+        assert absorbed_mask(denso, denso_model, [recording], fit_options, columns) == keep, offset_joints
 
 
 @pytest.fixture(scope="module")
