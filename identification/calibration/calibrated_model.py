@@ -11,8 +11,10 @@ It holds everything needed to use an identification without the recordings or th
 - ``drive``: the labelled drive parameters (``fc1, fv1, offset1, ..., Ia<j>``) with their standard
   deviations and the friction model's shape;
 - ``identification``: filter, decimation, samples, weights, condition number, solver status, ``preparation``
-  (``model_preparation``): how every command prepares a recording, ``column_choice`` (optional): the columns chosen;
-- ``provenance``: when, which version, which recordings (name, samples, SHA-256, optional ``columns`` read);
+  (``model_preparation``): how every command prepares a recording, ``column_choice`` (optional): the columns chosen,
+  ``holdout`` (optional, any version; older readers ignore it and ask for recordings): the part of each training
+  recording ``--holdout`` kept out of the fit (``data.holdout``: path, content hash, cut sample and time);
+- ``provenance``: when, which version, which recordings (``recording_provenance``; optional ``columns`` read);
 - ``validation``: the report the command printed (per-joint RMSE and R^2 on held-out data);
 - ``findings``: the terms diagnosis added (empty until a diagnosis is applied with
   ``psdm diagnose MODEL --apply NEW``): per finding its effect, label, kind (``findings.FINDING_KINDS``),
@@ -43,7 +45,6 @@ A model whose standard parameters are not consistent is written only when the ca
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 import json
 import os
 from dataclasses import dataclass, field
@@ -66,8 +67,7 @@ from psdm_casadi.model_cache import robot_cache_folder
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
 __all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "friction_drives",
-           "LoadedModel", "load_calibrated_model", "read_calibrated_model", "recording_provenance",
-           "standard_parameter_labels"]  # fmt: skip
+           "LoadedModel", "load_calibrated_model", "read_calibrated_model", "standard_parameter_labels"]  # fmt: skip
 
 CALIBRATED_FORMAT = "psdm-calibrated-model"
 CALIBRATED_VERSION = 2
@@ -78,14 +78,6 @@ READABLE_VERSIONS = (1, 2, 3)
 def standard_parameter_labels(n_dof: int) -> list:
     """``m1, mx1, my1, mz1, Ixx1, Ixy1, Iyy1, Ixz1, Iyz1, Izz1, Ia1, m2, ...``."""
     return [f"{name}{j + 1}" for j in range(n_dof) for name in (*LINK_PARAMETER_NAMES, "Ia")]
-
-
-def recording_provenance(recording, source=None) -> dict:
-    """Name, samples, duration and (for a file) the SHA-256 of a recording, for the provenance block."""
-    entry = {"name": recording.name, "n_samples": int(recording.n_samples), "duration_s": float(recording.duration)}
-    if source is not None and Path(source).is_file():
-        entry["sha256"] = hashlib.sha256(Path(source).read_bytes()).hexdigest()
-    return entry
 
 
 def _floats(values) -> list:

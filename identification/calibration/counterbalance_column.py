@@ -463,7 +463,8 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
     without the springs' coefficients and the model file with them when they are kept, the choice in the file's
     ``identification.counterbalance``. ``skip``: a route that takes no extra columns (LuGre, a drive loss), as a fit
     without consistency."""
-    from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.recording_provenance import recording_provenance
 
     robot, model, recordings, options, configurations = problem
     keywords, paths = saved

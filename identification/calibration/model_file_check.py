@@ -6,7 +6,7 @@ with the file, the field (``base.values[3]``) and the fix, never used:
 
 - :func:`check_document` (no model needed): every numeric field parses as finite numbers of the right length
   (standard deviations may be null), the flags are JSON booleans, the drive names and values match one to
-  one, and the robot texts match ``robot.sha256``;
+  one, the robot texts match ``robot.sha256``, and the held-out parts (``identification.holdout``) parse;
 - :func:`check_against_model` (the model derived from the file's robot): the base parameters are the model's
   base parameters of the standard block (relative to the largest, within :data:`BASE_TOLERANCE`), and a file
   that claims ``consistent`` passes the consistency check again on its standard block (every link the data
@@ -28,6 +28,7 @@ from identification.calibration.model_preparation import PREPARATION_VERSION
 from identification.calibration.parameter_covariance import check_covariance_block
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.trajectory_data import drive_column_names
+from identification.data.holdout import stored_parts
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
@@ -225,6 +226,7 @@ def check_document(document: dict, name: str) -> None:
         raise _refuse(name, "identification.cutoff_hz", "positive numbers [Hz]", cutoff)
     _check_preparation(name, document["identification"].get("preparation"))
     _check_column_choice(name, document["identification"].get("column_choice"), n_dof)
+    stored_parts(document, name)  # identification.holdout (optional): every held-out part parses
     findings = document.get("findings", [])
     if not isinstance(findings, list) or not all(isinstance(e, dict) for e in findings):
         raise _refuse(name, "findings", "a list of objects", repr(findings)[:80])

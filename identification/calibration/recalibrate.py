@@ -44,7 +44,7 @@ import logging
 import numpy as np
 
 from identification.calibration.absorbed_features import absorbed_mask
-from identification.calibration.calibrated_model import CalibratedModel, recording_provenance
+from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.carried_payload import carrying_payloads
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
 from identification.calibration.finding_value import implausibility, unhelpful_findings, validation_rmse, without_entry
@@ -63,6 +63,7 @@ from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.payload_fit import carried_configurations
+from identification.calibration.recording_provenance import recording_provenance
 from identification.calibration.refit_folds import training_refits
 from identification.calibration.split_torque import splitting_findings
 from identification.calibration.trajectory_data import (

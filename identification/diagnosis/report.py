@@ -133,6 +133,7 @@ class DiagnosisReport:
     recordings: tuple = ()  # ``recording_checks.RecordingCheck`` per validation recording
     left_out: tuple = ()  # joints without a torque measurement, left out and not diagnosed (one sentence each)
     held_friction: tuple = ()  # (name, value): friction the nominal model holds at a model file's values (no refit)
+    held_out: tuple = ()  # sentences: the parts of recordings held out for validation (``data.holdout``)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -172,6 +173,7 @@ class DiagnosisReport:
             "rigid_body_notes": list(self.rigid_body_notes),
             "nominal_model": self.nominal_model,
             "preparation": self.preparation,
+            "held_out": list(self.held_out),
             "model_file_rmse": _numbers(self.model_file_rmse),
             "before_is_model_file": self.before_is_model_file,
             "second_opinion": self.opinion_route or None,
@@ -193,6 +195,7 @@ class DiagnosisReport:
             f"{self._held_text()}; {self.candidates_tried} candidate fits judged on the validation recording.",
             "",
             *([f"Preparation: {self.preparation}.", ""] if self.preparation else []),
+            *([f"Held out: {'; '.join(self.held_out)}.", ""] if self.held_out else []),
             *(
                 ["Not diagnosed (no torque measurement):", "", *(f"- {s}" for s in self.left_out), ""]
                 if self.left_out

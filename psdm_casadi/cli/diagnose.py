@@ -19,14 +19,16 @@ from psdm_casadi.cli.checks import (
     model_layout,
     output_folder,
 )
+from psdm_casadi.cli.holdout import add_holdout_argument, diagnose_parts, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
 VALIDATE_HELP = (
-    "required: validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag). With several, a finding is kept only if "
-    "it holds on each (the errors are reported on the first); with one, a block cross-validation of --train is the "
-    "second opinion. Findings that flip are listed as unstable, not as missing physics"
+    "validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag); without, the part of --train held out (--holdout, or "
+    "the cut of a model identified with --holdout) and the model's other held-out parts. With several, a finding is "
+    "kept only if it holds on each (the errors are reported on the first); with one, a block cross-validation of "
+    "--train is the second opinion. Findings that flip are listed as unstable, not as missing physics"
 )
 
 ENVELOPE_HELP = (
@@ -60,7 +62,8 @@ def register(subparsers) -> None:
         help="robot file (.toml, .urdf, .xml MJCF), built-in robot name, or calibrated model (.json, 'psdm identify')",
     )
     p.add_argument("--train", required=True, nargs="+", metavar="RECORDING", help=TRAIN_HELP)
-    p.add_argument("--validate", nargs="+", metavar="RECORDING", help=VALIDATE_HELP)  # required: _held_out says how
+    p.add_argument("--validate", nargs="+", metavar="RECORDING", help=VALIDATE_HELP)  # or held out: _held_out
+    add_holdout_argument(p, "diagnose")
     add_topic_argument(p)
     p.add_argument(
         "--friction",
@@ -135,15 +138,15 @@ def _one_training_recording(paths: list) -> str:
     )
 
 
-def _held_out(validate) -> list:
-    """The ``--validate`` recordings; none is refused naming why and how to have one, rather than argparse's "the
-    following arguments are required" (a user with the shared TX40's one recording met only that)."""
-    if validate:
-        return validate
+def _held_out(validations) -> list:
+    """The validation recordings (``--validate`` and the held-out parts); none is refused naming why and how to have
+    one, rather than argparse's "the following arguments are required" (a user with one recording met only that)."""
+    if validations:
+        return validations
     raise ParameterError(
         "--validate is missing: the diagnosis keeps a finding only if it predicts a recording it was not fitted on. "
-        "Pass another recording of the robot, --validate B.csv (a different motion); with one recording only, cut it "
-        "in two files, e.g. its first 70 % for --train and the rest for --validate."
+        "Pass another recording of the robot, --validate B.csv (a different motion); with one recording only, hold "
+        "out its last part: --holdout 0.3 (the first 70 % trains, the rest validates)."
     )
 
 
@@ -152,11 +155,11 @@ def _run_diagnose(args) -> int:
     from identification.data.filter_choice import AUTO
     from identification.data.io import not_held_out
     from identification.data.missing_torque import find_missing_torque
-    from identification.data.robot_recordings import load_robot_recording
     from identification.diagnosis.diagnose import DiagnosisOptions
     from identification.diagnosis.model_file import diagnose_model
 
-    args.train, args.validate = _one_training_recording(args.train), _held_out(args.validate)
+    args.train, args.validate = _one_training_recording(args.train), list(args.validate or ())
+    fraction = _fraction(args)
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
     check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
     if args.cutoff is not None:
@@ -181,12 +184,11 @@ def _run_diagnose(args) -> int:
     else:
         robot = load_robot_argument(args)
     layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
-    train = load_robot_recording(args.train, robot, args.topic, layout)  # joint side, timed (robot file's [recording])
-    validations = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
+    train, validations, given, held = _recordings(args, robot, calibrated, layout, fraction)
     # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
     train, *validations = (find_missing_torque(r) for r in (train, *validations))
     validation = validations[0]
-    for warning in not_held_out([args.train], args.validate, "--train"):
+    for warning in not_held_out([args.train], given, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
     (train, *validations), stated = _stated_loads(args, calibrated, robot, (train, *validations), preparation)
@@ -208,7 +210,7 @@ def _run_diagnose(args) -> int:
         report = _robot_report(args, robot, train, validations, options)
     else:  # the Python API's diagnosis of a model file (diagnose_model): the same numbers
         report = diagnose_model(loaded, train, validations, options, name=args.robot)
-    report = dataclasses.replace(report, preparation=preparation.text())
+    report = dataclasses.replace(report, preparation=preparation.text(), held_out=_held_text(args.train, held))
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
@@ -229,6 +231,40 @@ def _run_diagnose(args) -> int:
         return 0
     return _apply(args, calibrated, robot_file, model, report, (train, validation), apply_out,
                   payload if args.json else None, stated[:1])  # fmt: skip
+
+
+def _fraction(args) -> float | None:
+    """The checked ``--holdout``; a robot file without it and without ``--validate`` is refused before any work (a
+    model file may hold its own held-out parts)."""
+    fraction = holdout_fraction(args)
+    if not args.validate and fraction is None and not str(args.robot).lower().endswith(".json"):
+        _held_out([])
+    return fraction
+
+
+def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
+    """(training recording, validation recordings, the ``--validate`` paths, the held-out parts as (path, recording,
+    ``HeldOutPart``)): joint side, timed (the robot file's [recording]); ``--train`` cut at ``--holdout`` or where the
+    model file cut it, its held-out part (and without ``--validate`` the model's others) after the ``--validate``
+    recordings. ``args.validate`` then names every validation recording's file, ``args.held_parts`` the parts."""
+    from identification.data.robot_recordings import load_robot_recording
+
+    def load(path):
+        return load_robot_recording(path, robot, args.topic, layout)
+
+    given = list(args.validate)
+    document = None if calibrated is None else calibrated.document
+    train, held = diagnose_parts(args.train, load(args.train), document, fraction, load, bool(given), args.robot)
+    validations = _held_out([*map(load, given), *(recording for _, recording, _ in held)])
+    args.validate, args.held_parts = [*given, *(path for path, _, _ in held)], [part for _, _, part in held]
+    return train, validations, given, held
+
+
+def _held_text(train_path, held) -> tuple:
+    """The report's sentences on which parts were held out (``--holdout``, a model file's cut): none without."""
+    lines = [f"validation: {part.describe()}" for _, _, part in held]
+    own = [part for path, _, part in held if path == train_path]
+    return tuple((f"training: the first {own[0].cut_sample} samples of {train_path}",) if own else ()) + tuple(lines)
 
 
 def _robot_report(args, robot, train, validations, options):
@@ -358,6 +394,10 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload, con
         return EXIT_CHECK_FAILED
     read = calibrated.document.get("provenance", {}).get("columns")  # how identify read the recordings: kept
     result.after.document["provenance"].update({} if read is None else {"columns": read})
+    if args.held_parts:  # the refit trained without them too: validate and diagnose of the new file reuse them
+        from identification.data.holdout import holdout_block
+
+        result.after.document["identification"]["holdout"] = holdout_block(args.held_parts)
     with out.staging() as stage:
         result.after.save(stage, overwrite=True, allow_inconsistent=True)
     report_model_warnings("diagnose", args.apply, result.after)  # the refit's, stored in the new file too

@@ -13,8 +13,10 @@ from pathlib import Path
 
 from psdm_casadi.cli import identify_recordings
 from psdm_casadi.cli.checks import add_robot_argument, check_not_input, load_robot_argument, output_folder
+from psdm_casadi.cli.holdout import add_holdout_argument
 from psdm_casadi.cli.html_report import add_html_argument, refuse_html_option
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.fileio import atomic_write, markdown_escape
 
 __all__ = ["register", "REPORT_FILES"]
@@ -83,6 +85,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("--json", action="store_true", help="print a JSON summary on stdout")
     identify_recordings.add_arguments(p)
+    add_holdout_argument(p, "identify")
     add_html_argument(p)
     p.set_defaults(handler=_run_identify)
 
@@ -156,6 +159,11 @@ def _run_identify(args) -> int:
     if _protocol(args) == "recordings":
         return identify_recordings.run(args)
     refuse_html_option(args, "the four-step route writes report.md into its --out folder")
+    if args.holdout is not None:
+        raise ParameterError(
+            f"--holdout cuts recording files; {args.data[0]!r} is a folder of the paper's calibration experiments, "
+            "which validates on its own excitation experiment. Drop --holdout, or pass recording files."
+        )
     folder = _check_inputs(args)
     robot = load_robot_argument(args)
     if args.model:

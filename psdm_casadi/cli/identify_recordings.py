@@ -25,6 +25,7 @@ from psdm_casadi.cli.checks import (
     output_file,
     recording_layout,
 )
+from psdm_casadi.cli.holdout import cut_training, holdout_fraction
 from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.identify_text import print_identify
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, progress
@@ -140,7 +141,7 @@ def run(args) -> int:
     from identification.calibration.identify_route import identify_recordings
     from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.data.io import not_held_out
-    from identification.data.robot_recordings import load_robot_recording, recording_paths
+    from identification.data.robot_recordings import recording_paths
     from psdm_casadi.cli.checks import check_recordings_first, derive_model, stored_layout
     from psdm_casadi.model import load_model
 
@@ -151,8 +152,7 @@ def run(args) -> int:
     layout = recording_layout(args)  # --columns, --rate
     paths, configurations = _configurations(args.data, robot)
     args.validate = recording_paths(args.validate, robot)
-    recordings = [load_robot_recording(path, robot, args.topic, layout) for path in paths]  # joint side, timed
-    validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
+    recordings, validation, explicit = _loaded(args, robot, layout, paths)  # joint side, timed; --holdout cut
     recordings, validation, missing = _missing_torque(args, robot, paths, recordings, validation)
     check_recordings_first(robot, recordings, validation)  # units, joint order, motion: before deriving and fitting
     if args.friction == "lugre":
@@ -182,7 +182,7 @@ def run(args) -> int:
                                      counterbalance=not args.no_counterbalance, robot_source=args.robot,
                                      paths=paths, one_way=args.one_way_friction)  # fmt: skip
     fit, calibrated = result.fit, result.calibrated
-    held_out = not_held_out([str(p) for p in paths], args.validate)
+    held_out = not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
     warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys((*result.warnings, *missing, *held_out, *worse))]
     for warning in warnings:
@@ -190,6 +190,7 @@ def run(args) -> int:
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report = _validation(robot, model, result.start, validation, args.validate, calibrated)
     report["min_mass_eigenvalue"] = mass_eigenvalue
+    _store_held_out(args, report, calibrated, len(explicit))  # which part of each recording was held out
     for entry, comparison in zip(report["recordings"], result.file_check.each):  # the model identify replaces
         entry["rmse_prior_friction"] = _list(comparison.before)
     calibrated.document["validation"] = report
@@ -215,6 +216,33 @@ def run(args) -> int:
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
+
+
+def _loaded(args, robot, layout, paths) -> tuple:
+    """(training, validation recordings, the ``--validate`` paths), read joint side and timed. With ``--holdout``, each
+    training recording is cut on its raw samples (each part prepared on its own, as the model file says) and its last
+    part validates after the ``--validate`` recordings: ``args.validate`` then names every validation recording's
+    file, ``args.held_out`` the parts (``data.holdout.HeldOutPart``)."""
+    from identification.data.robot_recordings import load_robot_recording
+
+    recordings = [load_robot_recording(path, robot, args.topic, layout) for path in paths]
+    validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
+    explicit, args.held_out = list(args.validate), []
+    if args.holdout is not None:
+        recordings, held, args.held_out = cut_training(recordings, paths, args.holdout)
+        validation, args.validate = [*validation, *held], [*explicit, *map(str, paths)]
+    return recordings, validation, explicit
+
+
+def _store_held_out(args, report, calibrated, given: int) -> None:
+    """The held-out parts in the validation report (after the ``given`` ``--validate`` recordings) and in the model
+    file (``identification.holdout``), where validate and diagnose find them again."""
+    from identification.data.holdout import holdout_block
+
+    for entry, part in zip(report["recordings"][given:], args.held_out):
+        entry["held_out"] = part.to_dict()
+    if args.held_out:
+        calibrated.document["identification"]["holdout"] = holdout_block(args.held_out)
 
 
 def _missing_torque(args, robot, paths, recordings, validation) -> tuple:
@@ -248,12 +276,16 @@ def _missing_torque(args, robot, paths, recordings, validation) -> tuple:
 
 def _concrete_route(warning: str, args, paths) -> str:
     """A warning's suggested ``psdm diagnose`` command with this run's robot and recordings (and how they are
-    read: ``--columns``, ``--rate``) in it: the first training recording (diagnose takes one) and every held-out one."""
+    read: ``--columns``, ``--rate``) in it: the first training recording (diagnose takes one) and every held-out one
+    (``--holdout``: the same cut of the training recording)."""
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
-    validate = " ".join(map(str, args.validate)) if args.validate else "OTHER.csv"
+    parts = getattr(args, "held_out", None) or ()
+    given = args.validate[: len(args.validate) - len(parts)]  # the --validate recordings, without the held-out parts
+    validate = f" --validate {' '.join(map(str, given))}" if given else "" if parts else " --validate OTHER.csv"
+    holdout = f" --holdout {parts[0].fraction:g}" if parts else ""
     layout = "".join(f" --{key} {getattr(args, key)}" for key in ("columns", "rate") if getattr(args, key, None))
-    command = f"psdm diagnose {args.robot} --train {paths[0]} --validate {validate}{layout}"
+    command = f"psdm diagnose {args.robot} --train {paths[0]}{holdout}{validate}{layout}"
     return warning.replace(DIAGNOSE_COMMAND, command)
 
 
@@ -268,6 +300,7 @@ def _check_outputs(args):
     inputs += [("--data", path) for path in args.data] + [("--validate", path) for path in args.validate]
     check_not_input(args.out, "--out", inputs, example=f"{Path(args.out).stem}_model.json")
     check_suffix(args.out, "--out", (".json",), "one calibrated-model file (JSON)")
+    args.holdout = holdout_fraction(args)  # refused before any work too
     return output_file(args.out, "--out", args.overwrite)
 
 

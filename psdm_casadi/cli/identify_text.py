@@ -101,6 +101,16 @@ def _below_mean(entry, diagnose: str) -> list:
     return lines
 
 
+def _validation_title(entry) -> str:
+    """A validation recording's name; for ``--holdout``, which part of the training recording was held out."""
+    from identification.data.holdout import HeldOutPart
+
+    if not entry.get("held_out"):
+        return entry["recording"]
+    part = HeldOutPart.from_dict(entry["held_out"])
+    return f"{part.describe()}; its first {part.cut_sample} samples trained"
+
+
 def print_identify(args, robot, model, fit, report, calibrated, result, route=str) -> None:
     """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, drive
     columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording).
@@ -168,7 +178,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
     for entry in report["recordings"]:
-        print(f"\nvalidation on {entry['recording']} (RMSE [N m] per joint; R^2):")
+        print(f"\nvalidation on {_validation_title(entry)} (RMSE [N m] per joint; R^2):")
         print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
         for key, label in (
             ("rmse", "identified"),

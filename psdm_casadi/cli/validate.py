@@ -36,7 +36,13 @@ def register(subparsers) -> None:
         ),
     )
     p.add_argument("model", help="calibrated-model file (.json) written by 'psdm identify'")
-    p.add_argument("recordings", nargs="+", help="recordings (.csv, .npz, .mat, or ROS 2 bags) with joint torques")
+    p.add_argument(
+        "recordings",
+        nargs="*",
+        help="recordings (.csv, .npz, .mat, or ROS 2 bags) with joint torques. A model identified with --holdout "
+        "validates on the part of its training recording it held out: with no recordings given, on every such part; "
+        "a training recording given again (recognised by its content) stands for its held-out part",
+    )
     add_topic_argument(p)
     p.add_argument(
         "--plots",
@@ -71,6 +77,7 @@ def _run_validate(args) -> int:
     from identification.data.missing_torque import find_missing_torque, missing_torque_messages
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import read_calibrated_argument
+    from psdm_casadi.cli.holdout import validate_parts
 
     plots = None
     if args.plots is not None:  # refused before any work
@@ -90,8 +97,14 @@ def _run_validate(args) -> int:
     if plots is not None and grouped != list(args.recordings):  # one plot per recording, named after the folder
         names = [f"{Path(p).stem}.png" for p in grouped]
         plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
-    args.recordings = grouped
-    recordings = [load_robot_recording(path, robot, args.topic, layout) for path in args.recordings]
+    parts = validate_parts(
+        calibrated.document, grouped, lambda path: load_robot_recording(path, robot, args.topic, layout), args.model
+    )
+    args.recordings = [path for path, _, _ in parts]
+    if plots is not None and not grouped:  # the held-out parts the model stores: one plot each
+        names = [f"{Path(p).stem}.png" for p in args.recordings]
+        plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")
+    recordings = [recording for _, recording, _ in parts]
     recordings = [find_missing_torque(r) for r in recordings]  # a dead torque channel: that joint left out, named
     for message in missing_torque_messages(recordings, robot.joint_names, "validation"):
         warnings.append(message)
@@ -99,7 +112,7 @@ def _run_validate(args) -> int:
     for recording in recordings:  # in the robot's units, every joint moving (else its R^2 says nothing)
         check_validation_recording(robot, recording)
     rows = []
-    for path, recording in zip(args.recordings, recordings):
+    for (path, _, part), recording in zip(parts, recordings):
         stated, note = stated_payload(stated_configuration(path), calibrated.configurations, args.model)  # sidecar
         if note is not None:
             warnings.append(note)
@@ -109,7 +122,7 @@ def _run_validate(args) -> int:
         )
         own = model_columns(calibrated, model, prepared)  # the model's own error, allowed for in the load's
         load = new_payload(robot, prepared, predicted, name=str(path), own=own)  # a load the model does not have
-        rows.append({"recording": str(path), "rmse": _numbers(error), "r2": _numbers(r2),
+        rows.append({"recording": str(path), "rmse": _numbers(error), "r2": _numbers(r2), "held_out": part,
                      "prepared": prepared, "predicted": predicted, "payload": load,
                      "stated_payload_kg": None if stated is None else float(stated[0])})  # fmt: skip
     if predictions is not None:
@@ -125,7 +138,8 @@ def _run_validate(args) -> int:
                     "recordings": [_json_row(row) for row in rows]})  # fmt: skip
     else:
         for row in rows:
-            print(validation_table(row["recording"], robot.joint_names, row["rmse"], row["r2"]))
+            title = row["recording"] if row["held_out"] is None else row["held_out"].describe()
+            print(validation_table(title, robot.joint_names, row["rmse"], row["r2"]))
             if row["payload"] is not None:
                 print(f"  payload: {row['payload'].sentence()}")
         if predictions is not None:
@@ -147,7 +161,9 @@ def _shown(value, spec: str) -> str:
 def _json_row(row) -> dict:
     """A recording's entry of the JSON output: RMSE, R^2, and the payload it appears to carry (or null)."""
     load = row["payload"]
+    held = row.get("held_out")
     return {"recording": row["recording"], "rmse": row["rmse"], "r2": row["r2"],
+            "held_out": None if held is None else held.to_dict(),
             "stated_payload_kg": row["stated_payload_kg"],
             "payload": None if load is None else load.to_dict()}  # fmt: skip
 

@@ -208,12 +208,13 @@ def test_a_urdf_without_its_meshes_is_said_once_per_command(tmp_path, caplog):
 
 def test_diagnose_without_validate_says_why_and_how_to_have_one(tmp_path, capsys):
     """The shared TX40 is one recording: 'psdm diagnose MODEL --train FOLDER' met argparse's 'the following arguments
-    are required: --validate'. The refusal (exit 2) now says why a held-out recording is needed and how to make one."""
+    are required: --validate'. The refusal (exit 2) now says why a held-out recording is needed and how to have one
+    (``--holdout 0.3``: its last 30 %)."""
     train = tmp_path / "train.csv"
     train.write_text("t,q1,tau1\n0,0,0\n")
     assert main(["diagnose", "denso_vs6556g", "--train", str(train)]) == 2
     err = capsys.readouterr().err
-    assert "--validate is missing" in err and "not fitted on" in err and "first 70 % for --train" in err
+    assert "--validate is missing" in err and "not fitted on" in err and "--holdout 0.3" in err
 
 
 def test_identify_names_a_held_out_joint_predicted_worse_than_its_mean_and_the_route(denso, tmp_path, capsys):

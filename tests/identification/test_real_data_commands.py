@@ -1,11 +1,12 @@
-"""The command-line route docs/results/real-data.md prints for the shared TX40 (cut its one recording at 70 %, then
-identify and diagnose --apply on default settings) runs as printed and gives the numbers the page states."""
+"""The command-line route docs/results/real-data.md prints for the shared TX40 (its one recording, the last 30 % held
+out with ``--holdout 0.3``, then identify and diagnose --apply on default settings) runs as printed and gives the
+numbers the page states."""
 
 from __future__ import annotations
 
 import json
-import os
 import re
+import shlex
 
 import pytest
 
@@ -17,30 +18,43 @@ TX40_IDENTIFY = [1.708, 4.745, 0.9164, 0.6363, 4.715, 1.53]  # the page's table
 TX40_APPLIED = [1.711, 4.761, 0.9221, 0.6349, 1.813, 1.158]
 
 
-def _cut_as_the_page_says(tmp_path):
-    """Run the page's Python block in ``tmp_path`` with ../shared at this checkout's data root."""
-    block = re.search(r"## The same from the command line.*?```python\n(.*?)```", PAGE.read_text(), re.S).group(1)
-    here = os.getcwd()
-    try:
-        os.chdir(tmp_path)
-        exec(block.replace("../shared/datasets/", f"{DATASETS}/"), {})  # noqa: S102 - the page's own code
-    finally:
-        os.chdir(here)
+def _page_command(start: str, tmp_path) -> list:
+    """The page's command line that begins with ``start`` (its comment dropped), as ``main``'s argv: ../shared at this
+    checkout's data root, examples/ in this checkout, the outputs in ``tmp_path``."""
+    block = re.search(r"## The same from the command line.*?```\n(psdm .*?)```", PAGE.read_text(), re.S).group(1)
+    (line,) = [line for line in block.splitlines() if line.startswith(start)]
+    argv = shlex.split(line.split("#")[0])[1:]
+    out = []
+    for word in argv:
+        if word.startswith("../shared/datasets/"):
+            word = str(DATASETS / word.removeprefix("../shared/datasets/"))
+        elif word.startswith("examples/"):
+            word = str(ROOT / word)
+        elif word.endswith(".json"):
+            word = str(tmp_path / word)
+        out.append(word)
+    return out
 
 
-@pytest.mark.slow  # two consistent fits and a diagnosis of the TX40: about 30 s
+@pytest.mark.slow  # a consistent fit and a diagnosis with its refit of the TX40: about 25 s
 @pytest.mark.real_data
 def test_the_pages_tx40_commands_run_as_printed_and_give_its_numbers(tmp_path, capsys):
     if not (DATASETS / "staubli_tx40_figaroh").exists():
         pytest.skip("../shared/datasets/staubli_tx40_figaroh is absent")
-    _cut_as_the_page_says(tmp_path)
-    train, valid = tmp_path / "tx40_train", tmp_path / "tx40_valid"
-    robot, model, applied = str(ROOT / "examples" / "staubli_tx40.toml"), tmp_path / "tx40.json", tmp_path / "b.json"
-    assert main(["identify", robot, "--data", str(train), "--validate", str(valid), "--out", str(model)]) == 0
-    first = json.loads(model.read_text())["validation"]["recordings"][0]["rmse"]
+    identify = _page_command("psdm identify examples/staubli_tx40.toml", tmp_path)
+    assert "--holdout" in identify and "--validate" not in identify  # one recording, its last part held out
+    assert main(identify) == 0
+    document = json.loads((tmp_path / "tx40.json").read_text())
+    first = document["validation"]["recordings"][0]["rmse"]
     assert first == pytest.approx(TX40_IDENTIFY, rel=2e-3)
+    assert document["identification"]["holdout"]["recordings"][0]["cut_sample"] == 31499  # int(0.7 * 45000)
     capsys.readouterr()
-    argv = ["diagnose", str(model), "--train", str(train), "--validate", str(valid), "--apply", str(applied)]
-    assert main(argv) == 0
-    table = capsys.readouterr().out.split("validation RMSE after [N m] |")[1].splitlines()[0]
+    diagnose = _page_command("psdm diagnose tx40.json", tmp_path)
+    assert "--validate" not in diagnose  # the model's held-out part
+    assert main(diagnose) == 0
+    text = capsys.readouterr().out
+    table = text.split("validation RMSE after [N m] |")[1].splitlines()[0]
     assert [float(v) for v in table.strip(" |").split("|")] == pytest.approx(TX40_APPLIED, rel=2e-3)
+    assert "Held out: training: the first 31499 samples of" in text
+    applied = json.loads((tmp_path / "tx40_2.json").read_text())  # the refit held the same part out: stored again
+    assert applied["identification"]["holdout"] == document["identification"]["holdout"]

@@ -1,0 +1,187 @@
+"""The held-out part of a recording: ``--holdout FRACTION`` cuts the last part of a one-log recording off.
+
+A shared real dataset is often one recording. Validation needs motion the model was not fitted to, so the last
+``FRACTION`` of each training recording is held out: the first ``n_train = int(round(1 - FRACTION, 12) * n)`` samples
+train, the rest validate (in time order; at a steady sample rate the last ``FRACTION`` of the time, the cut the
+benchmarks and the documentation's hand-cut files make). The cut is made on the raw, joint-side recording, before any
+preparation: each part is filtered and differentiated on its own (each with the edges its preparation trims), so no
+held-out sample reaches a training sample through the low-pass filter or the differences, and both parts are prepared
+as the model file says.
+
+A :class:`HeldOutPart` records which recording was cut where: its path, the content hash of the whole recording (its
+bytes; a folder's files by relative name, then contents), its samples and the cut's sample and time. The model file
+stores them (``identification.holdout``, :func:`holdout_block`), so ``psdm validate MODEL`` and ``psdm diagnose MODEL
+--train REC`` reuse the same held-out part (:func:`reload_part`), and a recording changed since (another hash) is
+refused rather than judged on other samples.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from identification.data.recording import MIN_SAMPLES
+from psdm_casadi.errors import ModelFileError, ParameterError, RecordingError
+
+__all__ = ["HOLDOUT_MAX", "HeldOutPart", "check_holdout_fraction", "cut_recording", "holdout_block",
+           "recording_digest", "reload_part", "stored_parts", "train_samples"]  # fmt: skip
+
+#: The largest held-out fraction: at least a tenth of a recording trains.
+HOLDOUT_MAX = 0.9
+BLOCK = 1 << 20
+
+
+def check_holdout_fraction(fraction, option: str = "--holdout") -> float:
+    """``fraction`` as a float in (0, :data:`HOLDOUT_MAX`), else a ``ParameterError`` naming ``option`` and the fix."""
+    try:
+        value = float(fraction)
+    except (TypeError, ValueError):
+        value = math.nan
+    if not (math.isfinite(value) and 0.0 < value < HOLDOUT_MAX):
+        raise ParameterError(
+            f"{option} must be the share of each recording held out for validation, between 0 and {HOLDOUT_MAX:g} "
+            f"(exclusive); got {fraction!r}. Use e.g. {option} 0.3: the last 30 % validates, the first 70 % trains."
+        )
+    return value
+
+
+def train_samples(n_samples: int, fraction: float) -> int:
+    """The training samples of a recording of ``n_samples`` with ``fraction`` held out (module docstring)."""
+    return int(round(1.0 - fraction, 12) * n_samples)
+
+
+def recording_digest(path) -> str:
+    """SHA-256 (hex) of a recording file, or of a folder's files (a split recording, a ROS 2 bag): names relative to
+    it, then contents."""
+    path = Path(path)
+    digest = hashlib.sha256()
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    for member in files:
+        if path.is_dir():
+            digest.update(member.relative_to(path).as_posix().encode() + b"\0")
+        with open(member, "rb") as handle:
+            while block := handle.read(BLOCK):
+                digest.update(block)
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class HeldOutPart:
+    """Where a recording was cut: samples ``cut_sample`` .. ``n_samples - 1`` (from ``cut_time_s``) are held out.
+
+    ``path`` is the recording's absolute path, ``sha256`` the digest of the whole recording
+    (:func:`recording_digest`), ``fraction`` the share asked for."""
+
+    path: str
+    sha256: str
+    fraction: float
+    n_samples: int
+    cut_sample: int
+    cut_time_s: float
+
+    @property
+    def name(self) -> str:
+        return Path(self.path).name
+
+    def describe(self) -> str:
+        """``"the last 30 % of run.csv (samples 700-999 of 1000, t >= 7 s), held out"``."""
+        return (f"the last {100 * self.fraction:g} % of {self.name} (samples {self.cut_sample}-{self.n_samples - 1} "
+                f"of {self.n_samples}, t >= {self.cut_time_s:.6g} s), held out")  # fmt: skip
+
+    def to_dict(self) -> dict:
+        return {"path": self.path, "name": self.name, "sha256": self.sha256, "fraction": self.fraction,
+                "n_samples": self.n_samples, "cut_sample": self.cut_sample, "cut_time_s": self.cut_time_s}  # fmt: skip
+
+    @classmethod
+    def from_dict(cls, entry, where: str = "identification.holdout.recordings") -> HeldOutPart:
+        """The part of a model file's entry; a malformed one raises ``ModelFileError`` naming ``where``."""
+        try:
+            part = cls(str(entry["path"]), str(entry["sha256"]), float(entry["fraction"]), int(entry["n_samples"]),
+                       int(entry["cut_sample"]), float(entry["cut_time_s"]))  # fmt: skip
+        except (KeyError, TypeError, ValueError):
+            part = None
+        if part is None or not (MIN_SAMPLES <= part.cut_sample <= part.n_samples - MIN_SAMPLES):
+            raise ModelFileError(
+                f"{where} must hold path, sha256, fraction, n_samples and cut_sample (at least {MIN_SAMPLES} samples "
+                f"on each side) and cut_time_s; got {str(entry)[:120]}. Re-run 'psdm identify --holdout'."
+            )
+        return part
+
+    def matches(self, path) -> bool:
+        """Whether ``path`` holds this recording: the same content hash."""
+        return Path(path).exists() and recording_digest(path) == self.sha256
+
+
+def cut_recording(recording, fraction: float, path) -> tuple:
+    """``(training part, held-out part, HeldOutPart)`` of a raw recording read from ``path`` (module docstring).
+
+    Raises
+    ------
+    RecordingError
+        When a part would hold fewer than ``MIN_SAMPLES`` samples (naming the recording and the fix).
+    """
+    n = recording.n_samples
+    cut = train_samples(n, fraction)
+    if min(cut, n - cut) < MIN_SAMPLES:
+        raise RecordingError(
+            f"--holdout {fraction:g} leaves {cut} training and {n - cut} held-out samples of {path} ({n} samples); "
+            f"each part needs at least {MIN_SAMPLES}. Use a longer recording or a fraction nearer 0.5."
+        )
+    part = HeldOutPart(os.path.abspath(path), recording_digest(path), float(fraction), n, cut, float(recording.t[cut]))
+    return recording.slice(0, cut), recording.slice(cut, None), part
+
+
+def holdout_block(parts) -> dict:
+    """The model file's ``identification.holdout`` block of the held-out parts (one per training recording cut)."""
+    parts = list(parts)
+    return {"fraction": parts[0].fraction if parts else None, "recordings": [p.to_dict() for p in parts]}
+
+
+def stored_parts(document, name: str = "model file") -> tuple:
+    """The :class:`HeldOutPart` of each recording a model file's identification held out (empty: none, or a file
+    written without ``--holdout``)."""
+    block = (document.get("identification") or {}).get("holdout")
+    if block is None:
+        return ()
+    entries = block.get("recordings") if isinstance(block, dict) else None
+    if not isinstance(entries, list):
+        raise ModelFileError(f"{name}: identification.holdout must be an object with a list 'recordings'; got "
+                             f"{str(block)[:80]}. Re-run 'psdm identify --holdout'.")  # fmt: skip
+    return tuple(HeldOutPart.from_dict(e, f"{name}: identification.holdout.recordings[{k}]")
+                 for k, e in enumerate(entries))  # fmt: skip
+
+
+def reload_part(part: HeldOutPart, load, path=None) -> tuple:
+    """``(training part, held-out part)`` of the recording a model file cut, read again with ``load(path)`` from
+    ``path`` (default the stored one), after checking that its content is the one the model was identified on.
+
+    Raises
+    ------
+    RecordingError
+        When the recording is gone, or changed since (another content hash, or another sample count).
+    """
+    path = part.path if path is None else str(path)
+    if not Path(path).exists():
+        raise RecordingError(
+            f"{path}: the recording whose last {100 * part.fraction:g} % the model held out is not there any more. "
+            f"Pass it again (psdm validate MODEL {part.name}; it is recognised by its content), or pass other "
+            "recordings to validate on."
+        )
+    digest = recording_digest(path)
+    if digest != part.sha256:
+        raise RecordingError(
+            f"{path} changed since the model was identified (its content hash is {digest[:12]}..., the model file "
+            f"holds {part.sha256[:12]}...): its held-out part ({part.describe()}) is not the data the model was judged "
+            "on. Restore the recording, or identify again on it (psdm identify ... --holdout), or validate on it "
+            "as a new recording under another name."
+        )
+    recording = load(path)
+    if recording.n_samples != part.n_samples:
+        raise RecordingError(
+            f"{path} reads as {recording.n_samples} samples, but the model cut it at {part.n_samples} (same content, "
+            "read with other options?). Read it as identify did (the same --columns, --rate, --topic)."
+        )
+    return recording.slice(0, part.cut_sample), recording.slice(part.cut_sample, None)

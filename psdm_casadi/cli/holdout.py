@@ -1,0 +1,97 @@
+"""``--holdout FRACTION``: the held-out part of one-log recordings, for ``identify``, ``validate`` and ``diagnose``.
+
+``identify --holdout 0.3`` cuts the last 30 % off each training recording before any preparation
+(``identification.data.holdout``), validates on those parts as on ``--validate`` recordings and stores where it cut in
+the model file. ``validate MODEL`` (no recordings, or the training recording again) and ``diagnose MODEL --train REC``
+(no ``--validate``) then reuse the stored parts: a recording is recognised by its content hash, and one changed since
+identify is refused. ``diagnose ROBOT --train REC --holdout 0.3`` cuts REC itself.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+
+from identification.data.holdout import check_holdout_fraction, cut_recording, reload_part, stored_parts
+from psdm_casadi.errors import ParameterError
+
+__all__ = ["add_holdout_argument", "cut_training", "diagnose_parts", "holdout_fraction", "matching_part",
+           "validate_parts"]  # fmt: skip
+
+HOLDOUT_HELP = {
+    "identify": "hold out the last FRACTION of each --data recording (e.g. 0.3; 0 < FRACTION < 0.9): the first part "
+    "trains, the rest validates as a --validate recording does (validation report, the column checks and the "
+    "counterbalance's judges; with --validate too, a choice must hold on each). Cut on the raw recording, before the "
+    "filter, so no held-out sample reaches the fit; stored in the model file, so 'psdm validate MODEL' and 'psdm "
+    "diagnose MODEL --train REC' reuse the same held-out part",
+    "diagnose": "hold out the last FRACTION of --train (e.g. 0.3; 0 < FRACTION < 0.9) as a validation recording, cut "
+    "before the filter (a model identified with --holdout needs none: its stored cut of its training recording is "
+    "used)",
+}
+
+
+def add_holdout_argument(parser, command: str) -> None:
+    parser.add_argument("--holdout", default=None, metavar="FRACTION", help=HOLDOUT_HELP[command])
+
+
+def holdout_fraction(args) -> float | None:
+    """The checked ``--holdout`` (None when not given); a bad one exits 2 naming the option and the fix."""
+    return None if args.holdout is None else check_holdout_fraction(args.holdout)
+
+
+def cut_training(recordings, paths, fraction: float) -> tuple:
+    """``(training parts, held-out parts, HeldOutPart per recording)`` of ``identify --holdout``."""
+    cuts = [cut_recording(recording, fraction, path) for recording, path in zip(recordings, paths)]
+    return [c[0] for c in cuts], [c[1] for c in cuts], [c[2] for c in cuts]
+
+
+def matching_part(parts, path):
+    """The stored part of the recording at ``path`` (the same path, or the same content under another), else None.
+    The same path with other content is returned too: ``reload_part`` then refuses it as changed since identify."""
+    where = os.path.abspath(path)
+    return next((p for p in parts if p.path == where), None) or next((p for p in parts if p.matches(path)), None)
+
+
+def validate_parts(document, paths, load, name: str) -> list:
+    """``(path, recording, HeldOutPart or None)`` of ``psdm validate``: each given recording, the held-out part of
+    one the model cut (recognised by its content); with none given, every held-out part the model stores."""
+    parts = stored_parts(document, name)
+    if not paths:
+        if not parts:
+            raise ParameterError(
+                f"validate {name}: no recordings given, and the model stores no held-out part (it was identified "
+                "without --holdout). Pass the recordings to validate on: psdm validate MODEL.json B.csv."
+            )
+        return [(p.path, reload_part(p, load)[1], p) for p in parts]
+    out = []
+    for path in paths:
+        part = matching_part(parts, path)
+        out.append((path, load(path) if part is None else reload_part(part, load, path)[1], part))
+        if part is not None:
+            print(f"psdm validate: note: {path}: {part.describe()} by 'psdm identify --holdout'; validated on that "
+                  "part only", file=sys.stderr)  # fmt: skip
+    return out
+
+
+def diagnose_parts(train_path, train, document, fraction, load, explicit: bool, name: str) -> tuple:
+    """``(training recording, [(path, held-out recording, HeldOutPart)])`` of ``psdm diagnose``: ``--train`` cut where
+    the model file cut it (or at ``--holdout``), and, without ``--validate`` (``explicit`` False), the other held-out
+    parts the model stores."""
+    parts = stored_parts(document, name) if document is not None else ()
+    own = matching_part(parts, train_path)
+    held = []
+    if own is not None:
+        if fraction is not None and abs(fraction - own.fraction) > 1e-12:
+            raise ParameterError(
+                f"--holdout {fraction:g}: {name} was identified on the first {100 * (1 - own.fraction):g} % of "
+                f"{train_path} and held out {own.describe()}; another cut would train on samples it validated on, "
+                "or validate on samples it trained on. Drop --holdout: the model's own cut is used."
+            )
+        train, part = reload_part(own, lambda _: train, train_path)
+        held.append((train_path, part, own))
+    elif fraction is not None:
+        train, part, cut = cut_recording(train, fraction, train_path)
+        held.append((train_path, part, cut))
+    if not explicit:
+        held += [(p.path, reload_part(p, load)[1], p) for p in parts if p is not own]
+    return train, held
