@@ -23,11 +23,13 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from identification.data.filter_choice import EDGE_PERIODS, choose_filter, edge_samples
 from identification.data.recording import MIN_SAMPLES
 from psdm_casadi.errors import ModelFileError, ParameterError, RecordingError
 
-__all__ = ["HOLDOUT_MAX", "HeldOutPart", "check_holdout_fraction", "cut_recording", "holdout_block",
-           "recording_digest", "reload_part", "stored_parts", "train_samples"]  # fmt: skip
+__all__ = ["HOLDOUT_MAX", "HeldOutPart", "check_holdout_fraction", "check_parts_long_enough", "cut_recording",
+           "holdout_block", "recording_digest", "reload_part", "shortest_part", "stored_parts",
+           "train_samples"]  # fmt: skip
 
 #: The largest held-out fraction: at least a tenth of a recording trains.
 HOLDOUT_MAX = 0.9
@@ -115,21 +117,53 @@ class HeldOutPart:
         return Path(path).exists() and recording_digest(path) == self.sha256
 
 
-def cut_recording(recording, fraction: float, path) -> tuple:
+def shortest_part(recording, cutoff_hz: float | None = None) -> int:
+    """The fewest samples a part of ``recording`` may hold and still be prepared: filtered at ``cutoff_hz`` (default
+    identify's choice for its rate), ``EDGE_PERIODS`` filter periods trimmed at each end, three samples left."""
+    rate = (recording.n_samples - 1) / max(float(recording.t[-1] - recording.t[0]), 1e-12)
+    cutoff, step = choose_filter(rate, cutoff_hz)
+    edge = edge_samples(rate, cutoff, EDGE_PERIODS) + 1  # a part's rate may round its trim up by one sample
+    return max(MIN_SAMPLES, 2 * edge + 2 * step + 1)
+
+
+def check_parts_long_enough(recording, fraction: float, path, cutoff_hz: float | None = None) -> None:
+    """Refuse a cut that leaves a part too short to prepare, before any work: a ``RecordingError`` naming the part,
+    its length, the recording and the fractions that would do (or, for a recording too short to cut at all, the
+    routes that use it whole)."""
+    n = recording.n_samples
+    cut = train_samples(n, fraction)
+    shortest = shortest_part(recording, cutoff_hz)
+    if min(cut, n - cut) >= shortest:
+        return
+    name, seconds = Path(path).name, n / max(n - 1, 1) * float(recording.t[-1] - recording.t[0])
+    short, length = ("held-out", n - cut) if n - cut < cut else ("training", cut)
+    need = shortest * seconds / n
+    if n >= 2 * shortest + 2:
+        low, high = math.ceil(100 * shortest / n) / 100, math.floor(100 * (1 - (shortest + 1) / n)) / 100
+        fix = (f"Use --holdout between {low:g} and {high:g} for it, or pass it with --validate instead of --data "
+               "(it then validates whole)")  # fmt: skip
+    else:
+        fix = (f"No --holdout leaves two such parts of its {seconds:.3g} s: pass it with --validate instead of "
+               "--data (it then validates whole), or leave it out")  # fmt: skip
+    raise RecordingError(
+        f"--holdout {fraction:g} leaves {length * seconds / n:.3g} s of {name} ({seconds:.3g} s) as its {short} part "
+        f"({length} of {n} samples), too short to prepare: each part needs at least {need:.3g} s ({shortest} samples) "
+        f"to be low-pass filtered and have its first and last {EDGE_PERIODS} filter periods trimmed. {fix}; "
+        "--holdout cuts every --data recording."
+    )
+
+
+def cut_recording(recording, fraction: float, path, cutoff_hz: float | None = None) -> tuple:
     """``(training part, held-out part, HeldOutPart)`` of a raw recording read from ``path`` (module docstring).
 
     Raises
     ------
     RecordingError
-        When a part would hold fewer than ``MIN_SAMPLES`` samples (naming the recording and the fix).
+        When a part would be too short to prepare at ``cutoff_hz`` (``check_parts_long_enough``).
     """
+    check_parts_long_enough(recording, fraction, path, cutoff_hz)
     n = recording.n_samples
     cut = train_samples(n, fraction)
-    if min(cut, n - cut) < MIN_SAMPLES:
-        raise RecordingError(
-            f"--holdout {fraction:g} leaves {cut} training and {n - cut} held-out samples of {path} ({n} samples); "
-            f"each part needs at least {MIN_SAMPLES}. Use a longer recording or a fraction nearer 0.5."
-        )
     part = HeldOutPart(os.path.abspath(path), recording_digest(path), float(fraction), n, cut, float(recording.t[cut]))
     return recording.slice(0, cut), recording.slice(cut, None), part
 

@@ -39,9 +39,10 @@ def holdout_fraction(args) -> float | None:
     return None if args.holdout is None else check_holdout_fraction(args.holdout)
 
 
-def cut_training(recordings, paths, fraction: float) -> tuple:
-    """``(training parts, held-out parts, HeldOutPart per recording)`` of ``identify --holdout``."""
-    cuts = [cut_recording(recording, fraction, path) for recording, path in zip(recordings, paths)]
+def cut_training(recordings, paths, fraction: float, cutoff_hz: float | None = None) -> tuple:
+    """``(training parts, held-out parts, HeldOutPart per recording)`` of ``identify --holdout``; a part too short to
+    prepare at ``cutoff_hz`` is refused before any fit."""
+    cuts = [cut_recording(recording, fraction, path, cutoff_hz) for recording, path in zip(recordings, paths)]
     return [c[0] for c in cuts], [c[1] for c in cuts], [c[2] for c in cuts]
 
 

@@ -229,7 +229,7 @@ def _loaded(args, robot, layout, paths) -> tuple:
     validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
     explicit, args.held_out = list(args.validate), []
     if args.holdout is not None:
-        recordings, held, args.held_out = cut_training(recordings, paths, args.holdout)
+        recordings, held, args.held_out = cut_training(recordings, paths, args.holdout, args.cutoff)
         validation, args.validate = [*validation, *held], [*explicit, *map(str, paths)]
     return recordings, validation, explicit
 

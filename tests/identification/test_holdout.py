@@ -63,7 +63,7 @@ def test_the_cut_keeps_the_first_samples_for_training_as_the_documentation_cut_t
     assert (train.n_samples, held.n_samples, part.cut_sample, part.n_samples) == (700, 300, 700, 1000)
     assert part.cut_time_s == 7.0 and np.array_equal(np.concatenate([train.tau, held.tau]), recording.tau)
     assert part.sha256 == hashlib.sha256(open(__file__, "rb").read()).hexdigest()
-    with pytest.raises(RecordingError, match="each part needs at least 3"):
+    with pytest.raises(RecordingError, match="each part needs at least"):
         cut_recording(recording.slice(0, 5), 0.3, __file__)
 
 
