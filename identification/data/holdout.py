@@ -188,9 +188,17 @@ def stored_parts(document, name: str = "model file") -> tuple:
                  for k, e in enumerate(entries))  # fmt: skip
 
 
-def reload_part(part: HeldOutPart, load, path=None) -> tuple:
+#: How each command is given a moved recording again, and other recordings to validate on.
+PASS_AGAIN = {
+    "validate": ("psdm validate MODEL NEW/PATH/{name}", "psdm validate MODEL B.csv"),
+    "diagnose": ("psdm diagnose MODEL --train NEW/PATH/{name}", "--validate B.csv"),
+}
+
+
+def reload_part(part: HeldOutPart, load, path=None, command: str = "validate") -> tuple:
     """``(training part, held-out part)`` of the recording a model file cut, read again with ``load(path)`` from
     ``path`` (default the stored one), after checking that its content is the one the model was identified on.
+    ``command`` (``validate`` or ``diagnose``) words the fix for a recording that is gone.
 
     Raises
     ------
@@ -199,10 +207,11 @@ def reload_part(part: HeldOutPart, load, path=None) -> tuple:
     """
     path = part.path if path is None else str(path)
     if not Path(path).exists():
+        again, other = (form.format(name=part.name) for form in PASS_AGAIN[command])
         raise RecordingError(
-            f"{path}: the recording whose last {100 * part.fraction:g} % the model held out is not there any more. "
-            f"Pass it again (psdm validate MODEL {part.name}; it is recognised by its content), or pass other "
-            "recordings to validate on."
+            f"{path}: the recording whose last {100 * part.fraction:g} % the model held out is not there any more "
+            f"(moved or renamed since identify?). Pass it from where it is now ({again}; it is recognised by its "
+            f"content, whatever its name), or validate on other recordings ({other})."
         )
     digest = recording_digest(path)
     if digest != part.sha256:

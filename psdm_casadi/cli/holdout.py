@@ -13,10 +13,10 @@ import os
 import sys
 
 from identification.data.holdout import check_holdout_fraction, cut_recording, reload_part, stored_parts
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["add_holdout_argument", "cut_training", "diagnose_parts", "holdout_fraction", "matching_part",
-           "validate_parts"]  # fmt: skip
+           "other_part", "validate_parts"]  # fmt: skip
 
 HOLDOUT_HELP = {
     "identify": "hold out the last FRACTION of each --data recording (e.g. 0.3; 0 < FRACTION < 0.9): the first part "
@@ -71,6 +71,12 @@ def validate_parts(document, paths, load, name: str) -> list:
         if part is not None:
             print(f"psdm validate: note: {path}: {part.describe()} by 'psdm identify --holdout'; validated on that "
                   "part only", file=sys.stderr)  # fmt: skip
+        elif parts:
+            print(f"psdm validate: note: {path} is none of the recordings {name} held out a part of (its content "
+                  f"matches none of {', '.join(p.name for p in parts)}): validated on all its {out[-1][1].n_samples} "
+                  "samples. If it is one of them edited or written again since identify, the model trained on its "
+                  f"first {100 * (1 - parts[0].fraction):g} %: validate on the original, or identify again.",
+                  file=sys.stderr)  # fmt: skip
     return out
 
 
@@ -85,14 +91,26 @@ def diagnose_parts(train_path, train, document, fraction, load, explicit: bool, 
         if fraction is not None and abs(fraction - own.fraction) > 1e-12:
             raise ParameterError(
                 f"--holdout {fraction:g}: {name} was identified on the first {100 * (1 - own.fraction):g} % of "
-                f"{train_path} and held out {own.describe()}; another cut would train on samples it validated on, "
-                "or validate on samples it trained on. Drop --holdout: the model's own cut is used."
+                f"{train_path}; {own.describe()}: another cut would train on samples it validated on, or validate "
+                "on samples it trained on. Drop --holdout: the model's own cut is used."
             )
-        train, part = reload_part(own, lambda _: train, train_path)
+        train, part = reload_part(own, lambda _: train, train_path, "diagnose")
         held.append((train_path, part, own))
     elif fraction is not None:
         train, part, cut = cut_recording(train, fraction, train_path)
         held.append((train_path, part, cut))
     if not explicit:
-        held += [(p.path, reload_part(p, load)[1], p) for p in parts if p is not own]
+        held += [(p.path, other_part(p, load, train_path, name), p) for p in parts if p is not own]
     return train, held
+
+
+def other_part(part, load, train_path, name: str):
+    """The held-out part of a recording the model cut other than ``--train``; when it is gone, the message says too
+    that ``--train`` is not it (its content matches none the model cut: moved and edited, or another recording)."""
+    try:
+        return reload_part(part, load, command="diagnose")[1]
+    except RecordingError as exc:
+        raise RecordingError(
+            f"--train {train_path} is not the recording {name} held out a part of ({part.name}: its content differs), "
+            f"so it trains whole and the validation is that part of {part.name}. {exc}"
+        ) from None

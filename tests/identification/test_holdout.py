@@ -184,7 +184,9 @@ def test_diagnose_of_the_model_without_validate_uses_its_held_out_part(files, ca
                                 "validation: the last 30 % of whole.csv (samples 1750-2500 of 2501, t >= 7 s), "
                                 "held out"]  # fmt: skip
     assert main(["diagnose", model, "--train", str(files / "whole.csv"), "--holdout", "0.2"]) == 2
-    assert "Drop --holdout" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "Drop --holdout" in err and err.count("held out") == 1  # was 'held out the last 30 % ..., held out'
+    assert "of 2501, t >= 7 s), held out: another cut" in err
 
 
 def test_diagnose_of_the_robot_with_holdout_is_the_hand_cut_diagnosis(files, capsys):
@@ -236,3 +238,33 @@ def test_a_malformed_holdout_block_is_refused_when_the_model_is_read(files, tmp_
     capsys.readouterr()
     assert main(["validate", str(model)]) == 2
     assert "identification.holdout.recordings[0] must hold" in capsys.readouterr().err
+
+
+def test_a_recording_moved_or_edited_since_identify_is_named_with_the_command_that_fixes_it(files, tmp_path, capsys):
+    """A new user moves the recording after identify, or passes an edited copy under another name. validate says
+    that it judged the copy whole (it cannot tell an edited copy from another recording), diagnose that --train is
+    not the recording the model cut, and each names its own command to pass the moved recording again."""
+    copy = tmp_path / "renamed.csv"
+    recording = load_recording(files / "whole.csv", 6)
+    tau = recording.tau.copy()
+    tau[CUT + 10, 0] += 1.0
+    save_recording(recording.with_tau(tau), copy)
+    document = json.loads((files / "model.json").read_text())
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps(document))
+    capsys.readouterr()
+    assert main(["validate", str(model), str(copy), "--json"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["recordings"][0]["held_out"] is None  # judged whole
+    assert f"{copy} is none of the recordings {model} held out a part of" in captured.err
+    assert "validated on all its 2501 samples" in captured.err and "trained on its first 70 %" in captured.err
+    document["identification"]["holdout"]["recordings"][0]["path"] = str(tmp_path / "gone.csv")
+    model.write_text(json.dumps(document))
+    assert main(["validate", str(model)]) == 2
+    err = capsys.readouterr().err
+    assert "not there any more" in err and "psdm validate MODEL NEW/PATH/gone.csv" in err
+    assert main(["diagnose", str(model), "--train", str(copy), *QUICK]) == 2
+    err = capsys.readouterr().err
+    assert f"--train {copy} is not the recording {model} held out a part of (gone.csv" in err
+    assert "psdm diagnose MODEL --train NEW/PATH/gone.csv" in err and "psdm validate" not in err
+    assert "Traceback" not in err
