@@ -102,6 +102,8 @@ def register(subparsers) -> None:
     )
     p.add_argument(
         "--force",
+        "--overwrite",  # the name every other command gives it
+        dest="force",
         action="store_true",
         help="replace the files an earlier 'psdm codegen' wrote in --out (listed in its .psdm-manifest.json); a "
         "folder holding anything else, or a file of an output's name that psdm did not write, is refused",

@@ -18,7 +18,9 @@ def register(subparsers) -> None:
     )
     add_robot_argument(parser)
     parser.add_argument("-o", "--output", help="write the model to this .npz file (.npz is appended when missing)")
-    parser.add_argument("--force", action="store_true", help="overwrite an existing output file")
+    parser.add_argument(
+        "--force", "--overwrite", dest="force", action="store_true", help="overwrite an existing output file"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the random checks (default 0)")
     parser.add_argument(
         "--form",

@@ -111,3 +111,17 @@ def test_codegen_forms_of_a_saved_model(tmp_path, capsys, denso, denso_model):
     assert code == 2 and "--robot ROBOT_FILE" in capsys.readouterr().err
     code = main(["codegen", str(DENSO_FILE), "--out", str(tmp_path / "twice"), "--robot", str(DENSO_FILE)])
     assert code == 2 and "Drop --robot" in capsys.readouterr().err
+
+
+def test_codegen_and_derive_take_overwrite_as_every_other_command_does(tmp_path, capsys):
+    """A user who ran 'psdm identify --overwrite' types --overwrite for codegen too: it is --force (argparse
+    refused it as an unrecognized argument); a file psdm did not write is still refused, a model it wrote replaced."""
+    (tmp_path / "mine.c").write_text("int main(void) { return 0; }")
+    assert main(["codegen", str(DENSO_FILE), "--out", str(tmp_path), "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert "unrecognized arguments" not in err and "mine.c" in err
+    assert (tmp_path / "mine.c").read_text().startswith("int main")
+    out = tmp_path / "denso.npz"
+    assert main(["derive", str(DENSO_FILE), "-o", str(out), "--json"]) == 0
+    assert main(["derive", str(DENSO_FILE), "-o", str(out), "--json"]) == 2  # refused without the option
+    assert main(["derive", str(DENSO_FILE), "-o", str(out), "--overwrite", "--json"]) == 0
