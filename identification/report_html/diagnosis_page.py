@@ -52,8 +52,9 @@ def _summary(page: Page, report) -> None:
     if any(c.kept for c in report.confounding):
         page.say("Some findings are partly absorbed by the nominal parameters (Confounding below).", "warn")
     if report.model_file_rmse:
-        page.say("Next: identify the model again with the findings: psdm diagnose MODEL.json --train ... "
-                 "--validate ... --apply NEW.json (it keeps a finding only if no joint gets worse).")  # fmt: skip
+        validate = "" if report.held_out else "--validate ... "  # a model's stored held-out part needs none
+        page.say(f"Next: identify the model again with the findings: psdm diagnose MODEL.json --train ... {validate}"
+                 "--apply NEW.json (it keeps a finding only if no joint gets worse).")  # fmt: skip
     else:
         page.say("Next: identify a calibrated model (psdm identify), then apply the findings to it with "
                  "psdm diagnose MODEL.json ... --apply NEW.json.")  # fmt: skip

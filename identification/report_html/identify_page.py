@@ -94,6 +94,9 @@ def _summary(page: Page, document: dict) -> None:
         first = warnings[0].split(". ")[0]
         page.say(f"Plausibility: {len(warnings)} warning{'s' if len(warnings) != 1 else ''} stored with the fit "
                  f"(section below); the first: {first}.", "warn")  # fmt: skip
+    elif _poorly_predicted(document, document["robot"]["joint_names"]):
+        page.say("Plausibility: no warning stored, but a validated joint is predicted worse than by its mean torque "
+                 "(below).", "warn")  # fmt: skip
     else:
         page.say("Plausibility: no warning (friction, masses and each joint's fit within the checks).", "good")
     for entry in (document.get("validation") or {}).get("recordings") or []:
@@ -109,7 +112,7 @@ def _number(value) -> str:
 def _comparison(entry: dict, names) -> tuple:
     """(sentence, tone): the validation RMSE against the robot file's and the unconstrained fit's, per joint."""
     ours = np.asarray(entry["rmse"], dtype=float)
-    name = Path(entry["recording"]).name
+    name = _recording_name(entry)
     if "rmse_prior" not in entry:
         return (
             f"Validation on {name}: RMSE summed over joints {ours.sum():.4g} N m (no robot-file prior to compare).",
@@ -127,14 +130,37 @@ def _comparison(entry: dict, names) -> tuple:
     return text, "good" if better == len(ours) and not worse else "warn"
 
 
+def _recording_name(entry: dict) -> str:
+    """A validation recording's name; for one ``--holdout`` cut, which part of it (``the held-out last 30 % of
+    run.csv``): the page must not read as validated on the training recording."""
+    name, part = Path(entry["recording"]).name, entry.get("held_out")
+    return f"the held-out last {100 * float(part['fraction']):g} % of {name}" if part else name
+
+
+def _poorly_predicted(document: dict, names) -> list:
+    """``"joint_5 on NAME (R^2 -12)"`` for each validated joint predicted worse than by its mean torque."""
+    out = []
+    for entry in (document.get("validation") or {}).get("recordings") or []:
+        r2 = entry.get("r2") or []
+        out += [f"{names[j]} on {_recording_name(entry)} (R^2 {v:.3g})" for j, v in enumerate(r2)
+                if v is not None and v < 0]  # fmt: skip
+    return out
+
+
 def _next_step(document: dict) -> str:
-    """What to do next, from what the page found."""
+    """What to do next, from what the page found (the advice identify prints, not a contrary one)."""
     if not document.get("standard", {}).get("consistent", True):
         return "Next: record a better-exciting trajectory and identify again."
     if document.get("warnings"):
         return "Next: act on the warnings (each names its check and, where one helps, the command to run)."
     if not (document.get("validation") or {}).get("recordings"):
         return "Next: validate on a held-out recording (psdm validate MODEL.json OTHER.csv)."
+    poor = _poorly_predicted(document, document["robot"]["joint_names"])
+    if poor:
+        return (f"Next: diagnose it before using it: {', '.join(poor)} predicted worse than by the mean torque, a "
+                "torque the model lacks (a coupling, a spring, a load); psdm diagnose MODEL.json --train "
+                "TRAIN.csv --apply NEW.json names it and adds it (identify printed the command with this run's "
+                "files).")  # fmt: skip
     return "Next: use it: psdm codegen MODEL.json (C), psdm export-urdf or psdm export-mjcf."
 
 

@@ -268,3 +268,11 @@ def test_a_recording_moved_or_edited_since_identify_is_named_with_the_command_th
     assert f"--train {copy} is not the recording {model} held out a part of (gone.csv" in err
     assert "psdm diagnose MODEL --train NEW/PATH/gone.csv" in err and "psdm validate" not in err
     assert "Traceback" not in err
+
+
+def test_the_identify_page_names_the_held_out_part(files):
+    """identify's page said 'Validation on whole.csv' (the training recording, to a reader)."""
+    from identification.report_html.identify_page import identify_page
+
+    page = identify_page(json.loads((files / "model.json").read_text())).to_html()
+    assert "Validation on the held-out last 30 % of whole.csv:" in page and "Validation on whole.csv" not in page

@@ -228,13 +228,18 @@ def test_identify_names_a_held_out_joint_predicted_worse_than_its_mean_and_the_r
     save_recording(rigid_recording(denso, []), train)
     save_recording(rigid_recording(denso, [xp.Spring(joint=5, stiffness=40.0, q0=-1.0)], seed=1), valid)
     args = ["identify", str(denso.source), "--data", str(train), "--validate", str(valid), "--out", str(out)]
-    assert main([*args, "--no-html"]) == 0
+    assert main(args) == 0
     text = capsys.readouterr().out
     r2 = json.loads(out.read_text())["validation"]["recordings"][0]["r2"]
     assert r2[5] < 0 and all(v >= 0 for j, v in enumerate(r2) if j != 5)  # the test's premise
     lines = [line for line in text.splitlines() if "predicted worse than by its mean torque" in line]
     assert len(lines) == 1 and lines[0].startswith("  joint 6: R^2")
     assert f"'psdm diagnose {out} --train {train} --validate {valid} --apply NEW.json'" in lines[0]
+    # the HTML page gave the contrary advice: 'Plausibility: no warning ... Next: use it: psdm codegen'
+    page = (tmp_path / "model.report.html").read_text()
+    assert "Next: use it" not in page and "Plausibility: no warning (" not in page
+    joint = json.loads(out.read_text())["robot"]["joint_names"][5]
+    assert f"Next: diagnose it before using it: {joint} on valid.npz (R^2 {r2[5]:.3g})" in page
 
 
 def test_identify_without_a_held_out_recording_says_how_to_have_the_robot_file_check():
@@ -245,3 +250,20 @@ def test_identify_without_a_held_out_recording_says_how_to_have_the_robot_file_c
     text = check_against_file(None, None, None, None, None, [], None).describe()
     assert text.startswith("against the robot file: not checked (no held-out recording: pass --validate with")
     assert "compare each joint with the robot file's rigid body" in text
+
+
+def test_the_diagnosis_page_of_a_model_with_a_held_out_part_needs_no_validate():
+    """The page advised '--train ... --validate ... --apply' for a model identified with --holdout, which needs none."""
+    held = ("validation: the last 30 % of whole.csv (samples 1750-2500 of 2501, t >= 7 s), held out",)
+    assert "--validate" not in _next_advice(held)
+    assert "--train ... --validate ... --apply" in _next_advice(())
+
+
+def _next_advice(held_out) -> str:
+    """The 'Next:' sentence of the diagnosis page of a model file's report with one finding."""
+    from identification.report_html.diagnosis_page import diagnosis_page
+
+    report = _report([_finding(5, 0.0887, 0.0326)], [1.0] * N)
+    fields = {**report.__dict__, "held_out": held_out, "model_file_rmse": (1.0,) * N}
+    html = diagnosis_page(DiagnosisReport(**fields)).to_html()
+    return html[html.index("Next: identify the model again") :].split("</p>")[0]
