@@ -146,7 +146,7 @@ def test_the_recalibration_summary_rounds_its_eigenvalues_and_says_how_without_i
     term's torque taken out, not a refit, which the line now says."""
     from types import SimpleNamespace
 
-    from psdm_casadi.cli.diagnose import recalibration_markdown
+    from psdm_casadi.cli.recalibration_text import recalibration_markdown
 
     finding = {
         "label": "friction_shape[j3,smooth_coulomb]",
@@ -168,6 +168,21 @@ def test_the_recalibration_summary_rounds_its_eigenvalues_and_says_how_without_i
     text = recalibration_markdown(result, ["j1", "j2", "j3"], "new.json")
     assert "eigenvalue 1e-06)" in text and "eigenvalue 3.567e-06)" in text and "9.99999" not in text
     assert "without -> with it (its torque taken out, not refitted): joint 3: 4.795 -> 0.9268" in text
+    assert text.endswith("calibrated model with findings (friction_shape[j3,smooth_coulomb]) written to new.json")
+    # Panda, defaults: the only finding (pre-sliding, a state of the friction) is reported, not applied; the closing
+    # line said 'calibrated model with findings written to panda_2.json' beside a diagnosis 'after' of joint 7
+    # 0.0296 N m while the file written validates at 0.0515
+    reported = {
+        "label": "presliding[j7]",
+        "kind": "reported",
+        "applied": "reported only: not part of the model's torque",
+    }
+    after.document["findings"] = [{**finding, **reported}]
+    text = recalibration_markdown(result, ["j1", "j2", "j3"], "panda_2.json")
+    assert "calibrated model with findings" not in text
+    assert text.endswith("no finding to apply (presliding[j7]: reported only, not part of the model's torque): "
+                         "panda_2.json holds the model with none added (its validation RMSE is this table's 'after' "
+                         "row, not the diagnosis's 'after')")  # fmt: skip
 
 
 def test_the_html_page_qualifies_no_finding_and_shows_the_model_files_rmse_beside_a_finding():

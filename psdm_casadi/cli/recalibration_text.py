@@ -1,0 +1,91 @@
+"""The Markdown of ``psdm diagnose --apply``: the calibration before and after the findings it wrote.
+
+Split out of the ``diagnose`` command so that the command's module holds the flow and this one the words. The last
+line says what the written file holds: the findings it applies, or, when every finding is only reported (a state of
+the friction no model file holds), that nothing was added, so that a reader does not take the diagnosis's 'after'
+for the written file's.
+"""
+
+from __future__ import annotations
+
+__all__ = ["recalibration_markdown", "written_line"]
+
+
+def recalibration_markdown(result, joint_names, path) -> str:
+    """The calibration before and after the findings: per-joint validation RMSE, consistency, moved parameters."""
+    block = result.after.document["recalibration"]
+    lines = [
+        "",
+        "## Recalibration with the findings",
+        "",
+        "| | " + " | ".join(joint_names) + " |",
+        "|---" * (len(joint_names) + 1) + "|",
+        "| validation RMSE before [N m] | " + " | ".join(f"{v:.4g}" for v in result.rmse_before) + " |",
+        "| validation RMSE after [N m] | " + " | ".join(f"{v:.4g}" for v in result.rmse_after) + " |",
+        "| noise margin [N m] | " + " | ".join(f"{v:.2g}" for v in block["never_worse"]["margin"]) + " |",
+        "",
+        f"- never worse: {block['never_worse']['margin_rule']}; every joint of the model written is within it",
+    ]
+    lines += [f"- {block['never_worse']['margin_source'][j - 1]}"  # over it, the refits do not confirm
+              for j in block["never_worse"].get("cleared_by_refits", [])]  # fmt: skip
+    if block["never_worse"].get("search"):
+        lines.append(f"- findings to drop: {block['never_worse']['search']}")
+    lines += [f"- dropped {d['label']} (never worse): {d['reason']}; the model was refitted without it"
+              for d in block["never_worse"]["dropped"]]  # fmt: skip
+    for key in ("before", "after"):
+        state = block[key]
+        lines.append(
+            f"- consistency {key}: {'consistent' if state['consistent'] else 'NOT consistent'} (smallest "
+            f"pseudo-inertia eigenvalue {_significant(state['min_pseudo_inertia_eigenvalue'])})"
+        )
+    lines.append(f"- smallest mass-matrix eigenvalue after: {result.min_mass_eigenvalue:.4g}")
+    moved = block["moved_parameters"]
+    lines.append(f"- parameters that moved by more than 3 sigma: {len(moved) or 'none'}")
+    lines += [f"  - {m['name']}: {m['before']:.5g} -> {m['after']:.5g} ({m['sigmas']:.1f} sigma)" for m in moved]
+    for d in block.get("dropped_findings") or []:
+        if "validation_rmse_with" not in d:  # physically meaningless coefficients: no RMSE pair to show
+            lines.append(f"- dropped {d['label']}: {d['reason']}; the model was refitted without it")
+            continue
+        with_it, without = d["validation_rmse_with"], d["validation_rmse_without"]
+        pairs = "; ".join(f"joint {j}: {a:.4g} -> {b:.4g}" for j, b, a in zip(d["joints"], with_it, without))
+        lines.append(f"- dropped {d['label']}: {d['reason']} (validation RMSE [N m] without -> with it: {pairs}); "
+                     "the model was refitted without it")  # fmt: skip
+    for entry in result.after.document["findings"]:
+        parameters = ", ".join(f"{k} = {v:.4g}" for k, v in entry["parameters"].items())
+        absorbed = f"; absorbed: {', '.join(entry['absorbed'])}" if entry.get("absorbed") else ""
+        note = "" if entry["kind"] == "torque" else "; " + entry["applied"]
+        lines.append(f"- {entry['label']} ({entry['kind']}): {parameters}{absorbed}{note}")
+        if "validation_rmse_without" in entry:
+            lines.append("  " + _contribution(entry))
+
+    lines.append("\n" + written_line(result.after.document["findings"], path))
+    return "\n".join(lines)
+
+
+def written_line(findings, path) -> str:
+    """The closing line: the findings the file at ``path`` applies, or that it applies none (only reported ones)."""
+    applied = [entry["label"] for entry in findings if entry["kind"] != "reported"]
+    if applied:
+        return f"calibrated model with findings ({', '.join(applied)}) written to {path}"
+    reported = [entry["label"] for entry in findings if entry["kind"] == "reported"]
+    why = f" ({', '.join(reported)}: reported only, not part of the model's torque)" if reported else ""
+    return (f"no finding to apply{why}: {path} holds the model with none added (its validation RMSE is this "
+            "table's 'after' row, not the diagnosis's 'after')")  # fmt: skip
+
+
+def _significant(value) -> str:
+    """A number to 4 significant digits (9.999999999999176e-07 -> 1e-06); anything else (None) as it is."""
+    return f"{value:.4g}" if isinstance(value, (int, float)) else str(value)
+
+
+def _contribution(entry) -> str:
+    """What a finding contributes on its joints: the validation RMSE with it and with it taken out (no refit)."""
+    joints = entry["joints"] or list(range(1, len(entry["validation_rmse_after"]) + 1))
+    parts = [
+        f"joint {j}: {entry['validation_rmse_without'][j - 1]:.4g} -> {entry['validation_rmse_after'][j - 1]:.4g}"
+        for j in joints
+    ]
+    helps = any(entry["validation_rmse_after"][j - 1] < entry["validation_rmse_without"][j - 1] for j in joints)
+    verdict = "" if helps else " (it does NOT lower the validation error of its joints: consider dropping it)"
+    head = "validation RMSE [N m] without -> with it (its torque taken out, not refitted): "
+    return head + "; ".join(parts) + verdict
