@@ -63,18 +63,31 @@ def check_nominal_columns(robot, model, problem, options) -> None:
         matrix, weights = problem.base_t.weighted_r(sigma), None
     held = {c for j in options.held_friction.joints for c in joint_friction_columns(robot, options.friction, j)}
     free = [c for c in range(len(names)) if c not in held]  # a held joint's friction is no column of the fit
-    check_regressor(
-        matrix[:, free],
-        weights,
-        names=[names[c] for c in free],
-        column_joints=[joints[c] for c in free],
-        owner="diagnose",
-        source=f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction"
-        + (" and base parameters)" if options.rigid_body == "identified" else ")"),
-        fix=RECORD_FIX,
-        max_condition=thresholds.max_condition,
-        robot=robot,
+    source = f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction" + (
+        " and base parameters)" if options.rigid_body == "identified" else ")"
     )
+
+    def check(columns):
+        check_regressor(matrix[:, columns], weights, names=[names[c] for c in columns],
+                        column_joints=[joints[c] for c in columns], owner="diagnose", source=source, fix=RECORD_FIX,
+                        max_condition=thresholds.max_condition, robot=robot)  # fmt: skip
+
+    try:
+        check(free)
+    except ParameterError as exc:
+        hump = [c for c in free if names[c].startswith("fs_minus_fc_")]
+        if not hump:
+            raise
+        try:  # without the Stribeck hump's columns: then a joint that never slows down is the only trouble
+            check([c for c in free if c not in hump])
+        except ParameterError:
+            raise exc from None
+        raise ParameterError(
+            f"{exc} The nominal friction's Stribeck hump ({options.friction}, seen only below a joint's Stribeck "
+            "velocity) is the only trouble: a joint that never slows down that far does not show it. Pass "
+            "--friction coulomb_viscous (no hump; DiagnosisOptions(friction='coulomb_viscous')) to diagnose these "
+            "recordings as they are."
+        ) from None
 
 
 def validation_recordings(validation) -> tuple:
