@@ -24,7 +24,8 @@ and a 10 s validation recording at 250 Hz, as a user would on the command line:
    counterbalance on joint 2) or stay clean (``stays_inside_unpushed``)? ``counterbalance_taken``: identify kept a
    spring on joint 2 (``calibration.counterbalance_column``: tried where its report names a counterbalance, kept
    where it lowers joint 2 on the held-out recording and in each block of the training recording's cross-validation,
-   the second opinion, and no joint is worse); ``counterbalance_named`` counts it as named.
+   the second opinion, the blocks together beyond their noise, and no joint is worse); ``counterbalance_named``
+   counts it as named.
    ``counterbalance_stated``: the report names a counterbalance on joint 2, first or among the alternatives, in an
    envelope finding or a parameter the fit holds back (``held_named``: a counterbalance absorbed inside link 2's
    envelope, held by the pull towards the robot file), or identify took it.

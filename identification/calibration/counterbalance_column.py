@@ -24,6 +24,9 @@ identified on the rest; without held-out recordings it is the only judge). It is
   absorbed its rotors of joints 1-2, its envelope named a counterbalance on joint 2; a cubic spring there lowered
   three blocks by 24-34 % and raised the first by 6 %, within that block's noise, and the blocks taken together kept
   it, though it raised the held-out end's joint 2 from 3.80 to 4.22 N m; now the first block's rise refuses it);
+- the blocks taken together lower its joint **beyond their noise margin**, not only lower it
+  (``counterbalance_opinion``: a gain one block carries while the others stay within their noise is a stretch of
+  the motion fitted, which an unseen recording of the same arm refuses);
 - no joint's RMSE is worse than without it beyond the noise margin, on the held-out recordings together and on the
   blocks together (``never_worse``; the blocks' margin at least the spread of their changes). A joint over its margin
   on the held-out recordings is worse only if the blocks' models (without and with the spring) confirm it there
@@ -44,21 +47,19 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from identification.calibration.counterbalance_folds import BlockFolds, FoldFailure, block_folds
+from identification.calibration.counterbalance_opinion import HELD_OUT_ROUTE, Opinion, Trial
 from identification.calibration.envelope_report import DIAGNOSE_ROUTE, where
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_recordings import split_findings
-from identification.calibration.never_worse import JointComparison, compare_each, pooled_comparison
+from identification.calibration.never_worse import compare_each, pooled_comparison
 from identification.calibration.trajectory_fit import identify_trajectories
 from psdm_casadi.errors import InsufficientExcitationError
 
 __all__ = [
     "COUNTERBALANCE_SOURCE",
-    "HELD_OUT_ROUTE",
     "CounterbalanceChoice",
     "Judges",
-    "Opinion",
-    "Trial",
     "counterbalance_joints",
     "named_joints",
     "take_counterbalance",
@@ -71,8 +72,6 @@ logger = logging.getLogger(__name__)
 COUNTERBALANCE_SOURCE = "identify"
 #: The spring shapes tried (``SpringTerm`` orders): linear, and a cubic for a cam's or gas spring's torque.
 ORDERS = (1, 3)
-#: ``CounterbalanceChoice.route`` of the held-out recordings.
-HELD_OUT_ROUTE = "held-out recordings"
 
 
 @dataclass(frozen=True)
@@ -137,64 +136,6 @@ class Judges:
     held: tuple = ()
     folds: BlockFolds | None = None
     note: str = ""
-
-
-@dataclass(frozen=True, eq=False)
-class Opinion:
-    """One judge's comparison of the models without and with the springs: every part (held-out recording or block)
-    taken together (the never-worse rule on every joint), and each part (the spring's own joint must drop in each)."""
-
-    route: str
-    together: JointComparison
-    parts: tuple
-
-    def shortfalls(self, joint: int, before: float | None = None) -> list:
-        """Where the springs do not lower ``joint``'s held-out RMSE, as ``(where, without, with)`` [N m]: each part,
-        then the parts taken together (against ``before`` when given: the model with the other springs; one part
-        without ``before`` is its own together)."""
-        out = [(self.part_name(k), p.before[joint], p.after[joint])
-               for k, p in enumerate(self.parts) if p.after[joint] >= p.before[joint]]  # fmt: skip
-        limit = self.together.before[joint] if before is None else before
-        if self.together.after[joint] >= limit and (len(self.parts) != 1 or before is not None):
-            out.append((f"the {self.route}", limit, self.together.after[joint]))
-        return out
-
-    def lowers(self, joint: int, before: float | None = None) -> bool:
-        """Whether the springs lower ``joint``'s held-out RMSE taken together (below ``before`` when given: the model
-        with the other springs) and on every part."""
-        return not self.shortfalls(joint, before)
-
-    def part_name(self, k: int) -> str:
-        """``recording 1 of 2`` or ``block 3 of 4``."""
-        return f"{'recording' if self.route == HELD_OUT_ROUTE else 'block'} {k + 1} of {len(self.parts)}"
-
-    def part_dicts(self, joints) -> list:
-        """Per part, the RMSE [N m] of ``joints`` without and with the springs (the report's numbers)."""
-        return [{"route": self.route, "part": self.part_name(k), "joints": [j + 1 for j in joints],
-                 "rmse_without": [float(p.before[j]) for j in joints], "rmse_with": [float(p.after[j]) for j in joints]}
-                for k, p in enumerate(self.parts)]  # fmt: skip
-
-
-@dataclass(frozen=True, eq=False)
-class Trial:
-    """A spring set fitted on the training recordings (``plain``: the fit without its coefficients, ``document``:
-    the model file with its entries) and the judges' opinions (``complete``: every judge gave one)."""
-
-    plain: object
-    document: dict
-    opinions: tuple
-    complete: bool = True
-
-    def failures(self, joints) -> str:
-        """Where each of ``joints``' springs does not lower its joint's error (``Opinion.shortfalls``): ``joint 2:
-        block 1 of 4 2.203 -> 2.338 N m``."""
-        out = [
-            f"joint {j + 1}: {where} {without:.4g} -> {after:.4g} N m"
-            for j in joints
-            for opinion in self.opinions
-            for where, without, after in opinion.shortfalls(j)
-        ]
-        return "; ".join(out) or "each lowers it only beside the other springs"
 
 
 def counterbalance_joints(fit) -> tuple:
@@ -377,7 +318,8 @@ def _choice(named, trials, judges) -> CounterbalanceChoice:
     parts = tuple(part for opinion in trial.opinions for part in opinion.part_dicts(chosen or joints))
     if not ok:
         worse = sorted({j for opinion in trial.opinions for j in opinion.together.worse})
-        why = [] if chosen else ["none lowers its own joint's error on every held-out part: " + trial.failures(joints)]
+        lead = "none lowers its own joint's error on every held-out part (the blocks together beyond their noise): "
+        why = [] if chosen else [lead + trial.failures(joints)]
         if worse:
             why.append("it makes " + ", ".join(f"joint {j + 1}" for j in worse) + " worse beyond the noise margin")
         why = "; ".join(why) or "it leaves them pushed against their bounds"
@@ -451,7 +393,7 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
     refused = opinions and (opinions[0].together.worse or not any(opinions[0].lowers(j) for j in joints))
     if judges.folds is not None and second and not refused:
         together, folds = judges.folds.compare(without, with_on, model, kt)
-        opinions.append(Opinion(judges.folds.route, together, folds))
+        opinions.append(Opinion(judges.folds.route, together, folds, beyond_margin=True))
     complete = len(opinions) == bool(judges.held) + (judges.folds is not None)
     return Trial(plain, document, tuple(opinions), complete)
 
