@@ -53,8 +53,9 @@ def _value(value) -> str:
     return "not checked" if value is None else f"{value:.3g}"
 
 
-def _print_envelope(fit) -> None:
-    """The physical envelope the links were kept in, and the links the data pushed against it."""
+def _print_envelope(fit, route=str) -> None:
+    """The physical envelope the links were kept in, and the links the data pushed against it (``route`` puts this
+    run's files into a suggested ``psdm diagnose`` command, as in the warning that repeats it)."""
     from identification.calibration.trajectory_checks import unit_factor
 
     bounds = dict(fit.envelope_bounds)
@@ -82,7 +83,7 @@ def _print_envelope(fit) -> None:
         print(f"  links {', '.join(str(f.link + 1) for f in fit.envelope)} pushed: the torques are in another unit")
         return
     for finding in fit.envelope:
-        print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {finding.message}")
+        print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {route(finding.message)}")
 
 
 def _below_mean(entry, diagnose: str) -> list:
@@ -145,7 +146,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
           f"smallest mass-matrix eigenvalue {_value(report['min_mass_eigenvalue'])})")  # fmt: skip
-    _print_envelope(fit)
+    _print_envelope(fit, route)
     if result.pull is not None:
         print(result.pull.describe())
     for item in result.held_back:

@@ -95,8 +95,11 @@ def test_a_held_back_parameters_route_names_this_runs_files(denso, tmp_path, cap
     out = tmp_path / "model.json"
     args = ["identify", str(denso.source), "--data", str(train), str(second), "--validate", str(valid)]
     assert main([*args, "--out", str(out), "--no-html"]) == 0
-    held = [line for line in capsys.readouterr().out.splitlines() if "HELD BACK" in line]
+    text = capsys.readouterr().out
+    held = [line for line in text.splitlines() if "HELD BACK" in line]
     assert held and all("ROBOT --train DATA" not in line for line in held)
+    pushed = [line for line in text.splitlines() if line.startswith("  PUSHED: ")]  # was the placeholder too
+    assert pushed and all("ROBOT --train DATA" not in line for line in pushed), pushed
     # diagnose takes one training recording: the first, as printed, runs
     assert any(f"psdm diagnose {denso.source} --train {train} --validate {valid}'" in line for line in held)
 
