@@ -51,7 +51,9 @@ def cross_correlation(residual, signal, max_lag: int = 50) -> tuple[float, int]:
         return 0.0, 0
     best, lag_best = 0.0, 0
     n = r.size
-    for lag in range(-max_lag, max_lag + 1, max(1, max_lag // 10)):
+    step = max(1, max_lag // 10)
+    max_lag = min(max_lag, step * ((n - 1) // step))  # a short recording (a held-out part of 0.7 s): lags inside it
+    for lag in range(-max_lag, max_lag + 1, step):
         c = float(r[max(0, lag) : n + min(0, lag)] @ s[max(0, -lag) : n - max(0, lag)]) / norm
         if abs(c) > abs(best):
             best, lag_best = c, lag
