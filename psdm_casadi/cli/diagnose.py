@@ -21,7 +21,7 @@ from psdm_casadi.cli.checks import (
 )
 from psdm_casadi.cli.holdout import add_holdout_argument, diagnose_parts, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
-from psdm_casadi.cli.recalibration_text import recalibration_markdown
+from psdm_casadi.cli.recalibration_text import apply_refusal, recalibration_markdown
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
@@ -372,7 +372,7 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload, con
             result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None,
                                  configurations=configurations)  # fmt: skip
     except ParameterError as exc:  # name the input: the model the findings were to be applied to
-        raise ParameterError(f"diagnose {args.robot!r} --apply: {exc} Nothing was written to {args.apply!r}.") from None
+        raise ParameterError(apply_refusal(exc, args.robot, args.apply)) from None
     for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, LuGreWarning)):
         print(f"psdm diagnose: warning: {message}", file=sys.stderr)
     for w in caught:  # the others as they were

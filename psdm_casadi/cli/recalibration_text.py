@@ -8,7 +8,15 @@ for the written file's.
 
 from __future__ import annotations
 
-__all__ = ["recalibration_markdown", "written_line"]
+__all__ = ["apply_refusal", "recalibration_markdown", "written_line"]
+
+#: The refit's fix for a joint that never reverses, as identify words it for its own --offset option.
+IDENTIFY_OFFSET_FIX = "or identify without the torque offset (drop --offset)."
+#: The same fix for 'diagnose --apply', which refits the offsets the model file holds on --train.
+APPLY_OFFSET_FIX = (
+    "or pass as --train a recording on which it reverses (the model file holds a torque offset on it, which the "
+    "refit of --apply keeps and must tell from its Coulomb friction), or identify the model again with --offset off."
+)
 
 
 def recalibration_markdown(result, joint_names, path) -> str:
@@ -60,6 +68,13 @@ def recalibration_markdown(result, joint_names, path) -> str:
 
     lines.append("\n" + written_line(result.after.document["findings"], path))
     return "\n".join(lines)
+
+
+def apply_refusal(exc, model, apply) -> str:
+    """The message of a refit ``diagnose --apply`` could not make: the refusal naming the model file, with a fix that
+    names what the user of this command can do (identify's 'drop --offset' names an option neither command got)."""
+    text = str(exc).replace(IDENTIFY_OFFSET_FIX, APPLY_OFFSET_FIX)
+    return f"diagnose {model!r} --apply: {text} Nothing was written to {apply!r}."
 
 
 def written_line(findings, path) -> str:

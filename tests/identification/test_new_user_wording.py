@@ -285,3 +285,25 @@ def _next_advice(held_out) -> str:
     fields = {**report.__dict__, "held_out": held_out, "model_file_rmse": (1.0,) * N}
     html = diagnosis_page(DiagnosisReport(**fields)).to_html()
     return html[html.index("Next: identify the model again") :].split("</p>")[0]
+
+
+def test_diagnose_apply_on_a_one_way_training_recording_names_its_own_fix(denso):
+    """Kinova, identify --holdout 0.3 on opti_traj_testing1 and 2 (offset on joint 1 chosen from the data), then
+    'diagnose MODEL --train opti_traj_testing2.csv --apply': joint 1 moves one way there, and the refusal said
+    'or identify without the torque offset (drop --offset)', an option the user never gave either command."""
+    from identification.calibration.trajectory_checks import check_offset_reversals
+    from identification.data.recording import Recording
+    from psdm_casadi.cli.recalibration_text import apply_refusal
+    from psdm_casadi.errors import InsufficientExcitationError
+
+    t = np.linspace(0.0, 4.0, 401)
+    q = np.tile(0.3 * np.sin(2 * np.pi * 0.5 * t)[:, None], (1, denso.n_dof))
+    q[:, 0] = 0.3 * t  # joint 1 one way
+    recording = Recording(t=t, q=q, tau=np.zeros_like(q), name="opti_traj_testing2.csv")
+    with np.testing.assert_raises(InsufficientExcitationError) as refused:
+        check_offset_reversals(denso, [recording], ("fc", "fv", "offset"), 0.03, joints=[0])
+    assert "(drop --offset)" in str(refused.exception)  # the premise: identify's wording of the fix
+    text = apply_refusal(refused.exception, "kin3.json", "kin3_2.json")
+    assert text.startswith("diagnose 'kin3.json' --apply: Recording opti_traj_testing2.csv: joint 1")
+    assert "drop --offset" not in text and "or pass as --train a recording on which it reverses" in text
+    assert "identify the model again with --offset off" in text and text.endswith("written to 'kin3_2.json'.")
