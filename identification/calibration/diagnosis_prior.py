@@ -103,8 +103,11 @@ def carried_as(findings, document: dict) -> tuple:
         for e in document.get("findings") or ()
         if e.get("kind") == "torque" and isinstance(e.get("term"), dict)
     }
-    keys = [(f.label, (_family(f.effect), int(f.joints[0]))) for f in findings if len(f.joints) == 1]
-    return tuple((label, held[key]) for label, key in keys if key in held)
+    labels = {e.get("label") for e in document.get("findings") or () if e.get("kind") == "torque"}
+    keys = [(f.label, (_family(f.effect), int(f.joints[0])) if len(f.joints) == 1 else None) for f in findings]
+    # a term of several joints (a coupling, a payload) is the file's when it has the file's label
+    return tuple((label, label if label in labels else held[key]) for label, key in keys
+                 if label in labels or key in held)  # fmt: skip
 
 
 #: Torques of the joint angle alone: one counterbalance may be found as any of them.

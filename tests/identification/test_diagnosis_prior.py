@@ -79,6 +79,16 @@ def test_findings_the_model_already_carries_are_named():
     assert carried_as(found, document) == (("gas_spring[j2]", "spring[j2]"), ("torque_ripple[j2,h=2]", "spring[j2]"))
 
 
+def test_a_coupling_the_model_already_carries_is_named():
+    """TX40: diagnosing the file 'diagnose --apply' wrote (with coupling[j6->j5] and coupling[j5->j6]) listed both
+    couplings again as findings without a word that the file holds them: a term of two joints was never matched."""
+    document = {"findings": [{"label": "coupling[j6->j5]", "kind": "torque", "term": {"effect": "coupling",
+                                                                                      "joint": 5}}]}  # fmt: skip
+    found = [SimpleNamespace(label="coupling[j6->j5]", effect="coupling", joints=(4, 5)),
+             SimpleNamespace(label="coupling[j4->j5]", effect="coupling", joints=(4, 3))]  # fmt: skip
+    assert carried_as(found, document) == (("coupling[j6->j5]", "coupling[j6->j5]"),)
+
+
 @pytest.mark.slow
 def test_identify_then_diagnose_model_finds_the_heavy_arms_counterbalance(tmp_path, benchmark_modules):
     """The route of ``benchmarks/heavy_arm.py`` (seed 0) on the command line: identify absorbs part of the cam
