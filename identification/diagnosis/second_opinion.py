@@ -63,7 +63,7 @@ class OpinionNumbers:
             f"joint {j + 1} {a:.4g} -> {b:.4g} N m" for j, a, b in zip(self.joints, self.rmse_before, self.rmse_after)
         )
         verdict = "holds" if self.failure is None else f"fails: {self.failure}"
-        return f"{self.name}: {params} ({errors}; {verdict})"
+        return f"{self.name}: {params + ' ' if params else ''}({errors}; {verdict})"  # pooled: no parameters
 
 
 @dataclass(frozen=True)

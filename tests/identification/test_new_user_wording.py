@@ -307,3 +307,14 @@ def test_diagnose_apply_on_a_one_way_training_recording_names_its_own_fix(denso)
     assert text.startswith("diagnose 'kin3.json' --apply: Recording opti_traj_testing2.csv: joint 1")
     assert "drop --offset" not in text and "or pass as --train a recording on which it reverses" in text
     assert "identify the model again with --offset off" in text and text.endswith("written to 'kin3_2.json'.")
+
+
+def test_the_pooled_block_opinion_has_no_empty_parameter_list():
+    """TX40 and Panda unstable findings ended 'all blocks held out:  (joint 5 1.795 -> 1.59 N m; fails: ...)', a
+    double space where the per-block lines give the parameters (the pooled line fits none of its own)."""
+    from identification.diagnosis.second_opinion import OpinionNumbers
+
+    pooled = OpinionNumbers("all blocks held out", {}, (4,), (1.795,), (1.59,), "lowers no own joint's RMSE by 20%")
+    assert pooled.text() == "all blocks held out: (joint 5 1.795 -> 1.59 N m; fails: lowers no own joint's RMSE by 20%)"
+    block = OpinionNumbers("training block 1 of 4 (t 0.3-1.7 s)", {"rate": -0.3572}, (4,), (1.806,), (1.53,), None)
+    assert block.text() == "training block 1 of 4 (t 0.3-1.7 s): rate = -0.3572 (joint 5 1.806 -> 1.53 N m; holds)"
