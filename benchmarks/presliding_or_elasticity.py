@@ -15,7 +15,12 @@ Per case: the validation RMSE of the joint with each, the training blocks the el
 every block would have been needed (``named_all_blocks``: the rule before). Targets: no joint without compliance
 named (``false_named`` 0) and more true elasticities named than with every block.
 
-Usage: python benchmarks/presliding_or_elasticity.py [--seeds 0 1 2 3 4 5 6] [--motions bench sine] [--json]
+``--torsion`` sets the true torsion [deg] at the RMS torque (0.2, the elasticity's nominal secant, by default): the
+comparison fits the secant's size on the training recording (``presliding_or_elasticity.fitted_torsion``), and another
+torsion measures that.
+
+Usage: python benchmarks/presliding_or_elasticity.py [--seeds 0 1 2 3 4 5 6] [--motions bench sine] [--torsion 0.2]
+       [--json]
 """
 
 from __future__ import annotations
@@ -101,7 +106,7 @@ def _row(motion, seed, joint, truth, pair) -> dict:
     }
 
 
-def run(seeds, motions) -> list:
+def run(seeds, motions, torsion_deg=TORSION_DEG) -> list:
     robot = load_robot(DENSO_FILE)
     model = derive_psdm(robot)
     rows = []
@@ -114,7 +119,7 @@ def run(seeds, motions) -> list:
             if motion == "bench" and seed == 2:
                 continue
             for j in joints:
-                stiffness = float(tau_rms[j]) / np.radians(TORSION_DEG)
+                stiffness = float(tau_rms[j]) / np.radians(torsion_deg)
                 train, validation = simulate([JointElasticity(joint=j, stiffness=stiffness)])
                 rows.append(_row(motion, seed, j, True, _pairs(robot, model, train, validation, [j])[j]))
     return rows
@@ -142,11 +147,14 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, nargs="+", default=list(range(7)))
     parser.add_argument("--motions", nargs="+", choices=sorted(JOINTS), default=["bench", "sine"])
+    parser.add_argument("--torsion", type=float, default=TORSION_DEG, help="true torsion [deg] at the RMS torque")
     parser.add_argument("--json", action="store_true", help="print the cases and the summary as JSON")
     args = parser.parse_args(argv)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # a sine experiment may graze a limit
-        rows = run(args.seeds, args.motions)
+        if not (np.isfinite(args.torsion) and args.torsion > 0):
+            parser.error(f"--torsion must be a torsion > 0 [deg]; got {args.torsion}")
+        rows = run(args.seeds, args.motions, args.torsion)
     result = summary(rows)
     if args.json:
         print_json({"cases": rows, **result})

@@ -6,7 +6,8 @@ Both make the recorded (motor-side) joint position differ from the link position
 (``DiagnosisContext.friction_shift``, a LuGre simulation of the robot file's friction).
 
 ``columns`` are the screening form, linear in one coefficient (the friction change as the secant at a size:
-``secant``, else a nominal one, 0.1 deg of half-play or 0.2 deg of torsion at the joint's RMS torque);
+``secant``, else a nominal one, 0.1 deg of half-play or 0.2 deg of torsion at the joint's RMS torque on the
+training recording, ``JointElasticityTerm.on_training``);
 ``exact_contribution`` is the torque at given physical parameters with the friction change simulated exactly,
 fitted by ``signal_fit``. The friction change is far from linear in the deflection, so ``shape_variants`` offers
 beside the nominal secant the one at the size where the exact contribution fits the training recording best
@@ -207,12 +208,36 @@ class JointElasticityTerm(CandidateTerm):
 
     joint: int | None = None
     secant: float | None = None
+    torque_rms: float | None = None
     key = "joint_elasticity"
     explanation = "a compliant transmission: the motor angle differs from the link angle by tau / k"
     signature = "residual follows torque times the position sensitivity and the torque's second derivative"
 
     def __post_init__(self):
         _check_secant(type(self).__name__, self.secant)
+        size = self.torque_rms
+        if size is not None and not (isinstance(size, (float, int, np.floating)) and np.isfinite(size) and size > 0):
+            raise ParameterError(
+                f"JointElasticityTerm.torque_rms must be None (the recording's own) or the joint's RMS torque [N m] "
+                f"> 0 on the training recording (JointElasticityTerm.on_training); got {size!r}."
+            )
+
+    def on_training(self, context) -> JointElasticityTerm:
+        """This term with its nominal secant fixed on the training recording ``context``: ``torque_rms`` its joint's
+        RMS torque there (kept when already set). The friction part is far from linear in the compliance, so the
+        secant must be one size on every recording: the nominal torsion at each recording's own RMS torque made the
+        validation column the secant at another compliance than the training column's, wrong by several N m in the
+        ~50 ms after each velocity reversal where the shifted velocity changes sign (``test_elasticity_column``)."""
+        self._require_joint()
+        if self.torque_rms is not None:
+            return self
+        return replace(self, torque_rms=max(rms(context.full_tau[:, self.joint]), 1e-9))
+
+    def nominal_compliance(self, context) -> float:
+        """The compliance [rad/(N m)] of the nominal secant: ``NOMINAL_TORSION`` at ``torque_rms``, or at the joint's
+        RMS torque on ``context`` when the term was not fixed on a training recording (``on_training``)."""
+        torque = self.torque_rms if self.torque_rms is not None else max(rms(context.full_tau[:, self.joint]), 1e-9)
+        return NOMINAL_TORSION / torque
 
     @property
     def n_shape_parameters(self) -> int:
@@ -224,14 +249,15 @@ class JointElasticityTerm(CandidateTerm):
         return [f"compliance_{self.joint + 1}"]
 
     def shape_variants(self, context, score=None):
-        """The column with its friction part the secant at ``NOMINAL_TORSION`` at the joint's RMS torque and, given
-        ``score``, the one at the compliance where the exact contribution's training profile is lowest (as the
-        backlash's ``shape_variants``)."""
-        nominal = replace(self, secant=None)
+        """The column with its friction part the secant at ``NOMINAL_TORSION`` at the joint's RMS torque on the
+        training recording ``context`` (``on_training``) and, given ``score``, the one at the compliance where the
+        exact contribution's training profile is lowest (as the backlash's ``shape_variants``)."""
+        if context is None:
+            return (replace(self, secant=None),)
+        nominal = replace(self.on_training(context), secant=None)
         if score is None:
             return (nominal,)
         j, rows = self.joint, score.rows
-        torque = max(rms(context.full_tau[:, j]), 1e-9)
         peak = max(float(np.max(np.abs(context.tau[:, j]))), 1e-9)
         rigid = _deflection_columns(context, j, context.tau[:, j], context.tau_rate[:, j], context.tau_accel[:, j])
         rigid = rigid[rows, :, 0]
@@ -244,17 +270,17 @@ class JointElasticityTerm(CandidateTerm):
                 torque[:, j] -= shift[rows]
             return score.fixed(torque)
 
-        secant = fitted_secant(profile, NOMINAL_TORSION / torque, MAX_DEFLECTION_RAD / peak)
-        return (nominal,) if secant is None else (nominal, replace(self, secant=secant))
+        secant = fitted_secant(profile, nominal.nominal_compliance(context), MAX_DEFLECTION_RAD / peak)
+        return (nominal,) if secant is None else (nominal, replace(nominal, secant=secant))
 
     def columns(self, context):
         self._require_joint()
         j = self.joint
         out = _deflection_columns(context, j, context.tau[:, j], context.tau_rate[:, j], context.tau_accel[:, j])
         # friction: the recorded velocity leads by c dtau/dt, which moves the friction's sign changes; not
-        # linear in c, so the column is the finite change at a nominal compliance c0 (torsion of 0.2 deg
-        # at the joint's RMS torque), divided by c0
-        c0 = NOMINAL_TORSION / max(rms(context.full_tau[:, j]), 1e-9) if self.secant is None else self.secant
+        # linear in c, so the column is the finite change at a compliance c0 (``secant``, else the nominal torsion
+        # of 0.2 deg at the training RMS torque), divided by c0
+        c0 = self.nominal_compliance(context) if self.secant is None else self.secant
         rate = np.gradient(context.full_tau[:, j], context.full_t)
         shift = context.friction_shift(j, c0 * rate)
         if shift is not None:
