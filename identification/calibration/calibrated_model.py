@@ -64,6 +64,7 @@ from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.model_cache import robot_cache_folder
+from psdm_casadi.near_names import did_you_mean
 from psdm_casadi.oracle import LINK_PARAMETER_NAMES
 
 __all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibrated_robot", "friction_drives",
@@ -462,7 +463,7 @@ def read_calibrated_model(path, derive=None) -> LoadedModel:
     try:
         document = json.loads(path.read_text())
     except FileNotFoundError:
-        raise ModelFileError(f"model file {str(path)!r} does not exist. Check the path.") from None
+        raise ModelFileError(f"model file {str(path)!r} does not exist. Check the path.{did_you_mean(path)}") from None
     except (UnicodeDecodeError, json.JSONDecodeError, IsADirectoryError) as exc:
         raise ModelFileError(f"{path.name}: not a calibrated-model file ({exc}). Pass the .json that "
                              "'psdm identify' wrote.") from None  # fmt: skip

@@ -27,6 +27,7 @@ from identification.data.table import ColumnTable
 from identification.data.units import to_si
 from psdm_casadi.errors import RecordingError
 from psdm_casadi.fileio import atomic_write
+from psdm_casadi.near_names import did_you_mean
 
 # signal -> column prefix, in the order columns are written
 COLUMN_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "current": "i"}
@@ -237,7 +238,7 @@ def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnL
     """
     path = Path(path)
     if not path.exists():
-        raise FileNotFoundError(f"recording {str(path)!r} does not exist. Check the path.")
+        raise FileNotFoundError(f"recording {str(path)!r} does not exist. Check the path.{did_you_mean(path)}")
     if is_rosbag(path):
         table = read_rosbag_table(path, topic=topic, joint_names=joint_names)
         if layout is None:

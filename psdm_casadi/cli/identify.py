@@ -18,6 +18,7 @@ from psdm_casadi.cli.html_report import add_html_argument, refuse_html_option
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.fileio import atomic_write, markdown_escape
+from psdm_casadi.near_names import did_you_mean
 
 __all__ = ["register", "REPORT_FILES"]
 
@@ -107,7 +108,7 @@ def _protocol(args) -> str:
         if not Path(path).exists():
             raise FileNotFoundError(
                 f"--data {path!r} does not exist. Check the path: pass recording files (.csv, .npz), or the folder "
-                "of the paper's experiments that 'psdm simulate --out' wrote."
+                f"of the paper's experiments that 'psdm simulate --out' wrote.{did_you_mean(path)}"
             )
     folders = [Path(path).is_dir() and not is_rosbag(path) for path in args.data]  # a bag folder is one recording
     if any(folders):  # so is the folder of a recording the robot file says is split into one file per signal
