@@ -35,6 +35,7 @@ from psdm_casadi.file_values import file_vector as _vector
 from psdm_casadi.link_envelope import LinkEnvelope
 from psdm_casadi.link_overrides import apply_link_overrides
 from psdm_casadi.mjcf import MJCF_SUFFIXES
+from psdm_casadi.said_once import say
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.transmission_file import layout_from_table, transmission_from_table
 from psdm_casadi.urdf import from_urdf
@@ -413,7 +414,7 @@ def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     unusable = robot.replaced_inertias
     robot = apply_link_overrides(robot, data["link"], where) if "link" in data else robot
     for stand_in in robot.replaced_inertias:  # those the [[link]] tables did not replace
-        logger.warning("%s", stand_in.message(urdf.name))
+        say(logger, stand_in.message(urdf.name))
     for stand_in in (r for r in unusable if r not in robot.replaced_inertias):  # said once, nothing left to do
         logger.info("%s: the URDF's inertia of link %s (joint %d) is unusable (it %s); its kinematics are used and the "
                     "robot file's [[link]] table states the inertia", urdf.name, stand_in.link, stand_in.joint + 1,

@@ -28,6 +28,7 @@ import pinocchio as pin
 from psdm_casadi.description import GRAVITY_STANDARD, Joint, LinkInertia, RobotDescription, locked_positions
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.mjcf import MJCF_SUFFIXES, load_mjcf_model
+from psdm_casadi.said_once import say
 from psdm_casadi.text_file import read_text_file
 from psdm_casadi.values import format_value, inertia_violation
 
@@ -289,7 +290,7 @@ def from_urdf(path, *, locked_joints=(), gravity=None, name=None, warn: bool = T
         if stand_in is not None:
             replaced.append(stand_in)
             if warn:
-                logger.warning("%s", stand_in.message(path.name))
+                say(logger, stand_in.message(path.name))
     if not joints:
         raise RobotFileError(
             f"{path.name} must hold at least one revolute or prismatic joint; got none (only fixed or floating "

@@ -30,6 +30,7 @@ from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.identify_text import print_identify
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, progress
 from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.said_once import SAID
 from psdm_casadi.state_cache import remembering
 
 MASS_CHECK_CONFIGURATIONS = 2000
@@ -185,7 +186,7 @@ def run(args) -> int:
     held_out = not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
     warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys((*result.warnings, *missing, *held_out, *worse))]
-    for warning in warnings:
+    for warning in (w for w in warnings if w not in SAID):  # the robot's loading printed those: said once
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report = _validation(robot, model, result.start, validation, args.validate, calibrated)

@@ -13,6 +13,8 @@ import os
 import sys
 from pathlib import Path
 
+from psdm_casadi.said_once import SAID
+
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
 #: A closed stdout (``psdm ... | head -1``): the code a shell gives a process ended by SIGPIPE (128 + 13).
 EXIT_BROKEN_PIPE = 141
@@ -59,7 +61,7 @@ def report_model_warnings(command: str, source, calibrated) -> list:
     a model file repeats them rather than leave them in the file; ``--quiet`` keeps them.
     """
     warnings = model_warnings(calibrated)
-    for warning in warnings:
+    for warning in (w for w in warnings if w not in SAID):  # one its robot's loading printed already: said once
         print(f"psdm {command}: warning: {Path(source).name} (stored in the model file): {warning}", file=sys.stderr)
     return warnings
 
@@ -198,6 +200,7 @@ def configure_logging(level: int) -> None:
     Called once per command; a handler installed by an earlier call (tests run many commands in one
     process) is replaced, so that every line appears once and on the stderr of the current call.
     """
+    SAID.clear()  # a new command: what the last one printed is to be said again
     handler = ProgressHandler(sys.stderr, ticks_as_lines=level <= logging.DEBUG)
     handler.set_name(_HANDLER_NAME)
     handler.setFormatter(logging.Formatter("%(message)s"))

@@ -97,3 +97,33 @@ def test_right_angles_written_with_few_digits_are_taken_as_exact(tmp_path):
     derive_psdm(load_robot(tmp_path / "arm.urdf"))  # checks itself against Pinocchio's rnea (raises otherwise)
     tilted = two_links().replace('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 0.3" rpy="1.56 0 0"/>')
     assert load_urdf_model(write(tmp_path, tilted, "tilted.urdf")).jointPlacements[2].rotation[1, 1] != 0.0
+
+
+def test_each_command_says_an_unusable_inertia_once(tmp_path, capsys):
+    """The Kinova's vendor URDF: identify, validate and the exports printed each unusable inertia twice, once when
+    the robot was loaded and once as a warning stored in the model file."""
+    import numpy as np
+
+    from identification.data.io import save_recording
+    from identification.data.recording import Recording
+    from psdm_casadi import derive_psdm
+    from psdm_casadi.cli import main
+    from psdm_casadi.recursive import build_recursive_functions
+    from psdm_casadi.robot import load_robot
+
+    path = write(tmp_path, two_links(ixx1="0.05"))  # link l1 breaks the triangle inequality
+    robot = load_robot(path)
+    model = derive_psdm(robot)
+    fast = build_recursive_functions(model, robot, model.base_parameters(robot.nominal_dynamic_parameters()))
+    t = np.arange(1600) / 200.0
+    w = 2 * np.pi * np.array([0.3, 0.5])
+    q, qd, qdd = np.sin(w * t[:, None]), w * np.cos(w * t[:, None]), -(w**2) * np.sin(w * t[:, None])
+    tau = np.array([np.asarray(fast.inverse_dynamics(a, b, c)).ravel() for a, b, c in zip(q, qd, qdd)])
+    save_recording(Recording(t=t, q=q, tau=tau + 0.2 * np.tanh(qd / 0.05)), tmp_path / "run.csv")
+    capsys.readouterr()
+    out = tmp_path / "model.json"
+    argv = ["identify", str(path), "--data", str(tmp_path / "run.csv"), "--holdout", "0.3", "--out", str(out)]
+    for command in ([*argv, "--no-html"], ["validate", str(out)], ["export-mjcf", str(out), str(tmp_path / "a.xml")]):
+        assert main(command) == 0
+        err = capsys.readouterr().err
+        assert err.count("the inertia of link 'l1' (joint 1) is unusable") == 1, (command[0], err)
