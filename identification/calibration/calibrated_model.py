@@ -464,7 +464,11 @@ def read_calibrated_model(path, derive=None) -> LoadedModel:
         document = json.loads(path.read_text())
     except FileNotFoundError:
         raise ModelFileError(f"model file {str(path)!r} does not exist. Check the path.{did_you_mean(path)}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError, IsADirectoryError) as exc:
+    except IsADirectoryError:
+        inside = ", ".join(sorted(p.name for p in path.glob("*.json"))[:5]) or "none"
+        raise ModelFileError(f"model file {str(path)!r} is a folder. Pass the .json file that 'psdm identify' wrote "
+                             f"(.json files in it: {inside}).") from None  # fmt: skip
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise ModelFileError(f"{path.name}: not a calibrated-model file ({exc}). Pass the .json that "
                              "'psdm identify' wrote.") from None  # fmt: skip
     if not isinstance(document, dict) or document.get("format") != CALIBRATED_FORMAT:

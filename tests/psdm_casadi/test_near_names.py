@@ -34,3 +34,13 @@ def test_each_command_names_the_file_meant(argv, tmp_path, capsys):
     meant = "run.csv" if "runn.csv" in " ".join(argv) else "model.json"
     assert f"Did you mean {str(tmp_path / meant)!r}?" in err and "Traceback" not in err
     assert not (tmp_path / "m.json").exists()
+
+
+def test_a_folder_given_as_the_model_names_its_model_files(tmp_path, capsys):
+    """'psdm validate /tmp/newuser' said "newuser: not a calibrated-model file ([Errno 21] Is a directory: ...)"."""
+    (tmp_path / "panda.json").write_text("{}")
+    (tmp_path / "run.csv").write_text("t,q1\n")
+    assert main(["validate", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert f"model file {str(tmp_path)!r} is a folder" in err and "(.json files in it: panda.json)" in err
+    assert "Errno" not in err and "Traceback" not in err
