@@ -1,11 +1,15 @@
 """The noise margin of a paired RMSE comparison: how far two models' RMSE on the same samples may differ by chance.
 
 Two models' residuals on the same samples (row k of both at the same instant) -> per column the RMSE of each and the
-standard error of their difference, from a moving-block bootstrap (``BOOTSTRAP_SAMPLES`` draws, fixed seed) whose block
-length is where the autocorrelation of the difference of the squared residuals first drops below 1/e (twice that lag;
-at least ``n**(1/3)``): the RMSE change a different stretch of the same motion would give. The never-worse gate of a
-refit (``calibration.never_worse``) asks ``MARGIN_SIGMAS`` of those standard errors, at least ``MARGIN_FLOOR`` of the
-RMSE before; the diagnosis asks the same of an elasticity against pre-sliding (``diagnosis.presliding_or_elasticity``).
+standard error of their difference, from a circular block bootstrap (``BOOTSTRAP_SAMPLES`` draws, fixed seed) whose
+block length is where the autocorrelation of the difference of the squared residuals first drops below 1/e (twice
+that lag; at least ``n**(1/3)``): the RMSE change a different stretch of the same motion would give. The blocks wrap
+around the recording's end (Politis and Romano's circular bootstrap): a plain moving-block bootstrap draws the first
+and last samples in fewer blocks than the others, which on a short recording with long blocks (a fifth of it) centres
+the draws away from the measured difference when the difference sits near an end, and understates their spread. The
+never-worse gate of a refit (``calibration.never_worse``) asks ``MARGIN_SIGMAS`` of those standard errors, at least
+``MARGIN_FLOOR`` of the RMSE before; the diagnosis asks the same of an elasticity against pre-sliding
+(``diagnosis.presliding_or_elasticity``).
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ BOOTSTRAP_SAMPLES = 300
 
 
 def block_length(series: np.ndarray) -> int:
-    """Block length [samples] of the moving-block bootstrap of ``series`` (n_samples,): twice the first lag at
+    """Block length [samples] of the (circular) block bootstrap of ``series`` (n_samples,): twice the first lag at
     which its autocorrelation drops below 1/e, at least ``n**(1/3)``, at most n / 5."""
     x = np.asarray(series, dtype=float) - np.mean(series)
     n = x.size
@@ -40,15 +44,15 @@ def paired_rmse_margin(before: np.ndarray, after: np.ndarray, seed: int = 0) -> 
     """(RMSE before, RMSE after, standard error of their difference) per joint from residuals on the same samples.
 
     ``before``, ``after``: residuals [N m], shape (n_samples, n_dof), row k of both at the same instant. The
-    standard error is of ``RMSE_after - RMSE_before`` over ``BOOTSTRAP_SAMPLES`` moving-block resamples (the same
-    blocks for both models: the difference is paired; ``paired_rmse_draws``).
+    standard error is of ``RMSE_after - RMSE_before`` over ``BOOTSTRAP_SAMPLES`` circular block resamples (the same
+    blocks for both models: the difference is paired; ``paired_rmse_draws``; circular: every sample equally often).
     """
     rmse_before, rmse_after, draws = paired_rmse_draws(before, after, seed)
     return rmse_before, rmse_after, np.std(draws, axis=0, ddof=1)
 
 
 def paired_rmse_draws(before: np.ndarray, after: np.ndarray, seed: int = 0) -> tuple:
-    """(RMSE before, RMSE after, the moving-block bootstrap draws of ``RMSE_after - RMSE_before``
+    """(RMSE before, RMSE after, the circular block bootstrap draws of ``RMSE_after - RMSE_before``
     (``BOOTSTRAP_SAMPLES``, n_dof)) per joint from residuals on the same samples (``paired_rmse_margin``). Where one
     model's error sits in a few bursts (a friction reversal the other model follows), the draws are skewed and their
     standard error overstates the doubt of a large difference; the share of draws below zero does not."""
@@ -59,7 +63,7 @@ def paired_rmse_draws(before: np.ndarray, after: np.ndarray, seed: int = 0) -> t
     draws = np.zeros((BOOTSTRAP_SAMPLES, e_b.shape[1]))
     for j in range(e_b.shape[1]):
         length = block_length(e_a[:, j] - e_b[:, j])
-        starts = rng.integers(0, n - length + 1, size=(BOOTSTRAP_SAMPLES, -(-n // length)))
-        rows = (starts[:, :, None] + np.arange(length)).reshape(BOOTSTRAP_SAMPLES, -1)[:, :n]
+        starts = rng.integers(0, n, size=(BOOTSTRAP_SAMPLES, -(-n // length)))
+        rows = ((starts[:, :, None] + np.arange(length)) % n).reshape(BOOTSTRAP_SAMPLES, -1)[:, :n]
         draws[:, j] = np.sqrt(e_a[rows, j].mean(axis=1)) - np.sqrt(e_b[rows, j].mean(axis=1))
     return np.sqrt(e_b.mean(axis=0)), np.sqrt(e_a.mean(axis=0)), draws

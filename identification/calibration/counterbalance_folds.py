@@ -123,7 +123,7 @@ def _residual(calibrated, model, recording, kt) -> np.ndarray:
 
 def residual_comparison(before: np.ndarray, after: np.ndarray) -> JointComparison:
     """``JointComparison`` of two models' residuals on the same samples, with the never-worse margin
-    (``never_worse.paired_rmse_margin``: moving-block bootstrap of the paired difference, never below the floor)."""
+    (``never_worse.paired_rmse_margin``: circular block bootstrap of the paired difference, never below the floor)."""
     return JointComparison.from_noise(*paired_rmse_margin(before, after))
 
 

@@ -15,7 +15,7 @@ data here, not in the command line. Its options are overrides (``ColumnRequest``
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_check import check_departures, written_model_judge
@@ -193,6 +193,7 @@ def identify_recordings(
         calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
     check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
+    check = replace(check, held=held.held_joints)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held)

@@ -9,7 +9,7 @@ A refit with findings is judged on the validation recordings as ``psdm validate`
 not act on (a robot-wide delay that helps the wrists and hurts the base joints; a rigid body refitted around a
 spring): such a model is not written. The allowance is the noise of the comparison itself, derived from the data:
 
-- the paired difference of the two models' RMSE on the same validation samples, resampled by a moving-block
+- the paired difference of the two models' RMSE on the same validation samples, resampled by a circular block
   bootstrap (``BOOTSTRAP_SAMPLES`` draws, fixed seed) whose block length is where the autocorrelation of the
   difference of the squared residuals first drops below 1/e (twice that lag; at least ``n**(1/3)``): the
   standard error of the RMSE change a different stretch of the same motion would give;
@@ -85,7 +85,7 @@ logger = logging.getLogger(__name__)
 EXHAUSTIVE_MAX = 8
 MARGIN_RULE = (
     f"a joint is worse when its validation RMSE after exceeds before + margin; margin = max({MARGIN_SIGMAS:g} x the "
-    f"standard error of the paired RMSE difference (moving-block bootstrap, block = twice the lag where the "
+    f"standard error of the paired RMSE difference (circular block bootstrap, block = twice the lag where the "
     f"autocorrelation of the squared-residual difference drops below 1/e), {MARGIN_FLOOR:.0%} of the RMSE before); "
     "a joint over it is worse only if both models identified again on the training data without each of its blocks "
     "confirm it (the mean of their validation RMSE changes also exceeds the margin: a rise those refits do not "

@@ -16,7 +16,7 @@ candidate's joint:
 - on all contiguous blocks of the training recording held out in turn but ``SPARED_BLOCKS`` (one of
   ``FOLDS`` = 4; the model fitted on the others, as the second opinion judges a finding), it must be below
   pre-sliding's beyond the noise of the never-worse margin: by at least ``MARGIN_FLOOR`` of pre-sliding's RMSE, and in
-  ``WIN_SHARE`` (0.977, the one-sided share of ``MARGIN_SIGMAS`` standard errors) of the moving-block bootstrap
+  ``WIN_SHARE`` (0.977, the one-sided share of ``MARGIN_SIGMAS`` standard errors) of the circular block bootstrap
   resamples of the paired difference (``paired_margin.paired_rmse_draws``). The share, not twice the standard error:
   where pre-sliding's error sits in a few bursts at reversals the elasticity follows, the draws are skewed (a true
   elasticity on the Denso's joint 3, 0.19 against 0.72 N m on a block, had a standard error of 0.27 N m and was lower

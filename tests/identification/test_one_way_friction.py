@@ -127,6 +127,43 @@ def test_hold_holds_every_one_way_joint_without_asking_the_held_out_recording(on
     assert run["hold"].file_check.comparison.after[2] < 2 * run["hold"].file_check.comparison.before[2]
 
 
+def test_a_one_way_joint_the_held_out_check_finds_worse_is_held_though_its_friction_is_determined(scara, one_way_case):
+    """Joint 4's friction is determined (each standard deviation below its value) and the robot-file check of the
+    real held-out recording leaves it alone; a check that finds it worse holds it with the undetermined joint 3, at
+    the robot file's fit (the truth: 0.46 N m at the 0.8 rad/s it moves at), and the record says the held-out
+    recordings decided it."""
+    from identification.calibration.never_worse import JointComparison
+    from identification.calibration.robot_file_check import FileCheck
+
+    robot, model = scara
+    train, _, run = one_way_case
+    result = run["fit"]
+    prepared = prepare_training(robot, train, result.options).prepared
+    before = np.full(robot.n_dof, 0.1)
+    after = before.copy()
+    after[3] = 0.2  # joint 4 worse, beyond any margin
+    worse = FileCheck(JointComparison(before, after, np.full(robot.n_dof, 0.01)), recordings=1)
+    refits = []
+
+    def refit(options):
+        refits.append(options)
+        return identify_trajectories(robot, model, train, options)
+
+    problem = (robot, model, train, result.options, None, refit)
+    fit, decided = hold_one_way_friction(problem, result.fit, prepared, "auto", lambda _: worse)
+    assert decided.held_joints == (2, 3) and decided.worse == (3,) and decided.decided_by_held_out
+    assert [j for j, _ in decided.undetermined] == [2]  # joint 4 was not a candidate on its own
+    held = dict(decided.held)
+    speed, smoothing = 0.8, result.options.coulomb_velocity
+    assert held["fc4"] * np.tanh(speed / smoothing) + held["fv4"] * speed == pytest.approx(
+        FC * np.tanh(speed / smoothing) + FV * speed, abs=0.03
+    )
+    assert "joint 4 0.1 -> 0.2 N m" in decided.reason and "decided this hold" in decided.describe()
+    assert decided.to_dict()["decided_by_held_out"] is True and len(refits) == 1
+    # the real held-out recording finds joint 4 no worse: by default only joint 3 is held, and not for joint 4
+    assert run["auto"].one_way.held_joints == (2,) and 3 not in run["auto"].file_check.worse
+
+
 def test_a_held_joint_is_coulomb_viscous_and_a_model_without_a_stribeck_joint_left_has_no_static_friction():
     """A model file's Stribeck velocities have one positive or none: holding the only Stribeck joint drops ``fs``."""
     stribeck = TrajectoryOptions(friction=("fc", "fs", "fv", "offset"), stribeck_joints=(2, 3), offset_joints=(0,))

@@ -51,14 +51,50 @@ def test_a_model_of_the_robot_files_own_arm_is_never_worse_than_the_file(denso, 
     check = result.file_check
     assert check.comparison is not None and check.recordings == 1 and not check.worse
     c = check.comparison
-    assert np.all(c.margin >= (MARGIN_FLOOR + check.allowance) * c.before * (1 - 1e-9))
+    assert np.all(c.margin >= MARGIN_FLOOR * c.before + check.allowance - 1e-12)
     assert np.all(c.after <= c.before + c.margin)
-    # estimating the rigid body costs: sqrt(1 + p / N) - 1 of the file's RMSE, a few per cent on 6 s at 200 Hz
-    assert 0.01 < check.allowance < 0.05 and check.parameters == denso_model.n_base
-    assert np.all(c.after <= c.before * (1 + check.allowance) + 2 * c.standard_error)
+    # estimating the rigid body costs a few per cent of the file's RMSE on 6 s at 200 Hz, per joint from the fit's
+    # covariance; the uniform sqrt(1 + p / N) - 1 gave every joint the same 2.9 %
+    assert check.from_covariance and check.parameters == denso_model.n_base
+    assert np.all(check.allowance > 0) and np.all(check.allowance < 0.15 * c.before)
+    assert np.all(c.after <= c.before + check.allowance + 2 * c.standard_error)
     assert check.describe() in result.describe() and "no joint worse" in check.describe()
     stored = result.calibrated.document["identification"]["robot_file_check"]
     assert stored["checked"] and stored["worse_joints"] == []
+
+
+def test_the_estimation_allowance_is_the_rigid_body_error_covariance_draws_give(denso, denso_model, denso_identified):
+    """Each joint's allowance is ``sqrt(b^2 + v) - b``, ``v`` the mean square over the held-out samples of the
+    rigid-body torque error of parameter errors drawn from the fit's covariance given its friction (200 draws)."""
+    from identification.calibration.estimation_allowance import rigid_body_covariance
+    from identification.calibration.robot_file_check import ALLOWANCE_RULES
+
+    _, held, result = denso_identified
+    check = result.file_check
+    ready, _ = result.calibrated.predict_recording(denso_model, held[0])
+    covariance = rigid_body_covariance(denso_model, result.fit)
+    values, vectors = np.linalg.eigh(covariance)
+    errors = np.random.default_rng(0).normal(size=(200, values.size)) * np.sqrt(np.clip(values, 0, None)) @ vectors.T
+    theta = result.fit.theta
+    nominal = denso_model.inverse_dynamics(ready.q, ready.qd, ready.qdd, theta)
+    squares = [np.mean((denso_model.inverse_dynamics(ready.q, ready.qd, ready.qdd, theta + e) - nominal) ** 2, axis=0)
+               for e in errors]  # fmt: skip
+    drawn = np.mean(squares, axis=0)
+    b = check.comparison.before
+    np.testing.assert_allclose(check.allowance, np.sqrt(b**2 + drawn) - b, rtol=0.25)
+    stored = result.calibrated.document["identification"]["robot_file_check"]
+    assert stored["estimation_allowance"] == pytest.approx(list(check.allowance))
+    assert stored["estimation_allowance_rule"] == ALLOWANCE_RULES[True]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seeds", [(5, 6), (7, 8), (9, 10)])
+def test_no_false_alarm_on_other_motions_of_the_robot_files_own_arm(denso, denso_model, seeds):
+    """The file is the truth on three more pairs of 6 s training and held-out motions: no joint is called worse, though
+    the identified model is above the file with friction fitted on most joints (by 0-6 %: its estimation error)."""
+    train, held = ([synthetic(denso, seed, duration=6.0)] for seed in seeds)
+    check = identify_recordings(denso, denso_model, train, validation=held, counterbalance=False).file_check
+    assert check.from_covariance and check.worse == (), check.describe()
 
 
 def test_the_files_friction_fit_recovers_the_simulated_friction(denso, denso_model, denso_identified):
@@ -291,3 +327,41 @@ def test_diagnose_of_the_kinova_held_model_starts_from_the_file_on_the_held_join
     report = diagnose(calibrated_robot(loaded.calibrated, loaded.robot), train, valid, options, model=loaded.model)
     for joint in held:
         assert report.rmse_before[joint - 1] == pytest.approx(own[joint - 1], rel=1e-6), (joint, report.rmse_before)
+
+
+def _both_sensor_logs(robot_file, out_file, *extra) -> dict:
+    """``psdm identify`` on the sensors of opti_traj_testing1 and RunTrajectory1 (joints 5 and 6 move one way only
+    there; RunTrajectory1's dead TorqueSm1 found), validated on opti_traj_testing2 (2.3 s): the --json report."""
+    argv = ["identify", str(robot_file), "--data", str(KINOVA / "opti_traj_testing1.csv"),
+            str(KINOVA / "RunTrajectory1.csv"), "--validate", str(KINOVA / "opti_traj_testing2.csv"), "--columns",
+            "t=Time,q=Position,tau=TorqueSm", "--out", str(out_file), "--json", *extra]  # fmt: skip
+    out = io.StringIO()
+    with contextlib.redirect_stderr(io.StringIO()), contextlib.redirect_stdout(out):
+        assert main(argv) == 0
+    return json.loads(out.getvalue().strip().splitlines()[-1])
+
+
+@pytest.mark.slow
+@pytest.mark.real_data
+def test_kinova_a_joint_much_worse_on_a_short_held_out_recording_is_named_and_held(tmp_path):
+    """Trained on both sensor logs and validated on the 2.3 s opti_traj_testing2, the model with joint 6's friction
+    fitted was 46 % worse than the robot file with friction fitted there (0.202 -> 0.296 N m), and the check said
+    "joints worse: none": it allowed every joint 39.5 % for estimating the rigid body. With the allowance from the
+    fit's covariance it names joint 6; joint 6 moves one way only in training, so by default its friction is held to
+    the robot file's fit (with joint 5's, undetermined) and the model written is within the margin there, the
+    held-out recording deciding the hold, as the report and the model file say."""
+    robot_file = _kinova_file(tmp_path)
+    fitted = _both_sensor_logs(robot_file, tmp_path / "fitted.json", "--one-way-friction", "fit")
+    check = fitted["robot_file_check"]
+    assert check["worse_joints"] == [6] and check["one_way_joints"] == [5, 6]
+    before, after = check["validation_rmse_before"][5], check["validation_rmse_after"][5]
+    assert after > 1.3 * before and check["estimation_allowance"][5] < 0.2 * before
+    warning = next(w for w in fitted["warnings"] if "against the robot file" in w)
+    assert "WORSE on joint(s) 6" in warning and "psdm diagnose" in warning and "Joint(s) 6 move one way" in warning
+    default = _both_sensor_logs(robot_file, tmp_path / "both.json")
+    decided, check = default["one_way_friction"], default["robot_file_check"]
+    assert decided["held_joints"] == [5, 6] and decided["worse_joints"] == [6] and decided["decided_by_held_out"]
+    assert check["worse_joints"] == [] and check["validation_rmse_after"][5] < 0.5 * (after + before)
+    assert not any("against the robot file" in w for w in default["warnings"])
+    stored = json.loads((tmp_path / "both.json").read_text())["identification"]["one_way_friction"]
+    assert stored["decided_by_held_out"] is True and stored["held_joints"] == [5, 6]
