@@ -44,7 +44,12 @@ from identification.calibration.estimation_allowance import (
     rigid_body_covariance,
     uniform_allowance,
 )
-from identification.calibration.never_worse import JointComparison, paired_rmse_margin, pooled_comparison
+from identification.calibration.never_worse import (
+    MARGIN_FLOOR,
+    JointComparison,
+    paired_rmse_margin,
+    pooled_comparison,
+)
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
 from identification.calibration.trajectory_data import drive_column_joint, drive_columns
 from identification.calibration.trajectory_fit import torque_constants
@@ -100,6 +105,18 @@ class FileCheck:
     def worse(self) -> tuple:
         """The joints (0-based) on which the identified model is worse than the robot file beyond the margin."""
         return () if self.comparison is None else self.comparison.worse
+
+    @property
+    def above(self) -> tuple:
+        """The joints (0-based) whose identified RMSE exceeds the robot file's by more than the floor and the estimation
+        allowance, the bootstrap's noise left out: worse by the measured numbers, though maybe by chance. Where the data
+        do not determine a parameter, holding it is the default, and this decides it (``one_way_friction``)."""
+        if self.comparison is None:
+            return ()
+        c = self.comparison
+        with np.errstate(invalid="ignore"):
+            above = c.after > c.before * (1.0 + MARGIN_FLOOR) + self._extra
+        return tuple(int(j) for j in np.flatnonzero(above))
 
     def describe(self) -> str:
         """One sentence: never worse on every joint, or which joints are worse with the numbers and what to do."""
