@@ -211,6 +211,6 @@ def _why(mode, candidates, worse, check) -> str:
     return (
         f"{undetermined}, and with it fitted the model was worse than the robot file with friction fitted on "
         f"{check.recordings} held-out recording(s) ({numbers}; an undetermined friction is held unless the held-out "
-        "recordings find it no worse by more than the estimation allowance, a one the data determine only when it "
-        "is worse beyond the never-worse margin)"
+        "recordings find it no worse by more than the estimation allowance, a determined one only when it is worse "
+        "beyond the never-worse margin)"
     )
