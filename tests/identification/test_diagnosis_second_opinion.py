@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from identification.diagnosis import DiagnosisOptions, SpringTerm, TorqueOffsetTerm, diagnose
+from identification.diagnosis import DiagnosisOptions, SpringTerm, TorqueOffsetTerm, diagnose, second_opinion
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.second_opinion import CROSS_VALIDATION_ROUTE, VALIDATION_ROUTE, SecondOpinion
 from identification.diagnosis.selection import forward_select
@@ -123,3 +123,81 @@ def test_diagnose_with_two_validation_recordings_reports_a_flipping_offset_as_un
     assert both.findings_not_holding == ()
     with pytest.raises(ParameterError, match="non-empty list of Recordings"):
         diagnose(denso, train, [], options, model=denso_model)
+
+
+def test_an_offset_the_rest_of_the_joint_s_torque_dilutes_on_the_training_blocks_is_kept(rng, monkeypatch):
+    """Known truth: an offset of +0.4 N m on both recordings, and on the training recording an unmodelled torque of
+    1 N m RMS whose mean over each quarter is zero (sines of whole periods per block). Held out, every block is lower
+    with the offset the other blocks give (+0.4), but by 7 % only: the rest dilutes the relative gain, which the
+    selection asked (20 %) on the validation recording already. Judged on replication (``REPLICATED``), it is kept;
+    on the pooled 20 % it was called unstable."""
+    n = 1600
+    t = np.linspace(0.0, 16.0, n, endpoint=False)
+    rest = sum(np.sin(2 * np.pi * k * t / 4.0 + k) for k in (3, 5, 7))
+    train, val = _part(rng, 0.4 + rest / np.sqrt(np.mean(rest**2)), n=n), _part(rng, 0.4, n=n, phase=0.5)
+    opinion = SecondOpinion(train[0], [val], folds=4)
+    result = forward_select(
+        [TorqueOffsetTerm(joint=0)], train[0], val[0], train[1], val[1], train[2], val[2], opinion=opinion
+    )
+    assert [s.term.label for s in result.steps] == ["torque_offset[j1]"] and result.unstable == ()
+    assert result.steps[0].term.label == "torque_offset[j1]"
+    monkeypatch.setattr(second_opinion, "REPLICATED", ())  # the pooled 20 % asked of every kind of term
+    opinion = SecondOpinion(train[0], [val], folds=4)
+    strict = forward_select(
+        [TorqueOffsetTerm(joint=0)], train[0], val[0], train[1], val[1], train[2], val[2], opinion=opinion
+    )
+    (unstable,) = strict.unstable
+    *blocks, pooled = unstable.opinions
+    assert all(o.failure is None and o.parameters["offset"] == pytest.approx(0.4, abs=0.05) for o in blocks)
+    assert pooled.failure == "lowers no own joint's validation RMSE by 20%"
+    assert 0.0 < 1.0 - pooled.rmse_after[0] / pooled.rmse_before[0] < 0.1
+
+
+def test_an_offset_of_one_part_of_the_training_recording_is_unstable_on_the_blocks(rng):
+    """Known truth: the training recording carries +1.2 N m during its first quarter only (a sensor re-zeroed, no
+    constant offset) and the validation recording +0.4: the training BIC and the validation recording want an offset,
+    but the offset the other blocks give raises each of the last three blocks; it is not kept, whatever the pooled
+    gain (the replication rule keeps the condition of every block)."""
+    n = 1600
+    train = _part(rng, np.where(np.arange(n) < n // 4, 1.2, 0.0), n=n)
+    val = _part(rng, 0.4, n=n, phase=0.5)
+    opinion = SecondOpinion(train[0], [val], folds=4)
+    result = forward_select(
+        [TorqueOffsetTerm(joint=0)], train[0], val[0], train[1], val[1], train[2], val[2], opinion=opinion
+    )
+    assert result.steps == ()
+    (unstable,) = result.unstable
+    blocks = [o for o in unstable.opinions if o.name.startswith("training block")]
+    assert [o.failure is None for o in blocks] == [True, False, False, False]
+
+
+def test_diagnose_takes_a_sensor_offset_on_a_noisier_training_recording_and_finds_none_without_one():
+    """Virtual SCARA, Coulomb-viscous friction (``test_model_file_offsets.recording``): a sensor offset of 0.3 N m on
+    joint 1 in both recordings, and on the training recording an unmodelled low-frequency torque of 0.6 N m RMS on
+    that joint (sines of 0.3-3 Hz), none on the validation recording. The diagnosis's block cross-validation lowers
+    every training block with the offset but by 13 % pooled: called unstable under the pooled 20 %, it is now taken
+    (0.30 N m). Without the offset, the same recordings give no finding and nothing unstable on joint 1."""
+    from dataclasses import replace
+
+    from psdm_casadi import derive_psdm, load_robot
+    from tests.identification.test_model_file_offsets import OFFSET, recording
+
+    robot = load_robot("scara")
+    model = derive_psdm(robot)
+
+    def case(seed, offset, rest):
+        r = recording(robot, seed)
+        rng = np.random.default_rng(100 + seed)
+        f, phase = rng.uniform(0.3, 3.0, 8), rng.uniform(0.0, 2 * np.pi, 8)
+        d = np.sin(2 * np.pi * f[:, None] * r.t + phase[:, None]).sum(0)
+        extra = np.array([offset, 0, 0, 0]) + np.outer(rest * d / np.sqrt(np.mean(d**2)), [1, 0, 0, 0])
+        return replace(r, tau=r.tau - OFFSET + extra)
+
+    for offset in (0.3, 0.0):
+        report = diagnose(robot, case(2, offset, 0.6), case(3, offset, 0.0), DiagnosisOptions(sparse=False),
+                          model=model)  # fmt: skip
+        if offset:
+            assert [f.label for f in report.findings] == ["torque_offset[j1]"], [u.label for u in report.unstable]
+            assert report.findings[0].parameters["offset"] == pytest.approx(offset, rel=0.1)
+        else:
+            assert report.findings == () and not [u for u in report.unstable if 0 in u.joints]
