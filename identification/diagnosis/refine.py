@@ -150,8 +150,8 @@ def _unpack(xs, p0, terms, coefficients, fixed, context) -> tuple:
         offset += m
         if term.key == "backlash" and term.label in fixed:
             scale = float(fixed[term.label][1])
-            p95 = float(np.percentile(np.abs(context.full_tau[:, term.joint]), 95))
-            term = replace(term, torque_scale=scale / max(p95, 1e-12))
+            term = term.on_training(context)  # the flank smoothing relative to the training recording's torque
+            term = replace(term, torque_scale=scale / term.training_torque(context))
             nonlinear[term.label] = {"torque_scale_Nm": scale}
         elif term.key == "friction_drift":
             nonlinear[term.label] = {"time_constant_s": float(np.exp(values[0]))}

@@ -177,7 +177,7 @@ def resolve_deflection(terms, coefficients, fit, context, base, y, sigma):
     for k, term in enumerate(terms):
         if fit is None or term.key not in ("backlash", "joint_elasticity"):
             continue
-        other = (JointElasticityTerm if term.key == "backlash" else BacklashTerm)(joint=term.joint)
+        other = (JointElasticityTerm if term.key == "backlash" else BacklashTerm)(joint=term.joint).on_training(context)
         if other.label in {t.label for t in terms}:
             continue
         swapped = terms[:k] + (other,) + terms[k + 1 :]

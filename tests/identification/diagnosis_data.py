@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 
 from identification.data.preprocessing import PreprocessOptions, preprocess
-from identification.diagnosis.context import build_context
+from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from trajopt.experiments import sine_experiment
 
@@ -24,6 +24,15 @@ def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
         )
         out.append(rec)
     return out
+
+
+def nominal_change(robot, rigid, moved, joint):
+    """The torque [N m] on ``joint`` a transmission effect that only moves the recorded angle (backlash, elasticity)
+    adds to the nominal model, exactly: the rigid-body torque and the robot file's LuGre friction (filtered like the
+    recording) on the context ``rigid`` of the recording without it minus on ``moved``, the same plant with it."""
+    p = lugre_parameters(robot.drives[joint])
+    friction = [ctx.lowpass(simulate_friction(p, ctx.full_t, ctx.full_qd[:, joint])) for ctx in (rigid, moved)]
+    return rigid.tau_rigid[:, joint] - moved.tau_rigid[:, joint] + friction[0] - friction[1]
 
 
 def sine_recording(robot, seed: int, duration: float, extras=(), noise: float = 0.1):

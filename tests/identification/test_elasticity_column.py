@@ -15,7 +15,6 @@ import pytest
 
 from identification.diagnosis import DiagnosisOptions
 from identification.diagnosis.candidates import JointElasticityTerm
-from identification.diagnosis.context import lugre_parameters, simulate_friction
 from identification.diagnosis.design import WeightedDesign, joint_weights, left_out
 from identification.diagnosis.diagnose import prepare_problem
 from identification.diagnosis.friction_rival import FrictionRival, PreslidingColumn, fitted_scales
@@ -23,17 +22,9 @@ from identification.diagnosis.presliding_or_elasticity import compare, fitted_to
 from identification.diagnosis.term_spec import term_from_spec
 from identification.virtual.transmission_effects import JointElasticity
 from psdm_casadi.errors import ParameterError
-from tests.identification.diagnosis_data import recording_pair
+from tests.identification.diagnosis_data import nominal_change, recording_pair
 
 JOINT = 4  # joint 5, the wrist
-
-
-def _nominal_change(robot, rigid, elastic, joint):
-    """The torque [N m] on ``joint`` the elasticity adds to the nominal model on a recording: the rigid-body torque and
-    the robot file's LuGre friction (filtered like the recording) on the rigid recording minus on the elastic one."""
-    p = lugre_parameters(robot.drives[joint])
-    friction = [ctx.lowpass(simulate_friction(p, ctx.full_t, ctx.full_qd[:, joint])) for ctx in (rigid, elastic)]
-    return rigid.tau_rigid[:, joint] - elastic.tau_rigid[:, joint] + friction[0] - friction[1]
 
 
 def _near_reversals(ctx, joint, window_s=0.05):
@@ -83,14 +74,14 @@ def test_the_column_is_the_nominal_model_s_change_at_the_reversals_of_every_reco
     c0 = term.nominal_compliance(elastic.ctx_v)
     assert c0 == pytest.approx(1.0 / stiffness, rel=0.01)  # the training's size, not the validation recording's
     for fixed, ctx, ref_ctx in ((term, elastic.ctx_t, rigid.ctx_t), (term, elastic.ctx_v, rigid.ctx_v)):
-        reference = _nominal_change(denso, ref_ctx, ctx, JOINT)
+        reference = nominal_change(denso, ref_ctx, ctx, JOINT)
         error = fixed.columns(ctx)[:, JOINT, 0] / stiffness - reference
         near = _near_reversals(ctx, JOINT)
         assert near.sum() > 20  # the sine experiment reverses joint 5 several times
         assert np.sqrt(np.mean(error**2)) < 0.02 * np.sqrt(np.mean(reference**2))
         assert np.max(np.abs(error[near])) < 0.05 * np.max(np.abs(reference[near]))
     own = JointElasticityTerm(joint=JOINT)  # not fixed: the secant at the validation recording's own RMS torque
-    reference = _nominal_change(denso, rigid.ctx_v, elastic.ctx_v, JOINT)
+    reference = nominal_change(denso, rigid.ctx_v, elastic.ctx_v, JOINT)
     error = own.columns(elastic.ctx_v)[:, JOINT, 0] / stiffness - reference
     assert np.max(np.abs(error)) > 0.3 * np.max(np.abs(reference))
 

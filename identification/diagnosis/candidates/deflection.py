@@ -7,7 +7,7 @@ Both make the recorded (motor-side) joint position differ from the link position
 
 ``columns`` are the screening form, linear in one coefficient (the friction change as the secant at a size:
 ``secant``, else a nominal one, 0.1 deg of half-play or 0.2 deg of torsion at the joint's RMS torque on the
-training recording, ``JointElasticityTerm.on_training``);
+training recording, ``TrainingTorque.on_training``; the backlash's flank smoothing likewise);
 ``exact_contribution`` is the torque at given physical parameters with the friction change simulated exactly,
 fitted by ``signal_fit``. The friction change is far from linear in the deflection, so ``shape_variants`` offers
 beside the nominal secant the one at the size where the exact contribution fits the training recording best
@@ -70,6 +70,51 @@ def _check_secant(name: str, secant) -> None:
         )
 
 
+class TrainingTorque:
+    """A deflection column sized by a statistic of its joint's torque, fixed on the training recording.
+
+    The backlash's flank smoothing (``torque_scale`` times the 95th percentile of |tau|) and the elasticity's nominal
+    secant (``NOMINAL_TORSION`` at the RMS torque) scale with the joint's torque. The friction part is far from
+    linear in either size, so the column must be built at one size on every recording: taken on each recording's own
+    torque, the validation column was another column than the training one's, wrong by several N m in the tens of
+    milliseconds after each velocity reversal (``test_elasticity_column``, ``test_backlash_column``).
+    ``on_training`` takes the statistic on the training recording into the field ``size_field`` (so the model file's
+    spec keeps it); a term not fixed takes it on the recording its columns are built on.
+    """
+
+    #: the dataclass field keeping the statistic [N m] on the training recording (None: each recording's own)
+    size_field = ""
+    #: what the statistic is, for messages
+    size_name = ""
+
+    @staticmethod
+    def statistic(tau) -> float:
+        """The statistic [N m] of the joint's torque ``tau`` (full rate) the column's size scales with."""
+        raise NotImplementedError
+
+    def _check_training_torque(self) -> None:
+        size = getattr(self, self.size_field)
+        number = isinstance(size, (float, int, np.floating)) and not isinstance(size, bool)
+        if size is not None and not (number and np.isfinite(size) and size > 0):
+            name = type(self).__name__
+            raise ParameterError(
+                f"{name}.{self.size_field} must be None (the recording's own) or the joint's {self.size_name} [N m] "
+                f"> 0 on the training recording ({name}.on_training); got {size!r}."
+            )
+
+    def on_training(self, context):
+        """This term with its size fixed on the training recording ``context`` (kept when already set)."""
+        self._require_joint()
+        if getattr(self, self.size_field) is not None:
+            return self
+        return replace(self, **{self.size_field: self.training_torque(context)})
+
+    def training_torque(self, context) -> float:
+        """The statistic [N m]: the one fixed on the training recording, else the joint's on ``context``."""
+        size = getattr(self, self.size_field)
+        return float(size) if size is not None else max(self.statistic(context.full_tau[:, self.joint]), 1e-9)
+
+
 def _shift(context, key: tuple, joint: int, rate_full, size: float):
     """``context.friction_shift(joint, size * rate_full)``, kept per recording for the scanned sizes (``key`` names
     the rate's kind): the selection scans the same grid again in every round."""
@@ -95,14 +140,19 @@ def _deflection_columns(context, joint, s, sd, sdd):
 
 
 @dataclass(frozen=True)
-class BacklashTerm(CandidateTerm):
+class BacklashTerm(TrainingTorque, CandidateTerm):
     """``backlash``: play of width b in the transmission; the motor-side position leads the link by
-    ``(b/2) sign(tau)``, switching sides where the transmitted torque reverses."""
+    ``(b/2) sign(tau)``, switching sides where the transmitted torque reverses. The flank smoothing is
+    ``torque_scale`` times ``torque_p95``, the 95th percentile of the joint's |torque| on the training recording
+    (``on_training``; None: each recording's own)."""
 
     joint: int | None = None
     torque_scale: float = 0.02
     secant: float | None = None
+    torque_p95: float | None = None
     key = "backlash"
+    size_field = "torque_p95"
+    size_name = "95th percentile of |torque|"
     explanation = (
         "play (dead zone) in the transmission: motor and link positions differ by b/2, "
         "switching side when the torque reverses"
@@ -111,6 +161,11 @@ class BacklashTerm(CandidateTerm):
 
     def __post_init__(self):
         _check_secant(type(self).__name__, self.secant)
+        self._check_training_torque()
+
+    @staticmethod
+    def statistic(tau) -> float:
+        return float(np.percentile(np.abs(tau), 95))
 
     @property
     def n_shape_parameters(self) -> int:
@@ -125,11 +180,14 @@ class BacklashTerm(CandidateTerm):
         """The column with its friction part the secant at ``NOMINAL_HALF_WIDTH`` and, given ``score`` (a
         ``joint_score.JointScore``), the one at the half-width where the exact contribution's training profile
         (``score.fixed``) is lowest: the friction shift is far from linear in the play (at seed 1 of the diagnosis
-        benchmark a 0.22 deg half-width on the Denso's joint 5 lost to the friction shapes with the 0.1 deg secant)."""
-        nominal = replace(self, secant=None)
+        benchmark a 0.22 deg half-width on the Denso's joint 5 lost to the friction shapes with the 0.1 deg secant).
+        Both have their flank smoothing fixed on the training recording ``context`` (``on_training``)."""
+        if context is None:
+            return (replace(self, secant=None),)
+        nominal = replace(self.on_training(context), secant=None)
         if score is None:
             return (nominal,)
-        scale = self.torque_scale_nm(context)
+        scale = nominal.torque_scale_nm(context)
         rows, j, keep = score.rows, self.joint, context.keep
         s, sd, sdd = self._flank(context, 1.0, scale)
         rigid = _deflection_columns(context, j, s[keep], sd[keep], sdd[keep])[rows, :, 0]
@@ -142,7 +200,7 @@ class BacklashTerm(CandidateTerm):
             return score.fixed(torque)
 
         secant = fitted_secant(profile, NOMINAL_HALF_WIDTH, 0.5 * MAX_BACKLASH_RAD)
-        return (nominal,) if secant is None else (nominal, replace(self, secant=secant))
+        return (nominal,) if secant is None else (nominal, replace(nominal, secant=secant))
 
     def columns(self, context):
         self._require_joint()
@@ -168,8 +226,9 @@ class BacklashTerm(CandidateTerm):
         return None if shift is None else -shift / h0
 
     def torque_scale_nm(self, context) -> float:
-        """The smoothing torque [N m]: ``torque_scale`` times the 95th percentile of the joint's |torque|."""
-        return max(self.torque_scale * float(np.percentile(np.abs(context.full_tau[:, self.joint]), 95)), 1e-6)
+        """The smoothing torque [N m]: ``torque_scale`` times the 95th percentile of the joint's |torque| on the
+        training recording (``torque_p95``), or on ``context`` when the term was not fixed there (``on_training``)."""
+        return max(self.torque_scale * self.training_torque(context), 1e-6)
 
     def _flank(self, context, half_width, scale):
         """Deflection ``s = h tanh(tau / tau_s)`` of the unfiltered measured torque (the sensor saw the flank
@@ -203,41 +262,30 @@ class BacklashTerm(CandidateTerm):
 
 
 @dataclass(frozen=True)
-class JointElasticityTerm(CandidateTerm):
+class JointElasticityTerm(TrainingTorque, CandidateTerm):
     """``joint_elasticity``: a compliant joint; motor and link angles differ by ``tau / k``."""
 
     joint: int | None = None
     secant: float | None = None
     torque_rms: float | None = None
     key = "joint_elasticity"
+    size_field = "torque_rms"
+    size_name = "RMS torque"
     explanation = "a compliant transmission: the motor angle differs from the link angle by tau / k"
     signature = "residual follows torque times the position sensitivity and the torque's second derivative"
 
     def __post_init__(self):
         _check_secant(type(self).__name__, self.secant)
-        size = self.torque_rms
-        if size is not None and not (isinstance(size, (float, int, np.floating)) and np.isfinite(size) and size > 0):
-            raise ParameterError(
-                f"JointElasticityTerm.torque_rms must be None (the recording's own) or the joint's RMS torque [N m] "
-                f"> 0 on the training recording (JointElasticityTerm.on_training); got {size!r}."
-            )
+        self._check_training_torque()
 
-    def on_training(self, context) -> JointElasticityTerm:
-        """This term with its nominal secant fixed on the training recording ``context``: ``torque_rms`` its joint's
-        RMS torque there (kept when already set). The friction part is far from linear in the compliance, so the
-        secant must be one size on every recording: the nominal torsion at each recording's own RMS torque made the
-        validation column the secant at another compliance than the training column's, wrong by several N m in the
-        ~50 ms after each velocity reversal where the shifted velocity changes sign (``test_elasticity_column``)."""
-        self._require_joint()
-        if self.torque_rms is not None:
-            return self
-        return replace(self, torque_rms=max(rms(context.full_tau[:, self.joint]), 1e-9))
+    @staticmethod
+    def statistic(tau) -> float:
+        return rms(tau)
 
     def nominal_compliance(self, context) -> float:
         """The compliance [rad/(N m)] of the nominal secant: ``NOMINAL_TORSION`` at ``torque_rms``, or at the joint's
         RMS torque on ``context`` when the term was not fixed on a training recording (``on_training``)."""
-        torque = self.torque_rms if self.torque_rms is not None else max(rms(context.full_tau[:, self.joint]), 1e-9)
-        return NOMINAL_TORSION / torque
+        return NOMINAL_TORSION / self.training_torque(context)
 
     @property
     def n_shape_parameters(self) -> int:
