@@ -34,6 +34,16 @@ Each solve may take 1000 iterations (``max_iter``): a solve at its cap ends the 
 With the Panda's joint-5 Stribeck shape refused (Coulomb-viscous) the last solve of the second pass needs 908; at a
 cap of 300 the chart then stopped at Solved_To_Acceptable_Level. The cap costs nothing where the path converges.
 
+A warm-started solve that fails (its cap, the restoration phase) is solved once more from the same point with Ipopt's
+start kept where it is given (``RETRY_OPTIONS``: ``bound_push``, ``bound_frac`` 1e-9, not 1e-2). At the defaults Ipopt
+first moves its start inside the variables' bounds and the pivots' slacks (a friction at zero, the pivots of a link
+pressed towards a degenerate pseudo-inertia) and creeps back, its steps cut back where a pivot turns negative: on the
+virtual SCARA with a spring on joint 1, the last weight's solve stopped at its cap, or in the restoration phase,
+depending on the torque's round-off (two algebraically equal ways of adding the spring), and the chart's fallback from
+the weight before then ended at Infeasible_Problem_Detected in one of the two, every iterate feasible. Retried, both
+converge, to the same model. Not the default: from a start on a bound (the first weight's), solves that converge at
+the defaults stop at the cap with it (the virtual Denso's, the Panda's).
+
 Where a path starts matters: the first weight (``MU_PATH[0]``) wants the bodies well inside the cone, where its
 barrier's pull ``mu / pivot`` balances the data's. The consistent fit's second pass (the same problem, reweighted by
 the first pass's residuals) started from the first pass's end, the point of the smallest weight, whose pivots are
@@ -68,6 +78,8 @@ MU_ENOUGH = 1e-5
 BARRIER_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-10,
                    "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 15, "ipopt.max_iter": 1000,
                    "show_eval_warnings": False}  # fmt: skip
+#: A warm-started solve that failed is solved once more from where it was given (module docstring).
+RETRY_OPTIONS = {"ipopt.bound_push": 1e-9, "ipopt.bound_frac": 1e-9}
 
 
 def _pseudo(v, margin: float, size: float):
@@ -149,22 +161,23 @@ def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None)
     lbg, ubg = np.concatenate([lbg, np.zeros(n_steps)]), np.concatenate([ubg, np.full(n_steps, np.inf)])
     if shared is None:
         (solver, callback), values = _solver(problem, bodies, margin, (lbg, ubg), True), ()
-    else:
+        retry = lambda: _solver(problem, bodies, margin, (lbg, ubg), False, RETRY_OPTIONS)[0]  # noqa: E731
+    else:  # a shared solve that fails is solved alone (``consistent_fit``), with the retry
         solvers, key, values = shared
         if key not in solvers:
             solvers[key] = _solver(problem, bodies, margin, (lbg, ubg), False)[0]
-        solver, callback = solvers[key], None
+        solver, callback, retry = solvers[key], None, None
     try:
-        return _follow_path(solver, bodies, start, (lbx, ubx, lbg, ubg), margin, (n_steps, values))
+        return _follow_path(solver, bodies, start, (lbx, ubx, lbg, ubg), margin, (n_steps, values), retry)
     finally:
         if callback is not None:
             callback.close()
 
 
-def _solver(problem, bodies, margin, g_bounds, progress: bool) -> tuple:
+def _solver(problem, bodies, margin, g_bounds, progress: bool, extra=None) -> tuple:
     """(Ipopt solver, progress callback or None) of ``problem`` plus ``mu`` times the bodies' barrier, ``mu`` its
     first parameter (then ``problem["p"]``, if any); the pivots also constrained >= 0 (``g_bounds``: with their
-    rows)."""
+    rows); ``extra``: Ipopt options over ``BARRIER_OPTIONS``."""
     x = problem["x"]
     mu = ca.SX.sym("mu")
     barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size) for k, size in enumerate(bodies)), 0)
@@ -179,12 +192,13 @@ def _solver(problem, bodies, margin, g_bounds, progress: bool) -> tuple:
         bar, callback = progress_options("consistent_fit_barrier_progress", (x.numel(), g.numel(), 1), cap,
                                          "identify: consistent fit (Ipopt)", logger, *g_bounds)  # fmt: skip
     nlp = {"x": x, "g": g, "p": parameters, "f": problem["f"] + mu * barrier}
-    return ca.nlpsol("consistent_fit_barrier", "ipopt", nlp, {**BARRIER_OPTIONS, **bar}), callback
+    return ca.nlpsol("consistent_fit_barrier", "ipopt", nlp, {**BARRIER_OPTIONS, **(extra or {}), **bar}), callback
 
 
-def _follow_path(solver, bodies, start, bounds, margin, steps):
+def _follow_path(solver, bodies, start, bounds, margin, steps, retry=None):
     """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bounds`` with the pivots' rows,
-    ``steps``: (their number, the values of the solver's parameters after ``mu``)."""
+    ``steps``: (their number, the values of the solver's parameters after ``mu``), ``retry``: a function that builds
+    the solver of a failed warm-started solve's second try (``RETRY_OPTIONS``), or None."""
     n_bodies, (n_steps, values) = len(bodies), steps
     lbx, ubx, lbg, ubg = bounds
     current = np.array(start, dtype=float)
@@ -196,6 +210,14 @@ def _follow_path(solver, bodies, start, bounds, margin, steps):
         solution = solver(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         iterations += stats["iter_count"]
+        failed = stats["return_status"] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
+        if failed and last is not None and retry is not None:
+            logger.debug("consistent fit: the barrier path's solve at mu %g failed (%s); once more from where it "
+                         "was given", weight, stats["return_status"])  # fmt: skip
+            again = retry()
+            solution = again(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+            stats = again.stats()
+            iterations += stats["iter_count"]
         if stats["return_status"] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
             logger.debug("consistent fit: the barrier path stopped at mu %g (%s)", weight, stats["return_status"])
             return None if last is None else BarrierResult(current, last, status, reached <= MU_ENOUGH, first)
@@ -203,7 +225,7 @@ def _follow_path(solver, bodies, start, bounds, margin, steps):
         reached, status = weight, stats["return_status"]
         first = current if first is None else first
     logger.debug("consistent fit: barrier path in %d Ipopt iterations", iterations)
-    return BarrierResult(current, last, solver.stats()["return_status"], True, first)
+    return BarrierResult(current, last, status, True, first)
 
 
 def _without_pivots(solution, n_steps: int) -> dict:
