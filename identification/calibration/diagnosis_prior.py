@@ -12,6 +12,10 @@ does, and its envelope check (``diagnosis.envelope_check``) keeps them where a p
 :func:`diagnosis_prior` decides it from the model file: the robot file's rigid body when identify reported a link
 (not only a drive inertia) pushed against its bounds for an absorbed counterbalance or payload and the robot file
 states link inertias; the model file's otherwise. The friction and the preparation stay the model file's either way.
+The choice is checked on the validation recording (``diagnosis.model_file``): when the diagnosis from the robot file's
+rigid body (the model's friction refitted, its findings added) still predicts some joint worse than the model file as
+it is beyond the never-worse margin (``paired_margin``), its findings only repair a nominal worse than the model the
+user has, and the diagnosis starts from the model file's rigid body instead (``DiagnosisPrior.declining``), saying why.
 :func:`carried_findings` names the findings of a diagnosis that the model file already holds (its nominal model
 leaves the file's own findings out, so a diagnosis finds them again).
 """
@@ -43,26 +47,48 @@ class DiagnosisPrior:
         0-based links identify pushed against their bounds.
     effects : tuple of str
         What identify said they most likely absorb (``ABSORBING_EFFECTS``).
+    declined : str
+        Non-empty when the robot file's rigid body was asked for but declined: the joints on which the diagnosis's
+        model from it (friction refitted, findings added) predicts the validation recording worse than the model
+        file as it is, beyond the never-worse margin (``diagnosis.model_file.robot_file_worse``); ``robot_file`` is then
+        False.
     """
 
     robot_file: bool = False
     links: tuple = ()
     effects: tuple = ()
+    declined: str = ""
 
     def note(self) -> str:
-        """The report's sentence on the choice (empty for the model file's own rigid body)."""
-        if not self.robot_file:
+        """The report's sentence on the choice (empty for the model file's own rigid body, unless the robot file's
+        was declined)."""
+        if not (self.robot_file or self.declined):
             return ""
         links = ", ".join(str(i + 1) for i in self.links)
+        pushed = (f"the model file's identify pushed link{'s' if len(self.links) > 1 else ''} {links} against the "
+                  f"physical envelope, absorbing a {' or a '.join(self.effects)}")  # fmt: skip
+        if self.declined:
+            return (
+                f"{pushed}, but the diagnosis from the robot file's rigid body (the model's friction refitted on the "
+                f"training recording, its findings added) predicts the validation recording worse than the model file "
+                f"as it is beyond the never-worse margin ({self.declined}): its findings would only repair a nominal "
+                "worse than the model file, so the diagnosis starts from the model file's rigid body (the absorbed "
+                "effect may stay hidden in it)"
+            )
         return (
-            f"the model file's identify pushed link{'s' if len(self.links) > 1 else ''} {links} against the physical "
-            f"envelope, absorbing a {' or a '.join(self.effects)}: its rigid body holds part of that effect, so the "
-            "diagnosis starts from the robot file's rigid body (kept in the model file) with the model's friction "
-            "and preparation, as 'psdm diagnose ROBOT' would"
+            f"{pushed}: its rigid body holds part of that effect, so the diagnosis starts from the robot file's rigid "
+            "body (kept in the model file) with the model's friction and preparation, as 'psdm diagnose ROBOT' would"
         )
+
+    def declining(self, why: str) -> DiagnosisPrior:
+        """This choice turned to the model file's rigid body because the robot file's predicts worse (``why``: the
+        joints and their numbers)."""
+        return dataclasses.replace(self, robot_file=False, declined=why)
 
     def sentence(self) -> str:
         """How the report's nominal-model line names the rigid body."""
+        if self.declined:
+            return "as identified in it, not the robot file's (see the rigid-body notes)"
         return "from the robot file the model file keeps (see the rigid-body notes)" if self.robot_file else ""
 
 

@@ -1,16 +1,20 @@
 """Diagnose a calibrated model file (``psdm identify``'s JSON) as ``psdm diagnose MODEL.json`` does, from Python.
 
 The nominal model is the file's: its robot, its identified inertia (``calibrated_robot``; the robot file's when identify
-pushed links against their envelope for an absorbed effect, ``diagnosis_prior``) and its friction shape (Coulomb +
-viscous, Stribeck with its vs, or LuGre with its identified parameters). The recordings are prepared as the file says
-(``model_preparation``: its filter, cutoff and grid rate, and identify's samples with the file's edge trim, one filter
-period in files of preparation version 1), so the report's "before" is the file's own validation RMSE, the one ``psdm
-validate`` prints (``report_assembly.with_model_file_before``), and the report names the file and the preparation it
-used. The friction identify held on joints that moved one way only in its training data (``one_way_friction``) stays
-held at the file's values in every fit of the diagnosis (``DiagnosisOptions.held_friction``): the diagnosis's nominal
-model predicts those joints as the file does, and its refits (the rigid body recalibrated, freely or inside the
-envelope, the findings' joint fits) keep it, as ``diagnose --apply``'s refit does (``recalibrate``).
-``psdm diagnose`` calls :func:`diagnose_model`, so the Python API and the command give the same numbers.
+pushed links against their envelope for an absorbed effect, ``diagnosis_prior``, unless the diagnosis's model from
+that rigid body, with the model's friction refitted and the findings added, predicts a joint of the validation
+recording worse than the file as it is beyond the never-worse margin, ``robot_file_worse``: then the file's own, and
+the report says why) and its friction shape
+(Coulomb + viscous, Stribeck with its vs, or LuGre with its identified parameters). The recordings are prepared as
+the file says (``model_preparation``: its filter, cutoff and grid rate, and identify's samples with the file's edge
+trim, one filter period in files of preparation version 1), so the report's "before" is the file's own validation
+RMSE, the one ``psdm validate`` prints (``report_assembly.with_model_file_before``), and the report names the file
+and the preparation it used. The friction identify held on joints that moved one way only in its training data
+(``one_way_friction``) stays held at the file's values in every fit of the diagnosis
+(``DiagnosisOptions.held_friction``): the diagnosis's nominal model predicts those joints as the file does, and its
+refits (the rigid body recalibrated, freely or inside the envelope, the findings' joint fits) keep it, as ``diagnose
+--apply``'s refit does (``recalibrate``).
+``psdm diagnose`` calls :func:`diagnose_model_prior`, so the Python API and the command give the same numbers.
 """
 
 from __future__ import annotations
@@ -27,15 +31,24 @@ from identification.calibration.diagnosis_prior import carried_as, diagnosis_pri
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.model_preparation import model_preparation
+from identification.calibration.never_worse import JointComparison
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.motion_checks import validation_recordings
 from identification.diagnosis.report import DiagnosisReport
 from identification.diagnosis.report_assembly import with_model_file_before
+from identification.paired_margin import paired_rmse_margin
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["diagnose_model", "model_file_options", "own_friction"]
+__all__ = [
+    "diagnose_model",
+    "diagnose_model_prior",
+    "file_prediction",
+    "model_file_options",
+    "own_friction",
+    "robot_file_worse",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -95,19 +108,68 @@ def diagnose_model(
         preparation keeps, ``rmse_before`` that same RMSE (``before_is_model_file``).
     """
     loaded = source if isinstance(source, LoadedModel) else read_calibrated_model(source, derive=derive)
+    if name is None and not isinstance(source, LoadedModel):
+        name = str(source)
+    return diagnose_model_prior(loaded, train, validation, options, name)[0]
+
+
+def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, name=None) -> tuple:
+    """``(report, DiagnosisPrior)``: ``diagnose_model`` of the read file ``loaded`` with the rigid-body choice it made
+    (the CLI prints its note). The robot file's rigid body (``diagnosis_prior``) is kept only if the diagnosis's
+    model from it (the model's friction refitted, with the findings: the effect the file's rigid body absorbed is
+    found again) predicts no joint of the first validation recording worse than the model file as it is beyond the
+    never-worse margin (``robot_file_worse``); its findings would otherwise only repair a nominal worse than the model
+    the user has. Then the diagnosis runs again from the model file's
+    rigid body and the choice says why (``DiagnosisPrior.declining``): a finding's "before" is the nominal it used."""
     calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
-    given = options
-    options = model_file_options(calibrated, options)
+    options = model_file_options(calibrated, given)
     robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
-    if prior.robot_file:  # identify's rigid body absorbed an effect: start from the robot file's
+    first = validation_recordings(validation)[0]
+    report = None
+    if prior.robot_file:  # identify's rigid body absorbed an effect: try the robot file's
+        report = diagnose(with_file_rigid_body(robot, robot_file), train, validation, options, model=model)
+        worse = robot_file_worse(report, file_prediction(loaded, first))
+        if worse:
+            prior, report = prior.declining(worse), None
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
-        robot = with_file_rigid_body(robot, robot_file)
-    report = diagnose(robot, train, validation, options, model=model)
-    if name is None:
-        name = str(source) if not isinstance(source, LoadedModel) else f"for {robot_file.name}"
+    if report is None:
+        report = diagnose(robot, train, validation, options, model=model)
+    name = f"for {robot_file.name}" if name is None else name
     own = model_preparation(calibrated.document)
     preparation = own if (given is None or given.cutoff_hz == AUTO) else None
-    return file_before(report, loaded, validation_recordings(validation)[0], name, (preparation, prior))
+    return file_before(report, loaded, first, name, (preparation, prior)), prior
+
+
+def file_prediction(loaded: LoadedModel, validation) -> tuple:
+    """``(RMSE per joint, prepared recording, prediction)`` of the model file as it is on the raw ``validation``
+    recording, prepared as the file says (``finding_value.validation_rmse``, as ``psdm validate``)."""
+    robot = loaded.robot
+    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    own, _, prepared, predicted = validation_rmse(loaded.calibrated, loaded.model, validation, kt)
+    return own, prepared, predicted
+
+
+def robot_file_worse(report, file_fit) -> str:
+    """The joints (a sentence with their numbers; empty: none) on which the diagnosis's model of ``report`` (its
+    nominal with the findings, before ``file_before``: ``validation_final``) predicts the validation samples worse
+    than the model file as it is (``file_fit``, ``file_prediction``) by more than the never-worse margin:
+    ``MARGIN_SIGMAS`` standard errors of the paired RMSE difference, at least ``MARGIN_FLOOR`` of the file's RMSE
+    (``JointComparison.from_noise``).
+    Empty as well when the two were not judged on the same samples (nothing to compare: the choice stays)."""
+    _, prepared, predicted = file_fit
+    t, tau, predicted = (np.asarray(x, dtype=float) for x in (prepared.t, prepared.tau, predicted))
+    own_t, own_tau = np.asarray(report.validation_t), np.asarray(report.validation_tau)
+    nominal = np.asarray(report.validation_final, dtype=float)
+    if own_t.shape != t.shape or own_tau.shape != tau.shape or nominal.shape != tau.shape:
+        return ""
+    if not np.allclose(own_t, t, rtol=0.0, atol=1e-9):
+        return ""
+    measured = np.flatnonzero(np.all(np.isfinite(tau), axis=0) & np.all(np.isfinite(nominal), axis=0))
+    file_residual, nominal_residual = tau[:, measured] - predicted[:, measured], tau[:, measured] - nominal[:, measured]
+    before, after, se = paired_rmse_margin(file_residual, nominal_residual)
+    comparison = JointComparison.from_noise(before, after, se)
+    return "; ".join(f"joint {measured[j] + 1} {comparison.before[j]:.3g} -> {comparison.after[j]:.3g} N m, margin "
+                     f"{comparison.margin[j]:.2g}" for j in comparison.worse)  # fmt: skip
 
 
 def file_before(report, loaded: LoadedModel, validation, name: str, choices=(None, None)) -> DiagnosisReport:
@@ -115,7 +177,7 @@ def file_before(report, loaded: LoadedModel, validation, name: str, choices=(Non
     ``DiagnosisPrior``), the preparation and why the rigid body came from the robot file), with the file's own
     validation RMSE as its "before" when the diagnosis judged the samples the file's preparation keeps (else beside
     it, ``model_file_rmse``), and the findings the file already holds named."""
-    calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    calibrated = loaded.calibrated
     preparation, prior = choices
     path = Path(name)
     digest = f"sha256 {hashlib.sha256(path.read_bytes()).hexdigest()[:12]}..., " if path.is_file() else ""
@@ -125,8 +187,7 @@ def file_before(report, loaded: LoadedModel, validation, name: str, choices=(Non
                f"{kept if report.rigid_body == 'prior' else 'identified again on the training recording'}")  # fmt: skip
     notes = tuple(n for n in ((prior.note() if prior is not None else ""), _carried(report, calibrated)) if n)
     report = replace(report, rigid_body_notes=notes + tuple(report.rigid_body_notes))
-    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-    own, _, prepared, predicted = validation_rmse(calibrated, model, validation, kt)
+    own, prepared, predicted = file_prediction(loaded, validation)
     text = report.preparation if preparation is None else preparation.text()
     report = replace(report, nominal_model=nominal, preparation=text,
                      model_file_rmse=tuple(float(v) for v in np.atleast_1d(own)))  # fmt: skip

@@ -157,7 +157,7 @@ def _run_diagnose(args) -> int:
     from identification.data.io import not_held_out
     from identification.data.missing_torque import find_missing_torque
     from identification.diagnosis.diagnose import DiagnosisOptions
-    from identification.diagnosis.model_file import diagnose_model
+    from identification.diagnosis.model_file import diagnose_model_prior
 
     args.train, args.validate = _one_training_recording(args.train), list(args.validate or ())
     fraction = _fraction(args)
@@ -168,20 +168,13 @@ def _run_diagnose(args) -> int:
         check_positive(args.cutoff, "--cutoff", fix, " [Hz]")
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
     loaded, apply_out = _calibrated_source(args)
-    from identification.calibration.diagnosis_prior import DiagnosisPrior, diagnosis_prior, with_file_rigid_body
-
     calibrated = model = robot_file = None
-    prior = DiagnosisPrior()
-    if loaded is not None:
+    if loaded is not None:  # the robot here reads and checks the recordings (its kinematics and drives)
         from identification.calibration.calibrated_model import calibrated_robot
 
         calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
         robot = calibrated_robot(calibrated, robot_file)
         report_model_warnings("diagnose", args.robot, calibrated)
-        prior = diagnosis_prior(calibrated.document, robot_file)
-        if prior.robot_file:  # identify's rigid body absorbed an effect: start from the robot file's
-            robot = with_file_rigid_body(robot, robot_file)
-            print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     else:
         robot = load_robot_argument(args)
     layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
@@ -210,7 +203,9 @@ def _run_diagnose(args) -> int:
     if loaded is None:
         report = _robot_report(args, robot, train, validations, options)
     else:  # the Python API's diagnosis of a model file (diagnose_model): the same numbers
-        report = diagnose_model(loaded, train, validations, options, name=args.robot)
+        report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot)
+        if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
+            print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     report = dataclasses.replace(report, preparation=preparation.text(), held_out=_held_text(args.train, held))
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
