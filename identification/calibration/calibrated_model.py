@@ -52,6 +52,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.held_friction import drive_inertia_split
@@ -408,7 +409,11 @@ def _robot_block(robot, robot_source) -> dict:
 
 
 def _relative(urdf_path, main: Path) -> str:
-    """The URDF's path relative to the robot file's folder, with / separators."""
+    """The URDF's path relative to the robot file's folder (/ separators): its [urdf].path as written, not from the
+    resolved ``urdf_path``, which through a symlinked folder differs and would not reach the stored URDF."""
+    written = tomllib.loads(main.read_text()).get("urdf", {}).get("path")
+    if isinstance(written, str) and not Path(written).is_absolute():
+        return Path(written).as_posix()
     return Path(os.path.relpath(os.path.abspath(urdf_path), os.path.abspath(main.parent))).as_posix()
 
 

@@ -263,3 +263,23 @@ def test_a_robot_file_whose_urdf_lies_elsewhere_is_rebuilt_from_the_model_file(t
     escaping = dict(block, files={**block["files"], str(tmp_path / "outside.urdf"): "x"})
     with pytest.raises(ModelFileError, match="must lie beside the robot file or below it"):
         CalibratedModel({"robot": escaping}).robot_file(cache_dir=tmp_path / "cache2")
+
+
+def test_a_urdf_reached_through_a_symlinked_folder_is_stored_where_the_robot_file_s_path_reaches_it(tmp_path):
+    from identification.calibration.calibrated_model import CalibratedModel, _robot_block
+    from psdm_casadi.robot import load_robot
+    from tests.conftest import example_robot_urdf
+
+    real = tmp_path / "disk" / "datasets" / "ur5"  # the real folder, deeper than the link that names it
+    real.mkdir(parents=True)
+    (real / "ur5.urdf").write_text(example_robot_urdf("ur_description/urdf/ur5_robot.urdf").read_text())
+    (tmp_path / "project" / "robots").mkdir(parents=True)
+    (tmp_path / "project" / "shared").symlink_to(real, target_is_directory=True)
+    main = tmp_path / "project" / "robots" / "ur5.toml"
+    main.write_text('[urdf]\npath = "../shared/ur5.urdf"\n')
+    robot = load_robot(main)
+    block = _robot_block(robot, main)
+    assert set(block["files"]) == {"ur5.toml", "../shared/ur5.urdf"}  # as the robot file writes it
+    rebuilt = CalibratedModel({"robot": block}).load_robot(cache_dir=tmp_path / "cache")
+    assert rebuilt.joint_names == robot.joint_names
+    assert (tmp_path / "cache").resolve() in Path(rebuilt.urdf_path).resolve().parents
