@@ -304,8 +304,7 @@ def _choice(named, trials, judges) -> CounterbalanceChoice:
     """The ``CounterbalanceChoice`` of the best trial (one per spring order), with its numbers and why."""
     joints = tuple(named)
     passing = [t for t in trials if t[0]]
-    ok, chosen, trial, not_springs = min(passing or trials, key=lambda t: _score(t[2].opinions[0].together))
-    refused = "".join(f"; {why}" for why in not_springs.values())
+    ok, chosen, trial = min(passing or trials, key=lambda t: _score(t[2].opinions[0].together))
     comparison = trial.opinions[0].together
     route = " and ".join(opinion.route for opinion in trial.opinions)  # the judges that gave their opinion
     route += f" (no block cross-validation: {judges.note})" if judges.note else ""
@@ -320,9 +319,7 @@ def _choice(named, trials, judges) -> CounterbalanceChoice:
     if not ok:
         worse = sorted({j for opinion in trial.opinions for j in opinion.together.worse})
         lead = "none lowers its own joint's error on every held-out part (the blocks together beyond their noise): "
-        judged = [j for j in joints if j not in not_springs]
-        why = [] if chosen or not judged else [lead + trial.failures(judged)]
-        why += [refused[2:]] if refused else []
+        why = [] if chosen else [lead + trial.failures(joints)]
         if worse:
             why.append("it makes " + ", ".join(f"joint {j + 1}" for j in worse) + " worse beyond the noise margin")
         why = "; ".join(why) or "it leaves them pushed against their bounds"
@@ -332,7 +329,7 @@ def _choice(named, trials, judges) -> CounterbalanceChoice:
     springs = ", ".join(f["label"] for f in trial.document["findings"] if f.get("source") == COUNTERBALANCE_SOURCE)
     by = " and ".join(dict.fromkeys(named[j] for j in chosen))
     reason = (f"a spring on {labels} ({springs}) identified with the model (the counterbalance named by {by}): RMSE on "
-              f"the {route} {pair}, lower on every held-out part, no joint worse{noise}{refused}")  # fmt: skip
+              f"the {route} {pair}, lower on every held-out part, no joint worse{noise}")  # fmt: skip
     return CounterbalanceChoice(chosen, named, True, reason, trial.plain, trial.document, *numbers, parts, cleared)
 
 
@@ -342,14 +339,12 @@ def _score(comparison) -> float:
 
 
 def _pruned(problem, joints, order) -> tuple:
-    """(passes, joints kept, ``Trial``, ``{joint: why}`` of the springs refused as not springs) of springs of
-    ``order``: each spring whose fitted law is not a spring (``Trial.not_springs``), or that does not lower its own
-    joint's held-out error on every held-out part (``Opinion.lowers``; on held-out recordings judged against the fit
-    without that spring, the others kept), is left out, then the rest is judged (module docstring)."""
+    """(passes, joints kept, ``Trial``) of springs of ``order``: each spring that does not lower its own joint's
+    held-out error on every held-out part (``Opinion.lowers``; on held-out recordings judged against the fit without
+    that spring, the others kept) is left out, then the rest is judged (module docstring)."""
     trial = _attempt(*problem, joints, order)
-    refused = trial.not_springs(COUNTERBALANCE_SOURCE)
     kept = []
-    for j in (j for j in joints if j not in refused):
+    for j in joints:
         without = None
         if len(joints) > 1 and problem[5].held:  # on held-out recordings: against the fit with the others kept
             without = _attempt(*problem, tuple(k for k in joints if k != j), order, second=False)
@@ -358,11 +353,10 @@ def _pruned(problem, joints, order) -> tuple:
             kept.append(j)
     if kept and tuple(kept) != tuple(joints):
         trial = _attempt(*problem, tuple(kept), order)
-        refused.update(trial.not_springs(COUNTERBALANCE_SOURCE))  # refitted without the others: a law may turn
     worse = any(opinion.together.worse for opinion in trial.opinions)
     ok = bool(kept) and trial.complete and not worse and not set(counterbalance_joints(trial.plain)) & set(kept)
-    ok = ok and not set(refused) & set(kept) and all(opinion.lowers(j) for opinion in trial.opinions for j in kept)
-    return ok, tuple(kept), trial, refused
+    ok = ok and all(opinion.lowers(j) for opinion in trial.opinions for j in kept)
+    return ok, tuple(kept), trial
 
 
 def _attempt(robot, model, recordings, options, calibrated, judges, build, configurations, kt, joints, order,

@@ -16,20 +16,12 @@ four blocks, one by nearly half and three by less than their own margins, and ra
 by a tenth; where the cam holds (seeds 0 and 2) every block drops by a like share and the mean drop clears the
 margin. A held-out recording is a motion the fit never saw: there "lower" on each recording is the rule, as for a
 diagnosis's finding (``diagnosis.second_opinion``).
-
-A spring whose fitted law is not a spring (``Trial.not_springs``: the diagnosis's one plausibility rule,
-``SpringTerm.implausibility``, a negative stiffness over the joint's range) is no counterbalance whatever the judges
-say: it pushes the joint away from its rest angle, a position-dependent torque of another cause (an unmodelled tool's
-gravity, a mass error of the robot file) that the report leaves to ``psdm diagnose``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
-from identification.calibration.findings import FindingTerm
 from identification.calibration.never_worse import JointComparison
 
 __all__ = ["HELD_OUT_ROUTE", "Opinion", "Trial"]
@@ -109,22 +101,3 @@ class Trial:
             for where, without, after, note in opinion.shortfalls(j)
         ]
         return "; ".join(out) or "each lowers it only beside the other springs"
-
-    def not_springs(self, source: str) -> dict:
-        """``{0-based joint: why}`` of this trial's springs (the ``findings`` entries of ``source``) whose fitted law
-        is not a spring by the diagnosis's rule (``SpringTerm.implausibility``: a negative stiffness, the linear
-        spring's slope or a polynomial's nearly constant one over the recorded range); a constant the joint's torque
-        offset absorbs counts 0."""
-        from identification.diagnosis.candidates import SpringTerm
-
-        out = {}
-        for entry in self.document.get("findings") or []:
-            if entry.get("source") != source or entry.get("effect") != "spring":
-                continue
-            term = FindingTerm.from_dict(entry["term"])
-            law = term.candidate or SpringTerm(joint=term.joint)
-            coefficients = np.array([0.0 if c is None else c for c in entry["coefficients"]], dtype=float)
-            why = law.implausibility(coefficients)
-            if why:
-                out[term.joint] = f"{entry['label']} refused: {why}; not a spring"
-        return out
