@@ -212,6 +212,7 @@ def test_a_bad_envelope_in_the_robot_file_exits_2_naming_the_field(tmp_path, cap
     assert "link[2].envelope" in err and message in err and "Traceback" not in err
 
 
+@pytest.mark.slow  # identify with the envelope, text, --json and the model file: about 25 s
 def test_identify_reports_the_pushed_link_in_text_json_and_the_model_file(denso, tmp_path, capsys):
     recording = rigid_recording(denso, [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)])
     save_recording(recording, tmp_path / "train.csv")
