@@ -11,28 +11,12 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
-from pathlib import Path
 
+from identification.data.holdout import recording_digest
 from identification.fleet.layout import Fleet
 from identification.fleet.session import SessionTask
 
-__all__ = ["Duplicate", "RunPlan", "file_hash", "plan_run"]
-
-BLOCK = 1 << 20
-
-
-def file_hash(path) -> str:
-    """sha256 (hex) of a recording file, or of a bag folder's files (names relative to it, then contents)."""
-    path = Path(path)
-    digest = hashlib.sha256()
-    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
-    for member in files:
-        if path.is_dir():
-            digest.update(str(member.relative_to(path)).encode() + b"\0")
-        with open(member, "rb") as handle:
-            while block := handle.read(BLOCK):
-                digest.update(block)
-    return digest.hexdigest()
+__all__ = ["Duplicate", "RunPlan", "plan_run"]
 
 
 @dataclass(frozen=True)
@@ -63,7 +47,7 @@ def plan_run(fleet: Fleet) -> RunPlan:
         for day in robot.days:
             kept = []
             for path in day.paths:
-                digest = file_hash(path)
+                digest = recording_digest(path)
                 if digest in seen:
                     original, original_day = seen[digest]
                     duplicates.append(Duplicate(robot.robot_id, day.day, path, original, original_day))
