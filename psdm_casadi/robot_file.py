@@ -37,7 +37,7 @@ from psdm_casadi.link_overrides import apply_link_overrides
 from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.said_once import say
 from psdm_casadi.text_file import read_text_file
-from psdm_casadi.transmission_file import layout_from_table, transmission_from_table
+from psdm_casadi.transmission_file import drives_with_motor_kt, layout_from_table, transmission_from_table
 from psdm_casadi.urdf import from_urdf
 from psdm_casadi.values import format_value
 
@@ -214,6 +214,7 @@ def robot_from_mapping(data: dict, source: Path | None = None, locked_joints=())
     name = _string(data["name"], f"{where} name") if "name" in data else (source.stem if source else "robot")
     convention = _convention(data.get("convention", "standard"), where)
     assumed = {**_assumed(assumptions, n, where), **_motor_side(data, n, where)}
+    drives = _drives_with_motor_kt(drives, data, assumed, where)
     with _within(where):
         return RobotDescription(
             name=name,
@@ -243,6 +244,12 @@ def _motor_side(data: dict, n: int, where: str) -> dict:
     transmission = transmission_from_table(data["transmission"], n, where) if "transmission" in data else None
     layout = layout_from_table(data["recording"], n, where, transmission) if "recording" in data else None
     return {"transmission": transmission, "recording_layout": layout}
+
+
+def _drives_with_motor_kt(drives, data: dict, assumed: dict, where: str):
+    """``drives`` with the joint-side torque constants of motor currents (``drives_with_motor_kt``)."""
+    tables = data.get("drive") or [{}] * len(drives or ())
+    return drives_with_motor_kt(drives, tables, assumed["transmission"], assumed["recording_layout"], where)
 
 
 def _joints_from_tables(tables, where) -> list:
@@ -409,6 +416,7 @@ def _robot_from_urdf_table(data, assumptions, source, where, extra_locks=()):
     joints = _urdf_limits(robot.joints, table.get("limits", {}), where)
     drives = _drives_from_tables(data.get("drive"), n, where)
     assumed = {**_assumed(assumptions, n, where), **_motor_side(data, n, where)}
+    drives = _drives_with_motor_kt(drives, data, assumed, where)
     with _within(where):
         robot = replace(robot, joints=joints, drives=drives, source=None if source is None else str(source), **assumed)
     unusable = robot.replaced_inertias

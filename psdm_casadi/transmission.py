@@ -116,6 +116,16 @@ class Transmission:
         """Whether a motor turns with another joint than its own (an off-diagonal coupling entry)."""
         return bool(np.any(self.coupling - np.diag(np.diag(self.coupling))))
 
+    @property
+    def joint_kt(self) -> np.ndarray | None:
+        """Joint-side torque constants ``|N_ii| kt_m`` [N m/A] of the joint-signed currents ``sign(N_ii) i_m`` of an
+        uncoupled transmission with ``motor_kt`` (``tau_j = N_ii kt_m i_m``); None when coupled or without
+        ``motor_kt``. A robot file's ``[[drive]]`` tables take them (``transmission_file.drives_with_motor_kt``), so
+        motor currents reach identify as currents: their torque holds the rotors' inertia and the gears' loss."""
+        if self.motor_kt is None or self.is_coupled:
+            return None
+        return np.abs(self.gear_ratios) * self.motor_kt
+
     # --- motor side -> joint side (arrays are (n_samples, n_dof)) -------------------------------
     def joint_positions(self, theta_m) -> np.ndarray:
         """``q = N_q^-1 theta_m + q_0`` [rad]."""

@@ -7,10 +7,12 @@ validate, diagnose) works on joint-side signals::
 
     q = N_q^-1 theta_m + q_0     qd = N_q^-1 qd_m     qdd = N_q^-1 qdd_m     tau = N_q^T tau_m
 
-Motor currents become joint torques ``N_q^T (kt_m * i_m)`` when the motors' torque constants are
-stated (``motor_kt``); without them, the currents of an uncoupled transmission stay currents, signed
-like their joint (the [[drive]] tables' kt is then the joint-side constant ``|N_i| kt_m``), and the
-currents of a coupled one are refused. :func:`to_motor_side` is the inverse (a virtual controller's log).
+The currents of an uncoupled transmission stay currents, signed like their joint: the [[drive]] tables' kt is
+the joint-side constant ``|N_i| kt_m`` (a robot file with ``motor_kt`` gives its drives these,
+``transmission_file.drives_with_motor_kt``), so every command sees currents, whose torque holds the rotors'
+inertia and the gears' loss. The currents of a coupled transmission (or of drives without those constants)
+become joint torques ``N_q^T (kt_m * i_m)`` through the motors' torque constants (``motor_kt``); a coupled one
+without them is refused. :func:`to_motor_side` is the inverse (a virtual controller's log).
 """
 
 from __future__ import annotations
@@ -80,7 +82,7 @@ def to_joint_side(recording: Recording, robot) -> Recording:
         return recording
     signals, transmission, changes = mapped
     if "current" in signals:
-        changes.update(_joint_currents(recording, transmission))
+        changes.update(_joint_currents(recording, transmission, robot.drives))
     logger.info(
         "%s: %s mapped from the motor side to the joints (gear ratios %s%s)",
         recording.name or "recording",
@@ -91,8 +93,13 @@ def to_joint_side(recording: Recording, robot) -> Recording:
     return recording.with_signals(**changes)
 
 
-def _joint_currents(recording: Recording, transmission) -> dict:
-    """Joint torques of motor currents (with ``motor_kt``), or joint-signed currents of an uncoupled transmission."""
+def _joint_currents(recording: Recording, transmission, drives) -> dict:
+    """Joint-signed currents of an uncoupled transmission (with ``motor_kt``: where the drives hold its joint-side
+    constants, ``Transmission.joint_kt``, as a robot file's do), else joint torques of motor currents (``motor_kt``)."""
+    joint_kt = transmission.joint_kt
+    if joint_kt is not None and drives is not None and recording.tau is None:
+        if np.allclose([drive.kt for drive in drives], joint_kt, rtol=1e-9, atol=0.0):
+            return {"current": recording.current * np.sign(transmission.gear_ratios)}
     if transmission.motor_kt is not None:
         tau = transmission.current_torques(recording.current)
         if recording.tau is not None:  # a recorded torque is kept; the currents it replaces are dropped

@@ -12,7 +12,7 @@ from identification.data.motor_side import to_joint_side, to_motor_side
 from identification.data.recording import Recording
 from identification.data.robot_recordings import load_robot_recording, recording_paths
 from identification.virtual.simulation import SimulationOptions, simulate_recording
-from psdm_casadi.errors import RecordingError
+from psdm_casadi.errors import RecordingError, RobotFileError
 from psdm_casadi.recording_layout import RecordingLayout
 from psdm_casadi.robot import load_robot
 from psdm_casadi.transmission import Transmission
@@ -195,3 +195,50 @@ files = { q = "positions.csv", tau = "torques.csv" }
     validated = json.loads(capsys.readouterr().out)["recordings"]
     assert len(validated) == 1 and min(validated[0]["r2"]) > 0.95  # the two files are one recording, well predicted
     assert [p.name for p in (tmp_path / "plots").glob("*.png")] == ["valid.png"]
+
+
+def _denso_without_drives(tmp_path, tables: str) -> Path:
+    """The built-in Denso's robot file without its [[drive]] tables, with ``tables`` appended."""
+    from tests.conftest import DENSO_FILE
+
+    path = tmp_path / "denso_currents.toml"
+    path.write_text(DENSO_FILE.read_text().split("\n[[drive]]\n")[0] + "\n" + tables)
+    return path
+
+
+MOTOR_CURRENTS = """
+[transmission]
+gear_ratios = [100, -80, 60, 50, -40, 30]
+motor_kt = [0.3, 0.3, 0.2, 0.1, 0.1, 0.05]
+
+[recording]
+side = { q = "joint", current = "motor" }
+"""
+
+
+def test_motor_currents_through_motor_kt_reach_identify_as_currents(tmp_path, rng):
+    """A cobot logging motor currents, its gears and motor torque constants in [transmission] (no [[drive]] tables):
+    the currents stay currents (joint-signed) with the joint-side constants |N| kt_m, so identify takes them as
+    currents (rotor inertia and gear loss in the torque). Before, they became a torque sensor's ``tau`` and a small
+    rotor inertia (a virtual cobot's last joint) was dropped by the column choice."""
+    robot = load_robot(_denso_without_drives(tmp_path, MOTOR_CURRENTS))
+    gears, motor_kt = np.array([100, -80, 60, 50, -40, 30.0]), np.array([0.3, 0.3, 0.2, 0.1, 0.1, 0.05])
+    np.testing.assert_allclose([d.kt for d in robot.drives], np.abs(gears) * motor_kt, rtol=1e-15)
+    assert all(d.fc == 0 and d.fv == 0 for d in robot.drives)  # torque constants alone: no friction prior
+    current_m = rng.normal(size=(40, 6))
+    motor = Recording(t=np.arange(40) * 1e-3, q=rng.normal(size=(40, 6)), current=current_m, name="cobot.csv")
+    joint = to_joint_side(motor, robot)
+    assert joint.tau is None  # currents, as identify's column choice and every kt user need them
+    tau_expected = current_m * motor_kt * gears  # tau_j = N_jj kt_m i_m (the transmission is diagonal)
+    np.testing.assert_allclose(joint.joint_torque(np.array([d.kt for d in robot.drives])), tau_expected, rtol=1e-14)
+    np.testing.assert_allclose(to_motor_side(joint, robot).current, current_m, rtol=1e-14)
+
+
+def test_a_drive_kt_that_is_not_the_joint_side_constant_is_refused(tmp_path):
+    """[[drive]] kt stated as the motor's own constant beside motor_kt: a 100x torque error, refused with the fix."""
+    from tests.conftest import DENSO_FILE
+
+    path = tmp_path / "denso_currents.toml"
+    path.write_text(DENSO_FILE.read_text() + MOTOR_CURRENTS)  # the Denso states kt = 36.07, ... (not 30, ...)
+    with pytest.raises(RobotFileError, match=r"drive\[1\]\.kt = 36\.07 .* 100 x 0\.3 = 30 N m/A.*set it to 30"):
+        load_robot(path)
