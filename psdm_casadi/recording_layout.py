@@ -78,7 +78,12 @@ class RecordingLayout:
         object.__setattr__(self, "files", files)
 
     def side(self, signal: str) -> str:
-        """``"motor"`` or ``"joint"`` (the default) for one of :data:`SIGNALS`."""
+        """``"motor"`` or ``"joint"`` (the default) for one of :data:`SIGNALS`. The currents, unless stated, are on
+        the torques' side: a log's effort channel is one signal (``side = { q = "joint", tau = "motor" }`` of a cobot
+        logging motor currents put them on the joint side before, and identify asked for [[drive]] kt while the
+        file's ``motor_kt`` went unused)."""
+        if signal == "current" and signal not in self.sides:
+            return self.sides.get("tau", "joint")
         return self.sides.get(signal, "joint")
 
     @property

@@ -423,8 +423,9 @@ def torque_constants(robot, options, recordings):
         return np.asarray(options.kt, dtype=float)
     if robot.drives is None:
         raise ParameterError(
-            f"recordings of currents need torque constants; {robot.name} has no [[drive]] tables. "
-            "Add kt to the robot file's drives, or record joint torques."
+            f"recordings of currents need torque constants; {robot.name} has no [[drive]] tables. Add kt (N m/A at "
+            "the joint) to [[drive]] tables, or, for motor currents, motor_kt and gear_ratios to [transmission] with "
+            '[recording] side = { current = "motor" }; or record joint torques.'
         )
     return np.array([d.kt for d in robot.drives], dtype=float)
 

@@ -242,3 +242,19 @@ def test_a_drive_kt_that_is_not_the_joint_side_constant_is_refused(tmp_path):
     path.write_text(DENSO_FILE.read_text() + MOTOR_CURRENTS)  # the Denso states kt = 36.07, ... (not 30, ...)
     with pytest.raises(RobotFileError, match=r"drive\[1\]\.kt = 36\.07 .* 100 x 0\.3 = 30 N m/A.*set it to 30"):
         load_robot(path)
+
+
+def test_currents_are_on_the_side_the_file_states_for_the_torques(tmp_path, rng):
+    """``side = { q = "joint", tau = "motor" }`` (the docs' per-signal form) with motor_kt, for a log of motor
+    currents: the currents are the effort channel the file put on the motor side. Before, they stayed on the joint
+    side, the drives got no kt and identify exited 2 asking for [[drive]] kt while motor_kt went unused."""
+    robot = load_robot(_denso_without_drives(tmp_path, MOTOR_CURRENTS.replace('current = "motor"', 'tau = "motor"')))
+    assert robot.recording_layout.side("current") == "motor"
+    assert RecordingLayout(sides={"tau": "motor", "current": "joint"}).side("current") == "joint"  # stated: kept
+    assert RecordingLayout(sides={"q": "motor"}).side("current") == "joint"
+    current_m = rng.normal(size=(30, 6))
+    joint = to_joint_side(Recording(t=np.arange(30) * 1e-3, q=np.zeros((30, 6)), current=current_m), robot)
+    gears, motor_kt = np.array([100, -80, 60, 50, -40, 30.0]), np.array([0.3, 0.3, 0.2, 0.1, 0.1, 0.05])
+    np.testing.assert_allclose(
+        joint.joint_torque(np.array([d.kt for d in robot.drives])), current_m * motor_kt * gears, rtol=1e-14
+    )
