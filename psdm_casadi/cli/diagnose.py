@@ -21,7 +21,7 @@ from psdm_casadi.cli.checks import (
 )
 from psdm_casadi.cli.holdout import add_holdout_argument, diagnose_parts, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
-from psdm_casadi.cli.recalibration_text import apply_refusal, recalibration_markdown
+from psdm_casadi.cli.recalibration_text import adds_nothing, apply_refusal, recalibration_markdown
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
@@ -380,6 +380,13 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload, con
                                         **result.after.document["recalibration"]["never_worse"]}  # fmt: skip
             print_json(payload)
         return EXIT_CHECK_FAILED
+    if adds_nothing(calibrated.document, result.after.document):  # a refit on --train alone: the model file stays
+        if payload is not None:
+            payload["recalibration"] = dict(result.after.document["recalibration"], model=None)
+            print_json(payload)
+        else:
+            print(recalibration_markdown(result, robot.joint_names, args.apply, args.robot))
+        return 0
     problem = consistency_failure(result)
     if problem is not None and not args.allow_inconsistent:
         print(

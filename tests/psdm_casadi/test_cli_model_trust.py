@@ -201,3 +201,35 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
     kept = json.loads(new.read_text())["warnings"]
     assert any("rigid-body torques" in w and "mN m?" in w for w in kept), kept
     assert "psdm diagnose: warning: new.json" in err and all(w in err for w in kept)
+
+
+def test_apply_with_only_reported_findings_writes_nothing_and_keeps_the_model_file(arm, tmp_path, capsys, monkeypatch):
+    """A diagnosis whose only finding is pre-sliding (reported, no model file holds it): ``--apply`` would write the
+    model file identified again on ``--train`` alone, with nothing added. On a virtual 7-joint cobot identified on two
+    recordings that refit lost one of them (joint 7 0.0333 -> 0.0391 N m) and was written as 'the model with none
+    added'. Now nothing is written and the model file is named as the model to use, as with no finding at all."""
+    finding = Finding(effect="presliding", label="presliding[j1]", joints=(0,),
+                      parameters={"presliding_coulomb_Nm": 1.0, "presliding_displacement_rad": 1e-4},
+                      coefficients=(1.0,), feature_names=("presliding_j1",), explanation="", signature="",
+                      rmse_before=(1.0,) * 3, rmse_after=(0.5,) * 3, delta_bic=-10.0, validation_gain=0.5)  # fmt: skip
+    n, zeros = 3, np.zeros((2, 3))
+    report = DiagnosisReport(
+        robot_name="arm", n_dof=n, friction="coulomb_viscous", rigid_body="prior", findings=(finding,),
+        rmse_before=(1.0,) * n, rmse_after=(0.5,) * n, r2_before=(0.9,) * n, r2_after=(0.95,) * n,
+        rmse_train_before=(1.0,) * n, rmse_train_after=(0.5,) * n, residual_findings=(), candidates_tried=1,
+        augmented=SimpleNamespace(terms=(), coefficients=()), validation_t=np.arange(2.0),
+        validation_q=zeros, validation_qd=zeros, validation_tau=zeros, validation_nominal=zeros,
+        validation_final=zeros,
+    )  # fmt: skip
+    model_file = importlib.import_module("identification.diagnosis.model_file")
+    monkeypatch.setattr(model_file, "diagnose", lambda *a, **k: report)
+    new = tmp_path / "new.json"
+    model, train, valid = arm / "good.json", arm / "train.csv", arm / "valid.csv"
+    argv = ["diagnose", model, "--train", train, "--validate", valid, "--apply", new]
+    code, out, err = _run(capsys, argv)
+    assert code == 0, err
+    assert not new.exists()
+    assert out.rstrip().endswith(f"{new} was not written; {model} stays the model to use (this table's 'after' row "
+                                 "is it identified again on --train alone, with nothing added)")  # fmt: skip
+    code, out, err = _run(capsys, [*argv, "--json"])
+    assert code == 0 and not new.exists() and json.loads(out)["recalibration"]["model"] is None
