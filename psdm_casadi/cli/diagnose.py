@@ -373,13 +373,6 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload, con
     for w in caught:  # the others as they were
         if not issubclass(w.category, LuGreWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    if result.refused is not None:  # the never-worse gate: no subset of the findings keeps every joint
-        print(f"psdm diagnose: error: {result.refused}. Nothing was written to {args.apply!r}.", file=sys.stderr)
-        if payload is not None:
-            payload["recalibration"] = {"refused": result.refused, "model": None,
-                                        **result.after.document["recalibration"]["never_worse"]}  # fmt: skip
-            print_json(payload)
-        return EXIT_CHECK_FAILED
     if adds_nothing(calibrated.document, result.after.document):  # a refit on --train alone: the model file stays
         if payload is not None:
             payload["recalibration"] = dict(result.after.document["recalibration"], model=None)
@@ -387,6 +380,13 @@ def _apply(args, calibrated, robot, model, report, recordings, out, payload, con
         else:
             print(recalibration_markdown(result, robot.joint_names, args.apply, args.robot))
         return 0
+    if result.refused is not None:  # the never-worse gate: no subset of the findings keeps every joint
+        print(f"psdm diagnose: error: {result.refused}. Nothing was written to {args.apply!r}.", file=sys.stderr)
+        if payload is not None:
+            payload["recalibration"] = {"refused": result.refused, "model": None,
+                                        **result.after.document["recalibration"]["never_worse"]}  # fmt: skip
+            print_json(payload)
+        return EXIT_CHECK_FAILED
     problem = consistency_failure(result)
     if problem is not None and not args.allow_inconsistent:
         print(

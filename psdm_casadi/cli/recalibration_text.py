@@ -90,16 +90,18 @@ def apply_refusal(exc, model, apply) -> str:
 
 
 def written_line(findings, path, source=None) -> str:
-    """The closing line: the findings the file at ``path`` applies, or that none is applied (only reported ones) and
-    ``path`` was not written, ``source`` staying the model to use."""
+    """The closing line: the findings the file at ``path`` applies, or that it applies none (the gates dropped them),
+    or, with ``source`` (the model file refitted), that ``path`` was not written (every finding only reported)."""
     applied = [entry["label"] for entry in findings if entry["kind"] != "reported"]
     if applied:
         return f"calibrated model with findings ({', '.join(applied)}) written to {path}"
     reported = [entry["label"] for entry in findings if entry["kind"] == "reported"]
     why = f" ({', '.join(reported)}: reported only, not part of the model's torque)" if reported else ""
-    stays = f"{source} stays the model to use" if source else "the model file stays the model to use"
-    return (f"no finding to apply{why}: {path} was not written; {stays} (this table's 'after' row is it identified "
-            "again on --train alone, with nothing added)")  # fmt: skip
+    if source is None:  # written: every finding the refit had was dropped by its gates
+        return (f"no finding to apply{why}: {path} holds the model with none added (its validation RMSE is this "
+                "table's 'after' row, not the diagnosis's 'after')")  # fmt: skip
+    return (f"no finding to apply{why}: {path} was not written; {source} stays the model to use (this table's "
+            "'after' row is it identified again on --train alone, with nothing added)")  # fmt: skip
 
 
 def _significant(value) -> str:

@@ -184,8 +184,8 @@ def test_the_recalibration_summary_rounds_its_eigenvalues_and_says_how_without_i
     text = recalibration_markdown(result, ["j1", "j2", "j3"], "panda_2.json")
     assert "calibrated model with findings" not in text
     assert text.endswith("no finding to apply (presliding[j7]: reported only, not part of the model's torque): "
-                         "panda_2.json was not written; the model file stays the model to use (this table's 'after' "
-                         "row is it identified again on --train alone, with nothing added)")  # fmt: skip
+                         "panda_2.json holds the model with none added (its validation RMSE is this table's 'after' "
+                         "row, not the diagnosis's 'after')")  # fmt: skip
 
 
 def test_the_html_page_qualifies_no_finding_and_shows_the_model_files_rmse_beside_a_finding():
