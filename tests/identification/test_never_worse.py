@@ -134,6 +134,25 @@ def test_the_record_names_the_joints_the_refits_clear():
     assert checked.text() == "joint 2: 2 -> 2.5 N m (margin 0.1; refits without each training block: +0.5)"
 
 
+def test_refits_of_the_baselines_structure_cannot_clear_a_joint(monkeypatch):
+    """A refit with no finding left (every one dropped, or only reported ones) has the baseline's structure: each
+    block's pair is one model and its change 0 by construction. That cleared every joint over its margin: a virtual
+    7-joint cobot's diagnose --apply wrote a refit on --train alone whose joint 2 rose 1.03 -> 1.69 N m (margin 0.31)
+    as 'not worse'. A refit that keeps a finding still gets the second opinion."""
+    from identification.calibration import never_worse
+
+    monkeypatch.setattr(never_worse, "validation_rmse", lambda m, model, recording, kt=None: (np.asarray(m), None))
+    comparison = JointComparison(np.array([1.0, 2.0]), np.array([1.7, 2.5]), np.array([0.3, 0.1]))
+    same = never_worse.TrainingRefits(lambda labels, k: [1.0, 2.0], folds=4, baseline=("delay",))
+    assert same.confirm(comparison, ("delay",), None, ["valid"]).worse == (0, 1)  # not cleared: no opinion
+    assert never_worse.TrainingRefits(lambda labels, k: [1.0, 2.0], folds=4).confirm(
+        comparison, (), None, ["valid"]
+    ).worse == (0, 1)  # no finding to drop at all (only reported ones)
+    kept = never_worse.TrainingRefits(lambda labels, k: [1.0, 2.0] if labels else [1.0, 2.6], 4, ("delay",))
+    checked = kept.confirm(comparison, (), None, ["valid"])  # the delay kept: its refits clear joint 1, confirm 2
+    assert checked.worse == (1,) and checked.cleared == (0,)
+
+
 @pytest.mark.slow
 def test_identical_models_compare_equal_with_the_floor_margin(spring_data, denso_model):
     calibrated = load_calibrated_model(spring_data / "model.json")
