@@ -457,8 +457,8 @@ def _greedy(first, refit, droppable, judge) -> GateResult:
               "for every subset)") if droppable else "no finding to drop"  # fmt: skip
     if comparison.worse or (dropped and not remaining):
         still = f"; without any, still {comparison.text()}" if comparison.worse and dropped else ""
-        turns = "; ".join(f"{d['label']} ({d['reason']})" for d in dropped) or "none (no finding adds a column or a "
-        "correction: the refit's rigid body takes them up)"
+        turns = "; ".join(f"{d['label']} ({d['reason']})" for d in dropped) or (
+            "none (no finding adds a column or a correction: the refit's rigid body takes them up)")  # fmt: skip
         names = ", ".join(droppable) or "none to drop"
         return GateResult(after, payload, comparison, dropped, refused=(
             f"no subset of the findings ({names}) keeps every joint's validation RMSE within its noise margin: with "

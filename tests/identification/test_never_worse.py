@@ -257,6 +257,9 @@ def test_the_gate_refuses_when_every_finding_goes_or_none_can(monkeypatch):
     assert "joint 2: 1 -> 1.3 N m" in result.refused
     result, refits = _gate(monkeypatch, {frozenset(): [0.5, 1.3]}, [])  # a payload: nothing to drop, still worse
     assert result.refused and "none to drop" in result.refused and refits == []
+    assert result.refused.endswith(
+        "dropped in turn: none (no finding adds a column or a correction: the refit's rigid body takes them up)"
+    )  # was cut after 'or a ' (a dangling string)
     result, _ = _gate(monkeypatch, {frozenset(): [0.5, 1.04]}, [])  # within the margin: written
     assert result.refused is None and result.dropped == []
 
