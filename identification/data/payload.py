@@ -86,8 +86,9 @@ class Payload:
 def read_payload(path) -> Payload:
     """Read ``{"mass": .., "com": [..], "inertia": [[..]]}`` (a payload.json or tool.json) into a Payload.
 
-    ``com`` defaults to the flange origin and ``inertia`` (about the centre of mass) to none, a
-    point mass.
+    ``com`` is required for a load (``{"mass": 0}`` is none): read as the flange origin, a virtual cobot's 3 kg tool
+    7 cm out went into its links (joints 2, 4, 6 validated 5-15x worse, no warning). ``inertia`` (about the centre
+    of mass) defaults to none, a point mass.
 
     Raises
     ------
@@ -125,6 +126,11 @@ def payload_from_mapping(data: dict, name: str) -> Payload:
     if "mass" not in data:
         raise ParameterError(f"{name}: Payload.mass is missing. Add the mass in kg, e.g. {_EXAMPLE}.")
     mass = _json_numbers(data["mass"], (), name, "mass", '"mass": 2.0 [kg]')
+    if "com" not in data and mass > 0:  # read as the flange origin, a 3 kg tool 7 cm out cost a cobot 5-15x its RMSE
+        raise ParameterError(
+            f"{name}: Payload.com is missing. Add the load's centre of mass in the flange frame [m], "
+            f'e.g. {_EXAMPLE} ("com": [0, 0, 0] for a load centred on the flange origin).'
+        )
     com = _json_numbers(data.get("com", [0.0, 0.0, 0.0]), (3,), name, "com", '"com": [x, y, z] [m]')
     inertia = data.get("inertia")
     if inertia is not None:

@@ -259,7 +259,7 @@ def fake_fit(monkeypatch):
 def _identify(robot, folder, *extra):
     """identify of the paper's experiments folder (its payload.json marks it; the fit itself is ``fake_fit``)."""
     (folder / "data").mkdir(exist_ok=True)
-    (folder / "data" / "payload.json").write_text('{"mass": 1.0}')
+    (folder / "data" / "payload.json").write_text('{"mass": 1.0, "com": [0, 0, 0.05]}')
     return main(["identify", str(robot), "--data", str(folder / "data"), "--out", str(folder / "model"), *extra])
 
 

@@ -131,6 +131,16 @@ def test_sidecars_and_manifests_state_configurations(tmp_path):
         recordings_with_configurations([tmp_path / "c.csv"])
     with pytest.raises(ParameterError, match="more than once"):
         recordings_with_configurations([tmp_path / "a.csv", tmp_path / "a.csv"])
+    # a known load without its centre of mass was read at the flange origin: a virtual cobot's 3 kg tool 7 cm out
+    # went into its links (joints 2, 4, 6 validated 5-15x worse), without a word
+    (tmp_path / "b.payload.json").write_text(json.dumps({"mass": 2.8}))
+    with pytest.raises(ParameterError, match=r'b.payload.json: Payload.com is missing.*"com": \[0, 0, 0\] for a load'):
+        recordings_with_configurations([tmp_path / "b.csv"])
+    manifest.write_text('[[configuration]]\nname = "mass"\npayload = {mass = 1.5}\nrecordings = ["a.csv"]\n')
+    with pytest.raises(ParameterError, match="configuration 1 payload: Payload.com is missing"):
+        recordings_with_configurations([manifest])
+    (tmp_path / "b.payload.json").write_text(json.dumps({"mass": 0}))  # no load: nothing to place
+    assert recordings_with_configurations([tmp_path / "b.csv"])[1][0].kind == "none"
 
 
 def test_a_payload_in_new_recordings_of_a_calibrated_arm_is_named_by_validate(denso, denso_model, recorded, tmp_path,

@@ -48,7 +48,7 @@ def test_data_directory_errors(tmp_path):
         load_calibration_data(tmp_path / "missing")
     with pytest.raises(FileNotFoundError, match="payload.json"):
         load_calibration_data(tmp_path)
-    (tmp_path / "payload.json").write_text('{"mass": 2.0}')
+    (tmp_path / "payload.json").write_text('{"mass": 2.0, "com": [0, 0, 0.05]}')
     with pytest.raises(RecordingError, match="motor_j"):
         load_calibration_data(tmp_path)
     (tmp_path / "payload.json").write_text('{"weight": 2.0}')
