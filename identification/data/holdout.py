@@ -12,7 +12,8 @@ A :class:`HeldOutPart` records which recording was cut where: its path, the cont
 bytes; a folder's files by relative name, then contents), its samples and the cut's sample and time. The model file
 stores them (``identification.holdout``, :func:`holdout_block`), so ``psdm validate MODEL`` and ``psdm diagnose MODEL
 --train REC`` reuse the same held-out part (:func:`reload_part`), and a recording changed since (another hash) is
-refused rather than judged on other samples.
+refused rather than judged on other samples. ``psdm diagnose MODEL --train REC`` and the Python
+``diagnosis.model_file.diagnose_model(MODEL, REC)`` find the parts through the one :func:`diagnose_parts`.
 """
 
 from __future__ import annotations
@@ -28,8 +29,8 @@ from identification.data.recording import MIN_SAMPLES
 from psdm_casadi.errors import ModelFileError, ParameterError, RecordingError
 
 __all__ = ["HOLDOUT_MAX", "HeldOutPart", "check_holdout_fraction", "check_parts_long_enough", "cut_recording",
-           "holdout_block", "recording_digest", "reload_part", "shortest_part", "stored_parts",
-           "train_samples"]  # fmt: skip
+           "diagnose_parts", "held_out_sentences", "holdout_block", "matching_part", "other_part", "recording_digest",
+           "reload_part", "shortest_part", "stored_parts", "train_samples"]  # fmt: skip
 
 #: The largest held-out fraction: at least a tenth of a recording trains.
 HOLDOUT_MAX = 0.9
@@ -228,3 +229,54 @@ def reload_part(part: HeldOutPart, load, path=None, command: str = "validate") -
             "read with other options?). Read it as identify did (the same --columns, --rate, --topic)."
         )
     return recording.slice(0, part.cut_sample), recording.slice(part.cut_sample, None)
+
+
+def matching_part(parts, path):
+    """The stored part of the recording at ``path`` (the same path, or the same content under another), else None.
+    The same path with other content is returned too: ``reload_part`` then refuses it as changed since identify."""
+    where = os.path.abspath(path)
+    return next((p for p in parts if p.path == where), None) or next((p for p in parts if p.matches(path)), None)
+
+
+def diagnose_parts(train_path, train, document, fraction, load, explicit: bool, name: str) -> tuple:
+    """``(training recording, [(path, held-out recording, HeldOutPart)])`` of a diagnosis (``psdm diagnose``, and
+    ``diagnose_model`` from Python): the training recording ``train`` read from ``train_path``, cut where the model
+    file ``document`` cut it (or at ``fraction``, ``--holdout``), and, without validation recordings given
+    (``explicit`` False), the other held-out parts the model stores, each read with ``load(path)``."""
+    parts = stored_parts(document, name) if document is not None else ()
+    own = matching_part(parts, train_path)
+    held = []
+    if own is not None:
+        if fraction is not None and abs(fraction - own.fraction) > 1e-12:
+            raise ParameterError(
+                f"--holdout {fraction:g}: {name} was identified on the first {100 * (1 - own.fraction):g} % of "
+                f"{train_path}; {own.describe()}: another cut would train on samples it validated on, or validate "
+                "on samples it trained on. Drop --holdout: the model's own cut is used."
+            )
+        train, part = reload_part(own, lambda _: train, train_path, "diagnose")
+        held.append((train_path, part, own))
+    elif fraction is not None:
+        train, part, cut = cut_recording(train, fraction, train_path)
+        held.append((train_path, part, cut))
+    if not explicit:
+        held += [(p.path, other_part(p, load, train_path, name), p) for p in parts if p is not own]
+    return train, held
+
+
+def other_part(part, load, train_path, name: str):
+    """The held-out part of a recording the model cut other than ``--train``; when it is gone, the message says too
+    that ``--train`` is not it (its content matches none the model cut: moved and edited, or another recording)."""
+    try:
+        return reload_part(part, load, command="diagnose")[1]
+    except RecordingError as exc:
+        raise RecordingError(
+            f"--train {train_path} is not the recording {name} held out a part of ({part.name}: its content differs), "
+            f"so it trains whole and the validation is that part of {part.name}. {exc}"
+        ) from None
+
+
+def held_out_sentences(train_path, held) -> tuple:
+    """The report's sentences on which parts ``diagnose_parts`` held out (``held``; none: no sentence)."""
+    lines = [f"validation: {part.describe()}" for _, _, part in held]
+    own = [part for path, _, part in held if path == train_path]
+    return tuple((f"training: the first {own[0].cut_sample} samples of {train_path}",) if own else ()) + tuple(lines)

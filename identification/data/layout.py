@@ -144,6 +144,13 @@ class ColumnLayout:
         return {**({time: TIME} if time else {}), **mapping}
 
 
+def model_file_layout(document) -> ColumnLayout | None:
+    """The layout identify read a model file's recordings with (its ``provenance.columns``: ``--columns`` and
+    ``--rate``), so every later command reads them alike; None for the standard columns (older files store none)."""
+    stored = (document or {}).get("provenance", {}).get("columns")
+    return ColumnLayout.parse(stored.get("columns"), stored.get("rate")) if stored else None
+
+
 def _groups(names) -> dict:
     """``{prefix: [joint numbers]}`` of the numbered columns among ``names``, in file order."""
     groups: dict = {}

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -33,6 +34,9 @@ from identification.calibration.held_friction import HeldFriction
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import JointComparison
 from identification.data.filter_choice import AUTO
+from identification.data.holdout import diagnose_parts, held_out_sentences
+from identification.data.layout import model_file_layout
+from identification.data.robot_recordings import load_robot_recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.motion_checks import validation_recordings
@@ -45,6 +49,7 @@ __all__ = [
     "diagnose_model",
     "diagnose_model_prior",
     "file_prediction",
+    "model_file_recordings",
     "model_file_options",
     "own_friction",
     "robot_file_worse",
@@ -83,7 +88,13 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
 
 
 def diagnose_model(
-    source, train, validation, options: DiagnosisOptions | None = None, derive=None, name: str | None = None
+    source,
+    train,
+    validation=None,
+    options: DiagnosisOptions | None = None,
+    derive=None,
+    name: str | None = None,
+    load=None,
 ) -> DiagnosisReport:
     """``diagnose`` with a calibrated model file as the nominal model (module docstring).
 
@@ -91,26 +102,75 @@ def diagnose_model(
     ----------
     source : path or LoadedModel
         The calibrated-model file, or its ``read_calibrated_model`` (the file with its robot and PSDM model).
-    train, validation : Recording, Recording or sequence of Recording
-        Raw recordings, as for ``diagnose``.
+    train : Recording or path
+        The raw training recording, as for ``diagnose``; or its path: read with ``load`` and, when the model was
+        identified with ``--holdout`` on it, cut where the model cut it (``data.holdout.diagnose_parts``, as ``psdm
+        diagnose MODEL --train REC``), its held-out part a validation recording.
+    validation : Recording, sequence of Recording, or None
+        Raw validation recordings. None (with ``train`` a path): the held-out parts the model file stores
+        (``identification.holdout``), as ``psdm diagnose MODEL --train REC`` without ``--validate``.
     options : DiagnosisOptions, optional
         Fields left ``"auto"`` take the model file's values (``model_file_options``).
     derive : callable, optional
         ``derive(robot) -> PSDMModel`` for reading a path (the CLI's model cache).
     name : str, optional
         How the report names the file (default: the path, or the robot's name).
+    load : callable, optional
+        ``load(path) -> Recording`` for a ``train`` path and the stored parts (default: joint side, read as identify
+        read the model's recordings, ``data.layout.model_file_layout``).
 
     Returns
     -------
     DiagnosisReport
         Whose ``nominal_model`` names the file, ``preparation`` its preparation, ``model_file_rmse`` the file's own
         validation RMSE on the first validation recording and, when the diagnosis judged the samples the file's
-        preparation keeps, ``rmse_before`` that same RMSE (``before_is_model_file``).
+        preparation keeps, ``rmse_before`` that same RMSE (``before_is_model_file``); ``held_out`` the parts held
+        out.
+
+    Raises
+    ------
+    ParameterError
+        No validation recording: ``validation`` None and no stored part (or ``train`` a recording, not its path).
     """
     loaded = source if isinstance(source, LoadedModel) else read_calibrated_model(source, derive=derive)
     if name is None and not isinstance(source, LoadedModel):
         name = str(source)
-    return diagnose_model_prior(loaded, train, validation, options, name)[0]
+    train, validation, held_out = model_file_recordings(loaded, train, validation, load, name or "the model file")
+    report = diagnose_model_prior(loaded, train, validation, options, name)[0]
+    return replace(report, held_out=held_out) if held_out else report
+
+
+def model_file_recordings(loaded: LoadedModel, train, validation, load=None, name: str = "the model file") -> tuple:
+    """``(training recording, validation recordings, the report's sentences on the parts held out)`` of
+    ``diagnose_model``: a ``train`` path read and cut as the model cut it, the stored parts after ``validation``
+    (``data.holdout.diagnose_parts`` and ``held_out_sentences``, the command's own code); a ``train`` recording as
+    given."""
+    if not isinstance(train, (str, os.PathLike)):
+        if validation is None:
+            raise ParameterError(
+                "diagnose_model: validation is missing and train is a Recording, so the held-out part the model file "
+                "stores cannot be found (it is recognised by the recording file's content). Pass train as the path "
+                "of the training recording (diagnose_model(MODEL, 'run.csv')), or validation=[recording, ...]."
+            )
+        return train, validation, ()
+    if load is None:
+        robot = calibrated_robot(loaded.calibrated, loaded.robot)
+        layout = model_file_layout(loaded.calibrated.document)
+
+        def load(path):
+            return load_robot_recording(path, robot, None, layout)
+
+    given = [] if validation is None else validation_recordings(validation)
+    path = str(train)
+    train, held = diagnose_parts(path, load(path), loaded.calibrated.document, None, load, bool(given), name)
+    validations = [*given, *(recording for _, recording, _ in held)]
+    if not validations:
+        raise ParameterError(
+            f"diagnose_model: validation is missing and {name} stores no held-out part of {path} (identified without "
+            "--holdout, or on another recording): the diagnosis keeps a finding only if it predicts a recording it "
+            "was not fitted on. Pass validation=[recording, ...], or identify with --holdout 0.3."
+        )
+    return train, validations, held_out_sentences(path, held)
 
 
 def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, name=None) -> tuple:

@@ -263,7 +263,7 @@ def model_layout(args, document, command: str):
     """``recording_layout``, or when neither ``--columns`` nor ``--rate`` is given, the ones identify read the model
     file's recordings with (``document``'s ``provenance.columns``; older files have none), said on stderr: a
     vendor's log is then read by every command as identify read it, without repeating the options."""
-    from identification.data.layout import ColumnLayout
+    from identification.data.layout import model_file_layout
 
     layout = recording_layout(args)
     stored = (document or {}).get("provenance", {}).get("columns") if layout is None else None
@@ -273,7 +273,7 @@ def model_layout(args, document, command: str):
     print(f"psdm {command}: note: the recordings are read as identify read the model's ({given}, stored in the "
           f"model file); pass --columns to read them otherwise (--columns q=q for the standard columns t, "
           f"q1..qn, tau1..taun).", file=sys.stderr)  # fmt: skip
-    return ColumnLayout.parse(stored.get("columns"), stored.get("rate"))
+    return model_file_layout(document)
 
 
 def parse_locks(items) -> dict:

@@ -19,7 +19,7 @@ from psdm_casadi.cli.checks import (
     model_layout,
     output_folder,
 )
-from psdm_casadi.cli.holdout import add_holdout_argument, diagnose_parts, holdout_fraction
+from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.cli.recalibration_text import adds_nothing, apply_refusal, recalibration_markdown
 from psdm_casadi.errors import ParameterError
@@ -154,6 +154,7 @@ def _held_out(validations) -> list:
 @remembering()  # the recordings' regressors evaluated once across the refits (state_cache)
 def _run_diagnose(args) -> int:
     from identification.data.filter_choice import AUTO
+    from identification.data.holdout import held_out_sentences
     from identification.data.io import not_held_out
     from identification.data.missing_torque import find_missing_torque
     from identification.diagnosis.diagnose import DiagnosisOptions
@@ -206,7 +207,7 @@ def _run_diagnose(args) -> int:
         report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot)
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
-    report = dataclasses.replace(report, preparation=preparation.text(), held_out=_held_text(args.train, held))
+    report = dataclasses.replace(report, preparation=preparation.text(), held_out=held_out_sentences(args.train, held))
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
@@ -243,6 +244,7 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     ``HeldOutPart``)): joint side, timed (the robot file's [recording]); ``--train`` cut at ``--holdout`` or where the
     model file cut it, its held-out part (and without ``--validate`` the model's others) after the ``--validate``
     recordings. ``args.validate`` then names every validation recording's file, ``args.held_parts`` the parts."""
+    from identification.data.holdout import diagnose_parts
     from identification.data.robot_recordings import load_robot_recording
 
     def load(path):
@@ -254,13 +256,6 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     validations = _held_out([*map(load, given), *(recording for _, recording, _ in held)])
     args.validate, args.held_parts = [*given, *(path for path, _, _ in held)], [part for _, _, part in held]
     return train, validations, given, held
-
-
-def _held_text(train_path, held) -> tuple:
-    """The report's sentences on which parts were held out (``--holdout``, a model file's cut): none without."""
-    lines = [f"validation: {part.describe()}" for _, _, part in held]
-    own = [part for path, _, part in held if path == train_path]
-    return tuple((f"training: the first {own[0].cut_sample} samples of {train_path}",) if own else ()) + tuple(lines)
 
 
 def _robot_report(args, robot, train, validations, options):

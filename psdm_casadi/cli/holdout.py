@@ -4,19 +4,24 @@
 (``identification.data.holdout``), validates on those parts as on ``--validate`` recordings and stores where it cut in
 the model file. ``validate MODEL`` (no recordings, or the training recording again) and ``diagnose MODEL --train REC``
 (no ``--validate``) then reuse the stored parts: a recording is recognised by its content hash, and one changed since
-identify is refused. ``diagnose ROBOT --train REC --holdout 0.3`` cuts REC itself.
+identify is refused (``data.holdout.diagnose_parts``, which the Python ``diagnose_model`` uses too). ``diagnose ROBOT
+--train REC --holdout 0.3`` cuts REC itself.
 """
 
 from __future__ import annotations
 
-import os
 import sys
 
-from identification.data.holdout import check_holdout_fraction, cut_recording, reload_part, stored_parts
-from psdm_casadi.errors import ParameterError, RecordingError
+from identification.data.holdout import (
+    check_holdout_fraction,
+    cut_recording,
+    matching_part,
+    reload_part,
+    stored_parts,
+)
+from psdm_casadi.errors import ParameterError
 
-__all__ = ["add_holdout_argument", "cut_training", "diagnose_parts", "holdout_fraction", "matching_part",
-           "other_part", "validate_parts"]  # fmt: skip
+__all__ = ["add_holdout_argument", "cut_training", "holdout_fraction", "validate_parts"]
 
 HOLDOUT_HELP = {
     "identify": "hold out the last FRACTION of each --data recording (e.g. 0.3; 0 < FRACTION < 0.9): the first part "
@@ -46,13 +51,6 @@ def cut_training(recordings, paths, fraction: float, cutoff_hz: float | None = N
     return [c[0] for c in cuts], [c[1] for c in cuts], [c[2] for c in cuts]
 
 
-def matching_part(parts, path):
-    """The stored part of the recording at ``path`` (the same path, or the same content under another), else None.
-    The same path with other content is returned too: ``reload_part`` then refuses it as changed since identify."""
-    where = os.path.abspath(path)
-    return next((p for p in parts if p.path == where), None) or next((p for p in parts if p.matches(path)), None)
-
-
 def validate_parts(document, paths, load, name: str) -> list:
     """``(path, recording, HeldOutPart or None)`` of ``psdm validate``: each given recording, the held-out part of
     one the model cut (recognised by its content); with none given, every held-out part the model stores."""
@@ -78,39 +76,3 @@ def validate_parts(document, paths, load, name: str) -> list:
                   f"first {100 * (1 - parts[0].fraction):g} %: validate on the original, or identify again.",
                   file=sys.stderr)  # fmt: skip
     return out
-
-
-def diagnose_parts(train_path, train, document, fraction, load, explicit: bool, name: str) -> tuple:
-    """``(training recording, [(path, held-out recording, HeldOutPart)])`` of ``psdm diagnose``: ``--train`` cut where
-    the model file cut it (or at ``--holdout``), and, without ``--validate`` (``explicit`` False), the other held-out
-    parts the model stores."""
-    parts = stored_parts(document, name) if document is not None else ()
-    own = matching_part(parts, train_path)
-    held = []
-    if own is not None:
-        if fraction is not None and abs(fraction - own.fraction) > 1e-12:
-            raise ParameterError(
-                f"--holdout {fraction:g}: {name} was identified on the first {100 * (1 - own.fraction):g} % of "
-                f"{train_path}; {own.describe()}: another cut would train on samples it validated on, or validate "
-                "on samples it trained on. Drop --holdout: the model's own cut is used."
-            )
-        train, part = reload_part(own, lambda _: train, train_path, "diagnose")
-        held.append((train_path, part, own))
-    elif fraction is not None:
-        train, part, cut = cut_recording(train, fraction, train_path)
-        held.append((train_path, part, cut))
-    if not explicit:
-        held += [(p.path, other_part(p, load, train_path, name), p) for p in parts if p is not own]
-    return train, held
-
-
-def other_part(part, load, train_path, name: str):
-    """The held-out part of a recording the model cut other than ``--train``; when it is gone, the message says too
-    that ``--train`` is not it (its content matches none the model cut: moved and edited, or another recording)."""
-    try:
-        return reload_part(part, load, command="diagnose")[1]
-    except RecordingError as exc:
-        raise RecordingError(
-            f"--train {train_path} is not the recording {name} held out a part of ({part.name}: its content differs), "
-            f"so it trains whole and the validation is that part of {part.name}. {exc}"
-        ) from None

@@ -189,6 +189,27 @@ def test_diagnose_of_the_model_without_validate_uses_its_held_out_part(files, ca
     assert "of 2501, t >= 7 s), held out: another cut" in err
 
 
+def test_python_diagnose_model_uses_the_stored_held_out_part_as_the_command_does(files, capsys):
+    """``diagnose_model(MODEL, whole.csv)`` without a validation recording trains on the first 70 % and validates on
+    the stored last 30 %, through the command's own code: the numbers, findings and held-out sentences of ``psdm
+    diagnose MODEL --train whole.csv``. A Recording without its path cannot be matched to the stored cut: refused
+    naming the fix (not trained on whole, which would fit the held-out samples)."""
+    from identification.diagnosis.diagnose import DiagnosisOptions
+    from identification.diagnosis.model_file import diagnose_model
+
+    model, whole = str(files / "model.json"), str(files / "whole.csv")
+    capsys.readouterr()
+    assert main(["diagnose", model, "--train", whole, *QUICK]) == 0
+    cli = json.loads(capsys.readouterr().out)
+    ours = diagnose_model(model, whole, options=DiagnosisOptions(rigid_body="prior", sparse=False, max_effects=1))
+    np.testing.assert_allclose(ours.rmse_before, cli["rmse_before"], rtol=1e-9)
+    np.testing.assert_allclose(ours.rmse_after, cli["rmse_after"], rtol=1e-9)
+    assert [f.label for f in ours.findings] == [f["label"] for f in cli["findings"]]
+    assert list(ours.held_out) == cli["held_out"] and len(ours.held_out) == 2
+    with pytest.raises(ParameterError, match="path of the training recording"):
+        diagnose_model(model, load_recording(whole, 6))
+
+
 def test_diagnose_of_the_robot_with_holdout_is_the_hand_cut_diagnosis(files, capsys):
     capsys.readouterr()
     robot = str(DENSO_FILE)
