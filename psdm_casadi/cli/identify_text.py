@@ -73,9 +73,11 @@ def _print_envelope(fit, route=str) -> None:
             if entry["from"] == "training data"
             else "the drive inertias of joints " + ", ".join(str(j) for j in entry["from_joints"]) + " (same actuator)"
         )
+        fitted = float(np.asarray(fit.standard)[entry["joint"] - 1, -1])  # the pull is weak: it may end far off
         print(
             f"  joint {entry['joint']}'s drive inertia lies inside the base parameters and the robot file "
-            f"states none: held near {entry['kg_m2']:.3g} kg m^2 from {source}, not absorbed by the links"
+            f"states none: held near {entry['kg_m2']:.3g} kg m^2 from {source} (fitted: {fitted:.3g} kg m^2), not "
+            "absorbed by the links"
         )
     if not any(f.pressed for f in fit.envelope):
         print("  every link inside, none pushed against its bounds" if not fit.envelope else "  none pushed hard")
