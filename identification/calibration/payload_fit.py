@@ -26,6 +26,7 @@ from identification.calibration.payload import payload_torque
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 from identification.data.configuration import NO_PAYLOAD
 from identification.data.recording import Recording
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import build_pinocchio_model, link_to_joint_frame_maps
 from psdm_casadi.robot import physical_to_dynamic
 
@@ -131,9 +132,32 @@ def subtract_known_payloads(robot, prepared, configurations) -> list:
             out.append(recording)
             continue
         load = payload_torque(robot, configuration.payload, recording.q, recording.qd, recording.qdd)
+        _check_scale(load, recording, configuration)
         out.append(Recording(t=recording.t, q=recording.q, tau=recording.tau - load, qd=recording.qd,
                              qdd=recording.qdd, name=recording.name))  # fmt: skip
     return out
+
+
+#: A stated load whose torque is this many times the recorded torque (RMS, on some joint) is not the load recorded.
+MAX_LOAD_RATIO = 5.0
+
+
+def _check_scale(load, recording, configuration) -> None:
+    """Refuse a known load whose torque dwarfs the recorded one: a sidecar in g and mm (``{"mass": 3000, "com": [0,
+    10, 70]}`` on a cobot) was subtracted as it stood, every joint's fit then explained nothing, and identify's
+    warnings blamed the torque signs."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.sqrt(np.nanmean(load**2, axis=0) / np.nanmean(recording.tau**2, axis=0))
+    if not np.any(ratio > MAX_LOAD_RATIO):
+        return
+    j = int(np.nanargmax(np.where(np.isfinite(ratio), ratio, -np.inf)))
+    payload = configuration.payload
+    raise ParameterError(
+        f"{recording.name or 'a recording'}: the known payload '{configuration.name}' (mass {payload.mass:g} kg, com "
+        f"{[float(c) for c in payload.com]} m) gives joint {j + 1} {ratio[j]:.3g} times the torque recorded there "
+        f"(RMS {np.sqrt(np.nanmean(load[:, j] ** 2)):.3g} against {np.sqrt(np.nanmean(recording.tau[:, j] ** 2)):.3g} "
+        "N m): not the load this recording carries. State its mass in kg and its centre of mass in m (flange frame)."
+    )
 
 
 def subtract_loads(robot, prepared, configurations, payloads) -> list:

@@ -66,6 +66,32 @@ def test_a_known_payload_subtracted_gives_the_unloaded_arm(denso, denso_model, r
     assert z_unsaid.max() > 2 * z_said.max(), (z_unsaid.max(), z_said.max())  # the load unsaid biases the arm
 
 
+def test_a_known_payload_stated_in_grams_and_millimetres_is_refused(denso, denso_model, recorded):
+    """The 0.6 kg load written as {"mass": 600, "com": [0, 20, 40]} (g, mm): its torque was subtracted as it stood,
+    every joint's fit then explained none of its torque and identify's warnings blamed the torque signs (a virtual
+    cobot, 3000 g at [0, 10, 70] mm: exit 0). Now refused, naming the recording, the load and the units."""
+    pair = [recorded["empty"], recorded["known"]]
+    grams = PayloadConfiguration("600 kg (known.payload.json)", payload=Payload(mass=600.0, com=(0.0, 20.0, 40.0)),
+                                 stated=True)  # fmt: skip
+    with pytest.raises(
+        ParameterError,
+        match=r"known payload '600 kg \(known.payload.json\)' \(mass 600 kg.*gives "
+        r"joint \d \S+ times the torque recorded there.*mass in kg and its centre of mass in m",
+    ):
+        identify_trajectories(denso, denso_model, pair, configurations=[PayloadConfiguration(), grams])
+    known = PayloadConfiguration("mass", payload=KNOWN, stated=True)  # the same load in kg and m: no refusal
+    load_rms = np.sqrt(np.mean(payload_torque(denso, KNOWN, *_motion(recorded["known"])) ** 2, axis=0))
+    assert np.all(load_rms < np.sqrt(np.mean(recorded["known"].tau ** 2, axis=0)))  # a real load is below its torque
+    identify_trajectories(denso, denso_model, pair, configurations=[PayloadConfiguration(), known])
+
+
+def _motion(recording):
+    from identification.data.preprocessing import preprocess
+
+    ready = preprocess(recording)
+    return ready.q, ready.qd, ready.qdd
+
+
 def test_an_unknown_payload_is_identified_with_the_arm_shared(denso, denso_model, recorded):
     configurations = [PayloadConfiguration(), PayloadConfiguration("gripper", unknown=True, stated=True)]
     fit = identify_trajectories(denso, denso_model, [recorded["empty"], recorded["unknown"]],
