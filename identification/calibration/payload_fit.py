@@ -156,7 +156,9 @@ def _check_scale(load, recording, configuration) -> None:
         f"{recording.name or 'a recording'}: the known payload '{configuration.name}' (mass {payload.mass:g} kg, com "
         f"{[float(c) for c in payload.com]} m) gives joint {j + 1} {ratio[j]:.3g} times the torque recorded there "
         f"(RMS {np.sqrt(np.nanmean(load[:, j] ** 2)):.3g} against {np.sqrt(np.nanmean(recording.tau[:, j] ** 2)):.3g} "
-        "N m): not the load this recording carries. State its mass in kg and its centre of mass in m (flange frame)."
+        "N m): not the load this recording carries, or the recorded torque is not in N m. State the load's mass in kg "
+        "and its centre of mass in m (flange frame); or fix the torque's scale (its unit in --columns, the torque "
+        "constants, the gear ratios: motor turns per joint turn)."
     )
 
 
