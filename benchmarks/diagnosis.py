@@ -31,9 +31,10 @@ library's Stribeck peak of a fitted velocity, ``friction_shape``, since issue 25
 drift on the most loaded joint (wrong when named load-dependent
 friction), load-dependent friction on the most loaded base joint, and a heavy industrial-class arm
 (``heavy_arm``: rotor inertia dominating, 250 Hz, 10 s training and 10 s validation, CAD inertias 10-20 % off in
-the truth) with a nonlinear counterbalance (a cam, or a gas spring's lever law) plus a 100-200 kg payload, or
-clean. ``two_effect_fraction`` is the share of two-effect scenarios with both effects found; ``heavy_arm_fraction``
-that of the heavy arm's scenarios.
+the truth) with a nonlinear counterbalance on its shoulder (a cam, or a gas spring's lever law) plus a 100-200 kg
+payload, or clean. The counterbalance is a physical one: it opposes the shoulder's gravity torque at every angle and
+takes 40-90 % of its amplitude (``identification.virtual.counterbalance``). ``two_effect_fraction`` is the share of
+two-effect scenarios with both effects found; ``heavy_arm_fraction`` that of the heavy arm's scenarios.
 
     python benchmarks/diagnosis.py [--seeds 0 1 2] [--json] [--quick] [--loop]
 
@@ -58,6 +59,7 @@ from heavy_arm import cad_error, heavy_industrial_arm
 from identification.diagnosis import EQUIVALENT_EFFECTS, DiagnosisOptions, diagnose
 from identification.metrics import rms
 from identification.virtual import effects as xp
+from identification.virtual.counterbalance import cam_counterbalance, gas_spring_counterbalance
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from identification.virtual.transmission_effects import Backlash, JointElasticity
 from psdm_casadi.derive import derive_psdm
@@ -313,6 +315,10 @@ def _load_base(robot, rng, joints, sc):
     return [("load_dependent_friction", j, xp.LoadDependentFriction(joint=j, coefficient=mu), {"coefficient": mu})]
 
 
+#: The share of the shoulder's gravity amplitude a heavy arm's balancer takes (industrial balancers: 40-90 %).
+COUNTERBALANCE_SHARE = (0.4, 0.9)
+
+
 def _heavy_payload(robot, rng, joints, sc):
     m = _u(rng, 100.0, 200.0)
     com = (0.0, 0.0, _u(rng, 0.1, 0.3))
@@ -320,28 +326,22 @@ def _heavy_payload(robot, rng, joints, sc):
 
 
 def _heavy_counterbalance(robot, rng, joints, sc):
-    """A nonlinear (cam) counterbalance on the shoulder (joint 2) of the heavy arm: 20-40 % of its torque RMS."""
-    a = np.sqrt(2.0) * _u(rng, 0.2, 0.4) * sc.tau_rms[1]
-    effect = xp.CamCounterbalance(joint=1, amplitude=a, q0=sc.q_mean[1] + _u(rng, -0.3, 0.3), lobe=0.3)
-    return [("cam_counterbalance", 1, effect, {"amplitude": a})]
+    """A cam balancer on the shoulder (joint 2) of the heavy arm, opposing its gravity torque at every angle: the
+    cam's first harmonic takes 40-90 % of the joint's gravity amplitude (the other joints at their mean pose), its
+    lobe 0.2-0.4 (``identification.virtual.counterbalance``)."""
+    share, lobe = _u(rng, *COUNTERBALANCE_SHARE), _u(rng, 0.2, 0.4)
+    effect = cam_counterbalance(robot, 1, sc.q_mean, share, lobe)
+    return [("cam_counterbalance", 1, effect, {"amplitude": effect.amplitude, "share": share, "q0": effect.q0})]
 
 
 def _heavy_gas_spring(robot, rng, joints, sc):
-    """A gas-spring counterbalance on the shoulder (joint 2) of the heavy arm: a strut on levers of 0.6 m and
-    0.2-0.35 m, aligned 0.05-0.2 rad below the recorded range (so that its torque changes steeply over it, as a
-    balancer's does near the arm's upright pose), 30-60 % stiffer at its shortest, sized to 20-40 % of the joint's
-    torque RMS (over the angles of a sine of the joint's mean and spread)."""
-    a, b = 0.6, _u(rng, 0.2, 0.35)
-    q0 = float(sc.q_mean[1] - 2.5 * sc.q_std[1]) - _u(rng, 0.05, 0.2)
-    length0 = a + b  # the strut's length with the levers opposed (its longest)
-    unit = xp.GasSpringCounterbalance(joint=1, a=a, b=b, q0=q0, preload=1.0, length0=length0, stiffness=0.0)
-    angles = sc.q_mean[1] + np.sqrt(2.0) * sc.q_std[1] * np.sin(np.linspace(0.0, 2.0 * np.pi, 200))
-    shortest = float(np.sqrt(a**2 + b**2 - 2 * a * b * np.cos(np.min(np.abs(angles - q0)))))
-    stiffness = _u(rng, 0.3, 0.6) / max(length0 - shortest, 1e-3)  # per newton of preload
-    unit = dataclasses.replace(unit, stiffness=stiffness)
-    preload = _u(rng, 0.2, 0.4) * sc.tau_rms[1] / rms(unit.strut_torque(angles)[:, None])[0]
-    effect = dataclasses.replace(unit, preload=preload, stiffness=stiffness * preload)
-    return [("gas_spring_counterbalance", 1, effect, {"ratio": b / a, "q0": q0})]
+    """A gas-spring balancer on the shoulder (joint 2) of the heavy arm: a strut on levers of 0.6 m and 0.2-0.35 m,
+    aligned at the joint's hanging angle (opposed, the strut longest, with the arm upright), 30-60 % of its preload
+    stiffer when fully compressed, its first harmonic taking 40-90 % of the joint's gravity amplitude: it pushes the
+    arm up over the whole range (``identification.virtual.counterbalance``)."""
+    b, stiffening, share = _u(rng, 0.2, 0.35), _u(rng, 0.3, 0.6), _u(rng, *COUNTERBALANCE_SHARE)
+    effect = gas_spring_counterbalance(robot, 1, sc.q_mean, share, 0.6, b, stiffening)
+    return [("gas_spring_counterbalance", 1, effect, {"ratio": b / 0.6, "q0": effect.q0, "share": share})]
 
 
 MAKERS = {

@@ -15,8 +15,9 @@ The arm is written to a robot file (``write_robot_file``, in a temporary folder 
 its calibrated models can be stored (a model file keeps the robot file's text) and exported.
 
 Run as a script, it checks the plausible identification (issue 25) on the arm with a hidden cam counterbalance on
-its shoulder (the diagnosis benchmark's ``heavy_counterbalance``), CAD-off inertias in the truth, a 10 s training
-and a 10 s validation recording at 250 Hz, as a user would on the command line:
+its shoulder (the diagnosis benchmark's ``heavy_counterbalance``: a balancer opposing the shoulder's gravity torque
+at every angle, taking a seeded 40-90 % of its amplitude, ``counterbalance_share``), CAD-off inertias in the truth, a
+10 s training and a 10 s validation recording at 250 Hz, as a user would on the command line:
 
 1. ``psdm identify ROBOT --data train.csv --validate val.csv --out model.json`` (default options): does every link
    stay inside its physical envelope (``envelope_respected``: its mass within the bounds, its mass distribution in
@@ -206,12 +207,18 @@ def _held_out_j2(robot, model_file, val, identified, key):
 def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) -> dict:
     """One seed: simulate, identify (with the held-out recording, or ``validate=False`` on the training recording
     alone), diagnose the model and the robot file (module docstring)."""
-    from diagnosis import _scenario  # the diagnosis benchmark's scenario (CAD-off truth, rate, durations)
+    import diagnosis  # the diagnosis benchmark's scenario (CAD-off truth, rate, durations)
 
     from identification.data.io import save_recording
 
     robot = heavy_industrial_arm(folder)
-    truth, train, validation = _scenario("heavy", robot, tuple(effects), np.random.default_rng(seed), seed)
+    simulated, cad = [], diagnosis.cad_error  # keep the truth's robot (its link 2 mass) the scenario simulates
+    diagnosis.cad_error = lambda arm, rng: simulated.append(cad(arm, rng)) or simulated[-1]
+    try:
+        rng = np.random.default_rng(seed)
+        truth, train, validation = diagnosis._scenario("heavy", robot, tuple(effects), rng, seed)
+    finally:
+        diagnosis.cad_error = cad
     data, val, out = folder / "train.csv", folder / "val.csv", folder / "model.json"
     save_recording(train, data)
     save_recording(validation, val)
@@ -237,6 +244,7 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "seed": seed,
         "identify_validate": validate,
         "amplitude_Nm": next((round(float(p["amplitude"]), 1) for k, _, _, p in truth if "amplitude" in p), None),
+        "counterbalance_share": next((round(float(p["share"]), 2) for k, _, _, p in truth if "share" in p), None),
         "identify_exit": code,
         "identify_s": round(seconds, 1),
         "identify_cpu_s": round(cpu, 1),
@@ -252,6 +260,7 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "held_named": "; ".join(sorted({f"{h['absorbs']} (joint {_joint(h) + 1})" for h in held})) or "-",
         "link2_mass_kg": round(float(standard[1, 0]), 1),
         "link2_mass_file_kg": round(float(prior[1, 0]), 1),
+        "link2_mass_truth_kg": round(float(simulated[-1].nominal_dynamic_parameters()[1, 0]), 1),
         "rmse_j2_identified": _held_out_j2(robot, out, val, identified, "rmse"),
         "rmse_j2_unconstrained": _held_out_j2(robot, out, val, identified, "rmse_ols"),
         "diagnose_model_finds_counterbalance": _found_on_joint_2(from_model),
@@ -292,9 +301,10 @@ def main(argv=None) -> int:
     if args.json:
         print_json({"benchmark": "heavy_arm", "cases": rows, **summary})
         return 0
-    print_table(rows, ["seed", "identify_validate", "amplitude_Nm", "envelope_respected", "absorbed_effect_named",
-                       "named", "held_named", "counterbalance_stated", "counterbalance_taken", "payload_named",
-                       "link2_mass_kg", "link2_mass_file_kg", "rmse_j2_identified", "rmse_j2_unconstrained",
+    print_table(rows, ["seed", "identify_validate", "counterbalance_share", "envelope_respected",
+                       "absorbed_effect_named", "named", "held_named", "counterbalance_stated", "counterbalance_taken",
+                       "payload_named", "link2_mass_kg", "link2_mass_file_kg", "link2_mass_truth_kg",
+                       "rmse_j2_identified", "rmse_j2_unconstrained",
                        "diagnose_model_finds_counterbalance", "diagnose_finds_counterbalance"])  # fmt: skip
     for row in rows:
         route = "with" if row["identify_validate"] else "without"

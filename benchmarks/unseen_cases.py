@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.virtual.effects import CamCounterbalance, Payload
+from identification.virtual.counterbalance import cam_counterbalance
+from identification.virtual.effects import Payload
 from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.description import DriveParameters, LinkInertia
@@ -242,11 +243,16 @@ def industrial_slow(folder: Path, rng) -> Case:
 
 def heavy_counterbalance(folder: Path, rng) -> Case:
     """The heavy industrial arm (benchmarks/heavy_arm.py) with a cam counterbalance on joint 2, slow gravity-only
-    motions at 250 Hz, 10 s training and 10 s validation, in a plain psdm CSV."""
+    motions at 250 Hz, 10 s training and 10 s validation, in a plain psdm CSV. The cam is a balancer: it opposes
+    joint 2's gravity torque at every angle, its first harmonic taking a seeded 40-90 % of the gravity amplitude at
+    the motions' centre pose (``identification.virtual.counterbalance``)."""
     from heavy_arm import heavy_industrial_arm
 
     robot = heavy_industrial_arm(folder)
-    counterbalance = CamCounterbalance(joint=1, amplitude=-2500.0, q0=0.0, lobe=0.4)
+    low, high = np.asarray(robot.q_min), np.asarray(robot.q_max)
+    centre = np.clip(0.0, low + 0.25 * (high - low), high - 0.25 * (high - low))  # as ``_reference`` centres them
+    share = float(rng.uniform(0.4, 0.9))
+    counterbalance = cam_counterbalance(robot, 1, centre, share, lobe=0.4)
     noise = np.full(6, 5.0)
     files = []
     for name in ("train", "validate"):
@@ -257,7 +263,8 @@ def heavy_counterbalance(folder: Path, rng) -> Case:
         files.append(_write_csv(folder / f"heavy_{name}.csv", header, [t, q, tau]))
     return Case(
         name="heavy_counterbalance_slow",
-        what="heavy 6-axis arm (~1 t), cam counterbalance on J2, slow motions, 250 Hz, 10 s + 10 s",
+        what=f"heavy 6-axis arm (~1 t), cam counterbalance on J2 taking {share:.0%} of its gravity, slow motions, "
+        "250 Hz, 10 s + 10 s",
         robot=Path(robot.source),
         train=tuple(files[:-1]),
         validate=files[-1],

@@ -3,6 +3,7 @@
 import warnings
 
 import numpy as np
+import pytest
 
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
@@ -67,3 +68,13 @@ def sine_context(robot, model, seed, duration=3.0):
         rng,
     )
     return build_context(robot, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
+
+
+#: The heavy arm's tests written on its former cam, which added to joint 2's gravity torque on most of the range: with
+#: the physical balancer (``identification.virtual.counterbalance``) the defaults absorb it into the link masses
+#: inside their envelope, and these fail until identify and diagnose find it again (issue 25).
+PHYSICAL_COUNTERBALANCE_MISSED = pytest.mark.xfail(
+    strict=True,
+    reason="the heavy arm's counterbalance is a physical balancer now: the fit absorbs it into the link masses inside "
+    "their envelope and nothing names it (identification.virtual.counterbalance)",
+)

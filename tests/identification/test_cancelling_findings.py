@@ -34,6 +34,7 @@ from identification.diagnosis.candidates.torque import SpringTerm, TorqueRippleT
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from tests.conftest import DENSO_FILE
+from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
 from trajopt.experiments import sine_experiment
 
 Q = np.linspace(-0.6, 0.8, 2000)  # joint 2's travel [rad]
@@ -187,6 +188,7 @@ def _cli(argv) -> tuple:
     return code, json.loads(out.getvalue())
 
 
+@PHYSICAL_COUNTERBALANCE_MISSED
 @pytest.mark.slow  # identify and diagnose --apply of the 1 t arm: ~15 s
 def test_diagnose_apply_does_not_add_a_ripple_that_splits_the_spring_the_model_carries(tmp_path, benchmark_modules):
     from unseen_cases import build

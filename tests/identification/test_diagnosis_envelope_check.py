@@ -19,6 +19,7 @@ from identification.diagnosis.envelope_check import EnvelopeCheck, EnvelopedReca
 from identification.diagnosis.rigid_body_choice import Claim, drop_stand_ins, recalibration_parts
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
+from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
 from trajopt.experiments import sine_experiment
 
 
@@ -89,6 +90,7 @@ def test_drop_stand_ins_keeps_what_the_envelope_needs_and_says_why():
     assert [s.term.label for s in selection.steps] == ["payload"]
 
 
+@PHYSICAL_COUNTERBALANCE_MISSED
 @pytest.mark.slow
 def test_diagnosing_the_heavy_arm_finds_its_cam_counterbalance(benchmark_modules):
     """The issue's case, as ``benchmarks/heavy_arm.py`` runs it (seed 0): a 1 t arm, CAD inertias 10-20 % off in the
