@@ -21,9 +21,11 @@ where the URDF's differ and the tool as part of the last link; the vendor's nomi
   ``sensor_fit_no_link_at_mass_bound`` and ``current_fit_no_link_at_mass_bound``);
 - ``psdm identify`` the other way round (``sensor_short``): trained on opti_traj_testing2 alone (2.3 s, only joint 2
   reverses), validated on opti_traj_testing1, sensors: the joints that move one way only have their undetermined
-  friction held to the robot file's fit (``one_way_friction``), and no joint may be worse than the robot file with
-  friction fitted (the target ``short_fit_no_joint_worse_than_robot_file``; with the friction fitted, joints 3, 5, 6
-  were: 0.24 -> 0.31, 0.14 -> 0.29, 0.19 -> 0.42 N m);
+  friction held to the robot file's fit (``one_way_friction``), and no joint may be worse than the robot file (per
+  joint with friction fitted, or alone where that is better: the ``(base)`` row; the target
+  ``short_fit_no_joint_worse_than_robot_file``; with the friction fitted, joints 3, 5, 6 were: 0.24 -> 0.31,
+  0.14 -> 0.29, 0.19 -> 0.42 N m); a joint still worse has its friction, then the links it carries, held at the robot
+  file's (``worse_joint_hold``: joint 1's friction at the file alone's, links 6 and 7);
 - ``psdm diagnose`` of the robot file on opti_traj_testing1/2 (sensors): with the tool stated, a further
   payload it names says the stated tool is off;
 - the vendor URDF alone (``vendor_urdf``: no ``[[link]]`` tables, no tool): ``psdm identify`` on the sensors must
@@ -245,6 +247,8 @@ def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
             "rmse_robot_file_friction": validation.get("rmse_prior_friction"),
             "worse_than_robot_file": (payload.get("robot_file_check") or {}).get("worse_joints"),
+            "baselines": (payload.get("robot_file_check") or {}).get("baselines"),
+            "worse_joints": payload.get("worse_joints"),
             "warnings": warnings, "links": links_report(robot, out)}  # fmt: skip
 
 
@@ -365,7 +369,7 @@ def print_short(fit) -> None:
         return
     print(f"  {'sensor':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse"]))
     print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
-    print(f"  {'(+fric)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_friction"] or [])
+    print(f"  {'(base)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_friction"] or [])
           + f"   identify's check, joints worse: {fit.get('worse_than_robot_file') or 'none'}")  # fmt: skip
     print_one_way(fit)
 
@@ -373,6 +377,13 @@ def print_short(fit) -> None:
 def print_one_way(fit) -> None:
     """What identify held of the friction of the joints that move one way only in training (``one_way_friction``)."""
     held = fit.get("one_way_friction") or {}
+    print(f"           baseline per joint (robot_file_check): {', '.join(fit.get('baselines') or []) or '-'} "
+          "(friction: the robot file with friction fitted; alone: the robot file alone)")  # fmt: skip
+    mended = fit.get("worse_joints") or {}
+    if mended.get("worse_joints"):
+        print(f"           worse than the robot file first: joints {mended['worse_joints']}; held (worse_joint_hold): "
+              f"friction {mended.get('held_friction') or 'none'}, links {mended.get('held_links') or 'none'}; "
+              f"still worse: {mended.get('left_worse') or 'none'}")  # fmt: skip
     if not held.get("one_way_joints"):
         return
     decided = "; the held-out recording decided it" if held.get("decided_by_held_out") else ""
@@ -399,7 +410,7 @@ def print_kinova(result) -> None:
         print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
         if fit.get("rmse_robot_file_friction"):  # the model identify replaces (robot_file_check)
             print(
-                f"  {'(+fric)':<8} "
+                f"  {'(base)':<8} "
                 + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_friction"])
                 + f"   identify's check, joints worse: {fit.get('worse_than_robot_file') or 'none'}"
             )

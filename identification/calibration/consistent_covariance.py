@@ -51,7 +51,7 @@ from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 __all__ = ["consistent_covariance"]
 
 
-def consistent_covariance(covariance, model, robot, pull) -> np.ndarray:
+def consistent_covariance(covariance, model, robot, pull, held_links=()) -> np.ndarray:
     """The consistent fit's covariance of the base then drive parameters (module docstring).
 
     Parameters
@@ -64,6 +64,8 @@ def consistent_covariance(covariance, model, robot, pull) -> np.ndarray:
         The robot file the fit was pulled towards (``consistent_fit.prior_standard``).
     pull : PriorPull
         The pull the fit used (``FitBounds.prior``).
+    held_links : tuple of int
+        Links (0-based) the fit held at the robot file's (``TrajectoryOptions.held_links``): known, no variables.
 
     Returns
     -------
@@ -73,7 +75,8 @@ def consistent_covariance(covariance, model, robot, pull) -> np.ndarray:
     c = np.asarray(covariance, dtype=float)
     n, n_base, size = robot.n_dof, model.n_base, LINK_PARAMETER_COUNT + 1
     sd = pull.standard_deviations(prior_standard(robot)).reshape(-1)
-    free = [i * size + k for i in range(n) if link_is_free(model, i) for k in range(LINK_PARAMETER_COUNT)]
+    free = [i * size + k for i in range(n) if link_is_free(model, i) and i not in held_links
+            for k in range(LINK_PARAMETER_COUNT)]  # fmt: skip
     varied = free + [i * size + LINK_PARAMETER_COUNT for i in range(n)]  # the fit's variables: free links, rotors
     mapped = np.asarray(model.parameter_map, dtype=float)[:, varied] * sd[varied]
     innovation = c[:n_base, :n_base] + mapped @ mapped.T

@@ -244,7 +244,7 @@ def consistent_fit(
     bounds = fit_bounds(robot, model, options) if bounds is None else bounds
     payload_prior = np.zeros((0, 10)) if payload_prior is None else np.asarray(payload_prior, dtype=float)
     prior = prior_standard(robot)
-    links = [i for i in range(n) if link_is_free(model, i)]
+    links = [i for i in range(n) if link_is_free(model, i) and i not in options.held_links]  # held: the file's
     phi = ca.SX.sym("phi", LINK_PARAMETER_COUNT * len(links))
     psi = ca.SX.sym("psi", 10 * len(payload_prior))
     rotor, drive = ca.SX.sym("rotor", n), ca.SX.sym("drive", len(names))

@@ -69,9 +69,12 @@ class HeldFriction:
 
     @classmethod
     def of_document(cls, document: dict) -> HeldFriction:
-        """What a calibrated-model file's identification held (``identification.one_way_friction.held``; none in files
-        without it), with the file's smoothing velocity."""
-        held = (document.get("identification", {}).get("one_way_friction") or {}).get("held") or {}
+        """What a calibrated-model file's identification held (``identification.one_way_friction.held``, then
+        ``identification.worse_joints.held_friction``, ``worse_joint_hold``; none in files without them), with the
+        file's smoothing velocity."""
+        identification = document.get("identification", {})
+        held = dict((identification.get("one_way_friction") or {}).get("held") or {})
+        held.update((identification.get("worse_joints") or {}).get("held_friction") or {})
         return cls(tuple(held.items()), float(document["drive"].get("coulomb_velocity", 0.05)))
 
     @classmethod

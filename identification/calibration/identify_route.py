@@ -25,12 +25,14 @@ from identification.calibration.held_back import stored_held_back
 from identification.calibration.one_way_friction import (
     OneWayFriction,
     check_one_way_mode,
+    file_friction_values,
     held_options,
     hold_one_way_friction,
 )
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
+from identification.calibration.worse_joint_hold import WorseJointHold, check_worse_joint_mode, hold_worse_joints
 from psdm_casadi.state_cache import remembering
 
 __all__ = ["IdentifyResult", "identify_recordings"]
@@ -66,6 +68,9 @@ class IdentifyResult:
     one_way : OneWayFriction
         The friction of the joints that move one way only in training: fitted, or held to the robot file's fit where
         the data do not determine it (``one_way_friction``).
+    worse_joints : WorseJointHold
+        What was done about the joints the robot-file check named worse: the links they carry held at the robot
+        file's where that mends them (``worse_joint_hold``).
     """
 
     fit: TrajectoryFit
@@ -77,6 +82,7 @@ class IdentifyResult:
     lugre: object = None
     file_check: FileCheck = field(default_factory=FileCheck)
     one_way: OneWayFriction = field(default_factory=OneWayFriction)
+    worse_joints: WorseJointHold = field(default_factory=WorseJointHold)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -102,6 +108,8 @@ class IdentifyResult:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
         if self.one_way.describe():
             lines.append(self.one_way.describe())
+        if self.worse_joints.describe():
+            lines.append(self.worse_joints.describe())
         if self.file_check.comparison is not None or self.file_check.reason:
             lines.append(self.file_check.describe())
         return lines
@@ -128,6 +136,7 @@ def identify_recordings(
     robot_source: str | None = None,
     paths=None,
     one_way: str = "auto",
+    worse_joint: str = "hold",
 ) -> IdentifyResult:
     """Identify a calibrated model from exciting recordings as ``psdm identify`` does (module docstring).
 
@@ -155,15 +164,19 @@ def identify_recordings(
     one_way : str
         The friction of joints that move one way only in training (``one_way_friction.ONE_WAY_MODES``): ``"auto"``
         holds it to the robot file's fit where the data do not determine it, ``"hold"`` wherever, ``"fit"`` nowhere.
+    worse_joint : str
+        The joints the robot-file check names worse (``worse_joint_hold.WORSE_JOINT_MODES``): ``"hold"`` the links
+        they carry at the robot file's where that mends them, ``"report"`` name them only.
     """
     check_one_way_mode(one_way)
+    check_worse_joint_mode(worse_joint)
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
     recordings, validation = list(recordings), list(validation)
     logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")
     choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
     chosen = choice.options(options)
-    loss, lugre, held = None, None, OneWayFriction(mode=one_way)
+    loss, lugre, held, mended = None, None, OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
     source = robot.source if robot_source is None else robot_source
     if request.friction == "lugre":
         from identification.calibration.lugre_identify import identify_lugre_trajectories
@@ -181,6 +194,7 @@ def identify_recordings(
         problem = (robot, model, recordings, choice.options(options), configurations)
         fit, held = _one_way(problem, fit, validation, one_way, source)
         chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
+        fit, chosen, mended = _worse_joints(problem, chosen, fit, validation, worse_joint, source)
         start = fit
     saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
              list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
@@ -193,10 +207,11 @@ def identify_recordings(
         calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
     check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
-    check = replace(check, held=held.held_joints)
+    check = replace(check, held=held.held_joints, held_links=mended.held_links)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
-    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held)
+    calibrated.document["identification"]["worse_joints"] = mended.to_dict()
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended)
 
 
 def _one_way(problem, fit, validation, mode, source) -> tuple:
@@ -217,6 +232,33 @@ def _one_way(problem, fit, validation, mode, source) -> tuple:
 
     prepared = prepare_training(robot, recordings, options).prepared
     return hold_one_way_friction((*problem, refit), fit, prepared, mode, judge if validation else None)
+
+
+def _worse_joints(problem, options, fit, validation, mode, source) -> tuple:
+    """``(fit, options, WorseJointHold)``: the links of the joints the robot-file check names worse on the held-out
+    recordings held to what the robot file predicts there where that mends them (``worse_joint_hold``); not tried
+    without held-out recordings, links in the robot file, or with payloads it does not carry."""
+    from identification.calibration.column_candidates import prepare_training
+
+    robot, model, recordings, _, configurations = problem
+    if configurations is not None and any(c.payload is not None or c.unknown for c in configurations):
+        return fit, options, WorseJointHold(mode=mode)
+    if not validation or robot.links is None:
+        return fit, options, WorseJointHold(mode=mode)
+
+    def refit(trial_options):
+        return identify_trajectories(robot, model, recordings, trial_options, configurations=configurations)
+
+    def judge(candidate):
+        calibrated = CalibratedModel.from_fit(robot, model, candidate, robot_source=source)
+        return _file_check(robot, model, recordings, validation, options, candidate, calibrated, configurations)
+
+    prepared = prepare_training(robot, recordings, options).prepared
+
+    def friction_of(candidate, joints):
+        return file_friction_values(robot, candidate, prepared, joints)
+
+    return hold_worse_joints((refit, options, robot.n_dof), fit, judge, friction_of, mode)
 
 
 def _checked_fit(robot, model, recordings, options, choice, validation, configurations) -> tuple:

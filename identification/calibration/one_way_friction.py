@@ -46,8 +46,8 @@ from identification.calibration.trajectory_data import drive_column_joint
 from identification.data.excitation_check import one_way_joints
 from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = ["ONE_WAY_MODES", "OneWayFriction", "check_one_way_mode", "hold_one_way_friction", "held_options",
-           "undetermined_friction"]  # fmt: skip
+__all__ = ["ONE_WAY_MODES", "OneWayFriction", "check_one_way_mode", "file_friction_values", "hold_one_way_friction",
+           "held_options", "undetermined_friction"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -122,7 +122,7 @@ def undetermined_friction(fit, joints) -> tuple:
     return tuple(out)
 
 
-def _file_values(robot, fit, prepared, joints) -> tuple:
+def file_friction_values(robot, fit, prepared, joints) -> tuple:
     """``(name, value)`` of the Coulomb and viscous friction of ``joints`` fitted beside the robot file's rigid body
     on the ``prepared`` training recordings, the joints taken Coulomb-viscous."""
     from psdm_casadi.oracle import PinocchioOracle
@@ -134,7 +134,7 @@ def _file_values(robot, fit, prepared, joints) -> tuple:
             vs[j] = 0.0
             drive[fit.drive_names.index(f"fs{j + 1}")] = 0.0  # held at 0: left out of the file's fit
     flat = replace(fit, drive=drive, stribeck_velocity=() if vs is None else tuple(vs))
-    baseline = file_friction(PinocchioOracle(robot), flat, prepared, bounded=True)
+    baseline = file_friction(PinocchioOracle(robot), flat, prepared)
     held = []
     for j in joints:
         keep, x = baseline.coefficients[j]
@@ -186,7 +186,7 @@ def hold_one_way_friction(problem, fit, prepared, mode: str = "auto", file_check
         return fit, replace(record, reason=f"fitted from the data: {undetermined_text} no worse there than the robot "
                                            f"file on {check.recordings} held-out recording(s)")  # fmt: skip
     joints = tuple(sorted(set(candidates) | set(worse)))
-    held = _file_values(robot, fit, prepared, joints)
+    held = file_friction_values(robot, fit, prepared, joints)
     logger.info("identify: holding the friction of joints %s (one way only, undetermined or worse) to the robot "
                 "file's fit ...", ", ".join(str(j + 1) for j in joints))  # fmt: skip
     try:

@@ -211,6 +211,7 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
         held_friction=HeldFriction.of_document(document).values,  # as identified
+        held_links=tuple(i - 1 for i in (identification.get("worse_joints") or {}).get("held_links", [])),
     )
 
 
@@ -424,7 +425,7 @@ def _document(
     document = new.document
     document["robot"] = copy.deepcopy(calibrated.document["robot"])
     document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia
-    kept = ("column_choice", "one_way_friction")  # the columns and held friction the refit kept (_options)
+    kept = ("column_choice", "one_way_friction", "worse_joints")  # the columns and holds the refit kept (_options)
     document["identification"].update({k: copy.deepcopy(v) for k, v in calibrated.document["identification"].items()
                                        if k in kept and v is not None})  # fmt: skip
     document["findings"] = filled_entries(entries, terms, columns, extra)

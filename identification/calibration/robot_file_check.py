@@ -4,7 +4,12 @@ A model ``psdm identify`` hands over replaces the robot file. The robot file alo
 so the honest model it replaces is its rigid body with the friction a plain fit gives: the same drive columns as the
 identified model (friction shape, the chosen torque offsets and drive inertias, the same Coulomb smoothing and
 Stribeck velocities), fitted per joint by least squares on the training recordings with the file's rigid body held
-(``file_friction``). Each joint's friction acts on that joint alone, so this is one small least squares per joint.
+(``file_friction``), bounded as identify bounds its own (``consistent_fit.drive_lower_bounds``: friction and drive
+inertias >= 0, offsets free). Each joint's friction acts on that joint alone, so this is one small least squares per
+joint. Unbounded, a joint that moves one way only in training let the fit trade Coulomb and viscous friction with the
+offset into a friction identify's model cannot have (a negative viscous friction) and a baseline far worse than the
+file alone on the held-out motion; bounded, zero friction stays feasible, so on the training recordings the baseline
+is never worse than the file's rigid body alone.
 
 training recordings (prepared as the fit prepares them) -> ``file_friction`` (the file's rigid body + friction)
 -> on each held-out recording, both models' residuals on the same samples -> ``never_worse.JointComparison`` (the
@@ -21,13 +26,18 @@ the truth the identified model is over the never-worse margin alone on some join
 one joint's Coulomb friction is over both. The uniform rule it replaces allowed every joint of the Kinova Gen3 (trained
 on 6.7 s) 39.5 %, which hid a joint 6 46 % worse than the file with friction fitted.
 
+The baseline per joint is the best the robot file offers (``FileCheck.baselines``, ``BASELINE_RULE``): its rigid
+body with the friction fitted, or the file alone where that predicts the held-out recordings better (a friction fitted
+to a training motion on which the joint turns one way only can be worse than none where it reverses: the Kinova
+trained on opti_traj_testing2, joint 1). The report and the model file say which.
+
 A worse joint that moves one way only in training has its friction held to the robot file's fit and the model fitted
-again (``one_way_friction``: the held-out recordings decide that hold, and the model file says so). Otherwise identify
-writes its model and says so, in its report and as a warning: the rigid body is shared by every joint, so the robot
-file's cannot be taken for the worse joints alone, and choosing the whole model by the held-out recordings would make
-them training data. The route to the cheaper model is named instead: ``psdm diagnose`` of the robot file fits its
-friction (and the physics it finds missing) on the file's rigid body, and ``--apply`` writes it under the never-worse
-gate.
+again (``one_way_friction``: the held-out recordings decide that hold, and the model file says so). A joint still
+worse is held to what the robot file predicts there, its friction at its baseline's and then the links it carries at
+the file's, where that leaves fewer joints worse and none new (``worse_joint_hold``; the held-out recordings decide
+it, and the record says so). What is still worse after that is written and said, in the report and as a warning, with
+the route to the cheaper model: ``psdm diagnose`` of the robot file fits its friction (and the physics it finds
+missing) on the file's rigid body, and ``--apply`` writes it under the never-worse gate.
 """
 
 from __future__ import annotations
@@ -55,8 +65,14 @@ from identification.calibration.trajectory_data import drive_column_joint, drive
 from identification.calibration.trajectory_fit import torque_constants
 from identification.data.excitation_check import one_way_joints
 
-__all__ = ["ALLOWANCE_RULES", "FileCheck", "FileFriction", "check_against_file", "file_friction"]
+__all__ = ["ALLOWANCE_RULES", "BASELINES", "BASELINE_RULE", "FileCheck", "FileFriction", "check_against_file",
+           "file_friction"]  # fmt: skip
 
+#: The baseline per joint, stored (``FileCheck.baselines``) and said in the report.
+BASELINES = {"friction": "the robot file's rigid body with its friction fitted", "alone": "the robot file alone"}
+BASELINE_RULE = ("per joint the better of the robot file's rigid body with its friction fitted (friction and drive "
+                 "inertias >= 0, offsets free, on the training recordings) and the robot file alone, by the RMSE on "
+                 "the held-out recordings")  # fmt: skip
 #: The stored rule of the estimation allowance, by whether the fit states its parameters' covariance.
 ALLOWANCE_RULES = {
     True: "margin = never-worse margin + sqrt(b^2 + v) - b per joint [N m]: b the RMSE before, v the mean over the "
@@ -100,6 +116,8 @@ class FileCheck:
     one_way: tuple = ()  # the joints (0-based) that move one way only in the training recordings
     from_covariance: bool = True  # the allowance from the fit's covariance (else the uniform sqrt(1 + p / N) - 1)
     held: tuple = ()  # the joints (0-based) whose friction identify held to the robot file's fit (``one_way_friction``)
+    baselines: tuple = ()  # per joint, the baseline judged against: "friction" (fitted) or "alone" (``BASELINES``)
+    held_links: tuple = ()  # the links (0-based) identify held at the robot file's (``worse_joint_hold``)
 
     @property
     def worse(self) -> tuple:
@@ -127,14 +145,23 @@ class FileCheck:
         if not self.worse:
             above = [j for j in range(len(c.after)) if c.after[j] > c.before[j] + c.margin[j] - self._extra[j]]
             within = f"; above it within that allowance: {c.text(above)}" if above else ""
-            return (f"against the robot file (its rigid body, friction fitted): no joint worse on {held} beyond "
+            return (f"against the robot file ({self._baseline_text()}): no joint worse on {held} beyond "
                     f"{allowance} (RMSE {_numbers(c.after)} against {_numbers(c.before)} N m{within})")  # fmt: skip
         joints = ", ".join(str(j + 1) for j in self.worse)
-        return (f"against the robot file (its rigid body, friction fitted): WORSE on joint(s) {joints} on {held} "
-                f"beyond {allowance}: {c.text()} (robot file with friction fitted -> identified). The model is "
-                "written as identified, but on those joints the robot file's rigid body with its friction fitted "
-                f"predicts the held-out motion better: '{DIAGNOSE_COMMAND}' scores that model and names what it "
-                f"finds missing. {self._remedy()}")  # fmt: skip
+        return (f"against the robot file ({self._baseline_text()}): WORSE on joint(s) {joints} on {held} "
+                f"beyond {allowance}: {c.text()} (robot file -> identified). The model is written as identified, but "
+                f"on those joints the robot file predicts the held-out motion better: '{DIAGNOSE_COMMAND}' scores "
+                f"that model and names what it finds missing. {self._remedy()}")  # fmt: skip
+
+    def _baseline_text(self) -> str:
+        """Which baseline the joints were judged against (``BASELINES``): the file's rigid body with friction fitted,
+        or on some joints the file alone where that predicts the held-out recordings better."""
+        alone = [j for j, b in enumerate(self.baselines) if b == "alone"]
+        if not alone:
+            return "its rigid body, friction fitted"
+        joints = ", ".join(str(j + 1) for j in alone)
+        return (f"its rigid body, friction fitted; on joint(s) {joints} the robot file alone, which predicts the "
+                "held-out motion better there than with the friction fitted on the training recordings")  # fmt: skip
 
     def _remedy(self) -> str:
         """What to record: the worse joints that never reversed first (their friction is a constant there)."""
@@ -174,7 +201,8 @@ class FileCheck:
                 **self.comparison.to_dict(), "estimation_allowance": [float(v) for v in self._extra],
                 "estimation_allowance_rule": ALLOWANCE_RULES[self.from_covariance],
                 "estimated_parameters": self.parameters, "independent_samples_per_joint": self.samples,
-                "one_way_joints": [j + 1 for j in self.one_way]})  # fmt: skip
+                "one_way_joints": [j + 1 for j in self.one_way], "baselines": list(self.baselines),
+                "baseline_rule": BASELINE_RULE, "held_links": [i + 1 for i in self.held_links]})  # fmt: skip
 
 
 def _numbers(values) -> str:
@@ -207,27 +235,23 @@ def _joint_columns(fit, joint: int) -> np.ndarray:
     return np.asarray(keep, dtype=int)
 
 
-def file_friction(oracle, fit, prepared, bounded: bool = False) -> FileFriction:
+def file_friction(oracle, fit, prepared) -> FileFriction:
     """The robot file's rigid body (``oracle``) with each joint's drive columns of ``fit`` fitted by least squares
-    on the ``prepared`` training recordings (joints without torque, NaN, left out); ``bounded``: friction and drive
-    inertias >= 0, as the consistent fit bounds them (``consistent_fit.drive_lower_bounds``)."""
+    on the ``prepared`` training recordings (joints without torque, NaN, left out), friction and drive inertias >= 0
+    and offsets free, as the consistent fit bounds them (``consistent_fit.drive_lower_bounds``; a drive inertia here is
+    on top of the file's). Zero is feasible, so per joint its training residual is never above the file's alone."""
     from scipy.optimize import lsq_linear
 
     rows = [(r.tau - oracle.rnea(r.q, r.qd, r.qdd), _columns(fit, r.qd, r.qdd)) for r in prepared]
     residual = np.concatenate([r for r, _ in rows])
     columns = np.concatenate([c for _, c in rows])
-    lower = drive_lower_bounds(fit.drive_names) if bounded else np.full(len(fit.drive_names), -np.inf)
+    lower = drive_lower_bounds(fit.drive_names)
     coefficients = []
     for j in range(residual.shape[1]):
         keep, ok = _joint_columns(fit, j), np.isfinite(residual[:, j])
         x = []
         if keep.size and ok.any():
-            a, b = columns[ok][:, j, keep], residual[ok, j]
-            x = (
-                lsq_linear(a, b, (lower[keep], np.inf), method="bvls").x
-                if bounded
-                else np.linalg.lstsq(a, b, rcond=None)[0]
-            )
+            x = lsq_linear(columns[ok][:, j, keep], residual[ok, j], (lower[keep], np.inf), method="bvls").x
         coefficients.append((keep, np.asarray(x, dtype=float)))
     return FileFriction(fit, tuple(coefficients))
 
@@ -248,12 +272,17 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
     oracle = PinocchioOracle(robot)
     baseline = file_friction(oracle, fit, prepared)
     covariance = rigid_body_covariance(model, fit)
-    comparisons, each = [], []
+    residuals = []  # per held-out recording: (prepared recording, model's, file + friction's, file alone's)
     for recording in validation:
         kt = torque_constants(robot, options, [recording])
         ready, predicted = calibrated.predict_recording(model, recording, kt)
-        file_error = ready.tau - baseline.predict(oracle, ready.q, ready.qd, ready.qdd)
-        before, after, se = paired_rmse_margin(file_error, ready.tau - predicted)
+        alone = oracle.rnea(ready.q, ready.qd, ready.qdd)
+        friction = baseline.predict(oracle, ready.q, ready.qd, ready.qdd)
+        residuals.append((ready, ready.tau - predicted, ready.tau - friction, ready.tau - alone))
+    use_alone = _alone_better(residuals)
+    comparisons, each = [], []
+    for ready, model_error, friction_error, alone_error in residuals:
+        before, after, se = paired_rmse_margin(np.where(use_alone, alone_error, friction_error), model_error)
         comparisons.append(JointComparison.from_noise(before, after, se))
         if covariance is not None:
             each.append(joint_allowance(before, prediction_variance(model, covariance, ready)))
@@ -269,4 +298,16 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
     one_way = one_way_joints(prepared, range(robot.n_dof), speed=options.coulomb_velocity,
                              min_fraction=MIN_REVERSAL_FRACTION)  # fmt: skip
     return FileCheck(pooled, len(validation), each=tuple(comparisons), allowance=allowance, parameters=model.n_base,
-                     samples=per_joint, one_way=tuple(one_way), from_covariance=covariance is not None)  # fmt: skip
+                     samples=per_joint, one_way=tuple(one_way), from_covariance=covariance is not None,
+                     baselines=tuple("alone" if a else "friction" for a in use_alone))  # fmt: skip
+
+
+def _alone_better(residuals) -> np.ndarray:
+    """Per joint, whether the robot file alone (no friction) has a lower RMSE on the held-out recordings (the mean
+    over the recordings that hold the joint, as ``pooled_comparison``) than its rigid body with friction fitted: the
+    baseline is the best the robot file offers there (module docstring)."""
+    with np.errstate(invalid="ignore"):
+        rmse = np.array([[np.sqrt(np.mean(e**2, axis=0)) for e in r[2:]] for r in residuals])  # (recording, 2, dof)
+    held = np.isfinite(rmse).all(axis=1)
+    mean = np.where(held[:, None, :], rmse, 0.0).sum(axis=0) / np.maximum(held.sum(axis=0), 1)
+    return (mean[1] < mean[0]) & (held.sum(axis=0) > 0)

@@ -135,6 +135,10 @@ class TrajectoryOptions:
     held_friction : tuple of (str, float)
         Drive columns (``fc<j>``, ``fv<j>`` of Coulomb-viscous joints) held at these values, not fitted
         (``held_friction``; ``one_way_friction`` holds the friction of a joint the data do not determine it on).
+    held_links : tuple of int
+        Links (0-based) whose ten inertial parameters the consistent fit holds at the robot file's (their drive
+        inertias stay fitted): ``worse_joint_hold`` holds the links a joint carries where the identified ones made it
+        worse than the robot file on the held-out recordings.
     """
 
     friction: tuple = ("fc", "fv")
@@ -155,9 +159,10 @@ class TrajectoryOptions:
     inertia_joints: tuple | None = None
     stribeck_joints: tuple | None = None
     held_friction: tuple = ()
+    held_links: tuple = ()
 
     def __post_init__(self):
-        for name in ("offset_joints", "inertia_joints", "stribeck_joints"):
+        for name in ("offset_joints", "inertia_joints", "stribeck_joints", "held_links"):
             joints = getattr(self, name)
             if joints is not None and not all(isinstance(j, (int, np.integer)) and j >= 0 for j in joints):
                 raise ParameterError(f"TrajectoryOptions.{name} must be None or 0-based joint indices; got {joints!r}.")
@@ -379,8 +384,8 @@ def identify_trajectories(
         pushed, kept = causes(robot, model, (x_fit, x_ols, equations, sigma, prepared), covariance, names, pushed, kt)
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
-        theta, stated = model.base_parameters(standard), consistent_covariance(covariance[:n_fit, :n_fit], model,
-                                                                               robot, bounds.prior)  # fmt: skip
+        theta = model.base_parameters(standard)
+        stated = consistent_covariance(covariance[:n_fit, :n_fit], model, robot, bounds.prior, options.held_links)
     else:  # base parameters only: no standard parameters are identified, none are made up
         standard = np.full((robot.n_dof, LINK_PARAMETER_COUNT + 1), np.nan)
         drive, status, eigen, theta = x_ols[model.n_base : n_fit], "not solved", float("nan"), x_ols[: model.n_base]

@@ -49,6 +49,12 @@ ONE_WAY_HELP = (
     "the --validate recordings, if any, find the fitted one worse than the robot file; hold: on every such joint; "
     "fit: from the data everywhere"
 )
+#: ``--worse-joint`` (``identification.calibration.worse_joint_hold``).
+WORSE_JOINT_HELP = (
+    "a joint the --validate recordings find worse than the robot file: hold (default) fits again with its friction, "
+    "then the links it carries, held at the robot file's, each kept where it leaves fewer joints worse and none new "
+    "(stated in the output and the model file); report: name it only"
+)
 
 
 def add_arguments(p) -> None:
@@ -97,11 +103,8 @@ def add_arguments(p) -> None:
         "tried only when currents are the torque source; on: every joint; off: none. Stored in the model file as a "
         "load-dependent friction of the model's own torque (predict, validate and the exported C apply it)",
     )
-    p.add_argument(
-        "--no-consistency",
-        action="store_true",
-        help="keep the unconstrained weighted least-squares estimate (base parameters only), marked as not checked",
-    )
+    p.add_argument("--no-consistency", action="store_true", help="keep the unconstrained weighted least-squares "
+                   "estimate (base parameters only), marked as not checked")  # fmt: skip
     p.add_argument("--cutoff", type=float, default=None, help="low-pass cutoff [Hz] (default: min(10, rate/10))")
     p.add_argument("--coulomb-velocity", type=float, default=None, metavar="V", help=COULOMB_VELOCITY_HELP)
     for option, bounded in (
@@ -122,6 +125,7 @@ def add_arguments(p) -> None:
                           "--validate recording and, with at most one, in each training block)")):  # fmt: skip
         p.add_argument(option, action="store_true", help=what)
     p.add_argument("--one-way-friction", choices=("auto", "hold", "fit"), default="auto", help=ONE_WAY_HELP)
+    p.add_argument("--worse-joint", choices=("hold", "report"), default="hold", help=WORSE_JOINT_HELP)
     p.add_argument(
         "--missing-torque",
         action="append",
@@ -180,8 +184,8 @@ def run(args) -> int:
         options = replace(options, prior_uncertainty=args.prior_uncertainty)
     with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
         result = identify_recordings(robot, model, recordings, options, request, validation, configurations,
-                                     counterbalance=not args.no_counterbalance, robot_source=args.robot,
-                                     paths=paths, one_way=args.one_way_friction)  # fmt: skip
+                                     counterbalance=not args.no_counterbalance, robot_source=args.robot, paths=paths,
+                                     one_way=args.one_way_friction, worse_joint=args.worse_joint)  # fmt: skip
     fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file

@@ -137,8 +137,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "columns": calibrated.document["identification"]["column_choice"],
                     "counterbalance": calibrated.document["identification"]["counterbalance"],
                     "drive_loss": drive_loss_summary(calibrated.document),
-                    "robot_file_check": calibrated.document["identification"].get("robot_file_check"),
-                    "one_way_friction": calibrated.document["identification"].get("one_way_friction"),
+                    **{key: calibrated.document["identification"].get(key)
+                       for key in ("robot_file_check", "one_way_friction", "worse_joints")},
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -156,8 +156,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
-    if result.one_way.describe():
-        print(result.one_way.describe())
+    for line in filter(None, (result.one_way.describe(), result.worse_joints.describe())):
+        print(line)
     for entry in drive_loss_summary(calibrated.document):
         print(
             f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "

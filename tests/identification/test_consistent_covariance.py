@@ -64,9 +64,9 @@ def short_fit(denso, denso_model):
     seen = {}
     original = trajectory_fit.consistent_covariance
 
-    def spy(covariance, model, robot, pull):
+    def spy(covariance, model, robot, pull, held_links=()):
         seen.update(covariance=np.array(covariance), model=model, robot=robot, pull=pull)
-        return original(covariance, model, robot, pull)
+        return original(covariance, model, robot, pull, held_links)
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(trajectory_fit, "consistent_covariance", spy)

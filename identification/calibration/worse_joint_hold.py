@@ -1,0 +1,191 @@
+"""A joint the robot-file check names worse: held to what the robot file predicts there, where that mends it.
+
+The model ``psdm identify`` hands over must be no worse on any joint than the model it replaces (``robot_file_check``:
+per joint the robot file's rigid body with its friction fitted, or the file alone where that predicts the held-out
+recordings better). Where the check names joints worse, identify acts instead of only saying so, in two steps, each a
+fit made again and judged by the same check:
+
+1. **friction**: each worse joint's Coulomb and viscous friction held at its baseline's (``held_friction``): the robot
+   file's fit on the training recordings (``one_way_friction.file_friction_values``, bounded as identify's own), or
+   zero where the baseline is the file alone, on the joints where it is not held there already. A joint that moves
+   one way only in training has a constant friction there, which the rigid body and an offset take as well; on a
+   held-out motion that reverses, the friction fitted beside them is wrong (Kinova Gen3 trained on
+   opti_traj_testing2 alone: joint 1 turns one way throughout, its friction held to the file's fit at 1.26 N m
+   Coulomb, and the file without friction predicts opti_traj_testing1 better);
+2. **rigid body**: a joint's torque in a serial chain is carried by its own link and every link after it; the fit is
+   made again with the ten inertial parameters of the worse joints' own links held at the robot file's
+   (``TrajectoryOptions.held_links``; drive inertias, friction and offsets stay fitted), and where that does not mend
+   them, of every link from the first joint still worse to the flange. The worse joints then predict what the robot
+   file's rigid body predicts, and the links before them are fitted to what the held ones leave. Kinova, the same
+   fit: joint 6 moves one way through 0.77 rad, its friction held already; links 6 and 7 were fitted to what the
+   other joints ask of them (link 7 1.30 kg against the file's 1.10, its centre of mass 4 cm off), and joint 6 was
+   worse than the robot file with friction fitted on opti_traj_testing1 (link 6 held alone leaves it worse).
+
+A step is kept only if the joints the check names worse with it are fewer than before and none of them is new (a
+link held for a wrist joint moves the rigid body of the joints before it); otherwise the fit before it stands, and
+the report says why with the numbers. The held-out recordings then decide the model, so the check that follows is not
+independent of them: the record (``WorseJointHold``) and its sentence say so, as ``one_way_friction``'s do. A model
+file states what was held (``identification.worse_joints``): the held friction is kept by every refit of the file
+(``HeldFriction.of_document``). ``mode``: ``"hold"`` (default) or ``"report"`` (name the worse joints only, ``psdm
+identify --worse-joint report``).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+from identification.calibration.held_friction import HELD_TERMS, HeldFriction
+from identification.calibration.one_way_friction import held_options
+from psdm_casadi.errors import ParameterError, SolverError
+
+__all__ = ["WORSE_JOINT_MODES", "WorseJointHold", "carried_links", "check_worse_joint_mode", "hold_worse_joints"]
+
+logger = logging.getLogger(__name__)
+
+#: ``--worse-joint``: hold a worse joint to what the robot file predicts where that mends it (default), or name it.
+WORSE_JOINT_MODES = ("hold", "report")
+
+
+def check_worse_joint_mode(mode: str) -> None:
+    """Raise ``ParameterError`` unless ``mode`` is one of ``WORSE_JOINT_MODES``."""
+    if mode not in WORSE_JOINT_MODES:
+        raise ParameterError(f"--worse-joint must be one of {', '.join(WORSE_JOINT_MODES)}; got {mode!r}.")
+
+
+def carried_links(joints, n_dof: int) -> tuple:
+    """The links (0-based) whose parameters reach the torque of any of ``joints`` in a serial chain: from the first of
+    them to the flange."""
+    return tuple(range(min(joints), n_dof)) if len(joints) else ()
+
+
+@dataclass(frozen=True)
+class WorseJointHold:
+    """What identify did about the joints the robot-file check named worse (0-based joints and links).
+
+    ``worse``: the joints named worse first; ``held_friction``: the ``(name, value)`` friction held at the baselines'
+    by this step; ``held_links``: the links held at the robot file's (empty: none); ``steps``: per fit tried,
+    ``(what, joints named worse with it, kept)``; ``numbers``: per joint named worse first, ``(joint, baseline RMSE,
+    identified RMSE, margin)``; ``left``: the joints still worse; ``reason``: why, in words.
+    """
+
+    mode: str = "hold"
+    worse: tuple = ()
+    held_friction: tuple = ()
+    held_links: tuple = ()
+    steps: tuple = ()
+    numbers: tuple = ()
+    left: tuple = ()
+    reason: str = ""
+
+    @property
+    def decided_by_held_out(self) -> bool:
+        return bool(self.held_friction or self.held_links)
+
+    def describe(self) -> str:
+        """One sentence: nothing to do, or what was held, what it left worse, and which steps were refused."""
+        if not self.worse:
+            return ""
+        joints = ", ".join(str(j + 1) for j in self.worse)
+        numbers = "; ".join(f"joint {j + 1} {b:.3g} -> {a:.3g} N m (margin {m:.2g})" for j, b, a, m in self.numbers)
+        head = f"joint(s) {joints} worse than the robot file on the held-out recording(s) ({numbers}): "
+        if not self.decided_by_held_out:
+            return head + self.reason
+        done = []
+        if self.held_friction:
+            done.append(f"friction held at the robot file's baseline ({HeldFriction(self.held_friction).describe()})")
+        if self.held_links:
+            links = ", ".join(str(i + 1) for i in self.held_links)
+            done.append(f"the rigid body of link(s) {links}, which carry them, held at the robot file's")
+        return (f"{head}{' and '.join(done)}, and the model fitted again -- {self.reason}. The held-out recording(s) "
+                "decided this hold: their check against the robot file that follows is not independent of it. "
+                "--worse-joint report keeps the model as identified")  # fmt: skip
+
+    def to_dict(self) -> dict:
+        return {"mode": self.mode, "worse_joints": [j + 1 for j in self.worse],
+                "held_friction": {n: v for n, v in self.held_friction},
+                "held_links": [i + 1 for i in self.held_links], "left_worse": [j + 1 for j in self.left],
+                "steps": [{"held": what, "worse_joints": [j + 1 for j in worse], "kept": kept}
+                          for what, worse, kept in self.steps],
+                "before": {f"joint {j + 1}": {"baseline": b, "identified": a, "margin": m}
+                           for j, b, a, m in self.numbers},
+                "reason": self.reason, "decided_by_held_out": self.decided_by_held_out}  # fmt: skip
+
+
+def _baseline_friction(options, check, joints, friction_of, fit) -> tuple:
+    """The ``(name, value)`` friction of ``joints`` at their baselines' (the file's fit, or 0 for the file alone) where
+    ``options`` do not hold it there already."""
+    file_fit = dict(friction_of(fit, [j for j in joints if check.baselines[j] != "alone"]))
+    held, out = dict(options.held_friction), []
+    for j in joints:
+        names = [f"{t}{j + 1}" for t in HELD_TERMS if t in options.friction]
+        values = {n: (0.0 if check.baselines[j] == "alone" else file_fit.get(n, 0.0)) for n in names}
+        if any(n not in held or abs(held[n] - v) > 1e-12 for n, v in values.items()):
+            out.extend(values.items())
+    return tuple(out)
+
+
+def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> tuple:
+    """``(fit, options, WorseJointHold)``: ``fit`` (made with ``options``) as it is, or made again with its worse joints
+    held to what the robot file predicts there, step by step, each kept where it leaves fewer joints worse and none
+    new (module docstring). ``problem = (refit, options, n_dof)``, ``refit(options) -> TrajectoryFit``;
+    ``judge(fit) -> robot_file_check.FileCheck`` on the held-out recordings; ``friction_of(fit, joints)``: the
+    ``(name, value)`` Coulomb-viscous friction of the robot file's fit on the training recordings."""
+    refit, options, n_dof = problem
+    check = judge(fit)
+    left = tuple(check.worse)
+    if not left:
+        return fit, options, WorseJointHold(mode=mode)
+    c = check.comparison
+    numbers = tuple((j, float(c.before[j]), float(c.after[j]), float(c.margin[j])) for j in left)
+    record = WorseJointHold(mode=mode, worse=left, numbers=numbers, left=left)
+    if mode == "report":
+        return fit, options, replace(record, reason="named only (--worse-joint report)")
+    steps, added = [], ()
+    friction = _baseline_friction(options, check, left, friction_of, fit)
+    candidates, tried = ([("friction", friction)] if friction else []), set()
+    while left:
+        if not candidates:  # the worse joints' own links first, then every link they carry
+            for links in (set(left), set(carried_links(left, n_dof))):
+                links = tuple(sorted(set(options.held_links) | links))
+                if links != tuple(options.held_links) and links not in tried:
+                    candidates.append(("links", links))
+                    tried.add(links)
+            if not candidates:
+                break  # every link the joints left carry is held already
+        kind, what = candidates.pop(0)
+        if kind == "friction":
+            merged = {**dict(options.held_friction), **dict(what)}
+            trial_options = held_options(options, tuple(merged.items()), n_dof)
+            label = "friction " + ", ".join(f"{n} {v:.3g}" for n, v in what)
+        else:
+            trial_options = replace(options, held_links=what)
+            label = "links " + ", ".join(str(i + 1) for i in what)
+        logger.info("identify: joints %s worse than the robot file: fitting again with %s held ...",
+                    ", ".join(str(j + 1) for j in left), label)  # fmt: skip
+        try:
+            trial = refit(trial_options)
+        except SolverError as error:  # the fit before stands, and the record says why
+            steps.append((label, left, False))
+            logger.info("identify: the fit with %s held did not converge (%s)", label, error)
+            break
+        found = tuple(judge(trial).worse)
+        kept = set(found) < set(left)
+        steps.append((label, found, kept))
+        if not kept:
+            if kind == "links" and not candidates:
+                break
+            continue  # the friction did not mend them: the rigid body next
+        fit, options, left = trial, trial_options, found
+        added = added + (what if kind == "friction" else ())
+    held_links = tuple(options.held_links)
+    record = replace(record, held_friction=added, held_links=held_links, steps=tuple(steps), left=left)
+    tried = "; ".join(f"with {label} held: joint(s) {', '.join(str(j + 1) for j in found) or 'none'} worse"
+                      f"{'' if kept else ' (refused: not fewer, or a new one)'}"
+                      for label, found, kept in steps)  # fmt: skip
+    if not record.decided_by_held_out:
+        reason = f"{tried or 'nothing left to hold'}; the model stands as identified"
+    else:
+        joints = ", ".join(str(j + 1) for j in left)
+        reason = f"{tried}; " + (f"joint(s) {joints} still worse" if left else "no joint worse")
+    return fit, options, replace(record, reason=reason)
