@@ -30,6 +30,12 @@ at every angle, taking a seeded 40-90 % of its amplitude, ``counterbalance_share
    ``counterbalance_stated``: the report names a counterbalance on joint 2, first or among the alternatives, in an
    envelope finding or a parameter the fit holds back (``held_named``: a counterbalance absorbed inside link 2's
    envelope, held by the pull towards the robot file), or identify took it.
+   ``payload_taken``: identify took the tool as a payload at the flange (``calibration.payload_route``: where its
+   report names a payload and a spring was tried, the payload is preferred to a spring taking the same torque unless
+   the spring is clearly better out of sample), with ``payload_mass_kg`` against the truth's ``payload_mass_true_kg``;
+   ``spring_joints`` the joints of the springs written; ``rmse_held_out`` every joint's RMSE on the held-out
+   recording (identify never saw it without ``--validate``). ``envelope_respected`` is judged around the robot file
+   carrying the payload identify took (the envelope its fit kept).
 2. ``psdm diagnose model.json --train train.csv --validate val.csv`` (``diagnose_model_finds_counterbalance``; as a
    fraction of the seeds, ``identify_then_diagnose_finds_counterbalance``: with links pushed against their envelope
    the diagnosis starts from the robot file's rigid body the model file keeps, ``calibration.diagnosis_prior``), and
@@ -164,9 +170,13 @@ def _cli(argv) -> tuple:
 
 
 def _inside(robot, document) -> bool:
-    """Every link of the model file within its mass bounds and inside its bounding ellipsoid (1e-6 slack)."""
+    """Every link of the model file within its mass bounds and inside its bounding ellipsoid (1e-6 slack), around the
+    robot file carrying the payload identify took (``payload_route``: the envelope its fit kept)."""
+    from identification.calibration.carried_payload import carrying_payloads
     from identification.calibration.envelope import envelope_fill, link_envelopes
+    from psdm_casadi import derive_psdm
 
+    robot = carrying_payloads(robot, derive_psdm(robot), document.get("findings") or [])
     standard = np.asarray(document["standard"]["values"], dtype=float).reshape(robot.n_dof, -1)
     low, high = document["standard"]["envelope"]["mass_ratio"]
     prior = robot.nominal_dynamic_parameters()
@@ -193,15 +203,21 @@ def _found_on_joint_2(payload) -> bool:
     return any(f["effect"] in COUNTERBALANCE_NAMES and 2 in f["joints"] for f in (payload or {}).get("findings", ()))
 
 
-def _held_out_j2(robot, model_file, val, identified, key):
-    """Joint 2's RMSE [N m] on the held-out recording: identify's own (``key``) when it was given it, else the
+def _held_out(robot, model_file, val, identified, key):
+    """Every joint's RMSE [N m] on the held-out recording: identify's own (``key``) when it was given it, else the
     written model's as ``psdm validate`` gives it (the unconstrained fit is not in the file: None)."""
     if identified and identified.get("validation"):
-        return round(identified["validation"][0][key][1], 1)
+        return [round(v, 1) for v in identified["validation"][0][key]]
     if key != "rmse":
         return None
     _, validated = _cli(["validate", model_file, val, "--json"])
-    return round(validated["recordings"][0]["rmse"][1], 1) if validated else None
+    return [round(v, 1) for v in validated["recordings"][0]["rmse"]] if validated else None
+
+
+def _held_out_j2(robot, model_file, val, identified, key):
+    """Joint 2's RMSE [N m] on the held-out recording (``_held_out``)."""
+    rmse = _held_out(robot, model_file, val, identified, key)
+    return None if rmse is None else rmse[1]
 
 
 def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) -> dict:
@@ -240,6 +256,8 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
     _, from_file = _cli(["diagnose", robot.source, *diagnose])
     prior = robot.nominal_dynamic_parameters()
     standard = np.asarray(document["standard"]["values"], dtype=float).reshape(robot.n_dof, -1)
+    load = document["identification"].get("payload") or {}
+    spring_joints = sorted({j for f in document.get("findings") or [] if f["effect"] == "spring" for j in f["joints"]})
     return {
         "seed": seed,
         "identify_validate": validate,
@@ -263,6 +281,12 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "link2_mass_truth_kg": round(float(simulated[-1].nominal_dynamic_parameters()[1, 0]), 1),
         "rmse_j2_identified": _held_out_j2(robot, out, val, identified, "rmse"),
         "rmse_j2_unconstrained": _held_out_j2(robot, out, val, identified, "rmse_ols"),
+        "rmse_held_out": _held_out(robot, out, val, identified, "rmse"),
+        "payload_taken": bool(load.get("kept")),
+        "payload_mass_kg": round(load["mass"], 1) if load.get("kept") else None,
+        "payload_mass_true_kg": next((round(float(p["mass"]), 1) for k, _, _, p in truth if k == "payload"), None),
+        "spring_joints": spring_joints,
+        "payload_reason": load.get("reason", ""),
         "diagnose_model_finds_counterbalance": _found_on_joint_2(from_model),
         "diagnose_finds_counterbalance": _found_on_joint_2(from_file),
         "model_findings": ", ".join(f"{f['effect']}{f['joints']}" for f in (from_model or {}).get("findings", ())),
@@ -289,12 +313,15 @@ def main(argv=None) -> int:
             with tempfile.TemporaryDirectory(prefix="psdm-heavy-bench-") as folder:
                 rows.append(run_case(seed, Path(folder), args.effects, validate))
     keys = ("envelope_respected", "absorbed_effect_named", "counterbalance_named", "counterbalance_taken",
-            "counterbalance_stated", "payload_named", "diagnose_finds_counterbalance",
+            "counterbalance_stated", "payload_named", "payload_taken", "diagnose_finds_counterbalance",
             "diagnose_model_finds_counterbalance")  # fmt: skip
     summary = {key: all(row[key] for row in rows) for key in keys}
     summary["counts"] = {key: f"{sum(bool(row[key]) for row in rows)}/{len(rows)}" for key in keys}
     found = sum(bool(row["diagnose_model_finds_counterbalance"]) for row in rows)
     summary["identify_then_diagnose_finds_counterbalance"] = found / len(rows)  # the route identify -> diagnose MODEL
+    # the counterbalance in the model at the route's end: identify took it, or diagnose MODEL finds it
+    ended = sum(bool(row["counterbalance_taken"] or row["diagnose_model_finds_counterbalance"]) for row in rows)
+    summary["identify_or_diagnose_model_has_counterbalance"] = ended / len(rows)
     summary["identify_stays_inside_or_names_effect"] = all(
         row["envelope_respected"] and (row["absorbed_effect_named"] or row["stays_inside_unpushed"]) for row in rows
     )
@@ -303,8 +330,9 @@ def main(argv=None) -> int:
         return 0
     print_table(rows, ["seed", "identify_validate", "counterbalance_share", "envelope_respected",
                        "absorbed_effect_named", "named", "held_named", "counterbalance_stated", "counterbalance_taken",
-                       "payload_named", "link2_mass_kg", "link2_mass_file_kg", "link2_mass_truth_kg",
-                       "rmse_j2_identified", "rmse_j2_unconstrained",
+                       "payload_named", "payload_taken", "payload_mass_kg", "payload_mass_true_kg", "spring_joints",
+                       "link2_mass_kg", "link2_mass_file_kg", "link2_mass_truth_kg", "rmse_j2_identified",
+                       "rmse_j2_unconstrained",
                        "diagnose_model_finds_counterbalance", "diagnose_finds_counterbalance"])  # fmt: skip
     for row in rows:
         route = "with" if row["identify_validate"] else "without"

@@ -62,6 +62,7 @@ __all__ = [
     "Judges",
     "counterbalance_joints",
     "named_joints",
+    "spring_model",
     "take_counterbalance",
     "try_counterbalance",
 ]
@@ -195,6 +196,21 @@ def _with_springs(robot, model, options, build, columns, data, configurations) -
     document = copy.deepcopy(build(plain).document)
     document["findings"] = [*(document.get("findings") or []), *_entries(columns, extra)]
     return plain, document
+
+
+def spring_model(robot, model, options, build, entries, data):
+    """The ``CalibratedModel`` fitted on ``data`` with the springs of ``entries`` (identify's own findings, their terms
+    as stored), or ``build`` of the fit without columns where there are none: a judge's refit of a model identify
+    chose (``payload_route``)."""
+    from identification.calibration.calibrated_model import CalibratedModel
+
+    terms = [FindingTerm.from_dict(entry["term"]) for entry in entries]
+    if not terms:
+        return build(identify_trajectories(robot, model, list(data), options))
+    offsets = options.offset_joints if "offset" in options.friction else ()
+    keep = [k for t in terms for k in [True] * (len(t.feature_names()) - 1) + [not _offset(offsets, t.joint)]]
+    columns = FindingColumns(tuple(terms), keep=tuple(keep))
+    return CalibratedModel(_with_springs(robot, model, options, build, columns, list(data), None)[1])
 
 
 def counterbalance_laws(

@@ -29,6 +29,7 @@ from identification.calibration.one_way_friction import (
     held_options,
     hold_one_way_friction,
 )
+from identification.calibration.payload_route import PayloadChoice, take_payload
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
 from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
@@ -71,6 +72,9 @@ class IdentifyResult:
     worse_joints : WorseJointHold
         What was done about the joints the robot-file check named worse: the links they carry held at the robot
         file's where that mends them (``worse_joint_hold``).
+    payload : PayloadChoice
+        What was decided about the payload the report named (``payload_route``: preferred to a spring explaining
+        the same torque unless the spring is clearly better out of sample).
     """
 
     fit: TrajectoryFit
@@ -83,6 +87,7 @@ class IdentifyResult:
     file_check: FileCheck = field(default_factory=FileCheck)
     one_way: OneWayFriction = field(default_factory=OneWayFriction)
     worse_joints: WorseJointHold = field(default_factory=WorseJointHold)
+    payload: PayloadChoice = field(default_factory=PayloadChoice)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -106,6 +111,8 @@ class IdentifyResult:
         lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
         if self.counterbalance.reason:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
+        if self.payload.line:
+            lines.append(self.payload.line)
         if self.one_way.describe():
             lines.append(self.one_way.describe())
         if self.worse_joints.describe():
@@ -199,8 +206,9 @@ def identify_recordings(
     saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
              list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
     skip = lugre is not None or bool(loss) or not counterbalance  # routes that take no extra columns
-    final, calibrated, taken = take_counterbalance((robot, model, recordings, chosen, configurations), fit,
-                                                   validation, saved, skip)  # fmt: skip
+    problem = (robot, model, recordings, chosen, configurations)
+    final, calibrated, taken = take_counterbalance(problem, fit, validation, saved, skip)
+    final, calibrated, taken, payload = take_payload(problem, fit, taken, calibrated, validation, saved, skip)
     if loss:
         from identification.calibration.drive_loss import with_drive_loss
 
@@ -211,7 +219,7 @@ def identify_recordings(
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
-    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended)
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload)
 
 
 def _one_way(problem, fit, validation, mode, source) -> tuple:

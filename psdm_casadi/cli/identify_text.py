@@ -156,7 +156,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     print("drive columns: " + "; ".join(result.choice.describe()))
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
-    for line in filter(None, (result.one_way.describe(), result.worse_joints.describe())):
+    for line in filter(None, (result.payload.line, result.one_way.describe(), result.worse_joints.describe())):
         print(line)
     for entry in drive_loss_summary(calibrated.document):
         print(

@@ -1,0 +1,315 @@
+"""Identify takes the payload its report names: a body at the flange, preferred to a spring taking the same torque.
+
+A tool the robot file does not hold pushes the last links against their envelope, and the report names a payload
+(``envelope_report``, ``held_back``: first or as an alternative). Without a route of its own the tool's torque was
+left to the counterbalance route (``counterbalance_column``), which tries a spring on the joint a held-back gravity
+term names: on the heavy virtual arm (a 100-200 kg tool, training only) a spring on joint 5 of k = +500 N m/rad passed
+every block of the training recording, and the model file explained the tool's gravity on the wrist as a spring, the
+tool's torque on joints 2-4 left to the links. A spring takes one joint's torque with two free parameters; one rigid
+body at the flange (mass, centre of mass: four) takes the torque on every joint that carries it, consistently.
+
+So where the report names a payload and the counterbalance route tried a spring (the two explanations compete for
+the same torque), identify also takes the payload route (:func:`take_payload`; where no spring was tried the payload
+stays named, its route suggested, as before):
+
+- the payload is estimated as a point mass at the flange (``payload_fit.FlangeRegressor``, its first four columns)
+  from the torque the robot file's rigid body leaves on the prepared training recordings, the drive columns of the fit
+  fitted beside it (weighted by each joint's residual variance, as ``payload_check.new_payload``). It is tried only as
+  a body: a positive mass, its centre of mass within ``MAX_PAYLOAD_REACH`` of the flange;
+- the arm is identified again with the robot file's links carrying it (``carried_payload.carrying_payloads``, as
+  ``psdm diagnose --apply`` takes a payload up: the pull and the envelope around the file with the load), and the
+  counterbalance route runs again from that fit: a spring is kept beside the payload only where it still holds out
+  of sample;
+- the model with the payload (B) and the counterbalance route's model without it (A) are judged against each other by
+  the same judges as a spring (the held-out recordings, each and together, and the block cross-validation of the
+  training recordings: each fold's payload estimated, each model refitted, on its training blocks). The rule:
+
+  * where B keeps fewer springs than A (the payload explains the torque a spring took), B is taken unless A is better
+    beyond the noise margin on some joint for some judge (the spring clearly better out of sample);
+  * where B keeps the same springs (the payload explains nothing a spring took), B is taken only if it lowers some
+    joint beyond the noise margin for every judge and no joint is worse: the payload must earn its place.
+
+The payload is stored as a ``findings`` entry of kind ``rigid_body`` (``source`` ``"identify"``; taken up by the rigid
+body, as a diagnosis's payload), and ``identification.payload`` states the choice with its numbers: "spring[j5] not
+kept: a payload on the flange explains the same torque on joints 2-6 ...".
+"""
+
+from __future__ import annotations
+
+import copy
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from identification.calibration.carried_payload import carrying_payloads
+from identification.calibration.counterbalance_column import (
+    COUNTERBALANCE_SOURCE,
+    CounterbalanceChoice,
+    spring_model,
+    try_counterbalance,
+)
+from identification.calibration.counterbalance_folds import FoldFailure, block_folds
+from identification.calibration.held_back import stored_held_back
+from identification.calibration.never_worse import compare_each, pooled_comparison
+from identification.calibration.payload_fit import FlangeRegressor
+from identification.calibration.trajectory_data import drive_columns
+from identification.calibration.trajectory_fit import identify_trajectories
+from psdm_casadi.errors import PSDMError
+
+__all__ = ["PAYLOAD_SOURCE", "PayloadChoice", "estimate_payload", "payload_named", "take_payload"]
+
+logger = logging.getLogger(__name__)
+
+#: ``findings[].source`` of a payload identify took.
+PAYLOAD_SOURCE = "identify payload route"
+
+
+@dataclass(frozen=True)
+class PayloadChoice:
+    """What identify decided about the payload its report named.
+
+    ``named``: the report named one; ``tried``: a body was estimated and judged; ``kept``: it is in the model written
+    (``mass`` [kg], ``com`` [m] in the flange frame); ``replaced``: the spring labels the counterbalance route kept
+    that the model with the payload does not need; ``rmse_without``/``rmse_with``/``margin``: per joint, the first
+    judge's RMSE [N m] of the model without (A) and with (B) the payload, and the noise margin; ``route``: the judges.
+    """
+
+    named: bool = False
+    tried: bool = False
+    kept: bool = False
+    reason: str = ""
+    mass: float | None = None
+    com: tuple = ()
+    replaced: tuple = ()
+    rmse_without: tuple = ()
+    rmse_with: tuple = ()
+    margin: tuple = ()
+    route: str = ""
+    fit: object = field(default=None, repr=False)
+    document: dict | None = field(default=None, repr=False)
+    counterbalance: CounterbalanceChoice | None = field(default=None, repr=False)
+
+    @property
+    def line(self) -> str:
+        """The report's line (empty where nothing was named)."""
+        return f"payload: {self.reason}" if self.reason else ""
+
+    def to_dict(self) -> dict:
+        return {"named": self.named, "tried": self.tried, "kept": self.kept, "reason": self.reason, "mass": self.mass,
+                "com": list(self.com), "replaced": list(self.replaced), "rmse_without": list(self.rmse_without),
+                "rmse_with": list(self.rmse_with), "margin": list(self.margin), "route": self.route}  # fmt: skip
+
+
+def payload_named(fit) -> bool:
+    """Whether the fit's report names a payload: a pressed envelope finding or a held-back parameter whose likeliest
+    effect, or an alternative, is a payload."""
+    entries = [f for f in fit.envelope if f.pressed] + list(stored_held_back(getattr(fit, "envelope_bounds", ())))
+    return any(e.absorbs == "payload" or "payload" in (getattr(e, "alternatives", ()) or ()) for e in entries)
+
+
+def estimate_payload(robot, model, fit, prepared) -> tuple | None:
+    """``(mass [kg], centre of mass [m] in the flange frame)`` of the point mass at the flange that best explains the
+    torque the robot file's rigid body leaves on the ``prepared`` recordings, the drive columns of ``fit`` fitted
+    beside it (module docstring), or None where it is no body (mass not positive, centre of mass out of reach)."""
+    from identification.diagnosis.candidates.base import MAX_PAYLOAD_REACH
+
+    theta = model.base_parameters(robot.nominal_dynamic_parameters())
+    flange = FlangeRegressor(robot)
+    stribeck = np.asarray(fit.stribeck_velocity, dtype=float) if fit.stribeck_velocity else None
+    rows, targets = [], []
+    for rec in prepared:
+        own = drive_columns(rec.qd, rec.qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, stribeck)
+        rows.append(np.concatenate([flange(rec.q, rec.qd, rec.qdd)[:, :, :4], own], axis=2))
+        targets.append(np.asarray(rec.tau, dtype=float) - model.inverse_dynamics(rec.q, rec.qd, rec.qdd, theta))
+    columns, residual = np.concatenate(rows), np.concatenate(targets)
+    measured = np.all(np.isfinite(residual), axis=0)
+    residual = np.where(measured, residual, 0.0)
+    weights = measured.astype(float)
+    for _ in range(2):  # unweighted, then each joint by the variance of what the first fit leaves
+        gram = np.einsum("n,snc,snd->cd", weights, columns, columns)
+        x = np.linalg.lstsq(gram, np.einsum("n,snc,sn->c", weights, columns, residual), rcond=None)[0]
+        left = (residual - columns @ x).var(axis=0)
+        weights = np.where(measured, 1.0 / np.maximum(left, 1e-300), 0.0)
+    mass = float(x[0])
+    if not mass > 0.0:
+        return None
+    com = x[1:4] / mass
+    return (mass, tuple(float(v) for v in com)) if np.linalg.norm(com) <= MAX_PAYLOAD_REACH else None
+
+
+def payload_entry(mass: float, com) -> dict:
+    """The model file's ``findings`` entry of a payload identify took (kind ``rigid_body``: in the rigid body)."""
+    parameters = {"mass": float(mass), "com_x": float(com[0]), "com_y": float(com[1]), "com_z": float(com[2])}
+    return {"effect": "payload", "label": "payload", "kind": "rigid_body", "joints": [], "source": PAYLOAD_SOURCE,
+            "parameters": parameters, "diagnosis": {"parameters": dict(parameters)},
+            "applied": "taken up by the rigid body (the robot file's links carrying it)",
+            "cause": "payload named by identify's report, preferred to a spring taking the same torque"}  # fmt: skip
+
+
+def _springs(document) -> list:
+    return [f for f in document.get("findings") or [] if f.get("source") == COUNTERBALANCE_SOURCE
+            and f.get("effect") == "spring"]  # fmt: skip
+
+
+def _carried_model(robot, model, options, build, entries, data, fit) -> tuple | None:
+    """``(CalibratedModel, (mass, com), carried robot, fit or None)`` of ``data``: the payload estimated on them
+    (``fit``'s drive columns beside it), the arm identified carrying it with the springs ``entries`` (the fit itself
+    where there are none); None where no body is estimated."""
+    from identification.calibration.column_candidates import prepare_training
+
+    found = estimate_payload(robot, model, fit, prepare_training(robot, list(data), options).prepared)
+    if found is None:
+        return None
+    entry = payload_entry(*found)
+    carried = carrying_payloads(robot, model, [entry])
+    plain = None
+    if entries:
+        calibrated = spring_model(carried, model, options, build, entries, data)
+    else:
+        plain = identify_trajectories(carried, model, list(data), options)
+        calibrated = build(plain)
+    calibrated.document["findings"] = [*(calibrated.document.get("findings") or []), entry]
+    return calibrated, found, carried, plain
+
+
+def _opinions(robot, model, options, build, a_doc, b_doc, problem, fit) -> list:
+    """``[(route, JointComparison A -> B)]`` of every judge (module docstring)."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.counterbalance_folds import ROUTE
+
+    recordings, validation, configurations, kt = problem
+    a_springs, b_springs = _springs(a_doc), _springs(b_doc)
+    out = []
+    if validation:
+        each = compare_each(CalibratedModel(a_doc), CalibratedModel(b_doc), model, list(validation), kt)
+        out.append(("held-out recordings", pooled_comparison(each)))
+    if len(validation) < 2:
+        cutoffs = [c for c in fit.cutoff_hz if c]
+        folds = block_folds(recordings, configurations, min(cutoffs) if cutoffs else None)
+        if isinstance(folds, str):
+            if not validation:
+                raise PSDMError(folds)
+            return out
+
+        def with_payload(pieces):
+            found = _carried_model(robot, model, options, build, b_springs, pieces, fit)
+            if found is None:
+                raise PSDMError("no payload is estimated on the training blocks")
+            return found[0]
+
+        together, _ = folds.compare(lambda pieces: spring_model(robot, model, options, build, a_springs, pieces),
+                                    with_payload, model, kt)  # fmt: skip
+        out.append((f"{ROUTE} ({len(folds.training)} blocks)", together))
+    return out
+
+
+def take_payload(problem, start, taken: CounterbalanceChoice, calibrated, validation, saved, skip=False) -> tuple:
+    """``(fit, CalibratedModel, CounterbalanceChoice, PayloadChoice)`` of ``psdm identify`` after its counterbalance
+    route (module docstring): ``problem`` = (robot, model, recordings, options, configurations), ``start`` the fit
+    before the counterbalance, ``taken`` and ``calibrated`` the counterbalance route's choice and model file (A),
+    ``saved`` as for ``counterbalance_column.take_counterbalance``. The returned fit, model and choice are B's where
+    the payload is kept; the model file's ``identification.payload`` (and ``counterbalance``) state the choice."""
+    fit, calibrated, taken, payload = _take(problem, start, taken, calibrated, validation, saved, skip)
+    calibrated.document["identification"]["counterbalance"] = taken.to_dict()
+    calibrated.document["identification"]["payload"] = payload.to_dict()
+    if payload.reason:
+        logger.info("identify: payload: %s", payload.reason)
+    return fit, calibrated, taken, payload
+
+
+def _builder(robot, model, recordings, saved):
+    """``build(fit) -> CalibratedModel`` as ``take_counterbalance`` builds its model files."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.recording_provenance import recording_provenance
+
+    keywords, paths = saved
+    provenance = [recording_provenance(r, p) for r, p in zip(recordings, paths)]
+    return lambda result: CalibratedModel.from_fit(robot, model, result, recordings=provenance, **keywords)
+
+
+def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
+    robot, model, recordings, options, configurations = problem
+    fit = taken.fit if taken.kept else start
+    unchanged = (fit, calibrated, taken)
+    if skip or not start.checked or robot.links is None or not payload_named(start) or not taken.joints:
+        return (*unchanged, PayloadChoice())  # no spring tried: nothing a payload competes with
+    build = _builder(robot, model, recordings, saved)
+    if configurations is not None and any(c.kind != "none" for c in configurations):
+        return (*unchanged, PayloadChoice(True, reason="not tried: the recordings state their payloads"))
+    kt = None
+    if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:
+        kt = np.array([d.kt for d in robot.drives], dtype=float)
+    logger.info("identify: trying the payload the report names (a body at the flange) ...")
+    try:
+        found = _carried_model(robot, model, options, build, [], recordings, start)
+    except PSDMError as error:
+        return (*unchanged, PayloadChoice(True, reason=f"not tried: {str(error).splitlines()[0]}"))
+    if found is None:
+        return (*unchanged, PayloadChoice(True, reason="not tried: the torque the robot file leaves gives no body at "
+                                          "the flange (a mass that is not positive, or out of reach)"))  # fmt: skip
+    plain, (mass, com), carried, carried_fit = found
+
+    def build_carried(result):
+        out = build(result)
+        out.document["findings"] = [*(out.document.get("findings") or []), payload_entry(mass, com)]
+        return out
+
+    choice = try_counterbalance(carried, model, recordings, options, carried_fit, plain, validation, build_carried,
+                                configurations, kt)  # fmt: skip
+    b_doc = copy.deepcopy(choice.document if choice.kept else plain.document)
+    a_doc = calibrated.document
+    b_joints = {j for f in _springs(b_doc) for j in f["joints"]}
+    replaced = tuple(f["label"] for f in _springs(a_doc) if not set(f["joints"]) & b_joints)
+    try:
+        opinions = _opinions(robot, model, options, build, a_doc, b_doc, (recordings, validation, configurations, kt),
+                             start)  # fmt: skip
+    except (PSDMError, FoldFailure) as error:
+        return (*unchanged, PayloadChoice(True, True, reason=f"not judged: {str(error).splitlines()[0]}", mass=mass,
+                                          com=com))  # fmt: skip
+    return _decide(opinions, (mass, com), replaced, (carried_fit, choice, b_doc), unchanged, robot.n_dof)
+
+
+def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
+    """The module docstring's rule on the judges' ``opinions`` (A -> B), with the report's sentence."""
+    from identification.calibration.calibrated_model import CalibratedModel
+
+    mass, com = body
+    carried_fit, choice, b_doc = chosen
+    route = " and ".join(name for name, _ in opinions)
+    first = opinions[0][1]
+    better_a = sorted({j for _, c in opinions for j in c.worse})  # B worse than A beyond the margin
+    lower_b = [set(np.flatnonzero(c.after < c.before - c.margin)) for _, c in opinions]
+    earned = all(lower_b) and not better_a
+    take = not better_a if replaced else earned
+    at = ", ".join(f"{v:.3g}" for v in com)
+    what = f"a payload on the flange ({mass:.4g} kg, centre of mass [{at}] m)"
+    pair = "; ".join(f"joint {j + 1}: {first.before[j]:.4g} -> {first.after[j]:.4g} N m" for j in range(n_dof))
+    numbers = dict(
+        mass=mass,
+        com=com,
+        replaced=replaced,
+        rmse_without=tuple(map(float, first.before)),
+        rmse_with=tuple(map(float, first.after)),
+        margin=tuple(map(float, first.margin)),
+        route=route,
+    )
+    if take:
+        lead = (f"{', '.join(replaced)} not kept: {what} explains the same torque on every joint that carries it "
+                "(one body for several joints' gravity), and the spring is not better out of sample on any joint "
+                "beyond the noise margin") if replaced else (f"{what} identified with the model: it lowers "
+                f"{', '.join(f'joint {j + 1}' for j in sorted(set.intersection(*lower_b)) or sorted(lower_b[0]))} "
+                "beyond the noise margin on every judge, no joint worse")  # fmt: skip
+        reason = f"{lead} (RMSE on the {route}, without -> with the payload: {pair})"
+        calibrated = CalibratedModel(b_doc)
+        fit = choice.fit if choice.kept else carried_fit
+        payload = PayloadChoice(True, True, True, reason, **numbers)
+        return fit, calibrated, choice, payload
+    if replaced:
+        worse = ", ".join(f"joint {j + 1}" for j in better_a)
+        reason = (f"{what} tried and not kept: {', '.join(replaced)} is clearly better out of sample on {worse} "
+                  f"(beyond the noise margin; RMSE on the {route}, spring -> payload: {pair})")  # fmt: skip
+    else:
+        reason = (f"{what} tried and not kept: it does not lower any joint beyond the noise margin on every judge, or "
+                  f"makes one worse (RMSE on the {route}, without -> with: {pair})")  # fmt: skip
+    return (*unchanged, PayloadChoice(True, True, False, reason, **numbers))
