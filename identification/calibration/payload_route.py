@@ -57,7 +57,7 @@ from identification.calibration.trajectory_data import drive_columns
 from identification.calibration.trajectory_fit import identify_trajectories
 from psdm_casadi.errors import PSDMError
 
-__all__ = ["PAYLOAD_SOURCE", "PayloadChoice", "estimate_payload", "payload_named", "take_payload"]
+__all__ = ["PAYLOAD_SOURCE", "PayloadChoice", "estimate_payload", "payload_named", "payload_wins", "take_payload"]
 
 logger = logging.getLogger(__name__)
 
@@ -270,6 +270,17 @@ def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
     return _decide(opinions, (mass, com), replaced, (carried_fit, choice, b_doc), unchanged, robot.n_dof)
 
 
+def payload_wins(comparisons, replaces_springs: bool) -> bool:
+    """The module docstring's rule on each judge's ``JointComparison`` of the model without (``before``: A) and with
+    the payload (``after``: B): where B needs fewer springs (``replaces_springs``), B unless A is better beyond the
+    noise margin on some joint for some judge; otherwise B only if it lowers some joint beyond the margin for every
+    judge and makes none worse."""
+    worse = any(c.worse for c in comparisons)
+    if replaces_springs:
+        return not worse
+    return bool(comparisons) and not worse and all(np.any(c.after < c.before - c.margin) for c in comparisons)
+
+
 def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
     """The module docstring's rule on the judges' ``opinions`` (A -> B), with the report's sentence."""
     from identification.calibration.calibrated_model import CalibratedModel
@@ -280,8 +291,7 @@ def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
     first = opinions[0][1]
     better_a = sorted({j for _, c in opinions for j in c.worse})  # B worse than A beyond the margin
     lower_b = [set(np.flatnonzero(c.after < c.before - c.margin)) for _, c in opinions]
-    earned = all(lower_b) and not better_a
-    take = not better_a if replaced else earned
+    take = payload_wins([c for _, c in opinions], bool(replaced))
     at = ", ".join(f"{v:.3g}" for v in com)
     what = f"a payload on the flange ({mass:.4g} kg, centre of mass [{at}] m)"
     pair = "; ".join(f"joint {j + 1}: {first.before[j]:.4g} -> {first.after[j]:.4g} N m" for j in range(n_dof))
