@@ -83,6 +83,7 @@ def test_the_wheel_carries_the_robots_and_templates_and_not_the_checkout(install
     assert found["template"] and found["peer_template"]
 
 
+@pytest.mark.slow
 @pytest.mark.needs_cc
 def test_installed_psdm_runs_the_quick_demo_from_an_empty_folder(installed):
     python, work = installed

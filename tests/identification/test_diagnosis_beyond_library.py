@@ -204,6 +204,7 @@ def test_position_dependent_friction_is_reported_as_an_unnamed_effect(denso, den
     assert paths["unnamed_effects"].exists() and "unnamed_effect" in paths["markdown"].read_text()
 
 
+@pytest.mark.slow
 def test_a_sparse_term_is_kept_only_if_it_holds_on_every_validation_recording(contexts):
     """Judged on each validation recording (issue 25): a law present in the first validation recording and absent from
     the second is not kept, though it halves the first one's error; present in both, it is kept, judged on each."""

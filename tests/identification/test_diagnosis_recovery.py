@@ -43,6 +43,7 @@ def test_hidden_offset_is_found(denso, denso_model):
     assert report.findings[0].parameters["offset"] == pytest.approx(-2.5, abs=0.25)
 
 
+@pytest.mark.slow
 def test_clean_recording_gives_no_finding_and_same_seed_same_result(denso, denso_model):
     train, val = recording_pair(denso, [], seed=3)
     a = diagnose(denso, train, val, DiagnosisOptions(), model=denso_model)
@@ -53,6 +54,7 @@ def test_clean_recording_gives_no_finding_and_same_seed_same_result(denso, denso
     assert data["findings"] == [] and len(data["rmse_before"]) == 6
 
 
+@pytest.mark.slow
 def test_report_and_augmented_model_files(denso, denso_model, tmp_path):
     train, val = recording_pair(denso, [xp.Spring(joint=1, stiffness=35.0, q0=0.15)], seed=1)
     report = diagnose(denso, train, val, DiagnosisOptions(library=LIB), model=denso_model)

@@ -59,6 +59,7 @@ def _deflection_report(denso, denso_model, hidden, seed):
     return diagnose(denso, train, val, DiagnosisOptions(library=library, max_effects=1, **WIDE), model=denso_model)
 
 
+@pytest.mark.slow
 def test_backlash_is_found_with_its_width_and_the_error_drops(denso, denso_model):
     clean, _ = recording_pair(denso, [], seed=6)
     width = np.radians(0.4)
@@ -71,6 +72,7 @@ def test_backlash_is_found_with_its_width_and_the_error_drops(denso, denso_model
     assert _reduction(report, 1) > 0.75
 
 
+@pytest.mark.slow
 def test_joint_elasticity_is_not_read_as_backlash(denso, denso_model):
     clean, _ = recording_pair(denso, [], seed=7)
     stiffness = _tau_rms(clean, 2) / np.radians(0.2)  # torsion 0.2 deg at the RMS torque
@@ -81,6 +83,7 @@ def test_joint_elasticity_is_not_read_as_backlash(denso, denso_model):
     assert _reduction(report, 2) > 0.75
 
 
+@pytest.mark.slow
 def test_delay_is_fitted_exactly_not_by_its_expansion(denso, denso_model):
     train, val = recording_pair(denso, [xp.SignalDelay(samples=8)], seed=5)
     report = diagnose(

@@ -51,6 +51,7 @@ def test_currents_with_torque_constants_alone_go_through_diagnose(kt_only, capsy
     assert out["findings"][0]["parameters"]["k"] == pytest.approx(40.0, rel=0.2)
 
 
+@pytest.mark.slow
 def test_currents_with_torque_constants_alone_go_through_identify_and_validate(kt_only, tmp_path, capsys):
     robot_file, (train, validate) = kt_only
     model = tmp_path / "model.json"
