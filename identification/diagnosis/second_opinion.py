@@ -18,7 +18,9 @@ opinion too (``SecondOpinion.judge``):
   11 % pooled, while it takes the validation recording's joint 1 from 1.98 to 1.17 N m). Without an offset, the
   offset fitted on three blocks is noise, which lowers a held-out block only when it has the sign of that block's own
   mean residual and does not overshoot it: below one chance in two per block, below one in 16 for four blocks, on
-  top of the validation recording's gain and the training BIC.
+  top of the validation recording's gain and the training BIC. A deflection (``standstill.DEFLECTIONS``: a joint
+  elasticity, a backlash) is judged on the samples where its joint moves (``standstill.moving_samples``): at a
+  standstill the friction holds whatever the controller asks, which neither model explains.
 
 A candidate that fails is not kept and not reported as missing physics: it is an ``UnstableFinding`` with its numbers
 (its physical parameters fitted on each recording, or on the training data without each block, and its joints'
@@ -34,6 +36,7 @@ import numpy as np
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.design import WeightedDesign
 from identification.diagnosis.selection import acting_joints, passes_gates
+from identification.diagnosis.standstill import DEFLECTIONS, block_mask, moving_samples
 from identification.metrics import rmse
 
 FOLDS = 4  # contiguous blocks of the training recording, each held out once
@@ -167,17 +170,19 @@ class SecondOpinion:
 
     def _blocks(self, design, term, ct, own, limits) -> list:
         """Each contiguous block of the training data held out once: the model with and without the candidate fitted
-        on the others predicts it (its own joints and the weighted error must improve in every block); the blocks'
-        predictions together pass the selection's gates (for a ``REPLICATED`` term: its fold estimates of one sign and
+        on the others predicts it (its own joints and the weighted error must improve in every block; a deflection's
+        on the samples where its joint moves, ``standstill``); the blocks' predictions together pass the selection's
+        gates (for a ``REPLICATED`` term: its fold estimates of one sign and
         an explained torque above the floor, without the relative gain; module docstring)."""
         n = design.y_train.shape[0]
         p = design.G.shape[0]
         y = design.y_train
         pooled0, pooled1 = np.empty_like(y), np.empty_like(y)
         shown = list(own) or list(range(ct.shape[1]))
-        out = []
+        out, judged = [], []
         t = self.train_ctx.t
         signs = set()
+        moving = moving_samples(self.train_ctx, term.joints[0]) if term.key in DEFLECTIONS and term.joints else None
         for k, block in enumerate(np.array_split(np.arange(n), self.folds)):
             rest = np.setdiff1d(np.arange(n), block)
             fold = WeightedDesign(
@@ -185,19 +190,23 @@ class SecondOpinion:
             )
             pooled0[block] = fold.fit(full=True)[5]
             beta, _, _, _, _, pooled1[block] = fold.fit(ct[rest], ct[block], full=True)
-            before, after = rmse(y[block], pooled0[block]), rmse(y[block], pooled1[block])
+            kept = block if moving is None else block[block_mask(moving, block)]
+            judged.append(kept)
+            before, after = rmse(y[kept], pooled0[kept]), rmse(y[kept], pooled1[kept])
             failure = passes_gates(before, after, own, 0.0, 0.0, design.sigma)
             name = f"training block {k + 1} of {self.folds} (t {t[block[0]]:.1f}-{t[block[-1]]:.1f} s)"
             out.append(_numbers(name, term, beta[p:], shown, before, after, failure))
             signs |= set(np.sign(beta[p:]).tolist())
         replicated = term.key in REPLICATED
         gain = 0.0 if replicated else limits.min_improvement
-        pooled = passes_gates(rmse(y, pooled0), rmse(y, pooled1), own, limits.floor, gain, limits.sigma)
+        judged = np.concatenate(judged)
+        pooled_before, pooled_after = rmse(y[judged], pooled0[judged]), rmse(y[judged], pooled1[judged])
+        pooled = passes_gates(pooled_before, pooled_after, own, limits.floor, gain, limits.sigma)
         if replicated and pooled is not None and pooled.startswith("lowers no"):
             pooled = "explains less torque than the joint's floor on the blocks taken together"
         if pooled is None and replicated and len(signs) > 1:
             pooled = "its fitted value changes sign between the blocks"
-        together = _numbers("all blocks held out", term, (), shown, rmse(y, pooled0), rmse(y, pooled1), pooled)
+        together = _numbers("all blocks held out", term, (), shown, pooled_before, pooled_after, pooled)
         return out + [together]
 
 
