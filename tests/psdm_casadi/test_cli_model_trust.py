@@ -248,3 +248,27 @@ def test_apply_with_only_reported_findings_writes_nothing_and_keeps_the_model_fi
                                  "is it identified again on --train alone, with nothing added)")  # fmt: skip
     code, out, err = _run(capsys, [*argv, "--json"])
     assert code == 0 and not new.exists() and json.loads(out)["recalibration"]["model"] is None
+
+
+def test_validate_and_diagnose_judge_a_loaded_recording_alike(arm, tmp_path, capsys):
+    """A held-out recording that carries a known load (its sidecar states it): ``psdm validate MODEL`` and the "before"
+    of ``psdm diagnose MODEL`` are one number per joint. The load was added to validate's prediction on the prepared
+    positions, while the diagnosis took it off the raw torque, then prepared (a cobot's joint 2: 0.3071 and 0.3053 N m);
+    both now take the load's torque as ``payload_check.without_load`` gives it. Unloaded, they agreed already."""
+    from identification.calibration.payload_fit import FlangeRegressor
+
+    robot = load_robot(arm / "arm.toml")
+    valid = load_recording(arm / "valid.csv")
+    qd = np.gradient(valid.q, valid.t, axis=0)
+    body = np.array([2.0, 0.0, 0.0, 0.1, 0.012, 0.012, 0.004, 0.0, 0.0, 0.0])  # 2 kg, 5 cm out along the flange z
+    load = FlangeRegressor(robot)(valid.q, qd, np.gradient(qd, valid.t, axis=0)) @ body
+    save_recording(valid.with_signals(tau=valid.tau + load), tmp_path / "loaded.csv")
+    (tmp_path / "loaded.payload.json").write_text(json.dumps({"mass": 2.0, "com": [0.0, 0.0, 0.05]}))
+    code, out, err = _run(capsys, ["validate", arm / "good.json", tmp_path / "loaded.csv", "--json"])
+    assert code == 0, err
+    validated = json.loads(out)["recordings"][0]["rmse"]
+    code, out, err = _run(capsys, ["diagnose", arm / "good.json", "--train", arm / "train.csv", "--validate",
+                                   tmp_path / "loaded.csv", "--max-effects", "0", "--no-sparse", "--json"])  # fmt: skip
+    assert code in (0, 1), err
+    before = json.loads(out)["rmse_before"]
+    np.testing.assert_allclose(before, validated, rtol=1e-9)
