@@ -245,7 +245,7 @@ def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path
             "consistent": payload["consistent"], "names_tool_at_flange": bool(tool), "missing_torque": missing,
             "names_unusable_urdf_inertias": [w.split(" is unusable")[0] for w in warnings if " is unusable" in w],
             "rmse": validation["rmse"], "r2": validation["r2"], "rmse_robot_file": validation.get("rmse_prior"),
-            "rmse_robot_file_friction": validation.get("rmse_prior_friction"),
+            "rmse_robot_file_baseline": validation.get("rmse_robot_file_baseline"),
             "worse_than_robot_file": (payload.get("robot_file_check") or {}).get("worse_joints"),
             "baselines": (payload.get("robot_file_check") or {}).get("baselines"),
             "worse_joints": payload.get("worse_joints"),
@@ -369,7 +369,7 @@ def print_short(fit) -> None:
         return
     print(f"  {'sensor':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse"]))
     print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
-    print(f"  {'(base)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_friction"] or [])
+    print(f"  {'(base)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_baseline"] or [])
           + f"   identify's check, joints worse: {fit.get('worse_than_robot_file') or 'none'}")  # fmt: skip
     print_one_way(fit)
 
@@ -408,10 +408,10 @@ def print_kinova(result) -> None:
         r2 = min(fit["r2"][:6])
         print(f"  {source:<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse"]) + f"   R^2 >= {r2:.2f} on J1-6")
         print(f"  {'(file)':<8} " + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file"] or []))
-        if fit.get("rmse_robot_file_friction"):  # the model identify replaces (robot_file_check)
+        if fit.get("rmse_robot_file_baseline"):  # the model identify replaces (robot_file_check)
             print(
                 f"  {'(base)':<8} "
-                + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_friction"])
+                + " ".join(f"{v:7.3f}" for v in fit["rmse_robot_file_baseline"])
                 + f"   identify's check, joints worse: {fit.get('worse_than_robot_file') or 'none'}"
             )
             print_one_way(fit)

@@ -175,7 +175,17 @@ def _picks(d, covariance, candidates, threshold: float, home) -> list:
     return picks
 
 
-def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: float = HELD_BACK_SIGMA) -> tuple:
+def _held_by_choice(model, n_dof: int, held_links) -> np.ndarray:
+    """Per base parameter: whether it combines only inertial parameters of ``held_links`` (0-based), which the fit
+    holds at the robot file's by choice (``worse_joint_hold``): not a parameter the data are held back on."""
+    rows = np.abs(model.parameter_map).reshape(model.n_base, n_dof, -1) > 0
+    held = np.zeros(rows.shape[1:], dtype=bool)
+    held[list(held_links), :10] = True
+    return np.array([bool(np.any(row)) and not np.any(row & ~held) for row in rows])
+
+
+def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: float = HELD_BACK_SIGMA,
+              held_links=()) -> tuple:  # fmt: skip
     """The parameters the consistent fit holds away from the data's own estimate (module docstring).
 
     Parameters
@@ -193,6 +203,10 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
         The drive columns' names (``Ia<j>`` are compared; friction and offsets, bounded only by 0, are not).
     envelope : tuple of EnvelopeFinding
         The fit's active bounds: a parameter of a link or drive among them is held by the envelope, else by the pull.
+    held_links : tuple of int
+        Links (0-based) the fit holds at the robot file's (``TrajectoryOptions.held_links``): a base parameter of
+        theirs alone is held there by choice, not named, and taken at the data's value before the others are judged
+        (the torque it leaves is no evidence for another parameter's effect).
 
     Returns
     -------
@@ -205,6 +219,9 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
     d = np.asarray(x_fit, dtype=float)[:n] - np.asarray(x_ols, dtype=float)[:n]
     covariance = np.asarray(covariance, dtype=float)[:n, :n]
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
+    chosen = np.concatenate([_held_by_choice(model, robot.n_dof, held_links), np.zeros(len(names), dtype=bool)])
+    for k in np.flatnonzero(chosen & (std > 0)):  # taken at the data's values, as a pick is: no evidence left there
+        d = d - covariance[:, k] / covariance[k, k] * d[k]
     drives = [model.n_base + k for k, name in enumerate(names) if name.startswith("Ia") and name[2:].isdigit()]
     prior = robot.nominal_dynamic_parameters()
     theta_file = model.base_parameters(prior)
@@ -214,7 +231,7 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
     rms = np.sqrt(np.diagonal(equations.gram, axis1=1, axis2=2)[:, :n].T / np.maximum(equations.count, 1))
     torque = np.max(np.abs(d)[:, None] * rms / np.asarray(noise, dtype=float), axis=1)  # in noise levels, worst joint
     candidates = [k for k in [*range(model.n_base), *drives] if std[k] > 0 and torque[k] >= MIN_REFUSED_SIGMA
-                  and min(abs(d[k]), off[k]) >= threshold * std[k]]  # fmt: skip
+                  and min(abs(d[k]), off[k]) >= threshold * std[k] and not chosen[k]]  # fmt: skip
     if not candidates:
         return ()
     sizes = off / np.concatenate([np.sqrt(np.sum((model.parameter_map * prior_scale(prior).ravel()) ** 2, axis=1)),
@@ -272,12 +289,12 @@ def _message(item: HeldBack, robot) -> str:
     )
 
 
-def causes(robot, model, fitted, covariance, names, envelope, kt=None) -> tuple:
+def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_links=()) -> tuple:
     """``(envelope, note)``: the fit's envelope findings named from the same evidence as the parameters it holds back
     (``envelope_report.named_from_evidence``: a pushed link takes the effects of its most significant parameter among
     them) and the ``held_note`` of those (``held_back``'s arguments; ``kt``: the torque constants where the torque
     is motor current, None for joint torques)."""
-    items = held_back(robot, model, fitted, covariance, names, envelope)
+    items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
     return named_from_evidence(envelope, items, model, robot, kt is not None), held_note(items)
 
 

@@ -31,7 +31,7 @@ from identification.calibration.trajectory_data import drive_column_joint, frict
 from psdm_casadi.errors import ParameterError
 
 __all__ = ["CONSTANT_FEATURE", "HELD_TERMS", "HeldFriction", "check_held_friction", "drive_inertia_split",
-           "held_friction_columns", "subtract_held_friction", "with_held_values"]  # fmt: skip
+           "held_friction_columns", "subtract_held_friction", "with_held_values", "baseline_columns"]  # fmt: skip
 
 #: The friction terms that may be held: Coulomb and viscous (a held joint is Coulomb-viscous).
 HELD_TERMS = ("fc", "fv")
@@ -191,6 +191,12 @@ def subtract_held_friction(prepared, options) -> list:
 def held_friction_columns(names, options, n_base: int) -> set:
     """The indices (after the ``n_base`` base parameters) of the held columns among the drive columns ``names``."""
     return {n_base + list(names).index(name) for name, _ in options.held_friction}
+
+
+def baseline_columns(names, options, n_base: int) -> set:
+    """The indices of the held columns ``worse_joint_hold`` chose (``options.baseline_friction``): held in the fit,
+    free in the data's own least squares (``trajectory_fit``)."""
+    return {n_base + list(names).index(name) for name in options.baseline_friction if name in names}
 
 
 def with_held_values(fit, options):

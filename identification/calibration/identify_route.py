@@ -202,6 +202,7 @@ def identify_recordings(
         fit, held = _one_way(problem, fit, validation, one_way, source)
         chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
         fit, chosen, mended = _worse_joints(problem, chosen, fit, validation, worse_joint, source)
+        held = held.replaced_by(mended.held_friction)  # one value per held column: the one in effect
         start = fit
     saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
              list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip

@@ -70,7 +70,9 @@ class OneWayFriction:
     ``undetermined``: per candidate joint, its friction parameters ``(name, value, standard deviation)``; ``held``: the
     ``(name, value)`` pairs held (empty: none); ``worse``: the one-way joints the robot-file check of the fit found
     worse (held-out recordings); ``reason``: why, in words; ``decided_by_held_out``: the held-out recordings decided
-    the hold (their check of the fitted friction), so they no longer judge the model held independently.
+    the hold (their check of the fitted friction), so they no longer judge the model held independently;
+    ``replaced``: the ``(name, value)`` this step held that a later hold (``worse_joint_hold``) replaced, ``held``
+    then holding the value in effect (``replaced_by``).
     """
 
     mode: str = "auto"
@@ -80,10 +82,21 @@ class OneWayFriction:
     worse: tuple = ()
     reason: str = ""
     decided_by_held_out: bool = False
+    replaced: tuple = ()
 
     @property
     def held_joints(self) -> tuple:
         return HeldFriction(self.held).joints
+
+    def replaced_by(self, later) -> OneWayFriction:
+        """This record with the ``(name, value)`` friction ``later`` held (``worse_joint_hold``) in effect where it
+        holds a column this step held at another value: one value per column in the report and the file."""
+        new = dict(later)
+        changed = tuple((n, v) for n, v in self.held if n in new and abs(new[n] - v) > 1e-12)
+        if not changed:
+            return self
+        held = tuple((n, new.get(n, v)) for n, v in self.held)
+        return replace(self, held=held, replaced=self.replaced + changed)
 
     def describe(self) -> str:
         """One sentence: which joints move one way only, what was held and why, or why nothing was."""
@@ -96,8 +109,13 @@ class OneWayFriction:
         values = HeldFriction(self.held).describe()
         decided = (". The held-out recording(s) decided this hold: their check against the robot file that follows "
                    "is not independent of it") if self.decided_by_held_out else ""  # fmt: skip
+        then = ""
+        if self.replaced:
+            was = ", ".join(f"{n} {v:.3g} -> {dict(self.held)[n]:.3g}" for n, v in self.replaced)
+            then = (f"; then replaced on joint(s) {', '.join(str(j + 1) for j in HeldFriction(self.replaced).joints)} "
+                    f"by the worse-joint hold below ({was}: the values above are those in effect)")  # fmt: skip
         return (f"{head}held, Coulomb-viscous, to the robot file's rigid body's friction fit ({values}; N m, "
-                f"N m s/rad) -- {self.reason}{decided}. --one-way-friction fit fits it from the data "
+                f"N m s/rad) -- {self.reason}{decided}{then}. --one-way-friction fit fits it from the data "
                 "instead")  # fmt: skip
 
     def to_dict(self) -> dict:
@@ -106,7 +124,8 @@ class OneWayFriction:
                                  for j, params in self.undetermined},
                 "held": {n: v for n, v in self.held}, "held_joints": [j + 1 for j in self.held_joints],
                 "worse_joints": [j + 1 for j in self.worse], "reason": self.reason,
-                "decided_by_held_out": self.decided_by_held_out}  # fmt: skip
+                "decided_by_held_out": self.decided_by_held_out,
+                "replaced_by_worse_joint_hold": {n: v for n, v in self.replaced}}  # fmt: skip
 
 
 def undetermined_friction(fit, joints) -> tuple:

@@ -139,6 +139,9 @@ class TrajectoryOptions:
         Links (0-based) whose ten inertial parameters the consistent fit holds at the robot file's (their drive
         inertias stay fitted): ``worse_joint_hold`` holds the links a joint carries where the identified ones made it
         worse than the robot file on the held-out recordings.
+    baseline_friction : tuple of str
+        The names among ``held_friction`` that ``worse_joint_hold`` held at the robot file's baseline: a choice of the
+        held-out recordings, not of the data, so free in the data's own least squares ``held_back`` compares with.
     """
 
     friction: tuple = ("fc", "fv")
@@ -160,6 +163,7 @@ class TrajectoryOptions:
     stribeck_joints: tuple | None = None
     held_friction: tuple = ()
     held_links: tuple = ()
+    baseline_friction: tuple = ()
 
     def __post_init__(self):
         for name in ("offset_joints", "inertia_joints", "stribeck_joints", "held_links"):
@@ -335,8 +339,7 @@ def identify_trajectories(
     bodies = FlangeBodies.of(configurations, len(recordings))
     kt = torque_constants(robot, options, recordings)
     inertia_joints = drive_inertia_joints(model, robot, options)
-    names = drive_column_names(robot.n_dof, options.friction, inertia_joints)
-    lower = drive_lower_bounds(names)
+    lower = drive_lower_bounds(names := drive_column_names(robot.n_dof, options.friction, inertia_joints))
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
@@ -346,8 +349,7 @@ def identify_trajectories(
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
         vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, plain)
         extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in plain]
-    n_fit = model.n_base + len(names)
-    n_all = n_fit + bodies.n_columns
+    n_all = (n_fit := model.n_base + len(names)) + bodies.n_columns
     setup = (options.friction, inertia_joints, options.coulomb_velocity, vs)
     n_columns = n_all + (0 if vs is None else robot.n_dof)  # one pass; flange probes of configuration_check
     equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
@@ -361,6 +363,7 @@ def identify_trajectories(
     correlation = np.max([correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
                           for rec, columns in zip(prepared, extras)], axis=0)  # fmt: skip
     covariance = sandwich_covariance(equations, sigma, inverse, correlation)
+    data_own = _data_own(equations, (names, held, n_fit, n_all), options, correlation, (x_ols, covariance))
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
@@ -380,8 +383,9 @@ def identify_trajectories(
         found = separable_in_place(found, separable)
         standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
-        pushed = envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, kt is not None)
-        pushed, kept = causes(robot, model, (x_fit, x_ols, equations, sigma, prepared), covariance, names, pushed, kt)
+        pushed = envelope_findings(robot, bounds, standard, equations, x_fit, data_own[0], sigma, kt is not None)
+        pushed, kept = causes(robot, model, (x_fit, data_own[0], equations, sigma, prepared), data_own[1], names,
+                              pushed, kt, options.held_links)  # fmt: skip
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)
@@ -407,6 +411,20 @@ def identify_trajectories(
         torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit],
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit), *mixed)), options)
+
+
+def _data_own(equations, columns, options, correlation, ols) -> tuple:
+    """``(x, covariance)`` of the data's own least squares over the first ``n_all`` columns: ``ols`` as fitted, or,
+    with columns ``worse_joint_hold`` held by choice (``options.baseline_friction``), with those free: what the data
+    want is not what the held-out recordings chose (``held_back``, ``envelope_findings``). ``columns`` = ``(names,
+    held, n_fit, n_all)``; the fit's own weights and correlation stay those of ``ols``'s fit."""
+    names, held, n_fit, n_all = columns
+    chosen = held_friction.baseline_columns(names, options, n_fit - len(names))
+    if not chosen:
+        return ols[0][:n_all], ols[1]
+    free = [k for k in range(equations.n_columns) if k not in held - chosen]
+    sigma, x, inverse, _ = _weighted_least_squares(equations, free, range(n_fit, n_all))
+    return x[:n_all], sandwich_covariance(equations, sigma, inverse, correlation)
 
 
 def _held_columns(names, options, n_base, vs, n_columns) -> set:

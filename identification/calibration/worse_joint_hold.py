@@ -157,6 +157,8 @@ def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> t
         if kind == "friction":
             merged = {**dict(options.held_friction), **dict(what)}
             trial_options = held_options(options, tuple(merged.items()), n_dof)
+            chosen = tuple(dict.fromkeys((*options.baseline_friction, *(n for n, _ in what))))
+            trial_options = replace(trial_options, baseline_friction=chosen)  # free in the data's own fit
             label = "friction " + ", ".join(f"{n} {v:.3g}" for n, v in what)
         else:
             trial_options = replace(options, held_links=what)

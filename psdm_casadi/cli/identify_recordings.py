@@ -197,7 +197,7 @@ def run(args) -> int:
     report["min_mass_eigenvalue"] = mass_eigenvalue
     _store_held_out(args, report, calibrated, len(explicit))  # which part of each recording was held out
     for entry, comparison in zip(report["recordings"], result.file_check.each):  # the model identify replaces
-        entry["rmse_prior_friction"] = _list(comparison.before)
+        entry["rmse_robot_file_baseline"] = _list(comparison.before)  # per joint: file+friction or the file alone
     calibrated.document["validation"] = report
     calibrated.document["warnings"] = warnings
     counterbalance = calibrated.document["identification"]["counterbalance"]  # its suggested route, with these files

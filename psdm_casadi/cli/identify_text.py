@@ -114,6 +114,15 @@ def _validation_title(entry) -> str:
     return f"{part.describe()}; its first {part.cut_sample} samples trained"
 
 
+def held_label(result, name: str) -> str:
+    """Why a drive column of ``result`` (``IdentifyResult``) is held, not estimated ("" where it is estimated): at the
+    robot-file check's baseline (``worse_joint_hold``, which replaces a one-way hold of the same column), or at the
+    robot file's fit (``one_way_friction``)."""
+    if name in dict(result.worse_joints.held_friction):
+        return "worse than the robot file: its baseline's"
+    return "one way only: the robot file's fit" if name in dict(result.one_way.held) else ""
+
+
 def print_identify(args, robot, model, fit, report, calibrated, result, route=str) -> None:
     """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, drive
     columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording).
@@ -170,8 +179,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     for k, name in enumerate(fit.drive_names):
         if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
             continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
-        if name in dict(result.one_way.held):  # not estimated: held to the robot file's fit
-            print(f"{name:<15} {fit.drive[k]:10.4g}       held (one way only: the robot file's fit)")
+        if label := held_label(result, name):  # not estimated
+            print(f"{name:<15} {fit.drive[k]:10.4g}       held ({label})")
             continue
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
     for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
@@ -187,7 +196,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
             ("rmse", "identified"),
             ("rmse_ols", "unconstrained"),
             ("rmse_prior", "robot file"),
-            ("rmse_prior_friction", "file+friction"),
+            ("rmse_robot_file_baseline", "file baseline"),
         ):
             if key in entry:
                 print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))

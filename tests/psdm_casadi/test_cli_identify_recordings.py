@@ -35,6 +35,13 @@ def test_identify_writes_a_consistent_model_that_validate_reproduces(recordings,
     assert summary["cutoff_hz"] == [10.0] and set(summary["drive"]) >= {"fc1", "fv6"}
     reported = summary["validation"][0]
     assert min(reported["r2"]) > 0.98
+    # the model identify replaces, per joint the file with its friction fitted or the file alone (robot_file_check)
+    check = summary["robot_file_check"]
+    assert reported["rmse_robot_file_baseline"] == pytest.approx(check["validation_rmse_before"], rel=1e-9)
+    for j, baseline in enumerate(check["baselines"]):
+        if baseline == "alone":
+            assert reported["rmse_robot_file_baseline"][j] == pytest.approx(reported["rmse_prior"][j], rel=1e-9)
+    assert "rmse_prior_friction" not in reported  # named for what it holds since the baseline may be the file alone
     assert main(["validate", str(out), str(recordings / "valid.csv"), "--json"]) == 0
     validated = json.loads(capsys.readouterr().out)["recordings"][0]
     np.testing.assert_allclose(
