@@ -7,7 +7,10 @@ fit made again and judged by the same check:
 
 1. **friction**: each worse joint's Coulomb and viscous friction held at its baseline's (``held_friction``): the robot
    file's fit on the training recordings (``one_way_friction.file_friction_values``, bounded as identify's own), or
-   zero where the baseline is the file alone, on the joints where it is not held there already. A joint that moves
+   zero where the baseline is the file alone and the joint moves one way only in training, on the joints where it is
+   not held there already. A friction the training recordings determine (the joint reverses) is never zeroed by a
+   held-out recording: a drive without friction is not a plausible model, whatever one held-out motion prefers (the
+   TX40's wrist, whose training torque is mostly friction, predicted nothing with it at zero). A joint that moves
    one way only in training has a constant friction there, which the rigid body and an offset take as well; on a
    held-out motion that reverses, the friction fitted beside them is wrong (Kinova Gen3 trained on
    opti_traj_testing2 alone: joint 1 turns one way throughout, its friction held to the file's fit at 1.26 N m
@@ -113,13 +116,14 @@ class WorseJointHold:
 
 
 def _baseline_friction(options, check, joints, friction_of, fit) -> tuple:
-    """The ``(name, value)`` friction of ``joints`` at their baselines' (the file's fit, or 0 for the file alone) where
-    ``options`` do not hold it there already."""
-    file_fit = dict(friction_of(fit, [j for j in joints if check.baselines[j] != "alone"]))
+    """The ``(name, value)`` friction of ``joints`` at their baselines' (the file's fit, or 0 for the file alone on a
+    joint that moves one way only in training: module docstring) where ``options`` do not hold it there already."""
+    zero = {j for j in joints if check.baselines[j] == "alone" and j in check.one_way}
+    file_fit = dict(friction_of(fit, [j for j in joints if j not in zero]))
     held, out = dict(options.held_friction), []
     for j in joints:
         names = [f"{t}{j + 1}" for t in HELD_TERMS if t in options.friction]
-        values = {n: (0.0 if check.baselines[j] == "alone" else file_fit.get(n, 0.0)) for n in names}
+        values = {n: (0.0 if j in zero else file_fit.get(n, 0.0)) for n in names}
         if any(n not in held or abs(held[n] - v) > 1e-12 for n, v in values.items()):
             out.extend(values.items())
     return tuple(out)
