@@ -4,7 +4,13 @@ When the plausible fit pushes a link (or one joint's drive inertia) against its 
 counterbalance or spring on a joint (``envelope_report``), or a parameter the fit holds back away from the data (inside
 its link's envelope, by the pull towards the robot file) most likely absorbs one (``held_back``: its likeliest effect,
 on the joint the effect acts on; the heavy virtual arm's cam on joint 2 at seeds 0-1, where no bound is pressed for
-it), the route that finds it is taken, not only suggested (``named_joints``):
+it), or a torque offset the data chose is no sensor's (``offset_reading``: a large share of the joint's gravity torque
+and recorded peak; the same seeds' balancer near horizontal, nearly constant over the range), the route that finds it
+or the fitted gravity torque of one joint alone leaves the robot file's (``gravity_departure``: the links' first
+moments took it inside their envelope), the route that finds it is taken, not only suggested (``named_joints``). A
+spring named by an offset no sensor has takes that offset's place (the spring's constant), and one named by either of
+these two spans what it replaces: it is kept where no joint is worse than the fit without it (``Judges.replacing``),
+the links or the offset then no longer holding a torque they cannot be:
 identify fits again with a spring on each named joint, linear and cubic (``findings.FindingTerm``, the term ``psdm
 diagnose --apply`` adds; its constant left out where the joint's torque offset spans it), and the counterbalance's odd
 law of order 5 about a fitted neutral angle where the training data support it beyond the cubic by BIC
@@ -42,7 +48,7 @@ from __future__ import annotations
 
 import copy
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -50,9 +56,11 @@ from identification.calibration.counterbalance_folds import BlockFolds, FoldFail
 from identification.calibration.counterbalance_opinion import HELD_OUT_ROUTE, Opinion, Trial
 from identification.calibration.envelope_report import DIAGNOSE_ROUTE, where
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
+from identification.calibration.gravity_departure import gravity_departures
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_each, pooled_comparison
+from identification.calibration.offset_reading import data_chosen_offsets
 from identification.calibration.trajectory_fit import identify_trajectories
 from psdm_casadi.errors import InsufficientExcitationError
 
@@ -132,11 +140,24 @@ class CounterbalanceChoice:
 @dataclass(frozen=True)
 class Judges:
     """What judges a spring out of sample: the raw held-out recordings (each), and the block cross-validation of the
-    training recordings (each block; None: not used, ``note`` says why when there are held-out recordings)."""
+    training recordings (each block; None: not used, ``note`` says why when there are held-out recordings).
+    ``replacing``: joints whose spring takes the place of an offset no sensor has (``offset_reading``) or of a
+    gravity torque the links' first moments took (``gravity_departure``): judged against the fit with them
+    (``baseline``, its options), such a spring must leave every joint no worse, not lower its own (the two span the
+    same torque over the recorded range; the spring keeps the links and the sensor physical)."""
 
     held: tuple = ()
     folds: BlockFolds | None = None
     note: str = ""
+    replacing: tuple = ()
+    baseline: object = None
+
+    def holds(self, opinion, joint: int, before=None) -> bool:
+        """Whether ``opinion`` keeps the spring on ``joint``: lowered on every part, or, in place of an offset, no
+        worse taken together."""
+        if joint in self.replacing:
+            return joint not in opinion.together.worse
+        return opinion.lowers(joint, before)
 
 
 def counterbalance_joints(fit) -> tuple:
@@ -148,6 +169,7 @@ def counterbalance_joints(fit) -> tuple:
 
 #: ``named_joints``' sources, in the report's words.
 BY_ENVELOPE, BY_HELD_BACK = "the envelope report", "a parameter the fit holds back"
+BY_OFFSET, BY_DEPARTURE = "a torque offset no sensor has", "the fitted gravity torque of one joint alone"
 
 
 def named_joints(fit) -> dict:
@@ -279,9 +301,25 @@ def try_counterbalance(
     kt : array, optional
         Torque constants for held-out recordings of currents.
     """
-    named = named_joints(fit)
+    readings = data_chosen_offsets(robot, model, recordings, options, fit)
+    departures = gravity_departures(robot, model, recordings, fit)
+    found = {**dict.fromkeys(departures, BY_DEPARTURE), **dict.fromkeys(readings, BY_OFFSET)}
+    named = dict(sorted({**named_joints(fit), **found}.items()))
     if not named:
         return CounterbalanceChoice()
+    judges = Judges(replacing=tuple(found), baseline=options)
+    if readings:  # no sensor's offset: the spring's constant takes its place
+        options = replace(options, offset_joints=tuple(j for j in options.offset_joints if j not in readings))
+    problem = (robot, model, recordings, options, fit, calibrated, validation, build, configurations, kt)
+    choice = _tried(problem, named, judges)
+    said = "; ".join(evidence.sentence() for evidence in (*readings.values(), *departures.values()))
+    return replace(choice, reason=f"{said}: {choice.reason}") if said else choice
+
+
+def _tried(problem, named, judges):
+    """The ``CounterbalanceChoice`` of the springs on the ``named`` joints (``try_counterbalance``'s ``problem``;
+    ``judges``: the offsets the springs replace)."""
+    robot, model, recordings, options, fit, calibrated, validation, build, configurations, kt = problem
     joints = tuple(named)
     labels = ", ".join(f"joint {j + 1}" for j in joints)
     cutoffs = [c for c in fit.cutoff_hz if c]
@@ -291,7 +329,7 @@ def try_counterbalance(
                  f"--validate); {SUGGESTED}")  # fmt: skip
     if isinstance(folds, str) and not held:
         return CounterbalanceChoice(joints, named, reason=not_tried.format(folds))
-    judges = Judges(held, None, folds) if isinstance(folds, str) else Judges(held, folds)
+    judges = replace(judges, held=held, **({"note": folds} if isinstance(folds, str) else {"folds": folds}))
     problem = (robot, model, recordings, options, calibrated, judges, build, configurations, kt)
     shapes = list(ORDERS)
     try:
@@ -307,7 +345,7 @@ def try_counterbalance(
     except FoldFailure as failure:
         if not held:
             return CounterbalanceChoice(joints, named, reason=not_tried.format(failure))
-        judges = Judges(held, None, str(failure))  # the second opinion failed: the held-out recordings alone judge
+        judges = replace(judges, folds=None, note=str(failure))  # the held-out recordings alone judge
         trials = [_pruned((*problem[:5], judges, *problem[6:]), joints, shape) for shape in shapes]
     return _choice(named, trials, judges)
 
@@ -344,8 +382,11 @@ def _choice(named, trials, judges) -> CounterbalanceChoice:
                                     cleared)  # fmt: skip
     springs = ", ".join(f["label"] for f in trial.document["findings"] if f.get("source") == COUNTERBALANCE_SOURCE)
     by = " and ".join(dict.fromkeys(named[j] for j in chosen))
+    replaced = ", ".join(f"joint {j + 1}" for j in chosen if j in judges.replacing)
+    verdict = (f"in place of what the offset or the links held on {replaced}, no joint worse" if replaced else
+               "lower on every held-out part, no joint worse")  # fmt: skip
     reason = (f"a spring on {labels} ({springs}) identified with the model (the counterbalance named by {by}): RMSE on "
-              f"the {route} {pair}, lower on every held-out part, no joint worse{noise}")  # fmt: skip
+              f"the {route} {pair}, {verdict}{noise}")  # fmt: skip
     return CounterbalanceChoice(chosen, named, True, reason, trial.plain, trial.document, *numbers, parts, cleared)
 
 
@@ -365,13 +406,13 @@ def _pruned(problem, joints, order) -> tuple:
         if len(joints) > 1 and problem[5].held:  # on held-out recordings: against the fit with the others kept
             without = _attempt(*problem, tuple(k for k in joints if k != j), order, second=False)
         before = None if without is None else without.opinions[0].together.after[j]
-        if all(opinion.lowers(j, before if k == 0 else None) for k, opinion in enumerate(trial.opinions)):
+        if all(problem[5].holds(opinion, j, before if k == 0 else None) for k, opinion in enumerate(trial.opinions)):
             kept.append(j)
     if kept and tuple(kept) != tuple(joints):
         trial = _attempt(*problem, tuple(kept), order)
     worse = any(opinion.together.worse for opinion in trial.opinions)
     ok = bool(kept) and trial.complete and not worse and not set(counterbalance_joints(trial.plain)) & set(kept)
-    ok = ok and all(opinion.lowers(j) for opinion in trial.opinions for j in kept)
+    ok = ok and all(problem[5].holds(opinion, j) for opinion in trial.opinions for j in kept)
     return ok, tuple(kept), trial
 
 
@@ -395,8 +436,8 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
             fitted[id(pieces)] = springs_on(list(pieces))
         return fitted[id(pieces)]
 
-    def without(pieces):
-        return build(identify_trajectories(robot, model, list(pieces), options))
+    def without(pieces):  # the model the springs are judged against: with the offsets they replace
+        return build(identify_trajectories(robot, model, list(pieces), judges.baseline or options))
 
     plain, document = _with_springs(robot, model, options, build, columns, recordings, configurations)
     opinions = []
@@ -406,7 +447,7 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
         if judges.folds is not None:  # a joint over its margin is worse only if the blocks' refits confirm it
             together = judges.folds.refits(without, with_on).confirm(together, (), model, list(judges.held), kt)
         opinions.append(Opinion(HELD_OUT_ROUTE, together, each))
-    refused = opinions and (opinions[0].together.worse or not any(opinions[0].lowers(j) for j in joints))
+    refused = opinions and (opinions[0].together.worse or not any(judges.holds(opinions[0], j) for j in joints))
     if judges.folds is not None and second and not refused:
         together, folds = judges.folds.compare(without, with_on, model, kt)
         opinions.append(Opinion(judges.folds.route, together, folds, beyond_margin=True))
@@ -436,7 +477,11 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
         kt = None
         if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:  # blocks: training
             kt = np.array([d.kt for d in robot.drives], dtype=float)
-        if named_joints(fit):
+        if (
+            named_joints(fit)
+            or data_chosen_offsets(robot, model, recordings, options, fit)
+            or gravity_departures(robot, model, recordings, fit)
+        ):
             how = (
                 "on each held-out recording"
                 + (" and by block cross-validation over the training data" if len(validation) == 1 else "")

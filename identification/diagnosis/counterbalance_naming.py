@@ -9,6 +9,11 @@ as several) is a position-dependent load instead: a counterbalance (a cam, a spr
 spring, whose smooth curve over the joint's range a low harmonic fits as well as a polynomial. Such a finding keeps
 its term (the augmented model and the model file hold the same ``A sin(h q + phase)``) but is reported as
 ``COUNTERBALANCE`` with its numbers: the peak torque, the harmonics and its share of the joint's gravity torque.
+
+A ``torque_offset`` no sensor has (``calibration.offset_reading``: on a joint gravity loads, at least a tenth of its
+peak measured torque and a fifth of its gravity torque) is the same load seen over a short range: a balancer's torque
+is nearly constant over the half radian an arm sweeps near horizontal. It too keeps its term and is reported as
+``COUNTERBALANCE``, its explanation saying why it is not a sensor offset.
 """
 
 from __future__ import annotations
@@ -16,6 +21,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+
+from identification.calibration.offset_reading import oversized_offset
 
 #: The effect name a low-harmonic, gravity-sized ripple is reported under.
 COUNTERBALANCE = "counterbalance"
@@ -91,9 +98,28 @@ def named_counterbalance(finding, peak: float, gravity: float, harmonics: tuple)
                    signature="residual follows joint position over the whole range, as large as gravity")  # fmt: skip
 
 
+def offset_counterbalance(finding, context):
+    """``finding`` named a counterbalance when it is a ``torque_offset`` no sensor has (``offset_reading``: against
+    the nominal model's gravity torque amplitude and the peak measured torque of its joint); None otherwise."""
+    if finding.effect != "torque_offset" or len(finding.joints) != 1 or getattr(context, "gravity", None) is None:
+        return None
+    j = int(finding.joints[0])
+    offset = float(finding.coefficients[0])
+    peak = float(np.max(np.abs(np.asarray(context.tau)[:, j])))
+    reading = oversized_offset(j, offset, float(np.max(np.abs(np.asarray(context.gravity)[:, j]))), peak)
+    if reading is None:
+        return None
+    parameters = {**finding.parameters, "peak_torque": abs(offset), "gravity_torque": reading.gravity,
+                  "gravity_share": reading.gravity_share}  # fmt: skip
+    explanation = f"{reading.sentence()} (nearly constant over the recorded range, as a balancer is near horizontal)"
+    return replace(finding, effect=COUNTERBALANCE, explanation=explanation, parameters=parameters,
+                   signature="a constant torque as large as a share of gravity: no sensor's offset")  # fmt: skip
+
+
 def name_counterbalances(findings, context) -> tuple:
-    """The ``findings``, the low-harmonic ripples of each counterbalanced joint (``counterbalance_joints``) named a
-    counterbalance (``named_counterbalance``), any other finding unchanged."""
+    """The ``findings``, the low-harmonic ripples of each counterbalanced joint (``counterbalance_joints``) and each
+    offset no sensor has (``offset_counterbalance``) named a counterbalance (``named_counterbalance``), any other
+    finding unchanged."""
     findings = tuple(findings)
     joints = counterbalance_joints(findings, context)
     out = []
@@ -102,5 +128,5 @@ def name_counterbalances(findings, context) -> tuple:
         if _low_ripple(f) and j in joints:
             harmonics = tuple(int(g.parameters["harmonic"]) for g in findings if _low_ripple(g) and g.joints[0] == j)
             f = named_counterbalance(f, *joints[j], harmonics)
-        out.append(f)
+        out.append(offset_counterbalance(f, context) or f)
     return tuple(out)

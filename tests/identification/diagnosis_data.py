@@ -76,6 +76,8 @@ def sine_context(robot, model, seed, duration=3.0):
 #: (seed 1), and these fail until identify and diagnose find it again (issue 25).
 PHYSICAL_COUNTERBALANCE_MISSED = pytest.mark.xfail(
     strict=True,
-    reason="the heavy arm's counterbalance is a physical balancer now: a torque offset on joint 2 or the links' first "
-    "moments inside their envelope absorb it and nothing names it (identification.virtual.counterbalance)",
+    reason="the heavy arm's counterbalance is a physical balancer now: identify names it (a torque offset no sensor "
+    "has, or joint 2's gravity torque alone off the file's) and takes it as a spring, but not as these tests written "
+    "on the old cam expect (a held-back gravity term of link 2, link 2 back to its mass, diagnose MODEL finding it "
+    "beside the payload: the recalibrated rigid body absorbs it again)",
 )

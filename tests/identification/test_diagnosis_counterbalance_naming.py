@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 
 from identification.calibration.diagnosis_prior import carried_findings
+from identification.calibration.offset_reading import GRAVITY_SHARE as OFFSET_GRAVITY_SHARE
+from identification.calibration.offset_reading import SENSOR_SHARE, oversized_offset
 from identification.diagnosis import CandidateLibrary, DiagnosisOptions, TorqueRippleTerm, diagnose
 from identification.diagnosis.counterbalance_naming import (
     COUNTERBALANCE,
@@ -107,3 +109,44 @@ def test_the_rule_at_its_thresholds(ripples, effect):
         assert named[0].parameters["gravity_share"] == pytest.approx(peak / 100.0)
     without_gravity = SimpleNamespace(q=context.q, gravity=None, tau=context.tau)
     assert {f.effect for f in name_counterbalances(findings, without_gravity)} == {"torque_ripple"}
+
+
+def _offset(value: float, joint: int = 1) -> Finding:
+    return Finding("torque_offset", f"torque_offset[j{joint + 1}]", (joint,), {"offset": value}, (value,),
+                   (f"offset_{joint + 1}",), "bias", "sig", (1.0, 1.0), (0.5, 0.5), -10.0, 0.5)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("offset", "joint", "effect"),
+    [
+        (-40.0, 1, COUNTERBALANCE),  # 40 % of joint 2's gravity torque, 13 % of its peak: no sensor's zero error
+        (0.3, 1, "torque_offset"),  # a sensor's offset (the virtual SCARA's size)
+        (SENSOR_SHARE * 300.0 * 0.99, 1, "torque_offset"),  # 30 % of gravity, just under a tenth of the peak
+        (60.0, 0, "torque_offset"),  # joint 1 carries no gravity: no balancer
+    ],
+)
+def test_an_offset_no_sensor_has_is_named_a_counterbalance(offset, joint, effect):
+    """Reference: the sizes of a sensor's zero error against a balancer's. Joint 2: a gravity torque of 100 N m
+    amplitude, a recorded peak of 300 N m; joint 1 a vertical axis (no gravity
+    torque, 300 N m recorded). The finding keeps its label and coefficient (its term is applied as found)."""
+    q = np.linspace(-0.3, 0.3, 51)
+    context = SimpleNamespace(q=np.column_stack([q, q]), gravity=np.column_stack([0 * q, 100.0 * np.cos(q)]),
+                              tau=np.full((51, 2), 300.0))  # fmt: skip
+    assert OFFSET_GRAVITY_SHARE * 100.0 < SENSOR_SHARE * 300.0  # the sensor's share decides the third case
+    (named,) = name_counterbalances([_offset(offset, joint)], context)
+    assert named.effect == effect
+    assert (named.label, named.coefficients) == (f"torque_offset[j{joint + 1}]", (offset,))
+    if effect == COUNTERBALANCE:
+        assert named.parameters["gravity_share"] == pytest.approx(abs(offset) / 100.0)
+        assert "joint 2" in named.explanation and "zero error is a few percent" in named.explanation
+
+
+def test_the_offset_reading_at_its_thresholds():
+    """``oversized_offset`` on its own: the sensor share of the peak, the gravity share, a joint gravity loads."""
+    assert oversized_offset(1, 25.0, gravity=100.0, peak=200.0) is not None
+    assert oversized_offset(1, 19.0, gravity=100.0, peak=200.0) is None  # 19 % of gravity: < GRAVITY_SHARE
+    assert oversized_offset(1, 19.0, gravity=90.0, peak=200.0) is None  # 9.5 % of the peak: < SENSOR_SHARE
+    assert oversized_offset(1, 50.0, gravity=10.0, peak=200.0) is None  # gravity 5 % of the peak: not loaded
+    reading = oversized_offset(1, -50.0, gravity=100.0, peak=200.0)
+    assert (reading.gravity_share, reading.peak_share) == (0.5, 0.25)
+    assert "-50 N m on joint 2 is 50% of its gravity torque" in reading.sentence()

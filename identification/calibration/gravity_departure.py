@@ -1,0 +1,86 @@
+"""A joint whose fitted gravity torque alone leaves the robot file's: a counterbalance the links' first moments took.
+
+A balancer's torque on a shoulder (a spring, a gas spring, a cam) opposes the joint's gravity torque over its range
+and takes a large share of it. Its first harmonic has the shape of gravity torques, and inside the links' envelopes
+the consistent fit can take it into the links' first moments beside the tool it also absorbs (the heavy virtual arm
+at seed 1: no offset chosen, joint 2's fitted gravity torque thousands of N m off the truth's, every link inside its
+envelope, nothing named).
+
+What tells it from a wrong robot file or a tool is where the departure sits and which way it points. The fitted minus
+the file's gravity torque is computed on the training poses; for each joint, a body at the flange (its mass, at least
+0, and first moment) is fitted to the departures of the other joints by least squares (a tool moves every joint that
+carries it, in ratios the kinematics fix). A joint is named where what is then left sits on it (at least ``LOCAL``
+of the squared departure left, ``absorbed_effect.LOCAL``) and opposes the file's gravity torque there by a share
+between ``DEPARTURE_SHARE`` and the whole of it: a robot file's masses and centres of mass are off by tens of percent
+(CAD), spread over the several links a joint carries and of either sign, and a balancer never takes more than the
+gravity it balances. On the heavy arm at seed 1 joint 2 is left with 2769 N m RMS opposing 60 % of its gravity, the
+others within 135 N m; joint 3 alone would need a torque beyond its whole gravity torque, joint 5 a tool of negative
+mass.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from identification.calibration.absorbed_effect import LOCAL
+from identification.calibration.offset_reading import STRIDE
+
+__all__ = ["DEPARTURE_SHARE", "GravityDeparture", "gravity_departures"]
+
+#: A joint's gravity torque departs from the robot file's beyond a CAD file's errors from this share of its RMS.
+DEPARTURE_SHARE = 0.3
+
+
+@dataclass(frozen=True)
+class GravityDeparture:
+    """On ``joint`` (0-based) the fitted gravity torque leaves the robot file's by ``departure`` [N m RMS, a body at
+    the flange fitted to the other joints' departures taken out], ``local`` of the squared departure left on every
+    joint, opposing the file's gravity torque (``gravity`` [N m RMS] there) by ``share`` of it."""
+
+    joint: int
+    departure: float
+    gravity: float
+    local: float
+    share: float
+
+    def sentence(self) -> str:
+        """Why it is named, in the report's words."""
+        return (
+            f"the fitted gravity torque of joint {self.joint + 1} leaves the robot file's by {self.departure:.4g} N m "
+            f"RMS, opposing its gravity torque ({self.gravity:.4g} N m RMS) by {self.share:.0%} of it and "
+            f"{self.local:.0%} of every joint's departure once a body at the flange explains the others: a torque of "
+            "that joint alone, more than a robot file's errors give, most likely a counterbalance or spring the "
+            "links' first moments absorb"
+        )
+
+
+def gravity_departures(robot, model, recordings, fit) -> dict:
+    """``{0-based joint: GravityDeparture}`` of ``fit`` on the raw training ``recordings`` (module docstring); empty
+    without the robot file's links."""
+    if robot.links is None or not recordings:
+        return {}
+    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in recordings])
+    zero = np.zeros_like(q)
+    g_file = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
+    difference = model.inverse_dynamics(q, zero, zero, np.asarray(fit.theta, dtype=float)) - g_file
+    bodies = np.abs(model.parameter_map).reshape(model.n_base, robot.n_dof, 11)[:, :, :4].max(axis=(0, 2))
+    last = int(np.flatnonzero(bodies > 0)[-1])  # the last link with mass carries a body at the flange
+    flange = np.stack(
+        [model.inverse_dynamics(q, zero, zero, model.parameter_map[:, 11 * last + k]) for k in range(4)], axis=-1
+    )  # fmt: skip  (samples, joints, mass and first moment)
+    out = {}
+    for j in range(robot.n_dof):
+        others = [k for k in range(robot.n_dof) if k != j]
+        body, *_ = np.linalg.lstsq(flange[:, others].reshape(-1, 4), difference[:, others].ravel(), rcond=None)
+        left = difference - flange @ body
+        power = np.mean(left**2, axis=0)
+        gravity = float(np.dot(g_file[:, j], g_file[:, j]))
+        if not (body[0] >= 0.0 and gravity > 0.0 and power.sum() > 0.0):
+            continue
+        share = float(-np.dot(left[:, j], g_file[:, j]) / gravity)  # the share of gravity it takes, opposing it
+        local = float(power[j] / power.sum())
+        if local >= LOCAL and DEPARTURE_SHARE <= share <= 1.0:
+            out[j] = GravityDeparture(j, float(np.sqrt(power[j])), float(np.sqrt(gravity / q.shape[0])), local, share)
+    return out
