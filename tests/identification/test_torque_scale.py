@@ -103,16 +103,6 @@ def test_identify_refuses_a_hundredth_of_the_torque_within_seconds(recorded, tmp
     assert seconds < 60.0  # before any fit (it ran for many minutes before)
 
 
-def test_diagnose_refuses_a_hundredth_of_the_torque_before_any_fit(denso, recorded, tmp_path, capsys):
-    train, valid = tmp_path / "scaled.csv", tmp_path / "valid.csv"
-    save_recording(_scaled(recorded, 0.01), train)
-    save_recording(_scaled(_simulated(denso, seed=5), 0.01), valid)
-    code = main(["diagnose", "denso_vs6556g", "--train", str(train), "--validate", str(valid)])
-    err = capsys.readouterr().err
-    assert code == 2 and "Traceback" not in err, err
-    assert "scaled.csv" in err and "the recorded torque is about" in err
-
-
 def test_the_torque_thresholds_are_checked():
     with pytest.raises(ParameterError, match="torque_factor"):
         PlausibilityThresholds(torque_factor=0.0)
