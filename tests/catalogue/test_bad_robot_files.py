@@ -246,14 +246,14 @@ PAYLOADS = [
     identify("payload short com", '{"mass": 2, "com": [0.1, 0]}', "payload.com", "[0.1, 0]", '"com": [x, y, z]'),
     identify(
         "payload ragged inertia",
-        '{"mass": 2, "inertia": [[0.1, 0, 0], [0, 0.1]]}',
+        '{"mass": 2, "com": [0, 0, 0], "inertia": [[0.1, 0, 0], [0, 0.1]]}',
         "payload.inertia",
         "3x3",
         "every row complete",
     ),
     identify(
         "payload unphysical inertia",
-        '{"mass": 2, "inertia": [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.5]]}',
+        '{"mass": 2, "com": [0, 0, 0], "inertia": [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.5]]}',
         "payload.inertia",
         "triangle inequality",
         "about the centre of mass",

@@ -348,10 +348,13 @@ def test_prismatic_joints_count_by_their_smaller_grid():
         ('{"mass": -1.0}', r"payload\.json: Payload\.mass must be a finite number >= 0 \[kg\]; got -1\.0"),
         ('{"mass": 1, "com": [0, 0]}', r"Payload\.com must be 3 numbers .*got \[0, 0\]"),
         ('{"mass": 1, "com": [0, Infinity, 0]}', r"Payload\.com must be 3 finite coordinates"),
-        ('{"mass": 1, "inertia": [[1, 0, 0], [0, 1]]}', r"Payload\.inertia must be 3x3 numbers \(every row complete\)"),
-        ('{"mass": 1, "inertia": [1, 2, 3]}', r"Payload\.inertia must be 3x3 numbers"),
-        ('{"mass": 1, "inertia": [[1, 0, 0], [0, 1, 0], [0, 0, 3]]}', r"Payload\.inertia must satisfy the triangle"),
-        ('{"mass": 1, "inertia": [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]}', r"Payload\.inertia must be symmetric"),
+        ('{"mass": 1, "com": [0, 0, 0], "inertia": [[1, 0, 0], [0, 1]]}',
+         r"Payload\.inertia must be 3x3 numbers \(every row complete\)"),
+        ('{"mass": 1, "com": [0, 0, 0], "inertia": [1, 2, 3]}', r"Payload\.inertia must be 3x3 numbers"),
+        ('{"mass": 1, "com": [0, 0, 0], "inertia": [[1, 0, 0], [0, 1, 0], [0, 0, 3]]}',
+         r"Payload\.inertia must satisfy the triangle"),
+        ('{"mass": 1, "com": [0, 0, 0], "inertia": [[1, 0.5, 0], [0, 1, 0], [0, 0, 1]]}',
+         r"Payload\.inertia must be symmetric"),
         (b"\x1f\x8b\x08\x00", r"payload file 'payload\.json' must be plain text; got gzip"),
     ],
     ids=["not JSON", "a list", "no mass", "unknown key", "string mass", "nan mass", "negative mass", "short com",
@@ -363,5 +366,7 @@ def test_bad_payload_files(tmp_path, content, match):
 
 
 def test_a_good_payload_file(tmp_path):
-    payload = read_payload(write(tmp_path, '{"mass": 2, "inertia": [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]]}', "p.json"))
+    payload = read_payload(
+        write(tmp_path, '{"mass": 2, "com": [0, 0, 0], "inertia": [[0.1, 0, 0], [0, 0.1, 0], [0, 0, 0.1]]}', "p.json")
+    )
     assert payload == Payload(mass=2.0, com=(0.0, 0.0, 0.0), inertia=((0.1, 0, 0), (0, 0.1, 0), (0, 0, 0.1)))
