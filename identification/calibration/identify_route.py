@@ -223,22 +223,36 @@ def identify_recordings(
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload)
 
 
-def _one_way(problem, fit, validation, mode, source) -> tuple:
-    """``(fit, OneWayFriction)``: the undetermined friction of the joints that move one way only held to the robot
-    file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``)."""
-    from identification.calibration.column_candidates import prepare_training
+def _carries_payloads(configurations) -> bool:
+    """Whether any recording carries a payload, stated or unknown, that the robot file does not hold."""
+    return configurations is not None and any(c.payload is not None or c.unknown for c in configurations)
 
+
+def _refit_and_judge(problem, validation, source) -> tuple:
+    """``(refit, judge)`` for the holds that follow the fit: ``refit(options) -> TrajectoryFit`` on the training
+    recordings, ``judge(fit) -> FileCheck`` of its calibrated model against the robot file on ``validation``, with
+    the options of ``problem`` (``(robot, model, recordings, options, configurations)``)."""
     robot, model, recordings, options, configurations = problem
-    if configurations is not None and any(c.payload is not None or c.unknown for c in configurations):
-        return fit, OneWayFriction(mode=mode, reason="fitted from the data (the recordings carry payloads)")
 
-    def refit(held_options):
-        return identify_trajectories(robot, model, recordings, held_options, configurations=configurations)
+    def refit(trial_options):
+        return identify_trajectories(robot, model, recordings, trial_options, configurations=configurations)
 
     def judge(candidate):
         calibrated = CalibratedModel.from_fit(robot, model, candidate, robot_source=source)
         return _file_check(robot, model, recordings, validation, options, candidate, calibrated, configurations)
 
+    return refit, judge
+
+
+def _one_way(problem, fit, validation, mode, source) -> tuple:
+    """``(fit, OneWayFriction)``: the undetermined friction of the joints that move one way only held to the robot
+    file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``)."""
+    from identification.calibration.column_candidates import prepare_training
+
+    robot, _, recordings, options, configurations = problem
+    if _carries_payloads(configurations):
+        return fit, OneWayFriction(mode=mode, reason="fitted from the data (the recordings carry payloads)")
+    refit, judge = _refit_and_judge(problem, validation, source)
     prepared = prepare_training(robot, recordings, options).prepared
     return hold_one_way_friction((*problem, refit), fit, prepared, mode, judge if validation else None)
 
@@ -250,18 +264,9 @@ def _worse_joints(problem, options, fit, validation, mode, source) -> tuple:
     from identification.calibration.column_candidates import prepare_training
 
     robot, model, recordings, _, configurations = problem
-    if configurations is not None and any(c.payload is not None or c.unknown for c in configurations):
+    if _carries_payloads(configurations) or not validation or robot.links is None:
         return fit, options, WorseJointHold(mode=mode)
-    if not validation or robot.links is None:
-        return fit, options, WorseJointHold(mode=mode)
-
-    def refit(trial_options):
-        return identify_trajectories(robot, model, recordings, trial_options, configurations=configurations)
-
-    def judge(candidate):
-        calibrated = CalibratedModel.from_fit(robot, model, candidate, robot_source=source)
-        return _file_check(robot, model, recordings, validation, options, candidate, calibrated, configurations)
-
+    refit, judge = _refit_and_judge((robot, model, recordings, options, configurations), validation, source)
     prepared = prepare_training(robot, recordings, options).prepared
 
     def friction_of(candidate, joints):
