@@ -6,8 +6,10 @@ import numpy as np
 import pytest
 
 from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.data.recording import Recording
 from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
 from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.oracle import PinocchioOracle
 from trajopt.experiments import sine_experiment
 
 
@@ -25,6 +27,25 @@ def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
         )
         out.append(rec)
     return out
+
+
+def scara_recording(robot, seed, offset, friction=(0.3, 0.2), armature=0.0, noise=0.02, duration=6.0, rate=200.0):
+    """Two sines per joint of the SCARA about the middle of its range; the true torque (Pinocchio) with Coulomb-viscous
+    ``friction`` (fc [N m], fv [N m s/rad]), a torque ``offset`` per joint, ``armature`` [kg m^2] per joint times its
+    acceleration (a drive inertia, of either sign) and ``noise`` [N m]."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, 1.0 / rate)
+    centre, amplitude = np.array([0, 0, 0.1, 0]), np.array([0.6, 0.6, 0.035, 1.0])
+    q, qd, qdd = (np.zeros((t.size, robot.n_dof)) for _ in range(3))
+    for j in range(robot.n_dof):
+        w, phase = rng.uniform(1.5, 3.0, 2), rng.uniform(0.0, 2 * np.pi, 2)
+        a, arg = amplitude[j] / w, w[:, None] * t + phase[:, None]
+        q[:, j] = centre[j] + (a[:, None] * np.sin(arg)).sum(0)
+        qd[:, j] = (a[:, None] * w[:, None] * np.cos(arg)).sum(0)
+        qdd[:, j] = -(a[:, None] * w[:, None] ** 2 * np.sin(arg)).sum(0)
+    fc, fv = friction
+    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + fc * np.tanh(qd / 0.05) + fv * qd + offset + armature * qdd
+    return Recording(t=t, q=q, tau=tau + rng.normal(scale=noise, size=tau.shape), name=f"scara{seed}")
 
 
 def nominal_change(robot, rigid, moved, joint):

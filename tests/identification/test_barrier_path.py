@@ -18,11 +18,10 @@ from identification.calibration.barrier_path import log_det_barrier, pivots
 from identification.calibration.identify_route import identify_recordings
 from identification.calibration.pseudo_inertia import pseudo_inertia
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-from identification.data.recording import Recording
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi import derive_psdm, load_robot
-from psdm_casadi.oracle import PinocchioOracle
+from tests.identification.diagnosis_data import scara_recording
 from trajopt.experiments import sine_experiment
 
 
@@ -151,22 +150,6 @@ def test_the_pandas_consistent_fit_converges_and_the_stop_rule_does_not_move_it(
     assert np.max(np.abs(before.theta - route.fit.theta) / route.fit.theta_std) < 2e-2  # of a standard deviation
 
 
-def _scara_recording(robot, seed, offset, duration=6.0, rate=200.0):
-    """Two sines per joint, the true torque with Coulomb-viscous friction, a torque offset and noise."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration, 1.0 / rate)
-    centre, amplitude = np.array([0, 0, 0.1, 0]), np.array([0.6, 0.6, 0.035, 1.0])
-    q, qd, qdd = (np.zeros((t.size, robot.n_dof)) for _ in range(3))
-    for j in range(robot.n_dof):
-        w, phase = rng.uniform(1.5, 3.0, 2), rng.uniform(0.0, 2 * np.pi, 2)
-        a, arg = amplitude[j] / w, w[:, None] * t + phase[:, None]
-        q[:, j] = centre[j] + (a[:, None] * np.sin(arg)).sum(0)
-        qd[:, j] = (a[:, None] * w[:, None] * np.cos(arg)).sum(0)
-        qdd[:, j] = -(a[:, None] * w[:, None] ** 2 * np.sin(arg)).sum(0)
-    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + 0.3 * np.tanh(qd / 0.05) + 0.2 * qd + offset
-    return Recording(t=t, q=q, tau=tau + rng.normal(scale=0.02, size=tau.shape), name=f"scara{seed}")
-
-
 def test_torques_equal_to_round_off_give_the_same_consistent_model():
     """A spring on the SCARA's joint 1 (2 N m/rad about 0.4 rad) added to the torque in two algebraically equal ways
     (the torques differ by round-off): both fits converge to the same model. Before a failed solve of the path was
@@ -180,7 +163,7 @@ def test_torques_equal_to_round_off_give_the_same_consistent_model():
     for form in range(2):
         recordings = []
         for seed in (0, 1):
-            r = _scara_recording(robot, seed, offset)
+            r = scara_recording(robot, seed, offset)
             if form:
                 tau = r.tau + np.outer(k * (r.q[:, 0] - rest), [1, 0, 0, 0]) - offset
             else:

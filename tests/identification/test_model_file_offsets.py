@@ -18,33 +18,19 @@ from identification.calibration.calibrated_model import LoadedModel, calibrated_
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.identify_route import identify_recordings
-from identification.data.recording import Recording
 from identification.diagnosis.candidates import SpringTerm, TorqueOffsetTerm
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.model_file import diagnose_model, model_file_options
 from psdm_casadi import derive_psdm, load_robot
 from psdm_casadi.errors import ParameterError
-from psdm_casadi.oracle import PinocchioOracle
+from tests.identification.diagnosis_data import scara_recording
 
 OFFSET, FC, FV, NOISE = np.array([0.5, 0.0, 0.0, 0.0]), 0.3, 0.2, 0.02
 
 
-def recording(robot, seed, duration=6.0, rate=200.0, armature=0.0) -> Recording:
-    """Sums of two sines per joint about the middle of its range, the true torque with friction and the offset (and
-    ``armature`` [kg m^2] per joint times its acceleration: a drive inertia, of either sign)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration, 1.0 / rate)
-    centre, amplitude = np.array([0, 0, 0.1, 0]), np.array([0.6, 0.6, 0.035, 1.0])
-    q, qd, qdd = (np.zeros((t.size, robot.n_dof)) for _ in range(3))
-    for j in range(robot.n_dof):
-        w, phase = rng.uniform(1.5, 3.0, 2), rng.uniform(0.0, 2 * np.pi, 2)
-        a, arg = amplitude[j] / w, w[:, None] * t + phase[:, None]
-        q[:, j] = centre[j] + (a[:, None] * np.sin(arg)).sum(0)
-        qd[:, j] = (a[:, None] * w[:, None] * np.cos(arg)).sum(0)
-        qdd[:, j] = -(a[:, None] * w[:, None] ** 2 * np.sin(arg)).sum(0)
-    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + FC * np.tanh(qd / 0.05) + FV * qd + OFFSET + armature * qdd
-    return Recording(t=t, q=q, tau=tau + rng.normal(scale=NOISE, size=tau.shape), name=f"scara{seed}")
+def recording(robot, seed, armature=0.0):
+    return scara_recording(robot, seed, OFFSET, (FC, FV), armature=armature, noise=NOISE)
 
 
 @pytest.fixture(scope="module")
