@@ -28,6 +28,7 @@ from psdm_casadi.cli.checks import (
 from psdm_casadi.cli.holdout import cut_training, holdout_fraction
 from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.identify_text import print_identify
+from psdm_casadi.cli.identify_torque_scale import check_torque_scales, store_torque_scales
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, progress
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.said_once import SAID
@@ -147,7 +148,7 @@ def run(args) -> int:
     from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.data.io import not_held_out
     from identification.data.robot_recordings import recording_paths
-    from psdm_casadi.cli.checks import check_recordings_first, derive_model, stored_layout
+    from psdm_casadi.cli.checks import check_recordings_first, derive_model
     from psdm_casadi.model import load_model
 
     out = _check_outputs(args)
@@ -177,6 +178,7 @@ def run(args) -> int:
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
+    robot = (scale := check_torque_scales(args, robot, model, recordings, configurations, paths)).robot  # kt off
     options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
                                 envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
                                 drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
@@ -189,7 +191,8 @@ def run(args) -> int:
     fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
-    warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys((*result.warnings, *missing, *held_out, *worse))]
+    said = (*scale.sentences(), *result.warnings, *missing, *held_out, *worse)
+    warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys(said)]
     for warning in (w for w in warnings if w not in SAID):  # the robot's loading printed those: said once
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
@@ -198,11 +201,7 @@ def run(args) -> int:
     _store_held_out(args, report, calibrated, len(explicit))  # which part of each recording was held out
     for entry, comparison in zip(report["recordings"], result.file_check.each):  # the model identify replaces
         entry["rmse_robot_file_baseline"] = _list(comparison.before)  # per joint: file+friction or the file alone
-    calibrated.document["validation"] = report
-    calibrated.document["warnings"] = warnings
-    counterbalance = calibrated.document["identification"]["counterbalance"]  # its suggested route, with these files
-    counterbalance["reason"] = _concrete_route(counterbalance["reason"], args, paths)
-    calibrated.document["provenance"].update({"columns": stored_layout(args)} if stored_layout(args) else {})
+    _complete_document(args, paths, calibrated.document, (report, warnings, scale))
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
         print(f"psdm identify: error: the identified model is not physically consistent (smallest pseudo-inertia "
@@ -221,6 +220,18 @@ def run(args) -> int:
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
+
+
+def _complete_document(args, paths, document: dict, parts) -> None:
+    """The model file's validation report, warnings, torque scales (and the corrected robot text), the suggested
+    counterbalance route with this run's files and the ``--columns`` it read them with."""
+    from psdm_casadi.cli.checks import stored_layout
+
+    document["validation"], document["warnings"], scale = parts
+    store_torque_scales(document, scale)
+    counterbalance = document["identification"]["counterbalance"]  # its suggested route, with these files
+    counterbalance["reason"] = _concrete_route(counterbalance["reason"], args, paths)
+    document["provenance"].update({"columns": stored_layout(args)} if stored_layout(args) else {})
 
 
 def _loaded(args, robot, layout, paths) -> tuple:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from psdm_casadi.cli.identify_torque_scale import torque_scale_lines
 from psdm_casadi.cli.output import print_json
 
 
@@ -147,7 +148,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "counterbalance": calibrated.document["identification"]["counterbalance"],
                     "drive_loss": drive_loss_summary(calibrated.document),
                     **{key: calibrated.document["identification"].get(key)
-                       for key in ("robot_file_check", "one_way_friction", "worse_joints")},
+                       for key in ("robot_file_check", "one_way_friction", "worse_joints", "torque_scale")},
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -162,7 +163,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         print(result.pull.describe())
     for item in result.held_back:
         print(f"  HELD BACK: {route(item.message)}")
-    print("drive columns: " + "; ".join(result.choice.describe()))
+    print("drive columns: " + "; ".join(result.choice.describe()), *torque_scale_lines(calibrated.document), sep="\n")
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
     for line in filter(None, (result.payload.line, result.one_way.describe(), result.worse_joints.describe())):

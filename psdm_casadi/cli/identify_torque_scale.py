@@ -1,0 +1,91 @@
+"""identify's torque-scale step: a joint whose torque constant the known payload finds off is read with the right one.
+
+Before any fit, recordings with and without a known payload give each joint's torque scale
+(``identification.calibration.torque_scale``). A joint whose scale is off (a datasheet ``motor_kt`` 15 % high) is
+a finding of its own, stated with the robot file's field and the value the payload gives, and identify takes it:
+the currents are read through the corrected constant, and the model file's copy of the robot file holds it, so
+``validate`` and ``diagnose`` on the model read them the same way. Where the robot file states the constants in a way
+that copy cannot be corrected in (no single ``motor_kt = [...]`` line), identify says what to change and fits with
+the file's constants as given.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from psdm_casadi.cli.output import progress
+
+__all__ = ["ScaleStep", "check_torque_scales", "store_torque_scales", "torque_scale_lines"]
+
+
+@dataclass
+class ScaleStep:
+    """The torque scales found (None without a known payload beside an unloaded recording), the robot identify
+    reads the currents with, and the corrected robot-file text the model file stores (None: not taken)."""
+
+    scales: object = None
+    robot: object = None
+    text: str | None = None
+
+    def sentences(self) -> list:
+        """identify's warnings: each finding identify could not take (the robot file's constants kept)."""
+        if self.scales is None or self.text is not None:
+            return []
+        return [f"{finding}: identify kept the robot file's value (its torque constants are not one motor_kt line it "
+                "can correct in the model file's copy); correct the robot file and identify again"
+                for finding in self.scales.findings()]  # fmt: skip
+
+
+def check_torque_scales(args, robot, model, recordings, configurations, paths) -> ScaleStep:
+    """The :class:`ScaleStep` of the training recordings (their ``--cutoff``)."""
+    from identification.calibration.torque_scale import corrected_robot_text, torque_scales
+    from identification.calibration.trajectory_fit import TrajectoryOptions, torque_constants
+
+    kt = torque_constants(robot, TrajectoryOptions(), recordings)
+    names = [Path(p).name for p in paths]
+    scales = torque_scales(robot, model, recordings, configurations, kt, args.cutoff, names)
+    if scales is None or not scales.off.any() or scales.corrected_motor_kt() is None:
+        return ScaleStep(scales, robot)
+    text = corrected_robot_text(Path(args.robot).read_text(), scales.corrected_motor_kt())
+    if text is None:
+        return ScaleStep(scales, robot)
+    for finding in scales.findings():
+        progress(f"identify: {finding}: reading the currents with the payload's value", quiet=args.json)
+    return ScaleStep(scales, scales.corrected_robot(robot), text)
+
+
+def store_torque_scales(document: dict, step: ScaleStep) -> None:
+    """The model file's ``identification.torque_scale`` block, and its robot text with the corrected constants."""
+    from identification.calibration.model_file_check import robot_digest
+
+    if step.scales is None:
+        return
+    document["identification"]["torque_scale"] = {**step.scales.to_dict(), "taken": step.text is not None}
+    if step.text is not None:
+        block = document["robot"]
+        block["files"][block["main_file"]] = step.text
+        block["sha256"] = robot_digest(block["files"])
+
+
+def torque_scale_lines(document: dict) -> list:
+    """identify's report lines of the model file's ``identification.torque_scale`` block (none without it)."""
+    block = document["identification"].get("torque_scale")
+    if not block:
+        return []
+    each = ", ".join(
+        f"{s:.3f}" + ("" if sd is None else f" +/- {sd:.3f}") for s, sd in zip(block["scale"], block["std"])
+    )
+    head = (f"torque constants: each joint's torque scale from the known payload on {', '.join(block['loaded'])} "
+            f"against {', '.join(block['unloaded'])} (1 = the robot file's constants are right): {each}")  # fmt: skip
+    lines = [head]
+    done = ("identify read the currents with the payload's value (the model file's copy of the robot file holds it); "
+            "correct the robot file" if block["taken"] else "identify kept the robot file's value")  # fmt: skip
+    lines += [f"  {finding}: {done}" for finding in block["findings"]]
+    if not block["findings"]:
+        lines.append(f"  none off by more than {block['margin'] * 100:g} % and {block['sigmas']:g} standard deviations")
+    unchecked = [str(j + 1) for j, known in enumerate(block["determined"]) if not known]
+    if unchecked:
+        lines.append(f"  joint(s) {', '.join(unchecked)}: not determined by the payload (its torque there is small or "
+                     "a multiple of the arm's): not checked")  # fmt: skip
+    return lines
