@@ -22,6 +22,7 @@ from psdm_casadi.cli.checks import (
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.cli.recalibration_text import adds_nothing, apply_refusal, recalibration_markdown
+from psdm_casadi.cli.torque_scale_step import diagnose_torque_scales
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
@@ -186,6 +187,8 @@ def _run_diagnose(args) -> int:
     for warning in not_held_out([args.train], given, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
+    if loaded is None:  # a torque constant the known payload finds off: the currents read with its value
+        robot, scaled = diagnose_torque_scales(args, robot, (train, *validations), preparation.cutoff_hz)
     (train, *validations), stated = _stated_loads(args, calibrated, robot, (train, *validations), preparation)
     validation = validations[0]
     options = DiagnosisOptions(  # "auto" friction: the robot file's (nominal_friction) or the model file's own shape
@@ -202,7 +205,7 @@ def _run_diagnose(args) -> int:
     )
     # progress lines come from the diagnosis loggers, shown on stderr by the handler of ``configure_logging``
     if loaded is None:
-        report = _robot_report(args, robot, train, validations, options)
+        report = _robot_report(args, robot, train, validations, options, scaled)
     else:  # the Python API's diagnosis of a model file (diagnose_model): the same numbers
         report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot)
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
@@ -258,13 +261,14 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     return train, validations, given, held
 
 
-def _robot_report(args, robot, train, validations, options):
-    """``diagnose`` of a robot file, the report naming it as its nominal model."""
+def _robot_report(args, robot, train, validations, options, scaled: str = ""):
+    """``diagnose`` of a robot file, the report naming it as its nominal model (``scaled``: the torque constants the
+    known payload corrected, ``torque_scale_step``)."""
     from identification.diagnosis.diagnose import diagnose
 
     report = diagnose(robot, train, validations, options, derive=lambda r: derive_model(args, r))
     rigid = "from it" if report.rigid_body == "prior" else "identified"
-    return dataclasses.replace(report, nominal_model=f"the robot file {args.robot}: rigid body {rigid}")
+    return dataclasses.replace(report, nominal_model=f"the robot file {args.robot}: rigid body {rigid}{scaled}")
 
 
 def _stated_loads(args, calibrated, robot, recordings, preparation) -> tuple:

@@ -28,8 +28,8 @@ from psdm_casadi.cli.checks import (
 from psdm_casadi.cli.holdout import cut_training, holdout_fraction
 from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.identify_text import print_identify
-from psdm_casadi.cli.identify_torque_scale import check_torque_scales, store_torque_scales
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, progress
+from psdm_casadi.cli.torque_scale_step import check_torque_scales, store_torque_scales
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.said_once import SAID
 from psdm_casadi.state_cache import remembering

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from psdm_casadi.cli.identify_torque_scale import torque_scale_lines
 from psdm_casadi.cli.output import print_json
+from psdm_casadi.cli.torque_scale_step import torque_scale_lines
 
 
 def _print_lugre(block) -> None:

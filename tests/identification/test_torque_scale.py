@@ -101,3 +101,14 @@ def test_identify_reads_the_currents_with_the_corrected_constant_instead_of_blam
     assert np.allclose(validated, wrong["validation"][0]["rmse"], rtol=1e-6)
     said = json.dumps([wrong["warnings"], wrong["counterbalance"]])
     assert "spring" not in said.replace("not a spring", "")
+
+
+def test_diagnose_of_the_robot_file_reads_the_currents_with_the_corrected_constant(cases, capsys):
+    case = cases[WRONG]  # training recording loaded, validation recording not: the sidecars fix the scale
+    args = ["diagnose", str(case.robot), "--train", str(case.run2), "--validate", str(case.val1), "--columns", COLUMNS]
+    assert main([*args, "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert "motor_kt[2] = 0.138" in report["nominal_model"] and "motor_kt[4]" in report["nominal_model"]
+    assert report["r2_after"][1] > 0.99  # with the file's 0.138 the nominal and every finding left joint 2 at 0.74
+    named = [f["effect"] for f in report["findings"] if {2, 4} & set(f["joints"])]
+    assert "spring" not in named and "coupling" not in named

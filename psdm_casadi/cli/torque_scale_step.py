@@ -1,4 +1,5 @@
-"""identify's torque-scale step: a joint whose torque constant the known payload finds off is read with the right one.
+"""The torque-scale step of identify and diagnose: a joint whose torque constant the known payload finds off is read
+with the payload's value.
 
 Before any fit, recordings with and without a known payload give each joint's torque scale
 (``identification.calibration.torque_scale``). A joint whose scale is off (a datasheet ``motor_kt`` 15 % high) is
@@ -7,6 +8,9 @@ the currents are read through the corrected constant, and the model file's copy 
 ``validate`` and ``diagnose`` on the model read them the same way. Where the robot file states the constants in a way
 that copy cannot be corrected in (no single ``motor_kt = [...]`` line), identify says what to change and fits with
 the file's constants as given.
+
+``diagnose`` of a robot file does the same over its training and validation recordings together (its sidecars say
+which carry a known payload) and names the corrected constants in its nominal model (:func:`diagnose_torque_scales`).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from pathlib import Path
 
 from psdm_casadi.cli.output import progress
 
-__all__ = ["ScaleStep", "check_torque_scales", "store_torque_scales", "torque_scale_lines"]
+__all__ = ["ScaleStep", "check_torque_scales", "diagnose_torque_scales", "store_torque_scales", "torque_scale_lines"]
 
 
 @dataclass
@@ -89,3 +93,26 @@ def torque_scale_lines(document: dict) -> list:
         lines.append(f"  joint(s) {', '.join(unchecked)}: not determined by the payload (its torque there is small or "
                      "a multiple of the arm's): not checked")  # fmt: skip
     return lines
+
+
+def diagnose_torque_scales(args, robot, recordings, cutoff_hz) -> tuple:
+    """(the robot reading the currents with the corrected constants, a sentence for the nominal model or "") of
+    ``diagnose ROBOT --train A --validate B ...``: the recordings' sidecars say which carry a known payload."""
+    from identification.calibration.torque_scale import torque_scales
+    from identification.calibration.trajectory_fit import TrajectoryOptions, torque_constants
+    from identification.data.configuration import stated_configuration
+    from psdm_casadi.cli.checks import derive_model
+
+    paths = [args.train, *args.validate]
+    configurations = [stated_configuration(path) for path in paths]
+    if not any(c.kind == "known" for c in configurations):
+        return robot, ""
+    kt = torque_constants(robot, TrajectoryOptions(), recordings)
+    names = [Path(p).name for p in paths]
+    scales = torque_scales(robot, derive_model(args, robot), recordings, configurations, kt, cutoff_hz, names)
+    if scales is None or not scales.off.any() or scales.corrected_kt() is None:
+        return robot, ""
+    for finding in scales.findings():
+        progress(f"diagnose: {finding}: reading the currents with the payload's value", quiet=args.json)
+    said = "; ".join(scales.findings())
+    return scales.corrected_robot(robot), f"; torque constants corrected by the known payload ({said})"
