@@ -112,3 +112,15 @@ def test_diagnose_of_the_robot_file_reads_the_currents_with_the_corrected_consta
     assert report["r2_after"][1] > 0.99  # with the file's 0.138 the nominal and every finding left joint 2 at 0.74
     named = [f["effect"] for f in report["findings"] if {2, 4} & set(f["joints"])]
     assert "spring" not in named and "coupling" not in named
+
+
+@pytest.mark.slow
+def test_the_seven_joint_cobot_benchmark_finds_its_two_constants_and_none_when_right(benchmark_modules, capsys):
+    import torque_constant
+
+    assert torque_constant.main(["--quick", "--json", "--seed", "1"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    off, right = out["rows"]
+    assert off["off"] == [2, 4] and right["off"] == []
+    assert all(z is None or abs(z) < 3.0 for z in off["z"])  # the truth within 3 stated standard deviations
+    assert out["same_as_right_file"] < 1.05
