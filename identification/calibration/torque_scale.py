@@ -161,8 +161,9 @@ def torque_scales(robot, model, recordings, configurations, kt=None, cutoff_hz=N
     x, s, sigma = _alternate(equations)
     correlation = np.max([residual_correlation_time(_residual(columns, tau, x, s)) for columns, tau in rows], axis=0)
     std = _scale_std(equations, x, s, sigma**2 * correlation)
-    motor_kt = None
-    if kt is not None and robot.transmission is not None and robot.transmission.motor_kt is not None:
+    motor_kt = None  # the file's motor_kt, when the currents are read through it (not a [[drive]] kt of its own)
+    joint_kt = None if robot.transmission is None else robot.transmission.joint_kt
+    if kt is not None and joint_kt is not None and np.allclose(kt, joint_kt, rtol=1e-9):
         motor_kt = np.asarray(robot.transmission.motor_kt, dtype=float)
     loaded = tuple(names[k] for k in chosen if configurations[k].kind == "known")
     return TorqueScales(scale=s, std=std, joint_names=tuple(robot.joint_names),
@@ -243,9 +244,10 @@ def _scale_std(equations, x, s, variance) -> np.ndarray:
 
 def corrected_robot_text(text: str, motor_kt) -> str | None:
     """A robot file's text with its one ``motor_kt = [...]`` replaced by ``motor_kt`` (the model file's copy of the
-    robot file, so every later command reads the currents as identify did); None when it has no single such line."""
+    robot file, so every later command reads the currents as identify did); None when it has no single such line, or
+    states a ``[[drive]]`` ``kt`` too (which must agree with ``motor_kt``: one changed alone would be refused)."""
     pattern = re.compile(r"(?m)^(\s*motor_kt\s*=\s*)\[[^\]]*\]")
-    if len(pattern.findall(text)) != 1:
+    if len(pattern.findall(text)) != 1 or re.search(r"(?m)^\s*kt\s*=", text):
         return None
     values = ", ".join(f"{float(v)!r}" for v in motor_kt)
     return pattern.sub(lambda m: f"{m.group(1)}[{values}]", text)

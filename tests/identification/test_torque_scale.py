@@ -14,7 +14,7 @@ import re
 import numpy as np
 import pytest
 
-from identification.calibration.torque_scale import torque_scales
+from identification.calibration.torque_scale import corrected_robot_text, torque_scales
 from identification.data.configuration import recordings_with_configurations
 from identification.data.layout import ColumnLayout
 from identification.data.robot_recordings import load_robot_recording
@@ -124,3 +124,22 @@ def test_the_seven_joint_cobot_benchmark_finds_its_two_constants_and_none_when_r
     assert off["off"] == [2, 4] and right["off"] == []
     assert all(z is None or abs(z) < 3.0 for z in off["z"])  # the truth within 3 stated standard deviations
     assert out["same_as_right_file"] < 1.05
+
+
+def test_constants_the_model_file_cannot_correct_are_named_not_taken(cases, tmp_path, capsys):
+    case = cases[WRONG]
+    text = case.robot.read_text()
+    stated = [float(v) for v in re.search(r"motor_kt = \[([^\]]*)\]", text).group(1).split(",")]
+    head = text[: text.index("[transmission]")]
+    drives = "".join(f"[[drive]]\nkt = {101 * k if j < 3 else 81 * k!r}\n\n" for j, k in enumerate(stated))
+    robot = tmp_path / "drive_kt.toml"
+    robot.write_text(head + drives)  # joint-side kt in [[drive]] tables, currents read as the joints'
+    assert corrected_robot_text(robot.read_text(), MOTOR_KT) is None
+    assert corrected_robot_text(case.robot.read_text(), MOTOR_KT) is not None
+    args = ["identify", str(robot), "--data", str(case.run1), str(case.run2), "--columns", COLUMNS,
+            "--out", str(tmp_path / "m.json"), "--json"]  # fmt: skip
+    assert main(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["torque_scale"]["off"] == [False, True, False, True] and not out["torque_scale"]["taken"]
+    named = [w for w in out["warnings"] if "[[drive]] kt of joint 2" in w]
+    assert named and "kept the robot file's value" in named[0]
