@@ -31,6 +31,7 @@ class ScaleStep:
     scales: object = None
     robot: object = None
     text: str | None = None
+    unchecked: str = ""  # motor currents whose constants the recordings cannot check: why, and what would
 
     def sentences(self) -> list:
         """identify's warnings: each finding identify could not take (the robot file's constants kept)."""
@@ -49,7 +50,9 @@ def check_torque_scales(args, robot, model, recordings, configurations, paths) -
     kt = torque_constants(robot, TrajectoryOptions(), recordings)
     names = [Path(p).name for p in paths]
     scales = torque_scales(robot, model, recordings, configurations, kt, args.cutoff, names)
-    if scales is None or not scales.off.any() or scales.corrected_motor_kt() is None:
+    if scales is None:
+        return ScaleStep(robot=robot, unchecked="" if kt is None else _unchecked(configurations))
+    if not scales.off.any() or scales.corrected_motor_kt() is None:
         return ScaleStep(scales, robot)
     text = corrected_robot_text(Path(args.robot).read_text(), scales.corrected_motor_kt())
     if text is None:
@@ -59,13 +62,31 @@ def check_torque_scales(args, robot, model, recordings, configurations, paths) -
     return ScaleStep(scales, scales.corrected_robot(robot), text)
 
 
+def _unchecked(configurations) -> str:
+    """Why recordings of currents do not check the torque constants, and what would."""
+    kinds = {c.kind for c in configurations or ()}
+    if kinds == {"known"}:
+        return ("every recording carries the known payload: its torque is then a multiple of the arm's and the "
+                "scale is not determined; add a recording without it")  # fmt: skip
+    return (
+        "no recording carries a known payload beside one without it (a known payload on part of the recordings, "
+        "A.payload.json beside A.csv, lets identify check each joint's torque constant against its torque)"
+    )
+
+
 def store_torque_scales(document: dict, step: ScaleStep) -> None:
     """The model file's ``identification.torque_scale`` block, and its robot text with the corrected constants."""
     from identification.calibration.model_file_check import robot_digest
 
+    if step.unchecked:
+        document["identification"]["torque_scale"] = {"checked": False, "reason": step.unchecked}
     if step.scales is None:
         return
-    document["identification"]["torque_scale"] = {**step.scales.to_dict(), "taken": step.text is not None}
+    document["identification"]["torque_scale"] = {
+        "checked": True,
+        **step.scales.to_dict(),
+        "taken": step.text is not None,
+    }
     if step.text is not None:
         block = document["robot"]
         block["files"][block["main_file"]] = step.text
@@ -77,6 +98,8 @@ def torque_scale_lines(document: dict) -> list:
     block = document["identification"].get("torque_scale")
     if not block:
         return []
+    if block.get("checked") is False:
+        return [f"torque constants: not checked: {block['reason']}"]
     each = ", ".join(
         f"{s:.3f}" + ("" if sd is None else f" +/- {sd:.3f}") for s, sd in zip(block["scale"], block["std"])
     )

@@ -143,3 +143,15 @@ def test_constants_the_model_file_cannot_correct_are_named_not_taken(cases, tmp_
     assert out["torque_scale"]["off"] == [False, True, False, True] and not out["torque_scale"]["taken"]
     named = [w for w in out["warnings"] if "[[drive]] kt of joint 2" in w]
     assert named and "kept the robot file's value" in named[0]
+
+
+def test_currents_without_a_known_payload_beside_unloaded_runs_say_the_constants_are_not_checked(cases, tmp_path):
+    case = cases[WRONG]
+    for data in ([case.run1], [case.run2]):
+        out = tmp_path / f"{data[0].stem}.json"
+        assert (
+            main(["identify", str(case.robot), "--data", *map(str, data), "--columns", COLUMNS, "--out", str(out)]) == 0
+        )
+        block = json.loads(out.read_text())["identification"]["torque_scale"]
+        assert block["checked"] is False
+        assert ("add a recording without it" in block["reason"]) == (data == [case.run2])
