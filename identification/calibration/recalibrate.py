@@ -425,7 +425,7 @@ def _document(
     document = new.document
     document["robot"] = copy.deepcopy(calibrated.document["robot"])
     document["identification"]["drive_inertia"] = _options(calibrated).drive_inertia
-    kept = ("column_choice", "one_way_friction", "worse_joints")  # the columns and holds the refit kept (_options)
+    kept = ("column_choice", "one_way_friction", "worse_joints", "torque_scale")  # as the refit kept them (_options)
     document["identification"].update({k: copy.deepcopy(v) for k, v in calibrated.document["identification"].items()
                                        if k in kept and v is not None})  # fmt: skip
     document["findings"] = filled_entries(entries, terms, columns, extra)

@@ -155,3 +155,16 @@ def test_currents_without_a_known_payload_beside_unloaded_runs_say_the_constants
         block = json.loads(out.read_text())["identification"]["torque_scale"]
         assert block["checked"] is False
         assert ("add a recording without it" in block["reason"]) == (data == [case.run2])
+
+
+@pytest.mark.slow
+def test_a_refit_of_the_model_keeps_the_corrected_constants_and_their_record(cases, tmp_path, capsys):
+    case = cases[WRONG]
+    model, applied = tmp_path / "m.json", tmp_path / "applied.json"
+    _identify(case, model, capsys)
+    args = ["diagnose", str(model), "--train", str(case.run1), "--validate", str(case.val1), "--apply", str(applied)]
+    assert main(args) == 0
+    capsys.readouterr()
+    before, after = (json.loads(p.read_text()) for p in (model, applied))
+    assert after["robot"] == before["robot"]  # the corrected motor_kt
+    assert after["identification"]["torque_scale"] == before["identification"]["torque_scale"]
