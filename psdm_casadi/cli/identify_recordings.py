@@ -178,7 +178,7 @@ def run(args) -> int:
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
-    robot = (scale := check_torque_scales(args, robot, model, recordings, configurations, paths)).robot  # kt off
+    robot = (scale := check_torque_scales(args, robot, model, (recordings, validation), configurations, paths)).robot
     options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
                                 envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
                                 drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip

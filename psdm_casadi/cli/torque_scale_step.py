@@ -43,13 +43,22 @@ class ScaleStep:
 
 
 def check_torque_scales(args, robot, model, recordings, configurations, paths) -> ScaleStep:
-    """The :class:`ScaleStep` of the training recordings (their ``--cutoff``)."""
+    """The :class:`ScaleStep` of the training recordings (their ``--cutoff``); where they alone do not check the
+    constants, of the training and validation recordings together (``recordings``: both lists; the validation
+    recordings' sidecars, ``args.validate``, say which carry a known payload): one scale per joint, a sensor's
+    calibration, not a model the validation judges."""
     from identification.calibration.torque_scale import corrected_robot_text, torque_scales
     from identification.calibration.trajectory_fit import TrajectoryOptions, torque_constants
+    from identification.data.configuration import stated_configuration
 
+    recordings, validation = recordings
     kt = torque_constants(robot, TrajectoryOptions(), recordings)
     names = [Path(p).name for p in paths]
     scales = torque_scales(robot, model, recordings, configurations, kt, args.cutoff, names)
+    if scales is None and validation and kt is not None:
+        configurations = [*configurations, *map(stated_configuration, args.validate)]
+        names += [Path(p).name for p in args.validate]
+        scales = torque_scales(robot, model, [*recordings, *validation], configurations, kt, args.cutoff, names)
     if scales is None:
         return ScaleStep(robot=robot, unchecked="" if kt is None else _unchecked(configurations))
     if not scales.off.any() or scales.corrected_motor_kt() is None:

@@ -168,3 +168,13 @@ def test_a_refit_of_the_model_keeps_the_corrected_constants_and_their_record(cas
     before, after = (json.loads(p.read_text()) for p in (model, applied))
     assert after["robot"] == before["robot"]  # the corrected motor_kt
     assert after["identification"]["torque_scale"] == before["identification"]["torque_scale"]
+
+
+def test_a_known_payload_on_a_validation_recording_checks_the_constants_too(cases, tmp_path, capsys):
+    case = cases[WRONG]  # training unloaded only: the loaded recording validates
+    args = ["identify", str(case.robot), "--data", str(case.run1), "--validate", str(case.run2), str(case.val1),
+            "--columns", COLUMNS, "--out", str(tmp_path / "m.json"), "--json"]  # fmt: skip
+    assert main(args) == 0
+    block = json.loads(capsys.readouterr().out)["torque_scale"]
+    assert block["off"] == [False, True, False, True] and block["loaded"] == ["run2.csv"]
+    assert block["unloaded"] == ["run1.csv", "val1.csv"] and block["taken"]
