@@ -42,6 +42,7 @@ class Case:
     hidden: tuple = ()  # (effect, joint 1-based) the diagnosis should name
     unstated: tuple = ()  # CLI options without the log's units: identify must refuse them (exit 2) ...
     refusal_words: tuple = ()  # ... with these words (the file, the field, the fix)
+    friction_shapes: tuple = ()  # (shape, joint 1-based): the truth's friction is not Coulomb-viscous there
 
 
 def ur5_urdf() -> Path:
@@ -51,6 +52,21 @@ def ur5_urdf() -> Path:
         if path.exists():
             return path
     raise FileNotFoundError("example-robot-data's ur5_robot.urdf is not installed (pip install example-robot-data)")
+
+
+def friction_shapes(robot) -> tuple:
+    """``(shape, joint 1-based)`` where the truth's steady-state friction (``lugre_exact.steady_state_friction``:
+    ``(fc + (fs - fc) exp(-(qd/vs)^2)) sign qd + fv |qd|^dv sign qd``) is not Coulomb-viscous, in the diagnosis's
+    ``friction_shape`` names: ``stribeck`` where a hump rises above the Coulomb level (``fs > fc``), ``smooth_coulomb``
+    where the viscous term is a power of the speed (``dv != 1``: a curve ``tanh(qd / v)`` bends the viscous line
+    towards). A diagnosis that names one of them names physics the arm has."""
+    out = []
+    for j, drive in enumerate(robot.drives or ()):
+        if drive.fs > drive.fc:
+            out.append(("stribeck", j + 1))
+        if drive.dv != 1.0:
+            out.append(("smooth_coulomb", j + 1))
+    return tuple(out)
 
 
 def _reference(robot, duration: float, rng, still: float = 0.0, slow: float = 1.0):
@@ -166,6 +182,7 @@ def cobot_currents(folder: Path, rng) -> Case:
         true_links=np.array([link.mass for link in robot.links]),
         payload_mass=2.0,
         floor_nm=floor,
+        friction_shapes=friction_shapes(robot),
     )
 
 
@@ -212,6 +229,7 @@ def industrial_degrees(folder: Path, rng) -> Case:
         refusal_words=("trace_", "q1", "positions in degrees?", "--columns q=PREFIX:deg"),
         true_links=np.array([link.mass for link in robot.links]),
         floor_nm=floor,
+        friction_shapes=friction_shapes(robot),
     )
 
 
@@ -238,6 +256,7 @@ def industrial_slow(folder: Path, rng) -> Case:
         true_links=np.array([link.mass for link in robot.links]),
         payload_mass=5.0,
         floor_nm=floor,
+        friction_shapes=friction_shapes(robot),
     )
 
 
@@ -271,6 +290,7 @@ def heavy_counterbalance(folder: Path, rng) -> Case:
         true_links=np.array([link.mass for link in robot.links]),
         floor_nm=floor,
         hidden=(("counterbalance", 2),),
+        friction_shapes=friction_shapes(robot),
     )
 
 
@@ -322,6 +342,7 @@ def serial_bag(folder: Path, rng) -> Case:
         payload_mass=1.5,
         payload_known=False,
         floor_nm=floor,
+        friction_shapes=friction_shapes(robot),
     )
 
 
@@ -341,4 +362,4 @@ def build(name: str, folder, seed: int = 0) -> Case:
     return CASES[name](folder, np.random.default_rng(seed))
 
 
-__all__ = ["CASES", "Case", "build"]
+__all__ = ["CASES", "Case", "build", "friction_shapes"]

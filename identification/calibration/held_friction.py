@@ -13,7 +13,9 @@ file's model keeps it: ``HeldFriction.of_document`` reads it with the file's smo
 whose every fit explains the torque the held friction leaves (``HeldFriction.torque``, the one friction ``psdm
 validate`` predicts). The nominal model of ``diagnose MODEL`` also holds the file's torque offsets (``offset<j>``,
 ``HeldFriction.of_model_file``): a diagnosis's nominal carries the file's columns, so its "before" is the file's and no
-finding is the offset found again; a spring is then tested against the nominal model with its offset. A file's
+finding is the offset found again; a spring is then tested against the nominal model with its offset. An offset
+identify itself read as no sensor's (``counterbalance_record``: a counterbalance it could not keep as a spring) is no
+zero error: ``diagnose MODEL`` leaves it to the diagnosis (``without_offsets``), which names it. A file's
 drive inertia below 0 (``Ia<j>``: a torque measured behind the gearbox, which holds less than the robot file's rotor)
 is held likewise, ``Ia_j qdd_j``: the robot a diagnosis starts from holds rotor inertias >= 0 only
 (``drive_inertia_split``, the one rule ``calibrated_model.calibrated_robot`` and ``of_model_file`` share), so the
@@ -111,6 +113,13 @@ class HeldFriction:
     def offset_of(self, joint: int) -> float:
         """The held torque offset [N m] of ``joint`` (0-based); 0 when none is held."""
         return sum(value for name, value in self.offsets if drive_column_joint(name) == joint)
+
+    def without_offsets(self, joints) -> HeldFriction:
+        """This hold without the torque offsets of ``joints`` (0-based): an offset that is no sensor's zero error
+        (``counterbalance_record.counterbalance_offsets``) is left to the fit that judges it."""
+        joints = set(joints)
+        kept = tuple((n, v) for n, v in self.values if _term(n) != "offset" or drive_column_joint(n) not in joints)
+        return replace(self, values=kept)
 
     def torque(self, qd, qdd=None) -> np.ndarray:
         """The held torque (n_samples, n_dof) at the velocities ``qd`` and accelerations ``qdd`` (n_samples, n_dof;

@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.calibration.calibrated_model import LoadedModel, calibrated_robot, read_calibrated_model
+from identification.calibration.counterbalance_record import counterbalance_offsets
 from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.held_friction import HeldFriction
@@ -48,6 +49,7 @@ from psdm_casadi.errors import ParameterError
 __all__ = [
     "diagnose_model",
     "diagnose_model_prior",
+    "file_held",
     "file_prediction",
     "model_file_recordings",
     "model_file_options",
@@ -69,7 +71,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
     with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``)
     and the file's torque offsets, which every fit of the diagnosis keeps at the file's values
-    (``DiagnosisOptions.held_friction``, ``HeldFriction.of_model_file``), unless ``options`` hold some."""
+    (``DiagnosisOptions.held_friction``, ``file_held``), unless ``options`` hold some."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -79,12 +81,19 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     if rate == AUTO:
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
     friction = own_friction(calibrated) if options.friction == AUTO else options.friction
-    held = options.held_friction if options.held_friction.values else HeldFriction.of_model_file(calibrated.document)
+    held = options.held_friction if options.held_friction.values else file_held(calibrated.document)
     smooth = options.coulomb_velocity
     if friction != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
         smooth = float(calibrated.document["drive"].get("coulomb_velocity", SMOOTH_VELOCITY))
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held, coulomb_velocity=smooth)  # fmt: skip
+
+
+def file_held(document: dict) -> HeldFriction:
+    """What the nominal model of ``diagnose MODEL`` holds at a model file's values (``HeldFriction.of_model_file``),
+    but the torque offsets identify read as no sensor's and kept for want of a spring that held
+    (``counterbalance_record``): the diagnosis judges and names that torque instead of carrying it silently."""
+    return HeldFriction.of_model_file(document).without_offsets(counterbalance_offsets(document))
 
 
 def diagnose_model(

@@ -9,6 +9,7 @@ as a "torque offset", and instead of the diagnosis's own smoothing (0.02 rad/s: 
 
 from __future__ import annotations
 
+import copy
 from dataclasses import replace
 
 import numpy as np
@@ -128,6 +129,43 @@ def test_a_spring_beside_a_held_offset_reports_the_rest_angle_apply_writes():
     applied = recalibrate(calibrated, robot, model, report, train, held).after
     (entry,) = [e for e in applied.document["findings"] if e["label"] == spring.label]
     assert spring.parameters["q0"] == pytest.approx(entry["parameters"]["q0"], abs=0.02)
+
+
+def test_an_offset_identify_read_as_a_counterbalance_is_not_held_and_the_diagnosis_finds_the_spring():
+    """The truth on joint 1 is a spring ``k (q - q0)`` and no sensor offset; identify's file holds the spring's
+    constant as a torque offset. When identify recorded that offset as no sensor's (``identification.counterbalance``
+    named by ``BY_OFFSET``, no spring kept: the heavy arm's cam at seed 0, whose spring did not hold on the held-out
+    range), it is its stand-in for the counterbalance, not a zero error: ``diagnose MODEL`` does not hold it
+    (``model_file.file_held``) and finds the whole spring, its rest angle the truth's without the offset added back;
+    held as a sensor's zero, the same file hid the counterbalance from the diagnosis (nothing named on joint 2)."""
+    from identification.calibration.counterbalance_column import BY_OFFSET
+    from identification.calibration.counterbalance_record import counterbalance_offsets
+    from identification.diagnosis.model_file import file_held
+
+    robot = load_robot("scara")
+    model = derive_psdm(robot)
+    k_true = SPRING_K / 3.0  # its torque within the joint's recorded peak (a plausible spring without the offset)
+    train, held = (recording(robot, seed) for seed in (0, 1))
+    train, held = (replace(r, tau=r.tau + np.outer(k_true * (r.q[:, 0] - SPRING_Q0), [1, 0, 0, 0]) - OFFSET)
+                   for r in (train, held))  # fmt: skip
+    calibrated = identify_recordings(robot, model, [train], validation=[held], counterbalance=False).calibrated
+    assert dict(HeldFriction.of_model_file(calibrated.document).offsets)["offset1"] == pytest.approx(
+        -k_true * SPRING_Q0, rel=0.1
+    )
+    document = copy.deepcopy(calibrated.document)
+    document["identification"]["counterbalance"] = {"joints": [1], "kept": False, "named_by": {"1": BY_OFFSET}}
+    named = type(calibrated)(document)
+    assert counterbalance_offsets(document) == (0,) and counterbalance_offsets(calibrated.document) == ()
+    assert "offset1" not in dict(file_held(document).offsets) and "offset1" in dict(
+        file_held(calibrated.document).offsets
+    )
+    quick = DiagnosisOptions(library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(named, robot, model), train, held, quick)
+    (spring,) = [f for f in report.findings if 0 in f.joints]
+    assert spring.effect == "spring" and not spring.notes  # no held offset to add back
+    assert spring.parameters["k"] == pytest.approx(k_true, rel=0.05)
+    assert spring.parameters["q0"] == pytest.approx(SPRING_Q0, abs=0.02)
+    np.testing.assert_allclose(report.rmse_before, validation_rmse(calibrated, model, held)[0], rtol=1e-3)
 
 
 def test_a_negative_drive_inertia_is_predicted_by_the_diagnosis_as_by_validate():
