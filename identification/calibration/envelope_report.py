@@ -7,7 +7,8 @@ those bounds and names the likely cause:
 
 - a link of the arm (not one of the last two that carry mass) pushed to its envelope or a mass bound: a
   **counterbalance or spring** on the joint whose torque the bound refuses most (a gravity-like torque the
-  link's first moment was absorbing, e.g. a shoulder's balancer);
+  link's first moment was absorbing, e.g. a shoulder's balancer), among the joints the link's weight gives a torque
+  (``gravity_carriers``: an upright arm's base axis carries none, so it holds no balancer);
 - one of the last two links pushed outward (envelope, upper mass bound): a **payload** or tool at the flange;
 - a drive inertia at a bound: a **drive inertia** unlike the file's (below it: a torque measured on the link
   side of the gearbox; above it: extra inertia such as a coupled load).
@@ -47,6 +48,7 @@ __all__ = [
     "MIN_REFUSED_SIGMA",
     "EnvelopeFinding",
     "envelope_findings",
+    "gravity_carriers",
     "named_from_evidence",
     "where",
     "pressed_findings",
@@ -208,7 +210,12 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
     def joint_and_pressure(i, kind, absorbs, push) -> tuple:
         if kind == "drive":
             return i, True
-        joint = {"payload": int(np.argmax(ratio))}.get(absorbs, int(np.argmax(ratio[: i + 1])))
+        if absorbs == "payload":
+            joint = int(np.argmax(ratio))
+        else:  # a counterbalance acts where the link's weight gives a torque: not on a vertical base axis
+            carriers = np.flatnonzero(gravity_carriers(robot, i)[: i + 1])
+            near = carriers if carriers.size else np.arange(i + 1)
+            joint = int(near[np.argmax(ratio[near])])
         return joint, bool(push >= floor[joint] or ratio[joint] >= MIN_REFUSED_SIGMA)
 
     payload = any(absorbs == "payload" for _, absorbs, _ in pushed.values())
@@ -231,6 +238,24 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
         text = _message(finding, robot, currents) if pressed else _resting_message(finding, robot)
         out.append(replace(finding, message=text))
     return tuple(out)
+
+
+def gravity_carriers(robot, link: int, poses: int = 16) -> np.ndarray:
+    """Per joint, whether the weight of ``link`` (0-based) gives it a torque at some pose: a first moment of the link
+    can only take a gravity-like torque (a counterbalance's) on such a joint. A joint whose axis stays parallel to
+    gravity (an upright arm's base axis) carries none, whatever the link's mass; Pinocchio's gravity torque of a unit
+    mass with an off-axis centre on the link alone, at seeded poses within the limits, decides."""
+    from psdm_casadi.oracle import PinocchioOracle
+
+    n = robot.n_dof
+    parameters = np.zeros((n, 11))
+    parameters[link, :4] = (1.0, 0.3, 0.2, 0.1)  # 1 kg, its centre 0.37 m off the link frame in every direction
+    parameters[link, [4, 6, 9]] = 1.0
+    low = np.maximum(np.asarray(robot.q_min, dtype=float), -np.pi)
+    high = np.minimum(np.asarray(robot.q_max, dtype=float), np.pi)
+    q = np.random.default_rng(0).uniform(low, high, (poses, n))
+    torque = np.abs(PinocchioOracle(robot, parameters).gravity(q)).max(axis=0)
+    return torque > 1e-9 * max(float(torque.max()), 1e-300)
 
 
 def named_from_evidence(findings, held, model, robot, currents: bool = False) -> tuple:

@@ -383,3 +383,39 @@ def test_a_link_resting_on_a_bound_is_a_note_that_nothing_acts_on(denso):
     assert diagnosis_prior(document, denso).robot_file
     del document["standard"]["envelope_findings"][0]["pressed"]  # a file written before: every finding pressed
     assert diagnosis_prior(document, denso).links == (1, 4)
+
+
+def test_a_counterbalance_is_named_on_a_joint_the_links_weight_loads_not_an_upright_base_axis(denso):
+    """An upright arm's base axis is parallel to gravity: no link's weight gives it a torque, so a link's first
+    moment cannot have absorbed a balancer there. A 210 kg-class arm with a gas spring on joint 2 (HX-210, vertical
+    joint 1) had link 2 pressed to its envelope and joint 1 refusing the most torque, and the report named "a
+    counterbalance or spring on joint 1"; it is named on joint 2, the first joint below the link that carries it."""
+    from types import SimpleNamespace
+
+    from identification.calibration.consistent_fit import FitBounds
+    from identification.calibration.envelope_report import MIN_PRESSURE, envelope_findings, gravity_carriers
+    from psdm_casadi.oracle import PinocchioOracle
+    from psdm_casadi.samples import serial_arm
+
+    upright = serial_arm(6)  # gravity along -z0, joint 1 about z0
+    q = np.random.default_rng(3).uniform(-2.0, 2.0, (20, upright.n_dof))
+    g = np.abs(PinocchioOracle(upright).gravity(q)).max(axis=0)  # the independent reference: the file's own weight
+    assert g[0] < 1e-9 * g.max() and (g[1:3] > 1.0).all()
+    assert gravity_carriers(upright, 2).tolist()[:3] == [False, True, True]
+    assert gravity_carriers(denso, 1)[0]  # the Denso file's gravity lies across its joint 1: it carries weight
+
+    n, prior = upright.n_dof, upright.nominal_dynamic_parameters()
+    mass, count = prior[:, 0], 1000.0
+    refused = np.zeros(n)
+    refused[0], refused[1] = 9.0, 4.0  # the bounded fit gives up 3 noise levels on joint 1, 2 on joint 2
+    equations = SimpleNamespace(count=np.full(n, count), residual_sum=lambda x: count * (1.0 + x[0] * refused))
+    standard = prior.copy()
+    standard[1, 0] = 0.5 * mass[1]  # link 2 at its lower mass bound, the data pressing on it
+    pressure = np.zeros((n, 3))
+    pressure[1, 1] = 10 * MIN_PRESSURE * count
+    upper = np.where(mass > 0, 2.0 * mass, np.inf)
+    bounds = FitBounds((None,) * n, 0.5 * mass, upper, np.zeros(n), np.full(n, np.inf), pressure)
+    (found,) = envelope_findings(upright, bounds, standard, equations, np.array([1.0]), np.zeros(1), np.ones(n))
+    assert (found.link, found.absorbs, found.joint, found.pressed) == (1, "counterbalance", 1, True)
+    assert found.refused_sigma == pytest.approx(2.0) and "joint 1" not in found.message
+    assert "counterbalance or spring on joint 2" in found.message
