@@ -60,6 +60,7 @@ from identification.calibration.findings import (
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.lugre_identify import identify_lugre_trajectories
 from identification.calibration.lugre_recordings import split_findings
+from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.payload_fit import carried_configurations
@@ -211,7 +212,7 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
         held_friction=HeldFriction.of_document(document).values,  # as identified
-        held_links=tuple(i - 1 for i in (identification.get("worse_joints") or {}).get("held_links", [])),
+        held_links=model_file_holds(document).held_links,  # as identified (``worse_joint_hold``)
     )
 
 

@@ -15,30 +15,22 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from identification.calibration.held_friction import HeldFriction
-from identification.data.excitation_check import ExcitationThresholds
-from identification.data.filter_choice import AUTO, EDGE_PERIODS, resolve_auto
 from identification.data.missing_torque import measured_torque
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
-from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.candidates.friction import lacking_friction_shapes
+from identification.diagnosis.carried_terms import CarriedColumns, carried_labels
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import DiagnosisContext, build_context
 from identification.diagnosis.design import left_out
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.friction_rival import FrictionRival
+from identification.diagnosis.held_links import held_links
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns, validation_recordings
-from identification.diagnosis.nominal import (
-    FRICTION_MODELS,
-    RIGID_BODY_CHOICES,
-    friction_blocks,
-    friction_feature_names,
-    nominal_friction,
-    torque_constants_only,
-)
+from identification.diagnosis.nominal import friction_blocks, friction_feature_names, torque_constants_only
+from identification.diagnosis.options import DiagnosisOptions
 from identification.diagnosis.plausible_fit import implausible_terms, plausible_diagnosis
 from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport
@@ -50,190 +42,16 @@ from identification.diagnosis.rigid_body_choice import (
     moved_parameters,
     prior_wins,
     recalibration_parts,
+    rigid_body_part,
 )
 from identification.diagnosis.second_opinion import SecondOpinion
 from identification.diagnosis.selection import SelectionResult, forward_select
 from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
 
+__all__ = ["DiagnosisOptions", "DiagnosisProblem", "FinalFit", "check_motion", "diagnose", "prepare_problem"]
+
 logger = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class DiagnosisOptions:
-    """Options of ``diagnose``.
-
-    Parameters
-    ----------
-    friction : {"auto", "lugre", "coulomb_viscous", "stribeck"}
-        Nominal friction (see ``nominal``); ``"auto"`` (default): the steady-state LuGre with the robot file's shape,
-        or Coulomb + viscous when its drives state torque constants but no friction (``nominal_friction``); a
-        calibrated model's own shape in ``model_file.diagnose_model``.
-    rigid_body : {"auto", "prior", "identified"}
-        Keep the robot file's inertia, identify the base parameters too, or (default) decide from the data: a
-        payload- or inertia-type finding of the prior model must beat a full rigid-body recalibration on the
-        validation recording, otherwise the rigid body is identified and the report says the robot file's
-        inertial parameters are off (``rigid_body_choice``).
-    cutoff_hz, rate_hz : float or "auto"
-        Zero-phase low-pass cut-off of the preprocessing [Hz] (None: unfiltered) and rate of the grid the fit works on
-        [Hz]; ``"auto"`` (default): as ``psdm identify`` chooses them for the training recording (``filter_choice``:
-        ``min(10 Hz, rate / 10)``, samples at ten times the cutoff), or a calibrated model file's own preparation
-        (``model_file.diagnose_model``), so ``diagnose`` in Python and ``psdm diagnose`` give the same numbers.
-        A cutoff of 15 Hz on a 200 Hz grid keeps more of a narrow Stribeck hump than identify's 10 Hz.
-    samples : {"identify", "diagnosis"}
-        The grid's samples: identify's (default; ``filter_choice.kept_samples``: ``edge_periods`` trimmed, identify's
-        step), so a model is judged on the samples ``psdm validate`` judges it on; or without 5 % (at most 0.2 s) of
-        the grid at each end.
-    edge_periods : float
-        Filter periods trimmed at each end (``filter_choice.EDGE_PERIODS``; a model file's own: ``model_file``).
-    min_improvement : float
-        Validation RMSE reduction (fraction) one joint must show for a term to be kept.
-    max_effects : int
-        Most terms kept.
-    joint_threshold : float
-        Relative reduction above which a joint is named for a robot-wide term.
-    library : CandidateLibrary or None
-        Candidate terms (default: every term).
-    preprocess : bool
-        Filter and differentiate the recordings (off when they already hold filtered qd and qdd).
-    torque_constants : tuple or None
-        Kt [N m/A] per joint for recordings with currents only (default: the robot file's drives).
-    refine : bool
-        Refit the kept terms with their nonlinear parameters after the linearised selection: delay,
-        backlash (width and flank smoothing) and joint elasticity exactly by variable projection
-        (``signal_fit``), then the drift time constant by Ipopt (``refine.refine_fit``).
-    excitation : ExcitationThresholds or None
-        Thresholds of the excitation checks run before any fit (default ``ExcitationThresholds()``): every
-        joint must move in both recordings (range and speed, :func:`check_joint_motion`), and the columns
-        of the nominal model's free parameters must be well conditioned on the training recording
-        (:func:`check_regressor`). A still or dithering joint otherwise gives noise-fitted "findings".
-    max_samples : int
-        Most samples of a recording's decimated grid: a recording longer than ``max_samples / rate_hz``
-        (41.7 minutes on a 100 Hz grid) gets a coarser grid, so the memory and time of the fit are bounded by
-        this rather than by the recording's length (about 1.5 kB per sample for 6 joints). A grid with fewer
-        than 4 samples per cut-off period is reported as a warning. Recordings up to the bound keep the
-        ``rate_hz`` grid.
-    sparse : bool
-        Look beyond the library: propose a sparse symbolic term (``sparse_terms``) for a joint whose residual
-        stays structured after the library's terms, reported as an unnamed effect with its formula.
-    sparse_min_gain : float
-        Validation RMSE reduction (fraction) of its joint a sparse term must show to be kept.
-    envelope : bool
-        With ``rigid_body="auto"``: a finding the free rigid-body recalibration makes unnecessary still stands where a
-        rigid body recalibrated inside its physical envelope, as ``psdm identify`` fits it, needs it
-        (``envelope_check``: a counterbalance that only a link twice as heavy with its centre of mass outside the link
-        absorbs); False judges against the free recalibration alone.
-    cv_folds : int
-        With one validation recording, the second opinion on each finding (``second_opinion``): the training recording
-        is cut into this many contiguous blocks, each held out once, and a finding must hold on every block; 0 turns
-        it off (with several validation recordings a finding must hold on each of them instead).
-    friction_shapes : bool
-        Offer the friction shapes the nominal model lacks (``lacking_friction_shapes``): beside a Coulomb-viscous or
-        Stribeck one as candidates and in place of a lag they explain, beside the robot file's LuGre friction a Stribeck
-        peak at another velocity than the drive's; the fleet's day diagnosis, which asks what changed, turns it off.
-    held_friction : HeldFriction
-        Friction the nominal model holds at a model file's values (identify's ``one_way_friction``; a model file's, from
-        ``model_file.model_file_options``): no fit of the diagnosis estimates those joints' friction columns, every one
-        explains the torque the held friction leaves (``DiagnosisContext.tau_fit``), so the nominal model predicts
-        those joints as ``psdm validate`` predicts the file.
-    coulomb_velocity : float
-        The smoothing [rad/s] of the nominal friction's sign without drives (a model file's: ``model_file_options``).
-    """
-
-    friction: str = AUTO
-    rigid_body: str = "auto"
-    cutoff_hz: float | None | str = AUTO
-    rate_hz: float | str = AUTO
-    samples: str = "identify"
-    edge_periods: float = EDGE_PERIODS
-    min_improvement: float = 0.2
-    max_effects: int = 4
-    joint_threshold: float = 0.1
-    library: CandidateLibrary | None = None
-    friction_shapes: bool = True
-    preprocess: bool = True
-    torque_constants: tuple | None = None
-    refine: bool = True
-    excitation: ExcitationThresholds | None = None
-    max_samples: int = 250_000
-    sparse: bool = True
-    sparse_min_gain: float = 0.3
-    cv_folds: int = 4
-    envelope: bool = True
-    held_friction: HeldFriction = HeldFriction()
-    coulomb_velocity: float = SMOOTH_VELOCITY
-
-    def __post_init__(self):
-        if isinstance(self.cv_folds, bool) or not (
-            isinstance(self.cv_folds, (int, np.integer)) and (self.cv_folds == 0 or 2 <= self.cv_folds <= 20)
-        ):
-            raise ParameterError(
-                f"DiagnosisOptions.cv_folds must be 0 (off) or an integer 2..20; got {self.cv_folds!r}. Use 4."
-            )
-        if not 0.0 < self.sparse_min_gain < 1.0:
-            raise ParameterError(
-                f"DiagnosisOptions.sparse_min_gain must be in (0, 1); got {self.sparse_min_gain!r}. Use 0.3."
-            )
-        if self.friction not in (AUTO, *FRICTION_MODELS):
-            raise ParameterError(
-                f"DiagnosisOptions.friction must be {AUTO!r} or one of {FRICTION_MODELS}; got {self.friction!r}."
-            )
-        if self.rigid_body not in RIGID_BODY_CHOICES:
-            raise ParameterError(
-                f"DiagnosisOptions.rigid_body must be one of {RIGID_BODY_CHOICES}; got {self.rigid_body!r}."
-            )
-        if not 0.0 < self.min_improvement < 1.0:
-            raise ParameterError(
-                f"DiagnosisOptions.min_improvement must be in (0, 1); got {self.min_improvement!r}. Use 0.2."
-            )
-        if not (isinstance(self.max_effects, (int, np.integer)) and self.max_effects >= 0):
-            raise ParameterError(f"DiagnosisOptions.max_effects must be an integer >= 0; got {self.max_effects!r}.")
-        if self.rate_hz != AUTO and not (_number(self.rate_hz) and self.rate_hz > 0):
-            raise ParameterError(
-                f"DiagnosisOptions.rate_hz must be positive [Hz] or {AUTO!r}; got {self.rate_hz!r}. Leave it {AUTO!r}."
-            )
-        if isinstance(self.max_samples, bool) or not (
-            isinstance(self.max_samples, (int, np.integer)) and self.max_samples >= 1000
-        ):
-            raise ParameterError(
-                f"DiagnosisOptions.max_samples must be an integer >= 1000; got {self.max_samples!r}. Use 250000."
-            )
-        if not (_number(self.edge_periods) and self.edge_periods >= 0):
-            raise ParameterError(f"DiagnosisOptions.edge_periods must be a number >= 0; got {self.edge_periods!r}.")
-        if self.samples not in ("diagnosis", "identify"):
-            raise ParameterError(f"DiagnosisOptions.samples must be 'diagnosis' or 'identify'; got {self.samples!r}.")
-        if self.cutoff_hz not in (None, AUTO) and not (_number(self.cutoff_hz) and self.cutoff_hz > 0):
-            raise ParameterError(
-                f"DiagnosisOptions.cutoff_hz must be positive [Hz], None (unfiltered) or {AUTO!r}; got "
-                f"{self.cutoff_hz!r}. Leave it {AUTO!r} (identify's preparation)."
-            )
-        if self.excitation is not None and not isinstance(self.excitation, ExcitationThresholds):
-            raise ParameterError(
-                f"DiagnosisOptions.excitation must be an ExcitationThresholds or None; got "
-                f"{type(self.excitation).__name__}. Pass ExcitationThresholds(...)."
-            )
-        if not isinstance(self.held_friction, HeldFriction):
-            raise ParameterError(f"DiagnosisOptions.held_friction must be a HeldFriction; got "
-                                 f"{type(self.held_friction).__name__}.")  # fmt: skip
-        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
-            raise ParameterError(f"DiagnosisOptions.coulomb_velocity must be > 0 [rad/s]; got {self.coulomb_velocity}.")
-        if self.library is not None and not isinstance(self.library, CandidateLibrary):
-            raise ParameterError(
-                f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "
-                "Combine terms with +, e.g. SpringTerm() + TorqueOffsetTerm()."
-            )
-
-    def for_recording(self, train, robot=None) -> DiagnosisOptions:
-        """These options with ``"auto"`` cutoff and grid rate resolved for the training recording ``train`` as
-        ``psdm identify`` resolves them (``filter_choice.resolve_auto``), and an ``"auto"`` friction for ``robot``
-        (``nominal_friction``)."""
-        cutoff, rate = resolve_auto(self.cutoff_hz, self.rate_hz, 1.0 / float(train.dt))
-        friction = nominal_friction(robot) if self.friction == AUTO and robot is not None else self.friction
-        return replace(self, cutoff_hz=cutoff, rate_hz=rate, friction=friction)
-
-
-def _number(value) -> bool:
-    return isinstance(value, (int, float, np.number)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 @dataclass(frozen=True, eq=False)
@@ -363,7 +181,8 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
         return problem, selection, final, prior, (), None
     logger.info("diagnose: findings with the robot file's inertia; diagnosing with a recalibrated rigid body too ...")
     identified = replace(options, rigid_body="identified")
-    recal = DiagnosisProblem(**recalibration_parts(problem, model), left_out=problem.left_out)
+    held = held_links(model, robot, options.held_links)  # a model file's held links stay held (``held_links``)
+    recal = DiagnosisProblem(**recalibration_parts(problem, model, held), left_out=problem.left_out)
     selection_i = select_terms(robot, recal, identified)
     final_i = refine_terms(recal, selection_i, identified)
     weights = 1.0 / np.maximum(rms(problem.ctx_v.tau), 1e-9)
@@ -382,17 +201,19 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
 
         library = (options.library or default_library()).expand(robot.n_dof)
         contexts, friction = (recal.ctx_t, recal.ctx_v), (problem.base_t, problem.base_v)
-        envelope = EnvelopedRecalibration(robot, model, contexts, friction).check if options.envelope else None
-        fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal, envelope)
+        enveloped = EnvelopedRecalibration(robot, model, contexts, friction, options.held_links)
+        envelope = enveloped.check if options.envelope else None
+        fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal, envelope,
+                             carried=carried_labels(options))  # fmt: skip
         for note in fit[2]:
             logger.info(f"diagnose: {note}")
         return problem, fit[0], fit[1], prior, fit[2], IdentifiedDiagnosis(recal, selection_i, final_i, identified)
     effects = sorted(set(found) - set(found_i))
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
-    moved = moved_parameters(
-        model, robot, final_i.friction_coefficients[n_friction:], kt=problem.ctx_t.torque_constants
-    )
+    theta = final_i.friction_coefficients[n_friction:]
+    theta = theta if held is None else held.theta(theta)
+    moved = moved_parameters(model, robot, theta, kt=problem.ctx_t.torque_constants)
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
     return recal, selection_i, final_i, identified, (note,), None
@@ -408,22 +229,24 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
     kt_arr = None if kt is None else np.asarray(kt, dtype=float)
     logger.info("diagnose: evaluating the nominal model ...")
     recordings, missing, left_out = measured_torque((train, *validation_recordings(validation)), robot.joint_names)
+    held = held_links(model, robot, options.held_links) if options.rigid_body == "identified" else None
     ctx_t = _context(robot, model, recordings[0], options, kt_arr).without_torque(missing)
-    base_t, y_t = _least_squares(robot, options, ctx_t)
+    base_t, y_t = _least_squares(robot, options, ctx_t, held)
     validations = [_context(robot, model, v, options, kt_arr).without_torque(missing) for v in recordings[1:]]
-    parts = [(ctx, *_least_squares(robot, options, ctx)) for ctx in validations]
+    parts = [(ctx, *_least_squares(robot, options, ctx, held)) for ctx in validations]
     (ctx_v, base_v, y_v), extra = parts[0], tuple(parts[1:])
     problem = DiagnosisProblem(ctx_t, ctx_v, base_t, base_v, y_t, y_v, extra_v=extra, left_out=left_out)
     check_nominal_columns(robot, model, problem, options)
     return problem
 
 
-def _least_squares(robot, options: DiagnosisOptions, ctx) -> tuple:
-    """``(base, y)`` of a recording's context: the nominal model's free columns and the torque they are fitted to."""
+def _least_squares(robot, options: DiagnosisOptions, ctx, held=None) -> tuple:
+    """``(base, y)`` of a recording's context: the nominal model's free columns and the torque they are fitted to
+    (with the rigid body identified, its ``held`` links held: ``rigid_body_choice.rigid_body_part``)."""
     base = friction_blocks(robot, options.friction, ctx, held=options.held_friction.joints)
     if options.rigid_body != "identified":
         return base, ctx.tau_fit - ctx.tau_rigid
-    return base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau_fit
+    return rigid_body_part(ctx, base, held)
 
 
 def _context(robot, model, recording, options: DiagnosisOptions, kt) -> DiagnosisContext:
@@ -444,26 +267,30 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     """Forward selection of the library's terms, the BIC counted with the filter's effective sample count; the default
     library takes the friction shapes the nominal model lacks (``lacking_friction_shapes``: a model file's friction,
     whose Stribeck velocities are fixed and whose Coulomb friction is a step; the robot file's LuGre friction, whose
-    one Stribeck peak sits at the drive's velocity)."""
+    one Stribeck peak sits at the drive's velocity). The terms ``options.carried`` are columns of the nominal model,
+    kept and reported first (``carried_terms``)."""
     library = options.library if options.library is not None else default_library()
     lacking = options.friction_shapes and options.friction in ("coulomb_viscous", "stribeck")  # LuGre drives state them
     if options.library is None and options.friction_shapes:  # a LuGre nominal lacks a peak at another velocity
         library = library + CandidateLibrary(lacking_friction_shapes(options.friction))
-    ctx_t = problem.ctx_t
-    instances = [term for term in library.expand(robot.n_dof) if not set(term.joints) & set(left_out(ctx_t))]
+    ctx_t, carried = problem.ctx_t, CarriedColumns(options.carried)
+    instances = [term for term in library.expand(robot.n_dof)
+                 if not set(term.joints) & set(left_out(ctx_t)) and not carried.covers(term)]  # fmt: skip
     n_eff = None
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
     setting = "recalibrated rigid body" if options.rigid_body == "identified" else "nominal rigid body"
     logger.info(f"diagnose: [{setting}] selecting among {len(instances)} candidate terms ...")
-    validations = [(problem.ctx_v, problem.base_v, problem.y_v), *problem.extra_v]
+    base_t, base_v, extra_v = carried.bases(problem)
+    validations = [(problem.ctx_v, base_v, problem.y_v), *extra_v]
     opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2)
-    return forward_select(
-        instances, ctx_t, problem.ctx_v, problem.base_t, problem.base_v, problem.y_t, problem.y_v,
+    result = forward_select(
+        instances, ctx_t, problem.ctx_v, base_t, base_v, problem.y_t, problem.y_v,
         min_improvement=options.min_improvement, max_effects=options.max_effects, effective_samples=n_eff,
         joint_threshold=options.joint_threshold, opinion=opinion if problem.extra_v or options.cv_folds else None,
         rival=FrictionRival(ctx_t, validations, offer=lacking), setting=setting,
     )  # fmt: skip
+    return carried.selection(result, problem, n_eff)
 
 
 #: Terms whose nonlinear parameter judges the term itself: a friction drift settling within seconds is no warm-up

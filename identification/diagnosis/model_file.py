@@ -13,7 +13,10 @@ and the preparation it used. The friction identify held on joints that moved one
 (``one_way_friction``) stays held at the file's values in every fit of the diagnosis
 (``DiagnosisOptions.held_friction``): the diagnosis's nominal model predicts those joints as the file does, and its
 refits (the rigid body recalibrated, freely or inside the envelope, the findings' joint fits) keep it, as ``diagnose
---apply``'s refit does (``recalibrate``).
+--apply``'s refit does (``recalibrate``). So does the counterbalance identify took (``model_file_holds``): a column of
+the nominal model in every fit (``carried_terms``), its coefficients fitted again, reported first among the findings as
+kept from identify, so that no rigid-body refit of the diagnosis absorbs it into the links again; and the links identify
+held at the robot file's stay held in its rigid-body recalibrations (``held_links``).
 ``psdm diagnose`` calls :func:`diagnose_model_prior`, so the Python API and the command give the same numbers.
 """
 
@@ -32,6 +35,7 @@ from identification.calibration.counterbalance_record import counterbalance_offs
 from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.held_friction import HeldFriction
+from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import JointComparison
 from identification.data.filter_choice import AUTO
@@ -39,6 +43,7 @@ from identification.data.holdout import diagnose_parts, held_out_sentences
 from identification.data.layout import model_file_layout
 from identification.data.robot_recordings import load_robot_recording
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.motion_checks import validation_recordings
 from identification.diagnosis.report import DiagnosisReport
@@ -71,7 +76,10 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
     with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``)
     and the file's torque offsets, which every fit of the diagnosis keeps at the file's values
-    (``DiagnosisOptions.held_friction``, ``file_held``), unless ``options`` hold some."""
+    (``DiagnosisOptions.held_friction``, ``file_held``), unless ``options`` hold some; and the counterbalance identify
+    took (``model_file_holds``), a column of the nominal model (``DiagnosisOptions.carried``, ``carried_terms``), unless
+    ``options`` carry some; and the links identify held at the robot file's, held in every rigid-body recalibration of
+    the diagnosis (``DiagnosisOptions.held_links``), unless ``options`` hold some."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -82,11 +90,14 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
     friction = own_friction(calibrated) if options.friction == AUTO else options.friction
     held = options.held_friction if options.held_friction.values else file_held(calibrated.document)
+    holds = model_file_holds(calibrated.document)
+    carried = options.carried or carried_candidates(holds.counterbalance_terms)
     smooth = options.coulomb_velocity
     if friction != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
         smooth = float(calibrated.document["drive"].get("coulomb_velocity", SMOOTH_VELOCITY))
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
-                   held_friction=held, coulomb_velocity=smooth)  # fmt: skip
+                   held_friction=held, coulomb_velocity=smooth, carried=carried,
+                   held_links=options.held_links or holds.held_links)  # fmt: skip
 
 
 def file_held(document: dict) -> HeldFriction:
@@ -265,11 +276,32 @@ def file_before(report, loaded: LoadedModel, validation, name: str, choices=(Non
 
 
 def _carried(report, calibrated) -> str:
-    """The sentence naming the findings the model file already holds (its nominal model leaves them out)."""
-    pairs = carried_as(report.findings, calibrated.document)
-    if not pairs:
-        return ""
-    named = ", ".join(f"`{x}`" if x == held else f"`{held}` (found again as `{x}`)" for x, held in pairs)
-    return (f"the model file already carries {named}, identified with it; the diagnosis's nominal model leaves the "
-            "file's own findings out, so it finds them again (--apply keeps the file's where a new one would split "
-            "its torque)")  # fmt: skip
+    """The sentences naming the findings the model file already holds: the counterbalance identify took, kept in the
+    nominal model with its coefficients fitted again (``carried_terms``); the others, which the nominal model leaves
+    out, found again."""
+    kept = {f.label: f for f in report.findings if f.shape_note == KEPT_NOTE}
+    entries = {e.get("label"): e for e in model_file_holds(calibrated.document).counterbalances}
+    pairs = [(x, held) for x, held in carried_as(report.findings, calibrated.document) if x not in kept]
+    sentences = []
+    if kept:
+        sizes = "; ".join(_refit_size(label, kept[label], entries.get(label)) for label in kept)
+        sentences.append(f"the model file's counterbalance is kept from identify ({sizes}): a column of the "
+                         "diagnosis's nominal model in every fit, so no rigid-body refit absorbs it again")  # fmt: skip
+    if pairs:
+        named = ", ".join(f"`{x}`" if x == held else f"`{held}` (found again as `{x}`)" for x, held in pairs)
+        sentences.append(f"the model file already carries {named}, identified with it; the diagnosis's nominal model "
+                         "leaves the file's own findings out, so it finds them again (--apply keeps the file's where a "
+                         "new one would split its torque)")  # fmt: skip
+    return "; ".join(sentences)
+
+
+def _refit_size(label: str, finding, entry) -> str:
+    """ "`spring[j2]`: k = -3330 N m/rad in the file, -3290 fitted again" (the mean stiffness of the file's entry, when
+    it states one, and of the diagnosis's refit)."""
+    k = finding.parameters.get("k")
+    was = None if entry is None else (entry.get("parameters") or {}).get("k")
+    if k is None:
+        return f"`{label}`"
+    if was is None:
+        return f"`{label}`: k = {float(k):.4g} N m/rad fitted again"
+    return f"`{label}`: k = {float(was):.4g} N m/rad in the file, {float(k):.4g} fitted again"

@@ -10,6 +10,7 @@ from identification.data.excitation_check import ExcitationThresholds, check_joi
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.diagnosis.columns import row_chunks
 from identification.diagnosis.context import check_preprocessed
+from identification.diagnosis.held_links import held_links
 from identification.diagnosis.nominal import friction_feature_names, joint_friction_columns
 from identification.metrics import rms
 from psdm_casadi.errors import ParameterError
@@ -48,7 +49,11 @@ def check_nominal_columns(robot, model, problem, options) -> None:
     if options.friction == "lugre" and robot.drives is not None:  # the bristle dynamics of the LuGre prior
         names += [f"lugre_dynamics_{j + 1}" for j in range(n)]
         joints += [(j,) for j in range(n)]
-    if options.rigid_body == "identified":
+    held = held_links(model, robot, options.held_links) if options.rigid_body == "identified" else None
+    if held is not None:  # the free links' directions of the base parameters (``held_links``)
+        names += [f"free_rigid_body_{k + 1}" for k in range(held.basis.shape[1])]
+        joints += [tuple(range(n))] * held.basis.shape[1]
+    elif options.rigid_body == "identified":
         names += list(model.base_names)
         joints += list(base_parameter_joints(model))
     torque_rms = rms(problem.ctx_t.tau)

@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from identification.diagnosis.candidates import CandidateLibrary, default_library
+from identification.diagnosis.carried_terms import carried_labels
 
 __all__ = ["implausible_terms", "plausible_diagnosis"]
 
@@ -40,12 +41,20 @@ def implausible_terms(terms, coefficients, context) -> tuple:
 def plausible_diagnosis(run, options, n_dof: int) -> tuple:
     """``(fit, rejected)``: ``run(options)`` -> ``(problem, selection, final, options, notes, unnamed)``, run again
     without the library's instances of a term whose final coefficients are implausible (by family and joint: a
-    spring's chosen shape is one of its instance's variants), ``rejected`` the ``(label, reason)`` of those terms."""
+    spring's chosen shape is one of its instance's variants), ``rejected`` the ``(label, reason)`` of those terms. The
+    terms ``options.carried`` are not judged: they are the nominal model's (``carried_terms``)."""
     rejected = []
     for _ in range(MAX_ROUNDS):
         fit = run(options)
         problem, final = fit[0], fit[2]
-        bad = implausible_terms(final.terms, final.coefficients, problem.ctx_t)
+        carried = carried_labels(
+            options
+        )  # a model file's counterbalance: identify's judges kept it (``carried_terms``)
+        bad = [
+            (t, r)
+            for t, r in implausible_terms(final.terms, final.coefficients, problem.ctx_t)
+            if t.label not in carried
+        ]
         if not bad:
             break
         for term, reason in bad:

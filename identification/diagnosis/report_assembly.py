@@ -21,6 +21,7 @@ from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.counterbalance_naming import name_counterbalances
 from identification.diagnosis.design import left_out
+from identification.diagnosis.held_links import held_links
 from identification.diagnosis.joint_changes import explain_joint_changes, rise_sentence
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
 from identification.diagnosis.recording_checks import check_recordings
@@ -172,6 +173,8 @@ def augmented_model_of(robot, model, final, options, kt=None) -> AugmentedModel:
     theta = (
         robot_file_theta(robot, model, kt) if options.rigid_body == "prior" else friction_all[n_friction + n_dynamic :]
     )
+    held = held_links(model, robot, options.held_links) if options.rigid_body != "prior" else None
+    theta = theta if held is None else held.theta(theta)  # the free links' coefficients (``held_links``)
     vs, dv = friction_shapes(robot)
     return AugmentedModel(
         model=model,

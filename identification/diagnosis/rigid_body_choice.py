@@ -49,26 +49,27 @@ def with_regressor(context, model):
     return replace(context, regressor=regressor)
 
 
-def recalibration_parts(problem, model) -> dict:
+def recalibration_parts(problem, model, held=None) -> dict:
     """The fields of the ``DiagnosisProblem`` with the identified rigid body, from a prior-mode ``problem``: the
-    contexts with their regressor, the friction columns followed by the regressor's, and the whole torque (less a
-    model file's held friction, ``DiagnosisContext.tau_fit``)."""
+    contexts with their regressor, the friction columns followed by the rigid body's, and the whole torque (less a
+    model file's held friction, ``DiagnosisContext.tau_fit``); with ``held`` (``held_links.HeldLinks``), the rigid
+    body's columns are those of its free links and the held links' torque is taken off."""
     ctx_t, ctx_v = with_regressor(problem.ctx_t, model), with_regressor(problem.ctx_v, model)
-    return {
-        "ctx_t": ctx_t,
-        "ctx_v": ctx_v,
-        "base_t": problem.base_t.concatenate(BlockColumns.from_dense(ctx_t.regressor)),
-        "base_v": problem.base_v.concatenate(BlockColumns.from_dense(ctx_v.regressor)),
-        "y_t": ctx_t.tau_fit,
-        "y_v": ctx_v.tau_fit,
-        "extra_v": tuple(_with_regressor_part(ctx, base, model) for ctx, base, _ in problem.extra_v),
-    }
+    base_t, y_t = rigid_body_part(ctx_t, problem.base_t, held)
+    base_v, y_v = rigid_body_part(ctx_v, problem.base_v, held)
+    extra = tuple((c, *rigid_body_part(c, base, held)) for c, base in
+                  ((with_regressor(ctx, model), base) for ctx, base, _ in problem.extra_v))  # fmt: skip
+    return {"ctx_t": ctx_t, "ctx_v": ctx_v, "base_t": base_t, "base_v": base_v, "y_t": y_t, "y_v": y_v,
+            "extra_v": extra}  # fmt: skip
 
 
-def _with_regressor_part(ctx, base, model) -> tuple:
-    """A further validation recording's ``(ctx, base, y)`` with the identified rigid body."""
-    ctx = with_regressor(ctx, model)
-    return ctx, base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau_fit
+def rigid_body_part(ctx, base, held=None) -> tuple:
+    """``(columns, torque)`` of a context with its regressor: ``base`` followed by the rigid body's columns, and the
+    torque they are fitted to (``recalibration_parts``)."""
+    if held is None:
+        return base.concatenate(BlockColumns.from_dense(ctx.regressor)), ctx.tau_fit
+    columns = BlockColumns.from_dense(held.columns(ctx.regressor))
+    return base.concatenate(columns), ctx.tau_fit - held.torque(ctx.regressor)
 
 
 def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(), recalibrated_effects=()) -> bool:
@@ -166,14 +167,15 @@ def standing_in(claims, supporting, rmse_prior, rmse_recalibrated, needed=()) ->
     return tuple(sorted(joints)), tuple(sorted(keys))
 
 
-def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, needed=()) -> tuple:
+def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, needed=(), carried=()) -> tuple:
     """The non-inertial findings of the prior model's ``selection`` that only stand in for its wrong inertia, when
     the prior wins: ``(joints, keys)`` of ``standing_in``, judged against ``selection_identified`` (the selection with
     the rigid body identified), and only when the prior model kept an inertial finding (``inertia_in_question``).
-    ``rmse_*`` are the per-joint validation RMSE of the two fits (``prior_wins``); ``needed`` as in ``standing_in``."""
+    ``rmse_*`` are the per-joint validation RMSE of the two fits (``prior_wins``); ``needed`` as in ``standing_in``;
+    the terms labelled ``carried`` are the nominal model's (``carried_terms``), no finding to judge."""
     if not inertia_in_question(selection):
         return (), ()
-    claims = [Claim.of_step(step) for step in selection.steps]
+    claims = [Claim.of_step(step) for step in selection.steps if step.term.label not in carried]
     supporting = [Claim.of_step(step) for step in selection_identified.steps]
     return standing_in(claims, supporting, rmse_prior, rmse_recalibrated, needed)
 
@@ -200,24 +202,29 @@ def without_stand_ins(instances, joints, keys=()) -> tuple:
     )
 
 
-def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation, rmse_recalibrated, envelope=None):
+def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation, rmse_recalibrated, envelope=None,
+                   carried=()):  # fmt: skip
     """The prior fit without the findings that stand in for its wrong inertia (``stand_ins``): ``(selection, final,
     notes)``. ``reselect(instances)`` runs the prior diagnosis's selection and final fit on the candidate
     ``instances``; ``fit`` is its ``(selection, final)`` on all of them. Up to ``STAND_IN_PASSES`` rounds, since a
     new selection may take another stand-in. ``envelope(selection, joints)``, when given, is the
-    ``envelope_check.EnvelopeCheck`` of the findings on ``joints`` that would be dropped: those it needs stand."""
+    ``envelope_check.EnvelopeCheck`` of the findings on ``joints`` that would be dropped: those it needs stand. The
+    terms labelled ``carried`` (a model file's counterbalance, ``carried_terms``) are the nominal model's: never
+    dropped."""
     selection, final = fit
     notes = []
     for _ in range(STAND_IN_PASSES):
         rmse_prior = rmse(y_validation, final.prediction_v)
-        joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated)
+        joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, carried=carried)
         check = envelope(selection, joints) if envelope is not None and joints else None
         if check is not None and check.needed:
             notes.extend(note for note in check.notes() if note not in notes)
-            joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, check.claims)
+            joints, keys = stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, check.claims,
+                                     carried)  # fmt: skip
         if not (joints or keys):
             break
         kept = set(without_stand_ins([step.term for step in selection.steps], joints, keys))
+        kept |= {step.term for step in selection.steps if step.term.label in carried}
         labels = [step.term.label for step in selection.steps if step.term not in kept]
         named = sorted({j for step in selection.steps if step.term not in kept for j in step.joints})
         action = "the diagnosis was repeated without them"

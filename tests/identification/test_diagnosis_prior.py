@@ -108,8 +108,8 @@ def test_identify_then_diagnose_model_finds_the_heavy_arms_counterbalance(tmp_pa
 def test_identify_then_diagnose_model_names_a_counterbalance_the_model_carries_and_the_payload(tmp_path, denso):
     """A Denso with a cam counterbalance on joint 2 and a 1.5 kg payload (8 s training, 8 s held out): identify takes
     the counterbalance as a spring on joint 2 and leaves links pushed for the payload; diagnosing its model file starts
-    from the robot file's rigid body, finds the payload and the counterbalance on joint 2, and says the model already
-    carries it."""
+    from the robot file's rigid body, finds the payload, and keeps the counterbalance on joint 2 the model carries
+    (``carried_terms``), saying so."""
     import contextlib
     import io
     import json
@@ -142,7 +142,7 @@ def test_identify_then_diagnose_model_names_a_counterbalance_the_model_carries_a
     assert any(effect == "payload" for effect, _ in found)
     on_joint_2 = [f["label"] for f in report["findings"] if f["joints"] == [2]]
     notes = report["rigid_body_notes"]
-    assert on_joint_2 and any("already carries" in note and on_joint_2[0] in note for note in notes)
+    assert on_joint_2 and any("kept from identify" in note and on_joint_2[0] in note for note in notes)
 
 
 def _fits(rng, n=1500, worse_by=(0.0, 1.0, 0.0), noise=0.1):

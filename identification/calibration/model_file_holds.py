@@ -1,0 +1,74 @@
+"""What identify fixed in a calibrated model file, which every later fit of that file keeps: read in one place.
+
+calibrated-model document -> ``ModelFileHolds`` -> ``diagnose MODEL``'s nominal model (``diagnosis.carried_terms``) and
+``diagnose --apply``'s refit (``recalibrate``).
+
+Identify writes two things that a refit must not undo, because the data that decided them are not in the refit:
+
+- the links it held at the robot file's (``worse_joint_hold``: joints the robot-file check named worse on the held-out
+  recordings, ``identification.worse_joints.held_links``): a refit that frees them fits them to what the other
+  joints ask of them again;
+- the counterbalance it took (``counterbalance_column``: a spring on a joint its report named, ``findings[]`` with
+  ``source`` ``"identify"``): the links' first moments absorb a counterbalance whose torque has the shape of the
+  joint's gravity, so a refit of the rigid body without the spring's column takes it into the links again, and the
+  diagnosis no longer sees it (issue 25: the heavy arm's balancer, found by ``diagnose ROBOT`` and lost by
+  ``diagnose MODEL``). The spring stays a column of the model: its coefficients are fitted again, its shape is the
+  file's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from identification.calibration.counterbalance_column import COUNTERBALANCE_SOURCE
+from identification.calibration.findings import FindingTerm
+
+__all__ = ["ModelFileHolds", "model_file_holds"]
+
+
+@dataclass(frozen=True)
+class ModelFileHolds:
+    """What a model file holds for its refits (module docstring).
+
+    Attributes
+    ----------
+    held_links : tuple of int
+        Links (0-based) identify held at the robot file's inertia (``TrajectoryOptions.held_links``).
+    counterbalances : tuple of dict
+        The ``findings`` entries of the counterbalances identify took (torque findings with ``source`` ``"identify"``).
+    """
+
+    held_links: tuple = ()
+    counterbalances: tuple = ()
+
+    @property
+    def counterbalance_terms(self) -> tuple:
+        """The ``FindingTerm`` of each counterbalance (its columns: the file's shape)."""
+        return tuple(FindingTerm.from_dict(entry["term"]) for entry in self.counterbalances)
+
+    @property
+    def counterbalance_labels(self) -> tuple:
+        return tuple(str(entry.get("label", "")) for entry in self.counterbalances)
+
+    def describe(self) -> str:
+        """What is held, in words (empty: nothing)."""
+        parts = []
+        if self.counterbalances:
+            parts.append(f"the counterbalance identify took ({', '.join(self.counterbalance_labels)})")
+        if self.held_links:
+            parts.append(f"link(s) {', '.join(str(i + 1) for i in self.held_links)} held at the robot file's inertia")
+        return " and ".join(parts)
+
+
+def model_file_holds(document: dict) -> ModelFileHolds:
+    """The ``ModelFileHolds`` of a calibrated-model ``document`` (files without them: none)."""
+    identification = document.get("identification") or {}
+    links = (identification.get("worse_joints") or {}).get("held_links") or []
+    counterbalances = tuple(
+        entry
+        for entry in document.get("findings") or ()
+        if entry.get("source") == COUNTERBALANCE_SOURCE
+        and entry.get("kind") == "torque"
+        and isinstance(entry.get("term"), dict)
+    )
+    return ModelFileHolds(held_links=tuple(sorted(int(i) - 1 for i in links)), counterbalances=counterbalances)

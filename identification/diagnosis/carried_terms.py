@@ -1,0 +1,107 @@
+"""A model file's counterbalance in ``diagnose MODEL``'s nominal model: kept from identify, not selected again.
+
+``DiagnosisOptions.carried`` (from ``model_file.model_file_options``: the springs identify took,
+``calibration.model_file_holds``) -> the selection's nominal columns -> the first kept steps of its result.
+
+Left out of the nominal model, identify's counterbalance is back in the residual, and the diagnosis's first rigid-body
+fit (``rigid_body_choice``: the full recalibration it judges the prior's findings against) takes it into the links'
+first moments again, inside or outside their envelope; the spring the selection then finds no longer helps, and the
+counterbalance identify found is lost (issue 25: the heavy arm's balancer, found 2 of 6 times by ``diagnose MODEL``).
+So the carried terms are columns of the nominal model in every fit of the diagnosis (the prior's, the recalibrated
+rigid body's, the second opinion's, the stand-in check's): their coefficients are fitted again with the friction (and
+the rigid body, when it is identified), their shape is the file's. The library offers no other spring on their joints
+(one counterbalance, not two sharing its torque). They are reported first among the findings, with the validation
+RMSE without and with them and a shape note that says they were kept from the model file
+(``CarriedColumns.selection``); the stand-in check does not drop them (``rigid_body_choice.drop_stand_ins``), and the
+plausibility check does not judge them as a new spring (``plausible_fit``: identify's judges kept them).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from identification.diagnosis.columns import BlockColumns
+from identification.diagnosis.design import WeightedDesign, joint_weights, left_out
+from identification.metrics import rmse
+
+__all__ = ["KEPT_NOTE", "CarriedColumns", "carried_candidates", "carried_labels"]
+
+#: The shape note of a carried term's step (and so of its finding).
+KEPT_NOTE = (
+    "kept from identify: the model file's counterbalance is a column of the diagnosis's nominal model (its shape the "
+    "file's, its coefficients fitted again), not a candidate; the RMSE pair is the nominal model without and with it"
+)
+#: Candidate families that would take a carried counterbalance's torque on its joint.
+COUNTERBALANCE_KEYS = ("spring", "gas_spring")
+
+
+def carried_candidates(terms) -> tuple:
+    """The diagnosis's candidate term of each ``findings.FindingTerm`` in ``terms`` (a model file's counterbalances,
+    ``ModelFileHolds.counterbalance_terms``): the term its spec describes, or the linear spring."""
+    from identification.diagnosis.candidates import SpringTerm
+
+    return tuple(t.candidate if t.spec is not None else SpringTerm(joint=t.joint, order=1) for t in terms)
+
+
+def carried_labels(options) -> set:
+    """The labels of the terms ``options`` (``DiagnosisOptions``) carry."""
+    return {term.label for term in getattr(options, "carried", ())}
+
+
+@dataclass(frozen=True, eq=False)
+class CarriedColumns:
+    """The carried ``terms`` (candidate terms with a joint) of a ``DiagnosisProblem`` (module docstring)."""
+
+    terms: tuple = ()
+
+    def covers(self, term) -> bool:
+        """Whether the library's ``term`` would take a carried counterbalance's torque (a spring on its joint)."""
+        joints = {j for carried in self.terms for j in carried.joints}
+        return term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & joints)
+
+    def columns(self, context) -> BlockColumns | None:
+        """The carried terms' columns on ``context`` (None without terms)."""
+        if not self.terms:
+            return None
+        return BlockColumns.from_dense(np.concatenate([t.columns(context) for t in self.terms], axis=2))
+
+    def bases(self, problem) -> tuple:
+        """``(base_t, base_v, extra_v)`` of ``problem`` with the carried columns after the nominal ones."""
+        if not self.terms:
+            return problem.base_t, problem.base_v, problem.extra_v
+        base_t = problem.base_t.concatenate(self.columns(problem.ctx_t))
+        base_v = problem.base_v.concatenate(self.columns(problem.ctx_v))
+        extra = tuple((ctx, base.concatenate(self.columns(ctx)), y) for ctx, base, y in problem.extra_v)
+        return base_t, base_v, extra
+
+    def selection(self, result, problem, effective_samples=None):
+        """The ``SelectionResult`` of a selection run on ``bases``: the carried coefficients out of the nominal ones,
+        each carried term a kept step before the selection's, its RMSE pair the nominal model without and with the
+        carried terms (``KEPT_NOTE``)."""
+        if not self.terms:
+            return result
+        from identification.diagnosis.selection import SelectionStep
+
+        p0 = problem.base_t.n_columns
+        sizes = [len(t.feature_names()) for t in self.terms]
+        bounds = np.cumsum([p0, *sizes])
+        beta = np.asarray(result.friction_coefficients, dtype=float)
+        coefficients = tuple(beta[a:b].copy() for a, b in zip(bounds[:-1], bounds[1:]))
+        sigma = joint_weights(problem.ctx_t.tau, left_out(problem.ctx_t))
+        design = WeightedDesign(problem.base_t, problem.base_v, problem.y_t, problem.y_v, sigma)
+        _, sse0, rmse_t0, rmse_v0, _, _ = design.fit(full=True)
+        rmse_t1, rmse_v1 = rmse(problem.y_t, result.nominal_train), rmse(problem.y_v, result.nominal_validation)
+        sse1 = max(float(np.sum(((problem.y_t - result.nominal_train) / sigma) ** 2)), 1e-300)
+        n = float(problem.y_t.shape[0] if effective_samples is None else effective_samples) * problem.y_t.shape[1]
+        delta_bic = n * np.log(sse1 / sse0) + sum(sizes) * np.log(n)
+        wval0, wval1 = (float(np.sum(r**2 / sigma**2)) for r in (rmse_v0, rmse_v1))
+        steps = tuple(
+            SelectionStep(term=t, joints=tuple(t.joints), rmse_before=rmse_v0, rmse_after=rmse_v1,
+                          rmse_train_before=rmse_t0, rmse_train_after=rmse_t1, delta_bic=float(delta_bic),
+                          validation_gain=(wval0 - wval1) / max(wval0, 1e-300), shape_note=KEPT_NOTE)
+            for t in self.terms
+        )  # fmt: skip
+        return replace(result, steps=steps + tuple(result.steps), friction_coefficients=beta[:p0].copy(),
+                       coefficients=coefficients + tuple(result.coefficients))  # fmt: skip
