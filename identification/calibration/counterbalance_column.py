@@ -17,8 +17,8 @@ law of order 5 about a fitted neutral angle where the training data support it b
 (``counterbalance_laws``: the diagnosis's ``SpringTerm`` shape, ``candidates.counterbalance_law``; in a block
 cross-validation its angle is fitted again on each fold's training blocks). A kept spring is a
 ``findings`` entry with ``source`` ``"identify"``, applied by ``psdm validate``, ``predict``, ``diagnose`` (which keeps
-it in its nominal model, ``model_file_holds``) and the exported code alike; otherwise the model without it is written and the report
-says why and suggests the route that fits it against the robot file (``psdm diagnose ROBOT ...``).
+it in its nominal model, ``model_file_holds``) and the exported code alike; otherwise the model without it is written
+and the report says why and suggests the route that fits it against the robot file (``psdm diagnose ROBOT ...``).
 
 The spring is judged out of sample by the same rules as a diagnosis's finding (``diagnosis.second_opinion``): the
 held-out recordings (``--validate A [B ...]``) and, with at most one of them, a block cross-validation over the

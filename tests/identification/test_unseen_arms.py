@@ -29,8 +29,6 @@ import dataclasses
 import numpy as np
 import pytest
 
-from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
-
 
 @pytest.mark.slow
 def test_the_slow_gravity_arm_at_seed_1_fits_to_its_floor_with_the_smoothing_of_its_reversals(
@@ -48,7 +46,6 @@ def test_the_slow_gravity_arm_at_seed_1_fits_to_its_floor_with_the_smoothing_of_
     assert "not 0.05 (chosen from the data" in document  # the smoothing stated in the model file's column choice
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
 @pytest.mark.slow
 def test_the_heavy_arm_at_seed_2_takes_the_counterbalance_and_keeps_link_2_near_its_mass(benchmark_modules, tmp_path):
     from heavy_arm import run_case
