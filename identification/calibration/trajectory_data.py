@@ -28,7 +28,7 @@ import numpy as np
 
 from identification.data.excitation_check import check_joint_motion
 from identification.data.filter_choice import EDGE_PERIODS, choose_filter, edge_samples, kept_samples
-from identification.data.plausibility import check_plausible_recording
+from identification.data.plausibility import check_plausible_recording, check_torque_scale
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
@@ -78,15 +78,23 @@ def prepare_recording(
     return prepared, cutoff, step
 
 
-def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = None, edge_periods=EDGE_PERIODS) -> tuple:
+def prepare_recordings(
+    robot, recordings, kt=None, cutoff_hz: float | None = None, edge_periods=EDGE_PERIODS, torque_constants=None
+) -> tuple:
     """(cutoffs, decimation steps, prepared recordings): each recording checked against ``robot``, then prepared
     (``prepare_recording``).
+
+    ``torque_constants`` (n_dof,): what makes a prepared current the joint torque for the torque-scale check where
+    ``kt`` leaves it in amperes (the fleet's ``kt = 1``: it refits the robot file's kt and passes those); by default
+    the prepared torque is the joint torque already (``kt`` times the current, or the recorded torque).
 
     Raises
     ------
     RecordingError
-        For a recording of another robot, one in the wrong units (``plausibility.check_plausible_recording``), or
-        one in which a joint barely moves (naming it and the fix).
+        For a recording of another robot, one in the wrong units (``plausibility.check_plausible_recording``), one
+        whose torque is off the robot file's by the same large factor on most joints (``plausibility.
+        check_torque_scale``: a torque constant without its gear ratio, a torque unit), or one in which a joint
+        barely moves (naming it and the fix).
     """
     cutoffs, steps, prepared = [], [], []
     for rec in recordings:
@@ -95,6 +103,7 @@ def prepare_recordings(robot, recordings, kt=None, cutoff_hz: float | None = Non
         check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
                            fix=MOTION_FIX)  # fmt: skip
         ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz, edge_periods)
+        check_torque_scale(ready, robot, currents=rec.tau is None, torque_constants=torque_constants)
         cutoffs.append(cutoff)
         steps.append(step)
         prepared.append(ready)

@@ -11,12 +11,22 @@ recordings (``trajectory_data.prepare_recordings``), the calibration data folder
 (``excitation.check_calibration_data``), the diagnosis (``diagnose.diagnose``) and the recordings a model is
 validated on (``trajectory_checks.check_validation_recording``: ``psdm validate``, ``identify --validate``).
 
+The torque is checked too, once the recording is prepared (filtered and differentiated, ``q``, ``qd``, ``qdd``
+and the joint torque): :func:`check_torque_scale` fits per joint the least-squares scale of the recorded torque
+onto the torque the robot file's rigid body predicts for the same motion. A torque constant given without the gear
+ratio (the motor's kt), inverted gear ratios or a torque unit scale every joint alike, by 1/100, 1/10000 or 1000;
+identify then fitted for half an hour (the counterbalance route tried to explain the missing torque) instead of
+saying so. Most joints off by the same large factor is refused, naming the recording, the factor and the likely
+causes; a single joint off is a warning naming it. Run by ``trajectory_data.prepare_recordings``, before any fit.
+
 The bounds are loose on purpose (:class:`PlausibilityThresholds`): they separate a unit or mapping
-error, which misses by a factor of tens to a thousand, from a real recording that grazes a limit.
+error, which misses by a factor of tens to a thousand, from a real recording that grazes a limit, or a robot file
+whose inertias are off by a few times on a link (vendor URDFs), with friction, rotor inertia and a payload on top.
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,8 +34,19 @@ import numpy as np
 from identification.data.excitation_check import joint_label, joint_motion
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
+from psdm_casadi.said_once import SAID, say
 
-__all__ = ["PlausibilityThresholds", "check_plausible_recording", "looks_like_milliseconds"]
+__all__ = [
+    "PlausibilityThresholds",
+    "TorqueScale",
+    "check_plausible_recording",
+    "check_torque_scale",
+    "friction_columns",
+    "looks_like_milliseconds",
+    "torque_scale",
+]
+
+logger = logging.getLogger(__name__)
 
 DEGREE = np.pi / 180.0
 MILLISECOND_RATE = 1000.0  # speeds of a time column in ms are this many times too small
@@ -49,14 +70,32 @@ class PlausibilityThresholds:
     max_millisecond_step : float
         Median time step [s] above which a recording whose every joint is a thousand times too slow is
         taken for a time column in milliseconds (default 0.05: no robot is identified from 20 Hz data).
+    torque_factor : float
+        Recorded over predicted torque (a joint's least-squares scale, :func:`torque_scale`) beyond which, or below
+        whose inverse, a joint's torque is off (default 10). A vendor URDF off by 2-3x on a link, friction and rotor
+        inertia the file lacks, or a payload move a joint's scale by a few times; a forgotten gear ratio by ~100.
+    joint_torque_factor : float
+        The same for one joint alone, which is warned about (default 30): a joint whose predicted torque is small
+        (a wrist, whose vendor inertias are the least known) or that carries a payload the file lacks strays further
+        than most joints of a recording can.
+    torque_correlation : float
+        Least correlation of a joint's recorded with its predicted torque for its scale to be judged (default 0.5):
+        a joint whose predicted torque is small next to its friction has no scale to speak of.
+    pooled_correlation : float
+        The same for the torque of all joints pooled, whose scale decides a refusal (default 0.25): lower, since the
+        refusal asks the pooled RMS ratio to agree too, and a heavily geared arm's friction takes much of its torque.
     """
 
     limit_margin_fraction: float = 0.1
     speed_factor: float = 5.0
     max_millisecond_step: float = 0.05
+    torque_factor: float = 10.0
+    joint_torque_factor: float = 30.0
+    torque_correlation: float = 0.5
+    pooled_correlation: float = 0.25
 
     def __post_init__(self):
-        for name in ("limit_margin_fraction", "speed_factor", "max_millisecond_step"):
+        for name in self.__dataclass_fields__:
             value = getattr(self, name)
             if not (isinstance(value, (int, float, np.number)) and np.isfinite(value) and value > 0):
                 raise ParameterError(f"PlausibilityThresholds.{name} must be finite and > 0; got {value!r}.")
@@ -189,3 +228,195 @@ def check_plausible_recording(recording: Recording, robot, thresholds: Plausibil
             + ". Fix the recording's units (q in rad or m, t in s; a log's own units are stated in --columns, e.g. "
             "q=Position:deg,tau=Torque:mNm,t=Time:ms) or the robot file."
         )
+
+
+#: Samples of a prepared recording the torque's scale is judged on (evenly spaced; an hour of data is not needed).
+TORQUE_SAMPLES = 2000
+#: Velocity [rad/s] of the smoothed Coulomb column fitted along with the scale (``friction_columns``).
+FRICTION_VELOCITY = 0.01
+
+
+@dataclass(frozen=True)
+class TorqueScale:
+    """The recorded torque over the robot file's rigid-body torque for the same motion, per joint and pooled.
+
+    ``scale`` is per joint the least-squares factor ``s`` of ``tau_recorded ~ s tau_file`` (NaN where the file
+    predicts no torque or the joint has none recorded) and ``correlation`` the cosine of the two signals (a wrong scale
+    keeps it; rotor inertia the file lacks lowers it). ``overall`` and ``overall_correlation`` are the same pooled over
+    the joints, so the joints the file predicts most torque for (gravity's, which the file knows best) weigh most;
+    ``rms_ratio`` is the pooled RMS of the recorded over the predicted torque. ``predicted_rms`` is each joint's
+    predicted RMS [N m]. All of them without the friction columns, when :func:`torque_scale` is given them.
+    """
+
+    scale: np.ndarray
+    correlation: np.ndarray
+    predicted_rms: np.ndarray
+    overall: float = float("nan")
+    overall_correlation: float = float("nan")
+    rms_ratio: float = float("nan")
+
+    def judged(self, thresholds: PlausibilityThresholds) -> np.ndarray:
+        """The joints (bool, n_dof) whose scale says something: positive and correlated."""
+        with np.errstate(invalid="ignore"):
+            return np.isfinite(self.scale) & (self.scale > 0) & (self.correlation >= thresholds.torque_correlation)
+
+    def global_factor(self, thresholds: PlausibilityThresholds) -> float | None:
+        """The factor every joint's torque is off by (the pooled scale), or None when it is within
+        ``torque_factor`` either way, the pooled signals do not correlate, or the RMS ratio disagrees."""
+        factor, limit = self.overall, thresholds.torque_factor
+        if not (np.isfinite(factor) and factor > 0 and self.overall_correlation >= thresholds.pooled_correlation):
+            return None
+        low = factor <= 1.0 / limit and self.rms_ratio <= 1.0 / limit
+        return factor if low or (factor >= limit and self.rms_ratio >= limit) else None
+
+    def odd_joints(self, thresholds: PlausibilityThresholds) -> np.ndarray:
+        """The judged joints (int, 0-based) off by more than ``joint_torque_factor``: too small, or too large where the
+        file predicts a torque of some size (a tenth of the largest joint's; on a joint it predicts little for, friction
+        and rotor inertia the file lacks make the recorded torque many times the predicted)."""
+        judged, limit = self.judged(thresholds), thresholds.joint_torque_factor
+        scale = np.where(judged, self.scale, 1.0)
+        sizeable = self.predicted_rms >= 0.1 * np.nanmax(self.predicted_rms)
+        return np.flatnonzero(judged & ((scale <= 1.0 / limit) | ((scale >= limit) & sizeable)))
+
+
+def _cosine(x, y) -> float:
+    norm = float(np.sqrt((x @ x) * (y @ y)))
+    return float(x @ y) / norm if norm > 0 else float("nan")
+
+
+def friction_columns(qd, velocity: float = FRICTION_VELOCITY) -> np.ndarray:
+    """Per joint the columns a drive's friction and offset add to its torque: ``tanh(qd / velocity)``, ``qd`` and 1
+    (n_samples, n_dof, 3); the robot file predicts none of them, so the scale is judged without them."""
+    qd = np.asarray(qd, dtype=float)
+    return np.stack([np.tanh(qd / velocity), qd, np.ones_like(qd)], axis=2)
+
+
+def _without(columns, signal) -> np.ndarray:
+    """``signal`` (n,) less its least-squares fit by ``columns`` (n, k)."""
+    coefficients = np.linalg.lstsq(columns, signal, rcond=None)[0]
+    return signal - columns @ coefficients
+
+
+def torque_scale(recorded, predicted, nuisance=None) -> TorqueScale:
+    """:class:`TorqueScale` of ``recorded`` onto ``predicted`` torques (both (n_samples, n_dof); NaN rows left out).
+
+    ``nuisance`` (n_samples, n_dof, k), e.g. :func:`friction_columns`: per joint, columns fitted along with the scale
+    (their share taken out of both signals first), so a friction the file lacks neither inflates nor hides the scale.
+    """
+    recorded, predicted = np.asarray(recorded, dtype=float), np.asarray(predicted, dtype=float)
+    ok = np.isfinite(recorded) & np.isfinite(predicted)
+    x, y = np.where(ok, predicted, 0.0), np.where(ok, recorded, 0.0)
+    if nuisance is not None:
+        for j in np.flatnonzero(ok.sum(axis=0) > np.shape(nuisance)[2]):
+            rows = ok[:, j]
+            x[rows, j] = _without(nuisance[rows, j], x[rows, j])
+            y[rows, j] = _without(nuisance[rows, j], y[rows, j])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scale = np.einsum("nj,nj->j", x, y) / np.einsum("nj,nj->j", x, x)
+        correlation = np.array([_cosine(x[:, j], y[:, j]) for j in range(x.shape[1])])
+        rms = np.sqrt(np.sum(x**2, axis=0) / np.maximum(ok.sum(axis=0), 1))
+        overall = float(np.sum(x * y) / np.sum(x * x))
+        rms_ratio = float(np.sqrt(np.sum(y * y) / np.sum(x * x)))
+    # a joint the file predicts next to no torque for (a massless last link) has no scale: NaN, not 1e15
+    scale = np.where((ok.sum(axis=0) >= 3) & (rms > 1e-9 * np.max(rms, initial=0.0)), scale, np.nan)
+    return TorqueScale(scale, correlation, rms, overall, _cosine(x.ravel(), y.ravel()), rms_ratio)
+
+
+def _joint_list(joints) -> str:
+    joints = [int(j) + 1 for j in joints]
+    consecutive = len(joints) > 2 and joints == list(range(joints[0], joints[-1] + 1))
+    return f"{joints[0]}-{joints[-1]}" if consecutive else ", ".join(map(str, joints))
+
+
+def _scale_causes(factor: float, robot, currents: bool) -> str:
+    """The likely causes of every joint's torque being ``factor`` times the robot file's, most likely first."""
+    transmission = getattr(robot, "transmission", None)
+    ratios = None if transmission is None else np.abs(np.diag(np.asarray(transmission.coupling, dtype=float)))
+    causes = ["the torque's unit (state the log's unit: --columns tau=PREFIX:mNm, or convert it to N m)"]
+    for unit, size in (("mN m", 1e3), ("kN m", 1e-3)):
+        if abs(np.log(factor / size)) <= np.log(2.0):  # a unit's factor, as far as friction and the file allow
+            causes[0] = f"torques in {unit}? (N m expected; state the log's unit: --columns tau=PREFIX:mNm)"
+    if factor < 1.0 and ratios is not None and np.median(ratios) < 1.0:
+        ratio = float(np.median(ratios))
+        causes.insert(0, "inverted gear ratios: [transmission] gear_ratios are motor turns per joint turn (the robot "
+                      f"file states {ratio:.3g}; a gearbox reduces, e.g. {1.0 / ratio:.3g})")  # fmt: skip
+    elif factor < 1.0 and currents:
+        causes.insert(0, "torque constants without the gear ratio: a [[drive]] table's kt is the joint-side constant, "
+                      f"gear ratio x the motor's kt; did you give the motor's kt without the gear ratio (about "
+                      f"{1.0 / factor:.3g})? Or give motor_kt and gear_ratios in [transmission]")  # fmt: skip
+    elif currents:
+        causes.append("the torque constants kt (N m/A at the joint) or the gear ratios")
+    else:
+        causes.append('the torque signal\'s gear ratio (motor-side torque needs [recording] side = { tau = "motor" })')
+    causes.append("or the robot file's links are not this robot's (identify bounds the masses around them)")
+    return "; ".join(causes)
+
+
+def check_torque_scale(
+    recording: Recording,
+    robot,
+    currents: bool = False,
+    thresholds: PlausibilityThresholds | None = None,
+    torque_constants=None,
+) -> TorqueScale | None:
+    """Refuse a prepared ``recording`` whose torque is off the robot file's by the same large factor on most joints.
+
+    The robot file's rigid body (``PinocchioOracle.rnea``, rotor inertias included) predicts the torque of the
+    recorded motion; :func:`torque_scale` compares. A pooled scale beyond ``thresholds.torque_factor`` either way (the
+    pooled RMS ratio too) is refused; one joint beyond ``thresholds.joint_torque_factor`` is warned about, naming it.
+
+    Parameters
+    ----------
+    recording : Recording
+        Prepared (``q``, ``qd``, ``qdd`` and the joint torque ``tau``); its ``name`` is the file named.
+    robot : RobotDescription
+        Without links (no rigid body to predict with) nothing is checked.
+    currents : bool
+        The torque was made from currents with the robot file's torque constants (the message names them).
+    torque_constants : array (n_dof,), optional
+        Per joint the factor [N m/A] that makes the prepared ``tau`` the joint torque, where it is not one already: the
+        fleet prepares its currents in amperes (it refits the robot file's kt, ``fleet.session.read_session``) and
+        passes the file's kt. NaN on a joint: no torque constant is known, its scale is not judged.
+
+    Returns
+    -------
+    TorqueScale or None
+        The per-joint scales (None: not checked).
+
+    Raises
+    ------
+    RecordingError
+        Naming the recording, the factor, the joints and the likely causes (torque unit, torque constants, gear ratios).
+    """
+    thresholds = PlausibilityThresholds() if thresholds is None else thresholds
+    if getattr(robot, "links", None) is None or recording.tau is None or recording.qdd is None:
+        return None
+    if recording.n_dof != robot.n_dof or recording.n_samples < 3:
+        return None
+    from psdm_casadi.oracle import PinocchioOracle
+
+    rows = np.unique(np.linspace(0, recording.n_samples - 1, min(TORQUE_SAMPLES, recording.n_samples)).astype(int))
+    predicted = PinocchioOracle(robot).rnea(recording.q[rows], recording.qd[rows], recording.qdd[rows])
+    recorded = recording.tau[rows] * (1.0 if torque_constants is None else np.asarray(torque_constants, dtype=float))
+    found = torque_scale(recorded, predicted, friction_columns(recording.qd[rows]))
+    source, factor = recording.name or "the recording", found.global_factor(thresholds)
+    if factor is not None:
+        shown = np.isfinite(found.scale)
+        each = f"{_joint_list(np.flatnonzero(shown))}: " + ", ".join(f"{s:.3g}" for s in found.scale[shown])
+        inverse = f" (1/{1.0 / factor:.3g})" if factor < 1.0 else ""
+        raise RecordingError(
+            f"Recording {source}: the recorded torque is about {factor:.3g} times{inverse} the torque the robot file "
+            f"predicts for the same motion (least squares over all joints; per joint {each}); a robot file's inertias "
+            "are not that far off. Likely causes: "
+            f"{_scale_causes(factor, robot, currents)}. Fix the robot file or the recording and run again."
+        )
+    for j in found.odd_joints(thresholds):
+        message = (
+            f"Recording {source}: joint {j + 1} ({joint_label(j, robot)}) records {found.scale[j]:.3g} times the "
+            f"torque the robot file predicts for it, more than {thresholds.joint_torque_factor:g} times off where the "
+            "others are not: check that joint's torque constant, gear ratio and unit, or the column order"
+            + ("; or a load the robot file does not carry (state the payload)." if found.scale[j] > 1 else ".")
+        )
+        if message not in SAID:
+            say(logger, message)
+    return found

@@ -107,7 +107,10 @@ def read_session(task: SessionTask, baseline: Baseline) -> tuple:
             "per day or split the day."
         )
     kt = np.ones(robot.n_dof) if currents else None  # currents stay in amperes: kt is refitted
-    _, _, prepared = prepare_recordings(robot, recordings, kt)
+    # the torque-scale check compares joint torques: the currents times the robot file's kt, which the refit starts from
+    # (none in the file: the current's scale is not judged)
+    constants = None if not currents else baseline.kt if robot.drives else np.full(robot.n_dof, np.nan)
+    _, _, prepared = prepare_recordings(robot, recordings, kt, torque_constants=constants)
     return prepared, currents
 
 

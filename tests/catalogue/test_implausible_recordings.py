@@ -202,11 +202,15 @@ def test_torques_of_two_joints_swapped_are_flagged(arm, tmp_path, capsys):
     assert any("mapping wrong" in w and "joint 1" in w for w in document["warnings"])
 
 
-def test_torques_in_milli_newton_metres_are_flagged_by_the_link_masses(arm, tmp_path, capsys):
+def test_torques_in_milli_newton_metres_are_refused_before_any_fit(arm, tmp_path, capsys):
+    """Every joint's torque about 1000x what the robot file predicts for the motion: refused naming the unit
+    (``plausibility.check_torque_scale``), not fitted into link masses an order of magnitude off."""
     code, err, document = _identified(arm, tmp_path, capsys, "mNm.csv", tau=1000.0 * arm[2].tau)
-    assert code == 0 and "rigid-body torques" in err and "mN m?" in err
-    assert any("times the robot file's" in w for w in document["warnings"])
-    assert not any("pushed against" in w for w in document["warnings"])  # the unit, not a payload, is named
+    assert code == 2 and document is None and "Traceback" not in err
+    assert "mNm.csv" in err and "mN m?" in err and "--columns tau=PREFIX:mNm" in err
+    factor = float(err.split("the recorded torque is about ")[1].split(" times")[0])
+    assert factor == pytest.approx(1000.0, rel=0.3)
+    assert "pushed against" not in err  # the unit, not a payload, is named
 
 
 def test_validating_on_the_training_file_warns_that_it_is_not_held_out(arm, tmp_path, capsys, monkeypatch):

@@ -171,18 +171,18 @@ def test_diagnose_names_its_one_training_recording_when_given_identifys_list(tmp
     assert code == 2 and "--train takes one recording; got 2 (a.csv, b.csv)" in err and "Traceback" not in err
 
 
-def test_torques_in_mnm_left_unstated_are_blamed_on_the_unit_alone(logged_arm, capsys):
-    """The torques 1000x the robot file's on every joint: one warning naming the unit and the --columns fix, not a
-    wrong torque sign per joint nor a counterbalance pushing each link against its envelope."""
+def test_torques_in_mnm_left_unstated_are_refused_naming_the_unit_alone(logged_arm, capsys):
+    """The torques 1000x the robot file's on every joint: refused before any fit (exit 2), naming the unit and the
+    --columns fix, not a wrong torque sign per joint nor a counterbalance pushing each link against its envelope
+    (``plausibility.check_torque_scale``)."""
     folder, path = logged_arm
     out = folder / "mnm.json"
     code = main(["identify", str(folder / "arm.toml"), "--data", str(path), "--columns", "t=Time:ms,q=Pos:deg,tau=Trq",
                  "--out", str(out), "--no-html"])  # fmt: skip
     captured = capsys.readouterr()
-    warnings = [line for line in captured.err.splitlines() if "warning" in line]
-    assert code == 0 and len(warnings) == 1, warnings
-    assert "torques in mN m?" in warnings[0] and "--columns tau=PREFIX:mNm" in warnings[0]
-    assert "PUSHED" not in captured.out and "Torque sign" not in captured.err
+    assert code == 2 and not out.exists() and "Traceback" not in captured.err, captured.err
+    assert "torques in mN m?" in captured.err and "--columns tau=PREFIX:mNm" in captured.err
+    assert "PUSHED" not in captured.out and "Torque sign" not in captured.err and "counterbalance" not in captured.err
 
 
 def test_a_bag_whose_driver_prefixes_the_joint_names_is_read_by_them(tmp_path, caplog):

@@ -2,7 +2,9 @@
 
 ``psdm identify`` stores in the model file the warnings that point at a wrong recording (here: torques in
 mN m, which make link masses an order of magnitude off); ``psdm validate`` and ``psdm codegen`` read the
-file later and repeat them (stderr, ``--json``, the C header). A validation recording whose joint stands
+file later and repeat them (stderr, ``--json``, the C header). Identify now refuses torques in mN m before any fit
+(``plausibility.check_torque_scale``): the model file identified from them here is one written before that refusal
+(the check switched off for it). A validation recording whose joint stands
 still is refused naming the joint rather than given an R^2; a recording in degrees is refused once, by the
 library the command calls. Inputs: the 3-joint arm of the catalogue on the virtual robot; the recording
 in N m is the control (no warning).
@@ -17,9 +19,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from identification.calibration import trajectory_data
 from identification.calibration.trajectory_checks import check_validation_recording
 from identification.calibration.trajectory_fit import identify_trajectories
 from identification.data.io import load_recording, save_recording
+from identification.diagnosis import motion_checks
 from identification.diagnosis.candidates import TorqueOffsetTerm
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.virtual.simulation import SimulationOptions, simulate_recording
@@ -54,8 +58,16 @@ def arm(tmp_path_factory):
     save_recording(train.with_signals(tau=1000.0 * train.tau), folder / "mNm.csv")
     for data, model in (("train.csv", "good.json"), ("mNm.csv", "mNm.json")):
         argv = ["identify", str(folder / "arm.toml"), "--data", str(folder / data), "--out", str(folder / model)]
-        assert main(argv) == 0
+        with pytest.MonkeyPatch.context() as patch:  # a model file of before the torque-scale refusal
+            patch.setattr(trajectory_data, "check_torque_scale", lambda *args, **kwargs: None)
+            assert main(argv) == 0
     return folder
+
+
+def test_identify_refuses_torques_in_mn_m_before_any_fit(arm, tmp_path, capsys):
+    argv = ["identify", arm / "arm.toml", "--data", arm / "mNm.csv", "--out", tmp_path / "m.json"]
+    code, _, err = _run(capsys, argv)
+    assert code == 2 and "mNm.csv" in err and "mN m" in err and not (tmp_path / "m.json").exists(), err
 
 
 def _folder(path):
@@ -160,8 +172,8 @@ def test_every_command_reading_the_model_repeats_its_warnings(arm, tmp_path, cap
     runs = {
         "simulate": ["simulate", arm / "mNm.json", "--experiment", "sine", "--duration", "2", "--out", tmp_path / "s"],
         "export-urdf": ["export-urdf", arm / "mNm.json", tmp_path / "arm.urdf"],
-        "diagnose": ["diagnose", arm / "mNm.json", "--train", arm / "mNm.csv", "--validate", arm / "mNm.csv",
-                     "--max-effects", "0", "--no-sparse"],
+        "diagnose": ["diagnose", arm / "mNm.json", "--train", arm / "train.csv", "--validate", arm / "valid.csv",
+                     "--max-effects", "0", "--no-sparse"],  # mNm.csv itself is refused now (test above)
     }  # fmt: skip
     for command, argv in runs.items():
         code, _, err = _run(capsys, argv)
@@ -195,8 +207,13 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
     valid = load_recording(arm / "valid.csv")
     save_recording(valid.with_signals(tau=1000.0 * valid.tau), tmp_path / "valid_mNm.csv")
     new = tmp_path / "new.json"
-    code, _, err = _run(capsys, ["diagnose", arm / "mNm.json", "--train", arm / "mNm.csv", "--validate",
-                                 tmp_path / "valid_mNm.csv", "--apply", new, "--allow-inconsistent"])  # fmt: skip
+    argv = ["diagnose", arm / "mNm.json", "--train", arm / "mNm.csv", "--validate", tmp_path / "valid_mNm.csv",
+            "--apply", new, "--allow-inconsistent"]  # fmt: skip
+    code, _, err = _run(capsys, argv)  # today the refit refuses the mN m torques before fitting
+    assert code == 2 and "mNm.csv" in err and "mN m" in err and not new.exists(), err
+    for module in (trajectory_data, motion_checks):  # a diagnosis and refit of before the refusal
+        monkeypatch.setattr(module, "check_torque_scale", lambda *args, **kwargs: None)
+    code, _, err = _run(capsys, argv)
     assert code == 0, err
     kept = json.loads(new.read_text())["warnings"]
     assert any("rigid-body torques" in w and "mN m?" in w for w in kept), kept
