@@ -298,14 +298,17 @@ def _checked_fit(robot, model, recordings, options, choice, validation, configur
 
 
 def _file_check(robot, model, recordings, validation, options, fit, calibrated, configurations) -> FileCheck:
-    """The model written against the robot file on the held-out recordings (``robot_file_check``)."""
+    """The model written against the robot file on the held-out recordings (``robot_file_check``). A known payload
+    (stated in a sidecar) is the robot file's too: its torque is taken off the training recordings the file's friction
+    is fitted on, as the identification takes it off; an unknown one the file cannot hold."""
     from identification.calibration.column_candidates import prepare_training
+    from identification.calibration.payload_fit import subtract_known_payloads
 
-    if configurations is not None and any(c.payload is not None or c.unknown for c in configurations):
-        return FileCheck(reason="the recordings carry payloads the robot file does not")
+    if configurations is not None and any(c.unknown for c in configurations):
+        return FileCheck(reason="the recordings carry an unknown payload the robot file does not")
     if not validation or robot.links is None:
         return check_against_file(robot, model, calibrated, fit, (), validation, options)
-    prepared = prepare_training(robot, recordings, options).prepared
+    prepared = subtract_known_payloads(robot, prepare_training(robot, recordings, options).prepared, configurations)
     pull = dict(fit.envelope_bounds).get("prior")
     samples = None if pull is None else PriorPull.from_note(pull).effective_samples
     return check_against_file(robot, model, calibrated, fit, prepared, validation, options, samples)

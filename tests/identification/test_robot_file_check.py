@@ -409,3 +409,36 @@ def test_kinova_a_joint_much_worse_on_a_short_held_out_recording_is_named_and_he
     assert not any("against the robot file" in w for w in default["warnings"])
     stored = json.loads((tmp_path / "both.json").read_text())["identification"]["one_way_friction"]
     assert stored["decided_by_held_out"] is True and stored["held_joints"] == [5, 6]
+
+
+def test_a_known_payload_is_the_robot_files_too_and_the_check_is_made(denso, denso_model, denso_identified):
+    """A recording with a known load stated in its sidecar is checked against the robot file carrying it (a 210 kg-
+    class arm's known 150 kg run left its user without the check: "not checked (the recordings carry payloads the
+    robot file does not)"). The simulated arm is the robot file's, the load's torque Pinocchio's of the file's links
+    with the load added to the last link: the file with its friction fitted on the training recordings, the load's
+    torque taken off, is the truth up to the noise, and the identified model is not worse than it on any joint."""
+    from identification.data.configuration import PayloadConfiguration
+    from identification.data.payload import Payload
+    from trajopt.experiments import sine_experiment
+
+    train, held, _ = denso_identified
+    load = Payload(mass=4.0, com=np.array([0.0, 0.02, 0.06]))
+    standard = denso.nominal_dynamic_parameters()
+    loaded_parameters = standard.copy()
+    loaded_parameters[-1, :10] += load.dynamic_parameters()
+    plain = synthetic(denso, 5, duration=6.0)  # its motion: the sine experiment of seed 5, as synthetic draws it
+    q, qd, qdd = sine_experiment(denso, duration=6.0, rng=np.random.default_rng(5)).sample(plain.t)
+    assert np.array_equal(q, plain.q)
+    extra = PinocchioOracle(denso, loaded_parameters).rnea(q, qd, qdd) - PinocchioOracle(denso, standard).rnea(
+        q, qd, qdd
+    )
+    loaded = replace(plain, tau=plain.tau + extra, name="loaded")
+    configurations = [PayloadConfiguration(), PayloadConfiguration(name="box", payload=load, stated=True)]
+    result = identify_recordings(denso, denso_model, [train[0], loaded], validation=held, counterbalance=False,
+                                 configurations=configurations)  # fmt: skip
+    check = result.file_check
+    assert check.comparison is not None and check.recordings == 1 and not check.worse, check.reason
+    c = check.comparison
+    assert np.all(c.after <= c.before + c.margin)
+    assert np.all(c.before <= 1.15 * c.after + 0.005)  # the file's friction fitted on the arm's own torque
+    assert result.calibrated.document["identification"]["robot_file_check"]["checked"]
