@@ -177,6 +177,7 @@ class ColumnChoice:
     loss_joints: tuple = ()  # joints (0-based) with a drive loss (``drive_loss``; currents only)
     torque_source: str = ""  # "current" (kt i) or "torque" (measured joint torque); "" not stated
     smoothing: SmoothingChoice | None = None  # the Coulomb column's smoothing velocity (None: the options' own)
+    replaced_offsets: tuple = ()  # chosen offsets a counterbalance spring identify kept replaced (0 in the model)
 
     def shapes(self, n_dof: int) -> list:
         """The friction shape of each joint."""
@@ -230,9 +231,14 @@ class ColumnChoice:
 
         auto = "chosen from the data"
         by = {k: auto if getattr(self.request, k) == "auto" else "as asked" for k in ("friction", "offset")}
+        kept = [j for j in self.offset_joints if j not in self.replaced_offsets]
+        named = ", ".join(str(j + 1) for j in self.replaced_offsets)
+        replaced = (
+            f"; on joint{'s' * (len(self.replaced_offsets) > 1)} {named} replaced by the counterbalance spring kept"
+        )
         lines = [f"friction shape: {self._shape_text()} ({by['friction']})",
-                 f"torque offset: {'every joint' if self.request.offset == 'on' else joints(self.offset_joints)} "
-                 f"({by['offset']})"]  # fmt: skip
+                 f"torque offset: {'every joint' if self.request.offset == 'on' else joints(kept)} ({by['offset']}"
+                 f"{replaced if self.replaced_offsets else ''})"]  # fmt: skip
         lines += [f"{LABELS[e.term][0]} refused on joint {e.joint + 1} ({LABELS[e.term][1].format(e.estimate)}): "
                   f"{e.reason}" for e in self._near_misses()]  # fmt: skip
         if self.request.drive_inertia == "auto" and self.torque_source == "current":
@@ -292,8 +298,10 @@ class ColumnChoice:
     def to_dict(self) -> dict:
         """The choice as the model file and ``--json`` hold it (joints 1-based)."""
         stribeck = None if self.stribeck_joints is None else [j + 1 for j in self.stribeck_joints]
+        offsets = [j + 1 for j in self.offset_joints if j not in self.replaced_offsets]  # as the model holds them
         return {"friction": self.friction, "friction_shapes": self.shapes(self.n_dof) if self.n_dof else None,
-                "stribeck_joints": stribeck, "offset_joints": [j + 1 for j in self.offset_joints],
+                "stribeck_joints": stribeck, "offset_joints": offsets,
+                "offset_joints_replaced": [j + 1 for j in self.replaced_offsets],
                 "inertia_joints": [j + 1 for j in self.inertia_joints], "request": asdict(self.request),
                 "drive_loss_joints": [j + 1 for j in self.loss_joints], "torque_source": self.torque_source,
                 "check": self.check, "evidence": [e.to_dict() for e in self.evidence],

@@ -1,17 +1,15 @@
 """Identify takes the counterbalance it names: a spring column on the joint, kept only where it holds out of sample.
 
-When the plausible fit pushes a link (or one joint's drive inertia) against its bounds and the report names a
-counterbalance or spring on a joint (``envelope_report``), or a parameter the fit holds back away from the data (inside
-its link's envelope, by the pull towards the robot file) most likely absorbs one (``held_back``: its likeliest effect,
-on the joint the effect acts on; the heavy virtual arm's cam on joint 2 at seeds 0-1, where no bound is pressed for
-it), or a torque offset the data chose is no sensor's (``offset_reading``: a large share of the joint's gravity torque
-and recorded peak; the same seeds' balancer near horizontal, nearly constant over the range), the route that finds it
-or the fitted gravity torque of one joint alone leaves the robot file's (``gravity_departure``: the links' first
-moments took it inside their envelope), the route that finds it is taken, not only suggested (``named_joints``). A
-spring named by an offset no sensor has takes that offset's place (the spring's constant), and one named by either of
-these two spans what it replaces: it is kept where no joint is worse than the fit without it (``Judges.replacing``),
-the links or the offset then no longer holding a torque they cannot be:
-identify fits again with a spring on each named joint, linear and cubic (``findings.FindingTerm``, the term ``psdm
+When identify's report names a counterbalance or spring on a joint (``counterbalance_sources``: a link or drive pushed
+against its bounds, a gravity term the fit holds back, a torque offset no sensor has by its size that the data do not
+say is an offset, or the fitted gravity torque of one joint alone off the robot file's), the route that finds it is
+taken, not only suggested. A spring named by an offset takes that offset's place (the spring's constant); where the
+data said balancer it must win beyond the noise like any spring, and one named by an offset the recorded swing cannot
+tell from a balancer, or by the gravity departure, spans what it replaces: it is kept where no joint is worse than
+the fit without it (``Judges.replacing``), the links or the offset then no longer holding a torque they cannot be.
+A spring left out where its offset was is tried again with that offset back (the model keeps the offset).
+
+Identify fits again with a spring on each named joint, linear and cubic (``findings.FindingTerm``, the term ``psdm
 diagnose --apply`` adds; its constant left out where the joint's torque offset spans it), and the counterbalance's odd
 law of order 5 about a fitted neutral angle where the training data support it beyond the cubic by BIC
 (``counterbalance_laws``: the diagnosis's ``SpringTerm`` shape, ``candidates.counterbalance_law``; in a block
@@ -54,17 +52,27 @@ import numpy as np
 
 from identification.calibration.counterbalance_folds import BlockFolds, FoldFailure, block_folds
 from identification.calibration.counterbalance_opinion import HELD_OUT_ROUTE, Opinion, Trial
-from identification.calibration.envelope_report import DIAGNOSE_ROUTE, where
+from identification.calibration.counterbalance_sources import (
+    BY_DEPARTURE,
+    BY_ENVELOPE,
+    BY_HELD_BACK,
+    BY_OFFSET,
+    counterbalance_joints,
+    named_counterbalances,
+    named_joints,
+)
+from identification.calibration.envelope_report import DIAGNOSE_ROUTE
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
-from identification.calibration.gravity_departure import gravity_departures
-from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_each, pooled_comparison
-from identification.calibration.offset_reading import data_chosen_offsets
 from identification.calibration.trajectory_fit import identify_trajectories
 from psdm_casadi.errors import InsufficientExcitationError
 
 __all__ = [
+    "BY_DEPARTURE",
+    "BY_ENVELOPE",
+    "BY_HELD_BACK",
+    "BY_OFFSET",
     "COUNTERBALANCE_SOURCE",
     "CounterbalanceChoice",
     "Judges",
@@ -128,6 +136,11 @@ class CounterbalanceChoice:
     parts: tuple = ()
     cleared: dict = field(default_factory=dict)
 
+    @property
+    def replaced_offsets(self) -> tuple:
+        """0-based joints whose data-chosen torque offset a kept spring replaced (held at 0 in the model written)."""
+        return tuple(j for j in self.joints if self.kept and self.named_by.get(j) == BY_OFFSET)
+
     def to_dict(self) -> dict:
         pairs = (("rmse_without", self.rmse_without), ("rmse_with", self.rmse_with), ("margin", self.margin))
         rmse = {k: None if v is None else [float(x) for x in v] for k, v in pairs}
@@ -141,8 +154,9 @@ class CounterbalanceChoice:
 class Judges:
     """What judges a spring out of sample: the raw held-out recordings (each), and the block cross-validation of the
     training recordings (each block; None: not used, ``note`` says why when there are held-out recordings).
-    ``replacing``: joints whose spring takes the place of an offset no sensor has (``offset_reading``) or of a
-    gravity torque the links' first moments took (``gravity_departure``): judged against the fit with them
+    ``replacing``: joints whose spring takes the place of an offset no sensor has by size that the data cannot tell
+    from a balancer (``counterbalance_sources``) or of a gravity torque the links' first moments took
+    (``gravity_departure``): judged against the fit with them
     (``baseline``, its options), such a spring must leave every joint no worse, not lower its own (the two span the
     same torque over the recorded range; the spring keeps the links and the sensor physical)."""
 
@@ -158,37 +172,6 @@ class Judges:
         if joint in self.replacing:
             return joint not in opinion.together.worse
         return opinion.lowers(joint, before)
-
-
-def counterbalance_joints(fit) -> tuple:
-    """0-based joints the fit's envelope report names a counterbalance or spring on: through a link's bounds (its
-    first moment absorbing a gravity-like torque) or one joint's drive inertia pressed down (a torque following the
-    position looks like a negative inertia on a periodic motion)."""
-    return tuple(sorted({where(f) for f in fit.envelope if f.absorbs == "counterbalance" and f.pressed}))
-
-
-#: ``named_joints``' sources, in the report's words.
-BY_ENVELOPE, BY_HELD_BACK = "the envelope report", "a parameter the fit holds back"
-BY_OFFSET, BY_DEPARTURE = "a torque offset no sensor has", "the fitted gravity torque of one joint alone"
-
-
-def named_joints(fit) -> dict:
-    """``{0-based joint: where it is named}`` of the counterbalances identify's report names: a pushed link or drive
-    (``counterbalance_joints``), or a gravity term the fit holds back whose likeliest absorbed effect is a
-    counterbalance (``held_back.HeldBack``: ``absorbs``, ``kind`` ``"gravity"``; on its ``effect_joint``).
-
-    The effect the evidence puts first is the one tried (an alternative is not), and the judges out of sample decide
-    whether it holds. A held-back inertia the data want smaller on a periodic motion is not tried: a counterbalance
-    is only one reading of it beside a drive's dynamics (its alternative), and its joint is the inertia's, not the
-    torque's (a 1.5 kg payload on the virtual Denso names one on joint 3, its torque on joints 4-5; a spring on joint 2
-    of 5 N m/rad one on joint 1). A gravity term is what a counterbalance's torque of the angle passes for: the heavy
-    virtual arm's cam on joint 2, held inside link 2's envelope by the pull (seeds 0-1: 98 and 72 times its size in
-    the robot file)."""
-    out = dict.fromkeys(counterbalance_joints(fit), BY_ENVELOPE)
-    for item in stored_held_back(getattr(fit, "envelope_bounds", ())):
-        if item.absorbs == "counterbalance" and item.kind == "gravity":
-            out.setdefault(item.effect_joint if item.effect_joint >= 0 else item.joint, BY_HELD_BACK)
-    return dict(sorted(out.items()))
 
 
 def _columns(joints, options, recordings, shape) -> FindingColumns:
@@ -301,18 +284,21 @@ def try_counterbalance(
     kt : array, optional
         Torque constants for held-out recordings of currents.
     """
-    readings = data_chosen_offsets(robot, model, recordings, options, fit)
-    departures = gravity_departures(robot, model, recordings, fit)
-    found = {**dict.fromkeys(departures, BY_DEPARTURE), **dict.fromkeys(readings, BY_OFFSET)}
-    named = dict(sorted({**named_joints(fit), **found}.items()))
+    naming = named_counterbalances(robot, model, recordings, options, fit, calibrated, validation, kt)
+    named, said, readings = naming.named, naming.said, naming.readings
     if not named:
-        return CounterbalanceChoice()
-    judges = Judges(replacing=tuple(found), baseline=options)
-    if readings:  # no sensor's offset: the spring's constant takes its place
-        options = replace(options, offset_joints=tuple(j for j in options.offset_joints if j not in readings))
+        return CounterbalanceChoice(reason=said)
+    how = "on each held-out recording" if validation else "by block cross-validation over the training data"
+    logger.info("identify: trying the counterbalance the report names on %s (%s) ...", list(map(int, named)), how)
+    judges, offsets = Judges(replacing=naming.lenient, baseline=options), options.offset_joints
+    options = replace(options, offset_joints=tuple(j for j in offsets if j not in readings)) if readings else options
     problem = (robot, model, recordings, options, fit, calibrated, validation, build, configurations, kt)
     choice = _tried(problem, named, judges)
-    said = "; ".join(evidence.sentence() for evidence in (*readings.values(), *departures.values()))
+    lost = [j for j in readings if choice.kept and j not in choice.joints]
+    if lost:  # a spring left out where its offset was: tried again with that offset back
+        options = replace(options, offset_joints=tuple(j for j in offsets if j not in readings or j in lost))
+        problem = (robot, model, recordings, options, *problem[4:])
+        choice = _tried(problem, {j: v for j, v in named.items() if j not in lost}, judges)
     return replace(choice, reason=f"{said}: {choice.reason}") if said else choice
 
 
@@ -477,18 +463,6 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
         kt = None
         if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:  # blocks: training
             kt = np.array([d.kt for d in robot.drives], dtype=float)
-        if (
-            named_joints(fit)
-            or data_chosen_offsets(robot, model, recordings, options, fit)
-            or gravity_departures(robot, model, recordings, fit)
-        ):
-            how = (
-                "on each held-out recording"
-                + (" and by block cross-validation over the training data" if len(validation) == 1 else "")
-                if validation
-                else "by block cross-validation over the training data"
-            )
-            logger.info(f"identify: trying the counterbalance the report names ({how}) ...")
         choice = try_counterbalance(robot, model, recordings, options, fit, calibrated, validation, build,
                                     configurations, kt)  # fmt: skip
         if choice.reason:

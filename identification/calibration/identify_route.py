@@ -214,6 +214,7 @@ def identify_recordings(
         from identification.calibration.drive_loss import with_drive_loss
 
         calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
+    choice = replace(choice, replaced_offsets=taken.replaced_offsets)  # the model holds the spring there
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
     check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
     check = replace(check, held=held.held_joints, held_links=mended.held_links)

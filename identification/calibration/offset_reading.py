@@ -64,15 +64,20 @@ class OffsetReading:
     def peak_share(self) -> float:
         return abs(self.offset) / self.peak
 
-    def sentence(self) -> str:
-        """Why the offset is not a sensor's, in the report's words."""
-        return (
+    def sentence(self, verdict=None) -> str:
+        """Why the offset is not a sensor's by its size, in the report's words, and what the data say of it
+        (``verdict``: an ``offset_or_balancer.OffsetVerdict``; where it says offset, the size's reading is
+        overruled)."""
+        size = (
             f"the torque offset {self.offset:+.4g} N m on joint {self.joint + 1} is {self.gravity_share:.0%} of its "
             f"gravity torque in the robot file ({self.gravity:.4g} N m) and {self.peak_share:.0%} of its recorded "
             f"peak torque ({self.peak:.4g} N m); a torque sensor's or current measurement's zero error is a few "
-            f"percent of its range (at most {SENSOR_SHARE:.0%} of the recorded peak): it is a position-dependent "
-            "torque the offset absorbs, most likely a counterbalance or spring"
+            f"percent of its range (at most {SENSOR_SHARE:.0%} of the recorded peak)"
         )
+        if verdict is not None and not verdict.named:
+            return f"{size}; {verdict.sentence()}"
+        said = f"{size}: it is a position-dependent torque the offset absorbs, most likely a counterbalance or spring"
+        return said if verdict is None else f"{said}; {verdict.sentence()}"
 
 
 def oversized_offset(joint: int, offset: float, gravity: float, peak: float) -> OffsetReading | None:

@@ -13,7 +13,11 @@ its term (the augmented model and the model file hold the same ``A sin(h q + pha
 A ``torque_offset`` no sensor has (``calibration.offset_reading``: on a joint gravity loads, at least a tenth of its
 peak measured torque and a fifth of its gravity torque) is the same load seen over a short range: a balancer's torque
 is nearly constant over the half radian an arm sweeps near horizontal. It too keeps its term and is reported as
-``COUNTERBALANCE``, its explanation saying why it is not a sensor offset.
+``COUNTERBALANCE``, its explanation saying why it is not a sensor offset, unless the data say it is one: with the
+training residual (``offset_verdicts``), the offset and a sinusoid of the joint's angle (a balancer's torque) are
+compared on the training blocks and the validation recording (``calibration.offset_or_balancer``); where the constant
+predicts the torque better beyond the noise, over a swing where a balancer's would follow the angle (a re-zeroed
+sensor), the finding stays a ``torque_offset``, its note saying why.
 """
 
 from __future__ import annotations
@@ -22,6 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.offset_or_balancer import UNDECIDED, offset_or_balancer
 from identification.calibration.offset_reading import oversized_offset
 
 #: The effect name a low-harmonic, gravity-sized ripple is reported under.
@@ -98,28 +103,65 @@ def named_counterbalance(finding, peak: float, gravity: float, harmonics: tuple)
                    signature="residual follows joint position over the whole range, as large as gravity")  # fmt: skip
 
 
-def offset_counterbalance(finding, context):
-    """``finding`` named a counterbalance when it is a ``torque_offset`` no sensor has (``offset_reading``: against
+def _reading(finding, context):
+    """The ``offset_reading.OffsetReading`` of a one-joint ``torque_offset`` finding no sensor has by size (against
     the nominal model's gravity torque amplitude and the peak measured torque of its joint); None otherwise."""
     if finding.effect != "torque_offset" or len(finding.joints) != 1 or getattr(context, "gravity", None) is None:
         return None
     j = int(finding.joints[0])
-    offset = float(finding.coefficients[0])
     peak = float(np.max(np.abs(np.asarray(context.tau)[:, j])))
-    reading = oversized_offset(j, offset, float(np.max(np.abs(np.asarray(context.gravity)[:, j]))), peak)
+    return oversized_offset(j, float(finding.coefficients[0]), float(np.max(np.abs(np.asarray(context.gravity)[:, j]))),
+                            peak)  # fmt: skip
+
+
+#: Why a constant remainder is no evidence of an offset where the diagnosis identified the rigid body beside it.
+LINKS_FREE = (
+    "the rigid body was identified beside the offset, and its links' gravity torque on the joint is a "
+    "sinusoid of its angle that takes a balancer's curve, so the constant the offset holds says nothing"
+)
+
+
+def offset_verdicts(findings, context, residual, held=None, links_free: bool = False) -> dict:
+    """``{joint: offset_or_balancer.OffsetVerdict}`` of the ``torque_offset`` findings no sensor has by size: the
+    torque each takes (its offset plus the final model's ``residual`` (n, n_dof) on the training ``context``) compared
+    as a constant and as a sinusoid of the joint's angle (a balancer's) on the training blocks and on ``held`` (the
+    validation context and its residual), when given. ``links_free``: the rigid body was identified beside them
+    (``LINKS_FREE``): an offset verdict is undecided."""
+    out = {}
+    for f in findings:
+        if _reading(f, context) is None:
+            continue
+        j, offset = int(f.joints[0]), float(f.coefficients[0])
+        pairs = [(np.asarray(ctx.q)[:, j], np.asarray(res)[:, j] + offset)
+                 for ctx, res in [(context, residual), *([held] if held is not None else [])]]  # fmt: skip
+        pairs = [(q[np.isfinite(t)], t[np.isfinite(t)]) for q, t in pairs]  # a joint left out: no torque
+        verdict = offset_or_balancer(j, pairs[:1], pairs[1:])
+        out[j] = replace(verdict, verdict=UNDECIDED, note=LINKS_FREE) if links_free and not verdict.named else verdict
+    return out
+
+
+def offset_counterbalance(finding, context, verdict=None):
+    """``finding`` named a counterbalance when it is a ``torque_offset`` no sensor has by size (``_reading``) and the
+    data do not say offset (``verdict``, an ``OffsetVerdict``; None: size alone); the finding with a note saying why
+    when they do; None otherwise."""
+    reading = _reading(finding, context)
     if reading is None:
         return None
-    parameters = {**finding.parameters, "peak_torque": abs(offset), "gravity_torque": reading.gravity,
+    if verdict is not None and not verdict.named:
+        return replace(finding, notes=(*finding.notes, reading.sentence(verdict)))
+    parameters = {**finding.parameters, "peak_torque": abs(reading.offset), "gravity_torque": reading.gravity,
                   "gravity_share": reading.gravity_share}  # fmt: skip
-    explanation = f"{reading.sentence()} (nearly constant over the recorded range, as a balancer is near horizontal)"
+    explanation = reading.sentence(verdict)
+    if verdict is None:
+        explanation += " (nearly constant over the recorded range, as a balancer is near horizontal)"
     return replace(finding, effect=COUNTERBALANCE, explanation=explanation, parameters=parameters,
                    signature="a constant torque as large as a share of gravity: no sensor's offset")  # fmt: skip
 
 
-def name_counterbalances(findings, context) -> tuple:
+def name_counterbalances(findings, context, verdicts=None) -> tuple:
     """The ``findings``, the low-harmonic ripples of each counterbalanced joint (``counterbalance_joints``) and each
-    offset no sensor has (``offset_counterbalance``) named a counterbalance (``named_counterbalance``), any other
-    finding unchanged."""
+    offset no sensor has (``offset_counterbalance``; ``verdicts``: ``offset_verdicts``, None: by size alone) named a
+    counterbalance (``named_counterbalance``), any other finding unchanged."""
     findings = tuple(findings)
     joints = counterbalance_joints(findings, context)
     out = []
@@ -128,5 +170,5 @@ def name_counterbalances(findings, context) -> tuple:
         if _low_ripple(f) and j in joints:
             harmonics = tuple(int(g.parameters["harmonic"]) for g in findings if _low_ripple(g) and g.joints[0] == j)
             f = named_counterbalance(f, *joints[j], harmonics)
-        out.append(offset_counterbalance(f, context) or f)
+        out.append(offset_counterbalance(f, context, (verdicts or {}).get(j)) or f)
     return tuple(out)

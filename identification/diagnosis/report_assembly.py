@@ -19,7 +19,7 @@ from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.confounding import confounding_of
-from identification.diagnosis.counterbalance_naming import name_counterbalances
+from identification.diagnosis.counterbalance_naming import name_counterbalances, offset_verdicts
 from identification.diagnosis.design import left_out
 from identification.diagnosis.held_links import held_links
 from identification.diagnosis.joint_changes import explain_joint_changes, rise_sentence
@@ -50,7 +50,10 @@ def build_report(
     model_nominal_t = fixed_t + selection.nominal_train
     model_final_t = fixed_t + final.prediction_t
     residual_v = ctx_v.tau - model_nominal_v
-    findings = name_counterbalances(findings_of(selection, final, options.held_friction), ctx_t) + tuple(unnamed)
+    found = findings_of(selection, final, options.held_friction)
+    held = (ctx_v, ctx_v.tau - model_final_v)  # the data's verdict on an offset no sensor has by size
+    verdicts = offset_verdicts(found, ctx_t, ctx_t.tau - model_final_t, held, options.rigid_body != "prior")
+    findings = name_counterbalances(found, ctx_t, verdicts) + tuple(unnamed)
     if options.rigid_body == "prior":
         findings = tuple(with_rotor_note(f, robot, model) for f in findings)
     rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)

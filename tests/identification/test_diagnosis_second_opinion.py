@@ -99,12 +99,6 @@ def _offset(value, joint=2):
     return [xp.TorqueOffset(offset=tuple(vec))]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bdaf668 reads an offset of 10 % of the recorded peak and 20 % of the file's gravity torque as no sensor's: "
-    "this test's 3 N m on the Denso's joint 3 is named a counterbalance; the threshold against a re-zeroed sensor is "
-    "open",
-)
 def test_diagnose_with_two_validation_recordings_reports_a_flipping_offset_as_unstable(denso, denso_model):
     # the Denso with a 3 N m offset on joint 3 in training and validation A, -3 N m in validation B (re-zeroed)
     train = _recording(denso, _offset(3.0), 1, 10.0)

@@ -34,6 +34,10 @@ def test_the_heavy_arms_balancer_in_the_offset_is_named_and_taken_as_a_spring(be
     choice = result.counterbalance
     assert choice.named_by.get(1) == BY_OFFSET and choice.kept and choice.joints == (1,), choice.reason
     assert "most likely a counterbalance" in choice.reason and f"at most {SENSOR_SHARE:.0%}" in choice.reason
+    # over the recorded half radian near horizontal the data cannot tell the balancer from a constant: said, and the
+    # reading by size stands (``offset_or_balancer``); the report's column choice no longer lists the offset
+    assert "cannot tell a balancer from a constant" in choice.reason and choice.replaced_offsets == (1,)
+    assert "on joint 2 replaced by the counterbalance spring" in result.describe()[1]
     calibrated = CalibratedModel(result.calibrated.document)
     springs = [(t, c) for t, c in calibrated.torque_findings if t.effect == "spring" and t.joint == 1]
     assert len(springs) == 1
