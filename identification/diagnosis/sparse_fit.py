@@ -73,7 +73,7 @@ def best_lobes(q, target, nuisance) -> tuple:
 
     def loss(x):
         centre, width = start[0] + x[0] * span, start[1] * np.exp(x[1])
-        if not lo <= centre <= hi:
+        if not (lo <= centre <= hi and width >= LOBE_WIDTHS[0] * span):
             return 0.0
         return -float(_lobe_explained(q, target, nuisance, np.array([centre]), width)[0]) / max(max(scores), 1e-300)
 

@@ -230,3 +230,28 @@ def test_a_sparse_term_is_kept_only_if_it_holds_on_every_validation_recording(co
     alone = propose_sparse_terms(ctx_t, ctx_v, r_t, r_v, 0.3)
     assert [p.term.joint for p in alone] == [1]  # the first recording by itself would keep it
     assert propose_sparse_terms(ctx_t, ctx_v, r_t, r_v, 0.3, more=without) == ()
+
+
+def test_a_lobe_is_no_narrower_than_the_grid_a_standstill_at_one_angle_is_no_lobe():
+    """A recording that starts with the arm standing still holds many samples at one angle, where the torque is
+    whatever the stuck friction holds (a 210 kg-class arm's joint 3: a 0.0003 rad wide lobe at its home pose, refined
+    off the grid without a lower bound, fitted that torque and diagnose --apply wrote it as an unnamed effect). The
+    refinement keeps the width at least the grid's smallest; a true lobe of the grid's widths is still found there."""
+    from identification.diagnosis.sparse_fit import LOBE_WIDTHS
+
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 30.0, 3000)
+    q = 0.3 * np.sin(0.7 * t) + 0.2 * np.sin(1.9 * t + 1.0)
+    still = t < 2.0
+    q[still] = q[~still][0]  # the home pose, held before the motion
+    stuck = np.where(still, 40.0, 0.0)  # the stuck friction's torque at standstill
+    target = stuck + rng.normal(0.0, 1.0, t.size)
+    lo, hi = np.percentile(q, [1.0, 99.0])
+    ones = np.ones((t.size, 1))  # the constant, as the joint's friction columns project it out
+    lobes = best_lobes(q, target - target.mean(), ones)
+    assert lobes and min(w for _, w in lobes) >= LOBE_WIDTHS[0] * (hi - lo) * (1 - 1e-9)
+    # a true lobe 0.045 of the range wide, centred at 60 % of it: the scan finds it within one step of its centre
+    centre, width = lo + 0.6 * (hi - lo), 0.045 * (hi - lo)
+    law = 30.0 * np.exp(-0.5 * ((q - centre) / width) ** 2)
+    found = dict((round(w / (hi - lo), 3), c) for c, w in best_lobes(q, law - law.mean(), ones))
+    assert abs(found[0.045] - centre) <= (hi - lo) / (LOBE_CENTRES - 1)
