@@ -134,6 +134,21 @@ def test_the_record_names_the_joints_the_refits_clear():
     assert checked.text() == "joint 2: 2 -> 2.5 N m (margin 0.1; refits without each training block: +0.5)"
 
 
+def test_the_refits_waive_only_a_rise_within_their_own_spread():
+    """The validation recording is the judge: the refits without each training block waive a rise beyond the margin
+    only as far as their own spread shows the full fit's change varies. A heavy virtual arm's joint 3 rose 20.1 ->
+    24.69 N m (margin 2.58) and was waived by refits all near -0.77 N m: the rise beyond the margin (2.0 N m) is ~10
+    jackknife standard errors of their changes, so the model is worse. The same rise among refits scattered by +-3 N m
+    is the training fit's noise."""
+    comparison = JointComparison(np.array([20.10]), np.array([24.69]), np.array([2.58]))
+    tight = comparison.confirmed_by([[-0.6], [-0.9], [-0.7], [-0.9]])
+    assert tight.refit_change[0] < tight.margin[0] and tight.worse == (0,) and tight.cleared == ()
+    assert tight.refit_spread[0] == pytest.approx(np.sqrt(0.75 * np.sum(np.square([0.175, -0.125, 0.075, -0.125]))))
+    scattered = comparison.confirmed_by([[-3.0], [2.5], [-2.5], [0.5]])
+    assert scattered.worse == () and scattered.cleared == (0,)
+    assert "within 2 x their spread" in scattered.to_dict()["margin_source"][0]
+
+
 def test_refits_of_the_baselines_structure_cannot_clear_a_joint(monkeypatch):
     """A refit with no finding left (every one dropped, or only reported ones) has the baseline's structure: each
     block's pair is one model and its change 0 by construction. That cleared every joint over its margin: a virtual
@@ -148,7 +163,8 @@ def test_refits_of_the_baselines_structure_cannot_clear_a_joint(monkeypatch):
     assert never_worse.TrainingRefits(lambda labels, k: [1.0, 2.0], folds=4).confirm(
         comparison, (), None, ["valid"]
     ).worse == (0, 1)  # no finding to drop at all (only reported ones)
-    kept = never_worse.TrainingRefits(lambda labels, k: [1.0, 2.0] if labels else [1.0, 2.6], 4, ("delay",))
+    noisy = lambda labels, k: [1.0, 2.0] if labels else [1.0 + 0.3 * (-1) ** k, 2.6]  # noqa: E731  joint 1 +-0.3
+    kept = never_worse.TrainingRefits(noisy, 4, ("delay",))
     checked = kept.confirm(comparison, (), None, ["valid"])  # the delay kept: its refits clear joint 1, confirm 2
     assert checked.worse == (1,) and checked.cleared == (0,)
 
