@@ -3,7 +3,6 @@
 import warnings
 
 import numpy as np
-import pytest
 
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
@@ -89,16 +88,3 @@ def sine_context(robot, model, seed, duration=3.0):
         rng,
     )
     return build_context(robot, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
-
-
-#: The heavy arm's tests written on its former cam, which added to joint 2's gravity torque on most of the range: with
-#: the physical balancer (``identification.virtual.counterbalance``), nearly constant over the recorded range, the
-#: defaults absorb it into a torque offset on joint 2 (seeds 0 and 2) or the links' first moments inside their envelope
-#: (seed 1), and these fail until identify and diagnose find it again (issue 25).
-PHYSICAL_COUNTERBALANCE_MISSED = pytest.mark.xfail(
-    strict=True,
-    reason="the heavy arm's counterbalance is a physical balancer now: identify names it (a torque offset no sensor "
-    "has, or joint 2's gravity torque alone off the file's) and takes it as a spring, but not as these tests written "
-    "on the old cam expect (a held-back gravity term of link 2, link 2 back to its mass, diagnose MODEL finding it "
-    "beside the payload: the recalibrated rigid body absorbs it again)",
-)

@@ -34,7 +34,6 @@ from identification.diagnosis.candidates.torque import SpringTerm, TorqueRippleT
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from tests.conftest import DENSO_FILE
-from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
 from trajopt.experiments import sine_experiment
 
 Q = np.linspace(-0.6, 0.8, 2000)  # joint 2's travel [rad]
@@ -188,7 +187,14 @@ def _cli(argv) -> tuple:
     return code, json.loads(out.getvalue())
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
+@pytest.mark.xfail(
+    strict=True,
+    reason="identify no longer carries a spring to split: on the heavy arm (seed 0, a physical balancer taking 72 % of "
+    "joint 2's gravity) it names the balancer by its +2837 N m torque offset on joint 2 and refuses the spring "
+    "(held-out joint 2 225.8 -> 366.2 N m), so the model carries only the offset; diagnose MODEL names that offset a "
+    "counterbalance and --apply writes torque_offset[j2] at 0 N m beside the model's own offset (two terms for one "
+    "torque, the validation RMSE unchanged)",
+)
 @pytest.mark.slow  # identify and diagnose --apply of the 1 t arm: ~15 s
 def test_diagnose_apply_does_not_add_a_ripple_that_splits_the_spring_the_model_carries(tmp_path, benchmark_modules):
     from unseen_cases import build

@@ -20,8 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
-
 
 @pytest.fixture(scope="module")
 def bench():
@@ -48,13 +46,23 @@ def _diagnosed(bench, index, seed=0):
     return truth, report
 
 
+#: Scenario 30 (the heavy arm: a physical cam balancer on joint 2, a 112 kg tool) was written on the old cam, found
+#: as a spring; the physical balancer is named a counterbalance on joint 2 now, and the tool is what is missed.
+MISSED_PAYLOAD = pytest.mark.xfail(
+    strict=True,
+    reason="the payload is missed: the counterbalance is named on joint 2 (from a +1901 N m torque offset) but the "
+    "identified rigid body takes the 112 kg tool (no payload finding), and a friction_shape on joint 4 the truth lacks "
+    "is reported",
+)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("index", "effect", "joint"),
     [
         (10, "delay", None),
         (24, "unnamed_effect", 4),
-        pytest.param(30, "spring", 1, marks=PHYSICAL_COUNTERBALANCE_MISSED),
+        pytest.param(30, "counterbalance", 1, marks=MISSED_PAYLOAD),
         (12, "joint_elasticity", 5),
         (25, "friction_shape", 5),
     ],

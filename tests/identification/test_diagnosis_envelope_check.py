@@ -19,7 +19,6 @@ from identification.diagnosis.envelope_check import EnvelopeCheck, EnvelopedReca
 from identification.diagnosis.rigid_body_choice import Claim, drop_stand_ins, recalibration_parts
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
-from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
 from trajopt.experiments import sine_experiment
 
 
@@ -90,13 +89,20 @@ def test_drop_stand_ins_keeps_what_the_envelope_needs_and_says_why():
     assert [s.term.label for s in selection.steps] == ["payload"]
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
+@pytest.mark.xfail(
+    strict=True,
+    reason="the payload is missed: with the physical balancer (56 % of joint 2's gravity) the diagnosis names it on "
+    "joint 2 (a counterbalance read from a +2490 N m torque offset) but reports no payload: the identified rigid body "
+    "takes the 145 kg tool (its note: findings not needed, validation 0.0976 -> 0.00979 mean relative RMSE)",
+)
 @pytest.mark.slow
 def test_diagnosing_the_heavy_arm_finds_its_cam_counterbalance(benchmark_modules):
     """The issue's case, as ``benchmarks/heavy_arm.py`` runs it (seed 0): a 1 t arm, CAD inertias 10-20 % off in the
     truth, a cam counterbalance on joint 2 and a 145 kg payload, 10 s training and 10 s validation at 250 Hz,
     diagnosed against the robot file on the preparation ``psdm identify`` chooses. The free recalibration absorbs the
-    counterbalance into link 2; the enveloped one cannot, so the spring on joint 2 stands beside the payload."""
+    counterbalance into link 2; the enveloped one cannot, so the counterbalance on joint 2 stands beside the payload.
+    Written on the old cam, found as a spring kept beside the payload; the physical balancer is nearly constant over
+    the recorded range and is named a counterbalance (``counterbalance_naming``) from the offset that takes it."""
     from diagnosis import _scenario
     from heavy_arm import EFFECTS, heavy_industrial_arm
 
@@ -111,7 +117,7 @@ def test_diagnosing_the_heavy_arm_finds_its_cam_counterbalance(benchmark_modules
     options = DiagnosisOptions(cutoff_hz=preparation.cutoff_hz, rate_hz=preparation.grid_rate_hz)
     report = diagnose(robot, train, [validation], options, model=derive_psdm(robot))
     found = {(f.effect, f.joints[0] if f.effect != "payload" else None) for f in report.findings}
-    assert ("spring", 1) in found and ("payload", None) in found
-    assert any("`spring[j2]` kept" in note for note in report.rigid_body_notes)
+    assert ("counterbalance", 1) in found
+    assert ("payload", None) in found
     payload = next(f for f in report.findings if f.effect == "payload")
     assert abs(payload.parameters["mass"] - truth[1][3]["mass"]) < 0.3 * truth[1][3]["mass"]

@@ -19,7 +19,7 @@ from identification.calibration.envelope_report import EnvelopeFinding, named_fr
 from identification.calibration.held_back import HeldBack, stored_held_back
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.virtual import effects as xp
-from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED, rigid_recording
+from tests.identification.diagnosis_data import rigid_recording
 
 TOOL = xp.Payload(mass=4.0, com=(0.0, 0.0, 0.1))
 CAM = xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)
@@ -92,7 +92,12 @@ def test_a_pushed_link_takes_the_effects_of_its_most_significant_held_parameter(
     assert where(replace(three, effect_joint=-1)) == three.joint
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
+@pytest.mark.xfail(
+    strict=True,
+    reason="the physical balancer is named a payload: without an offset column link 2 takes it (474.6 kg: robot file "
+    "292.5, truth 246.3) and its pressed bound is named 'payload' (on joint 5, no counterbalance alternative); no "
+    "held-back gravity term of link 2 names it (the held back parameters are link 5's, for the tool)",
+)
 @pytest.mark.slow
 def test_the_heavy_arms_counterbalance_inside_its_envelope_is_named(benchmark_modules):
     """The heavy virtual arm (``benchmarks/heavy_arm.py``, seed 0): a 100-200 kg tool pushes link 5; the cam

@@ -20,15 +20,16 @@ import numpy as np
 import pytest
 
 from identification.calibration.counterbalance_column import (
+    BY_DEPARTURE,
     BY_ENVELOPE,
     BY_HELD_BACK,
+    BY_OFFSET,
     counterbalance_joints,
     named_joints,
 )
 from identification.calibration.held_back import HeldBack, held_note
 from identification.calibration.identify_route import identify_recordings
 from psdm_casadi import derive_psdm
-from tests.identification.diagnosis_data import PHYSICAL_COUNTERBALANCE_MISSED
 
 
 @pytest.fixture
@@ -70,26 +71,38 @@ def test_only_a_held_back_gravity_term_whose_likeliest_effect_is_a_counterbalanc
     assert dict(held_note([HeldBack(**_held("counterbalance", "gravity", 1))]))["held_back"][0]["kind"] == "gravity"
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
+#: Seed 0 with the physical balancer: the spring identify takes in place of joint 2's offset gains nothing and gives
+#: link 2 back the mass the offset had taken off it.
+LINK_2_PULLED_BACK = pytest.mark.xfail(
+    strict=True,
+    reason="seed 0: identify names the balancer by joint 2's torque offset (+2533 N m) and takes a cubic spring in its "
+    "place, but the spring does not lower joint 2 (held-out and blocks 191.9 -> 192.0 N m) and link 2's mass goes from "
+    "244.0 kg (the offset's fit) to 287.0 kg (truth 246.3, robot file 292.5): the links take the balancer's curve",
+)
+
+
+@LINK_2_PULLED_BACK
 @pytest.mark.slow  # the heavy arm's fit, the spring's three shapes on the held-out recording and 4 blocks: 20-40 s
 def test_the_heavy_arms_held_back_counterbalance_is_taken_and_link_2_comes_back_to_its_mass(heavy_case):
+    """Written on the old cam, which a held-back gravity term of link 2 named; the physical balancer, nearly constant
+    over the recorded range, is taken by joint 2's torque offset instead and named by it (``BY_OFFSET``)."""
     from heavy_arm import EFFECTS
 
     robot, truth, train, validation = heavy_case(0, EFFECTS)
     result = identify_recordings(robot, derive_psdm(robot), [train], validation=[validation])
     assert counterbalance_joints(result.start) == ()  # no bound pressed for the cam: the envelope does not name it
-    assert named_joints(result.start) == {1: BY_HELD_BACK}
+    assert named_joints(result.start) == {}  # no held-back gravity term: the offset takes the balancer
     choice = result.counterbalance
     assert choice.kept and choice.joints == (1,), choice.reason
-    assert "named by a parameter the fit holds back" in choice.reason
+    assert f"named by {BY_OFFSET}" in choice.reason
     springs = [f for f in result.calibrated.document["findings"] if f["effect"] == "spring"]
     assert [(f["joints"], f["source"]) for f in springs] == [([2], "identify")]
-    assert result.calibrated.document["identification"]["counterbalance"]["named_by"] == {"2": BY_HELD_BACK}
-    # link 2 no longer absorbs the cam: 277.7 -> 242.0 kg, the truth's 246.3 (robot file 292.5)
+    assert result.calibrated.document["identification"]["counterbalance"]["named_by"] == {"2": BY_OFFSET}
+    # link 2 does not take the balancer back: no farther from the truth's mass than the fit without the spring (5 %)
     mass, before = result.fit.standard[1, 0], result.start.standard[1, 0]
     truth_mass = truth.nominal_dynamic_parameters()[1, 0]
-    assert abs(mass - truth_mass) < 0.25 * abs(before - truth_mass), (before, mass, truth_mass)
-    # held out: joint 2 401.4 -> 372.1 N m, no joint worse beyond its margin (unless the refits clear it)
+    assert abs(mass - truth_mass) < max(abs(before - truth_mass), 0.05 * truth_mass), (before, mass, truth_mass)
+    # held out: joint 2 lower, no joint worse beyond its margin (unless the refits clear it)
     rmse_with, rmse_without = np.array(choice.rmse_with), np.array(choice.rmse_without)
     assert rmse_with[1] < 0.95 * rmse_without[1]
     over = np.flatnonzero(rmse_with - rmse_without > np.array(choice.margin))
@@ -97,11 +110,14 @@ def test_the_heavy_arms_held_back_counterbalance_is_taken_and_link_2_comes_back_
     assert not [h for h in result.held_back if h.absorbs == "counterbalance"]  # the model written holds none back
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
 @pytest.mark.slow  # the heavy arm's fit through the command line, the spring tried on the held-out recording: 15-30 s
-def test_a_held_back_counterbalance_the_held_out_recording_refuses_is_suggested_with_the_diagnose_command(
+def test_a_named_counterbalance_the_held_out_recording_refuses_is_suggested_with_the_diagnose_command(
     heavy_case, tmp_path
 ):
+    """Seed 1: the truth's balancer on joint 2 is named there, the held-out recording refuses the spring and the report
+    suggests the diagnose command with the run's own files. Written on the old cam, which a held-back gravity term of
+    link 2 named; the physical balancer (opposing gravity, nearly constant over the recorded range) is named instead
+    by joint 2's fitted gravity torque departing alone from the robot file's (``BY_DEPARTURE``)."""
     from heavy_arm import EFFECTS
 
     from identification.data.io import save_recording
@@ -116,8 +132,8 @@ def test_a_held_back_counterbalance_the_held_out_recording_refuses_is_suggested_
         code = main(["identify", robot.source, "--data", str(data), "--validate", str(held_out), "--out", str(out)])
     assert code == 0
     choice = json.loads(out.read_text())["identification"]["counterbalance"]
-    assert choice["joints"] == [2] and not choice["kept"] and choice["named_by"] == {"2": BY_HELD_BACK}
-    # the cubic and the line each raise joint 2 on the held-out recording (284.8 -> 313 N m beside the tool's misfit)
+    assert choice["joints"] == [2] and not choice["kept"] and choice["named_by"] == {"2": BY_DEPARTURE}
+    # every shape of the spring raises joint 2 on the held-out recording (beside the tool's misfit)
     assert choice["rmse_with"][1] > choice["rmse_without"][1], choice["reason"]
     command = f"psdm diagnose {robot.source} --train {data} --validate {held_out}"
     assert command in choice["reason"] and f"counterbalance: {choice['reason']}" in stdout.getvalue()
@@ -133,9 +149,27 @@ def test_the_heavy_arm_with_only_a_tool_gets_no_counterbalance(heavy_case, seed)
     assert not [f for f in result.calibrated.document.get("findings") or [] if f["effect"] == "spring"]
 
 
-@PHYSICAL_COUNTERBALANCE_MISSED
+LINK_2_PULLED_BACK_BLOCKS = pytest.mark.xfail(
+    strict=True,
+    reason="seed 0 without a held-out recording: the blocks take the spring and the unseen recording agrees, but link "
+    "2's mass goes from 242.7 kg (the offset's fit) to 287.0 kg (truth 246.3, robot file 292.5)",
+)
+KEPT_WITHOUT_GAIN = pytest.mark.xfail(
+    strict=True,
+    reason="seed 1: the spring named by joint 2's gravity departure is kept in place of the offset though the blocks "
+    "raise joint 2 (457.8 -> 459.2 N m; the worst block 599.9 -> 606.5 N m) -- 'no joint worse' suffices where the "
+    "blocks should refuse it, as the held-out recording does",
+)
+
+
 @pytest.mark.slow  # the heavy arm's fit without a held-out recording, the spring's shapes judged by 4 blocks: 40-90 s
-@pytest.mark.parametrize("seed", [0, 1])
+@pytest.mark.parametrize(
+    "seed",
+    [
+        pytest.param(0, marks=LINK_2_PULLED_BACK_BLOCKS),
+        pytest.param(1, marks=KEPT_WITHOUT_GAIN),
+    ],
+)
 def test_without_a_held_out_recording_the_counterbalance_is_taken_only_where_the_unseen_recording_agrees(
     heavy_case, seed
 ):
@@ -144,7 +178,8 @@ def test_without_a_held_out_recording_the_counterbalance_is_taken_only_where_the
     every block, the spring is taken, and the recording identify never saw (the same arm's next 10 s) confirms it
     (joint 2 lower, link 2 nearer its true mass). Seed 1: every block was lower, one by nearly half and the others
     within their noise, and the spring raised joint 2 on the unseen recording (the held-out route refuses it there:
-    ``test_a_held_back_counterbalance_the_held_out_recording_refuses_...``); now the blocks refuse it too."""
+    ``test_a_named_counterbalance_the_held_out_recording_refuses_...``); now the blocks refuse it too. Both seeds were
+    written on the old cam and fail with the physical balancer (their marks say what is missed)."""
     from heavy_arm import EFFECTS
 
     from identification.calibration.calibrated_model import CalibratedModel
