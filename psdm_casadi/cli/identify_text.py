@@ -141,6 +141,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "drive_std": dict(zip(fit.drive_names, fit.drive_std.tolist())),
                     "stribeck_velocity": list(fit.stribeck_velocity),
                     "stribeck_velocity_std": list(fit.stribeck_velocity_std),
+                    "viscous_exponent": list(fit.viscous_exponent) or None,
                     "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
                     "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
                     "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
@@ -188,6 +189,12 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         if vs == 0:
             continue  # a Coulomb-viscous joint: no Stribeck velocity
         print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
+    spread = {e["joint"]: e["std"] for e in calibrated.document["identification"]["column_choice"].get("evidence", [])
+              if e["term"] == "viscous"}  # fmt: skip
+    for j, dv in enumerate(fit.viscous_exponent):
+        if dv != 1.0:  # the viscous power law fv |qd|^dv (column_choice): its exponent
+            std = spread.get(j + 1, 0.0)
+            print(f"{f'dv{j + 1} [-]':<15} {dv:10.4g} {std:10.3g} {100 * std / dv:8.1f}")
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
     for entry in report["recordings"]:
