@@ -403,15 +403,14 @@ def identify_trajectories(
     payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
-        inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
-        coulomb_velocity=options.coulomb_velocity, envelope=tuple(pushed),
+        inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction), envelope=tuple(pushed),
+        coulomb_velocity=options.coulomb_velocity, viscous_exponent=tuple(options.viscous_exponent or ()),
         theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base : n_fit], theta_std=std[: model.n_base],
         drive_std=std[model.n_base : n_fit], sigma=sigma, condition_number=condition,
         consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
         n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
-        viscous_exponent=tuple(float(v) for v in options.viscous_exponent or ()),
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,

@@ -189,12 +189,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         if vs == 0:
             continue  # a Coulomb-viscous joint: no Stribeck velocity
         print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
-    spread = {e["joint"]: e["std"] for e in calibrated.document["identification"]["column_choice"].get("evidence", [])
-              if e["term"] == "viscous"}  # fmt: skip
-    for j, dv in enumerate(fit.viscous_exponent):
-        if dv != 1.0:  # the viscous power law fv |qd|^dv (column_choice): its exponent
-            std = spread.get(j + 1, 0.0)
-            print(f"{f'dv{j + 1} [-]':<15} {dv:10.4g} {std:10.3g} {100 * std / dv:8.1f}")
+    _print_exponents(fit, calibrated)
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
     for entry in report["recordings"]:
@@ -215,3 +210,13 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")
+
+
+def _print_exponents(fit, calibrated) -> None:
+    """The viscous power law's exponent of each joint that has one (``column_choice``), with its standard deviation."""
+    spread = {e["joint"]: e["std"] for e in calibrated.document["identification"]["column_choice"].get("evidence", [])
+              if e["term"] == "viscous"}  # fmt: skip
+    for j, dv in enumerate(fit.viscous_exponent):
+        if dv != 1.0:
+            std = spread.get(j + 1, 0.0)
+            print(f"{f'dv{j + 1} [-]':<15} {dv:10.4g} {std:10.3g} {100 * std / dv:8.1f}")
