@@ -18,8 +18,7 @@ Friction (``DiagnosisOptions.friction``), per joint and linear in its amplitudes
   steady-state LuGre curve of the paper (eq. 14 at zdot = 0), ``fc s + (fs - fc) exp(-(qd/vs)^2) s + fv |qd|^dv s``
   with ``s = sign(qd)``, the shape values ``vs`` and ``dv`` from the robot file's drives (``vs = 0.01``, ``dv = 1``
   without drives). The bristle dynamics (pre-sliding) are not modelled in the diagnosis.
-- ``"coulomb_viscous"``: ``fc s + fv qd``; on a joint whose drive states a viscous exponent ``dv != 1`` (a model file's
-  viscous power law, ``viscous_power``) ``fc s + fv |qd|^dv s``.
+- ``"coulomb_viscous"``: ``fc s + fv qd``.
 - ``"stribeck"``: the steady-state curve of ``"lugre"`` alone (no bristle-dynamics columns), the shape of a
   calibrated model identified with ``--friction stribeck`` (its ``vs`` in the drives ``calibrated_robot`` builds).
 """
@@ -91,8 +90,8 @@ def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray, 
     s = np.tanh(qd / SMOOTH_VELOCITY) if sign is None else sign
     if kind in STRIBECK_SHAPED:
         per = [s, np.exp(-((qd / vs) ** 2)) * s, np.abs(qd) ** dv * s]
-    else:  # a joint of the drives' viscous power law (dv != 1: a model file's, ``viscous_power``) keeps it
-        per = [s, np.where(dv == 1.0, qd, np.abs(qd) ** dv * s)]
+    else:
+        per = [s, qd]
     k = len(per)
     out = np.zeros((n_samples, n, n * k))
     for j in range(n):
@@ -158,7 +157,7 @@ def _joint_friction_columns(robot, kind: str, context, j: int, dynamic: bool):
         yield np.exp(-((qd / vs[j]) ** 2)) * sign
         yield np.abs(qd) ** dv[j] * sign
     else:
-        yield qd if dv[j] == 1.0 else np.abs(qd) ** dv[j] * sign
+        yield qd
     if dynamic:
         yield _lugre_dynamic_full(robot, context, j)
 
@@ -206,5 +205,5 @@ def friction_casadi(kind: str, qd, coefficients, vs, dv, smooth: float = SMOOTH_
         if kind in STRIBECK_SHAPED:
             out[j] = c[0] * s + c[1] * ca.exp(-((qd[j] / vs[j]) ** 2)) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s
         else:
-            out[j] = c[0] * s + c[1] * (qd[j] if dv[j] == 1.0 else ca.power(ca.fabs(qd[j]), dv[j]) * s)
+            out[j] = c[0] * s + c[1] * qd[j]
     return out
