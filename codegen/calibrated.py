@@ -45,6 +45,7 @@ __all__ = [
     "drive_inertia",
     "header_note",
     "stribeck_velocity",
+    "viscous_exponent",
 ]
 
 #: The forms of the rigid body: Newton-Euler on the base parameters (fastest) or the paper's sum.
@@ -126,16 +127,28 @@ def drive_bias(calibrated, qd):
         [N m or N]; the same terms as ``identification.calibration.trajectory_data.drive_columns``.
     """
     values, terms, _, velocity = _drive_block(calibrated)
-    stribeck = stribeck_velocity(calibrated)
+    stribeck, exponent = stribeck_velocity(calibrated), viscous_exponent(calibrated)
     entries = []
     for j in range(calibrated.n_dof):
         entry = ca.SX(0)
-        vs = None if stribeck is None else float(stribeck[j])
+        vs, dv = None if stribeck is None else float(stribeck[j]), None if exponent is None else float(exponent[j])
         for term in terms:
             if term != "Ia":
-                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], velocity, vs)
+                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], velocity, vs, dv)
         entries.append(entry)
     return ca.vertcat(*entries)
+
+
+def viscous_exponent(calibrated) -> np.ndarray | None:
+    """The viscous exponents per joint of a model with a viscous power law (``drive.viscous_exponent``), else None."""
+    dv = calibrated.document["drive"].get("viscous_exponent")
+    if not dv:
+        return None
+    out = np.array([np.nan if v is None else v for v in dv], dtype=float)
+    if out.shape != (calibrated.n_dof,) or not np.all(np.isfinite(out) & (out > 0)):
+        raise ModelFileError(f"calibrated model drive.viscous_exponent must be {calibrated.n_dof} numbers > 0 (1: "
+                             f"linear viscous friction); got {dv!r}. Re-run 'psdm identify'.")  # fmt: skip
+    return out
 
 
 def stribeck_velocity(calibrated) -> np.ndarray | None:
@@ -323,7 +336,9 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
     document = calibrated.document
     values, terms, inertia_joints, velocity = _drive_block(calibrated)
     per_joint = " + ".join(_term_text(term, velocity) for term in terms) or "none"
-    stribeck = stribeck_velocity(calibrated)
+    stribeck, exponent = stribeck_velocity(calibrated), viscous_exponent(calibrated)
+    if exponent is not None:
+        per_joint = per_joint.replace("fv_j qd_j", f"fv_j qd_j (qd_j^2 + {velocity!r}^2)^((dv_j - 1) / 2)")
     inertia = f" + Ia_j qdd_j (joints {', '.join(str(j + 1) for j in inertia_joints)})" if inertia_joints else ""
     problem = consistency_problem(calibrated)
     state = "physically consistent" if problem is None else f"WARNING: {problem}; exported with --allow-inconsistent"
@@ -346,7 +361,8 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
             vs = [] if stribeck is None else [f"vs{j + 1} = {stribeck[j]:.17g}"]
             if stribeck is not None and stribeck[j] == 0:
                 vs = [f"vs{j + 1} = 0 (Coulomb-viscous joint: no Stribeck term)"]
-            lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs))
+            dv = [] if exponent is None else [f"dv{j + 1} = {exponent[j]:.17g}"]
+            lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs + dv))
     lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated) + corrections_note(calibrated, prefix)
     lines = [line.replace("*/", "* /") for line in _warning_lines(calibrated) + lines]  # free text: no comment end
     return "/* " + "\n * ".join(_wrap(lines)) + "\n */\n"

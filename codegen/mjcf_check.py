@@ -73,6 +73,7 @@ def _held_part(calibrated):
     document["findings"] = [entry for entry in document.get("findings") or [] if entry.get("kind") == "torque"
                             and is_linear_spring(FindingTerm.from_dict(entry.get("term") or {}))]  # fmt: skip
     lugre = drive.pop("lugre", None)
+    drive.pop("viscous_exponent", None)  # MJCF's damping is linear: the round trip compares the linear part
     return type(calibrated)(document), lugre
 
 

@@ -126,13 +126,15 @@ def friction_left_out(calibrated) -> list | None:
         names = ("fs", "vs", "sigma0", "sigma1")
         return [", ".join(f"{name} = {exact_text(getattr(p, name))}" for name in names) for p in lugre]
     drive = calibrated.document["drive"]
-    if "fs" not in drive["friction_terms"]:
+    power = drive.get("viscous_exponent") or []  # the viscous power law fv |qd|^dv: a target's damping is linear
+    if "fs" not in drive["friction_terms"] and not power:
         return None
     values = dict(zip(drive["names"], calibrated.drive))
-    return [
-        f"fs = {exact_text(values[f'fs{j + 1}'])}, vs = {exact_text(v)}"
-        for j, v in enumerate(drive["stribeck_velocity"])
-    ]
+    out = [f"fs = {exact_text(values[f'fs{j + 1}'])}, vs = {exact_text(v)}"
+           for j, v in enumerate(drive["stribeck_velocity"])] or [""] * len(power)  # fmt: skip
+    dv = [f"viscous exponent dv = {exact_text(v)} (damping is fv, the power law's value at 1 rad/s)" if v != 1 else ""
+          for v in power] or [""] * len(out)  # fmt: skip
+    return ["; ".join(part for part in pair if part) or "none" for pair in zip(out, dv)]
 
 
 def friction_not_representable(calibrated, target: ExportTarget = URDF) -> str | None:
@@ -141,6 +143,10 @@ def friction_not_representable(calibrated, target: ExportTarget = URDF) -> str |
         return None
     shape = "LuGre" if calibrated.lugre_parameters is not None else "Stribeck"
     dynamics = " and the bristle dynamics (sigma0, sigma1)" if shape == "LuGre" else ""
+    if "fs" not in calibrated.document["drive"]["friction_terms"] and shape != "LuGre":
+        return (f"the model's viscous friction is a power law fv |qd|^dv on some joints; {target.name} holds only "
+                f"linear viscous damping, so {target.friction_fields} are written and the exponent dv is NOT in the "
+                f"{target.name} (its value is in a comment on each joint)")  # fmt: skip
     return (
         f"the model's friction is {shape}; {target.name} holds only Coulomb friction and viscous damping, so "
         f"{target.friction_fields} (the sliding level and the viscous slope) are written, and the static hump "

@@ -32,7 +32,8 @@ def absorbed_mask(robot, model, recordings, options, columns: FindingColumns, st
     for recording in recordings:
         ready, _, _ = prepare_recording(recording, kt, options.cutoff_hz, options.edge_periods)
         equations.add_recording(model, ready, options.friction, inertia, options.coulomb_velocity,
-                                FindingColumns(columns.terms, columns.reference), stribeck=stribeck)  # fmt: skip
+                                FindingColumns(columns.terms, columns.reference), stribeck=stribeck,
+                                viscous=options.viscous_exponent)  # fmt: skip
     rms_tau = np.sqrt(equations.energy / np.maximum(equations.count, 1))
     gram, _, _ = equations.weighted(1.0 / np.maximum(rms_tau, 1e-12) ** 2)
     scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))

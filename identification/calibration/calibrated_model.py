@@ -60,7 +60,7 @@ from identification.calibration.model_file_check import robot_digest
 from identification.calibration.model_preparation import model_preparation, preparation_block
 from identification.calibration.parameter_covariance import covariance_block
 from identification.calibration.payload_fit import configurations_block
-from identification.calibration.trajectory_data import drive_columns, friction_shapes, prepare_recording
+from identification.calibration.trajectory_data import drive_columns, file_shape, friction_shapes, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
 from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
@@ -132,6 +132,7 @@ class CalibratedModel:
                       "friction_shapes": friction_shapes(fit.friction_terms, fit.stribeck_velocity, n),
                       "stribeck_velocity": list(fit.stribeck_velocity),
                       "stribeck_velocity_std": _floats(fit.stribeck_velocity_std),
+                      **({"viscous_exponent": list(fit.viscous_exponent)} if fit.viscous_exponent else {}),
                       "inertia_joints": [j + 1 for j in fit.inertia_joints]},
             "identification": {"cutoff_hz": list(fit.cutoff_hz), "decimation": list(fit.decimation),
                                "n_samples": fit.n_samples, "sigma": _floats(fit.sigma),
@@ -297,9 +298,8 @@ class CalibratedModel:
         drive = self.document["drive"]
         q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
         inertia_joints = tuple(j - 1 for j in drive["inertia_joints"])
-        stribeck = drive.get("stribeck_velocity") or None  # the Stribeck shape's vs per joint [rad/s]
         columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, drive["coulomb_velocity"],
-                                None if stribeck is None else np.asarray(stribeck, dtype=float))  # fmt: skip
+                                *file_shape(drive))  # the Stribeck velocities and viscous exponents  # fmt: skip
         tau = model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
         if lugre is not None:
             from identification.calibration.lugre_recordings import lugre_friction
@@ -348,28 +348,27 @@ def calibrated_robot(calibrated: CalibratedModel, robot):
 
 def friction_drives(calibrated: CalibratedModel, robot) -> tuple | None:
     """Drives carrying the calibrated model's own friction shape, for a nominal model built from it; None for
-    Coulomb + viscous (the robot file's drives are kept).
+    Coulomb + viscous (the robot file's drives are kept, their viscous exponents 1 as the file's).
 
-    Stribeck: ``fc, fs, vs, fv`` of the file (``dv = 1``; the bristle values are the robot file's and unused by
-    the ``"stribeck"`` diagnosis). LuGre: the seven identified parameters. The torque constants are the robot
-    file's (1 N m/A when it has no drives: the model was then identified from joint torques).
+    Stribeck or a viscous power law: ``fc, fs, vs, fv`` and ``dv`` of the file (1 where linear; the bristle values are
+    the robot file's and unused by the ``"stribeck"`` diagnosis). LuGre: the seven identified parameters. The torque
+    constants are the robot file's (1 N m/A when it has no drives: the model was then identified from joint torques).
     """
     from psdm_casadi.robot import DriveParameters
 
-    shape = calibrated.document["drive"].get("friction_shape")
-    if shape not in ("stribeck", "lugre"):
-        return None
-    base = robot.drives or tuple(DriveParameters() for _ in range(robot.n_dof))
+    drive, base = calibrated.document["drive"], robot.drives or tuple(DriveParameters() for _ in range(robot.n_dof))
+    if drive.get("friction_shape") not in ("stribeck", "lugre") and not drive.get("viscous_exponent"):  # linear
+        return None if all(d.dv == 1.0 for d in base) else tuple(dataclasses.replace(d, dv=1.0) for d in base)
     lugre = calibrated.lugre_parameters
     if lugre is not None:
         return tuple(dataclasses.replace(d, **p.as_dict()) for d, p in zip(base, lugre))
-    values = dict(zip(calibrated.document["drive"]["names"], calibrated.drive))
-    vs = calibrated.document["drive"]["stribeck_velocity"]
+    values = dict(zip(drive["names"], calibrated.drive))
+    vs, dv = drive["stribeck_velocity"] or [0.0] * robot.n_dof, drive.get("viscous_exponent") or [1.0] * robot.n_dof
     flat = [float(v) == 0.0 for v in vs]  # a Coulomb-viscous joint of the file: its static level is its Coulomb one
     return tuple(
         dataclasses.replace(d, fc=max(values[f"fc{j + 1}"], 0.0), vs=d.vs if flat[j] else float(vs[j]),
                             fs=max(values[f"fc{j + 1}" if flat[j] else f"fs{j + 1}"], 0.0),
-                            fv=max(values[f"fv{j + 1}"], 0.0), dv=1.0)
+                            fv=max(values[f"fv{j + 1}"], 0.0), dv=float(dv[j]))
         for j, d in enumerate(base)
     )  # fmt: skip
 

@@ -27,8 +27,10 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     prepare_recording,
     prepare_recordings,
+    viscous_column,
 )
 from identification.calibration.trajectory_fit import torque_constants
+from identification.calibration.viscous_power import ViscousExponents, fit_viscous_exponents
 
 __all__ = [
     "N_BLOCKS",
@@ -36,6 +38,7 @@ __all__ = [
     "PreparedTraining",
     "candidates",
     "loss_candidates",
+    "viscous_power_rows",
     "prepare_training",
     "residual_weights",
     "reversing_joints",
@@ -76,15 +79,28 @@ class Candidates:
     weights: np.ndarray
     effective: np.ndarray
     parts: tuple = ()  # the held-out normal equations of each validation recording (``held`` is their sum)
+    exponents: ViscousExponents | None = None  # the viscous exponent per joint, its column ``fp<j>`` a candidate
+    viscous: tuple = ()  # joints (0-based) whose viscous column is the power law in every sub-model (``with_viscous``)
 
     def blocks_count(self, joint: int) -> int:
         """Training samples of ``joint``."""
         return int(sum(block.count[joint] for block in self.blocks))
 
+    def with_viscous(self, joints) -> Candidates:
+        """These candidates with the power-law viscous column in place of the linear one on ``joints`` (0-based)."""
+        out = replace(self, viscous=tuple(joints))
+        out.__dict__["_summed"] = self.__dict__.setdefault("_summed", {})  # the same sums
+        return out
+
     def transform(self, stribeck, dropped=()) -> np.ndarray:
         """Map from a sub-model's columns to the full ones: the joints of ``stribeck`` (0-based) keep the Stribeck
-        shape, on the others (Coulomb-viscous) ``fs`` joins ``fc``."""
+        shape, on the others (Coulomb-viscous) ``fs`` joins ``fc``. A joint's viscous column is the linear one ``fv``,
+        or the power law ``fp`` on the joints of ``viscous`` or where ``dropped`` drops ``fv`` (a sub-model that drops
+        either takes the other)."""
         full = [f"theta{k}" for k in range(self.n_base)] + list(self.names)
+        power = {n[2:]: f"fv{n[2:]}" in dropped or (f"fp{n[2:]}" not in dropped and int(n[2:]) - 1 in self.viscous)
+                 for n in self.names if n.startswith("fp")}  # fmt: skip
+        dropped = {*dropped, *(("fv" if on else "fp") + j for j, on in power.items())}
         flat = {f"{j + 1}" for j in range(self.weights.size) if j not in stribeck} if self.stribeck else set()
         kept = [n for n in full if n not in dropped and not (n.startswith("fs") and n[2:] in flat)]
         out = np.zeros((len(full), len(kept)))
@@ -180,23 +196,44 @@ def candidates(robot, model, training: PreparedTraining, options, request, valid
         plain = np.concatenate([rigid, drive, bodies_rows], axis=2)[:, :, keep]
         return plain if loss is None else np.concatenate([plain, loss], axis=2)
 
-    blocks, fitted = [], []
-    for recording, chunks, extra in zip(prepared, regressors, extras):
-        columns = rows(recording, np.concatenate(chunks), extra)
-        fitted.append((columns, recording.tau))
+    fitted = [(rows(r, np.concatenate(chunks), extra), r.tau) for r, chunks, extra in zip(prepared, regressors, extras)]
+    total = NormalEquations(robot.n_dof, len(keep) + len(losses))
+    for columns, tau in fitted:
+        total.add(columns, tau)
+    weights, effective = residual_weights(total, fitted)  # the linear viscous model's: the choice's weights as before
+    exponents = fit_viscous_exponents(fitted, names, model.n_base, options.coulomb_velocity, weights, effective)
+    power = exponents.candidates() if request.friction == "auto" else ()
+
+    def with_power(columns, qd):  # the power-law viscous column of each candidate joint, after the others
+        return np.concatenate([columns, viscous_power_rows(qd, exponents, power, options.coulomb_velocity)], axis=2)
+
+    blocks, n_columns = [], len(keep) + len(losses) + len(power)
+    for recording, (columns, tau) in zip(prepared, fitted):
+        columns = with_power(columns, recording.qd)
         edges = np.linspace(0, recording.n_samples, N_BLOCKS + 1).astype(int)
         for a, b in zip(edges[:-1], edges[1:]):
-            blocks.append(NormalEquations(robot.n_dof, len(keep) + len(losses)))
-            blocks[-1].add(columns[a:b], recording.tau[a:b])
+            blocks.append(NormalEquations(robot.n_dof, n_columns))
+            blocks[-1].add(columns[a:b], tau[a:b])
+    del fitted
     parts = []
     for recording in validation:
         ready = prepare_recording(recording, kt, cutoffs[0], options.edge_periods)[0]
-        parts.append(NormalEquations(robot.n_dof, len(keep) + len(losses)))
-        parts[-1].add(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.tau)
-    weights, effective = residual_weights(sum_blocks(blocks), fitted)
+        parts.append(NormalEquations(robot.n_dof, n_columns))
+        parts[-1].add(with_power(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.qd), ready.tau)
     held = sum_blocks(parts) if parts else None
-    found = Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective, tuple(parts))
+    names += [f"fp{j + 1}" for j in power]
+    found = Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective, tuple(parts),
+                       exponents=exponents)  # fmt: skip
     return found, offsets, inertia
+
+
+def viscous_power_rows(qd, exponents, joints, coulomb_velocity: float) -> np.ndarray:
+    """The power-law viscous columns ``fp<j>`` of ``joints`` (``viscous_power.viscous_column``), (n_samples, n_dof,
+    len(joints)): each on its own joint's rows."""
+    out = np.zeros((qd.shape[0], qd.shape[1], len(joints)))
+    for k, j in enumerate(joints):
+        out[:, j, k] = viscous_column(qd[:, j], exponents.value[j], coulomb_velocity)
+    return out
 
 
 def loss_candidates(robot, model, kt, request) -> tuple:

@@ -14,7 +14,7 @@ do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, be
    own columns, its Stribeck shape, offset or drive inertia, dropped with every other candidate in), with the number of
    samples divided by the residual's correlation time (filtered samples are not independent), **and** it lowers the
    joint's error on held-out data: the validation recordings when given, else a cross-validation over the training
-   blocks (each block predicted by the fit on the others). One verdict (``_verdict``) serves every kind of column
+   blocks (each block predicted by the fit on the others). One verdict (``column_verdict``) serves every kind of column
    (offset, Stribeck shape, drive inertia, drive loss): a column the training criterion is indifferent to
    (``INDIFFERENT_BIC``, either way) is kept only when the held-out data want it clearly (``HELD_OUT_GAIN``), as is one
    it is against short of strongly (``STRONG_BIC``): a sensor's offset that viscous friction would otherwise absorb, and
@@ -62,11 +62,13 @@ from identification.calibration.column_candidates import (
     candidates,
     prepare_training,
 )
+from identification.calibration.column_verdict import INDIFFERENT_BIC, Evidence, verdict
 from identification.calibration.coulomb_smoothing import SmoothingChoice, smoothing_velocity
 from identification.calibration.drive_loss import efficiency
 from identification.calibration.merged_rotors import without_lone_inertia
 from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.trajectory_fit import TrajectoryOptions
+from identification.calibration.viscous_power import viscous_evidence, viscous_exponents, viscous_lines
 from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
@@ -81,26 +83,13 @@ SWITCH_CHOICES = ("auto", "on", "off")
 STRIBECK_PARAMETERS = 2
 #: Standard deviations by which the static friction must exceed the Coulomb level for a Stribeck effect.
 STRIBECK_Z = 2.0
-#: A column the training data are indifferent to (its BIC change within ``INDIFFERENT_BIC`` of 0: "not worth more
-#: than a bare mention", Kass and Raftery 1995) is kept when it lowers the joint's held-out RMS error by
-#: ``HELD_OUT_GAIN`` (the gain a diagnosis asks of a finding), whatever its kind. A joint-torque sensor's offset moves
-#: between recordings (the Kinova Gen3's joint 7 shows only noise and offset); on one short recording the training BIC
-#: cannot tell it from viscous friction, which then absorbs it and predicts a faster held-out motion badly (joint 7:
-#: 0.40 N m against 0.21 for the robot file; with its offset 0.17).
-INDIFFERENT_BIC, HELD_OUT_GAIN = 2.0, 0.2
-#: A column the training data are against, but not strongly (its BIC change from ``-STRONG_BIC`` to
-#: ``-INDIFFERENT_BIC``: "positive" evidence, short of "strong", Kass and Raftery 1995), is kept too when the held-out
-#: data want it clearly (``HELD_OUT_GAIN``, on each validation recording), and identify checks that verdict on the model
-#: it writes (``column_check``). The Kinova's joint-7 offset is at BIC -1.95 with the Coulomb smoothing at 0.05 rad/s
-#: and -2.08 at the data's 0.0206 (held-out gain 35 %; the written model's joint 7 0.40 N m without it, 0.17 with): a
-#: knife-edge at -2 that no training evidence short of strong should decide against a held-out gain that clear.
-STRONG_BIC = 6.0
 #: How ``describe`` names each kind of column and its estimate.
 LABELS = {
     "offset": ("torque offset", "{:+.3g} N m"),
     "stribeck": ("Stribeck shape", "fs - fc = {:+.3g} N m"),
     "Ia": ("drive inertia", "{:+.3g} kg m^2"),
     "loss": ("drive loss", "mu = {:+.3g}"),
+    "viscous": ("viscous power law", "dv = {:.3g}"),
 }
 
 
@@ -130,35 +119,6 @@ class ColumnRequest:
 
 
 @dataclass(frozen=True)
-class Evidence:
-    """What the data said about one candidate of one joint: ``term`` ``"stribeck"`` (the shape), ``"offset"``,
-    ``"Ia"`` or ``"loss"`` (a drive loss: ``estimate`` is its coefficient ``mu``).
-
-    ``delta_bic``: the training BIC without the candidate minus with it (positive: the training data want it);
-    ``held_out_ratio``: held-out sum of squared residuals with it over without it (below 1: it predicts
-    better); ``estimate`` and ``std``: its least-squares value in the full model (per-joint columns); ``departs``: the
-    verdict departs from the plain rule's (the training BIC's sign and the pooled held-out error), so the held-out
-    data alone decided it (an indifferent BIC and the gain asked, or a rise on one validation recording): identify
-    checks such a column on the model it writes (``column_check``).
-    """
-
-    term: str
-    joint: int | None
-    delta_bic: float
-    held_out_ratio: float
-    kept: bool
-    reason: str
-    estimate: float | None = None
-    std: float | None = None
-    departs: bool = False
-
-    def to_dict(self) -> dict:
-        out = asdict(self)
-        out["joint"] = None if self.joint is None else self.joint + 1
-        return out
-
-
-@dataclass(frozen=True)
 class ColumnChoice:
     """The drive columns of a fit: friction shape, offset joints and drive-inertia joints (0-based), and why.
 
@@ -178,6 +138,7 @@ class ColumnChoice:
     torque_source: str = ""  # "current" (kt i) or "torque" (measured joint torque); "" not stated
     smoothing: SmoothingChoice | None = None  # the Coulomb column's smoothing velocity (None: the options' own)
     replaced_offsets: tuple = ()  # chosen offsets a counterbalance spring identify kept replaced (0 in the model)
+    viscous_exponent: tuple = ()  # per joint the viscous exponent dv (1: linear); empty: every joint linear
 
     def shapes(self, n_dof: int) -> list:
         """The friction shape of each joint."""
@@ -199,6 +160,7 @@ class ColumnChoice:
             inertia_joints=None if self.request.drive_inertia == "on" else tuple(self.inertia_joints),
             stribeck_joints=None if stribeck is None else tuple(stribeck),
             coulomb_velocity=options.coulomb_velocity if self.smoothing is None else self.smoothing.velocity,
+            viscous_exponent=tuple(self.viscous_exponent) or None,
         )
 
     @property
@@ -220,6 +182,8 @@ class ColumnChoice:
             joints = toggled(self.stribeck_joints or ())
             return replace(self, friction="stribeck" if joints else "coulomb-viscous", evidence=items,
                            stribeck_joints=joints or None)  # fmt: skip
+        if term == "viscous":
+            return replace(self, evidence=items, viscous_exponent=viscous_exponents(items, self.n_dof))
         field = {"offset": "offset_joints", "Ia": "inertia_joints", "loss": "loss_joints"}[term]
         return replace(self, evidence=items, **{field: toggled(getattr(self, field))})
 
@@ -253,7 +217,7 @@ class ColumnChoice:
             lines.append(line + ")")
         else:
             lines.append(f"drive-inertia columns: {'off' if self.request.drive_inertia == 'off' else 'on'} (as asked)")
-        lines += self._loss_lines(joints)
+        lines += self._loss_lines(joints) + viscous_lines(self.viscous_exponent, self.evidence)
         if self.check:
             lines.append(f"checked on {self.check}")
         return lines + ([] if self.smoothing is None else [self.smoothing.sentence()])
@@ -306,7 +270,8 @@ class ColumnChoice:
                 "drive_loss_joints": [j + 1 for j in self.loss_joints], "torque_source": self.torque_source,
                 "check": self.check, "evidence": [e.to_dict() for e in self.evidence],
                 "smoothing": None if self.smoothing is None else self.smoothing.sentence(),
-                "coulomb_velocity": None if self.smoothing is None else self.smoothing.velocity}  # fmt: skip
+                "coulomb_velocity": None if self.smoothing is None else self.smoothing.velocity,
+                "viscous_exponent": list(self.viscous_exponent) or None}  # fmt: skip
 
 
 @remembering()  # the recordings' regressors evaluated once (state_cache)
@@ -350,6 +315,8 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
     if request.friction == "auto":
         evidence += _shape_evidence(found)
         stribeck = tuple(e.joint for e in evidence if e.kept)
+        evidence += viscous_evidence(found, stribeck)  # the viscous power law, its exponent found first
+        found = found.with_viscous(e.joint for e in evidence if e.term == "viscous" and e.kept)
     train, held, x, std = found.evaluate(stribeck)
     asked = {"offset": "offset", "Ia": "drive_inertia", "loss": "drive_loss"}
     for name in found.names:
@@ -368,6 +335,7 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         request=request, check=check, evidence=tuple(evidence),
         stribeck_joints=tuple(stribeck) if request.friction == "auto" and stribeck else None, n_dof=robot.n_dof,
         loss_joints=_loss_joints(robot, model, request, kept), torque_source=source, smoothing=smoothing,
+        viscous_exponent=viscous_exponents(evidence, robot.n_dof),
     )  # fmt: skip
     logger.debug("identify: %s", "; ".join(choice.describe()))  # identify's report states it (IdentifyResult)
     return choice
@@ -420,7 +388,7 @@ def _shape_evidence(found: Candidates) -> list:
         fc, fs = (found.n_base + found.names.index(f"{term}{j + 1}") for term in ("fc", "fs"))
         spread = float(np.hypot(std[fc], std[fs]) * np.sqrt(found.blocks_count(j) / n))
         above = bool(x[fs] - x[fc] > STRIBECK_Z * spread)
-        held, reason = _verdict(found, (every, ()), (tuple(k for k in every if k != j), ()), j, delta, ratio)
+        held, reason = verdict(found, (every, ()), (tuple(k for k in every if k != j), ()), j, delta, ratio)
         kept = held and above
         if held and not kept:
             reason = (f"static friction {x[fs]:.3g} not above the Coulomb level {x[fc]:.3g} by {STRIBECK_Z:g} standard "
@@ -449,46 +417,5 @@ def _column_evidence(found, stribeck, name, term, base, current=False) -> Eviden
     if term == "loss" and not 0.0 < estimate < MAX_LOAD_FRICTION:
         return Evidence(term, j, delta, ratio, False, f"coefficient mu = {estimate:.3g} outside (0, "
                         f"{MAX_LOAD_FRICTION}): not a gear efficiency above 60 %", estimate, sigma)  # fmt: skip
-    kept, reason = _verdict(found, (stribeck, ()), (stribeck, (name,)), j, delta, ratio)
+    kept, reason = verdict(found, (stribeck, ()), (stribeck, (name,)), j, delta, ratio)
     return Evidence(term, j, delta, ratio, kept, reason, estimate, sigma, kept != (delta > 0 and ratio < 1))
-
-
-def _verdict(found, full, sub, j, delta, ratio) -> tuple:
-    """(kept, reason) of one candidate of joint ``j``, of any kind (offset, Stribeck shape, drive inertia, drive loss;
-    ``full`` and ``sub``: the models with and without it, as ``(stribeck, dropped)``): the training BIC wants it and it
-    lowers the joint's held-out error, clearly (by ``HELD_OUT_GAIN``) where the BIC is indifferent (within
-    ``INDIFFERENT_BIC`` of 0, either way) or against it short of strongly (down to ``-STRONG_BIC``), and on each
-    validation recording (``Candidates.part_sums``): a column one recording contradicts is that recording's (a sensor's
-    offset, its friction), not the arm's, and a pooled gain on the others does not outvote it."""
-    gain = 1.0 - np.sqrt(ratio)
-    if -STRONG_BIC <= delta <= INDIFFERENT_BIC:
-        kept = bool(gain >= HELD_OUT_GAIN)
-        training = "are indifferent" if delta >= -INDIFFERENT_BIC else "are against it, not strongly,"
-        reason = (f"the training data {training} (BIC {delta:+.2g}) and it lowers the held-out RMS error by "
-                  f"{gain:.0%}" + ("" if kept else f", less than the {HELD_OUT_GAIN:.0%} asked of a column the "
-                  "training data do not decide"))  # fmt: skip
-    else:
-        kept, reason = delta > 0 and ratio < 1, _reason(delta, ratio, delta > 0 and ratio < 1)
-    if not kept or not found.parts:
-        return kept, reason
-    count = np.array([max(part.count[j], 1) for part in found.parts])
-    with_it = np.sqrt(found.part_sums(*full)[:, j] / count)
-    without = np.sqrt(found.part_sums(*sub)[:, j] / count)
-    rises = [f"validation recording {k + 1} of {len(count)}: {b:.3g} -> {a:.3g} N m"
-             for k, (b, a) in enumerate(zip(without, with_it)) if a >= b]  # fmt: skip
-    if rises:
-        training = (
-            "want" if delta > INDIFFERENT_BIC else "are indifferent to" if delta >= -INDIFFERENT_BIC else "are against"
-        )
-        return False, (f"the training data {training} it (BIC {delta:+.2g}) and it lowers the held-out RMS error "
-                       f"taken together by {gain:.0%}, but it raises it on {'; '.join(rises)}: that recording's, not "
-                       "the arm's")  # fmt: skip
-    return kept, reason
-
-
-def _reason(delta, ratio, kept) -> str:
-    if kept:
-        return "the training data want it (BIC) and it predicts the held-out data better"
-    if delta <= 0:
-        return "the training data do not want it (BIC)"
-    return "the training data want it (BIC) but it does not predict the held-out data better"

@@ -66,17 +66,17 @@ def accumulate(robot, model, prepared, extras, setup, n_columns: int, probes=Non
     """(summed normal equations of ``n_columns``, per recording its own with a flange probe's 10 columns last, or
     None): the fit's one pass over the recordings. ``probes`` (one entry per recording, None for those to test;
     None: no probe) asks for the per-recording equations; ``setup`` is ``(friction terms, drive-inertia joints,
-    coulomb velocity, vs)`` and ``extras`` the recordings' extra-column objects."""
-    terms, inertia_joints, coulomb_velocity, vs = setup
+    coulomb velocity, vs, viscous exponents)`` and ``extras`` the recordings' extra-column objects."""
+    terms, inertia_joints, coulomb_velocity, vs, dv = setup
     probes = probes if probes is not None and len(prepared) > 1 and None in probes else None  # one recording: none
     flange = None if probes is None else FlangeRegressor(robot)
     total, own = NormalEquations(robot.n_dof, n_columns), []
     for ready, extra, probe in zip(prepared, extras, probes if probes is not None else [0] * len(prepared)):
         if flange is None or probe is not None:
-            total.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, extra, vs)
+            total.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, extra, vs, dv)
             continue
         equations = NormalEquations(robot.n_dof, n_columns + BODY)
-        equations.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, _Probe(extra, flange), vs)
+        equations.add_recording(model, ready, terms, inertia_joints, coulomb_velocity, _Probe(extra, flange), vs, dv)
         own.append((ready.name, equations))
         shared = equations.subset(range(n_columns))
         total.gram += shared.gram

@@ -210,11 +210,14 @@ def baseline_columns(names, options, n_base: int) -> set:
 
 def with_held_values(fit, options):
     """``fit`` (a ``TrajectoryFit``) with its held columns at their held values, in the estimate and the least-squares
-    estimate alike (their standard deviations stay 0: not estimated)."""
+    estimate alike (their standard deviations stay 0: not estimated); a held joint's viscous friction is linear, as
+    its held torque (its viscous exponent 1)."""
     if not options.held_friction:
         return fit
     drive, drive_ols = np.array(fit.drive, dtype=float), np.array(fit.drive_ols, dtype=float)
     for name, value in options.held_friction:
         k = fit.drive_names.index(name)
         drive[k] = drive_ols[k] = float(value)
-    return replace(fit, drive=drive, drive_ols=drive_ols)
+    held = {drive_column_joint(name) for name, _ in options.held_friction if _term(name) in HELD_TERMS}
+    dv = tuple(1.0 if j in held else float(v) for j, v in enumerate(fit.viscous_exponent))
+    return replace(fit, drive=drive, drive_ols=drive_ols, viscous_exponent=dv if any(v != 1.0 for v in dv) else ())

@@ -189,6 +189,10 @@ def _check_drive(name: str, block: dict, n_dof: int) -> None:
         if min(vs) < 0 or max(vs) <= 0:
             raise _refuse(name, "drive.stribeck_velocity", f"{n_dof} numbers >= 0 [rad/s], one positive (0: a "
                           "Coulomb-viscous joint, no Stribeck hump)", vs)  # fmt: skip
+    if block.get("viscous_exponent"):
+        dv = _numbers(name, block, "viscous_exponent", "drive", n_dof)
+        if min(dv) <= 0:
+            raise _refuse(name, "drive.viscous_exponent", f"{n_dof} numbers > 0 (1: linear viscous friction)", dv)
     lugre = block.get("lugre")
     if lugre:
         from identification.friction.models import LUGRE_PARAMETER_NAMES

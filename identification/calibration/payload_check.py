@@ -29,7 +29,7 @@ from identification.calibration.model_preparation import model_preparation
 from identification.calibration.parameter_covariance import stated_covariance
 from identification.calibration.payload_fit import Estimable, FlangeRegressor
 from identification.calibration.residual_correlation import residual_correlation_time
-from identification.calibration.trajectory_data import choose_filter, drive_columns
+from identification.calibration.trajectory_data import choose_filter, drive_columns, file_shape
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from identification.metrics import r2, rmse
@@ -71,10 +71,9 @@ def model_columns(calibrated, model, prepared) -> tuple:
     file's covariance (``parameter_covariance``), else its standard deviations as independent (a file written before
     it); a parameter without a stated one (NaN: not estimated) adds none."""
     drive = calibrated.document["drive"]
-    stribeck = drive.get("stribeck_velocity") or None
     own = drive_columns(prepared.qd, prepared.qdd, tuple(drive["friction_terms"]),
                         tuple(j - 1 for j in drive["inertia_joints"]), drive["coulomb_velocity"],
-                        None if stribeck is None else np.asarray(stribeck, dtype=float))  # fmt: skip
+                        *file_shape(drive))  # fmt: skip
     columns = np.concatenate([model.regressor(prepared.q, prepared.qd, prepared.qdd), own], axis=2)
     std = np.concatenate([calibrated.document["base"].get("std", []), drive.get("std", [])]).astype(float)
     if std.shape != (columns.shape[2],):  # a file that does not state them all: no allowance

@@ -53,7 +53,7 @@ from identification.calibration.counterbalance_folds import FoldFailure, block_f
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.never_worse import compare_each, pooled_comparison
 from identification.calibration.payload_fit import FlangeRegressor
-from identification.calibration.trajectory_data import drive_columns
+from identification.calibration.trajectory_data import drive_columns, fit_shape
 from identification.calibration.trajectory_fit import identify_trajectories
 from psdm_casadi.errors import PSDMError
 
@@ -116,10 +116,10 @@ def estimate_payload(robot, model, fit, prepared) -> tuple | None:
 
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
     flange = FlangeRegressor(robot)
-    stribeck = np.asarray(fit.stribeck_velocity, dtype=float) if fit.stribeck_velocity else None
+    shape = fit_shape(fit)  # Stribeck velocities and viscous exponents
     rows, targets = [], []
     for rec in prepared:
-        own = drive_columns(rec.qd, rec.qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, stribeck)
+        own = drive_columns(rec.qd, rec.qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *shape)
         rows.append(np.concatenate([flange(rec.q, rec.qd, rec.qdd)[:, :, :4], own], axis=2))
         targets.append(np.asarray(rec.tau, dtype=float) - model.inverse_dynamics(rec.q, rec.qd, rec.qdd, theta))
     columns, residual = np.concatenate(rows), np.concatenate(targets)

@@ -211,6 +211,7 @@ def _options(calibrated: CalibratedModel) -> TrajectoryOptions:
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
+        viscous_exponent=tuple(drive.get("viscous_exponent") or ()) or None,  # the file's viscous power law
         held_friction=HeldFriction.of_document(document).values,  # as identified
         held_links=model_file_holds(document).held_links,  # as identified (``worse_joint_hold``)
     )

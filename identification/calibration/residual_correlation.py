@@ -25,7 +25,7 @@ def correlation_time(model, recording, x, options, inertia_joints, extra=None, m
             - np.concatenate(
                 [model.regressor(recording.q[sl], recording.qd[sl], recording.qdd[sl]),
                  drive_columns(recording.qd[sl], recording.qdd[sl], options.friction, inertia_joints,
-                               options.coulomb_velocity, stribeck),
+                               options.coulomb_velocity, stribeck, options.viscous_exponent),
                  *([] if extra is None else [extra.columns(recording.q[sl], recording.qd[sl], recording.qdd[sl])])],
                 axis=2,
             ) @ x

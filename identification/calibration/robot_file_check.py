@@ -61,7 +61,7 @@ from identification.calibration.never_worse import (
     pooled_comparison,
 )
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
-from identification.calibration.trajectory_data import drive_column_joint, drive_columns
+from identification.calibration.trajectory_data import drive_column_joint, drive_columns, fit_shape
 from identification.calibration.trajectory_fit import torque_constants
 from identification.data.excitation_check import one_way_joints
 
@@ -219,8 +219,7 @@ def _json(value):
 
 
 def _columns(fit, qd, qdd) -> np.ndarray:
-    stribeck = np.asarray(fit.stribeck_velocity, dtype=float) if fit.stribeck_velocity else None
-    return drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, stribeck)
+    return drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit))
 
 
 def _joint_columns(fit, joint: int) -> np.ndarray:

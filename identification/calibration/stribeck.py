@@ -51,8 +51,8 @@ STEP_TOLERANCE = 1e-4
 class StribeckColumns:
     """Extra columns (after ``extra``'s): per joint ``d(g s)/d vs`` at the joints' Stribeck velocities."""
 
-    def __init__(self, coulomb_velocity: float, stribeck_velocity, extra=None):
-        self.coulomb_velocity = float(coulomb_velocity)
+    def __init__(self, coulomb_velocity: float, stribeck_velocity, extra=None, viscous_exponent=None):
+        self.coulomb_velocity, self.viscous_exponent = float(coulomb_velocity), viscous_exponent  # the fit's dv
         self.stribeck_velocity = np.asarray(stribeck_velocity, dtype=float)
         self.extra = extra
 
@@ -91,7 +91,7 @@ def stribeck_equations(rows, prepared, terms, inertia_joints, coulomb_velocity, 
     for chunks, r, extra in zip(rows, prepared, extras):
         for k, per_joint in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
-            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs)
+            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs, extra.viscous_exponent)
             more = extra.columns(q, qd, qdd)
             start = per_joint.shape[2] - drive.shape[2] - more.shape[2]
             per_joint[:, :, start : start + drive.shape[2]] = drive.transpose(1, 0, 2)
@@ -173,7 +173,7 @@ def fit_stribeck_velocity(
 
     def solve(vs):
         """(augmented estimate with the derivative coefficients, per-joint relative residual without them)."""
-        columns = [StribeckColumns(velocity, vs, e) for e in extras]
+        columns = [StribeckColumns(velocity, vs, e, getattr(options, "viscous_exponent", None)) for e in extras]
         equations = stribeck_equations(rows, prepared, terms, inertia_joints, velocity, columns)
         plain = equations.subset(range(equations.n_columns - n_dof))
         return _solve(equations), plain.residual_sum(_solve(plain)) / np.maximum(plain.energy, 1e-300)

@@ -34,8 +34,9 @@ from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_joint",
-           "drive_column_names", "drive_columns", "friction_shapes", "friction_term", "prepare_recording",
-           "prepare_recordings", "stribeck_derivative", "stribeck_joints"]  # fmt: skip
+           "drive_column_names", "drive_columns", "file_shape", "fit_shape", "friction_shapes", "friction_term",
+           "prepare_recording", "prepare_recordings", "stribeck_derivative", "stribeck_joints",
+           "viscous_column"]  # fmt: skip
 
 #: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
 FRICTION_TERMS = ("fc", "fs", "fv", "offset")
@@ -125,10 +126,11 @@ def _is_symbolic(*values) -> bool:
     return any(isinstance(v, (ca.SX, ca.MX)) for v in values)
 
 
-def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None):
+def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None, viscous_exponent=None):
     """The column of one friction term at velocities ``qd`` (numbers, arrays or CasADi expressions alike).
 
-    ``fc``: the smooth sign ``s = tanh(qd / coulomb_velocity)``; ``fv``: ``qd``; ``offset``: 1. With a
+    ``fc``: the smooth sign ``s = tanh(qd / coulomb_velocity)``; ``fv``: ``qd``, or with a ``viscous_exponent`` ``dv``
+    the viscous power law (:func:`viscous_column`); ``offset``: 1. With a
     Stribeck velocity ``vs`` (the Stribeck shape), the friction ``(fc + (fs - fc) g) s + fv qd`` with
     ``g = exp(-(qd / vs)^2)`` is linear in ``fc`` and ``fs``: ``fc`` has the column ``(1 - g) s`` and
     ``fs`` the column ``g s``. A joint whose ``vs`` is 0 has no Stribeck hump (``g = 0``: the Coulomb-viscous
@@ -146,10 +148,34 @@ def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None
         bump = _stribeck_bump(qd, stribeck_velocity, symbolic)
         return sign * (bump if term == "fs" else 1.0 - bump)
     if term == "fv":
-        return qd
+        return qd if viscous_exponent is None else viscous_column(qd, viscous_exponent, coulomb_velocity)
     if term == "offset":
         return 1.0 + 0.0 * qd
     raise ParameterError(f"friction_term.term must be one of {FRICTION_TERMS}; got {term!r}.")
+
+
+def viscous_column(qd, exponent, coulomb_velocity: float):
+    """The paper's viscous power law ``|qd|^dv sign(qd)`` (eq. 14), smoothed below the Coulomb smoothing velocity
+    ``v`` as ``qd (qd^2 + v^2)^((dv - 1) / 2)`` (the same beyond a few ``v``, with a finite slope at rest: the exported
+    code's derivatives stay finite); ``qd`` where ``exponent`` is 1. ``exponent``: a number (with numbers, arrays or
+    CasADi expressions) or one per joint along the last axis of ``qd``."""
+    if np.ndim(exponent) == 0 and float(exponent) == 1.0:
+        return qd
+    dv = float(exponent) if np.ndim(exponent) == 0 else np.asarray(exponent, dtype=float)
+    return qd * (qd**2 + coulomb_velocity**2) ** ((dv - 1.0) / 2.0)
+
+
+def file_shape(drive: dict) -> tuple:
+    """(Stribeck velocities, viscous exponents), each an array per joint or None, of a model file's ``drive`` block:
+    the shape arguments of :func:`drive_columns` (a file without ``viscous_exponent`` is linear viscous)."""
+    vs, dv = drive.get("stribeck_velocity") or None, drive.get("viscous_exponent") or None
+    return tuple(None if v is None else np.asarray(v, dtype=float) for v in (vs, dv))
+
+
+def fit_shape(fit) -> tuple:
+    """(Stribeck velocities, viscous exponents) of a ``TrajectoryFit``, as :func:`file_shape`."""
+    vs, dv = fit.stribeck_velocity or None, getattr(fit, "viscous_exponent", ()) or None
+    return tuple(None if v is None else np.asarray(v, dtype=float) for v in (vs, dv))
 
 
 def _stribeck_bump(qd, stribeck_velocity, symbolic: bool):
@@ -187,11 +213,14 @@ def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
     return friction_term("fs", qd, coulomb_velocity, vs) * 2.0 * qd**2 / safe**3
 
 
-def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float, stribeck_velocity=None):
+def drive_columns(
+    qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float, stribeck_velocity=None, viscous_exponent=None
+):
     """Drive columns (n_samples, n_dof, k): per joint its friction terms, then the listed drive inertias.
 
     The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)``; with ``stribeck_velocity``
-    (n_dof,) [rad/s] the Coulomb and static columns are the Stribeck shape's (:func:`friction_term`).
+    (n_dof,) [rad/s] the Coulomb and static columns are the Stribeck shape's, with ``viscous_exponent`` (n_dof,) the
+    viscous column the power law (:func:`friction_term`).
     """
     n_samples, n_dof = qd.shape
     per_joint = [term for term in terms if term != "Ia"]
@@ -199,7 +228,7 @@ def drive_columns(qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float
     out = np.zeros((n_samples, n_dof, k))
     vs = None if stribeck_velocity is None or "fs" not in terms else np.asarray(stribeck_velocity, dtype=float)
     for c, term in enumerate(per_joint):
-        column = friction_term(term, qd, coulomb_velocity, vs)
+        column = friction_term(term, qd, coulomb_velocity, vs, viscous_exponent)
         out[:, range(n_dof), [j * len(per_joint) + c for j in range(n_dof)]] = column
     for c, j in enumerate(inertia_joints):
         out[:, j, len(per_joint) * n_dof + c] = qdd[:, j]
@@ -248,14 +277,23 @@ class NormalEquations:
         self.total += tau.sum(axis=0)
 
     def add_recording(
-        self, model, recording: Recording, terms: tuple, inertia_joints, coulomb_velocity, extra=None, stribeck=None
+        self,
+        model,
+        recording: Recording,
+        terms,
+        inertia_joints,
+        coulomb_velocity,
+        extra=None,
+        stribeck=None,
+        viscous=None,
     ) -> None:
-        """Add a prepared recording's rows: the base-parameter regressor, the drive columns and the ``extra``
-        columns (an object with ``columns(q, qd, qdd)``, e.g. ``findings.FindingColumns``), in chunks."""
+        """Add a prepared recording's rows: the base-parameter regressor, the drive columns (Stribeck velocities
+        ``stribeck`` and viscous exponents ``viscous``, :func:`drive_columns`) and the ``extra`` columns (an object
+        with ``columns(q, qd, qdd)``, e.g. ``findings.FindingColumns``), in chunks."""
         for start in range(0, recording.n_samples, CHUNK_SAMPLES):
             sl = slice(start, start + CHUNK_SAMPLES)
             q, qd, qdd = recording.q[sl], recording.qd[sl], recording.qdd[sl]
-            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, stribeck)
+            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, stribeck, viscous)
             blocks = [model.regressor(q, qd, qdd), drive]
             if extra is not None:
                 blocks.append(extra.columns(q, qd, qdd))

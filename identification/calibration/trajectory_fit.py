@@ -39,7 +39,6 @@ from identification.calibration.consistent_fit import (
     consistent_fit,
     drive_lower_bounds,
     link_is_free,
-    residual_sigma,
 )
 from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
@@ -66,11 +65,12 @@ from identification.calibration.trajectory_checks import (
 )
 from identification.calibration.trajectory_data import (
     FRICTION_TERMS,
-    NormalEquations,
     drive_column_names,
     drive_columns,
+    fit_shape,
     prepare_recordings,
 )
+from identification.calibration.weighted_solve import weighted_least_squares
 from identification.data.filter_choice import EDGE_PERIODS
 from identification.data.missing_torque import find_missing_torque, missing_torque_messages
 from psdm_casadi.errors import ParameterError
@@ -132,6 +132,9 @@ class TrajectoryOptions:
         With ``"fs"``: the joints (0-based) of the Stribeck shape; the others are Coulomb-viscous (Stribeck velocity
         0, static friction held at 0: ``trajectory_data.friction_term``; ``column_choice`` decides it per joint from
         the data). None: every joint.
+    viscous_exponent : tuple of float or None
+        Per joint the exponent ``dv`` of the viscous power law (``trajectory_data.viscous_column``; 1: linear);
+        ``column_choice`` decides it per joint from the data. None: every joint linear.
     held_friction : tuple of (str, float)
         Drive columns (``fc<j>``, ``fv<j>`` of Coulomb-viscous joints) held at these values, not fitted
         (``held_friction``; ``one_way_friction`` holds the friction of a joint the data do not determine it on).
@@ -161,6 +164,7 @@ class TrajectoryOptions:
     offset_joints: tuple | None = None
     inertia_joints: tuple | None = None
     stribeck_joints: tuple | None = None
+    viscous_exponent: tuple | None = None
     held_friction: tuple = ()
     held_links: tuple = ()
     baseline_friction: tuple = ()
@@ -222,6 +226,8 @@ class TrajectoryFit:
         Over the links of ``standard`` (positive when consistent).
     stribeck_velocity, stribeck_velocity_std : tuple
         [rad/s] Per joint, for the Stribeck shape (``"fs"`` in ``friction_terms``); empty otherwise.
+    viscous_exponent : tuple
+        Per joint the viscous exponent ``dv`` (``TrajectoryOptions.viscous_exponent``); empty: every joint linear.
     training_r2, training_r2_ols : tuple
         Per joint, R^2 of the identified model (and of the least-squares estimate) on the recordings it was fitted to.
     torque_ratio : tuple
@@ -267,6 +273,7 @@ class TrajectoryFit:
     seconds: float
     stribeck_velocity: tuple = ()
     stribeck_velocity_std: tuple = ()
+    viscous_exponent: tuple = ()
     training_r2: tuple = ()
     training_r2_ols: tuple = ()
     torque_ratio: tuple = ()
@@ -290,8 +297,7 @@ def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) 
     """Joint torques [N m] of the identified model (or of its least-squares estimate), (n_samples, n_dof)."""
     theta, drive = (fit.theta_ols, fit.drive_ols) if ols else (fit.theta, fit.drive)
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    stribeck = np.asarray(fit.stribeck_velocity, dtype=float) if fit.stribeck_velocity else None
-    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, stribeck)
+    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit))
     return model.inverse_dynamics(q, qd, qdd, theta) + columns @ drive
 
 
@@ -348,9 +354,9 @@ def identify_trajectories(
     vs, extras = None, (plain := bodies.extras(robot, extra))
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
         vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, plain)
-        extras = [StribeckColumns(options.coulomb_velocity, vs, e) for e in plain]
+        extras = [StribeckColumns(options.coulomb_velocity, vs, e, options.viscous_exponent) for e in plain]
     n_all = (n_fit := model.n_base + len(names)) + bodies.n_columns
-    setup = (options.friction, inertia_joints, options.coulomb_velocity, vs)
+    setup = (options.friction, inertia_joints, options.coulomb_velocity, vs, options.viscous_exponent)
     n_columns = n_all + (0 if vs is None else robot.n_dof)  # one pass; flange probes of configuration_check
     equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
@@ -359,7 +365,7 @@ def identify_trajectories(
     free = [k for k in range(equations.n_columns) if k not in held]
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
                   [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
-    sigma, x_ols, inverse, condition = _weighted_least_squares(equations, free, range(n_fit, n_all))
+    sigma, x_ols, inverse, condition = weighted_least_squares(equations, free, range(n_fit, n_all))
     correlation = np.max([correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
                           for rec, columns in zip(prepared, extras)], axis=0)  # fmt: skip
     covariance = sandwich_covariance(equations, sigma, inverse, correlation)
@@ -397,8 +403,8 @@ def identify_trajectories(
     payloads = identified_payloads(bodies, [r.name for r in recordings], n_fit, estimable, covariance, found)
     fit = TrajectoryFit(
         standard=standard, theta=theta, drive=np.asarray(drive, dtype=float), drive_names=tuple(names),
-        inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction),
-        coulomb_velocity=options.coulomb_velocity, envelope=tuple(pushed),
+        inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction), envelope=tuple(pushed),
+        coulomb_velocity=options.coulomb_velocity, viscous_exponent=tuple(options.viscous_exponent or ()),
         theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base : n_fit], theta_std=std[: model.n_base],
         drive_std=std[model.n_base : n_fit], sigma=sigma, condition_number=condition,
         consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
@@ -423,7 +429,7 @@ def _data_own(equations, columns, options, correlation, ols) -> tuple:
     if not chosen:
         return ols[0][:n_all], ols[1]
     free = [k for k in range(equations.n_columns) if k not in held - chosen]
-    sigma, x, inverse, _ = _weighted_least_squares(equations, free, range(n_fit, n_all))
+    sigma, x, inverse, _ = weighted_least_squares(equations, free, range(n_fit, n_all))
     return x[:n_all], sandwich_covariance(equations, sigma, inverse, correlation)
 
 
@@ -460,33 +466,6 @@ def drive_inertia_joints(model, robot, options: TrajectoryOptions) -> list:
         return []
     kept = options.inertia_joints
     return separate_inertia_joints(model, robot) if kept is None else sorted(int(j) for j in kept)
-
-
-def _solve_scaled(gram, moment, arm=slice(None)):
-    """Least squares from normal equations with unit-diagonal scaling; (x, inverse of gram, condition of the ``arm``
-    columns: an unknown payload on every recording is not separable from the arm, ``FlangeBodies.separable``)."""
-    scale = np.sqrt(np.clip(np.diag(gram), 1e-300, None))
-    scaled = gram / np.outer(scale, scale)
-    values = np.linalg.eigvalsh(scaled[np.ix_(arm, arm)] if isinstance(arm, np.ndarray) else scaled)
-    condition = float(np.sqrt(values[-1] / values[0])) if values[0] > 0 else float("inf")
-    inverse = np.linalg.pinv(scaled, rcond=1e-12, hermitian=True) / np.outer(scale, scale)
-    return inverse @ moment, inverse, condition
-
-
-def _weighted_least_squares(equations: NormalEquations, free=None, payload=range(0)):
-    """Residual sigma per joint (from a torque-RMS-scaled fit), then the weighted estimate and the inverse of its
-    normal matrix; only the ``free`` columns are fitted (None: all), the others stay 0 (0 rows in the inverse);
-    the condition number is the arm's (every column but the unknown payloads' ``payload``)."""
-    free = np.arange(equations.n_columns) if free is None else np.asarray(free, dtype=int)
-    subset = equations.subset(free)
-    rms = np.sqrt(subset.energy / np.maximum(subset.count, 1))
-    first, _, _ = _solve_scaled(*subset.weighted(1.0 / np.maximum(rms, 1e-12) ** 2)[:2])
-    sigma = residual_sigma(subset, first)
-    gram, moment, _ = subset.weighted(1.0 / sigma**2)
-    x_free, inverse_free, condition = _solve_scaled(gram, moment, np.flatnonzero(~np.isin(free, payload)))
-    x, inverse = np.zeros(equations.n_columns), np.zeros((equations.n_columns,) * 2)
-    x[free], inverse[np.ix_(free, free)] = x_free, inverse_free
-    return sigma, x, inverse, condition
 
 
 def _drive_inertias(model, standard, drive, names):

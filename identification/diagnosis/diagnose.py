@@ -29,7 +29,12 @@ from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.friction_rival import FrictionRival
 from identification.diagnosis.held_links import held_links
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns, validation_recordings
-from identification.diagnosis.nominal import friction_blocks, friction_feature_names, torque_constants_only
+from identification.diagnosis.nominal import (
+    friction_blocks,
+    friction_feature_names,
+    linear_viscous_unless_stated,
+    torque_constants_only,
+)
 from identification.diagnosis.options import DiagnosisOptions
 from identification.diagnosis.plausible_fit import implausible_terms, plausible_diagnosis
 from identification.diagnosis.refine import refine_fit
@@ -143,6 +148,7 @@ def diagnose(
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
     given, options = options, options.for_recording(train, robot)
     robot, options = torque_constants_only(robot, options)
+    robot = linear_viscous_unless_stated(robot, options)
     validations = validation_recordings(validation)
     for recording in (train, *validations):  # positions, speeds and time in the robot's units, before any fit
         recording.check_robot(robot.n_dof, robot.name)

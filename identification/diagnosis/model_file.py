@@ -97,7 +97,8 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
         smooth = float(calibrated.document["drive"].get("coulomb_velocity", SMOOTH_VELOCITY))
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held, coulomb_velocity=smooth, carried=carried,
-                   held_links=options.held_links or holds.held_links)  # fmt: skip
+                   held_links=options.held_links or holds.held_links,
+                   viscous_power=bool(calibrated.document["drive"].get("viscous_exponent")))  # fmt: skip
 
 
 def file_held(document: dict) -> HeldFriction:

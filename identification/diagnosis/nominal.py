@@ -18,7 +18,8 @@ Friction (``DiagnosisOptions.friction``), per joint and linear in its amplitudes
   steady-state LuGre curve of the paper (eq. 14 at zdot = 0), ``fc s + (fs - fc) exp(-(qd/vs)^2) s + fv |qd|^dv s``
   with ``s = sign(qd)``, the shape values ``vs`` and ``dv`` from the robot file's drives (``vs = 0.01``, ``dv = 1``
   without drives). The bristle dynamics (pre-sliding) are not modelled in the diagnosis.
-- ``"coulomb_viscous"``: ``fc s + fv qd``.
+- ``"coulomb_viscous"``: ``fc s + fv qd``; with a model file's viscous power law (``DiagnosisOptions.viscous_power``)
+  ``fc s + fv |qd|^dv s`` on a joint whose drive states ``dv != 1``.
 - ``"stribeck"``: the steady-state curve of ``"lugre"`` alone (no bristle-dynamics columns), the shape of a
   calibrated model identified with ``--friction stribeck`` (its ``vs`` in the drives ``calibrated_robot`` builds).
 """
@@ -67,6 +68,17 @@ def torque_constants_only(robot, options) -> tuple:
     return replace(robot, drives=None), replace(options, torque_constants=kt)
 
 
+def linear_viscous_unless_stated(robot, options):
+    """``robot`` with viscous exponents 1 for a Coulomb-viscous nominal, unless the options keep a model file's viscous
+    power law (``DiagnosisOptions.viscous_power``): a robot file's LuGre ``dv`` is the paper's curve, not a request
+    for a power law in the Coulomb + viscous shape."""
+    if options.friction != "coulomb_viscous" or options.viscous_power or robot.drives is None:
+        return robot
+    if all(d.dv == 1.0 for d in robot.drives):
+        return robot
+    return replace(robot, drives=tuple(replace(d, dv=1.0) for d in robot.drives))
+
+
 def friction_shapes(robot) -> tuple[np.ndarray, np.ndarray]:
     """Stribeck velocities vs [rad/s] and viscous exponents dv per joint from the robot file."""
     if robot.drives is None:
@@ -90,8 +102,8 @@ def friction_columns(kind: str, qd: np.ndarray, vs: np.ndarray, dv: np.ndarray, 
     s = np.tanh(qd / SMOOTH_VELOCITY) if sign is None else sign
     if kind in STRIBECK_SHAPED:
         per = [s, np.exp(-((qd / vs) ** 2)) * s, np.abs(qd) ** dv * s]
-    else:
-        per = [s, qd]
+    else:  # a joint of the drives' viscous power law (dv != 1: a model file's, ``viscous_power``) keeps it
+        per = [s, np.where(dv == 1.0, qd, np.abs(qd) ** dv * s)]
     k = len(per)
     out = np.zeros((n_samples, n, n * k))
     for j in range(n):
@@ -157,7 +169,7 @@ def _joint_friction_columns(robot, kind: str, context, j: int, dynamic: bool):
         yield np.exp(-((qd / vs[j]) ** 2)) * sign
         yield np.abs(qd) ** dv[j] * sign
     else:
-        yield qd
+        yield qd if dv[j] == 1.0 else np.abs(qd) ** dv[j] * sign
     if dynamic:
         yield _lugre_dynamic_full(robot, context, j)
 
@@ -205,5 +217,5 @@ def friction_casadi(kind: str, qd, coefficients, vs, dv, smooth: float = SMOOTH_
         if kind in STRIBECK_SHAPED:
             out[j] = c[0] * s + c[1] * ca.exp(-((qd[j] / vs[j]) ** 2)) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s
         else:
-            out[j] = c[0] * s + c[1] * qd[j]
+            out[j] = c[0] * s + c[1] * (qd[j] if dv[j] == 1.0 else ca.power(ca.fabs(qd[j]), dv[j]) * s)
     return out

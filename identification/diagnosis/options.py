@@ -108,6 +108,10 @@ class DiagnosisOptions:
     held_links : tuple of int
         Links (0-based) every rigid-body recalibration of the diagnosis holds at the nominal robot's inertia
         (``held_links``): a model file's, which identify held (``worse_joint_hold``, ``model_file_options``).
+    viscous_power : bool
+        The Coulomb-viscous nominal keeps the drives' viscous exponents ``dv`` (a model file's viscous power law,
+        ``viscous_power``; set by ``model_file_options``). Otherwise ``"coulomb_viscous"`` is linear in the velocity,
+        whatever a robot file's drives state.
     """
 
     friction: str = AUTO
@@ -134,6 +138,7 @@ class DiagnosisOptions:
     coulomb_velocity: float = SMOOTH_VELOCITY
     carried: tuple = ()
     held_links: tuple = ()
+    viscous_power: bool = False
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (

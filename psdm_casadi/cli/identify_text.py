@@ -140,7 +140,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "drive": dict(zip(fit.drive_names, fit.drive.tolist())), "validation": report["recordings"],
                     "drive_std": dict(zip(fit.drive_names, fit.drive_std.tolist())),
                     "stribeck_velocity": list(fit.stribeck_velocity),
-                    "stribeck_velocity_std": list(fit.stribeck_velocity_std),
+                    "stribeck_velocity_std": list(fit.stribeck_velocity_std), "viscous_exponent": fit.viscous_exponent,
                     "lugre": calibrated.document["drive"].get("lugre"), "seconds": fit.seconds,
                     "payloads": [p.to_dict() for p in fit.payloads], "configurations": calibrated.configurations,
                     "envelope": dict(fit.envelope_bounds), "envelope_findings": [f.to_dict() for f in fit.envelope],
@@ -184,10 +184,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
             print(f"{name:<15} {fit.drive[k]:10.4g}       held ({label})")
             continue
         print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
-    for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
-        if vs == 0:
-            continue  # a Coulomb-viscous joint: no Stribeck velocity
-        print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
+    _print_shapes(fit, calibrated)
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
     for entry in report["recordings"]:
@@ -208,3 +205,18 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")
+
+
+def _print_shapes(fit, calibrated) -> None:
+    """The Stribeck velocity and the viscous power law's exponent of each joint that has one (``column_choice``), with
+    their standard deviations."""
+    for j, (vs, vs_std) in enumerate(zip(fit.stribeck_velocity, fit.stribeck_velocity_std)):
+        if vs == 0:
+            continue  # a Coulomb-viscous joint: no Stribeck velocity
+        print(f"{f'vs{j + 1} [rad/s]':<15} {vs:10.4g} {vs_std:10.3g} {100 * vs_std / vs:8.1f}")
+    spread = {e["joint"]: e["std"] for e in calibrated.document["identification"]["column_choice"].get("evidence", [])
+              if e["term"] == "viscous"}  # fmt: skip
+    for j, dv in enumerate(fit.viscous_exponent):
+        if dv != 1.0:
+            std = spread.get(j + 1, 0.0)
+            print(f"{f'dv{j + 1} [-]':<15} {dv:10.4g} {std:10.3g} {100 * std / dv:8.1f}")

@@ -219,28 +219,28 @@ def test_a_shape_or_drive_column_the_training_bic_is_indifferent_to_must_hold_ou
     """One verdict for every kind of column: with the indifferent band widened to every BIC, joint 1's true Stribeck
     hump and the rotors' true drive inertias (torques measured on the motor side) are kept exactly when their own
     held-out gain reaches ``HELD_OUT_GAIN``, and a refusal is stated with its numbers."""
-    import identification.calibration.column_choice as column_choice
+    import identification.calibration.column_verdict as column_verdict
 
     recording = synthetic(denso, 5, stribeck=[6.0, 2.0, 2.0, 2.0, 2.0, 2.0])
     request = ColumnRequest(offset="off", drive_inertia="off")
     hump = choose_columns(denso, denso_model, [recording], request=request).evidence[0]
     assert hump.kept and hump.delta_bic > 10  # outside the band: the BIC and any held-out gain decide
-    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "STRONG_BIC", float("inf"))
     gain = 1.0 - np.sqrt(hump.held_out_ratio)
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain + 0.01)
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", gain + 0.01)
     refused = choose_columns(denso, denso_model, [recording], request=request)
     assert not refused.evidence[0].kept and refused.stribeck_joints != (0,)
     assert any(line.startswith("Stribeck shape refused on joint 1") and f"by {gain:.0%}, less than" in line
                for line in refused.describe())  # fmt: skip
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", gain - 0.01)
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", gain - 0.01)
     assert choose_columns(denso, denso_model, [recording], request=request).evidence[0].kept
     robot, model = no_rotor
     drive = ColumnRequest(friction="coulomb-viscous", offset="off")
     motor = synthetic(denso, 4)
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 0.0)
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", 0.0)
     assert choose_columns(robot, model, [motor], request=drive).inertia_joints == (2, 3, 4, 5)
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)  # no column lowers its joint's error by 100 %
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", 1.0)  # no column lowers its joint's error by 100 %
     none = choose_columns(robot, model, [motor], request=drive)
     assert none.inertia_joints == ()
     assert any(line.startswith("drive inertia refused on joint 3 (+0.5") for line in none.describe())
@@ -255,16 +255,16 @@ def test_a_column_the_held_out_data_alone_decide_is_checked_on_the_model_identif
     the held-out recording beyond the never-worse margin, so the training BIC decides and they are kept, with the
     numbers, while the offsets without truth (joints 1, 4, 6) stay refused and no joint ends worse than the plain
     rule's model."""
-    import identification.calibration.column_choice as column_choice
+    import identification.calibration.column_verdict as column_verdict
     from identification.calibration.identify_route import identify_recordings
 
     train, held = synthetic(denso, 2, offset=OFFSET), synthetic(denso, 3, offset=OFFSET)
     request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
     plain = identify_recordings(denso, denso_model, [train], request=request, validation=[held], counterbalance=False)
     assert plain.choice.offset_joints == (1, 2, 4) and not plain.choice.departures
-    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
+    monkeypatch.setattr(column_verdict, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "STRONG_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", 1.0)
     refused = choose_columns(denso, denso_model, [train], request=request, validation=[held])
     assert refused.offset_joints == () and {e.joint for e in refused.departures} == {1, 2, 4}
     result = identify_recordings(denso, denso_model, [train], request=request, validation=[held], counterbalance=False)
@@ -283,12 +283,12 @@ def test_without_held_out_recordings_the_written_model_is_checked_by_block_cross
     """``column_check`` without validation recordings: the training recording cut into blocks, each fold's two models
     identified on the others (as identify's counterbalance is judged). The true offset of joint 2, refused by a held-out
     gain no column reaches (100 %), is kept: refusing it makes joint 2 worse on the held-out blocks."""
-    import identification.calibration.column_choice as column_choice
+    import identification.calibration.column_verdict as column_verdict
     from identification.calibration.identify_route import identify_recordings
 
-    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
+    monkeypatch.setattr(column_verdict, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "STRONG_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", 1.0)
     train = synthetic(denso, 2, offset=np.array([0.0, 3.0, 0.0, 0.0, 0.0, 0.0]), duration=8.0)
     request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
     assert [e.joint for e in choose_columns(denso, denso_model, [train], request=request).departures] == [1]
@@ -310,12 +310,12 @@ def test_a_fold_fit_stopped_at_the_iteration_cap_is_not_judged_on_and_the_traini
     from dataclasses import replace
 
     import identification.calibration.column_check as column_check
-    import identification.calibration.column_choice as column_choice
+    import identification.calibration.column_verdict as column_verdict
     from identification.calibration.identify_route import identify_recordings
 
-    monkeypatch.setattr(column_choice, "INDIFFERENT_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "STRONG_BIC", float("inf"))
-    monkeypatch.setattr(column_choice, "HELD_OUT_GAIN", 1.0)
+    monkeypatch.setattr(column_verdict, "INDIFFERENT_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "STRONG_BIC", float("inf"))
+    monkeypatch.setattr(column_verdict, "HELD_OUT_GAIN", 1.0)
     train = synthetic(denso, 2, offset=np.array([0.0, 3.0, 0.0, 0.0, 0.0, 0.0]), duration=8.0)
     request = ColumnRequest(friction="coulomb-viscous", drive_inertia="off")
     folds, fit_fold = [], column_check.identify_trajectories
