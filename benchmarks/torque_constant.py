@@ -29,8 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from identification.virtual.effects import Payload
-from identification.virtual.simulation import SimulationOptions, simulate_recording
+from identification.virtual.current_arm import CurrentArm, CurrentRun, write_current_recordings
 from psdm_casadi.cli import main as cli
 from psdm_casadi.description import DriveParameters, LinkInertia
 from psdm_casadi.robot import from_dh
@@ -72,58 +71,22 @@ def _truth():
     return replace(robot, drives=drives), limits
 
 
-def _robot_file(limits, kt_error) -> str:
-    names = ["base_yaw", "shoulder", "upper_roll", "elbow", "fore_roll", "wrist_pitch", "flange_roll"]
-    text = [
-        'format = "psdm-robot/1"',
-        'name = "Acme Cobot 7"',
-        'convention = "standard"',
-        "gravity = [0.0, 0.0, -9.81]",
-    ]
-    for i, (a, alpha, d, theta) in enumerate(ROWS):
-        text += ["", "[[joint]]", f'name = "{names[i]}"', f"a = {a}", f"alpha = {alpha!r}", f"d = {d}",
-                 f"theta = {theta}", *(f"{k} = {v}" for k, v in limits[i].items())]  # fmt: skip
-    for m in USER_MASS:
-        text += ["", "[[link]]", f"mass = {m}", "com = [0.0, 0.0, 0.0]",
-                 f"inertia = [{0.01 * m}, {0.01 * m}, {0.006 * m}, 0.0, 0.0, 0.0]"]  # fmt: skip
-    stated = [float(k * e) for k, e in zip(MOTOR_KT, kt_error)]
-    text += ["", "[transmission]", f"gear_ratios = {GEAR}", f"motor_kt = {stated}", "", "[recording]",
-             'side = { q = "joint", tau = "motor", current = "motor" }', ""]  # fmt: skip
-    return "\n".join(text)
-
-
-def _reference(robot, duration: float, rng):
-    """Sum of three sines per joint within half its limits, faded in and out."""
-    t = np.arange(0.0, duration + 1e-9, 1e-3)
-    fade = 0.5 * (1.0 - np.cos(np.pi * np.minimum(1.0, np.minimum(t, duration - t))))
-    q = np.zeros((t.size, robot.n_dof))
-    for j in range(robot.n_dof):
-        omega = 2.0 * np.pi * rng.uniform(0.1, 0.5, 3)
-        phase, weight = rng.uniform(0.0, 2.0 * np.pi, 3), rng.uniform(0.5, 1.0, 3)
-        scale = 0.5 * min(robot.q_max[j] / weight.sum(), robot.qd_max[j] / (weight * omega).sum(),
-                          robot.qdd_max[j] / (weight * omega**2).sum())  # fmt: skip
-        x = (scale * weight * np.sin(np.outer(t, omega) + phase)).sum(axis=1)
-        q[:, j] = fade * (x - x[0])
-    return t, q
+def cobot7() -> CurrentArm:
+    """The true arm and what its user's file states (``kt_error`` aside)."""
+    truth, limits = _truth()
+    names = ("base_yaw", "shoulder", "upper_roll", "elbow", "fore_roll", "wrist_pitch", "flange_roll")
+    return CurrentArm(truth=truth, rows=tuple(ROWS), limits=tuple(limits), joint_names=names,
+                      file_mass=tuple(USER_MASS), gear=tuple(GEAR), motor_kt=tuple(MOTOR_KT), name="Acme Cobot 7",
+                      current_noise=CURRENT_NOISE)  # fmt: skip
 
 
 def write_cobot(folder: Path, kt_error, seed: int) -> dict:
     """The robot file and recordings of one case; the same seed gives the same motions for every ``kt_error``."""
     folder.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(seed)
-    truth, limits = _truth()
-    (folder / "cobot7.toml").write_text(_robot_file(limits, kt_error))
-    for name, duration, load in (("run1", 14.0, None), ("run2", 14.0, PAYLOAD), ("val1", 9.0, None)):
-        payload = None if load is None else Payload(mass=load["mass"], com=np.array(load["com"]))
-        options = SimulationOptions(rate=1000.0, record_tau=True, record_current=False, tau_noise_std=0.0,
-                                    payload=payload, q_noise_std=0.0)  # fmt: skip
-        rec, _ = simulate_recording(truth, _reference(truth, duration, rng), options, rng)
-        current = rec.tau / (np.array(GEAR) * np.array(MOTOR_KT)) + rng.normal(0.0, CURRENT_NOISE, rec.tau.shape)
-        header = ["timestamp"] + [f"q_actual_{j + 1}" for j in range(7)] + [f"i_motor_{j + 1}" for j in range(7)]
-        np.savetxt(folder / f"{name}.csv", np.column_stack([rec.t, rec.q, current]), delimiter=",",
-                   header=",".join(header), comments="", fmt="%.9g")  # fmt: skip
-        if load is not None:
-            (folder / f"{name}.payload.json").write_text(json.dumps(load))
+    arm = cobot7()
+    (folder / "cobot7.toml").write_text(arm.robot_file(kt_error))
+    runs = (CurrentRun("run1", 14.0), CurrentRun("run2", 14.0, PAYLOAD), CurrentRun("val1", 9.0))
+    write_current_recordings(folder, arm, runs, np.random.default_rng(seed), q_prefix="q_actual_", i_prefix="i_motor_")
     return {"robot": folder / "cobot7.toml", "folder": folder}
 
 
