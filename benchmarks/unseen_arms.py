@@ -3,7 +3,9 @@
 Each case of ``unseen_cases`` writes a robot file and logs the way a vendor's controller or logger would (a UR5
 from its vendor URDF logging motor currents over RTDE with a 2 kg gripper in the sidecar; a KR6-like arm from a DH
 table traced in degrees and mN m; the same arm on slow gravity poses with a 5 kg tool; a heavy arm with a cam
-counterbalance on slow motions; a serial arm in ROS 2 MCAP bags with an unknown gripper). The commands the README
+counterbalance on slow motions; a 210 kg-class arm with a gas-spring counterbalance whose user's robot file has the
+datasheet's masses, 10-20 % off, trained unloaded and with a known 150 kg; a serial arm in ROS 2 MCAP bags with an
+unknown gripper). The commands the README
 prints are run with no options but the log's own layout (``--columns`` with its units, as the log needs):
 
     psdm identify ROBOT --data TRAIN... --validate VAL --out model.json
@@ -24,6 +26,9 @@ and judged against the truth:
   carry the paper's viscous power ``fv |qd|^dv`` with ``dv`` 0.59-0.74, which a Coulomb-viscous model lacks); where
   identify names a link pushed against its envelope, the route it suggests (``psdm diagnose ROBOT``) is run too and
   its findings listed;
+- ``identify_named``: the counterbalances identify's report names (``identification.counterbalance.named_by``) or
+  takes (a spring kept in the model); a hidden counterbalance named there is not missed, a spring kept where none is
+  hidden is false;
 - exit codes of the four commands, and for a log in other units, that identify without them is refused (exit 2)
   naming the file, the column and the ``--columns`` fix.
 
@@ -59,7 +64,8 @@ ACCEPTED = {"counterbalance": ("counterbalance", "spring", "unnamed_effect", "ga
 PRESENT = ("presliding",)
 LIMITS = {"payload_error": 0.10, "link_mass_ratio": 1.5, "rmse_ratio_after": 2.5}
 TABLE = ["case", "identify_exit", "units_refused_with_fix", "payload_error", "link_mass_ratio", "worst_link",
-         "rmse_ratio", "rmse_ratio_after", "envelope_pushed", "findings", "suggested_route_findings", "missed", "false",
+         "rmse_ratio", "rmse_ratio_after", "envelope_pushed", "identify_named", "findings", "suggested_route_findings",
+         "missed", "false",
          "validate_exit", "diagnose_exit", "codegen_exit", "identify_s", "diagnose_s", "passed"]  # fmt: skip
 
 
@@ -120,6 +126,22 @@ def _findings(case, diagnosis) -> tuple:
     return [f"{name}{list(joints)}" for name, joints in found], missed, false
 
 
+def identify_named(case, document) -> tuple:
+    """(the counterbalances identify named, as ``spring[j2] (kept)`` or ``(named)``; hidden effects they name; named
+    where none is hidden). Identify names one where its report does (``identification.counterbalance.named_by``) and
+    takes it where it keeps the spring."""
+    record = (document.get("identification") or {}).get("counterbalance") or {}
+    kept = set(record.get("joints") or ()) if record.get("kept") else set()
+    joints = sorted(kept | {int(j) for j in record.get("named_by") or {}})
+    hidden = {joint for effect, joint in case.hidden if effect == "counterbalance"}
+    names = [f"spring[j{j}] ({'kept' if j in kept else 'named'})" for j in joints]
+    return (
+        names,
+        {("counterbalance", j) for j in joints if j in hidden},
+        [n for n, j in zip(names, joints) if j not in hidden and j in kept],
+    )
+
+
 def _shape_there(finding, joint: int, shapes: set) -> bool:
     """Whether ``finding`` is a ``friction_shape`` of a shape the truth's friction has on ``joint`` (its label names
     the shape: ``friction_shape[j5,smooth_coulomb]``)."""
@@ -160,6 +182,9 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
     code_gen, _, _, _ = _cli(["codegen", model, "--out", folder / "c_code", "--json"])
     after = np.asarray((diagnosis or {}).get("rmse_after") or rmse, dtype=float)
     names, missed, false = _findings(case, diagnosis)
+    identify_names, taken, false_taken = identify_named(case, document)
+    missed = [m for m in missed if not any(m == f"{effect}[j{joint}]" for effect, joint in taken)]
+    false = [*false, *false_taken]
     row.update(
         payload_error=_payload_error(case, document),
         link_mass_ratio=round(float(ratio.max()), 3),
@@ -179,6 +204,7 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
         )
         or "-",  # what the pull or the envelope keeps from the data
         findings=", ".join(names) or "-",
+        identify_named=", ".join(identify_names) or "-",
         missed=", ".join(missed) or "-",
         false=", ".join(false) or "-",
         validate_exit=code_val,

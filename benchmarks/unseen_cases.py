@@ -43,6 +43,7 @@ class Case:
     unstated: tuple = ()  # CLI options without the log's units: identify must refuse them (exit 2) ...
     refusal_words: tuple = ()  # ... with these words (the file, the field, the fix)
     friction_shapes: tuple = ()  # (shape, joint 1-based): the truth's friction is not Coulomb-viscous there
+    effects: tuple = ()  # the hidden effects' truth as simulated (``identification.virtual`` load torques)
 
 
 def ur5_urdf() -> Path:
@@ -294,6 +295,107 @@ def heavy_counterbalance(folder: Path, rng) -> Case:
     )
 
 
+#: The HX-210's DH table as its datasheet gives it (standard DH: a, alpha, d, theta offset) with its limits
+#: (q_min, q_max, qd_max, qdd_max, tau_max).
+HX210_JOINTS = (
+    (0.312, "-pi/2", 0.670, "0.0", -3.14, 3.14, 1.83, 3.5, 30000.0),
+    (1.075, "0.0", 0.0, "-pi/2", -1.05, 1.57, 1.57, 3.0, 40000.0),
+    (0.225, "-pi/2", 0.0, "0.0", -2.4, 1.2, 1.57, 3.5, 20000.0),
+    (0.0, "pi/2", 1.280, "0.0", -6.28, 6.28, 2.27, 6.0, 1500.0),
+    (0.0, "-pi/2", 0.0, "0.0", -2.18, 2.18, 2.27, 6.0, 1500.0),
+    (0.0, "0.0", 0.215, "0.0", -6.28, 6.28, 3.67, 8.0, 800.0),
+)
+
+
+def _cylinder(mass: float, radius: float, length: float, axis: int) -> np.ndarray:
+    """A solid cylinder's inertia about its centre of mass (xx, yy, zz, xy, xz, yz), its axis along ``axis``."""
+    side = mass * (3.0 * radius**2 + length**2) / 12.0
+    diagonal = [side, side, side]
+    diagonal[axis] = 0.5 * mass * radius**2
+    return np.array([*diagonal, 0.0, 0.0, 0.0])
+
+
+def _hx210_truth(folder: Path):
+    """The HX-210's truth: the datasheet's joints, CAD-like links, rotors and LuGre drives of a 210 kg-class arm."""
+    rows = "".join(
+        f'[[joint]]\nname = "A{j + 1}"\na = {a}\nalpha = "{alpha}"\nd = {d}\ntheta = "{theta}"\nq_min = {lo}\n'
+        f"q_max = {hi}\nqd_max = {qd}\nqdd_max = {qdd}\ntau_max = {tau}\n\n"
+        for j, (a, alpha, d, theta, lo, hi, qd, qdd, tau) in enumerate(HX210_JOINTS)
+    )
+    joints = folder / "hx210_joints.toml"
+    joints.write_text('format = "psdm-robot/1"\nname = "HX-210 heavy arm"\nconvention = "standard"\n'
+                      f"gravity = [0.0, 0.0, -9.80665]\n\n[assumptions]\ndrive_inertia = true\n\n{rows}")  # fmt: skip
+    links = (
+        LinkInertia(mass=330.0, com=np.array([-0.12, 0.28, 0.02]), inertia=_cylinder(330.0, 0.40, 0.7, 1)),
+        LinkInertia(mass=185.0, com=np.array([-0.52, 0.0, 0.16]), inertia=_cylinder(185.0, 0.18, 1.1, 0)),
+        LinkInertia(mass=235.0, com=np.array([-0.08, 0.04, 0.06]), inertia=_cylinder(235.0, 0.30, 0.5, 2)),
+        LinkInertia(mass=105.0, com=np.array([0.0, -0.55, 0.0]), inertia=_cylinder(105.0, 0.15, 1.1, 1)),
+        LinkInertia(mass=32.0, com=np.array([0.0, 0.04, 0.0]), inertia=_cylinder(32.0, 0.12, 0.25, 2)),
+        LinkInertia(mass=8.0, com=np.array([0.0, 0.0, -0.04]), inertia=_cylinder(8.0, 0.11, 0.06, 2)),
+    )
+    # Coulomb, viscous, bristle stiffness and damping per joint (static friction 1.2 x Coulomb below 0.03 rad/s)
+    friction = ((260, 620, 4e7, 3000), (310, 720, 4e7, 3000), (210, 420, 3e7, 2400), (55, 80, 4e6, 300),
+                (48, 70, 4e6, 280), (22, 28, 2e6, 120))  # fmt: skip
+    drives = tuple(DriveParameters(kt=1.0, fc=fc, fs=1.2 * fc, vs=0.03, fv=fv, dv=1.0, sigma0=s0, sigma1=s1)
+                   for fc, fv, s0, s1 in friction)  # fmt: skip
+    base = load_robot(joints)
+    rotors = np.array([420.0, 460.0, 260.0, 38.0, 34.0, 14.0])
+    truth = dataclasses.replace(base, links=links, rotor_inertia=rotors, drives=drives, source=None)
+    return base, load_robot(write_robot_file(truth, folder / "hx210_truth.toml", overwrite=True))
+
+
+def heavy_gas_spring(folder: Path, rng, duration: float = 30.0) -> Case:
+    """A 210 kg-class six-axis arm (HX-210: 1 t of links, rotors of 14-460 kg m^2, Coulomb friction of 22-310 N m)
+    with a gas-spring counterbalance on joint 2 (a strut on levers of 0.18 and 0.55 m, 35 % stiffer compressed)
+    taking a seeded 50-80 % of joint 2's gravity amplitude at the motions' centre pose, as its user meets it: a
+    robot file written from the datasheet and a CAD export whose link masses, centres of mass, inertias and rotor
+    inertias are each 10-20 % off, no friction in it; 250 Hz logs in psdm's CSV columns, each starting with 1.5 s at
+    rest, ``duration`` s unloaded and ``duration`` s with a known 150 kg payload (sidecars) to train on, half that
+    held out; torque noise of 14-1.2 N m."""
+    from identification.virtual.counterbalance import gas_spring_counterbalance
+
+    base, truth = _hx210_truth(folder)
+
+    def off() -> float:  # a datasheet's 10-20 % either way
+        return 1.0 + float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.10, 0.20))
+
+    links = tuple(LinkInertia(mass=k.mass * off(), com=np.asarray(k.com) * off(),
+                              inertia=np.asarray(k.inertia) * off()) for k in truth.links)  # fmt: skip
+    rotors = np.asarray(truth.rotor_inertia) * np.array([off() for _ in range(6)])
+    user = dataclasses.replace(base, links=links, rotor_inertia=rotors, source=None)
+    robot = write_robot_file(user, folder / "hx210.toml", overwrite=True)
+    low, high = np.asarray(truth.q_min), np.asarray(truth.q_max)
+    centre = np.clip(0.0, low + 0.25 * (high - low), high - 0.25 * (high - low))  # as ``_reference`` centres them
+    share = float(rng.uniform(0.5, 0.8))
+    gas = gas_spring_counterbalance(truth, 1, centre, share, a=0.18, b=0.55, stiffening=0.35)
+    payload = Payload(mass=150.0, com=np.array([0.0, 0.0, 0.25]))
+    noise = np.array([14.0, 16.0, 10.0, 2.5, 2.0, 1.2])
+    files = []
+    for name, seconds, load in (("train_empty", duration, None), ("train_150kg", duration, payload),
+                                ("validate", duration / 2, None)):  # fmt: skip
+        reference = _reference(truth, seconds, rng, still=1.5, slow=0.8)
+        rec, floor = _simulate(truth, reference, 1000.0, noise, rng, extras=(gas,), payload=load)
+        t, q, tau = _jittered(rec, 250.0, rng, jitter=2e-5)
+        header = ["t"] + [f"q{j + 1}" for j in range(6)] + [f"tau{j + 1}" for j in range(6)]
+        path = _write_csv(folder / f"{name}.csv", header, [t, q, tau])
+        stated = {"mass": 0} if load is None else {"mass": 150.0, "com": [0.0, 0.0, 0.25]}
+        path.with_suffix(".payload.json").write_text(json.dumps(stated))
+        files.append(path)
+    return Case(
+        name="heavy_gas_spring_datasheet",
+        what=f"HX-210 (210 kg class, 1 t of links), gas spring on J2 taking {share:.0%} of its gravity, datasheet "
+        f"masses 10-20 % off, 250 Hz, {duration:g} s + {duration:g} s with a known 150 kg, {duration / 2:g} s held out",
+        robot=robot,
+        train=tuple(files[:-1]),
+        validate=files[-1],
+        true_links=np.array([link.mass for link in truth.links]),
+        floor_nm=floor,
+        hidden=(("counterbalance", 2),),
+        friction_shapes=friction_shapes(truth),
+        effects=(gas,),
+    )
+
+
 def serial_bag(folder: Path, rng) -> Case:
     """A six-joint serial arm logged as a ROS 2 MCAP at 1 kHz (jittered stamps, a 60 ms gap of dropped messages,
     a gripper joint on the same topic), with an unknown 1.5 kg gripper named in the sidecar."""
@@ -351,6 +453,7 @@ CASES = {
     "industrial_dh_degrees_mNm": industrial_degrees,
     "industrial_slow_gravity_tool": industrial_slow,
     "heavy_counterbalance_slow": heavy_counterbalance,
+    "heavy_gas_spring_datasheet": heavy_gas_spring,
     "serial_mcap_unknown_payload": serial_bag,
 }
 

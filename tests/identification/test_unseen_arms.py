@@ -104,3 +104,34 @@ def test_a_friction_shape_counts_as_there_only_where_the_truth_s_friction_has_it
         case = Case("c", "", tmp_path, (), tmp_path, true_links=links, friction_shapes=drives)
         names, missed, wrong = unseen_arms._findings(case, {"findings": [finding]})
         assert (", ".join(wrong) or "-") == false and names == ["friction_shape[5]"]
+
+
+def test_the_gas_spring_arm_s_robot_file_is_the_datasheet_s_and_identify_naming_its_balancer_counts(
+    benchmark_modules, tmp_path
+):
+    """The HX-210 case (``heavy_gas_spring_datasheet``): the user's robot file holds each link mass 10-20 % off the
+    truth's, the truth's gas spring on joint 2 opposes its gravity torque on every validation pose, holding up a
+    large share of it, and the judge counts a counterbalance identify names or keeps on joint 2 (not missed) and a
+    spring it keeps where none is hidden (false)."""
+    import unseen_arms
+
+    from identification.virtual.counterbalance import balance
+    from psdm_casadi.robot import load_robot
+
+    case = unseen_arms.build("heavy_gas_spring_datasheet", tmp_path, 0)
+    file_masses = np.array([link.mass for link in load_robot(case.robot).links])
+    off = np.abs(file_masses / case.true_links - 1.0)
+    assert np.all((off >= 0.1 - 1e-9) & (off <= 0.2 + 1e-9)), off
+    assert [p.name for p in case.train] == ["train_empty.csv", "train_150kg.csv"]
+    assert '"mass": 150.0' in case.train[1].with_suffix(".payload.json").read_text()
+    truth = load_robot(tmp_path / "hx210_truth.toml")
+    q = np.loadtxt(case.validate, delimiter=",", skiprows=1)[::25, 1:7]
+    held = balance(truth, case.effects[0], q)
+    assert held.opposing == 1.0 and held.share > 0.3, held  # a balancer on every recorded pose
+    record = {"joints": [2], "kept": True, "named_by": {"2": "a torque offset no sensor has"}}
+    names, taken, false = unseen_arms.identify_named(case, {"identification": {"counterbalance": record}})
+    assert names == ["spring[j2] (kept)"] and taken == {("counterbalance", 2)} and false == []
+    record = {"joints": [3], "kept": True, "named_by": {"3": "the envelope report"}}
+    assert unseen_arms.identify_named(case, {"identification": {"counterbalance": record}})[2] == ["spring[j3] (kept)"]
+    record = {"joints": [], "kept": False, "named_by": {}}
+    assert unseen_arms.identify_named(case, {"identification": {"counterbalance": record}}) == ([], set(), [])
