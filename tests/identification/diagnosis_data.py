@@ -1,15 +1,26 @@
-"""Synthetic train/validation recordings for the diagnosis tests (known hidden effects)."""
+"""Synthetic train/validation recordings for the diagnosis tests (known hidden effects), and the CLI run on them."""
 
+import contextlib
+import io
+import json
 import warnings
+from pathlib import Path
 
 import numpy as np
 
+from identification.data.io import save_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
 from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
+from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
+from psdm_casadi.cli import main
 from psdm_casadi.oracle import PinocchioOracle
 from trajopt.experiments import sine_experiment
+
+#: The virtual Denso's hidden cam counterbalance on joint 2 and the payload beside it (issue 25's heavy-arm case).
+CAM = xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)
+PAYLOAD = xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))
 
 
 def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
@@ -88,3 +99,27 @@ def sine_context(robot, model, seed, duration=3.0):
         rng,
     )
     return build_context(robot, model, preprocess(rec, PreprocessOptions(cutoff_hz=15.0)), rate_hz=100.0)
+
+
+def held_out_pair(robot, extras, duration=16.0, split=8.0) -> tuple:
+    """(training, held out): ``rigid_recording`` of ``robot`` carrying ``extras`` for ``duration`` s, split at
+    ``split`` s (by default 8 s of each)."""
+    recording = rigid_recording(robot, extras, duration=duration)
+    return recording.time_slice(-np.inf, split), recording.time_slice(split, np.inf)
+
+
+def saved_pair(robot, extras, folder: Path) -> tuple:
+    """``held_out_pair`` written as ``folder/train.csv`` and ``folder/val.csv`` (replacing them): their paths."""
+    paths = (folder / "train.csv", folder / "val.csv")
+    for recording, path in zip(held_out_pair(robot, extras), paths):
+        save_recording(recording, path, overwrite=True)
+    return paths
+
+
+def cli_json(argv) -> dict:
+    """What ``psdm argv`` (each argument ``str``-ed, ``--json`` among them) printed last as JSON, its progress and
+    warnings swallowed; asserts the command succeeded (exit 0)."""
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
+        assert main([str(a) for a in argv]) == 0
+    return json.loads(stdout.getvalue().strip().splitlines()[-1])

@@ -9,8 +9,6 @@ kept as a column, it is fitted again to the truth's stiffness and the gravity to
 
 from __future__ import annotations
 
-import contextlib
-import io
 import json
 
 import numpy as np
@@ -22,20 +20,15 @@ from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.held_links import held_links
 from identification.virtual import effects as xp
-from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
-from trajopt.experiments import sine_experiment
+from tests.identification.diagnosis_data import CAM, cli_json, held_out_pair, saved_pair
 
 K, Q0 = 20.0, 0.3
 
 
 @pytest.fixture(scope="module")
 def spring_case(denso):
-    rng = np.random.default_rng(3)
-    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    recording, _ = simulate_recording(denso, reference, options, rng, extras=[xp.Spring(joint=1, stiffness=K, q0=Q0)])
-    return recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
+    return held_out_pair(denso, [xp.Spring(joint=1, stiffness=K, q0=Q0)])
 
 
 def _gravity_error(model, theta, truth, q) -> np.ndarray:
@@ -126,28 +119,11 @@ def test_identify_then_diagnose_model_keeps_the_cam_counterbalance_identify_took
     identify takes it as a cubic spring; diagnosing its model file keeps that spring, fitted again (joint 2 at the
     noise level, 0.1 N m), and finds no further term on joint 2 (before: the linear spring found again beside the
     file's cubic, and an unnamed effect on joint 2 for what the line missed)."""
-    from identification.data.io import save_recording
-    from psdm_casadi.cli import main
-
-    rng = np.random.default_rng(3)
-    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    cam = xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)
-    recording, _ = simulate_recording(denso, reference, options, rng, extras=[cam])
-    train, held_out, out = tmp_path / "train.csv", tmp_path / "val.csv", tmp_path / "model.json"
-    save_recording(recording.time_slice(-np.inf, 8.0), train)
-    save_recording(recording.time_slice(8.0, np.inf), held_out)
-
-    def run(argv):
-        stdout = io.StringIO()
-        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
-            assert main([str(a) for a in argv]) == 0
-        return json.loads(stdout.getvalue())
-
-    run(["identify", denso.source, "--data", train, "--validate", held_out, "--out", out, "--json"])
+    (train, held_out), out = saved_pair(denso, [CAM], tmp_path), tmp_path / "model.json"
+    cli_json(["identify", denso.source, "--data", train, "--validate", held_out, "--out", out, "--json"])
     document = json.loads(out.read_text())
     (spring,) = [f for f in document["findings"] if f.get("source") == "identify"]
-    report = run(["diagnose", out, "--train", train, "--validate", held_out, "--json"])
+    report = cli_json(["diagnose", out, "--train", train, "--validate", held_out, "--json"])
     on_joint_2 = [f for f in report["findings"] if 2 in f["joints"]]
     assert [f["label"] for f in on_joint_2] == [spring["label"]] and on_joint_2[0]["shape_note"] == KEPT_NOTE
     assert on_joint_2[0]["parameters"]["k"] == pytest.approx(spring["parameters"]["k"], rel=0.2)

@@ -15,16 +15,16 @@ import json
 import numpy as np
 import pytest
 
-from identification.data.io import save_recording
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
+from tests.identification.diagnosis_data import CAM, PAYLOAD, cli_json, saved_pair
 from trajopt.experiments import sine_experiment
 
 HIDDEN = {
     "spring": [xp.Spring(joint=1, stiffness=20.0, q0=0.3)],
-    "cam": [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3)],
-    "payload": [xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))],
+    "cam": [CAM],
+    "payload": [PAYLOAD],
     "nothing": [],
 }
 
@@ -32,19 +32,10 @@ HIDDEN = {
 def _identify(denso, tmp_path, hidden, *flags, validate=True) -> tuple:
     """(the model file's document, identify's JSON) of 8 s training and 8 s held out with ``hidden`` effects (held
     out from identify unless ``validate``)."""
-    rng = np.random.default_rng(3)
-    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    recording, _ = simulate_recording(denso, reference, options, rng, extras=HIDDEN[hidden])
-    train, held_out, out = tmp_path / "train.csv", tmp_path / "val.csv", tmp_path / "model.json"
-    save_recording(recording.time_slice(-np.inf, 8.0), train, overwrite=True)
-    save_recording(recording.time_slice(8.0, np.inf), held_out, overwrite=True)
-    stdout = io.StringIO()
-    with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
-        code = main(["identify", str(denso.source), "--data", str(train), *(["--validate", str(held_out)] if validate
-                     else []), "--out", str(out), "--json", "--overwrite", *flags])  # fmt: skip
-    assert code == 0
-    return json.loads(out.read_text()), json.loads(stdout.getvalue())
+    (train, held_out), out = saved_pair(denso, HIDDEN[hidden], tmp_path), tmp_path / "model.json"
+    shown = cli_json(["identify", denso.source, "--data", train, *(["--validate", held_out] if validate else []),
+                      "--out", out, "--json", "--overwrite", *flags])  # fmt: skip
+    return json.loads(out.read_text()), shown
 
 
 @pytest.mark.slow  # 8 fits and their held-out checks: 20-40 s

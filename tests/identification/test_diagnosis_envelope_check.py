@@ -17,9 +17,7 @@ from identification.diagnosis.candidates import PayloadTerm, SpringTerm, TorqueO
 from identification.diagnosis.diagnose import DiagnosisOptions, DiagnosisProblem, prepare_problem
 from identification.diagnosis.envelope_check import EnvelopeCheck, EnvelopedRecalibration, NeededFinding
 from identification.diagnosis.rigid_body_choice import Claim, drop_stand_ins, recalibration_parts
-from identification.virtual import effects as xp
-from identification.virtual.simulation import SimulationOptions, simulate_recording
-from trajopt.experiments import sine_experiment
+from tests.identification.diagnosis_data import CAM, PAYLOAD, held_out_pair
 
 
 def _selection(*steps):
@@ -31,12 +29,7 @@ def _selection(*steps):
 def counterbalanced(denso, denso_model):
     """The diagnosis problem of a Denso with a hidden cam counterbalance on joint 2 and a 1.5 kg payload (8 s
     training, 8 s validation), with the contexts of the recalibrated rigid body."""
-    rng = np.random.default_rng(3)
-    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    extras = [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3), xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))]
-    recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
-    train, validation = recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
+    train, validation = held_out_pair(denso, [CAM, PAYLOAD])
     wide = DiagnosisOptions(friction="coulomb_viscous", cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis")
     problem = prepare_problem(denso, denso_model, train, [validation], wide)
     return problem, DiagnosisProblem(**recalibration_parts(problem, denso_model))

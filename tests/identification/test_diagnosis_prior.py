@@ -20,6 +20,7 @@ from identification.calibration.diagnosis_prior import (
     diagnosis_prior,
     with_file_rigid_body,
 )
+from tests.identification.diagnosis_data import CAM, PAYLOAD, cli_json, saved_pair
 
 
 def _pushed(link, absorbs, bounds):
@@ -111,34 +112,12 @@ def test_identify_then_diagnose_model_names_a_counterbalance_the_model_carries_a
     the counterbalance as a spring on joint 2 and the tool as a payload (``payload_route``), or leaves links pushed for
     it; diagnosing its model file finds the payload where the model does not carry it, and keeps the counterbalance on
     joint 2 the model carries (``carried_terms``), saying so."""
-    import contextlib
-    import io
     import json
 
-    from identification.data.io import save_recording
-    from identification.virtual import effects as xp
-    from identification.virtual.simulation import SimulationOptions, simulate_recording
-    from psdm_casadi.cli import main
-    from trajopt.experiments import sine_experiment
-
-    rng = np.random.default_rng(3)
-    reference = sine_experiment(denso, duration=16.0, rng=rng).reference()
-    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
-    extras = [xp.CamCounterbalance(joint=1, amplitude=12.0, lobe=0.3), xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))]
-    recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
-    train, held_out, out = tmp_path / "train.csv", tmp_path / "val.csv", tmp_path / "model.json"
-    save_recording(recording.time_slice(-np.inf, 8.0), train)
-    save_recording(recording.time_slice(8.0, np.inf), held_out)
-
-    def run(argv):
-        stdout = io.StringIO()
-        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
-            assert main([str(a) for a in argv]) == 0
-        return json.loads(stdout.getvalue())
-
-    identified = run(["identify", denso.source, "--data", train, "--validate", held_out, "--out", out, "--json"])
+    (train, held_out), out = saved_pair(denso, [CAM, PAYLOAD], tmp_path), tmp_path / "model.json"
+    identified = cli_json(["identify", denso.source, "--data", train, "--validate", held_out, "--out", out, "--json"])
     assert identified["counterbalance"]["kept"] and identified["counterbalance"]["joints"] == [2]
-    report = run(["diagnose", out, "--train", train, "--validate", held_out, "--json"])
+    report = cli_json(["diagnose", out, "--train", train, "--validate", held_out, "--json"])
     found = {(f["effect"], tuple(f["joints"])) for f in report["findings"]}
     carried = [f["effect"] for f in json.loads(out.read_text())["findings"]]  # identify's payload route takes the tool
     assert any(effect == "payload" for effect, _ in found) or "payload" in carried
@@ -205,11 +184,6 @@ def test_the_kinova_diagnosis_starts_from_the_model_file_when_the_robot_files_ri
     On defaults identify holds joint 7's friction at the robot file's fit (worse than it on the held-out part: 0.33
     against 0.14 N m); a hold the held-out recording chose is not evidence of what the data want, so link 7, still at
     its mass bound, is named for the tool as without the hold (it was named a counterbalance on joint 7)."""
-    import contextlib
-    import io
-    import json
-
-    from psdm_casadi.cli import main
     from tests.conftest import DATASETS
 
     kinova = DATASETS / "kinova_gen3_dynid"
@@ -218,16 +192,10 @@ def test_the_kinova_diagnosis_starts_from_the_model_file_when_the_robot_files_ri
     data, out = kinova / "opti_traj_testing1.csv", tmp_path / "kin.json"
     layout = ["--holdout", "0.3", "--columns", "t=Time,q=Position,tau=TorqueSm", "--rate", "1000.0"]
 
-    def run(argv):
-        stdout = io.StringIO()
-        with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
-            assert main([str(a) for a in argv]) == 0
-        return json.loads(stdout.getvalue().strip().splitlines()[-1])
-
-    identified = run(["identify", kinova / "gen3.urdf", "--data", data, *layout, "--out", out, "--json"])
+    identified = cli_json(["identify", kinova / "gen3.urdf", "--data", data, *layout, "--out", out, "--json"])
     assert identified["worse_joints"]["held_friction"]  # the hold is made, and the tool still named
     assert any(f["link"] == 6 and f["absorbs"] == "payload" for f in identified["envelope_findings"])
-    report = run(["diagnose", out, "--train", data, "--json"])
+    report = cli_json(["diagnose", out, "--train", data, "--json"])
     note = report["rigid_body_notes"][0]
     own = np.asarray(report["model_file_rmse"])
     assert "starts from the model file's rigid body" in note and f"joint 2 {own[1]:.3g} -> " in note, note
