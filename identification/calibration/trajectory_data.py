@@ -28,7 +28,7 @@ import numpy as np
 
 from identification.data.excitation_check import check_joint_motion
 from identification.data.filter_choice import EDGE_PERIODS, choose_filter, edge_samples, kept_samples
-from identification.data.plausibility import check_plausible_recording, check_torque_scale
+from identification.data.plausibility import check_plausible_recording, check_torque_magnitude
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
@@ -94,7 +94,7 @@ def prepare_recordings(
     RecordingError
         For a recording of another robot, one in the wrong units (``plausibility.check_plausible_recording``), one
         whose torque is off the robot file's by the same large factor on most joints (``plausibility.
-        check_torque_scale``: a torque constant without its gear ratio, a torque unit), or one in which a joint
+        check_torque_magnitude``: a torque constant without its gear ratio, a torque unit), or one in which a joint
         barely moves (naming it and the fix).
     """
     cutoffs, steps, prepared = [], [], []
@@ -104,7 +104,7 @@ def prepare_recordings(
         check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
                            fix=MOTION_FIX)  # fmt: skip
         ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz, edge_periods)
-        check_torque_scale(ready, robot, currents=rec.tau is None, torque_constants=torque_constants)
+        check_torque_magnitude(ready, robot, currents=rec.tau is None, torque_constants=torque_constants)
         cutoffs.append(cutoff)
         steps.append(step)
         prepared.append(ready)

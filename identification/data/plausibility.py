@@ -12,7 +12,7 @@ recordings (``trajectory_data.prepare_recordings``), the calibration data folder
 validated on (``trajectory_checks.check_validation_recording``: ``psdm validate``, ``identify --validate``).
 
 The torque is checked too, once the recording is prepared (filtered and differentiated, ``q``, ``qd``, ``qdd``
-and the joint torque): :func:`check_torque_scale` fits per joint the least-squares scale of the recorded torque
+and the joint torque): :func:`check_torque_magnitude` fits per joint the least-squares scale of the recorded torque
 onto the torque the robot file's rigid body predicts for the same motion. A torque constant given without the gear
 ratio (the motor's kt), inverted gear ratios or a torque unit scale every joint alike, by 1/100, 1/10000 or 1000;
 identify then fitted for half an hour (the counterbalance route tried to explain the missing torque) instead of
@@ -38,12 +38,12 @@ from psdm_casadi.said_once import SAID, say
 
 __all__ = [
     "PlausibilityThresholds",
-    "TorqueScale",
+    "TorqueMagnitude",
     "check_plausible_recording",
-    "check_torque_scale",
+    "check_torque_magnitude",
     "friction_columns",
     "looks_like_milliseconds",
-    "torque_scale",
+    "torque_magnitude",
 ]
 
 logger = logging.getLogger(__name__)
@@ -71,7 +71,7 @@ class PlausibilityThresholds:
         Median time step [s] above which a recording whose every joint is a thousand times too slow is
         taken for a time column in milliseconds (default 0.05: no robot is identified from 20 Hz data).
     torque_factor : float
-        Recorded over predicted torque (a joint's least-squares scale, :func:`torque_scale`) beyond which, or below
+        Recorded over predicted torque (a joint's least-squares scale, :func:`torque_magnitude`) beyond which, or below
         whose inverse, a joint's torque is off (default 10). A vendor URDF off by 2-3x on a link, friction and rotor
         inertia the file lacks, or a payload move a joint's scale by a few times; a forgotten gear ratio by ~100.
     joint_torque_factor : float
@@ -237,7 +237,7 @@ FRICTION_VELOCITY = 0.01
 
 
 @dataclass(frozen=True)
-class TorqueScale:
+class TorqueMagnitude:
     """The recorded torque over the robot file's rigid-body torque for the same motion, per joint and pooled.
 
     ``scale`` is per joint the least-squares factor ``s`` of ``tau_recorded ~ s tau_file`` (NaN where the file
@@ -245,7 +245,10 @@ class TorqueScale:
     keeps it; rotor inertia the file lacks lowers it). ``overall`` and ``overall_correlation`` are the same pooled over
     the joints, so the joints the file predicts most torque for (gravity's, which the file knows best) weigh most;
     ``rms_ratio`` is the pooled RMS of the recorded over the predicted torque. ``predicted_rms`` is each joint's
-    predicted RMS [N m]. All of them without the friction columns, when :func:`torque_scale` is given them.
+    predicted RMS [N m]. All of them without the friction columns, when :func:`torque_magnitude` is given them.
+
+    A gross check, for a unit or a mapping (factors of tens to thousands, before any fit); the per-joint torque
+    constant within its uncertainty, from a known payload, is ``calibration.torque_scale.TorqueScales``.
     """
 
     scale: np.ndarray
@@ -297,8 +300,8 @@ def _without(columns, signal) -> np.ndarray:
     return signal - columns @ coefficients
 
 
-def torque_scale(recorded, predicted, nuisance=None) -> TorqueScale:
-    """:class:`TorqueScale` of ``recorded`` onto ``predicted`` torques (both (n_samples, n_dof); NaN rows left out).
+def torque_magnitude(recorded, predicted, nuisance=None) -> TorqueMagnitude:
+    """:class:`TorqueMagnitude` of ``recorded`` onto ``predicted`` torques (both (n_samples, n_dof); NaN rows left out).
 
     ``nuisance`` (n_samples, n_dof, k), e.g. :func:`friction_columns`: per joint, columns fitted along with the scale
     (their share taken out of both signals first), so a friction the file lacks neither inflates nor hides the scale.
@@ -319,7 +322,7 @@ def torque_scale(recorded, predicted, nuisance=None) -> TorqueScale:
         rms_ratio = float(np.sqrt(np.sum(y * y) / np.sum(x * x)))
     # a joint the file predicts next to no torque for (a massless last link) has no scale: NaN, not 1e15
     scale = np.where((ok.sum(axis=0) >= 3) & (rms > 1e-9 * np.max(rms, initial=0.0)), scale, np.nan)
-    return TorqueScale(scale, correlation, rms, overall, _cosine(x.ravel(), y.ravel()), rms_ratio)
+    return TorqueMagnitude(scale, correlation, rms, overall, _cosine(x.ravel(), y.ravel()), rms_ratio)
 
 
 def _joint_list(joints) -> str:
@@ -352,18 +355,19 @@ def _scale_causes(factor: float, robot, currents: bool) -> str:
     return "; ".join(causes)
 
 
-def check_torque_scale(
+def check_torque_magnitude(
     recording: Recording,
     robot,
     currents: bool = False,
     thresholds: PlausibilityThresholds | None = None,
     torque_constants=None,
-) -> TorqueScale | None:
+) -> TorqueMagnitude | None:
     """Refuse a prepared ``recording`` whose torque is off the robot file's by the same large factor on most joints.
 
     The robot file's rigid body (``PinocchioOracle.rnea``, rotor inertias included) predicts the torque of the
-    recorded motion; :func:`torque_scale` compares. A pooled scale beyond ``thresholds.torque_factor`` either way (the
-    pooled RMS ratio too) is refused; one joint beyond ``thresholds.joint_torque_factor`` is warned about, naming it.
+    recorded motion; :func:`torque_magnitude` compares. A pooled scale beyond ``thresholds.torque_factor`` either way
+    (the pooled RMS ratio too) is refused; one joint beyond ``thresholds.joint_torque_factor`` is warned about, naming
+    it.
 
     Parameters
     ----------
@@ -380,7 +384,7 @@ def check_torque_scale(
 
     Returns
     -------
-    TorqueScale or None
+    TorqueMagnitude or None
         The per-joint scales (None: not checked).
 
     Raises
@@ -398,7 +402,7 @@ def check_torque_scale(
     rows = np.unique(np.linspace(0, recording.n_samples - 1, min(TORQUE_SAMPLES, recording.n_samples)).astype(int))
     predicted = PinocchioOracle(robot).rnea(recording.q[rows], recording.qd[rows], recording.qdd[rows])
     recorded = recording.tau[rows] * (1.0 if torque_constants is None else np.asarray(torque_constants, dtype=float))
-    found = torque_scale(recorded, predicted, friction_columns(recording.qd[rows]))
+    found = torque_magnitude(recorded, predicted, friction_columns(recording.qd[rows]))
     source, factor = recording.name or "the recording", found.global_factor(thresholds)
     if factor is not None:
         shown = np.isfinite(found.scale)

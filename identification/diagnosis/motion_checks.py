@@ -1,15 +1,15 @@
 """Checks run before any fit of ``diagnose``: every joint moves in both recordings, the training recording's torque is
-on the robot file's scale (``plausibility.check_torque_scale``: a torque constant without its gear ratio otherwise gives
-findings that explain a torque a hundred times too small), and the nominal model's free columns are well conditioned on
-the training recording (a still or dithering joint otherwise gives noise-fitted findings); ``validation_recordings``
-checks the validation argument."""
+of the robot file's magnitude (``plausibility.check_torque_magnitude``: a torque constant without its gear ratio
+otherwise gives findings that explain a torque a hundred times too small), and the nominal model's free columns are well
+conditioned on the training recording (a still or dithering joint otherwise gives noise-fitted findings);
+``validation_recordings`` checks the validation argument."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from identification.data.excitation_check import ExcitationThresholds, check_joint_motion
-from identification.data.plausibility import check_torque_scale
+from identification.data.plausibility import check_torque_magnitude
 from identification.data.recording import Recording
 from identification.data.regressor_check import base_parameter_joints, check_regressor
 from identification.diagnosis.columns import row_chunks
@@ -46,10 +46,10 @@ def check_motion(robot, train, validation, options) -> None:
 def check_nominal_columns(robot, model, problem, options) -> None:
     """The nominal model's free columns on the training recording, each joint weighted by its torque RMS as the
     selection weights it, must have full rank and a bounded condition number (``check_regressor``); before that, the
-    training recording's torque must be on the robot file's scale (``check_torque_scale``)."""
+    training recording's torque must be on the robot file's scale (``check_torque_magnitude``)."""
     ctx = problem.ctx_t
     recording = Recording(t=ctx.t, q=ctx.q, tau=ctx.tau, qd=ctx.qd, qdd=ctx.qdd, name=ctx.name)
-    check_torque_scale(recording, robot, currents=ctx.torque_constants is not None)
+    check_torque_magnitude(recording, robot, currents=ctx.torque_constants is not None)
     n = robot.n_dof
     names = friction_feature_names(options.friction, n)
     per = len(names) // n

@@ -204,7 +204,7 @@ def test_torques_of_two_joints_swapped_are_flagged(arm, tmp_path, capsys):
 
 def test_torques_in_milli_newton_metres_are_refused_before_any_fit(arm, tmp_path, capsys):
     """Every joint's torque about 1000x what the robot file predicts for the motion: refused naming the unit
-    (``plausibility.check_torque_scale``), not fitted into link masses an order of magnitude off."""
+    (``plausibility.check_torque_magnitude``), not fitted into link masses an order of magnitude off."""
     code, err, document = _identified(arm, tmp_path, capsys, "mNm.csv", tau=1000.0 * arm[2].tau)
     assert code == 2 and document is None and "Traceback" not in err
     assert "mNm.csv" in err and "mN m?" in err and "--columns tau=PREFIX:mNm" in err

@@ -174,7 +174,7 @@ def test_diagnose_names_its_one_training_recording_when_given_identifys_list(tmp
 def test_torques_in_mnm_left_unstated_are_refused_naming_the_unit_alone(logged_arm, capsys):
     """The torques 1000x the robot file's on every joint: refused before any fit (exit 2), naming the unit and the
     --columns fix, not a wrong torque sign per joint nor a counterbalance pushing each link against its envelope
-    (``plausibility.check_torque_scale``)."""
+    (``plausibility.check_torque_magnitude``)."""
     folder, path = logged_arm
     out = folder / "mnm.json"
     code = main(["identify", str(folder / "arm.toml"), "--data", str(path), "--columns", "t=Time:ms,q=Pos:deg,tau=Trq",

@@ -3,7 +3,7 @@
 ``psdm identify`` stores in the model file the warnings that point at a wrong recording (here: torques in
 mN m, which make link masses an order of magnitude off); ``psdm validate`` and ``psdm codegen`` read the
 file later and repeat them (stderr, ``--json``, the C header). Identify now refuses torques in mN m before any fit
-(``plausibility.check_torque_scale``): the model file identified from them here is one written before that refusal
+(``plausibility.check_torque_magnitude``): the model file identified from them here is one written before that refusal
 (the check switched off for it). A validation recording whose joint stands
 still is refused naming the joint rather than given an R^2; a recording in degrees is refused once, by the
 library the command calls. Inputs: the 3-joint arm of the catalogue on the virtual robot; the recording
@@ -59,7 +59,7 @@ def arm(tmp_path_factory):
     for data, model in (("train.csv", "good.json"), ("mNm.csv", "mNm.json")):
         argv = ["identify", str(folder / "arm.toml"), "--data", str(folder / data), "--out", str(folder / model)]
         with pytest.MonkeyPatch.context() as patch:  # a model file of before the torque-scale refusal
-            patch.setattr(trajectory_data, "check_torque_scale", lambda *args, **kwargs: None)
+            patch.setattr(trajectory_data, "check_torque_magnitude", lambda *args, **kwargs: None)
             assert main(argv) == 0
     return folder
 
@@ -212,7 +212,7 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
     code, _, err = _run(capsys, argv)  # today the refit refuses the mN m torques before fitting
     assert code == 2 and "mNm.csv" in err and "mN m" in err and not new.exists(), err
     for module in (trajectory_data, motion_checks):  # a diagnosis and refit of before the refusal
-        monkeypatch.setattr(module, "check_torque_scale", lambda *args, **kwargs: None)
+        monkeypatch.setattr(module, "check_torque_magnitude", lambda *args, **kwargs: None)
     code, _, err = _run(capsys, argv)
     assert code == 0, err
     kept = json.loads(new.read_text())["warnings"]

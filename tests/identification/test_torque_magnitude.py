@@ -1,4 +1,4 @@
-"""The recorded torque's scale against the robot file's (``plausibility.check_torque_scale``), on the virtual Denso.
+"""The recorded torque's scale against the robot file's (``plausibility.check_torque_magnitude``), on the virtual Denso.
 
 A torque constant given without its gear ratio scales every joint's torque by about 1/100; identify then fitted
 for many minutes instead of refusing. The truth here is a simulated recording (rigid body, rotors, friction, noise) of
@@ -21,7 +21,7 @@ import pytest
 from identification.calibration.trajectory_data import prepare_recording, prepare_recordings
 from identification.data.io import load_recording, save_recording
 from identification.data.motor_side import to_joint_side
-from identification.data.plausibility import PlausibilityThresholds, check_torque_scale, torque_scale
+from identification.data.plausibility import PlausibilityThresholds, check_torque_magnitude, torque_magnitude
 from identification.data.recording import Recording
 from identification.fleet.baseline import build_baseline
 from identification.fleet.layout import read_fleet
@@ -54,10 +54,10 @@ def _scaled(recording: Recording, factors) -> Recording:
 
 def test_the_least_squares_scale_is_the_factor_applied(rng):
     predicted = rng.standard_normal((500, 3))
-    found = torque_scale(predicted * [0.01, 1.0, 300.0], predicted)
+    found = torque_magnitude(predicted * [0.01, 1.0, 300.0], predicted)
     np.testing.assert_allclose(found.scale, [0.01, 1.0, 300.0], rtol=1e-12)
     np.testing.assert_allclose(found.correlation, 1.0, rtol=1e-12)
-    alike = torque_scale(predicted * 0.01, predicted)
+    alike = torque_magnitude(predicted * 0.01, predicted)
     assert alike.overall == pytest.approx(0.01, rel=1e-12) and alike.rms_ratio == pytest.approx(0.01, rel=1e-12)
 
 
@@ -74,17 +74,17 @@ def test_currents_with_the_motors_kt_name_the_forgotten_gear_ratio(denso, record
     current = Recording(t=recorded.t, q=recorded.q, current=recorded.tau / 101.0, name="currents.csv")
     ready, *_ = prepare_recording(current, np.ones(denso.n_dof))  # kt = 1: the motor's kt given for the joint's 101
     with pytest.raises(RecordingError, match=r"currents.csv: .* did you give the motor's kt without the gear ratio"):
-        check_torque_scale(ready, denso, currents=True)
+        check_torque_magnitude(ready, denso, currents=True)
 
 
 def test_the_right_scale_and_a_link_twice_as_heavy_as_the_file_pass(denso, recorded):
     ready, *_ = prepare_recording(recorded)
-    found = check_torque_scale(ready, denso)
+    found = check_torque_magnitude(ready, denso)
     assert 0.5 < found.overall < 2.0 and found.global_factor(PlausibilityThresholds()) is None  # friction, noise
     for link in (1, 2):  # the file says half of link 2's (or link 3's) mass and inertia
         links = list(denso.links)
         links[link] = replace(links[link], mass=2.0 * links[link].mass, inertia=2.0 * np.asarray(links[link].inertia))
-        found = check_torque_scale(prepare_recording(_simulated(denso.with_links(links), seed=4))[0], denso)
+        found = check_torque_magnitude(prepare_recording(_simulated(denso.with_links(links), seed=4))[0], denso)
         assert 0.5 < found.overall < 3.0
 
 
@@ -94,7 +94,7 @@ def test_one_joint_off_is_a_warning_naming_it_not_a_refusal(denso, recorded, cap
     factors[1] = 0.01  # joint 2's torque constant given without its gear ratio
     ready, *_ = prepare_recording(_scaled(recorded, factors))
     with caplog.at_level(logging.WARNING):
-        check_torque_scale(ready, denso)
+        check_torque_magnitude(ready, denso)
     (warning,) = [
         r.getMessage() for r in caplog.records if "times the torque the robot file predicts" in r.getMessage()
     ]
@@ -161,7 +161,7 @@ def test_motor_currents_through_the_right_gears_pass(motor_currents, tmp_path):
     joint_side = to_joint_side(load_recording(motor_currents, robot.n_dof), robot)
     assert joint_side.tau is None  # currents, times the joint-side kt N kt_m
     (ready,) = prepare_recordings(robot, [joint_side], [d.kt for d in robot.drives])[2]
-    found = check_torque_scale(ready, robot, currents=True)
+    found = check_torque_magnitude(ready, robot, currents=True)
     assert 0.5 < found.overall < 2.0  # the file's rotors and friction are the truth's (the Denso's), its kt N kt_m
 
 
@@ -202,9 +202,9 @@ def test_a_fleet_health_recording_passes_as_the_fleet_reads_it(denso_model, tmp_
     day = entry.days[0]
     prepared, currents = read_session(SessionTask(entry.robot_id, day.day, day.paths, ""), baseline)
     assert currents
-    found = check_torque_scale(prepared[0], baseline.robot, currents=True, torque_constants=baseline.kt)
+    found = check_torque_magnitude(prepared[0], baseline.robot, currents=True, torque_constants=baseline.kt)
     np.testing.assert_allclose(found.scale[[0, 2, 4, 5]], 1.0, rtol=0.05)
     with pytest.raises(RecordingError, match="health.csv: the recorded torque is about"):
-        check_torque_scale(prepared[0], baseline.robot, currents=True)  # the amperes alone: what was refused
-    unknown = check_torque_scale(prepared[0], baseline.robot, True, torque_constants=np.full(6, np.nan))
+        check_torque_magnitude(prepared[0], baseline.robot, currents=True)  # the amperes alone: what was refused
+    unknown = check_torque_magnitude(prepared[0], baseline.robot, True, torque_constants=np.full(6, np.nan))
     assert np.isnan(unknown.scale).all()  # a fleet robot file without kt: the current's scale is not judged
