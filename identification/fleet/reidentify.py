@@ -64,12 +64,12 @@ def reidentify(task: ReidentifyTask, baseline: Baseline, model, track) -> Reiden
     from identification.calibration.findings import FindingColumns, filled_entries
     from identification.calibration.lugre_recordings import split_findings
     from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-    from identification.data.io import load_recording
+    from identification.fleet.session import load_named
 
     start = time.perf_counter()
     robot = baseline.robot
     try:
-        recordings = [load_recording(path, robot.n_dof, robot.joint_names) for path in task.paths]
+        recordings = load_named(task.paths, [str(path) for path in task.paths], robot)  # messages: the full path
         terms = tracked_finding_terms(track)
         columns = FindingColumns(terms) if terms else None
         fit = identify_trajectories(robot, model, recordings, TrajectoryOptions(), extra=columns)

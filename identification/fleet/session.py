@@ -5,6 +5,7 @@ hash), the robot's :class:`~identification.fleet.baseline.Baseline` and its PSDM
 :class:`SessionResult`; it writes nothing. A recording that does not read or does not pass the checks of the
 identification (``trajectory_data.prepare_recordings``: the robot's joint count, plausible units, every joint
 moving) fails its own session: the result holds the error text and ``status = "failed"``, and the fleet goes on.
+The recordings are named ``ROBOT/DAY/FILE`` (``load_named``), so each message names the robot and the day.
 
 Given the robot's :class:`~identification.fleet.day_check.ErrorReference` (its baseline window's validation
 errors; the client passes it for the days after the window), the task also checks whether the day's error rose
@@ -22,6 +23,7 @@ import logging
 import time
 from dataclasses import dataclass, field
 from importlib import metadata
+from pathlib import Path
 
 import numpy as np
 
@@ -33,7 +35,7 @@ from identification.fleet.day_diagnosis import DayFinding
 from identification.fleet.update import DayFit, refit_day
 from psdm_casadi.errors import PSDMError, RecordingError
 
-__all__ = ["SessionResult", "SessionTask", "process_session", "read_session", "software_version"]
+__all__ = ["SessionResult", "SessionTask", "load_named", "process_session", "read_session", "software_version"]
 
 logger = logging.getLogger(__name__)
 
@@ -99,7 +101,7 @@ class SessionResult:
 def read_session(task: SessionTask, baseline: Baseline) -> tuple:
     """(prepared recordings, currents?) of a task; all of one kind (joint torques, else currents)."""
     robot = baseline.robot
-    recordings = [load_recording(path, robot.n_dof, robot.joint_names) for path in task.paths]
+    recordings = load_named(task.paths, [f"{task.robot_id}/{task.day}/{Path(p).name}" for p in task.paths], robot)
     currents = all(rec.tau is None for rec in recordings)
     if not currents and any(rec.tau is None for rec in recordings):
         raise RecordingError(
@@ -112,6 +114,20 @@ def read_session(task: SessionTask, baseline: Baseline) -> tuple:
     constants = None if not currents else baseline.kt if robot.drives else np.full(robot.n_dof, np.nan)
     _, _, prepared = prepare_recordings(robot, recordings, kt, torque_constants=constants)
     return prepared, currents
+
+
+def load_named(paths, names, robot) -> list:
+    """The recordings at ``paths`` named ``names`` (``ROBOT/DAY/FILE``): every day of a fleet holds a ``health.csv``,
+    so every message about one (a refusal, a warning) names the robot and the day; one that cannot be read is
+    refused under its name too."""
+    out = []
+    for path, name in zip(paths, names):
+        try:
+            recording = load_recording(path, robot.n_dof, robot.joint_names)
+        except RecordingError as exc:
+            raise RecordingError(f"{name}: {str(exc).removeprefix(f'{Path(path).name}: ')}") from exc
+        out.append(dataclasses.replace(recording, name=name))
+    return out
 
 
 def _diagnosis(task, baseline, model, prepared, currents, fit) -> tuple:

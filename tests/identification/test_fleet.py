@@ -105,6 +105,30 @@ def test_session_recovers_the_virtual_robots_truth(tiny_fleet, derive):
     assert np.all(result.fit.rmse_refit <= result.fit.rmse_baseline + 1e-12)
 
 
+def test_a_refused_day_names_its_robot_and_day_in_the_message(tiny_fleet, derive, tmp_path):
+    """Every day's recording is a health.csv: r02's second day logged in mA (its currents 1000 times the file's)
+    is refused by the torque-magnitude check, its third cannot be read; each message names the robot and the day,
+    and the days left alone pass."""
+    folder = _copy(tiny_fleet, tmp_path)
+    scaled = folder / "r02" / "2026-10-02" / "health.csv"
+    lines = scaled.read_text().splitlines()
+    header = lines[1].split(",")
+    data = np.loadtxt(scaled, delimiter=",", skiprows=2)
+    data[:, [k for k, name in enumerate(header) if name.startswith("i")]] *= 1000.0
+    np.savetxt(scaled, data, delimiter=",", header="\n".join(lines[:2]), comments="", fmt="%.17g")
+    (folder / "r02" / "2026-10-03" / "health.csv").write_text("t,q1,q2\n0,1\nnot numbers\n")
+    fleet = read_fleet(folder)
+    entry = fleet.robots[1]
+    baseline, model = build_baseline(entry, fleet.track, SharedModels(derive))
+    tasks = {t.day: t for t in plan_run(fleet).tasks if t.robot_id == "r02"}
+    refused = process_session(tasks["2026-10-02"], baseline, model)
+    assert refused.status == "failed"
+    assert "Recording r02/2026-10-02/health.csv: the recorded torque is about " in refused.error
+    unread = process_session(tasks["2026-10-03"], baseline, model)
+    assert unread.status == "failed" and unread.error.startswith("RecordingError: r02/2026-10-03/health.csv: ")
+    assert process_session(tasks["2026-10-01"], baseline, model).status == "ok"
+
+
 def test_corrupt_recording_fails_its_own_day_and_duplicates_count_once(tiny_fleet, derive, tmp_path):
     folder = _copy(tiny_fleet, tmp_path)
     bad = folder / "r01" / "2026-10-03" / "health.csv"
@@ -119,7 +143,7 @@ def test_corrupt_recording_fails_its_own_day_and_duplicates_count_once(tiny_flee
         counts = {r[0]: r[1:3] for r in history.session_counts()}
         dup = history.connection.execute("SELECT count(*) FROM recordings WHERE duplicate_of IS NOT NULL").fetchone()
     assert [(r, str(d)) for r, d, _ in failures] == [("r01", "2026-10-03")]
-    assert "health.csv" in failures[0][2]
+    assert "r01/2026-10-03/health.csv" in failures[0][2]  # the robot and the day: every day holds a health.csv
     assert counts == {"r01": (5, 1), "r02": (6, 0), "r03": (6, 0)} and dup == (2,)
     clean = _parameters(tmp_path / "h.duckdb")
     assert ("r02", "2026-10-02", "fc1") in clean
