@@ -94,28 +94,37 @@ def panda_case(data_root: Path):
     return robot, [train, validation], lambda recording: recording
 
 
-def arm12_case():
-    """The 12-joint example arm: sums of sines about mid-range, Pinocchio's torque plus Coulomb and viscous friction."""
+#: The friction of every joint of the 12-joint arm's recordings: Coulomb [N m], viscous [N m s/rad].
+FC, FV = 2.0, 3.0
+
+
+def mid_range_sines(robot, duration: float, seed: int, rate: float = 200.0):
+    """A recording of ``robot``: four sines per joint about mid-range (within half its range, speed and acceleration
+    limits), its torque Pinocchio's ``rnea`` plus ``FC tanh(qd / 0.01) + FV qd`` (exact, no noise)."""
     from identification.data.recording import Recording
     from psdm_casadi.oracle import PinocchioOracle
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, 1.0 / rate)
+    mid, half = 0.5 * (robot.q_min + robot.q_max), 0.5 * (robot.q_max - robot.q_min)
+    q, qd, qdd = (np.empty((t.size, robot.n_dof)) for _ in range(3))
+    for j in range(robot.n_dof):
+        w, phase = rng.uniform(0.2, 1.0, 4) * 2 * np.pi, rng.uniform(0, 2 * np.pi, 4)
+        amp = min(0.5 * half[j], 0.5 * robot.qd_max[j] / w.max(), 0.5 * robot.qdd_max[j] / w.max() ** 2) / 2
+        angle = np.outer(t, w) + phase
+        q[:, j] = mid[j] + amp * np.sin(angle).sum(1)
+        qd[:, j] = amp * (w * np.cos(angle)).sum(1)
+        qdd[:, j] = -amp * (w**2 * np.sin(angle)).sum(1)
+    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + FC * np.tanh(qd / 0.01) + FV * qd
+    return Recording(t=t, q=q, tau=tau, name=f"{robot.name}_{seed}")
+
+
+def arm12_case():
+    """The 12-joint example arm: ``mid_range_sines``, 40 s to train and 15 s to validate."""
     from psdm_casadi.robot_file import load_robot
 
     robot = load_robot(ROOT / "examples" / "serial_arm_12.toml")
-    recordings = []
-    for duration, seed in ((40.0, 0), (15.0, 1)):
-        rng = np.random.default_rng(seed)
-        t = np.arange(0.0, duration, 1.0 / 200.0)
-        mid, half = 0.5 * (robot.q_min + robot.q_max), 0.5 * (robot.q_max - robot.q_min)
-        q, qd, qdd = (np.empty((t.size, robot.n_dof)) for _ in range(3))
-        for j in range(robot.n_dof):
-            w, phase = rng.uniform(0.2, 1.0, 4) * 2 * np.pi, rng.uniform(0, 2 * np.pi, 4)
-            amp = min(0.5 * half[j], 0.5 * robot.qd_max[j] / w.max(), 0.5 * robot.qdd_max[j] / w.max() ** 2) / 2
-            angle = np.outer(t, w) + phase
-            q[:, j] = mid[j] + amp * np.sin(angle).sum(1)
-            qd[:, j] = amp * (w * np.cos(angle)).sum(1)
-            qdd[:, j] = -amp * (w**2 * np.sin(angle)).sum(1)
-        tau = PinocchioOracle(robot).rnea(q, qd, qdd) + 2.0 * np.tanh(qd / 0.01) + 3.0 * qd
-        recordings.append(Recording(t=t, q=q, tau=tau, name=f"arm12_{seed}"))
+    recordings = [mid_range_sines(robot, duration, seed) for duration, seed in ((40.0, 0), (15.0, 1))]
     return robot, recordings, lambda recording: recording
 
 

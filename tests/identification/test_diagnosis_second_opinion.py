@@ -13,9 +13,8 @@ from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.second_opinion import CROSS_VALIDATION_ROUTE, VALIDATION_ROUTE, SecondOpinion
 from identification.diagnosis.selection import forward_select
 from identification.virtual import effects as xp
-from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
-from trajopt.experiments import sine_experiment
+from tests.identification.diagnosis_data import sine_recording
 
 
 def _part(rng, offset, n=1600, phase=0.0, name=""):
@@ -81,18 +80,6 @@ def test_an_offset_that_holds_on_every_block_is_kept(rng):
     assert [s.term.label for s in result.steps] == ["torque_offset[j1]"] and result.unstable == ()
 
 
-def _recording(robot, extras, seed, duration):
-    rng = np.random.default_rng(seed)
-    rec, _ = simulate_recording(
-        robot,
-        sine_experiment(robot, duration=duration, rng=rng).reference(),
-        SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
-        rng,
-        extras=extras,
-    )
-    return rec
-
-
 def _offset(value, joint=2):
     vec = np.zeros(6)
     vec[joint] = value
@@ -101,8 +88,8 @@ def _offset(value, joint=2):
 
 def test_diagnose_with_two_validation_recordings_reports_a_flipping_offset_as_unstable(denso, denso_model):
     # the Denso with a 3 N m offset on joint 3 in training and validation A, -3 N m in validation B (re-zeroed)
-    train = _recording(denso, _offset(3.0), 1, 10.0)
-    a, b = _recording(denso, _offset(3.0), 2, 5.0), _recording(denso, _offset(-3.0), 3, 5.0)
+    train = sine_recording(denso, 1, 10.0, _offset(3.0))[0]
+    a, b = sine_recording(denso, 2, 5.0, _offset(3.0))[0], sine_recording(denso, 3, 5.0, _offset(-3.0))[0]
     options = DiagnosisOptions(library=SpringTerm() + TorqueOffsetTerm(), sparse=False, rigid_body="prior")
     one = diagnose(denso, train, a, options, model=denso_model)
     assert "torque_offset" in one.effects and one.opinion_route == CROSS_VALIDATION_ROUTE

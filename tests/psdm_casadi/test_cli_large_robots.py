@@ -20,25 +20,15 @@ from psdm_casadi.sampling import random_states
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 SERIAL = EXAMPLES / "serial_arm_12.toml"
 TREE = EXAMPLES / "dual_arm_torso.toml"
-FC, FV = 2.0, 3.0  # the recording's friction on every joint [N m], [N m s/rad]
 
 
-def _recording(robot, path: Path, duration: float, seed: int = 0, rate: float = 200.0) -> None:
-    """t, q, tau of smooth sums of sines about mid-range: tau = rnea + FC tanh(qd / 0.01) + FV qd."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration, 1.0 / rate)
-    mid, half = 0.5 * (robot.q_min + robot.q_max), 0.5 * (robot.q_max - robot.q_min)
-    q, qd, qdd = (np.empty((t.size, robot.n_dof)) for _ in range(3))
-    for j in range(robot.n_dof):
-        w, phase = rng.uniform(0.2, 1.0, 4) * 2 * np.pi, rng.uniform(0, 2 * np.pi, 4)
-        amp = min(0.5 * half[j], 0.5 * robot.qd_max[j] / w.max(), 0.5 * robot.qdd_max[j] / w.max() ** 2) / 2
-        angle = np.outer(t, w) + phase
-        q[:, j] = mid[j] + amp * np.sin(angle).sum(1)
-        qd[:, j] = amp * (w * np.cos(angle)).sum(1)
-        qdd[:, j] = -amp * (w**2 * np.sin(angle)).sum(1)
-    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + FC * np.tanh(qd / 0.01) + FV * qd
+def _recording(robot, path: Path, duration: float, seed: int = 0) -> None:
+    """t, q, tau of ``benchmarks/identify_speed.py``'s ``mid_range_sines``: tau = rnea + FC tanh(qd / 0.01) + FV qd."""
+    from identify_speed import mid_range_sines
+
+    rec = mid_range_sines(robot, duration, seed)
     names = ["t", *(f"q{j + 1}" for j in range(robot.n_dof)), *(f"tau{j + 1}" for j in range(robot.n_dof))]
-    np.savetxt(path, np.column_stack([t, q, tau]), delimiter=",", header=",".join(names), comments="")
+    np.savetxt(path, np.column_stack([rec.t, rec.q, rec.tau]), delimiter=",", header=",".join(names), comments="")
 
 
 def test_derive_json_of_the_tree(tmp_path, capsys):
@@ -79,7 +69,9 @@ def test_codegen_of_a_saved_tree_model_without_the_robot(tmp_path, capsys, rng):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("robot_file", [SERIAL, TREE], ids=["serial12", "tree"])
-def test_identify_validate_and_codegen_beyond_eight_joints(robot_file, tmp_path, capsys):
+def test_identify_validate_and_codegen_beyond_eight_joints(robot_file, tmp_path, capsys, benchmark_modules):
+    from identify_speed import FC, FV
+
     robot = load_robot(robot_file)
     _recording(robot, tmp_path / "run.csv", duration=40.0)
     _recording(robot, tmp_path / "held_out.csv", duration=15.0, seed=1)

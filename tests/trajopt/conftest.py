@@ -1,5 +1,5 @@
 """Fixtures of the trajopt tests: a planar 2R arm with an analytic base-parameter regressor, and the Denso's
-forward dynamics with their Jacobian for the MPC tests."""
+forward dynamics with their Jacobian and a sine reference for the MPC tests."""
 
 import casadi as ca
 import numpy as np
@@ -47,6 +47,18 @@ def build_planar_regressor():
 
 
 PLANAR_GRAVITY_MASK = np.array([False, False, False, True, True])
+
+
+def sine_reference(robot, amplitude=0.15):
+    """``t -> (q, qd)``: every joint a 0.5 Hz sine of ``amplitude`` [rad] about the middle of its range (the MPC
+    tests' reference)."""
+    middle = (robot.q_min + robot.q_max) / 2
+    omega = 2 * np.pi * 0.5
+
+    def reference(t):
+        return middle + amplitude * np.sin(omega * t), np.full(robot.n_dof, amplitude * omega * np.cos(omega * t))
+
+    return reference
 
 
 @pytest.fixture(scope="session")

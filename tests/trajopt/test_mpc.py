@@ -11,6 +11,7 @@ import pytest
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.recursive import build_recursive_functions
+from tests.trajopt.conftest import sine_reference
 from trajopt.joint_friction import friction_function, friction_torque
 from trajopt.mpc import MPCOptions, build_mpc
 from trajopt.mpc_loop import build_pinocchio_plant, simulate_closed_loop
@@ -21,16 +22,6 @@ from trajopt.mpc_model import build_forward_dynamics_jacobian, build_step_functi
 def denso_dynamics(denso, denso_model):
     theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
     return build_recursive_functions(denso_model, denso, theta)
-
-
-def sine_reference(robot, amplitude=0.15):
-    middle = (robot.q_min + robot.q_max) / 2
-    omega = 2 * np.pi * 0.5
-
-    def reference(t):
-        return middle + amplitude * np.sin(omega * t), np.full(robot.n_dof, amplitude * omega * np.cos(omega * t))
-
-    return reference
 
 
 def test_chained_rk4_jacobian_equals_casadi_ad_of_the_step(denso, denso_dynamics, rng):

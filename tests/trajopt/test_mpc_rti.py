@@ -13,6 +13,7 @@ import pytest
 
 from psdm_casadi.errors import ParameterError, SolverError
 from psdm_casadi.oracle import PinocchioOracle
+from tests.trajopt.conftest import sine_reference
 from trajopt.hpipm_c import hpipm_cache_folder, persistent_workspace
 from trajopt.joint_friction import friction_function
 from trajopt.mpc import MPCOptions, variable_bounds
@@ -22,16 +23,6 @@ from trajopt.mpc_rti import build_rti, compile_rti, hpipm_folders, rti_qp_data
 
 DT = 0.005
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
-
-
-def sine_reference(robot, amplitude=0.15):
-    middle = (robot.q_min + robot.q_max) / 2
-    omega = 2 * np.pi * 0.5
-
-    def reference(t):
-        return middle + amplitude * np.sin(omega * t), np.full(robot.n_dof, amplitude * omega * np.cos(omega * t))
-
-    return reference
 
 
 def nodes(reference, horizon, t=0.0):
