@@ -52,10 +52,12 @@ def _term(name: str) -> str:
 @dataclass(frozen=True)
 class HeldFriction:
     """Friction held at given values: ``values`` ``((name, value), ...)`` of ``fc<j>``/``fv<j>`` columns, the Coulomb
-    term smoothed over ``coulomb_velocity`` [rad/s] (``trajectory_data.friction_term``, as the model file predicts)."""
+    term smoothed over ``coulomb_velocity`` [rad/s] and the viscous term a power ``viscous_exponent`` of the speed per
+    joint (``()`` or 1: linear) (``trajectory_data.friction_term``, as the model file predicts)."""
 
     values: tuple = ()
     coulomb_velocity: float = 0.05
+    viscous_exponent: tuple = ()
 
     def __post_init__(self):
         values = tuple((str(name), float(value)) for name, value in self.values)
@@ -67,17 +69,24 @@ class HeldFriction:
             raise ParameterError(
                 f"HeldFriction.coulomb_velocity must be positive [rad/s]; got {self.coulomb_velocity!r}."
             )
+        exponents = tuple(float(dv) for dv in self.viscous_exponent)
+        if not all(np.isfinite(dv) and dv > 0 for dv in exponents):
+            raise ParameterError(f"HeldFriction.viscous_exponent must be positive per joint (1: linear viscous "
+                                 f"friction); got {self.viscous_exponent!r}.")  # fmt: skip
         object.__setattr__(self, "values", values)
+        object.__setattr__(self, "viscous_exponent", exponents)
 
     @classmethod
     def of_document(cls, document: dict) -> HeldFriction:
         """What a calibrated-model file's identification held (``identification.one_way_friction.held``, then
         ``identification.worse_joints.held_friction``, ``worse_joint_hold``; none in files without them), with the
-        file's smoothing velocity."""
-        identification = document.get("identification", {})
+        file's smoothing velocity and viscous exponents (identify's held joints are linear, ``with_held_values``; a
+        file that states another exponent for one is predicted with it, as ``psdm validate`` predicts it)."""
+        identification, drive = document.get("identification", {}), document["drive"]
         held = dict((identification.get("one_way_friction") or {}).get("held") or {})
         held.update((identification.get("worse_joints") or {}).get("held_friction") or {})
-        return cls(tuple(held.items()), float(document["drive"].get("coulomb_velocity", 0.05)))
+        exponents = tuple(drive.get("viscous_exponent") or ())
+        return cls(tuple(held.items()), float(drive.get("coulomb_velocity", 0.05)), exponents)
 
     @classmethod
     def of_model_file(cls, document: dict) -> HeldFriction:
@@ -142,6 +151,9 @@ class HeldFriction:
         return out
 
     def _column(self, name, qd, qdd):
+        if _term(name) == "fv" and self.viscous_exponent:
+            dv = self.viscous_exponent[drive_column_joint(name)]
+            return friction_term("fv", qd, self.coulomb_velocity, None, None if dv == 1.0 else dv)
         if _term(name) != "Ia":
             return friction_term(_term(name), qd, self.coulomb_velocity)
         if qdd is None:

@@ -17,6 +17,7 @@ from identification.calibration.column_choice import ColumnRequest, choose_colum
 from identification.calibration.trajectory_data import friction_term, prepare_recording, viscous_column
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
 from identification.data.recording import Recording
+from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
 from trajopt.experiments import sine_experiment
 
@@ -129,3 +130,54 @@ def test_the_viscous_column_is_one_definition_for_numbers_and_casadi_and_the_pap
     np.testing.assert_allclose(np.array([float(symbolic(v)) for v in qd]), column, rtol=1e-12, atol=1e-15)
     slope = ca.Function("g", [x], [ca.jacobian(friction_term("fv", x, EPS, None, 0.7), x)])
     assert np.isfinite(float(slope(0.0))) and float(slope(0.0)) == pytest.approx(EPS ** (0.7 - 1.0))
+
+
+def test_friction_a_model_file_holds_is_predicted_with_the_files_viscous_exponent():
+    """``diagnose MODEL`` holds the friction a model file's identify held (``HeldFriction.of_model_file``) and predicts
+    it as the file does. Reference: the paper's law written here, ``fc tanh(qd / v) + fv qd (qd^2 + v^2)^((dv - 1) /
+    2)`` with the file's values (what ``CalibratedModel.predict`` computes, ``test_the_model_file_exported_c_...``).
+    Joint 3 holds a power law (dv 0.7), joint 1 a linear one; joint 2, not held, contributes nothing."""
+    from identification.calibration.held_friction import HeldFriction
+
+    dv, v = [1.0, 1.0, 0.7, 1.0, 1.0, 1.0], 0.03
+    names = [f"{t}{j}" for t in ("fc", "fv") for j in range(1, 7)]
+    document = {"identification": {"worse_joints": {"held_friction": {"fc1": 1.5, "fv1": 0.8, "fc3": 2.0, "fv3": 3.0}}},
+                "drive": {"names": names, "values": [1.0] * 12, "coulomb_velocity": v, "viscous_exponent": dv},
+                "standard": {"values": [0.0] * 66}}  # fmt: skip
+    held = HeldFriction.of_model_file(document)
+    assert held.joints == (0, 2) and held.viscous_exponent == tuple(dv)
+    qd = np.random.default_rng(5).normal(scale=1.5, size=(200, 6))
+    torque = held.torque(qd)
+    np.testing.assert_allclose(torque[:, 0], 1.5 * np.tanh(qd[:, 0] / v) + 0.8 * qd[:, 0], rtol=1e-12)
+    law = 2.0 * np.tanh(qd[:, 2] / v) + 3.0 * qd[:, 2] * (qd[:, 2] ** 2 + v**2) ** ((0.7 - 1.0) / 2)
+    np.testing.assert_allclose(torque[:, 2], law, rtol=1e-12)
+    assert np.all(torque[:, [1, 3, 4, 5]] == 0.0)
+    x = ca.SX.sym("qd", 6)
+    symbolic = ca.Function("held", [x], [held.expression(x)])
+    np.testing.assert_allclose(np.array(symbolic(qd.T)).T, torque, rtol=1e-12, atol=1e-12)  # the exported form too
+    linear = HeldFriction.of_model_file({**document, "drive": {**document["drive"], "viscous_exponent": None}})
+    assert not np.allclose(linear.torque(qd)[:, 2], law, rtol=1e-3)  # a linear hold would not be the file's
+    with pytest.raises(ParameterError, match="viscous_exponent must be positive"):
+        HeldFriction((("fv3", 1.0),), 0.05, (1.0, 1.0, -0.7))
+
+
+def test_a_joint_identify_holds_is_written_linear_and_the_others_keep_their_exponents():
+    """``with_held_values``: a held joint's friction is the held Coulomb-viscous one (the robot file's fit), so the fit
+    (and the model file) states exponent 1 for it; a joint not held keeps the exponent the column choice chose."""
+    from identification.calibration.held_friction import with_held_values
+
+    @dataclasses.dataclass(frozen=True)
+    class Fit:  # the fields of a TrajectoryFit it reads
+        drive: np.ndarray
+        drive_ols: np.ndarray
+        drive_names: tuple
+        viscous_exponent: tuple
+
+    names = ("fc1", "fc2", "fc3", "fv1", "fv2", "fv3")
+    fit = Fit(np.ones(6), np.ones(6), names, (1.0, 0.8, 0.7))
+    options = TrajectoryOptions(held_friction=(("fc3", 2.0), ("fv3", 3.0)))
+    held = with_held_values(fit, options)
+    assert held.viscous_exponent == (1.0, 0.8, 1.0)
+    assert dict(zip(names, held.drive))["fv3"] == 3.0 and dict(zip(names, held.drive_ols))["fc3"] == 2.0
+    only = with_held_values(Fit(np.ones(6), np.ones(6), names, (1.0, 1.0, 0.7)), options)
+    assert only.viscous_exponent == ()  # every joint linear: no power law stated
