@@ -13,7 +13,9 @@ Identify writes two things that a refit must not undo, because the data that dec
   joint's gravity, so a refit of the rigid body without the spring's column takes it into the links again, and the
   diagnosis no longer sees it (issue 25: the heavy arm's balancer, found by ``diagnose ROBOT`` and lost by
   ``diagnose MODEL``). The spring stays a column of the model: its coefficients are fitted again, its shape is the
-  file's.
+  file's. So does a spring an earlier ``diagnose --apply`` wrote (``findings[]`` of effect ``spring`` or
+  ``gas_spring`` whatever their ``source``): diagnosing the applied model neither finds it again nor lets the rigid
+  body absorb it.
 """
 
 from __future__ import annotations
@@ -23,7 +25,10 @@ from dataclasses import dataclass
 from identification.calibration.counterbalance_column import COUNTERBALANCE_SOURCE
 from identification.calibration.findings import FindingTerm
 
-__all__ = ["ModelFileHolds", "model_file_holds"]
+__all__ = ["COUNTERBALANCE_KEYS", "ModelFileHolds", "model_file_holds"]
+
+#: The ``term.effect`` of a model file's findings that are a counterbalance (a spring, a gas spring).
+COUNTERBALANCE_KEYS = ("spring", "gas_spring")
 
 
 @dataclass(frozen=True)
@@ -35,7 +40,8 @@ class ModelFileHolds:
     held_links : tuple of int
         Links (0-based) identify held at the robot file's inertia (``TrajectoryOptions.held_links``).
     counterbalances : tuple of dict
-        The ``findings`` entries of the counterbalances identify took (torque findings with ``source`` ``"identify"``).
+        The ``findings`` entries of the file's counterbalances: the torque findings of a spring
+        (``COUNTERBALANCE_KEYS``) identify took (``source`` ``"identify"``) or an earlier ``diagnose --apply`` wrote.
     """
 
     held_links: tuple = ()
@@ -50,11 +56,18 @@ class ModelFileHolds:
     def counterbalance_labels(self) -> tuple:
         return tuple(str(entry.get("label", "")) for entry in self.counterbalances)
 
+    @property
+    def taken_by(self) -> str:
+        """Who took the counterbalances: ``"identify"``, or the model file's fits when an earlier ``diagnose --apply``
+        added one."""
+        applied = any(entry.get("source") != COUNTERBALANCE_SOURCE for entry in self.counterbalances)
+        return "identify or an earlier 'diagnose --apply'" if applied else "identify"
+
     def describe(self) -> str:
         """What is held, in words (empty: nothing)."""
         parts = []
         if self.counterbalances:
-            parts.append(f"the counterbalance identify took ({', '.join(self.counterbalance_labels)})")
+            parts.append(f"the counterbalance {self.taken_by} took ({', '.join(self.counterbalance_labels)})")
         if self.held_links:
             parts.append(f"link(s) {', '.join(str(i + 1) for i in self.held_links)} held at the robot file's inertia")
         return " and ".join(parts)
@@ -67,8 +80,8 @@ def model_file_holds(document: dict) -> ModelFileHolds:
     counterbalances = tuple(
         entry
         for entry in document.get("findings") or ()
-        if entry.get("source") == COUNTERBALANCE_SOURCE
-        and entry.get("kind") == "torque"
+        if entry.get("kind") == "torque"
         and isinstance(entry.get("term"), dict)
+        and entry["term"].get("effect") in COUNTERBALANCE_KEYS
     )
     return ModelFileHolds(held_links=tuple(sorted(int(i) - 1 for i in links)), counterbalances=counterbalances)

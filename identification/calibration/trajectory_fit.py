@@ -145,6 +145,10 @@ class TrajectoryOptions:
     baseline_friction : tuple of str
         The names among ``held_friction`` that ``worse_joint_hold`` held at the robot file's baseline: a choice of the
         held-out recordings, not of the data, so free in the data's own least squares ``held_back`` compares with.
+    stribeck_held : tuple of float or None
+        With ``"fs"``: the Stribeck velocities [rad/s] per joint held, not searched (0: a Coulomb-viscous joint); a
+        refit of a model file with a diagnosis's findings keeps the file's shape, as the diagnosis judged them against
+        it (``applied_model``). None: searched (``stribeck``).
     """
 
     friction: tuple = ("fc", "fv")
@@ -168,6 +172,7 @@ class TrajectoryOptions:
     held_friction: tuple = ()
     held_links: tuple = ()
     baseline_friction: tuple = ()
+    stribeck_held: tuple | None = None
 
     def __post_init__(self):
         for name in ("offset_joints", "inertia_joints", "stribeck_joints", "held_links"):
@@ -353,7 +358,7 @@ def identify_trajectories(
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
     vs, extras = None, (plain := bodies.extras(robot, extra))
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
-        vs = fit_stribeck_velocity(model, prepared, options, inertia_joints, plain)
+        vs = _stribeck_velocities(model, prepared, options, inertia_joints, plain)
         extras = [StribeckColumns(options.coulomb_velocity, vs, e, options.viscous_exponent) for e in plain]
     n_all = (n_fit := model.n_base + len(names)) + bodies.n_columns
     setup = (options.friction, inertia_joints, options.coulomb_velocity, vs, options.viscous_exponent)
@@ -431,6 +436,13 @@ def _data_own(equations, columns, options, correlation, ols) -> tuple:
     free = [k for k in range(equations.n_columns) if k not in held - chosen]
     sigma, x, inverse, _ = weighted_least_squares(equations, free, range(n_fit, n_all))
     return x[:n_all], sandwich_covariance(equations, sigma, inverse, correlation)
+
+
+def _stribeck_velocities(model, prepared, options, inertia_joints, extra) -> np.ndarray:
+    """Each joint's Stribeck velocity [rad/s]: ``options.stribeck_held``, or searched (``fit_stribeck_velocity``)."""
+    if options.stribeck_held is not None:
+        return np.asarray(options.stribeck_held, dtype=float)
+    return fit_stribeck_velocity(model, prepared, options, inertia_joints, extra)
 
 
 def _held_columns(names, options, n_base, vs, n_columns) -> set:

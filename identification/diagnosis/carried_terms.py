@@ -1,7 +1,8 @@
 """A model file's counterbalance in ``diagnose MODEL``'s nominal model: kept from identify, not selected again.
 
-``DiagnosisOptions.carried`` (from ``model_file.model_file_options``: the springs identify took,
-``calibration.model_file_holds``) -> the selection's nominal columns -> the first kept steps of its result.
+``DiagnosisOptions.carried`` (from ``model_file.model_file_options``: the springs identify took or an earlier
+``diagnose --apply`` wrote, ``calibration.model_file_holds``) -> the selection's nominal columns -> the first kept
+steps of its result.
 
 Left out of the nominal model, identify's counterbalance is back in the residual, and the diagnosis's first rigid-body
 fit (``rigid_body_choice``: the full recalibration it judges the prior's findings against) takes it into the links'
@@ -30,10 +31,11 @@ __all__ = ["KEPT_NOTE", "CarriedColumns", "carried_candidates", "carried_labels"
 
 #: The shape note of a carried term's step (and so of its finding).
 KEPT_NOTE = (
-    "kept from identify: the model file's counterbalance is a column of the diagnosis's nominal model (its shape the "
-    "file's, its coefficients fitted again), not a candidate; the RMSE pair is the nominal model without and with it"
+    "kept from the model file (identify's counterbalance, or a spring an earlier 'diagnose --apply' wrote): a column "
+    "of the diagnosis's nominal model (its shape the file's, its coefficients fitted again), not a candidate; the "
+    "RMSE pair is the nominal model without and with it"
 )
-#: Candidate families that would take a carried counterbalance's torque on its joint.
+#: Candidate families that would take a carried counterbalance's torque on its joint (``model_file_holds``'s too).
 COUNTERBALANCE_KEYS = ("spring", "gas_spring")
 
 

@@ -42,6 +42,7 @@ from identification.data.filter_choice import AUTO
 from identification.data.holdout import diagnose_parts, held_out_sentences
 from identification.data.layout import model_file_layout
 from identification.data.robot_recordings import load_robot_recording
+from identification.diagnosis.applied_after import with_applied_after
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
@@ -215,6 +216,7 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
     if report is None:
         report = diagnose(robot, train, validation, options, model=model)
+    report = with_applied_after(report, loaded, train, first)  # the model --apply writes: its "after" (applied_after)
     name = f"for {robot_file.name}" if name is None else name
     own = model_preparation(calibrated.document)
     preparation = own if (given is None or given.cutoff_hz == AUTO) else None
@@ -281,12 +283,13 @@ def _carried(report, calibrated) -> str:
     nominal model with its coefficients fitted again (``carried_terms``); the others, which the nominal model leaves
     out, found again."""
     kept = {f.label: f for f in report.findings if f.shape_note == KEPT_NOTE}
-    entries = {e.get("label"): e for e in model_file_holds(calibrated.document).counterbalances}
+    holds = model_file_holds(calibrated.document)
+    entries = {e.get("label"): e for e in holds.counterbalances}
     pairs = [(x, held) for x, held in carried_as(report.findings, calibrated.document) if x not in kept]
     sentences = []
     if kept:
         sizes = "; ".join(_refit_size(label, kept[label], entries.get(label)) for label in kept)
-        sentences.append(f"the model file's counterbalance is kept from identify ({sizes}): a column of the "
+        sentences.append(f"the model file's counterbalance is kept from {holds.taken_by} ({sizes}): a column of the "
                          "diagnosis's nominal model in every fit, so no rigid-body refit absorbs it again")  # fmt: skip
     if pairs:
         named = ", ".join(f"`{x}`" if x == held else f"`{held}` (found again as `{x}`)" for x, held in pairs)

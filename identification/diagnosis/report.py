@@ -134,6 +134,8 @@ class DiagnosisReport:
     left_out: tuple = ()  # joints without a torque measurement, left out and not diagnosed (one sentence each)
     held_friction: tuple = ()  # (name, value): friction the nominal model holds at a model file's values (no refit)
     held_out: tuple = ()  # sentences: the parts of recordings held out for validation (``data.holdout``)
+    after_source: str = ""  # which model the "after" is (a model file's: the one --apply writes, ``applied_after``)
+    applied: object = None  # that model (``applied_model.AppliedModel``), which ``diagnose --apply`` judges and writes
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -182,6 +184,7 @@ class DiagnosisReport:
             "rejected": [{"label": label, "reason": reason} for label, reason in self.rejected],
             "left_out": list(self.left_out),
             "held_friction": dict(self.held_friction),
+            "after_source": self.after_source or None,
         }
 
     def to_json(self) -> str:
@@ -227,12 +230,14 @@ class DiagnosisReport:
                 f"{self.r2_before[j]:.4f} | {self.r2_after[j]:.4f} |"
             )
         if self.before_is_model_file:
+            after = self.after_source or "the diagnosis's model with the findings"
             lines += ["", "RMSE before is the model file as it is, on the samples of its own preparation ('psdm "
-                      "validate' gives the same numbers); after: the diagnosis's model with the findings."]  # fmt: skip
+                      f"validate' gives the same numbers); after: {after}."]  # fmt: skip
         elif self.model_file_rmse:
             own = ", ".join(f"joint {j + 1} {v:.4g}" for j, v in enumerate(self.model_file_rmse))
             lines += ["", "RMSE before is the nominal model refitted on the training recording; the model file as it "
                       f"is (as 'psdm validate' computes it): {own} N m."]  # fmt: skip
+            lines += [f"RMSE after: {self.after_source}."] if self.after_source else []
         lines += self._recordings_markdown()
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):

@@ -228,6 +228,9 @@ def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: flo
         "the diagnosis refits the nominal friction on the training recording before it adds the findings; the model "
         "file as it is predicts this joint better ('diagnose --apply' refits the file itself, never worse)"
     )
+    if report.applied is not None:  # the "after" is the model --apply writes (``applied_after``)
+        cause = ("the model file identified again with the findings predicts this joint worse than the file as it is; "
+                 "'diagnose --apply' writes it only if no joint is worse beyond the never-worse margin")  # fmt: skip
     risen = [j for j in range(before.size) if after[j] > before[j] * (1.0 + RISE_NOTED)]  # not a rise within noise
     notes = tuple(rise_sentence(j, before[j], after[j], cause) for j in risen)
     return replace(report, rmse_before=tuple(before.tolist()), r2_before=tuple(r2(tau, predicted).tolist()),

@@ -211,6 +211,9 @@ def _run_diagnose(args) -> int:
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     report = dataclasses.replace(report, preparation=preparation.text(), held_out=held_out_sentences(args.train, held))
+    result = None
+    if apply_out is not None and report.findings:  # before the report: its "after" is the model written
+        report, result = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
@@ -229,8 +232,7 @@ def _run_diagnose(args) -> int:
             print(f"\n## Payload check (as psdm validate)\n\n{load.sentence()}")
     if apply_out is None:
         return 0
-    return _apply(args, calibrated, robot_file, model, report, (train, validation), apply_out,
-                  payload if args.json else None, stated[:1])  # fmt: skip
+    return _apply(args, calibrated, robot_file, result, apply_out, payload if args.json else None)
 
 
 def _fraction(args) -> float | None:
@@ -347,31 +349,46 @@ def _calibrated_source(args):
     return read_calibrated_argument(args, args.robot), output_file(args.apply, "--apply", args.overwrite)
 
 
-def _apply(args, calibrated, robot, model, report, recordings, out, payload, configurations=None) -> int:
-    """Recalibrate with the findings, gate on consistency, write the new model, show before and after."""
-    import sys
+def _recalibration(args, calibrated, robot, model, report, recordings, configurations) -> tuple:
+    """(report, ``Recalibration``) of ``--apply``: the model the report's "after" describes
+    (``DiagnosisReport.applied``) judged by the never-worse gate, and the report whose "after" is the model written
+    (``with_written_after``); a refusal of the findings (a ``ParameterError`` in place of the result, raised once the
+    report is out) names the model and the output."""
     import warnings
 
     from identification.calibration.lugre_recordings import LuGreWarning
-    from identification.calibration.recalibrate import consistency_failure, recalibrate
+    from identification.calibration.recalibrate import recalibrate
+    from identification.diagnosis.applied_after import with_written_after
 
-    if not report.findings:
-        print(f"psdm diagnose: nothing to apply: no finding; {args.apply!r} was not written.", file=sys.stderr)
-        if payload is not None:
-            print_json(payload)
-        return 0
     try:
         with warnings.catch_warnings(record=True) as caught:  # a LuGre model's refit says what it cannot determine
             warnings.simplefilter("always", LuGreWarning)
             result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None,
-                                 configurations=configurations)  # fmt: skip
-    except ParameterError as exc:  # name the input: the model the findings were to be applied to
-        raise ParameterError(apply_refusal(exc, args.robot, args.apply)) from None
+                                 configurations=configurations, applied=report.applied)  # fmt: skip
+    except ParameterError as exc:  # name the input: the model the findings were to be applied to; after the report
+        return report, ParameterError(apply_refusal(exc, args.robot, args.apply))
     for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, LuGreWarning)):
         print(f"psdm diagnose: warning: {message}", file=sys.stderr)
     for w in caught:  # the others as they were
         if not issubclass(w.category, LuGreWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    validation = recordings[1]
+    kt = None if validation.tau is not None or robot.drives is None else [d.kt for d in robot.drives]
+    return with_written_after(report, result, model, validation, kt), result
+
+
+def _apply(args, calibrated, robot, result, out, payload) -> int:
+    """Gate on consistency, write the new model, show before and after (``result``: ``_recalibration``'s, None
+    without a finding)."""
+    from identification.calibration.recalibrate import consistency_failure
+
+    if isinstance(result, ParameterError):  # the findings refused (``_recalibration``), said after the report
+        raise result
+    if result is None:
+        print(f"psdm diagnose: nothing to apply: no finding; {args.apply!r} was not written.", file=sys.stderr)
+        if payload is not None:
+            print_json(payload)
+        return 0
     if adds_nothing(calibrated.document, result.after.document):  # a refit on --train alone: the model file stays
         if payload is not None:
             payload["recalibration"] = dict(result.after.document["recalibration"], model=None)

@@ -102,11 +102,14 @@ def test_a_model_file_states_what_its_refits_keep():
         ],
     }  # fmt: skip
     holds = model_file_holds(document)
-    assert holds.held_links == (1, 2) and holds.counterbalance_labels == ("spring[j2]",)  # diagnose's own: not held
-    (term,) = carried_candidates(holds.counterbalance_terms)
-    assert term.label == "spring[j2]" and term.joints == (1,)
+    # a spring an earlier 'diagnose --apply' wrote (no source) is held too: diagnosing the applied model keeps it
+    assert holds.held_links == (1, 2) and holds.counterbalance_labels == ("spring[j2]", "spring[j4]")
+    terms = carried_candidates(holds.counterbalance_terms)
+    assert [(t.label, t.joints) for t in terms] == [("spring[j2]", (1,)), ("spring[j4]", (3,))]
     assert model_file_holds({}) == model_file_holds({"identification": {}, "findings": []})
-    assert "link(s) 2, 3 held" in holds.describe() and "spring[j2]" in holds.describe()
+    assert "link(s) 2, 3 held" in holds.describe() and "spring[j2], spring[j4]" in holds.describe()
+    assert "identify or an earlier 'diagnose --apply'" in holds.describe()
+    assert model_file_holds({"findings": document["findings"][:1]}).taken_by == "identify"
     with pytest.raises(ParameterError, match="held_links"):
         DiagnosisOptions(held_links=(-1,))
     with pytest.raises(ParameterError, match="carried"):

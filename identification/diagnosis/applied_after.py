@@ -1,0 +1,82 @@
+"""The "after" of a model file's diagnosis: the model ``diagnose --apply`` writes, judged as ``psdm validate`` does.
+
+The diagnosis selects its findings with a linear fit of its own: the file's rigid body held (or recalibrated without
+bounds), the friction refitted without bounds, every kept term added, a pre-sliding friction too, which no model file
+holds. Reported as the "after", that fit described a model nobody writes: ``diagnose --apply`` identified the file
+again with the findings (``applied_model``), another model, and on a heavy arm wrote a joint at 24.7 N m the report
+had shown at 13.7. So the report's "after" of a model file is the model with its findings as
+``applied_model.applied_model`` builds it, the one builder ``--apply`` hands to the never-worse gate, evaluated on the
+first validation recording by ``finding_value.validation_rmse`` (``psdm validate``'s own path). The report keeps the
+model (``DiagnosisReport.applied``) so that ``--apply`` judges and writes that same model, and says which model its
+"after" is (``DiagnosisReport.after_source``). Where the model cannot be built (a finding a LuGre file cannot hold, a
+fit that fails), the "after" stays the diagnosis's own fit and the report says why.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+
+import numpy as np
+
+from identification.calibration.applied_model import applied_model
+from identification.calibration.finding_value import validation_rmse
+from psdm_casadi.errors import PSDMError
+
+__all__ = ["APPLIED_AFTER", "with_applied_after", "with_written_after"]
+
+logger = logging.getLogger(__name__)
+
+APPLIED_AFTER = (
+    "the model file identified again on the training recording with the findings it can hold, as 'diagnose --apply' "
+    "writes it (before its never-worse gate), judged as 'psdm validate' judges it"
+)
+
+
+def with_applied_after(report, loaded, train, validation):
+    """``report`` whose "after" (RMSE, R^2 and prediction on the validation recording ``validation``) is the model file
+    ``loaded`` (``calibrated_model.LoadedModel``) with the report's findings as ``applied_model`` builds it from the raw
+    ``train`` recording, with that model in ``DiagnosisReport.applied`` (module docstring); ``report`` as it is without
+    a finding, and with the reason in ``after_source`` where the model cannot be built."""
+    if not report.findings:
+        return report
+    calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    try:
+        applied = applied_model(calibrated, robot, model, report, train, validation)
+        kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        rmse, r2, prepared, predicted = validation_rmse(applied.after, model, validation, kt)
+    except PSDMError as exc:  # the diagnosis's own fit stays the "after", and the report says why
+        logger.info("diagnose: the model with the findings could not be built (%s)", exc)
+        return replace(report, after_source=f"the diagnosis's own fit with the findings (the model 'diagnose --apply' "
+                                            f"would write could not be built: {exc})")  # fmt: skip
+    rmse, r2 = (np.asarray(x, dtype=float).copy() for x in (rmse, r2))
+    missing = [j for j in range(rmse.size) if not np.isfinite(report.rmse_after[j])]  # not measured: no number
+    rmse[missing], r2[missing] = np.nan, np.nan
+    same = np.shape(predicted) == np.shape(report.validation_final) and np.allclose(
+        np.asarray(prepared.t), np.asarray(report.validation_t), rtol=0.0, atol=1e-9
+    )
+    final = np.asarray(predicted, dtype=float) if same else report.validation_final
+    dropped = [entry["label"] for entry in applied.dropped]
+    source = APPLIED_AFTER + (f"; {', '.join(dropped)} not in it (no help on validation)" if dropped else "")
+    return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), validation_final=final,
+                   applied=applied, after_source=source)  # fmt: skip
+
+
+def with_written_after(report, result, model, validation, kt=None):
+    """``report`` whose "after" is the model ``diagnose --apply`` writes: ``result`` (``recalibrate.Recalibration``)
+    is the never-worse gate's verdict on ``DiagnosisReport.applied``; where the gate dropped findings and refitted, the
+    "after" is that refit's on the validation recording ``validation`` (raw), and ``after_source`` names what it
+    dropped. A refusal writes nothing: the "after" stays the model the gate refused."""
+    if result.refused is not None or report.applied is None or result.after is report.applied.after:
+        return report
+    rmse, r2, _, predicted = validation_rmse(result.after, model, validation, kt)
+    rmse, r2 = (np.asarray(x, dtype=float).copy() for x in (rmse, r2))
+    missing = [j for j in range(rmse.size) if not np.isfinite(report.rmse_after[j])]
+    rmse[missing], r2[missing] = np.nan, np.nan
+    final = np.asarray(predicted, dtype=float)
+    final = final if final.shape == np.shape(report.validation_final) else report.validation_final
+    dropped = [entry["label"] for entry in result.after.document["recalibration"]["never_worse"]["dropped"]]
+    source = (f"{report.after_source}; then without {', '.join(dropped)}, which the never-worse gate dropped (the "
+              "model written)") if dropped else report.after_source  # fmt: skip
+    return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
+                   validation_final=final)  # fmt: skip
