@@ -5,7 +5,8 @@ from its vendor URDF logging motor currents over RTDE with a 2 kg gripper in the
 table traced in degrees and mN m; the same arm on slow gravity poses with a 5 kg tool; a heavy arm with a cam
 counterbalance on slow motions; a 210 kg-class arm with a gas-spring counterbalance whose user's robot file has the
 datasheet's masses, 10-20 % off, trained unloaded and with a known 150 kg; a serial arm in ROS 2 MCAP bags with an
-unknown gripper). The commands the README
+unknown gripper; a 7-joint cobot logging motor-side positions and currents while its joints warm up,
+``unseen_warm_cobot``). The commands the README
 prints are run with no options but the log's own layout (``--columns`` with its units, as the log needs):
 
     psdm identify ROBOT --data TRAIN... --validate VAL --out model.json

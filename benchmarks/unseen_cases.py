@@ -448,6 +448,14 @@ def serial_bag(folder: Path, rng) -> Case:
     )
 
 
+def warming_cobot(folder: Path, rng) -> Case:
+    """A 7-joint cobot logging motor-side positions and currents over a session in which its joints warm up
+    (``unseen_warm_cobot``, which builds on this module)."""
+    from unseen_warm_cobot import warming_cobot as build_case
+
+    return build_case(folder, rng)
+
+
 CASES = {
     "cobot_currents_payload": cobot_currents,
     "industrial_dh_degrees_mNm": industrial_degrees,
@@ -455,6 +463,7 @@ CASES = {
     "heavy_counterbalance_slow": heavy_counterbalance,
     "heavy_gas_spring_datasheet": heavy_gas_spring,
     "serial_mcap_unknown_payload": serial_bag,
+    "cobot_warming_currents": warming_cobot,
 }
 
 

@@ -18,7 +18,13 @@ from pathlib import Path
 import numpy as np
 
 from identification.data.csvfile import read_csv_table
-from identification.data.layout import SIGNAL_PREFIXES, ColumnLayout, check_standard_header, seconds
+from identification.data.layout import (
+    SIGNAL_PREFIXES,
+    TIME_NAMES,
+    ColumnLayout,
+    check_standard_header,
+    seconds,
+)
 from identification.data.matfile import read_mat_table
 from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
@@ -154,10 +160,6 @@ def _joint_count_fix(n: int, n_dof: int, joint_names=None) -> str:
                 f"them: {locks} (at a position: --lock JOINT=VALUE; in Python load_robot(..., locked_joints=[...])). "
                 f"Otherwise record q1..q{n_dof}.")  # fmt: skip
     return f"Load it with the robot it was recorded on, or remove the columns of joints {n_dof + 1}..{n}."
-
-
-#: Names a file gives its time column (compared in lower case), read as ``t`` when the file has no ``t``.
-TIME_NAMES = ("time", "timestamp", "stamp", "times", "time_s", "t_s", "sec", "seconds")
 
 
 def _time_named_t(table: ColumnTable) -> ColumnTable:

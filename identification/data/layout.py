@@ -134,7 +134,7 @@ class ColumnLayout:
         for signal in SIGNAL_PREFIXES:  # signals the layout does not name keep their standard columns
             if signal not in chosen:
                 mapping.update({n: n for n in names if re.fullmatch(rf"{signal}[1-9][0-9]*", n)})
-        time = self.time or (TIME if TIME in names else None)
+        time = self.time or (TIME if TIME in names else _time_named(source, names))
         if time is not None and time not in names:
             raise RecordingError(f"{source}: --columns t={time} names no column of the file. Check the name.")
         if time is None and self.rate is None:
@@ -142,6 +142,20 @@ class ColumnLayout:
                 f"{source}: no time column t. Name it (--columns t=NAME) or state the sample rate (--rate HZ)."
             )
         return {**({time: TIME} if time else {}), **mapping}
+
+
+#: Names a file gives its time column (compared in lower case), read as ``t`` when the file has no ``t``.
+TIME_NAMES = ("time", "timestamp", "stamp", "times", "time_s", "t_s", "sec", "seconds")
+
+
+def _time_named(source: str, names) -> str | None:
+    """The file's one time-like column (``time``, ``Timestamp``, ...) when ``--columns`` names none, or None: a
+    layout that states the signals' groups only still reads the file's own clock, as the standard layout does."""
+    found = [n for n in names if n.lower() in TIME_NAMES]
+    if len(found) != 1:
+        return None
+    logger.info("%s: column %s read as the time t [s]", source, found[0])
+    return found[0]
 
 
 def model_file_layout(document) -> ColumnLayout | None:

@@ -339,6 +339,10 @@ def _scale_causes(factor: float, robot, currents: bool) -> str:
     for unit, size in (("mN m", 1e3), ("kN m", 1e-3)):
         if abs(np.log(factor / size)) <= np.log(2.0):  # a unit's factor, as far as friction and the file allow
             causes[0] = f"torques in {unit}? (N m expected; state the log's unit: --columns tau=PREFIX:mNm)"
+    if currents:  # the torque is the currents times the robot file's kt: their unit, not a torque's
+        causes[0] = "the current's unit (state the log's unit: --columns i=PREFIX:mA, or convert it to A)"
+        if abs(np.log(factor / 1e3)) <= np.log(2.0):
+            causes[0] = "currents in mA? (A expected; state the log's unit: --columns i=PREFIX:mA)"
     if factor < 1.0 and ratios is not None and np.median(ratios) < 1.0:
         ratio = float(np.median(ratios))
         causes.insert(0, "inverted gear ratios: [transmission] gear_ratios are motor turns per joint turn (the robot "

@@ -38,7 +38,8 @@ lowers the validation RMSE of every joint it names (a later term took its part) 
 
 A candidate whose name the recording cannot support (``CandidateTerm.name_unsupported``: a torque ripple, periodic in
 the angle, on a joint whose recorded travel covers less than one of its periods) is not named when a candidate on
-the same joint whose name it supports (a spring, a counterbalance) fits that joint as well (``NAME_TOLERANCE``).
+the same joint whose name it supports (a spring, a counterbalance) fits that joint about as well: its validation RMSE
+there is close, or it explains about the same torque (``backed_name``).
 
 Ties (gains within 2 % that leave at most ``TIE_REMAINING`` times the best one's remaining error: a gain of
 97.9 % leaves 20 times the error of one of 99.9 %) go to the candidate with fewer parameters, then to the earlier
@@ -54,6 +55,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from identification.diagnosis.backed_name import backed_name
 from identification.diagnosis.columns import BlockColumns, as_blocks
 from identification.diagnosis.design import WeightedDesign, joint_weights, left_out
 from identification.diagnosis.joint_score import JointScore
@@ -64,7 +66,6 @@ logger = logging.getLogger(__name__)
 
 ROBOT_FLOOR = 0.0004  # least explained torque on any joint as a fraction of the robot's largest joint torque RMS
 TIE_REMAINING = 1.5  # a tie in gain must leave at most this times the best candidate's remaining validation error
-NAME_TOLERANCE = 0.1  # a rival fits a joint as well: its validation RMSE there within this fraction (``_backed_name``)
 PRUNE_TOLERANCE = 1e-6  # a kept term must lower its joints' validation RMSE by more than this fraction (``_prune``)
 
 
@@ -201,8 +202,9 @@ def _pick_shape(fits, sigma) -> tuple:
 class _Qualified(NamedTuple):
     """A candidate that qualified in a round of ``_screen``: its weighted validation ``gain``, parameter count
     ``k``, ``index`` in the remaining candidates, ``term`` (the chosen shape), validation RMSE per joint
-    ``rmse_v``, ``delta_bic``, the shape ``note`` and why the recording cannot support its name (``unsupported``,
-    ``CandidateTerm.name_unsupported``; None when it can)."""
+    ``rmse_v``, ``delta_bic``, the shape ``note``, why the recording cannot support its name (``unsupported``,
+    ``CandidateTerm.name_unsupported``; None when it can) and the validation torque it explains per joint
+    (``explained``, ``metrics.explained_rms``)."""
 
     gain: float
     k: int
@@ -212,6 +214,7 @@ class _Qualified(NamedTuple):
     delta_bic: float
     note: str
     unsupported: str | None
+    explained: np.ndarray
 
 
 def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
@@ -241,7 +244,8 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
             rejected.append((variant.label, reason))
         elif reason is None and delta_bic < 0:
             unsupported = variant.name_unsupported(train_ctx)
-            qualified.append(_Qualified(gain, k, index, variant, rv1, delta_bic, note, unsupported))
+            explained = explained_rms(rmse_v, rv1)
+            qualified.append(_Qualified(gain, k, index, variant, rv1, delta_bic, note, unsupported, explained))
     for g, label, r, a, b in sorted(scored, reverse=True)[:5]:
         logger.info(
             f"diagnose:   candidate {label}: gain {g:.1%}, best joint -{r:.0%}, "
@@ -259,41 +263,12 @@ def _gates(rmse_before, rmse_after, own, limits) -> str | None:
 
 def _choose(qualified):
     """The best qualifying candidate; gains within 2 % of the best that leave at most ``TIE_REMAINING`` times its
-    remaining error tie, and ties go to fewer parameters, then the earlier term (``_backed_name`` then checks that
-    the recording supports the chosen term's name)."""
+    remaining error tie, and ties go to fewer parameters, then the earlier term (``backed_name.backed_name`` then checks
+    that the recording supports the chosen term's name)."""
     top = max(q.gain for q in qualified)
     left = max(1.0 - top, 1e-12)
     near = [q for q in qualified if q.gain >= top - 0.02 * abs(top) and 1.0 - q.gain <= TIE_REMAINING * left]
-    return _backed_name(min(near, key=lambda q: (q.k, q.index)), qualified)
-
-
-def _backed_name(chosen, qualified):
-    """``chosen``, unless the recording cannot support its name (``CandidateTerm.name_unsupported``: a ripple over
-    less than one of its periods) and a qualifying candidate whose name it supports acts on the same joint and fits
-    it as well (validation RMSE of the joint within ``NAME_TOLERANCE`` of the chosen one's): then the best of those,
-    with a shape note saying why. A smooth stretch of torque is named by the family that claims no more than the
-    data show; a ripple that fits its joint clearly better than every such rival is still named, since the data
-    then show a shape the smooth family cannot follow."""
-    reason, joints = chosen.unsupported, list(chosen.term.joints)
-    if reason is None or not joints:
-        return chosen
-    rivals = [
-        q
-        for q in qualified
-        if q.unsupported is None
-        and set(q.term.joints) & set(joints)
-        and np.all(q.rmse_v[joints] <= (1.0 + NAME_TOLERANCE) * chosen.rmse_v[joints])
-    ]
-    if not rivals:
-        return chosen
-    rival = max(rivals, key=lambda q: (q.gain, -q.k, -q.index))
-    j = joints[0]
-    note = (
-        f"{rival.term.label} named rather than {chosen.term.label}, which fits joint {j + 1} about as well "
-        f"(validation RMSE {rival.rmse_v[j]:.4g} N m, {chosen.rmse_v[j]:.4g} N m with {chosen.term.label}) but {reason}"
-    )
-    logger.info(f"diagnose:   {note}")
-    return rival._replace(note="; ".join(x for x in (note, rival.note) if x))
+    return backed_name(min(near, key=lambda q: (q.k, q.index)), qualified)
 
 
 def _named_joints(term, rmse_before, rmse_after, joint_threshold) -> tuple:

@@ -1,10 +1,13 @@
-"""Friction-experiment signals and synthetic LuGre data for the friction tests (known truth)."""
+"""Friction-experiment signals, synthetic LuGre data and exact recordings for the friction tests (known truth)."""
 
 import numpy as np
 
+from identification.data.recording import Recording
 from identification.friction.models import LuGreParameters
 from identification.friction.simulation import simulate_lugre
+from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import BUILTIN_ROBOTS_DIR, load_robot
+from trajopt.experiments import sine_experiment
 from trajopt.friction_design import tuned_friction_signal
 
 DENSO = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
@@ -104,3 +107,16 @@ def measured_friction(t, q, tau, inertia):
     qdd[0], qdd[-1] = qdd[1], qdd[-2]
     qd = np.gradient(q, t)
     return qd, y - inertia * qdd
+
+
+def exact_recording(robot, seed, friction, *, duration, rate, noise, name, fraction=None):
+    """A sine experiment of ``robot`` sampled exactly at ``rate`` [Hz]: its torque Pinocchio's ``rnea`` plus
+    ``friction(qd)`` (the truth, written by the test) plus white noise of ``noise`` [N m]; ``fraction`` of the limits
+    (the experiment's default when None)."""
+    rng = np.random.default_rng(seed)
+    limits = {} if fraction is None else {"fraction": fraction}
+    experiment = sine_experiment(robot, duration=duration, rng=rng, **limits)
+    t = np.arange(int(experiment.duration * rate)) / rate
+    q, qd, qdd = experiment.sample(t)
+    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + friction(qd) + rng.normal(scale=noise, size=q.shape)
+    return Recording(t=t, q=q, tau=tau, name=name)

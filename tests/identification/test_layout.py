@@ -45,6 +45,16 @@ def test_a_log_is_read_by_its_column_groups_and_rate(tmp_path):
     assert currents.tau is None
 
 
+def test_a_layout_naming_only_the_signal_groups_reads_the_files_own_clock(tmp_path):
+    """``--columns q=...,i=...`` without ``t=``: the file's one time-like column is its clock, as without --columns
+    (before, the stated groups dropped it and the log was refused as having no time column)."""
+    stamps = 1765000000.0 + np.cumsum(np.random.default_rng(1).uniform(1.5e-3, 2.5e-3, N))  # a jittered wall clock
+    path, columns = vendor_log(tmp_path, time=stamps)
+    recording = load_recording(path, 2, layout=ColumnLayout.parse("q=Position,i=Cur"))
+    np.testing.assert_allclose(recording.t, stamps - stamps[0], rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(recording.current[:, 0], columns["Cur1"])
+
+
 def test_a_log_without_a_layout_or_rate_is_refused_with_the_fix(tmp_path):
     path, _ = vendor_log(tmp_path)
     with pytest.raises(

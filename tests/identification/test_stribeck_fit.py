@@ -14,10 +14,9 @@ import pytest
 from identification.calibration.stribeck import StribeckColumns, stribeck_step
 from identification.calibration.trajectory_data import drive_columns, friction_term, stribeck_derivative
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
-from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
-from trajopt.experiments import sine_experiment
+from tests.identification.friction_signal import exact_recording
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 RATE, DURATION, NOISE, EPS, CUTOFF = 400.0, 12.0, 0.1, 0.05, 40.0
@@ -32,12 +31,8 @@ def _stribeck_truth(qd):
 
 
 def _recording(robot, seed):
-    rng = np.random.default_rng(seed)
-    experiment = sine_experiment(robot, duration=DURATION, rng=rng)
-    t = np.arange(int(experiment.duration * RATE)) / RATE
-    q, qd, qdd = experiment.sample(t)
-    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + _stribeck_truth(qd) + rng.normal(scale=NOISE, size=q.shape)
-    return Recording(t=t, q=q, tau=tau, name=f"stribeck{seed}")
+    return exact_recording(robot, seed, _stribeck_truth, duration=DURATION, rate=RATE, noise=NOISE,
+                           name=f"stribeck{seed}")  # fmt: skip
 
 
 @pytest.fixture(scope="module")

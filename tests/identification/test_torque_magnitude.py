@@ -171,6 +171,7 @@ def test_motor_currents_through_the_right_gears_pass(motor_currents, tmp_path):
         ("motor kt", 1.0 / GEARS[:2].mean(), "did you give the motor's kt without the gear ratio"),
         ("inverted gears", 1.0 / GEARS[:2].mean() ** 2, "inverted gear ratios"),
         ("mN m", 1000.0, "torques in mN m?"),
+        ("mA", 1000.0, "currents in mA? (A expected; state the log's unit: --columns i=PREFIX:mA)"),
     ],
 )
 def test_a_cobots_usual_mistakes_are_refused_with_exit_2_naming_recording_factor_and_fix(
@@ -179,6 +180,10 @@ def test_a_cobots_usual_mistakes_are_refused_with_exit_2_naming_recording_factor
     if mistake == "mN m":
         robot, data = str(DENSO_FILE), tmp_path / "torques.csv"
         save_recording(_scaled(recorded, 1000.0), data)
+    elif mistake == "mA":  # the right robot file, the currents logged in mA
+        robot, data = str(_cobot_file(tmp_path, "right")), tmp_path / "milliamperes.csv"
+        current = 1000.0 * recorded.tau / (GEARS * MOTOR_KT)
+        save_recording(Recording(t=recorded.t, q=recorded.q, current=current, name=data.name), data)
     else:
         robot, data = str(_cobot_file(tmp_path, mistake)), motor_currents
     code = main(["identify", robot, "--data", str(data), "--out", str(tmp_path / "m.json")])
@@ -187,6 +192,7 @@ def test_a_cobots_usual_mistakes_are_refused_with_exit_2_naming_recording_factor
     stated = float(err.split("the recorded torque is about ")[1].split(" times")[0])
     assert stated == pytest.approx(factor, rel=0.3)  # joints 1-2 (gravity's) weigh most in the pooled scale
     assert f"Recording {data.name}" in err and fix in err and "Fix the robot file or the recording" in err
+    assert ("mN m?" in err) == (mistake == "mN m")  # currents are not blamed on a torque unit
 
 
 # --- the fleet: its currents stay in amperes (kt is refitted), judged times the robot file's kt -----------------------

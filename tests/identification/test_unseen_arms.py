@@ -135,3 +135,28 @@ def test_the_gas_spring_arm_s_robot_file_is_the_datasheet_s_and_identify_naming_
     assert unseen_arms.identify_named(case, {"identification": {"counterbalance": record}})[2] == ["spring[j3] (kept)"]
     record = {"joints": [], "kept": False, "named_by": {}}
     assert unseen_arms.identify_named(case, {"identification": {"counterbalance": record}}) == ([], set(), [])
+
+
+def test_the_warming_cobot_s_files_are_the_vendor_s_and_its_logs_the_controller_s(benchmark_modules, tmp_path):
+    """The warming cobot (``cobot_warming_currents``): the user's robot file has the vendor URDF's CAD masses, 4-14 %
+    under the built arm's, no rotors (the truth has them), and joint 4's torque constant 10 % high; the logs are
+    motor-side positions (gear x the joint's) at 500 Hz with one dropped 80 ms stretch, and the known load's sidecar
+    is on the second training recording only."""
+    import unseen_arms
+
+    from psdm_casadi.robot import load_robot
+
+    case = unseen_arms.build("cobot_warming_currents", tmp_path, 0)
+    user, truth = load_robot(case.robot), load_robot(tmp_path / "truth" / "truth.toml")
+    built = case.true_links / np.array([link.mass for link in user.links])
+    assert np.all((built >= 1.04 - 1e-3) & (built <= 1.14 + 1e-3)), built
+    assert not np.any(user.rotor_inertia)
+    np.testing.assert_allclose(truth.rotor_inertia, [0.55, 0.55, 0.32, 0.32, 0.12, 0.06, 0.06])
+    stated = np.array([d.kt for d in user.drives]) / np.array([d.kt for d in truth.drives])
+    np.testing.assert_allclose(stated, [1, 1, 1, 1.1, 1, 1, 1], rtol=1e-5)
+    data = np.loadtxt(case.validate, delimiter=",", skiprows=1)
+    steps = np.diff(data[:, 0])
+    assert np.median(steps) == pytest.approx(2e-3, rel=0.05) and steps.max() == pytest.approx(0.082, abs=2e-3)
+    motor, gear = np.abs(data[:, 1:8]).max(axis=0), np.array([160, 160, 160, 160, 100, 160, 160])
+    assert np.all(motor > np.array(truth.q_max)) and np.all(motor / gear < np.array(truth.q_max)), motor  # motor turns
+    assert [p.with_suffix(".payload.json").exists() for p in (*case.train, case.validate)] == [False, True, False]

@@ -16,10 +16,9 @@ import pytest
 from identification.calibration.column_choice import ColumnRequest, choose_columns
 from identification.calibration.trajectory_data import friction_term, prepare_recording, viscous_column
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
-from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
-from trajopt.experiments import sine_experiment
+from tests.identification.friction_signal import exact_recording
 
 needs_cc = pytest.mark.skipif(shutil.which("cc") is None, reason="no C compiler")
 RATE, DURATION, NOISE, EPS = 200.0, 12.0, 0.05, 0.05
@@ -32,12 +31,8 @@ def _friction(qd):
 
 
 def _recording(robot, seed, fraction):
-    rng = np.random.default_rng(seed)
-    experiment = sine_experiment(robot, duration=DURATION, rng=rng, fraction=fraction)
-    t = np.arange(int(experiment.duration * RATE)) / RATE
-    q, qd, qdd = experiment.sample(t)
-    tau = PinocchioOracle(robot).rnea(q, qd, qdd) + _friction(qd) + rng.normal(scale=NOISE, size=q.shape)
-    return Recording(t=t, q=q, tau=tau, name=f"viscous{seed}")
+    return exact_recording(robot, seed, _friction, duration=DURATION, rate=RATE, noise=NOISE, name=f"viscous{seed}",
+                           fraction=fraction)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
