@@ -20,6 +20,7 @@ from identification.calibration.drive_loss import (
     identify_with_drive_loss,
     with_drive_loss,
 )
+from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.trajectory_fit import TrajectoryOptions
 from identification.data.recording import Recording
 from psdm_casadi.oracle import PinocchioOracle
@@ -100,7 +101,8 @@ def test_joint_torque_sensors_are_not_asked_for_a_drive_loss(denso, denso_model)
 
 def test_the_model_file_holds_the_loss_and_its_exported_code_applies_it(denso, denso_model):
     """``CalibratedModel.predict`` (validate) with the loss equals the exported inverse dynamics; the loss is stored as
-    a load-dependent friction of the model's own torque; a file without it reads as before."""
+    a load-dependent friction of the model's own torque, which diagnose MODEL does not carry as a counterbalance; a file
+    without it reads as before."""
     train = recorded(denso, 6, ETA)
     joints = (0, 1, 2)
     options = TrajectoryOptions(inertia_joints=())
@@ -110,6 +112,9 @@ def test_the_model_file_holds_the_loss_and_its_exported_code_applies_it(denso, d
     summary = drive_loss_summary(calibrated.document)
     assert [s["joint"] for s in summary] == [1, 2, 3] and all(abs(s["efficiency"] - ETA) < 0.05 for s in summary)
     assert drive_loss_summary(plain.document) == []
+    # identify's loss is no counterbalance of the file: diagnose MODEL carried it as a linear spring (a warming cobot's
+    # joint 3, benchmarks/unseen_warm_cobot.py seed 2: "kept from identify spring[j3]", k -0.2, a false finding)
+    assert model_file_holds(calibrated.document).counterbalances == ()
     rng = np.random.default_rng(0)
     q, qd, qdd = rng.uniform(-1, 1, size=(3, 5, denso.n_dof))
     with_loss, without = calibrated.predict(denso_model, q, qd, qdd), plain.predict(denso_model, q, qd, qdd)
