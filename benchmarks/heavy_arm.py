@@ -45,6 +45,9 @@ at every angle, taking a seeded 40-90 % of its amplitude, ``counterbalance_share
    (``diagnose_finds_counterbalance``): is a spring or an unnamed effect found on joint 2? The free rigid-body
    recalibration of ``rigid_body="auto"`` absorbs the counterbalance into link 2; the diagnosis keeps the spring
    because a rigid body recalibrated inside its physical envelope still needs it (``diagnosis.envelope_check``).
+   ``diagnose_finds_payload``: ``psdm diagnose ROBOT`` names the tool, its mass (``diagnose_payload_mass_kg``) within
+   ``PAYLOAD_RTOL`` of the truth's; the free recalibration takes it into the wrist links, a rigid body inside its
+   envelope cannot (``diagnosis.hidden_payload``).
 
 ``--identify both`` runs step 1 twice, with ``--validate val.csv`` and without (``psdm identify ROBOT --data
 train.csv``: identify then judges the spring by the block cross-validation over the training recording alone,
@@ -156,6 +159,7 @@ EFFECTS = ("heavy_counterbalance", "heavy_payload")
 ABSORBED = {"heavy_counterbalance": "counterbalance", "heavy_gas_spring": "counterbalance", "heavy_payload": "payload"}
 # a counterbalance is found when diagnose names one of these on joint 2 (the diagnosis benchmark's ACCEPTED)
 COUNTERBALANCE_NAMES = ("spring", "unnamed_effect", "gas_spring", "counterbalance")
+PAYLOAD_RTOL = 0.3  # a payload the diagnosis names is the tool when its mass is within this fraction of the truth's
 
 
 def _cli(argv) -> tuple:
@@ -203,6 +207,22 @@ def _on_joint_2(entry) -> bool:
 
 def _found_on_joint_2(payload) -> bool:
     return any(f["effect"] in COUNTERBALANCE_NAMES and 2 in f["joints"] for f in (payload or {}).get("findings", ()))
+
+
+def _payload_mass(report):
+    """The mass [kg] of the payload a diagnosis report names, or None."""
+    found = [f for f in (report or {}).get("findings", ()) if f["effect"] == "payload"]
+    return round(float(found[0]["parameters"]["mass"]), 1) if found else None
+
+
+def _payload_found(report, truth) -> bool:
+    """Whether a diagnosis report names the truth's payload with its mass within ``PAYLOAD_RTOL`` (no payload hidden:
+    whether it names none)."""
+    true = next((float(p["mass"]) for k, _, _, p in truth if k == "payload"), None)
+    mass = _payload_mass(report)
+    if true is None:
+        return mass is None
+    return mass is not None and abs(mass - true) <= PAYLOAD_RTOL * true
 
 
 def _held_out(robot, model_file, val, identified, key):
@@ -292,6 +312,8 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "payload_reason": load.get("reason", ""),
         "diagnose_model_finds_counterbalance": _found_on_joint_2(from_model),
         "diagnose_finds_counterbalance": _found_on_joint_2(from_file),
+        "diagnose_payload_mass_kg": _payload_mass(from_file),
+        "diagnose_finds_payload": _payload_found(from_file, truth),
         "model_findings": ", ".join(f"{f['effect']}{f['joints']}" for f in (from_model or {}).get("findings", ())),
         "file_findings": ", ".join(f"{f['effect']}{f['joints']}" for f in (from_file or {}).get("findings", ())),
     }
@@ -317,7 +339,7 @@ def main(argv=None) -> int:
                 rows.append(run_case(seed, Path(folder), args.effects, validate))
     keys = ("envelope_respected", "absorbed_effect_named", "counterbalance_named", "counterbalance_taken",
             "counterbalance_stated", "payload_named", "payload_taken", "diagnose_finds_counterbalance",
-            "diagnose_model_finds_counterbalance")  # fmt: skip
+            "diagnose_model_finds_counterbalance", "diagnose_finds_payload")  # fmt: skip
     summary = {key: all(row[key] for row in rows) for key in keys}
     summary["counts"] = {key: f"{sum(bool(row[key]) for row in rows)}/{len(rows)}" for key in keys}
     found = sum(bool(row["diagnose_model_finds_counterbalance"]) for row in rows)
@@ -336,7 +358,8 @@ def main(argv=None) -> int:
                        "payload_named", "payload_taken", "payload_mass_kg", "payload_mass_true_kg", "spring_joints",
                        "link2_mass_kg", "link2_mass_file_kg", "link2_mass_truth_kg", "rmse_j2_identified",
                        "rmse_j2_unconstrained",
-                       "diagnose_model_finds_counterbalance", "diagnose_finds_counterbalance"])  # fmt: skip
+                       "diagnose_model_finds_counterbalance", "diagnose_finds_counterbalance",
+                       "diagnose_finds_payload", "diagnose_payload_mass_kg"])  # fmt: skip
     for row in rows:
         route = "with" if row["identify_validate"] else "without"
         print(f"seed {row['seed']} (identify {route} --validate): diagnose MODEL found [{row['model_findings']}]; "

@@ -28,6 +28,7 @@ from identification.diagnosis.design import left_out
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.friction_rival import FrictionRival
 from identification.diagnosis.held_links import held_links
+from identification.diagnosis.hidden_payload import name_hidden_payload
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns, validation_recordings
 from identification.diagnosis.nominal import (
     friction_blocks,
@@ -215,6 +216,14 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
             logger.info(f"diagnose: {note}")
         return problem, fit[0], fit[1], prior, fit[2], IdentifiedDiagnosis(recal, selection_i, final_i, identified)
     effects = sorted(set(found) - set(found_i))
+    named = None
+    if options.envelope:  # a tool the free recalibration takes into the links (``hidden_payload``)
+        enveloped = EnvelopedRecalibration(robot, model, (recal.ctx_t, recal.ctx_v), (problem.base_t, problem.base_v),
+                                           options.held_links)  # fmt: skip
+        named = name_hidden_payload(robot, model, (problem, recal), (selection_i, final_i), identified, enveloped)
+        if named is not None:
+            selection_i, final_i, named = named
+            logger.info(f"diagnose: {named}")
     n_friction = len(friction_feature_names(options.friction, robot.n_dof))
     n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
     theta = final_i.friction_coefficients[n_friction:]
@@ -222,7 +231,7 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     moved = moved_parameters(model, robot, theta, kt=problem.ctx_t.torque_constants)
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
-    return recal, selection_i, final_i, identified, (note,), None
+    return recal, selection_i, final_i, identified, (note,) + ((named,) if named else ()), None
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:

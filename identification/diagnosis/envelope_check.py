@@ -54,6 +54,16 @@ class NeededFinding:
     rmse_with: np.ndarray
 
 
+@dataclass(frozen=True, eq=False)
+class EnvelopedFit:
+    """One enveloped recalibration: the per-joint RMSE [N m] on the training and the validation recording, and the
+    fitted coefficients of each finding's columns (in the order of its terms)."""
+
+    rmse_train: np.ndarray
+    rmse_validation: np.ndarray
+    coefficients: tuple
+
+
 @dataclass(frozen=True)
 class EnvelopeCheck:
     """The findings (``NeededFinding``) that a rigid body recalibrated inside its envelope still needs (module
@@ -125,13 +135,23 @@ class EnvelopedRecalibration:
         SolverError
             When Ipopt fails.
         """
+        return self.fit(terms).rmse_validation
+
+    def fit(self, terms) -> EnvelopedFit:
+        """The ``EnvelopedFit`` with the findings ``terms`` (made once per set of labels).
+
+        Raises
+        ------
+        SolverError
+            When Ipopt fails.
+        """
         key = tuple(term.label for term in terms)
         if key not in self.fits:
             self.fits[key] = self._fit(list(terms))
         return self.fits[key]
 
-    def _fit(self, terms) -> np.ndarray:
-        """Per joint, the validation RMSE of identify's consistent fit with ``terms``: in identify's map
+    def _fit(self, terms) -> EnvelopedFit:
+        """The ``EnvelopedFit`` of identify's consistent fit with ``terms``: in identify's map
         (``merged_rotors.with_merged_rotors``, the one place both routes take it from), so that a drive inertia the
         base parameters merge is held where identify holds it (the robot file's; on currents its siblings'; else what
         the data want beside the file's links) and the links do not absorb it. A ``rotor_inertia`` finding's column is
@@ -151,7 +171,10 @@ class EnvelopedRecalibration:
             np.full(len(names), -np.inf), bounds=merged.fit_bounds(options), warn=False, correlation=correlation,
         )  # fmt: skip
         x = np.concatenate([merged.model.base_parameters(standard), extra])
-        return rmse(ctx_v.tau_fit, _columns(ctx_v, self.friction[1], terms, free)[0] @ x)
+        split = np.cumsum([len(free)] + [len(term.feature_names()) for term in terms])
+        validation = _columns(ctx_v, self.friction[1], terms, free)[0]
+        return EnvelopedFit(rmse(ctx_t.tau_fit, train @ x), rmse(ctx_v.tau_fit, validation @ x),
+                            tuple(np.split(extra, split)[1:-1]))  # fmt: skip
 
     def check(self, selection, joints) -> EnvelopeCheck:
         """The ``EnvelopeCheck`` of the per-joint findings of ``selection`` (a ``SelectionResult``) that act on

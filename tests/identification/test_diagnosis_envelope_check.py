@@ -82,12 +82,6 @@ def test_drop_stand_ins_keeps_what_the_envelope_needs_and_says_why():
     assert [s.term.label for s in selection.steps] == ["payload"]
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the payload is missed: with the physical balancer (56 % of joint 2's gravity) the diagnosis names it on "
-    "joint 2 (a counterbalance read from a +2490 N m torque offset) but reports no payload: the identified rigid body "
-    "takes the 145 kg tool (its note: findings not needed, validation 0.0976 -> 0.00979 mean relative RMSE)",
-)
 @pytest.mark.slow
 def test_diagnosing_the_heavy_arm_finds_its_cam_counterbalance(benchmark_modules):
     """The issue's case, as ``benchmarks/heavy_arm.py`` runs it (seed 0): a 1 t arm, CAD inertias 10-20 % off in the
