@@ -28,6 +28,7 @@ from identification.diagnosis.candidates import TorqueOffsetTerm
 from identification.diagnosis.report import DiagnosisReport, Finding
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
+from psdm_casadi.cli.recalibration_text import better_alone
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.errors import InsufficientExcitationError, RecordingError
 from psdm_casadi.robot import load_robot
@@ -218,6 +219,18 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
     kept = json.loads(new.read_text())["warnings"]
     assert any("rigid-body torques" in w and "mN m?" in w for w in kept), kept
     assert "psdm diagnose: warning: new.json" in err and all(w in err for w in kept)
+
+
+def test_a_refit_on_train_alone_that_beats_the_model_file_is_named_with_its_joints():
+    """Nothing to apply, but the refit on --train alone predicts the validation recording better than the model file
+    beyond a joint's margin: the joints are named, with their RMSE pairs and the cause to look for (the recordings
+    identify averaged disagree, e.g. friction of joints that warmed up); a joint within its margin, or worse, is not."""
+    names = ("A1", "A2", "A3", "A4")
+    before, after, margin = (0.526, 0.470, 0.367, 0.115), (0.500, 0.274, 0.360, 0.130), (0.037, 0.027, 0.013, 0.004)
+    note = better_alone(before, after, margin, names)
+    assert "better on joint(s) 2 beyond their margins (A2 0.47 -> 0.274 N m)" in note, note
+    assert "A1" not in note and "A3" not in note and "A4" not in note and "warm up" in note
+    assert better_alone(before, before, margin, names) == ""
 
 
 def test_apply_with_only_reported_findings_writes_nothing_and_keeps_the_model_file(arm, tmp_path, capsys, monkeypatch):
