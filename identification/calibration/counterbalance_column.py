@@ -284,7 +284,7 @@ def try_counterbalance(
     kt : array, optional
         Torque constants for held-out recordings of currents.
     """
-    naming = named_counterbalances(robot, model, recordings, options, fit, calibrated, validation, kt)
+    naming = named_counterbalances(robot, model, recordings, options, fit, calibrated, validation, kt, configurations)
     named, said, readings = naming.named, naming.said, naming.readings
     if not named:
         return CounterbalanceChoice(reason=said)

@@ -6,7 +6,9 @@
   holds back from the data (``held_back``): ``named_joints``;
 - a torque offset the data chose that no sensor has by its size (``offset_reading``) and the data do not say is an
   offset (``offset_or_balancer``: the constant against a sinusoid of the joint's angle on the training blocks and
-  the held-out part);
+  the held-out part), or one that, with the robot file's rigid body held, stands for a torque of the angle taking
+  more of the file's gravity torque than its masses can be off by (``file_held_offset``: identify's links had
+  absorbed it, so its spring spans what the links and the offset hold, and is judged as one that replaces them);
 - the fitted gravity torque of one joint alone off the robot file's (``gravity_departure``).
 
 A spring named by an offset takes that offset's place (its constant). How it is judged depends on what the data said
@@ -23,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from identification.calibration.envelope_report import where
+from identification.calibration.file_held_offset import file_held_offsets
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.gravity_departure import gravity_departures
 from identification.calibration.held_back import stored_held_back
@@ -99,18 +102,30 @@ class CounterbalanceNaming:
     verdicts: dict = field(default_factory=dict)
 
 
-def named_counterbalances(robot, model, recordings, options, fit, calibrated, validation=(), kt=None):
+def named_counterbalances(robot, model, recordings, options, fit, calibrated, validation=(), kt=None,
+                          configurations=None):  # fmt: skip
     """The ``CounterbalanceNaming`` of ``fit`` (its model file ``calibrated``) on the raw training ``recordings`` and
-    held-out ``validation`` (``kt``: torque constants for recordings of currents)."""
+    held-out ``validation`` (``kt``: torque constants for recordings of currents; ``configurations``: the training
+    recordings' payloads). A data-chosen offset the size does not read as no sensor's is read with the robot file's
+    rigid body held (``file_held_offset``), where identify's links cannot absorb the balancer it stands for."""
     readings = data_chosen_offsets(robot, model, recordings, options, fit)
     verdicts = fit_verdicts(model, calibrated, readings, recordings, validation, kt)
+    said, absorbed = [r.sentence(verdicts[j]) for j, r in readings.items()], []
+    if "offset" in options.friction and options.offset_joints is not None:
+        rest = [j for j in options.offset_joints if j not in readings]
+        problem = (robot, model, recordings, options, configurations)
+        for j, held in file_held_offsets(problem, fit, calibrated, validation, rest, kt).items():
+            said.append(held.sentence())
+            if held.balancer:  # the links hold it in identify's fit: a spring spans what they and the offset hold
+                readings[j], verdicts[j] = held.reading(), held.verdict
+                absorbed.append(j)
     departures = gravity_departures(robot, model, recordings, fit)
-    said = [*(r.sentence(verdicts[j]) for j, r in readings.items()), *(d.sentence() for d in departures.values())]
+    said += [d.sentence() for d in departures.values()]
     readings = {j: r for j, r in readings.items() if verdicts[j].named}  # the data did not say offset
     found = {**dict.fromkeys(departures, BY_DEPARTURE), **dict.fromkeys(readings, BY_OFFSET)}
     undecided = tuple(j for j in readings if verdicts[j].verdict == UNDECIDED)
     return CounterbalanceNaming(dict(sorted({**named_joints(fit), **found}.items())), "; ".join(said), readings,
-                                (*departures, *undecided), verdicts)  # fmt: skip
+                                (*departures, *undecided, *absorbed), verdicts)  # fmt: skip
 
 
 def fit_verdicts(model, calibrated, readings, recordings, validation=(), kt=None) -> dict:
