@@ -18,6 +18,7 @@ import numpy as np
 from identification.data.missing_torque import measured_torque
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.diagnosis.angle_law_choice import gravity_backed_laws
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
 from identification.diagnosis.candidates.friction import lacking_friction_shapes
@@ -196,10 +197,19 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     weights[list(left_out(problem.ctx_v))] = 0.0  # joints without a torque measurement are not judged
     rmse_prior, rmse_recal = rmse(problem.y_v, final.prediction_v), rmse(recal.y_v, final_i.prediction_v)
     rmse_nominal = rmse(problem.y_v, selection.nominal_validation)
-    found, found_i = (
-        tuple(f.effect for f in findings_of(x, y)) for x, y in ((selection, final), (selection_i, final_i))
-    )
-    if prior_wins(rmse_nominal, rmse_prior, rmse_recal, weights, found, found_i):
+    findings = findings_of(selection, final)
+    found, found_i = tuple(f.effect for f in findings), tuple(f.effect for f in findings_of(selection_i, final_i))
+    wins, backed = prior_wins(rmse_nominal, rmse_prior, rmse_recal, weights, found, found_i), ()
+    if not wins:  # an angle law the recalibration matches only by moving a link's gravity is no extra finding
+        theta = identified_theta(robot, final_i, options, held)
+        backed = gravity_backed_laws(robot, model, problem.ctx_v, theta, final.terms, final.coefficients, findings,
+                                     problem.ctx_t)  # fmt: skip
+        counted = list(found)
+        for law in backed:
+            counted.remove(law.effect)
+        errors = (rmse_nominal, rmse_prior, rmse_recal, weights)
+        wins = bool(backed) and prior_wins(*errors, found, found_i, counted=tuple(counted))
+    if wins:
 
         def reselect(instances):  # the prior diagnosis on fewer candidates (``drop_stand_ins``)
             again = replace(prior, library=CandidateLibrary(tuple(instances)))
@@ -212,9 +222,10 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
         envelope = enveloped.check if options.envelope else None
         fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal, envelope,
                              carried=carried_labels(options))  # fmt: skip
-        for note in fit[2]:
+        notes = tuple(law.note() for law in backed if law.label in {s.term.label for s in fit[0].steps}) + fit[2]
+        for note in notes:
             logger.info(f"diagnose: {note}")
-        return problem, fit[0], fit[1], prior, fit[2], IdentifiedDiagnosis(recal, selection_i, final_i, identified)
+        return problem, fit[0], fit[1], prior, notes, IdentifiedDiagnosis(recal, selection_i, final_i, identified)
     effects = sorted(set(found) - set(found_i))
     named = None
     if options.envelope:  # a tool the free recalibration takes into the links (``hidden_payload``)
@@ -224,14 +235,20 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
         if named is not None:
             selection_i, final_i, named = named
             logger.info(f"diagnose: {named}")
-    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
-    n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
-    theta = final_i.friction_coefficients[n_friction:]
-    theta = theta if held is None else held.theta(theta)
+    theta = identified_theta(robot, final_i, options, held)  # after a hidden payload was taken out of the links
     moved = moved_parameters(model, robot, theta, kt=problem.ctx_t.torque_constants)
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
     return recal, selection_i, final_i, identified, (note,) + ((named,) if named else ()), None
+
+
+def identified_theta(robot, final_i: FinalFit, options, held=None) -> np.ndarray:
+    """The recalibrated rigid body's base parameters of the identified diagnosis's final fit (after the nominal
+    friction's coefficients; a model file's ``held`` links put back)."""
+    n_friction = len(friction_feature_names(options.friction, robot.n_dof))
+    n_friction += robot.n_dof if (options.friction == "lugre" and robot.drives is not None) else 0
+    theta = final_i.friction_coefficients[n_friction:]
+    return theta if held is None else held.theta(theta)
 
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:

@@ -72,13 +72,16 @@ def rigid_body_part(ctx, base, held=None) -> tuple:
     return base.concatenate(columns), ctx.tau_fit - held.torque(ctx.regressor)
 
 
-def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(), recalibrated_effects=()) -> bool:
+def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(), recalibrated_effects=(),
+               counted=None) -> bool:  # fmt: skip
     """Whether the prior model with its findings (``effects``) is as good as the recalibrated one with its own
     (``recalibrated_effects``) on the validation recording: per-joint RMSE summed with ``weights`` (1 / the joint's
     torque RMS, so that every joint counts alike).
 
     It is when its error is clearly lower (by ``AUTO_TOLERANCE``); or within ``AUTO_TOLERANCE`` of the
-    recalibrated one's with no more findings (findings that only stand in for wrong inertia are extra ones);
+    recalibrated one's with no more findings (findings that only stand in for wrong inertia are extra ones; the
+    findings ``counted``, by default ``effects``: an angle law the recalibration matches only by moving a link's
+    gravity far from the file is not counted, ``angle_law_choice``);
     or when its findings remove at least ``MIN_SHARE`` of the error that the recalibration removes from the prior
     nominal model (``rmse_nominal``): a payload close to a point mass leaves a small residual of its inertia about
     the flange (its body fit, ``PayloadTerm(inertia=True)``, is inconsistent at the noise level, so the point-mass
@@ -99,7 +102,8 @@ def prior_wins(rmse_nominal, rmse_prior, rmse_recalibrated, weights, effects=(),
     )
     if prior * (1.0 + AUTO_TOLERANCE) < recalibrated:
         return True
-    if prior <= (1.0 + AUTO_TOLERANCE) * recalibrated and len(effects) <= len(recalibrated_effects):
+    counted = effects if counted is None else counted
+    if prior <= (1.0 + AUTO_TOLERANCE) * recalibrated and len(counted) <= len(recalibrated_effects):
         return True
     if "last_link_mass_excess" in effects:
         return False
