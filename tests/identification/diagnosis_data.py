@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import save_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
@@ -123,3 +125,24 @@ def cli_json(argv) -> dict:
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(io.StringIO()):
         assert main([str(a) for a in argv]) == 0
     return json.loads(stdout.getvalue().strip().splitlines()[-1])
+
+
+SPRING_K, SPRING_Q0 = 40.0, 0.2  # the hidden spring of ``hidden_spring_files`` (joint 2 of the Denso)
+
+
+def hidden_spring_files(folder: Path, robot, model, robot_source, duration: float, rate: float) -> Path:
+    """``folder`` holding ``train.csv`` and ``valid.csv``, sine-experiment recordings of ``robot`` (seeds 30, 31,
+    torque sensors with 0.1 N m noise) carrying a spring on joint 2 (``SPRING_K``, ``SPRING_Q0``), and ``model.json``,
+    the model identified on the training recording without it (``robot_source``: the robot file it names)."""
+    recordings = []
+    for k, name in enumerate(("train.csv", "valid.csv")):
+        rng = np.random.default_rng(30 + k)
+        reference = sine_experiment(robot, duration=duration, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=rate)
+        extras = [xp.Spring(joint=1, stiffness=SPRING_K, q0=SPRING_Q0)]
+        recording, _ = simulate_recording(robot, reference, options, rng, extras=extras)
+        save_recording(recording, folder / name)
+        recordings.append(recording)
+    fit = identify_trajectories(robot, model, recordings[:1], TrajectoryOptions())
+    CalibratedModel.from_fit(robot, model, fit, robot_source=robot_source).save(folder / "model.json")
+    return folder

@@ -18,32 +18,16 @@ import pytest
 
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-from identification.data.io import save_recording
 from identification.virtual import effects as xp
-from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from tests.conftest import DENSO_FILE
-from trajopt.experiments import sine_experiment
-
-SPRING_K, SPRING_Q0 = 40.0, 0.2
+from tests.identification.diagnosis_data import SPRING_K, SPRING_Q0, hidden_spring_files
 
 
 @pytest.fixture(scope="module")
 def spring_files(tmp_path_factory, denso, denso_model):
     """A training and a validation recording with a hidden spring, and the model identified without it."""
-    folder = tmp_path_factory.mktemp("applied")
-    recordings = []
-    for k, name in enumerate(("train.csv", "valid.csv")):
-        rng = np.random.default_rng(30 + k)
-        reference = sine_experiment(denso, duration=8.0, rng=rng).reference()
-        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=250.0)
-        extras = [xp.Spring(joint=1, stiffness=SPRING_K, q0=SPRING_Q0)]
-        recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
-        save_recording(recording, folder / name)
-        recordings.append(recording)
-    fit = identify_trajectories(denso, denso_model, recordings[:1], TrajectoryOptions())
-    CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE).save(folder / "model.json")
-    return folder
+    return hidden_spring_files(tmp_path_factory.mktemp("applied"), denso, denso_model, DENSO_FILE, 8.0, 250.0)
 
 
 def _table(markdown: str) -> np.ndarray:

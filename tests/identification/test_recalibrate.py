@@ -19,7 +19,6 @@ from identification.calibration.calibrated_model import CalibratedModel, calibra
 from identification.calibration.findings import correct_recording
 from identification.calibration.recalibrate import consistency_failure
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
-from identification.data.io import save_recording
 from identification.data.recording import Recording
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates import RotorInertiaTerm
@@ -30,9 +29,8 @@ from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.oracle import PinocchioOracle
 from tests.conftest import DENSO_FILE
+from tests.identification.diagnosis_data import SPRING_K, SPRING_Q0, hidden_spring_files
 from trajopt.experiments import sine_experiment
-
-SPRING_K, SPRING_Q0 = 40.0, 0.2
 
 
 @pytest.fixture(autouse=True)
@@ -142,19 +140,7 @@ def test_an_offset_held_at_zero_absorbs_no_spring_constant(denso, denso_model):
 @pytest.fixture(scope="module")
 def spring_loop(tmp_path_factory, denso, denso_model):
     """A training and a validation recording with a hidden spring, and the model identified without it."""
-    folder = tmp_path_factory.mktemp("loop")
-    recordings = []
-    for k, name in enumerate(("train.csv", "valid.csv")):
-        rng = np.random.default_rng(30 + k)
-        reference = sine_experiment(denso, duration=10.0, rng=rng).reference()
-        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=500.0)
-        extras = [xp.Spring(joint=1, stiffness=SPRING_K, q0=SPRING_Q0)]
-        recording, _ = simulate_recording(denso, reference, options, rng, extras=extras)
-        save_recording(recording, folder / name)
-        recordings.append(recording)
-    fit = identify_trajectories(denso, denso_model, recordings[:1], TrajectoryOptions())
-    CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE).save(folder / "model.json")
-    return folder
+    return hidden_spring_files(tmp_path_factory.mktemp("loop"), denso, denso_model, DENSO_FILE, 10.0, 500.0)
 
 
 def _gravity_error(calibrated, denso, denso_model, rng) -> np.ndarray:
