@@ -49,9 +49,7 @@ def with_applied_after(report, loaded, train, validation):
         logger.info("diagnose: the model with the findings could not be built (%s)", exc)
         return replace(report, after_source=f"the diagnosis's own fit with the findings (the model 'diagnose --apply' "
                                             f"would write could not be built: {exc})")  # fmt: skip
-    rmse, r2 = (np.asarray(x, dtype=float).copy() for x in (rmse, r2))
-    missing = [j for j in range(rmse.size) if not np.isfinite(report.rmse_after[j])]  # not measured: no number
-    rmse[missing], r2[missing] = np.nan, np.nan
+    rmse, r2 = _measured_only(report, rmse, r2)
     same = np.shape(predicted) == np.shape(report.validation_final) and np.allclose(
         np.asarray(prepared.t), np.asarray(report.validation_t), rtol=0.0, atol=1e-9
     )
@@ -70,9 +68,7 @@ def with_written_after(report, result, model, validation, kt=None):
     if result.refused is not None or report.applied is None or result.after is report.applied.after:
         return report
     rmse, r2, _, predicted = validation_rmse(result.after, model, validation, kt)
-    rmse, r2 = (np.asarray(x, dtype=float).copy() for x in (rmse, r2))
-    missing = [j for j in range(rmse.size) if not np.isfinite(report.rmse_after[j])]
-    rmse[missing], r2[missing] = np.nan, np.nan
+    rmse, r2 = _measured_only(report, rmse, r2)
     final = np.asarray(predicted, dtype=float)
     final = final if final.shape == np.shape(report.validation_final) else report.validation_final
     dropped = [entry["label"] for entry in result.after.document["recalibration"]["never_worse"]["dropped"]]
@@ -80,3 +76,12 @@ def with_written_after(report, result, model, validation, kt=None):
               "model written)") if dropped else report.after_source  # fmt: skip
     return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
                    validation_final=final)  # fmt: skip
+
+
+def _measured_only(report, rmse, r2) -> tuple:
+    """(RMSE, R^2) per joint as float arrays, NaN on the joints the diagnosis did not measure (its own "after" has no
+    number there), so that the model's "after" claims no more joints than the report."""
+    rmse, r2 = (np.asarray(x, dtype=float).copy() for x in (rmse, r2))
+    missing = [j for j in range(rmse.size) if not np.isfinite(report.rmse_after[j])]
+    rmse[missing], r2[missing] = np.nan, np.nan
+    return rmse, r2
