@@ -46,6 +46,18 @@ def sigma_percent(value, std) -> np.ndarray:
         return np.where(value == 0, np.inf, 100.0 * np.abs(std) / np.abs(value))
 
 
+NOT_IDENTIFIABLE_PERCENT = 100.0  # sigma above the estimate's own size: the sign is not even known
+
+
+def sigma_percent_cell(percent: float) -> str:
+    """The table's ``sigma %`` cell: the number up to 100 %; beyond it the estimate is smaller than its standard
+    deviation (a parameter near zero), where a relative figure runs to thousands of percent and says nothing, so the
+    cell says "not identifiable" and the absolute sigma beside it (in the parameter's units) is the figure to read."""
+    if np.isfinite(percent) and percent <= NOT_IDENTIFIABLE_PERCENT:
+        return f"{percent:8.1f}"
+    return f"   > {NOT_IDENTIFIABLE_PERCENT:g}  not identifiable (sigma above the estimate: read the absolute sigma)"
+
+
 def _sigma(value) -> str:
     return "inf" if value is None else f"{value:.2g}"
 
@@ -176,14 +188,15 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
     print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
     for k, value in enumerate(fit.theta):
-        print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {relative[k]:8.1f}")
+        print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {sigma_percent_cell(relative[k])}")
     for k, name in enumerate(fit.drive_names):
         if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
             continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
         if label := held_label(result, name):  # not estimated
             print(f"{name:<15} {fit.drive[k]:10.4g}       held ({label})")
             continue
-        print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {relative[model.n_base + k]:8.1f}")
+        cell = sigma_percent_cell(relative[model.n_base + k])
+        print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {cell}")
     _print_shapes(fit, calibrated)
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)

@@ -101,9 +101,12 @@ def test_a_recording_with_a_still_joint_is_refused_naming_it(recordings, tmp_pat
 
 
 def test_sigma_percent_is_relative_to_the_printed_estimate(recordings, tmp_path, capsys):
-    from psdm_casadi.cli.identify_text import sigma_percent
+    from psdm_casadi.cli.identify_text import sigma_percent, sigma_percent_cell
 
     np.testing.assert_allclose(sigma_percent([-2.0, 0.5, 0.0], [0.5, 0.01, 1.0]), [25.0, 2.0, np.inf])
+    assert float(sigma_percent_cell(25.0)) == 25.0 and float(sigma_percent_cell(100.0)) == 100.0
+    for beyond in (100.5, 293901.0, np.inf):  # an estimate near zero: no relative figure, the absolute sigma is read
+        assert "not identifiable" in sigma_percent_cell(beyond) and "293901" not in sigma_percent_cell(beyond)
     out = tmp_path / "model.json"
     assert main(["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
@@ -113,10 +116,14 @@ def test_sigma_percent_is_relative_to_the_printed_estimate(recordings, tmp_path,
     estimates = dict(zip(document["base"]["names"] + document["drive"]["names"],
                          document["base"]["values"] + document["drive"]["values"]))  # fmt: skip
     assert len(rows) > 30
+    assert any(row[3] == ">" for row in rows)  # parameters near zero: both kinds of row are checked
     for name, estimate, sigma, percent in (row[:4] for row in rows):
         assert float(estimate) == pytest.approx(estimates[name], rel=1e-3, abs=1e-12)  # the file's (consistent) value
-        if abs(float(estimate)) > 1e-6 and percent != "inf":
+        if percent == ">":  # sigma above the estimate: said in words, never as a percentage of a value near zero
+            assert float(sigma) >= 0.98 * abs(float(estimate))
+        elif abs(float(estimate)) > 1e-6:
             assert float(percent) == pytest.approx(100 * float(sigma) / abs(float(estimate)), rel=0.02, abs=0.1)
+            assert float(percent) <= 100.0
 
 
 def test_validate_writes_the_prepared_samples_and_the_model_torques(recordings, tmp_path, capsys):
