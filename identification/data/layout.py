@@ -192,27 +192,49 @@ def _example(groups, time) -> str:
     return ",".join(items)
 
 
+#: Where currents' torque constants go, for a file read without a robot (``UnreadColumnGroups.naming`` says where
+#: the robot file at hand states them).
+TORQUE_CONSTANTS = (
+    "with torque constants in the robot file ([[drive]] kt at the joint, or [transmission] motor_kt with gear_ratios)"
+)
+
+
+class UnreadColumnGroups(RecordingError):
+    """:func:`check_standard_header`'s refusal. ``naming(constants)`` is the same refusal naming where the robot file
+    at hand states its torque constants (``robot_recordings`` knows the robot; the readers do not)."""
+
+    def __init__(self, source: str, names, because: str = "", constants: str = TORQUE_CONSTANTS):
+        self.source, self.names, self.because = source, tuple(names), because
+        groups = _groups(n for n in self.names if n != TIME)
+        time = next((n for n in self.names if n.lower() in ("t", "time", "timestamp", "stamp")), None)
+        super().__init__(
+            f"{source}: the columns are not t, q1..qn, tau1..taun or i1..in; the file has {numbered_groups(self.names)}"
+            + (f" and {time}" if time else "")
+            + f". Say which group is which signal, e.g. --columns {_example(groups, time)} (the torque group that is "
+            f"measured, not a model's or a reference's; or i=<current group> for motor currents, {constants}); add "
+            "--rate HZ when the time column counts samples. The other columns are then not read"
+            + (f" (as it is: {because})." if because else ".")
+        )
+
+    def naming(self, constants: str) -> UnreadColumnGroups:
+        """The refusal with ``constants`` (e.g. "with the torque constants of the robot file's [transmission]
+        motor_kt") in place of the general wording."""
+        return UnreadColumnGroups(self.source, self.names, self.because, constants)
+
+
 def check_standard_header(source: str, names, because: str = "") -> None:
     """Refuse a header without ``q1`` whose columns come in numbered groups of other names, naming the fix.
 
     A controller's log (``Position1..7``, ``TorqueSm1..7``, ...) is read with ``--columns``; which of its
     torque-like groups is the measurement is the user's to say. Files with ``q1`` (or only upper-case
     standard names, which ``io`` explains) are left to ``io``. ``because`` (a refused value of a column the
-    layout would leave unread) is quoted.
+    layout would leave unread) is quoted. Raises :class:`UnreadColumnGroups`.
     """
     names = tuple(names)
     groups = _groups(n for n in names if n != TIME)
     if not groups or any(_STANDARD.match(n) for n in names) or all(g.lower() in SIGNAL_PREFIXES for g in groups):
         return
-    time = next((n for n in names if n.lower() in ("t", "time", "timestamp", "stamp")), None)
-    raise RecordingError(
-        f"{source}: the columns are not t, q1..qn, tau1..taun or i1..in; the file has {numbered_groups(names)}"
-        + (f" and {time}" if time else "")
-        + f". Say which group is which signal, e.g. --columns {_example(groups, time)} (the torque group that is "
-        "measured, not a model's or a reference's; or i=<current group> for motor currents, with torque constants "
-        "in the robot file's [[drive]] tables); add --rate HZ when the time column counts samples. The other "
-        "columns are then not read" + (f" (as it is: {because})." if because else ".")
-    )
+    raise UnreadColumnGroups(source, names, because)
 
 
 def seconds(source: str, t: np.ndarray, rate: float | None) -> np.ndarray:

@@ -14,11 +14,12 @@ from pathlib import Path
 import numpy as np
 
 from identification.data.io import read_table, recording_from_table, sample_times, time_column
+from identification.data.layout import UnreadColumnGroups
 from identification.data.motor_side import to_joint_side
 from identification.data.recording import MIN_SAMPLES, Recording
 from psdm_casadi.errors import RecordingError
 
-__all__ = ["is_split_recording", "load_robot_recording", "recording_paths"]
+__all__ = ["is_split_recording", "load_robot_recording", "recording_paths", "torque_constants_place"]
 
 
 def _split_names(robot) -> dict:
@@ -95,9 +96,25 @@ def load_robot_recording(path, robot, topic: str | None = None, columns=None) ->
     if is_split_recording(path, robot):
         recording = _read_split(Path(path), robot, rate)
     else:
-        table = read_table(path, robot.joint_names, topic, columns)
-        recording = recording_from_table(table, robot.n_dof, sample_rate=rate, joint_names=robot.joint_names)
+        try:
+            table = read_table(path, robot.joint_names, topic, columns)
+            recording = recording_from_table(table, robot.n_dof, sample_rate=rate, joint_names=robot.joint_names)
+        except UnreadColumnGroups as exc:  # the readers know no robot: name where this one's constants are
+            raise exc.naming(torque_constants_place(robot)) from None
     return to_joint_side(recording, robot)
+
+
+def torque_constants_place(robot) -> str:
+    """Where ``robot``'s file states the torque constants its currents are read with, in a refusal's words: its
+    ``[transmission] motor_kt`` (the drives' ``kt`` are then derived from it), else its ``[[drive]]`` tables' ``kt``,
+    else the two places it may add them."""
+    transmission = robot.transmission
+    if transmission is not None and transmission.motor_kt is not None:
+        return "read through the robot file's [transmission] motor_kt and gear_ratios"
+    if robot.drives is not None:
+        return "read through the torque constants kt of the robot file's [[drive]] tables (N m/A at the joint)"
+    return ("which need torque constants the robot file does not state yet: add motor_kt and gear_ratios to "
+            "[transmission], or kt (N m/A at the joint) to [[drive]] tables")  # fmt: skip
 
 
 def _read_split(folder: Path, robot, rate) -> Recording:

@@ -107,3 +107,33 @@ def test_the_commands_take_the_layout_and_refuse_a_log_without_it(tmp_path, caps
                     ["diagnose", "denso_vs6556g", "--train", str(path), "--validate", str(path)]):  # fmt: skip
         assert main([*command, *options]) == 2
         assert message in capsys.readouterr().err.lower()
+
+
+def test_the_refusal_names_where_the_robot_file_states_its_torque_constants(tmp_path, capsys):
+    """A log of motor currents refused for its own column names: the fix names the torque constants' section the
+    robot file uses (a cobot's file with [transmission] motor_kt was told about [[drive]] tables it does not have)."""
+    from tests.conftest import DENSO_FILE
+
+    path, _ = vendor_log(tmp_path, joints=6)
+    without_drives = DENSO_FILE.read_text().split("\n[[drive]]\n")[0]
+    files = {
+        "motor_kt": without_drives + "\n[transmission]\ngear_ratios = [100, 80, 60, 50, 40, 30]\n"
+        "motor_kt = [0.3, 0.3, 0.2, 0.1, 0.1, 0.05]\n",
+        "drive": DENSO_FILE.read_text(),
+        "none": without_drives,
+    }
+    expected = {
+        "motor_kt": ("read through the robot file's [transmission] motor_kt", "[[drive]]"),
+        "drive": ("the torque constants kt of the robot file's [[drive]] tables", "motor_kt"),
+        "none": ("add motor_kt and gear_ratios to [transmission], or kt (N m/A at the joint) to [[drive]]", None),
+    }
+    for name, text in files.items():
+        robot_file = tmp_path / f"{name}.toml"
+        robot_file.write_text(text)
+        assert main(["identify", str(robot_file), "--data", str(path), "--out", str(tmp_path / "m.json")]) == 2
+        err = capsys.readouterr().err
+        said, unsaid = expected[name]
+        assert "the columns are not t, q1..qn" in err and said in err, err
+        assert unsaid is None or unsaid not in err, err
+    with pytest.raises(RecordingError, match=r"\[\[drive\]\] kt at the joint, or \[transmission\] motor_kt"):
+        load_recording(path, 6)  # no robot: both places
