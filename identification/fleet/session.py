@@ -35,7 +35,15 @@ from identification.fleet.day_diagnosis import DayFinding
 from identification.fleet.update import DayFit, refit_day
 from psdm_casadi.errors import PSDMError, RecordingError
 
-__all__ = ["SessionResult", "SessionTask", "load_named", "process_session", "read_session", "software_version"]
+__all__ = [
+    "SessionResult",
+    "SessionTask",
+    "day_message",
+    "load_named",
+    "process_session",
+    "read_session",
+    "software_version",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -130,6 +138,14 @@ def load_named(paths, names, robot) -> list:
     return out
 
 
+def day_message(task: SessionTask, text: str) -> str:
+    """``text`` about ``task``'s day naming its robot and day once: as it is when it already names them (a recording
+    ``ROBOT/DAY/FILE``, the session's own refusals ``ROBOT DAY: ...``), else after ``ROBOT DAY: ``."""
+    if any(f"{task.robot_id}{sep}{task.day}" in text for sep in ("/", " ")):
+        return text
+    return f"{task.robot_id} {task.day}: {text}"
+
+
 def _diagnosis(task, baseline, model, prepared, currents, fit) -> tuple:
     """(findings, error text) of the day's diagnosis; a diagnosis that cannot run does not fail the session."""
     from identification.fleet.day_diagnosis import diagnose_day
@@ -137,7 +153,7 @@ def _diagnosis(task, baseline, model, prepared, currents, fit) -> tuple:
     try:
         return diagnose_day(baseline, model, prepared, currents, fit), ""
     except (PSDMError, ValueError, np.linalg.LinAlgError) as exc:
-        logger.warning("%s %s: the diagnosis did not run: %s", task.robot_id, task.day, exc)
+        logger.warning("%s", day_message(task, f"the diagnosis did not run: {exc}"))
         return (), f"{type(exc).__name__}: {exc}"
 
 
@@ -150,7 +166,7 @@ def process_session(task: SessionTask, baseline: Baseline, model, reference: Err
         prepared, currents = read_session(task, baseline)
         fit = refit_day(baseline, model, prepared, currents)
     except (PSDMError, OSError, ValueError, np.linalg.LinAlgError) as exc:
-        logger.warning("%s %s failed: %s", task.robot_id, task.day, exc)
+        logger.warning("%s", day_message(task, f"failed: {exc}"))
         error = f"{type(exc).__name__}: {exc}"
         return SessionResult(task, "failed", None, error, time.perf_counter() - start, version)
     check, findings, error = None, (), ""

@@ -4,6 +4,7 @@ idempotence, resume, corrupt and duplicate recordings, the CLI."""
 from __future__ import annotations
 
 import json
+import logging
 import shutil
 
 import numpy as np
@@ -14,7 +15,7 @@ from identification.fleet.history import History
 from identification.fleet.layout import FleetLayoutError, read_fleet
 from identification.fleet.plan import plan_run
 from identification.fleet.runner import RunOptions, dask_client, run_fleet
-from identification.fleet.session import process_session
+from identification.fleet.session import day_message, process_session
 from identification.virtual.fleet import VirtualFleetOptions, write_virtual_fleet
 
 TINY = VirtualFleetOptions(n_robots=3, n_days=6, duration=3.0, rate=200.0, baseline_days=3, seed=3)
@@ -105,10 +106,10 @@ def test_session_recovers_the_virtual_robots_truth(tiny_fleet, derive):
     assert np.all(result.fit.rmse_refit <= result.fit.rmse_baseline + 1e-12)
 
 
-def test_a_refused_day_names_its_robot_and_day_in_the_message(tiny_fleet, derive, tmp_path):
+def test_a_refused_day_names_its_robot_and_day_in_the_message(tiny_fleet, derive, tmp_path, caplog):
     """Every day's recording is a health.csv: r02's second day logged in mA (its currents 1000 times the file's)
     is refused by the torque-magnitude check, its third cannot be read; each message names the robot and the day,
-    and the days left alone pass."""
+    the warning once (it prefixed them again to a message that held them), and the days left alone pass."""
     folder = _copy(tiny_fleet, tmp_path)
     scaled = folder / "r02" / "2026-10-02" / "health.csv"
     lines = scaled.read_text().splitlines()
@@ -121,11 +122,17 @@ def test_a_refused_day_names_its_robot_and_day_in_the_message(tiny_fleet, derive
     entry = fleet.robots[1]
     baseline, model = build_baseline(entry, fleet.track, SharedModels(derive))
     tasks = {t.day: t for t in plan_run(fleet).tasks if t.robot_id == "r02"}
-    refused = process_session(tasks["2026-10-02"], baseline, model)
+    with caplog.at_level(logging.WARNING, logger="identification.fleet.session"):
+        refused = process_session(tasks["2026-10-02"], baseline, model)
+        unread = process_session(tasks["2026-10-03"], baseline, model)
     assert refused.status == "failed"
     assert "Recording r02/2026-10-02/health.csv: the recorded torque is about " in refused.error
-    unread = process_session(tasks["2026-10-03"], baseline, model)
     assert unread.status == "failed" and unread.error.startswith("RecordingError: r02/2026-10-03/health.csv: ")
+    warned = [r.getMessage() for r in caplog.records if r.name == "identification.fleet.session"]
+    assert len(warned) == 2 and all("failed" in w for w in warned), warned
+    for day, warning in zip(("2026-10-02", "2026-10-03"), warned):
+        assert warning.count("r02") == 1 and warning.count(day) == 1, warning
+    assert day_message(tasks["2026-10-02"], "failed: singular matrix") == "r02 2026-10-02: failed: singular matrix"
     assert process_session(tasks["2026-10-01"], baseline, model).status == "ok"
 
 
