@@ -69,7 +69,7 @@ from identification.calibration.merged_rotors import without_lone_inertia
 from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.trajectory_fit import TrajectoryOptions
 from identification.calibration.viscous_power import viscous_evidence, viscous_exponents, viscous_lines
-from identification.diagnosis.candidates import MAX_LOAD_FRICTION
+from identification.physical_bounds import MAX_LOAD_FRICTION
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 

@@ -20,8 +20,8 @@ import itertools
 import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel
-from identification.diagnosis.candidates import MAX_LOAD_FRICTION
 from identification.metrics import r2, rmse
+from identification.physical_bounds import MAX_LOAD_FRICTION
 
 __all__ = [
     "CANCEL_CORRELATION",

@@ -112,7 +112,7 @@ def estimate_payload(robot, model, fit, prepared) -> tuple | None:
     """``(mass [kg], centre of mass [m] in the flange frame)`` of the point mass at the flange that best explains the
     torque the robot file's rigid body leaves on the ``prepared`` recordings, the drive columns of ``fit`` fitted
     beside it (module docstring), or None where it is no body (mass not positive, centre of mass out of reach)."""
-    from identification.diagnosis.candidates.base import MAX_PAYLOAD_REACH
+    from identification.physical_bounds import MAX_PAYLOAD_REACH
 
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
     flange = FlangeRegressor(robot)

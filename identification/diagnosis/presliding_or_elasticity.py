@@ -70,11 +70,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from identification.diagnosis.candidates.base import MAX_DEFLECTION_RAD
 from identification.diagnosis.design import WeightedDesign
 from identification.diagnosis.standstill import block_mask, moving_samples
 from identification.metrics import rms
 from identification.paired_margin import MARGIN_FLOOR, MARGIN_SIGMAS, paired_rmse_draws
+from identification.physical_bounds import MAX_DEFLECTION_RAD
 
 FOLDS = 4  # contiguous training blocks held out in turn (as ``second_opinion.FOLDS``)
 #: Held-out training blocks the elasticity may fail to win (module docstring: three of four, not all four).

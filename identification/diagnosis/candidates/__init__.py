@@ -3,8 +3,8 @@
 Terms compose as a library (``SpringTerm() + TorqueOffsetTerm()`` gives a ``CandidateLibrary``), like the
 feature libraries of pysindy; one module per family of effects:
 
-- ``base``: ``CandidateTerm`` (the interface), ``CandidateLibrary``, the smooth-sign width and the
-  plausibility bounds ``MAX_*`` of fitted parameters;
+- ``base``: ``CandidateTerm`` (the interface), ``CandidateLibrary`` and the smooth-sign width; the plausibility
+  bounds ``MAX_*`` of fitted parameters are ``identification.physical_bounds``' (shared with identify), named here too;
 - ``torque``: spring, torque offset, torque ripple (torques of position);
 - ``gas_spring``: the gas-spring lever law, a spring shape offered beside the polynomial ones;
 - ``neutral_angle``: where a counterbalance's odd law is centred (the spring's odd shape, fitted by variable
@@ -18,12 +18,6 @@ feature libraries of pysindy; one module per family of effects:
 """
 
 from identification.diagnosis.candidates.base import (
-    MAX_BACKLASH_RAD,
-    MAX_DEFLECTION_RAD,
-    MAX_DELAY_S,
-    MAX_LOAD_FRICTION,
-    MAX_PAYLOAD_REACH,
-    MIN_DRIFT_TIME_CONSTANT_S,
     SMOOTH_VELOCITY,
     CandidateLibrary,
     CandidateTerm,
@@ -47,6 +41,14 @@ from identification.diagnosis.candidates.torque import (
     TorqueOffsetTerm,
     TorqueRippleTerm,
     counterbalance_law,
+)
+from identification.physical_bounds import (
+    MAX_BACKLASH_RAD,
+    MAX_DEFLECTION_RAD,
+    MAX_DELAY_S,
+    MAX_LOAD_FRICTION,
+    MAX_PAYLOAD_REACH,
+    MIN_DRIFT_TIME_CONSTANT_S,
 )
 
 __all__ = [

@@ -2,7 +2,7 @@
 
 Every family module (``torque``, ``friction``, ``inertial``, ``delay``, ``deflection``) subclasses
 ``CandidateTerm``; ``+`` composes terms into a ``CandidateLibrary`` like the candidate functions of
-pysindy. Fitted parameters are checked against the physical bounds ``MAX_*`` below
+pysindy. Fitted parameters are checked against the physical bounds ``MAX_*`` (``identification.physical_bounds``)
 (``CandidateTerm.implausibility``, one rule per family, the one place that says what is physically meaningless:
 a negative stiffness, an offset or a torque larger than the joint's torque scale ``torque_bound``, a load-dependent
 friction taking a large share of the load, a negative inertia, a friction "warm-up" faster than heat spreads, ...).
@@ -17,21 +17,10 @@ from dataclasses import dataclass, field, fields, is_dataclass, replace
 import casadi as ca
 import numpy as np
 
+from identification.physical_bounds import MAX_TORQUE_SHARE
 from psdm_casadi.errors import ParameterError
 
 SMOOTH_VELOCITY = 0.02  # [rad/s] width of the smooth sign tanh(qd / v) of the friction-like terms
-
-# plausibility bounds of fitted parameters (``CandidateTerm.implausibility``)
-MAX_LOAD_FRICTION = 0.4  # load-dependent friction coefficient mu (gear tooth friction: efficiency above 60 %)
-MAX_TORQUE_SHARE = 1.0  # a term's torque on its joint at most this times the joint's ``torque_bound``
-MAX_DELAY_S = 0.1  # torque-to-position delay [s]
-MAX_BACKLASH_RAD = 0.05  # total play [rad] (about 3 degrees)
-MAX_DEFLECTION_RAD = 0.05  # joint torsion at the peak torque [rad]
-MAX_PAYLOAD_REACH = 0.5  # distance of a payload's centre of mass from the flange [m]
-MAX_TILT_DEG = 10.0  # tilt of the robot's base off level [deg]
-# shortest time constant [s] of a friction drift: gears, lubricant and motors warm up over minutes (thermal time
-# constants of 5-30 min); a change within seconds is a start-up transient of the recording, not a drift
-MIN_DRIFT_TIME_CONSTANT_S = 30.0
 
 
 def joint_columns(context, joint: int, values) -> np.ndarray:

@@ -26,8 +26,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.data.preprocessing import central_difference
-from identification.diagnosis.candidates.base import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD, CandidateTerm
+from identification.diagnosis.candidates.base import CandidateTerm
 from identification.metrics import rms
+from identification.physical_bounds import MAX_BACKLASH_RAD, MAX_DEFLECTION_RAD
 from psdm_casadi.errors import ParameterError
 
 #: Half-width [rad] of the play the backlash column's friction part is the secant at, unless fitted (``secant``).

@@ -17,7 +17,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from identification.diagnosis.candidates.base import MAX_DELAY_S, CandidateTerm
+from identification.diagnosis.candidates.base import CandidateTerm
+from identification.physical_bounds import MAX_DELAY_S
 from psdm_casadi.errors import ParameterError
 
 #: Delays of the profile ``shape_variants`` scans, log-spaced from one full-rate sample to ``MAX_DELAY_S``.

@@ -15,14 +15,13 @@ import casadi as ca
 import numpy as np
 
 from identification.diagnosis.candidates.base import (
-    MAX_LOAD_FRICTION,
-    MIN_DRIFT_TIME_CONSTANT_S,
     SMOOTH_VELOCITY,
     CandidateTerm,
     joint_columns,
     joint_expression,
     oversized,
 )
+from identification.physical_bounds import MAX_LOAD_FRICTION, MIN_DRIFT_TIME_CONSTANT_S
 from psdm_casadi.errors import ParameterError
 
 

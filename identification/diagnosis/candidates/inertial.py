@@ -12,13 +12,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.diagnosis.candidates.base import (
-    MAX_PAYLOAD_REACH,
-    MAX_TILT_DEG,
     CandidateTerm,
     joint_columns,
     joint_expression,
     oversized,
 )
+from identification.physical_bounds import MAX_PAYLOAD_REACH, MAX_TILT_DEG
 from psdm_casadi.values import inertia_violation
 
 INERTIA_ORDER = ("Ixx", "Ixy", "Iyy", "Ixz", "Iyz", "Izz")  # a payload body's inertia entries, Pinocchio's order
