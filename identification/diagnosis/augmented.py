@@ -132,6 +132,7 @@ class AugmentedModel:
                 "dv": self.friction_dv.tolist(),
                 "held": dict(self.held_friction.values),
                 "held_coulomb_velocity": self.held_friction.coulomb_velocity,
+                "held_viscous_exponent": list(self.held_friction.viscous_exponent),  # [] linear viscous
                 "coulomb_velocity": self.coulomb_velocity,
             },
             "terms": [
