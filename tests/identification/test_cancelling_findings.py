@@ -191,9 +191,10 @@ def _cli(argv) -> tuple:
     strict=True,
     reason="identify no longer carries a spring to split: on the heavy arm (seed 0, a physical balancer taking 72 % of "
     "joint 2's gravity) it names the balancer by its +2837 N m torque offset on joint 2 and refuses the spring "
-    "(held-out joint 2 225.8 -> 366.2 N m), so the model carries only the offset; diagnose MODEL names that offset a "
-    "counterbalance and --apply writes torque_offset[j2] at 0 N m beside the model's own offset (two terms for one "
-    "torque, the validation RMSE unchanged)",
+    "(held-out joint 2 225.8 -> 366.2 N m), so the model carries only the offset; diagnose MODEL names that offset "
+    "again (torque_offset[j2], beside presliding[j4] and [j5]) and --apply drops it as absorbed by the model's own "
+    "offset (zero size), writing the two presliding terms with every joint's validation RMSE unchanged (joint 2 "
+    "225.8 N m)",
 )
 @pytest.mark.slow  # identify and diagnose --apply of the 1 t arm: ~15 s
 def test_diagnose_apply_does_not_add_a_ripple_that_splits_the_spring_the_model_carries(tmp_path, benchmark_modules):
