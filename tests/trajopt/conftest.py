@@ -81,10 +81,17 @@ def rng():
 
 
 @pytest.fixture(scope="session")
-def denso_dynamics(denso, denso_model):
-    """(forward dynamics, its Jacobian) of the Denso's nominal model, shared by the RTI and Riccati-QP tests."""
+def denso_functions(denso, denso_model):
+    """The Denso's nominal model as recursive CasADi functions (``forward_dynamics``, ``inverse_dynamics``,
+    ``mass_matrix``), shared by the MPC, RTI and Riccati-QP tests."""
     theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
-    functions = build_recursive_functions(denso_model, denso, theta)
+    return build_recursive_functions(denso_model, denso, theta)
+
+
+@pytest.fixture(scope="session")
+def denso_dynamics(denso_functions):
+    """(forward dynamics, its Jacobian) of the Denso's nominal model, shared by the RTI and Riccati-QP tests."""
+    functions = denso_functions
     jacobian = build_forward_dynamics_jacobian(
         functions.forward_dynamics, functions.inverse_dynamics, functions.mass_matrix
     )

@@ -10,7 +10,6 @@ import pytest
 
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.recursive import build_recursive_functions
 from tests.trajopt.conftest import sine_reference
 from trajopt.joint_friction import friction_function, friction_torque
 from trajopt.mpc import MPCOptions, build_mpc
@@ -18,17 +17,11 @@ from trajopt.mpc_loop import build_pinocchio_plant, simulate_closed_loop
 from trajopt.mpc_model import build_forward_dynamics_jacobian, build_step_function, stage_functions
 
 
-@pytest.fixture(scope="module")
-def denso_dynamics(denso, denso_model):
-    theta = denso_model.base_parameters(denso.nominal_dynamic_parameters())
-    return build_recursive_functions(denso_model, denso, theta)
-
-
-def test_chained_rk4_jacobian_equals_casadi_ad_of_the_step(denso, denso_dynamics, rng):
+def test_chained_rk4_jacobian_equals_casadi_ad_of_the_step(denso, denso_functions, rng):
     n = denso.n_dof
     friction = friction_function(denso)
-    step = build_step_function(denso_dynamics.forward_dynamics, n, 0.005, 2, friction)
-    model, model_jacobian = stage_functions(denso_dynamics.forward_dynamics, n, 0.005, 2, friction)
+    step = build_step_function(denso_functions.forward_dynamics, n, 0.005, 2, friction)
+    model, model_jacobian = stage_functions(denso_functions.forward_dynamics, n, 0.005, 2, friction)
     x, u = ca.SX.sym("x", 2 * n), ca.SX.sym("u", n)
     reference_jacobian = ca.Function("j", [x, u], [ca.jacobian(step(x, u), ca.vertcat(x, u))])
     for _ in range(3):
@@ -53,9 +46,9 @@ def test_friction_twins_agree(denso, rng):
         ("fatrop", "hpipm", "exact"),
     ],
 )
-def test_closed_loop_tracks_the_pinocchio_plant_within_limits(denso, denso_dynamics, solver, qp_solver, hessian):
+def test_closed_loop_tracks_the_pinocchio_plant_within_limits(denso, denso_functions, solver, qp_solver, hessian):
     options = MPCOptions(horizon=6, dt=0.005, solver=solver, qp_solver=qp_solver, hessian=hessian, max_iter=5)
-    controller = build_mpc(denso, denso_dynamics.forward_dynamics, options)
+    controller = build_mpc(denso, denso_functions.forward_dynamics, options)
     reference = sine_reference(denso)
     guess = PinocchioOracle(denso).gravity(reference(0.0)[0])
     result = simulate_closed_loop(controller, build_pinocchio_plant(denso), reference, 12, torque_guess=guess)
@@ -68,14 +61,14 @@ def test_closed_loop_tracks_the_pinocchio_plant_within_limits(denso, denso_dynam
     assert set(result.statuses) <= allowed
 
 
-def test_position_limit_holds_when_the_reference_leaves_it(denso, denso_dynamics):
+def test_position_limit_holds_when_the_reference_leaves_it(denso, denso_functions):
     """The reference of joint 1 runs past q_max: the plant must stop at the limit, not follow it."""
     limit = 0.3
     joints = list(denso.joints)
     joints[0] = dataclasses.replace(joints[0], q_max=limit)
     robot = dataclasses.replace(denso, joints=tuple(joints))
     options = MPCOptions(horizon=8, dt=0.005, solver="sqpmethod", qp_solver="hpipm", max_iter=5)
-    controller = build_mpc(robot, denso_dynamics.forward_dynamics, options)
+    controller = build_mpc(robot, denso_functions.forward_dynamics, options)
     start = (robot.q_min + robot.q_max) / 2
     start[0] = limit - 0.05
 
@@ -129,16 +122,16 @@ def test_bad_options_name_the_field(kwargs, field):
         MPCOptions(**kwargs)
 
 
-def test_step_rejects_a_reference_of_the_wrong_shape(denso, denso_dynamics):
-    controller = build_mpc(denso, denso_dynamics.forward_dynamics, MPCOptions(horizon=3, dt=0.005))
+def test_step_rejects_a_reference_of_the_wrong_shape(denso, denso_functions):
+    controller = build_mpc(denso, denso_functions.forward_dynamics, MPCOptions(horizon=3, dt=0.005))
     with pytest.raises(ParameterError, match="reference must have shape"):
         controller.initialize(np.zeros((4, 12)), np.zeros((3, 6)))
         controller.step(np.zeros(12), np.zeros((3, 12)))
 
 
-def test_forward_dynamics_jacobian_through_inverse_dynamics_equals_ad(denso_dynamics, rng):
-    fd = denso_dynamics.forward_dynamics
-    jacobian = build_forward_dynamics_jacobian(fd, denso_dynamics.inverse_dynamics, denso_dynamics.mass_matrix)
+def test_forward_dynamics_jacobian_through_inverse_dynamics_equals_ad(denso_functions, rng):
+    fd = denso_functions.forward_dynamics
+    jacobian = build_forward_dynamics_jacobian(fd, denso_functions.inverse_dynamics, denso_functions.mass_matrix)
     n = fd.size1_in(0)
     q, qd, tau = (ca.SX.sym(name, n) for name in ("q", "qd", "tau"))
     ad = ca.Function("ad", [q, qd, tau], [ca.jacobian(fd(q, qd, tau), ca.vertcat(q, qd, tau))])
@@ -149,7 +142,7 @@ def test_forward_dynamics_jacobian_through_inverse_dynamics_equals_ad(denso_dyna
         np.testing.assert_allclose(blocks, expected, rtol=1e-9, atol=1e-9 * np.abs(expected).max())
 
 
-def test_closed_loop_stays_bounded_when_the_plant_is_heavier_than_the_model(denso, denso_dynamics):
+def test_closed_loop_stays_bounded_when_the_plant_is_heavier_than_the_model(denso, denso_functions):
     """Model mismatch: the plant's last three links are 30 % heavier (mass and inertia) than the model's.
 
     Re-planning from the measured state each interval must keep the error bounded (the controller has
@@ -162,7 +155,7 @@ def test_closed_loop_stays_bounded_when_the_plant_is_heavier_than_the_model(dens
     )
     heavier = dataclasses.replace(denso, links=links)
     options = MPCOptions(horizon=6, dt=0.005, solver="sqpmethod", qp_solver="hpipm", max_iter=5)
-    controller = build_mpc(denso, denso_dynamics.forward_dynamics, options)
+    controller = build_mpc(denso, denso_functions.forward_dynamics, options)
     reference = sine_reference(denso)
     guess = PinocchioOracle(denso).gravity(reference(0.0)[0])
     matched = simulate_closed_loop(controller, build_pinocchio_plant(denso), reference, 40, torque_guess=guess)
