@@ -39,7 +39,7 @@ from identification.diagnosis.design import WeightedDesign, joint_weights, left_
 from identification.diagnosis.diagnose import prepare_problem
 from identification.diagnosis.friction_rival import FrictionRival, PreslidingColumn, fitted_scales
 from identification.diagnosis.presliding_or_elasticity import compare
-from identification.virtual.simulation import SimulationOptions, simulate_recording
+from identification.virtual.recording_pair import recording_pair
 from identification.virtual.transmission_effects import JointElasticity
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.robot import load_robot
@@ -64,19 +64,13 @@ def _pairs(robot, model, train, validation, joints) -> dict:
 
 
 def _sine_pair(robot, extras, seed):
-    """10 s training and 5 s validation sine experiments (the diagnosis tests' ``recording_pair``)."""
-    out = []
-    for k, duration in enumerate((10.0, 5.0)):
-        rng = np.random.default_rng(100 * seed + k)
-        rec, _ = simulate_recording(
-            robot,
-            sine_experiment(robot, duration=duration, rng=rng).reference(),
-            SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
-            rng,
-            extras=extras,
-        )
-        out.append(rec)
-    return out
+    """10 s training and 5 s validation sine experiments (``identification.virtual.recording_pair``, as the diagnosis
+    tests draw theirs)."""
+
+    def sine(duration, rng):
+        return sine_experiment(robot, duration=duration, rng=rng).reference()
+
+    return recording_pair(robot, extras, seed, sine, (10.0, 5.0))
 
 
 def _recordings(robot, motion, seed):

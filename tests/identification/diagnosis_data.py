@@ -15,6 +15,7 @@ from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
 from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
 from identification.virtual import effects as xp
+from identification.virtual.recording_pair import recording_pair as virtual_recording_pair
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from psdm_casadi.oracle import PinocchioOracle
@@ -26,19 +27,13 @@ PAYLOAD = xp.Payload(mass=1.5, com=(0.0, 0.0, 0.05))
 
 
 def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
-    """A training and a validation recording of ``robot`` carrying ``extras``, torque-sensor style."""
-    out = []
-    for k, duration in enumerate((train_s, val_s)):
-        rng = np.random.default_rng(100 * seed + k)
-        rec, _ = simulate_recording(
-            robot,
-            sine_experiment(robot, duration=duration, rng=rng).reference(),
-            SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1),
-            rng,
-            extras=extras,
-        )
-        out.append(rec)
-    return out
+    """A training and a validation recording of ``robot`` carrying ``extras``, torque-sensor style, along sine
+    experiments (``identification.virtual.recording_pair``)."""
+
+    def sine(duration, rng):
+        return sine_experiment(robot, duration=duration, rng=rng).reference()
+
+    return virtual_recording_pair(robot, extras, seed, sine, (train_s, val_s))
 
 
 def scara_recording(robot, seed, offset, friction=(0.3, 0.2), armature=0.0, noise=0.02, duration=6.0, rate=200.0):
