@@ -21,6 +21,7 @@ from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_check import check_departures, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
+from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.one_way_friction import (
     OneWayFriction,
@@ -32,7 +33,12 @@ from identification.calibration.one_way_friction import (
 from identification.calibration.payload_route import PayloadChoice, take_payload
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
-from identification.calibration.trajectory_fit import TrajectoryFit, TrajectoryOptions, identify_trajectories
+from identification.calibration.trajectory_fit import (
+    TrajectoryFit,
+    TrajectoryOptions,
+    identify_trajectories,
+    torque_constants,
+)
 from identification.calibration.worse_joint_hold import WorseJointHold, check_worse_joint_mode, hold_worse_joints
 from psdm_casadi.state_cache import remembering
 
@@ -75,6 +81,9 @@ class IdentifyResult:
     payload : PayloadChoice
         What was decided about the payload the report named (``payload_route``: preferred to a spring explaining
         the same torque unless the spring is clearly better out of sample).
+    drift : FrictionDrift
+        Friction that changed between the training recordings (``drift_choice``): the joints named, the friction the
+        model keeps, whether the fit saw each recording's own friction.
     """
 
     fit: TrajectoryFit
@@ -88,6 +97,7 @@ class IdentifyResult:
     one_way: OneWayFriction = field(default_factory=OneWayFriction)
     worse_joints: WorseJointHold = field(default_factory=WorseJointHold)
     payload: PayloadChoice = field(default_factory=PayloadChoice)
+    drift: FrictionDrift = field(default_factory=FrictionDrift)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -113,6 +123,8 @@ class IdentifyResult:
             lines.append(f"counterbalance: {self.counterbalance.reason}")
         if self.payload.line:
             lines.append(self.payload.line)
+        if self.drift.describe():
+            lines.append(self.drift.describe())
         if self.one_way.describe():
             lines.append(self.one_way.describe())
         if self.worse_joints.describe():
@@ -144,6 +156,8 @@ def identify_recordings(
     paths=None,
     one_way: str = "auto",
     worse_joint: str = "hold",
+    friction_drift: str = "auto",
+    temperatures=None,
 ) -> IdentifyResult:
     """Identify a calibrated model from exciting recordings as ``psdm identify`` does (module docstring).
 
@@ -174,14 +188,28 @@ def identify_recordings(
     worse_joint : str
         The joints the robot-file check names worse (``worse_joint_hold.WORSE_JOINT_MODES``): ``"hold"`` the links
         they carry at the robot file's where that mends them, ``"report"`` name them only.
+    friction_drift : str
+        Friction that changed between the training recordings (``drift_choice.DRIFT_MODES``): ``"auto"`` names it and
+        fits the rigid body beside each recording's own friction, keeping the friction the data choose; ``"report"``
+        names it only; ``"off"`` does not check.
+    temperatures : tuple, optional
+        ``(per training recording, per held-out recording)`` the joints' mean temperatures [°C] the files log
+        (``data.temperature.logged_temperatures``; None for a file that logs none): a drift the temperature explains
+        is read along it.
     """
     check_one_way_mode(one_way)
+    check_drift_mode(friction_drift)
     check_worse_joint_mode(worse_joint)
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
     recordings, validation = list(recordings), list(validation)
     logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")
     choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
+    if request.friction != "lugre":  # each recording's own friction (``drift_choice``); the columns chosen again
+        drifted = (robot, model, recordings, options, request, validation, configurations)
+        recordings, drift, choice = _friction_drift(drifted, choice, friction_drift, temperatures)
+    else:
+        drift = FrictionDrift(mode=friction_drift)
     chosen = choice.options(options)
     loss, lugre, held, mended = None, None, OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
     source = robot.source if robot_source is None else robot_source
@@ -221,7 +249,28 @@ def identify_recordings(
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
-    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload)
+    calibrated.document["identification"]["friction_drift"] = drift.to_dict()
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift)
+
+
+def _friction_drift(problem, choice, mode, temperatures) -> tuple:
+    """``(training recordings, FrictionDrift, choice)``: the friction of each training recording with the shape
+    ``choice`` takes (its least squares: only the shape is needed), compared (``drift_choice``); where a drift is
+    named and fitted beside, the recordings with the drifting joints' torques moved to the kept friction and the
+    columns chosen again on them (a drift mimics other columns: a load-dependent loss, an offset)."""
+    robot, model, recordings, options, request, validation, configurations = problem
+    if mode == "off" or len(recordings) < 2:
+        return recordings, FrictionDrift(mode=mode), choice
+    shaped = replace(choice.options(options), consistency=False)
+    fit = identify_trajectories(robot, model, recordings, shaped, configurations=configurations)
+    kt = torque_constants(robot, shaped, recordings)
+    moved, drift = judge_friction_drift(robot, model, recordings, fit, validation, configurations, mode, kt,
+                                        temperatures)  # fmt: skip
+    if not drift.corrected:
+        return recordings, drift, choice
+    logger.info("identify: friction drift on joint(s) %s: the columns chosen again and fitted beside each recording's "
+                "own friction ...", ", ".join(str(f.joint + 1) for f in drift.check.drifting))  # fmt: skip
+    return moved, drift, choose_columns(robot, model, moved, options, request, validation, configurations)
 
 
 def _carries_payloads(configurations) -> bool:

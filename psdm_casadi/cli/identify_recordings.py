@@ -57,6 +57,15 @@ WORSE_JOINT_HELP = (
     "(stated in the output and the model file); report: name it only"
 )
 
+#: ``--friction-drift`` (``identification.calibration.drift_choice``).
+FRICTION_DRIFT_HELP = (
+    "friction that changed between the --data recordings (a joint warming up, wear between days): auto (default) "
+    "fits each recording's friction beside one rigid body, names the joints whose friction differs beyond noise and "
+    "estimation uncertainty, keeps the friction the data choose (along the logged temperature, else the recording "
+    "closest to --validate, else the latest) and fits the rigid body beside each recording's own friction; report: "
+    "name it only; off: no check"
+)
+
 
 def add_arguments(p) -> None:
     """The options of the recordings route (the folder route shares ``--data``, ``--out`` and the rest)."""
@@ -127,6 +136,7 @@ def add_arguments(p) -> None:
         p.add_argument(option, action="store_true", help=what)
     p.add_argument("--one-way-friction", choices=("auto", "hold", "fit"), default="auto", help=ONE_WAY_HELP)
     p.add_argument("--worse-joint", choices=("hold", "report"), default="hold", help=WORSE_JOINT_HELP)
+    p.add_argument("--friction-drift", choices=("auto", "report", "off"), default="auto", help=FRICTION_DRIFT_HELP)
     p.add_argument(
         "--missing-torque",
         action="append",
@@ -187,7 +197,9 @@ def run(args) -> int:
     with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
         result = identify_recordings(robot, model, recordings, options, request, validation, configurations,
                                      counterbalance=not args.no_counterbalance, robot_source=args.robot, paths=paths,
-                                     one_way=args.one_way_friction, worse_joint=args.worse_joint)  # fmt: skip
+                                     one_way=args.one_way_friction, worse_joint=args.worse_joint,
+                                     friction_drift=args.friction_drift,
+                                     temperatures=_temperatures(robot, paths, args.validate))  # fmt: skip
     fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
@@ -220,6 +232,14 @@ def run(args) -> int:
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
+
+
+def _temperatures(robot, paths, validation) -> tuple:
+    """The joints' mean temperatures [°C] each training and held-out recording file logs (``data.temperature``; None
+    for a file that logs none)."""
+    from identification.data.temperature import logged_temperatures
+
+    return tuple([logged_temperatures(p, robot.n_dof) for p in group] for group in (paths, validation))
 
 
 def _complete_document(args, paths, document: dict, parts) -> None:

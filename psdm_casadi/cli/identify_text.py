@@ -160,7 +160,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "counterbalance": calibrated.document["identification"]["counterbalance"],
                     "drive_loss": drive_loss_summary(calibrated.document),
                     **{key: calibrated.document["identification"].get(key)
-                       for key in ("robot_file_check", "one_way_friction", "worse_joints", "torque_scale")},
+                       for key in ("robot_file_check", "one_way_friction", "worse_joints", "torque_scale",
+                                   "friction_drift")},
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -178,7 +179,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     print("drive columns: " + "; ".join(result.choice.describe()), *torque_scale_lines(calibrated.document), sep="\n")
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
-    for line in filter(None, (result.payload.line, result.one_way.describe(), result.worse_joints.describe())):
+    lines = (result.payload.line, result.drift.describe(), result.one_way.describe(), result.worse_joints.describe())
+    for line in filter(None, lines):
         print(line)
     for entry in drive_loss_summary(calibrated.document):
         print(
