@@ -11,11 +11,11 @@ The robot file does separate them: its masses and centres of mass are off by the
 size of a counterbalance. :func:`gravity_backed_laws` therefore compares, on the validation recording, the
 recalibrated rigid body's gravity torque on the finding's joint with the robot file's (both at rest: the regressor at
 zero velocity and acceleration). The finding stands when that departure and the finding's own torque both exceed
-``FILE_GRAVITY_ERROR`` of the file's gravity torque there (no CAD error explains them), and what is left of the
-departure once the finding's torque is taken off is within that share (the departure is the balancer's torque: the
-recalibration only moved the link to carry it). Only a plausible angle law counts (a spring of positive stiffness, a
-gas spring that pushes: ``implausibility``); payload and rotor-inertia findings still have to beat the
-recalibration, as does any finding whose torque the departure does not equal.
+``FILE_GRAVITY_ERROR`` of the file's gravity torque there (``gravity_departure``: no CAD error explains them), and
+what is left of the departure once the finding's torque is taken off is within that share (the departure is the
+balancer's torque: the recalibration only moved the link to carry it). Only a plausible angle law counts (a spring
+of positive stiffness, a gas spring that pushes: ``implausibility``); payload and rotor-inertia findings still have to
+beat the recalibration, as does any finding whose torque the departure does not equal.
 """
 
 from __future__ import annotations
@@ -24,13 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR
 from identification.calibration.merged_rotors import robot_file_theta
 from identification.diagnosis.backed_name import ANGLE_LAWS
 from identification.metrics import rms
 
-__all__ = ["FILE_GRAVITY_ERROR", "GravityBacked", "gravity_backed_laws", "gravity_torque"]
-
-FILE_GRAVITY_ERROR = 0.25  # share of a joint's gravity torque a robot file's CAD masses (10-20 % off) may miss
+__all__ = ["GravityBacked", "gravity_backed_laws", "gravity_torque"]
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from identification.diagnosis.angle_law_choice import FILE_GRAVITY_ERROR, gravity_backed_laws
+from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR
+from identification.diagnosis.angle_law_choice import gravity_backed_laws
 from identification.diagnosis.candidates import SpringTerm
 from identification.diagnosis.rigid_body_choice import prior_wins
 from psdm_casadi.oracle import PinocchioOracle
