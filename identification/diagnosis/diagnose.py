@@ -29,6 +29,7 @@ from identification.diagnosis.design import left_out
 from identification.diagnosis.envelope_check import EnvelopedRecalibration
 from identification.diagnosis.friction_rival import FrictionRival
 from identification.diagnosis.held_links import held_links
+from identification.diagnosis.hidden_balancer import name_hidden_balancers
 from identification.diagnosis.hidden_payload import name_hidden_payload
 from identification.diagnosis.motion_checks import check_motion, check_nominal_columns, validation_recordings
 from identification.diagnosis.nominal import (
@@ -236,10 +237,21 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
             selection_i, final_i, named = named
             logger.info(f"diagnose: {named}")
     theta = identified_theta(robot, final_i, options, held)  # after a hidden payload was taken out of the links
+    balanced = ()
+    if options.envelope:  # a counterbalance the free recalibration takes into the links (``hidden_balancer``)
+        fits = name_hidden_balancers(robot, model, recal, (selection_i, final_i), (problem.base_t, problem.base_v),
+                                     theta, final.terms, options.held_links)  # fmt: skip
+        if fits is not None:
+            selection_i, final_i, balanced = fits
+            theta = identified_theta(robot, final_i, options, held)
+            effects = [e for e in effects if e not in {f.effect for f in findings_of(selection_i, final_i)}]
+            for line in balanced:
+                logger.info(f"diagnose: {line}")
     moved = moved_parameters(model, robot, theta, kt=problem.ctx_t.torque_constants)
     n = robot.n_dof
     note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
-    return recal, selection_i, final_i, identified, (note,) + ((named,) if named else ()), None
+    notes = (note,) + ((named,) if named else ()) + balanced
+    return recal, selection_i, final_i, identified, notes, None
 
 
 def identified_theta(robot, final_i: FinalFit, options, held=None) -> np.ndarray:
