@@ -22,6 +22,10 @@ opinion too (``SecondOpinion.judge``):
   elasticity, a backlash) is judged on the samples where its joint moves (``standstill.moving_samples``): at a
   standstill the friction holds whatever the controller asks, which neither model explains.
 
+A load-dependent friction that holds there must also hold one coefficient on the halves of the training recording
+(``load_friction_split``: slow against fast samples, light against heavy load); where it patches the friction of a
+friction-dominated joint its halves disagree, and it is unstable with the four halves' numbers (``SPLIT_ROUTE``).
+
 A candidate that fails is not kept and not reported as missing physics: it is an ``UnstableFinding`` with its numbers
 (its physical parameters fitted on each recording, or on the training data without each block, and its joints'
 RMSE there without and with it), listed apart in the report (``DiagnosisReport.unstable``).
@@ -35,6 +39,7 @@ import numpy as np
 
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.design import WeightedDesign
+from identification.diagnosis.load_friction_split import SPLIT_ROUTE, split_fits
 from identification.diagnosis.selection import acting_joints, passes_gates
 from identification.diagnosis.standstill import DEFLECTIONS, block_mask, moving_samples
 from identification.metrics import rmse
@@ -143,12 +148,24 @@ class SecondOpinion:
             opinions = self._recordings(design, term, ct, own, limits)
         else:
             opinions = self._blocks(design, term, ct, own, limits)
+        route = self.route
         if all(o.failure is None for o in opinions):
-            return None
+            halves = self._halves(design, term, limits)
+            if all(o.failure is None for o in halves):
+                return None
+            opinions, route = halves, SPLIT_ROUTE
         p = design.G.shape[0]
         beta = design.fit(ct, np.zeros((design.y_val.shape[0],) + ct.shape[1:]))[0]
         effect = term.interpret(beta[p:])[0]
-        return UnstableFinding(effect, term.label, tuple(own) or tuple(term.joints), self.route, tuple(opinions))
+        return UnstableFinding(effect, term.label, tuple(own) or tuple(term.joints), route, tuple(opinions))
+
+    def _halves(self, design, term, limits) -> list:
+        """A load-dependent friction's ``mu`` refitted on the slow and the fast, the light- and the heavy-load halves
+        of the training recording (``load_friction_split``); [] for any other term."""
+        n, n_dof = design.y_train.shape
+        fits = split_fits(design, term, self.train_ctx, n * n_dof / limits.n_eff_total)
+        return [OpinionNumbers(f.name, {"coefficient": f.mu, "standard_error": f.error}, (int(term.joint),),
+                               (f.rmse_before,), (f.rmse_after,), f.failure) for f in fits]  # fmt: skip
 
     def _recordings(self, design, term, ct, own, limits) -> list:
         """The candidate fitted on the training data, judged on each validation recording by the selection's gates;
