@@ -15,9 +15,9 @@ on the recordings as the fit prepares them (known payloads taken off):
    different motions, which a comparison of recordings must not call drift (``fleet.drift`` scales its baselines
    alike);
 3. the recordings' friction (their segments tied) is compared by a Wald test, its covariance times ``phi^2``, at the
-   family-wise level ``ALPHA`` over the joints (Bonferroni); a change is named only where it also matters: the
-   recordings' friction torques differ along the training motion by at least ``MIN_CHANGE`` of the joint's friction
-   torque.
+   family-wise level ``ALPHA`` over the joints (Bonferroni); a change is named only where it also matters: two
+   recordings' friction torques differ by at least ``MIN_CHANGE`` of their mean, along the samples of both within the
+   speeds both reach (a shape fitted on a faster motion extrapolates differently, which is no drift).
 
 A named drift decides the model's friction (``drift_choice``), and the training torques of the drifting joints are
 moved to it before the fit (``drift_choice.corrected_recordings``), so the rigid body is fitted beside each recording's
@@ -61,6 +61,8 @@ ALPHA = 0.01
 #: The smallest change worth naming: the recordings' friction torques apart by this share of the joint's friction
 #: torque (RMS along the training motion).
 MIN_CHANGE = 0.10
+#: Percentile of each recording's joint speed: two recordings' friction torques are compared up to the smaller one.
+REACH = 95.0
 #: The friction terms the check gives each recording (the offset and the drive inertia stay shared).
 DRIFT_TERMS = ("fc", "fs", "fv")
 
@@ -72,8 +74,8 @@ class JointFriction:
     ``names`` its coefficients (``fc3``, ``fv3``, ...), ``values`` and ``stds`` (recordings, coefficients; NaN for a
     recording that does not measure the joint's torque), the stds grown by the over-dispersion ``phi2``;
     ``statistic`` the Wald statistic of equal friction over its ``dof``, ``p_value`` its tail probability, ``change``
-    the largest RMS difference of two recordings' friction torque along the training motion over the joint's friction
-    torque RMS; ``drift`` whether it is named (module docstring)."""
+    the largest RMS difference of two recordings' friction torque over that of their mean, where both move (module
+    docstring); ``drift`` whether it is named (module docstring)."""
 
     joint: int
     names: tuple
@@ -272,7 +274,7 @@ def check_friction_drift(robot, model, recordings, fit, configurations=None) -> 
             for c in range(n_f):
                 tie[start + (r * SEGMENTS + s) * n_f + c, len(keep) + r * n_f + c] = 1.0
     x_rec, cov_rec = _solve(equations, sigma, correlation, tie)
-    gram = _friction_gram(prepared, fit, per_joint)
+    gram = _common_grams(prepared, fit, per_joint)
     joints = []
     for j, columns in enumerate(per_joint):
         if not columns:
@@ -288,20 +290,31 @@ def check_friction_drift(robot, model, recordings, fit, configurations=None) -> 
                       motions=tuple((r.t, r.qd, r.qdd) for r in prepared))  # fmt: skip
 
 
-def _friction_gram(prepared, fit, per_joint) -> list:
-    """Per joint ``D_j^T D_j / n`` of its friction columns over every training sample (the friction torque's mean
-    square of coefficients ``b`` is ``b^T G b``)."""
+def _common_grams(prepared, fit, per_joint) -> list:
+    """Per joint, per pair of recordings ``(r, s)``, ``D_j^T D_j / n`` of its friction columns over both recordings'
+    samples within the speeds both reach (``|qd_j|`` up to the smaller of their ``REACH`` percentiles): the friction
+    torque of coefficients ``b`` there has the mean square ``b^T G b``. Two recordings' friction is compared where both
+    move, not where one recording's fit extrapolates its shape."""
     vs, dv = fit_shape(fit)
-    out = [np.zeros((len(c), len(c))) for c in per_joint]
-    count = 0
-    for recording in prepared:
-        drive = drive_columns(recording.qd, recording.qdd, fit.friction_terms, fit.inertia_joints,
-                              fit.coulomb_velocity, vs, dv)  # fmt: skip
-        for j, columns in enumerate(per_joint):
-            d = drive[:, j, columns]
-            out[j] += d.T @ d
-        count += recording.n_samples
-    return [g / max(count, 1) for g in out]
+    drives = [drive_columns(r.qd, r.qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, vs, dv)
+              for r in prepared]  # fmt: skip
+    out = []
+    for j, columns in enumerate(per_joint):
+        reach = [float(np.percentile(np.abs(r.qd[:, j]), REACH)) for r in prepared]
+        grams = {}
+        for r in range(len(prepared)):
+            for t in range(r + 1, len(prepared)):
+                top = min(reach[r], reach[t])
+                rows = np.concatenate([drives[k][np.abs(prepared[k].qd[:, j]) <= top][:, j, columns] for k in (r, t)])
+                grams[r, t] = rows.T @ rows / max(rows.shape[0], 1)
+        out.append(grams)
+    return out
+
+
+def _apart(a, b, gram) -> float:
+    """RMS of the friction torque of ``a - b`` over that of their mean, along the samples of ``gram``."""
+    mean = 0.5 * (a + b)
+    return float(np.sqrt(max((a - b) @ gram @ (a - b), 0.0) / max(float(mean @ gram @ mean), 1e-300)))
 
 
 def _test_joint(j, columns, drive_names, where, estimates, sizes, gram, measured, n_dof) -> JointFriction:
@@ -328,9 +341,8 @@ def _test_joint(j, columns, drive_names, where, estimates, sizes, gram, measured
     between = _contrasts(1, len(present), k)
     statistic, dof = _wald(between @ x_rec[rec], between @ covariance @ between.T)
     p_value = float(stats.chi2.sf(statistic, max(dof, 1)))
-    mean = own.mean(axis=0)
-    scale = np.sqrt(max(float(mean @ gram @ mean), 1e-300))
-    change = max(float(np.sqrt(max((a - b) @ gram @ (a - b), 0.0))) for a in own for b in own) / scale
+    change = max(_apart(own[a], own[b], gram[present[a], present[b]]) for a in range(len(present))
+                 for b in range(a + 1, len(present)))  # fmt: skip
     drift = p_value < ALPHA / n_dof and change >= MIN_CHANGE
     values[present] = own
     stds[present] = np.sqrt(np.clip(np.diag(covariance), 0.0, None)).reshape(len(present), k)
