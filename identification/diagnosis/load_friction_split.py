@@ -34,6 +34,11 @@ LOAD_KEY = "load_dependent_friction"
 AGREEMENT = 1.5  # the two halves' mu may differ by at most this factor
 SIGNIFICANCE = 3.0  # each half's mu must be at least this many standard errors above zero
 SPLIT_ROUTE = "one mu on the slow and fast, light- and heavy-load halves of the training recording"
+#: What to do about a candidate the halves refused: more motion gives the halves the same disagreement.
+SPLIT_NEXT_STEP = (
+    "its mu changes with speed or load, so more motion will not decide it: the joint's friction shape or a friction "
+    "that changed between recordings is the likelier cause (identify names a friction drift between its recordings)"
+)
 
 
 @dataclass(frozen=True)

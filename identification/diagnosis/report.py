@@ -257,9 +257,13 @@ class DiagnosisReport:
         poor = [f"{j + 1} (R^2 {v:.3g})" for j, v in enumerate(self.r2_after) if np.isfinite(v) and v < POOR_R2]
         if self.findings or (not self.unstable and not poor):
             return ""
+        steps = "; ".join(
+            f"{', '.join(f'`{u.label}`' for u in self.unstable if u.next_step() == step)}: {step}"
+            for step in dict.fromkeys(u.next_step() for u in self.unstable)
+        )
         parts = [
             f"{len(self.unstable)} candidate(s) lowered the validation error but did not hold on every "
-            "recording or training block (under Unstable: record more motion to decide them)"
+            f"recording or training block (under Unstable; {steps})"
         ] * bool(self.unstable)
         parts += [f"the model predicts joint(s) {', '.join(poor)} poorly"] * bool(poor)
         return f"That is not a model that misses nothing: {'; '.join(parts)}."

@@ -39,7 +39,7 @@ import numpy as np
 
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.design import WeightedDesign
-from identification.diagnosis.load_friction_split import SPLIT_ROUTE, split_fits
+from identification.diagnosis.load_friction_split import SPLIT_NEXT_STEP, SPLIT_ROUTE, split_fits
 from identification.diagnosis.selection import acting_joints, passes_gates
 from identification.diagnosis.standstill import DEFLECTIONS, block_mask, moving_samples
 from identification.metrics import rmse
@@ -50,6 +50,7 @@ REPLICATED = ("torque_offset",)
 
 VALIDATION_ROUTE = "validation recordings"
 CROSS_VALIDATION_ROUTE = "block cross-validation"
+MORE_MOTION = "record more motion to decide it"
 
 
 @dataclass(frozen=True)
@@ -101,8 +102,13 @@ class UnstableFinding:
             "label": self.label,
             "joints": [j + 1 for j in self.joints],
             "route": self.route,
+            "next_step": self.next_step(),
             "opinions": [o.to_dict() for o in self.opinions],
         }
+
+    def next_step(self) -> str:
+        """What decides this candidate: more motion where recordings or blocks disagree; not where its halves do."""
+        return SPLIT_NEXT_STEP if self.route == SPLIT_ROUTE else MORE_MOTION
 
     def sentence(self) -> str:
         failed = sum(o.failure is not None for o in self.opinions)

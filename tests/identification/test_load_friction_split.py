@@ -118,6 +118,7 @@ def test_the_warming_cobot_s_robot_file_diagnosis_names_no_load_dependent_fricti
     assert not [f for f in report["findings"] if f["effect"] == "load_dependent_friction"]
     (unstable,) = [u for u in report["unstable"] if u["label"] == "load_dependent_friction[j6]"]
     assert unstable["route"] == SPLIT_ROUTE and len(unstable["opinions"]) == 4
+    assert "more motion will not decide it" in unstable["next_step"]
     assert any(not o["holds"] for o in unstable["opinions"])
     (rotor,) = [f for f in report["findings"] if f["label"] == "rotor_inertia[j6]"]
     assert rotor["parameters"]["inertia"] == pytest.approx(0.06, rel=0.15)

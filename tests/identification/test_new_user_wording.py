@@ -143,6 +143,29 @@ def test_no_finding_beside_unstable_candidates_or_a_poor_joint_says_what_it_does
     assert "That is not a model" not in report.to_markdown()  # every joint fits, nothing unstable: no caveat
 
 
+def test_the_caveat_says_what_decides_each_unstable_candidate():
+    """A candidate the recordings or blocks disagree on is decided by more motion; a load-dependent friction whose
+    mu differs between the slow and fast (light and heavy) halves of one recording is not: more motion only repeats
+    the halves' disagreement, and the caveat points at the friction instead."""
+    from identification.diagnosis.load_friction_split import SPLIT_ROUTE
+    from identification.diagnosis.second_opinion import UnstableFinding
+
+    offset = UnstableFinding("torque_offset", "torque_offset[j1]", (0,), "block cross-validation", ())
+    load = UnstableFinding("load_dependent_friction", "load_dependent_friction[j6]", (5,), SPLIT_ROUTE, ())
+    report = _report([], [1.0] * N)
+    caveat = next(
+        line
+        for line in DiagnosisReport(**{**report.__dict__, "unstable": (offset, load)}).to_markdown().splitlines()
+        if line.startswith("That is not a model that misses nothing")
+    )
+    assert "2 candidate(s)" in caveat
+    assert "`torque_offset[j1]`: record more motion to decide it" in caveat
+    assert (
+        "`load_dependent_friction[j6]`: its mu changes with speed or load, so more motion will not decide it" in caveat
+    )
+    assert load.to_dict()["next_step"] != offset.to_dict()["next_step"]
+
+
 def test_the_recalibration_summary_rounds_its_eigenvalues_and_says_how_without_is_computed():
     """TX40 diagnose --apply (defaults) printed 'smallest pseudo-inertia eigenvalue 9.999999999999176e-07' and
     'without -> with it: joint 3: 4.795 -> 0.9268' beside a before of 1.178: 'without' is the written model with the
