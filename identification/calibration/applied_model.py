@@ -12,11 +12,12 @@ refits the friction without bounds and adds terms no model file can hold, such a
 A missing effect corrupts the identification it hides in: a spring on a joint is absorbed into the gravity parameters
 and the friction, a missing drive inertia into the link inertias. Adding the finding afterwards, with the corrupted
 parameters kept, leaves them wrong. So the recordings-route fit (``trajectory_fit.identify_trajectories``) is run again
-on the training recording with one more linear column per feature of every torque-type finding
-(``findings.FindingColumns``), all fitted jointly and with their standard deviations from the same covariance, with the
-file's own options (``refit_options``: its friction terms and Stribeck joints, offsets, drive-inertia columns, held
-friction and held links, preparation); the ``signal`` findings correct the recordings first
-(``findings.correct_recording``); a payload (``rigid_body``) is taken up by the rigid body, held to the robot file
+on the training recordings (the model file's own, found again, and the diagnosis's: ``refit_training``; trained on
+the diagnosis's alone, the refit forgot what the others taught) with one more linear column per feature of every
+torque-type finding (``findings.FindingColumns``), all fitted jointly and with their standard deviations from the
+same covariance, with the file's own options (``refit_options``: its friction terms and Stribeck joints, offsets,
+drive-inertia columns, held friction and held links, preparation); the ``signal`` findings correct the recordings
+first (``findings.correct_recording``); a payload (``rigid_body``) is taken up by the rigid body, held to the robot file
 carrying it (``carried_payload``). A feature the other columns span (a spring's constant beside a drive offset, a rotor
 inertia the fit identifies: ``absorbed_features``) is left out and reported as absorbed. Load-dependent friction is
 linear in its coefficient for a fixed torque: the model's own, then the new one's.
@@ -93,12 +94,16 @@ class AppliedModel:
         (torque ``FindingTerm``s, corrections, entries) of the findings ``after`` holds.
     dropped : tuple of dict
         The findings dropped (a carried finding's torque split, no help on validation), each with its reason.
+    train : tuple of Recording
+        The raw recordings it was fitted on (``refit_training``: the model file's own and the diagnosis's), which the
+        never-worse gate's refits train on too.
     """
 
     after: CalibratedModel
     fit: object
     findings: tuple
     dropped: tuple = ()
+    train: tuple = ()
 
 
 def applied_model(calibrated: CalibratedModel, robot, model, report, train, validation, robot_source=None):
@@ -142,7 +147,7 @@ def applied_model(calibrated: CalibratedModel, robot, model, report, train, vali
         corrections = {k: v for k, v in corrections.items() if k not in labels}
         entries = [e for e in entries if e["label"] not in labels]
         after, fit = joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
-    return AppliedModel(after, fit, (terms, corrections, entries), tuple(dropped))
+    return AppliedModel(after, fit, (terms, corrections, entries), tuple(dropped), tuple(train))
 
 
 def _pairs(report):

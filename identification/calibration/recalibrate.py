@@ -3,11 +3,11 @@
 calibrated model + DiagnosisReport + recordings -> calibrated model with findings (version 2).
 
 The model with the findings is ``applied_model.applied_model``'s, the one builder of the diagnosis's "after" too
-(``diagnosis.applied_after``): the recordings-route fit run again on the training recording with the findings' columns
-(a LuGre model identified again as ``psdm identify --friction lugre`` does), the findings that do not lower the
-validation RMSE where they act dropped. The result is judged on the validation recording as ``psdm validate`` judges it
-(the same corrections and preparation, ``CalibratedModel.predict_recording``), before and after, so the file's numbers
-are what its exported code gives.
+(``diagnosis.applied_after``): the recordings-route fit run again on the training recordings (the model file's own
+and the diagnosis's, ``refit_training``) with the findings' columns (a LuGre model identified again as ``psdm identify
+--friction lugre`` does), the findings that do not lower the validation RMSE where they act dropped. The result is
+judged on the validation recording as ``psdm validate`` judges it (the same corrections and preparation,
+``CalibratedModel.predict_recording``), before and after, so the file's numbers are what its exported code gives.
 
 Then the never-worse gate (``never_worse.keep_not_worse``, its record in ``recalibration.never_worse``): no joint's
 validation RMSE may rise beyond a noise margin (``never_worse.MARGIN_RULE``) where the refits without each training
@@ -88,7 +88,8 @@ def recalibrate(
     report : DiagnosisReport
         Of ``diagnose`` run with the calibrated model as the nominal one.
     train, validation : Recording or sequence of Recording
-        Raw recordings (as given to the diagnosis).
+        Raw recordings (as given to the diagnosis; ``train`` with the model file's own training recordings,
+        ``refit_training``). With ``applied``, its training recordings replace ``train``.
     robot_source : path, optional
         Robot file written into the new model (default: the file's own copy).
     configurations : sequence of data.configuration.PayloadConfiguration, optional
@@ -110,6 +111,7 @@ def recalibrate(
     if applied is None:
         applied = applied_model(calibrated, robot, model, report, train, validation, robot_source)
     train = [train] if not isinstance(train, (list, tuple)) else list(train)
+    train = list(applied.train) or train  # the recordings the model was built on (``refit_training``): the gate's too
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
     kt = torque_constants_of(robot, validation)
     after, fit, dropped = applied.after, applied.fit, list(applied.dropped)

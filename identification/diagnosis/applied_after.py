@@ -8,8 +8,10 @@ had shown at 13.7. So the report's "after" of a model file is the model with its
 ``applied_model.applied_model`` builds it, the one builder ``--apply`` hands to the never-worse gate, evaluated on the
 first validation recording by ``finding_value.validation_rmse`` (``psdm validate``'s own path). The report keeps the
 model (``DiagnosisReport.applied``) so that ``--apply`` judges and writes that same model, and says which model its
-"after" is (``DiagnosisReport.after_source``). Where the model cannot be built (a finding a LuGre file cannot hold, a
-fit that fails), the "after" stays the diagnosis's own fit and the report says why.
+"after" is (``DiagnosisReport.after_source``) and which recordings it trained on (``DiagnosisReport.refit_training``:
+the model file's own training recordings found again and the training recording, ``refit_training``, so that the
+model keeps what the file's other recordings taught it). Where the model cannot be built (a finding a LuGre file
+cannot hold, a fit that fails), the "after" stays the diagnosis's own fit and the report says why.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 
 from identification.calibration.applied_model import applied_model
 from identification.calibration.finding_value import validation_rmse
+from identification.calibration.refit_training import training_alone
 from psdm_casadi.errors import PSDMError
 
 __all__ = ["APPLIED_AFTER", "with_applied_after", "with_written_after"]
@@ -28,21 +31,25 @@ __all__ = ["APPLIED_AFTER", "with_applied_after", "with_written_after"]
 logger = logging.getLogger(__name__)
 
 APPLIED_AFTER = (
-    "the model file identified again on the training recording with the findings it can hold, as 'diagnose --apply' "
-    "writes it (before its never-worse gate), judged as 'psdm validate' judges it"
+    "the model file identified again on its own training recordings and the training recording with the findings it "
+    "can hold, as 'diagnose --apply' writes it (before its never-worse gate), judged as 'psdm validate' judges it"
 )
 
 
-def with_applied_after(report, loaded, train, validation):
+def with_applied_after(report, loaded, train, validation, refit=None):
     """``report`` whose "after" (RMSE, R^2 and prediction on the validation recording ``validation``) is the model file
-    ``loaded`` (``calibrated_model.LoadedModel``) with the report's findings as ``applied_model`` builds it from the raw
-    ``train`` recording, with that model in ``DiagnosisReport.applied`` (module docstring); ``report`` as it is without
-    a finding, and with the reason in ``after_source`` where the model cannot be built."""
+    ``loaded`` (``calibrated_model.LoadedModel``) with the report's findings as ``applied_model`` builds it from the
+    recordings ``refit()`` finds (``refit_training.RefitTraining``: the file's own training recordings and the raw
+    ``train`` recording; None: ``train`` alone), with that model in ``DiagnosisReport.applied`` and those recordings in
+    ``DiagnosisReport.refit_training`` (module docstring); ``report`` as it is without a finding, and with the reason in
+    ``after_source`` where the model cannot be built. ``refit`` is called only when there is a finding to apply."""
     if not report.findings:
         return report
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    training = refit() if refit is not None else training_alone(train)
+    report = replace(report, refit_training=training)
     try:
-        applied = applied_model(calibrated, robot, model, report, train, validation)
+        applied = applied_model(calibrated, robot, model, report, list(training.recordings), validation)
         kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
         rmse, r2, prepared, predicted = validation_rmse(applied.after, model, validation, kt)
     except PSDMError as exc:  # the diagnosis's own fit stays the "after", and the report says why

@@ -38,6 +38,7 @@ from identification.calibration.held_friction import HeldFriction
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import JointComparison
+from identification.calibration.refit_training import refit_training
 from identification.data.filter_choice import AUTO
 from identification.data.holdout import diagnose_parts, held_out_sentences
 from identification.data.layout import model_file_layout
@@ -56,6 +57,7 @@ __all__ = [
     "diagnose_model",
     "diagnose_model_prior",
     "file_held",
+    "file_refit",
     "file_prediction",
     "model_file_recordings",
     "model_file_options",
@@ -157,8 +159,12 @@ def diagnose_model(
     loaded = source if isinstance(source, LoadedModel) else read_calibrated_model(source, derive=derive)
     if name is None and not isinstance(source, LoadedModel):
         name = str(source)
+    path = str(train) if isinstance(train, (str, os.PathLike)) else None
     train, validation, held_out = model_file_recordings(loaded, train, validation, load, name or "the model file")
-    report = diagnose_model_prior(loaded, train, validation, options, name)[0]
+    refit = None  # a file and a recording on disk: the refit finds the file's own training recordings (refit_training)
+    if path is not None and not isinstance(source, LoadedModel):
+        refit = file_refit(loaded, source, train, path, load)
+    report = diagnose_model_prior(loaded, train, validation, options, name, refit)[0]
     return replace(report, held_out=held_out) if held_out else report
 
 
@@ -175,13 +181,7 @@ def model_file_recordings(loaded: LoadedModel, train, validation, load=None, nam
                 "of the training recording (diagnose_model(MODEL, 'run.csv')), or validation=[recording, ...]."
             )
         return train, validation, ()
-    if load is None:
-        robot = calibrated_robot(loaded.calibrated, loaded.robot)
-        layout = model_file_layout(loaded.calibrated.document)
-
-        def load(path):
-            return load_robot_recording(path, robot, None, layout)
-
+    load = load or _reader(loaded)
     given = [] if validation is None else validation_recordings(validation)
     path = str(train)
     train, held = diagnose_parts(path, load(path), loaded.calibrated.document, None, load, bool(given), name)
@@ -195,14 +195,33 @@ def model_file_recordings(loaded: LoadedModel, train, validation, load=None, nam
     return train, validations, held_out_sentences(path, held)
 
 
-def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, name=None) -> tuple:
+def _reader(loaded: LoadedModel):
+    """``load(path)``: a recording read joint side as identify read the model's (``data.layout.model_file_layout``)."""
+    robot = calibrated_robot(loaded.calibrated, loaded.robot)
+    layout = model_file_layout(loaded.calibrated.document)
+    return lambda path: load_robot_recording(path, robot, None, layout)
+
+
+def file_refit(loaded: LoadedModel, model_path, train, train_path, load=None):
+    """``refit()`` of ``applied_after.with_applied_after`` for the model file ``loaded`` read from ``model_path``: its
+    own training recordings found again and read with ``load`` (default: as identify read them), their loads taken
+    off, and the raw ``train`` recording read from ``train_path`` (``refit_training``); called only when a finding is
+    to be applied."""
+    calibrated = loaded.calibrated
+    robot, cutoff = calibrated_robot(calibrated, loaded.robot), model_preparation(calibrated.document).cutoff_hz
+    load = load or _reader(loaded)
+    return lambda: refit_training(calibrated.document, model_path, train, train_path, load, robot, cutoff)
+
+
+def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, name=None, refit=None) -> tuple:
     """``(report, DiagnosisPrior)``: ``diagnose_model`` of the read file ``loaded`` with the rigid-body choice it made
     (the CLI prints its note). The robot file's rigid body (``diagnosis_prior``) is kept only if the diagnosis's
     model from it (the model's friction refitted, with the findings: the effect the file's rigid body absorbed is
     found again) predicts no joint of the first validation recording worse than the model file as it is beyond the
     never-worse margin (``robot_file_worse``); its findings would otherwise only repair a nominal worse than the model
     the user has. Then the diagnosis runs again from the model file's
-    rigid body and the choice says why (``DiagnosisPrior.declining``): a finding's "before" is the nominal it used."""
+    rigid body and the choice says why (``DiagnosisPrior.declining``): a finding's "before" is the nominal it used.
+    ``refit``: the recordings the model with the findings trains on (``file_refit``; None: ``train`` alone)."""
     calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
     options = model_file_options(calibrated, given)
     robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
@@ -216,7 +235,9 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
     if report is None:
         report = diagnose(robot, train, validation, options, model=model)
-    report = with_applied_after(report, loaded, train, first)  # the model --apply writes: its "after" (applied_after)
+    report = with_applied_after(
+        report, loaded, train, first, refit
+    )  # the model --apply writes: its "after" (applied_after)
     name = f"for {robot_file.name}" if name is None else name
     own = model_preparation(calibrated.document)
     preparation = own if (given is None or given.cutoff_hz == AUTO) else None

@@ -136,6 +136,7 @@ class DiagnosisReport:
     held_out: tuple = ()  # sentences: the parts of recordings held out for validation (``data.holdout``)
     after_source: str = ""  # which model the "after" is (a model file's: the one --apply writes, ``applied_after``)
     applied: object = None  # that model (``applied_model.AppliedModel``), which ``diagnose --apply`` judges and writes
+    refit_training: object = None  # the recordings that model trained on (``refit_training.RefitTraining``)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -185,6 +186,7 @@ class DiagnosisReport:
             "left_out": list(self.left_out),
             "held_friction": dict(self.held_friction),
             "after_source": self.after_source or None,
+            "refit_training": None if self.refit_training is None else self.refit_training.to_dict(),
         }
 
     def to_json(self) -> str:
@@ -238,6 +240,7 @@ class DiagnosisReport:
             lines += ["", "RMSE before is the nominal model refitted on the training recording; the model file as it "
                       f"is (as 'psdm validate' computes it): {own} N m."]  # fmt: skip
             lines += [f"RMSE after: {self.after_source}."] if self.after_source else []
+        lines += ["", f"Refit: {self.refit_training.sentence()}."] if self.refit_training is not None else []
         lines += self._recordings_markdown()
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):

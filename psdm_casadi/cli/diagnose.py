@@ -21,7 +21,7 @@ from psdm_casadi.cli.checks import (
 )
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
-from psdm_casadi.cli.recalibration_text import adds_nothing, apply_refusal, recalibration_markdown
+from psdm_casadi.cli.recalibration_text import ALONE, adds_nothing, apply_refusal, recalibration_markdown
 from psdm_casadi.cli.torque_scale_step import diagnose_torque_scales
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
@@ -31,6 +31,21 @@ VALIDATE_HELP = (
     "the cut of a model identified with --holdout) and the model's other held-out parts. With several, a finding is "
     "kept only if it holds on each (the errors are reported on the first); with one, a block cross-validation of "
     "--train is the second opinion. Findings that flip are listed as unstable, not as missing physics"
+)
+
+DESCRIPTION = (
+    "Identify the nominal model (the robot file's rigid body + friction) on the training recording, fit "
+    "candidate physics terms jointly with it, keep those that lower the validation error enough to earn "
+    "their parameters, and report them most important first with per-joint validation RMSE before/after. "
+    "Given a calibrated model (.json from 'psdm identify') instead of a robot, the nominal model is the "
+    "file's: its kinematics, identified inertia (rigid body fixed) and its friction shape (Coulomb + "
+    "viscous, Stribeck with its vs, or LuGre with its bristle dynamics; amplitudes refitted); "
+    "--apply NEW.json then identifies the model again on its own training recordings (found again by their "
+    "content) and --train with the findings' terms fitted jointly "
+    "(signal findings such as a delay correct the recordings; a LuGre model is identified again as 'psdm "
+    "identify --friction lugre' does, and takes torque findings only), judges it on --validate as "
+    "'psdm validate' does, shows the calibration before and after, and writes the calibrated model with its "
+    "findings."
 )
 
 ENVELOPE_HELP = (
@@ -45,19 +60,7 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "diagnose",
         help="find physics missing from the model of a robot (spring, payload, offset, ripple, delay, ...)",
-        description=(
-            "Identify the nominal model (the robot file's rigid body + friction) on the training recording, fit "
-            "candidate physics terms jointly with it, keep those that lower the validation error enough to earn "
-            "their parameters, and report them most important first with per-joint validation RMSE before/after. "
-            "Given a calibrated model (.json from 'psdm identify') instead of a robot, the nominal model is the "
-            "file's: its kinematics, identified inertia (rigid body fixed) and its friction shape (Coulomb + "
-            "viscous, Stribeck with its vs, or LuGre with its bristle dynamics; amplitudes refitted); "
-            "--apply NEW.json then identifies the model again on --train with the findings' terms fitted jointly "
-            "(signal findings such as a delay correct the recordings; a LuGre model is identified again as 'psdm "
-            "identify --friction lugre' does, and takes torque findings only), judges it on --validate as "
-            "'psdm validate' does, shows the calibration before and after, and writes the calibrated model with its "
-            "findings."
-        ),
+        description=DESCRIPTION,
     )
     add_robot_argument(
         p,
@@ -207,7 +210,8 @@ def _run_diagnose(args) -> int:
     if loaded is None:
         report = _robot_report(args, robot, train, validations, options, scaled)
     else:  # the Python API's diagnosis of a model file (diagnose_model): the same numbers
-        report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot)
+        refit = _file_refit(args, loaded, robot, layout, train)
+        report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot, refit=refit)
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     report = dataclasses.replace(report, preparation=preparation.text(), held_out=held_out_sentences(args.train, held))
@@ -232,7 +236,7 @@ def _run_diagnose(args) -> int:
             print(f"\n## Payload check (as psdm validate)\n\n{load.sentence()}")
     if apply_out is None:
         return 0
-    return _apply(args, calibrated, robot_file, result, apply_out, payload if args.json else None)
+    return _apply(args, calibrated, robot_file, result, apply_out, payload if args.json else None, report)
 
 
 def _fraction(args) -> float | None:
@@ -261,6 +265,18 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     validations = _held_out([*map(load, given), *(recording for _, recording, _ in held)])
     args.validate, args.held_parts = [*given, *(path for path, _, _ in held)], [part for _, _, part in held]
     return train, validations, given, held
+
+
+def _file_refit(args, loaded, robot, layout, train):
+    """``model_file.file_refit``: the recordings the model with the findings trains on, the model file's own read as
+    ``--train`` is (``refit_training``) and ``train``, found when a finding is applied."""
+    from identification.data.robot_recordings import load_robot_recording
+    from identification.diagnosis.model_file import file_refit
+
+    def load(path):
+        return load_robot_recording(path, robot, args.topic, layout)
+
+    return file_refit(loaded, args.robot, train, args.train, load)
 
 
 def _robot_report(args, robot, train, validations, options, scaled: str = ""):
@@ -360,6 +376,8 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
     from identification.calibration.recalibrate import recalibrate
     from identification.diagnosis.applied_after import with_written_after
 
+    if report.refit_training is not None:  # the recordings the report's "after" trained on (refit_training)
+        recordings = (list(report.refit_training.recordings), recordings[1])
     try:
         with warnings.catch_warnings(record=True) as caught:  # a LuGre model's refit says what it cannot determine
             warnings.simplefilter("always", LuGreWarning)
@@ -377,9 +395,9 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
     return with_written_after(report, result, model, validation, kt), result
 
 
-def _apply(args, calibrated, robot, result, out, payload) -> int:
+def _apply(args, calibrated, robot, result, out, payload, report) -> int:
     """Gate on consistency, write the new model, show before and after (``result``: ``_recalibration``'s, None
-    without a finding)."""
+    without a finding); the new file's training recordings are those its refit trained on (``report``'s)."""
     from identification.calibration.recalibrate import consistency_failure
 
     if isinstance(result, ParameterError):  # the findings refused (``_recalibration``), said after the report
@@ -389,12 +407,13 @@ def _apply(args, calibrated, robot, result, out, payload) -> int:
         if payload is not None:
             print_json(payload)
         return 0
-    if adds_nothing(calibrated.document, result.after.document):  # a refit on --train alone: the model file stays
+    if adds_nothing(calibrated.document, result.after.document):  # a refit with nothing added: the model file stays
         if payload is not None:
             payload["recalibration"] = dict(result.after.document["recalibration"], model=None)
             print_json(payload)
         else:
-            print(recalibration_markdown(result, robot.joint_names, args.apply, args.robot))
+            trained_on = report.refit_training.short() if report.refit_training is not None else ALONE
+            print(recalibration_markdown(result, robot.joint_names, args.apply, args.robot, trained_on))
         return 0
     if result.refused is not None:  # the never-worse gate: no subset of the findings keeps every joint
         print(f"psdm diagnose: error: {result.refused}. Nothing was written to {args.apply!r}.", file=sys.stderr)
@@ -413,6 +432,8 @@ def _apply(args, calibrated, robot, result, out, payload) -> int:
         return EXIT_CHECK_FAILED
     read = calibrated.document.get("provenance", {}).get("columns")  # how identify read the recordings: kept
     result.after.document["provenance"].update({} if read is None else {"columns": read})
+    if report.refit_training is not None:  # a later refit of the new file finds them again
+        result.after.document["provenance"]["recordings"] = [dict(e) for e in report.refit_training.entries]
     if args.held_parts:  # the refit trained without them too: validate and diagnose of the new file reuse them
         from identification.data.holdout import holdout_block
 

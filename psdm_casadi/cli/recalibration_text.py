@@ -9,7 +9,10 @@ such a refit is the model file identified again on ``--train`` alone, which lose
 
 from __future__ import annotations
 
-__all__ = ["adds_nothing", "apply_refusal", "better_alone", "recalibration_markdown", "written_line"]
+__all__ = ["ALONE", "adds_nothing", "apply_refusal", "better_alone", "recalibration_markdown", "written_line"]
+
+#: What a refit on the diagnosis's training recording alone trained on (``refit_training.RefitTraining.short``).
+ALONE = "--train alone"
 
 #: The refit's fix for a joint that never reverses, as identify words it for its own --offset option.
 IDENTIFY_OFFSET_FIX = "or identify without the torque offset (drop --offset)."
@@ -30,9 +33,10 @@ def adds_nothing(before: dict, after: dict) -> bool:
     return not dropped and all(entry["kind"] == "reported" for entry in new)
 
 
-def recalibration_markdown(result, joint_names, path, source=None) -> str:
+def recalibration_markdown(result, joint_names, path, source=None, trained_on=ALONE) -> str:
     """The calibration before and after the findings: per-joint validation RMSE, consistency, moved parameters.
-    ``source``: the model file refitted, named by the closing line when nothing was written (:func:`written_line`)."""
+    ``source``: the model file refitted, named by the closing line when nothing was written (:func:`written_line`);
+    ``trained_on``: what the refit trained on (``refit_training.RefitTraining.short``)."""
     block = result.after.document["recalibration"]
     margin = block["never_worse"]["margin"]
     lines = [
@@ -79,9 +83,9 @@ def recalibration_markdown(result, joint_names, path, source=None) -> str:
         if "validation_rmse_without" in entry:
             lines.append("  " + _contribution(entry))
 
-    if source is not None and (alone := better_alone(result.rmse_before, result.rmse_after, margin, joint_names)):
-        lines.append(alone)
-    lines.append("\n" + written_line(result.after.document["findings"], path, source))
+    alone = trained_on == ALONE and better_alone(result.rmse_before, result.rmse_after, margin, joint_names)
+    lines += [alone] if source is not None and alone else []  # the other recordings disagree with --train
+    lines.append("\n" + written_line(result.after.document["findings"], path, source, trained_on))
     return "\n".join(lines)
 
 
@@ -112,9 +116,10 @@ def apply_refusal(exc, model, apply) -> str:
     return f"diagnose {model!r} --apply: {text} Nothing was written to {apply!r}."
 
 
-def written_line(findings, path, source=None) -> str:
+def written_line(findings, path, source=None, trained_on=ALONE) -> str:
     """The closing line: the findings the file at ``path`` applies, or that it applies none (the gates dropped them),
-    or, with ``source`` (the model file refitted), that ``path`` was not written (every finding only reported)."""
+    or, with ``source`` (the model file refitted on ``trained_on``), that ``path`` was not written (every finding only
+    reported)."""
     applied = [entry["label"] for entry in findings if entry["kind"] != "reported"]
     if applied:
         return f"calibrated model with findings ({', '.join(applied)}) written to {path}"
@@ -124,7 +129,7 @@ def written_line(findings, path, source=None) -> str:
         return (f"no finding to apply{why}: {path} holds the model with none added (its validation RMSE is this "
                 "table's 'after' row, not the diagnosis's 'after')")  # fmt: skip
     return (f"no finding to apply{why}: {path} was not written; {source} stays the model to use (this table's "
-            "'after' row is it identified again on --train alone, with nothing added)")  # fmt: skip
+            f"'after' row is it identified again on {trained_on}, with nothing added)")  # fmt: skip
 
 
 def _significant(value) -> str:

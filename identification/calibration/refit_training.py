@@ -1,0 +1,220 @@
+"""The recordings a refit of a model file trains on: the file's own training recordings, found again, and ``--train``.
+
+model file (its ``provenance.recordings``, ``configurations`` and ``identification.holdout``) + the diagnosis's
+training recording -> ``RefitTraining`` (the raw recordings, each one's load taken off, the ``--train`` first; the ones
+not found, why, and the fix).
+
+``diagnose MODEL --apply`` identifies the model again with its findings (``applied_model``), and the diagnosis reports
+that model as its "after". Trained on ``--train`` alone, that refit forgot what the model's other training recordings
+taught it (a parameter only another recording excites, a payload recording that separates a link's mass from the
+load) and wrote a model worse than the file on the joints they had fixed. So the refit trains on every recording the
+file was identified on, found again on disk: under the name its ``provenance.recordings`` entry gives, at the path
+identify read it from, beside the model file or in the working folder, and recognised by its content
+(``holdout.recording_digest``, the entry's ``sha256``). Each is read as identify read it (the file's column layout; the
+part identify trained on where it held one out, ``data.holdout``), its dead torque channels marked
+(``missing_torque``), and the load the file's ``configurations`` block lists for it (else its sidecar) taken off its
+torque (``payload_check.without_load``, as the diagnosis takes the ``--train``'s off). The ``--train`` recording is
+one of them when its content (or, for an entry without a content hash, its name) is the entry's, or when the two read
+as the same samples (the part identify trained on, cut into a file of its own): counted once. A
+recording that is gone, changed since identify, or reads otherwise is left out and named with the fix; the refit goes
+on with the others. Each recording is read once and held once (the report keeps references, not copies).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from identification.calibration.payload_check import without_load
+from identification.calibration.payload_fit import stated_payload
+from identification.calibration.recording_provenance import recording_provenance
+from identification.data.configuration import NO_PAYLOAD, PayloadConfiguration, stated_configuration
+from identification.data.holdout import matching_part, recording_digest, reload_part, stored_parts
+from identification.data.missing_torque import find_missing_torque
+from identification.data.payload import Payload
+from psdm_casadi.errors import PSDMError
+
+__all__ = ["MissingRecording", "RefitTraining", "refit_training", "training_alone"]
+
+#: How the report names the recording given to the diagnosis.
+GIVEN = "--train"
+
+
+@dataclass(frozen=True)
+class MissingRecording:
+    """A training recording of the model file the refit could not use: its name, the paths looked at, and why."""
+
+    name: str
+    looked: tuple
+    reason: str
+
+    def sentence(self) -> str:
+        where = ", ".join(self.looked) if self.looked else "no file (identified from a recording in memory)"
+        return (
+            f"{self.name}: {self.reason} (looked at {where}); the refit trained without it. Put it back "
+            "beside the model file (it is recognised by its content, whatever its name) or give it as --train"
+        )
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "looked": list(self.looked), "reason": self.reason, "sentence": self.sentence()}
+
+
+@dataclass(frozen=True, eq=False)
+class RefitTraining:
+    """The recordings a refit trains on (module docstring).
+
+    Attributes
+    ----------
+    recordings : tuple of Recording
+        Raw, each one's load taken off its torque; the diagnosis's ``--train`` first.
+    sources : tuple of str
+        How the report names each (its path; the ``--train``'s marked).
+    entries : tuple of dict
+        Each one's ``provenance.recordings`` entry (the file's own, or a new one for a ``--train`` it did not hold):
+        the written model's training recordings.
+    missing : tuple of MissingRecording
+        The file's training recordings left out.
+    """
+
+    recordings: tuple
+    sources: tuple
+    entries: tuple
+    missing: tuple = ()
+
+    def sentence(self) -> str:
+        """What the refit trained on, and what it could not find."""
+        names = ", ".join(self.sources)
+        text = f"the refit with the findings trained on {len(self.recordings)} recording(s): {names}"
+        if self.missing:
+            text += "; not found: " + "; ".join(m.sentence() for m in self.missing)
+        return text
+
+    def short(self) -> str:
+        """What the refit trained on, in a few words: ``--train alone``, or the file's recordings with it."""
+        others = len(self.recordings) - 1
+        return "--train alone" if not others else f"--train and {others} training recording(s) of the model file"
+
+    def to_dict(self) -> dict:
+        return {"recordings": list(self.sources), "not_found": [m.to_dict() for m in self.missing]}
+
+
+def training_alone(train, source=None) -> RefitTraining:
+    """The ``RefitTraining`` of the recording ``train`` alone (a model file without training recordings of its own, or
+    a caller that gives the recordings itself); ``source`` its path, if any."""
+    name = f"{source if source is not None else train.name} ({GIVEN})"
+    return RefitTraining((train,), (name,), (recording_provenance(train, source),))
+
+
+def refit_training(document, model_path, train, train_path, load, robot, cutoff_hz) -> RefitTraining:
+    """The ``RefitTraining`` of the model file ``document`` read from ``model_path`` and the diagnosis's training
+    recording ``train`` (raw, its load already taken off) read from ``train_path`` (module docstring).
+
+    ``load(path) -> Recording`` reads a recording as identify read the file's (joint side, timed, its column layout);
+    ``robot`` (the model's) and ``cutoff_hz`` (its preparation's) take a load off (``without_load``). Never raises for
+    a recording it cannot use: that one is in ``RefitTraining.missing``.
+    """
+    entries = [e for e in ((document.get("provenance") or {}).get("recordings")) or [] if isinstance(e, dict)]
+    own = _digest(train_path)
+    out = training_alone(train, train_path)
+    recordings, sources, kept, missing = [train], list(out.sources), list(out.entries), []
+    for entry in entries:
+        if _is_given(entry, train, own):
+            kept[0] = entry  # the file's own entry: the written model names it as identify did
+            continue
+        recording, path, looked = None, None, ()
+        try:
+            path, reason, looked = _find(entry, document, model_path)
+            if path is not None:
+                recording, reason = _read(path, entry, document, load, robot, cutoff_hz)
+        except (PSDMError, OSError, ValueError) as exc:  # unreadable, a folder in its place, a malformed entry
+            reason = f"could not be read again ({(str(exc).splitlines() or [type(exc).__name__])[0]})"
+        if recording is None:
+            missing.append(MissingRecording(str(entry.get("name")), looked, reason))
+            continue
+        if _same_motion(recording, train):  # the --train under another file (a part identify trained on, cut out)
+            kept[0] = entry
+            continue
+        recordings.append(recording)
+        sources.append(path)
+        kept.append(entry)
+    return RefitTraining(tuple(recordings), tuple(sources), tuple(kept), tuple(missing))
+
+
+def _digest(path) -> str | None:
+    try:
+        return recording_digest(path) if path is not None and Path(path).exists() else None
+    except OSError:  # unreadable: matched by name or samples only
+        return None
+
+
+def _is_given(entry, train, digest) -> bool:
+    """Whether the entry is the ``--train`` recording: the same content, or (an entry without a content hash, from a
+    recording in memory) the same name."""
+    stored = entry.get("sha256")
+    return stored == digest if stored else entry.get("name") == train.name
+
+
+def _same_motion(recording, train) -> bool:
+    """Whether two recordings hold the same samples of time and position (one recording under two files)."""
+    return (
+        recording.n_samples == train.n_samples
+        and np.array_equal(recording.t, train.t)
+        and (np.array_equal(recording.q, train.q))
+    )
+
+
+def _find(entry, document, model_path) -> tuple:
+    """(path or None, why not, the paths looked at) of the file of a ``provenance.recordings`` entry."""
+    name, stored = str(entry.get("name")), entry.get("sha256")
+    if not stored:
+        return None, "the model file holds no content hash of it, so it cannot be recognised on disk", ()
+    parts = [p.path for p in stored_parts(document) if Path(p.path).name == name]
+    folder = Path(model_path).parent if model_path is not None else None
+    candidates = [entry.get("path"), *parts, folder / name if folder is not None else None, name]
+    looked = tuple(dict.fromkeys(os.path.abspath(c) for c in candidates if c))
+    changed = [path for path in looked if Path(path).exists()]
+    for path in changed:
+        if recording_digest(path) == stored:
+            return path, "", looked
+    if changed:
+        return None, f"changed since the model was identified (its content hash is not {stored[:12]}...)", looked
+    return None, "not there (moved or renamed since identify?)", looked
+
+
+def _read(path, entry, document, load, robot, cutoff_hz) -> tuple:
+    """(the recording at ``path`` as the model trained on it, its load taken off; or None and why not)."""
+    recording = load(path)
+    part = matching_part(stored_parts(document), path)
+    if part is not None:  # identify trained on its first part only
+        recording, _ = reload_part(part, lambda _: recording, path, "diagnose")
+    expected = entry.get("n_samples")
+    if expected is not None and recording.n_samples != int(expected):
+        return None, (f"reads as {recording.n_samples} samples, but the model was identified on {int(expected)} "
+                      "(read with other options? the same --columns, --rate and --topic as identify)")  # fmt: skip
+    recording = find_missing_torque(recording)
+    configuration = _configuration(document, str(entry.get("name")), path)
+    body, _ = stated_payload(configuration, document.get("configurations") or [], "the model file")
+    if body is None:
+        return recording, ""
+    kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    return without_load(robot, recording, body, kt, cutoff_hz), ""
+
+
+def _configuration(document, name: str, path) -> PayloadConfiguration:
+    """The load the model file's ``configurations`` block lists for the recording ``name`` (as identify read it,
+    from a sidecar or a manifest); a recording it does not list: its sidecar beside ``path``."""
+    for block in document.get("configurations") or []:
+        if name not in (block.get("recordings") or []):
+            continue
+        if block.get("kind") == "unknown":
+            return PayloadConfiguration(name=block["name"], unknown=True, stated=True)
+        load = block.get("payload") if block.get("kind") == "known" else None
+        if load is None:
+            return NO_PAYLOAD
+        inertia = None if load.get("inertia") is None else tuple(map(tuple, load["inertia"]))
+        return PayloadConfiguration(name=block["name"], payload=Payload(float(load["mass"]), tuple(load["com"]),
+                                                                        inertia), stated=True)  # fmt: skip
+    return stated_configuration(path)

@@ -1,0 +1,158 @@
+"""The refit of ``diagnose MODEL --apply`` (and the report's "after") trains on the model file's own training
+recordings and ``--train`` (``refit_training``), not on ``--train`` alone.
+
+Known truth: the virtual Denso with a spring on joint 2 (k = 40 N m/rad, rest angle 0.2 rad). The model file was
+identified (without the spring) on two recordings: ``a.csv`` moves every joint, ``b.csv`` moves joint 6 over a tenth
+of its swing only. Diagnosed with ``--train b.csv``, a refit on ``b.csv`` alone loses joint 6 (its validation RMSE
+0.18 -> 1.1 N m, and the never-worse gate refuses every subset of the findings); with ``a.csv`` found again beside
+the model file, the model written keeps joint 6 and carries the spring at its true stiffness.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.payload_check import without_load
+from identification.calibration.recording_provenance import recording_provenance
+from identification.calibration.refit_training import refit_training
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import load_recording, save_recording
+from identification.data.payload import Payload
+from identification.virtual import effects as xp
+from identification.virtual.simulation import SimulationOptions, simulate_recording
+from tests.conftest import DENSO_FILE
+from tests.identification.diagnosis_data import SPRING_K, SPRING_Q0, cli_json
+from trajopt.experiments import sine_experiment
+
+#: The joint ``b.csv`` hardly moves (0-based), and the share of its swing it keeps.
+SMALL_JOINT, SMALL_SHARE = 5, 0.1
+#: ``diagnose`` options that keep the runs short (no sparse search, no second rigid-body diagnosis).
+QUICK = ("--no-sparse", "--rigid-body", "prior")
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory, denso, denso_model):
+    """``a.csv``, ``b.csv`` (joint 6 at a tenth of its swing), ``valid.csv`` (6 s at 200 Hz, seeds 40-42, the spring,
+    0.1 N m torque noise) and ``model.json``, identified on ``a.csv`` and ``b.csv`` without the spring."""
+    folder = tmp_path_factory.mktemp("refit")
+    for k, name in enumerate(("a.csv", "b.csv", "valid.csv")):
+        rng = np.random.default_rng(40 + k)
+        t, q = sine_experiment(denso, duration=6.0, rng=rng).reference()
+        if name == "b.csv":
+            q = q.copy()
+            q[:, SMALL_JOINT] = q[0, SMALL_JOINT] + SMALL_SHARE * (q[:, SMALL_JOINT] - q[0, SMALL_JOINT])
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=200.0)
+        spring = xp.Spring(joint=1, stiffness=SPRING_K, q0=SPRING_Q0)
+        recording, _ = simulate_recording(denso, (t, q), options, rng, extras=[spring])
+        save_recording(recording, folder / name)
+    paths = [folder / "a.csv", folder / "b.csv"]
+    recordings = [load_recording(path, denso.n_dof) for path in paths]
+    fit = identify_trajectories(denso, denso_model, recordings, TrajectoryOptions())
+    provenance = [recording_provenance(r, p) for r, p in zip(recordings, paths)]
+    CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE, recordings=provenance).save(
+        folder / "model.json"
+    )
+    return folder
+
+
+@pytest.fixture(scope="module")
+def applied(files):
+    """``diagnose model.json --train b.csv --apply new.json --json``, and validate's RMSE of the two files."""
+    folder = files
+    payload = cli_json(["diagnose", folder / "model.json", "--train", folder / "b.csv", "--validate",
+                        folder / "valid.csv", "--apply", folder / "new.json", *QUICK, "--json"])  # fmt: skip
+    rmse = [
+        np.array(cli_json(["validate", folder / name, folder / "valid.csv", "--json"])["recordings"][0]["rmse"])
+        for name in ("new.json", "model.json")
+    ]
+    return payload, *rmse
+
+
+def test_the_refit_trains_on_the_model_s_recordings_and_keeps_what_they_taught(applied, files):
+    payload, written, before = applied
+    refit = payload["refit_training"]
+    assert refit["not_found"] == []
+    assert refit["recordings"] == [f"{files / 'b.csv'} (--train)", str(files / "a.csv")]  # b.csv once, a.csv found
+    # joint 6, which only a.csv moves over its swing, stays as the model file predicts it (a refit on b.csv alone:
+    # 0.18 -> 1.1 N m, refused), and the spring the model lacked is in the model written at its true stiffness
+    assert written[SMALL_JOINT] <= 1.1 * before[SMALL_JOINT], (before, written)
+    assert written[1] < 0.2 * before[1], (before, written)
+    document = json.loads((files / "new.json").read_text())
+    spring = next(e for e in document["findings"] if e["label"] == "spring[j2]")
+    assert spring["parameters"]["k"] == pytest.approx(SPRING_K, rel=0.1)
+    assert spring["parameters"]["q0"] == pytest.approx(SPRING_Q0, abs=0.05)
+    # the report's "after" is the model written, as validate judges it
+    np.testing.assert_allclose(payload["rmse_after"], written, rtol=0.01)
+    np.testing.assert_allclose(payload["recalibration"]["after"]["validation_rmse"], written, rtol=0.01)
+    # the new file lists the recordings it was trained on, so that its own refit finds them again
+    names = [entry["name"] for entry in document["provenance"]["recordings"]]
+    assert sorted(names) == ["a.csv", "b.csv"] and all("sha256" in e for e in document["provenance"]["recordings"])
+
+
+def test_a_training_recording_that_is_gone_is_named_and_the_diagnosis_goes_on(files, tmp_path):
+    """The model file in another folder, its ``a.csv`` neither at the path identify read it from nor beside it: the
+    report names it, where it was looked for and the fix, and the "after" is the refit on ``b.csv`` alone (joint 6
+    lost: the case the model's own recordings are there for)."""
+    document = json.loads((files / "model.json").read_text())
+    for entry in document["provenance"]["recordings"]:
+        entry["path"] = str(tmp_path / "gone" / entry["name"]) if entry["name"] == "a.csv" else entry["path"]
+    (tmp_path / "model.json").write_text(json.dumps(document))
+    for name in ("b.csv", "valid.csv"):
+        shutil.copy(files / name, tmp_path / name)
+    payload = cli_json(["diagnose", tmp_path / "model.json", "--train", tmp_path / "b.csv", "--validate",
+                        tmp_path / "valid.csv", *QUICK, "--json"])  # fmt: skip
+    refit = payload["refit_training"]
+    assert refit["recordings"] == [f"{tmp_path / 'b.csv'} (--train)"]
+    (missing,) = refit["not_found"]
+    assert missing["name"] == "a.csv" and str(tmp_path / "gone" / "a.csv") in missing["looked"]
+    assert str(tmp_path / "a.csv") in missing["looked"]  # beside the model file
+    assert "give it as --train" in missing["sentence"] and "not there" in missing["reason"]
+    before, after = np.array(payload["rmse_before"]), np.array(payload["rmse_after"])
+    assert after[SMALL_JOINT] > 2.0 * before[SMALL_JOINT], (before, after)  # what a.csv taught is lost
+
+
+def test_the_model_s_recordings_are_found_by_content_read_once_and_their_loads_taken_off(files, tmp_path, denso):
+    """``refit_training`` directly: the ``--train`` counted once when it is a training recording under another name
+    (same content) or the same samples in another file, a recording found beside a moved model file, one whose content
+    changed named as such, and the load the model's ``configurations`` block lists for a recording taken off its
+    torque (the same torque ``without_load`` leaves)."""
+    document = json.loads((files / "model.json").read_text())
+    for entry in document["provenance"]["recordings"]:
+        entry.pop("path")  # a file written before the paths were stored: found beside the model file
+    shutil.copy(files / "a.csv", tmp_path / "a.csv")
+    shutil.copy(files / "b.csv", tmp_path / "renamed_b.csv")
+
+    def load(path):
+        return load_recording(path, denso.n_dof)
+
+    train = load(tmp_path / "renamed_b.csv")
+    found = refit_training(document, tmp_path / "model.json", train, tmp_path / "renamed_b.csv", load, denso, 10.0)
+    assert found.missing == () and len(found.recordings) == 2 and found.recordings[0] is train
+    assert found.sources[1] == str(tmp_path / "a.csv")
+    assert [e["name"] for e in found.entries] == ["b.csv", "a.csv"]  # the file's own entry for the --train
+    np.testing.assert_array_equal(found.recordings[1].tau, load(files / "a.csv").tau)
+    shutil.copy(files / "b.csv", tmp_path / "b.csv")
+    save_recording(load(files / "b.csv"), tmp_path / "b_again.npz")  # the same samples, another file and content
+    again = refit_training(document, tmp_path / "model.json", load(tmp_path / "b_again.npz"), tmp_path / "b_again.npz",
+                           load, denso, 10.0)  # fmt: skip
+    assert len(again.recordings) == 2 and again.entries[0]["name"] == "b.csv" and again.missing == ()
+
+    load_ = {"mass": 2.0, "com": [0.0, 0.0, 0.05], "inertia": None}
+    document["configurations"] = [{"name": "2 kg", "kind": "known", "recordings": ["a.csv"], "payload": load_}]
+    carried = refit_training(document, tmp_path / "model.json", train, tmp_path / "renamed_b.csv", load, denso, 10.0)
+    body = Payload(2.0, (0.0, 0.0, 0.05)).dynamic_parameters()
+    expected = without_load(denso, load(files / "a.csv"), body, None, 10.0).tau
+    np.testing.assert_allclose(carried.recordings[1].tau, expected, rtol=1e-12)
+    assert not np.allclose(carried.recordings[1].tau, found.recordings[1].tau)
+
+    with open(tmp_path / "a.csv", "a") as handle:
+        handle.write("\n")  # another content under the same name
+    changed = refit_training(document, tmp_path / "model.json", train, tmp_path / "renamed_b.csv", load, denso, 10.0)
+    (missing,) = changed.missing
+    assert missing.name == "a.csv" and "changed since the model was identified" in missing.reason
+    assert len(changed.recordings) == 1 and "not found: a.csv" in changed.sentence()
