@@ -17,7 +17,9 @@ torque (``payload_check.without_load``, as the diagnosis takes the ``--train``'s
 one of them when its content (or, for an entry without a content hash, its name) is the entry's, or when the two read
 as the same samples (the part identify trained on, cut into a file of its own): counted once. A
 recording that is gone, changed since identify, or reads otherwise is left out and named with the fix; the refit goes
-on with the others. Each recording is read once and held once (the report keeps references, not copies).
+on with the others. Each recording is read once and held once (the report keeps references, not copies). Where
+identify moved the training torques of joints whose friction drifted between the recordings to the friction it kept
+(``drift_choice``), the files do not hold what it trained on: the refit trains on ``--train`` alone and says why.
 """
 
 from __future__ import annotations
@@ -83,14 +85,15 @@ class RefitTraining:
     sources: tuple
     entries: tuple
     missing: tuple = ()
+    note: str = ""
 
     def sentence(self) -> str:
-        """What the refit trained on, and what it could not find."""
+        """What the refit trained on, and what it could not find (or why it left the file's recordings out)."""
         names = ", ".join(self.sources)
         text = f"the refit with the findings trained on {len(self.recordings)} recording(s): {names}"
         if self.missing:
             text += "; not found: " + "; ".join(m.sentence() for m in self.missing)
-        return text
+        return text + (f"; {self.note}" if self.note else "")
 
     def short(self) -> str:
         """What the refit trained on, in a few words: ``--train alone``, or the file's recordings with it."""
@@ -98,7 +101,8 @@ class RefitTraining:
         return "--train alone" if not others else f"--train and {others} training recording(s) of the model file"
 
     def to_dict(self) -> dict:
-        return {"recordings": list(self.sources), "not_found": [m.to_dict() for m in self.missing]}
+        return {"recordings": list(self.sources), "not_found": [m.to_dict() for m in self.missing],
+                "note": self.note or None}  # fmt: skip
 
 
 def training_alone(train, source=None) -> RefitTraining:
@@ -119,6 +123,9 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
     entries = [e for e in ((document.get("provenance") or {}).get("recordings")) or [] if isinstance(e, dict)]
     own = _digest(train_path)
     out = training_alone(train, train_path)
+    moved = _drift_moved(document)
+    if moved:  # identify trained on torques the files do not hold: the refit cannot repeat its training set
+        return RefitTraining(out.recordings, out.sources, out.entries, note=moved)
     recordings, sources, kept, missing = [train], list(out.sources), list(out.entries), []
     for entry in entries:
         if _is_given(entry, train, own):
@@ -141,6 +148,19 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
         sources.append(path)
         kept.append(entry)
     return RefitTraining(tuple(recordings), tuple(sources), tuple(kept), tuple(missing))
+
+
+def _drift_moved(document) -> str:
+    """Why the file's other recordings are left out ("": they are not) where identify moved the drifting joints'
+    training torques to the friction it kept (``drift_choice``, ``identification.friction_drift.corrected``): read
+    again from their files, they would bring the drift back into the refit."""
+    drift = (document.get("identification") or {}).get("friction_drift") or {}
+    named = drift.get("named") or []
+    if not (drift.get("corrected") and named):
+        return ""
+    return (f"the model file's other training recordings are left out: identify moved their torques on the joint(s) "
+            f"with friction drift ({', '.join(map(str, named))}) to the friction it kept, which their files do not "
+            "hold, so the refit trains on --train alone")  # fmt: skip
 
 
 def _digest(path) -> str | None:

@@ -119,7 +119,8 @@ def test_a_training_recording_that_is_gone_is_named_and_the_diagnosis_goes_on(fi
 def test_the_model_s_recordings_are_found_by_content_read_once_and_their_loads_taken_off(files, tmp_path, denso):
     """``refit_training`` directly: the ``--train`` counted once when it is a training recording under another name
     (same content) or the same samples in another file, a recording found beside a moved model file, one whose content
-    changed named as such, and the load the model's ``configurations`` block lists for a recording taken off its
+    changed named as such, the file's recordings left out where identify moved their torques for a friction drift,
+    and the load the model's ``configurations`` block lists for a recording taken off its
     torque (the same torque ``without_load`` leaves)."""
     document = json.loads((files / "model.json").read_text())
     for entry in document["provenance"]["recordings"]:
@@ -141,6 +142,15 @@ def test_the_model_s_recordings_are_found_by_content_read_once_and_their_loads_t
     again = refit_training(document, tmp_path / "model.json", load(tmp_path / "b_again.npz"), tmp_path / "b_again.npz",
                            load, denso, 10.0)  # fmt: skip
     assert len(again.recordings) == 2 and again.entries[0]["name"] == "b.csv" and again.missing == ()
+
+    document["identification"]["friction_drift"] = {"named": [3], "corrected": True}  # identify moved joint 3's
+    drifted = refit_training(document, tmp_path / "model.json", train, tmp_path / "renamed_b.csv", load, denso, 10.0)
+    assert drifted.recordings == (train,) and "friction drift (3)" in drifted.note and "--train alone" in drifted.note
+    document["identification"]["friction_drift"]["corrected"] = False  # named only: the files hold what it fitted
+    assert (
+        len(refit_training(document, tmp_path / "model.json", train, tmp_path / "b.csv", load, denso, 10.0).recordings)
+        == 2
+    )
 
     load_ = {"mass": 2.0, "com": [0.0, 0.0, 0.05], "inertia": None}
     document["configurations"] = [{"name": "2 kg", "kind": "known", "recordings": ["a.csv"], "payload": load_}]
