@@ -140,12 +140,34 @@ def _negative_terms(fit) -> dict:
     return out
 
 
+def _rising_viscous(fit) -> dict:
+    """Per joint (0-based), the viscous friction ``fv`` estimated above zero by FRICTION_Z sigma, as text."""
+    out = {}
+    for name, value, std in zip(fit.drive_names, fit.drive_ols, fit.drive_std):
+        match = re.fullmatch(r"fv(\d+)", name)
+        if match and value > FRICTION_Z * std:
+            out[int(match.group(1)) - 1] = f"fv{match.group(1)} = +{value:.3g} +- {std:.2g} N m s/rad"
+    return out
+
+
 def _friction_warnings(robot, fit) -> list:
+    """A friction the data want negative. A torque of the wrong sign (or another joint's) turns every friction term
+    negative; where the viscous term stays well above zero the sign is right, and a negative Coulomb or Stribeck
+    term says the friction at low speed lies below the Coulomb-plus-viscous line through the fast samples (the
+    heavy arm's smooth-Coulomb refit: fc2 = -746, fs2 = -1250 beside fv2 = +728 N m s/rad), not a wiring error."""
     held = "the consistent fit holds it at 0" if fit.checked else "the unconstrained model keeps it negative"
+    viscous = _rising_viscous(fit)
     return [
         f"{joint_label(j, robot)}: the data want a negative friction ({'; '.join(terms)}); {held}. "
-        f"Torque sign or joint mapping wrong? Check the sign of tau{j + 1} (or i{j + 1}) and that it is the torque "
-        f"of {joint_label(j, robot)}."
+        + (
+            f"The sign of tau{j + 1} is right ({viscous[j]} opposes the motion): the friction at low speed is below "
+            f"a Coulomb-plus-viscous line through the fast samples (it rises faster than linearly with speed, or a "
+            f"torque the model lacks follows the speed). 'psdm diagnose' compares friction shapes and names such a "
+            f"torque."
+            if j in viscous
+            else f"Torque sign or joint mapping wrong? Check the sign of tau{j + 1} (or i{j + 1}) and that it is the "
+            f"torque of {joint_label(j, robot)}."
+        )
         for j, terms in sorted(_negative_terms(fit).items())
     ]
 

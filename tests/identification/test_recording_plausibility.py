@@ -167,6 +167,18 @@ def test_fit_warnings_flag_friction_the_data_want_negative_by_many_sigma(denso):
     assert fit_warnings(denso, _fit(denso, ("fc1",), (2.0,), (0.1,))) == ()
 
 
+def test_a_negative_coulomb_beside_a_clearly_positive_viscous_is_not_blamed_on_the_torque_sign(denso):
+    """A flipped torque turns the viscous term negative too; the heavy arm's refit (fc2 = -746 +- 38, fs2 = -1254 +-
+    83 beside fv2 = +728 +- 4.2) has its sign right, and the warning says what the negative terms mean instead."""
+    fit = _fit(denso, ("fc2", "fs2", "fv2"), (-746.0, -1254.0, 728.0), (38.0, 83.0, 4.2))
+    (warning,) = fit_warnings(denso, fit)
+    assert "joint 2" in warning and "fc2" in warning and "fs2" in warning
+    assert "Torque sign" not in warning and "fv2 = +728" in warning and "psdm diagnose" in warning
+    # a viscous term within FRICTION_Z sigma of zero does not vouch for the sign
+    (blamed,) = fit_warnings(denso, _fit(denso, ("fc2", "fv2"), (-746.0, 0.5 * FRICTION_Z), (38.0, 1.0)))
+    assert "Torque sign or joint mapping wrong?" in blamed
+
+
 def test_fit_warnings_flag_masses_an_order_of_magnitude_off(denso):
     prior = denso.nominal_dynamic_parameters()[:, 0]
     masses = prior.copy()
