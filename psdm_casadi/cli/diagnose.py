@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 from psdm_casadi.cli.checks import (
@@ -215,9 +216,9 @@ def _run_diagnose(args) -> int:
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     report = dataclasses.replace(report, preparation=preparation.text(), held_out=held_out_sentences(args.train, held))
-    result = None
+    apply = ApplyRefit()  # --apply's refit
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
-        report, result = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
+        report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
     load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
     paths = {}
     if folder is not None:
@@ -236,7 +237,7 @@ def _run_diagnose(args) -> int:
             print(f"\n## Payload check (as psdm validate)\n\n{load.sentence()}")
     if apply_out is None:
         return 0
-    return _apply(args, calibrated, robot_file, result, apply_out, payload if args.json else None, report)
+    return _apply(args, calibrated, robot_file, apply, apply_out, payload if args.json else None, report)
 
 
 def _fraction(args) -> float | None:
@@ -365,11 +366,25 @@ def _calibrated_source(args):
     return read_calibrated_argument(args, args.robot), output_file(args.apply, "--apply", args.overwrite)
 
 
+@dataclass(frozen=True)
+class ApplyRefit:
+    """What ``--apply``'s refit gave (``_recalibration``): the ``Recalibration`` (``result``; None without a finding
+    to apply), or the sentence refusing the findings (``refusal``, naming the model and the output), which is the
+    command's error once the report is out: the report says what was found even when it cannot be applied."""
+
+    result: object = None
+    refusal: str = ""
+
+    def raise_refusal(self) -> None:
+        """Raise the refusal, if any, as a ``ParameterError`` (exit 2, one line on stderr)."""
+        if self.refusal:
+            raise ParameterError(self.refusal)
+
+
 def _recalibration(args, calibrated, robot, model, report, recordings, configurations) -> tuple:
-    """(report, ``Recalibration``) of ``--apply``: the model the report's "after" describes
+    """(report, :class:`ApplyRefit`) of ``--apply``: the model the report's "after" describes
     (``DiagnosisReport.applied``) judged by the never-worse gate, and the report whose "after" is the model written
-    (``with_written_after``); a refusal of the findings (a ``ParameterError`` in place of the result, raised once the
-    report is out) names the model and the output."""
+    (``with_written_after``); or the report as it is and the refit's refusal of the findings."""
     import warnings
 
     from identification.calibration.lugre_recordings import LuGreWarning
@@ -384,7 +399,7 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
             result = recalibrate(calibrated, robot, model, report, *recordings, robot_source=None,
                                  configurations=configurations, applied=report.applied)  # fmt: skip
     except ParameterError as exc:  # name the input: the model the findings were to be applied to; after the report
-        return report, ParameterError(apply_refusal(exc, args.robot, args.apply))
+        return report, ApplyRefit(refusal=apply_refusal(exc, args.robot, args.apply))
     for message in dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, LuGreWarning)):
         print(f"psdm diagnose: warning: {message}", file=sys.stderr)
     for w in caught:  # the others as they were
@@ -392,16 +407,16 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     validation = recordings[1]
     kt = None if validation.tau is not None or robot.drives is None else [d.kt for d in robot.drives]
-    return with_written_after(report, result, model, validation, kt), result
+    return with_written_after(report, result, model, validation, kt), ApplyRefit(result)
 
 
-def _apply(args, calibrated, robot, result, out, payload, report) -> int:
-    """Gate on consistency, write the new model, show before and after (``result``: ``_recalibration``'s, None
-    without a finding); the new file's training recordings are those its refit trained on (``report``'s)."""
+def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> int:
+    """Gate on consistency, write the new model, show before and after (``refit``: ``_recalibration``'s); the new
+    file's training recordings are those its refit trained on (``report``'s)."""
     from identification.calibration.recalibrate import consistency_failure
 
-    if isinstance(result, ParameterError):  # the findings refused (``_recalibration``), said after the report
-        raise result
+    refit.raise_refusal()  # the findings refused: said now that the report is out
+    result = refit.result
     if result is None:
         print(f"psdm diagnose: nothing to apply: no finding; {args.apply!r} was not written.", file=sys.stderr)
         if payload is not None:

@@ -224,7 +224,8 @@ def test_a_lugre_models_bristle_state_is_carried_along_the_corrected_positions(d
 @pytest.mark.slow
 def test_diagnose_apply_refuses_load_dependent_friction_on_a_lugre_model(delay_loop, monkeypatch, capsys):
     """``psdm diagnose LUGRE.json --apply NEW.json`` with a load-dependent friction finding (the report given by a
-    stand-in of the diagnosis): exit 2, one line naming the model file and the fix, no traceback, nothing written."""
+    stand-in of the diagnosis): the report printed, then exit 2, one line naming the model file and the fix, no
+    traceback, nothing written."""
     from psdm_casadi.cli import main
 
     folder, valid = delay_loop
@@ -235,7 +236,9 @@ def test_diagnose_apply_refuses_load_dependent_friction_on_a_lugre_model(delay_l
             str(out)]  # fmt: skip
     capsys.readouterr()
     assert main(argv) == 2
-    error = capsys.readouterr().err
+    captured = capsys.readouterr()
+    error = captured.err
+    assert candidate.label in captured.out  # the report says what was found, though it cannot be applied
     assert str(folder / "model.json") in error and candidate.label in error, error
     assert "--friction stribeck" in error and "Nothing was written" in error, error
     assert "Traceback" not in error and not out.exists()
