@@ -13,7 +13,7 @@ model keeps on each (``FrictionDrift.kept``):
   it is now.
 
 Before the fit, each drifting joint's torque in each training recording is moved by the check's friction difference
-``D_j(qd) (b_r - b_kept)`` (its prepared motion's, interpolated onto the recording's samples; a current by ``1 / kt``):
+``D_j(qd) (b_r - b_kept)`` (``drift_correction``, which the model file records so that a refit repeats it):
 the shared fit then sees one friction per joint, the kept one, and the rigid body the per-recording fit found, not a
 compromise that absorbs the drift. ``mode`` ``"report"`` names the drift and fits as before; ``"off"`` skips the check.
 """
@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from identification.calibration.drift_correction import DriftCorrection, JointShift
 from identification.calibration.friction_drift import DriftCheck, check_friction_drift, finite_list, recording_names
 from identification.calibration.temperature_law import TemperatureLaw, temperature_law
 from identification.calibration.trajectory_data import drive_columns, prepare_recording
@@ -78,13 +79,15 @@ class FrictionDrift:
 
     ``check`` the per-recording fit (``friction_drift``); ``kept`` the friction the model keeps on each drifting
     joint (``KeptFriction``); ``temperatures`` each training recording's logged mean temperature per joint (empty:
-    none logged); ``corrected`` whether the fit saw the torques moved to the kept friction (``mode`` ``"auto"``)."""
+    none logged); ``corrected`` whether the fit saw the torques moved to the kept friction (``mode`` ``"auto"``) by
+    ``correction`` (``drift_correction``: what a refit of the model file repeats; None without a named drift)."""
 
     mode: str = "auto"
     check: DriftCheck = field(default_factory=DriftCheck)
     kept: tuple = ()
     temperatures: tuple = ()
     corrected: bool = False
+    correction: DriftCorrection | None = None
 
     @property
     def named(self) -> bool:
@@ -136,6 +139,7 @@ class FrictionDrift:
             "joints": [f.to_dict(names) for f in self.check.joints],
             "kept": [_kept_dict(k, self.check) for k in self.kept],
             "corrected": self.corrected,
+            "correction": None if self.correction is None else self.correction.to_dict(),
             "next_step": NEXT_STEP if self.named else "",
         }
 
@@ -167,10 +171,10 @@ def judge_friction_drift(robot, model, recordings, fit, validation=(), configura
     rmse = _held_out_rmse(model, check, validation, kt, fit)
     target = np.mean(held_out, axis=0) if _all_logged(held_out, len(validation)) and validation else None
     kept = tuple(_kept(friction, k, check, rmse, logged, target) for k, friction in enumerate(check.drifting))
-    drift = FrictionDrift(mode, check, kept, logged, corrected=mode == "auto")
+    drift = FrictionDrift(mode, check, kept, logged, corrected=mode == "auto", correction=_correction(check, kept))
     if mode != "auto":
         return recordings, drift
-    return [_moved(raw, k, check, kept, kt) for k, raw in enumerate(recordings)], drift
+    return [drift.correction.moved(raw, k, kt, check.motions[k]) for k, raw in enumerate(recordings)], drift
 
 
 def _all_logged(temperatures, count: int) -> bool:
@@ -193,6 +197,17 @@ def _kept(friction, k: int, check: DriftCheck, rmse, logged, target) -> KeptFric
         best = int(np.argmin(held))
         return KeptFriction(j, friction.values[best], names[best], "held-out", held)
     return KeptFriction(j, friction.values[present[-1]], names[present[-1]], "latest")
+
+
+def _correction(check: DriftCheck, kept) -> DriftCorrection:
+    """The correction to the ``kept`` friction in the check's shape and preparation (``drift_correction``)."""
+    terms, _, velocity, vs, dv = check.shape
+    own = {f.joint: f.values for f in check.drifting}
+    joints = tuple(JointShift(k.joint, next(f.names for f in check.drifting if f.joint == k.joint), own[k.joint],
+                              np.asarray(k.values, dtype=float)) for k in kept)  # fmt: skip
+    stribeck = None if vs is None or "fs" not in terms else tuple(map(float, vs))  # as ``drive_columns`` reads it
+    return DriftCorrection(check.recordings, joints, float(velocity), stribeck,
+                           None if dv is None else tuple(map(float, dv)), *check.preparation)  # fmt: skip
 
 
 def _friction(check: DriftCheck, qd, qdd) -> np.ndarray:
@@ -225,21 +240,3 @@ def _held_out_rmse(model, check: DriftCheck, validation, kt, fit):
     if not all(counts):
         return None
     return [np.sqrt(s / c) for s, c in zip(sums, counts)]
-
-
-def _moved(raw, index: int, check: DriftCheck, kept, kt):
-    """``raw``, the training recording ``index``, with each drifting joint's torque moved by its friction difference
-    to the kept recording's (along its prepared motion, ``DriftCheck.motions``), in its own signal (a current over
-    ``kt``)."""
-    t, qd, qdd = check.motions[index]
-    drive = _friction(check, qd, qdd)
-    delta = np.zeros((np.asarray(raw.t).size, raw.n_dof))
-    for keep in kept:
-        own = next(f for f in check.drifting if f.joint == keep.joint).values[index]
-        if not np.all(np.isfinite(own)):
-            continue  # a recording that does not measure this joint's torque
-        change = drive[:, keep.joint, check.layout["per_joint"][keep.joint]] @ (own - keep.values)
-        delta[:, keep.joint] = np.interp(raw.t, t, change)
-    if raw.tau is not None:
-        return raw.with_tau(raw.tau - delta)
-    return raw.with_signals(current=raw.current - delta / np.asarray(kt, dtype=float))

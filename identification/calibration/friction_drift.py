@@ -20,7 +20,7 @@ on the recordings as the fit prepares them (known payloads taken off):
    speeds both reach (a shape fitted on a faster motion extrapolates differently, which is no drift).
 
 A named drift decides the model's friction (``drift_choice``), and the training torques of the drifting joints are
-moved to it before the fit (``drift_choice.corrected_recordings``), so the rigid body is fitted beside each recording's
+moved to it before the fit (``drift_correction``), so the rigid body is fitted beside each recording's
 own friction and the drift does not leak into the inertial parameters.
 """
 
@@ -120,7 +120,7 @@ class DriftCheck:
     order of ``recordings``), ``x`` the recording-level estimate over ``names`` (rigid body first), the data the
     choice of the kept friction needs (``layout``: the friction columns' indices per joint; ``shape``: the drive
     columns' arguments; ``motions``: each prepared recording's ``(t, qd, qdd)``), and ``reason`` where it was not
-    checked."""
+    checked; ``preparation`` the ``(cutoff [Hz], edge periods)`` the motions were prepared with."""
 
     recordings: tuple = ()
     joints: tuple = ()
@@ -130,6 +130,7 @@ class DriftCheck:
     shape: tuple = ()
     motions: tuple = ()
     reason: str = ""
+    preparation: tuple = (None, 0.0)
 
     @property
     def drifting(self) -> tuple:
@@ -287,7 +288,8 @@ def check_friction_drift(robot, model, recordings, fit, configurations=None) -> 
                       layout={"per_joint": per_joint, "shared": shared, "friction": friction, "start": len(keep),
                               "n_base": model.n_base, "drive_names": drive_names},
                       shape=(fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit)),
-                      motions=tuple((r.t, r.qd, r.qdd) for r in prepared))  # fmt: skip
+                      motions=tuple((r.t, r.qd, r.qdd) for r in prepared),
+                      preparation=(options.cutoff_hz, options.edge_periods))  # fmt: skip
 
 
 def _common_grams(prepared, fit, per_joint) -> list:

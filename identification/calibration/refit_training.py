@@ -19,7 +19,9 @@ as the same samples (the part identify trained on, cut into a file of its own): 
 recording that is gone, changed since identify, or reads otherwise is left out and named with the fix; the refit goes
 on with the others. Each recording is read once and held once (the report keeps references, not copies). Where
 identify moved the training torques of joints whose friction drifted between the recordings to the friction it kept
-(``drift_choice``), the files do not hold what it trained on: the refit trains on ``--train`` alone and says why.
+(``drift_choice``), the files do not hold what it trained on: the refit repeats that correction on each of them from
+what the model file records (``drift_correction``, ``identification.friction_drift.correction``) and says so; a file
+written before the correction was recorded cannot repeat it, and its refit trains on ``--train`` alone and says why.
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.drift_correction import DriftCorrection
 from identification.calibration.payload_check import without_load
 from identification.calibration.payload_fit import stated_payload
 from identification.calibration.recording_provenance import recording_provenance
@@ -79,6 +82,11 @@ class RefitTraining:
         the written model's training recordings.
     missing : tuple of MissingRecording
         The file's training recordings left out.
+    note : str
+        How the refit handled a friction drift identify corrected (``drift_correction``).
+    friction_drift : dict or None
+        The model file's ``identification.friction_drift`` where the refit repeated its correction: the written
+        model, trained on the same corrected torques, carries it, so that its own refit repeats it too.
     """
 
     recordings: tuple
@@ -86,6 +94,7 @@ class RefitTraining:
     entries: tuple
     missing: tuple = ()
     note: str = ""
+    friction_drift: dict | None = None
 
     def sentence(self) -> str:
         """What the refit trained on, and what it could not find (or why it left the file's recordings out)."""
@@ -123,8 +132,8 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
     entries = [e for e in ((document.get("provenance") or {}).get("recordings")) or [] if isinstance(e, dict)]
     own = _digest(train_path)
     out = training_alone(train, train_path)
-    moved = _drift_moved(document)
-    if moved:  # identify trained on torques the files do not hold: the refit cannot repeat its training set
+    correction, moved = _drift_correction(document)
+    if moved:  # identify trained on torques the files do not hold, and the file does not say how to repeat it
         return RefitTraining(out.recordings, out.sources, out.entries, note=moved)
     recordings, sources, kept, missing = [train], list(out.sources), list(out.entries), []
     for entry in entries:
@@ -147,20 +156,50 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
         recordings.append(recording)
         sources.append(path)
         kept.append(entry)
-    return RefitTraining(tuple(recordings), tuple(sources), tuple(kept), tuple(missing))
+    note, drift = "", None
+    if correction is not None:
+        recordings, note = _corrected(correction, recordings, kept, robot, kept[0] is not out.entries[0])
+        drift = document["identification"]["friction_drift"]
+    return RefitTraining(tuple(recordings), tuple(sources), tuple(kept), tuple(missing), note, drift)
 
 
-def _drift_moved(document) -> str:
-    """Why the file's other recordings are left out ("": they are not) where identify moved the drifting joints'
-    training torques to the friction it kept (``drift_choice``, ``identification.friction_drift.corrected``): read
-    again from their files, they would bring the drift back into the refit."""
+def _drift_correction(document) -> tuple:
+    """``(DriftCorrection or None, why the file's other recordings are left out)`` where identify moved the drifting
+    joints' training torques to the friction it kept (``identification.friction_drift.corrected``): the correction the
+    file records, which the refit repeats; a file that records none (written before it was recorded) cannot, and read
+    again raw its recordings would bring the drift back into the refit. ``(None, "")`` without a corrected drift."""
     drift = (document.get("identification") or {}).get("friction_drift") or {}
     named = drift.get("named") or []
     if not (drift.get("corrected") and named):
-        return ""
-    return (f"the model file's other training recordings are left out: identify moved their torques on the joint(s) "
-            f"with friction drift ({', '.join(map(str, named))}) to the friction it kept, which their files do not "
-            "hold, so the refit trains on --train alone")  # fmt: skip
+        return None, ""
+    correction = DriftCorrection.from_dict(drift.get("correction"))
+    if correction is not None:
+        return correction, ""
+    return None, (f"the model file's other training recordings are left out: identify moved their torques on the "
+                  f"joint(s) with friction drift ({', '.join(map(str, named))}) to the friction it kept, and this file "
+                  "(written before identify recorded that correction) does not say how to repeat it, so the refit "
+                  "trains on --train alone; identify again to record it")  # fmt: skip
+
+
+def _corrected(correction: DriftCorrection, recordings, entries, robot, given_own: bool) -> tuple:
+    """``(recordings, note)``: each of the model file's training recordings (``entries`` their provenance entries;
+    ``given_own`` whether the ``--train``, first, is one of them) with identify's drift correction repeated
+    (``drift_correction``); a ``--train`` that is not one of them keeps its own friction, and the note says so."""
+    out, own = [], []
+    for k, (recording, entry) in enumerate(zip(recordings, entries)):
+        index = correction.index(entry.get("name")) if k > 0 or given_own else None
+        if index is None:
+            out.append(recording)
+            continue
+        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        out.append(correction.moved(recording, index, kt))
+        own.append(k)
+    joints = ", ".join(str(s.joint + 1) for s in correction.joints)
+    note = (f"identify's friction drift correction repeated on {len(own)} recording(s): their torques on joint(s) "
+            f"{joints} moved to the friction the model keeps, as identify trained on them")  # fmt: skip
+    if 0 not in own:
+        note += f"; the {GIVEN} is not one of the model file's training recordings and keeps its own friction there"
+    return out, note
 
 
 def _digest(path) -> str | None:

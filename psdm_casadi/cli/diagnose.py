@@ -449,6 +449,8 @@ def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> 
     result.after.document["provenance"].update({} if read is None else {"columns": read})
     if report.refit_training is not None:  # a later refit of the new file finds them again
         result.after.document["provenance"]["recordings"] = [dict(e) for e in report.refit_training.entries]
+        if report.refit_training.friction_drift is not None:  # trained on the same corrected torques: its refit too
+            result.after.document["identification"]["friction_drift"] = report.refit_training.friction_drift
     if args.held_parts:  # the refit trained without them too: validate and diagnose of the new file reuse them
         from identification.data.holdout import holdout_block
 

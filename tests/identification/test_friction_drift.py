@@ -30,7 +30,7 @@ JOINT = 2  # 0-based: joint 3
 NOISE = 0.1  # [N m] the recordings' torque noise
 
 
-def _recording(robot, seed, factor, name, duration=10.0):
+def drift_recording(robot, seed, factor, name, duration=10.0):
     """A recording of the Denso's sine excitation with joint 3's Coulomb and static friction times ``factor``."""
     drives = list(robot.drives)
     drives[JOINT] = replace(drives[JOINT], fc=drives[JOINT].fc * factor, fs=drives[JOINT].fs * factor)
@@ -45,11 +45,11 @@ def _recording(robot, seed, factor, name, duration=10.0):
 def recordings(denso):
     """Cold and warm training recordings, a second cold one (same friction) and held-out ones of either state."""
     return {
-        "cold": _recording(denso, 1, 1.0, "cold.csv"),
-        "cold_again": _recording(denso, 2, 1.0, "cold_again.csv"),
-        "warm": _recording(denso, 2, COULOMB_FACTOR, "warm.csv"),
-        "held_warm": _recording(denso, 3, COULOMB_FACTOR, "held_warm.csv", duration=6.0),
-        "held_cold": _recording(denso, 3, 1.0, "held_cold.csv", duration=6.0),
+        "cold": drift_recording(denso, 1, 1.0, "cold.csv"),
+        "cold_again": drift_recording(denso, 2, 1.0, "cold_again.csv"),
+        "warm": drift_recording(denso, 2, COULOMB_FACTOR, "warm.csv"),
+        "held_warm": drift_recording(denso, 3, COULOMB_FACTOR, "held_warm.csv", duration=6.0),
+        "held_cold": drift_recording(denso, 3, 1.0, "held_cold.csv", duration=6.0),
     }
 
 

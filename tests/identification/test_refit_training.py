@@ -119,9 +119,9 @@ def test_a_training_recording_that_is_gone_is_named_and_the_diagnosis_goes_on(fi
 def test_the_model_s_recordings_are_found_by_content_read_once_and_their_loads_taken_off(files, tmp_path, denso):
     """``refit_training`` directly: the ``--train`` counted once when it is a training recording under another name
     (same content) or the same samples in another file, a recording found beside a moved model file, one whose content
-    changed named as such, the file's recordings left out where identify moved their torques for a friction drift,
-    and the load the model's ``configurations`` block lists for a recording taken off its
-    torque (the same torque ``without_load`` leaves)."""
+    changed named as such, the file's recordings left out where identify moved their torques for a friction drift and
+    the file does not record how (written before it did), and the load the model's ``configurations`` block lists for
+    a recording taken off its torque (the same torque ``without_load`` leaves)."""
     document = json.loads((files / "model.json").read_text())
     for entry in document["provenance"]["recordings"]:
         entry.pop("path")  # a file written before the paths were stored: found beside the model file

@@ -1,0 +1,84 @@
+"""The refit of ``diagnose MODEL --apply`` repeats identify's friction drift correction (``drift_correction``).
+
+Known truth: the virtual Denso, its joint 3 Coulomb and static friction 30 % lower in the second training recording
+(``warm.csv``) than in the first (``cold.csv``), the held-out recording warm. Identify names the drift, keeps the warm
+recording's friction on joint 3 and moves the cold recording's joint-3 torque to it before the fit; the model file
+records that correction. Diagnosed with ``--train cold.csv``, the refit finds ``warm.csv`` beside the file and trains
+on both, the correction repeated from the file (the files hold the raw torques): the model written keeps identify's
+joint-3 friction, where trained on the raw torques it would average the two recordings' friction.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.drift_choice import judge_friction_drift
+from identification.calibration.drift_correction import DriftCorrection
+from identification.calibration.recording_provenance import recording_provenance
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import load_recording, save_recording
+from tests.conftest import DENSO_FILE
+from tests.identification.diagnosis_data import cli_json
+from tests.identification.test_friction_drift import COULOMB_FACTOR, JOINT, drift_recording
+
+#: ``diagnose`` options that keep the run short (no sparse search, no second rigid-body diagnosis).
+QUICK = ("--no-sparse", "--rigid-body", "prior")
+OPTIONS = TrajectoryOptions(friction=("fc", "fs", "fv"))
+
+
+@pytest.fixture(scope="module")
+def identified(tmp_path_factory, denso, denso_model):
+    """``cold.csv``, ``warm.csv``, ``valid.csv`` (warm) and ``model.json`` identified on the first two as identify
+    does with a named drift: the torques moved to the kept friction, then the fit; the drift and its correction in
+    the file. Returns (folder, FrictionDrift, the moved recordings)."""
+    folder = tmp_path_factory.mktemp("refit_drift")
+    for name, seed, factor, duration in (("cold.csv", 1, 1.0, 10.0), ("warm.csv", 2, COULOMB_FACTOR, 10.0),
+                                         ("valid.csv", 3, COULOMB_FACTOR, 6.0)):  # fmt: skip
+        save_recording(drift_recording(denso, seed, factor, name, duration), folder / name)
+    paths = [folder / "cold.csv", folder / "warm.csv"]
+    raw = [load_recording(path, denso.n_dof) for path in paths]
+    fit = identify_trajectories(denso, denso_model, raw, OPTIONS)
+    held = [load_recording(folder / "valid.csv", denso.n_dof)]
+    moved, drift = judge_friction_drift(denso, denso_model, raw, fit, held)
+    assert [k.source for k in drift.kept] == ["warm.csv"] and drift.corrected
+    final = identify_trajectories(denso, denso_model, moved, OPTIONS)
+    provenance = [recording_provenance(r, p) for r, p in zip(raw, paths)]
+    calibrated = CalibratedModel.from_fit(denso, denso_model, final, robot_source=DENSO_FILE, recordings=provenance)
+    calibrated.document["identification"]["friction_drift"] = drift.to_dict()
+    calibrated.save(folder / "model.json")
+    return folder, drift, moved
+
+
+def test_the_file_s_correction_read_back_moves_the_raw_files_as_identify_moved_them(identified, denso):
+    """From the file alone (its JSON), each raw recording prepared again: the torques identify trained on."""
+    folder, _, moved = identified
+    document = json.loads((folder / "model.json").read_text())
+    correction = DriftCorrection.from_dict(document["identification"]["friction_drift"]["correction"])
+    for k, name in enumerate(("cold.csv", "warm.csv")):
+        again = correction.moved(load_recording(folder / name, denso.n_dof), correction.index(name))
+        np.testing.assert_allclose(again.tau, moved[k].tau, rtol=1e-9, atol=1e-9)
+    assert not np.allclose(moved[0].tau[:, JOINT], load_recording(folder / "cold.csv", denso.n_dof).tau[:, JOINT])
+    assert DriftCorrection.from_dict(None) is None  # a file written before the correction was recorded
+
+
+def test_diagnose_apply_refits_on_both_recordings_with_the_drift_corrected(identified):
+    folder, drift, _ = identified
+    payload = cli_json(["diagnose", folder / "model.json", "--train", folder / "cold.csv", "--validate",
+                        folder / "valid.csv", "--apply", folder / "new.json", *QUICK, "--json"])  # fmt: skip
+    refit = payload["refit_training"]
+    assert refit["recordings"] == [f"{folder / 'cold.csv'} (--train)", str(folder / "warm.csv")]
+    assert "correction repeated on 2 recording(s)" in refit["note"] and "joint(s) 3" in refit["note"]
+    written = json.loads((folder / "new.json").read_text())
+    original = json.loads((folder / "model.json").read_text())["identification"]["friction_drift"]
+    assert written["identification"]["friction_drift"] == original  # the new file's own refit repeats it too
+    names, values = written["drive"]["names"], written["drive"]["values"]
+    (kept,) = drift.kept
+    for name, value in zip(drift.check.drifting[0].names, kept.values):
+        assert values[names.index(name)] == pytest.approx(value, rel=0.05), name  # raw torques: fc3 18 % off
+    validated = cli_json(["validate", folder / "new.json", folder / "valid.csv", "--json"])
+    rmse = np.array(validated["recordings"][0]["rmse"])
+    np.testing.assert_allclose(payload["rmse_after"], rmse, rtol=0.01)
