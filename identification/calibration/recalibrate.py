@@ -12,11 +12,14 @@ judged on the validation recording as ``psdm validate`` judges it (the same corr
 Then the never-worse gate (``never_worse.keep_not_worse``, its record in ``recalibration.never_worse``): no joint's
 validation RMSE may rise beyond a noise margin (``never_worse.MARGIN_RULE``) where the refits without each training
 block (``refit_folds``) reproduce the rise; otherwise findings are dropped and the model refitted, or
-``Recalibration.refused`` names the joints and findings and nothing may be written.
+``Recalibration.refused`` names the joints and findings and nothing may be written. Of the findings the gate keeps,
+a new reported one (no term in the model: it lowers no joint's validation RMSE there) is dropped too (``no_gain``,
+listed in ``dropped_findings`` with its reason): it would be written changing nothing.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import logging
@@ -28,6 +31,7 @@ from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
 from identification.calibration.finding_value import validation_rmse, without_entry
 from identification.calibration.never_worse import keep_not_worse
+from identification.calibration.no_gain import no_gain_findings
 from identification.calibration.payload_fit import carried_configurations
 from identification.calibration.refit_folds import training_refits
 from identification.friction.models import LUGRE_PARAMETER_NAMES
@@ -120,7 +124,8 @@ def recalibrate(
     refit_on = functools.partial(refit_without, calibrated, robot, model, findings=findings, robot_source=robot_source)
     refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz)
     gate = keep_not_worse(calibrated, (after, fit), refit_on(train), droppable, model, validation, kt, refits)
-    after, fit = gate.after, gate.payload
+    gate, no_gain = _earning(calibrated, gate, entries)
+    after, fit, dropped = gate.after, gate.payload, dropped + no_gain
     rmse_before, rmse_after = gate.comparison.before, gate.comparison.after
     scores = [validation_rmse(after, model, r, kt) for r in validation]
     mass = min_mass_eigenvalue(robot, fit.standard) if fit.checked else float("nan")
@@ -158,6 +163,23 @@ def recalibrate(
             )
     return Recalibration(before=calibrated, after=after, rmse_before=rmse_before, rmse_after=rmse_after, moved=moved,
                          min_mass_eigenvalue=mass, refused=gate.refused)  # fmt: skip
+
+
+def _earning(calibrated, gate, entries) -> tuple:
+    """(gate, records): ``gate`` with the diagnosis's new findings that have no gain in its model taken out of the
+    model written (``no_gain.no_gain_findings``: reported ones, which hold no term, so nothing is refitted), and their
+    records."""
+    if gate.refused is not None:
+        return gate, []
+    new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}
+    records = no_gain_findings(gate.comparison, gate.after, new)
+    if not records:
+        return gate, []
+    labels = {d["label"] for d in records}
+    logger.info("recalibrate: no gain in the written model, dropped: %s", sorted(labels))
+    document = copy.deepcopy(gate.after.document)
+    document["findings"] = [e for e in document["findings"] if e["label"] not in labels]
+    return dataclasses.replace(gate, after=CalibratedModel(document)), records
 
 
 def _moved(before: CalibratedModel, after: CalibratedModel) -> list:

@@ -78,9 +78,12 @@ def with_written_after(report, result, model, validation, kt=None):
     rmse, r2 = _measured_only(report, rmse, r2)
     final = np.asarray(predicted, dtype=float)
     final = final if final.shape == np.shape(report.validation_final) else report.validation_final
-    dropped = [entry["label"] for entry in result.after.document["recalibration"]["never_worse"]["dropped"]]
+    block = result.after.document["recalibration"]
+    dropped = [entry["label"] for entry in block["never_worse"]["dropped"]]
     source = (f"{report.after_source}; then without {', '.join(dropped)}, which the never-worse gate dropped (the "
               "model written)") if dropped else report.after_source  # fmt: skip
+    no_gain = [entry["label"] for entry in block.get("dropped_findings") or [] if entry.get("no_gain")]
+    source += f"; without {', '.join(no_gain)} (no gain in the written model)" if no_gain else ""
     return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
                    validation_final=final)  # fmt: skip
 

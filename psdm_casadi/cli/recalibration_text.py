@@ -25,12 +25,11 @@ APPLY_OFFSET_FIX = (
 
 def adds_nothing(before: dict, after: dict) -> bool:
     """Whether every finding the refit ``after`` (a model-file document) adds to ``before`` (the model file it refits)
-    is only reported, none dropped by the refit's gates: then ``diagnose --apply`` does not write it."""
+    is only reported, or none is left (the refit's gates dropped them all, ``no_gain`` among them): then ``diagnose
+    --apply`` does not write it."""
     carried = {entry["label"] for entry in before.get("findings") or []}
-    block = after.get("recalibration") or {}
-    dropped = block.get("dropped_findings") or (block.get("never_worse") or {}).get("dropped")
     new = [entry for entry in after.get("findings") or [] if entry["label"] not in carried]
-    return not dropped and all(entry["kind"] == "reported" for entry in new)
+    return all(entry["kind"] == "reported" for entry in new)
 
 
 def recalibration_markdown(result, joint_names, path, source=None, trained_on=ALONE) -> str:
@@ -73,8 +72,9 @@ def recalibration_markdown(result, joint_names, path, source=None, trained_on=AL
             continue
         with_it, without = d["validation_rmse_with"], d["validation_rmse_without"]
         pairs = "; ".join(f"joint {j}: {a:.4g} -> {b:.4g}" for j, b, a in zip(d["joints"], with_it, without))
+        refitted = "the model was refitted without it" if d.get("refitted", True) else "not written"
         lines.append(f"- dropped {d['label']}: {d['reason']} (validation RMSE [N m] without -> with it: {pairs}); "
-                     "the model was refitted without it")  # fmt: skip
+                     f"{refitted}")  # fmt: skip
     for entry in result.after.document["findings"]:
         parameters = ", ".join(f"{k} = {v:.4g}" for k, v in entry["parameters"].items())
         absorbed = f"; absorbed: {', '.join(entry['absorbed'])}" if entry.get("absorbed") else ""

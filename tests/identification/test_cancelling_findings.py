@@ -193,8 +193,8 @@ def _cli(argv) -> tuple:
     "joint 2's gravity) it names the balancer by its +2837 N m torque offset on joint 2 and refuses the spring "
     "(held-out joint 2 225.8 -> 366.2 N m), so the model carries only the offset; diagnose MODEL names that offset "
     "again (torque_offset[j2], beside presliding[j4] and [j5]) and --apply drops it as absorbed by the model's own "
-    "offset (zero size), writing the two presliding terms with every joint's validation RMSE unchanged (joint 2 "
-    "225.8 N m)",
+    "offset (zero size) and the two presliding terms as no gain in the written model (joint 4 150.2 -> 150.2 N m, "
+    "joint 5 37.96 -> 37.96), so nothing is left to apply and nothing is written (joint 2 stays 225.8 N m)",
 )
 @pytest.mark.slow  # identify and diagnose --apply of the 1 t arm: ~15 s
 def test_diagnose_apply_does_not_add_a_ripple_that_splits_the_spring_the_model_carries(tmp_path, benchmark_modules):

@@ -1,0 +1,86 @@
+"""Findings that earn their place in the model ``diagnose --apply`` writes (``no_gain``, issue 25 point 3).
+
+Known truth: the virtual Denso with a spring on joint 2 (k = 40 N m/rad) that the model file, identified without it,
+absorbed into its links. The spring lowers joint 2's validation RMSE far beyond the never-worse margin and is written;
+a pre-sliding friction on joint 4 (a state of the friction no model file's torque holds: ``reported``) changes no
+joint's RMSE and is dropped with its numbers, not written, as on the heavy virtual arm where ``--apply`` wrote two of
+them beside every joint's RMSE unchanged.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from identification.calibration.calibrated_model import load_calibrated_model
+from identification.calibration.no_gain import NO_GAIN
+from identification.calibration.recalibrate import recalibrate
+from identification.data.io import load_recording
+from identification.diagnosis.candidates.friction import PreslidingTerm
+from identification.diagnosis.candidates.torque import SpringTerm
+from psdm_casadi.cli import main
+from psdm_casadi.cli.recalibration_text import adds_nothing, recalibration_markdown
+from tests.conftest import DENSO_FILE
+from tests.identification.diagnosis_data import SPRING_K, hidden_spring_files
+
+
+def _report(*terms) -> SimpleNamespace:
+    """A diagnosis report holding one finding per candidate term (what ``recalibrate`` reads of it)."""
+    findings = [SimpleNamespace(label=t.label, effect=t.key, joints=(t.joint,), feature_names=(), coefficients=(0.0,),
+                                parameters={}, rmse_before=[], rmse_after=[]) for t in terms]  # fmt: skip
+    return SimpleNamespace(
+        findings=findings, augmented=SimpleNamespace(terms=list(terms), coefficients=[np.zeros(2) for _ in terms])
+    )
+
+
+@pytest.fixture(scope="module")
+def spring_case(tmp_path_factory, denso, denso_model):
+    """(folder, model file, training and validation recordings) of the hidden spring on joint 2."""
+    folder = hidden_spring_files(tmp_path_factory.mktemp("no_gain"), denso, denso_model, DENSO_FILE, 8.0, 250.0)
+    train, valid = (load_recording(folder / name, denso.n_dof) for name in ("train.csv", "valid.csv"))
+    return folder, load_calibrated_model(folder / "model.json"), train, valid
+
+
+def test_a_finding_that_changes_nothing_is_dropped_and_the_spring_is_written(spring_case, denso, denso_model):
+    folder, calibrated, train, valid = spring_case
+    presliding, beside = PreslidingTerm(joint=3, scale=1e-3), PreslidingTerm(joint=1, scale=1e-3)
+    report = _report(SpringTerm(joint=1), presliding, beside)
+    result = recalibrate(calibrated, denso, denso_model, report, train, valid, robot_source=DENSO_FILE)
+    assert result.refused is None
+    document = result.after.document
+    assert [e["label"] for e in document["findings"]] == ["spring[j2]"]  # neither presliding is written
+    (spring,) = document["findings"]
+    assert spring["parameters"]["k"] == pytest.approx(SPRING_K, rel=0.1)  # the truth
+    gate = document["recalibration"]["never_worse"]
+    before, after, margin = (np.array(gate[k]) for k in ("validation_rmse_before", "validation_rmse_after", "margin"))
+    assert after[1] < before[1] - margin[1]  # the spring lowers joint 2 beyond the margin
+    assert abs(after[3] - before[3]) <= margin[3]  # joint 4 unchanged within it: the presliding gained nothing
+    dropped = {d["label"]: d for d in document["recalibration"]["dropped_findings"]}
+    assert dropped[presliding.label]["reason"].startswith(f"{NO_GAIN}: joint 4: {before[3]:.4g} -> {after[3]:.4g} N m")
+    assert dropped[presliding.label]["validation_rmse_with"] == pytest.approx([after[3]])
+    # on the spring's joint: the spring lowers it, the presliding (no term in the model) adds nothing to that
+    assert dropped[beside.label]["reason"].startswith(f"{NO_GAIN}: joint 2: {before[1]:.4g} -> {after[1]:.4g} N m")
+    assert "joint 2 is lowered by the other findings" in dropped[beside.label]["reason"]
+    assert not any(d["refitted"] for d in dropped.values()) and "spring[j2]" not in dropped
+    assert not adds_nothing(calibrated.document, document)  # the spring is added: written
+    text = recalibration_markdown(result, denso.joint_names, "new.json")
+    assert f"- dropped {presliding.label}: {NO_GAIN}: joint 4" in text and "presliding[j4] (" not in text
+    result.after.save(folder / "new.json")  # the "after" is what psdm validate says of the file written
+    with contextlib.redirect_stdout(io.StringIO()) as out:
+        assert main(["validate", str(folder / "new.json"), str(folder / "valid.csv"), "--json"]) == 0
+    np.testing.assert_allclose(json.loads(out.getvalue())["recordings"][0]["rmse"], result.rmse_after, rtol=1e-6)
+
+
+def test_every_finding_without_gain_leaves_nothing_to_apply(spring_case, denso, denso_model):
+    _, calibrated, train, valid = spring_case
+    result = recalibrate(calibrated, denso, denso_model, _report(PreslidingTerm(joint=3, scale=1e-3)), train, valid,
+                         robot_source=DENSO_FILE)  # fmt: skip
+    document = result.after.document
+    assert document["findings"] == [] and adds_nothing(calibrated.document, document)  # diagnose writes nothing
+    (dropped,) = document["recalibration"]["dropped_findings"]
+    assert dropped["label"] == "presliding[j4]" and dropped["reason"].startswith(NO_GAIN)
