@@ -4,6 +4,7 @@ import contextlib
 import io
 import json
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from identification.virtual.recording_pair import recording_pair as virtual_reco
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
 from psdm_casadi.oracle import PinocchioOracle
+from psdm_casadi.robot import LinkInertia
 from trajopt.experiments import sine_experiment
 
 #: The virtual Denso's hidden cam counterbalance on joint 2 and the payload beside it (issue 25's heavy-arm case).
@@ -141,3 +143,15 @@ def hidden_spring_files(folder: Path, robot, model, robot_source, duration: floa
     fit = identify_trajectories(robot, model, recordings[:1], TrajectoryOptions())
     CalibratedModel.from_fit(robot, model, fit, robot_source=robot_source).save(folder / "model.json")
     return folder
+
+
+def cad_off(robot, rng):
+    """``robot`` with each link's mass, centre of mass and inertia scaled by 1 +- U(0.1, 0.2) (a random sign each): a
+    robot file from CAD whose links are 10-20 % off (the prior of the hidden-payload and hidden-balancer tests)."""
+
+    def factor():
+        return 1.0 + float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.1, 0.2))
+
+    links = tuple(LinkInertia(mass=link.mass * factor(), com=np.asarray(link.com) * factor(),
+                              inertia=np.asarray(link.inertia) * factor()) for link in robot.links)  # fmt: skip
+    return replace(robot, links=links)

@@ -30,23 +30,12 @@ from identification.metrics import rmse
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.robot import LinkInertia
+from tests.identification.diagnosis_data import cad_off
 from trajopt.experiments import sine_experiment
 
 NOISE = 0.1  # torque sensor noise [N m]
 SHARE = 0.5  # of joint 2's gravity torque the hidden spring holds up
 TOOL = xp.Payload(mass=5.0, com=(0.0, 0.0, 0.1))
-
-
-def _cad_off(robot, rng):
-    """``robot`` with each link's mass, centre of mass and inertia scaled by 1 +- U(0.1, 0.2) (a random sign each)."""
-
-    def factor():
-        return 1.0 + float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.1, 0.2))
-
-    links = tuple(LinkInertia(mass=link.mass * factor(), com=np.asarray(link.com) * factor(),
-                              inertia=np.asarray(link.inertia) * factor()) for link in robot.links)  # fmt: skip
-    return replace(robot, links=links)
 
 
 def _recording(truth, extras, seed=7):
@@ -84,7 +73,7 @@ def _diagnosis(robot, model, truth, extras):
 
 @pytest.fixture(scope="module")
 def truth(denso):
-    return _cad_off(denso, np.random.default_rng(7))
+    return cad_off(denso, np.random.default_rng(7))
 
 
 @pytest.fixture(scope="module")

@@ -38,22 +38,11 @@ from identification.diagnosis.rigid_body_choice import recalibration_parts
 from identification.metrics import rmse
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
-from psdm_casadi.robot import LinkInertia
+from tests.identification.diagnosis_data import cad_off
 from trajopt.experiments import sine_experiment
 
 NOISE = 0.1  # torque sensor noise [N m]
 TOOL = xp.Payload(mass=5.0, com=(0.0, 0.0, 0.1))  # the Denso's wrist link weighs 0.8 kg in its robot file
-
-
-def _cad_off(robot, rng):
-    """``robot`` with each link's mass, centre of mass and inertia scaled by 1 +- U(0.1, 0.2) (a random sign each)."""
-
-    def factor():
-        return 1.0 + float(rng.choice([-1.0, 1.0])) * float(rng.uniform(0.1, 0.2))
-
-    links = tuple(LinkInertia(mass=link.mass * factor(), com=np.asarray(link.com) * factor(),
-                              inertia=np.asarray(link.inertia) * factor()) for link in robot.links)  # fmt: skip
-    return replace(robot, links=links)
 
 
 def _identified(robot, model, extras):
@@ -61,7 +50,7 @@ def _identified(robot, model, extras):
     problem, the identified selection and final fit without a candidate (friction and the rigid body identified), its
     options and its enveloped recalibration."""
     rng = np.random.default_rng(7)
-    truth = _cad_off(robot, rng)
+    truth = cad_off(robot, rng)
     reference = sine_experiment(robot, duration=12.0, rng=rng).reference()
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=NOISE, friction=False)
     recording, _ = simulate_recording(truth, reference, options, rng, extras=extras)
