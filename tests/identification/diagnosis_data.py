@@ -14,7 +14,16 @@ from identification.calibration.trajectory_fit import TrajectoryOptions, identif
 from identification.data.io import save_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
 from identification.data.recording import Recording
+from identification.diagnosis.candidates import CandidateLibrary
 from identification.diagnosis.context import build_context, lugre_parameters, simulate_friction
+from identification.diagnosis.diagnose import (
+    DiagnosisOptions,
+    DiagnosisProblem,
+    prepare_problem,
+    refine_terms,
+    select_terms,
+)
+from identification.diagnosis.rigid_body_choice import recalibration_parts
 from identification.virtual import effects as xp
 from identification.virtual.recording_pair import recording_pair as virtual_recording_pair
 from identification.virtual.simulation import SimulationOptions, simulate_recording
@@ -155,3 +164,17 @@ def cad_off(robot, rng):
     links = tuple(LinkInertia(mass=link.mass * factor(), com=np.asarray(link.com) * factor(),
                               inertia=np.asarray(link.inertia) * factor()) for link in robot.links)  # fmt: skip
     return replace(robot, links=links)
+
+
+def identified_diagnosis(robot, model, recording, split: float = 8.0) -> tuple:
+    """The identified diagnosis of ``recording`` without a candidate (Coulomb-viscous friction and the rigid body
+    identified; trained before ``split`` s, validated after): ``(problem, recal, selection, final, options)``, the
+    prior's problem, the recalibration's, its selection and final fit, and the options they ran with."""
+    train, validation = recording.time_slice(-np.inf, split), recording.time_slice(split, np.inf)
+    wide = DiagnosisOptions(friction="coulomb_viscous", cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis",
+                            library=CandidateLibrary(()))  # fmt: skip
+    problem = prepare_problem(robot, model, train, [validation], wide)
+    recal = DiagnosisProblem(**recalibration_parts(problem, model))
+    identified = replace(wide, rigid_body="identified")
+    selection = select_terms(robot, recal, identified)
+    return problem, recal, selection, refine_terms(recal, selection, identified), identified

@@ -9,28 +9,19 @@ stiffness. The same CAD-off arm without the spring, or with a tool at the flange
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 import pytest
 
 from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR
-from identification.diagnosis.candidates import CandidateLibrary
 from identification.diagnosis.diagnose import (
-    DiagnosisOptions,
-    DiagnosisProblem,
     identified_theta,
-    prepare_problem,
-    refine_terms,
-    select_terms,
 )
 from identification.diagnosis.hidden_balancer import BALANCER_MARGIN, hidden_balancers, name_hidden_balancers
-from identification.diagnosis.rigid_body_choice import recalibration_parts
 from identification.metrics import rmse
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.oracle import PinocchioOracle
-from tests.identification.diagnosis_data import cad_off
+from tests.identification.diagnosis_data import cad_off, identified_diagnosis
 from trajopt.experiments import sine_experiment
 
 NOISE = 0.1  # torque sensor noise [N m]
@@ -59,15 +50,7 @@ def _diagnosis(robot, model, truth, extras):
     """The identified diagnosis (no candidate: friction and the rigid body identified) of the CAD-off Denso carrying
     ``extras``: the recalibration's problem, its ``(selection, final)``, the nominal friction's columns and the
     recalibrated base parameters."""
-    recording = _recording(truth, extras)
-    train, validation = recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
-    wide = DiagnosisOptions(friction="coulomb_viscous", cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis",
-                            library=CandidateLibrary(()))  # fmt: skip
-    problem = prepare_problem(robot, model, train, [validation], wide)
-    recal = DiagnosisProblem(**recalibration_parts(problem, model))
-    identified = replace(wide, rigid_body="identified")
-    selection = select_terms(robot, recal, identified)
-    final = refine_terms(recal, selection, identified)
+    problem, recal, selection, final, identified = identified_diagnosis(robot, model, _recording(truth, extras))
     return recal, (selection, final), (problem.base_t, problem.base_v), identified_theta(robot, final, identified)
 
 

@@ -9,21 +9,13 @@ diagnosis, the payload leaves the model's prediction as it was and the links wit
 
 from __future__ import annotations
 
-from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 from identification.calibration.carried_payload import flange_parameter_map
-from identification.diagnosis.candidates import CandidateLibrary, PayloadTerm
-from identification.diagnosis.diagnose import (
-    DiagnosisOptions,
-    DiagnosisProblem,
-    prepare_problem,
-    refine_terms,
-    select_terms,
-)
+from identification.diagnosis.candidates import PayloadTerm
 from identification.diagnosis.envelope_check import EnvelopedFit, EnvelopedRecalibration
 from identification.diagnosis.hidden_payload import (
     MIN_JOINTS,
@@ -34,11 +26,10 @@ from identification.diagnosis.hidden_payload import (
     name_hidden_payload,
 )
 from identification.diagnosis.report_assembly import augmented_model_of
-from identification.diagnosis.rigid_body_choice import recalibration_parts
 from identification.metrics import rmse
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
-from tests.identification.diagnosis_data import cad_off
+from tests.identification.diagnosis_data import cad_off, identified_diagnosis
 from trajopt.experiments import sine_experiment
 
 NOISE = 0.1  # torque sensor noise [N m]
@@ -54,14 +45,7 @@ def _identified(robot, model, extras):
     reference = sine_experiment(robot, duration=12.0, rng=rng).reference()
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=NOISE, friction=False)
     recording, _ = simulate_recording(truth, reference, options, rng, extras=extras)
-    train, validation = recording.time_slice(-np.inf, 8.0), recording.time_slice(8.0, np.inf)
-    wide = DiagnosisOptions(friction="coulomb_viscous", cutoff_hz=15.0, rate_hz=200.0, samples="diagnosis",
-                            library=CandidateLibrary(()))  # fmt: skip
-    problem = prepare_problem(robot, model, train, [validation], wide)
-    recal = DiagnosisProblem(**recalibration_parts(problem, model))
-    identified = replace(wide, rigid_body="identified")
-    selection = select_terms(robot, recal, identified)
-    final = refine_terms(recal, selection, identified)
+    problem, recal, selection, final, identified = identified_diagnosis(robot, model, recording)
     enveloped = EnvelopedRecalibration(robot, model, (recal.ctx_t, recal.ctx_v), (problem.base_t, problem.base_v))
     return (problem, recal), (selection, final), identified, enveloped
 
