@@ -297,7 +297,9 @@ def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluste
     pending task needs on a worker, so on a loaded machine (a long first refit) the baseline and the model could be
     left on the victim alone and die with it, and a task still waiting for them was cancelled, not killed (the flaky
     "cancelled" in place of ``KilledWorker``). With the runner's broadcast copies kept, one worker's death loses no
-    data (asserted from the scheduler's own record of the removal); losing the data is the next test's case.
+    data, unless the broadcast had not reached the other worker yet (a starved machine: the clean-clone CI met it,
+    with the memory manager held); the scheduler's own record of the removal says which, and the test asks of the
+    resubmissions what that route owes. Losing every copy is the next test's case.
     """
     import logging
 
@@ -328,13 +330,20 @@ def test_a_killed_worker_loses_and_duplicates_nothing(tiny_fleet, derive, cluste
     removals = [
         e for _, e in scheduler.get_events(victim) if isinstance(e, dict) and e.get("action") == "remove-worker"
     ]
-    assert removals and all(not e["lost-scattered-tasks"] for e in removals), removals  # its copies were not the last
+    assert removals, "the victim was never removed"
     with History(tmp_path / "h.duckdb") as history:
         failures = history.failures()
     assert (summary.processed, summary.failed) == (18, 0), failures
     assert len(written) == len(set(written)) == 18
     again = [r.getMessage() for r in caplog.records if "submitted again" in r.getMessage()]
-    assert again and all("KilledWorker" in text for text in again), again
+    assert again, "nothing was submitted again"
+    if any(e["lost-scattered-tasks"] for e in removals):
+        # a starved machine: the broadcast had not reached the other worker when the victim died (the scheduler's
+        # record names the scattered data lost), so Dask cancelled the tasks waiting for it; the runner scatters the
+        # data again and submits them again (the next test's route), still every robot-day once
+        assert all("KilledWorker" in text or "cancelled" in text for text in again), again
+    else:
+        assert all("KilledWorker" in text for text in again), again
     assert victim not in cluster.scheduler_info()["workers"]  # the victim did die
     reference = tmp_path / "ref.duckdb"
     run_fleet(fleet, reference, RunOptions(serial=True), derive=derive)
