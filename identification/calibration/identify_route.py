@@ -193,8 +193,8 @@ def identify_recordings(
         fits the rigid body beside each recording's own friction, keeping the friction the data choose; ``"report"``
         names it only; ``"off"`` does not check.
     temperatures : tuple, optional
-        ``(per training recording, per held-out recording)`` the joints' mean temperatures [°C] the files log
-        (``data.temperature.logged_temperatures``; None for a file that logs none): a drift the temperature explains
+        ``(per training recording, per held-out recording)`` the joints' mean temperatures [°C] the recordings log
+        (``data.temperature.logged_temperatures``; None for one that logs none): a drift the temperature explains
         is read along it.
     """
     check_one_way_mode(one_way)

@@ -4,7 +4,8 @@ Grammar: the first line that is neither blank nor a ``#`` comment is the header 
 every later such line is one sample. ``#`` starts a comment anywhere on a line. Fields are separated
 by commas, or by semicolons, tabs or blanks when the header uses those instead. A UTF-8 (Excel) or
 UTF-16 byte-order mark is read; bytes that are not UTF-8 (a Latin-1 degree sign in a comment) are
-replaced, so they only matter where a number is expected.
+replaced, so they only matter where a number is expected. A joint's temperature column may be empty between a
+slow logger's readings (read as NaN, ``temperature``).
 
 The numbers are parsed in one ``np.loadtxt`` call (numpy's C parser). When it refuses a row, the
 file is read again line by line to name the line, the column and the fix; a line number is likewise
@@ -24,6 +25,7 @@ import numpy as np
 
 from identification.data.layout import ColumnLayout, check_standard_header
 from identification.data.table import ColumnTable
+from identification.data.temperature import is_temperature_column
 from identification.data.units import header_unit
 from psdm_casadi.errors import RecordingError
 
@@ -169,6 +171,33 @@ def _decimal_comma_rows(path: Path, encoding: str, header_line: int, delimiter: 
     return data
 
 
+def _sparse_rows(path: Path, encoding: str, header_line: int, delimiter: str | None, names: tuple):
+    """The samples of a file whose joints' temperature columns (``temperature``) are empty between a slow logger's
+    readings, those cells read as NaN (a decimal comma too, as ``_decimal_comma_rows``); None when it is not one."""
+    columns = [k for k, name in enumerate(names) if is_temperature_column(name)]
+    if delimiter is None or not columns:
+        return None
+
+    def filled(line: str) -> str:
+        fields = line.rstrip("\r\n").split("#", 1)[0].split(delimiter)
+        for k in columns:
+            if k < len(fields) and not fields[k].strip():
+                fields[k] = "nan"
+        text = delimiter.join(fields)
+        return text.replace(",", ".") if delimiter in (";", "\t") else text
+
+    with _open_text(path, encoding) as handle:
+        for _ in zip(range(header_line), handle):
+            pass
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", UserWarning)
+                rows = (filled(line) for line in handle if _is_data_line(line) and _content(line))
+                return np.loadtxt(rows, dtype=float, delimiter=delimiter, comments="#", ndmin=2)
+        except ValueError:
+            return None
+
+
 _CLOCK = re.compile(r"^\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?(Z|[+-]\d{2}:?\d{2})?$")
 
 
@@ -295,6 +324,7 @@ def read_csv_table(path, layout: ColumnLayout | None = None) -> ColumnTable:
             data = _load_rows(path, encoding, header_line, delimiter, filtered=True)
         except ValueError as exc:
             data = _decimal_comma_rows(path, encoding, header_line, delimiter)
+            data = _sparse_rows(path, encoding, header_line, delimiter, names) if data is None else data
             data = _clock_time_rows(path, encoding, header_line, delimiter) if data is None else data
             if data is None:
                 _explain_parse_error(path, encoding, header_line, names, delimiter, str(exc))

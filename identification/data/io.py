@@ -2,7 +2,9 @@
 
 Column names (CSV header, NPZ keys, MATLAB variables): ``t`` [s], ``q1..qn`` [rad or m], optional
 ``qd1..qdn`` [rad/s] and ``qdd1..qddn`` [rad/s^2], and joint torques ``tau1..taun`` [N m] and/or
-motor currents ``i1..in`` [A]. CSV lines starting with ``#`` are comments. Time steps may be uneven.
+motor currents ``i1..in`` [A]; optional joint temperatures ``temp1..tempn`` [°C] (or a controller's names,
+``Temp1``, ``joint_temperatures_0``: ``temperature``), NaN where none was logged. CSV lines starting with ``#`` are
+comments. Time steps may be uneven.
 The reader of each format (``csvfile``, ``npzfile``, ``matfile`` with its matrix layout, ``rosbag``
 for the JointState messages of a bag folder or ``.mcap`` file) gives a checked ``ColumnTable``; this
 module makes its columns the signals of a ``Recording``.
@@ -30,6 +32,7 @@ from identification.data.npzfile import read_npz_table
 from identification.data.recording import MIN_SAMPLES, Recording
 from identification.data.rosbag import is_rosbag, read_rosbag_table
 from identification.data.table import ColumnTable
+from identification.data.temperature import TEMPERATURE_PREFIX, temperature_joints
 from identification.data.units import to_si
 from psdm_casadi.errors import RecordingError
 from psdm_casadi.fileio import atomic_write
@@ -49,6 +52,8 @@ def recording_columns(recording: Recording) -> list:
     for signal, prefix in COLUMN_PREFIXES.items():
         if getattr(recording, signal) is not None:
             names += [f"{prefix}{j + 1}" for j in range(recording.n_dof)]
+    if recording.temperature is not None:
+        names += [f"{TEMPERATURE_PREFIX}{j + 1}" for j in range(recording.n_dof)]
     return names
 
 
@@ -68,8 +73,9 @@ def _signal(table: ColumnTable, names: list) -> np.ndarray:
 def _group(table: ColumnTable) -> dict:
     """signal -> {joint number: column name}, refusing a name that is not a recording column."""
     groups = {signal: {} for signal in COLUMN_PREFIXES}
+    temperatures = temperature_joints(table.names)
     for name in table.names:
-        if name == "t":
+        if name == "t" or name in temperatures:
             continue
         match = _COLUMN.match(name)
         if not match:
@@ -206,7 +212,19 @@ def recording_from_table(
         )
     t = time_column(table, sample_rate) if "t" in table.names else sample_times(table.n_samples, sample_rate)
     arrays = {signal: _signal(table, [found[j] for j in range(1, n + 1)]) for signal, found in groups.items() if found}
-    return Recording(t=t, name=source, **arrays)
+    return Recording(t=t, name=source, temperature=_temperatures(table, n), **arrays)
+
+
+def _temperatures(table: ColumnTable, n: int) -> np.ndarray | None:
+    """The joints' temperature columns (``temperature``) as (n_samples, n), NaN for a joint without one; None without
+    any. A column numbered beyond the joints (a controller's own) is not read."""
+    found = {joint: name for name, joint in temperature_joints(table.names).items() if 1 <= joint <= n}
+    if not found:
+        return None
+    out = np.full((table.n_samples, n), np.nan)
+    for joint, name in found.items():
+        out[:, joint - 1] = table.column(name)
+    return out
 
 
 def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnLayout | None = None) -> ColumnTable:
@@ -367,7 +385,7 @@ def save_recording(recording: Recording, path, overwrite: bool = False, comment:
     suffix = path.suffix.lower()
     names = recording_columns(recording)
     blocks = [recording.t[:, None]] + [
-        getattr(recording, s) for s in COLUMN_PREFIXES if getattr(recording, s) is not None
+        getattr(recording, s) for s in (*COLUMN_PREFIXES, "temperature") if getattr(recording, s) is not None
     ]
     data = np.hstack(blocks)
     if suffix == ".csv":

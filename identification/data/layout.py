@@ -9,7 +9,8 @@ Which torque column is the measurement cannot be guessed from its name, so the u
     --columns q=Position,tau=TorqueSm --rate 1000     (``ColumnLayout.parse``)
 
 maps each signal to the prefix of its numbered columns and the time column to ``t`` [s] (a group numbered from 0,
-as UR's RTDE logs ``actual_q_0..5``, is joints 1..n in that order); every other
+as UR's RTDE logs ``actual_q_0..5``, is joints 1..n in that order); the joints' temperature columns
+(``temperature.TEMPERATURE_COLUMN``: ``Temp1..7``) are read as ``temp1..tempn``; every other
 column is left unread, so its NaN or text never blocks the file. ``--rate`` [Hz] (or the robot file's
 ``[recording].sample_rate``) gives the time base when the time column counts samples (0, 1, 2, ...) or
 there is none; a column of times is kept as it is. Without a layout, a file whose
@@ -27,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.data.temperature import TEMPERATURE_PREFIX, temperature_joints
 from identification.data.units import si_factor
 from psdm_casadi.errors import ParameterError, RecordingError
 
@@ -134,6 +136,8 @@ class ColumnLayout:
         for signal in SIGNAL_PREFIXES:  # signals the layout does not name keep their standard columns
             if signal not in chosen:
                 mapping.update({n: n for n in names if re.fullmatch(rf"{signal}[1-9][0-9]*", n)})
+        temperatures = temperature_joints(names)  # kept with the recording: NaN-tolerant, never a fitted signal
+        mapping.update({name: f"{TEMPERATURE_PREFIX}{joint}" for name, joint in temperatures.items()})
         time = self.time or (TIME if TIME in names else _time_named(source, names))
         if time is not None and time not in names:
             raise RecordingError(f"{source}: --columns t={time} names no column of the file. Check the name.")

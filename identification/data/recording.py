@@ -57,6 +57,9 @@ class Recording:
         sensor channel). Their columns are NaN; the fit and the validation leave those joints' rows of this
         recording out and keep the other joints' (``missing_torque.find_missing_torque`` detects them). A
         ``tau`` or ``current`` column that is NaN in every sample is marked so by itself.
+    temperature : array, shape (n_samples, n_dof), optional
+        Each joint's logged temperature [°C] (``data.temperature``): a controller logs it slowly, so NaN between
+        its readings (or throughout, for a joint it does not log) is kept; only an infinite value is refused.
 
     Raises
     ------
@@ -85,6 +88,7 @@ class Recording:
     qdd: np.ndarray | None = None
     name: str = ""
     missing_torque: tuple = ()
+    temperature: np.ndarray | None = None
 
     def __post_init__(self):
         where = f" ({self.name})" if self.name else ""
@@ -135,6 +139,8 @@ class Recording:
             missing = [j for j, _ in self.missing_torque] if key in ("tau", "current") else ()
             _check_finite(key, arr, where, missing)
             object.__setattr__(self, key, _frozen(arr))
+        if self.temperature is not None:
+            object.__setattr__(self, "temperature", _frozen(_checked_temperature(self.temperature, n, n_dof, where)))
         if self.tau is None and self.current is None:
             raise RecordingError(
                 f"Recording needs joint torques or motor currents; got neither{where}. Pass tau= or current=."
@@ -240,13 +246,11 @@ class Recording:
         return self
 
     # --- derived recordings -------------------------------------------------------------------
-    def with_signals(self, *, t=_KEEP, q=_KEEP, tau=_KEEP, current=_KEEP, qd=_KEEP, qdd=_KEEP, name=_KEEP) -> Recording:
+    def with_signals(self, *, t=_KEEP, q=_KEEP, tau=_KEEP, current=_KEEP, qd=_KEEP, qdd=_KEEP, name=_KEEP,
+                     temperature=_KEEP) -> Recording:  # fmt: skip
         """A copy with some signals replaced (pass ``None`` to drop an optional one)."""
-        changes = {
-            key: value
-            for key, value in dict(t=t, q=q, tau=tau, current=current, qd=qd, qdd=qdd, name=name).items()
-            if value is not _KEEP
-        }
+        given = dict(t=t, q=q, tau=tau, current=current, qd=qd, qdd=qdd, name=name, temperature=temperature)
+        changes = {key: value for key, value in given.items() if value is not _KEEP}
         return replace(self, **changes)
 
     def with_tau(self, tau) -> Recording:
@@ -276,6 +280,7 @@ class Recording:
             qdd=pick(self.qdd),
             name=self.name,
             missing_torque=self.missing_torque,
+            temperature=pick(self.temperature),
         )
 
     def split(self, fraction: float = 0.85, n_blocks: int = 1) -> tuple[Recording, Recording]:
@@ -335,3 +340,19 @@ def _check_finite(key: str, arr: np.ndarray, where: str, missing=()) -> None:
             f"at sample {row}{where}. "
             "Remove or interpolate the bad samples."
         )
+
+
+def _checked_temperature(value, n: int, n_dof: int, where: str) -> np.ndarray:
+    """The temperatures as (n_samples, n_dof), NaN kept (readings between slow samples), an infinite value refused."""
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 1 and n_dof == 1:
+        arr = arr[:, None]
+    if arr.shape != (n, n_dof):
+        raise ShapeError(f"Recording.temperature must have shape (n_samples, n_dof) = ({n}, {n_dof}) to match "
+                         f"Recording.q; got {arr.shape}{where}.")  # fmt: skip
+    if np.any(np.isinf(arr)):
+        row, column = (int(k) for k in np.argwhere(np.isinf(arr))[0])
+        raise RecordingError(f"Recording.temperature must be finite or NaN (not logged at that sample); got "
+                             f"{float(arr[row, column])!r} in column temp{column + 1} at sample {row}{where}. "
+                             "Remove the bad readings.")  # fmt: skip
+    return arr

@@ -9,7 +9,8 @@ A logger drops a sample now and then and writes its row as NaN (or leaves its fi
 ``tau``, ...; a column NaN throughout was never logged and is left to the Recording) are taken out, with a
 warning naming the file and their lines (the time steps may be uneven, so the recording stays exact);
 a NaN in one joint's column only, or more rows, is refused, counted, with the fix. A row whose time stamp repeats
-the one before it (a coarse logger clock under jitter) is left out the same way.
+the one before it (a coarse logger clock under jitter) is left out the same way. A joint's temperature column
+(``temperature.TEMPERATURE_COLUMN``) is logged slowly: its NaN are readings not taken and are kept as they are.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from identification.data.temperature import is_temperature_column
 from psdm_casadi.errors import RecordingError
 
 # No joint signal in SI units comes near this (positions in rad or m, torques in N m, currents in A,
@@ -97,13 +99,19 @@ class ColumnTable:
             good = (data.min(axis=0) >= -MAX_MAGNITUDE) & (data.max(axis=0) <= MAX_MAGNITUDE)
             good |= np.isnan(data).all(axis=0)  # a column never logged (NaN throughout): the Recording judges it
             for k in np.flatnonzero(~good):
-                self._refuse_values(names[k], data[:, k])
+                column = data[:, k]
+                if is_temperature_column(names[k]):  # readings between NaN: only what is neither is refused
+                    column = np.where(np.isnan(column), 0.0, column)
+                    if np.all(np.abs(column) <= MAX_MAGNITUDE):
+                        continue
+                self._refuse_values(names[k], column)
 
     def _drop_dropouts(self, names: tuple, data: np.ndarray) -> None:
         """Leave out the rows in which a signal's logged columns are NaN together, when they are at most
         MAX_DROPOUT_FRACTION of the rows (a logger's dropouts); a NaN of one column alone, or more rows, is refused."""
         nan = np.isnan(data)
         logged = ~nan.all(axis=0)  # a column NaN throughout was never logged: the Recording judges it
+        logged &= [not is_temperature_column(name) for name in names]  # NaN between a slow logger's readings
         if not nan[:, logged].any():
             return
         groups: dict = {}

@@ -1,55 +1,47 @@
-"""The joints' temperature a recording file logs beside its signals: what tells a warming gearbox's friction apart.
+"""The joints' temperature a recording logs beside its signals: what tells a warming gearbox's friction apart.
 
 Controllers log each actuator's temperature (the Kinova Gen3's ``Temp1..Temp7``, a KUKA's ``temperature_1..``, a UR's
-``joint_temperatures_0..``). The identification does not fit them; ``calibration.drift_choice`` compares the
-recordings' mean temperatures per joint with their friction, so a drift between recordings that the temperature
-explains is read along it. Only CSV text is searched (other formats give none); a file whose temperature columns
-cannot be read gives none, as the recording itself is read and checked by ``io``.
+``joint_temperatures_0..``). The readers keep such columns with the recording (``Recording.temperature``, NaN where a
+slow logger wrote no reading; ``io`` names them ``temp1..tempn``); the identification does not fit them.
+``calibration.drift_choice`` compares the recordings' mean temperatures per joint with their friction, so a drift
+between recordings that the temperature explains is read along it.
 """
 
 from __future__ import annotations
 
 import re
-from pathlib import Path
 
 import numpy as np
 
-__all__ = ["TEMPERATURE_COLUMN", "logged_temperatures"]
+__all__ = ["TEMPERATURE_COLUMN", "TEMPERATURE_PREFIX", "is_temperature_column", "temperature_joints",
+           "logged_temperatures"]  # fmt: skip
 
 #: A per-joint temperature column: ``Temp3``, ``temperature_3``, ``joint_temperatures_2``, ``T_motor3`` is not one.
 TEMPERATURE_COLUMN = re.compile(r"^(?:joint_?)?temp(?:erature)?s?[ _]?(\d+)$", re.IGNORECASE)
+#: The standard name of joint j's temperature column: ``temp1..tempn`` (what ``save_recording`` writes).
+TEMPERATURE_PREFIX = "temp"
 
 
-def _header(path: Path) -> tuple:
-    """(header line number, its column names, the delimiter) of a CSV file's first non-comment line."""
-    with open(path, encoding="utf-8-sig", errors="replace") as handle:
-        for number, line in enumerate(handle):
-            text = line.split("#", 1)[0].strip()
-            if text:
-                delimiter = next((d for d in (",", ";", "\t") if d in text), None)
-                return number, tuple(name.strip() for name in text.split(delimiter)), delimiter
-    return 0, (), None
+def is_temperature_column(name: str) -> bool:
+    """Whether a column holds a joint's temperature (``TEMPERATURE_COLUMN``): its NaN are readings not taken."""
+    return TEMPERATURE_COLUMN.match(name) is not None
 
 
-def logged_temperatures(path, n_dof: int) -> np.ndarray | None:
-    """Each joint's mean temperature over a CSV recording that logs one temperature column per joint (numbered from 0
-    or 1, in the joints' order), shape (n_dof,); None for another format or without such columns."""
-    path = Path(path)
-    if path.suffix.lower() != ".csv" or not path.is_file():
+def temperature_joints(names) -> dict:
+    """``{column name: joint number (1-based)}`` of the temperature columns among ``names``; a group numbered from 0
+    (``joint_temperatures_0..5``) is joints 1..n in that order."""
+    found = {name: int(m.group(1)) for name in names if (m := TEMPERATURE_COLUMN.match(name))}
+    shift = 1 if 0 in found.values() else 0
+    return {name: number + shift for name, number in found.items()}
+
+
+def logged_temperatures(recording) -> np.ndarray | None:
+    """Each joint's mean logged temperature [°C] over a recording, shape (n_dof,) (its readings' mean, NaN between
+    them left out); None when it logs none, or not for every joint."""
+    temperature = getattr(recording, "temperature", None)
+    if temperature is None or temperature.shape[0] == 0:
         return None
-    try:
-        number, names, delimiter = _header(path)
-    except OSError:
+    logged = ~np.isnan(temperature)
+    if not np.all(logged.any(axis=0)):
         return None
-    found = {int(m.group(1)): k for k, name in enumerate(names) if (m := TEMPERATURE_COLUMN.match(name))}
-    first = 0 if 0 in found else 1
-    columns = [found.get(first + j) for j in range(n_dof)]
-    if any(c is None for c in columns):
-        return None
-    try:
-        values = np.loadtxt(path, delimiter=delimiter, skiprows=number + 1, usecols=columns, comments="#", ndmin=2)
-    except (ValueError, OSError):
-        return None
-    with np.errstate(invalid="ignore"):
-        mean = np.nanmean(values, axis=0) if values.size else np.full(n_dof, np.nan)
-    return mean if np.all(np.isfinite(mean)) else None
+    return np.nansum(temperature, axis=0) / logged.sum(axis=0)

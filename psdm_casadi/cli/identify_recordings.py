@@ -199,7 +199,7 @@ def run(args) -> int:
                                      counterbalance=not args.no_counterbalance, robot_source=args.robot, paths=paths,
                                      one_way=args.one_way_friction, worse_joint=args.worse_joint,
                                      friction_drift=args.friction_drift,
-                                     temperatures=_temperatures(robot, paths, args.validate))  # fmt: skip
+                                     temperatures=_temperatures(recordings, validation))  # fmt: skip
     fit, calibrated = result.fit, result.calibrated
     held_out = not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
@@ -234,12 +234,12 @@ def run(args) -> int:
     return EXIT_OK
 
 
-def _temperatures(robot, paths, validation) -> tuple:
-    """The joints' mean temperatures [°C] each training and held-out recording file logs (``data.temperature``; None
-    for a file that logs none)."""
+def _temperatures(recordings, validation) -> tuple:
+    """The joints' mean temperatures [°C] each training and held-out recording logs (``data.temperature``, read with
+    the recording; None for one that logs none)."""
     from identification.data.temperature import logged_temperatures
 
-    return tuple([logged_temperatures(p, robot.n_dof) for p in group] for group in (paths, validation))
+    return tuple([logged_temperatures(r) for r in group] for group in (recordings, validation))
 
 
 def _complete_document(args, paths, document: dict, parts) -> None:

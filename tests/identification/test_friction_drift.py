@@ -20,6 +20,7 @@ from identification.calibration.friction_drift import MIN_CHANGE, check_friction
 from identification.calibration.identify_route import identify_recordings
 from identification.calibration.temperature_law import temperature_law
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.io import load_recording, save_recording
 from identification.data.temperature import logged_temperatures
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
@@ -172,16 +173,31 @@ def test_a_temperature_law_reads_a_line_within_reach_and_refuses_what_it_does_no
     assert temperature_law(straight, np.full((3, 2), 0.01), [20.0, 30.0, 40.0], 35.0).values[0] == pytest.approx(1.25)
 
 
-def test_the_logged_temperature_columns_of_a_csv_file_are_read_per_joint(tmp_path):
-    """``Temp1..Temp3`` (as the Kinova logs them) give each joint's mean; a file without them, or not CSV, none."""
-    path = tmp_path / "log.csv"
-    rows = np.column_stack([np.arange(4.0), np.zeros((4, 3)), [[30, 40, 50]] * 4 + np.arange(4.0)[:, None]])
-    np.savetxt(path, rows, delimiter=",", header="Time,q1,q2,q3,Temp1,Temp2,Temp3", comments="")
-    np.testing.assert_allclose(logged_temperatures(path, 3), [31.5, 41.5, 51.5])
-    assert logged_temperatures(path, 4) is None
-    plain = tmp_path / "plain.csv"
-    np.savetxt(plain, rows[:, :4], delimiter=",", header="t,q1,q2,q3", comments="")
-    assert logged_temperatures(plain, 3) is None and logged_temperatures(tmp_path / "log.npz", 3) is None
+def test_temperatures_read_with_the_recording_files_decide_as_the_stated_ones(denso, denso_model, recordings,
+                                                                              drift_pair, tmp_path):  # fmt: skip
+    """The cold and warm recordings saved with ``Temp`` columns logged every 100th sample (NaN between) and read back:
+    identify's temperatures of the recordings (``data.temperature``) give the same kept friction, law and report as
+    the temperatures 25 and 35 °C stated by hand."""
+    pair, fit = drift_pair
+
+    def logged(recording, celsius):
+        temperature = np.full((recording.n_samples, denso.n_dof), np.nan)
+        temperature[::100] = celsius
+        path = save_recording(replace(recording, temperature=temperature), tmp_path / recording.name)
+        return load_recording(path, denso.n_dof)
+
+    read = [logged(pair[0], 25.0), logged(pair[1], 35.0)]
+    held = logged(recordings["held_cold"], 35.0)
+    from_files = ([logged_temperatures(r) for r in read], [logged_temperatures(held)])
+    np.testing.assert_allclose(from_files[0][1], 35.0)
+    _, drift = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_cold"]], temperatures=from_files)
+    cold, warm = np.full(denso.n_dof, 25.0), np.full(denso.n_dof, 35.0)
+    _, stated = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_cold"]],
+                                     temperatures=([cold, warm], [warm]))  # fmt: skip
+    assert drift.kept[0].basis == "temperature" and drift.describe() == stated.describe()
+    np.testing.assert_allclose(drift.kept[0].values, stated.kept[0].values, rtol=1e-12)
+    plain = load_recording(save_recording(pair[0], tmp_path / "plain.csv"), denso.n_dof)
+    assert logged_temperatures(plain) is None
 
 
 def test_a_recording_that_does_not_measure_a_joint_is_left_out_of_its_comparison(denso, denso_model, recordings):
