@@ -13,6 +13,7 @@ its refit cannot repeat it (``refit_training`` says so).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,13 +64,26 @@ class DriftCorrection:
             own = shift.own[index]
             if not np.all(np.isfinite(own)):
                 continue  # a recording that does not measure this joint's torque
-            j = shift.joint
-            vs = None if self.stribeck_velocity is None else float(self.stribeck_velocity[j])
-            dv = None if self.viscous_exponent is None else float(self.viscous_exponent[j])
-            columns = [friction_term(name.rstrip("0123456789"), qd[:, j], self.coulomb_velocity, vs, dv)
-                       for name in shift.names]  # fmt: skip
-            out[:, j] = np.column_stack(columns) @ (own - shift.kept)
+            out[:, shift.joint] = self.columns(shift, qd) @ (own - shift.kept)
         return out
+
+    def columns(self, shift: JointShift, qd) -> np.ndarray:
+        """(n_samples, len(shift.names)): the drifting joint's friction columns in the check's shape along the joint
+        velocities ``qd`` (n_samples, n_dof) [rad/s]."""
+        j = shift.joint
+        vs = None if self.stribeck_velocity is None else float(self.stribeck_velocity[j])
+        dv = None if self.viscous_exponent is None else float(self.viscous_exponent[j])
+        qd = np.asarray(qd, dtype=float)
+        return np.column_stack([friction_term(name.rstrip("0123456789"), qd[:, j], self.coulomb_velocity, vs, dv)
+                                for name in shift.names])  # fmt: skip
+
+    def with_recording(self, name: str, own) -> DriftCorrection:
+        """This correction with one more training recording ``name`` whose friction on each drifting joint is
+        ``own`` (one row per ``joints`` entry, as ``JointShift.names``; NaN where it does not measure the joint):
+        a recording identify did not see, its friction fitted beside the model (``new_recording_drift``)."""
+        joints = tuple(dataclasses.replace(s, own=np.vstack([s.own, np.asarray(row, dtype=float)[None, :]]))
+                       for s, row in zip(self.joints, own))  # fmt: skip
+        return dataclasses.replace(self, recordings=(*self.recordings, name), joints=joints)
 
     def moved(self, raw, index: int, kt=None, motion=None):
         """``raw``, the training recording ``index``, with each drifting joint's torque moved to the kept friction (in

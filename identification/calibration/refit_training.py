@@ -1,27 +1,31 @@
 """The recordings a refit of a model file trains on: the file's own training recordings, found again, and ``--train``.
 
-model file (its ``provenance.recordings``, ``configurations`` and ``identification.holdout``) + the diagnosis's
-training recording -> ``RefitTraining`` (the raw recordings, each one's load taken off, the ``--train`` first; the ones
-not found, why, and the fix).
+model file (its ``provenance.recordings``, ``configurations`` and ``identification.holdout``) + the diagnosis's training
+recording -> ``RefitTraining`` (the raw recordings, each one's load taken off, the ``--train`` first; the ones not
+found, why, and the fix).
 
 ``diagnose MODEL --apply`` identifies the model again with its findings (``applied_model``), and the diagnosis reports
 that model as its "after". Trained on ``--train`` alone, that refit forgot what the model's other training recordings
-taught it (a parameter only another recording excites, a payload recording that separates a link's mass from the
-load) and wrote a model worse than the file on the joints they had fixed. So the refit trains on every recording the
-file was identified on, found again on disk: under the name its ``provenance.recordings`` entry gives, at the path
-identify read it from, beside the model file or in the working folder, and recognised by its content
-(``holdout.recording_digest``, the entry's ``sha256``). Each is read as identify read it (the file's column layout; the
-part identify trained on where it held one out, ``data.holdout``), its dead torque channels marked
-(``missing_torque``), and the load the file's ``configurations`` block lists for it (else its sidecar) taken off its
-torque (``payload_check.without_load``, as the diagnosis takes the ``--train``'s off). The ``--train`` recording is
-one of them when its content (or, for an entry without a content hash, its name) is the entry's, or when the two read
-as the same samples (the part identify trained on, cut into a file of its own): counted once. A
-recording that is gone, changed since identify, or reads otherwise is left out and named with the fix; the refit goes
-on with the others. Each recording is read once and held once (the report keeps references, not copies). Where
-identify moved the training torques of joints whose friction drifted between the recordings to the friction it kept
-(``drift_choice``), the files do not hold what it trained on: the refit repeats that correction on each of them from
-what the model file records (``drift_correction``, ``identification.friction_drift.correction``) and says so; a file
-written before the correction was recorded cannot repeat it, and its refit trains on ``--train`` alone and says why.
+taught it (a parameter only another recording excites, a payload recording that separates a link's mass from the load)
+and wrote a model worse than the file on the joints they had fixed. So the refit trains on every recording the file was
+identified on, found again on disk: under the name its ``provenance.recordings`` entry gives, at the path identify read
+it from, beside the model file or in the working folder, and recognised by its content (``holdout.recording_digest``,
+the entry's ``sha256``). Each is read as identify read it (the file's column layout; the part identify trained on where
+it held one out, ``data.holdout``), its dead torque channels marked (``missing_torque``), and the load the file's
+``configurations`` block lists for it (else its sidecar) taken off its torque (``payload_check.without_load``, as the
+diagnosis takes the ``--train``'s off). The ``--train`` recording is one of them when its content (or, for an entry
+without a content hash, its name) is the entry's, or when the two read as the same samples (the part identify trained
+on, cut into a file of its own): counted once. A recording that is gone, changed since identify, or reads otherwise is
+left out and named with the fix; the refit goes on with the others. A user whose recordings moved hands them back as
+further ``--train`` recordings (``diagnose MODEL --train A B``): each that is one of the file's (by content, or the same
+samples) stands for it wherever it lies now; one the file does not list is added, read as the diagnosis reads
+``--train``. Each recording is read once and held once (the report keeps references, not copies). Where identify moved
+the training torques of joints whose friction drifted between the recordings to the friction it kept (``drift_choice``),
+the files do not hold what it trained on: the refit repeats that correction on each of them from what the model file
+records (``drift_correction``, ``identification.friction_drift.correction``) and says so. A recording the file does not
+list has no recorded friction of its own: it is fitted beside the model on the drifting joints (``new_recording_drift``)
+and moved likewise, and the written model's correction lists it. A file written before the correction was recorded
+cannot repeat it, and its refit trains on ``--train`` alone and says why.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.calibration.drift_correction import DriftCorrection
+from identification.calibration.new_recording_drift import new_recording_friction
 from identification.calibration.payload_check import without_load
 from identification.calibration.payload_fit import stated_payload
 from identification.calibration.recording_provenance import recording_provenance
@@ -106,8 +111,10 @@ class RefitTraining:
 
     def short(self) -> str:
         """What the refit trained on, in a few words: ``--train alone``, or the file's recordings with it."""
-        others = len(self.recordings) - 1
-        return "--train alone" if not others else f"--train and {others} training recording(s) of the model file"
+        given = max(1, sum(source.endswith(f"({GIVEN})") for source in self.sources))
+        others = len(self.recordings) - given
+        named = GIVEN if given == 1 else f"the {given} {GIVEN} recordings"
+        return f"{named} alone" if not others else f"{named} and {others} training recording(s) of the model file"
 
     def to_dict(self) -> dict:
         return {"recordings": list(self.sources), "not_found": [m.to_dict() for m in self.missing],
@@ -121,46 +128,91 @@ def training_alone(train, source=None) -> RefitTraining:
     return RefitTraining((train,), (name,), (recording_provenance(train, source),))
 
 
-def refit_training(document, model_path, train, train_path, load, robot, cutoff_hz) -> RefitTraining:
+def refit_training(document, model_path, train, train_path, load, robot, cutoff_hz, more=(), predict=None):
     """The ``RefitTraining`` of the model file ``document`` read from ``model_path`` and the diagnosis's training
     recording ``train`` (raw, its load already taken off) read from ``train_path`` (module docstring).
 
     ``load(path) -> Recording`` reads a recording as identify read the file's (joint side, timed, its column layout);
-    ``robot`` (the model's) and ``cutoff_hz`` (its preparation's) take a load off (``without_load``). Never raises for
-    a recording it cannot use: that one is in ``RefitTraining.missing``.
+    ``robot`` (the model's) and ``cutoff_hz`` (its preparation's) take a load off (``without_load``). ``more``: the
+    other ``--train`` recordings as ``(path, raw recording read with load)`` (``diagnose MODEL --train A B``): one
+    that is a training recording of the file (by content, or the same samples) is used in its place, read as identify
+    read it, wherever it lies now; another is added, read as the diagnosis reads ``--train`` (its dead channels
+    marked, the load its sidecar states taken off), and where identify corrected a friction drift its friction is
+    fitted beside the model (``predict(recording) -> (prepared, predicted)``, ``CalibratedModel.predict_recording``;
+    ``new_recording_drift``) and moved to the kept friction as the file's recordings are. A recording given twice
+    counts once. Never raises for a recording it cannot use: that one is in ``RefitTraining.missing``.
     """
     entries = [e for e in ((document.get("provenance") or {}).get("recordings")) or [] if isinstance(e, dict)]
     own = _digest(train_path)
     out = training_alone(train, train_path)
     correction, moved = _drift_correction(document)
     if moved:  # identify trained on torques the files do not hold, and the file does not say how to repeat it
-        return RefitTraining(out.recordings, out.sources, out.entries, note=moved)
-    recordings, sources, kept, missing = [train], list(out.sources), list(out.entries), []
+        extra = f"; the other {GIVEN} recording(s) are left out as well" if more else ""
+        return RefitTraining(out.recordings, out.sources, out.entries, note=moved + extra)
+    given, twice = _given(more, train, own)
+    recordings, sources, kept, missing, added = [train], list(out.sources), list(out.entries), [], [True]
     for entry in entries:
-        if _is_given(entry, train, own):
-            kept[0] = entry  # the file's own entry: the written model names it as identify did
+        if _is_given(entry, train, own):  # the file's own entry: the written model names it as identify did
+            kept[0], added[0] = dict(entry, **({"path": os.path.abspath(train_path)} if own else {})), False
             continue
+        handed = next((g for g in given if _is_given(entry, g[1], g[2])), None)
         recording, path, looked = None, None, ()
         try:
-            path, reason, looked = _find(entry, document, model_path)
-            if path is not None:
-                recording, reason = _read(path, entry, document, load, robot, cutoff_hz)
+            if handed is not None:  # a --train that is this recording: read as identify read it, wherever it is
+                given.remove(handed)
+                path, looked = handed[0], (os.path.abspath(handed[0]),)
+                recording, reason = _read(path, entry, document, lambda _, r=handed[1]: r, robot, cutoff_hz)
+            else:
+                path, reason, looked = _find(entry, document, model_path)
+                if path is not None:
+                    recording, reason = _read(path, entry, document, load, robot, cutoff_hz)
         except (PSDMError, OSError, ValueError) as exc:  # unreadable, a folder in its place, a malformed entry
             reason = f"could not be read again ({(str(exc).splitlines() or [type(exc).__name__])[0]})"
         if recording is None:
             missing.append(MissingRecording(str(entry.get("name")), looked, reason))
             continue
         if _same_motion(recording, train):  # the --train under another file (a part identify trained on, cut out)
-            kept[0] = entry
+            kept[0], added[0] = entry, False
             continue
+        same = next((g for g in given if _same_motion(recording, g[1])), None)
+        if same is not None:  # another --train is this recording's training part, cut into a file of its own
+            given.remove(same)
         recordings.append(recording)
-        sources.append(path)
-        kept.append(entry)
-    note, drift = "", None
+        sources.append(path if handed is None and same is None else f"{(handed or same)[0]} ({GIVEN})")
+        kept.append(dict(entry, path=os.path.abspath(path)))  # where its content is now: a later refit looks there
+        added.append(False)
+    for path, recording, _ in given:  # --train recordings the model file does not list: read as --train is
+        recordings.append(_read_new(path, recording, document, robot, cutoff_hz))
+        sources.append(f"{path} ({GIVEN})")
+        kept.append(recording_provenance(recording, path))
+        added.append(True)
+    note, drift = twice, None
     if correction is not None:
-        recordings, note = _corrected(correction, recordings, kept, robot, kept[0] is not out.entries[0])
-        drift = document["identification"]["friction_drift"]
+        recordings, corrected, drift = _corrected(correction, recordings, kept, robot, added, predict, document)
+        note = "; ".join(filter(None, (corrected, twice)))
     return RefitTraining(tuple(recordings), tuple(sources), tuple(kept), tuple(missing), note, drift)
+
+
+def _given(more, train, digest) -> tuple:
+    """``([path, recording, digest] of each other --train, a note on those given twice)``: one whose content or
+    samples are the first's or an earlier one's counts once."""
+    out, twice = [], []
+    for path, recording in more:
+        own = _digest(path)
+        earlier = [(None, train, digest), *out]
+        same = next((g for g in earlier if (own is not None and own == g[2]) or _same_motion(recording, g[1])), None)
+        if same is not None:
+            twice.append(f"{path} is the same recording as {GIVEN} {same[0] or 'the first'}: counted once")
+            continue
+        out.append([path, recording, own])
+    return out, "; ".join(twice)
+
+
+def _read_new(path, recording, document, robot, cutoff_hz):
+    """A ``--train`` recording the model file does not list, read as the diagnosis reads ``--train``: its dead torque
+    channels marked, the load its sidecar states (a known one, or an unknown one the file identified by name) taken
+    off."""
+    return _without_stated_load(find_missing_torque(recording), stated_configuration(path), document, robot, cutoff_hz)
 
 
 def _drift_correction(document) -> tuple:
@@ -181,25 +233,40 @@ def _drift_correction(document) -> tuple:
                   "trains on --train alone; identify again to record it")  # fmt: skip
 
 
-def _corrected(correction: DriftCorrection, recordings, entries, robot, given_own: bool) -> tuple:
-    """``(recordings, note)``: each of the model file's training recordings (``entries`` their provenance entries;
-    ``given_own`` whether the ``--train``, first, is one of them) with identify's drift correction repeated
-    (``drift_correction``); a ``--train`` that is not one of them keeps its own friction, and the note says so."""
-    out, own = [], []
-    for k, (recording, entry) in enumerate(zip(recordings, entries)):
-        index = correction.index(entry.get("name")) if k > 0 or given_own else None
+def _corrected(correction: DriftCorrection, recordings, entries, robot, added, predict, document) -> tuple:
+    """``(recordings, note, friction_drift)``: each of the model file's training recordings (``entries`` their
+    provenance entries) with identify's drift correction repeated (``drift_correction``); each one the file does not
+    list (``added``) with its friction fitted beside the model (``predict``, ``new_recording_drift``) and moved
+    likewise, or kept as it is where that cannot be done (the note says why). ``friction_drift`` is the file's block
+    for the written model, its correction extended by the added recordings so that its own refit repeats it."""
+    drift = dict(document["identification"]["friction_drift"])
+    out, own, fitted, raw, extended = [], [], [], [], correction
+    for recording, entry, new in zip(recordings, entries, added):
+        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        use, index, why = correction, correction.index(entry.get("name")), ""
+        if new:
+            rows, why = (None, "no model to fit it beside") if predict is None else new_recording_friction(
+                correction, document.get("drive") or {}, *predict(recording))  # fmt: skip
+            if rows is not None:
+                use = correction.with_recording(str(entry.get("name")), rows)
+                index, extended = len(use.recordings) - 1, extended.with_recording(str(entry.get("name")), rows)
         if index is None:
             out.append(recording)
+            raw.append(f"{entry.get('name')}" + (f" ({why})" if why else ""))
             continue
-        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-        out.append(correction.moved(recording, index, kt))
-        own.append(k)
+        out.append(use.moved(recording, index, kt))
+        (fitted if new else own).append(str(entry.get("name")))
+    if extended is not correction and len(set(extended.recordings)) == len(extended.recordings):  # told apart
+        drift["correction"] = extended.to_dict()
     joints = ", ".join(str(s.joint + 1) for s in correction.joints)
-    note = (f"identify's friction drift correction repeated on {len(own)} recording(s): their torques on joint(s) "
-            f"{joints} moved to the friction the model keeps, as identify trained on them")  # fmt: skip
-    if 0 not in own:
-        note += f"; the {GIVEN} is not one of the model file's training recordings and keeps its own friction there"
-    return out, note
+    note = (f"identify's friction drift correction repeated on {len(own) + len(fitted)} recording(s): their torques "
+            f"on joint(s) {joints} moved to the friction the model keeps, as identify trained on them")  # fmt: skip
+    if fitted:
+        note += (f"; the friction of {', '.join(fitted)} (not one of the model file's training recordings) fitted "
+                 "beside the model on those joints first")  # fmt: skip
+    if raw:
+        note += f"; {', '.join(raw)} keep(s) its own friction there (not one of identify's training recordings)"
+    return out, note, drift
 
 
 def _digest(path) -> str | None:
@@ -253,13 +320,17 @@ def _read(path, entry, document, load, robot, cutoff_hz) -> tuple:
     if expected is not None and recording.n_samples != int(expected):
         return None, (f"reads as {recording.n_samples} samples, but the model was identified on {int(expected)} "
                       "(read with other options? the same --columns, --rate and --topic as identify)")  # fmt: skip
-    recording = find_missing_torque(recording)
     configuration = _configuration(document, str(entry.get("name")), path)
+    return _without_stated_load(find_missing_torque(recording), configuration, document, robot, cutoff_hz), ""
+
+
+def _without_stated_load(recording, configuration, document, robot, cutoff_hz):
+    """``recording`` with the load ``configuration`` states taken off its torque (``without_load``), if any."""
     body, _ = stated_payload(configuration, document.get("configurations") or [], "the model file")
     if body is None:
-        return recording, ""
+        return recording
     kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-    return without_load(robot, recording, body, kt, cutoff_hz), ""
+    return without_load(robot, recording, body, kt, cutoff_hz)
 
 
 def _configuration(document, name: str, path) -> PayloadConfiguration:

@@ -202,15 +202,22 @@ def _reader(loaded: LoadedModel):
     return lambda path: load_robot_recording(path, robot, None, layout)
 
 
-def file_refit(loaded: LoadedModel, model_path, train, train_path, load=None):
+def file_refit(loaded: LoadedModel, model_path, train, train_path, load=None, more=()):
     """``refit()`` of ``applied_after.with_applied_after`` for the model file ``loaded`` read from ``model_path``: its
     own training recordings found again and read with ``load`` (default: as identify read them), their loads taken
-    off, and the raw ``train`` recording read from ``train_path`` (``refit_training``); called only when a finding is
-    to be applied."""
+    off, the raw ``train`` recording read from ``train_path`` and the other ``--train`` recordings ``more`` (``(path,
+    raw recording)``), a recording the file does not list fitted beside the model where identify corrected a friction
+    drift (``refit_training``); called only when a finding is to be applied."""
     calibrated = loaded.calibrated
     robot, cutoff = calibrated_robot(calibrated, loaded.robot), model_preparation(calibrated.document).cutoff_hz
     load = load or _reader(loaded)
-    return lambda: refit_training(calibrated.document, model_path, train, train_path, load, robot, cutoff)
+
+    def predict(recording):
+        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        return calibrated.predict_recording(loaded.model, recording, kt)
+
+    return lambda: refit_training(calibrated.document, model_path, train, train_path, load, robot, cutoff, more,
+                                  predict)  # fmt: skip
 
 
 def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, name=None, refit=None) -> tuple:

@@ -20,6 +20,7 @@ from psdm_casadi.cli.checks import (
     model_layout,
     output_folder,
 )
+from psdm_casadi.cli.diagnose_train import TRAIN_HELP, read_more_training, training_paths
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.cli.recalibration_text import ALONE, adds_nothing, apply_refusal, recalibration_markdown
@@ -42,7 +43,7 @@ DESCRIPTION = (
     "file's: its kinematics, identified inertia (rigid body fixed) and its friction shape (Coulomb + "
     "viscous, Stribeck with its vs, or LuGre with its bristle dynamics; amplitudes refitted); "
     "--apply NEW.json then identifies the model again on its own training recordings (found again by their "
-    "content) and --train with the findings' terms fitted jointly "
+    "content) and every --train with the findings' terms fitted jointly "
     "(signal findings such as a delay correct the recordings; a LuGre model is identified again as 'psdm "
     "identify --friction lugre' does, and takes torque findings only), judges it on --validate as "
     "'psdm validate' does, shows the calibration before and after, and writes the calibrated model with its "
@@ -128,22 +129,6 @@ def register(subparsers) -> None:
     p.set_defaults(handler=_run_diagnose)
 
 
-TRAIN_HELP = "one training recording (.csv, .npz, .mat, or a ROS 2 bag): the diagnosis judges one continuous run"
-
-
-def _one_training_recording(paths: list) -> str:
-    """The one ``--train`` recording; several (as ``identify --data`` takes) are refused naming the fix, rather than
-    argparse's "unrecognized arguments" for the second."""
-    if len(paths) == 1:
-        return paths[0]
-    names = ", ".join(Path(p).name for p in paths)
-    raise ParameterError(
-        f"--train takes one recording; got {len(paths)} ({names}). The diagnosis fits one continuous run (a drift, a "
-        f"delay, a warm-up are judged along its time): pass the longest or most exciting one, e.g. --train "
-        f"{paths[-1]}, and give the others to --validate if they were not used to identify the model."
-    )
-
-
 def _held_out(validations) -> list:
     """The validation recordings (``--validate`` and the held-out parts); none is refused naming why and how to have
     one, rather than argparse's "the following arguments are required" (a user with one recording met only that)."""
@@ -165,7 +150,7 @@ def _run_diagnose(args) -> int:
     from identification.diagnosis.diagnose import DiagnosisOptions
     from identification.diagnosis.model_file import diagnose_model_prior
 
-    args.train, args.validate = _one_training_recording(args.train), list(args.validate or ())
+    (args.train, args.more_train), args.validate = training_paths(args), list(args.validate or ())
     fraction = _fraction(args)
     check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
     check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
@@ -188,7 +173,7 @@ def _run_diagnose(args) -> int:
     # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
     train, *validations = (find_missing_torque(r) for r in (train, *validations))
     validation = validations[0]
-    for warning in not_held_out([args.train], given, "--train"):
+    for warning in not_held_out([args.train, *args.more_train], given, "--train"):
         print(f"psdm diagnose: warning: {warning}", file=sys.stderr)
     preparation = _preparation(args, calibrated, train)
     if loaded is None:  # a torque constant the known payload finds off: the currents read with its value
@@ -253,7 +238,8 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     """(training recording, validation recordings, the ``--validate`` paths, the held-out parts as (path, recording,
     ``HeldOutPart``)): joint side, timed (the robot file's [recording]); ``--train`` cut at ``--holdout`` or where the
     model file cut it, its held-out part (and without ``--validate`` the model's others) after the ``--validate``
-    recordings. ``args.validate`` then names every validation recording's file, ``args.held_parts`` the parts."""
+    recordings. ``args.validate`` then names every validation recording's file, ``args.held_parts`` the parts,
+    ``args.more`` the other ``--train`` recordings as (path, raw recording)."""
     from identification.data.holdout import diagnose_parts
     from identification.data.robot_recordings import load_robot_recording
 
@@ -265,19 +251,21 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     train, held = diagnose_parts(args.train, load(args.train), document, fraction, load, bool(given), args.robot)
     validations = _held_out([*map(load, given), *(recording for _, recording, _ in held)])
     args.validate, args.held_parts = [*given, *(path for path, _, _ in held)], [part for _, _, part in held]
+    args.more = read_more_training(args.more_train, load)  # the refit's other --train recordings, read once
     return train, validations, given, held
 
 
 def _file_refit(args, loaded, robot, layout, train):
     """``model_file.file_refit``: the recordings the model with the findings trains on, the model file's own read as
-    ``--train`` is (``refit_training``) and ``train``, found when a finding is applied."""
+    ``--train`` is (``refit_training``), ``train`` and the other ``--train`` recordings, found when a finding is
+    applied."""
     from identification.data.robot_recordings import load_robot_recording
     from identification.diagnosis.model_file import file_refit
 
     def load(path):
         return load_robot_recording(path, robot, args.topic, layout)
 
-    return file_refit(loaded, args.robot, train, args.train, load)
+    return file_refit(loaded, args.robot, train, args.train, load, args.more)
 
 
 def _robot_report(args, robot, train, validations, options, scaled: str = ""):
@@ -479,4 +467,5 @@ def _out_folder(args):
 
 def _inputs(args) -> tuple:
     """The files ``psdm diagnose`` reads, which no output may replace."""
-    return (("ROBOT", args.robot), ("--train", args.train), *(("--validate", path) for path in args.validate))
+    trains = (("--train", path) for path in (args.train, *args.more_train))
+    return (("ROBOT", args.robot), *trains, *(("--validate", path) for path in args.validate))

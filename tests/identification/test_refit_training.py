@@ -166,3 +166,75 @@ def test_the_model_s_recordings_are_found_by_content_read_once_and_their_loads_t
     (missing,) = changed.missing
     assert missing.name == "a.csv" and "changed since the model was identified" in missing.reason
     assert len(changed.recordings) == 1 and "not found: a.csv" in changed.sentence()
+
+
+def test_recordings_that_moved_are_handed_back_as_further_train_recordings(files, tmp_path):
+    """``diagnose MODEL --train b.csv a.csv``: the model file in another folder, its recordings neither where identify
+    read them nor beside it but in ``moved/``; handed back, each stands for the file's recording of the same content,
+    so the refit trains on both and keeps joint 6 (alone on ``b.csv`` it is lost: the test above), the spring at its
+    true stiffness; the written model lists them where they are now, for its own refit."""
+    document = json.loads((files / "model.json").read_text())
+    for entry in document["provenance"]["recordings"]:
+        entry["path"] = str(tmp_path / "gone" / entry["name"])
+    (tmp_path / "model.json").write_text(json.dumps(document))
+    (tmp_path / "moved").mkdir()
+    for name in ("a.csv", "b.csv"):
+        shutil.copy(files / name, tmp_path / "moved" / name)
+    moved = tmp_path / "moved"
+    payload = cli_json(["diagnose", tmp_path / "model.json", "--train", moved / "b.csv", moved / "a.csv", "--validate",
+                        files / "valid.csv", "--apply", tmp_path / "new.json", *QUICK, "--json"])  # fmt: skip
+    refit = payload["refit_training"]
+    assert refit["not_found"] == [] and refit["recordings"] == [f"{moved / n} (--train)" for n in ("b.csv", "a.csv")]
+    written, before = (
+        np.array(cli_json(["validate", path, files / "valid.csv", "--json"])["recordings"][0]["rmse"])
+        for path in (tmp_path / "new.json", files / "model.json")
+    )
+    assert written[SMALL_JOINT] <= 1.1 * before[SMALL_JOINT], (before, written)
+    assert written[1] < 0.2 * before[1], (before, written)
+    entries = json.loads((tmp_path / "new.json").read_text())["provenance"]["recordings"]
+    assert sorted((e["name"], e["path"]) for e in entries) == [(n, str(moved / n)) for n in ("a.csv", "b.csv")]
+
+
+def test_further_train_recordings_stand_for_the_file_s_are_added_or_counted_once(files, tmp_path, denso):
+    """``refit_training`` with other ``--train`` recordings: one with a training recording's content under another
+    name stands for it (not looked for on disk, not named missing), a recording the file does not list is added with
+    an entry of its own (name, path, content hash), one given twice counts once and the note says so."""
+    document = json.loads((files / "model.json").read_text())
+    for entry in document["provenance"]["recordings"]:
+        entry["path"] = str(tmp_path / "gone" / entry["name"])
+    shutil.copy(files / "a.csv", tmp_path / "renamed_a.csv")
+
+    def load(path):
+        return load_recording(path, denso.n_dof)
+
+    train = load(files / "b.csv")
+    more = [(str(p), load(p)) for p in (tmp_path / "renamed_a.csv", files / "valid.csv", files / "b.csv")]
+    refit = refit_training(document, tmp_path / "model.json", train, str(files / "b.csv"), load, denso, 10.0, more)
+    assert refit.missing == () and refit.recordings[0] is train and len(refit.recordings) == 3
+    np.testing.assert_array_equal(refit.recordings[1].tau, more[0][1].tau)
+    assert refit.sources[1:] == (f"{tmp_path / 'renamed_a.csv'} (--train)", f"{files / 'valid.csv'} (--train)")
+    assert [e["name"] for e in refit.entries] == ["b.csv", "a.csv", "valid.csv"]
+    assert refit.entries[1]["path"] == str(tmp_path / "renamed_a.csv")
+    assert refit.entries[2] == recording_provenance(more[1][1], files / "valid.csv")
+    assert f"{files / 'b.csv'} is the same recording as --train the first: counted once" in refit.note
+    assert refit.short() == "the 3 --train recordings alone"
+
+
+def test_bad_further_train_recordings_are_refused_naming_the_file(files, tmp_path, capsys, denso):
+    """A missing file and a recording of another joint count among the ``--train`` recordings: exit 2 before any fit,
+    naming the file and the fix; several with a robot file (no refit to train them) name identify's route."""
+    from identification.data.recording import Recording
+    from psdm_casadi.cli import main
+
+    five = load_recording(files / "valid.csv", denso.n_dof)
+    save_recording(Recording(t=five.t, q=five.q[:, :5], tau=five.tau[:, :5], name="five.csv"), tmp_path / "five.csv")
+    for bad, expected in (("gone.csv", "does not exist"), ("five.csv", "give 5 joints but the robot has n_dof=6")):
+        code = main([str(a) for a in ("diagnose", files / "model.json", "--train", files / "b.csv", tmp_path / bad,
+                                      "--validate", files / "valid.csv", *QUICK)])  # fmt: skip
+        err = capsys.readouterr().err
+        assert code == 2 and bad in err and expected in err and "Traceback" not in err, err
+    code = main([str(a) for a in ("diagnose", DENSO_FILE, "--train", files / "a.csv", files / "b.csv", "--validate",
+                                  files / "valid.csv")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "--train takes one recording with a robot file; got 2 (a.csv, b.csv)" in err
+    assert "psdm identify" in err and "psdm diagnose model.json --train" in err

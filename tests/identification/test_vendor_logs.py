@@ -164,11 +164,13 @@ def test_a_stored_tool_that_is_not_separable_is_explained_not_called_unidentifie
 
 
 def test_diagnose_names_its_one_training_recording_when_given_identifys_list(tmp_path, capsys):
-    """identify takes --data A B; the same list given to diagnose --train was argparse's "unrecognized arguments"."""
+    """identify takes --data A B; the same list given to diagnose a robot file (no refit to train on the others) was
+    argparse's "unrecognized arguments" (a model file's refit takes them: test_refit_training)."""
     code = main(["diagnose", "denso_vs6556g", "--train", str(tmp_path / "a.csv"), str(tmp_path / "b.csv"),
                  "--validate", str(tmp_path / "c.csv")])  # fmt: skip
     err = capsys.readouterr().err
-    assert code == 2 and "--train takes one recording; got 2 (a.csv, b.csv)" in err and "Traceback" not in err
+    assert code == 2 and "--train takes one recording with a robot file; got 2 (a.csv, b.csv)" in err
+    assert "Traceback" not in err
 
 
 def test_torques_in_mnm_left_unstated_are_refused_naming_the_unit_alone(logged_arm, capsys):

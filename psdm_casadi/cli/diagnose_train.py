@@ -1,0 +1,48 @@
+"""``psdm diagnose --train A [B ...]``: which training recording the diagnosis judges and which join the refit.
+
+The diagnosis judges one continuous run, the first ``--train`` (a drift, a delay, a warm-up are judged along its
+time). With a calibrated model, the refit with the findings (``--apply``, and the report's "after") trains on the
+model file's own training recordings, found again by their content, and on every ``--train``
+(``calibration.refit_training``): a user whose recordings moved hands them back, a new recording is added (read as
+the first is; where identify corrected a friction drift, its friction is fitted beside the model and corrected as the
+file's recordings are). A robot file has no refit, so several recordings there are refused naming the route that
+uses them all (identify, then diagnose the model).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from psdm_casadi.errors import ParameterError
+
+__all__ = ["TRAIN_HELP", "read_more_training", "training_paths"]
+
+TRAIN_HELP = (
+    "training recording(s) (.csv, .npz, .mat, or a ROS 2 bag). The diagnosis judges the first (one continuous run); "
+    "with a calibrated model the refit with the findings (--apply, and the report's 'after') trains on all of them "
+    "and on the model file's own training recordings, found again by their content: hand back those that moved, or "
+    "add new ones (read as identify reads them; a friction drift identify corrected is corrected on them too)"
+)
+
+
+def training_paths(args) -> tuple:
+    """``(the first --train, the others)``; several with a robot file are refused naming the fix (it has no refit
+    for the others to train)."""
+    first, *more = (str(p) for p in args.train)
+    if more and not str(args.robot).lower().endswith(".json"):
+        names = ", ".join(Path(p).name for p in args.train)
+        raise ParameterError(
+            f"--train takes one recording with a robot file; got {len(args.train)} ({names}). The diagnosis fits one "
+            "continuous run (a drift, a delay, a warm-up are judged along its time), and only a calibrated model's "
+            "refit trains on several: identify on all of them first, then diagnose the model with them, psdm "
+            f"identify {args.robot} --data {' '.join(args.train)} --out model.json; psdm diagnose model.json --train "
+            f"{' '.join(args.train)} --validate C.csv. Or pass one, --train {first}, and give the others to --validate."
+        )
+    return first, more
+
+
+def read_more_training(paths, load) -> list:
+    """``[(path, raw recording)]`` of the other ``--train`` recordings, each read with ``load(path)`` as the first
+    (joint side, timed, the model's column layout): a missing file or another robot's joint count is refused here,
+    before any fit, by the reader's error naming the file and the fix."""
+    return [(path, load(path)) for path in paths]
