@@ -77,9 +77,8 @@ def decimate(rec: Recording, rate_hz: float) -> Recording:
     def pick(a):
         return None if a is None else a[every]
 
-    return rec.with_signals(
-        t=rec.t[every], q=rec.q[every], tau=pick(rec.tau), current=pick(rec.current), qd=pick(rec.qd), qdd=pick(rec.qdd)
-    )
+    return rec.with_signals(t=rec.t[every], q=rec.q[every], tau=pick(rec.tau), current=pick(rec.current),
+                            qd=pick(rec.qd), qdd=pick(rec.qdd), temperature=pick(rec.temperature))  # fmt: skip
 
 
 def without_torque(rec: Recording, torque, kt) -> Recording:

@@ -23,6 +23,7 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import butter, sosfilt, sosfilt_zi
 
 from identification.data.recording import Recording
+from identification.data.temperature import temperatures_at
 from psdm_casadi.errors import ParameterError, RecordingError
 
 DIFFERENTIATIONS = ("central", "none")
@@ -227,6 +228,8 @@ def resample_uniform(recording: Recording) -> Recording:
                     np.interp(t[inside], recording.t, column) for column in np.reshape(value, (value.shape[0], -1)).T
                 ]
                 changes[key][inside] = np.reshape(np.column_stack(line), changes[key][inside].shape)
+    if recording.temperature is not None:  # a slow logger's readings, linear between them
+        changes["temperature"] = temperatures_at(recording, t)
     return recording.with_signals(t=t, **changes)
 
 

@@ -13,8 +13,8 @@ import re
 
 import numpy as np
 
-__all__ = ["TEMPERATURE_COLUMN", "TEMPERATURE_PREFIX", "is_temperature_column", "temperature_joints",
-           "logged_temperatures"]  # fmt: skip
+__all__ = ["TEMPERATURE_COLUMN", "TEMPERATURE_PREFIX", "is_temperature_column", "logged_temperatures",
+           "temperature_joints", "temperatures_at"]  # fmt: skip
 
 #: A per-joint temperature column: ``Temp3``, ``temperature_3``, ``joint_temperatures_2``, ``T_motor3`` is not one.
 TEMPERATURE_COLUMN = re.compile(r"^(?:joint_?)?temp(?:erature)?s?[ _]?(\d+)$", re.IGNORECASE)
@@ -45,3 +45,19 @@ def logged_temperatures(recording) -> np.ndarray | None:
     if not np.all(logged.any(axis=0)):
         return None
     return np.nansum(temperature, axis=0) / logged.sum(axis=0)
+
+
+def temperatures_at(recording, t) -> np.ndarray | None:
+    """Each joint's logged temperature [°C] at the times ``t`` [s], shape (len(t), n_dof): its readings interpolated
+    linearly in time (held beyond the first and last), NaN for a joint without one; None when the recording logs
+    none. A prepared recording (filtered, resampled, trimmed) is so given the temperatures of its raw one."""
+    temperature = getattr(recording, "temperature", None)
+    if temperature is None:
+        return None
+    t = np.asarray(t, dtype=float)
+    out = np.full((t.size, temperature.shape[1]), np.nan)
+    for j in range(temperature.shape[1]):
+        read = ~np.isnan(temperature[:, j])
+        if read.any():
+            out[:, j] = np.interp(t, recording.t[read], temperature[read, j])
+    return out

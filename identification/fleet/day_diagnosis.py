@@ -73,7 +73,9 @@ def _split(recordings: list) -> tuple:
     half = rec.n_samples // 2
 
     def part(s):
-        return dataclasses.replace(rec, t=rec.t[s], q=rec.q[s], qd=rec.qd[s], qdd=rec.qdd[s], tau=rec.tau[s])
+        temperature = None if rec.temperature is None else rec.temperature[s]
+        return dataclasses.replace(rec, t=rec.t[s], q=rec.q[s], qd=rec.qd[s], qdd=rec.qdd[s], tau=rec.tau[s],
+                                   temperature=temperature)  # fmt: skip
 
     return part(slice(0, half)), [part(slice(half, None))]
 

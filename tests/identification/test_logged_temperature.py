@@ -112,3 +112,23 @@ def test_temperatures_round_trip_through_npz_and_csv_and_are_read_under_columns(
     np.testing.assert_allclose(logged_temperatures(load_recording(log, 2, layout=layout)), mean, rtol=1e-9)
     assert temperature_joints(("Temp0", "Temp1", "T_motor3")) == {"Temp0": 1, "Temp1": 2}
     assert load_recording(save_recording(Recording(t=t, q=q, tau=tau), tmp_path / "plain.csv"), 2).temperature is None
+
+
+def test_temperatures_follow_the_samples_through_resampling_and_decimation():
+    """An uneven recording resampled for the filter gets its readings interpolated at the new times (held beyond the
+    ends); decimation keeps every step-th sample's reading; the prepared recording keeps its raw one's mean."""
+    from identification.calibration.preparation import decimate
+    from identification.data.preprocessing import PreprocessOptions, preprocess
+
+    t = np.cumsum(np.r_[0.0, np.where(np.arange(299) % 7 == 0, 0.0125, 0.01)])
+    q = np.column_stack([np.sin(t), np.cos(t)])
+    temperature = np.full((300, 2), np.nan)
+    temperature[::30] = np.column_stack([30.0 + 2.0 * t[::30], 40.0 - t[::30]])
+    recording = Recording(t=t, q=q, tau=q, temperature=temperature)
+    prepared = preprocess(recording, PreprocessOptions(cutoff_hz=5.0))
+    assert prepared.n_samples != recording.n_samples and not np.isnan(prepared.temperature).any()
+    last = t[::30][-1]
+    expected = np.column_stack([30.0 + 2.0 * np.minimum(prepared.t, last), 40.0 - np.minimum(prepared.t, last)])
+    np.testing.assert_allclose(prepared.temperature, expected, rtol=1e-12)
+    halved = decimate(prepared, 0.5 / prepared.dt)
+    np.testing.assert_array_equal(halved.temperature, prepared.temperature[::2])
