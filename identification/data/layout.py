@@ -37,7 +37,7 @@ logger = logging.getLogger(__name__)
 #: signal -> the standard column prefix (``io.COLUMN_PREFIXES``) and the time column's name.
 SIGNAL_PREFIXES = {"q": "q", "qd": "qd", "qdd": "qdd", "tau": "tau", "i": "i"}
 TIME = "t"
-_STANDARD = re.compile(r"^(qdd|qd|q|tau|i)[1-9][0-9]*$")
+_POSITION = re.compile(r"^q[1-9][0-9]*$")
 _NUMBERED = re.compile(r"^(.*?[^0-9])([0-9]+)$")
 #: Fewest rows for a time column of consecutive integers to count as a sample index rather than seconds.
 MIN_INDEX_ROWS = 20
@@ -183,17 +183,48 @@ def numbered_groups(names) -> str:
     return ", ".join(f"{p}{min(k)}..{max(k)}" if len(k) > 1 else f"{p}{k[0]}" for p, k in _groups(names).items())
 
 
+#: Words in a numbered group's name (lower case) that say it holds positions, torques, or a motor's signal.
+POSITION_WORDS, TORQUE_WORDS, MOTOR_WORDS = ("pos", "angle"), ("tau", "torque", "effort", "trq"), ("motor", "mot_")
+
+
+def _is_position(group: str) -> bool:
+    """Positions: ``q``, ``Position``, ``joint_pos_``, ``motor_pos_``, ``actual_q_``, ``AxisAngle``."""
+    g = group.lower()
+    return (g.startswith("q") and not g.startswith("qd")) or g.endswith("_q_") or any(w in g for w in POSITION_WORDS)
+
+
+def _is_motor(group: str) -> bool:
+    return any(w in group.lower() for w in MOTOR_WORDS)
+
+
 def _example(groups, time) -> str:
-    """A ``--columns`` value built from the file's own groups (its likeliest position and torque groups)."""
-
-    def pick(words, fallback):
-        return next((g for g in groups if g.lower().startswith(words)), fallback)
-
-    torque = [g for g in groups if g.lower().startswith(("tau", "torque", "effort"))]
+    """A ``--columns`` value built from the file's own groups: its likeliest position group (the joint side's; a
+    motor-side one where the file has none, ``motor_note``) and torque group."""
+    positions = [g for g in groups if _is_position(g)]
+    joint = [g for g in positions if not _is_motor(g)]
+    torque = [g for g in groups if any(w in g.lower() for w in TORQUE_WORDS)]
+    torque = [g for g in torque if not _is_motor(g)] or torque
     items = [f"t={time}"] if time and time != TIME else []
     tau = torque[0] if len(torque) == 1 else f"<one of {', '.join(torque)}>" if torque else "<torque group>"
-    items += [f"q={pick(('q', 'pos', 'angle'), '<position group>')}", f"tau={tau}"]
+    items += [f"q={(joint or positions or ['<position group>'])[0]}", f"tau={tau}"]
     return ",".join(items)
+
+
+def motor_note(groups) -> str:
+    """The sentence on a file's motor-side position groups (``motor_pos_1..6``; empty: none): read as ``q`` only
+    with the robot file's ``[recording] side`` and ``[transmission]`` (``motor_side.to_joint_side``), which map
+    encoder angles before the gear to the joint side; left unread where the file has joint positions too."""
+    motor = [g for g in groups if _is_position(g) and _is_motor(g)]
+    if not motor:
+        return ""
+    joint = [g for g in groups if _is_position(g) and not _is_motor(g)]
+    names = ", ".join(f"{g}1.." for g in motor)
+    how = ('with the robot file\'s [recording] side = { q = "motor" } and its [transmission] gear_ratios (and '
+           "joint_offsets), which map them to the joint side")  # fmt: skip
+    if joint:
+        return (f" {names} hold motor-side positions (before the gear) and are left unread; to read them instead of "
+                f"{joint[0]}: q={motor[0]} {how}.")  # fmt: skip
+    return f" {names} hold motor-side positions (before the gear): read them as q={motor[0]} {how}."
 
 
 #: Where currents' torque constants go, for a file read without a robot (``UnreadColumnGroups.naming`` says where
@@ -218,6 +249,7 @@ class UnreadColumnGroups(RecordingError):
             f"measured, not a model's or a reference's; or i=<current group> for motor currents, {constants}); add "
             "--rate HZ when the time column counts samples. The other columns are then not read"
             + (f" (as it is: {because})." if because else ".")
+            + motor_note(groups)
         )
 
     def naming(self, constants: str) -> UnreadColumnGroups:
@@ -229,14 +261,16 @@ class UnreadColumnGroups(RecordingError):
 def check_standard_header(source: str, names, because: str = "") -> None:
     """Refuse a header without ``q1`` whose columns come in numbered groups of other names, naming the fix.
 
-    A controller's log (``Position1..7``, ``TorqueSm1..7``, ...) is read with ``--columns``; which of its
-    torque-like groups is the measurement is the user's to say. Files with ``q1`` (or only upper-case
-    standard names, which ``io`` explains) are left to ``io``. ``because`` (a refused value of a column the
-    layout would leave unread) is quoted. Raises :class:`UnreadColumnGroups`.
+    A controller's log (``Position1..7``, ``TorqueSm1..7``, ...) is read with ``--columns``; which of its torque-like
+    groups is the measurement is the user's to say; a motor-side position group (``motor_pos_1..6``) is named as such,
+    with the robot file's ``[recording] side`` that reads it (``motor_note``). Files with ``q1`` (or only standard names
+    in any case, which ``io`` explains) are left to ``io``; a file of standard torques beside positions of other names
+    (``tau1..6``, ``motor_pos_1..6``) is refused here, naming its position group. ``because`` (a refused value of a
+    column the layout would leave unread) is quoted. Raises :class:`UnreadColumnGroups`.
     """
     names = tuple(names)
     groups = _groups(n for n in names if n != TIME)
-    if not groups or any(_STANDARD.match(n) for n in names) or all(g.lower() in SIGNAL_PREFIXES for g in groups):
+    if not groups or any(_POSITION.match(n) for n in names) or all(g.lower() in SIGNAL_PREFIXES for g in groups):
         return
     raise UnreadColumnGroups(source, names, because)
 

@@ -8,6 +8,7 @@ import pytest
 
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import read_table
+from identification.data.layout import ColumnLayout
 from identification.data.motor_side import to_joint_side, to_motor_side
 from identification.data.recording import Recording
 from identification.data.robot_recordings import load_robot_recording, recording_paths
@@ -258,3 +259,34 @@ def test_currents_are_on_the_side_the_file_states_for_the_torques(tmp_path, rng)
     np.testing.assert_allclose(
         joint.joint_torque(np.array([d.kt for d in robot.drives])), current_m * motor_kt * gears, rtol=1e-14
     )
+
+
+def test_motor_position_columns_are_named_as_motor_side_and_read_through_the_transmission(denso, tmp_path):
+    """A log of ``motor_pos_1..6`` (encoder angles before the gear) and ``joint_torque_1..6``: the refusal names the
+    group as motor-side positions with the robot file's ``[recording] side`` that reads it (it was '<position
+    group>', matched by a ``pos`` prefix only); read so, the joint positions are the known truth. Beside a joint
+    position group, that one is the example and the motor group is named as left unread."""
+    rng = np.random.default_rng(11)
+    reference = sine_experiment(denso, duration=2.0, rng=rng).reference()
+    joint, _ = simulate_recording(denso, reference, SimulationOptions(record_tau=True, record_current=False), rng)
+    layout = RecordingLayout(sides={"q": "motor"})
+    robot = dataclasses.replace(denso, transmission=_random_transmission(rng, denso.n_dof), recording_layout=layout)
+    motor = to_motor_side(joint, robot)
+    n = denso.n_dof
+    names = ["t", *(f"motor_pos_{j + 1}" for j in range(n)), *(f"joint_torque_{j + 1}" for j in range(n))]
+    np.savetxt(tmp_path / "log.csv", np.column_stack([joint.t, motor.q, joint.tau]), delimiter=",",
+               header=",".join(names), comments="", fmt="%.17g")  # fmt: skip
+    with pytest.raises(RecordingError) as refused:
+        load_robot_recording(tmp_path / "log.csv", robot)
+    text = str(refused.value)
+    assert "--columns q=motor_pos_,tau=joint_torque_" in text and "motor_pos_1.. hold motor-side positions" in text
+    assert '[recording] side = { q = "motor" }' in text and "[transmission] gear_ratios" in text
+    read = load_robot_recording(tmp_path / "log.csv", robot, None, ColumnLayout.parse("q=motor_pos_,tau=joint_torque_"))
+    np.testing.assert_allclose(read.q, joint.q, atol=1e-9)
+    np.testing.assert_allclose(read.tau, joint.tau, rtol=1e-12, atol=1e-12)
+    names += [f"pos_{j + 1}" for j in range(n)]
+    np.savetxt(tmp_path / "both.csv", np.column_stack([joint.t, motor.q, joint.tau, joint.q]), delimiter=",",
+               header=",".join(names), comments="", fmt="%.17g")  # fmt: skip
+    with pytest.raises(RecordingError, match=r"--columns q=pos_,tau=joint_torque_ .* motor_pos_1\.\. hold motor-side "
+                       r"positions \(before the gear\) and are left unread; to read them instead of pos_"):  # fmt: skip
+        load_robot_recording(tmp_path / "both.csv", denso)
