@@ -47,7 +47,7 @@ from identification.data.missing_torque import find_missing_torque
 from identification.data.payload import Payload
 from psdm_casadi.errors import PSDMError
 
-__all__ = ["MissingRecording", "RefitTraining", "refit_training", "training_alone"]
+__all__ = ["MissingRecording", "RefitTraining", "listed_configuration", "refit_training", "training_alone"]
 
 #: How the report names the recording given to the diagnosis.
 GIVEN = "--train"
@@ -331,6 +331,23 @@ def _without_stated_load(recording, configuration, document, robot, cutoff_hz):
         return recording
     kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
     return without_load(robot, recording, body, kt, cutoff_hz)
+
+
+def listed_configuration(document, path) -> PayloadConfiguration:
+    """The load the recording file at ``path`` carries: its sidecar's, as the user states it now; without one, where
+    its content is one of the model file ``document``'s training recordings (a ``provenance.recordings`` entry's
+    ``sha256``), the configuration identify read for it (its ``configurations`` block: from a sidecar or a manifest).
+    ``psdm diagnose MODEL`` reads its ``--train`` and ``--validate`` so: a recording a manifest stated has no sidecar,
+    and read as unloaded its load went into the diagnosis and into the refit ``--apply`` judges."""
+    own = stated_configuration(path)
+    if own.stated:
+        return own
+    digest = _digest(path)
+    entries = ((document or {}).get("provenance") or {}).get("recordings") or []
+    for entry in entries:
+        if digest is not None and isinstance(entry, dict) and entry.get("sha256") == digest:
+            return _configuration(document, str(entry.get("name")), path)
+    return own
 
 
 def _configuration(document, name: str, path) -> PayloadConfiguration:

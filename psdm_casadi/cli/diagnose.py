@@ -286,15 +286,19 @@ def _stated_loads(args, calibrated, robot, recordings, preparation) -> tuple:
 
     from identification.calibration.payload_check import without_load
     from identification.calibration.payload_fit import stated_payload
+    from identification.calibration.refit_training import listed_configuration
     from identification.data.configuration import stated_configuration
 
     stored = [] if calibrated is None else calibrated.configurations
     out, configurations = [], []
     for path, recording in zip((args.train, *args.validate), recordings):
-        configuration = stated_configuration(path)
+        configuration = listed_configuration(None if calibrated is None else calibrated.document, path)
         body, note = stated_payload(configuration, stored, args.robot)
         if note:
             print(f"psdm diagnose: warning: {path}: {note}", file=sys.stderr)
+        elif body is not None and not stated_configuration(path).stated:
+            print(f"psdm diagnose: note: {path}: carries {configuration.name!r} as the model file lists it for this "
+                  "recording (no sidecar beside it); its torque is taken off", file=sys.stderr)  # fmt: skip
         kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
         out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
         configurations.append(configuration)

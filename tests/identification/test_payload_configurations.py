@@ -280,3 +280,43 @@ def test_identify_judges_the_arm_on_a_held_out_recording_that_carries_a_known_lo
     # the robot file is the virtual Denso's truth: its baseline, judged on the arm, is as good as the identified model
     assert np.all(baseline < 1.5 * identified + 0.02), (baseline, identified)
     assert "WORSE" not in err, err
+
+
+def test_diagnose_takes_off_the_load_the_model_file_lists_for_a_recording_without_a_sidecar(denso, recorded, tmp_path,
+                                                                                            capsys):  # fmt: skip
+    """A training recording whose load a manifest stated (no sidecar beside it), given to ``psdm diagnose MODEL`` as
+    --train: the load the model file lists for that content is taken off, as a sidecar's would be. Read as unloaded,
+    its load went into the diagnosis's friction refit (training RMSE of joint 2 2.44 N m against 0.46 on the virtual
+    Denso) and into ``--apply``'s refit (a UR10 with 1.9 and 7.4 kg: joint 2 0.95 -> 17.8 N m, its true ripple
+    dropped)."""
+    import shutil
+
+    from identification.calibration.payload import payload_torque
+    from identification.calibration.refit_training import listed_configuration
+    from identification.data.io import save_recording
+    from psdm_casadi.cli import main
+
+    for key in ("empty", "known", "empty again"):
+        save_recording(recorded[key], tmp_path / f"{key.replace(' ', '_')}.npz")
+    manifest = tmp_path / "configurations.toml"
+    manifest.write_text('[[configuration]]\nname = "empty"\nrecordings = ["empty.npz"]\n\n[[configuration]]\n'
+                        f'name = "mass"\npayload = {{mass = {KNOWN.mass}, com = {list(KNOWN.com)}}}\n'
+                        'recordings = ["known.npz"]\n')  # fmt: skip
+    model = tmp_path / "model.json"
+    assert main(["identify", "denso_vs6556g", "--data", str(manifest), "--out", str(model), "--json"]) == 0
+    capsys.readouterr()
+    document = json.loads(model.read_text())
+    shutil.copy(tmp_path / "known.npz", tmp_path / "renamed.npz")  # recognised by its content
+    for name in ("known.npz", "renamed.npz"):
+        listed = listed_configuration(document, tmp_path / name)
+        assert listed.kind == "known" and listed.payload.mass == KNOWN.mass, listed
+    assert listed_configuration(document, tmp_path / "empty_again.npz").kind == "none"  # not the model's: no load
+    argv = ["diagnose", str(model), "--train", str(tmp_path / "known.npz"), "--validate",
+            str(tmp_path / "empty_again.npz"), "--json", "--max-effects", "0", "--no-sparse"]  # fmt: skip
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert "carries 'mass' as the model file lists it" in err, err
+    trained = np.asarray(json.loads(out)["rmse_train_before"])
+    load = np.sqrt(np.mean(payload_torque(denso, KNOWN, *_motion(recorded["known"])) ** 2, axis=0))
+    heavy = load > 1.0  # [N m]: the joints the load turns
+    assert heavy.sum() >= 2 and np.all(trained[heavy] < 0.5 * load[heavy]), (trained, load)
