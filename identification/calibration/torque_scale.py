@@ -34,7 +34,7 @@ from identification.calibration.residual_correlation import residual_correlation
 from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.trajectory_data import NormalEquations, drive_columns, prepare_recordings
 
-__all__ = ["MARGIN", "SIGMAS", "TorqueScales", "corrected_robot_text", "torque_scales"]
+__all__ = ["MARGIN", "SIGMAS", "TorqueScales", "compared_recordings", "corrected_robot_text", "torque_scales"]
 
 #: A joint's torque scale off by less than this (relative) is not a finding, however sure: the friction and rigid
 #: body models' own error moves a fitted scale by a few per cent.
@@ -112,7 +112,7 @@ class TorqueScales:
             way = "high" if s > 1.0 else "low"
             head = (f"joint {j + 1} ({self.joint_names[j]}): its recorded torque reads {abs(s - 1.0) * 100:.0f} % "
                     f"{way} (scale {s:.3f} +/- {sd:.3f} from the known payload's torque on "
-                    f"{', '.join(self.loaded)} against {', '.join(self.unloaded)})")  # fmt: skip
+                    f"{compared_recordings(self.loaded, self.unloaded)})")  # fmt: skip
             if self.motor_kt is not None:
                 fix = (f"its torque constant is off: [transmission] motor_kt[{j + 1}] = {self.motor_kt[j]:.4g} N m/A "
                        f"in the robot file; the payload gives {self.motor_kt[j] / s:.4g}")  # fmt: skip
@@ -240,6 +240,14 @@ def _scale_std(equations, x, s, variance) -> np.ndarray:
     std = np.sqrt(np.clip(np.diag(inverse)[n:], 0.0, None))
     along_free = np.linalg.norm(vectors[n:, free], axis=1) > 1e-6
     return np.where(along_free, np.inf, std)
+
+
+def compared_recordings(loaded, unloaded) -> str:
+    """The recordings whose known loads fixed the scale: the loaded ones against the unloaded ones, or, where every
+    recording carries a known load, the loads against each other (their difference fixes it)."""
+    if unloaded:
+        return f"{', '.join(loaded)} against {', '.join(unloaded)}"
+    return f"{', '.join(loaded)} (their different known loads against each other; no recording without a load)"
 
 
 def corrected_robot_text(text: str, motor_kt) -> str | None:

@@ -104,6 +104,8 @@ def store_torque_scales(document: dict, step: ScaleStep) -> None:
 
 def torque_scale_lines(document: dict) -> list:
     """identify's report lines of the model file's ``identification.torque_scale`` block (none without it)."""
+    from identification.calibration.torque_scale import compared_recordings
+
     block = document["identification"].get("torque_scale")
     if not block:
         return []
@@ -112,8 +114,9 @@ def torque_scale_lines(document: dict) -> list:
     each = ", ".join(
         f"{s:.3f}" + ("" if sd is None else f" +/- {sd:.3f}") for s, sd in zip(block["scale"], block["std"])
     )
-    head = (f"torque constants: each joint's torque scale from the known payload on {', '.join(block['loaded'])} "
-            f"against {', '.join(block['unloaded'])} (1 = the robot file's constants are right): {each}")  # fmt: skip
+    head = (f"torque constants: each joint's torque scale from the known payload on "
+            f"{compared_recordings(block['loaded'], block['unloaded'])} (1 = the robot file's constants are right): "
+            f"{each}")  # fmt: skip
     lines = [head]
     done = ("identify read the currents with the payload's value (the model file's copy of the robot file holds it); "
             "correct the robot file" if block["taken"] else "identify kept the robot file's value")  # fmt: skip

@@ -76,6 +76,26 @@ def test_the_payload_on_every_recording_or_on_none_leaves_the_scale_unchecked(ca
     assert _scales(case, kt_model, [case.run1, case.val1]) is None
 
 
+def test_two_different_known_loads_without_an_unloaded_recording_fix_the_scale(cases, kt_model):
+    """Every recording carries a known load, a different one (a gripper, then the gripper with a part): their
+    difference fixes each joint's scale, and the finding names the recordings without an empty "against"."""
+    from identification.virtual.current_arm import CurrentRun, write_current_recordings
+    from tests.identification.torque_scale_data import PAYLOAD, cobot
+
+    case = cases[WRONG]
+    heavier = {"mass": 7.0, "com": [0.02, 0.0, 0.12]}
+    (other,) = write_current_recordings(case.run2.parent, cobot(), (CurrentRun("run3", 10.0, heavier),),
+                                        np.random.default_rng(5))  # fmt: skip
+    assert PAYLOAD["mass"] != heavier["mass"]
+    scales = _scales(case, kt_model, [case.run2, other])
+    assert scales is not None and scales.off.tolist() == [False, True, False, True]
+    determined = scales.determined
+    assert np.all(np.abs(scales.scale - np.array(WRONG))[determined] < 3.0 * scales.std[determined])
+    finding = scales.findings()[0]
+    assert "run2.csv, run3.csv (their different known loads against each other" in finding, finding
+    assert "against )" not in finding
+
+
 def _identify(case, out, capsys) -> dict:
     args = ["identify", str(case.robot), "--data", str(case.run1), str(case.run2), "--validate", str(case.val1),
             "--columns", COLUMNS, "--out", str(out), "--json"]  # fmt: skip
