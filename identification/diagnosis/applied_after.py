@@ -67,11 +67,13 @@ def with_applied_after(report, loaded, train, validation, refit=None):
                    applied=applied, after_source=source)  # fmt: skip
 
 
-def with_written_after(report, result, model, validation, kt=None):
+def with_written_after(report, result, model, validation, kt=None, written: bool = True):
     """``report`` whose "after" is the model ``diagnose --apply`` writes: ``result`` (``recalibrate.Recalibration``)
     is the never-worse gate's verdict on ``DiagnosisReport.applied``; where the gate dropped findings and refitted, the
     "after" is that refit's on the validation recording ``validation`` (raw), and ``after_source`` names what it
-    dropped. A refusal writes nothing: the "after" stays the model the gate refused."""
+    dropped. A refusal writes nothing: the "after" stays the model the gate refused. ``written`` False: what the gates
+    left adds nothing to the model file (``recalibration_text.adds_nothing``), so nothing is written, and
+    ``after_source`` says so rather than calling the refit the model written."""
     if result.refused is not None or report.applied is None or result.after is report.applied.after:
         return report
     rmse, r2, _, predicted = validation_rmse(result.after, model, validation, kt)
@@ -80,9 +82,18 @@ def with_written_after(report, result, model, validation, kt=None):
     final = final if final.shape == np.shape(report.validation_final) else report.validation_final
     block = result.after.document["recalibration"]
     dropped = [entry["label"] for entry in block["never_worse"]["dropped"]]
+    no_gain = [entry["label"] for entry in block.get("dropped_findings") or [] if entry.get("no_gain")]
+    if not written:
+        gates = [f"{', '.join(dropped)} (the never-worse gate)" if dropped else "",
+                 f"{', '.join(no_gain)} (no gain)" if no_gain else ""]  # fmt: skip
+        left = f"without {' and '.join(filter(None, gates))}, " if dropped or no_gain else ""
+        source = (f"{report.after_source}; then {left}the refit adds nothing to the model file, so nothing was "
+                  "written: this \"after\" is the model file identified again, and the model file stays the model "
+                  "to use")  # fmt: skip
+        return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
+                       validation_final=final)  # fmt: skip
     source = (f"{report.after_source}; then without {', '.join(dropped)}, which the never-worse gate dropped (the "
               "model written)") if dropped else report.after_source  # fmt: skip
-    no_gain = [entry["label"] for entry in block.get("dropped_findings") or [] if entry.get("no_gain")]
     source += f"; without {', '.join(no_gain)} (no gain in the written model)" if no_gain else ""
     return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
                    validation_final=final)  # fmt: skip

@@ -399,7 +399,8 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     validation = recordings[1]
     kt = None if validation.tau is not None or robot.drives is None else [d.kt for d in robot.drives]
-    return with_written_after(report, result, model, validation, kt), ApplyRefit(result)
+    written = not adds_nothing(calibrated.document, result.after.document)  # else the report says nothing was written
+    return with_written_after(report, result, model, validation, kt, written), ApplyRefit(result)
 
 
 def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> int:

@@ -84,3 +84,29 @@ def test_every_finding_without_gain_leaves_nothing_to_apply(spring_case, denso, 
     assert document["findings"] == [] and adds_nothing(calibrated.document, document)  # diagnose writes nothing
     (dropped,) = document["recalibration"]["dropped_findings"]
     assert dropped["label"] == "presliding[j4]" and dropped["reason"].startswith(NO_GAIN)
+
+
+def test_the_report_s_after_says_nothing_was_written_when_the_refit_adds_nothing(spring_case, denso, denso_model):
+    """The gates left nothing new (a pre-sliding friction, no gain): the report's ``after_source`` said "(no gain in the
+    written model)" though ``diagnose --apply`` wrote nothing; it says nothing was written, and its "after" is the
+    refit as ``psdm validate`` judges it."""
+    from identification.calibration.finding_value import validation_rmse
+    from identification.diagnosis.applied_after import APPLIED_AFTER, with_written_after
+    from identification.diagnosis.report import DiagnosisReport
+
+    _, calibrated, train, valid = spring_case
+    result = recalibrate(calibrated, denso, denso_model, _report(PreslidingTerm(joint=3, scale=1e-3)), train, valid,
+                         robot_source=DENSO_FILE)  # fmt: skip
+    n = denso.n_dof
+    empty, ones = np.zeros((0, n)), (1.0,) * n
+    report = DiagnosisReport("denso", n, "coulomb_viscous", "prior", (), *(ones,) * 6, (), 1, None, *(empty,) * 6,
+                             after_source=APPLIED_AFTER, applied=SimpleNamespace(after=None))  # fmt: skip
+    written = not adds_nothing(calibrated.document, result.after.document)
+    assert not written
+    after = with_written_after(report, result, denso_model, valid, None, written)
+    text = after.after_source
+    assert text.startswith(APPLIED_AFTER) and "presliding[j4] (no gain)" in text and "nothing was written" in text
+    assert "written model" not in text and "model written" not in text, text
+    np.testing.assert_allclose(after.rmse_after, validation_rmse(result.after, denso_model, valid)[0], rtol=1e-12)
+    # as if it were written, the same refit is called the written model (the wording of a real write)
+    assert "(no gain in the written model)" in with_written_after(report, result, denso_model, valid).after_source
