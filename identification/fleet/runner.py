@@ -230,8 +230,13 @@ def _outcomes(client, batch: list, tasks: dict) -> list:
 
 
 def _scatter_all(client, contexts) -> dict:
-    """{id: future} of every baseline and PSDM model known now, sent to every worker in one call (a worker
-    unpickles each once, not once per task)."""
+    """{id: future} of every baseline and PSDM model known now, scattered in one call with a copy on every worker
+    (``broadcast``), so that a task usually finds its shared data where it runs and the scheduler sends it nothing
+    with the task. Not a guarantee of one copy per worker for the run: Dask's active memory manager (on by default,
+    its ``ReduceReplicas`` policy) drops copies it finds redundant, and a worker that then runs a task needing one
+    fetches it from a peer and unpickles it again; a worker that dies takes its copies with it, and where it held the
+    last one the future is lost (the tasks waiting for it are cancelled). ``_results_dask`` scatters such a value
+    again before its next submission (``shared``) and submits the lost tasks again (``lost_to_the_cluster``)."""
     values = {id(m): m for ctx in contexts.values() for m in ctx.models.values()}
     values.update({id(b): b for ctx in contexts.values() for b in ctx.segments.values()})
     # hash=False: keys of their own, not the content's: a run right after an interrupted one scatters the same models,
