@@ -73,7 +73,7 @@ def _augmented_torque(robot, model, coefficients, q, qd, qdd, parameter_map):
                                np.zeros(2 * robot.n_dof), zeros, zeros, (PayloadTerm(inertia=True),),
                                (tuple(coefficients),), parameter_map)  # fmt: skip
     function = augmented.build_function()
-    torque = np.array([np.ravel(function(*x, 0.0)) for x in zip(q, qd, qdd)])
+    torque = np.array([function(*x, 0.0).full().ravel() for x in zip(q, qd, qdd)])  # DM to numpy first
     return torque - _torque(robot, q, qd, qdd)
 
 
