@@ -29,6 +29,7 @@ import numpy as np
 from identification.calibration.applied_model import applied_model, refit_options, refit_without, torque_constants_of
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
+from identification.calibration.dropped_findings import dropped_block
 from identification.calibration.finding_value import validation_rmse, without_entry
 from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.no_gain import no_gain_findings
@@ -154,6 +155,9 @@ def recalibrate(
         "dropped_findings": dropped,
         "never_worse": gate.to_dict(),
     }
+    document.pop("diagnosis", None)  # the block describes the diagnosis that wrote this file, not an older one's
+    not_written = dropped_block(document["recalibration"], report.findings)  # with why and the diagnosis's hint
+    document.update({} if not_written is None else {"diagnosis": not_written})
     for entry in document["findings"]:
         entry["validation_rmse_before"], entry["validation_rmse_after"] = _list(rmse_before), _list(rmse_after)
         if entry["kind"] in ("torque", "signal"):

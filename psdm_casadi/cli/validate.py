@@ -69,7 +69,7 @@ def register(subparsers) -> None:
 
 
 def _run_validate(args) -> int:
-    from identification.calibration.model_preparation import model_preparation
+    from identification.calibration.dropped_findings import dropped_notes
     from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.trajectory_checks import check_validation_recording
@@ -89,9 +89,7 @@ def _run_validate(args) -> int:
     loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     warnings = report_model_warnings("validate", args.model, calibrated)
-    preparation = model_preparation(calibrated.document)  # the identification's own, as every judging command
-    if preparation.note:
-        print(f"psdm validate: note: {args.model}: {preparation.note}", file=sys.stderr)
+    preparation = _preparation_noted(args.model, calibrated.document)
     layout = model_layout(args, calibrated.document, "validate")  # --columns, --rate (or identify's)
     grouped = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
     if plots is not None and grouped != list(args.recordings):  # one plot per recording, named after the folder
@@ -135,6 +133,7 @@ def _run_validate(args) -> int:
     if args.json:
         print_json({"command": "validate", "model": str(args.model), "consistent": calibrated.consistent,
                     "warnings": warnings, "preparation": preparation.to_dict(),
+                    "not_written": dropped_notes(calibrated.document),
                     "recordings": [_json_row(row) for row in rows]})  # fmt: skip
     else:
         for row in rows:
@@ -147,6 +146,18 @@ def _run_validate(args) -> int:
         if not calibrated.consistent:
             print("warning: this model is NOT physically consistent (written with --allow-inconsistent)")
     return EXIT_OK
+
+
+def _preparation_noted(model, document):
+    """The model file's own preparation (as every judging command's), its note and one note per finding the diagnosis
+    that wrote the file left out (``dropped_findings``: why, and the diagnosis's hint) printed on stderr."""
+    from identification.calibration.dropped_findings import dropped_notes
+    from identification.calibration.model_preparation import model_preparation
+
+    preparation = model_preparation(document)
+    for note in filter(None, (preparation.note, *dropped_notes(document))):
+        print(f"psdm validate: note: {model}: {note}", file=sys.stderr)
+    return preparation
 
 
 def _numbers(values) -> list:

@@ -110,3 +110,34 @@ def test_the_report_s_after_says_nothing_was_written_when_the_refit_adds_nothing
     np.testing.assert_allclose(after.rmse_after, validation_rmse(result.after, denso_model, valid)[0], rtol=1e-12)
     # as if it were written, the same refit is called the written model (the wording of a real write)
     assert "(no gain in the written model)" in with_written_after(report, result, denso_model, valid).after_source
+
+
+def test_the_written_file_records_the_dropped_finding_with_its_hint_for_validate(spring_case, denso, denso_model):
+    """A pre-sliding friction dropped for no gain is not in the model written, and its route ('psdm identify
+    --friction lugre') was then only in the diagnosis's report: the file's ``diagnosis`` block records it (label,
+    why, the diagnosis's explanation as the hint) and ``psdm validate`` of the file names it; the model file it was
+    refitted from (no block: an older file) loads and validates with no such note."""
+    from identification.calibration.dropped_findings import DIAGNOSIS_VERSION
+
+    folder, calibrated, train, valid = spring_case
+    presliding = PreslidingTerm(joint=3, scale=1e-3)
+    report = _report(SpringTerm(joint=1), presliding)
+    hint = presliding.interpret([0.5])[1]
+    report.findings[1].explanation = hint
+    result = recalibrate(calibrated, denso, denso_model, report, train, valid, robot_source=DENSO_FILE)
+    block = result.after.document["diagnosis"]
+    assert block["version"] == DIAGNOSIS_VERSION
+    (entry,) = block["dropped"]
+    assert entry["label"] == "presliding[j4]" and entry["joints"] == [4] and entry["reason"].startswith(NO_GAIN)
+    assert entry["hint"] == hint and "psdm identify --friction lugre" in hint
+    result.after.save(folder / "with_dropped.json")
+    said = {}
+    for name in ("with_dropped.json", "model.json"):
+        err = io.StringIO()
+        with contextlib.redirect_stdout(io.StringIO()) as out, contextlib.redirect_stderr(err):
+            assert main(["validate", str(folder / name), str(folder / "valid.csv"), "--json"]) == 0
+        said[name] = (json.loads(out.getvalue())["not_written"], err.getvalue())
+    (note,), err = said["with_dropped.json"]
+    assert "found presliding[j4] and did not write it (no gain in the written model" in note and hint in note
+    assert note in err
+    assert said["model.json"][0] == [] and "did not write it" not in said["model.json"][1]
