@@ -280,6 +280,12 @@ def read_table(path, joint_names=None, topic: str | None = None, layout: ColumnL
         )
     readers = {".csv": read_csv_table, ".npz": read_npz_table, ".mat": read_mat_table}
     reader = readers.get(path.suffix.lower())
+    if path.suffix.lower() == ".toml":  # a payload manifest (identify --data) or a robot file in a recording's place
+        raise RecordingError(
+            f"recording {path.name!r} is a TOML file, not a recording: a configurations manifest is read by "
+            "identify's --data only. Give its recordings themselves (each one's load: an A.payload.json beside it; "
+            "diagnose of a model takes the load the model file lists for its own training recordings)."
+        )
     if reader is None:
         raise RecordingError(
             f"recording {path.name!r} must end in .csv or .npz (named columns), .mat (MATLAB) or .mcap/.db3 (a ROS 2 "

@@ -110,6 +110,14 @@ NOT_TEXT = [
     train("only comments", "# recorded on Monday\n\n# nothing else\n", "only comments", "start it with a header"),
     train("a folder named train.csv", None, "is a folder", "pass one .csv", extra={"train.csv/part1.csv": GOOD}),
     train("wrong suffix", GOOD, "must end in .csv or .npz", "convert", file="train.txt"),
+    train(
+        "a payload manifest as a recording",
+        '[[configuration]]\nname = "tool"\nrecordings = ["validate.csv"]\n',
+        "is a TOML file, not a recording",
+        "identify's --data",
+        "A.payload.json",
+        file="configurations.toml",
+    ),
     validate("missing validation file", None, "does not exist", "check the path"),
 ]
 
