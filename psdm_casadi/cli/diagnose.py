@@ -251,7 +251,7 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     train, held = diagnose_parts(args.train, load(args.train), document, fraction, load, bool(given), args.robot)
     validations = _held_out([*map(load, given), *(recording for _, recording, _ in held)])
     args.validate, args.held_parts = [*given, *(path for path, _, _ in held)], [part for _, _, part in held]
-    args.more = read_more_training(args.more_train, load)  # the refit's other --train recordings, read once
+    args.more = read_more_training(args.more_train, load, robot)  # the refit's other --train recordings, read once
     return train, validations, given, held
 
 

@@ -41,8 +41,16 @@ def training_paths(args) -> tuple:
     return first, more
 
 
-def read_more_training(paths, load) -> list:
+def read_more_training(paths, load, robot) -> list:
     """``[(path, raw recording)]`` of the other ``--train`` recordings, each read with ``load(path)`` as the first
-    (joint side, timed, the model's column layout): a missing file or another robot's joint count is refused here,
-    before any fit, by the reader's error naming the file and the fix."""
-    return [(path, load(path)) for path in paths]
+    (joint side, timed, the model's column layout) and checked as identify checks its training recordings
+    (``plausibility.check_plausible_recording``: positions in degrees, torques in mN m): a missing file, another
+    robot's joint count or the wrong units are refused here, before any fit, naming the file and the fix."""
+    from identification.data.plausibility import check_plausible_recording
+
+    out = []
+    for path in paths:
+        recording = load(path)
+        check_plausible_recording(recording, robot)
+        out.append((path, recording))
+    return out

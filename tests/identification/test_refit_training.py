@@ -221,14 +221,17 @@ def test_further_train_recordings_stand_for_the_file_s_are_added_or_counted_once
 
 
 def test_bad_further_train_recordings_are_refused_naming_the_file(files, tmp_path, capsys, denso):
-    """A missing file and a recording of another joint count among the ``--train`` recordings: exit 2 before any fit,
-    naming the file and the fix; several with a robot file (no refit to train them) name identify's route."""
+    """A missing file, a recording of another joint count and one in degrees among the ``--train`` recordings: exit 2
+    before any fit, naming the file and the fix; several with a robot file (no refit to train them) name identify's
+    route."""
     from identification.data.recording import Recording
     from psdm_casadi.cli import main
 
     five = load_recording(files / "valid.csv", denso.n_dof)
     save_recording(Recording(t=five.t, q=five.q[:, :5], tau=five.tau[:, :5], name="five.csv"), tmp_path / "five.csv")
-    for bad, expected in (("gone.csv", "does not exist"), ("five.csv", "give 5 joints but the robot has n_dof=6")):
+    save_recording(Recording(t=five.t, q=np.degrees(five.q), tau=five.tau, name="deg.csv"), tmp_path / "deg.csv")
+    for bad, expected in (("gone.csv", "does not exist"), ("five.csv", "give 5 joints but the robot has n_dof=6"),
+                          ("deg.csv", "degrees")):  # fmt: skip
         code = main([str(a) for a in ("diagnose", files / "model.json", "--train", files / "b.csv", tmp_path / bad,
                                       "--validate", files / "valid.csv", *QUICK)])  # fmt: skip
         err = capsys.readouterr().err
