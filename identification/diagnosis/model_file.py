@@ -126,10 +126,13 @@ def diagnose_model(
     ----------
     source : path or LoadedModel
         The calibrated-model file, or its ``read_calibrated_model`` (the file with its robot and PSDM model).
-    train : Recording or path
+    train : Recording, path, or sequence of paths
         The raw training recording, as for ``diagnose``; or its path: read with ``load`` and, when the model was
         identified with ``--holdout`` on it, cut where the model cut it (``data.holdout.diagnose_parts``, as ``psdm
-        diagnose MODEL --train REC``), its held-out part a validation recording.
+        diagnose MODEL --train REC``), its held-out part a validation recording. Several paths (``psdm diagnose
+        MODEL --train A B``): the first is diagnosed, and the refit with the findings (the report's "after") trains
+        on the others too (``refit_training``: the file's own recordings handed back, or new ones), with ``source``
+        a path.
     validation : Recording, sequence of Recording, or None
         Raw validation recordings. None (with ``train`` a path): the held-out parts the model file stores
         (``identification.holdout``), as ``psdm diagnose MODEL --train REC`` without ``--validate``.
@@ -154,8 +157,15 @@ def diagnose_model(
     Raises
     ------
     ParameterError
-        No validation recording: ``validation`` None and no stored part (or ``train`` a recording, not its path).
+        No validation recording: ``validation`` None and no stored part (or ``train`` a recording, not its path);
+        several ``train`` paths with ``source`` a ``LoadedModel`` (no file whose refit trains on them).
     """
+    train, *more = train if isinstance(train, (list, tuple)) else (train,)
+    if more and isinstance(source, LoadedModel):
+        raise ParameterError(
+            "diagnose_model: several train paths need source as the model file's path (its refit trains on them "
+            "beside the file's own recordings); got a LoadedModel. Pass the path."
+        )
     loaded = source if isinstance(source, LoadedModel) else read_calibrated_model(source, derive=derive)
     if name is None and not isinstance(source, LoadedModel):
         name = str(source)
@@ -163,7 +173,8 @@ def diagnose_model(
     train, validation, held_out = model_file_recordings(loaded, train, validation, load, name or "the model file")
     refit = None  # a file and a recording on disk: the refit finds the file's own training recordings (refit_training)
     if path is not None and not isinstance(source, LoadedModel):
-        refit = file_refit(loaded, source, train, path, load)
+        reader = load or _reader(loaded)
+        refit = file_refit(loaded, source, train, path, load, [(str(p), reader(p)) for p in more])
     report = diagnose_model_prior(loaded, train, validation, options, name, refit)[0]
     return replace(report, held_out=held_out) if held_out else report
 

@@ -241,3 +241,29 @@ def test_bad_further_train_recordings_are_refused_naming_the_file(files, tmp_pat
     err = capsys.readouterr().err
     assert code == 2 and "--train takes one recording with a robot file; got 2 (a.csv, b.csv)" in err
     assert "psdm identify" in err and "psdm diagnose model.json --train" in err
+
+
+def test_diagnose_model_takes_the_train_recordings_as_the_command_does(files, tmp_path, denso):
+    """``diagnose_model(MODEL, [b.csv, a.csv])`` from Python: the recordings moved, handed back as a list, and the
+    refit (the report's "after") trains on both, as ``psdm diagnose MODEL --train b.csv a.csv``; a ``LoadedModel``
+    (no file to refit) with several is refused naming the fix."""
+    from identification.calibration.calibrated_model import read_calibrated_model
+    from identification.diagnosis.diagnose import DiagnosisOptions
+    from identification.diagnosis.model_file import diagnose_model
+    from psdm_casadi.errors import ParameterError
+
+    document = json.loads((files / "model.json").read_text())
+    for entry in document["provenance"]["recordings"]:
+        entry["path"] = str(tmp_path / "gone" / entry["name"])
+    (tmp_path / "model.json").write_text(json.dumps(document))
+    (tmp_path / "moved").mkdir()
+    for name in ("a.csv", "b.csv"):
+        shutil.copy(files / name, tmp_path / "moved" / name)
+    trains = [tmp_path / "moved" / "b.csv", tmp_path / "moved" / "a.csv"]
+    valid = load_recording(files / "valid.csv", denso.n_dof)
+    options = DiagnosisOptions(sparse=False, rigid_body="prior")
+    report = diagnose_model(tmp_path / "model.json", trains, [valid], options)
+    assert report.refit_training.missing == ()
+    assert report.refit_training.sources == tuple(f"{p} (--train)" for p in trains)
+    with pytest.raises(ParameterError, match="several train paths need source as the model file's path"):
+        diagnose_model(read_calibrated_model(tmp_path / "model.json"), trains, [valid], options)
