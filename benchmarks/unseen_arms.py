@@ -172,7 +172,8 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
     ratio = np.maximum(masses[heavy] / truth[heavy], truth[heavy] / masses[heavy])
     rmse = np.asarray(identified["validation"][0]["rmse"], dtype=float)
     code_val, _, _, _ = _cli(["validate", model, case.validate, *layout, "--json"])
-    # diagnose takes one training recording (the loaded one, as its refusal of several says)
+    # diagnose judges one training recording (the loaded one); its refit finds the model's others by their content
+    # (refit_training), as --train with all of them would hand them over
     diagnose = ["--train", case.train[-1], "--validate", case.validate, *layout, "--json"]
     code_dia, diagnosis, dia_text, dia_s = _cli(["diagnose", model, *diagnose])
     listed = document["standard"].get("envelope_findings", ())
