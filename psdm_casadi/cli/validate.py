@@ -72,8 +72,8 @@ def _run_validate(args) -> int:
     from identification.calibration.dropped_findings import dropped_notes
     from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
     from identification.calibration.payload_fit import stated_payload
+    from identification.calibration.refit_training import listed_configuration
     from identification.calibration.trajectory_checks import check_validation_recording
-    from identification.data.configuration import stated_configuration
     from identification.data.missing_torque import find_missing_torque, missing_torque_messages
     from identification.data.robot_recordings import load_robot_recording, recording_paths
     from psdm_casadi.cli.checks import read_calibrated_argument
@@ -111,7 +111,8 @@ def _run_validate(args) -> int:
         check_validation_recording(robot, recording)
     rows = []
     for (path, _, part), recording in zip(parts, recordings):
-        stated, note = stated_payload(stated_configuration(path), calibrated.configurations, args.model)  # sidecar
+        listed = listed_configuration(calibrated.document, path)  # its sidecar, else the model's list for it
+        stated, note = stated_payload(listed, calibrated.configurations, args.model)
         if note is not None:
             warnings.append(note)
             print(f"psdm validate: warning: {path}: {note}", file=sys.stderr)

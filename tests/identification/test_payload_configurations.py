@@ -285,7 +285,8 @@ def test_identify_judges_the_arm_on_a_held_out_recording_that_carries_a_known_lo
 def test_diagnose_takes_off_the_load_the_model_file_lists_for_a_recording_without_a_sidecar(denso, recorded, tmp_path,
                                                                                             capsys):  # fmt: skip
     """A training recording whose load a manifest stated (no sidecar beside it), given to ``psdm diagnose MODEL`` as
-    --train: the load the model file lists for that content is taken off, as a sidecar's would be. Read as unloaded,
+    --train (or to ``psdm validate``): the load the model file lists for that content is taken off (validate: added to
+    the prediction), as a sidecar's would be; validate named it "appears to carry" a load before. Read as unloaded,
     its load went into the diagnosis's friction refit (training RMSE of joint 2 2.44 N m against 0.46 on the virtual
     Denso) and into ``--apply``'s refit (a UR10 with 1.9 and 7.4 kg: joint 2 0.95 -> 17.8 N m, its true ripple
     dropped)."""
@@ -311,6 +312,9 @@ def test_diagnose_takes_off_the_load_the_model_file_lists_for_a_recording_withou
         listed = listed_configuration(document, tmp_path / name)
         assert listed.kind == "known" and listed.payload.mass == KNOWN.mass, listed
     assert listed_configuration(document, tmp_path / "empty_again.npz").kind == "none"  # not the model's: no load
+    assert main(["validate", str(model), str(tmp_path / "renamed.npz"), "--json"]) == 0
+    (checked,) = json.loads(capsys.readouterr().out)["recordings"]
+    assert checked["stated_payload_kg"] == KNOWN.mass and checked["payload"] is None, checked
     argv = ["diagnose", str(model), "--train", str(tmp_path / "known.npz"), "--validate",
             str(tmp_path / "empty_again.npz"), "--json", "--max-effects", "0", "--no-sparse"]  # fmt: skip
     assert main(argv) == 0
