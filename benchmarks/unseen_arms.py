@@ -6,10 +6,11 @@ table traced in degrees and mN m; the same arm on slow gravity poses with a 5 kg
 counterbalance on slow motions; a 210 kg-class arm with a gas-spring counterbalance whose user's robot file has the
 datasheet's masses, 10-20 % off, trained unloaded and with a known 150 kg; a serial arm in ROS 2 MCAP bags with an
 unknown gripper; a 7-joint cobot logging motor-side positions and currents while its joints warm up,
-``unseen_warm_cobot``). The commands the README
+``unseen_warm_cobot``; a UR10-class cobot on motor currents with a 7:1 belt on joint 6 whose known load changes between
+its recordings, stated in a configurations manifest, ``unseen_belt_cobot``). The commands the README
 prints are run with no options but the log's own layout (``--columns`` with its units, as the log needs):
 
-    psdm identify ROBOT --data TRAIN... --validate VAL --out model.json
+    psdm identify ROBOT --data TRAIN... --validate VAL --out model.json     (TRAIN: the case's manifest, if it has one)
     psdm validate model.json VAL
     psdm diagnose model.json --train TRAIN --validate VAL          (the last training recording: it takes one)
     psdm codegen model.json --out c/
@@ -156,8 +157,9 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
     """Build one case, run the four commands on it, judge them against its truth."""
     case = build(name, folder, seed)
     model, layout = folder / "model.json", list(case.extra)
+    data = case.data or case.train  # a configurations manifest where the loads are stated in one
     code_id, identified, id_text, id_s = _cli(
-        ["identify", case.robot, "--data", *case.train, "--validate", case.validate, *layout, "--out", model, "--json"]
+        ["identify", case.robot, "--data", *data, "--validate", case.validate, *layout, "--out", model, "--json"]
     )
     row = {"case": name, "what": case.what, "identify_exit": code_id, "identify_s": round(id_s, 1)}
     row["units_refused_with_fix"] = _refusal(case, folder)

@@ -44,6 +44,7 @@ class Case:
     refusal_words: tuple = ()  # ... with these words (the file, the field, the fix)
     friction_shapes: tuple = ()  # (shape, joint 1-based): the truth's friction is not Coulomb-viscous there
     effects: tuple = ()  # the hidden effects' truth as simulated (``identification.virtual`` load torques)
+    data: tuple = ()  # identify's --data when it is not ``train`` (a configurations manifest listing them)
 
 
 def ur5_urdf() -> Path:
@@ -456,6 +457,14 @@ def warming_cobot(folder: Path, rng) -> Case:
     return build_case(folder, rng)
 
 
+def belt_cobot(folder: Path, rng) -> Case:
+    """A UR10-class cobot on motor currents, a 7:1 belt on joint 6, its known load changing between recordings
+    (``unseen_belt_cobot``)."""
+    from unseen_belt_cobot import belt_cobot as build_case
+
+    return build_case(folder, rng)
+
+
 CASES = {
     "cobot_currents_payload": cobot_currents,
     "industrial_dh_degrees_mNm": industrial_degrees,
@@ -464,6 +473,7 @@ CASES = {
     "heavy_gas_spring_datasheet": heavy_gas_spring,
     "serial_mcap_unknown_payload": serial_bag,
     "cobot_warming_currents": warming_cobot,
+    "cobot_belt_payload_change": belt_cobot,
 }
 
 

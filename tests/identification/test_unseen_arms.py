@@ -160,3 +160,33 @@ def test_the_warming_cobot_s_files_are_the_vendor_s_and_its_logs_the_controller_
     motor, gear = np.abs(data[:, 1:8]).max(axis=0), np.array([160, 160, 160, 160, 100, 160, 160])
     assert np.all(motor > np.array(truth.q_max)) and np.all(motor / gear < np.array(truth.q_max)), motor  # motor turns
     assert [p.with_suffix(".payload.json").exists() for p in (*case.train, case.validate)] == [False, True, False]
+
+
+def test_the_belt_cobot_s_loads_are_in_its_manifest_and_its_logs_the_logger_s(benchmark_modules, tmp_path):
+    """The belt cobot (``cobot_belt_payload_change``): the user's file is the vendor URDF (masses 5-12 % under the
+    built arm's, no rotors) with the 7:1 belt of joint 6 in its gear ratios; its two training logs carry two different
+    known loads stated only in the manifest, read back as stated; the logs are semicolon CSV with decimal commas in
+    degrees and mA, which the reader takes to the truth's SI values (the motor currents times kt x gear are the
+    torques, the ripple's joint turning through several of its 7 periods per turn)."""
+    import unseen_arms
+
+    from identification.data.configuration import recordings_with_configurations
+    from identification.data.robot_recordings import load_robot_recording
+    from psdm_casadi.robot import load_robot
+
+    case = unseen_arms.build("cobot_belt_payload_change", tmp_path, 0)
+    user, truth = load_robot(case.robot), load_robot(tmp_path / "truth" / "truth.toml")
+    built = case.true_links / np.array([link.mass for link in user.links])
+    assert np.all((built >= 1.05 - 1e-3) & (built <= 1.12 + 1e-3)), built
+    assert not np.any(user.rotor_inertia) and truth.rotor_inertia[5] == pytest.approx(2.5e-4 * 49, rel=0.01)
+    np.testing.assert_allclose([d.kt for d in user.drives], [d.kt for d in truth.drives])  # 7 x 0.35 on joint 6
+    paths, stated = recordings_with_configurations([str(p) for p in case.data])
+    assert [p.name for p in paths] == [p.name for p in case.train]
+    assert [c.payload.mass for c in stated] == [1.9, 7.4] and not any(p.with_suffix(".payload.json").exists()
+                                                                       for p in case.train)  # fmt: skip
+    recording = load_robot_recording(case.validate, user, None, None)
+    raw = np.loadtxt(case.validate, delimiter=";", skiprows=1, converters=lambda s: float(s.replace(",", ".")))
+    np.testing.assert_allclose(recording.q, np.radians(raw[:, 1:7]), atol=1e-8)
+    np.testing.assert_allclose(recording.joint_torque(np.array([d.kt for d in user.drives])),
+                               raw[:, 7:] / 1000.0 * np.array([d.kt for d in truth.drives]), rtol=1e-9)  # fmt: skip
+    assert np.ptp(recording.q[:, 5]) * 7 / (2 * np.pi) > 1.5  # the ripple's periods the held-out motion crosses
