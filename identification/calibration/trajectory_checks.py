@@ -232,17 +232,26 @@ def _envelope_warnings(fit) -> list:
     return [finding.message for finding in fit.envelope if finding.pressed]  # a link resting on a bound: a note
 
 
-def _fit_quality_warnings(robot, fit) -> list:
+def _fit_quality_warnings(robot, fit, loaded=()) -> list:
     """Joints whose torque the identified model does not explain on the very recordings it was fitted to (none when
-    the torques are in another unit: the bounded model cannot reach them, and the unit is the one cause to name)."""
+    the torques are in another unit: the bounded model cannot reach them, and the unit is the one cause to name).
+    ``loaded``: the recordings that look as if they carry a load the others do not (``configuration_check``'s
+    ``LoadedRecording``): one arm fitted across different loads is the cause then, not a torque's sign, and the
+    warning says so."""
     if unit_factor(getattr(fit, "torque_ratio", ())) is not None:
         return []
-    out = []
+    loaded, out = [f.name or "a recording" for f in loaded if f.mass > 0], []
     for j, (r2, r2_ols) in enumerate(zip(fit.training_r2, fit.training_r2_ols)):
         if r2 >= MIN_TRAINING_R2:
             continue
         label, k = joint_label(j, robot), j + 1
-        if r2_ols >= MIN_TRAINING_R2:
+        if r2_ols >= MIN_TRAINING_R2 and loaded:
+            cause = (
+                f"the unconstrained fit explains {r2_ols:.0%}: one arm fitted across recordings that carry different "
+                f"loads is unphysical, and {', '.join(loaded)} looks loaded (said below). State each recording's "
+                "payload (A.payload.json or a configurations.toml) and identify again"
+            )
+        elif r2_ols >= MIN_TRAINING_R2:
             cause = (
                 f"the unconstrained fit explains {r2_ols:.0%}: the data ask for an unphysical model. Torque sign or "
                 f"joint mapping wrong? Check the sign of tau{k} (or i{k}) and its joint"
@@ -260,10 +269,11 @@ def _fit_quality_warnings(robot, fit) -> list:
     return out
 
 
-def fit_warnings(robot, fit) -> tuple:
-    """Warnings (str) on a ``TrajectoryFit`` of ``robot`` that point at a wrong recording (module docstring)."""
+def fit_warnings(robot, fit, loaded=()) -> tuple:
+    """Warnings (str) on a ``TrajectoryFit`` of ``robot`` that point at a wrong recording (module docstring);
+    ``loaded``: the training recordings that look loaded against the others (``configuration_check``)."""
     return tuple(
-        _fit_quality_warnings(robot, fit)
+        _fit_quality_warnings(robot, fit, loaded)
         + _friction_warnings(robot, fit)
         + _drive_inertia_warnings(fit)
         + _mass_warnings(robot, fit)

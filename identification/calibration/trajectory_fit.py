@@ -378,8 +378,8 @@ def identify_trajectories(
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
     vs_std = () if vs is None else stribeck_velocity_std(x_ols, std, model.n_base, names, vs)
     x_ols, std, equations = x_ols[:n_all], std[:n_all], equations.subset(range(n_all))
-    found = [] if own is None else loaded_recordings(own, n_all, equations, sigma, correlation)
-    mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(found)]
+    loaded = [] if own is None else loaded_recordings(own, n_all, equations, sigma, correlation)
+    mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(loaded)]
     estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
@@ -421,7 +421,7 @@ def identify_trajectories(
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
         torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit],
     )  # fmt: skip
-    return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit), *mixed)), options)
+    return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit, loaded), *mixed)), options)
 
 
 def _data_own(equations, columns, options, correlation, ols) -> tuple:
