@@ -14,8 +14,9 @@ stays named, its route suggested, as before):
 
 - the payload is estimated as a point mass at the flange (``payload_fit.FlangeRegressor``, its first four columns)
   from the torque the robot file's rigid body leaves on the prepared training recordings, the drive columns of the fit
-  fitted beside it (weighted by each joint's residual variance, as ``payload_check.new_payload``). It is tried only as
-  a body: a positive mass, its centre of mass within ``MAX_PAYLOAD_REACH`` of the flange;
+  and the springs the counterbalance route kept fitted beside it (weighted by each joint's residual variance, as
+  ``payload_check.new_payload``): a balancer the model holds as a spring, not as an offset, is not the body's to
+  explain. It is tried only as a body: a positive mass, its centre of mass within ``MAX_PAYLOAD_REACH`` of the flange;
 - the arm is identified again with the robot file's links carrying it (``carried_payload.carrying_payloads``, as
   ``psdm diagnose --apply`` takes a payload up: the pull and the envelope around the file with the load), and the
   counterbalance route runs again from that fit: a spring is kept beside the payload only where it still holds out
@@ -50,6 +51,7 @@ from identification.calibration.counterbalance_column import (
     try_counterbalance,
 )
 from identification.calibration.counterbalance_folds import FoldFailure, block_folds
+from identification.calibration.findings import FindingColumns, FindingTerm
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.never_worse import compare_each, pooled_comparison
 from identification.calibration.payload_fit import FlangeRegressor
@@ -108,19 +110,26 @@ def payload_named(fit) -> bool:
     return any(e.absorbs == "payload" or "payload" in (getattr(e, "alternatives", ()) or ()) for e in entries)
 
 
-def estimate_payload(robot, model, fit, prepared) -> tuple | None:
+def estimate_payload(robot, model, fit, prepared, springs=()) -> tuple | None:
     """``(mass [kg], centre of mass [m] in the flange frame)`` of the point mass at the flange that best explains the
-    torque the robot file's rigid body leaves on the ``prepared`` recordings, the drive columns of ``fit`` fitted
-    beside it (module docstring), or None where it is no body (mass not positive, centre of mass out of reach)."""
+    torque the robot file's rigid body leaves on the ``prepared`` recordings, the drive columns of ``fit`` and the
+    counterbalance route's kept ``springs`` (``findings.FindingTerm``) fitted beside it (module docstring), or None
+    where it is no body (mass not positive, centre of mass out of reach).
+
+    Every torque the model already names has its own columns beside the body, so the body takes only what it explains:
+    a balancer the fit took as a spring (not as an offset) is otherwise left to the body at the flange, which has no
+    column for one joint's torque alone (the heavy virtual arm at seed 1 without an offset: a mass not positive)."""
     from identification.physical_bounds import MAX_PAYLOAD_REACH
 
     theta = model.base_parameters(robot.nominal_dynamic_parameters())
     flange = FlangeRegressor(robot)
     shape = fit_shape(fit)  # Stribeck velocities and viscous exponents
+    named = FindingColumns(tuple(springs))
     rows, targets = [], []
     for rec in prepared:
         own = drive_columns(rec.qd, rec.qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *shape)
-        rows.append(np.concatenate([flange(rec.q, rec.qd, rec.qdd)[:, :, :4], own], axis=2))
+        beside = named.all_columns(np.asarray(rec.q, dtype=float), rec.qd, rec.qdd)
+        rows.append(np.concatenate([flange(rec.q, rec.qd, rec.qdd)[:, :, :4], own, beside], axis=2))
         targets.append(np.asarray(rec.tau, dtype=float) - model.inverse_dynamics(rec.q, rec.qd, rec.qdd, theta))
     columns, residual = np.concatenate(rows), np.concatenate(targets)
     measured = np.all(np.isfinite(residual), axis=0)
@@ -152,13 +161,14 @@ def _springs(document) -> list:
             and f.get("effect") == "spring"]  # fmt: skip
 
 
-def _carried_model(robot, model, options, build, entries, data, fit) -> tuple | None:
+def _carried_model(robot, model, options, build, entries, data, fit, beside=()) -> tuple | None:
     """``(CalibratedModel, (mass, com), carried robot, fit or None)`` of ``data``: the payload estimated on them
-    (``fit``'s drive columns beside it), the arm identified carrying it with the springs ``entries`` (the fit itself
-    where there are none); None where no body is estimated."""
+    (``fit``'s drive columns and the springs of the entries ``beside`` beside it), the arm identified carrying it with
+    the springs ``entries`` (the fit itself where there are none); None where no body is estimated."""
     from identification.calibration.column_candidates import prepare_training
 
-    found = estimate_payload(robot, model, fit, prepare_training(robot, list(data), options).prepared)
+    terms = [FindingTerm.from_dict(entry["term"]) for entry in beside]
+    found = estimate_payload(robot, model, fit, prepare_training(robot, list(data), options).prepared, terms)
     if found is None:
         return None
     entry = payload_entry(*found)
@@ -193,7 +203,7 @@ def _opinions(robot, model, options, build, a_doc, b_doc, problem, fit) -> list:
             return out
 
         def with_payload(pieces):
-            found = _carried_model(robot, model, options, build, b_springs, pieces, fit)
+            found = _carried_model(robot, model, options, build, b_springs, pieces, fit, a_springs)
             if found is None:
                 raise PSDMError("no payload is estimated on the training blocks")
             return found[0]
@@ -242,7 +252,7 @@ def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
         kt = np.array([d.kt for d in robot.drives], dtype=float)
     logger.info("identify: trying the payload the report names (a body at the flange) ...")
     try:
-        found = _carried_model(robot, model, options, build, [], recordings, start)
+        found = _carried_model(robot, model, options, build, [], recordings, start, _springs(calibrated.document))
     except PSDMError as error:
         return (*unchanged, PayloadChoice(True, reason=f"not tried: {str(error).splitlines()[0]}"))
     if found is None:
