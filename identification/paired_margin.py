@@ -10,6 +10,12 @@ the draws away from the measured difference when the difference sits near an end
 never-worse gate of a refit (``calibration.never_worse``) asks ``MARGIN_SIGMAS`` of those standard errors, at least
 ``MARGIN_FLOOR`` of the RMSE before; the diagnosis asks the same of an elasticity against pre-sliding
 (``diagnosis.presliding_or_elasticity``).
+
+Where one model's error sits in a few bursts (a friction reversal the other model follows), the draws are skewed and
+their standard error overstates the doubt of a large difference; the share of the draws in which one model is lower
+(``share_lower``) does not. That share is what a finding must win by: an elasticity against pre-sliding on a held-out
+training block (``presliding_or_elasticity``), a finding of the model ``diagnose --apply`` writes against the refit
+without it (``calibration.no_gain``).
 """
 
 from __future__ import annotations
@@ -67,3 +73,9 @@ def paired_rmse_draws(before: np.ndarray, after: np.ndarray, seed: int = 0) -> t
         rows = ((starts[:, :, None] + np.arange(length)) % n).reshape(BOOTSTRAP_SAMPLES, -1)[:, :n]
         draws[:, j] = np.sqrt(e_a[rows, j].mean(axis=1)) - np.sqrt(e_b[rows, j].mean(axis=1))
     return np.sqrt(e_b.mean(axis=0)), np.sqrt(e_a.mean(axis=0)), draws
+
+
+def share_lower(before: np.ndarray, after: np.ndarray, seed: int = 0) -> np.ndarray:
+    """Per column, the share of the circular block bootstrap draws (``paired_rmse_draws``) in which ``after``'s RMSE
+    is below ``before``'s, strictly: 0 where the two residuals are the same."""
+    return np.mean(paired_rmse_draws(before, after, seed)[2] < 0.0, axis=0)

@@ -13,13 +13,13 @@ Then the never-worse gate (``never_worse.keep_not_worse``, its record in ``recal
 validation RMSE may rise beyond a noise margin (``never_worse.MARGIN_RULE``) where the refits without each training
 block (``refit_folds``) reproduce the rise; otherwise findings are dropped and the model refitted, or
 ``Recalibration.refused`` names the joints and findings and nothing may be written. Of the findings the gate keeps,
-a new reported one (no term in the model: it lowers no joint's validation RMSE there) is dropped too (``no_gain``,
-listed in ``dropped_findings`` with its reason): it would be written changing nothing.
+a new one that gains nothing is dropped too (``no_gain.keep_earning``, listed in ``dropped_findings`` with its
+numbers): one whose model is not below the model without it on its joints in a clear majority of the bootstrap draws
+(``no_gain.GAIN_RULE``); the model is refitted without it and the gate asked again.
 """
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import functools
 import logging
@@ -32,7 +32,7 @@ from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, co
 from identification.calibration.dropped_findings import dropped_block
 from identification.calibration.finding_value import validation_rmse, without_entry
 from identification.calibration.never_worse import keep_not_worse
-from identification.calibration.no_gain import no_gain_findings
+from identification.calibration.no_gain import keep_earning
 from identification.calibration.payload_fit import carried_configurations
 from identification.calibration.refit_folds import training_refits
 from identification.friction.models import LUGRE_PARAMETER_NAMES
@@ -124,8 +124,10 @@ def recalibrate(
     findings, droppable = (terms, corrections, entries), [t.label for t in terms] + list(corrections)
     refit_on = functools.partial(refit_without, calibrated, robot, model, findings=findings, robot_source=robot_source)
     refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz)
-    gate = keep_not_worse(calibrated, (after, fit), refit_on(train), droppable, model, validation, kt, refits)
-    gate, no_gain = _earning(calibrated, gate, entries)
+    refit = refit_on(train)
+    gate = keep_not_worse(calibrated, (after, fit), refit, droppable, model, validation, kt, refits)
+    new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}
+    gate, no_gain = keep_earning(calibrated, gate, refit, droppable, new, model, validation, kt, refits)
     after, fit, dropped = gate.after, gate.payload, dropped + no_gain
     rmse_before, rmse_after = gate.comparison.before, gate.comparison.after
     scores = [validation_rmse(after, model, r, kt) for r in validation]
@@ -167,23 +169,6 @@ def recalibrate(
             )
     return Recalibration(before=calibrated, after=after, rmse_before=rmse_before, rmse_after=rmse_after, moved=moved,
                          min_mass_eigenvalue=mass, refused=gate.refused)  # fmt: skip
-
-
-def _earning(calibrated, gate, entries) -> tuple:
-    """(gate, records): ``gate`` with the diagnosis's new findings that have no gain in its model taken out of the
-    model written (``no_gain.no_gain_findings``: reported ones, which hold no term, so nothing is refitted), and their
-    records."""
-    if gate.refused is not None:
-        return gate, []
-    new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}
-    records = no_gain_findings(gate.comparison, gate.after, new)
-    if not records:
-        return gate, []
-    labels = {d["label"] for d in records}
-    logger.info("recalibrate: no gain in the written model, dropped: %s", sorted(labels))
-    document = copy.deepcopy(gate.after.document)
-    document["findings"] = [e for e in document["findings"] if e["label"] not in labels]
-    return dataclasses.replace(gate, after=CalibratedModel(document)), records
 
 
 def _moved(before: CalibratedModel, after: CalibratedModel) -> list:

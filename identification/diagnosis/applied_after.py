@@ -23,6 +23,7 @@ import numpy as np
 
 from identification.calibration.applied_model import applied_model
 from identification.calibration.finding_value import validation_rmse
+from identification.calibration.no_gain import GAIN_RULE
 from identification.calibration.refit_training import training_alone
 from psdm_casadi.errors import PSDMError
 
@@ -94,7 +95,7 @@ def with_written_after(report, result, model, validation, kt=None, written: bool
                        validation_final=final)  # fmt: skip
     source = (f"{report.after_source}; then without {', '.join(dropped)}, which the never-worse gate dropped (the "
               "model written)") if dropped else report.after_source  # fmt: skip
-    source += f"; without {', '.join(no_gain)} (no gain in the written model)" if no_gain else ""
+    source += f"; without {', '.join(no_gain)} (gained nothing: {GAIN_RULE})" if no_gain else ""
     return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
                    validation_final=final)  # fmt: skip
 

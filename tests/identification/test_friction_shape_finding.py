@@ -17,6 +17,7 @@ import pytest
 from codegen.calibrated import build_calibrated_functions
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.findings import term_values
+from identification.calibration.no_gain import GAIN_SHARE
 from identification.calibration.recalibrate import recalibrate
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.diagnosis.candidates import FrictionShapeTerm
@@ -61,6 +62,9 @@ def test_the_applied_stribeck_peak_is_the_true_one_and_lowers_its_joint(applied)
     assert 0.5 * STRIBECK_PEAK < entry["coefficients"][0] < 1.5 * STRIBECK_PEAK
     before, after_rmse = applied.result.rmse_before[STRIBECK_JOINT], applied.result.rmse_after[STRIBECK_JOINT]
     assert after_rmse < 0.9 * before, (before, after_rmse)
+    # it earns its place: lower than the model refitted without it in a clear majority of the bootstrap draws, though
+    # its error comes in bursts at the reversals (the never-worse margin of this comparison is wider than the gain)
+    assert entry["gain"]["refitted"] and entry["gain"]["share_lower"][0] >= GAIN_SHARE
 
 
 def test_the_exported_functions_equal_predict_with_the_friction_shape(applied, stribeck_denso, denso_model):
