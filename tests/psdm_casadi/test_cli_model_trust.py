@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 
 from identification.calibration import trajectory_data
+from identification.calibration.no_gain import GAIN_SHARE
 from identification.calibration.trajectory_checks import check_validation_recording
 from identification.calibration.trajectory_fit import identify_trajectories
 from identification.data.io import load_recording, save_recording
@@ -185,9 +186,15 @@ def test_every_command_reading_the_model_repeats_its_warnings(arm, tmp_path, cap
     assert code == 0 and "warning" not in err
 
 
+#: The torque offset [N m] on joint 1 of the recordings a recalibrated model is refitted on.
+OFFSET_J1 = 0.5
+
+
 def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path, capsys, monkeypatch):
     """``psdm diagnose MODEL --apply NEW`` refits on the same mN m torques: the refit flags the masses again, and
-    the new file stores that warning (and the command prints it) instead of starting clean."""
+    the new file stores that warning (and the command prints it) instead of starting clean. The recordings carry the
+    torque offset on joint 1 the finding names (a finding with no effect behind it gains nothing and is not written:
+    ``no_gain``)."""
     candidate = TorqueOffsetTerm(joint=0)
     finding = Finding(effect=candidate.key, label=candidate.label, joints=(1,), parameters={"offset": 1.0},
                       coefficients=(1.0,), feature_names=tuple(candidate.feature_names()), explanation="",
@@ -205,10 +212,12 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
     # psdm diagnose MODEL runs the diagnosis through diagnose_model: patched where that module looks it up
     model_file = importlib.import_module("identification.diagnosis.model_file")  # the module, not the function
     monkeypatch.setattr(model_file, "diagnose", lambda *a, **k: report)
-    valid = load_recording(arm / "valid.csv")
-    save_recording(valid.with_signals(tau=1000.0 * valid.tau), tmp_path / "valid_mNm.csv")
+    for name, target in (("valid.csv", "valid_mNm.csv"), ("train.csv", "mNm.csv")):
+        recording = load_recording(arm / name)
+        tau = recording.tau + np.array([OFFSET_J1, 0.0, 0.0])  # the offset the finding names, in N m
+        save_recording(recording.with_signals(tau=1000.0 * tau), tmp_path / target)
     new = tmp_path / "new.json"
-    argv = ["diagnose", arm / "mNm.json", "--train", arm / "mNm.csv", "--validate", tmp_path / "valid_mNm.csv",
+    argv = ["diagnose", arm / "mNm.json", "--train", tmp_path / "mNm.csv", "--validate", tmp_path / "valid_mNm.csv",
             "--apply", new, "--allow-inconsistent"]  # fmt: skip
     code, _, err = _run(capsys, argv)  # today the refit refuses the mN m torques before fitting
     assert code == 2 and "mNm.csv" in err and "mN m" in err and not new.exists(), err
@@ -216,7 +225,10 @@ def test_a_recalibrated_model_keeps_the_warnings_of_its_own_refit(arm, tmp_path,
         monkeypatch.setattr(module, "check_torque_magnitude", lambda *args, **kwargs: None)
     code, _, err = _run(capsys, argv)
     assert code == 0, err
-    kept = json.loads(new.read_text())["warnings"]
+    written = json.loads(new.read_text())
+    (offset,) = written["findings"]  # it gained: the recordings carry it (in mN m, as they are)
+    assert offset["label"] == "torque_offset[j1]" and offset["gain"]["share_lower"][0] >= GAIN_SHARE
+    kept = written["warnings"]
     assert any("rigid-body torques" in w and "mN m?" in w for w in kept), kept
     assert "psdm diagnose: warning: new.json" in err and all(w in err for w in kept)
 
