@@ -7,7 +7,9 @@ file adds the gear ratios and the datasheet's motor torque constants, joint 4's 
 motor-side positions and motor currents at 500 Hz with jittered wall-clock stamps and a dropped 80 ms stretch. Three
 recordings of one ten-minute session: at 0 s and 300 s (this one carrying a known 4 kg load, stated in its sidecar)
 for training, at 560 s held out. The friction falls as the joints warm, ``1 + 0.35 exp(-t / 200 s)`` times the
-warm arm's, so the training recordings carry 1.07-1.35 times the friction of the held-out one.
+warm arm's, so the training recordings carry 1.07-1.35 times the friction of the held-out one. The controller logs
+the joints' temperature ``Temp1..7`` every 0.5 s (NaN between), ``45 - 20 exp(-t / 200 s)`` °C: the friction is a
+straight line in it, which identify can read and keep in the model file (``drive.temperature``).
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from identification.virtual.lugre_exact import LuGreArrays, steady_state_frictio
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.robot import load_robot
 
-__all__ = ["warming_cobot"]
+__all__ = ["joint_temperature", "session_recording", "warming_cobot"]
 
 PI = np.pi
 #: (origin xyz, rpy) of joints A1..A7 (the iiwa 14's kinematics)
@@ -48,6 +50,8 @@ CURRENT_NOISE = 0.02  # [A]
 #: (file stem, start in the session [s], length [s], known load or None); the last is held out
 RUNS = (("session_0000s", 0.0, 30.0, None), ("session_0300s", 300.0, 30.0, {"mass": 4.0, "com": [0.0, 0.01, 0.08]}),
         ("session_0560s", 560.0, 20.0, None))  # fmt: skip
+COLD_C, WARM_C, WARMING_S = 25.0, 45.0, 200.0  # the joints' temperature from cold to warm [°C], its time constant [s]
+TEMPERATURE_EVERY = 250  # a temperature reading every 250 logged samples (0.5 s): NaN between, as a slow logger's
 
 
 def _urdf(scale, shift) -> str:
@@ -99,38 +103,56 @@ def _files(folder: Path):
     return user, load_robot(folder / "truth" / "truth.toml")
 
 
+def joint_temperature(session_s):
+    """[°C] The joints' temperature at ``session_s`` seconds into the session: ``45 - 20 exp(-t / 200 s)``, so the
+    friction above the warm arm's, ``0.35 exp(-t / 200 s)``, is ``0.35 (45 - T) / 20``: a straight line in T."""
+    return WARM_C - (WARM_C - COLD_C) * np.exp(-np.asarray(session_s, dtype=float) / WARMING_S)
+
+
+def session_recording(folder: Path, robot, name: str, start: float, duration: float, load, rng) -> tuple:
+    """Write one recording of the session (``start`` [s] into it, ``duration`` [s], a known ``load`` or None) as the
+    controller logs it, its joints' temperature every ``TEMPERATURE_EVERY`` samples (NaN between, rounded to 0.1 °C);
+    return (its path, the floor [N m] per joint: current noise, LuGre's dynamics and the warming, as RMS)."""
+    lugre = LuGreArrays.from_drives(robot.drives)
+    gain = np.asarray(GEAR, dtype=float) * np.asarray(MOTOR_KT)
+    payload = None if load is None else Payload(mass=load["mass"], com=np.asarray(load["com"]))
+    options = SimulationOptions(rate=1000.0, record_tau=True, record_current=False, tau_noise_std=0.0,
+                                payload=payload, q_noise_std=0.0)  # fmt: skip
+    rec, truth = simulate_recording(robot, faded_sines(robot, duration, rng), options, rng)
+    steady = steady_state_friction(truth.qd, lugre)
+    warming = 0.35 * np.exp(-(start + rec.t) / WARMING_S)[:, None] * steady  # the friction above the warm arm's
+    keep = np.arange(0, rec.n_samples, 2)  # logged at 500 Hz ...
+    keep = keep[(rec.t[keep] < 0.55 * duration) | (rec.t[keep] >= 0.55 * duration + 0.08)]  # ... 80 ms dropped
+    stamps = np.maximum.accumulate(rec.t[keep] + rng.normal(0.0, 1.5e-4, keep.size))
+    stamps[1:] = np.maximum(stamps[1:], stamps[:-1] + 1e-6)  # a logger's clock never runs back
+    current = (rec.tau + warming)[keep] / gain + rng.normal(0.0, CURRENT_NOISE, (keep.size, gain.size))
+    temperature = np.full((keep.size, 7), np.nan)
+    read = np.arange(0, keep.size, TEMPERATURE_EVERY)
+    temperature[read] = np.round(joint_temperature(start + rec.t[keep][read]), 1)[:, None]
+    header = ["time", *(f"motor_pos_{j + 1}" for j in range(7)), *(f"motor_current_{j + 1}" for j in range(7)),
+              *(f"Temp{j + 1}" for j in range(7))]  # fmt: skip
+    path = folder / f"{name}.csv"
+    data = np.column_stack([stamps + 1765000000.0 + start, rec.q[keep] * np.asarray(GEAR), current, temperature])
+    np.savetxt(path, data, delimiter=",", header=",".join(header), comments="",
+               fmt=["%.6f"] + ["%.8g"] * 14 + ["%.1f"] * 7)  # fmt: skip
+    if load is not None:
+        path.with_suffix(".payload.json").write_text(json.dumps(load))
+    dynamic = truth.tau_friction - steady  # LuGre's departure from its steady state
+    return path, np.sqrt((CURRENT_NOISE * gain) ** 2 + np.mean(dynamic**2, axis=0) + np.mean(warming**2, axis=0))
+
+
 def warming_cobot(folder: Path, rng) -> Case:
     """Write the case's files into ``folder`` (the recordings drawn from ``rng``) and return it with its truth."""
     user, robot = _files(folder)
-    lugre = LuGreArrays.from_drives(robot.drives)
-    gain = np.asarray(GEAR, dtype=float) * np.asarray(MOTOR_KT)
-    noise = CURRENT_NOISE * gain
     paths, floor = [], None
     for name, start, duration, load in RUNS:
-        payload = None if load is None else Payload(mass=load["mass"], com=np.asarray(load["com"]))
-        options = SimulationOptions(rate=1000.0, record_tau=True, record_current=False, tau_noise_std=0.0,
-                                    payload=payload, q_noise_std=0.0)  # fmt: skip
-        rec, truth = simulate_recording(robot, faded_sines(robot, duration, rng), options, rng)
-        steady = steady_state_friction(truth.qd, lugre)
-        warming = 0.35 * np.exp(-(start + rec.t) / 200.0)[:, None] * steady  # the friction above the warm arm's
-        keep = np.arange(0, rec.n_samples, 2)  # logged at 500 Hz ...
-        keep = keep[(rec.t[keep] < 0.55 * duration) | (rec.t[keep] >= 0.55 * duration + 0.08)]  # ... 80 ms dropped
-        stamps = np.maximum.accumulate(rec.t[keep] + rng.normal(0.0, 1.5e-4, keep.size))
-        stamps[1:] = np.maximum(stamps[1:], stamps[:-1] + 1e-6)  # a logger's clock never runs back
-        current = (rec.tau + warming)[keep] / gain + rng.normal(0.0, CURRENT_NOISE, (keep.size, gain.size))
-        header = ["time", *(f"motor_pos_{j + 1}" for j in range(7)), *(f"motor_current_{j + 1}" for j in range(7))]
-        path = folder / f"{name}.csv"
-        data = np.column_stack([stamps + 1765000000.0 + start, rec.q[keep] * np.asarray(GEAR), current])
-        np.savetxt(path, data, delimiter=",", header=",".join(header), comments="", fmt=["%.6f"] + ["%.8g"] * 14)
-        if load is not None:
-            path.with_suffix(".payload.json").write_text(json.dumps(load))
+        path, floor = session_recording(folder, robot, name, start, duration, load, rng)
         paths.append(path)
-        dynamic = truth.tau_friction - steady  # LuGre's departure from its steady state
-        floor = np.sqrt(noise**2 + np.mean(dynamic**2, axis=0) + np.mean(warming**2, axis=0))
     return Case(
         name="cobot_warming_currents",
         what="iiwa14-like vendor URDF (meshes absent, CAD masses 4-14 % low, no rotors), motor-side q and currents"
-        " at 500 Hz, jitter, 80 ms gap, joint 4 kt 10 % high, friction 1.35x -> 1x over the session, 4 kg stated",
+        " at 500 Hz, jitter, 80 ms gap, joint 4 kt 10 % high, friction 1.35x -> 1x over the session (Temp1..7 logged),"
+        " 4 kg stated",
         robot=user,
         train=tuple(paths[:-1]),
         validate=paths[-1],

@@ -14,7 +14,9 @@ The Functions built here compute exactly that, so the exported C equals what the
   ``gravity`` is the torque that holds the robot still at q (``bias(q, 0)``: gravity plus the offsets);
 - ``forward_dynamics`` solves ``mass_matrix qdd = tau - bias``, the inverse of ``inverse_dynamics``;
 - ``regressor`` and ``gravity_regressor`` stay the rigid body's base-parameter regressor
-  (``Y theta`` omits the drive terms).
+  (``Y theta`` omits the drive terms);
+- ``inverse_dynamics_at_temperature`` (only for a file whose friction has a law in the joints' temperature):
+  ``inverse_dynamics`` with a temperature input per joint (``codegen.temperature_friction``).
 
 Every parameter is compiled in: the Functions have no ``theta`` input.
 """
@@ -28,6 +30,7 @@ import numpy as np
 
 from codegen.calibrated_lugre import lugre_note
 from codegen.export import CExport
+from codegen.temperature_friction import add_temperature_friction, temperature_note
 from identification.calibration.findings import term_values
 from identification.calibration.trajectory_data import drive_column_names, friction_term
 from psdm_casadi.errors import ModelFileError, ParameterError, ShapeError
@@ -273,7 +276,8 @@ def build_calibrated_functions(
             f"{theta.size} values. Pass the model derived from the file's robot (derive_psdm(calibrated.load_robot()))."
         )
     rigid = build_recursive_functions(model, robot, theta) if form == "recursive" else build_functions(model, theta)
-    return add_finding_terms(add_drive_terms(rigid, calibrated), calibrated)
+    functions = add_finding_terms(add_drive_terms(rigid, calibrated), calibrated)
+    return add_temperature_friction(functions, calibrated, stribeck_velocity(calibrated), viscous_exponent(calibrated))
 
 
 def _finding_torques(calibrated, q, qd, qdd):
@@ -364,6 +368,7 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
             dv = [] if exponent is None else [f"dv{j + 1} = {exponent[j]:.17g}"]
             lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs + dv))
     lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated) + corrections_note(calibrated, prefix)
+    lines += temperature_note(calibrated, prefix)
     lines = [line.replace("*/", "* /") for line in _warning_lines(calibrated) + lines]  # free text: no comment end
     return "/* " + "\n * ".join(_wrap(lines)) + "\n */\n"
 

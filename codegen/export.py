@@ -25,7 +25,8 @@ from codegen.operation_count import OperationCount, count_operations
 from psdm_casadi.errors import ParameterError, ShapeError, SolverError
 
 # Attributes of a DynamicsFunctions-like object that are exported, in this order.
-EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix", "motor_torque")
+EXPORTED_ATTRIBUTES = ("inverse_dynamics", "forward_dynamics", "regressor", "mass_matrix", "motor_torque",
+                       "inverse_dynamics_at_temperature")  # fmt: skip
 THETA_INPUT = "theta"
 RUNTIME_SUFFIX = "_theta"
 JACOBIAN_SUFFIX = "_jac"

@@ -52,6 +52,9 @@ class DynamicsFunctions:
     motor_torque : casadi.Function or None
         (q, qd, qdd[, theta]) -> tau_m = N_q^-T tau, the motor torques of a robot with a transmission
         (``codegen.motor_torque.add_motor_torque``); None otherwise.
+    inverse_dynamics_at_temperature : casadi.Function or None
+        (q, qd, qdd, temperature) -> tau of a calibrated model whose friction has a law in the joints' temperature
+        (``codegen.temperature_friction``); None otherwise.
     """
 
     regressor: ca.Function
@@ -66,6 +69,7 @@ class DynamicsFunctions:
     theta: np.ndarray | None = None
     regressor_structure: object | None = None
     motor_torque: ca.Function | None = None
+    inverse_dynamics_at_temperature: ca.Function | None = None
 
     def all(self) -> list:
         """All functions, regressor first."""

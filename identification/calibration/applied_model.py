@@ -398,4 +398,7 @@ def _document(
     document["findings"] = filled_entries(entries, terms, columns, extra)
     document["corrections"] = corrections
     document["warnings"] = list(dict.fromkeys(fit.warnings))  # the refit's own (a wrong recording stays flagged)
+    laws = calibrated.document["drive"].get("temperature")  # the friction's law in temperature (refit_training
+    if laws and all(n in document["drive"]["names"] for j in laws["joints"] for n in j["slopes_per_c"]):  # repeats
+        document["drive"]["temperature"] = copy.deepcopy(laws)  # the drift correction to its reference)
     return CalibratedModel(document)

@@ -32,7 +32,9 @@ It holds everything needed to use an identification without the recordings or th
   standard deviations and whether ``sigma0`` was identifiable (``lugre_recordings``); the drive columns then
   hold only the drive inertias and offsets, and the friction is the LuGre model carried along the series
   (``predict`` needs the sample times);
-- ``covariance`` (optional, any version; older files: ``std`` alone): the base then drive parameters' covariance.
+- ``covariance`` (optional, any version; older files: ``std`` alone): the base then drive parameters' covariance;
+- ``drive.temperature`` (optional, any version, its own ``version``): the friction's slopes in the joints' logged
+  temperature about a reference (``temperature_friction``); older readers predict the friction at the reference.
 
 Version 1 files (no findings) are read as they were. A model without LuGre friction is still written as
 version 2 (older readers read it); one with LuGre friction is version 3, which older readers refuse rather
@@ -60,8 +62,10 @@ from identification.calibration.model_file_check import robot_digest
 from identification.calibration.model_preparation import model_preparation, preparation_block
 from identification.calibration.parameter_covariance import covariance_block
 from identification.calibration.payload_fit import configurations_block
+from identification.calibration.temperature_friction import TemperatureFriction
 from identification.calibration.trajectory_data import drive_columns, file_shape, friction_shapes, prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryFit
+from identification.data.temperature import temperatures_at
 from psdm_casadi.errors import ModelFileError, ParameterError
 from psdm_casadi.fileio import atomic_write
 from psdm_casadi.model_cache import robot_cache_folder
@@ -107,7 +111,7 @@ class CalibratedModel:
         recording of ``recordings``), the ``configurations`` block says which load each recording carried.
         """
         if lugre is not None:
-            from identification.calibration.lugre_recordings import without_friction
+            from identification.calibration.lugre_recordings import lugre_block, without_friction
 
             fit = without_friction(fit)
         n = robot.n_dof
@@ -151,7 +155,7 @@ class CalibratedModel:
             document["version"] = LUGRE_VERSION
             document["drive"]["friction_shape"] = "lugre"
             document["drive"]["friction_shapes"] = ["lugre"] * n
-            document["drive"]["lugre"] = _lugre_block(lugre)
+            document["drive"]["lugre"] = lugre_block(lugre)
         return cls(document)
 
     def save(self, path, *, overwrite: bool = False, allow_inconsistent: bool = False) -> Path:
@@ -244,6 +248,11 @@ class CalibratedModel:
         return out
 
     @property
+    def temperature_friction(self):
+        """The friction's law in the joints' temperature (``temperature_friction.TemperatureFriction``), or None."""
+        return TemperatureFriction.from_document(self.document)
+
+    @property
     def lugre_parameters(self) -> tuple | None:
         """The LuGre parameters of each joint (``LuGreParameters``) of a LuGre model, else None."""
         block = self.document["drive"].get("lugre")
@@ -278,16 +287,20 @@ class CalibratedModel:
             from identification.calibration.lugre_recordings import bristle_force_at
 
             bristle = bristle_force_at(self.lugre_parameters, corrected, own.cutoff_hz, prepared.t[0])
-        predicted = self.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle)
+        temperature = temperatures_at(recording, prepared.t) if self.temperature_friction is not None else None
+        predicted = self.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle,
+                                 temperature=temperature)  # fmt: skip
         return prepared, predicted
 
-    def predict(self, model, q, qd, qdd, t=None, bristle=None) -> np.ndarray:
+    def predict(self, model, q, qd, qdd, t=None, bristle=None, temperature=None) -> np.ndarray:
         """Joint torques [N m] of the calibrated model: rigid body of ``theta``, drive terms and findings.
 
         The load-dependent friction of a finding is proportional to the model's own torque without it. The
         friction of a LuGre model carries its bristle state along the series (``lugre_recordings.lugre_friction``):
         it needs the sample times ``t`` [s], shape (n_samples,), and the rows in time order; ``bristle`` [N m],
-        shape (n_dof,), is its bristle force ``sigma0 z`` at ``t[0]`` (default relaxed, 0).
+        shape (n_dof,), is its bristle force ``sigma0 z`` at ``t[0]`` (default relaxed, 0). ``temperature`` [°C],
+        shape (n_samples, n_dof) (NaN: not logged), moves a file's friction along its law (``temperature_friction``;
+        None: the reference temperature).
         """
         lugre = self.lugre_parameters
         if lugre is not None and t is None:
@@ -313,7 +326,8 @@ class CalibratedModel:
         for term, values in findings:
             if term.load_dependent:
                 tau[:, term.joint] += values[0] * term_values(term, q, qd, qdd, base)[0]
-        return tau
+        laws = self.temperature_friction
+        return tau if laws is None else tau + laws.torque(columns, drive["names"], temperature)
 
 
 def calibrated_robot(calibrated: CalibratedModel, robot):
@@ -371,19 +385,6 @@ def friction_drives(calibrated: CalibratedModel, robot) -> tuple | None:
                             fv=max(values[f"fv{j + 1}"], 0.0), dv=float(dv[j]))
         for j, d in enumerate(base)
     )  # fmt: skip
-
-
-def _lugre_block(lugre) -> dict:
-    """The ``drive.lugre`` block: per parameter a list over joints, with standard deviations and identifiability."""
-    from identification.friction.models import LUGRE_PARAMETER_NAMES
-
-    table = lugre.table()
-    block = {name: _floats(table[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
-    block["std"] = {name: _floats(lugre.std[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
-    block.update(sigma0_identifiable=list(lugre.identifiable), rmse_friction=_floats(lugre.rmse),
-                 rmse_friction_stribeck=_floats(lugre.rmse_stribeck), solver_status=list(lugre.status),
-                 start="steady state of the first sample's velocity")  # fmt: skip
-    return block
 
 
 def _robot_block(robot, robot_source) -> dict:
@@ -491,7 +492,7 @@ def read_calibrated_model(path, derive=None) -> LoadedModel:
 
     check_document(document, path.name)  # every field parses, the robot text matches its hash
     calibrated = CalibratedModel(document)
-    calibrated.lugre_parameters, calibrated.torque_findings  # noqa: B018  (raise here, not in the command)
+    calibrated.lugre_parameters, calibrated.torque_findings, calibrated.temperature_friction  # noqa: B018
     robot = calibrated.load_robot()
     model = (derive or derive_psdm)(robot)
     check_against_model(calibrated, model, path.name, robot)  # base == standard's, and what the file claims

@@ -118,6 +118,10 @@ class FrictionDrift:
                      "torques moved to the kept friction), so the drift does not leak into the inertial parameters"
                      if self.corrected else "  fitted with one friction over every recording (friction drift: "
                      "report)")  # fmt: skip
+        if self.corrected and any(kept.basis == "temperature" for kept in self.kept):
+            lines.append("  the model file keeps each line's slopes (drive.temperature): validate, diagnose and "
+                         "the exported inverse_dynamics_at_temperature read the friction at the joints' "
+                         "temperature")  # fmt: skip
         lines.append(f"  next: {NEXT_STEP}")
         return "\n".join(lines)
 

@@ -33,6 +33,7 @@ from identification.calibration.one_way_friction import (
 from identification.calibration.payload_route import PayloadChoice, take_payload
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
+from identification.calibration.temperature_friction import temperature_block
 from identification.calibration.trajectory_fit import (
     TrajectoryFit,
     TrajectoryOptions,
@@ -250,6 +251,8 @@ def identify_recordings(
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
     calibrated.document["identification"]["friction_drift"] = drift.to_dict()
+    if (laws := temperature_block(drift, calibrated.document["drive"]["names"])) is not None:
+        calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift)
 
 

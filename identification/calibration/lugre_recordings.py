@@ -462,3 +462,18 @@ def _stribeck_torque(fit, qd, j: int) -> np.ndarray:
     vs = fit.stribeck_velocity[j]
     return sum(values[f"{term}{j + 1}"] * friction_term(term, qd, fit.coulomb_velocity, vs)
                for term in FRICTION_DRIVE_TERMS)  # fmt: skip
+
+
+def lugre_block(lugre) -> dict:
+    """The ``drive.lugre`` block: per parameter a list over joints, with standard deviations and identifiability."""
+    table = lugre.table()
+    block = {name: _json_floats(table[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
+    block["std"] = {name: _json_floats(lugre.std[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
+    block.update(sigma0_identifiable=list(lugre.identifiable), rmse_friction=_json_floats(lugre.rmse),
+                 rmse_friction_stribeck=_json_floats(lugre.rmse_stribeck), solver_status=list(lugre.status),
+                 start="steady state of the first sample's velocity")  # fmt: skip
+    return block
+
+
+def _json_floats(values) -> list:
+    return [None if not np.isfinite(v) else float(v) for v in np.asarray(values, dtype=float).reshape(-1)]

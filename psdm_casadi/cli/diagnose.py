@@ -314,6 +314,11 @@ def _payload_check(args, calibrated, robot, model, validation):
 
     kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
     _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
+    if (laws := calibrated.temperature_friction) is not None:  # the file's friction law: where it was evaluated
+        from identification.data.temperature import temperatures_at
+
+        sentence = laws.sentence(temperatures_at(validation, prepared.t), robot.joint_names)
+        print(f"psdm diagnose: note: {args.validate}: the model file's {sentence}", file=sys.stderr)
     return new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
 
 

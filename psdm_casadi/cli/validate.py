@@ -123,7 +123,8 @@ def _run_validate(args) -> int:
         load = new_payload(robot, prepared, predicted, name=str(path), own=own)  # a load the model does not have
         rows.append({"recording": str(path), "rmse": _numbers(error), "r2": _numbers(r2), "held_out": part,
                      "prepared": prepared, "predicted": predicted, "payload": load,
-                     "stated_payload_kg": None if stated is None else float(stated[0])})  # fmt: skip
+                     "stated_payload_kg": None if stated is None else float(stated[0]),
+                     "temperature": _temperature(calibrated, robot, recording, prepared)})  # fmt: skip
     if predictions is not None:
         with predictions.staging() as stage:
             stage.write_text(predictions_csv(rows, robot.n_dof))
@@ -140,8 +141,8 @@ def _run_validate(args) -> int:
         for row in rows:
             title = row["recording"] if row["held_out"] is None else row["held_out"].describe()
             print(validation_table(title, robot.joint_names, row["rmse"], row["r2"]))
-            if row["payload"] is not None:
-                print(f"  payload: {row['payload'].sentence()}")
+            for line in filter(None, (row["payload"] and f"payload: {row['payload'].sentence()}", row["temperature"])):
+                print(f"  {line}")  # the load the model does not have, the temperatures its friction was read at
         if predictions is not None:
             print(f"prepared samples and the model's torques written to {predictions.target}")
         if not calibrated.consistent:
@@ -176,8 +177,17 @@ def _json_row(row) -> dict:
     held = row.get("held_out")
     return {"recording": row["recording"], "rmse": row["rmse"], "r2": row["r2"],
             "held_out": None if held is None else held.to_dict(),
-            "stated_payload_kg": row["stated_payload_kg"],
+            "stated_payload_kg": row["stated_payload_kg"], "friction_temperature": row["temperature"] or None,
             "payload": None if load is None else load.to_dict()}  # fmt: skip
+
+
+def _temperature(calibrated, robot, recording, prepared) -> str:
+    """The temperatures a model file's friction law was evaluated at on a recording (its logged ones, else the
+    reference: ``temperature_friction``); empty for a model without one."""
+    from identification.data.temperature import temperatures_at
+
+    laws = calibrated.temperature_friction
+    return "" if laws is None else laws.sentence(temperatures_at(recording, prepared.t), robot.joint_names)
 
 
 def validation_table(recording: str, joint_names, rmse, r2) -> str:
