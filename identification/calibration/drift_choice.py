@@ -5,7 +5,8 @@ torques moved to it, so the rigid body is fitted beside each recording's own fri
 model keeps on each (``FrictionDrift.kept``):
 
 - where the recording files log the joints' temperatures and these explain the drift (``temperature_law``), the
-  friction of the joint's law in temperature at the held-out recordings' temperature, else at the latest recording's;
+  friction of the joint's law in temperature at the held-out recordings' temperature (kept where it predicts them no
+  worse than the best recording's friction, else that friction, with both RMSE said), else at the latest recording's;
 - else, with held-out recordings, the training recording whose friction (beside the check's shared rigid body)
   predicts the held-out torque of that joint best: the conditions the model will be used in (a warm arm, today's
   wear);
@@ -62,12 +63,16 @@ class KeptFriction:
     held_out_rmse: tuple = ()
     law: TemperatureLaw | None = None
     at: str = ""
+    law_rmse: float | None = None
 
     def reason(self) -> str:
         if self.basis == "temperature":
             slopes = ", ".join(f"{v:+.3g}/°C" for v in self.law.slopes)
             return (f"from its friction's straight line in the logged temperature ({slopes}) at {self.at} temperature"
                     + (" (clamped to the training range's reach)" if self.law.clamped else ""))  # fmt: skip
+        if self.basis == "held-out" and self.law_rmse is not None:
+            return (f"its friction predicts the held-out recordings best on that joint ({min(self.held_out_rmse):.3g} "
+                    f"N m; its line in the logged temperature: {self.law_rmse:.3g} N m, not kept)")  # fmt: skip
         if self.basis == "held-out":
             return "its friction predicts the held-out recordings best on that joint"
         return "the latest training recording, in the order given"
@@ -172,7 +177,7 @@ def judge_friction_drift(robot, model, recordings, fit, validation=(), configura
     logged = tuple(np.asarray(t, dtype=float) for t in training) if _all_logged(training, len(recordings)) else ()
     if not check.drifting:
         return recordings, FrictionDrift(mode=mode, check=check, temperatures=logged)
-    rmse = _held_out_rmse(model, check, validation, kt, fit)
+    rmse = _held_out_parts(model, check, validation, kt, fit)
     target = np.mean(held_out, axis=0) if _all_logged(held_out, len(validation)) and validation else None
     kept = tuple(_kept(friction, k, check, rmse, logged, target) for k, friction in enumerate(check.drifting))
     drift = FrictionDrift(mode, check, kept, logged, corrected=mode == "auto", correction=_correction(check, kept))
@@ -185,21 +190,26 @@ def _all_logged(temperatures, count: int) -> bool:
     return count > 0 and len(temperatures or ()) == count and all(t is not None for t in temperatures)
 
 
-def _kept(friction, k: int, check: DriftCheck, rmse, logged, target) -> KeptFriction:
-    """The friction kept on one drifting joint (module docstring): the law in temperature, else the held-out
-    recordings' best, else the latest recording's."""
+def _kept(friction, k: int, check: DriftCheck, parts, logged, target) -> KeptFriction:
+    """The friction kept on one drifting joint (module docstring): the law in temperature (with held-out recordings,
+    where it predicts them no worse than the best recording's friction), else the held-out recordings' best, else the
+    latest recording's."""
     j, names = friction.joint, check.recordings
     present = [r for r in range(len(names)) if np.all(np.isfinite(friction.values[r]))]
-    held = () if rmse is None else tuple(float(v) if r in present else float("inf") for r, v in enumerate(rmse[k]))
+    held = () if parts is None else tuple(_rmse(parts[k], v) if r in present else float("inf")
+                                          for r, v in enumerate(friction.values))  # fmt: skip
+    law, refused = None, None
     if logged:
         at = float(target[j]) if target is not None else float(logged[present[-1]][j])
         law = temperature_law(friction.values[present], friction.stds[present], [logged[r][j] for r in present], at)
-        if law is not None:
+        if law is not None and held and (refused := _rmse(parts[k], law.values)) > min(held) * (1 + 1e-9):
+            law = None  # the line read there predicts the held-out recordings worse than a recording's friction
+        elif law is not None:
             where = "the held-out recordings'" if target is not None else "the latest recording's"
             return KeptFriction(j, law.values, f"at {law.target:.1f} °C", "temperature", held, law, where)
     if held:
         best = int(np.argmin(held))
-        return KeptFriction(j, friction.values[best], names[best], "held-out", held)
+        return KeptFriction(j, friction.values[best], names[best], "held-out", held, law_rmse=refused)
     return KeptFriction(j, friction.values[present[-1]], names[present[-1]], "latest")
 
 
@@ -220,14 +230,14 @@ def _friction(check: DriftCheck, qd, qdd) -> np.ndarray:
     return drive_columns(qd, qdd, terms, inertia, velocity, vs, dv)
 
 
-def _held_out_rmse(model, check: DriftCheck, validation, kt, fit):
-    """Per drifting joint the held-out RMSE of each recording's friction beside the check's rigid body and shared
-    columns; None without held-out recordings."""
+def _held_out_parts(model, check: DriftCheck, validation, kt, fit):
+    """Per drifting joint ``(measured torque, the check's rigid body and shared columns, the joint's own friction
+    columns)`` over the held-out recordings' measured samples, so that any friction of that joint is judged there
+    (``_rmse``); None without held-out recordings."""
     if not validation:
         return None
     n_base, shared = check.layout["n_base"], check.layout["shared"]
-    sums = [np.zeros(len(check.recordings)) for _ in check.drifting]
-    counts = [0] * len(check.drifting)
+    parts = [([], [], []) for _ in check.drifting]
     cutoff = min(fit.cutoff_hz) if fit.cutoff_hz else None
     for recording in validation:
         ready = prepare_recording(recording, kt, cutoff, fit.edge_periods)[0]
@@ -237,10 +247,15 @@ def _held_out_rmse(model, check: DriftCheck, validation, kt, fit):
         for k, friction in enumerate(check.drifting):
             j, columns = friction.joint, check.layout["per_joint"][friction.joint]
             measured = np.isfinite(ready.tau[:, j])
-            for r, values in enumerate(friction.values):
-                predicted = common[:, j] + drive[:, j, columns] @ values
-                sums[k][r] += float(np.sum((ready.tau[measured, j] - predicted[measured]) ** 2))
-            counts[k] += int(measured.sum())
-    if not all(counts):
+            for part, values in zip(parts[k], (ready.tau[measured, j], common[measured, j],
+                                                drive[measured][:, j][:, columns])):  # fmt: skip
+                part.append(values)
+    if not all(part[0] and sum(len(x) for x in part[0]) for part in parts):
         return None
-    return [np.sqrt(s / c) for s, c in zip(sums, counts)]
+    return [tuple(np.concatenate(x) for x in part) for part in parts]
+
+
+def _rmse(part, values) -> float:
+    """The held-out RMSE [N m] of one joint's friction ``values`` (``_held_out_parts``)."""
+    tau, common, columns = part
+    return float(np.sqrt(np.mean((tau - common - columns @ np.asarray(values, dtype=float)) ** 2)))

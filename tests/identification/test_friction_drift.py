@@ -143,7 +143,7 @@ def test_a_logged_temperature_that_explains_the_drift_decides_the_kept_friction(
     recording's 35 °C (the warm recording's friction), said with its slopes; the report names the temperatures."""
     pair, fit = drift_pair
     cold, warm = np.full(denso.n_dof, 25.0), np.full(denso.n_dof, 35.0)
-    _, drift = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_cold"]],
+    _, drift = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_warm"]],
                                     temperatures=([cold, warm], [warm]))  # fmt: skip
     (kept,) = drift.kept
     assert kept.basis == "temperature" and kept.source == "at 35.0 °C" and kept.law.target == 35.0
@@ -153,6 +153,20 @@ def test_a_logged_temperature_that_explains_the_drift_decides_the_kept_friction(
     text = drift.describe()
     assert "logged at 25.0 -> 35.0 °C" in text and "straight line in the logged temperature" in text
     assert json.loads(json.dumps(drift.to_dict()))["kept"][0]["temperature_law"]["at_c"] == 35.0
+
+
+def test_a_law_that_predicts_the_held_out_recording_worse_than_a_recording_s_friction_is_not_kept(
+    denso, denso_model, recordings, drift_pair
+):
+    """The held-out recording is cold but logged at 35 °C (a wrong sensor, another cause of the drift): the line read
+    at 35 °C (the warm friction) predicts it worse than the cold recording's friction, which is kept, both RMSE said."""
+    pair, fit = drift_pair
+    cold, warm = np.full(denso.n_dof, 25.0), np.full(denso.n_dof, 35.0)
+    _, drift = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_cold"]],
+                                    temperatures=([cold, warm], [warm]))  # fmt: skip
+    (kept,) = drift.kept
+    assert (kept.basis, kept.source) == ("held-out", "cold.csv") and kept.law_rmse > min(kept.held_out_rmse)
+    assert "its line in the logged temperature" in drift.describe() and "not kept" in drift.describe()
 
 
 def test_a_temperature_law_reads_a_line_within_reach_and_refuses_what_it_does_not_explain():
@@ -187,12 +201,12 @@ def test_temperatures_read_with_the_recording_files_decide_as_the_stated_ones(de
         return load_recording(path, denso.n_dof)
 
     read = [logged(pair[0], 25.0), logged(pair[1], 35.0)]
-    held = logged(recordings["held_cold"], 35.0)
+    held = logged(recordings["held_warm"], 35.0)
     from_files = ([logged_temperatures(r) for r in read], [logged_temperatures(held)])
     np.testing.assert_allclose(from_files[0][1], 35.0)
-    _, drift = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_cold"]], temperatures=from_files)
+    _, drift = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_warm"]], temperatures=from_files)
     cold, warm = np.full(denso.n_dof, 25.0), np.full(denso.n_dof, 35.0)
-    _, stated = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_cold"]],
+    _, stated = judge_friction_drift(denso, denso_model, pair, fit, [recordings["held_warm"]],
                                      temperatures=([cold, warm], [warm]))  # fmt: skip
     assert drift.kept[0].basis == "temperature" and drift.describe() == stated.describe()
     np.testing.assert_allclose(drift.kept[0].values, stated.kept[0].values, rtol=1e-12)
