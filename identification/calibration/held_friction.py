@@ -19,7 +19,10 @@ zero error: ``diagnose MODEL`` leaves it to the diagnosis (``without_offsets``),
 drive inertia below 0 (``Ia<j>``: a torque measured behind the gearbox, which holds less than the robot file's rotor)
 is held likewise, ``Ia_j qdd_j``: the robot a diagnosis starts from holds rotor inertias >= 0 only
 (``drive_inertia_split``, the one rule ``calibrated_model.calibrated_robot`` and ``of_model_file`` share), so the
-nominal model predicts such a file as ``psdm validate`` does.
+nominal model predicts such a file as ``psdm validate`` does. So is a drive inertia the file fitted as a column of its
+own (outside the base parameters, ``separate_inertia``), and the nominal robot then has no rotor there
+(``without_held_rotors``): a diagnosis that recalibrates the rigid body fits the base parameters again, which cannot
+hold it, and would find it missing.
 """
 
 from __future__ import annotations
@@ -33,7 +36,8 @@ from identification.calibration.trajectory_data import drive_column_joint, frict
 from psdm_casadi.errors import ParameterError
 
 __all__ = ["CONSTANT_FEATURE", "HELD_TERMS", "HeldFriction", "check_held_friction", "drive_inertia_split",
-           "held_friction_columns", "subtract_held_friction", "with_held_values", "baseline_columns"]  # fmt: skip
+           "held_friction_columns", "subtract_held_friction", "with_held_values", "baseline_columns",
+           "without_held_rotors"]  # fmt: skip
 
 #: The friction terms that may be held: Coulomb and viscous (a held joint is Coulomb-viscous).
 HELD_TERMS = ("fc", "fv")
@@ -100,7 +104,8 @@ class HeldFriction:
                         if _term(name) == "offset" and float(value) != 0.0)  # fmt: skip
         standard = np.asarray(document["standard"]["values"], dtype=float)
         n_dof = standard.size // 11
-        inertias = drive_inertia_split(standard.reshape(n_dof, 11)[:, 10])[1]
+        own = {drive_column_joint(name) for name in drive["names"] if _term(name) == "Ia"}
+        inertias = drive_inertia_split(standard.reshape(n_dof, 11)[:, 10], own)[1]
         extra = offsets + inertias
         return replace(held, values=held.values + extra) if extra else held
 
@@ -168,13 +173,30 @@ class HeldFriction:
                          for j in joints)  # fmt: skip
 
 
-def drive_inertia_split(inertias) -> tuple:
+def drive_inertia_split(inertias, own=()) -> tuple:
     """``(rotor, held)`` of a model file's drive inertias ``inertias`` [kg m^2], shape (n_dof,): the rotor inertias
-    a ``RobotDescription`` holds (>= 0), and the rest ``(("Ia<j>", value), ...)`` below 0, held beside it
-    (``HeldFriction.of_model_file``): together they are the file's ``Ia_j qdd_j``."""
+    a ``RobotDescription`` holds (>= 0), and ``(("Ia<j>", value), ...)`` held beside it
+    (``HeldFriction.of_model_file``): those below 0, and those of the joints ``own`` (0-based: the file's drive
+    columns ``Ia<j>``, which identify fitted outside the base parameters). A held one is no rotor (0 in ``rotor``,
+    ``without_held_rotors``), so together they are the file's ``Ia_j qdd_j``."""
     inertias = np.asarray(inertias, dtype=float)
-    held = tuple((f"Ia{j + 1}", float(value)) for j, value in enumerate(inertias) if value < 0.0)
-    return np.maximum(inertias, 0.0), held
+    held = tuple((f"Ia{j + 1}", float(value)) for j, value in enumerate(inertias) if value < 0.0 or j in set(own))
+    rotor = np.where([j in set(own) for j in range(inertias.size)], 0.0, np.maximum(inertias, 0.0))
+    return rotor, held
+
+
+def without_held_rotors(robot, held: HeldFriction):
+    """``robot`` with no rotor inertia on the joints whose drive inertia ``held`` holds (``Ia<j>``): its torque is the
+    held one, ``Ia_j qdd_j``, in every fit of the diagnosis (the prior's and the recalibrated rigid body's alike), not
+    the rigid body's. A model file's drive column (``drive_inertia_split``'s ``own``) lies outside the base
+    parameters: left in the rotor, a diagnosis that recalibrates the rigid body drops it and finds it again as a
+    missing ``rotor_inertia``."""
+    joints = {drive_column_joint(name) for name, _ in held.drive_inertias}
+    if not joints or robot.rotor_inertia is None:
+        return robot
+    rotor = np.array(robot.rotor_inertia, dtype=float)
+    rotor[sorted(joints)] = 0.0
+    return robot.with_links(robot.links, rotor_inertia=rotor)
 
 
 def check_held_friction(options) -> None:

@@ -11,7 +11,8 @@ trim, one filter period in files of preparation version 1), so the report's "bef
 RMSE, the one ``psdm validate`` prints (``report_assembly.with_model_file_before``), and the report names the file
 and the preparation it used. The friction identify held on joints that moved one way only in its training data
 (``one_way_friction``) stays held at the file's values in every fit of the diagnosis
-(``DiagnosisOptions.held_friction``): the diagnosis's nominal model predicts those joints as the file does, and its
+(``DiagnosisOptions.held_friction``), and so do the drive inertias the file fitted outside the base parameters
+(its ``Ia<j>`` columns, ``file_held``): the diagnosis's nominal model predicts those joints as the file does, and its
 refits (the rigid body recalibrated, freely or inside the envelope, the findings' joint fits) keep it, as ``diagnose
 --apply``'s refit does (``recalibrate``). So does the counterbalance identify took (``model_file_holds``): a column of
 the nominal model in every fit (``carried_terms``), its coefficients fitted again, reported first among the findings as
@@ -34,7 +35,7 @@ from identification.calibration.calibrated_model import LoadedModel, calibrated_
 from identification.calibration.counterbalance_record import counterbalance_offsets
 from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
-from identification.calibration.held_friction import HeldFriction
+from identification.calibration.held_friction import HeldFriction, without_held_rotors
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import JointComparison
@@ -105,9 +106,11 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
 
 
 def file_held(document: dict) -> HeldFriction:
-    """What the nominal model of ``diagnose MODEL`` holds at a model file's values (``HeldFriction.of_model_file``),
-    but the torque offsets identify read as no sensor's and kept for want of a spring that held
-    (``counterbalance_record``): the diagnosis judges and names that torque instead of carrying it silently."""
+    """What the nominal model of ``diagnose MODEL`` holds at a model file's values (``HeldFriction.of_model_file``:
+    with its drive columns ``Ia<j>``, which lie outside the base parameters, so that a rigid body the diagnosis
+    recalibrates keeps them, ``held_friction.without_held_rotors``), but the torque offsets identify read as no
+    sensor's and kept for want of a spring that held (``counterbalance_record``): the diagnosis judges and names that
+    torque instead of carrying it silently."""
     return HeldFriction.of_model_file(document).without_offsets(counterbalance_offsets(document))
 
 
@@ -245,14 +248,17 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
     robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
     first = validation_recordings(validation)[0]
     report = None
-    if prior.robot_file:  # identify's rigid body absorbed an effect: try the robot file's
-        report = diagnose(with_file_rigid_body(robot, robot_file), train, validation, options, model=model)
+    if prior.robot_file:  # identify's rigid body absorbed an effect: try the robot file's (its rotors too)
+        kept = replace(options.held_friction, values=tuple((n, v) for n, v in options.held_friction.values
+                                                           if not (n.startswith("Ia") and v >= 0.0)))  # fmt: skip
+        report = diagnose(with_file_rigid_body(robot, robot_file), train, validation,
+                          replace(options, held_friction=kept), model=model)  # fmt: skip
         worse = robot_file_worse(report, file_prediction(loaded, first))
         if worse:
             prior, report = prior.declining(worse), None
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
-    if report is None:
-        report = diagnose(robot, train, validation, options, model=model)
+    if report is None:  # the file's drive columns held, not rotors a recalibrated rigid body drops (file_held)
+        report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, options, model=model)
     report = with_applied_after(
         report, loaded, train, first, refit
     )  # the model --apply writes: its "after" (applied_after)

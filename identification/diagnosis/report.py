@@ -297,8 +297,9 @@ class DiagnosisReport:
         if offsets:
             text += f"; the model file's torque offsets held at its values in every fit ({offsets})"
         if inertias:
-            text += (f"; the model file's drive inertias below 0 (a torque measured behind the gearbox) held at its "
-                     f"values in every fit ({inertias} kg m^2)")  # fmt: skip
+            text += (f"; the model file's drive inertias below 0 (a torque measured behind the gearbox) or outside the "
+                     f"base parameters (its drive columns) held at its values in every fit, the recalibrated rigid "
+                     f"body's too ({inertias} kg m^2)")  # fmt: skip
         return text
 
     def _nominal(self) -> str:
