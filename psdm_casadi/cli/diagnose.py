@@ -420,6 +420,14 @@ def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> 
         if payload is not None:
             print_json(payload)
         return 0
+    if result.refused is not None:  # the never-worse gate: no subset of the findings keeps every joint (its
+        # refit is the model before, which adds nothing: refused, not 'nothing to apply')
+        print(f"psdm diagnose: error: {result.refused}. Nothing was written to {args.apply!r}.", file=sys.stderr)
+        if payload is not None:
+            payload["recalibration"] = {"refused": result.refused, "model": None,
+                                        **result.after.document["recalibration"]["never_worse"]}  # fmt: skip
+            print_json(payload)
+        return EXIT_CHECK_FAILED
     if adds_nothing(calibrated.document, result.after.document):  # a refit with nothing added: the model file stays
         if payload is not None:
             payload["recalibration"] = dict(result.after.document["recalibration"], model=None)
@@ -428,13 +436,6 @@ def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> 
             trained_on = report.refit_training.short() if report.refit_training is not None else ALONE
             print(recalibration_markdown(result, robot.joint_names, args.apply, args.robot, trained_on))
         return 0
-    if result.refused is not None:  # the never-worse gate: no subset of the findings keeps every joint
-        print(f"psdm diagnose: error: {result.refused}. Nothing was written to {args.apply!r}.", file=sys.stderr)
-        if payload is not None:
-            payload["recalibration"] = {"refused": result.refused, "model": None,
-                                        **result.after.document["recalibration"]["never_worse"]}  # fmt: skip
-            print_json(payload)
-        return EXIT_CHECK_FAILED
     problem = consistency_failure(result)
     if problem is not None and not args.allow_inconsistent:
         print(
