@@ -20,7 +20,10 @@ file rarely states rotor inertias (a URDF has none): for a merged joint without 
 drive inertias the same fit identifies as columns of their own (``Ia<j>``) on the joints with the same torque constant
 (the same actuator: the Kinova Gen3's joints 1-4 share 9.13 N m/A) as the reference the fit holds it to, each fitted
 with the robot file's rigid body held (:func:`file_drive_columns`: the unconstrained fit trades a drive inertia against
-the links, and on the Kinova's currents gave joint 4's as 0.02 kg m^2 for the consistent fit's 0.42). Without a stated
+the links, and on the Kinova's currents gave joint 4's as 0.02 kg m^2 for the consistent fit's 0.42). The same stated
+actuator is an assumption the data may override (:func:`siblings_apart`: a datasheet often lists one torque constant
+for base and wrist motors of different sizes): where the training BIC is strongly against the siblings' band, the
+rotor is taken from the data as below, and identify says so. Without a stated
 value or such a sibling, :func:`data_rotors` takes what the training data give the drive inertia beside the robot
 file's links (the base parameter holding it, less the file's link), held >= 0 only. On the Kinova's currents the links
 2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint 2's rotor: its axis
@@ -37,10 +40,11 @@ column is a drive-inertia column ``Ia<j>``: both routes hold the same rotors.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from identification.calibration.column_verdict import STRONG_BIC
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 from identification.calibration.separate_inertia import SPAN_TOLERANCE, random_states, separate_inertia_joints
 
@@ -53,6 +57,7 @@ __all__ = [
     "merged_rotor_map",
     "robot_file_theta",
     "sibling_rotors",
+    "siblings_apart",
     "with_merged_rotors",
     "without_lone_inertia",
 ]
@@ -69,11 +74,13 @@ class MergedRotors:
     """What identify holds the drive inertias inside the base parameters to: the ``model`` with them in its map, the
     ``robot`` with the reference of each (the file's, or its siblings': :func:`sibling_rotors`), and per joint whose
     reference came from siblings ``(joint, reference, sibling joints, low, high)`` (0-based; [kg m^2]: the band the fit
-    holds it in, ``SIBLING_SPREAD``)."""
+    holds it in, ``SIBLING_SPREAD``); ``apart``: {joint: (siblings' reference, sibling joints, training BIC change)}
+    of the joints whose training data overrode the same-actuator reference (:func:`siblings_apart`)."""
 
     model: object
     robot: object
     from_siblings: tuple = ()
+    apart: dict = field(default_factory=dict)
 
     def __iter__(self):
         """``model, robot, self``: unpacked where the fit goes on with them."""
@@ -97,9 +104,16 @@ class MergedRotors:
             return ()
         entries = [{"joint": j + 1, "kg_m2": value, "from_joints": [s + 1 for s in sib],
                     "from": "same actuator" if sib else "training data",
-                    "bounds": [low, high if np.isfinite(high) else None]}
+                    "bounds": [low, high if np.isfinite(high) else None],
+                    **self._apart_entry(j)}
                    for j, value, sib, low, high in self.from_siblings]  # fmt: skip
         return (("drive_inertia_reference", entries),)
+
+    def _apart_entry(self, j) -> dict:
+        if j not in self.apart:
+            return {}
+        reference, siblings, delta = self.apart[j]
+        return {"same_actuator": {"kg_m2": reference, "joints": [s + 1 for s in siblings], "delta_bic": delta}}
 
 
 def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
@@ -140,6 +154,54 @@ def sibling_rotors(robot, model, kt, drive) -> tuple:
     return tuple(out)
 
 
+def siblings_apart(robot, model, equations, names, siblings, correlation=None) -> tuple:
+    """``(siblings, apart)``: the ``siblings`` entries (:func:`sibling_rotors`) the training data leave at their
+    siblings' reference, and {joint: (reference, sibling joints, BIC change)} of those the data override. A datasheet
+    that states one torque constant and gear ratio for base and wrist does not make their rotors equal (a belt-driven
+    cobot's joints 1-2 carry 3x its joint 3's rotor): with the robot file's links held, each merged rotor's value is
+    fitted freely beside the drive columns (``names`` of ``equations``, a ``trajectory_data.NormalEquations``), and
+    where it lies outside its siblings' band the training BIC of that fit against the one holding it at the
+    reference (per joint over the effective samples, the count over the residual's ``correlation`` time, as
+    ``column_choice`` counts them) decides: strong evidence (``column_verdict.STRONG_BIC``) takes the rotor apart,
+    from the training data (:func:`data_rotors`)."""
+    merged = merged_rotor_map(model, robot, [entry[0] for entry in siblings])
+    entries = [entry for entry in siblings if entry[0] in merged]
+    if not entries:
+        return siblings, {}
+    columns = [merged[entry[0]] for entry in entries]
+    free_sums = _rotor_residuals(robot, model, equations, len(names), columns)
+    factor = np.ones(robot.n_dof) if correlation is None else np.maximum(np.asarray(correlation, dtype=float), 1.0)
+    effective = np.maximum(equations.count / factor, 1.0)
+    measured = (equations.count > 0) & (free_sums > 0)
+    free = _beside_file_links(robot, model, equations, len(names), columns)[0]
+    kept, apart = [], {}
+    for k, entry in enumerate(entries):
+        j, reference, sib, low, high = entry
+        if low <= free[k] <= high:
+            kept.append(entry)
+            continue
+        others = [c for i, c in enumerate(columns) if i != k]
+        held_sums = _rotor_residuals(robot, model, equations, len(names), others, reference * columns[k])
+        delta = float(np.sum(effective[measured] * np.log(held_sums[measured] / free_sums[measured]))
+                      - np.log(np.sum(effective[measured])))  # fmt: skip
+        if delta > STRONG_BIC:
+            apart[j] = (reference, sib, delta)
+        else:
+            kept.append(entry)
+    return tuple(e for e in siblings if e[0] not in apart), apart
+
+
+def _rotor_residuals(robot, model, equations, n_drive, rotor_columns, shift=0.0) -> np.ndarray:
+    """Per joint, the training residual sum of squares of :func:`_beside_file_links` (its base parameters shifted by
+    ``shift``, a held rotor's share)."""
+    theta = robot_file_theta(robot, model) + shift
+    rotors, drive = _beside_file_links(robot, model, equations, n_drive, rotor_columns, shift)
+    x = np.zeros(equations.n_columns)
+    x[: theta.size] = theta + (np.column_stack(rotor_columns) @ rotors if len(rotor_columns) else 0.0)
+    x[theta.size : theta.size + n_drive] = drive
+    return equations.residual_sum(x)
+
+
 def file_drive_columns(robot, model, equations, names) -> dict:
     """{column name: value} of the drive columns ``names`` (those after the base parameters in ``equations``, a
     ``trajectory_data.NormalEquations``) fitted by least squares with the robot file's rigid body held: each joint's
@@ -159,12 +221,12 @@ def data_rotors(robot, model, equations, names, joints) -> dict:
     return {j: float(v) for j, v in zip(merged, rotors) if v > 0}
 
 
-def _beside_file_links(robot, model, equations, n_drive, rotor_columns=()) -> tuple:
+def _beside_file_links(robot, model, equations, n_drive, rotor_columns=(), shift=0.0) -> tuple:
     """(rotor values, drive values) of the least squares with the robot file's rigid body held: the ``n_drive`` drive
     columns that follow the base parameters in ``equations`` and, for each of ``rotor_columns`` (a drive inertia's
     coefficients in the base parameters, ``merged_rotor_map``), its value, on what the file's links leave of the
-    torque."""
-    theta = robot_file_theta(robot, model)
+    torque (``shift``: added to the file's base parameters, a held rotor's share)."""
+    theta = robot_file_theta(robot, model) + shift
     size, n_rotors = theta.size + n_drive, len(rotor_columns)
     gram, moment, _ = equations.weighted(np.ones(robot.n_dof))
     gram, moment = gram[:size, :size], moment[:size]
@@ -213,7 +275,9 @@ def without_lone_inertia(robot, model, evidence) -> list:
             for e in evidence]  # fmt: skip
 
 
-def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool = True) -> MergedRotors:
+def with_merged_rotors(
+    model, robot, options, kt=None, columns=None, log: bool = True, correlation=None
+) -> MergedRotors:
     """The drive inertias of the base parameters in ``model``'s map, each held to a reference: the robot file's rotor
     inertia, else (currents) its siblings' (:func:`sibling_rotors` of :func:`file_drive_columns`), else what the
     training data want with the file's links held (:func:`data_rotors`; bounded below by 0 only). ``kt``: the torque
@@ -227,6 +291,9 @@ def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool =
         return unchanged
     drive = {} if columns is None or robot.links is None else file_drive_columns(robot, model, *columns)
     siblings = () if kt is None else sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive)
+    apart = {}
+    if siblings and drive:
+        siblings, apart = siblings_apart(robot, model, *columns, siblings, correlation)
     rotor = np.array(robot.rotor_inertia, dtype=float)
     for j, value, *_ in siblings:
         rotor[j] = value
@@ -248,6 +315,10 @@ def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool =
         say("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; held near %.3g kg m^2, the drive inertias of joints %s (the same torque constant)", j + 1,
                     value, ", ".join(str(s + 1) for s in sib))  # fmt: skip
+    for j, (reference, sib, delta) in apart.items():
+        say("identify: joint %d's drive inertia: the same torque constant as joints %s gave it %.3g kg m^2, but the "
+            "training data want it apart (BIC %+.3g beside the file's links)", j + 1,
+            ", ".join(str(s + 1) for s in sib), reference, delta)  # fmt: skip
     for j, value in wanted.items():
         say("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; the training data give it %.3g kg m^2 beside the file's links: the consistent fit holds it "
@@ -261,7 +332,8 @@ def with_merged_rotors(model, robot, options, kt=None, columns=None, log: bool =
     kept += tuple((j, value, (), 0.0, float("inf")) for j, value in wanted.items() if j in merged)
     robot = replace(robot, rotor_inertia=np.where([j in merged for j in range(robot.n_dof)], rotor,
                                                   robot.rotor_inertia))  # fmt: skip
-    return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept)
+    apart = {j: entry for j, entry in apart.items() if j in merged and j in wanted}
+    return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept, apart)
 
 
 def robot_file_theta(robot, model, kt=None) -> np.ndarray:

@@ -384,7 +384,7 @@ def identify_trajectories(
     keep, separable = bodies.separable(estimable, n_fit)
     prior = payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
-        model, robot, merged = with_merged_rotors(model, robot, options, kt, (equations, names))
+        model, robot, merged = with_merged_rotors(model, robot, options, kt, (equations, names), True, correlation)
         fitted = [k for k in range(len(names)) if model.n_base + k not in held]
         standard, drive_fitted, found, status, bounds = consistent_fit(
             robot, model, equations.subset([k for k in keep if k not in held]), sigma, [names[k] for k in fitted],

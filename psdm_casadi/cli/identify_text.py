@@ -86,6 +86,12 @@ def _print_envelope(fit, route=str) -> None:
             if entry["from"] == "training data"
             else "the drive inertias of joints " + ", ".join(str(j) for j in entry["from_joints"]) + " (same actuator)"
         )
+        if "same_actuator" in entry:  # the data overrode the same-actuator reference
+            same = entry["same_actuator"]
+            source += (
+                f", not the {same['kg_m2']:.3g} kg m^2 of joints {', '.join(str(j) for j in same['joints'])} with the "
+                f"same torque constant (training BIC {same['delta_bic']:+.3g}: the data want this rotor apart)"
+            )
         fitted = float(np.asarray(fit.standard)[entry["joint"] - 1, -1])  # the pull is weak: it may end far off
         print(
             f"  joint {entry['joint']}'s drive inertia lies inside the base parameters and the robot file "
