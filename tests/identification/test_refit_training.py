@@ -168,11 +168,9 @@ def test_the_model_s_recordings_are_found_by_content_read_once_and_their_loads_t
     assert len(changed.recordings) == 1 and "not found: a.csv" in changed.sentence()
 
 
-def test_recordings_that_moved_are_handed_back_as_further_train_recordings(files, tmp_path):
-    """``diagnose MODEL --train b.csv a.csv``: the model file in another folder, its recordings neither where identify
-    read them nor beside it but in ``moved/``; handed back, each stands for the file's recording of the same content,
-    so the refit trains on both and keeps joint 6 (alone on ``b.csv`` it is lost: the test above), the spring at its
-    true stiffness; the written model lists them where they are now, for its own refit."""
+def _recordings_moved(files, tmp_path):
+    """The model file copied to ``tmp_path``, its recordings neither where identify read them nor beside it but in
+    ``tmp_path / "moved"`` (returned)."""
     document = json.loads((files / "model.json").read_text())
     for entry in document["provenance"]["recordings"]:
         entry["path"] = str(tmp_path / "gone" / entry["name"])
@@ -180,7 +178,15 @@ def test_recordings_that_moved_are_handed_back_as_further_train_recordings(files
     (tmp_path / "moved").mkdir()
     for name in ("a.csv", "b.csv"):
         shutil.copy(files / name, tmp_path / "moved" / name)
-    moved = tmp_path / "moved"
+    return tmp_path / "moved"
+
+
+def test_recordings_that_moved_are_handed_back_as_further_train_recordings(files, tmp_path):
+    """``diagnose MODEL --train b.csv a.csv``: the model file in another folder, its recordings neither where identify
+    read them nor beside it but in ``moved/``; handed back, each stands for the file's recording of the same content,
+    so the refit trains on both and keeps joint 6 (alone on ``b.csv`` it is lost: the test above), the spring at its
+    true stiffness; the written model lists them where they are now, for its own refit."""
+    moved = _recordings_moved(files, tmp_path)
     payload = cli_json(["diagnose", tmp_path / "model.json", "--train", moved / "b.csv", moved / "a.csv", "--validate",
                         files / "valid.csv", "--apply", tmp_path / "new.json", *QUICK, "--json"])  # fmt: skip
     refit = payload["refit_training"]
@@ -252,14 +258,8 @@ def test_diagnose_model_takes_the_train_recordings_as_the_command_does(files, tm
     from identification.diagnosis.model_file import diagnose_model
     from psdm_casadi.errors import ParameterError
 
-    document = json.loads((files / "model.json").read_text())
-    for entry in document["provenance"]["recordings"]:
-        entry["path"] = str(tmp_path / "gone" / entry["name"])
-    (tmp_path / "model.json").write_text(json.dumps(document))
-    (tmp_path / "moved").mkdir()
-    for name in ("a.csv", "b.csv"):
-        shutil.copy(files / name, tmp_path / "moved" / name)
-    trains = [tmp_path / "moved" / "b.csv", tmp_path / "moved" / "a.csv"]
+    moved = _recordings_moved(files, tmp_path)
+    trains = [moved / "b.csv", moved / "a.csv"]
     valid = load_recording(files / "valid.csv", denso.n_dof)
     options = DiagnosisOptions(sparse=False, rigid_body="prior")
     report = diagnose_model(tmp_path / "model.json", trains, [valid], options)
