@@ -72,12 +72,7 @@ def _split(recordings: list) -> tuple:
     rec = recordings[0]
     half = rec.n_samples // 2
 
-    def part(s):
-        temperature = None if rec.temperature is None else rec.temperature[s]
-        return dataclasses.replace(rec, t=rec.t[s], q=rec.q[s], qd=rec.qd[s], qdd=rec.qdd[s], tau=rec.tau[s],
-                                   temperature=temperature)  # fmt: skip
-
-    return part(slice(0, half)), [part(slice(half, None))]
+    return rec.slice(0, half), [rec.slice(half, None)]  # every signal cut alike (currents and temperatures too)
 
 
 def diagnose_day(baseline: Baseline, model, prepared: list, currents: bool, fit: DayFit) -> tuple:
