@@ -132,7 +132,7 @@ def compiled(loop):
     out = loop.folder / "c_code"
     assert main(["codegen", str(loop.folder / "new.json"), "--out", str(out), "--compile"]) == 0
     header = (out / "psdm_dynamics.h").read_text()
-    assert "spring[j2]: spring_k_2 = " in header and "Im_3 = absorbed" in header and "delay_s" in header
+    assert "spring[j2]: spring_k_2 = " in header and "delay_s" in header and "Im_3" not in header  # see below
     return ca.external("psdm_inverse_dynamics", str(out / "libpsdm_dynamics.so"))
 
 
@@ -143,6 +143,12 @@ def _robot_cache(tmp_path, monkeypatch):
 
 def _mapped(function, *columns):
     return np.array(function.map(columns[0].shape[0])(*(c.T for c in columns)), dtype=float).T
+
+
+def _dropped(calibrated, label: str) -> dict:
+    """The recalibration's record of the finding ``label`` it left out."""
+    (entry,) = [d for d in calibrated.document["recalibration"]["dropped_findings"] if d["label"] == label]
+    return entry
 
 
 def _entry(model: CalibratedModel, label: str) -> dict:
@@ -234,8 +240,11 @@ def test_friction_families_use_the_models_own_torque(loop, compiled, denso, dens
 @needs_cc
 def test_rotor_inertia_and_payload_are_taken_up_by_the_rigid_body(loop, compiled, denso, denso_model, capsys):
     after, before = loop.result.after, loop.result.before
-    rotor = _entry(after, "rotor_inertia[j3]")
-    assert rotor["kind"] == "torque" and rotor["absorbed"] == ["Im_3"]  # the fit identifies joint 3's Ia already
+    # the fit identifies joint 3's Ia already: the rotor's column absorbed, the finding holds no torque in the model
+    # written and is left out by the gain rule (no_gain.GAIN_RULE), with its reason
+    rotor = _dropped(after, "rotor_inertia[j3]")
+    assert rotor["no_gain"] and rotor["share_lower"] == [0.0] and "holds no torque" in rotor["reason"]
+    assert "rotor_inertia[j3]" not in [f["label"] for f in after.document["findings"]]
     assert _entry(after, "payload")["kind"] == "rigid_body"
     prepared = _check_exported_equals_reported(loop, compiled, denso_model, capsys)
     # the recalibration explains the data: the validation error falls on every joint with a torque finding
@@ -248,13 +257,10 @@ def test_rotor_inertia_and_payload_are_taken_up_by_the_rigid_body(loop, compiled
 def test_signal_findings_are_corrections_and_reported_ones_change_nothing(loop, compiled, denso_model, capsys):
     after = loop.result.after
     assert after.corrections == {"delay": {"effect": "delay", "delay_s": pytest.approx(DELAY_SAMPLES / RATE)}}
-    tilt = _entry(after, "gravity_tilt")
-    assert tilt["kind"] == "reported" and "not part of the model's torque" in tilt["applied"]
-    prepared = validation_rmse(after, denso_model, loop.recordings[1])[2]
-    x = (prepared.q, prepared.qd, prepared.qdd)
-    np.testing.assert_array_equal(
-        after.predict(denso_model, *x), _without(after, "gravity_tilt").predict(denso_model, *x)
-    )
+    # the tilt, reported (not part of the model's torque) and not there, changes nothing: the gain rule leaves it out
+    tilt = _dropped(after, "gravity_tilt")
+    assert tilt["no_gain"] and tilt["share_lower"] == [0.0] * 6 and "holds no torque" in tilt["reason"]
+    assert "gravity_tilt" not in [f["label"] for f in after.document["findings"]]
     # without its correction the same model fits the recording worse: the delay is in the measurement
     uncorrected = copy.deepcopy(after.document)
     uncorrected["corrections"] = {}
