@@ -121,7 +121,7 @@ DRIVES = [
 
 FILES = [
     derive("binary file", b"\x00\x01\x02\x03robot\xff", "must be plain text", "binary", "give the text file"),
-    derive("gzip data", gzip.compress(ONE.encode()), "gzip-compressed", "decompress it first"),
+    derive("gzip data", gzip.compress(ONE.encode(), mtime=0), "gzip-compressed", "decompress it first"),
     derive(
         "latin-1 comment", ("# réglé\n" + ONE).encode("latin-1"), "utf-8", "0xe9", "line 1", "save the file as utf-8"
     ),
@@ -142,7 +142,7 @@ FILES = [
 URDFS = [
     derive_urdf("urdf not xml", "not xml at all", "must be a valid urdf", "xml_error", "fix the file"),
     derive_urdf("urdf binary", b"\x00\x01urdf", "must be plain text", "binary"),
-    derive_urdf("urdf gzip", gzip.compress(urdf().encode()), "gzip-compressed", "decompress"),
+    derive_urdf("urdf gzip", gzip.compress(urdf().encode(), mtime=0), "gzip-compressed", "decompress"),
     derive_urdf("urdf nan mass", urdf(mass="nan"), "mass [nan] is not a float", "fix the file"),
     derive_urdf("urdf nan limit", urdf(lower="nan"), "lower value (nan)", "fix the file"),
     derive_urdf("urdf negative mass", urdf(mass="-1.0"), "joint 'j1'", "link 'l1'", "mass must be", "in kg"),

@@ -146,7 +146,7 @@ def test_values_of_the_wrong_kind(tmp_path, text, match):
     "content, match",
     [
         (b"\x00\x01\x02robot", "must be plain text; got a binary file"),
-        (gzip.compress(JOINT.encode()), "must be plain text; got gzip-compressed data. Decompress"),
+        (gzip.compress(JOINT.encode(), mtime=0), "must be plain text; got gzip-compressed data. Decompress"),
         (b"PK\x03\x04rest", "must be plain text; got a ZIP archive"),
         (("# caf\xe9\n" + JOINT).encode("latin-1"), r"must be UTF-8 text; got byte 0xe9 at line 1, column 6"),
     ],
