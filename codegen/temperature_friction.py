@@ -8,9 +8,11 @@ reference temperature, the reach of the line and the slopes [per °C] of its fri
     sum_k slope_k column_k(qd_j) (clip(temperature_j, low_j, high_j) - reference_j)
 
 (``column_k`` the friction term's column, ``trajectory_data.friction_term``), exactly as
-``CalibratedModel.predict(..., temperature=...)`` computes it for finite temperatures. The C function takes a finite
-temperature per joint: pass the reference (the header lists it) where none is measured (the Python model reads NaN
-so; C's ``fmax`` would read it as the reach's low end). A model without the block gets no such function.
+``CalibratedModel.predict(..., temperature=...)`` computes it. A NaN temperature (not measured) gives the reference's
+friction, as the Python model reads it. CasADi folds ``x == x`` to true, so NaN is told apart by the two clips: C's
+``fmin``/``fmax`` return the number beside a NaN, so ``fmax(fmin(x, high), low)`` is ``high`` and
+``fmin(fmax(x, low), high)`` is ``low`` for a NaN, and both are ``clip(x)`` for a number. A model without the block gets
+no such function.
 """
 
 from __future__ import annotations
@@ -33,7 +35,10 @@ def _torque(calibrated, laws, qd, temperature, stribeck, exponent):
     out = ca.SX.zeros(calibrated.n_dof, 1)
     for law in laws.joints:
         j = law.joint
-        change = ca.fmin(ca.fmax(temperature[j], law.reach[0]), law.reach[1]) - law.reference
+        low, high = law.reach
+        clipped = ca.fmin(ca.fmax(temperature[j], low), high)
+        measured = clipped - ca.fmax(ca.fmin(temperature[j], high), low)  # 0 for a number, low - high for NaN
+        change = ca.if_else(measured == 0, clipped - law.reference, 0.0)
         vs, dv = None if stribeck is None else float(stribeck[j]), None if exponent is None else float(exponent[j])
         for name, slope in law.slopes.items():
             out[j] += slope * friction_term(name.rstrip("0123456789"), qd[j], velocity, vs, dv) * change
@@ -64,8 +69,8 @@ def temperature_note(calibrated, prefix: str = "psdm_") -> list:
         return []
     lines = [f"{prefix}inverse_dynamics_at_temperature(q, qd, qdd, temperature [degC, one per joint]) is "
              f"{prefix}inverse_dynamics with the friction moved along the model file's law in temperature: each "
-             "coefficient + slope * (clip(temperature_j, low_j, high_j) - reference_j); pass the reference "
-             "where no temperature is measured (finite values only). "
+             "coefficient + slope * (clip(temperature_j, low_j, high_j) - reference_j); a NaN temperature "
+             "(not measured) gives the reference's friction. "
              f"{prefix}inverse_dynamics is the torque at the reference temperatures. Laws:"]  # fmt: skip
     for law in laws.joints:
         slopes = ", ".join(f"d{name}/dT = {slope:.17g}" for name, slope in law.slopes.items())

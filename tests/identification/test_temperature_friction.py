@@ -119,14 +119,15 @@ def test_validate_uses_the_logged_temperatures_and_says_so(handmade, tmp_path, c
 @needs_cc
 def test_the_exported_c_computes_the_python_model_at_any_temperature(handmade, denso, denso_model, tmp_path, rng):
     """``psdm_inverse_dynamics_at_temperature`` equals ``predict(..., temperature)`` at 24 and 37 °C, beyond the
-    reach and at the reference; ``psdm_inverse_dynamics`` stays the reference's."""
+    reach, at the reference and at NaN (not measured: the reference's friction, not the reach's end); mixed per
+    joint too; ``psdm_inverse_dynamics`` stays the reference's."""
     _, law, _, _ = handmade
     library = build_library(export_c(build_calibrated_functions(law, denso_model, denso), tmp_path / "out"),
                             flags=("-O1",))  # fmt: skip
     at = library.function("psdm_inverse_dynamics_at_temperature")
     q, qd, qdd = rng.uniform(-2, 2, (3, 50, denso.n_dof))
-    for celsius in (24.0, 37.0, 70.0, 30.0):
-        temperature = np.full((50, denso.n_dof), celsius)
+    mixed = np.where(rng.random((50, denso.n_dof)) < 0.5, np.nan, rng.uniform(10.0, 60.0, (50, denso.n_dof)))
+    for temperature in [*(np.full((50, denso.n_dof), celsius) for celsius in (24.0, 37.0, 70.0, 30.0, np.nan)), mixed]:
         got = np.array(at.map(50)(q.T, qd.T, qdd.T, temperature.T), dtype=float).T
         want = law.predict(denso_model, q, qd, qdd, temperature=temperature)
         np.testing.assert_allclose(got, want, rtol=TOLERANCE, atol=TOLERANCE * np.abs(want).max())
