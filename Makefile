@@ -5,7 +5,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 
-.PHONY: setup demo test bench crocoddyl-env hpipm clean
+.PHONY: setup demo test test-slow bench crocoddyl-env hpipm clean
 
 setup: $(STAMP)
 
@@ -23,6 +23,11 @@ test: setup
 	$(BIN)/ruff format --check .
 	NO_MKDOCS_2_WARNING=1 $(BIN)/python -m mkdocs build --strict --quiet --site-dir site
 	$(BIN)/python -m pytest -q -m "not slow" -n auto --maxprocesses 4 --dist loadfile
+
+# The tests marked slow (whole identify/diagnose runs on the virtual and unseen arms, about half an hour on two
+# cores): `.ci/nightly` runs this, so a change that breaks one is seen the next day rather than never.
+test-slow: setup
+	$(BIN)/python -m pytest -q -m slow -n auto --maxprocesses 4 --dist load
 
 bench: setup
 	$(BIN)/python -m pip install --quiet -e '.[bench]'
