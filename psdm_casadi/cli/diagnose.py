@@ -152,11 +152,7 @@ def _run_diagnose(args) -> int:
 
     (args.train, args.more_train), args.validate = training_paths(args), list(args.validate or ())
     fraction = _fraction(args)
-    check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
-    check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
-    if args.cutoff is not None:
-        fix = "Leave --cutoff out (the model's own preparation) or give e.g. --cutoff 10."
-        check_positive(args.cutoff, "--cutoff", fix, " [Hz]")
+    _check_numbers(args)
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
     loaded, apply_out = _calibrated_source(args)
     calibrated = model = robot_file = None
@@ -204,7 +200,8 @@ def _run_diagnose(args) -> int:
     apply = ApplyRefit()  # --apply's refit
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
-    load = None if calibrated is None else _payload_check(args, calibrated, robot, model, validation)
+    load, temperature = (None, None) if calibrated is None else _payload_check(args, calibrated, robot, model,
+                                                                               validation)  # fmt: skip
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -214,6 +211,7 @@ def _run_diagnose(args) -> int:
         payload["command"] = "diagnose"
         payload["files"] = {k: str(v) for k, v in paths.items()}
         payload["payload_check"] = None if load is None else load.to_dict()
+        payload["friction_temperature"] = temperature  # as psdm validate's field: where the file's law was read
         if apply_out is None:
             print_json(payload)
     else:
@@ -223,6 +221,15 @@ def _run_diagnose(args) -> int:
     if apply_out is None:
         return 0
     return _apply(args, calibrated, robot_file, apply, apply_out, payload if args.json else None, report)
+
+
+def _check_numbers(args) -> None:
+    """Refuse (exit 2) a count or a cutoff no diagnosis can use, before any work."""
+    check_count(args.max_effects, "--max-effects", "Use --max-effects 4 (the default).", minimum=0)
+    check_count(args.max_samples, "--max-samples", "Use --max-samples 250000 (the default).", minimum=1000)
+    if args.cutoff is not None:
+        fix = "Leave --cutoff out (the model's own preparation) or give e.g. --cutoff 10."
+        check_positive(args.cutoff, "--cutoff", fix, " [Hz]")
 
 
 def _fraction(args) -> float | None:
@@ -306,20 +313,23 @@ def _stated_loads(args, calibrated, robot, recordings, preparation) -> tuple:
 
 
 def _payload_check(args, calibrated, robot, model, validation):
-    """A load the model file does not have in the validation recording, as ``psdm validate`` names it
-    (``payload_check.new_payload``: mass and centre of mass at the flange), or None."""
+    """``(load, temperature)``: a load the model file does not have in the validation recording, as ``psdm validate``
+    names it (``payload_check.new_payload``: mass and centre of mass at the flange), or None; and the temperatures the
+    file's friction law was read at on it (``TemperatureFriction.sentence``), or None without a law."""
     import numpy as np
 
     from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
 
     kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
     _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
+    sentence = None
     if (laws := calibrated.temperature_friction) is not None:  # the file's friction law: where it was evaluated
         from identification.data.temperature import temperatures_at
 
         sentence = laws.sentence(temperatures_at(validation, prepared.t), robot.joint_names)
         print(f"psdm diagnose: note: {args.validate}: the model file's {sentence}", file=sys.stderr)
-    return new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
+    load = new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
+    return load, sentence
 
 
 def _preparation(args, calibrated, train):
