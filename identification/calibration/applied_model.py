@@ -267,6 +267,7 @@ def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
         viscous_exponent=tuple(drive.get("viscous_exponent") or ()) or None,  # the file's viscous power law
         held_friction=HeldFriction.of_document(document).values,  # as identified
         held_links=model_file_holds(document).held_links,  # as identified (``worse_joint_hold``)
+        rotors_apart=model_file_holds(document).rotors_apart,  # as identified (``rotors_apart``)
         stribeck_held=_held_stribeck(calibrated, friction),  # the file's shape, as the diagnosis judged against it
     )
 

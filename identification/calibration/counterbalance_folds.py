@@ -38,6 +38,7 @@ __all__ = [
     "FoldFailure",
     "BlockFolds",
     "block_folds",
+    "fold_comparison",
     "residual_comparison",
     "with_fold_spread",
 ]
@@ -98,8 +99,14 @@ class BlockFolds:
     def compare(self, identify_without, identify_with, model, kt=None) -> tuple:
         """(comparison over every held-out block taken together, per-fold comparisons) of the models
         ``identify_without(pieces)`` and ``identify_with(pieces)`` of each fold on its held-out blocks
-        (``residual_comparison``)."""
-        folds, pooled_without, pooled_with = [], [], []
+        (``residual_comparison`` of :meth:`residuals`)."""
+        return fold_comparison(self.residuals(identify_without, identify_with, model, kt))
+
+    def residuals(self, identify_without, identify_with, model, kt=None) -> tuple:
+        """Per fold, ``(without, with)``: the residuals (n_samples, n_dof) of its models ``identify_without(pieces)``
+        (``baseline``) and ``identify_with(pieces)`` on its held-out blocks, in turn; ``FoldFailure`` naming the fold
+        that could not be identified or judged."""
+        out = []
         for k, (pieces, held) in enumerate(zip(self.training, self.held_out)):
             try:
                 with shared_solvers(self.solvers):  # judges: one barrier-path solver per structure
@@ -107,12 +114,8 @@ class BlockFolds:
                 residuals = [[_residual(m, model, block, kt) for block in held] for m in (without, with_it)]
             except PSDMError as error:  # a piece that excites too little, too short to prepare, a fit that fails
                 raise FoldFailure(f"block {k + 1} of {len(self.training)}: {str(error).splitlines()[0]}") from error
-            fold = [np.concatenate(r, axis=0) for r in residuals]
-            folds.append(residual_comparison(*fold))
-            pooled_without.append(fold[0])
-            pooled_with.append(fold[1])
-        together = residual_comparison(np.concatenate(pooled_without), np.concatenate(pooled_with))
-        return with_fold_spread(together, folds), tuple(folds)
+            out.append(tuple(np.concatenate(r, axis=0) for r in residuals))
+        return tuple(out)
 
 
 def _residual(calibrated, model, recording, kt) -> np.ndarray:
@@ -147,6 +150,14 @@ def block_folds(recordings, configurations=None, cutoff_hz=None, folds: int = FO
             if edges[k + 1] < recording.n_samples:
                 training[k].append(recording.slice(edges[k + 1], None))
     return BlockFolds(tuple(map(tuple, training)), tuple(map(tuple, held_out)))
+
+
+def fold_comparison(residuals) -> tuple:
+    """(comparison over every held-out block taken together, with the folds' spread: ``with_fold_spread``; per-fold
+    comparisons) of ``BlockFolds.residuals``."""
+    folds = [residual_comparison(*fold) for fold in residuals]
+    together = residual_comparison(*(np.concatenate([fold[i] for fold in residuals]) for i in (0, 1)))
+    return with_fold_spread(together, folds), tuple(folds)
 
 
 def with_fold_spread(together: JointComparison, folds) -> JointComparison:

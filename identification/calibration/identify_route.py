@@ -33,6 +33,7 @@ from identification.calibration.one_way_friction import (
 from identification.calibration.payload_route import PayloadChoice, take_payload
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
+from identification.calibration.rotors_apart import RotorsApart, judge_rotors_apart
 from identification.calibration.temperature_friction import temperature_block
 from identification.calibration.trajectory_fit import (
     TrajectoryFit,
@@ -85,6 +86,9 @@ class IdentifyResult:
     drift : FrictionDrift
         Friction that changed between the training recordings (``drift_choice``): the joints named, the friction the
         model keeps, whether the fit saw each recording's own friction.
+    rotors_apart : RotorsApart
+        The rotors the training data want apart from their same actuator's: taken where the held-out data confirm it
+        (``rotors_apart``), else held.
     """
 
     fit: TrajectoryFit
@@ -99,6 +103,7 @@ class IdentifyResult:
     worse_joints: WorseJointHold = field(default_factory=WorseJointHold)
     payload: PayloadChoice = field(default_factory=PayloadChoice)
     drift: FrictionDrift = field(default_factory=FrictionDrift)
+    rotors_apart: RotorsApart = field(default_factory=RotorsApart)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -111,12 +116,18 @@ class IdentifyResult:
         """The parameters the fit keeps away from the data's own estimate (``held_back.HeldBack``; empty: none)."""
         return stored_held_back(self.fit.envelope_bounds)
 
+    @property
+    def columns(self) -> list:
+        """The drive columns chosen (``ColumnChoice.describe``) and the rotors the training data wanted apart from
+        their same actuator's (``RotorsApart.describe``), one sentence each."""
+        return [*self.choice.describe(), *self.rotors_apart.describe()]
+
     def describe(self) -> list:
         """One sentence per choice: the drive columns, the Coulomb smoothing, the counterbalance, the pull towards
         the robot file (stated here once, not by each consistent fit the choices ran), what the pull or the envelope
         holds back from the data (``held_back``), and whether the model is worse than the robot file on any joint of
         the held-out recordings."""
-        lines = list(self.choice.describe())
+        lines = list(self.columns)
         if self.pull is not None:
             lines.append(self.pull.describe())
         lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
@@ -213,6 +224,7 @@ def identify_recordings(
         drift = FrictionDrift(mode=friction_drift)
     chosen = choice.options(options)
     loss, lugre, held, mended = None, None, OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
+    rotors = RotorsApart()
     source = robot.source if robot_source is None else robot_source
     if request.friction == "lugre":
         from identification.calibration.lugre_identify import identify_lugre_trajectories
@@ -227,6 +239,10 @@ def identify_recordings(
         start = fit
     else:
         choice, fit = _checked_fit(robot, model, recordings, options, choice, validation, configurations)
+        fit, rotors = judge_rotors_apart((robot, model, recordings, choice.options(options), configurations), fit,
+                                         validation)  # fmt: skip
+        apart = tuple(sorted({*options.rotors_apart, *rotors.joints}))
+        options = replace(options, rotors_apart=apart)  # every later fit takes them apart too
         problem = (robot, model, recordings, choice.options(options), configurations)
         fit, held = _one_way(problem, fit, validation, one_way, source)
         chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
@@ -245,6 +261,8 @@ def identify_recordings(
         calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
     choice = replace(choice, replaced_offsets=taken.replaced_offsets)  # the model holds the spring there
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
+    if rotors.verdicts:  # stated with the other column choices
+        calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
     check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
     check = replace(check, held=held.held_joints, held_links=mended.held_links)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
@@ -253,7 +271,8 @@ def identify_recordings(
     calibrated.document["identification"]["friction_drift"] = drift.to_dict()
     if (laws := temperature_block(drift, calibrated.document["drive"]["names"])) is not None:
         calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
-    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift)
+    return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift,
+                          rotors)  # fmt: skip
 
 
 def _friction_drift(problem, choice, mode, temperatures) -> tuple:

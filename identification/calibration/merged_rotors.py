@@ -22,8 +22,9 @@ drive inertias the same fit identifies as columns of their own (``Ia<j>``) on th
 with the robot file's rigid body held (:func:`file_drive_columns`: the unconstrained fit trades a drive inertia against
 the links, and on the Kinova's currents gave joint 4's as 0.02 kg m^2 for the consistent fit's 0.42). The same stated
 actuator is an assumption the data may override (:func:`siblings_apart`: a datasheet often lists one torque constant
-for base and wrist motors of different sizes): where the training BIC is strongly against the siblings' band, the
-rotor is taken from the data as below, and identify says so. Without a stated
+for base and wrist motors of different sizes): where the training BIC is strongly against the siblings' band, that is
+a proposal, recorded with the fit; identify takes the rotor from the data as below only where held-out data confirm it
+(``rotors_apart``, which lists the joints in ``TrajectoryOptions.rotors_apart``), and says so. Without a stated
 value or such a sibling, :func:`data_rotors` takes what the training data give the drive inertia beside the robot
 file's links (the base parameter holding it, less the file's link), held >= 0 only. On the Kinova's currents the links
 2 and 4 sat at their upper mass bounds absorbing the rotors of joints 1-2 (link 2's ZZ holds joint 2's rotor: its axis
@@ -75,12 +76,15 @@ class MergedRotors:
     ``robot`` with the reference of each (the file's, or its siblings': :func:`sibling_rotors`), and per joint whose
     reference came from siblings ``(joint, reference, sibling joints, low, high)`` (0-based; [kg m^2]: the band the fit
     holds it in, ``SIBLING_SPREAD``); ``apart``: {joint: (siblings' reference, sibling joints, training BIC change)}
-    of the joints whose training data overrode the same-actuator reference (:func:`siblings_apart`)."""
+    of the joints taken from the training data rather than the same-actuator reference (``options.rotors_apart``);
+    ``proposed``: the same of the joints still held whose training BIC is strongly against the hold
+    (:func:`siblings_apart`), for identify to judge on held-out data (``rotors_apart``)."""
 
     model: object
     robot: object
     from_siblings: tuple = ()
     apart: dict = field(default_factory=dict)
+    proposed: dict = field(default_factory=dict)
 
     def __iter__(self):
         """``model, robot, self``: unpacked where the fit goes on with them."""
@@ -110,27 +114,36 @@ class MergedRotors:
         return (("drive_inertia_reference", entries),)
 
     def _apart_entry(self, j) -> dict:
-        if j not in self.apart:
+        """``same_actuator``: the siblings' reference, their joints, the training BIC change and whether the rotor was
+        ``taken`` apart (False: a proposal the fit held)."""
+        taken = j in self.apart
+        if not taken and j not in self.proposed:
             return {}
-        reference, siblings, delta = self.apart[j]
-        return {"same_actuator": {"kg_m2": reference, "joints": [s + 1 for s in siblings], "delta_bic": delta}}
+        reference, siblings, delta = (self.apart if taken else self.proposed)[j]
+        return {"same_actuator": {"kg_m2": reference, "joints": [s + 1 for s in siblings], "delta_bic": delta,
+                                  "taken": taken}}  # fmt: skip
 
 
 def merged_rotor_map(model, robot, joints, seed: int = 0) -> dict:
     """{joint: base-parameter coefficients (n_base,)} of the drive inertias of ``joints`` (0-based) that lie in the
     span of the base regressor on random states (``separate_inertia.random_states``; the others are left out)."""
+    joints = [int(j) for j in joints]
+    if not joints:
+        return {}
     q, qd, qdd = random_states(model, robot, seed)
     n_states = q.shape[0]
     stacked = model.regressor(q, qd, qdd).reshape(-1, model.n_base)
+    targets = np.zeros((n_states, robot.n_dof, len(joints)))
+    for k, j in enumerate(joints):
+        targets[:, j, k] = qdd[:, j]
+    targets = targets.reshape(-1, len(joints))
+    solved = np.linalg.lstsq(stacked, targets, rcond=None)[0]  # one factorisation for every joint
     out = {}
-    for j in joints:
-        target = np.zeros((n_states, robot.n_dof))
-        target[:, j] = qdd[:, j]
-        target = target.reshape(-1)
-        coefficients = np.linalg.lstsq(stacked, target, rcond=None)[0]
+    for k, j in enumerate(joints):
+        coefficients, target = solved[:, k].copy(), targets[:, k]
         if np.linalg.norm(stacked @ coefficients - target) <= SPAN_TOLERANCE * np.linalg.norm(target):
             coefficients[np.abs(coefficients) < 1e-9 * np.abs(coefficients).max()] = 0.0
-            out[int(j)] = coefficients
+            out[j] = coefficients
     return out
 
 
@@ -154,41 +167,42 @@ def sibling_rotors(robot, model, kt, drive) -> tuple:
     return tuple(out)
 
 
-def siblings_apart(robot, model, equations, names, siblings, correlation=None) -> tuple:
-    """``(siblings, apart)``: the ``siblings`` entries (:func:`sibling_rotors`) the training data leave at their
-    siblings' reference, and {joint: (reference, sibling joints, BIC change)} of those the data override. A datasheet
+def siblings_apart(robot, model, equations, names, siblings, correlation=None, taken=()) -> tuple:
+    """``(siblings, apart, proposed)``: the ``siblings`` entries (:func:`sibling_rotors`) held at their siblings'
+    reference, {joint: (reference, sibling joints, BIC change)} of those taken apart (the joints ``taken``, 0-based:
+    ``TrajectoryOptions.rotors_apart``), and the same of the held ones the training data want apart. A datasheet
     that states one torque constant and gear ratio for base and wrist does not make their rotors equal (a belt-driven
     cobot's joints 1-2 carry 3x its joint 3's rotor): with the robot file's links held, each merged rotor's value is
     fitted freely beside the drive columns (``names`` of ``equations``, a ``trajectory_data.NormalEquations``), and
     where it lies outside its siblings' band the training BIC of that fit against the one holding it at the
     reference (per joint over the effective samples, the count over the residual's ``correlation`` time, as
-    ``column_choice`` counts them) decides: strong evidence (``column_verdict.STRONG_BIC``) takes the rotor apart,
-    from the training data (:func:`data_rotors`)."""
+    ``column_choice`` counts them) says whether the data want it apart: strong evidence (``column_verdict.STRONG_BIC``)
+    proposes it, and identify takes it apart, from the training data (:func:`data_rotors`), where held-out data confirm
+    it (``rotors_apart``). A training BIC alone is no finding: beside the file's links the free rotor also takes up
+    what the file's link inertias miss, and the hold it is compared with is fitted on the same samples."""
     merged = merged_rotor_map(model, robot, [entry[0] for entry in siblings])
     entries = [entry for entry in siblings if entry[0] in merged]
     if not entries:
-        return siblings, {}
+        return siblings, {}, {}
     columns = [merged[entry[0]] for entry in entries]
     free_sums = _rotor_residuals(robot, model, equations, len(names), columns)
     factor = np.ones(robot.n_dof) if correlation is None else np.maximum(np.asarray(correlation, dtype=float), 1.0)
     effective = np.maximum(equations.count / factor, 1.0)
     measured = (equations.count > 0) & (free_sums > 0)
     free = _beside_file_links(robot, model, equations, len(names), columns)[0]
-    kept, apart = [], {}
-    for k, entry in enumerate(entries):
-        j, reference, sib, low, high = entry
-        if low <= free[k] <= high:
-            kept.append(entry)
+    apart, proposed = {}, {}
+    for k, (j, reference, sib, low, high) in enumerate(entries):
+        if low <= free[k] <= high and j not in taken:
             continue
         others = [c for i, c in enumerate(columns) if i != k]
         held_sums = _rotor_residuals(robot, model, equations, len(names), others, reference * columns[k])
         delta = float(np.sum(effective[measured] * np.log(held_sums[measured] / free_sums[measured]))
                       - np.log(np.sum(effective[measured])))  # fmt: skip
-        if delta > STRONG_BIC:
+        if j in taken:
             apart[j] = (reference, sib, delta)
-        else:
-            kept.append(entry)
-    return tuple(e for e in siblings if e[0] not in apart), apart
+        elif delta > STRONG_BIC and not low <= free[k] <= high:
+            proposed[j] = (reference, sib, delta)
+    return tuple(e for e in siblings if e[0] not in apart), apart, proposed
 
 
 def _rotor_residuals(robot, model, equations, n_drive, rotor_columns, shift=0.0) -> np.ndarray:
@@ -291,9 +305,10 @@ def with_merged_rotors(
         return unchanged
     drive = {} if columns is None or robot.links is None else file_drive_columns(robot, model, *columns)
     siblings = () if kt is None else sibling_rotors(robot, model, np.asarray(kt, dtype=float), drive)
-    apart = {}
+    apart, proposed = {}, {}
     if siblings and drive:
-        siblings, apart = siblings_apart(robot, model, *columns, siblings, correlation)
+        taken = () if options is None else tuple(options.rotors_apart)
+        siblings, apart, proposed = siblings_apart(robot, model, *columns, siblings, correlation, taken)
     rotor = np.array(robot.rotor_inertia, dtype=float)
     for j, value, *_ in siblings:
         rotor[j] = value
@@ -316,9 +331,12 @@ def with_merged_rotors(
                     "none; held near %.3g kg m^2, the drive inertias of joints %s (the same torque constant)", j + 1,
                     value, ", ".join(str(s + 1) for s in sib))  # fmt: skip
     for j, (reference, sib, delta) in apart.items():
-        say("identify: joint %d's drive inertia: the same torque constant as joints %s gave it %.3g kg m^2, but the "
-            "training data want it apart (BIC %+.3g beside the file's links)", j + 1,
+        say("identify: joint %d's drive inertia: the same torque constant as joints %s gave it %.3g kg m^2, but it is "
+            "taken apart, from the training data (BIC %+.3g beside the file's links)", j + 1,
             ", ".join(str(s + 1) for s in sib), reference, delta)  # fmt: skip
+    for j, (_, sib, delta) in proposed.items():  # judged by identify on held-out data (``rotors_apart``)
+        logger.debug("identify: joint %d's drive inertia: the training data want it apart from joints %s (BIC %+.3g "
+                     "beside the file's links)", j + 1, ", ".join(str(s + 1) for s in sib), delta)  # fmt: skip
     for j, value in wanted.items():
         say("identify: joint %d's drive inertia lies inside the base parameters and the robot file states "
                     "none; the training data give it %.3g kg m^2 beside the file's links: the consistent fit holds it "
@@ -333,7 +351,8 @@ def with_merged_rotors(
     robot = replace(robot, rotor_inertia=np.where([j in merged for j in range(robot.n_dof)], rotor,
                                                   robot.rotor_inertia))  # fmt: skip
     apart = {j: entry for j, entry in apart.items() if j in merged and j in wanted}
-    return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept, apart)
+    proposed = {j: entry for j, entry in proposed.items() if j in merged}
+    return MergedRotors(replace(model, parameter_map=parameter_map), robot, kept, apart, proposed)
 
 
 def robot_file_theta(robot, model, kt=None) -> np.ndarray:

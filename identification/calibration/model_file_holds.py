@@ -15,7 +15,10 @@ Identify writes two things that a refit must not undo, because the data that dec
   ``diagnose MODEL``). The spring stays a column of the model: its coefficients are fitted again, its shape is the
   file's. So does a spring an earlier ``diagnose --apply`` wrote (``findings[]`` of effect ``spring`` or
   ``gas_spring`` whatever their ``source``): diagnosing the applied model neither finds it again nor lets the rigid
-  body absorb it.
+  body absorb it;
+- the rotors it took apart from their same actuator's (``rotors_apart``: confirmed on held-out data the refit does not
+  see; ``standard.envelope.drive_inertia_reference`` entries whose ``same_actuator`` was taken): a refit takes them
+  apart too (``TrajectoryOptions.rotors_apart``) rather than holding them to their siblings again.
 """
 
 from __future__ import annotations
@@ -42,10 +45,14 @@ class ModelFileHolds:
     counterbalances : tuple of dict
         The ``findings`` entries of the file's counterbalances: the torque findings of a spring
         (``COUNTERBALANCE_KEYS``) identify took (``source`` ``"identify"``) or an earlier ``diagnose --apply`` wrote.
+    rotors_apart : tuple of int
+        Joints (0-based) whose drive inertia identify took apart from the same actuator's
+        (``TrajectoryOptions.rotors_apart``).
     """
 
     held_links: tuple = ()
     counterbalances: tuple = ()
+    rotors_apart: tuple = ()
 
     @property
     def counterbalance_terms(self) -> tuple:
@@ -84,4 +91,14 @@ def model_file_holds(document: dict) -> ModelFileHolds:
         and isinstance(entry.get("term"), dict)
         and entry["term"].get("effect") in COUNTERBALANCE_KEYS
     )
-    return ModelFileHolds(held_links=tuple(sorted(int(i) - 1 for i in links)), counterbalances=counterbalances)
+    references = ((document.get("standard") or {}).get("envelope") or {}).get("drive_inertia_reference") or ()
+    apart = tuple(sorted(int(entry["joint"]) - 1 for entry in references if _taken_apart(entry)))
+    return ModelFileHolds(held_links=tuple(sorted(int(i) - 1 for i in links)), counterbalances=counterbalances,
+                          rotors_apart=apart)  # fmt: skip
+
+
+def _taken_apart(entry) -> bool:
+    """Whether a ``drive_inertia_reference`` entry is a rotor taken apart from its same actuator's (files of 4603d6c
+    wrote no ``taken``: those it names were)."""
+    same = entry.get("same_actuator") if isinstance(entry, dict) else None
+    return bool(same) and bool(same.get("taken", True))

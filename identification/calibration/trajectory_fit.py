@@ -149,6 +149,11 @@ class TrajectoryOptions:
         With ``"fs"``: the Stribeck velocities [rad/s] per joint held, not searched (0: a Coulomb-viscous joint); a
         refit of a model file with a diagnosis's findings keeps the file's shape, as the diagnosis judged them against
         it (``applied_model``). None: searched (``stribeck``).
+    rotors_apart : tuple of int
+        Joints (0-based) whose drive inertia, merged into the base parameters and held to the same actuator's on other
+        joints by default (``merged_rotors.sibling_rotors``), is taken from the training data instead
+        (``merged_rotors.siblings_apart``). identify lists a joint here only where the training BIC wants it apart and
+        held-out data confirm it (``rotors_apart``); a refit keeps its file's.
     """
 
     friction: tuple = ("fc", "fv")
@@ -173,9 +178,10 @@ class TrajectoryOptions:
     held_links: tuple = ()
     baseline_friction: tuple = ()
     stribeck_held: tuple | None = None
+    rotors_apart: tuple = ()
 
     def __post_init__(self):
-        for name in ("offset_joints", "inertia_joints", "stribeck_joints", "held_links"):
+        for name in ("offset_joints", "inertia_joints", "stribeck_joints", "held_links", "rotors_apart"):
             joints = getattr(self, name)
             if joints is not None and not all(isinstance(j, (int, np.integer)) and j >= 0 for j in joints):
                 raise ParameterError(f"TrajectoryOptions.{name} must be None or 0-based joint indices; got {joints!r}.")

@@ -86,11 +86,11 @@ def _print_envelope(fit, route=str) -> None:
             if entry["from"] == "training data"
             else "the drive inertias of joints " + ", ".join(str(j) for j in entry["from_joints"]) + " (same actuator)"
         )
-        if "same_actuator" in entry:  # the data overrode the same-actuator reference
-            same = entry["same_actuator"]
+        same = entry.get("same_actuator")
+        if same and same.get("taken", True):  # taken apart where the held-out data confirmed it (``rotors_apart``)
             source += (
                 f", not the {same['kg_m2']:.3g} kg m^2 of joints {', '.join(str(j) for j in same['joints'])} with the "
-                f"same torque constant (training BIC {same['delta_bic']:+.3g}: the data want this rotor apart)"
+                f"same torque constant (training BIC {same['delta_bic']:+.3g}, confirmed held out: see drive columns)"
             )
         fitted = float(np.asarray(fit.standard)[entry["joint"] - 1, -1])  # the pull is weak: it may end far off
         print(
@@ -182,7 +182,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         print(result.pull.describe())
     for item in result.held_back:
         print(f"  HELD BACK: {route(item.message)}")
-    print("drive columns: " + "; ".join(result.choice.describe()), *torque_scale_lines(calibrated.document), sep="\n")
+    print("drive columns: " + "; ".join(result.columns), *torque_scale_lines(calibrated.document), sep="\n")
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
     lines = (result.payload.line, result.drift.describe(), result.one_way.describe(), result.worse_joints.describe())
