@@ -20,6 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.diagnosis.carried_terms import carried_labels
 from identification.diagnosis.nominal import friction_feature_names
 from identification.diagnosis.recording_checks import predict_recording
 from identification.diagnosis.report import Finding
@@ -74,7 +75,7 @@ def look_beyond_library(problem, selection, final, options, identified=None) -> 
     done = {p.term.joint for p in replacing}
     proposals = tuple(p for p in proposals if p.term.joint not in done)
     notes = ()
-    if proposals and identified is not None and inertia_in_question(selection):
+    if proposals and identified is not None and inertia_in_question(selection, carried_labels(options)):
         proposals, notes = _drop_stand_ins(problem, final, proposals, identified)
     proposals = replacing + proposals
     if not proposals:

@@ -15,6 +15,10 @@ the rigid body, when it is identified), their shape is the file's. The library o
 RMSE without and with them and a shape note that says they were kept from the model file
 (``CarriedColumns.selection``); the stand-in check does not drop them (``rigid_body_choice.drop_stand_ins``), and the
 plausibility check does not judge them as a new spring (``plausible_fit``: identify's judges kept them).
+
+A model file's drive columns are carried the same way (``drive_columns``: a free rotor inertia beside each, the library
+offering no other on its joint, ``CarriedColumns.covers``); they are the file's parameters, not findings, and neither
+put the rigid body in question (``rigid_body_choice.inertia_in_question``) nor stay in the report's findings.
 """
 
 from __future__ import annotations
@@ -59,9 +63,12 @@ class CarriedColumns:
     terms: tuple = ()
 
     def covers(self, term) -> bool:
-        """Whether the library's ``term`` would take a carried counterbalance's torque (a spring on its joint)."""
+        """Whether the library's ``term`` would take a carried term's torque: a spring on a carried counterbalance's
+        joint, or the same effect on a carried term's joint (a model file's drive column, ``drive_columns``)."""
         joints = {j for carried in self.terms for j in carried.joints}
-        return term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & joints)
+        same = {(carried.key, j) for carried in self.terms for j in carried.joints}
+        spring = term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & joints)
+        return spring or any((term.key, j) in same for j in term.joints)
 
     def columns(self, context) -> BlockColumns | None:
         """The carried terms' columns on ``context`` (None without terms)."""

@@ -14,10 +14,12 @@ and the preparation it used. The friction identify held on joints that moved one
 (``DiagnosisOptions.held_friction``), and so do the drive inertias the file fitted outside the base parameters
 (its ``Ia<j>`` columns, ``file_held``): the diagnosis's nominal model predicts those joints as the file does, and its
 refits (the rigid body recalibrated, freely or inside the envelope, the findings' joint fits) keep it, as ``diagnose
---apply``'s refit does (``recalibrate``). So does the counterbalance identify took (``model_file_holds``): a column of
-the nominal model in every fit (``carried_terms``), its coefficients fitted again, reported first among the findings as
-kept from identify, so that no rigid-body refit of the diagnosis absorbs it into the links again; and the links identify
-held at the robot file's stay held in its rigid-body recalibrations (``held_links``).
+--apply``'s refit does (``recalibrate``); beside each such drive column a free one fits its value again with the
+friction (``drive_columns``), as identify fits it: an effect the column absorbed (a torque ripple) is found with the
+drive inertia it leaves, not beside the file's. So does the counterbalance identify took (``model_file_holds``): a
+column of the nominal model in every fit (``carried_terms``), its coefficients fitted again, reported first among the
+findings as kept from identify, so that no rigid-body refit of the diagnosis absorbs it into the links again; and the
+links identify held at the robot file's stay held in its rigid-body recalibrations (``held_links``).
 ``psdm diagnose`` calls :func:`diagnose_model_prior`, so the Python API and the command give the same numbers.
 """
 
@@ -48,6 +50,7 @@ from identification.diagnosis.applied_after import with_applied_after
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+from identification.diagnosis.drive_columns import with_drive_columns, without_drive_columns
 from identification.diagnosis.motion_checks import validation_recordings
 from identification.diagnosis.report import DiagnosisReport
 from identification.diagnosis.report_assembly import with_model_file_before
@@ -257,8 +260,11 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         if worse:
             prior, report = prior.declining(worse), None
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
-    if report is None:  # the file's drive columns held, not rotors a recalibrated rigid body drops (file_held)
-        report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, options, model=model)
+    if report is None:  # the file's drive columns held, not rotors a recalibrated rigid body drops (file_held), and
+        # fitted again beside the findings (``drive_columns``)
+        own = with_drive_columns(options, calibrated.document)
+        report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, own, model=model)
+        report = without_drive_columns(report, calibrated.document)
     report = with_applied_after(
         report, loaded, train, first, refit
     )  # the model --apply writes: its "after" (applied_after)

@@ -104,7 +104,9 @@ class DiagnosisOptions:
     carried : tuple of CandidateTerm
         Terms the nominal model holds as columns (``carried_terms``): a model file's counterbalance identify took
         (``model_file_options``), its coefficients fitted again in every fit of the diagnosis, reported as kept from
-        identify, never selected, dropped or rejected; no other spring is offered on its joint.
+        identify, never selected, dropped or rejected; no other spring is offered on its joint. Or a model file's drive
+        column (``drive_columns``: a rotor inertia fitted again beside the file's value, no finding); no other term of
+        a carried term's effect is offered on its joint.
     held_links : tuple of int
         Links (0-based) every rigid-body recalibration of the diagnosis holds at the nominal robot's inertia
         (``held_links``): a model file's, which identify held (``worse_joint_hold``, ``model_file_options``).

@@ -138,10 +138,11 @@ class IdentifiedDiagnosis:
     options: object
 
 
-def inertia_in_question(selection) -> bool:
+def inertia_in_question(selection, carried=()) -> bool:
     """Whether the prior model kept an inertial finding (a payload, a rotor inertia): the robot file's inertia is
-    then in question, and its other findings are judged against the recalibrated rigid body (``standing_in``)."""
-    return any(step.term.key in INERTIAL_TERMS for step in selection.steps)
+    then in question, and its other findings are judged against the recalibrated rigid body (``standing_in``). The
+    terms labelled ``carried`` are the nominal model's (a model file's drive columns, ``drive_columns``), no finding."""
+    return any(step.term.key in INERTIAL_TERMS and step.term.label not in carried for step in selection.steps)
 
 
 def standing_in(claims, supporting, rmse_prior, rmse_recalibrated, needed=()) -> tuple:
@@ -177,7 +178,7 @@ def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, ne
     the rigid body identified), and only when the prior model kept an inertial finding (``inertia_in_question``).
     ``rmse_*`` are the per-joint validation RMSE of the two fits (``prior_wins``); ``needed`` as in ``standing_in``;
     the terms labelled ``carried`` are the nominal model's (``carried_terms``), no finding to judge."""
-    if not inertia_in_question(selection):
+    if not inertia_in_question(selection, carried):
         return (), ()
     claims = [Claim.of_step(step) for step in selection.steps if step.term.label not in carried]
     supporting = [Claim.of_step(step) for step in selection_identified.steps]
