@@ -134,13 +134,15 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
 
     ``load(path) -> Recording`` reads a recording as identify read the file's (joint side, timed, its column layout);
     ``robot`` (the model's) and ``cutoff_hz`` (its preparation's) take a load off (``without_load``). ``more``: the
-    other ``--train`` recordings as ``(path, raw recording read with load)`` (``diagnose MODEL --train A B``): one
-    that is a training recording of the file (by content, or the same samples) is used in its place, read as identify
-    read it, wherever it lies now; another is added, read as the diagnosis reads ``--train`` (its dead channels
-    marked, the load its sidecar states taken off), and where identify corrected a friction drift its friction is
-    fitted beside the model (``predict(recording) -> (prepared, predicted)``, ``CalibratedModel.predict_recording``;
-    ``new_recording_drift``) and moved to the kept friction as the file's recordings are. A recording given twice
-    counts once. Never raises for a recording it cannot use: that one is in ``RefitTraining.missing``.
+    other ``--train`` recordings as ``(path, raw recording read with load)`` (``diagnose MODEL --train A B``), or
+    ``(path, its training part, HeldOutPart)`` where ``diagnose --holdout`` cut it (``holdout.other_training_parts``):
+    one that is a training recording of the file (by content, or the same samples) is used in its place, read as
+    identify read it (or as the diagnosis cut it), wherever it lies now; another is added, read as the diagnosis reads
+    ``--train`` (its dead channels marked, the load its sidecar states taken off), and where identify corrected a
+    friction drift its friction is fitted beside the model (``predict(recording) -> (prepared, predicted)``,
+    ``CalibratedModel.predict_recording``; ``new_recording_drift``) and moved to the kept friction as the file's
+    recordings are. A recording given twice counts once. Never raises for a recording it cannot use: that one is in
+    ``RefitTraining.missing``.
     """
     entries = [e for e in ((document.get("provenance") or {}).get("recordings")) or [] if isinstance(e, dict)]
     own = _digest(train_path)
@@ -153,12 +155,19 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
     recordings, sources, kept, missing, added = [train], list(out.sources), list(out.entries), [], [True]
     for entry in entries:
         if _is_given(entry, train, own):  # the file's own entry: the written model names it as identify did
-            kept[0], added[0] = dict(entry, **({"path": os.path.abspath(train_path)} if own else {})), False
+            where = {"path": os.path.abspath(train_path)} if own else {}
+            kept[0], added[0] = dict(_trained(entry, train), **where), False
             continue
         handed = next((g for g in given if _is_given(entry, g[1], g[2])), None)
         recording, path, looked = None, None, ()
         try:
-            if handed is not None:  # a --train that is this recording: read as identify read it, wherever it is
+            if handed is not None and handed[3] is not None:  # diagnose --holdout cut it: its training part as cut
+                given.remove(handed)
+                path, looked = handed[0], (os.path.abspath(handed[0]),)
+                configuration = _configuration(document, str(entry.get("name")), path)
+                recording = _without_stated_load(find_missing_torque(handed[1]), configuration, document, robot,
+                                                 cutoff_hz)  # fmt: skip
+            elif handed is not None:  # a --train that is this recording: read as identify read it, wherever it is
                 given.remove(handed)
                 path, looked = handed[0], (os.path.abspath(handed[0]),)
                 recording, reason = _read(path, entry, document, lambda _, r=handed[1]: r, robot, cutoff_hz)
@@ -178,12 +187,12 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
         if same is not None:  # another --train is this recording's training part, cut into a file of its own
             given.remove(same)
         recordings.append(recording)
-        sources.append(path if handed is None and same is None else f"{(handed or same)[0]} ({GIVEN})")
-        kept.append(dict(entry, path=os.path.abspath(path)))  # where its content is now: a later refit looks there
+        sources.append(path if handed is None and same is None else _source(handed or same))
+        kept.append(dict(_trained(entry, recording), path=os.path.abspath(path)))  # a later refit looks there
         added.append(False)
-    for path, recording, _ in given:  # --train recordings the model file does not list: read as --train is
+    for path, recording, _, cut in given:  # --train recordings the model file does not list: read as --train is
         recordings.append(_read_new(path, recording, document, robot, cutoff_hz))
-        sources.append(f"{path} ({GIVEN})")
+        sources.append(_source((path, recording, None, cut)))
         kept.append(recording_provenance(recording, path))
         added.append(True)
     note, drift = twice, None
@@ -193,18 +202,31 @@ def refit_training(document, model_path, train, train_path, load, robot, cutoff_
     return RefitTraining(tuple(recordings), tuple(sources), tuple(kept), tuple(missing), note, drift)
 
 
+def _trained(entry, recording) -> dict:
+    """The provenance ``entry`` with the samples the refit trains on (``recording``: a ``--holdout`` cut of one the
+    model trained on whole holds fewer, and the written model's own refit reads it so)."""
+    return dict(entry, n_samples=int(recording.n_samples), duration_s=float(recording.duration))
+
+
+def _source(given) -> str:
+    """How the report names a ``--train`` recording (``[path, recording, digest, HeldOutPart or None]``): its path, and
+    the samples it trained on where ``diagnose --holdout`` cut it."""
+    path, _, _, cut = given
+    return f"{path} ({GIVEN})" if cut is None else f"{path}, its first {cut.cut_sample} samples ({GIVEN})"
+
+
 def _given(more, train, digest) -> tuple:
-    """``([path, recording, digest] of each other --train, a note on those given twice)``: one whose content or
-    samples are the first's or an earlier one's counts once."""
+    """``([path, recording, digest, HeldOutPart or None] of each other --train, a note on those given twice)``: one
+    whose content or samples are the first's or an earlier one's counts once."""
     out, twice = [], []
-    for path, recording in more:
+    for path, recording, *cut in more:
         own = _digest(path)
         earlier = [(None, train, digest), *out]
         same = next((g for g in earlier if (own is not None and own == g[2]) or _same_motion(recording, g[1])), None)
         if same is not None:
             twice.append(f"{path} is the same recording as {GIVEN} {same[0] or 'the first'}: counted once")
             continue
-        out.append([path, recording, own])
+        out.append([path, recording, own, cut[0] if cut else None])
     return out, "; ".join(twice)
 
 

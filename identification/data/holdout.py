@@ -14,6 +14,12 @@ stores them (``identification.holdout``, :func:`holdout_block`), so ``psdm valid
 --train REC`` reuse the same held-out part (:func:`reload_part`), and a recording changed since (another hash) is
 refused rather than judged on other samples. ``psdm diagnose MODEL --train REC`` and the Python
 ``diagnosis.model_file.diagnose_model(MODEL, REC)`` find the parts through the one :func:`diagnose_parts`.
+
+``psdm diagnose MODEL --train A B ... --holdout F`` cuts every training recording as it cuts the first
+(:func:`other_training_parts`): a user who asks for the last ``F`` of the data held out means every recording's, not
+the first's only (before, the others trained whole in the refit and none of their motion was judged). Each held-out
+part is a validation recording of its own, so a finding must hold on each (the findings-that-hold rule of several
+``--validate`` recordings): the parts are different motions, and a gain pooled over them would let one outvote another.
 """
 
 from __future__ import annotations
@@ -29,8 +35,9 @@ from identification.data.recording import MIN_SAMPLES
 from psdm_casadi.errors import ModelFileError, ParameterError, RecordingError
 
 __all__ = ["HOLDOUT_MAX", "HeldOutPart", "check_holdout_fraction", "check_parts_long_enough", "cut_recording",
-           "diagnose_parts", "held_out_sentences", "holdout_block", "matching_part", "other_part", "recording_digest",
-           "reload_part", "shortest_part", "stored_parts", "train_samples"]  # fmt: skip
+           "diagnose_parts", "held_out_sentences", "holdout_block", "matching_part", "other_part",
+           "other_training_parts", "recording_digest", "reload_part", "shortest_part", "stored_parts",
+           "train_samples"]  # fmt: skip
 
 #: The largest held-out fraction: at least a tenth of a recording trains.
 HOLDOUT_MAX = 0.9
@@ -247,12 +254,7 @@ def diagnose_parts(train_path, train, document, fraction, load, explicit: bool, 
     own = matching_part(parts, train_path)
     held = []
     if own is not None:
-        if fraction is not None and abs(fraction - own.fraction) > 1e-12:
-            raise ParameterError(
-                f"--holdout {fraction:g}: {name} was identified on the first {100 * (1 - own.fraction):g} % of "
-                f"{train_path}; {own.describe()}: another cut would train on samples it validated on, or validate "
-                "on samples it trained on. Drop --holdout: the model's own cut is used."
-            )
+        _check_same_cut(fraction, own, train_path, name)
         train, part = reload_part(own, lambda _: train, train_path, "diagnose")
         held.append((train_path, part, own))
     elif fraction is not None:
@@ -261,6 +263,41 @@ def diagnose_parts(train_path, train, document, fraction, load, explicit: bool, 
     if not explicit:
         held += [(p.path, other_part(p, load, train_path, name), p) for p in parts if p is not own]
     return train, held
+
+
+def other_training_parts(more, document, fraction, explicit: bool, name: str) -> tuple:
+    """``(the other --train recordings for the refit, [(path, held-out recording, HeldOutPart)])`` of ``psdm diagnose
+    MODEL --train A B ... [--holdout F]`` (``more``: ``(path, raw recording)`` of B ...), each cut as
+    :func:`diagnose_parts` cuts the first (module docstring): where the model file cut it, its held-out part validates
+    and it is given raw (the refit cuts it as identify did, ``refit_training``); else at ``fraction`` its first part
+    trains, given as ``(path, training part, HeldOutPart)``, and its last validates; else it trains whole. A part the
+    model stores is listed once: without ``explicit`` validation recordings :func:`diagnose_parts` lists it."""
+    parts = stored_parts(document, name) if document is not None else ()
+    training, held = [], []
+    for path, recording in more:
+        own = matching_part(parts, path)
+        if own is not None:
+            _check_same_cut(fraction, own, path, name)
+            training.append((path, recording))
+            if explicit:
+                held.append((path, reload_part(own, lambda _, r=recording: r, path, "diagnose")[1], own))
+        elif fraction is not None:
+            train, part, cut = cut_recording(recording, fraction, path)
+            training.append((path, train, cut))
+            held.append((path, part, cut))
+        else:
+            training.append((path, recording))
+    return training, held
+
+
+def _check_same_cut(fraction, own, path, name: str) -> None:
+    """Refuse a ``--holdout`` other than the model file's own cut of the recording at ``path``."""
+    if fraction is not None and abs(fraction - own.fraction) > 1e-12:
+        raise ParameterError(
+            f"--holdout {fraction:g}: {name} was identified on the first {100 * (1 - own.fraction):g} % of "
+            f"{path}; {own.describe()}: another cut would train on samples it validated on, or validate "
+            "on samples it trained on. Drop --holdout: the model's own cut is used."
+        )
 
 
 def other_part(part, load, train_path, name: str):
@@ -275,8 +312,12 @@ def other_part(part, load, train_path, name: str):
         ) from None
 
 
-def held_out_sentences(train_path, held) -> tuple:
-    """The report's sentences on which parts ``diagnose_parts`` held out (``held``; none: no sentence)."""
+def held_out_sentences(train_paths, held) -> tuple:
+    """The report's sentences on which parts ``diagnose_parts`` (and ``other_training_parts``) held out (``held``;
+    none: no sentence) of the training recordings ``train_paths`` (one path, or several: ``--train A B``)."""
+    paths = [train_paths] if isinstance(train_paths, (str, os.PathLike)) else list(train_paths)
     lines = [f"validation: {part.describe()}" for _, _, part in held]
-    own = [part for path, _, part in held if path == train_path]
-    return tuple((f"training: the first {own[0].cut_sample} samples of {train_path}",) if own else ()) + tuple(lines)
+    cut = {os.path.abspath(path): part for path, _, part in held}
+    own = [f"training: the first {cut[os.path.abspath(p)].cut_sample} samples of {p}" for p in paths
+           if os.path.abspath(p) in cut]  # fmt: skip
+    return tuple(own) + tuple(lines)

@@ -144,7 +144,6 @@ def _held_out(validations) -> list:
 @remembering()  # the recordings' regressors evaluated once across the refits (state_cache)
 def _run_diagnose(args) -> int:
     from identification.data.filter_choice import AUTO
-    from identification.data.holdout import held_out_sentences
     from identification.data.io import not_held_out
     from identification.data.missing_torque import find_missing_torque
     from identification.diagnosis.diagnose import DiagnosisOptions
@@ -165,7 +164,7 @@ def _run_diagnose(args) -> int:
     else:
         robot = load_robot_argument(args)
     layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
-    train, validations, given, held = _recordings(args, robot, calibrated, layout, fraction)
+    train, validations, given, held = _recordings(args, robot, calibrated, layout, fraction)  # held: sentences
     # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
     train, *validations = (find_missing_torque(r) for r in (train, *validations))
     validation = validations[0]
@@ -196,7 +195,7 @@ def _run_diagnose(args) -> int:
         report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot, refit=refit)
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
-    report = dataclasses.replace(report, preparation=preparation.text(), held_out=held_out_sentences(args.train, held))
+    report = dataclasses.replace(report, preparation=preparation.text(), held_out=held)
     apply = ApplyRefit()  # --apply's refit
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
@@ -242,12 +241,14 @@ def _fraction(args) -> float | None:
 
 
 def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
-    """(training recording, validation recordings, the ``--validate`` paths, the held-out parts as (path, recording,
-    ``HeldOutPart``)): joint side, timed (the robot file's [recording]); ``--train`` cut at ``--holdout`` or where the
-    model file cut it, its held-out part (and without ``--validate`` the model's others) after the ``--validate``
-    recordings. ``args.validate`` then names every validation recording's file, ``args.held_parts`` the parts,
-    ``args.more`` the other ``--train`` recordings as (path, raw recording)."""
-    from identification.data.holdout import diagnose_parts
+    """(training recording, validation recordings, the ``--validate`` paths, the report's sentences on the parts held
+    out (``holdout.held_out_sentences``)): joint side, timed (the robot file's [recording]); ``--train`` cut at
+    ``--holdout`` or where the model file cut it, its held-out part (and without ``--validate`` the model's others)
+    after the ``--validate`` recordings. ``args.validate`` then names every validation recording's file,
+    ``args.held_parts`` the parts, ``args.more`` the other ``--train`` recordings as (path, raw recording), each cut as
+    the first (``holdout.other_training_parts``: then (path, training part, HeldOutPart), its held-out part a
+    validation recording of its own)."""
+    from identification.data.holdout import diagnose_parts, held_out_sentences, other_training_parts
     from identification.data.robot_recordings import load_robot_recording
 
     def load(path):
@@ -256,10 +257,12 @@ def _recordings(args, robot, calibrated, layout, fraction) -> tuple:
     given = list(args.validate)
     document = None if calibrated is None else calibrated.document
     train, held = diagnose_parts(args.train, load(args.train), document, fraction, load, bool(given), args.robot)
+    more = read_more_training(args.more_train, load, robot)  # the refit's other --train recordings, read once
+    args.more, others = other_training_parts(more, document, fraction, bool(given), args.robot)
+    held += others  # each --train's held-out part validates on its own
     validations = _held_out([*map(load, given), *(recording for _, recording, _ in held)])
     args.validate, args.held_parts = [*given, *(path for path, _, _ in held)], [part for _, _, part in held]
-    args.more = read_more_training(args.more_train, load, robot)  # the refit's other --train recordings, read once
-    return train, validations, given, held
+    return train, validations, given, held_out_sentences([args.train, *args.more_train], held)
 
 
 def _file_refit(args, loaded, robot, layout, train):

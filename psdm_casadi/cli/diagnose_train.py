@@ -21,7 +21,8 @@ TRAIN_HELP = (
     "training recording(s) (.csv, .npz, .mat, or a ROS 2 bag). The diagnosis judges the first (one continuous run); "
     "with a calibrated model the refit with the findings (--apply, and the report's 'after') trains on all of them "
     "and on the model file's own training recordings, found again by their content: hand back those that moved, or "
-    "add new ones (read as identify reads them; a friction drift identify corrected is corrected on them too)"
+    "add new ones (read as identify reads them; a friction drift identify corrected is corrected on them too). With "
+    "--holdout each is cut: its first part trains, its last part validates on its own"
 )
 
 

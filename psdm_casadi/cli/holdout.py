@@ -5,7 +5,8 @@
 the model file. ``validate MODEL`` (no recordings, or the training recording again) and ``diagnose MODEL --train REC``
 (no ``--validate``) then reuse the stored parts: a recording is recognised by its content hash, and one changed since
 identify is refused (``data.holdout.diagnose_parts``, which the Python ``diagnose_model`` uses too). ``diagnose ROBOT
---train REC --holdout 0.3`` cuts REC itself.
+--train REC --holdout 0.3`` cuts REC itself; ``diagnose MODEL --train A B --holdout 0.3`` cuts each
+(``data.holdout.other_training_parts``), each held-out part a validation recording of its own.
 """
 
 from __future__ import annotations
@@ -29,9 +30,10 @@ HOLDOUT_HELP = {
     "counterbalance's judges; with --validate too, a choice must hold on each). Cut on the raw recording, before the "
     "filter, so no held-out sample reaches the fit; stored in the model file, so 'psdm validate MODEL' and 'psdm "
     "diagnose MODEL --train REC' reuse the same held-out part",
-    "diagnose": "hold out the last FRACTION of --train (e.g. 0.3; 0 < FRACTION < 0.9) as a validation recording, cut "
-    "before the filter (a model identified with --holdout needs none: its stored cut of its training recording is "
-    "used)",
+    "diagnose": "hold out the last FRACTION of each --train recording (e.g. 0.3; 0 < FRACTION < 0.9), cut before the "
+    "filter: the first part of each trains (the first --train's is diagnosed, all join --apply's refit) and each "
+    "held-out part is a validation recording of its own, so a finding must hold on each (a model identified with "
+    "--holdout needs none: its stored cut of each of its training recordings is used)",
 }
 
 

@@ -267,3 +267,57 @@ def test_diagnose_model_takes_the_train_recordings_as_the_command_does(files, tm
     assert report.refit_training.sources == tuple(f"{p} (--train)" for p in trains)
     with pytest.raises(ParameterError, match="several train paths need source as the model file's path"):
         diagnose_model(read_calibrated_model(tmp_path / "model.json"), trains, [valid], options)
+
+
+def test_holdout_cuts_every_train_recording_each_part_a_validation_recording(files, tmp_path, denso):
+    """``diagnose MODEL --train b.csv a.csv --holdout 0.3``: both recordings are cut, not the first only (before, a.csv
+    trained whole in the refit and none of it was judged): the report names the training part of each and both held-out
+    parts, which are its validation recordings, each of its own."""
+    from identification.data.holdout import train_samples
+
+    payload = cli_json(["diagnose", files / "model.json", "--train", files / "b.csv", files / "a.csv", "--holdout",
+                        "0.3", *QUICK, "--max-effects", "1", "--json"])  # fmt: skip
+    n = load_recording(files / "a.csv", denso.n_dof).n_samples
+    cut = train_samples(n, 0.3)
+    held = payload["held_out"]
+    assert held[:2] == [f"training: the first {cut} samples of {files / name}" for name in ("b.csv", "a.csv")], held
+    assert [line.split(" (samples")[0] for line in held[2:]] == [
+        f"validation: the last 30 % of {name}" for name in ("b.csv", "a.csv")
+    ], held
+    assert len(payload["validation_recordings"]) == 2, payload["validation_recordings"]
+
+
+def test_other_train_recordings_are_cut_as_the_first_and_the_refit_trains_on_their_first_part(files, tmp_path, denso):
+    """``holdout.other_training_parts`` and ``refit_training``: a further ``--train`` the model trained on whole, cut at
+    ``--holdout`` 0.3, gives its first 70 % to the refit (standing for the file's recording, its entry now of the
+    samples trained on, for the written model's own refit) and its last 30 % as a validation part of its own; where the
+    model file cut a recording itself, its own cut is kept (given raw: the refit cuts it as identify did), another
+    ``--holdout`` is refused, and its part is listed once."""
+    from identification.data.holdout import cut_recording, holdout_block, other_training_parts
+    from psdm_casadi.errors import ParameterError
+
+    def load(path):
+        return load_recording(path, denso.n_dof)
+
+    document = json.loads((files / "model.json").read_text())
+    a = load(files / "a.csv")
+    more, held = other_training_parts([(str(files / "a.csv"), a)], document, 0.3, True, "model.json")
+    (path, first, cut), ((held_path, last, part),) = more[0], held
+    assert path == held_path == str(files / "a.csv") and part is cut and cut.fraction == 0.3
+    assert first.n_samples == cut.cut_sample and first.n_samples + last.n_samples == a.n_samples
+    np.testing.assert_array_equal(np.vstack([first.q, last.q]), a.q)
+    train = load(files / "b.csv")
+    refit = refit_training(document, files / "model.json", train, str(files / "b.csv"), load, denso, 10.0, more)
+    assert refit.missing == () and len(refit.recordings) == 2
+    np.testing.assert_array_equal(refit.recordings[1].q, first.q)
+    assert refit.sources[1] == f"{files / 'a.csv'}, its first {cut.cut_sample} samples (--train)"
+    assert refit.entries[1]["n_samples"] == cut.cut_sample and refit.entries[1]["name"] == "a.csv"
+    assert other_training_parts([(str(files / "a.csv"), a)], document, None, True, "model.json") == (
+        [(str(files / "a.csv"), a)], [])  # fmt: skip
+    own = dict(document, identification=dict(document["identification"], holdout=holdout_block([cut])))
+    kept, listed = other_training_parts([(str(files / "a.csv"), a)], own, 0.3, True, "model.json")
+    assert kept == [(str(files / "a.csv"), a)] and len(listed) == 1
+    np.testing.assert_array_equal(listed[0][1].q, cut_recording(a, 0.3, files / "a.csv")[1].q)
+    assert other_training_parts([(str(files / "a.csv"), a)], own, None, False, "model.json")[1] == []
+    with pytest.raises(ParameterError, match=r"--holdout 0.25: model.json was identified on the first 70 %"):
+        other_training_parts([(str(files / "a.csv"), a)], own, 0.25, True, "model.json")
