@@ -16,7 +16,8 @@ and the preparation it used. The friction identify held on joints that moved one
 refits (the rigid body recalibrated, freely or inside the envelope, the findings' joint fits) keep it, as ``diagnose
 --apply``'s refit does (``recalibrate``); beside each such drive column a free one fits its value again with the
 friction (``drive_columns``), as identify fits it: an effect the column absorbed (a torque ripple) is found with the
-drive inertia it leaves, not beside the file's. So does the counterbalance identify took (``model_file_holds``): a
+drive inertia it leaves, not beside the file's. A rotor inertia the diagnosis finds inside the file's base parameters
+is a change of them, not a finding (``base_change``). So does the counterbalance identify took (``model_file_holds``): a
 column of the nominal model in every fit (``carried_terms``), its coefficients fitted again, reported first among the
 findings as kept from identify, so that no rigid-body refit of the diagnosis absorbs it into the links again; and the
 links identify held at the robot file's stay held in its rigid-body recalibrations (``held_links``).
@@ -47,6 +48,7 @@ from identification.data.holdout import diagnose_parts, held_out_sentences
 from identification.data.layout import model_file_layout
 from identification.data.robot_recordings import load_robot_recording
 from identification.diagnosis.applied_after import with_applied_after
+from identification.diagnosis.base_change import as_base_changes
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
@@ -264,7 +266,7 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         # fitted again beside the findings (``drive_columns``)
         own = with_drive_columns(options, calibrated.document)
         report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, own, model=model)
-        report = without_drive_columns(report, calibrated.document)
+        report = as_base_changes(without_drive_columns(report, calibrated.document), robot, model)
     report = with_applied_after(
         report, loaded, train, first, refit
     )  # the model --apply writes: its "after" (applied_after)
