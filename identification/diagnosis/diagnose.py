@@ -219,7 +219,7 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
 
         library = (options.library or default_library()).expand(robot.n_dof)
         contexts, friction = (recal.ctx_t, recal.ctx_v), (problem.base_t, problem.base_v)
-        enveloped = EnvelopedRecalibration(robot, model, contexts, friction, options.held_links)
+        enveloped = EnvelopedRecalibration(robot, model, contexts, friction, options.held_links, options.rotors_apart)
         envelope = enveloped.check if options.envelope else None
         fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal, envelope,
                              carried=carried_labels(options))  # fmt: skip
@@ -231,7 +231,7 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     named = None
     if options.envelope:  # a tool the free recalibration takes into the links (``hidden_payload``)
         enveloped = EnvelopedRecalibration(robot, model, (recal.ctx_t, recal.ctx_v), (problem.base_t, problem.base_v),
-                                           options.held_links)  # fmt: skip
+                                           options.held_links, options.rotors_apart)  # fmt: skip
         named = name_hidden_payload(robot, model, (problem, recal), (selection_i, final_i), identified, enveloped)
         if named is not None:
             selection_i, final_i, named = named

@@ -117,11 +117,14 @@ class EnvelopedRecalibration:
         The nominal friction's columns.
     held_links : tuple of int
         Links (0-based) held at the robot's inertia (``DiagnosisOptions.held_links``).
+    rotors_apart : tuple of int
+        Joints (0-based) whose merged rotor is taken apart from the same actuator's (``DiagnosisOptions.rotors_apart``).
     """
 
-    def __init__(self, robot, model, contexts, friction, held_links=()):
+    def __init__(self, robot, model, contexts, friction, held_links=(), rotors_apart=()):
         self.robot = robot
         self.held_links = tuple(held_links)  # a model file's held links: held here too (``TrajectoryOptions``)
+        self.rotors_apart = tuple(rotors_apart)  # a model file's rotors taken apart: apart here too
         self.model = model  # the derived map; each fit puts identify's merged rotors in it (``_fit``)
         self.contexts = contexts
         self.friction = friction
@@ -163,7 +166,7 @@ class EnvelopedRecalibration:
         equations = NormalEquations(robot.n_dof, train.shape[2])
         equations.add(train, ctx_t.tau_fit)
         x_ols = np.linalg.lstsq(train.reshape(-1, train.shape[2]), ctx_t.tau_fit.reshape(-1), rcond=None)[0]
-        options = TrajectoryOptions(held_links=self.held_links)
+        options = TrajectoryOptions(held_links=self.held_links, rotors_apart=self.rotors_apart)
         merged = with_merged_rotors(self.model, robot, options, ctx_t.torque_constants, (equations, names), log=False)
         correlation = residual_correlation_time(ctx_t.tau_fit - train @ x_ols)  # the pull's weight as identify's
         standard, extra, _, _, _ = consistent_fit(

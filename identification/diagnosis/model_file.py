@@ -88,7 +88,8 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     (``DiagnosisOptions.held_friction``, ``file_held``), unless ``options`` hold some; and the counterbalance identify
     took (``model_file_holds``), a column of the nominal model (``DiagnosisOptions.carried``, ``carried_terms``), unless
     ``options`` carry some; and the links identify held at the robot file's, held in every rigid-body recalibration of
-    the diagnosis (``DiagnosisOptions.held_links``), unless ``options`` hold some."""
+    the diagnosis (``DiagnosisOptions.held_links``), unless ``options`` hold some; and the rotors identify took apart
+    from the same actuator's (``DiagnosisOptions.rotors_apart``)."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -107,6 +108,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held, coulomb_velocity=smooth, carried=carried,
                    held_links=options.held_links or holds.held_links,
+                   rotors_apart=options.rotors_apart or holds.rotors_apart,
                    viscous_power=bool(calibrated.document["drive"].get("viscous_exponent")))  # fmt: skip
 
 

@@ -110,6 +110,10 @@ class DiagnosisOptions:
     held_links : tuple of int
         Links (0-based) every rigid-body recalibration of the diagnosis holds at the nominal robot's inertia
         (``held_links``): a model file's, which identify held (``worse_joint_hold``, ``model_file_options``).
+    rotors_apart : tuple of int
+        Joints (0-based) whose merged drive inertia every enveloped recalibration takes from the data rather than the
+        same actuator's (``TrajectoryOptions.rotors_apart``): a model file's, which identify took apart where the
+        held-out data confirmed it (``calibration.rotors_apart``, ``model_file_options``).
     viscous_power : bool
         The Coulomb-viscous nominal keeps the drives' viscous exponents ``dv`` (a model file's viscous power law,
         ``viscous_power``; set by ``model_file_options``). Otherwise ``"coulomb_viscous"`` is linear in the velocity,
@@ -141,6 +145,7 @@ class DiagnosisOptions:
     carried: tuple = ()
     held_links: tuple = ()
     viscous_power: bool = False
+    rotors_apart: tuple = ()
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (
@@ -199,8 +204,10 @@ class DiagnosisOptions:
         if not all(isinstance(t, CandidateTerm) and len(t.joints) == 1 for t in self.carried):
             raise ParameterError(f"DiagnosisOptions.carried must hold candidate terms on one joint each (a model "
                                  f"file's counterbalance); got {self.carried!r}.")  # fmt: skip
-        if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and i >= 0 for i in self.held_links):
-            raise ParameterError(f"DiagnosisOptions.held_links must be 0-based link indices; got {self.held_links!r}.")
+        for name in ("held_links", "rotors_apart"):
+            if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and i >= 0
+                       for i in getattr(self, name)):  # fmt: skip
+                raise ParameterError(f"DiagnosisOptions.{name} must be 0-based indices; got {getattr(self, name)!r}.")
         if self.library is not None and not isinstance(self.library, CandidateLibrary):
             raise ParameterError(
                 f"DiagnosisOptions.library must be a CandidateLibrary; got {type(self.library).__name__}. "

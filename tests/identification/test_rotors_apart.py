@@ -15,6 +15,8 @@ from identification.calibration.identify_route import identify_recordings
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.rotors_apart import judge_rotors_apart, proposed_rotors
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.diagnosis.diagnose import DiagnosisOptions
+from identification.diagnosis.model_file import model_file_options
 from tests.identification.test_drive_loss import recorded
 
 ROTOR = 10
@@ -107,7 +109,7 @@ def test_a_recording_too_short_to_cut_keeps_the_hold_and_says_why(denso_merged_r
 
 def test_identify_states_the_rotor_it_took_apart_with_the_column_choices(denso_merged_rotors):
     """The route: identify with a validation recording takes the 3x rotor apart, states it with the drive columns
-    and in the model file's column choice, and the file's refit keeps it apart (``model_file_holds``)."""
+    and in the model file's column choice, and the file's refit and diagnosis keep it apart (``model_file_holds``)."""
     denso, model = denso_merged_rotors
     truth, unstated = same_actuator(denso, rotor_factor=3.0)
     result = identify_recordings(unstated, model, [recorded(truth, 11)], validation=[recorded(truth, 111)])
@@ -118,3 +120,5 @@ def test_identify_states_the_rotor_it_took_apart_with_the_column_choices(denso_m
     stated = result.calibrated.document["identification"]["column_choice"]["rotors_apart"]
     assert [(v["joint"], v["siblings"], v["taken"]) for v in stated["verdicts"]] == [(2, [3], True)]
     assert model_file_holds(result.calibrated.document).rotors_apart == (1,)
+    # diagnose MODEL's enveloped recalibrations take it apart too (``envelope_check``)
+    assert model_file_options(result.calibrated, DiagnosisOptions()).rotors_apart == (1,)
