@@ -33,7 +33,7 @@ from identification.calibration.one_way_friction import (
 from identification.calibration.payload_route import PayloadChoice, take_payload
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.robot_file_check import FileCheck, check_against_file
-from identification.calibration.rotors_apart import RotorsApart, judge_rotors_apart
+from identification.calibration.rotors_apart import RotorsApart, judge_rotors_apart, unjudged_rotors
 from identification.calibration.temperature_friction import temperature_block
 from identification.calibration.trajectory_fit import (
     TrajectoryFit,
@@ -231,12 +231,13 @@ def identify_recordings(
 
         found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
         fit, lugre, start = found.fit, found.lugre, found.stribeck
+        rotors = unjudged_rotors(fit, "LuGre")
     elif choice.loss_joints:  # currents with a gear loss (``drive_loss``)
         from identification.calibration.drive_loss import identify_with_drive_loss
 
         logger.info("identify: fitting the drive loss (gear efficiency by power-flow direction) ...")
         fit, *loss = identify_with_drive_loss(robot, model, recordings, chosen, choice.loss_joints, configurations)
-        start = fit
+        start, rotors = fit, unjudged_rotors(fit, "drive-loss")
     else:
         choice, fit = _checked_fit(robot, model, recordings, options, choice, validation, configurations)
         fit, rotors = judge_rotors_apart((robot, model, recordings, choice.options(options), configurations), fit,

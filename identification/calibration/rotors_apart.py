@@ -38,7 +38,7 @@ from identification.calibration.trajectory_fit import identify_trajectories
 from identification.paired_margin import share_lower
 from psdm_casadi.errors import PSDMError
 
-__all__ = ["RotorVerdict", "RotorsApart", "judge_rotors_apart", "proposed_rotors"]
+__all__ = ["RotorVerdict", "RotorsApart", "judge_rotors_apart", "proposed_rotors", "unjudged_rotors"]
 
 logger = logging.getLogger(__name__)
 
@@ -151,6 +151,15 @@ def judge_rotors_apart(problem, fit, validation=()) -> tuple:
     if taken == joints and apart is not None:
         return apart, result
     return fitted(taken), result
+
+
+def unjudged_rotors(fit, route: str) -> RotorsApart:
+    """The proposals of ``fit`` held on a ``route`` of identify that does not judge them (a drive loss, LuGre
+    friction: their refits are routes of their own), stated as such (empty: none)."""
+    proposals = proposed_rotors(fit)
+    if not proposals:
+        return RotorsApart()
+    return _held(proposals, f"not judged on the {route} route: the same-actuator hold stays")
 
 
 def _calibrated(robot, model, fit) -> CalibratedModel:

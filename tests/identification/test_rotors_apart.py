@@ -13,7 +13,7 @@ import pytest
 from identification.calibration.column_verdict import STRONG_BIC
 from identification.calibration.identify_route import identify_recordings
 from identification.calibration.model_file_holds import model_file_holds
-from identification.calibration.rotors_apart import judge_rotors_apart, proposed_rotors
+from identification.calibration.rotors_apart import judge_rotors_apart, proposed_rotors, unjudged_rotors
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.diagnosis.diagnose import DiagnosisOptions
 from identification.diagnosis.model_file import model_file_options
@@ -122,3 +122,18 @@ def test_identify_states_the_rotor_it_took_apart_with_the_column_choices(denso_m
     assert model_file_holds(result.calibrated.document).rotors_apart == (1,)
     # diagnose MODEL's enveloped recalibrations take it apart too (``envelope_check``)
     assert model_file_options(result.calibrated, DiagnosisOptions()).rotors_apart == (1,)
+
+
+def test_a_route_that_does_not_judge_the_proposal_holds_it_and_says_so(denso_merged_rotors):
+    """The drive-loss and LuGre routes (refits of their own) do not judge a proposal: the hold stays, and the drive
+    columns say why, with the training BIC (``unjudged_rotors``)."""
+    denso, model = denso_merged_rotors
+    truth, unstated = same_actuator(denso, rotor_factor=3.0)
+    held = identify_trajectories(unstated, model, [recorded(truth, 11)])
+    rotors = unjudged_rotors(held, "drive-loss")
+    assert rotors.joints == () and [v.joint for v in rotors.verdicts] == [1]
+    line = rotors.describe()[0]
+    assert line.startswith("drive inertia of joint 2 apart from joint(s) 3's") and "refused, held to theirs" in line
+    assert "not judged on the drive-loss route" in line and "training BIC +" in line, line
+    assert unjudged_rotors(identify_trajectories(unstated, model, [recorded(same_actuator(denso)[0], 11)]),
+                           "LuGre").verdicts == ()  # fmt: skip
