@@ -118,9 +118,10 @@ def judge_rotors_apart(problem, fit, validation=()) -> tuple:
     if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:
         kt = np.array([d.kt for d in robot.drives], dtype=float)
 
-    def fitted(apart, pieces=recordings):
+    def fitted(apart, pieces=None):  # pieces: a fold's (no payloads there: ``block_folds`` refuses them)
         trial = replace(options, rotors_apart=tuple(sorted({*options.rotors_apart, *apart})))
-        found = identify_trajectories(robot, model, list(pieces), trial, configurations=configurations)
+        given = (recordings, configurations) if pieces is None else (list(pieces), None)
+        found = identify_trajectories(robot, model, given[0], trial, configurations=given[1])
         return converged(found, "with the rotors apart" if apart else "with the rotors held")
 
     logger.info("identify: the training data want the drive inertia of joint(s) %s apart from the same actuator's; "

@@ -15,6 +15,7 @@ from identification.calibration.identify_route import identify_recordings
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.rotors_apart import judge_rotors_apart, proposed_rotors, unjudged_rotors
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.configuration import NO_PAYLOAD
 from identification.diagnosis.diagnose import DiagnosisOptions
 from identification.diagnosis.model_file import model_file_options
 from tests.identification.test_drive_loss import recorded
@@ -91,7 +92,8 @@ def test_without_a_held_out_recording_the_training_blocks_judge_the_proposal(
     truth, unstated = same_actuator(denso, rotor_factor, link_factor)
     train = recorded(truth, 11 if taken else 1)
     held = identify_trajectories(unstated, model, [train])
-    fit, rotors = judge_rotors_apart((unstated, model, [train], TrajectoryOptions(), None), held)
+    unloaded = [NO_PAYLOAD]  # stated unloaded, as a manifest says it: the blocks are still cut
+    fit, rotors = judge_rotors_apart((unstated, model, [train], TrajectoryOptions(), unloaded), held)
     assert rotors.route.startswith("block cross-validation") and rotors.joints == ((1,) if taken else ())
     assert abs(fit.standard[1, ROTOR] / truth.rotor_inertia[1] - 1) < (0.2 if taken else 0.1), fit.standard[:, ROTOR]
 
