@@ -44,7 +44,7 @@ from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import JointComparison
 from identification.calibration.refit_training import refit_training
 from identification.data.filter_choice import AUTO
-from identification.data.holdout import diagnose_parts, held_out_sentences
+from identification.data.holdout import diagnose_parts, held_out_sentences, other_training_parts
 from identification.data.layout import model_file_layout
 from identification.data.robot_recordings import load_robot_recording
 from identification.diagnosis.applied_after import with_applied_after
@@ -179,12 +179,16 @@ def diagnose_model(
     loaded = source if isinstance(source, LoadedModel) else read_calibrated_model(source, derive=derive)
     if name is None and not isinstance(source, LoadedModel):
         name = str(source)
-    path = str(train) if isinstance(train, (str, os.PathLike)) else None
+    path, explicit = (str(train) if isinstance(train, (str, os.PathLike)) else None), validation is not None
     train, validation, held_out = model_file_recordings(loaded, train, validation, load, name or "the model file")
     refit = None  # a file and a recording on disk: the refit finds the file's own training recordings (refit_training)
     if path is not None and not isinstance(source, LoadedModel):
-        reader = load or _reader(loaded)
-        refit = file_refit(loaded, source, train, path, load, [(str(p), reader(p)) for p in more])
+        reader = load or _reader(loaded)  # the others cut as the command cuts them (``other_training_parts``)
+        more, parts = other_training_parts([(str(p), reader(p)) for p in more], loaded.calibrated.document, None,
+                                           explicit, name or "the model file")  # fmt: skip
+        validation = [*validation, *(part for _, part, _ in parts)]
+        held_out = (*held_out, *(f"validation: {cut.describe()}" for _, _, cut in parts))
+        refit = file_refit(loaded, source, train, path, load, more)
     report = diagnose_model_prior(loaded, train, validation, options, name, refit)[0]
     return replace(report, held_out=held_out) if held_out else report
 

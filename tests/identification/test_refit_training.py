@@ -321,3 +321,27 @@ def test_other_train_recordings_are_cut_as_the_first_and_the_refit_trains_on_the
     assert other_training_parts([(str(files / "a.csv"), a)], own, None, False, "model.json")[1] == []
     with pytest.raises(ParameterError, match=r"--holdout 0.25: model.json was identified on the first 70 %"):
         other_training_parts([(str(files / "a.csv"), a)], own, 0.25, True, "model.json")
+
+
+@pytest.mark.slow  # about 25 s: an identify and two diagnoses
+def test_with_validate_each_train_recording_the_model_cut_adds_its_held_out_part(files, tmp_path):
+    """A model identified with ``--holdout 0.3`` on a.csv and b.csv, diagnosed with ``--train a.csv b.csv --validate
+    valid.csv``: the model's cut of each ``--train`` is kept and each held-out part joins the validation recordings
+    (before, b.csv's was left out: only the first ``--train``'s joined ``--validate``), from the command and from
+    Python's ``diagnose_model`` alike."""
+    from identification.diagnosis.diagnose import DiagnosisOptions
+    from identification.diagnosis.model_file import diagnose_model
+
+    cli_json(["identify", DENSO_FILE, "--data", files / "a.csv", files / "b.csv", "--holdout", "0.3", "--out",
+              tmp_path / "cut.json", "--json"])  # fmt: skip
+    trains = [files / "a.csv", files / "b.csv"]
+    payload = cli_json(["diagnose", tmp_path / "cut.json", "--train", *trains, "--validate", files / "valid.csv",
+                        *QUICK, "--max-effects", "1", "--json"])  # fmt: skip
+    parts = [line.split(" (samples")[0] for line in payload["held_out"] if line.startswith("validation")]
+    assert parts == [f"validation: the last 30 % of {name}" for name in ("a.csv", "b.csv")], payload["held_out"]
+    assert len(payload["validation_recordings"]) == 3
+    options = DiagnosisOptions(rigid_body="prior", sparse=False, max_effects=1)
+    report = diagnose_model(tmp_path / "cut.json", [str(p) for p in trains], validation=[load_recording(
+        files / "valid.csv", 6)], options=options)  # fmt: skip
+    assert [line.split(" (samples")[0] for line in report.held_out if line.startswith("validation")] == parts
+    assert len(report.recordings) == 3
