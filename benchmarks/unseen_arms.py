@@ -37,6 +37,12 @@ and judged against the truth:
 A case passes when every command exits 0, the refusal holds, payload error <= 0.10, link mass ratio <= 1.5,
 rmse_ratio <= 2.5 after the diagnosis, nothing missed and nothing false.
 
+``--held-out-unstated`` removes the held-out recording's payload sidecar after the case is built: the held-out
+recording then carries a load nobody stated (a gripper the user forgot to declare). Its row adds what identify,
+validate and diagnose said about that load (``held_out_load``: the mass each named, or None) and the judges' verdicts
+(``column_choice``: the drive columns chosen; ``worse_joints``: the joints identify called worse than the robot file),
+to be read against the run with the sidecar.
+
 ``--seeds 0 1 2`` runs every case at each seed (one row each; ``--seed`` is the same option) and the summary gives
 each case's pass rate and the seeds it failed (``per_case``) beside the seeds run; ``passed`` counts the rows.
 
@@ -144,6 +150,29 @@ def identify_named(case, document) -> tuple:
     )
 
 
+def _held_out_judges(identified, document, validated, diagnosis) -> dict:
+    """What the commands said about a load on the held-out recording (the mass each named: identify's
+    ``unstated_payload`` of its validation entry, validate's and diagnose's payload check) and the judges' verdicts
+    (the drive columns chosen, the joints called worse than the robot file, the robot file's baseline)."""
+    entry = identified["validation"][0]
+    choice = document["identification"]["column_choice"]
+
+    def mass(found):
+        return None if not found else round(float(found["mass"]), 3)
+
+    return {
+        "held_out_load": {"identify": mass(entry.get("unstated_payload")),
+                          "validate": mass(((validated or {}).get("recordings") or [{}])[0].get("payload")),
+                          "diagnose": mass((diagnosis or {}).get("payload_check"))},
+        "column_choice": {key: choice[key] for key in ("friction_shapes", "offset_joints", "inertia_joints",
+                                                       "drive_loss_joints")},
+        "worse_joints": document["identification"]["robot_file_check"].get("worse_joints"),
+        "rmse": [round(v, 4) if v is not None else None for v in entry["rmse"]],
+        "rmse_robot_file_baseline": [round(v, 4) if v is not None else None
+                                     for v in entry.get("rmse_robot_file_baseline") or ()],
+    }  # fmt: skip
+
+
 def _shape_there(finding, joint: int, shapes: set) -> bool:
     """Whether ``finding`` is a ``friction_shape`` of a shape the truth's friction has on ``joint`` (its label names
     the shape: ``friction_shape[j5,smooth_coulomb]``)."""
@@ -153,9 +182,12 @@ def _shape_there(finding, joint: int, shapes: set) -> bool:
     )
 
 
-def run_case(name: str, folder: Path, seed: int) -> dict:
-    """Build one case, run the four commands on it, judge them against its truth."""
+def run_case(name: str, folder: Path, seed: int, unstated_held_out: bool = False) -> dict:
+    """Build one case, run the four commands on it, judge them against its truth (``unstated_held_out``: the held-out
+    recording's sidecar removed first, module docstring)."""
     case = build(name, folder, seed)
+    if unstated_held_out:
+        case.validate.with_suffix(".payload.json").unlink(missing_ok=True)
     model, layout = folder / "model.json", list(case.extra)
     data = case.data or case.train  # a configurations manifest where the loads are stated in one
     code_id, identified, id_text, id_s = _cli(
@@ -173,7 +205,7 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
     heavy = truth > 0
     ratio = np.maximum(masses[heavy] / truth[heavy], truth[heavy] / masses[heavy])
     rmse = np.asarray(identified["validation"][0]["rmse"], dtype=float)
-    code_val, _, _, _ = _cli(["validate", model, case.validate, *layout, "--json"])
+    code_val, validated, _, _ = _cli(["validate", model, case.validate, *layout, "--json"])
     # diagnose judges one training recording (the loaded one); its refit finds the model's others by their content
     # (refit_training), as --train with all of them would hand them over
     diagnose = ["--train", case.train[-1], "--validate", case.validate, *layout, "--json"]
@@ -216,6 +248,7 @@ def run_case(name: str, folder: Path, seed: int) -> dict:
         diagnose_s=round(dia_s, 1),
         codegen_exit=code_gen,
         warnings=[line for line in (id_text + dia_text).splitlines() if "warning" in line],
+        **_held_out_judges(identified, document, validated, diagnosis),
     )
     row["passed"] = bool(
         code_id == code_val == code_dia == code_gen == 0
@@ -234,12 +267,17 @@ def main(argv=None) -> int:
     parser.add_argument("--cases", nargs="+", default=list(CASES), choices=list(CASES))
     parser.add_argument("--seeds", "--seed", type=int, nargs="+", default=[0], help="one row per case and seed")
     parser.add_argument("--json", action="store_true")
+    parser.add_argument(
+        "--held-out-unstated",
+        action="store_true",
+        help="remove the held-out recording's payload sidecar (a load nobody stated)",
+    )
     args = parser.parse_args(argv)
     rows = []
     for seed in args.seeds:
         for name in args.cases:
             with tempfile.TemporaryDirectory(prefix=f"psdm-unseen-{name}-") as folder:
-                rows.append({"seed": seed, **run_case(name, Path(folder), seed)})
+                rows.append({"seed": seed, **run_case(name, Path(folder), seed, args.held_out_unstated)})
     summary = summarise(rows, args.seeds)
     if args.json:
         print_json({"benchmark": "unseen_arms", "rows": rows, **summary})

@@ -21,7 +21,7 @@ standard deviations in 20 of 30 (RMS z 1.74); with the model's part from the sta
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -43,7 +43,9 @@ MIN_Z = 5.0  # and its mass be this many (correlation-grown) standard deviations
 @dataclass(frozen=True)
 class NewPayload:
     """The load a recording appears to carry beyond the model's arm: mass [kg], centre of mass in the flange
-    frame [m], their standard deviations, and the fraction of the weighted residual it explains."""
+    frame [m], their standard deviations, and the fraction of the weighted residual it explains; ``parameters`` its
+    10 inertial parameters about the flange origin as fitted and ``covariance`` theirs (10 x 10), which judge whether
+    it is a body at all (``held_out_load``)."""
 
     recording: str
     mass: float
@@ -51,6 +53,8 @@ class NewPayload:
     com: tuple
     com_std: tuple
     residual_drop: float
+    parameters: np.ndarray = field(default_factory=lambda: np.full(10, np.nan), repr=False, compare=False)
+    covariance: np.ndarray = field(default_factory=lambda: np.full((10, 10), np.nan), repr=False, compare=False)
 
     def to_dict(self) -> dict:
         return {"recording": self.recording, "mass": self.mass, "mass_std": self.mass_std, "com": list(self.com),
@@ -101,7 +105,8 @@ def new_payload(robot, prepared, predicted, name: str | None = None, own=None) -
     x = inverse @ moment
     drop = float(moment @ x) / float(np.einsum("n,sn,sn->", weights, residual, residual))
     after = residual - columns @ x
-    covariance = _covariance(inverse, columns, weights, after, np.linalg.matrix_rank(gram), own)[:4, :4]
+    full = _covariance(inverse, columns, weights, after, np.linalg.matrix_rank(gram), own)
+    covariance = full[:4, :4]
     mass, mass_std = float(x[0]), float(np.sqrt(max(covariance[0, 0], 0.0)))
     if not (drop > MIN_DROP and mass > MIN_Z * mass_std):
         return None
@@ -112,7 +117,7 @@ def new_payload(robot, prepared, predicted, name: str | None = None, own=None) -
         gradient[0], gradient[1 + axis] = -x[1 + axis] / mass**2, 1.0 / mass
         com_std.append(float(np.sqrt(max(gradient @ covariance @ gradient, 0.0))))
     label = name or prepared.name or "the recording"
-    return NewPayload(label, mass, mass_std, tuple(float(v) for v in com), tuple(com_std), drop)
+    return NewPayload(label, mass, mass_std, tuple(float(v) for v in com), tuple(com_std), drop, x, full)
 
 
 def _covariance(inverse, columns, weights, after, rank, own) -> np.ndarray:

@@ -20,6 +20,7 @@ from psdm_casadi.cli.checks import (
     model_layout,
     output_folder,
 )
+from psdm_casadi.cli.diagnose_loads import load_sentence, payload_check, stated_loads
 from psdm_casadi.cli.diagnose_train import TRAIN_HELP, read_more_training, training_paths
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
@@ -173,7 +174,7 @@ def _run_diagnose(args) -> int:
     preparation = _preparation(args, calibrated, train)
     if loaded is None:  # a torque constant the known payload finds off: the currents read with its value
         robot, scaled = diagnose_torque_scales(args, robot, (train, *validations), preparation.cutoff_hz)
-    (train, *validations), stated = _stated_loads(args, calibrated, robot, (train, *validations), preparation)
+    (train, *validations), stated, checks = stated_loads(args, loaded, robot, (train, *validations), preparation)
     validation = validations[0]
     options = DiagnosisOptions(  # "auto" friction: the robot file's (nominal_friction) or the model file's own shape
         friction=args.friction or AUTO,
@@ -199,8 +200,8 @@ def _run_diagnose(args) -> int:
     apply = ApplyRefit()  # --apply's refit
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
-    load, temperature = (None, None) if calibrated is None else _payload_check(args, calibrated, robot, model,
-                                                                               validation)  # fmt: skip
+    load, temperature = (None, None) if calibrated is None else payload_check(args, calibrated, robot, model,
+                                                                               validation, checks[0])  # fmt: skip
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -216,7 +217,7 @@ def _run_diagnose(args) -> int:
     else:
         print(report.to_markdown(paths))
         if load is not None:
-            print(f"\n## Payload check (as psdm validate)\n\n{load.sentence()}")
+            print(f"\n## Payload check (as psdm validate)\n\n{load_sentence(load, checks[0])}")
     if apply_out is None:
         return 0
     return _apply(args, calibrated, robot_file, apply, apply_out, payload if args.json else None, report)
@@ -286,53 +287,6 @@ def _robot_report(args, robot, train, validations, options, scaled: str = ""):
     report = diagnose(robot, train, validations, options, derive=lambda r: derive_model(args, r))
     rigid = "from it" if report.rigid_body == "prior" else "identified"
     return dataclasses.replace(report, nominal_model=f"the robot file {args.robot}: rigid body {rigid}{scaled}")
-
-
-def _stated_loads(args, calibrated, robot, recordings, preparation) -> tuple:
-    """(recordings, their configurations): each recording with the load its sidecar states (``A.payload.json``: a
-    known one as given, an unknown one as the model file identified it by name) taken off its torque, so that the
-    diagnosis and its refit see the arm (``payload_check.without_load``); a note for a load nothing weighs."""
-    import numpy as np
-
-    from identification.calibration.payload_check import without_load
-    from identification.calibration.payload_fit import stated_payload
-    from identification.calibration.refit_training import listed_configuration
-    from identification.data.configuration import stated_configuration
-
-    stored = [] if calibrated is None else calibrated.configurations
-    out, configurations = [], []
-    for path, recording in zip((args.train, *args.validate), recordings):
-        configuration = listed_configuration(None if calibrated is None else calibrated.document, path)
-        body, note = stated_payload(configuration, stored, args.robot)
-        if note:
-            print(f"psdm diagnose: warning: {path}: {note}", file=sys.stderr)
-        elif body is not None and not stated_configuration(path).stated:
-            print(f"psdm diagnose: note: {path}: carries {configuration.name!r} as the model file lists it for this "
-                  "recording (no sidecar beside it); its torque is taken off", file=sys.stderr)  # fmt: skip
-        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-        out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
-        configurations.append(configuration)
-    return out, configurations
-
-
-def _payload_check(args, calibrated, robot, model, validation):
-    """``(load, temperature)``: a load the model file does not have in the validation recording, as ``psdm validate``
-    names it (``payload_check.new_payload``: mass and centre of mass at the flange), or None; and the temperatures the
-    file's friction law was read at on it (``TemperatureFriction.sentence``), or None without a law."""
-    import numpy as np
-
-    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
-
-    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-    _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
-    sentence = None
-    if (laws := calibrated.temperature_friction) is not None:  # the file's friction law: where it was evaluated
-        from identification.data.temperature import temperatures_at
-
-        sentence = laws.sentence(temperatures_at(validation, prepared.t), robot.joint_names)
-        print(f"psdm diagnose: note: {args.validate}: the model file's {sentence}", file=sys.stderr)
-    load = new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
-    return load, sentence
 
 
 def _preparation(args, calibrated, train):

@@ -154,7 +154,7 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     from identification.calibration.column_choice import ColumnRequest
     from identification.calibration.envelope import check_ratio
-    from identification.calibration.identify_route import identify_recordings
+    from identification.calibration.held_out_arm import held_out_arm, held_out_configurations
     from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.data.io import not_held_out
     from identification.data.robot_recordings import recording_paths
@@ -193,22 +193,18 @@ def run(args) -> int:
                                 drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
     if args.prior_uncertainty is not None:
         options = replace(options, prior_uncertainty=args.prior_uncertainty)
-    held_loads = _held_out_configurations(args.validate, paths, configurations)  # what each held-out one carries
-    with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
-        result = identify_recordings(robot, model, recordings, options, request,
-                                     _arm_torque(robot, validation, held_loads, args.cutoff), configurations,
-                                     counterbalance=not args.no_counterbalance, robot_source=args.robot, paths=paths,
-                                     one_way=args.one_way_friction, worse_joint=args.worse_joint,
-                                     friction_drift=args.friction_drift,
-                                     temperatures=_temperatures(recordings, validation))  # fmt: skip
+    held_loads = held_out_configurations(args.validate, paths, configurations)  # what each held-out one states
+    arm = held_out_arm(robot, model, recordings, validation, configurations, held_loads, options, args.validate)
+    result, judged = _judged_route(args, (robot, model, recordings, options, request, configurations), validation,
+                                   paths, arm)  # fmt: skip
     fit, calibrated, held_out = result.fit, result.calibrated, not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
-    said = (*scale.sentences(), *result.warnings, *missing, *held_out, *worse)
+    report = _validation(robot, model, result.start, validation, args.validate, calibrated, held_loads)
+    said = (*scale.sentences(), *result.warnings, *missing, *held_out, *worse, *_loads_said(report, judged, args))
     warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys(said)]
     for warning in (w for w in warnings if w not in SAID):  # the robot's loading printed those: said once
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
-    report = _validation(robot, model, result.start, validation, args.validate, calibrated, held_loads)
     report["min_mass_eigenvalue"] = mass_eigenvalue
     _store_held_out(args, report, calibrated, len(explicit))  # which part of each recording was held out
     for entry, comparison in zip(report["recordings"], result.file_check.each):  # the model identify replaces
@@ -232,6 +228,38 @@ def run(args) -> int:
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
+
+
+def _judged_route(args, problem, validation, paths, arm) -> tuple:
+    """(``IdentifyResult``, the ``held_out_arm.HeldOutArm`` its judges weighed): the route on the held-out recordings
+    with every load taken off (``arm``); where a load nothing states was, the route once more with it taken off as the
+    model identified weighs it (``HeldOutArm.rejudged``: the training fit's estimate is the rougher)."""
+    from identification.calibration.identify_route import identify_recordings
+
+    robot, model, recordings, options, request, configurations = problem
+    while arm is not None:
+        with _lugre_messages(args, robot):  # the route's choices, fit and counterbalance (identification.calibration)
+            result = identify_recordings(robot, model, recordings, options, request, list(arm.recordings),
+                                         configurations, counterbalance=not args.no_counterbalance,
+                                         robot_source=args.robot, paths=paths, one_way=args.one_way_friction,
+                                         worse_joint=args.worse_joint, friction_drift=args.friction_drift,
+                                         temperatures=_temperatures(recordings, validation))  # fmt: skip
+        judged, arm = arm, arm.rejudged(robot, model, result.calibrated, validation, options)
+    return result, judged
+
+
+def _loads_said(report, judged, args) -> list:
+    """The sentences on loads nothing states: each the report names (``unstated_payload``), else what the judges took
+    off; each validation entry records the latter (``judged_without_load``)."""
+    out = []
+    for path, entry, load in zip(args.validate, report["recordings"], judged.loads):
+        taken = load is not None and load.plausible
+        entry.update({"judged_without_load": load.judged()} if taken else {})
+        if entry.get("unstated_payload") or taken:
+            out.append(
+                entry["unstated_payload"]["sentence"] if entry.get("unstated_payload") else judged.said(path, load)
+            )
+    return out
 
 
 def _temperatures(recordings, validation) -> tuple:
@@ -352,35 +380,6 @@ def _configurations(data, robot) -> tuple:
     return list(merged), list(merged.values())
 
 
-def _held_out_configurations(validate, paths, configurations) -> list:
-    """The load each held-out recording (``validate``: their files) carries: a part held out of a training recording
-    (``--holdout``) the one ``--data`` states for it (its sidecar or the manifest), a ``--validate`` recording its
-    sidecar's."""
-    from identification.data.configuration import stated_configuration
-
-    training = {str(path): configuration for path, configuration in zip(paths, configurations)}
-    return [training.get(str(path)) or stated_configuration(path) for path in validate]
-
-
-def _arm_torque(robot, validation, configurations, cutoff_hz) -> list:
-    """The held-out recordings as identify's judges weigh them (the drive columns, the friction held or fitted, the
-    robot file's baseline): the known load each carries taken off its torque (``payload_check.without_load``), as the
-    fit takes it off the training recordings. Left on, a load the validation recording carries and the training's do
-    not (or another one) counted in every candidate's held-out error, and the identified model was called worse than
-    the robot file on a joint where it was 60 times better. An unknown load stays: the fit identifies it."""
-    from identification.calibration.payload_check import without_load
-
-    out = []
-    for recording, configuration in zip(validation, configurations):
-        if configuration.kind != "known":
-            out.append(recording)
-            continue
-        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
-        body = configuration.payload.dynamic_parameters()
-        out.append(without_load(robot, recording, body, kt, cutoff_hz))
-    return out
-
-
 def _check_reversals(recordings, paths) -> None:
     """Refuse, before any work, a recording in which a joint does not slide both ways: LuGre friction is fitted
     along the reversals (``friction.models.check_slides_both_ways`` on the velocity of the recorded positions)."""
@@ -449,9 +448,13 @@ def _validation(robot, model, fit, recordings, paths, calibrated, configurations
 
     Ours is the calibrated model's own prediction (``CalibratedModel.predict``, as ``psdm validate``); for a
     LuGre model the unconstrained fit is the Stribeck one it started from. The load each recording carries
-    (``configurations``, ``_held_out_configurations``) adds its torque to every prediction (a known load as given, an
-    unknown one as identified under its name).
+    (``configurations``, ``held_out_arm.held_out_configurations``) adds its torque to every prediction (a known load as
+    given, an unknown one as identified under its name); a recording that states none, or an unknown one the model has
+    not identified, is checked for a load as ``psdm validate`` checks it (``held_out_load``): a plausible one is added
+    as well and named (``unstated_payload``, with the RMSE of the load left in).
     """
+    from identification.calibration.held_out_arm import recording_kt
+    from identification.calibration.held_out_load import find_unstated_load
     from identification.calibration.payload_check import validation_with_payload
     from identification.calibration.payload_fit import FlangeRegressor, stated_payload
     from identification.calibration.trajectory_fit import predict_torque
@@ -461,17 +464,29 @@ def _validation(robot, model, fit, recordings, paths, calibrated, configurations
     out = {"recordings": []}
     prior = PinocchioOracle(robot) if robot.links is not None else None
     for path, recording, configuration in zip(paths, recordings, configurations):
-        kt = None if recording.tau is not None else np.array([d.kt for d in robot.drives or ()], dtype=float)
-        kt = kt if kt is not None and kt.size else None
+        kt = recording_kt(robot, recording)
         stated, _ = stated_payload(configuration, calibrated.configurations, "the model")
-        error, r2, prepared, _ = validation_with_payload(robot, calibrated, model, recording, kt, stated)
+        found = None
+        if stated is None:  # nothing stated, or nothing the model weighs: a load the recording shows
+            found = find_unstated_load(robot, calibrated, model, recording, kt, str(path))
+            error, r2, prepared = found.rmse, found.r2, found.prepared
+            stated = found.load.body if found.taken_off else None
+        else:
+            error, r2, prepared, _ = validation_with_payload(robot, calibrated, model, recording, kt, stated)
         x = (prepared.q, prepared.qd, prepared.qdd)
-        load = 0.0 if stated is None else FlangeRegressor(robot)(*x) @ stated
+        load = 0.0 if stated is None else FlangeRegressor(robot)(*x) @ np.asarray(stated, dtype=float)
         ols = predict_torque(model, fit, *x, ols=True) + load
         entry = {"recording": str(path), "rmse": _list(error), "r2": _list(r2),
                  "rmse_ols": _list(rmse(prepared.tau, ols))}  # fmt: skip
         if prior is not None:
             entry["rmse_prior"] = _list(rmse(prepared.tau, prior.rnea(*x) + load))
+        if found is not None and found.load is not None:
+            left_in = _list(found.rmse_left_in)
+            entry["unstated_payload"] = {
+                **found.load.to_dict(),
+                "rmse_load_left_in": left_in,
+                "sentence": found.load.sentence(left_in if found.taken_off else None),
+            }
         out["recordings"].append(entry)
     return out
 

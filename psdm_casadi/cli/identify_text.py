@@ -209,23 +209,31 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
     for entry in report["recordings"]:
-        print(f"\nvalidation on {_validation_title(entry)} (RMSE [N m] per joint; R^2):")
-        print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
-        for key, label in (
-            ("rmse", "identified"),
-            ("rmse_ols", "unconstrained"),
-            ("rmse_prior", "robot file"),
-            ("rmse_robot_file_baseline", "file baseline"),
-        ):
-            if key in entry:
-                print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
-        print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
-        for line in _below_mean(entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1)):
-            print(line)
+        _print_validation(entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1))
     if (result.file_check.comparison is not None or result.file_check.reason) and not result.file_check.worse:
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")
+
+
+def _print_validation(entry, diagnose: str) -> None:
+    """One held-out recording's table (identified, unconstrained, robot file, its baseline; R^2), the load nothing
+    states that it carries (``held_out_load``) and the joints predicted worse than by their mean torque."""
+    print(f"\nvalidation on {_validation_title(entry)} (RMSE [N m] per joint; R^2):")
+    print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
+    for key, label in (
+        ("rmse", "identified"),
+        ("rmse_ols", "unconstrained"),
+        ("rmse_prior", "robot file"),
+        ("rmse_robot_file_baseline", "file baseline"),
+    ):
+        if key in entry:
+            print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
+    print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
+    if entry.get("unstated_payload"):  # a load nothing states, taken off or not (``held_out_load``)
+        print(f"  payload: {entry['unstated_payload']['sentence']}")
+    for line in _below_mean(entry, diagnose):
+        print(line)
 
 
 def _print_shapes(fit, calibrated) -> None:

@@ -70,7 +70,6 @@ def register(subparsers) -> None:
 
 def _run_validate(args) -> int:
     from identification.calibration.dropped_findings import dropped_notes
-    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.refit_training import listed_configuration
     from identification.calibration.trajectory_checks import check_validation_recording
@@ -116,13 +115,9 @@ def _run_validate(args) -> int:
         if note is not None:
             warnings.append(note)
             print(f"psdm validate: warning: {path}: {note}", file=sys.stderr)
-        error, r2, prepared, predicted = validation_with_payload(
-            robot, calibrated, model, recording, _torque_constants(robot, recording), stated
-        )
-        own = model_columns(calibrated, model, prepared)  # the model's own error, allowed for in the load's
-        load = new_payload(robot, prepared, predicted, name=str(path), own=own)  # a load the model does not have
+        error, r2, prepared, predicted, load, left_in = _judged(robot, calibrated, model, recording, stated, path)
         rows.append({"recording": str(path), "rmse": _numbers(error), "r2": _numbers(r2), "held_out": part,
-                     "prepared": prepared, "predicted": predicted, "payload": load,
+                     "prepared": prepared, "predicted": predicted, "payload": load, "rmse_load_left_in": left_in,
                      "stated_payload_kg": None if stated is None else float(stated[0]),
                      "temperature": _temperature(calibrated, robot, recording, prepared)})  # fmt: skip
     if predictions is not None:
@@ -141,13 +136,31 @@ def _run_validate(args) -> int:
         for row in rows:
             title = row["recording"] if row["held_out"] is None else row["held_out"].describe()
             print(validation_table(title, robot.joint_names, row["rmse"], row["r2"]))
-            for line in filter(None, (row["payload"] and f"payload: {row['payload'].sentence()}", row["temperature"])):
+            for line in filter(None, (row["payload"] and f"payload: {_payload_sentence(row)}", row["temperature"])):
                 print(f"  {line}")  # the load the model does not have, the temperatures its friction was read at
         if predictions is not None:
             print(f"prepared samples and the model's torques written to {predictions.target}")
         if not calibrated.consistent:
             print("warning: this model is NOT physically consistent (written with --allow-inconsistent)")
     return EXIT_OK
+
+
+def _judged(robot, calibrated, model, recording, stated, path) -> tuple:
+    """(RMSE, R^2, prepared recording, prediction, load, RMSE with the load left in or None) of the model on a raw
+    recording: with a stated load (``stated``: its 10 parameters) that load added to the prediction and a load beyond
+    it named (``payload_check.new_payload``); with none, a load nothing states found, and taken off if plausible
+    (``held_out_load``, as identify and diagnose judge it)."""
+    from identification.calibration.held_out_load import find_unstated_load
+    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
+
+    kt = _torque_constants(robot, recording)
+    if stated is None:
+        check = find_unstated_load(robot, calibrated, model, recording, kt, str(path))
+        left_in = _numbers(check.rmse_left_in) if check.taken_off else None
+        return check.rmse, check.r2, check.prepared, check.predicted, check.load, left_in
+    error, r2, prepared, predicted = validation_with_payload(robot, calibrated, model, recording, kt, stated)
+    own = model_columns(calibrated, model, prepared)  # the model's own error, allowed for in the load's
+    return error, r2, prepared, predicted, new_payload(robot, prepared, predicted, name=str(path), own=own), None
 
 
 def _preparation_noted(model, document):
@@ -172,13 +185,32 @@ def _shown(value, spec: str) -> str:
 
 
 def _json_row(row) -> dict:
-    """A recording's entry of the JSON output: RMSE, R^2, and the payload it appears to carry (or null)."""
+    """A recording's entry of the JSON output: RMSE, R^2, and the payload it appears to carry (or null); a load nothing
+    states (``held_out_load.UnstatedLoad``) with whether it was taken off, and then the RMSE with it left in."""
+    from identification.calibration.held_out_load import UnstatedLoad
+
     load = row["payload"]
     held = row.get("held_out")
+    if isinstance(load, UnstatedLoad):
+        load = {**load.to_dict(), "sentence": _payload_sentence(row)}
+    elif load is not None:
+        load = load.to_dict()
     return {"recording": row["recording"], "rmse": row["rmse"], "r2": row["r2"],
             "held_out": None if held is None else held.to_dict(),
             "stated_payload_kg": row["stated_payload_kg"], "friction_temperature": row["temperature"] or None,
-            "payload": None if load is None else load.to_dict()}  # fmt: skip
+            "payload": load,
+            "rmse_load_left_in": row["rmse_load_left_in"]}  # fmt: skip
+
+
+def _payload_sentence(row) -> str:
+    """The line naming a recording's load: one nothing states as ``held_out_load`` says it (what was done, the
+    sidecar), else one beyond the stated load (``payload_check.NewPayload``)."""
+    from identification.calibration.held_out_load import UnstatedLoad
+
+    load = row["payload"]
+    if isinstance(load, UnstatedLoad):
+        return load.sentence(row["rmse_load_left_in"])
+    return load.sentence()
 
 
 def _temperature(calibrated, robot, recording, prepared) -> str:

@@ -1,0 +1,77 @@
+"""The loads ``psdm diagnose``'s recordings carry: taken off before the diagnosis, named beside its findings.
+
+A load a recording's sidecar states (or the model file lists for its content) is taken off its torque, so that the
+diagnosis and its refit see the arm; with a model file, a validation recording that states none is checked for one as
+``psdm validate`` checks it (``held_out_load``) and a plausible one taken off and named; the payload check beside the
+findings says what the validation recording carries that the model file does not have, in validate's words.
+"""
+
+from __future__ import annotations
+
+import sys
+
+__all__ = ["load_sentence", "payload_check", "stated_loads"]
+
+
+def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
+    """(recordings, their configurations, per validation recording its ``held_out_load.LoadCheck`` or None): each
+    with the load its sidecar states (a known one as given, an unknown one as the model file identified it) taken off
+    (``payload_check.without_load``), so that the diagnosis and its refit see the arm; with a model file, a validation
+    recording stating none checked for one as validate does (``held_out_arm.without_unstated_loads``)."""
+    import numpy as np
+
+    from identification.calibration.held_out_arm import without_unstated_loads
+    from identification.calibration.payload_check import without_load
+    from identification.calibration.payload_fit import stated_payload
+    from identification.calibration.refit_training import listed_configuration
+    from identification.data.configuration import stated_configuration
+
+    calibrated = None if loaded is None else loaded.calibrated
+    stored = [] if calibrated is None else calibrated.configurations
+    out, configurations = [], []
+    for path, recording in zip((args.train, *args.validate), recordings):
+        configuration = listed_configuration(None if calibrated is None else calibrated.document, path)
+        body, note = stated_payload(configuration, stored, args.robot)
+        if note:
+            print(f"psdm diagnose: warning: {path}: {note}", file=sys.stderr)
+        elif body is not None and not stated_configuration(path).stated:
+            print(f"psdm diagnose: note: {path}: carries {configuration.name!r} as the model file lists it for this "
+                  "recording (no sidecar beside it); its torque is taken off", file=sys.stderr)  # fmt: skip
+        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
+        configurations.append(configuration)
+    if calibrated is None:
+        return out, configurations, [None] * len(args.validate)
+    held, checks = without_unstated_loads(robot, calibrated, loaded.model, out[1:], configurations[1:], args.validate,
+                                          preparation.cutoff_hz)  # fmt: skip
+    return [out[0], *held], configurations, checks
+
+
+def payload_check(args, calibrated, robot, model, validation, check=None):
+    """``(load, temperature)``: a load the model file does not have in the validation recording, as ``psdm validate``
+    names it (one nothing states as ``check`` found it, ``held_out_load``; else one beyond the stated load,
+    ``payload_check.new_payload``), or None; and the temperatures the file's friction law was read at on it
+    (``TemperatureFriction.sentence``), or None without a law."""
+    import numpy as np
+
+    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
+
+    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
+    sentence = None
+    if (laws := calibrated.temperature_friction) is not None:  # the file's friction law: where it was evaluated
+        from identification.data.temperature import temperatures_at
+
+        sentence = laws.sentence(temperatures_at(validation, prepared.t), robot.joint_names)
+        print(f"psdm diagnose: note: {args.validate}: the model file's {sentence}", file=sys.stderr)
+    if check is not None:
+        return check.load, sentence
+    load = new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
+    return load, sentence
+
+
+def load_sentence(load, check) -> str:
+    """The payload check's line: a load nothing states with what was done (``check``), else one beyond the stated."""
+    if check is None:
+        return load.sentence()
+    return load.sentence([float(v) for v in check.rmse_left_in] if check.taken_off else None)
