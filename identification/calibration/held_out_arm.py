@@ -3,9 +3,9 @@
 identify judges its model on the held-out recordings: the drive columns the training data alone do not decide, the
 robot file's baseline and the never-worse margins, the holds. A load a held-out recording carries and the training
 recordings do not (or another one) counts in every candidate's error there, though no candidate can explain it, and
-the judges compare the models on a torque none of them has: the identified model was called worse than the robot file
-on a joint where it was 60 times better (a UR10 with a 7.4 kg part). So each held-out recording is judged on its arm's
-torque, the load it carries taken off (``payload_check.without_load``) as the fit takes the training recordings' off:
+the judges compare the models on a torque none of them has (the identified model was called worse than the robot file
+on a joint where it was far better). So each held-out recording is judged on its arm's torque, the load it carries
+taken off (``payload_check.without_load``) as the fit takes the training recordings' off:
 
 - a known load (its sidecar, or ``--data``'s statement for a ``--holdout`` part) as stated;
 - an unknown one under a name the training recordings share, as the training fit identifies it;
@@ -13,6 +13,10 @@ torque, the load it carries taken off (``payload_check.without_load``) as the fi
   (``held_out_load``: the flange fit on its residual of the training fit, least squares with the default columns,
   the model held fixed; a clear and plausible load only). Without a clear load nothing changes.
 
+A load nothing states is then read again against the model the route identified (``HeldOutArm.rejudged``: the same
+check as the report's and ``psdm validate``'s) and the route run once more on the recording with that estimate taken
+off: the training fit's estimation error moves the load's centre of mass, and on a cobot's wrist a few millimetres are
+a torque of the size of the never-worse margins (a joint called worse than the robot file that is not).
 :class:`HeldOutArm` keeps what was taken off and why, for the command's warnings.
 """
 
