@@ -182,3 +182,25 @@ def test_no_load_is_claimed_on_unloaded_held_out_recordings(denso, denso_model, 
     calibrated = CalibratedModel.from_fit(denso, denso_model, fit, robot_source="denso_vs6556g")
     checks = [find_unstated_load(denso, calibrated, denso_model, recording) for recording in held]
     assert [c.load for c in checks] == [None] * 4, [c.load.found for c in checks if c.load is not None]
+
+
+def test_a_held_out_recording_stating_an_unknown_load_the_training_carries_is_judged_without_it(denso, denso_model):
+    """A held-out recording whose sidecar names the unknown load ("gripper") that a training recording carries: the
+    judges weigh it without the load as the training fit identifies it (left on before, the load's whole torque
+    counted in every candidate's held-out error). The torque taken off is the load's within a tenth of it."""
+    from identification.calibration.held_out_arm import held_out_arm
+    from identification.calibration.payload_check import without_load
+    from identification.calibration.trajectory_fit import TrajectoryOptions
+    from identification.data.configuration import NO_PAYLOAD, PayloadConfiguration
+
+    gripper = PayloadConfiguration("gripper", unknown=True, stated=True)
+    training = [_record(denso, 21), _record(denso, 23, (LOAD,))]
+    held = _record(denso, 22, (LOAD,))
+    arm = held_out_arm(denso, denso_model, training, [held], [NO_PAYLOAD, gripper], [gripper], TrajectoryOptions())
+    assert arm.loads == (None,)  # a stated load: nothing to name
+    taken = held.tau - arm.recordings[0].tau
+    truth = held.tau - without_load(denso, held, LOAD.dynamic_parameters()).tau  # the true load, taken off alike
+    error = np.sqrt(np.mean((taken - truth) ** 2, axis=0))
+    load = np.sqrt(np.mean(truth**2, axis=0))
+    heavy = load > 0.5  # [N m]: the joints the load turns
+    assert heavy.sum() >= 2 and np.all(error[heavy] < 0.1 * load[heavy]), (error, load)
