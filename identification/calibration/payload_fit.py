@@ -123,9 +123,16 @@ def separable_in_place(found, mask) -> np.ndarray:
 
 
 def subtract_known_payloads(robot, prepared, configurations) -> list:
-    """The prepared recordings with each known payload's torque taken off (the arm's own torque is left)."""
+    """The prepared recordings with each known payload's torque taken off (the arm's own torque is left).
+
+    ``configurations`` holds one entry per recording (or is None: no loads); a list of another length is refused, as
+    pairing them would leave recordings out of the fit unseen."""
     if configurations is None:
         return list(prepared)
+    prepared, configurations = list(prepared), list(configurations)
+    if len(prepared) != len(configurations):
+        raise ValueError(f"{len(configurations)} payload configurations for {len(prepared)} recordings: give one per "
+                         "recording (NO_PAYLOAD for an unloaded one)")  # fmt: skip
     out = []
     for recording, configuration in zip(prepared, configurations):
         if configuration.kind != "known":

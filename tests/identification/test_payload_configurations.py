@@ -12,10 +12,11 @@ import numpy as np
 import pytest
 
 from identification.calibration.payload import payload_torque
-from identification.calibration.payload_fit import FlangeRegressor
+from identification.calibration.payload_fit import FlangeRegressor, subtract_known_payloads
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.configuration import PayloadConfiguration, recordings_with_configurations
 from identification.data.payload import Payload
+from identification.data.recording import Recording
 from identification.virtual.effects import Payload as VirtualPayload
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.errors import ParameterError
@@ -52,6 +53,22 @@ def test_the_flange_columns_give_the_payload_torque_of_pinocchio(denso):
     columns = FlangeRegressor(denso)(q, qd, qdd)
     np.testing.assert_allclose(columns @ load.dynamic_parameters(), payload_torque(denso, load, q, qd, qdd),
                                rtol=1e-9, atol=1e-9)  # fmt: skip
+
+
+def test_configurations_not_one_per_recording_are_refused(denso):
+    """Pairing two recordings with one configuration would leave the second out of the fit unseen."""
+    rng = np.random.default_rng(3)
+    pair = []
+    for name in ("empty", "loaded"):
+        q, qd, qdd, tau = rng.normal(size=(4, 50, denso.n_dof))
+        pair.append(Recording(t=np.arange(50) * 0.01, q=q, tau=tau, qd=qd, qdd=qdd, name=name))
+    known = PayloadConfiguration("mass", payload=KNOWN, stated=True)
+    with pytest.raises(ValueError, match="1 payload configurations for 2 recordings"):
+        subtract_known_payloads(denso, pair, [known])
+    taken = subtract_known_payloads(denso, pair, [PayloadConfiguration(), known])
+    np.testing.assert_array_equal(taken[0].tau, pair[0].tau)
+    load = payload_torque(denso, KNOWN, pair[1].q, pair[1].qd, pair[1].qdd)
+    np.testing.assert_allclose(taken[1].tau, pair[1].tau - load, rtol=1e-12)
 
 
 def test_a_known_payload_subtracted_gives_the_unloaded_arm(denso, denso_model, recorded):
