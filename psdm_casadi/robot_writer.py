@@ -110,6 +110,8 @@ def _motor_side_lines(robot: RobotDescription) -> list:
         lines.append(f"joint_offsets = {_numbers(transmission.joint_offsets)}")
         if transmission.motor_kt is not None:
             lines.append(f"motor_kt = {_numbers(transmission.motor_kt)}")
+        if transmission.rated_current is not None:
+            lines.append(f"rated_current = {_numbers(transmission.rated_current)}")
     if layout is not None:
         sides = ", ".join(f"{signal} = {_string(side)}" for signal, side in layout.sides.items())
         lines += ["", "[recording]", f"side = {{ {sides} }}"]

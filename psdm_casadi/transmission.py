@@ -43,6 +43,9 @@ class Transmission:
         Joint positions [rad or m] at which the motor encoders read zero; zero by default.
     motor_kt : array, shape (n_dof,), optional
         Motor torque constants [N m/A] at the motor, for motor-side currents.
+    rated_current : array, shape (n_dof,), optional
+        Each motor's rated current [A]: a controller that logs its currents in per cent of it (``--columns
+        i=CurrAct_A:%``) is read in amperes through it (``robot_recordings``).
 
     Raises
     ------
@@ -60,6 +63,7 @@ class Transmission:
     coupling: np.ndarray
     joint_offsets: np.ndarray | None = None
     motor_kt: np.ndarray | None = None
+    rated_current: np.ndarray | None = None
 
     def __post_init__(self):
         matrix = float_array(self.coupling, "Transmission.coupling", "an n x n matrix")
@@ -78,7 +82,7 @@ class Transmission:
                 "couplings (no two motors may see the same combination of joints)."
             )
         object.__setattr__(self, "coupling", _frozen(matrix))
-        for key in ("joint_offsets", "motor_kt"):
+        for key in ("joint_offsets", "motor_kt", "rated_current"):
             value = getattr(self, key)
             if value is None:
                 continue
@@ -91,6 +95,11 @@ class Transmission:
                 raise RobotFileError(
                     f"Transmission.motor_kt must be > 0 [N m/A] for every motor; got {format_value(vector)}. "
                     "Give the motors' torque constants (the gear's sign is in the coupling)."
+                )
+            if key == "rated_current" and np.any(vector <= 0):
+                raise RobotFileError(
+                    f"Transmission.rated_current must be > 0 [A] for every motor; got {format_value(vector)}. "
+                    "Give the motors' rated (continuous) currents from their datasheet."
                 )
             object.__setattr__(self, key, _frozen(vector))
         if self.joint_offsets is None:

@@ -9,6 +9,7 @@ Read by ``robot_file`` into the robot's ``Transmission`` and ``RecordingLayout``
     joint_offsets = [0, "-pi/2", "pi/2", 0, 0, 0]     # q at which the motor encoders read 0 [rad]
     # motor_offsets = [...]                           # or the encoders' readings at q = 0 [rad]
     # motor_kt = [...]                                # motor torque constants [N m/A], for motor currents
+    # rated_current = [...]                           # rated currents [A], for currents logged in % of them
 
     [recording]
     side = "motor"              # or per signal: { q = "motor", qd = "motor", tau = "joint", current = "motor" }
@@ -34,7 +35,8 @@ from psdm_casadi.values import format_value
 
 __all__ = ["drives_with_motor_kt", "layout_from_table", "transmission_from_table"]
 
-_TRANSMISSION_KEYS = {"gear_ratios", "coupling", "matrix", "joint_offsets", "motor_offsets", "motor_kt"}
+_TRANSMISSION_KEYS = {"gear_ratios", "coupling", "matrix", "joint_offsets", "motor_offsets", "motor_kt",
+                      "rated_current"}  # fmt: skip
 _COUPLING_KEYS = {"motor", "joint", "ratio"}
 _RECORDING_KEYS = {"side", "sample_rate", "files"}
 
@@ -70,11 +72,15 @@ def transmission_from_table(table, n: int, where: str) -> Transmission:
     if "joint_offsets" in table:
         offsets = file_vector(table["joint_offsets"], n, f"{where}.joint_offsets")
     kt = file_vector(table["motor_kt"], n, f"{where}.motor_kt") if "motor_kt" in table else None
+    rated = file_vector(table["rated_current"], n, f"{where}.rated_current") if "rated_current" in table else None
+    if rated is not None and np.any(rated <= 0):
+        raise RobotFileError(f"{where}.rated_current must be > 0 [A] for every motor; got {format_value(rated)}. "
+                             "Give the motors' rated (continuous) currents from their datasheet.")  # fmt: skip
     try:
-        transmission = Transmission(coupling=matrix, joint_offsets=offsets, motor_kt=kt)
+        transmission = Transmission(coupling=matrix, joint_offsets=offsets, motor_kt=kt, rated_current=rated)
         if "motor_offsets" in table:  # theta_0 = -N_q q_0
             theta_0 = file_vector(table["motor_offsets"], n, f"{where}.motor_offsets")
-            transmission = Transmission(matrix, -transmission.joint_rates(theta_0), kt)
+            transmission = Transmission(matrix, -transmission.joint_rates(theta_0), kt, rated)
         return transmission
     except RobotFileError as exc:
         field = "matrix" if "matrix" in table else "gear_ratios and coupling"

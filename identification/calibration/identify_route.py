@@ -41,6 +41,7 @@ from identification.calibration.trajectory_fit import (
     identify_trajectories,
     torque_constants,
 )
+from identification.calibration.unstated_load import UnstatedLoads, take_unstated_loads
 from identification.calibration.worse_joint_hold import WorseJointHold, check_worse_joint_mode, hold_worse_joints
 from psdm_casadi.state_cache import remembering
 
@@ -89,6 +90,9 @@ class IdentifyResult:
     rotors_apart : RotorsApart
         The rotors the training data want apart from their same actuator's: taken where the held-out data confirm it
         (``rotors_apart``), else held.
+    unstated : UnstatedLoads
+        The training recordings whose load no file states but the data show, identified as unknown payloads of their
+        own (``unstated_load``).
     """
 
     fit: TrajectoryFit
@@ -104,6 +108,7 @@ class IdentifyResult:
     payload: PayloadChoice = field(default_factory=PayloadChoice)
     drift: FrictionDrift = field(default_factory=FrictionDrift)
     rotors_apart: RotorsApart = field(default_factory=RotorsApart)
+    unstated: UnstatedLoads = field(default_factory=UnstatedLoads)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -127,7 +132,8 @@ class IdentifyResult:
         the robot file (stated here once, not by each consistent fit the choices ran), what the pull or the envelope
         holds back from the data (``held_back``), and whether the model is worse than the robot file on any joint of
         the held-out recordings."""
-        lines = list(self.columns)
+        lines = [f"unstated load: {self.unstated.describe()}"] if self.unstated.found else []
+        lines += list(self.columns)
         if self.pull is not None:
             lines.append(self.pull.describe())
         lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
@@ -215,6 +221,7 @@ def identify_recordings(
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
     recordings, validation = list(recordings), list(validation)
+    configurations, unstated = _unstated_loads(robot, model, recordings, options, configurations)
     logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")
     choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
     if request.friction != "lugre":  # each recording's own friction (``drift_choice``); the columns chosen again
@@ -270,10 +277,25 @@ def identify_recordings(
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
     calibrated.document["identification"]["friction_drift"] = drift.to_dict()
+    calibrated.document["identification"]["unstated_loads"] = unstated.to_dict()
     if (laws := temperature_block(drift, calibrated.document["drive"]["names"])) is not None:
         calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift,
-                          rotors)  # fmt: skip
+                          rotors, unstated)  # fmt: skip
+
+
+def _unstated_loads(robot, model, recordings, options, configurations) -> tuple:
+    """``(configurations, UnstatedLoads)``: a training recording whose load no file states but the data show taken
+    as an unknown payload of its own (``unstated_load``), found by one unconstrained fit of the options given."""
+
+    def fit_of(trial):
+        return identify_trajectories(robot, model, recordings, replace(options, consistency=False),
+                                     configurations=trial)  # fmt: skip
+
+    configurations, unstated = take_unstated_loads(fit_of, recordings, configurations)
+    if unstated.found:
+        logger.info("identify: %s", unstated.describe())
+    return configurations, unstated
 
 
 def _friction_drift(problem, choice, mode, temperatures) -> tuple:

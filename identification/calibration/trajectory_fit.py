@@ -259,6 +259,8 @@ class TrajectoryFit:
         each a body fixed to the flange identified with the arm's parameters shared.
     edge_periods : float
         Filter periods trimmed at each end of every recording (``TrajectoryOptions.edge_periods``).
+    loaded : tuple of configuration_check.LoadedRecording
+        The recordings that look loaded (or lighter) at the flange against the others, said in ``warnings``.
     """
 
     standard: np.ndarray
@@ -294,6 +296,7 @@ class TrajectoryFit:
     payloads: tuple = ()
     edge_periods: float = EDGE_PERIODS
     covariance: np.ndarray | None = None
+    loaded: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -425,7 +428,7 @@ def identify_trajectories(
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
-        torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit],
+        torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit], loaded=(*loaded,),
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit, loaded), *mixed)), options)
 

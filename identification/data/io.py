@@ -357,6 +357,11 @@ def load_recording(
     (20000, 6)
     >>> rec = load_recording("run1.mcap", robot.n_dof, robot.joint_names)   # doctest: +SKIP
     """
+    if layout is not None and layout.percent_current:  # the rated currents are the robot file's
+        raise RecordingError(
+            f"{path}: currents in % of the rated current (i=PREFIX:%) are read with the robot file "
+            "that states them: robot_recordings.load_robot_recording(path, robot, columns=layout)."
+        )
     rate = None if layout is None else layout.rate
     table = read_table(path, joint_names, topic, layout)
     return recording_from_table(table, n_dof, sample_rate=rate, joint_names=joint_names)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.data.temperature import TEMPERATURE_PREFIX, temperature_joints
-from identification.data.units import si_factor
+from identification.data.units import PERCENT, si_factor
 from psdm_casadi.errors import ParameterError, RecordingError
 
 logger = logging.getLogger(__name__)
@@ -86,6 +86,11 @@ class ColumnLayout:
         for signal, unit in units:
             si_factor(signal, unit)  # refuses a unit that is not the signal's
         object.__setattr__(self, "units", units)
+
+    @property
+    def percent_current(self) -> bool:
+        """Whether the currents are logged in per cent of each motor's rated current (``i=CurrAct_A:%``)."""
+        return any(s == "i" and u.replace(" ", "") == PERCENT for s, u in self.units)
 
     @classmethod
     def parse(cls, text: str | None, rate: float | None = None) -> ColumnLayout | None:

@@ -19,7 +19,7 @@ from identification.data.motor_side import to_joint_side
 from identification.data.recording import MIN_SAMPLES, Recording
 from psdm_casadi.errors import RecordingError
 
-__all__ = ["is_split_recording", "load_robot_recording", "recording_paths", "torque_constants_place"]
+__all__ = ["is_split_recording", "load_robot_recording", "rated_currents", "recording_paths", "torque_constants_place"]
 
 
 def _split_names(robot) -> dict:
@@ -101,7 +101,35 @@ def load_robot_recording(path, robot, topic: str | None = None, columns=None) ->
             recording = recording_from_table(table, robot.n_dof, sample_rate=rate, joint_names=robot.joint_names)
         except UnreadColumnGroups as exc:  # the readers know no robot: name where this one's constants are
             raise exc.naming(torque_constants_place(robot)) from None
+        if columns is not None and columns.percent_current:
+            recording = rated_currents(recording, robot, str(path))
     return to_joint_side(recording, robot)
+
+
+def rated_currents(recording: Recording, robot, source: str) -> Recording:
+    """``recording`` whose currents a controller logged in per cent of each motor's rated current (``--columns
+    i=CurrAct_A:%``, as industrial controllers trace them) in amperes: ``i = % / 100 x rated_current`` of the robot
+    file's ``[transmission]``, per logged channel (motor ``k``'s column ``k``), before the motor side is mapped.
+
+    Raises
+    ------
+    RecordingError
+        When the robot file states no rated currents (naming the table, the key and the datasheet's value), or the
+        recording holds no currents.
+    """
+    transmission = robot.transmission
+    rated = None if transmission is None else transmission.rated_current
+    if recording.current is None:
+        raise RecordingError(f"{source}: --columns states currents in % (i=PREFIX:%), but the file's currents were not "
+                             "read. Name the current group: --columns i=PREFIX:%.")  # fmt: skip
+    if rated is None:
+        raise RecordingError(
+            f"{source}: the currents are logged in % of each motor's rated current (--columns i=...:%), but the robot "
+            f"file of {robot.name} states no rated currents. Add rated_current = [...] ({robot.n_dof} numbers, the "
+            "motors' rated currents in A from their datasheet) to its [transmission] table (with gear_ratios and "
+            "motor_kt), or convert the currents to A and drop the :%."
+        )
+    return recording.with_signals(current=recording.current * (rated / 100.0))
 
 
 def torque_constants_place(robot) -> str:

@@ -15,7 +15,12 @@ import numpy as np
 
 from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["UNITS", "header_unit", "si_factor", "to_si"]
+__all__ = ["PERCENT", "UNITS", "header_unit", "si_factor", "to_si"]
+
+#: A motor current in per cent of its motor's rated current (``--columns i=CurrAct_A:%``): kept as logged here (factor
+#: 1) and turned into amperes by the robot's reader (``robot_recordings``) with the robot file's ``[transmission]
+#: rated_current``, which only it knows. Never a header's unit: a header ``i1 [%]`` is refused, naming --columns.
+PERCENT = "%"
 
 _ANGLE = {"rad": 1.0, "deg": math.pi / 180.0, "mrad": 1e-3, "m": 1.0, "mm": 1e-3}
 _TORQUE = {"Nm": 1.0, "mNm": 1e-3, "kNm": 1e3, "N": 1.0}
@@ -55,19 +60,29 @@ def header_unit(source: str, name: str) -> tuple:
     if unit not in _ANY_UNIT:
         raise RecordingError(
             f"{source}: column {name!r} states {match.group(2)!r}, which is not a unit psdm reads (s, ms, rad, deg, "
-            f"m, mm, N m, mN m, kN m, A, mA, rad/s, ...). Write the unit in SI or one of those, or rename the column."
+            f"m, mm, N m, mN m, kN m, A, mA, rad/s, ...). Write the unit in SI or one of those, or rename the column"
+            + (
+                " (currents in % of the rated current: --columns i=PREFIX:% with rated_current in the robot file's "
+                "[transmission])."
+                if unit == PERCENT
+                else "."
+            )
         )
     return match.group(1), _ANY_UNIT[unit]
 
 
 def si_factor(signal: str, unit: str) -> float:
-    """The factor that turns ``signal`` in ``unit`` into SI (``deg`` -> pi/180); refused with the units there are."""
+    """The factor that turns ``signal`` in ``unit`` into SI (``deg`` -> pi/180); refused with the units there are.
+    A current in per cent of the rated current (:data:`PERCENT`) is 1: the robot's reader scales it."""
     known = UNITS.get(signal, {})
     compact = unit.replace(" ", "").replace("·", "").replace("*", "")
+    if signal == "i" and compact == PERCENT:
+        return 1.0
     if compact not in known:
+        rated = ", % (of each motor's rated current: rated_current in the robot file's [transmission])"
         raise ParameterError(
-            f"--columns {signal}=...:{unit}: {unit!r} is not a unit of {signal}; use one of {', '.join(known)} "
-            f"(e.g. --columns q=Position:deg,tau=Torque:mNm,t=Time:ms)."
+            f"--columns {signal}=...:{unit}: {unit!r} is not a unit of {signal}; use one of {', '.join(known)}"
+            f"{rated if signal == 'i' else ''} (e.g. --columns q=Position:deg,tau=Torque:mNm,t=Time:ms)."
         )
     return known[compact]
 

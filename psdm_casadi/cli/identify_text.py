@@ -143,9 +143,8 @@ def held_label(result, name: str) -> str:
 
 
 def print_identify(args, robot, model, fit, report, calibrated, result, route=str) -> None:
-    """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, drive
-    columns and counterbalance, parameters with sigma, LuGre and payload blocks, validation per recording).
-    ``route`` puts this run's files into a suggested command (the held-back parameters' ``psdm diagnose ...``)."""
+    """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, columns,
+    counterbalance, unstated loads, parameters, LuGre, payloads, validation); ``route`` puts this run's files in."""
     from identification.calibration.drive_loss import drive_loss_summary
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
@@ -167,7 +166,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "drive_loss": drive_loss_summary(calibrated.document),
                     **{key: calibrated.document["identification"].get(key)
                        for key in ("robot_file_check", "one_way_friction", "worse_joints", "torque_scale",
-                                   "friction_drift")},
+                                   "friction_drift", "unstated_loads")},
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -185,9 +184,9 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     print("drive columns: " + "; ".join(result.columns), *torque_scale_lines(calibrated.document), sep="\n")
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
-    lines = (result.payload.line, result.drift.describe(), result.one_way.describe(), result.worse_joints.describe())
-    for line in filter(None, lines):
-        print(line)
+    lines = (result.unstated.line, result.payload.line, result.drift.describe(), result.one_way.describe(),
+             result.worse_joints.describe())  # fmt: skip
+    print(*filter(None, lines), sep="\n", end="\n" if any(lines) else "")
     for entry in drive_loss_summary(calibrated.document):
         print(
             f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "
