@@ -43,6 +43,7 @@ __all__ = [
     "check_torque_magnitude",
     "friction_columns",
     "looks_like_milliseconds",
+    "percent_of_rated",
     "torque_magnitude",
 ]
 
@@ -359,6 +360,21 @@ def _scale_causes(factor: float, robot, currents: bool) -> str:
     return "; ".join(causes)
 
 
+def percent_of_rated(found: TorqueMagnitude, robot, currents: bool, thresholds: PlausibilityThresholds) -> bool:
+    """Whether currents read as amperes are per cent of the rated currents the robot file states (``[transmission]
+    rated_current``): the recorded torque is at least twice the file's on most judged joints, and joint by joint as
+    ``100 / rated_current`` gives, within 1.5x (a controller's trace read without ``--columns i=PREFIX:%``, whose scale
+    alone is within the refusal's tenfold). Not judged without rated currents or on fewer than two joints."""
+    rated = getattr(getattr(robot, "transmission", None), "rated_current", None)
+    judged = found.judged(thresholds)
+    if not currents or rated is None or judged.sum() < 2:
+        return False
+    as_read = np.abs(np.log(found.scale[judged]))
+    as_percent = np.abs(np.log(found.scale[judged] * np.asarray(rated)[judged] / 100.0))
+    return bool(np.median(np.log(found.scale[judged])) > np.log(2.0) and np.median(as_percent) < np.log(1.5)
+                and np.median(as_percent) < 0.5 * np.median(as_read))  # fmt: skip
+
+
 def check_torque_magnitude(
     recording: Recording,
     robot,
@@ -417,6 +433,15 @@ def check_torque_magnitude(
             f"predicts for the same motion (least squares over all joints; per joint {each}); a robot file's inertias "
             "are not that far off. Likely causes: "
             f"{_scale_causes(factor, robot, currents)}. Fix the robot file or the recording and run again."
+        )
+    if percent_of_rated(found, robot, currents, thresholds):
+        rated = robot.transmission.rated_current
+        raise RecordingError(
+            f"Recording {source}: the currents, read as amperes, give {', '.join(f'{s:.3g}' for s in found.scale)} "
+            "times the torque the robot file predicts on joints 1..n, joint by joint as 100 / the rated currents of "
+            f"its [transmission] give ({', '.join(f'{100.0 / r:.3g}' for r in rated)}): they look logged in per cent "
+            "of each motor's rated current, as industrial controllers trace them. State it: --columns i=PREFIX:% (read "
+            "as % / 100 x rated_current), or convert the currents to A."
         )
     for j in found.odd_joints(thresholds):
         message = (

@@ -95,3 +95,31 @@ def test_rated_currents_and_percent_units_are_checked_where_they_are_stated(tmp_
     path, _ = _trace(tmp_path, rng, header_unit=" [%]")  # a header cannot say whose rated current: --columns does
     with pytest.raises(RecordingError, match=r"--columns i=PREFIX:% with rated_current"):
         load_robot_recording(path, load_robot(_robot_file(tmp_path)), columns=ColumnLayout.parse("t=TimeStamp:ms"))
+
+
+def test_currents_in_percent_read_as_amperes_are_refused_naming_the_unit(denso, tmp_path, rng):
+    """A trace of the virtual Denso's motor currents in % of rated currents that the robot file states, read without
+    ``:%``: the torque comes out 2.5-5 times the file's joint by joint as 100 / rated_current, inside the tenfold the
+    unit check refuses. Before, identify fitted it: every link of a 210 kg-class arm against its envelope, a 170 kg
+    'unstated load' (truth 85 kg), and warnings that named a payload, never the unit."""
+    from identification.calibration.trajectory_data import prepare_recordings
+    from identification.virtual.simulation import SimulationOptions, simulate_recording
+    from trajopt.experiments import sine_experiment
+
+    rated = np.array([20.0, 25.0, 30.0, 40.0, 25.0, 20.0])
+    robot = load_robot(_robot_file(tmp_path, rated=rated))
+    reference = sine_experiment(denso, duration=4.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.05)
+    truth, _ = simulate_recording(denso, reference, options, rng)
+    percent = 100.0 * truth.tau / (GEARS * MOTOR_KT) / rated
+    header = ["TimeStamp", *(f"AxisAct_A{j + 1}" for j in range(6)), *(f"CurrAct_A{j + 1}" for j in range(6))]
+    path = tmp_path / "trace_002.csv"
+    np.savetxt(path, np.column_stack([1000.0 * truth.t, np.degrees(truth.q), percent]), delimiter=",",
+               header=",".join(header), comments="", fmt="%.12g")  # fmt: skip
+    kt = np.array([d.kt for d in robot.drives])
+    as_amperes = load_robot_recording(path, robot, columns=ColumnLayout.parse(LAYOUT.replace(":%", "")))
+    with pytest.raises(RecordingError, match=r"trace_002.csv: the currents, read as amperes.*per cent of each "
+                       r"motor's rated current.*--columns i=PREFIX:%"):  # fmt: skip
+        prepare_recordings(robot, [as_amperes], kt, None)
+    stated = load_robot_recording(path, robot, columns=ColumnLayout.parse(LAYOUT))
+    prepare_recordings(robot, [stated], kt, None)  # read in % of rated: the file's torque, nothing refused
