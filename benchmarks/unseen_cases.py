@@ -465,6 +465,14 @@ def belt_cobot(folder: Path, rng) -> Case:
     return build_case(folder, rng)
 
 
+def heavy_trace(folder: Path, rng) -> Case:
+    """The HX-210 traced by its controller: 83.3 Hz, degrees, currents in % of rated, a cold start, an unstated
+    gripper on one trace (``unseen_trace_heavy``)."""
+    from unseen_trace_heavy import heavy_trace as build_case
+
+    return build_case(folder, rng)
+
+
 CASES = {
     "cobot_currents_payload": cobot_currents,
     "industrial_dh_degrees_mNm": industrial_degrees,
@@ -474,6 +482,7 @@ CASES = {
     "serial_mcap_unknown_payload": serial_bag,
     "cobot_warming_currents": warming_cobot,
     "cobot_belt_payload_change": belt_cobot,
+    "heavy_trace_percent": heavy_trace,
 }
 
 
