@@ -7,7 +7,9 @@ counterbalance on slow motions; a 210 kg-class arm with a gas-spring counterbala
 datasheet's masses, 10-20 % off, trained unloaded and with a known 150 kg; a serial arm in ROS 2 MCAP bags with an
 unknown gripper; a 7-joint cobot logging motor-side positions and currents while its joints warm up,
 ``unseen_warm_cobot``; a UR10-class cobot on motor currents with a 7:1 belt on joint 6 whose known load changes between
-its recordings, stated in a configurations manifest, ``unseen_belt_cobot``). The commands the README
+its recordings, stated in a configurations manifest, ``unseen_belt_cobot``; a 210 kg-class arm traced by its
+controller at 12 ms in degrees and motor currents in % of rated, with a gas-spring balancer, a cold start and a gripper
+on one trace that no file states, ``unseen_trace_heavy``). The commands the README
 prints are run with no options but the log's own layout (``--columns`` with its units, as the log needs):
 
     psdm identify ROBOT --data TRAIN... --validate VAL --out model.json     (TRAIN: the case's manifest, if it has one)
