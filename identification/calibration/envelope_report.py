@@ -17,7 +17,11 @@ That is the bounds' naming (where the link is, which way it is pushed). Where th
 link (``held_back``), the finding is named from the same evidence as they are (:func:`named_from_evidence`,
 ``absorbed_effect.likely_effects``: the sign each effect can give the parameter, the joints that carry the torque,
 gravity or inertial, the motion), with the alternatives that fit it too, the evidence in words and the joint the
-effect acts on (``effect_joint``); files written before read as none.
+effect acts on (``effect_joint``); files written before read as none. A proximal link the bounds name a payload (a
+payload pulls every link outward) is named a counterbalance where the fitted gravity torque of a joint its weight
+carries leaves the robot file's on that joint alone (``gravity_departure``, :func:`named_by_departure`): without an
+offset column a shoulder's balancer goes into that link's first moment beside the tool, and a body at the flange does
+not give a departure of one joint alone.
 
 A link that only rests on a bound, the data pressing on it lightly, is listed as well (``pressed`` False) with a
 note rather than a warning: its mass or extent was set by the bound, not by the data.
@@ -49,6 +53,7 @@ __all__ = [
     "EnvelopeFinding",
     "envelope_findings",
     "gravity_carriers",
+    "named_by_departure",
     "named_from_evidence",
     "where",
     "pressed_findings",
@@ -279,6 +284,34 @@ def named_from_evidence(findings, held, model, robot, currents: bool = False) ->
                         effect_joint=at)  # fmt: skip
         text = _message(named, robot, currents) if named.pressed else _resting_message(named, robot)
         out.append(replace(named, message=text))
+    return tuple(out)
+
+
+def named_by_departure(findings, departures, robot, currents: bool = False) -> tuple:
+    """``findings`` with each pressed link pushed outward that the bounds name a payload, other than the last two links
+    with mass (a tool moves those either way), named a counterbalance on the joint whose fitted gravity torque leaves
+    the robot file's alone (``departures``: ``{0-based joint: gravity_departure.GravityDeparture}``, or a callable
+    giving them, called only where such a link is pushed), among the joints its weight carries up to its own
+    (``gravity_carriers``): the link's first moment holds that joint's balancer. The payload stays the alternative,
+    the departure is the evidence; the largest departure is taken where several joints depart."""
+    prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
+    distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())
+    candidates = {k for k, f in enumerate(findings) if f.pressed and f.absorbs == "payload" and outward(f)
+                  and f.link not in distal and not any(b.startswith("drive") for b in f.bounds)}  # fmt: skip
+    if not candidates:
+        return tuple(findings)
+    found = departures() if callable(departures) else departures
+    out = []
+    for k, finding in enumerate(findings):
+        carried = gravity_carriers(robot, finding.link) if k in candidates and found else ()
+        joints = [j for j in found if k in candidates and j <= finding.link and carried[j]]
+        if not joints:
+            out.append(finding)
+            continue
+        j = max(joints, key=lambda joint: found[joint].departure)
+        named = replace(finding, absorbs="counterbalance", alternatives=("payload",), evidence=found[j].evidence,
+                        effect_joint=j)  # fmt: skip
+        out.append(replace(named, message=_message(named, robot, currents)))
     return tuple(out)
 
 

@@ -27,7 +27,7 @@ import numpy as np
 from identification.calibration.absorbed_effect import LOCAL
 from identification.calibration.offset_reading import STRIDE
 
-__all__ = ["FILE_GRAVITY_ERROR", "GravityDeparture", "gravity_departures"]
+__all__ = ["FILE_GRAVITY_ERROR", "GravityDeparture", "gravity_departures", "theta_departures"]
 
 #: The share of a joint's gravity torque a robot file's CAD errors (masses and centres of mass 10-20 % off, spread
 #: over the links the joint carries) may move: a fitted gravity torque departing from the file's by more is no CAD
@@ -58,16 +58,30 @@ class GravityDeparture:
             "links' first moments absorb"
         )
 
+    @property
+    def evidence(self) -> str:
+        """The same, as the envelope report states a finding's evidence (``envelope_report.named_by_departure``)."""
+        return (
+            f"the fitted gravity torque of joint {self.joint + 1} leaves the robot file's by {self.departure:.4g} N m "
+            f"RMS, {self.local:.0%} of every joint's departure once a body at the flange explains the others, opposing "
+            f"{self.share:.0%} of its gravity torque; no body at the flange gives it"
+        )
+
 
 def gravity_departures(robot, model, recordings, fit) -> dict:
     """``{0-based joint: GravityDeparture}`` of ``fit`` on the raw training ``recordings`` (module docstring); empty
     without the robot file's links."""
+    return theta_departures(robot, model, recordings, fit.theta)
+
+
+def theta_departures(robot, model, recordings, theta) -> dict:
+    """``gravity_departures`` of the base parameters ``theta`` (inside the fit, before its ``TrajectoryFit``)."""
     if robot.links is None or not recordings:
         return {}
     q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in recordings])
     zero = np.zeros_like(q)
     g_file = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
-    difference = model.inverse_dynamics(q, zero, zero, np.asarray(fit.theta, dtype=float)) - g_file
+    difference = model.inverse_dynamics(q, zero, zero, np.asarray(theta, dtype=float)) - g_file
     bodies = np.abs(model.parameter_map).reshape(model.n_base, robot.n_dof, 11)[:, :, :4].max(axis=(0, 2))
     last = int(np.flatnonzero(bodies > 0)[-1])  # the last link with mass carries a body at the flange
     flange = np.stack(

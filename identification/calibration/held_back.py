@@ -61,9 +61,11 @@ from identification.calibration.absorbed_effect import (
 from identification.calibration.envelope_report import (
     DIAGNOSE_ROUTE,
     MIN_REFUSED_SIGMA,
+    named_by_departure,
     named_from_evidence,
     pressed_findings,
 )
+from identification.calibration.gravity_departure import theta_departures
 from identification.calibration.prior_pull import prior_scale
 from identification.data.excitation_check import joint_label
 
@@ -293,9 +295,17 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     """``(envelope, note)``: the fit's envelope findings named from the same evidence as the parameters it holds back
     (``envelope_report.named_from_evidence``: a pushed link takes the effects of its most significant parameter among
     them) and the ``held_note`` of those (``held_back``'s arguments; ``kt``: the torque constants where the torque
-    is motor current, None for joint torques)."""
+    is motor current, None for joint torques). A proximal link the bounds name a payload is then named a counterbalance
+    where the fitted gravity torque of a joint it carries departs from the robot file's alone on the prepared training
+    recordings (``envelope_report.named_by_departure``, ``gravity_departure``)."""
     items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
-    return named_from_evidence(envelope, items, model, robot, kt is not None), held_note(items)
+    named = named_from_evidence(envelope, items, model, robot, kt is not None)
+    if len(fitted) > 4:  # a link still named a payload beside one: a joint's gravity departing alone says balancer
+        theta = np.asarray(fitted[0], dtype=float)[: model.n_base]
+        named = named_by_departure(
+            named, lambda: theta_departures(robot, model, fitted[4], theta), robot, kt is not None
+        )
+    return named, held_note(items)
 
 
 def held_note(items) -> tuple:

@@ -3,8 +3,8 @@
 References: the virtual robot's hidden truth. A tool at the flange alone is a payload on every pushed link and no
 counterbalance is named; a cam counterbalance on joint 2 beside the tool is named on joint 2 although the tool's
 parameters of link 5 are the most significant (a second effect is not crowded out); the heavy virtual arm (slow) with
-its cam counterbalance held inside link 2's envelope by the pull alone. The naming itself (``named_from_evidence``)
-against hand-made findings and held-back items.
+its cam counterbalance taken into link 2 up to its envelope, named by joint 2's gravity departure. The naming itself
+(``named_from_evidence``, ``named_by_departure``) against hand-made findings, held-back items and departures.
 """
 
 from __future__ import annotations
@@ -15,7 +15,14 @@ import numpy as np
 import pytest
 
 from identification.calibration.diagnosis_prior import diagnosis_prior
-from identification.calibration.envelope_report import EnvelopeFinding, named_from_evidence, pressed_findings, where
+from identification.calibration.envelope_report import (
+    EnvelopeFinding,
+    named_by_departure,
+    named_from_evidence,
+    pressed_findings,
+    where,
+)
+from identification.calibration.gravity_departure import GravityDeparture
 from identification.calibration.held_back import HeldBack, stored_held_back
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.virtual import effects as xp
@@ -92,27 +99,47 @@ def test_a_pushed_link_takes_the_effects_of_its_most_significant_held_parameter(
     assert where(replace(three, effect_joint=-1)) == three.joint
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="the physical balancer is named a payload: without an offset column link 2 takes it (474.6 kg: robot file "
-    "292.5, truth 246.3) and its pressed bound is named 'payload' (on joint 5, no counterbalance alternative); no "
-    "held-back gravity term of link 2 names it (the held back parameters are link 5's, for the tool)",
-)
+def test_a_proximal_link_named_a_payload_is_a_counterbalance_where_its_joints_gravity_departs_alone(denso):
+    """The bounds name every link pushed outward beside a payload a payload; a proximal one is named a counterbalance
+    on the joint whose gravity torque departs from the file's alone, among those its weight carries up to its own (not a
+    joint beyond it; the largest where several depart), the payload the alternative and the departure the evidence. The
+    last two links with mass and a drive's bound keep their naming; no departures, nothing renamed; the departures are
+    not computed where no link could be renamed."""
+    link2, link3, link5 = (replace(_finding(i, ("envelope",), "payload", 4), pressed=True) for i in (1, 2, 4))
+    drive = _finding(1, ("drive inertia upper",), "payload", 1)
+    on_2, on_3, on_5 = (GravityDeparture(j, size, 5e3, 0.95, 0.6) for j, size in ((1, 900.0), (2, 1200.0), (4, 3e3)))
+    named = named_by_departure((link2, link3, link5, drive), {1: on_2, 2: on_3, 4: on_5}, denso)
+    two, three, five, same = named
+    assert (two.absorbs, two.effect_joint, two.alternatives) == ("counterbalance", 1, ("payload",))
+    assert two.evidence == on_2.evidence and "counterbalance or spring on joint 2" in two.message
+    assert "The evidence (the fitted gravity torque of joint 2 leaves" in two.message and "payload" in two.message
+    assert (three.absorbs, three.effect_joint) == ("counterbalance", 2)  # the largest up to its own joint, not joint 5
+    assert five == link5 and same == drive
+    assert named_by_departure((link2, link5), {}, denso) == (link2, link5)
+    assert named_by_departure((link5,), lambda: pytest.fail("computed"), denso) == (link5,)
+
+
 @pytest.mark.slow
 def test_the_heavy_arms_counterbalance_inside_its_envelope_is_named(benchmark_modules):
-    """The heavy virtual arm (``benchmarks/heavy_arm.py``, seed 0): a 100-200 kg tool pushes link 5; the cam
-    counterbalance on joint 2 is absorbed inside link 2's envelope, held by the pull (the data ask for about 100 times
-    the file's size of link 2's gravity torque). Before, three parameters of link 5 filled the report and the
-    counterbalance was never named; now it is, on joint 2, beside the payload."""
+    """The heavy virtual arm (``benchmarks/heavy_arm.py``, seed 0) without an offset column: a 100-200 kg tool pushes
+    link 5, and link 2 takes the cam counterbalance on joint 2 into its first moment up to its envelope. Because a
+    payload pulls every link outward, link 2's bound was named a payload too and the counterbalance was never named
+    (the fit holds none of link 2's parameters back: it gives them what the data want). Now the fitted gravity
+    torque of joint 2, which departs from the robot file's on that joint alone, names it on joint 2 beside the payload,
+    opposing about the share of the file's gravity torque the simulated balancer takes on the recorded poses."""
     from diagnosis import _scenario
     from heavy_arm import EFFECTS, heavy_industrial_arm
 
+    from identification.virtual.counterbalance import balance
     from psdm_casadi import derive_psdm
 
     robot = heavy_industrial_arm()
-    _, train, _ = _scenario("heavy", robot, EFFECTS, np.random.default_rng(0), 0)
+    truth, train, _ = _scenario("heavy", robot, EFFECTS, np.random.default_rng(0), 0)
     fit = identify_trajectories(robot, derive_psdm(robot), [train], TrajectoryOptions())
     assert any(f.link == 4 and f.absorbs == "payload" for f in fit.envelope)
-    held = stored_held_back(fit.envelope_bounds)
-    cam = [h for h in held if h.absorbs == "counterbalance" and h.effect_joint == 1]
-    assert cam and cam[0].words.startswith("the gravity torque of link 2") and cam[0].file_sizes > 10
+    (link2,) = [f for f in fit.envelope if f.link == 1 and f.pressed]
+    assert (link2.absorbs, link2.effect_joint, link2.alternatives) == ("counterbalance", 1, ("payload",))
+    assert "counterbalance or spring on joint 2" in link2.message and "payload" in link2.message
+    cam = next(effect for _, _, effect, p in truth if "share" in p)
+    stated = float(link2.evidence.split("opposing ")[1].split("%")[0]) / 100.0
+    assert stated == pytest.approx(balance(robot, cam, train.q[::20]).share, abs=0.15)
