@@ -107,11 +107,19 @@ def faded_sines(robot: RobotDescription, duration: float, rng: np.random.Generat
 
 
 def write_current_recordings(
-    folder: Path, arm: CurrentArm, runs, rng: np.random.Generator, q_prefix: str = "q_", i_prefix: str = "i_"
+    folder: Path,
+    arm: CurrentArm,
+    runs,
+    rng: np.random.Generator,
+    q_prefix: str = "q_",
+    i_prefix: str = "i_",
+    extras=(),
 ) -> tuple:
     """Write ``<run.name>.csv`` (columns ``timestamp``, ``<q_prefix>1..n``, ``<i_prefix>1..n``) per run into
     ``folder``, the true arm's motor currents with noise, and ``<run.name>.payload.json`` where the run carries a
-    payload. Returns the recordings' paths, in the order of ``runs``; the same ``rng`` state gives the same files.
+    payload. ``extras``: effects the true arm has beside its rigid body and drives (``virtual.effects``: a spring, a
+    friction hump), in every run, which the user's file does not state. Returns the recordings' paths, in the order of
+    ``runs``; the same ``rng`` state gives the same files.
     """
     folder.mkdir(parents=True, exist_ok=True)
     n = arm.truth.n_dof
@@ -123,7 +131,7 @@ def write_current_recordings(
         payload = None if load is None else Payload(mass=load["mass"], com=np.array(load["com"]))
         options = SimulationOptions(rate=RATE, record_tau=True, record_current=False, tau_noise_std=0.0,
                                     payload=payload, q_noise_std=0.0)  # fmt: skip
-        rec, _ = simulate_recording(arm.truth, faded_sines(arm.truth, run.duration, rng), options, rng)
+        rec, _ = simulate_recording(arm.truth, faded_sines(arm.truth, run.duration, rng), options, rng, extras)
         current = rec.tau / gain + rng.normal(0.0, arm.current_noise, rec.tau.shape)
         path = folder / f"{run.name}.csv"
         np.savetxt(path, np.column_stack([rec.t, rec.q, current]), delimiter=",", header=",".join(header),

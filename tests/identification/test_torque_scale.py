@@ -18,6 +18,7 @@ from identification.calibration.torque_scale import corrected_robot_text, torque
 from identification.data.configuration import recordings_with_configurations
 from identification.data.layout import ColumnLayout
 from identification.data.robot_recordings import load_robot_recording
+from identification.virtual.effects import TorqueRipple
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
 from psdm_casadi.robot import load_robot
@@ -177,23 +178,32 @@ def test_currents_without_a_known_payload_beside_unloaded_runs_say_the_constants
         assert ("add a recording without it" in block["reason"]) == (data == [case.run2])
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="since the gain rule (c1cf662) diagnose --apply writes nothing here: the case hides no effect but the "
-    "constants, and its findings (rotor_inertia[j3], [j4], presliding[j1], [j4]) hold no torque in the model written "
-    "(lower in 0 % of draws), so there is no refit file whose constants to check; the test needs a case with a true "
-    "effect beside the wrong constants",
-    raises=FileNotFoundError,
-)
+#: A cogging ripple on joint 1 of the true arm, which the user's file does not state: a true effect beside the wrong
+#: constants, which identify does not model (a sixth harmonic of the angle: no link or friction term takes it).
+RIPPLE = TorqueRipple(joint=0, amplitude=1.5, harmonic=6.0)
+
+
+@pytest.fixture(scope="module")
+def ripple_case(tmp_path_factory):
+    """The wrong constants of ``WRONG`` and ``RIPPLE`` on the true arm: a diagnosis has a finding to write."""
+    return write_case(tmp_path_factory.mktemp("torque_scale_ripple"), WRONG, seed=1, extras=(RIPPLE,))
+
+
 @pytest.mark.slow
-def test_a_refit_of_the_model_keeps_the_corrected_constants_and_their_record(cases, tmp_path, capsys):
-    case = cases[WRONG]
+def test_a_refit_of_the_model_keeps_the_corrected_constants_and_their_record(ripple_case, tmp_path, capsys):
+    """Identify corrects the constants from the loaded and unloaded runs; ``diagnose --apply`` finds the ripple, writes
+    it with the model refitted, and the refit reads the currents with the corrected constants: the model file's robot
+    text and its torque-scale record are the identified model's, the ripple the truth's."""
+    case = ripple_case
     model, applied = tmp_path / "m.json", tmp_path / "applied.json"
-    _identify(case, model, capsys)
+    assert _identify(case, model, capsys)["torque_scale"]["taken"]
     args = ["diagnose", str(model), "--train", str(case.run1), "--validate", str(case.val1), "--apply", str(applied)]
     assert main(args) == 0
     capsys.readouterr()
     before, after = (json.loads(p.read_text()) for p in (model, applied))
+    (ripple,) = [f for f in after["findings"] if f["joints"] == [RIPPLE.joint + 1]]
+    assert ripple["effect"] == "torque_ripple" and ripple["parameters"]["harmonic"] == RIPPLE.harmonic
+    assert ripple["parameters"]["amplitude"] == pytest.approx(RIPPLE.amplitude, rel=0.1)  # the true effect
     assert after["robot"] == before["robot"]  # the corrected motor_kt
     assert after["identification"]["torque_scale"] == before["identification"]["torque_scale"]
 

@@ -65,12 +65,13 @@ def cobot() -> CurrentArm:
                       current_noise=CURRENT_NOISE)  # fmt: skip
 
 
-def write_case(folder: Path, kt_error, seed: int = 0, seconds: float = 10.0) -> ScaleCase:
-    """Write the robot file and the three recordings into ``folder``."""
+def write_case(folder: Path, kt_error, seed: int = 0, seconds: float = 10.0, extras=()) -> ScaleCase:
+    """Write the robot file and the three recordings into ``folder`` (``extras``: effects of the true arm the file
+    does not state, ``write_current_recordings``)."""
     folder.mkdir(parents=True, exist_ok=True)
     arm = cobot()
     robot = folder / "cobot.toml"
     robot.write_text(arm.robot_file(kt_error))
     runs = (CurrentRun("run1", seconds), CurrentRun("run2", seconds, PAYLOAD), CurrentRun("val1", 0.7 * seconds))
-    paths = write_current_recordings(folder, arm, runs, np.random.default_rng(seed))
+    paths = write_current_recordings(folder, arm, runs, np.random.default_rng(seed), extras=extras)
     return ScaleCase(robot, *paths, kt_error=tuple(kt_error))
