@@ -22,6 +22,7 @@ from identification.calibration.column_check import check_departures, written_mo
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
+from identification.calibration.file_judged import file_judged, file_training
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.one_way_friction import (
     OneWayFriction,
@@ -176,6 +177,7 @@ def identify_recordings(
     worse_joint: str = "hold",
     friction_drift: str = "auto",
     temperatures=None,
+    held_configurations=None,
 ) -> IdentifyResult:
     """Identify a calibrated model from exciting recordings as ``psdm identify`` does (module docstring).
 
@@ -214,6 +216,10 @@ def identify_recordings(
         ``(per training recording, per held-out recording)`` the joints' mean temperatures [°C] the recordings log
         (``data.temperature.logged_temperatures``; None for one that logs none): a drift the temperature explains
         is read along it.
+    held_configurations : sequence of data.configuration.PayloadConfiguration, optional
+        The load each held-out recording states (``held_out_arm.held_out_configurations``): one that carries the
+        training recordings' unknown payload, taken off as the fit estimates it, does not judge the robot file
+        (``file_judged``).
     """
     check_one_way_mode(one_way)
     check_drift_mode(friction_drift)
@@ -222,6 +228,7 @@ def identify_recordings(
     request = ColumnRequest() if request is None else request
     recordings, validation = list(recordings), list(validation)
     configurations, unstated = _unstated_loads(robot, model, recordings, options, configurations)
+    judged = file_judged(validation, held_configurations, configurations)  # what the robot file is judged on
     logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")
     choice = choose_columns(robot, model, recordings, options, request, validation, configurations)
     if request.friction != "lugre":  # each recording's own friction (``drift_choice``); the columns chosen again
@@ -252,9 +259,9 @@ def identify_recordings(
         apart = tuple(sorted({*options.rotors_apart, *rotors.joints}))
         options = replace(options, rotors_apart=apart)  # every later fit takes them apart too
         problem = (robot, model, recordings, choice.options(options), configurations)
-        fit, held = _one_way(problem, fit, validation, one_way, source)
+        fit, held = _one_way(problem, fit, judged, one_way, source)
         chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
-        fit, chosen, mended = _worse_joints(problem, chosen, fit, validation, worse_joint, source)
+        fit, chosen, mended = _worse_joints(problem, chosen, fit, judged, worse_joint, source)
         held = held.replaced_by(mended.held_friction)  # one value per held column: the one in effect
         start = fit
     saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
@@ -271,7 +278,7 @@ def identify_recordings(
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
     if rotors.verdicts:  # stated with the other column choices
         calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
-    check = _file_check(robot, model, recordings, validation, chosen, final, calibrated, configurations)
+    check = _file_check(robot, model, recordings, judged, chosen, final, calibrated, configurations)
     check = replace(check, held=held.held_joints, held_links=mended.held_links)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
@@ -323,10 +330,11 @@ def _carries_payloads(configurations) -> bool:
     return configurations is not None and any(c.payload is not None or c.unknown for c in configurations)
 
 
-def _refit_and_judge(problem, validation, source) -> tuple:
+def _refit_and_judge(problem, judged, source) -> tuple:
     """``(refit, judge)`` for the holds that follow the fit: ``refit(options) -> TrajectoryFit`` on the training
     recordings, ``judge(fit) -> FileCheck`` of its calibrated model against the robot file on ``validation``, with
-    the options of ``problem`` (``(robot, model, recordings, options, configurations)``)."""
+    the options of ``problem`` (``(robot, model, recordings, options, configurations)``), ``judged`` the
+    ``file_judged.FileJudged`` held-out recordings."""
     robot, model, recordings, options, configurations = problem
 
     def refit(trial_options):
@@ -334,12 +342,12 @@ def _refit_and_judge(problem, validation, source) -> tuple:
 
     def judge(candidate):
         calibrated = CalibratedModel.from_fit(robot, model, candidate, robot_source=source)
-        return _file_check(robot, model, recordings, validation, options, candidate, calibrated, configurations)
+        return _file_check(robot, model, recordings, judged, options, candidate, calibrated, configurations)
 
     return refit, judge
 
 
-def _one_way(problem, fit, validation, mode, source) -> tuple:
+def _one_way(problem, fit, judged, mode, source) -> tuple:
     """``(fit, OneWayFriction)``: the undetermined friction of the joints that move one way only held to the robot
     file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``)."""
     from identification.calibration.column_candidates import prepare_training
@@ -347,22 +355,23 @@ def _one_way(problem, fit, validation, mode, source) -> tuple:
     robot, _, recordings, options, configurations = problem
     if _carries_payloads(configurations):
         return fit, OneWayFriction(mode=mode, reason="fitted from the data (the recordings carry payloads)")
-    refit, judge = _refit_and_judge(problem, validation, source)
+    refit, judge = _refit_and_judge(problem, judged, source)
     prepared = prepare_training(robot, recordings, options).prepared
-    return hold_one_way_friction((*problem, refit), fit, prepared, mode, judge if validation else None)
+    return hold_one_way_friction((*problem, refit), fit, prepared, mode, judge if judged.recordings else None)
 
 
-def _worse_joints(problem, options, fit, validation, mode, source) -> tuple:
+def _worse_joints(problem, options, fit, judged, mode, source) -> tuple:
     """``(fit, options, WorseJointHold)``: the links of the joints the robot-file check names worse on the held-out
     recordings held to what the robot file predicts there where that mends them (``worse_joint_hold``); not tried
-    without held-out recordings, links in the robot file, or with payloads it does not carry."""
-    from identification.calibration.column_candidates import prepare_training
-
+    where the robot file cannot be judged (no held-out recording it is judged on, no links in it, every training
+    recording with an unknown payload: ``file_judged``)."""
     robot, model, recordings, _, configurations = problem
-    if _carries_payloads(configurations) or not validation or robot.links is None:
+    if not judged.recordings or robot.links is None:
         return fit, options, WorseJointHold(mode=mode)
-    refit, judge = _refit_and_judge((robot, model, recordings, options, configurations), validation, source)
-    prepared = prepare_training(robot, recordings, options).prepared
+    prepared = file_training(robot, recordings, options, configurations)  # the file's friction fitted without loads
+    if not prepared:
+        return fit, options, WorseJointHold(mode=mode)
+    refit, judge = _refit_and_judge((robot, model, recordings, options, configurations), judged, source)
 
     def friction_of(candidate, joints):
         return file_friction_values(robot, candidate, prepared, joints)
@@ -393,17 +402,21 @@ def _checked_fit(robot, model, recordings, options, choice, validation, configur
 
 
 def _file_check(robot, model, recordings, validation, options, fit, calibrated, configurations) -> FileCheck:
-    """The model written against the robot file on the held-out recordings (``robot_file_check``). A known payload
-    (stated in a sidecar) is the robot file's too: its torque is taken off the training recordings the file's friction
-    is fitted on, as the identification takes it off; an unknown one the file cannot hold."""
-    from identification.calibration.column_candidates import prepare_training
-    from identification.calibration.payload_fit import subtract_known_payloads
-
-    if configurations is not None and any(c.unknown for c in configurations):
-        return FileCheck(reason="the recordings carry an unknown payload the robot file does not")
-    if not validation or robot.links is None:
-        return check_against_file(robot, model, calibrated, fit, (), validation, options)
-    prepared = subtract_known_payloads(robot, prepare_training(robot, recordings, options).prepared, configurations)
+    """The model written against the robot file on the held-out recordings (``robot_file_check``), ``validation`` the
+    ``FileJudged`` held-out recordings. A known payload (stated in a sidecar) is the robot file's too: its torque is
+    taken off the training recordings the file's friction is fitted on, as the identification takes it off. A training
+    recording with an unknown payload is left out of that friction fit (the file cannot hold its load); the held-out
+    torque does not depend on it, so the check is made unless every training recording carries one."""
+    if validation.reason:
+        return FileCheck(reason=validation.reason)
+    if not validation.recordings or robot.links is None:
+        return check_against_file(robot, model, calibrated, fit, (), validation.recordings, options)
+    prepared = file_training(robot, recordings, options, configurations)
+    if not prepared:
+        return FileCheck(reason="every training recording carries an unknown payload the robot file does not: its "
+                         "friction has no recording to be fitted on without that load (record one without it, or "
+                         "state the load in a sidecar)")  # fmt: skip
+    validation = validation.recordings
     pull = dict(fit.envelope_bounds).get("prior")
     samples = None if pull is None else PriorPull.from_note(pull).effective_samples
     return check_against_file(robot, model, calibrated, fit, prepared, validation, options, samples)

@@ -243,7 +243,8 @@ def _judged_route(args, problem, validation, paths, arm) -> tuple:
                                          configurations, counterbalance=not args.no_counterbalance,
                                          robot_source=args.robot, paths=paths, one_way=args.one_way_friction,
                                          worse_joint=args.worse_joint, friction_drift=args.friction_drift,
-                                         temperatures=_temperatures(recordings, validation))  # fmt: skip
+                                         temperatures=_temperatures(recordings, validation),
+                                         held_configurations=arm.configurations)  # fmt: skip
         judged, arm = arm, arm.rejudged(robot, model, result.calibrated, validation, options)
     return result, judged
 
