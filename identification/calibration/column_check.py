@@ -24,6 +24,11 @@ fitted reused, and the plain rule's fit of all the training data made only where
 short to cut into blocks, or carrying payloads, leave the choice as the held-out verdict made it, and its reason
 says so.
 
+An offset the plain rule keeps is checked the same way when validation recordings are given (``Evidence.written``,
+``column_choice``: a friction error the joint shows at other speeds one way than the other takes a constant column),
+its plain rival the model without it: it stays if it lowers its own joint's held-out error there (the plain rule
+kept it; the other joints' margins are not asked of it).
+
 A judge must be a converged fit: a fit the judge compares that stopped at Ipopt's iteration cap
 (``Maximum_Iterations_Exceeded``; a consistent fit that did not converge otherwise raises, and a fold that raises
 cannot be judged) is not judged on (``UnconvergedFit``), and the column goes as the training BIC decides, the reason
@@ -78,6 +83,9 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
     for evidence in choice.departures:
         current = next(e for e in choice.evidence if (e.term, e.joint) == (evidence.term, evidence.joint))
         plain = choice.decided(current, not current.kept, current.reason)
+        rules = ("without it", "with it") if current.written else ("as the training BIC decides", "as the held-out "
+                                                                    "data decide")  # fmt: skip
+        outcome = "so it is left out" if current.written else "so the training BIC decides"
         plain_fit = cache(partial(fit_of, plain))  # fitted only if the judge or a flip needs it
         what = "keeping" if current.kept else "refusing"
         try:
@@ -86,7 +94,10 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
             reason = (
                 f"{current.reason}; not checked on the model identify writes ({failure}), so the training BIC decides"
             )
-            choice, fit = choice.decided(current, not current.kept, reason), plain_fit()
+            if current.written:  # the plain rule kept it: it stands as the training BIC decided it
+                choice = choice.decided(current, current.kept, reason)
+            else:
+                choice, fit = choice.decided(current, not current.kept, reason), plain_fit()
             logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
             continue
         except FoldFailure as failure:
@@ -94,15 +105,22 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
             choice = choice.decided(current, current.kept, reason)
             logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
             continue
-        if comparison.worse:
+        j = current.joint
+        if current.written and comparison.after[j] >= comparison.before[j]:  # its own joint decides a written one
+            reason = (f"{current.reason}; but the model identify writes predicts joint {j + 1} no better with it "
+                      f"({comparison.text([j])}, {rules[0]} -> {rules[1]}), so it is left out")  # fmt: skip
+            choice, fit = choice.decided(current, False, reason), plain_fit()
+        elif comparison.worse and not current.written:
             reason = (f"{current.reason}; but {what} it makes the model identify writes worse on the held-out "
-                      f"data: {comparison.text()} (as the training BIC decides -> as the held-out data decide), so "
-                      "the training BIC decides")  # fmt: skip
+                      f"data: {comparison.text()} ({rules[0]} -> {rules[1]}), {outcome}")  # fmt: skip
             choice, fit = choice.decided(current, not current.kept, reason), plain_fit()
+        elif current.written:
+            reason = (f"{current.reason}; the model identify writes predicts joint {j + 1} better with it "
+                      f"({comparison.text([j])}, {rules[0]} -> {rules[1]})")  # fmt: skip
+            choice = choice.decided(current, current.kept, reason)
         else:
             reason = (f"{current.reason}; the model identify writes is no worse on any held-out joint for {what} it "
-                      f"({comparison.text([current.joint])}, as the training BIC decides -> as the held-out data "
-                      "decide)")  # fmt: skip
+                      f"({comparison.text([current.joint])}, {rules[0]} -> {rules[1]})")  # fmt: skip
             choice = choice.decided(current, current.kept, reason)
         logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
     return choice, fit

@@ -39,7 +39,8 @@ class Evidence:
     better); ``estimate`` and ``std``: its least-squares value in the full model (per-joint columns); ``departs``: the
     verdict departs from the plain rule's (the training BIC's sign and the pooled held-out error), so the held-out
     data alone decided it (an indifferent BIC and the gain asked, or a rise on one validation recording): identify
-    checks such a column on the model it writes (``column_check``).
+    checks such a column on the model it writes (``column_check``); ``written``: an offset kept by the plain rule that
+    identify checks on the model it writes all the same, with validation recordings (``column_choice``, step 3).
     """
 
     term: str
@@ -51,6 +52,7 @@ class Evidence:
     estimate: float | None = None
     std: float | None = None
     departs: bool = False
+    written: bool = False
 
     def to_dict(self) -> dict:
         out = asdict(self)
