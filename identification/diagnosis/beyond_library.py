@@ -104,7 +104,7 @@ def _drop_stand_ins(problem, final, proposals, identified) -> tuple:
         return proposals, ()
     labels = [p.term.label for p in proposals if p.term.joint in joints]
     action = "the sparse term was left out"
-    note = stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action)
+    note = stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action, ref.options.nominal)
     logger.info(f"diagnose: {note}")
     return tuple(p for p in proposals if p.term.joint not in joints), (note,)
 

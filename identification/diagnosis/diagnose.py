@@ -222,7 +222,7 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
         enveloped = EnvelopedRecalibration(robot, model, contexts, friction, options.held_links, options.rotors_apart)
         envelope = enveloped.check if options.envelope else None
         fit = drop_stand_ins(reselect, library, (selection, final), selection_i, problem.y_v, rmse_recal, envelope,
-                             carried=carried_labels(options))  # fmt: skip
+                             carried=carried_labels(options), nominal=options.nominal)  # fmt: skip
         notes = tuple(law.note() for law in backed if law.label in {s.term.label for s in fit[0].steps}) + fit[2]
         for note in notes:
             logger.info(f"diagnose: {note}")
@@ -249,7 +249,8 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
                 logger.info(f"diagnose: {line}")
     moved = moved_parameters(model, robot, theta, kt=problem.ctx_t.torque_constants)
     n = robot.n_dof
-    note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved)
+    note = inertial_note(effects, float(rmse_prior @ weights) / n, float(rmse_recal @ weights) / n, moved,
+                         options.nominal)  # fmt: skip
     notes = (note,) + ((named,) if named else ()) + balanced
     return recal, selection_i, final_i, identified, notes, None
 

@@ -108,7 +108,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held, coulomb_velocity=smooth, carried=carried,
                    held_links=options.held_links or holds.held_links,
-                   rotors_apart=options.rotors_apart or holds.rotors_apart,
+                   rotors_apart=options.rotors_apart or holds.rotors_apart, nominal="model file",
                    viscous_power=bool(calibrated.document["drive"].get("viscous_exponent")))  # fmt: skip
 
 

@@ -114,6 +114,9 @@ class DiagnosisOptions:
         Joints (0-based) whose merged drive inertia every enveloped recalibration takes from the data rather than the
         same actuator's (``TrajectoryOptions.rotors_apart``): a model file's, which identify took apart where the
         held-out data confirmed it (``calibration.rotors_apart``, ``model_file_options``).
+    nominal : str
+        What the nominal model's inertia is, as the report names it: ``"robot file"`` (default) or ``"model file"``
+        (``model_file_options``: identify's rigid body).
     viscous_power : bool
         The Coulomb-viscous nominal keeps the drives' viscous exponents ``dv`` (a model file's viscous power law,
         ``viscous_power``; set by ``model_file_options``). Otherwise ``"coulomb_viscous"`` is linear in the velocity,
@@ -146,6 +149,7 @@ class DiagnosisOptions:
     held_links: tuple = ()
     viscous_power: bool = False
     rotors_apart: tuple = ()
+    nominal: str = "robot file"
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (

@@ -185,15 +185,15 @@ def stand_ins(selection, selection_identified, rmse_prior, rmse_recalibrated, ne
     return standing_in(claims, supporting, rmse_prior, rmse_recalibrated, needed)
 
 
-def stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action: str) -> str:
-    """The report's sentence on findings (``labels``) on ``joints`` that stand in for the robot file's inertia
+def stand_in_note(labels, joints, rmse_prior, rmse_recalibrated, action: str, nominal: str = "robot file") -> str:
+    """The report's sentence on findings (``labels``) on ``joints`` that stand in for the ``nominal`` file's inertia
     (``standing_in``); ``action`` says what was done about them."""
     pairs = "; ".join(f"joint {j + 1}: {rmse_prior[j]:.4g} with them, {rmse_recalibrated[j]:.4g}" for j in joints)
     return (
         f"{', '.join(f'`{x}`' for x in labels)} not reported as missing physics: the prior model needed an "
-        "inertial finding (the robot file's inertia is in question), and with the rigid body identified the "
+        f"inertial finding (the {nominal}'s inertia is in question), and with the rigid body identified the "
         f"diagnosis needs no finding there and predicts those joints about as well (validation RMSE {pairs} "
-        f"recalibrated), so they stand in for the robot file's inertia; {action}."
+        f"recalibrated), so they stand in for the {nominal}'s inertia; {action}."
     )
 
 
@@ -208,14 +208,14 @@ def without_stand_ins(instances, joints, keys=()) -> tuple:
 
 
 def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation, rmse_recalibrated, envelope=None,
-                   carried=()):  # fmt: skip
+                   carried=(), nominal="robot file"):  # fmt: skip
     """The prior fit without the findings that stand in for its wrong inertia (``stand_ins``): ``(selection, final,
     notes)``. ``reselect(instances)`` runs the prior diagnosis's selection and final fit on the candidate
     ``instances``; ``fit`` is its ``(selection, final)`` on all of them. Up to ``STAND_IN_PASSES`` rounds, since a
     new selection may take another stand-in. ``envelope(selection, joints)``, when given, is the
     ``envelope_check.EnvelopeCheck`` of the findings on ``joints`` that would be dropped: those it needs stand. The
     terms labelled ``carried`` (a model file's counterbalance, ``carried_terms``) are the nominal model's: never
-    dropped."""
+    dropped. ``nominal`` names the prior's inertia in the notes (``DiagnosisOptions.nominal``)."""
     selection, final = fit
     notes = []
     for _ in range(STAND_IN_PASSES):
@@ -233,7 +233,7 @@ def drop_stand_ins(reselect, instances, fit, selection_identified, y_validation,
         labels = [step.term.label for step in selection.steps if step.term not in kept]
         named = sorted({j for step in selection.steps if step.term not in kept for j in step.joints})
         action = "the diagnosis was repeated without them"
-        notes.append(stand_in_note(labels, named, rmse_prior, rmse_recalibrated, action))
+        notes.append(stand_in_note(labels, named, rmse_prior, rmse_recalibrated, action, nominal))
         instances = without_stand_ins(instances, joints, keys)
         selection, final = reselect(instances)
     return selection, final, tuple(notes)
@@ -251,13 +251,14 @@ def moved_parameters(model, robot, theta_identified, count: int = N_MOVED, kt=No
     return [(str(model.base_names[k]), float(prior[k]), float(theta[k]), float(relative[k])) for k in order]
 
 
-def inertial_note(effects, error_prior: float, error_recalibrated: float, moved) -> str:
+def inertial_note(effects, error_prior: float, error_recalibrated: float, moved, nominal: str = "robot file") -> str:
     """The report's sentence when the recalibration beats the prior model's findings ``effects`` (effect names);
-    the errors are the joint-weighted validation RMSE sums of ``prior_wins`` (fractions of the torque RMS)."""
+    the errors are the joint-weighted validation RMSE sums of ``prior_wins`` (fractions of the torque RMS);
+    ``nominal`` names whose inertia the prior was (``DiagnosisOptions.nominal``)."""
     names = ", ".join(f"`{e}`" for e in effects) or "its findings"
     listed = "; ".join(f"{name} {a:.4g} -> {b:.4g} ({r:.0%})" for name, a, b, r in moved)
     return (
-        f"the robot file's inertial parameters are off: with them the model needs {names} and still predicts the "
+        f"the {nominal}'s inertial parameters are off: with them the model needs {names} and still predicts the "
         f"validation recording worse (mean relative RMSE {error_prior:.3g}) than a full rigid-body recalibration "
         f"({error_recalibrated:.3g}), so those findings are not reported as missing physics and the rigid body is "
         f"identified. Base parameters that moved most (file -> identified, relative change): {listed}."

@@ -142,6 +142,7 @@ def test_the_library_s_defaults_are_identify_s_preparation_and_samples(denso_fil
     from identification.data.io import load_recording
     from identification.diagnosis.diagnose import DiagnosisOptions, prepare_problem
     from identification.diagnosis.model_file import model_file_options
+    from identification.diagnosis.rigid_body_choice import inertial_note, stand_in_note
 
     train, valid = (load_recording(denso_files / name, 6) for name in ("train.csv", "valid.csv"))
     resolved = DiagnosisOptions().for_recording(train, denso)
@@ -157,6 +158,12 @@ def test_the_library_s_defaults_are_identify_s_preparation_and_samples(denso_fil
     assert (own.cutoff_hz, own.rate_hz, own.samples, own.friction) == (8.0, 80.0, "identify", "coulomb_viscous")
     stated = model_file_options(calibrated, DiagnosisOptions(cutoff_hz=12.0))  # a stated cutoff: identify's grid
     assert stated.for_recording(train).rate_hz == 120.0
+    # the report names the nominal inertia it started from: the model file's (identify's), not the robot file's
+    assert (own.nominal, resolved.nominal) == ("model file", "robot file")
+    note = inertial_note(("payload",), 0.2, 0.1, [("m2", 1.0, 2.0, 1.0)], own.nominal)
+    assert note.startswith("the model file's inertial parameters are off")
+    stand_in = stand_in_note(["spring[j2]"], [1], [1.0, 1.0], [1.0, 1.0], "kept", own.nominal)
+    assert "the model file's inertia is in question" in stand_in
 
 
 @pytest.mark.slow
