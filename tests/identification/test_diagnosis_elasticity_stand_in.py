@@ -83,8 +83,8 @@ def test_a_true_wrist_elasticity_that_holds_where_the_joint_moves_is_named(denso
 @pytest.mark.slow
 def test_the_unseen_ur5_s_friction_dominated_wrist_gets_no_elasticity(tmp_path):
     # the UR5-like arm on motor currents (500 Hz, LuGre drives, no elasticity): identify, then diagnose as
-    # benchmarks/unseen_arms.py runs them; pre-sliding on joint 5 fits it best but does not hold on the blocks, and the
-    # elasticity after it (3900-4600 N m/rad, 0.02 deg at the joint's RMS torque) is not named
+    # benchmarks/unseen_arms.py runs them; joint 5's reversals are what an elasticity could stand in for
+    # (3900-4600 N m/rad, 0.02 deg at the joint's RMS torque), and it is not named
     bench = str(Path(__file__).resolve().parents[2] / "benchmarks")
     sys.path.insert(0, bench)
     try:
@@ -101,7 +101,9 @@ def test_the_unseen_ur5_s_friction_dominated_wrist_gets_no_elasticity(tmp_path):
         sys.path.remove(bench)
     assert code == 0, text
     assert not [f for f in report["findings"] if f["effect"] == "joint_elasticity"], json.dumps(report["findings"])
-    # judged on the samples where joint 5 moves, the elasticity lowers it by less than the selection's gain on the
-    # training blocks taken together: unstable (before, with the standstill samples in, it held there and was dropped
-    # as a stand-in for pre-sliding, ``FrictionRival.stand_in``)
-    assert any(u["label"] == "joint_elasticity[j5]" for u in report["unstable"]), json.dumps(report["unstable"])
+    # they are taken by the pre-sliding the truth's LuGre drive has: since diagnose MODEL fits the file's drive
+    # inertias again beside its findings (475add4), pre-sliding on joint 5 holds on the blocks and is found, more than
+    # halving the joint's validation error (before, it did not hold, and the elasticity tried after it was unstable)
+    presliding = [f for f in report["findings"] if f["effect"] == "presliding" and f["joints"] == [5]]
+    assert presliding, json.dumps(report["findings"])
+    assert presliding[0]["rmse_after"][4] < 0.5 * presliding[0]["rmse_before"][4]
