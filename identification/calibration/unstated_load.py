@@ -20,7 +20,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from identification.data.configuration import NO_PAYLOAD, PayloadConfiguration
+from identification.data.configuration import NO_PAYLOAD, PayloadConfiguration, sidecar_path
 
 __all__ = ["UnstatedLoads", "take_unstated_loads", "unstated_label"]
 
@@ -43,7 +43,7 @@ class UnstatedLoads:
         return "; ".join(
             f"{f.name} carries {f.mass:.3g} +- {f.mass_std:.2g} kg at the flange that no sidecar states (a flange "
             f"body of its own drops its residual {100 * f.residual_drop:.0f} %): identified as the unknown payload "
-            f"'{unstated_label(f.name)}' (see its mass below); state it in {_sidecar_name(f.name)} if it is known "
+            f"'{unstated_label(f.name)}' (see its mass below); state it in {sidecar_path(f.name).name} if it is known "
             '({"mass": M, "com": [x, y, z]}), or write {"mass": 0} there if the recording carries nothing'
             for f in self.found
         )
@@ -68,12 +68,6 @@ class UnstatedLoads:
             ],  # fmt: skip
             "reason": self.reason,
         }
-
-
-def _sidecar_name(name: str) -> str:
-    path = Path(name)
-    stem = path.name[: -len(path.suffix)] if path.suffix else path.name
-    return f"{stem}.payload.json"
 
 
 def take_unstated_loads(fit_of, recordings, configurations) -> tuple:
