@@ -60,7 +60,8 @@ def test_a_counterbalance_identify_names_is_taken_with_its_shape_and_the_links_c
     over = [j + 1 for j in np.flatnonzero(worse > np.array(choice["margin"]))]  # no joint worse beyond its margin,
     assert over == [int(j) for j in choice["cleared_by_refits"]]  # unless the refits without each block clear it
     assert all(choice["cleared_by_refits"][str(j)] <= choice["margin"][j - 1] for j in over)
-    assert 2 not in over and (hidden == "cam" or not over)  # the cam's cubic raises joint 4 at its noise floor only
+    assert 2 not in over  # the other joints may rise at their noise floor only (joint 4: about 2 %)
+    assert all(worse[j - 1] < 0.05 * choice["rmse_without"][j - 1] for j in over)
 
 
 @pytest.mark.parametrize("hidden", ["payload", "nothing"])
