@@ -6,7 +6,7 @@ load nothing states, ``unstated_load``) cannot be in that friction fit: the file
 touch the held-out torque, though: a held-out recording with no load, a known one, or one ``held_out_arm`` finds on
 its own is the arm's torque, and the file is judged there as without the training load. So the friction is fitted on
 the other training recordings (``file_training``: known loads taken off, unknown ones left out), and the check and the
-never-worse holds run.
+never-worse holds run (:func:`file_check`).
 
 Two cases leave the file unjudgeable, and the reason is stated instead: every training recording carries an unknown
 payload (no recording for the file's friction), or every held-out recording carries the training recordings' unknown
@@ -18,7 +18,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["FileJudged", "file_judged", "file_training"]
+from identification.calibration.prior_pull import PriorPull
+from identification.calibration.robot_file_check import FileCheck, check_against_file
+
+__all__ = ["FileJudged", "file_check", "file_judged", "file_training"]
 
 
 @dataclass(frozen=True)
@@ -56,3 +59,25 @@ def file_training(robot, recordings, options, configurations) -> list:
     if configurations is None:
         return prepared
     return [r for r, c in zip(prepared, configurations) if not c.unknown]
+
+
+def file_check(problem, judged: FileJudged, fit, calibrated) -> FileCheck:
+    """The ``robot_file_check.FileCheck`` of ``calibrated`` (its ``fit``) against the robot file on the ``judged``
+    held-out recordings, ``problem = (robot, model, recordings, options, configurations)`` the training recordings'. A
+    known payload (stated in a sidecar) is the robot file's too: its torque is taken off the training recordings the
+    file's friction is fitted on, as the identification takes it off. A training recording with an unknown payload is
+    left out of that friction fit (``file_training``); the check is made unless every training recording carries
+    one."""
+    robot, model, recordings, options, configurations = problem
+    if judged.reason:
+        return FileCheck(reason=judged.reason)
+    if not judged.recordings or robot.links is None:
+        return check_against_file(robot, model, calibrated, fit, (), judged.recordings, options)
+    prepared = file_training(robot, recordings, options, configurations)
+    if not prepared:
+        return FileCheck(reason="every training recording carries an unknown payload the robot file does not: its "
+                         "friction has no recording to be fitted on without that load (record one without it, or "
+                         "state the load in a sidecar)")  # fmt: skip
+    pull = dict(fit.envelope_bounds).get("prior")
+    samples = None if pull is None else PriorPull.from_note(pull).effective_samples
+    return check_against_file(robot, model, calibrated, fit, prepared, judged.recordings, options, samples)

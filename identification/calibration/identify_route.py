@@ -4,8 +4,12 @@ raw training recordings (and held-out ones, if any) -> ``column_choice.choose_co
 the Coulomb column's smoothing velocity from the joints' reversals, ``coulomb_smoothing``; the friction shape, torque
 offsets, drive inertias and drive losses per joint) -> the fit (``trajectory_fit.identify_trajectories``; with a drive
 loss ``drive_loss.identify_with_drive_loss``; with LuGre friction ``lugre_identify``) -> the counterbalance the
-envelope report names, tried and kept only where it holds out of sample (``counterbalance_column``) -> one
-``CalibratedModel``.
+envelope report names, tried and kept only where it holds out of sample (``counterbalance_column``), and the payload
+(``payload_route``) -> one ``CalibratedModel``, checked against the robot file on the held-out recordings
+(``robot_file_check``). The holds of the joints the data do not determine (``one_way_friction``) or the check names
+worse (``worse_joint_hold``) judge the model that would be written, each fit they try carried through the counterbalance
+and payload steps first (``written_model``): those steps take torque the fit's links absorbed, and a joint worse before
+them may not be worse after.
 
 Python users, the benchmarks and the command line get the same model from the same data: defaults are decided from the
 data here, not in the command line. Its options are overrides (``ColumnRequest``, ``counterbalance=False``), and
@@ -20,7 +24,7 @@ from dataclasses import dataclass, field, replace
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_check import check_departures, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
-from identification.calibration.counterbalance_column import CounterbalanceChoice, take_counterbalance
+from identification.calibration.counterbalance_column import CounterbalanceChoice
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
 from identification.calibration.file_judged import file_judged, file_training
 from identification.calibration.held_back import stored_held_back
@@ -31,9 +35,9 @@ from identification.calibration.one_way_friction import (
     held_options,
     hold_one_way_friction,
 )
-from identification.calibration.payload_route import PayloadChoice, take_payload
+from identification.calibration.payload_route import PayloadChoice
 from identification.calibration.prior_pull import PriorPull
-from identification.calibration.robot_file_check import FileCheck, check_against_file
+from identification.calibration.robot_file_check import FileCheck
 from identification.calibration.rotors_apart import RotorsApart, judge_rotors_apart, unjudged_rotors
 from identification.calibration.temperature_friction import temperature_block
 from identification.calibration.trajectory_fit import (
@@ -44,6 +48,7 @@ from identification.calibration.trajectory_fit import (
 )
 from identification.calibration.unstated_load import UnstatedLoads, take_unstated_loads
 from identification.calibration.worse_joint_hold import WorseJointHold, check_worse_joint_mode, hold_worse_joints
+from identification.calibration.written_model import ModelWriter
 from psdm_casadi.state_cache import remembering
 
 __all__ = ["IdentifyResult", "identify_recordings"]
@@ -237,49 +242,48 @@ def identify_recordings(
     else:
         drift = FrictionDrift(mode=friction_drift)
     chosen = choice.options(options)
-    loss, lugre, held, mended = None, None, OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
-    rotors = RotorsApart()
+    lugre, held, mended, rotors = None, OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint), RotorsApart()
     source = robot.source if robot_source is None else robot_source
+
+    def writer(lugre_fit=None, drive_loss=()):  # a fit carried to the model file it makes (``written_model``)
+        saved = ({"robot_source": source, "lugre": lugre_fit, "configurations": configurations},
+                 list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
+        skip = lugre_fit is not None or bool(drive_loss) or not counterbalance  # routes that take no extra columns
+        return ModelWriter((robot, model, recordings, configurations), validation, judged, saved, skip, drive_loss)
+
     if request.friction == "lugre":
         from identification.calibration.lugre_identify import identify_lugre_trajectories
 
         found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
         fit, lugre, start = found.fit, found.lugre, found.stribeck
         rotors = unjudged_rotors(fit, "LuGre")
+        written = writer(lugre)(chosen, fit)
     elif choice.loss_joints:  # currents with a gear loss (``drive_loss``)
         from identification.calibration.drive_loss import identify_with_drive_loss
 
         logger.info("identify: fitting the drive loss (gear efficiency by power-flow direction) ...")
         fit, *loss = identify_with_drive_loss(robot, model, recordings, chosen, choice.loss_joints, configurations)
         start, rotors = fit, unjudged_rotors(fit, "drive-loss")
+        written = writer(drive_loss=loss)(chosen, fit)
     else:
         choice, fit = _checked_fit(robot, model, recordings, options, choice, validation, configurations)
         fit, rotors = judge_rotors_apart((robot, model, recordings, choice.options(options), configurations), fit,
                                          validation)  # fmt: skip
         apart = tuple(sorted({*options.rotors_apart, *rotors.joints}))
         options = replace(options, rotors_apart=apart)  # every later fit takes them apart too
-        problem = (robot, model, recordings, choice.options(options), configurations)
-        fit, held = _one_way(problem, fit, judged, one_way, source)
+        problem, write = (robot, model, recordings, choice.options(options), configurations), writer()
+        fit, held = _one_way(problem, fit, judged, one_way, write)
         chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
-        fit, chosen, mended = _worse_joints(problem, chosen, fit, judged, worse_joint, source)
+        written, mended = _worse_joints(problem, write(chosen, fit), judged, worse_joint, write)
         held = held.replaced_by(mended.held_friction)  # one value per held column: the one in effect
-        start = fit
-    saved = ({"robot_source": source, "lugre": lugre, "configurations": configurations},
-             list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
-    skip = lugre is not None or bool(loss) or not counterbalance  # routes that take no extra columns
-    problem = (robot, model, recordings, chosen, configurations)
-    final, calibrated, taken = take_counterbalance(problem, fit, validation, saved, skip)
-    final, calibrated, taken, payload = take_payload(problem, fit, taken, calibrated, validation, saved, skip)
-    if loss:
-        from identification.calibration.drive_loss import with_drive_loss
-
-        calibrated = CalibratedModel(with_drive_loss(calibrated.document, *loss))
+        start = written.start
+    chosen, final, calibrated = written.options, written.fit, written.calibrated
+    taken, payload = written.counterbalance, written.payload
     choice = replace(choice, replaced_offsets=taken.replaced_offsets)  # the model holds the spring there
     calibrated.document["identification"]["column_choice"] = choice.to_dict()
     if rotors.verdicts:  # stated with the other column choices
         calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
-    check = _file_check(robot, model, recordings, judged, chosen, final, calibrated, configurations)
-    check = replace(check, held=held.held_joints, held_links=mended.held_links)
+    check = replace(written.check, held=held.held_joints, held_links=mended.held_links)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
@@ -330,53 +334,60 @@ def _carries_payloads(configurations) -> bool:
     return configurations is not None and any(c.payload is not None or c.unknown for c in configurations)
 
 
-def _refit_and_judge(problem, judged, source) -> tuple:
-    """``(refit, judge)`` for the holds that follow the fit: ``refit(options) -> TrajectoryFit`` on the training
-    recordings, ``judge(fit) -> FileCheck`` of its calibrated model against the robot file on ``validation``, with
-    the options of ``problem`` (``(robot, model, recordings, options, configurations)``), ``judged`` the
-    ``file_judged.FileJudged`` held-out recordings."""
-    robot, model, recordings, options, configurations = problem
+def _refit(problem):
+    """``refit(options) -> TrajectoryFit`` on the training recordings of ``problem`` (``(robot, model, recordings,
+    options, configurations)``)."""
+    robot, model, recordings, _, configurations = problem
 
     def refit(trial_options):
         return identify_trajectories(robot, model, recordings, trial_options, configurations=configurations)
 
-    def judge(candidate):
-        calibrated = CalibratedModel.from_fit(robot, model, candidate, robot_source=source)
-        return _file_check(robot, model, recordings, judged, options, candidate, calibrated, configurations)
-
-    return refit, judge
+    return refit
 
 
-def _one_way(problem, fit, judged, mode, source) -> tuple:
+def _one_way(problem, fit, judged, mode, write) -> tuple:
     """``(fit, OneWayFriction)``: the undetermined friction of the joints that move one way only held to the robot
-    file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``)."""
+    file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``), judged on
+    the model ``write(options, fit)`` makes of the fit (``written_model``)."""
     from identification.calibration.column_candidates import prepare_training
 
     robot, _, recordings, options, configurations = problem
     if _carries_payloads(configurations):
         return fit, OneWayFriction(mode=mode, reason="fitted from the data (the recordings carry payloads)")
-    refit, judge = _refit_and_judge(problem, judged, source)
     prepared = prepare_training(robot, recordings, options).prepared
-    return hold_one_way_friction((*problem, refit), fit, prepared, mode, judge if judged.recordings else None)
+
+    def judge(candidate):
+        return write(options, candidate).check
+
+    return hold_one_way_friction((*problem, _refit(problem)), fit, prepared, mode, judge if judged.recordings else None)
 
 
-def _worse_joints(problem, options, fit, judged, mode, source) -> tuple:
-    """``(fit, options, WorseJointHold)``: the links of the joints the robot-file check names worse on the held-out
-    recordings held to what the robot file predicts there where that mends them (``worse_joint_hold``); not tried
-    where the robot file cannot be judged (no held-out recording it is judged on, no links in it, every training
+def _worse_joints(problem, written, judged, mode, write) -> tuple:
+    """``(WrittenModel, WorseJointHold)``: the links of the joints the robot-file check of the model identify writes
+    (``written``, ``written_model``) names worse held to what the robot file predicts there where that mends them
+    (``worse_joint_hold``), each fit tried carried to its model by ``write(options, fit)`` and judged there; not
+    tried where the robot file cannot be judged (no held-out recording it is judged on, no links in it, every training
     recording with an unknown payload: ``file_judged``)."""
     robot, model, recordings, _, configurations = problem
     if not judged.recordings or robot.links is None:
-        return fit, options, WorseJointHold(mode=mode)
-    prepared = file_training(robot, recordings, options, configurations)  # the file's friction fitted without loads
+        return written, WorseJointHold(mode=mode)
+    prepared = file_training(robot, recordings, written.options, configurations)  # the file's friction without loads
     if not prepared:
-        return fit, options, WorseJointHold(mode=mode)
-    refit, judge = _refit_and_judge((robot, model, recordings, options, configurations), judged, source)
+        return written, WorseJointHold(mode=mode)
+    refit = _refit(problem)
+
+    def carried(trial_options):
+        return write(trial_options, refit(trial_options))
 
     def friction_of(candidate, joints):
-        return file_friction_values(robot, candidate, prepared, joints)
+        return file_friction_values(robot, candidate.start, prepared, joints)
 
-    return hold_worse_joints((refit, options, robot.n_dof), fit, judge, friction_of, mode)
+    written, _, record = hold_worse_joints((carried, written.options, robot.n_dof), written, _judge, friction_of, mode)
+    return written, record
+
+
+def _judge(written) -> FileCheck:
+    return written.check
 
 
 def _checked_fit(robot, model, recordings, options, choice, validation, configurations) -> tuple:
@@ -399,24 +410,3 @@ def _checked_fit(robot, model, recordings, options, choice, validation, configur
     logger.info("identify: checking the %d column(s) the held-out data alone decided on the model it writes ...",
                 len(choice.departures))  # fmt: skip
     return check_departures(choice, fit, fit_of, judge)
-
-
-def _file_check(robot, model, recordings, validation, options, fit, calibrated, configurations) -> FileCheck:
-    """The model written against the robot file on the held-out recordings (``robot_file_check``), ``validation`` the
-    ``FileJudged`` held-out recordings. A known payload (stated in a sidecar) is the robot file's too: its torque is
-    taken off the training recordings the file's friction is fitted on, as the identification takes it off. A training
-    recording with an unknown payload is left out of that friction fit (the file cannot hold its load); the held-out
-    torque does not depend on it, so the check is made unless every training recording carries one."""
-    if validation.reason:
-        return FileCheck(reason=validation.reason)
-    if not validation.recordings or robot.links is None:
-        return check_against_file(robot, model, calibrated, fit, (), validation.recordings, options)
-    prepared = file_training(robot, recordings, options, configurations)
-    if not prepared:
-        return FileCheck(reason="every training recording carries an unknown payload the robot file does not: its "
-                         "friction has no recording to be fitted on without that load (record one without it, or "
-                         "state the load in a sidecar)")  # fmt: skip
-    validation = validation.recordings
-    pull = dict(fit.envelope_bounds).get("prior")
-    samples = None if pull is None else PriorPull.from_note(pull).effective_samples
-    return check_against_file(robot, model, calibrated, fit, prepared, validation, options, samples)

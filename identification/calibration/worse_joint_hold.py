@@ -3,7 +3,9 @@
 The model ``psdm identify`` hands over must be no worse on any joint than the model it replaces (``robot_file_check``:
 per joint the robot file's rigid body with its friction fitted, or the file alone where that predicts the held-out
 recordings better). Where the check names joints worse, identify acts instead of only saying so, in two steps, each a
-fit made again and judged by the same check:
+fit made again and judged by the same check. The check judges the model identify would write from a fit, after the
+counterbalance and payload steps that follow it (``written_model``): those take torque the fit's links absorbed, and a
+joint worse than the file before them need not be after.
 
 1. **friction**: each worse joint's Coulomb and viscous friction held at its baseline's (``held_friction``): the robot
    file's fit on the training recordings (``one_way_friction.file_friction_values``, bounded as identify's own), or
@@ -132,7 +134,8 @@ def _baseline_friction(options, check, joints, friction_of, fit) -> tuple:
 def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> tuple:
     """``(fit, options, WorseJointHold)``: ``fit`` (made with ``options``) as it is, or made again with its worse joints
     held to what the robot file predicts there, step by step, each kept where it leaves fewer joints worse and none
-    new (module docstring). ``problem = (refit, options, n_dof)``, ``refit(options) -> TrajectoryFit``;
+    new (module docstring). ``problem = (refit, options, n_dof)``, ``refit(options)`` the fit made again (identify:
+    carried to the model it writes, ``written_model.WrittenModel``, so that the check judges that model);
     ``judge(fit) -> robot_file_check.FileCheck`` on the held-out recordings; ``friction_of(fit, joints)``: the
     ``(name, value)`` Coulomb-viscous friction of the robot file's fit on the training recordings."""
     refit, options, n_dof = problem
