@@ -154,7 +154,7 @@ def offset_counterbalance(finding, context, verdict=None):
     explanation = reading.sentence(verdict)
     if verdict is None:
         explanation += " (nearly constant over the recorded range, as a balancer is near horizontal)"
-    return replace(finding, effect=COUNTERBALANCE, explanation=explanation, parameters=parameters,
+    return replace(finding, effect=COUNTERBALANCE, explanation=explanation, parameters=parameters, correction="",
                    signature="a constant torque as large as a share of gravity: no sensor's offset")  # fmt: skip
 
 

@@ -62,6 +62,7 @@ class Finding:
     validation_gain: float
     notes: tuple = ()
     shape_note: str = ""
+    correction: str = ""  # a value of the nominal model that does not hold, said instead of an effect (a file's offset)
 
     def joint_gain(self, joint: int | None = None) -> float:
         """Validation gain on ``joint`` (default the first named one), from the pair the sentence prints."""
@@ -82,17 +83,22 @@ class Finding:
             "explanation": self.explanation,
             "notes": list(self.notes),
             "shape_note": self.shape_note,
+            "correction": self.correction,
         }
 
     def sentence(self) -> str:
         j = self.joints[0]
         joints = ", ".join(str(x + 1) for x in self.joints)
+        if self.correction:  # no missing effect: the nominal model's own value, found not to hold
+            return f"joint {joints}: {self.correction}; validation RMSE on joint {j + 1} {self._change(j)}"
         params = ", ".join(f"{k} = {v:.4g}" for k, v in self.parameters.items())
         return (
             f"joint{'s' if len(self.joints) > 1 else ''} {joints}: {self.signature}; best explained by "
-            f"`{self.effect}` ({self.explanation}), {params}; validation RMSE on joint {j + 1} "
-            f"{rmse_change(self.rmse_before[j], self.rmse_after[j])[1]}"
+            f"`{self.effect}` ({self.explanation}), {params}; validation RMSE on joint {j + 1} {self._change(j)}"
         )
+
+    def _change(self, j: int) -> str:
+        return rmse_change(self.rmse_before[j], self.rmse_after[j])[1]
 
 
 @dataclass(frozen=True, eq=False)

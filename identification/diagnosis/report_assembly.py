@@ -113,11 +113,13 @@ def with_rotor_note(finding, robot, model):
 
 def findings_of(selection, final, held: HeldFriction | None = None) -> tuple:
     """One ``Finding`` per kept term, in the order the selection kept them; a term's constant is stated with the
-    torque offset the nominal model holds on its joint (``with_held_offset``)."""
+    torque offset the nominal model holds on its joint (``with_held_offset``), and a torque offset on such a joint is
+    that held offset found not to hold, not a missing effect (``held_offset_correction``)."""
     findings = []
     for step, term, coefficients in zip(selection.steps, final.terms, final.coefficients):
         effect, explanation = term.interpret(coefficients)
         stated, note = with_held_offset(term, coefficients, held or HeldFriction())
+        stated, correction = held_offset_correction(term, stated, held or HeldFriction())
         parameters = dict(term.physical_parameters(stated))
         parameters.update(final.nonlinear.get(term.label, {}))
         findings.append(
@@ -136,9 +138,28 @@ def findings_of(selection, final, held: HeldFriction | None = None) -> tuple:
                 validation_gain=step.validation_gain,
                 notes=(note,) if note else (),
                 shape_note=step.shape_note,
+                correction=correction,
             )
         )
     return tuple(findings)
+
+
+def held_offset_correction(term, coefficients, held: HeldFriction) -> tuple:
+    """``(coefficients, correction)`` of a ``torque_offset`` term on a joint whose torque offset the nominal model
+    holds (a model file's, ``HeldFriction.of_model_file``): the term's column is that offset's, so what it fits is how
+    far the file's offset is off on these recordings, not an effect the model lacks. Its offset is stated as the data's
+    (the file's plus the fit's part: what ``diagnose --apply``, whose refit fits the file's offset again, writes), and
+    the sentence says the file's offset does not hold, with both values. Any other term: unchanged and ""."""
+    joint = getattr(term, "joint", None)
+    offset = held.offset_of(int(joint)) if getattr(term, "key", "") == "torque_offset" and joint is not None else 0.0
+    if offset == 0.0:
+        return coefficients, ""
+    change = float(coefficients[0])
+    correction = (f"the model file's torque offset on joint {int(joint) + 1} does not hold on these recordings: the "
+                  f"file holds {offset:+.4g} N m, the data's is {offset + change:+.4g} N m ({change:+.4g}); a "
+                  "correction of the file's value, not a missing effect ('diagnose --apply' fits the file's offset "
+                  "again)")  # fmt: skip
+    return np.array([offset + change, *np.asarray(coefficients, dtype=float)[1:]]), correction
 
 
 def with_held_offset(term, coefficients, held: HeldFriction) -> tuple:

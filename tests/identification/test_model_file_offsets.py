@@ -75,6 +75,30 @@ def test_the_diagnosis_nominal_predicts_every_joint_as_validate_and_finds_no_off
     assert not any(0 in f.joints for f in report.findings)
 
 
+def test_an_offset_the_data_move_is_the_files_offset_not_holding_not_a_missing_effect(case):
+    """New recordings whose joint-1 offset is 0.9 N m, the file's 0.5: the diagnosis of the file finds the column its
+    held offset has, which listed `torque_offset` (offset = 0.4, the fit's part) as missing physics. It says the
+    file's offset does not hold, with the file's value and the data's (the truth), which 'diagnose --apply' writes."""
+    from identification.calibration.recalibrate import recalibrate
+
+    robot, model, _, _, calibrated = case
+    moved = np.array([0.9, 0.0, 0.0, 0.0])
+    train, held = (scara_recording(robot, seed, moved, (FC, FV), noise=NOISE) for seed in (2, 3))
+    file_offset = dict(HeldFriction.of_model_file(calibrated.document).offsets)["offset1"]
+    quick = DiagnosisOptions(rigid_body="prior", library=SpringTerm() + TorqueOffsetTerm(), sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(calibrated, robot, model), train, held, quick)
+    (finding,) = [f for f in report.findings if 0 in f.joints]
+    assert finding.effect == "torque_offset" and finding.parameters["offset"] == pytest.approx(moved[0], abs=0.02)
+    assert finding.coefficients[0] == pytest.approx(moved[0] - file_offset, abs=0.02)  # the fit's part: the change
+    line = next(x for x in report.to_markdown().splitlines() if x.startswith("1. "))
+    assert "best explained by" not in line and "the model file's torque offset on joint 1 does not hold" in line
+    assert f"the file holds {file_offset:+.4g} N m, the data's is {finding.parameters['offset']:+.4g} N m" in line
+    assert finding.to_dict()["correction"] == finding.correction
+    applied = recalibrate(calibrated, robot, model, report, train, held).after
+    written = dict(zip(applied.document["drive"]["names"], applied.drive))["offset1"]
+    assert written == pytest.approx(finding.parameters["offset"], abs=0.02)
+
+
 def test_a_held_offset_must_be_finite():
     with pytest.raises(ParameterError, match="HeldFriction.values"):
         HeldFriction((("offset1", float("nan")),))
