@@ -161,11 +161,12 @@ def _run_diagnose(args) -> int:
 
         calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
         robot = calibrated_robot(calibrated, robot_file)
-        report_model_warnings("diagnose", args.robot, calibrated)
     else:
         robot = load_robot_argument(args)
     layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
     train, validations, given, held = _recordings(args, robot, calibrated, layout, fraction)  # held: sentences
+    if calibrated is not None:  # the first validation recording's load: named by the payload check, not twice
+        report_model_warnings("diagnose", args.robot, calibrated, args.validate[:1])
     # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
     train, *validations = (find_missing_torque(r) for r in (train, *validations))
     validation = validations[0]

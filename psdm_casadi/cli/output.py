@@ -52,18 +52,33 @@ def model_warnings(calibrated) -> list:
     return [str(w) for w in calibrated.document.get("warnings") or []]
 
 
-def report_model_warnings(command: str, source, calibrated) -> list:
+def report_model_warnings(command: str, source, calibrated, judged=()) -> list:
     """Print on stderr the warnings stored in a calibrated-model file; return them (for ``--json``).
 
     ``psdm identify`` and ``psdm diagnose --apply`` store the warnings of their fit: they point at a wrong
     recording behind the model (a friction held at zero, masses an order of magnitude off the robot file's, a
     joint its own training data did not explain: ``trajectory_checks.fit_warnings``). Every command that reads
-    a model file repeats them rather than leave them in the file; ``--quiet`` keeps them.
+    a model file repeats them rather than leave them in the file; ``--quiet`` keeps them. Identify's sentence on a
+    load nothing states on one of its held-out recordings is left out where the command judges that recording again
+    (``judged``: the paths whose load it checks and names in its own line, as ``psdm validate`` and ``psdm diagnose
+    MODEL`` do): one line per load, the command's, which says what it found now.
     """
-    warnings = model_warnings(calibrated)
+    again = {Path(str(path)).name for path in judged}
+    repeated = {sentence for recording, sentence in stored_load_sentences(calibrated.document)
+                if Path(recording).name in again}  # fmt: skip
+    warnings = [w for w in model_warnings(calibrated) if w not in repeated]
     for warning in (w for w in warnings if w not in SAID):  # one its robot's loading printed already: said once
         print(f"psdm {command}: warning: {Path(source).name} (stored in the model file): {warning}", file=sys.stderr)
     return warnings
+
+
+def stored_load_sentences(document: dict) -> list:
+    """``[(recording, sentence), ...]``: the loads nothing states that identify found on its held-out recordings, as
+    the model file stores them (``validation.recordings[].unstated_payload``, ``held_out_load.UnstatedLoad``)."""
+    entries = (document.get("validation") or {}).get("recordings") or ()
+    found = [(entry, entry.get("unstated_payload")) for entry in entries if isinstance(entry, dict)]
+    return [(str(entry.get("recording", "")), str(load["sentence"]))
+            for entry, load in found if isinstance(load, dict) and load.get("sentence")]  # fmt: skip
 
 
 def silence_stdout() -> None:

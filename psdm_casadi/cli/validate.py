@@ -87,7 +87,6 @@ def _run_validate(args) -> int:
     predictions = _predictions_output(args)
     loaded = read_calibrated_argument(args, args.model)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
-    warnings = report_model_warnings("validate", args.model, calibrated)
     preparation = _preparation_noted(args.model, calibrated.document)
     layout = model_layout(args, calibrated.document, "validate")  # --columns, --rate (or identify's)
     grouped = recording_paths(args.recordings, robot)  # a recording split per signal: its folder
@@ -98,6 +97,7 @@ def _run_validate(args) -> int:
         calibrated.document, grouped, lambda path: load_robot_recording(path, robot, args.topic, layout), args.model
     )
     args.recordings = [path for path, _, _ in parts]
+    warnings = report_model_warnings("validate", args.model, calibrated, args.recordings)  # each load: its own line
     if plots is not None and not grouped:  # the held-out parts the model stores: one plot each
         names = [f"{Path(p).stem}.png" for p in args.recordings]
         plots = output_folder(args.plots, names, args.overwrite, command="validate", label="--plots")

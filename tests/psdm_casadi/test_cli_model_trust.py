@@ -299,3 +299,34 @@ def test_validate_and_diagnose_judge_a_loaded_recording_alike(arm, tmp_path, cap
     assert code in (0, 1), err
     before = json.loads(out)["rmse_before"]
     np.testing.assert_allclose(before, validated, rtol=1e-9)
+
+
+def test_a_load_identify_found_on_a_held_out_recording_is_said_once_by_validate_and_diagnose(arm, tmp_path, capsys):
+    """identify stores its sentence on a load nothing states on its held-out recording among the model file's
+    warnings; validate and diagnose MODEL repeated it beside their own line on the same load of the same recording
+    (two lines, one load). Judging that recording again, they say it once, their own line; validating another
+    recording, the stored sentence is still repeated (nothing else names that load)."""
+    from identification.calibration.payload_fit import FlangeRegressor
+
+    robot = load_robot(arm / "arm.toml")
+    valid = load_recording(arm / "valid.csv")
+    qd = np.gradient(valid.q, valid.t, axis=0)
+    body = np.array([2.0, 0.0, 0.0, 0.1, 0.012, 0.012, 0.004, 0.0, 0.0, 0.0])  # 2 kg, 5 cm out: no sidecar states it
+    load = FlangeRegressor(robot)(valid.q, qd, np.gradient(qd, valid.t, axis=0)) @ body
+    loaded, model = tmp_path / "loaded.csv", tmp_path / "loaded.json"
+    save_recording(valid.with_signals(tau=valid.tau + load), loaded)
+    code, out, err = _run(capsys, ["identify", arm / "arm.toml", "--data", arm / "train.csv", "--validate", loaded,
+                                   "--out", model])  # fmt: skip
+    assert code == 0, err
+    (stored,) = [w for w in json.loads(model.read_text())["warnings"] if "carries a load at the flange" in w]
+    said = "carries a load at the flange that nothing states"
+    code, out, err = _run(capsys, ["validate", model, loaded])
+    assert code == 0 and (out + err).count(said) == 1 and f"payload: {loaded}" in out, err
+    code, out, err = _run(capsys, ["validate", model, loaded, "--json"])
+    assert code == 0 and stored not in json.loads(out)["warnings"]
+    assert json.loads(out)["recordings"][0]["payload"]["taken_off"]
+    code, out, err = _run(capsys, ["diagnose", model, "--train", arm / "train.csv", "--validate", loaded,
+                                   "--max-effects", "0", "--no-sparse"])  # fmt: skip
+    assert code in (0, 1) and (out + err).count(said) == 1 and "## Payload check" in out, err
+    code, out, err = _run(capsys, ["validate", model, arm / "valid.csv"])  # another recording: the stored one said
+    assert code == 0 and stored in err and out.count(said) == 0, err
