@@ -30,25 +30,56 @@ VALIDATION_COLUMNS = (
 
 @dataclass(frozen=True)
 class TorqueSeries:
-    """Measured and predicted joint torques [N m] of one recording, on the prepared samples the RMSE uses."""
+    """Measured and predicted joint torques [N m] of one recording, on the prepared samples the RMSE uses; ``taken_off``
+    names the load whose torque the measured one is shown without, as the judgement took it off (empty: none)."""
 
     name: str
     held_out: bool
     t: np.ndarray
     measured: np.ndarray
     predicted: np.ndarray
+    taken_off: str = ""
 
 
 def torque_series(calibrated, model, robot, recordings, names, held_out: bool) -> list:
-    """``TorqueSeries`` of ``recordings`` (raw, joint side) predicted by ``calibrated`` as ``psdm validate`` does."""
+    """``TorqueSeries`` of ``recordings`` (raw, joint side) predicted by ``calibrated`` as ``psdm validate`` does. A
+    held-out recording is shown as the report's and the JSON's validation judge it (``judged_load``): the load it
+    states, or a plausible one nothing states, taken off the measured torque, so that the plot's residual is the one
+    whose RMSE they report (with the load left in, the load's torque would fill the plot)."""
     out = []
     for name, recording in zip(names, recordings):
         kt = None
         if recording.tau is None and robot.drives:
             kt = np.array([d.kt for d in robot.drives], dtype=float)
         prepared, predicted = calibrated.predict_recording(model, recording, kt)
-        out.append(TorqueSeries(Path(str(name)).name, held_out, prepared.t, prepared.tau, np.asarray(predicted)))
+        measured, taken_off = prepared.tau, ""
+        if held_out:
+            with_load, taken_off = judged_load(robot, calibrated, model, recording, kt, name)
+            measured = prepared.tau if with_load is None else prepared.tau - (with_load - predicted)
+        out.append(TorqueSeries(Path(str(name)).name, held_out, prepared.t, measured, np.asarray(predicted),
+                                taken_off))  # fmt: skip
     return out
+
+
+def judged_load(robot, calibrated, model, recording, kt, name) -> tuple:
+    """``(prediction with the load's torque, what was taken off)`` of a held-out recording as ``psdm validate`` and
+    identify's validation judge it: the load its sidecar (or the model file's list for it) states
+    (``payload_fit.stated_payload``), else a plausible one nothing states (``held_out_load.find_unstated_load``);
+    ``(None, "")`` without a load."""
+    from identification.calibration.held_out_load import find_unstated_load
+    from identification.calibration.payload_check import validation_with_payload
+    from identification.calibration.payload_fit import stated_payload
+    from identification.calibration.refit_training import listed_configuration
+
+    listed = listed_configuration(calibrated.document, name)
+    stated, _ = stated_payload(listed, calibrated.configurations, "the model")
+    if stated is not None:
+        with_load = validation_with_payload(robot, calibrated, model, recording, kt, stated)[3]
+        return with_load, f"the stated load {listed.name!r} ({float(stated[0]):.3g} kg)"
+    check = find_unstated_load(robot, calibrated, model, recording, kt, str(name))
+    if not check.taken_off:
+        return None, ""
+    return check.predicted, f"the {check.load.found.mass:.3g} kg load nothing states"
 
 
 def identify_page(document: dict, series=()) -> Page:
@@ -64,6 +95,7 @@ def identify_page(document: dict, series=()) -> Page:
         page.section("Validation RMSE per joint", _validation_tables(validation, names))
     for s in series:
         kind = "held-out recording" if s.held_out else "training recording"
+        kind += f", {s.taken_off} taken off as the validation judged it" if s.taken_off else ""
         divs = [_joint_figure(s, j, name) for j, name in enumerate(names)]
         page.section(f"Measured vs predicted torque: {s.name} ({kind})", "".join(divs))
     page.section("Parameters with their standard deviation (1 sigma error bars)", _parameter_figures(document))
@@ -183,10 +215,13 @@ def _joint_figure(series: TorqueSeries, j: int, name: str) -> str:
     t, measured, predicted = series.t[::step], series.measured[::step, j], series.predicted[::step, j]
     rmse = float(np.sqrt(np.mean((series.measured[:, j] - series.predicted[:, j]) ** 2)))
     fig = make_subplots(rows=2, cols=1, shared_xaxes=True, row_heights=[0.7, 0.3], vertical_spacing=0.05)
-    fig.add_scatter(x=t, y=measured, name="measured", line={"color": "black", "width": 1}, row=1, col=1)
+    label = f"measured, {series.taken_off} taken off" if series.taken_off else "measured"
+    fig.add_scatter(x=t, y=measured, name=label, line={"color": "black", "width": 1}, row=1, col=1)
     fig.add_scatter(x=t, y=predicted, name="predicted", line={"width": 1, "color": "#1f77b4"}, row=1, col=1)
     fig.add_scatter(x=t, y=measured - predicted, name="residual", line={"width": 1, "color": "#cf222e"}, row=2, col=1)
-    fig.update_layout(title=f"joint {j + 1} ({name}): RMSE {rmse:.4g} N m", height=380, margin={"t": 40, "b": 30})
+    judged = f" (the arm's: {series.taken_off} taken off, as judged)" if series.taken_off else ""
+    fig.update_layout(title=f"joint {j + 1} ({name}): RMSE {rmse:.4g} N m{judged}", height=380,
+                      margin={"t": 40, "b": 30})  # fmt: skip
     fig.update_yaxes(title_text="torque [N m]", row=1, col=1)
     fig.update_yaxes(title_text="residual", row=2, col=1)
     fig.update_xaxes(title_text="t [s]", row=2, col=1)

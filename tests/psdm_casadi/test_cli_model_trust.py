@@ -301,23 +301,32 @@ def test_validate_and_diagnose_judge_a_loaded_recording_alike(arm, tmp_path, cap
     np.testing.assert_allclose(before, validated, rtol=1e-9)
 
 
-def test_a_load_identify_found_on_a_held_out_recording_is_said_once_by_validate_and_diagnose(arm, tmp_path, capsys):
+@pytest.fixture(scope="module")
+def loaded_model(arm, tmp_path_factory):
+    """``(loaded.csv, loaded.json)``: the validation recording with a 2 kg load at the flange no sidecar states, and
+    the model identify wrote with it held out (and its page, ``loaded.report.html``)."""
+    from identification.calibration.payload_fit import FlangeRegressor
+
+    folder = tmp_path_factory.mktemp("loaded")
+    robot = load_robot(arm / "arm.toml")
+    valid = load_recording(arm / "valid.csv")
+    qd = np.gradient(valid.q, valid.t, axis=0)
+    body = np.array([2.0, 0.0, 0.0, 0.1, 0.012, 0.012, 0.004, 0.0, 0.0, 0.0])  # 2 kg, 5 cm out along the flange z
+    load = FlangeRegressor(robot)(valid.q, qd, np.gradient(qd, valid.t, axis=0)) @ body
+    loaded, model = folder / "loaded.csv", folder / "loaded.json"
+    save_recording(valid.with_signals(tau=valid.tau + load), loaded)
+    argv = ["identify", arm / "arm.toml", "--data", arm / "train.csv", "--validate", loaded, "--out", model]
+    assert main([str(a) for a in argv]) == 0
+    return loaded, model
+
+
+def test_a_load_identify_found_on_a_held_out_recording_is_said_once_by_validate_and_diagnose(arm, loaded_model,
+                                                                                             capsys):  # fmt: skip
     """identify stores its sentence on a load nothing states on its held-out recording among the model file's
     warnings; validate and diagnose MODEL repeated it beside their own line on the same load of the same recording
     (two lines, one load). Judging that recording again, they say it once, their own line; validating another
     recording, the stored sentence is still repeated (nothing else names that load)."""
-    from identification.calibration.payload_fit import FlangeRegressor
-
-    robot = load_robot(arm / "arm.toml")
-    valid = load_recording(arm / "valid.csv")
-    qd = np.gradient(valid.q, valid.t, axis=0)
-    body = np.array([2.0, 0.0, 0.0, 0.1, 0.012, 0.012, 0.004, 0.0, 0.0, 0.0])  # 2 kg, 5 cm out: no sidecar states it
-    load = FlangeRegressor(robot)(valid.q, qd, np.gradient(qd, valid.t, axis=0)) @ body
-    loaded, model = tmp_path / "loaded.csv", tmp_path / "loaded.json"
-    save_recording(valid.with_signals(tau=valid.tau + load), loaded)
-    code, out, err = _run(capsys, ["identify", arm / "arm.toml", "--data", arm / "train.csv", "--validate", loaded,
-                                   "--out", model])  # fmt: skip
-    assert code == 0, err
+    loaded, model = loaded_model
     (stored,) = [w for w in json.loads(model.read_text())["warnings"] if "carries a load at the flange" in w]
     said = "carries a load at the flange that nothing states"
     code, out, err = _run(capsys, ["validate", model, loaded])
@@ -330,3 +339,24 @@ def test_a_load_identify_found_on_a_held_out_recording_is_said_once_by_validate_
     assert code in (0, 1) and (out + err).count(said) == 1 and "## Payload check" in out, err
     code, out, err = _run(capsys, ["validate", model, arm / "valid.csv"])  # another recording: the stored one said
     assert code == 0 and stored in err and out.count(said) == 0, err
+
+
+def test_identifys_page_plots_the_held_out_torque_as_its_validation_judges_it(loaded_model):
+    """The model file's validation RMSE on the loaded recording is the arm's (the load nothing states taken off,
+    ``rmse_load_left_in`` beside it); the page plotted the prediction against the torque with the load left in, whose
+    residual is the load's torque. Its residual's RMSE is now the file's on every joint, and its title and legend say
+    what was taken off."""
+    from psdm_casadi.cli.html_report import default_html_path
+    from tests.psdm_casadi.html_page import plot_data
+
+    loaded, model = loaded_model
+    (entry,) = json.loads(model.read_text())["validation"]["recordings"]
+    load = entry["unstated_payload"]
+    assert load["taken_off"] and max(np.divide(load["rmse_load_left_in"], entry["rmse"])) > 3
+    page = default_html_path(model).read_text()
+    for j in range(3):
+        measured, predicted, residual = plot_data(page, f"joint-{j + 1}-loaded.csv")
+        np.testing.assert_allclose(np.subtract(measured["y"], predicted["y"]), residual["y"], atol=1e-9)
+        assert np.sqrt(np.mean(np.square(residual["y"]))) == pytest.approx(entry["rmse"][j], rel=1e-6)
+        assert measured["name"] == f"measured, the {load['mass']:.3g} kg load nothing states taken off"
+        assert f"RMSE {entry['rmse'][j]:.4g} N m (the arm's: the {load['mass']:.3g} kg load nothing states" in page
