@@ -201,8 +201,8 @@ def _run_diagnose(args) -> int:
     apply = ApplyRefit()  # --apply's refit
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
-    load, temperature = (None, None) if calibrated is None else payload_check(args, calibrated, robot, model,
-                                                                               validation, checks[0])  # fmt: skip
+    load, temperature = (checks[0], None) if calibrated is None else payload_check(args, calibrated, robot, model,
+                                                                                    validation, checks[0])  # fmt: skip
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -218,7 +218,8 @@ def _run_diagnose(args) -> int:
     else:
         print(report.to_markdown(paths))
         if load is not None:
-            print(f"\n## Payload check (as psdm validate)\n\n{load_sentence(load, checks[0])}")
+            judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
+            print(f"\n## Payload check (as {judged})\n\n{load_sentence(load, checks[0])}")
     if apply_out is None:
         return 0
     return _apply(args, calibrated, robot_file, apply, apply_out, payload if args.json else None, report)

@@ -3,14 +3,17 @@
 A load a recording's sidecar states (or the model file lists for its content) is taken off its torque, so that the
 diagnosis and its refit see the arm; with a model file, a validation recording that states none is checked for one as
 ``psdm validate`` checks it (``held_out_load``) and a plausible one taken off and named; the payload check beside the
-findings says what the validation recording carries that the model file does not have, in validate's words.
+findings says what the validation recording carries that the model file does not have, in validate's words. With the
+robot file, whose rigid body may be what is wrong, the validation recordings are checked as identify checks its
+held-out ones (``held_out_arm``: the flange fit on their residual of a fit of the training recording), and a plausible
+load nothing states is taken off and named likewise.
 """
 
 from __future__ import annotations
 
 import sys
 
-__all__ = ["load_sentence", "payload_check", "stated_loads"]
+__all__ = ["load_sentence", "payload_check", "robot_file_loads", "stated_loads"]
 
 
 def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
@@ -40,11 +43,26 @@ def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
         kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
         out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
         configurations.append(configuration)
-    if calibrated is None:
-        return out, configurations, [None] * len(args.validate)
+    if calibrated is None:  # the robot file: each validation recording's load as identify weighs it (its own statement)
+        arm = robot_file_loads(args, robot, recordings, configurations, preparation)
+        return [out[0], *arm.recordings], configurations, list(arm.loads)
     held, checks = without_unstated_loads(robot, calibrated, loaded.model, out[1:], configurations[1:], args.validate,
                                           preparation.cutoff_hz)  # fmt: skip
     return [out[0], *held], configurations, checks
+
+
+def robot_file_loads(args, robot, recordings, configurations, preparation):
+    """The ``held_out_arm.HeldOutArm`` of the raw validation recordings ``recordings[1:]`` (``recordings[0]`` the raw
+    training one, ``configurations`` what each states) as ``psdm identify`` judges its held-out recordings: a stated
+    load taken off, and one nothing states looked for on their residual of the training fit (``held_out_load``), a
+    plausible one taken off (``loads``: the ``UnstatedLoad`` found on each, or None)."""
+    from identification.calibration.held_out_arm import held_out_arm
+    from identification.calibration.trajectory_fit import TrajectoryOptions
+    from psdm_casadi.cli.checks import derive_model
+
+    options = TrajectoryOptions(cutoff_hz=preparation.cutoff_hz)
+    return held_out_arm(robot, derive_model(args, robot), recordings[:1], recordings[1:], configurations[:1],
+                        configurations[1:], options, args.validate)  # fmt: skip
 
 
 def payload_check(args, calibrated, robot, model, validation, check=None):
@@ -71,7 +89,8 @@ def payload_check(args, calibrated, robot, model, validation, check=None):
 
 
 def load_sentence(load, check) -> str:
-    """The payload check's line: a load nothing states with what was done (``check``), else one beyond the stated."""
-    if check is None:
+    """The payload check's line: a load nothing states with what was done (``check``, a ``held_out_load.LoadCheck``;
+    the robot file's ``UnstatedLoad``, which says it itself), else one beyond the stated."""
+    if check is None or check is load:
         return load.sentence()
     return load.sentence([float(v) for v in check.rmse_left_in] if check.taken_off else None)
