@@ -45,6 +45,8 @@ def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
         configurations.append(configuration)
     if calibrated is None:  # the robot file: each validation recording's load as identify weighs it (its own statement)
         arm = robot_file_loads(args, robot, recordings, configurations, preparation)
+        if arm is None:  # not checked (said): the stated loads taken off only
+            return out, configurations, [None] * len(args.validate)
         return [out[0], *arm.recordings], configurations, list(arm.loads)
     held, checks = without_unstated_loads(robot, calibrated, loaded.model, out[1:], configurations[1:], args.validate,
                                           preparation.cutoff_hz)  # fmt: skip
@@ -55,14 +57,21 @@ def robot_file_loads(args, robot, recordings, configurations, preparation):
     """The ``held_out_arm.HeldOutArm`` of the raw validation recordings ``recordings[1:]`` (``recordings[0]`` the raw
     training one, ``configurations`` what each states) as ``psdm identify`` judges its held-out recordings: a stated
     load taken off, and one nothing states looked for on their residual of the training fit (``held_out_load``), a
-    plausible one taken off (``loads``: the ``UnstatedLoad`` found on each, or None)."""
+    plausible one taken off (``loads``: the ``UnstatedLoad`` found on each, or None). None, with a note, where that
+    training fit cannot be made (a joint that does not move: the diagnosis of the robot file may still run)."""
     from identification.calibration.held_out_arm import held_out_arm
     from identification.calibration.trajectory_fit import TrajectoryOptions
     from psdm_casadi.cli.checks import derive_model
+    from psdm_casadi.errors import RecordingError
 
     options = TrajectoryOptions(cutoff_hz=preparation.cutoff_hz)
-    return held_out_arm(robot, derive_model(args, robot), recordings[:1], recordings[1:], configurations[:1],
-                        configurations[1:], options, args.validate)  # fmt: skip
+    try:
+        return held_out_arm(robot, derive_model(args, robot), recordings[:1], recordings[1:], configurations[:1],
+                            configurations[1:], options, args.validate)  # fmt: skip
+    except RecordingError as exc:
+        print(f"psdm diagnose: note: the validation recordings were not checked for a load nothing states (the "
+              f"training fit it is read against failed: {exc})", file=sys.stderr)  # fmt: skip
+        return None
 
 
 def payload_check(args, calibrated, robot, model, validation, check=None):

@@ -243,3 +243,23 @@ def test_diagnose_of_the_robot_file_names_a_load_nobody_states_on_its_validation
     text = capsys.readouterr().out
     assert "## Payload check (as psdm identify judges its held-out recordings)" in text
     assert "held.npz carries a load at the flange that nothing states" in text and "held.payload.json" in text
+
+
+def test_diagnose_of_the_robot_file_runs_on_where_the_training_fit_for_the_load_check_fails(files, capsys,
+                                                                                          monkeypatch):  # fmt: skip
+    """The training fit a held-out load is read against is identify's (a joint it cannot fit refuses it); the robot
+    file's diagnosis, which may still run, runs on the recordings as stated and says the check was not made."""
+    from identification.calibration import held_out_arm
+    from psdm_casadi.cli import main
+    from psdm_casadi.errors import InsufficientExcitationError
+
+    def refuse(*args, **kwargs):
+        raise InsufficientExcitationError("joint 6 barely moves in train.npz")
+
+    monkeypatch.setattr(held_out_arm, "held_out_arm", refuse)
+    argv = ["diagnose", "denso_vs6556g", "--train", str(files["train"]), "--validate", str(files["loaded"]),
+            "--max-effects", "0", "--no-sparse", "--rigid-body", "prior", "--json"]  # fmt: skip
+    assert main(argv) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["payload_check"] is None
+    assert "not checked for a load nothing states" in err and "joint 6 barely moves in train.npz" in err
