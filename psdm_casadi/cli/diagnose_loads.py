@@ -90,7 +90,7 @@ def payload_check(args, calibrated, robot, model, validation, check=None):
         from identification.data.temperature import temperatures_at
 
         sentence = laws.sentence(temperatures_at(validation, prepared.t), robot.joint_names)
-        print(f"psdm diagnose: note: {args.validate}: the model file's {sentence}", file=sys.stderr)
+        print(f"psdm diagnose: note: {args.validate[0]}: the model file's {sentence}", file=sys.stderr)
     if check is not None:
         return check.load, sentence
     load = new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
