@@ -329,11 +329,6 @@ def _friction_drift(problem, choice, mode, temperatures) -> tuple:
     return moved, drift, choose_columns(robot, model, moved, options, request, validation, configurations)
 
 
-def _carries_payloads(configurations) -> bool:
-    """Whether any recording carries a payload, stated or unknown, that the robot file does not hold."""
-    return configurations is not None and any(c.payload is not None or c.unknown for c in configurations)
-
-
 def _refit(problem):
     """``refit(options) -> TrajectoryFit`` on the training recordings of ``problem`` (``(robot, model, recordings,
     options, configurations)``)."""
@@ -348,18 +343,23 @@ def _refit(problem):
 def _one_way(problem, fit, judged, mode, write) -> tuple:
     """``(fit, OneWayFriction)``: the undetermined friction of the joints that move one way only held to the robot
     file's fit where the held-out recordings (else none) say the data's own is worse (``one_way_friction``), judged on
-    the model ``write(options, fit)`` makes of the fit (``written_model``)."""
+    the model ``write(options, fit)`` makes of the fit (``written_model``). Beside payloads the file's friction is
+    fitted on the training recordings without them (``file_judged.file_training``; where every training recording
+    carries an unknown one there is none to fit it on, and the data's friction stays)."""
     from identification.calibration.column_candidates import prepare_training
 
     robot, _, recordings, options, configurations = problem
-    if _carries_payloads(configurations):
-        return fit, OneWayFriction(mode=mode, reason="fitted from the data (the recordings carry payloads)")
-    prepared = prepare_training(robot, recordings, options).prepared
+    beside = file_training(robot, recordings, options, configurations)  # the file's friction fitted without loads
+    prepared = prepare_training(robot, recordings, options).prepared  # which joints move one way: every recording
 
     def judge(candidate):
         return write(options, candidate).check
 
-    return hold_one_way_friction((*problem, _refit(problem)), fit, prepared, mode, judge if judged.recordings else None)
+    judge = judge if judged.recordings else None
+    fit, record = hold_one_way_friction((*problem, _refit(problem)), fit, prepared, mode, judge, beside)
+    if judged.reason and record.held and not record.decided_by_held_out:
+        record = replace(record, reason=f"{record.reason} (the held-out recordings cannot judge it: {judged.reason})")
+    return fit, record
 
 
 def _worse_joints(problem, written, judged, mode, write) -> tuple:

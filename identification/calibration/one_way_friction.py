@@ -26,6 +26,9 @@ them worse. The friction fitted beside the rigid body is what goes wrong, so :fu
 3. a held joint's Coulomb and viscous friction are those of the robot file's rigid body fitted to the training data
    (``robot_file_check.file_friction``, Coulomb-viscous: a Stribeck hump is no more determined than the level it sits
    on), and the fit is made again with them held (``held_friction``): the rigid body is fitted to what they leave.
+   Beside payloads the robot file's friction is fitted as the robot-file check fits it (``file_judged``): each known
+   payload's torque taken off, each recording with an unknown payload left out (the file cannot hold its load); the
+   one-way joints are those of every training recording.
 
 Kinova opti_traj_testing2 -> opti_traj_testing1: joints 1, 3, 4, 5, 6, 7 held, validation 0.261 / 0.153 / 0.207 N m
 on joints 3, 5, 6 (robot file with friction 0.241 / 0.136 / 0.188), no joint worse than it. ``mode``: ``"auto"``
@@ -176,23 +179,32 @@ def held_options(options, held, n_dof: int):
     return replace(options, held_friction=tuple(held), stribeck_joints=left)
 
 
-def hold_one_way_friction(problem, fit, prepared, mode: str = "auto", file_check=None) -> tuple:
+def hold_one_way_friction(problem, fit, prepared, mode: str = "auto", file_check=None, file_prepared=None) -> tuple:
     """``(fit, OneWayFriction)``: ``fit`` as it is, or made again with the friction of its one-way joints held where
     it is undetermined or the held-out recordings find it worse than the robot file (module docstring). ``problem`` =
     ``(robot, model, recordings, options, configurations, refit)`` where ``refit(options) -> TrajectoryFit``;
-    ``prepared``: the training recordings as the fit prepared them; ``file_check(fit) -> robot_file_check.FileCheck``
-    of a fit on the held-out recordings (None: none given)."""
+    ``prepared``: the training recordings as the fit prepared them (which joints move one way only);
+    ``file_check(fit) -> robot_file_check.FileCheck`` of a fit on the held-out recordings (None: none given);
+    ``file_prepared``: the training recordings the robot file's friction is fitted on (default ``prepared``; with
+    payloads ``file_judged.file_training``: known loads taken off, recordings with an unknown one left out)."""
     robot, options, refit = problem[0], problem[3], problem[5]
+    file_prepared = prepared if file_prepared is None else file_prepared
     one_way = tuple(one_way_joints(prepared, range(robot.n_dof), speed=options.coulomb_velocity,
                                    min_fraction=MIN_REVERSAL_FRACTION))  # fmt: skip
     record = OneWayFriction(mode=mode, one_way=one_way)
-    if not one_way or mode == "fit":
+    if not one_way:
+        return fit, replace(record, reason="fitted from the data (every joint moves both ways in training)")
+    if mode == "fit":
         return fit, replace(record, reason="fitted from the data (--one-way-friction fit)")
     undetermined = undetermined_friction(fit, one_way)
     candidates = one_way if mode == "hold" else tuple(j for j, _ in undetermined)
     record = replace(record, undetermined=undetermined)
     if robot.links is None:
         return fit, replace(record, reason="fitted from the data (the robot file states no links to hold it to)")
+    if not file_prepared:
+        return fit, replace(record, reason="fitted from the data (every training recording carries an unknown payload "
+                            "the robot file does not: its friction has no recording to be fitted on without that "
+                            "load)")  # fmt: skip
     check = None if file_check is None or mode == "hold" else file_check(fit)
     worse = () if check is None else tuple(j for j in check.worse if j in one_way)
     above = () if check is None else tuple(j for j in check.above if j in candidates)
@@ -205,7 +217,7 @@ def hold_one_way_friction(problem, fit, prepared, mode: str = "auto", file_check
         return fit, replace(record, reason=f"fitted from the data: {undetermined_text} no worse there than the robot "
                                            f"file on {check.recordings} held-out recording(s)")  # fmt: skip
     joints = tuple(sorted(set(candidates) | set(worse)))
-    held = file_friction_values(robot, fit, prepared, joints)
+    held = file_friction_values(robot, fit, file_prepared, joints)
     logger.info("identify: holding the friction of joints %s (one way only, undetermined or worse) to the robot "
                 "file's fit ...", ", ".join(str(j + 1) for j in joints))  # fmt: skip
     try:

@@ -8,7 +8,8 @@ half as heavy again as the simulated arm's: the file is judged per joint, and th
 wrong link acts. The virtual SCARA whose robot file is its truth, joint 3 moving one way only in training (its
 friction trades with gravity: ``test_one_way_friction``), a 0.5 kg unknown load on one training recording: the hold
 of worse joints acts and leaves no joint worse. Before, both said "not checked (the recordings carry an unknown
-payload the robot file does not)" and the hold was not tried.
+payload the robot file does not)" and the hold was not tried. The same SCARA with the load unknown or stated: the hold
+of one-way friction holds joint 3's at the true friction (it was skipped beside any payload).
 """
 
 from __future__ import annotations
@@ -24,9 +25,10 @@ from identification.data.configuration import NO_PAYLOAD, PayloadConfiguration
 from identification.data.payload import Payload
 from psdm_casadi.oracle import PinocchioOracle
 from tests.identification.test_column_choice import synthetic
-from tests.identification.test_one_way_friction import recording
+from tests.identification.test_one_way_friction import FC, FV, recording
 
 GRIPPER = PayloadConfiguration(name="gripper", unknown=True, stated=True)
+LOAD = Payload(0.5, np.array([0.0, 0.0, 0.02]))  # on the SCARA's second training recording
 
 
 def loaded(robot, plain, load, q, qd, qdd):
@@ -83,6 +85,28 @@ def test_the_worse_joint_hold_acts_beside_an_unknown_training_load(scara_arm):
     assert result.file_check.worse == () and record.left == ()
 
 
+@pytest.mark.parametrize("load", ["unknown", "known"])
+def test_the_one_way_hold_acts_beside_a_payload(scara_arm, load):
+    """The SCARA trained with joints 3 and 4 moving one way only, a 0.5 kg load on one of its two training recordings,
+    unknown or stated: joint 3's friction, undetermined (it trades with gravity), is held to the robot file's fit on
+    the training recordings without the load (``file_judged.file_training``), at the true friction, and joint 3 is
+    not worse than the robot file on the held-out recording. Before, the hold was skipped ("the recordings carry
+    payloads") and joint 3 was worse."""
+    robot, model = scara_arm
+    train = [recording(robot, 0, one_way=(2, 3), duration=2.0), _scara_loaded(robot, 2)]
+    carried = GRIPPER if load == "unknown" else PayloadConfiguration(name="tool", payload=LOAD, stated=True)
+    result = identify_recordings(robot, model, train, validation=[recording(robot, 1)], counterbalance=False,
+                                 worse_joint="report", configurations=[NO_PAYLOAD, carried],
+                                 held_configurations=[NO_PAYLOAD])  # fmt: skip
+    decided = result.one_way
+    assert decided.one_way == (2, 3) and 2 in decided.held_joints and decided.decided_by_held_out, decided.reason
+    held, speed, smoothing = dict(decided.held), 0.08, result.options.coulomb_velocity  # joint 3 moves at 0.08 m/s
+    truth = FC * np.tanh(speed / smoothing) + FV * speed
+    assert held["fc3"] * np.tanh(speed / smoothing) + held["fv3"] * speed == pytest.approx(truth, abs=0.02)
+    c = result.file_check.comparison
+    assert c is not None and 2 not in result.file_check.worse and c.after[2] < 2 * c.before[2]
+
+
 @pytest.fixture(scope="module")
 def scara_arm():
     from psdm_casadi import derive_psdm, load_robot
@@ -97,7 +121,7 @@ def _scara_loaded(robot, seed):
     plain = recording(robot, seed, one_way=(2, 3), duration=2.0)
     qd = np.gradient(plain.q, plain.t, axis=0)
     qdd = np.gradient(qd, plain.t, axis=0)
-    return loaded(robot, plain, Payload(0.5, np.array([0.0, 0.0, 0.02])), plain.q, qd, qdd)
+    return loaded(robot, plain, LOAD, plain.q, qd, qdd)
 
 
 def test_a_held_out_recording_with_the_training_load_does_not_judge_the_file():
