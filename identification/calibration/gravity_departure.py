@@ -16,6 +16,13 @@ percent (CAD), spread over the several links a joint carries and of either sign,
 the gravity it balances. On the heavy arm at seed 1 joint 2 is left with 2769 N m RMS opposing 60 % of its gravity, the
 others within 135 N m; joint 3 alone would need a torque beyond its whole gravity torque, joint 5 a tool of negative
 mass.
+
+A joint's own torque offset (a drive column the data chose) is counted in its departure: over the half radian or so
+an arm sweeps near horizontal a balancer's torque is mostly a constant, which the offset takes, and the links' first
+moments take only its swing (links 2 and 3 together: a mass moved between them through joint 2's grouped first
+moment, link 3's own first moment, which joint 3 also feels, left as it was). Their sum is the torque of that joint
+alone the fit puts beside the file's gravity; either part alone is a fraction of it. A sensor's zero error is a few
+percent of the joint's torque (``offset_reading.SENSOR_SHARE``), of either sign, and does not reach the share alone.
 """
 
 from __future__ import annotations
@@ -27,7 +34,7 @@ import numpy as np
 from identification.calibration.absorbed_effect import LOCAL
 from identification.calibration.offset_reading import STRIDE
 
-__all__ = ["FILE_GRAVITY_ERROR", "GravityDeparture", "gravity_departures", "theta_departures"]
+__all__ = ["FILE_GRAVITY_ERROR", "GravityDeparture", "fitted_offsets", "gravity_departures", "theta_departures"]
 
 #: The share of a joint's gravity torque a robot file's CAD errors (masses and centres of mass 10-20 % off, spread
 #: over the links the joint carries) may move: a fitted gravity torque departing from the file's by more is no CAD
@@ -39,49 +46,70 @@ FILE_GRAVITY_ERROR = 0.25
 @dataclass(frozen=True)
 class GravityDeparture:
     """On ``joint`` (0-based) the fitted gravity torque leaves the robot file's by ``departure`` [N m RMS, a body at
-    the flange fitted to the other joints' departures taken out], ``local`` of the squared departure left on every
-    joint, opposing the file's gravity torque (``gravity`` [N m RMS] there) by ``share`` of it."""
+    the flange fitted to the other joints' departures taken out, its torque ``offset`` [N m] counted], ``local`` of
+    the squared departure left on every joint, opposing the file's gravity torque (``gravity`` [N m RMS] there) by
+    ``share`` of it."""
 
     joint: int
     departure: float
     gravity: float
     local: float
     share: float
+    offset: float = 0.0
+
+    @property
+    def _with(self) -> str:
+        return f" with its torque offset ({self.offset:+.4g} N m)" if self.offset else ""
 
     def sentence(self) -> str:
         """Why it is named, in the report's words."""
         return (
-            f"the fitted gravity torque of joint {self.joint + 1} leaves the robot file's by {self.departure:.4g} N m "
-            f"RMS, opposing its gravity torque ({self.gravity:.4g} N m RMS) by {self.share:.0%} of it and "
-            f"{self.local:.0%} of every joint's departure once a body at the flange explains the others: a torque of "
+            f"the fitted gravity torque of joint {self.joint + 1}{self._with} leaves the robot file's by "
+            f"{self.departure:.4g} N m RMS, opposing its gravity torque ({self.gravity:.4g} N m RMS) by "
+            f"{self.share:.0%} of it and {self.local:.0%} of every joint's departure once a body at the flange "
+            "explains the others: a torque of "
             "that joint alone, more than a robot file's errors give, most likely a counterbalance or spring the "
-            "links' first moments absorb"
+            f"links' first moments{' and the offset' if self.offset else ''} absorb"
         )
 
     @property
     def evidence(self) -> str:
         """The same, as the envelope report states a finding's evidence (``envelope_report.named_by_departure``)."""
         return (
-            f"the fitted gravity torque of joint {self.joint + 1} leaves the robot file's by {self.departure:.4g} N m "
-            f"RMS, {self.local:.0%} of every joint's departure once a body at the flange explains the others, opposing "
-            f"{self.share:.0%} of its gravity torque; no body at the flange gives it"
+            f"the fitted gravity torque of joint {self.joint + 1}{self._with} leaves the robot file's by "
+            f"{self.departure:.4g} N m RMS, {self.local:.0%} of every joint's departure once a body at the flange "
+            f"explains the others, opposing {self.share:.0%} of its gravity torque; no body at the flange gives it"
         )
 
 
 def gravity_departures(robot, model, recordings, fit) -> dict:
-    """``{0-based joint: GravityDeparture}`` of ``fit`` on the raw training ``recordings`` (module docstring); empty
-    without the robot file's links."""
-    return theta_departures(robot, model, recordings, fit.theta)
+    """``{0-based joint: GravityDeparture}`` of ``fit`` on the raw training ``recordings`` (module docstring), each
+    joint's own torque offset (a drive column of the fit, ``offset<j>``; none in a fit without drive columns) counted
+    in its departure; empty without the robot file's links."""
+    offsets = fitted_offsets(getattr(fit, "drive", ()), getattr(fit, "drive_names", ()), robot.n_dof)
+    return theta_departures(robot, model, recordings, fit.theta, offsets)
 
 
-def theta_departures(robot, model, recordings, theta) -> dict:
-    """``gravity_departures`` of the base parameters ``theta`` (inside the fit, before its ``TrajectoryFit``)."""
+def fitted_offsets(drive, names, n_dof: int) -> np.ndarray:
+    """[N m] per joint, the torque offset among a fit's drive parameters ``drive`` labelled ``names`` (0 where the fit
+    has none)."""
+    names = list(names)
+    return np.array([float(drive[names.index(f"offset{j + 1}")]) if f"offset{j + 1}" in names else 0.0
+                     for j in range(n_dof)])  # fmt: skip
+
+
+def theta_departures(robot, model, recordings, theta, offsets=None) -> dict:
+    """``gravity_departures`` of the base parameters ``theta`` (inside the fit, before its ``TrajectoryFit``) and the
+    fit's torque ``offsets`` per joint [N m] (None: none), each counted on its own joint only (the constant column
+    takes what the links leave of a balancer over the recorded range). The envelope report's naming of a pressed
+    link (``held_back.causes``) passes none: it asks what the link holds, and an offset is not in it."""
     if robot.links is None or not recordings:
         return {}
     q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in recordings])
     zero = np.zeros_like(q)
     g_file = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
     difference = model.inverse_dynamics(q, zero, zero, np.asarray(theta, dtype=float)) - g_file
+    offsets = np.zeros(robot.n_dof) if offsets is None else np.asarray(offsets, dtype=float)
     bodies = np.abs(model.parameter_map).reshape(model.n_base, robot.n_dof, 11)[:, :, :4].max(axis=(0, 2))
     last = int(np.flatnonzero(bodies > 0)[-1])  # the last link with mass carries a body at the flange
     flange = np.stack(
@@ -92,6 +120,7 @@ def theta_departures(robot, model, recordings, theta) -> dict:
         others = [k for k in range(robot.n_dof) if k != j]
         body, *_ = np.linalg.lstsq(flange[:, others].reshape(-1, 4), difference[:, others].ravel(), rcond=None)
         left = difference - flange @ body
+        left[:, j] += offsets[j]  # what the joint's own constant column holds of it
         power = np.mean(left**2, axis=0)
         gravity = float(np.dot(g_file[:, j], g_file[:, j]))
         if not (body[0] >= 0.0 and gravity > 0.0 and power.sum() > 0.0):
@@ -99,5 +128,6 @@ def theta_departures(robot, model, recordings, theta) -> dict:
         share = float(-np.dot(left[:, j], g_file[:, j]) / gravity)  # the share of gravity it takes, opposing it
         local = float(power[j] / power.sum())
         if local >= LOCAL and FILE_GRAVITY_ERROR <= share <= 1.0:
-            out[j] = GravityDeparture(j, float(np.sqrt(power[j])), float(np.sqrt(gravity / q.shape[0])), local, share)
+            rms = float(np.sqrt(gravity / q.shape[0]))
+            out[j] = GravityDeparture(j, float(np.sqrt(power[j])), rms, local, share, float(offsets[j]))
     return out
