@@ -46,6 +46,12 @@ as it sees the recorded torque.
 
 The filter is not what biases sigma0: fitted on the filtered true friction of that recording along the filtered
 velocity, with its noise, sigma0 comes out within 3 % on every joint (the bias was the rigid body's, above).
+
+Whether the model explains a joint's torque at all (``trajectory_checks.fit_quality_warnings``: a torque of another
+joint, a swapped column) is judged on the whole torque, by the Stribeck fit of step 1 (:func:`whole_torque_warnings`),
+not by the R^2 of step 3's refit: that is the R^2 of the torque left once the friction is taken out, near 0 by
+construction on a joint whose torque is mostly friction (a belt-driven wrist), where a warning of a swapped column
+would be false.
 """
 
 from __future__ import annotations
@@ -58,6 +64,7 @@ import numpy as np
 
 from identification.calibration.lugre_recordings import fit_lugre_recordings, lugre_friction
 from identification.calibration.payload_fit import subtract_loads
+from identification.calibration.trajectory_checks import fit_quality_warnings
 from identification.calibration.trajectory_data import choose_filter, prepare_recordings
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
@@ -66,7 +73,8 @@ from identification.friction.simulation import simulate_lugre
 from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["FRICTION_EDGE_PERIODS", "MAX_ROUNDS", "ROUND_TOLERANCE", "ROUND_TOLERANCE_SD", "LuGreIdentification",
-           "identify_lugre_trajectories", "raw_start_force", "round_change", "without_lugre_friction"]  # fmt: skip
+           "identify_lugre_trajectories", "raw_start_force", "round_change", "whole_torque_warnings",
+           "without_lugre_friction"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -92,7 +100,8 @@ class LuGreIdentification:
     ----------
     fit : TrajectoryFit
         The last linear fit: rigid body, drive inertias and offsets (no friction columns), then the coefficients
-        of the ``extra`` columns when there are any.
+        of the ``extra`` columns when there are any. Its warnings of a joint the model does not explain are those of
+        the whole torque, ``stribeck``'s (:func:`whole_torque_warnings`).
     lugre : lugre_recordings.LuGreFit
         The LuGre friction of every joint, fitted on the friction ``fit`` leaves.
     stribeck : TrajectoryFit
@@ -242,4 +251,21 @@ def identify_lugre_trajectories(
         warnings.warn(warning.message, warning.category, stacklevel=2)
     if rounds is None and taken > 1:
         logger.info("identify: LuGre fits alternated with rigid-body refits: %d LuGre fits kept (%s)", taken, ended)
-    return LuGreIdentification(fit=fit, lugre=lugre, stribeck=stribeck, rounds=taken)
+    return LuGreIdentification(fit=whole_torque_warnings(robot, fit, stribeck), lugre=lugre, stribeck=stribeck,
+                               rounds=taken)  # fmt: skip
+
+
+def whole_torque_warnings(robot, fit, stribeck):
+    """``fit`` (a refit on the torque with the LuGre friction taken out) with its warnings of a joint the model does
+    not explain (``trajectory_checks.fit_quality_warnings``, the only ones that read its R^2) replaced by those of
+    ``stribeck``, the fit of the whole torque it started from.
+
+    The refit's R^2 is of the torque left once the friction is taken out: on a joint whose torque is mostly friction
+    (a belt-driven wrist) it is near 0 by construction, and a warning that the torque does not look like the joint's
+    (columns swapped) would be false. A torque the Stribeck fit does not explain either (a swapped column) is still
+    warned about, in ``stribeck``'s words. The refit's other warnings (envelope, masses, drive inertias) stay."""
+    if fit is stribeck:
+        return fit
+    own = set(fit_quality_warnings(robot, fit, fit.loaded))
+    whole = fit_quality_warnings(robot, stribeck, stribeck.loaded)
+    return dataclasses.replace(fit, warnings=(*whole, *(w for w in fit.warnings if w not in own)))

@@ -41,6 +41,7 @@ __all__ = [
     "check_columns",
     "check_offset_reversals",
     "check_validation_recording",
+    "fit_quality_warnings",
     "fit_warnings",
     "torque_ratio",
     "unit_factor",
@@ -232,12 +233,14 @@ def _envelope_warnings(fit) -> list:
     return [finding.message for finding in fit.envelope if finding.pressed]  # a link resting on a bound: a note
 
 
-def _fit_quality_warnings(robot, fit, loaded=()) -> list:
+def fit_quality_warnings(robot, fit, loaded=()) -> list:
     """Joints whose torque the identified model does not explain on the very recordings it was fitted to (none when
     the torques are in another unit: the bounded model cannot reach them, and the unit is the one cause to name).
     ``loaded``: the recordings that look as if they carry a load the others do not (``configuration_check``'s
     ``LoadedRecording``): one arm fitted across different loads is the cause then, not a torque's sign, and the
-    warning says so."""
+    warning says so. The only warnings of :func:`fit_warnings` that read the fit's R^2 (``training_r2``,
+    ``training_r2_ols``): a fit of the torque with a friction taken out judges them on the whole torque instead
+    (``lugre_identify.whole_torque_warnings``)."""
     if unit_factor(getattr(fit, "torque_ratio", ())) is not None:
         return []
     loaded, out = [f.name or "a recording" for f in loaded if f.mass > 0], []
@@ -273,7 +276,7 @@ def fit_warnings(robot, fit, loaded=()) -> tuple:
     """Warnings (str) on a ``TrajectoryFit`` of ``robot`` that point at a wrong recording (module docstring);
     ``loaded``: the training recordings that look loaded against the others (``configuration_check``)."""
     return tuple(
-        _fit_quality_warnings(robot, fit, loaded)
+        fit_quality_warnings(robot, fit, loaded)
         + _friction_warnings(robot, fit)
         + _drive_inertia_warnings(fit)
         + _mass_warnings(robot, fit)
