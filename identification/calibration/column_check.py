@@ -27,7 +27,12 @@ says so.
 An offset the plain rule keeps is checked the same way when validation recordings are given (``Evidence.written``,
 ``column_choice``: a friction error the joint shows at other speeds one way than the other takes a constant column),
 its plain rival the model without it: it stays if it lowers its own joint's held-out error there (the plain rule
-kept it; the other joints' margins are not asked of it).
+kept it; the other joints' margins are not asked of it). Not an offset the size rule reads on the fit as no sensor's
+(``offset_reading``: a share of its joint's gravity torque and recorded peak no zero error and no friction mean
+reaches): that is a torque of the position the constant takes, the evidence identify's counterbalance naming reads
+(``counterbalance_sources``), and it stands as the plain rule kept it (the heavy virtual arm's shoulder balancer,
+dropped here as an offset its joint was no better with, left the counterbalance unnamed and a payload taking its
+torque).
 
 A judge must be a converged fit: a fit the judge compares that stopped at Ipopt's iteration cap
 (``Maximum_Iterations_Exceeded``; a consistent fit that did not converge otherwise raises, and a fold that raises
@@ -47,10 +52,11 @@ import numpy as np
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.counterbalance_folds import FoldFailure, block_folds
 from identification.calibration.never_worse import compare_models
+from identification.calibration.offset_reading import fit_offsets
 from identification.calibration.shared_barrier import shared_solvers
 from identification.calibration.trajectory_fit import identify_trajectories
 
-__all__ = ["UnconvergedFit", "check_departures", "converged", "written_model_judge"]
+__all__ = ["UnconvergedFit", "check_departures", "converged", "offset_sizes", "written_model_judge"]
 
 logger = logging.getLogger(__name__)
 
@@ -71,7 +77,7 @@ def converged(fit, what: str):
     return fit
 
 
-def check_departures(choice, fit, fit_of, compare) -> tuple:
+def check_departures(choice, fit, fit_of, compare, sized=None) -> tuple:
     """(choice, its fit) after each of ``choice.departures`` was checked on the written model (module docstring).
 
     ``fit``: the fit of ``choice``; ``fit_of(choice)``: the fit of a ``ColumnChoice``; ``compare(before, after)``: the
@@ -79,6 +85,8 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
     ``after``: the choice's; :func:`written_model_judge`), raising ``FoldFailure`` when it cannot judge. The fit is a
     call: the plain rule's consistent fit is made only when the judge uses it (the held-out recordings; the block
     folds identify their own models) or the plain rule wins, one fit fewer per departure the folds confirm.
+    ``sized(fit, joint)``: the ``offset_reading.OffsetReading`` of the fit's offset on a joint where no sensor has it
+    (:func:`offset_sizes`), else None; such a written offset is not judged (module docstring).
     """
     for evidence in choice.departures:
         current = next(e for e in choice.evidence if (e.term, e.joint) == (evidence.term, evidence.joint))
@@ -88,6 +96,16 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
         outcome = "so it is left out" if current.written else "so the training BIC decides"
         plain_fit = cache(partial(fit_of, plain))  # fitted only if the judge or a flip needs it
         what = "keeping" if current.kept else "refusing"
+        reading = sized(fit, current.joint) if current.written and sized is not None else None
+        if reading is not None:  # a torque of the position, not a friction mean: the counterbalance naming reads it
+            reason = (f"{current.reason}; not checked on the model identify writes: {reading.offset:+.4g} N m is "
+                      f"{reading.gravity_share:.0%} of joint {current.joint + 1}'s gravity torque in the robot file "
+                      f"and {reading.peak_share:.0%} of its recorded peak, no sensor's zero error and no friction "
+                      "mean (a torque of the position the constant takes), so it stays as the plain rule kept "
+                      "it")  # fmt: skip
+            choice = choice.decided(current, current.kept, reason)
+            logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
+            continue
         try:
             comparison = compare((plain, plain_fit), (choice, partial(_same, fit)))
         except UnconvergedFit as failure:  # no verdict from a fit that did not converge: the training BIC decides
@@ -124,6 +142,17 @@ def check_departures(choice, fit, fit_of, compare) -> tuple:
             choice = choice.decided(current, current.kept, reason)
         logger.info("identify: %s on joint %d: %s", current.term, current.joint + 1, reason)
     return choice, fit
+
+
+def offset_sizes(problem):
+    """The ``sized`` of :func:`check_departures` for ``problem`` = (robot, model, raw training recordings, ...): the
+    size rule identify's counterbalance naming reads a fit's offset by (``offset_reading.fit_offsets``)."""
+    robot, model, recordings = problem[:3]
+
+    def sized(fit, joint):
+        return fit_offsets(robot, model, recordings, fit, (joint,)).get(joint)
+
+    return sized
 
 
 def _same(fit):

@@ -22,7 +22,7 @@ import logging
 from dataclasses import dataclass, field, replace
 
 from identification.calibration.calibrated_model import CalibratedModel
-from identification.calibration.column_check import check_departures, written_model_judge
+from identification.calibration.column_check import check_departures, offset_sizes, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.counterbalance_column import CounterbalanceChoice
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
@@ -409,4 +409,4 @@ def _checked_fit(robot, model, recordings, options, choice, validation, configur
         return choice, fit
     logger.info("identify: checking the %d column(s) the held-out data alone decided on the model it writes ...",
                 len(choice.departures))  # fmt: skip
-    return check_departures(choice, fit, fit_of, judge)
+    return check_departures(choice, fit, fit_of, judge, offset_sizes(problem))
