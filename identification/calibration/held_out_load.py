@@ -48,6 +48,7 @@ __all__ = [
     "UnstatedLoad",
     "find_unstated_load",
     "judge_load",
+    "judge_recording",
     "point_mass",
 ]
 
@@ -209,3 +210,13 @@ def find_unstated_load(robot, calibrated, model, recording, kt=None, name=None) 
         return LoadCheck(error, r2, prepared, predicted, load, error)
     arm, r2, prepared, predicted = validation_with_payload(robot, calibrated, model, recording, kt, load.body)
     return LoadCheck(arm, r2, prepared, predicted, load, error)
+
+
+def judge_recording(robot, calibrated, model, recording, kt=None, stated=None, name=None) -> LoadCheck:
+    """The :class:`LoadCheck` of a calibrated model on a raw recording as ``psdm validate`` judges it: with a stated
+    load (``stated``: its 10 inertial parameters, ``payload_fit.stated_payload``) that load's torque added to the
+    prediction (``load`` None: nothing beyond it is looked for here), else :func:`find_unstated_load`."""
+    if stated is None:
+        return find_unstated_load(robot, calibrated, model, recording, kt, name)
+    error, r2, prepared, predicted = validation_with_payload(robot, calibrated, model, recording, kt, stated)
+    return LoadCheck(error, r2, prepared, predicted, None, error)

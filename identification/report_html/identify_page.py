@@ -43,43 +43,45 @@ class TorqueSeries:
 
 def torque_series(calibrated, model, robot, recordings, names, held_out: bool) -> list:
     """``TorqueSeries`` of ``recordings`` (raw, joint side) predicted by ``calibrated`` as ``psdm validate`` does. A
-    held-out recording is shown as the report's and the JSON's validation judge it (``judged_load``): the load it
-    states, or a plausible one nothing states, taken off the measured torque, so that the plot's residual is the one
-    whose RMSE they report (with the load left in, the load's torque would fill the plot)."""
+    held-out recording is shown as the report's and the JSON's validation judge it (``held_out_load.judge_recording``):
+    the load it states, or a plausible one nothing states, taken off the measured torque, so that the plot's residual
+    is the one whose RMSE they report (with the load left in, the load's torque would fill the plot)."""
+    from identification.calibration.held_out_arm import recording_kt
+
     out = []
     for name, recording in zip(names, recordings):
-        kt = None
-        if recording.tau is None and robot.drives:
-            kt = np.array([d.kt for d in robot.drives], dtype=float)
-        prepared, predicted = calibrated.predict_recording(model, recording, kt)
-        measured, taken_off = prepared.tau, ""
+        kt = recording_kt(robot, recording)
         if held_out:
-            with_load, taken_off = judged_load(robot, calibrated, model, recording, kt, name)
-            measured = prepared.tau if with_load is None else prepared.tau - (with_load - predicted)
+            prepared, predicted, with_load, taken_off = judged_load(robot, calibrated, model, recording, kt, name)
+            measured = prepared.tau - (with_load - predicted)
+        else:
+            prepared, predicted = calibrated.predict_recording(model, recording, kt)
+            measured, taken_off = prepared.tau, ""
         out.append(TorqueSeries(Path(str(name)).name, held_out, prepared.t, measured, np.asarray(predicted),
                                 taken_off))  # fmt: skip
     return out
 
 
 def judged_load(robot, calibrated, model, recording, kt, name) -> tuple:
-    """``(prediction with the load's torque, what was taken off)`` of a held-out recording as ``psdm validate`` and
-    identify's validation judge it: the load its sidecar (or the model file's list for it) states
-    (``payload_fit.stated_payload``), else a plausible one nothing states (``held_out_load.find_unstated_load``);
-    ``(None, "")`` without a load."""
-    from identification.calibration.held_out_load import find_unstated_load
-    from identification.calibration.payload_check import validation_with_payload
+    """``(prepared recording, prediction, prediction with the load's torque, what was taken off)`` of a held-out
+    recording as ``psdm validate`` and identify's validation judge it (``held_out_load.judge_recording``): the load
+    its sidecar (or the model file's list for it) states (``payload_fit.stated_payload``), else a plausible one nothing
+    states; without a load the prediction twice and ``""``."""
+    from identification.calibration.held_out_load import judge_recording
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.refit_training import listed_configuration
 
     listed = listed_configuration(calibrated.document, name)
     stated, _ = stated_payload(listed, calibrated.configurations, "the model")
+    check = judge_recording(robot, calibrated, model, recording, kt, stated, str(name))
     if stated is not None:
-        with_load = validation_with_payload(robot, calibrated, model, recording, kt, stated)[3]
-        return with_load, f"the stated load {listed.name!r} ({float(stated[0]):.3g} kg)"
-    check = find_unstated_load(robot, calibrated, model, recording, kt, str(name))
-    if not check.taken_off:
-        return None, ""
-    return check.predicted, f"the {check.load.found.mass:.3g} kg load nothing states"
+        taken_off = f"the stated load {listed.name!r} ({float(stated[0]):.3g} kg)"
+    elif check.taken_off:
+        taken_off = f"the {check.load.found.mass:.3g} kg load nothing states"
+    else:
+        return check.prepared, check.predicted, check.predicted, ""
+    _, predicted = calibrated.predict_recording(model, recording, kt)  # the model's own, the load's torque left out
+    return check.prepared, predicted, check.predicted, taken_off
 
 
 def identify_page(document: dict, series=()) -> Page:

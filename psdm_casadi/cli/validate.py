@@ -147,20 +147,20 @@ def _run_validate(args) -> int:
 
 def _judged(robot, calibrated, model, recording, stated, path) -> tuple:
     """(RMSE, R^2, prepared recording, prediction, load, RMSE with the load left in or None) of the model on a raw
-    recording: with a stated load (``stated``: its 10 parameters) that load added to the prediction and a load beyond
-    it named (``payload_check.new_payload``); with none, a load nothing states found, and taken off if plausible
-    (``held_out_load``, as identify and diagnose judge it)."""
-    from identification.calibration.held_out_load import find_unstated_load
-    from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
+    recording (``held_out_load.judge_recording``): with a stated load (``stated``: its 10 parameters) that load added
+    to the prediction and a load beyond it named (``payload_check.new_payload``); with none, a load nothing states
+    found, and taken off if plausible (``held_out_load``, as identify and diagnose judge it)."""
+    from identification.calibration.held_out_arm import recording_kt
+    from identification.calibration.held_out_load import judge_recording
+    from identification.calibration.payload_check import model_columns, new_payload
 
-    kt = _torque_constants(robot, recording)
+    check = judge_recording(robot, calibrated, model, recording, recording_kt(robot, recording), stated, str(path))
     if stated is None:
-        check = find_unstated_load(robot, calibrated, model, recording, kt, str(path))
         left_in = _numbers(check.rmse_left_in) if check.taken_off else None
         return check.rmse, check.r2, check.prepared, check.predicted, check.load, left_in
-    error, r2, prepared, predicted = validation_with_payload(robot, calibrated, model, recording, kt, stated)
-    own = model_columns(calibrated, model, prepared)  # the model's own error, allowed for in the load's
-    return error, r2, prepared, predicted, new_payload(robot, prepared, predicted, name=str(path), own=own), None
+    own = model_columns(calibrated, model, check.prepared)  # the model's own error, allowed for in the load's
+    load = new_payload(robot, check.prepared, check.predicted, name=str(path), own=own)
+    return check.rmse, check.r2, check.prepared, check.predicted, load, None
 
 
 def _preparation_noted(model, document):
@@ -257,12 +257,6 @@ def predictions_csv(rows, n_dof: int) -> str:
                                  prepared.tau, row["predicted"]])  # fmt: skip
         lines += [f"{k}," + ",".join(repr(float(x)) for x in sample[1:]) for sample in block]
     return "\n".join(lines) + "\n"
-
-
-def _torque_constants(robot, recording):
-    if recording.tau is not None or robot.drives is None:
-        return None
-    return np.array([d.kt for d in robot.drives], dtype=float)
 
 
 def _plot(path, row, joint_names) -> None:
