@@ -20,7 +20,7 @@ from psdm_casadi.cli.checks import (
     model_layout,
     output_folder,
 )
-from psdm_casadi.cli.diagnose_loads import load_sentence, payload_check, stated_loads
+from psdm_casadi.cli.diagnose_loads import stated_loads, validation_loads
 from psdm_casadi.cli.diagnose_train import TRAIN_HELP, read_more_training, training_paths
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
@@ -165,8 +165,8 @@ def _run_diagnose(args) -> int:
         robot = load_robot_argument(args)
     layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
     train, validations, given, held = _recordings(args, robot, calibrated, layout, fraction)  # held: sentences
-    if calibrated is not None:  # the first validation recording's load: named by the payload check, not twice
-        report_model_warnings("diagnose", args.robot, calibrated, args.validate[:1])
+    if calibrated is not None:  # each validation recording's load: named by the payload check, not twice
+        report_model_warnings("diagnose", args.robot, calibrated, args.validate)
     # a dead torque channel: that joint is left out of the diagnosis (``missing_torque.measured_torque``), named
     train, *validations = (find_missing_torque(r) for r in (train, *validations))
     validation = validations[0]
@@ -201,8 +201,7 @@ def _run_diagnose(args) -> int:
     apply = ApplyRefit()  # --apply's refit
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
-    load, temperature = (checks[0], None) if calibrated is None else payload_check(args, calibrated, robot, model,
-                                                                                    validation, checks[0])  # fmt: skip
+    loads, temperature = validation_loads(args, calibrated, robot, model, validations, checks)  # each by its file
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -211,15 +210,16 @@ def _run_diagnose(args) -> int:
         payload = report.to_dict()
         payload["command"] = "diagnose"
         payload["files"] = {k: str(v) for k, v in paths.items()}
-        payload["payload_check"] = None if load is None else load.to_dict()
+        payload["payload_check"] = None if loads[0].load is None else loads[0].load.to_dict()  # the first's
+        payload["payload_checks"] = [load.to_dict() for load in loads]  # every validation recording's, by its file
         payload["friction_temperature"] = temperature  # as psdm validate's field: where the file's law was read
         if apply_out is None:
             print_json(payload)
     else:
         print(report.to_markdown(paths))
-        if load is not None:
+        if found := [load.sentence() for load in loads if load.load is not None]:
             judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
-            print(f"\n## Payload check (as {judged})\n\n{load_sentence(load, checks[0])}")
+            print(f"\n## Payload check (as {judged})\n\n" + "\n\n".join(found))
     if apply_out is None:
         return 0
     return _apply(args, calibrated, robot_file, apply, apply_out, payload if args.json else None, report)

@@ -6,14 +6,16 @@ diagnosis and its refit see the arm; with a model file, a validation recording t
 findings says what the validation recording carries that the model file does not have, in validate's words. With the
 robot file, whose rigid body may be what is wrong, the validation recordings are checked as identify checks its
 held-out ones (``held_out_arm``: the flange fit on their residual of a fit of the training recording), and a plausible
-load nothing states is taken off and named likewise.
+load nothing states is taken off and named likewise. Each validation recording is checked and named by its file
+(``validation_loads``), not the first alone: with ``--validate A B`` each may carry a load of its own.
 """
 
 from __future__ import annotations
 
 import sys
+from dataclasses import dataclass
 
-__all__ = ["load_sentence", "payload_check", "robot_file_loads", "stated_loads"]
+__all__ = ["ValidationLoad", "load_sentence", "payload_check", "robot_file_loads", "stated_loads", "validation_loads"]
 
 
 def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
@@ -74,27 +76,61 @@ def robot_file_loads(args, robot, recordings, configurations, preparation):
         return None
 
 
-def payload_check(args, calibrated, robot, model, validation, check=None):
-    """``(load, temperature)``: a load the model file does not have in the validation recording, as ``psdm validate``
-    names it (one nothing states as ``check`` found it, ``held_out_load``; else one beyond the stated load,
-    ``payload_check.new_payload``), or None; and the temperatures the file's friction law was read at on it
-    (``TemperatureFriction.sentence``), or None without a law."""
+def payload_check(args, calibrated, robot, model, validation, check=None, path=None, temperature=True):
+    """``(load, temperature)``: a load the model file does not have in the validation recording ``path`` (default the
+    first ``--validate``), as ``psdm validate`` names it (one nothing states as ``check`` found it,
+    ``held_out_load``; else one beyond the stated load, ``payload_check.new_payload``), or None; and, with
+    ``temperature``, the temperatures the file's friction law was read at on it (``TemperatureFriction.sentence``), or
+    None without a law."""
     import numpy as np
 
     from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
 
+    path = str(args.validate[0] if path is None else path)
     kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
     _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
     sentence = None
-    if (laws := calibrated.temperature_friction) is not None:  # the file's friction law: where it was evaluated
+    if temperature and (laws := calibrated.temperature_friction) is not None:  # where the file's law was evaluated
         from identification.data.temperature import temperatures_at
 
         sentence = laws.sentence(temperatures_at(validation, prepared.t), robot.joint_names)
-        print(f"psdm diagnose: note: {args.validate[0]}: the model file's {sentence}", file=sys.stderr)
+        print(f"psdm diagnose: note: {path}: the model file's {sentence}", file=sys.stderr)
     if check is not None:
         return check.load, sentence
-    load = new_payload(robot, prepared, predicted, str(args.validate), model_columns(calibrated, model, prepared))
+    load = new_payload(robot, prepared, predicted, path, model_columns(calibrated, model, prepared))
     return load, sentence
+
+
+@dataclass(frozen=True)
+class ValidationLoad:
+    """The load a validation recording (``recording``: its file) carries that the model does not have, as the payload
+    check names it (``load``: ``held_out_load.UnstatedLoad`` or ``payload_check.NewPayload``; None: none), and the
+    ``held_out_load.LoadCheck`` that weighed it (None: the robot file's check, or a stated load)."""
+
+    recording: str
+    load: object = None
+    check: object = None
+
+    def sentence(self) -> str:
+        return load_sentence(self.load, self.check)
+
+    def to_dict(self) -> dict:
+        return {"recording": self.recording, "load": None if self.load is None else self.load.to_dict()}
+
+
+def validation_loads(args, calibrated, robot, model, validations, checks) -> tuple:
+    """``(loads, temperature)``: one :class:`ValidationLoad` per validation recording (``args.validate``, the
+    recordings ``validations`` as the diagnosis judges them, ``checks`` what ``stated_loads`` found on each), each
+    named by its file; and the temperatures the model file's friction law was read at on the first (``payload_check``).
+    With the robot file, a load is the ``UnstatedLoad`` its check found (``checks``)."""
+    if calibrated is None:
+        return [ValidationLoad(str(p), c) for p, c in zip(args.validate, checks)], None
+    loads, temperature = [], None
+    for k, (path, validation, check) in enumerate(zip(args.validate, validations, checks)):
+        load, said = payload_check(args, calibrated, robot, model, validation, check, path, temperature=k == 0)
+        loads.append(ValidationLoad(str(path), load, check))
+        temperature = said if k == 0 else temperature
+    return loads, temperature
 
 
 def load_sentence(load, check) -> str:

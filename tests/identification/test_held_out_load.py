@@ -263,3 +263,74 @@ def test_diagnose_of_the_robot_file_runs_on_where_the_training_fit_for_the_load_
     out, err = capsys.readouterr()
     assert json.loads(out)["payload_check"] is None
     assert "not checked for a load nothing states" in err and "joint 6 barely moves in train.npz" in err
+
+
+LIGHT = VirtualPayload(mass=1.0, com=(0.03, 0.0, 0.04))  # another load, elsewhere on the flange
+
+
+@pytest.fixture(scope="module")
+def light(denso, files):
+    """A third held-out motion, carrying a load nobody states that differs from ``LOAD`` (1 kg against 2 kg)."""
+    from identification.data.io import save_recording
+
+    return save_recording(_record(denso, 24, (LIGHT,)), files["folder"] / "light.npz")
+
+
+def _named(payload, path, truth) -> dict:
+    """The load the diagnosis's ``payload_checks`` names for the recording ``path``: plausible, taken off, and the
+    truth (mass and centre of mass) within its stated uncertainty (4 sigma, as above)."""
+    (entry,) = [e for e in payload["payload_checks"] if e["recording"] == str(path)]
+    found = entry["load"]
+    assert found["recording"] == str(path) and found["plausible"] and found["taken_off"], found
+    assert abs(found["mass"] - truth.mass) < max(4 * found["mass_std"], 0.05 * truth.mass), found
+    com_error = np.abs(np.subtract(found["com"], truth.com))
+    assert np.all(com_error < np.maximum(4 * np.asarray(found["com_std"]), 0.005)), found
+    return found
+
+
+def _sentences(text) -> list:
+    """The lines of the printed report's payload check section."""
+    section = text.split("## Payload check", 1)[1].split("\n## ", 1)[0]
+    return [line for line in section.splitlines() if "carries a load" in line]
+
+
+def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(files, light, capsys):
+    """``psdm diagnose MODEL --validate A B`` took each recording's load off but named only A's: B's 1 kg load (A's
+    2 kg) was in no line. Each recording's load is now named by its file (mass and centre of mass within their stated
+    uncertainty of that recording's truth), in the JSON (``payload_checks``) and the printed report."""
+    from psdm_casadi.cli import main
+
+    model = files["folder"] / "for-two.json"
+    assert main(["identify", "denso_vs6556g", "--data", str(files["train"]), "--validate", str(files["empty"]),
+                 "--out", str(model), "--overwrite", "--json"]) == 0  # fmt: skip
+    capsys.readouterr()
+    argv = ["diagnose", str(model), "--train", str(files["train"]), "--validate", str(files["loaded"]), str(light),
+            "--max-effects", "0", "--no-sparse"]  # fmt: skip
+    assert main([*argv, "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    heavy, second = _named(payload, files["loaded"], LOAD), _named(payload, light, LIGHT)
+    assert abs(heavy["mass"] - second["mass"]) > 4 * (heavy["mass_std"] + second["mass_std"])  # two loads, told apart
+    assert payload["payload_check"] == heavy  # the first recording's, as before
+    assert main(argv) == 0
+    lines = _sentences(capsys.readouterr().out)
+    assert len(lines) == 2, lines
+    for path, found in ((files["loaded"], heavy), (light, second)):
+        (line,) = [x for x in lines if x.startswith(f"{path} carries a load")]
+        assert f"{found['mass']:.3g} +- {found['mass_std']:.2g} kg" in line and found["sidecar"] in line
+
+
+def test_diagnose_of_the_robot_file_names_a_load_on_the_second_validation_recording_only(files, light, capsys):
+    """``psdm diagnose ROBOT --validate A B``, only B carrying a load nobody states: B's load is named by its file
+    (the truth within its uncertainty), A is said to carry none."""
+    from psdm_casadi.cli import main
+
+    argv = ["diagnose", "denso_vs6556g", "--train", str(files["train"]), "--validate", str(files["empty"]), str(light),
+            "--max-effects", "0", "--no-sparse", "--rigid-body", "prior"]  # fmt: skip
+    assert main([*argv, "--json"]) == 0
+    payload = json.loads(capsys.readouterr().out)
+    assert payload["payload_check"] is None and payload["payload_checks"][0] == {"recording": str(files["empty"]),
+                                                                                 "load": None}  # fmt: skip
+    found = _named(payload, light, LIGHT)
+    assert main(argv) == 0
+    (line,) = _sentences(capsys.readouterr().out)
+    assert line.startswith(f"{light} carries a load") and f"{found['mass']:.3g} +- {found['mass_std']:.2g} kg" in line
