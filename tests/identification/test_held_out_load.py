@@ -321,7 +321,8 @@ def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(fi
 
 def test_diagnose_of_the_robot_file_names_a_load_on_the_second_validation_recording_only(files, light, capsys):
     """``psdm diagnose ROBOT --validate A B``, only B carrying a load nobody states: B's load is named by its file
-    (the truth within its uncertainty), A is said to carry none."""
+    (the truth within its uncertainty), A is said to carry none. And the training fit behind that check no longer
+    prints identify's log line ("identify: N samples of 1 recording(s) ..."): the output says what diagnose did."""
     from psdm_casadi.cli import main
 
     argv = ["diagnose", "denso_vs6556g", "--train", str(files["train"]), "--validate", str(files["empty"]), str(light),
@@ -332,5 +333,8 @@ def test_diagnose_of_the_robot_file_names_a_load_on_the_second_validation_record
                                                                                  "load": None}  # fmt: skip
     found = _named(payload, light, LIGHT)
     assert main(argv) == 0
-    (line,) = _sentences(capsys.readouterr().out)
+    out, err = capsys.readouterr()
+    (line,) = _sentences(out)
     assert line.startswith(f"{light} carries a load") and f"{found['mass']:.3g} +- {found['mass_std']:.2g} kg" in line
+    assert not [x for x in err.splitlines() if x.startswith("identify:")], err
+    assert "diagnose: checking the validation recordings for a load nothing states" in err, err
