@@ -49,12 +49,14 @@ STRIDE = 5
 @dataclass(frozen=True)
 class OffsetReading:
     """A torque offset [N m] on ``joint`` (0-based) too large for a sensor's, with the numbers that say so: the
-    robot file's gravity torque amplitude on the recorded poses and the joint's recorded peak torque [N m]."""
+    robot file's gravity torque amplitude on the recorded poses and the joint's recorded peak torque [N m]; ``held``:
+    the part of the offset a model file holds (the diagnosis of a model file fits the rest), 0 when none."""
 
     joint: int
     offset: float
     gravity: float
     peak: float
+    held: float = 0.0
 
     @property
     def gravity_share(self) -> float:
@@ -68,11 +70,13 @@ class OffsetReading:
         """Why the offset is not a sensor's by its size, in the report's words, and what the data say of it
         (``verdict``: an ``offset_or_balancer.OffsetVerdict``; where it says offset, the size's reading is
         overruled)."""
+        parts = (f" (the model file's part {self.held:+.4g} N m plus the data's part {self.offset - self.held:+.4g} "
+                 "N m)" if self.held else "")  # fmt: skip
         size = (
-            f"the torque offset {self.offset:+.4g} N m on joint {self.joint + 1} is {self.gravity_share:.0%} of its "
-            f"gravity torque in the robot file ({self.gravity:.4g} N m) and {self.peak_share:.0%} of its recorded "
-            f"peak torque ({self.peak:.4g} N m); a torque sensor's or current measurement's zero error is a few "
-            f"percent of its range (at most {SENSOR_SHARE:.0%} of the recorded peak)"
+            f"the torque offset {self.offset:+.4g} N m{parts} on joint {self.joint + 1} is {self.gravity_share:.0%} "
+            f"of its gravity torque in the robot file ({self.gravity:.4g} N m) and {self.peak_share:.0%} of its "
+            f"recorded peak torque ({self.peak:.4g} N m); a torque sensor's or current measurement's zero error is a "
+            f"few percent of its range (at most {SENSOR_SHARE:.0%} of the recorded peak)"
         )
         if verdict is not None and not verdict.named:
             return f"{size}; {verdict.sentence()}"

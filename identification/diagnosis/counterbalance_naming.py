@@ -103,15 +103,26 @@ def named_counterbalance(finding, peak: float, gravity: float, harmonics: tuple)
                    signature="residual follows joint position over the whole range, as large as gravity")  # fmt: skip
 
 
+def whole_offset(finding) -> tuple:
+    """``(whole, held)`` [N m] of a ``torque_offset`` finding: the joint's whole offset, its ``parameters["offset"]``
+    (a model file's held offset plus the fit's part, ``report_assembly.held_offset_correction``; the fit's coefficient
+    where nothing is held), and the part the nominal model holds (0: none). A sensor's zero error or a balancer is
+    the joint's whole constant torque, not the part by which the file's offset is off."""
+    whole = float(finding.parameters.get("offset", finding.coefficients[0]))
+    return whole, whole - float(finding.coefficients[0])
+
+
 def _reading(finding, context):
-    """The ``offset_reading.OffsetReading`` of a one-joint ``torque_offset`` finding no sensor has by size (against
-    the nominal model's gravity torque amplitude and the peak measured torque of its joint); None otherwise."""
+    """The ``offset_reading.OffsetReading`` of a one-joint ``torque_offset`` finding no sensor has by size (its joint's
+    whole offset, ``whole_offset``, against the nominal model's gravity torque amplitude and the peak measured torque
+    of its joint); None otherwise."""
     if finding.effect != "torque_offset" or len(finding.joints) != 1 or getattr(context, "gravity", None) is None:
         return None
     j = int(finding.joints[0])
     peak = float(np.max(np.abs(np.asarray(context.tau)[:, j])))
-    return oversized_offset(j, float(finding.coefficients[0]), float(np.max(np.abs(np.asarray(context.gravity)[:, j]))),
-                            peak)  # fmt: skip
+    (whole, held), gravity = whole_offset(finding), float(np.max(np.abs(np.asarray(context.gravity)[:, j])))
+    reading = oversized_offset(j, whole, gravity, peak)
+    return None if reading is None else replace(reading, held=held)
 
 
 #: Why a constant remainder is no evidence of an offset where the diagnosis identified the rigid body beside it.
@@ -123,7 +134,8 @@ LINKS_FREE = (
 
 def offset_verdicts(findings, context, residual, held=None, links_free: bool = False) -> dict:
     """``{joint: offset_or_balancer.OffsetVerdict}`` of the ``torque_offset`` findings no sensor has by size: the
-    torque each takes (its offset plus the final model's ``residual`` (n, n_dof) on the training ``context``) compared
+    torque each takes (its joint's whole offset, ``whole_offset``, plus the final model's ``residual`` (n, n_dof) on
+    the training ``context``) compared
     as a constant and as a sinusoid of the joint's angle (a balancer's) on the training blocks and on ``held`` (the
     validation context and its residual), when given. ``links_free``: the rigid body was identified beside them
     (``LINKS_FREE``): an offset verdict is undecided."""
@@ -131,7 +143,7 @@ def offset_verdicts(findings, context, residual, held=None, links_free: bool = F
     for f in findings:
         if _reading(f, context) is None:
             continue
-        j, offset = int(f.joints[0]), float(f.coefficients[0])
+        j, offset = int(f.joints[0]), whole_offset(f)[0]
         pairs = [(np.asarray(ctx.q)[:, j], np.asarray(res)[:, j] + offset)
                  for ctx, res in [(context, residual), *([held] if held is not None else [])]]  # fmt: skip
         pairs = [(q[np.isfinite(t)], t[np.isfinite(t)]) for q, t in pairs]  # a joint left out: no torque

@@ -84,7 +84,7 @@ def build_report(
         joint_notes=explain_joint_changes(rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear)),
         confounding=confounding_of(robot, model, problem, final, len(selection.steps), options),
         dropped=selection.dropped,
-        unstable=selection.unstable,
+        unstable=held_offset_unstable(selection.unstable, options.held_friction),
         rejected=selection.rejected,
         opinion_route=selection.opinion_route,
         recordings=check_recordings(problem, final, findings),
@@ -160,6 +160,29 @@ def held_offset_correction(term, coefficients, held: HeldFriction) -> tuple:
                   "correction of the file's value, not a missing effect ('diagnose --apply' fits the file's offset "
                   "again)")  # fmt: skip
     return np.array([offset + change, *np.asarray(coefficients, dtype=float)[1:]]), correction
+
+
+def held_offset_unstable(unstable, held: HeldFriction) -> tuple:
+    """The unstable findings (``second_opinion.UnstableFinding``) with a ``torque_offset`` on a joint whose offset the
+    nominal model holds (a model file's) stated as the joint's whole offset on each recording or block: its fit there
+    is the part the data add to the file's (the two are one column), which alone reads as an offset the joint does not
+    have. Each opinion's ``offset`` is then the file's part plus the data's, both stated (``file_part``,
+    ``data_part``), and the finding says so; any other unstable finding is unchanged."""
+    out = []
+    for u in unstable:
+        offset = held.offset_of(int(u.joints[0])) if u.effect == "torque_offset" and len(u.joints) == 1 else 0.0
+        if offset == 0.0:
+            out.append(u)
+            continue
+        opinions = tuple(
+            replace(o, parameters={"offset": offset + o.parameters["offset"], "file_part": offset,
+                                   "data_part": o.parameters["offset"]}) if "offset" in o.parameters else o
+            for o in u.opinions
+        )  # fmt: skip
+        note = (f"the model file holds a torque offset of {offset:+.4g} N m on joint {int(u.joints[0]) + 1}: each "
+                "offset below is the joint's whole, the file's part plus the part the data add")  # fmt: skip
+        out.append(replace(u, opinions=opinions, note=note))
+    return tuple(out)
 
 
 def with_held_offset(term, coefficients, held: HeldFriction) -> tuple:

@@ -95,6 +95,7 @@ class UnstableFinding:
     joints: tuple
     route: str
     opinions: tuple
+    note: str = ""  # how its numbers read (an offset beside a model file's: ``report_assembly.held_offset_unstable``)
 
     def to_dict(self) -> dict:
         return {
@@ -104,6 +105,7 @@ class UnstableFinding:
             "route": self.route,
             "next_step": self.next_step(),
             "opinions": [o.to_dict() for o in self.opinions],
+            "note": self.note,
         }
 
     def next_step(self) -> str:
@@ -114,7 +116,7 @@ class UnstableFinding:
         failed = sum(o.failure is not None for o in self.opinions)
         return (
             f"`{self.label}` is unstable ({self.route}: it does not hold on {failed} of {len(self.opinions)}), not "
-            "missing physics: " + "; ".join(o.text() for o in self.opinions)
+            f"missing physics{f' ({self.note})' if self.note else ''}: " + "; ".join(o.text() for o in self.opinions)
         )
 
 

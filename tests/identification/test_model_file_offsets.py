@@ -19,7 +19,7 @@ from identification.calibration.calibrated_model import LoadedModel, calibrated_
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.identify_route import identify_recordings
-from identification.diagnosis.candidates import SpringTerm, TorqueOffsetTerm
+from identification.diagnosis.candidates import CandidateLibrary, SpringTerm, TorqueOffsetTerm
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.model_file import diagnose_model, model_file_options
@@ -230,3 +230,77 @@ def test_a_negative_drive_inertia_is_predicted_by_the_diagnosis_as_by_validate()
     np.testing.assert_allclose(report.rmse_before, own, rtol=1e-3)
     assert "drive inertias below 0" in report.to_markdown() and "Ia2" in report.to_markdown()
     assert not report.findings, [f.label for f in report.findings]
+
+
+def test_an_unstable_offset_beside_the_file_s_is_stated_as_the_joint_s_whole_offset(case):
+    """Training and validation recording A at a joint-1 offset of 0.9 N m, B at the file's 0.5: the offset the data
+    add holds on A and not on B, so it is unstable. Its numbers were the fit's part alone (A +0.40, B +0.002: read as
+    no offset on a joint whose whole offset is 0.5 N m); each is now the joint's whole offset on its recording (the
+    truth), with the file's part and the data's part stated."""
+    robot, model, _, _, calibrated = case
+    moved = np.array([0.9, 0.0, 0.0, 0.0])
+    train, a = (scara_recording(robot, seed, moved, (FC, FV), noise=NOISE) for seed in (2, 3))
+    b = recording(robot, 4)
+    file_offset = dict(HeldFriction.of_model_file(calibrated.document).offsets)["offset1"]
+    alone = CandidateLibrary((TorqueOffsetTerm(),))
+    quick = DiagnosisOptions(rigid_body="prior", library=alone, sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(calibrated, robot, model), train, [a, b], quick)
+    assert not any(0 in f.joints for f in report.findings)
+    (unstable,) = [u for u in report.unstable if u.label == "torque_offset[j1]"]
+    assert [o.failure is None for o in unstable.opinions] == [True, False]
+    for opinion, truth in zip(unstable.opinions, (moved[0], OFFSET[0])):
+        numbers = opinion.parameters
+        assert numbers["offset"] == pytest.approx(truth, abs=0.02), numbers
+        assert numbers["file_part"] == file_offset
+        assert numbers["data_part"] == pytest.approx(truth - file_offset, abs=0.02)
+        assert numbers["offset"] == pytest.approx(numbers["file_part"] + numbers["data_part"], abs=1e-12)
+    said = f"the model file holds a torque offset of {file_offset:+.4g} N m on joint 1"
+    assert said in unstable.sentence() and said in report.to_markdown() and said in unstable.to_dict()["note"]
+    assert f"offset = {unstable.opinions[1].parameters['offset']:.4g}" in unstable.sentence()
+
+
+def _denso_offset(denso, seed, offset2):
+    """6 s of the virtual Denso (no friction, 0.1 N m noise) with a torque offset of ``offset2`` N m on joint 2."""
+    from identification.virtual import effects as xp
+    from identification.virtual.simulation import SimulationOptions, simulate_recording
+    from trajopt.experiments import sine_experiment
+
+    rng = np.random.default_rng(seed)
+    reference = sine_experiment(denso, duration=6.0, rng=rng).reference()
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False)
+    offset = np.zeros(denso.n_dof)
+    offset[1] = offset2
+    return simulate_recording(denso, reference, options, rng, extras=[xp.TorqueOffset(offset=tuple(offset))])[0]
+
+
+@pytest.mark.parametrize(("file_offset", "data_offset"), [(3.0, 9.0), (10.0, 1.0)], ids=["grown", "shrunk"])
+def test_the_size_of_an_offset_beside_the_file_s_is_the_joint_s_whole_offset(denso, denso_model, file_offset,
+                                                                               data_offset):  # fmt: skip
+    """A model file holding a torque offset on the Denso's shoulder (joint 2, gravity amplitude about 36 N m on these
+    poses: a fifth of it is the size no sensor's zero error reaches), new recordings at another offset. The size rule
+    that reads an offset as no sensor's (a counterbalance) read the fit's part, the change: 3 -> 9 N m (a change of 6,
+    below the fifth) was a sensor's, 10 -> 1 (a change of -9, above) no sensor's. It reads the joint's whole offset
+    (the truth): 9 N m is read as no sensor's by its size, its file's and data's parts stated (the data, a constant
+    over the swing, then say offset); 1 N m is a sensor's, a correction of the file's value with no size reading."""
+    from identification.calibration.calibrated_model import CalibratedModel
+    from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+
+    options = TrajectoryOptions(friction=("fc", "fv", "offset"), offset_joints=(1,))
+    fit = identify_trajectories(denso, denso_model, [_denso_offset(denso, 5, file_offset)], options)
+    calibrated = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=str(denso.source))
+    held = dict(HeldFriction.of_model_file(calibrated.document).offsets)["offset2"]
+    assert held == pytest.approx(file_offset, abs=0.1)
+    train, validation = (_denso_offset(denso, seed, data_offset) for seed in (6, 7))
+    alone = CandidateLibrary((TorqueOffsetTerm(),))
+    quick = DiagnosisOptions(rigid_body="prior", library=alone, sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(calibrated, denso, denso_model), train, validation, quick)
+    (finding,) = [f for f in report.findings if f.joints == (1,)]
+    whole = finding.parameters["offset"]
+    assert whole == pytest.approx(data_offset, abs=0.1) and finding.coefficients[0] == pytest.approx(whole - held)
+    size = [text for text in (finding.explanation, *finding.notes) if "of its gravity torque in the robot file" in text]
+    if data_offset > file_offset:  # the whole read by the size rule, with its parts
+        (text,) = size
+        assert (f"the torque offset {whole:+.4g} N m (the model file's part {held:+.4g} N m plus the data's part "
+                f"{whole - held:+.4g} N m) on joint 2") in text  # fmt: skip
+    else:  # a sensor's size: the file's value corrected, no reading of its size
+        assert not size and finding.effect == "torque_offset" and finding.correction
