@@ -393,7 +393,9 @@ def correct_recording(recording: Recording, corrections: dict, kt=None) -> Recor
       play, ``q_link = q_rec - (b / 2) tanh(tau / s)``.
 
     ``tau`` is the recorded joint torque, or ``kt`` times the current. The same function serves the
-    recalibration and ``psdm validate``.
+    recalibration and ``psdm validate``. A joint whose torque the recording does not hold (``missing_torque``,
+    its column NaN) keeps its recorded position: the correction needs that torque, and the joint's positions still
+    drive the other joints' torques. The recording's other fields (missing torque, temperature) are kept.
     """
     entries = [dict(v, effect=v.get("effect", k)) for k, v in corrections.items()]
     delay = sum(float(e.get("delay_s", 0.0)) for e in entries if e["effect"] == "delay")
@@ -410,6 +412,7 @@ def correct_recording(recording: Recording, corrections: dict, kt=None) -> Recor
         if entry["effect"] in ("joint_elasticity", "backlash"):
             j = int(entry["joint"]) - 1
             torque = tau[:, j] if tau is not None else float(np.asarray(kt)[j]) * current[:, j]
+            torque = np.where(np.isfinite(torque), torque, 0.0)  # a missing torque: the recorded position kept
             if entry["effect"] == "joint_elasticity":
                 q[:, j] -= float(entry["compliance_rad_per_Nm"]) * torque
             else:
@@ -418,6 +421,4 @@ def correct_recording(recording: Recording, corrections: dict, kt=None) -> Recor
     if delay == 0.0 and not positions:
         return recording
     derivatives = (None, None) if positions else (recording.qd, recording.qdd)  # stale once q is corrected
-    return Recording(
-        t=recording.t, q=q, tau=tau, current=current, qd=derivatives[0], qdd=derivatives[1], name=recording.name
-    )
+    return replace(recording, q=q, tau=tau, current=current, qd=derivatives[0], qdd=derivatives[1])

@@ -74,6 +74,28 @@ def test_measurement_corrections_undo_what_the_virtual_robot_measures(effect, co
     assert not np.allclose(q_rec, q) or not np.allclose(tau_rec, tau)  # the effect was there to undo
 
 
+def test_a_joint_without_torque_keeps_its_recorded_position_under_an_elasticity_correction():
+    """A recording whose joint 1 torque is missing (a dead channel, NaN; the Kinova Gen3 log RunTrajectory1 has one):
+    the elasticity correction of joint 1 cannot be made there, so q1 stays as recorded (diagnose --apply failed with
+    'Recording.q must be finite' before); joint 2's correction is still the virtual robot's truth, and the recording
+    still names the missing torque."""
+    t = np.arange(0.0, 2.0, 1e-3)
+    q = np.column_stack([np.sin(2 * t + k) for k in range(2)])
+    tau = np.column_stack([5 * np.cos(3 * t + k) for k in range(2)])
+    q_rec, tau_rec = JointElasticity(joint=1, stiffness=400.0).measure(t, q, tau)
+    tau_rec = tau_rec.copy()
+    tau_rec[:, 0] = np.nan
+    recording = Recording(t=t, q=q_rec, tau=tau_rec, missing_torque=((0, "dead channel"),))
+    corrections = {
+        f"joint_elasticity[j{j}]": {"effect": "joint_elasticity", "joint": j, "compliance_rad_per_Nm": 1 / 400.0}
+        for j in (1, 2)
+    }
+    corrected = correct_recording(recording, corrections)
+    np.testing.assert_array_equal(corrected.q[:, 0], q_rec[:, 0])
+    np.testing.assert_allclose(corrected.q[:, 1], q[:, 1], atol=1e-12)
+    assert corrected.missing_torque == ((0, "dead channel"),)
+
+
 def test_apply_needs_a_calibrated_model_and_a_model_brings_its_locks(capsys, tmp_path):
     argv = ["--train", "a.csv", "--validate", "b.csv"]
     assert main(["diagnose", str(DENSO_FILE), *argv, "--apply", str(tmp_path / "new.json")]) == 2
