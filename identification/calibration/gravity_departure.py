@@ -7,15 +7,21 @@ at seed 1: no offset chosen, joint 2's fitted gravity torque thousands of N m of
 envelope, nothing named).
 
 What tells it from a wrong robot file or a tool is where the departure sits and which way it points. The fitted minus
-the file's gravity torque is computed on the training poses; for each joint, a body at the flange (its mass, at least
-0, and first moment) is fitted to the departures of the other joints by least squares (a tool moves every joint that
-carries it, in ratios the kinematics fix). A joint is named where what is then left sits on it (at least ``LOCAL``
-of the squared departure left, ``absorbed_effect.LOCAL``) and opposes the file's gravity torque there by a share
-between ``FILE_GRAVITY_ERROR`` and the whole of it: a robot file's masses and centres of mass are off by tens of
-percent (CAD), spread over the several links a joint carries and of either sign, and a balancer never takes more than
-the gravity it balances. On the heavy arm at seed 1 joint 2 is left with 2769 N m RMS opposing 60 % of its gravity, the
-others within 135 N m; joint 3 alone would need a torque beyond its whole gravity torque, joint 5 a tool of negative
-mass.
+the file's gravity torque is computed on the training poses; for each joint, a body at the flange (its mass and first
+moment) is fitted to the departures of the other joints by least squares (a tool moves every joint that carries it, in
+ratios the kinematics fix). A joint is named where what is then left sits on it (at least ``LOCAL`` of the squared
+departure left, ``absorbed_effect.LOCAL``) and opposes the file's gravity torque there by a share between
+``FILE_GRAVITY_ERROR`` and the whole of it: a robot file's masses and centres of mass are off by tens of percent (CAD),
+spread over the several links a joint carries and of either sign, and a balancer never takes more than the gravity it
+balances. On the heavy arm at seed 1 joint 2 is left with 2769 N m RMS opposing 60 % of its gravity, the others within
+135 N m; joint 3 alone would need a torque beyond its whole gravity torque, joint 5 a tool of negative mass.
+
+A tool has mass. Where the least squares want a negative one, the physical body nearest them (mass at least 0; a body
+without mass has no first moment) is none, and the joint is read both ways, with no body and with the least squares'
+body, and named only where both name it. A balancer on an arm without a tool leaves the other joints' departures at
+the fit's error, which a trace of mass either side of zero fits; its joint is named either way (it was dropped
+unread when that trace came out negative). A departure only one of the two readings names is not one joint's torque
+alone: the others' departures hold something no tool gives, and what is left on the joint depends on how it is read.
 
 A joint's own torque offset (a drive column the data chose) is counted in its departure: over the half radian or so
 an arm sweeps near horizontal a balancer's torque is mostly a constant, which the offset takes, and the links' first
@@ -119,15 +125,26 @@ def theta_departures(robot, model, recordings, theta, offsets=None) -> dict:
     for j in range(robot.n_dof):
         others = [k for k in range(robot.n_dof) if k != j]
         body, *_ = np.linalg.lstsq(flange[:, others].reshape(-1, 4), difference[:, others].ravel(), rcond=None)
-        left = difference - flange @ body
-        left[:, j] += offsets[j]  # what the joint's own constant column holds of it
-        power = np.mean(left**2, axis=0)
-        gravity = float(np.dot(g_file[:, j], g_file[:, j]))
-        if not (body[0] >= 0.0 and gravity > 0.0 and power.sum() > 0.0):
-            continue
-        share = float(-np.dot(left[:, j], g_file[:, j]) / gravity)  # the share of gravity it takes, opposing it
-        local = float(power[j] / power.sum())
-        if local >= LOCAL and FILE_GRAVITY_ERROR <= share <= 1.0:
-            rms = float(np.sqrt(gravity / q.shape[0]))
-            out[j] = GravityDeparture(j, float(np.sqrt(power[j])), rms, local, share, float(offsets[j]))
+        bodies = (body,) if body[0] >= 0.0 else (np.zeros(4), body)  # a negative mass: no tool, and the fitted one
+        read = [_departure(j, difference - flange @ b, g_file, offsets[j]) for b in bodies]
+        if all(read):  # named either way the others are read: the negative mass does not decide it
+            out[j] = read[0]
     return out
+
+
+def _departure(j: int, left, g_file, offset: float) -> GravityDeparture | None:
+    """The ``GravityDeparture`` of joint ``j`` where ``left`` (samples, joints) [N m] is the fitted minus the file's
+    gravity torque (``g_file``) once a body at the flange is taken out, ``offset`` the joint's own torque offset
+    counted in it; None where it does not sit on the joint or opposes no share of its gravity a balancer takes."""
+    left = left.copy()
+    left[:, j] += offset  # what the joint's own constant column holds of it
+    power = np.mean(left**2, axis=0)
+    gravity = float(np.dot(g_file[:, j], g_file[:, j]))
+    if not (gravity > 0.0 and power.sum() > 0.0):
+        return None
+    share = float(-np.dot(left[:, j], g_file[:, j]) / gravity)  # the share of gravity it takes, opposing it
+    local = float(power[j] / power.sum())
+    if not (local >= LOCAL and FILE_GRAVITY_ERROR <= share <= 1.0):
+        return None
+    rms = float(np.sqrt(gravity / g_file.shape[0]))
+    return GravityDeparture(j, float(np.sqrt(power[j])), rms, local, share, float(offset))
