@@ -73,6 +73,7 @@ from identification.calibration.trajectory_data import (
 from identification.calibration.weighted_solve import weighted_least_squares
 from identification.data.filter_choice import EDGE_PERIODS
 from identification.data.missing_torque import find_missing_torque, missing_torque_messages
+from identification.data.robot_recordings import no_torque_constants
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
@@ -472,11 +473,7 @@ def torque_constants(robot, options, recordings):
     if options.kt is not None:
         return np.asarray(options.kt, dtype=float)
     if robot.drives is None:
-        raise ParameterError(
-            f"recordings of currents need torque constants; {robot.name} has no [[drive]] tables. Add kt (N m/A at "
-            "the joint) to [[drive]] tables, or, for motor currents, motor_kt and gear_ratios to [transmission] with "
-            '[recording] side = { current = "motor" }; or record joint torques.'
-        )
+        raise ParameterError(no_torque_constants(robot))
     return np.array([d.kt for d in robot.drives], dtype=float)
 
 

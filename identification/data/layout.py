@@ -123,8 +123,12 @@ class ColumnLayout:
         Raises
         ------
         RecordingError
-            When a stated prefix or time column is not in the file (naming the groups it has).
+            When a stated prefix or time column is not in the file (naming the groups it has); a file of a
+            controller's own column groups read without a q prefix (``--rate`` alone) is refused as
+            :func:`check_standard_header` refuses it, naming all its groups, not only those this layout would read.
         """
+        if "q" not in dict(self.prefixes):
+            check_standard_header(source, names)
         chosen = dict(self.prefixes)
         chosen.setdefault("q", "q")
         mapping = {}

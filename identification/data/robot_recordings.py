@@ -19,7 +19,14 @@ from identification.data.motor_side import to_joint_side
 from identification.data.recording import MIN_SAMPLES, Recording
 from psdm_casadi.errors import RecordingError
 
-__all__ = ["is_split_recording", "load_robot_recording", "rated_currents", "recording_paths", "torque_constants_place"]
+__all__ = [
+    "is_split_recording",
+    "load_robot_recording",
+    "no_torque_constants",
+    "rated_currents",
+    "recording_paths",
+    "torque_constants_place",
+]
 
 
 def _split_names(robot) -> dict:
@@ -142,7 +149,27 @@ def torque_constants_place(robot) -> str:
     if robot.drives is not None:
         return "read through the torque constants kt of the robot file's [[drive]] tables (N m/A at the joint)"
     return ("which need torque constants the robot file does not state yet: add motor_kt and gear_ratios to "
-            "[transmission], or kt (N m/A at the joint) to [[drive]] tables")  # fmt: skip
+            "[transmission], or kt (N m/A at the joint) to [[drive]] tables") + _robot_file_route(robot)  # fmt: skip
+
+
+def no_torque_constants(robot) -> str:
+    """The refusal of recordings of currents for ``robot``, whose file states no torque constants: where to add them
+    (for a URDF or MJCF file, which has no place for them, a TOML robot file that names it)."""
+    where = _robot_file_route(robot)
+    return (f"recordings of currents need torque constants; {robot.name} has no [[drive]] tables. Add kt (N m/A at "
+            "the joint) to [[drive]] tables, or, for motor currents, motor_kt and gear_ratios to [transmission] with "
+            f'[recording] side = {{ current = "motor" }}{where}; or record joint torques.')  # fmt: skip
+
+
+def _robot_file_route(robot) -> str:
+    """For a robot read from a URDF or MJCF file (no tables there): the TOML robot file that takes its kinematics and
+    inertials and holds the tables; "" for a TOML robot file."""
+    source = Path(robot.source) if robot.source else None
+    if source is None or source.suffix.lower() == ".toml":
+        return ""
+    return (f" ({source.name} cannot hold these tables: write a robot file robot.toml beside it with "
+            f'[urdf] path = "{source.name}" and the tables, and give robot.toml in its place; '
+            "docs/formats/robot-file.md)")  # fmt: skip
 
 
 def _read_split(folder: Path, robot, rate) -> Recording:

@@ -137,3 +137,32 @@ def test_the_refusal_names_where_the_robot_file_states_its_torque_constants(tmp_
         assert unsaid is None or unsaid not in err, err
     with pytest.raises(RecordingError, match=r"\[\[drive\]\] kt at the joint, or \[transmission\] motor_kt"):
         load_recording(path, 6)  # no robot: both places
+
+
+def test_a_log_read_with_a_rate_alone_is_refused_naming_all_its_groups(tmp_path):
+    """``--rate`` without ``--columns`` on a controller's log: the refusal lists the file's groups (before, the rate's
+    layout kept only the standard names first, and the Kinova log was said to have only 'Temp1..7 and Time')."""
+    path, _ = vendor_log(tmp_path)
+    with pytest.raises(RecordingError, match=r"the file has Position1\.\.2, Velocity1\.\.2, Torque1\.\.2, TorqueSm1"):
+        load_recording(path, 2, layout=ColumnLayout.parse(None, 1000.0))
+
+
+def test_currents_on_a_urdf_robot_are_refused_naming_the_robot_file_that_holds_the_torque_constants(tmp_path, capsys):
+    """A URDF has no place for torque constants: the refusal of its currents says to write a TOML robot file naming
+    it, and that file, written as said, is read with its kt."""
+    from psdm_casadi import load_robot
+    from tests.identification.test_envelope import ARM_URDF
+
+    (tmp_path / "arm.urdf").write_text(ARM_URDF.format(l1="", l2="", tip=""))
+    t = np.arange(2000) * 1e-3
+    path = tmp_path / "currents.csv"
+    table = np.column_stack([np.arange(t.size), 0.5 * np.sin(t), 0.3 * np.cos(2 * t), np.sin(3 * t), np.cos(t)])
+    np.savetxt(path, table, delimiter=",", header="Time,Position1,Position2,Cur1,Cur2", comments="")
+    command = ["identify", str(tmp_path / "arm.urdf"), "--data", str(path), "--out", str(tmp_path / "m.json")]
+    assert main([*command, "--columns", "t=Time,q=Position,i=Cur", "--rate", "1000"]) == 2
+    err = capsys.readouterr().err
+    said = 'arm.urdf cannot hold these tables: write a robot file robot.toml beside it with [urdf] path = "arm.urdf"'
+    assert said in err, err
+    (tmp_path / "robot.toml").write_text('format = "psdm-robot/1"\nname = "arm"\n[urdf]\npath = "arm.urdf"\n'
+                                         "[[drive]]\nkt = 2.0\n[[drive]]\nkt = 3.0\n")  # fmt: skip
+    assert [d.kt for d in load_robot(tmp_path / "robot.toml").drives] == [2.0, 3.0]
