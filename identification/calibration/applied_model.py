@@ -69,10 +69,11 @@ from identification.calibration.recording_provenance import recording_provenance
 from identification.calibration.split_torque import splitting_findings
 from identification.calibration.trajectory_data import stribeck_joints
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["AppliedModel", "applied_model", "check_lugre_findings", "finding_terms", "joint_fit", "refit_options",
-           "refit_without", "torque_constants_of", "zero_size"]  # fmt: skip
+           "refit_without", "zero_size"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -127,14 +128,14 @@ def applied_model(calibrated: CalibratedModel, robot, model, report, train, vali
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
     terms, corrections, entries = finding_terms(calibrated, report)
     check_lugre_findings(calibrated, terms)
-    kt = torque_constants_of(robot, validation)
+    kt = recording_kt(robot, *validation)
     after, fit, terms, entries = _robust_fit(
         calibrated, robot, model, train, (terms, corrections, entries), robot_source
     )
     dropped = []
     for _ in range(MAX_DROP_ROUNDS):  # kept only with a torque of its own, lowering the validation RMSE where it acts
         refit = refit_without(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
-        recordings, constants = (train, validation), (torque_constants_of(robot, train), kt)
+        recordings, constants = (train, validation), (recording_kt(robot, *train), kt)
         unhelpful = splitting_findings(calibrated, after, refit, model, recordings, constants) or zero_size(after)
         unhelpful = unhelpful or unhelpful_findings(after, model, validation, kt)
         if not unhelpful:
@@ -241,12 +242,6 @@ def check_lugre_findings(calibrated: CalibratedModel, terms) -> None:
         )
 
 
-def torque_constants_of(robot, recordings):
-    if all(r.tau is not None for r in recordings) or robot.drives is None:
-        return None
-    return np.array([d.kt for d in robot.drives], dtype=float)
-
-
 def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
     """The recordings-route options the file was identified with (for LuGre: of the Stribeck fit it starts from)."""
     document, own = calibrated.document, model_preparation(calibrated.document)  # a refit keeps its file's preparation
@@ -295,9 +290,7 @@ def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lug
     ``lugre_recordings.LuGreFit`` or None). A feature is left out when it is absorbed beside the Stribeck shape."""
     columns = FindingColumns(tuple(terms), reference)
     if terms:
-        keep = absorbed_mask(
-            robot, model, recordings, options, columns, stribeck, torque_constants_of(robot, recordings)
-        )
+        keep = absorbed_mask(robot, model, recordings, options, columns, stribeck, recording_kt(robot, *recordings))
         columns = dataclasses.replace(columns, keep=keep)
     extra = columns if terms else None
     if lugre:
@@ -327,7 +320,7 @@ def joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:
     corrections, entries): the signal findings correct the recordings, the torque ones add columns."""
     terms, corrections, entries = findings
     options = offsets_left_to_findings(refit_options(calibrated), terms)  # a spring's constant, not an offset
-    corrected = [correct_recording(r, corrections, torque_constants_of(robot, train)) for r in train]
+    corrected = [correct_recording(r, corrections, recording_kt(robot, *train)) for r in train]
     own = calibrated.lugre_parameters
     stribeck = calibrated.document["drive"].get("stribeck_velocity") or None
     stribeck = [p.vs for p in own] if own is not None else stribeck  # LuGre: its own Stribeck velocities

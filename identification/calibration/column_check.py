@@ -47,14 +47,13 @@ import logging
 from dataclasses import replace
 from functools import cache, partial
 
-import numpy as np
-
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.counterbalance_folds import FoldFailure, block_folds
 from identification.calibration.never_worse import compare_models
 from identification.calibration.offset_reading import fit_offsets
 from identification.calibration.shared_barrier import shared_solvers
 from identification.calibration.trajectory_fit import identify_trajectories
+from identification.data.torque_constants import recording_kt
 
 __all__ = ["UnconvergedFit", "check_departures", "converged", "offset_sizes", "written_model_judge"]
 
@@ -166,9 +165,7 @@ def written_model_judge(problem, validation, cutoff_hz):
     (``counterbalance_folds.BlockFolds.compare``, as identify's counterbalance is judged); or a sentence saying why
     there is none (recordings too short to cut, payloads)."""
     robot, model, recordings, options, configurations = problem
-    kt = None
-    if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:
-        kt = np.array([d.kt for d in robot.drives], dtype=float)
+    kt = recording_kt(robot, *validation, *recordings)
 
     def build(fit):
         return CalibratedModel.from_fit(robot, model, fit, robot_source=robot.source)

@@ -66,6 +66,7 @@ from identification.calibration.findings import FindingColumns, FindingTerm, fil
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_each, pooled_comparison
 from identification.calibration.trajectory_fit import identify_trajectories
+from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import InsufficientExcitationError
 
 __all__ = [
@@ -460,9 +461,7 @@ def take_counterbalance(problem, fit, validation, saved: tuple, skip: bool = Fal
 
     choice, calibrated = CounterbalanceChoice(), build(fit)
     if not skip and fit.checked:
-        kt = None
-        if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:  # blocks: training
-            kt = np.array([d.kt for d in robot.drives], dtype=float)
+        kt = recording_kt(robot, *validation, *recordings)  # blocks: training
         choice = try_counterbalance(robot, model, recordings, options, fit, calibrated, validation, build,
                                     configurations, kt)  # fmt: skip
         if choice.reason:

@@ -24,16 +24,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.held_out_load import find_unstated_load
 from identification.calibration.payload_check import without_load
 from identification.calibration.payload_fit import stated_payload
 from identification.calibration.trajectory_fit import identify_trajectories
 from identification.data.configuration import stated_configuration
+from identification.data.torque_constants import recording_kt
 
-__all__ = ["HeldOutArm", "held_out_arm", "held_out_configurations", "recording_kt", "without_unstated_loads"]
+__all__ = ["HeldOutArm", "held_out_arm", "held_out_configurations", "without_unstated_loads"]
 
 
 @dataclass(frozen=True)
@@ -80,13 +79,6 @@ def held_out_configurations(validate, paths, configurations) -> list:
     sidecar's."""
     training = {str(path): configuration for path, configuration in zip(paths, configurations)}
     return [training.get(str(path)) or stated_configuration(path) for path in validate]
-
-
-def recording_kt(robot, recording):
-    """The torque constants [N m/A] a recording of currents is read with (the robot's drives); None for torques."""
-    if recording.tau is not None or not robot.drives:
-        return None
-    return np.array([d.kt for d in robot.drives], dtype=float)
 
 
 def held_out_arm(robot, model, training, validation, configurations, held, options, names=()) -> HeldOutArm:

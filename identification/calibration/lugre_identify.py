@@ -66,7 +66,7 @@ from identification.calibration.lugre_recordings import fit_lugre_recordings, lu
 from identification.calibration.payload_fit import subtract_loads
 from identification.calibration.trajectory_checks import fit_quality_warnings
 from identification.calibration.trajectory_data import choose_filter, prepare_recordings
-from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
+from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, torque_constants
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.data.recording import Recording
 from identification.friction.simulation import simulate_lugre
@@ -212,9 +212,7 @@ def identify_lugre_trajectories(
             f"{options.friction!r} and {rounds!r}. Pass TrajectoryOptions(friction=('fc', 'fs', 'fv'))."
         )
     recordings = list(recordings)
-    kt = None
-    if not all(r.tau is not None for r in recordings):
-        kt = np.asarray(options.kt if options.kt is not None else [d.kt for d in robot.drives], dtype=float)
+    kt = torque_constants(robot, options, recordings)
     stribeck = identify_trajectories(robot, model, recordings, options, extra, configurations)
     edge = min(FRICTION_EDGE_PERIODS, options.edge_periods)  # the reversals at the ends kept (module docstring)
     _, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, edge)

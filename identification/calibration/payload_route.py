@@ -57,6 +57,7 @@ from identification.calibration.never_worse import compare_each, pooled_comparis
 from identification.calibration.payload_fit import FlangeRegressor
 from identification.calibration.trajectory_data import drive_columns, fit_shape
 from identification.calibration.trajectory_fit import identify_trajectories
+from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import PSDMError
 
 __all__ = ["PAYLOAD_SOURCE", "PayloadChoice", "estimate_payload", "payload_named", "payload_wins", "take_payload"]
@@ -247,9 +248,7 @@ def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
     build = _builder(robot, model, recordings, saved)
     if configurations is not None and any(c.kind != "none" for c in configurations):
         return (*unchanged, PayloadChoice(True, reason="not tried: the recordings state their payloads"))
-    kt = None
-    if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:
-        kt = np.array([d.kt for d in robot.drives], dtype=float)
+    kt = recording_kt(robot, *validation, *recordings)
     logger.info("identify: trying the payload the report names (a body at the flange) ...")
     try:
         found = _carried_model(robot, model, options, build, [], recordings, start, _springs(calibrated.document))

@@ -26,7 +26,7 @@ import logging
 
 import numpy as np
 
-from identification.calibration.applied_model import applied_model, refit_options, refit_without, torque_constants_of
+from identification.calibration.applied_model import applied_model, refit_options, refit_without
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
 from identification.calibration.dropped_findings import dropped_block
@@ -35,6 +35,7 @@ from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.no_gain import keep_earning
 from identification.calibration.payload_fit import carried_configurations
 from identification.calibration.refit_folds import training_refits
+from identification.data.torque_constants import recording_kt
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 
 __all__ = ["MASS_CHECK_CONFIGURATIONS", "Recalibration", "consistency_failure", "min_mass_eigenvalue", "recalibrate",
@@ -118,7 +119,7 @@ def recalibrate(
     train = [train] if not isinstance(train, (list, tuple)) else list(train)
     train = list(applied.train) or train  # the recordings the model was built on (``refit_training``): the gate's too
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
-    kt = torque_constants_of(robot, validation)
+    kt = recording_kt(robot, *validation)
     after, fit, dropped = applied.after, applied.fit, list(applied.dropped)
     terms, corrections, entries = applied.findings
     findings, droppable = (terms, corrections, entries), [t.label for t in terms] + list(corrections)

@@ -45,6 +45,7 @@ from identification.data.configuration import NO_PAYLOAD, PayloadConfiguration, 
 from identification.data.holdout import matching_part, recording_digest, reload_part, stored_parts
 from identification.data.missing_torque import find_missing_torque
 from identification.data.payload import Payload
+from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import PSDMError
 
 __all__ = ["MissingRecording", "RefitTraining", "listed_configuration", "refit_training", "training_alone"]
@@ -264,7 +265,7 @@ def _corrected(correction: DriftCorrection, recordings, entries, robot, added, p
     drift = dict(document["identification"]["friction_drift"])
     out, own, fitted, raw, extended = [], [], [], [], correction
     for recording, entry, new in zip(recordings, entries, added):
-        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        kt = recording_kt(robot, recording)
         use, index, why = correction, correction.index(entry.get("name")), ""
         if new:
             rows, why = (None, "no model to fit it beside") if predict is None else new_recording_friction(
@@ -351,7 +352,7 @@ def _without_stated_load(recording, configuration, document, robot, cutoff_hz):
     body, _ = stated_payload(configuration, document.get("configurations") or [], "the model file")
     if body is None:
         return recording
-    kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    kt = recording_kt(robot, recording)
     return without_load(robot, recording, body, kt, cutoff_hz)
 
 

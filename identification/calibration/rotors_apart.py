@@ -35,6 +35,7 @@ from identification.calibration.never_worse import compare_models
 from identification.calibration.no_gain import GAIN_RULE, GAIN_SHARE, finding_gain
 from identification.calibration.shared_barrier import shared_solvers
 from identification.calibration.trajectory_fit import identify_trajectories
+from identification.data.torque_constants import recording_kt
 from identification.paired_margin import share_lower
 from psdm_casadi.errors import PSDMError
 
@@ -114,9 +115,7 @@ def judge_rotors_apart(problem, fit, validation=()) -> tuple:
         return fit, RotorsApart()
     robot, model, recordings, options, configurations = problem
     joints = tuple(sorted(proposals))
-    kt = None
-    if any(r.tau is None for r in (*validation, *recordings)) and robot.drives is not None:
-        kt = np.array([d.kt for d in robot.drives], dtype=float)
+    kt = recording_kt(robot, *validation, *recordings)
 
     def fitted(apart, pieces=None):  # pieces: a fold's (no payloads there: ``block_folds`` refuses them)
         trial = replace(options, rotors_apart=tuple(sorted({*options.rotors_apart, *apart})))

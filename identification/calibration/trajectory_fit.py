@@ -74,6 +74,7 @@ from identification.calibration.weighted_solve import weighted_least_squares
 from identification.data.filter_choice import EDGE_PERIODS
 from identification.data.missing_torque import find_missing_torque, missing_torque_messages
 from identification.data.robot_recordings import no_torque_constants
+from identification.data.torque_constants import drive_kt
 from psdm_casadi.errors import ParameterError
 from psdm_casadi.state_cache import remembering
 
@@ -474,7 +475,7 @@ def torque_constants(robot, options, recordings):
         return np.asarray(options.kt, dtype=float)
     if robot.drives is None:
         raise ParameterError(no_torque_constants(robot))
-    return np.array([d.kt for d in robot.drives], dtype=float)
+    return drive_kt(robot)
 
 
 def drive_inertia_joints(model, robot, options: TrajectoryOptions) -> list:

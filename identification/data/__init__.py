@@ -5,5 +5,6 @@
 (recordings from and to files), ``preprocessing`` (zero-phase filtering, central differences,
 resampling), ``excitation_check`` (refuses recordings in which a joint did not move enough to
 identify anything), ``payload`` (a known calibration mass, as the user describes it in
-``payload.json``), ``dataset`` (the folder of the paper's four calibration experiments).
+``payload.json``), ``torque_constants`` (the drives' constants a recording of currents is read with),
+``dataset`` (the folder of the paper's four calibration experiments).
 """

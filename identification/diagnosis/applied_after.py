@@ -25,6 +25,7 @@ from identification.calibration.applied_model import applied_model
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.no_gain import GAIN_RULE
 from identification.calibration.refit_training import training_alone
+from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import PSDMError
 
 __all__ = ["APPLIED_AFTER", "with_applied_after", "with_written_after"]
@@ -51,7 +52,7 @@ def with_applied_after(report, loaded, train, validation, refit=None):
     report = replace(report, refit_training=training)
     try:
         applied = applied_model(calibrated, robot, model, report, list(training.recordings), validation)
-        kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        kt = recording_kt(robot, validation)
         rmse, r2, prepared, predicted = validation_rmse(applied.after, model, validation, kt)
     except PSDMError as exc:  # the diagnosis's own fit stays the "after", and the report says why
         logger.info("diagnose: the model with the findings could not be built (%s)", exc)

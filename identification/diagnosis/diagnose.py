@@ -18,6 +18,7 @@ import numpy as np
 from identification.data.missing_torque import measured_torque
 from identification.data.plausibility import check_plausible_recording
 from identification.data.preprocessing import PreprocessOptions, preprocess
+from identification.data.torque_constants import drive_kt
 from identification.diagnosis.angle_law_choice import gravity_backed_laws
 from identification.diagnosis.beyond_library import look_beyond_library
 from identification.diagnosis.candidates import CandidateLibrary, default_library
@@ -268,10 +269,8 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
     """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares;
     ``validation`` is a Recording or a sequence of them (the first is ``ctx_v``, the others ``extra_v``)."""
     options = options.for_recording(train, robot)
-    kt = options.torque_constants
-    if kt is None and robot.drives is not None:
-        kt = tuple(d.kt for d in robot.drives)
-    kt_arr = None if kt is None else np.asarray(kt, dtype=float)
+    given = options.torque_constants
+    kt_arr = drive_kt(robot) if given is None else np.asarray(given, dtype=float)
     logger.info("diagnose: evaluating the nominal model ...")
     recordings, missing, left_out = measured_torque((train, *validation_recordings(validation)), robot.joint_names)
     held = held_links(model, robot, options.held_links) if options.rigid_body == "identified" else None

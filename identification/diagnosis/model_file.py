@@ -47,6 +47,7 @@ from identification.data.filter_choice import AUTO
 from identification.data.holdout import diagnose_parts, held_out_sentences, other_training_parts
 from identification.data.layout import model_file_layout
 from identification.data.robot_recordings import load_robot_recording
+from identification.data.torque_constants import recording_kt
 from identification.diagnosis.applied_after import with_applied_after
 from identification.diagnosis.base_change import as_base_changes
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
@@ -238,7 +239,7 @@ def file_refit(loaded: LoadedModel, model_path, train, train_path, load=None, mo
     load = load or _reader(loaded)
 
     def predict(recording):
-        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        kt = recording_kt(robot, recording)
         return calibrated.predict_recording(loaded.model, recording, kt)
 
     return lambda: refit_training(calibrated.document, model_path, train, train_path, load, robot, cutoff, more,
@@ -286,7 +287,7 @@ def file_prediction(loaded: LoadedModel, validation) -> tuple:
     """``(RMSE per joint, prepared recording, prediction)`` of the model file as it is on the raw ``validation``
     recording, prepared as the file says (``finding_value.validation_rmse``, as ``psdm validate``)."""
     robot = loaded.robot
-    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    kt = recording_kt(robot, validation)
     own, _, prepared, predicted = validation_rmse(loaded.calibrated, loaded.model, validation, kt)
     return own, prepared, predicted
 

@@ -31,6 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.data.torque_constants import drive_kt
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import lugre_parameters, simulate_friction
@@ -64,7 +65,7 @@ def torque_constants_only(robot, options) -> tuple:
         return robot, options
     logger.info("diagnose: the robot file's drives give torque constants but no friction prior (fc = 0): the "
                 "friction is identified from the recordings alone")  # fmt: skip
-    kt = options.torque_constants if options.torque_constants is not None else tuple(d.kt for d in robot.drives)
+    kt = options.torque_constants if options.torque_constants is not None else tuple(drive_kt(robot).tolist())
     return replace(robot, drives=None), replace(options, torque_constants=kt)
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.calibration.findings import FindingTerm
+from identification.data.torque_constants import drive_kt
 from identification.fleet.layout import RobotEntry, TrackedTerms
 
 __all__ = ["Baseline", "SharedModels", "build_baseline", "structure_key", "tracked_finding_terms"]
@@ -145,7 +146,7 @@ def build_baseline(entry: RobotEntry, track: TrackedTerms, derive) -> tuple:
         friction, cv = _robot_friction(robot), 0.05
         source = str(entry.baseline)
         terms, values = _merge([], tracked)
-    kt = np.array([d.kt for d in robot.drives], dtype=float) if robot.drives else np.ones(robot.n_dof)
+    kt = drive_kt(robot) if robot.drives else np.ones(robot.n_dof)
     baseline = Baseline(robot, np.asarray(theta, dtype=float), friction, cv, kt, terms, values, track.payload_com,
                         structure_key(robot), source)  # fmt: skip
     return baseline, model

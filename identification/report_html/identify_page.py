@@ -46,7 +46,7 @@ def torque_series(calibrated, model, robot, recordings, names, held_out: bool) -
     held-out recording is shown as the report's and the JSON's validation judge it (``held_out_load.judge_recording``):
     the load it states, or a plausible one nothing states, taken off the measured torque, so that the plot's residual
     is the one whose RMSE they report (with the load left in, the load's torque would fill the plot)."""
-    from identification.calibration.held_out_arm import recording_kt
+    from identification.data.torque_constants import recording_kt
 
     out = []
     for name, recording in zip(names, recordings):

@@ -355,6 +355,7 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
 
     from identification.calibration.lugre_recordings import LuGreWarning
     from identification.calibration.recalibrate import recalibrate
+    from identification.data.torque_constants import recording_kt
     from identification.diagnosis.applied_after import with_written_after
 
     if report.refit_training is not None:  # the recordings the report's "after" trained on (refit_training)
@@ -372,7 +373,7 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
         if not issubclass(w.category, LuGreWarning):
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     validation = recordings[1]
-    kt = None if validation.tau is not None or robot.drives is None else [d.kt for d in robot.drives]
+    kt = recording_kt(robot, validation)
     written = not adds_nothing(calibrated.document, result.after.document)  # else the report says nothing was written
     return with_written_after(report, result, model, validation, kt, written), ApplyRefit(result)
 

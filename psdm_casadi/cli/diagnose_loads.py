@@ -25,13 +25,13 @@ def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
     with the load its sidecar states (a known one as given, an unknown one as the model file identified it) taken off
     (``payload_check.without_load``), so that the diagnosis and its refit see the arm; with a model file, a validation
     recording stating none checked for one as validate does (``held_out_arm.without_unstated_loads``)."""
-    import numpy as np
 
     from identification.calibration.held_out_arm import without_unstated_loads
     from identification.calibration.payload_check import without_load
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.refit_training import listed_configuration
     from identification.data.configuration import stated_configuration
+    from identification.data.torque_constants import recording_kt
 
     calibrated = None if loaded is None else loaded.calibrated
     stored = [] if calibrated is None else calibrated.configurations
@@ -44,7 +44,7 @@ def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
         elif body is not None and not stated_configuration(path).stated:
             print(f"psdm diagnose: note: {path}: carries {configuration.name!r} as the model file lists it for this "
                   "recording (no sidecar beside it); its torque is taken off", file=sys.stderr)  # fmt: skip
-        kt = None if recording.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+        kt = recording_kt(robot, recording)
         out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
         configurations.append(configuration)
     if calibrated is None:  # the robot file: each validation recording's load as identify weighs it (its own statement)
@@ -102,12 +102,12 @@ def payload_check(args, calibrated, robot, model, validation, check=None, path=N
     ``held_out_load``; else one beyond the stated load, ``payload_check.new_payload``), or None; and, with
     ``temperature``, the temperatures the file's friction law was read at on it (``TemperatureFriction.sentence``), or
     None without a law."""
-    import numpy as np
 
     from identification.calibration.payload_check import model_columns, new_payload, validation_with_payload
+    from identification.data.torque_constants import recording_kt
 
     path = str(args.validate[0] if path is None else path)
-    kt = None if validation.tau is not None or robot.drives is None else np.array([d.kt for d in robot.drives])
+    kt = recording_kt(robot, validation)
     _, _, prepared, predicted = validation_with_payload(robot, calibrated, model, validation, kt)
     sentence = None
     if temperature and (laws := calibrated.temperature_friction) is not None:  # where the file's law was evaluated

@@ -454,11 +454,11 @@ def _validation(robot, model, fit, recordings, paths, calibrated, configurations
     not identified, is checked for a load as ``psdm validate`` checks it (``held_out_load``): a plausible one is added
     as well and named (``unstated_payload``, with the RMSE of the load left in).
     """
-    from identification.calibration.held_out_arm import recording_kt
     from identification.calibration.held_out_load import find_unstated_load
     from identification.calibration.payload_check import validation_with_payload
     from identification.calibration.payload_fit import FlangeRegressor, stated_payload
     from identification.calibration.trajectory_fit import predict_torque
+    from identification.data.torque_constants import recording_kt
     from identification.metrics import rmse
     from psdm_casadi.oracle import PinocchioOracle
 

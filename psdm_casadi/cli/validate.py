@@ -150,9 +150,9 @@ def _judged(robot, calibrated, model, recording, stated, path) -> tuple:
     recording (``held_out_load.judge_recording``): with a stated load (``stated``: its 10 parameters) that load added
     to the prediction and a load beyond it named (``payload_check.new_payload``); with none, a load nothing states
     found, and taken off if plausible (``held_out_load``, as identify and diagnose judge it)."""
-    from identification.calibration.held_out_arm import recording_kt
     from identification.calibration.held_out_load import judge_recording
     from identification.calibration.payload_check import model_columns, new_payload
+    from identification.data.torque_constants import recording_kt
 
     check = judge_recording(robot, calibrated, model, recording, recording_kt(robot, recording), stated, str(path))
     if stated is None:
