@@ -200,9 +200,10 @@ def run(args) -> int:
     fit, calibrated, held_out = result.fit, result.calibrated, not_held_out([str(p) for p in paths], explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
     report = _validation(robot, model, result.start, validation, args.validate, calibrated, held_loads)
-    said = (*scale.sentences(), *result.warnings, *missing, *held_out, *worse, *_loads_said(report, judged, args))
+    loads = _loads_said(report, judged, args)  # stored with the warnings; the text report prints them in its table
+    said = (*scale.sentences(), *result.warnings, *missing, *held_out, *worse, *filter(None, loads))
     warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys(said)]
-    for warning in (w for w in warnings if w not in SAID):  # the robot's loading printed those: said once
+    for warning in (w for w in warnings if w not in SAID and (args.json or w not in loads)):  # each said once
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report["min_mass_eigenvalue"] = mass_eigenvalue
@@ -223,7 +224,8 @@ def run(args) -> int:
         print(warning, file=sys.stderr)
     with out.staging() as stage:
         calibrated.save(stage, overwrite=True, allow_inconsistent=True)
-    print_identify(args, robot, model, fit, report, calibrated, result, lambda text: _concrete_route(text, args, paths))
+    print_identify(args, robot, model, fit, report, calibrated, result, lambda text: _concrete_route(text, args, paths),
+                   loads)  # fmt: skip
     if html is not None:  # the held-out recordings' prediction, else the training recordings'
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
@@ -250,16 +252,16 @@ def _judged_route(args, problem, validation, paths, arm) -> tuple:
 
 
 def _loads_said(report, judged, args) -> list:
-    """The sentences on loads nothing states: each the report names (``unstated_payload``), else what the judges took
-    off; each validation entry records the latter (``judged_without_load``)."""
+    """Per held-out recording, the one line on the load nothing states that it carries (None: none): the report's
+    (``unstated_payload``), with what the judges took off where the report did not take that off; each validation
+    entry records the latter (``judged_without_load``)."""
     out = []
     for path, entry, load in zip(args.validate, report["recordings"], judged.loads):
         taken = load is not None and load.plausible
         entry.update({"judged_without_load": load.judged()} if taken else {})
-        if entry.get("unstated_payload") or taken:
-            out.append(
-                entry["unstated_payload"]["sentence"] if entry.get("unstated_payload") else judged.said(path, load)
-            )
+        named = entry.get("unstated_payload") or {}
+        judges = judged.said(path, load) if taken and not named.get("taken_off") else None
+        out.append(" ".join(filter(None, (named.get("sentence"), judges))) or None)
     return out
 
 

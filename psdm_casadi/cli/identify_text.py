@@ -142,9 +142,10 @@ def held_label(result, name: str) -> str:
     return "one way only: the robot file's fit" if name in dict(result.one_way.held) else ""
 
 
-def print_identify(args, robot, model, fit, report, calibrated, result, route=str) -> None:
+def print_identify(args, robot, model, fit, report, calibrated, result, route=str, loads=()) -> None:
     """The command's output: ``--json``'s summary, or the text report (preparation, consistency, envelope, columns,
-    counterbalance, unstated loads, parameters, LuGre, payloads, validation); ``route`` puts this run's files in."""
+    counterbalance, unstated loads, parameters, LuGre, payloads, validation); ``route`` puts this run's files in;
+    ``loads`` the line on the load nothing states of each held-out recording (None: none), said in its table only."""
     from identification.calibration.drive_loss import drive_loss_summary
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
 
@@ -207,17 +208,18 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     _print_shapes(fit, calibrated)
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
-    for entry in report["recordings"]:
-        _print_validation(entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1))
+    for entry, load in zip(report["recordings"], tuple(loads) or (None,) * len(report["recordings"])):
+        _print_validation(entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1), load)
     if (result.file_check.comparison is not None or result.file_check.reason) and not result.file_check.worse:
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")
 
 
-def _print_validation(entry, diagnose: str) -> None:
-    """One held-out recording's table (identified, unconstrained, robot file, its baseline; R^2), the load nothing
-    states that it carries (``held_out_load``) and the joints predicted worse than by their mean torque."""
+def _print_validation(entry, diagnose: str, load=None) -> None:
+    """One held-out recording's table (identified, unconstrained, robot file, its baseline; R^2), the line on the load
+    nothing states that it carries (``load``: ``held_out_load``, what the judges took off) and the joints predicted
+    worse than by their mean torque."""
     print(f"\nvalidation on {_validation_title(entry)} (RMSE [N m] per joint; R^2):")
     print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
     for key, label in (
@@ -229,8 +231,8 @@ def _print_validation(entry, diagnose: str) -> None:
         if key in entry:
             print(f"  {label:<14}" + " ".join("        -" if v is None else f"{v:9.4g}" for v in entry[key]))
     print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
-    if entry.get("unstated_payload"):  # a load nothing states, taken off or not (``held_out_load``)
-        print(f"  payload: {entry['unstated_payload']['sentence']}")
+    if load:  # a load nothing states, taken off or not (``held_out_load``): said here, not among the warnings
+        print(f"  payload: {load}")
     for line in _below_mean(entry, diagnose):
         print(line)
 

@@ -66,7 +66,7 @@ def report_model_warnings(command: str, source, calibrated, judged=()) -> list:
     again = {Path(str(path)).name for path in judged}
     repeated = {sentence for recording, sentence in stored_load_sentences(calibrated.document)
                 if Path(recording).name in again}  # fmt: skip
-    warnings = [w for w in model_warnings(calibrated) if w not in repeated]
+    warnings = [w for w in model_warnings(calibrated) if not any(w.startswith(s) for s in repeated)]  # s + the judges
     for warning in (w for w in warnings if w not in SAID):  # one its robot's loading printed already: said once
         print(f"psdm {command}: warning: {Path(source).name} (stored in the model file): {warning}", file=sys.stderr)
     return warnings

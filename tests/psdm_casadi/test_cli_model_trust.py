@@ -12,7 +12,9 @@ in N m is the control (no warning).
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import io
 import json
 from types import SimpleNamespace
 
@@ -303,8 +305,8 @@ def test_validate_and_diagnose_judge_a_loaded_recording_alike(arm, tmp_path, cap
 
 @pytest.fixture(scope="module")
 def loaded_model(arm, tmp_path_factory):
-    """``(loaded.csv, loaded.json)``: the validation recording with a 2 kg load at the flange no sidecar states, and
-    the model identify wrote with it held out (and its page, ``loaded.report.html``)."""
+    """``(loaded.csv, loaded.json, identify's stdout and stderr)``: the validation recording with a 2 kg load at the
+    flange no sidecar states, and the model identify wrote with it held out (and its page, ``loaded.report.html``)."""
     from identification.calibration.payload_fit import FlangeRegressor
 
     folder = tmp_path_factory.mktemp("loaded")
@@ -316,19 +318,26 @@ def loaded_model(arm, tmp_path_factory):
     loaded, model = folder / "loaded.csv", folder / "loaded.json"
     save_recording(valid.with_signals(tau=valid.tau + load), loaded)
     argv = ["identify", arm / "arm.toml", "--data", arm / "train.csv", "--validate", loaded, "--out", model]
-    assert main([str(a) for a in argv]) == 0
-    return loaded, model
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        assert main([str(a) for a in argv]) == 0
+    return loaded, model, out.getvalue(), err.getvalue()
 
 
-def test_a_load_identify_found_on_a_held_out_recording_is_said_once_by_validate_and_diagnose(arm, loaded_model,
-                                                                                             capsys):  # fmt: skip
-    """identify stores its sentence on a load nothing states on its held-out recording among the model file's
-    warnings; validate and diagnose MODEL repeated it beside their own line on the same load of the same recording
-    (two lines, one load). Judging that recording again, they say it once, their own line; validating another
-    recording, the stored sentence is still repeated (nothing else names that load)."""
-    loaded, model = loaded_model
+def test_a_load_identify_found_on_a_held_out_recording_is_said_once_by_identify_validate_and_diagnose(
+    arm, loaded_model, capsys
+):
+    """identify said its sentence on a load nothing states on its held-out recording twice, as a warning and as the
+    "payload:" line of that recording's validation table; it says it once, in the table (the stored warnings keep it,
+    for the commands that read the file). validate and diagnose MODEL repeated the stored sentence beside their own line
+    on the same load of the same recording (two lines, one load). Judging that recording again, they say it once, their
+    own line; validating another recording, the stored sentence is still repeated (nothing else names that load)."""
+    loaded, model, identify_out, identify_err = loaded_model
     (stored,) = [w for w in json.loads(model.read_text())["warnings"] if "carries a load at the flange" in w]
     said = "carries a load at the flange that nothing states"
+    assert (identify_out + identify_err).count(said) == 1 and f"  payload: {stored}" in identify_out, identify_err
+    said_in_it = ("kg (its mass", "centre of mass", "Taken off before judging", "sidecar: loaded.payload.json")
+    assert all(part in stored for part in said_in_it), stored  # the one line holds all it says
     code, out, err = _run(capsys, ["validate", model, loaded])
     assert code == 0 and (out + err).count(said) == 1 and f"payload: {loaded}" in out, err
     code, out, err = _run(capsys, ["validate", model, loaded, "--json"])
@@ -349,7 +358,7 @@ def test_identifys_page_plots_the_held_out_torque_as_its_validation_judges_it(lo
     from psdm_casadi.cli.html_report import default_html_path
     from tests.psdm_casadi.html_page import plot_data
 
-    loaded, model = loaded_model
+    loaded, model, _, _ = loaded_model
     (entry,) = json.loads(model.read_text())["validation"]["recordings"]
     load = entry["unstated_payload"]
     assert load["taken_off"] and max(np.divide(load["rmse_load_left_in"], entry["rmse"])) > 3
