@@ -31,7 +31,8 @@ VALIDATION_COLUMNS = (
 @dataclass(frozen=True)
 class TorqueSeries:
     """Measured and predicted joint torques [N m] of one recording, on the prepared samples the RMSE uses; ``taken_off``
-    names the load whose torque the measured one is shown without, as the judgement took it off (empty: none)."""
+    names the load whose torque the measured one is shown without, as the validation (held out) or the fit (training)
+    took it off (empty: none)."""
 
     name: str
     held_out: bool
@@ -45,34 +46,35 @@ def torque_series(calibrated, model, robot, recordings, names, held_out: bool) -
     """``TorqueSeries`` of ``recordings`` (raw, joint side) predicted by ``calibrated`` as ``psdm validate`` does. A
     held-out recording is shown as the report's and the JSON's validation judge it (``held_out_load.judge_recording``):
     the load it states, or a plausible one nothing states, taken off the measured torque, so that the plot's residual
-    is the one whose RMSE they report (with the load left in, the load's torque would fill the plot)."""
+    is the one whose RMSE they report (with the load left in, the load's torque would fill the plot). A training
+    recording is shown as the fit weighed it: the load it states (known, or unknown as the model identified it) taken
+    off, nothing else looked for."""
     from identification.data.torque_constants import recording_kt
 
     out = []
     for name, recording in zip(names, recordings):
         kt = recording_kt(robot, recording)
-        if held_out:
-            prepared, predicted, with_load, taken_off = judged_load(robot, calibrated, model, recording, kt, name)
-            measured = prepared.tau - (with_load - predicted)
-        else:
-            prepared, predicted = calibrated.predict_recording(model, recording, kt)
-            measured, taken_off = prepared.tau, ""
+        prepared, predicted, with_load, taken_off = judged_load(robot, calibrated, model, recording, kt, name, held_out)
+        measured = prepared.tau - (with_load - predicted)
         out.append(TorqueSeries(Path(str(name)).name, held_out, prepared.t, measured, np.asarray(predicted),
                                 taken_off))  # fmt: skip
     return out
 
 
-def judged_load(robot, calibrated, model, recording, kt, name) -> tuple:
-    """``(prepared recording, prediction, prediction with the load's torque, what was taken off)`` of a held-out
-    recording as ``psdm validate`` and identify's validation judge it (``held_out_load.judge_recording``): the load
-    its sidecar (or the model file's list for it) states (``payload_fit.stated_payload``), else a plausible one nothing
-    states; without a load the prediction twice and ``""``."""
+def judged_load(robot, calibrated, model, recording, kt, name, unstated=True) -> tuple:
+    """``(prepared recording, prediction, prediction with the load's torque, what was taken off)`` of a recording as
+    ``psdm validate`` and identify's validation judge it (``held_out_load.judge_recording``): the load its sidecar (or
+    the model file's list for it) states (``payload_fit.stated_payload``), else (``unstated``: a held-out recording) a
+    plausible one nothing states; without a load the prediction twice and ``""``."""
     from identification.calibration.held_out_load import judge_recording
     from identification.calibration.payload_fit import stated_payload
     from identification.calibration.refit_training import listed_configuration
 
     listed = listed_configuration(calibrated.document, name)
     stated, _ = stated_payload(listed, calibrated.configurations, "the model")
+    if stated is None and not unstated:
+        prepared, predicted = calibrated.predict_recording(model, recording, kt)
+        return prepared, predicted, predicted, ""
     check = judge_recording(robot, calibrated, model, recording, kt, stated, str(name))
     if stated is not None:
         taken_off = f"the stated load {listed.name!r} ({float(stated[0]):.3g} kg)"
@@ -97,7 +99,8 @@ def identify_page(document: dict, series=()) -> Page:
         page.section("Validation RMSE per joint", _validation_tables(validation, names))
     for s in series:
         kind = "held-out recording" if s.held_out else "training recording"
-        kind += f", {s.taken_off} taken off as the validation judged it" if s.taken_off else ""
+        judged = "the validation judged" if s.held_out else "the fit weighed"
+        kind += f", {s.taken_off} taken off as {judged} it" if s.taken_off else ""
         divs = [_joint_figure(s, j, name) for j, name in enumerate(names)]
         page.section(f"Measured vs predicted torque: {s.name} ({kind})", "".join(divs))
     page.section("Parameters with their standard deviation (1 sigma error bars)", _parameter_figures(document))

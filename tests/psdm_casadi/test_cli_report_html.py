@@ -172,3 +172,44 @@ def test_a_plotly_package_of_another_plotly_js_major_version_gets_its_own_full_b
     assert vendored.split(".")[0] == plotly.offline.get_plotlyjs_version().split(".")[0]
     monkeypatch.setattr(plotly.offline, "get_plotlyjs_version", lambda: "9.0.0")
     assert plotly_bundle() == plotly.offline.get_plotlyjs() != basic
+
+
+def test_a_training_recording_with_a_known_load_is_plotted_as_the_fit_weighed_it(denso, denso_model, tmp_path):
+    """identify without a held-out recording plots its training recordings. One of them carries a known 2 kg load (its
+    sidecar): the fit takes its torque off (``payload_fit.subtract_known_payloads``), but the page plotted the model's
+    prediction of the arm against the torque with the load in, a residual of the load's torque. It is now plotted as
+    the fit weighed it, the load taken off and said in the title and legend: on every joint the plotted RMSE is the
+    fit's training RMSE on that recording (its own preparation and load path, ``trajectory_data.prepare_recordings``),
+    and the empty recording is plotted as before."""
+    from identification.calibration.calibrated_model import load_calibrated_model
+    from identification.calibration.model_preparation import model_preparation
+    from identification.calibration.payload_fit import subtract_known_payloads
+    from identification.calibration.trajectory_data import prepare_recordings
+    from identification.data.configuration import stated_configuration
+    from identification.data.io import load_recording
+
+    load = xp.Payload(mass=2.0, com=(0.0, 0.02, 0.06))
+    options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1)
+    for k, (name, extras) in enumerate((("empty.npz", []), ("loaded.npz", [load]))):
+        rng = np.random.default_rng(60 + k)
+        reference = sine_experiment(denso, duration=6.0, rng=rng).reference()
+        save_recording(simulate_recording(denso, reference, options, rng, extras=extras)[0], tmp_path / name)
+    (tmp_path / "loaded.payload.json").write_text(json.dumps({"mass": load.mass, "com": list(load.com)}))
+    out = tmp_path / "model.json"
+    argv = ["identify", "denso_vs6556g", "--data", str(tmp_path / "empty.npz"), str(tmp_path / "loaded.npz")]
+    assert main([*argv, "--out", str(out)]) == 0
+    page, calibrated = default_html_path(out).read_text(), load_calibrated_model(out)
+    preparation = model_preparation(calibrated.document)
+    for name in ("empty", "loaded"):
+        path = tmp_path / f"{name}.npz"
+        _, _, (prepared,) = prepare_recordings(denso, [load_recording(path)], None, preparation.cutoff_hz,
+                                               preparation.edge_periods)  # fmt: skip
+        (arm,) = subtract_known_payloads(denso, [prepared], [stated_configuration(path)])
+        fit_rmse = np.sqrt(np.mean((arm.tau - calibrated.predict(denso_model, arm.q, arm.qd, arm.qdd)) ** 2, axis=0))
+        for j in range(denso.n_dof):
+            measured, predicted, residual = plot_data(page, f"joint-{j + 1}-{name}.npz")
+            plotted = np.sqrt(np.mean(np.square(np.subtract(measured["y"], predicted["y"]))))
+            assert plotted == pytest.approx(fit_rmse[j], rel=0.02, abs=0.005), (name, j, plotted, fit_rmse)
+            said = "measured, the stated load '2 kg (loaded.payload.json)' (2 kg) taken off"  # its sidecar's name
+            assert measured["name"] == (said if name == "loaded" else "measured"), measured["name"]
+    assert "training recording, the stated load" in page and "taken off as the fit weighed it" in page
