@@ -148,7 +148,11 @@ def test_a_named_counterbalance_is_taken_where_the_held_out_recording_allows_it_
         assert f"psdm diagnose {robot.source} --train {data} --validate {held_out}" in choice["reason"]
 
 
-@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=pytest.mark.slow)])  # 5-9 s each
+# slow: the route tries the payload and the counterbalance, each judged by block folds (75-120 s a seed); on shorter
+# recordings a tool alone gets a counterbalance named (3 s at seed 0: joint 4; 5 s at seed 1: joint 3), so they
+# cannot stand in for the heavy arm's 10 s
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [0, 1])
 def test_the_heavy_arm_with_only_a_tool_gets_no_counterbalance(heavy_case, seed):
     robot, _, train, validation = heavy_case(seed, ("heavy_payload",))
     result = identify_recordings(robot, derive_psdm(robot), [train], validation=[validation])
