@@ -52,7 +52,7 @@ from identification.calibration.counterbalance_folds import FoldFailure, block_f
 from identification.calibration.never_worse import compare_models
 from identification.calibration.offset_reading import fit_offsets
 from identification.calibration.shared_barrier import shared_solvers
-from identification.calibration.trajectory_fit import identify_trajectories
+from identification.calibration.trajectory_fit import identify_trajectories, torque_constants
 from identification.data.torque_constants import recording_kt
 
 __all__ = ["UnconvergedFit", "check_departures", "converged", "offset_sizes", "written_model_judge"]
@@ -144,12 +144,15 @@ def check_departures(choice, fit, fit_of, compare, sized=None) -> tuple:
 
 
 def offset_sizes(problem):
-    """The ``sized`` of :func:`check_departures` for ``problem`` = (robot, model, raw training recordings, ...): the
-    size rule identify's counterbalance naming reads a fit's offset by (``offset_reading.fit_offsets``)."""
-    robot, model, recordings = problem[:3]
+    """The ``sized`` of :func:`check_departures` for ``problem`` = (robot, model, raw training recordings, identify's
+    ``TrajectoryOptions``, ...): the size rule identify's counterbalance naming reads a fit's offset by
+    (``offset_reading.fit_offsets``), on recordings of currents through the torque constants the fit reads them with
+    (``trajectory_fit.torque_constants``)."""
+    robot, model, recordings, options = problem[:4]
+    kt = torque_constants(robot, options, recordings)
 
     def sized(fit, joint):
-        return fit_offsets(robot, model, recordings, fit, (joint,)).get(joint)
+        return fit_offsets(robot, model, recordings, fit, (joint,), kt).get(joint)
 
     return sized
 

@@ -108,7 +108,7 @@ def named_counterbalances(robot, model, recordings, options, fit, calibrated, va
     held-out ``validation`` (``kt``: torque constants for recordings of currents; ``configurations``: the training
     recordings' payloads). A data-chosen offset the size does not read as no sensor's is read with the robot file's
     rigid body held (``file_held_offset``), where identify's links cannot absorb the balancer it stands for."""
-    readings = data_chosen_offsets(robot, model, recordings, options, fit)
+    readings = data_chosen_offsets(robot, model, recordings, options, fit, kt)
     verdicts = fit_verdicts(model, calibrated, readings, recordings, validation, kt)
     said, absorbed = [r.sentence(verdicts[j]) for j, r in readings.items()], []
     if "offset" in options.friction and options.offset_joints is not None:

@@ -13,9 +13,11 @@ robot file's gravity torque there). A true sensor offset (the Panda's, the TX40'
 small fraction of both.
 
 :func:`oversized_offset` reads one joint; :func:`fit_offsets` reads every data-chosen offset of a fit against the
-robot file's gravity torque on the training recordings. ``identify`` (``counterbalance_column``) names such a joint's
-counterbalance and tries a spring there in place of the offset; the diagnosis names such a ``torque_offset`` finding
-a counterbalance (``diagnosis.counterbalance_naming``).
+robot file's gravity torque on the training recordings, of joint torques or of motor currents (read as joint torques
+through the torque constants the fit used: a balancer's offset on currents is no sensor's either). ``identify``
+(``counterbalance_column``) names such a joint's counterbalance and tries a spring there in place of the offset, and
+leaves it unjudged on the model it writes (``column_check``); the diagnosis names such a ``torque_offset`` finding a
+counterbalance (``diagnosis.counterbalance_naming``).
 """
 
 from __future__ import annotations
@@ -97,17 +99,22 @@ def oversized_offset(joint: int, offset: float, gravity: float, peak: float) -> 
     return OffsetReading(int(joint), offset, gravity, peak)
 
 
-def fit_offsets(robot, model, recordings, fit, joints) -> dict:
+def fit_offsets(robot, model, recordings, fit, joints, kt=None) -> dict:
     """``{0-based joint: OffsetReading}`` of the offsets of ``fit`` (its drive columns ``offset<j>``) on ``joints``
-    (the offsets the data chose) that no sensor has, against the robot file's gravity torque and the recorded torque
-    of the raw training ``recordings`` (those with joint torques; none: no reading). Empty without the file's links."""
+    (the offsets the data chose) that no sensor has, against the robot file's gravity torque and the recorded joint
+    torque of the raw training ``recordings``: a recording's torque, or its motor currents times ``kt`` (the torque
+    constants [N m/A] the fit read them with; None: recordings of currents are not read). A current measurement's zero
+    error is a share of its range as a torque sensor's is, and an offset fitted to currents through ``kt`` is in the
+    same units as their peak, so the share of the peak does not depend on ``kt`` being right. None read: no reading.
+    Empty without the file's links."""
     names = list(fit.drive_names)
     found = [j for j in joints if f"offset{j + 1}" in names]
-    torques = [r for r in recordings if getattr(r, "tau", None) is not None]
-    if not found or not torques or robot.links is None:
+    read = [r for r in recordings if getattr(r, "tau", None) is not None
+            or (kt is not None and getattr(r, "current", None) is not None)]  # fmt: skip
+    if not found or not read or robot.links is None:
         return {}
-    tau = np.concatenate([np.asarray(r.tau, dtype=float) for r in torques])
-    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in torques])  # gravity is smooth in the pose
+    tau = np.concatenate([np.asarray(r.tau if r.tau is not None else r.joint_torque(kt), dtype=float) for r in read])
+    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in read])  # gravity is smooth in the pose
     zero = np.zeros_like(q)
     gravity = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
     out = {}
@@ -119,9 +126,10 @@ def fit_offsets(robot, model, recordings, fit, joints) -> dict:
     return out
 
 
-def data_chosen_offsets(robot, model, recordings, options, fit) -> dict:
+def data_chosen_offsets(robot, model, recordings, options, fit, kt=None) -> dict:
     """``{0-based joint: offset_reading.OffsetReading}`` of the torque offsets the data chose (``options.
-    offset_joints`` a tuple: not every joint's as asked) that no sensor has (``fit_offsets``)."""
+    offset_joints`` a tuple: not every joint's as asked) that no sensor has (``fit_offsets``; ``kt``: the torque
+    constants of recordings of currents)."""
     if "offset" not in options.friction or options.offset_joints is None:
         return {}
-    return fit_offsets(robot, model, recordings, fit, options.offset_joints)
+    return fit_offsets(robot, model, recordings, fit, options.offset_joints, kt)
