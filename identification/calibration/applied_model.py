@@ -50,6 +50,7 @@ import numpy as np
 from identification.calibration.absorbed_features import absorbed_mask
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.carried_payload import carrying_payloads
+from identification.calibration.envelope_report import with_concrete_route
 from identification.calibration.finding_value import implausibility, unhelpful_findings
 from identification.calibration.findings import (
     SPEC_EFFECTS,
@@ -391,7 +392,8 @@ def _document(
                                        if k in kept and v is not None})  # fmt: skip
     document["findings"] = filled_entries(entries, terms, columns, extra)
     document["corrections"] = corrections
-    document["warnings"] = list(dict.fromkeys(fit.warnings))  # the refit's own (a wrong recording stays flagged)
+    said = calibrated.document.get("warnings", [])  # identify's: its suggested command names the files
+    document["warnings"] = with_concrete_route(dict.fromkeys(fit.warnings), said)  # the refit's own (flags stay)
     laws = calibrated.document["drive"].get("temperature")  # the friction's law in temperature (refit_training
     if laws and all(n in document["drive"]["names"] for j in laws["joints"] for n in j["slopes_per_c"]):  # repeats
         document["drive"]["temperature"] = copy.deepcopy(laws)  # the drift correction to its reference)

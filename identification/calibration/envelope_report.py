@@ -34,6 +34,7 @@ with the rigid body; the messages say so.
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -45,6 +46,7 @@ from identification.data.excitation_check import joint_label
 __all__ = [
     "ABSORBED_EFFECTS",
     "DIAGNOSE_COMMAND",
+    "with_concrete_route",
     "bounds_note",
     "effect_phrase",
     "ACTIVE_TOLERANCE",
@@ -68,6 +70,14 @@ MIN_REFUSED_SIGMA = 1.0
 #: The command the messages suggest; the command line puts its own robot and recordings in.
 DIAGNOSE_COMMAND = "psdm diagnose ROBOT --train DATA --validate OTHER"
 DIAGNOSE_ROUTE = "run '" + DIAGNOSE_COMMAND + "' against the robot file: it fits {what} jointly with the rigid body"
+
+
+def with_concrete_route(warnings, said) -> list:
+    """``warnings`` with the suggested command's placeholders (``DIAGNOSE_COMMAND``) replaced by the concrete command
+    an earlier run put in ``said`` (a model file's own warnings: identify's, with its robot file and recordings), so
+    a refit of that model file (diagnose --apply) names the same files; as they are when ``said`` names none."""
+    concrete = next((m.group(1) for w in said if (m := re.search(r"'(psdm diagnose (?!ROBOT )[^']*)'", w))), None)
+    return [w.replace(DIAGNOSE_COMMAND, concrete) if concrete else w for w in warnings]
 
 
 @dataclass(frozen=True)

@@ -419,3 +419,21 @@ def test_a_counterbalance_is_named_on_a_joint_the_links_weight_loads_not_an_upri
     assert (found.link, found.absorbs, found.joint, found.pressed) == (1, "counterbalance", 1, True)
     assert found.refused_sigma == pytest.approx(2.0) and "joint 1" not in found.message
     assert "counterbalance or spring on joint 2" in found.message
+
+
+def test_a_refit_names_the_diagnose_command_of_the_model_files_own_run():
+    """diagnose --apply refits a model file: its warnings' suggested command names the robot file and recordings
+    identify put in the model file's warnings, not the placeholders (before: 'psdm diagnose ROBOT --train DATA
+    --validate OTHER' in the written model and every command that prints its warnings)."""
+    from identification.calibration.envelope_report import DIAGNOSE_COMMAND, DIAGNOSE_ROUTE, with_concrete_route
+
+    concrete = "psdm diagnose /data/gen3.urdf --train /data/run1.csv --validate /data/run3.csv --rate 1000.0"
+    said = ["a recording warning", "link 7 is pushed: " + DIAGNOSE_ROUTE.format(what="a payload").replace(
+        DIAGNOSE_COMMAND, concrete)]  # fmt: skip
+    refit = ["link 7 is pushed (refit): " + DIAGNOSE_ROUTE.format(what="a payload"), "another warning"]
+    assert with_concrete_route(refit, said) == [
+        f"link 7 is pushed (refit): run '{concrete}' against the robot file: it fits a payload jointly with the rigid "
+        "body",
+        "another warning",
+    ]
+    assert with_concrete_route(refit, ["a recording warning", refit[0]]) == refit  # none named: as they are
