@@ -111,6 +111,10 @@ class DiagnosisContext:
     tau_held : array (n_samples, n_dof) or None
         The torque of the friction a model file holds (``held_friction.HeldFriction``; None: none), which no fit
         estimates: every fit explains ``tau_fit``.
+    held_offsets : tuple of float
+        The torque offset [N m] per joint ``tau_held`` holds (a model file's; empty: none): a fitted offset on such a
+        joint is the part the data add to it, and its plausibility is judged on the joint's whole offset
+        (``candidates.base.held_offset``).
     coulomb_velocity : float
         The smoothing velocity [rad/s] of the nominal friction's sign without a LuGre prior
         (``nominal.friction_blocks``; ``DiagnosisOptions.coulomb_velocity``).
@@ -146,6 +150,7 @@ class DiagnosisContext:
     sign_qd: np.ndarray | None = None
     torque_constants: np.ndarray | None = None
     tau_held: np.ndarray | None = None
+    held_offsets: tuple = ()
     coulomb_velocity: float = SMOOTH_VELOCITY
 
     @property

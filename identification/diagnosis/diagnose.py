@@ -304,7 +304,8 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
                         sign_from_raw=options.friction == "lugre")  # fmt: skip
     held = options.held_friction.torque(ctx.qd, ctx.qdd) if options.held_friction.values else None
-    return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held)
+    offsets = tuple(options.held_friction.offset_of(j) for j in range(ctx.n_dof)) if held is not None else ()
+    return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held, held_offsets=offsets)
 
 
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:

@@ -304,3 +304,38 @@ def test_the_size_of_an_offset_beside_the_file_s_is_the_joint_s_whole_offset(den
                 f"{whole - held:+.4g} N m) on joint 2") in text  # fmt: skip
     else:  # a sensor's size: the file's value corrected, no reading of its size
         assert not size and finding.effect == "torque_offset" and finding.correction
+
+
+def test_a_file_offset_far_off_is_judged_by_the_joint_s_whole_offset(case):
+    """A model file whose joint-1 offset is far off (20 N m, many times joint 1's peak torque; the data's is 0.5): the
+    fit's part (about -19.5 N m) alone is larger than the joint's torque scale, and the plausibility rule rejected the
+    offset as the fit fighting the nominal model, so the file's wrong value went unreported. The rule judges the
+    joint's whole offset (the file's part plus the fit's: 0.5, the truth): a plausible offset, stated as a correction
+    of the file's value. A fitted part that makes the whole as large as the file's wrong value is still rejected."""
+    from identification.diagnosis.candidates.base import held_offset
+    from identification.diagnosis.diagnose import prepare_problem
+
+    robot, model, train, held, calibrated = case
+    document = copy.deepcopy(calibrated.document)
+    names = document["drive"]["names"]
+    far = 20.0
+    document["drive"]["values"][names.index("offset1")] = far
+    wrong = type(calibrated)(document)
+    alone = CandidateLibrary((TorqueOffsetTerm(),))
+    quick = DiagnosisOptions(rigid_body="prior", library=alone, sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(wrong, robot, model), train, held, quick)
+    assert not any(label == "torque_offset[j1]" for label, _ in report.rejected), report.rejected
+    (finding,) = [f for f in report.findings if f.joints == (0,)]
+    assert finding.parameters["offset"] == pytest.approx(OFFSET[0], abs=0.05)
+    assert finding.coefficients[0] == pytest.approx(OFFSET[0] - far, abs=0.05) and finding.correction
+    assert f"the file holds {far:+.4g} N m" in finding.correction
+    # the rule itself, on the training context: the part that leaves the truth is plausible, one that doubles the
+    # file's wrong value is not, and without the file's offset the same part is judged alone
+    options = model_file_options(wrong, quick)
+    ctx = prepare_problem(calibrated_robot(wrong, robot), model, train, held, options).ctx_t
+    assert held_offset(ctx, 0) == far and held_offset(ctx, 1) == 0.0
+    term = TorqueOffsetTerm(joint=0)
+    assert term.implausibility(np.array([OFFSET[0] - far]), ctx) is None
+    reason = term.implausibility(np.array([far]), ctx)
+    assert "is larger than joint 1's" in reason and f"the model file's part {far:+.4g} N m" in reason
+    assert term.implausibility(np.array([OFFSET[0] - far]), replace(ctx, held_offsets=())) is not None

@@ -55,6 +55,13 @@ def torque_bound(context, joint: int) -> float | None:
     return max(amplitude, measured)
 
 
+def held_offset(context, joint: int) -> float:
+    """The torque offset [N m] the nominal model holds on ``joint`` (a model file's, ``DiagnosisContext.held_offsets``)
+    beside which a fitted offset is the part the data add; 0 without one or without a context."""
+    offsets = getattr(context, "held_offsets", ()) or ()
+    return float(offsets[joint]) if joint < len(offsets) else 0.0
+
+
 def oversized(name: str, torque: float, context, joint: int) -> str | None:
     """Why a term whose torque reaches ``torque`` [N m] on ``joint`` is not physical: it exceeds ``MAX_TORQUE_SHARE``
     times the joint's ``torque_bound`` (an effect larger than all the joint's gravity and measured torque is the fit

@@ -11,7 +11,13 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from identification.diagnosis.candidates.base import CandidateTerm, joint_columns, joint_expression, oversized
+from identification.diagnosis.candidates.base import (
+    CandidateTerm,
+    held_offset,
+    joint_columns,
+    joint_expression,
+    oversized,
+)
 from identification.diagnosis.candidates.gas_spring import GasSpringTerm, fit_geometry
 from identification.diagnosis.candidates.neutral_angle import fit_neutral_angle
 from psdm_casadi.errors import ParameterError
@@ -260,8 +266,15 @@ class TorqueOffsetTerm(CandidateTerm):
 
     def implausibility(self, coefficients, context=None):
         """An offset larger than the joint's gravity torque amplitude over the recorded range (and its peak measured
-        torque) is the fit fighting the nominal model, not a sensor bias (``oversized``)."""
-        return oversized("offset", float(coefficients[0]), context, self.joint)
+        torque) is the fit fighting the nominal model, not a sensor bias (``oversized``). Beside an offset the nominal
+        model holds (a model file's, ``held_offset``) the fit is the part the data add to it: the joint's whole offset,
+        the two parts together, is what a sensor's bias is, and is judged (a file's offset far off is corrected by a
+        large part, not fought)."""
+        held, part = held_offset(context, self.joint), float(coefficients[0])
+        reason = oversized("offset", held + part, context, self.joint)
+        if reason is None or not held:
+            return reason
+        return f"{reason} (the joint's whole offset: the model file's part {held:+.4g} N m plus the fit's {part:+.4g})"
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
         return joint_expression(q.shape[0], self.joint, coefficients[0] + 0 * q[self.joint])
