@@ -37,6 +37,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.held_friction import CONSTANT_FEATURE
+from identification.diagnosis.candidates.base import held_offset
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.design import WeightedDesign
 from identification.diagnosis.load_friction_split import SPLIT_NEXT_STEP, SPLIT_ROUTE, split_fits
@@ -165,7 +167,38 @@ class SecondOpinion:
         p = design.G.shape[0]
         beta = design.fit(ct, np.zeros((design.y_val.shape[0],) + ct.shape[1:]))[0]
         effect = term.interpret(beta[p:])[0]
-        return UnstableFinding(effect, term.label, tuple(own) or tuple(term.joints), route, tuple(opinions))
+        return UnstableFinding(effect, term.label, tuple(own) or tuple(term.joints), route, tuple(opinions),
+                               note=self._held_note(term))  # fmt: skip
+
+    def _held_constant(self, term) -> tuple:
+        """``(index, offset)``: the term's constant (``CONSTANT_FEATURE``: a spring's, which holds its rest angle) and
+        the torque offset the nominal model holds on its joint (a model file's, ``candidates.base.held_offset``);
+        ``(None, 0.0)`` without either."""
+        joint = getattr(term, "joint", None)
+        names = list(term.feature_names()) if joint is not None else []
+        constant = [k for k, name in enumerate(names) if CONSTANT_FEATURE.fullmatch(name)]
+        offset = held_offset(self.train_ctx, int(joint)) if constant else 0.0
+        return (constant[0], offset) if offset else (None, 0.0)
+
+    def _stated(self, term, coefficients) -> np.ndarray:
+        """``coefficients`` with the term's constant plus the offset the nominal model holds on its joint
+        (``_held_constant``): the two are one column, so the fit's constant alone is what the term adds to the offset,
+        and a spring's rest angle without it is not the spring's. Stated as a kept term's are
+        (``report_assembly.with_held_offset``); unchanged without a held offset or coefficients."""
+        stated = np.array(coefficients, dtype=float)
+        index, offset = self._held_constant(term)
+        if index is not None and stated.size:
+            stated[index] += offset
+        return stated
+
+    def _held_note(self, term) -> str:
+        """How an unstable term's numbers read beside a held offset (``_stated``); "" without one."""
+        index, offset = self._held_constant(term)
+        if index is None:
+            return ""
+        return (f"the model file holds a torque offset of {offset:+.4g} N m on joint {int(term.joint) + 1}: each "
+                f"fit's constant {term.feature_names()[index]} includes it (the two are one column), and its "
+                "parameters below are stated with it, as a kept term's are")  # fmt: skip
 
     def _halves(self, design, term, limits) -> list:
         """A load-dependent friction's ``mu`` refitted on the slow and the fast, the light- and the heavy-load halves
@@ -190,7 +223,7 @@ class SecondOpinion:
             failure = passes_gates(before, after, own, limits.floor, limits.min_improvement, limits.sigma)
             alone = WeightedDesign(base, base, y, y, limits.sigma).fit(cv, cv)[0][p:]
             name = f"validation recording {i + 1}" + (f" ({ctx.name})" if ctx.name else "")
-            out.append(_numbers(name, term, alone, shown, before, after, failure))
+            out.append(_numbers(name, term, self._stated(term, alone), shown, before, after, failure))
         return out
 
     def _blocks(self, design, term, ct, own, limits) -> list:
@@ -220,7 +253,7 @@ class SecondOpinion:
             before, after = rmse(y[kept], pooled0[kept]), rmse(y[kept], pooled1[kept])
             failure = passes_gates(before, after, own, 0.0, 0.0, design.sigma)
             name = f"training block {k + 1} of {self.folds} (t {t[block[0]]:.1f}-{t[block[-1]]:.1f} s)"
-            out.append(_numbers(name, term, beta[p:], shown, before, after, failure))
+            out.append(_numbers(name, term, self._stated(term, beta[p:]), shown, before, after, failure))
             signs |= set(np.sign(beta[p:]).tolist())
         replicated = term.key in REPLICATED
         gain = 0.0 if replicated else limits.min_improvement

@@ -339,3 +339,33 @@ def test_a_file_offset_far_off_is_judged_by_the_joint_s_whole_offset(case):
     reason = term.implausibility(np.array([far]), ctx)
     assert "is larger than joint 1's" in reason and f"the model file's part {far:+.4g} N m" in reason
     assert term.implausibility(np.array([OFFSET[0] - far]), replace(ctx, held_offsets=())) is not None
+
+
+def test_an_unstable_spring_beside_a_held_offset_reports_its_rest_angle_as_a_kept_one():
+    """The file of the kept-spring case above (identify took the spring's constant ``-k q0`` into joint 1's offset),
+    validation recording A with the spring, B without it (no constant torque on joint 1): the spring holds on A and
+    not on B, so it is unstable. Its rest angles were the fit's constant alone, which lacks the file's offset (A 0.037
+    rad; B -2.7 rad, a spring-less recording's constant read as the file's offset removed); stated with the offset, as a
+    kept spring's, the constant torque each stands for is the truth's: ``-k q0`` = 0.9 N m on A, 0 on B."""
+    robot = load_robot("scara")
+    model = derive_psdm(robot)
+
+    def sprung(r):
+        return replace(r, tau=r.tau + np.outer(SPRING_K * (r.q[:, 0] - SPRING_Q0), [1, 0, 0, 0]) - OFFSET)
+
+    train, a = (sprung(recording(robot, seed)) for seed in (0, 1))
+    b = recording(robot, 2)
+    b = replace(b, tau=b.tau - OFFSET)
+    calibrated = identify_recordings(robot, model, [train], validation=[a], counterbalance=False).calibrated
+    offset = dict(HeldFriction.of_model_file(calibrated.document).offsets)["offset1"]
+    quick = DiagnosisOptions(rigid_body="prior", library=CandidateLibrary((SpringTerm(),)), sparse=False, cv_folds=0)
+    report = diagnose_model(LoadedModel(calibrated, robot, model), train, [a, b], quick)
+    assert not report.findings
+    (unstable,) = [u for u in report.unstable if u.label == "spring[j1]"]
+    assert [o.failure is None for o in unstable.opinions] == [True, False]
+    constants = [-o.parameters["k"] * o.parameters["q0"] for o in unstable.opinions]
+    assert constants[0] == pytest.approx(-SPRING_K * SPRING_Q0, abs=0.05)  # A: the spring's constant torque
+    assert constants[1] == pytest.approx(0.0, abs=0.05)  # B: none
+    said = f"the model file holds a torque offset of {offset:+.4g} N m on joint 1"
+    assert said in unstable.sentence() and said in report.to_markdown() and said in unstable.to_dict()["note"]
+    assert f"q0 = {unstable.opinions[0].parameters['q0']:.4g}" in unstable.sentence()
