@@ -143,6 +143,8 @@ class DiagnosisReport:
     after_source: str = ""  # which model the "after" is (a model file's: the one --apply writes, ``applied_after``)
     applied: object = None  # that model (``applied_model.AppliedModel``), which ``diagnose --apply`` judges and writes
     refit_training: object = None  # the recordings that model trained on (``refit_training.RefitTraining``)
+    payload_check: tuple = ()  # sentences: the load each validation recording carries that nothing states, by its file
+    payload_check_as: str = ""  # how that check judges them (as ``psdm validate``, or as identify its held-out ones)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -248,6 +250,9 @@ class DiagnosisReport:
             lines += [f"RMSE after: {self.after_source}."] if self.after_source else []
         lines += ["", f"Refit: {self.refit_training.sentence()}."] if self.refit_training is not None else []
         lines += self._recordings_markdown()
+        if self.payload_check:  # ``psdm diagnose``'s check of each validation recording (``cli.diagnose_loads``)
+            lines += ["", f"## Payload check (as {self.payload_check_as})"]
+            lines += [x for sentence in self.payload_check for x in ("", sentence)]
         lines += ["", "## Residual analysis of the nominal model (validation)", ""]
         for j in range(self.n_dof):
             items = [r for r in self.residual_findings if r.joint == j]
@@ -375,94 +380,11 @@ class DiagnosisReport:
         return lines
 
     def save_plots(self, directory, overwrite: bool = False) -> dict:
-        """Residual against time, position and velocity, and measured vs model torque before/after; PNG files."""
-        import matplotlib
+        """Residual against time, position and velocity, and measured vs model torque before/after; PNG files
+        (``report_plots.save_plots``)."""
+        from identification.diagnosis.report_plots import save_plots
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        n = self.n_dof
-        t = self.validation_t
-        residual = self.validation_tau - self.validation_nominal
-        after = self.validation_tau - self.validation_final
-        paths = {}
-        fig, axes = plt.subplots(n, 3, figsize=(13, 2.0 * n), squeeze=False)
-        for j in range(n):
-            for c, (x, xl) in enumerate(
-                (
-                    (t, "t [s]"),
-                    (self.validation_q[:, j], f"q{j + 1} [rad]"),
-                    (self.validation_qd[:, j], f"qd{j + 1} [rad/s]"),
-                )
-            ):
-                ax = axes[j, c]
-                ax.plot(x, residual[:, j], ".", ms=1, label="nominal")
-                ax.plot(x, after[:, j], ".", ms=1, label="augmented")
-                ax.set_xlabel(xl)
-                ax.set_ylabel(f"res {j + 1} [N m]")
-        axes[0, 0].legend(markerscale=8)
-        fig.tight_layout()
-        paths["residuals"] = self._save(fig, directory / "residuals.png", overwrite)
-        fig, axes = plt.subplots(n, 1, figsize=(10, 1.8 * n), squeeze=False, sharex=True)
-        for j in range(n):
-            ax = axes[j, 0]
-            ax.plot(t, self.validation_tau[:, j], "k", lw=1, label="measured")
-            ax.plot(t, self.validation_nominal[:, j], lw=1, label=f"nominal (RMSE {self.rmse_before[j]:.3g})")
-            ax.plot(t, self.validation_final[:, j], lw=1, label=f"augmented (RMSE {self.rmse_after[j]:.3g})")
-            ax.set_ylabel(f"tau{j + 1} [N m]")
-            ax.legend(fontsize=6, loc="upper right")
-        axes[-1, 0].set_xlabel("t [s]")
-        fig.tight_layout()
-        paths["fit"] = self._save(fig, directory / "fit.png", overwrite)
-        shaped = self._shaped_terms()
-        if shaped:
-            paths["torque_vs_angle"] = self._plot_shapes(plt, shaped, directory / "torque_vs_angle.png", overwrite)
-        unnamed = [f for f in self.findings if f.effect == "unnamed_effect"]
-        if unnamed:  # the sparse terms beyond the library (``sparse_terms``)
-            from identification.diagnosis.unnamed_plot import plot_unnamed_effects
-
-            figure = plot_unnamed_effects(plt, self, unnamed)
-            paths["unnamed_effects"] = self._save(figure, directory / "unnamed_effects.png", overwrite)
-        plt.close("all")
-        return paths
-
-    def _shaped_terms(self) -> list:
-        """``(finding, term, coefficients)`` of the findings whose term is a torque of its joint's angle."""
-        augmented = getattr(self.augmented, "terms", ())
-        by_label = {t.label: (t, c) for t, c in zip(augmented, getattr(self.augmented, "coefficients", ()))}
-        out = []
-        for f in self.findings:
-            term, c = by_label.get(f.label, (None, None))
-            if term is not None and hasattr(term, "torque_of_angle"):
-                out.append((f, term, c))
-        return out
-
-    def _plot_shapes(self, plt, shaped, path: Path, overwrite: bool) -> Path:
-        """The identified torque against the joint angle over the recorded range, over the nominal model's
-        validation residual of that joint."""
-        fig, axes = plt.subplots(1, len(shaped), figsize=(5.0 * len(shaped), 3.6), squeeze=False)
-        for ax, (finding, term, c) in zip(axes[0], shaped):
-            j = term.joint
-            q = self.validation_q[:, j]
-            lo, hi = term.q_range if getattr(term, "q_range", None) else (float(np.min(q)), float(np.max(q)))
-            grid = np.linspace(min(lo, float(np.min(q))), max(hi, float(np.max(q))), 200)
-            residual = self.validation_tau[:, j] - self.validation_nominal[:, j]
-            ax.plot(q, residual - np.mean(residual), ".", ms=1, color="0.6", label="nominal residual (centred)")
-            shape = term.torque_of_angle(grid, c)
-            ax.plot(grid, shape - np.mean(term.torque_of_angle(q, c)), lw=2, label=finding.label)
-            ax.set_xlabel(f"q{j + 1} [rad]")
-            ax.set_ylabel(f"tau{j + 1} [N m]")
-            ax.legend(fontsize=7, markerscale=6)
-        fig.tight_layout()
-        return self._save(fig, path, overwrite)
-
-    @staticmethod
-    def _save(fig, path: Path, overwrite: bool) -> Path:
-        return atomic_write(
-            path, lambda handle: fig.savefig(handle, dpi=90, format="png"), overwrite=overwrite, mode="wb"
-        )
+        return save_plots(self, directory, overwrite)
 
     def save(self, directory, overwrite: bool = False, plots: bool = True) -> dict:
         """Write report.md, report.json, plots and the augmented model into ``directory``; return their paths.

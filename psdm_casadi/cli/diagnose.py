@@ -202,6 +202,9 @@ def _run_diagnose(args) -> int:
     if apply_out is not None and report.findings:  # before the report: its "after" is the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
     loads, temperature = validation_loads(args, calibrated, robot, model, validations, checks)  # each by its file
+    judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
+    found = tuple(load.sentence() for load in loads if load.load is not None)  # in report.md too, and printed
+    report = dataclasses.replace(report, payload_check=found, payload_check_as=judged)
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -217,9 +220,6 @@ def _run_diagnose(args) -> int:
             print_json(payload)
     else:
         print(report.to_markdown(paths))
-        if found := [load.sentence() for load in loads if load.load is not None]:
-            judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
-            print(f"\n## Payload check (as {judged})\n\n" + "\n\n".join(found))
     if apply_out is None:
         return 0
     return _apply(args, calibrated, robot_file, apply, apply_out, payload if args.json else None, report)

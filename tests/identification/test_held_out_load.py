@@ -297,7 +297,8 @@ def _sentences(text) -> list:
 def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(files, light, capsys):
     """``psdm diagnose MODEL --validate A B`` took each recording's load off but named only A's: B's 1 kg load (A's
     2 kg) was in no line. Each recording's load is now named by its file (mass and centre of mass within their stated
-    uncertainty of that recording's truth), in the JSON (``payload_checks``) and the printed report."""
+    uncertainty of that recording's truth), in the JSON (``payload_checks``), the printed report and the report.md
+    written to ``--out``."""
     from psdm_casadi.cli import main
 
     model = files["folder"] / "for-two.json"
@@ -311,12 +312,16 @@ def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(fi
     heavy, second = _named(payload, files["loaded"], LOAD), _named(payload, light, LIGHT)
     assert abs(heavy["mass"] - second["mass"]) > 4 * (heavy["mass_std"] + second["mass_std"])  # two loads, told apart
     assert payload["payload_check"] == heavy  # the first recording's, as before
-    assert main(argv) == 0
-    lines = _sentences(capsys.readouterr().out)
-    assert len(lines) == 2, lines
-    for path, found in ((files["loaded"], heavy), (light, second)):
-        (line,) = [x for x in lines if x.startswith(f"{path} carries a load")]
-        assert f"{found['mass']:.3g} +- {found['mass_std']:.2g} kg" in line and found["sidecar"] in line
+    out = files["folder"] / "diagnosis-of-two"
+    assert main([*argv, "--out", str(out), "--overwrite"]) == 0
+    printed = capsys.readouterr().out
+    written = (out / "report.md").read_text()  # the check was printed only, not in the report written (--out)
+    for lines in (_sentences(printed), _sentences(written)):
+        assert len(lines) == 2, lines
+        for path, found in ((files["loaded"], heavy), (light, second)):
+            (line,) = [x for x in lines if x.startswith(f"{path} carries a load")]
+            assert f"{found['mass']:.3g} +- {found['mass_std']:.2g} kg" in line and found["sidecar"] in line
+    assert "## Payload check (as psdm validate)" in written
 
 
 def test_diagnose_of_the_robot_file_names_a_load_on_the_second_validation_recording_only(files, light, capsys):
