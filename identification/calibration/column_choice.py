@@ -49,10 +49,11 @@ do not) or shows Stribeck friction: :func:`choose_columns` lets the data say, be
    offset, kept only with a coefficient inside ``(0, MAX_LOAD_FRICTION)``. Joint-torque sensors sit behind the
    gearbox: no candidate.
 
-LuGre friction stays an explicit choice (its fit is a multiple-shooting problem per joint, too costly to
-try by default); with it, the offsets and drive inertias are chosen under the Stribeck shape it starts from, on
-every joint. An explicit ``on``/``off`` or shape (``ColumnRequest``, ``--friction X``) is taken as given, for every
-joint.
+LuGre friction is not a candidate here (its fit is a multiple-shooting problem per joint, too costly to try on
+every joint's evidence): identify tries it after the fit, where the held-out residual lags the velocity at the
+reversals as pre-sliding does (``lugre_trial``), and with ``--friction lugre``. With it, the offsets and drive
+inertias are chosen under the Stribeck shape it starts from, on every joint. An explicit ``on``/``off`` or shape
+(``ColumnRequest``, ``--friction X``) is taken as given, for every joint.
 """
 
 from __future__ import annotations

@@ -61,18 +61,19 @@ def file_training(robot, recordings, options, configurations) -> list:
     return [r for r, c in zip(prepared, configurations) if not c.unknown]
 
 
-def file_check(problem, judged: FileJudged, fit, calibrated) -> FileCheck:
+def file_check(problem, judged: FileJudged, fit, calibrated, columns=None) -> FileCheck:
     """The ``robot_file_check.FileCheck`` of ``calibrated`` (its ``fit``) against the robot file on the ``judged``
     held-out recordings, ``problem = (robot, model, recordings, options, configurations)`` the training recordings'. A
     known payload (stated in a sidecar) is the robot file's too: its torque is taken off the training recordings the
     file's friction is fitted on, as the identification takes it off. A training recording with an unknown payload is
     left out of that friction fit (``file_training``); the check is made unless every training recording carries
-    one."""
+    one. ``columns``: the fit whose friction columns the file's friction takes (a LuGre model's Stribeck start;
+    default ``fit``)."""
     robot, model, recordings, options, configurations = problem
     if judged.reason:
         return FileCheck(reason=judged.reason)
     if not judged.recordings or robot.links is None:
-        return check_against_file(robot, model, calibrated, fit, (), judged.recordings, options)
+        return check_against_file(robot, model, calibrated, fit, (), judged.recordings, options, columns=columns)
     prepared = file_training(robot, recordings, options, configurations)
     if not prepared:
         return FileCheck(reason="every training recording carries an unknown payload the robot file does not: its "
@@ -80,4 +81,4 @@ def file_check(problem, judged: FileJudged, fit, calibrated) -> FileCheck:
                          "state the load in a sidecar)")  # fmt: skip
     pull = dict(fit.envelope_bounds).get("prior")
     samples = None if pull is None else PriorPull.from_note(pull).effective_samples
-    return check_against_file(robot, model, calibrated, fit, prepared, judged.recordings, options, samples)
+    return check_against_file(robot, model, calibrated, fit, prepared, judged.recordings, options, samples, columns)

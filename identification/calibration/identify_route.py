@@ -9,7 +9,9 @@ envelope report names, tried and kept only where it holds out of sample (``count
 (``robot_file_check``). The holds of the joints the data do not determine (``one_way_friction``) or the check names
 worse (``worse_joint_hold``) judge the model that would be written, each fit they try carried through the counterbalance
 and payload steps first (``written_model``): those steps take torque the fit's links absorbed, and a joint worse before
-them may not be worse after.
+them may not be worse after. Where the held-out residual of that model lags the velocity at the reversals as
+pre-sliding friction does, the LuGre route is tried and written instead if it is better there and worse on no joint
+(``lugre_trial``).
 
 Python users, the benchmarks and the command line get the same model from the same data: defaults are decided from the
 data here, not in the command line. Its options are overrides (``ColumnRequest``, ``counterbalance=False``), and
@@ -28,6 +30,7 @@ from identification.calibration.counterbalance_column import CounterbalanceChoic
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
 from identification.calibration.file_judged import file_judged, file_training
 from identification.calibration.held_back import stored_held_back
+from identification.calibration.lugre_trial import LuGreTrial, try_lugre
 from identification.calibration.one_way_friction import (
     OneWayFriction,
     check_one_way_mode,
@@ -99,6 +102,9 @@ class IdentifyResult:
     unstated : UnstatedLoads
         The training recordings whose load no file states but the data show, identified as unknown payloads of their
         own (``unstated_load``).
+    lugre_trial : LuGreTrial
+        LuGre friction on default settings: the joints whose held-out residual lags at the velocity reversals, and
+        whether the LuGre model tried there replaced the default one (``lugre_trial``).
     """
 
     fit: TrajectoryFit
@@ -115,6 +121,7 @@ class IdentifyResult:
     drift: FrictionDrift = field(default_factory=FrictionDrift)
     rotors_apart: RotorsApart = field(default_factory=RotorsApart)
     unstated: UnstatedLoads = field(default_factory=UnstatedLoads)
+    lugre_trial: LuGreTrial = field(default_factory=LuGreTrial)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -140,6 +147,8 @@ class IdentifyResult:
         the held-out recordings."""
         lines = [f"unstated load: {self.unstated.describe()}"] if self.unstated.found else []
         lines += list(self.columns)
+        if self.lugre_trial.describe():
+            lines.append(self.lugre_trial.describe())
         if self.pull is not None:
             lines.append(self.pull.describe())
         lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
@@ -245,11 +254,14 @@ def identify_recordings(
     lugre, held, mended, rotors = None, OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint), RotorsApart()
     source = robot.source if robot_source is None else robot_source
 
-    def writer(lugre_fit=None, drive_loss=()):  # a fit carried to the model file it makes (``written_model``)
+    def writer(lugre_fit=None, columns=None, drive_loss=()):  # a fit carried to its model file (``written_model``)
         saved = ({"robot_source": source, "lugre": lugre_fit, "configurations": configurations},
                  list(paths) if paths is not None else [None] * len(recordings))  # fmt: skip
         skip = lugre_fit is not None or bool(drive_loss) or not counterbalance  # routes that take no extra columns
-        return ModelWriter((robot, model, recordings, configurations), validation, judged, saved, skip, drive_loss)
+        return ModelWriter((robot, model, recordings, configurations), validation, judged, saved, skip, drive_loss,
+                           columns)  # fmt: skip
+
+    given, trial = options, LuGreTrial()
 
     if request.friction == "lugre":
         from identification.calibration.lugre_identify import identify_lugre_trajectories
@@ -257,7 +269,7 @@ def identify_recordings(
         found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
         fit, lugre, start = found.fit, found.lugre, found.stribeck
         rotors = unjudged_rotors(fit, "LuGre")
-        written = writer(lugre)(chosen, fit)
+        written = writer(lugre, start)(chosen, fit)  # the file judged with the Stribeck columns LuGre starts from
     elif choice.loss_joints:  # currents with a gear loss (``drive_loss``)
         from identification.calibration.drive_loss import identify_with_drive_loss
 
@@ -277,6 +289,13 @@ def identify_recordings(
         written, mended = _worse_joints(problem, write(chosen, fit), judged, worse_joint, write)
         held = held.replaced_by(mended.held_friction)  # one value per held column: the one in effect
         start = written.start
+        if request.friction == "auto" and not drift.corrected and judged.recordings and robot.links is not None:
+            trial, kept = try_lugre((robot, model, recordings, given, validation, configurations), written, judged,
+                                    writer, request)  # fmt: skip
+            if kept is not None:  # the LuGre model replaces the default one, and the default route's holds
+                found, written, choice = kept
+                lugre, start, rotors = found.lugre, found.stribeck, unjudged_rotors(found.fit, "LuGre")
+                held, mended = OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
     chosen, final, calibrated = written.options, written.fit, written.calibrated
     taken, payload = written.counterbalance, written.payload
     choice = replace(choice, replaced_offsets=taken.replaced_offsets)  # the model holds the spring there
@@ -289,10 +308,11 @@ def identify_recordings(
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
     calibrated.document["identification"]["friction_drift"] = drift.to_dict()
     calibrated.document["identification"]["unstated_loads"] = unstated.to_dict()
+    calibrated.document["identification"]["lugre_trial"] = trial.to_dict()
     if (laws := temperature_block(drift, calibrated.document["drive"]["names"])) is not None:
         calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift,
-                          rotors, unstated)  # fmt: skip
+                          rotors, unstated, trial)  # fmt: skip
 
 
 def _unstated_loads(robot, model, recordings, options, configurations) -> tuple:

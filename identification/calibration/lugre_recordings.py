@@ -448,7 +448,7 @@ def unidentifiable_message(j: int, parameters: LuGreParameters, relative: float,
         f"joint {j + 1}: the bristle stiffness sigma0 is not identifiable from these recordings (fitted "
         f"{parameters.sigma0:.3g} N m/rad, relative sigma {100 * relative:.0f} %; its pre-sliding transient lasts "
         f"{1e3 * time:.3g} ms per reversal, the samples and the filter resolve {1e3 * needed:.3g} ms): the motion "
-        f"never dwells at low speed long enough to show the pre-sliding spring (about fc/sigma0 after a reversal). "
+        f"never dwells at low speed long enough to show the pre-sliding stiffness (about fc/sigma0 after a reversal). "
         "The model keeps the value (it changes the friction only there); record slow reversals of this joint "
         "(or run the four-step protocol's friction experiments) to measure it."
     )

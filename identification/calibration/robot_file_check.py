@@ -255,12 +255,16 @@ def file_friction(oracle, fit, prepared) -> FileFriction:
     return FileFriction(fit, tuple(coefficients))
 
 
-def check_against_file(robot, model, calibrated, fit, prepared, validation, options, samples=None) -> FileCheck:
+def check_against_file(
+    robot, model, calibrated, fit, prepared, validation, options, samples=None, columns=None
+) -> FileCheck:
     """``FileCheck`` of the identified ``calibrated`` model (its ``fit``) against the robot file with friction fitted
     on the ``prepared`` training recordings, on the raw held-out ``validation`` recordings (module docstring).
 
     ``samples``: the independent training samples in all (the pull's ``effective_samples``); default the fit's
-    samples, as if each were independent (a smaller allowance)."""
+    samples, as if each were independent (a smaller allowance). ``columns``: the fit whose drive columns the file's
+    friction is fitted with (default ``fit``): a LuGre model's fit has no friction columns (its friction is the LuGre
+    block), and the file is given the Stribeck columns that friction started from (``lugre_identify``)."""
     from psdm_casadi.oracle import PinocchioOracle
 
     if not validation:
@@ -269,7 +273,7 @@ def check_against_file(robot, model, calibrated, fit, prepared, validation, opti
     if robot.links is None:
         return FileCheck(reason="the robot file states no links")
     oracle = PinocchioOracle(robot)
-    baseline = file_friction(oracle, fit, prepared)
+    baseline = file_friction(oracle, fit if columns is None else columns, prepared)
     covariance = rigid_body_covariance(model, fit)
     residuals = []  # per held-out recording: (prepared recording, model's, file + friction's, file alone's)
     for recording in validation:

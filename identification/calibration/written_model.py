@@ -51,11 +51,12 @@ class ModelWriter:
     held-out recordings the routes judge on; ``judged`` the ``file_judged.FileJudged`` ones the robot file is judged
     on; ``saved`` the model file's keywords and the recordings' paths (``counterbalance_column.take_counterbalance``);
     ``skip``: a route that takes no extra columns; ``loss``: the drive loss's ``(joints, values)`` of
-    ``drive_loss.identify_with_drive_loss`` (empty: none)."""
+    ``drive_loss.identify_with_drive_loss`` (empty: none); ``columns``: the fit whose friction columns the robot
+    file's friction is fitted with in the check (a LuGre model's Stribeck start; None: the fit's own)."""
 
-    def __init__(self, problem, validation, judged: FileJudged, saved, skip: bool, loss=()):
+    def __init__(self, problem, validation, judged: FileJudged, saved, skip: bool, loss=(), columns=None):
         self.problem, self.validation, self.judged = tuple(problem), list(validation), judged
-        self.saved, self.skip, self.loss = saved, skip, tuple(loss)
+        self.saved, self.skip, self.loss, self.columns = saved, skip, tuple(loss), columns
         self._written = []  # (options, fit, WrittenModel): by identity, the objects kept alive
 
     def __call__(self, options, fit) -> WrittenModel:
@@ -71,7 +72,7 @@ class ModelWriter:
             from identification.calibration.drive_loss import with_drive_loss
 
             calibrated = CalibratedModel(with_drive_loss(calibrated.document, *self.loss))
-        check = file_check(steps, self.judged, final, calibrated)
+        check = file_check(steps, self.judged, final, calibrated, self.columns)
         written = WrittenModel(fit, options, final, calibrated, taken, payload, check)
         self._written.append((options, fit, written))
         return written

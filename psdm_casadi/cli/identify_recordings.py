@@ -84,8 +84,9 @@ def add_arguments(p) -> None:
         "--friction",
         choices=FRICTION_SHAPES,
         default="auto",
-        help="friction shape: auto (default) chooses coulomb-viscous or stribeck from the data as --offset does; "
-        "coulomb-viscous: fc tanh(qd/eps) + fv qd; stribeck: (fc + (fs - fc) "
+        help="friction shape: auto (default) chooses coulomb-viscous or stribeck from the data as --offset does, "
+        "and LuGre where the --validate residual lags the velocity at its reversals and the LuGre model predicts it "
+        "better, worse on no joint (stated); coulomb-viscous: fc tanh(qd/eps) + fv qd; stribeck: (fc + (fs - fc) "
         "exp(-(qd/vs)^2)) tanh(qd/eps) + fv qd, with fs and vs fitted (a --cutoff well above the motion's "
         "frequencies keeps the sharp low-velocity friction the filter would smear); lugre: the Stribeck fit, then "
         "all seven LuGre parameters per joint (fc, fs, vs, fv with dv = 1, bristle stiffness sigma0 and damping "

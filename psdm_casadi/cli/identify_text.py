@@ -167,7 +167,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                     "drive_loss": drive_loss_summary(calibrated.document),
                     **{key: calibrated.document["identification"].get(key)
                        for key in ("robot_file_check", "one_way_friction", "worse_joints", "torque_scale",
-                                   "friction_drift", "unstated_loads")},
+                                   "friction_drift", "unstated_loads", "lugre_trial")},
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
     print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
@@ -185,8 +185,8 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     print("drive columns: " + "; ".join(result.columns), *torque_scale_lines(calibrated.document), sep="\n")
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
-    lines = (result.unstated.line, result.payload.line, result.drift.describe(), result.one_way.describe(),
-             result.worse_joints.describe())  # fmt: skip
+    lines = (result.lugre_trial.describe(), result.unstated.line, result.payload.line, result.drift.describe(),
+             result.one_way.describe(), result.worse_joints.describe())  # fmt: skip
     print(*filter(None, lines), sep="\n", end="\n" if any(lines) else "")
     for entry in drive_loss_summary(calibrated.document):
         print(

@@ -1,0 +1,287 @@
+"""LuGre friction by default where the data show the bristles' lag: a trial of ``--friction lugre``, kept if better.
+
+A steady-state friction model (Coulomb-viscous or Stribeck, its sign smoothed by ``tanh(qd / v)``) is an odd function of
+the velocity: around a velocity reversal its error is odd in time about the zero crossing (a sharper or smoother truth
+is above the model on one side and below it on the other). LuGre friction with pre-sliding is not: after a reversal the
+bristles hold the old direction's friction until the joint has moved some ``fc / sigma0``, so the friction lags the
+velocity, and the residual of a steady-state model has the old direction's sign on *both* sides of the crossing, and
+only there. That even part, less the same mean over the sliding flanks of the reversal (where an error of the position,
+a spring's, shows alike), averaged over the reversals (:func:`reversal_lags`), is the symptom; a symmetric window around
+zero velocity (what a smoothed Coulomb step's error also fills) is not. The rigid body cannot take it: it runs against
+the acceleration at the reversals only, and a fit that lowers the inertia to absorb it there is wrong elsewhere (the
+belt cobot of ``benchmarks/unseen_belt_cobot``: its joint-1 inertia came out low).
+
+The lag is read on the held-out recordings the robot file is judged on (``file_judged``), on the residual of the model
+identify would write. Where a joint shows it beyond noise and in size (``LAG_SIGMAS`` standard errors over the reversals
+and ``LAG_SHARE`` of the joint's RMSE), the LuGre route (``lugre_identify``) is fitted beside, carried to its model file
+(``written_model``), and kept only where it predicts each held-out recording better on a lagging joint and worse on none
+(``never_worse``'s paired margins), is not worse than the robot file on a joint the default model was not
+(``robot_file_check``), and pushes no link against its physical envelope (``envelope_report``) that the default model
+leaves inside it: a rigid body bent to fit the friction at the reversals is not a better model. The trial's own log
+lines are not identify's (silenced: the result states it once).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "LuGreTrial", "ReversalLag", "judge_trial", "lag_joints",
+           "quiet_trial", "recording_lags", "reversal_lags", "try_lugre"]  # fmt: skip
+
+logger = logging.getLogger(__name__)
+
+#: A joint's lag (the even part of the residual over its reversals) counts when it is this many standard errors of its
+#: mean over the reversals ...
+LAG_SIGMAS = 4.5
+#: ... and at least this share of the joint's held-out RMSE.
+LAG_SHARE = 0.5
+#: Fewer reversals than this in a recording say nothing about a joint.
+MIN_REVERSALS = 3
+#: The window of a reversal: the samples around the crossing slower than this multiple of the Coulomb smoothing.
+WINDOW_SMOOTHINGS = 2.0
+
+
+@dataclass(frozen=True)
+class ReversalLag:
+    """One joint's residual at its velocity reversals on one recording: ``lag`` [N m] the mean over the reversals of
+    the even part (the old direction's sign on both sides of the crossing), its ``standard_error``, ``reversals``
+    counted and the joint's ``rmse`` over the recording."""
+
+    joint: int
+    reversals: int
+    lag: float
+    standard_error: float
+    rmse: float
+
+    @property
+    def sigmas(self) -> float:
+        return self.lag / self.standard_error if self.standard_error > 0 else 0.0
+
+    @property
+    def share(self) -> float:
+        return self.lag / self.rmse if self.rmse > 0 else 0.0
+
+    @property
+    def shows(self) -> bool:
+        """Whether the lag is there: enough reversals, beyond noise and in size (module docstring)."""
+        return self.reversals >= MIN_REVERSALS and self.sigmas >= LAG_SIGMAS and self.share >= LAG_SHARE
+
+    def text(self) -> str:
+        return (f"joint {self.joint + 1}: {self.lag:.3g} N m over {self.reversals} reversals ({self.sigmas:.1f} "
+                f"standard errors, {self.share:.0%} of its RMSE)")  # fmt: skip
+
+
+def _events(qd, residual, velocity) -> list:
+    """Per reversal (a run of samples slower than ``velocity`` entered in one direction and left in the other): the
+    mean of ``-s * residual`` before and after the crossing, ``s`` the new direction, less its mean over the flanks
+    (as many samples as the run on each side, sliding): an error of the position (an unmodelled spring or gravity)
+    has the old direction's sign at both ends of a stroke too, but it is there before and after the run as well,
+    where the bristles have let go."""
+    slow = np.abs(qd) < velocity
+    edges = np.flatnonzero(np.diff(slow.astype(int)) != 0) + 1
+    bounds = np.concatenate([[0], edges, [len(qd)]])
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if not slow[a] or a == 0 or b == len(qd) or b - a < 3:
+            continue
+        before, after = np.sign(qd[a - 1]), np.sign(qd[b])
+        if before == after or before == 0:
+            continue
+        cross = a + int(np.argmax(np.sign(qd[a:b]) == after))
+        pre, post = -after * residual[a:cross], -after * residual[cross:b]
+        flanks = -after * np.concatenate([residual[max(0, 2 * a - b) : a], residual[b : 2 * b - a]])
+        if pre.size and post.size and np.all(np.isfinite(np.concatenate([pre, post, flanks]))):
+            out.append(0.5 * (pre.mean() + post.mean()) - flanks.mean())
+    return out
+
+
+def reversal_lags(qd, residual, velocity) -> tuple:
+    """One :class:`ReversalLag` per joint of a prepared recording's velocity ``qd`` and a model's ``residual`` (both
+    ``(samples, joints)``), the reversals' windows slower than ``velocity`` [rad/s].
+
+    The standard error of the mean lag is the reversals' spread over the root of their number, never below the joint's
+    RMSE over it: a model error is correlated across a reversal's window, so one window's mean is not known better
+    than the residual's own size, and the spread of three or four reversals can be small by chance (on a
+    Coulomb-viscous truth's short held-out recording, the spread alone made a joint's odd-shaped error a "lag" of many
+    standard errors)."""
+    out = []
+    for j in range(residual.shape[1]):
+        even = np.asarray(_events(qd[:, j], residual[:, j], velocity))
+        finite = residual[np.isfinite(residual[:, j]), j]
+        rmse = float(np.sqrt(np.mean(finite**2))) if finite.size else 0.0
+        spread = float(even.std(ddof=1)) if even.size > 1 else 0.0
+        se = max(spread, rmse) / np.sqrt(max(even.size, 1))  # a reversal's mean is not known better than the RMSE
+        out.append(ReversalLag(j, int(even.size), float(even.mean()) if even.size else 0.0, se, rmse))
+    return tuple(out)
+
+
+def recording_lags(calibrated, model, recordings, kts, velocity) -> tuple:
+    """Per raw held-out recording, the :func:`reversal_lags` of ``calibrated``'s residual (``kts``: each recording's
+    torque constants, as the robot-file check reads them)."""
+    out = []
+    for recording, kt in zip(recordings, kts):
+        ready, predicted = calibrated.predict_recording(model, recording, kt)
+        out.append(reversal_lags(ready.qd, ready.tau - predicted, WINDOW_SMOOTHINGS * velocity))
+    return tuple(out)
+
+
+def lag_joints(lags) -> tuple:
+    """The joints (0-based) that show the lag on some recording and against it on none."""
+    shows = {item.joint for per in lags for item in per if item.shows}
+    against = {item.joint for per in lags for item in per if item.reversals >= MIN_REVERSALS
+               and item.sigmas <= -LAG_SIGMAS}  # fmt: skip
+    return tuple(sorted(shows - against))
+
+
+@dataclass(frozen=True)
+class LuGreTrial:
+    """What identify decided about LuGre friction on default settings (module docstring).
+
+    ``lags``: per held-out recording the :class:`ReversalLag` of each joint on the default model; ``joints``: the
+    joints (0-based) that showed it (empty: LuGre not tried); ``kept``: the LuGre model written; ``before``/``after``
+    /``margin``: the held-out RMSE per joint of the default and the LuGre model with the paired margin (pooled over
+    the recordings); ``reason``: why kept or not."""
+
+    lags: tuple = ()
+    joints: tuple = ()
+    kept: bool = False
+    before: tuple = ()
+    after: tuple = ()
+    margin: tuple = ()
+    reason: str = ""
+
+    def describe(self) -> str:
+        """``friction: LuGre on every joint, chosen because ...`` or why the steady-state shape stays ("" where no
+        joint showed the lag)."""
+        if not self.joints:
+            return ""
+        shown = "; ".join(item.text() for per in self.lags for item in per if item.joint in self.joints)
+        head = f"the residual at the velocity reversals lags the velocity as pre-sliding friction does ({shown})"
+        if self.kept:
+            return f"friction: LuGre on every joint, chosen because {head}, and {self.reason}"
+        return f"friction: the steady-state shape kept: {head}, but the LuGre fit tried {self.reason}"
+
+    def to_dict(self) -> dict:
+        lags = [[{"joint": i.joint + 1, "reversals": i.reversals, "lag": float(i.lag), "rmse": float(i.rmse),
+                  "standard_error": float(i.standard_error), "shows": bool(i.shows)} for i in per]
+                for per in self.lags]  # fmt: skip
+        return {
+            "tried": bool(self.joints),
+            "kept": self.kept,
+            "lag_joints": [j + 1 for j in self.joints],
+            "lags": lags,
+            "rule": RULE,
+            "validation_rmse_default": list(self.before),
+            "validation_rmse_lugre": list(self.after),
+            "margin": list(self.margin),
+            "reason": self.reason,
+        }
+
+
+RULE = (
+    f"a joint shows the bristles' lag when the even part of its held-out residual over its velocity reversals "
+    f"(>= {MIN_REVERSALS}) is >= {LAG_SIGMAS:g} standard errors and >= {LAG_SHARE:.0%} of its RMSE; then LuGre "
+    "friction is fitted and kept only if it predicts each held-out recording better on a lagging joint, worse on "
+    "none (paired margins), is worse than the robot file on no joint the default model was not, and pushes no link "
+    "against its physical envelope the default model leaves inside it"
+)
+
+
+def judge_trial(default, lugre, comparisons, joints) -> tuple:
+    """``(kept, reason)``: whether the LuGre ``lugre`` written model (``written_model.WrittenModel``) replaces the
+    ``default`` one, ``comparisons`` the ``never_worse.JointComparison`` of the two on each held-out recording
+    (default before, LuGre after), ``joints`` the lagging ones."""
+    worse = sorted({j for c in comparisons for j in c.worse})
+    if worse:
+        return False, f"is worse on joint(s) {', '.join(str(j + 1) for j in worse)} ({comparisons[0].text(worse)})"
+    better = [j for j in joints if all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons)]
+    if not better:
+        return False, "does not predict a lagging joint better beyond the margin on each held-out recording"
+    new = sorted(set(lugre.check.worse) - set(default.check.worse))
+    if new:
+        return False, f"is worse than the robot file on joint(s) {', '.join(str(j + 1) for j in new)}"
+    pushed = sorted({f.link for f in lugre.fit.envelope} - {f.link for f in default.fit.envelope})
+    if pushed:  # a rigid body made implausible to fit the friction's reversals is no better model
+        links = ", ".join(str(i + 1) for i in pushed)
+        return False, f"pushes link(s) {links} against their physical envelope, which the default model does not"
+    text = "; ".join(f"joint {j + 1}: {comparisons[0].before[j]:.4g} -> {comparisons[0].after[j]:.4g} N m"
+                     for j in better)  # fmt: skip
+    return True, f"it predicts the held-out recording(s) better there ({text}) and worse on no joint"
+
+
+class _Quiet(logging.Filter):
+    """Drops the information records of the trial (its warnings stay)."""
+
+    def filter(self, record) -> bool:
+        return record.levelno >= logging.WARNING
+
+
+@contextlib.contextmanager
+def quiet_trial():
+    """The trial's log lines and Python warnings held back: identify's log is the default route's, and the result
+    states the trial once. Yields the caught warnings (re-issued by the caller if the trial's model is kept)."""
+    handlers = {h for name in ("", "identification", "psdm_casadi") for h in logging.getLogger(name).handlers}
+    quiet = _Quiet()
+    for handler in handlers:
+        handler.addFilter(quiet)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield caught
+    finally:
+        for handler in handlers:
+            handler.removeFilter(quiet)
+
+
+def try_lugre(problem, written, judged, writer, request) -> tuple:
+    """``(LuGreTrial, kept)``: the lag of the default model ``written`` (``written_model.WrittenModel``) on the
+    ``judged`` held-out recordings (``file_judged.FileJudged``), and where a joint shows it the LuGre route fitted and
+    judged (module docstring); ``kept`` is ``(LuGreIdentification, WrittenModel, ColumnChoice)`` of the LuGre model
+    where it replaces the default, else None. ``problem = (robot, model, recordings, options, validation,
+    configurations)`` with the options identify was given; ``writer(lugre_fit, columns) -> written_model.ModelWriter``;
+    ``request`` the column request (its friction becomes ``"lugre"``)."""
+    from dataclasses import replace
+
+    from identification.calibration.column_choice import choose_columns
+    from identification.calibration.lugre_identify import identify_lugre_trajectories
+    from identification.calibration.never_worse import compare_each, pooled_comparison
+    from identification.calibration.trajectory_fit import torque_constants
+    from psdm_casadi.errors import ParameterError, SolverError
+
+    robot, model, recordings, options, validation, configurations = problem
+    kts = [torque_constants(robot, written.options, [r]) for r in judged.recordings]
+    lags = recording_lags(written.calibrated, model, judged.recordings, kts, written.fit.coulomb_velocity)
+    joints = lag_joints(lags)
+    if not joints:
+        return LuGreTrial(lags=lags), None
+    if written.check.one_way:  # the LuGre route fits every joint along its reversals
+        one_way = ", ".join(str(j + 1) for j in written.check.one_way)
+        return LuGreTrial(lags, joints, reason=f"was not made: joint(s) {one_way} never reverse in training"), None
+    logger.info("identify: joint(s) %s lag at their velocity reversals as pre-sliding friction does: trying LuGre "
+                "friction beside ...", ", ".join(str(j + 1) for j in joints))  # fmt: skip
+    try:
+        with quiet_trial() as caught:
+            choice = choose_columns(robot, model, recordings, options, replace(request, friction="lugre"), validation,
+                                    configurations)  # fmt: skip
+            chosen = choice.options(options)
+            found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
+            lugre = writer(found.lugre, found.stribeck)(chosen, found.fit)
+            comparisons = [compare_each(written.calibrated, lugre.calibrated, model, [r], kt)[0]
+                           for r, kt in zip(judged.recordings, kts)]  # fmt: skip
+    except (ParameterError, SolverError) as error:  # the default model stands, and the record says why
+        return LuGreTrial(lags, joints, reason=f"could not be made ({error})"), None
+    kept, reason = judge_trial(written, lugre, comparisons, joints)
+    pooled = pooled_comparison(comparisons)
+    trial = LuGreTrial(lags, joints, kept, tuple(map(float, pooled.before)), tuple(map(float, pooled.after)),
+                       tuple(map(float, pooled.margin)), reason)  # fmt: skip
+    logger.info("identify: %s", trial.describe())
+    if not kept:
+        return trial, None
+    for warning in caught:  # the LuGre model's warnings are the result's
+        warnings.warn(warning.message, warning.category, stacklevel=2)
+    return trial, (found, lugre, choice)
