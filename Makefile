@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: setup
-	$(BIN)/psdm demo --out demo_report --force
+	$(BIN)/psdm demo --out demo_report --overwrite
 
 test: setup
 	$(BIN)/ruff check .

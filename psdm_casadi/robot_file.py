@@ -159,10 +159,10 @@ def load_robot(path, locked_joints=()) -> RobotDescription:
     if suffix in (".urdf", *MJCF_SUFFIXES):
         return from_urdf(path, locked_joints=locked_joints)
     if suffix != ".toml":
-        raise RobotFileError(
+        raise RobotFileError(_calibrated_model_text(path) or (
             f"robot file {path.name!r} must end in .toml, .urdf or .xml (MJCF); got {suffix!r}. Rename it or "
             "convert it."
-        )
+        ))  # fmt: skip
     text = read_text_file(path, what="robot file")
     try:
         data = tomllib.loads(text)
@@ -448,3 +448,28 @@ def _urdf_limits(joints: tuple, limits, where) -> tuple:
         with _within(lwhere):
             joints[names.index(name)] = replace(joints[names.index(name)], **changes)
     return tuple(joints)
+
+
+def _calibrated_model_text(path: Path) -> str:
+    """The refusal of a calibrated-model file (``psdm identify``'s JSON) given where a robot file is expected, with
+    the commands that read one; "" for any other file (a new user passed model.json to identify again)."""
+    import json
+    import re
+
+    if path.suffix.lower() != ".json" or not path.is_file():
+        return ""
+    try:
+        with path.open(encoding="utf-8") as handle:
+            head = handle.read(4096)
+        if not re.search(r'"format"\s*:\s*"psdm-calibrated-model"', head):
+            return ""
+        main = str((json.loads(path.read_text(encoding="utf-8")).get("robot") or {}).get("main_file") or "")
+    except (OSError, UnicodeDecodeError, ValueError, AttributeError):
+        return ""
+    source = f" ({main}, a copy of which the model file keeps)" if main else ""
+    return (
+        f"{path.name!r} is a calibrated model (written by 'psdm identify'), not a robot file (.toml, .urdf or .xml). "
+        f"To refine it, run 'psdm diagnose {path.name} --train REC --validate REC --apply NEW.json' (it finds what "
+        f"the model misses and identifies it again with that); to check it on a recording, 'psdm validate "
+        f"{path.name} REC'; to identify afresh, give the robot file it was identified from{source}."
+    )

@@ -37,6 +37,7 @@ from psdm_casadi.cli.output import (
     silence_stdout,
 )
 from psdm_casadi.errors import PSDMError, SolverError
+from psdm_casadi.overwrite_option import DEPRECATED_FORCE_NOTE, used_deprecated_force
 
 __all__ = [
     "EXIT_BAD_INPUT",
@@ -124,6 +125,8 @@ def main(argv=None) -> int:
         return EXIT_BAD_INPUT
     configure_logging(_log_level(args))
     reset_json()
+    if used_deprecated_force(args):
+        print(f"psdm {args.command}: note: {DEPRECATED_FORCE_NOTE}.", file=sys.stderr)
     try:
         with InterruptGuard(), blas_thread_limit():
             check_seed(getattr(args, "seed", None))

@@ -9,9 +9,15 @@ from pathlib import Path
 import numpy as np
 
 from codegen.export import export_c
-from psdm_casadi.cli.checks import add_lock_argument, check_not_input, load_locked_robot, output_folder
+from psdm_casadi.cli.checks import (
+    add_lock_argument,
+    check_not_input,
+    load_locked_robot,
+    output_folder,
+)
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, model_warnings, report_model_warnings
 from psdm_casadi.errors import ParameterError, ShapeError
+from psdm_casadi.overwrite_option import add_overwrite_argument
 
 ROBOT_SUFFIXES = (".toml", ".urdf", ".xml", ".mjcf")
 CALIBRATED_SUFFIX = ".json"
@@ -48,7 +54,7 @@ def register(subparsers) -> None:
         metavar="ROBOT_OR_MODEL",
         help="robot file (.toml, .urdf, .xml MJCF), saved model (.npz) or calibrated model (.json, 'psdm identify')",
     )
-    p.add_argument("--out", required=True, type=Path, help="output folder (new or empty unless --force)")
+    p.add_argument("--out", required=True, type=Path, help="output folder (new or empty unless --overwrite)")
     p.add_argument(
         "--theta",
         type=Path,
@@ -100,13 +106,11 @@ def register(subparsers) -> None:
         action="store_true",
         help="also compile lib<library>.so into --out with the system C compiler (-O3 -march=native)",
     )
-    p.add_argument(
-        "--force",
-        "--overwrite",  # the name every other command gives it
-        dest="force",
-        action="store_true",
-        help="replace the files an earlier 'psdm codegen' wrote in --out (listed in its .psdm-manifest.json); a "
+    add_overwrite_argument(
+        p,
+        "replace the files an earlier 'psdm codegen' wrote in --out (listed in its .psdm-manifest.json); a "
         "folder holding anything else, or a file of an output's name that psdm did not write, is refused",
+        dest="force",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(handler=_run_codegen)
@@ -187,7 +191,7 @@ def build_export_functions(model, robot, form: str | None):
 
 
 def output_names(library: str) -> tuple:
-    """What ``psdm codegen`` writes into --out (and what its Makefile builds there), for ``--force``."""
+    """What ``psdm codegen`` writes into --out (and what its Makefile builds there), for ``--overwrite``."""
     batch = (f"{library}_batch.c", f"{library}_batch.h")
     lugre = (f"{library}_lugre.c", f"{library}_lugre.h")  # a LuGre model's bristle step (codegen.calibrated_lugre)
     return (f"{library}.c", f"{library}.h", *batch, *lugre, "main.c", "Makefile", f"lib{library}.so", "example")
@@ -205,8 +209,8 @@ def _check_options(args):
     if args.theta is not None and not Path(args.theta).is_file():
         raise ParameterError(f"codegen --theta must name an existing file; got {str(args.theta)!r}. Check the path.")
     inputs = (("ROBOT_OR_MODEL", args.source), ("--robot", args.robot), ("--theta", args.theta))
-    folder = output_folder(args.out, output_names(library), args.force, force_option="--force", command="codegen")
-    check_not_input(args.out, "--out", inputs, "--force")
+    folder = output_folder(args.out, output_names(library), args.force, force_option="--overwrite", command="codegen")
+    check_not_input(args.out, "--out", inputs, "--overwrite")
     return folder
 
 

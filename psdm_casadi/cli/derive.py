@@ -5,8 +5,15 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from psdm_casadi.cli.checks import add_robot_argument, check_not_input, derive_model, load_robot_argument, output_file
+from psdm_casadi.cli.checks import (
+    add_robot_argument,
+    check_not_input,
+    derive_model,
+    load_robot_argument,
+    output_file,
+)
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, print_json, progress
+from psdm_casadi.overwrite_option import add_overwrite_argument
 
 
 def register(subparsers) -> None:
@@ -18,9 +25,7 @@ def register(subparsers) -> None:
     )
     add_robot_argument(parser)
     parser.add_argument("-o", "--output", help="write the model to this .npz file (.npz is appended when missing)")
-    parser.add_argument(
-        "--force", "--overwrite", dest="force", action="store_true", help="overwrite an existing output file"
-    )
+    add_overwrite_argument(parser, "overwrite an existing output file", dest="force")
     parser.add_argument("--seed", type=int, default=0, help="seed of the random checks (default 0)")
     parser.add_argument(
         "--form",
@@ -43,8 +48,8 @@ def model_path(output: str) -> Path:
 
 def run_derive(args) -> int:
     if args.output:
-        check_not_input(model_path(args.output), "-o/--output", [("ROBOT", args.robot)], "--force")
-        output_file(model_path(args.output), "-o/--output", args.force, "--force")
+        check_not_input(model_path(args.output), "-o/--output", [("ROBOT", args.robot)], "--overwrite")
+        output_file(model_path(args.output), "-o/--output", args.force, "--overwrite")
     robot = load_robot_argument(args)
     progress(f"deriving {robot.name} ({robot.n_dof} joints) ...", quiet=args.json)
     start = time.perf_counter()

@@ -6,6 +6,7 @@ import json
 
 from psdm_casadi.demo.options import DemoOptions
 from psdm_casadi.demo.story import run_demo
+from psdm_casadi.overwrite_option import add_overwrite_argument
 
 
 def register(subparsers) -> None:
@@ -22,11 +23,11 @@ def register(subparsers) -> None:
     parser.add_argument("--out", default="demo_report", help="report folder (default demo_report)")
     parser.add_argument("--quick", action="store_true", help="short experiments, no refinement, no speed run")
     parser.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    parser.add_argument(
-        "--force",
-        action="store_true",
-        help="replace the files an earlier demo report wrote in --out (listed in its .psdm-manifest.json; a folder "
+    add_overwrite_argument(
+        parser,
+        "replace the files an earlier demo report wrote in --out (listed in its .psdm-manifest.json; a folder "
         "that holds anything else is refused)",
+        dest="force",
     )
     parser.add_argument("--json", action="store_true", help="print the summary as one JSON object")
     parser.set_defaults(handler=run_demo_command)

@@ -16,7 +16,7 @@ logger = logging.getLogger("psdm_casadi.demo")
 DENSO_FILE = BUILTIN_ROBOTS_DIR / "denso_vs6556g.toml"
 REPORT_FORMAT = "psdm-demo-report/1"
 
-#: Everything the demo writes into its report folder (``--force`` replaces these and nothing else).
+#: Everything the demo writes into its report folder (``--overwrite`` replaces these and nothing else).
 REPORT_ENTRIES = (
     "report.md",
     "report.html",

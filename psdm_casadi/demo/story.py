@@ -42,7 +42,7 @@ def run_demo(out_dir, options: DemoOptions | None = None, *, overwrite: bool = F
     from psdm_casadi.demo.page import demo_page
 
     options = DemoOptions() if options is None else options
-    folder = ManifestFolder(out_dir, REPORT_ENTRIES, "demo", force_option="--force")
+    folder = ManifestFolder(out_dir, REPORT_ENTRIES, "demo", force_option="--overwrite")
     folder.check(force=overwrite)
     start_all = time.perf_counter()
     with folder.staging() as stage:

@@ -154,13 +154,13 @@ CASES = [
     BadInput(
         "derive keeps an existing model",
         ("derive", SCARA, "-o", "m.npz"),
-        ("--output", "--force"),
+        ("--output", "--overwrite"),
         files={"m.npz": b"x"},
     ),
     BadInput(
         "derive -o without .npz keeps the .npz it would write",
         ("derive", SCARA, "-o", "m"),
-        ("--output", "m.npz", "--force"),
+        ("--output", "m.npz", "--overwrite"),
         files={"m.npz": b"x"},
     ),
     BadInput(
@@ -172,11 +172,14 @@ CASES = [
     BadInput("derive -o unwritable", ("derive", SCARA, "-o", UNWRITABLE + ".npz"), ("--output", "not writable")),
     # psdm codegen --out
     BadInput(
-        "codegen --out not empty", ("codegen", SCARA, "--out", "c"), ("--out", "--force"), files={"c/mine.c": "int x;"}
+        "codegen --out not empty",
+        ("codegen", SCARA, "--out", "c"),
+        ("--out", "--overwrite"),
+        files={"c/mine.c": "int x;"},
     ),
     BadInput(
-        "codegen --force keeps foreign files",
-        ("codegen", SCARA, "--out", "c", "--force"),
+        "codegen --overwrite keeps foreign files",
+        ("codegen", SCARA, "--out", "c", "--overwrite"),
         ("did not write", "mine.c", "new folder"),
         files={"c/psdm_dynamics.c": "old", "c/mine.c": "int x;"},
     ),
@@ -184,14 +187,16 @@ CASES = [
         "codegen --out a file", ("codegen", SCARA, "--out", "x.c"), ("--out", "is a file"), files={"x.c": "int x;"}
     ),
     BadInput(
-        "codegen --out . --force", ("codegen", SCARA, "--out", ".", "--force"), ("--out", "working, home or root")
+        "codegen --out . --overwrite",
+        ("codegen", SCARA, "--out", ".", "--overwrite"),
+        ("--out", "working, home or root"),
     ),
     BadInput("codegen --out unwritable", ("codegen", SCARA, "--out", UNWRITABLE), ("--out", "not writable")),
     # psdm demo --out
     BadInput(
         "demo --out a file", ("demo", "--quick", "--out", "notes.txt"), ("--out", "is a file"), files={"notes.txt": "x"}
     ),
-    BadInput("demo --out home", ("demo", "--quick", "--out", "~", "--force"), ("--out", "home", "--out report")),
+    BadInput("demo --out home", ("demo", "--quick", "--out", "~", "--overwrite"), ("--out", "home", "--out report")),
     BadInput("demo --out unwritable", ("demo", "--quick", "--out", UNWRITABLE), ("--out", "not writable")),
 ]
 

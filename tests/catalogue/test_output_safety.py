@@ -101,14 +101,14 @@ CASES = [
     ),
     # a user's own file of an output's name, in a folder without (or not listing it in) a manifest
     BadInput(
-        "codegen --force keeps a user's main.c and Makefile",
-        ("codegen", SCARA, "--out", "c", "--force"),
-        ("--out", "main.c", "Makefile", MANIFEST_NAME, "--force", "new folder"),
+        "codegen --overwrite keeps a user's main.c and Makefile",
+        ("codegen", SCARA, "--out", "c", "--overwrite"),
+        ("--out", "main.c", "Makefile", MANIFEST_NAME, "--overwrite", "new folder"),
         files={"c/main.c": "int main(void) { return 0; }\n", "c/Makefile": "all:\n"},
     ),
     BadInput(
-        "codegen --force keeps a main.c its manifest does not list",
-        ("codegen", SCARA, "--out", "c", "--force"),
+        "codegen --overwrite keeps a main.c its manifest does not list",
+        ("codegen", SCARA, "--out", "c", "--overwrite"),
         ("main.c", MANIFEST_NAME),
         files={"c/main.c": "mine", "c/psdm_dynamics.c": "old", f"c/{MANIFEST_NAME}": _manifest("psdm_dynamics.c")},
     ),
@@ -214,7 +214,7 @@ def test_a_shared_folder_keeps_other_files_and_merges_its_manifest(tmp_path):
         ManifestFolder(target, ("c.csv",), "simulate", shared=True).check(force=True)
 
 
-def test_codegen_force_replaces_its_own_export_and_json_names_the_command(tmp_path, capsys):
+def test_codegen_overwrite_replaces_its_own_export_and_json_names_the_command(tmp_path, capsys):
     out = tmp_path / "c"
     assert main(["codegen", SCARA, "--out", str(out), "--json"]) == 0
     first = json.loads(capsys.readouterr().out)
@@ -223,7 +223,7 @@ def test_codegen_force_replaces_its_own_export_and_json_names_the_command(tmp_pa
     assert {"main.c", "Makefile", "psdm_dynamics.c", "psdm_dynamics.h"} <= listed
     assert listed == {p.name for p in out.iterdir()} - {MANIFEST_NAME}
     (out / "main.c").write_text("edited")
-    assert main(["codegen", SCARA, "--out", str(out), "--force"]) == 0
+    assert main(["codegen", SCARA, "--out", str(out), "--overwrite"]) == 0
     assert (out / "main.c").read_text() != "edited"
 
 

@@ -33,7 +33,7 @@ def test_codegen_refuses_non_empty_out(tmp_path, capsys):
     (tmp_path / "mine.c").write_text("int main(void) { return 0; }")
     code = main(["codegen", str(DENSO_FILE), "--out", str(tmp_path)])
     assert code == 2
-    assert "--force" in capsys.readouterr().err
+    assert "--overwrite" in capsys.readouterr().err
     assert (tmp_path / "mine.c").read_text().startswith("int main")
 
 
@@ -114,14 +114,24 @@ def test_codegen_forms_of_a_saved_model(tmp_path, capsys, denso, denso_model):
 
 
 def test_codegen_and_derive_take_overwrite_as_every_other_command_does(tmp_path, capsys):
-    """A user who ran 'psdm identify --overwrite' types --overwrite for codegen too: it is --force (argparse
-    refused it as an unrecognized argument); a file psdm did not write is still refused, a model it wrote replaced."""
+    """A user who ran 'psdm identify --overwrite' types --overwrite for codegen too (argparse refused it as an
+    unrecognized argument once, then the refusal still asked for --force); a file psdm did not write is still
+    refused, a model it wrote replaced; --force is its deprecated old name: it works and says so, the help hides it."""
     (tmp_path / "mine.c").write_text("int main(void) { return 0; }")
     assert main(["codegen", str(DENSO_FILE), "--out", str(tmp_path), "--overwrite"]) == 2
     err = capsys.readouterr().err
-    assert "unrecognized arguments" not in err and "mine.c" in err
+    assert "unrecognized arguments" not in err and "mine.c" in err and "--force" not in err
+    assert main(["codegen", str(DENSO_FILE), "--out", str(tmp_path), "--force"]) == 2
+    err = capsys.readouterr().err
+    assert "--force is the old name of --overwrite" in err and "mine.c" in err
+    with pytest.raises(SystemExit):
+        main(["codegen", "--help"])
+    usage = capsys.readouterr().out
+    assert "--overwrite" in usage and "--force" not in usage
     assert (tmp_path / "mine.c").read_text().startswith("int main")
     out = tmp_path / "denso.npz"
     assert main(["derive", str(DENSO_FILE), "-o", str(out), "--json"]) == 0
     assert main(["derive", str(DENSO_FILE), "-o", str(out), "--json"]) == 2  # refused without the option
     assert main(["derive", str(DENSO_FILE), "-o", str(out), "--overwrite", "--json"]) == 0
+    assert main(["derive", str(DENSO_FILE), "-o", str(out), "--force", "--json"]) == 0
+    assert "--force is the old name of --overwrite" in capsys.readouterr().err

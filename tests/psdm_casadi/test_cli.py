@@ -19,7 +19,7 @@ def test_derive_writes_the_model_and_refuses_to_overwrite(tmp_path, capsys):
     assert main(["derive", str(DENSO_FILE), "-o", str(target)]) == 0
     assert load_model(target).n_base == 32
     assert main(["derive", str(DENSO_FILE), "-o", str(target)]) == 2
-    assert "--force" in capsys.readouterr().err
+    assert "--overwrite" in capsys.readouterr().err
 
 
 def test_bad_robot_file_is_one_line_exit_2(tmp_path, capsys):

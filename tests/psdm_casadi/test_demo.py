@@ -78,5 +78,5 @@ def test_demo_refuses_to_overwrite_a_report(tmp_path, capsys):
     folder.mkdir()
     (folder / "mine.txt").write_text("a user's file")
     assert main(["demo", "--quick", "--out", str(folder)]) == 2
-    assert "--force" in capsys.readouterr().err
+    assert "--overwrite" in capsys.readouterr().err
     assert (folder / "mine.txt").read_text() == "a user's file"

@@ -1,3 +1,4 @@
+import json
 import math
 
 import numpy as np
@@ -146,3 +147,24 @@ def test_parse_parameter_name():
     assert parse_parameter_name("m1", 2) == ("m", 1)
     with pytest.raises(RobotFileError, match="zero_parameters entry 'rx7'"):
         parse_parameter_name("rx7", 6)
+
+
+def test_a_calibrated_model_given_as_the_robot_says_so_and_what_to_run(tmp_path, capsys):
+    """A new user ran 'psdm identify model.json ...' to identify a calibrated model again: it was refused as a robot
+    file with the wrong suffix. It is named a calibrated model, with the commands that read one (exit 2); any other
+    .json keeps the suffix refusal."""
+    from psdm_casadi.cli import main
+
+    model = tmp_path / "model.json"
+    model.write_text(json.dumps({"format": "psdm-calibrated-model", "version": 2, "robot": {"main_file": "gen3.urdf"}}))
+    recording = tmp_path / "run.csv"
+    recording.write_text("t,q1,tau1\n0,0,0\n0.01,0,0\n")
+    assert main(["identify", str(model), "--data", str(recording), "--out", str(tmp_path / "again.json")]) == 2
+    err = capsys.readouterr().err
+    assert "'model.json' is a calibrated model" in err and "must end in" not in err
+    assert "psdm diagnose model.json --train REC --validate REC --apply" in err and "psdm validate model.json" in err
+    assert "gen3.urdf" in err and not (tmp_path / "again.json").exists()
+    other = tmp_path / "other.json"
+    other.write_text('{"format": "something else"}')
+    with pytest.raises(RobotFileError, match="must end in .toml, .urdf or .xml"):
+        load_robot(other)
