@@ -22,6 +22,7 @@ excite what the fit identifies: ``FoldFailure``).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -135,11 +136,15 @@ def block_folds(recordings, configurations=None, cutoff_hz=None, folds: int = FO
     (a sentence for the report)."""
     if configurations is not None and any(c.kind != "none" for c in configurations):
         return "the training recordings carry payloads (a held-out block would be judged without its load)"
-    shortest = min(float(r.t[-1] - r.t[0]) for r in recordings)
+    durations = [float(r.t[-1] - r.t[0]) for r in recordings]
+    shortest = min(durations)
     block = max(MIN_BLOCK_S, MIN_BLOCK_PERIODS / cutoff_hz if cutoff_hz else 0.0)
     if shortest / folds < block:
-        return (f"a training recording of {shortest:.3g} s is too short to cut into {folds} blocks of at least "
-                f"{block:.3g} s")  # fmt: skip
+        short = [f"{os.path.basename(str(r.name)) or 'a training recording'} ({d:.3g} s)"
+                 for r, d in zip(recordings, durations) if d / folds < block]  # fmt: skip
+        every = "" if len(recordings) == 1 else " (every training recording is cut alike)"
+        return (f"{' and '.join(short)} {'are' if len(short) > 1 else 'is'} too short to cut into {folds} blocks of "
+                f"at least {block:.3g} s{every}")  # fmt: skip
     training, held_out = [[] for _ in range(folds)], [[] for _ in range(folds)]
     for recording in recordings:
         edges = np.linspace(0, recording.n_samples, folds + 1).astype(int)

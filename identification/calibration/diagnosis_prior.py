@@ -80,6 +80,23 @@ class DiagnosisPrior:
             "body (kept in the model file) with the model's friction and preparation, as 'psdm diagnose ROBOT' would"
         )
 
+    def first_pass(self) -> str:
+        """The progress line that opens the diagnosis from the robot file's rigid body (there may be a second
+        pass, from the model file's: ``second_pass``)."""
+        links = f"link{'s' if len(self.links) > 1 else ''} {', '.join(str(i + 1) for i in self.links)}"
+        absorbed = " or a ".join(self.effects)
+        return (f"first pass, from the robot file's rigid body (identify pushed {links} against its bounds, absorbing "
+                f"a {absorbed}); if its model predicts a joint worse than the model file as it is, a second pass "
+                "starts from the model file's rigid body")  # fmt: skip
+
+    def second_pass(self) -> str:
+        """The progress line that opens the diagnosis from the model file's rigid body after the first pass
+        (``first_pass``) was declined."""
+        return (
+            f"second pass, from the model file's rigid body: the first pass's model predicts worse than the "
+            f"model file as it is ({self.declined})"
+        )
+
     def declining(self, why: str) -> DiagnosisPrior:
         """This choice turned to the model file's rigid body because the robot file's predicts worse (``why``: the
         joints and their numbers)."""

@@ -124,7 +124,7 @@ def recalibrate(
     terms, corrections, entries = applied.findings
     findings, droppable = (terms, corrections, entries), [t.label for t in terms] + list(corrections)
     refit_on = functools.partial(refit_without, calibrated, robot, model, findings=findings, robot_source=robot_source)
-    refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz)
+    refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz, validation)
     refit = refit_on(train)
     gate = keep_not_worse(calibrated, (after, fit), refit, droppable, model, validation, kt, refits)
     new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}

@@ -14,6 +14,7 @@ short to cut give no second opinion, and the validation recordings alone decide.
 from __future__ import annotations
 
 import logging
+import os
 
 from identification.calibration.counterbalance_folds import FOLDS, block_folds
 from identification.calibration.never_worse import TrainingRefits
@@ -23,14 +24,18 @@ __all__ = ["FOLDS", "training_refits"]
 logger = logging.getLogger(__name__)
 
 
-def training_refits(train, refit_on, baseline, cutoff_hz=None) -> TrainingRefits | None:
+def training_refits(train, refit_on, baseline, cutoff_hz=None, validation=()) -> TrainingRefits | None:
     """The ``TrainingRefits`` of the raw ``train`` recordings (filtered at ``cutoff_hz`` [Hz], None: unfiltered):
     ``refit_on(pieces)(labels)`` -> (CalibratedModel, fit) identified on ``pieces`` without the findings ``labels``
     (``keep_not_worse``'s ``refit`` on those recordings); ``baseline`` the labels whose drop gives the model before's
-    structure. None when the recordings are too short to cut."""
+    structure. None when the recordings are too short to cut: the log line names them and the ``validation``
+    recordings that then decide alone."""
     folds = block_folds(list(train), None, cutoff_hz)
     if isinstance(folds, str):
-        logger.info("never worse: no second opinion from the training blocks: %s", folds)
+        names = [os.path.basename(str(r.name)) for r in validation if r.name]
+        judged = (f"; the validation recording{'s' if len(names) > 1 else ''} {', '.join(names)} "
+                  f"{'decide' if len(names) > 1 else 'decides'} alone") if names else ""  # fmt: skip
+        logger.info("never worse: no second opinion from the training blocks: %s%s", folds, judged)
         return None
     return TrainingRefits(lambda labels, k: refit_on(list(folds.training[k]))(labels)[0], len(folds.training),
                           tuple(baseline))  # fmt: skip

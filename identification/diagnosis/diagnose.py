@@ -189,7 +189,8 @@ def settle_rigid_body(robot, model, problem: DiagnosisProblem, selection, final:
     prior = replace(options, rigid_body="prior")
     if not selection.steps:
         return problem, selection, final, prior, (), None
-    logger.info("diagnose: findings with the robot file's inertia; diagnosing with a recalibrated rigid body too ...")
+    logger.info(f"diagnose: findings with the {options.nominal}'s inertia; diagnosing with a recalibrated rigid body "
+                "too ...")  # fmt: skip
     identified = replace(options, rigid_body="identified")
     held = held_links(model, robot, options.held_links)  # a model file's held links stay held (``held_links``)
     recal = DiagnosisProblem(**recalibration_parts(problem, model, held), left_out=problem.left_out)

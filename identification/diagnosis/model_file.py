@@ -261,13 +261,15 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
     first = validation_recordings(validation)[0]
     report = None
     if prior.robot_file:  # identify's rigid body absorbed an effect: try the robot file's (its rotors too)
+        logger.info(f"diagnose: {prior.first_pass()}")
         kept = replace(options.held_friction, values=tuple((n, v) for n, v in options.held_friction.values
                                                            if not (n.startswith("Ia") and v >= 0.0)))  # fmt: skip
         report = diagnose(with_file_rigid_body(robot, robot_file), train, validation,
-                          replace(options, held_friction=kept), model=model)  # fmt: skip
+                          replace(options, held_friction=kept, nominal="robot file"), model=model)  # fmt: skip
         worse = robot_file_worse(report, file_prediction(loaded, first))
         if worse:
             prior, report = prior.declining(worse), None
+            logger.info(f"diagnose: {prior.second_pass()}")
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
     if report is None:  # the file's drive columns held, not rotors a recalibrated rigid body drops (file_held), and
         # fitted again beside the findings (``drive_columns``)

@@ -22,7 +22,6 @@ from psdm_casadi.fileio import OutputFolder, atomic_write, markdown_escape
 NO_FINDING = "no significant missing physics"
 IMAGES = (".png", ".svg", ".jpg")  # the written files the Markdown report shows as images; the others it links
 POOR_R2 = 0.5  # a joint predicted below this R^2 is named beside "no significant missing physics"
-MODEL_FILE_SAME = 0.01  # a finding's "before" within 1 % of the model file's RMSE is the file's (no note)
 #: The files ``DiagnosisReport.save`` writes (the plots only with ``plots=True``).
 REPORT_FILES = (
     "report.md",
@@ -285,15 +284,17 @@ class DiagnosisReport:
     def _model_file_note(self, finding) -> str:
         """Where a finding's "before" on its joint is not the model file's own RMSE there (the diagnosis refits the
         nominal friction on the training recording first): the model file's, so that its before -> after is not
-        read as the model file's improvement (Panda spring[j6]: 0.0887 -> 0.0326 N m against the file's 0.0343)."""
+        read as the model file's improvement (Panda spring[j6]: 0.0887 -> 0.0326 N m against the file's 0.0343); said
+        wherever the two differ in the digits printed, with the file's in the table's digits."""
         j = finding.joints[0] if finding.joints else None
         if j is None or j >= len(self.model_file_rmse) or not np.isfinite(self.model_file_rmse[j]):
             return ""
         own, before = float(self.model_file_rmse[j]), float(finding.rmse_before[j])
-        if abs(before - own) <= MODEL_FILE_SAME * own:
+        if f"{before:.3g}" == f"{own:.3g}":  # the same number as printed: nothing to tell apart
             return ""
+        table = " (the table's before)" if self.before_is_model_file else ""
         return (f"; that before is the diagnosis's nominal (friction refitted on the training recording), the model "
-                f"file as it is gives joint {j + 1} {own:.3g} N m")  # fmt: skip
+                f"file as it is gives joint {j + 1} {own:.4g} N m{table}")  # fmt: skip
 
     def _held_text(self) -> str:
         """The friction held at the model file's values, in words ("" when none)."""

@@ -159,3 +159,20 @@ def test_blocks_hold_enough_filter_periods_and_a_fold_that_cannot_be_fitted_says
 
     with pytest.raises(FoldFailure, match="block 1 of 4: joint 3 never reverses in these samples$"):
         block_folds([recording]).compare(fails, fails, model=None)
+
+
+def test_the_never_worse_line_names_the_short_recording_and_the_recordings_that_decide(caplog):
+    """Kinova Gen3 (new user, diagnose model.json --apply on opti_traj_testing1 + RunTrajectory1, validated on
+    opti_traj_testing2): the log said 'a training recording of 1.94 s is too short ...' and named no recording; it
+    names the short one and the validation recording the never-worse gate then judges on alone."""
+    from identification.calibration.refit_folds import training_refits
+
+    train = [_recording(FOLDS * MIN_BLOCK_S * 2, name="/data/opti_traj_testing1.csv"),
+             _recording(FOLDS * MIN_BLOCK_S * 0.5, name="/data/RunTrajectory1.csv")]  # fmt: skip
+    validation = [_recording(3.0, name="/data/opti_traj_testing2.csv")]
+    with caplog.at_level("INFO", logger="identification.calibration.refit_folds"):
+        assert training_refits(train, None, (), None, validation) is None
+    line = caplog.records[-1].getMessage()
+    assert "RunTrajectory1.csv (" in line and "opti_traj_testing1.csv" not in line
+    assert "every training recording is cut alike" in line
+    assert "the validation recording opti_traj_testing2.csv decides alone" in line

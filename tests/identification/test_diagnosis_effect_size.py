@@ -81,3 +81,40 @@ def test_a_hump_wider_than_the_drives_stribeck_curve_is_named_with_its_height_an
 
 def test_without_a_hump_the_lugre_nominal_friction_gets_no_stribeck_peak(denso, denso_model):
     assert not _hump_diagnosis(denso, denso_model, []).findings
+
+
+def test_the_candidate_line_states_the_residual_taken_off_and_no_share_above_the_whole():
+    """Kinova Gen3 (new user): candidate lines read 'explains 447.61% of torque RMS', the validation residual a term
+    takes off divided by the joint's training torque RMS, which exceeds it where the nominal model's error exceeds the
+    torque. The line now gives the N m on its best joint, as a share of its torque RMS up to the whole and as a ratio
+    beyond, saying why. Reference: sqrt(before^2 - after^2) of the pair (``explained_rms``)."""
+    from identification.diagnosis.selection import _size_text
+    from identification.metrics import explained_rms
+
+    torque_rms = np.array([10.0, 0.9, 2.0])
+    small = _size_text(explained_rms([1.0, 0.2, 0.5], [0.6, 0.2, 0.5]), torque_rms, 0)
+    assert small == "takes 0.8 N m RMS off it, 8.0% of its torque RMS on training"
+    large = _size_text(explained_rms([1.0, 5.0, 0.5], [0.6, 3.0, 0.5]), torque_rms, 1)
+    assert large.startswith("takes 4 N m RMS off it, 4.4 x its torque RMS on training: ")
+    assert "%" not in large and "the nominal model's error there exceeds the joint's torque" in large
+
+
+def test_two_readings_of_one_candidate_are_told_apart_in_the_shape_note():
+    """Kinova Gen3 (new user): 'joint_elasticity[j2] chosen by BIC ... (joint_elasticity[j2]: dBIC -17 ...;
+    joint_elasticity[j2]: dBIC -10 ...)' named one candidate twice: its friction part linearised at the nominal
+    compliance and at the one fitted on the training profile. Each reading is named for what it is."""
+    from dataclasses import replace
+
+    from identification.diagnosis.candidates.deflection import JointElasticityTerm
+    from identification.diagnosis.selection import _pick_shape
+
+    nominal = JointElasticityTerm(joint=1, torque_rms=5.0)
+    fitted = replace(nominal, secant=2.742e-4)
+    rv = np.array([1.0, 0.5])
+    fits = [(nominal, None, None, 1, None, rv, 1.0, -17.0), (fitted, None, None, 2, None, rv, 1.0, -10.0)]
+    chosen, note = _pick_shape(fits, np.ones(2))
+    assert chosen[0] is nominal
+    readings = [part.split(": dBIC")[0] for part in note.split("checked on validation (", 1)[1].split("; ")]
+    assert len(readings) == len(set(readings)) == 2, note
+    assert note.startswith("joint_elasticity[j2] (friction part at the nominal compliance, 0.2 deg at RMS torque) ")
+    assert "joint_elasticity[j2] (friction part at the fitted compliance 0.000274 rad/(N m)): dBIC -10" in note

@@ -173,6 +173,20 @@ def test_a_declined_robot_file_rigid_body_says_why(denso):
     assert "not the robot file's" in prior.sentence()
 
 
+def test_the_two_passes_of_a_model_files_diagnosis_are_announced(denso):
+    """Kinova Gen3 (new user, diagnose model.json): two diagnoses ran one after the other (the robot file's rigid body,
+    then the model file's) with the same progress lines and no word on which was which. Each now opens with a line
+    saying what it is; the second names the joints that sent the diagnosis there."""
+    document = {"standard": {"envelope_findings": [_pushed(6, "payload", ["mass upper"])]}}
+    prior = diagnosis_prior(document, denso)
+    first = prior.first_pass()
+    assert first.startswith("first pass, from the robot file's rigid body (identify pushed link 7 against its bounds")
+    assert "absorbing a payload" in first and "a second pass starts from the model file's rigid body" in first
+    second = prior.declining("joint 6 0.311 -> 0.379 N m, margin 0.034").second_pass()
+    assert second.startswith("second pass, from the model file's rigid body")
+    assert "(joint 6 0.311 -> 0.379 N m, margin 0.034)" in second
+
+
 @pytest.mark.slow
 @pytest.mark.real_data
 def test_the_kinova_diagnosis_starts_from_the_model_file_when_the_robot_files_rigid_body_predicts_worse(tmp_path):

@@ -145,6 +145,12 @@ class CandidateTerm:
         """Short unique label of the instance, e.g. ``spring[j2]``."""
         return self.key if self.joint is None else f"{self.key}[j{self.joint + 1}]"
 
+    @property
+    def shape_name(self) -> str:
+        """The label with what tells this shape variant from the others of ``shape_variants`` when they share it
+        (a lag's column linearised at the nominal size or at the fitted one); the label where it is unique."""
+        return self.label
+
     def _require_joint(self):
         if self.joint is None:
             raise ParameterError(f"{type(self).__name__}.joint is None; call expand(n_dof) to get one term per joint.")

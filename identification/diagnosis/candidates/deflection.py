@@ -173,6 +173,13 @@ class BacklashTerm(TrainingTorque, CandidateTerm):
         """The secant's half-width, chosen on the training profile, counts in the BIC beside the coefficient."""
         return 0 if self.secant is None else 1
 
+    @property
+    def shape_name(self) -> str:
+        """``backlash[j2] (friction part at the nominal 0.1 deg half-width)`` or ``... at the fitted 0.22 deg``."""
+        if self.secant is None:
+            return f"{self.label} (friction part at the nominal {np.degrees(NOMINAL_HALF_WIDTH):.2g} deg half-width)"
+        return f"{self.label} (friction part at the fitted {np.degrees(self.secant):.2g} deg half-width)"
+
     def feature_names(self):
         self._require_joint()
         return [f"half_backlash_{self.joint + 1}"]
@@ -292,6 +299,15 @@ class JointElasticityTerm(TrainingTorque, CandidateTerm):
     def n_shape_parameters(self) -> int:
         """The secant's compliance, chosen on the training profile, counts in the BIC beside the coefficient."""
         return 0 if self.secant is None else 1
+
+    @property
+    def shape_name(self) -> str:
+        """``joint_elasticity[j2] (friction part at the nominal compliance, 0.2 deg at RMS torque)`` or ``... at the
+        fitted compliance 0.000274 rad/(N m)``: the two readings of one compliance the selection compares by BIC."""
+        if self.secant is None:
+            twist = np.degrees(NOMINAL_TORSION)
+            return f"{self.label} (friction part at the nominal compliance, {twist:.2g} deg at RMS torque)"
+        return f"{self.label} (friction part at the fitted compliance {self.secant:.3g} rad/(N m))"
 
     def feature_names(self):
         self._require_joint()

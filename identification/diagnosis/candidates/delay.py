@@ -60,6 +60,13 @@ class DelayTerm(CandidateTerm):
         """The secant's delay, chosen on the training profile, counts in the BIC beside the coefficient."""
         return 0 if self.secant_s is None else 1
 
+    @property
+    def shape_name(self) -> str:
+        """``delay (tangent)`` or ``delay (secant at 17 ms)``: the two readings the selection compares by BIC."""
+        if self.secant_s is None:
+            return f"{self.label} (tangent)"
+        return f"{self.label} (secant at {1e3 * self.secant_s:.3g} ms)"
+
     def feature_names(self):
         return ["delay_s"]
 
