@@ -83,15 +83,26 @@ def test_a_load_is_taken_off_as_a_point_mass_unless_the_fit_shows_its_inertia_an
     assert not no_body.plausible and "no body" in " ".join(no_body.problems), no_body.problems
 
 
-def _identify(files, held, name, capsys) -> tuple:
+@pytest.fixture(scope="module")
+def runs():
+    """identify's runs on the training recording, by held-out recording (``_identify``): each made once per module
+    (each opens the LuGre trial, the virtual Denso's friction being LuGre: most of the run)."""
+    return {}
+
+
+def _identify(files, held, name, capsys, runs) -> tuple:
+    """(report, stderr, model file) of ``psdm identify`` on the training recording with ``held`` as its held-out
+    recording, once per module (``runs``)."""
     from psdm_casadi.cli import main
 
-    out = files["folder"] / f"{name}.json"
-    argv = ["identify", "denso_vs6556g", "--data", str(files["train"]), "--validate", str(held), "--out", str(out),
-            "--json", "--overwrite"]  # fmt: skip
-    assert main(argv) == 0
-    text, err = capsys.readouterr()
-    return json.loads(text), err, out
+    if name not in runs:
+        out = files["folder"] / f"{name}.json"
+        argv = ["identify", "denso_vs6556g", "--data", str(files["train"]), "--validate", str(held), "--out", str(out),
+                "--json", "--overwrite"]  # fmt: skip
+        assert main(argv) == 0
+        text, err = capsys.readouterr()
+        runs[name] = (json.loads(text), err, out)
+    return runs[name]
 
 
 def _prepared(psdm, model, path) -> tuple:
@@ -104,7 +115,7 @@ def _prepared(psdm, model, path) -> tuple:
 
 
 def test_identify_names_a_load_nobody_states_on_the_held_out_recording_and_judges_the_arm(denso, denso_model, files,
-                                                                                          capsys):  # fmt: skip
+                                                                                          capsys, runs):  # fmt: skip
     """The load is named (mass and centre of mass within their stated uncertainty of the truth), taken off before the
     judges, and their verdicts (the drive columns chosen, the joints worse than the robot file, the counterbalance)
     are those on the same recording without the load; the reported RMSE is the arm's. Left in, the load's torque
@@ -112,9 +123,9 @@ def test_identify_names_a_load_nobody_states_on_the_held_out_recording_and_judge
     load with the same numbers."""
     from psdm_casadi.cli import main
 
-    loaded, err, model = _identify(files, files["loaded"], "loaded", capsys)
-    empty, empty_err, _ = _identify(files, files["empty"], "empty", capsys)
-    stated, _, _ = _identify(files, files["stated"], "stated", capsys)
+    loaded, err, model = _identify(files, files["loaded"], "loaded", capsys, runs)
+    empty, empty_err, _ = _identify(files, files["empty"], "empty", capsys, runs)
+    stated, _, _ = _identify(files, files["stated"], "stated", capsys, runs)
     (entry,), (reference,), (declared,) = loaded["validation"], empty["validation"], stated["validation"]
     assert "unstated_payload" not in reference and "carries a load" not in empty_err  # nothing claimed without it
     found = entry["unstated_payload"]
@@ -294,17 +305,14 @@ def _sentences(text) -> list:
     return [line for line in section.splitlines() if "carries a load" in line]
 
 
-def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(files, light, capsys):
+def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(files, light, capsys, runs):
     """``psdm diagnose MODEL --validate A B`` took each recording's load off but named only A's: B's 1 kg load (A's
     2 kg) was in no line. Each recording's load is now named by its file (mass and centre of mass within their stated
     uncertainty of that recording's truth), in the JSON (``payload_checks``), the printed report and the report.md
     written to ``--out``."""
     from psdm_casadi.cli import main
 
-    model = files["folder"] / "for-two.json"
-    assert main(["identify", "denso_vs6556g", "--data", str(files["train"]), "--validate", str(files["empty"]),
-                 "--out", str(model), "--overwrite", "--json"]) == 0  # fmt: skip
-    capsys.readouterr()
+    _, _, model = _identify(files, files["empty"], "empty", capsys, runs)  # trained without a load
     argv = ["diagnose", str(model), "--train", str(files["train"]), "--validate", str(files["loaded"]), str(light),
             "--max-effects", "0", "--no-sparse"]  # fmt: skip
     assert main([*argv, "--json"]) == 0
