@@ -208,10 +208,13 @@ def _left_out_entries(calibrated, target: ExportTarget) -> list:
     return [entry for entry, inside in zip(entries, held) if not inside]
 
 
-def _values_text(entry: dict, number) -> str:
-    """``name = value`` of a finding's coefficients (torque) and physical parameters."""
+def _values_text(entry: dict, number, brief: bool = False) -> str:
+    """``name = value`` of a finding's coefficients (torque) and physical parameters; ``brief``: the physical
+    parameters alone where it states some (a coupling's were printed twice, as coefficients and as parameters)."""
     pairs = []
-    if entry.get("kind") == "torque":
+    values = (entry.get("parameters") or {}).values()
+    physical = any(isinstance(v, (int, float)) and not isinstance(v, bool) for v in values)
+    if entry.get("kind") == "torque" and not (brief and physical):
         for name, value in zip(entry.get("feature_names") or (), entry.get("coefficients") or ()):
             pairs.append(f"{name} = {'absorbed' if value is None else number(value)}")
     for name, value in (entry.get("parameters") or {}).items():
@@ -220,9 +223,9 @@ def _values_text(entry: dict, number) -> str:
     return ", ".join(pairs) or "no parameters"
 
 
-def _describe(entry: dict, number, target: ExportTarget) -> str:
+def _describe(entry: dict, number, target: ExportTarget, brief: bool = False) -> str:
     what = "torque term" if entry.get("kind") == "torque" else "measurement correction"
-    return f"{entry.get('label', '?')} ({what}, NOT in the {target.name}): {_values_text(entry, number)}"
+    return f"{entry.get('label', '?')} ({what}, NOT in the {target.name}): {_values_text(entry, number, brief)}"
 
 
 def findings_left_out(calibrated, target: ExportTarget = URDF) -> tuple:
@@ -255,7 +258,7 @@ def findings_not_representable(calibrated, target: ExportTarget = URDF) -> str |
     entries = _left_out_entries(calibrated, target)
     if not entries:
         return None
-    named = "; ".join(_describe(entry, lambda v: f"{float(v):.4g}", target) for entry in entries)
+    named = "; ".join(_describe(entry, lambda v: f"{float(v):.4g}", target, brief=True) for entry in entries)
     return (
         f"the model has {len(entries)} finding(s) {target.article} {target.name} cannot hold, left out of it (their "
         f"parameters are in the {target.name}'s comments): {named}. The {target.name}'s torque therefore differs from "

@@ -72,8 +72,16 @@ class ReversalLag:
         return self.reversals >= MIN_REVERSALS and self.sigmas >= LAG_SIGMAS and self.share >= LAG_SHARE
 
     def text(self) -> str:
+        """The lag in words; its size against the joint's RMSE as a share up to the whole, as a ratio beyond (the lag
+        is the mean at the reversals, the RMSE over the whole recording, so it may exceed it: it was printed as a share
+        above 100 %)."""
+        size = (
+            f"{self.share:.0%} of its RMSE"
+            if self.share <= 1.0
+            else (f"{self.share:.2g} x its RMSE over the recording, which the lag at the reversals exceeds")
+        )
         return (f"joint {self.joint + 1}: {self.lag:.3g} N m over {self.reversals} reversals ({self.sigmas:.1f} "
-                f"standard errors, {self.share:.0%} of its RMSE)")  # fmt: skip
+                f"standard errors, {size})")  # fmt: skip
 
 
 def _events(qd, residual, velocity) -> list:

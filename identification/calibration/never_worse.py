@@ -397,7 +397,7 @@ def keep_not_worse(before, first, refit, droppable, model, validation, kt=None, 
     if not comparison.worse:
         cleared = ", ".join(f"joint {j + 1}" for j in comparison.cleared)
         cleared = f" ({cleared} over the margin, not in the refits without each training block)" if cleared else ""
-        return GateResult(after, payload, comparison, [], search=f"every finding kept: no joint is worse{cleared}")
+        return GateResult(after, payload, comparison, [], search=f"none, no joint is worse{cleared}")
     if 0 < len(droppable) <= EXHAUSTIVE_MAX:
         return _every_subset((after, payload, comparison), refit, list(droppable), judge)
     return _greedy((after, payload, comparison), refit, list(droppable), judge)

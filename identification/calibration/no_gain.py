@@ -119,12 +119,15 @@ class FindingGain:
         """``gained nothing on joint 4: lower in 12 % of draws (0.47 N m with it, 0.47 without ...)``."""
         best = int(np.nanargmax(self.share)) if np.any(np.isfinite(self.share)) else 0
         joint, others = self.joints[best] + 1, len(self.joints) - 1
+        if not self.refitted:  # the Panda's pre-sliding read "gained nothing: lower in 0% of draws" beside its 42 %
+            return (f"{NO_GAIN} in the model written: it holds no torque there (a finding reported, not applied, or "
+                    "one the fit's other columns absorbed), so the model with it is the model without it (validation "
+                    f"RMSE on joint {joint} {self.rmse_with[best]:.4g} N m either way); the gain the diagnosis "
+                    "reports for it is not one a model file can hold")  # fmt: skip
         elsewhere = f" (its best of {others + 1} joints)" if others else ""
-        how = ("the model refitted without it" if self.refitted else
-               "the model without it, the same model (it holds no torque in the model written)")  # fmt: skip
         return (f"{NO_GAIN} on joint {joint}: lower in {self.share[best]:.0%} of draws{elsewhere}; validation RMSE "
-                f"{self.rmse_with[best]:.4g} N m with it, {self.rmse_without[best]:.4g} N m without it ({how}); "
-                f"{GAIN_RULE}")  # fmt: skip
+                f"{self.rmse_with[best]:.4g} N m with it, {self.rmse_without[best]:.4g} N m without it (the model "
+                f"refitted without it); {GAIN_RULE}")  # fmt: skip
 
     def record(self) -> dict:
         """The ``recalibration.dropped_findings`` entry: label, effect, joints (1-based), the RMSE pair on them, the

@@ -170,8 +170,8 @@ def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> t
         else:
             trial_options = replace(options, held_links=what)
             label = "links " + ", ".join(str(i + 1) for i in what)
-        logger.info("identify: joints %s worse than the robot file: fitting again with %s held ...",
-                    ", ".join(str(j + 1) for j in left), label)  # fmt: skip
+        logger.info("identify: joint%s %s worse than the robot file: fitting again with %s held ...",
+                    "s" if len(left) > 1 else "", ", ".join(str(j + 1) for j in left), label)  # fmt: skip
         try:
             trial = refit(trial_options)
         except SolverError as error:  # the fit before stands, and the record says why

@@ -53,7 +53,7 @@ def recalibration_markdown(result, joint_names, path, source=None, trained_on=AL
     lines += [f"- {block['never_worse']['margin_source'][j - 1]}"  # over it, the refits do not confirm
               for j in block["never_worse"].get("cleared_by_refits", [])]  # fmt: skip
     if block["never_worse"].get("search"):
-        lines.append(f"- findings to drop: {block['never_worse']['search']}")
+        lines.append(f"- findings the never-worse gate drops: {block['never_worse']['search']}")
     lines += [f"- dropped {d['label']} (never worse): {d['reason']}; the model was refitted without it"
               for d in block["never_worse"]["dropped"]]  # fmt: skip
     for key in ("before", "after"):

@@ -90,3 +90,22 @@ def test_the_functions_say_nothing_for_a_model_without_such_findings(tmp_path, d
     (tmp_path / "found.json").write_text(model_text(found))
     per_joint, general = findings_left_out(load_calibrated_model(tmp_path / "found.json"))
     assert sorted(per_joint) == [1, 2] and len(general) == 1 and general[0].startswith("delay")
+
+
+def test_the_warning_names_a_couplings_parameters_once_and_the_comment_keeps_its_coefficients():
+    """TX40 (new user, export-urdf of diagnose --apply's model): the warning listed 'coupling_qd6_on_5 = 0.8502,
+    coupling_qdd6_on_5 = 0.02021, viscous = 0.8502, inertia = 0.02021, source_joint = 6', each number twice. The
+    warning gives the physical parameters; the joint's comment keeps the coefficients too (exact, to rebuild it)."""
+    from types import SimpleNamespace
+
+    entry = {"kind": "torque", "label": "coupling[j6->j5]", "effect": "coupling", "joints": [5],
+             "feature_names": ["coupling_qd6_on_5", "coupling_qdd6_on_5"], "coefficients": [0.8502, 0.02021],
+             "parameters": {"viscous": 0.8502, "inertia": 0.02021, "source_joint": 6}}  # fmt: skip
+    calibrated = SimpleNamespace(document={"findings": [entry]}, n_dof=6)
+    warning = findings_not_representable(calibrated)
+    assert "coupling[j6->j5] (torque term, NOT in the URDF): viscous = 0.8502, inertia = 0.02021, source_joint = 6" in (
+        warning
+    )
+    assert "coupling_qd6_on_5" not in warning
+    (comment,) = findings_left_out(calibrated)[0][4]
+    assert "coupling_qd6_on_5 = 0.8502" in comment and "viscous = 0.8502" in comment

@@ -105,3 +105,17 @@ def test_a_lugre_truth_takes_lugre_by_default_and_recovers_the_rigid_body(denso,
                                   request=ColumnRequest(friction="stribeck"))  # fmt: skip
     scale = np.maximum(np.abs(truth), 1e-2)
     assert np.mean(np.abs(result.fit.theta - truth) / scale) < np.mean(np.abs(default.fit.theta - truth) / scale)
+
+
+def test_a_lag_larger_than_the_joints_rmse_is_said_as_a_ratio_not_a_share():
+    """Panda (new user, identify on defaults): 'joint 7: 0.146 N m over 3 reversals (4.9 standard errors, 285% of its
+    RMSE)': the lag is the mean at the reversals, the RMSE over the recording, so the lag may exceed it; that is said
+    as a ratio. A lag within the RMSE keeps its share."""
+    from identification.calibration.lugre_trial import ReversalLag
+
+    large = ReversalLag(joint=6, reversals=3, lag=0.146, standard_error=0.0298, rmse=0.0512).text()
+    assert large == ("joint 7: 0.146 N m over 3 reversals (4.9 standard errors, 2.9 x its RMSE over the recording, "
+                     "which the lag at the reversals exceeds)")  # fmt: skip
+    assert "%" not in large
+    small = ReversalLag(joint=1, reversals=5, lag=0.3, standard_error=0.05, rmse=0.5).text()
+    assert small.endswith("(6.0 standard errors, 60% of its RMSE)")

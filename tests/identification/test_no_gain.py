@@ -64,16 +64,19 @@ def test_a_finding_that_changes_nothing_is_dropped_and_the_spring_is_written(spr
     assert after[1] < before[1] - margin[1]  # the spring lowers joint 2 beyond the margin
     assert abs(after[3] - before[3]) <= margin[3]  # joint 4 unchanged within it: the presliding gained nothing
     dropped = {d["label"]: d for d in document["recalibration"]["dropped_findings"]}
-    assert dropped[presliding.label]["reason"].startswith(f"{NO_GAIN} on joint 4: lower in 0% of draws")
+    held_nothing = f"{NO_GAIN} in the model written: it holds no torque there"  # not "lower in 0% of draws"
+    assert dropped[presliding.label]["reason"].startswith(held_nothing)
+    assert "validation RMSE on joint 4 " in dropped[presliding.label]["reason"]
     assert dropped[presliding.label]["validation_rmse_with"] == pytest.approx([after[3]])
     # on the spring's joint: the spring lowers it, the presliding (no term in the model) adds nothing to that
-    assert dropped[beside.label]["reason"].startswith(f"{NO_GAIN} on joint 2: lower in 0% of draws")
+    assert dropped[beside.label]["reason"].startswith(held_nothing)
+    assert "validation RMSE on joint 2 " in dropped[beside.label]["reason"]
     assert dropped[beside.label]["validation_rmse_with"] == dropped[beside.label]["validation_rmse_without"]
     assert not any(d["refitted"] for d in dropped.values()) and "spring[j2]" not in dropped
     assert spring["gain"]["joints"] == [2] and spring["gain"]["share_lower"] == [1.0]  # lower in every draw
     assert not adds_nothing(calibrated.document, document)  # the spring is added: written
     text = recalibration_markdown(result, denso.joint_names, "new.json")
-    assert f"- dropped {presliding.label}: {NO_GAIN} on joint 4" in text and "presliding[j4] (" not in text
+    assert f"- dropped {presliding.label}: {held_nothing}" in text and "presliding[j4] (" not in text
     result.after.save(folder / "new.json")  # the "after" is what psdm validate says of the file written
     with contextlib.redirect_stdout(io.StringIO()) as out:
         assert main(["validate", str(folder / "new.json"), str(folder / "valid.csv"), "--json"]) == 0
@@ -142,7 +145,7 @@ def test_the_written_file_records_the_dropped_finding_with_its_hint_for_validate
             assert main(["validate", str(folder / name), str(folder / "valid.csv"), "--json"]) == 0
         said[name] = (json.loads(out.getvalue())["not_written"], err.getvalue())
     (note,), err = said["with_dropped.json"]
-    assert f"found presliding[j4] and did not write it ({NO_GAIN} on joint 4: lower in 0% of draws" in note
+    assert f"found presliding[j4] and did not write it ({NO_GAIN} in the model written: it holds no torque" in note
     assert hint in note
     assert note in err
     assert said["model.json"][0] == [] and "did not write it" not in said["model.json"][1]
