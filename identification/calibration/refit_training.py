@@ -104,7 +104,7 @@ class RefitTraining:
 
     def sentence(self) -> str:
         """What the refit trained on, and what it could not find (or why it left the file's recordings out)."""
-        names = ", ".join(self.sources)
+        names = ", ".join(_with_samples(source, recording) for source, recording in zip(self.sources, self.recordings))
         text = f"the refit with the findings trained on {len(self.recordings)} recording(s): {names}"
         if self.missing:
             text += "; not found: " + "; ".join(m.sentence() for m in self.missing)
@@ -120,6 +120,15 @@ class RefitTraining:
     def to_dict(self) -> dict:
         return {"recordings": list(self.sources), "not_found": [m.to_dict() for m in self.missing],
                 "note": self.note or None}  # fmt: skip
+
+
+def _with_samples(source: str, recording) -> str:
+    """``source`` with the samples the refit trains on (a recording identify cut with --holdout was named as if whole:
+    TX40 'staubli_tx40_figaroh (--train)' beside 'training: the first 31499 samples'), unless it says them already."""
+    if "samples" in source:
+        return source
+    count = f"{int(recording.n_samples)} samples"
+    return f"{source[:-1]}; {count})" if source.endswith(f"({GIVEN})") else f"{source} ({count})"
 
 
 def training_alone(train, source=None) -> RefitTraining:

@@ -33,8 +33,9 @@ __all__ = ["APPLIED_AFTER", "with_applied_after", "with_written_after"]
 logger = logging.getLogger(__name__)
 
 APPLIED_AFTER = (
-    "the model file identified again on its own training recordings and the training recording with the findings it "
-    "can hold, as 'diagnose --apply' writes it (before its never-worse gate), judged as 'psdm validate' judges it"
+    "the model file identified again, with the findings it can hold, on its own training recordings and the --train "
+    "recordings (each once: the Refit line names them), as 'diagnose --apply' writes it (before its never-worse gate), "
+    "judged as 'psdm validate' judges it"
 )
 
 

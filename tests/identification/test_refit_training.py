@@ -345,3 +345,18 @@ def test_with_validate_each_train_recording_the_model_cut_adds_its_held_out_part
         files / "valid.csv", 6)], options=options)  # fmt: skip
     assert [line.split(" (samples")[0] for line in report.held_out if line.startswith("validation")] == parts
     assert len(report.recordings) == 3
+
+
+def test_the_refit_sentence_says_how_many_samples_each_recording_gave():
+    """TX40 (new user, identify --holdout 0.3 then diagnose MODEL --apply): 'Refit: ... trained on 1 recording(s):
+    staubli_tx40_figaroh (--train)' read as the whole recording beside 'Held out: training: the first 31499 samples';
+    the sentence gives each recording's samples (the cut part's), once."""
+    from identification.calibration.refit_training import RefitTraining, training_alone
+    from identification.data.recording import Recording
+
+    t = np.arange(120) * 0.01
+    part = Recording(t=t, q=np.zeros((120, 2)), tau=np.zeros((120, 2)), name="run")
+    assert "run.csv (--train; 120 samples)" in training_alone(part, "run.csv").sentence()
+    cut = RefitTraining((part, part), ("run.csv, its first 120 samples (--train)", "other.csv"), ({}, {}))
+    text = cut.sentence()
+    assert "run.csv, its first 120 samples (--train), other.csv (120 samples)" in text
