@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from psdm_casadi.log_context import held_back
+
 __all__ = ["LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "LuGreTrial", "ReversalLag", "judge_trial", "lag_joints",
            "quiet_trial", "recording_lags", "reversal_lags", "try_lugre"]  # fmt: skip
 
@@ -222,28 +224,15 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
     return True, f"it predicts the held-out recording(s) better there ({text}) and worse on no joint"
 
 
-class _Quiet(logging.Filter):
-    """Drops the information records of the trial (its warnings stay)."""
-
-    def filter(self, record) -> bool:
-        return record.levelno >= logging.WARNING
-
-
 @contextlib.contextmanager
 def quiet_trial():
     """The trial's log lines and Python warnings held back: identify's log is the default route's, and the result
-    states the trial once. Yields the caught warnings (re-issued by the caller if the trial's model is kept)."""
-    handlers = {h for name in ("", "identification", "psdm_casadi") for h in logging.getLogger(name).handlers}
-    quiet = _Quiet()
-    for handler in handlers:
-        handler.addFilter(quiet)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            yield caught
-    finally:
-        for handler in handlers:
-            handler.removeFilter(quiet)
+    states the trial once. Its progress lines (of ``identification`` and ``psdm_casadi``, below WARNING) are held back
+    in this context only (``log_context.held_back``: a fleet run's other threads log on); its warnings are recorded
+    and yielded (re-issued by the caller if the trial's model is kept)."""
+    with held_back("identification", "psdm_casadi"), warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        yield caught
 
 
 def try_lugre(problem, written, judged, writer, request) -> tuple:

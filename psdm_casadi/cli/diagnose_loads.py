@@ -12,10 +12,10 @@ load nothing states is taken off and named likewise. Each validation recording i
 
 from __future__ import annotations
 
-import logging
 import sys
-from contextlib import contextmanager
 from dataclasses import dataclass
+
+from psdm_casadi.log_context import held_back
 
 __all__ = ["ValidationLoad", "load_sentence", "payload_check", "robot_file_loads", "stated_loads", "validation_loads"]
 
@@ -74,26 +74,13 @@ def robot_file_loads(args, robot, recordings, configurations, preparation):
              "least-squares fit of the training recording, as identify checks its held-out ones) ...")  # fmt: skip
     psdm = derive_model(args, robot)
     try:
-        with _fit_quiet():  # identify's progress lines of that fit are not diagnose's: said above in its words
+        with held_back("identification.calibration"):  # that fit's progress lines are identify's: said above
             return held_out_arm(robot, psdm, recordings[:1], recordings[1:], configurations[:1], configurations[1:],
                                 options, args.validate)  # fmt: skip
     except RecordingError as exc:
         print(f"psdm diagnose: note: the validation recordings were not checked for a load nothing states (the "
               f"training fit it is read against failed: {exc})", file=sys.stderr)  # fmt: skip
         return None
-
-
-@contextmanager
-def _fit_quiet():
-    """The calibration's progress lines (below WARNING) held back: the training fit behind the robot file's load
-    check logs as ``psdm identify`` ("identify: N samples of ..."), no step of ``psdm diagnose``; warnings pass."""
-    logger = logging.getLogger("identification.calibration")
-    level = logger.level
-    logger.setLevel(max(logging.WARNING, level))
-    try:
-        yield
-    finally:
-        logger.setLevel(level)
 
 
 def payload_check(args, calibrated, robot, model, validation, check=None, path=None, temperature=True):

@@ -13,6 +13,7 @@ import os
 import sys
 from pathlib import Path
 
+from psdm_casadi.log_context import PACKAGES, install
 from psdm_casadi.said_once import SAID
 
 EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
@@ -20,7 +21,7 @@ EXIT_OK, EXIT_CHECK_FAILED, EXIT_BAD_INPUT, EXIT_SOLVER, EXIT_INTERRUPTED = 0, 1
 EXIT_BROKEN_PIPE = 141
 
 #: The packages whose loggers the command line shows.
-LOGGED_PACKAGES = ("psdm_casadi", "trajopt", "identification", "codegen")
+LOGGED_PACKAGES = PACKAGES
 
 _HANDLER_NAME = "psdm-cli"
 
@@ -219,6 +220,7 @@ def configure_logging(level: int) -> None:
     handler = ProgressHandler(sys.stderr, ticks_as_lines=level <= logging.DEBUG)
     handler.set_name(_HANDLER_NAME)
     handler.setFormatter(logging.Formatter("%(message)s"))
+    install(handler)  # what a context holds back or says once (``log_context``)
     for name in LOGGED_PACKAGES:
         logger = logging.getLogger(name)
         for old in [h for h in logger.handlers if h.get_name() == _HANDLER_NAME]:
