@@ -12,25 +12,17 @@ from __future__ import annotations
 
 import contextlib
 import sys
-from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
-from psdm_casadi.cli.checks import (
-    add_topic_argument,
-    check_not_input,
-    check_suffix,
-    load_robot_argument,
-    output_file,
-    recording_layout,
-)
-from psdm_casadi.cli.holdout import cut_training, holdout_fraction
+from psdm_casadi.cli.checks import add_topic_argument, check_not_input, load_robot_argument, recording_layout
 from psdm_casadi.cli.html_report import html_output, write_identify_html
+from psdm_casadi.cli.identify_inputs import check_outputs, fit_settings, read_training
 from psdm_casadi.cli.identify_text import print_identify
+from psdm_casadi.cli.identify_validation import json_numbers, loads_said, store_held_out, validation_report
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, progress
 from psdm_casadi.cli.torque_scale_step import check_torque_scales, store_torque_scales
-from psdm_casadi.errors import ParameterError, SolverError
+from psdm_casadi.errors import SolverError
 from psdm_casadi.said_once import SAID
 from psdm_casadi.state_cache import remembering
 
@@ -153,64 +145,40 @@ def add_arguments(p) -> None:
 
 @remembering()  # the recordings' regressors evaluated once (state_cache)
 def run(args) -> int:
-    from identification.calibration.column_choice import ColumnRequest
-    from identification.calibration.envelope import check_ratio
     from identification.calibration.held_out_arm import held_out_arm, held_out_configurations
-    from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.data.io import not_held_out
-    from identification.data.robot_recordings import recording_paths
-    from psdm_casadi.cli.checks import check_recordings_first, derive_model
+    from psdm_casadi.cli.checks import derive_model
     from psdm_casadi.model import load_model
 
-    out, html = _check_outputs(args), html_output(args)  # report.html: refused before any work like --out
+    out, html = check_outputs(args), html_output(args)  # report.html: refused before any work like --out
     robot = load_robot_argument(args)
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
-    layout = recording_layout(args)  # --columns, --rate
-    paths, configurations = _configurations(args.data, robot)
-    args.validate = recording_paths(args.validate, robot)
-    recordings, validation, explicit = _loaded(args, robot, layout, paths)  # joint side, timed; --holdout cut
-    recordings, validation, missing = _missing_torque(args, robot, paths, recordings, validation)
-    check_recordings_first(robot, recordings, validation)  # units, joint order, motion: before deriving and fitting
-    if args.friction == "lugre":
-        _check_reversals(recordings, paths)
-    for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):
-        check_ratio(flag, value)
-    if args.coulomb_velocity is not None and not (np.isfinite(args.coulomb_velocity) and args.coulomb_velocity > 0):
-        raise ParameterError(f"--coulomb-velocity must be a velocity > 0 [rad/s], e.g. 0.02; got "
-                             f"{args.coulomb_velocity:g}. Leave it out to choose it from the data.")  # fmt: skip
-    request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
-                            drive_loss=args.drive_loss, coulomb_velocity=args.coulomb_velocity)  # fmt: skip
-    if args.prior_uncertainty is not None and not (np.isfinite(args.prior_uncertainty) and args.prior_uncertainty > 0):
-        raise ParameterError(f"--prior-uncertainty must be > 0 (a multiple of each parameter's size, e.g. 3); got "
-                             f"{args.prior_uncertainty!r}.")  # fmt: skip
+    read = read_training(args, robot, recording_layout(args))  # --columns, --rate
+    paths, configurations, recordings, validation = read.paths, read.configurations, read.recordings, read.validation
+    request, options = fit_settings(args)
     if args.model:
         model = load_model(args.model)
     else:
         progress(f"identify: deriving the PSDM model of {robot.name} ...", quiet=args.json)
         model = derive_model(args, robot)
     robot = (scale := check_torque_scales(args, robot, model, (recordings, validation), configurations, paths)).robot
-    options = TrajectoryOptions(consistency=not args.no_consistency, cutoff_hz=args.cutoff,
-                                envelope=not args.no_envelope, mass_ratio=tuple(args.mass_bounds),
-                                drive_inertia_ratio=tuple(args.drive_inertia_bounds))  # fmt: skip
-    if args.prior_uncertainty is not None:
-        options = replace(options, prior_uncertainty=args.prior_uncertainty)
     held_loads = held_out_configurations(args.validate, paths, configurations)  # what each held-out one states
     arm = held_out_arm(robot, model, recordings, validation, configurations, held_loads, options, args.validate)
     result, judged = _judged_route(args, (robot, model, recordings, options, request, configurations), validation,
                                    paths, arm)  # fmt: skip
-    fit, calibrated, held_out = result.fit, result.calibrated, not_held_out([str(p) for p in paths], explicit)
+    fit, calibrated, held_out = result.fit, result.calibrated, not_held_out([str(p) for p in paths], read.explicit)
     worse = [result.file_check.describe()] if result.file_check.worse else []  # never worse than the robot file
-    report = _validation(robot, model, result.start, validation, args.validate, calibrated, held_loads)
-    loads = _loads_said(report, judged, args)  # stored with the warnings; the text report prints them in its table
-    said = (*scale.sentences(), *result.warnings, *missing, *held_out, *worse, *filter(None, loads))
+    report = validation_report(robot, model, result.start, validation, args.validate, calibrated, held_loads)
+    loads = loads_said(report, judged, args)  # stored with the warnings; the text report prints them in its table
+    said = (*scale.sentences(), *result.warnings, *read.missing, *held_out, *worse, *filter(None, loads))
     warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys(said)]
     for warning in (w for w in warnings if w not in SAID and (args.json or w not in loads)):  # each said once
         print(f"psdm identify: warning: {warning}", file=sys.stderr)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report["min_mass_eigenvalue"] = mass_eigenvalue
-    _store_held_out(args, report, calibrated, len(explicit))  # which part of each recording was held out
+    store_held_out(args, report, calibrated, len(read.explicit))  # which part of each recording was held out
     for entry, comparison in zip(report["recordings"], result.file_check.each):  # the model identify replaces
-        entry["rmse_robot_file_baseline"] = _list(comparison.before)  # per joint: file+friction or the file alone
+        entry["rmse_robot_file_baseline"] = json_numbers(comparison.before)  # per joint: file+friction or file
     _complete_document(args, paths, calibrated.document, (report, warnings, scale))
     consistent = fit.consistent and (mass_eigenvalue is None or mass_eigenvalue > 0)
     if fit.checked and not consistent and not args.allow_inconsistent:
@@ -252,20 +220,6 @@ def _judged_route(args, problem, validation, paths, arm) -> tuple:
     return result, judged
 
 
-def _loads_said(report, judged, args) -> list:
-    """Per held-out recording, the one line on the load nothing states that it carries (None: none): the report's
-    (``unstated_payload``), with what the judges took off where the report did not take that off; each validation
-    entry records the latter (``judged_without_load``)."""
-    out = []
-    for path, entry, load in zip(args.validate, report["recordings"], judged.loads):
-        taken = load is not None and load.plausible
-        entry.update({"judged_without_load": load.judged()} if taken else {})
-        named = entry.get("unstated_payload") or {}
-        judges = judged.said(path, load) if taken and not named.get("taken_off") else None
-        out.append(" ".join(filter(None, (named.get("sentence"), judges))) or None)
-    return out
-
-
 def _temperatures(recordings, validation) -> tuple:
     """The joints' mean temperatures [°C] each training and held-out recording logs (``data.temperature``, read with
     the recording; None for one that logs none)."""
@@ -286,62 +240,6 @@ def _complete_document(args, paths, document: dict, parts) -> None:
     document["provenance"].update({"columns": stored_layout(args)} if stored_layout(args) else {})
 
 
-def _loaded(args, robot, layout, paths) -> tuple:
-    """(training, validation recordings, the ``--validate`` paths), read joint side and timed. With ``--holdout``, each
-    training recording is cut on its raw samples (each part prepared on its own, as the model file says) and its last
-    part validates after the ``--validate`` recordings: ``args.validate`` then names every validation recording's
-    file, ``args.held_out`` the parts (``data.holdout.HeldOutPart``)."""
-    from identification.data.robot_recordings import load_robot_recording
-
-    recordings = [load_robot_recording(path, robot, args.topic, layout) for path in paths]
-    validation = [load_robot_recording(path, robot, args.topic, layout) for path in args.validate]
-    explicit, args.held_out = list(args.validate), []
-    if args.holdout is not None:
-        recordings, held, args.held_out = cut_training(recordings, paths, args.holdout, args.cutoff)
-        validation, args.validate = [*validation, *held], [*explicit, *map(str, paths)]
-    return recordings, validation, explicit
-
-
-def _store_held_out(args, report, calibrated, given: int) -> None:
-    """The held-out parts in the validation report (after the ``given`` ``--validate`` recordings) and in the model
-    file (``identification.holdout``), where validate and diagnose find them again."""
-    from identification.data.holdout import holdout_block
-
-    for entry, part in zip(report["recordings"][given:], args.held_out):
-        entry["held_out"] = part.to_dict()
-    if args.held_out:
-        calibrated.document["identification"]["holdout"] = holdout_block(args.held_out)
-
-
-def _missing_torque(args, robot, paths, recordings, validation) -> tuple:
-    """(training, validation recordings with their joints without torque marked, the validation's sentences): the
-    ``--missing-torque`` statements and the columns found empty (``missing_torque``); the fit names its own."""
-    from identification.data.missing_torque import (
-        find_missing_torque,
-        missing_torque_messages,
-        parse_missing_torque,
-        stated_missing_torque,
-    )
-
-    stated = parse_missing_torque(args.missing_torque, robot.joint_names)
-    unknown = sorted(set(stated) - {Path(p).name for p in (*paths, *args.validate)})
-    if unknown:
-        raise ParameterError(
-            f"--missing-torque names {unknown}, which is not among the --data or --validate recordings; name one of "
-            "those files (FILE:JOINTS)."
-        )
-    marked = [
-        [find_missing_torque(stated_missing_torque(r, p, stated)) for r, p in zip(group, names)]
-        for group, names in ((recordings, paths), (validation, args.validate))
-    ]
-    if args.friction == "lugre" and any(r.missing_torque for group in marked for r in group):
-        raise ParameterError(
-            "--friction lugre fits every joint's friction along its whole series; a recording misses a joint's "
-            "torque. Leave that recording out, or identify with --friction stribeck."
-        )
-    return marked[0], marked[1], missing_torque_messages(marked[1], robot.joint_names, "validation")
-
-
 def _concrete_route(warning: str, args, paths) -> str:
     """A warning's suggested ``psdm diagnose`` command with this run's robot and recordings (and how they are
     read: ``--columns``, ``--rate``) in it: the first training recording (diagnose takes one) and every held-out one
@@ -355,51 +253,6 @@ def _concrete_route(warning: str, args, paths) -> str:
     layout = "".join(f" --{key} {getattr(args, key)}" for key in ("columns", "rate") if getattr(args, key, None))
     command = f"psdm diagnose {args.robot} --train {paths[0]}{holdout}{validate}{layout}"
     return warning.replace(DIAGNOSE_COMMAND, command)
-
-
-def _check_outputs(args):
-    """--out must be a new .json file (or, with --overwrite, any file but an input); --plots has no folder here."""
-    if args.plots:
-        raise ParameterError(
-            "identify --plots writes the four-step route's plots into its --out folder; the recordings route writes "
-            "one model file. Drop --plots, and plot with 'psdm validate MODEL.json RECORDING.csv --plots DIR'."
-        )
-    inputs = [("ROBOT", args.robot), ("--model", args.model)]
-    inputs += [("--data", path) for path in args.data] + [("--validate", path) for path in args.validate]
-    check_not_input(args.out, "--out", inputs, example=f"{Path(args.out).stem}_model.json")
-    check_suffix(args.out, "--out", (".json",), "one calibrated-model file (JSON)")
-    args.holdout = holdout_fraction(args)  # refused before any work too
-    return output_file(args.out, "--out", args.overwrite)
-
-
-def _configurations(data, robot) -> tuple:
-    """(recording paths, one PayloadConfiguration each) of --data: manifests expanded, sidecars read, the files
-    of a split recording named once (by their folder, ``robot_recordings.recording_paths``)."""
-    from identification.data.configuration import recordings_with_configurations
-    from identification.data.robot_recordings import recording_paths
-
-    merged = {}
-    for path, configuration in zip(*recordings_with_configurations(data)):
-        merged.setdefault(recording_paths([path], robot)[0], configuration)
-    return list(merged), list(merged.values())
-
-
-def _check_reversals(recordings, paths) -> None:
-    """Refuse, before any work, a recording in which a joint does not slide both ways: LuGre friction is fitted
-    along the reversals (``friction.models.check_slides_both_ways`` on the velocity of the recorded positions)."""
-    from identification.friction.models import check_slides_both_ways
-    from psdm_casadi.errors import InsufficientExcitationError
-
-    for recording, path in zip(recordings, paths):
-        qd = np.gradient(recording.q, recording.t, axis=0)
-        for j in range(recording.n_dof):
-            try:
-                check_slides_both_ways(qd[:, j], owner=f"{path} joint {j + 1}")
-            except InsufficientExcitationError as exc:
-                raise InsufficientExcitationError(
-                    f"--friction lugre: {exc} LuGre friction is fitted along the reversals of every joint; or "
-                    "pass --friction stribeck."
-                ) from None
 
 
 @contextlib.contextmanager
@@ -445,55 +298,3 @@ def _min_mass_eigenvalue(robot, fit, seed: int = 0) -> float:
     oracle = PinocchioOracle(robot, fit.standard)
     q = np.random.default_rng(seed).uniform(robot.q_min, robot.q_max, size=(MASS_CHECK_CONFIGURATIONS, robot.n_dof))
     return float(min(np.linalg.eigvalsh(m)[0] for m in oracle.crba(q)))
-
-
-def _validation(robot, model, fit, recordings, paths, calibrated, configurations) -> dict:
-    """Per-joint RMSE [N m] and R^2 on each held-out recording: ours, the unconstrained fit, the prior.
-
-    Ours is the calibrated model's own prediction (``CalibratedModel.predict``, as ``psdm validate``); for a
-    LuGre model the unconstrained fit is the Stribeck one it started from. The load each recording carries
-    (``configurations``, ``held_out_arm.held_out_configurations``) adds its torque to every prediction (a known load as
-    given, an unknown one as identified under its name); a recording that states none, or an unknown one the model has
-    not identified, is checked for a load as ``psdm validate`` checks it (``held_out_load``): a plausible one is added
-    as well and named (``unstated_payload``, with the RMSE of the load left in).
-    """
-    from identification.calibration.held_out_load import find_unstated_load
-    from identification.calibration.payload_check import validation_with_payload
-    from identification.calibration.payload_fit import FlangeRegressor, stated_payload
-    from identification.calibration.trajectory_fit import predict_torque
-    from identification.data.torque_constants import recording_kt
-    from identification.metrics import rmse
-    from psdm_casadi.oracle import PinocchioOracle
-
-    out = {"recordings": []}
-    prior = PinocchioOracle(robot) if robot.links is not None else None
-    for path, recording, configuration in zip(paths, recordings, configurations):
-        kt = recording_kt(robot, recording)
-        stated, _ = stated_payload(configuration, calibrated.configurations, "the model")
-        found = None
-        if stated is None:  # nothing stated, or nothing the model weighs: a load the recording shows
-            found = find_unstated_load(robot, calibrated, model, recording, kt, str(path))
-            error, r2, prepared = found.rmse, found.r2, found.prepared
-            stated = found.load.body if found.taken_off else None
-        else:
-            error, r2, prepared, _ = validation_with_payload(robot, calibrated, model, recording, kt, stated)
-        x = (prepared.q, prepared.qd, prepared.qdd)
-        load = 0.0 if stated is None else FlangeRegressor(robot)(*x) @ np.asarray(stated, dtype=float)
-        ols = predict_torque(model, fit, *x, ols=True) + load
-        entry = {"recording": str(path), "rmse": _list(error), "r2": _list(r2),
-                 "rmse_ols": _list(rmse(prepared.tau, ols))}  # fmt: skip
-        if prior is not None:
-            entry["rmse_prior"] = _list(rmse(prepared.tau, prior.rnea(*x) + load))
-        if found is not None and found.load is not None:
-            left_in = _list(found.rmse_left_in)
-            entry["unstated_payload"] = {
-                **found.load.to_dict(),
-                "rmse_load_left_in": left_in,
-                "sentence": found.load.sentence(left_in if found.taken_off else None),
-            }
-        out["recordings"].append(entry)
-    return out
-
-
-def _list(values) -> list:
-    return [float(v) if np.isfinite(v) else None for v in np.atleast_1d(values)]  # None: a joint without torque
