@@ -144,6 +144,7 @@ class DiagnosisReport:
     refit_training: object = None  # the recordings that model trained on (``refit_training.RefitTraining``)
     payload_check: tuple = ()  # sentences: the load each validation recording carries that nothing states, by its file
     payload_check_as: str = ""  # how that check judges them (as ``psdm validate``, or as identify its held-out ones)
+    payload_checks: tuple = ()  # per validation recording {"recording": file, "load": its load's dict or None}
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -194,6 +195,8 @@ class DiagnosisReport:
             "held_friction": dict(self.held_friction),
             "after_source": self.after_source or None,
             "refit_training": None if self.refit_training is None else self.refit_training.to_dict(),
+            "payload_check": self.payload_checks[0]["load"] if self.payload_checks else None,  # the first's
+            "payload_checks": [dict(entry) for entry in self.payload_checks],  # every validation recording's
         }
 
     def to_json(self) -> str:

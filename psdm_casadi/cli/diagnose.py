@@ -204,7 +204,8 @@ def _run_diagnose(args) -> int:
     loads, temperature = validation_loads(args, calibrated, robot, model, validations, checks)  # each by its file
     judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
     found = tuple(load.sentence() for load in loads if load.load is not None)  # in report.md too, and printed
-    report = dataclasses.replace(report, payload_check=found, payload_check_as=judged)
+    report = dataclasses.replace(report, payload_check=found, payload_check_as=judged,
+                                 payload_checks=tuple(load.to_dict() for load in loads))  # fmt: skip
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -213,8 +214,6 @@ def _run_diagnose(args) -> int:
         payload = report.to_dict()
         payload["command"] = "diagnose"
         payload["files"] = {k: str(v) for k, v in paths.items()}
-        payload["payload_check"] = None if loads[0].load is None else loads[0].load.to_dict()  # the first's
-        payload["payload_checks"] = [load.to_dict() for load in loads]  # every validation recording's, by its file
         payload["friction_temperature"] = temperature  # as psdm validate's field: where the file's law was read
         if apply_out is None:
             print_json(payload)

@@ -309,7 +309,7 @@ def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(fi
     """``psdm diagnose MODEL --validate A B`` took each recording's load off but named only A's: B's 1 kg load (A's
     2 kg) was in no line. Each recording's load is now named by its file (mass and centre of mass within their stated
     uncertainty of that recording's truth), in the JSON (``payload_checks``), the printed report and the report.md
-    written to ``--out``."""
+    and report.json written to ``--out``."""
     from psdm_casadi.cli import main
 
     _, _, model = _identify(files, files["empty"], "empty", capsys, runs)  # trained without a load
@@ -330,6 +330,8 @@ def test_diagnose_of_a_model_file_names_the_load_of_each_validation_recording(fi
             (line,) = [x for x in lines if x.startswith(f"{path} carries a load")]
             assert f"{found['mass']:.3g} +- {found['mass_std']:.2g} kg" in line and found["sidecar"] in line
     assert "## Payload check (as psdm validate)" in written
+    saved = json.loads((out / "report.json").read_text())  # the report.json written beside it had no check at all
+    assert saved["payload_checks"] == payload["payload_checks"] and saved["payload_check"] == heavy
 
 
 def test_diagnose_of_the_robot_file_names_a_load_on_the_second_validation_recording_only(files, light, capsys):
