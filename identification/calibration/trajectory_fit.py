@@ -76,6 +76,7 @@ from identification.data.missing_torque import find_missing_torque, missing_torq
 from identification.data.robot_recordings import no_torque_constants
 from identification.data.torque_constants import drive_kt
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.log_context import ONCE
 from psdm_casadi.state_cache import remembering
 
 __all__ = ["IPOPT_OPTIONS", "TrajectoryFit", "TrajectoryOptions", "drive_inertia_joints", "identify_trajectories",
@@ -376,7 +377,7 @@ def identify_trajectories(
     n_columns = n_all + (0 if vs is None else robot.n_dof)  # one pass; flange probes of configuration_check
     equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
     logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
-                ", ".join(f"{c:g}" for c in cutoffs))  # fmt: skip
+                ", ".join(f"{c:g}" for c in cutoffs), extra=ONCE)  # fmt: skip
     held = _held_columns(names, options, model.n_base, vs, n_columns)  # held at 0: left out of both fits
     free = [k for k in range(equations.n_columns) if k not in held]
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),

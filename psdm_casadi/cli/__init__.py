@@ -37,6 +37,7 @@ from psdm_casadi.cli.output import (
     silence_stdout,
 )
 from psdm_casadi.errors import PSDMError, SolverError
+from psdm_casadi.log_context import once_per_run
 from psdm_casadi.overwrite_option import DEPRECATED_FORCE_NOTE, used_deprecated_force
 
 __all__ = [
@@ -128,7 +129,7 @@ def main(argv=None) -> int:
     if used_deprecated_force(args):
         print(f"psdm {args.command}: note: {DEPRECATED_FORCE_NOTE}.", file=sys.stderr)
     try:
-        with InterruptGuard(), blas_thread_limit():
+        with InterruptGuard(), blas_thread_limit(), once_per_run():  # a line every fit repeats, said once
             check_seed(getattr(args, "seed", None))
             code = int(args.handler(args) or 0)
             sys.stdout.flush()  # a closed stdout shows here, not in Python's flush at exit

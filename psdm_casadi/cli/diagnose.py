@@ -27,7 +27,14 @@ from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_w
 from psdm_casadi.cli.recalibration_text import ALONE, adds_nothing, apply_refusal, recalibration_markdown
 from psdm_casadi.cli.torque_scale_step import diagnose_torque_scales
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.log_context import held_back
 from psdm_casadi.state_cache import remembering
+
+#: The loggers of identify's fits whose progress lines ("identify: N samples of K recording(s) ...", the Stribeck
+#: velocities, the drive inertias inside the base parameters) each of diagnose's refits repeats: not diagnose's lines
+#: (its report states the preparation once, and what a refit found).
+IDENTIFY_FIT_LOGGERS = ("identification.calibration.trajectory_fit", "identification.calibration.stribeck",
+                        "identification.calibration.merged_rotors")  # fmt: skip
 
 VALIDATE_HELP = (
     "validation recording(s) (.csv, .npz, .mat, or a ROS 2 bag); without, the part of --train held out (--holdout, or "
@@ -127,7 +134,7 @@ def register(subparsers) -> None:
     )
     p.add_argument("--overwrite", action="store_true", help="replace existing files in --out (and --apply)")
     p.add_argument("--json", action="store_true", help="print the report as JSON on stdout")
-    p.set_defaults(handler=_run_diagnose)
+    p.set_defaults(handler=_run)
 
 
 def _held_out(validations) -> list:
@@ -140,6 +147,12 @@ def _held_out(validations) -> list:
         "Pass another recording of the robot, --validate B.csv (a different motion); with one recording only, hold "
         "out its last part: --holdout 0.3 (the first 70 % trains, the rest validates)."
     )
+
+
+def _run(args) -> int:
+    """``psdm diagnose``, its refits' progress lines of ``psdm identify`` held back (``IDENTIFY_FIT_LOGGERS``)."""
+    with held_back(*IDENTIFY_FIT_LOGGERS):
+        return _run_diagnose(args)
 
 
 @remembering()  # the recordings' regressors evaluated once across the refits (state_cache)

@@ -18,7 +18,7 @@ import numpy as np
 from psdm_casadi.cli.checks import add_topic_argument, check_not_input, load_robot_argument, recording_layout
 from psdm_casadi.cli.html_report import html_output, write_identify_html
 from psdm_casadi.cli.identify_inputs import check_outputs, fit_settings, read_training
-from psdm_casadi.cli.identify_text import print_identify
+from psdm_casadi.cli.identify_text import envelope_warnings, print_identify
 from psdm_casadi.cli.identify_validation import json_numbers, loads_said, store_held_out, validation_report
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, EXIT_OK, progress
 from psdm_casadi.cli.torque_scale_step import check_torque_scales, store_torque_scales
@@ -172,8 +172,7 @@ def run(args) -> int:
     loads = loads_said(report, judged, args)  # stored with the warnings; the text report prints them in its table
     said = (*scale.sentences(), *result.warnings, *read.missing, *held_out, *worse, *filter(None, loads))
     warnings = [_concrete_route(w, args, paths) for w in dict.fromkeys(said)]
-    for warning in (w for w in warnings if w not in SAID and (args.json or w not in loads)):  # each said once
-        print(f"psdm identify: warning: {warning}", file=sys.stderr)
+    _print_warnings(args, warnings, loads, fit, paths)
     mass_eigenvalue = _min_mass_eigenvalue(robot, fit) if fit.checked else None
     report["min_mass_eigenvalue"] = mass_eigenvalue
     store_held_out(args, report, calibrated, len(read.explicit))  # which part of each recording was held out
@@ -199,6 +198,15 @@ def run(args) -> int:
         page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
+
+
+def _print_warnings(args, warnings, loads, fit, paths) -> None:
+    """Each warning on stderr once: none its robot's loading printed already (``said_once``), and, where the text
+    report follows, none it says in its place (a load in the validation table, a link pushed against its envelope in
+    the envelope section: ``identify_text.envelope_warnings``). With ``--json`` the text report is not printed."""
+    said = set() if args.json else {*loads, *(_concrete_route(w, args, paths) for w in envelope_warnings(fit))}
+    for warning in (w for w in warnings if w not in SAID and w not in said):
+        print(f"psdm identify: warning: {warning}", file=sys.stderr)
 
 
 def _judged_route(args, problem, validation, paths, arm) -> tuple:

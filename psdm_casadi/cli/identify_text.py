@@ -66,6 +66,16 @@ def _value(value) -> str:
     return "not checked" if value is None else f"{value:.3g}"
 
 
+def envelope_warnings(fit) -> tuple:
+    """The warnings the envelope section says (its ``PUSHED`` lines: the links the data press against their bounds;
+    none when the section is not printed, or names the torques' unit instead): printed there, not on stderr too."""
+    from identification.calibration.trajectory_checks import unit_factor
+
+    if "envelopes" not in dict(fit.envelope_bounds) or unit_factor(fit.torque_ratio) is not None:
+        return ()
+    return tuple(f.message for f in fit.envelope if f.pressed)
+
+
 def _print_envelope(fit, route=str) -> None:
     """The physical envelope the links were kept in, and the links the data pushed against it (``route`` puts this
     run's files into a suggested ``psdm diagnose`` command, as in the warning that repeats it)."""
