@@ -145,6 +145,7 @@ class DiagnosisReport:
     payload_check: tuple = ()  # sentences: the load each validation recording carries that nothing states, by its file
     payload_check_as: str = ""  # how that check judges them (as ``psdm validate``, or as identify its held-out ones)
     payload_checks: tuple = ()  # per validation recording {"recording": file, "load": its load's dict or None}
+    friction_temperature: str | None = None  # where the model file's friction law was read on the first (as validate)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -197,6 +198,7 @@ class DiagnosisReport:
             "refit_training": None if self.refit_training is None else self.refit_training.to_dict(),
             "payload_check": self.payload_checks[0]["load"] if self.payload_checks else None,  # the first's
             "payload_checks": [dict(entry) for entry in self.payload_checks],  # every validation recording's
+            "friction_temperature": self.friction_temperature,  # as psdm validate's field
         }
 
     def to_json(self) -> str:

@@ -218,7 +218,8 @@ def _run_diagnose(args) -> int:
     judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
     found = tuple(load.sentence() for load in loads if load.load is not None)  # in report.md too, and printed
     report = dataclasses.replace(report, payload_check=found, payload_check_as=judged,
-                                 payload_checks=tuple(load.to_dict() for load in loads))  # fmt: skip
+                                 payload_checks=tuple(load.to_dict() for load in loads),
+                                 friction_temperature=temperature)  # fmt: skip
     paths = {}
     if folder is not None:
         with folder.staging() as stage:
@@ -227,7 +228,6 @@ def _run_diagnose(args) -> int:
         payload = report.to_dict()
         payload["command"] = "diagnose"
         payload["files"] = {k: str(v) for k, v in paths.items()}
-        payload["friction_temperature"] = temperature  # as psdm validate's field: where the file's law was read
         if apply_out is None:
             print_json(payload)
     else:

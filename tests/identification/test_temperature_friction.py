@@ -213,11 +213,15 @@ def test_the_warming_cobot_s_law_beats_the_reference_while_it_warms_and_exports_
 
 def test_diagnose_reports_where_the_file_s_law_was_read_in_its_json(handmade, tmp_path, capsys):
     """``psdm diagnose MODEL --json`` carries validate's ``friction_temperature`` for its validation recording, and its
-    note on stderr names that recording (it printed the list of every validation path)."""
+    note on stderr names that recording (it printed the list of every validation path); the report.json written to
+    ``--out`` carries it as well (it had none)."""
     folder, _, _, recording = handmade
     warm = save_recording(_logging(recording, 38.0), tmp_path / "warm.csv")
     plain = save_recording(recording, tmp_path / "plain.csv")
-    assert main(["diagnose", str(folder / "model.json"), "--train", str(plain), "--validate", str(warm), "--json"]) == 0
+    assert main(["diagnose", str(folder / "model.json"), "--train", str(plain), "--validate", str(warm), "--json",
+                 "--out", str(tmp_path / "diagnosis")]) == 0  # fmt: skip
     out, err = capsys.readouterr()
-    assert "logged 38.0-38.0 °C" in json.loads(out)["friction_temperature"]
+    said = json.loads(out)["friction_temperature"]
+    assert "logged 38.0-38.0 °C" in said
+    assert json.loads((tmp_path / "diagnosis" / "report.json").read_text())["friction_temperature"] == said
     assert f"psdm diagnose: note: {warm}: the model file's" in err, err  # the recording, not a list of them
