@@ -33,6 +33,10 @@ and judged against the truth:
 - ``identify_named``: the counterbalances identify's report names (``identification.counterbalance.named_by``) or
   takes (a spring kept in the model); a hidden counterbalance named there is not missed, a spring kept where none is
   hidden is false;
+- ``lugre_gate``: the LuGre trial's gate as identify read it on the held-out recording (``lugre_trial``: the arm's
+  joints' lag at their velocity reversals pooled, in standard errors and in share of their RMSE, the joint with the
+  most standard errors, and whether LuGre was tried and kept; ``lugre_trial`` in --json has every joint's reading),
+  so the margin to the gate's threshold shows in every run;
 - exit codes of the four commands, and for a log in other units, that identify without them is refused (exit 2)
   naming the file, the column and the ``--columns`` fix.
 
@@ -65,6 +69,8 @@ import numpy as np
 from bench_support import print_json, print_table
 from unseen_cases import CASES, build
 
+from identification.calibration.lugre_trial import MIN_REVERSALS
+
 #: The diagnosis's names for each hidden effect (a cam counterbalance is a spring series, a gravity-like unnamed
 #: effect or, as two harmonics of the joint angle, a torque ripple).
 ACCEPTED = {"counterbalance": ("counterbalance", "spring", "unnamed_effect", "gas_spring", "torque_ripple")}
@@ -75,7 +81,7 @@ PRESENT = ("presliding",)
 LIMITS = {"payload_error": 0.10, "link_mass_ratio": 1.5, "rmse_ratio_after": 2.5}
 TABLE = ["case", "identify_exit", "units_refused_with_fix", "payload_error", "link_mass_ratio", "worst_link",
          "rmse_ratio", "rmse_ratio_after", "envelope_pushed", "identify_named", "findings", "suggested_route_findings",
-         "missed", "false",
+         "missed", "false", "lugre_gate",
          "validate_exit", "diagnose_exit", "codegen_exit", "identify_s", "diagnose_s", "passed"]  # fmt: skip
 
 
@@ -175,6 +181,31 @@ def _held_out_judges(identified, document, validated, diagnosis) -> dict:
     }  # fmt: skip
 
 
+def lugre_gate(document) -> dict:
+    """The LuGre trial's gate as identify read it (``identification.lugre_trial``) on the held-out recording: the
+    arm's joints pooled (the sum of their readings over the root of their number, their mean share of the RMSE), the
+    joint with the largest reading, whether the trial was made and kept, and ``text`` for the table
+    (``arm 3.35se 65% | j4 1.90se x6 kept``): the margin to the gate in every run."""
+    trial = (document.get("identification") or {}).get("lugre_trial") or {}
+    items = [item for per in trial.get("lags") or () for item in per]
+    if not items:
+        return {"tried": False, "kept": False, "text": "-"}
+
+    def sigmas(item):
+        return item["lag"] / item["standard_error"] if item["standard_error"] > 0 else 0.0
+
+    read = [item for item in items if item["reversals"] >= MIN_REVERSALS]
+    pooled = sum(sigmas(item) for item in read) / np.sqrt(len(read)) if read else 0.0
+    share = float(np.mean([item["lag"] / item["rmse"] for item in read if item["rmse"] > 0] or [0.0]))
+    top = max(items, key=sigmas)
+    verdict = "kept" if trial.get("kept") else "tried" if trial.get("tried") else "closed"
+    return {"arm_sigmas": round(float(pooled), 2), "arm_share": round(share, 3), "joint": top["joint"],
+            "sigmas": round(sigmas(top), 2), "reversals": top["reversals"], "tried": bool(trial.get("tried")),
+            "kept": bool(trial.get("kept")), "per_joint": [round(sigmas(item), 2) for item in items],
+            "text": f"arm {pooled:.2f}se {share:.0%} | j{top['joint']} {sigmas(top):.2f}se x{top['reversals']} "
+                    f"{verdict}"}  # fmt: skip
+
+
 def _shape_there(finding, joint: int, shapes: set) -> bool:
     """Whether ``finding`` is a ``friction_shape`` of a shape the truth's friction has on ``joint`` (its label names
     the shape: ``friction_shape[j5,smooth_coulomb]``)."""
@@ -249,6 +280,8 @@ def run_case(name: str, folder: Path, seed: int, unstated_held_out: bool = False
         diagnose_exit=code_dia,
         diagnose_s=round(dia_s, 1),
         codegen_exit=code_gen,
+        lugre_trial=(gate := lugre_gate(document)),
+        lugre_gate=gate["text"],
         warnings=[line for line in (id_text + dia_text).splitlines() if "warning" in line],
         **_held_out_judges(identified, document, validated, diagnosis),
     )

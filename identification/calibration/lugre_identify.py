@@ -158,11 +158,11 @@ def without_lugre_friction(recordings, lugre, prepared, kt, cutoff_hz) -> list:
     return out
 
 
-def round_change(previous, current) -> tuple:
+def round_change(previous, current, tolerance_sd: float = ROUND_TOLERANCE_SD) -> tuple:
     """(score, largest relative change) of the LuGre parameters between two fits (``LuGreFit``).
 
     A parameter has settled when it moved by less than :data:`ROUND_TOLERANCE` of its value or less than
-    :data:`ROUND_TOLERANCE_SD` of its standard deviation (a parameter the data hardly determine wanders by more than
+    ``tolerance_sd`` of its standard deviation (a parameter the data hardly determine wanders by more than
     1 % from round to round without meaning anything); the score is the largest over the parameters of the smaller
     of the two ratios, below 1 when all have settled.
     """
@@ -170,11 +170,11 @@ def round_change(previous, current) -> tuple:
     relative = np.abs(np.log(after / before))
     with np.errstate(divide="ignore", invalid="ignore"):  # a held parameter (sd 0) settles by value alone
         in_sd = np.where(current.std > 0, np.abs(after - before) / current.std, np.inf)
-    return float(np.max(np.minimum(relative / ROUND_TOLERANCE, in_sd / ROUND_TOLERANCE_SD))), float(relative.max())
+    return float(np.max(np.minimum(relative / ROUND_TOLERANCE, in_sd / tolerance_sd))), float(relative.max())
 
 
 def identify_lugre_trajectories(
-    robot, model, recordings, options: TrajectoryOptions, rounds: int | None = None, extra=None, configurations=None
+    robot, model, recordings, options: TrajectoryOptions, rounds=None, extra=None, configurations=None, settle_sd=None
 ):
     """Rigid body, drive terms and LuGre friction of exciting recordings (module docstring).
 
@@ -194,6 +194,9 @@ def identify_lugre_trajectories(
         drive parameters in ``fit.drive``, as in ``trajectory_fit.identify_trajectories``.
     configurations : sequence of data.configuration.PayloadConfiguration, optional
         The load each recording carries at the flange (module docstring); the unknown ones are in ``fit.payloads``.
+    settle_sd : float, optional
+        A parameter has settled when it moved by less than this many of its standard deviations (``round_change``);
+        default :data:`ROUND_TOLERANCE_SD`. Identify's LuGre trial (``lugre_trial.SETTLE_SD``) stops at a coarser step.
 
     Returns
     -------
@@ -239,7 +242,7 @@ def identify_lugre_trajectories(
             lugre, taken, ended = previous, taken - 1, f"round {taken} not kept"
             break
         fit, caught = refit, recorded
-        score, relative = round_change(previous, lugre)
+        score, relative = round_change(previous, lugre, settle_sd or ROUND_TOLERANCE_SD)
         logger.info("identify: LuGre round %d: friction RMSE %s N m; the parameters moved up to %.2g %%",
                     taken, np.round(lugre.rmse, 4), 100 * relative)  # fmt: skip
         if rounds is None and score < 1.0:

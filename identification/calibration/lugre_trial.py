@@ -32,8 +32,8 @@ import numpy as np
 
 from psdm_casadi.log_context import held_back
 
-__all__ = ["LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "LuGreTrial", "ReversalLag", "judge_trial", "lag_joints",
-           "quiet_trial", "recording_lags", "reversal_lags", "try_lugre"]  # fmt: skip
+__all__ = ["LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "SETTLE_SD", "LuGreTrial", "ReversalLag", "judge_trial",
+           "lag_joints", "quiet_trial", "recording_lags", "reversal_lags", "try_lugre"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -46,6 +46,11 @@ LAG_SHARE = 0.5
 MIN_REVERSALS = 3
 #: The window of a reversal: the samples around the crossing slower than this multiple of the Coulomb smoothing.
 WINDOW_SMOOTHINGS = 2.0
+#: The trial's LuGre fits and rigid-body refits alternate until every LuGre parameter moves by less than this many of
+#: its standard deviations between two fits (or by less than 1 %; ``lugre_identify.round_change``): a step inside
+#: the parameter's uncertainty changes neither the friction's prediction nor the rigid body beyond it, and each
+#: round costs a LuGre fit of every joint (``--friction lugre`` keeps the finer ``ROUND_TOLERANCE_SD``).
+SETTLE_SD = 0.5
 
 
 @dataclass(frozen=True)
@@ -266,7 +271,8 @@ def try_lugre(problem, written, judged, writer, request) -> tuple:
             choice = choose_columns(robot, model, recordings, options, replace(request, friction="lugre"), validation,
                                     configurations)  # fmt: skip
             chosen = choice.options(options)
-            found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
+            found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations,
+                                                settle_sd=SETTLE_SD)  # fmt: skip
             lugre = writer(found.lugre, found.stribeck)(chosen, found.fit)
             comparisons = [compare_each(written.calibrated, lugre.calibrated, model, [r], kt)[0]
                            for r, kt in zip(judged.recordings, kts)]  # fmt: skip

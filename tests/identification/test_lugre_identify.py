@@ -101,6 +101,10 @@ def test_the_rounds_stop_when_every_parameter_has_settled_in_value_or_in_standar
     std[0, 5] = 20 * 0.03 * TRUTH.sigma0  # a sigma0 the data hardly see: 3 % is 0.05 of its sd
     uncertain = LuGreFit(**{**large.__dict__, "std": std})
     assert round_change(base, uncertain)[0] < 1.0
+    std[0, 5] = 0.03 * TRUTH.sigma0 / 0.2  # 3 % is 0.2 of its sd: moving at the default step, settled at half an sd
+    within = LuGreFit(**{**large.__dict__, "std": std})
+    assert round_change(base, within)[0] == pytest.approx(2.0)
+    assert round_change(base, within, tolerance_sd=0.5)[0] == pytest.approx(0.4)
 
 
 def _belt_wrist(denso, duration=3.0):
