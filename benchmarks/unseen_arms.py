@@ -183,9 +183,9 @@ def _held_out_judges(identified, document, validated, diagnosis) -> dict:
 
 def lugre_gate(document) -> dict:
     """The LuGre trial's gate as identify read it (``identification.lugre_trial``) on the held-out recording: the
-    arm's joints pooled (the sum of their readings over the root of their number, their mean share of the RMSE), the
-    joint with the largest reading, whether the trial was made and kept, and ``text`` for the table
-    (``arm 3.35se 65% | j4 1.90se x6 kept``): the margin to the gate in every run."""
+    arm's joints pooled (``lugre_trial.ArmLag``: the sum of their readings over the root of their number, their mean
+    share of the RMSE), the joint with the largest reading, whether the trial was made and kept, and ``text`` for the
+    table (``arm 3.35se 65% | j4 1.90se x6 kept``): the margin to the gate in every run."""
     trial = (document.get("identification") or {}).get("lugre_trial") or {}
     items = [item for per in trial.get("lags") or () for item in per]
     if not items:

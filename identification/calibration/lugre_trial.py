@@ -12,8 +12,10 @@ the acceleration at the reversals only, and a fit that lowers the inertia to abs
 belt cobot of ``benchmarks/unseen_belt_cobot``: its joint-1 inertia came out low).
 
 The lag is read on the held-out recordings the robot file is judged on (``file_judged``), on the residual of the model
-identify would write. Where a joint shows it beyond noise and in size (``LAG_SIGMAS`` standard errors over the reversals
-and ``LAG_SHARE`` of the joint's RMSE), the LuGre route (``lugre_identify``) is fitted beside, carried to its model file
+identify would write. Where the arm shows it beyond noise and in size (its joints' readings pooled, ``ArmLag``:
+``LAG_SIGMAS`` standard errors of their sum and ``LAG_SHARE`` of their RMSE; a joint of three to six reversals reads
+a lag the LuGre model then removes at only one or two standard errors, where the steady-state truths' readings pool to
+about zero), the LuGre route (``lugre_identify``) is fitted beside, carried to its model file
 (``written_model``), and kept only where it predicts each held-out recording better on a lagging joint and worse on none
 (``never_worse``'s paired margins), is not worse than the robot file on a joint the default model was not
 (``robot_file_check``), and pushes no link against its physical envelope (``envelope_report``) that the default model
@@ -32,16 +34,19 @@ import numpy as np
 
 from psdm_casadi.log_context import held_back
 
-__all__ = ["LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "SETTLE_SD", "LuGreTrial", "ReversalLag", "judge_trial",
-           "lag_joints", "quiet_trial", "recording_lags", "reversal_lags", "try_lugre"]  # fmt: skip
+__all__ = ["JOINT_SIGMAS", "LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "SETTLE_SD", "ArmLag", "LuGreTrial",
+           "ReversalLag", "judge_trial", "lag_joints", "quiet_trial", "recording_lags", "reversal_lags",
+           "try_lugre"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
-#: A joint's lag (the even part of the residual over its reversals) counts when it is this many standard errors of its
-#: mean over the reversals ...
-LAG_SIGMAS = 4.5
-#: ... and at least this share of the joint's held-out RMSE.
+#: The arm's lag counts when its joints' readings (each the even part of the residual over its reversals in standard
+#: errors of its mean, ``ReversalLag.sigmas``) sum to this many standard errors of the sum (``ArmLag``) ...
+LAG_SIGMAS = 2.5
+#: ... and their mean share of the joints' held-out RMSE is at least this; a joint lags where its own reading is this
+#: share and ``JOINT_SIGMAS`` standard errors.
 LAG_SHARE = 0.5
+JOINT_SIGMAS = 1.0
 #: Fewer reversals than this in a recording say nothing about a joint.
 MIN_REVERSALS = 3
 #: The window of a reversal: the samples around the crossing slower than this multiple of the Coulomb smoothing.
@@ -75,8 +80,9 @@ class ReversalLag:
 
     @property
     def shows(self) -> bool:
-        """Whether the lag is there: enough reversals, beyond noise and in size (module docstring)."""
-        return self.reversals >= MIN_REVERSALS and self.sigmas >= LAG_SIGMAS and self.share >= LAG_SHARE
+        """Whether the joint lags where the arm does (``ArmLag``): enough reversals, a reading of ``JOINT_SIGMAS``
+        standard errors and ``LAG_SHARE`` of its RMSE."""
+        return self.reversals >= MIN_REVERSALS and self.sigmas >= JOINT_SIGMAS and self.share >= LAG_SHARE
 
     def text(self) -> str:
         """The lag in words; its size against the joint's RMSE as a share up to the whole, as a ratio beyond (the lag
@@ -145,9 +151,41 @@ def recording_lags(calibrated, model, recordings, kts, velocity) -> tuple:
     return tuple(out)
 
 
+@dataclass(frozen=True)
+class ArmLag:
+    """The arm's lag on one recording: its joints' readings (those with ``MIN_REVERSALS``) pooled, ``sigmas`` their sum
+    over the root of their number (a standard normal where no joint lags), ``share`` their mean share of the joints'
+    RMSE, ``joints`` how many were read.
+
+    Pooled because a drive's bristles are the arm's make, not one joint's: a joint of a few reversals reads its lag
+    at one or two standard errors (each a reversal window's mean, not known better than the joint's RMSE), and the
+    arm's joints together read it beyond noise where each alone does not."""
+
+    sigmas: float
+    share: float
+    joints: int
+
+    @classmethod
+    def of(cls, per) -> ArmLag:
+        read = [item for item in per if item.reversals >= MIN_REVERSALS]
+        if not read:
+            return cls(0.0, 0.0, 0)
+        total = sum(item.sigmas for item in read) / np.sqrt(len(read))
+        return cls(float(total), float(np.mean([item.share for item in read])), len(read))
+
+    @property
+    def shows(self) -> bool:
+        return self.joints > 0 and self.sigmas >= LAG_SIGMAS and self.share >= LAG_SHARE
+
+    def text(self) -> str:
+        return (f"the arm's {self.joints} joints {self.sigmas:.1f} standard errors together, {self.share:.0%} of their "
+                "RMSE")  # fmt: skip
+
+
 def lag_joints(lags) -> tuple:
-    """The joints (0-based) that show the lag on some recording and against it on none."""
-    shows = {item.joint for per in lags for item in per if item.shows}
+    """The joints (0-based) that lag (``ReversalLag.shows``) on a recording where the arm does (``ArmLag``), and
+    against it on none."""
+    shows = {item.joint for per in lags if ArmLag.of(per).shows for item in per if item.shows}
     against = {item.joint for per in lags for item in per if item.reversals >= MIN_REVERSALS
                and item.sigmas <= -LAG_SIGMAS}  # fmt: skip
     return tuple(sorted(shows - against))
@@ -175,7 +213,8 @@ class LuGreTrial:
         joint showed the lag)."""
         if not self.joints:
             return ""
-        shown = "; ".join(item.text() for per in self.lags for item in per if item.joint in self.joints)
+        arm = "; ".join(ArmLag.of(per).text() for per in self.lags if ArmLag.of(per).shows)
+        shown = "; ".join([arm, *(item.text() for per in self.lags for item in per if item.joint in self.joints)])
         head = f"the residual at the velocity reversals lags the velocity as pre-sliding friction does ({shown})"
         if self.kept:
             return f"friction: LuGre on every joint, chosen because {head}, and {self.reason}"
@@ -185,11 +224,13 @@ class LuGreTrial:
         lags = [[{"joint": i.joint + 1, "reversals": i.reversals, "lag": float(i.lag), "rmse": float(i.rmse),
                   "standard_error": float(i.standard_error), "shows": bool(i.shows)} for i in per]
                 for per in self.lags]  # fmt: skip
+        arms = [ArmLag.of(per) for per in self.lags]
         return {
             "tried": bool(self.joints),
             "kept": self.kept,
             "lag_joints": [j + 1 for j in self.joints],
             "lags": lags,
+            "arm": [{"sigmas": a.sigmas, "share": a.share, "joints": a.joints, "shows": a.shows} for a in arms],
             "rule": RULE,
             "validation_rmse_default": list(self.before),
             "validation_rmse_lugre": list(self.after),
@@ -199,8 +240,10 @@ class LuGreTrial:
 
 
 RULE = (
-    f"a joint shows the bristles' lag when the even part of its held-out residual over its velocity reversals "
-    f"(>= {MIN_REVERSALS}) is >= {LAG_SIGMAS:g} standard errors and >= {LAG_SHARE:.0%} of its RMSE; then LuGre "
+    f"the arm shows the bristles' lag when the even part of its joints' held-out residual over their velocity "
+    f"reversals (>= {MIN_REVERSALS} each), in standard errors, sums to >= {LAG_SIGMAS:g} standard errors of the sum "
+    f"and is >= {LAG_SHARE:.0%} of their RMSE on average; a joint lags there at >= {JOINT_SIGMAS:g} standard error "
+    f"and >= {LAG_SHARE:.0%} of its RMSE; then LuGre "
     "friction is fitted and kept only if it predicts each held-out recording better on a lagging joint, worse on "
     "none (paired margins), is worse than the robot file on no joint the default model was not, and pushes no link "
     "against its physical envelope the default model leaves inside it"

@@ -17,7 +17,7 @@ import pytest
 
 from identification.calibration.column_choice import ColumnRequest
 from identification.calibration.identify_route import identify_recordings
-from identification.calibration.lugre_trial import LAG_SIGMAS, lag_joints, reversal_lags
+from identification.calibration.lugre_trial import LAG_SHARE, LAG_SIGMAS, ArmLag, lag_joints, reversal_lags
 from identification.calibration.trajectory_fit import TrajectoryOptions
 from identification.virtual.lugre_exact import LuGreArrays, steady_state_friction, stribeck_g, z_step
 from tests.identification.test_column_choice import synthetic
@@ -60,9 +60,12 @@ def test_lugre_friction_lags_each_reversal_and_an_odd_error_of_the_same_size_doe
     hump = 1.5 * np.exp(-((qd / 0.1) ** 2)) * np.sign(qd) + noise  # a Stribeck hump the model lacks: odd
     stroke = np.cumsum(qd, axis=0) / RATE
     spring = 8.0 * (stroke - stroke.mean(axis=0)) + noise  # an error of the position: old sign at both stroke ends
+    assert ArmLag.of(lags).shows and ArmLag.of(lags).sigmas > 2 * LAG_SIGMAS
     for odd in (sharper, hump, spring):
         found = reversal_lags(qd, odd, 0.1)
-        assert all(abs(item.sigmas) < LAG_SIGMAS / 2 and not item.shows for item in found), found
+        assert all(abs(item.sigmas) < 2.25 and not item.shows for item in found), found  # the per-joint gate's half
+        arm = ArmLag.of(found)  # the arm's joints pooled: below the gate, in standard errors and far in size
+        assert not arm.shows and arm.sigmas < 0.6 * LAG_SIGMAS and arm.share < LAG_SHARE / 2, arm
         assert lag_joints([found]) == ()
     assert reversal_lags(qd[:400], lugre[:400], 0.1)[0].reversals < 3  # no reversal to read: nothing shows
 
@@ -75,6 +78,7 @@ def test_a_coulomb_viscous_truth_keeps_the_default_friction(denso, denso_model):
     trial = result.lugre_trial
     assert trial.lags and trial.joints == () and not trial.kept and result.lugre is None
     assert all(not item.shows for per in trial.lags for item in per)
+    assert all(not ArmLag.of(per).shows and ArmLag.of(per).sigmas < LAG_SIGMAS / 2 for per in trial.lags)
     assert "lugre" not in result.calibrated.document["drive"]
     assert not any(line.startswith("friction: ") for line in result.describe())
     assert result.calibrated.document["identification"]["lugre_trial"]["tried"] is False
