@@ -40,6 +40,8 @@ __all__ = [
     "check_joint_motion",
     "check_sliding",
     "check_reversals",
+    "one_way_joints",
+    "one_way_velocities",
     "joint_label",
     "joint_labels",
     "format_fix",
@@ -386,7 +388,13 @@ def one_way_joints(recordings, joints, *, speed: float, min_fraction: float) -> 
     """The joints of ``joints`` (0-based, sorted) that do not move faster than ``speed`` [rad/s] both ways on
     ``min_fraction`` of the pooled samples of ``recordings``: their Coulomb friction is a constant there, which a
     torque offset or the rigid body's gravity takes as well."""
-    qd = _pooled_velocity(list(recordings))
+    return one_way_velocities(_pooled_velocity(list(recordings)), joints, speed=speed, min_fraction=min_fraction)
+
+
+def one_way_velocities(qd: np.ndarray, joints, *, speed: float, min_fraction: float) -> list:
+    """The joints of ``joints`` (0-based, sorted) whose velocity ``qd`` (n_samples, n_dof) [rad/s] is not above
+    ``speed`` both ways on ``min_fraction`` of the samples (``one_way_joints``' rule on one velocity array)."""
+    qd = np.asarray(qd, dtype=float)
     return [j for j in sorted({int(j) for j in joints})
             if min(np.mean(qd[:, j] > speed), np.mean(qd[:, j] < -speed)) < min_fraction]  # fmt: skip
 

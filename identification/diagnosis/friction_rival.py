@@ -48,6 +48,13 @@ An elasticity that wins against the family is still not named where it does not 
 on every validation recording and by the never-worse margin on three of the four blocks of the training recording
 held out in turn (``presliding_rival``, ``presliding_or_elasticity``): the pair is then reported ("pre-sliding or
 elasticity on joint N") with both numbers and the recording that tells them apart, and neither is named from it.
+
+No friction shape is fitted or compared on a joint that never reverses in training (``one_way``: the rule by which
+identify holds such a joint's friction, ``excitation_check.one_way_joints``): a Stribeck peak and pre-sliding live at
+reversals and a smooth Coulomb level is a constant there, so their columns are undetermined and their fit explodes on
+validation (a lag then "wins" against a meaningless error). The family covers the lag's other joints; a deflection
+of a one-way joint meets no rival (only ``stand_in``), and the report's notes say once per joint that its friction
+shape is not compared.
 """
 
 from __future__ import annotations
@@ -57,6 +64,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
+from identification.data.excitation_check import one_way_velocities
 from identification.diagnosis.candidates.friction import lacking_friction_shapes, recording_cache
 from identification.diagnosis.columns import BlockColumns
 from identification.diagnosis.context import simulate_friction
@@ -169,6 +178,16 @@ class FrictionRival:
         self.validations = [list(v) for v in validations]
         self.sentences = []
         self.offered, self.new_offers = {}, []
+        self._one_way, self._said_one_way = None, set()
+
+    @property
+    def one_way(self) -> tuple:
+        """The joints (0-based) that never reverse in training (module docstring), found on first use."""
+        if self._one_way is None:
+            ctx = self.train_ctx
+            self._one_way = tuple(one_way_velocities(ctx.qd, range(ctx.n_dof), speed=ctx.coulomb_velocity,
+                                                     min_fraction=MIN_REVERSAL_FRACTION))  # fmt: skip
+        return self._one_way
 
     def keep(self, term) -> None:
         """A kept term joins the validation recordings' base columns."""
@@ -182,8 +201,10 @@ class FrictionRival:
         saying why it is not named (also appended to ``sentences``)."""
         if getattr(term, "key", None) not in LAGS:
             return None
+        joints = self._determined(term)
+        if not joints:  # no friction shape the training data determine on the lag's joints: nothing to compare
+            return self.stand_in(term, unstable)
         logger.info(f"diagnose: {term.label} against the friction shapes the nominal model lacks ...")
-        joints = list(term.joints) or list(range(self.train_ctx.n_dof))
         scales = fitted_scales(design, self.train_ctx, joints)
         family = (family_columns(self.train_ctx, scales, joints),
                   [family_columns(ctx, scales, joints) for ctx, _, _ in self.validations])  # fmt: skip
@@ -220,6 +241,26 @@ class FrictionRival:
         if self.offer:
             self._offer(joints)
         return sentence
+
+    def _determined(self, term) -> list:
+        """The joints of ``term`` (every joint for a delay) that reverse in training, on which the friction shapes are
+        fitted and compared; the others (``one_way``, module docstring) are said once each (``sentences``)."""
+        joints = list(term.joints) or list(range(self.train_ctx.n_dof))
+        skipped = [j for j in joints if j in self.one_way and j not in self._said_one_way]
+        if skipped:
+            self._said_one_way.update(skipped)
+            names = ", ".join(str(j + 1) for j in skipped)
+            one, speed = len(skipped) == 1, f"{self.train_ctx.coulomb_velocity:.3g} rad/s"
+            sentence = (
+                (f"joint {names} never reverses" if one else f"joints {names} never reverse")
+                + " in training: "
+                + ("its friction shape is" if one else "their friction shapes are")
+                + f" not compared with a lag on {'it' if one else 'them'} ({term.label}: faster than {speed} each way "
+                f"on less than {MIN_REVERSAL_FRACTION:.0%} of the samples, the shapes' fit is undetermined there)"
+            )
+            logger.info(f"diagnose: {sentence}")
+            self.sentences.append(sentence)
+        return [j for j in joints if j not in self.one_way]
 
     def stand_in(self, term, unstable) -> str | None:
         """The sentence saying why a joint elasticity is not named where a friction shape on its joint (pre-sliding, a
