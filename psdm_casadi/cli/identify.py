@@ -50,9 +50,13 @@ def register(subparsers) -> None:
     add_robot_argument(p)
     p.add_argument(
         "--data",
+        "--train",
+        dest="data",
         required=True,
         nargs="+",
-        help="recordings (.csv, .npz, .mat, ROS 2 bags), or one data directory. A recording's payload at the flange "
+        metavar="RECORDING",
+        help="recordings (.csv, .npz, .mat, ROS 2 bags), or one data directory (--train: the same option, as "
+        "'psdm diagnose' names its training recordings). A recording's payload at the flange "
         'is stated beside it in A.payload.json: {"mass": 2.8, "com": [0, 0, 0.05]} (known; optional "inertia" about '
         'the centre of mass), {"unknown": "gripper"} (identified, shared by the files that name it) or {"mass": 0}; '
         "or pass a configurations.toml listing [[configuration]] name, payload, recordings",
