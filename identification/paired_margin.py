@@ -30,6 +30,13 @@ MARGIN_FLOOR = 0.01
 BOOTSTRAP_SAMPLES = 300
 
 
+def noise_margin(before, standard_error) -> np.ndarray:
+    """The never-worse margin [N m] per joint: ``MARGIN_SIGMAS`` standard errors of the paired RMSE difference, never
+    below ``MARGIN_FLOOR`` of the RMSE ``before`` (the gate's, ``calibration.never_worse.MARGIN_RULE``, and the
+    diagnosis report's rises, ``diagnosis.joint_changes``)."""
+    return np.maximum(MARGIN_SIGMAS * np.asarray(standard_error, dtype=float), MARGIN_FLOOR * np.asarray(before))
+
+
 def block_length(series: np.ndarray) -> int:
     """Block length [samples] of the (circular) block bootstrap of ``series`` (n_samples,): twice the first lag at
     which its autocorrelation drops below 1/e, at least ``n**(1/3)``, at most n / 5."""

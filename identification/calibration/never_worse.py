@@ -63,6 +63,7 @@ from identification.paired_margin import (
     MARGIN_FLOOR,
     MARGIN_SIGMAS,
     block_length,
+    noise_margin,
     paired_rmse_margin,
 )
 from psdm_casadi.errors import PSDMError
@@ -137,7 +138,7 @@ class JointComparison:
     def from_noise(cls, before, after, standard_error) -> JointComparison:
         """The comparison with ``MARGIN_RULE``'s margin: ``MARGIN_SIGMAS`` standard errors of the paired difference,
         never below ``MARGIN_FLOOR`` of the RMSE before."""
-        margin = np.maximum(MARGIN_SIGMAS * standard_error, MARGIN_FLOOR * before)
+        margin = noise_margin(before, standard_error)
         return cls(before=before, after=after, margin=margin, standard_error=standard_error)
 
     def confirmed_by(self, changes) -> JointComparison:

@@ -5,17 +5,39 @@ still raise another joint's error: a robot-wide term (payload, tilt, delay) is f
 trades one joint for the others, identified base parameters shared between joints move when they are refitted
 with the kept terms, and the nonlinear refinement refits the friction on the training recording.
 ``explain_joint_changes`` names the cause that applies, so that no rise goes unexplained in the report.
+
+A rise within the never-worse gate's noise margin (``paired_margin.noise_margin``, ``calibration.never_worse``'s
+``MARGIN_RULE``: ``MARGIN_SIGMAS`` standard errors of the paired RMSE difference on the validation samples, at least
+``MARGIN_FLOOR`` of the RMSE before; ``rise_margin``) is not a rise: another stretch of the same motion could as well
+show a drop, and ``--apply`` would write such a model. It is not explained; the numbers of a rise beyond it are
+printed with the digits that show it.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from identification.paired_margin import MARGIN_FLOOR, noise_margin, paired_rmse_margin
+
 
 def rise_sentence(joint: int, before: float, after: float, cause: str) -> str:
-    """``joint J: validation RMSE rises from a to b N m (+x %): cause``."""
+    """``joint J: validation RMSE rises from a to b N m (+x %): cause`` (four significant digits: a rise worth a
+    sentence exceeds the margin's floor, ``MARGIN_FLOOR`` of the RMSE before)."""
     rise = 100.0 * (after / max(before, 1e-300) - 1.0)
-    return f"joint {joint + 1}: validation RMSE rises from {before:.6g} to {after:.6g} N m (+{rise:.2g} %): {cause}"
+    return f"joint {joint + 1}: validation RMSE rises from {before:.4g} to {after:.4g} N m (+{rise:.2g} %): {cause}"
+
+
+def rise_margin(residual_before, residual_after) -> np.ndarray:
+    """The never-worse gate's margin [N m] per joint (n_dof,) of a rise from the residuals ``residual_before`` to
+    ``residual_after`` (n_samples, n_dof) on the same validation samples (``paired_margin.noise_margin``); NaN where a
+    joint has no torque measurement (NaN residuals)."""
+    before, after = np.asarray(residual_before, dtype=float), np.asarray(residual_after, dtype=float)
+    margin = np.full(before.shape[1], np.nan)
+    measured = np.flatnonzero(np.all(np.isfinite(before), axis=0) & np.all(np.isfinite(after), axis=0))
+    if measured.size:
+        rmse_before, _, se = paired_rmse_margin(before[:, measured], after[:, measured])
+        margin[measured] = noise_margin(rmse_before, se)
+    return margin
 
 
 def _cause(joint: int, findings, rigid_body: str, refined: bool) -> str:
@@ -50,8 +72,9 @@ def _cause(joint: int, findings, rigid_body: str, refined: bool) -> str:
     return f"no kept term acts on joint {joint + 1}; the change is the joint's share of the jointly weighted fit"
 
 
-def explain_joint_changes(rmse_before, rmse_after, findings, rigid_body: str, refined: bool) -> tuple:
-    """One sentence (``rise_sentence``) per joint whose final validation RMSE is above the nominal model's.
+def explain_joint_changes(rmse_before, rmse_after, findings, rigid_body: str, refined: bool, margin=None) -> tuple:
+    """One sentence (``rise_sentence``) per joint whose final validation RMSE is above the nominal model's by more than
+    ``margin``.
 
     Parameters
     ----------
@@ -61,10 +84,15 @@ def explain_joint_changes(rmse_before, rmse_after, findings, rigid_body: str, re
     rigid_body : {"prior", "identified"}
     refined : bool
         Whether the nonlinear refinement replaced the linear fit.
+    margin : sequence (n_dof,), optional
+        The never-worse margin [N m] of each joint's rise (``rise_margin``); default (or NaN) its floor,
+        ``MARGIN_FLOOR`` of the RMSE before.
     """
     before, after = np.asarray(rmse_before, dtype=float), np.asarray(rmse_after, dtype=float)
+    floor = MARGIN_FLOOR * before
+    margin = floor if margin is None else np.where(np.isfinite(margin), np.asarray(margin, dtype=float), floor)
     return tuple(
         rise_sentence(j, before[j], after[j], _cause(j, findings, rigid_body, refined))
         for j in range(before.size)
-        if after[j] > before[j]
+        if after[j] > before[j] + margin[j]
     )

@@ -22,7 +22,7 @@ from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.counterbalance_naming import name_counterbalances, offset_verdicts
 from identification.diagnosis.design import left_out
 from identification.diagnosis.held_links import held_links
-from identification.diagnosis.joint_changes import explain_joint_changes, rise_sentence
+from identification.diagnosis.joint_changes import explain_joint_changes, rise_margin, rise_sentence
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
 from identification.diagnosis.recording_checks import check_recordings
 from identification.diagnosis.report import DiagnosisReport, Finding
@@ -60,6 +60,7 @@ def build_report(
     r2_before, r2_after = r2(ctx_v.tau, model_nominal_v), r2(ctx_v.tau, model_final_v)
     for values in (rmse_before, rmse_after, r2_before, r2_after):  # a joint without a torque measurement: no number
         values[list(left_out(ctx_v))] = np.nan
+    margin = rise_margin(ctx_v.tau - model_nominal_v, ctx_v.tau - model_final_v)  # the never-worse gate's
     return DiagnosisReport(
         robot_name=robot.name,
         n_dof=robot.n_dof,
@@ -81,7 +82,9 @@ def build_report(
         validation_tau=ctx_v.tau,
         validation_nominal=model_nominal_v,
         validation_final=model_final_v,
-        joint_notes=explain_joint_changes(rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear)),
+        joint_notes=explain_joint_changes(
+            rmse_before, rmse_after, findings, options.rigid_body, bool(final.nonlinear), margin
+        ),
         confounding=confounding_of(robot, model, problem, final, len(selection.steps), options),
         dropped=selection.dropped,
         unstable=held_offset_unstable(selection.unstable, options.held_friction),
