@@ -82,18 +82,22 @@ BARRIER_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": Fals
 RETRY_OPTIONS = {"ipopt.bound_push": 1e-9, "ipopt.bound_frac": 1e-9}
 
 
-def _pseudo(v, margin: float, size: float):
-    """``(J - margin 1) / size`` of ten standard parameters (a CasADi column), as nested lists of expressions."""
+def _pseudo(v, margin: float, size: float, floor=None):
+    """``(J - margin 1 - m diag(F, 0)) / size`` of ten standard parameters (a CasADi column), as nested lists of
+    expressions; ``floor``: the body's ``F`` (``inertia_floor``, 3 x 3 per unit mass) or None (0)."""
     m, mx, my, mz, ixx, ixy, iyy, ixz, iyz, izz = (v[k] for k in range(10))
     half = 0.5 * (ixx + iyy + izz)
     rows = [[half - ixx, -ixy, -ixz, mx], [-ixy, half - iyy, -iyz, my], [-ixz, -iyz, half - izz, mz], [mx, my, mz, m]]
+    if floor is not None:
+        rows = [[rows[r][c] - (m * float(floor[r][c]) if r < 3 and c < 3 else 0.0) for c in range(4)] for r in range(4)]
     return [[(rows[r][c] - (margin if r == c else 0.0)) / size for c in range(4)] for r in range(4)]
 
 
-def pivots(v, margin: float, size: float) -> list:
-    """The four pivots of an LDL^T elimination of ``(J - margin 1) / size`` of one body: all positive exactly inside
-    the cone of positive-definite pseudo-inertias (Sylvester's criterion)."""
-    a = _pseudo(v, margin, size)
+def pivots(v, margin: float, size: float, floor=None) -> list:
+    """The four pivots of an LDL^T elimination of ``(J - margin 1 - m diag(F, 0)) / size`` of one body (``floor``:
+    its ``F`` or None): all positive exactly inside the cone of positive-definite pseudo-inertias (Sylvester's
+    criterion), moved by the body's inertia floor (``inertia_floor``)."""
+    a = _pseudo(v, margin, size, floor)
     out = []
     for p in range(4):
         out.append(a[p][p])
@@ -104,22 +108,27 @@ def pivots(v, margin: float, size: float) -> list:
     return out
 
 
-def log_det_barrier(v, margin: float, size: float):
-    """``-log det((J - margin 1) / size)`` of one body, summed from its ``pivots``: the log of a pivot that is not
-    positive is NaN, so a point outside the cone is never accepted (a determinant alone would be positive with two
-    negative eigenvalues)."""
-    return -sum(ca.log(d) for d in pivots(v, margin, size))
+def log_det_barrier(v, margin: float, size: float, floor=None):
+    """``-log det((J - margin 1 - m diag(F, 0)) / size)`` of one body, summed from its ``pivots``: the log of a pivot
+    that is not positive is NaN, so a point outside the cone is never accepted (a determinant alone would be positive
+    with two negative eigenvalues)."""
+    return -sum(ca.log(d) for d in pivots(v, margin, size, floor))
 
 
-def _inside(body, margin: float) -> np.ndarray:
-    """A start strictly inside the cone: the body with its pseudo-inertia's eigenvalues raised to twice the margin
-    plus a small share of its trace (a prior on the boundary has no barrier value)."""
+def _inside(body, margin: float, floor=None) -> np.ndarray:
+    """A start strictly inside the cone: the body with the eigenvalues of ``J - m diag(F, 0)`` (``floor``: ``F`` or
+    None) raised to twice the margin plus a small share of its trace (a prior on the boundary has no barrier value)."""
     from identification.calibration.pseudo_inertia import link_from_pseudo_inertia
 
+    shift = np.zeros((4, 4))
+    if floor is not None:
+        shift[:3, :3] = floor
     matrix = pseudo_inertia(body)
+    matrix = matrix - matrix[3, 3] * shift
     values, vectors = np.linalg.eigh(matrix)
-    floor = 2.0 * margin + 1e-6 * max(float(np.trace(matrix)), margin)
-    return link_from_pseudo_inertia((vectors * np.maximum(values, floor)) @ vectors.T)
+    least = 2.0 * margin + 1e-6 * max(float(np.trace(matrix)), margin)
+    raised = (vectors * np.maximum(values, least)) @ vectors.T
+    return link_from_pseudo_inertia(raised + raised[3, 3] * shift)
 
 
 @dataclass(frozen=True, eq=False)
@@ -136,7 +145,7 @@ class BarrierResult:
     first: np.ndarray | None = None
 
 
-def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None):
+def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None, floors=None):
     """The ``BarrierResult`` of the path ``MU_PATH``, or None when its first solve fails.
 
     Parameters
@@ -155,20 +164,24 @@ def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None)
         ``(solvers, key, values)`` (``shared_barrier``): the solver of ``problem`` is ``solvers[key]``, built there
         the first time (without a progress bar), with ``problem["p"]`` set to ``values``; ``problem`` is only read
         when the solver is built.
+    floors : list, optional
+        Per body, its inertia floor ``F`` (``inertia_floor``) or None; the barrier and the pivots are of ``J - margin 1
+        - m diag(F, 0)``. None: no body has one.
     """
+    floors = [None] * len(bodies) if floors is None else list(floors)
     lbx, ubx, lbg, ubg = bounds
     n_steps = 4 * len(bodies)  # the pivots of each body, constrained >= 0 after the caller's constraints
     lbg, ubg = np.concatenate([lbg, np.zeros(n_steps)]), np.concatenate([ubg, np.full(n_steps, np.inf)])
     if shared is None:
-        (solver, callback), values = _solver(problem, bodies, margin, (lbg, ubg), True), ()
-        retry = lambda: _solver(problem, bodies, margin, (lbg, ubg), False, RETRY_OPTIONS)[0]  # noqa: E731
+        (solver, callback), values = _solver(problem, (bodies, floors), margin, (lbg, ubg), True), ()
+        retry = lambda: _solver(problem, (bodies, floors), margin, (lbg, ubg), False, RETRY_OPTIONS)[0]  # noqa: E731
     else:  # a shared solve that fails is solved alone (``consistent_fit``), with the retry
         solvers, key, values = shared
         if key not in solvers:
-            solvers[key] = _solver(problem, bodies, margin, (lbg, ubg), False)[0]
+            solvers[key] = _solver(problem, (bodies, floors), margin, (lbg, ubg), False)[0]
         solver, callback, retry = solvers[key], None, None
     try:
-        return _follow_path(solver, bodies, start, (lbx, ubx, lbg, ubg), margin, (n_steps, values), retry)
+        return _follow_path(solver, (bodies, floors), start, (lbx, ubx, lbg, ubg), margin, (n_steps, values), retry)
     finally:
         if callback is not None:
             callback.close()
@@ -177,13 +190,15 @@ def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None)
 def _solver(problem, bodies, margin, g_bounds, progress: bool, extra=None) -> tuple:
     """(Ipopt solver, progress callback or None) of ``problem`` plus ``mu`` times the bodies' barrier, ``mu`` its
     first parameter (then ``problem["p"]``, if any); the pivots also constrained >= 0 (``g_bounds``: with their
-    rows); ``extra``: Ipopt options over ``BARRIER_OPTIONS``."""
+    rows); ``bodies``: (sizes, floors); ``extra``: Ipopt options over ``BARRIER_OPTIONS``."""
     x = problem["x"]
     mu = ca.SX.sym("mu")
-    barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size) for k, size in enumerate(bodies)), 0)
+    bodies = list(zip(*bodies))
+    barrier = sum((log_det_barrier(x[10 * k : 10 * k + 10], margin, size, floor)
+                   for k, (size, floor) in enumerate(bodies)), 0)  # fmt: skip
     # the pivots also as constraints >= 0: Ipopt's fraction-to-the-boundary rule then keeps its steps inside the
     # cone (without them a Newton step of the small barrier overshoots and is cut back, hundreds of times)
-    steps = [d for k, size in enumerate(bodies) for d in pivots(x[10 * k : 10 * k + 10], margin, size)]
+    steps = [d for k, (size, floor) in enumerate(bodies) for d in pivots(x[10 * k : 10 * k + 10], margin, size, floor)]
     g = ca.vertcat(problem["g"], *steps)
     parameters = ca.vertcat(mu, problem["p"]) if "p" in problem else mu
     bar, callback = {}, None
@@ -196,14 +211,15 @@ def _solver(problem, bodies, margin, g_bounds, progress: bool, extra=None) -> tu
 
 
 def _follow_path(solver, bodies, start, bounds, margin, steps, retry=None):
-    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bounds`` with the pivots' rows,
-    ``steps``: (their number, the values of the solver's parameters after ``mu``), ``retry``: a function that builds
-    the solver of a failed warm-started solve's second try (``RETRY_OPTIONS``), or None."""
-    n_bodies, (n_steps, values) = len(bodies), steps
+    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bodies``: (sizes, floors),
+    ``bounds`` with the pivots' rows, ``steps``: (their number, the values of the solver's parameters after ``mu``),
+    ``retry``: a function that builds the solver of a failed warm-started solve's second try (``RETRY_OPTIONS``), or
+    None."""
+    (_, floors), (n_steps, values) = bodies, steps
     lbx, ubx, lbg, ubg = bounds
     current = np.array(start, dtype=float)
-    for k in range(n_bodies):
-        current[10 * k : 10 * k + 10] = _inside(current[10 * k : 10 * k + 10], margin)
+    for k, floor in enumerate(floors):
+        current[10 * k : 10 * k + 10] = _inside(current[10 * k : 10 * k + 10], margin, floor)
     current, last, iterations, reached, status, first = np.clip(current, lbx, ubx), None, 0, np.inf, "", None
     for weight in MU_PATH:
         p = np.concatenate([[weight], values]) if len(values) else weight

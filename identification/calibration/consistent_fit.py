@@ -29,6 +29,7 @@ import casadi as ca
 import numpy as np
 
 from identification.calibration.envelope import density_weights, link_envelopes
+from identification.calibration.inertia_floor import link_floors
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.pseudo_inertia import (
     LINK_PARAMETER_COUNT,
@@ -81,6 +82,9 @@ class FitBounds:
         to first order); zeros before it.
     prior : PriorPull or None
         After the fit: how strongly it was pulled towards the robot file (``prior_pull``).
+    floors : tuple
+        Per joint, the link's inertia floor (``inertia_floor.link_floors``: 3 x 3, per unit mass) or None; empty:
+        none.
     """
 
     envelopes: tuple
@@ -90,6 +94,11 @@ class FitBounds:
     rotor_upper: np.ndarray
     pressure: np.ndarray | None = None
     prior: PriorPull | None = None
+    floors: tuple = ()
+
+    def floor(self, i: int):
+        """The inertia floor ``F`` of link ``i`` (``inertia_floor``), or None."""
+        return self.floors[i] if i < len(self.floors) else None
 
 
 def residual_sigma(equations, x) -> np.ndarray:
@@ -118,6 +127,7 @@ def fit_bounds(robot, model, options) -> FitBounds:
         mass_upper=np.where(given, high * mass, np.inf),
         rotor_lower=np.where(with_rotor, rotor_low * rotor, 0.0),
         rotor_upper=np.where(with_rotor, rotor_high * rotor, np.inf),
+        floors=link_floors(robot, free),
     )
 
 
@@ -251,7 +261,7 @@ def consistent_fit(
     rows = []
     for i in range(n):
         k = links.index(i) if i in links else None
-        link = None if k is None else link_from_log_cholesky(phi[k * 10 : k * 10 + 10], margin=options.margin)
+        link = None if k is None else link_from_log_cholesky(phi[k * 10 : k * 10 + 10], options.margin, bounds.floor(i))
         rows.append(ca.vertcat(link if link is not None else ca.DM(prior[i, :10]), rotor[i]))
     standard = ca.vertcat(*rows)
     bodies = [
@@ -264,7 +274,7 @@ def consistent_fit(
     logger.debug("consistent fit: %s", pull.describe())  # identify's report states it once (IdentifyResult)
     prior_term = pull.expression(standard, prior, payloads, payload_prior)
     variables = ca.vertcat(phi, rotor, drive, psi)
-    start = np.concatenate([*(chart_start(prior[i, :10], options.margin) for i in links),
+    start = np.concatenate([*(chart_start(prior[i, :10], options.margin, bounds.floor(i)) for i in links),
                             np.maximum(prior[:, ROTOR], 0.0), np.zeros(len(names)),
                             *(chart_start(body, options.margin) for body in payload_prior)])  # fmt: skip
     lower, upper = _variable_bounds(phi.numel(), names, drive_lower, bounds)
@@ -313,10 +323,13 @@ def centred_residual(gram, moment, energy, count, x):
     return (ca.bilin(ca.DM(gram), d, d) - 2 * ca.dot(ca.DM(rest), d) + level) / count
 
 
-def chart_start(link, margin):
-    """Chart coordinates of a link with the margin taken off (projected if inconsistent)."""
-    shifted = link_from_pseudo_inertia(pseudo_inertia(link) - margin * np.eye(4))
-    return log_cholesky_from_link(shifted, floor=max(margin, 1e-9))
+def chart_start(link, margin, floor=None):
+    """Chart coordinates of a link with the margin and its inertia floor ``floor`` (``m diag(floor, 0)``, or None)
+    taken off (projected if inconsistent)."""
+    matrix = pseudo_inertia(link) - margin * np.eye(4)
+    if floor is not None:
+        matrix[:3, :3] -= float(link[0]) * np.asarray(floor)
+    return log_cholesky_from_link(link_from_pseudo_inertia(matrix), floor=max(margin, 1e-9))
 
 
 def drive_lower_bounds(names):
@@ -343,6 +356,7 @@ def _standard_form(model, prior, links, flange, n_drive, bounds, pull) -> dict:
     return {
         "variables": ca.vertcat(links_v, bodies_v, rotor, drive),
         "sizes": sizes,
+        "floors": [bounds.floor(i) for i in links] + [None] * n_bodies,
         "x": ca.vertcat(ca.mtimes(ca.DM(model.parameter_map), standard), drive, bodies_v),
         "f_extra": pull.weight * unweighted,
         "pull": (unweighted, pull.weight),
@@ -372,16 +386,18 @@ def _convex_solve(plain, evaluate, chart, normal, chart_bounds, margin, counts, 
     ubx = np.concatenate([np.full(n_phi + n_psi, np.inf), upper[n_phi : upper.size - n_psi]])
     bounds = (lbx, ubx, *plain["g_bounds"])
     problem, shared = shared_problem(plain, normal, margin)  # inside ``shared_solvers``: the data as parameters
-    solved = None if shared is None else barrier_solution(problem, plain["sizes"], start, bounds, margin, shared)
+    floors = plain["floors"]
+    solved = None if shared is None else barrier_solution(problem, plain["sizes"], start, bounds, margin, shared,
+                                                          floors)  # fmt: skip
     if shared is None or solved is None or not solved.complete:  # a shared solver that stopped: solved as alone
         if shared is not None:
             logger.debug("consistent fit: the shared barrier-path solver stopped (%s); this fit's own solver",
                          "at its first weight" if solved is None else solved.status)  # fmt: skip
         residual = centred_residual(gram, moment, energy, count, plain["x"])
         problem = {"x": plain["variables"], "f": residual + plain["f_extra"], "g": plain["g"]}
-        solved = barrier_solution(problem, plain["sizes"], start, bounds, margin)
+        solved = barrier_solution(problem, plain["sizes"], start, bounds, margin, floors=floors)
     if solved is None:
         return None, chart
-    links = [chart_start(body, margin) for body in solved.x[:n_phi].reshape(-1, 10)]
+    links = [chart_start(body, margin, floor) for body, floor in zip(solved.x[:n_phi].reshape(-1, 10), floors)]
     flange = [chart_start(body, margin) for body in solved.x[n_phi : n_phi + n_psi].reshape(-1, 10)]
     return solved, np.concatenate([*links, solved.x[n_phi + n_psi :], *flange])

@@ -76,16 +76,19 @@ def _lower_factor(phi):
     ]
 
 
-def link_from_log_cholesky(phi, margin: float = 0.0):
+def link_from_log_cholesky(phi, margin: float = 0.0, floor=None):
     """Ten standard parameters from ten log-Cholesky coordinates (numbers or a CasADi column).
 
     ``margin`` [kg m^2] is added to the pseudo-inertia's diagonal, ``J = L L^T + margin * 1``, so that
     its eigenvalues stay at least ``margin`` above zero even where an optimiser drives ``L`` towards
-    the boundary.
+    the boundary. ``floor`` (3 x 3, ``inertia_floor``: the link's second moment about its centre of mass per unit
+    mass is at least it) adds ``m diag(floor, 0)``, ``m = J[3, 3]``: every point of the chart keeps the floor.
     """
     lower = _lower_factor(phi)
     j = [[sum(lower[r][k] * lower[c][k] for k in range(4)) + (margin if r == c else 0.0) for c in range(4)]
          for r in range(4)]  # fmt: skip
+    if floor is not None:
+        j = [[j[r][c] + (j[3][3] * float(floor[r][c]) if r < 3 and c < 3 else 0.0) for c in range(4)] for r in range(4)]
     trace_sigma = j[0][0] + j[1][1] + j[2][2]
     entries = [j[3][3], j[0][3], j[1][3], j[2][3], trace_sigma - j[0][0], -j[0][1], trace_sigma - j[1][1], -j[0][2],
                -j[1][2], trace_sigma - j[2][2]]  # fmt: skip

@@ -73,7 +73,9 @@ def shared_problem(plain, normal, margin: float) -> tuple:
     rest = moment - gram @ centre
     level = energy - 2.0 * moment @ centre + centre @ gram @ centre
     values = np.concatenate([gram.reshape(-1, order="F"), centre, rest, [level, count, pull[1]]])
-    key = (v.numel(), tuple(plain["sizes"]), margin, ca.Function("key", [v], [x, plain["g"], pull[0]]).serialize())
+    floors = tuple(None if f is None else np.asarray(f).tobytes() for f in plain.get("floors", ()))
+    key = (v.numel(), tuple(plain["sizes"]), floors, margin,
+           ca.Function("key", [v], [x, plain["g"], pull[0]]).serialize())  # fmt: skip
     if key in solvers:
         return {}, (solvers, key, values)
     n = x.numel()

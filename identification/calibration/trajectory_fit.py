@@ -43,6 +43,7 @@ from identification.calibration.consistent_fit import (
 from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
 from identification.calibration.held_back import causes
+from identification.calibration.inertia_floor import floor_note
 from identification.calibration.merged_rotors import with_merged_rotors
 from identification.calibration.payload_fit import (
     Estimable,
@@ -430,7 +431,8 @@ def identify_trajectories(
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,
-        envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept,
+        envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept
+        + floor_note(robot, standard, bounds),
         torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit], loaded=(*loaded,),
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit, loaded), *mixed)), options)

@@ -220,6 +220,7 @@ def _calibrated_functions(args, path: Path, out: Path):
     from codegen.calibrated import build_calibrated_functions, consistency_problem, header_note
     from codegen.motor_torque import add_motor_torque
     from psdm_casadi.cli.checks import read_calibrated_argument
+    from psdm_casadi.cli.exports import warn_stiff_links
     from psdm_casadi.cli.output import progress
 
     given = (("--theta", args.theta), ("--robot", args.robot), ("--lock", getattr(args, "lock", None) or None))
@@ -232,6 +233,7 @@ def _calibrated_functions(args, path: Path, out: Path):
     loaded = read_calibrated_argument(args, path)  # checked; its robot and model derived once
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     report_model_warnings("codegen", path, calibrated)
+    stiff = warn_stiff_links("codegen", path, loaded)
     problem = consistency_problem(calibrated)
     if problem is not None and not args.allow_inconsistent:
         print(
@@ -246,7 +248,8 @@ def _calibrated_functions(args, path: Path, out: Path):
     form = args.form or "recursive"
     functions = build_calibrated_functions(calibrated, model, robot, form=form, allow_inconsistent=True)
     functions = add_motor_torque(functions, robot.transmission)  # tau_m = N_q^-T tau, with a [transmission]
-    return functions, form, None, header_note(calibrated, source_name=path.name), calibrated
+    stiff_note = "".join(f"/* WARNING: {sentence}. */\n" for sentence in stiff)  # the forward dynamics' users
+    return functions, form, None, header_note(calibrated, source_name=path.name) + stiff_note, calibrated
 
 
 def _export_functions(args, out: Path):
@@ -344,6 +347,11 @@ def _run_codegen(args) -> int:
             sources += [lugre_source] if lugre_source is not None else []
             compile_shared(sources, stage / f"lib{export.library}.so", flags=("-O3", "-march=native", *openmp))
     warnings = [] if calibrated is None else model_warnings(calibrated)
+    warnings += [
+        line[len("/* WARNING: ") : -len(". */")]
+        for line in (note or "").splitlines()
+        if line.startswith("/* WARNING: ") and "plausible floor" in line
+    ]  # ``warn_stiff_links``'s
     _print_export(args, out, export, form, calibrated=calibrated is not None, batch=batch, warnings=warnings)
     if lugre_source is not None:
         progress(f"LuGre friction: NOT in inverse_dynamics; {lugre_source.name} has psdm_lugre_step(s, qd_prev, "

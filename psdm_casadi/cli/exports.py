@@ -16,7 +16,14 @@ from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
 from psdm_casadi.cli.output import report_model_warnings
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["ExportInput", "add_export_arguments", "check_not_robot_file", "read_export_input", "write_export"]
+__all__ = [
+    "ExportInput",
+    "add_export_arguments",
+    "check_not_robot_file",
+    "read_export_input",
+    "warn_stiff_links",
+    "write_export",
+]
 
 
 @dataclass(frozen=True)
@@ -85,6 +92,7 @@ def read_export_input(args, command: str, suffix: str, what: str) -> ExportInput
     loaded = read_calibrated_argument(args, args.model)
     calibrated = loaded.calibrated
     report_model_warnings(command, args.model, calibrated)
+    warn_stiff_links(command, args.model, loaded)
     check_not_robot_file(args, calibrated)
     eigenvalue = calibrated.document["standard"]["min_pseudo_inertia_eigenvalue"]
     checked = calibrated.document["standard"].get("checked", True)
@@ -97,6 +105,25 @@ def read_export_input(args, command: str, suffix: str, what: str) -> ExportInput
         )
         return None
     return ExportInput(loaded, out, eigenvalue)
+
+
+def warn_stiff_links(command: str, source, loaded) -> list:
+    """Warn on stderr, before a command writes the model ``loaded`` (``calibrated_model.LoadedModel``) read from
+    ``source``, about each link whose rotational inertia is below its plausible floor (``inertia_floor.stiff_links``:
+    stiff forward dynamics); return the sentences. A warning, not a refusal: the model still predicts the torques of
+    its recordings, and inverse dynamics are unaffected."""
+    import numpy as np
+
+    from identification.calibration.inertia_floor import stiff_links
+
+    robot = loaded.robot
+    values = (loaded.calibrated.document.get("standard") or {}).get("values")
+    if values is None or robot.links is None or np.size(values) != robot.n_dof * 11:
+        return []
+    sentences = list(stiff_links(robot, np.asarray(values, dtype=float).reshape(robot.n_dof, 11)))
+    for sentence in sentences:
+        print(f"psdm {command}: warning: {Path(source).name}: {sentence}", file=sys.stderr)
+    return sentences
 
 
 def write_export(command: str, read: ExportInput, text: str, left_out) -> None:

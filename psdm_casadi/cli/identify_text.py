@@ -89,7 +89,15 @@ def _print_envelope(fit, route=str) -> None:
     print(
         f"physical envelope: each link's mass within {mass} x the robot file's, drive inertias within {rotor} x, "
         f"the mass inside a bounding ellipsoid ({', '.join(sources)})"
+        + (
+            f", its spread about its centre of mass at least {floor['share']:g} x the robot file's per unit mass "
+            f"(links {', '.join(str(k) for k in floor['links'])})"
+            if (floor := bounds.get("inertia_floor"))
+            else ""
+        )
     )
+    for note in (floor or {}).get("at_floor", ()):
+        print(f"  AT ITS INERTIA FLOOR (note): {note['message']}")
     for entry in bounds.get("drive_inertia_reference", []):
         source = (
             "the training data beside the robot file's links"
