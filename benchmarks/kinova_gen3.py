@@ -73,8 +73,9 @@ SHORT = ("opti_traj_testing2.csv",)
 #: Training recordings per source: every log with that signal (RunTrajectory1's TorqueSm1 is zero: identify finds
 #: it and leaves joint 1's rows of that recording out; Trajectory1 and the others have no sensor torque at all).
 TRAINING = {"sensor": (TRAIN, "RunTrajectory1.csv"), "current": (TRAIN, "RunTrajectory1.csv", "Trajectory1.csv")}
-#: A link is plausible when its mass is within this factor of the URDF's and its centre of mass lies within
-#: its reach (the distance to the next joint, 0.15 m for the last link) plus this margin [m].
+#: A link is plausible when its mass is within this factor of the URDF's, its centre of mass lies within
+#: its reach (the distance to the next joint, 0.15 m for the last link) plus this margin [m], and its rotational
+#: spread about its centre of mass is not below its floor (``links_report``).
 MASS_FACTOR, COM_MARGIN = 5.0, 0.1
 #: The identification's default mass bounds (``--mass-bounds``), relative to the robot file's link masses, and how close
 #: to one counts as at it.
@@ -188,10 +189,16 @@ def link_reach(robot) -> np.ndarray:
 
 def links_report(robot, model_file: Path) -> dict:
     """The identified links against the robot file's (its ``[[link]]`` tables over the URDF's): masses, centre-of-mass
-    distances, whether each is plausible, and which sit at the identification's mass bounds (``MASS_BOUNDS``)."""
+    distances, the share of the file's rotational spread each keeps in its weakest direction (``inertia_share``; below
+    the floor ``inertia_floor.FLOOR_SHARE`` a link spins too easily and the forward dynamics turn stiff), whether each
+    is plausible, and which sit at the identification's mass bounds (``MASS_BOUNDS``)."""
+    from identification.calibration.inertia_floor import AT_FLOOR, FLOOR_SHARE, inertia_share, principal_inertia
     from psdm_casadi.robot import load_robot
 
     standard = np.array(json.loads(model_file.read_text())["standard"]["values"]).reshape(robot.n_dof, -1)
+    file = robot.nominal_dynamic_parameters()
+    share = np.array([inertia_share(standard[j], file[j]) for j in range(robot.n_dof)])
+    spread_ok = share >= FLOOR_SHARE / AT_FLOOR
     mass = standard[:, 0]
     com = np.linalg.norm(standard[:, 1:4], axis=1) / np.maximum(mass, 1e-9)
     prior = np.array([link.mass for link in robot.links])
@@ -206,8 +213,12 @@ def links_report(robot, model_file: Path) -> dict:
             "total_mass": float(mass.sum()), "robot_file_total_mass": float(prior.sum()),
             "urdf_total_mass": float(urdf.sum()), "last_link_excess_mass": float(mass[-1] - prior[-1]),
             "links_at_mass_bound": [j + 1 for j in range(robot.n_dof) if at_bound[j]],
-            "implausible_links": [j + 1 for j in range(robot.n_dof) if not (mass_ok[j] and com_ok[j])],
-            "plausible": bool(np.all(mass_ok & com_ok))}  # fmt: skip
+            "inertia_share": share.tolist(), "inertia_floor": FLOOR_SHARE,
+            "principal_inertia": [principal_inertia(standard[j]).tolist() for j in range(robot.n_dof)],
+            "robot_file_principal_inertia": [principal_inertia(file[j]).tolist() for j in range(robot.n_dof)],
+            "links_below_inertia_floor": [j + 1 for j in range(robot.n_dof) if not spread_ok[j]],
+            "implausible_links": [j + 1 for j in range(robot.n_dof) if not (mass_ok[j] and com_ok[j] and spread_ok[j])],
+            "plausible": bool(np.all(mass_ok & com_ok & spread_ok))}  # fmt: skip
 
 
 def identify(robot, source: str, folder: Path, data: Path, log, robot_file: Path | None = None, short=False) -> dict:
@@ -343,9 +354,13 @@ def kinova_missed(result) -> list:
         missed.append(
             f"kinova kinova_models: the vendor URDF alone, identify failed ({vendor['identify'].get('error')})"
         )
-    elif not (vendor["names_unusable_inertias"] and vendor["names_tool"]):
-        missed.append("kinova kinova_models: the vendor URDF alone, identify does not name its unusable inertias and "
-                      "the tool")  # fmt: skip
+    else:
+        if not (vendor["names_unusable_inertias"] and vendor["names_tool"]):
+            missed.append("kinova kinova_models: the vendor URDF alone, identify does not name its unusable inertias "
+                          "and the tool")  # fmt: skip
+        below = vendor["identify"]["links"]["links_below_inertia_floor"]
+        if below:  # a wrist the sensors hardly see, collapsed to a point: stiff forward dynamics
+            missed.append(f"kinova kinova_models: the vendor URDF alone, links below their inertia floor {below}")
     if not result["sensor_fit_no_joint_worse_than_robot_file"]:
         missed.append(f"kinova kinova_models: sensor fit worse than the robot file on joints "
                       f"{result['sensor'].get('worse_than_robot_file')}")  # fmt: skip
@@ -358,6 +373,18 @@ def kinova_missed(result) -> list:
             missed.append(f"kinova kinova_models: {source} fit, links at a mass bound "
                           f"{result[source].get('links', {}).get('links_at_mass_bound')}")  # fmt: skip
     return missed
+
+
+def print_spread(links) -> None:
+    """Per link, the share of the robot file's rotational spread it keeps (``links_report``), and links 6 and 7's
+    principal inertias about their centre of mass against the file's (the wrist the sensors hardly see)."""
+    print("           inertia share of the file's (floor " + f"{links['inertia_floor']:g}): "
+          + " ".join(f"{v:.3g}" for v in links["inertia_share"])
+          + f"; below the floor: links {links['links_below_inertia_floor'] or 'none'}")  # fmt: skip
+    for j in (5, 6):
+        own, file = links["principal_inertia"][j], links["robot_file_principal_inertia"][j]
+        print(f"           link {j + 1}: principal inertia {'/'.join(f'{v:.2g}' for v in own)} kg m^2 (robot file "
+              f"{'/'.join(f'{v:.2g}' for v in file)})")  # fmt: skip
 
 
 def print_short(fit) -> None:
@@ -422,6 +449,7 @@ def print_kinova(result) -> None:
               f"{fit['drives_pushed'] or 'none'}); "
               f"implausible links: {links['implausible_links'] or 'none'}; a tool at the flange named: "
               f"{'yes' if fit['names_tool_at_flange'] else 'no'}")  # fmt: skip
+        print_spread(links)
     print_short(result["sensor_short"])
     check = result["sensor_check"]
     print("  currents against the sensors (kt i = a tau_s + mu |tau_s| sign + friction + Ia qdd):")
@@ -450,6 +478,7 @@ def print_kinova(result) -> None:
               + f"; names its unusable inertias: {'yes' if vendor['names_unusable_inertias'] else 'no'}, a tool at the "
               f"flange: {'yes' if vendor['names_tool'] else 'no'}; diagnosis: payload "
               f"{'none' if mass is None else f'{mass:.3f} kg'}")  # fmt: skip
+        print_spread(fit["links"])
     tool = result["tool_diagnosis"]
     if tool is not None and tool.get("exit_code") == 0:
         print(f"  diagnosis of the robot file (tool of {result['tool_stated_in_robot_file_kg']:.2f} kg stated): "
