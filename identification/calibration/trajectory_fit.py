@@ -355,8 +355,7 @@ def identify_trajectories(
     SolverError
         When Ipopt does not converge on the consistent fit.
     """
-    options = TrajectoryOptions() if options is None else options
-    start = time.perf_counter()
+    options, start = TrajectoryOptions() if options is None else options, time.perf_counter()
     recordings = [find_missing_torque(r) for r in recordings]  # a dead torque channel: only its joint's rows out
     if not recordings:
         raise ParameterError("identify_trajectories needs at least one recording; got none. Pass --data FILE.")
