@@ -14,8 +14,9 @@ log-det barrier path (``barrier_path``); the chart solve is kept as the fallback
 
 With ``TrajectoryOptions.envelope`` (the default) each link also stays inside its physical envelope
 (``envelope``): the density condition of its bounding ellipsoid, its mass within ``mass_ratio`` of the
-robot file's, and the drive inertias within ``drive_inertia_ratio`` of the file's where it gives them
-(:func:`fit_bounds`). The envelope is per body (``FitBounds.envelopes``, one ellipsoid or None per link); a
+robot file's, the drive inertias within ``drive_inertia_ratio`` of the file's where it gives them, and its spread
+about its centre of mass above its floor (``inertia_floor``: the cone of ``J - m diag(F, 0)``, in the chart and the
+barrier) (:func:`fit_bounds`). The envelope is per body (``FitBounds.envelopes``, one ellipsoid or None per link); a
 flange payload has none. The bounds come back with the data's pressure on each, so that a report can say
 which ones the data pushed against (``envelope_report``).
 """

@@ -162,14 +162,16 @@ def stiff_links(robot, standard) -> tuple:
     below = [
         (i, inertia_share(standard[i], prior[i]))
         for i in range(robot.n_dof)
-        if np.all(np.isfinite(standard[i, :LINK_PARAMETER_COUNT])) and link_floors(robot, [i])[i] is not None
+        if np.all(np.isfinite(standard[i, :LINK_PARAMETER_COUNT]))
+        and standard[i, 0] > 0
+        and link_floors(robot, [i])[i] is not None
     ]
     below = [(i, share) for i, share in below if share < FLOOR_SHARE / AT_FLOOR]  # fmt: skip
     if not below:
         return ()
     low, high = (np.clip(np.asarray(v, dtype=float), -np.pi, np.pi) for v in (robot.q_min, robot.q_max))
     q = 0.5 * (low + high)
-    model, file = (np.linalg.inv(PinocchioOracle(robot, p).crba(q)) for p in (standard, prior))
+    model, file = (np.linalg.pinv(PinocchioOracle(robot, p).crba(q)) for p in (standard, prior))  # a massless tip
     out = []
     for i, share in below:
         floor = principal_inertia(np.concatenate([[standard[i, 0]], standard[i, 1:4], _floor_link(standard[i],

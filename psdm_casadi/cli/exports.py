@@ -118,8 +118,8 @@ def warn_stiff_links(command: str, source, loaded) -> list:
 
     robot = loaded.robot
     values = (loaded.calibrated.document.get("standard") or {}).get("values")
-    if values is None or robot.links is None or np.size(values) != robot.n_dof * 11:
-        return []
+    if not loaded.calibrated.consistent or values is None or robot.links is None or np.size(values) != robot.n_dof * 11:
+        return []  # an inconsistent model has its own refusal (--allow-inconsistent)
     sentences = list(stiff_links(robot, np.asarray(values, dtype=float).reshape(robot.n_dof, 11)))
     for sentence in sentences:
         print(f"psdm {command}: warning: {Path(source).name}: {sentence}", file=sys.stderr)
