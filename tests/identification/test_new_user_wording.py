@@ -107,7 +107,10 @@ def test_a_held_back_parameters_route_names_this_runs_files(denso, tmp_path, cap
     save_recording(rigid_recording(denso, hidden, seed=2, duration=4.0), second)
     save_recording(rigid_recording(denso, hidden, seed=1), valid)
     out = tmp_path / "model.json"
-    args = ["identify", str(denso.source), "--data", str(train), str(second), "--validate", str(valid)]
+    # the counterbalance route left out: the hidden inertia the envelope holds back moves joint 1's gravity, a spring
+    # is tried there on 4 blocks x 3 shapes and refused (85 % of the run); this test reads the printed route
+    args = ["identify", str(denso.source), "--data", str(train), str(second), "--validate", str(valid),
+            "--no-counterbalance"]  # fmt: skip
     assert main([*args, "--out", str(out), "--no-html"]) == 0
     text = capsys.readouterr().out
     held = [line for line in text.splitlines() if "HELD BACK" in line]
