@@ -82,6 +82,7 @@ __all__ = [
     "spring_model",
     "take_counterbalance",
     "try_counterbalance",
+    "trying_line",
 ]
 
 logger = logging.getLogger(__name__)
@@ -266,6 +267,14 @@ def _entries(columns: FindingColumns, extra) -> list:
     return filled_entries(entries, list(columns.terms), columns, extra)
 
 
+def trying_line(named, held_out: bool) -> str:
+    """The progress line of the trial of the counterbalances named on the 0-based joints ``named``, numbered from 1 as
+    every other line numbers them (it said ``on [3]`` of the spring it then called joint 4's)."""
+    how = "on each held-out recording" if held_out else "by block cross-validation over the training data"
+    joints = ("joints " if len(named) > 1 else "joint ") + ", ".join(str(int(j) + 1) for j in named)
+    return f"identify: trying the counterbalance the report names on {joints} ({how}) ..."
+
+
 def try_counterbalance(
     robot, model, recordings, options, fit, calibrated, validation, build, configurations=None, kt=None
 ):
@@ -289,8 +298,7 @@ def try_counterbalance(
     named, said, readings = naming.named, naming.said, naming.readings
     if not named:
         return CounterbalanceChoice(reason=said)
-    how = "on each held-out recording" if validation else "by block cross-validation over the training data"
-    logger.info("identify: trying the counterbalance the report names on %s (%s) ...", list(map(int, named)), how)
+    logger.info(trying_line(named, bool(validation)))
     judges, offsets = Judges(replacing=naming.lenient, baseline=options), options.offset_joints
     options = replace(options, offset_joints=tuple(j for j in offsets if j not in readings)) if readings else options
     problem = (robot, model, recordings, options, fit, calibrated, validation, build, configurations, kt)

@@ -149,8 +149,9 @@ class FileCheck:
                     f"{allowance} (RMSE {_numbers(c.after)} against {_numbers(c.before)} N m{within})")  # fmt: skip
         joints = ", ".join(str(j + 1) for j in self.worse)
         return (f"against the robot file ({self._baseline_text()}): WORSE on joint(s) {joints} on {held} "
-                f"beyond {allowance}: {c.text()} (robot file -> identified). The model is written as identified, but "
-                f"on those joints the robot file predicts the held-out motion better: '{DIAGNOSE_COMMAND}' scores "
+                f"beyond {allowance}: {c.text()} (file baseline -> identified). The model is written as identified, "
+                f"but on those joints the robot file (its validation table's file baseline, not the robot file alone) "
+                f"predicts the held-out motion better: '{DIAGNOSE_COMMAND}' scores "
                 f"that model and names what it finds missing. {self._remedy()}")  # fmt: skip
 
     def _baseline_text(self) -> str:

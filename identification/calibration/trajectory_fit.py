@@ -376,7 +376,7 @@ def identify_trajectories(
     setup = (options.friction, inertia_joints, options.coulomb_velocity, vs, options.viscous_exponent)
     n_columns = n_all + (0 if vs is None else robot.n_dof)  # one pass; flange probes of configuration_check
     equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
-    logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", equations.count[0], len(recordings),
+    logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", max(equations.count), len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs), extra=ONCE)  # fmt: skip
     held = _held_columns(names, options, model.n_base, vs, n_columns)  # held at 0: left out of both fits
     free = [k for k in range(equations.n_columns) if k not in held]
@@ -426,7 +426,7 @@ def identify_trajectories(
         drive_std=std[model.n_base : n_fit], sigma=sigma, condition_number=condition,
         consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
-        n_samples=int(equations.count[0]), solver_status=status, seconds=time.perf_counter() - start,
+        n_samples=int(max(equations.count)), solver_status=status, seconds=time.perf_counter() - start,
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,

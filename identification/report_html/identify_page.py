@@ -86,11 +86,40 @@ def judged_load(robot, calibrated, model, recording, kt, name, unstated=True) ->
     return check.prepared, predicted, check.predicted, taken_off
 
 
-def identify_page(document: dict, series=()) -> Page:
-    """The report page of a calibrated-model ``document`` and the ``TorqueSeries`` it predicted."""
+@dataclass(frozen=True)
+class NextFiles:
+    """The files the page's next step names: the model file identify wrote (``model``) and the ``psdm diagnose``
+    command with this run's recordings (``diagnose``, as identify prints it; empty: a placeholder command). Without
+    them (the Python API, which writes no file) the page says ``MODEL.json``."""
+
+    model: str = "MODEL.json"
+    diagnose: str = ""
+
+    def diagnose_command(self) -> str:
+        """``psdm diagnose`` of the model file with the run's recordings, writing the next model beside it."""
+        command = self.diagnose or f"psdm diagnose {self.model} --train TRAIN.csv --validate OTHER.csv"
+        return f"{command} --apply {_beside(self.model, '_2.json')}"
+
+    def exports(self) -> str:
+        """The three exports of the model file, each to a file named after it."""
+        m = self.model
+        return (f"psdm codegen {m} --out {_beside(m, '_c')} (C), psdm export-urdf {m} {_beside(m, '_identified.urdf')} "
+                f"or psdm export-mjcf {m} {_beside(m, '_identified.xml')}")  # fmt: skip
+
+
+def _beside(model: str, suffix: str) -> str:
+    """A file named after the model file, in its folder (``out/kinova.json``, ``_identified.urdf`` ->
+    ``out/kinova_identified.urdf``: never the robot's own ``kinova.urdf``)."""
+    path = Path(model)
+    return str(path.with_name(path.stem + suffix))
+
+
+def identify_page(document: dict, series=(), files: NextFiles | None = None) -> Page:
+    """The report page of a calibrated-model ``document`` and the ``TorqueSeries`` it predicted; ``files`` names the
+    model file and the recordings in the next step's commands."""
     names = document["robot"]["joint_names"]
     page = Page(f"Identified model: {document['robot']['name']}")
-    _summary(page, document)
+    _summary(page, document, files or NextFiles())
     warnings = list(document.get("warnings") or [])
     if warnings:
         page.section(f"Warnings stored with the fit ({len(warnings)})", paragraphs(warnings), open_=True)
@@ -107,7 +136,7 @@ def identify_page(document: dict, series=()) -> Page:
     return page
 
 
-def _summary(page: Page, document: dict) -> None:
+def _summary(page: Page, document: dict, files: NextFiles) -> None:
     ident, standard = document.get("identification", {}), document.get("standard", {})
     n_rec = len(document.get("provenance", {}).get("recordings") or [])
     cutoff = ", ".join(f"{c:g}" for c in ident.get("cutoff_hz") or [])
@@ -138,7 +167,7 @@ def _summary(page: Page, document: dict) -> None:
         page.say("Plausibility: no warning (friction, masses and each joint's fit within the checks).", "good")
     for entry in (document.get("validation") or {}).get("recordings") or []:
         page.say(*_comparison(entry, document["robot"]["joint_names"]))
-    page.say(_next_step(document))
+    page.say(_next_step(document, files))
 
 
 def _number(value) -> str:
@@ -184,21 +213,21 @@ def _poorly_predicted(document: dict, names) -> list:
     return out
 
 
-def _next_step(document: dict) -> str:
-    """What to do next, from what the page found (the advice identify prints, not a contrary one)."""
+def _next_step(document: dict, files: NextFiles) -> str:
+    """What to do next, from what the page found (the advice identify prints, not a contrary one), with the model file
+    and the recordings of this run in its commands."""
     if not document.get("standard", {}).get("consistent", True):
         return "Next: record a better-exciting trajectory and identify again."
     if document.get("warnings"):
         return "Next: act on the warnings (each names its check and, where one helps, the command to run)."
     if not (document.get("validation") or {}).get("recordings"):
-        return "Next: validate on a held-out recording (psdm validate MODEL.json OTHER.csv)."
+        return f"Next: validate on a held-out recording (psdm validate {files.model} OTHER.csv)."
     poor = _poorly_predicted(document, document["robot"]["joint_names"])
     if poor:
         return (f"Next: diagnose it before using it: {', '.join(poor)} predicted worse than by the mean torque, a "
-                "torque the model lacks (a coupling, a spring, a load); psdm diagnose MODEL.json --train "
-                "TRAIN.csv --apply NEW.json names it and adds it (identify printed the command with this run's "
-                "files).")  # fmt: skip
-    return "Next: use it: psdm codegen MODEL.json (C), psdm export-urdf or psdm export-mjcf."
+                f"torque the model lacks (a coupling, a spring, a load); {files.diagnose_command()} names it and adds "
+                "it.")  # fmt: skip
+    return f"Next: use it: {files.exports()}."
 
 
 def _validation_tables(validation, names) -> str:

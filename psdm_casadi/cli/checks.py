@@ -35,6 +35,7 @@ __all__ = [
     "check_samples",
     "check_seed",
     "check_suffix",
+    "command_model",
     "derive_model",
     "load_locked_robot",
     "load_robot_argument",
@@ -344,6 +345,17 @@ def derive_model(args, robot, seed: int = 0):
 
     options = DeriveOptions(seed=seed, form=getattr(args, "derive_form", None) or "auto")
     return ModelCache(enabled=not getattr(args, "no_cache", False)).derive(robot, options)
+
+
+def command_model(args, robot):
+    """The command's one PSDM model of ``robot``: derived (``derive_model``) where a step first asks for it and kept
+    on ``args`` for the later steps. A later step's robot differs from the first's only in how it reads torques (the
+    torque constants a known payload corrected), which the model, a function of the kinematics, does not hold; derived
+    again it cost a second cache read, or a second derivation with ``--no-cache`` or a corrected constant's new key."""
+    held = getattr(args, "derived_model", None)
+    if held is None or held.n_dof != robot.n_dof:
+        held = args.derived_model = derive_model(args, robot)
+    return held
 
 
 def read_calibrated_argument(args, path):

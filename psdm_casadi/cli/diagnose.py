@@ -15,7 +15,7 @@ from psdm_casadi.cli.checks import (
     check_count,
     check_not_input,
     check_positive,
-    derive_model,
+    command_model,
     load_robot_argument,
     model_layout,
     output_folder,
@@ -298,7 +298,7 @@ def _robot_report(args, robot, train, validations, options, scaled: str = ""):
     known payload corrected, ``torque_scale_step``)."""
     from identification.diagnosis.diagnose import diagnose
 
-    report = diagnose(robot, train, validations, options, derive=lambda r: derive_model(args, r))
+    report = diagnose(robot, train, validations, options, derive=lambda r: command_model(args, r))
     rigid = "from it" if report.rigid_body == "prior" else "identified"
     return dataclasses.replace(report, nominal_model=f"the robot file {args.robot}: rigid body {rigid}{scaled}")
 

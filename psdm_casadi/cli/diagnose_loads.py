@@ -65,14 +65,14 @@ def robot_file_loads(args, robot, recordings, configurations, preparation):
     training fit cannot be made (a joint that does not move: the diagnosis of the robot file may still run)."""
     from identification.calibration.held_out_arm import held_out_arm
     from identification.calibration.trajectory_fit import TrajectoryOptions
-    from psdm_casadi.cli.checks import derive_model
+    from psdm_casadi.cli.checks import command_model
     from psdm_casadi.cli.output import progress
     from psdm_casadi.errors import RecordingError
 
     options = TrajectoryOptions(cutoff_hz=preparation.cutoff_hz)
     progress("diagnose: checking the validation recordings for a load nothing states (on their residual of a "
              "least-squares fit of the training recording, as identify checks its held-out ones) ...")  # fmt: skip
-    psdm = derive_model(args, robot)
+    psdm = command_model(args, robot)
     try:
         with held_back("identification.calibration"):  # that fit's progress lines are identify's: said above
             return held_out_arm(robot, psdm, recordings[:1], recordings[1:], configurations[:1], configurations[1:],

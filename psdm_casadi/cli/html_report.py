@@ -56,15 +56,16 @@ def html_output(args):
     return output_file(path, "--html", args.overwrite)
 
 
-def write_identify_html(output, robot, model, calibrated, recordings, names) -> Path:
+def write_identify_html(output, robot, model, calibrated, recordings, names, files=("MODEL.json", "")) -> Path:
     """Write the identify page of ``calibrated`` with its prediction of ``recordings`` to ``output`` (held out
-    when they are not the training recordings the model file names)."""
-    from identification.report_html.identify_page import identify_page, torque_series
+    when they are not the training recordings the model file names); ``files``: (the model file written, the
+    ``psdm diagnose`` command of it with this run's recordings) for the page's next step."""
+    from identification.report_html.identify_page import NextFiles, identify_page, torque_series
 
     trained = {r["name"] for r in calibrated.document.get("provenance", {}).get("recordings") or []}
     held_out = not any(Path(str(name)).name in trained for name in names)
     series = torque_series(calibrated, model, robot, recordings, names, held_out)
-    page = identify_page(calibrated.document, series)
+    page = identify_page(calibrated.document, series, NextFiles(*files))
     with output.staging() as stage:
         page.write(stage, overwrite=True)
     return output.target

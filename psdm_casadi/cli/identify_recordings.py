@@ -195,7 +195,9 @@ def run(args) -> int:
     print_identify(args, robot, model, fit, report, calibrated, result, lambda text: _concrete_route(text, args, paths),
                    loads)  # fmt: skip
     if html is not None:  # the held-out recordings' prediction, else the training recordings'
-        page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths)
+        files = (str(args.out), _diagnose_model_command(args, paths))  # the next step's commands with this run's files
+        page = write_identify_html(html, robot, model, calibrated, validation or recordings, args.validate or paths,
+                                   files)  # fmt: skip
         progress(f"identify: HTML report written to {page}", quiet=args.json)
     return EXIT_OK
 
@@ -261,6 +263,14 @@ def _concrete_route(warning: str, args, paths) -> str:
     layout = "".join(f" --{key} {getattr(args, key)}" for key in ("columns", "rate") if getattr(args, key, None))
     command = f"psdm diagnose {args.robot} --train {paths[0]}{holdout}{validate}{layout}"
     return warning.replace(DIAGNOSE_COMMAND, command)
+
+
+def _diagnose_model_command(args, paths) -> str:
+    """``psdm diagnose`` of the model file written (``--out``) with this run's recordings, as identify prints it below
+    a joint predicted worse than by its mean torque."""
+    from identification.calibration.envelope_report import DIAGNOSE_COMMAND
+
+    return _concrete_route(DIAGNOSE_COMMAND, args, paths).replace(str(args.robot), str(args.out), 1)
 
 
 @contextlib.contextmanager

@@ -136,7 +136,7 @@ def diagnose_torque_scales(args, robot, recordings, cutoff_hz) -> tuple:
     from identification.calibration.torque_scale import torque_scales
     from identification.calibration.trajectory_fit import TrajectoryOptions, torque_constants
     from identification.data.configuration import stated_configuration
-    from psdm_casadi.cli.checks import derive_model
+    from psdm_casadi.cli.checks import command_model
 
     paths = [args.train, *args.validate]
     configurations = [stated_configuration(path) for path in paths]
@@ -144,7 +144,7 @@ def diagnose_torque_scales(args, robot, recordings, cutoff_hz) -> tuple:
         return robot, ""
     kt = torque_constants(robot, TrajectoryOptions(), recordings)
     names = [Path(p).name for p in paths]
-    scales = torque_scales(robot, derive_model(args, robot), recordings, configurations, kt, cutoff_hz, names)
+    scales = torque_scales(robot, command_model(args, robot), recordings, configurations, kt, cutoff_hz, names)
     if scales is None or not scales.off.any() or scales.corrected_kt() is None:
         return robot, ""
     for finding in scales.findings():

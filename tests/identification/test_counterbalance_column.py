@@ -159,3 +159,12 @@ def test_on_the_tx40_no_judge_takes_a_spring_on_joint_2(tx40_benchmark):
         # the pull towards the file at its default, prior_pull, the held-out end alone does not refuse it)
         assert len(choice.parts) == 4 + len(held_out) or (held_out and len(choice.parts) == 1), choice.parts
         assert not held_out or choice.parts[0]["route"] == "held-out recordings"
+
+
+def test_the_trial_line_numbers_the_joints_from_one_as_the_spring_it_keeps():
+    """The Denso with a spring on joint 4 printed "trying the counterbalance the report names on [3]" and then "a
+    spring on joint 4 (spring[j4,...])": the trial's joints are numbered from 1 as every other line numbers them."""
+    from identification.calibration.counterbalance_column import trying_line
+
+    assert "names on joint 4 (on each held-out recording)" in trying_line([3], True)
+    assert "names on joints 2, 4 (by block cross-validation" in trying_line([1, 3], False)

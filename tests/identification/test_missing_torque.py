@@ -16,7 +16,12 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from identification.calibration.trajectory_data import NormalEquations, drive_columns, prepare_recording
+from identification.calibration.trajectory_data import (
+    NormalEquations,
+    drive_columns,
+    prepare_recording,
+    prepare_recordings,
+)
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import save_recording
 from identification.data.missing_torque import find_missing_torque, parse_missing_torque, stated_missing_torque
@@ -76,6 +81,10 @@ def test_the_fit_does_not_depend_on_the_dead_columns_values_and_names_it(denso, 
     stated = Recording(t=b.t, q=b.q, tau=_dead(b, 0, noise).tau, name="b.csv", missing_torque=((0, "stated"),))
     named = identify_trajectories(denso, denso_model, [a, stated], OPTIONS)
     np.testing.assert_allclose(found.theta_ols, named.theta_ols, rtol=1e-9, atol=1e-12)
+    # the samples stated are the fit's (both recordings'), not the dead joint's rows (the Kinova said "461 samples"
+    # with RunTrajectory1 added, for 604: joint 1's count)
+    _, _, prepared = prepare_recordings(denso, [a, b], None, OPTIONS.cutoff_hz, OPTIONS.edge_periods)
+    assert found.n_samples == sum(r.n_samples for r in prepared)
     np.testing.assert_allclose(found.theta, named.theta, rtol=1e-6, atol=1e-8)
     assert found.sigma[0] == pytest.approx(named.sigma[0], rel=1e-9)
     assert any(w.startswith("b.csv: joint 1 (J1) has no torque measurement (zero in every sample)") and

@@ -126,6 +126,8 @@ def test_a_model_worse_on_one_joint_is_named_with_its_numbers_and_the_route(dens
     assert c.after[1] - c.before[1] > 1.0  # a 2 N m Coulomb error is about that much RMSE on a reversing joint
     text = check.describe()
     assert "WORSE on joint(s) 2" in text and f"{c.before[1]:.4g} -> {c.after[1]:.4g} N m" in text
+    # the numbers are the table's "file baseline" row (friction fitted), not its "robot file" row (the file alone)
+    assert "(file baseline -> identified)" in text and "(robot file -> identified)" not in text
     assert "'psdm diagnose ROBOT --train DATA --validate OTHER' scores that model" in text and "--apply" not in text
     assert "record more of their motion" in text  # every joint of the sine experiment reverses
     one_way = replace(check, one_way=(0, 1))  # joint 1 is not worse: only joint 2 is named

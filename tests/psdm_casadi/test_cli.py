@@ -37,6 +37,18 @@ def test_debug_shows_the_traceback(tmp_path):
         main(["--debug", "derive", str(bad)])
 
 
+def test_python_dash_m_psdm_casadi_is_the_command_line(tmp_path, monkeypatch, capsys):
+    """``.venv/bin/python -m psdm_casadi`` runs ``psdm`` where the entry point is not on the PATH (it said "No module
+    named psdm_casadi.__main__"); a bad robot file is its exit 2, as from ``psdm`` (run in this process, as ``-m``
+    runs the module: ``runpy``)."""
+    import runpy
+
+    monkeypatch.setattr("sys.argv", ["python -m psdm_casadi", "derive", str(tmp_path / "no.toml")])
+    with pytest.raises(SystemExit) as stop:
+        runpy.run_module("psdm_casadi", run_name="__main__")
+    assert stop.value.code == 2 and "psdm derive: error:" in capsys.readouterr().err
+
+
 def test_help_lists_derive(capsys):
     with pytest.raises(SystemExit):
         main(["--help"])

@@ -45,12 +45,22 @@ def identified(recordings, tmp_path_factory):
     return out, default_html_path(out)
 
 
+#: The robots ``psdm diagnose ROBOT``'s run in ``diagnosed`` asked the model cache to derive (one per request).
+DERIVED = []
+
+
 @pytest.fixture(scope="module")
 def diagnosed(recordings, tmp_path_factory):
+    from psdm_casadi.model_cache import ModelCache
+
     out = tmp_path_factory.mktemp("html_diagnose") / "diagnosis"
     argv = ["diagnose", str(DENSO_FILE), "--train", str(recordings / "train.npz"), "--validate"]
     argv += [str(recordings / "valid.npz"), "--out", str(out), "--max-effects", "1", "--no-sparse"]
-    assert main([*argv, "--rigid-body", "prior"]) == 0
+    derive = ModelCache.derive
+    with pytest.MonkeyPatch.context() as patch:  # count the derivations (each a cache read, or a full derivation)
+        patch.setattr(ModelCache, "derive", lambda self, robot, options=None: DERIVED.append(robot.name) or
+                      derive(self, robot, options))  # fmt: skip
+        assert main([*argv, "--rigid-body", "prior"]) == 0
     return out / "report.html", json.loads((out / "report.json").read_text())
 
 
@@ -92,6 +102,36 @@ def test_diagnose_writes_a_page_with_each_finding_and_its_before_after(diagnosed
     rows = table_rows(page, "Validation RMSE per joint, before and after")
     np.testing.assert_allclose([float(r[1]) for r in rows], report["rmse_before"], rtol=5e-4)
     np.testing.assert_allclose([float(r[2]) for r in rows], report["rmse_after"], rtol=5e-4)
+
+
+def test_diagnosing_a_robot_file_derives_its_model_once(diagnosed):
+    """The robot file's model was derived twice, for the check of the validation recordings' loads
+    (``diagnose_loads.robot_file_loads``) and again for the diagnosis: a second cache read, or with ``--no-cache`` a
+    second derivation (the Denso's 0.75 s, the Panda's about 20 s)."""
+    assert DERIVED == ["Denso VS-6556G"]
+
+
+def test_the_identify_pages_next_step_names_the_model_file_and_the_recordings(identified):
+    """The page said ``psdm codegen MODEL.json``, a placeholder, not the file identify had just written; each next
+    step now names the model file (and the diagnosis its recordings), whichever the page's verdict is."""
+    from identification.report_html.identify_page import NextFiles, identify_page
+
+    out, html = identified
+    page = html.read_text()
+    assert "MODEL.json" not in page and "Next: " in page
+    document = json.loads(out.read_text())
+    files = NextFiles(str(out), f"psdm diagnose {out} --train train.npz --validate valid.npz")
+    clean = {**document, "warnings": []}
+    text = identify_page(clean, (), files).to_html()
+    stem = out.with_suffix("")
+    assert f"psdm codegen {out} --out {stem}_c" in text and f"psdm export-urdf {out} {stem}_identified.urdf" in text
+    entry = {**document["validation"]["recordings"][0], "r2": [-0.5] + [0.9] * 5}  # joint 1 worse than its mean
+    poor = {**clean, "validation": {**document["validation"], "recordings": [entry]}}
+    text = identify_page(poor, (), files).to_html()
+    assert f"psdm diagnose {out} --train train.npz --validate valid.npz --apply {stem}_2.json" in text
+    alone = {**clean, "validation": {}}
+    assert f"psdm validate {out} OTHER.csv" in identify_page(alone, (), files).to_html()
+    assert "psdm codegen MODEL.json" in identify_page(clean).to_html()  # the Python API: no file written
 
 
 def _args(tmp_path, **kw):
