@@ -221,7 +221,8 @@ def _next_step(document: dict, files: NextFiles) -> str:
     if document.get("warnings"):
         return "Next: act on the warnings (each names its check and, where one helps, the command to run)."
     if not (document.get("validation") or {}).get("recordings"):
-        return f"Next: validate on a held-out recording (psdm validate {files.model} OTHER.csv)."
+        return (f"Next: validate on a held-out recording (psdm validate {files.model} OTHER.csv), or, with one "
+                "recording, identify again with --holdout 0.3 (its last 30 % held out).")  # fmt: skip
     poor = _poorly_predicted(document, document["robot"]["joint_names"])
     if poor:
         return (f"Next: diagnose it before using it: {', '.join(poor)} predicted worse than by the mean torque, a "

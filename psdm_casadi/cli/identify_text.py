@@ -55,7 +55,15 @@ def sigma_percent_cell(percent: float) -> str:
     cell says "not identifiable" and the absolute sigma beside it (in the parameter's units) is the figure to read."""
     if np.isfinite(percent) and percent <= NOT_IDENTIFIABLE_PERCENT:
         return f"{percent:8.1f}"
-    return f"   > {NOT_IDENTIFIABLE_PERCENT:g}  not identifiable (sigma above the estimate: read the absolute sigma)"
+    return f"   > {NOT_IDENTIFIABLE_PERCENT:g}  not identifiable"
+
+
+#: Said once below the parameter table where a cell says "not identifiable" (on the Kinova 35 of its 57 rows carried
+#: the whole sentence).
+NOT_IDENTIFIABLE_NOTE = (
+    f"not identifiable: sigma above the estimate (sigma % > {NOT_IDENTIFIABLE_PERCENT:g}), a parameter near zero whose "
+    "sign the data do not fix; read its absolute sigma, in the parameter's units"
+)
 
 
 def _sigma(value) -> str:
@@ -211,18 +219,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
             f"drive loss of joint {entry['joint']}: mu {entry['mu']:.4g} +- {entry['mu_std']:.2g}, gear efficiency "
             f"eta {entry['efficiency']:.3f} ({entry['efficiency_range'][0]:.3f}-{entry['efficiency_range'][1]:.3f})"
         )
-    relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
-    print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
-    for k, value in enumerate(fit.theta):
-        print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {sigma_percent_cell(relative[k])}")
-    for k, name in enumerate(fit.drive_names):
-        if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
-            continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
-        if label := held_label(result, name):  # not estimated
-            print(f"{name:<15} {fit.drive[k]:10.4g}       held ({label})")
-            continue
-        cell = sigma_percent_cell(relative[model.n_base + k])
-        print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {cell}")
+    _print_parameters(fit, model, result)
     _print_shapes(fit, calibrated)
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
@@ -232,6 +229,27 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
     print(f"\ncalibrated model written to {args.out}")
+
+
+def _print_parameters(fit, model, result) -> None:
+    """The parameter table: each estimate with its sigma and sigma % (held columns said held, columns held at 0 left
+    out), and once below it what "not identifiable" means where a row says it."""
+    relative = sigma_percent(np.concatenate([fit.theta, fit.drive]), np.concatenate([fit.theta_std, fit.drive_std]))
+    print("\nparameter        estimate      sigma   sigma % (of the estimate printed)")
+    cells = []
+    for k, value in enumerate(fit.theta):
+        cells.append(sigma_percent_cell(relative[k]))
+        print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {cells[-1]}")
+    for k, name in enumerate(fit.drive_names):
+        if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
+            continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
+        if label := held_label(result, name):  # not estimated
+            print(f"{name:<15} {fit.drive[k]:10.4g}       held ({label})")
+            continue
+        cells.append(sigma_percent_cell(relative[model.n_base + k]))
+        print(f"{name:<15} {fit.drive[k]:10.4g} {fit.drive_std[k]:10.3g} {cells[-1]}")
+    if any("not identifiable" in cell for cell in cells):
+        print(f"({NOT_IDENTIFIABLE_NOTE})")
 
 
 def _print_validation(entry, diagnose: str, load=None) -> None:

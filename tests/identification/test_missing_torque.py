@@ -82,7 +82,7 @@ def test_the_fit_does_not_depend_on_the_dead_columns_values_and_names_it(denso, 
     named = identify_trajectories(denso, denso_model, [a, stated], OPTIONS)
     np.testing.assert_allclose(found.theta_ols, named.theta_ols, rtol=1e-9, atol=1e-12)
     # the samples stated are the fit's (both recordings'), not the dead joint's rows (the Kinova said "461 samples"
-    # with RunTrajectory1 added, for 604: joint 1's count)
+    # with RunTrajectory1 added, for 611: joint 1's count)
     _, _, prepared = prepare_recordings(denso, [a, b], None, OPTIONS.cutoff_hz, OPTIONS.edge_periods)
     assert found.n_samples == sum(r.n_samples for r in prepared)
     np.testing.assert_allclose(found.theta, named.theta, rtol=1e-6, atol=1e-8)

@@ -112,6 +112,9 @@ def test_sigma_percent_is_relative_to_the_printed_estimate(recordings, tmp_path,
     out = tmp_path / "model.json"
     assert main(["identify", "denso_vs6556g", "--data", str(recordings / "train.csv"), "--out", str(out)]) == 0
     lines = capsys.readouterr().out.splitlines()
+    # the meaning is said once below the table, not on each such row (the Kinova's 35 rows each carried it)
+    assert sum("read its absolute sigma" in line for line in lines) == 1
+    assert not [line for line in lines if "not identifiable" in line and "read" in line and line.startswith("theta")]
     start = next(k for k, line in enumerate(lines) if line.startswith("parameter ")) + 1
     rows = [line.split() for line in lines[start:] if line.startswith(("theta", "fc", "fv"))]
     document = json.loads(out.read_text())

@@ -130,7 +130,8 @@ def test_the_identify_pages_next_step_names_the_model_file_and_the_recordings(id
     text = identify_page(poor, (), files).to_html()
     assert f"psdm diagnose {out} --train train.npz --validate valid.npz --apply {stem}_2.json" in text
     alone = {**clean, "validation": {}}
-    assert f"psdm validate {out} OTHER.csv" in identify_page(alone, (), files).to_html()
+    text = identify_page(alone, (), files).to_html()
+    assert f"psdm validate {out} OTHER.csv" in text and "--holdout 0.3" in text  # one recording: hold part of it out
     assert "psdm codegen MODEL.json" in identify_page(clean).to_html()  # the Python API: no file written
 
 
