@@ -140,6 +140,8 @@ class DiagnosisReport:
     held_friction: tuple = ()  # (name, value): friction the nominal model holds at a model file's values (no refit)
     held_out: tuple = ()  # sentences: the parts of recordings held out for validation (``data.holdout``)
     after_source: str = ""  # which model the "after" is (a model file's: the one --apply writes, ``applied_after``)
+    apply_file: str = ""  # ``diagnose --apply``'s output where it writes the model with the findings ("" otherwise)
+    apply_refused: bool = False  # ``--apply`` was given and writes nothing (the gates refused, or nothing to add)
     applied: object = None  # that model (``applied_model.AppliedModel``), which ``diagnose --apply`` judges and writes
     refit_training: object = None  # the recordings that model trained on (``refit_training.RefitTraining``)
     payload_check: tuple = ()  # sentences: the load each validation recording carries that nothing states, by its file

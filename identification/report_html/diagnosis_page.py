@@ -8,6 +8,8 @@ the validation recording's measured torque and the nominal and augmented models'
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from identification.report_html.page import Page, figure_div, paragraphs, table
@@ -51,7 +53,15 @@ def _summary(page: Page, report) -> None:
              "good" if np.all(after <= before) else "warn")  # fmt: skip
     if any(c.kept for c in report.confounding):
         page.say("Some findings are partly absorbed by the nominal parameters (Confounding below).", "warn")
-    if report.model_file_rmse:
+    if report.apply_file:  # --apply writes the model with the findings it keeps: that file is the one to use now
+        f, stem = report.apply_file, str(Path(report.apply_file).with_suffix(""))
+        page.say(f"Next: use the model --apply wrote, {f} (the findings the never-worse gate kept: Recalibration in "
+                 f"the command's output): psdm codegen {f} --out {stem}_c (C), psdm export-urdf {f} "
+                 f"{stem}_identified.urdf or psdm export-mjcf {f} {stem}_identified.xml.")  # fmt: skip
+    elif report.apply_refused:
+        page.say("Next: --apply wrote nothing (the command's output says why: a finding refused by the never-worse "
+                 "gate, or nothing the model file lacks); the model file stays the model to use.")  # fmt: skip
+    elif report.model_file_rmse:
         validate = "" if report.held_out else "--validate ... "  # a model's stored held-out part needs none
         page.say(f"Next: identify the model again with the findings: psdm diagnose MODEL.json --train ... {validate}"
                  "--apply NEW.json (it keeps a finding only if no joint gets worse).")  # fmt: skip

@@ -387,7 +387,19 @@ def _recalibration(args, calibrated, robot, model, report, recordings, configura
     validation = recordings[1]
     kt = recording_kt(robot, validation)
     written = not adds_nothing(calibrated.document, result.after.document)  # else the report says nothing was written
-    return with_written_after(report, result, model, validation, kt, written), ApplyRefit(result)
+    report = with_written_after(report, result, model, validation, kt, written)
+    return _apply_outcome(args, report, result, written), ApplyRefit(result)
+
+
+def _apply_outcome(args, report, result, written: bool):
+    """``report`` saying whether ``--apply`` writes its file (``apply_file``) or nothing (``apply_refused``), as
+    ``_apply`` decides after the report is saved: its page's next step names the file to use."""
+    from identification.calibration.recalibrate import consistency_failure
+
+    inconsistent = consistency_failure(result) is not None and not args.allow_inconsistent
+    if result.refused is None and written and not inconsistent:
+        return dataclasses.replace(report, apply_file=str(args.apply))
+    return dataclasses.replace(report, apply_refused=True)
 
 
 def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> int:

@@ -71,6 +71,15 @@ def test_the_report_s_after_is_the_model_apply_writes(applied, spring_files):
     assert spring["parameters"]["q0"] == pytest.approx(SPRING_Q0, abs=0.05)
 
 
+def test_the_report_page_after_apply_names_the_file_it_wrote(applied, spring_files):
+    """The page of ``diagnose MODEL --apply new.json --out report`` said "Next: identify the model again with the
+    findings: psdm diagnose MODEL.json ... --apply NEW.json", the command just run: it now names the file written."""
+    page = (spring_files / "report" / "report.html").read_text()
+    assert (spring_files / "new.json").exists()
+    assert f"Next: use the model --apply wrote, {spring_files / 'new.json'}" in page
+    assert "--apply NEW.json" not in page
+
+
 @pytest.mark.slow  # a second diagnosis after the fixture's --apply: 30-40 s on a loaded machine
 def test_a_spring_apply_wrote_is_carried_by_the_next_diagnosis(applied, spring_files, denso):
     """``diagnose NEW`` of the applied model keeps its spring as a column of the nominal model (``model_file_holds``):

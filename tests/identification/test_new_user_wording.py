@@ -317,6 +317,20 @@ def test_the_diagnosis_page_of_a_model_with_a_held_out_part_needs_no_validate():
     assert "--train ... --validate ... --apply" in _next_advice(())
 
 
+def test_the_diagnosis_page_after_apply_names_the_file_written_or_says_none_was():
+    """With --apply the page advised the command just run ('--apply NEW.json'); it now names the file --apply wrote and
+    its exports, or says that --apply wrote nothing and the model file stays the one to use."""
+    from identification.report_html.diagnosis_page import diagnosis_page
+
+    report = _report([_finding(5, 0.0887, 0.0326)], [1.0] * N)
+    fields = {**report.__dict__, "model_file_rmse": (1.0,) * N}
+    written = diagnosis_page(DiagnosisReport(**{**fields, "apply_file": "out/new.json"})).to_html()
+    assert "Next: use the model --apply wrote, out/new.json" in written and "NEW.json" not in written
+    assert "psdm codegen out/new.json --out out/new_c" in written
+    refused = diagnosis_page(DiagnosisReport(**{**fields, "apply_refused": True})).to_html()
+    assert "--apply wrote nothing" in refused and "NEW.json" not in refused
+
+
 def _next_advice(held_out) -> str:
     """The 'Next:' sentence of the diagnosis page of a model file's report with one finding."""
     from identification.report_html.diagnosis_page import diagnosis_page
