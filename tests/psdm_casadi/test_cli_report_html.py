@@ -86,6 +86,9 @@ def test_identify_writes_a_page_holding_the_model_files_numbers(identified):
     measured, predicted, residual = plot_data(page, "joint-1-valid.npz")
     np.testing.assert_allclose(np.subtract(measured["y"], predicted["y"]), residual["y"], atol=1e-9)
     assert f"RMSE {entry['rmse'][0]:.4g} N m" in page
+    # the summary judges against the model identify replaces too (the file baseline), not only the file alone
+    ours, base = np.array(entry["rmse"]), np.array(entry["rmse_robot_file_baseline"])
+    assert f"the file baseline, which the never-worse check judges): better on {int(np.sum(ours < base))} of 6" in page
 
 
 def test_diagnose_writes_a_page_with_each_finding_and_its_before_after(diagnosed):
