@@ -7,6 +7,9 @@ shape), up to a byte budget (least recently used first out), and hands out copie
 array changes nothing here. Series shorter than ``min_samples`` are not kept: hashing them costs more than it
 saves.
 
+:class:`BlockMemory` keeps a costlier result the same way, by a key its caller makes (identify's LuGre trial fits the
+training recordings once where its route runs twice, or a caller runs identify several times on them).
+
 The memory is on only inside :func:`remembering` (``psdm identify`` and ``identify_trajectories`` / ``choose_columns``
 open it) and is emptied when the outermost such block ends: a long-running process that streams recordings through
 the regressor once each (the fleet's workers) holds nothing, and a command holds its recordings' regressors only
@@ -24,7 +27,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-__all__ = ["CACHE_BYTES", "MIN_SAMPLES", "StateCache", "remembering"]
+__all__ = ["CACHE_BYTES", "MIN_SAMPLES", "BlockMemory", "StateCache", "remembering"]
 
 #: Bytes of results a cache holds at most (about 18 Panda recordings of 2,900 prepared samples, 5 of the 12-joint arm).
 CACHE_BYTES = 128 << 20
@@ -109,3 +112,37 @@ class StateCache:
         with self._lock:
             self._entries.clear()
             self._bytes = 0
+
+
+class BlockMemory:
+    """Results of a costly computation by a hashable key, kept while a :func:`remembering` block is open (emptied with
+    the regressors when the outermost block ends), at most ``max_entries`` (the least recently used first out).
+    Results are handed out as they are: they must be immutable (frozen dataclasses, tuples)."""
+
+    def __init__(self, max_entries: int = 4):
+        self.max_entries = max_entries
+        self._entries = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key, compute):
+        """``compute()``, from memory when it was computed for ``key`` before in the open block."""
+        if _DEPTH.get() == 0:
+            return compute()
+        with self._lock:
+            if key in self._entries:
+                self._entries.move_to_end(key)
+                return self._entries[key]
+        value = compute()
+        with self._lock:
+            self._entries[key] = value
+            self._entries.move_to_end(key)
+            with _USED_LOCK:
+                _USED.add(self)
+            while len(self._entries) > self.max_entries:
+                self._entries.popitem(last=False)
+        return value
+
+    def clear(self) -> None:
+        """Forget every result."""
+        with self._lock:
+            self._entries.clear()

@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psdm_casadi.log_context import held_back
+from psdm_casadi.state_cache import BlockMemory, StateCache
 
 __all__ = ["JOINT_SIGMAS", "LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "SETTLE_SD", "ArmLag", "LuGreTrial",
            "ReversalLag", "judge_trial", "lag_joints", "quiet_trial", "recording_lags", "reversal_lags",
@@ -272,6 +273,47 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
     return True, f"it predicts the held-out recording(s) better there ({text}) and worse on no joint"
 
 
+#: The trial's LuGre fits, kept while a ``state_cache.remembering`` block is open (``psdm identify``'s run): by
+#: ``fit_key``, with the model fitted and the fit's warnings.
+_FITS = BlockMemory()
+
+
+def fit_key(robot, recordings, options, configurations) -> tuple:
+    """What the trial's LuGre fit depends on besides the derived model: the robot description (``model_key``), the
+    training recordings (a digest of their arrays, their names and missing joints), the options chosen and the loads
+    the recordings carry."""
+    from psdm_casadi.model_cache import model_key
+
+    arrays = [[getattr(r, f) for f in ("t", "q", "tau", "current", "qd", "qdd", "temperature")] for r in recordings]
+    digests = tuple(StateCache.key(*[np.asarray(a) for a in group if a is not None]) for group in arrays)
+    named = tuple((r.name, r.missing_torque) for r in recordings)
+    return model_key(robot), digests, named, repr(options), repr(configurations)
+
+
+def _lugre_fit(problem, caught):
+    """The trial's ``LuGreIdentification`` of ``problem = (robot, model, recordings, options, configurations)``: made
+    once in a ``remembering`` block (``_FITS``; ``psdm identify`` runs its route again where it took a held-out load
+    off, on the same training recordings), its warnings added to ``caught`` as the fit issued them."""
+    from identification.calibration.lugre_identify import identify_lugre_trajectories
+
+    robot, model, recordings, chosen, configurations = problem
+    start, made = len(caught), []
+
+    def fit() -> tuple:
+        found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations,
+                                            settle_sd=SETTLE_SD)  # fmt: skip
+        made.append(found)
+        return model, found, tuple(caught[start:])  # the fit's warnings: the result's if it is kept
+
+    key = fit_key(robot, recordings, chosen, configurations)
+    fitted, found, said = _FITS.get(key, fit)
+    if fitted != model:  # another derivation of the robot (a --model file): fitted again
+        fitted, found, said = fit()
+    if not made:
+        caught.extend(said)
+    return found
+
+
 @contextlib.contextmanager
 def quiet_trial():
     """The trial's log lines and Python warnings held back: identify's log is the default route's, and the result
@@ -289,11 +331,11 @@ def try_lugre(problem, written, judged, writer, request) -> tuple:
     judged (module docstring); ``kept`` is ``(LuGreIdentification, WrittenModel, ColumnChoice)`` of the LuGre model
     where it replaces the default, else None. ``problem = (robot, model, recordings, options, validation,
     configurations)`` with the options identify was given; ``writer(lugre_fit, columns) -> written_model.ModelWriter``;
-    ``request`` the column request (its friction becomes ``"lugre"``)."""
+    ``request`` the column request (its friction becomes ``"lugre"``). The LuGre fit is made once in a
+    ``state_cache.remembering`` block (``_lugre_fit``)."""
     from dataclasses import replace
 
     from identification.calibration.column_choice import choose_columns
-    from identification.calibration.lugre_identify import identify_lugre_trajectories
     from identification.calibration.never_worse import compare_each, pooled_comparison
     from identification.calibration.trajectory_fit import torque_constants
     from psdm_casadi.errors import ParameterError, SolverError
@@ -314,8 +356,7 @@ def try_lugre(problem, written, judged, writer, request) -> tuple:
             choice = choose_columns(robot, model, recordings, options, replace(request, friction="lugre"), validation,
                                     configurations)  # fmt: skip
             chosen = choice.options(options)
-            found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations,
-                                                settle_sd=SETTLE_SD)  # fmt: skip
+            found = _lugre_fit((robot, model, recordings, chosen, configurations), caught)
             lugre = writer(found.lugre, found.stribeck)(chosen, found.fit)
             comparisons = [compare_each(written.calibrated, lugre.calibrated, model, [r], kt)[0]
                            for r, kt in zip(judged.recordings, kts)]  # fmt: skip

@@ -85,9 +85,14 @@ def test_a_load_is_taken_off_as_a_point_mass_unless_the_fit_shows_its_inertia_an
 
 @pytest.fixture(scope="module")
 def runs():
-    """identify's runs on the training recording, by held-out recording (``_identify``): each made once per module
-    (each opens the LuGre trial, the virtual Denso's friction being LuGre: most of the run)."""
-    return {}
+    """identify's runs on the training recording, by held-out recording (``_identify``): each made once per module,
+    in one ``remembering`` block, as a Python caller of several runs on the same training data may: each opens the
+    LuGre trial (the virtual Denso's friction being LuGre), whose fit of the training recording, most of a run, is
+    then made once (``lugre_trial``)."""
+    from psdm_casadi.state_cache import remembering
+
+    with remembering():
+        yield {}
 
 
 def _identify(files, held, name, capsys, runs) -> tuple:

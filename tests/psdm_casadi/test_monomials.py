@@ -10,7 +10,7 @@ from psdm_casadi import model as model_module
 from psdm_casadi import monomials
 from psdm_casadi.monomials import MonomialTree
 from psdm_casadi.oracle import PinocchioOracle
-from psdm_casadi.state_cache import StateCache, remembering
+from psdm_casadi.state_cache import BlockMemory, StateCache, remembering
 
 
 def plain_functions(exponents, gamma):
@@ -102,6 +102,29 @@ def test_the_memory_stays_within_its_budget_and_is_not_pickled(denso_model):
     assert len(copy._regressor_cache._entries) == 0 and np.array_equal(
         copy.regressor(*series[1]), denso_model.regressor(*series[1])
     )
+
+
+def test_a_block_memory_computes_a_key_once_in_a_block_and_forgets_it_after():
+    """``BlockMemory`` (identify's LuGre trial fits): outside a block always computed; inside, once per key, the
+    least recently used key first out beyond ``max_entries``; emptied when the outermost block ends."""
+    calls = []
+
+    def compute(value):
+        calls.append(value)
+        return (value,)
+
+    memory = BlockMemory(max_entries=2)
+    memory.get("a", lambda: compute(1))
+    assert memory.get("a", lambda: compute(1)) == (1,) and len(calls) == 2  # no block: nothing kept
+    with remembering():
+        first = memory.get("a", lambda: compute(1))
+        with remembering():
+            assert memory.get("a", lambda: compute(2)) is first and len(calls) == 3  # the value kept, not 2
+        memory.get("b", lambda: compute(3))
+        memory.get("c", lambda: compute(4))  # over max_entries: "a" goes
+        assert memory.get("a", lambda: compute(5)) == (5,) and len(calls) == 6
+    with remembering():
+        assert memory.get("b", lambda: compute(6)) == (6,)  # the outermost block's end emptied it
 
 
 @pytest.mark.parametrize("n_samples", [1, 63, 64])
