@@ -9,7 +9,9 @@
   the held-out part), or one that, with the robot file's rigid body held, stands for a torque of the angle taking
   more of the file's gravity torque than its masses can be off by (``file_held_offset``: identify's links had
   absorbed it, so its spring spans what the links and the offset hold, and is judged as one that replaces them);
-- the fitted gravity torque of one joint alone off the robot file's (``gravity_departure``).
+- the fitted gravity torque of one joint alone off the robot file's (``gravity_departure``), unless the fit stored
+  it as the inertia about that joint it holds back (``inertia_departure``: the data's own least squares keep the
+  file's gravity torque there), which the report then names instead and no spring is tried for.
 
 A spring named by an offset takes that offset's place (its constant). How it is judged depends on what the data said
 (``CounterbalanceNaming.lenient``): where they say balancer, the spring must lower its joint beyond the blocks' noise
@@ -29,6 +31,7 @@ from identification.calibration.file_held_offset import file_held_offsets
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.gravity_departure import gravity_departures
 from identification.calibration.held_back import stored_held_back
+from identification.calibration.inertia_departure import stored_inertia_departures
 from identification.calibration.offset_or_balancer import UNDECIDED, offset_or_balancer
 from identification.calibration.offset_reading import data_chosen_offsets
 
@@ -119,8 +122,9 @@ def named_counterbalances(robot, model, recordings, options, fit, calibrated, va
             if held.balancer:  # the links hold it in identify's fit: a spring spans what they and the offset hold
                 readings[j], verdicts[j] = held.reading(), held.verdict
                 absorbed.append(j)
-    departures = gravity_departures(robot, model, recordings, fit)
-    said += [d.sentence() for d in departures.values()]
+    inertias = stored_inertia_departures(getattr(fit, "envelope_bounds", ()))  # a held-back inertia's, said once
+    departures = {j: d for j, d in gravity_departures(robot, model, recordings, fit).items() if j not in inertias}
+    said += [d.sentence() for d in (*departures.values(), *inertias.values())]
     readings = {j: r for j, r in readings.items() if verdicts[j].named}  # the data did not say offset
     found = {**dict.fromkeys(departures, BY_DEPARTURE), **dict.fromkeys(readings, BY_OFFSET)}
     undecided = tuple(j for j in readings if verdicts[j].verdict == UNDECIDED)

@@ -66,6 +66,7 @@ from identification.calibration.envelope_report import (
     pressed_findings,
 )
 from identification.calibration.gravity_departure import theta_departures
+from identification.calibration.inertia_departure import inertia_departures, inertia_note, yielded_findings
 from identification.calibration.prior_pull import prior_scale
 from identification.data.excitation_check import joint_label
 
@@ -297,15 +298,22 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     them) and the ``held_note`` of those (``held_back``'s arguments; ``kt``: the torque constants where the torque
     is motor current, None for joint torques). A proximal link the bounds name a payload is then named a counterbalance
     where the fitted gravity torque of a joint it carries departs from the robot file's alone on the prepared training
-    recordings (``envelope_report.named_by_departure``, ``gravity_departure``)."""
+    recordings (``envelope_report.named_by_departure``, ``gravity_departure``), unless the data's own least squares
+    say that departure is an inertia about the joint the fit holds back (``inertia_departure``): the links pushed on
+    its behalf are then named after it, and the departure is stored with the bounds."""
     items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
-    named = named_from_evidence(envelope, items, model, robot, kt is not None)
+    named, inertias = named_from_evidence(envelope, items, model, robot, kt is not None), {}
     if len(fitted) > 4:  # a link still named a payload beside one: a joint's gravity departing alone says balancer
         theta = np.asarray(fitted[0], dtype=float)[: model.n_base]
+        inertias = inertia_departures(robot, model, fitted[4], theta, np.asarray(fitted[1])[: model.n_base], items)
         named = named_by_departure(
-            named, lambda: theta_departures(robot, model, fitted[4], theta), robot, kt is not None
+            named,
+            lambda: {j: d for j, d in theta_departures(robot, model, fitted[4], theta).items() if j not in inertias},
+            robot,
+            kt is not None,
         )
-    return named, held_note(items)
+        named = yielded_findings(named, inertias)  # a departure the held-back inertia made names no balancer
+    return named, (*held_note(items), *inertia_note(inertias))
 
 
 def held_note(items) -> tuple:

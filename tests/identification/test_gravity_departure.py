@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR, gravity_departures
+from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR, gravity_departures, joints_carrying_gravity
 from psdm_casadi.oracle import PinocchioOracle
 
 
@@ -59,6 +59,25 @@ def test_the_heavy_arms_counterbalance_the_links_took_is_named_with_its_share(be
     assert found[1].share == pytest.approx(share, abs=0.15) and found[1].share >= FILE_GRAVITY_ERROR
     assert found[1].local > 0.9
     assert "joint 2" in found[1].sentence() and "counterbalance" in found[1].sentence()
+    assert "inertia_departures" not in dict(fit.envelope_bounds)  # the data's own least squares depart there too
+
+
+def test_only_the_joints_gravity_gives_a_torque_can_depart():
+    """The joints carrying gravity, read from the model's gravity regressor, are those Pinocchio's gravity torque of
+    the robot file moves on random poses: the SCARA's vertical axes (joints 1, 2, 4) carry none, so no departure is
+    read there; the virtual Denso's file puts gravity along x0, across joint 1's axis, and its flange link is
+    massless."""
+    from psdm_casadi import derive_psdm
+    from psdm_casadi.robot import load_robot
+    from tests.catalogue.model_files import SCARA_FILE
+    from tests.conftest import DENSO_FILE
+
+    for path, carrying in ((SCARA_FILE, [False, False, True, False]), (DENSO_FILE, [True] * 5 + [False])):
+        robot = load_robot(path)
+        q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, size=(200, robot.n_dof))
+        reference = np.abs(PinocchioOracle(robot).gravity(q)).max(axis=0)
+        found = joints_carrying_gravity(derive_psdm(robot), q)
+        assert found.tolist() == (reference > 1e-9 * reference.max()).tolist() == carrying, path
 
 
 @pytest.mark.parametrize(

@@ -57,9 +57,15 @@ def test_the_words_follow_the_mass_matrix_and_the_gravity_regressor(denso, denso
             assert kind == "axis" and joint == with_rotor[0], (k, words)
 
 
-def test_a_hidden_inertia_beyond_the_files_links_is_named_with_the_datas_value(denso, denso_model):
+@pytest.fixture(scope="module")
+def hidden(denso, denso_model):
+    """``(recording, fit)``: the 8 s recording of the Denso with the hidden inertia and its default fit."""
     recording = rigid_recording(denso, _hidden_inertia(denso))
-    fit = identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+    return recording, identify_trajectories(denso, denso_model, [recording], TrajectoryOptions())
+
+
+def test_a_hidden_inertia_beyond_the_files_links_is_named_with_the_datas_value(denso, denso_model, hidden):
+    fit = hidden[1]
     held = stored_held_back(fit.envelope_bounds)
     assert len(held) == 1, [h.message for h in held]  # the links' gravity terms it moved are side effects, not named
     item = held[0]
@@ -73,6 +79,28 @@ def test_a_hidden_inertia_beyond_the_files_links_is_named_with_the_datas_value(d
     assert any(f.link == 0 and "drive inertia upper" in f.bounds for f in fit.envelope)
     assert "the data want" in item.message and "psdm diagnose" in item.message
     assert "extra inertia on joint 1" in item.message
+
+
+def test_the_gravity_departure_the_held_back_inertia_makes_names_no_counterbalance(denso, denso_model, hidden):
+    """The links' first moments take part of the held-back inertia's torque, so joint 1's fitted gravity torque
+    leaves the file's (the truth's gravity is the file's: Pinocchio-free, the hidden effect is an inertia). The data's
+    own least squares keep the file's gravity there: the departure is stored as the held-back inertia's, with the
+    data's value, no link is named a counterbalance on joint 1 and identify's route names no joint to try a spring."""
+    from identification.calibration.counterbalance_sources import named_counterbalances, named_joints
+    from identification.calibration.gravity_departure import gravity_departures
+    from identification.calibration.inertia_departure import stored_inertia_departures
+
+    recording, fit = hidden
+    assert 0 in gravity_departures(denso, denso_model, [recording], fit)  # the fit's links do depart on joint 1
+    stored = stored_inertia_departures(fit.envelope_bounds)
+    assert list(stored) == [0]
+    item = stored[0]
+    truth = _true_theta(denso, denso_model)[denso_model.base_names.index(item.parameter)]
+    assert abs(item.data - truth) <= 3 * item.data_std and item.fitted < item.data
+    assert not [f for f in fit.envelope if f.pressed and f.absorbs == "counterbalance"]
+    assert named_joints(fit) == {}
+    naming = named_counterbalances(denso, denso_model, [recording], TrajectoryOptions(), fit, None)
+    assert naming.named == {} and "not a counterbalance" in naming.said and f"{item.data:.4g}" in naming.said
 
 
 def test_a_tool_at_the_flange_is_named_a_payload_where_it_moves_an_inertia_about_a_wrist_joint(denso, denso_model):
@@ -146,19 +174,18 @@ def test_a_strong_pull_alone_holding_the_data_back_is_named_with_the_weaker_pull
     assert "--prior-uncertainty" in held[0].message and "pull towards the robot file" in held[0].message
 
 
-#: The two identify runs below leave the counterbalance route out: what they check (the held-back parameter in the
-#: result, the printed text and the model file) does not depend on it, and on this recording it costs most of the run.
-#: The links the envelope keeps from the hidden inertia move joint 1's gravity torque, which the gravity departure names
-#: a counterbalance; a spring is tried by block cross-validation over the training data (three shapes, four blocks)
-#: and refused. The held-back lines on default settings, that route included, are checked by
-#: test_new_user_wording::test_a_held_back_parameters_route_names_this_runs_files.
-_NO_SPRING = "--no-counterbalance"
+#: The two identify runs below take the default route: the links the envelope keeps from the hidden inertia move joint
+#: 1's gravity torque, which the data's own least squares leave as the file has it, so no counterbalance is named and
+#: no spring tried (``inertia_departure``; it was tried by block cross-validation, three shapes, four blocks, and
+#: refused, most of each run).
 
 
 def test_identify_states_it_in_describe_the_text_and_the_model_file(denso, denso_model, tmp_path, capsys):
-    """Without the counterbalance route (``_NO_SPRING``); default settings: test_new_user_wording."""
+    """Default settings: the departure of joint 1's gravity torque the held-back inertia makes tries no spring
+    (``inertia_departure``), and the choice says why."""
     recording = rigid_recording(denso, _hidden_inertia(denso))
-    result = identify_recordings(denso, denso_model, [recording], counterbalance=False)
+    result = identify_recordings(denso, denso_model, [recording])
+    assert not result.counterbalance.joints and "not a counterbalance" in result.counterbalance.reason
     assert any(line.startswith("held back from the data: the inertia about joint 1") for line in result.describe())
     stored = result.calibrated.document["standard"]["envelope"]["held_back"]
     assert stored and stored[0]["words"].startswith("the inertia about joint 1 ")
@@ -173,7 +200,7 @@ def test_the_cli_prints_it(denso, tmp_path, capsys):
     path = tmp_path / "train.npz"
     save_recording(rigid_recording(denso, _hidden_inertia(denso)), path)
     out = tmp_path / "model.json"
-    assert main(["identify", str(denso.source), "--data", str(path), "--out", str(out), _NO_SPRING]) == 0
+    assert main(["identify", str(denso.source), "--data", str(path), "--out", str(out)]) == 0
     text = capsys.readouterr().out
     assert "HELD BACK: the inertia about joint 1" in text
     assert json.loads(out.read_text())["standard"]["envelope"]["held_back"][0]["parameter"] == "theta10"

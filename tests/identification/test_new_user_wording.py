@@ -107,12 +107,17 @@ def test_a_held_back_parameters_route_names_this_runs_files(denso, tmp_path, cap
     save_recording(rigid_recording(denso, hidden, seed=2, duration=4.0), second)
     save_recording(rigid_recording(denso, hidden, seed=1), valid)
     out = tmp_path / "model.json"
-    # the counterbalance route left out: the hidden inertia the envelope holds back moves joint 1's gravity, a spring
-    # is tried there on 4 blocks x 3 shapes and refused (85 % of the run); this test reads the printed route
-    args = ["identify", str(denso.source), "--data", str(train), str(second), "--validate", str(valid),
-            "--no-counterbalance"]  # fmt: skip
+    args = ["identify", str(denso.source), "--data", str(train), str(second), "--validate", str(valid)]
     assert main([*args, "--out", str(out), "--no-html"]) == 0
-    text = capsys.readouterr().out
+    captured = capsys.readouterr()
+    text = captured.out
+    # the default route: the hidden inertia the envelope holds back moves joint 1's gravity torque, which the data's
+    # own least squares do not; the report says so once and names no counterbalance, and no spring is tried there
+    said = [line for line in text.splitlines() if line.startswith("counterbalance: ")]
+    assert len(said) == 1 and "not a counterbalance but the inertia about joint 1" in said[0], said
+    counter = json.loads(out.read_text())["identification"].get("counterbalance") or {}
+    assert not counter.get("joints") and "trying the counterbalance" not in captured.err
+    assert not [line for line in text.splitlines() if "PUSHED" in line and "counterbalance or spring" in line]
     held = [line for line in text.splitlines() if "HELD BACK" in line]
     assert held and all("ROBOT --train DATA" not in line for line in held)
     pushed = [line for line in text.splitlines() if line.startswith("  PUSHED: ")]  # was the placeholder too
