@@ -61,6 +61,7 @@ from identification.diagnosis.design import WeightedDesign, joint_weights, left_
 from identification.diagnosis.joint_score import JointScore
 from identification.metrics import explained_rms, rms
 from psdm_casadi.errors import ParameterError
+from psdm_casadi.log_context import ONCE
 
 logger = logging.getLogger(__name__)
 
@@ -239,22 +240,31 @@ def _screen(design, remaining, train_ctx, val_ctx, sse, rmse_v, limits):
         wval1 = float(np.sum(rv1**2 / limits.sigma**2))
         gain = (wval0 - wval1) / wval0
         rel, explained = 1.0 - rv1 / np.maximum(rmse_v, 1e-300), explained_rms(rmse_v, rv1)
-        scored.append((gain, variant.label, rel, explained, delta_bic))
+        scored.append((gain, variant.label, rel, explained, delta_bic, acting_joints(variant, ct)))
         reason = _gates(rmse_v, rv1, acting_joints(variant, ct), limits)
         if reason is not None and reason.startswith("raises the validation RMSE"):
             rejected.append((variant.label, reason))
         elif reason is None and delta_bic < 0:
             unsupported = variant.name_unsupported(train_ctx)
             qualified.append(_Qualified(gain, k, index, variant, rv1, delta_bic, note, unsupported, explained))
-    for g, label, rel, e, b in sorted(scored, key=lambda x: (x[0], x[1]), reverse=True)[:5]:
+    for g, label, rel, e, b, own in sorted(scored, key=lambda x: (x[0], x[1]), reverse=True)[:5]:
         j = int(np.argmax(rel))
         size = _size_text(e, limits.torque_rms, j)
-        logger.info(
-            f"diagnose:   candidate {label}: gain {g:.1%}, best joint {j + 1} -{rel[j]:.0%} ({size}), dBIC {b:.0f}"
-        )
-    for label, reason in rejected[:5]:
-        logger.info(f"diagnose:   rejected {label}: {reason}")
+        logger.info(f"diagnose:   candidate {label}: gain {g:.1%}, best joint {j + 1} -{rel[j]:.0%} ({size})"
+                    f"{own_joints_text(own, rel, j)}, dBIC {b:.0f}")  # fmt: skip
+    for label, reason in rejected[:5]:  # the same rejection in every round and pass: said once (log_context.ONCE)
+        logger.info(f"diagnose:   rejected {label}: {reason}", extra=ONCE)
     return qualified, implausible
+
+
+def own_joints_text(own, rel, best: int) -> str:
+    """What a per-joint candidate (on the 0-based joints ``own``) takes off its own joints when its best joint ``best``
+    (largest drop ``rel``) is another: a rigid body recalibrated without a spring on joint 4 spreads it over link
+    parameters joint 1 shares, so joint 1's drop can be the largest. Empty when the best joint is its own."""
+    own = [int(k) for k in own]
+    if not own or best in own:
+        return ""
+    return "; its own joint" + "".join(f" {k + 1} -{rel[k]:.0%}" for k in own)
 
 
 def _size_text(explained, torque_rms, joint: int) -> str:

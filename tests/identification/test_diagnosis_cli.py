@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -11,6 +13,7 @@ from identification.data.io import save_recording
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli import main
+from psdm_casadi.log_context import install
 from tests.conftest import DENSO_FILE
 from trajopt.experiments import sine_experiment
 
@@ -30,24 +33,49 @@ def _write_pair(denso, directory, extras):
     return paths
 
 
+@contextlib.contextmanager
+def _selection_lines():
+    """The selection's progress lines (INFO) of a command run inside, through a handler with the command line's context
+    filter (``log_context.install``: what a run says once)."""
+    lines = []
+
+    class Keep(logging.Handler):
+        def emit(self, record):
+            lines.append(record.getMessage())
+
+    keep, logger = Keep(), logging.getLogger("identification.diagnosis.selection")
+    install(keep)
+    level = logger.level
+    logger.addHandler(keep)
+    logger.setLevel(logging.INFO)
+    try:
+        yield lines
+    finally:
+        logger.removeHandler(keep)
+        logger.setLevel(level)
+
+
 def test_cli_diagnose_json_names_the_hidden_spring(denso, tmp_path, capsys):
     train, validate = _write_pair(denso, tmp_path, [xp.Spring(joint=1, stiffness=40.0, q0=0.1)])
-    code = main(
-        [
-            "diagnose",
-            str(DENSO_FILE),
-            "--train",
-            str(train),
-            "--validate",
-            str(validate),
-            "--json",
-            "--max-effects",
-            "2",
-        ]
-    )
+    with _selection_lines() as lines:  # --json shows warnings only: the progress lines as the command's handler sees
+        code = main(
+            [
+                "diagnose",
+                str(DENSO_FILE),
+                "--train",
+                str(train),
+                "--validate",
+                str(validate),
+                "--json",
+                "--max-effects",
+                "2",
+            ]
+        )
     assert code == 0
     out = json.loads(capsys.readouterr().out)
     assert {"findings", "rmse_before", "rmse_after"} <= set(out)
+    rejected = [line for line in lines if line.startswith("diagnose:   rejected ")]
+    assert rejected and len(rejected) == len(set(rejected)), rejected  # each rejection once, not in every round
     assert out["findings"][0]["effect"] == "spring" and out["findings"][0]["joints"] == [2]
     assert out["findings"][0]["parameters"]["k"] == pytest.approx(40.0, rel=0.15)
     assert len(out["rmse_before"]) == 6
