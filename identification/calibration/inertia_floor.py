@@ -128,7 +128,8 @@ def floor_notes(robot, standard, links=None) -> tuple:
             f"{_moments(own)} kg m^2 against the robot file's {_moments(file)} ({share:.2g} x the file's spread per "
             f"unit mass in its weakest direction; the floor is {FLOOR_SHARE:g} x). The recordings hardly determine "
             f"it, so the floor, not the data, set it; record a motion that moves joint {i + 1} with fast reversals "
-            "(psdm excite), or keep the robot file's inertia of this link"
+            "(psdm excite), or identify with a smaller --prior-uncertainty (default 2), which pulls what the "
+            "recordings hardly fix, on every link, towards the robot file"
         )
         out.append({"link": i, "share": share, "floor": FLOOR_SHARE, "inertia": own.tolist(),
                     "file_inertia": file.tolist(), "message": message})  # fmt: skip
@@ -190,8 +191,8 @@ def stiff_links(robot, standard) -> tuple:
             f"moments {_moments(principal_inertia(standard[i]))} kg m^2, the floor {_moments(floor)} ({FLOOR_SHARE:g} "
             f"x the robot file's {_moments(principal_inertia(prior[i]))} per unit mass; this link keeps {share:.2g} x "
             f"in its weakest direction). {effect}. Identify it again with the inertia floor (the default; not "
-            f"--no-envelope) and a recording that moves joint {i + 1} with fast reversals (psdm excite), or keep the "
-            "robot file's inertia of this link"
+            f"--no-envelope) and a recording that moves joint {i + 1} with fast reversals (psdm excite), or with a "
+            "smaller --prior-uncertainty (default 2), which pulls what the recordings hardly fix towards the robot file"
         )
     return tuple(out)
 

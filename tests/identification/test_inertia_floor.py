@@ -11,6 +11,7 @@ them), whose vendor URDF's wrist links the sensors hardly see.
 from __future__ import annotations
 
 import json
+import re
 from unittest import mock
 
 import casadi as ca
@@ -114,6 +115,16 @@ def test_a_poorly_excited_link_stays_on_its_floor_and_the_truth_is_above_it(dens
     assert np.all(error["fit"] <= 1.05 * error["free"] + 0.01 * 0.3), error
 
 
+def identify_options() -> set:
+    """The options ``psdm identify`` parses (its subparser of the command line's parser)."""
+    import argparse
+
+    from psdm_casadi.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return {s for a in sub.choices["identify"]._actions for s in a.option_strings}
+
+
 def test_the_report_and_the_model_file_name_the_links_on_their_floor(poorly_excited):
     _, _, fit = poorly_excited
     entry = dict(fit.envelope_bounds)["inertia_floor"]
@@ -123,6 +134,13 @@ def test_the_report_and_the_model_file_name_the_links_on_their_floor(poorly_exci
     assert all(
         "psdm excite" in note["message"] and "rests on its floor" in note["message"] for note in entry["at_floor"]
     )
+    # what the user can do names an option identify has (it said 'or keep the robot file's inertia of this link',
+    # which no option does)
+    identify = identify_options()
+    for note in entry["at_floor"]:
+        named = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", note["message"]))
+        assert named and named <= identify, (named, note["message"])
+        assert "--prior-uncertainty" in named
 
 
 def test_an_export_warns_about_a_link_below_its_floor_and_not_about_one_on_it(denso, denso_model, poorly_excited,
@@ -138,7 +156,7 @@ def test_an_export_warns_about_a_link_below_its_floor_and_not_about_one_on_it(de
         err = capsys.readouterr().err
         warned = {int(w.split("link ")[1].split("'")[0]) for w in err.splitlines() if "plausible floor" in w}
         assert warned == below and (tmp_path / f"free.{suffix}").exists()  # a warning, not a refusal
-        assert "psdm excite" in err and "--no-envelope" in err
+        assert "psdm excite" in err and "--no-envelope" in err and "--prior-uncertainty" in err
         assert main([command, str(tmp_path / "fit.json"), str(tmp_path / f"fit.{suffix}")]) == 0
         assert "plausible floor" not in capsys.readouterr().err
 
