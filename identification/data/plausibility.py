@@ -219,8 +219,8 @@ def check_plausible_recording(recording: Recording, robot, thresholds: Plausibil
             f"Recording {source}: column q{j + 1} ({joint_label(j, robot)}) reaches {recording.q[:, j].min():.4g} to "
             f"{recording.q[:, j].max():.4g}, beyond the joint limits [{q_min[j]:.4g}, {q_max[j]:.4g}], and {others} "
             "beyond theirs too, every one within them once x pi/180: positions in degrees? Convert "
-            f"q{j + 1} to radians, and {others} alike, or state the log's unit: --columns q=PREFIX:deg (e.g. "
-            "--columns t=Time,q=Position:deg,tau=Torque)."
+            f"q{j + 1} to radians, and {others} alike, or state the log's unit: --columns q=PREFIX:deg (PREFIX: "
+            "the name of its position columns without the joint number)."
         )
     if problems:
         raise RecordingError(

@@ -20,6 +20,7 @@ import sys
 
 from psdm_casadi.cli.blas_threads import blas_thread_limit
 from psdm_casadi.cli.checks import check_seed
+from psdm_casadi.cli.column_hint import with_own_columns
 from psdm_casadi.cli.interrupts import InterruptGuard
 from psdm_casadi.cli.output import (
     EXIT_BAD_INPUT,
@@ -158,6 +159,8 @@ def _report(args, exc: Exception, code: int) -> int:
     if isinstance(exc, OSError) and exc.strerror and message.startswith("["):  # [Errno 13] ...: name the file
         where = f" {str(exc.filename)!r}" if exc.filename else ""
         message = f"{exc.strerror}:{where}. Check the file and folder options (--out, --data, ...)."
+    if "=PREFIX:" in message:  # a unit hint: in this file's column names, as the option to pass
+        message = with_own_columns(message, getattr(args, "columns", None))
     print(f"psdm {args.command}: error: {message}", file=sys.stderr)
     _json_error(args, message, code)
     return code

@@ -211,7 +211,7 @@ def test_torques_in_milli_newton_metres_are_refused_before_any_fit(arm, tmp_path
     (``plausibility.check_torque_magnitude``), not fitted into link masses an order of magnitude off."""
     code, err, document = _identified(arm, tmp_path, capsys, "mNm.csv", tau=1000.0 * arm[2].tau)
     assert code == 2 and document is None and "Traceback" not in err
-    assert "mNm.csv" in err and "mN m?" in err and "--columns tau=PREFIX:mNm" in err
+    assert "mNm.csv" in err and "mN m?" in err and "--columns t=t,q=q,tau=tau:mNm" in err  # the file's own names
     factor = float(err.split("the recorded torque is about ")[1].split(" times")[0])
     assert factor == pytest.approx(1000.0, rel=0.3)
     assert "pushed against" not in err  # the unit, not a payload, is named

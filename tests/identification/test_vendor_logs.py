@@ -126,7 +126,9 @@ def test_a_log_in_degrees_mnm_and_ms_identifies_the_arm_once_its_units_are_state
     code = main(["identify", str(robot), "--data", str(path), "--columns", "t=Time,q=Pos,tau=Trq", "--out", str(out)])
     err = capsys.readouterr().err
     assert code == 2 and not out.exists()
-    assert "trace.csv" in err and err.count("positions in degrees?") == 1 and "--columns q=PREFIX:deg" in err
+    assert (
+        "trace.csv" in err and err.count("positions in degrees?") == 1 and "--columns t=Time,q=Pos:deg,tau=Trq" in err
+    )  # its own names
     columns = "t=Time:ms,q=Pos:deg,tau=Trq:mNm"
     code = main(["-q", "identify", str(robot), "--data", str(path), "--columns", columns, "--out", str(out)])
     assert code == 0
@@ -183,7 +185,7 @@ def test_torques_in_mnm_left_unstated_are_refused_naming_the_unit_alone(logged_a
                  "--out", str(out), "--no-html"])  # fmt: skip
     captured = capsys.readouterr()
     assert code == 2 and not out.exists() and "Traceback" not in captured.err, captured.err
-    assert "torques in mN m?" in captured.err and "--columns tau=PREFIX:mNm" in captured.err
+    assert "torques in mN m?" in captured.err and "--columns t=Time:ms,q=Pos:deg,tau=Trq:mNm" in captured.err
     assert "PUSHED" not in captured.out and "Torque sign" not in captured.err and "counterbalance" not in captured.err
 
 
