@@ -21,7 +21,7 @@ from psdm_casadi.cli.checks import (
     output_folder,
 )
 from psdm_casadi.cli.diagnose_loads import stated_loads, validation_loads
-from psdm_casadi.cli.diagnose_train import TRAIN_HELP, read_more_training, training_paths
+from psdm_casadi.cli.diagnose_train import TRAIN_HELP, check_recordings_exist, read_more_training, training_paths
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.cli.recalibration_text import ALONE, adds_nothing, apply_refusal, recalibration_markdown
@@ -164,6 +164,7 @@ def _run_diagnose(args) -> int:
     from identification.diagnosis.model_file import diagnose_model_prior
 
     (args.train, args.more_train), args.validate = training_paths(args), list(args.validate or ())
+    check_recordings_exist([args.train, *args.more_train, *args.validate])  # cheap errors first: before the model
     fraction = _fraction(args)
     _check_numbers(args)
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from psdm_casadi.errors import ParameterError
+from psdm_casadi.errors import ParameterError, RecordingError
 
-__all__ = ["TRAIN_HELP", "read_more_training", "training_paths"]
+__all__ = ["TRAIN_HELP", "check_recordings_exist", "read_more_training", "training_paths"]
 
 TRAIN_HELP = (
     "training recording(s) (.csv, .npz, .mat, or a ROS 2 bag). The diagnosis judges the first (one continuous run); "
@@ -40,6 +40,14 @@ def training_paths(args) -> tuple:
             f"{' '.join(args.train)} --validate C.csv. Or pass one, --train {first}, and give the others to --validate."
         )
     return first, more
+
+
+def check_recordings_exist(paths) -> None:
+    """Refuse a ``--train`` or ``--validate`` recording that does not exist before anything is loaded: a model file
+    read (and its model derived or read from the cache) before a mistyped path was a wait for a one-line error."""
+    for path in paths:
+        if not Path(path).exists():
+            raise RecordingError(f"recording {str(path)!r} does not exist. Check the path.")
 
 
 def read_more_training(paths, load, robot) -> list:

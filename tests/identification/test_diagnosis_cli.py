@@ -129,3 +129,16 @@ def test_cli_diagnose_takes_several_validation_recordings_and_keeps_what_holds_o
     assert out["findings"][0]["effect"] == "spring" and out["findings"][0]["parameters"]["k"] == pytest.approx(
         40.0, rel=0.15
     )
+
+
+def test_a_missing_recording_is_refused_before_the_model_file_is_read(tmp_path, capsys):
+    """Cheap errors first: a mistyped --train or --validate path is named before the model is loaded (a new user
+    waited for the model file and its model to load before 'recording ... does not exist'). The model file here does
+    not exist either; the error names the recording, so the recordings were checked first."""
+    for given, missing in ((["--train", "nothere.csv"], "nothere.csv"),
+                           (["--train", str(DENSO_FILE), "--validate", "gone.csv"], "gone.csv")):  # fmt: skip
+        argv = ["diagnose", str(tmp_path / "model.json"), *(str(tmp_path / a) if a.endswith(".csv") else a
+                                                             for a in given)]  # fmt: skip
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert f"recording '{tmp_path / missing}' does not exist" in err and "model.json" not in err, err
