@@ -128,10 +128,13 @@ def warn_stiff_links(command: str, source, loaded) -> list:
 
 def write_export(command: str, read: ExportInput, text: str, left_out) -> None:
     """Warn about an inconsistent model and about each of ``left_out`` (what the format cannot hold), then write
-    ``text`` to OUT atomically."""
+    ``text`` to OUT atomically, saying so when that created OUT's folder (a mistyped folder is not made silently)."""
+    missing = [folder for folder in read.out.target.parents if not folder.exists()]
     if not read.calibrated.consistent:
         print(f"psdm {command}: warning: writing an INCONSISTENT model (marked in the file)", file=sys.stderr)
     for warning in left_out:
         print(f"psdm {command}: warning: {warning}", file=sys.stderr)
     with read.out.staging() as stage:
         stage.write_text(text)
+    if missing:
+        print(f"psdm {command}: note: created the folder {str(missing[-1])!r} for OUT", file=sys.stderr)

@@ -186,3 +186,9 @@ def test_cli_export_urdf_writes_once_and_refuses_to_overwrite(tmp_path, capsys, 
     assert "INCONSISTENT" in capsys.readouterr().err
     assert main(["export-urdf", str(tmp_path / "missing.json"), str(tmp_path / "x.urdf")]) == 2
     assert "does not exist" in capsys.readouterr().err
+    model.write_text(json.dumps(denso_calibrated.document))  # consistent again
+    deep = tmp_path / "new" / "sub" / "out.urdf"  # a folder that does not exist: made, and said so
+    assert main(["export-urdf", str(model), str(deep)]) == 0 and deep.read_text() == first
+    assert f"note: created the folder '{tmp_path / 'new'}' for OUT" in capsys.readouterr().err
+    assert main(["export-urdf", str(model), str(tmp_path / "new" / "again.urdf")]) == 0
+    assert "created the folder" not in capsys.readouterr().err
