@@ -171,7 +171,7 @@ def test_motor_currents_through_the_right_gears_pass(motor_currents, tmp_path):
         ("motor kt", 1.0 / GEARS[:2].mean(), "did you give the motor's kt without the gear ratio"),
         ("inverted gears", 1.0 / GEARS[:2].mean() ** 2, "inverted gear ratios"),
         ("mN m", 1000.0, "torques in mN m?"),
-        ("mA", 1000.0, "currents in mA? (A expected; state the log's unit: --columns i=PREFIX:mA)"),
+        ("mA", 1000.0, "currents in mA? (A expected; state the log's unit: --columns t=t,q=q,i=i:mA)"),  # its own names
     ],
 )
 def test_a_cobots_usual_mistakes_are_refused_with_exit_2_naming_recording_factor_and_fix(
