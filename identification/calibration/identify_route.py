@@ -52,6 +52,7 @@ from identification.calibration.trajectory_fit import (
 from identification.calibration.unstated_load import UnstatedLoads, take_unstated_loads
 from identification.calibration.worse_joint_hold import WorseJointHold, check_worse_joint_mode, hold_worse_joints
 from identification.calibration.written_model import ModelWriter
+from identification.data.missing_torque import find_missing_torque
 from psdm_casadi.state_cache import remembering
 
 __all__ = ["IdentifyResult", "identify_recordings"]
@@ -240,7 +241,7 @@ def identify_recordings(
     check_worse_joint_mode(worse_joint)
     options = TrajectoryOptions() if options is None else options
     request = ColumnRequest() if request is None else request
-    recordings, validation = list(recordings), list(validation)
+    recordings, validation = [find_missing_torque(r) for r in recordings], list(validation)  # marked for every fit
     configurations, unstated = _unstated_loads(robot, model, recordings, options, configurations)
     judged = file_judged(validation, held_configurations, configurations)  # what the robot file is judged on
     logger.info("identify: choosing the drive columns and the Coulomb smoothing from the data ...")

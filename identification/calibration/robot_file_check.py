@@ -112,7 +112,7 @@ class FileCheck:
     each: tuple = ()  # one JointComparison per held-out recording (its ``before``: the robot file with friction)
     allowance: np.ndarray | None = None  # the estimation allowance per joint [N m] (part of ``comparison.margin``)
     parameters: int = 0  # p: the base parameters the identified model estimates and the baseline takes from the file
-    samples: float = 0.0  # N: independent samples per joint (the uniform rule's, without a covariance)
+    samples: tuple = ()  # N per joint: its independent training samples (the uniform rule's, without a covariance)
     one_way: tuple = ()  # the joints (0-based) that move one way only in the training recordings
     from_covariance: bool = True  # the allowance from the fit's covariance (else the uniform sqrt(1 + p / N) - 1)
     held: tuple = ()  # the joints (0-based) whose friction identify held to the robot file's fit (``one_way_friction``)
@@ -183,10 +183,10 @@ class FileCheck:
 
     def _allowance_text(self) -> str:
         if not self.from_covariance:
-            rule = uniform_allowance(self.parameters, self.samples)
-            return (f"the never-worse margin plus {rule:.1%} for estimating {self.parameters} rigid-body "
-                    f"parameters from {self.samples:.0f} independent samples per joint (the fit states no "
-                    "covariance)")  # fmt: skip
+            rule = "/".join(f"{uniform_allowance(self.parameters, n):.1%}" for n in self.samples)
+            return (f"the never-worse margin plus {rule} for estimating {self.parameters} rigid-body parameters "
+                    f"from {'/'.join(f'{n:.0f}' for n in self.samples)} independent samples per joint (the fit "
+                    "states no covariance)")  # fmt: skip
         return (f"the never-worse margin plus what estimating the {self.parameters} rigid-body parameters costs on "
                 f"the held-out motion (from the fit's covariance: {_numbers(self._extra)} N m)")  # fmt: skip
 
@@ -201,7 +201,7 @@ class FileCheck:
         return _json({"checked": True, "recordings": self.recordings, "worse_joints": [j + 1 for j in self.worse],
                 **self.comparison.to_dict(), "estimation_allowance": [float(v) for v in self._extra],
                 "estimation_allowance_rule": ALLOWANCE_RULES[self.from_covariance],
-                "estimated_parameters": self.parameters, "independent_samples_per_joint": self.samples,
+                "estimated_parameters": self.parameters, "independent_samples_per_joint": list(self.samples),
                 "one_way_joints": [j + 1 for j in self.one_way], "baselines": list(self.baselines),
                 "baseline_rule": BASELINE_RULE, "held_links": [i + 1 for i in self.held_links]})  # fmt: skip
 
@@ -262,10 +262,12 @@ def check_against_file(
     """``FileCheck`` of the identified ``calibrated`` model (its ``fit``) against the robot file with friction fitted
     on the ``prepared`` training recordings, on the raw held-out ``validation`` recordings (module docstring).
 
-    ``samples``: the independent training samples in all (the pull's ``effective_samples``); default the fit's
-    samples, as if each were independent (a smaller allowance). ``columns``: the fit whose drive columns the file's
-    friction is fitted with (default ``fit``): a LuGre model's fit has no friction columns (its friction is the LuGre
-    block), and the file is given the Stribeck columns that friction started from (``lugre_identify``)."""
+    ``samples``: the independent training samples in all (the pull's ``effective_samples``), shared among the joints
+    as their own rows (``TrajectoryFit.joint_samples``: a joint whose rows of a recording were left out, a dead torque
+    channel, has fewer); default each joint's rows, as if each were independent (a smaller allowance). ``columns``:
+    the fit whose drive columns the file's friction is fitted with (default ``fit``): a LuGre model's fit has no
+    friction columns (its friction is the LuGre block), and the file is given the Stribeck columns that friction
+    started from (``lugre_identify``)."""
     from psdm_casadi.oracle import PinocchioOracle
 
     if not validation:
@@ -290,19 +292,20 @@ def check_against_file(
         comparisons.append(JointComparison.from_noise(before, after, se))
         if covariance is not None:
             each.append(joint_allowance(before, prediction_variance(model, covariance, ready)))
-    per_joint = (fit.n_samples if samples is None else samples) / robot.n_dof
+    rows = np.asarray(fit.joint_samples or (fit.n_samples,) * robot.n_dof, dtype=float)  # a fit of before: one count
+    per_joint = rows if samples is None else samples * rows / max(float(rows.sum()), 1.0)
     pooled = pooled_comparison(comparisons)
     if covariance is not None:  # the mean over the recordings that hold the joint, as ``pooled.before``
         each = np.array(each)
         held = np.isfinite(each)
         allowance = np.where(held, each, 0.0).sum(axis=0) / np.maximum(held.sum(axis=0), 1)
     else:
-        allowance = uniform_allowance(model.n_base, per_joint) * np.nan_to_num(pooled.before)
+        allowance = np.array([uniform_allowance(model.n_base, n) for n in per_joint]) * np.nan_to_num(pooled.before)
     pooled = replace(pooled, margin=pooled.margin + allowance)
     one_way = one_way_joints(prepared, range(robot.n_dof), speed=options.coulomb_velocity,
                              min_fraction=MIN_REVERSAL_FRACTION)  # fmt: skip
     return FileCheck(pooled, len(validation), each=tuple(comparisons), allowance=allowance, parameters=model.n_base,
-                     samples=per_joint, one_way=tuple(one_way), from_covariance=covariance is not None,
+                     samples=tuple(per_joint.tolist()), one_way=tuple(one_way), from_covariance=covariance is not None,
                      baselines=tuple("alone" if a else "friction" for a in use_alone))  # fmt: skip
 
 

@@ -35,7 +35,7 @@ from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_joint",
            "drive_column_names", "drive_columns", "file_shape", "fit_shape", "friction_shapes", "friction_term",
-           "prepare_recording", "prepare_recordings", "stribeck_derivative", "stribeck_joints",
+           "prepare_recording", "prepare_recordings", "samples_text", "stribeck_derivative", "stribeck_joints",
            "viscous_column"]  # fmt: skip
 
 #: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
@@ -233,6 +233,16 @@ def drive_columns(
     for c, j in enumerate(inertia_joints):
         out[:, j, len(per_joint) * n_dof + c] = qdd[:, j]
     return out
+
+
+def samples_text(counts) -> str:
+    """``"N samples"`` of a fit whose joints have ``counts`` (``NormalEquations.count``) rows: N the samples it used
+    (the most any joint has), and each joint with fewer (a recording's rows without its torque left out) with its
+    own count, e.g. ``"986 samples (joint 1: 461)"``."""
+    counts = [int(c) for c in np.ravel(counts)]
+    most = max(counts, default=0)
+    fewer = [f"joint {j + 1}: {c}" for j, c in enumerate(counts) if c < most]
+    return f"{most} samples" + (f" ({', '.join(fewer)})" if fewer else "")
 
 
 @dataclass

@@ -70,6 +70,7 @@ from identification.calibration.trajectory_data import (
     drive_columns,
     fit_shape,
     prepare_recordings,
+    samples_text,
 )
 from identification.calibration.weighted_solve import weighted_least_squares
 from identification.data.filter_choice import EDGE_PERIODS
@@ -285,7 +286,7 @@ class TrajectoryFit:
     min_pseudo_inertia_eigenvalue: float
     cutoff_hz: tuple
     decimation: tuple
-    n_samples: int
+    n_samples: int  # the samples the fit used (the most any joint has); ``joint_samples``: per joint
     solver_status: str
     seconds: float
     stribeck_velocity: tuple = ()
@@ -301,6 +302,7 @@ class TrajectoryFit:
     edge_periods: float = EDGE_PERIODS
     covariance: np.ndarray | None = None
     loaded: tuple = ()
+    joint_samples: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -376,7 +378,7 @@ def identify_trajectories(
     setup = (options.friction, inertia_joints, options.coulomb_velocity, vs, options.viscous_exponent)
     n_columns = n_all + (0 if vs is None else robot.n_dof)  # one pass; flange probes of configuration_check
     equations, own = accumulate(robot, model, prepared, extras, setup, n_columns, bodies.index)
-    logger.info("identify: %d samples of %d recording(s), cutoff %s Hz", max(equations.count), len(recordings),
+    logger.info("identify: %s of %d recording(s), cutoff %s Hz", samples_text(equations.count), len(recordings),
                 ", ".join(f"{c:g}" for c in cutoffs), extra=ONCE)  # fmt: skip
     held = _held_columns(names, options, model.n_base, vs, n_columns)  # held at 0: left out of both fits
     free = [k for k in range(equations.n_columns) if k not in held]
@@ -423,10 +425,10 @@ def identify_trajectories(
         inertia_joints=tuple(inertia_joints), friction_terms=tuple(options.friction), envelope=tuple(pushed),
         coulomb_velocity=options.coulomb_velocity, viscous_exponent=tuple(options.viscous_exponent or ()),
         theta_ols=x_ols[: model.n_base], drive_ols=x_ols[model.n_base : n_fit], theta_std=std[: model.n_base],
-        drive_std=std[model.n_base : n_fit], sigma=sigma, condition_number=condition,
-        consistent=bool(options.consistency and eigen > 0), checked=options.consistency,
+        drive_std=std[model.n_base : n_fit], condition_number=condition, seconds=time.perf_counter() - start,
+        consistent=bool(options.consistency and eigen > 0), checked=options.consistency, solver_status=status,
         min_pseudo_inertia_eigenvalue=eigen, cutoff_hz=tuple(cutoffs), decimation=tuple(steps),
-        n_samples=int(max(equations.count)), solver_status=status, seconds=time.perf_counter() - start,
+        n_samples=int(equations.count.max()), joint_samples=tuple(equations.count.tolist()), sigma=sigma,
         stribeck_velocity=() if vs is None else tuple(float(v) for v in vs), stribeck_velocity_std=vs_std,
         training_r2=tuple(equations.r2(np.concatenate([theta, drive, np.nan_to_num(np.ravel(found))])).tolist()),
         training_r2_ols=tuple(equations.r2(x_ols).tolist()), payloads=payloads, edge_periods=options.edge_periods,

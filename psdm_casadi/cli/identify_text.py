@@ -174,6 +174,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     ``loads`` the line on the load nothing states of each held-out recording (None: none), said in its table only."""
     from identification.calibration.drive_loss import drive_loss_summary
     from identification.calibration.envelope_report import DIAGNOSE_COMMAND
+    from identification.calibration.trajectory_data import samples_text
 
     if args.json:
         print_json({"command": "identify", "protocol": "recordings", "robot": robot.name, "out": str(args.out),
@@ -196,9 +197,10 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
                                    "friction_drift", "unstated_loads", "lugre_trial")},
                     "warnings": calibrated.document.get("warnings", [])})  # fmt: skip
         return
-    print(f"{robot.name}: {fit.n_samples} samples after filtering at {', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz "
-          f"(decimation {', '.join(map(str, fit.decimation))}; {fit.edge_periods:g} filter periods trimmed at each "
-          f"end, the filter's start-up transient); condition number of the weighted regressor "
+    print(f"{robot.name}: {samples_text(fit.joint_samples or (fit.n_samples,))} after filtering at "
+          f"{', '.join(f'{c:g}' for c in fit.cutoff_hz)} Hz (decimation {', '.join(map(str, fit.decimation))}; "
+          f"{fit.edge_periods:g} filter periods trimmed at each end, the filter's start-up transient); condition "
+          "number of the weighted regressor "
           f"{fit.condition_number:.3g}")  # fmt: skip
     state = "consistent" if calibrated.consistent else ("NOT CHECKED" if not fit.checked else "NOT CONSISTENT")
     print(f"physical consistency: {state} (smallest pseudo-inertia eigenvalue {fit.min_pseudo_inertia_eigenvalue:.3g}, "
