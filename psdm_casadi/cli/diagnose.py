@@ -164,7 +164,6 @@ def _run_diagnose(args) -> int:
     from identification.diagnosis.model_file import diagnose_model_prior
 
     (args.train, args.more_train), args.validate = training_paths(args), list(args.validate or ())
-    check_recordings_exist([args.train, *args.more_train, *args.validate])  # cheap errors first: before the model
     fraction = _fraction(args)
     _check_numbers(args)
     folder = _out_folder(args)  # refused before any work: an existing report, a file, an unwritable folder
@@ -333,6 +332,7 @@ def _calibrated_source(args):
                 f"diagnose --apply needs a calibrated model (.json from 'psdm identify') as its first argument; got "
                 f"{args.robot!r}. Identify the robot first: psdm identify ROBOT --data A.csv --out model.json."
             )
+        check_recordings_exist([args.train, *args.more_train, *args.validate])
         return None, None
     if getattr(args, "lock", None):
         raise ParameterError(
@@ -342,6 +342,8 @@ def _calibrated_source(args):
     if args.apply is not None:
         check_not_input(args.apply, "--apply", _inputs(args), example=f"{Path(args.apply).stem}_applied.json")
         check_suffix(args.apply, "--apply", (".json",), "a calibrated-model file (JSON)")
+    if Path(args.robot).exists():  # cheap errors first: the options, the files, then the model read
+        check_recordings_exist([args.train, *args.more_train, *args.validate])
     return read_calibrated_argument(args, args.robot), output_file(args.apply, "--apply", args.overwrite)
 
 

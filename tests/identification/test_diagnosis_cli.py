@@ -133,8 +133,9 @@ def test_cli_diagnose_takes_several_validation_recordings_and_keeps_what_holds_o
 
 def test_a_missing_recording_is_refused_before_the_model_file_is_read(tmp_path, capsys):
     """Cheap errors first: a mistyped --train or --validate path is named before the model is loaded (a new user
-    waited for the model file and its model to load before 'recording ... does not exist'). The model file here does
-    not exist either; the error names the recording, so the recordings were checked first."""
+    waited for the model file and its model to load before 'recording ... does not exist'). The model file here is
+    not a model; the error names the recording, so the recordings were checked before it was read."""
+    (tmp_path / "model.json").write_text("{}")
     for given, missing in ((["--train", "nothere.csv"], "nothere.csv"),
                            (["--train", str(DENSO_FILE), "--validate", "gone.csv"], "gone.csv")):  # fmt: skip
         argv = ["diagnose", str(tmp_path / "model.json"), *(str(tmp_path / a) if a.endswith(".csv") else a
