@@ -68,6 +68,7 @@ from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.recording_provenance import recording_provenance
 from identification.calibration.split_torque import splitting_findings
+from identification.calibration.spring_rest import with_rest_angles
 from identification.calibration.trajectory_data import stribeck_joints
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.torque_constants import recording_kt
@@ -390,7 +391,7 @@ def _document(
     kept = ("column_choice", "one_way_friction", "worse_joints", "torque_scale")  # as the refit kept them (_options)
     document["identification"].update({k: copy.deepcopy(v) for k, v in calibrated.document["identification"].items()
                                        if k in kept and v is not None})  # fmt: skip
-    document["findings"] = filled_entries(entries, terms, columns, extra)
+    document["findings"] = with_rest_angles(filled_entries(entries, terms, columns, extra), document.get("drive"))
     document["corrections"] = corrections
     said = calibrated.document.get("warnings", [])  # identify's: its suggested command names the files
     document["warnings"] = with_concrete_route(dict.fromkeys(fit.warnings), said)  # the refit's own (flags stay)

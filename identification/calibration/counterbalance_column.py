@@ -65,6 +65,7 @@ from identification.calibration.envelope_report import DIAGNOSE_ROUTE
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_each, pooled_comparison
+from identification.calibration.spring_rest import rest_angle_text, with_rest_angles
 from identification.calibration.trajectory_fit import identify_trajectories
 from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import InsufficientExcitationError
@@ -201,7 +202,8 @@ def _with_springs(robot, model, options, build, columns, data, configurations) -
     plain, extra = split_findings(identify_trajectories(robot, model, data, options, columns, configurations),
                                   len(columns.names))  # fmt: skip
     document = copy.deepcopy(build(plain).document)
-    document["findings"] = [*(document.get("findings") or []), *_entries(columns, extra)]
+    document["findings"] = with_rest_angles([*(document.get("findings") or []), *_entries(columns, extra)],
+                                            document.get("drive"))  # fmt: skip
     return plain, document
 
 
@@ -375,7 +377,8 @@ def _choice(named, trials, judges) -> CounterbalanceChoice:
         return CounterbalanceChoice(joints, named, False, f"a spring on {labels or 'the named joints'} tried and not "
                                     f"kept: {why} ({pair}){noise}; {SUGGESTED}", None, None, *numbers, parts,
                                     cleared)  # fmt: skip
-    springs = ", ".join(f["label"] for f in trial.document["findings"] if f.get("source") == COUNTERBALANCE_SOURCE)
+    springs = ", ".join(f["label"] + rest_angle_text(f) for f in trial.document["findings"]
+                        if f.get("source") == COUNTERBALANCE_SOURCE)  # fmt: skip
     by = " and ".join(dict.fromkeys(named[j] for j in chosen))
     replaced = ", ".join(f"joint {j + 1}" for j in chosen if j in judges.replacing)
     verdict = (f"in place of what the offset or the links held on {replaced}, no joint worse" if replaced else

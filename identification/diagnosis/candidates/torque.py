@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 
 import casadi as ca
 import numpy as np
+from scipy.optimize import brentq
 
 from identification.diagnosis.candidates.base import (
     CandidateTerm,
@@ -174,12 +175,37 @@ class SpringTerm(CandidateTerm):
         ends = self.torque_of_angle(np.array([lo, hi]), coefficients)
         return float((ends[1] - ends[0]) / max(hi - lo, 1e-12))
 
+    def rest_angle(self, coefficients, offset: float = 0.0) -> float | None:
+        """The angle [rad] where the term's torque plus ``offset`` is zero: the spring's rest angle, the one a datasheet
+        gives. ``centre`` is where a polynomial is expanded (an odd law's symmetry), not where its torque vanishes; the
+        constant ``coefficients[-1]`` is in the torque, and ``offset`` is a torque offset fitted beside it on the joint
+        that holds it instead (the two are one column: a model file's ``offsetN`` where ``c_N`` is absorbed). The root
+        nearest the middle of the recorded range, searched over the range widened by its width on each side; None
+        without one there."""
+        c = np.asarray(coefficients, dtype=float)
+        if self.order == 1:
+            return float(-(c[1] + offset) / c[0]) if c[0] != 0 else None
+        if self.q_range is None:
+            return None
+        lo, hi = (float(x) for x in self.q_range)
+        grid = np.linspace(2 * lo - hi, 2 * hi - lo, 601)
+        value = self.torque_of_angle(grid, c) + offset
+
+        def torque(q):
+            return float(self.torque_of_angle(q, c) + offset)
+
+        ends = [(grid[i], grid[i + 1]) for i in np.flatnonzero(value[:-1] * value[1:] <= 0)]
+        roots = [a if torque(a) == 0 else b if torque(b) == 0 else brentq(torque, a, b) for a, b in ends]
+        return float(min(roots, key=lambda r: abs(r - 0.5 * (lo + hi)))) if roots else None
+
     def physical_parameters(self, coefficients):
         if self.order == 1:
             k, c = (float(x) for x in coefficients)
             return {"k": k, "q0": (-c / k) if k != 0 else 0.0}
         low, high = self.stiffness_range(coefficients)
         out = {"k": self._secant(coefficients), "order": float(self.order), "centre": float(self.centre)}
+        rest = self.rest_angle(coefficients)
+        out.update({} if rest is None else {"rest_angle": rest})  # zero torque, the constant included
         if self.odd:
             out["neutral_angle"] = float(self.centre)
         out.update({"stiffness_min": low, "stiffness_max": high})
@@ -230,6 +256,9 @@ class SpringTerm(CandidateTerm):
                 f"{', '.join(str(i) for i in self.exponents)} of q - q0: a gas spring, a spring through a linkage or "
                 f"a gravity cam), stiffness {low:.3g} to {high:.3g} N m/rad over the recorded range"
             )
+        rest = self.rest_angle(coefficients)
+        if rest is not None:
+            shape += f"; zero torque (its rest angle) at q = {rest:.4g} rad, constant {coefficients[-1]:.4g} N m in"
         if low < 0.0 < high:
             shape += "; the stiffness changes sign over the range, so it is not a single spring"
         return self.key, "a position-dependent elastic torque: " + shape
