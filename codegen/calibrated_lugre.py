@@ -51,6 +51,10 @@ def build_lugre_step(calibrated) -> ca.Function | None:
     dt = ca.SX.sym("dt")
     s_next, tau = [], []
     for j, p in enumerate(parameters):
+        if p is None:  # a mixed model's steady-state joint: its friction is in inverse_dynamics, its state unused
+            s_next.append(s[j])
+            tau.append(ca.SX(0.0))
+            continue
         values = ca.DM(p.as_array())
         a, b = qd_prev[j], qd[j]
         crossing = a * b < 0
@@ -71,15 +75,20 @@ def lugre_note(calibrated, prefix: str = "psdm_") -> list:
     parameters = calibrated.lugre_parameters
     if parameters is None:
         return []
+    joints = [j + 1 for j, p in enumerate(parameters) if p is not None]
+    where = "" if len(joints) == len(parameters) else f" (joints {joints}; the others' friction is in it)"
     lines = [
-        f"LuGre friction is NOT in {prefix}inverse_dynamics (nor in bias, gravity, forward_dynamics): it depends on "
-        f"the bristle state. {prefix}{LUGRE_STEP}(s, qd_prev, qd, dt) -> (s_next, tau_friction) in the _lugre files "
-        "advances the bristle force s = sigma0 z [N m] of every joint over a sample interval dt [s] (velocity "
-        "linear from qd_prev to qd) and gives the friction torque at the new sample; the full feed-forward is "
-        f"{prefix}inverse_dynamics(q, qd, qdd) + tau_friction. Carry s between calls, start with s = 0 (at rest).",
+        f"LuGre friction{where} is NOT in {prefix}inverse_dynamics (nor in bias, gravity, forward_dynamics): it "
+        f"depends on the bristle state. {prefix}{LUGRE_STEP}(s, qd_prev, qd, dt) -> (s_next, tau_friction) in the "
+        "_lugre files advances the bristle force s = sigma0 z [N m] of every joint over a sample interval dt [s] "
+        "(velocity linear from qd_prev to qd) and gives the friction torque at the new sample; the full feed-forward "
+        f"is {prefix}inverse_dynamics(q, qd, qdd) + tau_friction. Carry s between calls, start with s = 0 (at rest).",
         "LuGre parameters per joint (fc, fs, vs, fv, dv, sigma0, sigma1):",
     ]
-    lines += [f"  joint {j + 1}: " + ", ".join(f"{v:.17g}" for v in p.as_array()) for j, p in enumerate(parameters)]
+    lines += [f"  joint {j + 1}: " + ("no LuGre friction: its steady-state friction is in inverse_dynamics, "
+                                      "tau_friction 0 and s unchanged" if p is None else
+                                      ", ".join(f"{v:.17g}" for v in p.as_array()))
+              for j, p in enumerate(parameters)]  # fmt: skip
     return lines
 
 

@@ -95,7 +95,8 @@ def mjcf_round_trip(calibrated, model, text: str, q, qd, qdd) -> MjcfRoundTrip:
     held, lugre = _held_part(calibrated)
     expected = held.predict(model, q, qd, qdd)
     if lugre is not None:
-        expected = expected + np.asarray(lugre["fv"], dtype=float) * qd
+        fv = np.array([0.0 if v is None else v for v in lugre["fv"]])  # null: a mixed model's steady-state joint
+        expected = expected + fv * qd
     free = mujoco_inverse(mj_model, q, qd, qdd, constraints=False)
     error = float(np.abs(free - expected).max() / max(np.abs(expected).max(), 1e-300))
     friction = mujoco_inverse(mj_model, q, qd, qdd, constraints=True) - free

@@ -99,9 +99,9 @@ def drive_terms(calibrated) -> dict:
     values = dict(zip(drive["names"], calibrated.drive))
     n = calibrated.n_dof
     out = {term: np.array([values.get(f"{term}{j + 1}", 0.0) for j in range(n)]) for term in ("fc", "fv", "offset")}
-    lugre = calibrated.lugre_parameters
-    if lugre is not None:
-        out["fc"], out["fv"] = np.array([p.fc for p in lugre]), np.array([p.fv for p in lugre])
+    for j, p in enumerate(calibrated.lugre_parameters or ()):  # a mixed model's steady-state joints: None
+        if p is not None:
+            out["fc"][j], out["fv"][j] = p.fc, p.fv
     return out
 
 
@@ -122,9 +122,16 @@ def drive_inertias(calibrated, robot) -> np.ndarray:
 def friction_left_out(calibrated) -> list | None:
     """Per joint, the friction values no target holds (``"fs = .., vs = .."``, LuGre: also sigma0, sigma1)."""
     lugre = calibrated.lugre_parameters
-    if lugre is not None:
-        names = ("fs", "vs", "sigma0", "sigma1")
-        return [", ".join(f"{name} = {exact_text(getattr(p, name))}" for name in names) for p in lugre]
+    if lugre is None:
+        return _steady_left_out(calibrated)
+    steady = _steady_left_out(calibrated) or ["none"] * len(lugre)  # a mixed model's steady-state joints
+    names = ("fs", "vs", "sigma0", "sigma1")
+    return [steady[j] if p is None else ", ".join(f"{name} = {exact_text(getattr(p, name))}" for name in names)
+            for j, p in enumerate(lugre)]  # fmt: skip
+
+
+def _steady_left_out(calibrated) -> list | None:
+    """``friction_left_out`` of the drive columns' steady-state friction (None: Coulomb + viscous on every joint)."""
     drive = calibrated.document["drive"]
     power = drive.get("viscous_exponent") or []  # the viscous power law fv |qd|^dv: a target's damping is linear
     if "fs" not in drive["friction_terms"] and not power:
@@ -141,9 +148,11 @@ def friction_not_representable(calibrated, target: ExportTarget = URDF) -> str |
     """The warning for a model whose friction ``target`` cannot hold (module docstring), or None (Coulomb + viscous)."""
     if friction_left_out(calibrated) is None:
         return None
-    shape = "LuGre" if calibrated.lugre_parameters is not None else "Stribeck"
-    dynamics = " and the bristle dynamics (sigma0, sigma1)" if shape == "LuGre" else ""
-    if "fs" not in calibrated.document["drive"]["friction_terms"] and shape != "LuGre":
+    lugre = calibrated.lugre_parameters
+    joints = [j + 1 for j, p in enumerate(lugre or ()) if p is not None]
+    shape = "Stribeck" if lugre is None else "LuGre" if len(joints) == len(lugre) else f"LuGre on joint(s) {joints}"
+    dynamics = " and the bristle dynamics (sigma0, sigma1)" if lugre is not None else ""
+    if "fs" not in calibrated.document["drive"]["friction_terms"] and lugre is None:
         return (f"the model's viscous friction is a power law fv |qd|^dv on some joints; {target.name} holds only "
                 f"linear viscous damping, so {target.friction_fields} are written and the exponent dv is NOT in the "
                 f"{target.name} (its value is in a comment on each joint)")  # fmt: skip

@@ -64,6 +64,7 @@ from identification.calibration.findings import (
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.lugre_identify import identify_lugre_trajectories
 from identification.calibration.lugre_recordings import split_findings
+from identification.calibration.mixed_friction import mixed_options, steady_columns
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.recording_provenance import recording_provenance
@@ -248,10 +249,10 @@ def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
     """The recordings-route options the file was identified with (for LuGre: of the Stribeck fit it starts from)."""
     document, own = calibrated.document, model_preparation(calibrated.document)  # a refit keeps its file's preparation
     drive, identification = document["drive"], document["identification"]
-    friction = tuple(drive["friction_terms"])
-    if calibrated.lugre_parameters is not None:
+    friction, lugre = tuple(drive["friction_terms"]), calibrated.lugre_parameters
+    if lugre is not None and not steady_columns(drive):  # LuGre on every joint
         friction = ("fc", "fs", "fv", *(term for term in friction if term == "offset"))
-    return TrajectoryOptions(
+    options = TrajectoryOptions(
         friction=friction,
         coulomb_velocity=float(drive["coulomb_velocity"]),
         drive_inertia=bool(identification.get("drive_inertia", True)),
@@ -267,6 +268,10 @@ def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
         rotors_apart=model_file_holds(document).rotors_apart,  # as identified (``rotors_apart``)
         stribeck_held=_held_stribeck(calibrated, friction),  # the file's shape, as the diagnosis judged against it
     )
+    if lugre is None or not steady_columns(drive):
+        return options
+    joints = [j for j, p in enumerate(lugre) if p is not None]  # a mixed model: its refits' options (mixed_friction)
+    return mixed_options(options, joints, drive.get("stribeck_velocity") or [0.0] * len(lugre))
 
 
 def _held_stribeck(calibrated: CalibratedModel, friction) -> tuple | None:
@@ -274,8 +279,8 @@ def _held_stribeck(calibrated: CalibratedModel, friction) -> tuple | None:
     diagnosis judged them against, the file's (``DiagnosisOptions.friction`` ``"stribeck"``: its vs), rather than
     searching it again beside them (a smooth Coulomb finding and a Stribeck hump trade against each other). None for a
     LuGre file (its own route) or a file without them."""
-    stored = calibrated.document["drive"].get("stribeck_velocity")
-    if calibrated.lugre_parameters is not None or "fs" not in friction or not stored:
+    stored, drive = calibrated.document["drive"].get("stribeck_velocity"), calibrated.document["drive"]
+    if (calibrated.lugre_parameters is not None and not steady_columns(drive)) or "fs" not in friction or not stored:
         return None
     return tuple(float(v) for v in stored)
 
@@ -287,16 +292,19 @@ def _offset_joints(identification):
     return None if on else tuple(j - 1 for j in choice["offset_joints"])
 
 
-def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lugre=False):
-    """One joint fit with the finding columns, of the LuGre identification with ``lugre``; returns (fit, columns,
+def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lugre=None):
+    """One joint fit with the finding columns, of the LuGre identification with ``lugre`` (the file's LuGre parameters
+    per joint: a mixed model's refit fits LuGre on its LuGre joints, ``mixed_friction``); returns (fit, columns,
     ``lugre_recordings.LuGreFit`` or None). A feature is left out when it is absorbed beside the Stribeck shape."""
     columns = FindingColumns(tuple(terms), reference)
     if terms:
         keep = absorbed_mask(robot, model, recordings, options, columns, stribeck, recording_kt(robot, *recordings))
         columns = dataclasses.replace(columns, keep=keep)
     extra = columns if terms else None
-    if lugre:
-        result = identify_lugre_trajectories(robot, model, recordings, options, extra=extra)
+    if lugre is not None:
+        joints = tuple(j for j, p in enumerate(lugre) if p is not None)
+        mixed = {"joints": joints} if None in lugre else {}  # started as the first fit was (``lugre_identify``)
+        result = identify_lugre_trajectories(robot, model, recordings, options, extra=extra, **mixed)
         return result.fit, columns, result.lugre
     return identify_trajectories(robot, model, recordings, options, extra), columns, None
 
@@ -325,13 +333,13 @@ def joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:
     corrected = [correct_recording(r, corrections, recording_kt(robot, *train)) for r in train]
     own = calibrated.lugre_parameters
     stribeck = calibrated.document["drive"].get("stribeck_velocity") or None
-    stribeck = [p.vs for p in own] if own is not None else stribeck  # LuGre: its own Stribeck velocities
+    stribeck = [p.vs for p in own] if own is not None and None not in own else stribeck  # LuGre: its own
     stribeck = None if stribeck is None or "fs" not in options.friction else np.asarray(stribeck, dtype=float)
     common = (carrying_payloads(robot, model, entries), model, corrected, options, terms)  # the prior holds the load
-    fit, columns, lugre = _fit(*common, _reference(calibrated, model), stribeck, own is not None)
+    fit, columns, lugre = _fit(*common, _reference(calibrated, model), stribeck, own)
     if any(term.load_dependent for term in terms):  # second pass: the load of the new model itself
         interim = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
-        fit, columns, lugre = _fit(*common, _reference(interim, model), stribeck, own is not None)
+        fit, columns, lugre = _fit(*common, _reference(interim, model), stribeck, own)
     after = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
     after.document["provenance"]["recalibrated_on"] = [recording_provenance(r) for r in train]
     return after, fit

@@ -58,6 +58,7 @@ import tomllib
 
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.held_friction import drive_inertia_split
+from identification.calibration.mixed_friction import file_lugre_joints, friction_drives
 from identification.calibration.model_file_check import robot_digest
 from identification.calibration.model_preparation import model_preparation, preparation_block
 from identification.calibration.parameter_covariance import covariance_block
@@ -106,12 +107,13 @@ class CalibratedModel:
                  configurations=None):  # fmt: skip
         """The document of a :class:`TrajectoryFit` of ``robot`` (``robot_source`` is its file or built-in name).
 
-        With ``lugre`` (a ``lugre_recordings.LuGreFit``), ``fit`` is the Stribeck fit: its friction columns are
-        replaced by the LuGre block (version 3). With ``configurations`` (one ``PayloadConfiguration`` per
-        recording of ``recordings``), the ``configurations`` block says which load each recording carried.
+        With ``lugre`` (a ``lugre_recordings.LuGreFit``) of every joint, ``fit``'s friction columns are replaced by
+        the LuGre block (version 3); of some joints (``mixed_friction``), ``fit`` keeps them (0 on the LuGre joints).
+        With ``configurations`` (one ``PayloadConfiguration`` per recording of ``recordings``), the
+        ``configurations`` block says which load each recording carried.
         """
-        if lugre is not None:
-            from identification.calibration.lugre_recordings import lugre_block, without_friction
+        if lugre is not None and len(lugre.joints) == robot.n_dof:  # a mixed model keeps its steady-state columns
+            from identification.calibration.lugre_recordings import without_friction
 
             fit = without_friction(fit)
         n = robot.n_dof
@@ -152,10 +154,12 @@ class CalibratedModel:
         if configurations is not None and any(c.stated for c in configurations):
             names = [e["name"] for e in recordings] or [f"recording {k + 1}" for k in range(len(configurations))]
             document["configurations"] = configurations_block(configurations, names, fit.payloads)
-        if lugre is not None:
-            document["version"] = LUGRE_VERSION
-            document["drive"]["friction_shape"] = "lugre"
-            document["drive"]["friction_shapes"] = ["lugre"] * n
+        if lugre is not None:  # LuGre on its joints, each other joint the fit's steady-state shape (mixed_friction)
+            from identification.calibration.lugre_recordings import lugre_block
+
+            shapes = document["drive"]["friction_shapes"]
+            document["version"], document["drive"]["friction_shape"] = LUGRE_VERSION, "lugre"
+            document["drive"]["friction_shapes"] = ["lugre" if j in lugre.joints else shapes[j] for j in range(n)]
             document["drive"]["lugre"] = lugre_block(lugre)
         return cls(document)
 
@@ -255,15 +259,17 @@ class CalibratedModel:
 
     @property
     def lugre_parameters(self) -> tuple | None:
-        """The LuGre parameters of each joint (``LuGreParameters``) of a LuGre model, else None."""
+        """The LuGre parameters of each joint (``LuGreParameters``; None on a joint of a steady-state shape,
+        ``mixed_friction``) of a LuGre model, else None."""
         block = self.document["drive"].get("lugre")
         if not block:
             return None
         from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
 
+        joints = file_lugre_joints(self.document, self.n_dof)
         try:
             return tuple(LuGreParameters(**{name: block[name][j] for name in LUGRE_PARAMETER_NAMES})
-                         for j in range(self.n_dof))  # fmt: skip
+                         if j in joints else None for j in range(self.n_dof))  # fmt: skip
         except (KeyError, IndexError, TypeError, ParameterError) as exc:
             raise ModelFileError(
                 f"calibrated model drive.lugre must hold {self.n_dof} valid values for each of "
@@ -359,33 +365,6 @@ def calibrated_robot(calibrated: CalibratedModel, robot):
     out = robot.with_links(links, rotor_inertia=drive_inertia_split(standard[:, 10])[0])
     drives = friction_drives(calibrated, robot)
     return out if drives is None else dataclasses.replace(out, drives=drives)
-
-
-def friction_drives(calibrated: CalibratedModel, robot) -> tuple | None:
-    """Drives carrying the calibrated model's own friction shape, for a nominal model built from it; None for
-    Coulomb + viscous (the robot file's drives are kept, their viscous exponents 1 as the file's).
-
-    Stribeck or a viscous power law: ``fc, fs, vs, fv`` and ``dv`` of the file (1 where linear; the bristle values are
-    the robot file's and unused by the ``"stribeck"`` diagnosis). LuGre: the seven identified parameters. The torque
-    constants are the robot file's (1 N m/A when it has no drives: the model was then identified from joint torques).
-    """
-    from psdm_casadi.robot import DriveParameters
-
-    drive, base = calibrated.document["drive"], robot.drives or tuple(DriveParameters() for _ in range(robot.n_dof))
-    if drive.get("friction_shape") not in ("stribeck", "lugre") and not drive.get("viscous_exponent"):  # linear
-        return None if all(d.dv == 1.0 for d in base) else tuple(dataclasses.replace(d, dv=1.0) for d in base)
-    lugre = calibrated.lugre_parameters
-    if lugre is not None:
-        return tuple(dataclasses.replace(d, **p.as_dict()) for d, p in zip(base, lugre))
-    values = dict(zip(drive["names"], calibrated.drive))
-    vs, dv = drive["stribeck_velocity"] or [0.0] * robot.n_dof, drive.get("viscous_exponent") or [1.0] * robot.n_dof
-    flat = [float(v) == 0.0 for v in vs]  # a Coulomb-viscous joint of the file: its static level is its Coulomb one
-    return tuple(
-        dataclasses.replace(d, fc=max(values[f"fc{j + 1}"], 0.0), vs=d.vs if flat[j] else float(vs[j]),
-                            fs=max(values[f"fc{j + 1}" if flat[j] else f"fs{j + 1}"], 0.0),
-                            fv=max(values[f"fv{j + 1}"], 0.0), dv=float(dv[j]))
-        for j, d in enumerate(base)
-    )  # fmt: skip
 
 
 def _robot_block(robot, robot_source) -> dict:

@@ -300,7 +300,8 @@ def identify_recordings(
     chosen, final, calibrated = written.options, written.fit, written.calibrated
     taken, payload = written.counterbalance, written.payload
     choice = replace(choice, replaced_offsets=taken.replaced_offsets)  # the model holds the spring there
-    calibrated.document["identification"]["column_choice"] = choice.to_dict()
+    shapes = {"friction_shapes": list(calibrated.document["drive"]["friction_shapes"])} if lugre is not None else {}
+    calibrated.document["identification"]["column_choice"] = {**choice.to_dict(), **shapes}  # LuGre: as written
     if rotors.verdicts:  # stated with the other column choices
         calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
     check = replace(written.check, held=held.held_joints, held_links=mended.held_links)

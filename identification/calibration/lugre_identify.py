@@ -63,6 +63,7 @@ import warnings
 import numpy as np
 
 from identification.calibration.lugre_recordings import fit_lugre_recordings, lugre_friction
+from identification.calibration.mixed_friction import stribeck_start
 from identification.calibration.payload_fit import subtract_loads
 from identification.calibration.trajectory_checks import fit_quality_warnings
 from identification.calibration.trajectory_data import choose_filter, prepare_recordings
@@ -73,7 +74,7 @@ from identification.friction.simulation import simulate_lugre
 from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = ["FRICTION_EDGE_PERIODS", "MAX_ROUNDS", "ROUND_TOLERANCE", "ROUND_TOLERANCE_SD", "LuGreIdentification",
-           "identify_lugre_trajectories", "raw_start_force", "round_change", "whole_torque_warnings",
+           "identify_lugre_trajectories", "raw_start_force", "restricted", "round_change", "whole_torque_warnings",
            "without_lugre_friction"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
@@ -150,9 +151,8 @@ def without_lugre_friction(recordings, lugre, prepared, kt, cutoff_hz) -> list:
         cutoff, _ = choose_filter(rate, cutoff_hz)
         qd, _ = central_difference(rec.t, zero_phase_filter(rec.q, rate, cutoff))
         first = int(np.searchsorted(rec.t, prepared[k].t[0] - 1e-9 * rec.dt))
-        s0 = [
-            raw_start_force(p, rec.t, qd[:, j], first, lugre.start_force[k, j]) for j, p in enumerate(lugre.parameters)
-        ]
+        s0 = [0.0 if p is None else raw_start_force(p, rec.t, qd[:, j], first, lugre.start_force[k, j])
+              for j, p in enumerate(lugre.parameters)]  # fmt: skip
         tau = rec.joint_torque(kt) - lugre_friction(lugre.parameters, rec.t, qd, s0)
         out.append(Recording(t=rec.t, q=rec.q, tau=tau, name=rec.name))
     return out
@@ -166,16 +166,18 @@ def round_change(previous, current, tolerance_sd: float = ROUND_TOLERANCE_SD) ->
     1 % from round to round without meaning anything); the score is the largest over the parameters of the smaller
     of the two ratios, below 1 when all have settled.
     """
-    before, after = previous.table(), current.table()
+    joints = list(current.joints)  # a joint of a steady-state shape has no LuGre parameters
+    before, after, sd = previous.table()[joints], current.table()[joints], current.std[joints]
     relative = np.abs(np.log(after / before))
     with np.errstate(divide="ignore", invalid="ignore"):  # a held parameter (sd 0) settles by value alone
-        in_sd = np.where(current.std > 0, np.abs(after - before) / current.std, np.inf)
+        in_sd = np.where(sd > 0, np.abs(after - before) / sd, np.inf)
     return float(np.max(np.minimum(relative / ROUND_TOLERANCE, in_sd / tolerance_sd))), float(relative.max())
 
 
 def identify_lugre_trajectories(
-    robot, model, recordings, options: TrajectoryOptions, rounds=None, extra=None, configurations=None, settle_sd=None
-):
+    robot, model, recordings, options: TrajectoryOptions, rounds=None, extra=None, configurations=None, settle_sd=None,
+    joints=None, start=None,
+):  # fmt: skip
     """Rigid body, drive terms and LuGre friction of exciting recordings (module docstring).
 
     Parameters
@@ -185,7 +187,9 @@ def identify_lugre_trajectories(
     recordings : sequence of Recording
         Raw recordings with ``tau``, or ``current`` and torque constants.
     options : TrajectoryOptions
-        Its ``friction`` holds ``fc``, ``fs``, ``fv`` (optionally ``offset``).
+        Its ``friction`` holds ``fc``, ``fs``, ``fv`` (optionally ``offset``); with ``joints``, the options of the
+        mixed model's refits instead (``mixed_options``: the other joints' steady-state shape, the LuGre joints'
+        friction columns held at 0).
     rounds : int, optional
         Passes of the LuGre fit, >= 1 (each after the first follows a linear refit without friction columns);
         default: until the parameters settle (``round_change``), at most :data:`MAX_ROUNDS`.
@@ -197,6 +201,17 @@ def identify_lugre_trajectories(
     settle_sd : float, optional
         A parameter has settled when it moved by less than this many of its standard deviations (``round_change``);
         default :data:`ROUND_TOLERANCE_SD`. Identify's LuGre trial (``lugre_trial.SETTLE_SD``) stops at a coarser step.
+    joints : sequence of int, optional
+        A mixed model: LuGre friction on these joints (0-based) only, the others keep the steady-state shape of
+        ``options`` (identify's trial of the joints LuGre helps, ``lugre_trial``; the refit of such a model file).
+        Its rigid-body refits take the LuGre joints' friction out of the torque and hold their columns at 0, its
+        LuGre fits are of ``joints`` alone.
+    start : tuple, optional
+        With ``joints``: ``(stribeck, lugre)``, the Stribeck fit of the whole torque the model starts from (None: one
+        of every joint, ``mixed_friction.stribeck_start``) and the ``lugre_recordings.LuGreFit`` (of every joint, as
+        identify's trial fitted it) whose parameters and bristle forces of ``joints`` the first refit takes out (None:
+        fitted on the friction ``stribeck`` leaves, as step 2). A start's bristle forces matter: relaxed at each
+        recording's start instead, the first refit's rigid body took the break-away torque the bristles held.
 
     Returns
     -------
@@ -209,29 +224,68 @@ def identify_lugre_trajectories(
     SolverError, InsufficientExcitationError
         From the linear or the LuGre fits.
     """
-    if "fs" not in options.friction or not (rounds is None or (isinstance(rounds, int) and rounds >= 1)):
+    mixed, counted = joints is not None, rounds is None or (isinstance(rounds, int) and rounds >= 1)
+    if (not mixed and "fs" not in options.friction) or not counted:
         raise ParameterError(
-            f"identify_lugre_trajectories needs options.friction with 'fs' and rounds >= 1 (or None); got "
-            f"{options.friction!r} and {rounds!r}. Pass TrajectoryOptions(friction=('fc', 'fs', 'fv'))."
+            f"identify_lugre_trajectories needs options.friction with 'fs' (or joints) and rounds >= 1 "
+            f"(or None); got {options.friction!r}, joints {joints!r} and {rounds!r}. Pass "
+            "TrajectoryOptions(friction=('fc', 'fs', 'fv'))."
         )
     recordings = list(recordings)
     kt = torque_constants(robot, options, recordings)
-    stribeck = identify_trajectories(robot, model, recordings, options, extra, configurations)
+    if mixed:  # the start's Stribeck fit, or one of every joint (``mixed_friction.stribeck_start``)
+        (stribeck, lugre), plain = start or (None, None), dataclasses.replace(options, kt=None)
+        stribeck = stribeck or identify_trajectories(robot, model, recordings, stribeck_start(options), extra,
+                                                     configurations)  # fmt: skip
+    else:
+        stribeck = identify_trajectories(robot, model, recordings, options, extra, configurations)
+        plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)
     edge = min(FRICTION_EDGE_PERIODS, options.edge_periods)  # the reversals at the ends kept (module docstring)
     _, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, edge)
-    arm = subtract_loads(robot, prepared, configurations, stribeck.payloads)
-    fit, lugre = stribeck, fit_lugre_recordings(model, stribeck, arm, warn=rounds == 1, extra=extra)
-    plain = dataclasses.replace(options, friction=tuple(t for t in options.friction if t == "offset"), kt=None)
-    caught, taken, ended = [], 1, f"stopped at the limit of {MAX_ROUNDS}"
-    for taken in range(2, (rounds or MAX_ROUNDS) + 1):
-        corrected = without_lugre_friction(recordings, lugre, prepared, kt, options.cutoff_hz)
+    if mixed and lugre is not None:
+        lugre = restricted(lugre, joints)
+    else:  # step 2: the LuGre fit on the friction the Stribeck fit leaves
+        arm = subtract_loads(robot, prepared, configurations, stribeck.payloads)
+        lugre = fit_lugre_recordings(model, stribeck, arm, warn=rounds == 1, extra=extra, joints=joints)
+    problem = (robot, model, recordings, configurations, extra, prepared, kt, plain)
+    fit, lugre, taken = _alternate(problem, stribeck, lugre, rounds, settle_sd, mixed)
+    return LuGreIdentification(fit=whole_torque_warnings(robot, fit, stribeck or fit), lugre=lugre,
+                               stribeck=stribeck or fit, rounds=taken)  # fmt: skip
+
+
+def restricted(lugre, joints):
+    """``lugre`` (a ``lugre_recordings.LuGreFit``) with the joints outside ``joints`` (0-based) of no LuGre friction:
+    a mixed model's start (``identify_lugre_trajectories(joints=)``)."""
+    keep = set(joints)
+    off = [j for j in range(len(lugre.parameters)) if j not in keep]
+    std, rmse, force = np.array(lugre.std, dtype=float), np.array(lugre.rmse, dtype=float), lugre.start_force
+    std[off], rmse[off] = np.nan, np.nan
+    if force is not None:
+        force = np.array(force, dtype=float)
+        force[:, off] = 0.0
+    return dataclasses.replace(
+        lugre, parameters=tuple(p if j in keep else None for j, p in enumerate(lugre.parameters)), std=std, rmse=rmse,
+        identifiable=tuple(bool(v) and j in keep for j, v in enumerate(lugre.identifiable)), start_force=force,
+        status=tuple(s if j in keep else "" for j, s in enumerate(lugre.status)),
+    )  # fmt: skip
+
+
+def _alternate(problem, stribeck, lugre, rounds, settle_sd, mixed) -> tuple:
+    """``(fit, lugre, LuGre fits taken)``: steps 3 and 4 of the module docstring repeated from ``lugre`` (module
+    docstring; ``identify_lugre_trajectories``). A mixed model's first refit is its fit even where the LuGre fit after
+    it fails: the start's fit holds the LuGre joints' steady-state friction, which the mixed model does not."""
+    robot, model, recordings, configurations, extra, prepared, kt, plain = problem
+    joints = lugre.joints
+    fit, caught, taken, ended = stribeck, [], 1, f"stopped at the limit of {MAX_ROUNDS}"
+    for taken in range(2, max(rounds or MAX_ROUNDS, 2 if mixed else 1) + 1):  # a mixed model: one refit at least
+        corrected = without_lugre_friction(recordings, lugre, prepared, kt, plain.cutoff_hz)
         refit = identify_trajectories(robot, model, corrected, plain, extra, configurations)
         arm = subtract_loads(robot, prepared, configurations, refit.payloads)
-        previous = lugre
+        previous, fit = lugre, refit if mixed and taken == 2 else fit
         try:
             with warnings.catch_warnings(record=True) as recorded:  # only the last fit's warnings are the result's
                 warnings.simplefilter("always")
-                lugre = fit_lugre_recordings(model, refit, arm, initial=lugre.parameters, extra=extra)
+                lugre = fit_lugre_recordings(model, refit, arm, initial=lugre.parameters, extra=extra, joints=joints)
         except SolverError:
             if rounds is not None:
                 raise
@@ -249,11 +303,10 @@ def identify_lugre_trajectories(
             ended = "converged"
             break
     for warning in caught:
-        warnings.warn(warning.message, warning.category, stacklevel=2)
+        warnings.warn(warning.message, warning.category, stacklevel=3)
     if rounds is None and taken > 1:
         logger.info("identify: LuGre fits alternated with rigid-body refits: %d LuGre fits kept (%s)", taken, ended)
-    return LuGreIdentification(fit=whole_torque_warnings(robot, fit, stribeck), lugre=lugre, stribeck=stribeck,
-                               rounds=taken)  # fmt: skip
+    return fit, lugre, taken
 
 
 def whole_torque_warnings(robot, fit, stribeck):

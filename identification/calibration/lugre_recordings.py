@@ -85,8 +85,8 @@ class LuGreFit:
 
     Attributes
     ----------
-    parameters : tuple of LuGreParameters
-        One per joint.
+    parameters : tuple of LuGreParameters or None
+        One per joint; None on a joint fitted with a steady-state shape instead (``fit_lugre_recordings(joints=)``).
     std : ndarray, shape (n_dof, 7)
         Standard deviations in ``LUGRE_PARAMETER_NAMES`` order (units of the parameters).
     identifiable : tuple of bool
@@ -111,8 +111,13 @@ class LuGreFit:
     start_force: np.ndarray | None = None
 
     def table(self) -> np.ndarray:
-        """Parameters as an array (n_dof, 7) in ``LUGRE_PARAMETER_NAMES`` order."""
-        return np.array([p.as_array() for p in self.parameters])
+        """Parameters as an array (n_dof, 7) in ``LUGRE_PARAMETER_NAMES`` order (NaN on a joint without LuGre)."""
+        return np.array([np.full(7, np.nan) if p is None else p.as_array() for p in self.parameters])
+
+    @property
+    def joints(self) -> tuple:
+        """The joints (0-based) with LuGre friction."""
+        return tuple(j for j, p in enumerate(self.parameters) if p is not None)
 
 
 def lugre_friction(parameters, t, qd, s0=None) -> np.ndarray:
@@ -124,8 +129,8 @@ def lugre_friction(parameters, t, qd, s0=None) -> np.ndarray:
 
     Parameters
     ----------
-    parameters : sequence of LuGreParameters
-        One per joint.
+    parameters : sequence of LuGreParameters or None
+        One per joint; None for a joint of a steady-state shape (no LuGre friction: its column is 0).
     t : array, shape (n_samples,)
         [s] strictly increasing.
     qd : array, shape (n_samples, n_dof)
@@ -145,9 +150,10 @@ def lugre_friction(parameters, t, qd, s0=None) -> np.ndarray:
             f"parameters, one row per time); got {qd.shape}."
         )
     s0 = np.zeros(qd.shape[1]) if s0 is None else np.asarray(s0, dtype=float).reshape(-1)
-    out = np.empty_like(qd)
-    for j, p in enumerate(parameters):
-        out[:, j] = simulate_lugre(p, t, qd[:, j], z0=s0[j] / p.sigma0)[0]
+    out = np.zeros_like(qd)
+    for j, p in enumerate(parameters):  # None: a joint of a steady-state shape (its friction is the drive columns')
+        if p is not None:
+            out[:, j] = simulate_lugre(p, t, qd[:, j], z0=s0[j] / p.sigma0)[0]
     return out
 
 
@@ -166,7 +172,7 @@ def bristle_force_at(parameters, recording, cutoff_hz: float, t: float) -> np.nd
     if stop < 2:
         return out
     for j, p in enumerate(parameters):
-        out[j] = p.sigma0 * simulate_lugre(p, rec.t[:stop], qd[:stop, j])[1][-1]
+        out[j] = 0.0 if p is None else p.sigma0 * simulate_lugre(p, rec.t[:stop], qd[:stop, j])[1][-1]
     return out
 
 
@@ -324,7 +330,7 @@ def lugre_std(parameters: LuGreParameters, t, qd, tau, fixed=(), s0: float = 0.0
 
 
 def fit_lugre_recordings(
-    model, fit, prepared, options: ShootingOptions | None = None, initial=None, *, warn: bool = True, extra=None
+    model, fit, prepared, options: ShootingOptions | None = None, initial=None, *, warn=True, extra=None, joints=None
 ) -> LuGreFit:
     """Fit the LuGre friction of every joint to the friction residual of prepared recordings (module docstring).
 
@@ -345,6 +351,9 @@ def fit_lugre_recordings(
         Emit a :class:`LuGreWarning` per joint whose ``sigma0`` the data do not determine.
     extra : findings.FindingColumns, optional
         The finding columns ``fit`` was identified with (``recalibrate``): their torque is taken out too.
+    joints : sequence of int, optional
+        The joints (0-based) whose LuGre friction is fitted; the others keep the steady-state shape of ``fit`` (their
+        parameters None, standard deviations and RMSE NaN). Default: every joint.
 
     Returns
     -------
@@ -369,41 +378,36 @@ def fit_lugre_recordings(
         )
     options = ShootingOptions(accept_acceptable=True, fixed=("dv",)) if options is None else options
     t, qd, residual = _chained(prepared, [friction_residual(model, fit, r, extra) for r in prepared])
-    parameters, std, status, rmse, rmse_stribeck, held, start_force = [], [], [], [], [], [], []
-    firsts = np.cumsum([0] + [r.n_samples for r in prepared[:-1]])
-    for j in range(qd.shape[1]):
+    n, firsts = qd.shape[1], np.cumsum([0] + [r.n_samples for r in prepared[:-1]])
+    joints = tuple(range(n)) if joints is None else tuple(sorted(joints))
+    parameters, status, held = [None] * n, [""] * n, [None] * n
+    std, rmse, rmse_stribeck = np.full((n, 7), np.nan), np.full(n, np.nan), np.full(n, np.nan)
+    start_force = np.zeros((n, len(prepared)))
+    for j in joints:
         if initial is None:
             start = _initial(t, qd[:, j], residual[:, j], _steady_state(fit, j))
         else:
             start = _with_hump(initial[j], t, qd[:, j], residual[:, j])
-        result, used, failed = _fit_joint(t, qd[:, j], residual[:, j], start, options, j)
-        held.append(failed)
-        parameters.append(result.parameters)
-        s0 = result.parameters.sigma0 * result.z[0]
-        start_force.append(result.parameters.sigma0 * result.z[firsts])
-        std.append(lugre_std(result.parameters, t, qd[:, j], residual[:, j], used.fixed, s0))
-        status.append(result.status)
-        rmse.append(np.sqrt(result.objective))
+        result, used, held[j] = _fit_joint(t, qd[:, j], residual[:, j], start, options, j)
+        parameters[j], status[j], rmse[j] = result.parameters, result.status, np.sqrt(result.objective)
+        start_force[j] = result.parameters.sigma0 * result.z[firsts]
+        std[j] = lugre_std(result.parameters, t, qd[:, j], residual[:, j], used.fixed, start_force[j, 0])
         if "fs" in fit.friction_terms:
             stribeck = _stribeck_torque(fit, qd[:, j], j)
-            rmse_stribeck.append(float(np.sqrt(np.mean((residual[:, j] - stribeck) ** 2))))
-        else:
-            rmse_stribeck.append(float("nan"))
+            rmse_stribeck[j] = float(np.sqrt(np.mean((residual[:, j] - stribeck) ** 2)))
         logger.info("identify: LuGre joint %d: %s", j + 1, np.round(result.parameters.as_array(), 5),
-                    extra={"progress": (j + 1, qd.shape[1])})  # fmt: skip
-    std = np.array(std)
-    relative = std[:, LUGRE_PARAMETER_NAMES.index("sigma0")] / np.array([p.sigma0 for p in parameters])
-    checks = [sigma0_identifiable(p, t, qd[:, j], relative[j], min(fit.cutoff_hz)) for j, p in enumerate(parameters)]
-    identifiable = tuple(check[0] and held[j] is None for j, check in enumerate(checks))
-    for j, (ok, time, needed) in enumerate(checks):
+                    extra={"progress": (joints.index(j) + 1, len(joints))})  # fmt: skip
+    identifiable = [False] * n
+    for j in joints:
+        relative = std[j, LUGRE_PARAMETER_NAMES.index("sigma0")] / parameters[j].sigma0
+        ok, time, needed = sigma0_identifiable(parameters[j], t, qd[:, j], relative, min(fit.cutoff_hz))
+        identifiable[j] = ok and held[j] is None
         if warn and held[j] is not None:
             warnings.warn(held_message(j, parameters[j], held[j]), LuGreWarning, stacklevel=2)
         elif warn and not ok:
-            message = unidentifiable_message(j, parameters[j], relative[j], time, needed)
-            warnings.warn(message, LuGreWarning, stacklevel=2)
-    return LuGreFit(parameters=tuple(parameters), std=std, identifiable=identifiable, rmse=np.array(rmse),
-                    rmse_stribeck=np.array(rmse_stribeck), status=tuple(status),
-                    start_force=np.array(start_force).T)  # fmt: skip
+            warnings.warn(unidentifiable_message(j, parameters[j], relative, time, needed), LuGreWarning, stacklevel=2)
+    return LuGreFit(parameters=tuple(parameters), std=std, identifiable=tuple(identifiable), rmse=rmse,
+                    rmse_stribeck=rmse_stribeck, status=tuple(status), start_force=start_force.T)  # fmt: skip
 
 
 def _fit_joint(t, qd, residual, start, options: ShootingOptions, j: int) -> tuple:
@@ -465,11 +469,13 @@ def _stribeck_torque(fit, qd, j: int) -> np.ndarray:
 
 
 def lugre_block(lugre) -> dict:
-    """The ``drive.lugre`` block: per parameter a list over joints, with standard deviations and identifiability."""
+    """The ``drive.lugre`` block: per parameter a list over joints (null on a joint of a steady-state shape), with
+    standard deviations and identifiability, and the LuGre ``joints`` (1-based)."""
     table = lugre.table()
     block = {name: _json_floats(table[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
     block["std"] = {name: _json_floats(lugre.std[:, k]) for k, name in enumerate(LUGRE_PARAMETER_NAMES)}
-    block.update(sigma0_identifiable=list(lugre.identifiable), rmse_friction=_json_floats(lugre.rmse),
+    block.update(joints=[j + 1 for j in lugre.joints], sigma0_identifiable=list(lugre.identifiable),
+                 rmse_friction=_json_floats(lugre.rmse),
                  rmse_friction_stribeck=_json_floats(lugre.rmse_stribeck), solver_status=list(lugre.status),
                  start="steady state of the first sample's velocity")  # fmt: skip
     return block

@@ -19,8 +19,16 @@ about zero), the LuGre route (``lugre_identify``) is fitted beside, carried to i
 (``written_model``), and kept only where it predicts each held-out recording better on a lagging joint and worse on none
 (``never_worse``'s paired margins), is not worse than the robot file on a joint the default model was not
 (``robot_file_check``), and pushes no link against its physical envelope (``envelope_report``) that the default model
-leaves inside it: a rigid body bent to fit the friction at the reversals is not a better model. The trial's own log
-lines are not identify's (silenced: the result states it once).
+leaves inside it: a rigid body bent to fit the friction at the reversals is not a better model.
+
+Where LuGre on every joint is refused, the joints it predicts better on each held-out recording and worse on none
+(:func:`keep_joints`) keep it and the others the default model's steady-state shape (``mixed_friction``): the
+alternation goes on from the trial's LuGre fit on those joints alone (:func:`mixed_trial`), and the mixed model is
+judged by the same rules. A joint whose LuGre fit is worse (a wrist of few or fast reversals, a steady-state shape the
+LuGre fit cannot take, such as a viscous power law) then no longer costs the joints that lag their gain; it is tried
+only where a lagging joint gains beyond its margin. The result names the LuGre joints and why each other joint kept
+the steady-state shape (:func:`steady_reasons`). The trial's own log lines are not identify's (silenced: the result
+states it once).
 """
 
 from __future__ import annotations
@@ -36,8 +44,8 @@ from psdm_casadi.log_context import held_back
 from psdm_casadi.state_cache import BlockMemory, StateCache
 
 __all__ = ["JOINT_SIGMAS", "LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "SETTLE_SD", "ArmLag", "LuGreTrial",
-           "ReversalLag", "judge_trial", "lag_joints", "quiet_trial", "recording_lags", "reversal_lags",
-           "try_lugre"]  # fmt: skip
+           "ReversalLag", "judge_trial", "keep_joints", "lag_joints", "mixed_trial", "quiet_trial", "recording_lags",
+           "reversal_lags", "steady_reasons", "try_lugre"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -208,18 +216,30 @@ class LuGreTrial:
     after: tuple = ()
     margin: tuple = ()
     reason: str = ""
+    lugre_joints: tuple = ()
+    every_joint: str = ""
+    steady: str = ""
 
     def describe(self) -> str:
-        """``friction: LuGre on every joint, chosen because ...`` or why the steady-state shape stays ("" where no
-        joint showed the lag)."""
+        """``friction: LuGre on every joint, chosen because ...``, ``friction: LuGre on joint(s) 1, 2 (the others keep
+        the steady-state shape: ...), chosen because ...`` or why the steady-state shape stays ("" where no joint
+        showed the lag)."""
         if not self.joints:
             return ""
         arm = "; ".join(ArmLag.of(per).text() for per in self.lags if ArmLag.of(per).shows)
         shown = "; ".join([arm, *(item.text() for per in self.lags for item in per if item.joint in self.joints)])
         head = f"the residual at the velocity reversals lags the velocity as pre-sliding friction does ({shown})"
+        n = len(self.lags[0]) if self.lags else 0
+        mixed = self.every_joint and 0 < len(self.lugre_joints) < n
+        named = ", ".join(str(j + 1) for j in self.lugre_joints)
+        rest = ", ".join(str(j + 1) for j in range(n) if j not in self.lugre_joints)
+        where = (f"LuGre on joint(s) {named} (joint(s) {rest} keep the steady-state shape: {self.steady})" if mixed
+                 else "LuGre on every joint")  # fmt: skip
         if self.kept:
-            return f"friction: LuGre on every joint, chosen because {head}, and {self.reason}"
-        return f"friction: the steady-state shape kept: {head}, but the LuGre fit tried {self.reason}"
+            return f"friction: {where}, chosen because {head}, and {self.reason}"
+        tried = f"the LuGre fit tried on every joint {self.every_joint}, and with {where}," if mixed else (
+            "the LuGre fit tried")  # fmt: skip
+        return f"friction: the steady-state shape kept: {head}, but {tried} {self.reason}"
 
     def to_dict(self) -> dict:
         lags = [[{"joint": i.joint + 1, "reversals": i.reversals, "lag": float(i.lag), "rmse": float(i.rmse),
@@ -230,6 +250,9 @@ class LuGreTrial:
             "tried": bool(self.joints),
             "kept": self.kept,
             "lag_joints": [j + 1 for j in self.joints],
+            "lugre_joints": [j + 1 for j in self.lugre_joints],  # of the model tried last (kept where "kept")
+            "every_joint_reason": self.every_joint,  # why LuGre on every joint was refused ("" where it was not)
+            "steady_joints_reason": self.steady,  # why each joint outside lugre_joints kept the steady-state shape
             "lags": lags,
             "arm": [{"sigmas": a.sigmas, "share": a.share, "joints": a.joints, "shows": a.shows} for a in arms],
             "rule": RULE,
@@ -247,8 +270,38 @@ RULE = (
     f"and >= {LAG_SHARE:.0%} of its RMSE; then LuGre "
     "friction is fitted and kept only if it predicts each held-out recording better on a lagging joint, worse on "
     "none (paired margins), is worse than the robot file on no joint the default model was not, and pushes no link "
-    "against its physical envelope the default model leaves inside it"
+    "against its physical envelope the default model leaves inside it; where LuGre on every joint is refused, LuGre "
+    "is fitted on the joints it predicts better on each held-out recording and worse on none (the others keeping "
+    "the default model's steady-state shape), and that model is judged by the same rules"
 )
+
+
+def keep_joints(default, lugre, comparisons, joints) -> tuple:
+    """The joints (0-based) on which a mixed model keeps LuGre friction (``mixed_friction``) where the LuGre model of
+    every joint ``lugre`` is refused: those it predicts better than ``default`` on each held-out recording
+    (``comparisons``, as :func:`judge_trial`'s), worse on none beyond the margin, and not newly worse than the robot
+    file; empty unless one of the lagging ``joints`` is among them better beyond the margin and a joint is left to
+    the steady-state shape (else the mixed model is the one refused, or cannot pass)."""
+    n = len(comparisons[0].before)
+    off = {j for c in comparisons for j in c.worse} | (set(lugre.check.worse) - set(default.check.worse))
+    keep = tuple(j for j in range(n) if j not in off and all(c.after[j] < c.before[j] for c in comparisons))
+    gain = [j for j in keep if j in joints and all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons)]
+    return keep if gain and len(keep) < n else ()
+
+
+def steady_reasons(default, lugre, comparisons, keep) -> str:
+    """Why each joint outside ``keep`` keeps the steady-state shape (:func:`keep_joints`'s rule, its numbers from the
+    first held-out recording): worse beyond its margin, newly worse than the robot file, or not better on each."""
+    n, first = len(comparisons[0].before), comparisons[0]
+    worse = sorted({j for c in comparisons for j in c.worse})
+    new = sorted(set(lugre.check.worse) - set(default.check.worse) - set(worse))
+    rest = [j for j in range(n) if j not in keep and j not in worse and j not in new]
+    parts = [f"joint {j + 1} worse ({first.before[j]:.4g} -> {first.after[j]:.4g} N m, margin {first.margin[j]:.2g})"
+             for j in worse]  # fmt: skip
+    parts += [f"joint {j + 1} newly worse than the robot file" for j in new]
+    if rest:
+        parts.append(f"joint(s) {', '.join(str(j + 1) for j in rest)} not better on each held-out recording")
+    return "; ".join(parts)
 
 
 def judge_trial(default, lugre, comparisons, joints) -> tuple:
@@ -328,15 +381,16 @@ def quiet_trial():
 def try_lugre(problem, written, judged, writer, request) -> tuple:
     """``(LuGreTrial, kept)``: the lag of the default model ``written`` (``written_model.WrittenModel``) on the
     ``judged`` held-out recordings (``file_judged.FileJudged``), and where a joint shows it the LuGre route fitted and
-    judged (module docstring); ``kept`` is ``(LuGreIdentification, WrittenModel, ColumnChoice)`` of the LuGre model
-    where it replaces the default, else None. ``problem = (robot, model, recordings, options, validation,
-    configurations)`` with the options identify was given; ``writer(lugre_fit, columns) -> written_model.ModelWriter``;
-    ``request`` the column request (its friction becomes ``"lugre"``). The LuGre fit is made once in a
+    judged (module docstring): on every joint, and where that is refused, on the joints it helps (:func:`keep_joints`,
+    :func:`mixed_trial`); ``kept`` is ``(LuGreIdentification, WrittenModel, ColumnChoice)`` of the LuGre model where it
+    replaces the default, else None. ``problem = (robot, model, recordings, options, validation, configurations)``
+    with the options identify was given; ``writer(lugre_fit, columns) -> written_model.ModelWriter``; ``request`` the
+    column request (its friction becomes ``"lugre"``). The LuGre fit of every joint is made once in a
     ``state_cache.remembering`` block (``_lugre_fit``)."""
     from dataclasses import replace
 
     from identification.calibration.column_choice import choose_columns
-    from identification.calibration.never_worse import compare_each, pooled_comparison
+    from identification.calibration.never_worse import compare_each
     from identification.calibration.trajectory_fit import torque_constants
     from psdm_casadi.errors import ParameterError, SolverError
 
@@ -363,12 +417,55 @@ def try_lugre(problem, written, judged, writer, request) -> tuple:
     except (ParameterError, SolverError) as error:  # the default model stands, and the record says why
         return LuGreTrial(lags, joints, reason=f"could not be made ({error})"), None
     kept, reason = judge_trial(written, lugre, comparisons, joints)
-    pooled = pooled_comparison(comparisons)
-    trial = LuGreTrial(lags, joints, kept, tuple(map(float, pooled.before)), tuple(map(float, pooled.after)),
-                       tuple(map(float, pooled.margin)), reason)  # fmt: skip
+    trial = _trial(lags, joints, kept, reason, comparisons, tuple(range(robot.n_dof)))
+    if not kept and (keep := keep_joints(written, lugre, comparisons, joints)):
+        steady = steady_reasons(written, lugre, comparisons, keep)
+        outcome = mixed_trial(problem, written, (judged, kts), writer, found, keep)
+        if outcome[0] is not None:
+            caught, (found, lugre, comparisons) = outcome[0], outcome[1:]
+            kept, mixed = judge_trial(written, lugre, comparisons, joints)
+            trial = replace(_trial(lags, joints, kept, mixed, comparisons, keep), every_joint=reason, steady=steady)
+        else:
+            trial = replace(trial, lugre_joints=keep, every_joint=reason, steady=steady, reason=outcome[1])
     logger.info("identify: %s", trial.describe())
-    if not kept:
+    if not trial.kept:
         return trial, None
     for warning in caught:  # the LuGre model's warnings are the result's
         warnings.warn(warning.message, warning.category, stacklevel=2)
     return trial, (found, lugre, choice)
+
+
+def _trial(lags, joints, kept, reason, comparisons, lugre_joints) -> LuGreTrial:
+    """The :class:`LuGreTrial` of a judged LuGre model (on ``lugre_joints``), its RMSE pooled over the recordings."""
+    from identification.calibration.never_worse import pooled_comparison
+
+    pooled = pooled_comparison(comparisons)
+    return LuGreTrial(lags, joints, kept, tuple(map(float, pooled.before)), tuple(map(float, pooled.after)),
+                      tuple(map(float, pooled.margin)), reason, tuple(lugre_joints))  # fmt: skip
+
+
+def mixed_trial(problem, written, judged, writer, found, keep) -> tuple:
+    """``(caught warnings, LuGreIdentification, WrittenModel, comparisons)`` of the mixed model (``mixed_friction``):
+    LuGre on the joints ``keep`` (0-based), continued from the LuGre model of every joint ``found``, the default model
+    ``written``'s steady-state shape on the others; or ``(None, why not)`` where it cannot be made. ``judged`` =
+    ``(file_judged.FileJudged, torque constants per recording)``."""
+    from identification.calibration.lugre_identify import identify_lugre_trajectories
+    from identification.calibration.mixed_friction import mixed_options
+    from identification.calibration.never_worse import compare_each
+    from psdm_casadi.errors import ParameterError, SolverError
+
+    robot, model, recordings, _, _, configurations = problem
+    (judged, kts), named = judged, ", ".join(str(j + 1) for j in keep)
+    logger.info("identify: LuGre on every joint refused; trying it on joint(s) %s only ...", named)
+    try:
+        with quiet_trial() as caught:
+            options = mixed_options(written.options, keep, written.fit.stribeck_velocity or [0.0] * robot.n_dof)
+            mixed = identify_lugre_trajectories(robot, model, recordings, options, configurations=configurations,
+                                                settle_sd=SETTLE_SD, joints=keep,
+                                                start=(found.stribeck, found.lugre))  # fmt: skip
+            lugre = writer(mixed.lugre, found.stribeck)(options, mixed.fit)
+            comparisons = [compare_each(written.calibrated, lugre.calibrated, model, [r], kt)[0]
+                           for r, kt in zip(judged.recordings, kts)]  # fmt: skip
+    except (ParameterError, SolverError) as error:
+        return None, f"could not be made ({error})"
+    return list(caught), mixed, lugre, comparisons

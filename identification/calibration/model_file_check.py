@@ -197,8 +197,13 @@ def _check_drive(name: str, block: dict, n_dof: int) -> None:
     if lugre:
         from identification.friction.models import LUGRE_PARAMETER_NAMES
 
+        shapes = block.get("friction_shapes") or ["lugre"] * n_dof  # a mixed model: null on a steady-state joint
+        joints = [j for j in range(n_dof) if j >= len(shapes) or shapes[j] == "lugre"]
         for key in LUGRE_PARAMETER_NAMES:
-            _numbers(name, lugre, key, "drive.lugre", n_dof)
+            values = _numbers(name, lugre, key, "drive.lugre", n_dof, nullable=True)
+            if [j for j, v in enumerate(values) if v is not None] != joints:
+                raise _refuse(name, f"drive.lugre.{key}", f"a number on each joint drive.friction_shapes names "
+                              f"'lugre' ({[j + 1 for j in joints]}) and null on the others", values)  # fmt: skip
 
 
 def check_document(document: dict, name: str) -> None:

@@ -14,9 +14,14 @@ def _print_lugre(block) -> None:
         return
     from identification.friction.models import LUGRE_PARAMETER_NAMES
 
-    print("\nLuGre friction (fitted along the series; the Stribeck values above are its start), value +- sigma:")
+    start = ("the drive values above are the other joints' steady state" if None in block["fc"] else
+             "the Stribeck values above are its start")  # fmt: skip
+    print(f"\nLuGre friction (fitted along the series; {start}), value +- sigma:")
     print("joint " + " ".join(f"{name:>20}" for name in LUGRE_PARAMETER_NAMES))
     for j, identifiable in enumerate(block["sigma0_identifiable"]):
+        if block["fc"][j] is None:  # a mixed model's steady-state joint (its friction is in the drive table above)
+            print(f"{j + 1:<5} the steady-state shape (no LuGre friction on this joint)")
+            continue
         cells = [f"{block[n][j]:10.4g} +- {_sigma(block['std'][n][j]):<6}" for n in LUGRE_PARAMETER_NAMES]
         note = "" if identifiable else "  (sigma0 not identifiable)"
         print(f"{j + 1:<5} " + " ".join(f"{c:>20}" for c in cells) + note)
@@ -243,7 +248,8 @@ def _print_parameters(fit, model, result) -> None:
         cells.append(sigma_percent_cell(relative[k]))
         print(f"theta{k + 1:<10} {value:10.4g} {fit.theta_std[k]:10.3g} {cells[-1]}")
     for k, name in enumerate(fit.drive_names):
-        if name.startswith(("offset", "fs")) and fit.drive_std[k] == 0:
+        zero = name.startswith(("offset", "fs")) or (name.startswith(("fc", "fv")) and fit.drive[k] == 0)
+        if zero and fit.drive_std[k] == 0:  # a LuGre joint's friction columns too (the LuGre table below)
             continue  # held at 0: no offset or static friction on that joint (the drive columns above say so)
         if label := held_label(result, name):  # not estimated
             print(f"{name:<15} {fit.drive[k]:10.4g}       held ({label})")
