@@ -176,6 +176,7 @@ def _run_diagnose(args) -> int:
         robot = calibrated_robot(calibrated, robot_file)
     else:
         robot = load_robot_argument(args)
+        check_recordings_exist([args.train, *args.more_train, *args.validate])
     layout = model_layout(args, None if calibrated is None else calibrated.document, "diagnose")  # --columns, --rate
     train, validations, given, held = _recordings(args, robot, calibrated, layout, fraction)  # held: sentences
     if calibrated is not None:  # each validation recording's load: named by the payload check, not twice
@@ -332,8 +333,7 @@ def _calibrated_source(args):
                 f"diagnose --apply needs a calibrated model (.json from 'psdm identify') as its first argument; got "
                 f"{args.robot!r}. Identify the robot first: psdm identify ROBOT --data A.csv --out model.json."
             )
-        check_recordings_exist([args.train, *args.more_train, *args.validate])
-        return None, None
+        return None, None  # the recordings are checked once the robot file and its --lock are read (cheap)
     if getattr(args, "lock", None):
         raise ParameterError(
             f"diagnose --lock must not be given with a calibrated model; got {args.robot!r}, which holds its locked "

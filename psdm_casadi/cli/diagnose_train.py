@@ -14,6 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from psdm_casadi.errors import ParameterError, RecordingError
+from psdm_casadi.near_names import did_you_mean
 
 __all__ = ["TRAIN_HELP", "check_recordings_exist", "read_more_training", "training_paths"]
 
@@ -47,7 +48,7 @@ def check_recordings_exist(paths) -> None:
     read (and its model derived or read from the cache) before a mistyped path was a wait for a one-line error."""
     for path in paths:
         if not Path(path).exists():
-            raise RecordingError(f"recording {str(path)!r} does not exist. Check the path.")
+            raise RecordingError(f"recording {str(path)!r} does not exist. Check the path.{did_you_mean(path)}")
 
 
 def read_more_training(paths, load, robot) -> list:

@@ -55,6 +55,7 @@ def lugre():
     )
     document["drive"]["lugre"] = {name: [value] * robot.n_dof for name, value in LUGRE.items()}
     document["drive"]["friction_shape"], document["version"] = "lugre", 3
+    document["drive"]["friction_shapes"] = ["lugre"] * robot.n_dof  # as identify writes a LuGre model of every joint
     return document
 
 
