@@ -276,6 +276,14 @@ RULE = (
 )
 
 
+def _refused_joints(default, lugre, comparisons) -> tuple:
+    """``(worse, new)``: the 0-based joints on which the LuGre model ``lugre`` predicts a held-out recording worse than
+    ``default`` beyond the margin (``comparisons``), and those it is newly worse than the robot file on; each sorted.
+    The one reading of the rules :func:`judge_trial`, :func:`keep_joints` and :func:`steady_reasons` share."""
+    worse = sorted({j for c in comparisons for j in c.worse})
+    return worse, sorted(set(lugre.check.worse) - set(default.check.worse))
+
+
 def keep_joints(default, lugre, comparisons, joints) -> tuple:
     """The joints (0-based) on which a mixed model keeps LuGre friction (``mixed_friction``) where the LuGre model of
     every joint ``lugre`` is refused: those it predicts better than ``default`` on each held-out recording
@@ -283,7 +291,7 @@ def keep_joints(default, lugre, comparisons, joints) -> tuple:
     file; empty unless one of the lagging ``joints`` is among them better beyond the margin and a joint is left to
     the steady-state shape (else the mixed model is the one refused, or cannot pass)."""
     n = len(comparisons[0].before)
-    off = {j for c in comparisons for j in c.worse} | (set(lugre.check.worse) - set(default.check.worse))
+    off = set().union(*_refused_joints(default, lugre, comparisons))
     keep = tuple(j for j in range(n) if j not in off and all(c.after[j] < c.before[j] for c in comparisons))
     gain = [j for j in keep if j in joints and all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons)]
     return keep if gain and len(keep) < n else ()
@@ -293,8 +301,8 @@ def steady_reasons(default, lugre, comparisons, keep) -> str:
     """Why each joint outside ``keep`` keeps the steady-state shape (:func:`keep_joints`'s rule, its numbers from the
     first held-out recording): worse beyond its margin, newly worse than the robot file, or not better on each."""
     n, first = len(comparisons[0].before), comparisons[0]
-    worse = sorted({j for c in comparisons for j in c.worse})
-    new = sorted(set(lugre.check.worse) - set(default.check.worse) - set(worse))
+    worse, new = _refused_joints(default, lugre, comparisons)
+    new = [j for j in new if j not in worse]
     rest = [j for j in range(n) if j not in keep and j not in worse and j not in new]
     parts = [f"joint {j + 1} worse ({first.before[j]:.4g} -> {first.after[j]:.4g} N m, margin {first.margin[j]:.2g})"
              for j in worse]  # fmt: skip
@@ -308,13 +316,12 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
     """``(kept, reason)``: whether the LuGre ``lugre`` written model (``written_model.WrittenModel``) replaces the
     ``default`` one, ``comparisons`` the ``never_worse.JointComparison`` of the two on each held-out recording
     (default before, LuGre after), ``joints`` the lagging ones."""
-    worse = sorted({j for c in comparisons for j in c.worse})
+    worse, new = _refused_joints(default, lugre, comparisons)
     if worse:
         return False, f"is worse on joint(s) {', '.join(str(j + 1) for j in worse)} ({comparisons[0].text(worse)})"
     better = [j for j in joints if all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons)]
     if not better:
         return False, "does not predict a lagging joint better beyond the margin on each held-out recording"
-    new = sorted(set(lugre.check.worse) - set(default.check.worse))
     if new:
         return False, f"is worse than the robot file on joint(s) {', '.join(str(j + 1) for j in new)}"
     pushed = sorted({f.link for f in lugre.fit.envelope} - {f.link for f in default.fit.envelope})
