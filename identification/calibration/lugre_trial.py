@@ -17,9 +17,16 @@ identify would write. Where the arm shows it beyond noise and in size (its joint
 a lag the LuGre model then removes at only one or two standard errors, where the steady-state truths' readings pool to
 about zero), the LuGre route (``lugre_identify``) is fitted beside, carried to its model file
 (``written_model``), and kept only where it predicts each held-out recording better on a lagging joint and worse on none
-(``never_worse``'s paired margins), is not worse than the robot file on a joint the default model was not
-(``robot_file_check``), and pushes no link against its physical envelope (``envelope_report``) that the default model
-leaves inside it: a rigid body bent to fit the friction at the reversals is not a better model.
+(``never_worse``'s paired margins), and pushes no link against its physical envelope (``envelope_report``) that the
+default model leaves inside it: a rigid body bent to fit the friction at the reversals is not a better model.
+
+The trial's model is judged against the default model (:func:`_refused_joints`), and the default model against the
+robot file (``robot_file_check``, with the holds that check calls for): a joint the trial predicts within the paired
+margin of the default keeps the default model's verdict against the file, and a joint beyond it is worse already. The
+trial's own check against the file (written and reported with its model) is no judge of the trial: it compares the two
+models through a third, with the noise of both comparisons and, on a LuGre joint, a baseline of its own (the file with
+the Stribeck friction the LuGre fit starts from); as a judge it flipped the friction chosen by which held-out recording
+was used, on a joint the trial predicted as the default model does.
 
 Where LuGre on every joint is refused, the joints it predicts better on each held-out recording and worse on none
 (:func:`keep_joints`) keep it and the others the default model's steady-state shape (``mixed_friction``): the
@@ -269,44 +276,46 @@ RULE = (
     f"and is >= {LAG_SHARE:.0%} of their RMSE on average; a joint lags there at >= {JOINT_SIGMAS:g} standard error "
     f"and >= {LAG_SHARE:.0%} of its RMSE; then LuGre "
     "friction is fitted and kept only if it predicts each held-out recording better on a lagging joint, worse on "
-    "none (paired margins), is worse than the robot file on no joint the default model was not, and pushes no link "
-    "against its physical envelope the default model leaves inside it; where LuGre on every joint is refused, LuGre "
-    "is fitted on the joints it predicts better on each held-out recording and worse on none (the others keeping "
-    "the default model's steady-state shape), and that model is judged by the same rules"
+    "none (paired margins; a joint within them keeps the default model's verdict against the robot file), and "
+    "pushes no link against its physical envelope the default model leaves inside it; where LuGre on every joint is "
+    "refused, LuGre is fitted on the joints it predicts better on each held-out recording and worse on none (the "
+    "others keeping the default model's steady-state shape), and that model is judged by the same rules"
 )
 
 
-def _refused_joints(default, lugre, comparisons) -> tuple:
-    """``(worse, new)``: the 0-based joints on which the LuGre model ``lugre`` predicts a held-out recording worse than
-    ``default`` beyond the margin (``comparisons``), and those it is newly worse than the robot file on; each sorted.
-    The one reading of the rules :func:`judge_trial`, :func:`keep_joints` and :func:`steady_reasons` share."""
-    worse = sorted({j for c in comparisons for j in c.worse})
-    return worse, sorted(set(lugre.check.worse) - set(default.check.worse))
+def _refused_joints(comparisons) -> tuple:
+    """The joints (0-based, sorted) a trial's model is refused on: those it predicts a held-out recording worse on than
+    the default model beyond the paired margin (``comparisons``). The one reading of the rules :func:`judge_trial`,
+    :func:`keep_joints` and :func:`steady_reasons` share.
+
+    A joint within the margin on every recording keeps the default model's verdict against the robot file: the two
+    models predict it alike to the noise, and the default one is the model judged against the file (module
+    docstring). The trial's own check against the file adds no joint beyond these: where it names a joint the default
+    model's does not and the joint is within the margin, it judges the noise of two comparisons (or, on a LuGre joint,
+    a baseline of its own: the file with the Stribeck friction the LuGre fit starts from), not the trial's model."""
+    return sorted({j for c in comparisons for j in c.worse})
 
 
-def keep_joints(default, lugre, comparisons, joints) -> tuple:
+def keep_joints(comparisons, joints) -> tuple:
     """The joints (0-based) on which a mixed model keeps LuGre friction (``mixed_friction``) where the LuGre model of
-    every joint ``lugre`` is refused: those it predicts better than ``default`` on each held-out recording
-    (``comparisons``, as :func:`judge_trial`'s), worse on none beyond the margin, and not newly worse than the robot
-    file; empty unless one of the lagging ``joints`` is among them better beyond the margin and a joint is left to
-    the steady-state shape (else the mixed model is the one refused, or cannot pass)."""
-    n = len(comparisons[0].before)
-    off = set().union(*_refused_joints(default, lugre, comparisons))
+    every joint is refused: those it predicts better than the default model on each held-out recording
+    (``comparisons``, as :func:`judge_trial`'s) and worse on none beyond the margin; empty unless one of the lagging
+    ``joints`` is among them better beyond the margin and a joint is left to the steady-state shape (else the mixed
+    model is the one refused, or cannot pass)."""
+    n, off = len(comparisons[0].before), set(_refused_joints(comparisons))
     keep = tuple(j for j in range(n) if j not in off and all(c.after[j] < c.before[j] for c in comparisons))
     gain = [j for j in keep if j in joints and all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons)]
     return keep if gain and len(keep) < n else ()
 
 
-def steady_reasons(default, lugre, comparisons, keep) -> str:
+def steady_reasons(comparisons, keep) -> str:
     """Why each joint outside ``keep`` keeps the steady-state shape (:func:`keep_joints`'s rule, its numbers from the
-    first held-out recording): worse beyond its margin, newly worse than the robot file, or not better on each."""
+    first held-out recording): worse beyond its margin, or not better on each."""
     n, first = len(comparisons[0].before), comparisons[0]
-    worse, new = _refused_joints(default, lugre, comparisons)
-    new = [j for j in new if j not in worse]
-    rest = [j for j in range(n) if j not in keep and j not in worse and j not in new]
+    worse = _refused_joints(comparisons)
+    rest = [j for j in range(n) if j not in keep and j not in worse]
     parts = [f"joint {j + 1} worse ({first.before[j]:.4g} -> {first.after[j]:.4g} N m, margin {first.margin[j]:.2g})"
              for j in worse]  # fmt: skip
-    parts += [f"joint {j + 1} newly worse than the robot file" for j in new]
     if rest:
         parts.append(f"joint(s) {', '.join(str(j + 1) for j in rest)} not better on each held-out recording")
     return "; ".join(parts)
@@ -316,14 +325,12 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
     """``(kept, reason)``: whether the LuGre ``lugre`` written model (``written_model.WrittenModel``) replaces the
     ``default`` one, ``comparisons`` the ``never_worse.JointComparison`` of the two on each held-out recording
     (default before, LuGre after), ``joints`` the lagging ones."""
-    worse, new = _refused_joints(default, lugre, comparisons)
+    worse = _refused_joints(comparisons)
     if worse:
         return False, f"is worse on joint(s) {', '.join(str(j + 1) for j in worse)} ({comparisons[0].text(worse)})"
     better = [j for j in joints if all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons)]
     if not better:
         return False, "does not predict a lagging joint better beyond the margin on each held-out recording"
-    if new:
-        return False, f"is worse than the robot file on joint(s) {', '.join(str(j + 1) for j in new)}"
     pushed = sorted({f.link for f in lugre.fit.envelope} - {f.link for f in default.fit.envelope})
     if pushed:  # a rigid body made implausible to fit the friction's reversals is no better model
         links = ", ".join(str(i + 1) for i in pushed)
@@ -334,7 +341,7 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
 
 
 #: The trial's LuGre fits, kept while a ``state_cache.remembering`` block is open (``psdm identify``'s run): by
-#: ``fit_key``, with the model fitted and the fit's warnings.
+#: ``fit_key``, the LuGre joints and the start, with the model fitted and the fit's warnings.
 _FITS = BlockMemory()
 
 
@@ -350,25 +357,26 @@ def fit_key(robot, recordings, options, configurations) -> tuple:
     return model_key(robot), digests, named, repr(options), repr(configurations)
 
 
-def _lugre_fit(problem, caught):
-    """The trial's ``LuGreIdentification`` of ``problem = (robot, model, recordings, options, configurations)``: made
-    once in a ``remembering`` block (``_FITS``; ``psdm identify`` runs its route again where it took a held-out load
-    off, on the same training recordings), its warnings added to ``caught`` as the fit issued them."""
+def _lugre_fit(problem, caught, joints=None, start=None):
+    """The trial's ``LuGreIdentification`` of ``problem = (robot, model, recordings, options, configurations)`` (LuGre
+    on ``joints``, None: every joint, from ``start``; :func:`mixed_trial`'s): made once in a ``remembering`` block
+    (``_FITS``; ``psdm identify`` runs its route again where it took a held-out load off, on the same training
+    recordings), its warnings added to ``caught`` as the fit issued them."""
     from identification.calibration.lugre_identify import identify_lugre_trajectories
 
     robot, model, recordings, chosen, configurations = problem
-    start, made = len(caught), []
+    first, made, held = len(caught), [], () if start is None else tuple(start)
 
     def fit() -> tuple:
         found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations,
-                                            settle_sd=SETTLE_SD)  # fmt: skip
+                                            settle_sd=SETTLE_SD, joints=joints, start=start)  # fmt: skip
         made.append(found)
-        return model, found, tuple(caught[start:])  # the fit's warnings: the result's if it is kept
+        return model, held, found, tuple(caught[first:])  # the fit's warnings: the result's if it is kept
 
-    key = fit_key(robot, recordings, chosen, configurations)
-    fitted, found, said = _FITS.get(key, fit)
-    if fitted != model:  # another derivation of the robot (a --model file): fitted again
-        fitted, found, said = fit()
+    key = (fit_key(robot, recordings, chosen, configurations), joints, tuple(map(id, held)))  # the entry holds them
+    fitted, started, found, said = _FITS.get(key, fit)
+    if fitted != model or any(a is not b for a, b in zip(started, held)):  # a --model file's, or another start
+        fitted, started, found, said = fit()
     if not made:
         caught.extend(said)
     return found
@@ -425,8 +433,8 @@ def try_lugre(problem, written, judged, writer, request) -> tuple:
         return LuGreTrial(lags, joints, reason=f"could not be made ({error})"), None
     kept, reason = judge_trial(written, lugre, comparisons, joints)
     trial = _trial(lags, joints, kept, reason, comparisons, tuple(range(robot.n_dof)))
-    if not kept and (keep := keep_joints(written, lugre, comparisons, joints)):
-        steady = steady_reasons(written, lugre, comparisons, keep)
+    if not kept and (keep := keep_joints(comparisons, joints)):
+        steady = steady_reasons(comparisons, keep)
         outcome = mixed_trial(problem, written, (judged, kts), writer, found, keep)
         if outcome[0] is not None:
             caught, (found, lugre, comparisons) = outcome[0], outcome[1:]
@@ -455,8 +463,9 @@ def mixed_trial(problem, written, judged, writer, found, keep) -> tuple:
     """``(caught warnings, LuGreIdentification, WrittenModel, comparisons)`` of the mixed model (``mixed_friction``):
     LuGre on the joints ``keep`` (0-based), continued from the LuGre model of every joint ``found``, the default model
     ``written``'s steady-state shape on the others; or ``(None, why not)`` where it cannot be made. ``judged`` =
-    ``(file_judged.FileJudged, torque constants per recording)``."""
-    from identification.calibration.lugre_identify import identify_lugre_trajectories
+    ``(file_judged.FileJudged, torque constants per recording)``. Its check against the robot file gives each joint
+    the file's friction in that joint's shape (``robot_file_check.joint_fits``): the Stribeck start on a LuGre joint,
+    the model's own columns on a steady-state one."""
     from identification.calibration.mixed_friction import mixed_options
     from identification.calibration.never_worse import compare_each
     from psdm_casadi.errors import ParameterError, SolverError
@@ -467,10 +476,10 @@ def mixed_trial(problem, written, judged, writer, found, keep) -> tuple:
     try:
         with quiet_trial() as caught:
             options = mixed_options(written.options, keep, written.fit.stribeck_velocity or [0.0] * robot.n_dof)
-            mixed = identify_lugre_trajectories(robot, model, recordings, options, configurations=configurations,
-                                                settle_sd=SETTLE_SD, joints=keep,
-                                                start=(found.stribeck, found.lugre))  # fmt: skip
-            lugre = writer(mixed.lugre, found.stribeck)(options, mixed.fit)
+            mixed = _lugre_fit((robot, model, recordings, options, configurations), caught, tuple(keep),
+                               (found.stribeck, found.lugre))  # fmt: skip
+            columns = tuple(found.stribeck if j in keep else None for j in range(robot.n_dof))  # shapes as given
+            lugre = writer(mixed.lugre, columns)(options, mixed.fit)
             comparisons = [compare_each(written.calibrated, lugre.calibrated, model, [r], kt)[0]
                            for r, kt in zip(judged.recordings, kts)]  # fmt: skip
     except (ParameterError, SolverError) as error:

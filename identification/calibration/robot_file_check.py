@@ -66,7 +66,7 @@ from identification.calibration.trajectory_fit import torque_constants
 from identification.data.excitation_check import one_way_joints
 
 __all__ = ["ALLOWANCE_RULES", "BASELINES", "BASELINE_RULE", "FileCheck", "FileFriction", "check_against_file",
-           "file_friction"]  # fmt: skip
+           "file_friction", "joint_fits"]  # fmt: skip
 
 #: The baseline per joint, stored (``FileCheck.baselines``) and said in the report.
 BASELINES = {"friction": "the robot file's rigid body with its friction fitted", "alone": "the robot file alone"}
@@ -85,15 +85,15 @@ ALLOWANCE_RULES = {
 class FileFriction:
     """The robot file's rigid body with a plain friction fit: per joint the drive coefficients of its columns."""
 
-    fit: object  # the identified TrajectoryFit whose drive columns are reused
+    fit: object  # the identified TrajectoryFit whose drive columns are reused, or one per joint (``joint_fits``)
     coefficients: tuple  # per joint: (column indices, coefficients)
 
     def predict(self, oracle, q, qd, qdd) -> np.ndarray:
         """Joint torques [N m] of the file's rigid body plus this friction."""
         out = oracle.rnea(q, qd, qdd)
-        columns = _columns(self.fit, qd, qdd)
+        columns = _joint_drive_columns(joint_fits(self.fit, out.shape[1]), qd, qdd)
         for j, (keep, x) in enumerate(self.coefficients):
-            out[:, j] += columns[:, j, keep] @ x
+            out[:, j] += columns[j][:, j, keep] @ x
         return out
 
 
@@ -223,6 +223,21 @@ def _columns(fit, qd, qdd) -> np.ndarray:
     return drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit))
 
 
+def joint_fits(fit, n_dof: int) -> tuple:
+    """The fit whose drive columns each joint's friction takes: ``fit`` itself on every joint, or ``fit`` as given
+    where it is one per joint (a mixed model's: the Stribeck start on its LuGre joints, its own fit on the others)."""
+    return tuple(fit) if isinstance(fit, (tuple, list)) else (fit,) * n_dof
+
+
+def _joint_drive_columns(fits, qd, qdd) -> list:
+    """Per joint, the drive columns of its fit in ``fits`` (each distinct fit's made once)."""
+    made = {}
+    for fit in fits:
+        if id(fit) not in made:
+            made[id(fit)] = _columns(fit, qd, qdd)
+    return [made[id(fit)] for fit in fits]
+
+
 def _joint_columns(fit, joint: int) -> np.ndarray:
     """The drive columns (indices) of ``joint`` the identified fit kept: its own friction terms, an offset or a static
     friction only where the fit did not hold it at 0, its own drive inertia."""
@@ -239,19 +254,21 @@ def file_friction(oracle, fit, prepared) -> FileFriction:
     """The robot file's rigid body (``oracle``) with each joint's drive columns of ``fit`` fitted by least squares
     on the ``prepared`` training recordings (joints without torque, NaN, left out), friction and drive inertias >= 0
     and offsets free, as the consistent fit bounds them (``consistent_fit.drive_lower_bounds``; a drive inertia here is
-    on top of the file's). Zero is feasible, so per joint its training residual is never above the file's alone."""
+    on top of the file's). Zero is feasible, so per joint its training residual is never above the file's alone.
+    ``fit`` may be one per joint (:func:`joint_fits`): each joint takes its own fit's columns."""
     from scipy.optimize import lsq_linear
 
-    rows = [(r.tau - oracle.rnea(r.q, r.qd, r.qdd), _columns(fit, r.qd, r.qdd)) for r in prepared]
-    residual = np.concatenate([r for r, _ in rows])
-    columns = np.concatenate([c for _, c in rows])
-    lower = drive_lower_bounds(fit.drive_names)
+    residual = np.concatenate([r.tau - oracle.rnea(r.q, r.qd, r.qdd) for r in prepared])
+    fits = joint_fits(fit, residual.shape[1])
+    rows = [_joint_drive_columns(fits, r.qd, r.qdd) for r in prepared]  # per recording, per joint
     coefficients = []
     for j in range(residual.shape[1]):
-        keep, ok = _joint_columns(fit, j), np.isfinite(residual[:, j])
+        columns = np.concatenate([row[j][:, j] for row in rows])
+        keep, ok = _joint_columns(fits[j], j), np.isfinite(residual[:, j])
+        lower = drive_lower_bounds(fits[j].drive_names)
         x = []
         if keep.size and ok.any():
-            x = lsq_linear(columns[ok][:, j, keep], residual[ok, j], (lower[keep], np.inf), method="bvls").x
+            x = lsq_linear(columns[ok][:, keep], residual[ok, j], (lower[keep], np.inf), method="bvls").x
         coefficients.append((keep, np.asarray(x, dtype=float)))
     return FileFriction(fit, tuple(coefficients))
 
@@ -267,7 +284,9 @@ def check_against_file(
     channel, has fewer); default each joint's rows, as if each were independent (a smaller allowance). ``columns``:
     the fit whose drive columns the file's friction is fitted with (default ``fit``): a LuGre model's fit has no
     friction columns (its friction is the LuGre block), and the file is given the Stribeck columns that friction
-    started from (``lugre_identify``)."""
+    started from (``lugre_identify``); or one per joint (:func:`joint_fits`, None: ``fit``'s), a mixed model's: the
+    Stribeck start on its LuGre joints and its own columns on its steady-state ones, each joint judged against the file
+    with the friction shape the model gives it."""
     from psdm_casadi.oracle import PinocchioOracle
 
     if not validation:
@@ -276,7 +295,8 @@ def check_against_file(
     if robot.links is None:
         return FileCheck(reason="the robot file states no links")
     oracle = PinocchioOracle(robot)
-    baseline = file_friction(oracle, fit if columns is None else columns, prepared)
+    chosen = tuple(fit if c is None else c for c in joint_fits(columns, robot.n_dof))
+    baseline = file_friction(oracle, chosen, prepared)
     covariance = rigid_body_covariance(model, fit)
     residuals = []  # per held-out recording: (prepared recording, model's, file + friction's, file alone's)
     for recording in validation:

@@ -23,7 +23,7 @@ import pytest
 from identification.calibration.applied_model import refit_options
 from identification.calibration.calibrated_model import CalibratedModel, read_calibrated_model
 from identification.calibration.lugre_identify import identify_lugre_trajectories
-from identification.calibration.lugre_trial import keep_joints, steady_reasons
+from identification.calibration.lugre_trial import judge_trial, keep_joints, steady_reasons
 from identification.calibration.mixed_friction import mixed_options, stribeck_start
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 
@@ -38,25 +38,62 @@ def _comparison(before, after, margin):
 
 
 def test_the_joints_lugre_keeps_are_those_it_predicts_better_and_it_is_tried_only_where_a_lagging_one_gains():
-    """The belt cobot's seeds 3 and 4 (``unseen_arms``): LuGre on every joint lowers joint 1 from 0.79 to 0.25 N m but
-    raises joint 5 beyond its margin (seed 3) or makes joint 6 newly worse than the robot file (seed 4). The joints
-    kept are those better on each recording and worse on none; no mixed model where no lagging joint gains beyond the
-    margin, or where every joint would keep LuGre (the model of every joint was the one refused)."""
-    file_ok, file_6 = (SimpleNamespace(check=SimpleNamespace(worse=worse)) for worse in ((), (5,)))
+    """The belt cobot's seed 3 (``unseen_arms``): LuGre on every joint lowers joint 1 from 0.79 to 0.25 N m but raises
+    joint 5 beyond its margin. The joints kept are those better on each recording and worse on none; no mixed model
+    where no lagging joint gains beyond the margin, or where every joint would keep LuGre (the model of every joint was
+    the one refused)."""
     before, margin = [0.79, 0.5, 0.4, 0.3, 0.05, 0.2], [0.02, 0.02, 0.02, 0.02, 0.011, 0.02]
     seed3 = _comparison(before, [0.25, 0.45, 0.41, 0.29, 0.065, 0.19], margin)
     assert seed3.worse == (4,)
-    assert keep_joints(file_ok, file_ok, [seed3], (0,)) == (0, 1, 3, 5)  # joint 3 rose within its margin: steady
-    assert steady_reasons(file_ok, file_ok, [seed3], (0, 1, 3, 5)) == (
+    assert keep_joints([seed3], (0,)) == (0, 1, 3, 5)  # joint 3 rose within its margin: steady
+    assert steady_reasons([seed3], (0, 1, 3, 5)) == (
         "joint 5 worse (0.05 -> 0.065 N m, margin 0.011); joint(s) 3 not better on each held-out recording"
     )
-    seed4 = _comparison(before, [0.31, 0.45, 0.39, 0.29, 0.010, 0.19], margin)
-    assert keep_joints(file_ok, file_6, [seed4], (0,)) == (0, 1, 2, 3, 4)
-    assert steady_reasons(file_ok, file_6, [seed4], (0, 1, 2, 3, 4)) == "joint 6 newly worse than the robot file"
-    assert keep_joints(file_6, file_6, [seed4], (0,)) == ()  # every joint better, the robot file's deficit not new
-    assert keep_joints(file_ok, file_6, [seed4], (2,)) == ()  # the lagging joint 3 gains less than its margin
+    assert keep_joints([seed3], (3,)) == ()  # the lagging joint 4 gains less than its margin
+    every = _comparison(before, [0.31, 0.45, 0.39, 0.29, 0.010, 0.19], margin)
+    assert keep_joints([every], (0,)) == ()  # better on every joint: the model of every joint is not refused there
     other = _comparison(before, [0.5, 0.45, 0.39, 0.29, 0.010, 0.21], margin)  # joint 1 better on one recording only
-    assert keep_joints(file_ok, file_ok, [seed3, other], (0,)) == (0, 1, 3)
+    assert keep_joints([seed3, other], (0,)) == (0, 1, 3)
+
+
+def _written(worse=()):
+    """A written model as the trial's judge reads it: the joints its check calls worse than the robot file, and no
+    link against its envelope."""
+    return SimpleNamespace(check=SimpleNamespace(worse=tuple(worse)), fit=SimpleNamespace(envelope=()))
+
+
+def test_a_joint_within_the_margin_of_the_default_model_keeps_its_verdict_against_the_robot_file():
+    """The trial is judged against the default model (``lugre_trial._refused_joints``): a joint it predicts within the
+    paired margin of the default one on each held-out recording keeps the default model's verdict against the robot
+    file, though the trial's own check names it; a joint beyond the margin on one recording is refused. The numbers
+    are the held-out-load Denso's (``test_held_out_load``): its mixed model left joint 6 as the default model had it
+    (0.1490 N m on both), and its check against the file (a baseline of its own there) called it worse by 0.0015 N m
+    on the loaded recording and not on the unloaded one, which flipped the friction chosen."""
+    before = [1.2549, 0.64541, 0.99526, 0.52651, 0.1908, 0.14899]
+    margin = [0.01255, 0.00645, 0.42689, 0.12632, 0.00191, 0.00149]
+    mixed = _comparison(before, [1.2539, 0.63698, 0.71235, 0.23207, 0.19039, 0.14899], margin)
+    unloaded = _comparison([1.26372, 0.61479, 0.83314, 0.52468, 0.1789, 0.14638],
+                           [1.2637, 0.6141, 0.69167, 0.24517, 0.17888, 0.14638],
+                           [0.01264, 0.00615, 0.21008, 0.1287, 0.00179, 0.00146])  # fmt: skip
+    for comparisons in ([mixed], [unloaded], [mixed, unloaded]):
+        kept, reason = judge_trial(_written(), _written((5,)), comparisons, (2, 3))
+        assert kept and "joint 4" in reason, reason
+    # joint 6 worse than the default model beyond its margin on one recording: refused, whatever the file check says
+    rise = _comparison(before, [1.2539, 0.63698, 0.71235, 0.23207, 0.19039, 0.14899 + 2 * margin[5]], margin)
+    for flagged in ((), (5,)):
+        kept, reason = judge_trial(_written(), _written(flagged), [rise, unloaded], (2, 3))
+        assert not kept and reason.startswith("is worse on joint(s) 6 (joint 6: 0.149 -> 0.152"), reason
+    # the LuGre model of every joint there: joint 6 better within its margin keeps LuGre in the mixed model, joints 1
+    # and 2 worse beyond it and joint 5 not better keep the steady-state shape
+    every = _comparison(before, [1.66972, 1.30707, 0.71106, 0.23632, 0.26028, 0.13039],
+                        [0.21675, 0.57237, 0.45374, 0.1285, 0.09426, 0.02044])  # fmt: skip
+    assert judge_trial(_written(), _written((1, 5)), [every], (2, 3))[1].startswith("is worse on joint(s) 1, 2 (")
+    assert keep_joints([every], (2, 3)) == (2, 3, 5)
+    assert steady_reasons([every], (2, 3, 5)) == ("joint 1 worse (1.255 -> 1.67 N m, margin 0.22); joint 2 worse "
+                                                  "(0.6454 -> 1.307 N m, margin 0.57); joint(s) 5 not better on each "
+                                                  "held-out recording")  # fmt: skip
+    beyond = _comparison(before, [1.66972, 1.30707, 0.71106, 0.23632, 0.26028, 0.14899 + 2 * margin[5]], margin)
+    assert keep_joints([beyond], (2, 3)) == (2, 3)  # joint 6 worse beyond its margin: steady
 
 
 def test_the_stated_choice_names_the_lugre_joints_and_why_the_others_keep_the_steady_state_shape():
@@ -130,6 +167,36 @@ def mixed(denso, denso_model, tmp_path_factory):
         model = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=denso.source, lugre=lugre)
         model.save(paths[name], allow_inconsistent=True)
     return found, paths, save_recording(recordings[1], folder / "held.csv"), recordings[1], recordings[0]
+
+
+def test_the_robot_file_judges_each_joint_of_a_mixed_model_with_the_friction_shape_it_gives_it(denso, mixed):
+    """The mixed model's check against the robot file (``robot_file_check.joint_fits``): the file's friction of a LuGre
+    joint is fitted with the Stribeck start's columns and that of a steady-state joint with the model's own, each as
+    the file's friction fitted with that one fit alone (the check of a model of one shape) fits it, and predicts it."""
+    from identification.calibration.column_candidates import prepare_training
+    from identification.calibration.robot_file_check import file_friction
+    from psdm_casadi.oracle import PinocchioOracle
+    from tests.identification.lugre_recordings_data import CUTOFF
+
+    found, *_, train = mixed
+    prepared = prepare_training(denso, [train], TrajectoryOptions(cutoff_hz=CUTOFF)).prepared
+    oracle, ready = PinocchioOracle(denso), prepared[0]
+    fits = tuple(found.stribeck if j in LUGRE else found.fit for j in range(denso.n_dof))
+    each = file_friction(oracle, fits, prepared)
+    predicted = each.predict(oracle, ready.q, ready.qd, ready.qdd)
+    names = {}
+    for fit in (found.stribeck, found.fit):
+        alone = file_friction(oracle, fit, prepared)
+        expected = alone.predict(oracle, ready.q, ready.qd, ready.qdd)
+        for j in (j for j in range(denso.n_dof) if fits[j] is fit):
+            keep, x = each.coefficients[j]
+            np.testing.assert_array_equal(keep, alone.coefficients[j][0])
+            np.testing.assert_allclose(x, alone.coefficients[j][1], rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(predicted[:, j], expected[:, j], rtol=1e-9, atol=1e-9)
+            names[j] = {fit.drive_names[k].rstrip("0123456789") for k in keep}
+    own = file_friction(oracle, found.fit, prepared)  # the mixed fit's own columns on a LuGre joint: no hump
+    lugre_own = [{found.fit.drive_names[k].rstrip("0123456789") for k in own.coefficients[j][0]} for j in LUGRE]
+    assert not any("fs" in n for n in lugre_own) and any("fs" in names[j] for j in LUGRE), (names, lugre_own)
 
 
 def test_a_mixed_model_predicts_each_joint_by_its_own_shape_and_never_worse_than_the_steady_state(mixed):
