@@ -26,9 +26,14 @@ joint worse than the file before them need not be after.
    other joints ask of them (link 7 1.30 kg against the file's 1.10, its centre of mass 4 cm off), and joint 6 was
    worse than the robot file with friction fitted on opti_traj_testing1 (link 6 held alone leaves it worse).
 
-A step is kept only if the joints the check names worse with it are fewer than before and none of them is new (a
-link held for a wrist joint moves the rigid body of the joints before it); otherwise the fit before it stands, and
-the report says why with the numbers. The held-out recordings then decide the model, so the check that follows is not
+A step is kept only if none of the joints the check names worse with it is new (a link held for a wrist joint moves
+the rigid body of the joints before it) and they are fewer than before, or the same joints each predicted better (its
+held-out RMSE lower: nearer the robot file's, which the check found better there; ``_mends``); otherwise the fit before
+it stands, and the report says why with the numbers. A step that brings a joint close to its baseline can leave it
+named worse by a hair: once its links are the file's, no estimation allowance is left in its margin, only the paired
+difference's noise, and a rule of fewer joints alone refused the step and wrote the model as far off as before. A
+step kept on the same joints is followed by the next, so the friction held and then the links leave such a joint
+predicting what its baseline predicts. The held-out recordings then decide the model, so the check that follows is not
 independent of them: the record (``WorseJointHold``) and its sentence say so, as ``one_way_friction``'s do. A model
 file states what was held (``identification.worse_joints``): the held friction is kept by every refit of the file
 (``HeldFriction.of_document``). ``mode``: ``"hold"`` (default) or ``"report"`` (name the worse joints only, ``psdm
@@ -131,6 +136,15 @@ def _baseline_friction(options, check, joints, friction_of, fit) -> tuple:
     return tuple(out)
 
 
+def _mends(found, left, after, before) -> bool:
+    """Whether a step mends the joints ``left`` (0-based) the check named worse: none of those it names worse with it
+    (``found``) is new, and they are fewer, or each is predicted better on the held-out recordings than before the step
+    (held-out RMSE per joint ``after`` below ``before``)."""
+    if not set(found) <= set(left):
+        return False
+    return set(found) < set(left) or all(after[j] < before[j] for j in found)
+
+
 def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> tuple:
     """``(fit, options, WorseJointHold)``: ``fit`` (made with ``options``) as it is, or made again with its worse joints
     held to what the robot file predicts there, step by step, each kept where it leaves fewer joints worse and none
@@ -148,7 +162,7 @@ def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> t
     record = WorseJointHold(mode=mode, worse=left, numbers=numbers, left=left)
     if mode == "report":
         return fit, options, replace(record, reason="named only (--worse-joint report)")
-    steps, added = [], ()
+    steps, added, rmse = [], (), c.after
     friction = _baseline_friction(options, check, left, friction_of, fit)
     candidates, tried = ([("friction", friction)] if friction else []), set()
     while left:
@@ -178,19 +192,20 @@ def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> t
             steps.append((label, left, False))
             logger.info("identify: the fit with %s held did not converge (%s)", label, error)
             break
-        found = tuple(judge(trial).worse)
-        kept = set(found) < set(left)
+        checked = judge(trial)
+        found = tuple(checked.worse)
+        kept = _mends(found, left, checked.comparison.after, rmse)
         steps.append((label, found, kept))
         if not kept:
             if kind == "links" and not candidates:
                 break
             continue  # the friction did not mend them: the rigid body next
-        fit, options, left = trial, trial_options, found
+        fit, options, left, rmse = trial, trial_options, found, checked.comparison.after
         added = added + (what if kind == "friction" else ())
     held_links = tuple(options.held_links)
     record = replace(record, held_friction=added, held_links=held_links, steps=tuple(steps), left=left)
     tried = "; ".join(f"with {label} held: joint(s) {', '.join(str(j + 1) for j in found) or 'none'} worse"
-                      f"{'' if kept else ' (refused: not fewer, or a new one)'}"
+                      f"{'' if kept else ' (refused: a new one, or neither fewer nor each nearer)'}"
                       for label, found, kept in steps)  # fmt: skip
     if not record.decided_by_held_out:
         reason = f"{tried or 'nothing left to hold'}; the model stands as identified"

@@ -134,3 +134,19 @@ def test_two_readings_of_one_candidate_are_told_apart_in_the_shape_note():
     assert len(readings) == len(set(readings)) == 2, note
     assert note.startswith("joint_elasticity[j2] (friction part at the nominal compliance, 0.2 deg at RMS torque) ")
     assert "joint_elasticity[j2] (friction part at the fitted compliance 0.000274 rad/(N m)): dBIC -10" in note
+
+
+def test_friction_that_falls_with_speed_is_no_smooth_coulomb_friction(denso, denso_model):
+    # known truth: the same wider hump (static above kinetic). A smooth Coulomb column fits it with a negative level
+    # (the friction falling past its scale), which is the Stribeck peak's shape (the test above names it so): not
+    # named smooth Coulomb friction, said among the implausible fits
+    hump = xp.StribeckHump(joint=HUMP_JOINT, height=HUMP_HEIGHT, velocity=HUMP_VELOCITY, smoothing_velocity=0.01)
+    train, _ = sine_recording(denso, 0, 4.0, [hump])
+    validation, _ = sine_recording(denso, 1, 3.0, [hump])
+    smooth = FrictionShapeTerm(shape="smooth_coulomb")
+    options = DiagnosisOptions(rigid_body="prior", sparse=False, cv_folds=0, library=CandidateLibrary((smooth,)))
+    report = diagnose(denso, train, validation, options, model=denso_model)
+    assert not report.findings
+    assert any(label == f"friction_shape[j{HUMP_JOINT + 1},smooth_coulomb]" for label, _ in report.rejected)
+    fit = smooth.implausibility
+    assert fit([-0.5]) is not None and "Stribeck" in fit([-0.5]) and fit([0.5]) is None

@@ -183,7 +183,8 @@ class FrictionShapeTerm(CandidateTerm):
     - ``stribeck``: a Stribeck peak ``exp(-(qd/vs)^2) sign(qd)`` of velocity ``vs = scale`` (the static friction above
       the Coulomb level, coefficient ``fs - fc > 0``);
     - ``smooth_coulomb``: ``tanh(qd/v)``, a Coulomb friction that reaches its level over the velocity ``v = scale``
-      (and bends the viscous curve).
+      (and bends the viscous curve; coefficient > 0: below zero the friction falls with speed, a Stribeck peak's
+      shape, ``implausibility``).
 
     Built without a ``scale`` (a candidate), its one shape variant has the scale of least training error on
     ``SCALE_GRIDS[shape]``, refined by a parabola in log scale through the best three (``n_shape_parameters``: counted
@@ -274,11 +275,17 @@ class FrictionShapeTerm(CandidateTerm):
         return {name: float(coefficients[0]), scale: float(self.scale)}
 
     def implausibility(self, coefficients, context=None):
-        """A Stribeck "peak" below the Coulomb level (a dip: not Stribeck friction), or a friction larger than the
-        joint's torque scale (``oversized``)."""
+        """Each shape's sign is its physics: a Stribeck "peak" below the Coulomb level (a dip: friction that rises
+        with speed, a smooth onset's shape) or a smooth Coulomb friction below zero (friction that falls with speed
+        past its scale, static above kinetic: a Stribeck peak's shape) is not the shape it is named; or a friction
+        larger than the joint's torque scale (``oversized``)."""
         c = float(coefficients[0])
         if self.shape == "stribeck" and c <= 0.0:
             return f"Stribeck peak {c:.3g} N m <= 0: friction below the Coulomb level at low speed is not a peak"
+        if self.shape == "smooth_coulomb" and c <= 0.0:
+            past = "its velocity scale" if self.scale is None else f"{self.scale:.3g} rad/s"
+            return (f"smooth Coulomb friction {c:.3g} N m <= 0: friction that falls with speed past {past} is a "
+                    "Stribeck peak's shape, not a Coulomb friction reached smoothly")  # fmt: skip
         return oversized("friction", c, context, self.joint)
 
     def interpret(self, coefficients):
