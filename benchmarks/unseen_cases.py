@@ -228,7 +228,8 @@ def industrial_degrees(folder: Path, rng) -> Case:
         validate=files[-1],
         extra=("--columns", "t=Time,q=AxisPos_A:deg,tau=MotorTorque_A:mNm"),
         unstated=("--columns", "t=Time,q=AxisPos_A,tau=MotorTorque_A"),
-        refusal_words=("trace_", "q1", "positions in degrees?", "--columns q=PREFIX:deg"),
+        # the fix as the option to pass for this file: its own columns with the unit added (cli.column_hint)
+        refusal_words=("trace_", "q1", "positions in degrees?", "--columns t=Time,q=AxisPos_A:deg,tau=MotorTorque_A"),
         true_links=np.array([link.mass for link in robot.links]),
         floor_nm=floor,
         friction_shapes=friction_shapes(robot),

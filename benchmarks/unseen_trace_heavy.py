@@ -149,7 +149,8 @@ def heavy_trace(folder: Path, rng) -> Case:
         validate=paths[-1],
         extra=("--columns", "t=TimeStamp:ms,q=AxisAct_A:deg,i=CurrAct_A:%"),
         unstated=("--columns", "t=TimeStamp:ms,q=AxisAct_A:deg,i=CurrAct_A"),  # the % read as amperes
-        refusal_words=("trace_001.csv", "rated current", "--columns i=PREFIX:%"),
+        # the fix as the option to pass for this file: its own columns with the unit added (cli.column_hint)
+        refusal_words=("trace_001.csv", "rated current", "--columns t=TimeStamp:ms,q=AxisAct_A:deg,i=CurrAct_A:%"),
         true_links=np.array([link.mass for link in truth.links]),
         payload_mass=GRIPPER.mass,
         payload_known=False,
