@@ -68,8 +68,10 @@ def _judged(entry: dict, with_it, without) -> bool:
 def implausibility(entry: dict) -> str | None:
     """Why a refitted finding's coefficients are physically meaningless, or None: a load-dependent friction coefficient
     outside (0, MAX_LOAD_FRICTION) (a gear efficiency below 50 %, or friction that falls with the load), a negative
-    rotor inertia, a Stribeck peak not above the Coulomb level. The diagnosis applies the same bounds when it selects
-    the finding; the joint refit with the rigid body can move the coefficient out of them."""
+    rotor inertia, a Stribeck peak not above the Coulomb level, a smooth Coulomb friction not above zero (friction
+    falling with speed: a Stribeck peak's shape, ``FrictionShapeTerm.implausibility``). The diagnosis applies the
+    same bounds when it selects the finding; the joint refit with the rigid body can move the coefficient out of
+    them."""
     values = [c for c in entry.get("coefficients") or [] if c is not None]
     if entry.get("kind") != "torque" or not values:
         return None
@@ -77,8 +79,11 @@ def implausibility(entry: dict) -> str | None:
         return f"refitted friction coefficient mu = {values[0]:.3g} outside (0, {MAX_LOAD_FRICTION})"
     if entry["effect"] == "rotor_inertia" and values[0] < 0.0:
         return f"refitted rotor inertia {values[0]:.3g} kg m^2 is negative"
-    if entry["effect"] == "friction_shape" and entry["term"]["spec"].get("shape") == "stribeck" and values[0] <= 0.0:
+    shape = entry["term"]["spec"].get("shape") if entry["effect"] == "friction_shape" else None
+    if shape == "stribeck" and values[0] <= 0.0:
         return f"refitted Stribeck peak {values[0]:.3g} N m is not above the Coulomb level"
+    if shape == "smooth_coulomb" and values[0] <= 0.0:
+        return f"refitted smooth Coulomb friction {values[0]:.3g} N m is not above zero (a Stribeck peak's shape)"
     return None
 
 

@@ -176,11 +176,11 @@ class FindingTerm:
         }[self.effect]
 
     def lower_bounds(self) -> list:
-        """Lower bound of each coefficient in the consistent fit: a drive inertia, a friction and a Stribeck peak are
-        >= 0."""
+        """Lower bound of each coefficient in the consistent fit: a drive inertia, a friction, a Stribeck peak and a
+        smooth Coulomb friction are >= 0."""
         positive = self.effect in ("rotor_inertia", "load_dependent_friction") or (
-            self.effect == "friction_shape" and self.spec.get("shape") == "stribeck"  # a peak, not a dip
-        )
+            self.effect == "friction_shape" and self.spec.get("shape") in ("stribeck", "smooth_coulomb")
+        )  # a peak, not a dip; a level, not a fall
         return [0.0 if positive else -np.inf] * len(self.feature_names())
 
     def to_dict(self) -> dict:

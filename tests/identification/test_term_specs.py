@@ -149,7 +149,9 @@ def test_friction_shapes_refuse_a_dip_and_an_unknown_shape():
     stribeck = TORQUE_TERMS[-2]
     assert "not a peak" in stribeck.implausibility([-0.2])
     assert stribeck.implausibility([0.2]) is None
-    assert TORQUE_TERMS[-1].implausibility([-0.2]) is None  # a smooth Coulomb friction may fall with the speed
+    # a smooth Coulomb friction below zero falls with the speed: a Stribeck peak's shape, not a level reached smoothly
+    assert "Stribeck peak's shape" in TORQUE_TERMS[-1].implausibility([-0.2])
+    assert TORQUE_TERMS[-1].implausibility([0.2]) is None
     with pytest.raises(ParameterError, match="shape must be one of"):
         FrictionShapeTerm(joint=1, shape="lugre")
     term = FindingTerm("friction_shape", 4, spec=stribeck.spec()).to_dict()
@@ -159,6 +161,11 @@ def test_friction_shapes_refuse_a_dip_and_an_unknown_shape():
 
     assert "Stribeck peak" in implausibility(entry)
     assert FindingTerm("friction_shape", 4, spec=stribeck.spec()).lower_bounds() == [0.0]
+    assert FindingTerm("friction_shape", 0, spec=TORQUE_TERMS[-1].spec()).lower_bounds() == [0.0]
+    smooth = {**entry, "label": "friction_shape[j1,smooth_coulomb]", "joints": [1],
+              "term": FindingTerm("friction_shape", 0, spec=TORQUE_TERMS[-1].spec()).to_dict()}  # fmt: skip
+    assert "Stribeck peak's shape" in implausibility(smooth)
+    assert implausibility({**smooth, "coefficients": [0.1]}) is None
     # pre-sliding is a state of the friction, not a torque of (q, qd, qdd): reported with its route, not applied
     from identification.calibration.findings import finding_kind
     from identification.diagnosis.candidates import PreslidingTerm
