@@ -4,6 +4,10 @@ A robot file may give it per link (``envelope`` in a ``[[link]]`` table, ``robot
 identification derives one from the link's geometry or its kinematic lengths
 (``identification.calibration.envelope``). A box is held by the ellipsoid through its corners (semi-axes
 ``sqrt(3)`` times the box's half extents), the smallest one with the box's axes.
+
+A link the next joint's origin bounds (a link of its own length, not the last) also has a ``CentreReach``: its centre
+of mass lies at most ``limit`` along the direction from its joint to the next joint's origin (the mass beyond that
+origin is the next joint's housing, centred on it). The identification derives it; a robot file does not give it.
 """
 
 from __future__ import annotations
@@ -16,7 +20,45 @@ import numpy as np
 from psdm_casadi.errors import RobotFileError
 from psdm_casadi.values import float_array, format_value
 
-__all__ = ["LinkEnvelope", "check_envelopes"]
+__all__ = ["CentreReach", "LinkEnvelope", "check_envelopes"]
+
+
+@dataclass(frozen=True, eq=False)
+class CentreReach:
+    """The half-space ``{c : direction . (c - origin) <= limit}`` that holds a link's centre of mass ``c``.
+
+    Parameters
+    ----------
+    origin : array, shape (3,)
+        [m] the link's joint origin in the link frame.
+    direction : array, shape (3,)
+        Unit vector from ``origin`` towards the next joint's origin (link frame).
+    limit : float
+        [m] > 0, the farthest the centre of mass lies along ``direction`` from ``origin``.
+    """
+
+    origin: np.ndarray
+    direction: np.ndarray
+    limit: float
+
+    def __post_init__(self):
+        origin = np.asarray(self.origin, dtype=float).reshape(-1)
+        direction = np.asarray(self.direction, dtype=float).reshape(-1)
+        if origin.shape != (3,) or direction.shape != (3,) or not np.isclose(np.linalg.norm(direction), 1.0):
+            raise RobotFileError(f"CentreReach needs a 3-vector origin and a unit direction; got {format_value(origin)}"
+                                 f" and {format_value(direction)}.")  # fmt: skip
+        if not (math.isfinite(self.limit) and self.limit > 0):
+            raise RobotFileError(f"CentreReach.limit must be finite and > 0 [m]; got {format_value(self.limit)}.")
+        object.__setattr__(self, "origin", origin)
+        object.__setattr__(self, "direction", direction)
+        object.__setattr__(self, "limit", float(self.limit))
+
+    def along(self, com) -> float:
+        """How far ``com`` (3,) [m] lies along ``direction`` from ``origin``, as a share of ``limit`` (1: at it)."""
+        return float(self.direction @ (np.asarray(com, dtype=float) - self.origin)) / self.limit
+
+    def to_dict(self) -> dict:
+        return {"origin": self.origin.tolist(), "direction": self.direction.tolist(), "limit": self.limit}
 
 
 @dataclass(frozen=True, eq=False)
@@ -33,6 +75,8 @@ class LinkEnvelope:
         Orthonormal; its columns are the ellipsoid's axes in the link frame (default: the link frame's).
     source : str
         Where it comes from, for reports ("robot file", "URDF collision geometry", "kinematic lengths", ...).
+    reach : CentreReach or None
+        Where the next joint's origin bounds the link: how far along the link its centre of mass may lie.
 
     Raises
     ------
@@ -44,6 +88,7 @@ class LinkEnvelope:
     semi_axes: np.ndarray
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
     source: str = "robot file"
+    reach: CentreReach | None = None
 
     def __post_init__(self):
         center = float_array(self.center, "LinkEnvelope.center", "3 numbers [m]").reshape(-1)
@@ -79,9 +124,14 @@ class LinkEnvelope:
         d = np.atleast_2d(np.asarray(points, dtype=float)) - self.center
         return np.einsum("ni,ij,nj->n", d, self.shape_matrix, d) <= 1.0 + 1e-12
 
+    def holds_centre(self, com) -> bool:
+        """Whether a centre of mass ``com`` (3,) [m] lies in the ellipsoid and within the ``reach``."""
+        return bool(self.contains(com)[0]) and (self.reach is None or self.reach.along(com) <= 1.0 + 1e-12)
+
     def to_dict(self) -> dict:
-        return {"center": self.center.tolist(), "semi_axes": self.semi_axes.tolist(),
-                "rotation": self.rotation.tolist(), "source": self.source}  # fmt: skip
+        out = {"center": self.center.tolist(), "semi_axes": self.semi_axes.tolist(),
+               "rotation": self.rotation.tolist(), "source": self.source}  # fmt: skip
+        return out if self.reach is None else {**out, "reach": self.reach.to_dict()}
 
 
 def check_envelopes(envelopes, n: int) -> tuple | None:

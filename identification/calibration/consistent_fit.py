@@ -13,12 +13,12 @@ the cap). Each pass is therefore first solved as the convex problem it is, in th
 log-det barrier path (``barrier_path``); the chart solve is kept as the fallback from the path's last point.
 
 With ``TrajectoryOptions.envelope`` (the default) each link also stays inside its physical envelope
-(``envelope``): the density condition of its bounding ellipsoid, its mass within ``mass_ratio`` of the
-robot file's, the drive inertias within ``drive_inertia_ratio`` of the file's where it gives them, and its spread
-about its centre of mass above its floor (``inertia_floor``: the cone of ``J - m diag(F, 0)``, in the chart and the
-barrier) (:func:`fit_bounds`). The envelope is per body (``FitBounds.envelopes``, one ellipsoid or None per link); a
-flange payload has none. The bounds come back with the data's pressure on each, so that a report can say
-which ones the data pushed against (``envelope_report``).
+(``envelope``): the density condition of its bounding ellipsoid and its centre of mass's reach, its mass within
+``mass_ratio`` of the robot file's, the drive inertias within ``drive_inertia_ratio`` of the file's where it gives
+them, and its spread about its centre of mass above its floor (``inertia_floor``: the cone of ``J - m diag(F, 0)``, in
+the chart and the barrier) (:func:`fit_bounds`). The envelope is per body (``FitBounds.envelopes``, one ellipsoid or
+None per link); a flange payload has none. The bounds come back with the data's pressure on each, so that a report
+can say which ones the data pushed against (``envelope_report``).
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from dataclasses import dataclass, replace
 import casadi as ca
 import numpy as np
 
-from identification.calibration.envelope import density_weights, link_envelopes
+from identification.calibration.envelope import density_weights, link_envelopes, reach_weights
 from identification.calibration.inertia_floor import link_floors
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.pseudo_inertia import (
@@ -181,23 +181,32 @@ def _solve(problem, start, bounds, final=True, warn=True):
 
 
 def _link_constraints(rows, links, prior, bounds):
-    """Envelope (``tr(J Q_hat) >= 0``) and mass bounds of the free links, each scaled by the link's mass.
+    """Envelope (``tr(J Q_hat) >= 0``, and the centre of mass within its reach where the link has one) and mass bounds
+    of the free links, each scaled by the link's mass.
 
-    Returns the constraints, their bounds, and per constraint ``(link, column of the pressure)``.
+    The reach's row is in masses times metres (``reach_weights`` times its limit: its coefficients those of the
+    centre's distance along the link; in masses alone the SCARA's path with a spring on joint 1 stalled where the
+    reach was not even active).
+
+    Returns the constraints, their bounds, and per constraint ``(link, column of the pressure, size)``: the size
+    the envelope's row gives way by (1, or the reach's limit), None for a mass bound (its value).
     """
     g, lower, upper, owner = [], [], [], []
     for i in links:
-        scale = max(prior[i, 0], 0.1)
-        if bounds.envelopes[i] is not None:
-            g.append(ca.dot(ca.DM(density_weights(bounds.envelopes[i])), rows[i][:LINK_PARAMETER_COUNT]) / scale)
-            lower.append(0.0)
-            upper.append(np.inf)
-            owner.append((i, 0))
+        scale, envelope = max(prior[i, 0], 0.1), bounds.envelopes[i]
+        if envelope is not None:
+            reach = (reach_weights(envelope), None if envelope.reach is None else envelope.reach.limit)
+            for weights, size in ((density_weights(envelope), 1.0), reach):
+                if weights is not None:
+                    g.append(ca.dot(ca.DM(weights * size), rows[i][:LINK_PARAMETER_COUNT]) / scale)
+                    lower.append(0.0)
+                    upper.append(np.inf)
+                    owner.append((i, 0, size))
         if np.isfinite(bounds.mass_upper[i]) or bounds.mass_lower[i] > 0:
             g.append(rows[i][0] / scale)
             lower.append(bounds.mass_lower[i] / scale)
             upper.append(bounds.mass_upper[i] / scale)
-            owner.append((i, 1))
+            owner.append((i, 1, None))
     return g, np.array(lower), np.array(upper), owner
 
 
@@ -213,8 +222,8 @@ def _pressure(solution, owner, names, bounds, count, n_phi):
     out = np.zeros((n, 3))
     lam_g = np.abs(np.asarray(solution["lam_g"]).reshape(-1))
     values = np.asarray(solution["g"]).reshape(-1)
-    for (i, column), lam, value in zip(owner, lam_g, values):
-        out[i, column] = count * lam * (1.0 if column == 0 else abs(value))
+    for (i, column, size), lam, value in zip(owner, lam_g, values):
+        out[i, column] += count * lam * (abs(value) if size is None else size)
     lam_x = np.abs(np.asarray(solution["lam_x"]).reshape(-1))
     x = np.asarray(solution["x"]).reshape(-1)
     out[:, 2] = count * lam_x[n_phi : n_phi + n] * np.abs(x[n_phi : n_phi + n])

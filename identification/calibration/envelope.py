@@ -19,6 +19,17 @@ link's kinematic segment (the joint axes it connects, from the DH rows or the UR
 margin (:func:`kinematic_envelope`). It is enlarged, if needed, until the robot file's own link fills at most
 ``PRIOR_FILL`` of it, so that the prior is always inside.
 
+The ellipsoid around a link's segment reaches well beyond the next joint's origin (its tip holds the capsule's rim),
+so a wrist link could put its centre of mass past the joint it carries, taking a tool's weight that hangs further
+out. Physically the mass beyond the next joint's origin is that joint's housing, centred on it: the centre of mass
+lies at most at the next joint's origin. So a link the next joint's origin bounds (not the last link, whose tool
+may sit beyond it; of a length of its own, at least ``REACH_MARGIN`` of the arm's reach; one next joint) has a
+``CentreReach`` (:func:`centre_reach`): along the direction from its joint to the next joint's origin its centre of
+mass stays within that distance plus ``NEXT_JOINT_MARGIN`` of it (or the robot file's own centre plus as much, if
+that lies further out). It is linear in the ten standard parameters, ``m (limit + u . o) - u . h >= 0`` for the
+direction ``u`` and joint origin ``o`` (:func:`reach_weights`): one more constraint of the link. A robot file's
+own envelope is its statement and gets none.
+
 Masses stay within ``mass_ratio`` times the robot file's (default 0.5-2: CAD masses are off by tens of
 percent, not by factors), and drive inertias within ``drive_inertia_ratio`` times the file's where it gives
 one. The fit's bounds are options of ``TrajectoryOptions``; what the data push against is read by
@@ -27,31 +38,40 @@ one. The fit's bounds are options of ``TrajectoryOptions``; what the data push a
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 from psdm_casadi.errors import ParameterError
-from psdm_casadi.link_envelope import LinkEnvelope
+from psdm_casadi.link_envelope import CentreReach, LinkEnvelope
 from psdm_casadi.oracle import build_kinematic_model
 from psdm_casadi.urdf_geometry import link_geometry_points
 
 __all__ = [
     "LENGTH_MARGIN",
+    "NEXT_JOINT_MARGIN",
     "PRIOR_FILL",
     "REACH_MARGIN",
+    "centre_reach",
     "check_ratio",
     "density_weights",
+    "ellipsoid_fill",
     "envelope_fill",
     "ellipsoid_matrix",
     "geometry_envelope",
     "kinematic_envelope",
     "link_envelopes",
+    "reach_weights",
 ]
 
 #: A link's envelope reaches this fraction of its own length beyond its joint axes ...
 LENGTH_MARGIN = 0.25
 #: ... and at least this fraction of the arm's reach (wrist links have no length of their own).
 REACH_MARGIN = 0.08
+#: A link's centre of mass lies at most this fraction of its length beyond the next joint's origin (``CentreReach``):
+#: the robot files' centres lie within their links' lengths, a synthetic arm's a little beyond.
+NEXT_JOINT_MARGIN = 0.1
 #: The robot file's link fills at most this share of its envelope (``envelope_fill``); larger ones are enlarged.
 PRIOR_FILL = 0.5
 
@@ -77,10 +97,30 @@ def density_weights(envelope: LinkEnvelope) -> np.ndarray:
                      2 * q[1, 2], q[2, 2] - half])  # fmt: skip
 
 
-def envelope_fill(link, envelope: LinkEnvelope) -> float:
-    """The mass-weighted mean of ``(x - c)^T Q (x - c)`` of a link: 1 on the envelope's boundary, > 1 outside."""
+def reach_weights(envelope: LinkEnvelope) -> np.ndarray | None:
+    """``w`` (10,) with ``w @ link >= 0`` exactly when the link's centre of mass is within the envelope's ``reach``
+    (``m (limit + u . o) - u . h``, over ``limit``: in masses, as ``density_weights``); None without a reach."""
+    reach = envelope.reach
+    if reach is None:
+        return None
+    u = reach.direction
+    return np.concatenate([[reach.limit + u @ reach.origin], -u, np.zeros(6)]) / reach.limit
+
+
+def ellipsoid_fill(link, envelope: LinkEnvelope) -> float:
+    """The mass-weighted mean of ``(x - c)^T Q (x - c)`` of a link: 1 on the ellipsoid's boundary, > 1 outside."""
     link = np.asarray(link, dtype=float)[:LINK_PARAMETER_COUNT]
     return float(1.0 - density_weights(envelope) @ link / max(link[0], 1e-300))
+
+
+def envelope_fill(link, envelope: LinkEnvelope) -> float:
+    """1 on the envelope's boundary, > 1 outside: the larger of the mass-weighted mean of ``(x - c)^T Q (x - c)`` of a
+    link (the ellipsoid's fill) and how far its centre of mass lies along its ``reach`` (a share of its limit)."""
+    link = np.asarray(link, dtype=float)[:LINK_PARAMETER_COUNT]
+    fill = ellipsoid_fill(link, envelope)
+    if envelope.reach is None or link[0] <= 0:
+        return fill
+    return max(fill, envelope.reach.along(link[1:4] / link[0]))
 
 
 def _segment_points(robot) -> list:
@@ -126,11 +166,28 @@ def geometry_envelope(points, source: str) -> LinkEnvelope:
     return LinkEnvelope.from_box(mean + rotation @ (0.5 * (low + high)), half, rotation, source)
 
 
+def centre_reach(points, reach: float, com=None) -> CentreReach | None:
+    """The ``CentreReach`` of a link whose segment ``points`` (the joint's origin, then the next joints', link frame)
+    has one next joint at least ``REACH_MARGIN`` of the arm's ``reach`` [m] away: that distance plus
+    ``NEXT_JOINT_MARGIN`` of it, or further out to hold the robot file's centre of mass ``com`` with the same margin;
+    None for a link without one next joint (the last link, a branching one) or without a length of its own."""
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    if len(points) != 2:
+        return None
+    span = points[1] - points[0]
+    length = float(np.linalg.norm(span))
+    if length < REACH_MARGIN * reach:
+        return None
+    u = span / length
+    farthest = length if com is None else max(length, float(u @ (np.asarray(com, dtype=float) - points[0])))
+    return CentreReach(points[0], u, farthest + NEXT_JOINT_MARGIN * length)
+
+
 def link_envelopes(robot, free=None) -> tuple:
     """Per link, its ``LinkEnvelope`` (module docstring), or None for the links not in ``free`` (0-based; all).
 
     The robot file's links (when it has them) are held inside: an envelope they fill more than ``PRIOR_FILL``
-    of is enlarged about its centre until they fill that share.
+    of is enlarged about its centre until they fill that share, and a link's ``reach`` holds its centre of mass.
     """
     free = range(robot.n_dof) if free is None else free
     given = getattr(robot, "envelopes", None) or (None,) * robot.n_dof
@@ -151,17 +208,20 @@ def link_envelopes(robot, free=None) -> tuple:
             envelope = kinematic_envelope(points, max(LENGTH_MARGIN * lengths[i], REACH_MARGIN * reach))
         if prior is not None and prior[i, 0] > 0:
             envelope = _holding(envelope, prior[i])
+        if given[i] is None:
+            com = prior[i, 1:4] / prior[i, 0] if prior is not None and prior[i, 0] > 0 else None
+            envelope = replace(envelope, reach=centre_reach(segments[i], reach, com))
         out[i] = envelope
     return tuple(out)
 
 
 def _holding(envelope: LinkEnvelope, link) -> LinkEnvelope:
     """``envelope`` enlarged about its centre until ``link`` fills at most ``PRIOR_FILL`` of it."""
-    fill = envelope_fill(link, envelope)
+    fill = ellipsoid_fill(link, envelope)
     if fill <= PRIOR_FILL:
         return envelope
     grow = np.sqrt(fill / PRIOR_FILL)
-    return LinkEnvelope(envelope.center, envelope.semi_axes * grow, envelope.rotation, envelope.source)
+    return replace(envelope, semi_axes=envelope.semi_axes * grow)
 
 
 def check_ratio(owner: str, value) -> None:

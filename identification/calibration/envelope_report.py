@@ -11,7 +11,9 @@ those bounds and names the likely cause:
   (``gravity_carriers``: an upright arm's base axis carries none, so it holds no balancer);
 - one of the last two links pushed outward (envelope, upper mass bound): a **payload** or tool at the flange;
 - a drive inertia at a bound: a **drive inertia** unlike the file's (below it: a torque measured on the link
-  side of the gearbox; above it: extra inertia such as a coupled load).
+  side of the gearbox; above it: extra inertia such as a coupled load); one joint's alone pressed down, a **spring or
+  counterbalance** on it, or beside links a payload pulls outward, the **payload** (the links at their bounds take
+  its weight with more inertia than it has).
 
 That is the bounds' naming (where the link is, which way it is pushed). Where the fit holds back parameters of the
 link (``held_back``), the finding is named from the same evidence as they are (:func:`named_from_evidence`,
@@ -40,7 +42,7 @@ from dataclasses import asdict, dataclass, replace
 import numpy as np
 
 from identification.calibration.absorbed_effect import ABSORBED_EFFECTS, absorbed_phrase, effect_phrase, owned_columns
-from identification.calibration.envelope import envelope_fill
+from identification.calibration.envelope import ellipsoid_fill, envelope_fill
 from identification.data.excitation_check import joint_label
 
 __all__ = [
@@ -94,13 +96,13 @@ class EnvelopeFinding:
     mass, prior_mass : float
         [kg] identified and in the robot file.
     fill, prior_fill : float
-        How much of its envelope the link's mass spreads over (``envelope.envelope_fill``: 1 on the boundary), and
-        the robot file link's; nan without an envelope.
+        How much of its bounding ellipsoid the link's mass spreads over (``envelope.ellipsoid_fill``: 1 on the
+        boundary), and the robot file link's; nan without an envelope.
     drive_inertia, prior_drive_inertia : float
         [kg m^2] identified and in the robot file.
     absorbs : str
         One of ``ABSORBED_EFFECTS`` (or, from the evidence, ``"drive_dynamics"``, ``absorbed_effect.UNEXPLAINED``):
-        what the bounds most likely keep out of the link.
+        what the bounds most likely keep out of the link (``clear_ask.UNNAMED``: the data do not clearly ask for one).
     joint : int
         0-based joint on which the bounds refuse the most torque (where to look for it).
     refused_rms : float
@@ -124,6 +126,9 @@ class EnvelopeFinding:
     effect_joint : int
         0-based joint the effect acts on where the evidence puts it elsewhere than ``joint`` (a counterbalance's or a
         drive's own joint: identify's counterbalance route takes its spring there); -1: ``joint`` (``where``).
+    reach, prior_reach, reach_limit : float
+        [m] How far the link's centre of mass lies along the link towards the next joint's origin, the robot file
+        link's, and the most its envelope allows (``LinkEnvelope.reach``); nan for a link without a reach.
     """
 
     link: int
@@ -144,6 +149,9 @@ class EnvelopeFinding:
     alternatives: tuple = ()
     evidence: str = ""
     effect_joint: int = -1
+    reach: float = np.nan
+    prior_reach: float = np.nan
+    reach_limit: float = np.nan
 
     def to_dict(self) -> dict:
         out = asdict(self)
@@ -241,18 +249,29 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
         if payload and kind == "link" and ("envelope" in names or "mass upper" in names):
             absorbs = "payload"  # a payload pulls every link outward: the proximal ones too
         if i in low and kind == "drive" and len(low) <= rotors // 2:  # one joint's, not the torque signal's
-            absorbs = "counterbalance"
+            # beside links a payload pulls outward, the payload's too: held at their bounds, the links take its weight
+            # with more inertia than it has (their centres of mass short of it), and the drive gives it back
+            absorbs = "payload" if payload else "counterbalance"
         joint, pressed = joint_and_pressure(i, kind, absorbs, push)
         if not pressed and standard[i, 0] <= 0:  # a massless link at its bound of 0: nothing rests there
             continue
         envelope = bounds.envelopes[i]
-        fill = (envelope_fill(standard[i], envelope), envelope_fill(prior[i], envelope)) if envelope else (np.nan,) * 2
+        fill = [ellipsoid_fill(body, envelope) if envelope else np.nan for body in (standard[i], prior[i])]
         finding = EnvelopeFinding(i, names, float(standard[i, 0]), float(prior[i, 0]), *fill, float(standard[i, -1]),
                                   float(prior[i, -1]), absorbs, joint, float(refused[joint]), float(ratio[joint]),
-                                  push, pressed=pressed)  # fmt: skip
+                                  push, pressed=pressed, **_reach(envelope, standard[i], prior[i]))  # fmt: skip
         text = _message(finding, robot, currents) if pressed else _resting_message(finding, robot)
         out.append(replace(finding, message=text))
     return tuple(out)
+
+
+def _reach(envelope, link, prior) -> dict:
+    """The finding's ``reach``, ``prior_reach`` and ``reach_limit`` [m] of a link (none without a reach)."""
+    reach = None if envelope is None else envelope.reach
+    if reach is None:
+        return {}
+    along = [reach.along(body[1:4] / body[0]) * reach.limit if body[0] > 0 else np.nan for body in (link, prior)]
+    return {"reach": float(along[0]), "prior_reach": float(along[1]), "reach_limit": reach.limit}
 
 
 def gravity_carriers(robot, link: int, poses: int = 16) -> np.ndarray:
@@ -354,7 +373,12 @@ def _resting_message(finding: EnvelopeFinding, robot) -> str:
 def _pushed_what(finding: EnvelopeFinding) -> str:
     parts = []
     for bound in finding.bounds:
-        if bound == "envelope":
+        if bound == "envelope" and finding.reach >= (1.0 - ACTIVE_TOLERANCE) * finding.reach_limit:
+            parts.append(
+                f"its physical envelope (its centre of mass {finding.reach:.3g} m along the link, the most it "
+                f"may: the next joint's origin plus a margin; the robot file's {finding.prior_reach:.3g} m)"
+            )
+        elif bound == "envelope":
             parts.append(f"its physical envelope (its mass spreads over {finding.fill:.2f} of its bounding ellipsoid; "
                          f"the robot file's link over {finding.prior_fill:.2f})")  # fmt: skip
         elif bound.startswith("mass"):

@@ -58,6 +58,7 @@ from identification.calibration.absorbed_effect import (
     parameter_words,
     torque_shares,
 )
+from identification.calibration.clear_ask import named_where_asked, refused_noise
 from identification.calibration.envelope_report import (
     DIAGNOSE_ROUTE,
     MIN_REFUSED_SIGMA,
@@ -119,7 +120,7 @@ class HeldBack:
         to let the data have it.
     absorbs : str
         One of ``absorbed_effect.ABSORBED_EFFECTS`` (or ``absorbed_effect.UNEXPLAINED``): what the data most likely
-        hold there (``absorbed_effect.likely_effects``).
+        hold there (``absorbed_effect.likely_effects``; ``clear_ask.UNNAMED``: they do not clearly ask for one).
     holder : str
         ``"envelope"`` (a bound of the link or drive is active) or ``"pull"`` (the pull towards the robot file alone).
     message : str
@@ -300,7 +301,9 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     where the fitted gravity torque of a joint it carries departs from the robot file's alone on the prepared training
     recordings (``envelope_report.named_by_departure``, ``gravity_departure``), unless the data's own least squares
     say that departure is an inertia about the joint the fit holds back (``inertia_departure``): the links pushed on
-    its behalf are then named after it, and the departure is stored with the bounds."""
+    its behalf are then named after it, and the departure is stored with the bounds. Last, a counterbalance or payload
+    held by a bound that the data do not clearly ask for (``clear_ask.NAMING_RULE``) is named as none, or on motor
+    currents as the joint's rotor inertia."""
     items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
     named, inertias = named_from_evidence(envelope, items, model, robot, kt is not None), {}
     if len(fitted) > 4:  # a link still named a payload beside one: a joint's gravity departing alone says balancer
@@ -313,6 +316,8 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
             kt is not None,
         )
         named = yielded_findings(named, inertias)  # a departure the held-back inertia made names no balancer
+    refused = refused_noise(fitted[2], fitted[0], fitted[1], fitted[3])
+    named, items = named_where_asked(named, items, refused, robot, kt is not None)  # only what the data clearly ask
     return named, (*held_note(items), *inertia_note(inertias))
 
 

@@ -17,6 +17,7 @@ from scipy.spatial.transform import Rotation
 from identification.calibration.envelope import (
     PRIOR_FILL,
     density_weights,
+    ellipsoid_fill,
     ellipsoid_matrix,
     envelope_fill,
     kinematic_envelope,
@@ -106,8 +107,8 @@ def test_every_link_envelope_holds_the_robot_files_link_and_its_joints(denso):
     prior = denso.nominal_dynamic_parameters()
     for i, envelope in enumerate(envelopes):
         if prior[i, 0] > 0:
-            assert envelope_fill(prior[i], envelope) <= PRIOR_FILL + 1e-9
-            assert envelope.contains(prior[i, 1:4] / prior[i, 0])[0]
+            assert ellipsoid_fill(prior[i], envelope) <= PRIOR_FILL + 1e-9
+            assert envelope.holds_centre(prior[i, 1:4] / prior[i, 0])
         assert envelope.contains(np.zeros(3))[0]  # the link frame's origin (a joint axis of the DH link)
         assert envelope.semi_axes.max() < 1.0  # a link of a 0.6 m arm: not a sphere around the world
 
@@ -162,6 +163,13 @@ def test_a_hidden_payload_is_named_as_a_payload(denso, denso_model):
     assert fit.envelope and {f.absorbs for f in fit.envelope} == {"payload"}
     assert any(f.link == 4 and "mass upper" in f.bounds for f in fit.envelope)
     assert any("payload or tool at the flange" in w for w in fit.warnings)
+    # the forearm (link 4, 0.295 m to the wrist) may not carry the payload's weight beyond the wrist: its centre of
+    # mass (the file's at 0.215 m along it) stops at its reach, and the report says so
+    reach = link_envelopes(denso)[3].reach
+    forearm = next(f for f in fit.envelope if f.link == 3 and "envelope" in f.bounds)
+    assert reach.along(fit.standard[3, 1:4] / fit.standard[3, 0]) == pytest.approx(1.0, abs=1e-3)
+    assert forearm.reach_limit == reach.limit and forearm.prior_reach == pytest.approx(0.215, abs=1e-9)
+    assert "its centre of mass 0.325 m along the link" in forearm.message
 
 
 def _with_envelopes(text, envelope_line, fmt="psdm-robot/2"):
@@ -287,7 +295,9 @@ def test_a_urdf_links_envelope_comes_from_its_collision_geometry(tmp_path):
         assert envelope.contains(shape).all()
     # the box link: the ellipsoid through its corners, a uniform box of the same size fills a third of it
     box = _box(2.0, [0, 0, 0.2], [0.05, 0.05, 0.2], np.eye(3))
-    assert envelope_fill(box, envelopes[0]) == pytest.approx(1.0 / 3.0, rel=1e-6)
+    assert ellipsoid_fill(box, envelopes[0]) == pytest.approx(1.0 / 3.0, rel=1e-6)
+    # its centre of mass halfway to the next joint (0.4 m), whose origin bounds it with a tenth of its length to spare
+    assert envelope_fill(box, envelopes[0]) == pytest.approx(0.2 / 0.44, rel=1e-9)
     (tmp_path / "bare.urdf").write_text(ARM_URDF.format(l1="", l2="", tip=""))
     assert {e.source for e in link_envelopes(load_robot(tmp_path / "bare.urdf"))} == {"kinematic lengths"}
 
@@ -314,7 +324,7 @@ def test_an_mjcf_robots_envelope_comes_from_its_kinematic_lengths(tmp_path):
     envelopes = link_envelopes(robot)
     assert {e.source for e in envelopes} == {"kinematic lengths"}
     prior = robot.nominal_dynamic_parameters()
-    assert all(envelope_fill(prior[i], e) <= PRIOR_FILL + 1e-9 for i, e in enumerate(envelopes) if prior[i, 0] > 0)
+    assert all(ellipsoid_fill(prior[i], e) <= PRIOR_FILL + 1e-9 for i, e in enumerate(envelopes) if prior[i, 0] > 0)
 
 
 def test_one_drive_pressed_down_is_a_spring_every_drive_is_the_torque_signal(denso):

@@ -1,0 +1,133 @@
+"""An absorbed effect is named only where the data clearly ask for it (issue 25, item 1).
+
+The consistent fit's bounds (a link's envelope and its centre of mass's reach, its mass bounds, a drive inertia's
+bounds) refuse the data some torque, and the report names what that torque most likely is: a counterbalance or
+spring, a payload (``envelope_report``, ``held_back``, ``gravity_departure``). A bound can be active with no such
+effect behind it: a robot file whose link is off by more than the bounds allow, or a rotor inertia the file does not
+state, which the base parameters merge into a link. The bounds then refuse a torque of the order of the noise, and
+the reading of which parameters moved names an effect the arm does not have (a cobot on motor currents whose file
+states no rotors, link 2 held at its reach: "a counterbalance or spring on joint 2" at 1.1 x the noise, and it has
+none).
+
+The rule (``NAMING_RULE``): a counterbalance or spring, or a payload named on a link other than the last two with
+mass, is named only where the torque the bounds refuse on the joint it acts on (a counterbalance or spring: its own
+joint; a payload: every joint that carries it, the one refused most) is at least ``NAME_SIGMA`` times that joint's
+noise. The refused torque is what the unbounded least squares show and the bounded fit does not give: the RMS by which
+the bounded fit's residual on the training data exceeds theirs, per joint (``refused_noise``). ``NAME_SIGMA`` is 2: a
+torque a single sample shows beyond two standard deviations of its noise, where a plot of the residual shows it. The
+statistics of many samples do not decide it: over thousands of samples a refusal of a tenth of the noise is already
+significant, and a robot file's link off beyond its bounds, or an unstated rotor, gives that (the warning itself
+starts at ``envelope_report.MIN_REFUSED_SIGMA``, 1). The last two links with mass pushed outward are a payload's own
+signature, not a reading of what moved: a tool at the flange sits there and moves them either way
+(``absorbed_effect``), so they name it at any refusal the warning reports (the Kinova Gen3's vendor URDF, link 7 at
+its mass bound: its undocumented tool, at 0.9 x the noise).
+
+Below it a pressed finding is still reported (the bounds hold the link and the data press on it), naming no effect
+(``UNNAMED``) and no route: with motor currents as the torque source and no rotor inertia stated for the joint, the
+joint's rotor inertia is named instead (``drive_inertia``: the base parameters merge it into the link, and so does a
+held-back inertia about the joint the data want larger); otherwise the robot file's link off by more than its bounds
+allow, or an effect too small to tell. Only bounds are judged so: a parameter only the pull towards the robot file
+holds back (``held_back``, holder ``"pull"``) keeps its naming.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from identification.calibration.envelope_report import outward, where
+from identification.data.excitation_check import joint_label
+
+__all__ = ["NAMED_EFFECTS", "NAME_SIGMA", "NAMING_RULE", "UNNAMED", "named_where_asked", "refused_noise"]
+
+#: The torque the bounds refuse on an effect's joint, in noise levels of the joint, from which the effect is named.
+NAME_SIGMA = 2.0
+#: The effects this rule judges (``absorbed_effect.ABSORBED_EFFECTS``' absorbed loads and torques of the angle; a
+#: payload on the last two links with mass is its own signature and not judged).
+NAMED_EFFECTS = ("counterbalance", "payload")
+#: What a finding under the rule names: no effect.
+UNNAMED = "unnamed"
+#: The rule in the report's words.
+NAMING_RULE = (
+    f"a counterbalance, or a payload on a link before the last two, is named only where the bounds refuse the joint it "
+    f"acts on at least {NAME_SIGMA:g} x its noise of RMS torque (the bounded fit's residual over the unbounded least "
+    "squares'), a torque each sample shows beyond two standard deviations of its noise"
+)
+
+
+def refused_noise(equations, x_fit, x_ols, sigma) -> np.ndarray:
+    """Per joint, the RMS torque by which the bounded fit's residual (``x_fit``) exceeds the unbounded least squares'
+    (``x_ols``) on the training data's normal ``equations``, in noise levels ``sigma`` of the joint."""
+    growth = equations.residual_sum(np.asarray(x_fit)) - equations.residual_sum(np.asarray(x_ols))
+    rms = np.sqrt(np.maximum(growth, 0.0) / np.maximum(equations.count, 1))
+    return rms / np.maximum(np.asarray(sigma, dtype=float), 1e-12)
+
+
+def _asked(absorbs: str, joint: int, refused) -> bool:
+    """Whether the data clearly ask for ``absorbs`` acting on ``joint`` (0-based): an effect this rule does not judge
+    is asked for, one of ``NAMED_EFFECTS`` where the torque refused on its joint (a payload: the most refused) is at
+    least ``NAME_SIGMA`` noise levels."""
+    if absorbs not in NAMED_EFFECTS:
+        return True
+    return float(np.max(refused) if absorbs == "payload" else refused[joint]) >= NAME_SIGMA
+
+
+def named_where_asked(findings, held, refused, robot, currents: bool = False) -> tuple:
+    """``(findings, held)``: the envelope's findings (``envelope_report.EnvelopeFinding``) and the parameters held
+    back by a bound (``held_back.HeldBack``, holder ``"envelope"``) with each counterbalance, spring or payload the
+    data do not clearly ask for (``NAMING_RULE``; ``refused``: ``refused_noise``) named as none, or on motor currents
+    (``currents``) as the joint's rotor inertia where the robot file states none (module docstring)."""
+    prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
+    distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())  # a payload's own links: it sits beyond them
+    out = []
+    for finding in findings:
+        at, own = where(finding), finding.absorbs == "payload" and finding.link in distal
+        judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused)
+        out.append(_unnamed_finding(finding, at, refused, robot, currents) if judged else finding)
+    kept = []
+    for item in held:
+        at, own = item.effect_joint if item.effect_joint >= 0 else item.joint, item.absorbs == "payload"
+        judged = (
+            item.holder == "envelope" and not (own and item.joint in distal) and not _asked(item.absorbs, at, refused)
+        )
+        kept.append(_unnamed_item(item, at, refused, robot, currents) if judged else item)
+    return tuple(out), tuple(kept)
+
+
+def _under(absorbs: str, at: int, refused, robot) -> str:
+    """The clause saying the data do not clearly ask for ``absorbs`` at joint ``at``."""
+    j = int(np.argmax(refused)) if absorbs == "payload" else at
+    return f"the bounds refuse {joint_label(j, robot)} {refused[j]:.2g} x its noise, and {NAMING_RULE}"
+
+
+def _unnamed_finding(finding, at: int, refused, robot, currents: bool):
+    """``finding`` naming no effect, or (motor currents, no rotor stated) its joint's rotor inertia."""
+    i, pushed = finding.link, finding.message.split(". This is ")[0]
+    drive = any(b.startswith("drive") for b in finding.bounds)
+    under = _under(finding.absorbs, at, refused, robot)
+    if currents and not drive and finding.prior_drive_inertia == 0 and finding.drive_inertia == 0 and outward(finding):
+        message = (f"{pushed}. With motor currents as the torque source this is most likely joint {i + 1}'s rotor "
+                   f"inertia: the base parameters merge it into link {i + 1} and the robot file states none; state "
+                   f"rotor_inertia in link {i + 1}'s [[link]] table and identify holds it there. No counterbalance or "
+                   f"payload is named: {under}.")  # fmt: skip
+        return replace(finding, absorbs="drive_inertia", alternatives=(), evidence="", effect_joint=i, message=message)
+    message = (f"{pushed}. No counterbalance or payload is named: {under}. Most likely the robot file's link "
+               f"{i + 1} is off by more than its bounds allow (state its mass, centre of mass or envelope in the robot "
+               "file), or an effect too small to tell from these recordings.")  # fmt: skip
+    return replace(finding, absorbs=UNNAMED, alternatives=(), evidence="", effect_joint=-1, message=message)
+
+
+def _unnamed_item(item, at: int, refused, robot, currents: bool):
+    """A held-back parameter naming no effect, or (motor currents, an inertia about a joint the data want larger)
+    that joint's rotor inertia."""
+    head = item.message.split(". The data most likely hold ")[0]
+    under = _under(item.absorbs, at, refused, robot)
+    if currents and item.kind == "axis" and item.data > item.fitted:
+        message = (f"{head}. With motor currents as the torque source the data most likely hold the rotor inertia of "
+                   f"{joint_label(item.joint, robot)}, which the robot file does not state (state its rotor_inertia "
+                   f"in the robot file); no counterbalance or payload is named: {under}.")  # fmt: skip
+        return replace(item, absorbs="drive_inertia", alternatives=(), evidence="", effect_joint=item.joint,
+                       message=message)  # fmt: skip
+    message = f"{head}. No counterbalance or payload is named: {under}."
+    return replace(item, absorbs=UNNAMED, alternatives=(), evidence="", effect_joint=-1, message=message)
