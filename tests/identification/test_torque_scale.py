@@ -18,6 +18,7 @@ from identification.calibration.torque_scale import corrected_robot_text, torque
 from identification.data.configuration import recordings_with_configurations
 from identification.data.layout import ColumnLayout
 from identification.data.robot_recordings import load_robot_recording
+from identification.diagnosis.candidates.torque import MIN_PERIODS
 from identification.virtual.effects import TorqueRipple
 from psdm_casadi.cli import main
 from psdm_casadi.derive import derive_psdm
@@ -179,8 +180,11 @@ def test_currents_without_a_known_payload_beside_unloaded_runs_say_the_constants
 
 
 #: A cogging ripple on joint 1 of the true arm, which the user's file does not state: a true effect beside the wrong
-#: constants, which identify does not model (a sixth harmonic of the angle: no link or friction term takes it).
-RIPPLE = TorqueRipple(joint=0, amplitude=1.5, harmonic=6.0)
+#: constants, which identify does not model (an eighth harmonic of the angle: no link or friction term takes it). Its
+#: period must fit in joint 1's travel on the diagnosis's training recording (``run1``: 0.95 rad, 1.2 periods), or the
+#: recording cannot show the torque is periodic (``TorqueRippleTerm.name_unsupported``) and a polynomial spring names
+#: it: a sixth harmonic covered 0.91 periods, over which a quartic in the angle follows the true ripple to 0.03 N m RMS.
+RIPPLE = TorqueRipple(joint=0, amplitude=1.5, harmonic=8.0)
 
 
 @pytest.fixture(scope="module")
@@ -195,6 +199,8 @@ def test_a_refit_of_the_model_keeps_the_corrected_constants_and_their_record(rip
     it with the model refitted, and the refit reads the currents with the corrected constants: the model file's robot
     text and its torque-scale record are the identified model's, the ripple the truth's."""
     case = ripple_case
+    travel = np.ptp(np.genfromtxt(case.run1, delimiter=",", names=True)["q_1"])  # the premise: a ripple it can name
+    assert travel * RIPPLE.harmonic / (2.0 * np.pi) >= MIN_PERIODS
     model, applied = tmp_path / "m.json", tmp_path / "applied.json"
     assert _identify(case, model, capsys)["torque_scale"]["taken"]
     args = ["diagnose", str(model), "--train", str(case.run1), "--validate", str(case.val1), "--apply", str(applied)]
