@@ -66,7 +66,7 @@ from identification.calibration.findings import FindingColumns, FindingTerm, fil
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.never_worse import compare_each, pooled_comparison
 from identification.calibration.spring_rest import rest_angle_text, with_rest_angles
-from identification.calibration.trajectory_fit import identify_trajectories
+from identification.calibration.trial_fits import trial_fit
 from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import InsufficientExcitationError
 
@@ -199,7 +199,7 @@ def _columns(joints, options, recordings, shape) -> FindingColumns:
 
 def _with_springs(robot, model, options, build, columns, data, configurations) -> tuple:
     """(the fit without the springs' coefficients, its model file with the spring entries) on ``data``."""
-    plain, extra = split_findings(identify_trajectories(robot, model, data, options, columns, configurations),
+    plain, extra = split_findings(trial_fit(robot, model, data, options, columns, configurations),
                                   len(columns.names))  # fmt: skip
     document = copy.deepcopy(build(plain).document)
     document["findings"] = with_rest_angles([*(document.get("findings") or []), *_entries(columns, extra)],
@@ -215,7 +215,7 @@ def spring_model(robot, model, options, build, entries, data):
 
     terms = [FindingTerm.from_dict(entry["term"]) for entry in entries]
     if not terms:
-        return build(identify_trajectories(robot, model, list(data), options))
+        return build(trial_fit(robot, model, list(data), options))
     offsets = options.offset_joints if "offset" in options.friction else ()
     keep = [k for t in terms for k in [True] * (len(t.feature_names()) - 1) + [not _offset(offsets, t.joint)]]
     columns = FindingColumns(tuple(terms), keep=tuple(keep))
@@ -435,7 +435,7 @@ def _attempt(robot, model, recordings, options, calibrated, judges, build, confi
         return fitted[id(pieces)]
 
     def without(pieces):  # the model the springs are judged against: with the offsets they replace
-        return build(identify_trajectories(robot, model, list(pieces), judges.baseline or options))
+        return build(trial_fit(robot, model, list(pieces), judges.baseline or options))
 
     plain, document = _with_springs(robot, model, options, build, columns, recordings, configurations)
     opinions = []

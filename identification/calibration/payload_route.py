@@ -56,7 +56,7 @@ from identification.calibration.held_back import stored_held_back
 from identification.calibration.never_worse import compare_each, pooled_comparison
 from identification.calibration.payload_fit import FlangeRegressor
 from identification.calibration.trajectory_data import drive_columns, fit_shape
-from identification.calibration.trajectory_fit import identify_trajectories
+from identification.calibration.trial_fits import trial_fit
 from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import PSDMError
 
@@ -178,7 +178,7 @@ def _carried_model(robot, model, options, build, entries, data, fit, beside=()) 
     if entries:
         calibrated = spring_model(carried, model, options, build, entries, data)
     else:
-        plain = identify_trajectories(carried, model, list(data), options)
+        plain = trial_fit(carried, model, list(data), options)
         calibrated = build(plain)
     calibrated.document["findings"] = [*(calibrated.document.get("findings") or []), entry]
     return calibrated, found, carried, plain

@@ -39,7 +39,7 @@ import contextvars
 import casadi as ca
 import numpy as np
 
-__all__ = ["shared_problem", "shared_solvers"]
+__all__ = ["shared_problem", "shared_solvers", "sharing"]
 
 #: The solvers of the open :func:`shared_solvers` block, by structure (None: no block open).
 _SOLVERS = contextvars.ContextVar("psdm_shared_barrier_solvers", default=None)
@@ -57,6 +57,12 @@ def shared_solvers(solvers: dict | None = None):
     finally:
         if token is not None:
             _SOLVERS.reset(token)
+
+
+def sharing() -> bool:
+    """Whether a :func:`shared_solvers` block is open: a fit made here is solved by a shared solver, whose round-off
+    differs from its own solver's (a memory of fits keys on it, ``trial_fits``)."""
+    return _SOLVERS.get() is not None
 
 
 def shared_problem(plain, normal, margin: float) -> tuple:
