@@ -31,14 +31,16 @@ JOINT = 2  # 0-based: joint 3
 NOISE = 0.1  # [N m] the recordings' torque noise
 
 
-def drift_recording(robot, seed, factor, name, duration=10.0):
-    """A recording of the Denso's sine excitation with joint 3's Coulomb and static friction times ``factor``."""
+def drift_recording(robot, seed, factor, name, duration=10.0, extras=()):
+    """A recording of the Denso's sine excitation with joint 3's Coulomb and static friction times ``factor`` (and
+    the physics ``extras`` its robot file does not state)."""
     drives = list(robot.drives)
     drives[JOINT] = replace(drives[JOINT], fc=drives[JOINT].fc * factor, fs=drives[JOINT].fs * factor)
     arm = replace(robot, drives=tuple(drives))
     rng = np.random.default_rng(seed)
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=NOISE)
-    recording, _ = simulate_recording(arm, sine_experiment(arm, duration=duration, rng=rng).reference(), options, rng)
+    reference = sine_experiment(arm, duration=duration, rng=rng).reference()
+    recording, _ = simulate_recording(arm, reference, options, rng, extras=list(extras))
     return replace(recording, name=name)
 
 

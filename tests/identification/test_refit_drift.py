@@ -3,9 +3,11 @@
 Known truth: the virtual Denso, its joint 3 Coulomb and static friction 30 % lower in the second training recording
 (``warm.csv``) than in the first (``cold.csv``), the held-out recording warm. Identify names the drift, keeps the warm
 recording's friction on joint 3 and moves the cold recording's joint-3 torque to it before the fit; the model file
-records that correction. Diagnosed with ``--train cold.csv``, the refit finds ``warm.csv`` beside the file and trains
-on both, the correction repeated from the file (the files hold the raw torques): the model written keeps identify's
-joint-3 friction, where trained on the raw torques it would average the two recordings' friction.
+records that correction. Every recording also carries a spring on joint 4 that the robot file does not state, so that
+``--apply`` has a finding to write (the refit is what is tested). Diagnosed with ``--train cold.csv``, the refit finds
+``warm.csv`` beside the file and trains on both, the correction repeated from the file (the files hold the raw
+torques): the model written keeps identify's joint-3 friction, where trained on the raw torques it would average the
+two recordings' friction.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from identification.calibration.drift_correction import DriftCorrection
 from identification.calibration.recording_provenance import recording_provenance
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import load_recording, save_recording
+from identification.virtual.effects import Spring
 from tests.conftest import DENSO_FILE
 from tests.identification.diagnosis_data import cli_json
 from tests.identification.test_friction_drift import COULOMB_FACTOR, JOINT, drift_recording
@@ -28,6 +31,8 @@ from tests.identification.test_friction_drift import COULOMB_FACTOR, JOINT, drif
 #: ``diagnose`` options that keep the run short (no sparse search, no second rigid-body diagnosis).
 QUICK = ("--no-sparse", "--rigid-body", "prior")
 OPTIONS = TrajectoryOptions(friction=("fc", "fs", "fv"))
+#: The unstated spring every recording carries: the finding ``--apply`` writes.
+SPRING = (Spring(joint=3, stiffness=6.0, q0=0.4),)
 
 
 @pytest.fixture(scope="module")
@@ -38,7 +43,7 @@ def identified(tmp_path_factory, denso, denso_model):
     folder = tmp_path_factory.mktemp("refit_drift")
     for name, seed, factor, duration in (("cold.csv", 1, 1.0, 10.0), ("warm.csv", 2, COULOMB_FACTOR, 10.0),
                                          ("valid.csv", 3, COULOMB_FACTOR, 6.0)):  # fmt: skip
-        save_recording(drift_recording(denso, seed, factor, name, duration), folder / name)
+        save_recording(drift_recording(denso, seed, factor, name, duration, SPRING), folder / name)
     paths = [folder / "cold.csv", folder / "warm.csv"]
     raw = [load_recording(path, denso.n_dof) for path in paths]
     fit = identify_trajectories(denso, denso_model, raw, OPTIONS)
@@ -72,6 +77,7 @@ def test_diagnose_apply_refits_on_both_recordings_with_the_drift_corrected(ident
     refit = payload["refit_training"]
     assert refit["recordings"] == [f"{folder / 'cold.csv'} (--train)", str(folder / "warm.csv")]
     assert "correction repeated on 2 recording(s)" in refit["note"] and "joint(s) 3" in refit["note"]
+    assert "spring on joint 4" in payload["summary"]  # the finding written
     written = json.loads((folder / "new.json").read_text())
     original = json.loads((folder / "model.json").read_text())["identification"]["friction_drift"]
     assert written["identification"]["friction_drift"] == original  # the new file's own refit repeats it too
@@ -94,9 +100,9 @@ def test_a_train_recording_the_file_does_not_list_is_fitted_beside_the_model_and
     from identification.diagnosis.model_file import file_refit
 
     folder, _, moved_by_identify = identified
-    new = {name: drift_recording(denso, 4, factor, f"{name}.csv", 6.0) for name, factor in
+    new = {name: drift_recording(denso, 4, factor, f"{name}.csv", 6.0, SPRING) for name, factor in
            (("cold_new", 1.0), ("warm_new", COULOMB_FACTOR))}  # fmt: skip
-    also_warm = drift_recording(denso, 5, COULOMB_FACTOR, "warm_other.csv", 6.0)
+    also_warm = drift_recording(denso, 5, COULOMB_FACTOR, "warm_other.csv", 6.0, SPRING)
     for recording in (new["cold_new"], also_warm):
         save_recording(recording, tmp_path / recording.name)
 
@@ -115,7 +121,7 @@ def test_a_train_recording_the_file_does_not_list_is_fitted_beside_the_model_and
     moved_error = _rms(moved.tau[:, JOINT] - new["warm_new"].tau[:, JOINT])
     # identify's own correction of cold.csv against the same motion recorded warm: how close a correction gets
     identify_error = _rms(
-        moved_by_identify[0].tau[:, JOINT] - drift_recording(denso, 1, COULOMB_FACTOR, "c", 10.0).tau[:, JOINT]
+        moved_by_identify[0].tau[:, JOINT] - drift_recording(denso, 1, COULOMB_FACTOR, "c", 10.0, SPRING).tau[:, JOINT]
     )
     errors = (raw_error, moved_error, identify_error)
     assert moved_error < 0.35 * raw_error and moved_error < 1.6 * identify_error, errors
