@@ -34,10 +34,12 @@ def with_rest_angles(entries, drive: dict | None) -> list:
             c = [0.0 if v is None else float(v) for v in entry["coefficients"]]
             absorbed = f"c_{term.joint + 1}" in (entry.get("absorbed") or ())
             offset = _joint_offset(drive, term.joint) if absorbed else 0.0
-            if candidate is not None:
-                rest = candidate.rest_angle(c, offset)
-            else:  # a linear spring stored without a spec: k q + c
+            if candidate is None:  # a linear spring stored without a spec: k q + c
                 rest = -(c[1] + offset) / c[0] if c[0] else None
+            elif hasattr(candidate, "rest_angle"):  # a polynomial law; a gas spring's lever law states its own q0
+                rest = candidate.rest_angle(c, offset)
+            else:
+                rest = None
             if rest is not None and np.isfinite(rest):
                 entry = {**entry, "parameters": {**entry.get("parameters", {}), "rest_angle": float(rest),
                                                  "rest_angle_offset": offset}}  # fmt: skip
