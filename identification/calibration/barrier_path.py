@@ -44,6 +44,12 @@ the weight before then ended at Infeasible_Problem_Detected in one of the two, e
 converge, to the same model. Not the default: from a start on a bound (the first weight's), solves that converge at
 the defaults stop at the cap with it (the virtual Denso's, the Panda's).
 
+A solve Ipopt stops because its steps became too small to count (``Search_Direction_Becomes_Too_Small``) at an iterate
+that is feasible and within ``acceptable_tol`` has stalled at the round-off floor as an acceptable stop does, sooner:
+it ends its weight as ``Solved_To_Acceptable_Level`` (:func:`solve_status`), and the path goes on. Counted as failed,
+it ended the path, and the chart from the weight before (where the barrier, still weighted, pushes the links out against
+their envelopes) failed on a 4-joint arm whose links rest on their inertia floors (``inertia_floor``).
+
 Where a path starts matters: the first weight (``MU_PATH[0]``) wants the bodies well inside the cone, where its
 barrier's pull ``mu / pivot`` balances the data's. The consistent fit's second pass (the same problem, reweighted by
 the first pass's residuals) started from the first pass's end, the point of the smallest weight, whose pivots are
@@ -67,7 +73,7 @@ import numpy as np
 from identification.calibration.pseudo_inertia import pseudo_inertia
 from psdm_casadi.ipopt_progress import progress_options
 
-__all__ = ["MU_ENOUGH", "MU_PATH", "BarrierResult", "barrier_solution", "log_det_barrier"]
+__all__ = ["MU_ENOUGH", "MU_PATH", "BarrierResult", "barrier_solution", "log_det_barrier", "solve_status"]
 
 logger = logging.getLogger(__name__)
 
@@ -80,6 +86,11 @@ BARRIER_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": Fals
                    "show_eval_warnings": False}  # fmt: skip
 #: A warm-started solve that failed is solved once more from where it was given (module docstring).
 RETRY_OPTIONS = {"ipopt.bound_push": 1e-9, "ipopt.bound_frac": 1e-9}
+#: Ipopt's status of a solve whose steps became too small to count (``solve_status``: a stall, acceptable or not).
+STALLED = "Search_Direction_Becomes_Too_Small"
+#: The largest constraint violation of a stalled solve's last iterate that counts as feasible (the constraints are the
+#: links' envelopes and masses, linear, scaled by the mass; and the pivots, of a body's size).
+ACCEPTABLE_VIOLATION = 1e-8
 
 
 def _pseudo(v, margin: float, size: float, floor=None):
@@ -226,22 +237,42 @@ def _follow_path(solver, bodies, start, bounds, margin, steps, retry=None):
         solution = solver(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         iterations += stats["iter_count"]
-        failed = stats["return_status"] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level")
-        if failed and last is not None and retry is not None:
+        if solve_status(stats) is None and last is not None and retry is not None:
             logger.debug("consistent fit: the barrier path's solve at mu %g failed (%s); once more from where it "
                          "was given", weight, stats["return_status"])  # fmt: skip
             again = retry()
             solution = again(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
             stats = again.stats()
             iterations += stats["iter_count"]
-        if stats["return_status"] not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+        if solve_status(stats) is None:
             logger.debug("consistent fit: the barrier path stopped at mu %g (%s)", weight, stats["return_status"])
             return None if last is None else BarrierResult(current, last, status, reached <= MU_ENOUGH, first)
         current, last = np.clip(np.asarray(solution["x"]).reshape(-1), lbx, ubx), _without_pivots(solution, n_steps)
-        reached, status = weight, stats["return_status"]
+        reached, status = weight, solve_status(stats)
         first = current if first is None else first
     logger.debug("consistent fit: barrier path in %d Ipopt iterations", iterations)
     return BarrierResult(current, last, status, True, first)
+
+
+def solve_status(stats) -> str | None:
+    """The status a barrier solve (Ipopt's ``stats``) ends the weight with, or None where it failed.
+
+    ``Solve_Succeeded`` and ``Solved_To_Acceptable_Level`` as Ipopt says; ``Search_Direction_Becomes_Too_Small`` counts
+    as ``Solved_To_Acceptable_Level`` where its last iterate is within ``acceptable_tol`` (dual infeasibility) and
+    feasible (``ACCEPTABLE_VIOLATION``): the stall at the round-off floor that the acceptable stop waits
+    ``acceptable_iter`` iterations for, ended sooner because the steps became too small to count (a link pressed
+    on its inertia floor: the barrier's curvature ``mu / pivot^2`` lifts the floor of its gradient's round-off above
+    ``tol``). A failed weight ends the path and hands it to the chart from the weight before, far from the optimum.
+    """
+    status = stats["return_status"]
+    if status in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+        return status
+    record = stats.get("iterations") or {}
+    if status != STALLED or not record.get("inf_du"):
+        return None
+    du, pr = record["inf_du"][-1], record["inf_pr"][-1]
+    stalled = du <= BARRIER_OPTIONS["ipopt.acceptable_tol"] and pr <= ACCEPTABLE_VIOLATION
+    return "Solved_To_Acceptable_Level" if stalled else None
 
 
 def _without_pivots(solution, n_steps: int) -> dict:

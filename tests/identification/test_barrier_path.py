@@ -181,3 +181,24 @@ def test_torques_equal_to_round_off_give_the_same_consistent_model():
     # the spring's rest torque, -k rest, is taken as joint 1's offset
     names = fits[0]["drive"]["names"]
     assert fits[0]["drive"]["values"][names.index("offset1")] == pytest.approx(-k * rest, rel=0.05)
+
+
+def _stats(status, inf_du, inf_pr=0.0):
+    return {"return_status": status, "iterations": {"inf_du": [1e-1, inf_du], "inf_pr": [0.0, inf_pr]}}
+
+
+def test_a_solve_whose_steps_stall_at_the_round_off_floor_ends_its_weight():
+    """A solve Ipopt stops at ``Search_Direction_Becomes_Too_Small`` whose last iterate is feasible and within the
+    acceptable tolerance ends its weight as acceptable (the 4-joint MJCF arm with its inertia floors: the weight 1e-3's
+    solve stalled at a dual infeasibility of 1e-9 against the tol 1e-10, the path stopped there and the chart, from
+    the weight before, failed with Error_In_Step_Computation); one that stalls far from it, or infeasible, fails."""
+    status = barrier_path.solve_status
+    acceptable = barrier_path.BARRIER_OPTIONS["ipopt.acceptable_tol"]
+    assert status(_stats("Solve_Succeeded", 1e-11)) == "Solve_Succeeded"
+    assert status(_stats("Solved_To_Acceptable_Level", 1e-7)) == "Solved_To_Acceptable_Level"
+    assert status(_stats(barrier_path.STALLED, 1e-9)) == "Solved_To_Acceptable_Level"
+    assert status(_stats(barrier_path.STALLED, 10 * acceptable)) is None
+    assert status(_stats(barrier_path.STALLED, 1e-9, inf_pr=1e-3)) is None
+    assert status({"return_status": barrier_path.STALLED, "iterations": {}}) is None
+    assert status(_stats("Restoration_Failed", 1e-9)) is None
+    assert status(_stats("Maximum_Iterations_Exceeded", 1e-9)) is None
