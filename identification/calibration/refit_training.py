@@ -132,8 +132,13 @@ def _with_samples(source: str, recording) -> str:
 
 
 def training_alone(train, source=None) -> RefitTraining:
-    """The ``RefitTraining`` of the recording ``train`` alone (a model file without training recordings of its own, or
-    a caller that gives the recordings itself); ``source`` its path, if any."""
+    """The ``RefitTraining`` of the recording ``train`` alone, or of each of a sequence of them (a model file without
+    training recordings of its own, or a caller that gives the recordings itself); ``source`` the one's path, if
+    any."""
+    if isinstance(train, (list, tuple)):
+        parts = [training_alone(recording) for recording in train]
+        return RefitTraining(*(tuple(x for p in parts for x in getattr(p, f)) for f in ("recordings", "sources",
+                                                                                        "entries")))  # fmt: skip
     name = f"{source if source is not None else train.name} ({GIVEN})"
     return RefitTraining((train,), (name,), (recording_provenance(train, source),))
 

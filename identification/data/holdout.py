@@ -37,7 +37,7 @@ from psdm_casadi.errors import ModelFileError, ParameterError, RecordingError
 __all__ = ["HOLDOUT_MAX", "HeldOutPart", "check_holdout_fraction", "check_parts_long_enough", "cut_recording",
            "diagnose_parts", "held_out_sentences", "holdout_block", "matching_part", "other_part",
            "other_training_parts", "recording_digest", "reload_part", "shortest_part", "stored_parts",
-           "train_samples"]  # fmt: skip
+           "train_samples", "training_part"]  # fmt: skip
 
 #: The largest held-out fraction: at least a tenth of a recording trains.
 HOLDOUT_MAX = 0.9
@@ -288,6 +288,17 @@ def other_training_parts(more, document, fraction, explicit: bool, name: str) ->
         else:
             training.append((path, recording))
     return training, held
+
+
+def training_part(entry, document, name: str):
+    """The part of an entry of :func:`other_training_parts`'s training list the diagnosis trains on: a part cut at
+    ``--holdout`` as it is; a recording the model file ``document`` cut, its training part (:func:`reload_part`); else
+    the whole recording."""
+    if len(entry) == 3:
+        return entry[1]
+    path, recording = entry
+    own = matching_part(stored_parts(document, name) if document is not None else (), path)
+    return recording if own is None else reload_part(own, lambda _: recording, path, "diagnose")[0]
 
 
 def _check_same_cut(fraction, own, path, name: str) -> None:

@@ -43,9 +43,10 @@ def with_applied_after(report, loaded, train, validation, refit=None):
     """``report`` whose "after" (RMSE, R^2 and prediction on the validation recording ``validation``) is the model file
     ``loaded`` (``calibrated_model.LoadedModel``) with the report's findings as ``applied_model`` builds it from the
     recordings ``refit()`` finds (``refit_training.RefitTraining``: the file's own training recordings and the raw
-    ``train`` recording; None: ``train`` alone), with that model in ``DiagnosisReport.applied`` and those recordings in
-    ``DiagnosisReport.refit_training`` (module docstring); ``report`` as it is without a finding, and with the reason in
-    ``after_source`` where the model cannot be built. ``refit`` is called only when there is a finding to apply."""
+    ``train`` recording(s); None: ``train`` alone), with that model in ``DiagnosisReport.applied`` and those
+    recordings in ``DiagnosisReport.refit_training`` (module docstring); ``report`` as it is without a finding, and
+    with the reason in ``after_source`` where the model cannot be built. ``refit`` is called only when there is a
+    finding to apply."""
     if not report.findings:
         return report
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model

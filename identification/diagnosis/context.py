@@ -118,6 +118,9 @@ class DiagnosisContext:
     coulomb_velocity : float
         The smoothing velocity [rad/s] of the nominal friction's sign without a LuGre prior
         (``nominal.friction_blocks``; ``DiagnosisOptions.coulomb_velocity``).
+    segments : tuple of int
+        Where each recording after the first starts in the full-rate arrays of a context pooling several
+        (``pooled_context``; empty: one recording): each is filtered on its own (``lowpass_full``).
     """
 
     t: np.ndarray
@@ -152,6 +155,7 @@ class DiagnosisContext:
     tau_held: np.ndarray | None = None
     held_offsets: tuple = ()
     coulomb_velocity: float = SMOOTH_VELOCITY
+    segments: tuple = ()
 
     @property
     def tau_fit(self) -> np.ndarray:
@@ -207,12 +211,13 @@ class DiagnosisContext:
         return self.lowpass_full(values)[self.keep]
 
     def lowpass_full(self, values: np.ndarray) -> np.ndarray:
-        """As ``lowpass`` without decimation (n_full, ...)."""
+        """As ``lowpass`` without decimation (n_full, ...); each recording of a pooled context on its own."""
         values = np.asarray(values, dtype=float)
         rate = self.full_rate_hz
-        if self.cutoff_hz is not None and self.cutoff_hz < 0.5 * rate:
-            values = zero_phase_filter(values, rate, self.cutoff_hz, FILTER_ORDER)
-        return values
+        if self.cutoff_hz is None or self.cutoff_hz >= 0.5 * rate:
+            return values
+        parts = np.split(values, list(self.segments))
+        return np.concatenate([zero_phase_filter(part, rate, self.cutoff_hz, FILTER_ORDER) for part in parts])
 
     def friction_sign(self, joint: int, factor: np.ndarray | None = None, sharp: bool = False) -> np.ndarray:
         """``factor * sign(qd)`` of ``joint`` on the grid (n_samples,), ``factor`` (n_full,) at full rate (default 1).

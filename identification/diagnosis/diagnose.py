@@ -1,4 +1,4 @@
-"""diagnose(): identify the nominal model on a training recording, find the missing physics, re-identify, validate.
+"""diagnose(): identify the nominal model on the training recording(s), find the missing physics, re-identify, validate.
 
 RobotDescription + training/validation Recordings -> DiagnosisReport (with the augmented model). The
 diagnoser sees only the robot file (kinematics, nominal inertia, drive friction shapes) and the
@@ -41,6 +41,7 @@ from identification.diagnosis.nominal import (
 )
 from identification.diagnosis.options import DiagnosisOptions
 from identification.diagnosis.plausible_fit import implausible_terms, plausible_diagnosis
+from identification.diagnosis.pooled_context import pooled_context
 from identification.diagnosis.refine import refine_fit
 from identification.diagnosis.report import DiagnosisReport
 from identification.diagnosis.report_assembly import build_report, findings_of, preparation_text
@@ -58,7 +59,8 @@ from identification.diagnosis.selection import SelectionResult, forward_select
 from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["DiagnosisOptions", "DiagnosisProblem", "FinalFit", "check_motion", "diagnose", "prepare_problem"]
+__all__ = ["DiagnosisOptions", "DiagnosisProblem", "FinalFit", "check_motion", "diagnose", "prepare_problem",
+           "training_recordings"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -113,8 +115,10 @@ def diagnose(
     ----------
     robot : RobotDescription
         The robot file (kinematics, nominal inertia = the prior, drives).
-    train : Recording
-        Raw (or, with ``options.preprocess=False``, preprocessed) recording the model is fitted on.
+    train : Recording or sequence of Recording
+        Raw (or, with ``options.preprocess=False``, preprocessed) recording(s) the model is fitted on. Several are
+        pooled (``pooled_context``): every fit and the selection see all of them, as a refit with the findings does;
+        the first sets the preparation ("auto" cutoff and grid rate) and is checked for motion.
     validation : Recording or sequence of Recording
         The recording(s) the model is judged on. With several, a finding is kept only if it passes the selection's
         gates on each (the first is the one the report's errors are computed on); with one, a block
@@ -150,11 +154,13 @@ def diagnose(
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose options must be a DiagnosisOptions; got {type(options).__name__}.")
+    trains = training_recordings(train)
+    train = trains[0]
     given, options = options, options.for_recording(train, robot)
     robot, options = torque_constants_only(robot, options)
     robot = linear_viscous_unless_stated(robot, options)
     validations = validation_recordings(validation)
-    for recording in (train, *validations):  # positions, speeds and time in the robot's units, before any fit
+    for recording in (*trains, *validations):  # positions, speeds and time in the robot's units, before any fit
         recording.check_robot(robot.n_dof, robot.name)
         check_plausible_recording(recording, robot)
     for recording in validations:
@@ -164,7 +170,7 @@ def diagnose(
 
         logger.info("diagnose: deriving the PSDM model ...")
         model = (derive or derive_psdm)(robot)
-    prepared = prepare_problem(robot, model, train, validations, options)
+    prepared = prepare_problem(robot, model, trains, validations, options)
 
     def run(options):  # the findings: selection, refinement, rigid-body choice, beyond the library
         problem, selection = prepared, select_terms(robot, prepared, options)
@@ -268,21 +274,32 @@ def identified_theta(robot, final_i: FinalFit, options, held=None) -> np.ndarray
 
 def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) -> DiagnosisProblem:
     """Preprocess the recordings, evaluate the nominal model's signals on them, and set up the least squares;
-    ``validation`` is a Recording or a sequence of them (the first is ``ctx_v``, the others ``extra_v``)."""
-    options = options.for_recording(train, robot)
+    ``train`` is a Recording or a sequence of them (pooled into ``ctx_t``, ``pooled_context``), ``validation`` too
+    (the first is ``ctx_v``, the others ``extra_v``)."""
+    trains = training_recordings(train)
+    options = options.for_recording(trains[0], robot)
     given = options.torque_constants
     kt_arr = drive_kt(robot) if given is None else np.asarray(given, dtype=float)
     logger.info("diagnose: evaluating the nominal model ...")
-    recordings, missing, left_out = measured_torque((train, *validation_recordings(validation)), robot.joint_names)
+    recordings, missing, left_out = measured_torque((*trains, *validation_recordings(validation)), robot.joint_names)
     held = held_links(model, robot, options.held_links) if options.rigid_body == "identified" else None
-    ctx_t = _context(robot, model, recordings[0], options, kt_arr).without_torque(missing)
+    contexts = [_context(robot, model, r, options, kt_arr).without_torque(missing) for r in recordings]
+    ctx_t = pooled_context(contexts[: len(trains)])
     base_t, y_t = _least_squares(robot, options, ctx_t, held)
-    validations = [_context(robot, model, v, options, kt_arr).without_torque(missing) for v in recordings[1:]]
+    validations = contexts[len(trains) :]
     parts = [(ctx, *_least_squares(robot, options, ctx, held)) for ctx in validations]
     (ctx_v, base_v, y_v), extra = parts[0], tuple(parts[1:])
     problem = DiagnosisProblem(ctx_t, ctx_v, base_t, base_v, y_t, y_v, extra_v=extra, left_out=left_out)
     check_nominal_columns(robot, model, problem, options)
     return problem
+
+
+def training_recordings(train) -> list:
+    """The training recordings of ``diagnose``'s ``train`` (a Recording or a non-empty sequence of them), as a list."""
+    trains = list(train) if isinstance(train, (list, tuple)) else [train]
+    if not trains:
+        raise ParameterError("diagnose train must be a Recording or a non-empty sequence of them; got none.")
+    return trains
 
 
 def _least_squares(robot, options: DiagnosisOptions, ctx, held=None) -> tuple:

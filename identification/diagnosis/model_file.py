@@ -44,7 +44,7 @@ from identification.calibration.model_preparation import model_preparation
 from identification.calibration.never_worse import JointComparison
 from identification.calibration.refit_training import refit_training
 from identification.data.filter_choice import AUTO
-from identification.data.holdout import diagnose_parts, held_out_sentences, other_training_parts
+from identification.data.holdout import diagnose_parts, held_out_sentences, other_training_parts, training_part
 from identification.data.layout import model_file_layout
 from identification.data.robot_recordings import load_robot_recording
 from identification.data.torque_constants import recording_kt
@@ -52,7 +52,7 @@ from identification.diagnosis.applied_after import with_applied_after
 from identification.diagnosis.base_change import as_base_changes
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
-from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
+from identification.diagnosis.diagnose import DiagnosisOptions, diagnose, training_recordings
 from identification.diagnosis.drive_columns import with_drive_columns, without_drive_columns
 from identification.diagnosis.motion_checks import validation_recordings
 from identification.diagnosis.report import DiagnosisReport
@@ -137,13 +137,13 @@ def diagnose_model(
     ----------
     source : path or LoadedModel
         The calibrated-model file, or its ``read_calibrated_model`` (the file with its robot and PSDM model).
-    train : Recording, path, or sequence of paths
-        The raw training recording, as for ``diagnose``; or its path: read with ``load`` and, when the model was
+    train : Recording, path, or sequence of them
+        The raw training recording(s), as for ``diagnose``; or its path: read with ``load`` and, when the model was
         identified with ``--holdout`` on it, cut where the model cut it (``data.holdout.diagnose_parts``, as ``psdm
         diagnose MODEL --train REC``), its held-out part a validation recording. Several paths (``psdm diagnose
-        MODEL --train A B``): the first is diagnosed, and the refit with the findings (the report's "after") trains
-        on the others too (``refit_training``: the file's own recordings handed back, or new ones), with ``source``
-        a path.
+        MODEL --train A B``): the diagnosis pools them (each cut as the first, ``holdout.training_part``;
+        ``pooled_context``), and the refit with the findings (the report's "after") trains on them too
+        (``refit_training``: the file's own recordings handed back, or new ones), with ``source`` a path.
     validation : Recording, sequence of Recording, or None
         Raw validation recordings. None (with ``train`` a path): the held-out parts the model file stores
         (``identification.holdout``), as ``psdm diagnose MODEL --train REC`` without ``--validate``.
@@ -169,10 +169,11 @@ def diagnose_model(
     ------
     ParameterError
         No validation recording: ``validation`` None and no stored part (or ``train`` a recording, not its path);
-        several ``train`` paths with ``source`` a ``LoadedModel`` (no file whose refit trains on them).
+        several ``train`` paths with ``source`` a ``LoadedModel`` (no file whose refit trains on them; several
+        Recordings are pooled and the refit trains on them alone).
     """
     train, *more = train if isinstance(train, (list, tuple)) else (train,)
-    if more and isinstance(source, LoadedModel):
+    if any(isinstance(p, (str, os.PathLike)) for p in more) and isinstance(source, LoadedModel):
         raise ParameterError(
             "diagnose_model: several train paths need source as the model file's path (its refit trains on them "
             "beside the file's own recordings); got a LoadedModel. Pass the path."
@@ -182,15 +183,16 @@ def diagnose_model(
         name = str(source)
     path, explicit = (str(train) if isinstance(train, (str, os.PathLike)) else None), validation is not None
     train, validation, held_out = model_file_recordings(loaded, train, validation, load, name or "the model file")
-    refit = None  # a file and a recording on disk: the refit finds the file's own training recordings (refit_training)
-    if path is not None and not isinstance(source, LoadedModel):
-        reader = load or _reader(loaded)  # the others cut as the command cuts them (``other_training_parts``)
-        more, parts = other_training_parts([(str(p), reader(p)) for p in more], loaded.calibrated.document, None,
-                                           explicit, name or "the model file")  # fmt: skip
+    refit, trains = None, [train] if path is not None else [train, *more]  # recordings given: pooled as given
+    if path is not None and not isinstance(source, LoadedModel):  # on disk: the refit finds the file's own too
+        reader, document = load or _reader(loaded), loaded.calibrated.document  # the others cut as the command cuts
+        more, parts = other_training_parts([(str(p), reader(p)) for p in more], document, None, explicit,
+                                           name or "the model file")  # fmt: skip
         validation = [*validation, *(part for _, part, _ in parts)]
         held_out = (*held_out, *(f"validation: {cut.describe()}" for _, _, cut in parts))
+        trains += [training_part(entry, document, name or "the model file") for entry in more]  # pooled (diagnose)
         refit = file_refit(loaded, source, train, path, load, more)
-    report = diagnose_model_prior(loaded, train, validation, options, name, refit)[0]
+    report = diagnose_model_prior(loaded, trains, validation, options, name, refit)[0]
     return replace(report, held_out=held_out) if held_out else report
 
 
@@ -254,8 +256,10 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
     never-worse margin (``robot_file_worse``); its findings would otherwise only repair a nominal worse than the model
     the user has. Then the diagnosis runs again from the model file's
     rigid body and the choice says why (``DiagnosisPrior.declining``): a finding's "before" is the nominal it used.
-    ``refit``: the recordings the model with the findings trains on (``file_refit``; None: ``train`` alone)."""
+    ``train``: the training recording, or several, pooled (``diagnose``). ``refit``: the recordings the model with the
+    findings trains on (``file_refit``; None: ``train`` alone)."""
     calibrated, robot_file, model = loaded.calibrated, loaded.robot, loaded.model
+    train = training_recordings(train)
     options = model_file_options(calibrated, given)
     robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
     first = validation_recordings(validation)[0]

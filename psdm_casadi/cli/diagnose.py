@@ -21,7 +21,13 @@ from psdm_casadi.cli.checks import (
     output_folder,
 )
 from psdm_casadi.cli.diagnose_loads import stated_loads, validation_loads
-from psdm_casadi.cli.diagnose_train import TRAIN_HELP, check_recordings_exist, read_more_training, training_paths
+from psdm_casadi.cli.diagnose_train import (
+    TRAIN_HELP,
+    check_recordings_exist,
+    pooled_training,
+    read_more_training,
+    training_paths,
+)
 from psdm_casadi.cli.holdout import add_holdout_argument, holdout_fraction
 from psdm_casadi.cli.output import EXIT_CHECK_FAILED, print_json, report_model_warnings
 from psdm_casadi.cli.recalibration_text import ALONE, adds_nothing, apply_refusal, recalibration_markdown
@@ -208,7 +214,8 @@ def _run_diagnose(args) -> int:
         report = _robot_report(args, robot, train, validations, options, scaled)
     else:  # the Python API's diagnosis of a model file (diagnose_model): the same numbers
         refit = _file_refit(args, loaded, robot, layout, train)
-        report, prior = diagnose_model_prior(loaded, train, validations, options, name=args.robot, refit=refit)
+        trains = [train, *pooled_training(args, loaded, robot, preparation.cutoff_hz)]  # pooled in the diagnosis
+        report, prior = diagnose_model_prior(loaded, trains, validations, options, name=args.robot, refit=refit)
         if prior.note():  # which rigid body the diagnosis started from, and why (also in the rigid-body notes)
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     report = dataclasses.replace(report, preparation=preparation.text(), held_out=held)

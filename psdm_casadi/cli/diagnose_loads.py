@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 from psdm_casadi.log_context import held_back
 
-__all__ = ["ValidationLoad", "load_sentence", "payload_check", "robot_file_loads", "stated_loads", "validation_loads"]
+__all__ = ["ValidationLoad", "load_sentence", "payload_check", "robot_file_loads", "stated_load_off", "stated_loads",
+           "validation_loads"]  # fmt: skip
 
 
 def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
@@ -27,25 +28,12 @@ def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
     recording stating none checked for one as validate does (``held_out_arm.without_unstated_loads``)."""
 
     from identification.calibration.held_out_arm import without_unstated_loads
-    from identification.calibration.payload_check import without_load
-    from identification.calibration.payload_fit import stated_payload
-    from identification.calibration.refit_training import listed_configuration
-    from identification.data.configuration import stated_configuration
-    from identification.data.torque_constants import recording_kt
 
     calibrated = None if loaded is None else loaded.calibrated
-    stored = [] if calibrated is None else calibrated.configurations
     out, configurations = [], []
     for path, recording in zip((args.train, *args.validate), recordings):
-        configuration = listed_configuration(None if calibrated is None else calibrated.document, path)
-        body, note = stated_payload(configuration, stored, args.robot)
-        if note:
-            print(f"psdm diagnose: warning: {path}: {note}", file=sys.stderr)
-        elif body is not None and not stated_configuration(path).stated:
-            print(f"psdm diagnose: note: {path}: carries {configuration.name!r} as the model file lists it for this "
-                  "recording (no sidecar beside it); its torque is taken off", file=sys.stderr)  # fmt: skip
-        kt = recording_kt(robot, recording)
-        out.append(recording if body is None else without_load(robot, recording, body, kt, preparation.cutoff_hz))
+        recording, configuration = stated_load_off(args, calibrated, robot, (path, recording), preparation.cutoff_hz)
+        out.append(recording)
         configurations.append(configuration)
     if calibrated is None:  # the robot file: each validation recording's load as identify weighs it (its own statement)
         arm = robot_file_loads(args, robot, recordings, configurations, preparation)
@@ -55,6 +43,30 @@ def stated_loads(args, loaded, robot, recordings, preparation) -> tuple:
     held, checks = without_unstated_loads(robot, calibrated, loaded.model, out[1:], configurations[1:], args.validate,
                                           preparation.cutoff_hz)  # fmt: skip
     return [out[0], *held], configurations, checks
+
+
+def stated_load_off(args, calibrated, robot, entry, cutoff_hz) -> tuple:
+    """``(recording, its configuration)`` of ``entry`` = ``(path, raw recording)``: the load its sidecar states (or the
+    model file ``calibrated`` lists for its content) taken off its torque (``payload_check.without_load``), said on
+    stderr when only the model file names it."""
+    from identification.calibration.payload_check import without_load
+    from identification.calibration.payload_fit import stated_payload
+    from identification.calibration.refit_training import listed_configuration
+    from identification.data.configuration import stated_configuration
+    from identification.data.torque_constants import recording_kt
+
+    path, recording = entry
+    stored = [] if calibrated is None else calibrated.configurations
+    configuration = listed_configuration(None if calibrated is None else calibrated.document, path)
+    body, note = stated_payload(configuration, stored, args.robot)
+    if note:
+        print(f"psdm diagnose: warning: {path}: {note}", file=sys.stderr)
+    elif body is not None and not stated_configuration(path).stated:
+        print(f"psdm diagnose: note: {path}: carries {configuration.name!r} as the model file lists it for this "
+              "recording (no sidecar beside it); its torque is taken off", file=sys.stderr)  # fmt: skip
+    if body is None:
+        return recording, configuration
+    return without_load(robot, recording, body, recording_kt(robot, recording), cutoff_hz), configuration
 
 
 def robot_file_loads(args, robot, recordings, configurations, preparation):

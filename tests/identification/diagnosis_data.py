@@ -47,13 +47,15 @@ def recording_pair(robot, extras, seed, train_s=10.0, val_s=5.0):
     return virtual_recording_pair(robot, extras, seed, sine, (train_s, val_s))
 
 
-def scara_recording(robot, seed, offset, friction=(0.3, 0.2), armature=0.0, noise=0.02, duration=6.0, rate=200.0):
-    """Two sines per joint of the SCARA about the middle of its range; the true torque (Pinocchio) with Coulomb-viscous
-    ``friction`` (fc [N m], fv [N m s/rad]), a torque ``offset`` per joint, ``armature`` [kg m^2] per joint times its
-    acceleration (a drive inertia, of either sign) and ``noise`` [N m]."""
+def scara_recording(robot, seed, offset, friction=(0.3, 0.2), armature=0.0, noise=0.02, duration=6.0, rate=200.0,
+                    centre=(0, 0, 0.1, 0), effect=None):  # fmt: skip
+    """Two sines per joint of the SCARA about ``centre`` (default the middle of its range); the true torque (Pinocchio)
+    with Coulomb-viscous ``friction`` (fc [N m], fv [N m s/rad]), a torque ``offset`` per joint, ``armature`` [kg m^2]
+    per joint times its acceleration (a drive inertia, of either sign), ``effect(q)`` (n_samples, n_dof) [N m] if given
+    and ``noise`` [N m]."""
     rng = np.random.default_rng(seed)
     t = np.arange(0.0, duration, 1.0 / rate)
-    centre, amplitude = np.array([0, 0, 0.1, 0]), np.array([0.6, 0.6, 0.035, 1.0])
+    centre, amplitude = np.asarray(centre, dtype=float), np.array([0.6, 0.6, 0.035, 1.0])
     q, qd, qdd = (np.zeros((t.size, robot.n_dof)) for _ in range(3))
     for j in range(robot.n_dof):
         w, phase = rng.uniform(1.5, 3.0, 2), rng.uniform(0.0, 2 * np.pi, 2)
@@ -63,6 +65,7 @@ def scara_recording(robot, seed, offset, friction=(0.3, 0.2), armature=0.0, nois
         qdd[:, j] = -(a[:, None] * w[:, None] ** 2 * np.sin(arg)).sum(0)
     fc, fv = friction
     tau = PinocchioOracle(robot).rnea(q, qd, qdd) + fc * np.tanh(qd / 0.05) + fv * qd + offset + armature * qdd
+    tau = tau if effect is None else tau + effect(q)
     return Recording(t=t, q=q, tau=tau + rng.normal(scale=noise, size=tau.shape), name=f"scara{seed}")
 
 
