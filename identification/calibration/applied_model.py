@@ -64,7 +64,7 @@ from identification.calibration.findings import (
 from identification.calibration.held_friction import HeldFriction
 from identification.calibration.lugre_identify import identify_lugre_trajectories
 from identification.calibration.lugre_recordings import split_findings
-from identification.calibration.mixed_friction import mixed_options, steady_columns
+from identification.calibration.mixed_friction import file_viscous_exponents, mixed_options, steady_columns
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.recording_provenance import recording_provenance
@@ -262,7 +262,7 @@ def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
         offset_joints=_offset_joints(identification),
         inertia_joints=tuple(j - 1 for j in drive.get("inertia_joints", [])),
         stribeck_joints=stribeck_joints(friction, drive.get("stribeck_velocity")),  # none stored for LuGre: None
-        viscous_exponent=tuple(drive.get("viscous_exponent") or ()) or None,  # the file's viscous power law
+        viscous_exponent=file_viscous_exponents(drive, lugre),  # the file's viscous power law, its LuGre joints' too
         held_friction=HeldFriction.of_document(document).values,  # as identified
         held_links=model_file_holds(document).held_links,  # as identified (``worse_joint_hold``)
         rotors_apart=model_file_holds(document).rotors_apart,  # as identified (``rotors_apart``)

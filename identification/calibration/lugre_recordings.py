@@ -8,8 +8,10 @@ term taken out; in a recalibration the findings' torques too, ``split_findings``
 joint by the multiple-shooting LuGre fit of the friction experiments
 (:func:`identification.friction.shooting.fit_lugre_multiple_shooting`: bristle state at the nodes, the
 exponential integrator of :mod:`identification.friction.lugre_step` between them), started from the
-Stribeck fit's ``fc, fs, vs, fv`` with ``dv = 1`` and from ``sigma0`` and ``sigma1`` chosen on grids by
-simulation (as ``friction.start`` does for the friction experiments).
+Stribeck fit's ``fc, fs, vs, fv`` and its viscous exponent ``dv`` (1 where its viscous column is linear; identify's
+LuGre trial starts from the default model's power law, ``lugre_trial``) and from ``sigma0`` and ``sigma1`` chosen on
+grids by simulation (as ``friction.start`` does for the friction experiments). ``dv`` is held there: the shooting fit
+does not free it.
 
 All seven parameters are refitted, not only ``sigma0`` and ``sigma1``: the Stribeck shape of the
 linear fit rounds the Coulomb step with ``tanh(qd / eps)``, so near zero speed its ``fs`` and ``vs``
@@ -238,17 +240,20 @@ def _chained(prepared, residuals) -> tuple:
 
 
 def _steady_state(fit, j: int) -> dict:
-    """``fc, fs, vs, fv`` of joint ``j`` from the Stribeck fit, made positive for the log-scaled LuGre fit."""
+    """``fc, fs, vs, fv`` of joint ``j`` from the Stribeck fit, made positive for the log-scaled LuGre fit, and its
+    viscous exponent ``dv`` (1: linear): a drive that loses less than linearly with speed keeps that law under LuGre."""
     values = dict(zip(fit.drive_names, fit.drive))
     fc = max(values[f"fc{j + 1}"], 1e-3)
+    dv = float(fit.viscous_exponent[j]) if fit.viscous_exponent else 1.0
     return {"fc": fc, "fs": max(values[f"fs{j + 1}"], 1e-3 * fc), "vs": fit.stribeck_velocity[j],
-            "fv": max(values[f"fv{j + 1}"], 1e-6)}  # fmt: skip
+            "fv": max(values[f"fv{j + 1}"], 1e-6), "dv": dv}  # fmt: skip
 
 
 def _initial(t, qd, tau, steady: dict) -> LuGreParameters:
-    """The Stribeck fit's steady state, dv = 1, and sigma0 then sigma1 chosen by simulation on grids."""
+    """The Stribeck fit's steady state (its viscous exponent too), and sigma0 then sigma1 chosen by simulation on
+    grids."""
     fc = steady["fc"]
-    candidates = [LuGreParameters(**steady, dv=1.0, sigma0=fc / xb, sigma1=1e-4 * fc / xb)
+    candidates = [LuGreParameters(**steady, sigma0=fc / xb, sigma1=1e-4 * fc / xb)
                   for xb in np.logspace(-6, -1, 21)]  # fmt: skip
     guess = _with_hump(min(candidates, key=lambda p: simulated_mse(p, t, qd, tau)), t, qd, tau)
     candidates = [_replace(guess, sigma1=guess.sigma0 * r) for r in np.logspace(-5, -1, 9)]
@@ -343,7 +348,7 @@ def fit_lugre_recordings(
         Filtered, differentiated and decimated (``trajectory_data.prepare_recordings``); several are
         chained into one series (the bristle state carried across a join).
     options : ShootingOptions, optional
-        Of the shooting fit (default: intervals of 10 samples, acceptable solutions accepted, ``dv`` held at 1).
+        Of the shooting fit (default: intervals of 10 samples, acceptable solutions accepted, ``dv`` held at its start).
     initial : sequence of LuGreParameters, optional
         Start of each joint's fit (a previous round of ``lugre_identify``); default: the Stribeck fit's steady
         state and grids of ``sigma0`` and ``sigma1``.
@@ -463,8 +468,8 @@ def _stribeck_torque(fit, qd, j: int) -> np.ndarray:
     from identification.calibration.trajectory_data import friction_term
 
     values = dict(zip(fit.drive_names, fit.drive))
-    vs = fit.stribeck_velocity[j]
-    return sum(values[f"{term}{j + 1}"] * friction_term(term, qd, fit.coulomb_velocity, vs)
+    vs, dv = fit.stribeck_velocity[j], float(fit.viscous_exponent[j]) if fit.viscous_exponent else 1.0
+    return sum(values[f"{term}{j + 1}"] * friction_term(term, qd, fit.coulomb_velocity, vs, None if dv == 1.0 else dv)
                for term in FRICTION_DRIVE_TERMS)  # fmt: skip
 
 

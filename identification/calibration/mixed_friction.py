@@ -20,7 +20,8 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import replace
 
-__all__ = ["file_lugre_joints", "friction_drives", "mixed_options", "steady_columns", "stribeck_start"]
+__all__ = ["file_lugre_joints", "file_viscous_exponents", "friction_drives", "mixed_options", "steady_columns",
+           "stribeck_start"]  # fmt: skip
 
 #: The friction columns a LuGre joint of a mixed model holds at 0 (its friction is the LuGre block's).
 STEADY_TERMS = ("fc", "fs", "fv")
@@ -30,13 +31,12 @@ def mixed_options(options, joints, stribeck_velocity):
     """The ``TrajectoryOptions`` of a mixed model's rigid-body refits: ``options`` (the default model's columns, its
     holds dropped: the mixed model is a model of its own, judged as one) with the friction columns of the LuGre
     ``joints`` (0-based) held at 0 and each other joint's steady-state shape kept: its Stribeck velocity of
-    ``stribeck_velocity`` (per joint, the default fit's; 0: Coulomb-viscous) held, not searched again."""
+    ``stribeck_velocity`` (per joint, the default fit's; 0: Coulomb-viscous) held, not searched again. The viscous
+    exponents stay every joint's: a LuGre joint's is its LuGre friction's (``lugre_trial``; its columns, held at 0, take
+    none of it), which a mixed model's start (:func:`stribeck_start`) fits its LuGre friction from."""
     joints = set(joints)
     held = tuple((f"{term}{j + 1}", 0.0) for j in sorted(joints) for term in ("fc", "fv"))
-    exponents = options.viscous_exponent
-    if exponents is not None:
-        exponents = tuple(1.0 if j in joints else float(v) for j, v in enumerate(exponents))
-    changes = {"held_friction": held, "held_links": (), "baseline_friction": (), "viscous_exponent": exponents}
+    changes = {"held_friction": held, "held_links": (), "baseline_friction": ()}
     if "fs" in options.friction:
         vs = tuple(0.0 if j in joints else float(v) for j, v in enumerate(stribeck_velocity))
         shaped = tuple(j for j, v in enumerate(vs) if v > 0)
@@ -56,14 +56,28 @@ def file_lugre_joints(document: dict, n_dof: int) -> tuple:
     return tuple(j for j in range(n_dof) if block.get("fc", [None] * n_dof)[j] is not None)
 
 
+def file_viscous_exponents(drive: dict, lugre) -> tuple | None:
+    """Each joint's viscous exponent of a model file's ``drive`` block (``TrajectoryOptions.viscous_exponent``): its
+    LuGre friction's ``dv`` on a LuGre joint (``lugre``: the file's parameters per joint, None on a steady-state
+    joint, or None), ``drive.viscous_exponent``'s on the others (its columns there are the joint's friction; held at 0
+    on a LuGre joint, they state 1). None where every joint is linear. A refit of the file starts each LuGre joint's
+    fit from its own law (:func:`stribeck_start`)."""
+    stated = drive.get("viscous_exponent") or []
+    lugre = lugre or ()
+    n = max(len(stated), len(lugre))
+    exponents = tuple(float(lugre[j].dv) if j < len(lugre) and lugre[j] is not None
+                      else float(stated[j]) if j < len(stated) else 1.0 for j in range(n))  # fmt: skip
+    return exponents if any(v != 1.0 for v in exponents) else None
+
+
 def stribeck_start(options):
     """The options of the Stribeck fit of every joint a mixed model's LuGre fits start from where no start is given
     (the refit of a mixed model file, ``lugre_identify``): the steady-state joints' shape and the LuGre joints' holds of
     ``options`` (``mixed_options``) dropped, the Stribeck shape searched on every joint, as ``--friction lugre``
-    starts."""
+    starts; each joint's viscous exponent kept (a LuGre fit holds its start's, ``lugre_recordings``)."""
     offset = ("offset",) if "offset" in options.friction else ()
     return replace(options, friction=("fc", "fs", "fv", *offset), held_friction=(), stribeck_joints=None,
-                   stribeck_held=None, viscous_exponent=None)  # fmt: skip
+                   stribeck_held=None)  # fmt: skip
 
 
 def steady_columns(drive: dict) -> bool:
