@@ -299,7 +299,7 @@ class CalibratedModel:
                                  temperature=temperature)  # fmt: skip
         return prepared, predicted
 
-    def predict(self, model, q, qd, qdd, t=None, bristle=None, temperature=None) -> np.ndarray:
+    def predict(self, model, q, qd, qdd, t=None, bristle=None, temperature=None, lugre=True) -> np.ndarray:
         """Joint torques [N m] of the calibrated model: rigid body of ``theta``, drive terms and findings.
 
         The load-dependent friction of a finding is proportional to the model's own torque without it. The
@@ -307,9 +307,10 @@ class CalibratedModel:
         it needs the sample times ``t`` [s], shape (n_samples,), and the rows in time order; ``bristle`` [N m],
         shape (n_dof,), is its bristle force ``sigma0 z`` at ``t[0]`` (default relaxed, 0). ``temperature`` [°C],
         shape (n_samples, n_dof) (NaN: not logged), moves a file's friction along its law (``temperature_friction``;
-        None: the reference temperature).
+        None: the reference temperature). ``lugre=False`` leaves the LuGre friction out (no ``t`` needed): the torque
+        the exported ``psdm_inverse_dynamics`` computes at a state (its ``lugre_step`` carries the bristles beside).
         """
-        lugre = self.lugre_parameters
+        lugre = self.lugre_parameters if lugre else None
         if lugre is not None and t is None:
             raise ParameterError(
                 "CalibratedModel.predict t must be the sample times [s] for a LuGre model (its friction carries "
