@@ -1,6 +1,7 @@
 """The physical bounds a fitted effect must stay inside to be one: shared by identify and the diagnosis.
 
-Identify's column choice keeps a gear-loss column (``calibration.column_choice``), the refit of a finding is judged
+Identify's column choice keeps a gear-loss column (``calibration.column_choice``), the consistent fit bounds a
+finding's coefficient (``calibration.findings``, ``FindingTerm.lower_bounds``), the refit of a finding is judged
 (``calibration.finding_value``), a payload's reach is checked (``calibration.payload_route``), and the diagnosis's
 candidate terms refuse a fitted parameter (``diagnosis.candidates.base``, ``CandidateTerm.implausibility``) against
 the same numbers; they live here, below both stages, so that neither imports the other for them.
@@ -18,3 +19,6 @@ MAX_TILT_DEG = 10.0  # tilt of the robot's base off level [deg]
 # shortest time constant [s] of a friction drift: gears, lubricant and motors warm up over minutes (thermal time
 # constants of 5-30 min); a change within seconds is a start-up transient of the recording, not a drift
 MIN_DRIFT_TIME_CONSTANT_S = 30.0
+# the friction shapes (``FrictionShapeTerm.shape``, a ``friction_shape`` finding's) whose coefficient is > 0: a
+# Stribeck peak above the Coulomb level (not a dip), a smooth Coulomb friction above zero (not one falling with speed)
+POSITIVE_FRICTION_SHAPES = ("stribeck", "smooth_coulomb")

@@ -8,7 +8,8 @@ array changes nothing here. Series shorter than ``min_samples`` are not kept: ha
 saves.
 
 :class:`BlockMemory` keeps a costlier result the same way, by a key its caller makes (identify's LuGre trial fits the
-training recordings once where its route runs twice, or a caller runs identify several times on them).
+training recordings once where its route runs twice, or a caller runs identify several times on them), and with
+``BlockMemory.get_with`` beside the input the key does not hold (the derived model a fit was made with).
 
 The memory is on only inside :func:`remembering` (``psdm identify`` and ``identify_trajectories`` / ``choose_columns``
 open it) and is emptied when the outermost such block ends: a long-running process that streams recordings through
@@ -141,6 +142,16 @@ class BlockMemory:
             while len(self._entries) > self.max_entries:
                 self._entries.popitem(last=False)
         return value
+
+    def get_with(self, key, made_with, compute):
+        """``compute()`` made with ``made_with``, an input the key does not hold (a derived model: unhashable, costly
+        to digest), from memory when the key's result was made with an equal one in the open block (the same object,
+        or ``==``: an equal copy computes the same); computed anew, the remembered result left in place, when it was
+        made with another (identify's trial fits with another derivation of the robot)."""
+        found_with, found = self.get(key, lambda: (made_with, compute()))
+        if found_with is not made_with and found_with != made_with:
+            return compute()
+        return found
 
     def clear(self) -> None:
         """Forget every result."""

@@ -21,7 +21,7 @@ import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.metrics import r2, rmse
-from identification.physical_bounds import MAX_LOAD_FRICTION
+from identification.physical_bounds import MAX_LOAD_FRICTION, POSITIVE_FRICTION_SHAPES
 
 __all__ = [
     "CANCEL_CORRELATION",
@@ -69,7 +69,8 @@ def implausibility(entry: dict) -> str | None:
     """Why a refitted finding's coefficients are physically meaningless, or None: a load-dependent friction coefficient
     outside (0, MAX_LOAD_FRICTION) (a gear efficiency below 50 %, or friction that falls with the load), a negative
     rotor inertia, a Stribeck peak not above the Coulomb level, a smooth Coulomb friction not above zero (friction
-    falling with speed: a Stribeck peak's shape, ``FrictionShapeTerm.implausibility``). The diagnosis applies the
+    falling with speed: a Stribeck peak's shape, ``FrictionShapeTerm.implausibility``; the positive shapes are
+    ``physical_bounds.POSITIVE_FRICTION_SHAPES``). The diagnosis applies the
     same bounds when it selects the finding; the joint refit with the rigid body can move the coefficient out of
     them."""
     values = [c for c in entry.get("coefficients") or [] if c is not None]
@@ -80,9 +81,9 @@ def implausibility(entry: dict) -> str | None:
     if entry["effect"] == "rotor_inertia" and values[0] < 0.0:
         return f"refitted rotor inertia {values[0]:.3g} kg m^2 is negative"
     shape = entry["term"]["spec"].get("shape") if entry["effect"] == "friction_shape" else None
-    if shape == "stribeck" and values[0] <= 0.0:
-        return f"refitted Stribeck peak {values[0]:.3g} N m is not above the Coulomb level"
-    if shape == "smooth_coulomb" and values[0] <= 0.0:
+    if shape in POSITIVE_FRICTION_SHAPES and values[0] <= 0.0:
+        if shape == "stribeck":
+            return f"refitted Stribeck peak {values[0]:.3g} N m is not above the Coulomb level"
         return f"refitted smooth Coulomb friction {values[0]:.3g} N m is not above zero (a Stribeck peak's shape)"
     return None
 

@@ -40,6 +40,7 @@ from identification.calibration.extra_terms import TermContext
 from identification.calibration.held_friction import CONSTANT_FEATURE
 from identification.data.recording import Recording
 from identification.diagnosis.term_spec import term_from_spec
+from identification.physical_bounds import POSITIVE_FRICTION_SHAPES
 from psdm_casadi.errors import ModelFileError, ParameterError
 
 __all__ = [
@@ -177,9 +178,9 @@ class FindingTerm:
 
     def lower_bounds(self) -> list:
         """Lower bound of each coefficient in the consistent fit: a drive inertia, a friction, a Stribeck peak and a
-        smooth Coulomb friction are >= 0."""
+        smooth Coulomb friction (``physical_bounds.POSITIVE_FRICTION_SHAPES``) are >= 0."""
         positive = self.effect in ("rotor_inertia", "load_dependent_friction") or (
-            self.effect == "friction_shape" and self.spec.get("shape") in ("stribeck", "smooth_coulomb")
+            self.effect == "friction_shape" and self.spec.get("shape") in POSITIVE_FRICTION_SHAPES
         )  # a peak, not a dip; a level, not a fall
         return [0.0 if positive else -np.inf] * len(self.feature_names())
 

@@ -42,12 +42,12 @@ import numpy as np
 
 from identification.calibration.absorbed_effect import LOCAL
 from identification.calibration.offset_reading import STRIDE
+from identification.calibration.trajectory_data import drive_offset
 
 __all__ = [
     "CARRIES",
     "FILE_GRAVITY_ERROR",
     "GravityDeparture",
-    "fitted_offsets",
     "gravity_departures",
     "joints_carrying_gravity",
     "theta_departures",
@@ -106,16 +106,9 @@ def gravity_departures(robot, model, recordings, fit) -> dict:
     """``{0-based joint: GravityDeparture}`` of ``fit`` on the raw training ``recordings`` (module docstring), each
     joint's own torque offset (a drive column of the fit, ``offset<j>``; none in a fit without drive columns) counted
     in its departure; empty without the robot file's links."""
-    offsets = fitted_offsets(getattr(fit, "drive", ()), getattr(fit, "drive_names", ()), robot.n_dof)
+    drive, names = getattr(fit, "drive", ()), getattr(fit, "drive_names", ())
+    offsets = np.array([drive_offset(drive, names, j) for j in range(robot.n_dof)])
     return theta_departures(robot, model, recordings, fit.theta, offsets)
-
-
-def fitted_offsets(drive, names, n_dof: int) -> np.ndarray:
-    """[N m] per joint, the torque offset among a fit's drive parameters ``drive`` labelled ``names`` (0 where the fit
-    has none)."""
-    names = list(names)
-    return np.array([float(drive[names.index(f"offset{j + 1}")]) if f"offset{j + 1}" in names else 0.0
-                     for j in range(n_dof)])  # fmt: skip
 
 
 def theta_departures(robot, model, recordings, theta, offsets=None) -> dict:

@@ -55,7 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from psdm_casadi.log_context import held_back
-from psdm_casadi.state_cache import BlockMemory, StateCache
+from psdm_casadi.state_cache import BlockMemory
 
 __all__ = ["JOINT_SIGMAS", "LAG_SHARE", "LAG_SIGMAS", "MIN_REVERSALS", "RULE", "SETTLE_SD", "ArmLag", "LuGreTrial",
            "ReversalLag", "judge_trial", "keep_joints", "lag_joints", "mixed_trial", "quiet_trial", "recording_lags",
@@ -348,20 +348,8 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
 
 
 #: The trial's LuGre fits, kept while a ``state_cache.remembering`` block is open (``psdm identify``'s run): by
-#: ``fit_key``, the LuGre joints and the start, with the model fitted and the fit's warnings.
+#: ``trial_fits.fit_key``, the LuGre joints and the start, with the model fitted and the fit's warnings.
 _FITS = BlockMemory()
-
-
-def fit_key(robot, recordings, options, configurations) -> tuple:
-    """What the trial's LuGre fit depends on besides the derived model: the robot description (``model_key``), the
-    training recordings (a digest of their arrays, their names and missing joints), the options chosen and the loads
-    the recordings carry."""
-    from psdm_casadi.model_cache import model_key
-
-    arrays = [[getattr(r, f) for f in ("t", "q", "tau", "current", "qd", "qdd", "temperature")] for r in recordings]
-    digests = tuple(StateCache.key(*[np.asarray(a) for a in group if a is not None]) for group in arrays)
-    named = tuple((r.name, r.missing_torque) for r in recordings)
-    return model_key(robot), digests, named, repr(options), repr(configurations)
 
 
 def _lugre_fit(problem, caught, joints=None, start=None):
@@ -370,6 +358,7 @@ def _lugre_fit(problem, caught, joints=None, start=None):
     (``_FITS``; ``psdm identify`` runs its route again where it took a held-out load off, on the same training
     recordings), its warnings added to ``caught`` as the fit issued them."""
     from identification.calibration.lugre_identify import identify_lugre_trajectories
+    from identification.calibration.trial_fits import fit_key
 
     robot, model, recordings, chosen, configurations = problem
     first, made, held = len(caught), [], () if start is None else tuple(start)
@@ -378,12 +367,11 @@ def _lugre_fit(problem, caught, joints=None, start=None):
         found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations,
                                             settle_sd=SETTLE_SD, joints=joints, start=start)  # fmt: skip
         made.append(found)
-        return model, held, found, tuple(caught[first:])  # the fit's warnings: the result's if it is kept
+        return held, found, tuple(caught[first:])  # the fit's warnings: the result's if it is kept
 
-    key = (fit_key(robot, recordings, chosen, configurations), joints, tuple(map(id, held)))  # the entry holds them
-    fitted, started, found, said = _FITS.get(key, fit)
-    if fitted != model or any(a is not b for a, b in zip(started, held)):  # a --model file's, or another start
-        fitted, started, found, said = fit()
+    # the start by identity: the entry holds it, so an id in a remembered key is the very start it was made from
+    key = (fit_key(robot, recordings, chosen, configurations), joints, tuple(map(id, held)))
+    _, found, said = _FITS.get_with(key, model, fit)  # a --model file's derivation: fitted again
     if not made:
         caught.extend(said)
     return found

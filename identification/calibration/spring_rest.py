@@ -13,27 +13,22 @@ from __future__ import annotations
 import numpy as np
 
 from identification.calibration.findings import FindingTerm
+from identification.calibration.trajectory_data import drive_offset
 
 __all__ = ["rest_angle_text", "with_rest_angles"]
-
-
-def _joint_offset(drive: dict | None, joint: int) -> float:
-    """The drive block's torque offset of the 0-based ``joint`` [N m] (0 without one)."""
-    names, values = (drive or {}).get("names") or [], (drive or {}).get("values") or []
-    return float(dict(zip(names, values)).get(f"offset{joint + 1}", 0.0) or 0.0)
 
 
 def with_rest_angles(entries, drive: dict | None) -> list:
     """``entries`` (a model file's findings) with each spring's ``parameters.rest_angle`` [rad] and
     ``parameters.rest_angle_offset`` (the joint's torque offset counted, N m; 0 when the constant is the spring's)."""
-    out = []
+    out, block = [], drive or {}
     for entry in entries:
         if entry.get("kind") == "torque" and entry.get("effect") == "spring" and entry.get("coefficients"):
             term = FindingTerm.from_dict(entry["term"])
             candidate = term.candidate
             c = [0.0 if v is None else float(v) for v in entry["coefficients"]]
             absorbed = f"c_{term.joint + 1}" in (entry.get("absorbed") or ())
-            offset = _joint_offset(drive, term.joint) if absorbed else 0.0
+            offset = drive_offset(block.get("values") or [], block.get("names") or [], term.joint) if absorbed else 0.0
             if candidate is None:  # a linear spring stored without a spec: k q + c
                 rest = -(c[1] + offset) / c[0] if c[0] else None
             elif hasattr(candidate, "rest_angle"):  # a polynomial law; a gas spring's lever law states its own q0

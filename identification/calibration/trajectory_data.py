@@ -34,9 +34,9 @@ from identification.data.recording import Recording
 from psdm_casadi.errors import ParameterError, RecordingError
 
 __all__ = ["DRIVE_TERMS", "FRICTION_TERMS", "NormalEquations", "choose_filter", "drive_column_joint",
-           "drive_column_names", "drive_columns", "file_shape", "fit_shape", "friction_shapes", "friction_term",
-           "prepare_recording", "prepare_recordings", "samples_text", "stribeck_derivative", "stribeck_joints",
-           "viscous_column"]  # fmt: skip
+           "drive_column_names", "drive_columns", "drive_offset", "file_shape", "fit_shape", "friction_shapes",
+           "friction_term", "prepare_recording", "prepare_recordings", "samples_text", "stribeck_derivative",
+           "stribeck_joints", "viscous_column"]  # fmt: skip
 
 #: The friction terms a joint may carry, in column order: Coulomb, static (Stribeck), viscous, torque offset.
 FRICTION_TERMS = ("fc", "fs", "fv", "offset")
@@ -120,6 +120,15 @@ def drive_column_names(n_dof: int, terms: tuple, inertia_joints) -> list:
 def drive_column_joint(name: str) -> int:
     """The joint (0-based) of a drive column labelled by ``drive_column_names``: ``fc3`` -> 2, ``Ia1`` -> 0."""
     return int(name[len(name.rstrip("0123456789")) :]) - 1
+
+
+def drive_offset(values, names, joint: int) -> float:
+    """[N m] the torque offset of the 0-based ``joint`` among drive ``values`` labelled ``names`` (a fit's drive
+    parameters, a model file's drive block): the value of its column ``offset<joint + 1>``, 0 where there is none or
+    its value is null (a model file writes a value it does not state as null)."""
+    names, name = list(names), f"offset{joint + 1}"
+    value = values[names.index(name)] if name in names else None
+    return 0.0 if value is None else float(value)
 
 
 def _is_symbolic(*values) -> bool:

@@ -2,6 +2,7 @@
 plain product it replaces, bit for bit; the cache's copies, budget and pickling."""
 
 import pickle
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -125,6 +126,25 @@ def test_a_block_memory_computes_a_key_once_in_a_block_and_forgets_it_after():
         assert memory.get("a", lambda: compute(5)) == (5,) and len(calls) == 6
     with remembering():
         assert memory.get("b", lambda: compute(6)) == (6,)  # the outermost block's end emptied it
+
+
+def test_a_block_memory_result_made_with_a_model_is_handed_out_for_an_equal_model_only(denso_model):
+    """``BlockMemory.get_with`` (identify's trial fits, keyed without their derived model): the result made with a
+    model is handed out again for that model and an equal copy of it (a fit of equal E, P and parameter map is the same
+    fit); for another model it is computed anew, and the remembered result stays."""
+    calls = []
+
+    def compute(value):
+        calls.append(value)
+        return (value,)
+
+    memory, other = BlockMemory(), replace(denso_model, gravity_magnitude=1.62)
+    with remembering():
+        first = memory.get_with("fit", denso_model, lambda: compute(1))
+        assert memory.get_with("fit", denso_model, lambda: compute(2)) is first
+        assert memory.get_with("fit", pickle.loads(pickle.dumps(denso_model)), lambda: compute(3)) is first
+        assert memory.get_with("fit", other, lambda: compute(4)) == (4,) and calls == [1, 4]
+        assert memory.get_with("fit", denso_model, lambda: compute(5)) is first and calls == [1, 4]
 
 
 @pytest.mark.parametrize("n_samples", [1, 63, 64])

@@ -21,7 +21,7 @@ from identification.diagnosis.candidates.base import (
     joint_expression,
     oversized,
 )
-from identification.physical_bounds import MAX_LOAD_FRICTION, MIN_DRIFT_TIME_CONSTANT_S
+from identification.physical_bounds import MAX_LOAD_FRICTION, MIN_DRIFT_TIME_CONSTANT_S, POSITIVE_FRICTION_SHAPES
 from psdm_casadi.errors import ParameterError
 
 
@@ -278,11 +278,13 @@ class FrictionShapeTerm(CandidateTerm):
         """Each shape's sign is its physics: a Stribeck "peak" below the Coulomb level (a dip: friction that rises
         with speed, a smooth onset's shape) or a smooth Coulomb friction below zero (friction that falls with speed
         past its scale, static above kinetic: a Stribeck peak's shape) is not the shape it is named; or a friction
-        larger than the joint's torque scale (``oversized``)."""
+        larger than the joint's torque scale (``oversized``). The shapes so bounded are
+        ``physical_bounds.POSITIVE_FRICTION_SHAPES``, which the consistent fit (``FindingTerm.lower_bounds``) and the
+        refit's judge (``finding_value.implausibility``) bound alike."""
         c = float(coefficients[0])
-        if self.shape == "stribeck" and c <= 0.0:
-            return f"Stribeck peak {c:.3g} N m <= 0: friction below the Coulomb level at low speed is not a peak"
-        if self.shape == "smooth_coulomb" and c <= 0.0:
+        if self.shape in POSITIVE_FRICTION_SHAPES and c <= 0.0:
+            if self.shape == "stribeck":
+                return f"Stribeck peak {c:.3g} N m <= 0: friction below the Coulomb level at low speed is not a peak"
             past = "its velocity scale" if self.scale is None else f"{self.scale:.3g} rad/s"
             return (f"smooth Coulomb friction {c:.3g} N m <= 0: friction that falls with speed past {past} is a "
                     "Stribeck peak's shape, not a Coulomb friction reached smoothly")  # fmt: skip
