@@ -305,7 +305,7 @@ def training_recordings(train) -> list:
 def _least_squares(robot, options: DiagnosisOptions, ctx, held=None) -> tuple:
     """``(base, y)`` of a recording's context: the nominal model's free columns and the torque they are fitted to
     (with the rigid body identified, its ``held`` links held: ``rigid_body_choice.rigid_body_part``)."""
-    base = friction_blocks(robot, options.friction, ctx, held=options.held_friction.joints)
+    base = friction_blocks(robot, options.friction, ctx, held=options.held_friction.joints, own=options.file_friction)
     if options.rigid_body != "identified":
         return base, ctx.tau_fit - ctx.tau_rigid
     return rigid_body_part(ctx, base, held)
@@ -320,25 +320,36 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
     ctx = build_context(robot, model, recording, options.rate_hz, options.cutoff_hz, kt,
                         with_regressor=options.rigid_body == "identified", raw=raw, max_samples=options.max_samples,
                         identify_samples=options.samples == "identify", edge_periods=options.edge_periods,
-                        sign_from_raw=options.friction == "lugre")  # fmt: skip
+                        sign_from_raw=options.friction == "lugre",
+                        filtered_friction=False if _file_signs(options) else None)  # fmt: skip
     held = options.held_friction.torque(ctx.qd, ctx.qdd) if options.held_friction.values else None
     offsets = tuple(options.held_friction.offset_of(j) for j in range(ctx.n_dof)) if held is not None else ()
     return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held, held_offsets=offsets)
 
 
+def _file_signs(options) -> bool:
+    """Whether the friction-like columns take the sign as a model file holds them (``file_friction``: smoothed, on the
+    grid's filtered velocity), so that a candidate's gain is what the file gains with it: a file without LuGre joints;
+    with them the diagnosis keeps its own form (the exact sign at full rate, filtered like the recording)."""
+    return options.file_friction is not None and not options.file_friction.lugre_joints
+
+
 def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) -> SelectionResult:
     """Forward selection of the library's terms, the BIC counted with the filter's effective sample count; the default
     library takes the friction shapes the nominal model lacks (``lacking_friction_shapes``: a model file's friction,
-    whose Stribeck velocities are fixed and whose Coulomb friction is a step; the robot file's LuGre friction, whose
-    one Stribeck peak sits at the drive's velocity). The terms ``options.carried`` are columns of the nominal model,
+    whose Stribeck velocities are fixed and whose Coulomb friction is a step, but not a shape the file already holds
+    on a joint, ``FileFriction.holds``; the robot file's LuGre friction, whose one Stribeck peak sits at the drive's
+    velocity). The terms ``options.carried`` are columns of the nominal model,
     kept and reported first (``carried_terms``)."""
     library = options.library if options.library is not None else default_library()
     lacking = options.friction_shapes and options.friction in ("coulomb_viscous", "stribeck")  # LuGre drives state them
     if options.library is None and options.friction_shapes:  # a LuGre nominal lacks a peak at another velocity
         library = library + CandidateLibrary(lacking_friction_shapes(options.friction))
     ctx_t, carried = problem.ctx_t, CarriedColumns(options.carried)
+    held = None if options.file_friction is None else options.file_friction.holds  # a model file's own shapes
     instances = [term for term in library.expand(robot.n_dof)
-                 if not set(term.joints) & set(left_out(ctx_t)) and not carried.covers(term)]  # fmt: skip
+                 if not set(term.joints) & set(left_out(ctx_t)) and not carried.covers(term)
+                 and not (held is not None and held(term))]  # fmt: skip
     n_eff = None
     if options.cutoff_hz is not None:
         n_eff = min(float(ctx_t.n_samples), 2.0 * options.cutoff_hz * float(ctx_t.t[-1] - ctx_t.t[0]))
@@ -351,7 +362,7 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
         instances, ctx_t, problem.ctx_v, base_t, base_v, problem.y_t, problem.y_v,
         min_improvement=options.min_improvement, max_effects=options.max_effects, effective_samples=n_eff,
         joint_threshold=options.joint_threshold, opinion=opinion if problem.extra_v or options.cv_folds else None,
-        rival=FrictionRival(ctx_t, validations, offer=lacking), setting=setting,
+        rival=FrictionRival(ctx_t, validations, offer=lacking, held=held), setting=setting,
     )  # fmt: skip
     return carried.selection(result, problem, n_eff)
 

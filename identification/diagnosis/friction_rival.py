@@ -173,8 +173,8 @@ class FrictionRival:
         The friction shapes offered as candidates where a lag lost (``take_offers``).
     """
 
-    def __init__(self, train_ctx, validations, offer: bool = True):
-        self.train_ctx, self.offer = train_ctx, bool(offer)
+    def __init__(self, train_ctx, validations, offer: bool = True, held=None):
+        self.train_ctx, self.offer, self.held = train_ctx, bool(offer), held
         self.validations = [list(v) for v in validations]
         self.sentences = []
         self.offered, self.new_offers = {}, []
@@ -304,8 +304,11 @@ class FrictionRival:
 
     def _offer(self, joints) -> None:
         """Offer the family's shapes (``lacking_friction_shapes``: Stribeck, smooth Coulomb, pre-sliding) on ``joints``,
-        each once; the selection fits their scales."""
+        each once; the selection fits their scales. A shape the nominal model holds on a joint (``held(term)``: a model
+        file's, ``file_friction.FileFriction.holds``) is not offered there."""
         for term in (replace(shape, joint=j) for j in joints for shape in lacking_friction_shapes()):
+            if self.held is not None and self.held(term):
+                continue
             if term.label not in self.offered:
                 self.offered[term.label] = term
                 self.new_offers.append(term)

@@ -4,8 +4,9 @@ The nominal model is the file's: its robot, its identified inertia (``calibrated
 pushed links against their envelope for an absorbed effect, ``diagnosis_prior``, unless the diagnosis's model from
 that rigid body, with the model's friction refitted and the findings added, predicts a joint of the validation
 recording worse than the file as it is beyond the never-worse margin, ``robot_file_worse``: then the file's own, and
-the report says why) and its friction shape
-(Coulomb + viscous, Stribeck with its vs, or LuGre with its identified parameters). The recordings are prepared as
+the report says why) and its friction per joint
+(``file_friction``: the file's own columns, Coulomb + viscous or Stribeck with its vs, refitted; LuGre joints with
+the diagnosis's LuGre columns at the file's values). The recordings are prepared as
 the file says (``model_preparation``: its filter, cutoff and grid rate, and identify's samples with the file's edge
 trim, one filter period in files of preparation version 1), so the report's "before" is the file's own validation
 RMSE, the one ``psdm validate`` prints (``report_assembly.with_model_file_before``), and the report names the file
@@ -54,6 +55,7 @@ from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose, training_recordings
 from identification.diagnosis.drive_columns import with_drive_columns, without_drive_columns
+from identification.diagnosis.file_friction import FileFriction
 from identification.diagnosis.motion_checks import validation_recordings
 from identification.diagnosis.report import DiagnosisReport
 from identification.diagnosis.report_assembly import with_model_file_before
@@ -83,7 +85,8 @@ def own_friction(calibrated) -> str:
 
 def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> DiagnosisOptions:
     """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its
-    friction shape, its cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
+    friction per joint (``DiagnosisOptions.file_friction``: the file's own columns on its steady-state joints), its
+    cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
     with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``)
     and the file's torque offsets, which every fit of the diagnosis keeps at the file's values
     (``DiagnosisOptions.held_friction``, ``file_held``), unless ``options`` hold some; and the counterbalance identify
@@ -99,18 +102,21 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     rate = options.rate_hz
     if rate == AUTO:
         rate = own.grid_rate_hz if options.cutoff_hz == AUTO else AUTO  # a stated cutoff: identify's grid for it
-    friction = own_friction(calibrated) if options.friction == AUTO else options.friction
+    own_shape = FileFriction.of_model(calibrated) if options.friction == AUTO else None  # the file's, per joint
+    friction = own_shape.kind if own_shape is not None else options.friction
     held = options.held_friction if options.held_friction.values else file_held(calibrated.document)
     holds = model_file_holds(calibrated.document)
     carried = options.carried or carried_candidates(holds.counterbalance_terms)
     smooth = options.coulomb_velocity
-    if friction != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
+    shape = own_friction(calibrated) if own_shape is not None else friction  # a LuGre file's: as before
+    if shape != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
         smooth = float(calibrated.document["drive"].get("coulomb_velocity", SMOOTH_VELOCITY))
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held, coulomb_velocity=smooth, carried=carried,
                    held_links=options.held_links or holds.held_links,
                    rotors_apart=options.rotors_apart or holds.rotors_apart, nominal="model file",
-                   viscous_power=bool(calibrated.document["drive"].get("viscous_exponent")))  # fmt: skip
+                   viscous_power=bool(calibrated.document["drive"].get("viscous_exponent")),
+                   file_friction=options.file_friction or own_shape)  # fmt: skip
 
 
 def file_held(document: dict) -> HeldFriction:

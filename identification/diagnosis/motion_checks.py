@@ -75,6 +75,8 @@ def check_nominal_columns(robot, model, problem, options) -> None:
     else:  # the same singular values and column norms, from a chunked QR of the weighted rows
         matrix, weights = problem.base_t.weighted_r(sigma), None
     held = {c for j in options.held_friction.joints for c in joint_friction_columns(robot, options.friction, j)}
+    if options.file_friction is not None:  # a model file's joints without a Stribeck hump or bristle column
+        held |= set(options.file_friction.zero_columns())
     free = [c for c in range(len(names)) if c not in held]  # a held joint's friction is no column of the fit
     source = f"{problem.ctx_t.name or 'the training recording'} (the nominal model's friction" + (
         " and base parameters)" if options.rigid_body == "identified" else ")"
@@ -85,6 +87,8 @@ def check_nominal_columns(robot, model, problem, options) -> None:
                         column_joints=[joints[c] for c in columns], owner="diagnose", source=source, fix=RECORD_FIX,
                         max_condition=thresholds.max_condition, robot=robot)  # fmt: skip
 
+    if not free:  # every joint's friction held at a model file's values and the rigid body fixed: no fit
+        return
     try:
         check(free)
     except ParameterError as exc:

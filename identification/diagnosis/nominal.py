@@ -133,13 +133,18 @@ def joint_friction_columns(robot, kind: str, joint: int) -> list:
     return list(range(joint * k, (joint + 1) * k)) + ([n * k + joint] if kind == "lugre" and robot.drives else [])
 
 
-def friction_blocks(robot, kind: str, context, held: tuple = ()) -> BlockColumns:
+def friction_blocks(robot, kind: str, context, held: tuple = (), own=None) -> BlockColumns:
     """``filtered_friction_columns`` as ``BlockColumns``, built one column at a time: each full-rate column of a
     joint (n_full,) is filtered and decimated before the next, never the whole (n_full, n_dof, p). The friction of
     the ``held`` joints (0-based: a model file's held friction, ``DiagnosisOptions.held_friction``) is no column of
-    the fit: theirs stay in the layout, zero."""
-    vs, dv = friction_shapes(robot)
+    the fit: theirs stay in the layout, zero. ``own``: a model file's friction (``file_friction.FileFriction``), whose
+    own columns are taken instead on its steady-state joints, on the context's samples as the file predicts them (its
+    LuGre joints keep these columns)."""
     n = robot.n_dof
+    if own is not None:
+        lugre = friction_blocks(robot, kind, context, held).dense() if own.lugre_joints else None
+        return BlockColumns.from_dense(own.columns(context.qd, lugre, [j for j in range(n) if j not in held]))
+    vs, dv = friction_shapes(robot)
     dynamic = kind == "lugre" and robot.drives is not None
     if not context.filtered_friction:  # the sign smoothed as the model file predicts it (``coulomb_velocity``)
         out = friction_columns(kind, context.qd, vs, dv, np.tanh(context.qd / context.coulomb_velocity))

@@ -16,6 +16,7 @@ from identification.data.excitation_check import ExcitationThresholds
 from identification.data.filter_choice import AUTO, EDGE_PERIODS, resolve_auto
 from identification.diagnosis.candidates import CandidateLibrary
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY, CandidateTerm
+from identification.diagnosis.file_friction import FileFriction
 from identification.diagnosis.nominal import FRICTION_MODELS, RIGID_BODY_CHOICES, nominal_friction
 from psdm_casadi.errors import ParameterError
 
@@ -121,6 +122,11 @@ class DiagnosisOptions:
         The Coulomb-viscous nominal keeps the drives' viscous exponents ``dv`` (a model file's viscous power law,
         ``viscous_power``; set by ``model_file_options``). Otherwise ``"coulomb_viscous"`` is linear in the velocity,
         whatever a robot file's drives state.
+    file_friction : FileFriction or None
+        A model file's friction per joint (``file_friction``; set by ``model_file_options`` when ``friction`` is left
+        ``"auto"``): the nominal model's friction columns on its steady-state joints are the file's own (its Coulomb
+        smoothing, Stribeck velocities and viscous exponents per joint), and the friction shapes the file holds on a
+        joint are not offered there. None: the columns of ``friction``.
     """
 
     friction: str = AUTO
@@ -150,6 +156,7 @@ class DiagnosisOptions:
     viscous_power: bool = False
     rotors_apart: tuple = ()
     nominal: str = "robot file"
+    file_friction: FileFriction | None = None
 
     def __post_init__(self):
         if isinstance(self.cv_folds, bool) or not (
@@ -200,6 +207,9 @@ class DiagnosisOptions:
                 f"DiagnosisOptions.excitation must be an ExcitationThresholds or None; got "
                 f"{type(self.excitation).__name__}. Pass ExcitationThresholds(...)."
             )
+        if self.file_friction is not None and not isinstance(self.file_friction, FileFriction):
+            raise ParameterError(f"DiagnosisOptions.file_friction must be a FileFriction or None; got "
+                                 f"{type(self.file_friction).__name__}.")  # fmt: skip
         if not isinstance(self.held_friction, HeldFriction):
             raise ParameterError(f"DiagnosisOptions.held_friction must be a HeldFriction; got "
                                  f"{type(self.held_friction).__name__}.")  # fmt: skip

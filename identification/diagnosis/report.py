@@ -289,10 +289,10 @@ class DiagnosisReport:
         return f"That is not a model that misses nothing: {'; '.join(parts)}."
 
     def _model_file_note(self, finding) -> str:
-        """Where a finding's "before" on its joint is not the model file's own RMSE there (the diagnosis refits the
-        nominal friction on the training recording first): the model file's, so that its before -> after is not
-        read as the model file's improvement (Panda spring[j6]: 0.0887 -> 0.0326 N m against the file's 0.0343); said
-        wherever the two differ in the digits printed, with the file's in the table's digits."""
+        """Where a finding's "before" on its joint is not the model file's own RMSE there (a finding after others, a
+        rigid body identified again, the file's friction refitted on another training recording): the model file's,
+        so that its before -> after is not read as the model file's improvement; said wherever the two differ in the
+        digits printed, with the file's in the table's digits."""
         j = finding.joints[0] if finding.joints else None
         if j is None or j >= len(self.model_file_rmse) or not np.isfinite(self.model_file_rmse[j]):
             return ""
@@ -300,8 +300,10 @@ class DiagnosisReport:
         if f"{before:.3g}" == f"{own:.3g}":  # the same number as printed: nothing to tell apart
             return ""
         table = " (the table's before)" if self.before_is_model_file else ""
-        return (f"; that before is the diagnosis's nominal (friction refitted on the training recording), the model "
-                f"file as it is gives joint {j + 1} {own:.4g} N m{table}")  # fmt: skip
+        what = ("the diagnosis's nominal (the rigid body identified again and the friction refitted on the training "
+                "recording)" if self.rigid_body != "prior" else "the diagnosis's model before this finding (the "
+                "model file's friction refitted on the training recording, with the findings above it)")  # fmt: skip
+        return f"; that before is {what}, the model file as it is gives joint {j + 1} {own:.4g} N m{table}"
 
     def _held_text(self) -> str:
         """The friction held at the model file's values, in words ("" when none)."""

@@ -64,7 +64,7 @@ def build_report(
     return DiagnosisReport(
         robot_name=robot.name,
         n_dof=robot.n_dof,
-        friction=options.friction,
+        friction=options.friction if options.file_friction is None else options.file_friction.describe(),
         rigid_body=options.rigid_body,
         findings=findings,
         rmse_before=tuple(rmse_before.tolist()),
