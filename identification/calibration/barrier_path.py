@@ -32,17 +32,24 @@ the tol where nothing is pressed.
 
 Each solve may take 1000 iterations (``max_iter``): a solve at its cap ends the path and hands the rest to the chart.
 With the Panda's joint-5 Stribeck shape refused (Coulomb-viscous) the last solve of the second pass needs 908; at a
-cap of 300 the chart then stopped at Solved_To_Acceptable_Level. The cap costs nothing where the path converges.
+cap of 300 the chart then stopped at Solved_To_Acceptable_Level (before the later solves were warm-started as such,
+``WARM_OPTIONS``). The cap costs nothing where the path converges.
 
-A warm-started solve that fails (its cap, the restoration phase) is solved once more from the same point with Ipopt's
-start kept where it is given (``RETRY_OPTIONS``: ``bound_push``, ``bound_frac`` 1e-9, not 1e-2). At the defaults Ipopt
-first moves its start inside the variables' bounds and the pivots' slacks (a friction at zero, the pivots of a link
-pressed towards a degenerate pseudo-inertia) and creeps back, its steps cut back where a pivot turns negative: on the
-virtual SCARA with a spring on joint 1, the last weight's solve stopped at its cap, or in the restoration phase,
-depending on the torque's round-off (two algebraically equal ways of adding the spring), and the chart's fallback from
-the weight before then ended at Infeasible_Problem_Detected in one of the two, every iterate feasible. Retried, both
-converge, to the same model. Not the default: from a start on a bound (the first weight's), solves that converge at
-the defaults stop at the cap with it (the virtual Denso's, the Panda's).
+Each solve after the first starts at the point of the weight before, and Ipopt is told so (``WARM_OPTIONS``): its
+start is kept where it is given (``bound_push``, ``bound_frac`` 1e-9, not 1e-2) and its own barrier parameter starts
+at a tenth of the path's last weight (``mu_init``, not 0.1). Ipopt's barrier on the pivots' slacks is the path's
+barrier over again: at its default start, ten times the path's first weight, every later solve first pulled its start
+back from the cone's edge towards the point of that weight, with the pivots' slacks pushed away from pivots near zero
+(links pressed towards a degenerate pseudo-inertia or resting on their inertia floors, ``inertia_floor``), its Newton
+steps cut back where a pivot turned negative, and then came down again; the smaller the weight, the nearer its start
+to the edge and the longer the way back. Where the way back failed, the solve crept at a growing dual infeasibility,
+into the restoration phase, to its cap: the Panda's column-check fold fits at the last weight, the virtual Denso's with
+a hidden counterbalance or payload, the virtual SCARA with a spring on joint 1 (where the outcome followed the
+torque's round-off). A solve so warm-started stays near its start and ends in a few Newton steps per stage of Ipopt's
+barrier. The first weight's solve starts off the path (the caller's start, moved inside the cone) and keeps Ipopt's
+defaults: from there Ipopt's own barrier finds the way in (with the warm options it stopped at its cap on the virtual
+Denso with a hidden cam and payload). A warm-started solve that fails is not tried cold: from a start near the cone's
+edge that is the slow way above.
 
 A solve Ipopt stops because its steps became too small to count (``Search_Direction_Becomes_Too_Small``) at an iterate
 that is feasible and within ``acceptable_tol`` has stalled at the round-off floor as an acceptable stop does, sooner:
@@ -84,8 +91,10 @@ MU_ENOUGH = 1e-5
 BARRIER_OPTIONS = {"ipopt.print_level": 0, "ipopt.sb": "yes", "print_time": False, "ipopt.tol": 1e-10,
                    "ipopt.acceptable_tol": 1e-6, "ipopt.acceptable_iter": 15, "ipopt.max_iter": 1000,
                    "show_eval_warnings": False}  # fmt: skip
-#: A warm-started solve that failed is solved once more from where it was given (module docstring).
-RETRY_OPTIONS = {"ipopt.bound_push": 1e-9, "ipopt.bound_frac": 1e-9}
+#: Ipopt's options over ``BARRIER_OPTIONS`` for the solves after the first, each warm-started at the point of the
+#: weight before: the start kept where it is given, and Ipopt's own barrier from a tenth of the path's last weight
+#: (module docstring).
+WARM_OPTIONS = {"ipopt.mu_init": 0.1 * MU_PATH[-1], "ipopt.bound_push": 1e-9, "ipopt.bound_frac": 1e-9}
 #: Ipopt's status of a solve whose steps became too small to count (``solve_status``: a stall, acceptable or not).
 STALLED = "Search_Direction_Becomes_Too_Small"
 #: The largest constraint violation of a stalled solve's last iterate that counts as feasible (the constraints are the
@@ -185,21 +194,20 @@ def barrier_solution(problem, bodies, start, bounds, margin: float, shared=None,
     lbg, ubg = np.concatenate([lbg, np.zeros(n_steps)]), np.concatenate([ubg, np.full(n_steps, np.inf)])
     if shared is None:
         (solver, callback), values = _solver(problem, (bodies, floors), margin, (lbg, ubg), True), ()
-        retry = lambda: _solver(problem, (bodies, floors), margin, (lbg, ubg), False, RETRY_OPTIONS)[0]  # noqa: E731
-    else:  # a shared solve that fails is solved alone (``consistent_fit``), with the retry
+    else:  # a shared solve that fails is solved alone (``consistent_fit``)
         solvers, key, values = shared
         if key not in solvers:
             solvers[key] = _solver(problem, (bodies, floors), margin, (lbg, ubg), False)[0]
-        solver, callback, retry = solvers[key], None, None
+        solver, callback = solvers[key], None
     try:
-        return _follow_path(solver, (bodies, floors), start, (lbx, ubx, lbg, ubg), margin, (n_steps, values), retry)
+        return _follow_path(solver, (bodies, floors), start, (lbx, ubx, lbg, ubg), margin, (n_steps, values))
     finally:
         if callback is not None:
             callback.close()
 
 
 def _solver(problem, bodies, margin, g_bounds, progress: bool, extra=None) -> tuple:
-    """(Ipopt solver, progress callback or None) of ``problem`` plus ``mu`` times the bodies' barrier, ``mu`` its
+    """(``PathSolver``, progress callback or None) of ``problem`` plus ``mu`` times the bodies' barrier, ``mu`` its
     first parameter (then ``problem["p"]``, if any); the pivots also constrained >= 0 (``g_bounds``: with their
     rows); ``bodies``: (sizes, floors); ``extra``: Ipopt options over ``BARRIER_OPTIONS``."""
     x = problem["x"]
@@ -218,14 +226,32 @@ def _solver(problem, bodies, margin, g_bounds, progress: bool, extra=None) -> tu
         bar, callback = progress_options("consistent_fit_barrier_progress", (x.numel(), g.numel(), 1), cap,
                                          "identify: consistent fit (Ipopt)", logger, *g_bounds)  # fmt: skip
     nlp = {"x": x, "g": g, "p": parameters, "f": problem["f"] + mu * barrier}
-    return ca.nlpsol("consistent_fit_barrier", "ipopt", nlp, {**BARRIER_OPTIONS, **(extra or {}), **bar}), callback
+    return PathSolver(nlp, {**(extra or {}), **bar}), callback
 
 
-def _follow_path(solver, bodies, start, bounds, margin, steps, retry=None):
-    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last; ``bodies``: (sizes, floors),
-    ``bounds`` with the pivots' rows, ``steps``: (their number, the values of the solver's parameters after ``mu``),
-    ``retry``: a function that builds the solver of a failed warm-started solve's second try (``RETRY_OPTIONS``), or
-    None."""
+class PathSolver:
+    """The Ipopt solvers of one barrier path's problem (``nlp``), each built when first used: ``warm=False`` the
+    first weight's, from a start off the path (Ipopt's defaults), ``warm=True`` the later weights', each from the
+    point of the weight before (``WARM_OPTIONS``); ``options`` over both. ``stats()``: the last solve's."""
+
+    def __init__(self, nlp: dict, options: dict):
+        self.nlp, self.options, self.solvers, self.last = nlp, options, {}, None
+
+    def __call__(self, warm: bool = False, **arguments):
+        if warm not in self.solvers:
+            options = {**BARRIER_OPTIONS, **(WARM_OPTIONS if warm else {}), **self.options}
+            self.solvers[warm] = ca.nlpsol("consistent_fit_barrier", "ipopt", self.nlp, options)
+        self.last = self.solvers[warm]
+        return self.last(**arguments)
+
+    def stats(self) -> dict:
+        return self.last.stats()
+
+
+def _follow_path(solver, bodies, start, bounds, margin, steps):
+    """The solves of ``barrier_solution`` along ``MU_PATH``, each from the last (``PathSolver``: the first weight's
+    solve cold, the later ones warm-started); ``bodies``: (sizes, floors), ``bounds`` with the pivots' rows,
+    ``steps``: (their number, the values of the solver's parameters after ``mu``)."""
     (_, floors), (n_steps, values) = bodies, steps
     lbx, ubx, lbg, ubg = bounds
     current = np.array(start, dtype=float)
@@ -234,16 +260,9 @@ def _follow_path(solver, bodies, start, bounds, margin, steps, retry=None):
     current, last, iterations, reached, status, first = np.clip(current, lbx, ubx), None, 0, np.inf, "", None
     for weight in MU_PATH:
         p = np.concatenate([[weight], values]) if len(values) else weight
-        solution = solver(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        solution = solver(warm=last is not None, x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         iterations += stats["iter_count"]
-        if solve_status(stats) is None and last is not None and retry is not None:
-            logger.debug("consistent fit: the barrier path's solve at mu %g failed (%s); once more from where it "
-                         "was given", weight, stats["return_status"])  # fmt: skip
-            again = retry()
-            solution = again(x0=current, p=p, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-            stats = again.stats()
-            iterations += stats["iter_count"]
         if solve_status(stats) is None:
             logger.debug("consistent fit: the barrier path stopped at mu %g (%s)", weight, stats["return_status"])
             return None if last is None else BarrierResult(current, last, status, reached <= MU_ENOUGH, first)

@@ -135,8 +135,8 @@ def test_a_fold_fit_whose_shared_solver_fails_is_solved_as_alone(denso, denso_mo
     options = {(): OPTIONS["with"], ("coulomb",): OPTIONS["without"]}
     follow = barrier_path._follow_path
 
-    def shared_fails(solver, bodies, start, bounds, margin, steps, retry=None):
-        return follow(_Stopped(solver) if len(steps[1]) else solver, bodies, start, bounds, margin, steps, retry)
+    def shared_fails(solver, bodies, start, bounds, margin, steps):
+        return follow(_Stopped(solver) if len(steps[1]) else solver, bodies, start, bounds, margin, steps)
 
     monkeypatch.setattr(barrier_path, "_follow_path", shared_fails)
     built = _builds(monkeypatch)
