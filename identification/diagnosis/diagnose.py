@@ -32,7 +32,12 @@ from identification.diagnosis.friction_rival import FrictionRival
 from identification.diagnosis.held_links import held_links
 from identification.diagnosis.hidden_balancer import name_hidden_balancers
 from identification.diagnosis.hidden_payload import name_hidden_payload
-from identification.diagnosis.motion_checks import check_motion, check_nominal_columns, validation_recordings
+from identification.diagnosis.motion_checks import (
+    check_motion,
+    check_nominal_columns,
+    training_recordings,
+    validation_recordings,
+)
 from identification.diagnosis.nominal import (
     friction_blocks,
     friction_feature_names,
@@ -59,8 +64,7 @@ from identification.diagnosis.selection import SelectionResult, forward_select
 from identification.metrics import rms, rmse
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["DiagnosisOptions", "DiagnosisProblem", "FinalFit", "check_motion", "diagnose", "prepare_problem",
-           "training_recordings"]  # fmt: skip
+__all__ = ["DiagnosisOptions", "DiagnosisProblem", "FinalFit", "check_motion", "diagnose", "prepare_problem"]
 
 logger = logging.getLogger(__name__)
 
@@ -292,14 +296,6 @@ def prepare_problem(robot, model, train, validation, options: DiagnosisOptions) 
     problem = DiagnosisProblem(ctx_t, ctx_v, base_t, base_v, y_t, y_v, extra_v=extra, left_out=left_out)
     check_nominal_columns(robot, model, problem, options)
     return problem
-
-
-def training_recordings(train) -> list:
-    """The training recordings of ``diagnose``'s ``train`` (a Recording or a non-empty sequence of them), as a list."""
-    trains = list(train) if isinstance(train, (list, tuple)) else [train]
-    if not trains:
-        raise ParameterError("diagnose train must be a Recording or a non-empty sequence of them; got none.")
-    return trains
 
 
 def _least_squares(robot, options: DiagnosisOptions, ctx, held=None) -> tuple:

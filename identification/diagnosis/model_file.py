@@ -53,10 +53,10 @@ from identification.diagnosis.applied_after import with_applied_after
 from identification.diagnosis.base_change import as_base_changes
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
-from identification.diagnosis.diagnose import DiagnosisOptions, diagnose, training_recordings
+from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.drive_columns import with_drive_columns, without_drive_columns
 from identification.diagnosis.file_friction import FileFriction
-from identification.diagnosis.motion_checks import validation_recordings
+from identification.diagnosis.motion_checks import training_recordings, validation_recordings
 from identification.diagnosis.report import DiagnosisReport
 from identification.diagnosis.report_assembly import with_model_file_before
 from identification.paired_margin import paired_rmse_margin

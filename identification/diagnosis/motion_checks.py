@@ -2,7 +2,7 @@
 of the robot file's magnitude (``plausibility.check_torque_magnitude``: a torque constant without its gear ratio
 otherwise gives findings that explain a torque a hundred times too small), and the nominal model's free columns are well
 conditioned on the training recording (a still or dithering joint otherwise gives noise-fitted findings);
-``validation_recordings`` checks the validation argument."""
+``validation_recordings`` and ``training_recordings`` check the recording arguments."""
 
 from __future__ import annotations
 
@@ -115,12 +115,31 @@ def validation_recordings(validation) -> tuple:
     ParameterError
         When it is empty or holds something else than Recordings.
     """
+    return _recordings(validation, "validation")
+
+
+def training_recordings(train) -> tuple:
+    """``train`` (a Recording or a non-empty sequence of them, pooled by ``diagnose``) as a tuple of Recordings.
+
+    Raises
+    ------
+    ParameterError
+        When it is empty or holds something else than Recordings.
+    """
+    return _recordings(train, "train")
+
+
+def _recordings(value, argument: str) -> tuple:
+    """``value``, diagnose's ``argument`` (a Recording or a non-empty sequence of them), as a tuple of Recordings."""
     from identification.data.recording import Recording
 
-    items = (validation,) if isinstance(validation, Recording) else tuple(validation or ())
+    try:
+        items = (value,) if isinstance(value, Recording) else () if value is None else tuple(value)
+    except TypeError:  # not a sequence
+        items = ()
     if not items or not all(isinstance(r, Recording) for r in items):
         raise ParameterError(
-            "diagnose validation must be a Recording or a non-empty list of Recordings; got "
-            f"{type(validation).__name__}. Pass validation=[recording_a, recording_b]."
+            f"diagnose {argument} must be a Recording or a non-empty list of Recordings; got "
+            f"{type(value).__name__}. Pass {argument}=[recording_a, recording_b]."
         )
     return items

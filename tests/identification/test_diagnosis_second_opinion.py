@@ -110,6 +110,10 @@ def test_diagnose_with_two_validation_recordings_reports_a_flipping_offset_as_un
     assert both.findings_not_holding == ()
     with pytest.raises(ParameterError, match="non-empty list of Recordings"):
         diagnose(denso, train, [], options, model=denso_model)
+    with pytest.raises(ParameterError, match=r"diagnose train must be a Recording .* Pass train=\[recording_a"):
+        diagnose(denso, [], a, options, model=denso_model)
+    with pytest.raises(ParameterError, match="diagnose train must be .* got ndarray"):
+        diagnose(denso, train.tau, a, options, model=denso_model)
 
 
 def test_an_offset_the_rest_of_the_joint_s_torque_dilutes_on_the_training_blocks_is_kept(rng, monkeypatch):
