@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.mixed_friction import file_lugre_joints
-from identification.calibration.trajectory_data import friction_term
+from identification.calibration.trajectory_data import friction_shapes, friction_term
 
 __all__ = ["FileFriction"]
 
@@ -58,11 +58,10 @@ class FileFriction:
         lugre = calibrated.lugre_parameters or (None,) * n
         joints = file_lugre_joints(calibrated.document, n)
         vs = [float(v) for v in (drive.get("stribeck_velocity") or [0.0] * n)]
-        if "fs" not in drive.get("friction_terms", ()):
-            vs = [0.0] * n  # no Stribeck column in the file
-        shapes = tuple("lugre" if j in joints else "stribeck" if vs[j] > 0 else "coulomb-viscous" for j in range(n))
+        steady = friction_shapes(drive.get("friction_terms", ()), vs, n)  # no Stribeck column: Coulomb-viscous
+        shapes = tuple("lugre" if j in joints else steady[j] for j in range(n))
         return cls(shapes=shapes, coulomb_velocity=float(drive.get("coulomb_velocity", 0.05)),
-                   stribeck_velocity=tuple(0.0 if j in joints else vs[j] for j in range(n)),
+                   stribeck_velocity=tuple(vs[j] if shapes[j] == "stribeck" else 0.0 for j in range(n)),
                    viscous_exponent=tuple(float(v) for v in (drive.get("viscous_exponent") or [1.0] * n)),
                    lugre=tuple(lugre))  # fmt: skip
 
