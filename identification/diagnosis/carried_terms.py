@@ -17,8 +17,9 @@ RMSE without and with them and a shape note that says they were kept from the mo
 plausibility check does not judge them as a new spring (``plausible_fit``: identify's judges kept them).
 
 A model file's drive columns are carried the same way (``drive_columns``: a free rotor inertia beside each, the library
-offering no other on its joint, ``CarriedColumns.covers``); they are the file's parameters, not findings, and neither
-put the rigid body in question (``rigid_body_choice.inertia_in_question``) nor stay in the report's findings.
+offering no other rotor inertia on its joint, but still its springs: ``CarriedColumns.covers``); they are the file's
+parameters, not findings, and neither put the rigid body in question (``rigid_body_choice.inertia_in_question``) nor
+stay in the report's findings.
 """
 
 from __future__ import annotations
@@ -33,14 +34,14 @@ from identification.metrics import rmse
 
 __all__ = ["KEPT_NOTE", "CarriedColumns", "carried_candidates", "carried_labels"]
 
+#: Candidate families that would take a carried counterbalance's torque on its joint (``model_file_holds``'s too).
+COUNTERBALANCE_KEYS = ("spring", "gas_spring")
 #: The shape note of a carried term's step (and so of its finding).
 KEPT_NOTE = (
     "kept from the model file (identify's counterbalance, or a spring an earlier 'diagnose --apply' wrote): a column "
     "of the diagnosis's nominal model (its shape the file's, its coefficients fitted again), not a candidate; the "
     "RMSE pair is the nominal model without and with it"
 )
-#: Candidate families that would take a carried counterbalance's torque on its joint (``model_file_holds``'s too).
-COUNTERBALANCE_KEYS = ("spring", "gas_spring")
 
 
 def carried_candidates(terms) -> tuple:
@@ -64,10 +65,12 @@ class CarriedColumns:
 
     def covers(self, term) -> bool:
         """Whether the library's ``term`` would take a carried term's torque: a spring on a carried counterbalance's
-        joint, or the same effect on a carried term's joint (a model file's drive column, ``drive_columns``)."""
-        joints = {j for carried in self.terms for j in carried.joints}
+        joint, or the same effect on a carried term's joint (a model file's drive column, ``drive_columns``). A
+        carried drive column leaves its joint's springs offered: a rotor inertia takes the joint's acceleration, not
+        a torque of its angle."""
+        balanced = {j for carried in self.terms if carried.key in COUNTERBALANCE_KEYS for j in carried.joints}
         same = {(carried.key, j) for carried in self.terms for j in carried.joints}
-        spring = term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & joints)
+        spring = term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & balanced)
         return spring or any((term.key, j) in same for j in term.joints)
 
     def columns(self, context) -> BlockColumns | None:

@@ -15,8 +15,14 @@ import numpy as np
 import pytest
 
 from identification.calibration.model_file_holds import model_file_holds
-from identification.diagnosis.candidates import CandidateLibrary, SpringTerm, TorqueOffsetTerm
-from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
+from identification.diagnosis.candidates import (
+    CandidateLibrary,
+    GasSpringTerm,
+    RotorInertiaTerm,
+    SpringTerm,
+    TorqueOffsetTerm,
+)
+from identification.diagnosis.carried_terms import KEPT_NOTE, CarriedColumns, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.held_links import held_links
 from identification.virtual import effects as xp
@@ -67,6 +73,28 @@ def test_with_the_prior_rigid_body_no_other_spring_is_offered_on_the_carried_joi
     report = diagnose(denso, train, validation, options, model=denso_model)
     assert [f.label for f in report.findings] == ["spring[j2]"]
     assert report.findings[0].parameters["k"] == pytest.approx(K, rel=0.02)
+
+
+def test_a_carried_drive_column_leaves_the_spring_of_its_joint_offered(denso, denso_model, spring_case):
+    """A model file's drive inertia ``Ia2`` (``drive_columns``, carried as a free rotor inertia on joint 2) is no
+    counterbalance: the spring the truth has on joint 2 is still offered and found (before, any carried column on a
+    joint kept its springs out of the library and the spring went unnamed)."""
+    train, validation = spring_case
+    library = CandidateLibrary((SpringTerm(max_order=1), TorqueOffsetTerm()))
+    options = DiagnosisOptions(library=library, rigid_body="prior", sparse=False, cv_folds=0,
+                               carried=(RotorInertiaTerm(joint=1),))  # fmt: skip
+    report = diagnose(denso, train, validation, options, model=denso_model)
+    assert [f.label for f in report.findings if f.effect == "spring"] == ["spring[j2]"]
+    (spring,) = [f for f in report.findings if f.effect == "spring"]
+    assert spring.shape_note != KEPT_NOTE and spring.parameters["k"] == pytest.approx(K, rel=0.05)
+
+
+def test_only_a_carried_counterbalance_covers_the_springs_of_its_joint():
+    drive, balancer = CarriedColumns((RotorInertiaTerm(joint=1),)), CarriedColumns((SpringTerm(joint=2),))
+    assert not drive.covers(SpringTerm(joint=1)) and not drive.covers(GasSpringTerm(joint=1))
+    assert drive.covers(RotorInertiaTerm(joint=1)) and not drive.covers(RotorInertiaTerm(joint=2))
+    assert balancer.covers(SpringTerm(joint=2)) and balancer.covers(GasSpringTerm(joint=2))
+    assert not balancer.covers(SpringTerm(joint=1)) and not balancer.covers(RotorInertiaTerm(joint=2))
 
 
 def test_held_links_reach_exactly_the_base_parameters_of_the_free_links(denso, denso_model):
