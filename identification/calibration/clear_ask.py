@@ -103,7 +103,7 @@ def _under(absorbs: str, at: int, refused, robot) -> str:
 
 def _unnamed_finding(finding, at: int, refused, robot, currents: bool):
     """``finding`` naming no effect, or (motor currents, no rotor stated) its joint's rotor inertia."""
-    i, pushed = finding.link, finding.message.split(". This is ")[0]
+    i, pushed = finding.link, finding.pushed
     drive = any(b.startswith("drive") for b in finding.bounds)
     under = _under(finding.absorbs, at, refused, robot)
     if currents and not drive and finding.prior_drive_inertia == 0 and finding.drive_inertia == 0 and outward(finding):

@@ -114,6 +114,9 @@ class EnvelopeFinding:
         in noise variances, they cost to first order).
     message : str
         The report's sentence: the bounds, the likely cause, the route that finds it.
+    pushed : str
+        The sentence's opening, what is pushed against which bound by how much (a resting link's whole note): what
+        a later naming of the cause keeps (``inertia_departure``, ``clear_ask``). Not stored: ``message`` holds it.
     pressed : bool
         Whether the data press on the bounds (``MIN_PRESSURE``, ``MIN_REFUSED_SIGMA``): the warnings, identify's
         counterbalance route and the diagnosis's choice of rigid body act on those only. A link resting on a bound
@@ -152,9 +155,11 @@ class EnvelopeFinding:
     reach: float = np.nan
     prior_reach: float = np.nan
     reach_limit: float = np.nan
+    pushed: str = ""
 
     def to_dict(self) -> dict:
         out = asdict(self)
+        del out["pushed"]
         out["bounds"], out["alternatives"] = list(self.bounds), list(self.alternatives)
         return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in out.items()}
 
@@ -260,8 +265,7 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
         finding = EnvelopeFinding(i, names, float(standard[i, 0]), float(prior[i, 0]), *fill, float(standard[i, -1]),
                                   float(prior[i, -1]), absorbs, joint, float(refused[joint]), float(ratio[joint]),
                                   push, pressed=pressed, **_reach(envelope, standard[i], prior[i]))  # fmt: skip
-        text = _message(finding, robot, currents) if pressed else _resting_message(finding, robot)
-        out.append(replace(finding, message=text))
+        out.append(worded(finding, robot, currents))
     return tuple(out)
 
 
@@ -311,8 +315,7 @@ def named_from_evidence(findings, held, model, robot, currents: bool = False) ->
         at = -1 if item.absorbs == "payload" else item.effect_joint if item.effect_joint >= 0 else item.joint
         named = replace(finding, absorbs=item.absorbs, alternatives=tuple(item.alternatives), evidence=item.evidence,
                         effect_joint=at)  # fmt: skip
-        text = _message(named, robot, currents) if named.pressed else _resting_message(named, robot)
-        out.append(replace(named, message=text))
+        out.append(worded(named, robot, currents))
     return tuple(out)
 
 
@@ -340,7 +343,7 @@ def named_by_departure(findings, departures, robot, currents: bool = False) -> t
         j = max(joints, key=lambda joint: found[joint].departure)
         named = replace(finding, absorbs="counterbalance", alternatives=("payload",), evidence=found[j].evidence,
                         effect_joint=j)  # fmt: skip
-        out.append(replace(named, message=_message(named, robot, currents)))
+        out.append(worded(named, robot, currents))
     return tuple(out)
 
 
@@ -348,6 +351,15 @@ def pressed_findings(findings) -> tuple:
     """The findings (``EnvelopeFinding`` or their dicts from a model file, where a file written before ``pressed``
     counts every one) whose bounds the data press on."""
     return tuple(f for f in findings if (f.get("pressed", True) if isinstance(f, dict) else f.pressed))
+
+
+def worded(finding: EnvelopeFinding, robot, currents: bool = False) -> EnvelopeFinding:
+    """``finding`` with its ``message`` and ``pushed`` (a pressed one's, else a resting link's note)."""
+    if not finding.pressed:
+        note = _resting_message(finding, robot)
+        return replace(finding, message=note, pushed=note)
+    pushed = _pushed(finding, robot)
+    return replace(finding, message=f"{pushed}. This is {_cause(finding, robot, currents)}", pushed=pushed)
 
 
 def _resting_message(finding: EnvelopeFinding, robot) -> str:
@@ -400,11 +412,18 @@ def outward(finding: EnvelopeFinding) -> bool:
     return "envelope" in finding.bounds or "mass upper" in finding.bounds
 
 
-def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
-    """The report's sentence on one finding: what is pushed, by how much, what it most likely is, what to run."""
-    i, k, at = finding.link, finding.joint, where(finding)
+def _pushed(finding: EnvelopeFinding, robot) -> str:
+    """The opening of a pressed finding's sentence: what is pushed against which bound, by how much."""
     size = f"{finding.refused_rms:.3g} N m RMS ({finding.refused_sigma:.1f} x its noise)"
-    refused = f"the data ask {joint_label(k, robot)} for {size} more than the bounded model gives"
+    refused = f"the data ask {joint_label(finding.joint, robot)} for {size} more than the bounded model gives"
+    drive = any(b.startswith("drive") for b in finding.bounds)
+    label = f"the drive of {joint_label(finding.link, robot)}" if drive else f"link {finding.link + 1}"
+    return f"{label} is pushed against {_pushed_what(finding)}: {refused}"
+
+
+def _cause(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
+    """The rest of a pressed finding's sentence: what it most likely is, what to run, and the alternatives."""
+    i, at = finding.link, where(finding)
     file_off = (
         (
             ", or a robot file whose mass of this link is off by more than the bounds allow (pass --mass-bounds "
@@ -452,10 +471,7 @@ def _message(finding: EnvelopeFinding, robot, currents: bool = False) -> str:
         cause += (". With motor currents as the torque source it may instead be a drive effect the currents hold: the "
                   "rotors' inertia (identify --drive-inertia on) or a gear efficiency that depends on the power flow "
                   "(identify --drive-loss on)")  # fmt: skip
-    label = f"the drive of {joint_label(i, robot)}" if drive else f"link {i + 1}"
-    return (
-        f"{label} is pushed against {_pushed_what(finding)}: {refused}. This is {cause}.{_alternatives(finding, robot)}"
-    )
+    return f"{cause}.{_alternatives(finding, robot)}"
 
 
 #: What ``psdm diagnose`` fits for each effect (``DIAGNOSE_ROUTE``).

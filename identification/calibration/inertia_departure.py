@@ -96,10 +96,10 @@ def yielded_findings(findings, departures) -> tuple:
             out.append(finding)
             continue
         item = departures[at]
-        pushed = finding.message.split(". This is ")[0]
-        message = (f"{pushed}. This is {item.words} ({item.parameter}) the fit holds back (see HELD BACK), which the "
-                   f"link's first moment takes in part on a periodic motion; not a counterbalance: the data's own "
-                   f"least squares leave joint {at + 1}'s gravity torque as the robot file has it.")  # fmt: skip
+        message = (f"{finding.pushed}. This is {item.words} ({item.parameter}) the fit holds back (see HELD BACK), "
+                   "which the link's first moment takes in part on a periodic motion; not a counterbalance: the "
+                   f"data's own least squares leave joint {at + 1}'s gravity torque as the robot file has "
+                   "it.")  # fmt: skip
         out.append(replace(finding, absorbs="drive_inertia", alternatives=(), effect_joint=at, message=message,
                            evidence=item.sentence()))  # fmt: skip
     return tuple(out)

@@ -64,6 +64,9 @@ def test_a_link_held_at_its_reach_without_an_effect_names_no_spring_but_its_roto
     assert link2.refused_sigma < NAME_SIGMA
     assert link2.absorbs == "drive_inertia" and "joint 2's rotor inertia" in link2.message
     assert NAMING_RULE in link2.message
+    # renamed, the finding keeps the opening it was pushed with (``EnvelopeFinding.pushed``), not its old cause
+    assert link2.pushed.startswith("link 2 is pushed against its physical envelope")
+    assert link2.message.startswith(f"{link2.pushed}. With motor currents") and ". This is " not in link2.message
 
 
 def test_a_counterbalance_the_data_clearly_ask_for_is_named_on_its_joint_alone(fits):

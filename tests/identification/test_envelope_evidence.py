@@ -48,6 +48,8 @@ def test_a_tool_alone_is_a_payload_on_every_pushed_link_from_the_evidence(denso,
     assert held and all(h.absorbs == "payload" for h in held), [(h.words, h.absorbs) for h in held]
     stored = flange.to_dict()
     assert stored["alternatives"] == ["counterbalance"] and stored["evidence"] == flange.evidence
+    assert flange.message.startswith(f"{flange.pushed}. This is most likely a payload") and "pushed" not in stored
+    assert flange.pushed.startswith("link 5 is pushed against its physical envelope")
 
 
 def test_a_counterbalance_beside_a_tool_is_named_on_its_joint(denso, denso_model):
