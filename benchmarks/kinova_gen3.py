@@ -38,7 +38,12 @@ where the URDF's differ and the tool as part of the last link; the vendor's nomi
   both, ``kt i = a tau_s + mu |tau_s| tanh(qd / v) + fc tanh(qd / v) + fv qd + Ia qdd + offset`` by least squares
   (10 Hz zero-phase filter): the gear's efficiency by power-flow direction ``eta = sqrt((1 - mu) / (1 + mu))``
   (``drive_loss``) and the rotors' inertia the currents hold and the sensors do not, beside the currents fit's own
-  (``rotor_inertia``: its drive-inertia columns and the rotors the base parameters merge, ``merged_rotors``).
+  (``rotor_inertia``: its drive-inertia columns and the rotors the base parameters merge, ``merged_rotors``);
+- the joint elasticities the diagnosis of the robot file names on joints 1 and 2 (``elasticity_check``, and the
+  ``elasticity_notes`` of ``tool_diagnosis``: ``diagnosis.elasticity_evidence``): their torque acts in a band where
+  the commanded trajectory holds almost nothing (an oscillation of the arm), which the currents carry as the sensors
+  do (the same torque on both sides of the gear), and where the measured torque exceeds the file's rigid body for
+  the recorded angles several times: a deflection between the recorded angle and the link, not a stand-in.
 
 Joint 7 carries almost no gravity load and its sensor shows only noise and offset (README), so its RMSE
 is reported but says little.
@@ -130,6 +135,29 @@ def sensor_check(data: Path, cutoff: float = 10.0, velocity: float = 0.05) -> di
         out["rms_with_mu"].append(float(np.std(c - full @ x)))
         out["rms_without_mu"].append(float(np.std(residual)))
     return out
+
+
+def elasticity_check(data: Path, band=(3.5, 8.0)) -> dict:
+    """Per joint, on the two optimised logs (their commanded trajectories hold almost nothing in ``band`` [Hz]), the
+    band's torque from the joint-torque sensor against the currents' (gain and correlation: the same torque on both
+    sides of the gear, not a sensor's), and the recorded acceleration's correlation with the commanded one there (an
+    oscillation the controller does not ask for): what a joint elasticity of the diagnosis rests on
+    (``diagnosis.elasticity_evidence``)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(4, band, btype="band", fs=1000.0, output="sos")
+    rows = {key: [] for key in ("sensor", "current", "qdd", "command")}
+    for name in (TRAIN, VALIDATE):
+        path = data / name
+        q, sensor, current, command = (_columns(path, p) for p in ("Position", "TorqueSm", "Cur", "AccCmptd"))
+        qdd = np.gradient(np.gradient(q, 1e-3, axis=0), 1e-3, axis=0)
+        for key, x in zip(rows, (sensor, current * KT, qdd, np.nan_to_num(command))):
+            rows[key].append(sosfiltfilt(sos, x, axis=0)[300:-300])
+    s, c, a, r = (np.vstack(rows[key]) for key in rows)
+    corr = [float(np.corrcoef(x[:, j], y[:, j])[0, 1]) for x, y in ((s, c), (a, r)) for j in range(7)]
+    return {"band_hz": list(band), "sensor_to_current_gain": (np.sum(s * c, 0) / np.sum(c * c, 0)).tolist(),
+            "sensor_current_correlation": corr[:7], "commanded_correlation": corr[7:],
+            "sensor_band_rms": np.sqrt(np.mean(s**2, 0)).tolist()}  # fmt: skip
 
 
 def sensor_prediction(robot, model_file: Path, data: Path, cutoff: float = 10.0) -> dict:
@@ -279,7 +307,9 @@ def diagnose_tool(folder: Path, data: Path, log, robot_file: Path | None = None)
     return {"exit_code": code, "seconds": seconds, "findings": [f["label"] for f in payload["findings"]],
             "tool_mass": None if tool is None else tool["mass"],
             "tool_com": None if tool is None else [tool.get(f"com_{a}") for a in "xyz"],
-            "rmse_before": payload["rmse_before"], "rmse_after": payload["rmse_after"]}  # fmt: skip
+            "rmse_before": payload["rmse_before"], "rmse_after": payload["rmse_after"],
+            "elasticity_notes": [n for f in payload["findings"] if f["effect"] == "joint_elasticity"
+                                 for n in f.get("notes", []) if "behind a spring" in n]}  # fmt: skip
 
 
 def vendor_urdf(folder: Path, data: Path, log, diagnosis: bool) -> dict:
@@ -329,6 +359,7 @@ def evaluate_kinova(log, data: Path = KINOVA, diagnosis: bool = True) -> dict:
             "sensor_fit_no_joint_worse_than_robot_file": fits["sensor"].get("exit_code") == 0
             and not fits["sensor"].get("worse_than_robot_file"),
             "tool_stated_in_robot_file_kg": stated, "sensor_check": sensor_check(data), "vendor_urdf": vendor,
+            "elasticity_check": elasticity_check(data),
             "diagnosis_finds_no_further_tool": tool is None or mass is None or mass < RESIDUAL_TOOL_KG,
             "sensor_fit_no_link_at_mass_bound": not fits["sensor"].get("links", {}).get("links_at_mass_bound", [0]),
             "current_fit_no_link_at_mass_bound": not fits["current"].get("links", {}).get("links_at_mass_bound", [0]),

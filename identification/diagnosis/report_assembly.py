@@ -21,6 +21,7 @@ from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.counterbalance_naming import name_counterbalances, offset_verdicts
 from identification.diagnosis.design import left_out
+from identification.diagnosis.elasticity_evidence import with_elasticity_evidence
 from identification.diagnosis.held_links import held_links
 from identification.diagnosis.joint_changes import explain_joint_changes, rise_margin, rise_sentence
 from identification.diagnosis.nominal import friction_feature_names, friction_shapes
@@ -54,6 +55,7 @@ def build_report(
     held = (ctx_v, ctx_v.tau - model_final_v)  # the data's verdict on an offset no sensor has by size
     verdicts = offset_verdicts(found, ctx_t, ctx_t.tau - model_final_t, held, options.rigid_body != "prior")
     findings = name_counterbalances(found, ctx_t, verdicts) + tuple(unnamed)
+    findings = with_elasticity_evidence(findings, final, ctx_t, model_nominal_t)
     if options.rigid_body == "prior":
         findings = tuple(with_rotor_note(f, robot, model) for f in findings)
     rmse_before, rmse_after = rmse(ctx_v.tau, model_nominal_v), rmse(ctx_v.tau, model_final_v)
