@@ -90,8 +90,9 @@ def _number(value) -> str:
     return "unknown" if value is None else f"{float(value):.3g}"
 
 
-def _drive_block(calibrated) -> tuple[dict, tuple, tuple, float]:
-    """({name: value}, friction terms, 0-based inertia joints, Coulomb velocity) of the file's drive block, checked."""
+def _drive_block(calibrated) -> tuple[dict, tuple, tuple, np.ndarray]:
+    """({name: value}, friction terms, 0-based inertia joints, Coulomb widths per joint) of the file's drive block,
+    checked (``coulomb_width.file_coulomb_widths``)."""
     drive = calibrated.document["drive"]
     terms = tuple(drive["friction_terms"])
     inertia_joints = tuple(int(j) - 1 for j in drive["inertia_joints"])
@@ -109,10 +110,7 @@ def _drive_block(calibrated) -> tuple[dict, tuple, tuple, float]:
             f"calibrated model drive.values must be finite; got {dict(zip(names, values.tolist()))}. "
             "Re-run 'psdm identify'."
         )
-    velocity = float(drive["coulomb_velocity"]) if "fc" in terms else 1.0
-    if not velocity > 0:
-        raise ModelFileError(f"calibrated model drive.coulomb_velocity must be positive [rad/s]; got {velocity!r}.")
-    return dict(zip(names, values.tolist())), terms, inertia_joints, velocity
+    return dict(zip(names, values.tolist())), terms, inertia_joints, calibrated.coulomb_widths
 
 
 def drive_bias(calibrated, qd):
@@ -129,7 +127,7 @@ def drive_bias(calibrated, qd):
     casadi.SX, shape (n_dof, 1)
         [N m or N]; the same terms as ``identification.calibration.trajectory_data.drive_columns``.
     """
-    values, terms, _, velocity = _drive_block(calibrated)
+    values, terms, _, widths = _drive_block(calibrated)
     stribeck, exponent = stribeck_velocity(calibrated), viscous_exponent(calibrated)
     entries = []
     for j in range(calibrated.n_dof):
@@ -137,7 +135,7 @@ def drive_bias(calibrated, qd):
         vs, dv = None if stribeck is None else float(stribeck[j]), None if exponent is None else float(exponent[j])
         for term in terms:
             if term != "Ia":
-                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], velocity, vs, dv)
+                entry = entry + values[f"{term}{j + 1}"] * friction_term(term, qd[j], float(widths[j]), vs, dv)
         entries.append(entry)
     return ca.vertcat(*entries)
 
@@ -338,11 +336,12 @@ def add_finding_terms(functions: DynamicsFunctions, calibrated) -> DynamicsFunct
 def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = None) -> str:
     """The C comment that says what an export of a calibrated model computes (see ``add_header_note``)."""
     document = calibrated.document
-    values, terms, inertia_joints, velocity = _drive_block(calibrated)
+    values, terms, inertia_joints, widths = _drive_block(calibrated)
+    velocity = repr(float(widths[0])) if np.all(widths == widths[0]) else "v_j"  # v_j: listed under the parameters
     per_joint = " + ".join(_term_text(term, velocity) for term in terms) or "none"
     stribeck, exponent = stribeck_velocity(calibrated), viscous_exponent(calibrated)
     if exponent is not None:
-        per_joint = per_joint.replace("fv_j qd_j", f"fv_j qd_j (qd_j^2 + {velocity!r}^2)^((dv_j - 1) / 2)")
+        per_joint = per_joint.replace("fv_j qd_j", f"fv_j qd_j (qd_j^2 + {velocity}^2)^((dv_j - 1) / 2)")
     inertia = f" + Ia_j qdd_j (joints {', '.join(str(j + 1) for j in inertia_joints)})" if inertia_joints else ""
     problem = consistency_problem(calibrated)
     state = "physically consistent" if problem is None else f"WARNING: {problem}; exported with --allow-inconsistent"
@@ -366,7 +365,8 @@ def header_note(calibrated, *, prefix: str = "psdm_", source_name: str | None = 
             if stribeck is not None and stribeck[j] == 0:
                 vs = [f"vs{j + 1} = 0 (Coulomb-viscous joint: no Stribeck term)"]
             dv = [] if exponent is None else [f"dv{j + 1} = {exponent[j]:.17g}"]
-            lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs + dv))
+            v = [] if velocity != "v_j" else [f"v{j + 1} = {widths[j]:.17g}"]
+            lines.append("  " + ", ".join([f"{name} = {values[name]:.17g}" for name in names] + vs + dv + v))
     lines += lugre_note(calibrated, prefix) + _findings_lines(calibrated) + corrections_note(calibrated, prefix)
     lines += temperature_note(calibrated, prefix)
     lines = [line.replace("*/", "* /") for line in _warning_lines(calibrated) + lines]  # free text: no comment end
@@ -447,9 +447,9 @@ def _findings_lines(calibrated) -> list:
     return lines
 
 
-def _term_text(term: str, velocity: float) -> str:
-    stribeck = f"exp(-(qd_j / vs_j)^2) tanh(qd_j / {velocity!r})"
-    return {"fc": f"fc_j tanh(qd_j / {velocity!r})", "fv": "fv_j qd_j", "offset": "offset_j",
+def _term_text(term: str, velocity: str) -> str:
+    stribeck = f"exp(-(qd_j / vs_j)^2) tanh(qd_j / {velocity})"
+    return {"fc": f"fc_j tanh(qd_j / {velocity})", "fv": "fv_j qd_j", "offset": "offset_j",
             "fs": f"(fs_j - fc_j) {stribeck}"}[term]  # fmt: skip
 
 

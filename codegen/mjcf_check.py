@@ -103,8 +103,7 @@ def mjcf_round_trip(calibrated, model, text: str, q, qd, qdd) -> MjcfRoundTrip:
     fc = np.asarray(mj_model.dof_frictionloss, dtype=float)
     has = fc > 0
     excess = float((np.abs(friction[:, has]) / fc[has] - 1.0).max()) if has.any() else 0.0
-    velocity = calibrated.document["drive"]["coulomb_velocity"]
-    sliding = (np.abs(qd) > 10 * velocity) & has
+    sliding = (np.abs(qd) > 10 * calibrated.coulomb_widths) & has  # per joint
     level = np.abs(friction - fc * np.sign(qd)) <= 1e-6 * np.maximum(fc, 1e-12)
     saturated = float(level[sliding].mean()) if sliding.any() else float("nan")
     return MjcfRoundTrip(error, excess, saturated, len(q))

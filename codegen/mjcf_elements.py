@@ -22,6 +22,7 @@ from codegen.target_holds import (
     linear_springs,
 )
 from codegen.xml_nodes import numbers
+from identification.calibration.coulomb_width import tanh_text
 from psdm_casadi.oracle import inertia_from_dynamic_parameters
 from psdm_casadi.values import exact_text
 
@@ -124,7 +125,6 @@ def joint_attributes(fields: JointFields, j: int, angle_unit: float = 1.0) -> li
 def header_text(calibrated, robot, source: str) -> str:
     """The comment that opens the file: where it comes from and what MJCF cannot hold (wrapped lines)."""
     block = calibrated.document["standard"]
-    drive = calibrated.document["drive"]
     state = "physically consistent" if calibrated.consistent else "NOT physically consistent"
     lines = [
         f"Written by psdm export-mjcf from the calibrated model of {robot.name} "
@@ -133,12 +133,12 @@ def header_text(calibrated, robot, source: str) -> str:
         f"{block['min_pseudo_inertia_eigenvalue']}); each moving body's <inertial> is the whole rigid body the model "
         "attaches to its joint.",
         "Joints: armature = the drive inertia reflected to the joint, damping = fv (viscous), frictionloss = fc: "
-        f"MuJoCo's dry-friction constraint (bounded by fc), where the model has fc tanh(qd / "
-        f"{drive['coulomb_velocity']} rad/s); a linear spring finding is stiffness and springref."
+        f"MuJoCo's dry-friction constraint (bounded by fc), where the model has {tanh_text(calibrated.coulomb_widths)}"
+        "; a linear spring finding is stiffness and springref."
         + (f" WARNING: {left_out}." if (left_out := friction_not_representable(calibrated, MJCF)) else ""),
         f"Gravity: {numbers(robot.gravity)} m/s^2 in the robot's base frame.",
     ]
-    if "offset" in drive["friction_terms"]:
+    if "offset" in calibrated.document["drive"]["friction_terms"]:
         lines.append("The model's constant torque offsets have no MJCF field: they are in a comment on each joint.")
     if (findings := findings_not_representable(calibrated, MJCF)) is not None:
         lines.append(f"Findings: WARNING: {findings}.")

@@ -31,7 +31,7 @@ FUNCTION = "inverse_dynamics_at_temperature"
 
 def _torque(calibrated, laws, qd, temperature, stribeck, exponent):
     """The change of the friction torque (n_dof, 1) at ``temperature`` (module docstring)."""
-    velocity = float(calibrated.document["drive"]["coulomb_velocity"])
+    widths = calibrated.coulomb_widths
     out = ca.SX.zeros(calibrated.n_dof, 1)
     for law in laws.joints:
         j = law.joint
@@ -41,7 +41,7 @@ def _torque(calibrated, laws, qd, temperature, stribeck, exponent):
         change = ca.if_else(measured == 0, clipped - law.reference, 0.0)
         vs, dv = None if stribeck is None else float(stribeck[j]), None if exponent is None else float(exponent[j])
         for name, slope in law.slopes.items():
-            out[j] += slope * friction_term(name.rstrip("0123456789"), qd[j], velocity, vs, dv) * change
+            out[j] += slope * friction_term(name.rstrip("0123456789"), qd[j], widths[j], vs, dv) * change
     return out
 
 

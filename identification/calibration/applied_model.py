@@ -50,6 +50,7 @@ import numpy as np
 from identification.calibration.absorbed_features import absorbed_mask
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.carried_payload import carrying_payloads
+from identification.calibration.coulomb_width import joint_width, width_value
 from identification.calibration.envelope_report import with_concrete_route
 from identification.calibration.finding_value import implausibility, unhelpful_findings
 from identification.calibration.findings import (
@@ -176,7 +177,7 @@ def zero_size(after: CalibratedModel) -> list:
 
 def finding_terms(calibrated: CalibratedModel, report) -> tuple:
     """(torque FindingTerms, corrections, entries of every finding) from the report, merged with the file's own."""
-    velocity = float(calibrated.document["drive"].get("coulomb_velocity") or 0.05)
+    widths = calibrated.coulomb_widths
     existing = [entry for entry in calibrated.document.get("findings") or []]
     terms = [term for term, _ in calibrated.torque_findings]
     corrections = calibrated.corrections
@@ -205,7 +206,7 @@ def finding_terms(calibrated: CalibratedModel, report) -> tuple:
                 joint=int(candidate.joint),
                 source=getattr(candidate, "source", None),
                 harmonic=getattr(candidate, "harmonic", None),
-                velocity=velocity,
+                velocity=joint_width(widths, int(candidate.joint)),
                 spec=candidate.spec() if candidate.key in SPEC_EFFECTS else None,
             )
             entry["term"] = term.to_dict()
@@ -254,7 +255,7 @@ def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
         friction = ("fc", "fs", "fv", *(term for term in friction if term == "offset"))
     options = TrajectoryOptions(
         friction=friction,
-        coulomb_velocity=float(drive["coulomb_velocity"]),
+        coulomb_velocity=width_value(calibrated.coulomb_widths),
         drive_inertia=bool(identification.get("drive_inertia", True)),
         consistency=bool(document["standard"].get("checked", True)),
         cutoff_hz=own.cutoff_hz,

@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
+from identification.calibration.coulomb_width import file_coulomb_widths
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.held_friction import drive_inertia_split
 from identification.calibration.mixed_friction import file_lugre_joints, friction_drives
@@ -253,6 +254,11 @@ class CalibratedModel:
         return out
 
     @property
+    def coulomb_widths(self) -> np.ndarray:
+        """[rad/s] the Coulomb sign's smoothing width per joint, shape (n_dof,) (``coulomb_width``)."""
+        return file_coulomb_widths(self.document["drive"], self.n_dof)
+
+    @property
     def temperature_friction(self):
         """The friction's law in the joints' temperature (``temperature_friction.TemperatureFriction``), or None."""
         return TemperatureFriction.from_document(self.document)
@@ -319,7 +325,7 @@ class CalibratedModel:
         drive = self.document["drive"]
         q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
         inertia_joints = tuple(j - 1 for j in drive["inertia_joints"])
-        columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, drive["coulomb_velocity"],
+        columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, self.coulomb_widths,
                                 *file_shape(drive))  # the Stribeck velocities and viscous exponents  # fmt: skip
         tau = model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
         if lugre is not None:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width, positive_widths
 from identification.calibration.friction_drift import finite_list
 from identification.calibration.trajectory_data import friction_term, prepare_recording
 
@@ -39,13 +40,13 @@ class JointShift:
 @dataclass(frozen=True, eq=False)
 class DriftCorrection:
     """The correction of the training ``recordings`` (their names, in the order identify was given them) on the
-    ``joints`` (``JointShift``), in the check's friction shape (``coulomb_velocity``; ``stribeck_velocity`` and
-    ``viscous_exponent`` per joint, or None) along the motion prepared at ``cutoff_hz`` with ``edge_periods`` trimmed
-    (module docstring)."""
+    ``joints`` (``JointShift``), in the check's friction shape (``coulomb_velocity``, one or one per joint;
+    ``stribeck_velocity`` and ``viscous_exponent`` per joint, or None) along the motion prepared at ``cutoff_hz`` with
+    ``edge_periods`` trimmed (module docstring)."""
 
     recordings: tuple
     joints: tuple
-    coulomb_velocity: float
+    coulomb_velocity: float | tuple
     stribeck_velocity: tuple | None
     viscous_exponent: tuple | None
     cutoff_hz: float | None
@@ -74,7 +75,8 @@ class DriftCorrection:
         vs = None if self.stribeck_velocity is None else float(self.stribeck_velocity[j])
         dv = None if self.viscous_exponent is None else float(self.viscous_exponent[j])
         qd = np.asarray(qd, dtype=float)
-        return np.column_stack([friction_term(name.rstrip("0123456789"), qd[:, j], self.coulomb_velocity, vs, dv)
+        v = joint_width(self.coulomb_velocity, j)
+        return np.column_stack([friction_term(name.rstrip("0123456789"), qd[:, j], v, vs, dv)
                                 for name in shift.names])  # fmt: skip
 
     def with_recording(self, name: str, own) -> DriftCorrection:
@@ -128,7 +130,8 @@ class DriftCorrection:
                        for s in data["joints"])  # fmt: skip
         vs, dv = data.get("stribeck_velocity"), data.get("viscous_exponent")
         cutoff = data.get("cutoff_hz")
-        return cls(tuple(data["recordings"]), joints, float(data["coulomb_velocity"]),
+        width = positive_widths(data["coulomb_velocity"], "identification.friction_drift.correction.coulomb_velocity")
+        return cls(tuple(data["recordings"]), joints, width,
                    None if vs is None else tuple(map(float, vs)), None if dv is None else tuple(map(float, dv)),
                    None if cutoff is None else float(cutoff), float(data["edge_periods"]))  # fmt: skip
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.coulomb_width import file_coulomb_widths, joint_width, positive_widths, width_value
 from identification.calibration.trajectory_data import drive_column_joint, friction_term
 from psdm_casadi.errors import ParameterError
 
@@ -56,11 +57,12 @@ def _term(name: str) -> str:
 @dataclass(frozen=True)
 class HeldFriction:
     """Friction held at given values: ``values`` ``((name, value), ...)`` of ``fc<j>``/``fv<j>`` columns, the Coulomb
-    term smoothed over ``coulomb_velocity`` [rad/s] and the viscous term a power ``viscous_exponent`` of the speed per
-    joint (``()`` or 1: linear) (``trajectory_data.friction_term``, as the model file predicts)."""
+    term smoothed over ``coulomb_velocity`` [rad/s] (one width, or a tuple per joint: ``coulomb_width``) and the
+    viscous term a power ``viscous_exponent`` of the speed per joint (``()`` or 1: linear)
+    (``trajectory_data.friction_term``, as the model file predicts)."""
 
     values: tuple = ()
-    coulomb_velocity: float = 0.05
+    coulomb_velocity: float | tuple = 0.05
     viscous_exponent: tuple = ()
 
     def __post_init__(self):
@@ -69,10 +71,8 @@ class HeldFriction:
             if _term(name) not in CARRIED_TERMS or not np.isfinite(value):
                 raise ParameterError(f"HeldFriction.values must be (name, finite value) pairs of the columns "
                                      f"{CARRIED_TERMS}, e.g. ('fc3', 0.2); got {(name, value)!r}.")  # fmt: skip
-        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
-            raise ParameterError(
-                f"HeldFriction.coulomb_velocity must be positive [rad/s]; got {self.coulomb_velocity!r}."
-            )
+        width = positive_widths(self.coulomb_velocity, "HeldFriction.coulomb_velocity")
+        object.__setattr__(self, "coulomb_velocity", width)
         exponents = tuple(float(dv) for dv in self.viscous_exponent)
         if not all(np.isfinite(dv) and dv > 0 for dv in exponents):
             raise ParameterError(f"HeldFriction.viscous_exponent must be positive per joint (1: linear viscous "
@@ -90,7 +90,10 @@ class HeldFriction:
         held = dict((identification.get("one_way_friction") or {}).get("held") or {})
         held.update((identification.get("worse_joints") or {}).get("held_friction") or {})
         exponents = tuple(drive.get("viscous_exponent") or ())
-        return cls(tuple(held.items()), float(drive.get("coulomb_velocity", 0.05)), exponents)
+        robot = document.get("robot")  # a document without one (a part of a file): the widths as they are stated
+        n_dof = len(robot["joint_names"]) if robot else np.size(drive.get("coulomb_velocity", 0.0))
+        widths = file_coulomb_widths(drive, n_dof)
+        return cls(tuple(held.items()), width_value(widths), exponents)
 
     @classmethod
     def of_model_file(cls, document: dict) -> HeldFriction:
@@ -155,12 +158,16 @@ class HeldFriction:
             out[j] += value * self._column(name, qd[j], None if qdd is None else qdd[j])
         return out
 
+    def _width(self, name) -> float:
+        """[rad/s] the Coulomb width of the joint of column ``name``."""
+        return joint_width(self.coulomb_velocity, drive_column_joint(name))
+
     def _column(self, name, qd, qdd):
         if _term(name) == "fv" and self.viscous_exponent:
             dv = self.viscous_exponent[drive_column_joint(name)]
-            return friction_term("fv", qd, self.coulomb_velocity, None, None if dv == 1.0 else dv)
+            return friction_term("fv", qd, self._width(name), None, None if dv == 1.0 else dv)
         if _term(name) != "Ia":
-            return friction_term(_term(name), qd, self.coulomb_velocity)
+            return friction_term(_term(name), qd, self._width(name))
         if qdd is None:
             raise ParameterError(f"HeldFriction.torque needs the accelerations qdd for the held drive inertia {name}.")
         return qdd

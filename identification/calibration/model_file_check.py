@@ -23,6 +23,7 @@ import math
 
 import numpy as np
 
+from identification.calibration.coulomb_width import file_coulomb_widths
 from identification.calibration.merged_rotors import merged_rotor_map
 from identification.calibration.model_preparation import PREPARATION_VERSION
 from identification.calibration.parameter_covariance import check_covariance_block
@@ -181,9 +182,9 @@ def _check_drive(name: str, block: dict, n_dof: int) -> None:
     expected = drive_column_names(n_dof, tuple(terms), [j - 1 for j in joints])
     if names != expected:
         raise _refuse(name, "drive.names", f"{expected} (from friction_terms and inertia_joints)", names)
-    velocity = block.get("coulomb_velocity")
-    if "fc" in terms and not (_is_number(velocity) and math.isfinite(velocity) and velocity > 0):
-        raise _refuse(name, "drive.coulomb_velocity", "a positive number [rad/s]", repr(velocity))
+    if "fc" in terms and block.get("coulomb_velocity") is None:
+        raise _refuse(name, "drive.coulomb_velocity", "a positive number [rad/s] or one per joint", "none")
+    file_coulomb_widths(block, n_dof, name)  # one positive width, or one per joint
     if "fs" in terms:
         vs = _numbers(name, block, "stribeck_velocity", "drive", n_dof)
         if min(vs) < 0 or max(vs) <= 0:

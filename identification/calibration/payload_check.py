@@ -76,7 +76,7 @@ def model_columns(calibrated, model, prepared) -> tuple:
     it); a parameter without a stated one (NaN: not estimated) adds none."""
     drive = calibrated.document["drive"]
     own = drive_columns(prepared.qd, prepared.qdd, tuple(drive["friction_terms"]),
-                        tuple(j - 1 for j in drive["inertia_joints"]), drive["coulomb_velocity"],
+                        tuple(j - 1 for j in drive["inertia_joints"]), calibrated.coulomb_widths,
                         *file_shape(drive))  # fmt: skip
     columns = np.concatenate([model.regressor(prepared.q, prepared.qd, prepared.qdd), own], axis=2)
     std = np.concatenate([calibrated.document["base"].get("std", []), drive.get("std", [])]).astype(float)

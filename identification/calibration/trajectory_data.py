@@ -135,9 +135,17 @@ def _is_symbolic(*values) -> bool:
     return any(isinstance(v, (ca.SX, ca.MX)) for v in values)
 
 
-def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None, viscous_exponent=None):
+def _symbolic_width(coulomb_velocity, symbolic: bool):
+    """The width as the expression divides by it: a per-joint array as a CasADi column beside CasADi velocities."""
+    if symbolic and np.ndim(coulomb_velocity) > 0:
+        return ca.DM(np.asarray(coulomb_velocity, dtype=float).reshape(-1, 1))
+    return coulomb_velocity
+
+
+def friction_term(term: str, qd, coulomb_velocity, stribeck_velocity=None, viscous_exponent=None):
     """The column of one friction term at velocities ``qd`` (numbers, arrays or CasADi expressions alike).
 
+    ``coulomb_velocity`` [rad/s]: a number, or one per joint along the last axis of ``qd`` (a CasADi column: along it).
     ``fc``: the smooth sign ``s = tanh(qd / coulomb_velocity)``; ``fv``: ``qd``, or with a ``viscous_exponent`` ``dv``
     the viscous power law (:func:`viscous_column`); ``offset``: 1. With a
     Stribeck velocity ``vs`` (the Stribeck shape), the friction ``(fc + (fs - fc) g) s + fv qd`` with
@@ -149,7 +157,7 @@ def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None
     """
     if term in ("fc", "fs"):
         symbolic = _is_symbolic(qd, stribeck_velocity)
-        sign = (ca.tanh if symbolic else np.tanh)(qd / coulomb_velocity)
+        sign = (ca.tanh if symbolic else np.tanh)(qd / _symbolic_width(coulomb_velocity, symbolic))
         if stribeck_velocity is None:
             if term == "fs":
                 raise ParameterError("friction_term: the term 'fs' needs stribeck_velocity [rad/s]; got None.")
@@ -163,15 +171,16 @@ def friction_term(term: str, qd, coulomb_velocity: float, stribeck_velocity=None
     raise ParameterError(f"friction_term.term must be one of {FRICTION_TERMS}; got {term!r}.")
 
 
-def viscous_column(qd, exponent, coulomb_velocity: float):
+def viscous_column(qd, exponent, coulomb_velocity):
     """The paper's viscous power law ``|qd|^dv sign(qd)`` (eq. 14), smoothed below the Coulomb smoothing velocity
     ``v`` as ``qd (qd^2 + v^2)^((dv - 1) / 2)`` (the same beyond a few ``v``, with a finite slope at rest: the exported
     code's derivatives stay finite); ``qd`` where ``exponent`` is 1. ``exponent``: a number (with numbers, arrays or
-    CasADi expressions) or one per joint along the last axis of ``qd``."""
+    CasADi expressions) or one per joint along the last axis of ``qd``; ``coulomb_velocity`` likewise."""
     if np.ndim(exponent) == 0 and float(exponent) == 1.0:
         return qd
     dv = float(exponent) if np.ndim(exponent) == 0 else np.asarray(exponent, dtype=float)
-    return qd * (qd**2 + coulomb_velocity**2) ** ((dv - 1.0) / 2.0)
+    v = _symbolic_width(coulomb_velocity, _is_symbolic(qd))
+    return qd * (qd**2 + v**2) ** ((dv - 1.0) / 2.0)
 
 
 def file_shape(drive: dict) -> tuple:
@@ -214,7 +223,7 @@ def stribeck_joints(terms, stribeck_velocity) -> tuple | None:
     return None if "fs" not in terms or all(v > 0 for v in vs) else tuple(j for j, v in enumerate(vs) if v > 0)
 
 
-def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
+def stribeck_derivative(qd, coulomb_velocity, stribeck_velocity):
     """``d/d vs`` of the Stribeck column ``g s`` (:func:`friction_term`): ``g s 2 qd^2 / vs^3`` (0 where ``vs`` is 0:
     that joint's velocity is not fitted), numpy."""
     vs = np.asarray(stribeck_velocity, dtype=float)
@@ -223,11 +232,12 @@ def stribeck_derivative(qd, coulomb_velocity: float, stribeck_velocity):
 
 
 def drive_columns(
-    qd, qdd, terms: tuple, inertia_joints, coulomb_velocity: float, stribeck_velocity=None, viscous_exponent=None
+    qd, qdd, terms: tuple, inertia_joints, coulomb_velocity, stribeck_velocity=None, viscous_exponent=None
 ):
     """Drive columns (n_samples, n_dof, k): per joint its friction terms, then the listed drive inertias.
 
-    The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)``; with ``stribeck_velocity``
+    The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)`` (a width [rad/s] for every joint, or one
+    per joint, ``coulomb_width``); with ``stribeck_velocity``
     (n_dof,) [rad/s] the Coulomb and static columns are the Stribeck shape's, with ``viscous_exponent`` (n_dof,) the
     viscous column the power law (:func:`friction_term`).
     """

@@ -384,19 +384,22 @@ def _pooled_velocity(recordings) -> np.ndarray:
     return np.concatenate([r.qd if r.qd is not None else np.gradient(r.q, r.t, axis=0) for r in recordings])
 
 
-def one_way_joints(recordings, joints, *, speed: float, min_fraction: float) -> list:
-    """The joints of ``joints`` (0-based, sorted) that do not move faster than ``speed`` [rad/s] both ways on
+def one_way_joints(recordings, joints, *, speed, min_fraction: float) -> list:
+    """The joints of ``joints`` (0-based, sorted) that do not move faster than ``speed`` [rad/s] (one, or one per
+    joint) both ways on
     ``min_fraction`` of the pooled samples of ``recordings``: their Coulomb friction is a constant there, which a
     torque offset or the rigid body's gravity takes as well."""
     return one_way_velocities(_pooled_velocity(list(recordings)), joints, speed=speed, min_fraction=min_fraction)
 
 
-def one_way_velocities(qd: np.ndarray, joints, *, speed: float, min_fraction: float) -> list:
+def one_way_velocities(qd: np.ndarray, joints, *, speed, min_fraction: float) -> list:
     """The joints of ``joints`` (0-based, sorted) whose velocity ``qd`` (n_samples, n_dof) [rad/s] is not above
-    ``speed`` both ways on ``min_fraction`` of the samples (``one_way_joints``' rule on one velocity array)."""
+    ``speed`` (one, or one per joint) both ways on ``min_fraction`` of the samples (``one_way_joints``' rule on one
+    velocity array)."""
     qd = np.asarray(qd, dtype=float)
+    speeds = np.broadcast_to(np.asarray(speed, dtype=float), qd.shape[1:])
     return [j for j in sorted({int(j) for j in joints})
-            if min(np.mean(qd[:, j] > speed), np.mean(qd[:, j] < -speed)) < min_fraction]  # fmt: skip
+            if min(np.mean(qd[:, j] > speeds[j]), np.mean(qd[:, j] < -speeds[j])) < min_fraction]  # fmt: skip
 
 
 def check_reversals(recordings, joints, *, speed: float, min_fraction: float, robot=None, purpose: str, fix: str):

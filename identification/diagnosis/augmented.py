@@ -46,7 +46,7 @@ class AugmentedModel:
     coefficients: tuple
     parameter_map: np.ndarray | None = None
     held_friction: HeldFriction = HeldFriction()
-    coulomb_velocity: float = SMOOTH_VELOCITY
+    coulomb_velocity: float | tuple = SMOOTH_VELOCITY
 
     @property
     def terms_map(self) -> np.ndarray:

@@ -115,8 +115,8 @@ class DiagnosisContext:
         The torque offset [N m] per joint ``tau_held`` holds (a model file's; empty: none): a fitted offset on such a
         joint is the part the data add to it, and its plausibility is judged on the joint's whole offset
         (``candidates.base.held_offset``).
-    coulomb_velocity : float
-        The smoothing velocity [rad/s] of the nominal friction's sign without a LuGre prior
+    coulomb_velocity : float or tuple of float
+        The smoothing velocity [rad/s] of the nominal friction's sign (one, or one per joint) without a LuGre prior
         (``nominal.friction_blocks``; ``DiagnosisOptions.coulomb_velocity``).
     segments : tuple of int
         Where each recording after the first starts in the full-rate arrays of a context pooling several
@@ -154,7 +154,7 @@ class DiagnosisContext:
     torque_constants: np.ndarray | None = None
     tau_held: np.ndarray | None = None
     held_offsets: tuple = ()
-    coulomb_velocity: float = SMOOTH_VELOCITY
+    coulomb_velocity: float | tuple = SMOOTH_VELOCITY
     segments: tuple = ()
 
     @property

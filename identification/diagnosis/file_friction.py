@@ -29,6 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.coulomb_width import widths_text
 from identification.calibration.mixed_friction import file_lugre_joints
 from identification.calibration.trajectory_data import friction_shapes, friction_term
 
@@ -41,12 +42,12 @@ HELD_SHAPES = {"stribeck": ("stribeck",), "lugre": ("stribeck", "smooth_coulomb"
 @dataclass(frozen=True)
 class FileFriction:
     """A model file's friction per joint: ``shapes`` (``"coulomb-viscous"``, ``"stribeck"``, ``"lugre"``), the Coulomb
-    smoothing ``coulomb_velocity`` [rad/s], the Stribeck velocity per joint ``stribeck_velocity`` [rad/s] (0: none),
-    the viscous exponent per joint ``viscous_exponent`` (1: linear) and the LuGre parameters per joint ``lugre``
-    (``LuGreParameters``; None on a steady-state joint)."""
+    smoothing ``coulomb_velocity`` [rad/s] per joint (``coulomb_width``), the Stribeck velocity per joint
+    ``stribeck_velocity`` [rad/s] (0: none), the viscous exponent per joint ``viscous_exponent`` (1: linear) and the
+    LuGre parameters per joint ``lugre`` (``LuGreParameters``; None on a steady-state joint)."""
 
     shapes: tuple
-    coulomb_velocity: float
+    coulomb_velocity: tuple
     stribeck_velocity: tuple
     viscous_exponent: tuple
     lugre: tuple
@@ -60,7 +61,7 @@ class FileFriction:
         vs = [float(v) for v in (drive.get("stribeck_velocity") or [0.0] * n)]
         steady = friction_shapes(drive.get("friction_terms", ()), vs, n)  # no Stribeck column: Coulomb-viscous
         shapes = tuple("lugre" if j in joints else steady[j] for j in range(n))
-        return cls(shapes=shapes, coulomb_velocity=float(drive.get("coulomb_velocity", 0.05)),
+        return cls(shapes=shapes, coulomb_velocity=tuple(calibrated.coulomb_widths.tolist()),
                    stribeck_velocity=tuple(vs[j] if shapes[j] == "stribeck" else 0.0 for j in range(n)),
                    viscous_exponent=tuple(float(v) for v in (drive.get("viscous_exponent") or [1.0] * n)),
                    lugre=tuple(lugre))  # fmt: skip
@@ -96,7 +97,7 @@ class FileFriction:
                     :, j, [j * k, j * k + 1, j * k + 2, n * k + j]
                 ]
                 continue
-            v, dv = self.coulomb_velocity, self.viscous_exponent[j]
+            v, dv = self.coulomb_velocity[j], self.viscous_exponent[j]
             out[:, j, j * k] = friction_term("fc", qd[:, j], v)
             out[:, j, j * k + k - 1] = friction_term("fv", qd[:, j], v, None, None if dv == 1.0 else dv)
             if k == 3 and self.stribeck_velocity[j] > 0:
@@ -134,5 +135,5 @@ class FileFriction:
         power = [j + 1 for j, dv in enumerate(self.viscous_exponent) if dv != 1.0 and self.lugre[j] is None]
         if power:
             parts.append(f"viscous power law on joint{'s' if len(power) > 1 else ''} {', '.join(map(str, power))}")
-        smooth = f"Coulomb sign smoothed over {self.coulomb_velocity:.3g} rad/s"
+        smooth = f"Coulomb sign smoothed over {widths_text(self.coulomb_velocity)}"
         return f"the model file's per-joint ({'; '.join(parts)}; {smooth})"

@@ -64,6 +64,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.coulomb_width import widths_text
 from identification.calibration.trajectory_checks import MIN_REVERSAL_FRACTION
 from identification.data.excitation_check import one_way_velocities
 from identification.diagnosis.candidates.friction import lacking_friction_shapes, recording_cache
@@ -250,7 +251,7 @@ class FrictionRival:
         if skipped:
             self._said_one_way.update(skipped)
             names = ", ".join(str(j + 1) for j in skipped)
-            one, speed = len(skipped) == 1, f"{self.train_ctx.coulomb_velocity:.3g} rad/s"
+            one, speed = len(skipped) == 1, widths_text(self.train_ctx.coulomb_velocity)
             sentence = (
                 (f"joint {names} never reverses" if one else f"joints {names} never reverse")
                 + " in training: "

@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from identification.calibration.calibrated_model import LoadedModel, calibrated_robot, read_calibrated_model
+from identification.calibration.coulomb_width import width_value
 from identification.calibration.counterbalance_record import counterbalance_offsets
 from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
@@ -110,7 +111,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     smooth = options.coulomb_velocity
     shape = own_friction(calibrated) if own_shape is not None else friction  # a LuGre file's: as before
     if shape != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
-        smooth = float(calibrated.document["drive"].get("coulomb_velocity", SMOOTH_VELOCITY))
+        smooth = width_value(calibrated.coulomb_widths)
     return replace(options, friction=friction, cutoff_hz=cutoff, rate_hz=rate, edge_periods=own.edge_periods,
                    held_friction=held, coulomb_velocity=smooth, carried=carried,
                    held_links=options.held_links or holds.held_links,

@@ -31,6 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width
 from identification.data.torque_constants import drive_kt
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
 from identification.diagnosis.columns import BlockColumns
@@ -209,16 +210,16 @@ def lugre_dynamic_columns(robot, context) -> np.ndarray | None:
     return out
 
 
-def friction_casadi(kind: str, qd, coefficients, vs, dv, smooth: float = SMOOTH_VELOCITY):
+def friction_casadi(kind: str, qd, coefficients, vs, dv, smooth=SMOOTH_VELOCITY):
     """Friction torque (SX, n_dof) of fitted coefficients (joint-major as ``friction_columns``), the sign smoothed over
-    ``smooth`` [rad/s]."""
+    ``smooth`` [rad/s] (one width, or one per joint)."""
     import casadi as ca
 
     n = qd.shape[0]
     out = ca.SX.zeros(n)
     k = 3 if kind in STRIBECK_SHAPED else 2
     for j in range(n):
-        s = ca.tanh(qd[j] / smooth)
+        s = ca.tanh(qd[j] / joint_width(smooth, j))
         c = coefficients[j * k : (j + 1) * k]
         if kind in STRIBECK_SHAPED:
             out[j] = c[0] * s + c[1] * ca.exp(-((qd[j] / vs[j]) ** 2)) * s + c[2] * ca.power(ca.fabs(qd[j]), dv[j]) * s

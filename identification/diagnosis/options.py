@@ -11,6 +11,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.coulomb_width import positive_widths
 from identification.calibration.held_friction import HeldFriction
 from identification.data.excitation_check import ExcitationThresholds
 from identification.data.filter_choice import AUTO, EDGE_PERIODS, resolve_auto
@@ -100,8 +101,9 @@ class DiagnosisOptions:
         ``model_file.model_file_options``): no fit of the diagnosis estimates those joints' friction columns, every one
         explains the torque the held friction leaves (``DiagnosisContext.tau_fit``), so the nominal model predicts
         those joints as ``psdm validate`` predicts the file.
-    coulomb_velocity : float
-        The smoothing [rad/s] of the nominal friction's sign without drives (a model file's: ``model_file_options``).
+    coulomb_velocity : float or tuple of float
+        The smoothing [rad/s] of the nominal friction's sign without drives, one width or one per joint (a model file's:
+        ``model_file_options``).
     carried : tuple of CandidateTerm
         Terms the nominal model holds as columns (``carried_terms``): a model file's counterbalance identify took
         (``model_file_options``), its coefficients fitted again in every fit of the diagnosis, reported as kept from
@@ -150,7 +152,7 @@ class DiagnosisOptions:
     cv_folds: int = 4
     envelope: bool = True
     held_friction: HeldFriction = HeldFriction()
-    coulomb_velocity: float = SMOOTH_VELOCITY
+    coulomb_velocity: float | tuple = SMOOTH_VELOCITY
     carried: tuple = ()
     held_links: tuple = ()
     viscous_power: bool = False
@@ -213,8 +215,8 @@ class DiagnosisOptions:
         if not isinstance(self.held_friction, HeldFriction):
             raise ParameterError(f"DiagnosisOptions.held_friction must be a HeldFriction; got "
                                  f"{type(self.held_friction).__name__}.")  # fmt: skip
-        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
-            raise ParameterError(f"DiagnosisOptions.coulomb_velocity must be > 0 [rad/s]; got {self.coulomb_velocity}.")
+        width = positive_widths(self.coulomb_velocity, "DiagnosisOptions.coulomb_velocity")  # one, or per joint
+        object.__setattr__(self, "coulomb_velocity", width)
         if not all(isinstance(t, CandidateTerm) and len(t.joints) == 1 for t in self.carried):
             raise ParameterError(f"DiagnosisOptions.carried must hold candidate terms on one joint each (a model "
                                  f"file's counterbalance); got {self.carried!r}.")  # fmt: skip

@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width
+
 __all__ = ["DEFLECTIONS", "MIN_MOVING", "RISE_PERIODS", "block_mask", "moving_samples"]
 
 #: Candidate keys whose block comparisons leave out their joint's standstill samples (module docstring).
@@ -42,7 +44,7 @@ def moving_samples(ctx, joint: int) -> np.ndarray:
     """Boolean mask (n_samples,) of the grid samples of ``ctx`` (a ``DiagnosisContext``) where ``joint`` is not at a
     standstill (module docstring): its filtered velocity at least ``ctx.coulomb_velocity``, and no such sample within
     ``RISE_PERIODS / ctx.cutoff_hz`` of it (none without a filter)."""
-    still = np.abs(np.asarray(ctx.qd[:, int(joint)], dtype=float)) < float(ctx.coulomb_velocity)
+    still = np.abs(np.asarray(ctx.qd[:, int(joint)], dtype=float)) < joint_width(ctx.coulomb_velocity, int(joint))
     if ctx.cutoff_hz and still.any() and ctx.n_samples > 1:
         step = float(np.median(np.diff(ctx.t)))
         reach = int(round(RISE_PERIODS / float(ctx.cutoff_hz) / step))

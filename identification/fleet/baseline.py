@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.coulomb_width import width_value
 from identification.calibration.findings import FindingTerm
 from identification.data.torque_constants import drive_kt
 from identification.fleet.layout import RobotEntry, TrackedTerms
@@ -34,8 +35,8 @@ class Baseline:
         The rigid body held [the model's base parameters].
     friction : array, shape (n_dof, 2)
         Baseline Coulomb and viscous friction per joint [N m, N m s/rad].
-    coulomb_velocity : float
-        [rad/s] of the smooth sign ``tanh(qd / v)`` of the Coulomb column.
+    coulomb_velocity : float or tuple of float
+        [rad/s] of the smooth sign ``tanh(qd / v)`` of the Coulomb column (one, or one per joint: ``coulomb_width``).
     kt : array, shape (n_dof,)
         Nominal torque constants [N m/A] (recordings of currents).
     terms : tuple of FindingTerm
@@ -53,7 +54,7 @@ class Baseline:
     robot: object
     theta: np.ndarray
     friction: np.ndarray
-    coulomb_velocity: float
+    coulomb_velocity: float | tuple
     kt: np.ndarray
     terms: tuple
     term_values: np.ndarray
@@ -135,7 +136,7 @@ def build_baseline(entry: RobotEntry, track: TrackedTerms, derive) -> tuple:
         for term in offsets:  # the calibrated model's offsets are refitted as findings
             if term not in terms:
                 terms, values = (*terms, term), np.append(values, named[f"offset{term.joint + 1}"])
-        theta, cv = calibrated.theta, float(drive["coulomb_velocity"])
+        theta, cv = calibrated.theta, width_value(calibrated.coulomb_widths)
         source = str(calibrated.robot_file())
     else:
         from psdm_casadi.robot import load_robot
