@@ -42,6 +42,7 @@ import numpy as np
 
 from identification.calibration.offset_or_balancer import BALANCER, OffsetVerdict, offset_or_balancer
 from identification.calibration.offset_reading import LOADED_SHARE, OffsetReading
+from identification.calibration.trajectory_data import drive_offset
 
 __all__ = ["FileHeldReading", "file_held_offsets"]
 
@@ -129,7 +130,7 @@ def file_held_offsets(problem, fit, calibrated, validation, joints, kt=None) -> 
         scale = float(np.clip(share, -uncertainty, uncertainty))  # the most of it the file's masses may hold
         pairs = [[(qk[:, j], tk[:, j] + level + scale * gk[:, j]) for qk, tk, gk in side]
                  for side in (training, out_of_sample)]  # fmt: skip
-        offset = float(fit.drive[names.index(f"offset{j + 1}")])
+        offset = drive_offset(fit.drive, names, j, required=True)
         out[j] = FileHeldReading(j, offset, level, share, uncertainty, offset_or_balancer(j, *pairs),
                                  float(np.max(np.abs(gravity))), float(peak[j]))  # fmt: skip
     return out

@@ -26,6 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.trajectory_data import drive_offset
+
 __all__ = [
     "GRAVITY_SHARE",
     "LOADED_SHARE",
@@ -119,8 +121,8 @@ def fit_offsets(robot, model, recordings, fit, joints, kt=None) -> dict:
     gravity = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
     out = {}
     for j in found:
-        reading = oversized_offset(j, fit.drive[names.index(f"offset{j + 1}")], np.max(np.abs(gravity[:, j])),
-                                   np.max(np.abs(tau[:, j])))  # fmt: skip
+        reading = oversized_offset(j, drive_offset(fit.drive, names, j, required=True),
+                                   np.max(np.abs(gravity[:, j])), np.max(np.abs(tau[:, j])))  # fmt: skip
         if reading is not None:
             out[j] = reading
     return out

@@ -122,11 +122,15 @@ def drive_column_joint(name: str) -> int:
     return int(name[len(name.rstrip("0123456789")) :]) - 1
 
 
-def drive_offset(values, names, joint: int) -> float:
+def drive_offset(values, names, joint: int, required: bool = False) -> float:
     """[N m] the torque offset of the 0-based ``joint`` among drive ``values`` labelled ``names`` (a fit's drive
     parameters, a model file's drive block): the value of its column ``offset<joint + 1>``, 0 where there is none or
-    its value is null (a model file writes a value it does not state as null)."""
+    its value is null (a model file writes a value it does not state as null). ``required``: a caller that reads an
+    offset the fit chose, where no column is an error (ParameterError naming the columns), not an offset of 0."""
     names, name = list(names), f"offset{joint + 1}"
+    if required and name not in names:
+        raise ParameterError(f"drive_offset: no column {name} among the drive columns {names}; the offset of joint "
+                             f"{joint + 1} was to be read from the fit.")  # fmt: skip
     value = values[names.index(name)] if name in names else None
     return 0.0 if value is None else float(value)
 

@@ -19,7 +19,10 @@ plausibility check does not judge them as a new spring (``plausible_fit``: ident
 A model file's drive columns are carried the same way (``drive_columns``: a free rotor inertia beside each, the library
 offering no other rotor inertia on its joint, but still its springs: ``CarriedColumns.covers``); they are the file's
 parameters, not findings, and neither put the rigid body in question (``rigid_body_choice.inertia_in_question``) nor
-stay in the report's findings.
+stay in the report's findings. So is a torque offset the file chose from the data (``file_offsets``: a free offset
+beside the file's held value); a spring on its joint then has no constant of its own (``CarriedColumns.shaped``: the
+two would be one column, the rest angle split between them at random), and the report gives it the combined constant
+back (``CarriedColumns.with_constants``), the one ``diagnose --apply`` writes (it leaves the offset to the spring).
 """
 
 from __future__ import annotations
@@ -72,6 +75,47 @@ class CarriedColumns:
         same = {(carried.key, j) for carried in self.terms for j in carried.joints}
         spring = term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & balanced)
         return spring or any((term.key, j) in same for j in term.joints)
+
+    @property
+    def offset_joints(self) -> tuple:
+        """The joints (0-based) of the carried free torque offsets (a model file's data-chosen ones)."""
+        return tuple(j for carried in self.terms if carried.key == "torque_offset" for j in carried.joints)
+
+    def shaped(self, term):
+        """The library's ``term`` as the selection fits it: a spring on a carried offset's joint without its constant
+        (module docstring); any other term unchanged."""
+        if term.key == "spring" and getattr(term, "constant", False) and set(term.joints) & set(self.offset_joints):
+            return replace(term, constant=False)
+        return term
+
+    def offset_columns(self, problem) -> dict:
+        """``{joint: index}`` of each carried offset's column among the nominal columns of ``bases``."""
+        start = problem.base_t.n_columns
+        out = {}
+        for carried in self.terms:
+            if carried.key == "torque_offset":
+                out[carried.joints[0]] = start
+            start += len(carried.feature_names())
+        return out
+
+    def with_constants(self, final):
+        """``final`` (``diagnose.FinalFit``) with each spring fitted without its constant beside a carried offset
+        (``shaped``) given that offset's coefficient as its constant, the offset's coefficient then 0: the same
+        torque, the spring's rest angle read from the combined constant (the file's held offset is added where the
+        report states it, ``report_assembly.with_held_offset``)."""
+        labels = {c.label for c in self.terms if c.key == "torque_offset"}
+        offsets = {t.joints[0]: k for k, t in enumerate(final.terms) if t.label in labels}
+        springs = [k for k, t in enumerate(final.terms)
+                   if t.key == "spring" and not getattr(t, "constant", True) and t.joints[0] in offsets]  # fmt: skip
+        if not springs:
+            return final
+        terms, coefficients = list(final.terms), [np.asarray(c, dtype=float) for c in final.coefficients]
+        for k in springs:
+            offset = offsets[terms[k].joints[0]]
+            terms[k] = replace(terms[k], constant=True)
+            coefficients[k] = np.append(coefficients[k], coefficients[offset][0])
+            coefficients[offset] = np.zeros(1)
+        return replace(final, terms=tuple(terms), coefficients=tuple(coefficients))
 
     def columns(self, context) -> BlockColumns | None:
         """The carried terms' columns on ``context`` (None without terms)."""

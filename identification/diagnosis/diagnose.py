@@ -336,14 +336,15 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     whose Stribeck velocities are fixed and whose Coulomb friction is a step, but not a shape the file already holds
     on a joint, ``FileFriction.holds``; the robot file's LuGre friction, whose one Stribeck peak sits at the drive's
     velocity). The terms ``options.carried`` are columns of the nominal model,
-    kept and reported first (``carried_terms``)."""
+    kept and reported first (``carried_terms``); a spring beside a carried offset is fitted without its constant
+    (``CarriedColumns.shaped``)."""
     library = options.library if options.library is not None else default_library()
     lacking = options.friction_shapes and options.friction in ("coulomb_viscous", "stribeck")  # LuGre drives state them
     if options.library is None and options.friction_shapes:  # a LuGre nominal lacks a peak at another velocity
         library = library + CandidateLibrary(lacking_friction_shapes(options.friction))
     ctx_t, carried = problem.ctx_t, CarriedColumns(options.carried)
     held = None if options.file_friction is None else options.file_friction.holds  # a model file's own shapes
-    instances = [term for term in library.expand(robot.n_dof)
+    instances = [carried.shaped(term) for term in library.expand(robot.n_dof)
                  if not set(term.joints) & set(left_out(ctx_t)) and not carried.covers(term)
                  and not (held is not None and held(term))]  # fmt: skip
     n_eff = None
@@ -353,7 +354,7 @@ def select_terms(robot, problem: DiagnosisProblem, options: DiagnosisOptions) ->
     logger.info(f"diagnose: [{setting}] selecting among {len(instances)} candidate terms ...")
     base_t, base_v, extra_v = carried.bases(problem)
     validations = [(problem.ctx_v, base_v, problem.y_v), *extra_v]
-    opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2)
+    opinion = SecondOpinion(ctx_t, validations, folds=options.cv_folds or 2, offsets=carried.offset_columns(problem))
     result = forward_select(
         instances, ctx_t, problem.ctx_v, base_t, base_v, problem.y_t, problem.y_v,
         min_improvement=options.min_improvement, max_effects=options.max_effects, effective_samples=n_eff,

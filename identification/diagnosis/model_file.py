@@ -17,11 +17,14 @@ and the preparation it used. The friction identify held on joints that moved one
 refits (the rigid body recalibrated, freely or inside the envelope, the findings' joint fits) keep it, as ``diagnose
 --apply``'s refit does (``recalibrate``); beside each such drive column a free one fits its value again with the
 friction (``drive_columns``), as identify fits it: an effect the column absorbed (a torque ripple) is found with the
-drive inertia it leaves, not beside the file's. A rotor inertia the diagnosis finds inside the file's base parameters
-is a change of them, not a finding (``base_change``). So does the counterbalance identify took (``model_file_holds``): a
-column of the nominal model in every fit (``carried_terms``), its coefficients fitted again, reported first among the
-findings as kept from identify, so that no rigid-body refit of the diagnosis absorbs it into the links again; and the
-links identify held at the robot file's stay held in its rigid-body recalibrations (``held_links``).
+drive inertia it leaves, not beside the file's; and beside each torque offset identify chose from the data a free one
+(``file_offsets``): an effect the offset absorbed is found without the offset's share, and a file's offset the data
+move is reported as the file's value not holding (or moving between recordings), with its numbers. A rotor inertia
+the diagnosis finds inside the file's base parameters is a change of them, not a finding (``base_change``). So does the
+counterbalance identify took (``model_file_holds``): a column of the nominal model in every fit (``carried_terms``), its
+coefficients fitted again, reported first among the findings as kept from identify, so that no rigid-body refit of the
+diagnosis absorbs it into the links again; and the links identify held at the robot file's stay held in its rigid-body
+recalibrations (``held_links``).
 ``psdm diagnose`` calls :func:`diagnose_model_prior`, so the Python API and the command give the same numbers.
 """
 
@@ -57,6 +60,7 @@ from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.drive_columns import with_drive_columns, without_drive_columns
 from identification.diagnosis.file_friction import FileFriction
+from identification.diagnosis.file_offsets import with_file_offsets, with_offset_columns
 from identification.diagnosis.motion_checks import training_recordings, validation_recordings
 from identification.diagnosis.report import DiagnosisReport
 from identification.diagnosis.report_assembly import with_model_file_before
@@ -275,8 +279,9 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         logger.info(f"diagnose: {prior.first_pass()}")
         kept = replace(options.held_friction, values=tuple((n, v) for n, v in options.held_friction.values
                                                            if not (n.startswith("Ia") and v >= 0.0)))  # fmt: skip
-        report = diagnose(with_file_rigid_body(robot, robot_file), train, validation,
-                          replace(options, held_friction=kept, nominal="robot file"), model=model)  # fmt: skip
+        own = with_offset_columns(replace(options, held_friction=kept, nominal="robot file"), calibrated.document)
+        report = diagnose(with_file_rigid_body(robot, robot_file), train, validation, own, model=model)
+        report = with_file_offsets(report, calibrated.document, options.min_improvement)
         worse = robot_file_worse(report, file_prediction(loaded, first))
         if worse:
             prior, report = prior.declining(worse), None
@@ -284,9 +289,10 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         logger.debug(f"diagnose: {prior.note()}")  # the report says it (rigid_body_notes); the CLI prints it
     if report is None:  # the file's drive columns held, not rotors a recalibrated rigid body drops (file_held), and
         # fitted again beside the findings (``drive_columns``)
-        own = with_drive_columns(options, calibrated.document)
+        own = with_offset_columns(with_drive_columns(options, calibrated.document), calibrated.document)
         report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, own, model=model)
-        report = as_base_changes(without_drive_columns(report, calibrated.document), robot, model)
+        report = without_drive_columns(report, calibrated.document)
+        report = as_base_changes(with_file_offsets(report, calibrated.document, own.min_improvement), robot, model)
     report = with_applied_after(
         report, loaded, train, first, refit
     )  # the model --apply writes: its "after" (applied_after)

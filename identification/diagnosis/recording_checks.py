@@ -41,12 +41,15 @@ class FindingOnRecording:
 
 @dataclass(frozen=True)
 class RecordingCheck:
-    """One validation recording: per-joint RMSE of the nominal and the final model, and each finding's verdict."""
+    """One validation recording: per-joint RMSE of the nominal and the final model, and each finding's verdict;
+    ``mean_after`` the final model's mean residual per joint [N m] (what a constant torque would take there: how far
+    an offset the diagnosis fits is off on this recording, ``file_offsets``)."""
 
     name: str
     rmse_before: tuple
     rmse_after: tuple
     findings: tuple
+    mean_after: tuple = ()
 
     def to_dict(self) -> dict:
         return {
@@ -96,5 +99,7 @@ def check_recordings(problem, final, findings) -> tuple:
             )
         name = f"validation recording {i + 1}" + (f" ({ctx.name})" if getattr(ctx, "name", "") else "")
         before = rmse(y, base.predict(nominal))
-        out.append(RecordingCheck(name, tuple(before.tolist()), tuple(after.tolist()), tuple(verdicts)))
+        residual = np.asarray(y - predicted, dtype=float)
+        mean = [float(np.mean(r[np.isfinite(r)])) if np.isfinite(r).any() else float("nan") for r in residual.T]
+        out.append(RecordingCheck(name, tuple(before.tolist()), tuple(after.tolist()), tuple(verdicts), tuple(mean)))
     return tuple(out)

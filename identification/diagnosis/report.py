@@ -148,6 +148,7 @@ class DiagnosisReport:
     payload_check_as: str = ""  # how that check judges them (as ``psdm validate``, or as identify its held-out ones)
     payload_checks: tuple = ()  # per validation recording {"recording": file, "load": its load's dict or None}
     friction_temperature: str | None = None  # where the model file's friction law was read on the first (as validate)
+    file_offsets: tuple = ()  # ``file_offsets.FileOffset``: a model file's data-chosen offsets fitted again
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -185,6 +186,7 @@ class DiagnosisReport:
             "confounding": [c.to_dict() for c in self.confounding],
             "dropped": list(self.dropped),
             "rigid_body_notes": list(self.rigid_body_notes),
+            "file_offsets": [o.to_dict() for o in self.file_offsets],
             "nominal_model": self.nominal_model,
             "preparation": self.preparation,
             "held_out": list(self.held_out),
@@ -317,6 +319,9 @@ class DiagnosisReport:
                 f"the model file's values in every fit ({friction})") if friction else ""  # fmt: skip
         if offsets:
             text += f"; the model file's torque offsets held at its values in every fit ({offsets})"
+            refitted = ", ".join(f"offset{o.joint + 1}" for o in self.file_offsets)
+            text += (f", with a free offset beside each the data chose ({refitted}), fitted again in every fit (see "
+                     "the notes)") if refitted else ""  # fmt: skip
         if inertias:
             text += (f"; the model file's drive inertias below 0 (a torque measured behind the gearbox) or outside the "
                      f"base parameters (its drive columns) held at its values in every fit, the recalibrated rigid "

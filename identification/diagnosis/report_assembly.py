@@ -18,6 +18,7 @@ from identification.calibration.model_preparation import Preparation, edge_text
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from identification.diagnosis.carried_terms import CarriedColumns
 from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.counterbalance_naming import name_counterbalances, offset_verdicts
 from identification.diagnosis.design import left_out
@@ -42,7 +43,9 @@ def build_report(
     options,
     unnamed: tuple = (),
 ) -> DiagnosisReport:
-    """The findings, the augmented model and the per-joint errors of the nominal and the final model."""
+    """The findings, the augmented model and the per-joint errors of the nominal and the final model (a spring fitted
+    beside a carried offset given the combined constant, ``CarriedColumns.with_constants``)."""
+    final = CarriedColumns(options.carried).with_constants(final)
     ctx_t, ctx_v = problem.ctx_t, problem.ctx_v
     fixed_t = ctx_t.tau - problem.y_t
     fixed_v = ctx_v.tau - problem.y_v

@@ -33,7 +33,7 @@ RMSE there without and with it), listed apart in the report (``DiagnosisReport.u
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -133,12 +133,17 @@ class SecondOpinion:
         Each validation recording's context, nominal columns and fitted torque, the selection's validation recording
         first. With one, the route is the block cross-validation of the training data.
     folds : int
+    offsets : dict
+        ``{joint: index}`` of a free torque offset's column among the nominal columns (a model file's data-chosen
+        offset, ``carried_terms.CarriedColumns.offset_columns``): a spring fitted beside it without its constant is
+        stated with that column's fit as its constant.
     """
 
-    def __init__(self, train_ctx, validations, folds: int = FOLDS):
+    def __init__(self, train_ctx, validations, folds: int = FOLDS, offsets=None):
         self.train_ctx = train_ctx
         self.validations = [list(v) for v in validations]
         self.folds = int(folds)
+        self.offsets = dict(offsets or {})
 
     @property
     def route(self) -> str:
@@ -180,19 +185,37 @@ class SecondOpinion:
         offset = held_offset(self.train_ctx, int(joint)) if constant else 0.0
         return (constant[0], offset) if offset else (None, 0.0)
 
-    def _stated(self, term, coefficients) -> np.ndarray:
-        """``coefficients`` with the term's constant plus the offset the nominal model holds on its joint
-        (``_held_constant``): the two are one column, so the fit's constant alone is what the term adds to the offset,
-        and a spring's rest angle without it is not the spring's. Stated as a kept term's are
-        (``report_assembly.with_held_offset``); unchanged without a held offset or coefficients."""
-        stated = np.array(coefficients, dtype=float)
+    def _beside_offset(self, term) -> int | None:
+        """The nominal column of the free offset a spring without its constant was fitted beside (``offsets``)."""
+        if term.key != "spring" or getattr(term, "constant", True):
+            return None
+        return self.offsets.get(int(term.joint))
+
+    def _stated(self, term, beta, p: int) -> tuple:
+        """``(term, coefficients)`` of the term's part of a fit's ``beta`` (its ``p`` nominal coefficients first) as a
+        kept term's are stated (``report_assembly.with_held_offset``): the term's constant plus the offset the nominal
+        model holds on its joint (``_held_constant``: the two are one column, so the fit's constant alone is what the
+        term adds to the offset, and a spring's rest angle without it is not the spring's); a spring fitted without
+        its constant beside a free offset (``_beside_offset``) with the held offset plus that offset's fit as its
+        constant. Unchanged without a held offset or coefficients."""
+        beta = np.asarray(beta, dtype=float)
+        stated = beta[p:].copy()
+        column = self._beside_offset(term)
+        if column is not None and stated.size:
+            offset = held_offset(self.train_ctx, int(term.joint)) + float(beta[column])
+            return replace(term, constant=True), np.append(stated, offset)
         index, offset = self._held_constant(term)
         if index is not None and stated.size:
             stated[index] += offset
-        return stated
+        return term, stated
 
     def _held_note(self, term) -> str:
         """How an unstable term's numbers read beside a held offset (``_stated``); "" without one."""
+        joint = getattr(term, "joint", None)
+        if self._beside_offset(term) is not None:
+            return (f"the model file holds a torque offset of {held_offset(self.train_ctx, int(joint)):+.4g} N m on "
+                    f"joint {int(joint) + 1}, fitted again beside the term in each fit: each constant below is the "
+                    "file's offset plus that fit's part, the rest angle read from it, as a kept term's is")  # fmt: skip
         index, offset = self._held_constant(term)
         if index is None:
             return ""
@@ -221,9 +244,9 @@ class SecondOpinion:
             before = rmse(y, base.predict(beta0))
             after = rmse(y, base.predict(beta1[:p]) + cv @ beta1[p:])
             failure = passes_gates(before, after, own, limits.floor, limits.min_improvement, limits.sigma)
-            alone = WeightedDesign(base, base, y, y, limits.sigma).fit(cv, cv)[0][p:]
+            alone = WeightedDesign(base, base, y, y, limits.sigma).fit(cv, cv)[0]
             name = f"validation recording {i + 1}" + (f" ({ctx.name})" if ctx.name else "")
-            out.append(_numbers(name, term, self._stated(term, alone), shown, before, after, failure))
+            out.append(_numbers(name, *self._stated(term, alone, p), shown, before, after, failure))
         return out
 
     def _blocks(self, design, term, ct, own, limits) -> list:
@@ -253,7 +276,7 @@ class SecondOpinion:
             before, after = rmse(y[kept], pooled0[kept]), rmse(y[kept], pooled1[kept])
             failure = passes_gates(before, after, own, 0.0, 0.0, design.sigma)
             name = f"training block {k + 1} of {self.folds} (t {t[block[0]]:.1f}-{t[block[-1]]:.1f} s)"
-            out.append(_numbers(name, term, self._stated(term, beta[p:]), shown, before, after, failure))
+            out.append(_numbers(name, *self._stated(term, beta, p), shown, before, after, failure))
             signs |= set(np.sign(beta[p:]).tolist())
         replicated = term.key in REPLICATED
         gain = 0.0 if replicated else limits.min_improvement

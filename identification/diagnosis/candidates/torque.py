@@ -61,6 +61,11 @@ class SpringTerm(CandidateTerm):
     odd : bool
         Only the odd powers about ``centre``: a counterbalance's law about its neutral angle (files without it read
         as False).
+    constant : bool
+        Whether the term has a constant column of its own (files without it read as True). False beside a free torque
+        offset column the nominal model carries on the joint (``carried_terms.CarriedColumns.shaped``): the two would
+        be one column, and the rest angle could not be told from the offset; the report gives the term the combined
+        constant back (``CarriedColumns.with_constants``).
     """
 
     joint: int | None = None
@@ -70,6 +75,7 @@ class SpringTerm(CandidateTerm):
     q_range: tuple | None = None
     lever_law: bool = True
     odd: bool = False
+    constant: bool = True
     key = "spring"
     explanation = "a position-dependent elastic torque k (q - q0) on the joint (spring balancer, cables)"
     signature = "residual follows joint position, not velocity"
@@ -136,9 +142,15 @@ class SpringTerm(CandidateTerm):
     def feature_names(self):
         self._require_joint()
         j = self.joint + 1
+        constant = [f"c_{j}"] if self.constant else []
         if self.order == 1:
-            return [f"k_q{j}", f"c_{j}"]
-        return [f"k{i}_q{j}" for i in self.exponents] + [f"c_{j}"]
+            return [f"k_q{j}", *constant]
+        return [f"k{i}_q{j}" for i in self.exponents] + constant
+
+    def _constant_of(self, coefficients) -> float:
+        """The constant [N m] among ``coefficients`` (after the powers' ones); 0 for a term without one."""
+        c = np.asarray(coefficients, dtype=float)
+        return float(c[len(self.exponents)]) if self.constant else 0.0
 
     def _powers(self, q):
         if self.order == 1:
@@ -149,13 +161,14 @@ class SpringTerm(CandidateTerm):
     def columns(self, context):
         self._require_joint()
         q = context.q[:, self.joint]
-        return joint_columns(context, self.joint, np.column_stack(self._powers(q) + [np.ones(context.n_samples)]))
+        ones = [np.ones(context.n_samples)] if self.constant else []
+        return joint_columns(context, self.joint, np.column_stack(self._powers(q) + ones))
 
     def torque_of_angle(self, q, coefficients) -> np.ndarray:
         """The term's torque [N m] at joint angles ``q`` (array, rad) with fitted ``coefficients``."""
         q = np.asarray(q, dtype=float)
         c = np.asarray(coefficients, dtype=float)
-        return sum(a * p for a, p in zip(c[:-1], self._powers(q))) + c[-1]
+        return sum(a * p for a, p in zip(c, self._powers(q))) + self._constant_of(c)
 
     def stiffness_range(self, coefficients) -> tuple:
         """Least and largest local stiffness d(torque)/dq [N m/rad] over the training range (``q_range``; the
@@ -178,13 +191,14 @@ class SpringTerm(CandidateTerm):
     def rest_angle(self, coefficients, offset: float = 0.0) -> float | None:
         """The angle [rad] where the term's torque plus ``offset`` is zero: the spring's rest angle, the one a datasheet
         gives. ``centre`` is where a polynomial is expanded (an odd law's symmetry), not where its torque vanishes; the
-        constant ``coefficients[-1]`` is in the torque, and ``offset`` is a torque offset fitted beside it on the joint
-        that holds it instead (the two are one column: a model file's ``offsetN`` where ``c_N`` is absorbed). The root
+        constant (the last coefficient, when the term has one) is in the torque, and ``offset`` is a torque offset
+        fitted beside it on the joint that holds it instead (the two are one column: a model file's ``offsetN`` where
+        ``c_N`` is absorbed). The root
         nearest the middle of the recorded range, searched over the range widened by its width on each side; None
         without one there."""
         c = np.asarray(coefficients, dtype=float)
         if self.order == 1:
-            return float(-(c[1] + offset) / c[0]) if c[0] != 0 else None
+            return float(-(self._constant_of(c) + offset) / c[0]) if c[0] != 0 else None
         if self.q_range is None:
             return None
         lo, hi = (float(x) for x in self.q_range)
@@ -200,7 +214,7 @@ class SpringTerm(CandidateTerm):
 
     def physical_parameters(self, coefficients):
         if self.order == 1:
-            k, c = (float(x) for x in coefficients)
+            k, c = float(coefficients[0]), self._constant_of(coefficients)
             return {"k": k, "q0": (-c / k) if k != 0 else 0.0}
         low, high = self.stiffness_range(coefficients)
         out = {"k": self._secant(coefficients), "order": float(self.order), "centre": float(self.centre)}
@@ -210,7 +224,7 @@ class SpringTerm(CandidateTerm):
             out["neutral_angle"] = float(self.centre)
         out.update({"stiffness_min": low, "stiffness_max": high})
         out.update({f"k{i}": float(a) for i, a in zip(self.exponents, coefficients)})
-        out["offset"] = float(coefficients[-1])
+        out["offset"] = self._constant_of(coefficients)
         return out
 
     def implausibility(self, coefficients, context=None):
@@ -258,16 +272,18 @@ class SpringTerm(CandidateTerm):
             )
         rest = self.rest_angle(coefficients)
         if rest is not None:
-            shape += f"; zero torque (its rest angle) at q = {rest:.4g} rad, constant {coefficients[-1]:.4g} N m in"
+            constant = self._constant_of(coefficients)
+            shape += f"; zero torque (its rest angle) at q = {rest:.4g} rad, constant {constant:.4g} N m in"
         if low < 0.0 < high:
             shape += "; the stiffness changes sign over the range, so it is not a single spring"
         return self.key, "a position-dependent elastic torque: " + shape
 
     def casadi_expression(self, q, qd, qdd, t, tau_nominal, coefficients):
+        constant = coefficients[len(self.exponents)] if self.constant else 0.0
         if self.order == 1:
-            return joint_expression(q.shape[0], self.joint, coefficients[0] * q[self.joint] + coefficients[1])
+            return joint_expression(q.shape[0], self.joint, coefficients[0] * q[self.joint] + constant)
         x = q[self.joint] - self.centre
-        value = coefficients[-1] + 0 * x
+        value = constant + 0 * x
         for i, a in zip(self.exponents, coefficients):
             value = value + a * x**i
         return joint_expression(q.shape[0], self.joint, value)
