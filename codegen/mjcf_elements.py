@@ -22,7 +22,7 @@ from codegen.target_holds import (
     linear_springs,
 )
 from codegen.xml_nodes import numbers
-from identification.calibration.coulomb_width import tanh_text
+from identification.calibration.coulomb_width import approximated_widths, tanh_text
 from psdm_casadi.oracle import inertia_from_dynamic_parameters
 from psdm_casadi.values import exact_text
 
@@ -134,7 +134,12 @@ def header_text(calibrated, robot, source: str) -> str:
         "attaches to its joint.",
         "Joints: armature = the drive inertia reflected to the joint, damping = fv (viscous), frictionloss = fc: "
         f"MuJoCo's dry-friction constraint (bounded by fc), where the model has {tanh_text(calibrated.coulomb_widths)}"
-        "; a linear spring finding is stiffness and springref."
+        + approximated_widths(
+            calibrated.coulomb_widths,
+            "frictionloss has no smoothing width: every joint's friction "
+            "reverses as sharply as MuJoCo's friction constraint makes it",
+        )
+        + "; a linear spring finding is stiffness and springref."
         + (f" WARNING: {left_out}." if (left_out := friction_not_representable(calibrated, MJCF)) else ""),
         f"Gravity: {numbers(robot.gravity)} m/s^2 in the robot's base frame.",
     ]

@@ -76,7 +76,7 @@ from codegen.target_holds import (
     friction_not_representable,
 )
 from codegen.xml_nodes import comment, element, numbers
-from identification.calibration.coulomb_width import tanh_text
+from identification.calibration.coulomb_width import approximated_widths, tanh_text
 from psdm_casadi.errors import ModelFileError
 from psdm_casadi.mjcf import MJCF_SUFFIXES
 from psdm_casadi.oracle import dh_transform, inertia_from_dynamic_parameters
@@ -217,8 +217,12 @@ def _header(document, calibrated, robot, world: bool, indent: str):
         f"Inertial parameters: identified, {state} (smallest pseudo-inertia eigenvalue "
         f"{block['min_pseudo_inertia_eigenvalue']}). Each moving link's <inertial> is the whole rigid body the "
         "model attaches to its joint (links merged into it have mass 0), in the link frame about its centre of mass.",
-        f"Friction: <dynamics friction> is fc, the model's Coulomb term {tanh_text(calibrated.coulomb_widths)}; "
-        "damping is fv (viscous)."
+        f"Friction: <dynamics friction> is fc, the model's Coulomb term {tanh_text(calibrated.coulomb_widths)}"
+        + approximated_widths(
+            calibrated.coulomb_widths,
+            "URDF has no field for the smoothing width: a reader smooths every joint's sign its own way",
+        )
+        + "; damping is fv (viscous)."
         + (f" WARNING: {left_out}." if (left_out := friction_not_representable(calibrated)) else ""),
         "Drive inertias (armature) are in a comment on each joint: URDF has no field for them and Pinocchio's URDF "
         "parser does not read one; set model.armature.",

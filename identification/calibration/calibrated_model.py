@@ -38,7 +38,9 @@ It holds everything needed to use an identification without the recordings or th
 
 Version 1 files (no findings) are read as they were. A model without LuGre friction is still written as
 version 2 (older readers read it); one with LuGre friction is version 3, which older readers refuse rather
-than predict it without its friction.
+than predict it without its friction. ``drive.coulomb_velocity`` is the Coulomb sign's smoothing width: one number
+for every joint, or (version 4, written only when the joints' widths differ; older readers refuse it rather than
+misread it) one per joint (``coulomb_width``).
 
 A model whose standard parameters are not consistent is written only when the caller says so
 (``allow_inconsistent``), and then says so in ``standard.consistent``.
@@ -56,7 +58,7 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from identification.calibration.coulomb_width import file_coulomb_widths
+from identification.calibration.coulomb_width import file_coulomb_widths, file_width
 from identification.calibration.findings import FindingTerm, correct_recording, term_values
 from identification.calibration.held_friction import drive_inertia_split
 from identification.calibration.mixed_friction import file_lugre_joints, friction_drives
@@ -80,7 +82,8 @@ __all__ = ["CALIBRATED_FORMAT", "CALIBRATED_VERSION", "CalibratedModel", "calibr
 CALIBRATED_FORMAT = "psdm-calibrated-model"
 CALIBRATED_VERSION = 2
 LUGRE_VERSION = 3  # the version of a file whose friction is LuGre (drive.lugre)
-READABLE_VERSIONS = (1, 2, 3)
+WIDTH_VERSION = 4  # the version of a file whose drive.coulomb_velocity is one width per joint (coulomb_width)
+READABLE_VERSIONS = (1, 2, 3, 4)
 
 
 def standard_parameter_labels(n_dof: int) -> list:
@@ -134,7 +137,7 @@ class CalibratedModel:
                      "equations": model.equations().splitlines()},
             "drive": {"names": list(fit.drive_names), "values": _floats(fit.drive), "ols": _floats(fit.drive_ols),
                       "std": _floats(fit.drive_std), "relative_sigma_percent": _floats(relative[model.n_base :]),
-                      "friction_terms": list(fit.friction_terms), "coulomb_velocity": fit.coulomb_velocity,
+                      "friction_terms": list(fit.friction_terms), "coulomb_velocity": file_width(fit.coulomb_velocity),
                       "friction_shape": "stribeck" if "fs" in fit.friction_terms else "coulomb-viscous",
                       "friction_shapes": friction_shapes(fit.friction_terms, fit.stribeck_velocity, n),
                       "stribeck_velocity": list(fit.stribeck_velocity),
@@ -162,6 +165,8 @@ class CalibratedModel:
             document["version"], document["drive"]["friction_shape"] = LUGRE_VERSION, "lugre"
             document["drive"]["friction_shapes"] = ["lugre" if j in lugre.joints else shapes[j] for j in range(n)]
             document["drive"]["lugre"] = lugre_block(lugre)
+        if isinstance(document["drive"]["coulomb_velocity"], list):  # one width per joint: older readers refuse it
+            document["version"] = WIDTH_VERSION
         return cls(document)
 
     def save(self, path, *, overwrite: bool = False, allow_inconsistent: bool = False) -> Path:

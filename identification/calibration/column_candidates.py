@@ -15,6 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width
 from identification.calibration.drive_loss import loss_columns, prior_theta
 from identification.calibration.payload_fit import FlangeBodies, subtract_known_payloads
 from identification.calibration.residual_correlation import residual_correlation_time
@@ -156,9 +157,11 @@ def solve_columns(weighted, transform) -> tuple:
     return transform @ (inverse @ moment), transform @ np.sqrt(np.clip(np.diag(inverse), 0.0, None))
 
 
-def reversing_joints(prepared, speed: float) -> list:
-    """Joints that move faster than ``speed`` both ways on enough samples to tell an offset from Coulomb friction."""
+def reversing_joints(prepared, speed) -> list:
+    """Joints that move faster than ``speed`` (one, or one per joint) both ways on enough samples to tell an offset
+    from Coulomb friction."""
     qd = np.concatenate([r.qd for r in prepared])
+    speed = np.asarray(speed, dtype=float)
     share = np.minimum(np.mean(qd > speed, axis=0), np.mean(qd < -speed, axis=0))
     return [j for j in range(qd.shape[1]) if share[j] >= MIN_REVERSAL_FRACTION]
 
@@ -227,12 +230,12 @@ def candidates(robot, model, training: PreparedTraining, options, request, valid
     return found, offsets, inertia
 
 
-def viscous_power_rows(qd, exponents, joints, coulomb_velocity: float) -> np.ndarray:
+def viscous_power_rows(qd, exponents, joints, coulomb_velocity) -> np.ndarray:
     """The power-law viscous columns ``fp<j>`` of ``joints`` (``viscous_power.viscous_column``), (n_samples, n_dof,
     len(joints)): each on its own joint's rows."""
     out = np.zeros((qd.shape[0], qd.shape[1], len(joints)))
     for k, j in enumerate(joints):
-        out[:, j, k] = viscous_column(qd[:, j], exponents.value[j], coulomb_velocity)
+        out[:, j, k] = viscous_column(qd[:, j], exponents.value[j], joint_width(coulomb_velocity, j))
     return out
 
 

@@ -71,6 +71,7 @@ from identification.calibration.column_candidates import (
 )
 from identification.calibration.column_verdict import INDIFFERENT_BIC, Evidence, verdict
 from identification.calibration.coulomb_smoothing import SmoothingChoice, smoothing_velocity
+from identification.calibration.coulomb_width import positive_widths
 from identification.calibration.drive_loss import efficiency
 from identification.calibration.merged_rotors import without_lone_inertia
 from identification.calibration.separate_inertia import separate_inertia_joints
@@ -104,25 +105,26 @@ LABELS = {
 class ColumnRequest:
     """What the user asked for: ``"auto"`` (the data decide, the default) or an explicit choice each.
 
-    ``coulomb_velocity`` [rad/s]: the Coulomb column's smoothing velocity ``v`` of ``tanh(qd / v)``; None (the default)
-    chooses it from the joints' reversals (``coulomb_smoothing``, at most ``TrajectoryOptions.coulomb_velocity``).
+    ``coulomb_velocity`` [rad/s]: the Coulomb column's smoothing velocity ``v`` of ``tanh(qd / v)``, one for every joint
+    or a tuple of one per joint (``coulomb_width``); None (the default) chooses it from the joints' reversals
+    (``coulomb_smoothing``, at most ``TrajectoryOptions.coulomb_velocity``).
     """
 
     friction: str = "auto"
     offset: str = "auto"
     drive_inertia: str = "auto"
     drive_loss: str = "auto"  # currents only (``drive_loss``); "on": every joint's, "off": none
-    coulomb_velocity: float | None = None
+    coulomb_velocity: float | tuple | None = None
 
     def __post_init__(self):
         for name, allowed in (("friction", FRICTION_CHOICES), ("offset", SWITCH_CHOICES),
                               ("drive_inertia", SWITCH_CHOICES), ("drive_loss", SWITCH_CHOICES)):  # fmt: skip
             if getattr(self, name) not in allowed:
                 raise ParameterError(f"ColumnRequest.{name} must be one of {allowed}; got {getattr(self, name)!r}.")
-        v = self.coulomb_velocity
-        if v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
-            raise ParameterError(f"ColumnRequest.coulomb_velocity must be None (chosen from the data) or > 0 [rad/s]; "
-                                 f"got {v!r}.")  # fmt: skip
+        if self.coulomb_velocity is not None:  # one width, or one per joint; None: chosen from the data
+            object.__setattr__(
+                self, "coulomb_velocity", positive_widths(self.coulomb_velocity, "ColumnRequest.coulomb_velocity")
+            )
 
 
 @dataclass(frozen=True)
@@ -350,10 +352,13 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
 
 
 def _smoothing(training: PreparedTraining | None, options, request) -> SmoothingChoice:
-    """The Coulomb column's smoothing velocity: as asked (``request.coulomb_velocity``), else from the prepared
-    training recordings' reversals (``coulomb_smoothing``), at most ``options.coulomb_velocity``."""
+    """The Coulomb column's smoothing velocity: as asked (``request.coulomb_velocity``, or ``options``' widths stated
+    per joint), else from the prepared training recordings' reversals (``coulomb_smoothing``), at most
+    ``options.coulomb_velocity``."""
     if request.coulomb_velocity:
-        return SmoothingChoice.as_asked(float(request.coulomb_velocity))
+        return SmoothingChoice.as_asked(request.coulomb_velocity)
+    if isinstance(options.coulomb_velocity, tuple):  # stated per joint (TrajectoryOptions): taken as asked
+        return SmoothingChoice.as_asked(options.coulomb_velocity)
     return smoothing_velocity(training.prepared, min(training.cutoffs), options.coulomb_velocity)
 
 

@@ -43,6 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.coulomb_width import widths_text
+
 __all__ = ["KEEP", "MIN_VELOCITY", "SmoothingChoice", "eased_velocity", "reversal_accelerations", "smoothing_velocity"]
 
 #: The smooth sign's velocity per unit of reversal acceleration and cutoff: ``v = SPREAD * a / cutoff``.
@@ -64,8 +66,8 @@ class SmoothingChoice:
 
     Attributes
     ----------
-    velocity : float
-        [rad/s] ``v`` of ``tanh(qd / v)``.
+    velocity : float or tuple of float
+        [rad/s] ``v`` of ``tanh(qd / v)``: one for every joint, or one per joint (``coulomb_width``).
     default : float
         [rad/s] the value it replaces (``TrajectoryOptions.coulomb_velocity``).
     acceleration : float
@@ -76,15 +78,15 @@ class SmoothingChoice:
         Given by the user (``ColumnRequest.coulomb_velocity``, ``--coulomb-velocity``), not chosen from the data.
     """
 
-    velocity: float
-    default: float
+    velocity: float | tuple
+    default: float | tuple
     acceleration: float
     cutoff_hz: float
     asked: bool = False
 
     @classmethod
-    def as_asked(cls, velocity: float) -> SmoothingChoice:
-        """The choice of a smoothing velocity the user gave."""
+    def as_asked(cls, velocity) -> SmoothingChoice:
+        """The choice of a smoothing velocity the user gave (one, or a tuple per joint)."""
         return cls(velocity, velocity, float("nan"), float("nan"), asked=True)
 
     @property
@@ -94,7 +96,8 @@ class SmoothingChoice:
     def sentence(self) -> str:
         """What was chosen and why, for the report's drive-column lines."""
         if self.asked:
-            return f"Coulomb smoothing: tanh(qd / {self.velocity:g} rad/s) (as asked)"
+            text = f"{self.velocity:g} rad/s" if np.ndim(self.velocity) == 0 else widths_text(self.velocity)
+            return f"Coulomb smoothing: tanh(qd / {text}) (as asked)"
         if not self.changed:
             return f"Coulomb smoothing: tanh(qd / {self.default:g} rad/s) (the joints reverse fast enough)"
         smear = SPREAD * self.acceleration / self.cutoff_hz  # the filter's own value

@@ -15,8 +15,8 @@ import numpy as np
 
 from psdm_casadi.errors import ModelFileError, ParameterError
 
-__all__ = ["DEFAULT_WIDTH", "coulomb_widths", "file_coulomb_widths", "joint_width", "positive_widths", "tanh_text",
-           "width_value", "widths_text"]  # fmt: skip
+__all__ = ["DEFAULT_WIDTH", "approximated_widths", "coulomb_widths", "file_coulomb_widths", "file_width", "joint_width",
+           "positive_widths", "tanh_text", "width_value", "widths_text"]  # fmt: skip
 
 #: [rad/s] the width a file without ``drive.coulomb_velocity`` was predicted with (``TrajectoryOptions``' default).
 DEFAULT_WIDTH = 0.05
@@ -91,6 +91,13 @@ def file_coulomb_widths(drive: dict, n_dof: int, file: str = "calibrated model")
     return np.broadcast_to(np.asarray(value, dtype=float), (n_dof,)).astype(float)
 
 
+def file_width(widths) -> float | list:
+    """``widths`` as a model file writes ``drive.coulomb_velocity``: one number when every joint's is the same (the
+    files older readers read), else a list per joint (``calibrated_model.WIDTH_VERSION``)."""
+    value = width_value(widths)
+    return list(value) if isinstance(value, tuple) else value
+
+
 def joint_width(widths, joint: int) -> float:
     """[rad/s] one joint's (0-based) width of ``widths``: a number (every joint's) or one per joint."""
     return float(widths) if np.ndim(widths) == 0 else float(np.asarray(widths, dtype=float)[joint])
@@ -100,6 +107,12 @@ def width_value(widths) -> float | tuple:
     """``widths`` as options hold them: one number when every joint's is the same, else a tuple per joint."""
     values = np.ravel(np.asarray(widths, dtype=float))
     return float(values[0]) if np.all(values == values[0]) else tuple(float(v) for v in values)
+
+
+def approximated_widths(widths, why: str) -> str:
+    """What an export that cannot hold a width per joint adds after :func:`tanh_text`: nothing for one width, else
+    ``" (<why>: the per-joint widths are approximated)"``."""
+    return "" if isinstance(width_value(widths), float) else f" ({why}: the per-joint widths are approximated)"
 
 
 def tanh_text(widths) -> str:

@@ -34,6 +34,7 @@ import copy
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width
 from identification.calibration.findings import FindingColumns, FindingTerm, filled_entries
 from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.trajectory_fit import identify_trajectories, predict_torque
@@ -71,18 +72,19 @@ def prior_theta(robot, model) -> np.ndarray | None:
     return model.base_parameters(robot.nominal_dynamic_parameters())
 
 
-def loss_columns(rigid, qd, theta, joints, coulomb_velocity: float) -> np.ndarray:
+def loss_columns(rigid, qd, theta, joints, coulomb_velocity) -> np.ndarray:
     """The drive-loss columns ``|Y theta|_j tanh(qd_j / v)`` of ``joints`` (0-based), (n_samples, n_dof, len(joints)):
     ``rigid`` is the base regressor (n_samples, n_dof, n_base) of the samples, ``theta`` the reference rigid body."""
     torque = np.abs(np.asarray(rigid) @ np.asarray(theta, dtype=float))
     out = np.zeros((*torque.shape, len(joints)))
     for k, j in enumerate(joints):
-        out[:, j, k] = torque[:, j] * np.tanh(qd[:, j] / coulomb_velocity)
+        out[:, j, k] = torque[:, j] * np.tanh(qd[:, j] / joint_width(coulomb_velocity, j))
     return out
 
 
-def _terms(joints, coulomb_velocity: float) -> tuple:
-    return tuple(FindingTerm("load_dependent_friction", int(j), velocity=coulomb_velocity) for j in joints)
+def _terms(joints, coulomb_velocity) -> tuple:
+    return tuple(FindingTerm("load_dependent_friction", int(j), velocity=joint_width(coulomb_velocity, j))
+                 for j in joints)  # fmt: skip
 
 
 def _prior_reference(model, theta):

@@ -55,6 +55,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width
 from identification.calibration.trajectory_data import choose_filter
 from identification.data.preprocessing import central_difference, resample_uniform, zero_phase_filter
 from identification.friction.models import LUGRE_PARAMETER_NAMES, LuGreParameters
@@ -469,7 +470,8 @@ def _stribeck_torque(fit, qd, j: int) -> np.ndarray:
 
     values = dict(zip(fit.drive_names, fit.drive))
     vs, dv = fit.stribeck_velocity[j], float(fit.viscous_exponent[j]) if fit.viscous_exponent else 1.0
-    return sum(values[f"{term}{j + 1}"] * friction_term(term, qd, fit.coulomb_velocity, vs, None if dv == 1.0 else dv)
+    v = joint_width(fit.coulomb_velocity, j)
+    return sum(values[f"{term}{j + 1}"] * friction_term(term, qd, v, vs, None if dv == 1.0 else dv)
                for term in FRICTION_DRIVE_TERMS)  # fmt: skip
 
 

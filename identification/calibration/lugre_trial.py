@@ -54,6 +54,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.coulomb_width import joint_width
 from psdm_casadi.log_context import held_back
 from psdm_casadi.state_cache import BlockMemory
 
@@ -146,7 +147,7 @@ def _events(qd, residual, velocity) -> list:
 
 def reversal_lags(qd, residual, velocity) -> tuple:
     """One :class:`ReversalLag` per joint of a prepared recording's velocity ``qd`` and a model's ``residual`` (both
-    ``(samples, joints)``), the reversals' windows slower than ``velocity`` [rad/s].
+    ``(samples, joints)``), the reversals' windows slower than ``velocity`` [rad/s] (one, or one per joint).
 
     The standard error of the mean lag is the reversals' spread over the root of their number, never below the joint's
     RMSE over it: a model error is correlated across a reversal's window, so one window's mean is not known better
@@ -155,7 +156,7 @@ def reversal_lags(qd, residual, velocity) -> tuple:
     standard errors)."""
     out = []
     for j in range(residual.shape[1]):
-        even = np.asarray(_events(qd[:, j], residual[:, j], velocity))
+        even = np.asarray(_events(qd[:, j], residual[:, j], joint_width(velocity, j)))
         finite = residual[np.isfinite(residual[:, j]), j]
         rmse = float(np.sqrt(np.mean(finite**2))) if finite.size else 0.0
         spread = float(even.std(ddof=1)) if even.size > 1 else 0.0
@@ -170,7 +171,9 @@ def recording_lags(calibrated, model, recordings, kts, velocity) -> tuple:
     out = []
     for recording, kt in zip(recordings, kts):
         ready, predicted = calibrated.predict_recording(model, recording, kt)
-        out.append(reversal_lags(ready.qd, ready.tau - predicted, WINDOW_SMOOTHINGS * velocity))
+        out.append(
+            reversal_lags(ready.qd, ready.tau - predicted, WINDOW_SMOOTHINGS * np.asarray(velocity, dtype=float))
+        )
     return tuple(out)
 
 

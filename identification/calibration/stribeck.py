@@ -51,8 +51,11 @@ STEP_TOLERANCE = 1e-4
 class StribeckColumns:
     """Extra columns (after ``extra``'s): per joint ``d(g s)/d vs`` at the joints' Stribeck velocities."""
 
-    def __init__(self, coulomb_velocity: float, stribeck_velocity, extra=None, viscous_exponent=None):
-        self.coulomb_velocity, self.viscous_exponent = float(coulomb_velocity), viscous_exponent  # the fit's dv
+    def __init__(self, coulomb_velocity, stribeck_velocity, extra=None, viscous_exponent=None):
+        self.coulomb_velocity = (
+            float(coulomb_velocity) if np.ndim(coulomb_velocity) == 0 else np.asarray(coulomb_velocity)
+        )
+        self.viscous_exponent = viscous_exponent  # the fit's dv
         self.stribeck_velocity = np.asarray(stribeck_velocity, dtype=float)
         self.extra = extra
 

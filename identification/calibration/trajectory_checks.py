@@ -31,6 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
+from identification.calibration.coulomb_width import coulomb_widths
 from identification.calibration.trajectory_data import drive_column_joint
 from identification.data.excitation_check import check_joint_motion, check_reversals, joint_label
 from identification.data.plausibility import check_plausible_recording
@@ -89,20 +90,23 @@ def check_columns(robot, model, equations, names, recordings) -> None:
                     column_joints=list(base_parameter_joints(model)) + drive_joints)  # fmt: skip
 
 
-def check_offset_reversals(robot, prepared, friction, coulomb_velocity: float, joints=None) -> None:
+def check_offset_reversals(robot, prepared, friction, coulomb_velocity, joints=None) -> None:
     """With ``"offset"`` and ``"fc"`` in ``friction``, every joint with an offset (``joints``, 0-based; None: all)
-    moves faster than ``coulomb_velocity`` both ways on at least ``MIN_REVERSAL_FRACTION`` of the prepared samples
-    (``excitation_check.check_reversals``).
+    moves faster than its ``coulomb_velocity`` (one width, or one per joint of ``robot``) both ways on at least
+    ``MIN_REVERSAL_FRACTION`` of the prepared samples (``excitation_check.check_reversals``).
 
     Raises
     ------
+    ParameterError
+        For widths of another number than the robot's joints (``coulomb_width.coulomb_widths``).
     InsufficientExcitationError
         Naming the recordings, the joints that move one way only and the fix (record reversals, or drop the offset).
     """
+    speed = coulomb_widths(coulomb_velocity, robot.n_dof, "TrajectoryOptions.coulomb_velocity")
     if "offset" not in friction or "fc" not in friction:
         return
     joints = range(robot.n_dof) if joints is None else joints
-    check_reversals(prepared, joints, speed=coulomb_velocity, min_fraction=MIN_REVERSAL_FRACTION,
+    check_reversals(prepared, joints, speed=speed, min_fraction=MIN_REVERSAL_FRACTION,
                     robot=robot, purpose="to tell its Coulomb friction (fc) from its torque offset (offset)",
                     fix=REVERSAL_FIX)  # fmt: skip
 

@@ -40,6 +40,7 @@ from identification.calibration.consistent_fit import (
     drive_lower_bounds,
     link_is_free,
 )
+from identification.calibration.coulomb_width import positive_widths
 from identification.calibration.envelope import check_ratio
 from identification.calibration.envelope_report import bounds_note, envelope_findings
 from identification.calibration.held_back import causes
@@ -96,9 +97,10 @@ class TrajectoryOptions:
     friction : tuple of str
         Drive terms per joint among ``("fc", "fs", "fv", "offset")``: Coulomb, static (the Stribeck shape,
         with ``fc``), viscous, a constant torque offset.
-    coulomb_velocity : float
+    coulomb_velocity : float or tuple of float
         [rad/s] The Coulomb term is ``fc tanh(qd / coulomb_velocity)``: a sign smoothed over the
-        velocities where real joints pass from sticking to sliding (a few hundredths of a rad/s).
+        velocities where real joints pass from sticking to sliding (a few hundredths of a rad/s). One width for every
+        joint, or one per joint (``coulomb_width``; held as one number when they are all the same).
     drive_inertia : bool
         Identify a drive (rotor, armature) inertia per joint, ``Ia qdd``: inside the base parameters for
         the joints whose model has one, as a column of its own for the others.
@@ -162,7 +164,7 @@ class TrajectoryOptions:
     """
 
     friction: tuple = ("fc", "fv")
-    coulomb_velocity: float = 0.05
+    coulomb_velocity: float | tuple = 0.05
     drive_inertia: bool = True
     consistency: bool = True
     margin: float = 1e-6
@@ -203,10 +205,8 @@ class TrajectoryOptions:
             raise ParameterError(
                 f"TrajectoryOptions.stribeck_velocity must be > 0 [rad/s]; got {self.stribeck_velocity!r}."
             )
-        if not (np.isfinite(self.coulomb_velocity) and self.coulomb_velocity > 0):
-            raise ParameterError(
-                f"TrajectoryOptions.coulomb_velocity must be > 0 [rad/s]; got {self.coulomb_velocity!r}."
-            )
+        width = positive_widths(self.coulomb_velocity, "TrajectoryOptions.coulomb_velocity")  # one, or per joint
+        object.__setattr__(self, "coulomb_velocity", width)
         if not (np.isfinite(self.margin) and self.margin > 0):
             raise ParameterError(f"TrajectoryOptions.margin must be > 0 [kg m^2]; got {self.margin!r}.")
         check_prior_options(self)
@@ -274,7 +274,7 @@ class TrajectoryFit:
     drive_names: tuple
     inertia_joints: tuple
     friction_terms: tuple
-    coulomb_velocity: float
+    coulomb_velocity: float | tuple
     theta_ols: np.ndarray
     drive_ols: np.ndarray
     theta_std: np.ndarray

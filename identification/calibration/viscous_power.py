@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.column_verdict import Evidence, verdict
+from identification.calibration.coulomb_width import joint_width
 from identification.calibration.trajectory_data import drive_column_joint, viscous_column
 
 __all__ = ["EXPONENT_RANGE", "EXPONENT_Z", "LINEAR", "ViscousExponents", "fit_viscous_exponents",
@@ -65,7 +66,7 @@ class ViscousExponents:
         return tuple(j for j, dv in enumerate(self.value) if EXPONENT_RANGE[0] < dv < LINEAR)
 
 
-def fit_viscous_exponents(fitted, names, n_base: int, coulomb_velocity: float, weights, effective) -> ViscousExponents:
+def fit_viscous_exponents(fitted, names, n_base: int, coulomb_velocity, weights, effective) -> ViscousExponents:
     """The viscous exponent of each joint (module docstring).
 
     Parameters
@@ -93,13 +94,13 @@ def fit_viscous_exponents(fitted, names, n_base: int, coulomb_velocity: float, w
     return exponents
 
 
-def _full_estimate(fitted, viscous, exponent, coulomb_velocity: float, weights) -> np.ndarray:
+def _full_estimate(fitted, viscous, exponent, coulomb_velocity, weights) -> np.ndarray:
     """The weighted least squares of every candidate column with each joint's viscous column at its ``exponent``."""
     gram, moment = 0.0, 0.0
     for columns, tau in fitted:
         columns = columns.copy()
         for j, k in enumerate(viscous):
-            columns[:, j, k] = viscous_column(columns[:, j, k], exponent[j], coulomb_velocity)
+            columns[:, j, k] = viscous_column(columns[:, j, k], exponent[j], joint_width(coulomb_velocity, j))
         measured = np.isfinite(tau)
         tau = np.where(measured, tau, 0.0)
         columns = columns * (measured * np.sqrt(weights))[:, :, None]
@@ -110,7 +111,7 @@ def _full_estimate(fitted, viscous, exponent, coulomb_velocity: float, weights) 
     return inverse @ moment
 
 
-def _joint_exponent(fitted, names, n_base: int, j: int, x, coulomb_velocity: float, effective: float) -> tuple:
+def _joint_exponent(fitted, names, n_base: int, j: int, x, coulomb_velocity, effective: float) -> tuple:
     """(exponent, standard deviation) of joint ``j`` with the others' parameters held at ``x`` (module docstring)."""
     own = [n_base + k for k, name in enumerate(names) if name.startswith(OWN_TERMS) and drive_column_joint(name) == j]
     viscous = n_base + list(names).index(f"fv{j + 1}")
@@ -125,7 +126,7 @@ def _joint_exponent(fitted, names, n_base: int, j: int, x, coulomb_velocity: flo
     qd, rest, target, effective = qd[fast], rest[fast], target[fast], effective * fast.mean()
 
     def rss(dv):
-        design = np.column_stack([rest, viscous_column(qd, dv, coulomb_velocity)])
+        design = np.column_stack([rest, viscous_column(qd, dv, joint_width(coulomb_velocity, j))])
         estimate = np.linalg.lstsq(design, target, rcond=None)[0]
         return float(np.sum((target - design @ estimate) ** 2))
 

@@ -402,7 +402,12 @@ def one_way_velocities(qd: np.ndarray, joints, *, speed, min_fraction: float) ->
             if min(np.mean(qd[:, j] > speeds[j]), np.mean(qd[:, j] < -speeds[j])) < min_fraction]  # fmt: skip
 
 
-def check_reversals(recordings, joints, *, speed: float, min_fraction: float, robot=None, purpose: str, fix: str):
+def _speed_text(speeds) -> str:
+    """``"0.05"``, or ``"0.02, 0.085"`` where the failing joints' speeds differ."""
+    return ", ".join(dict.fromkeys(f"{v:.3g}" for v in speeds))
+
+
+def check_reversals(recordings, joints, *, speed, min_fraction: float, robot=None, purpose: str, fix: str):
     """Raise unless every joint of ``joints`` moves faster than ``speed`` both ways on ``min_fraction`` of the samples.
 
     The samples of all ``recordings`` are pooled (a fit pools their rows): a joint that reverses in one of
@@ -413,8 +418,9 @@ def check_reversals(recordings, joints, *, speed: float, min_fraction: float, ro
     recordings : sequence of Recording
     joints : sequence of int
         Joints (0-based) whose friction must be told apart from a constant (a torque offset).
-    speed : float
-        [rad/s] A sample counts for a direction when the joint moves faster than this that way.
+    speed : float or array of float
+        [rad/s] A sample counts for a direction when the joint moves faster than this that way (one speed, or one per
+        joint of the recordings).
     min_fraction : float
         Least share of the pooled samples in each direction.
     robot : RobotDescription, optional
@@ -433,9 +439,9 @@ def check_reversals(recordings, joints, *, speed: float, min_fraction: float, ro
     recordings = list(recordings)
     qd = _pooled_velocity(recordings)
     failing = one_way_joints(recordings, joints, speed=speed, min_fraction=min_fraction)
-    details = []
+    details, speeds = [], np.broadcast_to(np.asarray(speed, dtype=float), qd.shape[1:])  # one, or one per joint
     for j in failing:
-        shares = (float(np.mean(qd[:, j] > speed)), float(np.mean(qd[:, j] < -speed)))
+        shares = (float(np.mean(qd[:, j] > speeds[j])), float(np.mean(qd[:, j] < -speeds[j])))
         details.append(
             f"{joint_label(j, robot)}: {100 * shares[0]:.3g} % of the samples positive, {100 * shares[1]:.3g} % "
             f"negative (qd{j + 1} from {qd[:, j].min():.3g} to {qd[:, j].max():.3g} rad/s)"
@@ -444,9 +450,7 @@ def check_reversals(recordings, joints, *, speed: float, min_fraction: float, ro
         source = ", ".join(dict.fromkeys(r.name or "a recording" for r in recordings))
         raise InsufficientExcitationError(
             f"Recording {source}: {joint_labels(failing, robot)} must move both ways {purpose} (faster than "
-            f"{speed:.3g} rad/s on at least {100 * min_fraction:.3g} % of the samples each way); got "
-            + "; ".join(details)
-            + ". "
-            + format_fix(fix, failing, robot),
+            f"{_speed_text(speeds[failing])} rad/s on at least {100 * min_fraction:.3g} % of the samples each way); "
+            "got " + "; ".join(details) + ". " + format_fix(fix, failing, robot),
             joints=failing,
         )

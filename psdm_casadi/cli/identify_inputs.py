@@ -16,7 +16,7 @@ from psdm_casadi.cli.checks import check_not_input, check_suffix, output_file
 from psdm_casadi.cli.holdout import cut_training, holdout_fraction
 from psdm_casadi.errors import ParameterError
 
-__all__ = ["TrainingInputs", "check_outputs", "fit_settings", "read_training"]
+__all__ = ["TrainingInputs", "check_outputs", "coulomb_velocity_option", "fit_settings", "read_training"]
 
 
 @dataclass(frozen=True)
@@ -51,19 +51,40 @@ def read_training(args, robot, layout) -> TrainingInputs:
     return TrainingInputs(paths, configurations, recordings, validation, explicit, missing)
 
 
-def fit_settings(args) -> tuple:
-    """``(ColumnRequest, TrajectoryOptions)`` of the options, each number refused where no fit can use it."""
+def coulomb_velocity_option(text, n_dof: int):
+    """``--coulomb-velocity``: None (chosen from the data), one width [rad/s] for every joint, or ``n_dof`` widths
+    separated by commas (a tuple, one per joint).
+
+    Raises
+    ------
+    ParameterError
+        Naming the option and the fix, for a value that is not one or ``n_dof`` velocities > 0.
+    """
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in str(text).split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (1, n_dof) or not all(np.isfinite(v) and v > 0 for v in values):
+        raise ParameterError(f"--coulomb-velocity must be a velocity > 0 [rad/s], e.g. 0.02, or {n_dof} of them, one "
+                             f"per joint separated by commas (e.g. {','.join(['0.02'] * n_dof)}); got {text!r}. Leave "
+                             "it out to choose it from the data.")  # fmt: skip
+    return values[0] if len(values) == 1 else tuple(values)
+
+
+def fit_settings(args, n_dof: int) -> tuple:
+    """``(ColumnRequest, TrajectoryOptions)`` of the options for a robot of ``n_dof`` joints, each number refused where
+    no fit can use it."""
     from identification.calibration.column_choice import ColumnRequest
     from identification.calibration.envelope import check_ratio
     from identification.calibration.trajectory_fit import TrajectoryOptions
 
     for flag, value in (("--mass-bounds", args.mass_bounds), ("--drive-inertia-bounds", args.drive_inertia_bounds)):
         check_ratio(flag, value)
-    if args.coulomb_velocity is not None and not (np.isfinite(args.coulomb_velocity) and args.coulomb_velocity > 0):
-        raise ParameterError(f"--coulomb-velocity must be a velocity > 0 [rad/s], e.g. 0.02; got "
-                             f"{args.coulomb_velocity:g}. Leave it out to choose it from the data.")  # fmt: skip
     request = ColumnRequest(friction=args.friction, offset=args.offset, drive_inertia=args.drive_inertia,
-                            drive_loss=args.drive_loss, coulomb_velocity=args.coulomb_velocity)  # fmt: skip
+                            drive_loss=args.drive_loss,
+                            coulomb_velocity=coulomb_velocity_option(args.coulomb_velocity, n_dof))  # fmt: skip
     if args.prior_uncertainty is not None and not (np.isfinite(args.prior_uncertainty) and args.prior_uncertainty > 0):
         raise ParameterError(f"--prior-uncertainty must be > 0 (a multiple of each parameter's size, e.g. 3); got "
                              f"{args.prior_uncertainty!r}.")  # fmt: skip

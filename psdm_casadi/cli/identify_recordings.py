@@ -30,9 +30,10 @@ MASS_CHECK_CONFIGURATIONS = 2000
 FRICTION_SHAPES = ("auto", "coulomb-viscous", "stribeck", "lugre")  # column_choice.FRICTION_CHOICES
 SWITCHES = ("auto", "on", "off")  # column_choice.SWITCH_CHOICES
 COULOMB_VELOCITY_HELP = (
-    "the Coulomb friction column's smoothing velocity [rad/s], fc tanh(qd / V) (default: chosen from the joints' "
-    "reversals, at most 0.05: slow motions reverse at a fraction of an exciting trajectory's acceleration and want a "
-    "sharper sign; stated in the output and the model file)"
+    "the Coulomb friction column's smoothing velocity [rad/s], fc tanh(qd / V): one for every joint, or one per joint "
+    "separated by commas (0.02,0.02,0.085,...) (default: chosen from the joints' reversals, at most 0.05: slow "
+    "motions reverse at a fraction of an exciting trajectory's acceleration and want a sharper sign; stated in the "
+    "output and the model file)"
 )
 
 #: ``--one-way-friction`` (``identification.calibration.one_way_friction``).
@@ -109,7 +110,7 @@ def add_arguments(p) -> None:
     p.add_argument("--no-consistency", action="store_true", help="keep the unconstrained weighted least-squares "
                    "estimate (base parameters only), marked as not checked")  # fmt: skip
     p.add_argument("--cutoff", type=float, default=None, help="low-pass cutoff [Hz] (default: min(10, rate/10))")
-    p.add_argument("--coulomb-velocity", type=float, default=None, metavar="V", help=COULOMB_VELOCITY_HELP)
+    p.add_argument("--coulomb-velocity", default=None, metavar="V", help=COULOMB_VELOCITY_HELP)
     for option, bounded in (
         ("--mass-bounds", "each link's mass stays within LOW-HIGH x the robot file's"),
         ("--drive-inertia-bounds", "each drive inertia stays within LOW-HIGH x the robot file's where it gives one"),
@@ -155,7 +156,7 @@ def run(args) -> int:
     check_not_input(args.out, "--out", [("robot's URDF", robot.urdf_path)])
     read = read_training(args, robot, recording_layout(args))  # --columns, --rate
     paths, configurations, recordings, validation = read.paths, read.configurations, read.recordings, read.validation
-    request, options = fit_settings(args)
+    request, options = fit_settings(args, robot.n_dof)
     if args.model:
         model = load_model(args.model)
     else:
