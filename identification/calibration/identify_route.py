@@ -23,6 +23,8 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field, replace
 
+import numpy as np
+
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_check import check_departures, offset_sizes, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
@@ -31,6 +33,7 @@ from identification.calibration.drift_choice import FrictionDrift, check_drift_m
 from identification.calibration.file_judged import file_judged, file_training
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_trial import LuGreTrial, try_lugre
+from identification.calibration.never_worse import JointComparison
 from identification.calibration.one_way_friction import (
     OneWayFriction,
     check_one_way_mode,
@@ -262,7 +265,7 @@ def identify_recordings(
         return ModelWriter((robot, model, recordings, configurations), validation, judged, saved, skip, drive_loss,
                            columns)  # fmt: skip
 
-    given, trial = options, LuGreTrial()
+    given, trial, default = options, LuGreTrial(), None
 
     if request.friction == "lugre":
         from identification.calibration.lugre_identify import identify_lugre_trajectories
@@ -294,7 +297,7 @@ def identify_recordings(
             trial, kept = try_lugre((robot, model, recordings, given, validation, configurations), written, judged,
                                     writer, request)  # fmt: skip
             if kept is not None:  # the LuGre model replaces the default one, and the default route's holds
-                found, written, choice = kept
+                default, (found, written, choice) = written, kept
                 lugre, start, rotors = found.lugre, found.stribeck, unjudged_rotors(found.fit, "LuGre")
                 held, mended = OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
     chosen, final, calibrated = written.options, written.fit, written.calibrated
@@ -304,7 +307,7 @@ def identify_recordings(
     calibrated.document["identification"]["column_choice"] = {**choice.to_dict(), **shapes}  # LuGre: as written
     if rotors.verdicts:  # stated with the other column choices
         calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
-    check = replace(written.check, held=held.held_joints, held_links=mended.held_links)
+    check = _file_check(replace(written.check, held=held.held_joints, held_links=mended.held_links), trial, default)
     calibrated.document["identification"]["robot_file_check"] = check.to_dict()
     calibrated.document["identification"]["one_way_friction"] = held.to_dict()
     calibrated.document["identification"]["worse_joints"] = mended.to_dict()
@@ -315,6 +318,17 @@ def identify_recordings(
         calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift,
                           rotors, unstated, trial)  # fmt: skip
+
+
+def _file_check(check: FileCheck, trial: LuGreTrial, default) -> FileCheck:
+    """The written model's ``check`` against the robot file; where the LuGre trial's model replaced the ``default``
+    one (``written_model.WrittenModel``), each joint it does not predict better beyond their paired margin keeps the
+    default model's verdict (``lugre_trial``'s rule, ``FileCheck.keeping_verdicts``)."""
+    if not trial.kept:
+        return check
+    pooled = JointComparison(np.array(trial.before), np.array(trial.after), np.array(trial.margin))
+    n_dof = len(trial.before)
+    return check.keeping_verdicts(default.check, pooled, [j for j in range(n_dof) if j not in trial.better])
 
 
 def _unstated_loads(robot, model, recordings, options, configurations) -> tuple:

@@ -224,7 +224,9 @@ class LuGreTrial:
     ``lags``: per held-out recording the :class:`ReversalLag` of each joint on the default model; ``joints``: the
     joints (0-based) that showed it (empty: LuGre not tried); ``kept``: the LuGre model written; ``before``/``after``
     /``margin``: the held-out RMSE per joint of the default and the LuGre model with the paired margin (pooled over
-    the recordings); ``reason``: why kept or not."""
+    the recordings); ``reason``: why kept or not; ``better``: the joints (0-based) it predicts better than the default
+    model beyond the margin on each held-out recording (the others keep the default model's verdict against the robot
+    file where it is kept: ``robot_file_check.FileCheck.keeping_verdicts``)."""
 
     lags: tuple = ()
     joints: tuple = ()
@@ -236,6 +238,7 @@ class LuGreTrial:
     lugre_joints: tuple = ()
     every_joint: str = ""
     steady: str = ""
+    better: tuple = ()
 
     def describe(self) -> str:
         """``friction: LuGre on every joint, chosen because ...``, ``friction: LuGre on joint(s) 1, 2 (the others keep
@@ -276,6 +279,7 @@ class LuGreTrial:
             "validation_rmse_default": list(self.before),
             "validation_rmse_lugre": list(self.after),
             "margin": list(self.margin),
+            "better_joints": [j + 1 for j in self.better],  # the others keep the default model's verdict if kept
             "reason": self.reason,
         }
 
@@ -453,8 +457,10 @@ def _trial(lags, joints, kept, reason, comparisons, lugre_joints) -> LuGreTrial:
     from identification.calibration.never_worse import pooled_comparison
 
     pooled = pooled_comparison(comparisons)
+    better = tuple(j for j in range(len(pooled.before)) if all(c.after[j] < c.before[j] - c.margin[j]
+                                                               for c in comparisons))  # fmt: skip
     return LuGreTrial(lags, joints, kept, tuple(map(float, pooled.before)), tuple(map(float, pooled.after)),
-                      tuple(map(float, pooled.margin)), reason, tuple(lugre_joints))  # fmt: skip
+                      tuple(map(float, pooled.margin)), reason, tuple(lugre_joints), better=better)  # fmt: skip
 
 
 def mixed_trial(problem, written, judged, writer, found, keep) -> tuple:

@@ -118,11 +118,46 @@ class FileCheck:
     held: tuple = ()  # the joints (0-based) whose friction identify held to the robot file's fit (``one_way_friction``)
     baselines: tuple = ()  # per joint, the baseline judged against: "friction" (fitted) or "alone" (``BASELINES``)
     held_links: tuple = ()  # the links (0-based) identify held at the robot file's (``worse_joint_hold``)
+    carried: tuple = ()  # the joints (0-based) that keep ``default``'s verdict (``keeping_verdicts``)
+    default: FileCheck | None = None  # the default model's check, whose verdict those joints keep
+    trial: JointComparison | None = None  # this model against the default model, pooled over the held-out recordings
 
     @property
     def worse(self) -> tuple:
-        """The joints (0-based) on which the identified model is worse than the robot file beyond the margin."""
-        return () if self.comparison is None else self.comparison.worse
+        """The joints (0-based) on which the identified model is worse than the robot file beyond the margin; on a
+        joint of ``carried``, the default model's verdict (``keeping_verdicts``)."""
+        if self.comparison is None:
+            return ()
+        kept = set(self.carried) & set(() if self.default is None else self.default.worse)
+        return tuple(sorted({j for j in self.comparison.worse if j not in self.carried} | kept))
+
+    def keeping_verdicts(self, default: FileCheck, trial: JointComparison, joints) -> FileCheck:
+        """This check with ``joints`` (0-based) keeping the ``default`` model's verdict against the robot file: the
+        joints this model (LuGre friction, ``lugre_trial``) predicts within the paired margin of the default model it
+        replaces (``trial``: this model against that one). The two predict such a joint alike to the noise, and the
+        default model's check is the one that judges it (``lugre_trial``'s rule); this check reads it through the file
+        with the noise of both comparisons and, on a LuGre joint, a baseline of its own (the file with the Stribeck
+        friction the LuGre fit starts from). The numbers of both are kept and said where the verdicts differ."""
+        if self.comparison is None or default.comparison is None:
+            return self
+        return replace(self, carried=tuple(sorted(int(j) for j in joints)), default=default, trial=trial)
+
+    def _carried_text(self) -> str:
+        """Per carried joint whose own reading differs from the default model's verdict: both readings, and why the
+        default model's is the verdict ("" where none differs)."""
+        if self.default is None:
+            return ""
+        own, theirs = set(self.comparison.worse), set(self.default.worse)
+        c, d, t = self.comparison, self.default.comparison, self.trial
+        return "; ".join(
+            f"joint {j + 1} keeps the default steady-state model's verdict ({'worse' if j in theirs else 'not worse'}: "
+            f"{d.before[j]:.4g} -> {d.after[j]:.4g} N m, margin {d.margin[j]:.2g}), since this model predicts it as "
+            f"that one does (within their paired margin: {t.before[j]:.4g} -> {t.after[j]:.4g} N m, margin "
+            f"{t.margin[j]:.2g}); read through the robot file with its own baseline it is {c.before[j]:.4g} -> "
+            f"{c.after[j]:.4g} N m (margin {c.margin[j]:.2g})"
+            for j in self.carried
+            if (j in own) != (j in theirs)
+        )
 
     @property
     def above(self) -> tuple:
@@ -141,15 +176,19 @@ class FileCheck:
         if self.comparison is None:
             return f"against the robot file: not checked ({self.reason})"
         c, held = self.comparison, f"{self.recordings} held-out recording(s)"
-        allowance = self._allowance_text()
+        allowance, carried = self._allowance_text(), self._carried_text()
+        carried = f"; {carried}" if carried else ""
         if not self.worse:
-            above = [j for j in range(len(c.after)) if c.after[j] > c.before[j] + c.margin[j] - self._extra[j]]
+            above = [j for j in range(len(c.after)) if c.after[j] > c.before[j] + c.margin[j] - self._extra[j]
+                     and j not in self.carried]  # fmt: skip
             within = f"; above it within that allowance: {c.text(above)}" if above else ""
             return (f"against the robot file ({self._baseline_text()}): no joint worse on {held} beyond "
-                    f"{allowance} (RMSE {_numbers(c.after)} against {_numbers(c.before)} N m{within})")  # fmt: skip
+                    f"{allowance} (RMSE {_numbers(c.after)} against {_numbers(c.before)} N m{within}"
+                    f"{carried})")  # fmt: skip
         joints = ", ".join(str(j + 1) for j in self.worse)
         return (f"against the robot file ({self._baseline_text()}): WORSE on joint(s) {joints} on {held} "
-                f"beyond {allowance}: {c.text()} (file baseline -> identified). The model is written as identified, "
+                f"beyond {allowance}: {c.text(self.worse)} (file baseline -> identified{carried}). The model is "
+                f"written as identified, "
                 f"but on those joints the robot file (its validation table's file baseline, not the robot file alone) "
                 f"predicts the held-out motion better: '{DIAGNOSE_COMMAND}' scores "
                 f"that model and names what it finds missing. {self._remedy()}")  # fmt: skip
@@ -195,15 +234,38 @@ class FileCheck:
         """The estimation allowance per joint [N m] (part of ``comparison.margin``)."""
         return np.zeros(len(self.comparison.before)) if self.allowance is None else np.asarray(self.allowance)
 
+    def _kept_dict(self) -> dict | None:
+        """The ``verdict_kept`` block: the carried joints, the rule, both verdicts and the numbers behind them."""
+        if self.default is None or not self.carried:
+            return None
+        d, t = self.default.comparison, self.trial
+        return {"joints": [j + 1 for j in self.carried], "rule": KEPT_RULE,
+                "default_worse_joints": [j + 1 for j in self.default.worse],
+                "own_worse_joints": [j + 1 for j in self.comparison.worse],
+                "default_rmse_file": _floats(d.before), "default_rmse": _floats(d.after),
+                "default_margin": _floats(d.margin), "trial_margin": _floats(t.margin)}  # fmt: skip
+
     def to_dict(self) -> dict:
         if self.comparison is None:
             return {"checked": False, "reason": self.reason}
-        return _json({"checked": True, "recordings": self.recordings, "worse_joints": [j + 1 for j in self.worse],
-                **self.comparison.to_dict(), "estimation_allowance": [float(v) for v in self._extra],
+        return _json({"checked": True, "recordings": self.recordings, **self.comparison.to_dict(),
+                "worse_joints": [j + 1 for j in self.worse], "verdict_kept": self._kept_dict(),
+                "estimation_allowance": [float(v) for v in self._extra],
                 "estimation_allowance_rule": ALLOWANCE_RULES[self.from_covariance],
                 "estimated_parameters": self.parameters, "independent_samples_per_joint": list(self.samples),
                 "one_way_joints": [j + 1 for j in self.one_way], "baselines": list(self.baselines),
                 "baseline_rule": BASELINE_RULE, "held_links": [i + 1 for i in self.held_links]})  # fmt: skip
+
+
+KEPT_RULE = (
+    "a joint the identified model (LuGre friction) predicts within the paired margin of the default "
+    "steady-state model it replaced, on each held-out recording, keeps that model's verdict against the "
+    "robot file (lugre_trial)"
+)
+
+
+def _floats(values) -> list:
+    return [float(v) for v in np.atleast_1d(values)]
 
 
 def _numbers(values) -> str:

@@ -162,6 +162,10 @@ def test_identify_names_a_load_nobody_states_on_the_held_out_recording_and_judge
     # than the robot file's friction fitted on every run, by 0.0001-0.0009 N m past the margin
     for run in (loaded, empty, stated):
         assert run["robot_file_check"]["worse_joints"] == [], run["robot_file_check"]
+        # each joint the kept model does not predict better beyond the margin keeps the default model's verdict
+        better = run["lugre_trial"]["better_joints"]
+        kept = run["robot_file_check"]["verdict_kept"]
+        assert kept["joints"] == [j for j in range(1, 7) if j not in better] and better, (kept, better)
         dv = run["lugre"]["dv"]
         for j in run["lugre_trial"]["lugre_joints"]:
             assert dv[j - 1] == 1.0 or abs(dv[j - 1] - denso.drives[j - 1].dv) < 0.1, (j, dv)

@@ -150,6 +150,47 @@ def test_above_the_file_leaves_the_bootstrap_noise_out_but_not_the_floor_or_the_
     assert FileCheck(comparison, recordings=1).above == (0, 2) and FileCheck().above == ()
 
 
+def test_a_joint_lugre_predicts_as_the_default_model_keeps_the_default_models_verdict_and_both_readings_are_said():
+    """``FileCheck.keeping_verdicts`` (``lugre_trial``'s rule, applied by identify where the LuGre model is kept): the
+    numbers are the belt cobot's seed 4 (``unseen_arms``, ``cobot_belt_payload_change``). Its joint 6 is belt ripple
+    and a LuGre fit the data do not determine; LuGre predicts it within the paired margin of the default model
+    (0.2029 -> 0.2055 N m, margin 0.0039), which is within its margin of the robot file (0.2010 -> 0.2029, margin
+    0.0031); the LuGre model's own check, through the file with the Stribeck start's friction, read 0.2016 -> 0.2055
+    (margin 0.0038) and the report said WORSE. Joints 1-3 LuGre predicts better beyond the margin keep their own
+    verdict, and a joint the default model was worse on stays worse."""
+    from identification.calibration.never_worse import JointComparison
+    from identification.calibration.robot_file_check import FileCheck
+
+    def check(before, after, margin):
+        return FileCheck(JointComparison(np.array(before), np.array(after), np.array(margin)), recordings=1)
+
+    own = check([2.0917, 9.3209, 2.5288, 0.16376, 0.11070, 0.20157],
+                [0.3138, 0.2387, 0.2653, 0.10986, 0.08812, 0.20551],
+                [0.4542, 0.7514, 0.2720, 0.01488, 0.02097, 0.00377])  # fmt: skip
+    default = check([2.0921, 9.3382, 2.5094, 0.14962, 0.11070, 0.201046],
+                    [1.1657, 0.8099, 0.3756, 0.11344, 0.10201, 0.20288],
+                    [0.5875, 0.9627, 0.2734, 0.01319, 0.00736, 0.00314])  # fmt: skip
+    trial = JointComparison(default.comparison.after, own.comparison.after,
+                            np.array([0.3522, 0.3031, 0.0581, 0.01118, 0.02322, 0.00386]))  # fmt: skip
+    assert own.worse == (5,) and "WORSE on joint(s) 6" in own.describe()  # what the report said
+    kept = own.keeping_verdicts(default, trial, (3, 4, 5))
+    assert kept.worse == () and "WORSE" not in kept.describe()
+    said = kept.describe()
+    assert "joint 6 keeps the default steady-state model's verdict (not worse: 0.201 -> 0.2029 N m" in said, said
+    assert "0.2029 -> 0.2055 N m, margin 0.0039" in said and "0.2016 -> 0.2055 N m (margin 0.0038)" in said, said
+    stored = kept.to_dict()
+    assert stored["worse_joints"] == [] and stored["verdict_kept"]["own_worse_joints"] == [6]
+    assert stored["verdict_kept"]["joints"] == [4, 5, 6] and stored["verdict_kept"]["default_worse_joints"] == []
+    # the default model worse on joint 5 (within the trial's margin there): the verdict is worse, though its own is not
+    worse = check(default.comparison.before, default.comparison.after + np.array([0, 0, 0, 0, 0.02, 0]),
+                  default.comparison.margin)  # fmt: skip
+    assert worse.worse == (4,) and own.keeping_verdicts(worse, trial, (3, 4, 5)).worse == (4,)
+    assert "joint 5 keeps the default steady-state model's verdict (worse" in own.keeping_verdicts(
+        worse, trial, (3, 4, 5)).describe()  # fmt: skip
+    # a joint LuGre predicts better beyond the margin keeps its own reading
+    assert own.keeping_verdicts(default, trial, (3, 4)).worse == (5,)
+
+
 def test_one_way_joints_are_the_joints_that_never_reverse(denso):
     """A joint whose velocity keeps one sign (a drift added to joint 2's motion) is one-way; the sine experiment's
     other joints reverse. The speed and share are those of the offset's reversal check."""
