@@ -89,7 +89,8 @@ class CarriedColumns:
         return term
 
     def offset_columns(self, problem) -> dict:
-        """``{joint: index}`` of each carried offset's column among the nominal columns of ``bases``."""
+        """``{joint: index}`` of each carried offset's column among ``problem``'s nominal columns (the base
+        model's, then the carried terms')."""
         start = problem.base_t.n_columns
         out = {}
         for carried in self.terms:

@@ -46,6 +46,7 @@ __all__ = [
     "offset_terms",
     "read_offset",
     "with_file_offsets",
+    "with_offset_columns",
 ]
 
 
