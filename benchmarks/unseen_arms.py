@@ -41,14 +41,17 @@ and judged against the truth:
   naming the file, the column and the ``--columns`` fix.
 
 A case passes when every command exits 0, the refusal holds, payload error <= 0.10, link mass ratio <= 1.5,
-rmse_ratio <= 2.5 after the diagnosis, nothing missed and nothing false. The joints identify names worse than the robot
-file (``worse_joints``, said in a warning) are shown beside them; they do not fail the row.
+rmse_ratio <= 2.5 after the diagnosis, nothing missed, nothing false, and identify names no joint worse than the robot
+file (``worse_joints`` empty, ``robot_file_check``; None where it cannot judge the file): the model it hands over is
+never worse on a joint than the model it replaces, and a warning that says so is no pass. ``held_links`` shows the
+links identify held at the robot file's to get there (``worse_joint_hold``).
 
 ``--held-out-unstated`` removes the held-out recording's payload sidecar after the case is built: the held-out
 recording then carries a load nobody stated (a gripper the user forgot to declare). Its row adds what identify,
 validate and diagnose said about that load (``held_out_load``: the mass each named, or None) and the judges' verdicts
 (``column_choice``: the drive columns chosen; ``worse_joints``: the joints identify called worse than the robot file),
-to be read against the run with the sidecar.
+to be read against the run with the sidecar: there the robot file is judged on a load neither model has, so
+``worse_joints`` is shown and does not fail the row.
 
 ``--seeds 0 1 2`` runs every case at each seed (one row each; ``--seed`` is the same option) and the summary gives
 each case's pass rate and the seeds it failed (``per_case``) beside the seeds run; ``passed`` counts the rows.
@@ -176,6 +179,7 @@ def _held_out_judges(identified, document, validated, diagnosis) -> dict:
         "column_choice": {key: choice[key] for key in ("friction_shapes", "offset_joints", "inertia_joints",
                                                        "drive_loss_joints")},
         "worse_joints": document["identification"]["robot_file_check"].get("worse_joints"),
+        "held_links": (document["identification"].get("worse_joints") or {}).get("held_links") or [],
         "rmse": [round(v, 4) if v is not None else None for v in entry["rmse"]],
         "rmse_robot_file_baseline": [round(v, 4) if v is not None else None
                                      for v in entry.get("rmse_robot_file_baseline") or ()],
@@ -294,6 +298,7 @@ def run_case(name: str, folder: Path, seed: int, unstated_held_out: bool = False
         and row["rmse_ratio_after"] <= LIMITS["rmse_ratio_after"]
         and not missed
         and not false
+        and (unstated_held_out or not row["worse_joints"])
     )
     return row
 

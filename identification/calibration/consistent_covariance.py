@@ -45,7 +45,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from identification.calibration.consistent_fit import link_is_free, prior_standard
+from identification.calibration.consistent_fit import held_rotors, link_is_free, prior_standard
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 
 __all__ = ["consistent_covariance"]
@@ -65,7 +65,8 @@ def consistent_covariance(covariance, model, robot, pull, held_links=()) -> np.n
     pull : PriorPull
         The pull the fit used (``FitBounds.prior``).
     held_links : tuple of int
-        Links (0-based) the fit held at the robot file's (``TrajectoryOptions.held_links``): known, no variables.
+        Links (0-based) the fit held at the robot file's (``TrajectoryOptions.held_links``): known, no variables, nor
+        the drive inertias held with them (``consistent_fit.held_rotors``).
 
     Returns
     -------
@@ -77,7 +78,8 @@ def consistent_covariance(covariance, model, robot, pull, held_links=()) -> np.n
     sd = pull.standard_deviations(prior_standard(robot)).reshape(-1)
     free = [i * size + k for i in range(n) if link_is_free(model, i) and i not in held_links
             for k in range(LINK_PARAMETER_COUNT)]  # fmt: skip
-    varied = free + [i * size + LINK_PARAMETER_COUNT for i in range(n)]  # the fit's variables: free links, rotors
+    held = held_rotors(robot, held_links)  # known with their links
+    varied = free + [i * size + LINK_PARAMETER_COUNT for i in range(n) if i not in held]  # free links, free rotors
     mapped = np.asarray(model.parameter_map, dtype=float)[:, varied] * sd[varied]
     innovation = c[:n_base, :n_base] + mapped @ mapped.T
     out = c - c[:, :n_base] @ np.linalg.solve(innovation, c[:n_base, :])

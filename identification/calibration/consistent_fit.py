@@ -49,6 +49,7 @@ __all__ = [
     "consistent_fit",
     "drive_lower_bounds",
     "fit_bounds",
+    "held_rotors",
     "link_is_free",
     "residual_sigma",
 ]
@@ -86,6 +87,9 @@ class FitBounds:
     floors : tuple
         Per joint, the link's inertia floor (``inertia_floor.link_floors``: 3 x 3, per unit mass) or None; empty:
         none.
+    held_rotors : tuple
+        The joints (0-based) whose drive inertia is held at the robot's with the links it carries
+        (:func:`held_rotors`): its bounds meet there, and the data pushing on them is no finding.
     """
 
     envelopes: tuple
@@ -96,6 +100,7 @@ class FitBounds:
     pressure: np.ndarray | None = None
     prior: PriorPull | None = None
     floors: tuple = ()
+    held_rotors: tuple = ()
 
     def floor(self, i: int):
         """The inertia floor ``F`` of link ``i`` (``inertia_floor``), or None."""
@@ -114,7 +119,7 @@ def fit_bounds(robot, model, options) -> FitBounds:
     n = robot.n_dof
     none = np.full(n, np.inf)
     if not options.envelope or robot.links is None:
-        return FitBounds((None,) * n, np.zeros(n), none, np.zeros(n), none.copy())
+        return _holding_rotors(FitBounds((None,) * n, np.zeros(n), none, np.zeros(n), none.copy()), robot, options)
     free = [i for i in range(n) if link_is_free(model, i)]
     mass = np.array([link.mass for link in robot.links], dtype=float)
     rotor = np.asarray(robot.rotor_inertia, dtype=float)
@@ -122,7 +127,7 @@ def fit_bounds(robot, model, options) -> FitBounds:
     given = mass > 0
     rotor_low, rotor_high = options.drive_inertia_ratio
     with_rotor = rotor > 0
-    return FitBounds(
+    bounds = FitBounds(
         envelopes=link_envelopes(robot, free),
         mass_lower=np.where(given, low * mass, 0.0),
         mass_upper=np.where(given, high * mass, np.inf),
@@ -130,6 +135,39 @@ def fit_bounds(robot, model, options) -> FitBounds:
         rotor_upper=np.where(with_rotor, rotor_high * rotor, np.inf),
         floors=link_floors(robot, free),
     )
+    return _holding_rotors(bounds, robot, options)
+
+
+def held_rotors(robot, held_links) -> tuple:
+    """The joints (0-based) whose drive inertia the fit holds with the ``held_links`` (``TrajectoryOptions``): each
+    joint whose every carried link (its own to the flange) is held, at ``robot``'s rotor inertia (the file's, or the
+    reference ``merged_rotors`` holds a merged one to); none where that is 0, nothing to hold it at.
+
+    In a serial chain a joint's torque is that of the links it carries and of its own rotor (``Ia_j qdd_j``, on that
+    joint alone). Once those links are the file's, the rotor is the joint's last inertia the fit can move, and
+    fitted it takes what the links took (a heavy arm with every link held kept joint 2 worse than the robot file on
+    the held-out motion, its rotor fitted above the file's): held with them, the joint predicts what the robot
+    file's rigid body predicts, the baseline ``worse_joint_hold`` judges it against. A joint whose later links stay
+    free keeps its rotor fitted: its own link held with its rotor can bring the joint within its margin of the file
+    while the free links after it take what the data ask of the joint (the same arm, another seed: link 2 heavier
+    than the file's and a spring kept on joint 3, which has none), where the step that holds every link it carries
+    would have come next.
+    """
+    if robot.links is None or not held_links:
+        return ()
+    n, held = robot.n_dof, set(int(i) for i in held_links)
+    rotor = np.asarray(robot.rotor_inertia, dtype=float)
+    return tuple(j for j in range(n) if rotor[j] > 0 and held >= set(range(j, n)))
+
+
+def _holding_rotors(bounds: FitBounds, robot, options) -> FitBounds:
+    """``bounds`` with the drive inertia of each of :func:`held_rotors` at the robot file's (lower = upper bound)."""
+    held = list(held_rotors(robot, options.held_links))
+    if not held:
+        return bounds
+    lower, upper = bounds.rotor_lower.copy(), bounds.rotor_upper.copy()
+    lower[held] = upper[held] = np.asarray(robot.rotor_inertia, dtype=float)[held]
+    return replace(bounds, rotor_lower=lower, rotor_upper=upper, held_rotors=tuple(held))
 
 
 def prior_standard(robot):

@@ -181,6 +181,8 @@ def _active(bounds, standard, i) -> tuple:
     for names, value, low, high in ((link, mass, bounds.mass_lower[i], bounds.mass_upper[i]),
                                     (drive, rotor, bounds.rotor_lower[i], bounds.rotor_upper[i])):  # fmt: skip
         what = "mass" if names is link else "drive inertia"
+        if names is drive and i in bounds.held_rotors:  # held with its links: no bound the data push on
+            continue
         if np.isfinite(high) and value >= high * (1.0 - ACTIVE_TOLERANCE):
             names.append(f"{what} upper")
         elif low > 0 and value <= low * (1.0 + ACTIVE_TOLERANCE):

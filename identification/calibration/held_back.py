@@ -59,6 +59,7 @@ from identification.calibration.absorbed_effect import (
     torque_shares,
 )
 from identification.calibration.clear_ask import named_where_asked, refused_noise
+from identification.calibration.consistent_fit import held_rotors
 from identification.calibration.envelope_report import (
     DIAGNOSE_ROUTE,
     MIN_REFUSED_SIGMA,
@@ -179,13 +180,17 @@ def _picks(d, covariance, candidates, threshold: float, home) -> list:
     return picks
 
 
-def _held_by_choice(model, n_dof: int, held_links) -> np.ndarray:
-    """Per base parameter: whether it combines only inertial parameters of ``held_links`` (0-based), which the fit
-    holds at the robot file's by choice (``worse_joint_hold``): not a parameter the data are held back on."""
-    rows = np.abs(model.parameter_map).reshape(model.n_base, n_dof, -1) > 0
+def _held_by_choice(model, robot, held_links, names) -> np.ndarray:
+    """Per base parameter then drive column ``names``: whether it combines only parameters of ``held_links`` (0-based)
+    and their rotors the fit holds (``consistent_fit.held_rotors``), which it holds at the robot file's by choice
+    (``worse_joint_hold``): not a parameter the data are held back on."""
+    rotors = held_rotors(robot, held_links)
+    rows = np.abs(model.parameter_map).reshape(model.n_base, robot.n_dof, -1) > 0
     held = np.zeros(rows.shape[1:], dtype=bool)
     held[list(held_links), :10] = True
-    return np.array([bool(np.any(row)) and not np.any(row & ~held) for row in rows])
+    held[list(rotors), 10] = True
+    drive = [name.startswith("Ia") and name[2:].isdigit() and int(name[2:]) - 1 in rotors for name in names]
+    return np.array([*(bool(np.any(row)) and not np.any(row & ~held) for row in rows), *drive], dtype=bool)
 
 
 def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: float = HELD_BACK_SIGMA,
@@ -223,7 +228,7 @@ def held_back(robot, model, fitted, covariance, names, envelope=(), threshold: f
     d = np.asarray(x_fit, dtype=float)[:n] - np.asarray(x_ols, dtype=float)[:n]
     covariance = np.asarray(covariance, dtype=float)[:n, :n]
     std = np.sqrt(np.clip(np.diag(covariance), 0.0, None))
-    chosen = np.concatenate([_held_by_choice(model, robot.n_dof, held_links), np.zeros(len(names), dtype=bool)])
+    chosen = _held_by_choice(model, robot, held_links, names)
     for k in np.flatnonzero(chosen & (std > 0)):  # taken at the data's values, as a pick is: no evidence left there
         d = d - covariance[:, k] / covariance[k, k] * d[k]
     drives = [model.n_base + k for k, name in enumerate(names) if name.startswith("Ia") and name[2:].isdigit()]

@@ -99,7 +99,8 @@ class MergedRotors:
             return bounds
         lower, upper = bounds.rotor_lower.copy(), bounds.rotor_upper.copy()
         for j, _, _, low, high in self.from_siblings:
-            lower[j], upper[j] = low, high
+            if j not in bounds.held_rotors:  # held with its links at the reference (``consistent_fit.held_rotors``)
+                lower[j], upper[j] = low, high
         return replace(bounds, rotor_lower=lower, rotor_upper=upper)
 
     def note(self) -> tuple:

@@ -146,9 +146,10 @@ class TrajectoryOptions:
         Drive columns (``fc<j>``, ``fv<j>`` of Coulomb-viscous joints) held at these values, not fitted
         (``held_friction``; ``one_way_friction`` holds the friction of a joint the data do not determine it on).
     held_links : tuple of int
-        Links (0-based) whose ten inertial parameters the consistent fit holds at the robot file's (their drive
-        inertias stay fitted): ``worse_joint_hold`` holds the links a joint carries where the identified ones made it
-        worse than the robot file on the held-out recordings.
+        Links (0-based) whose ten inertial parameters the consistent fit holds at the robot file's, and the drive
+        inertia of each joint whose every carried link is among them (``consistent_fit.held_rotors``):
+        ``worse_joint_hold`` holds the links a joint carries where the identified ones made it worse than the robot
+        file on the held-out recordings.
     baseline_friction : tuple of str
         The names among ``held_friction`` that ``worse_joint_hold`` held at the robot file's baseline: a choice of the
         held-out recordings, not of the data, so free in the data's own least squares ``held_back`` compares with.

@@ -19,9 +19,11 @@ joint worse than the file before them need not be after.
    Coulomb, and the file without friction predicts opti_traj_testing1 better);
 2. **rigid body**: a joint's torque in a serial chain is carried by its own link and every link after it; the fit is
    made again with the ten inertial parameters of the worse joints' own links held at the robot file's
-   (``TrajectoryOptions.held_links``; drive inertias, friction and offsets stay fitted), and where that does not mend
-   them, of every link from the first joint still worse to the flange. The worse joints then predict what the robot
-   file's rigid body predicts, and the links before them are fitted to what the held ones leave. Kinova, the same
+   (``TrajectoryOptions.held_links``; friction and offsets stay fitted), and where that does not mend them, of every
+   link from the first joint still worse to the flange. A joint whose every carried link is held has its drive
+   inertia held with them (``consistent_fit.held_rotors``: the last inertia of that joint the fit could move, which
+   the file's rigid body, the baseline, carries); the others' stay fitted. The worse joints then predict what the
+   robot file's rigid body predicts, and the links before them are fitted to what the held ones leave. Kinova, the same
    fit: joint 6 moves one way through 0.77 rad, its friction held already; links 6 and 7 were fitted to what the
    other joints ask of them (link 7 1.30 kg against the file's 1.10, its centre of mass 4 cm off), and joint 6 was
    worse than the robot file with friction fitted on opti_traj_testing1 (link 6 held alone leaves it worse).
@@ -106,7 +108,10 @@ class WorseJointHold:
             done.append(f"friction held at the robot file's baseline ({HeldFriction(self.held_friction).describe()})")
         if self.held_links:
             links = ", ".join(str(i + 1) for i in self.held_links)
-            done.append(f"the rigid body of link(s) {links}, which carry them, held at the robot file's")
+            done.append(
+                f"the rigid body of link(s) {links}, which carry them, held at the robot file's (with the "
+                "drive inertia of each joint whose every carried link is held)"
+            )
         return (f"{head}{' and '.join(done)}, and the model fitted again -- {self.reason}. The held-out recording(s) "
                 "decided this hold: their check against the robot file that follows is not independent of it. "
                 "--worse-joint report keeps the model as identified")  # fmt: skip

@@ -9,10 +9,11 @@ Identify held those links because, fitted, they made joints worse than the robot
 diagnosis that frees them again fits them to what the other joints ask of them (and to an effect they may absorb), as
 identify's fit did before the hold. The base parameters are ``theta = P s`` (``PSDMModel.parameter_map``, ``s`` the
 standard parameters, 11 per link); with the ten inertial parameters of the held links at the robot file's values
-(their drive inertias stay free, as identify's), ``theta = B c + theta_held``: ``B`` an orthonormal basis of what the
-free standard parameters reach, ``theta_held`` the held links' share. The fit's rigid-body columns are the regressor
-times ``B``, its torque is the measured less the regressor times ``theta_held``, and ``theta`` of the coefficients
-gives the base parameters back.
+(and the drive inertia of each joint whose every carried link is held, as identify holds them:
+``consistent_fit.held_rotors``), ``theta = B c + theta_held``: ``B`` an orthonormal basis of what the free standard
+parameters reach, ``theta_held`` the held links' share. The fit's rigid-body columns are the regressor times ``B``,
+its torque is the measured less the regressor times ``theta_held``, and ``theta`` of the coefficients gives the base
+parameters back.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.calibration.consistent_fit import prior_standard
+from identification.calibration.consistent_fit import held_rotors, prior_standard
 
 __all__ = ["HeldLinks", "held_links"]
 
@@ -63,6 +64,8 @@ def held_links(model, robot, links) -> HeldLinks | None:
     for i in links:
         held[i * LINK_SIZE : i * LINK_SIZE + 10] = True
         standard[i * LINK_SIZE : i * LINK_SIZE + 10] = prior[i, :10]
+    for i in held_rotors(robot, links):  # with every link it carries, as identify holds it
+        held[i * LINK_SIZE + 10], standard[i * LINK_SIZE + 10] = True, prior[i, 10]
     u, singular, _ = np.linalg.svd(mapping[:, ~held], full_matrices=False)
     rank = int(np.sum(singular > RANK_TOLERANCE * max(float(singular[0]), 1e-300))) if singular.size else 0
     return HeldLinks(links=links, basis=u[:, :rank], theta_held=mapping[:, held] @ standard[held])

@@ -120,6 +120,24 @@ def test_held_links_reach_exactly_the_base_parameters_of_the_free_links(denso, d
     assert held_links(denso_model, denso, ()) is None
 
 
+def test_the_diagnosis_holds_a_rotor_where_identify_does(denso, denso_model):
+    """Reference: ``PSDMModel.parameter_map`` (the Denso's drive inertias are in its base parameters). With links 5 and
+    6 held, joint 6's rotor moved from the file's is out of reach, as identify holds it there with the links it
+    carries (``consistent_fit.held_rotors``); with links 4 and 6 held, joint 4's is within reach (link 5 free: identify
+    fits it)."""
+    standard = denso.nominal_dynamic_parameters().copy()
+
+    def reached(links, joint):
+        moved = standard.copy()
+        moved[joint, 10] *= 1.5
+        held, theta = held_links(denso_model, denso, links), denso_model.base_parameters(moved)
+        c = np.linalg.lstsq(held.basis, theta - held.theta_held, rcond=None)[0]
+        return np.linalg.norm(held.theta(c) - theta) <= 1e-9 * np.linalg.norm(theta)
+
+    assert not reached((4, 5), 5) and reached((3, 5), 3)
+    assert reached((3, 5), 4)  # link 5 free: its joint's rotor too
+
+
 def test_a_model_file_states_what_its_refits_keep():
     document = {
         "identification": {"worse_joints": {"held_links": [3, 2]}},
