@@ -13,7 +13,11 @@ The rule (``NAMING_RULE``): a counterbalance or spring, or a payload named on a 
 mass, is named only where the torque the bounds refuse on the joint it acts on (a counterbalance or spring: its own
 joint; a payload: every joint that carries it, the one refused most) is at least ``NAME_SIGMA`` times that joint's
 noise. The refused torque is what the unbounded least squares show and the bounded fit does not give: the RMS by which
-the bounded fit's residual on the training data exceeds theirs, per joint (``refused_noise``). ``NAME_SIGMA`` is 2: a
+the bounded fit's residual on the training data exceeds theirs, per joint (``refused_noise``). The noise is one the
+effect cannot inflate (``angle_noise``): the residual of the same least squares with a torque of each joint's own
+angle (a counterbalance's or spring's law; a payload is in the links' columns already); where that is above the
+least squares' own noise, theirs. Their residual alone held the effect's part their columns cannot give, and a large
+counterbalance raised the noise it was judged against. ``NAME_SIGMA`` is 2: a
 torque a single sample shows beyond two standard deviations of its noise, where a plot of the residual shows it. The
 statistics of many samples do not decide it: over thousands of samples a refusal of a tenth of the noise is already
 significant, and a robot file's link off beyond its bounds, or an unstated rotor, gives that (the warning itself
@@ -33,6 +37,7 @@ holds back (``held_back``, holder ``"pull"``) keeps its naming.
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import cache, partial
 
 import numpy as np
 
@@ -52,13 +57,16 @@ UNNAMED = "unnamed"
 NAMING_RULE = (
     f"a counterbalance, or a payload on a link before the last two, is named only where the bounds refuse the joint it "
     f"acts on at least {NAME_SIGMA:g} x its noise of RMS torque (the bounded fit's residual over the unbounded least "
-    "squares'), a torque each sample shows beyond two standard deviations of its noise"
+    "squares'), a torque each sample shows beyond two standard deviations of its noise (the least squares' residual "
+    "with a torque of each joint's angle: a noise the effect cannot inflate)"
 )
 
 
 def refused_noise(equations, x_fit, x_ols, sigma) -> np.ndarray:
     """Per joint, the RMS torque by which the bounded fit's residual (``x_fit``) exceeds the unbounded least squares'
-    (``x_ols``) on the training data's normal ``equations``, in noise levels ``sigma`` of the joint."""
+    (``x_ols``) on the training data's normal ``equations``, in noise levels ``sigma`` of the joint (or a callable
+    giving them: ``angle_noise.angle_free_sigma``)."""
+    sigma = sigma() if callable(sigma) else sigma
     growth = equations.residual_sum(np.asarray(x_fit)) - equations.residual_sum(np.asarray(x_ols))
     rms = np.sqrt(np.maximum(growth, 0.0) / np.maximum(equations.count, 1))
     return rms / np.maximum(np.asarray(sigma, dtype=float), 1e-12)
@@ -66,32 +74,34 @@ def refused_noise(equations, x_fit, x_ols, sigma) -> np.ndarray:
 
 def _asked(absorbs: str, joint: int, refused) -> bool:
     """Whether the data clearly ask for ``absorbs`` acting on ``joint`` (0-based): an effect this rule does not judge
-    is asked for, one of ``NAMED_EFFECTS`` where the torque refused on its joint (a payload: the most refused) is at
-    least ``NAME_SIGMA`` noise levels."""
+    is asked for, one of ``NAMED_EFFECTS`` where the torque refused on its joint (a payload: the most refused;
+    ``refused()``: ``refused_noise``) is at least ``NAME_SIGMA`` noise levels."""
     if absorbs not in NAMED_EFFECTS:
         return True
-    return float(np.max(refused) if absorbs == "payload" else refused[joint]) >= NAME_SIGMA
+    return float(np.max(refused()) if absorbs == "payload" else refused()[joint]) >= NAME_SIGMA
 
 
 def named_where_asked(findings, held, refused, robot, currents: bool = False) -> tuple:
     """``(findings, held)``: the envelope's findings (``envelope_report.EnvelopeFinding``) and the parameters held
     back by a bound (``held_back.HeldBack``, holder ``"envelope"``) with each counterbalance, spring or payload the
-    data do not clearly ask for (``NAMING_RULE``; ``refused``: ``refused_noise``) named as none, or on motor currents
-    (``currents``) as the joint's rotor inertia where the robot file states none (module docstring)."""
+    data do not clearly ask for (``NAMING_RULE``; ``refused``: ``refused_noise``, or a callable giving it, called
+    once and only when an effect is judged) named as none, or on motor currents (``currents``) as the joint's rotor
+    inertia where the robot file states none (module docstring)."""
+    refused = cache(refused) if callable(refused) else partial(np.asarray, refused)
     prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
     distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())  # a payload's own links: it sits beyond them
     out = []
     for finding in findings:
         at, own = where(finding), finding.absorbs == "payload" and finding.link in distal
         judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused)
-        out.append(_unnamed_finding(finding, at, refused, robot, currents) if judged else finding)
+        out.append(_unnamed_finding(finding, at, refused(), robot, currents) if judged else finding)
     kept = []
     for item in held:
         at, own = item.effect_joint if item.effect_joint >= 0 else item.joint, item.absorbs == "payload"
         judged = (
             item.holder == "envelope" and not (own and item.joint in distal) and not _asked(item.absorbs, at, refused)
         )
-        kept.append(_unnamed_item(item, at, refused, robot, currents) if judged else item)
+        kept.append(_unnamed_item(item, at, refused(), robot, currents) if judged else item)
     return tuple(out), tuple(kept)
 
 

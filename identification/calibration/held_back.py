@@ -48,6 +48,7 @@ bound is active, only the pull) a weaker pull, ``--prior-uncertainty``.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import partial
 
 import numpy as np
 
@@ -298,7 +299,7 @@ def _message(item: HeldBack, robot) -> str:
     )
 
 
-def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_links=()) -> tuple:
+def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_links=(), noise=None) -> tuple:
     """``(envelope, note)``: the fit's envelope findings named from the same evidence as the parameters it holds back
     (``envelope_report.named_from_evidence``: a pushed link takes the effects of its most significant parameter among
     them) and the ``held_note`` of those (``held_back``'s arguments; ``kt``: the torque constants where the torque
@@ -308,7 +309,8 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     say that departure is an inertia about the joint the fit holds back (``inertia_departure``): the links pushed on
     its behalf are then named after it, and the departure is stored with the bounds. Last, a counterbalance or payload
     held by a bound that the data do not clearly ask for (``clear_ask.NAMING_RULE``) is named as none, or on motor
-    currents as the joint's rotor inertia."""
+    currents as the joint's rotor inertia. The joints' noise it is judged against is ``fitted``'s, or where ``noise``
+    (a callable, asked only when something is judged: ``angle_noise.effect_free_noise``) gives less, that."""
     items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
     named, inertias = named_from_evidence(envelope, items, model, robot, kt is not None), {}
     if len(fitted) > 4:  # a link still named a payload beside one: a joint's gravity departing alone says balancer
@@ -321,7 +323,8 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
             kt is not None,
         )
         named = yielded_findings(named, inertias)  # a departure the held-back inertia made names no balancer
-    refused = refused_noise(fitted[2], fitted[0], fitted[1], fitted[3])
+    sigma = fitted[3] if noise is None else (lambda: np.minimum(fitted[3], noise()))  # the effect only takes torque out
+    refused = partial(refused_noise, fitted[2], fitted[0], fitted[1], sigma)
     named, items = named_where_asked(named, items, refused, robot, kt is not None)  # only what the data clearly ask
     return named, (*held_note(items), *inertia_note(inertias))
 

@@ -31,6 +31,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.calibration import held_friction
+from identification.calibration.angle_noise import effect_free_noise
 from identification.calibration.configuration_check import accumulate, loaded_recordings, unstated_payload_warnings
 from identification.calibration.consistent_covariance import consistent_covariance
 from identification.calibration.consistent_fit import (
@@ -363,8 +364,7 @@ def identify_trajectories(
     if not recordings:
         raise ParameterError("identify_trajectories needs at least one recording; got none. Pass --data FILE.")
     bodies = FlangeBodies.of(configurations, len(recordings))
-    kt = torque_constants(robot, options, recordings)
-    inertia_joints = drive_inertia_joints(model, robot, options)
+    kt, inertia_joints = torque_constants(robot, options, recordings), drive_inertia_joints(model, robot, options)
     lower = drive_lower_bounds(names := drive_column_names(robot.n_dof, options.friction, inertia_joints))
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
@@ -386,6 +386,7 @@ def identify_trajectories(
     check_columns(robot, model, equations.subset([k for k in free if k < n_fit]),
                   [n for k, n in enumerate(names) if model.n_base + k not in held], recordings)  # fmt: skip
     sigma, x_ols, inverse, condition = weighted_least_squares(equations, free, range(n_fit, n_all))
+    noise = effect_free_noise(robot, model, prepared, extras, setup, n_columns, free, range(n_fit, n_all))  # lazy
     correlation = np.max([correlation_time(model, rec, x_ols, options, inertia_joints, columns, stribeck=vs)
                           for rec, columns in zip(prepared, extras)], axis=0)  # fmt: skip
     covariance = sandwich_covariance(equations, sigma, inverse, correlation)
@@ -411,7 +412,7 @@ def identify_trajectories(
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
         pushed = envelope_findings(robot, bounds, standard, equations, x_fit, data_own[0], sigma, kt is not None)
         pushed, kept = causes(robot, model, (x_fit, data_own[0], equations, sigma, prepared), data_own[1], names,
-                              pushed, kt, options.held_links)  # fmt: skip
+                              pushed, kt, options.held_links, noise)  # fmt: skip
         free = [i for i in range(robot.n_dof) if link_is_free(model, i)]
         eigen = float(pseudo_inertia_eigenvalues(standard[free]).min()) if free else float("inf")
         theta = model.base_parameters(standard)

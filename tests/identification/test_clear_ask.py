@@ -11,6 +11,7 @@ other joint.
 import numpy as np
 import pytest
 
+from identification.calibration.angle_noise import AngleColumns
 from identification.calibration.clear_ask import NAME_SIGMA, NAMING_RULE, UNNAMED, refused_noise
 from identification.calibration.envelope import link_envelopes
 from identification.calibration.envelope_report import where
@@ -28,9 +29,18 @@ CAM = xp.CamCounterbalance(joint=1, amplitude=15.0, lobe=0.3)
 
 
 @pytest.fixture(scope="module")
-def fits(tmp_path_factory):
+def noises():
+    """``{name: (least squares' sigma, the rule's noise)}`` per fit of ``fits``, as ``held_back.causes`` is given them
+    (``angle_noise.effect_free_noise``, asked here)."""
+    return {}
+
+
+@pytest.fixture(scope="module")
+def fits(tmp_path_factory, noises):
     """``{name: (robot, fit)}`` of the plain arm and the arm with the cam on joint 2."""
-    out, arm = {}, cobot()
+    import identification.calibration.trajectory_fit as trajectory_fit
+
+    out, arm, causes = {}, cobot(), trajectory_fit.causes
     for name, extras in (("plain", ()), ("cam", (CAM,))):
         folder = tmp_path_factory.mktemp(name)
         (folder / "cobot.toml").write_text(arm.robot_file((1.0,) * 4))
@@ -38,7 +48,14 @@ def fits(tmp_path_factory):
         (path,) = write_current_recordings(folder, arm, (CurrentRun("run1", 10.0),), np.random.default_rng(1),
                                            extras=extras)  # fmt: skip
         recording = load_robot_recording(path, robot, None, ColumnLayout.parse(COLUMNS, None))
-        out[name] = robot, identify_trajectories(robot, derive_psdm(robot), [recording], TrajectoryOptions())
+
+        def kept(*args, name=name):
+            noises[name] = np.asarray(args[2][3]), args[-1]()
+            return causes(*args)
+
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(trajectory_fit, "causes", kept)
+            out[name] = robot, identify_trajectories(robot, derive_psdm(robot), [recording], TrajectoryOptions())
     return out
 
 
@@ -95,3 +112,33 @@ def test_the_refused_torque_is_the_residual_growth_from_the_least_squares_to_the
     residual = [np.sum((tau - np.einsum("njk,k->nj", y, x)) ** 2, axis=0) for x in (x_fit, x_ols)]
     expected = np.sqrt(np.maximum(residual[0] - residual[1], 0.0) / 100) / sigma
     np.testing.assert_allclose(refused_noise(equations, x_fit, x_ols, sigma), expected, rtol=1e-9)
+
+
+def test_the_noise_judged_against_is_the_arms_with_or_without_the_cam(fits, noises):
+    """The noise a torque of the angle cannot inflate (``angle_noise``), against the same arm and recorded noise
+    without the cam: the plain arm's is its least squares' (no torque of the angle to take out, so no false alarm
+    gains from it); the cam's is the plain arm's on every joint, while its least squares' noise on joint 2 holds the
+    cam's harmonics the links cannot give."""
+    assert set(noises) == {"plain", "cam"}
+    (plain_ols, plain), (cam_ols, cam) = noises["plain"], noises["cam"]
+    np.testing.assert_allclose(plain, plain_ols, rtol=0.15)
+    np.testing.assert_allclose(cam, plain, rtol=0.15)
+    assert cam_ols[1] > 1.5 * cam[1]
+
+
+def test_the_angle_columns_are_each_joints_own_angle_on_its_rows_alone():
+    """Against the series written out: joint ``j``'s rows carry ``cos(k q_j), sin(k q_j)`` in its own block, zero in
+    the others'; an extra object's columns come first."""
+
+    class Extra:
+        def columns(self, q, qd, qdd):
+            return np.ones((q.shape[0], q.shape[1], 1))
+
+    q = np.random.default_rng(0).uniform(-3.0, 3.0, size=(7, 3))
+    block = AngleColumns(None, 3, harmonics=2).columns(q, q, q)
+    assert block.shape == (7, 3, 12)
+    for j in range(3):
+        own = np.column_stack([np.cos(q[:, j]), np.cos(2 * q[:, j]), np.sin(q[:, j]), np.sin(2 * q[:, j])])
+        np.testing.assert_allclose(block[:, j, 4 * j : 4 * j + 4], own)
+        assert not np.any(np.delete(block[:, j], np.s_[4 * j : 4 * j + 4], axis=1))
+    np.testing.assert_array_equal(AngleColumns(Extra(), 3, harmonics=2).columns(q, q, q)[:, :, 1:], block)

@@ -1,0 +1,76 @@
+"""A joint's noise that the effect judged cannot inflate: the denominator of ``clear_ask``'s rule.
+
+``clear_ask`` names a counterbalance or spring, or a payload on a proximal link, only where the torque the bounds
+refuse is large against the joint's noise. The data's own least squares hold no such effect, so their residual holds
+the part of it their columns cannot give: a large effect raised the noise it was judged against, and a cam
+counterbalance far above the sensor noise, whose harmonics the links cannot give, was named as none.
+
+The noise the rule needs is that of the alternative: the same least squares with the named effects' columns. A
+payload is the links' own columns already. A counterbalance or spring is a torque of its joint's own angle; on each
+joint's rows a Fourier series of that joint's angle (``HARMONICS`` harmonics, sine and cosine) holds any such law the
+recorded travel shows: the library's cam is two harmonics, a gas spring's lever law and a spring series over a
+travel shorter than a turn a few more. What they leave is the noise and what no torque of the angle explains (the
+residual sigma of that fit, as the least squares' own: ``weighted_least_squares``). A robot file off beyond its
+bounds, or a rotor inertia it does not state, is held by the least squares' own columns, so the noise it is judged
+against stays the plain least squares' (the false alarms the rule was made for stay below it). A model error that is
+no torque of the angle stays in it: the bursts a model without friction dynamics leaves at each velocity reversal.
+Their median absolute deviation would drop those too, but it drops as much of a plain arm's residual and names a
+spring a link held at its reach does not have (``tests/identification/test_clear_ask.py``).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import numpy as np
+
+from identification.calibration.configuration_check import accumulate
+from identification.calibration.weighted_solve import weighted_least_squares
+
+__all__ = ["HARMONICS", "AngleColumns", "effect_free_noise"]
+
+#: Harmonics of each joint's angle in the alternative's columns: a counterbalance's law over the recorded travel.
+HARMONICS = 4
+
+
+class AngleColumns:
+    """A recording's extra columns (``extra``: an object with ``columns(q, qd, qdd)``, or None) followed by, on each
+    joint's rows, ``cos(k q_j)`` and ``sin(k q_j)`` for ``k = 1..harmonics`` (``2 harmonics`` columns per joint,
+    joint after joint; zero on the other joints' rows)."""
+
+    def __init__(self, extra, n_dof: int, harmonics: int = HARMONICS):
+        self.extra, self.n_dof, self.harmonics = extra, n_dof, harmonics
+
+    @property
+    def width(self) -> int:
+        """The number of angle columns."""
+        return 2 * self.harmonics * self.n_dof
+
+    def columns(self, q, qd, qdd) -> np.ndarray:
+        """(n_samples, n_dof, extra's columns + ``width``)."""
+        q = np.asarray(q, dtype=float)
+        angle = q[:, :, None] * np.arange(1, self.harmonics + 1)  # (n, n_dof, harmonics)
+        series = np.concatenate([np.cos(angle), np.sin(angle)], axis=2)
+        block = np.zeros((q.shape[0], self.n_dof, self.width))
+        width = 2 * self.harmonics
+        for j in range(self.n_dof):
+            block[:, j, j * width : (j + 1) * width] = series[:, j]
+        return block if self.extra is None else np.concatenate([self.extra.columns(q, qd, qdd), block], axis=2)
+
+
+def effect_free_noise(robot, model, prepared, extras, setup, n_columns: int, free, payload=range(0)):
+    """A callable giving, once asked, per joint the noise [N m] of the data's own least squares
+    (``weighted_least_squares`` over the ``free`` of ``n_columns`` columns, ``payload`` the unknown payloads') with,
+    on each joint's rows, a Fourier series of its own angle (``AngleColumns``): that fit's residual sigma (module
+    docstring). ``prepared``, ``extras`` and ``setup`` are the fit's (``configuration_check.accumulate``); asked, it
+    makes one more pass over the recordings."""
+    return partial(_noise, robot, model, prepared, extras, setup, n_columns, free, payload)
+
+
+def _noise(robot, model, prepared, extras, setup, n_columns: int, free, payload) -> np.ndarray:
+    """``effect_free_noise``'s noise, computed."""
+    wrapped = [AngleColumns(extra, robot.n_dof) for extra in extras]
+    width = wrapped[0].width if wrapped else 0
+    equations, _ = accumulate(robot, model, prepared, wrapped, setup, n_columns + width)
+    columns = [*np.asarray(free, dtype=int).tolist(), *range(n_columns, n_columns + width)]
+    return weighted_least_squares(equations, columns, payload)[0]
