@@ -28,12 +28,13 @@ import numpy as np
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_check import check_departures, offset_sizes, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
+from identification.calibration.consistent_fit import link_is_free
 from identification.calibration.counterbalance_column import CounterbalanceChoice
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
 from identification.calibration.file_judged import file_judged, file_training
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_trial import LuGreTrial, try_lugre
-from identification.calibration.never_worse import JointComparison
+from identification.calibration.never_worse import JointComparison, compare_each
 from identification.calibration.one_way_friction import (
     OneWayFriction,
     check_one_way_mode,
@@ -53,7 +54,12 @@ from identification.calibration.trajectory_fit import (
     torque_constants,
 )
 from identification.calibration.unstated_load import UnstatedLoads, take_unstated_loads
-from identification.calibration.worse_joint_hold import WorseJointHold, check_worse_joint_mode, hold_worse_joints
+from identification.calibration.worse_joint_hold import (
+    WorseJointHold,
+    check_worse_joint_mode,
+    hold_worse_joints,
+    semidefinite_links,
+)
 from identification.calibration.written_model import ModelWriter
 from identification.data.missing_torque import find_missing_torque
 from psdm_casadi.state_cache import remembering
@@ -418,7 +424,16 @@ def _worse_joints(problem, written, judged, mode, write) -> tuple:
     def friction_of(candidate, joints):
         return file_friction_values(robot, candidate.start, prepared, joints)
 
-    written, _, record = hold_worse_joints((carried, written.options, robot.n_dof), written, _judge, friction_of, mode)
+    kts = [torque_constants(robot, written.options, [r]) for r in judged.recordings]
+
+    def compare(before, after):  # a step's model against the model before it, on each held-out recording
+        return [compare_each(before.calibrated, after.calibrated, model, [r], kt)[0]
+                for r, kt in zip(judged.recordings, kts)]  # fmt: skip
+
+    # held, such a link leaves the model inconsistent; one the model lacks (massless: not free) is not checked
+    unheld = tuple(i for i in semidefinite_links(robot.nominal_dynamic_parameters()) if link_is_free(model, i))
+    problem = (carried, written.options, robot.n_dof)
+    written, _, record = hold_worse_joints(problem, written, (_judge, compare), friction_of, mode, semidefinite=unheld)
     return written, record
 
 

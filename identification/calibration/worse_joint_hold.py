@@ -27,19 +27,29 @@ joint worse than the file before them need not be after.
    fit: joint 6 moves one way through 0.77 rad, its friction held already; links 6 and 7 were fitted to what the
    other joints ask of them (link 7 1.30 kg against the file's 1.10, its centre of mass 4 cm off), and joint 6 was
    worse than the robot file with friction fitted on opti_traj_testing1 (link 6 held alone leaves it worse).
+   A link whose robot-file values are not strictly physically consistent (``semidefinite_links``: a pseudo-inertia
+   with an eigenvalue at zero, such as a point mass with no rotational inertia) is never held: the fit holds every
+   link it identifies positive definite, and a model with one such link held fails the consistency check that follows
+   (its mass matrix can be singular: a point mass on its joint's axis has no inertia about it), so nothing would be
+   written. The step is tried without it, and the record and its sentence name it (``unheld``). The TX40's URDF
+   states its link 6 as a point mass: holding links 5-6 for joint 5 left identify with no model to write.
 
 A step is kept only if none of the joints the check names worse with it is new (a link held for a wrist joint moves
-the rigid body of the joints before it) and they are fewer than before, or the same joints each predicted better (its
-held-out RMSE lower: nearer the robot file's, which the check found better there; ``_mends``); otherwise the fit before
-it stands, and the report says why with the numbers. A step that brings a joint close to its baseline can leave it
-named worse by a hair: once its links are the file's, no estimation allowance is left in its margin, only the paired
-difference's noise, and a rule of fewer joints alone refused the step and wrote the model as far off as before. A
-step kept on the same joints is followed by the next, so the friction held and then the links leave such a joint
-predicting what its baseline predicts. The held-out recordings then decide the model, so the check that follows is not
-independent of them: the record (``WorseJointHold``) and its sentence say so, as ``one_way_friction``'s do. A model
-file states what was held (``identification.worse_joints``): the held friction is kept by every refit of the file
-(``HeldFriction.of_document``). ``mode``: ``"hold"`` (default) or ``"report"`` (name the worse joints only, ``psdm
-identify --worse-joint report``).
+the rigid body of the joints before it) and they are fewer than before, or the same joints each predicted better than
+before the step beyond the paired margin on each held-out recording (``never_worse.compare_each``: nearer the robot
+file's, which the check found better there; ``_mends``); otherwise the fit before it stands, and the report says why.
+A step that brings a joint close to its baseline can leave it named worse by a hair: once its links are the file's, no
+estimation allowance is left in its margin, only the paired difference's noise, and a rule of fewer joints alone
+refused the step and wrote the model as far off as before. A step kept on the same joints is followed by the next, so
+the friction held and then the links leave such a joint predicting what its baseline predicts. A gain within the
+paired margin is the comparison's noise, not a step nearer: the TX40's joint 5, which lacks the wrist coupling, stays
+far above the file with its friction or link 5 held, nearer by less than the margin; such steps let the held-out
+recording decide the model for nothing, and the friction they hold is held in every refit of the model file, so
+``diagnose --apply`` could not refit it beside the coupling it finds. The held-out recordings decide a kept step, so
+the check that follows is not independent of them: the record (``WorseJointHold``) and its sentence say so, as
+``one_way_friction``'s do. A model file states what was held (``identification.worse_joints``): the held friction is
+kept by every refit of the file (``HeldFriction.of_document``). ``mode``: ``"hold"`` (default) or ``"report"`` (name
+the worse joints only, ``psdm identify --worse-joint report``).
 """
 
 from __future__ import annotations
@@ -47,11 +57,21 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from identification.calibration.held_friction import HELD_TERMS, HeldFriction
 from identification.calibration.one_way_friction import held_options
+from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia
 from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = ["WORSE_JOINT_MODES", "WorseJointHold", "carried_links", "check_worse_joint_mode", "hold_worse_joints"]
+__all__ = [
+    "WORSE_JOINT_MODES",
+    "WorseJointHold",
+    "carried_links",
+    "check_worse_joint_mode",
+    "hold_worse_joints",
+    "semidefinite_links",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -71,6 +91,19 @@ def carried_links(joints, n_dof: int) -> tuple:
     return tuple(range(min(joints), n_dof)) if len(joints) else ()
 
 
+def semidefinite_links(standard) -> tuple:
+    """The links (0-based) of ``standard`` (the robot file's, ``RobotDescription.nominal_dynamic_parameters``: one row
+    of at least ten parameters per link) that are not strictly physically consistent: a pseudo-inertia whose smallest
+    eigenvalue is not above zero beyond round-off (numpy's ``matrix_rank`` tolerance, ``4 eps`` times its largest),
+    such as a point mass. Such a link is never held (module docstring)."""
+    out = []
+    for i, row in enumerate(np.atleast_2d(np.asarray(standard, dtype=float))):
+        eigenvalues = np.linalg.eigvalsh(pseudo_inertia(row[:LINK_PARAMETER_COUNT]))
+        if not eigenvalues[0] > 4 * np.finfo(float).eps * max(abs(eigenvalues[-1]), np.finfo(float).tiny):
+            out.append(i)
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class WorseJointHold:
     """What identify did about the joints the robot-file check named worse (0-based joints and links).
@@ -78,7 +111,8 @@ class WorseJointHold:
     ``worse``: the joints named worse first; ``held_friction``: the ``(name, value)`` friction held at the baselines'
     by this step; ``held_links``: the links held at the robot file's (empty: none); ``steps``: per fit tried,
     ``(what, joints named worse with it, kept)``; ``numbers``: per joint named worse first, ``(joint, baseline RMSE,
-    identified RMSE, margin)``; ``left``: the joints still worse; ``reason``: why, in words.
+    identified RMSE, margin)``; ``left``: the joints still worse; ``reason``: why, in words; ``unheld``: the links a
+    step would have held that the robot file states semi-definite (``semidefinite_links``), left fitted.
     """
 
     mode: str = "hold"
@@ -89,6 +123,7 @@ class WorseJointHold:
     numbers: tuple = ()
     left: tuple = ()
     reason: str = ""
+    unheld: tuple = ()
 
     @property
     def decided_by_held_out(self) -> bool:
@@ -102,7 +137,7 @@ class WorseJointHold:
         numbers = "; ".join(f"joint {j + 1} {b:.3g} -> {a:.3g} N m (margin {m:.2g})" for j, b, a, m in self.numbers)
         head = f"joint(s) {joints} worse than the robot file on the held-out recording(s) ({numbers}): "
         if not self.decided_by_held_out:
-            return head + self.reason
+            return head + self.reason + self._unheld_words()
         done = []
         if self.held_friction:
             done.append(f"friction held at the robot file's baseline ({HeldFriction(self.held_friction).describe()})")
@@ -112,14 +147,23 @@ class WorseJointHold:
                 f"the rigid body of link(s) {links}, which carry them, held at the robot file's (with the "
                 "drive inertia of each joint whose every carried link is held)"
             )
-        return (f"{head}{' and '.join(done)}, and the model fitted again -- {self.reason}. The held-out recording(s) "
-                "decided this hold: their check against the robot file that follows is not independent of it. "
-                "--worse-joint report keeps the model as identified")  # fmt: skip
+        return (f"{head}{' and '.join(done)}, and the model fitted again -- {self.reason}{self._unheld_words()}. The "
+                "held-out recording(s) decided this hold: their check against the robot file that follows is not "
+                "independent of it. --worse-joint report keeps the model as identified")  # fmt: skip
+
+    def _unheld_words(self) -> str:
+        if not self.unheld:
+            return ""
+        links = ", ".join(str(i + 1) for i in self.unheld)
+        return (f"; link(s) {links} left fitted, not held: the robot file's are not strictly physically consistent "
+                "(a pseudo-inertia eigenvalue at zero, e.g. a point mass): a model holding them fails the consistency "
+                "check and is not written")  # fmt: skip
 
     def to_dict(self) -> dict:
         return {"mode": self.mode, "worse_joints": [j + 1 for j in self.worse],
                 "held_friction": {n: v for n, v in self.held_friction},
                 "held_links": [i + 1 for i in self.held_links], "left_worse": [j + 1 for j in self.left],
+                "not_held_links": [i + 1 for i in self.unheld],
                 "steps": [{"held": what, "worse_joints": [j + 1 for j in worse], "kept": kept}
                           for what, worse, kept in self.steps],
                 "before": {f"joint {j + 1}": {"baseline": b, "identified": a, "margin": m}
@@ -141,23 +185,67 @@ def _baseline_friction(options, check, joints, friction_of, fit) -> tuple:
     return tuple(out)
 
 
-def _mends(found, left, after, before) -> bool:
+def _mends(found, left, nearer) -> bool:
     """Whether a step mends the joints ``left`` (0-based) the check named worse: none of those it names worse with it
-    (``found``) is new, and they are fewer, or each is predicted better on the held-out recordings than before the step
-    (held-out RMSE per joint ``after`` below ``before``)."""
+    (``found``) is new, and they are fewer, or each is predicted better than before the step beyond the paired margin
+    on every held-out recording (``nearer(found)``, asked only then)."""
     if not set(found) <= set(left):
         return False
-    return set(found) < set(left) or all(after[j] < before[j] for j in found)
+    return set(found) < set(left) or nearer(found)
 
 
-def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> tuple:
+def _nearer(compare, before, after):
+    """``nearer(joints)`` for :func:`_mends`: whether the model of fit ``after`` predicts each of ``joints`` better
+    than that of fit ``before`` beyond the paired margin on each held-out recording (``compare(before, after)``: one
+    ``never_worse.JointComparison`` per recording, ``never_worse.compare_each``). A gain within the margin is the
+    comparison's noise, not a mend: holding by it lets the held-out recordings decide the model for nothing."""
+
+    def nearer(joints) -> bool:
+        comparisons = compare(before, after)
+        return all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons for j in joints)
+
+    return nearer
+
+
+def _trial_options(kind, what, options, n_dof) -> tuple:
+    """``(options, label)`` of a step: ``options`` with the friction ``what`` (``(name, value)`` pairs) held at the
+    baselines' (free in the data's own fit), or with the links ``what`` held at the robot file's."""
+    if kind == "friction":
+        merged = {**dict(options.held_friction), **dict(what)}
+        trial_options = held_options(options, tuple(merged.items()), n_dof)
+        chosen = tuple(dict.fromkeys((*options.baseline_friction, *(n for n, _ in what))))
+        trial_options = replace(trial_options, baseline_friction=chosen)  # free in the data's own fit
+        return trial_options, "friction " + ", ".join(f"{n} {v:.3g}" for n, v in what)
+    return replace(options, held_links=what), "links " + ", ".join(str(i + 1) for i in what)
+
+
+def _link_candidates(left, options, robot, tried) -> tuple:
+    """``(steps, unheld)``: the ``("links", links)`` steps still to try for the joints ``left``, their own links, then
+    every link they carry (``carried_links``), each with the links ``options`` hold already and none ``tried`` (which
+    they join); and the links among those the robot file states semi-definite (``robot = (n_dof, semidefinite)``),
+    which no step holds."""
+    n_dof, semidefinite = robot
+    out, unheld = [], set(carried_links(left, n_dof)) & set(semidefinite)
+    for links in (set(left), set(carried_links(left, n_dof))):
+        links = tuple(sorted(set(options.held_links) | (links - unheld)))
+        if links != tuple(options.held_links) and links not in tried:
+            out.append(("links", links))
+            tried.add(links)
+    return out, unheld
+
+
+def hold_worse_joints(problem, fit, judges, friction_of, mode: str = "hold", semidefinite=()) -> tuple:
     """``(fit, options, WorseJointHold)``: ``fit`` (made with ``options``) as it is, or made again with its worse joints
-    held to what the robot file predicts there, step by step, each kept where it leaves fewer joints worse and none
-    new (module docstring). ``problem = (refit, options, n_dof)``, ``refit(options)`` the fit made again (identify:
-    carried to the model it writes, ``written_model.WrittenModel``, so that the check judges that model);
-    ``judge(fit) -> robot_file_check.FileCheck`` on the held-out recordings; ``friction_of(fit, joints)``: the
-    ``(name, value)`` Coulomb-viscous friction of the robot file's fit on the training recordings."""
+    held to what the robot file predicts there, step by step, each kept where it leaves none new and fewer joints
+    worse, or the same ones each nearer (module docstring). ``problem = (refit, options, n_dof)``, ``refit(options)``
+    the fit made again (identify: carried to the model it writes, ``written_model.WrittenModel``, so that the check
+    judges that model); ``judges = (judge, compare)``: ``judge(fit) -> robot_file_check.FileCheck`` on the held-out
+    recordings, ``compare(before, after)`` the model of one fit against another's, one ``never_worse.JointComparison``
+    per held-out recording; ``friction_of(fit, joints)``: the ``(name, value)`` Coulomb-viscous friction of the robot
+    file's fit on the training recordings; ``semidefinite``: the links (0-based) the robot file states not strictly
+    consistent (``semidefinite_links``), never held."""
     refit, options, n_dof = problem
+    judge, compare = judges
     check = judge(fit)
     left = tuple(check.worse)
     if not left:
@@ -167,28 +255,17 @@ def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> t
     record = WorseJointHold(mode=mode, worse=left, numbers=numbers, left=left)
     if mode == "report":
         return fit, options, replace(record, reason="named only (--worse-joint report)")
-    steps, added, rmse = [], (), c.after
+    steps, added = [], ()
     friction = _baseline_friction(options, check, left, friction_of, fit)
-    candidates, tried = ([("friction", friction)] if friction else []), set()
+    candidates, tried, unheld = ([("friction", friction)] if friction else []), set(), set()
     while left:
         if not candidates:  # the worse joints' own links first, then every link they carry
-            for links in (set(left), set(carried_links(left, n_dof))):
-                links = tuple(sorted(set(options.held_links) | links))
-                if links != tuple(options.held_links) and links not in tried:
-                    candidates.append(("links", links))
-                    tried.add(links)
+            candidates, unfit = _link_candidates(left, options, (n_dof, semidefinite), tried)
+            unheld |= unfit
             if not candidates:
-                break  # every link the joints left carry is held already
+                break  # every link the joints left carry is held already, or cannot be
         kind, what = candidates.pop(0)
-        if kind == "friction":
-            merged = {**dict(options.held_friction), **dict(what)}
-            trial_options = held_options(options, tuple(merged.items()), n_dof)
-            chosen = tuple(dict.fromkeys((*options.baseline_friction, *(n for n, _ in what))))
-            trial_options = replace(trial_options, baseline_friction=chosen)  # free in the data's own fit
-            label = "friction " + ", ".join(f"{n} {v:.3g}" for n, v in what)
-        else:
-            trial_options = replace(options, held_links=what)
-            label = "links " + ", ".join(str(i + 1) for i in what)
+        trial_options, label = _trial_options(kind, what, options, n_dof)
         logger.info("identify: joint%s %s worse than the robot file: fitting again with %s held ...",
                     "s" if len(left) > 1 else "", ", ".join(str(j + 1) for j in left), label)  # fmt: skip
         try:
@@ -197,21 +274,21 @@ def hold_worse_joints(problem, fit, judge, friction_of, mode: str = "hold") -> t
             steps.append((label, left, False))
             logger.info("identify: the fit with %s held did not converge (%s)", label, error)
             break
-        checked = judge(trial)
-        found = tuple(checked.worse)
-        kept = _mends(found, left, checked.comparison.after, rmse)
+        found = tuple(judge(trial).worse)
+        kept = _mends(found, left, _nearer(compare, fit, trial))
         steps.append((label, found, kept))
         if not kept:
             if kind == "links" and not candidates:
                 break
             continue  # the friction did not mend them: the rigid body next
-        fit, options, left, rmse = trial, trial_options, found, checked.comparison.after
+        fit, options, left = trial, trial_options, found
         added = added + (what if kind == "friction" else ())
     held_links = tuple(options.held_links)
-    record = replace(record, held_friction=added, held_links=held_links, steps=tuple(steps), left=left)
+    record = replace(record, held_friction=added, held_links=held_links, steps=tuple(steps), left=left,
+                     unheld=tuple(sorted(unheld)))  # fmt: skip
+    refused = " (refused: a new one, or neither fewer nor each nearer beyond the paired margin)"
     tried = "; ".join(f"with {label} held: joint(s) {', '.join(str(j + 1) for j in found) or 'none'} worse"
-                      f"{'' if kept else ' (refused: a new one, or neither fewer nor each nearer)'}"
-                      for label, found, kept in steps)  # fmt: skip
+                      f"{'' if kept else refused}" for label, found, kept in steps)  # fmt: skip
     if not record.decided_by_held_out:
         reason = f"{tried or 'nothing left to hold'}; the model stands as identified"
     else:

@@ -1,23 +1,28 @@
 """A joint worse than the robot file is held to what the file predicts there, step by step (``worse_joint_hold``).
 
 A step is kept when it leaves no new joint worse and fewer joints worse, or the same joints each predicted better on
-the held-out recording: a step that brings a joint close to its baseline can leave it named worse by a hair, the
-margin being only the paired difference's noise once its links are the file's.
+the held-out recording beyond the paired margin: a step that brings a joint close to its baseline can leave it named
+worse by a hair, the margin being only the paired difference's noise once its links are the file's; a gain within the
+paired margin is noise, no step. A link the robot file states semi-definite (a point mass) is never held: the model
+would fail the consistency check and nothing would be written.
 
 References: (1) the rule's bookkeeping on a scripted check, each step's held-out RMSE stated per joint; (2) known
-synthetic truth, slow: the KR6-like arm of ``benchmarks/unseen_cases.py`` moved slowly through gravity poses
-(``industrial_slow_gravity_tool``, seed 1), whose robot file is its truth. Its joint 3 moves one way on most of the
-training recording, so its Coulomb friction trades with the gravity of links 3-6, and the identified model was worse
-than the robot file there on the held-out recording (0.595 against 0.224 N m). Holding links 3-6 at the file's
-brought it to 0.229 N m, still named worse by 0.005 N m (margin 0.003), and a rule of fewer joints only wrote the
-model as identified. Its diagnosis named joint 1's friction falling with speed (the truth's Stribeck peak, beside the
-identified model's narrower one) a smooth Coulomb friction of -0.73 N m: a smooth Coulomb friction is > 0
-(``FrictionShapeTerm.implausibility``), below zero it is a Stribeck peak's shape.
+synthetic truth, fast: the virtual SCARA of ``test_one_way_friction`` whose robot file is its truth, its link 4 a point
+mass (the hold held links 1-4 and the model was inconsistent); (3) known synthetic truth, slow: the KR6-like arm of
+``benchmarks/unseen_cases.py`` moved slowly through gravity poses (``industrial_slow_gravity_tool``, seed 1), whose
+robot file is its truth. Its joint 3 moves one way on most of the training recording, so its Coulomb friction trades
+with the gravity of links 3-6, and the identified model was worse than the robot file there on the held-out recording
+(0.595 against 0.224 N m). Holding links 3-6 at the file's brought it to 0.229 N m, still named worse by 0.005 N m
+(margin 0.003), and a rule of fewer joints only wrote the model as identified. Its diagnosis named joint 1's friction
+falling with speed (the truth's Stribeck peak, beside the identified model's narrower one) a smooth Coulomb friction of
+-0.73 N m: a smooth Coulomb friction is > 0 (``FrictionShapeTerm.implausibility``), below zero it is a Stribeck peak's
+shape.
 """
 
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -25,28 +30,34 @@ import pytest
 from identification.calibration.never_worse import JointComparison
 from identification.calibration.robot_file_check import FileCheck
 from identification.calibration.trajectory_fit import TrajectoryOptions
-from identification.calibration.worse_joint_hold import hold_worse_joints
+from identification.calibration.worse_joint_hold import hold_worse_joints, semidefinite_links
 
 BASELINE = np.array([0.30, 0.224, 0.31])  # the robot file's held-out RMSE per joint [N m]
 
 
 def _scripted(rmse_of):
-    """(refit, judge): the refit returns its options as the fit; the judge states the held-out RMSE per joint that
-    ``rmse_of(held friction?, held links)`` gives, with margins as the check gives them (2 % of the baseline)."""
+    """(refit, (judge, compare)): the refit returns its options as the fit; the judge states the held-out RMSE per joint
+    that ``rmse_of(held friction?, held links)`` gives, with margins as the check gives them (2 % of the baseline); the
+    comparison of two fits on the one held-out recording, with the paired margin's floor (1 % of the RMSE before)."""
+
+    def rmse(options):
+        return np.array(rmse_of(bool(options.held_friction), tuple(options.held_links)), dtype=float)
 
     def judge(options):
-        after = np.array(rmse_of(bool(options.held_friction), tuple(options.held_links)), dtype=float)
-        comparison = JointComparison(before=BASELINE, after=after, margin=0.02 * BASELINE)
+        comparison = JointComparison(before=BASELINE, after=rmse(options), margin=0.02 * BASELINE)
         return FileCheck(comparison=comparison, recordings=1, baselines=("friction",) * 3)
 
-    return (lambda options: options), judge
+    def compare(before, after):
+        return (JointComparison(before=rmse(before), after=rmse(after), margin=0.01 * rmse(before)),)
+
+    return (lambda options: options), (judge, compare)
 
 
-def _hold(rmse_of):
-    refit, judge = _scripted(rmse_of)
+def _hold(rmse_of, semidefinite=()):
+    refit, judges = _scripted(rmse_of)
     options = TrajectoryOptions(friction=("fc", "fv"))
     friction_of = lambda fit, joints: tuple((f"{t}{j + 1}", 1.0) for j in joints for t in ("fc", "fv"))  # noqa: E731
-    return hold_worse_joints((refit, options, 3), options, judge, friction_of)
+    return hold_worse_joints((refit, options, 3), options, judges, friction_of, semidefinite=semidefinite)
 
 
 def test_steps_that_bring_the_worse_joint_nearer_its_baseline_are_kept_until_it_is_not_worse():
@@ -70,6 +81,79 @@ def test_a_step_that_makes_another_joint_worse_or_the_worse_one_no_better_is_ref
     assert record.left == (1,) and options.held_links == () and options.held_friction == ()
     assert [kept for _, _, kept in record.steps] == [False, False, False]
     assert "the model stands as identified" in record.reason
+
+
+def test_a_step_nearer_only_within_the_paired_margin_is_refused():
+    """The TX40's joint 5 (``docs/results/real-data.md``): a coupling the model lacks, 4.714 N m against the robot
+    file's 1.375; its friction and link 5 held gave 4.682, steps within the paired margin that the rule of each nearer
+    kept: the held-out recording decided the model for the comparison's noise, and ``diagnose --apply`` could not
+    refit the held friction beside the coupling it found (joint 5 2.769 N m at the end against 1.812). Such steps are
+    refused (scripted here, the margin 1 % of the RMSE before); one nearer beyond the margin is kept."""
+    table = {(False, ()): 4.714, (True, ()): 4.70, (False, (1,)): 4.68, (False, (1, 2)): 4.69}
+    _, options, record = _hold(lambda friction, links: (0.30, table[friction, links], 0.31))
+    assert record.left == (1,) and options.held_links == () and options.held_friction == ()
+    assert [kept for _, _, kept in record.steps] == [False, False, False] and not record.decided_by_held_out
+    assert "nearer beyond the paired margin" in record.reason
+    table[False, (1, 2)] = 4.0  # nearer beyond the margin, still worse
+    _, options, record = _hold(lambda friction, links: (0.30, table[friction, links], 0.31))
+    assert options.held_links == (1, 2) and [kept for _, _, kept in record.steps] == [False, False, True]
+
+
+def test_a_link_the_robot_file_states_semidefinite_is_never_held():
+    """Joint 2 is mended only with links 2 and 3 held; link 3 of the robot file is semi-definite (a point mass): no step
+    holds it, link 2 alone is held where that brings joint 2 nearer, and the record names link 3 as left fitted."""
+    table = {(False, ()): 0.595, (True, ()): 0.594, (False, (1,)): 0.40, (False, (1, 2)): 0.224}
+    _, options, record = _hold(lambda friction, links: (0.30, table[friction, links], 0.31), semidefinite=(2,))
+    assert [what for what, _, _ in record.steps] == ["friction fc2 1, fv2 1", "links 2"]
+    assert options.held_links == (1,) and record.unheld == (2,) and record.left == (1,)
+    assert "link(s) 3 left fitted, not held" in record.describe()
+    assert record.to_dict()["not_held_links"] == [3]
+
+
+def test_semidefinite_links_are_those_whose_pseudo_inertia_has_an_eigenvalue_at_zero():
+    """A point mass (no inertia about its centre of mass; the TX40 URDF's link 6) and a thin rod (none about its own
+    axis) are semi-definite, whatever their masses; a solid box, however small, is not."""
+    box = np.array([0.01, 0, 0, 0, 2e-9, 0, 2e-9, 0, 0, 2e-9])  # 10 g, about its centre (1 mm cube-like)
+    point = np.array([0.2, 0, 0, 0.2 * 0.042, 0.2 * 0.042**2, 0, 0.2 * 0.042**2, 0, 0, 0])  # 0.2 kg at z = 42 mm
+    rod = np.array([1.0, 0, 0, 0, 1 / 12, 0, 1 / 12, 0, 0, 0])  # 1 kg, 1 m along z
+    assert semidefinite_links(np.array([box, point, rod, 1e3 * box])) == (1, 2)
+
+
+def test_a_scara_whose_last_link_is_a_point_mass_is_held_without_it_and_its_model_is_consistent():
+    """Known truth: the SCARA of ``test_one_way_friction`` (its robot file is the simulated arm; joints 3 and 4 move one
+    way only in training, their friction fitted: joint 3's trades with its gravity load), with link 4 a 0.3 kg point
+    mass on joint 4's axis, as the TX40's URDF states its link 6. Joints 1 and 3 are worse than the robot file; the
+    hold ended with links 1-4 held at the file's, and link 4 held there made the model inconsistent (its pseudo-inertia
+    eigenvalue 0; without a drive inertia no inertia about joint 4): ``psdm identify`` wrote nothing. Now link 4 is
+    left fitted and said so; links 1-3 are held at the truth, joint 3 is predicted far nearer than identified, and the
+    model is consistent, its mass matrix positive definite."""
+    from identification.calibration.consistency import min_mass_eigenvalue
+    from identification.calibration.identify_route import identify_recordings
+    from psdm_casadi import derive_psdm, load_robot
+    from tests.identification.test_one_way_friction import recording
+
+    scara = load_robot("scara")
+    links = list(scara.links)
+    links[3] = replace(links[3], inertia=np.zeros((3, 3)))  # 0.3 kg at 2 cm along joint 4's axis
+    robot = scara.with_links(links)
+    assert semidefinite_links(robot.nominal_dynamic_parameters()) == (3,)
+    train, held = [recording(robot, 0, one_way=(2, 3), duration=2.0)], [recording(robot, 1)]
+    result = identify_recordings(robot, derive_psdm(robot), train, validation=held, counterbalance=False,
+                                 one_way="fit")  # fmt: skip
+    record = result.worse_joints
+    assert 2 in record.worse and record.decided_by_held_out and record.unheld == (3,)
+    assert 3 not in record.held_links and 2 in record.held_links
+    held = list(record.held_links)
+    truth = robot.nominal_dynamic_parameters()
+    np.testing.assert_allclose(result.fit.standard[held, :10], truth[held, :10], rtol=1e-9, atol=1e-12)
+    assert result.fit.consistent and result.fit.min_pseudo_inertia_eigenvalue >= result.options.margin * (1 - 1e-9)
+    assert min_mass_eigenvalue(robot, result.fit.standard) > 0
+    identified = dict((j, after) for j, _, after, _ in record.numbers)[2]
+    assert result.file_check.comparison.after[2] < identified / 3  # 0.252 N m identified
+    text = record.describe()
+    assert "link(s) 4 left fitted, not held" in text and text in result.describe()
+    stored = result.calibrated.document["identification"]["worse_joints"]
+    assert stored["not_held_links"] == [4] and 4 not in stored["held_links"]
 
 
 @pytest.mark.slow
