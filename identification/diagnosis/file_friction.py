@@ -20,7 +20,12 @@ not carry from the training recording to the validation one as these columns do.
 therefore near the file, not equal to it (the report's table shows the file's own "before").
 
 The friction shapes the file already has on a joint are no missing physics there (``holds``): a Stribeck peak on a
-Stribeck or LuGre joint, pre-sliding and a smooth Coulomb friction on a LuGre joint.
+Stribeck joint (its velocity the least squares' own choice on the training data, ``calibration.stribeck``, so a peak at
+another velocity is one the file's fit weighed), pre-sliding and a smooth Coulomb friction on a LuGre joint. A LuGre
+joint holds what the same LuGre columns hold beside a robot file's LuGre friction (``lacking_friction_shapes``): its
+bristles and its one Stribeck peak at the velocity of its parameters, not a peak at another velocity; the shooting fit
+sets that velocity together with six other parameters and may leave no peak there at all (a static level below the
+Coulomb one), so a peak the data hold elsewhere is offered as a candidate.
 """
 
 from __future__ import annotations
@@ -32,11 +37,20 @@ import numpy as np
 from identification.calibration.coulomb_width import widths_text
 from identification.calibration.mixed_friction import file_lugre_joints
 from identification.calibration.trajectory_data import friction_shapes, friction_term
+from identification.diagnosis.candidates.friction import lacking_friction_shapes
 
 __all__ = ["FileFriction"]
 
-#: The candidate shapes (``FrictionShapeTerm.shape``) a joint of each file shape already holds.
-HELD_SHAPES = {"stribeck": ("stribeck",), "lugre": ("stribeck", "smooth_coulomb", "presliding")}
+#: The candidate shapes (``FrictionShapeTerm.shape``) a joint of each file shape already holds (module docstring): a
+#: LuGre joint every shape a Coulomb-viscous nominal lacks but those a LuGre nominal lacks too.
+HELD_SHAPES = {
+    "stribeck": ("stribeck",),
+    "lugre": tuple(
+        term.shape
+        for term in lacking_friction_shapes()
+        if term.shape not in {lacking.shape for lacking in lacking_friction_shapes("lugre")}
+    ),
+}
 
 
 @dataclass(frozen=True)
@@ -117,7 +131,7 @@ class FileFriction:
 
     def holds(self, term) -> bool:
         """Whether the file already holds the friction shape of candidate ``term`` on its joint (a
-        ``FrictionShapeTerm``: a Stribeck peak of a Stribeck or LuGre joint, pre-sliding of a LuGre joint, ...)."""
+        ``FrictionShapeTerm``: a Stribeck peak of a Stribeck joint, pre-sliding of a LuGre joint, ...)."""
         shape = getattr(term, "shape", None)
         if term.key not in ("friction_shape", "presliding") or term.joint is None:
             return False

@@ -48,40 +48,49 @@ def recordings(denso):
     return tuple(out)
 
 
-@pytest.fixture(scope="module")
-def stribeck_file(denso, denso_model, recordings):
-    """The model identified on the training recording: Stribeck on joint 3, Coulomb-viscous elsewhere, viscous power
-    laws, torque offsets, no spring (``LoadedModel``; its Stribeck velocity held and no envelope: a second's fit)."""
+def _identified(denso, denso_model, recording, exponents=EXPONENTS):
+    """The model identified on ``recording``: Stribeck on joint 3, Coulomb-viscous elsewhere, viscous power laws of
+    ``exponents``, torque offsets, no spring (``LoadedModel``; its Stribeck velocity held and no envelope: a second's
+    fit)."""
     options = TrajectoryOptions(
         friction=("fc", "fs", "fv", "offset"),
         stribeck_joints=(2,),
-        viscous_exponent=EXPONENTS,
+        viscous_exponent=exponents,
         stribeck_held=(0.0, 0.0, 0.03, 0.0, 0.0, 0.0),
         envelope=False,
     )  # a cheap fit
-    fit = identify_trajectories(denso, denso_model, recordings[:1], options)
+    fit = identify_trajectories(denso, denso_model, [recording], options)
     calibrated = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE)
     return LoadedModel(calibrated, denso, denso_model)
 
 
+def _lugre_joints(loaded, drives: dict):
+    """``loaded`` with each joint of ``drives`` (0-based -> ``DriveParameters``) LuGre at those parameters (a mixed
+    model, ``mixed_friction``): their steady-state columns 0, ``drive.lugre`` null on the other joints."""
+    document = copy.deepcopy(loaded.calibrated.document)
+    values, n = document["drive"], loaded.calibrated.n_dof
+    for k, name in enumerate(values["names"]):
+        if name[:2] in ("fc", "fs", "fv") and int(name[2:]) - 1 in drives:
+            values["values"][k] = 0.0
+    shapes = ["lugre" if j in drives else shape for j, shape in enumerate(values["friction_shapes"])]
+    values["lugre"] = {name: [getattr(drives[j], name) if j in drives else None for j in range(n)]
+                       for name in LUGRE_PARAMETER_NAMES}  # fmt: skip
+    values["lugre"]["joints"] = [j + 1 for j in sorted(drives)]
+    values.update(friction_shape="lugre", friction_shapes=shapes)
+    document["version"] = LUGRE_VERSION
+    return replace(loaded, calibrated=CalibratedModel(document))
+
+
+@pytest.fixture(scope="module")
+def stribeck_file(denso, denso_model, recordings):
+    """The model identified on the training recording (``_identified``)."""
+    return _identified(denso, denso_model, recordings[0])
+
+
 @pytest.fixture(scope="module")
 def lugre_file(stribeck_file, denso):
-    """The same file with joint 2 LuGre at the robot file's drive parameters (a mixed model, ``mixed_friction``): its
-    steady-state columns 0, ``drive.lugre`` null on the other joints."""
-    document = copy.deepcopy(stribeck_file.calibrated.document)
-    drive, n = document["drive"], denso.n_dof
-    for k, name in enumerate(drive["names"]):
-        if name in ("fc2", "fs2", "fv2"):
-            drive["values"][k] = 0.0
-    shapes = list(drive["friction_shapes"])
-    shapes[1] = "lugre"
-    p = denso.drives[1]
-    values = {"fc": p.fc, "fs": p.fs, "vs": p.vs, "fv": p.fv, "dv": p.dv, "sigma0": p.sigma0, "sigma1": p.sigma1}
-    drive["lugre"] = {name: [values[name] if j == 1 else None for j in range(n)] for name in LUGRE_PARAMETER_NAMES}
-    drive["lugre"]["joints"] = [2]
-    drive.update(friction_shape="lugre", friction_shapes=shapes)
-    document["version"] = LUGRE_VERSION
-    return replace(stribeck_file, calibrated=CalibratedModel(document))
+    """The same file with joint 2 LuGre at the robot file's drive parameters (``_lugre_joints``)."""
+    return _lugre_joints(stribeck_file, {1: denso.drives[1]})
 
 
 def _nominal(loaded, recordings):
@@ -135,6 +144,7 @@ def test_the_shapes_the_file_holds_are_not_offered_again(lugre_file):
     assert not own.holds(FrictionShapeTerm(joint=2, shape="smooth_coulomb"))
     assert own.holds(PreslidingTerm(joint=1)) and own.holds(FrictionShapeTerm(joint=1, shape="smooth_coulomb"))
     assert not own.holds(PreslidingTerm(joint=2))
+    assert not own.holds(FrictionShapeTerm(joint=1, shape="stribeck"))  # LuGre: a peak at another velocity is lacking
 
 
 def test_a_spring_s_gain_is_measured_against_the_model_file(stribeck_file, recordings):
@@ -154,3 +164,50 @@ def test_a_spring_s_gain_is_measured_against_the_model_file(stribeck_file, recor
         "the model file's per-joint (Coulomb-viscous on joints 1, 2, 4, 5, 6; Stribeck on joint 3"
         in report.to_markdown()
     )
+
+
+#: Joint 2's Stribeck peak in the truth of ``peak_case`` (a grease hump): static friction over the Coulomb level and its
+#: velocity [rad/s].
+PEAK, PEAK_VS = 2.0, 0.1
+
+
+@pytest.fixture(scope="module")
+def peak_case(denso, denso_model):
+    """(the true drives, the file identified on the training recording, the training and validation recordings):
+    ``recordings``' motions again, without a spring, joint 2's drive given a wide Stribeck peak (``PEAK`` x fc at
+    ``PEAK_VS``)."""
+    drives = list(denso.drives)
+    drives[1] = replace(drives[1], fs=PEAK * drives[1].fc, vs=PEAK_VS)
+    robot, out = replace(denso, drives=tuple(drives)), []
+    for seed, duration in ((0, 6.0), (1, 4.0)):
+        rng = np.random.default_rng(seed)
+        reference = sine_experiment(robot, duration=duration, rng=rng).reference()
+        options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, rate=500.0)
+        out.append(simulate_recording(robot, reference, options, rng)[0])
+    return tuple(drives), _identified(denso, denso_model, out[0]), tuple(out)
+
+
+def _stribeck_peaks(loaded, recordings) -> dict:
+    """The Stribeck peaks the selection names on ``loaded`` (label -> fitted velocity [rad/s]) from a library of that
+    shape alone (no friction rival)."""
+    library = CandidateLibrary((FrictionShapeTerm(shape="stribeck"),))
+    options = model_file_options(loaded.calibrated, DiagnosisOptions(rigid_body="prior", friction_shapes=False,
+                                                                     library=library))  # fmt: skip
+    robot = without_held_rotors(calibrated_robot(loaded.calibrated, loaded.robot), options.held_friction)
+    problem = prepare_problem(robot, loaded.model, recordings[0], recordings[1], options)
+    return {step.term.label: step.term.scale for step in select_terms(robot, problem, options).steps}
+
+
+def test_a_stribeck_peak_a_lugre_joint_of_the_file_lacks_is_named_at_the_truth_s_velocity(peak_case):
+    """Known truth: joint 2 has a wide Stribeck peak (``PEAK_VS``), every joint LuGre friction. A file LuGre on every
+    joint at the truth's values but joint 2's, which has no peak (a static level below the Coulomb one at an eighth of
+    that velocity: what a shooting fit can leave), lacks that peak, and the selection names friction_shape[j2,stribeck]
+    alone, within a factor 2 of the truth's velocity (before, a LuGre joint was taken to hold any Stribeck peak: none
+    was offered there). The file with joint 2's truth too holds every peak: none is named."""
+    truth, identified, recordings = peak_case
+    drives = dict(enumerate(truth))
+    lacking = {**drives, 1: replace(truth[1], fs=0.5 * truth[1].fc, vs=PEAK_VS / 8.0)}
+    named = _stribeck_peaks(_lugre_joints(identified, lacking), recordings)
+    assert list(named) == ["friction_shape[j2,stribeck]"]
+    assert 0.5 * PEAK_VS < named["friction_shape[j2,stribeck]"] < 2.0 * PEAK_VS
+    assert not _stribeck_peaks(_lugre_joints(identified, drives), recordings)
