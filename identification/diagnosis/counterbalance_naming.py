@@ -170,10 +170,12 @@ def offset_counterbalance(finding, context, verdict=None):
                    signature="a constant torque as large as a share of gravity: no sensor's offset")  # fmt: skip
 
 
-def name_counterbalances(findings, context, verdicts=None) -> tuple:
+def name_counterbalances(findings, context, verdicts=None, carried=frozenset()) -> tuple:
     """The ``findings``, the low-harmonic ripples of each counterbalanced joint (``counterbalance_joints``) and each
     offset no sensor has (``offset_counterbalance``; ``verdicts``: ``offset_verdicts``, None: by size alone) named a
-    counterbalance (``named_counterbalance``), any other finding unchanged."""
+    counterbalance (``named_counterbalance``), any other finding unchanged. ``carried``: labels of a model file's
+    carried torque offsets, left as found: their column fits how far the file's offset is off, a parameter of the file
+    (``diagnosis.file_offsets`` reads it), not an offset of its own."""
     findings = tuple(findings)
     joints = counterbalance_joints(findings, context)
     out = []
@@ -182,5 +184,6 @@ def name_counterbalances(findings, context, verdicts=None) -> tuple:
         if _low_ripple(f) and j in joints:
             harmonics = tuple(int(g.parameters["harmonic"]) for g in findings if _low_ripple(g) and g.joints[0] == j)
             f = named_counterbalance(f, *joints[j], harmonics)
-        out.append(offset_counterbalance(f, context, (verdicts or {}).get(j)) or f)
+        named = None if f.label in carried else offset_counterbalance(f, context, (verdicts or {}).get(j))
+        out.append(named or f)
     return tuple(out)

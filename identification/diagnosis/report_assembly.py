@@ -57,7 +57,8 @@ def build_report(
     found = findings_of(selection, final, options.held_friction)
     held = (ctx_v, ctx_v.tau - model_final_v)  # the data's verdict on an offset no sensor has by size
     verdicts = offset_verdicts(found, ctx_t, ctx_t.tau - model_final_t, held, options.rigid_body != "prior")
-    findings = name_counterbalances(found, ctx_t, verdicts) + tuple(unnamed)
+    offsets = {term.label for term in getattr(options, "carried", ()) if term.key == "torque_offset"}
+    findings = name_counterbalances(found, ctx_t, verdicts, offsets) + tuple(unnamed)
     findings = with_elasticity_evidence(findings, final, ctx_t, model_nominal_t)
     if options.rigid_body == "prior":
         findings = tuple(with_rotor_note(f, robot, model) for f in findings)

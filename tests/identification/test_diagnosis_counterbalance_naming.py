@@ -141,6 +141,19 @@ def test_an_offset_no_sensor_has_is_named_a_counterbalance(offset, joint, effect
         assert "joint 2" in named.explanation and "zero error is a few percent" in named.explanation
 
 
+def test_a_carried_file_offset_is_not_named():
+    """A model file's carried offset column (``diagnosis.file_offsets``) fits how far the file's offset is off: at the
+    size the rule names a counterbalance (-40 N m on joint 2 above), it stays a ``torque_offset`` for ``file_offsets``
+    to read, and an offset of the library beside it on another joint is still named."""
+    q = np.linspace(-0.3, 0.3, 51)
+    gravity = np.column_stack([0 * q, 100.0 * np.cos(q), 100.0 * np.cos(q)])
+    context = SimpleNamespace(q=np.column_stack([q, q, q]), gravity=gravity, tau=np.full((51, 3), 300.0))
+    found = [_offset(-40.0, 1), _offset(-40.0, 2)]
+    carried, library = name_counterbalances(found, context, carried={"torque_offset[j2]"})
+    assert (carried.effect, carried.coefficients) == ("torque_offset", (-40.0,))
+    assert library.effect == COUNTERBALANCE
+
+
 def test_the_offset_reading_at_its_thresholds():
     """``oversized_offset`` on its own: the sensor share of the peak, the gravity share, a joint gravity loads."""
     assert oversized_offset(1, 25.0, gravity=100.0, peak=200.0) is not None
