@@ -65,7 +65,7 @@ NAMING_RULE = (
 def refused_noise(equations, x_fit, x_ols, sigma) -> np.ndarray:
     """Per joint, the RMS torque by which the bounded fit's residual (``x_fit``) exceeds the unbounded least squares'
     (``x_ols``) on the training data's normal ``equations``, in noise levels ``sigma`` of the joint (or a callable
-    giving them: ``angle_noise.angle_free_sigma``)."""
+    giving them: ``angle_noise.effect_free_noise``)."""
     sigma = sigma() if callable(sigma) else sigma
     growth = equations.residual_sum(np.asarray(x_fit)) - equations.residual_sum(np.asarray(x_ols))
     rms = np.sqrt(np.maximum(growth, 0.0) / np.maximum(equations.count, 1))
