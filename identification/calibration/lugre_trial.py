@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.coulomb_width import joint_width
+from identification.calibration.never_worse import better_on_each
 from psdm_casadi.log_context import held_back
 from psdm_casadi.state_cache import BlockMemory
 
@@ -318,14 +319,8 @@ def keep_joints(comparisons, joints) -> tuple:
     model is the one refused, or cannot pass)."""
     n, off = len(comparisons[0].before), set(_refused_joints(comparisons))
     keep = tuple(j for j in range(n) if j not in off and all(c.after[j] < c.before[j] for c in comparisons))
-    gain = [j for j in keep if j in _better_on_each(comparisons, joints)]
+    gain = [j for j in keep if j in better_on_each(comparisons, joints)]
     return keep if gain and len(keep) < n else ()
-
-
-def _better_on_each(comparisons, joints) -> tuple:
-    """Those of ``joints`` (0-based) the model after predicts better than the one before beyond the margin on each
-    held-out recording (``comparisons``)."""
-    return tuple(j for j in joints if all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons))
 
 
 def steady_reasons(comparisons, keep) -> str:
@@ -348,7 +343,7 @@ def judge_trial(default, lugre, comparisons, joints) -> tuple:
     worse = _refused_joints(comparisons)
     if worse:
         return False, f"is worse on joint(s) {', '.join(str(j + 1) for j in worse)} ({comparisons[0].text(worse)})"
-    better = _better_on_each(comparisons, joints)
+    better = better_on_each(comparisons, joints)
     if not better:
         return False, "does not predict a lagging joint better beyond the margin on each held-out recording"
     pushed = sorted({f.link for f in lugre.fit.envelope} - {f.link for f in default.fit.envelope})
@@ -463,7 +458,7 @@ def _trial(lags, joints, kept, reason, comparisons, lugre_joints) -> LuGreTrial:
     from identification.calibration.never_worse import pooled_comparison
 
     pooled = pooled_comparison(comparisons)
-    better = _better_on_each(comparisons, range(len(pooled.before)))
+    better = better_on_each(comparisons, range(len(pooled.before)))
     return LuGreTrial(lags, joints, kept, tuple(map(float, pooled.before)), tuple(map(float, pooled.after)),
                       tuple(map(float, pooled.margin)), reason, tuple(lugre_joints), better=better)  # fmt: skip
 

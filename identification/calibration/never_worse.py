@@ -78,6 +78,7 @@ __all__ = [
     "GateResult",
     "JointComparison",
     "TrainingRefits",
+    "better_on_each",
     "block_length",
     "compare_each",
     "compare_models",
@@ -249,6 +250,12 @@ def compare_each(before, after, model, validation, kt=None) -> tuple:
         se = paired_rmse_margin(ready_b.tau - predicted_b, ready_a.tau - predicted_a)[2]
         out.append(JointComparison.from_noise(np.asarray(error_b), np.asarray(error_a), se))
     return tuple(out)
+
+
+def better_on_each(comparisons, joints) -> tuple:
+    """Those of ``joints`` (0-based) the model after predicts better than the one before beyond the margin on each
+    held-out recording (``comparisons``: one ``JointComparison`` each, ``compare_each``)."""
+    return tuple(j for j in joints if all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons))
 
 
 def pooled_comparison(comparisons) -> JointComparison:

@@ -60,6 +60,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from identification.calibration.held_friction import HELD_TERMS, HeldFriction
+from identification.calibration.never_worse import better_on_each
 from identification.calibration.one_way_friction import held_options
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia
 from psdm_casadi.errors import ParameterError, SolverError
@@ -201,8 +202,7 @@ def _nearer(compare, before, after):
     comparison's noise, not a mend: holding by it lets the held-out recordings decide the model for nothing."""
 
     def nearer(joints) -> bool:
-        comparisons = compare(before, after)
-        return all(c.after[j] < c.before[j] - c.margin[j] for c in comparisons for j in joints)
+        return better_on_each(compare(before, after), joints) == tuple(joints)
 
     return nearer
 
