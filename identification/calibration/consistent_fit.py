@@ -33,11 +33,14 @@ from identification.calibration.envelope import density_weights, link_envelopes,
 from identification.calibration.inertia_floor import link_floors
 from identification.calibration.prior_pull import PriorPull
 from identification.calibration.pseudo_inertia import (
+    CONSISTENCY_MARGIN,
     LINK_PARAMETER_COUNT,
+    lifted_link,
     link_from_log_cholesky,
     link_from_pseudo_inertia,
     log_cholesky_from_link,
     pseudo_inertia,
+    semidefinite_links,
 )
 from psdm_casadi.errors import SolverError
 from psdm_casadi.ipopt_progress import progress_options
@@ -50,6 +53,7 @@ __all__ = [
     "drive_lower_bounds",
     "fit_bounds",
     "held_rotors",
+    "held_standard",
     "link_is_free",
     "residual_sigma",
 ]
@@ -180,6 +184,19 @@ def prior_standard(robot):
     return standard
 
 
+def held_standard(robot, held_links=(), margin: float = CONSISTENCY_MARGIN) -> np.ndarray:
+    """:func:`prior_standard` with each of ``held_links`` (0-based, ``TrajectoryOptions.held_links``) that the robot
+    file states semi-definite (``pseudo_inertia.semidefinite_links``: a point mass) lifted by ``margin`` [kg m^2], the
+    fit's own (``pseudo_inertia.lifted_link``): the values the fit holds those links at. Held at the file's own, such a
+    link fails the consistency check of the model (its pseudo-inertia eigenvalue 0, its mass matrix singular where no
+    other inertia acts about its joint) and nothing is written; lifted it is as near the file as consistency allows,
+    and no nearer than every link the fit identifies stays."""
+    standard = np.array(prior_standard(robot), dtype=float)
+    for i in set(int(k) for k in held_links) & set(semidefinite_links(standard)):
+        standard[i, :LINK_PARAMETER_COUNT] = lifted_link(standard[i, :LINK_PARAMETER_COUNT], margin)
+    return standard
+
+
 def link_is_free(model, link: int) -> bool:
     """Whether any of the link's 10 inertial parameters reaches the base parameters."""
     block = model.parameter_map[:, link * (LINK_PARAMETER_COUNT + 1) : link * (LINK_PARAMETER_COUNT + 1) + 10]
@@ -301,8 +318,9 @@ def consistent_fit(
     n = robot.n_dof
     bounds = fit_bounds(robot, model, options) if bounds is None else bounds
     payload_prior = np.zeros((0, 10)) if payload_prior is None else np.asarray(payload_prior, dtype=float)
-    prior = prior_standard(robot)
-    links = [i for i in range(n) if link_is_free(model, i) and i not in options.held_links]  # held: the file's
+    held = [i for i in options.held_links if link_is_free(model, i)]  # one the model lacks (massless) is not lifted
+    prior = held_standard(robot, held, options.margin)  # held links: the file's (lifted if semi-definite)
+    links = [i for i in range(n) if link_is_free(model, i) and i not in options.held_links]
     phi = ca.SX.sym("phi", LINK_PARAMETER_COUNT * len(links))
     psi = ca.SX.sym("psi", 10 * len(payload_prior))
     rotor, drive = ca.SX.sym("rotor", n), ca.SX.sym("drive", len(names))

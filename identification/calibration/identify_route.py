@@ -44,6 +44,7 @@ from identification.calibration.one_way_friction import (
 )
 from identification.calibration.payload_route import PayloadChoice
 from identification.calibration.prior_pull import PriorPull
+from identification.calibration.pseudo_inertia import semidefinite_links
 from identification.calibration.robot_file_check import FileCheck
 from identification.calibration.rotors_apart import RotorsApart, judge_rotors_apart, unjudged_rotors
 from identification.calibration.temperature_friction import temperature_block
@@ -58,7 +59,6 @@ from identification.calibration.worse_joint_hold import (
     WorseJointHold,
     check_worse_joint_mode,
     hold_worse_joints,
-    semidefinite_links,
 )
 from identification.calibration.written_model import ModelWriter
 from identification.data.missing_torque import find_missing_torque
@@ -430,10 +430,10 @@ def _worse_joints(problem, written, judged, mode, write) -> tuple:
         return [compare_each(before.calibrated, after.calibrated, model, [r], kt)[0]
                 for r, kt in zip(judged.recordings, kts)]  # fmt: skip
 
-    # held, such a link leaves the model inconsistent; one the model lacks (massless: not free) is not checked
-    unheld = tuple(i for i in semidefinite_links(robot.nominal_dynamic_parameters()) if link_is_free(model, i))
+    # held lifted (``consistent_fit.held_standard``), named; one the model lacks (massless: not free) is not checked
+    lifted = tuple(i for i in semidefinite_links(robot.nominal_dynamic_parameters()) if link_is_free(model, i))
     problem = (carried, written.options, robot.n_dof)
-    written, _, record = hold_worse_joints(problem, written, (_judge, compare), friction_of, mode, semidefinite=unheld)
+    written, _, record = hold_worse_joints(problem, written, (_judge, compare), friction_of, mode, semidefinite=lifted)
     return written, record
 
 

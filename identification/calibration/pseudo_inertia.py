@@ -25,15 +25,20 @@ import numpy as np
 from psdm_casadi.errors import ParameterError
 
 __all__ = [
+    "CONSISTENCY_MARGIN",
     "LINK_PARAMETER_COUNT",
+    "lifted_link",
     "link_from_log_cholesky",
     "link_from_pseudo_inertia",
     "log_cholesky_from_link",
     "pseudo_inertia",
     "pseudo_inertia_eigenvalues",
+    "semidefinite_links",
 ]
 
 LINK_PARAMETER_COUNT = 10
+#: [kg m^2] by which a fit keeps every pseudo-inertia positive definite (``TrajectoryOptions.margin``'s default).
+CONSISTENCY_MARGIN = 1e-6
 
 
 def pseudo_inertia(link) -> np.ndarray:
@@ -61,6 +66,30 @@ def pseudo_inertia_eigenvalues(standard) -> np.ndarray:
     """Smallest eigenvalue of each link's pseudo-inertia, shape (n_links,); standard is (n_links, >= 10)."""
     standard = np.atleast_2d(np.asarray(standard, dtype=float))
     return np.array([np.linalg.eigvalsh(pseudo_inertia(row[:LINK_PARAMETER_COUNT]))[0] for row in standard])
+
+
+def semidefinite_links(standard) -> tuple:
+    """The links (0-based) of ``standard`` (one row of at least ten parameters per link, e.g. the robot file's
+    ``RobotDescription.nominal_dynamic_parameters``) that are not strictly physically consistent: a pseudo-inertia
+    whose smallest eigenvalue is not above zero beyond round-off (numpy's ``matrix_rank`` tolerance, ``4 eps`` times its
+    largest), such as a point mass (no inertia about its centre of mass) or a thin rod (none about its own axis)."""
+    out = []
+    for i, row in enumerate(np.atleast_2d(np.asarray(standard, dtype=float))):
+        eigenvalues = np.linalg.eigvalsh(pseudo_inertia(row[:LINK_PARAMETER_COUNT]))
+        if not eigenvalues[0] > 4 * np.finfo(float).eps * max(abs(eigenvalues[-1]), np.finfo(float).tiny):
+            out.append(i)
+    return tuple(out)
+
+
+def lifted_link(link, margin: float = CONSISTENCY_MARGIN) -> np.ndarray:
+    """The ten parameters of ``link`` with each eigenvalue of its pseudo-inertia below ``margin`` [kg m^2] raised to it:
+    the strictly consistent link nearest to ``link`` (Frobenius norm of the pseudo-inertia) whose smallest eigenvalue is
+    at least ``margin``, as every link a fit identifies is (``link_from_log_cholesky``). A semi-definite link (a
+    point mass) is held this way (``consistent_fit.held_standard``): at its stated values it leaves the model
+    inconsistent, its mass matrix singular where no other inertia acts about its joint."""
+    values, vectors = np.linalg.eigh(pseudo_inertia(link))
+    raised = vectors @ np.diag(np.maximum(values, margin) - values) @ vectors.T
+    return np.asarray(link, dtype=float)[:LINK_PARAMETER_COUNT] + link_from_pseudo_inertia(raised)
 
 
 def _lower_factor(phi):

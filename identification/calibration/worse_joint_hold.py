@@ -27,17 +27,21 @@ joint worse than the file before them need not be after.
    fit: joint 6 moves one way through 0.77 rad, its friction held already; links 6 and 7 were fitted to what the
    other joints ask of them (link 7 1.30 kg against the file's 1.10, its centre of mass 4 cm off), and joint 6 was
    worse than the robot file with friction fitted on opti_traj_testing1 (link 6 held alone leaves it worse).
-   A link whose robot-file values are not strictly physically consistent (``semidefinite_links``: a pseudo-inertia
-   with an eigenvalue at zero, such as a point mass with no rotational inertia) is never held: the fit holds every
-   link it identifies positive definite, and a model with one such link held fails the consistency check that follows
-   (its mass matrix can be singular: a point mass on its joint's axis has no inertia about it), so nothing would be
-   written. The step is tried without it, and the record and its sentence name it (``unheld``). The TX40's URDF
-   states its link 6 as a point mass: holding links 5-6 for joint 5 left identify with no model to write.
+   A link whose robot-file values are not strictly physically consistent (``pseudo_inertia.semidefinite_links``: a
+   pseudo-inertia with an eigenvalue at zero, such as a point mass with no rotational inertia) is held at the file's
+   lifted by the fit's consistency margin (``consistent_fit.held_standard``: each pseudo-inertia eigenvalue below
+   ``TrajectoryOptions.margin`` raised to it, as every link the fit identifies stays): held at the file's own, the
+   model fails the consistency check that follows (its mass matrix can be singular: a point mass on its joint's axis
+   has no inertia about it) and nothing is written; left fitted, the link keeps what the fit gave it, and a joint it
+   carries can stay worse than the file. The record and its sentence name the lifted links (``lifted``). The TX40's
+   URDF states its link 6 as a point mass; the SCARA of ``test_worse_joint_hold`` with a point-mass link 4 stayed
+   worse on joint 3 with links 1-3 held and link 4 fitted.
 
 A step is kept only if none of the joints the check names worse with it is new (a link held for a wrist joint moves
 the rigid body of the joints before it) and they are fewer than before, or the same joints each predicted better than
 before the step beyond the paired margin on each held-out recording (``never_worse.compare_each``: nearer the robot
-file's, which the check found better there; ``_mends``); otherwise the fit before it stands, and the report says why.
+file's, which the check found better there; ``_verdict``); otherwise the fit before it stands. The record says of
+every step tried whether it was kept and why, with the RMSE and margin that decided it (``steps``).
 A step that brings a joint close to its baseline can leave it named worse by a hair: once its links are the file's, no
 estimation allowance is left in its margin, only the paired difference's noise, and a rule of fewer joints alone
 refused the step and wrote the model as far off as before. A step kept on the same joints is followed by the next, so
@@ -57,12 +61,9 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 
-import numpy as np
-
 from identification.calibration.held_friction import HELD_TERMS, HeldFriction
 from identification.calibration.never_worse import better_on_each
 from identification.calibration.one_way_friction import held_options
-from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia
 from psdm_casadi.errors import ParameterError, SolverError
 
 __all__ = [
@@ -71,7 +72,6 @@ __all__ = [
     "carried_links",
     "check_worse_joint_mode",
     "hold_worse_joints",
-    "semidefinite_links",
 ]
 
 logger = logging.getLogger(__name__)
@@ -92,28 +92,17 @@ def carried_links(joints, n_dof: int) -> tuple:
     return tuple(range(min(joints), n_dof)) if len(joints) else ()
 
 
-def semidefinite_links(standard) -> tuple:
-    """The links (0-based) of ``standard`` (the robot file's, ``RobotDescription.nominal_dynamic_parameters``: one row
-    of at least ten parameters per link) that are not strictly physically consistent: a pseudo-inertia whose smallest
-    eigenvalue is not above zero beyond round-off (numpy's ``matrix_rank`` tolerance, ``4 eps`` times its largest),
-    such as a point mass. Such a link is never held (module docstring)."""
-    out = []
-    for i, row in enumerate(np.atleast_2d(np.asarray(standard, dtype=float))):
-        eigenvalues = np.linalg.eigvalsh(pseudo_inertia(row[:LINK_PARAMETER_COUNT]))
-        if not eigenvalues[0] > 4 * np.finfo(float).eps * max(abs(eigenvalues[-1]), np.finfo(float).tiny):
-            out.append(i)
-    return tuple(out)
-
-
 @dataclass(frozen=True)
 class WorseJointHold:
     """What identify did about the joints the robot-file check named worse (0-based joints and links).
 
     ``worse``: the joints named worse first; ``held_friction``: the ``(name, value)`` friction held at the baselines'
     by this step; ``held_links``: the links held at the robot file's (empty: none); ``steps``: per fit tried,
-    ``(what, joints named worse with it, kept)``; ``numbers``: per joint named worse first, ``(joint, baseline RMSE,
-    identified RMSE, margin)``; ``left``: the joints still worse; ``reason``: why, in words; ``unheld``: the links a
-    step would have held that the robot file states semi-definite (``semidefinite_links``), left fitted.
+    ``(what, joints named worse with it, kept, why)``, ``why`` the RMSE and margins that kept or refused it;
+    ``numbers``: per joint named worse first, ``(joint, baseline RMSE, identified RMSE, margin)``; ``left``: the
+    joints still worse; ``reason``: why, in words; ``lifted``: those of ``held_links`` the robot file states
+    semi-definite (``pseudo_inertia.semidefinite_links``), held at the file's lifted by ``margin`` [kg m^2]
+    (``consistent_fit.held_standard``).
     """
 
     mode: str = "hold"
@@ -124,7 +113,8 @@ class WorseJointHold:
     numbers: tuple = ()
     left: tuple = ()
     reason: str = ""
-    unheld: tuple = ()
+    lifted: tuple = ()
+    margin: float = 0.0
 
     @property
     def decided_by_held_out(self) -> bool:
@@ -138,7 +128,7 @@ class WorseJointHold:
         numbers = "; ".join(f"joint {j + 1} {b:.3g} -> {a:.3g} N m (margin {m:.2g})" for j, b, a, m in self.numbers)
         head = f"joint(s) {joints} worse than the robot file on the held-out recording(s) ({numbers}): "
         if not self.decided_by_held_out:
-            return head + self.reason + self._unheld_words()
+            return head + self.reason
         done = []
         if self.held_friction:
             done.append(f"friction held at the robot file's baseline ({HeldFriction(self.held_friction).describe()})")
@@ -146,27 +136,27 @@ class WorseJointHold:
             links = ", ".join(str(i + 1) for i in self.held_links)
             done.append(
                 f"the rigid body of link(s) {links}, which carry them, held at the robot file's (with the "
-                "drive inertia of each joint whose every carried link is held)"
+                f"drive inertia of each joint whose every carried link is held){self._lifted_words()}"
             )
-        return (f"{head}{' and '.join(done)}, and the model fitted again -- {self.reason}{self._unheld_words()}. The "
+        return (f"{head}{' and '.join(done)}, and the model fitted again -- {self.reason}. The "
                 "held-out recording(s) decided this hold: their check against the robot file that follows is not "
                 "independent of it. --worse-joint report keeps the model as identified")  # fmt: skip
 
-    def _unheld_words(self) -> str:
-        if not self.unheld:
+    def _lifted_words(self) -> str:
+        if not self.lifted:
             return ""
-        links = ", ".join(str(i + 1) for i in self.unheld)
-        return (f"; link(s) {links} left fitted, not held: the robot file's are not strictly physically consistent "
-                "(a pseudo-inertia eigenvalue at zero, e.g. a point mass): a model holding them fails the consistency "
-                "check and is not written")  # fmt: skip
+        links = ", ".join(str(i + 1) for i in self.lifted)
+        return (f"; link(s) {links} held at the robot file's lifted by {self.margin:.2g} kg m^2 to be strictly "
+                "consistent (the file's are semi-definite, a pseudo-inertia eigenvalue at zero, e.g. a point mass: "
+                "each eigenvalue below the fit's consistency margin raised to it)")  # fmt: skip
 
     def to_dict(self) -> dict:
         return {"mode": self.mode, "worse_joints": [j + 1 for j in self.worse],
                 "held_friction": {n: v for n, v in self.held_friction},
                 "held_links": [i + 1 for i in self.held_links], "left_worse": [j + 1 for j in self.left],
-                "not_held_links": [i + 1 for i in self.unheld],
-                "steps": [{"held": what, "worse_joints": [j + 1 for j in worse], "kept": kept}
-                          for what, worse, kept in self.steps],
+                "lifted_links": [i + 1 for i in self.lifted], "lift_margin": self.margin,
+                "steps": [{"held": what, "worse_joints": [j + 1 for j in worse], "kept": kept, "why": why}
+                          for what, worse, kept, why in self.steps],
                 "before": {f"joint {j + 1}": {"baseline": b, "identified": a, "margin": m}
                            for j, b, a, m in self.numbers},
                 "reason": self.reason, "decided_by_held_out": self.decided_by_held_out}  # fmt: skip
@@ -186,25 +176,31 @@ def _baseline_friction(options, check, joints, friction_of, fit) -> tuple:
     return tuple(out)
 
 
-def _mends(found, left, nearer) -> bool:
-    """Whether a step mends the joints ``left`` (0-based) the check named worse: none of those it names worse with it
-    (``found``) is new, and they are fewer, or each is predicted better than before the step beyond the paired margin
-    on every held-out recording (``nearer(found)``, asked only then)."""
-    if not set(found) <= set(left):
-        return False
-    return set(found) < set(left) or nearer(found)
+def _against_file(check, joints, words) -> str:
+    """``joints`` (0-based) with their RMSE against the robot file's in ``check`` (a ``FileCheck``), after ``words``."""
+    c = check.comparison
+    return "; ".join(f"joint {j + 1} {words} {c.after[j]:.4g} N m against the file's {c.before[j]:.4g} (margin "
+                     f"{c.margin[j]:.2g})" for j in joints)  # fmt: skip
 
 
-def _nearer(compare, before, after):
-    """``nearer(joints)`` for :func:`_mends`: whether the model of fit ``after`` predicts each of ``joints`` better
-    than that of fit ``before`` beyond the paired margin on each held-out recording (``compare(before, after)``: one
-    ``never_worse.JointComparison`` per recording, ``never_worse.compare_each``). A gain within the margin is the
-    comparison's noise, not a mend: holding by it lets the held-out recordings decide the model for nothing."""
-
-    def nearer(joints) -> bool:
-        return better_on_each(compare(before, after), joints) == tuple(joints)
-
-    return nearer
+def _verdict(found, left, check, nearer) -> tuple:
+    """``(kept, why)``: whether a step mends the joints ``left`` (0-based) the check named worse, and the numbers that
+    decided it. Refused where a joint it names worse (``found``, of ``check``: the step's model against the robot
+    file) is new; kept where they are fewer, or each is predicted better than before the step beyond the paired margin
+    on every held-out recording (``nearer()``: one ``never_worse.JointComparison`` per recording, of the model before
+    the step and the step's; asked only then). A gain within the margin is the comparison's noise, not a mend: holding
+    by it lets the held-out recordings decide the model for nothing."""
+    new = [j for j in found if j not in left]
+    if new:
+        return False, "refused: " + _against_file(check, new, "newly worse,")
+    if set(found) < set(left):
+        return True, "kept: fewer worse, " + _against_file(check, [j for j in left if j not in found], "within,")
+    comparisons = nearer()
+    kept = better_on_each(comparisons, found) == tuple(found)
+    steps = "; ".join(f"joint {j + 1} {c.before[j]:.4g} -> {c.after[j]:.4g} N m (margin {c.margin[j]:.2g})"
+                      for j in found for c in comparisons)  # fmt: skip
+    head = "kept: each nearer" if kept else "refused: not each nearer"
+    return kept, f"{head} beyond the paired margin on each held-out recording, {steps}"
 
 
 def _trial_options(kind, what, options, n_dof) -> tuple:
@@ -219,19 +215,16 @@ def _trial_options(kind, what, options, n_dof) -> tuple:
     return replace(options, held_links=what), "links " + ", ".join(str(i + 1) for i in what)
 
 
-def _link_candidates(left, options, robot, tried) -> tuple:
-    """``(steps, unheld)``: the ``("links", links)`` steps still to try for the joints ``left``, their own links, then
-    every link they carry (``carried_links``), each with the links ``options`` hold already and none ``tried`` (which
-    they join); and the links among those the robot file states semi-definite (``robot = (n_dof, semidefinite)``),
-    which no step holds."""
-    n_dof, semidefinite = robot
-    out, unheld = [], set(carried_links(left, n_dof)) & set(semidefinite)
+def _link_candidates(left, options, n_dof, tried) -> list:
+    """The ``("links", links)`` steps still to try for the joints ``left``, their own links, then every link they carry
+    (``carried_links``), each with the links ``options`` hold already and none ``tried`` (which they join)."""
+    out = []
     for links in (set(left), set(carried_links(left, n_dof))):
-        links = tuple(sorted(set(options.held_links) | (links - unheld)))
+        links = tuple(sorted(set(options.held_links) | links))
         if links != tuple(options.held_links) and links not in tried:
             out.append(("links", links))
             tried.add(links)
-    return out, unheld
+    return out
 
 
 def hold_worse_joints(problem, fit, judges, friction_of, mode: str = "hold", semidefinite=()) -> tuple:
@@ -243,7 +236,8 @@ def hold_worse_joints(problem, fit, judges, friction_of, mode: str = "hold", sem
     recordings, ``compare(before, after)`` the model of one fit against another's, one ``never_worse.JointComparison``
     per held-out recording; ``friction_of(fit, joints)``: the ``(name, value)`` Coulomb-viscous friction of the robot
     file's fit on the training recordings; ``semidefinite``: the links (0-based) the robot file states not strictly
-    consistent (``semidefinite_links``), never held."""
+    consistent (``pseudo_inertia.semidefinite_links``), which the fit holds lifted (``consistent_fit.held_standard``)
+    and the record names."""
     refit, options, n_dof = problem
     judge, compare = judges
     check = judge(fit)
@@ -257,26 +251,29 @@ def hold_worse_joints(problem, fit, judges, friction_of, mode: str = "hold", sem
         return fit, options, replace(record, reason="named only (--worse-joint report)")
     steps, added = [], ()
     friction = _baseline_friction(options, check, left, friction_of, fit)
-    candidates, tried, unheld = ([("friction", friction)] if friction else []), set(), set()
+    candidates, tried = ([("friction", friction)] if friction else []), set()
     while left:
         if not candidates:  # the worse joints' own links first, then every link they carry
-            candidates, unfit = _link_candidates(left, options, (n_dof, semidefinite), tried)
-            unheld |= unfit
+            candidates = _link_candidates(left, options, n_dof, tried)
             if not candidates:
-                break  # every link the joints left carry is held already, or cannot be
+                break  # every link the joints left carry is held already
         kind, what = candidates.pop(0)
         trial_options, label = _trial_options(kind, what, options, n_dof)
+        if kind == "links" and (lifting := [str(i + 1) for i in what if i in set(semidefinite)]):
+            label += f" ({', '.join(lifting)} lifted)"  # semi-definite in the file: ``consistent_fit.held_standard``
         logger.info("identify: joint%s %s worse than the robot file: fitting again with %s held ...",
                     "s" if len(left) > 1 else "", ", ".join(str(j + 1) for j in left), label)  # fmt: skip
         try:
             trial = refit(trial_options)
         except SolverError as error:  # the fit before stands, and the record says why
-            steps.append((label, left, False))
+            steps.append((label, left, False, f"refused: the fit did not converge ({error})"))
             logger.info("identify: the fit with %s held did not converge (%s)", label, error)
             break
-        found = tuple(judge(trial).worse)
-        kept = _mends(found, left, _nearer(compare, fit, trial))
-        steps.append((label, found, kept))
+        trial_check = judge(trial)
+        found = tuple(trial_check.worse)
+        kept, why = _verdict(found, left, trial_check, lambda: compare(fit, trial))  # noqa: B023 (called here)
+        steps.append((label, found, kept, why))
+        logger.info("identify: with %s held: %s", label, why)
         if not kept:
             if kind == "links" and not candidates:
                 break
@@ -284,11 +281,11 @@ def hold_worse_joints(problem, fit, judges, friction_of, mode: str = "hold", sem
         fit, options, left = trial, trial_options, found
         added = added + (what if kind == "friction" else ())
     held_links = tuple(options.held_links)
+    lifted = tuple(i for i in held_links if i in set(semidefinite))
     record = replace(record, held_friction=added, held_links=held_links, steps=tuple(steps), left=left,
-                     unheld=tuple(sorted(unheld)))  # fmt: skip
-    refused = " (refused: a new one, or neither fewer nor each nearer beyond the paired margin)"
-    tried = "; ".join(f"with {label} held: joint(s) {', '.join(str(j + 1) for j in found) or 'none'} worse"
-                      f"{'' if kept else refused}" for label, found, kept in steps)  # fmt: skip
+                     lifted=lifted, margin=float(options.margin) if lifted else 0.0)  # fmt: skip
+    tried = "; ".join(f"with {label} held: joint(s) {', '.join(str(j + 1) for j in found) or 'none'} worse ({why})"
+                      for label, found, _, why in steps)  # fmt: skip
     if not record.decided_by_held_out:
         reason = f"{tried or 'nothing left to hold'}; the model stands as identified"
     else:

@@ -8,12 +8,13 @@ of ``envelope_check``) -> the base parameters it reports.
 Identify held those links because, fitted, they made joints worse than the robot file on the held-out recordings; a
 diagnosis that frees them again fits them to what the other joints ask of them (and to an effect they may absorb), as
 identify's fit did before the hold. The base parameters are ``theta = P s`` (``PSDMModel.parameter_map``, ``s`` the
-standard parameters, 11 per link); with the ten inertial parameters of the held links at the robot file's values
-(and the drive inertia of each joint whose every carried link is held, as identify holds them:
-``consistent_fit.held_rotors``), ``theta = B c + theta_held``: ``B`` an orthonormal basis of what the free standard
-parameters reach, ``theta_held`` the held links' share. The fit's rigid-body columns are the regressor times ``B``,
-its torque is the measured less the regressor times ``theta_held``, and ``theta`` of the coefficients gives the base
-parameters back.
+standard parameters, 11 per link); with the ten inertial parameters of the held links at the robot file's values (a
+link the file states semi-definite lifted by the fit's consistency margin, as identify holds it:
+``consistent_fit.held_standard``), and the drive inertia of each joint whose every carried link is held (as identify
+holds them: ``consistent_fit.held_rotors``), ``theta = B c + theta_held``: ``B`` an orthonormal basis of what the free
+standard parameters reach, ``theta_held`` the held links' share. The fit's rigid-body columns are the regressor
+times ``B``, its torque is the measured less the regressor times ``theta_held``, and ``theta`` of the coefficients
+gives the base parameters back.
 """
 
 from __future__ import annotations
@@ -22,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from identification.calibration.consistent_fit import held_rotors, prior_standard
+from identification.calibration.consistent_fit import held_rotors, held_standard
 
 __all__ = ["HeldLinks", "held_links"]
 
@@ -59,7 +60,7 @@ def held_links(model, robot, links) -> HeldLinks | None:
         return None
     mapping = np.asarray(model.parameter_map, dtype=float)
     standard = np.zeros(mapping.shape[1])
-    prior = np.asarray(prior_standard(robot), dtype=float)
+    prior = held_standard(robot, links)  # as identify holds them: a semi-definite link lifted
     held = np.zeros(mapping.shape[1], dtype=bool)
     for i in links:
         held[i * LINK_SIZE : i * LINK_SIZE + 10] = True

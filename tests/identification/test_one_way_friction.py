@@ -318,7 +318,7 @@ def test_a_joint_worse_than_the_robot_file_is_held_to_it_and_said_so(scara, one_
     assert (
         text in mended.describe()
         and "decided this hold" in text
-        and text.count("refused") == sum(not kept for _, _, kept in record.steps)
+        and text.count("refused") == sum(not kept for _, _, kept, _ in record.steps)
     )
     stored = mended.calibrated.document["identification"]["worse_joints"]
     assert stored["worse_joints"] == [j + 1 for j in record.worse] and stored["decided_by_held_out"] is True
