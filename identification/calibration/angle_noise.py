@@ -16,35 +16,64 @@ against stays the plain least squares' (the false alarms the rule was made for s
 no torque of the angle stays in it: the bursts a model without friction dynamics leaves at each velocity reversal.
 Their median absolute deviation would drop those too, but it drops as much of a plain arm's residual and names a
 spring a link held at its reach does not have (``tests/identification/test_clear_ask.py``).
+
+A constant is no torque of the angle, but a Fourier series over a travel shorter than a turn gives one, and a torque
+offset the model lacks (its column off, forced or refused) then passed for a counterbalance: the series took the
+offset, the links it had bent fitted the other joints again, and a torque the bounds refused because of the offset
+was judged against a noise the offset no longer raised (a true offset on the Denso's joint 2 named "a counterbalance
+on joint 1"). So only what the series explains beyond a torque offset per joint is credited: the noise is the least
+squares' residual less what the series adds to an offset (in variance: the fit with an offset per joint, against the
+fit with the offset and the series). A counterbalance's torque of one sign over the travel, the part an offset gives
+as well, stays in the noise: over a short travel the data cannot tell it from an offset. The fits with an offset alone
+are kept (``JointNoise``): where a joint's own offset takes its noise well down, the data hold an offset the model
+lacks there, which ``clear_ask`` names where it names no counterbalance.
 """
 
 from __future__ import annotations
 
 from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 
 from identification.calibration.configuration_check import accumulate
 from identification.calibration.weighted_solve import weighted_least_squares
 
-__all__ = ["HARMONICS", "AngleColumns", "effect_free_noise"]
+__all__ = ["HARMONICS", "AngleColumns", "JointNoise", "effect_free_noise"]
 
 #: Harmonics of each joint's angle in the alternative's columns: a counterbalance's law over the recorded travel.
 HARMONICS = 4
 
 
+class JointNoise(NamedTuple):
+    """Per joint [N m]: ``noise``, the one the effect cannot inflate (module docstring); ``offset``, the least
+    squares' residual sigma with a torque offset on every joint, and ``others``, theirs with one on every other joint
+    (well above ``offset``: the joint's data hold an offset the model lacks; an offset elsewhere bends the links
+    every joint's rows share, and the offsets on the other joints take that)."""
+
+    noise: np.ndarray
+    offset: np.ndarray
+    others: np.ndarray
+
+
 class AngleColumns:
     """A recording's extra columns (``extra``: an object with ``columns(q, qd, qdd)``, or None) followed by, on each
     joint's rows, ``cos(k q_j)`` and ``sin(k q_j)`` for ``k = 1..harmonics`` (``2 harmonics`` columns per joint,
-    joint after joint; zero on the other joints' rows)."""
+    joint after joint; zero on the other joints' rows), then with ``offset`` a constant 1 on each joint's rows (one
+    column per joint)."""
 
-    def __init__(self, extra, n_dof: int, harmonics: int = HARMONICS):
-        self.extra, self.n_dof, self.harmonics = extra, n_dof, harmonics
+    def __init__(self, extra, n_dof: int, harmonics: int = HARMONICS, offset: bool = False):
+        self.extra, self.n_dof, self.harmonics, self.offset = extra, n_dof, harmonics, offset
+
+    @property
+    def series(self) -> int:
+        """The number of angle columns."""
+        return 2 * self.harmonics * self.n_dof
 
     @property
     def width(self) -> int:
-        """The number of angle columns."""
-        return 2 * self.harmonics * self.n_dof
+        """The number of columns after the extra's: the angle's, then (``offset``) one constant per joint."""
+        return self.series + (self.n_dof if self.offset else 0)
 
     def columns(self, q, qd, qdd) -> np.ndarray:
         """(n_samples, n_dof, extra's columns + ``width``)."""
@@ -55,22 +84,31 @@ class AngleColumns:
         width = 2 * self.harmonics
         for j in range(self.n_dof):
             block[:, j, j * width : (j + 1) * width] = series[:, j]
+            if self.offset:
+                block[:, j, self.series + j] = 1.0
         return block if self.extra is None else np.concatenate([self.extra.columns(q, qd, qdd), block], axis=2)
 
 
 def effect_free_noise(robot, model, prepared, extras, setup, n_columns: int, free, payload=range(0)):
-    """A callable giving, once asked, per joint the noise [N m] of the data's own least squares
-    (``weighted_least_squares`` over the ``free`` of ``n_columns`` columns, ``payload`` the unknown payloads') with,
-    on each joint's rows, a Fourier series of its own angle (``AngleColumns``): that fit's residual sigma (module
-    docstring). ``prepared``, ``extras`` and ``setup`` are the fit's (``configuration_check.accumulate``); asked, it
-    makes one more pass over the recordings."""
+    """A callable giving, once asked, per joint the ``JointNoise`` of the data's own least squares
+    (``weighted_least_squares`` over the ``free`` of ``n_columns`` columns, ``payload`` the unknown payloads'): their
+    residual sigma less what, on each joint's rows, a Fourier series of its own angle (``AngleColumns``) explains
+    beyond a torque offset per joint (module docstring). ``prepared``, ``extras`` and ``setup`` are the fit's
+    (``configuration_check.accumulate``); asked, it makes one more pass over the recordings."""
     return partial(_noise, robot, model, prepared, extras, setup, n_columns, free, payload)
 
 
-def _noise(robot, model, prepared, extras, setup, n_columns: int, free, payload) -> np.ndarray:
+def _noise(robot, model, prepared, extras, setup, n_columns: int, free, payload) -> JointNoise:
     """``effect_free_noise``'s noise, computed."""
-    wrapped = [AngleColumns(extra, robot.n_dof) for extra in extras]
-    width = wrapped[0].width if wrapped else 0
+    wrapped = [AngleColumns(extra, robot.n_dof, offset=True) for extra in extras]
+    series, width = (wrapped[0].series, wrapped[0].width) if wrapped else (0, 0)
     equations, _ = accumulate(robot, model, prepared, wrapped, setup, n_columns + width)
-    columns = [*np.asarray(free, dtype=int).tolist(), *range(n_columns, n_columns + width)]
-    return weighted_least_squares(equations, columns, payload)[0]
+    free = np.asarray(free, dtype=int).tolist()
+    offsets = list(range(n_columns + series, n_columns + width))
+    plain = weighted_least_squares(equations, free, payload)[0]
+    constant = weighted_least_squares(equations, [*free, *offsets], payload)[0]
+    both = weighted_least_squares(equations, [*free, *offsets, *range(n_columns, n_columns + series)], payload)[0]
+    others = [weighted_least_squares(equations, [*free, *offsets[:j], *offsets[j + 1 :]], payload)[0][j]
+              for j in range(len(offsets))]  # fmt: skip
+    noise = np.sqrt(np.clip(plain**2 - constant**2 + both**2, both**2, plain**2))
+    return JointNoise(noise, constant, np.asarray(others, dtype=float).reshape(constant.shape))

@@ -14,10 +14,13 @@ mass, is named only where the torque the bounds refuse on the joint it acts on (
 joint; a payload: every joint that carries it, the one refused most) is at least ``NAME_SIGMA`` times that joint's
 noise. The refused torque is what the unbounded least squares show and the bounded fit does not give: the RMS by which
 the bounded fit's residual on the training data exceeds theirs, per joint (``refused_noise``). The noise is one the
-effect cannot inflate (``angle_noise``): the residual of the same least squares with a torque of each joint's own
-angle (a counterbalance's or spring's law; a payload is in the links' columns already); where that is above the
-least squares' own noise, theirs. Their residual alone held the effect's part their columns cannot give, and a large
-counterbalance raised the noise it was judged against. ``NAME_SIGMA`` is 2: a
+effect cannot inflate (``angle_noise``): the residual of the same least squares less what a torque of each joint's
+own angle (a counterbalance's or spring's law; a payload is in the links' columns already) explains beyond a torque
+offset per joint; where that is above the least squares' own noise, theirs. Their residual alone held the effect's
+part their columns cannot give, and a large counterbalance raised the noise it was judged against. A constant is no
+torque of the angle: a true offset the model lacks (its column off) is never evidence for a counterbalance, and where
+the data hold one (the joint's own offset takes its noise down ``NAME_SIGMA``-fold: ``JointNoise``) the finding
+names it. ``NAME_SIGMA`` is 2: a
 torque a single sample shows beyond two standard deviations of its noise, where a plot of the residual shows it. The
 statistics of many samples do not decide it: over thousands of samples a refusal of a tenth of the noise is already
 significant, and a robot file's link off beyond its bounds, or an unstated rotor, gives that (the warning itself
@@ -58,7 +61,7 @@ NAMING_RULE = (
     f"a counterbalance, or a payload on a link before the last two, is named only where the bounds refuse the joint it "
     f"acts on at least {NAME_SIGMA:g} x its noise of RMS torque (the bounded fit's residual over the unbounded least "
     "squares'), a torque each sample shows beyond two standard deviations of its noise (the least squares' residual "
-    "with a torque of each joint's angle: a noise the effect cannot inflate)"
+    "less what a torque of each joint's angle explains beyond an offset: a noise the effect cannot inflate)"
 )
 
 
@@ -81,12 +84,14 @@ def _asked(absorbs: str, joint: int, refused) -> bool:
     return float(np.max(refused()) if absorbs == "payload" else refused()[joint]) >= NAME_SIGMA
 
 
-def named_where_asked(findings, held, refused, robot, currents: bool = False) -> tuple:
+def named_where_asked(findings, held, refused, robot, currents: bool = False, noise=None) -> tuple:
     """``(findings, held)``: the envelope's findings (``envelope_report.EnvelopeFinding``) and the parameters held
     back by a bound (``held_back.HeldBack``, holder ``"envelope"``) with each counterbalance, spring or payload the
     data do not clearly ask for (``NAMING_RULE``; ``refused``: ``refused_noise``, or a callable giving it, called
     once and only when an effect is judged) named as none, or on motor currents (``currents``) as the joint's rotor
-    inertia where the robot file states none (module docstring)."""
+    inertia where the robot file states none (module docstring). ``noise``: None, or a callable giving the
+    ``angle_noise.JointNoise`` the refusal was judged against: a finding named as none then names the torque offset
+    the data hold and the model lacks."""
     refused = cache(refused) if callable(refused) else partial(np.asarray, refused)
     prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
     distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())  # a payload's own links: it sits beyond them
@@ -94,14 +99,14 @@ def named_where_asked(findings, held, refused, robot, currents: bool = False) ->
     for finding in findings:
         at, own = where(finding), finding.absorbs == "payload" and finding.link in distal
         judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused)
-        out.append(_unnamed_finding(finding, at, refused(), robot, currents) if judged else finding)
+        out.append(_unnamed_finding(finding, at, refused(), robot, currents, noise) if judged else finding)
     kept = []
     for item in held:
         at, own = item.effect_joint if item.effect_joint >= 0 else item.joint, item.absorbs == "payload"
         judged = (
             item.holder == "envelope" and not (own and item.joint in distal) and not _asked(item.absorbs, at, refused)
         )
-        kept.append(_unnamed_item(item, at, refused(), robot, currents) if judged else item)
+        kept.append(_unnamed_item(item, at, refused(), robot, currents, noise) if judged else item)
     return tuple(out), tuple(kept)
 
 
@@ -111,7 +116,23 @@ def _under(absorbs: str, at: int, refused, robot) -> str:
     return f"the bounds refuse {joint_label(j, robot)} {refused[j]:.2g} x its noise, and {NAMING_RULE}"
 
 
-def _unnamed_finding(finding, at: int, refused, robot, currents: bool):
+def _lacked_offset(noise, robot) -> str:
+    """The clause naming the joints whose data hold a torque offset the model lacks (``noise``: None or a callable
+    giving ``angle_noise.JointNoise``; the joint's own offset takes its least squares' noise down ``NAME_SIGMA``-fold
+    or more), or ""."""
+    joint_noise = None if noise is None else noise()
+    joints = [] if joint_noise is None else np.flatnonzero(joint_noise.others >= NAME_SIGMA * joint_noise.offset)
+    if not len(joints):
+        return ""
+    down = ", ".join(f"{joint_label(j, robot)} {joint_noise.others[j]:.2g} -> {joint_noise.offset[j]:.2g} N m"
+                     for j in joints)  # fmt: skip
+    return (
+        f"a torque offset the model does not hold (the least squares' noise falls with one: {down}); "
+        "identify with the offset column on (--offset on)"
+    )
+
+
+def _unnamed_finding(finding, at: int, refused, robot, currents: bool, noise=None):
     """``finding`` naming no effect, or (motor currents, no rotor stated) its joint's rotor inertia."""
     i, pushed = finding.link, finding.pushed
     drive = any(b.startswith("drive") for b in finding.bounds)
@@ -122,13 +143,15 @@ def _unnamed_finding(finding, at: int, refused, robot, currents: bool):
                    f"rotor_inertia in link {i + 1}'s [[link]] table and identify holds it there. No counterbalance or "
                    f"payload is named: {under}.")  # fmt: skip
         return replace(finding, absorbs="drive_inertia", alternatives=(), evidence="", effect_joint=i, message=message)
-    message = (f"{pushed}. No counterbalance or payload is named: {under}. Most likely the robot file's link "
-               f"{i + 1} is off by more than its bounds allow (state its mass, centre of mass or envelope in the robot "
-               "file), or an effect too small to tell from these recordings.")  # fmt: skip
+    cause = (f"the robot file's link {i + 1} is off by more than its bounds allow (state its mass, centre of mass or "
+             "envelope in the robot file), or an effect too small to tell from these recordings")  # fmt: skip
+    offset = _lacked_offset(noise, robot)  # the data hold an offset the model lacks: say so first
+    likely = f"{offset}; otherwise {cause}" if offset else cause
+    message = f"{pushed}. No counterbalance or payload is named: {under}. Most likely {likely}."
     return replace(finding, absorbs=UNNAMED, alternatives=(), evidence="", effect_joint=-1, message=message)
 
 
-def _unnamed_item(item, at: int, refused, robot, currents: bool):
+def _unnamed_item(item, at: int, refused, robot, currents: bool, noise=None):
     """A held-back parameter naming no effect, or (motor currents, an inertia about a joint the data want larger)
     that joint's rotor inertia."""
     head = item.message.split(". The data most likely hold ")[0]
@@ -139,5 +162,6 @@ def _unnamed_item(item, at: int, refused, robot, currents: bool):
                    f"in the robot file); no counterbalance or payload is named: {under}.")  # fmt: skip
         return replace(item, absorbs="drive_inertia", alternatives=(), evidence="", effect_joint=item.joint,
                        message=message)  # fmt: skip
-    message = f"{head}. No counterbalance or payload is named: {under}."
+    offset = _lacked_offset(noise, robot)
+    message = f"{head}. No counterbalance or payload is named: {under}{f'. Most likely {offset}' if offset else ''}."
     return replace(item, absorbs=UNNAMED, alternatives=(), evidence="", effect_joint=-1, message=message)

@@ -48,7 +48,7 @@ bound is active, only the pull) a weaker pull, ``--prior-uncertainty``.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
-from functools import partial
+from functools import cache, partial
 
 import numpy as np
 
@@ -310,7 +310,8 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     its behalf are then named after it, and the departure is stored with the bounds. Last, a counterbalance or payload
     held by a bound that the data do not clearly ask for (``clear_ask.NAMING_RULE``) is named as none, or on motor
     currents as the joint's rotor inertia. The joints' noise it is judged against is ``fitted``'s, or where ``noise``
-    (a callable, asked only when something is judged: ``angle_noise.effect_free_noise``) gives less, that."""
+    (a callable, asked only when something is judged: ``angle_noise.effect_free_noise``) gives less, that; where it
+    says the data hold a torque offset the model lacks, the finding says so."""
     items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
     named, inertias = named_from_evidence(envelope, items, model, robot, kt is not None), {}
     if len(fitted) > 4:  # a link still named a payload beside one: a joint's gravity departing alone says balancer
@@ -323,9 +324,10 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
             kt is not None,
         )
         named = yielded_findings(named, inertias)  # a departure the held-back inertia made names no balancer
-    sigma = fitted[3] if noise is None else (lambda: np.minimum(fitted[3], noise()))  # the effect only takes torque out
+    noise = None if noise is None else cache(noise)
+    sigma = fitted[3] if noise is None else (lambda: np.minimum(fitted[3], noise().noise))  # it only takes torque out
     refused = partial(refused_noise, fitted[2], fitted[0], fitted[1], sigma)
-    named, items = named_where_asked(named, items, refused, robot, kt is not None)  # only what the data clearly ask
+    named, items = named_where_asked(named, items, refused, robot, kt is not None, noise)  # only what they clearly ask
     return named, (*held_note(items), *inertia_note(inertias))
 
 

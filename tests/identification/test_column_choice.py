@@ -333,3 +333,24 @@ def test_a_fold_fit_stopped_at_the_iteration_cap_is_not_judged_on_and_the_traini
     assert "not checked on the model identify writes (the consistent fit on the training data without a block" in reason
     assert "stopped at Ipopt's iteration cap" in reason and reason.endswith("so the training BIC decides")
     assert "makes the model identify writes worse" not in reason
+
+
+def test_a_true_offset_the_model_lacks_is_never_named_a_counterbalance(denso, denso_model):
+    """``clear_ask``: a true 3 N m torque offset on joint 2 with the offset column off (forced, or refused by the
+    choice) pushes link 2 against its envelope, and the bounds refuse joint 1 a torque of several times the sensor's
+    noise (the links the offset bends are joint 1's too). A constant is no torque of the angle: the noise the refusal
+    is judged against keeps what an offset explains (``angle_noise``), so no counterbalance or spring is named for it
+    on any joint, and the finding names the offset on joint 2, and on no other joint, with the route to take it."""
+    from identification.calibration.held_back import stored_held_back
+
+    train = synthetic(denso, 2, offset=np.array([0.0, 3.0, 0.0, 0.0, 0.0, 0.0]), duration=8.0)
+    request = ColumnRequest(friction="coulomb-viscous", offset="off", drive_inertia="off")
+    off = ColumnChoice("coulomb-viscous", (), (), request)
+    fit = identify_trajectories(denso, denso_model, [train], off.options(TrajectoryOptions()))
+    pressed = [f for f in fit.envelope if f.pressed]
+    assert pressed and max(f.refused_rms for f in pressed) > 0.15  # three times the sensor's 0.05 N m
+    assert not [f for f in pressed if f.absorbs == "counterbalance"], [f.message for f in pressed]
+    assert not [i for i in stored_held_back(fit.envelope_bounds) if i.absorbs == "counterbalance"]
+    said = next(f.message for f in pressed if "No counterbalance or payload is named" in f.message)
+    offset = said.split("Most likely a torque offset the model does not hold (")[1].split("); identify")[0]
+    assert "joint 2 (J2)" in offset and offset.count("joint") == 1 and "--offset on" in said
