@@ -29,6 +29,13 @@ signature, not a reading of what moved: a tool at the flange sits there and move
 (``absorbed_effect``), so they name it at any refusal the warning reports (the Kinova Gen3's vendor URDF, link 7 at
 its mass bound: its undocumented tool, at 0.9 x the noise).
 
+A counterbalance the links take inside their envelopes is not refused: beside a tool that pulls every link outward,
+a shoulder's balancer goes into a proximal link's first moment, the bounds refuse its joint less than the noise, and
+the link is named after the departure of that joint's gravity torque from the robot file's alone
+(``envelope_report.named_by_departure``). The data ask for it there by that departure: where their own least squares
+depart on that joint alone by at least ``NAME_SIGMA`` noise levels (``departure_ask``), it is named as the refused
+torque would name it.
+
 Below it a pressed finding is still reported (the bounds hold the link and the data press on it), naming no effect
 (``UNNAMED``) and no route: with motor currents as the torque source and no rotor inertia stated for the joint, the
 joint's rotor inertia is named instead (``drive_inertia``: the base parameters merge it into the link, and so does a
@@ -61,7 +68,9 @@ NAMING_RULE = (
     f"a counterbalance, or a payload on a link before the last two, is named only where the bounds refuse the joint it "
     f"acts on at least {NAME_SIGMA:g} x its noise of RMS torque (the bounded fit's residual over the unbounded least "
     "squares'), a torque each sample shows beyond two standard deviations of its noise (the least squares' residual "
-    "less what a torque of each joint's angle explains beyond an offset: a noise the effect cannot inflate)"
+    "less what a torque of each joint's angle explains beyond an offset: a noise the effect cannot inflate), or a "
+    "counterbalance the links take inside their envelopes where the unbounded least squares' gravity torque of that "
+    "joint alone departs from the robot file's by as much"
 )
 
 
@@ -75,36 +84,45 @@ def refused_noise(equations, x_fit, x_ols, sigma) -> np.ndarray:
     return rms / np.maximum(np.asarray(sigma, dtype=float), 1e-12)
 
 
-def _asked(absorbs: str, joint: int, refused) -> bool:
+def _asked(absorbs: str, joint: int, refused, departed) -> bool:
     """Whether the data clearly ask for ``absorbs`` acting on ``joint`` (0-based): an effect this rule does not judge
     is asked for, one of ``NAMED_EFFECTS`` where the torque refused on its joint (a payload: the most refused;
-    ``refused()``: ``refused_noise``) is at least ``NAME_SIGMA`` noise levels."""
+    ``refused()``: ``refused_noise``) is at least ``NAME_SIGMA`` noise levels, a counterbalance also where the data's
+    gravity torque of its joint departs alone by as much (``departed()``: ``departure_ask.departed_noise``)."""
     if absorbs not in NAMED_EFFECTS:
         return True
-    return float(np.max(refused()) if absorbs == "payload" else refused()[joint]) >= NAME_SIGMA
+    if absorbs == "payload":
+        return float(np.max(refused())) >= NAME_SIGMA
+    return float(refused()[joint]) >= NAME_SIGMA or float(departed()[joint]) >= NAME_SIGMA
 
 
-def named_where_asked(findings, held, refused, robot, currents: bool = False, noise=None) -> tuple:
+def named_where_asked(findings, held, refused, robot, currents: bool = False, noise=None, departed=None) -> tuple:
     """``(findings, held)``: the envelope's findings (``envelope_report.EnvelopeFinding``) and the parameters held
     back by a bound (``held_back.HeldBack``, holder ``"envelope"``) with each counterbalance, spring or payload the
     data do not clearly ask for (``NAMING_RULE``; ``refused``: ``refused_noise``, or a callable giving it, called
-    once and only when an effect is judged) named as none, or on motor currents (``currents``) as the joint's rotor
-    inertia where the robot file states none (module docstring). ``noise``: None, or a callable giving the
+    once and only when an effect is judged; ``departed``: per joint the departure of the data's gravity torque on it
+    alone in noise levels, ``departure_ask.departed_noise``, or a callable giving it, called once and only when a
+    counterbalance is refused less; None: none) named as none, or on motor currents (``currents``) as the joint's
+    rotor inertia where the robot file states none (module docstring). ``noise``: None, or a callable giving the
     ``angle_noise.JointNoise`` the refusal was judged against: a finding named as none then names the torque offset
     the data hold and the model lacks."""
     refused = cache(refused) if callable(refused) else partial(np.asarray, refused)
+    departed = np.zeros(robot.n_dof) if departed is None else departed
+    departed = cache(departed) if callable(departed) else partial(np.asarray, departed)
     prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
     distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())  # a payload's own links: it sits beyond them
     out = []
     for finding in findings:
         at, own = where(finding), finding.absorbs == "payload" and finding.link in distal
-        judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused)
+        judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused, departed)
         out.append(_unnamed_finding(finding, at, refused(), robot, currents, noise) if judged else finding)
     kept = []
     for item in held:
         at, own = item.effect_joint if item.effect_joint >= 0 else item.joint, item.absorbs == "payload"
         judged = (
-            item.holder == "envelope" and not (own and item.joint in distal) and not _asked(item.absorbs, at, refused)
+            item.holder == "envelope"
+            and not (own and item.joint in distal)
+            and not _asked(item.absorbs, at, refused, departed)
         )
         kept.append(_unnamed_item(item, at, refused(), robot, currents, noise) if judged else item)
     return tuple(out), tuple(kept)

@@ -61,6 +61,7 @@ from identification.calibration.absorbed_effect import (
 )
 from identification.calibration.clear_ask import named_where_asked, refused_noise
 from identification.calibration.consistent_fit import held_rotors
+from identification.calibration.departure_ask import departed_noise
 from identification.calibration.envelope_report import (
     DIAGNOSE_ROUTE,
     MIN_REFUSED_SIGMA,
@@ -308,26 +309,32 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     recordings (``envelope_report.named_by_departure``, ``gravity_departure``), unless the data's own least squares
     say that departure is an inertia about the joint the fit holds back (``inertia_departure``): the links pushed on
     its behalf are then named after it, and the departure is stored with the bounds. Last, a counterbalance or payload
-    held by a bound that the data do not clearly ask for (``clear_ask.NAMING_RULE``) is named as none, or on motor
-    currents as the joint's rotor inertia. The joints' noise it is judged against is ``fitted``'s, or where ``noise``
-    (a callable, asked only when something is judged: ``angle_noise.effect_free_noise``) gives less, that; where it
-    says the data hold a torque offset the model lacks, the finding says so."""
+    held by a bound that the data do not clearly ask for (``clear_ask.NAMING_RULE``: the torque the bounds refuse, or
+    on a joint whose departure named a link, the departure of the data's own least squares there, ``departure_ask``)
+    is named as none, or on motor currents as the joint's rotor inertia. The joints' noise it is judged against is
+    ``fitted``'s, or where ``noise`` (a callable, asked only when something is judged:
+    ``angle_noise.effect_free_noise``) gives less, that; where it says the data hold a torque offset the model lacks,
+    the finding says so."""
     items = held_back(robot, model, fitted, covariance, names, envelope, held_links=held_links)
     named, inertias = named_from_evidence(envelope, items, model, robot, kt is not None), {}
+    departed = {}  # the bounded fit's departures, where a link could be named after one (read lazily)
     if len(fitted) > 4:  # a link still named a payload beside one: a joint's gravity departing alone says balancer
         theta = np.asarray(fitted[0], dtype=float)[: model.n_base]
         inertias = inertia_departures(robot, model, fitted[4], theta, np.asarray(fitted[1])[: model.n_base], items)
-        named = named_by_departure(
-            named,
-            lambda: {j: d for j, d in theta_departures(robot, model, fitted[4], theta).items() if j not in inertias},
-            robot,
-            kt is not None,
-        )
+
+        def departures() -> dict:
+            found = theta_departures(robot, model, fitted[4], theta)
+            departed.update({j: d for j, d in found.items() if j not in inertias})
+            return departed
+
+        named = named_by_departure(named, departures, robot, kt is not None)
         named = yielded_findings(named, inertias)  # a departure the held-back inertia made names no balancer
     noise = None if noise is None else cache(noise)
-    sigma = fitted[3] if noise is None else (lambda: np.minimum(fitted[3], noise().noise))  # it only takes torque out
+    sigma = fitted[3] if noise is None else cache(lambda: np.minimum(fitted[3], noise().noise))  # it only takes out
     refused = partial(refused_noise, fitted[2], fitted[0], fitted[1], sigma)
-    named, items = named_where_asked(named, items, refused, robot, kt is not None, noise)  # only what they clearly ask
+    recordings = fitted[4] if len(fitted) > 4 else ()
+    asked = partial(departed_noise, robot, model, recordings, fitted[1], departed, sigma)  # read where refused less
+    named, items = named_where_asked(named, items, refused, robot, kt is not None, noise, asked)  # what they ask
     return named, (*held_note(items), *inertia_note(inertias))
 
 
