@@ -11,7 +11,8 @@ worse (``worse_joint_hold``) judge the model that would be written, each fit the
 and payload steps first (``written_model``): those steps take torque the fit's links absorbed, and a joint worse before
 them may not be worse after. Where the held-out residual of that model lags the velocity at the reversals as
 pre-sliding friction does, the LuGre route is tried and written instead if it is better there and worse on no joint
-(``lugre_trial``).
+(``lugre_trial``). The coupling terms of a coupled transmission the robot file states are fitted last, on the model
+the route would write, and kept where the held-out recordings judge them (``coupled_drives``).
 
 Python users, the benchmarks and the command line get the same model from the same data: defaults are decided from the
 data here, not in the command line. Its options are overrides (``ColumnRequest``, ``counterbalance=False``), and
@@ -30,8 +31,9 @@ from identification.calibration.column_check import check_departures, offset_siz
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.consistent_fit import link_is_free
 from identification.calibration.counterbalance_column import CounterbalanceChoice
+from identification.calibration.coupled_drives import CoupledDrives, coupled_on_route
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
-from identification.calibration.file_judged import file_judged, file_training
+from identification.calibration.file_judged import file_check, file_judged, file_training
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_trial import LuGreTrial, try_lugre
 from identification.calibration.never_worse import JointComparison, compare_each
@@ -115,6 +117,9 @@ class IdentifyResult:
     lugre_trial : LuGreTrial
         LuGre friction on default settings: the joints whose held-out residual lags at the velocity reversals, and
         whether the LuGre model tried there replaced the default one (``lugre_trial``).
+    coupled : CoupledDrives
+        The coupling terms of the robot file's coupled transmission: fitted, and kept where held out they help
+        (``coupled_drives``).
     """
 
     fit: TrajectoryFit
@@ -132,6 +137,7 @@ class IdentifyResult:
     rotors_apart: RotorsApart = field(default_factory=RotorsApart)
     unstated: UnstatedLoads = field(default_factory=UnstatedLoads)
     lugre_trial: LuGreTrial = field(default_factory=LuGreTrial)
+    coupled: CoupledDrives = field(default_factory=CoupledDrives)
 
     @property
     def pull(self) -> PriorPull | None:
@@ -159,6 +165,8 @@ class IdentifyResult:
         lines += list(self.columns)
         if self.lugre_trial.describe():
             lines.append(self.lugre_trial.describe())
+        if self.coupled.describe():
+            lines.append(self.coupled.describe())
         if self.pull is not None:
             lines.append(self.pull.describe())
         lines.extend(f"held back from the data: {item.message}" for item in self.held_back)
@@ -314,16 +322,30 @@ def identify_recordings(
     if rotors.verdicts:  # stated with the other column choices
         calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
     check = _file_check(replace(written.check, held=held.held_joints, held_links=mended.held_links), trial, default)
-    calibrated.document["identification"]["robot_file_check"] = check.to_dict()
-    calibrated.document["identification"]["one_way_friction"] = held.to_dict()
-    calibrated.document["identification"]["worse_joints"] = mended.to_dict()
-    calibrated.document["identification"]["friction_drift"] = drift.to_dict()
-    calibrated.document["identification"]["unstated_loads"] = unstated.to_dict()
-    calibrated.document["identification"]["lugre_trial"] = trial.to_dict()
+    records = {"robot_file_check": check, "one_way_friction": held, "worse_joints": mended, "friction_drift": drift,
+               "unstated_loads": unstated, "lugre_trial": trial}  # fmt: skip
+    calibrated.document["identification"].update({key: value.to_dict() for key, value in records.items()})
     if (laws := temperature_block(drift, calibrated.document["drive"]["names"])) is not None:
         calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
+    problem, route = (robot, model, recordings, chosen, configurations), lugre is None and not choice.loss_joints
+    calibrated, final, check, coupled = _coupled(problem, (calibrated, final, check), judged, source, route)
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift,
-                          rotors, unstated, trial)  # fmt: skip
+                          rotors, unstated, trial, coupled)  # fmt: skip
+
+
+def _coupled(problem, written, judged, source, route) -> tuple:
+    """``(calibrated, fit, FileCheck, CoupledDrives)``: the written model with the coupling terms of the robot file's
+    transmission where the held-out recordings keep them (``coupled_drives.coupled_on_route``), judged against the
+    robot file again (its friction with the per-joint drive columns)."""
+    calibrated, final, check = written
+    after, fit, record = coupled_on_route(problem, calibrated, judged.recordings, source, route, check.allowance)
+    if fit is not None:
+        again = file_check(problem, judged, fit, after, final)
+        check = replace(again, held=check.held, held_links=check.held_links)
+        after.document["identification"]["robot_file_check"] = check.to_dict()
+        calibrated, final = after, fit
+    calibrated.document["identification"]["coupled_drives"] = record.to_dict()
+    return calibrated, final, check, record
 
 
 def _file_check(check: FileCheck, trial: LuGreTrial, default) -> FileCheck:

@@ -121,8 +121,12 @@ def written_line(findings, path, source=None, trained_on=ALONE) -> str:
     or, with ``source`` (the model file refitted on ``trained_on``), that ``path`` was not written (every finding only
     reported)."""
     applied = [entry["label"] for entry in findings if entry["kind"] != "reported"]
-    if applied:
+    if applied and source is None:
         return f"calibrated model with findings ({', '.join(applied)}) written to {path}"
+    if applied:  # nothing added: the file's own findings (a coupling identify fitted) carried, not written again
+        return (f"nothing to add to the findings the model file carries ({', '.join(applied)}): {path} was not "
+                f"written; {source} stays the model to use (this table's 'after' row is it identified again on "
+                f"{trained_on}, with nothing added)")  # fmt: skip
     reported = [entry["label"] for entry in findings if entry["kind"] == "reported"]
     why = f" ({', '.join(reported)}: reported only, not part of the model's torque)" if reported else ""
     if source is None:  # written: every finding the refit had was dropped by its gates
