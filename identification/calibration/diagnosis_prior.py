@@ -16,8 +16,9 @@ The choice is checked on the validation recording (``diagnosis.model_file``): wh
 rigid body (the model's friction refitted, its findings added) still predicts some joint worse than the model file as
 it is beyond the never-worse margin (``paired_margin``), its findings only repair a nominal worse than the model the
 user has, and the diagnosis starts from the model file's rigid body instead (``DiagnosisPrior.declining``), saying why.
-:func:`carried_findings` names the findings of a diagnosis that the model file already holds (its nominal model
-leaves the file's own findings out, so a diagnosis finds them again).
+:func:`carried_findings` names the findings of a diagnosis that the model file already holds (the same torque on the
+same joint: its nominal model carries the file's findings, ``diagnosis.carried_terms``, but a torque of the angle may
+be found beside a carried spring under another name).
 """
 
 from __future__ import annotations

@@ -15,7 +15,9 @@ Identify writes two things that a refit must not undo, because the data that dec
   ``diagnose MODEL``). The spring stays a column of the model: its coefficients are fitted again, its shape is the
   file's. So does a spring an earlier ``diagnose --apply`` wrote (``findings[]`` of effect ``spring`` or
   ``gas_spring`` whatever their ``source``): diagnosing the applied model neither finds it again nor lets the rigid
-  body absorb it;
+  body absorb it; and so does every other torque finding the file holds (``torque_findings``: a ripple, a coupling, a
+  Coulomb asymmetry ... an earlier ``diagnose --apply`` wrote), each a column of the diagnosis's nominal model: a
+  diagnosis of the applied model does not find again what the file already has;
 - the rotors it took apart from their same actuator's (``rotors_apart``: confirmed on held-out data the refit does not
   see; ``standard.envelope.drive_inertia_reference`` entries whose ``same_actuator`` was taken): a refit takes them
   apart too (``TrajectoryOptions.rotors_apart``) rather than holding them to their siblings again.
@@ -45,6 +47,8 @@ class ModelFileHolds:
     counterbalances : tuple of dict
         The ``findings`` entries of the file's counterbalances: the torque findings of a spring
         (``COUNTERBALANCE_KEYS``) identify took (``source`` ``"identify"``) or an earlier ``diagnose --apply`` wrote.
+    torque_findings : tuple of dict
+        The ``findings`` entries of every torque finding the file holds (its counterbalances among them).
     rotors_apart : tuple of int
         Joints (0-based) whose drive inertia identify took apart from the same actuator's
         (``TrajectoryOptions.rotors_apart``).
@@ -53,6 +57,7 @@ class ModelFileHolds:
     held_links: tuple = ()
     counterbalances: tuple = ()
     rotors_apart: tuple = ()
+    torque_findings: tuple = ()
 
     @property
     def counterbalance_terms(self) -> tuple:
@@ -60,14 +65,19 @@ class ModelFileHolds:
         return tuple(FindingTerm.from_dict(entry["term"]) for entry in self.counterbalances)
 
     @property
+    def torque_terms(self) -> tuple:
+        """The ``FindingTerm`` of each torque finding (``torque_findings``)."""
+        return tuple(FindingTerm.from_dict(entry["term"]) for entry in self.torque_findings)
+
+    @property
     def counterbalance_labels(self) -> tuple:
         return tuple(str(entry.get("label", "")) for entry in self.counterbalances)
 
     @property
     def taken_by(self) -> str:
-        """Who took the counterbalances: ``"identify"``, or the model file's fits when an earlier ``diagnose --apply``
-        added one."""
-        applied = any(entry.get("source") != COUNTERBALANCE_SOURCE for entry in self.counterbalances)
+        """Who took the torque findings: ``"identify"`` (its counterbalance), or the model file's fits when an earlier
+        ``diagnose --apply`` added one."""
+        applied = any(entry.get("source") != COUNTERBALANCE_SOURCE for entry in self.torque_findings)
         return "identify or an earlier 'diagnose --apply'" if applied else "identify"
 
     def describe(self) -> str:
@@ -84,17 +94,16 @@ def model_file_holds(document: dict) -> ModelFileHolds:
     """The ``ModelFileHolds`` of a calibrated-model ``document`` (files without them: none)."""
     identification = document.get("identification") or {}
     links = (identification.get("worse_joints") or {}).get("held_links") or []
-    counterbalances = tuple(
+    torque = tuple(
         entry
         for entry in document.get("findings") or ()
-        if entry.get("kind") == "torque"
-        and isinstance(entry.get("term"), dict)
-        and entry["term"].get("effect") in COUNTERBALANCE_KEYS
+        if entry.get("kind") == "torque" and isinstance(entry.get("term"), dict)
     )
+    counterbalances = tuple(entry for entry in torque if entry["term"].get("effect") in COUNTERBALANCE_KEYS)
     references = ((document.get("standard") or {}).get("envelope") or {}).get("drive_inertia_reference") or ()
     apart = tuple(sorted(int(entry["joint"]) - 1 for entry in references if _taken_apart(entry)))
     return ModelFileHolds(held_links=tuple(sorted(int(i) - 1 for i in links)), counterbalances=counterbalances,
-                          rotors_apart=apart)  # fmt: skip
+                          rotors_apart=apart, torque_findings=torque)  # fmt: skip
 
 
 def _taken_apart(entry) -> bool:

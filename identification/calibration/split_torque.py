@@ -1,12 +1,14 @@
 """A new finding that splits the torque of a finding the model already carries: not a finding of its own.
 
 ``recalibrate`` refits a calibrated model with a diagnosis's findings beside the findings the file already holds. A
-diagnosis of a model file leaves the file's own findings out of its nominal model, so it finds them again, often
-under another name: the heavy arm's cam counterbalance, which identify took as a linear spring (k = -3330 N m/rad),
-came back as a second-harmonic torque ripple. Over the joint's travel the two shapes are nearly one (their torques
-correlate at |r| = 0.9996 on the training recording), and the joint refit traded slope between them: the spring's k
-went to +3803 against a ripple of 3686 N m, the two summing to about the spring it replaced (issue 25). Neither number
-is physics, and the sum barely changed the validation RMSE (joint 2: 125.7 -> 124.5 N m).
+diagnosis of a model file carries the file's own findings in its nominal model (``diagnosis.carried_terms``), but a
+torque of the angle may still be found beside one of them under another name: the heavy arm's cam counterbalance, which
+identify took as a linear spring (k = -3330 N m/rad), came back as a second-harmonic torque ripple. Over the joint's
+travel the two shapes are nearly one (their torques correlate at |r| = 0.9996 on the training recording), and the joint
+refit traded slope between them: the spring's k went to +3803 against a ripple of 3686 N m, the two summing to about the
+spring it replaced (issue 25). Neither number is physics, and the sum barely changed the validation RMSE (joint 2: 125.7
+-> 124.5 N m).
+
 
 The rule (``split_reason``), for each new torque finding N and each finding C the model carries on the same joint:
 

@@ -1,8 +1,8 @@
-"""A model file's counterbalance in ``diagnose MODEL``'s nominal model: kept from identify, not selected again.
+"""A model file's torque findings in ``diagnose MODEL``'s nominal model: kept from the file, not selected again.
 
-``DiagnosisOptions.carried`` (from ``model_file.model_file_options``: the springs identify took or an earlier
-``diagnose --apply`` wrote, ``calibration.model_file_holds``) -> the selection's nominal columns -> the first kept
-steps of its result.
+``DiagnosisOptions.carried`` (from ``model_file.model_file_options``: the springs identify took and every torque
+finding an earlier ``diagnose --apply`` wrote, ``calibration.model_file_holds``) -> the selection's nominal columns ->
+the first kept steps of its result.
 
 Left out of the nominal model, identify's counterbalance is back in the residual, and the diagnosis's first rigid-body
 fit (``rigid_body_choice``: the full recalibration it judges the prior's findings against) takes it into the links'
@@ -15,6 +15,13 @@ the rigid body, when it is identified), their shape is the file's. The library o
 RMSE without and with them and a shape note that says they were kept from the model file
 (``CarriedColumns.selection``); the stand-in check does not drop them (``rigid_body_choice.drop_stand_ins``), and the
 plausibility check does not judge them as a new spring (``plausible_fit``: identify's judges kept them).
+
+Every other torque finding the file holds (a ripple, a coupling, a Coulomb asymmetry, a friction shape ... that an
+earlier ``diagnose --apply`` wrote) is carried the same way (``carried_candidates``): left out of the nominal model,
+its torque was back in the residual and the diagnosis of the applied model found it again, told the user to add what
+the model already has, and a second ``--apply`` would have split its torque. Carried, it is a column of the nominal
+model, kept and reported first, and the library offers no term of the same label beside it (``CarriedColumns.covers``:
+a ripple of another harmonic, a coupling from another joint are still offered).
 
 A model file's drive columns are carried the same way (``drive_columns``: a free rotor inertia beside each, the library
 offering no other rotor inertia on its joint, but still its springs: ``CarriedColumns.covers``); they are the file's
@@ -41,23 +48,35 @@ __all__ = ["KEPT_NOTE", "CarriedColumns", "carried_candidates", "carried_labels"
 COUNTERBALANCE_KEYS = ("spring", "gas_spring")
 #: The shape note of a carried term's step (and so of its finding).
 KEPT_NOTE = (
-    "kept from the model file (identify's counterbalance, or a spring an earlier 'diagnose --apply' wrote): a column "
+    "kept from the model file (identify's counterbalance, or a finding an earlier 'diagnose --apply' wrote): a column "
     "of the diagnosis's nominal model (its shape the file's, its coefficients fitted again), not a candidate; the "
     "RMSE pair is the nominal model without and with it"
 )
 
 
 def carried_candidates(terms) -> tuple:
-    """The diagnosis's candidate term of each ``findings.FindingTerm`` in ``terms`` (a model file's counterbalances,
-    ``ModelFileHolds.counterbalance_terms``): the term its spec describes, or the linear spring."""
+    """The diagnosis's candidate term of each ``findings.FindingTerm`` in ``terms`` (a model file's torque findings,
+    ``ModelFileHolds.torque_terms``): the term its spec describes, the linear spring, or the library's term of its
+    effect with its joint (and a coupling's source joint, a ripple's harmonic): the columns the file's finding has."""
     from identification.diagnosis.candidates import SpringTerm
+    from identification.diagnosis.term_spec import term_from_spec
 
-    return tuple(t.candidate if t.spec is not None else SpringTerm(joint=t.joint, order=1) for t in terms)
+    def candidate(term):
+        if term.spec is not None:
+            return term.candidate
+        if term.effect == "spring":
+            return SpringTerm(joint=term.joint, order=1)
+        options = {"source": term.source, "harmonic": term.harmonic}
+        return term_from_spec({"key": term.effect, "joint": term.joint,
+                               **{k: v for k, v in options.items() if v is not None}})  # fmt: skip
+
+    return tuple(candidate(t) for t in terms)
 
 
-def carried_labels(options) -> set:
-    """The labels of the terms ``options`` (``DiagnosisOptions``) carry."""
-    return {term.label for term in getattr(options, "carried", ())}
+def carried_labels(options, key: str | None = None) -> set:
+    """The labels of the terms ``options`` (``DiagnosisOptions``) carry (of effect ``key`` only, when given: the
+    carried torque offsets of ``"torque_offset"``)."""
+    return {term.label for term in getattr(options, "carried", ()) if key is None or term.key == key}
 
 
 @dataclass(frozen=True, eq=False)
@@ -68,13 +87,13 @@ class CarriedColumns:
 
     def covers(self, term) -> bool:
         """Whether the library's ``term`` would take a carried term's torque: a spring on a carried counterbalance's
-        joint, or the same effect on a carried term's joint (a model file's drive column, ``drive_columns``). A
+        joint, or a carried term itself (its label: a model file's drive column, ``drive_columns``, or finding). A
         carried drive column leaves its joint's springs offered: a rotor inertia takes the joint's acceleration, not
-        a torque of its angle."""
+        a torque of its angle; a carried ripple leaves its joint's other harmonics offered, a carried coupling the
+        joint's other sources."""
         balanced = {j for carried in self.terms if carried.key in COUNTERBALANCE_KEYS for j in carried.joints}
-        same = {(carried.key, j) for carried in self.terms for j in carried.joints}
         spring = term.key in COUNTERBALANCE_KEYS and bool(set(term.joints) & balanced)
-        return spring or any((term.key, j) in same for j in term.joints)
+        return spring or term.label in {carried.label for carried in self.terms}
 
     @property
     def offset_joints(self) -> tuple:

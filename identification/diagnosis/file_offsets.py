@@ -164,7 +164,7 @@ def with_file_offsets(report, document: dict, min_improvement: float):
     springs = {f.joints[0]: f.label for f in report.findings if f.effect == "spring" and len(f.joints) == 1}
     findings, read = [], []
     for finding in report.findings:
-        if finding.label not in labels or finding.effect != "torque_offset":
+        if finding.label not in labels:  # a carried offset stays a torque_offset (never named a counterbalance)
             findings.append(finding)
             continue
         j = finding.joints[0]

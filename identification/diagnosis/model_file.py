@@ -43,6 +43,7 @@ from identification.calibration.coulomb_width import width_value
 from identification.calibration.counterbalance_record import counterbalance_offsets
 from identification.calibration.diagnosis_prior import carried_as, diagnosis_prior, with_file_rigid_body
 from identification.calibration.finding_value import validation_rmse
+from identification.calibration.findings import correct_recording
 from identification.calibration.held_friction import HeldFriction, without_held_rotors
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
@@ -70,6 +71,7 @@ from psdm_casadi.errors import ParameterError
 __all__ = [
     "diagnose_model",
     "diagnose_model_prior",
+    "file_corrected",
     "file_held",
     "file_refit",
     "file_prediction",
@@ -89,16 +91,16 @@ def own_friction(calibrated) -> str:
 
 
 def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> DiagnosisOptions:
-    """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its
-    friction per joint (``DiagnosisOptions.file_friction``: the file's own columns on its steady-state joints), its
-    cutoff and its grid rate (``model_preparation``); the samples are identify's unless stated,
-    with the file's edge trim (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``)
-    and the file's torque offsets, which every fit of the diagnosis keeps at the file's values
-    (``DiagnosisOptions.held_friction``, ``file_held``), unless ``options`` hold some; and the counterbalance identify
-    took (``model_file_holds``), a column of the nominal model (``DiagnosisOptions.carried``, ``carried_terms``), unless
-    ``options`` carry some; and the links identify held at the robot file's, held in every rigid-body recalibration of
-    the diagnosis (``DiagnosisOptions.held_links``), unless ``options`` hold some; and the rotors identify took apart
-    from the same actuator's (``DiagnosisOptions.rotors_apart``)."""
+    """``options`` (default ``DiagnosisOptions()``) with what is left ``"auto"`` taken from the model file: its friction
+    per joint (``DiagnosisOptions.file_friction``: the file's own columns on its steady-state joints), its cutoff and
+    its grid rate (``model_preparation``); the samples are identify's unless stated, with the file's edge trim
+    (``Preparation.edge_periods``); and the friction identify held (``one_way_friction``) and the file's torque offsets,
+    which every fit of the diagnosis keeps at the file's values (``DiagnosisOptions.held_friction``, ``file_held``),
+    unless ``options`` hold some; and the counterbalance identify took and the torque findings an earlier ``diagnose
+    --apply`` wrote (``model_file_holds``), columns of the nominal model (``DiagnosisOptions.carried``,
+    ``carried_terms``), unless ``options`` carry some; and the links identify held at the robot file's, held in every
+    rigid-body recalibration of the diagnosis (``DiagnosisOptions.held_links``), unless ``options`` hold some; and the
+    rotors identify took apart from the same actuator's (``DiagnosisOptions.rotors_apart``)."""
     options = DiagnosisOptions() if options is None else options
     if not isinstance(options, DiagnosisOptions):
         raise ParameterError(f"diagnose_model options must be a DiagnosisOptions; got {type(options).__name__}.")
@@ -111,7 +113,7 @@ def model_file_options(calibrated, options: DiagnosisOptions | None = None) -> D
     friction = own_shape.kind if own_shape is not None else options.friction
     held = options.held_friction if options.held_friction.values else file_held(calibrated.document)
     holds = model_file_holds(calibrated.document)
-    carried = options.carried or carried_candidates(holds.counterbalance_terms)
+    carried = options.carried or carried_candidates(holds.torque_terms)
     smooth = options.coulomb_velocity
     shape = own_friction(calibrated) if own_shape is not None else friction  # a LuGre file's: as before
     if shape != "lugre" and smooth == SMOOTH_VELOCITY:  # the sign smoothed as the file predicts it
@@ -274,6 +276,7 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
     options = model_file_options(calibrated, given)
     robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
     first = validation_recordings(validation)[0]
+    raw, (train, validation) = train, (file_corrected(loaded, r) for r in (train, validation_recordings(validation)))
     report = None
     if prior.robot_file:  # identify's rigid body absorbed an effect: try the robot file's (its rotors too)
         logger.info(f"diagnose: {prior.first_pass()}")
@@ -293,13 +296,23 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, own, model=model)
         report = without_drive_columns(report, calibrated.document)
         report = as_base_changes(with_file_offsets(report, calibrated.document, own.min_improvement), robot, model)
-    report = with_applied_after(
-        report, loaded, train, first, refit
-    )  # the model --apply writes: its "after" (applied_after)
+    report = with_applied_after(report, loaded, raw, first, refit)  # the model --apply writes: its "after" (raw: the
+    # refit corrects them as the file says)
     name = f"for {robot_file.name}" if name is None else name
     own = model_preparation(calibrated.document)
     preparation = own if (given is None or given.cutoff_hz == AUTO) else None
     return file_before(report, loaded, first, name, (preparation, prior)), prior
+
+
+def file_corrected(loaded: LoadedModel, recordings) -> tuple:
+    """``recordings`` with the model file's measurement corrections applied (its signal findings: a delay, an encoder
+    before a compliance or a play; ``findings.correct_recording``), as ``psdm validate`` and ``--apply``'s refit apply
+    them: the diagnosis's nominal model sees the recordings as the file does, and does not find them again (a
+    correction of its size left is found as the same effect, beside the file's)."""
+    corrections = loaded.calibrated.corrections
+    if not corrections:
+        return tuple(recordings)
+    return tuple(correct_recording(r, corrections, recording_kt(loaded.robot, r)) for r in recordings)
 
 
 def file_prediction(loaded: LoadedModel, validation) -> tuple:
@@ -358,33 +371,40 @@ def file_before(report, loaded: LoadedModel, validation, name: str, choices=(Non
 
 
 def _carried(report, calibrated) -> str:
-    """The sentences naming the findings the model file already holds: the counterbalance identify took, kept in the
-    nominal model with its coefficients fitted again (``carried_terms``); the others, which the nominal model leaves
-    out, found again."""
+    """The sentences naming the findings the model file already holds: its torque findings (the counterbalance
+    identify took, those an earlier ``diagnose --apply`` wrote), kept in the nominal model with their coefficients
+    fitted again (``carried_terms``); the diagnosis's findings of the same torque as one of them on its joint (a
+    spring found as a ripple), found beside it; its measurement corrections, applied to the recordings."""
     kept = {f.label: f for f in report.findings if f.shape_note == KEPT_NOTE}
     holds = model_file_holds(calibrated.document)
-    entries = {e.get("label"): e for e in holds.counterbalances}
+    entries = {e.get("label"): e for e in holds.torque_findings}
     pairs = [(x, held) for x, held in carried_as(report.findings, calibrated.document) if x not in kept]
     sentences = []
     if kept:
         sizes = "; ".join(_refit_size(label, kept[label], entries.get(label)) for label in kept)
-        sentences.append(f"the model file's counterbalance is kept from {holds.taken_by} ({sizes}): a column of the "
-                         "diagnosis's nominal model in every fit, so no rigid-body refit absorbs it again")  # fmt: skip
+        sentences.append(f"the model file's findings are kept from {holds.taken_by} ({sizes}): columns of the "
+                         "diagnosis's nominal model in every fit, so none is found again and no rigid-body refit "
+                         "absorbs it")  # fmt: skip
     if pairs:
-        named = ", ".join(f"`{x}`" if x == held else f"`{held}` (found again as `{x}`)" for x, held in pairs)
-        sentences.append(f"the model file already carries {named}, identified with it; the diagnosis's nominal model "
-                         "leaves the file's own findings out, so it finds them again (--apply keeps the file's where a "
-                         "new one would split its torque)")  # fmt: skip
+        named = ", ".join(f"`{x}`" if x == held else f"`{held}` (found beside it as `{x}`)" for x, held in pairs)
+        sentences.append(f"the model file already carries {named}, identified with it: a finding of the same torque "
+                         "beside the file's may split it (--apply keeps the file's where it would)")  # fmt: skip
+    if calibrated.corrections:
+        named = ", ".join(f"`{label}`" for label in calibrated.corrections)
+        sentences.append(f"the model file's measurement corrections ({named}) are applied to the recordings as the "
+                         "file applies them (file_corrected), so they are not found again")  # fmt: skip
     return "; ".join(sentences)
 
 
 def _refit_size(label: str, finding, entry) -> str:
-    """ "`spring[j2]`: k = -3330 N m/rad in the file, -3290 fitted again" (the mean stiffness of the file's entry, when
-    it states one, and of the diagnosis's refit)."""
-    k = finding.parameters.get("k")
-    was = None if entry is None else (entry.get("parameters") or {}).get("k")
-    if k is None:
+    """ "`spring[j2]`: k = -3330 in the file, -3290 fitted again" (the first of the file's entry's parameters the
+    diagnosis's refit states: a spring's mean stiffness, a ripple's amplitude, a coupling's viscous coefficient)."""
+    stated = (entry or {}).get("parameters") or {}
+    name = next((n for n in stated if n in finding.parameters), None)
+    name = name or next((n for n in ("k", "amplitude", "viscous") if n in finding.parameters), None)
+    if name is None:
         return f"`{label}`"
-    if was is None:
-        return f"`{label}`: k = {float(k):.4g} N m/rad fitted again"
-    return f"`{label}`: k = {float(was):.4g} N m/rad in the file, {float(k):.4g} fitted again"
+    value = float(finding.parameters[name])
+    if name not in stated:
+        return f"`{label}`: {name} = {value:.4g} fitted again"
+    return f"`{label}`: {name} = {float(stated[name]):.4g} in the file, {value:.4g} fitted again"

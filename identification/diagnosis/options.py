@@ -105,11 +105,11 @@ class DiagnosisOptions:
         The smoothing [rad/s] of the nominal friction's sign without drives, one width or one per joint (a model file's:
         ``model_file_options``).
     carried : tuple of CandidateTerm
-        Terms the nominal model holds as columns (``carried_terms``): a model file's counterbalance identify took
-        (``model_file_options``), its coefficients fitted again in every fit of the diagnosis, reported as kept from
-        identify, never selected, dropped or rejected; no other spring is offered on its joint. Or a model file's drive
-        column (``drive_columns``: a rotor inertia fitted again beside the file's value, no finding); no other term of
-        a carried term's effect is offered on its joint.
+        Terms the nominal model holds as columns (``carried_terms``): a model file's counterbalance identify took or
+        torque finding an earlier ``diagnose --apply`` wrote (``model_file_options``), its coefficients fitted again in
+        every fit of the diagnosis, reported as kept from the file, never selected, dropped or rejected; no other
+        spring is offered on a counterbalance's joint. Or a model file's drive column (``drive_columns``: a rotor
+        inertia fitted again beside the file's value, no finding); the library never offers a carried term again.
     held_links : tuple of int
         Links (0-based) every rigid-body recalibration of the diagnosis holds at the nominal robot's inertia
         (``held_links``): a model file's, which identify held (``worse_joint_hold``, ``model_file_options``).
@@ -217,9 +217,9 @@ class DiagnosisOptions:
                                  f"{type(self.held_friction).__name__}.")  # fmt: skip
         width = positive_widths(self.coulomb_velocity, "DiagnosisOptions.coulomb_velocity")  # one, or per joint
         object.__setattr__(self, "coulomb_velocity", width)
-        if not all(isinstance(t, CandidateTerm) and len(t.joints) == 1 for t in self.carried):
-            raise ParameterError(f"DiagnosisOptions.carried must hold candidate terms on one joint each (a model "
-                                 f"file's counterbalance); got {self.carried!r}.")  # fmt: skip
+        if not all(isinstance(t, CandidateTerm) and t.joints for t in self.carried):
+            raise ParameterError(f"DiagnosisOptions.carried must hold candidate terms with their joints (a model "
+                                 f"file's counterbalance or finding); got {self.carried!r}.")  # fmt: skip
         for name in ("held_links", "rotors_apart"):
             if not all(isinstance(i, (int, np.integer)) and not isinstance(i, bool) and i >= 0
                        for i in getattr(self, name)):  # fmt: skip

@@ -18,7 +18,7 @@ from identification.calibration.model_preparation import Preparation, edge_text
 from identification.data.filter_choice import AUTO
 from identification.diagnosis.augmented import AugmentedModel
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
-from identification.diagnosis.carried_terms import CarriedColumns
+from identification.diagnosis.carried_terms import CarriedColumns, carried_labels
 from identification.diagnosis.confounding import confounding_of
 from identification.diagnosis.counterbalance_naming import name_counterbalances, offset_verdicts
 from identification.diagnosis.design import left_out
@@ -57,7 +57,7 @@ def build_report(
     found = findings_of(selection, final, options.held_friction)
     held = (ctx_v, ctx_v.tau - model_final_v)  # the data's verdict on an offset no sensor has by size
     verdicts = offset_verdicts(found, ctx_t, ctx_t.tau - model_final_t, held, options.rigid_body != "prior")
-    offsets = {term.label for term in getattr(options, "carried", ()) if term.key == "torque_offset"}
+    offsets = carried_labels(options, "torque_offset")  # a carried offset fits how far the file's is off
     findings = name_counterbalances(found, ctx_t, verdicts, offsets) + tuple(unnamed)
     findings = with_elasticity_evidence(findings, final, ctx_t, model_nominal_t)
     if options.rigid_body == "prior":
