@@ -54,6 +54,7 @@ __all__ = [
     "fit_bounds",
     "held_rotors",
     "held_standard",
+    "lifted_links",
     "link_is_free",
     "residual_sigma",
 ]
@@ -184,15 +185,26 @@ def prior_standard(robot):
     return standard
 
 
-def held_standard(robot, held_links=(), margin: float = CONSISTENCY_MARGIN) -> np.ndarray:
+def lifted_links(robot, links=None, model=None) -> tuple:
+    """The links (0-based, ascending) of ``links`` (default: every link) that a fit holding them holds lifted
+    (:func:`held_standard`): those the robot file states semi-definite (``pseudo_inertia.semidefinite_links`` of
+    :func:`prior_standard`: a point mass, a thin rod) and, given ``model``, free in it (:func:`link_is_free`: a link
+    the model lacks, massless, is neither fitted nor held). The consistent fit lifts these of its held links, and
+    identify's hold of the worse joints names them lifted (``worse_joint_hold``)."""
+    semidefinite = set(semidefinite_links(prior_standard(robot)))
+    chosen = range(robot.n_dof) if links is None else {int(k) for k in links}
+    return tuple(i for i in sorted(chosen) if i in semidefinite and (model is None or link_is_free(model, i)))
+
+
+def held_standard(robot, held_links=(), margin: float = CONSISTENCY_MARGIN, model=None) -> np.ndarray:
     """:func:`prior_standard` with each of ``held_links`` (0-based, ``TrajectoryOptions.held_links``) that the robot
-    file states semi-definite (``pseudo_inertia.semidefinite_links``: a point mass) lifted by ``margin`` [kg m^2], the
-    fit's own (``pseudo_inertia.lifted_link``): the values the fit holds those links at. Held at the file's own, such a
-    link fails the consistency check of the model (its pseudo-inertia eigenvalue 0, its mass matrix singular where no
-    other inertia acts about its joint) and nothing is written; lifted it is as near the file as consistency allows,
-    and no nearer than every link the fit identifies stays."""
+    file states semi-definite (:func:`lifted_links`: a point mass; given ``model``, one free in it) lifted by
+    ``margin`` [kg m^2], the fit's own (``pseudo_inertia.lifted_link``): the values the fit holds those links at. Held
+    at the file's own, such a link fails the consistency check of the model (its pseudo-inertia eigenvalue 0, its mass
+    matrix singular where no other inertia acts about its joint) and nothing is written; lifted it is as near the file
+    as consistency allows, and no nearer than every link the fit identifies stays."""
     standard = np.array(prior_standard(robot), dtype=float)
-    for i in set(int(k) for k in held_links) & set(semidefinite_links(standard)):
+    for i in lifted_links(robot, held_links, model):
         standard[i, :LINK_PARAMETER_COUNT] = lifted_link(standard[i, :LINK_PARAMETER_COUNT], margin)
     return standard
 
@@ -318,8 +330,7 @@ def consistent_fit(
     n = robot.n_dof
     bounds = fit_bounds(robot, model, options) if bounds is None else bounds
     payload_prior = np.zeros((0, 10)) if payload_prior is None else np.asarray(payload_prior, dtype=float)
-    held = [i for i in options.held_links if link_is_free(model, i)]  # one the model lacks (massless) is not lifted
-    prior = held_standard(robot, held, options.margin)  # held links: the file's (lifted if semi-definite)
+    prior = held_standard(robot, options.held_links, options.margin, model)  # held: the file's (semi-definite lifted)
     links = [i for i in range(n) if link_is_free(model, i) and i not in options.held_links]
     phi = ca.SX.sym("phi", LINK_PARAMETER_COUNT * len(links))
     psi = ca.SX.sym("psi", 10 * len(payload_prior))

@@ -29,7 +29,7 @@ import numpy as np
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.column_check import check_departures, offset_sizes, written_model_judge
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
-from identification.calibration.consistent_fit import link_is_free
+from identification.calibration.consistent_fit import lifted_links
 from identification.calibration.counterbalance_column import CounterbalanceChoice
 from identification.calibration.coupled_drives import CoupledDrives, coupled_on_route
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
@@ -46,7 +46,6 @@ from identification.calibration.one_way_friction import (
 )
 from identification.calibration.payload_route import PayloadChoice
 from identification.calibration.prior_pull import PriorPull
-from identification.calibration.pseudo_inertia import semidefinite_links
 from identification.calibration.robot_file_check import FileCheck
 from identification.calibration.rotors_apart import RotorsApart, judge_rotors_apart, unjudged_rotors
 from identification.calibration.temperature_friction import temperature_block
@@ -452,8 +451,7 @@ def _worse_joints(problem, written, judged, mode, write) -> tuple:
         return [compare_each(before.calibrated, after.calibrated, model, [r], kt)[0]
                 for r, kt in zip(judged.recordings, kts)]  # fmt: skip
 
-    # held lifted (``consistent_fit.held_standard``), named; one the model lacks (massless: not free) is not checked
-    lifted = tuple(i for i in semidefinite_links(robot.nominal_dynamic_parameters()) if link_is_free(model, i))
+    lifted = lifted_links(robot, model=model)  # semi-definite in the file and free: held lifted, named
     problem = (carried, written.options, robot.n_dof)
     written, _, record = hold_worse_joints(problem, written, (_judge, compare), friction_of, mode, semidefinite=lifted)
     return written, record

@@ -236,8 +236,8 @@ def hold_worse_joints(problem, fit, judges, friction_of, mode: str = "hold", sem
     recordings, ``compare(before, after)`` the model of one fit against another's, one ``never_worse.JointComparison``
     per held-out recording; ``friction_of(fit, joints)``: the ``(name, value)`` Coulomb-viscous friction of the robot
     file's fit on the training recordings; ``semidefinite``: the links (0-based) the robot file states not strictly
-    consistent (``pseudo_inertia.semidefinite_links``), which the fit holds lifted (``consistent_fit.held_standard``)
-    and the record names."""
+    consistent (``consistent_fit.lifted_links``: semi-definite, free in the model), which the fit holds lifted
+    (``consistent_fit.held_standard``) and the record names."""
     refit, options, n_dof = problem
     judge, compare = judges
     check = judge(fit)

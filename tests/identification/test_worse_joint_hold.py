@@ -153,6 +153,35 @@ def test_semidefinite_links_are_those_whose_pseudo_inertia_has_an_eigenvalue_at_
     assert semidefinite_links(np.array([box, point, rod, 1e3 * box])) == (1, 2)
 
 
+def test_the_links_held_lifted_are_the_files_semidefinite_ones_the_model_holds():
+    """``consistent_fit.lifted_links``, which both the consistent fit (``held_standard``) and identify's hold of the
+    worse joints (the links it names lifted) read: of the SCARA with links 3 and 4 point masses (their inertia about
+    the centre of mass zero, by construction semi-definite), the model lacking link 3 (its columns zero), only link 4
+    is held lifted; without a model both are; a link stated strictly consistent never is. ``held_standard`` lifts
+    exactly those of its held links, the others held at the file's."""
+    from types import SimpleNamespace
+
+    from identification.calibration.consistent_fit import held_standard, lifted_links
+    from psdm_casadi import load_robot
+
+    scara = load_robot("scara")
+    robot = scara.with_links([replace(link, inertia=np.zeros((3, 3))) if i in (2, 3) else link
+                              for i, link in enumerate(scara.links)])  # fmt: skip
+    file = robot.nominal_dynamic_parameters()
+    assert [np.linalg.eigvalsh(pseudo_inertia(row[:10]))[0] <= 1e-15 for row in file] == [False, False, True, True]
+    mapping = np.ones((5, file.size))
+    mapping[:, 2 * 11 : 2 * 11 + 10] = 0.0  # link 3's inertial parameters reach no base parameter
+    model = SimpleNamespace(parameter_map=mapping)
+    assert lifted_links(robot, model=model) == (3,) and lifted_links(robot) == (2, 3)
+    assert lifted_links(robot, (0, 1, 3), model) == (3,) and lifted_links(robot, (0, 1), model) == ()
+    assert lifted_links(scara, model=model) == ()
+    held = held_standard(robot, (1, 2, 3), CONSISTENCY_MARGIN, model)
+    np.testing.assert_array_equal(held[:3], file[:3])  # link 2 strictly consistent, link 3 not in the model
+    np.testing.assert_allclose(held[3, :10], lifted_link(file[3, :10], CONSISTENCY_MARGIN), rtol=1e-12, atol=1e-18)
+    assert np.linalg.eigvalsh(pseudo_inertia(held[3, :10]))[0] >= CONSISTENCY_MARGIN * (1 - 1e-9)
+    np.testing.assert_allclose(held_standard(robot, (1, 2, 3))[2, :10], lifted_link(file[2, :10]), atol=1e-18)
+
+
 def test_a_scara_whose_last_link_is_a_point_mass_is_held_lifted_and_mended_with_a_consistent_model():
     """Known truth: the SCARA of ``test_one_way_friction`` (its robot file is the simulated arm; joints 3 and 4 move one
     way only in training, their friction fitted: joint 3's trades with its gravity load), with link 4 a 0.3 kg point
