@@ -72,7 +72,8 @@ PAYLOAD_SOURCE = "identify payload route"
 class PayloadChoice:
     """What identify decided about the payload its report named.
 
-    ``named``: the report named one; ``tried``: a body was estimated and judged; ``kept``: it is in the model written
+    ``named``: the report of the fit before the counterbalance named one (``payload_named``; also where no spring was
+    tried, the route not taken); ``tried``: a body was estimated and judged; ``kept``: it is in the model written
     (``mass`` [kg], ``com`` [m] in the flange frame); ``replaced``: the spring labels the counterbalance route kept
     that the model with the payload does not need; ``rmse_without``/``rmse_with``/``margin``: per joint, the first
     judge's RMSE [N m] of the model without (A) and with (B) the payload, and the noise margin; ``route``: the judges.
@@ -243,8 +244,10 @@ def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
     robot, model, recordings, options, configurations = problem
     fit = taken.fit if taken.kept else start
     unchanged = (fit, calibrated, taken)
-    if skip or not start.checked or robot.links is None or not payload_named(start) or not taken.joints:
-        return (*unchanged, PayloadChoice())  # no spring tried: nothing a payload competes with
+    if skip or not start.checked or robot.links is None or not payload_named(start):
+        return (*unchanged, PayloadChoice())
+    if not taken.joints:  # named, its route suggested; no spring tried: nothing a payload competes with
+        return (*unchanged, PayloadChoice(True))
     build = _builder(robot, model, recordings, saved)
     if configurations is not None and any(c.kind != "none" for c in configurations):
         return (*unchanged, PayloadChoice(True, reason="not tried: the recordings state their payloads"))

@@ -51,6 +51,30 @@ def test_the_report_names_a_payload_first_or_as_an_alternative():
     assert not payload_named(fit(envelope=(SimpleNamespace(absorbs="payload", pressed=False, alternatives=()),)))
 
 
+def test_a_payload_the_first_fit_names_is_recorded_named_where_no_spring_competes_with_it():
+    """The model file records that the first fit's report named a payload (``identification.payload.named``, which
+    ``benchmarks/heavy_arm.py``'s ``absorbed_effect_named`` reads) also where no counterbalance was named, so no
+    spring tried and the payload route not taken: nothing tried, kept or said. A fit whose report names none records
+    none."""
+    from identification.calibration.counterbalance_column import CounterbalanceChoice
+    from identification.calibration.payload_route import take_payload
+
+    pressed = SimpleNamespace(absorbs="payload", pressed=True, alternatives=())
+    robot = SimpleNamespace(links=(), n_dof=6)
+
+    def record(*envelope):
+        start = SimpleNamespace(checked=True, envelope=envelope, envelope_bounds=())
+        calibrated = SimpleNamespace(document={"identification": {}})
+        fit, _, _, payload = take_payload((robot, None, [], None, None), start, CounterbalanceChoice(), calibrated, (),
+                                          None)  # fmt: skip
+        assert fit is start and payload.to_dict() == calibrated.document["identification"]["payload"]
+        return payload
+
+    named = record(pressed)
+    assert named.named and not named.tried and not named.kept and named.line == ""
+    assert not record().named and not record(SimpleNamespace(absorbs="payload", pressed=False)).named
+
+
 def test_the_payload_wins_unless_the_spring_is_clearly_better_out_of_sample():
     """Per judge, joints 1-3 without (the springs' model) -> with the payload, margin 1 N m. Replacing a spring, the
     payload wins when no joint is worse beyond the margin, and loses when the spring is clearly better on its joint
