@@ -8,14 +8,15 @@ absent is skipped), the first 70 % trains and the last 30 % validates (loaders a
 - derive the PSDM model and identify on default settings with the library's route that ``psdm identify`` calls
   (``identify_route.identify_recordings``): the Coulomb smoothing, the friction shape, the offsets and the drive
   inertias per joint chosen from the training part alone (information criterion, block cross-validation), the fit,
-  and the counterbalance its envelope report names, kept only where it holds out of sample; for comparison the
-  hand-picked options the README used before (``OPTIONS``: Coulomb, viscous and offset friction on every
-  joint, drive inertias for the TX40's motor-side torques, none for the Panda's link-side sensors) are
-  fitted too (``rmse_options``);
+  the counterbalance its envelope report names, kept only where it holds out of sample, and for the TX40 the coupling
+  terms of the wrist its robot file states (``examples/staubli_tx40.toml``'s transmission; ``coupled_drives``, judged by
+  block cross-validation of the training part); for comparison the hand-picked options the README used before
+  (``OPTIONS``: Coulomb, viscous and offset friction on every joint, drive inertias for the TX40's motor-side torques,
+  none for the Panda's link-side sensors) are fitted too (``rmse_options``);
 - prepare the validation part with ``prepare_recording`` (the fit's filter, differentiation and
   decimation) and compare, per joint, validation RMSE [N m] and R^2 of (a) our consistent fit,
-  (b) the unconstrained weighted least-squares estimate on the same columns, (c) the robot file's
-  URDF/CAD inertias by Pinocchio's rnea (no friction) and (d) for the Panda, the published
+  (b) the unconstrained weighted least-squares estimate on the same drive columns (without the coupling terms),
+  (c) the robot file's URDF/CAD inertias by Pinocchio's rnea (no friction) and (d) for the Panda, the published
   identified model of Gaz et al. (RA-L 2019), ``tau = M(q) ddq + C(q, dq) dq + g(q) + tau_f(dq)``
   on the same prepared samples, and (e) the physically consistent fit on the defaults' columns without the envelope
   (``rmse_consistent``): what the envelope costs;
@@ -88,9 +89,10 @@ from mjcf_round_trip import MJCF_TARGET, mjcf_max_rel_error
 from never_worse_loop import ROBOTS as LOOP_ROBOTS
 from never_worse_loop import print_loops, run_loops
 from real_data_diagnosis import PANDA, REST_RAD, TX40, load_panda_real, load_tx40, split
-from tx40_motor_side import compare_routes
+from tx40_motor_side import compare_routes, shipped_robot
 
 from identification.calibration.identify_route import identify_recordings
+from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.trajectory_data import prepare_recording
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories, predict_torque
 from identification.metrics import r2, rmse
@@ -106,7 +108,17 @@ SHIM_NAME = "gaz2019_shim.cpp"
 LIBRARY_NAME = "libgaz2019.so"
 BUILD_INFO = "build.json"
 COMPILE_TIMEOUT_S = 3600.0
-ROBOTS = {"tx40": (TX40, load_tx40), "panda": (PANDA, load_panda_real)}
+
+
+def load_tx40_coupled(folder: Path = TX40):
+    """``load_tx40`` (the hand-converted joint-side recording) with the transmission of the robot file ``psdm
+    identify`` reads the TX40 with (``examples/staubli_tx40.toml``): its coupled wrist, whose coupling terms the route
+    fits and judges (``coupled_drives``). Only those read it: the recording is joint-side already."""
+    robot, recording = load_tx40(folder)
+    return replace(robot, transmission=shipped_robot(folder).transmission), recording
+
+
+ROBOTS = {"tx40": (TX40, load_tx40_coupled), "panda": (PANDA, load_panda_real)}
 # The TX40's torques are motor currents times gear ratios: the rotors' inertia is in them, so drive inertias
 # are identified. The Panda's are its link-side joint torque sensors (tau_J, after the gearbox): the rotors
 # are on the other side of the sensor, so a drive-inertia column can only fit something else (unconstrained,
@@ -301,6 +313,8 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     derived = time.perf_counter()
     route = identify_recordings(robot, model, [train])  # the defaults of 'psdm identify' (no --validate: the
     fit, choice = route.fit, route.choice  # held-out part stays out)
+    written = len(route.calibrated.document["drive"]["names"])  # a kept coupling's columns follow the fit's own:
+    plain = split_findings(fit, len(fit.drive_names) - written)[0] if route.coupled.kept else fit  # its MJCF
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     hand_picked = identify_trajectories(robot, model, [train], OPTIONS[key])
     unbounded = identify_trajectories(robot, model, [train], replace(route.options, envelope=False))
@@ -308,7 +322,7 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     q, qd, qdd, tau = ready.q, ready.qd, ready.qdd, ready.tau
     predictions = {
         "": route.calibrated.predict(model, q, qd, qdd),  # with what the route took (a counterbalance spring)
-        "_ols": predict_torque(model, fit, q, qd, qdd, ols=True),
+        "_ols": predict_torque(model, route.start, q, qd, qdd, ols=True),  # the default columns (psdm identify's)
         "_options": predict_torque(model, hand_picked, q, qd, qdd),
         "_consistent": predict_torque(model, unbounded, q, qd, qdd),
         "_prior": PinocchioOracle(robot).rnea(q, qd, qdd),
@@ -344,7 +358,7 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
         held_back=[item.to_dict() for item in route.held_back],  # what the pull or the envelope keeps from the data
         counterbalance=route.counterbalance.to_dict(),
         warnings=list(fit.warnings),
-        **mjcf_max_rel_error(robot, model, fit, q, qd, qdd),
+        **mjcf_max_rel_error(robot, model, plain, q, qd, qdd),
     )
     return result
 

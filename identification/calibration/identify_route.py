@@ -11,8 +11,9 @@ worse (``worse_joint_hold``) judge the model that would be written, each fit the
 and payload steps first (``written_model``): those steps take torque the fit's links absorbed, and a joint worse before
 them may not be worse after. Where the held-out residual of that model lags the velocity at the reversals as
 pre-sliding friction does, the LuGre route is tried and written instead if it is better there and worse on no joint
-(``lugre_trial``). The coupling terms of a coupled transmission the robot file states are fitted last, on the model
-the route would write, and kept where the held-out recordings judge them (``coupled_drives``).
+(``lugre_trial``). The coupling terms of a coupled transmission the robot file states are fitted before the
+worse-joint holds, on the model the route would write, and kept where the held-out recordings, else a block
+cross-validation of the training recordings, judge them (``coupled_drives``); the holds' fits carry the kept terms.
 
 Python users, the benchmarks and the command line get the same model from the same data: defaults are decided from the
 data here, not in the command line. Its options are overrides (``ColumnRequest``, ``counterbalance=False``), and
@@ -31,9 +32,9 @@ from identification.calibration.column_check import check_departures, offset_siz
 from identification.calibration.column_choice import ColumnChoice, ColumnRequest, choose_columns
 from identification.calibration.consistent_fit import lifted_links
 from identification.calibration.counterbalance_column import CounterbalanceChoice
-from identification.calibration.coupled_drives import CoupledDrives, coupled_on_route
+from identification.calibration.coupled_drives import CoupledDrives, carrying, coupled_on_route, not_on_route
 from identification.calibration.drift_choice import FrictionDrift, check_drift_mode, judge_friction_drift
-from identification.calibration.file_judged import file_check, file_judged, file_training
+from identification.calibration.file_judged import file_judged, file_training
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.lugre_trial import LuGreTrial, try_lugre
 from identification.calibration.never_worse import JointComparison, compare_each
@@ -117,8 +118,8 @@ class IdentifyResult:
         LuGre friction on default settings: the joints whose held-out residual lags at the velocity reversals, and
         whether the LuGre model tried there replaced the default one (``lugre_trial``).
     coupled : CoupledDrives
-        The coupling terms of the robot file's coupled transmission: fitted, and kept where held out they help
-        (``coupled_drives``).
+        The coupling terms of the robot file's coupled transmission: fitted before the worse-joint holds, and kept
+        where out of sample they help, on the held-out recordings or the training blocks (``coupled_drives``).
     """
 
     fit: TrajectoryFit
@@ -285,7 +286,7 @@ def identify_recordings(
 
         found = identify_lugre_trajectories(robot, model, recordings, chosen, configurations=configurations)
         fit, lugre, start = found.fit, found.lugre, found.stribeck
-        rotors = unjudged_rotors(fit, "LuGre")
+        rotors, coupled = unjudged_rotors(fit, "LuGre"), not_on_route(robot, "on the LuGre route")
         written = writer(lugre, start)(chosen, fit)  # the file judged with the Stribeck columns LuGre starts from
     elif choice.loss_joints:  # currents with a gear loss (``drive_loss``)
         from identification.calibration.drive_loss import identify_with_drive_loss
@@ -293,6 +294,7 @@ def identify_recordings(
         logger.info("identify: fitting the drive loss (gear efficiency by power-flow direction) ...")
         fit, *loss = identify_with_drive_loss(robot, model, recordings, chosen, choice.loss_joints, configurations)
         start, rotors = fit, unjudged_rotors(fit, "drive-loss")
+        coupled = not_on_route(robot, "on the drive-loss route")
         written = writer(drive_loss=loss)(chosen, fit)
     else:
         choice, fit = _checked_fit(robot, model, recordings, options, choice, validation, configurations)
@@ -303,7 +305,9 @@ def identify_recordings(
         problem, write = (robot, model, recordings, choice.options(options), configurations), writer()
         fit, held = _one_way(problem, fit, judged, one_way, write)
         chosen = held_options(problem[3], held.held, robot.n_dof) if held.held else problem[3]
-        written, mended = _worse_joints(problem, write(chosen, fit), judged, worse_joint, write)
+        first, coupled = coupled_on_route(problem, write(chosen, fit), judged, source)  # before the holds
+        carried = carrying(write, coupled, problem, judged, source)  # the holds' fits with the kept terms
+        written, mended = _worse_joints(problem, first, judged, worse_joint, carried)
         held = held.replaced_by(mended.held_friction)  # one value per held column: the one in effect
         start = written.start
         if request.friction == "auto" and not drift.corrected and judged.recordings and robot.links is not None:
@@ -313,6 +317,7 @@ def identify_recordings(
                 default, (found, written, choice) = written, kept
                 lugre, start, rotors = found.lugre, found.stribeck, unjudged_rotors(found.fit, "LuGre")
                 held, mended = OneWayFriction(mode=one_way), WorseJointHold(mode=worse_joint)
+                coupled = not_on_route(robot, "on the LuGre route the trial chose")
     chosen, final, calibrated = written.options, written.fit, written.calibrated
     taken, payload = written.counterbalance, written.payload
     choice = replace(choice, replaced_offsets=taken.replaced_offsets)  # the model holds the spring there
@@ -322,29 +327,12 @@ def identify_recordings(
         calibrated.document["identification"]["column_choice"]["rotors_apart"] = rotors.to_dict()
     check = _file_check(replace(written.check, held=held.held_joints, held_links=mended.held_links), trial, default)
     records = {"robot_file_check": check, "one_way_friction": held, "worse_joints": mended, "friction_drift": drift,
-               "unstated_loads": unstated, "lugre_trial": trial}  # fmt: skip
+               "unstated_loads": unstated, "lugre_trial": trial, "coupled_drives": coupled}  # fmt: skip
     calibrated.document["identification"].update({key: value.to_dict() for key, value in records.items()})
     if (laws := temperature_block(drift, calibrated.document["drive"]["names"])) is not None:
         calibrated.document["drive"]["temperature"] = laws  # the kept friction's slopes in temperature
-    problem, route = (robot, model, recordings, chosen, configurations), lugre is None and not choice.loss_joints
-    calibrated, final, check, coupled = _coupled(problem, (calibrated, final, check), judged, source, route)
     return IdentifyResult(final, start, calibrated, choice, chosen, taken, lugre, check, held, mended, payload, drift,
                           rotors, unstated, trial, coupled)  # fmt: skip
-
-
-def _coupled(problem, written, judged, source, route) -> tuple:
-    """``(calibrated, fit, FileCheck, CoupledDrives)``: the written model with the coupling terms of the robot file's
-    transmission where the held-out recordings keep them (``coupled_drives.coupled_on_route``), judged against the
-    robot file again (its friction with the per-joint drive columns)."""
-    calibrated, final, check = written
-    after, fit, record = coupled_on_route(problem, calibrated, judged.recordings, source, route, check.allowance)
-    if fit is not None:
-        again = file_check(problem, judged, fit, after, final)
-        check = replace(again, held=check.held, held_links=check.held_links)
-        after.document["identification"]["robot_file_check"] = check.to_dict()
-        calibrated, final = after, fit
-    calibrated.document["identification"]["coupled_drives"] = record.to_dict()
-    return calibrated, final, check, record
 
 
 def _file_check(check: FileCheck, trial: LuGreTrial, default) -> FileCheck:

@@ -219,7 +219,7 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     if result.counterbalance.reason:  # as the model file states it (the suggested route with this run's files)
         print(f"counterbalance: {calibrated.document['identification']['counterbalance']['reason']}")
     lines = (result.lugre_trial.describe(), result.unstated.line, result.payload.line, result.drift.describe(),
-             result.one_way.describe(), result.worse_joints.describe(), result.coupled.describe())  # fmt: skip
+             result.one_way.describe(), result.coupled.describe(), result.worse_joints.describe())  # fmt: skip
     print(*filter(None, lines), sep="\n", end="\n" if any(lines) else "")
     for entry in drive_loss_summary(calibrated.document):
         print(

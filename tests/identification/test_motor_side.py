@@ -190,7 +190,11 @@ files = { q = "positions.csv", tau = "torques.csv" }
     out = tmp_path / "model.json"
     argv = ["identify", str(robot_file), "--data", str(tmp_path / "train"), "--out", str(out), "--json"]
     assert main(argv) == 0
-    assert json.loads(capsys.readouterr().out)["consistent"]
+    report = json.loads(capsys.readouterr().out)
+    assert report["consistent"]
+    # the file states a coupled wrist, the simulated arm has no coupled drive: its training blocks refuse both terms
+    assert report["coupled_drives"]["tried"] == ["coupling[j6->j5]", "coupling[j5->j6]"]
+    assert report["coupled_drives"]["kept"] == [] and report["coupled_drives"]["route"].startswith("block cross")
     files = [str(tmp_path / "valid" / "positions.csv"), str(tmp_path / "valid" / "torques.csv")]
     assert main(["validate", str(out), *files, "--plots", str(tmp_path / "plots"), "--json"]) == 0
     validated = json.loads(capsys.readouterr().out)["recordings"]
