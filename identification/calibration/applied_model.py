@@ -28,9 +28,11 @@ is refused for it (``psdm_inverse_dynamics`` does not hold the LuGre part).
 
 A finding is kept only if it lowers the validation RMSE of every joint it names: one whose removal (no refit) does not
 raise them is dropped, listed with its RMSE pair (``AppliedModel.dropped``), and the model is refitted without it; a
-new finding that splits the torque of one the file carries (``split_torque``) is dropped likewise, and so is a finding
-of zero size (``zero_size``: a torque offset the file's own offset on its joint absorbed), which the file would hold
-as 0 N m beside the offset that carries its torque.
+new finding that splits the torque of one the file carries (``split_torque``), or of the counterbalance it carries as
+its torque offset (``offset_split``: the balancer's shape, found beside that offset), is dropped likewise (or replaces
+the carried one, where it alone describes the torque better), and so is a finding of zero size (``zero_size``: a
+torque offset the file's own offset on its joint absorbed), which the file would hold as 0 N m beside the offset that
+carries its torque.
 
 The refit keeps the file's friction shape: its Stribeck velocities are held (``TrajectoryOptions.stribeck_held``), not
 searched again beside the findings, as the diagnosis judged them against that shape (and a smooth Coulomb finding and a
@@ -68,6 +70,7 @@ from identification.calibration.lugre_recordings import split_findings
 from identification.calibration.mixed_friction import file_viscous_exponents, mixed_options, steady_columns
 from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
+from identification.calibration.offset_split import offset_splits, replaced_offsets, without_offset
 from identification.calibration.recording_provenance import recording_provenance
 from identification.calibration.split_torque import splitting_findings
 from identification.calibration.spring_rest import with_rest_angles
@@ -76,8 +79,8 @@ from identification.calibration.trajectory_fit import TrajectoryOptions, identif
 from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = ["AppliedModel", "applied_model", "check_lugre_findings", "finding_terms", "joint_fit", "refit_options",
-           "refit_without", "zero_size"]  # fmt: skip
+__all__ = ["AppliedModel", "applied_model", "check_lugre_findings", "finding_terms", "joint_fit",
+           "offset_left_out", "refit_options", "refit_without", "zero_size"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -139,12 +142,15 @@ def applied_model(calibrated: CalibratedModel, robot, model, report, train, vali
     dropped = []
     for _ in range(MAX_DROP_ROUNDS):  # kept only with a torque of its own, lowering the validation RMSE where it acts
         refit = refit_without(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
+        alone = offset_left_out(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
         recordings, constants = (train, validation), (recording_kt(robot, *train), kt)
-        unhelpful = splitting_findings(calibrated, after, refit, model, recordings, constants) or zero_size(after)
-        unhelpful = unhelpful or unhelpful_findings(after, model, validation, kt)
+        unhelpful = splitting_findings(calibrated, after, refit, model, recordings, constants)
+        unhelpful = unhelpful or offset_splits(calibrated, after, refit, alone, model, recordings, constants)
+        unhelpful = unhelpful or zero_size(after) or unhelpful_findings(after, model, validation, kt)
         if not unhelpful:
             break
         dropped += unhelpful
+        calibrated = replaced_offsets(calibrated, unhelpful)  # an offset a shape replaced: its column left out
         labels = {d["label"] for d in unhelpful}
         logger.info("recalibrate: dropped findings (a carried finding's torque split, or no help on validation): %s; "
                     "refitting", sorted(labels))  # fmt: skip
@@ -324,6 +330,20 @@ def refit_without(calibrated, robot, model, train, findings, robot_source):
         return after, fit
 
     return refit
+
+
+def offset_left_out(calibrated, robot, model, train, findings, robot_source):
+    """``alone(joint)`` of ``offset_split.offset_splits``: the joint fit with ``findings`` and without the torque offset
+    on the 0-based ``joint`` (``offset_split.without_offset``), nor a torque-offset finding there (the same column)."""
+    terms, corrections, entries = findings
+
+    def alone(joint):
+        offsets = {t.label for t in terms if t.effect == "torque_offset" and t.joint == joint}
+        kept = ([t for t in terms if t.label not in offsets], corrections,
+                [e for e in entries if e["label"] not in offsets])  # fmt: skip
+        return joint_fit(without_offset(calibrated, joint), robot, model, train, kept, robot_source)
+
+    return alone
 
 
 def joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:

@@ -18,6 +18,14 @@ training residual (``offset_verdicts``), the offset and a sinusoid of the joint'
 compared on the training blocks and the validation recording (``calibration.offset_or_balancer``); where the constant
 predicts the torque better beyond the noise, over a swing where a balancer's would follow the angle (a re-zeroed
 sensor), the finding stays a ``torque_offset``, its note saying why.
+
+A low-harmonic ripple found beside such an offset on its joint, of any size, is that counterbalance's shape
+(``counterbalance_shapes``): a balancer's torque is nearly constant over a short swing and bends over a longer one,
+and ``A sin(h q + phase)`` fits the bend while the offset holds the rest. It is named ``COUNTERBALANCE`` too, its
+explanation naming the offset it shapes: one counterbalance, not a motor ripple beside it (the unseen heavy arm's cam,
+held by identify as an offset, came back as a second harmonic below the gravity share that names a ripple alone).
+``diagnose --apply`` writes such a shape beside the model's offset by the rule it applies to any torque the two
+would share (``calibration.offset_split``).
 """
 
 from __future__ import annotations
@@ -186,4 +194,39 @@ def name_counterbalances(findings, context, verdicts=None, carried=frozenset()) 
             f = named_counterbalance(f, *joints[j], harmonics)
         named = None if f.label in carried else offset_counterbalance(f, context, (verdicts or {}).get(j))
         out.append(named or f)
+    return counterbalance_shapes(findings, tuple(out))
+
+
+def counterbalance_shapes(found, named) -> tuple:
+    """``named`` (the ``found`` findings, one to one, as ``name_counterbalances`` named them) with each low-harmonic
+    ripple of ``found`` on a joint whose torque offset is named a counterbalance named that counterbalance's shape
+    (module docstring): effect ``COUNTERBALANCE``, the offset it shapes in its explanation and its parameters
+    (``counterbalance_offset`` [N m])."""
+    offsets = {
+        int(f.joints[0]): f
+        for f in named
+        if f.effect == COUNTERBALANCE and len(f.joints) == 1 and f.label.startswith("torque_offset[")
+    }
+    out = []
+    for original, f in zip(found, named):
+        j = int(original.joints[0]) if _low_ripple(original) else None
+        out.append(counterbalance_shape(original, offsets[j]) if j in offsets else f)
     return tuple(out)
+
+
+def counterbalance_shape(ripple, offset):
+    """The low-harmonic ``ripple`` found beside the torque ``offset`` (a finding named a counterbalance) on its joint,
+    named that counterbalance's shape (``counterbalance_shapes``)."""
+    j, (whole, _) = int(ripple.joints[0]) + 1, whole_offset(offset)
+    amplitude, harmonic = float(ripple.parameters["amplitude"]), int(ripple.parameters["harmonic"])
+    explanation = (
+        f"the shape of joint {j}'s counterbalance, whose torque the offset {offset.label} ({whole:+.4g} N m) holds: "
+        f"over the recorded swing the balancer's torque bends, and A sin({harmonic} q + phase) (A = {amplitude:.4g} "
+        "N m) fits the bend beside the offset; one counterbalance, the offset and its shape, not motor or gear ripple "
+        "(which repeats at the gear ratio times the joint angle). 'diagnose --apply' writes the shape only where "
+        "the model it holds beside the offset does not split the offset's torque, or where it alone describes the "
+        "counterbalance better than the offset"
+    )
+    parameters = {**ripple.parameters, "counterbalance_offset": whole}
+    return replace(ripple, effect=COUNTERBALANCE, explanation=explanation, parameters=parameters,
+                   signature="residual follows joint position beside a counterbalance's offset: its shape")  # fmt: skip

@@ -8,7 +8,9 @@ made the two nearly collinear columns trade slope (k -3330 -> +3803 N m/rad agai
 itself is checked on synthetic truth: least squares of a cam torque with a linear spring's columns, and with a
 ripple's beside them. On the unseen heavy arm the data give no spring to carry (its held-out swing is one a line
 through the training swing cannot predict, the truth's own line neither): the model holds the balancer as an offset,
-and ``--apply`` does not write it a second time.
+and ``--apply`` does not write it a second time. A shape of the balancer found beside that offset (a second harmonic
+of the angle, ``offset_split``) trades its constant with the offset by the same rule, checked on synthetic truth: a cam
+at its flattest with an offset's column, and with a ripple's beside it.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ import pytest
 
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.finding_value import CANCEL_CORRELATION, CANCEL_SHARE, cancelling_pairs
+from identification.calibration.offset_split import constant_correlation, without_offset
 from identification.calibration.recalibrate import recalibrate
 from identification.calibration.split_torque import (
     REPLACE_GAIN,
@@ -116,6 +119,54 @@ def test_a_ripple_of_its_own_beside_the_carried_spring_is_kept():
     assert coefficient_shift(alone, beside)[0] > SPLIT_SIGMAS and abs(correlation) < SPLIT_CORRELATION
     assert split_reason(alone, beside, 1, correlation) is None
     assert split_reason(alone, alone, 1, -0.9999) is None  # one shape, but the carried spring does not move
+
+
+def _offset_beside(ripple, cam, hidden=0.0):
+    """(the offset fitted alone, the offset beside the ripple, the ripple's torque there) on ``cam`` plus ``hidden``
+    and sensor noise, as entries ``coefficient_shift`` reads."""
+    tau = cam + hidden + np.random.default_rng(0).normal(0.0, 20.0, T.size)
+    names, parameters = ["offset2"], lambda c: {"offset": c[0]}
+    alone, _, _ = _entry("offset2", names, np.ones((T.size, 1)), tau, parameters)
+    beside, _, ripple_torque = _entry("offset2", names, np.column_stack([np.ones_like(T), ripple]), tau, parameters)
+    return alone, beside, ripple_torque
+
+
+#: A cam near its flattest over the travel (it balances an arm about horizontal): nearly the offset identify keeps.
+CAM_FLAT = 2500.0 * np.sin(TRAVEL + 1.5) * (1.0 + 0.4 * np.cos(2.0 * (TRAVEL + 1.5)))
+
+
+def test_a_shape_beside_the_counterbalances_offset_trades_its_constant_with_the_offset():
+    # a second harmonic fits the cam's bend beside the offset (the truth agrees: it is the counterbalance's shape),
+    # but over the travel it is mostly a constant, which it trades with the offset: one torque written as two
+    alone, beside, torque = _offset_beside(np.column_stack([np.sin(2 * TRAVEL), np.cos(2 * TRAVEL)]), CAM_FLAT)
+    correlation = constant_correlation(torque, beside["coefficients"][0])
+    sigmas, feature = coefficient_shift(alone, beside)
+    assert abs(correlation) > SPLIT_CORRELATION and sigmas > SPLIT_SIGMAS and feature == "offset2"
+    assert abs(correlation) == pytest.approx(abs(np.mean(torque)) / np.sqrt(np.mean(torque**2)))
+    shaped = np.sqrt(np.mean((CAM_FLAT - beside["coefficients"][0] - torque) ** 2))
+    assert shaped < 0.3 * np.std(CAM_FLAT)  # offset and shape together are the cam; the offset alone leaves its bend
+    reason = split_reason(alone, beside, 1, correlation)
+    assert reason.startswith("splits joint 2's torque with the carried offset2: beside it, offset2's offset would go")
+
+
+def test_a_ripple_of_its_own_beside_the_counterbalances_offset_does_not_split_it():
+    # a real ninth-harmonic ripple: its torque has no constant over the travel to trade with the offset
+    hidden = 150.0 * np.sin(9.0 * TRAVEL + 0.3)
+    _, beside, torque = _offset_beside(np.column_stack([np.sin(9 * TRAVEL), np.cos(9 * TRAVEL)]), CAM_FLAT, hidden)
+    assert abs(constant_correlation(torque, beside["coefficients"][0])) < 0.5 * SPLIT_CORRELATION
+    assert constant_correlation(np.full(5, -3.0), 2.0) == pytest.approx(-1.0)  # a constant against the offset's sign
+    assert constant_correlation(np.zeros(5), 2.0) == 0.0
+
+
+def test_a_shape_that_replaces_the_offset_is_refitted_without_its_column():
+    document = {"identification": {"column_choice": {"request": {"offset": "auto"}, "offset_joints": [2, 3]}},
+                "drive": {"names": ["fc2", "offset2", "offset3"], "values": [1.0, 2832.0, 5.0]}}  # fmt: skip
+    refit = without_offset(CalibratedModel(document), 1).document
+    assert refit["identification"]["column_choice"]["offset_joints"] == [3] and refit["drive"]["values"][1] == 0.0
+    assert document["identification"]["column_choice"]["offset_joints"] == [2, 3]  # the file's own is unchanged
+    document["identification"]["column_choice"]["request"]["offset"] = "on"  # offsets on every joint: all but one
+    assert without_offset(CalibratedModel(document), 2).document["identification"]["column_choice"] == {
+        "request": {"offset": "auto"}, "offset_joints": [2]}  # fmt: skip
 
 
 CAM_2 = xp.CamCounterbalance(joint=1, amplitude=20.0, q0=0.1, lobe=0.5)  # on the Denso's joint 2 [N m]
@@ -242,6 +293,8 @@ def test_a_balancer_a_spring_cannot_extrapolate_stays_the_offset_and_diagnose_ap
     assert code == 0
     found = [f for f in report["findings"] if 2 in f["joints"]]
     assert found and all(f["effect"] in ("counterbalance", "spring", "torque_ripple", "gas_spring") for f in found)
+    for shape in (f for f in found if f["label"].startswith("torque_ripple")):  # the balancer's shape, not a ripple
+        assert shape["effect"] == "counterbalance" and "the shape of joint 2's counterbalance" in shape["explanation"]
     dropped = {d["label"]: d for d in report["recalibration"]["dropped_findings"]}
     for finding in found:  # the model's offset holds its torque: not written a second time
         assert "the model's own torque offset on its joint holds its torque" in dropped[finding["label"]]["reason"]

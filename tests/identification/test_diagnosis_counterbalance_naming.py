@@ -154,6 +154,32 @@ def test_a_carried_file_offset_is_not_named():
     assert library.effect == COUNTERBALANCE
 
 
+@pytest.mark.parametrize(
+    ("ripple", "offset", "effect"),
+    [
+        ((2, 0.5, 1), -40.0, COUNTERBALANCE),  # beside the counterbalance's offset: its shape, below the gravity share
+        ((2, 0.5, 1), 0.3, "torque_ripple"),  # beside a sensor's offset: a ripple, small against gravity
+        ((LOW_HARMONIC + 1, 0.5, 1), -40.0, "torque_ripple"),  # more periods per revolution than a load: ripple
+        ((2, 0.5, 2), -40.0, "torque_ripple"),  # on another joint than the counterbalance's offset
+    ],
+)
+def test_a_low_harmonic_beside_a_counterbalances_offset_is_its_shape(ripple, offset, effect):
+    """Reference: the sizes of ``test_an_offset_no_sensor_has_is_named_a_counterbalance`` (joints 2 and 3 with 100
+    N m of gravity torque and 300 N m recorded). The ripple is half the gravity share that names a ripple a
+    counterbalance alone; beside an offset named a counterbalance on its joint it is that counterbalance's shape."""
+    q = np.linspace(-0.3, 0.3, 51)
+    gravity = np.column_stack([0 * q, 100.0 * np.cos(q), 100.0 * np.cos(q)])
+    context = SimpleNamespace(q=np.column_stack([q, q, q]), gravity=gravity, tau=np.full((51, 3), 300.0))
+    harmonic, share, joint = ripple
+    found = [_offset(offset, 1), _ripple(harmonic, share * GRAVITY_SHARE * 100.0, joint)]
+    named_offset, named = name_counterbalances(found, context)
+    assert named.effect == effect and (named.label, named.coefficients) == (found[1].label, found[1].coefficients)
+    if effect == COUNTERBALANCE:
+        assert named_offset.effect == COUNTERBALANCE
+        assert named.explanation.startswith("the shape of joint 2's counterbalance, whose torque the offset")
+        assert named.parameters["counterbalance_offset"] == pytest.approx(offset)
+
+
 def test_the_offset_reading_at_its_thresholds():
     """``oversized_offset`` on its own: the sensor share of the peak, the gravity share, a joint gravity loads."""
     assert oversized_offset(1, 25.0, gravity=100.0, peak=200.0) is not None
