@@ -120,19 +120,11 @@ def recalibrate(
     train = list(applied.train) or train  # the recordings the model was built on (``refit_training``): the gate's too
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
     kt = recording_kt(robot, *validation)
-    after, fit, dropped = applied.after, applied.fit, list(applied.dropped)
-    terms, corrections, entries = applied.findings
-    findings, droppable = (terms, corrections, entries), [t.label for t in terms] + list(corrections)
-    refit_on = functools.partial(refit_without, calibrated, robot, model, findings=findings, robot_source=robot_source)
-    refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz, validation)
-    refit = refit_on(train)
-    gate = keep_not_worse(calibrated, (after, fit), refit, droppable, model, validation, kt, refits)
-    new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}
-    gate, no_gain = keep_earning(calibrated, gate, refit, droppable, new, model, validation, kt, refits)
-    after, fit, dropped = gate.after, gate.payload, dropped + no_gain
+    gate, dropped = _gate(calibrated, robot, model, applied, train, validation, kt, robot_source)
+    after = gate.after
     rmse_before, rmse_after = gate.comparison.before, gate.comparison.after
     scores = [validation_rmse(after, model, r, kt) for r in validation]
-    mass = min_mass_eigenvalue(robot, fit.standard) if fit.checked else float("nan")
+    mass = _mass(robot, after, gate.payload)
     moved = _moved(calibrated, after)
     document = after.document
     carried = carried_configurations(calibrated.configurations, configurations, [r.name for r in train])
@@ -170,6 +162,32 @@ def recalibrate(
             )
     return Recalibration(before=calibrated, after=after, rmse_before=rmse_before, rmse_after=rmse_after, moved=moved,
                          min_mass_eigenvalue=mass, refused=gate.refused)  # fmt: skip
+
+
+def _gate(calibrated, robot, model, applied, train, validation, kt, robot_source) -> tuple:
+    """(``never_worse.GateResult``, the findings dropped) of ``applied``: the never-worse gate with its refits, and
+    ``no_gain``'s; a model nothing was refitted for (``AppliedModel.fit`` None: the file with carried findings resized,
+    ``resized_findings``) is judged as it is, with nothing to drop."""
+    if applied.fit is None:
+        return keep_not_worse(calibrated, (applied.after, None), None, [], model, validation, kt), list(applied.dropped)
+    terms, corrections, entries = applied.findings
+    findings, droppable = (terms, corrections, entries), [t.label for t in terms] + list(corrections)
+    refit_on = functools.partial(refit_without, calibrated, robot, model, findings=findings, robot_source=robot_source)
+    refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz, validation)
+    refit = refit_on(train)
+    gate = keep_not_worse(calibrated, (applied.after, applied.fit), refit, droppable, model, validation, kt, refits)
+    new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}
+    gate, no_gain = keep_earning(calibrated, gate, refit, droppable, new, model, validation, kt, refits)
+    return gate, list(applied.dropped) + no_gain
+
+
+def _mass(robot, after: CalibratedModel, fit) -> float:
+    """The smallest mass-matrix eigenvalue of ``after``'s standard parameters (its joint ``fit``'s; without a fit,
+    the file's own rigid body: ``after.standard``); NaN when the model is not checked for consistency."""
+    if fit is None:
+        checked = after.document["standard"].get("checked", True)
+        return min_mass_eigenvalue(robot, after.standard) if checked else float("nan")
+    return min_mass_eigenvalue(robot, fit.standard) if fit.checked else float("nan")
 
 
 def _moved(before: CalibratedModel, after: CalibratedModel) -> list:

@@ -21,14 +21,16 @@ from dataclasses import replace
 
 import numpy as np
 
-from identification.calibration.applied_model import applied_model
+from identification.calibration.applied_model import AppliedModel, applied_model
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.no_gain import GAIN_RULE
 from identification.calibration.refit_training import training_alone
+from identification.calibration.resized_findings import resized_model
 from identification.data.torque_constants import recording_kt
+from identification.diagnosis.carried_sizes import resized_sizes, written_sizes
 from psdm_casadi.errors import PSDMError
 
-__all__ = ["APPLIED_AFTER", "with_applied_after", "with_written_after"]
+__all__ = ["APPLIED_AFTER", "NOTHING_APPLIED", "RESIZED_AFTER", "with_applied_after", "with_written_after"]
 
 logger = logging.getLogger(__name__)
 
@@ -36,6 +38,17 @@ APPLIED_AFTER = (
     "the model file identified again, with the findings it can hold, on its own training recordings and the --train "
     "recordings (each once: the Refit line names them), as 'diagnose --apply' writes it (before its never-worse gate), "
     "judged as 'psdm validate' judges it"
+)
+
+#: The "after" of a model file whose findings are its own, some at another size (``carried_sizes``).
+RESIZED_AFTER = (
+    "the model file with {} at the size the data give, written in place of the file's and nothing refitted, as "
+    "'diagnose --apply' writes it (before its never-worse gate), judged as 'psdm validate' judges it"
+)
+#: Why a model file's diagnosis applies nothing although it reports findings (``DiagnosisReport.nothing_applied``).
+NOTHING_APPLIED = (
+    "every finding ({}) is one the model file holds, none at a size the recordings ask to change: nothing to apply, "
+    "so no refit was run and the model file stays the model to use"
 )
 
 
@@ -46,27 +59,51 @@ def with_applied_after(report, loaded, train, validation, refit=None):
     ``train`` recording(s); None: ``train`` alone), with that model in ``DiagnosisReport.applied`` and those
     recordings in ``DiagnosisReport.refit_training`` (module docstring); ``report`` as it is without a finding, and
     with the reason in ``after_source`` where the model cannot be built. ``refit`` is called only when there is a
-    finding to apply."""
+    finding to apply: one the file does not hold. Where every finding is the file's own, the model is the file with
+    the sizes that do not hold written in place (``carried_sizes``, ``resized_findings``: nothing refitted), or, when
+    all hold, nothing: ``DiagnosisReport.nothing_applied`` says so and no refit is run."""
     if not report.findings:
         return report
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
+    labels = {entry.get("label") for entry in calibrated.document.get("findings") or ()}
+    new, sizes = [f.label for f in report.findings if f.label not in labels], resized_sizes(report)
+    if not new and not sizes:
+        held = ", ".join(f"`{f.label}`" for f in report.findings)
+        return replace(report, nothing_applied=NOTHING_APPLIED.format(held))
+    if not new:  # the file with the sizes the data give written in place: judged as it is written
+        after = resized_model(calibrated, sizes)
+        entries = after.document.get("findings") or []
+        applied = AppliedModel(after, None, ([t for t, _ in after.torque_findings], after.corrections, entries))
+        resized = ", ".join(f"`{label}`" for label in sizes)
+        return written_sizes(_judged(report, applied, robot, model, validation, RESIZED_AFTER.format(resized)))
     training = refit() if refit is not None else training_alone(train)
     report = replace(report, refit_training=training)
     try:
         applied = applied_model(calibrated, robot, model, report, list(training.recordings), validation)
-        kt = recording_kt(robot, validation)
-        rmse, r2, prepared, predicted = validation_rmse(applied.after, model, validation, kt)
     except PSDMError as exc:  # the diagnosis's own fit stays the "after", and the report says why
         logger.info("diagnose: the model with the findings could not be built (%s)", exc)
         return replace(report, after_source=f"the diagnosis's own fit with the findings (the model 'diagnose --apply' "
                                             f"would write could not be built: {exc})")  # fmt: skip
+    dropped = [entry["label"] for entry in applied.dropped]
+    source = APPLIED_AFTER + (f"; {', '.join(dropped)} not in it (no help on validation)" if dropped else "")
+    return written_sizes(_judged(report, applied, robot, model, validation, source))
+
+
+def _judged(report, applied, robot, model, validation, source: str):
+    """``report`` with ``applied`` (``AppliedModel``) as its "after" on the raw ``validation`` recording, as ``psdm
+    validate`` judges it, and ``source`` saying which model that is."""
+    try:
+        kt = recording_kt(robot, validation)
+        rmse, r2, prepared, predicted = validation_rmse(applied.after, model, validation, kt)
+    except PSDMError as exc:
+        logger.info("diagnose: the model with the findings could not be judged (%s)", exc)
+        return replace(report, after_source=f"the diagnosis's own fit with the findings (the model 'diagnose --apply' "
+                                            f"would write could not be judged: {exc})")  # fmt: skip
     rmse, r2 = _measured_only(report, rmse, r2)
     same = np.shape(predicted) == np.shape(report.validation_final) and np.allclose(
         np.asarray(prepared.t), np.asarray(report.validation_t), rtol=0.0, atol=1e-9
     )
     final = np.asarray(predicted, dtype=float) if same else report.validation_final
-    dropped = [entry["label"] for entry in applied.dropped]
-    source = APPLIED_AFTER + (f"; {', '.join(dropped)} not in it (no help on validation)" if dropped else "")
     return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), validation_final=final,
                    applied=applied, after_source=source)  # fmt: skip
 

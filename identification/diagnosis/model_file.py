@@ -57,6 +57,7 @@ from identification.data.torque_constants import recording_kt
 from identification.diagnosis.applied_after import with_applied_after
 from identification.diagnosis.base_change import as_base_changes
 from identification.diagnosis.candidates.base import SMOOTH_VELOCITY
+from identification.diagnosis.carried_sizes import with_carried_sizes
 from identification.diagnosis.carried_terms import KEPT_NOTE, carried_candidates
 from identification.diagnosis.diagnose import DiagnosisOptions, diagnose
 from identification.diagnosis.drive_columns import with_drive_columns, without_drive_columns
@@ -275,8 +276,9 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
     train = training_recordings(train)
     options = model_file_options(calibrated, given)
     robot, prior = calibrated_robot(calibrated, robot_file), diagnosis_prior(calibrated.document, robot_file)
-    first = validation_recordings(validation)[0]
-    raw, (train, validation) = train, (file_corrected(loaded, r) for r in (train, validation_recordings(validation)))
+    held_out = validation_recordings(validation)
+    first = held_out[0]
+    raw, (train, validation) = train, (file_corrected(loaded, r) for r in (train, held_out))
     report = None
     if prior.robot_file:  # identify's rigid body absorbed an effect: try the robot file's (its rotors too)
         logger.info(f"diagnose: {prior.first_pass()}")
@@ -296,6 +298,7 @@ def diagnose_model_prior(loaded: LoadedModel, train, validation, given=None, nam
         report = diagnose(without_held_rotors(robot, options.held_friction), train, validation, own, model=model)
         report = without_drive_columns(report, calibrated.document)
         report = as_base_changes(with_file_offsets(report, calibrated.document, own.min_improvement), robot, model)
+    report = with_carried_sizes(report, loaded, held_out)  # a carried finding's size read against the file's (raw)
     report = with_applied_after(report, loaded, raw, first, refit)  # the model --apply writes: its "after" (raw: the
     # refit corrects them as the file says)
     name = f"for {robot_file.name}" if name is None else name

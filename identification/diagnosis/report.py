@@ -149,6 +149,8 @@ class DiagnosisReport:
     payload_checks: tuple = ()  # per validation recording {"recording": file, "load": its load's dict or None}
     friction_temperature: str | None = None  # where the model file's friction law was read on the first (as validate)
     file_offsets: tuple = ()  # ``file_offsets.FileOffset``: a model file's data-chosen offsets fitted again
+    carried_sizes: tuple = ()  # ``carried_sizes.CarriedSize``: a model file's carried findings read against its sizes
+    nothing_applied: str = ""  # why a model file's diagnosis applies nothing (its findings the file's own, at its size)
 
     @property
     def findings_not_holding(self) -> tuple:
@@ -187,6 +189,8 @@ class DiagnosisReport:
             "dropped": list(self.dropped),
             "rigid_body_notes": list(self.rigid_body_notes),
             "file_offsets": [o.to_dict() for o in self.file_offsets],
+            "carried_sizes": [s.to_dict() for s in self.carried_sizes],
+            "nothing_applied": self.nothing_applied or None,
             "nominal_model": self.nominal_model,
             "preparation": self.preparation,
             "held_out": list(self.held_out),

@@ -258,7 +258,8 @@ def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: flo
     R^2 and prediction of the file, and a joint whose final RMSE is above it gets its sentence (``joint_notes``). Not
     the same samples (a file with measurement corrections, a grid made coarser by ``max_samples``): None. Without a
     finding the diagnosis adds nothing to the file, so its "after" is the file as it is too: its own refit of the
-    nominal friction on the one training recording is no model anyone writes (``diagnose --apply`` writes none).
+    nominal friction on the one training recording is no model anyone writes (``diagnose --apply`` writes none); so
+    is it when every finding is the file's own at the file's size (``DiagnosisReport.nothing_applied``).
     """
     t, tau, predicted = (np.asarray(x, dtype=float) for x in (t, tau, predicted))
     own_t, own_tau = np.asarray(report.validation_t), np.asarray(report.validation_tau)
@@ -272,11 +273,13 @@ def with_model_file_before(report: DiagnosisReport, t, tau, predicted, rtol: flo
     ):
         return None
     before, after = rmse(tau, predicted), np.asarray(report.rmse_after, dtype=float)
-    if not report.findings:  # nothing to add: the model the diagnosis stands by is the file as it is
+    if not report.findings or report.nothing_applied:  # nothing to add: the model it stands by is the file as it is
         fit = r2(tau, predicted).tolist()
+        source = f"the model file as it is: {report.nothing_applied}" if report.nothing_applied else report.after_source
         return replace(report, rmse_before=tuple(before.tolist()), r2_before=tuple(fit), validation_nominal=predicted,
                        rmse_after=tuple(before.tolist()), r2_after=tuple(fit), validation_final=predicted,
-                       joint_notes=(), model_file_rmse=tuple(before.tolist()), before_is_model_file=True)  # fmt: skip
+                       joint_notes=(), model_file_rmse=tuple(before.tolist()), before_is_model_file=True,
+                       after_source=source)  # fmt: skip
     cause = (
         "the diagnosis refits the nominal friction on the training recording before it adds the findings; the model "
         "file as it is predicts this joint better ('diagnose --apply' refits the file itself, never worse)"

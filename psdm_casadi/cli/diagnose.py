@@ -220,7 +220,7 @@ def _run_diagnose(args) -> int:
             print(f"psdm diagnose: note: {args.robot}: {prior.note()}.", file=sys.stderr)
     report = dataclasses.replace(report, preparation=preparation.text(), held_out=held)
     apply = ApplyRefit()  # --apply's refit
-    if apply_out is not None and report.findings:  # before the report: its "after" is the model written
+    if apply_out is not None and report.findings and not report.nothing_applied:  # its "after": the model written
         report, apply = _recalibration(args, calibrated, robot_file, model, report, (train, validation), stated[:1])
     loads, temperature = validation_loads(args, calibrated, robot, model, validations, checks)  # each by its file
     judged = "psdm validate" if calibrated is not None else "psdm identify judges its held-out recordings"
@@ -420,7 +420,8 @@ def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> 
     refit.raise_refusal()  # the findings refused: said now that the report is out
     result = refit.result
     if result is None:
-        print(f"psdm diagnose: nothing to apply: no finding; {args.apply!r} was not written.", file=sys.stderr)
+        why = report.nothing_applied or "no finding"
+        print(f"psdm diagnose: nothing to apply: {why}; {args.apply!r} was not written.", file=sys.stderr)
         if payload is not None:
             print_json(payload)
         return 0

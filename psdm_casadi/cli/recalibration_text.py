@@ -25,11 +25,14 @@ APPLY_OFFSET_FIX = (
 
 def adds_nothing(before: dict, after: dict) -> bool:
     """Whether every finding the refit ``after`` (a model-file document) adds to ``before`` (the model file it refits)
-    is only reported, or none is left (the refit's gates dropped them all, ``no_gain`` among them): then ``diagnose
-    --apply`` does not write it."""
+    is only reported, or none is left (the refit's gates dropped them all, ``no_gain`` among them), and no finding the
+    file carries is written at another size (``resized_findings.resized_labels``): then ``diagnose --apply`` does not
+    write it."""
+    from identification.calibration.resized_findings import resized_labels
+
     carried = {entry["label"] for entry in before.get("findings") or []}
     new = [entry for entry in after.get("findings") or [] if entry["label"] not in carried]
-    return all(entry["kind"] == "reported" for entry in new)
+    return all(entry["kind"] == "reported" for entry in new) and not resized_labels(before, after)
 
 
 def recalibration_markdown(result, joint_names, path, source=None, trained_on=ALONE) -> str:
@@ -80,6 +83,8 @@ def recalibration_markdown(result, joint_names, path, source=None, trained_on=AL
         absorbed = f"; absorbed: {', '.join(entry['absorbed'])}" if entry.get("absorbed") else ""
         note = "" if entry["kind"] == "torque" else "; " + entry["applied"]
         lines.append(f"- {entry['label']} ({entry['kind']}): {parameters}{absorbed}{note}")
+        if (entry.get("resized") or {}).get("why"):  # the file's size replaced in place (``resized_findings``)
+            lines.append(f"  - written at the data's size in place of the file's: {entry['resized']['why']}")
         if "validation_rmse_without" in entry:
             lines.append("  " + _contribution(entry))
 
