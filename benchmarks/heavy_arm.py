@@ -27,11 +27,13 @@ at every angle, taking a seeded 40-90 % of its amplitude, ``counterbalance_share
    ``identification.payload.named``)? It is read from that record, not from the envelope findings the file keeps: the
    routes that follow the first fit take a named effect into the model, and the written model then leaves no link
    pushed for it (``stays_inside_unpushed``: none pushed). A counterbalance also named on another joint does not
-   count against it (``spring_joints`` shows what was taken). ``counterbalance_taken``: identify kept a
-   spring on joint 2 (``calibration.counterbalance_column``: tried where its report names a counterbalance, kept
-   where it lowers joint 2 on the held-out recording and in each block of the training recording's cross-validation,
-   the second opinion, the blocks together beyond their noise, and no joint is worse); ``counterbalance_named``
-   counts it as named.
+   count against it (``spring_joints`` shows what was taken). ``payload_named``: that record names the payload
+   (``identification.payload.named``) and, where identify estimated the body it named (``identification.payload.mass``,
+   the payload route's point mass at the flange), its mass is within ``PAYLOAD_RTOL`` of the truth's; false where no
+   payload is hidden. ``counterbalance_taken``: identify kept a spring on joint 2
+   (``calibration.counterbalance_column``: tried where its report names a counterbalance, kept where it lowers joint 2
+   on the held-out recording and in each block of the training recording's cross-validation, the second opinion, the
+   blocks together beyond their noise, and no joint is worse); ``counterbalance_named`` counts it as named.
    ``counterbalance_stated``: the report names a counterbalance on joint 2, first or among the alternatives, in an
    envelope finding or a parameter the fit holds back (``held_named``: a counterbalance absorbed inside link 2's
    envelope, held by the pull towards the robot file), or in the counterbalance it tried (``named_by``: also a torque
@@ -165,7 +167,7 @@ EFFECTS = ("heavy_counterbalance", "heavy_payload")
 ABSORBED = {"cam_counterbalance": "counterbalance", "gas_spring_counterbalance": "counterbalance", "payload": "payload"}
 # a counterbalance is found when diagnose names one of these on joint 2 (the diagnosis benchmark's ACCEPTED)
 COUNTERBALANCE_NAMES = ("spring", "unnamed_effect", "gas_spring", "counterbalance")
-PAYLOAD_RTOL = 0.3  # a payload the diagnosis names is the tool when its mass is within this fraction of the truth's
+PAYLOAD_RTOL = 0.3  # a payload diagnose (or identify) names is the tool: its mass within this fraction of the truth's
 
 
 def _cli(argv) -> tuple:
@@ -222,6 +224,19 @@ def _named_where_it_acts(document, truth) -> bool:
     payload = bool((record.get("payload") or {}).get("named"))
     hidden = [(ABSORBED[kind], joint) for kind, joint, _, _ in truth if kind in ABSORBED]
     return bool(hidden) and all(payload if e == "payload" else str(j + 1) in named_by for e, j in hidden)
+
+
+def _payload_named(document, truth) -> bool:
+    """Whether identify's first fit named the truth's payload, as the model file records that fit's report
+    (``identification.payload.named``: a pushed link or held-back parameter a body at the flange can give, first or as
+    an alternative), with the mass of the body identify estimated for it (``identification.payload.mass``, where the
+    payload route tried one) within ``PAYLOAD_RTOL`` of the truth's. The record states no joint: a payload is at the
+    flange, where the truth puts it. False where no payload is hidden."""
+    true = next((float(p["mass"]) for k, _, _, p in truth if k == "payload"), None)
+    load = document["identification"].get("payload") or {}
+    if true is None or not load.get("named"):
+        return False
+    return load.get("mass") is None or abs(float(load["mass"]) - true) <= PAYLOAD_RTOL * true
 
 
 def _found_on_joint_2(payload) -> bool:
@@ -289,7 +304,6 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
     counter = document["identification"].get("counterbalance") or {}
     taken = bool(counter.get("kept")) and 2 in counter.get("joints", ())  # identify took a spring on joint 2
     tried = "2" in (counter.get("named_by") or {})  # identify's report named it there (and tried the spring)
-    payload = [f for f in findings if f["absorbs"] == "payload"]
     held = document["standard"]["envelope"].get("held_back", [])
     stated = [e for e in [*findings, *held] if _on_joint_2(e)]  # first or an alternative, envelope or held back
     diagnose = ["--train", data, "--validate", val, "--json"]
@@ -313,7 +327,7 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "counterbalance_taken": taken,
         "counterbalance_stated": bool(stated) or taken or tried,
         "counterbalance_reason": counter.get("reason", ""),
-        "payload_named": bool(payload),
+        "payload_named": _payload_named(document, truth),
         "stays_inside_unpushed": not findings,
         "named": "; ".join(sorted({f"{f['absorbs']} (joint {f['joint'] + 1})" for f in findings})) or "-",
         "held_named": "; ".join(sorted({f"{h['absorbs']} (joint {_joint(h) + 1})" for h in held})) or "-",

@@ -99,12 +99,14 @@ def test_identify_then_diagnose_model_finds_the_heavy_arms_counterbalance(tmp_pa
     MODEL found the payload: with the physical balancer and the payload route, the model file carries the payload, so
     diagnose MODEL has none left to find and the payload is checked where it is taken. Identify's first fit named both
     hidden effects where the truth puts them (``absorbed_effect_named``: the counterbalance on joint 2, the payload),
-    though the model file it writes, having taken them, leaves no link pushed for either."""
+    though the model file it writes, having taken them, leaves no link pushed for either; the payload it named is the
+    truth's (``payload_named``: the body identify estimated for it within 30 % of the truth's mass)."""
     from heavy_arm import run_case
 
     row = run_case(0, tmp_path)
     assert row["envelope_respected"] and row["payload_taken"], row["payload_reason"]
     assert row["absorbed_effect_named"] and row["stays_inside_unpushed"], row["counterbalance_reason"]
+    assert row["payload_named"] and row["payload_mass_true_kg"] is not None, row["payload_reason"]
     assert abs(row["payload_mass_kg"] - row["payload_mass_true_kg"]) < 0.3 * row["payload_mass_true_kg"]
     assert row["diagnose_model_finds_counterbalance"], row["model_findings"]
     assert row["counterbalance_stated"], row["counterbalance_reason"]
