@@ -30,7 +30,14 @@ from identification.data.torque_constants import recording_kt
 from identification.diagnosis.carried_sizes import resized_sizes, written_sizes
 from psdm_casadi.errors import PSDMError
 
-__all__ = ["APPLIED_AFTER", "NOTHING_APPLIED", "RESIZED_AFTER", "with_applied_after", "with_written_after"]
+__all__ = [
+    "APPLIED_AFTER",
+    "NOTHING_APPLIED",
+    "RESIZED_AFTER",
+    "dropped_text",
+    "with_applied_after",
+    "with_written_after",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -84,9 +91,21 @@ def with_applied_after(report, loaded, train, validation, refit=None):
         logger.info("diagnose: the model with the findings could not be built (%s)", exc)
         return replace(report, after_source=f"the diagnosis's own fit with the findings (the model 'diagnose --apply' "
                                             f"would write could not be built: {exc})")  # fmt: skip
-    dropped = [entry["label"] for entry in applied.dropped]
-    source = APPLIED_AFTER + (f"; {', '.join(dropped)} not in it (no help on validation)" if dropped else "")
+    source = APPLIED_AFTER + (f"; not in it: {dropped_text(applied.dropped)}" if applied.dropped else "")
     return written_sizes(_judged(report, applied, robot, model, validation, source))
+
+
+def dropped_text(dropped) -> str:
+    """The findings ``applied_model`` dropped (its ``dropped`` entries), each with the rule that dropped it: one torque
+    it shares with a finding the model keeps (``split_torque``, ``offset_split``: an entry with ``split``), or no
+    help on validation."""
+    said = []
+    for entry in dropped:
+        split = entry.get("split") or {}
+        kept = split.get("new") if split.get("carried") == entry["label"] else split.get("carried")
+        said.append(f"{entry['label']} (one torque with {kept}, which the model keeps)" if split
+                    else f"{entry['label']} (no help on validation)")  # fmt: skip
+    return ", ".join(said)
 
 
 def _judged(report, applied, robot, model, validation, source: str):

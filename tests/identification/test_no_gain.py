@@ -186,3 +186,20 @@ def test_without_an_effect_the_share_of_draws_is_about_uniform():
     assert 0.04 < np.mean(np.array(shares) >= GAIN_SHARE) < 0.2
     assert 0.35 < np.mean(shares) < 0.65
     assert share_lower(a, a)[0] == 0.0 and share_lower(a, 0.5 * a)[0] == 1.0
+
+
+def test_the_after_source_names_why_each_dropped_finding_is_not_in_the_written_model():
+    """A finding dropped because it splits one torque with a finding the model keeps (``split_torque``'s verdict,
+    either side of the pair) is not said to be "no help on validation"; one the gain gate dropped is."""
+    from identification.diagnosis.applied_after import dropped_text
+
+    split = {"new": "torque_ripple[j2,h=2]", "carried": "offset2"}
+    text = dropped_text([
+        {"label": "torque_ripple[j2,h=2]", "split": split},
+        {"label": "offset3", "split": {"new": "spring[j3]", "carried": "offset3"}},
+        {"label": "presliding[j7]"},
+    ])  # fmt: skip
+    assert text == (
+        "torque_ripple[j2,h=2] (one torque with offset2, which the model keeps), "
+        "offset3 (one torque with spring[j3], which the model keeps), presliding[j7] (no help on validation)"
+    )
