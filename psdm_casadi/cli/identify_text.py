@@ -138,19 +138,23 @@ def _print_envelope(fit, route=str) -> None:
         print(f"  {'PUSHED' if finding.pressed else 'AT A BOUND (note)'}: {route(finding.message)}")
 
 
-def _below_mean(entry, diagnose: str) -> list:
+def _below_mean(entry, diagnose: str, fitted=()) -> list:
     """A line per held-out joint the model predicts worse than the joint's mean torque (R^2 < 0), with what the
-    robot file's rigid body alone gives there and the diagnosis that names the missing torque: the shared TX40's
-    joint 5 (R^2 -12, 4.715 N m against the file's 1.375: the wrist coupling) was printed without a word."""
+    robot file's rigid body alone gives there and the diagnosis that looks for the missing torque: the shared TX40's
+    joint 5 (R^2 -12, 4.715 N m against the file's 1.375: the wrist coupling) was printed without a word. ``fitted``:
+    the labels of the coupling terms the model already holds (``CoupledDrives.kept``, ``coupling[jm->jk]``), named on
+    the joint they act on, so the line does not send the user after a torque the model fits."""
     lines = []
     for j, r2 in enumerate(entry["r2"]):
         if r2 is None or r2 >= 0.0:
             continue
         ours, file = entry["rmse"][j], (entry.get("rmse_prior") or [None] * len(entry["r2"]))[j]
         alone = f"; the robot file's rigid body alone gives {file:.4g}" if file is not None and file < ours else ""
+        held = [label for label in fitted if label.endswith(f"->j{j + 1}]")]
+        held = f"; the model already fits {', '.join(held)} on it" if held else ""
         lines.append(f"  joint {j + 1}: R^2 {r2:.3g}, predicted worse than by its mean torque (RMSE {ours:.4g} N m"
-                     f"{alone}): a torque the model lacks acts on it (a coupling, a spring, a load); "
-                     f"'{diagnose} --apply NEW.json' names it and adds it")  # fmt: skip
+                     f"{alone}): a torque the model lacks acts on it (a coupling, a spring, a load{held}); "
+                     f"'{diagnose} --apply NEW.json' looks for it and adds what holds held out")  # fmt: skip
     return lines
 
 
@@ -231,7 +235,9 @@ def print_identify(args, robot, model, fit, report, calibrated, result, route=st
     _print_lugre(calibrated.document["drive"].get("lugre"))
     _print_payloads(fit.payloads)
     for entry, load in zip(report["recordings"], tuple(loads) or (None,) * len(report["recordings"])):
-        _print_validation(entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1), load)
+        _print_validation(
+            entry, route(DIAGNOSE_COMMAND).replace(str(args.robot), str(args.out), 1), load, result.coupled.kept
+        )
     if (result.file_check.comparison is not None or result.file_check.reason) and not result.file_check.worse:
         # worse: a warning (stderr)
         print(f"\n{result.file_check.describe()}")
@@ -260,10 +266,10 @@ def _print_parameters(fit, model, result) -> None:
         print(f"({NOT_IDENTIFIABLE_NOTE})")
 
 
-def _print_validation(entry, diagnose: str, load=None) -> None:
+def _print_validation(entry, diagnose: str, load=None, fitted=()) -> None:
     """One held-out recording's table (identified, unconstrained, robot file, its baseline; R^2), the line on the load
     nothing states that it carries (``load``: ``held_out_load``, what the judges took off) and the joints predicted
-    worse than by their mean torque."""
+    worse than by their mean torque (``fitted``: the coupling terms the model holds, ``_below_mean``)."""
     print(f"\nvalidation on {_validation_title(entry)} (RMSE [N m] per joint; R^2):")
     print(f"  {'joint':<14}" + " ".join(f"{j + 1:>9}" for j in range(len(entry["r2"]))))
     for key, label in (
@@ -277,7 +283,7 @@ def _print_validation(entry, diagnose: str, load=None) -> None:
     print(f"  {'R^2':<14}" + " ".join("        -" if v is None else f"{v:9.4f}" for v in entry["r2"]))
     if load:  # a load nothing states, taken off or not (``held_out_load``): said here, not among the warnings
         print(f"  payload: {load}")
-    for line in _below_mean(entry, diagnose):
+    for line in _below_mean(entry, diagnose, fitted):
         print(line)
 
 

@@ -377,3 +377,18 @@ def test_the_pooled_block_opinion_has_no_empty_parameter_list():
     assert pooled.text() == "all blocks held out: (joint 5 1.795 -> 1.59 N m; fails: lowers no own joint's RMSE by 20%)"
     block = OpinionNumbers("training block 1 of 4 (t 0.3-1.7 s)", {"rate": -0.3572}, (4,), (1.806,), (1.53,), None)
     assert block.text() == "training block 1 of 4 (t 0.3-1.7 s): rate = -0.3572 (joint 5 1.806 -> 1.53 N m; holds)"
+
+
+def test_a_joint_below_its_mean_names_the_coupling_the_model_already_fits_on_it():
+    """The shared TX40 with ``--holdout 0.3``: once identify fits the file's wrist coupling, joint 5 still reads R^2
+    -0.915, and the line said the diagnosis "names it and adds it" although that diagnosis adds nothing. The line now
+    names the coupling terms the model holds on that joint (those acting on another joint are not named there) and
+    says the diagnosis looks for the rest."""
+    from psdm_casadi.cli.identify_text import _below_mean
+
+    entry = {"r2": [0.9, -0.915, 0.5], "rmse": [0.1, 1.812, 0.2], "rmse_prior": [0.1, 1.375, 0.2]}
+    lines = _below_mean(entry, "psdm diagnose m.json", ("coupling[j3->j2]", "coupling[j2->j3]"))
+    assert len(lines) == 1 and lines[0].startswith("  joint 2: R^2 -0.915")
+    assert "the model already fits coupling[j3->j2] on it" in lines[0] and "coupling[j2->j3]" not in lines[0]
+    assert "looks for it" in lines[0] and "names it and adds it" not in lines[0]
+    assert "already fits" not in _below_mean(entry, "psdm diagnose m.json")[0]
