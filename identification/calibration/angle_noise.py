@@ -27,6 +27,12 @@ fit with the offset and the series). A counterbalance's torque of one sign over 
 as well, stays in the noise: over a short travel the data cannot tell it from an offset. The fits with an offset alone
 are kept (``JointNoise``): where a joint's own offset takes its noise well down, the data hold an offset the model
 lacks there, which ``clear_ask`` names where it names no counterbalance.
+
+That noise keeps a counterbalance's part an offset gives as well, so ``clear_ask`` also asks how much of the torque
+the bounds refuse is a torque of the joint's own angle beyond an offset (``AngleShare``, from the same pass's normal
+equations), against the noise of the fit with the series and an offset (``JointNoise.own``). The pass also reads the
+gravity torque the robot file's links give each joint at the recorded poses (``JointNoise.gravity``): a joint with
+none carries no counterbalance.
 """
 
 from __future__ import annotations
@@ -37,23 +43,75 @@ from typing import NamedTuple
 import numpy as np
 
 from identification.calibration.configuration_check import accumulate
+from identification.calibration.offset_reading import STRIDE
 from identification.calibration.weighted_solve import weighted_least_squares
 
-__all__ = ["HARMONICS", "AngleColumns", "JointNoise", "effect_free_noise"]
+__all__ = ["HARMONICS", "AngleColumns", "AngleShare", "JointNoise", "effect_free_noise"]
 
 #: Harmonics of each joint's angle in the alternative's columns: a counterbalance's law over the recorded travel.
 HARMONICS = 4
+
+
+class AngleShare:
+    """Per joint, the part of a torque of the model's columns (a direction ``delta`` of its parameters: what the
+    bounds refuse) that a torque of the joint's own angle gives beyond a torque offset: on the joint's rows, its
+    projection on the Fourier series of the angle and a constant, less its projection on the constant alone, in RMS
+    [N m]. From the normal equations of ``AngleColumns`` with ``offset`` (``equations``, the model's ``n_columns``
+    first): each joint's series and constant are on its own rows alone, so its gram holds the products needed."""
+
+    def __init__(self, equations, n_columns: int, harmonics: int = HARMONICS):
+        n_dof, width = equations.n_dof, 2 * harmonics
+        self.n_columns, self.count = n_columns, np.maximum(equations.count, 1)
+        series = [range(n_columns + j * width, n_columns + (j + 1) * width) for j in range(n_dof)]
+        own = [[*k, n_columns + width * n_dof + j] for j, k in enumerate(series)]  # the series, then the constant
+        self.cross = [equations.gram[j][np.ix_(k, range(n_columns))] for j, k in enumerate(own)]
+        self.inverse = [np.linalg.pinv(equations.gram[j][np.ix_(k, k)], rcond=1e-12, hermitian=True)
+                        for j, k in enumerate(own)]  # fmt: skip
+        self.constant = np.array([equations.gram[j][k[-1], k[-1]] for j, k in enumerate(own)])
+        self.model = equations.gram[:, :n_columns, :n_columns]
+
+    def rms(self, delta) -> np.ndarray:
+        """Per joint [N m RMS]: the part of the torque of ``delta`` (the model's first columns; zero beyond them)
+        that a torque of the joint's own angle gives beyond an offset."""
+        return np.sqrt(self._energies(delta)[0] / self.count)
+
+    def share(self, delta) -> np.ndarray:
+        """Per joint, the share of the torque of ``delta`` beyond its offset (its energy less its projection on a
+        constant) that a torque of the joint's own angle gives: near 1 for a torque of that angle alone."""
+        angle, varying = self._energies(delta)
+        return angle / np.maximum(varying, 1e-300)
+
+    def _energies(self, delta) -> tuple:
+        """Per joint, the energies of the torque of ``delta``: its projection on the angle's series and a constant
+        less that on the constant, and the whole less that on the constant."""
+        delta = np.zeros(self.n_columns) if delta is None else np.asarray(delta, dtype=float)
+        d = np.zeros(self.n_columns)
+        d[: min(delta.size, self.n_columns)] = delta[: self.n_columns]
+        angle, varying = np.zeros(len(self.cross)), np.zeros(len(self.cross))
+        for j, (cross, inverse) in enumerate(zip(self.cross, self.inverse)):
+            b = cross @ d
+            constant = b[-1] ** 2 / max(float(self.constant[j]), 1e-300)
+            angle[j], varying[j] = float(b @ inverse @ b) - constant, float(d @ self.model[j] @ d) - constant
+        return np.maximum(angle, 0.0), np.maximum(varying, 0.0)
 
 
 class JointNoise(NamedTuple):
     """Per joint [N m]: ``noise``, the one the effect cannot inflate (module docstring); ``offset``, the least
     squares' residual sigma with a torque offset on every joint, and ``others``, theirs with one on every other joint
     (well above ``offset``: the joint's data hold an offset the model lacks; an offset elsewhere bends the links
-    every joint's rows share, and the offsets on the other joints take that)."""
+    every joint's rows share, and the offsets on the other joints take that). ``own``: theirs with the offset and
+    the series of the angle on every joint, the noise neither a torque of the angle nor an offset inflates;
+    ``angle``: the ``AngleShare`` of a torque the model's columns give; ``gravity``: the RMS gravity torque of the
+    robot file's links on each joint over the recorded poses and ``scale`` the RMS of its recorded torque (a joint
+    gravity gives no torque carries no counterbalance; inf and 1 without the file's links)."""
 
     noise: np.ndarray
     offset: np.ndarray
     others: np.ndarray
+    own: np.ndarray | None = None
+    angle: AngleShare | None = None
+    gravity: np.ndarray | None = None
+    scale: np.ndarray | None = None
 
 
 class AngleColumns:
@@ -111,4 +169,18 @@ def _noise(robot, model, prepared, extras, setup, n_columns: int, free, payload)
     others = [weighted_least_squares(equations, [*free, *offsets[:j], *offsets[j + 1 :]], payload)[0][j]
               for j in range(len(offsets))]  # fmt: skip
     noise = np.sqrt(np.clip(plain**2 - constant**2 + both**2, both**2, plain**2))
-    return JointNoise(noise, constant, np.asarray(others, dtype=float).reshape(constant.shape))
+    others = np.asarray(others, dtype=float).reshape(constant.shape)
+    angle = AngleShare(equations, n_columns) if wrapped else None
+    scale = np.sqrt(equations.energy / np.maximum(equations.count, 1))
+    return JointNoise(noise, constant, others, both, angle, _file_gravity(robot, model, prepared), scale)
+
+
+def _file_gravity(robot, model, prepared) -> np.ndarray:
+    """Per joint, the RMS gravity torque [N m] of the robot file's links over the recorded poses of ``prepared``
+    (every ``STRIDE``-th sample; inf without the file's links: not known)."""
+    if robot.links is None or not prepared:
+        return np.full(robot.n_dof, np.inf)
+    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in prepared])
+    zero = np.zeros_like(q)
+    gravity = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
+    return np.sqrt(np.mean(gravity**2, axis=0))

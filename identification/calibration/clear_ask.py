@@ -29,6 +29,21 @@ signature, not a reading of what moved: a tool at the flange sits there and move
 (``absorbed_effect``), so they name it at any refusal the warning reports (the Kinova Gen3's vendor URDF, link 7 at
 its mass bound: its undocumented tool, at 0.9 x the noise).
 
+That noise keeps the part of a counterbalance an offset gives as well, and over a short travel that is most of what
+the links leave of it (the Denso's cam, a cobot's cam on joint 2: judged against a noise of several times the
+sensor's, their margins over ``NAME_SIGMA`` were thin). So a counterbalance is also asked for by the refused torque's
+part a torque of its joint's own angle gives beyond an offset (``angle_refused``: on the joint's rows, its projection
+on the angle's Fourier series and a constant less its projection on the constant, ``angle_noise.AngleShare``), against
+the joint's own noise, the residual with the series and an offset on every joint (``JointNoise.own``: neither the
+effect nor an offset the model lacks inflates it), where that part is most of the refused torque beyond its offset
+(``ANGLE_SHARE``): a counterbalance's torque is one of its angle alone. A true offset gives that part
+nothing, and the links an offset or a robot file bent refuse a torque of several angles, of which a joint's own
+angle gives a part and never most of it.
+
+A counterbalance or gravity spring balances a gravity torque: on a joint gravity gives no torque over the recorded
+poses (an upright arm's base axis; the robot file's gravity torque there below ``GRAVITY_NIL`` of the joint's
+recorded torque, ``gravity_free``) none is named, whatever the data ask; the finding then names no effect.
+
 A counterbalance the links take inside their envelopes is not refused: beside a tool that pulls every link outward,
 a shoulder's balancer goes into a proximal link's first moment, the bounds refuse its joint less than the noise, and
 the link is named after the departure of that joint's gravity torque from the robot file's alone
@@ -54,10 +69,28 @@ import numpy as np
 from identification.calibration.envelope_report import outward, where
 from identification.data.excitation_check import joint_label
 
-__all__ = ["NAMED_EFFECTS", "NAME_SIGMA", "NAMING_RULE", "UNNAMED", "named_where_asked", "refused_noise"]
+__all__ = [
+    "ANGLE_SHARE",
+    "GRAVITY_NIL",
+    "NAMED_EFFECTS",
+    "NAME_SIGMA",
+    "NAMING_RULE",
+    "UNNAMED",
+    "angle_refused",
+    "gravity_free",
+    "named_where_asked",
+    "refused_noise",
+]
 
 #: The torque the bounds refuse on an effect's joint, in noise levels of the joint, from which the effect is named.
 NAME_SIGMA = 2.0
+#: A joint whose gravity torque over the recorded poses is below this share of its recorded torque carries none (an
+#: upright arm's base axis: the rounding of a gravity regressor row that is zero); no counterbalance can act there.
+GRAVITY_NIL = 1e-6
+#: The share of the refused torque beyond its offset that a torque of a joint's own angle must give for it to ask for
+#: a counterbalance there: most of it (a counterbalance's torque is one of its angle alone; links an offset or a robot
+#: file bent refuse a torque of several angles, of which the joint's own gives a part).
+ANGLE_SHARE = 0.5
 #: The effects this rule judges (``absorbed_effect.ABSORBED_EFFECTS``' absorbed loads and torques of the angle; a
 #: payload on the last two links with mass is its own signature and not judged).
 NAMED_EFFECTS = ("counterbalance", "payload")
@@ -69,8 +102,10 @@ NAMING_RULE = (
     f"acts on at least {NAME_SIGMA:g} x its noise of RMS torque (the bounded fit's residual over the unbounded least "
     "squares'), a torque each sample shows beyond two standard deviations of its noise (the least squares' residual "
     "less what a torque of each joint's angle explains beyond an offset: a noise the effect cannot inflate), or a "
-    "counterbalance the links take inside their envelopes where the unbounded least squares' gravity torque of that "
-    "joint alone departs from the robot file's by as much"
+    "counterbalance where the refused torque's part a torque of its joint's angle gives beyond an offset is as large "
+    "against the joint's noise with such a torque and an offset, or one the links take inside their envelopes where "
+    "the unbounded least squares' gravity torque of that joint alone departs from the robot file's by as much; never "
+    "a counterbalance on a joint gravity gives no torque"
 )
 
 
@@ -79,24 +114,62 @@ def refused_noise(equations, x_fit, x_ols, sigma) -> np.ndarray:
     (``x_ols``) on the training data's normal ``equations``, in noise levels ``sigma`` of the joint (or a callable
     giving them: ``angle_noise.effect_free_noise``)."""
     sigma = sigma() if callable(sigma) else sigma
+    return _refused_rms(equations, x_fit, x_ols) / np.maximum(np.asarray(sigma, dtype=float), 1e-12)
+
+
+def _refused_rms(equations, x_fit, x_ols) -> np.ndarray:
+    """Per joint, the RMS torque [N m] by which the residual of ``x_fit`` exceeds that of ``x_ols``."""
     growth = equations.residual_sum(np.asarray(x_fit)) - equations.residual_sum(np.asarray(x_ols))
-    rms = np.sqrt(np.maximum(growth, 0.0) / np.maximum(equations.count, 1))
-    return rms / np.maximum(np.asarray(sigma, dtype=float), 1e-12)
+    return np.sqrt(np.maximum(growth, 0.0) / np.maximum(equations.count, 1))
 
 
-def _asked(absorbs: str, joint: int, refused, departed) -> bool:
+def angle_refused(equations, x_fit, x_ols, noise) -> np.ndarray:
+    """Per joint, the part of the torque the bounded fit (``x_fit``) refuses the unbounded least squares (``x_ols``)
+    that a torque of the joint's own angle gives beyond a torque offset (``angle_noise.AngleShare``; never more than
+    the refused torque, ``refused_noise``'s RMS on ``equations``: where the bounded fit leaves a joint no worse,
+    nothing is refused it), counted where it is more than ``ANGLE_SHARE`` of the refused torque beyond its offset
+    (a torque of that angle alone, as a counterbalance's; links a robot file or an offset bent refuse a
+    torque of several angles, of which a joint's own angle gives a part), in noise levels of the joint's own noise
+    (``JointNoise.own``: neither such a torque nor an offset inflates it); ``noise``: a callable giving the
+    ``angle_noise.JointNoise``. Zero without an ``AngleShare``."""
+    joint_noise = noise()
+    if joint_noise.angle is None:
+        return np.zeros(len(joint_noise.noise))
+    delta = np.asarray(x_ols, dtype=float) - np.asarray(x_fit, dtype=float)
+    rms = np.minimum(joint_noise.angle.rms(delta), _refused_rms(equations, x_fit, x_ols))
+    rms = np.where(joint_noise.angle.share(delta) > ANGLE_SHARE, rms, 0.0)  # a torque of that angle, not the links'
+    return rms / np.maximum(np.asarray(joint_noise.own, dtype=float), 1e-12)
+
+
+def gravity_free(noise) -> np.ndarray:
+    """Per joint, whether gravity gives it no torque over the recorded poses (``JointNoise.gravity`` below
+    ``GRAVITY_NIL`` of its recorded torque ``scale``): no counterbalance can act there. ``noise``: None (nothing
+    known: none) or a callable giving the ``angle_noise.JointNoise``."""
+    joint_noise = None if noise is None else noise()
+    if joint_noise is None or joint_noise.gravity is None:
+        return np.zeros(0, dtype=bool)
+    return np.asarray(joint_noise.gravity) <= GRAVITY_NIL * np.asarray(joint_noise.scale)
+
+
+def _asked(absorbs: str, joint: int, refused, departed, angle=None, free=()) -> bool:
     """Whether the data clearly ask for ``absorbs`` acting on ``joint`` (0-based): an effect this rule does not judge
     is asked for, one of ``NAMED_EFFECTS`` where the torque refused on its joint (a payload: the most refused;
     ``refused()``: ``refused_noise``) is at least ``NAME_SIGMA`` noise levels, a counterbalance also where the data's
-    gravity torque of its joint departs alone by as much (``departed()``: ``departure_ask.departed_noise``)."""
+    gravity torque of its joint departs alone by as much (``departed()``: ``departure_ask.departed_noise``) or the
+    refused torque's part a torque of its angle gives beyond an offset is (``angle()``: ``angle_refused``), and never
+    on a joint gravity gives no torque (``free``: ``gravity_free``)."""
     if absorbs not in NAMED_EFFECTS:
         return True
     if absorbs == "payload":
         return float(np.max(refused())) >= NAME_SIGMA
-    return float(refused()[joint]) >= NAME_SIGMA or float(departed()[joint]) >= NAME_SIGMA
+    if joint < len(free) and free[joint]:
+        return False
+    by_angle = angle is not None and float(angle()[joint]) >= NAME_SIGMA
+    return by_angle or float(refused()[joint]) >= NAME_SIGMA or float(departed()[joint]) >= NAME_SIGMA
 
 
-def named_where_asked(findings, held, refused, robot, currents: bool = False, noise=None, departed=None) -> tuple:
+def named_where_asked(findings, held, refused, robot, currents: bool = False, noise=None, departed=None,
+                      angle=None) -> tuple:  # fmt: skip
     """``(findings, held)``: the envelope's findings (``envelope_report.EnvelopeFinding``) and the parameters held
     back by a bound (``held_back.HeldBack``, holder ``"envelope"``) with each counterbalance, spring or payload the
     data do not clearly ask for (``NAMING_RULE``; ``refused``: ``refused_noise``, or a callable giving it, called
@@ -105,16 +178,20 @@ def named_where_asked(findings, held, refused, robot, currents: bool = False, no
     counterbalance is refused less; None: none) named as none, or on motor currents (``currents``) as the joint's
     rotor inertia where the robot file states none (module docstring). ``noise``: None, or a callable giving the
     ``angle_noise.JointNoise`` the refusal was judged against: a finding named as none then names the torque offset
-    the data hold and the model lacks."""
+    the data hold and the model lacks, and a counterbalance is never named on a joint gravity gives no torque over
+    the recorded poses (``gravity_free``). ``angle``: None, or per joint the refused torque's part a torque of the
+    joint's angle gives beyond an offset in noise levels (``angle_refused``), or a callable giving it."""
     refused = cache(refused) if callable(refused) else partial(np.asarray, refused)
+    angle = None if angle is None else cache(angle) if callable(angle) else partial(np.asarray, angle)
     departed = np.zeros(robot.n_dof) if departed is None else departed
     departed = cache(departed) if callable(departed) else partial(np.asarray, departed)
+    free = gravity_free(noise)
     prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
     distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())  # a payload's own links: it sits beyond them
     out = []
     for finding in findings:
         at, own = where(finding), finding.absorbs == "payload" and finding.link in distal
-        judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused, departed)
+        judged = finding.pressed and not own and not _asked(finding.absorbs, at, refused, departed, angle, free)
         out.append(_unnamed_finding(finding, at, refused(), robot, currents, noise) if judged else finding)
     kept = []
     for item in held:
@@ -122,7 +199,7 @@ def named_where_asked(findings, held, refused, robot, currents: bool = False, no
         judged = (
             item.holder == "envelope"
             and not (own and item.joint in distal)
-            and not _asked(item.absorbs, at, refused, departed)
+            and not _asked(item.absorbs, at, refused, departed, angle, free)
         )
         kept.append(_unnamed_item(item, at, refused(), robot, currents, noise) if judged else item)
     return tuple(out), tuple(kept)

@@ -59,7 +59,7 @@ from identification.calibration.absorbed_effect import (
     parameter_words,
     torque_shares,
 )
-from identification.calibration.clear_ask import named_where_asked, refused_noise
+from identification.calibration.clear_ask import angle_refused, named_where_asked, refused_noise
 from identification.calibration.consistent_fit import held_rotors
 from identification.calibration.departure_ask import departed_noise
 from identification.calibration.envelope_report import (
@@ -334,7 +334,8 @@ def causes(robot, model, fitted, covariance, names, envelope, kt=None, held_link
     refused = partial(refused_noise, fitted[2], fitted[0], fitted[1], sigma)
     recordings = fitted[4] if len(fitted) > 4 else ()
     asked = partial(departed_noise, robot, model, recordings, fitted[1], departed, sigma)  # read where refused less
-    named, items = named_where_asked(named, items, refused, robot, kt is not None, noise, asked)  # what they ask
+    angle = None if noise is None else partial(angle_refused, fitted[2], fitted[0], fitted[1], noise)
+    named, items = named_where_asked(named, items, refused, robot, kt is not None, noise, asked, angle)  # they ask
     return named, (*held_note(items), *inertia_note(inertias))
 
 

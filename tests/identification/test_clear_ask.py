@@ -5,14 +5,27 @@ Truth: the four-joint cobot of ``torque_scale_data`` logging motor currents, its
 without a load. Its rotors, which the base parameters merge into the links, push the consistent fit's links against
 their envelopes, link 2 to its reach; the arm has no spring, no counterbalance and no payload. The same arm with a cam
 counterbalance on joint 2 (15 N m, a third of that joint's gravity torque) must still have it named there, and on no
-other joint.
+other joint, and judged there by the refused torque's part a torque of its angle gives beyond an offset, far above
+the rule; joints 1 and 4 are vertical (gravity gives them no torque: Pinocchio's gravity torque at the recorded poses),
+and no counterbalance is named there whatever the data ask.
 """
+
+from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from identification.calibration.angle_noise import AngleColumns
-from identification.calibration.clear_ask import NAME_SIGMA, NAMING_RULE, UNNAMED, refused_noise
+from identification.calibration.angle_noise import AngleColumns, AngleShare
+from identification.calibration.clear_ask import (
+    NAME_SIGMA,
+    NAMING_RULE,
+    UNNAMED,
+    angle_refused,
+    gravity_free,
+    named_where_asked,
+    refused_noise,
+)
 from identification.calibration.envelope import link_envelopes
 from identification.calibration.envelope_report import where
 from identification.calibration.held_back import stored_held_back
@@ -22,6 +35,7 @@ from identification.data.robot_recordings import load_robot_recording
 from identification.virtual import effects as xp
 from identification.virtual.current_arm import CurrentRun, write_current_recordings
 from psdm_casadi.derive import derive_psdm
+from psdm_casadi.oracle import PinocchioOracle
 from psdm_casadi.robot import load_robot
 from tests.identification.torque_scale_data import COLUMNS, cobot
 
@@ -36,7 +50,15 @@ def noises():
 
 
 @pytest.fixture(scope="module")
-def fits(tmp_path_factory, noises):
+def judged():
+    """``{name: SimpleNamespace(fitted, noise)}`` per fit of ``fits``: what ``held_back.causes`` judged (``fitted``:
+    the bounded fit, the least squares, their equations, sigma and the prepared recordings; ``noise``: the callable
+    giving the ``JointNoise``)."""
+    return {}
+
+
+@pytest.fixture(scope="module")
+def fits(tmp_path_factory, noises, judged):
     """``{name: (robot, fit)}`` of the plain arm and the arm with the cam on joint 2."""
     import identification.calibration.trajectory_fit as trajectory_fit
 
@@ -51,6 +73,7 @@ def fits(tmp_path_factory, noises):
 
         def kept(*args, name=name):
             noises[name] = np.asarray(args[2][3]), args[-1]()
+            judged[name] = SimpleNamespace(fitted=args[2], noise=args[-1])
             return causes(*args)
 
         with pytest.MonkeyPatch.context() as patch:
@@ -151,3 +174,74 @@ def test_the_angle_columns_are_each_joints_own_angle_on_its_rows_alone():
     offsets = AngleColumns(None, 3, harmonics=2, offset=True).columns(q, q, q)
     np.testing.assert_array_equal(offsets[:, :, :12], block)
     np.testing.assert_array_equal(offsets[:, :, 12:], np.broadcast_to(np.eye(3), (7, 3, 3)))
+
+
+def test_the_refused_torques_part_a_torque_of_the_angle_gives_beyond_an_offset_is_its_projection():
+    """``AngleShare`` from normal equations, against the torque of a direction written out on each joint's rows and
+    projected by least squares on the joint's series and a constant, less its projection on the constant alone (its
+    ``share``: that over the torque's energy about its mean)."""
+    from identification.calibration.trajectory_data import NormalEquations
+
+    rng = np.random.default_rng(5)
+    q, model_columns = rng.uniform(-0.6, 0.9, (400, 3)), rng.normal(size=(400, 3, 4))
+    model_columns[:, :, 0] += np.sin(2.0 * q)  # a part of the model's columns that is a torque of the angles
+    angle = AngleColumns(None, 3, harmonics=2, offset=True).columns(q, q, q)
+    equations = NormalEquations(3, 4 + angle.shape[2])
+    equations.add(np.concatenate([model_columns, angle], axis=2), rng.normal(size=(400, 3)))
+    delta = rng.normal(size=4)
+    torque = np.einsum("njk,k->nj", model_columns, delta)
+    for j in range(3):
+        series = np.column_stack([np.cos(q[:, j]), np.cos(2 * q[:, j]), np.sin(q[:, j]), np.sin(2 * q[:, j])])
+        both = np.column_stack([series, np.ones(400)])
+        fitted = both @ np.linalg.lstsq(both, torque[:, j], rcond=None)[0]
+        expected = np.sqrt((np.sum(fitted**2) - 400 * np.mean(torque[:, j]) ** 2) / 400)
+        assert AngleShare(equations, 4, harmonics=2).rms(delta)[j] == pytest.approx(expected, rel=1e-6)
+        varying = np.sum((torque[:, j] - np.mean(torque[:, j])) ** 2) / 400
+        assert AngleShare(equations, 4, harmonics=2).share(delta)[j] == pytest.approx(expected**2 / varying, rel=1e-6)
+    # a torque of each joint's own angle alone (a counterbalance's): all of it beyond its offset
+    own = np.stack([np.sin(q) + 0.3 * np.cos(2 * q), np.ones_like(q), np.zeros_like(q), np.zeros_like(q)], axis=2)
+    alone = NormalEquations(3, 4 + angle.shape[2])
+    alone.add(np.concatenate([own, angle], axis=2), rng.normal(size=(400, 3)))
+    np.testing.assert_allclose(AngleShare(alone, 4, harmonics=2).share(delta), 1.0, rtol=1e-6)
+    # a constant torque (a true offset) is no torque of the angle: nothing of it is counted
+    constant = NormalEquations(3, 4 + angle.shape[2])
+    constant.add(np.concatenate([np.ones((400, 3, 4)), angle], axis=2), rng.normal(size=(400, 3)))
+    level = abs(float(np.sum(delta)))  # the constant torque's RMS on every joint
+    np.testing.assert_allclose(AngleShare(constant, 4, harmonics=2).rms(delta), 0.0, atol=1e-4 * level)
+
+
+def test_the_cam_is_asked_for_by_its_angle_far_above_the_rule_and_the_plain_arm_by_nothing(fits, judged):
+    """The refused torque's part a torque of each joint's angle gives beyond an offset, against the joint's noise
+    with such a torque and an offset (``angle_refused``): the cam on joint 2 at more than twice the rule's
+    ``NAME_SIGMA`` and more than its refusal against the noise that keeps the offset's part (``refused_noise``);
+    every other joint of both arms below half of the rule."""
+    cam, plain = judged["cam"], judged["plain"]
+    on_cam = angle_refused(cam.fitted[2], cam.fitted[0], cam.fitted[1], cam.noise)
+    on_plain = angle_refused(plain.fitted[2], plain.fitted[0], plain.fitted[1], plain.noise)
+    fitted = cam.fitted
+    refused = refused_noise(fitted[2], fitted[0], fitted[1], np.minimum(fitted[3], cam.noise().noise))
+    assert on_cam[1] > 2 * NAME_SIGMA and on_cam[1] > refused[1]
+    assert np.all(np.delete(on_cam, 1) < 0.5 * NAME_SIGMA) and np.all(on_plain < 0.5 * NAME_SIGMA)
+
+
+def test_no_counterbalance_is_named_on_a_joint_gravity_gives_no_torque(fits, judged):
+    """The cobot's joints 1 and 4 turn about vertical axes: Pinocchio's gravity torque of its robot file at the
+    recorded poses is nil there and not on joints 2-3, and ``gravity_free`` reads that from the model. A
+    counterbalance-like torque of joint 1's angle the data ask for far beyond the rule (the cam fit's finding on link
+    2 put on joint 1, every joint refused and asked 25 noise levels) is named none there, and still named on joint 2."""
+    robot, fit = fits["cam"]
+    (recording,) = judged["cam"].fitted[4]
+    gravity = PinocchioOracle(robot, robot.nominal_dynamic_parameters()).gravity(recording.q[::10])
+    rms = np.sqrt(np.mean(gravity**2, axis=0))
+    nil = rms <= 1e-9 * np.abs(recording.tau).max()
+    assert nil.tolist() == [True, False, False, True]
+    np.testing.assert_array_equal(gravity_free(judged["cam"].noise), nil)
+    (link2,) = [f for f in fit.envelope if f.link == 1 and f.absorbs == "counterbalance"]
+    asked = np.full(robot.n_dof, 25.0)
+    for joint, named in ((0, UNNAMED), (3, UNNAMED), (1, "counterbalance")):
+        finding = replace(link2, effect_joint=joint)
+        (out,), _ = named_where_asked((finding,), (), asked, robot, noise=judged["cam"].noise, angle=asked)
+        assert out.absorbs == named, joint
+        # without the model's gravity (no noise given): the data alone name it on any joint
+        (alone,), _ = named_where_asked((finding,), (), asked, robot, angle=asked)
+        assert alone.absorbs == "counterbalance"
