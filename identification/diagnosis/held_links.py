@@ -60,7 +60,7 @@ def held_links(model, robot, links) -> HeldLinks | None:
         return None
     mapping = np.asarray(model.parameter_map, dtype=float)
     standard = np.zeros(mapping.shape[1])
-    prior = held_standard(robot, links)  # as identify holds them: a semi-definite link lifted
+    prior = held_standard(robot, links, model=model)  # as identify holds them: a semi-definite link free in it lifted
     held = np.zeros(mapping.shape[1], dtype=bool)
     for i in links:
         held[i * LINK_SIZE : i * LINK_SIZE + 10] = True

@@ -178,3 +178,20 @@ def test_identify_then_diagnose_model_keeps_the_cam_counterbalance_identify_took
     assert on_joint_2[0]["parameters"]["k"] == pytest.approx(spring["parameters"]["k"], rel=0.2)
     assert on_joint_2[0]["rmse_after"][1] < 0.2  # the noise's 0.1 N m, from several N m without it
     assert any("kept from identify" in note and spring["label"] in note for note in report["rigid_body_notes"])
+
+
+def test_the_diagnosis_holds_the_links_at_identifys_values(denso, denso_model):
+    """Reference: ``consistent_fit.held_standard`` with the model, as identify's consistent fit holds its links (a
+    semi-definite link lifted where the model has it). Links 5 and 6 held: link 6 is massless in the file
+    (semi-definite, absent from the model), so lifting it or not moves no base parameter."""
+    from identification.calibration.consistent_fit import held_rotors, held_standard
+
+    links = (4, 5)
+    held = held_links(denso_model, denso, links)
+    for model in (denso_model, None):
+        standard = np.zeros_like(denso.nominal_dynamic_parameters())
+        prior = held_standard(denso, links, model=model)
+        standard[list(links), :10] = prior[list(links), :10]
+        rotors = list(held_rotors(denso, links))
+        standard[rotors, 10] = prior[rotors, 10]
+        np.testing.assert_allclose(held.theta_held, denso_model.base_parameters(standard), rtol=1e-12, atol=1e-15)
