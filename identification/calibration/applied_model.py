@@ -30,9 +30,10 @@ A finding is kept only if it lowers the validation RMSE of every joint it names:
 raise them is dropped, listed with its RMSE pair (``AppliedModel.dropped``), and the model is refitted without it; a
 new finding that splits the torque of one the file carries (``split_torque``), or of the counterbalance it carries as
 its torque offset (``offset_split``: the balancer's shape, found beside that offset), is dropped likewise (or replaces
-the carried one, where it alone describes the torque better), and so is a finding of zero size (``zero_size``: a
-torque offset the file's own offset on its joint absorbed), which the file would hold as 0 N m beside the offset that
-carries its torque.
+the carried one, where it alone describes the torque better; or, a shape with which the offset predicts its joint
+better, is written with the offset as one counterbalance finding, ``counterbalance_finding``), and so is a finding of
+zero size (``zero_size``: a torque offset the file's own offset on its joint absorbed), which the file would hold as
+0 N m beside the offset that carries its torque.
 
 The refit keeps the file's friction shape: its Stribeck velocities are held (``TrajectoryOptions.stribeck_held``), not
 searched again beside the findings, as the diagnosis judged them against that shape (and a smooth Coulomb finding and a
@@ -53,6 +54,7 @@ from identification.calibration.absorbed_features import absorbed_mask
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.carried_payload import carrying_payloads
 from identification.calibration.coulomb_width import joint_width, width_value
+from identification.calibration.counterbalance_finding import combined_findings, versioned
 from identification.calibration.envelope_report import with_concrete_route
 from identification.calibration.finding_value import implausibility, unhelpful_findings
 from identification.calibration.findings import (
@@ -149,6 +151,11 @@ def applied_model(calibrated: CalibratedModel, robot, model, report, train, vali
         unhelpful = unhelpful or zero_size(after) or unhelpful_findings(after, model, validation, kt)
         if not unhelpful:
             break
+        if any(d.get("combined") for d in unhelpful):  # an offset and its shape written as one counterbalance
+            (terms, corrections, entries), held = combined_findings((terms, corrections, entries), unhelpful)
+            dropped += held  # a torque-offset finding on its joint: the counterbalance's constant holds it
+            after, fit = joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
+            continue
         dropped += unhelpful
         calibrated = replaced_offsets(calibrated, unhelpful)  # an offset a shape replaced: its column left out
         labels = {d["label"] for d in unhelpful}
@@ -421,6 +428,7 @@ def _document(
     document["identification"].update({k: copy.deepcopy(v) for k, v in calibrated.document["identification"].items()
                                        if k in kept and v is not None})  # fmt: skip
     document["findings"] = with_rest_angles(filled_entries(entries, terms, columns, extra), document.get("drive"))
+    versioned(document)  # a counterbalance written as one finding: a version older readers refuse
     document["corrections"] = corrections
     said = calibrated.document.get("warnings", [])  # identify's: its suggested command names the files
     document["warnings"] = with_concrete_route(dict.fromkeys(fit.warnings), said)  # the refit's own (flags stay)

@@ -83,7 +83,7 @@ CALIBRATED_FORMAT = "psdm-calibrated-model"
 CALIBRATED_VERSION = 2
 LUGRE_VERSION = 3  # the version of a file whose friction is LuGre (drive.lugre)
 WIDTH_VERSION = 4  # the version of a file whose drive.coulomb_velocity is one width per joint (coulomb_width)
-READABLE_VERSIONS = (1, 2, 3, 4)
+READABLE_VERSIONS = (1, 2, 3, 4, 5)  # 5: a counterbalance finding (``counterbalance_finding.COUNTERBALANCE_VERSION``)
 
 
 def standard_parameter_labels(n_dof: int) -> list:

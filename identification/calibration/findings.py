@@ -11,8 +11,9 @@ A finding of the diagnosis becomes one :class:`FindingTerm`, of one of four kind
   asymmetry ``[(1 + tanh(qd_j / v)) / 2]``, rotor inertia ``[qdd_j]`` and load-dependent friction
   ``[|tau_j| tanh(qd_j / v)]``, where ``tau`` is the model's own torque without the load-dependent
   terms (never the measurement, so the model predicts); a spring of any order, a gas spring's lever law, an
-  unnamed effect (a sparse formula of the joint state) and a friction shape a Coulomb-viscous model lacks (a Stribeck
-  peak ``exp(-(qd/vs)^2) tanh(qd/v)``, a smooth Coulomb ``tanh(qd/v)``) are stored by their candidate term's spec
+  unnamed effect (a sparse formula of the joint state), a friction shape a Coulomb-viscous model lacks (a Stribeck
+  peak ``exp(-(qd/vs)^2) tanh(qd/v)``, a smooth Coulomb ``tanh(qd/v)``) and a counterbalance written as one finding
+  (``[1, sin(h q_j), cos(h q_j)]``, ``counterbalance_finding``) are stored by their candidate term's spec
   (``CandidateTerm.spec``) and their columns are that term's own (``term_from_spec``), the ones the diagnosis fitted;
 - ``rigid_body``: a payload (or a last link lighter than the file says): a change of the standard
   parameters, absorbed by the recalibrated rigid body;
@@ -66,10 +67,11 @@ TORQUE_EFFECTS = (
     "unnamed_effect",
     "gas_spring",
     "friction_shape",
+    "counterbalance",
 )
 # torque findings whose columns are their candidate term's (a spec): a spring of any order, a gas spring's lever law,
-# a friction shape
-SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring", "friction_shape")
+# a friction shape, a counterbalance written as one finding (its constant and its bend, ``counterbalance_finding``)
+SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring", "friction_shape", "counterbalance")
 RIGID_BODY_EFFECTS = ("payload", "last_link_mass_excess")
 SIGNAL_EFFECTS = ("delay", "joint_elasticity", "backlash")
 FINDING_KINDS = ("torque", "rigid_body", "signal", "reported")

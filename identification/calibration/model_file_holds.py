@@ -32,8 +32,9 @@ from identification.calibration.findings import FindingTerm
 
 __all__ = ["COUNTERBALANCE_KEYS", "ModelFileHolds", "model_file_holds"]
 
-#: The ``term.effect`` of a model file's findings that are a counterbalance (a spring, a gas spring).
-COUNTERBALANCE_KEYS = ("spring", "gas_spring")
+#: The ``term.effect`` of a model file's findings that are a counterbalance (a spring, a gas spring, a counterbalance
+#: written as one finding: ``counterbalance_finding``).
+COUNTERBALANCE_KEYS = ("spring", "gas_spring", "counterbalance")
 
 
 @dataclass(frozen=True)

@@ -22,11 +22,12 @@ finding N on that joint (one without a constant of its own: a spring's constant 
 
 Then the model keeps one of the two (``split_torque.one_of_the_two``): the offset, unless N alone (the model refitted
 with N and without the offset's column on its joint, ``without_offset``) lowers the joint's validation RMSE against the
-offset alone by ``REPLACE_GAIN``; then N replaces the offset and the offset's column is left out of the model. The one
-dropped is listed with the offset without and beside N, the correlation and the joint's validation RMSE with the offset
-alone, N alone and both: where both predict better than the offset alone, the report says by how much (the
-counterbalance bends over the swing), and the route that fits a counterbalance's law with the rigid body is a
-diagnosis against the robot file, which identify's counterbalance reason names.
+offset alone by ``REPLACE_GAIN``; then N replaces the offset and the offset's column is left out of the model. Where
+the offset stays and N is a shape of the angle (a ripple) with which the offset predicts the joint better than alone on
+every held-out recording (the counterbalance bends over the swing), N is not dropped: the two are written as one
+finding, ``counterbalance[jJ]``, its constant and its bend fitted together in the offset's place
+(``counterbalance_finding``). Otherwise the one dropped is listed with the offset without and beside N, the
+correlation and the joint's validation RMSE with the offset alone, N alone and both.
 """
 
 from __future__ import annotations
@@ -36,8 +37,10 @@ import copy
 import numpy as np
 
 from identification.calibration.calibrated_model import CalibratedModel
+from identification.calibration.counterbalance_finding import combined_verdict
 from identification.calibration.counterbalance_record import counterbalance_offsets
 from identification.calibration.finding_value import finding_torques, validation_rmse
+from identification.calibration.findings import FindingTerm
 from identification.calibration.split_torque import SPLIT_CORRELATION, coefficient_shift, one_of_the_two, split_reason
 from identification.calibration.trajectory_data import drive_offset
 
@@ -100,8 +103,10 @@ def offset_splits(before: CalibratedModel, after: CalibratedModel, refit, alone,
 
     ``refit(labels)`` -> (CalibratedModel, payload): the joint refit without the findings labelled ``labels``;
     ``alone(joint)`` -> (CalibratedModel, payload): the joint refit with every finding and without the offset on the
-    0-based ``joint``. ``recordings`` = (training, validation) raw, ``kt`` their torque constants. At most one split
-    per call (the caller refits and asks again)."""
+    0-based ``joint``. A shape the offset keeps is not dropped where the two together bend
+    (``counterbalance_finding.combined_verdict``): the entry then names the one counterbalance (``combined``) that
+    ``applied_model`` writes in their place. ``recordings`` = (training, validation) raw, ``kt`` their torque
+    constants. At most one split per call (the caller refits and asks again)."""
     (train, validation), (kt_train, kt_validation) = recordings, kt
     joints = {j for j in counterbalance_offsets(before.document) if offset_entry(after, j)["coefficients"][0] != 0.0}
     carried = {e["label"] for e in before.document.get("findings") or []}
@@ -124,10 +129,12 @@ def offset_splits(before: CalibratedModel, after: CalibratedModel, refit, alone,
                  "sigmas": coefficient_shift(carried_alone, beside)[0],
                  "carried_alone": carried_alone["parameters"], "carried_beside": beside["parameters"]}  # fmt: skip
         models = (without_new, alone(joint)[0], after)  # the offset alone, the new finding alone, both
-        rmse = [np.mean([validation_rmse(m, model, r, kt_validation)[0] for r in validation], axis=0)[joint]
-                for m in models]  # fmt: skip
-        verdict = one_of_the_two(split, [float(x) for x in rmse], joint, reason, {**entries, beside["label"]: beside})
-        if verdict["label"] == label:
+        each = [[validation_rmse(m, model, r, kt_validation)[0][joint] for r in validation] for m in models]
+        rmse = [float(np.mean(x)) for x in each]
+        verdict = one_of_the_two(split, rmse, joint, reason, {**entries, beside["label"]: beside})
+        term = FindingTerm.from_dict(entries[label]["term"])
+        joined = combined_verdict(verdict, term, each[0], each[2])  # the offset and its shape as one counterbalance
+        if joined is None and verdict["label"] == label:
             verdict["reason"] += f"; {HOLDS}"
-        return [verdict]
+        return [joined or verdict]
     return []

@@ -45,7 +45,7 @@ from identification.metrics import rmse
 __all__ = ["KEPT_NOTE", "CarriedColumns", "carried_candidates", "carried_labels"]
 
 #: Candidate families that would take a carried counterbalance's torque on its joint (``model_file_holds``'s too).
-COUNTERBALANCE_KEYS = ("spring", "gas_spring")
+COUNTERBALANCE_KEYS = ("spring", "gas_spring", "counterbalance")
 #: The shape note of a carried term's step (and so of its finding).
 KEPT_NOTE = (
     "kept from the model file (identify's counterbalance, or a finding an earlier 'diagnose --apply' wrote): a column "

@@ -10,7 +10,8 @@ ripple's beside them. On the unseen heavy arm the data give no spring to carry (
 through the training swing cannot predict, the truth's own line neither): the model holds the balancer as an offset,
 and ``--apply`` does not write it a second time. A shape of the balancer found beside that offset (a second harmonic
 of the angle, ``offset_split``) trades its constant with the offset by the same rule, checked on synthetic truth: a cam
-at its flattest with an offset's column, and with a ripple's beside it.
+at its flattest with an offset's column, and with a ripple's beside it; where the two together predict the held-out
+swing better, they are written as one counterbalance finding in the offset's place (``counterbalance_finding``).
 """
 
 from __future__ import annotations
@@ -265,7 +266,10 @@ def test_a_balancer_a_spring_cannot_extrapolate_stays_the_offset_and_diagnose_ap
     training data give is a counterbalance the held-out data accept. ``diagnose --apply`` on that model names the
     balancer again (a counterbalance on joint 2) and does not write it beside the offset that holds its torque: one
     counterbalance, not two sharing it (``split_torque``'s spring-and-ripple split is the same rule, checked above on
-    the virtual Denso where the model carries a spring), and no joint worse."""
+    the virtual Denso where the model carries a spring): the balancer's shape it finds beside the offset trades its
+    constant with the offset, so the two are written as one finding, ``counterbalance[j2]``, in the offset's place
+    (``counterbalance_finding``), whose torque is the cam's closer than the offset's on both recordings; no joint
+    worse, joint 2 better, and the written file validates as it was judged."""
     import unseen_cases
 
     built = []
@@ -295,11 +299,25 @@ def test_a_balancer_a_spring_cannot_extrapolate_stays_the_offset_and_diagnose_ap
     assert found and all(f["effect"] in ("counterbalance", "spring", "torque_ripple", "gas_spring") for f in found)
     for shape in (f for f in found if f["label"].startswith("torque_ripple")):  # the balancer's shape, not a ripple
         assert shape["effect"] == "counterbalance" and "the shape of joint 2's counterbalance" in shape["explanation"]
+    written = json.loads(applied.read_text())
+    (one,) = [f for f in written["findings"] if f["kind"] == "torque" and f["term"]["joint"] == 2]
+    assert one["label"] == "counterbalance[j2]" and one["effect"] == "counterbalance" and written["version"] == 5
+    assert dict(zip(written["drive"]["names"], written["drive"]["values"]))["offset2"] == 0.0  # in the offset's place
+    shape = one["combines"]["shape"]
+    assert one["combines"]["offset"] == "offset2" and shape in {f["label"] for f in found}
     dropped = {d["label"]: d for d in report["recalibration"]["dropped_findings"]}
-    for finding in found:  # the model's offset holds its torque: not written a second time
-        assert "the model's own torque offset on its joint holds its torque" in dropped[finding["label"]]["reason"]
-    if applied.exists():
-        written = json.loads(applied.read_text())
-        assert not [f for f in written["findings"] if f["kind"] == "torque" and f["term"]["joint"] == 2]
+    for finding in (f for f in found if f["label"] != shape):  # the counterbalance holds their torque: not twice
+        assert "holds its torque" in dropped[finding["label"]]["reason"]
+    # its constant and its bend are the cam's on the training swing and on the held-out one, the offset's are not
+    c, a, b = one["coefficients"]
+    for recording in (*case.train, case.validate):
+        q = load_recording(recording).q
+        cam = np.asarray([built[0].torque(0.0, row, 0.0 * row, None)[1] for row in q])
+        error = [
+            np.sqrt(np.mean((cam - x) ** 2)) for x in (c + a * np.sin(2 * q[:, 1]) + b * np.cos(2 * q[:, 1]), offset)
+        ]
+        assert error[0] < 0.6 * error[1]
     before, after = (np.array(report["recalibration"][key]["validation_rmse"]) for key in ("before", "after"))
-    assert np.all(after <= before * 1.01)
+    assert np.all(after <= before * 1.01) and after[1] < 0.9 * before[1]
+    code, validated = _cli(["validate", applied, case.validate, "--json"])  # the file predicts as it was judged
+    assert code == 0 and validated["recordings"][0]["rmse"] == pytest.approx(list(after), rel=1e-6)

@@ -7,6 +7,8 @@ feature libraries of pysindy; one module per family of effects:
   bounds ``MAX_*`` of fitted parameters are ``identification.physical_bounds``' (shared with identify), named here too;
 - ``torque``: spring, torque offset, torque ripple (torques of position);
 - ``gas_spring``: the gas-spring lever law, a spring shape offered beside the polynomial ones;
+- ``counterbalance``: a counterbalance as one term (a constant and a low harmonic of the angle), not offered: the shape
+  a model file writes for the balancer it held as a torque offset (``calibration.counterbalance_finding``);
 - ``neutral_angle``: where a counterbalance's odd law is centred (the spring's odd shape, fitted by variable
   projection; ``counterbalance_law`` in ``torque`` chooses its order for identify);
 - ``friction``: Coulomb asymmetry, load-dependent friction, friction drift, the friction shapes a Coulomb-viscous

@@ -4,6 +4,7 @@ the data cannot tell apart."""
 from __future__ import annotations
 
 from identification.diagnosis.candidates.base import CandidateLibrary
+from identification.diagnosis.candidates.counterbalance import CounterbalanceTerm
 from identification.diagnosis.candidates.deflection import BacklashTerm, JointElasticityTerm
 from identification.diagnosis.candidates.delay import DelayTerm
 from identification.diagnosis.candidates.friction import (
@@ -32,9 +33,10 @@ ALL_TERMS = (
     BacklashTerm,
     JointElasticityTerm,
 )
-# every term a spec may name: the library's, the shapes a term offers as variants (a spring's gas-spring law) and
-# the friction shapes ``friction_rival`` offers
-TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm, FrictionShapeTerm, PreslidingTerm)}
+# every term a spec may name: the library's, the shapes a term offers as variants (a spring's gas-spring law), the
+# friction shapes ``friction_rival`` offers and the counterbalance a model file writes as one finding
+TERMS_BY_KEY = {cls.key: cls for cls in ALL_TERMS + (GasSpringTerm, FrictionShapeTerm, PreslidingTerm,
+                                                     CounterbalanceTerm)}  # fmt: skip
 
 
 def default_library() -> CandidateLibrary:
