@@ -30,9 +30,9 @@ lacks there, which ``clear_ask`` names where it names no counterbalance.
 
 That noise keeps a counterbalance's part an offset gives as well, so ``clear_ask`` also asks how much of the torque
 the bounds refuse is a torque of the joint's own angle beyond an offset (``AngleShare``, from the same pass's normal
-equations), against the noise of the fit with the series and an offset (``JointNoise.own``). The pass also reads the
-gravity torque the robot file's links give each joint at the recorded poses (``JointNoise.gravity``): a joint with
-none carries no counterbalance.
+equations), against the noise of the fit with the series and an offset (``JointNoise.own``). The pass also reads
+which joints gravity can give a torque at the recorded poses (``JointNoise.carries``,
+``gravity_load.joints_carrying_gravity``): a joint gravity gives none carries no counterbalance.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from identification.calibration.configuration_check import accumulate
-from identification.calibration.offset_reading import STRIDE
+from identification.calibration.gravity_load import joints_carrying_gravity, recorded_poses
 from identification.calibration.weighted_solve import weighted_least_squares
 
 __all__ = ["HARMONICS", "AngleColumns", "AngleShare", "JointNoise", "effect_free_noise"]
@@ -101,17 +101,16 @@ class JointNoise(NamedTuple):
     (well above ``offset``: the joint's data hold an offset the model lacks; an offset elsewhere bends the links
     every joint's rows share, and the offsets on the other joints take that). ``own``: theirs with the offset and
     the series of the angle on every joint, the noise neither a torque of the angle nor an offset inflates;
-    ``angle``: the ``AngleShare`` of a torque the model's columns give; ``gravity``: the RMS gravity torque of the
-    robot file's links on each joint over the recorded poses and ``scale`` the RMS of its recorded torque (a joint
-    gravity gives no torque carries no counterbalance; inf and 1 without the file's links)."""
+    ``angle``: the ``AngleShare`` of a torque the model's columns give; ``carries``: per joint, whether gravity can
+    give it a torque at the recorded poses (``gravity_load.joints_carrying_gravity``: a joint it gives none carries no
+    counterbalance; None: not known)."""
 
     noise: np.ndarray
     offset: np.ndarray
     others: np.ndarray
     own: np.ndarray | None = None
     angle: AngleShare | None = None
-    gravity: np.ndarray | None = None
-    scale: np.ndarray | None = None
+    carries: np.ndarray | None = None
 
 
 class AngleColumns:
@@ -171,16 +170,5 @@ def _noise(robot, model, prepared, extras, setup, n_columns: int, free, payload)
     noise = np.sqrt(np.clip(plain**2 - constant**2 + both**2, both**2, plain**2))
     others = np.asarray(others, dtype=float).reshape(constant.shape)
     angle = AngleShare(equations, n_columns) if wrapped else None
-    scale = np.sqrt(equations.energy / np.maximum(equations.count, 1))
-    return JointNoise(noise, constant, others, both, angle, _file_gravity(robot, model, prepared), scale)
-
-
-def _file_gravity(robot, model, prepared) -> np.ndarray:
-    """Per joint, the RMS gravity torque [N m] of the robot file's links over the recorded poses of ``prepared``
-    (every ``STRIDE``-th sample; inf without the file's links: not known)."""
-    if robot.links is None or not prepared:
-        return np.full(robot.n_dof, np.inf)
-    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in prepared])
-    zero = np.zeros_like(q)
-    gravity = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
-    return np.sqrt(np.mean(gravity**2, axis=0))
+    carries = joints_carrying_gravity(robot, recorded_poses(prepared)) if prepared else None
+    return JointNoise(noise, constant, others, both, angle, carries)

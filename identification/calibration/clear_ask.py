@@ -40,9 +40,10 @@ effect nor an offset the model lacks inflates it), where that part is most of th
 nothing, and the links an offset or a robot file bent refuse a torque of several angles, of which a joint's own
 angle gives a part and never most of it.
 
-A counterbalance or gravity spring balances a gravity torque: on a joint gravity gives no torque over the recorded
-poses (an upright arm's base axis; the robot file's gravity torque there below ``GRAVITY_NIL`` of the joint's
-recorded torque, ``gravity_free``) none is named, whatever the data ask; the finding then names no effect.
+A counterbalance or gravity spring balances a gravity torque: on a joint gravity can give no torque over the recorded
+poses (an upright arm's base axis, ``gravity_free``: ``gravity_load.joints_carrying_gravity``, the arm's kinematics
+and not the robot file's masses, so a joint whose distal links the file states massless still carries a tool) none
+is named, whatever the data ask; the finding then names no effect.
 
 A counterbalance the links take inside their envelopes is not refused: beside a tool that pulls every link outward,
 a shoulder's balancer goes into a proximal link's first moment, the bounds refuse its joint less than the noise, and
@@ -71,7 +72,6 @@ from identification.data.excitation_check import joint_label
 
 __all__ = [
     "ANGLE_SHARE",
-    "GRAVITY_NIL",
     "NAMED_EFFECTS",
     "NAME_SIGMA",
     "NAMING_RULE",
@@ -84,9 +84,6 @@ __all__ = [
 
 #: The torque the bounds refuse on an effect's joint, in noise levels of the joint, from which the effect is named.
 NAME_SIGMA = 2.0
-#: A joint whose gravity torque over the recorded poses is below this share of its recorded torque carries none (an
-#: upright arm's base axis: the rounding of a gravity regressor row that is zero); no counterbalance can act there.
-GRAVITY_NIL = 1e-6
 #: The share of the refused torque beyond its offset that a torque of a joint's own angle must give for it to ask for
 #: a counterbalance there: most of it (a counterbalance's torque is one of its angle alone; links an offset or a robot
 #: file bent refuse a torque of several angles, of which the joint's own gives a part).
@@ -142,26 +139,28 @@ def angle_refused(equations, x_fit, x_ols, noise) -> np.ndarray:
 
 
 def gravity_free(noise) -> np.ndarray:
-    """Per joint, whether gravity gives it no torque over the recorded poses (``JointNoise.gravity`` below
-    ``GRAVITY_NIL`` of its recorded torque ``scale``): no counterbalance can act there. ``noise``: None (nothing
-    known: none) or a callable giving the ``angle_noise.JointNoise``."""
+    """Per joint, whether gravity can give it no torque over the recorded poses (``JointNoise.carries``,
+    ``gravity_load.joints_carrying_gravity``): no counterbalance can act there. ``noise``: None (nothing known: none)
+    or a callable giving the ``angle_noise.JointNoise``."""
     joint_noise = None if noise is None else noise()
-    if joint_noise is None or joint_noise.gravity is None:
+    if joint_noise is None or joint_noise.carries is None:
         return np.zeros(0, dtype=bool)
-    return np.asarray(joint_noise.gravity) <= GRAVITY_NIL * np.asarray(joint_noise.scale)
+    return ~np.asarray(joint_noise.carries, dtype=bool)
 
 
-def _asked(absorbs: str, joint: int, refused, departed, angle=None, free=()) -> bool:
+def _asked(absorbs: str, joint: int, refused, departed, angle=None, free=tuple) -> bool:
     """Whether the data clearly ask for ``absorbs`` acting on ``joint`` (0-based): an effect this rule does not judge
     is asked for, one of ``NAMED_EFFECTS`` where the torque refused on its joint (a payload: the most refused;
     ``refused()``: ``refused_noise``) is at least ``NAME_SIGMA`` noise levels, a counterbalance also where the data's
     gravity torque of its joint departs alone by as much (``departed()``: ``departure_ask.departed_noise``) or the
     refused torque's part a torque of its angle gives beyond an offset is (``angle()``: ``angle_refused``), and never
-    on a joint gravity gives no torque (``free``: ``gravity_free``)."""
+    on a joint gravity gives no torque (``free()``: ``gravity_free``, asked only for a counterbalance: it asks for the
+    noise's pass over the recordings)."""
     if absorbs not in NAMED_EFFECTS:
         return True
     if absorbs == "payload":
         return float(np.max(refused())) >= NAME_SIGMA
+    free = free()
     if joint < len(free) and free[joint]:
         return False
     by_angle = angle is not None and float(angle()[joint]) >= NAME_SIGMA
@@ -185,7 +184,7 @@ def named_where_asked(findings, held, refused, robot, currents: bool = False, no
     angle = None if angle is None else cache(angle) if callable(angle) else partial(np.asarray, angle)
     departed = np.zeros(robot.n_dof) if departed is None else departed
     departed = cache(departed) if callable(departed) else partial(np.asarray, departed)
-    free = gravity_free(noise)
+    free = cache(partial(gravity_free, noise))  # asked only where a counterbalance is judged
     prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
     distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())  # a payload's own links: it sits beyond them
     out = []

@@ -8,7 +8,8 @@ those bounds and names the likely cause:
 - a link of the arm (not one of the last two that carry mass) pushed to its envelope or a mass bound: a
   **counterbalance or spring** on the joint whose torque the bound refuses most (a gravity-like torque the
   link's first moment was absorbing, e.g. a shoulder's balancer), among the joints the link's weight gives a torque
-  (``gravity_carriers``: an upright arm's base axis carries none, so it holds no balancer);
+  (``gravity_load.joints_carrying_gravity`` up to the link: an upright arm's base axis carries none, so it holds no
+  balancer);
 - one of the last two links pushed outward (envelope, upper mass bound): a **payload** or tool at the flange;
 - a drive inertia at a bound: a **drive inertia** unlike the file's (below it: a torque measured on the link
   side of the gearbox; above it: extra inertia such as a coupled load); one joint's alone pressed down, a **spring or
@@ -43,6 +44,7 @@ import numpy as np
 
 from identification.calibration.absorbed_effect import ABSORBED_EFFECTS, absorbed_phrase, effect_phrase, owned_columns
 from identification.calibration.envelope import ellipsoid_fill, envelope_fill
+from identification.calibration.gravity_load import joints_carrying_gravity
 from identification.data.excitation_check import joint_label
 
 __all__ = [
@@ -56,7 +58,6 @@ __all__ = [
     "MIN_REFUSED_SIGMA",
     "EnvelopeFinding",
     "envelope_findings",
-    "gravity_carriers",
     "named_by_departure",
     "named_from_evidence",
     "where",
@@ -243,7 +244,7 @@ def envelope_findings(robot, bounds, standard, equations, x_fit, x_ols, sigma, c
         if absorbs == "payload":
             joint = int(np.argmax(ratio))
         else:  # a counterbalance acts where the link's weight gives a torque: not on a vertical base axis
-            carriers = np.flatnonzero(gravity_carriers(robot, i)[: i + 1])
+            carriers = np.flatnonzero(joints_carrying_gravity(robot)[: i + 1])
             near = carriers if carriers.size else np.arange(i + 1)
             joint = int(near[np.argmax(ratio[near])])
         return joint, bool(push >= floor[joint] or ratio[joint] >= MIN_REFUSED_SIGMA)
@@ -280,24 +281,6 @@ def _reach(envelope, link, prior) -> dict:
     return {"reach": float(along[0]), "prior_reach": float(along[1]), "reach_limit": reach.limit}
 
 
-def gravity_carriers(robot, link: int, poses: int = 16) -> np.ndarray:
-    """Per joint, whether the weight of ``link`` (0-based) gives it a torque at some pose: a first moment of the link
-    can only take a gravity-like torque (a counterbalance's) on such a joint. A joint whose axis stays parallel to
-    gravity (an upright arm's base axis) carries none, whatever the link's mass; Pinocchio's gravity torque of a unit
-    mass with an off-axis centre on the link alone, at seeded poses within the limits, decides."""
-    from psdm_casadi.oracle import PinocchioOracle
-
-    n = robot.n_dof
-    parameters = np.zeros((n, 11))
-    parameters[link, :4] = (1.0, 0.3, 0.2, 0.1)  # 1 kg, its centre 0.37 m off the link frame in every direction
-    parameters[link, [4, 6, 9]] = 1.0
-    low = np.maximum(np.asarray(robot.q_min, dtype=float), -np.pi)
-    high = np.minimum(np.asarray(robot.q_max, dtype=float), np.pi)
-    q = np.random.default_rng(0).uniform(low, high, (poses, n))
-    torque = np.abs(PinocchioOracle(robot, parameters).gravity(q)).max(axis=0)
-    return torque > 1e-9 * max(float(torque.max()), 1e-300)
-
-
 def named_from_evidence(findings, held, model, robot, currents: bool = False) -> tuple:
     """``findings`` (``envelope_findings``) with each pushed link named as the parameters the fit holds back name
     theirs (``held_back``, ``absorbed_effect.likely_effects``): a link with a parameter among ``held`` takes the effects
@@ -326,8 +309,9 @@ def named_by_departure(findings, departures, robot, currents: bool = False) -> t
     with mass (a tool moves those either way), named a counterbalance on the joint whose fitted gravity torque leaves
     the robot file's alone (``departures``: ``{0-based joint: gravity_departure.GravityDeparture}``, or a callable
     giving them, called only where such a link is pushed), among the joints its weight carries up to its own
-    (``gravity_carriers``): the link's first moment holds that joint's balancer. The payload stays the alternative,
-    the departure is the evidence; the largest departure is taken where several joints depart."""
+    (``gravity_load.joints_carrying_gravity``): the link's first moment holds that joint's balancer. The payload
+    stays the alternative, the departure is the evidence; the largest departure is taken where several joints
+    depart."""
     prior = robot.nominal_dynamic_parameters() if robot.links is not None else np.zeros((0, 1))
     distal = set(np.flatnonzero(prior[:, 0] > 0)[-2:].tolist())
     candidates = {k for k, f in enumerate(findings) if f.pressed and f.absorbs == "payload" and outward(f)
@@ -337,7 +321,7 @@ def named_by_departure(findings, departures, robot, currents: bool = False) -> t
     found = departures() if callable(departures) else departures
     out = []
     for k, finding in enumerate(findings):
-        carried = gravity_carriers(robot, finding.link) if k in candidates and found else ()
+        carried = joints_carrying_gravity(robot) if k in candidates and found else ()
         joints = [j for j in found if k in candidates and j <= finding.link and carried[j]]
         if not joints:
             out.append(finding)

@@ -30,8 +30,8 @@ moment, link 3's own first moment, which joint 3 also feels, left as it was). Th
 alone the fit puts beside the file's gravity; either part alone is a fraction of it. A sensor's zero error is a few
 percent of the joint's torque (``offset_reading.SENSOR_SHARE``), of either sign, and does not reach the share alone.
 
-Only a joint gravity gives a torque can depart (``joints_carrying_gravity``, from the model's gravity regressor at the
-recorded poses): an upright arm's base axis carries none, and no fitted parameter moves its gravity torque.
+Only a joint gravity gives a torque can depart (``gravity_load.joints_carrying_gravity`` at the recorded poses): an
+upright arm's base axis carries none, and no fitted parameter moves its gravity torque.
 """
 
 from __future__ import annotations
@@ -41,26 +41,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.absorbed_effect import LOCAL
-from identification.calibration.offset_reading import STRIDE
+from identification.calibration.gravity_load import joints_carrying_gravity, recorded_poses
 from identification.calibration.trajectory_data import drive_offset
 
-__all__ = [
-    "CARRIES",
-    "FILE_GRAVITY_ERROR",
-    "GravityDeparture",
-    "gravity_departures",
-    "joints_carrying_gravity",
-    "theta_departures",
-]
+__all__ = ["FILE_GRAVITY_ERROR", "GravityDeparture", "gravity_departures", "theta_departures"]
 
 #: The share of a joint's gravity torque a robot file's CAD errors (masses and centres of mass 10-20 % off, spread
 #: over the links the joint carries) may move: a fitted gravity torque departing from the file's by more is no CAD
 #: error. The one threshold of that idea: identify's departure here, the diagnosis's free recalibration
 #: (``diagnosis.angle_law_choice``, ``diagnosis.hidden_balancer``).
 FILE_GRAVITY_ERROR = 0.25
-
-#: A joint's gravity-regressor norm below this share of the largest joint's is rounding: the joint carries no gravity.
-CARRIES = 1e-9
 
 
 @dataclass(frozen=True)
@@ -118,12 +108,12 @@ def theta_departures(robot, model, recordings, theta, offsets=None) -> dict:
     link (``held_back.causes``) passes none: it asks what the link holds, and an offset is not in it."""
     if robot.links is None or not recordings:
         return {}
-    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in recordings])
+    q = recorded_poses(recordings)
     zero = np.zeros_like(q)
     g_file = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
     difference = model.inverse_dynamics(q, zero, zero, np.asarray(theta, dtype=float)) - g_file
     offsets = np.zeros(robot.n_dof) if offsets is None else np.asarray(offsets, dtype=float)
-    carries = joints_carrying_gravity(model, q)
+    carries = joints_carrying_gravity(robot, q)
     bodies = np.abs(model.parameter_map).reshape(model.n_base, robot.n_dof, 11)[:, :, :4].max(axis=(0, 2))
     last = int(np.flatnonzero(bodies > 0)[-1])  # the last link with mass carries a body at the flange
     flange = np.stack(
@@ -138,15 +128,6 @@ def theta_departures(robot, model, recordings, theta, offsets=None) -> dict:
         if all(read):  # named either way the others are read: the negative mass does not decide it
             out[j] = read[0]
     return out
-
-
-def joints_carrying_gravity(model, q) -> np.ndarray:
-    """Per joint, whether gravity gives it a torque at the poses ``q`` (samples, joints): its row of the model's
-    gravity regressor is not zero there (beyond ``CARRIES`` of the largest joint's, a regressor's rounding). A joint
-    whose axis stays parallel to gravity (an upright arm's base axis) carries none, whatever the links' masses: a
-    departure of its gravity torque, or a balancer on it, cannot be."""
-    rows = np.sqrt(np.sum(model.gravity_regressor(q) ** 2, axis=(0, 2)))
-    return rows > CARRIES * max(float(rows.max(initial=0.0)), 1e-300)
 
 
 def _departure(j: int, left, g_file, offset: float) -> GravityDeparture | None:

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from identification.calibration.gravity_load import recorded_poses
 from identification.calibration.trajectory_data import drive_offset
 
 __all__ = [
@@ -46,8 +47,6 @@ SENSOR_SHARE = 0.1
 GRAVITY_SHARE = 0.2
 #: A joint gravity loads: the robot file's gravity torque amplitude at least this share of its recorded peak torque.
 LOADED_SHARE = 0.1
-#: Every how many recorded samples the robot file's gravity torque is evaluated.
-STRIDE = 5
 
 
 @dataclass(frozen=True)
@@ -116,7 +115,7 @@ def fit_offsets(robot, model, recordings, fit, joints, kt=None) -> dict:
     if not found or not read or robot.links is None:
         return {}
     tau = np.concatenate([np.asarray(r.tau if r.tau is not None else r.joint_torque(kt), dtype=float) for r in read])
-    q = np.concatenate([np.asarray(r.q, dtype=float)[::STRIDE] for r in read])  # gravity is smooth in the pose
+    q = recorded_poses(read)  # every STRIDE-th: gravity is smooth in the pose
     zero = np.zeros_like(q)
     gravity = model.inverse_dynamics(q, zero, zero, model.base_parameters(robot.nominal_dynamic_parameters()))
     out = {}

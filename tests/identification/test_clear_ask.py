@@ -6,8 +6,9 @@ without a load. Its rotors, which the base parameters merge into the links, push
 their envelopes, link 2 to its reach; the arm has no spring, no counterbalance and no payload. The same arm with a cam
 counterbalance on joint 2 (15 N m, a third of that joint's gravity torque) must still have it named there, and on no
 other joint, and judged there by the refused torque's part a torque of its angle gives beyond an offset, far above
-the rule; joints 1 and 4 are vertical (gravity gives them no torque: Pinocchio's gravity torque at the recorded poses),
-and no counterbalance is named there whatever the data ask.
+the rule; joint 1 is vertical (gravity gives it no torque: Pinocchio's gravity torque of the true arm at the recorded
+poses), and no counterbalance is named there whatever the data ask; joint 4 is not, though the file's masses give it
+none.
 """
 
 from dataclasses import replace
@@ -225,23 +226,71 @@ def test_the_cam_is_asked_for_by_its_angle_far_above_the_rule_and_the_plain_arm_
 
 
 def test_no_counterbalance_is_named_on_a_joint_gravity_gives_no_torque(fits, judged):
-    """The cobot's joints 1 and 4 turn about vertical axes: Pinocchio's gravity torque of its robot file at the
-    recorded poses is nil there and not on joints 2-3, and ``gravity_free`` reads that from the model. A
-    counterbalance-like torque of joint 1's angle the data ask for far beyond the rule (the cam fit's finding on link
-    2 put on joint 1, every joint refused and asked 25 noise levels) is named none there, and still named on joint 2."""
+    """The cobot's joint 1 turns about a vertical axis: the true arm's gravity torque (Pinocchio) at the recorded
+    poses is nil there and not on joints 2-4, and ``gravity_free`` reads that from the recorded poses. Joint 4 is
+    horizontal: the user's file puts link 4's centre of mass on its axis, so the file's own gravity torque there is nil
+    too, but the true link (and any tool) loads it; a reading of the file's masses would call it gravity-free. A
+    counterbalance-like torque the data ask for far beyond the rule (the cam fit's finding on link 2 put on joint 1,
+    every joint refused and asked 25 noise levels) is named none on joint 1, and named on joints 2 and 4."""
     robot, fit = fits["cam"]
     (recording,) = judged["cam"].fitted[4]
-    gravity = PinocchioOracle(robot, robot.nominal_dynamic_parameters()).gravity(recording.q[::10])
-    rms = np.sqrt(np.mean(gravity**2, axis=0))
-    nil = rms <= 1e-9 * np.abs(recording.tau).max()
-    assert nil.tolist() == [True, False, False, True]
+    poses = recording.q[::10]
+    gravity = PinocchioOracle(cobot().truth).gravity(poses)
+    nil = np.sqrt(np.mean(gravity**2, axis=0)) <= 1e-9 * np.abs(recording.tau).max()
+    assert nil.tolist() == [True, False, False, False]
+    file_gravity = PinocchioOracle(robot, robot.nominal_dynamic_parameters()).gravity(poses)
+    assert np.abs(file_gravity[:, 3]).max() < 1e-9  # the file's masses alone: joint 4 nil as well
     np.testing.assert_array_equal(gravity_free(judged["cam"].noise), nil)
     (link2,) = [f for f in fit.envelope if f.link == 1 and f.absorbs == "counterbalance"]
     asked = np.full(robot.n_dof, 25.0)
-    for joint, named in ((0, UNNAMED), (3, UNNAMED), (1, "counterbalance")):
+    for joint, named in ((0, UNNAMED), (3, "counterbalance"), (1, "counterbalance")):
         finding = replace(link2, effect_joint=joint)
         (out,), _ = named_where_asked((finding,), (), asked, robot, noise=judged["cam"].noise, angle=asked)
         assert out.absorbs == named, joint
-        # without the model's gravity (no noise given): the data alone name it on any joint
+        # without the recorded poses (no noise given): the data alone name it on any joint
         (alone,), _ = named_where_asked((finding,), (), asked, robot, angle=asked)
         assert alone.absorbs == "counterbalance"
+
+
+def test_a_joint_the_file_states_massless_beyond_still_carries_a_tools_gravity(fits, denso, denso_model):
+    """The virtual Denso's file states link 6 massless: its own gravity torque on joint 6 is nil at every pose, and
+    the model derived from it drops link 6's parameters (its gravity regressor row is zero too). A recording that
+    carries a tool (1 kg, 5 cm off joint 6's axis: Pinocchio's gravity torque of the file with the tool, the reference)
+    loads joint 6 all the same, so the veto reads the arm's kinematics (``gravity_free``): a counterbalance the data ask
+    for on joint 6 is named."""
+    from identification.calibration.angle_noise import JointNoise
+    from identification.calibration.gravity_load import joints_carrying_gravity, recorded_poses
+
+    t = np.linspace(0.0, 8.0, 801)[:, None]
+    q = 0.6 * np.sin(2 * np.pi * t * np.array([0.11, 0.13, 0.17, 0.19, 0.23, 0.29]) + np.arange(6))
+    poses = recorded_poses([SimpleNamespace(q=q)])
+    with_tool = denso.nominal_dynamic_parameters().copy()
+    with_tool[5, :4] = (1.0, 0.05, 0.0, 0.02)  # a 1 kg tool, its centre of mass 5 cm off joint 6's axis
+    file_only = np.abs(PinocchioOracle(denso, denso.nominal_dynamic_parameters()).gravity(poses)).max(axis=0)
+    tool = np.abs(PinocchioOracle(denso, with_tool).gravity(poses)).max(axis=0)
+    assert file_only[5] == 0.0 and tool[5] > 0.01 and (file_only[:5] > 0.1).all()
+    assert not denso_model.gravity_regressor(poses[:50])[:, 5].any()  # the model's reading: none either
+    carries = joints_carrying_gravity(denso, poses)
+    assert carries.tolist() == (tool > 1e-9 * tool.max()).tolist() == [True] * 6
+
+    ones = np.ones(denso.n_dof)
+    noise = JointNoise(ones, ones, ones, ones, None, carries)
+    np.testing.assert_array_equal(gravity_free(lambda: noise), np.zeros(6, dtype=bool))
+    _, fit = fits["cam"]
+    (link2,) = [f for f in fit.envelope if f.link == 1 and f.absorbs == "counterbalance"]
+    asked = np.full(denso.n_dof, 25.0)
+    (out,), _ = named_where_asked((replace(link2, effect_joint=5),), (), asked, denso, noise=lambda: noise, angle=asked)
+    assert out.absorbs == "counterbalance"
+
+
+def test_the_noise_pass_is_made_only_where_a_counterbalance_is_judged(fits):
+    """The veto's reading (``gravity_free``) comes with the noise's pass over the recordings: a fit whose findings
+    judge no counterbalance (none, a drive inertia, a payload) does not make it."""
+    robot, fit = fits["cam"]
+    (link2,) = [f for f in fit.envelope if f.link == 1 and f.absorbs == "counterbalance"]
+    never = lambda: pytest.fail("the noise was computed")  # noqa: E731
+    assert named_where_asked((), (), never, robot, noise=never) == ((), ())
+    asked = np.full(robot.n_dof, 25.0)
+    for absorbs in ("drive_inertia", "payload"):
+        (out,), _ = named_where_asked((replace(link2, absorbs=absorbs),), (), asked, robot, noise=never, angle=never)
+        assert out.absorbs == absorbs

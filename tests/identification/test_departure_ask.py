@@ -67,7 +67,7 @@ def balanced(arm):
 
 def test_the_departure_is_the_data_gravity_torque_of_the_joint_alone_in_noise_levels(arm, balanced):
     (robot, model), (recordings, change, theta_ols) = arm, balanced
-    q = recordings[0].q[::5]  # the departures' poses (``offset_reading.STRIDE``)
+    q = recordings[0].q[::5]  # the departures' poses (``gravity_load.STRIDE``)
     truth = np.sqrt(np.mean(_gravity(robot, q, change)[:, 1] ** 2)) / SIGMA[1]
     departed = departed_noise(robot, model, recordings, theta_ols, {1: "named"}, lambda: SIGMA)
     assert departed[1] == pytest.approx(truth, rel=1e-6) and truth > NAME_SIGMA

@@ -403,7 +403,8 @@ def test_a_counterbalance_is_named_on_a_joint_the_links_weight_loads_not_an_upri
     from types import SimpleNamespace
 
     from identification.calibration.consistent_fit import FitBounds
-    from identification.calibration.envelope_report import MIN_PRESSURE, envelope_findings, gravity_carriers
+    from identification.calibration.envelope_report import MIN_PRESSURE, envelope_findings
+    from identification.calibration.gravity_load import joints_carrying_gravity
     from psdm_casadi.oracle import PinocchioOracle
     from psdm_casadi.samples import serial_arm
 
@@ -411,8 +412,8 @@ def test_a_counterbalance_is_named_on_a_joint_the_links_weight_loads_not_an_upri
     q = np.random.default_rng(3).uniform(-2.0, 2.0, (20, upright.n_dof))
     g = np.abs(PinocchioOracle(upright).gravity(q)).max(axis=0)  # the independent reference: the file's own weight
     assert g[0] < 1e-9 * g.max() and (g[1:3] > 1.0).all()
-    assert gravity_carriers(upright, 2).tolist()[:3] == [False, True, True]
-    assert gravity_carriers(denso, 1)[0]  # the Denso file's gravity lies across its joint 1: it carries weight
+    assert joints_carrying_gravity(upright).tolist()[:3] == [False, True, True]
+    assert joints_carrying_gravity(denso)[0]  # the Denso file's gravity lies across its joint 1: it carries weight
 
     n, prior = upright.n_dof, upright.nominal_dynamic_parameters()
     mass, count = prior[:, 0], 1000.0

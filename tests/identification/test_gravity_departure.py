@@ -14,7 +14,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR, gravity_departures, joints_carrying_gravity
+from identification.calibration.gravity_departure import FILE_GRAVITY_ERROR, gravity_departures
+from identification.calibration.gravity_load import joints_carrying_gravity
 from psdm_casadi.oracle import PinocchioOracle
 
 
@@ -63,21 +64,24 @@ def test_the_heavy_arms_counterbalance_the_links_took_is_named_with_its_share(be
 
 
 def test_only_the_joints_gravity_gives_a_torque_can_depart():
-    """The joints carrying gravity, read from the model's gravity regressor, are those Pinocchio's gravity torque of
-    the robot file moves on random poses: the SCARA's vertical axes (joints 1, 2, 4) carry none, so no departure is
-    read there; the virtual Denso's file puts gravity along x0, across joint 1's axis, and its flange link is
-    massless."""
-    from psdm_casadi import derive_psdm
+    """The joints carrying gravity (``gravity_load.joints_carrying_gravity``) are those Pinocchio's gravity torque of
+    the robot file with a tool at the flange moves on random poses: the SCARA's vertical axes (joints 1, 2, 4) carry
+    none, so no departure is read there; the virtual Denso's file puts gravity along x0, across joint 1's axis, and its
+    flange link is massless, yet a tool loads joint 6 (the file alone gives it nil: not the reading)."""
     from psdm_casadi.robot import load_robot
     from tests.catalogue.model_files import SCARA_FILE
     from tests.conftest import DENSO_FILE
 
-    for path, carrying in ((SCARA_FILE, [False, False, True, False]), (DENSO_FILE, [True] * 5 + [False])):
+    for path, carrying in ((SCARA_FILE, [False, False, True, False]), (DENSO_FILE, [True] * 6)):
         robot = load_robot(path)
         q = np.random.default_rng(0).uniform(robot.q_min, robot.q_max, size=(200, robot.n_dof))
-        reference = np.abs(PinocchioOracle(robot).gravity(q)).max(axis=0)
-        found = joints_carrying_gravity(derive_psdm(robot), q)
+        tool = robot.nominal_dynamic_parameters().copy()
+        tool[-1, :4] += (0.5, 0.02, 0.01, 0.03)  # 0.5 kg, its centre of mass a few cm off the flange's axes
+        reference = np.abs(PinocchioOracle(robot, tool).gravity(q)).max(axis=0)
+        found = joints_carrying_gravity(robot, q)
         assert found.tolist() == (reference > 1e-9 * reference.max()).tolist() == carrying, path
+    file_only = np.abs(PinocchioOracle(robot).gravity(q)).max(axis=0)
+    assert file_only[5] == 0.0  # the Denso file's own weight gives joint 6 nothing
 
 
 @pytest.mark.parametrize(
