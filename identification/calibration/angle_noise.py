@@ -26,7 +26,9 @@ squares' residual less what the series adds to an offset (in variance: the fit w
 fit with the offset and the series). A counterbalance's torque of one sign over the travel, the part an offset gives
 as well, stays in the noise: over a short travel the data cannot tell it from an offset. The fits with an offset alone
 are kept (``JointNoise``): where a joint's own offset takes its noise well down, the data hold an offset the model
-lacks there, which ``clear_ask`` names where it names no counterbalance.
+lacks there, which ``clear_ask`` names where it names no counterbalance. A joint whose model columns already hold its
+offset (a drive column the data chose or forced, ``held_offsets``) gets no second one: it would be a column identical
+to the model's, and on that joint the fits with and without the added offset are the same fit.
 
 That noise keeps a counterbalance's part an offset gives as well, so ``clear_ask`` also asks how much of the torque
 the bounds refuse is a torque of the joint's own angle beyond an offset (``AngleShare``, from the same pass's normal
@@ -46,10 +48,21 @@ from identification.calibration.configuration_check import accumulate
 from identification.calibration.gravity_load import joints_carrying_gravity, recorded_poses
 from identification.calibration.weighted_solve import weighted_least_squares
 
-__all__ = ["HARMONICS", "AngleColumns", "AngleShare", "JointNoise", "effect_free_noise"]
+__all__ = [
+    "COLLINEAR",
+    "HARMONICS",
+    "AngleColumns",
+    "AngleShare",
+    "JointNoise",
+    "effect_free_noise",
+    "held_offsets",
+    "joint_noise",
+]
 
 #: Harmonics of each joint's angle in the alternative's columns: a counterbalance's law over the recorded travel.
 HARMONICS = 4
+#: A model column whose cosine with a joint's constant column is within this of 1 is that joint's torque offset.
+COLLINEAR = 1e-9
 
 
 class AngleShare:
@@ -158,17 +171,44 @@ def effect_free_noise(robot, model, prepared, extras, setup, n_columns: int, fre
 def _noise(robot, model, prepared, extras, setup, n_columns: int, free, payload) -> JointNoise:
     """``effect_free_noise``'s noise, computed."""
     wrapped = [AngleColumns(extra, robot.n_dof, offset=True) for extra in extras]
-    series, width = (wrapped[0].series, wrapped[0].width) if wrapped else (0, 0)
+    width = wrapped[0].width if wrapped else 0
     equations, _ = accumulate(robot, model, prepared, wrapped, setup, n_columns + width)
+    carries = joints_carrying_gravity(robot, recorded_poses(prepared)) if prepared else None
+    return joint_noise(equations, n_columns, free, payload)._replace(carries=carries)
+
+
+def joint_noise(equations, n_columns: int, free, payload=range(0), harmonics: int = HARMONICS) -> JointNoise:
+    """The ``JointNoise`` of normal ``equations`` whose first ``n_columns`` columns are the model's (the ``free`` of
+    them fitted, ``payload`` the unknown payloads') and the rest ``AngleColumns`` with ``offset`` (``harmonics``),
+    without ``carries``. A joint whose model columns already hold a torque offset (a column collinear with that
+    joint's constant, ``held_offsets``) gets no second one: two identical columns make the solve's normal matrix
+    singular in a direction its rounding does not cut, and the figure was unreliable."""
+    n_dof = equations.n_dof
+    width = (2 * harmonics + 1) * n_dof if equations.n_columns > n_columns else 0
+    series = width - n_dof if width else 0
     free = np.asarray(free, dtype=int).tolist()
-    offsets = list(range(n_columns + series, n_columns + width))
+    held = held_offsets(equations, n_columns, free, n_columns + series) if width else np.zeros(n_dof, dtype=bool)
+    offsets = [n_columns + series + j if width and not held[j] else None for j in range(n_dof)]
+    added = [k for k in offsets if k is not None]
     plain = weighted_least_squares(equations, free, payload)[0]
-    constant = weighted_least_squares(equations, [*free, *offsets], payload)[0]
-    both = weighted_least_squares(equations, [*free, *offsets, *range(n_columns, n_columns + series)], payload)[0]
-    others = [weighted_least_squares(equations, [*free, *offsets[:j], *offsets[j + 1 :]], payload)[0][j]
-              for j in range(len(offsets))]  # fmt: skip
+    constant = weighted_least_squares(equations, [*free, *added], payload)[0]
+    both = weighted_least_squares(equations, [*free, *added, *range(n_columns, n_columns + series)], payload)[0]
+    others = [weighted_least_squares(equations, [*free, *(k for k in added if k != offsets[j])], payload)[0][j]
+              for j in range(n_dof)]  # fmt: skip
     noise = np.sqrt(np.clip(plain**2 - constant**2 + both**2, both**2, plain**2))
     others = np.asarray(others, dtype=float).reshape(constant.shape)
-    angle = AngleShare(equations, n_columns) if wrapped else None
-    carries = joints_carrying_gravity(robot, recorded_poses(prepared)) if prepared else None
-    return JointNoise(noise, constant, others, both, angle, carries)
+    angle = AngleShare(equations, n_columns, harmonics) if width else None
+    return JointNoise(noise, constant, others, both, angle)
+
+
+def held_offsets(equations, n_columns: int, free, first: int) -> np.ndarray:
+    """Per joint, whether one of the ``free`` model columns (of the first ``n_columns`` of ``equations``) is a torque
+    offset of that joint: collinear (to ``COLLINEAR``) with the constant on its rows, column ``first + j``."""
+    model = [k for k in free if k < n_columns]
+    energy = equations.gram[:, model, model].sum(axis=0)  # each column over all rows
+    out = np.zeros(equations.n_dof, dtype=bool)
+    for j in range(equations.n_dof):
+        ones = equations.gram[j, first + j, first + j]
+        cross = equations.gram[j, model, first + j]  # the constant is zero on the other joints' rows
+        out[j] = bool(np.any(cross**2 >= (1.0 - COLLINEAR) * energy * ones)) if ones > 0 else False
+    return out
