@@ -22,7 +22,7 @@ import numpy as np
 
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT
 
-__all__ = ["SPAN_TOLERANCE", "random_states", "separate_inertia_joints"]
+__all__ = ["SPAN_TOLERANCE", "drive_inertias", "random_states", "separate_inertia_joints"]
 
 SPAN_TOLERANCE = 1e-8  # relative residual below which Ia_j qdd_j is taken as inside the base regressor's span
 
@@ -86,3 +86,12 @@ def _rank_test(model, robot, seed: int) -> list:
             kept.append(j)
             basis = np.column_stack([basis, residual / size])
     return kept
+
+
+def drive_inertias(model, standard, drive, names) -> np.ndarray:
+    """The drive inertia of every joint of a fit: in the model's standard parameters (``standard``, (n_dof, 11)) where
+    they hold it, from its own column ``Ia<j>`` of ``drive`` (labelled ``names``), else 0."""
+    rotor = LINK_PARAMETER_COUNT  # the drive inertia's column in a joint's 11 standard parameters
+    out = np.where(np.any(model.parameter_map[:, rotor :: rotor + 1], axis=0), standard[:, rotor], 0.0)
+    out[[int(n[2:]) - 1 for n in names if n.startswith("Ia")]] = [v for n, v in zip(names, drive) if n.startswith("Ia")]
+    return out

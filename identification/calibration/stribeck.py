@@ -38,7 +38,7 @@ from identification.calibration.trajectory_data import (
 
 __all__ = ["STRIBECK_GRID", "StribeckColumns", "base_regressors", "fit_stribeck_velocity", "row_buffers",
            "stribeck_equations", "stribeck_step",
-           "stribeck_velocity_std"]  # fmt: skip
+           "stribeck_velocities", "stribeck_velocity_std"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
 
@@ -94,7 +94,8 @@ def stribeck_equations(rows, prepared, terms, inertia_joints, coulomb_velocity, 
     for chunks, r, extra in zip(rows, prepared, extras):
         for k, per_joint in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
-            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs, extra.viscous_exponent)
+            sign = None if r.sign is None else r.sign[k : k + CHUNK_SAMPLES]  # the filtered form (``filtered_sign``)
+            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs, extra.viscous_exponent, sign)
             more = extra.columns(q, qd, qdd)
             start = per_joint.shape[2] - drive.shape[2] - more.shape[2]
             per_joint[:, :, start : start + drive.shape[2]] = drive.transpose(1, 0, 2)
@@ -139,6 +140,14 @@ def stribeck_step(x, offset: int, names, vs) -> np.ndarray:
     gap = fs - fc
     defined = np.abs(gap) > 1e-9 * np.maximum(np.abs(fs) + np.abs(fc), 1e-12)
     return np.where(defined, x[-n_dof:] / np.where(defined, gap, 1.0), 0.0)
+
+
+def stribeck_velocities(model, prepared, options, inertia_joints, extra) -> np.ndarray:
+    """Each joint's Stribeck velocity [rad/s] of a fit with ``options``: ``options.stribeck_held``, or searched
+    (:func:`fit_stribeck_velocity`)."""
+    if options.stribeck_held is not None:
+        return np.asarray(options.stribeck_held, dtype=float)
+    return fit_stribeck_velocity(model, prepared, options, inertia_joints, extra)
 
 
 def fit_stribeck_velocity(

@@ -58,8 +58,8 @@ from identification.calibration.payload_fit import (
 from identification.calibration.prior_pull import PRIOR_UNCERTAINTY, check_prior_options
 from identification.calibration.pseudo_inertia import LINK_PARAMETER_COUNT, pseudo_inertia_eigenvalues
 from identification.calibration.residual_correlation import correlation_time, sandwich_covariance
-from identification.calibration.separate_inertia import separate_inertia_joints
-from identification.calibration.stribeck import StribeckColumns, fit_stribeck_velocity, stribeck_velocity_std
+from identification.calibration.separate_inertia import drive_inertias, separate_inertia_joints
+from identification.calibration.stribeck import StribeckColumns, stribeck_velocities, stribeck_velocity_std
 from identification.calibration.trajectory_checks import (
     check_columns,
     check_offset_reversals,
@@ -87,6 +87,7 @@ __all__ = ["IPOPT_OPTIONS", "TrajectoryFit", "TrajectoryOptions", "drive_inertia
            "predict_torque", "torque_constants"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
+JOINT_OPTIONS = ("offset_joints", "inertia_joints", "stribeck_joints", "held_links", "rotors_apart", "filtered_sign")
 
 
 @dataclass(frozen=True)
@@ -96,8 +97,7 @@ class TrajectoryOptions:
     Parameters
     ----------
     friction : tuple of str
-        Drive terms per joint among ``("fc", "fs", "fv", "offset")``: Coulomb, static (the Stribeck shape,
-        with ``fc``), viscous, a constant torque offset.
+        Drive terms per joint among ``("fc", "fs", "fv", "offset")``: Coulomb, static (with ``fc``), viscous, offset.
     coulomb_velocity : float or tuple of float
         [rad/s] The Coulomb term is ``fc tanh(qd / coulomb_velocity)``: a sign smoothed over the
         velocities where real joints pass from sticking to sliding (a few hundredths of a rad/s). One width for every
@@ -158,6 +158,8 @@ class TrajectoryOptions:
         With ``"fs"``: the Stribeck velocities [rad/s] per joint held, not searched (0: a Coulomb-viscous joint); a
         refit of a model file with a diagnosis's findings keeps the file's shape, as the diagnosis judged them against
         it (``applied_model``). None: searched (``stribeck``).
+    filtered_sign : tuple of int
+        Joints (0-based) whose Coulomb column is the filtered raw sign (``filtered_sign``; ``column_choice`` decides).
     rotors_apart : tuple of int
         Joints (0-based) whose drive inertia, merged into the base parameters and held to the same actuator's on other
         joints by default (``merged_rotors.sibling_rotors``), is taken from the training data instead
@@ -188,9 +190,10 @@ class TrajectoryOptions:
     baseline_friction: tuple = ()
     stribeck_held: tuple | None = None
     rotors_apart: tuple = ()
+    filtered_sign: tuple = ()
 
     def __post_init__(self):
-        for name in ("offset_joints", "inertia_joints", "stribeck_joints", "held_links", "rotors_apart"):
+        for name in JOINT_OPTIONS:
             joints = getattr(self, name)
             if joints is not None and not all(isinstance(j, (int, np.integer)) and j >= 0 for j in joints):
                 raise ParameterError(f"TrajectoryOptions.{name} must be None or 0-based joint indices; got {joints!r}.")
@@ -244,8 +247,8 @@ class TrajectoryFit:
         Over the links of ``standard`` (positive when consistent).
     stribeck_velocity, stribeck_velocity_std : tuple
         [rad/s] Per joint, for the Stribeck shape (``"fs"`` in ``friction_terms``); empty otherwise.
-    viscous_exponent : tuple
-        Per joint the viscous exponent ``dv`` (``TrajectoryOptions.viscous_exponent``); empty: every joint linear.
+    viscous_exponent, filtered_sign : tuple
+        As ``TrajectoryOptions``' (``viscous_exponent`` empty: every joint linear).
     training_r2, training_r2_ols : tuple
         Per joint, R^2 of the identified model (and of the least-squares estimate) on the recordings it was fitted to.
     torque_ratio : tuple
@@ -305,6 +308,7 @@ class TrajectoryFit:
     covariance: np.ndarray | None = None
     loaded: tuple = ()
     joint_samples: tuple = ()
+    filtered_sign: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -315,11 +319,12 @@ class TrajectoryFit:
             return 100.0 * s / np.abs(x)
 
 
-def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) -> np.ndarray:
-    """Joint torques [N m] of the identified model (or of its least-squares estimate), (n_samples, n_dof)."""
+def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False, sign=None) -> np.ndarray:
+    """Joint torques [N m] of the model (or its least squares), (n_samples, n_dof); ``sign``: ``Recording.sign``."""
     theta, drive = (fit.theta_ols, fit.drive_ols) if ols else (fit.theta, fit.drive)
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit))
+    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit),
+                            sign)  # fmt: skip
     return model.inverse_dynamics(q, qd, qdd, theta) + columns @ drive
 
 
@@ -368,12 +373,11 @@ def identify_trajectories(
     lower = drive_lower_bounds(names := drive_column_names(robot.n_dof, options.friction, inertia_joints))
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
-    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
-    prepared = held_friction.subtract_held_friction(subtract_known_payloads(robot, prepared, configurations), options)
+    cutoffs, steps, prepared = _prepared(robot, recordings, kt, options, configurations)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
     vs, extras = None, (plain := bodies.extras(robot, extra))
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
-        vs = _stribeck_velocities(model, prepared, options, inertia_joints, plain)
+        vs = stribeck_velocities(model, prepared, options, inertia_joints, plain)
         extras = [StribeckColumns(options.coulomb_velocity, vs, e, options.viscous_exponent) for e in plain]
     n_all = (n_fit := model.n_base + len(names)) + bodies.n_columns
     setup = (options.friction, inertia_joints, options.coulomb_velocity, vs, options.viscous_exponent)
@@ -408,7 +412,7 @@ def identify_trajectories(
         drive = np.zeros(len(names))
         drive[fitted] = drive_fitted
         found = separable_in_place(found, separable)
-        standard[:, ROTOR] = _drive_inertias(model, standard, drive, names)
+        standard[:, ROTOR] = drive_inertias(model, standard, drive, names)
         x_fit = np.concatenate([model.base_parameters(standard), drive, np.nan_to_num(np.ravel(found))])
         pushed = envelope_findings(robot, bounds, standard, equations, x_fit, data_own[0], sigma, kt is not None)
         pushed, kept = causes(robot, model, (x_fit, data_own[0], equations, sigma, prepared), data_own[1], names,
@@ -437,8 +441,17 @@ def identify_trajectories(
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept
         + floor_note(robot, standard, bounds),
         torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit], loaded=(*loaded,),
+        filtered_sign=tuple(options.filtered_sign),
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit, loaded), *mixed)), options)
+
+
+def _prepared(robot, recordings, kt, options, configurations) -> tuple:
+    """(cutoffs, decimation steps, prepared recordings) of the fit: known payloads and held friction taken off."""
+    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods,
+                                                  filtered=options.filtered_sign)  # fmt: skip
+    prepared = subtract_known_payloads(robot, prepared, configurations)
+    return cutoffs, steps, held_friction.subtract_held_friction(prepared, options)
 
 
 def _data_own(equations, columns, options, correlation, ols) -> tuple:
@@ -453,13 +466,6 @@ def _data_own(equations, columns, options, correlation, ols) -> tuple:
     free = [k for k in range(equations.n_columns) if k not in held - chosen]
     sigma, x, inverse, _ = weighted_least_squares(equations, free, range(n_fit, n_all))
     return x[:n_all], sandwich_covariance(equations, sigma, inverse, correlation)
-
-
-def _stribeck_velocities(model, prepared, options, inertia_joints, extra) -> np.ndarray:
-    """Each joint's Stribeck velocity [rad/s]: ``options.stribeck_held``, or searched (``fit_stribeck_velocity``)."""
-    if options.stribeck_held is not None:
-        return np.asarray(options.stribeck_held, dtype=float)
-    return fit_stribeck_velocity(model, prepared, options, inertia_joints, extra)
 
 
 def _held_columns(names, options, n_base, vs, n_columns) -> set:
@@ -491,10 +497,3 @@ def drive_inertia_joints(model, robot, options: TrajectoryOptions) -> list:
         return []
     kept = options.inertia_joints
     return separate_inertia_joints(model, robot) if kept is None else sorted(int(j) for j in kept)
-
-
-def _drive_inertias(model, standard, drive, names):
-    """The drive inertia of every joint: in the model's standard parameters, from its own column, else 0."""
-    out = np.where(np.any(model.parameter_map[:, ROTOR :: ROTOR + 1], axis=0), standard[:, ROTOR], 0.0)
-    out[[int(n[2:]) - 1 for n in names if n.startswith("Ia")]] = [v for n, v in zip(names, drive) if n.startswith("Ia")]
-    return out
