@@ -64,6 +64,7 @@ from identification.calibration.findings import (
     correct_recording,
     filled_entries,
     finding_kind,
+    held_findings,
     offsets_left_to_findings,
 )
 from identification.calibration.held_friction import HeldFriction
@@ -74,6 +75,7 @@ from identification.calibration.model_file_holds import model_file_holds
 from identification.calibration.model_preparation import model_preparation
 from identification.calibration.offset_split import offset_splits, replaced_offsets, without_offset
 from identification.calibration.recording_provenance import recording_provenance
+from identification.calibration.resized_findings import held_entries, resized_model
 from identification.calibration.split_torque import splitting_findings
 from identification.calibration.spring_rest import with_rest_angles
 from identification.calibration.trajectory_data import stribeck_joints
@@ -81,7 +83,7 @@ from identification.calibration.trajectory_fit import TrajectoryOptions, identif
 from identification.data.torque_constants import recording_kt
 from psdm_casadi.errors import ParameterError, SolverError
 
-__all__ = ["AppliedModel", "applied_model", "check_lugre_findings", "finding_terms", "joint_fit",
+__all__ = ["AppliedModel", "applied_model", "check_lugre_findings", "finding_terms", "joint_fit", "new_labels",
            "offset_left_out", "refit_options", "refit_without", "zero_size"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
@@ -107,6 +109,10 @@ class AppliedModel:
     train : tuple of Recording
         The raw recordings it was fitted on (``refit_training``: the model file's own and the diagnosis's), which the
         never-worse gate's refits train on too.
+    resized : CalibratedModel or None
+        With carried findings held at a new size (``applied_model``'s ``held``): the model file with those sizes in
+        place and nothing refitted (``resized_findings.resized_model``), the model written where the gates leave no
+        new finding (``recalibrate``); None otherwise.
     """
 
     after: CalibratedModel
@@ -114,14 +120,19 @@ class AppliedModel:
     findings: tuple
     dropped: tuple = ()
     train: tuple = ()
+    resized: CalibratedModel | None = None
 
 
-def applied_model(calibrated: CalibratedModel, robot, model, report, train, validation, robot_source=None):
+def applied_model(calibrated: CalibratedModel, robot, model, report, train, validation, robot_source=None,
+                  held=None):  # fmt: skip
     """The ``AppliedModel`` of ``report``'s findings on ``calibrated`` (module docstring).
 
     ``robot`` and ``model`` are ``calibrated.load_robot()`` and its derived model; ``train`` and ``validation`` raw
     recordings (or sequences of them) as given to the diagnosis; ``robot_source`` the robot file written into the new
-    model (default: the file's own copy).
+    model (default: the file's own copy). ``held``: ``{label: (coefficients, record)}`` of carried findings whose size
+    the diagnosis read as changed (``carried_sizes``), held at it in every refit rather than fitted on the file's
+    recordings too (``resized_findings.held_entries``); where no new finding is left after the drops, the model is
+    the file with those sizes alone (``AppliedModel.resized``, nothing refitted).
 
     Raises
     ------
@@ -136,6 +147,7 @@ def applied_model(calibrated: CalibratedModel, robot, model, report, train, vali
     train = [train] if not isinstance(train, (list, tuple)) else list(train)
     validation = [validation] if not isinstance(validation, (list, tuple)) else list(validation)
     terms, corrections, entries = finding_terms(calibrated, report)
+    terms, entries = held_entries(terms, entries, held)
     check_lugre_findings(calibrated, terms)
     kt = recording_kt(robot, *validation)
     after, fit, terms, entries = _robust_fit(
@@ -165,7 +177,16 @@ def applied_model(calibrated: CalibratedModel, robot, model, report, train, vali
         corrections = {k: v for k, v in corrections.items() if k not in labels}
         entries = [e for e in entries if e["label"] not in labels]
         after, fit = joint_fit(calibrated, robot, model, train, (terms, corrections, entries), robot_source)
-    return AppliedModel(after, fit, (terms, corrections, entries), tuple(dropped), tuple(train))
+    resized = resized_model(calibrated, held) if held else None
+    if resized is not None and not new_labels(calibrated, entries):  # the gates left the resize alone: nothing refitted
+        findings = ([t for t, _ in resized.torque_findings], resized.corrections, resized.document["findings"])
+        return AppliedModel(resized, None, findings, tuple(dropped), tuple(train), resized)
+    return AppliedModel(after, fit, (terms, corrections, entries), tuple(dropped), tuple(train), resized)
+
+
+def new_labels(calibrated: CalibratedModel, entries) -> set:
+    """The labels of the findings ``entries`` (a refit's) that the model file ``calibrated`` does not hold."""
+    return {e["label"] for e in entries} - {e.get("label") for e in calibrated.document.get("findings") or []}
 
 
 def _pairs(report):
@@ -307,15 +328,16 @@ def _offset_joints(identification):
     return None if on else tuple(j - 1 for j in choice["offset_joints"])
 
 
-def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lugre=None):
+def _fit(robot, model, recordings, options, terms, reference, stribeck=None, lugre=None, held=()):
     """One joint fit with the finding columns, of the LuGre identification with ``lugre`` (the file's LuGre parameters
     per joint: a mixed model's refit fits LuGre on its LuGre joints, ``mixed_friction``); returns (fit, columns,
-    ``lugre_recordings.LuGreFit`` or None). A feature is left out when it is absorbed beside the Stribeck shape."""
-    columns = FindingColumns(tuple(terms), reference)
+    ``lugre_recordings.LuGreFit`` or None). A feature is left out when it is absorbed beside the Stribeck shape; the
+    findings ``held`` at their coefficients (``FindingColumns.held``) are no columns, their torque taken off."""
+    columns = FindingColumns(tuple(terms), reference, held=tuple(held))
     if terms:
         keep = absorbed_mask(robot, model, recordings, options, columns, stribeck, recording_kt(robot, *recordings))
         columns = dataclasses.replace(columns, keep=keep)
-    extra = columns if terms else None
+    extra = columns if terms or held else None
     if lugre is not None:
         joints = tuple(j for j, p in enumerate(lugre) if p is not None)
         mixed = {"joints": joints} if None in lugre else {}  # started as the first fit was (``lugre_identify``)
@@ -365,10 +387,11 @@ def joint_fit(calibrated, robot, model, train, findings, robot_source) -> tuple:
     stribeck = [p.vs for p in own] if own is not None and None not in own else stribeck  # LuGre: its own
     stribeck = None if stribeck is None or "fs" not in options.friction else np.asarray(stribeck, dtype=float)
     common = (carrying_payloads(robot, model, entries), model, corrected, options, terms)  # the prior holds the load
-    fit, columns, lugre = _fit(*common, _reference(calibrated, model), stribeck, own)
+    held = held_findings(entries)  # carried findings at the size the diagnosis read (``resized_findings``)
+    fit, columns, lugre = _fit(*common, _reference(calibrated, model), stribeck, own, held)
     if any(term.load_dependent for term in terms):  # second pass: the load of the new model itself
         interim = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
-        fit, columns, lugre = _fit(*common, _reference(interim, model), stribeck, own)
+        fit, columns, lugre = _fit(*common, _reference(interim, model), stribeck, own, held)
     after = _document(calibrated, robot, model, fit, columns, terms, entries, corrections, robot_source, lugre)
     after.document["provenance"]["recalibrated_on"] = [recording_provenance(r) for r in train]
     return after, fit

@@ -46,11 +46,13 @@ from psdm_casadi.errors import ModelFileError, ParameterError
 
 __all__ = [
     "FINDING_KINDS",
+    "HELD_KEY",
     "FindingColumns",
     "FindingTerm",
     "correct_recording",
     "filled_entries",
     "finding_kind",
+    "held_findings",
     "offsets_left_to_findings",
     "physical_parameters",
     "term_values",
@@ -75,6 +77,10 @@ SPEC_EFFECTS = ("spring", "unnamed_effect", "gas_spring", "friction_shape", "cou
 RIGID_BODY_EFFECTS = ("payload", "last_link_mass_excess")
 SIGNAL_EFFECTS = ("delay", "joint_elasticity", "backlash")
 FINDING_KINDS = ("torque", "rigid_body", "signal", "reported")
+#: The key of a torque entry a refit holds at its coefficients rather than fitting them (a carried finding written at
+#: the size the diagnosis's recordings give, ``resized_findings.held_entries``): it enters the refit's entries only,
+#: never a written file (``filled_entries`` takes it off).
+HELD_KEY = "held"
 
 
 def finding_kind(effect: str) -> str:
@@ -261,12 +267,15 @@ class FindingColumns:
 
     ``reference(q, qd, qdd)`` is the torque [N m] the load-dependent terms are proportional to (the
     previous model's torque without them); ``keep[i]`` says whether feature i enters the fit (a feature the
-    fit's other columns already span is left out, its coefficient 0).
+    fit's other columns already span is left out, its coefficient 0). ``held``: ``(FindingTerm, coefficients)`` of
+    terms at given coefficients (``HELD_KEY``): no column of the fit; their torque (:meth:`held_torque`) is taken off
+    the prepared recordings the fit sees (:meth:`without_held`), as held friction's is.
     """
 
     terms: tuple
     reference: object = None
     keep: tuple | None = None
+    held: tuple = ()
 
     @property
     def all_names(self) -> list:
@@ -302,6 +311,25 @@ class FindingColumns:
     def columns(self, q, qd, qdd) -> np.ndarray:
         """The kept features' columns (n_samples, n_dof, len(names))."""
         return self.all_columns(q, qd, qdd)[:, :, self.mask]
+
+    def held_torque(self, q, qd, qdd) -> np.ndarray:
+        """The torque of the ``held`` terms at their coefficients (n_samples, n_dof) [N m]."""
+        q = np.asarray(q, dtype=float)
+        out = np.zeros(q.shape)
+        if not self.held:
+            return out
+        base = np.asarray(self.reference(q, qd, qdd), dtype=float) if any(t.load_dependent for t, _ in self.held) \
+            else None  # fmt: skip
+        for term, coefficients in self.held:
+            values = term_values(term, q, qd, qdd, base)
+            out[:, term.joint] += sum(float(c) * v for c, v in zip(coefficients, values) if c is not None)
+        return out
+
+    def without_held(self, prepared) -> list:
+        """The prepared recordings with the ``held`` terms' torque taken off (a missing torque stays missing)."""
+        if not self.held:
+            return list(prepared)
+        return [replace(r, tau=np.asarray(r.tau, dtype=float) - self.held_torque(r.q, r.qd, r.qdd)) for r in prepared]
 
 
 def offsets_left_to_findings(options, terms):
@@ -345,7 +373,8 @@ def physical_parameters(term: FindingTerm, c) -> dict:
 
 
 def filled_entries(entries, terms, columns: FindingColumns, extra) -> list:
-    """The findings block: each torque entry gets its jointly fitted coefficients, sigma and parameters."""
+    """The findings block: each torque entry gets its jointly fitted coefficients, sigma and parameters; one held at
+    its coefficients (``HELD_KEY``) keeps them."""
     values, ols, std = (iter(np.asarray(a, dtype=float).tolist()) for a in extra)
     by_label = {}
     for term, mask in zip(terms, _split_mask(terms, columns.mask)):
@@ -354,6 +383,9 @@ def filled_entries(entries, terms, columns: FindingColumns, extra) -> list:
     out = []
     for entry in entries:
         entry = copy.deepcopy(entry)
+        if entry.pop(HELD_KEY, None):  # its coefficients and parameters as held (``FindingColumns.held``)
+            out.append(entry)
+            continue
         if entry["kind"] == "torque":
             term, fitted = by_label[FindingTerm.from_dict(entry["term"]).label]
             entry["feature_names"] = term.feature_names()
@@ -372,6 +404,12 @@ def filled_entries(entries, terms, columns: FindingColumns, extra) -> list:
             )
         out.append(entry)
     return out
+
+
+def held_findings(entries) -> tuple:
+    """``FindingColumns.held`` of the torque ``entries`` marked ``HELD_KEY``: (FindingTerm, coefficients) each."""
+    return tuple((FindingTerm.from_dict(e["term"]), tuple(e["coefficients"])) for e in entries
+                 if e.get(HELD_KEY) and e.get("kind") == "torque")  # fmt: skip
 
 
 def _split_mask(terms, mask) -> list:

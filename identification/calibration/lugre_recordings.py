@@ -220,13 +220,14 @@ def friction_residual(model, fit, prepared, extra=None) -> np.ndarray:
 
     ``fit`` is a ``TrajectoryFit`` of the Stribeck shape; its friction terms (``fc``, ``fs``, ``fv``) are taken out.
     With ``extra`` (``findings.FindingColumns``, the torque findings the fit holds after its drive parameters) the
-    findings' torque is taken out too.
+    findings' torque is taken out too, the ones it holds at given coefficients (``FindingColumns.held``) with them.
     """
     from identification.calibration.trajectory_fit import predict_torque
 
     q, qd, qdd = prepared.q, prepared.qd, prepared.qdd
     plain, (values, _, _) = split_findings(fit, 0 if extra is None else len(extra.names))
     residual = prepared.tau - predict_torque(model, without_friction(plain), q, qd, qdd)
+    residual = residual if extra is None else residual - extra.held_torque(q, qd, qdd)
     return residual - extra.columns(q, qd, qdd) @ values if values.size else residual
 
 

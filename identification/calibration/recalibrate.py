@@ -16,17 +16,23 @@ block (``refit_folds``) reproduce the rise; otherwise findings are dropped and t
 a new one that gains nothing is dropped too (``no_gain.keep_earning``, listed in ``dropped_findings`` with its
 numbers): one whose model is not below the model without it on its joints in a clear majority of the bootstrap draws
 (``no_gain.GAIN_RULE``); the model is refitted without it and the gate asked again.
+
+A carried finding the diagnosis read at a new size (``resized_findings``) is held at it in every refit, and is no
+finding the gates drop: it passed its own test (better on each held-out recording, no joint worse). Where the gates
+leave no new finding beside it, or refuse every subset, the model written is the file with that size alone, nothing
+refitted (``recalibration.resized_alone``), as when the diagnosis found nothing new: the resize is not lost with them.
 """
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import functools
 import logging
 
 import numpy as np
 
-from identification.calibration.applied_model import applied_model, refit_options, refit_without
+from identification.calibration.applied_model import applied_model, new_labels, refit_options, refit_without
 from identification.calibration.calibrated_model import CalibratedModel
 from identification.calibration.consistency import MASS_CHECK_CONFIGURATIONS, consistency_failure, min_mass_eigenvalue
 from identification.calibration.dropped_findings import dropped_block
@@ -35,6 +41,7 @@ from identification.calibration.never_worse import keep_not_worse
 from identification.calibration.no_gain import keep_earning
 from identification.calibration.payload_fit import carried_configurations
 from identification.calibration.refit_folds import training_refits
+from identification.calibration.resized_findings import resized_labels
 from identification.data.torque_constants import recording_kt
 from identification.friction.models import LUGRE_PARAMETER_NAMES
 
@@ -150,6 +157,8 @@ def recalibrate(
         "dropped_findings": dropped,
         "never_worse": gate.to_dict(),
     }
+    alone = resized_labels(calibrated.document, document) if gate.payload is None else ()  # nothing refitted
+    document["recalibration"].update({"resized_alone": list(alone)} if alone else {})
     document.pop("diagnosis", None)  # the block describes the diagnosis that wrote this file, not an older one's
     not_written = dropped_block(document["recalibration"], report.findings)  # with why and the diagnosis's hint
     document.update({} if not_written is None else {"diagnosis": not_written})
@@ -176,9 +185,30 @@ def _gate(calibrated, robot, model, applied, train, validation, kt, robot_source
     refits = training_refits(train, refit_on, droppable, refit_options(calibrated).cutoff_hz, validation)
     refit = refit_on(train)
     gate = keep_not_worse(calibrated, (applied.after, applied.fit), refit, droppable, model, validation, kt, refits)
-    new = {e["label"] for e in entries} - {e["label"] for e in calibrated.document.get("findings") or []}
+    new = new_labels(calibrated, entries)
     gate, no_gain = keep_earning(calibrated, gate, refit, droppable, new, model, validation, kt, refits)
-    return gate, list(applied.dropped) + no_gain
+    return _resized_alone(calibrated, applied, gate, new, (model, validation, kt)), list(applied.dropped) + no_gain
+
+
+def _resized_alone(calibrated, applied, gate, new, judged):
+    """``gate``, or where it leaves none of the ``new`` findings (or refuses every subset) beside carried findings held
+    at a new size (``AppliedModel.resized``), the model file with those sizes alone, judged as it is
+    (``resized_findings``: nothing refitted, as without a new finding); the gate's record kept, its search saying so.
+    """
+    if applied.resized is None:
+        return gate
+    left = {e["label"] for e in gate.after.document.get("findings") or []} & set(new)
+    if left and gate.refused is None:
+        return gate
+    resized = CalibratedModel(copy.deepcopy(applied.resized.document))
+    alone = keep_not_worse(calibrated, (resized, None), None, [], *judged)
+    if alone.refused is not None or alone.comparison.worse:
+        return gate
+    said = "refuses every subset of them" if gate.refused is not None else "leaves none of them"
+    labels = ", ".join(resized_labels(calibrated.document, resized.document))
+    search = (f"{gate.search}; {said} beside {labels} at the size the data give: the model written is the model file "
+              "with that size in place and nothing refitted")  # fmt: skip
+    return dataclasses.replace(alone, dropped=list(gate.dropped), search=search)
 
 
 def _mass(robot, after: CalibratedModel, fit) -> float:

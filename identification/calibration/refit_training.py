@@ -117,6 +117,10 @@ class RefitTraining:
         named = GIVEN if given == 1 else f"the {given} {GIVEN} recordings"
         return f"{named} alone" if not others else f"{named} and {others} training recording(s) of the model file"
 
+    def given(self) -> tuple:
+        """Whether each recording is a ``--train`` one (the diagnosis's), not only one of the model file's own."""
+        return tuple(source.endswith(f"({GIVEN})") for source in self.sources)
+
     def to_dict(self) -> dict:
         return {"recordings": list(self.sources), "not_found": [m.to_dict() for m in self.missing],
                 "note": self.note or None}  # fmt: skip

@@ -345,7 +345,8 @@ def identify_trajectories(
     options : TrajectoryOptions, optional
     extra : findings.FindingColumns, optional
         Extra linear columns fitted jointly (the torque-type findings of a diagnosis, ``recalibrate``); their
-        coefficients follow the drive parameters in ``TrajectoryFit.drive`` (labelled by ``extra.names``).
+        coefficients follow the drive parameters in ``TrajectoryFit.drive`` (labelled by ``extra.names``); the torque
+        of the terms it holds at given coefficients (``extra.held``) is taken off the recordings first.
     configurations : sequence of data.configuration.PayloadConfiguration, optional
         The load each recording carries at the flange (default: none): known loads are subtracted, unknown
         ones identified with the arm's parameters shared (``payload_fit``; ``TrajectoryFit.payloads``).
@@ -373,7 +374,7 @@ def identify_trajectories(
     lower = drive_lower_bounds(names := drive_column_names(robot.n_dof, options.friction, inertia_joints))
     if extra is not None:
         names, lower = names + list(extra.names), np.concatenate([lower, extra.lower])
-    cutoffs, steps, prepared = _prepared(robot, recordings, kt, options, configurations)
+    cutoffs, steps, prepared = _prepared(robot, recordings, kt, options, configurations, extra)
     check_offset_reversals(robot, prepared, options.friction, options.coulomb_velocity, options.offset_joints)
     vs, extras = None, (plain := bodies.extras(robot, extra))
     if "fs" in options.friction:  # Stribeck velocities first; their derivative columns stay for the covariance
@@ -446,12 +447,14 @@ def identify_trajectories(
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit, loaded), *mixed)), options)
 
 
-def _prepared(robot, recordings, kt, options, configurations) -> tuple:
-    """(cutoffs, decimation steps, prepared recordings) of the fit: known payloads and held friction taken off."""
+def _prepared(robot, recordings, kt, options, configurations, extra=None) -> tuple:
+    """(cutoffs, decimation steps, prepared recordings) of the fit: known payloads, held friction and the findings
+    ``extra`` holds (``FindingColumns.held``) taken off."""
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods,
                                                   filtered=options.filtered_sign)  # fmt: skip
     prepared = subtract_known_payloads(robot, prepared, configurations)
-    return cutoffs, steps, held_friction.subtract_held_friction(prepared, options)
+    prepared = held_friction.subtract_held_friction(prepared, options)
+    return cutoffs, steps, prepared if extra is None else extra.without_held(prepared)
 
 
 def _data_own(equations, columns, options, correlation, ols) -> tuple:

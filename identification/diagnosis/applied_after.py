@@ -25,7 +25,7 @@ from identification.calibration.applied_model import AppliedModel, applied_model
 from identification.calibration.finding_value import validation_rmse
 from identification.calibration.no_gain import GAIN_RULE
 from identification.calibration.refit_training import training_alone
-from identification.calibration.resized_findings import resized_model
+from identification.calibration.resized_findings import at_data_size, resized_model
 from identification.data.torque_constants import recording_kt
 from identification.diagnosis.carried_sizes import resized_sizes, written_sizes
 from psdm_casadi.errors import PSDMError
@@ -52,6 +52,10 @@ RESIZED_AFTER = (
     "the model file with {} at the size the data give, written in place of the file's and nothing refitted, as "
     "'diagnose --apply' writes it (before its never-worse gate), judged as 'psdm validate' judges it"
 )
+#: How the refit with new findings fits a carried finding whose size the diagnosis read as changed.
+HELD_AFTER = (
+    "not refitted on the model file's recordings beside them, which would blend the file's size with the data's"
+)
 #: Why a model file's diagnosis applies nothing although it reports findings (``DiagnosisReport.nothing_applied``).
 NOTHING_APPLIED = (
     "every finding ({}) is one the model file holds, none at a size the recordings ask to change: nothing to apply, "
@@ -68,12 +72,14 @@ def with_applied_after(report, loaded, train, validation, refit=None):
     with the reason in ``after_source`` where the model cannot be built. ``refit`` is called only when there is a
     finding to apply: one the file does not hold. Where every finding is the file's own, the model is the file with
     the sizes that do not hold written in place (``carried_sizes``, ``resized_findings``: nothing refitted), or, when
-    all hold, nothing: ``DiagnosisReport.nothing_applied`` says so and no refit is run."""
+    all hold, nothing: ``DiagnosisReport.nothing_applied`` says so and no refit is run. Beside a new finding, the
+    refit holds those sizes as the diagnosis fitted them on ``train`` (``resized_findings.held_entries``); where
+    ``applied_model`` drops every new finding, the model is again the file with the sizes alone."""
     if not report.findings:
         return report
     calibrated, robot, model = loaded.calibrated, loaded.robot, loaded.model
     labels = {entry.get("label") for entry in calibrated.document.get("findings") or ()}
-    new, sizes = [f.label for f in report.findings if f.label not in labels], resized_sizes(report)
+    new, sizes = [f.label for f in report.findings if f.label not in labels], resized_sizes(report, train)
     if not new and not sizes:
         held = ", ".join(f"`{f.label}`" for f in report.findings)
         return replace(report, nothing_applied=NOTHING_APPLIED.format(held))
@@ -85,13 +91,18 @@ def with_applied_after(report, loaded, train, validation, refit=None):
         return written_sizes(_judged(report, applied, robot, model, validation, RESIZED_AFTER.format(resized)))
     training = refit() if refit is not None else training_alone(train)
     report = replace(report, refit_training=training)
-    try:
-        applied = applied_model(calibrated, robot, model, report, list(training.recordings), validation)
+    recordings = list(training.recordings)  # the file's own as if at the new sizes (``resized_findings``)
+    recordings = at_data_size(calibrated, sizes, recordings, training.given(), recording_kt(robot, *recordings))
+    try:  # a carried finding at a new size is held at it (``resized_findings.held_entries``), not refitted
+        applied = applied_model(calibrated, robot, model, report, recordings, validation, held=sizes)
     except PSDMError as exc:  # the diagnosis's own fit stays the "after", and the report says why
         logger.info("diagnose: the model with the findings could not be built (%s)", exc)
         return replace(report, after_source=f"the diagnosis's own fit with the findings (the model 'diagnose --apply' "
                                             f"would write could not be built: {exc})")  # fmt: skip
-    source = APPLIED_AFTER + (f"; not in it: {dropped_text(applied.dropped)}" if applied.dropped else "")
+    resized = ", ".join(f"`{label}`" for label in sizes)
+    held = f"; {resized} held at the size the --train recordings give ({HELD_AFTER})" if sizes else ""
+    source = RESIZED_AFTER.format(resized) if applied.fit is None else APPLIED_AFTER + held
+    source += f"; not in it: {dropped_text(applied.dropped)}" if applied.dropped else ""
     return written_sizes(_judged(report, applied, robot, model, validation, source))
 
 
@@ -155,6 +166,9 @@ def with_written_after(report, result, model, validation, kt=None, written: bool
     source = (f"{report.after_source}; then without {', '.join(dropped)}, which the never-worse gate dropped (the "
               "model written)") if dropped else report.after_source  # fmt: skip
     source += f"; without {', '.join(no_gain)} (gained nothing: {GAIN_RULE})" if no_gain else ""
+    alone = ", ".join(f"`{label}`" for label in block.get("resized_alone") or ())
+    source += (f"; no new finding left, so the model written is {RESIZED_AFTER.format(alone)} (the model written)"
+               if alone else "")  # fmt: skip
     return replace(report, rmse_after=tuple(rmse.tolist()), r2_after=tuple(r2.tolist()), after_source=source,
                    validation_final=final)  # fmt: skip
 

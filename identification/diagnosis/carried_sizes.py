@@ -70,8 +70,8 @@ class CarriedSize:
         worse = "; ".join(f"{n} joint {j + 1}" for n, j in self.worse)
         worse = f"; worse beyond the margin: {worse}" if worse else ""
         return (
-            f"{self.name} {self.file:.4g} in the file, {self.data:.4g} fitted again ({moved}); validation RMSE "
-            f"with the file's size -> with the data's: {each}{worse}"
+            f"{self.name} {self.file:.4g} in the file, {self.data:.4g} fitted again on the --train recordings "
+            f"({moved}); validation RMSE with the file's size -> with the data's: {each}{worse}"
         )
 
     def sentence(self) -> str:
@@ -80,7 +80,8 @@ class CarriedSize:
             written = f"{self.written:.4g}" if np.isfinite(self.written) else f"{self.data:.4g} (fitted again)"
             return (f"the model file's `{self.label}` is off by {self.data - self.file:+.4g} ({self.why()}): better on "
                     f"each held-out recording beyond the margin and no joint worse, so 'diagnose --apply' writes "
-                    f"{self.name} as {written} in place of the file's (the same label)")  # fmt: skip
+                    f"{self.name} as {written} in place of the file's (the same label; held there in a refit with new "
+                    "findings)")  # fmt: skip
         return (f"the model file's `{self.label}` holds at its size ({self.why()}): kept at the file's "
                 f"{self.name} {self.file:.4g}")  # fmt: skip
 
@@ -95,10 +96,14 @@ class CarriedSize:
                 "written": None if not np.isfinite(self.written) else self.written}  # fmt: skip
 
 
-def resized_sizes(report) -> dict:
+def resized_sizes(report, train=()) -> dict:
     """``{label: (coefficients, record)}`` of the report's carried findings whose size does not hold
-    (``resized_findings.resized_model``'s ``sizes``)."""
-    return {s.label: (s.coefficients, {"by": "diagnose --apply", "why": s.why()})
+    (``resized_findings.resized_model``'s ``sizes``): the size the diagnosis fitted on its training recordings
+    ``train`` (raw; named in the record's ``fitted_on``), which ``diagnose --apply`` writes, and holds in a refit with
+    new findings (``resized_findings.held_entries``)."""
+    train = [train] if not isinstance(train, (list, tuple)) else list(train)
+    names = [r.name or f"recording {k + 1}" for k, r in enumerate(train)]
+    return {s.label: (s.coefficients, {"by": "diagnose --apply", "why": s.why(), "fitted_on": names})
             for s in report.carried_sizes if s.verdict == RESIZED}  # fmt: skip
 
 
@@ -174,8 +179,8 @@ def _parameter(entry, finding) -> str:
 
 def written_sizes(report):
     """``report`` whose resized carried findings say the size ``diagnose --apply`` writes: their parameter in the
-    model of ``DiagnosisReport.applied`` (the file resized in place, or refitted with new findings, which fits the
-    carried ones again), each correction's sentence with it."""
+    model of ``DiagnosisReport.applied`` (the file resized in place, or refitted with new findings, which holds the
+    resized ones at the data's size), each correction's sentence with it."""
     if not any(s.verdict == RESIZED for s in report.carried_sizes) or report.applied is None:
         return report
     entries = {e.get("label"): e for e in report.applied.after.document.get("findings") or ()}

@@ -451,7 +451,8 @@ def _apply(args, calibrated, robot, refit: ApplyRefit, out, payload, report) -> 
         return EXIT_CHECK_FAILED
     read = calibrated.document.get("provenance", {}).get("columns")  # how identify read the recordings: kept
     result.after.document["provenance"].update({} if read is None else {"columns": read})
-    if report.refit_training is not None:  # a later refit of the new file finds them again
+    refitted = not result.after.document["recalibration"].get("resized_alone")  # else the file's, nothing refitted
+    if report.refit_training is not None and refitted:  # a later refit of the new file finds them again
         result.after.document["provenance"]["recordings"] = [dict(e) for e in report.refit_training.entries]
         if report.refit_training.friction_drift is not None:  # trained on the same corrected torques: its refit too
             result.after.document["identification"]["friction_drift"] = report.refit_training.friction_drift

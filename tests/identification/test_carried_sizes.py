@@ -11,6 +11,7 @@ carries a torque ripple 1.5 sin(6 q2 + 0.4) N m. New recordings of the same moti
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -19,13 +20,15 @@ import pytest
 from identification.calibration.applied_model import finding_terms, joint_fit
 from identification.calibration.calibrated_model import CalibratedModel, read_calibrated_model
 from identification.calibration.recalibrate import recalibrate
+from identification.calibration.refit_training import RefitTraining
 from identification.calibration.resized_findings import RESIZED_KEY, resized_labels
 from identification.calibration.trajectory_fit import TrajectoryOptions, identify_trajectories
 from identification.data.io import save_recording
-from identification.diagnosis.candidates import CandidateLibrary, TorqueRippleTerm
+from identification.diagnosis.applied_after import with_applied_after, with_written_after
+from identification.diagnosis.candidates import CandidateLibrary, CouplingTerm, TorqueRippleTerm
 from identification.diagnosis.carried_sizes import HOLDS, RESIZED
 from identification.diagnosis.diagnose import DiagnosisOptions
-from identification.diagnosis.model_file import diagnose_model
+from identification.diagnosis.model_file import diagnose_model, diagnose_model_prior
 from identification.virtual import effects as xp
 from identification.virtual.simulation import SimulationOptions, simulate_recording
 from psdm_casadi.cli.recalibration_text import adds_nothing
@@ -37,19 +40,24 @@ FILE_AMPLITUDE, WORN_AMPLITUDE, HARMONIC, PHASE, RATE = 1.5, 2.5, 6, 0.4, 500.0
 RIPPLE = TorqueRippleTerm(joint=1, harmonic=HARMONIC)
 
 
-def _recording(robot, amplitude, seed):
-    """(training part, held-out part) of 9 s of the same sine motion with a ripple of ``amplitude`` on joint 2."""
-    reference = sine_experiment(robot, duration=9.0, rng=np.random.default_rng(3)).reference()
+def _recording(robot, amplitude, seed, coupling=0.0, seconds=(9.0, 6.0)):
+    """(training part, held-out part) of ``seconds[0]`` s of the same sine motion, cut at ``seconds[1]``, with a ripple
+    of ``amplitude`` on joint 2 (and a viscous coupling ``coupling`` qd5 on joint 6)."""
+    reference = sine_experiment(robot, duration=seconds[0], rng=np.random.default_rng(3)).reference()
     options = SimulationOptions(record_tau=True, record_current=False, tau_noise_std=0.1, friction=False, rate=RATE)
     extras = [xp.TorqueRipple(joint=1, amplitude=amplitude, harmonic=float(HARMONIC), phase=PHASE)]
+    if coupling:
+        matrix = np.zeros((6, 6))
+        matrix[5, 4] = coupling
+        extras.append(xp.JointCoupling(matrix=matrix))
     recording, _ = simulate_recording(robot, reference, options, np.random.default_rng(seed), extras=extras)
-    return recording.time_slice(-np.inf, 6.0), recording.time_slice(6.0, np.inf)
+    return recording.time_slice(-np.inf, seconds[1]), recording.time_slice(seconds[1], np.inf)
 
 
-@pytest.fixture(scope="module")
-def model_file(denso, denso_model, tmp_path_factory):
-    """The model file with the ripple as ``--apply`` writes it, identified on a recording with the file's size."""
-    train, _ = _recording(denso, FILE_AMPLITUDE, 11)
+def _model_file(denso, denso_model, folder, coupling=0.0, seconds=(9.0, 6.0)):
+    """(model file, its training recording): the ripple as ``--apply`` writes it, identified on a recording with the
+    file's size."""
+    train, _ = _recording(denso, FILE_AMPLITUDE, 11, coupling, seconds)
     fit = identify_trajectories(denso, denso_model, [train], TrajectoryOptions())
     before = CalibratedModel.from_fit(denso, denso_model, fit, robot_source=DENSO_FILE)
     coefficients = tuple(FILE_AMPLITUDE * np.array([np.cos(PHASE), np.sin(PHASE)]))
@@ -59,9 +67,15 @@ def model_file(denso, denso_model, tmp_path_factory):
     augmented = SimpleNamespace(terms=(RIPPLE,), coefficients=[coefficients])
     report = SimpleNamespace(findings=(finding,), augmented=augmented)
     after, _ = joint_fit(before, denso, denso_model, [train], finding_terms(before, report), DENSO_FILE)
-    path = tmp_path_factory.mktemp("carried_sizes") / "model.json"
+    path = folder / "model.json"
     after.save(path)
-    return read_calibrated_model(path, derive=lambda robot: denso_model)
+    return read_calibrated_model(path, derive=lambda robot: denso_model), train
+
+
+@pytest.fixture(scope="module")
+def model_file(denso, denso_model, tmp_path_factory):
+    """The model file with the ripple as ``--apply`` writes it, identified on a recording with the file's size."""
+    return _model_file(denso, denso_model, tmp_path_factory.mktemp("carried_sizes"))[0]
 
 
 def _diagnosed(loaded, recordings):
@@ -156,3 +170,94 @@ def test_the_command_writes_the_grown_ripple_and_nothing_for_the_same(denso, mod
         else:
             assert not out.exists() and "recalibration" not in payload and payload["nothing_applied"]
             assert payload["rmse_after"] == payload["rmse_before"]
+
+
+def test_a_new_finding_the_refit_drops_leaves_the_resize_written_alone(denso, denso_model, model_file, worn):
+    """Beside the grown ripple, a ripple on joint 6 the recordings do not hold (truth: none; put into the report as a
+    new finding): the refit drops it (no help on validation) and the model is the file with the ripple resized
+    alone, nothing refitted, which --apply writes (before, the refit without it added no label: nothing written)."""
+    (train, validation), report = worn
+    ghost = TorqueRippleTerm(joint=5, harmonic=3)
+    finding = replace(report.findings[0], effect=ghost.key, label=ghost.label, joints=ghost.joints,
+                      coefficients=(0.3, 0.0), parameters={}, feature_names=tuple(ghost.feature_names()),
+                      correction="")  # fmt: skip
+    augmented = SimpleNamespace(terms=(*report.augmented.terms, ghost),
+                                coefficients=[*report.augmented.coefficients, (0.3, 0.0)])  # fmt: skip
+    both = with_applied_after(replace(report, findings=(*report.findings, finding), augmented=augmented,
+                                      applied=None), model_file, train, validation)  # fmt: skip
+    applied = both.applied
+    assert [d["label"] for d in applied.dropped] == [ghost.label] and applied.fit is None  # nothing refitted
+    result = recalibrate(model_file.calibrated, denso, denso_model, both, train, [validation], applied=applied)
+    assert result.refused is None and not adds_nothing(model_file.calibrated.document, result.after.document)
+    (entry,) = result.after.document["findings"]
+    assert entry["label"] == RIPPLE.label
+    assert entry["parameters"]["amplitude"] == pytest.approx(WORN_AMPLITUDE, rel=0.05)
+    assert result.after.document["recalibration"]["resized_alone"] == [RIPPLE.label]
+    np.testing.assert_allclose(both.rmse_after, result.rmse_after, rtol=1e-6)  # the report's "after" is it
+
+
+#: The coupled arm's recordings: 12 s, 8 s of training (the gate's refits without each training block can run).
+COUPLED_SECONDS, COUPLING = (12.0, 8.0), 0.5
+
+
+@pytest.fixture(scope="module")
+def coupled_file(denso, denso_model, tmp_path_factory):
+    """(model file, its training recording) of an arm with a viscous coupling 0.5 qd5 on joint 6 the file lacks."""
+    return _model_file(denso, denso_model, tmp_path_factory.mktemp("coupled"), COUPLING, COUPLED_SECONDS)
+
+
+def _coupled_apply(denso, denso_model, coupled_file, seed):
+    """(report, recalibration, validation) of the new recordings ``seed`` of the coupled arm, its ripple grown to
+    2.5 N m, diagnosed and applied as ``diagnose --apply`` does, the refit training on the new recording and the
+    file's own (found again, as ``refit_training`` does)."""
+    loaded, old = coupled_file
+    train, validation = _recording(denso, WORN_AMPLITUDE, seed, COUPLING, COUPLED_SECONDS)
+    options = DiagnosisOptions(library=CandidateLibrary((TorqueRippleTerm(harmonics=(3, 6)), CouplingTerm(
+        joint=5, source=4))), rigid_body="prior", sparse=False, cv_folds=0)  # fmt: skip
+    refit = lambda: RefitTraining((train, old), ("new.npz (--train)", "old.npz"), ({}, {}))  # noqa: E731
+    report, _ = diagnose_model_prior(loaded, train, [validation], options, refit=refit)
+    (size,) = report.carried_sizes
+    assert size.verdict == RESIZED and size.data == pytest.approx(WORN_AMPLITUDE, rel=0.05)
+    entries = {e["label"]: e for e in report.applied.after.document["findings"]}
+    assert entries[RIPPLE.label]["parameters"]["amplitude"] == pytest.approx(size.data, rel=1e-9)  # held, no blend
+    (coupling,) = [label for label in entries if label.startswith("coupling")]
+    assert entries[coupling]["parameters"]["viscous"] == pytest.approx(COUPLING, rel=0.05)  # the truth, on both
+    assert report.applied.train[1] is not old  # the file's recording put at the new size (``at_data_size``)
+    result = recalibrate(loaded.calibrated, denso, denso_model, report, train, [validation], applied=report.applied)
+    assert result.refused is None and not adds_nothing(loaded.calibrated.document, result.after.document)
+    margin = np.asarray(result.after.document["recalibration"]["never_worse"]["margin"])
+    assert np.all(result.rmse_after <= result.rmse_before + margin)  # never worse, joint by joint
+    written = {e["label"]: e for e in result.after.document["findings"]}
+    assert written[RIPPLE.label]["parameters"]["amplitude"] == pytest.approx(size.data, rel=1e-9)
+    assert result.rmse_after[1] < 0.1 * result.rmse_before[1]  # joint 2: the grown ripple's torque gone
+    shown = with_written_after(report, result, denso_model, validation, None, True)
+    np.testing.assert_allclose(shown.rmse_after, result.rmse_after, rtol=1e-6)  # the report's "after" is the written
+    return shown, result, coupling
+
+
+@pytest.mark.slow  # a model file, a diagnosis, its refit on both recordings, the never-worse gate: about a minute
+def test_a_resize_beside_a_new_finding_is_written_at_the_data_size(denso, denso_model, coupled_file):
+    """The coupling is in every recording, the file's and the new ones; the ripple grew in the new ones. Both are
+    written: the ripple at the size the diagnosis fitted on --train (held in the refit on both recordings, where main
+    fitted it on both and wrote the blend 2.012 N m: joint 2 0.692 -> 0.314 N m, now 0.050), the coupling at its
+    truth, no joint worse than the file."""
+    report, result, coupling = _coupled_apply(denso, denso_model, coupled_file, 14)
+    written = {e["label"]: e for e in result.after.document["findings"]}
+    assert set(written) == {RIPPLE.label, coupling} and "resized_alone" not in result.after.document["recalibration"]
+    assert written[coupling]["parameters"]["viscous"] == pytest.approx(COUPLING, rel=0.05)
+    assert result.rmse_after[5] < 0.1 * result.rmse_before[5]  # joint 6: the coupling's torque gone
+
+
+@pytest.mark.slow  # as above
+def test_a_resize_survives_the_gate_dropping_the_new_finding(denso, denso_model, coupled_file):
+    """Other new recordings of the same arm: the never-worse gate finds joint 5 worse with the coupling (over its
+    margin, and its refits without each training block agree), which no subset of the new findings avoids; the model
+    written is the file with the ripple resized alone, nothing refitted (main wrote the blend 2.016 N m with the
+    coupling: its refits cleared joint 5, the ripple free in them)."""
+    report, result, coupling = _coupled_apply(denso, denso_model, coupled_file, 12)
+    block = result.after.document["recalibration"]
+    (dropped,) = block["never_worse"]["dropped"]
+    assert dropped["label"] == coupling and dropped["joint"] == 5  # what the gate saw
+    (entry,) = result.after.document["findings"]
+    assert entry["label"] == RIPPLE.label and block["resized_alone"] == [RIPPLE.label]
+    assert "no new finding left" in report.after_source
