@@ -402,8 +402,7 @@ def identify_trajectories(
     loaded = [] if own is None else loaded_recordings(own, n_all, equations, sigma, correlation)
     mixed = [*missing_torque_messages(recordings, robot.joint_names, "fit"), *unstated_payload_warnings(loaded)]
     estimable = Estimable(equations.weighted(1.0 / sigma**2)[0])
-    keep, separable = bodies.separable(estimable, n_fit)
-    prior = payload_prior(bodies, x_ols, n_fit, estimable)
+    (keep, separable), prior = bodies.separable(estimable, n_fit), payload_prior(bodies, x_ols, n_fit, estimable)
     if options.consistency:
         model, robot, merged = with_merged_rotors(model, robot, options, kt, (equations, names), True, correlation)
         fitted = [k for k in range(len(names)) if model.n_base + k not in held]
@@ -452,8 +451,7 @@ def _prepared(robot, recordings, kt, options, configurations, extra=None) -> tup
     ``extra`` holds (``FindingColumns.held``) taken off."""
     cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods,
                                                   filtered=options.filtered_sign)  # fmt: skip
-    prepared = subtract_known_payloads(robot, prepared, configurations)
-    prepared = held_friction.subtract_held_friction(prepared, options)
+    prepared = held_friction.subtract_held_friction(subtract_known_payloads(robot, prepared, configurations), options)
     return cutoffs, steps, prepared if extra is None else extra.without_held(prepared)
 
 
