@@ -318,14 +318,13 @@ def evaluate_robot(key: str, loader, published, args) -> dict:
     seconds, cpu = time.perf_counter() - start, time.process_time() - cpu
     hand_picked = identify_trajectories(robot, model, [train], OPTIONS[key])
     unbounded = identify_trajectories(robot, model, [train], replace(route.options, envelope=False))
-    # the Coulomb columns the route filters like the torque (``filtered_sign``) are computed on the validation part too
-    ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0], fit.edge_periods, fit.filtered_sign)
+    ready, cutoff, step = prepare_recording(validation, None, fit.cutoff_hz[0], fit.edge_periods)
     q, qd, qdd, tau = ready.q, ready.qd, ready.qdd, ready.tau
     predictions = {
-        "": route.calibrated.predict(model, q, qd, qdd, sign=ready.sign),  # with what the route took (a spring)
-        "_ols": predict_torque(model, route.start, q, qd, qdd, ols=True, sign=ready.sign),  # identify's columns
+        "": route.calibrated.predict(model, q, qd, qdd),  # with what the route took (a counterbalance spring)
+        "_ols": predict_torque(model, route.start, q, qd, qdd, ols=True),  # the default columns (psdm identify's)
         "_options": predict_torque(model, hand_picked, q, qd, qdd),
-        "_consistent": predict_torque(model, unbounded, q, qd, qdd, sign=ready.sign),
+        "_consistent": predict_torque(model, unbounded, q, qd, qdd),
         "_prior": PinocchioOracle(robot).rnea(q, qd, qdd),
     }
     if published is not None:

@@ -302,7 +302,6 @@ def refit_options(calibrated: CalibratedModel) -> TrajectoryOptions:
         held_links=model_file_holds(document).held_links,  # as identified (``worse_joint_hold``)
         rotors_apart=model_file_holds(document).rotors_apart,  # as identified (``rotors_apart``)
         stribeck_held=_held_stribeck(calibrated, friction),  # the file's shape, as the diagnosis judged against it
-        filtered_sign=own.filtered_sign,  # the Coulomb columns its preparation filters like the torque
     )
     if lugre is None or not steady_columns(drive):
         return options

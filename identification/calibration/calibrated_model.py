@@ -83,10 +83,7 @@ CALIBRATED_FORMAT = "psdm-calibrated-model"
 CALIBRATED_VERSION = 2
 LUGRE_VERSION = 3  # the version of a file whose friction is LuGre (drive.lugre)
 WIDTH_VERSION = 4  # the version of a file whose drive.coulomb_velocity is one width per joint (coulomb_width)
-#: 5: a counterbalance finding (``counterbalance_finding.COUNTERBALANCE_VERSION``); 6: a Coulomb column filtered
-#: like the torque on some joints (``filtered_sign``, the preparation's ``filtered_sign``)
-FILTERED_VERSION = 6
-READABLE_VERSIONS = (1, 2, 3, 4, 5, 6)
+READABLE_VERSIONS = (1, 2, 3, 4, 5)  # 5: a counterbalance finding (``counterbalance_finding.COUNTERBALANCE_VERSION``)
 
 
 def standard_parameter_labels(n_dof: int) -> list:
@@ -152,8 +149,7 @@ class CalibratedModel:
                                "sigma": _floats(fit.sigma),
                                "condition_number": float(fit.condition_number), "solver_status": fit.solver_status,
                                "seconds": round(fit.seconds, 3),
-                               "preparation": preparation_block(fit.cutoff_hz, fit.decimation, fit.edge_periods,
-                                                                fit.filtered_sign)},
+                               "preparation": preparation_block(fit.cutoff_hz, fit.decimation, fit.edge_periods)},
             "provenance": {"created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
                            "psdm_casadi_version": _version(), "recordings": list(recordings)},
             "validation": validation or {},
@@ -171,8 +167,6 @@ class CalibratedModel:
             document["drive"]["lugre"] = lugre_block(lugre)
         if isinstance(document["drive"]["coulomb_velocity"], list):  # one width per joint: older readers refuse it
             document["version"] = WIDTH_VERSION
-        if fit.filtered_sign:  # older readers would predict it with tanh: they refuse the file
-            document["version"] = max(int(document["version"]), FILTERED_VERSION)
         return cls(document)
 
     def save(self, path, *, overwrite: bool = False, allow_inconsistent: bool = False) -> Path:
@@ -305,7 +299,7 @@ class CalibratedModel:
         """
         own = model_preparation(self.document)  # its cutoff and edge trim (one filter period in older files)
         corrected = correct_recording(recording, self.corrections, kt)
-        prepared, _, _ = prepare_recording(corrected, kt, own.cutoff_hz, own.edge_periods, own.filtered_sign)
+        prepared, _, _ = prepare_recording(corrected, kt, own.cutoff_hz, own.edge_periods)
         bristle = None
         if self.lugre_parameters is not None:
             from identification.calibration.lugre_recordings import bristle_force_at
@@ -313,10 +307,10 @@ class CalibratedModel:
             bristle = bristle_force_at(self.lugre_parameters, corrected, own.cutoff_hz, prepared.t[0])
         temperature = temperatures_at(recording, prepared.t) if self.temperature_friction is not None else None
         predicted = self.predict(model, prepared.q, prepared.qd, prepared.qdd, t=prepared.t, bristle=bristle,
-                                 temperature=temperature, sign=prepared.sign)  # fmt: skip
+                                 temperature=temperature)  # fmt: skip
         return prepared, predicted
 
-    def predict(self, model, q, qd, qdd, t=None, bristle=None, temperature=None, lugre=True, sign=None) -> np.ndarray:
+    def predict(self, model, q, qd, qdd, t=None, bristle=None, temperature=None, lugre=True) -> np.ndarray:
         """Joint torques [N m] of the calibrated model: rigid body of ``theta``, drive terms and findings.
 
         The load-dependent friction of a finding is proportional to the model's own torque without it. The
@@ -326,8 +320,6 @@ class CalibratedModel:
         shape (n_samples, n_dof) (NaN: not logged), moves a file's friction along its law (``temperature_friction``;
         None: the reference temperature). ``lugre=False`` leaves the LuGre friction out (no ``t`` needed): the torque
         the exported ``psdm_inverse_dynamics`` computes at a state (its ``lugre_step`` carries the bristles beside).
-        ``sign``: the prepared recording's filtered Coulomb column (``Recording.sign``) on the joints the file filters
-        (``model_preparation``); without it (a single state, the exported code) those joints take ``tanh(qd / v)``.
         """
         lugre = self.lugre_parameters if lugre else None
         if lugre is not None and t is None:
@@ -339,7 +331,7 @@ class CalibratedModel:
         q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
         inertia_joints = tuple(j - 1 for j in drive["inertia_joints"])
         columns = drive_columns(qd, qdd, tuple(drive["friction_terms"]), inertia_joints, self.coulomb_widths,
-                                *file_shape(drive), sign)  # Stribeck velocities, viscous exponents  # fmt: skip
+                                *file_shape(drive))  # the Stribeck velocities and viscous exponents  # fmt: skip
         tau = model.inverse_dynamics(q, qd, qdd, self.theta) + columns @ self.drive
         if lugre is not None:
             from identification.calibration.lugre_recordings import lugre_friction

@@ -54,23 +54,18 @@ N_BLOCKS = 5
 @dataclass(frozen=True, eq=False)
 class PreparedTraining:
     """The training recordings prepared once for the choice: torque constants (None: torques), cutoffs [Hz] per
-    recording, the prepared recordings (``trajectory_data.prepare_recordings``) and each one's filtered sign of every
-    joint (``filtered_sign``: the candidate Coulomb columns filtered like the torque)."""
+    recording and the prepared recordings (``trajectory_data.prepare_recordings``)."""
 
     kt: object
     cutoffs: tuple
     prepared: tuple
-    signs: tuple = ()
 
 
 def prepare_training(robot, recordings, options) -> PreparedTraining:
     """The raw training ``recordings`` prepared (and refused) as ``identify_trajectories`` prepares them."""
     kt = torque_constants(robot, options, recordings)
-    every = tuple(range(robot.n_dof))
-    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods,
-                                              filtered=every)  # fmt: skip
-    signs = tuple(r.sign for r in prepared)  # held apart: the prepared recordings give the tanh columns
-    return PreparedTraining(kt, tuple(cutoffs), tuple(replace(r, sign=None) for r in prepared), signs)
+    cutoffs, _, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
+    return PreparedTraining(kt, tuple(cutoffs), tuple(prepared))
 
 
 @dataclass(frozen=True)
@@ -87,7 +82,6 @@ class Candidates:
     parts: tuple = ()  # the held-out normal equations of each validation recording (``held`` is their sum)
     exponents: ViscousExponents | None = None  # the viscous exponent per joint, its column ``fp<j>`` a candidate
     viscous: tuple = ()  # joints (0-based) whose viscous column is the power law in every sub-model (``with_viscous``)
-    filtered: tuple = ()  # joints (0-based) whose Coulomb column is the filtered sign ``fcf<j>`` (``with_filtered``)
 
     def blocks_count(self, joint: int) -> int:
         """Training samples of ``joint``."""
@@ -99,25 +93,15 @@ class Candidates:
         out.__dict__["_summed"] = self.__dict__.setdefault("_summed", {})  # the same sums
         return out
 
-    def with_filtered(self, joints) -> Candidates:
-        """These candidates with the filtered Coulomb column ``fcf<j>`` in place of ``fc<j>`` on ``joints``."""
-        out = replace(self, filtered=tuple(joints))
-        out.__dict__["_summed"] = self.__dict__.setdefault("_summed", {})  # the same sums
-        return out
-
     def transform(self, stribeck, dropped=()) -> np.ndarray:
         """Map from a sub-model's columns to the full ones: the joints of ``stribeck`` (0-based) keep the Stribeck
         shape, on the others (Coulomb-viscous) ``fs`` joins ``fc``. A joint's viscous column is the linear one ``fv``,
         or the power law ``fp`` on the joints of ``viscous`` or where ``dropped`` drops ``fv`` (a sub-model that drops
-        either takes the other). A joint's Coulomb column is ``fc`` or, on the joints of ``filtered`` or where
-        ``dropped`` drops ``fc``, the filtered sign ``fcf`` (``filtered_sign``), likewise."""
+        either takes the other)."""
         full = [f"theta{k}" for k in range(self.n_base)] + list(self.names)
         power = {n[2:]: f"fv{n[2:]}" in dropped or (f"fp{n[2:]}" not in dropped and int(n[2:]) - 1 in self.viscous)
                  for n in self.names if n.startswith("fp")}  # fmt: skip
         dropped = {*dropped, *(("fv" if on else "fp") + j for j, on in power.items())}
-        filtered = {n[3:]: f"fc{n[3:]}" in dropped or (n not in dropped and int(n[3:]) - 1 in self.filtered)
-                    for n in self.names if n.startswith("fcf")}  # fmt: skip
-        dropped |= {("fc" if on else "fcf") + j for j, on in filtered.items()}
         flat = {f"{j + 1}" for j in range(self.weights.size) if j not in stribeck} if self.stribeck else set()
         kept = [n for n in full if n not in dropped and not (n.startswith("fs") and n[2:] in flat)]
         out = np.zeros((len(full), len(kept)))
@@ -226,9 +210,9 @@ def candidates(robot, model, training: PreparedTraining, options, request, valid
     def with_power(columns, qd):  # the power-law viscous column of each candidate joint, after the others
         return np.concatenate([columns, viscous_power_rows(qd, exponents, power, options.coulomb_velocity)], axis=2)
 
-    blocks, n_columns = [], len(keep) + len(losses) + len(power) + robot.n_dof
-    for recording, (columns, tau), sign in zip(prepared, fitted, training.signs):
-        columns = with_filtered(with_power(columns, recording.qd), sign)
+    blocks, n_columns = [], len(keep) + len(losses) + len(power)
+    for recording, (columns, tau) in zip(prepared, fitted):
+        columns = with_power(columns, recording.qd)
         edges = np.linspace(0, recording.n_samples, N_BLOCKS + 1).astype(int)
         for a, b in zip(edges[:-1], edges[1:]):
             blocks.append(NormalEquations(robot.n_dof, n_columns))
@@ -236,24 +220,14 @@ def candidates(robot, model, training: PreparedTraining, options, request, valid
     del fitted
     parts = []
     for recording in validation:
-        ready = prepare_recording(recording, kt, cutoffs[0], options.edge_periods, tuple(range(robot.n_dof)))[0]
+        ready = prepare_recording(recording, kt, cutoffs[0], options.edge_periods)[0]
         parts.append(NormalEquations(robot.n_dof, n_columns))
-        plain = with_power(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.qd)
-        parts[-1].add(with_filtered(plain, ready.sign), ready.tau)
+        parts[-1].add(with_power(rows(ready, model.regressor(ready.q, ready.qd, ready.qdd)), ready.qd), ready.tau)
     held = sum_blocks(parts) if parts else None
-    names += [f"fp{j + 1}" for j in power] + [f"fcf{j + 1}" for j in range(robot.n_dof)]
+    names += [f"fp{j + 1}" for j in power]
     found = Candidates(tuple(names), model.n_base, stribeck, tuple(blocks), held, weights, effective, tuple(parts),
                        exponents=exponents)  # fmt: skip
     return found, offsets, inertia
-
-
-def with_filtered(columns, sign) -> np.ndarray:
-    """``columns`` (n_samples, n_dof, k) with the filtered Coulomb column ``fcf<j>`` of every joint after them, each on
-    its own joint's rows: ``sign`` (n_samples, n_dof) of ``filtered_sign``."""
-    n_samples, n_dof = sign.shape
-    out = np.zeros((n_samples, n_dof, n_dof))
-    out[:, range(n_dof), range(n_dof)] = sign
-    return np.concatenate([columns, out], axis=2)
 
 
 def viscous_power_rows(qd, exponents, joints, coulomb_velocity) -> np.ndarray:

@@ -61,8 +61,7 @@ logger = logging.getLogger(__name__)
 
 #: The ``TrajectoryOptions`` fields a ``ColumnChoice`` sets (``ColumnChoice.options``): a fold's model is the same for
 #: the same values on the same pieces (the other fields are identify's options, the same for every choice).
-COLUMN_FIELDS = ("friction", "offset_joints", "drive_inertia", "inertia_joints", "stribeck_joints", "coulomb_velocity",
-                 "filtered_sign")  # fmt: skip
+COLUMN_FIELDS = ("friction", "offset_joints", "drive_inertia", "inertia_joints", "stribeck_joints", "coulomb_velocity")
 
 
 class UnconvergedFit(FoldFailure):

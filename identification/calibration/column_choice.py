@@ -73,8 +73,6 @@ from identification.calibration.column_verdict import INDIFFERENT_BIC, Evidence,
 from identification.calibration.coulomb_smoothing import SmoothingChoice, smoothing_velocity
 from identification.calibration.coulomb_width import positive_widths
 from identification.calibration.drive_loss import efficiency
-from identification.calibration.filtered_choice import filtered_evidence
-from identification.calibration.filtered_sign import filtered_text
 from identification.calibration.merged_rotors import without_lone_inertia
 from identification.calibration.separate_inertia import separate_inertia_joints
 from identification.calibration.trajectory_fit import TrajectoryOptions
@@ -150,7 +148,6 @@ class ColumnChoice:
     smoothing: SmoothingChoice | None = None  # the Coulomb column's smoothing velocity (None: the options' own)
     replaced_offsets: tuple = ()  # chosen offsets a counterbalance spring identify kept replaced (0 in the model)
     viscous_exponent: tuple = ()  # per joint the viscous exponent dv (1: linear); empty: every joint linear
-    filtered_joints: tuple = ()  # joints (0-based) whose Coulomb column is filtered like the torque (filtered_sign)
 
     def shapes(self, n_dof: int) -> list:
         """The friction shape of each joint."""
@@ -173,7 +170,6 @@ class ColumnChoice:
             stribeck_joints=None if stribeck is None else tuple(stribeck),
             coulomb_velocity=options.coulomb_velocity if self.smoothing is None else self.smoothing.velocity,
             viscous_exponent=tuple(self.viscous_exponent) or None,
-            filtered_sign=tuple(self.filtered_joints),
         )
 
     @property
@@ -197,8 +193,6 @@ class ColumnChoice:
                            stribeck_joints=joints or None)  # fmt: skip
         if term == "viscous":
             return replace(self, evidence=items, viscous_exponent=viscous_exponents(items, self.n_dof))
-        if term == "filtered":
-            return replace(self, evidence=items, filtered_joints=toggled(self.filtered_joints))
         field = {"offset": "offset_joints", "Ia": "inertia_joints", "loss": "loss_joints"}[term]
         return replace(self, evidence=items, **{field: toggled(getattr(self, field))})
 
@@ -233,8 +227,6 @@ class ColumnChoice:
         else:
             lines.append(f"drive-inertia columns: {'off' if self.request.drive_inertia == 'off' else 'on'} (as asked)")
         lines += self._loss_lines(joints) + viscous_lines(self.viscous_exponent, self.evidence)
-        if any(e.term == "filtered" for e in self.evidence):
-            lines.append(filtered_text(self.filtered_joints))
         if self.check:
             lines.append(f"checked on {self.check}")
         return lines + ([] if self.smoothing is None else [self.smoothing.sentence()])
@@ -288,8 +280,7 @@ class ColumnChoice:
                 "check": self.check, "evidence": [e.to_dict() for e in self.evidence],
                 "smoothing": None if self.smoothing is None else self.smoothing.sentence(),
                 "coulomb_velocity": None if self.smoothing is None else self.smoothing.velocity,
-                "viscous_exponent": list(self.viscous_exponent) or None,
-                "filtered_sign_joints": [j + 1 for j in self.filtered_joints]}  # fmt: skip
+                "viscous_exponent": list(self.viscous_exponent) or None}  # fmt: skip
 
 
 @remembering()  # the recordings' regressors evaluated once (state_cache)
@@ -335,9 +326,6 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         stribeck = tuple(e.joint for e in evidence if e.kept)
         evidence += viscous_evidence(found, stribeck)  # the viscous power law, its exponent found first
         found = found.with_viscous(e.joint for e in evidence if e.term == "viscous" and e.kept)
-        # the Coulomb column filtered like the torque, per joint (an explicit shape keeps tanh)
-        evidence, stribeck = with_filtered_forms(evidence, *filtered_evidence(found, stribeck), stribeck)
-        found = found.with_filtered(e.joint for e in evidence if e.term == "filtered" and e.kept)
     train, held, x, std = found.evaluate(stribeck)
     asked = {"offset": "offset", "Ia": "drive_inertia", "loss": "drive_loss"}
     for name in found.names:
@@ -357,21 +345,10 @@ def choose_columns(robot, model, recordings, options=None, request=None, validat
         request=request, check=check, evidence=tuple(evidence),
         stribeck_joints=tuple(stribeck) if request.friction == "auto" and stribeck else None, n_dof=robot.n_dof,
         loss_joints=_loss_joints(robot, model, request, kept), torque_source=source, smoothing=smoothing,
-        viscous_exponent=viscous_exponents(evidence, robot.n_dof), filtered_joints=found.filtered,
+        viscous_exponent=viscous_exponents(evidence, robot.n_dof),
     )  # fmt: skip
     logger.debug("identify: %s", "; ".join(choice.describe()))  # identify's report states it (IdentifyResult)
     return choice
-
-
-def with_filtered_forms(evidence, filtered, left, stribeck) -> tuple:
-    """(evidence, Stribeck joints) with the ``filtered`` evidence (``filtered_choice``) added: a joint whose filtered
-    Coulomb-viscous form replaces its Stribeck shape (of ``stribeck``, not of ``left``) is no Stribeck joint, its
-    shape's evidence says why."""
-    replaced = {j for j in stribeck if j not in left}
-    note = "; replaced by the Coulomb column filtered like the torque, two parameters fewer (filtered_choice)"
-    evidence = [replace(e, kept=False, reason=e.reason + note, departs=False)
-                if e.term == "stribeck" and e.joint in replaced else e for e in evidence]  # fmt: skip
-    return [*evidence, *filtered], tuple(left)
 
 
 def _smoothing(training: PreparedTraining | None, options, request) -> SmoothingChoice:

@@ -51,10 +51,9 @@ def _is_number(value) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _check_preparation(name: str, preparation, n_dof: int) -> None:
+def _check_preparation(name: str, preparation) -> None:
     """``identification.preparation`` (absent from older files: their cutoff is used): positive cutoff and grid rate,
-    a version this reader knows and, from version 2, the filter periods trimmed at each end (``edge_periods``), from
-    version 3 the joints of the filtered Coulomb column (``filtered_sign``, 1-based)."""
+    a version this reader knows and, from version 2, the filter periods trimmed at each end (``edge_periods``)."""
     if preparation is None:
         return
     rates = [preparation.get(k) if isinstance(preparation, dict) else None for k in ("cutoff_hz", "grid_rate_hz")]
@@ -70,11 +69,6 @@ def _check_preparation(name: str, preparation, n_dof: int) -> None:
     edge = preparation.get("edge_periods")
     if version >= 2 and not (_is_number(edge) and math.isfinite(edge) and edge >= 0):
         raise _refuse(name, "identification.preparation.edge_periods", "a number >= 0 (filter periods)", repr(edge))
-    joints = preparation.get("filtered_sign") or []
-    if not (isinstance(joints, list) and all(isinstance(j, int) and not isinstance(j, bool) and 1 <= j <= n_dof
-                                             for j in joints)):  # fmt: skip
-        raise _refuse(name, "identification.preparation.filtered_sign", f"a list of joints 1..{n_dof}",
-                      repr(joints)[:80])  # fmt: skip
 
 
 def _numbers(name: str, block: dict, key: str, path: str, length=None, *, nullable=False) -> list:
@@ -240,7 +234,7 @@ def check_document(document: dict, name: str) -> None:
     cutoff = _numbers(name, document["identification"], "cutoff_hz", "identification")
     if not cutoff or min(cutoff) <= 0:
         raise _refuse(name, "identification.cutoff_hz", "positive numbers [Hz]", cutoff)
-    _check_preparation(name, document["identification"].get("preparation"), n_dof)
+    _check_preparation(name, document["identification"].get("preparation"))
     _check_column_choice(name, document["identification"].get("column_choice"), n_dof)
     stored_parts(document, name)  # identification.holdout (optional): every held-out part parses
     findings = document.get("findings", [])

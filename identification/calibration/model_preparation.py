@@ -8,28 +8,23 @@ and ``psdm diagnose`` of a model file, whose preprocessing takes the file's cuto
 robot file takes the preparation ``identify`` would choose for the training recording (``default_preparation``).
 
 The calibrated-model file stores it in ``identification.preparation`` (``PREPARATION_VERSION``): the filter, its
-order, the cutoff, the grid rate and the edge trim (``edge_periods``, since version 2), and since version 3 the joints
-whose Coulomb column is the filter applied to the raw velocity's sign (``filtered_sign``: ``filtered_sign``, 1-based,
-with its ``sign_width``; a version-2 block has none: ``tanh`` of the filtered velocity on every joint).
-
-A file is judged as it was written: a version-1 block (written when identify trimmed one filter period) and a file
-written before the block (only ``identification.cutoff_hz``: that cutoff and today's filter) are judged with one period
-trimmed (``LEGACY_EDGE_PERIODS``), so ``psdm validate`` of an old file gives the numbers it gave; ``Preparation.note``
-says so.
+order, the cutoff, the grid rate and the edge trim (``edge_periods``, since version 2). A file is judged as it was
+written: a version-1 block (written when identify trimmed one filter period) and a file written before the block
+(only ``identification.cutoff_hz``: that cutoff and today's filter) are judged with one period trimmed
+(``LEGACY_EDGE_PERIODS``), so ``psdm validate`` of an old file gives the numbers it gave; ``Preparation.note`` says so.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from identification.calibration.filtered_sign import SIGN_WIDTH
 from identification.data.filter_choice import EDGE_PERIODS, SAMPLES_PER_CUTOFF, choose_filter
 from identification.data.preprocessing import PreprocessOptions
 
 __all__ = ["EDGE_PERIODS", "LEGACY_EDGE_PERIODS", "PREPARATION_VERSION", "SAMPLES_PER_CUTOFF", "Preparation",
            "default_preparation", "edge_text", "model_preparation", "preparation_block"]  # fmt: skip
 
-PREPARATION_VERSION = 3
+PREPARATION_VERSION = 2
 FILTER = "zero-phase Butterworth low-pass (filtfilt)"
 ORDER = PreprocessOptions().order
 #: Filter periods trimmed at each end by the files of preparation version 1 and older (``kept_samples`` then).
@@ -59,8 +54,6 @@ class Preparation:
         What a reader should know (an older file's preparation was not stored, or trimmed one period), or empty.
     edge_periods : float
         Filter periods trimmed at each end (``filter_choice.kept_samples``).
-    filtered_sign : tuple of int
-        Joints (0-based) whose Coulomb column is the filtered sign of the raw velocity (``filtered_sign``).
     """
 
     cutoff_hz: float
@@ -68,32 +61,23 @@ class Preparation:
     source: str
     note: str = ""
     edge_periods: float = EDGE_PERIODS
-    filtered_sign: tuple = ()
 
     def text(self) -> str:
         """``zero-phase Butterworth ... order 8 at 10 Hz, samples at 100 Hz, ... (the model file's own)``."""
-        sign = ", ".join(str(j + 1) for j in self.filtered_sign)
-        sign = f", the Coulomb column filtered from the raw velocity's sign on joints {sign}" if sign else ""
         return (f"{FILTER} of order {ORDER} at {self.cutoff_hz:g} Hz, samples kept at {self.grid_rate_hz:g} Hz, "
-                f"{edge_text(self.edge_periods)}{sign} ({self.source})")  # fmt: skip
+                f"{edge_text(self.edge_periods)} ({self.source})")  # fmt: skip
 
     def to_dict(self) -> dict:
         return {"cutoff_hz": self.cutoff_hz, "grid_rate_hz": self.grid_rate_hz, "edge_periods": self.edge_periods,
-                "source": self.source, "note": self.note, "text": self.text(),
-                "filtered_sign": [j + 1 for j in self.filtered_sign]}  # fmt: skip
+                "source": self.source, "note": self.note, "text": self.text()}  # fmt: skip
 
 
-def preparation_block(cutoff_hz, decimation, edge_periods: float = EDGE_PERIODS, filtered_sign=()) -> dict:
-    """The ``identification.preparation`` block of a fit prepared at ``cutoff_hz`` (one per training recording), its
-    Coulomb column filtered from the raw sign on the joints of ``filtered_sign`` (0-based); a version-2 block without
-    them, as older readers read it."""
+def preparation_block(cutoff_hz, decimation, edge_periods: float = EDGE_PERIODS) -> dict:
+    """The ``identification.preparation`` block of a fit prepared at ``cutoff_hz`` (one per training recording)."""
     cutoff = float(cutoff_hz[0])
-    block = {"version": PREPARATION_VERSION if filtered_sign else 2, "filter": FILTER, "order": ORDER,
-             "cutoff_hz": cutoff, "grid_rate_hz": SAMPLES_PER_CUTOFF * cutoff, "edge_periods": edge_periods,
-             "edge": edge_text(edge_periods), "decimation": [int(step) for step in decimation]}  # fmt: skip
-    if filtered_sign:
-        block.update(filtered_sign=[int(j) + 1 for j in filtered_sign], sign_width=SIGN_WIDTH)
-    return block
+    return {"version": PREPARATION_VERSION, "filter": FILTER, "order": ORDER, "cutoff_hz": cutoff,
+            "grid_rate_hz": SAMPLES_PER_CUTOFF * cutoff, "edge_periods": edge_periods,
+            "edge": edge_text(edge_periods), "decimation": [int(step) for step in decimation]}  # fmt: skip
 
 
 def model_preparation(document: dict) -> Preparation:
@@ -105,9 +89,7 @@ def model_preparation(document: dict) -> Preparation:
     if block is not None:
         cutoff, grid = float(block["cutoff_hz"]), float(block["grid_rate_hz"])
         if int(block.get("version", 1)) >= 2:
-            filtered = tuple(int(j) - 1 for j in block.get("filtered_sign") or ())
-            return Preparation(cutoff, grid, "model file", edge_periods=float(block["edge_periods"]),
-                               filtered_sign=filtered)  # fmt: skip
+            return Preparation(cutoff, grid, "model file", edge_periods=float(block["edge_periods"]))
         note = (f"this model file's preparation is version 1 (identification.preparation), written when identify "
                 f"trimmed one filter period at each end; it is judged with one period, as before. {fix}")  # fmt: skip
         return Preparation(cutoff, grid, "model file", note=note, edge_periods=LEGACY_EDGE_PERIODS)

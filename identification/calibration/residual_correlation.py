@@ -25,8 +25,7 @@ def correlation_time(model, recording, x, options, inertia_joints, extra=None, m
             - np.concatenate(
                 [model.regressor(recording.q[sl], recording.qd[sl], recording.qdd[sl]),
                  drive_columns(recording.qd[sl], recording.qdd[sl], options.friction, inertia_joints,
-                               options.coulomb_velocity, stribeck, options.viscous_exponent,
-                               None if recording.sign is None else recording.sign[sl]),
+                               options.coulomb_velocity, stribeck, options.viscous_exponent),
                  *([] if extra is None else [extra.columns(recording.q[sl], recording.qd[sl], recording.qdd[sl])])],
                 axis=2,
             ) @ x

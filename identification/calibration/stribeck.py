@@ -94,8 +94,7 @@ def stribeck_equations(rows, prepared, terms, inertia_joints, coulomb_velocity, 
     for chunks, r, extra in zip(rows, prepared, extras):
         for k, per_joint in zip(range(0, r.n_samples, CHUNK_SAMPLES), chunks):
             q, qd, qdd = (x[k : k + CHUNK_SAMPLES] for x in (r.q, r.qd, r.qdd))
-            sign = None if r.sign is None else r.sign[k : k + CHUNK_SAMPLES]  # the filtered form (``filtered_sign``)
-            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs, extra.viscous_exponent, sign)
+            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, vs, extra.viscous_exponent)
             more = extra.columns(q, qd, qdd)
             start = per_joint.shape[2] - drive.shape[2] - more.shape[2]
             per_joint[:, :, start : start + drive.shape[2]] = drive.transpose(1, 0, 2)

@@ -26,7 +26,6 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from identification.calibration.filtered_sign import coulomb_sign, filtered_sign
 from identification.data.excitation_check import check_joint_motion
 from identification.data.filter_choice import EDGE_PERIODS, choose_filter, edge_samples, kept_samples
 from identification.data.plausibility import check_plausible_recording, check_torque_magnitude
@@ -50,13 +49,12 @@ CHUNK_SAMPLES = 4000
 
 
 def prepare_recording(
-    recording: Recording, kt=None, cutoff_hz: float | None = None, edge_periods: float = EDGE_PERIODS, filtered=()
+    recording: Recording, kt=None, cutoff_hz: float | None = None, edge_periods: float = EDGE_PERIODS
 ) -> tuple[Recording, float, int]:
     """Filter q and the joint torque alike, differentiate, trim ``edge_periods`` filter periods at each end, decimate.
 
     Returns the prepared recording (``tau`` is the joint torque, ``kt * current`` when only currents
-    were recorded), the cutoff [Hz] and the decimation step used. On the joints of ``filtered`` (0-based) the
-    recording's ``sign`` is the filtered sign of the raw velocity (``filtered_sign``; NaN on the others, None without).
+    were recorded), the cutoff [Hz] and the decimation step used.
     """
     rec = recording if recording.is_uniform(1e-6) else resample_uniform(recording)
     rate = 1.0 / rec.dt
@@ -66,11 +64,7 @@ def prepare_recording(
     # one joint at a time, only its kept samples stored: the full-rate filtered signals and derivatives are one
     # column long (an hour at 1 kHz is not held four times over); the values are those of the whole arrays
     kept = {name: np.empty((len(range(*keep.indices(rec.n_samples))), rec.n_dof)) for name in ("q", "qd", "qdd", "tau")}
-    if filtered:
-        kept["sign"] = np.full_like(kept["q"], np.nan)
     for j in range(rec.n_dof):
-        if j in filtered:
-            kept["sign"][:, j] = filtered_sign(rec.t, rec.q[:, j], rate, cutoff)[keep]
         q = zero_phase_filter(rec.q[:, j], rate, cutoff)
         kept["tau"][:, j] = zero_phase_filter(rec.joint_torque(kt, j), rate, cutoff)[keep]
         qd, qdd = central_difference(rec.t, q)
@@ -86,16 +80,14 @@ def prepare_recording(
 
 
 def prepare_recordings(
-    robot, recordings, kt=None, cutoff_hz: float | None = None, edge_periods=EDGE_PERIODS, torque_constants=None,
-    filtered=(),
-) -> tuple:  # fmt: skip
+    robot, recordings, kt=None, cutoff_hz: float | None = None, edge_periods=EDGE_PERIODS, torque_constants=None
+) -> tuple:
     """(cutoffs, decimation steps, prepared recordings): each recording checked against ``robot``, then prepared
     (``prepare_recording``).
 
     ``torque_constants`` (n_dof,): what makes a prepared current the joint torque for the torque-scale check where
     ``kt`` leaves it in amperes (the fleet's ``kt = 1``: it refits the robot file's kt and passes those); by default
-    the prepared torque is the joint torque already (``kt`` times the current, or the recorded torque). ``filtered``:
-    the joints whose Coulomb column is the filtered sign (``prepare_recording``).
+    the prepared torque is the joint torque already (``kt`` times the current, or the recorded torque).
 
     Raises
     ------
@@ -111,7 +103,7 @@ def prepare_recordings(
         check_plausible_recording(rec, robot)
         check_joint_motion(rec, range(robot.n_dof), robot=robot, purpose="identification from exciting trajectories",
                            fix=MOTION_FIX)  # fmt: skip
-        ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz, edge_periods, tuple(filtered))
+        ready, cutoff, step = prepare_recording(rec, kt, cutoff_hz, edge_periods)
         check_torque_magnitude(ready, robot, currents=rec.tau is None, torque_constants=torque_constants)
         cutoffs.append(cutoff)
         steps.append(step)
@@ -154,7 +146,7 @@ def _symbolic_width(coulomb_velocity, symbolic: bool):
     return coulomb_velocity
 
 
-def friction_term(term: str, qd, coulomb_velocity, stribeck_velocity=None, viscous_exponent=None, sign=None):
+def friction_term(term: str, qd, coulomb_velocity, stribeck_velocity=None, viscous_exponent=None):
     """The column of one friction term at velocities ``qd`` (numbers, arrays or CasADi expressions alike).
 
     ``coulomb_velocity`` [rad/s]: a number, or one per joint along the last axis of ``qd`` (a CasADi column: along it).
@@ -165,15 +157,11 @@ def friction_term(term: str, qd, coulomb_velocity, stribeck_velocity=None, visco
     ``fs`` the column ``g s``. A joint whose ``vs`` is 0 has no Stribeck hump (``g = 0``: the Coulomb-viscous
     shape, its ``fs`` column zero), so one model holds joints of both shapes (``column_choice`` chooses per joint).
     The one definition the fit (:func:`drive_columns`), the calibrated model's ``predict`` and the exported code
-    (``codegen.calibrated``) share. ``sign`` (numpy, as ``qd``): the filtered sign of a prepared recording, in place
-    of ``s`` where it is a number (``filtered_sign.coulomb_sign``).
+    (``codegen.calibrated``) share.
     """
     if term in ("fc", "fs"):
         symbolic = _is_symbolic(qd, stribeck_velocity)
-        if symbolic:
-            sign = ca.tanh(qd / _symbolic_width(coulomb_velocity, symbolic))
-        else:
-            sign = coulomb_sign(qd, coulomb_velocity, sign)
+        sign = (ca.tanh if symbolic else np.tanh)(qd / _symbolic_width(coulomb_velocity, symbolic))
         if stribeck_velocity is None:
             if term == "fs":
                 raise ParameterError("friction_term: the term 'fs' needs stribeck_velocity [rad/s]; got None.")
@@ -248,15 +236,14 @@ def stribeck_derivative(qd, coulomb_velocity, stribeck_velocity):
 
 
 def drive_columns(
-    qd, qdd, terms: tuple, inertia_joints, coulomb_velocity, stribeck_velocity=None, viscous_exponent=None, sign=None
+    qd, qdd, terms: tuple, inertia_joints, coulomb_velocity, stribeck_velocity=None, viscous_exponent=None
 ):
     """Drive columns (n_samples, n_dof, k): per joint its friction terms, then the listed drive inertias.
 
     The Coulomb column is the smooth sign ``tanh(qd / coulomb_velocity)`` (a width [rad/s] for every joint, or one
     per joint, ``coulomb_width``); with ``stribeck_velocity``
     (n_dof,) [rad/s] the Coulomb and static columns are the Stribeck shape's, with ``viscous_exponent`` (n_dof,) the
-    viscous column the power law (:func:`friction_term`); with ``sign`` (as ``qd``, NaN on the other joints) the
-    Coulomb column is the filtered sign where it is a number (``filtered_sign``).
+    viscous column the power law (:func:`friction_term`).
     """
     n_samples, n_dof = qd.shape
     per_joint = [term for term in terms if term != "Ia"]
@@ -264,7 +251,7 @@ def drive_columns(
     out = np.zeros((n_samples, n_dof, k))
     vs = None if stribeck_velocity is None or "fs" not in terms else np.asarray(stribeck_velocity, dtype=float)
     for c, term in enumerate(per_joint):
-        column = friction_term(term, qd, coulomb_velocity, vs, viscous_exponent, sign)
+        column = friction_term(term, qd, coulomb_velocity, vs, viscous_exponent)
         out[:, range(n_dof), [j * len(per_joint) + c for j in range(n_dof)]] = column
     for c, j in enumerate(inertia_joints):
         out[:, j, len(per_joint) * n_dof + c] = qdd[:, j]
@@ -339,8 +326,7 @@ class NormalEquations:
         for start in range(0, recording.n_samples, CHUNK_SAMPLES):
             sl = slice(start, start + CHUNK_SAMPLES)
             q, qd, qdd = recording.q[sl], recording.qd[sl], recording.qdd[sl]
-            sign = None if recording.sign is None else recording.sign[sl]  # the filtered form (``filtered_sign``)
-            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, stribeck, viscous, sign)
+            drive = drive_columns(qd, qdd, terms, inertia_joints, coulomb_velocity, stribeck, viscous)
             blocks = [model.regressor(q, qd, qdd), drive]
             if extra is not None:
                 blocks.append(extra.columns(q, qd, qdd))

@@ -87,7 +87,7 @@ __all__ = ["IPOPT_OPTIONS", "TrajectoryFit", "TrajectoryOptions", "drive_inertia
            "predict_torque", "torque_constants"]  # fmt: skip
 
 logger = logging.getLogger(__name__)
-JOINT_OPTIONS = ("offset_joints", "inertia_joints", "stribeck_joints", "held_links", "rotors_apart", "filtered_sign")
+JOINT_OPTIONS = ("offset_joints", "inertia_joints", "stribeck_joints", "held_links", "rotors_apart")
 
 
 @dataclass(frozen=True)
@@ -158,8 +158,6 @@ class TrajectoryOptions:
         With ``"fs"``: the Stribeck velocities [rad/s] per joint held, not searched (0: a Coulomb-viscous joint); a
         refit of a model file with a diagnosis's findings keeps the file's shape, as the diagnosis judged them against
         it (``applied_model``). None: searched (``stribeck``).
-    filtered_sign : tuple of int
-        Joints (0-based) whose Coulomb column is the filtered raw sign (``filtered_sign``; ``column_choice`` decides).
     rotors_apart : tuple of int
         Joints (0-based) whose drive inertia, merged into the base parameters and held to the same actuator's on other
         joints by default (``merged_rotors.sibling_rotors``), is taken from the training data instead
@@ -190,7 +188,6 @@ class TrajectoryOptions:
     baseline_friction: tuple = ()
     stribeck_held: tuple | None = None
     rotors_apart: tuple = ()
-    filtered_sign: tuple = ()
 
     def __post_init__(self):
         for name in JOINT_OPTIONS:
@@ -247,8 +244,8 @@ class TrajectoryFit:
         Over the links of ``standard`` (positive when consistent).
     stribeck_velocity, stribeck_velocity_std : tuple
         [rad/s] Per joint, for the Stribeck shape (``"fs"`` in ``friction_terms``); empty otherwise.
-    viscous_exponent, filtered_sign : tuple
-        As ``TrajectoryOptions``' (``viscous_exponent`` empty: every joint linear).
+    viscous_exponent : tuple
+        As ``TrajectoryOptions``' (empty: every joint linear).
     training_r2, training_r2_ols : tuple
         Per joint, R^2 of the identified model (and of the least-squares estimate) on the recordings it was fitted to.
     torque_ratio : tuple
@@ -308,7 +305,6 @@ class TrajectoryFit:
     covariance: np.ndarray | None = None
     loaded: tuple = ()
     joint_samples: tuple = ()
-    filtered_sign: tuple = ()
 
     @property
     def relative_sigma_percent(self) -> np.ndarray:
@@ -319,12 +315,11 @@ class TrajectoryFit:
             return 100.0 * s / np.abs(x)
 
 
-def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False, sign=None) -> np.ndarray:
-    """Joint torques [N m] of the model (or its least squares), (n_samples, n_dof); ``sign``: ``Recording.sign``."""
+def predict_torque(model, fit: TrajectoryFit, q, qd, qdd, *, ols: bool = False) -> np.ndarray:
+    """Joint torques [N m] of the identified model (or of its least-squares estimate), (n_samples, n_dof)."""
     theta, drive = (fit.theta_ols, fit.drive_ols) if ols else (fit.theta, fit.drive)
     q, qd, qdd = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (q, qd, qdd))
-    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit),
-                            sign)  # fmt: skip
+    columns = drive_columns(qd, qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *fit_shape(fit))
     return model.inverse_dynamics(q, qd, qdd, theta) + columns @ drive
 
 
@@ -441,7 +436,6 @@ def identify_trajectories(
         envelope_bounds=bounds_note(options, bounds) + (merged.note() + bounds.prior.note() if merged else ()) + kept
         + floor_note(robot, standard, bounds),
         torque_ratio=torque_ratio(robot, model, equations, x_ols), covariance=stated[:n_fit, :n_fit], loaded=(*loaded,),
-        filtered_sign=tuple(options.filtered_sign),
     )  # fmt: skip
     return held_friction.with_held_values(replace(fit, warnings=(*fit_warnings(robot, fit, loaded), *mixed)), options)
 
@@ -449,8 +443,7 @@ def identify_trajectories(
 def _prepared(robot, recordings, kt, options, configurations, extra=None) -> tuple:
     """(cutoffs, decimation steps, prepared recordings) of the fit: known payloads, held friction and the findings
     ``extra`` holds (``FindingColumns.held``) taken off."""
-    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods,
-                                                  filtered=options.filtered_sign)  # fmt: skip
+    cutoffs, steps, prepared = prepare_recordings(robot, recordings, kt, options.cutoff_hz, options.edge_periods)
     prepared = held_friction.subtract_held_friction(subtract_known_payloads(robot, prepared, configurations), options)
     return cutoffs, steps, prepared if extra is None else extra.without_held(prepared)
 

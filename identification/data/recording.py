@@ -60,9 +60,6 @@ class Recording:
     temperature : array, shape (n_samples, n_dof), optional
         Each joint's logged temperature [°C] (``data.temperature``): a controller logs it slowly, so NaN between
         its readings (or throughout, for a joint it does not log) is kept; only an infinite value is refused.
-    sign : array, shape (n_samples, n_dof), optional
-        Set by the identification's preparation only (``trajectory_data.prepare_recording``): on the joints whose
-        Coulomb column is filtered like the torque, that column (``calibration.filtered_sign``); NaN on the others.
 
     Raises
     ------
@@ -92,7 +89,6 @@ class Recording:
     name: str = ""
     missing_torque: tuple = ()
     temperature: np.ndarray | None = None
-    sign: np.ndarray | None = None
 
     def __post_init__(self):
         where = f" ({self.name})" if self.name else ""
@@ -285,7 +281,6 @@ class Recording:
             name=self.name,
             missing_torque=self.missing_torque,
             temperature=pick(self.temperature),
-            sign=pick(self.sign),
         )
 
     def split(self, fraction: float = 0.85, n_blocks: int = 1) -> tuple[Recording, Recording]:

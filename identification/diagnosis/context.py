@@ -121,9 +121,6 @@ class DiagnosisContext:
     segments : tuple of int
         Where each recording after the first starts in the full-rate arrays of a context pooling several
         (``pooled_context``; empty: one recording): each is filtered on its own (``lowpass_full``).
-    coulomb_sign : array (n_samples, n_dof) or None
-        A model file's Coulomb column on the joints its preparation filters like the torque (``filtered_sign``: the
-        raw recording's velocity sign, filtered), NaN on the others; None: none (``file_friction.FileFriction``).
     """
 
     t: np.ndarray
@@ -159,7 +156,6 @@ class DiagnosisContext:
     held_offsets: tuple = ()
     coulomb_velocity: float | tuple = SMOOTH_VELOCITY
     segments: tuple = ()
-    coulomb_sign: np.ndarray | None = None
 
     @property
     def tau_fit(self) -> np.ndarray:

@@ -320,10 +320,7 @@ def _context(robot, model, recording, options: DiagnosisOptions, kt) -> Diagnosi
                         filtered_friction=False if _file_signs(options) else None)  # fmt: skip
     held = options.held_friction.torque(ctx.qd, ctx.qdd) if options.held_friction.values else None
     offsets = tuple(options.held_friction.offset_of(j) for j in range(ctx.n_dof)) if held is not None else ()
-    own = options.file_friction
-    sign = None if own is None else own.coulomb_sign(raw, recording, ctx.keep, options.cutoff_hz)
-    return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held, held_offsets=offsets,
-                   coulomb_sign=sign)  # fmt: skip
+    return replace(ctx, coulomb_velocity=options.coulomb_velocity, tau_held=held, held_offsets=offsets)
 
 
 def _file_signs(options) -> bool:

@@ -35,9 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from identification.calibration.coulomb_width import widths_text
-from identification.calibration.filtered_sign import filtered_sign
 from identification.calibration.mixed_friction import file_lugre_joints
-from identification.calibration.model_preparation import model_preparation
 from identification.calibration.trajectory_data import friction_shapes, friction_term
 from identification.diagnosis.candidates.friction import lacking_friction_shapes
 
@@ -60,15 +58,13 @@ class FileFriction:
     """A model file's friction per joint: ``shapes`` (``"coulomb-viscous"``, ``"stribeck"``, ``"lugre"``), the Coulomb
     smoothing ``coulomb_velocity`` [rad/s] per joint (``coulomb_width``), the Stribeck velocity per joint
     ``stribeck_velocity`` [rad/s] (0: none), the viscous exponent per joint ``viscous_exponent`` (1: linear) and the
-    LuGre parameters per joint ``lugre`` (``LuGreParameters``; None on a steady-state joint); ``filtered_sign``: the
-    joints (0-based) whose Coulomb column the file's preparation filters like the torque (``filtered_sign``)."""
+    LuGre parameters per joint ``lugre`` (``LuGreParameters``; None on a steady-state joint)."""
 
     shapes: tuple
     coulomb_velocity: tuple
     stribeck_velocity: tuple
     viscous_exponent: tuple
     lugre: tuple
-    filtered_sign: tuple = ()
 
     @classmethod
     def of_model(cls, calibrated) -> FileFriction:
@@ -82,19 +78,7 @@ class FileFriction:
         return cls(shapes=shapes, coulomb_velocity=tuple(calibrated.coulomb_widths.tolist()),
                    stribeck_velocity=tuple(vs[j] if shapes[j] == "stribeck" else 0.0 for j in range(n)),
                    viscous_exponent=tuple(float(v) for v in (drive.get("viscous_exponent") or [1.0] * n)),
-                   lugre=tuple(lugre), filtered_sign=model_preparation(calibrated.document).filtered_sign)  # fmt: skip
-
-    def coulomb_sign(self, raw, recording, keep, cutoff) -> np.ndarray | None:
-        """The Coulomb column on the file's filtered joints at the samples ``keep`` of the preprocessed ``recording``
-        (NaN on the others; ``DiagnosisContext.coulomb_sign``): the raw recording's velocity sign filtered at the
-        ``cutoff`` [Hz], as ``psdm validate`` prepares it (not the preprocessed velocity's: that is filtered already).
-        None for a file without such joints, or without the raw recording on the same samples (not preprocessed)."""
-        if not self.filtered_sign or raw is None or cutoff is None or raw.n_samples != recording.n_samples:
-            return None
-        out = np.full((len(keep), len(self.shapes)), np.nan)
-        for j in self.filtered_sign:
-            out[:, j] = filtered_sign(raw.t, raw.q[:, j], 1.0 / raw.dt, cutoff)[keep]
-        return out
+                   lugre=tuple(lugre))  # fmt: skip
 
     @property
     def kind(self) -> str:
@@ -110,14 +94,13 @@ class FileFriction:
         """The joints (0-based) of the file's LuGre friction."""
         return tuple(j for j, p in enumerate(self.lugre) if p is not None)
 
-    def columns(self, qd: np.ndarray, lugre: np.ndarray | None = None, joints=None, sign=None) -> np.ndarray:
+    def columns(self, qd: np.ndarray, lugre: np.ndarray | None = None, joints=None) -> np.ndarray:
         """The file's friction columns (n_samples, n_dof, p) at the velocities ``qd`` (n_samples, n_dof), in the layout
         of ``nominal.friction_blocks`` for ``kind`` (joint-major ``fc``, for ``"stribeck"`` and ``"lugre"`` the hump
         ``fs - fc``, ``fv``; for ``"lugre"`` then one bristle-dynamics column per joint): on each steady-state joint of
         ``joints`` (default all) the sign ``tanh(qd / coulomb_velocity)``, the hump ``exp(-(qd / vs)^2)`` times it
         (zero without a Stribeck velocity) and the file's viscous column; a LuGre joint's are those of ``lugre`` (the
-        diagnosis's ``"lugre"`` columns, same layout; module docstring); zero elsewhere. ``sign`` (n_samples, n_dof):
-        the Coulomb column on the file's filtered joints (``coulomb_sign``), in place of ``tanh`` where a number."""
+        diagnosis's ``"lugre"`` columns, same layout; module docstring); zero elsewhere."""
         qd = np.asarray(qd, dtype=float)
         n_samples, n = qd.shape
         k = 2 if self.kind == "coulomb_viscous" else 3
@@ -129,7 +112,7 @@ class FileFriction:
                 ]
                 continue
             v, dv = self.coulomb_velocity[j], self.viscous_exponent[j]
-            out[:, j, j * k] = friction_term("fc", qd[:, j], v, sign=None if sign is None else sign[:, j])
+            out[:, j, j * k] = friction_term("fc", qd[:, j], v)
             out[:, j, j * k + k - 1] = friction_term("fv", qd[:, j], v, None, None if dv == 1.0 else dv)
             if k == 3 and self.stribeck_velocity[j] > 0:
                 out[:, j, j * k + 1] = friction_term("fs", qd[:, j], v, self.stribeck_velocity[j])

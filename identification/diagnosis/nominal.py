@@ -144,8 +144,7 @@ def friction_blocks(robot, kind: str, context, held: tuple = (), own=None) -> Bl
     n = robot.n_dof
     if own is not None:
         lugre = friction_blocks(robot, kind, context, held).dense() if own.lugre_joints else None
-        return BlockColumns.from_dense(own.columns(context.qd, lugre, [j for j in range(n) if j not in held],
-                                                   context.coulomb_sign))  # fmt: skip
+        return BlockColumns.from_dense(own.columns(context.qd, lugre, [j for j in range(n) if j not in held]))
     vs, dv = friction_shapes(robot)
     dynamic = kind == "lugre" and robot.drives is not None
     if not context.filtered_friction:  # the sign smoothed as the model file predicts it (``coulomb_velocity``)

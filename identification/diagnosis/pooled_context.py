@@ -24,7 +24,7 @@ __all__ = ["pooled_context"]
 
 #: Fields stacked along the samples: the grid's, then the full-rate ones (``None`` in any recording: ``None``).
 GRID_FIELDS = ("q", "qd", "qdd", "tau", "tau_rate", "tau_accel", "tau_rigid", "dtau_dq", "dtau_dqd", "mass",
-               "regressor", "payload", "tilt", "gravity", "tau_held", "coulomb_sign")  # fmt: skip
+               "regressor", "payload", "tilt", "gravity", "tau_held")  # fmt: skip
 FULL_FIELDS = ("full_tau", "full_qd", "sign_qd", "full_tau_raw")
 
 #: Relative difference of two recordings' sample periods up to which they are pooled as one rate.

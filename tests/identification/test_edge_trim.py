@@ -130,9 +130,7 @@ def _validate(capsys, model, recording) -> tuple:
 def test_a_new_file_stores_three_periods_and_validate_repeats_identify(model_files, capsys):
     folder, summary = model_files
     block = load_calibrated_model(folder / "model.json").document["identification"]["preparation"]
-    # version 3 adds the filtered Coulomb columns (``filtered_sign``): a file without them is written as version 2
-    assert block["version"] == (3 if block.get("filtered_sign") else 2) and PREPARATION_VERSION == 3
-    assert block["edge_periods"] == EDGE_PERIODS == 3
+    assert block["version"] == PREPARATION_VERSION == 2 and block["edge_periods"] == EDGE_PERIODS == 3
     preparation = model_preparation(load_calibrated_model(folder / "model.json").document)
     assert preparation.edge_periods == 3 and preparation.note == "" and "3 filter periods" in preparation.text()
     validated, err = _validate(capsys, folder / "model.json", folder / "valid.csv")
@@ -178,8 +176,7 @@ def test_a_diagnosis_of_an_older_file_keeps_its_trim(model_files):
 @pytest.mark.parametrize(
     ("change", "field"),
     [
-        ({"version": PREPARATION_VERSION + 1}, "identification.preparation.version"),
-        ({"version": 3, "filtered_sign": [0]}, "identification.preparation.filtered_sign"),
+        ({"version": 3}, "identification.preparation.version"),
         ({"edge_periods": -1}, "edge_periods"),
         ({"edge_periods": None}, "edge_periods"),
     ],  # fmt: skip
