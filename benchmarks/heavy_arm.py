@@ -41,7 +41,9 @@ at every angle, taking a seeded 40-90 % of its amplitude, ``counterbalance_share
    ``calibration.gravity_departure``), or identify took it.
    ``payload_taken``: identify took the tool as a payload at the flange (``calibration.payload_route``: where its
    report names a payload and a spring was tried, the payload is preferred to a spring taking the same torque unless
-   the spring is clearly better out of sample), with ``payload_mass_kg`` against the truth's ``payload_mass_true_kg``;
+   the spring is clearly better out of sample), with ``payload_mass_kg`` against the truth's ``payload_mass_true_kg``
+   and its standard deviation ``payload_mass_std_kg`` (``identification.payload.mass_std``: the recording's noise,
+   ``payload_mass_std_noise_kg``, and the robot file's links, whose CAD errors the recording cannot separate from it);
    ``spring_joints`` the joints of the springs written; ``rmse_held_out`` every joint's RMSE on the held-out
    recording (identify never saw it without ``--validate``). ``envelope_respected`` is judged around the robot file
    carrying the payload identify took (the envelope its fit kept).
@@ -339,6 +341,8 @@ def run_case(seed: int, folder: Path, effects=EFFECTS, validate: bool = True) ->
         "rmse_held_out": _held_out(robot, out, val, identified, "rmse"),
         "payload_taken": bool(load.get("kept")),
         "payload_mass_kg": round(load["mass"], 1) if load.get("kept") else None,
+        "payload_mass_std_kg": round(load["mass_std"], 1) if load.get("mass_std") is not None else None,
+        "payload_mass_std_noise_kg": round(load["mass_std_noise"], 1) if load.get("mass_std") is not None else None,
         "payload_mass_true_kg": next((round(float(p["mass"]), 1) for k, _, _, p in truth if k == "payload"), None),
         "spring_joints": spring_joints,
         "payload_reason": load.get("reason", ""),
@@ -387,7 +391,9 @@ def main(argv=None) -> int:
         return 0
     print_table(rows, ["seed", "identify_validate", "counterbalance_share", "envelope_respected",
                        "absorbed_effect_named", "named", "held_named", "counterbalance_stated", "counterbalance_taken",
-                       "payload_named", "payload_taken", "payload_mass_kg", "payload_mass_true_kg", "spring_joints",
+                       "payload_named", "payload_taken", "payload_mass_kg", "payload_mass_std_kg",
+                       "payload_mass_true_kg",
+                       "spring_joints",
                        "link2_mass_kg", "link2_mass_file_kg", "link2_mass_truth_kg", "rmse_j2_identified",
                        "rmse_j2_unconstrained",
                        "diagnose_model_finds_counterbalance", "diagnose_finds_counterbalance",

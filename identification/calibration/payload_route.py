@@ -12,11 +12,14 @@ So where the report names a payload and the counterbalance route tried a spring 
 the same torque), identify also takes the payload route (:func:`take_payload`; where no spring was tried the payload
 stays named, its route suggested, as before):
 
-- the payload is estimated as a point mass at the flange (``payload_fit.FlangeRegressor``, its first four columns)
-  from the torque the robot file's rigid body leaves on the prepared training recordings, the drive columns of the fit
+- the payload is estimated as a point mass at the flange (the last link's mass and first moment columns) from the
+  torque the robot file's rigid body leaves on the prepared training recordings, the drive columns of the fit
   and the springs the counterbalance route kept fitted beside it (weighted by each joint's residual variance, as
   ``payload_check.new_payload``): a balancer the model holds as a spring, not as an offset, is not the body's to
-  explain. It is tried only as a body: a positive mass, its centre of mass within ``MAX_PAYLOAD_REACH`` of the flange;
+  explain. It is tried only as a body: a positive mass, its centre of mass within ``MAX_PAYLOAD_REACH`` of the flange.
+  Its mass is stated with its standard deviation (``payload_weight``): the recording's noise, and the errors of the
+  file's links, which the torque it is fitted on carries too and no motion of the loaded arm separates from the
+  payload's mass (the report says so where they dominate, and that a recording without the tool separates them);
 - the arm is identified again with the robot file's links carrying it (``carried_payload.carrying_payloads``, as
   ``psdm diagnose --apply`` takes a payload up: the pull and the envelope around the file with the load), and the
   counterbalance route runs again from that fit: a spring is kept beside the payload only where it still holds out
@@ -54,7 +57,14 @@ from identification.calibration.counterbalance_folds import FoldFailure, block_f
 from identification.calibration.findings import FindingColumns, FindingTerm
 from identification.calibration.held_back import stored_held_back
 from identification.calibration.never_worse import compare_each, pooled_comparison
-from identification.calibration.payload_fit import FlangeRegressor
+from identification.calibration.payload_weight import (
+    BODY,
+    LinkRegressor,
+    PayloadWeight,
+    link_cross,
+    point_mass_inertia,
+    weigh_payload,
+)
 from identification.calibration.trajectory_data import drive_columns, fit_shape
 from identification.calibration.trial_fits import trial_fit
 from identification.data.torque_constants import recording_kt
@@ -74,7 +84,8 @@ class PayloadChoice:
 
     ``named``: the report of the fit before the counterbalance named one (``payload_named``; also where no spring was
     tried, the route not taken); ``tried``: a body was estimated and judged; ``kept``: it is in the model written
-    (``mass`` [kg], ``com`` [m] in the flange frame); ``replaced``: the spring labels the counterbalance route kept
+    (``mass`` [kg], ``com`` [m] in the flange frame; ``weight`` their standard deviations, ``payload_weight``);
+    ``replaced``: the spring labels the counterbalance route kept
     that the model with the payload does not need; ``rmse_without``/``rmse_with``/``margin``: per joint, the first
     judge's RMSE [N m] of the model without (A) and with (B) the payload, and the noise margin; ``route``: the judges.
     """
@@ -85,6 +96,7 @@ class PayloadChoice:
     reason: str = ""
     mass: float | None = None
     com: tuple = ()
+    weight: PayloadWeight | None = None
     replaced: tuple = ()
     rmse_without: tuple = ()
     rmse_with: tuple = ()
@@ -101,7 +113,8 @@ class PayloadChoice:
 
     def to_dict(self) -> dict:
         return {"named": self.named, "tried": self.tried, "kept": self.kept, "reason": self.reason, "mass": self.mass,
-                "com": list(self.com), "replaced": list(self.replaced), "rmse_without": list(self.rmse_without),
+                "com": list(self.com), **(self.weight.to_dict() if self.weight else {}),
+                "replaced": list(self.replaced), "rmse_without": list(self.rmse_without),
                 "rmse_with": list(self.rmse_with), "margin": list(self.margin), "route": self.route}  # fmt: skip
 
 
@@ -112,41 +125,61 @@ def payload_named(fit) -> bool:
     return any(e.absorbs == "payload" or "payload" in (getattr(e, "alternatives", ()) or ()) for e in entries)
 
 
-def estimate_payload(robot, model, fit, prepared, springs=()) -> tuple | None:
-    """``(mass [kg], centre of mass [m] in the flange frame)`` of the point mass at the flange that best explains the
-    torque the robot file's rigid body leaves on the ``prepared`` recordings, the drive columns of ``fit`` and the
-    counterbalance route's kept ``springs`` (``findings.FindingTerm``) fitted beside it (module docstring), or None
-    where it is no body (mass not positive, centre of mass out of reach).
+def estimate_payload(robot, model, fit, prepared, springs=(), options=None) -> PayloadWeight | None:
+    """The point mass at the flange that best explains the torque the robot file's rigid body leaves on the
+    ``prepared`` recordings, the drive columns of ``fit`` and the counterbalance route's kept ``springs``
+    (``findings.FindingTerm``) fitted beside it (module docstring): its mass [kg] and centre of mass [m] in the flange
+    frame with their standard deviations (``payload_weight.PayloadWeight``: the recording's noise and the file's links
+    as ``options``' pull towards the file states them; default ``TrajectoryOptions()``), or None where it is no body
+    (mass not positive, centre of mass out of reach).
 
     Every torque the model already names has its own columns beside the body, so the body takes only what it explains:
     a balancer the fit took as a spring (not as an offset) is otherwise left to the body at the flange, which has no
     column for one joint's torque alone (the heavy virtual arm at seed 1 without an offset: a mass not positive)."""
+    from identification.calibration.trajectory_fit import TrajectoryOptions
     from identification.physical_bounds import MAX_PAYLOAD_REACH
 
-    theta = model.base_parameters(robot.nominal_dynamic_parameters())
-    flange = FlangeRegressor(robot)
+    prior = robot.nominal_dynamic_parameters()
+    theta = model.base_parameters(prior)
+    regressor = LinkRegressor(robot)
     shape = fit_shape(fit)  # Stribeck velocities and viscous exponents
     named = FindingColumns(tuple(springs))
-    rows, targets = [], []
+    rows, targets, inertia, cross = [], [], [], 0.0
     for rec in prepared:
         own = drive_columns(rec.qd, rec.qdd, fit.friction_terms, fit.inertia_joints, fit.coulomb_velocity, *shape)
         beside = named.all_columns(np.asarray(rec.q, dtype=float), rec.qd, rec.qdd)
-        rows.append(np.concatenate([flange(rec.q, rec.qd, rec.qdd)[:, :, :4], own, beside], axis=2))
+        links = regressor(rec.q, rec.qd, rec.qdd)
+        rows.append(np.concatenate([links[:, :, -(BODY + 1) : -(BODY + 1) + 4], own, beside], axis=2))  # flange m, h
+        inertia.append(links[:, :, -(BODY + 1) + 4 : -1])  # the last link's inertia about its origin
+        cross = cross + link_cross(rows[-1], links)
         targets.append(np.asarray(rec.tau, dtype=float) - model.inverse_dynamics(rec.q, rec.qd, rec.qdd, theta))
     columns, residual = np.concatenate(rows), np.concatenate(targets)
+    residual, weights = _point_mass_fit(columns, residual, np.concatenate(inertia))
+    found = weigh_payload(columns, residual, weights, cross, prior, options or TrajectoryOptions(), fit.inertia_joints)
+    if not found.mass > 0.0:
+        return None
+    return found if np.linalg.norm(found.com) <= MAX_PAYLOAD_REACH else None
+
+
+def _point_mass_fit(columns, residual, inertia) -> tuple:
+    """``(residual without the point mass's own inertia, per-joint weights)`` of the least squares whose first four
+    ``columns`` are a body's mass and first moment: the body is a point mass at its centre of mass, so its inertia about
+    the flange (``inertia``: the last link's six inertia columns) is ``m (|c|^2 1 - c c^T)``, taken with the estimate
+    (a fixed point, a few rounds). Without it the body had no inertia about the flange however far its centre of mass
+    (no body has that), and the first moment and mass took its accelerations' torque (the heavy virtual arm's centre of
+    mass came out too far, its mass too low: docs/results/benchmarks.md). The weights are unweighted, then each joint's
+    inverse variance of what that fit leaves (``payload_check.new_payload``); NaN joints weigh 0."""
     measured = np.all(np.isfinite(residual), axis=0)
     residual = np.where(measured, residual, 0.0)
-    weights = measured.astype(float)
-    for _ in range(2):  # unweighted, then each joint by the variance of what the first fit leaves
+    weights, x, own = measured.astype(float), np.zeros(columns.shape[2]), np.zeros(6)
+    for round_ in range(4):
+        target = residual - inertia @ own
         gram = np.einsum("n,snc,snd->cd", weights, columns, columns)
-        x = np.linalg.lstsq(gram, np.einsum("n,snc,sn->c", weights, columns, residual), rcond=None)[0]
-        left = (residual - columns @ x).var(axis=0)
-        weights = np.where(measured, 1.0 / np.maximum(left, 1e-300), 0.0)
-    mass = float(x[0])
-    if not mass > 0.0:
-        return None
-    com = x[1:4] / mass
-    return (mass, tuple(float(v) for v in com)) if np.linalg.norm(com) <= MAX_PAYLOAD_REACH else None
+        x = np.linalg.lstsq(gram, np.einsum("n,snc,sn->c", weights, columns, target), rcond=None)[0]
+        if round_ == 0:
+            weights = np.where(measured, 1.0 / np.maximum((target - columns @ x).var(axis=0), 1e-300), 0.0)
+        own = point_mass_inertia(x[0], x[1:4])
+    return residual - inertia @ own, weights
 
 
 def payload_entry(mass: float, com) -> dict:
@@ -164,16 +197,16 @@ def _springs(document) -> list:
 
 
 def _carried_model(robot, model, options, build, entries, data, fit, beside=()) -> tuple | None:
-    """``(CalibratedModel, (mass, com), carried robot, fit or None)`` of ``data``: the payload estimated on them
+    """``(CalibratedModel, PayloadWeight, carried robot, fit or None)`` of ``data``: the payload estimated on them
     (``fit``'s drive columns and the springs of the entries ``beside`` beside it), the arm identified carrying it with
     the springs ``entries`` (the fit itself where there are none); None where no body is estimated."""
     from identification.calibration.column_candidates import prepare_training
 
     terms = [FindingTerm.from_dict(entry["term"]) for entry in beside]
-    found = estimate_payload(robot, model, fit, prepare_training(robot, list(data), options).prepared, terms)
+    found = estimate_payload(robot, model, fit, prepare_training(robot, list(data), options).prepared, terms, options)
     if found is None:
         return None
-    entry = payload_entry(*found)
+    entry = payload_entry(found.mass, found.com)
     carried = carrying_payloads(robot, model, [entry])
     plain = None
     if entries:
@@ -260,7 +293,8 @@ def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
     if found is None:
         return (*unchanged, PayloadChoice(True, reason="not tried: the torque the robot file leaves gives no body at "
                                           "the flange (a mass that is not positive, or out of reach)"))  # fmt: skip
-    plain, (mass, com), carried, carried_fit = found
+    plain, weight, carried, carried_fit = found
+    mass, com = weight.mass, weight.com
 
     def build_carried(result):
         out = build(result)
@@ -277,9 +311,9 @@ def _take(problem, start, taken, calibrated, validation, saved, skip) -> tuple:
         opinions = _opinions(robot, model, options, build, a_doc, b_doc, (recordings, validation, configurations, kt),
                              start)  # fmt: skip
     except (PSDMError, FoldFailure) as error:
-        return (*unchanged, PayloadChoice(True, True, reason=f"not judged: {str(error).splitlines()[0]}", mass=mass,
-                                          com=com))  # fmt: skip
-    return _decide(opinions, (mass, com), replaced, (carried_fit, choice, b_doc), unchanged, robot.n_dof)
+        return (*unchanged, PayloadChoice(True, True, reason=f"not judged: {str(error).splitlines()[0]}; "
+                                          f"{weight.sentence()}", mass=mass, com=com, weight=weight))  # fmt: skip
+    return _decide(opinions, weight, replaced, (carried_fit, choice, b_doc), unchanged, robot.n_dof)
 
 
 def payload_wins(comparisons, replaces_springs: bool) -> bool:
@@ -297,7 +331,7 @@ def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
     """The module docstring's rule on the judges' ``opinions`` (A -> B), with the report's sentence."""
     from identification.calibration.calibrated_model import CalibratedModel
 
-    mass, com = body
+    mass, com = body.mass, body.com
     carried_fit, choice, b_doc = chosen
     route = " and ".join(name for name, _ in opinions)
     first = opinions[0][1]
@@ -310,6 +344,7 @@ def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
     numbers = dict(
         mass=mass,
         com=com,
+        weight=body,
         replaced=replaced,
         rmse_without=tuple(map(float, first.before)),
         rmse_with=tuple(map(float, first.after)),
@@ -322,7 +357,7 @@ def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
                 "beyond the noise margin") if replaced else (f"{what} identified with the model: it lowers "
                 f"{', '.join(f'joint {j + 1}' for j in sorted(set.intersection(*lower_b)) or sorted(lower_b[0]))} "
                 "beyond the noise margin on every judge, no joint worse")  # fmt: skip
-        reason = f"{lead} (RMSE on the {route}, without -> with the payload: {pair})"
+        reason = f"{lead} (RMSE on the {route}, without -> with the payload: {pair}); its {body.sentence()}"
         calibrated = CalibratedModel(b_doc)
         fit = choice.fit if choice.kept else carried_fit
         payload = PayloadChoice(True, True, True, reason, **numbers)
@@ -334,4 +369,5 @@ def _decide(opinions, body, replaced, chosen, unchanged, n_dof) -> tuple:
     else:
         reason = (f"{what} tried and not kept: it does not lower any joint beyond the noise margin on every judge, or "
                   f"makes one worse (RMSE on the {route}, without -> with: {pair})")  # fmt: skip
+    reason = f"{reason}; its {body.sentence()}"
     return (*unchanged, PayloadChoice(True, True, False, reason, **numbers))

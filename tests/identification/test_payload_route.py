@@ -104,12 +104,12 @@ def test_the_payload_is_estimated_from_the_torque_the_robot_file_leaves(denso, d
     options = TrajectoryOptions()
     recording = rigid_recording(denso, [TOOL])
     fit = identify_trajectories(denso, denso_model, [recording], options)
-    mass, com = estimate_payload(denso, denso_model, fit, prepare_training(denso, [recording], options).prepared)
-    assert mass == pytest.approx(4.0, rel=0.05) and np.allclose(com, (0.0, 0.0, 0.1), atol=0.01), (mass, com)
+    found = estimate_payload(denso, denso_model, fit, prepare_training(denso, [recording], options).prepared)
+    assert found.mass == pytest.approx(4.0, rel=0.05) and np.allclose(found.com, (0.0, 0.0, 0.1), atol=0.01), found
     bare = rigid_recording(denso, [])
     fit = identify_trajectories(denso, denso_model, [bare], options)
     found = estimate_payload(denso, denso_model, fit, prepare_training(denso, [bare], options).prepared)
-    assert found is None or found[0] < 0.05 * 4.0, found
+    assert found is None or found.mass < 0.05 * 4.0, found
 
 
 def test_a_spring_the_model_holds_is_fitted_beside_the_payload_not_left_to_it(denso, denso_model):
@@ -126,9 +126,9 @@ def test_a_spring_the_model_holds_is_fitted_beside_the_payload_not_left_to_it(de
     fit = identify_trajectories(denso, denso_model, [recording], options)
     prepared = prepare_training(denso, [recording], options).prepared
     alone = estimate_payload(denso, denso_model, fit, prepared)
-    assert alone is None or abs(alone[0] - TOOL.mass) > MASS_RTOL * TOOL.mass, alone  # 11.8 kg: the rule can fail
-    mass, com = estimate_payload(denso, denso_model, fit, prepared, [FindingTerm("spring", 1)])
-    assert mass == pytest.approx(TOOL.mass, rel=0.05) and np.allclose(com, TOOL.com, atol=0.01), (mass, com)
+    assert alone is None or abs(alone.mass - TOOL.mass) > MASS_RTOL * TOOL.mass, alone  # 11.8 kg: the rule can fail
+    found = estimate_payload(denso, denso_model, fit, prepared, [FindingTerm("spring", 1)])
+    assert found.mass == pytest.approx(TOOL.mass, rel=0.05) and np.allclose(found.com, TOOL.com, atol=0.01), found
 
 
 def test_the_wrist_spring_is_named_on_its_joint_by_the_fit(denso, denso_model):
